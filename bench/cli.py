@@ -1,0 +1,47 @@
+"""The `bench` command (CONTRACT §1). Each subcommand lives in its own module."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="bench",
+        description="Attest rotary rate tables: run YAML procedures on real instruments "
+                    "or on their simulated twins, and issue a certificate.")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    run = sub.add_parser("run", help="run a procedure; prints the run directory last")
+    run.add_argument("procedure", nargs="?", help="procedure YAML file")
+    run.add_argument("--sim", action="store_true", help="run every instrument as its twin")
+    run.add_argument("--out", default="runs", help="folder for the run directory (runs/)")
+    run.add_argument("--yes", action="store_true", help="answer operator prompts with yes")
+    run.add_argument("--resume", metavar="RUN_DIR", help="continue an interrupted run")
+    val = sub.add_parser("validate", help="check procedure and stand files; exit 2 on problems")
+    val.add_argument("procedure")
+    plan = sub.add_parser("plan", help="print the steps and the estimated bench time")
+    plan.add_argument("procedure")
+    ana = sub.add_parser("analyze", help="recompute result.json and certificate from raw data")
+    ana.add_argument("run_dir")
+    dev = sub.add_parser("devices", help="open each instrument, print its identity")
+    dev.add_argument("stand")
+    dev.add_argument("--sim", action="store_true", help="open the twins instead")
+    dec = sub.add_parser("decode", help="decode a raw FOG capture")
+    dec.add_argument("raw_file")
+    dec.add_argument("--format", required=True, dest="fmt", help="frame format, e.g. kvh-a")
+    dec.add_argument("--csv", help="write the samples to this CSV file")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.command == "decode":
+        from bench.decode import decode_command
+        return decode_command(args.raw_file, args.fmt, args.csv)
+    from bench import commands
+    return commands.dispatch(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Instrument drivers: the same code talks to real instruments and to their twins."""

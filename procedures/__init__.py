@@ -1,0 +1,1 @@
+"""Measurement procedures the engine runs (rate ladder, drift pulse)."""

@@ -1,0 +1,1 @@
+"""Simulated twins of the bench's instruments, all sampling one simulated stand."""

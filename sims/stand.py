@@ -1,0 +1,378 @@
+"""The simulated stand: the one truth every twin samples.
+
+One `AxisModel` per table axis integrates the axis's angle and rate on the FOG's sample
+grid, for whatever rate profile the drive twin commands, with the error sources of the
+stand file's `sim:` block (CONTRACT §2): rate bias, harmonics in angle, a mains tone in
+time, table rate noise, zero-mark edge jitter, and the FOG's response
+`k * w_true + w0 + drift + noise`.
+
+The model is advanced in chunks (`advance_to`), so twins can sample it on the virtual
+clock as it runs, and the same code generates an 18 M-sample record in one call. Chunks
+are vectorised: the angle equation dphi/dt = w(phi, t) is solved on the sample grid by a
+short fixed-point iteration over the cumulative trapezoid (the harmonic term is small,
+so each pass shrinks the angle error by a factor ~ 2*pi*amplitude_rel).
+
+Conventions: phi is the unwrapped table angle in its positive sense, deg, 0 at the zero
+mark; a zero mark is seen whenever phi crosses a multiple of 360 deg, in either sense.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from sims.clock import VirtualClock
+
+SECONDS_PER_HOUR = 3600.0
+
+
+@dataclass(frozen=True)
+class Harmonic:
+    """w_true - w_set = w_set * amplitude_rel * cos(order * phi + phase) (CONTRACT §2)."""
+
+    order: int
+    amplitude_rel: float
+    phase_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class Mains:
+    """A tone in time: amplitude_dps * cos(2 pi f t + phase), while the axis turns."""
+
+    frequency_hz: float = 50.0
+    amplitude_dps: float = 0.0
+    phase_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class FogTruth:
+    """The FOG's true response: k * w_true + w0 + drift * t + white noise (CONTRACT §2)."""
+
+    scale: float = 1.0
+    bias_dps: float = 0.0
+    misalignment_deg: float = 0.0
+    noise_dps: float = 0.0
+    bias_drift_dps_per_h: float = 0.0
+
+    @property
+    def k(self) -> float:
+        """METHOD.md A3: k = M cos(g)."""
+        return self.scale * math.cos(math.radians(self.misalignment_deg))
+
+    @property
+    def w0_dps(self) -> float:
+        return self.bias_dps
+
+    def bias_at(self, t_s: np.ndarray | float) -> np.ndarray | float:
+        """Bias including its linear drift from the start of the run, deg/s."""
+        return self.bias_dps + self.bias_drift_dps_per_h * np.asarray(t_s) / SECONDS_PER_HOUR
+
+
+@dataclass(frozen=True)
+class AxisTruth:
+    """Everything the `sim:` block says about one axis."""
+
+    rate_bias_rel: float = 0.0
+    harmonics: tuple[Harmonic, ...] = ()
+    mains: Mains | None = None
+    rate_noise_dps: float = 0.0
+    turn_jitter_s: float = 0.0
+    fog: FogTruth = field(default_factory=FogTruth)
+
+    @classmethod
+    def from_mapping(cls, d: Mapping[str, Any]) -> AxisTruth:
+        """Build from a validated `sim.axes.<axis>` mapping of the stand file."""
+        mains = d.get("mains")
+        return cls(
+            rate_bias_rel=float(d.get("rate_bias_rel", 0.0)),
+            harmonics=tuple(Harmonic(**h) for h in d.get("harmonics", ())),
+            mains=Mains(**mains) if mains else None,
+            rate_noise_dps=float(d.get("rate_noise_dps", 0.0)),
+            turn_jitter_s=float(d.get("turn_jitter_s", 0.0)),
+            fog=FogTruth(**d.get("fog", {})),
+        )
+
+    def shape_rel(self, phi_deg: np.ndarray) -> np.ndarray:
+        """Relative deviation of the rate from w_set at angle phi: bias + harmonics."""
+        out = np.full(np.shape(phi_deg), self.rate_bias_rel, dtype=float)
+        phi_rad = np.radians(phi_deg)
+        for h in self.harmonics:
+            out += h.amplitude_rel * np.cos(h.order * phi_rad + math.radians(h.phase_deg))
+        return out
+
+
+@dataclass(frozen=True)
+class Segment:
+    """From t0_s the commanded rate ramps from w0_dps toward target_dps at accel_dps2."""
+
+    t0_s: float
+    w0_dps: float
+    target_dps: float
+    accel_dps2: float
+
+    @property
+    def t_end_s(self) -> float:
+        if self.accel_dps2 <= 0 or math.isinf(self.accel_dps2):
+            return self.t0_s
+        return self.t0_s + abs(self.target_dps - self.w0_dps) / self.accel_dps2
+
+    def rate(self, t_s: np.ndarray) -> np.ndarray:
+        if self.t_end_s <= self.t0_s:
+            return np.full(np.shape(t_s), self.target_dps)
+        step = math.copysign(self.accel_dps2, self.target_dps - self.w0_dps)
+        return self.w0_dps + step * (np.minimum(t_s, self.t_end_s) - self.t0_s)
+
+
+class RateProfile:
+    """The commanded rate over time: piecewise constant-acceleration segments.
+
+    A new command starts from the rate the profile has at its time, so a reversal
+    mid-ramp is continuous, as a drive's profile generator makes it.
+    """
+
+    def __init__(self) -> None:
+        self.segments: list[Segment] = [Segment(-math.inf, 0.0, 0.0, math.inf)]
+
+    def command(self, t_s: float, target_dps: float, accel_dps2: float) -> Segment:
+        if accel_dps2 <= 0:
+            raise ValueError(f"acceleration must be > 0, got {accel_dps2}")
+        # a command replaces anything scheduled after it
+        self.segments = [s for s in self.segments if s.t0_s <= t_s]
+        w_now = float(self.rate(np.array([t_s]))[0])
+        seg = Segment(t_s, w_now, float(target_dps), float(accel_dps2))
+        self.segments.append(seg)
+        return seg
+
+    def rate(self, t_s: np.ndarray) -> np.ndarray:
+        t_s = np.asarray(t_s, dtype=float)
+        starts = np.array([s.t0_s for s in self.segments])
+        which = np.searchsorted(starts, t_s, side="right") - 1
+        out = np.empty_like(t_s)
+        for i in np.unique(which):
+            mask = which == i
+            out[mask] = self.segments[i].rate(t_s[mask])
+        return out
+
+    def settle_time_s(self) -> float:
+        """When the last command reaches its target."""
+        return self.segments[-1].t_end_s
+
+    @property
+    def target_dps(self) -> float:
+        return self.segments[-1].target_dps
+
+
+@dataclass(frozen=True)
+class AxisChunk:
+    """Samples n0 .. n0+len-1 of one axis on the FOG grid (t = n / rate_hz)."""
+
+    n0: int
+    t_s: np.ndarray
+    rate_cmd_dps: np.ndarray
+    w_true_dps: np.ndarray
+    phi_deg: np.ndarray
+    fog_dps: np.ndarray
+
+
+@dataclass(frozen=True)
+class ZeroMarks:
+    """Zero-mark crossings: true times, times as the slot sensor's edge shows them, sense."""
+
+    t_true_s: np.ndarray
+    t_edge_s: np.ndarray
+    sense: np.ndarray  # +1 crossing upward (positive rotation), -1 downward
+
+
+ChunkListener = Callable[[AxisChunk], None]
+
+_FIXED_POINT_PASSES = 3
+
+
+class AxisModel:
+    """One table axis and the FOG mounted on it, advanced on the FOG's sample grid."""
+
+    def __init__(self, truth: AxisTruth, rate_hz: float, seed: int | np.random.SeedSequence,
+                 name: str = "axis") -> None:
+        self.name = name
+        self.truth = truth
+        self.rate_hz = float(rate_hz)
+        if truth.mains and truth.mains.amplitude_dps and truth.mains.frequency_hz * 2 >= rate_hz:
+            raise ValueError(f"{name}: FOG rate {rate_hz} Hz cannot carry the "
+                             f"{truth.mains.frequency_hz} Hz mains tone (Nyquist)")
+        ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        table_ss, fog_ss, edge_ss = ss.spawn(3)
+        # separate streams: draws of one error source never shift another's
+        self._rng_table = np.random.default_rng(table_ss)
+        self._rng_fog = np.random.default_rng(fog_ss)
+        self._rng_edge = np.random.default_rng(edge_ss)
+        self.profile = RateProfile()
+        self.listeners: list[ChunkListener] = []
+        self._n_next = 0  # next grid sample to generate
+        self._phi_last = 0.0
+        self._w_last = 0.0
+        self._marks_true: list[np.ndarray] = []
+        self._marks_edge: list[np.ndarray] = []
+        self._marks_sense: list[np.ndarray] = []
+        self.lock = threading.RLock()
+
+    # -- time and state -------------------------------------------------------------
+    @property
+    def t_s(self) -> float:
+        """Time of the last generated sample."""
+        return (self._n_next - 1) / self.rate_hz
+
+    @property
+    def samples_generated(self) -> int:
+        return self._n_next
+
+    @property
+    def angle_deg(self) -> float:
+        return self._phi_last
+
+    @property
+    def rate_dps(self) -> float:
+        return self._w_last
+
+    def command_rate(self, t_s: float, target_dps: float, accel_dps2: float) -> Segment:
+        """The drive's profile generator: ramp to target from time t_s."""
+        with self.lock:
+            self.advance_to(t_s)
+            return self.profile.command(max(t_s, self.t_s), target_dps, accel_dps2)
+
+    def commanded_rate_at(self, t_s: float) -> float:
+        return float(self.profile.rate(np.array([t_s]))[0])
+
+    # -- generation -----------------------------------------------------------------
+    def advance_to(self, t_s: float, max_chunk: int = 2_000_000) -> None:
+        """Generate every grid sample with time <= t_s, in chunks, telling listeners."""
+        with self.lock:
+            n_end = math.floor(t_s * self.rate_hz + 1e-9) + 1
+            while self._n_next < n_end:
+                n = min(n_end - self._n_next, max_chunk)
+                chunk = self._generate(self._n_next, n)
+                for listener in list(self.listeners):
+                    listener(chunk)
+
+    def _rate(self, t_s: np.ndarray, w_cmd: np.ndarray, phi_deg: np.ndarray,
+              noise_dps: np.ndarray) -> np.ndarray:
+        w = w_cmd * (1.0 + self.truth.shape_rel(phi_deg))
+        m = self.truth.mains
+        if m and m.amplitude_dps:
+            tone = m.amplitude_dps * np.cos(2 * np.pi * m.frequency_hz * t_s
+                                            + math.radians(m.phase_deg))
+            w += np.where(w_cmd != 0.0, tone, 0.0)
+        return w + noise_dps
+
+    def _generate(self, n0: int, n: int) -> AxisChunk:
+        idx = np.arange(n0, n0 + n, dtype=np.int64)
+        t = idx / self.rate_hz
+        w_cmd = self.profile.rate(t)
+        turning = w_cmd != 0.0
+        noise = np.zeros(n)
+        if self.truth.rate_noise_dps:
+            noise = self._rng_table.standard_normal(n) * self.truth.rate_noise_dps
+            noise[~turning] = 0.0
+        dt = 1.0 / self.rate_hz
+        # fixed point of phi = phi_last + cumtrapz(w(phi, t)); first guess ignores harmonics
+        phi = self._phi_last + np.cumsum(w_cmd) * dt
+        for _ in range(_FIXED_POINT_PASSES):
+            w = self._rate(t, w_cmd, phi, noise)
+            prev = np.concatenate(([self._w_last], w[:-1]))
+            phi = self._phi_last + np.cumsum(0.5 * (prev + w)) * dt
+        if n0 == 0:  # the first sample is the origin, not a step from it
+            phi -= 0.5 * (self._w_last + w[0]) * dt
+        self._record_marks(t, phi)
+        fog = self.truth.fog
+        fog_dps = fog.k * w + fog.bias_at(t)
+        if fog.noise_dps:
+            fog_dps += self._rng_fog.standard_normal(n) * fog.noise_dps
+        self._n_next = n0 + n
+        self._phi_last = float(phi[-1])
+        self._w_last = float(w[-1])
+        return AxisChunk(n0, t, w_cmd, w, phi, fog_dps)
+
+    def _record_marks(self, t: np.ndarray, phi: np.ndarray) -> None:
+        dt = 1.0 / self.rate_hz
+        t_all = np.concatenate(([t[0] - dt], t))
+        phi_all = np.concatenate(([self._phi_last], phi))
+        turn = np.floor(phi_all / 360.0)
+        step = np.diff(turn)
+        where = np.nonzero(step)[0]
+        if self._n_next == 0:
+            where = where[where > 0]
+        if where.size == 0:
+            return
+        # one crossing per step (a step of several turns per sample is impossible here)
+        sense = np.sign(step[where])
+        mark_phi = np.where(sense > 0, turn[where + 1], turn[where]) * 360.0
+        frac = (mark_phi - phi_all[where]) / (phi_all[where + 1] - phi_all[where])
+        t_true = t_all[where] + frac * dt
+        jitter = self.truth.turn_jitter_s
+        t_edge = t_true + (self._rng_edge.standard_normal(t_true.size) * jitter if jitter
+                           else 0.0)
+        self._marks_true.append(t_true)
+        self._marks_edge.append(np.asarray(t_edge, dtype=float))
+        self._marks_sense.append(sense.astype(np.int8))
+
+    def zero_marks(self, t_from_s: float = -math.inf, t_to_s: float = math.inf) -> ZeroMarks:
+        """Zero marks whose edge time lies in [t_from_s, t_to_s), from what is generated."""
+        with self.lock:
+            if not self._marks_true:
+                empty = np.empty(0)
+                return ZeroMarks(empty, empty, np.empty(0, dtype=np.int8))
+            tt = np.concatenate(self._marks_true)
+            te = np.concatenate(self._marks_edge)
+            ss = np.concatenate(self._marks_sense)
+            self._marks_true, self._marks_edge, self._marks_sense = [tt], [te], [ss]
+        keep = (te >= t_from_s) & (te < t_to_s)
+        return ZeroMarks(tt[keep], te[keep], ss[keep])
+
+
+@dataclass(frozen=True)
+class StandTruth:
+    """The whole `sim:` block."""
+
+    seed: int
+    axes: dict[str, AxisTruth]
+    clock_speed: float = 100.0
+
+    @classmethod
+    def from_mapping(cls, d: Mapping[str, Any]) -> StandTruth:
+        return cls(
+            seed=int(d.get("seed", 0)),
+            axes={name: AxisTruth.from_mapping(a or {}) for name, a in d.get("axes", {}).items()},
+            clock_speed=float(d.get("clock_speed", 100.0)),
+        )
+
+
+class SimulatedStand:
+    """The simulated table: its axes and the one virtual clock all twins read."""
+
+    def __init__(self, truth: StandTruth, fog_rate_hz: Mapping[str, float],
+                 clock: VirtualClock | None = None) -> None:
+        self.truth = truth
+        self.clock = clock or VirtualClock(truth.clock_speed)
+        seeds = np.random.SeedSequence(truth.seed).spawn(len(truth.axes))
+        self.axes: dict[str, AxisModel] = {
+            name: AxisModel(axis, fog_rate_hz.get(name, 1000.0), s, name=name)
+            for (name, axis), s in zip(sorted(truth.axes.items()), seeds, strict=True)
+        }
+
+    def axis(self, name: str) -> AxisModel:
+        try:
+            return self.axes[name]
+        except KeyError:
+            raise KeyError(f"the simulated stand has no axis {name!r} "
+                           f"(it has {', '.join(self.axes)})") from None
+
+    def advance(self) -> float:
+        """Bring every axis up to the clock's now; returns that time."""
+        t = self.clock.now()
+        for a in self.axes.values():
+            a.advance_to(t)
+        return t
