@@ -1,0 +1,194 @@
+"""The `bench` subcommands: validate, plan, run (and --resume), analyze, devices.
+
+Exit status (CONTRACT §1): 0 completed and every check passed; 1 completed and some
+check failed; 2 the input is invalid (nothing was moved); 3 aborted by a fault or by the
+operator (the axes were stopped, the data kept, `--resume` works).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from bench.clock import MonotonicClock
+from bench.config import Config, ConfigError, load_config
+from bench.engine import Abort, Engine, Progress, RunContext, SignalGuard
+from bench.journal import RunDir
+from bench.plan import format_duration
+
+EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
+
+
+def _err(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def _load(procedure: str, stand: str | Path | None = None) -> Config | None:
+    try:
+        return load_config(procedure, stand)
+    except ConfigError as e:
+        _err(f"{len(e.problems)} problem(s); nothing was started:")
+        for p in e.problems:
+            _err(f"  {p}")
+        return None
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    cfg = _load(args.procedure)
+    if cfg is None:
+        return EXIT_INVALID
+    print(f"{cfg.procedure_path}: valid {cfg.kind} procedure; stand {cfg.stand_path}: valid")
+    return EXIT_PASS
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    from procedures import procedure_kind
+
+    cfg = _load(args.procedure)
+    if cfg is None:
+        return EXIT_INVALID
+    plan = procedure_kind(cfg.kind).build_plan(cfg)
+    print("\n".join(plan.lines()))
+    return EXIT_PASS
+
+
+def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> dict[str, Any]:
+    from procedures import procedure_kind
+
+    result = procedure_kind(cfg.kind).analyze(run, cfg)
+    run.write_json("result.json", result)
+    try:
+        from bench.certificate import write_certificate
+    except ImportError:
+        return result
+    for path in write_certificate(run, result):
+        progress.line(f"wrote {path}")
+    return result
+
+
+def _summary(result: dict[str, Any]) -> list[str]:
+    from bench.summary import summary_lines
+
+    return summary_lines(result)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from procedures import procedure_kind
+
+    progress = Progress()
+    if args.resume:
+        try:
+            run = RunDir(args.resume)
+        except FileNotFoundError as e:
+            _err(str(e))
+            return EXIT_INVALID
+        cfg = _load(str(run.procedure_file), run.stand_file)
+    else:
+        if not args.procedure:
+            _err("bench run: give a PROCEDURE.yaml, or --resume RUN_DIR")
+            return EXIT_INVALID
+        cfg = _load(args.procedure)
+        run = None
+    if cfg is None:
+        return EXIT_INVALID
+    kind = procedure_kind(cfg.kind)
+    plan = kind.build_plan(cfg)
+    if run is None:
+        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path)
+    done = run.completed_units()
+    todo = plan.remaining(done)
+    sim = None
+    stand = cfg.stand
+    status = EXIT_ABORTED
+    with SignalGuard(progress.line) as guard:
+        bench = None
+        try:
+            if args.sim or cfg.has_sim:
+                progress.line("Starting the simulated bench (twins on real channels)...")
+                sim, stand = kind.start_sim(cfg)
+                clock: Any = sim.clock
+            else:
+                clock = MonotonicClock()
+            run.begin_session(clock.now)
+            run.event("session_start", resume=bool(args.resume), sim=sim is not None,
+                      done_units=done, clock_speed=clock.speed, argv=sys.argv[1:])
+            bench = kind.open_bench(cfg, stand, clock, run)
+            for ax in bench.axes.values():
+                run.event("identity", axis=ax.name, **ax.identities)
+            if sim is not None:
+                sim.start_clock()
+            progress.line(f"Run directory: {run.path}")
+            if done:
+                progress.line(f"Resuming: {len(done)} unit(s) already done: {', '.join(done)}")
+            progress.line(f"{len(todo.steps)} steps, estimated bench time "
+                          f"{format_duration(todo.total_s)}")
+            ctx = RunContext(cfg, clock, bench, run, progress, yes=args.yes)
+            t0 = time.monotonic()
+            Engine(ctx, kind.execute).run(todo, guard)
+            run.event("completed", wall_s=time.monotonic() - t0)
+            status = EXIT_PASS
+        except Abort as e:
+            _err(f"Aborted: {e}")
+            status = EXIT_ABORTED
+        except Exception as e:  # noqa: BLE001 - opening failed before the engine ran
+            _err(f"Aborted while setting up the bench: {e}")
+            if bench is not None:
+                bench.safe_stop(progress.line)
+            if run._events is not None:
+                run.event("abort", reason=str(e), error=type(e).__name__)
+            status = EXIT_ABORTED
+        finally:
+            guard.stopping = True
+            if bench is not None:
+                bench.close()
+            if sim is not None:
+                sim.stop()
+        try:
+            result = _write_outputs(run, cfg, progress)
+        except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
+            _err(f"analysis failed: {e!r}; the raw data is in {run.path}; "
+                 f"fix and run `bench analyze {run.path}`")
+            result = None
+        if result is not None:
+            print("\n".join(_summary(result)))
+            if status == EXIT_PASS and result.get("verdict") == "fail":
+                status = EXIT_FAIL
+            if status == EXIT_PASS and result.get("verdict") == "incomplete":
+                status = EXIT_ABORTED
+        if status == EXIT_ABORTED:
+            print(f"The run was aborted; the axes were stopped. Continue with: "
+                  f"bench run --resume {run.path}")
+        if run._events is not None:
+            run.event("exit", status=status)
+        run.close()
+    print(run.path)
+    return status
+
+
+def cmd_analyze(args: argparse.Namespace) -> int:
+    try:
+        run = RunDir(args.run_dir)
+    except FileNotFoundError as e:
+        _err(str(e))
+        return EXIT_INVALID
+    cfg = _load(str(run.procedure_file), run.stand_file)
+    if cfg is None:
+        return EXIT_INVALID
+    result = _write_outputs(run, cfg, Progress())
+    print("\n".join(_summary(result)))
+    print(run.path / "result.json")
+    return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(result.get("verdict"), EXIT_ABORTED)
+
+
+def cmd_devices(args: argparse.Namespace) -> int:
+    from bench.devices import list_devices
+
+    return list_devices(args.stand, sim=args.sim)
+
+
+def dispatch(args: argparse.Namespace) -> int:
+    return {"validate": cmd_validate, "plan": cmd_plan, "run": cmd_run,
+            "analyze": cmd_analyze, "devices": cmd_devices}[args.command](args)

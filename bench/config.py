@@ -1,0 +1,189 @@
+"""Procedure and stand files: load, validate, cross-check (CONTRACT §2).
+
+`load_config` returns a `Config` or raises `ConfigError` carrying every problem found,
+each naming file, line and key path. Nothing moves before this has passed.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from bench.schema import Any_, Bool, Key, ListOf, Map, MapOf, Num, Str, validate
+from bench.yamlfile import Problem, YamlDoc, YamlError, load_yaml
+
+# -- stand file ---------------------------------------------------------------------
+
+DRIVE = Map({
+    "interface": Key(Str(), True, "python-can interface: socketcan, pcan, kvaser, virtual..."),
+    "channel": Key(Str(), True, "python-can channel, e.g. can0"),
+    "node_id": Key(Num(min=1, max=127, integer=True), True),
+    "bitrate": Key(Num(min=10_000, max=1_000_000, integer=True)),
+    "max_rate_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), True),
+    "max_accel_dps2": Key(Num(min=0, exclusive_min=True, unit="deg/s^2"), True),
+    "counts_per_rev": Key(Num(min=1, integer=True)),
+    "heartbeat_ms": Key(Num(min=10, max=10_000, integer=True)),
+    "settle_tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
+    "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg")),
+    "eds": Key(Str()),
+})
+COUNTER = Map({
+    "resource": Key(Str(), True, "VISA resource string"),
+    "model": Key(Str(), True, "counter profile"),
+    "channel": Key(Num(min=1, max=4, integer=True)),
+    "level_v": Key(Num(unit="V")),
+    "slope": Key(Str(("POS", "NEG"))),
+    "coupling": Key(Str(("DC", "AC"))),
+    "impedance_ohm": Key(Num(min=0, exclusive_min=True)),
+    "trigger_jitter_s": Key(Num(min=0, unit="s")),
+    "timeout_margin_s": Key(Num(min=0, exclusive_min=True, unit="s")),
+})
+FOG = Map({
+    "port": Key(Str(), True, "serial port, e.g. /dev/ttyUSB0"),
+    "baudrate": Key(Num(min=1200, integer=True)),
+    "format": Key(Str(), False, "frame format, e.g. kvh-a"),
+    "axis": Key(Str(("x", "y", "z"))),
+    "rate_hz": Key(Num(min=0, exclusive_min=True, unit="Hz"), True),
+    "range_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
+    "units": Key(Str()),
+    "model": Key(Str()),
+    "sign": Key(Num(min=-1, max=1, integer=True)),
+})
+STAND_AXIS_KEYS: dict[str, Key] = {
+    "drive": Key(DRIVE, True), "counter": Key(COUNTER), "fog": Key(FOG),
+}
+HARMONIC = Map({
+    "order": Key(Num(min=1, integer=True), True),
+    "amplitude_rel": Key(Num(min=0), True),
+    "phase_deg": Key(Num()),
+})
+SIM_FOG = Map({k: Key(Num()) for k in ("scale", "bias_dps", "misalignment_deg",
+                                        "noise_dps", "bias_drift_dps_per_h")})
+SIM_AXIS = Map({
+    "rate_bias_rel": Key(Num()),
+    "harmonics": Key(ListOf(HARMONIC)),
+    "mains": Key(Map({"frequency_hz": Key(Num(min=0, exclusive_min=True)),
+                      "amplitude_dps": Key(Num(min=0)), "phase_deg": Key(Num())})),
+    "rate_noise_dps": Key(Num(min=0)),
+    "turn_jitter_s": Key(Num(min=0)),
+    "fog": Key(SIM_FOG),
+})
+SIM_KEYS: dict[str, Key] = {
+    "seed": Key(Num(min=0, integer=True)),
+    "clock_speed": Key(Num(min=0, exclusive_min=True), False, "virtual seconds per real one"),
+    "axes": Key(MapOf(SIM_AXIS)),
+}
+IDENTITY = Map({"maker": Key(Str(), True), "model": Key(Str(), True),
+                "serial": Key(Str(), True), "location": Key(Str())})
+
+
+def stand_schema(extra_top: dict[str, Key] | None = None,
+                 extra_axis: dict[str, Key] | None = None,
+                 extra_sim: dict[str, Key] | None = None) -> Map:
+    """The stand file's schema; a procedure kind may add instruments of its own."""
+    return Map({
+        "stand": Key(IDENTITY, True),
+        "axes": Key(MapOf(Map({**STAND_AXIS_KEYS, **(extra_axis or {})})), True),
+        "sim": Key(Map({**SIM_KEYS, **(extra_sim or {})})),
+        **(extra_top or {}),
+    })
+
+
+# -- procedure file: the keys every procedure kind shares ------------------------------
+
+COMMON_PROCEDURE_KEYS: dict[str, Key] = {
+    "procedure": Key(Str(), True),
+    "title": Key(Str()),
+    "stand": Key(Str(), True, "stand file, relative to this file"),
+    "conditions": Key(MapOf(Any_()), False, "recorded conditions, printed on the certificate"),
+    "certificate": Key(MapOf(Any_()), False, "customer, laboratory, ... for the certificate"),
+    "decision_rule": Key(Str(("simple", "guard-band"))),
+    "prompts": Key(Bool()),
+}
+
+
+@dataclass(frozen=True)
+class Config:
+    """A validated procedure with its stand."""
+
+    procedure_path: Path
+    stand_path: Path
+    procedure: dict[str, Any]
+    stand: dict[str, Any]
+    procedure_doc: YamlDoc
+    stand_doc: YamlDoc
+
+    @property
+    def kind(self) -> str:
+        return self.procedure["procedure"]
+
+    @property
+    def has_sim(self) -> bool:
+        return "sim" in self.stand
+
+    def stand_axis(self, name: str) -> dict[str, Any]:
+        return self.stand["axes"][name]
+
+
+class ConfigError(Exception):
+    """Every problem found in a procedure and its stand file."""
+
+    def __init__(self, problems: list[Problem]) -> None:
+        self.problems = problems
+        super().__init__("\n".join(str(p) for p in problems))
+
+
+def load_config(procedure_path: str | Path, stand_path: str | Path | None = None) -> Config:
+    """Load, validate and cross-check a procedure and its stand; ConfigError lists all."""
+    from procedures import procedure_kind, procedure_names
+
+    problems: list[Problem] = []
+    try:
+        pdoc = load_yaml(procedure_path)
+    except YamlError as e:
+        raise ConfigError([e.problem]) from None
+    if not isinstance(pdoc.data, dict):
+        raise ConfigError([pdoc.problem((), "expected a mapping (procedure: ..., stand: ...)")])
+    name = pdoc.data.get("procedure")
+    if name not in procedure_names():
+        raise ConfigError([pdoc.problem(("procedure",), f"expected one of "
+                                        f"{', '.join(procedure_names())}, got {name!r}")])
+    kind = procedure_kind(name)
+    problems += validate(pdoc, kind.procedure_schema())
+    sdoc: YamlDoc | None = None
+    stand_ref = stand_path or pdoc.data.get("stand")
+    if isinstance(stand_ref, str):
+        spath = Path(stand_ref)
+        if stand_path is None and not spath.is_absolute():
+            spath = Path(os.path.normpath(Path(procedure_path).parent / spath))
+        try:
+            sdoc = load_yaml(spath)
+        except YamlError as e:
+            if e.problem.key == "(file)":
+                problems.append(pdoc.problem(("stand",), f"stand file {spath}: "
+                                             f"{e.problem.message}"))
+            else:
+                problems.append(e.problem)
+        else:
+            problems += validate(sdoc, kind.stand_schema())
+    if problems or sdoc is None:
+        raise ConfigError(problems)
+    cfg = Config(Path(procedure_path), sdoc.path, pdoc.data, sdoc.data, pdoc, sdoc)
+    problems += kind.cross_check(cfg)
+    if problems:
+        raise ConfigError(problems)
+    return cfg
+
+
+def check_axis_names(cfg: Config, axes_key: str = "axes") -> list[Problem]:
+    """Every axis a procedure names must exist in its stand file."""
+    out = []
+    for axis in cfg.procedure.get(axes_key, {}):
+        if axis not in cfg.stand["axes"]:
+            out.append(cfg.procedure_doc.problem(
+                (axes_key, axis), f"the stand file {cfg.stand_path} has no axis {axis!r} "
+                f"(it has {', '.join(cfg.stand['axes'])})"))
+    return out
+

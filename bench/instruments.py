@@ -1,0 +1,137 @@
+"""Open a stand's instruments from its stand file: the same code for hardware and twins.
+
+The drivers do not know whether they talk to a real drive, counter and FOG or to their
+twins: the simulated bench only rewrites the stand's addresses (resource strings, the
+serial port, the CAN channel) before this module opens them.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bench.clock import Clock
+from bench.journal import JsonLines, RunDir
+
+DEFAULT_COUNTS_PER_REV = 1 << 20
+DEFAULT_FOG_RANGE_DPS = 490.0  # KVH DSP-1760's range; a stand file may say otherwise
+
+
+@dataclass
+class AxisInstruments:
+    """One table axis: its drive, and the counter and FOG that watch it."""
+
+    name: str
+    drive: Any
+    counter: Any | None = None
+    fog: Any | None = None
+    identities: dict[str, str] = field(default_factory=dict)
+
+
+class Bench:
+    """All instruments of a run; `safe_stop` ramps every axis to zero and disables it."""
+
+    def __init__(self) -> None:
+        self.axes: dict[str, AxisInstruments] = {}
+        self.extra: dict[str, Any] = {}
+        self._stack = contextlib.ExitStack()
+        self._logs: list[JsonLines] = []
+
+    def enter(self, cm: Any) -> Any:
+        return self._stack.enter_context(cm)
+
+    def callback(self, fn: Callable[[], Any]) -> None:
+        self._stack.callback(fn)
+
+    def log(self, path: Path) -> JsonLines:
+        j = JsonLines(path)
+        self._logs.append(j)
+        return j
+
+    def safe_stop(self, log: Callable[[str], None]) -> None:
+        errors = []
+        for ax in self.axes.values():
+            drive = ax.drive
+            try:
+                drive.stop()
+                log(f"  {ax.name}: ramped to zero")
+            except Exception as e:  # noqa: BLE001 - try the harder stops
+                log(f"  {ax.name}: ramp to zero failed ({e}); quick stop")
+                try:
+                    drive.quick_stop()
+                except Exception as e2:  # noqa: BLE001
+                    errors.append(f"{ax.name}: {e2}")
+            try:
+                drive.disable()
+                log(f"  {ax.name}: disabled")
+            except Exception as e:  # noqa: BLE001
+                errors.append(f"{ax.name}: disable failed: {e}")
+        if errors:
+            raise RuntimeError("; ".join(errors))
+
+    def close(self) -> None:
+        try:
+            self._stack.close()
+        finally:
+            for j in self._logs:
+                j.close()
+
+
+def _raw_text_logger(log: JsonLines, clock: Clock) -> Callable[[str, bytes], None]:
+    def raw(direction: str, data: bytes) -> None:
+        log.write({"t_s": clock.now(), "dir": direction, "data": data.decode("latin-1")})
+    return raw
+
+
+def _raw_record_logger(log: JsonLines, clock: Clock) -> Callable[[str, dict], None]:
+    def raw(kind: str, record: dict) -> None:
+        log.write({"t_s": clock.now(), "kind": kind, **record})
+    return raw
+
+
+def open_axis(bench: Bench, name: str, axis_cfg: dict[str, Any], clock: Clock,
+              run: RunDir | None, *, counter: bool = True, fog: bool = True) -> AxisInstruments:
+    """Open one axis's instruments (drive first, so a failure later still stops it)."""
+    from drivers.axis import Axis
+
+    d = axis_cfg["drive"]
+    drive_log = bench.log(run.raw_path(f"{name}-drive.jsonl")) if run else None
+    drive = Axis(name, interface=d["interface"], channel=d["channel"], node_id=d["node_id"],
+                 max_rate_dps=d["max_rate_dps"], max_accel_dps2=d["max_accel_dps2"],
+                 clock=clock, counts_per_rev=d.get("counts_per_rev", DEFAULT_COUNTS_PER_REV),
+                 **({"heartbeat_ms": d["heartbeat_ms"]} if "heartbeat_ms" in d else {}),
+                 **({"eds_path": d["eds"]} if "eds" in d else {}),
+                 raw=_raw_record_logger(drive_log, clock) if drive_log else None)
+    bench.enter(drive)
+    ax = AxisInstruments(name, drive)
+    bench.axes[name] = ax
+    ax.identities["drive"] = drive.identity()
+    c = axis_cfg.get("counter")
+    if counter and c:
+        from drivers.counter import Counter
+
+        clog = bench.log(run.raw_path(f"{name}-counter.jsonl")) if run else None
+        cnt = Counter.open(c["resource"], c["model"], clock,
+                           raw=_raw_text_logger(clog, clock) if clog else None,
+                           **({"timeout_margin_s": c["timeout_margin_s"]}
+                              if "timeout_margin_s" in c else {}))
+        bench.enter(cnt)
+        cnt.configure(**{k: c[k] for k in ("channel", "level_v", "slope", "coupling",
+                                           "impedance_ohm") if k in c})
+        ax.counter = cnt
+        ax.identities["counter"] = cnt.identify()
+    f = axis_cfg.get("fog")
+    if fog and f:
+        from drivers.fog import Fog
+
+        fg = Fog(f["port"], baudrate=f.get("baudrate", 921600), fmt=f.get("format", "kvh-a"),
+                 axis=f.get("axis", "z"), rate_hz=f["rate_hz"],
+                 units=f.get("units", "deg/s"),
+                 raw_path=run.raw_path(f"{name}-fog.bin") if run else None, clock=clock)
+        bench.enter(fg)
+        ax.fog = fg
+        ax.identities["fog"] = fg.identity()
+    return ax

@@ -1,0 +1,80 @@
+"""A plan: the procedure as steps you can print, limit-check and time with no hardware.
+
+The engine executes exactly these steps; `bench plan` prints them. Each step belongs to
+a unit (a static record, a +/- rate pair); a unit is the grain of `--resume`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+
+@dataclass(frozen=True)
+class Step:
+    """One thing the bench does. `estimate_s` is bench time on a real table."""
+
+    action: str  # prompt, static, enable, set_rate, settle, acquire, analyse, stop, ...
+    axis: str | None
+    describe: str
+    estimate_s: float = 0.0
+    unit: str | None = None  # completing the unit's last step completes the unit
+    params: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def key(self) -> str:
+        return f"{self.unit or self.axis or '-'}:{self.action}:{self.describe}"
+
+
+def format_duration(seconds: float) -> str:
+    s = int(round(seconds))
+    h, rem = divmod(s, 3600)
+    m, s = divmod(rem, 60)
+    if h:
+        return f"{h} h {m:02d} min"
+    if m:
+        return f"{m} min {s:02d} s"
+    return f"{s} s"
+
+
+@dataclass(frozen=True)
+class Plan:
+    title: str
+    steps: tuple[Step, ...]
+
+    @property
+    def total_s(self) -> float:
+        return sum(s.estimate_s for s in self.steps)
+
+    def units(self) -> list[str]:
+        seen: list[str] = []
+        for s in self.steps:
+            if s.unit and s.unit not in seen:
+                seen.append(s.unit)
+        return seen
+
+    def remaining(self, done_units: Iterable[str]) -> Plan:
+        """The steps still to run when `done_units` are complete (for --resume).
+
+        Per-axis setup steps (prompt, enable, stop) are kept for any axis with work left.
+        """
+        done = set(done_units)
+        axes_left = {s.axis for s in self.steps if s.unit and s.unit not in done}
+        keep = [s for s in self.steps
+                if (s.unit not in done if s.unit else s.axis in axes_left or s.axis is None)]
+        return Plan(self.title, tuple(keep))
+
+    def lines(self) -> list[str]:
+        out = [f"Plan: {self.title}", "",
+               f"{'#':>{len(str(len(self.steps)))}}  {'starts at':>12}  {'axis':<8} "
+               f"{'action':<9} what"]
+        t = 0.0
+        width = len(str(len(self.steps)))
+        for i, s in enumerate(self.steps, 1):
+            out.append(f"{i:>{width}}  {format_duration(t):>12}  {s.axis or '':<8} "
+                       f"{s.action:<9} {s.describe}")
+            t += s.estimate_s
+        out += ["", f"Estimated bench time: {format_duration(self.total_s)} "
+                    f"({self.total_s:.0f} s) for {len(self.steps)} steps"]
+        return out

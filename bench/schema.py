@@ -1,0 +1,197 @@
+"""Schemas for the bench's YAML files, declared as data.
+
+A schema node checks one value and reports every problem it finds (not just the
+first) as a `Problem` naming file, line and key path. Unknown keys are refused: a
+misspelt `turnz: 50` must not silently fall back to a default on a day-long run.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from bench.yamlfile import KeyPath, Problem, YamlDoc
+
+
+class Node:
+    """A schema for one value."""
+
+    description = "a value"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        raise NotImplementedError
+
+
+def _type_name(value: Any) -> str:
+    if value is None:
+        return "nothing"
+    return {bool: "true/false", int: "an integer", float: "a number", str: "text",
+            list: "a list", dict: "a mapping"}.get(type(value), type(value).__name__)
+
+
+@dataclass(frozen=True)
+class Num(Node):
+    """A real number (int or float) within optional bounds."""
+
+    min: float | None = None
+    max: float | None = None
+    exclusive_min: bool = False
+    integer: bool = False
+    unit: str = ""
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        kind = "an integer" if self.integer else "a number"
+        bits = []
+        if self.min is not None:
+            bits.append(f"{'>' if self.exclusive_min else '>='} {self.min:g}")
+        if self.max is not None:
+            bits.append(f"<= {self.max:g}")
+        unit = f" {self.unit}" if self.unit else ""
+        return kind + (f" {' and '.join(bits)}" if bits else "") + unit
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        ok_type = isinstance(value, int) if self.integer else isinstance(value, int | float)
+        if isinstance(value, bool) or not ok_type or not math.isfinite(value):
+            out.append(doc.problem(path, f"expected {self.description}, got {_type_name(value)}"
+                                         f" {value!r}"))
+            return
+        low_bad = self.min is not None and (value <= self.min if self.exclusive_min
+                                            else value < self.min)
+        if low_bad or (self.max is not None and value > self.max):
+            out.append(doc.problem(path, f"expected {self.description}, got {value!r}"))
+
+
+@dataclass(frozen=True)
+class Str(Node):
+    choices: tuple[str, ...] = ()
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return f"one of {', '.join(self.choices)}" if self.choices else "text"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if not isinstance(value, str):
+            out.append(doc.problem(path, f"expected {self.description}, got "
+                                         f"{_type_name(value)} {value!r}"))
+        elif self.choices and value not in self.choices:
+            out.append(doc.problem(path, f"expected {self.description}, got {value!r}"))
+
+
+@dataclass(frozen=True)
+class Bool(Node):
+    description = "true or false"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if not isinstance(value, bool):
+            out.append(doc.problem(path, f"expected true or false, got {value!r}"))
+
+
+@dataclass(frozen=True)
+class Any_(Node):
+    description = "anything"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        return
+
+
+@dataclass(frozen=True)
+class ListOf(Node):
+    item: Node
+    min_len: int = 0
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return f"a list of {self.item.description}"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if not isinstance(value, list):
+            out.append(doc.problem(path, f"expected {self.description}, got "
+                                         f"{_type_name(value)} {value!r}"))
+            return
+        if len(value) < self.min_len:
+            out.append(doc.problem(path, f"expected at least {self.min_len} item(s)"))
+        for i, v in enumerate(value):
+            self.item.check(v, (*path, i), doc, out)
+
+
+@dataclass(frozen=True)
+class Key:
+    node: Node
+    required: bool = False
+    doc: str = ""
+
+
+@dataclass(frozen=True)
+class Map(Node):
+    """A mapping with known keys; anything else is refused by name."""
+
+    keys: Mapping[str, Key] = field(default_factory=dict)
+    description = "a mapping"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if not isinstance(value, dict):
+            out.append(doc.problem(path, f"expected a mapping with keys "
+                                         f"{', '.join(self.keys)}, got {_type_name(value)}"))
+            return
+        for k, v in value.items():
+            spec = self.keys.get(k)
+            if spec is None:
+                out.append(doc.problem((*path, k), f"unknown key; allowed here: "
+                                                   f"{', '.join(self.keys)}"))
+            else:
+                spec.node.check(v, (*path, k), doc, out)
+        for k, spec in self.keys.items():
+            if spec.required and k not in value:
+                out.append(doc.problem(path, f"missing required key {k!r} "
+                                             f"({spec.node.description})"))
+
+
+@dataclass(frozen=True)
+class MapOf(Node):
+    """A mapping from names the user chooses (axis names) to values of one schema."""
+
+    value: Node
+    min_len: int = 0
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return f"a mapping of names to {self.value.description}"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if not isinstance(value, dict):
+            out.append(doc.problem(path, f"expected {self.description}, got "
+                                         f"{_type_name(value)}"))
+            return
+        if len(value) < self.min_len:
+            out.append(doc.problem(path, f"expected at least {self.min_len} entry"))
+        for k, v in value.items():
+            self.value.check(v, (*path, str(k)), doc, out)
+
+
+@dataclass(frozen=True)
+class Check(Node):
+    """A schema plus a rule that needs the whole value (e.g. min < max)."""
+
+    inner: Node
+    rule: Callable[[Any], str | None]
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return self.inner.description
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        before = len(out)
+        self.inner.check(value, path, doc, out)
+        if len(out) == before:
+            msg = self.rule(value)
+            if msg:
+                out.append(doc.problem(path, msg))
+
+
+def validate(doc: YamlDoc, schema: Node) -> list[Problem]:
+    out: list[Problem] = []
+    schema.check(doc.data, (), doc, out)
+    return out

@@ -1,0 +1,107 @@
+"""The simulated bench: one simulated stand, its virtual clock, and every twin on its
+real channel (SCPI on 127.0.0.1, the FOG on a pseudo-terminal, the drive on a python-can
+virtual bus).
+
+`SimBench.start()` returns the stand mapping with each instrument's address rewritten to
+its twin's, so `bench.instruments` opens them exactly as it would open hardware. The
+clock starts paused: the twins and drivers connect first, then `start_clock()`, so the
+FOG's first frame is the stand's sample 0 and all instruments share one time axis.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import uuid
+from collections.abc import Callable
+from typing import Any
+
+from sims.clock import VirtualClock
+from sims.stand import AxisTruth, SimulatedStand, StandTruth
+
+#: truth used by `--sim` for an axis the stand file's `sim:` block does not describe
+DEFAULT_AXIS_TRUTH: dict[str, Any] = {
+    "fog": {"noise_dps": 0.01},
+    "turn_jitter_s": 27e-9,
+}
+
+TwinFactory = Callable[["SimBench"], None]
+
+
+class SimBench:
+    """Owns the stand, the clock and the twins; a context manager that stops them all."""
+
+    def __init__(self, stand_cfg: dict[str, Any], axes: list[str] | None = None) -> None:
+        self.stand_cfg = copy.deepcopy(stand_cfg)
+        sim = self.stand_cfg.get("sim") or {}
+        axes = axes if axes is not None else list(self.stand_cfg["axes"])
+        sim_axes = sim.get("axes") or {}
+        truth = StandTruth(
+            seed=int(sim.get("seed", 0)),
+            axes={a: AxisTruth.from_mapping(sim_axes.get(a, DEFAULT_AXIS_TRUTH)) for a in axes},
+            clock_speed=float(sim.get("clock_speed", 100.0)),
+        )
+        self.clock = VirtualClock(truth.clock_speed, running=False)
+        fog_hz = {a: float((self.stand_cfg["axes"][a].get("fog") or {}).get("rate_hz", 1000.0))
+                  for a in axes}
+        self.stand = SimulatedStand(truth, fog_hz, self.clock)
+        self.axes = axes
+        self.channel = f"sim-{uuid.uuid4().hex[:8]}"
+        self.twins: dict[str, Any] = {}
+        self._stack = contextlib.ExitStack()
+
+    def start(self, extra: list[TwinFactory] | None = None) -> dict[str, Any]:
+        """Start every twin; return the stand mapping pointing at them."""
+        from sims.counter_twin import CounterTwin
+        from sims.drive_twin import DriveTwin
+        from sims.fog_twin import FogTwin
+
+        cfg = self.stand_cfg
+        try:
+            for a in self.axes:
+                ac = cfg["axes"][a]
+                d = ac["drive"]
+                twin = DriveTwin(self.stand, a, interface="virtual", channel=self.channel,
+                                 node_id=d["node_id"],
+                                 **({"counts_per_rev": d["counts_per_rev"]}
+                                    if "counts_per_rev" in d else {}))
+                self._stack.enter_context(twin)
+                self.twins[f"{a}.drive"] = twin
+                d["interface"], d["channel"] = "virtual", self.channel
+                if ac.get("counter"):
+                    c = ac["counter"]
+                    ct = CounterTwin(self.stand, a, model=c["model"])
+                    c["resource"] = ct.start()
+                    self._stack.callback(ct.stop)
+                    self.twins[f"{a}.counter"] = ct
+                if ac.get("fog"):
+                    f = ac["fog"]
+                    ft = FogTwin(self.stand, a, fmt=f.get("format", "kvh-a"),
+                                 axis_letter=f.get("axis", "z"),
+                                 units=f.get("units", "deg/s"))
+                    f["port"] = ft.start()
+                    self._stack.callback(ft.stop)
+                    self.twins[f"{a}.fog"] = ft
+            for factory in extra or []:
+                factory(self)
+        except BaseException:
+            self.stop()
+            raise
+        return cfg
+
+    def add(self, name: str, twin: Any, stop: Callable[[], Any]) -> None:
+        """For procedure kinds with instruments of their own (e.g. a gyro platform's)."""
+        self.twins[name] = twin
+        self._stack.callback(stop)
+
+    def start_clock(self) -> None:
+        self.clock.start()
+
+    def stop(self) -> None:
+        self._stack.close()
+
+    def __enter__(self) -> SimBench:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

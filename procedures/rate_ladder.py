@@ -1,0 +1,318 @@
+"""The +/-w rate ladder of METHOD.md part A (seed 000), as a procedure kind.
+
+Per axis: a record of the FOG at rest (its noise floor, METHOD.md A5); then for each rate
+magnitude the halves of a +/- pair, by default in the order +w, -w, +w with the turns of
+the + direction split around the - half, so a linear FOG bias drift cancels in the
+cross-calibration (METHOD.md A3, "beyond the paper"); each half: set the rate, settle,
+time N whole turns with the counter while the FOG streams; then cross-calibrate and
+analyse the pair.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from bench.clock import Clock
+from bench.config import (
+    COMMON_PROCEDURE_KEYS,
+    Config,
+    check_axis_names,
+    stand_schema,
+)
+from bench.engine import Abort, RunContext
+from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, open_axis
+from bench.journal import RunDir
+from bench.plan import Plan, Step, format_duration
+from bench.schema import Key, ListOf, Map, MapOf, Num, Str
+from bench.simbench import SimBench
+from bench.yamlfile import Problem
+
+NAME = "rate-ladder"
+
+BAND = Map({
+    "below_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), False,
+                     "the band applies to rates below this; omit on the last band"),
+    "rel": Key(Num(min=0, exclusive_min=True), True, "tolerance, a fraction (1e-6 = 1 ppm)"),
+})
+SETTLE = Map({
+    "tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
+    "tolerance_rel": Key(Num(min=0, exclusive_min=True)),
+    "hold_s": Key(Num(min=0, unit="s")),
+    "timeout_s": Key(Num(min=0, exclusive_min=True, unit="s")),
+})
+AXIS = Map({
+    "rates_dps": Key(ListOf(Num(min=0, exclusive_min=True, unit="deg/s"), min_len=1), True),
+    "turns": Key(Num(min=1, max=10_000, integer=True)),
+    "prompt": Key(Str(), False, "what the operator must do before this axis"),
+})
+PROCEDURE = Map({
+    **COMMON_PROCEDURE_KEYS,
+    "turns": Key(Num(min=1, max=10_000, integer=True), False, "turns per rate and direction"),
+    "sequence": Key(Str(("+-", "+-+")), False, "order of the halves of a pair"),
+    "accel_dps2": Key(Num(min=0, exclusive_min=True, unit="deg/s^2")),
+    "settle": Key(SETTLE),
+    "static_record_s": Key(Num(min=0, unit="s"), False, "FOG at rest per axis (noise floor)"),
+    "harmonics": Key(Num(min=1, max=20, integer=True), False, "orders 1..H fitted in angle"),
+    "mains_hz": Key(Num(min=0, exclusive_min=True, unit="Hz")),
+    "axes": Key(MapOf(AXIS, min_len=1), True),
+    "tolerance": Key(Map({
+        "rate_error": Key(ListOf(BAND, min_len=1)),
+        "rate_instability": Key(ListOf(BAND, min_len=1)),
+        "intra_turn_instability": Key(ListOf(BAND, min_len=1)),
+    })),
+})
+
+DEFAULTS: dict[str, Any] = {
+    "turns": 5,
+    "sequence": "+-+",
+    "static_record_s": 60.0,
+    "harmonics": 4,
+    "mains_hz": 50.0,
+    "decision_rule": "simple",
+    "prompts": True,
+}
+SETTLE_DEFAULTS = {"tolerance_rel": 1e-3, "tolerance_dps": 0.005, "hold_s": 2.0,
+                   "timeout_s": 60.0}
+
+
+def setting(cfg: Config, key: str) -> Any:
+    return cfg.procedure.get(key, DEFAULTS.get(key))
+
+
+def tolerance_for(bands: list[dict[str, float]] | None, rate_dps: float) -> float | None:
+    """The first band whose `below_dps` exceeds |rate|, else the band without one."""
+    if not bands:
+        return None
+    for band in bands:
+        if "below_dps" in band and abs(rate_dps) < band["below_dps"]:
+            return float(band["rel"])
+    for band in bands:
+        if "below_dps" not in band:
+            return float(band["rel"])
+    return None
+
+
+def halves(turns: int, sequence: str) -> list[tuple[int, int]]:
+    """(sign, turns) per half. '+-+' splits the + turns around the - half."""
+    if sequence == "+-+" and turns >= 2:
+        return [(+1, (turns + 1) // 2), (-1, turns), (+1, turns // 2)]
+    return [(+1, turns), (-1, turns)]
+
+
+class RateLadder:
+    name = NAME
+
+    # -- files -----------------------------------------------------------------------
+    def procedure_schema(self) -> Map:
+        return PROCEDURE
+
+    def stand_schema(self) -> Map:
+        return stand_schema()
+
+    def cross_check(self, cfg: Config) -> list[Problem]:
+        out = check_axis_names(cfg)
+        pdoc, sdoc = cfg.procedure_doc, cfg.stand_doc
+        accel = cfg.procedure.get("accel_dps2")
+        for axis, spec in cfg.procedure["axes"].items():
+            if axis not in cfg.stand["axes"]:
+                continue
+            stand_axis = cfg.stand["axes"][axis]
+            drive = stand_axis["drive"]
+            fog = stand_axis.get("fog")
+            for what in ("counter", "fog"):
+                if not stand_axis.get(what):
+                    out.append(sdoc.problem(("axes", axis), f"the rate ladder needs a {what} "
+                                                            f"on axis {axis!r}"))
+            fog_range = (fog or {}).get("range_dps", DEFAULT_FOG_RANGE_DPS)
+            for i, rate in enumerate(spec["rates_dps"]):
+                where = ("axes", axis, "rates_dps", i)
+                if rate > drive["max_rate_dps"]:
+                    out.append(pdoc.problem(where, f"{rate:g} deg/s exceeds axis {axis!r}'s "
+                               f"max_rate_dps {drive['max_rate_dps']:g} "
+                               f"({sdoc.path}:{sdoc.line(('axes', axis, 'drive'))})"))
+                if fog and rate > fog_range:
+                    out.append(pdoc.problem(where, f"{rate:g} deg/s exceeds the FOG's range "
+                                                   f"{fog_range:g} deg/s on axis {axis!r}"))
+            if accel is not None and accel > drive["max_accel_dps2"]:
+                out.append(pdoc.problem(("accel_dps2",), f"{accel:g} deg/s^2 exceeds axis "
+                           f"{axis!r}'s max_accel_dps2 {drive['max_accel_dps2']:g}"))
+            if fog:
+                mains = cfg.stand.get("sim", {}).get("axes", {}).get(axis, {}).get("mains")
+                if mains and 2 * mains.get("frequency_hz", 50) >= fog["rate_hz"]:
+                    out.append(sdoc.problem(("axes", axis, "fog", "rate_hz"),
+                                            "the FOG rate must exceed twice the mains frequency"))
+        for name in ("rate_error", "rate_instability", "intra_turn_instability"):
+            bands = cfg.procedure.get("tolerance", {}).get(name)
+            if bands and "below_dps" in bands[-1]:
+                out.append(pdoc.problem(("tolerance", name, len(bands) - 1),
+                                        "the last band must have no below_dps (it covers "
+                                        "every rate above the others)"))
+        return out
+
+    # -- plan ------------------------------------------------------------------------
+    def accel(self, cfg: Config, axis: str) -> float:
+        limit = cfg.stand["axes"][axis]["drive"]["max_accel_dps2"]
+        return min(cfg.procedure.get("accel_dps2", limit), limit)
+
+    def settle(self, cfg: Config) -> dict[str, float]:
+        return {**SETTLE_DEFAULTS, **cfg.procedure.get("settle", {})}
+
+    def build_plan(self, cfg: Config) -> Plan:
+        steps: list[Step] = []
+        settle = self.settle(cfg)
+        static_s = float(setting(cfg, "static_record_s"))
+        for axis, spec in cfg.procedure["axes"].items():
+            turns = int(spec.get("turns", setting(cfg, "turns")))
+            accel = self.accel(cfg, axis)
+            if setting(cfg, "prompts"):
+                text = spec.get("prompt") or (
+                    f"Mount the FOG on the {axis} axis (sensitive axis along the table axis), "
+                    f"connect the {axis} zero-mark sensor to the counter")
+                steps.append(Step("prompt", axis, text))
+            if static_s > 0:
+                steps.append(Step("static", axis, f"FOG at rest for {static_s:g} s (noise floor, "
+                                  "METHOD.md A5)", static_s, f"{axis}/static",
+                                  {"duration_s": static_s}))
+            steps.append(Step("enable", axis, "drive to Operation Enabled, profile velocity",
+                              1.0))
+            rate_now = 0.0
+            for rate in spec["rates_dps"]:
+                unit = f"{axis}/{rate:g}dps"
+                parts = halves(turns, setting(cfg, "sequence"))
+                for j, (sign, n) in enumerate(parts):
+                    target = sign * rate
+                    steps.append(Step("set_rate", axis, f"{target:+g} deg/s",
+                                      abs(target - rate_now) / accel, unit,
+                                      {"rate_dps": target, "accel_dps2": accel}))
+                    tol = max(settle["tolerance_dps"], settle["tolerance_rel"] * rate)
+                    steps.append(Step("settle", axis, f"within {tol:.3g} deg/s for "
+                                      f"{settle['hold_s']:g} s", settle["hold_s"] + 0.5, unit,
+                                      {"tolerance_dps": tol, "hold_s": settle["hold_s"],
+                                       "timeout_s": settle["timeout_s"]}))
+                    period = 360.0 / rate
+                    steps.append(Step("acquire", axis, f"{n} turns at {target:+g} deg/s "
+                                      f"(half {j + 1}/{len(parts)}, "
+                                      f"{format_duration(n * period)})",
+                                      (n + 1) * period, unit,
+                                      {"rate_dps": target, "turns": n, "half": j,
+                                       "period_s": period}))
+                    rate_now = target
+                steps.append(Step("analyse", axis, f"cross-calibrate and analyse the "
+                                  f"+/-{rate:g} deg/s pair", 0.0, unit, {"rate_dps": rate}))
+            steps.append(Step("stop", axis, "ramp to zero, disable", abs(rate_now) / accel,
+                              None, {"accel_dps2": accel}))
+        title = cfg.procedure.get("title", cfg.procedure_path.stem)
+        return Plan(title, tuple(steps))
+
+    # -- bench -----------------------------------------------------------------------
+    def axes(self, cfg: Config) -> list[str]:
+        return list(cfg.procedure["axes"])
+
+    def start_sim(self, cfg: Config) -> tuple[SimBench, dict[str, Any]]:
+        sim = SimBench(cfg.stand, self.axes(cfg))
+        return sim, sim.start()
+
+    def open_bench(self, cfg: Config, stand: dict[str, Any], clock: Clock,
+                   run: RunDir | None) -> Bench:
+        bench = Bench()
+        try:
+            for axis in self.axes(cfg):
+                open_axis(bench, axis, stand["axes"][axis], clock, run)
+        except BaseException:
+            bench.safe_stop(lambda s: None) if bench.axes else None
+            bench.close()
+            raise
+        return bench
+
+    # -- steps -----------------------------------------------------------------------
+    def execute(self, step: Step, ctx: RunContext) -> None:
+        getattr(self, f"_do_{step.action}")(step, ctx)
+
+    def _do_prompt(self, step: Step, ctx: RunContext) -> None:
+        ctx.prompt(step.describe)
+
+    def _do_enable(self, step: Step, ctx: RunContext) -> None:
+        ctx.bench.axes[step.axis].drive.enable()
+
+    def _do_static(self, step: Step, ctx: RunContext) -> None:
+        ax = ctx.bench.axes[step.axis]
+        fog = ax.fog
+        duration = step.params["duration_s"]
+        i0 = fog.next_index
+        n = int(round(duration * fog.rate_hz))
+        self._wait_fog(ctx, fog, i0 + n, duration, f"{step.axis}: FOG at rest")
+        ctx.run.event("static", axis=step.axis, unit=step.unit, fog_from=i0, fog_to=i0 + n,
+                      rate_hz=fog.rate_hz)
+
+    def _wait_fog(self, ctx: RunContext, fog: Any, index: int, span_s: float, label: str) -> None:
+        t_end = ctx.clock.now() + span_s
+        while True:
+            left = t_end - ctx.clock.now()
+            ctx.progress.detail(f"  {label}: {max(left, 0):.0f} s left")
+            if left <= 0:
+                break
+            ctx.clock.sleep(min(left, max(span_s / 20, 0.5)))
+            ctx.bench.axes[next(iter(ctx.bench.axes))].drive.check()
+        fog.wait_for_index(index, timeout_s=max(5.0, span_s * 0.2))
+
+    def _do_set_rate(self, step: Step, ctx: RunContext) -> None:
+        drive = ctx.bench.axes[step.axis].drive
+        drive.set_rate(step.params["rate_dps"], step.params["accel_dps2"])
+
+    def _do_settle(self, step: Step, ctx: RunContext) -> None:
+        drive = ctx.bench.axes[step.axis].drive
+        p = step.params
+        rate = drive.wait_settled(p["tolerance_dps"], p["hold_s"], p["timeout_s"])
+        ctx.run.event("settled", axis=step.axis, unit=step.unit, rate_dps=rate)
+
+    def _do_acquire(self, step: Step, ctx: RunContext) -> None:
+        ax = ctx.bench.axes[step.axis]
+        p = step.params
+        n = p["turns"]
+        period = p["period_s"]
+        counter, fog, drive = ax.counter, ax.fog, ax.drive
+        counter.arm(n + 1, period)
+        t_arm = ctx.clock.now()
+        t_end = t_arm + (n + 1) * period
+        while (left := t_end - ctx.clock.now()) > 0:
+            turn = min(n, int((ctx.clock.now() - t_arm) / period))
+            ctx.progress.detail(f"  {step.axis} {p['rate_dps']:+g} deg/s: turn {turn}/{n}, "
+                                f"{format_duration(left)} of this half left")
+            ctx.clock.sleep(min(left, max(period / 4, 0.25)))
+            drive.check()
+        edges = counter.fetch()
+        if len(edges) != n + 1:
+            raise Abort(f"{step.axis}: the counter returned {len(edges)} edges, expected {n + 1}")
+        i_from = math.ceil(edges[0] * fog.rate_hz)
+        i_to = math.floor(edges[-1] * fog.rate_hz) + 1
+        fog.wait_for_index(i_to, timeout_s=10.0)
+        ctx.run.event("acquire", axis=step.axis, unit=step.unit, half=p["half"],
+                      set_rate_dps=p["rate_dps"], turns=n, edges_s=[float(e) for e in edges],
+                      fog_from=i_from, fog_to=i_to, rate_hz=fog.rate_hz)
+        w = 360.0 * n / (edges[-1] - edges[0])
+        ctx.progress.line(f"  {step.axis} {p['rate_dps']:+g} deg/s: {n} turns timed, "
+                          f"mean {math.copysign(w, p['rate_dps']):+.7f} deg/s")
+
+    def _do_analyse(self, step: Step, ctx: RunContext) -> None:
+        from procedures.rate_ladder_analysis import pair_summary
+
+        summary = pair_summary(ctx, step.axis, step.unit)
+        ctx.run.event("pair", axis=step.axis, unit=step.unit, **summary)
+        ctx.progress.line(f"  {step.axis} +/-{step.params['rate_dps']:g} deg/s: "
+                          + ", ".join(f"{k} {v:.6g}" for k, v in summary.items()
+                                      if isinstance(v, float)))
+
+    def _do_stop(self, step: Step, ctx: RunContext) -> None:
+        drive = ctx.bench.axes[step.axis].drive
+        drive.stop()
+        drive.disable()
+
+    # -- analysis --------------------------------------------------------------------
+    def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
+        from procedures.rate_ladder_analysis import analyze_run
+
+        return analyze_run(run, cfg)
+
+
+KIND = RateLadder()

@@ -1,0 +1,126 @@
+"""`bench validate` on broken files: exit 2, every problem named by file:line:key."""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+from bench.cli import main
+from tests.conftest import CONFIGS
+
+
+@pytest.fixture
+def files(tmp_path: Path) -> tuple[Path, Path]:
+    """A copy of the demo procedure and its stand, to break."""
+    (tmp_path / "stands").mkdir()
+    (tmp_path / "procedures").mkdir()
+    stand = tmp_path / "stands" / "sim-two-axis.yaml"
+    proc = tmp_path / "procedures" / "demo.yaml"
+    shutil.copy(CONFIGS / "stands" / "sim-two-axis.yaml", stand)
+    shutil.copy(CONFIGS / "procedures" / "demo.yaml", proc)
+    return proc, stand
+
+
+def _replace(path: Path, old: str, new: str) -> int:
+    """Edit the file; return the 1-based line of the edit."""
+    text = path.read_text()
+    assert old in text, old
+    line = text[: text.index(old)].count("\n") + 1
+    path.write_text(text.replace(old, new, 1))
+    return line
+
+
+def _validate(proc: Path, capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
+    rc = main(["validate", str(proc)])
+    return rc, capsys.readouterr().err
+
+
+def test_the_shipped_configs_are_valid(capsys: pytest.CaptureFixture[str]) -> None:
+    for proc in sorted((CONFIGS / "procedures").glob("*.yaml")):
+        rc, err = _validate(proc, capsys)
+        assert rc == 0, (proc, err)
+
+
+def test_bad_yaml_syntax(files: tuple[Path, Path], capsys: pytest.CaptureFixture[str]) -> None:
+    proc, _ = files
+    line = _replace(proc, "turns: 4", "turns: [4")
+    rc, err = _validate(proc, capsys)
+    assert rc == 2
+    m = re.search(rf"{re.escape(str(proc))}:(\d+): \(syntax\): YAML syntax", err)
+    assert m, err
+    assert int(m.group(1)) >= line
+
+
+def test_unknown_key_is_named_with_its_line(files: tuple[Path, Path],
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    proc, _ = files
+    line = _replace(proc, "turns: 4", "turnz: 4")
+    rc, err = _validate(proc, capsys)
+    assert rc == 2
+    assert f"{proc}:{line}: turnz: unknown key" in err
+
+
+def test_wrong_type_in_the_stand_file(files: tuple[Path, Path],
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    proc, stand = files
+    line = _replace(stand, "node_id: 3", "node_id: three")
+    rc, err = _validate(proc, capsys)
+    assert rc == 2
+    assert f"{stand}:{line}: axes.inner.drive.node_id: expected an integer" in err
+    assert "'three'" in err
+
+
+def test_rate_above_the_axis_limit(files: tuple[Path, Path],
+                                   capsys: pytest.CaptureFixture[str]) -> None:
+    proc, _ = files
+    line = _replace(proc, "rates_dps: [20, 100]", "rates_dps: [20, 100, 420]")
+    rc, err = _validate(proc, capsys)
+    assert rc == 2
+    assert f"{proc}:{line}: axes.inner.rates_dps[2]: 420 deg/s exceeds axis 'inner'" in err
+    assert "max_rate_dps 360" in err
+
+
+def test_missing_stand_file(files: tuple[Path, Path], capsys: pytest.CaptureFixture[str]) -> None:
+    proc, stand = files
+    stand.unlink()
+    line = _replace(proc, "stand: ../stands/sim-two-axis.yaml", "stand: ../stands/sim-two-axis.yaml")
+    rc, err = _validate(proc, capsys)
+    assert rc == 2
+    assert f"{proc}:{line}: stand: stand file" in err and "file not found" in err
+
+
+def test_every_problem_is_reported_at_once(files: tuple[Path, Path],
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    proc, stand = files
+    _replace(proc, "turns: 4", "turns: 0")
+    _replace(proc, "harmonics: 3", "harmonics: lots")
+    _replace(stand, "max_rate_dps: 400", "max_rate_dps: -1")
+    rc, err = _validate(proc, capsys)
+    assert rc == 2
+    assert "3 problem(s)" in err
+    assert "turns: expected an integer >= 1" in err
+    assert "harmonics: expected an integer" in err
+    assert "axes.outer.drive.max_rate_dps" in err
+
+
+def test_nothing_starts_on_invalid_input(files: tuple[Path, Path], tmp_path: Path,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    proc, _ = files
+    _replace(proc, "turns: 4", "turnz: 4")
+    out = tmp_path / "runs"
+    rc = main(["run", str(proc), "--yes", "--out", str(out)])
+    assert rc == 2
+    assert not out.exists()
+
+
+def test_plan_estimates_the_papers_ladder_in_real_bench_time(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(["plan", str(CONFIGS / "procedures" / "paper-ladder.yaml")])
+    out = capsys.readouterr().out
+    assert rc == 0
+    # 5 turns at 0.1 deg/s is 5 h per direction: one pair alone is > 10 h per axis
+    m = re.search(r"Estimated bench time: (\d+) h", out)
+    assert m and int(m.group(1)) >= 20, out
