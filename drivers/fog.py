@@ -1,0 +1,439 @@
+"""A fibre-optic gyro streaming binary frames over a serial port.
+
+The FOG is the only instrument that sees inside a turn (METHOD.md A3-A5), and a lost
+or misread frame is a wrong instability figure, so this driver is built around one
+rule: the bytes are the record. A background thread reads the port for as long as it
+is open, appends every byte as received to the raw capture file (flushed after every
+read), and decodes with the same `StreamDecoder` that `bench decode` runs on the file
+afterwards, so the capture re-decodes to exactly the samples the engine used.
+
+Sample index: the first frame received is index 0; each later frame's index follows
+from the sequence counter, so lost frames keep their place (as invalid samples) and
+index n is the FOG's n-th sample since the first one, at t = n / rate_hz on the
+stand's time axis. On the simulated stand the twin emits stand sample n as frame n;
+on a real bench the FOG's first sample and the counter's timebase must be tied.
+
+A loss of a whole multiple of the sequence modulus (128 frames for KVH) leaves no mark
+in the bytes. The reader therefore also watches the clock: when the data resume after
+a silence, the frames decoded must account for the silence; if the sample clock runs
+behind the stand clock by half a counter wrap or more for a sustained time, the driver
+flags the indices after that point as uncertain (health "error").
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+import serial
+
+from bench.clock import Clock
+from drivers.fog_formats import (
+    AXES,
+    FORMATS,
+    DecodeState,
+    DecodeStats,
+    FrameFormat,
+    Frames,
+    StreamDecoder,
+    decode,
+    get_format,
+)
+
+__all__ = ["FORMATS", "DecodeState", "DecodeStats", "Fog", "FogError", "FogSamples",
+           "FogStats", "FogTimeout", "Frames", "StreamDecoder", "decode", "dps_per_unit"]
+
+# units a FOG's rotational data can carry; "deg" and "rad" are delta angles per sample
+RATE_UNITS = ("deg/s", "rad/s", "deg", "rad")
+
+_READ_TIMEOUT_S = 0.05     # real seconds a read waits for the first byte
+_BATCH_BYTES = 1 << 16     # decode in batches of up to this many bytes
+_WAIT_MARGIN_S = 0.25      # real seconds added to every scaled wait
+_STALL_FRAMES = 64         # a silence this many frame periods long is a stall,
+_STALL_REAL_S = 0.1        # ... and at least this many real seconds (OS, USB latency)
+_ALIAS_MIN_REAL_S = 0.02   # the wrap check needs half a wrap to last this long in real time
+_ALIAS_WINDOW_S = 0.5      # real seconds over which the lag after a silence is watched
+
+
+def dps_per_unit(units: str, rate_hz: float) -> float:
+    """deg/s per unit of the frame's rotational data (the twin uses the inverse)."""
+    if units == "deg/s":
+        return 1.0
+    if units == "rad/s":
+        return 180.0 / math.pi
+    if units == "deg":
+        return float(rate_hz)
+    if units == "rad":
+        return float(rate_hz) * 180.0 / math.pi
+    raise ValueError(f"FOG units {units!r} unknown (one of {', '.join(RATE_UNITS)})")
+
+
+class FogError(RuntimeError):
+    """The FOG stream failed: the port, the reader or the index can no longer be trusted."""
+
+
+class FogTimeout(FogError, TimeoutError):
+    """An awaited sample did not arrive in time."""
+
+
+@dataclass(frozen=True)
+class FogSamples:
+    """Samples i_from .. i_to - 1 of the configured axis; lost samples keep their rows."""
+
+    index: np.ndarray        # int64
+    t_s: np.ndarray          # index / rate_hz, on the stand's time axis
+    rate_dps: np.ndarray     # float64; NaN where the frame was lost
+    valid: np.ndarray        # received, CRC good and the axis's status bit set
+    received: np.ndarray     # a frame with this index arrived intact
+    temperature: np.ndarray  # float64, as the frame carries it; NaN where lost
+
+
+@dataclass(frozen=True)
+class GapEvent:
+    index: int       # first lost sample
+    count: int       # samples lost
+    t_s: float
+
+
+@dataclass(frozen=True)
+class CrcEvent:
+    index: int       # the sample the broken frame would have been, at least
+    t_s: float
+    offset: int      # byte offset of its header in the raw capture
+
+
+@dataclass(frozen=True)
+class StallEvent:
+    t_from_s: float  # stand clock when the silence began
+    duration_s: float
+    after_index: int  # last index received before it
+
+
+@dataclass(frozen=True)
+class FogStats:
+    frames: int
+    crc_errors: int
+    gaps: int
+    lost_frames: int
+    skipped_bytes: int
+    bytes: int
+    crc_events: tuple[CrcEvent, ...]
+    gap_events: tuple[GapEvent, ...]
+    stalls: tuple[StallEvent, ...]
+    lag_s: float            # how far the newest sample trails the clock (latency)
+
+
+class _SampleStore:
+    """Per-index arrays from `base` on, grown by doubling; bounded by discard_before."""
+
+    def __init__(self) -> None:
+        self.base = 0
+        self.n = 0  # samples known (received or known lost): indices base .. base+n-1
+        cap = 4096
+        self.rate = np.empty(cap)
+        self.status_ok = np.empty(cap, dtype=bool)
+        self.received = np.empty(cap, dtype=bool)
+        self.temp = np.empty(cap)
+
+    @property
+    def end(self) -> int:
+        return self.base + self.n
+
+    def _reserve(self, extra: int) -> None:
+        need = self.n + extra
+        if need <= self.rate.size:
+            return
+        cap = max(need, 2 * self.rate.size)
+        for name in ("rate", "status_ok", "received", "temp"):
+            old = getattr(self, name)
+            new = np.empty(cap, dtype=old.dtype)
+            new[:self.n] = old[:self.n]
+            setattr(self, name, new)
+
+    def append(self, index: np.ndarray, rate: np.ndarray, status_ok: np.ndarray,
+               temp: np.ndarray) -> None:
+        if index.size == 0:
+            return
+        new_end = int(index[-1]) + 1
+        m = new_end - self.end
+        self._reserve(m)
+        s = slice(self.n, self.n + m)
+        self.rate[s] = np.nan
+        self.status_ok[s] = False
+        self.received[s] = False
+        self.temp[s] = np.nan
+        at = index - self.base
+        self.rate[at] = rate
+        self.status_ok[at] = status_ok
+        self.received[at] = True
+        self.temp[at] = temp
+        self.n += m
+
+    def discard_before(self, i: int) -> None:
+        k = min(max(i - self.base, 0), self.n)
+        if k == 0:
+            return
+        keep = self.n - k
+        for name in ("rate", "status_ok", "received", "temp"):
+            a = getattr(self, name)
+            a[:keep] = a[k:self.n]
+        self.base += k
+        self.n = keep
+
+
+class Fog:
+    """A FOG on a serial port, read continuously in the background.
+
+    `rate_hz` is the FOG's output rate (from the stand file), `units` what its
+    rotational data mean, `axis` which of x, y, z is the table axis's sensitive axis.
+    Real-time waits are `timeout_s / clock.speed` plus a margin.
+    """
+
+    def __init__(self, port: str, *, baudrate: int = 921600, fmt: str = "kvh-a",
+                 axis: str = "z", rate_hz: float, units: str = "deg/s",
+                 raw_path: Path | str | None, clock: Clock, model: str | None = None,
+                 serial_kwargs: dict[str, Any] | None = None) -> None:
+        self.format: FrameFormat = get_format(fmt)
+        if axis not in self.format.valid_bits:
+            raise ValueError(f"FOG axis {axis!r} unknown for format {self.format.name!r} "
+                             f"(one of {', '.join(self.format.valid_bits)})")
+        if not rate_hz or rate_hz <= 0:
+            raise ValueError(f"FOG rate_hz must be > 0, got {rate_hz!r}")
+        self.port = port
+        self.baudrate = int(baudrate)
+        self.axis = axis
+        self.rate_hz = float(rate_hz)
+        self.units = units
+        self._scale = dps_per_unit(units, self.rate_hz)
+        self.raw_path = Path(raw_path) if raw_path is not None else None
+        self.clock = clock
+        self.model = model
+        self._serial_kwargs = dict(serial_kwargs or {})
+        self._axis_col = AXES.index(axis)
+        self._valid_mask = 1 << self.format.valid_bits[axis]
+        self._ser: serial.Serial | None = None
+        self._raw: IO[bytes] | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._cond = threading.Condition()
+        self._decoder = StreamDecoder(self.format)
+        self._store = _SampleStore()
+        self._stalls: list[StallEvent] = []
+        self._lag_s = math.nan
+        self._lag_before: float | None = None
+        self._alias_check: tuple[float, float, int, float] | None = None
+        self.last_error: str | None = None
+        self._index_uncertain_from: int | None = None
+
+    # -- lifecycle ------------------------------------------------------------------------
+    def open(self) -> Fog:
+        if self._ser is not None:
+            raise FogError(f"FOG on {self.port} is already open")
+        try:
+            self._ser = serial.Serial(self.port, self.baudrate, timeout=_READ_TIMEOUT_S,
+                                      **self._serial_kwargs)
+        except (serial.SerialException, OSError) as e:
+            raise FogError(f"cannot open FOG port {self.port}: {e}") from e
+        if self.raw_path is not None:
+            self.raw_path.parent.mkdir(parents=True, exist_ok=True)
+            self._raw = open(self.raw_path, "wb")  # noqa: SIM115 (closed in close())
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._read_loop, name=f"fog-{self.port}",
+                                        daemon=True)
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._ser is not None:
+            try:
+                self._ser.cancel_read()
+            except (serial.SerialException, OSError):
+                pass
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+        if self._ser is not None:
+            self._ser.close()
+            self._ser = None
+        if self._raw is not None:
+            self._raw.close()
+            self._raw = None
+        with self._cond:
+            self._cond.notify_all()
+
+    def __enter__(self) -> Fog:
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def identity(self) -> str:
+        """FOGs answer no *IDN?: the identity is what the stand file says."""
+        model = self.model or self.format.title
+        return f"{model}; format {self.format.name}; axis {self.axis}; {self.rate_hz:g} Hz; " \
+               f"{self.units}; {self.port} at {self.baudrate} Bd"
+
+    # -- reader -----------------------------------------------------------------------------
+    def _read_loop(self) -> None:
+        ser = self._ser
+        assert ser is not None
+        silent_since: float | None = None
+        stall_s = max(_STALL_FRAMES / self.rate_hz, _STALL_REAL_S * self.clock.speed)
+        started = False
+        try:
+            while not self._stop.is_set():
+                data = ser.read(max(1, ser.in_waiting))
+                if data:
+                    chunks = [data]
+                    size = len(data)
+                    while size < _BATCH_BYTES and (w := ser.in_waiting):
+                        more = ser.read(min(w, _BATCH_BYTES - size))
+                        chunks.append(more)
+                        size += len(more)
+                    data = b"".join(chunks)
+                    if self._raw is not None:
+                        self._raw.write(data)
+                        self._raw.flush()
+                    now = self.clock.now()
+                    resumed = None
+                    if silent_since is not None and now - silent_since >= stall_s:
+                        resumed = StallEvent(silent_since, now - silent_since,
+                                             self._store.end - 1)
+                        self._stalls.append(resumed)
+                    silent_since = None
+                    started = True
+                    self._ingest(data, now, resumed)
+                elif silent_since is None and started:
+                    silent_since = self.clock.now()
+        except Exception as e:  # noqa: BLE001 (the reader must report, not vanish)
+            if not self._stop.is_set():
+                self.last_error = f"FOG reader on {self.port} stopped: {e}"
+        finally:
+            with self._cond:
+                self._cond.notify_all()
+
+    def _ingest(self, data: bytes, now: float, resumed: StallEvent | None) -> None:
+        frames = self._decoder.feed(data)
+        with self._cond:
+            if len(frames):
+                self._store.append(
+                    frames.index,
+                    frames.rates[:, self._axis_col].astype(np.float64) * self._scale,
+                    (frames.status & self._valid_mask) != 0,
+                    frames.temperature.astype(np.float64))
+                self._watch_clock(now, resumed)
+            self._cond.notify_all()
+
+    def _watch_clock(self, now: float, resumed: StallEvent | None) -> None:
+        """Flag frames lost in whole counter wraps, which the bytes cannot show.
+
+        lag = now - t(newest sample) is the chain's latency (plus a constant offset on a
+        real bench). After a silence it is large until the backlog has arrived; if frames
+        were lost in whole wraps of the sequence counter it stays large by that many frame
+        periods. So after each silence longer than half a wrap, the smallest lag seen over
+        the following `_ALIAS_WINDOW_S` is compared with the lag before the silence. The
+        check needs real-time jitter well under half a wrap: it is armed only when half a
+        wrap lasts at least `_ALIAS_MIN_REAL_S` real seconds.
+        """
+        lag = now - (self._store.end - 1) / self.rate_hz
+        self._lag_s = lag
+        half_wrap_s = 0.5 * self.format.sequence_modulus / self.rate_hz
+        if half_wrap_s / self.clock.speed < _ALIAS_MIN_REAL_S:
+            return
+        if resumed is not None and resumed.duration_s >= half_wrap_s \
+                and self._lag_before is not None:
+            self._alias_check = (now, self._lag_before, resumed.after_index, lag)
+        if self._alias_check is not None:
+            t0, before, after_index, low = self._alias_check
+            low = min(low, lag)
+            self._alias_check = (t0, before, after_index, low)
+            if now - t0 >= _ALIAS_WINDOW_S * self.clock.speed:
+                self._alias_check = None
+                if low - before > half_wrap_s:
+                    frames = round((low - before) * self.rate_hz)
+                    self._index_uncertain_from = after_index + 1
+                    self.last_error = (
+                        f"FOG on {self.port}: after the silence following sample "
+                        f"{after_index} the samples trail the clock by {frames} frames more "
+                        f"than before, but the sequence counter shows fewer lost: frames "
+                        f"were lost in whole counter wraps ({self.format.sequence_modulus}) "
+                        f"and every index after {after_index} is uncertain")
+        if self._alias_check is None:
+            self._lag_before = lag
+
+    # -- what the engine reads --------------------------------------------------------------
+    @property
+    def end_index(self) -> int:
+        """One past the newest sample known (received, or known lost)."""
+        with self._cond:
+            return self._store.end
+
+    def wait_for_index(self, i: int, timeout_s: float) -> None:
+        """Block until sample i is known; timeout_s on the clock, scaled to real time."""
+        real_s = timeout_s / self.clock.speed + _WAIT_MARGIN_S
+        with self._cond:
+            ok = self._cond.wait_for(
+                lambda: self._store.end > i or self._thread is None
+                or not self._thread.is_alive(), timeout=real_s)
+            if self._store.end > i:
+                return
+        if self.last_error:
+            raise FogError(self.last_error)
+        if not ok:
+            raise FogTimeout(
+                f"FOG on {self.port}: sample {i} (t = {i / self.rate_hz:.4f} s) did not arrive "
+                f"within {timeout_s:g} s; newest sample {self._store.end - 1}, "
+                f"{self._decoder.bytes} bytes received")
+        raise FogError(f"FOG on {self.port} is not open")
+
+    def samples(self, i_from: int, i_to: int) -> FogSamples:
+        """Samples i_from .. i_to - 1; they must have arrived and not been discarded."""
+        with self._cond:
+            st = self._store
+            if i_from < st.base:
+                raise ValueError(f"FOG samples before {st.base} were discarded "
+                                 f"(asked from {i_from})")
+            if i_to > st.end:
+                raise ValueError(f"FOG samples up to {i_to} asked, only {st.end} known "
+                                 f"(wait_for_index first)")
+            if i_to < i_from:
+                raise ValueError(f"empty FOG sample range {i_from} .. {i_to}")
+            s = slice(i_from - st.base, i_to - st.base)
+            rate = st.rate[s].copy()
+            ok = st.status_ok[s].copy()
+            rec = st.received[s].copy()
+            temp = st.temp[s].copy()
+        index = np.arange(i_from, i_to, dtype=np.int64)
+        return FogSamples(index, index / self.rate_hz, rate, ok & rec, rec, temp)
+
+    def discard_before(self, i: int) -> None:
+        with self._cond:
+            self._store.discard_before(i)
+
+    @property
+    def stats(self) -> FogStats:
+        d = self._decoder
+        with self._cond:
+            r = self.rate_hz
+            return FogStats(
+                frames=d.frames, crc_errors=d.crc_errors, gaps=d.gaps,
+                lost_frames=d.lost_frames, skipped_bytes=d.skipped_bytes, bytes=d.bytes,
+                crc_events=tuple(CrcEvent(i, i / r, o) for i, o in d.crc_events),
+                gap_events=tuple(GapEvent(i, c, i / r) for i, c in d.gap_events),
+                stalls=tuple(self._stalls), lag_s=self._lag_s)
+
+    @property
+    def health(self) -> str:
+        """"ok", "degraded" (frames lost or broken, stalls) or "error" (no trustworthy data)."""
+        if self.last_error or (self._thread is not None and not self._thread.is_alive()):
+            return "error"
+        d = self._decoder
+        if d.crc_errors or d.gaps or self._stalls:
+            return "degraded"
+        return "ok"
+

@@ -1,0 +1,442 @@
+"""FOG output frames as data, and one vectorised decoder for all of them.
+
+A format is a row of data (`FrameFormat`): its size, header, a big-endian numpy
+structured dtype naming every field, which fields carry the three rates, the status
+bits that say each rate is valid, the sequence counter and its modulus, and the CRC
+that guards it. Adding a format is adding such a row (and, if its fields are not plain
+numpy types, a small `parse` function).
+
+The decoder works on whole byte chunks with numpy: it finds every header, checks the
+CRC of every candidate at once, keeps the valid frames that do not overlap an earlier
+valid frame, and unwraps the sequence counter into a cumulative index that counts
+lost frames. It decides nothing it cannot see in full: a candidate frame cut by the
+end of the chunk is handed back as `leftover`, so decoding a stream in any chunking
+gives the same frames as decoding it whole. That is what makes the raw capture file
+decode to exactly the samples the live driver saw.
+
+What counts:
+- `crc_errors`: a header whose frame fails its CRC and does not start inside an
+  accepted frame (a corrupted frame; a header pattern inside payload is not counted).
+- `gaps` / `lost_frames`: jumps of the sequence counter between consecutive accepted
+  frames. A counter step of 0 is read as a whole wrap (modulus frames lost), because
+  a real FOG never repeats a counter value. A loss of a whole multiple of the modulus
+  is invisible in the bytes (the counter aliases); the live driver watches the clock
+  for that.
+- `skipped_bytes`: bytes that belong to no accepted frame (garbage, broken frames).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+AXES = ("x", "y", "z")
+
+
+# -- CRC ---------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Crc32:
+    """A 32-bit CRC in the Rocksoft/Williams parameter model (no reflection supported).
+
+    The vectorised form rests on the CRC being affine over GF(2) in the message bits:
+    for a fixed length L, crc(m) = c0 xor T_0[m_0:m_1] xor ... xor T_{L/2-1}[..], one
+    65536-entry table per 16-bit word position, so a million frames cost 16 table
+    gathers and xors each instead of a Python loop.
+    """
+
+    name: str
+    poly: int
+    init: int
+    xorout: int = 0
+
+    def compute(self, data: bytes) -> int:
+        """Bytewise reference (slow): for tests, documentation and single frames."""
+        table = _byte_table(self.poly)
+        c = self.init
+        for b in data:
+            c = ((c << 8) & 0xFFFFFFFF) ^ int(table[((c >> 24) ^ b) & 0xFF])
+        return c ^ self.xorout
+
+    def compute_rows(self, rows: np.ndarray) -> np.ndarray:
+        """CRC of every row of an (N, L) uint8 array, as uint32."""
+        n, length = rows.shape
+        words, c0, tail = _affine_tables(self.poly, self.init, length)
+        acc = np.full(n, c0 ^ self.xorout, dtype=np.uint32)
+        if n == 0:
+            return acc
+        even = length - (length % 2)
+        w = np.ascontiguousarray(rows[:, :even]).view(">u2")
+        for k in range(even // 2):
+            acc ^= words[k].take(w[:, k])
+        if tail is not None:
+            acc ^= tail.take(rows[:, -1])
+        return acc
+
+
+@functools.lru_cache(maxsize=8)
+def _byte_table(poly: int) -> np.ndarray:
+    table = np.zeros(256, dtype=np.uint32)
+    for v in range(256):
+        c = v << 24
+        for _ in range(8):
+            c = ((c << 1) ^ poly) if c & 0x80000000 else (c << 1)
+            c &= 0xFFFFFFFF
+        table[v] = c
+    return table
+
+
+@functools.lru_cache(maxsize=8)
+def _affine_tables(poly: int, init: int, length: int
+                   ) -> tuple[np.ndarray, int, np.ndarray | None]:
+    """Per-position tables of the linear part, and the constant part (crc of zeros)."""
+    table = _byte_table(poly)
+
+    def zero_byte(c: np.ndarray) -> np.ndarray:
+        return ((c << np.uint32(8)) ^ table[c >> np.uint32(24)]).astype(np.uint32)
+
+    per_byte = np.zeros((length, 256), dtype=np.uint32)
+    per_byte[length - 1] = table  # a byte followed by no zeros: crc with init 0
+    for j in range(length - 2, -1, -1):
+        per_byte[j] = zero_byte(per_byte[j + 1])
+    c = np.array([init], dtype=np.uint32)
+    for _ in range(length):
+        c = zero_byte(c)
+    hi = np.arange(65536) >> 8
+    lo = np.arange(65536) & 0xFF
+    words = np.stack([per_byte[2 * k][hi] ^ per_byte[2 * k + 1][lo]
+                      for k in range(length // 2)]) if length >= 2 else np.zeros((0, 65536),
+                                                                                 np.uint32)
+    tail = per_byte[length - 1] if length % 2 else None
+    return words, int(c[0]), tail
+
+
+CRC32_MPEG2 = Crc32("CRC-32/MPEG-2", poly=0x04C11DB7, init=0xFFFFFFFF, xorout=0)
+
+
+# -- formats -----------------------------------------------------------------------------
+
+Parse = Callable[[np.ndarray], Mapping[str, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class FrameFormat:
+    """One binary output format of a FOG or IMU, as data."""
+
+    name: str
+    title: str
+    header: bytes
+    dtype: np.dtype                    # big-endian structured dtype of a whole frame
+    rate_fields: tuple[str, str, str]  # fields of x, y, z rotational data
+    status_field: str
+    valid_bits: Mapping[str, int]      # axis letter -> status bit meaning "valid"
+    sequence_field: str
+    sequence_modulus: int
+    temperature_field: str
+    crc: Crc32
+    crc_field: str
+    crc_span: int                      # the CRC covers bytes [0, crc_span)
+    extra_fields: tuple[str, ...] = ()  # carried to CSV as they are (accelerations, ...)
+    status_ok: int = 0                 # the status a healthy unit sends (for the twin)
+    parse: Parse | None = None         # only for fields numpy cannot view directly
+
+    @property
+    def size(self) -> int:
+        return self.dtype.itemsize
+
+    def fields_of(self, rows: np.ndarray, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+        """The named fields of (N, size) uint8 rows, in native byte order."""
+        if self.parse is not None:
+            parsed = self.parse(rows)
+            return {name: parsed[name] for name in names}
+        rec = np.ascontiguousarray(rows).view(self.dtype).reshape(-1)
+        return {name: rec[name].astype(rec[name].dtype.newbyteorder("=")) for name in names}
+
+    def encode(self, sequence: np.ndarray, rates: np.ndarray, *,
+               status: int | np.ndarray | None = None, temperature: int | np.ndarray = 0,
+               extra: Mapping[str, np.ndarray | float] | None = None) -> np.ndarray:
+        """Build N valid frames, (N, size) uint8, CRC included (the twin uses this)."""
+        if self.parse is not None:
+            raise NotImplementedError(f"format {self.name!r} has no encoder")
+        n = len(sequence)
+        rec = np.zeros(n, dtype=self.dtype)
+        rec[self.dtype.names[0]] = int.from_bytes(self.header, "big")
+        rates = np.asarray(rates, dtype=np.float32).reshape(n, 3)
+        for k, name in enumerate(self.rate_fields):
+            rec[name] = rates[:, k]
+        rec[self.status_field] = self.status_ok if status is None else status
+        rec[self.sequence_field] = np.asarray(sequence) % self.sequence_modulus
+        rec[self.temperature_field] = temperature
+        for name, value in (extra or {}).items():
+            rec[name] = value
+        rows = rec.view(np.uint8).reshape(n, self.size)
+        rec[self.crc_field] = self.crc.compute_rows(rows[:, :self.crc_span])
+        return rows
+
+
+def _kvh_dtype(with_timestamp: bool) -> np.dtype:
+    fields = [("header", ">u4"), ("x", ">f4"), ("y", ">f4"), ("z", ">f4"),
+              ("ax", ">f4"), ("ay", ">f4"), ("az", ">f4")]
+    if with_timestamp:
+        fields.append(("timestamp_us", ">u4"))
+    fields += [("status", "u1"), ("sequence", "u1"), ("temperature", ">i2"), ("crc", ">u4")]
+    return np.dtype(fields)
+
+
+# KVH 1750/1775 IMU technical manual, tables 5-1/5-2 (format A), 5-3/5-4 (format B),
+# 5-8 (status: bits 0-2 gyro x, y, z valid; 4-6 accelerometers; 3 and 7 always 0,
+# so status + sequence + temperature never mimic a header), 5-9 (CRC-32/MPEG-2).
+_KVH_VALID = {"x": 0, "y": 1, "z": 2}
+
+KVH_A = FrameFormat(
+    name="kvh-a", title='KVH "format A" (DSP-1760, 1750/1775 IMU), 36 bytes',
+    header=bytes.fromhex("FE81FF55"), dtype=_kvh_dtype(False),
+    rate_fields=("x", "y", "z"), status_field="status", valid_bits=_KVH_VALID,
+    sequence_field="sequence", sequence_modulus=128, temperature_field="temperature",
+    crc=CRC32_MPEG2, crc_field="crc", crc_span=32, extra_fields=("ax", "ay", "az"),
+    status_ok=0x77)
+
+KVH_B = FrameFormat(
+    name="kvh-b", title='KVH "format B" (1750/1775 IMU, with timestamp), 40 bytes',
+    header=bytes.fromhex("FE81FF56"), dtype=_kvh_dtype(True),
+    rate_fields=("x", "y", "z"), status_field="status", valid_bits=_KVH_VALID,
+    sequence_field="sequence", sequence_modulus=128, temperature_field="temperature",
+    crc=CRC32_MPEG2, crc_field="crc", crc_span=36,
+    extra_fields=("ax", "ay", "az", "timestamp_us"), status_ok=0x77)
+
+FORMATS: dict[str, FrameFormat] = {f.name: f for f in (KVH_A, KVH_B)}
+
+
+def get_format(fmt: str | FrameFormat) -> FrameFormat:
+    if isinstance(fmt, FrameFormat):
+        return fmt
+    try:
+        return FORMATS[fmt]
+    except KeyError:
+        raise ValueError(f"unknown FOG frame format {fmt!r} "
+                         f"(known: {', '.join(sorted(FORMATS))})") from None
+
+
+# -- decoding ------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class DecodeState:
+    """Where a stream stands after a chunk: what the next chunk continues from."""
+
+    offset: int = 0               # stream offset of the first leftover byte
+    last_index: int = -1          # cumulative index of the last accepted frame
+    last_sequence: int | None = None
+
+
+@dataclass(frozen=True)
+class Frames:
+    """Accepted frames, in stream order. Rates in the units the frames carry."""
+
+    index: np.ndarray         # int64, cumulative, counting lost frames; 0 = first frame
+    offset: np.ndarray        # int64, stream byte offset of each frame's header
+    sequence: np.ndarray      # int64
+    status: np.ndarray        # uint8
+    rates: np.ndarray         # (N, 3) float32: x, y, z
+    temperature: np.ndarray   # raw integer as sent
+    extra: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    @staticmethod
+    def empty(fmt: FrameFormat) -> Frames:
+        e = np.empty(0, dtype=np.int64)
+        return Frames(e, e, e, np.empty(0, np.uint8), np.empty((0, 3), np.float32),
+                      np.empty(0, np.int64),
+                      {n: np.empty(0, fmt.dtype[n].newbyteorder("=")) for n in fmt.extra_fields})
+
+
+@dataclass(frozen=True)
+class DecodeStats:
+    """What one `decode` call saw. Event arrays are in stream order."""
+
+    frames: int
+    crc_errors: int
+    gaps: int
+    lost_frames: int
+    skipped_bytes: int
+    bytes: int                        # bytes consumed (not counting leftover)
+    crc_error_offsets: np.ndarray     # stream offset of each failed header
+    crc_error_index: np.ndarray       # the index the failed frame would have had, at least
+    gap_index: np.ndarray             # first lost index of each gap
+    gap_count: np.ndarray             # frames lost in each gap
+    state: DecodeState                # pass back to continue the stream
+
+
+def decode(buf: bytes | bytearray | memoryview | np.ndarray, fmt: str | FrameFormat = "kvh-a",
+           state: DecodeState | None = None) -> tuple[Frames, bytes, DecodeStats]:
+    """Decode the frames in `buf`; pure: the same input always gives the same output.
+
+    `buf` is the stream from `state.offset` on (a previous call's leftover first).
+    Returns the accepted frames, the leftover bytes that must start the next chunk
+    (at most size - 1 bytes), and the statistics with the state to continue from.
+    """
+    f = get_format(fmt)
+    st = state or DecodeState()
+    b = np.frombuffer(buf, dtype=np.uint8) if not isinstance(buf, np.ndarray) \
+        else np.ascontiguousarray(buf, dtype=np.uint8).reshape(-1)
+    n, size, hlen = b.size, f.size, len(f.header)
+
+    # every header position, then the ones complete enough to judge
+    if n >= hlen:
+        cand = np.flatnonzero(b[:n - hlen + 1] == f.header[0])
+        for k in range(1, hlen):
+            cand = cand[b[cand + k] == f.header[k]]
+    else:
+        cand = np.empty(0, dtype=np.intp)
+    complete = cand[cand + size <= n]
+    if complete.size:
+        rows = sliding_window_view(b, size)[complete]
+        crc_sent = rows[:, f.crc_span:f.crc_span + 4].copy().view(">u4").reshape(-1)
+        crc_ok = f.crc.compute_rows(rows[:, :f.crc_span]) == crc_sent
+    else:
+        rows = np.empty((0, size), dtype=np.uint8)
+        crc_ok = np.empty(0, dtype=bool)
+    good = complete[crc_ok]
+    good_rows = rows if crc_ok.all() else rows[crc_ok]
+    keep = _non_overlapping(good, size)
+    if not keep.all():
+        good, good_rows = good[keep], good_rows[keep]
+    last_end = int(good[-1]) + size if good.size else 0
+
+    # what this call cannot judge yet goes back as leftover
+    undecided = cand[(cand + size > n) & (cand >= last_end)]
+    cut = min(int(undecided[0]) if undecided.size else n, max(n - hlen + 1, 0))
+    start = max(last_end, cut)
+    leftover = b[start:].tobytes()
+
+    # failed headers that are not inside an accepted frame
+    bad = complete[~crc_ok]
+    if bad.size and good.size:
+        j = np.searchsorted(good, bad, side="right") - 1
+        inside = (j >= 0) & (bad < good[np.maximum(j, 0)] + size)
+        bad = bad[~inside]
+
+    fields = f.fields_of(good_rows, (f.sequence_field, f.status_field, f.temperature_field,
+                                     *f.rate_fields, *f.extra_fields))
+    seq = fields[f.sequence_field].astype(np.int64)
+    index, gap_at, gap_n = _unwrap(seq, st, f.sequence_modulus)
+    if bad.size:
+        j = np.searchsorted(good, bad, side="right") - 1
+        bad_index = np.where(j >= 0, index[np.maximum(j, 0)] if index.size else 0,
+                             st.last_index) + 1
+    else:
+        bad_index = np.empty(0, dtype=np.int64)
+
+    frames = Frames(
+        index=index, offset=good.astype(np.int64) + st.offset, sequence=seq,
+        status=fields[f.status_field].astype(np.uint8),
+        rates=np.stack([fields[r] for r in f.rate_fields], axis=1).astype(np.float32),
+        temperature=fields[f.temperature_field].astype(np.int64),
+        extra={name: fields[name] for name in f.extra_fields})
+    new_state = DecodeState(
+        offset=st.offset + start,
+        last_index=int(index[-1]) if index.size else st.last_index,
+        last_sequence=int(seq[-1]) if seq.size else st.last_sequence)
+    stats = DecodeStats(
+        frames=int(good.size), crc_errors=int(bad.size), gaps=int(gap_at.size),
+        lost_frames=int(gap_n.sum()), skipped_bytes=start - int(good.size) * size,
+        bytes=start, crc_error_offsets=bad.astype(np.int64) + st.offset,
+        crc_error_index=bad_index.astype(np.int64), gap_index=gap_at, gap_count=gap_n,
+        state=new_state)
+    return frames, leftover, stats
+
+
+def _non_overlapping(pos: np.ndarray, size: int) -> np.ndarray:
+    """Greedy left to right: keep a frame only if it starts after the last kept one ends.
+
+    Valid frames overlap only if a CRC accepts a frame made of pieces of two others
+    (odds ~ 2**-32 per header in payload); the loop runs only then.
+    """
+    keep = np.ones(pos.size, dtype=bool)
+    if pos.size < 2 or np.all(np.diff(pos) >= size):
+        return keep
+    end = -math.inf
+    for i, p in enumerate(pos.tolist()):
+        if p < end:
+            keep[i] = False
+        else:
+            end = p + size
+    return keep
+
+
+def _unwrap(seq: np.ndarray, st: DecodeState, modulus: int
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cumulative index from the sequence counter; gaps as (first lost index, count)."""
+    if seq.size == 0:
+        e = np.empty(0, dtype=np.int64)
+        return e, e, e
+    prev = np.empty_like(seq)
+    prev[1:] = seq[:-1]
+    step = (seq - prev) % modulus
+    if st.last_sequence is None:
+        step[0] = 1                       # the first frame received is index 0
+    else:
+        step[0] = (seq[0] - st.last_sequence) % modulus
+    step[step == 0] = modulus             # a counter never repeats: a whole wrap was lost
+    index = st.last_index + np.cumsum(step)
+    where = np.flatnonzero(step > 1)
+    return index, index[where] - step[where] + 1, step[where] - 1
+
+
+class StreamDecoder:
+    """`decode` over a stream fed in pieces; totals and events across the whole stream.
+
+    The live driver and `bench decode` both use this, so a capture decoded offline
+    gives exactly the frames decoded live. Events are kept up to `max_events` each
+    (counts stay exact) so a stream of garbage cannot grow memory without bound.
+    """
+
+    def __init__(self, fmt: str | FrameFormat = "kvh-a", max_events: int = 100_000) -> None:
+        self.format = get_format(fmt)
+        self.state = DecodeState()
+        self.leftover = b""
+        self.max_events = max_events
+        self.frames = 0
+        self.crc_errors = 0
+        self.gaps = 0
+        self.lost_frames = 0
+        self.skipped_bytes = 0
+        self.bytes = 0
+        self._crc_events: list[tuple[int, int]] = []   # (index, stream offset)
+        self._gap_events: list[tuple[int, int]] = []   # (first lost index, count)
+
+    def feed(self, data: bytes | bytearray | memoryview) -> Frames:
+        buf = self.leftover + bytes(data) if self.leftover else data
+        frames, self.leftover, s = decode(buf, self.format, self.state)
+        self.state = s.state
+        self.frames += s.frames
+        self.crc_errors += s.crc_errors
+        self.gaps += s.gaps
+        self.lost_frames += s.lost_frames
+        self.skipped_bytes += s.skipped_bytes
+        self.bytes = self.state.offset + len(self.leftover)
+        room = self.max_events - len(self._crc_events)
+        if room > 0 and s.crc_errors:
+            self._crc_events += list(zip(s.crc_error_index[:room].tolist(),
+                                         s.crc_error_offsets[:room].tolist(), strict=True))
+        room = self.max_events - len(self._gap_events)
+        if room > 0 and s.gaps:
+            self._gap_events += list(zip(s.gap_index[:room].tolist(),
+                                         s.gap_count[:room].tolist(), strict=True))
+        return frames
+
+    @property
+    def crc_events(self) -> list[tuple[int, int]]:
+        """(index the failed frame would have had at least, stream offset of its header)."""
+        return list(self._crc_events)
+
+    @property
+    def gap_events(self) -> list[tuple[int, int]]:
+        """(first lost index, number of frames lost)."""
+        return list(self._gap_events)

@@ -1,0 +1,317 @@
+"""The FOG's twin: the simulated stand's FOG output as binary frames on a pseudo-terminal.
+
+The driver opens the pty's slave path with pyserial exactly as it opens /dev/ttyUSB0,
+so the test exercises the real byte path: termios, partial reads, the kernel's buffers.
+The twin listens to the stand's axis from sample 0 and writes stand sample n as frame n
+(sequence n mod 128) when the stand's clock reaches it. It never drops a frame by
+itself: writes block while the reader is behind, and the frames go out late, not never.
+Faults are injected on purpose, by stand sample, and recorded in the twin's truth.
+
+Two details of real ports matter here. pyserial flushes the input queue when it opens
+the port, so the twin writes nothing until a reader has the slave open and the stand
+clock runs (the engine starts the clock after opening every instrument). And the
+twin closes its own slave descriptor, so that "a reader has it open" is visible on the
+master as the absence of POLLHUP.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import select
+import threading
+import time
+import tty
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from drivers.fog import dps_per_unit
+from drivers.fog_formats import AXES, get_format
+from sims.stand import AxisChunk, SimulatedStand
+
+_TICK_S = 0.002            # real seconds between looks at the clock when idle
+_OPEN_SETTLE_S = 0.05      # real seconds for pyserial to configure and flush after open
+_WRITE_POLL_MS = 50
+
+
+@dataclass(frozen=True)
+class Corrupt:
+    """Frames sample .. sample+count-1 go out with one byte xor-ed (their CRC fails)."""
+
+    sample: int
+    count: int = 1
+    byte: int = 14          # offset in the frame; 0..3 breaks the header instead
+    xor: int = 0x5A
+
+
+@dataclass(frozen=True)
+class Drop:
+    """Frames sample .. sample+count-1 are never sent (the counter still advances)."""
+
+    sample: int
+    count: int = 1
+
+
+@dataclass(frozen=True)
+class Garbage:
+    """nbytes of noise go out just before frame `sample` (no frame is lost).
+
+    With `decoys`, the noise carries header patterns and a cut-off frame, the worst
+    case for resynchronisation.
+    """
+
+    sample: int
+    nbytes: int
+    seed: int = 0
+    decoys: bool = True
+
+
+@dataclass(frozen=True)
+class Stall:
+    """The output stops at frame `sample` for duration_s (stand seconds).
+
+    lose=False: the frames are held and go out late (a blocked link).
+    lose=True: the frames of that time are never sent (the unit stopped transmitting
+    while its counter ran).
+    """
+
+    sample: int
+    duration_s: float
+    lose: bool = False
+
+
+Fault = Corrupt | Drop | Garbage | Stall
+
+
+@dataclass(frozen=True)
+class TwinTruth:
+    """What the twin did for samples i_from .. i_to - 1."""
+
+    index: np.ndarray
+    fog_dps: np.ndarray     # the stand's FOG output, float64
+    value: np.ndarray       # the float32 put in the frame (in the frame's units)
+    rate_dps: np.ndarray    # value converted back to deg/s as a driver must
+    sent: np.ndarray        # the frame went out (not dropped, not lost to a stall)
+    intact: np.ndarray      # ... and was not corrupted
+
+
+@dataclass(frozen=True)
+class _Hold:
+    until_s: float
+
+
+class FogTwin:
+    """Frames of one stand axis's FOG on a pty. Create it before the stand clock starts."""
+
+    def __init__(self, stand: SimulatedStand, axis: str, *, fmt: str = "kvh-a",
+                 axis_letter: str = "z", units: str = "deg/s", temperature: int = 25,
+                 keep_truth: bool = True) -> None:
+        self.format = get_format(fmt)
+        if axis_letter not in AXES:
+            raise ValueError(f"FOG twin axis letter {axis_letter!r} not one of x, y, z")
+        self.stand = stand
+        self.axis = stand.axis(axis)
+        self.clock = stand.clock
+        self.rate_hz = self.axis.rate_hz
+        self.units = units
+        self._col = AXES.index(axis_letter)
+        self._dps_per_unit = dps_per_unit(units, self.rate_hz)
+        self.temperature = int(temperature)
+        self.keep_truth = keep_truth
+        self._faults: list[Fault] = []
+        self._queue: deque[bytes | _Hold] = deque()
+        self._qlock = threading.Lock()
+        self._next_sample = 0
+        self._truth: list[tuple[np.ndarray, ...]] = []
+        self._master: int | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self.path: str | None = None
+        self.bytes_written = 0
+        self.frames_encoded = 0
+        with self.axis.lock:
+            if self.axis.samples_generated:
+                raise RuntimeError(
+                    f"FOG twin for axis {axis!r} created after the stand generated "
+                    f"{self.axis.samples_generated} samples: create it before the clock "
+                    f"starts, so frame n is stand sample n")
+            self.axis.listeners.append(self._on_chunk)
+
+    # -- faults --------------------------------------------------------------------------------
+    def inject(self, *faults: Fault) -> None:
+        """Schedule faults by stand sample; each must lie ahead of what is already encoded."""
+        with self.axis.lock:
+            for f in faults:
+                if f.sample < self._next_sample:
+                    raise ValueError(f"{f} is in the past: samples up to "
+                                     f"{self._next_sample - 1} are already encoded")
+                self._faults.append(f)
+
+    # -- encoding (runs in whichever thread advances the axis) -------------------------------
+    def _on_chunk(self, chunk: AxisChunk) -> None:
+        n0, n = chunk.n0, len(chunk.t_s)
+        idx = np.arange(n0, n0 + n, dtype=np.int64)
+        rates = np.zeros((n, 3), dtype=np.float32)
+        value = (chunk.fog_dps / self._dps_per_unit).astype(np.float32)
+        rates[:, self._col] = value
+        rows = self.format.encode(idx, rates, temperature=self.temperature).copy()
+        keep = np.ones(n, dtype=bool)
+        intact = np.ones(n, dtype=bool)
+        cuts: dict[int, list[bytes | _Hold]] = {}
+        for f in self._faults:
+            if isinstance(f, Corrupt | Drop):
+                lo, hi = max(f.sample, n0), min(f.sample + f.count, n0 + n)
+                if lo < hi:
+                    if isinstance(f, Drop):
+                        keep[lo - n0:hi - n0] = False
+                    else:
+                        rows[lo - n0:hi - n0, f.byte] ^= np.uint8(f.xor)
+                        intact[lo - n0:hi - n0] = False
+            elif isinstance(f, Stall) and f.lose:
+                lo = max(f.sample, n0)
+                hi = min(f.sample + round(f.duration_s * self.rate_hz), n0 + n)
+                if lo < hi:
+                    keep[lo - n0:hi - n0] = False
+            elif n0 <= f.sample < n0 + n:
+                if isinstance(f, Garbage):
+                    cuts.setdefault(f.sample, []).append(self._garbage(f))
+                elif isinstance(f, Stall):
+                    cuts.setdefault(f.sample, []).append(
+                        _Hold(f.sample / self.rate_hz + f.duration_s))
+        items: list[bytes | _Hold] = []
+        at = n0
+        for s in sorted(cuts) + [n0 + n]:
+            seg = slice(at - n0, s - n0)
+            if s > at:
+                items.append(rows[seg][keep[seg]].tobytes())
+            items.extend(cuts.get(s, []))
+            at = s
+        with self._qlock:
+            self._queue.extend(i for i in items if not isinstance(i, bytes) or i)
+        self._next_sample = n0 + n
+        self.frames_encoded += int(keep.sum())
+        if self.keep_truth:
+            self._truth.append((idx, chunk.fog_dps.copy(), value, keep, intact & keep))
+
+    def _garbage(self, f: Garbage) -> bytes:
+        rng = np.random.default_rng(f.seed)
+        noise = rng.integers(0, 256, f.nbytes, dtype=np.uint8)
+        if f.decoys and f.nbytes >= 8:
+            h = np.frombuffer(self.format.header, dtype=np.uint8)
+            size = self.format.size
+            # header patterns inside the noise, and a frame cut off at its end
+            for p in rng.integers(0, max(f.nbytes - len(h), 1), max(f.nbytes // size, 1)):
+                noise[p:p + len(h)] = h[:f.nbytes - p]
+            tail = max(f.nbytes - size // 2, 0)
+            noise[tail:tail + len(h)] = h[:f.nbytes - tail]
+        return noise.tobytes()
+
+    # -- the port ----------------------------------------------------------------------------
+    def start(self) -> str:
+        """Open the pty and start writing; returns the slave path for the driver."""
+        if self._thread is not None:
+            raise RuntimeError("FOG twin already started")
+        master, slave = os.openpty()
+        tty.setraw(slave)
+        self.path = os.ttyname(slave)
+        os.close(slave)  # a reader opening the path is then seen as POLLHUP clearing
+        os.set_blocking(master, False)
+        self._master = master
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name=f"fog-twin-{self.axis.name}",
+                                        daemon=True)
+        self._thread.start()
+        return self.path
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+        if self._master is not None:
+            os.close(self._master)
+            self._master = None
+        with self.axis.lock:
+            if self._on_chunk in self.axis.listeners:
+                self.axis.listeners.remove(self._on_chunk)
+
+    def __enter__(self) -> FogTwin:
+        if self._thread is None:
+            self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def _reader_present(self, poller: select.poll) -> bool:
+        return not any(ev & select.POLLHUP for _, ev in poller.poll(0))
+
+    def _run(self) -> None:
+        assert self._master is not None
+        poller = select.poll()
+        poller.register(self._master, select.POLLOUT)
+        seen: float | None = None
+        while not self._stop.is_set():  # the gate: a reader settled, and a running clock
+            if seen is None and self._reader_present(poller):
+                seen = time.monotonic()
+            if seen is not None and time.monotonic() - seen >= _OPEN_SETTLE_S \
+                    and getattr(self.clock, "running", True):
+                break
+            time.sleep(_TICK_S)
+        while not self._stop.is_set():
+            self.axis.advance_to(self.clock.now())
+            if not self._drain(poller):
+                time.sleep(_TICK_S)
+
+    def _drain(self, poller: select.poll) -> bool:
+        """Write what is due; False if there was nothing to write."""
+        wrote = False
+        while not self._stop.is_set():
+            with self._qlock:
+                if not self._queue:
+                    return wrote
+                item = self._queue.popleft()
+            if isinstance(item, _Hold):
+                if self.clock.now() < item.until_s:
+                    with self._qlock:
+                        self._queue.appendleft(item)
+                    return wrote
+                continue
+            self._write_all(item, poller)
+            wrote = True
+        return wrote
+
+    def _write_all(self, data: bytes, poller: select.poll) -> None:
+        view = memoryview(data)
+        while view and not self._stop.is_set():
+            try:
+                k = os.write(self._master, view)  # type: ignore[arg-type]
+                view = view[k:]
+                self.bytes_written += k
+            except BlockingIOError:
+                events = poller.poll(_WRITE_POLL_MS)
+                if any(ev & select.POLLHUP for _, ev in events):
+                    time.sleep(_WRITE_POLL_MS / 1000)  # reader gone: keep the frames
+            except OSError as e:
+                if e.errno != errno.EIO:
+                    raise
+                time.sleep(_WRITE_POLL_MS / 1000)
+
+    # -- truth -------------------------------------------------------------------------------
+    def truth(self, i_from: int = 0, i_to: int | None = None) -> TwinTruth:
+        """What the twin encoded for samples i_from .. i_to - 1 (all so far by default)."""
+        if not self.keep_truth:
+            raise RuntimeError("this FOG twin keeps no truth (keep_truth=False)")
+        with self.axis.lock:
+            parts = list(self._truth)
+        if not parts:
+            e = np.empty(0)
+            return TwinTruth(e.astype(np.int64), e, e.astype(np.float32), e,
+                             e.astype(bool), e.astype(bool))
+        idx, fog, value, sent, intact = (np.concatenate(p) for p in zip(*parts, strict=True))
+        hi = len(idx) if i_to is None else i_to
+        s = slice(i_from, hi)
+        return TwinTruth(idx[s], fog[s], value[s],
+                         value[s].astype(np.float64) * self._dps_per_unit, sent[s], intact[s])
