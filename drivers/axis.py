@@ -1,0 +1,746 @@
+"""One rate-table axis: a CiA 402 servo drive on CANopen, in profile velocity mode.
+
+The same code drives a real drive and the drive twin (sims/drive_twin.py): it talks
+CANopen through the `canopen` package over python-can, and takes the bus from the
+stand file (`interface`, `channel`; `virtual` for the twin).
+
+What it does, and why:
+- On entering its context: SDO checks that the node is a CiA 402 drive with the
+  configured encoder resolution, sets up heartbeats both ways (the drive produces
+  every `heartbeat_ms`; the drive's heartbeat consumer 0x1016 watches ours, so a dead
+  controller gets its table stopped by the drive itself), NMT start, profile velocity
+  mode with zero target, then the 402 state machine to Operation enabled.
+- Feedback (velocity actual 0x606C, position actual 0x6064, statusword 0x6041) comes
+  by TPDO, stamped on arrival with the bench clock.
+- Limits are checked before anything is sent: a rate or acceleration over the
+  stand's limit raises `LimitError`; nothing is ever clipped.
+- An EMCY from the drive, a boot-up, or a silent drive heartbeat becomes a pending
+  `DriveFault`; `check()` (and every method that waits) raises it.
+- Leaving the context, by return or by exception, ramps to zero and disables.
+
+Time: heartbeats, SDO and TPDO periods are real time (the CAN side); ramps, holds and
+settling are in the clock's seconds, and real-time timeouts are scaled by
+`clock.speed` with a margin.
+
+Threads: `raw` and the feedback bookkeeping run in canopen's receive thread; the
+engine's `raw` callable must be thread-safe (an exception in it is kept and raised by
+the next `check()`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import canopen
+from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
+
+from bench.clock import Clock
+from drivers.cia402 import (
+    COB_HEARTBEAT,
+    DEFAULT_EDS_PATH,
+    HEARTBEAT_LOST,
+    NMT_STATE_OPERATIONAL,
+    PROFILE_VELOCITY,
+    Command,
+    Cw,
+    DriveUnits,
+    Mode,
+    Od,
+    State,
+    Sw,
+    decode_state,
+    describe_error,
+    path,
+    transition,
+    unwrap_int32,
+)
+
+log = logging.getLogger(__name__)
+
+RawSink = Callable[[str, dict], None]
+
+#: real seconds added to every wait scaled from the clock (CAN latency, thread wake-ups)
+REAL_MARGIN_S = 1.0
+#: real seconds to wait for one 402 state change or NMT start
+STATE_TIMEOUT_S = 1.0
+#: SDO response timeout, real seconds (canopen's 0.3 s is short on a loaded host)
+SDO_TIMEOUT_S = 1.0
+
+
+class AxisError(RuntimeError):
+    """Something went wrong with an axis drive (names the axis and what)."""
+
+
+class LimitError(AxisError, ValueError):
+    """A command over the stand's limits: refused before anything was sent."""
+
+
+class AxisTimeout(AxisError, TimeoutError):
+    """A wait (settling, standstill, state change) did not finish in time."""
+
+
+class DriveFault(AxisError):
+    """The drive reported a fault (EMCY), rebooted, or went silent.
+
+    `code` is the EMCY error code (CiA 301/402), e.g. 0x8611 following error; 0x8130
+    when the controller stopped hearing the drive's heartbeat.
+    """
+
+    def __init__(self, axis: str, node_id: int, code: int | None, description: str,
+                 register: int = 0, t_s: float | None = None) -> None:
+        self.axis = axis
+        self.node_id = node_id
+        self.code = code
+        self.description = description
+        self.register = register
+        self.t_s = t_s
+        where = f"axis {axis} (drive node {node_id})"
+        what = f"0x{code:04X} {description}" if code is not None else description
+        super().__init__(f"{where}: drive fault {what}")
+
+
+@dataclass(frozen=True)
+class Feedback:
+    """One TPDO's worth of drive readings, stamped on arrival with the bench clock."""
+
+    t_s: float
+    velocity_dps: float
+    position_deg: float
+    statusword: int
+
+
+@dataclass(frozen=True)
+class _FaultInfo:
+    code: int | None
+    description: str
+    register: int
+    t_s: float
+
+
+class Axis:
+    """A table axis driven by a CiA 402 drive in profile velocity mode; a context manager."""
+
+    def __init__(self, name: str, *, interface: str, channel: str, node_id: int,
+                 max_rate_dps: float, max_accel_dps2: float, clock: Clock,
+                 counts_per_rev: int = 1 << 20, velocity_unit_counts_per_s: float = 1.0e-3,
+                 accel_unit_counts_per_s2: float = 1.0,
+                 eds_path: str | Path = DEFAULT_EDS_PATH, heartbeat_ms: int = 50,
+                 watchdog_ms: int | None = None, controller_node_id: int = 0x7F,
+                 accel_dps2: float | None = None, bitrate: int | None = None,
+                 raw: RawSink | None = None) -> None:
+        self.name = name
+        self.interface = interface
+        self.channel = channel
+        self.node_id = int(node_id)
+        self.clock = clock
+        self.eds_path = Path(eds_path)
+        self.bitrate = bitrate
+        self.raw = raw
+        self.units = DriveUnits(int(counts_per_rev), float(velocity_unit_counts_per_s),
+                                float(accel_unit_counts_per_s2))
+        self.max_rate_dps = float(max_rate_dps)
+        self.max_accel_dps2 = float(max_accel_dps2)
+        self.heartbeat_ms = int(heartbeat_ms)
+        self.watchdog_ms = watchdog_ms
+        self.controller_node_id = int(controller_node_id)
+        self._check_config(accel_dps2)
+        self.accel_dps2 = float(accel_dps2) if accel_dps2 is not None else self.max_accel_dps2
+        self.mode: Mode = PROFILE_VELOCITY
+        self.network: canopen.Network | None = None
+        self.node: canopen.RemoteNode | None = None
+        self._hb_task: Any = None
+        self._lock = threading.Condition()
+        self._fault: _FaultInfo | None = None
+        self._raw_error: BaseException | None = None
+        self._identity: str | None = None
+        self._drive_hb_last: float | None = None
+        self._drive_nmt: int | None = None
+        self._feedback: Feedback | None = None
+        self._samples: deque[Feedback] = deque(maxlen=4096)
+        self._seq = 0  # feedback frames received
+        self._pos_raw: int | None = None
+        self._pos_counts = 0
+        self._statusword: int | None = None
+        self._state: State | None = None
+        self._tpdo_period_s = 0.01
+        self._target_dps = 0.0
+        self._accel_sent: int | None = None
+        self._decel_dps2 = self.accel_dps2
+        self._quick_stop_decel_dps2 = self.max_accel_dps2
+        self.drive_watchdog_ms: int | None = None
+
+    def _check_config(self, accel_dps2: float | None) -> None:
+        where = f"axis {self.name} drive"
+        if not 1 <= self.node_id <= 127:
+            raise ValueError(f"{where}: node_id must be 1..127, got {self.node_id}")
+        if not 1 <= self.controller_node_id <= 127 or self.controller_node_id == self.node_id:
+            raise ValueError(f"{where}: controller_node_id {self.controller_node_id} must be "
+                             f"1..127 and differ from the drive's node_id")
+        for key, value, top in (("max_rate_dps", self.max_rate_dps, self.units.max_velocity_dps),
+                                ("max_accel_dps2", self.max_accel_dps2,
+                                 self.units.max_accel_dps2)):
+            if not (math.isfinite(value) and 0 < value <= top):
+                raise ValueError(f"{where}: {key} = {value} must be > 0 and at most {top:.6g} "
+                                 f"(what the drive's units can carry)")
+        if self.units.dps2_to_accel(self.max_accel_dps2) < 1:
+            raise ValueError(f"{where}: max_accel_dps2 = {self.max_accel_dps2} is below one "
+                             f"acceleration unit of the drive")
+        if self.heartbeat_ms < 1 or self.heartbeat_ms > 0xFFFF:
+            raise ValueError(f"{where}: heartbeat_ms must be 1..65535, got {self.heartbeat_ms}")
+        if self.watchdog_ms is not None and not 2 * self.heartbeat_ms < self.watchdog_ms <= 0xFFFF:
+            raise ValueError(f"{where}: watchdog_ms = {self.watchdog_ms} must exceed twice "
+                             f"heartbeat_ms = {self.heartbeat_ms} (and be <= 65535)")
+        if accel_dps2 is not None:
+            self._check_accel(float(accel_dps2))
+
+    # -- context --------------------------------------------------------------------
+    def __enter__(self) -> Axis:
+        self.open()
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        try:
+            self.close()
+        except Exception as e:
+            if exc is None:
+                raise
+            log.error("axis %s: stopping after %r failed: %s", self.name, exc, e)
+            exc.add_note(f"axis {self.name}: stopping the axis afterwards failed too: {e}")
+
+    def open(self) -> None:
+        """Connect, configure, NMT start, enable in profile velocity mode at zero rate."""
+        if self.network is not None:
+            return
+        network = canopen.Network()
+        network.NOTIFIER_CYCLE = 0.1  # disconnect() waits up to one cycle
+        node = canopen.RemoteNode(self.node_id, str(self.eds_path))
+        node.sdo.RESPONSE_TIMEOUT = SDO_TIMEOUT_S
+        network.add_node(node)
+        node.nmt.add_heartbeat_callback(self._on_heartbeat)
+        node.emcy.add_callback(self._on_emcy)
+        kwargs: dict[str, Any] = {"interface": self.interface, "channel": self.channel}
+        if self.bitrate:
+            kwargs["bitrate"] = self.bitrate
+        try:
+            network.connect(**kwargs)
+        except Exception as e:
+            raise AxisError(f"axis {self.name}: cannot open CAN bus {self.interface}:"
+                            f"{self.channel}: {e}") from e
+        self.network, self.node = network, node
+        try:
+            self._configure()
+            self.enable()
+        except BaseException:
+            try:
+                self.close()
+            except Exception as e:  # noqa: BLE001 - the first error is the one to see
+                log.error("axis %s: cleanup after a failed open: %s", self.name, e)
+            raise
+
+    def close(self) -> None:
+        """Ramp to zero, disable, stop our heartbeat, leave the bus. Safe to call twice."""
+        if self.network is None:
+            return
+        errors: list[str] = []
+        try:
+            try:
+                self.stop()
+            except Exception as e:  # noqa: BLE001 - try the harder stop
+                errors.append(f"ramp to zero: {e}")
+                try:
+                    self.quick_stop()
+                except Exception as e2:  # noqa: BLE001
+                    errors.append(f"quick stop: {e2}")
+            try:
+                self.disable()
+            except Exception as e:  # noqa: BLE001
+                errors.append(f"disable: {e}")
+        finally:
+            self._leave_bus()
+        if errors:
+            raise AxisError(f"axis {self.name}: leaving: " + "; ".join(errors))
+
+    def _leave_bus(self) -> None:
+        network, self.network = self.network, None
+        if self._hb_task is not None:
+            try:
+                self._hb_task.stop()
+            except Exception:  # noqa: BLE001 - the bus shutdown stops it anyway
+                pass
+            self._hb_task = None
+        if network is not None:
+            network.disconnect()
+
+    # -- configuration ----------------------------------------------------------------
+    def _configure(self) -> None:
+        node = self._node()
+        device_type = self._read(Od.DEVICE_TYPE)
+        if device_type & 0xFFFF != 402:
+            raise AxisError(f"axis {self.name}: node {self.node_id} is not a CiA 402 drive "
+                            f"(0x1000 device type = 0x{device_type:08X})")
+        self._identity = self._read_identity()
+        self._check_resolution()
+        # heartbeats both ways: ours (the drive's watchdog eats it), the drive's (we watch)
+        self._hb_task = self._network().send_periodic(
+            COB_HEARTBEAT + self.controller_node_id, bytes([NMT_STATE_OPERATIONAL]),
+            self.heartbeat_ms / 1000.0)
+        self._write(Od.PRODUCER_HEARTBEAT, self.heartbeat_ms)
+        self._configure_watchdog()
+        node.nmt.state = "OPERATIONAL"
+        self._wait_real(lambda: self._drive_nmt == NMT_STATE_OPERATIONAL,
+                        max(STATE_TIMEOUT_S, 5 * self.heartbeat_ms / 1000.0),
+                        "the drive's heartbeat to show NMT operational", check=False)
+        node.tpdo.read()  # the drive's TPDO mapping, by SDO
+        mapped: set[int] = set()
+        periods = []
+        for pdo in node.tpdo.map.values():
+            if pdo.enabled and pdo.map:
+                mapped |= {var.index for var in pdo.map}
+                pdo.add_callback(self._on_tpdo)
+                if pdo.event_timer:
+                    periods.append(pdo.event_timer / 1000.0)
+        missing = {Od.VELOCITY_ACTUAL, Od.POSITION_ACTUAL, Od.STATUSWORD} - mapped
+        if missing:
+            names = ", ".join(f"0x{i:04X} {Od(i).name.lower()}" for i in sorted(missing))
+            raise AxisError(f"axis {self.name}: the drive's TPDOs do not carry {names}")
+        self._tpdo_period_s = max(periods, default=0.01)
+        self._quick_stop_decel_dps2 = self.units.accel_to_dps2(
+            self._read(Od.QUICK_STOP_DECELERATION))
+        self._journal("config", identity=self._identity,
+                      counts_per_rev=self.units.counts_per_rev,
+                      velocity_unit_counts_per_s=self.units.velocity_unit_counts_per_s,
+                      accel_unit_counts_per_s2=self.units.accel_unit_counts_per_s2,
+                      heartbeat_ms=self.heartbeat_ms, drive_watchdog_ms=self.drive_watchdog_ms,
+                      abort_connection_option=self._read(Od.ABORT_CONNECTION_OPTION),
+                      quick_stop_decel_dps2=self._quick_stop_decel_dps2,
+                      max_rate_dps=self.max_rate_dps, max_accel_dps2=self.max_accel_dps2)
+
+    def _read_identity(self) -> str:
+        def text(index: Od) -> str:
+            try:
+                return str(self._read(index)).strip()
+            except AxisError:
+                return "?"
+        ident = []
+        for sub, label in ((1, "vendor"), (2, "product"), (3, "revision"), (4, "serial")):
+            try:
+                ident.append(f"{label} 0x{self._read(Od.IDENTITY, sub):08X}")
+            except AxisError:
+                pass
+        return (f"{text(Od.DEVICE_NAME)}, hw {text(Od.HARDWARE_VERSION)}, "
+                f"sw {text(Od.SOFTWARE_VERSION)}, " + ", ".join(ident))
+
+    def _check_resolution(self) -> None:
+        try:
+            increments = self._read(Od.POSITION_ENCODER_RESOLUTION, 1)
+            revolutions = self._read(Od.POSITION_ENCODER_RESOLUTION, 2)
+        except AxisError:
+            return  # a drive without 0x608F: the stand file's counts_per_rev is all we have
+        if revolutions and increments / revolutions != self.units.counts_per_rev:
+            raise AxisError(f"axis {self.name}: stand file says counts_per_rev = "
+                            f"{self.units.counts_per_rev} but the drive's 0x608F says "
+                            f"{increments}/{revolutions} counts per revolution")
+
+    def _configure_watchdog(self) -> None:
+        """Make the drive watch our heartbeat (0x1016:1), keeping its own time if sane."""
+        entry = self._read(Od.CONSUMER_HEARTBEAT, 1)
+        producer, time_ms = (entry >> 16) & 0xFF, entry & 0xFFFF
+        if self.watchdog_ms is not None:
+            time_ms = self.watchdog_ms
+        elif producer != self.controller_node_id or time_ms <= 2 * self.heartbeat_ms:
+            time_ms = 5 * self.heartbeat_ms
+        new = (self.controller_node_id << 16) | time_ms
+        if new != entry:
+            self._write(Od.CONSUMER_HEARTBEAT, new, 1)
+        self.drive_watchdog_ms = time_ms
+
+    # -- the 402 state machine -------------------------------------------------------------
+    def enable(self) -> None:
+        """Fault reset if needed, profile velocity mode, zero target, then Operation enabled."""
+        state = self._read_state()
+        if state is State.FAULT:
+            code = self._read(Od.ERROR_CODE)
+            self._journal("fault_reset", code=f"0x{code:04X}", description=describe_error(code))
+            self._write(Od.CONTROLWORD, 0)
+            self._write(Od.CONTROLWORD, Cw.FAULT_RESET)
+            state = self._wait_state(State.SWITCH_ON_DISABLED)
+        with self._lock:
+            self._fault = None
+        self._write(Od.MODES_OF_OPERATION, self.mode.code)
+        shown = self._read(Od.MODES_OF_OPERATION_DISPLAY)
+        if shown != self.mode.code:
+            raise AxisError(f"axis {self.name}: drive shows mode {shown} after 0x6060 = "
+                            f"{self.mode.code} ({self.mode.name})")
+        self._write(Od.TARGET_VELOCITY, 0)  # a drive enables onto the set-point it holds
+        self._target_dps = 0.0
+        self._send_accel(self.accel_dps2)
+        self._go_to(State.OPERATION_ENABLED)
+        self._wait_real(lambda: self._feedback is not None,
+                        STATE_TIMEOUT_S + 5 * self._tpdo_period_s, "the first TPDO")
+
+    def _go_to(self, target: State) -> None:
+        state = self._read_state()
+        for cmd in path(state, target):
+            arc = transition(state, cmd)
+            assert arc is not None
+            self._write(Od.CONTROLWORD, cmd.word)
+            state = self._wait_state(arc.target)
+
+    def _read_state(self) -> State:
+        sw = self._read(Od.STATUSWORD)
+        return decode_state(sw)
+
+    def _wait_state(self, target: State) -> State:
+        deadline = time.monotonic() + STATE_TIMEOUT_S
+        while True:
+            state = self._read_state()
+            if state is target:
+                self._journal("state", state=state.label)
+                return state
+            if time.monotonic() > deadline:
+                raise AxisTimeout(f"axis {self.name}: drive did not reach {target.label} "
+                                  f"(it shows {state.label})")
+            time.sleep(0.002)
+
+    @property
+    def state(self) -> State | None:
+        """The 402 state of the latest statusword received."""
+        with self._lock:
+            return self._state
+
+    # -- commands ---------------------------------------------------------------------
+    def _check_accel(self, accel_dps2: float) -> None:
+        if not math.isfinite(accel_dps2) or accel_dps2 <= 0:
+            raise LimitError(f"axis {self.name}: acceleration {accel_dps2} deg/s^2 must be "
+                             f"a finite number > 0 (nothing was sent)")
+        if accel_dps2 > self.max_accel_dps2:
+            raise LimitError(f"axis {self.name}: acceleration {accel_dps2:g} deg/s^2 is over "
+                             f"the stand's max_accel_dps2 = {self.max_accel_dps2:g} deg/s^2; "
+                             f"refused, nothing was sent")
+        if self.units.dps2_to_accel(accel_dps2) < 1:
+            raise LimitError(f"axis {self.name}: acceleration {accel_dps2:g} deg/s^2 is below "
+                             f"one drive acceleration unit; refused")
+
+    def _check_rate(self, rate_dps: float) -> None:
+        if not math.isfinite(rate_dps):
+            raise LimitError(f"axis {self.name}: rate {rate_dps} deg/s is not a finite number "
+                             f"(nothing was sent)")
+        if abs(rate_dps) > self.max_rate_dps:
+            raise LimitError(f"axis {self.name}: rate {rate_dps:g} deg/s is over the stand's "
+                             f"max_rate_dps = {self.max_rate_dps:g} deg/s; refused, nothing "
+                             f"was sent")
+
+    def set_rate(self, rate_dps: float, accel_dps2: float | None = None) -> float:
+        """Command a rate (deg/s, signed); returns the rate actually sent (drive units)."""
+        rate_dps = float(rate_dps)
+        accel = self.accel_dps2 if accel_dps2 is None else float(accel_dps2)
+        self._check_rate(rate_dps)
+        self._check_accel(accel)
+        self.check()
+        state = self.state
+        if state is not State.OPERATION_ENABLED:
+            raise AxisError(f"axis {self.name}: cannot set a rate, the drive is in "
+                            f"{state.label if state else 'an unknown state'} "
+                            f"(enable() brings it to operation enabled)")
+        self._send_accel(accel)
+        units = self.units.dps_to_velocity(rate_dps)
+        self._write(Od.TARGET_VELOCITY, units)
+        sent = self.units.velocity_to_dps(units)
+        with self._lock:
+            self._target_dps = sent
+        self._journal("command", rate_dps=rate_dps, sent_dps=sent, velocity_units=units,
+                      accel_dps2=accel)
+        return sent
+
+    def _send_accel(self, accel_dps2: float) -> None:
+        units = self.units.dps2_to_accel(accel_dps2)
+        if units != self._accel_sent:
+            self._write(Od.PROFILE_ACCELERATION, units)
+            self._write(Od.PROFILE_DECELERATION, units)
+            self._accel_sent = units
+            self._decel_dps2 = self.units.accel_to_dps2(units)
+
+    def stop(self, wait: bool = True) -> None:
+        """Ramp to zero with the profile deceleration; wait for standstill if `wait`.
+
+        In any other state the drive is already stopping on its own (quick stop, fault
+        reaction) or its power stage is off: this only waits for standstill.
+        """
+        self._require_open()
+        state = self._read_state()
+        if state is State.OPERATION_ENABLED:
+            self._write(Od.TARGET_VELOCITY, 0)
+            with self._lock:
+                self._target_dps = 0.0
+            self._journal("command", rate_dps=0.0, sent_dps=0.0, velocity_units=0,
+                          accel_dps2=self._decel_dps2)
+        if wait:
+            self._wait_standstill(self._decel_dps2)
+
+    def quick_stop(self, wait: bool = True) -> None:
+        """Quick stop (controlword): the drive ramps with 0x6085 as its 0x605A option says."""
+        self._require_open()
+        state = self._read_state()
+        if state is State.OPERATION_ENABLED:
+            self._write(Od.CONTROLWORD, Command.QUICK_STOP.word)
+            self._journal("quick_stop")
+        if wait:
+            self._wait_standstill(self._quick_stop_decel_dps2)
+
+    def disable(self) -> None:
+        """Stop if moving, then open the power stage (Switch on disabled). Faults stay latched."""
+        self._require_open()
+        state = self._read_state()
+        if state.power_stage_on:
+            self.stop(wait=True)
+            state = self._read_state()
+        if state not in (State.SWITCH_ON_DISABLED, State.FAULT, State.NOT_READY_TO_SWITCH_ON):
+            self._go_to(State.SWITCH_ON_DISABLED)
+
+    def _wait_standstill(self, decel_dps2: float) -> None:
+        """Wait for statusword bit 12 (speed = 0) in a TPDO received after now."""
+        with self._lock:
+            seq0 = self._seq
+            v = abs(self._feedback.velocity_dps) if self._feedback else self.max_rate_dps
+        ramp_s = v / max(decel_dps2, 1e-9)
+        timeout = ramp_s / self.clock.speed + REAL_MARGIN_S + 5 * self._tpdo_period_s
+        self._wait_real(lambda: self._seq > seq0 and self._statusword is not None
+                        and bool(self._statusword & Sw.SPEED_ZERO),
+                        timeout, "standstill (statusword bit 12)", check=False)
+
+    # -- readings ---------------------------------------------------------------------
+    @property
+    def feedback(self) -> Feedback:
+        with self._lock:
+            if self._feedback is None:
+                raise AxisError(f"axis {self.name}: no feedback from the drive yet")
+            return self._feedback
+
+    @property
+    def rate_dps(self) -> float:
+        """Velocity actual 0x606C of the latest TPDO, deg/s."""
+        return self.feedback.velocity_dps
+
+    @property
+    def position_deg(self) -> float:
+        """Position actual 0x6064 of the latest TPDO, deg, unwrapped across INTEGER32 wraps."""
+        return self.feedback.position_deg
+
+    @property
+    def target_dps(self) -> float:
+        """The rate last sent (after rounding to drive units)."""
+        with self._lock:
+            return self._target_dps
+
+    def wait_settled(self, tolerance_dps: float, hold_s: float, timeout_s: float) -> float:
+        """Wait until every velocity reading for `hold_s` (clock s) is within tolerance.
+
+        Returns the mean velocity actual over that hold. Raises `AxisTimeout` when it does
+        not settle within `timeout_s` (clock s), `DriveFault` on a drive fault.
+        """
+        if not tolerance_dps > 0 or hold_s < 0 or not timeout_s > 0:
+            raise ValueError(f"axis {self.name}: wait_settled needs tolerance_dps > 0, "
+                             f"hold_s >= 0 and timeout_s > 0")
+        deadline = time.monotonic() + timeout_s / self.clock.speed + REAL_MARGIN_S
+        with self._lock:
+            seq = self._seq
+        run: list[Feedback] = []
+        last_v: float | None = None
+        while True:
+            self.check()
+            with self._lock:
+                new = list(self._samples)[-(self._seq - seq):] if self._seq > seq else []
+                seq = self._seq
+                target = self._target_dps
+                state = self._state
+            if state is not State.OPERATION_ENABLED:
+                raise AxisError(f"axis {self.name}: the drive left operation enabled while "
+                                f"settling (it shows {state.label if state else '?'})")
+            for f in new:
+                last_v = f.velocity_dps
+                if abs(f.velocity_dps - target) <= tolerance_dps:
+                    run.append(f)
+                else:
+                    run.clear()
+            if len(run) >= 2 and run[-1].t_s - run[0].t_s >= hold_s:
+                mean = math.fsum(f.velocity_dps for f in run) / len(run)
+                self._journal("settled", target_dps=target, mean_dps=mean, samples=len(run),
+                              hold_s=run[-1].t_s - run[0].t_s, tolerance_dps=tolerance_dps)
+                return mean
+            if time.monotonic() > deadline:
+                raise AxisTimeout(f"axis {self.name}: the rate did not settle within "
+                                  f"{tolerance_dps:g} deg/s of {target:g} deg/s for {hold_s:g} s "
+                                  f"in {timeout_s:g} s (last velocity actual: "
+                                  f"{'none' if last_v is None else f'{last_v:.6g} deg/s'})")
+            with self._lock:
+                self._lock.wait(timeout=0.05)
+
+    def identity(self) -> str:
+        """Device name, versions and identity object (0x1008/0x1009/0x100A/0x1018)."""
+        if self._identity is None:
+            self._require_open()
+            self._identity = self._read_identity()
+        return self._identity
+
+    def check(self) -> None:
+        """Raise the pending fault, if any: EMCY, boot-up, silent drive, lost feedback."""
+        network = self._require_open()
+        network.check()
+        now = time.monotonic()
+        with self._lock:
+            if self._raw_error is not None:
+                err, self._raw_error = self._raw_error, None
+                raise AxisError(f"axis {self.name}: the raw-data callback failed: {err}") \
+                    from err
+            hb_limit = 4 * self.heartbeat_ms / 1000.0 + 0.1
+            if (self._fault is None and self._drive_hb_last is not None
+                    and now - self._drive_hb_last > hb_limit):
+                self._set_fault(HEARTBEAT_LOST.code,
+                                f"no heartbeat from the drive for "
+                                f"{now - self._drive_hb_last:.3f} s (it sends every "
+                                f"{self.heartbeat_ms} ms)", 0)
+            fault = self._fault
+        if fault is not None:
+            raise DriveFault(self.name, self.node_id, fault.code, fault.description,
+                             fault.register, fault.t_s)
+
+    # -- receive-thread callbacks ----------------------------------------------------------
+    def _on_tpdo(self, pdo: Any) -> None:
+        t = self.clock.now()
+        values = {var.index: var.raw for var in pdo.map}
+        with self._lock:
+            if Od.STATUSWORD in values:
+                sw = int(values[Od.STATUSWORD])
+                self._statusword = sw
+                try:
+                    state = decode_state(sw)
+                except ValueError:
+                    state = None
+                if state is not self._state:
+                    self._state = state
+                    self._journal("state", state=state.label if state else f"0x{sw:04X}",
+                                  statusword=sw)
+            if Od.VELOCITY_ACTUAL in values or Od.POSITION_ACTUAL in values:
+                prev = self._feedback
+                v = (self.units.velocity_to_dps(int(values[Od.VELOCITY_ACTUAL]))
+                     if Od.VELOCITY_ACTUAL in values else (prev.velocity_dps if prev else 0.0))
+                if Od.POSITION_ACTUAL in values:
+                    raw_pos = int(values[Od.POSITION_ACTUAL])
+                    if self._pos_raw is None:
+                        self._pos_counts = raw_pos
+                    else:
+                        self._pos_counts += unwrap_int32(self._pos_raw, raw_pos)
+                    self._pos_raw = raw_pos
+                f = Feedback(t, v, self.units.counts_to_deg(self._pos_counts),
+                             self._statusword or 0)
+                self._feedback = f
+                self._samples.append(f)
+                self._seq += 1
+                self._journal("feedback", t_s=t, velocity_dps=f.velocity_dps,
+                              position_deg=f.position_deg, statusword=f.statusword)
+            self._lock.notify_all()
+
+    def _on_heartbeat(self, nmt_state: int) -> None:
+        with self._lock:
+            self._drive_hb_last = time.monotonic()
+            if nmt_state == 0 and self._drive_nmt is not None:
+                self._set_fault(None, "the drive rebooted (boot-up message)", 0)
+            self._drive_nmt = nmt_state
+            self._lock.notify_all()
+
+    def _on_emcy(self, entry: Any) -> None:
+        code, register = int(entry.code), int(entry.register)
+        with self._lock:
+            if code & 0xFF00 == 0:
+                self._journal("emcy", code=f"0x{code:04X}", description="error reset",
+                              register=register)
+            else:
+                self._journal("emcy", code=f"0x{code:04X}", description=describe_error(code),
+                              register=register, data=bytes(entry.data).hex())
+                self._set_fault(code, describe_error(code), register)
+            self._lock.notify_all()
+
+    def _set_fault(self, code: int | None, description: str, register: int) -> None:
+        if self._fault is None:  # the first fault is the cause; later ones follow from it
+            self._fault = _FaultInfo(code, description, register, self.clock.now())
+
+    # -- plumbing ----------------------------------------------------------------------
+    def _journal(self, kind: str, **record: Any) -> None:
+        if self.raw is None:
+            return
+        record.setdefault("t_s", self.clock.now())
+        try:
+            self.raw(kind, record)
+        except Exception as e:  # noqa: BLE001 - raised by the next check()
+            self._raw_error = self._raw_error or e
+
+    def _require_open(self) -> canopen.Network:
+        if self.network is None:
+            raise AxisError(f"axis {self.name}: not open (use it as a context manager)")
+        return self.network
+
+    def _network(self) -> canopen.Network:
+        return self._require_open()
+
+    def _node(self) -> canopen.RemoteNode:
+        self._require_open()
+        assert self.node is not None
+        return self.node
+
+    def _sdo_var(self, index: int, sub: int) -> Any:
+        obj = self._node().sdo[index]
+        return obj if isinstance(obj, SdoVariable) else obj[sub]
+
+    def _describe(self, index: int, sub: int) -> str:
+        try:
+            name = Od(index).name.lower().replace("_", " ")
+        except ValueError:
+            name = "object"
+        return f"{name} 0x{index:04X}" + (f":{sub}" if sub else "")
+
+    def _read(self, index: int, sub: int = 0) -> Any:
+        try:
+            return self._sdo_var(index, sub).raw
+        except SdoAbortedError as e:
+            raise AxisError(f"axis {self.name}: drive node {self.node_id} refused to read "
+                            f"{self._describe(index, sub)}: {e}") from e
+        except SdoCommunicationError as e:
+            raise AxisError(f"axis {self.name}: no answer from drive node {self.node_id} on "
+                            f"{self.interface}:{self.channel} reading "
+                            f"{self._describe(index, sub)}: {e}") from e
+
+    def _write(self, index: int, value: int, sub: int = 0) -> None:
+        try:
+            self._sdo_var(index, sub).raw = value
+        except SdoAbortedError as e:
+            raise AxisError(f"axis {self.name}: drive node {self.node_id} refused "
+                            f"{self._describe(index, sub)} = {value}: {e}") from e
+        except SdoCommunicationError as e:
+            raise AxisError(f"axis {self.name}: no answer from drive node {self.node_id} on "
+                            f"{self.interface}:{self.channel} writing "
+                            f"{self._describe(index, sub)} = {value}: {e}") from e
+        self._journal("write", object=self._describe(index, sub), value=int(value))
+
+    def _wait_real(self, done: Callable[[], bool], timeout_real_s: float, what: str,
+                   check: bool = True) -> None:
+        deadline = time.monotonic() + timeout_real_s
+        while True:
+            if check:
+                self.check()
+            with self._lock:
+                if done():
+                    return
+                if time.monotonic() > deadline:
+                    raise AxisTimeout(f"axis {self.name}: timed out after {timeout_real_s:.2f} "
+                                      f"s (real) waiting for {what}")
+                self._lock.wait(timeout=0.02)
