@@ -231,6 +231,7 @@ class DecodeState:
     offset: int = 0               # stream offset of the first leftover byte
     last_index: int = -1          # cumulative index of the last accepted frame
     last_sequence: int | None = None
+    last_end: int = 0             # stream offset just past the last accepted frame
 
 
 @dataclass(frozen=True)
@@ -267,7 +268,7 @@ class DecodeStats:
     skipped_bytes: int
     bytes: int                        # bytes consumed (not counting leftover)
     crc_error_offsets: np.ndarray     # stream offset of each failed header
-    crc_error_index: np.ndarray       # the index the failed frame would have had, at least
+    crc_error_index: np.ndarray       # the index the failed frame would have had
     gap_index: np.ndarray             # first lost index of each gap
     gap_count: np.ndarray             # frames lost in each gap
     state: DecodeState                # pass back to continue the stream
@@ -311,7 +312,11 @@ def decode(buf: bytes | bytearray | memoryview | np.ndarray, fmt: str | FrameFor
 
     # what this call cannot judge yet goes back as leftover
     undecided = cand[(cand + size > n) & (cand >= last_end)]
-    cut = min(int(undecided[0]) if undecided.size else n, max(n - hlen + 1, 0))
+    if undecided.size:
+        cut = int(undecided[0])
+    else:  # the longest tail that may still grow into a header
+        cut = n - next((k for k in range(min(hlen - 1, n), 0, -1)
+                        if b[n - k:].tobytes() == f.header[:k]), 0)
     start = max(last_end, cut)
     leftover = b[start:].tobytes()
 
@@ -326,12 +331,7 @@ def decode(buf: bytes | bytearray | memoryview | np.ndarray, fmt: str | FrameFor
                                      *f.rate_fields, *f.extra_fields))
     seq = fields[f.sequence_field].astype(np.int64)
     index, gap_at, gap_n = _unwrap(seq, st, f.sequence_modulus)
-    if bad.size:
-        j = np.searchsorted(good, bad, side="right") - 1
-        bad_index = np.where(j >= 0, index[np.maximum(j, 0)] if index.size else 0,
-                             st.last_index) + 1
-    else:
-        bad_index = np.empty(0, dtype=np.int64)
+    bad_index = _broken_frame_index(bad, good, index, st, size)
 
     frames = Frames(
         index=index, offset=good.astype(np.int64) + st.offset, sequence=seq,
@@ -342,7 +342,8 @@ def decode(buf: bytes | bytearray | memoryview | np.ndarray, fmt: str | FrameFor
     new_state = DecodeState(
         offset=st.offset + start,
         last_index=int(index[-1]) if index.size else st.last_index,
-        last_sequence=int(seq[-1]) if seq.size else st.last_sequence)
+        last_sequence=int(seq[-1]) if seq.size else st.last_sequence,
+        last_end=st.offset + last_end if good.size else st.last_end)
     stats = DecodeStats(
         frames=int(good.size), crc_errors=int(bad.size), gaps=int(gap_at.size),
         lost_frames=int(gap_n.sum()), skipped_bytes=start - int(good.size) * size,
@@ -350,6 +351,26 @@ def decode(buf: bytes | bytearray | memoryview | np.ndarray, fmt: str | FrameFor
         crc_error_index=bad_index.astype(np.int64), gap_index=gap_at, gap_count=gap_n,
         state=new_state)
     return frames, leftover, stats
+
+
+def _broken_frame_index(bad: np.ndarray, good: np.ndarray, index: np.ndarray,
+                        st: DecodeState, size: int) -> np.ndarray:
+    """The index a frame that failed its CRC would have had.
+
+    Counted in whole frames from the end of the last accepted frame: exact when only
+    frames lie between, an overestimate inside garbage. It uses nothing after the
+    failed header, so it does not depend on how the stream was cut into chunks.
+    """
+    if bad.size == 0:
+        return np.empty(0, dtype=np.int64)
+    j = np.searchsorted(good, bad, side="right") - 1
+    has_prev = j >= 0
+    prev_index = np.where(has_prev, index[np.maximum(j, 0)] if index.size else 0,
+                          st.last_index)
+    prev_end = np.where(has_prev, good[np.maximum(j, 0)] + size if good.size else 0,
+                        st.last_end - st.offset)
+    est = prev_index + 1 + np.maximum(bad - prev_end, 0) // size
+    return est.astype(np.int64)
 
 
 def _non_overlapping(pos: np.ndarray, size: int) -> np.ndarray:
