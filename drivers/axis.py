@@ -253,6 +253,11 @@ class Axis:
             return
         errors: list[str] = []
         try:
+            silence = self._drive_silence_s()
+            if silence is not None:
+                raise AxisError(f"axis {self.name}: leaving: the drive has been silent for "
+                                f"{silence:.3f} s; it could not be told to stop (its "
+                                f"heartbeat watchdog, 0x1016, must stop the table)")
             try:
                 self.stop()
             except Exception as e:  # noqa: BLE001 - try the harder stop
@@ -385,8 +390,10 @@ class Axis:
         self._target_dps = 0.0
         self._send_accel(self.accel_dps2)
         self._go_to(State.OPERATION_ENABLED)
-        self._wait_real(lambda: self._feedback is not None,
-                        STATE_TIMEOUT_S + 5 * self._tpdo_period_s, "the first TPDO")
+        self._wait_real(lambda: self._feedback is not None
+                        and self._state is State.OPERATION_ENABLED,
+                        STATE_TIMEOUT_S + 5 * self._tpdo_period_s,
+                        "TPDOs showing operation enabled")
 
     def _go_to(self, target: State) -> None:
         state = self._read_state()
@@ -476,7 +483,7 @@ class Axis:
         In any other state the drive is already stopping on its own (quick stop, fault
         reaction) or its power stage is off: this only waits for standstill.
         """
-        self._require_open()
+        self._require_alive()
         state = self._read_state()
         if state is State.OPERATION_ENABLED:
             self._write(Od.TARGET_VELOCITY, 0)
@@ -489,7 +496,7 @@ class Axis:
 
     def quick_stop(self, wait: bool = True) -> None:
         """Quick stop (controlword): the drive ramps with 0x6085 as its 0x605A option says."""
-        self._require_open()
+        self._require_alive()
         state = self._read_state()
         if state is State.OPERATION_ENABLED:
             self._write(Od.CONTROLWORD, Command.QUICK_STOP.word)
@@ -499,11 +506,13 @@ class Axis:
 
     def disable(self) -> None:
         """Stop if moving, then open the power stage (Switch on disabled). Faults stay latched."""
-        self._require_open()
+        self._require_alive()
         state = self._read_state()
         if state.power_stage_on:
             self.stop(wait=True)
             state = self._read_state()
+        if state is State.FAULT_REACTION_ACTIVE:  # at rest now: the drive goes to Fault itself
+            state = self._wait_state(State.FAULT)
         if state not in (State.SWITCH_ON_DISABLED, State.FAULT, State.NOT_READY_TO_SWITCH_ON):
             self._go_to(State.SWITCH_ON_DISABLED)
 
@@ -602,9 +611,8 @@ class Axis:
                 err, self._raw_error = self._raw_error, None
                 raise AxisError(f"axis {self.name}: the raw-data callback failed: {err}") \
                     from err
-            hb_limit = 4 * self.heartbeat_ms / 1000.0 + 0.1
             if (self._fault is None and self._drive_hb_last is not None
-                    and now - self._drive_hb_last > hb_limit):
+                    and now - self._drive_hb_last > self._heartbeat_limit_s()):
                 self._set_fault(HEARTBEAT_LOST.code,
                                 f"no heartbeat from the drive for "
                                 f"{now - self._drive_hb_last:.3f} s (it sends every "
@@ -688,6 +696,27 @@ class Axis:
         if self.network is None:
             raise AxisError(f"axis {self.name}: not open (use it as a context manager)")
         return self.network
+
+    def _heartbeat_limit_s(self) -> float:
+        """Real silence after which the drive counts as gone (4 heartbeats + 0.1 s)."""
+        return 4 * self.heartbeat_ms / 1000.0 + 0.1
+
+    def _drive_silence_s(self) -> float | None:
+        """How long the drive has not sent a heartbeat, if longer than the limit."""
+        with self._lock:
+            last = self._drive_hb_last
+        if last is None:
+            return None
+        silence = time.monotonic() - last
+        return silence if silence > self._heartbeat_limit_s() else None
+
+    def _require_alive(self) -> None:
+        """Fail fast on a silent drive: an SDO to it would only time out."""
+        self._require_open()
+        silence = self._drive_silence_s()
+        if silence is not None:
+            raise DriveFault(self.name, self.node_id, HEARTBEAT_LOST.code,
+                             f"no heartbeat from the drive for {silence:.3f} s")
 
     def _network(self) -> canopen.Network:
         return self._require_open()

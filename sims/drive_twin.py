@@ -96,7 +96,9 @@ class DriveTwin:
                  controller_node_id: int = 0x7F, counts_per_rev: int = 1 << 20,
                  velocity_unit_counts_per_s: float = 1.0e-3,
                  accel_unit_counts_per_s2: float = 1.0, max_rate_dps: float = 720.0,
-                 quick_stop_decel_dps2: float = 1000.0, coast_decel_dps2: float = 20.0,
+                 max_accel_dps2: float = 1000.0, max_decel_dps2: float = 2000.0,
+                 profile_accel_dps2: float = 200.0, quick_stop_decel_dps2: float = 1000.0,
+                 standstill_dps: float = 0.001, coast_decel_dps2: float = 20.0,
                  serial_number: int = 0) -> None:
         if not 1 <= node_id <= 127:
             raise ValueError(f"drive twin node_id must be 1..127, got {node_id}")
@@ -111,14 +113,26 @@ class DriveTwin:
         self.units = DriveUnits(counts_per_rev, velocity_unit_counts_per_s,
                                 accel_unit_counts_per_s2)
         self.coast_decel_dps2 = float(coast_decel_dps2)
+        velocity, accel = self.units.dps_to_velocity, self.units.dps2_to_accel
+        # every object in drive units is set from deg-based arguments, so the EDS defaults
+        # (written for 2^20 counts/rev) never meet other units
         self._initial = {
             (Od.VELOCITY_WINDOW, 0): self._fit("servo_tolerance_dps", servo_tolerance_dps,
-                                               self.units.dps_to_velocity, UINT16_MAX),
+                                               velocity, UINT16_MAX),
+            (Od.VELOCITY_THRESHOLD, 0): self._fit("standstill_dps", standstill_dps,
+                                                  velocity, UINT16_MAX),
             (Od.MAX_PROFILE_VELOCITY, 0): self._fit("max_rate_dps", max_rate_dps,
-                                                    self.units.dps_to_velocity, UINT32_MAX),
+                                                    velocity, UINT32_MAX),
+            (Od.MAX_ACCELERATION, 0): self._fit("max_accel_dps2", max_accel_dps2, accel,
+                                                UINT32_MAX),
+            (Od.MAX_DECELERATION, 0): self._fit("max_decel_dps2", max_decel_dps2, accel,
+                                                UINT32_MAX),
+            (Od.PROFILE_ACCELERATION, 0): self._fit("profile_accel_dps2", profile_accel_dps2,
+                                                    accel, UINT32_MAX),
+            (Od.PROFILE_DECELERATION, 0): self._fit("profile_accel_dps2", profile_accel_dps2,
+                                                    accel, UINT32_MAX),
             (Od.QUICK_STOP_DECELERATION, 0): self._fit("quick_stop_decel_dps2",
-                                                       quick_stop_decel_dps2,
-                                                       self.units.dps2_to_accel, UINT32_MAX),
+                                                       quick_stop_decel_dps2, accel, UINT32_MAX),
             (Od.POSITION_ENCODER_RESOLUTION, 1): counts_per_rev,
             (Od.POSITION_ENCODER_RESOLUTION, 2): 1,
             (Od.CONSUMER_HEARTBEAT, 1): (controller_node_id << 16)

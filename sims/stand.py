@@ -125,7 +125,10 @@ class Segment:
         if self.t_end_s <= self.t0_s:
             return np.full(np.shape(t_s), self.target_dps)
         step = math.copysign(self.accel_dps2, self.target_dps - self.w0_dps)
-        return self.w0_dps + step * (np.minimum(t_s, self.t_end_s) - self.t0_s)
+        # exactly the target once the ramp ends (w0 + a * (t_end - t0) misses it by ~1e-14,
+        # and a table at "1e-14 deg/s" would get the noise and mains of a turning one)
+        return np.where(t_s >= self.t_end_s, self.target_dps,
+                        self.w0_dps + step * (np.minimum(t_s, self.t_end_s) - self.t0_s))
 
 
 class RateProfile:
