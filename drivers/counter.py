@@ -1,0 +1,480 @@
+"""The frequency counter: the reference of the fixed-angle method (METHOD.md A1).
+
+The counter times the zero-mark pulses, one per table revolution. What the engine wants
+from it is N+1 consecutive edge timestamps (so N whole turns and exactly when they
+happened, to cut the FOG record on the same turns), or, on a counter without timestamps,
+N turn periods. The words differ per model (drivers/counter_profiles.py); the sequence
+is the same:
+
+    ABOR; CONF...; input (coupling, impedance, auto-level OFF, level, slope); FORM ASC;
+    [timestamp rate, sample count, measurement timeout]; INIT; *OPC   -- arm()
+    ... the engine does other things ...
+    *ESR? until bit 0 (operation complete); FETC? ; SYST:ERR?           -- fetch()
+
+Every configuring write is followed by `SYST:ERR?`, so an error names its command.
+Waits are in real seconds and scale with the clock (a virtual stand runs `clock.speed`
+times faster): a wait for n turns of period T allows n * T * (1 + slack) / clock.speed
+plus `timeout_margin_s`. The instrument's own measurement timeout (when the model has
+one) is set to the same span in instrument seconds, so a missing signal comes back as
+9.91E37 before the VISA timeout; either way the error is a `CounterTimeout`, and after
+any failure the driver aborts the measurement, clears the error queue and checks with
+`*OPC?` that the counter answers (reopening the link if it must), so the counter is idle
+and ready for the next `arm()`.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from bench.clock import Clock
+from drivers.counter_profiles import CounterProfile, get_profile, is_scpi_nan
+from drivers.scpi import (
+    CLS,
+    ESR_OPC,
+    ESR_Q,
+    IDN,
+    OPC,
+    OPC_Q,
+    RST,
+    Command,
+    ErrorKinds,
+    InstrumentCommandError,
+    InstrumentConnectionError,
+    InstrumentError,
+    InstrumentReplyError,
+    InstrumentTimeout,
+    RawCallback,
+    ScpiInstrument,
+    parse_numbers,
+)
+
+
+class CounterError(InstrumentError):
+    """Anything the counter, or the way to it, did wrong."""
+
+
+class CounterCommandError(CounterError, InstrumentCommandError):
+    """The counter's error queue reported an error (the message names the command)."""
+
+
+class CounterTimeout(CounterError, InstrumentTimeout):
+    """The counter did not answer in time."""
+
+
+class CounterMeasurementTimeout(CounterTimeout):
+    """The counter answered 9.91E37: no (or too few) edges within its own timeout."""
+
+
+class CounterReplyError(CounterError, InstrumentReplyError):
+    """A reply that cannot be the data asked for (garbage, wrong count, not increasing)."""
+
+
+class CounterConnectionError(CounterError, InstrumentConnectionError):
+    """The link to the counter failed or was lost."""
+
+
+#: IEEE 488.2 ESR error bits: query (4), device-dependent (8), execution (16), command (32)
+ESR_ERRORS = 0x3C
+
+#: the measured span may exceed its nominal n * T by this fraction before we give up
+SPAN_SLACK_REL = 0.25
+
+DEFAULT_TIMEOUT_MARGIN_S = 5.0
+DEFAULT_COMMAND_TIMEOUT_S = 2.0
+
+What = Literal["edges", "periods"]
+
+
+@dataclass(frozen=True)
+class InputConfig:
+    """How the zero-mark pulse enters the counter."""
+
+    channel: int
+    level_v: float
+    slope: str
+    coupling: str
+    impedance_ohm: float
+
+
+@dataclass(frozen=True, eq=False)
+class Acquisition:
+    """One armed (and, once fetched, finished) measurement."""
+
+    what: What
+    method: str              # 'timestamps', 'init-fetch' or 'read'
+    n: int                   # edges (what='edges') or periods asked for
+    expected_period_s: float
+    consecutive: bool        # periods are between consecutive zero marks
+    armed_at_s: float        # clock time just after INIT (stand time on a twin)
+    armed_real_s: float      # time.monotonic() then
+    span_real_s: float       # longest credible duration, real seconds (no margin)
+    deadline_real_s: float   # time.monotonic() by which the data must be there
+    instrument_timeout_s: float | None
+    values: np.ndarray | None = field(default=None)
+
+
+class Counter(ScpiInstrument):
+    """A SCPI frequency counter over pyvisa; see the module docstring for the sequence."""
+
+    error_kinds = ErrorKinds(command=CounterCommandError, timeout=CounterTimeout,
+                             reply=CounterReplyError, connection=CounterConnectionError)
+
+    def __init__(self, resource: str, profile: CounterProfile, clock: Clock, *,
+                 raw: RawCallback | None = None,
+                 timeout_margin_s: float = DEFAULT_TIMEOUT_MARGIN_S,
+                 command_timeout_s: float = DEFAULT_COMMAND_TIMEOUT_S,
+                 visa_library: str = "@py") -> None:
+        self.profile = profile
+        self.words = profile.words
+        self.clock = clock
+        self.timeout_margin_s = float(timeout_margin_s)
+        self.recovery_commands = tuple(c for c in (profile.words.abort, CLS) if c is not None)
+        self.input: InputConfig | None = None
+        self._armed: Acquisition | None = None
+        self.last_acquisition: Acquisition | None = None
+        super().__init__(resource, visa_library=visa_library, raw=raw,
+                         command_timeout_s=command_timeout_s,
+                         name=f"counter {profile.model} at {resource}")
+
+    @classmethod
+    def open(cls, resource: str, model: str | CounterProfile, clock: Clock, *,
+             raw: RawCallback | None = None,
+             timeout_margin_s: float = DEFAULT_TIMEOUT_MARGIN_S,
+             command_timeout_s: float = DEFAULT_COMMAND_TIMEOUT_S,
+             visa_library: str = "@py", check_identity: bool = True) -> Counter:
+        """Open the counter, bring it to a known idle state, check it is the model named."""
+        profile = get_profile(model) if isinstance(model, str) else model
+        counter = cls(resource, profile, clock, raw=raw, timeout_margin_s=timeout_margin_s,
+                      command_timeout_s=command_timeout_s, visa_library=visa_library)
+        try:
+            with counter.recovering():
+                counter.resync()
+                counter.drain_errors()
+                if check_identity:
+                    counter._check_identity()
+        except BaseException:
+            counter.close()
+            raise
+        return counter
+
+    def _check_identity(self) -> None:
+        pattern = self.profile.idn_pattern
+        idn = self.identify()
+        if pattern and not re.search(pattern, idn, re.IGNORECASE):
+            raise CounterError(f"{self.name}: *IDN? says {idn!r}, which is not a "
+                               f"{self.profile.model} (expected /{pattern}/): check the "
+                               f"stand file's counter model", command=IDN.text())
+
+    def __enter__(self) -> Counter:
+        return self
+
+    def close(self) -> None:
+        """Abort a measurement still armed (best effort), then close the link."""
+        if self._armed is not None and self.is_open and self.words.abort is not None:
+            try:
+                self.write(self.words.abort.text(), check=False)
+            except InstrumentError:
+                pass
+        self._armed = None
+        super().close()
+
+    # -- what the engine calls ------------------------------------------------------------
+    @property
+    def supports_timestamps(self) -> bool:
+        return self.profile.supports_timestamps
+
+    def template_values(self) -> dict[str, Any]:
+        return {"channel": self.input.channel if self.input else 1}
+
+    def identify(self) -> str:
+        return self.ask(IDN)
+
+    def reset(self) -> None:
+        """*RST, *CLS, wait for completion. The input set-up is re-sent by the next arm()."""
+        self._armed = None
+        with self.recovering():
+            self.write(RST.text())
+            self.write(CLS.text(), check=False)
+            self.query(OPC_Q.text())
+
+    def configure(self, channel: int = 1, level_v: float | None = None, slope: str = "POS",
+                  coupling: str = "DC", impedance_ohm: float = 1.0e6) -> InputConfig:
+        """Set the input for the zero-mark pulse: an absolute trigger level, no auto-level.
+
+        A once-per-revolution pulse is far below the auto-level's lowest frequency, so the
+        level must be given (volts, e.g. half the sensor's output swing).
+        """
+        p = self.profile
+        if level_v is None:
+            raise CounterError(
+                f"{self.name}: configure() needs level_v, an absolute trigger level in volts "
+                "(a once-per-revolution pulse is too slow for the counter's auto-level)")
+        problems = []
+        if channel not in p.channels:
+            problems.append(f"channel {channel!r} (has {p.channels})")
+        if not p.level_range_v[0] <= float(level_v) <= p.level_range_v[1]:
+            problems.append(f"level_v {level_v!r} (range {p.level_range_v[0]:g} .. "
+                            f"{p.level_range_v[1]:g} V)")
+        slope_u, coupling_u = str(slope).upper()[:3], str(coupling).upper()
+        if slope_u not in p.slopes:
+            problems.append(f"slope {slope!r} (one of {', '.join(p.slopes)})")
+        if coupling_u not in p.couplings:
+            problems.append(f"coupling {coupling!r} (one of {', '.join(p.couplings)})")
+        if not any(math.isclose(float(impedance_ohm), z) for z in p.impedances_ohm):
+            problems.append(f"impedance_ohm {impedance_ohm!r} (one of "
+                            f"{', '.join(f'{z:g}' for z in p.impedances_ohm)})")
+        if problems:
+            raise CounterError(f"{self.name}: configure(): " + "; ".join(problems))
+        self.input = InputConfig(int(channel), float(level_v), slope_u, coupling_u,
+                                 float(impedance_ohm))
+        with self.recovering():
+            self._send_input()
+        return self.input
+
+    def arm(self, n: int, expected_period_s: float, *, what: What = "edges",
+            method: str | None = None) -> Acquisition:
+        """Start timing: n edges (timestamps) or n periods; `fetch()` returns them.
+
+        `method` picks the periods' way on a model with more than one: 'timestamps'
+        (differences of n+1 consecutive edges, the default where possible) or the model's
+        period mode ('init-fetch' / 'read', whose readings are not consecutive turns).
+        """
+        if self.input is None:
+            raise CounterError(f"{self.name}: arm() before configure(): the trigger level "
+                               "is not set")
+        if n < 1 or not expected_period_s > 0:
+            raise ValueError(f"arm(n={n}, expected_period_s={expected_period_s}): need n >= 1 "
+                             "and a positive period")
+        method = self._method(what, method)
+        n_read = n + 1 if (what == "periods" and method == "timestamps") else n
+        limit = self.profile.max_count
+        if method != "read" and n_read > limit:
+            raise CounterError(f"{self.name}: {n_read} readings asked, the model holds "
+                               f"{limit} per measurement")
+        self._armed = None
+        with self.recovering():
+            acq = self._arm(what, method, n, n_read, float(expected_period_s))
+        self._armed = acq
+        return acq
+
+    def fetch(self) -> np.ndarray:
+        """Wait for the armed measurement (bounded) and return edges_s or periods_s."""
+        acq = self._armed
+        if acq is None:
+            raise CounterError(f"{self.name}: fetch() without arm()")
+        self._armed = None
+        with self.recovering():
+            values = self._fetch(acq)
+        done = Acquisition(**{**acq.__dict__, "values": values})
+        self.last_acquisition = done
+        return values
+
+    def acquire_edges(self, n_edges: int, expected_period_s: float) -> np.ndarray:
+        """n_edges consecutive zero-mark timestamps on the counter's time axis, s."""
+        self.arm(n_edges, expected_period_s, what="edges")
+        return self.fetch()
+
+    def acquire_periods(self, n: int, expected_period_s: float, *,
+                        method: str | None = None) -> np.ndarray:
+        """n turn periods, s: consecutive where the model timestamps (see `arm`)."""
+        self.arm(n, expected_period_s, what="periods", method=method)
+        return self.fetch()
+
+    # -- the sequence -----------------------------------------------------------------------
+    def _method(self, what: What, method: str | None) -> str:
+        p = self.profile
+        if what == "edges":
+            if not p.supports_timestamps:
+                raise CounterError(f"{self.name}: the {p.model} cannot timestamp edges; "
+                                   "use acquire_periods() / arm(what='periods')")
+            return "timestamps"
+        if what != "periods":
+            raise ValueError(f"what must be 'edges' or 'periods', not {what!r}")
+        available = (["timestamps"] if p.supports_timestamps else []) + \
+            ([p.periods] if p.periods else [])
+        if method is None:
+            return available[0]
+        if method not in available:
+            raise CounterError(f"{self.name}: the {p.model} measures periods by "
+                               f"{' or '.join(available)}, not {method!r}")
+        return method
+
+    def _send_input(self) -> None:
+        w, c = self.words, self.input
+        assert c is not None
+        self.send(w.input_coupling, coupling=c.coupling)
+        self.send(w.input_impedance, impedance_ohm=c.impedance_ohm)
+        if w.input_level_auto is not None:
+            self.send(w.input_level_auto, state=False)
+        self.send(w.input_level, level_v=c.level_v)
+        self.send(w.input_slope, slope=c.slope)
+
+    def _span_s(self, method: str, n_read: int, period_s: float) -> float:
+        """Longest credible time for the readings, in instrument (virtual) seconds."""
+        turns = {"timestamps": n_read,          # first edge within a turn, then n-1 turns
+                 "init-fetch": 2 * n_read + 1,  # every other turn, plus the wait for a start
+                 "read": 2}[method]             # per READ?: wait for a start, one turn
+        return turns * period_s * (1.0 + SPAN_SLACK_REL)
+
+    def _arm(self, what: What, method: str, n: int, n_read: int,
+             period_s: float) -> Acquisition:
+        w, p = self.words, self.profile
+        if w.abort is not None:
+            self.send(w.abort)
+        if method == "timestamps":
+            self.send(self._need(w.configure_timestamps, "configure_timestamps"), count=n_read)
+        else:
+            self.send(self._need(w.configure_period, "configure_period"))
+        self._send_input()
+        if w.format_data is not None:
+            self.send(w.format_data, format="ASCii")
+        if method == "timestamps":
+            if w.timestamp_info is not None:
+                self.send(w.timestamp_info, state=True)
+            if w.timestamp_rate is not None and p.timestamp_rate_hz:
+                self.send(w.timestamp_rate, rate_hz=p.timestamp_rate_hz)
+        elif method == "init-fetch":
+            if w.gate_time is not None:
+                self.send(w.gate_time, gate_s="MIN")
+            self.send(self._need(w.sample_count, "sample_count"), count=n_read)
+        span = self._span_s(method, n_read, period_s)
+        inst_timeout = None
+        if w.measurement_timeout is not None and p.measurement_timeout_range_s:
+            lo, hi = p.measurement_timeout_range_s
+            inst_timeout = max(span, lo)
+            self.send(w.measurement_timeout,
+                      timeout_s=inst_timeout if inst_timeout <= hi else "INFinity")
+            inst_timeout = inst_timeout if inst_timeout <= hi else None
+        real_span = span / self.clock.speed
+        if method == "read":  # READ? measures when asked: arm only configures
+            real_span *= n_read
+        else:
+            self.send(self._need(w.initiate, "initiate"))
+            self.write(OPC.text(), check=False)
+        now = time.monotonic()
+        return Acquisition(
+            what=what, method=method, n=n, expected_period_s=period_s,
+            consecutive=(method == "timestamps" or p.periods_gap_free),
+            armed_at_s=self.clock.now(), armed_real_s=now, span_real_s=real_span,
+            deadline_real_s=now + real_span + self.timeout_margin_s,
+            instrument_timeout_s=inst_timeout)
+
+    def _need(self, word: Command | None, role: str) -> Command:
+        if word is None:
+            raise CounterError(f"{self.name}: the {self.profile.model} profile has no "
+                               f"{role} word")
+        return word
+
+    def _fetch(self, acq: Acquisition) -> np.ndarray:
+        n_read = acq.n + 1 if (acq.what == "periods" and acq.method == "timestamps") else acq.n
+        if acq.method == "read":
+            values = self._read_periods(acq, n_read)
+        else:
+            self._wait_complete(acq)
+            values = self._fetch_values(acq, n_read)
+        self.check_errors("the measurement")
+        if acq.what == "periods" and acq.method == "timestamps":
+            return np.diff(values)
+        return values
+
+    def _read_periods(self, acq: Acquisition, n: int) -> np.ndarray:
+        """One READ? per period, each allowed two turns (wait for a start, one turn)."""
+        read = self._need(self.words.read, "read")
+        per_read_s = self._span_s("read", 1, acq.expected_period_s) / self.clock.speed
+        out = np.empty(n)
+        for i in range(n):
+            text = read.text()
+            reply = self.query(text, timeout_s=per_read_s + self.timeout_margin_s)
+            value = self._numbers(text, reply, 1)
+            self._refuse_nan(text, value, 1, acq)
+            out[i] = value[0]
+        return out
+
+    def _wait_complete(self, acq: Acquisition) -> None:
+        """Poll *ESR? for Operation Complete until the deadline (real seconds).
+
+        Short polls, rather than one long blocking FETC?, keep every wait bounded by
+        `command_timeout_s` and notice a lost link within that time. Polling starts at
+        half the longest credible span (about when the data can first be there) and runs
+        every 1/50 of it: a few dozen exchanges in the journal at most.
+        """
+        poll_s = min(max(acq.span_real_s / 50.0, 0.005), 0.5)
+        time.sleep(max(acq.armed_real_s + 0.5 * acq.span_real_s - time.monotonic(), 0.0))
+        while True:
+            text = ESR_Q.text()
+            reply = self.query(text)
+            try:
+                esr = int(float(reply))
+            except ValueError as e:
+                raise CounterReplyError(f"{self.name}: {text!r} replied {reply!r}",
+                                        command=text, reply=reply.encode()) from e
+            if esr & ESR_ERRORS:
+                self.check_errors(f"the measurement (ESR {esr})")
+            if esr & ESR_OPC:
+                return
+            if time.monotonic() > acq.deadline_real_s:
+                c = self.input
+                raise CounterTimeout(
+                    f"{self.name}: {acq.n} {acq.what} at {acq.expected_period_s:.6g} s a "
+                    f"turn not complete within {acq.deadline_real_s - acq.armed_real_s:.3g} "
+                    f"s (real); is the zero-mark signal reaching channel "
+                    f"{c.channel if c else '?'} and crossing {c.level_v if c else '?'} V?",
+                    command=self._need(self.words.initiate, "initiate").text())
+            time.sleep(poll_s)
+
+    def _fetch_values(self, acq: Acquisition, n_read: int) -> np.ndarray:
+        w, p = self.words, self.profile
+        if w.fetch is not None:
+            text = w.fetch.text()
+        else:
+            text = self._need(w.fetch_array, "fetch").text(count=n_read)
+        # transfer time: ~25 bytes a value; a slow link still moves 100 kB/s
+        reply = self.query(text, timeout_s=self.command_timeout_s + n_read * 25 / 1e5)
+        if acq.method == "timestamps":
+            fmt = p.timestamp_format
+            values = self._numbers(text, reply, fmt.n_values(n_read))
+            try:
+                edges = fmt.decode(values)
+            except ValueError as e:
+                raise CounterReplyError(f"{self.name}: reply to {text!r}: {e}",
+                                        command=text, reply=reply.encode()) from e
+            self._refuse_nan(text, edges, n_read, acq)
+            if np.any(np.diff(edges) <= 0):
+                raise CounterReplyError(
+                    f"{self.name}: the timestamps in the reply to {text!r} do not increase "
+                    f"(first ones: {edges[:4]})", command=text, reply=reply.encode())
+            return edges
+        values = self._numbers(text, reply, n_read)
+        self._refuse_nan(text, values, n_read, acq)
+        return values
+
+    def _numbers(self, text: str, reply: str, expected: int) -> np.ndarray:
+        try:
+            values = parse_numbers(reply)
+        except ValueError as e:
+            raise CounterReplyError(f"{self.name}: the reply to {text!r} is not a list of "
+                                    f"numbers ({e}): {reply[:80]!r}", command=text,
+                                    reply=reply.encode()) from e
+        if values.size != expected:
+            raise CounterReplyError(f"{self.name}: {text!r} returned {values.size} values, "
+                                    f"expected {expected}", command=text,
+                                    reply=reply.encode())
+        return values
+
+    def _refuse_nan(self, text: str, values: np.ndarray, n: int, acq: Acquisition) -> None:
+        bad = is_scpi_nan(values)
+        if bad.any():
+            got = int(np.argmax(bad))
+            limit = (f"its timeout of {acq.instrument_timeout_s:.6g} s"
+                     if acq.instrument_timeout_s else "its measurement timeout")
+            raise CounterMeasurementTimeout(
+                f"{self.name}: {text!r} returned 9.91E37 (measurement timeout): {got} of {n} "
+                f"readings came before {limit}; check the zero-mark signal and the trigger "
+                f"level ({self.input.level_v if self.input else '?'} V)", command=text)
+

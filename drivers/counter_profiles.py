@@ -1,0 +1,338 @@
+"""Frequency-counter models as data: their SCPI words, reply formats and metrology.
+
+One `CounterProfile` per model. The driver (drivers/counter.py) sends these words; the
+twin (sims/counter_twin.py) parses the same objects, so a word lives here once. A word a
+model lacks is `None`; the driver then uses another way or says the model cannot.
+
+Metrology (METHOD.md A1: dT = sqrt(d_counter^2 + d_trigger^2)): each profile carries what
+the error budget needs of the counter: the single-shot error of one timestamp, the
+reading's resolution (the twin quantises to it) and the timebase's fractional frequency
+limit. The figures are the datasheets' as we know them, to be replaced by the numbers of
+the calibration certificate of the counter actually used (`dataclasses.replace`).
+
+Where we were unsure of the real command syntax, the profile's `notes` says so; every
+unsure word is one that a real instrument would reject with -113 at `configure()` or
+`arm()`, by name, so a wrong guess is found on the first connection, not in a result.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drivers.scpi import ABORT, INIT, SCPI_NAN, Command
+
+
+@dataclass(frozen=True)
+class CounterWords:
+    """The SCPI words of one counter model, by role (None: the model has no such word)."""
+
+    # input conditioning (absolute level: a once-per-rev pulse is too slow for auto-level)
+    input_coupling: Command = Command("INPut{channel}:COUPling", "{coupling}",
+                                      doc="AC or DC")
+    input_impedance: Command = Command("INPut{channel}:IMPedance", "{impedance_ohm}",
+                                       doc="50 or 1E6 ohm")
+    input_level_auto: Command | None = Command("INPut{channel}:LEVel:AUTO", "{state}",
+                                               doc="auto-level OFF")
+    input_level: Command = Command("INPut{channel}:LEVel[:ABSolute]", "{level_v}",
+                                   doc="absolute trigger level, V")
+    input_slope: Command = Command("INPut{channel}:SLOPe", "{slope}", doc="POS or NEG")
+    # measurement set-up
+    configure_timestamps: Command | None = None
+    configure_period: Command | None = None
+    timestamp_rate: Command | None = None
+    timestamp_info: Command | None = None
+    sample_count: Command | None = None
+    gate_time: Command | None = None
+    measurement_timeout: Command | None = None
+    format_data: Command | None = Command("FORMat[:DATA]", "{format}", doc="ASCii")
+    # running it
+    abort: Command | None = ABORT
+    initiate: Command | None = INIT
+    fetch: Command | None = None
+    fetch_array: Command | None = None
+    read: Command | None = None
+
+
+# -- reply formats: how each model lays out its data (decode for the driver, encode for
+#    the twin; one place, so they cannot drift apart) ------------------------------------
+
+def nr3(value: float, digits: int = 15, exp_digits: int = 2) -> str:
+    """A SCPI NR3 number: `+3.600000000000000E-01` (Keysight prints 3 exponent digits)."""
+    mantissa, exp = f"{value:+.{digits}E}".split("E")
+    return f"{mantissa}E{int(exp):+0{exp_digits + 1}d}"
+
+
+class TimestampFormat:
+    """How a model lays out N timestamps in its reply."""
+
+    name = ""
+
+    def encode(self, edges_s: np.ndarray, digits: int, exp_digits: int) -> str:
+        raise NotImplementedError
+
+    def decode(self, values: np.ndarray) -> np.ndarray:
+        """Edge times from the reply's numbers; raises ValueError saying what is wrong."""
+        raise NotImplementedError
+
+    def n_values(self, n_edges: int) -> int:
+        raise NotImplementedError
+
+
+class KeysightTimestamps(TimestampFormat):
+    """53230A `CONF:ARR:TST`: the prescaler (scale factor) first, then the N times.
+
+    A prescaler k > 1 means only every k-th edge was stamped (the counter does that for
+    inputs faster than the timestamp rate); a once-per-rev signal must give 1.
+    Unsure: the Programmer's Reference's example reply (`+13,+1.2938E-006,+1.2935E-006`)
+    could be read as intervals, not times; we take the values as times on the counter's
+    axis and `decode` refuses values that do not increase, so the other reading would
+    show at once on a real 53230A.
+    """
+
+    name = "keysight-tst"
+
+    def encode(self, edges_s: np.ndarray, digits: int, exp_digits: int) -> str:
+        return ",".join(["+1"] + [nr3(t, digits, exp_digits) for t in edges_s])
+
+    def decode(self, values: np.ndarray) -> np.ndarray:
+        if values.size < 2:
+            raise ValueError("expected the prescaler and at least one timestamp")
+        if values[0] != 1:
+            raise ValueError(f"prescaler {values[0]:g}: the counter stamped only every "
+                             f"{values[0]:g}-th edge (input too fast for SENS:TST:RATE)")
+        return values[1:]
+
+    def n_values(self, n_edges: int) -> int:
+        return n_edges + 1
+
+
+class PendulumStst(TimestampFormat):
+    """CNT-91 `CONF:ARR:STST` with `FORM:TINF ON`: pairs (X, TS) per edge.
+
+    X is the counter's count of trigger-level crossings, so a missed edge shows as a
+    step of 2 in X; the driver refuses such data rather than return a two-turn period.
+    """
+
+    name = "pendulum-stst"
+
+    def encode(self, edges_s: np.ndarray, digits: int, exp_digits: int,
+               x0: int = 1) -> str:
+        return ",".join(f"{x0 + i},{nr3(t, digits, exp_digits)}" for i, t in enumerate(edges_s))
+
+    def decode(self, values: np.ndarray) -> np.ndarray:
+        if values.size < 2 or values.size % 2:
+            raise ValueError(f"expected (X, TS) pairs, got {values.size} values")
+        x, ts = values[0::2], values[1::2]
+        steps = np.diff(x)
+        if np.any(steps != 1):
+            bad = int(np.argmax(steps != 1))
+            raise ValueError(f"the crossing count X steps by {steps[bad]:g} after "
+                             f"timestamp {bad + 1}: edges were missed")
+        return ts
+
+    def n_values(self, n_edges: int) -> int:
+        return 2 * n_edges
+
+
+TIMESTAMP_FORMATS: dict[str, TimestampFormat] = {
+    f.name: f for f in (KeysightTimestamps(), PendulumStst())}
+
+
+def encode_values(values: np.ndarray, digits: int = 15, exp_digits: int = 2) -> str:
+    """A plain list of readings (periods): `+3.6E-01,+3.6E-01`."""
+    return ",".join(nr3(v, digits, exp_digits) for v in np.atleast_1d(values))
+
+
+def is_scpi_nan(values: np.ndarray) -> np.ndarray:
+    """Readings that are SCPI's 9.91E37 (a measurement that timed out)."""
+    return np.asarray(values) >= 0.999 * SCPI_NAN
+
+
+# -- the profile ----------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class CounterProfile:
+    """One counter model: words, capabilities, reply formats and metrology."""
+
+    model: str
+    maker: str
+    description: str
+    words: CounterWords
+    #: regex searched (case-insensitive) in the *IDN? reply; None accepts any instrument
+    idn_pattern: str | None
+    #: timestamp reply format (a TIMESTAMP_FORMATS key); None: no timestamps
+    timestamps: str | None
+    #: how N periods are measured: 'init-fetch' (SAMP:COUN N; INIT; FETC?), 'read'
+    #: (one READ? per period), or None (periods only as differences of timestamps)
+    periods: str | None
+    #: period-mode readings are consecutive turns (no dead time between them)
+    periods_gap_free: bool = False
+    channels: tuple[int, ...] = (1, 2)
+    impedances_ohm: tuple[float, ...] = (50.0, 1.0e6)
+    couplings: tuple[str, ...] = ("AC", "DC")
+    slopes: tuple[str, ...] = ("POS", "NEG")
+    level_range_v: tuple[float, float] = (-5.0, 5.0)
+    max_count: int = 1_000_000
+    #: the instrument's own measurement timeout (`measurement_timeout` word), s, or None
+    measurement_timeout_range_s: tuple[float, float] | None = None
+    #: value sent to `timestamp_rate` (Hz), if the model has that word
+    timestamp_rate_hz: float | None = None
+    #: metrology (METHOD.md A1, d_counter)
+    resolution_s: float = 1e-9
+    single_shot_s: float = 1e-9
+    timebase_limit_rel: float = 1e-6
+    notes: str = ""
+    #: what the twin prints: significant digits after the point, exponent digits
+    reply_digits: int = 15
+    reply_exp_digits: int = 2
+    #: the identity a twin of this model answers with (a real instrument has its own)
+    idn: str = field(default="", compare=False)
+
+    @property
+    def supports_timestamps(self) -> bool:
+        return self.timestamps is not None
+
+    @property
+    def timestamp_format(self) -> TimestampFormat:
+        if self.timestamps is None:
+            raise ValueError(f"{self.model} has no timestamp mode")
+        return TIMESTAMP_FORMATS[self.timestamps]
+
+    @property
+    def timebase_u_rel(self) -> float:
+        """Standard uncertainty of the timebase, from its +/- limit (rectangular)."""
+        return self.timebase_limit_rel / math.sqrt(3.0)
+
+    def period_u_s(self, period_s: float) -> float:
+        """Standard uncertainty (k=1) of one period from the counter alone, s.
+
+        METHOD.md A1 (d_counter): two independent timestamps, each with the single-shot
+        error, plus the timebase's fractional error times the period. The trigger error
+        (d_trigger) is the sensor's and the stand file's, not the counter's.
+        """
+        return math.hypot(math.sqrt(2.0) * self.single_shot_s, self.timebase_u_rel * period_s)
+
+    def quantise(self, t_s: np.ndarray) -> np.ndarray:
+        """Times as this counter reports them: rounded to its resolution."""
+        return np.round(np.asarray(t_s, dtype=float) / self.resolution_s) * self.resolution_s
+
+
+KEYSIGHT_53230A = CounterProfile(
+    model="keysight-53230a",
+    maker="Keysight (Agilent)",
+    description="53230A 350 MHz universal counter: timestamps (CONF:ARR:TST) and periods",
+    idn_pattern=r"53230A",
+    words=CounterWords(
+        input_level_auto=Command("INPut{channel}:LEVel[1]:AUTO", "{state}"),
+        input_level=Command("INPut{channel}:LEVel[1][:ABSolute]", "{level_v}"),
+        configure_timestamps=Command("CONFigure:ARRay:TSTamp", "({count}),(@{channel})",
+                                     doc="N timestamps of one channel's edges"),
+        configure_period=Command("CONFigure:PERiod", "(@{channel})", doc="period mode"),
+        timestamp_rate=Command("[SENSe:]TSTamp:RATE", "{rate_hz}",
+                               doc="nominal timestamp rate: 10E3, 100E3, 800E3 or 1E6"),
+        sample_count=Command("SAMPle:COUNt", "{count}", doc="readings per trigger"),
+        gate_time=Command("[SENSe:]FREQuency:GATE:TIME", "{gate_s}",
+                          doc="shortest gate: one period per reading"),
+        measurement_timeout=Command("SYSTem:TIMeout", "{timeout_s}",
+                                    doc="per-measurement timeout; 9.91E37 when it fires"),
+        fetch=Command("FETCh?", doc="readings of the last INIT"),
+    ),
+    timestamps="keysight-tst",
+    periods="init-fetch",
+    periods_gap_free=False,
+    channels=(1, 2),
+    level_range_v=(-5.0, 5.0),
+    max_count=1_000_000,
+    measurement_timeout_range_s=(0.01, 2000.0),
+    timestamp_rate_hz=1.0e4,
+    resolution_s=20e-12,
+    single_shot_s=20e-12,
+    timebase_limit_rel=1.0e-6,
+    notes=("53220A/53230A Programmer's Reference: CONF:ARR:TST, SENS:TST:RATE, SYST:TIM, "
+           "INP:LEV:AUTO, reply 'prescaler, times' (count+1 values). Period mode "
+           "(CONF:PER; SAMP:COUN N) is modelled with dead time: consecutive readings time "
+           "every other turn; use timestamps for consecutive turns. Timebase: standard "
+           "TCXO, +/-1e-6 assumed (1-year aging and temperature); option 010 OCXO is far "
+           "better: take the calibration certificate's figure."),
+    reply_exp_digits=3,
+    idn="Keysight Technologies,53230A,MY00000000,03.02-1519.2432-3.15-4.16-127-155-35",
+)
+
+PENDULUM_CNT91 = CounterProfile(
+    model="pendulum-cnt-91",
+    maker="Pendulum Instruments",
+    description="CNT-91 timer/counter/analyzer: single timestamps (CONF:ARR:STST)",
+    idn_pattern=r"CNT-9[01]",
+    words=CounterWords(
+        input_level=Command("INPut{channel}:LEVel", "{level_v}"),
+        configure_timestamps=Command("CONFigure:ARRay:STSTamp", "({count}),(@{channel})",
+                                     doc="N single time stamps of trigger-level crossings"),
+        timestamp_info=Command("FORMat:TINFormation", "{state}",
+                               doc="ON: each result is (X count, timestamp)"),
+        fetch_array=Command("FETCh:ARRay?", "{count}", doc="N results of the last INIT"),
+    ),
+    timestamps="pendulum-stst",
+    periods=None,
+    channels=(1, 2),
+    level_range_v=(-5.0, 5.0),
+    max_count=1_000_000,
+    resolution_s=50e-12,
+    single_shot_s=50e-12,
+    timebase_limit_rel=2.0e-6,
+    notes=("CNT-90/91 Programmer's Handbook: :MEAS/:CONF:ARR:STST (<size>),(@1) gives "
+           "X,TS pairs (FORM:TINF ON), dead time between stamps down to 4 us. Unsure: "
+           "whether FETC:ARR? blocks until all stamps exist (we poll *ESR? for OPC before "
+           "it, which does not depend on that). No measurement-timeout word is used: the "
+           "VISA timeout, scaled to the expected period, bounds the wait. Timebase: "
+           "standard crystal, +/-2e-6 assumed; options 19/30/40 (OCXO) and CNT-91R "
+           "(rubidium) far better."),
+    idn="Pendulum Instruments AB,CNT-91,608500,V1.28 26 Jan 2011 08:57",
+)
+
+GENERIC_SCPI_PERIOD = CounterProfile(
+    model="generic-scpi-period",
+    maker="any",
+    description="a SCPI period counter (CONF:PER; READ?), e.g. the AKIP-5102 of the paper",
+    idn_pattern=None,
+    words=CounterWords(
+        input_level_auto=Command("[SENSe:]EVENt{channel}:LEVel[:ABSolute]:AUTO", "{state}"),
+        input_level=Command("[SENSe:]EVENt{channel}:LEVel[:ABSolute]", "{level_v}"),
+        input_slope=Command("[SENSe:]EVENt{channel}:SLOPe", "{slope}"),
+        configure_period=Command("CONFigure:PERiod", "(@{channel})"),
+        read=Command("READ?", doc="measure one period now and return it"),
+        format_data=None,
+    ),
+    timestamps=None,
+    periods="read",
+    periods_gap_free=False,
+    channels=(1, 2),
+    level_range_v=(-5.0, 5.0),
+    max_count=1,
+    resolution_s=1e-9,
+    single_shot_s=1e-9,
+    timebase_limit_rel=5.0e-6,
+    notes=("SCPI-99 words as the HP 53131A uses them (trigger level and slope in "
+           "SENSe:EVENt, coupling and impedance in INPut), which most SCPI period "
+           "counters copy; the AKIP-5102's own manual was not available to us, so check "
+           "its words on the first connection (a wrong one is reported as -113 by name). "
+           "Each READ? times the first whole turn after it arrives: N periods are N "
+           "separate turns, not consecutive ones. Metrology placeholders: the paper puts "
+           "the AKIP-5102/1's period error an order below 0.1 us; 1 ns single-shot and "
+           "+/-5e-6 timebase are assumed until the certificate's figures are entered."),
+    idn="AKIP,AKIP-5102/1,000000001,1.00",
+)
+
+PROFILES: dict[str, CounterProfile] = {
+    p.model: p for p in (KEYSIGHT_53230A, PENDULUM_CNT91, GENERIC_SCPI_PERIOD)}
+
+
+def get_profile(model: str) -> CounterProfile:
+    """The profile of a model name as stand files spell it (`keysight-53230a`)."""
+    try:
+        return PROFILES[model.strip().lower()]
+    except KeyError:
+        raise KeyError(f"unknown counter model {model!r}; known: "
+                       f"{', '.join(sorted(PROFILES))}") from None

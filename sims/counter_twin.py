@@ -1,0 +1,359 @@
+"""The frequency counter's twin: times the simulated stand's zero mark over real SCPI.
+
+It speaks the words of one counter profile (drivers/counter_profiles.py, imported, not
+copied) on a TCP socket (sims/scpi_server.py) and answers from the stand's truth: on INIT
+(or READ?) it notes the stand clock's now() as the arm time; the readings are the next
+zero-mark edges after it (`AxisModel.zero_marks(...).t_edge_s`, which carry the slot
+sensor's jitter), on the stand's time axis, rounded to the profile's resolution (20 ps
+for the 53230A). It waits in real time until the virtual clock has passed the last edge
+it reports, so a driver sees the same timing a real counter would give it, sped up.
+
+Measurement modes, as the profiles describe them:
+- timestamps: n consecutive edges (53230A: `+1,t1,..,tn`; CNT-91: `1,t1,2,t2,..`);
+- period readings (53230A CONF:PER with SAMP:COUN n): each reading times one turn from
+  the first edge after the previous reading ended, so readings are every other turn;
+- READ? (generic counter): one period, from the first edge after the READ? arrived.
+
+The input is modelled just enough to make a wrong set-up fail as on a bench: the zero
+mark is wired to `signal_channel` and swings `signal_low_v .. signal_high_v`; a level
+outside that swing, another channel, or auto-level left ON (it cannot settle on a
+once-per-revolution pulse) sees no edges. With no edges, a model with a measurement
+timeout (53230A SYST:TIM, counted from the arm, in virtual seconds) answers 9.91E37 for
+the missing readings; one without it never answers, as a real counter would not.
+The slope and coupling are stored but do not move the edges (the stand has one edge
+per mark).
+
+Faults (`inject`): 'no-trigger' (the next measurement sees no edges), and the base's
+'garbage' and 'drop' on the next data query (FETC?, FETC:ARR?, READ?).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from drivers.counter_profiles import (
+    TIMESTAMP_FORMATS,
+    CounterProfile,
+    encode_values,
+    get_profile,
+)
+from drivers.scpi import SCPI_NAN, short_form
+from sims.scpi_server import ExecError, ScpiServer
+from sims.stand import SimulatedStand
+
+
+@dataclass
+class InputState:
+    """One input channel's settings as the twin holds them (*RST values)."""
+
+    coupling: str = "AC"
+    impedance_ohm: float = 1.0e6
+    level_auto: bool = True
+    level_v: float = 0.0
+    slope: str = "POS"
+
+
+@dataclass
+class TwinAcquisition:
+    """A measurement in progress (or done) on the twin."""
+
+    kind: Literal["timestamps", "periods"]
+    n: int                      # readings
+    channel: int
+    t_arm_s: float              # stand time of INIT / READ?
+    timeout_s: float | None     # the instrument's own timeout, virtual s
+    blind: bool                 # no edges reach the counter (set-up or 'no-trigger')
+    values: np.ndarray | None = None
+    edges_s: np.ndarray = field(default_factory=lambda: np.empty(0))
+
+    @property
+    def edges_needed(self) -> int:
+        return self.n if self.kind == "timestamps" else 2 * self.n
+
+
+class CounterTwin(ScpiServer):
+    """A counter of `model` watching the zero mark of `stand.axes[axis]`."""
+
+    fault_names = ScpiServer.fault_names | {"no-trigger"}
+
+    def __init__(self, stand: SimulatedStand, axis: str, model: str = "keysight-53230a",
+                 host: str = "127.0.0.1", port: int = 0, *, signal_channel: int = 1,
+                 signal_low_v: float = 0.0, signal_high_v: float = 5.0) -> None:
+        self.profile: CounterProfile = get_profile(model)
+        super().__init__(idn=self.profile.idn, host=host, port=port)
+        self.stand = stand
+        self.axis = stand.axis(axis)
+        self.clock = stand.clock
+        self.signal_channel = signal_channel
+        self.signal_v = (float(signal_low_v), float(signal_high_v))
+        self.inputs: dict[int, InputState] = {}
+        self.acquisition: TwinAcquisition | None = None
+        self.reset()
+        self._route_words()
+
+    # -- state ----------------------------------------------------------------------------
+    def reset(self) -> None:
+        self.inputs = {ch: InputState() for ch in self.profile.channels}
+        self.function: str | None = None
+        self.function_channel = 1
+        self.sample_count = 1
+        self.timeout_s: float | None = None
+        self.timestamp_info = False
+        self.timestamp_rate_hz = 1.0e6
+        self.gate = "DEF"
+        self.acquisition = None
+
+    def pending(self) -> bool:
+        return self.acquisition is not None and not self._progress(self.acquisition)
+
+    def session_ended(self) -> None:
+        self.acquisition = None  # a measurement dies with its client (simplification)
+
+    # -- the measurement ------------------------------------------------------------------
+    def _sees_edges(self, channel: int) -> bool:
+        s = self.inputs[channel]
+        low, high = self.signal_v
+        return channel == self.signal_channel and not s.level_auto and low < s.level_v < high
+
+    def _arm(self, kind: Literal["timestamps", "periods"], n: int) -> TwinAcquisition:
+        ch = self.function_channel
+        blind = self.take_fault("no-trigger") or not self._sees_edges(ch)
+        self.acquisition = TwinAcquisition(kind, n, ch, self.clock.now(), self.timeout_s, blind)
+        return self.acquisition
+
+    def _progress(self, acq: TwinAcquisition) -> bool:
+        """Bring the acquisition up to the clock's now; True once its readings exist."""
+        if acq.values is not None:
+            return True
+        now = self.clock.now()
+        if not acq.blind:
+            self.axis.advance_to(now)
+            acq.edges_s = self.axis.zero_marks(acq.t_arm_s, now).t_edge_s
+        need = acq.edges_needed
+        timed_out = acq.timeout_s is not None and now >= acq.t_arm_s + acq.timeout_s
+        if acq.edges_s.size < need and not timed_out:
+            return False
+        edges = self.profile.quantise(acq.edges_s[:need])
+        if acq.kind == "timestamps":
+            values = edges
+        else:
+            pairs = edges.size // 2
+            values = edges[1:2 * pairs:2] - edges[0:2 * pairs:2]
+        acq.values = np.concatenate([values, np.full(acq.n - values.size, SCPI_NAN)])
+        return True
+
+    def _readings(self, acq: TwinAcquisition | None) -> np.ndarray:
+        if acq is None:
+            raise ExecError(-230, "Data corrupt or stale")
+        self.wait(lambda: self._progress(acq))
+        assert acq.values is not None
+        return acq.values
+
+    def _encode(self, acq: TwinAcquisition, values: np.ndarray) -> str:
+        p = self.profile
+        if acq.kind == "timestamps":
+            fmt = TIMESTAMP_FORMATS[p.timestamps or ""]
+            if fmt.name == "pendulum-stst" and not self.timestamp_info:
+                return ",".join(str(i + 1) for i in range(values.size))
+            # times need 17 significant digits to keep 20 ps on an axis of hours
+            return fmt.encode(values, 16, p.reply_exp_digits)
+        return encode_values(values, p.reply_digits, p.reply_exp_digits)
+
+    # -- routes: one handler per word the profile has --------------------------------------
+    def _route_words(self) -> None:
+        w = self.profile.words
+        table: dict[str, tuple[object, object, bool]] = {
+            "input_coupling": (self._set_coupling, lambda a: self._inp(a).coupling, False),
+            "input_impedance": (self._set_impedance,
+                                lambda a: _nr3(self._inp(a).impedance_ohm), False),
+            "input_level_auto": (self._set_level_auto,
+                                 lambda a: "1" if self._inp(a).level_auto else "0", False),
+            "input_level": (self._set_level, lambda a: _nr3(self._inp(a).level_v), False),
+            "input_slope": (self._set_slope, lambda a: self._inp(a).slope, False),
+            "configure_timestamps": (self._conf_timestamps, None, False),
+            "configure_period": (self._conf_period, None, False),
+            "timestamp_rate": (self._set_rate, lambda a: _nr3(self.timestamp_rate_hz), False),
+            "timestamp_info": (self._set_tinf, lambda a: "1" if self.timestamp_info else "0",
+                               False),
+            "sample_count": (self._set_count, lambda a: f"+{self.sample_count}", False),
+            "gate_time": (self._set_gate, None, False),
+            "measurement_timeout": (self._set_timeout, lambda a: _nr3(
+                SCPI_NAN if self.timeout_s is None else self.timeout_s), False),
+            "format_data": (self._set_format, lambda a: "ASC", False),
+            "abort": (self._abort, None, False),
+            "initiate": (self._initiate, None, False),
+            "fetch": (None, self._fetch, True),
+            "fetch_array": (None, self._fetch_array, True),
+            "read": (None, self._read, True),
+        }
+        for name, (on_set, on_query, data) in table.items():
+            cmd = getattr(w, name)
+            if cmd is None:
+                continue
+            if cmd.is_query:
+                self.route(cmd, on_query=on_query, data=data)  # type: ignore[arg-type]
+            else:
+                self.route(cmd, on_set=on_set, on_query=on_query, data=data)  # type: ignore[arg-type]
+
+    def _inp(self, a: Mapping[str, str]) -> InputState:
+        ch = int(a.get("channel") or 1)
+        if ch not in self.inputs:
+            raise ExecError(-114, "Header suffix out of range")
+        return self.inputs[ch]
+
+    def _set_coupling(self, a: Mapping[str, str]) -> None:
+        self._inp(a).coupling = _enum(a["coupling"], self.profile.couplings)
+
+    def _set_impedance(self, a: Mapping[str, str]) -> None:
+        z = _number(a["impedance_ohm"], {"MIN": min(self.profile.impedances_ohm),
+                                          "MAX": max(self.profile.impedances_ohm),
+                                          "DEF": 1.0e6})
+        if not any(math.isclose(z, x) for x in self.profile.impedances_ohm):
+            raise ExecError(-224, "Illegal parameter value")
+        self._inp(a).impedance_ohm = z
+
+    def _set_level_auto(self, a: Mapping[str, str]) -> None:
+        state = a["state"].upper()
+        if state == "ONCE":  # one auto-level on a pulse this slow finds nothing useful
+            self._inp(a).level_auto = False
+            return
+        self._inp(a).level_auto = _bool(state)
+
+    def _set_level(self, a: Mapping[str, str]) -> None:
+        lo, hi = self.profile.level_range_v
+        v = _number(a["level_v"], {"MIN": lo, "MAX": hi, "DEF": 0.0})
+        if not lo <= v <= hi:
+            raise ExecError(-222, "Data out of range")
+        inp = self._inp(a)
+        inp.level_v, inp.level_auto = v, False  # a level given turns auto-level off
+
+    def _set_slope(self, a: Mapping[str, str]) -> None:
+        self._inp(a).slope = _enum(a["slope"], ("POSitive", "NEGative"))
+
+    def _channel_list(self, a: Mapping[str, str]) -> int:
+        ch = int(_number(a["channel"], {}))
+        if ch not in self.profile.channels:
+            raise ExecError(-222, "Data out of range")
+        return ch
+
+    def _conf_timestamps(self, a: Mapping[str, str]) -> None:
+        count = int(_number(a["count"], {"MIN": 1, "MAX": self.profile.max_count, "DEF": 100}))
+        if not 1 <= count <= self.profile.max_count:
+            raise ExecError(-222, "Data out of range")
+        self.function, self.function_channel = "timestamps", self._channel_list(a)
+        self.sample_count = count
+        self.timestamp_info = True  # CONF turns the timestamp information on (CNT-91)
+        self.acquisition = None
+
+    def _conf_period(self, a: Mapping[str, str]) -> None:
+        self.function, self.function_channel = "periods", self._channel_list(a)
+        self.sample_count = 1
+        self.acquisition = None
+
+    def _set_rate(self, a: Mapping[str, str]) -> None:
+        rate = _number(a["rate_hz"], {"MIN": 1e4, "MAX": 1e6, "DEF": 1e6})
+        if not any(math.isclose(rate, r) for r in (1e4, 1e5, 8e5, 1e6)):
+            raise ExecError(-224, "Illegal parameter value")
+        self.timestamp_rate_hz = rate
+
+    def _set_tinf(self, a: Mapping[str, str]) -> None:
+        self.timestamp_info = _bool(a["state"])
+
+    def _set_count(self, a: Mapping[str, str]) -> None:
+        n = int(_number(a["count"], {"MIN": 1, "MAX": self.profile.max_count, "DEF": 1}))
+        if not 1 <= n <= self.profile.max_count:
+            raise ExecError(-222, "Data out of range")
+        self.sample_count = n
+
+    def _set_gate(self, a: Mapping[str, str]) -> None:
+        self.gate = a["gate_s"]  # one period per reading whatever the gate: turns are slow
+
+    def _set_timeout(self, a: Mapping[str, str]) -> None:
+        lo, hi = self.profile.measurement_timeout_range_s or (0.0, math.inf)
+        value = a["timeout_s"].upper()
+        if value.startswith("INF"):
+            self.timeout_s = None
+            return
+        t = _number(value, {"MIN": lo, "MAX": hi, "DEF": 1.0})
+        if not lo <= t <= hi:
+            raise ExecError(-222, "Data out of range")
+        self.timeout_s = t
+
+    def _set_format(self, a: Mapping[str, str]) -> None:
+        if _enum(a["format"], ("ASCii", "REAL", "PACKed")) != "ASC":
+            raise ExecError(-224, "Illegal parameter value")  # the twin speaks ASCII only
+
+    def _abort(self, a: Mapping[str, str]) -> None:
+        self.acquisition = None
+
+    def _initiate(self, a: Mapping[str, str]) -> None:
+        if self.function is None:
+            raise ExecError(-221, "Settings conflict")
+        if self.pending():
+            raise ExecError(-213, "Init ignored")
+        kind = "timestamps" if self.function == "timestamps" else "periods"
+        self._arm(kind, self.sample_count)  # type: ignore[arg-type]
+
+    def _fetch(self, a: Mapping[str, str]) -> str:
+        acq = self.acquisition
+        values = self._readings(acq)
+        assert acq is not None
+        return self._encode(acq, values)
+
+    def _fetch_array(self, a: Mapping[str, str]) -> str:
+        acq = self.acquisition
+        values = self._readings(acq)
+        assert acq is not None
+        count = a["count"].upper()
+        n = values.size if count.startswith("MAX") else int(_number(count, {}))
+        if not 1 <= n <= values.size:
+            raise ExecError(-222, "Data out of range")
+        return self._encode(acq, values[:n])
+
+    def _read(self, a: Mapping[str, str]) -> str:
+        if self.function is None:
+            raise ExecError(-221, "Settings conflict")
+        kind = "timestamps" if self.function == "timestamps" else "periods"
+        acq = self._arm(kind, self.sample_count)  # type: ignore[arg-type]
+        return self._encode(acq, self._readings(acq))
+
+
+# -- parameter parsing (the instrument's side) -----------------------------------------------
+
+def _number(text: str, named: Mapping[str, float]) -> float:
+    t = text.strip().upper()
+    for key, value in named.items():
+        if t.startswith(key[:3]):
+            return float(value)
+    try:
+        return float(t)
+    except ValueError:
+        raise ExecError(-104, "Data type error") from None
+
+
+def _bool(text: str) -> bool:
+    t = text.strip().upper()
+    if t in ("ON", "1"):
+        return True
+    if t in ("OFF", "0"):
+        return False
+    raise ExecError(-224, "Illegal parameter value")
+
+
+def _enum(text: str, choices: tuple[str, ...]) -> str:
+    """Match a character parameter in short or long form; returns the short form."""
+    t = text.strip().upper()
+    for c in choices:
+        if t in (short_form(c), c.upper()):
+            return short_form(c)
+    raise ExecError(-224, "Illegal parameter value")
+
+
+def _nr3(value: float) -> str:
+    return f"{value:+.9E}"
+
