@@ -45,7 +45,8 @@ from drivers.fog_formats import (
 )
 
 __all__ = ["FORMATS", "DecodeState", "DecodeStats", "Fog", "FogError", "FogSamples",
-           "FogStats", "FogTimeout", "Frames", "StreamDecoder", "decode", "dps_per_unit"]
+           "FogStats", "FogTimeout", "Frames", "StreamDecoder", "decode", "dps_per_unit",
+           "read_capture"]
 
 # units a FOG's rotational data can carry; "deg" and "rad" are delta angles per sample
 RATE_UNITS = ("deg/s", "rad/s", "deg", "rad")
@@ -172,6 +173,26 @@ class _SampleStore:
         self.received[at] = True
         self.temp[at] = temp
         self.n += m
+
+    def add(self, frames: Frames, col: int, scale: float, valid_mask: int) -> None:
+        """The one conversion from frames to samples, live and from a capture alike."""
+        self.append(frames.index, frames.rates[:, col].astype(np.float64) * scale,
+                    (frames.status & valid_mask) != 0, frames.temperature.astype(np.float64))
+
+    def samples(self, i_from: int, i_to: int, rate_hz: float) -> FogSamples:
+        if i_from < self.base:
+            raise ValueError(f"FOG samples before {self.base} were discarded "
+                             f"(asked from {i_from})")
+        if i_to > self.end:
+            raise ValueError(f"FOG samples up to {i_to} asked, only {self.end} known "
+                             f"(wait_for_index first)")
+        if i_to < i_from:
+            raise ValueError(f"empty FOG sample range {i_from} .. {i_to}")
+        s = slice(i_from - self.base, i_to - self.base)
+        rec = self.received[s].copy()
+        index = np.arange(i_from, i_to, dtype=np.int64)
+        return FogSamples(index, index / rate_hz, self.rate[s].copy(),
+                          self.status_ok[s] & rec, rec, self.temp[s].copy())
 
     def discard_before(self, i: int) -> None:
         k = min(max(i - self.base, 0), self.n)
@@ -318,14 +339,10 @@ class Fog:
                 self._cond.notify_all()
 
     def _ingest(self, data: bytes, now: float, resumed: StallEvent | None) -> None:
-        frames = self._decoder.feed(data)
         with self._cond:
+            frames = self._decoder.feed(data)
             if len(frames):
-                self._store.append(
-                    frames.index,
-                    frames.rates[:, self._axis_col].astype(np.float64) * self._scale,
-                    (frames.status & self._valid_mask) != 0,
-                    frames.temperature.astype(np.float64))
+                self._store.add(frames, self._axis_col, self._scale, self._valid_mask)
                 self._watch_clock(now, resumed)
             self._cond.notify_all()
 
@@ -394,22 +411,7 @@ class Fog:
     def samples(self, i_from: int, i_to: int) -> FogSamples:
         """Samples i_from .. i_to - 1; they must have arrived and not been discarded."""
         with self._cond:
-            st = self._store
-            if i_from < st.base:
-                raise ValueError(f"FOG samples before {st.base} were discarded "
-                                 f"(asked from {i_from})")
-            if i_to > st.end:
-                raise ValueError(f"FOG samples up to {i_to} asked, only {st.end} known "
-                                 f"(wait_for_index first)")
-            if i_to < i_from:
-                raise ValueError(f"empty FOG sample range {i_from} .. {i_to}")
-            s = slice(i_from - st.base, i_to - st.base)
-            rate = st.rate[s].copy()
-            ok = st.status_ok[s].copy()
-            rec = st.received[s].copy()
-            temp = st.temp[s].copy()
-        index = np.arange(i_from, i_to, dtype=np.int64)
-        return FogSamples(index, index / self.rate_hz, rate, ok & rec, rec, temp)
+            return self._store.samples(i_from, i_to, self.rate_hz)
 
     def discard_before(self, i: int) -> None:
         with self._cond:
@@ -437,3 +439,25 @@ class Fog:
             return "degraded"
         return "ok"
 
+
+
+def read_capture(raw_path: Path | str, *, fmt: str = "kvh-a", axis: str = "z",
+                 rate_hz: float, units: str = "deg/s", chunk_bytes: int = 1 << 20
+                 ) -> tuple[FogSamples, StreamDecoder]:
+    """Every sample of a raw capture, exactly as the live driver produced them.
+
+    For `bench analyze`: the same decoder and the same frame-to-sample conversion as
+    `Fog`, so the result is bit-identical to what `Fog.samples` returned during the run.
+    Returns the samples from index 0 to the last frame, and the decoder with the counts
+    and events (CRC failures, gaps) of the whole capture.
+    """
+    f = get_format(fmt)
+    if axis not in f.valid_bits:
+        raise ValueError(f"FOG axis {axis!r} unknown for format {f.name!r}")
+    dec = StreamDecoder(f)
+    store = _SampleStore()
+    col, scale, mask = AXES.index(axis), dps_per_unit(units, rate_hz), 1 << f.valid_bits[axis]
+    with open(raw_path, "rb") as fh:
+        while chunk := fh.read(chunk_bytes):
+            store.add(dec.feed(chunk), col, scale, mask)
+    return store.samples(0, store.end, float(rate_hz)), dec

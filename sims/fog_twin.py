@@ -107,7 +107,7 @@ class FogTwin:
 
     def __init__(self, stand: SimulatedStand, axis: str, *, fmt: str = "kvh-a",
                  axis_letter: str = "z", units: str = "deg/s", temperature: int = 25,
-                 keep_truth: bool = True) -> None:
+                 keep_truth: bool = False) -> None:
         self.format = get_format(fmt)
         if axis_letter not in AXES:
             raise ValueError(f"FOG twin axis letter {axis_letter!r} not one of x, y, z")
@@ -135,8 +135,9 @@ class FogTwin:
             if self.axis.samples_generated:
                 raise RuntimeError(
                     f"FOG twin for axis {axis!r} created after the stand generated "
-                    f"{self.axis.samples_generated} samples: create it before the clock "
-                    f"starts, so frame n is stand sample n")
+                    f"{self.axis.samples_generated} samples: create it before anything "
+                    f"advances the axis (the clock, command_rate), so frame n is stand "
+                    f"sample n")
             self.axis.listeners.append(self._on_chunk)
 
     # -- faults --------------------------------------------------------------------------------

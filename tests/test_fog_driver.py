@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from bench.decode import decode_command
-from drivers.fog import Fog, FogError, FogTimeout
+from drivers.fog import Fog, FogError, FogTimeout, read_capture
 from drivers.fog_formats import StreamDecoder
 from sims.clock import VirtualClock
 from sims.fog_twin import Corrupt, Drop, FogTwin, Garbage, Stall
@@ -36,7 +36,8 @@ def rig(tmp_path: Path, *faults: object, rate_hz: float = 1000.0, speed: float =
     clock = VirtualClock(speed, running=False)
     stand = SimulatedStand(StandTruth(seed=7, axes={"outer": AxisTruth(fog=FOG_TRUTH)}),
                            {"outer": rate_hz}, clock)
-    twin = FogTwin(stand, "outer", fmt=fmt, axis_letter=axis_letter, units=units)
+    twin = FogTwin(stand, "outer", fmt=fmt, axis_letter=axis_letter, units=units,
+                   keep_truth=True)
     twin.inject(*faults)  # type: ignore[arg-type]
     stand.axes["outer"].command_rate(0.0, rate_dps, 50.0)
     with twin:
@@ -115,6 +116,12 @@ def test_raw_capture_decodes_to_exactly_the_live_samples(tmp_path: Path) -> None
         live_stats.bytes)
     assert dec.crc_events == [(e.index, e.offset) for e in live_stats.crc_events]
     assert dec.gap_events == [(e.index, e.count) for e in live_stats.gap_events]
+    # what `bench analyze` uses: the same samples, field for field
+    again, _ = read_capture(tmp_path / "fog.raw", rate_hz=1000.0)
+    for name in ("index", "t_s", "valid", "received"):
+        assert np.array_equal(getattr(again, name), getattr(live, name)), name
+    for name in ("rate_dps", "temperature"):
+        assert np.array_equal(getattr(again, name), getattr(live, name), equal_nan=True), name
 
 
 def test_bench_decode_prints_counts_and_writes_csv(tmp_path: Path,
@@ -229,7 +236,7 @@ def test_twin_refuses_a_stand_already_running() -> None:
     clock = VirtualClock(100.0)
     stand = SimulatedStand(StandTruth(seed=1, axes={"outer": AxisTruth()}), {"outer": 1000}, clock)
     stand.advance()
-    with pytest.raises(RuntimeError, match="before the clock starts"):
+    with pytest.raises(RuntimeError, match="before anything advances the axis"):
         FogTwin(stand, "outer")
 
 
