@@ -1,0 +1,551 @@
+"""Gyro drift by alternating-sign controlled precession (METHOD.md B, seed 004).
+
+One cycle: a torque-sensor pulse of duration Tc, then the same pulse with the opposite
+sign; the command angle sensor's output U(t) is integrated with the sign of the active
+pulse, and
+
+    U_int = int_0^Tc U dt - int_Tc^2Tc U dt = -k_as w Tc^2 + k_as * control term
+    w     = -U_int / (k_as Tc^2) + a * c_shape                          (METHOD.md B)
+
+where c_shape = 2 int_0^1 G du - G(1) is zero for shapes symmetric in time (rectangular,
+triangular) and a is the precession amplitude, fitted from U(t) itself for the others.
+The integral is the trapezoid rule over samples that lie on the pulse edges.
+
+Beyond the paper. The edges are where the pulses are, not where the digitizer thinks
+they are: a start offset tau between the digitizer's samples and the pulses leaves
+2 a G(1) tau / Tc in w (a half sample at 2 kHz, 0.5 deg/s, 5 s: 0.18 deg/h, METHOD.md B),
+and it looks like own drift. So every cycle is also fitted with the model
+U = c0 + c1 t + b P(t - tau) (P the unit pulse-pair angle), the offsets are pooled over
+the cycles, and the integration windows are put where the pulses are; the offset and its
+uncertainty are reported, and the uncorrected (nominal-edge) figure beside the corrected
+one, so a shifted digitizer is seen, not silently absorbed.
+
+Then the 0/180 deg separation into own and apparent drift (a least-squares fit over
+positions, which is (w0 + w180)/2 and (w0 - w180)/2 for the two default positions), the
+azimuth from two horizontal axes, and an uncertainty budget per figure: the
+cycle-to-cycle scatter (type A) and the stated error sources (type B).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+EARTH_RATE_DPH = 15.041  # METHOD.md B
+SECONDS_PER_HOUR = 3600.0
+COVERAGE_K = 2.0
+
+#: input axis of each platform gyro relative to the X axis (METHOD.md B convention)
+HORIZONTAL_OFFSET_DEG = {"x": 0.0, "y": 90.0}
+VERTICAL_GYROS = ("z",)
+
+
+# -- pulse shapes ----------------------------------------------------------------------
+@dataclass(frozen=True)
+class PulseShape:
+    """A pulse's unit precession-rate shape g(u) on u = t / Tc in [0, 1], peak 1.
+
+    The pair is +g over [0, Tc] then -g over [Tc, 2 Tc]; G(u) = int_0^u g is its angle.
+    """
+
+    name: str
+    rate_fn: Callable[[np.ndarray], np.ndarray]
+    angle_fn: Callable[[np.ndarray], np.ndarray]
+    angle_end: float             # G(1)
+    angle_mean: float            # int_0^1 G du
+
+    @property
+    def control_coeff(self) -> float:
+        """c_shape = 2 int_0^1 G du - G(1): the control term per a Tc^2 (METHOD.md B)."""
+        return 2.0 * self.angle_mean - self.angle_end
+
+    @property
+    def symmetric(self) -> bool:
+        return abs(self.control_coeff) < 1e-12
+
+    def rate(self, u: np.ndarray) -> np.ndarray:
+        u = np.asarray(u, dtype=float)
+        return np.where((u >= 0) & (u < 1), self.rate_fn(np.clip(u, 0, 1)), 0.0)
+
+    def angle(self, u: np.ndarray) -> np.ndarray:
+        u = np.asarray(u, dtype=float)
+        return np.where(u <= 0, 0.0, np.where(u >= 1, self.angle_end,
+                                              self.angle_fn(np.clip(u, 0, 1))))
+
+    def pair_rate(self, t_s: np.ndarray, tc_s: float) -> np.ndarray:
+        """Precession rate of the unit pair (peak 1) at t from the first edge."""
+        u = np.asarray(t_s, dtype=float) / tc_s
+        return self.rate(u) - self.rate(u - 1.0)
+
+    def pair_angle(self, t_s: np.ndarray, tc_s: float) -> np.ndarray:
+        """Angle of the unit pair (deg per deg/s of amplitude) at t from the first edge."""
+        u = np.asarray(t_s, dtype=float) / tc_s
+        return tc_s * (self.angle(u) - self.angle(u - 1.0))
+
+    def pair_points(self, n_per_pulse: int) -> np.ndarray:
+        """The pair for an arbitrary waveform generator, in [-1, 1], 2 n points.
+
+        Sampled at the middle of each hold step: a zero-order hold of these points is
+        then as symmetric in time as the shape (sampling at the step's start would
+        delay it by half a step and leave a control residue).
+        """
+        if n_per_pulse < 1:
+            raise ValueError(f"n_per_pulse must be >= 1, got {n_per_pulse}")
+        g = self.rate((np.arange(n_per_pulse) + 0.5) / n_per_pulse)
+        return np.concatenate((g, -g))
+
+
+def _tri_angle(u: np.ndarray) -> np.ndarray:
+    return np.where(u <= 0.5, u * u, 2.0 * u - u * u - 0.5)
+
+
+SHAPES: dict[str, PulseShape] = {
+    "rectangular": PulseShape("rectangular", lambda u: np.ones_like(u), lambda u: u,
+                              1.0, 0.5),
+    "triangular": PulseShape("triangular", lambda u: 1.0 - np.abs(2.0 * u - 1.0), _tri_angle,
+                             0.5, 0.25),
+    # not symmetric in time: shows the control term at work (c_shape = -1/6)
+    "sawtooth": PulseShape("sawtooth", lambda u: u, lambda u: 0.5 * u * u, 0.5, 1.0 / 6.0),
+}
+
+
+def pulse_shape(name: str) -> PulseShape:
+    try:
+        return SHAPES[name]
+    except KeyError:
+        raise ValueError(f"unknown pulse shape {name!r}; known: {', '.join(SHAPES)}") from None
+
+
+# -- one cycle ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class CycleRecord:
+    """One pulse pair's angle-sensor record.
+
+    Sample k was taken at first_sample_s + k * sample_interval_s, on a time axis whose
+    zero is the nominal start of the first pulse (the sample's centroid: an integrating
+    digitizer's reading belongs to the middle of its aperture).
+    """
+
+    u_v: np.ndarray
+    sample_interval_s: float
+    first_sample_s: float
+    pulse_s: float
+    t_start_s: float = 0.0          # bench time of the nominal first edge
+    table_deg: float = 0.0          # the position the cycle was measured at
+    timing_only: bool = False       # a large-amplitude cycle that only locates the pulses
+
+    @property
+    def times_s(self) -> np.ndarray:
+        return self.first_sample_s + np.arange(self.u_v.size) * self.sample_interval_s
+
+
+def _antiderivative(t: np.ndarray, u: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """int_{t0}^{x} of the samples' linear interpolant: the trapezoid rule, exactly."""
+    if x.min() < t[0] - 1e-12 or x.max() > t[-1] + 1e-12:
+        raise ValueError(f"the record ({t[0]:.6f} .. {t[-1]:.6f} s) does not cover the "
+                         f"integration edges ({x.min():.6f} .. {x.max():.6f} s): record "
+                         f"more samples before and after the pulses")
+    cum = np.concatenate(([0.0], np.cumsum(0.5 * (u[1:] + u[:-1]) * np.diff(t))))
+    k = np.clip(np.searchsorted(t, x, side="right") - 1, 0, t.size - 2)
+    f = x - t[k]
+    ux = u[k] + (u[k + 1] - u[k]) * f / (t[k + 1] - t[k])
+    return cum[k] + 0.5 * f * (u[k] + ux)
+
+
+def signed_integral(t_s: np.ndarray, u_v: np.ndarray, start_s: float, pulse_s: float
+                    ) -> float:
+    """U_int = int_s^{s+Tc} U dt - int_{s+Tc}^{s+2Tc} U dt, trapezoid (METHOD.md B).
+
+    With the edges on samples this is the plain trapezoid rule over each half; off the
+    samples the partial intervals are integrated on the same linear interpolant.
+    """
+    edges = np.array([start_s, start_s + pulse_s, start_s + 2.0 * pulse_s])
+    f0, f1, f2 = _antiderivative(np.asarray(t_s, float), np.asarray(u_v, float), edges)
+    return float(2.0 * f1 - f0 - f2)
+
+
+@dataclass(frozen=True)
+class OffsetFit:
+    """Least-squares fit of U = c0 + c1 t + b P(t - offset) over one cycle."""
+
+    offset_s: float
+    offset_u_s: float          # standard uncertainty from the fit's residuals
+    amplitude_v_per_dps: float  # b = k_as * a: U per unit pair angle
+    residual_rms_v: float
+    converged: bool
+
+
+def fit_offset(record: CycleRecord, shape: PulseShape, max_iter: int = 12) -> OffsetFit:
+    """Where the pulses are in the record: Gauss-Newton on the offset, the rest linear.
+
+    The fit uses the nominal window [0, 2 Tc]: over it a +/- amplitude mismatch is
+    absorbed by the linear and pulse terms (it cannot be told from drift there, METHOD.md
+    B), so it does not bias the offset.
+    """
+    t = record.times_s
+    tc = record.pulse_s
+    sel = (t >= -1e-9) & (t <= 2.0 * tc + 1e-9)
+    t, u = t[sel], np.asarray(record.u_v, float)[sel]
+    if t.size < 8:
+        raise ValueError("too few samples inside the pulse pair to fit it")
+    ts = t / tc  # conditioning
+
+    def linearised(tau: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Linear coefficients at this offset, residuals, Jacobian [1, t, P, d/dtau]."""
+        p = shape.pair_angle(t - tau, tc)
+        basis = np.column_stack((np.ones_like(t), ts, p))
+        coef, *_ = np.linalg.lstsq(basis, u, rcond=None)
+        jac = np.column_stack((basis, -coef[2] * shape.pair_rate(t - tau, tc)))
+        return coef, u - basis @ coef, jac
+
+    tau = 0.0
+    converged = False
+    for _ in range(max_iter):
+        _, r, jac = linearised(tau)
+        step, *_ = np.linalg.lstsq(jac, r, rcond=None)
+        tau += float(np.clip(step[3], -0.1 * tc, 0.1 * tc))
+        if abs(step[3]) < 1e-9 * tc:
+            converged = True
+            break
+    coef, r, jac = linearised(tau)
+    s2 = float(r @ r) / max(t.size - 4, 1)
+    try:
+        u_tau = math.sqrt(max(np.linalg.inv(jac.T @ jac)[3, 3] * s2, 0.0))
+    except np.linalg.LinAlgError:
+        u_tau = math.inf
+    return OffsetFit(tau, u_tau, float(coef[2]), math.sqrt(s2), converged)
+
+
+@dataclass(frozen=True)
+class CycleResult:
+    """One cycle's drift: with the edges where the pulses are, and at the nominal edges."""
+
+    drift_dph: float               # edges at the pooled start offset (the estimate used)
+    drift_nominal_dph: float       # edges at the nominal sample times (the paper's integrator)
+    u_int_vs: float                # U_int at the corrected edges, V s
+    amplitude_dps: float           # fitted precession amplitude a
+    offset_s: float                # this cycle's own fitted start offset
+    offset_u_s: float
+    residual_rms_v: float
+    t_start_s: float
+    table_deg: float
+
+    def to_dict(self) -> dict[str, float]:
+        return {k: float(v) for k, v in self.__dict__.items()}
+
+
+def cycle_drift_dph(record: CycleRecord, shape: PulseShape, k_as_v_per_deg: float,
+                    start_s: float, amplitude_dps: float) -> tuple[float, float]:
+    """w = -U_int / (k_as Tc^2) + a c_shape, deg/h, and U_int (METHOD.md B)."""
+    tc = record.pulse_s
+    u_int = signed_integral(record.times_s, record.u_v, start_s, tc)
+    w_dps = -u_int / (k_as_v_per_deg * tc * tc) + amplitude_dps * shape.control_coeff
+    return w_dps * SECONDS_PER_HOUR, u_int
+
+
+# -- statistics --------------------------------------------------------------------------
+@dataclass(frozen=True)
+class StartOffset:
+    """The digitizer's start offset against the pulses, pooled over an axis's cycles."""
+
+    offset_s: float
+    offset_u_s: float              # standard uncertainty of the pooled value
+    sample_interval_s: float
+    cycles: int
+
+    @property
+    def samples(self) -> float:
+        return self.offset_s / self.sample_interval_s
+
+    @property
+    def significant(self) -> bool:
+        """Distinguishable from zero at k = 2: then the nominal edges would be biased."""
+        return abs(self.offset_s) > COVERAGE_K * self.offset_u_s
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"offset_s": self.offset_s, "offset_u_s": COVERAGE_K * self.offset_u_s,
+                "offset_samples": self.samples, "detected": self.significant,
+                "cycles": self.cycles}
+
+
+def pool_offsets(fits: Sequence[OffsetFit], sample_interval_s: float) -> StartOffset:
+    """Weighted mean of the cycles' offsets (timing cycles of large amplitude weigh most).
+
+    Its u is the fits' own, scaled up by the Birge ratio when the cycles scatter more
+    than their fits say (pulse timing jitter does that).
+    """
+    if not fits:
+        raise ValueError("no cycles to pool the start offset over")
+    tau = np.array([f.offset_s for f in fits])
+    u = np.array([max(f.offset_u_s, 1e-15) for f in fits])
+    w = 1.0 / u ** 2
+    mean = float((w * tau).sum() / w.sum())
+    internal = math.sqrt(1.0 / w.sum())
+    birge = math.sqrt(float((w * (tau - mean) ** 2).sum()) / (tau.size - 1)) if tau.size > 1 \
+        else 1.0
+    return StartOffset(mean, internal * max(birge, 1.0), sample_interval_s, tau.size)
+
+
+@dataclass(frozen=True)
+class PositionMean:
+    """The cycles at one turntable position."""
+
+    table_deg: float
+    drifts_dph: tuple[float, ...]
+    t_mean_s: float
+
+    @property
+    def n(self) -> int:
+        return len(self.drifts_dph)
+
+    @property
+    def mean_dph(self) -> float:
+        return float(np.mean(self.drifts_dph))
+
+    @property
+    def std_dph(self) -> float:
+        return float(np.std(self.drifts_dph, ddof=1)) if self.n > 1 else math.nan
+
+    @property
+    def u_dph(self) -> float:
+        """Type A standard uncertainty of the mean, for few cycles as GUM-S1 6.4.9.4 has it.
+
+        s / sqrt(n) * sqrt((n - 1) / (n - 3)): the std of the scaled-t distribution of the
+        mean, so that k = 2 still covers with 8 or 10 cycles; n >= 4 is needed.
+        """
+        if self.n < 4:
+            return math.inf
+        return self.std_dph / math.sqrt(self.n) * math.sqrt((self.n - 1) / (self.n - 3))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"table_deg": self.table_deg, "cycles": self.n, "mean_dph": self.mean_dph,
+                "std_dph": self.std_dph, "u_dph": COVERAGE_K * self.u_dph,
+                "drifts_dph": list(self.drifts_dph)}
+
+
+def separate(positions: Sequence[PositionMean]) -> tuple[np.ndarray, np.ndarray]:
+    """Own and apparent drift from the positions (METHOD.md B, as least squares).
+
+    Model: w(theta) = own + c cos(theta) - s sin(theta), c the apparent drift at 0 deg.
+    For 0 and 180 deg only this is own = (w0 + w180)/2, app = (w0 - w180)/2. With other
+    angles s is fitted too (the turn's extra information, beyond the paper).
+    Returns (estimates [own, app0(, s)], covariance) from the type A uncertainties.
+    """
+    theta = np.radians([p.table_deg for p in positions])
+    w = np.array([p.mean_dph for p in positions])
+    var = np.array([p.u_dph ** 2 for p in positions])
+    cols = [np.ones_like(theta), np.cos(theta)]
+    sines = np.sin(theta)
+    if np.any(np.abs(sines) > 1e-9):
+        cols.append(-sines)
+    a = np.column_stack(cols)
+    if np.linalg.matrix_rank(a) < a.shape[1]:
+        raise ValueError("the positions do not separate own and apparent drift: measure "
+                         "at two positions 180 deg apart at least")
+    if not np.all(np.isfinite(var)):
+        raise ValueError("each position needs at least four cycles (for its scatter)")
+    var = np.maximum(var, 1e-30)  # noise-free cycles
+    wt = 1.0 / var
+    cov = np.linalg.inv(a.T @ (a * wt[:, None]))
+    est = cov @ (a.T @ (wt * w))
+    return est, cov
+
+
+# -- the stated error sources and the result --------------------------------------------
+@dataclass(frozen=True)
+class StatedErrors:
+    """Type B sources, as the stand and procedure files state them."""
+
+    k_as_u_rel: float = 0.0                   # standard uncertainty of k_as, relative
+    pulse_mismatch_max_rel: float = 0.0       # |+/- amplitude mismatch| bound (rectangular)
+    drift_random_walk_dph_per_rth: float = 0.0  # the gyro's own-drift random walk (its spec)
+
+
+@dataclass(frozen=True)
+class AxisDrift:
+    """One gyro's own and apparent drift, with U (k = 2) and the budget behind it."""
+
+    gyro: str
+    own_dph: float
+    own_u_dph: float
+    apparent_dph: float
+    apparent_u_dph: float
+    positions: tuple[PositionMean, ...]
+    cycles: tuple[CycleResult, ...]
+    start_offset: StartOffset
+    own_nominal_dph: float                    # at the nominal edges, for comparison
+    apparent_nominal_dph: float
+    amplitude_dps: float
+    budget_own_dph: dict[str, float] = field(default_factory=dict)   # standard u
+    budget_apparent_dph: dict[str, float] = field(default_factory=dict)
+    vertical: bool = False
+
+    @property
+    def apparent_std_u_dph(self) -> float:
+        return self.apparent_u_dph / COVERAGE_K
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "own_dph": self.own_dph, "own_u_dph": self.own_u_dph,
+            "apparent_dph": self.apparent_dph, "apparent_u_dph": self.apparent_u_dph,
+            "own_nominal_edges_dph": self.own_nominal_dph,
+            "apparent_nominal_edges_dph": self.apparent_nominal_dph,
+            "amplitude_dps": self.amplitude_dps,
+            "vertical": self.vertical,
+            "start_offset": self.start_offset.to_dict(),
+            "budget": {"own_u_dph": self.budget_own_dph,
+                       "apparent_u_dph": self.budget_apparent_dph,
+                       "note": "standard uncertainties (k = 1) per source"},
+            "positions": [p.to_dict() for p in self.positions],
+            "cycles": [c.to_dict() for c in self.cycles],
+        }
+
+
+def _rss(parts: Mapping[str, float]) -> float:
+    return math.sqrt(sum(v * v for v in parts.values()))
+
+
+def analyse_axis(gyro: str, records: Sequence[CycleRecord], shape: PulseShape,
+                 k_as_v_per_deg: float, stated: StatedErrors = StatedErrors(),
+                 latitude_deg: float | None = None) -> AxisDrift:
+    """Every cycle of one gyro at every position -> its own and apparent drift."""
+    drift_records = [r for r in records if not r.timing_only]
+    if not drift_records:
+        raise ValueError(f"gyro {gyro}: no drift cycles")
+    dt = records[0].sample_interval_s
+    tc = records[0].pulse_s
+    if any(r.sample_interval_s != dt or r.pulse_s != tc for r in records):
+        raise ValueError(f"gyro {gyro}: every cycle needs the same sample interval and Tc")
+    fits = {id(r): fit_offset(r, shape) for r in records}
+    pooled = pool_offsets(list(fits.values()), dt)
+    amplitude = float(np.median([fits[id(r)].amplitude_v_per_dps
+                                 for r in drift_records])) / k_as_v_per_deg
+    cycles = []
+    for r in drift_records:
+        f = fits[id(r)]
+        a_dps = f.amplitude_v_per_dps / k_as_v_per_deg
+        w, u_int = cycle_drift_dph(r, shape, k_as_v_per_deg, pooled.offset_s, a_dps)
+        w_nom, _ = cycle_drift_dph(r, shape, k_as_v_per_deg, 0.0, a_dps)
+        cycles.append(CycleResult(w, w_nom, u_int, a_dps, f.offset_s, f.offset_u_s,
+                                  f.residual_rms_v, r.t_start_s, r.table_deg))
+
+    def by_position(values: Callable[[CycleResult], float]) -> list[PositionMean]:
+        out = []
+        for deg in sorted({round(c.table_deg % 360.0, 9) for c in cycles}):
+            sel = [c for c in cycles if abs(((c.table_deg - deg + 180) % 360) - 180) < 1e-6]
+            out.append(PositionMean(deg, tuple(values(c) for c in sel),
+                                    float(np.mean([c.t_start_s for c in sel]))))
+        return out
+
+    positions = by_position(lambda c: c.drift_dph)
+    nominal = by_position(lambda c: c.drift_nominal_dph)
+    vertical = gyro in VERTICAL_GYROS
+    if vertical:
+        if latitude_deg is None:
+            raise ValueError("the vertical gyro's own drift needs the site latitude")
+        w_v = EARTH_RATE_DPH * math.sin(math.radians(latitude_deg))
+        all_w = [w for p in positions for w in p.drifts_dph]
+        own, app = float(np.mean(all_w)) - w_v, w_v
+        own_nom = float(np.mean([w for p in nominal for w in p.drifts_dph])) - w_v
+        app_nom = w_v
+        u_a_own = PositionMean(0.0, tuple(all_w), 0.0).u_dph
+        u_a_app = 0.0
+    else:
+        est, cov = separate(positions)
+        est_nom, _ = separate(nominal)
+        own, app = float(est[0]), float(est[1])
+        own_nom, app_nom = float(est_nom[0]), float(est_nom[1])
+        u_a_own, u_a_app = math.sqrt(cov[0, 0]), math.sqrt(cov[1, 1])
+    # type B (METHOD.md B): the mismatch and the start offset act alike at every position,
+    # so they sit in the own drift only; k_as scales everything
+    a = abs(amplitude)
+    span_h = (max(r.t_start_s for r in drift_records)
+              - min(r.t_start_s for r in drift_records) + 2 * tc) / SECONDS_PER_HOUR
+    offset_sens = 2.0 * a * shape.angle_end / tc  # |dw/dtau|, deg/s per s
+    budget_own = {
+        "repeatability": u_a_own,
+        "k_as": abs(own) * stated.k_as_u_rel,
+        "pulse_mismatch": a * stated.pulse_mismatch_max_rel * shape.angle_mean
+        / math.sqrt(3.0) * SECONDS_PER_HOUR,
+        "start_offset": offset_sens * pooled.offset_u_s * SECONDS_PER_HOUR,
+    }
+    budget_app = {
+        "repeatability": u_a_app,
+        "k_as": abs(app) * stated.k_as_u_rel,
+        # the own drift wanders between the positions (conservative: the whole span)
+        "drift_random_walk": 0.0 if vertical else
+        stated.drift_random_walk_dph_per_rth * math.sqrt(span_h) / 2.0,
+    }
+    return AxisDrift(gyro, own, COVERAGE_K * _rss(budget_own), app,
+                     COVERAGE_K * _rss(budget_app), tuple(positions), tuple(cycles), pooled,
+                     own_nom, app_nom, amplitude, budget_own, budget_app, vertical)
+
+
+@dataclass(frozen=True)
+class DriftResult:
+    """The drift-pulse procedure's figures (CONTRACT "The drift-pulse procedure")."""
+
+    axes: dict[str, AxisDrift]
+    latitude_deg: float
+    azimuth_deg: float | None
+    azimuth_u_deg: float | None
+    earth_horizontal_dph: float | None         # |(app_x, app_y)|, measured
+    earth_horizontal_u_dph: float | None
+
+    @property
+    def earth_horizontal_expected_dph(self) -> float:
+        """W_h = 15.041 cos(latitude) (METHOD.md B)."""
+        return EARTH_RATE_DPH * math.cos(math.radians(self.latitude_deg))
+
+    @property
+    def earth_consistent(self) -> bool | None:
+        """Measured W_h agrees with the latitude's within U: k_as and levelling check."""
+        if self.earth_horizontal_dph is None:
+            return None
+        return (abs(self.earth_horizontal_dph - self.earth_horizontal_expected_dph)
+                <= self.earth_horizontal_u_dph)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"drift": {
+            "axes": {g: ax.to_dict() for g, ax in self.axes.items()},
+            "azimuth_deg": self.azimuth_deg, "azimuth_u_deg": self.azimuth_u_deg,
+            "latitude_deg": self.latitude_deg,
+            "earth_horizontal_dph": self.earth_horizontal_dph,
+            "earth_horizontal_u_dph": self.earth_horizontal_u_dph,
+            "earth_horizontal_expected_dph": self.earth_horizontal_expected_dph,
+            "earth_horizontal_consistent": self.earth_consistent,
+            "coverage_k": COVERAGE_K,
+        }}
+
+
+def azimuth_deg(app_x_dph: float, app_y_dph: float, u_x_dph: float, u_y_dph: float
+                ) -> tuple[float, float]:
+    """A = atan2(-app_y, app_x) and its standard uncertainty (METHOD.md B), deg."""
+    a = math.degrees(math.atan2(-app_y_dph, app_x_dph)) % 360.0
+    r2 = app_x_dph ** 2 + app_y_dph ** 2
+    # dA/dx = y / r^2, dA/dy = -x / r^2 (rad per deg/h); the two axes are independent
+    u = math.sqrt((app_y_dph * u_x_dph) ** 2 + (app_x_dph * u_y_dph) ** 2) / r2
+    return a, math.degrees(u)
+
+
+def analyse(records: Mapping[str, Sequence[CycleRecord]], shape: PulseShape,
+            k_as_v_per_deg: Mapping[str, float], latitude_deg: float,
+            stated: Mapping[str, StatedErrors] | None = None) -> DriftResult:
+    """Every gyro's cycles -> own and apparent drifts, the azimuth, the Earth-rate check."""
+    stated = stated or {}
+    axes = {g: analyse_axis(g, recs, shape, k_as_v_per_deg[g],
+                            stated.get(g, StatedErrors()), latitude_deg)
+            for g, recs in records.items()}
+    az = az_u = wh = wh_u = None
+    if "x" in axes and "y" in axes:
+        x, y = axes["x"], axes["y"]
+        ux, uy = x.apparent_std_u_dph, y.apparent_std_u_dph
+        az, u_az = azimuth_deg(x.apparent_dph, y.apparent_dph, ux, uy)
+        az_u = COVERAGE_K * u_az
+        wh = math.hypot(x.apparent_dph, y.apparent_dph)
+        wh_u = COVERAGE_K * math.hypot(x.apparent_dph * ux, y.apparent_dph * uy) / wh
+    return DriftResult(axes, latitude_deg, az, az_u, wh, wh_u)
