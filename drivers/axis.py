@@ -339,7 +339,8 @@ class Axis:
         ident = []
         for sub, label in ((1, "vendor"), (2, "product"), (3, "revision"), (4, "serial")):
             try:
-                ident.append(f"{label} 0x{self._read(Od.IDENTITY, sub):08X}")
+                value = self._read(Od.IDENTITY, sub)
+                ident.append(f"{label} {value}" if sub == 4 else f"{label} 0x{value:08X}")
             except AxisError:
                 pass
         return (f"{text(Od.DEVICE_NAME)}, hw {text(Od.HARDWARE_VERSION)}, "

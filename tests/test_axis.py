@@ -299,3 +299,22 @@ def test_configuration_errors_name_the_key() -> None:
         Axis("outer", **{**base, "node_id": 0})
     with pytest.raises(ValueError, match="watchdog_ms"):
         Axis("outer", **{**base, "heartbeat_ms": 100, "watchdog_ms": 150})
+
+
+@pytest.mark.timeout(20)
+def test_opens_while_the_stand_clock_is_paused() -> None:
+    # the simulated bench connects every instrument first, then starts the clock
+    r = make_rig()
+    r.clock = VirtualClock(SPEED, running=False)
+    r.stand.clock = r.clock
+    r.twin.clock = r.clock
+    r.twin.start()
+    try:
+        with r.axis() as ax:
+            assert ax.state is State.OPERATION_ENABLED
+            r.clock.start()
+            ax.set_rate(30.0)
+            assert ax.wait_settled(r.twin.servo_tolerance_dps, 1.0, 30.0) == \
+                pytest.approx(30.0 * (1 + RATE_BIAS_REL), abs=2e-4)
+    finally:
+        r.twin.stop()
