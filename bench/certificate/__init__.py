@@ -1,0 +1,53 @@
+"""The calibration certificate: result.json -> certificate.html and certificate.pdf.
+
+    write_certificate(run, result) -> [RUN_DIR/certificate.html, RUN_DIR/certificate.pdf]
+
+The engine calls this after writing result.json (`bench run`, `bench analyze`). The
+content follows ISO/IEC 17025 clause 7.8; how to read it: docs/certificate.md.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+from pathlib import Path
+from typing import Any, Protocol
+
+from bench.certificate.build import build_document
+from bench.certificate.html import render_html
+from bench.certificate.model import Document
+from bench.certificate.pdf import render_pdf
+
+HTML_NAME = "certificate.html"
+PDF_NAME = "certificate.pdf"
+
+__all__ = ["Document", "build_document", "render_files", "render_html", "render_pdf",
+           "write_certificate"]
+
+
+class _HasPath(Protocol):
+    path: Path
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | None = None,
+                 issued: dt.date | None = None) -> list[Path]:
+    """Build the certificate from `result` (and the run directory, if any) into `out_dir`."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = build_document(result, run_path, issued)
+    html_path, pdf_path = out / HTML_NAME, out / PDF_NAME
+    _write_atomic(html_path, render_html(doc).encode("utf-8"))
+    _write_atomic(pdf_path, render_pdf(doc))
+    return [html_path, pdf_path]
+
+
+def write_certificate(run: _HasPath, result: dict[str, Any],
+                      issued: dt.date | None = None) -> list[Path]:
+    """certificate.html and certificate.pdf in the run directory; returns their paths."""
+    return render_files(result, run.path, run.path, issued)

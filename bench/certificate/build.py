@@ -1,0 +1,840 @@
+"""result.json (plus the run directory) -> the certificate's document model.
+
+Every figure printed is taken from result.json; what the result lacks is taken from the
+run directory's own records (meta.json, the copied stand and procedure files, the event
+log, the raw files themselves) and never invented. Anything neither has is printed as
+"not recorded", so a gap is visible to the reader instead of silently filled.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import json
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+import bench
+from bench.certificate import methods, plots
+from bench.certificate.model import Document, Fields, Figure, Para, Section, Signatures, Table
+from bench.certificate.rounding import (
+    MINUS,
+    PERCENT,
+    RelUnit,
+    format_sig,
+    format_value_u,
+    rel_unit,
+)
+from bench.journal import read_jsonl, sha256_file
+
+NOT_RECORDED = "not recorded"
+CAPABILITY_LIMIT = 0.3  # RMG 63-2003: the measurement's error limit <= 0.2-0.3 of the tolerance
+QUANTITY_NAMES = {
+    "rate_error": "per-turn rate error |δ|",
+    "rate_instability": "per-turn rate instability σ",
+    "intra_turn_instability": "intra-turn instability",
+    "intra_turn_instability_corrected": "intra-turn instability, floor-corrected",
+}
+
+
+# -- the inputs ----------------------------------------------------------------------------
+
+@dataclass
+class Sources:
+    """result.json and whatever the run directory adds to it."""
+
+    result: dict[str, Any]
+    run_path: Path | None = None
+    meta: dict[str, Any] = field(default_factory=dict)
+    stand_file: dict[str, Any] = field(default_factory=dict)
+    procedure_file: dict[str, Any] = field(default_factory=dict)
+    events: list[dict[str, Any]] = field(default_factory=list)
+
+    @classmethod
+    def load(cls, result: dict[str, Any], run_path: Path | None) -> Sources:
+        src = cls(result, run_path)
+        if run_path is None:
+            return src
+        src.meta = _read_json(run_path / "meta.json")
+        src.stand_file = _read_yaml(run_path / "stand.yaml")
+        src.procedure_file = _read_yaml(run_path / "procedure.yaml")
+        events = run_path / "events.jsonl"
+        if events.exists():
+            src.events = list(read_jsonl(events))
+        return src
+
+    def get(self, key: str, default: Any = None) -> Any:
+        value = self.result.get(key)
+        return default if value is None else value
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _read_yaml(path: Path) -> dict[str, Any]:
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _num(x: Any) -> float | None:
+    if isinstance(x, bool) or x is None:
+        return None
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def _utc(stamp: str | None) -> str:
+    if not stamp:
+        return NOT_RECORDED
+    try:
+        t = dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00"))
+    except ValueError:
+        return str(stamp)
+    if t.tzinfo is not None:
+        t = t.astimezone(dt.UTC)
+    return t.strftime("%Y-%m-%d %H:%M:%S UTC")
+
+
+UNIT_SUFFIXES = {"c": "°C", "deg": "°", "pct": "%", "hpa": "hPa", "hz": "Hz", "s": "s",
+                 "dps": "°/s", "dph": "°/h", "dps2": "°/s²", "v": "V", "rel": "fraction"}
+
+
+def _label(key: str) -> str:
+    """`static_record_s` -> 'Static record, s'."""
+    words = str(key).split("_")
+    unit = UNIT_SUFFIXES.get(words[-1].lower()) if len(words) > 1 else None
+    text = " ".join(words[:-1] if unit else words)
+    text = text[:1].upper() + text[1:]
+    return f"{text}, {unit}" if unit else text
+
+
+def _text(value: Any) -> str:
+    if value is None or value == "":
+        return NOT_RECORDED
+    if isinstance(value, float):
+        return format_sig(value, 6).rstrip("0").rstrip(".") if value % 1 else f"{value:g}"
+    if isinstance(value, list | tuple):
+        return ", ".join(_text(v) for v in value)
+    if isinstance(value, dict):
+        return "; ".join(f"{k}: {_text(v)}" for k, v in value.items())
+    return str(value).replace("+/-", "±")
+
+
+def _rate(x: Any) -> str:
+    v = _num(x)
+    if v is None:
+        return NOT_RECORDED
+    return f"{v:+g}".replace("-", MINUS)
+
+
+def verdict_label(verdict: Any, rule: str | None = None, inside_tolerance: bool = False) -> str:
+    """How a verdict is printed; a guard-band refusal says so."""
+    v = str(verdict or "").strip().lower()
+    if v == "pass":
+        return "PASS"
+    if v in ("conditional", "conditional-pass"):
+        return "CONDITIONAL"
+    if v in ("fail-guard-band", "guard-band", "not-passed"):
+        return "FAIL (guard band)"
+    if v == "fail":
+        return "FAIL (guard band)" if rule == "guard-band" and inside_tolerance else "FAIL"
+    if v == "incomplete":
+        return "INCOMPLETE"
+    return v.upper() or "—"
+
+
+# -- the certificate id ----------------------------------------------------------------
+
+def certificate_id(src: Sources) -> str:
+    """The laboratory's own number if the procedure gives one, else one from the data.
+
+    The generated id is a digest of result.json: the same results give the same id, any
+    change of a result (a re-analysis) gives a new one.
+    """
+    cert = src.get("certificate", {}) or {}
+    for key in ("number", "id", "certificate_id"):
+        if cert.get(key):
+            return str(cert[key])
+    digest = hashlib.sha256(json.dumps(src.result, sort_keys=True, default=str).encode())
+    stamp = (src.get("dates", {}) or {}).get("completed_utc") or src.meta.get("created_utc")
+    day = ""
+    if stamp:
+        try:
+            day = dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00")).strftime("%Y%m%d")
+        except ValueError:
+            day = ""
+    prefix = cert.get("prefix", "RT")
+    return "-".join(p for p in (str(prefix), day, digest.hexdigest()[:8].upper()) if p)
+
+
+# -- the document --------------------------------------------------------------------------
+
+def build_document(result: dict[str, Any], run_path: Path | None = None,
+                   issued: dt.date | None = None) -> Document:
+    src = Sources.load(result, run_path)
+    issue = (issued or dt.datetime.now(dt.UTC).date()).isoformat()
+    kind = src.get("procedure") or src.procedure_file.get("procedure") or (
+        "drift-pulse" if src.get("drift") else "rate-ladder")
+    cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
+    lab = str(cert.get("laboratory") or "Calibration laboratory (name not given)")
+    cid = certificate_id(src)
+    checks = [c for c in src.get("checks", []) if isinstance(c, dict)]
+    sections: list[Section] = []
+    n = _Counter()
+    sections.append(Section(n.next(), "Identification", _identification(src, cid, issue,
+                                                                       kind, checks)))
+    sections.append(Section(n.next(), "Item calibrated and measuring instruments",
+                            _instruments(src)))
+    sections.append(Section(n.next(), "Method", _method(src, kind)))
+    sections.append(Section(n.next(), "Deviations", _deviations(src, kind)))
+    sections.append(Section(n.next(), "Conditions", _conditions(src)))
+    results_no = n.next()
+    if kind == "drift-pulse":
+        sections += _drift_results(src, results_no)
+    else:
+        sections += _ladder_results(src, results_no, checks)
+    sections.append(Section(n.next(), "Conformity", _conformity(src, checks)))
+    sections.append(Section(n.next(), "Records: raw data and inputs", _records(src)))
+    if kind != "drift-pulse" and any(r.get("counter_rate_dps") for r in _all_rates(src)):
+        sections.append(Section(n.next(), "Per-turn counter rates", _per_turn_annex(src)))
+    sections.append(Section(n.next(), "Statements", tuple(Para(t) for t in methods.STATEMENTS)))
+    sections.append(Section(n.next(), "Authorisation", _signatures(cert, issue)))
+    stand = _stand(src)
+    subtitle = f"{stand.get('maker', '')} {stand.get('model', '')}, serial " \
+               f"{stand.get('serial', NOT_RECORDED)}".strip()
+    return Document(
+        cert_id=cid,
+        title="Calibration certificate",
+        subtitle=subtitle,
+        laboratory=lab,
+        issue_date=issue,
+        verdict=str(src.get("verdict", "incomplete")),
+        sections=tuple(sections),
+        footer="This certificate shall not be reproduced except in full without the written "
+               "approval of the issuing laboratory.",
+        meta={"run_title": str(src.get("title") or src.procedure_file.get("title") or ""),
+              "procedure": kind},
+    )
+
+
+class _Counter:
+    def __init__(self) -> None:
+        self.i = 0
+
+    def next(self) -> str:
+        self.i += 1
+        return str(self.i)
+
+
+def _stand(src: Sources) -> dict[str, Any]:
+    stand = dict(src.stand_file.get("stand", {}) or {})
+    stand.update({k: v for k, v in (src.get("stand", {}) or {}).items() if v is not None})
+    return stand
+
+
+def _all_rates(src: Sources) -> list[dict[str, Any]]:
+    return [r for ax in (src.get("axes", {}) or {}).values() for r in ax.get("rates", [])]
+
+
+def _identification(src: Sources, cid: str, issue: str, kind: str,
+                    checks: list[dict[str, Any]]) -> tuple[Any, ...]:
+    stand = _stand(src)
+    cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
+    dates = src.get("dates", {}) or {}
+    started = dates.get("started_utc") or _first_event(src, "session_start")
+    completed = dates.get("completed_utc") or _last_event(src, "completed")
+    rows: list[tuple[str, str]] = [
+        ("Certificate number", cid),
+        ("Title of the work", _text(src.get("title") or src.procedure_file.get("title"))),
+        ("Issued by", _text(cert.get("laboratory"))),
+        ("Customer", _text(cert.get("customer"))),
+        ("Item calibrated", f"{_text(stand.get('maker'))}, {_text(stand.get('model'))}"),
+        ("Serial number", _text(stand.get("serial"))),
+    ]
+    if stand.get("location"):
+        rows.append(("Location of the item", _text(stand["location"])))
+    rows += [
+        ("Procedure", {"rate-ladder": "rate ladder (METHOD.md part A)",
+                       "drift-pulse": "drift by alternating-sign pulses (METHOD.md part B)"}
+         .get(kind, kind)),
+        ("Work started", _utc(started)),
+        ("Work completed", _utc(completed) if completed else "not completed"),
+        ("Date of issue", issue),
+        ("Statement of conformity", _overall(src, checks)),
+    ]
+    skip = {"laboratory", "customer", "number", "id", "certificate_id", "prefix", "signers"}
+    rows += [(_label(k), _text(v)) for k, v in cert.items() if k not in skip]
+    blocks: list[Any] = [Fields(tuple(rows))]
+    blocks.append(Para(f"Software: ratebench {bench.__version__}. Run directory: "
+                       f"{src.run_path.name if src.run_path else NOT_RECORDED}.", "note"))
+    return tuple(blocks)
+
+
+def _first_event(src: Sources, kind: str) -> str | None:
+    return next((e.get("utc") for e in src.events if e.get("event") == kind), None)
+
+
+def _last_event(src: Sources, kind: str) -> str | None:
+    found = [e.get("utc") for e in src.events if e.get("event") == kind]
+    return found[-1] if found else None
+
+
+def _overall(src: Sources, checks: list[dict[str, Any]]) -> str:
+    verdict = str(src.get("verdict", "incomplete")).lower()
+    failed = [c for c in checks if str(c.get("verdict", "")).lower() != "pass"]
+    rule = _rule_name(src.get("decision_rule"))
+    if verdict == "pass":
+        return (f"PASS: all {len(checks)} checks met the tolerances under the {rule} "
+                "decision rule (section Conformity)" if checks else
+                "PASS: no check failed (the procedure states no tolerances)")
+    if verdict == "fail":
+        return (f"FAIL: {len(failed)} of {len(checks)} checks did not meet the tolerances under "
+                f"the {rule} decision rule (section Conformity)")
+    return ("INCOMPLETE: the run did not complete every step; no statement of conformity is "
+            "made for the points not measured")
+
+
+def _rule_name(rule: Any) -> str:
+    return {"guard-band": "guard-band (guarded acceptance, w = U)",
+            "simple": "simple acceptance"}.get(str(rule or "simple"), str(rule))
+
+
+def _instruments(src: Sources) -> tuple[Any, ...]:
+    stand = _stand(src)
+    blocks: list[Any] = [Fields((
+        ("Maker", _text(stand.get("maker"))),
+        ("Model", _text(stand.get("model"))),
+        ("Serial number", _text(stand.get("serial"))),
+        ("Stand file", f"{_text(stand.get('file') or src.meta.get('stand_file'))}"),
+        ("Stand file SHA-256", _text(stand.get("sha256") or src.meta.get("stand_sha256"))),
+    ))]
+    ids = src.get("instruments", {}) or {}
+    if not ids:  # the event log records each axis's identities at the start of a session
+        for e in src.events:
+            if e.get("event") == "identity" and e.get("axis"):
+                ids.setdefault(e["axis"], {}).update(
+                    {k: v for k, v in e.items()
+                     if k not in ("utc", "t_s", "session", "event", "axis")})
+    stand_axes = src.stand_file.get("axes", {}) or {}
+    rows = []
+    for axis in dict.fromkeys([*ids, *stand_axes]):
+        roles = dict.fromkeys([*(ids.get(axis) or {}), *(stand_axes.get(axis) or {})])
+        for role in roles:
+            ident = (ids.get(axis) or {}).get(role)
+            conf = (stand_axes.get(axis) or {}).get(role) or {}
+            setting = "; ".join(f"{k} {_text(v)}" for k, v in conf.items()) \
+                if isinstance(conf, dict) else _text(conf)
+            rows.append((axis, role, _text(ident) if ident else "identity not recorded",
+                         setting or "—"))
+    if rows and all(r[3] == "—" for r in rows):
+        blocks.append(Table(("Axis", "Instrument", "Identity (as reported)"),
+                            tuple(r[:3] for r in rows), widths=(0.9, 1.0, 5.0), align="lll",
+                            caption="Instruments used, with the identity each reported "
+                                    "(*IDN?, drive identity objects, FOG model)"))
+    elif rows:
+        blocks.append(Table(("Axis", "Instrument", "Identity (as reported)", "Settings"),
+                            tuple(rows), widths=(0.9, 1.0, 3.2, 3.6), align="llll",
+                            caption="Instruments used, with the identity each reported "
+                                    "(*IDN?, drive identity objects, FOG model)"))
+    else:
+        blocks.append(Para("Instrument identities: not recorded.", "note"))
+    return tuple(blocks)
+
+
+def _method(src: Sources, kind: str) -> tuple[Any, ...]:
+    pf = src.get("procedure_file", {}) or {}
+    name = pf.get("name") or src.meta.get("procedure_name")
+    sha = pf.get("sha256") or src.meta.get("procedure_sha256")
+    blocks: list[Any] = list(methods.B_TEXT if kind == "drift-pulse" else methods.A_TEXT)
+    method = src.get("method", {}) or {}
+    rows = [("Procedure file", _text(name)), ("Procedure file SHA-256", _text(sha))]
+    rows += [(_label(k), _text(v)) for k, v in method.items()]
+    rows.append(("Decision rule", _rule_name(src.get("decision_rule"))))
+    blocks.append(Fields(tuple(rows)))
+    return tuple(blocks)
+
+
+def _deviations(src: Sources, kind: str) -> tuple[Any, ...]:
+    blocks: list[Any] = []
+    if kind != "drift-pulse":
+        seq = (src.get("method", {}) or {}).get("sequence")
+        items = list(methods.A_IMPROVEMENTS)
+        if seq in methods.SEQUENCE_TEXT:
+            items.insert(0, methods.SEQUENCE_TEXT[seq])
+        blocks.append(Para("From the source paper's method (each one an improvement, "
+                           "METHOD.md A3-A5):", "strong"))
+        blocks += [Para(f"• {t}") for t in items]
+    run: list[str] = []
+    sessions = src.get("sessions")
+    if isinstance(sessions, int) and sessions > 1:
+        run.append(f"The run was interrupted and resumed: it ran in {sessions} sessions. Each "
+                   "unit (a ± pair) was measured whole within one session.")
+    elif isinstance(sessions, list) and len(sessions) > 1:
+        run.append(f"The run was interrupted and resumed: it ran in {len(sessions)} sessions.")
+    if src.get("aborted"):
+        run.append("The run was aborted before every step was done; the points not measured "
+                   "are absent from the results.")
+    if str(src.get("verdict")) == "incomplete":
+        run.append("The result is incomplete: no statement of conformity is made for the "
+                   "missing points.")
+    for d in src.get("deviations", []) or []:
+        run.append(_text(d))
+    blocks.append(Para("From the procedure, in this run:", "strong"))
+    blocks += [Para(f"• {t}") for t in run] or [Para("None.")]
+    return tuple(blocks)
+
+
+def _conditions(src: Sources) -> tuple[Any, ...]:
+    cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
+    if not cond:
+        return (Para("No conditions were recorded in the procedure file."),)
+    return (Fields(tuple((_label(k), _text(v)) for k, v in cond.items())),)
+
+
+# -- rate ladder results -------------------------------------------------------------------
+
+def _tolerances(checks: Iterable[Mapping[str, Any]], axis: str
+                ) -> dict[str, list[tuple[float, float]]]:
+    out: dict[str, list[tuple[float, float]]] = {}
+    for c in checks:
+        rate, tol = _num(c.get("set_rate_dps")), _num(c.get("tolerance_rel"))
+        if c.get("axis") == axis and rate is not None and tol is not None:
+            out.setdefault(str(c.get("quantity")), []).append((abs(rate), tol))
+    return {k: sorted(set(v)) for k, v in out.items()}
+
+
+def _vu(value: Any, u: Any, unit: RelUnit | None = None, signed: bool = False) -> str:
+    scale = unit.scale if unit else 1.0
+    return format_value_u(_num(value), _num(u), scale, signed).joined()
+
+
+def _instability_u(r: Mapping[str, Any]) -> tuple[float | None, bool]:
+    """U of eq. 2's sigma: the result's, else the chi-square approximation (k = 2)."""
+    u = _num(r.get("rate_instability_u_rel"))
+    if u is not None:
+        return u, False
+    s, n = _num(r.get("rate_instability_rel")), len(r.get("counter_rate_dps") or [])
+    n = n or int(r.get("turns") or 0)
+    if s is None or n < 2:
+        return None, False
+    return 2 * s / math.sqrt(2 * (n - 1)), True  # u(s) ~ s / sqrt(2(N-1)) for normal data
+
+
+def _over_angle(r: Mapping[str, Any]) -> dict[float, tuple[float | None, float | None]]:
+    """The random part averaged over 1/10/360 deg, in whichever shape the result gives."""
+    for key in ("instability_over_angle", "intra_turn_instability_over",
+                "averaged_instability", "instability_by_angle"):
+        data = r.get(key)
+        if isinstance(data, Mapping):
+            out = {}
+            for a, v in data.items():
+                if isinstance(v, Mapping):
+                    out[float(a)] = (_num(v.get("instability_rel", v.get("rel"))),
+                                     _num(v.get("u_rel")))
+                else:
+                    out[float(a)] = (_num(v), None)
+            return out
+        if isinstance(data, list):
+            return {float(d.get("angle_deg")): (
+                _num(d.get("instability_rel", d.get("rel"))), _num(d.get("u_rel")))
+                for d in data if isinstance(d, Mapping) and d.get("angle_deg") is not None}
+    return {}
+
+
+def _ladder_results(src: Sources, number: str, checks: list[dict[str, Any]]
+                    ) -> list[Section]:
+    axes = src.get("axes", {}) or {}
+    out = [Section(number, "Results", (Para(
+        "Per axis, commanded rate and direction. Each value is followed by its expanded "
+        "uncertainty U (k = 2, about 95 %). Signed rates: + is the table's positive sense."),),
+        new_page=True)]
+    sub = 0
+    for axis, ax in axes.items():
+        rates = [r for r in ax.get("rates", []) if isinstance(r, dict)]
+        pairs = [p for p in ax.get("pairs", []) if isinstance(p, dict)]
+        sub += 1
+        out.append(Section(f"{number}.{sub}", f"Axis {axis}",
+                           _axis_blocks(axis, rates, pairs, ax, checks), level=2))
+    figs = _across_axes(axes)
+    if figs:
+        sub += 1
+        out.append(Section(f"{number}.{sub}", "All axes: trends with rate", tuple(figs), level=2))
+    if not axes:
+        out.append(Section(f"{number}.1", "No results", (Para(
+            "The result carries no axis results: nothing was measured to completion."),),
+            level=2))
+    return out
+
+
+def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, Any]],
+                 ax: Mapping[str, Any], checks: list[dict[str, Any]]) -> tuple[Any, ...]:
+    blocks: list[Any] = []
+    # A1/A2 per-turn
+    err_unit = rel_unit(*[v for r in rates for v in (_num(r.get("rate_error_rel")),
+                                                      _num(r.get("rate_error_u_rel")))],
+                        *[t for c in checks if c.get("axis") == axis
+                          and c.get("quantity") == "rate_error"
+                          for t in (_num(c.get("tolerance_rel")),)])
+    inst_us = [_instability_u(r) for r in rates]
+    inst_unit = rel_unit(*[_num(r.get("rate_instability_rel")) for r in rates],
+                         *[u for u, _ in inst_us])
+    rows = []
+    approximated = False
+    for r, (iu, approx) in zip(rates, inst_us, strict=True):
+        approximated |= approx
+        set_rate = _num(r.get("set_rate_dps"))
+        mean = _num(r.get("mean_rate_dps"))
+        cr = [v for v in (_num(x) for x in r.get("counter_rate_dps") or []) if v is not None]
+        if mean is None and cr:
+            mean = sum(cr) / len(cr)
+        eu = _num(r.get("rate_error_u_rel"))
+        mean_u = eu * abs(set_rate) if eu is not None and set_rate else None
+        rows.append((_rate(set_rate), _text(r.get("turns")),
+                     format_value_u(mean, mean_u, signed=True, sig_without_u=10).joined(),
+                     _vu(r.get("rate_error_rel"), eu, err_unit, signed=True),
+                     _vu(r.get("rate_instability_rel"), iu, inst_unit) + ("*" if approx else ""),
+                     verdict_label(r.get("verdict"))))
+    notes = []
+    if approximated:
+        notes.append("* U of σ from the chi-square approximation U = 2σ/√(2(N−1)) for N turns "
+                     "(normal per-turn rates); the result did not carry it.")
+    blocks.append(Table(
+        ("Set rate, °/s", "Turns", "Mean rate ± U, °/s",
+         f"Rate error δ ± U, {err_unit.name}", f"Instability σ ± U, {inst_unit.name}",
+         "Verdict"),
+        tuple(rows), widths=(1.1, 0.7, 2.4, 2.0, 2.0, 1.1), align="rcrrrc",
+        caption=f"Axis {axis}: per-turn rate error and instability (METHOD.md A1-A2, eqs. 1-2)",
+        notes=tuple(notes)))
+    png = plots.per_turn(axis, rates, _tolerances(checks, axis),
+                         (f"δ, {err_unit.name}", err_unit.scale),
+                         (f"σ, {inst_unit.name}", inst_unit.scale))
+    if png:
+        blocks.append(Figure(png, f"Axis {axis}: per-turn rate error and instability vs rate, "
+                                  "both directions (cf. paper figs. 4-5)"))
+    # A3 cross-calibration
+    if pairs:
+        prow = []
+        for p in pairs:
+            w0, w0u = _num(p.get("w0_dps")), _num(p.get("w0_u_dps"))
+            prow.append((f"±{_num(p.get('rate_dps')) or 0:g}",
+                         _vu(p.get("k"), p.get("k_u")),
+                         _vu(w0, w0u, signed=True),
+                         format_value_u(w0, w0u, 3600.0, signed=True).joined()))
+        blocks.append(Table(("Pair, °/s", "k ± U", "ω0 ± U, °/s", "ω0 ± U, °/h"), tuple(prow),
+                            widths=(1.2, 2.6, 2.4, 2.2), align="rrrr",
+                            caption=f"Axis {axis}: FOG cross-calibration per ± pair "
+                                    "(METHOD.md A3, eqs. 5-6)"))
+    # A4 systematic
+    sys_rows, mains_rows = [], []
+    amp_unit = rel_unit(*[_num(h.get("amplitude_rel")) for r in rates
+                          for h in (r.get("systematic") or {}).get("harmonics") or []])
+    for r in rates:
+        s = r.get("systematic") or {}
+        for h in s.get("harmonics") or []:
+            a, au = _num(h.get("amplitude_rel")), _num(h.get("amplitude_u_rel"))
+            w = abs(_num(r.get("set_rate_dps")) or 0.0)
+            significant = "" if a is None or au is None or a > au else " (not significant)"
+            sys_rows.append((_rate(r.get("set_rate_dps")), _text(h.get("order")),
+                             _vu(a, au, amp_unit) + significant,
+                             format_value_u(a * w if a is not None else None,
+                                            au * w if au is not None else None).joined(),
+                             _vu(h.get("phase_deg"), h.get("phase_u_deg"), signed=True)))
+        m = s.get("mains") or {}
+        if m:
+            w = abs(_num(r.get("set_rate_dps")) or 0.0)
+            a, au = _num(m.get("amplitude_dps")), _num(m.get("amplitude_u_dps"))
+            mains_rows.append((_rate(r.get("set_rate_dps")), _text(m.get("frequency_hz")),
+                               _vu(a, au),
+                               format_value_u(a / w if a is not None and w else None,
+                                              au / w if au is not None and w else None,
+                                              PERCENT.scale).joined(),
+                               _vu(m.get("phase_deg"), m.get("phase_u_deg"), signed=True)))
+    if sys_rows:
+        blocks.append(Table(("Set rate, °/s", "Order h", f"Amplitude ± U, {amp_unit.name} "
+                             "of ω_set", "Amplitude ± U, °/s", "Phase p_h ± U, °"),
+                            tuple(sys_rows), widths=(1.1, 0.8, 2.4, 2.2, 1.8), align="rcrrr",
+                            caption=f"Axis {axis}: systematic intra-turn component, fitted "
+                                    "harmonics Δω_sys = ω_set·Σ a_h cos(hφ + p_h) "
+                                    "(METHOD.md A4)",
+                            notes=("An amplitude not larger than its U is marked not "
+                                   "significant: it is consistent with zero.",)))
+    if mains_rows:
+        blocks.append(Table(("Set rate, °/s", "Frequency, Hz", "Amplitude ± U, °/s",
+                             "Amplitude ± U, % of ω_set", "Phase ± U, °"), tuple(mains_rows),
+                            widths=(1.1, 1.0, 2.2, 2.2, 1.6), align="rrrrr",
+                            caption=f"Axis {axis}: mains-frequency ripple, fitted in time "
+                                    "(METHOD.md A4)"))
+    png = plots.systematic(axis, rates, amp_unit.scale, amp_unit.name)
+    if png:
+        blocks.append(Figure(png, f"Axis {axis}: systematic component vs table angle with the "
+                                  "fitted harmonics (cf. paper figs. 8-9)"))
+    # A5 intra-turn
+    blocks += _intra_blocks(axis, rates, ax.get("noise_floor") or {})
+    return tuple(blocks)
+
+
+def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, Any]
+                  ) -> list[Any]:
+    if not any(r.get("intra_turn_instability_rel") is not None for r in rates):
+        return []
+    angles = sorted({a for r in rates for a in _over_angle(r)})
+    raw_unit = rel_unit(*[_num(r.get("intra_turn_instability_rel")) for r in rates])
+    corr_unit = rel_unit(*[_num(r.get("intra_turn_instability_corrected_rel")) for r in rates])
+    angle_units = [rel_unit(*[_over_angle(r).get(a, (None, None))[0] for r in rates])
+                   for a in angles]
+    rows = []
+    for r in rates:
+        over = _over_angle(r)
+        rows.append((_rate(r.get("set_rate_dps")),
+                     _vu(r.get("intra_turn_instability_rel"),
+                         r.get("intra_turn_instability_u_rel"), raw_unit),
+                     _vu(r.get("intra_turn_instability_corrected_rel"),
+                         r.get("intra_turn_instability_corrected_u_rel"), corr_unit),
+                     *[_vu(*over.get(a, (None, None)), u)
+                       for a, u in zip(angles, angle_units, strict=True)]))
+    header = ("Set rate, °/s", f"Raw ± U, {raw_unit.name}",
+              f"Floor-corrected ± U, {corr_unit.name}",
+              *[f"Over {a:g}° ± U, {u.name}" for a, u in zip(angles, angle_units, strict=True)])
+    bw = {_num(r.get("bandwidth_hz")) for r in rates} - {None}
+    notes = []
+    if bw:
+        notes.append("Raw and floor-corrected values at the FOG's output bandwidth: "
+                     + ", ".join(f"{b:g} Hz" for b in sorted(bw)) + ".")
+    if floor:
+        noise = _num(floor.get("noise_dps", floor.get("sigma_dps")))
+        text = f"FOG noise floor from {floor.get('source', 'a record at rest')}"
+        if noise is not None:
+            text += f": {format_sig(noise, 3)} °/s per sample"
+        if _num(floor.get("rate_hz")) is not None:
+            text += f" at {_num(floor.get('rate_hz')):g} Hz"
+        if _num(floor.get("duration_s")) is not None:
+            text += f", {_num(floor.get('duration_s')):g} s record"
+        notes.append(text + "; removed in quadrature: √(raw² − floor²)/|ω_set|.")
+    if angles:
+        notes.append("Over θ°: standard deviation of the random part averaged over windows "
+                     "of θ degrees of table angle, relative to |ω_set| (for reading against a "
+                     "rate-table datasheet).")
+    n = len(header)
+    widths = (1.1, 1.9, 1.9, *([1.6] * (n - 3)))
+    return [Table(header, tuple(rows), widths=widths, align="r" * n,
+                  caption=f"Axis {axis}: intra-turn instability, std(Δω_rand)/|ω_set| "
+                          "(METHOD.md A5)", notes=tuple(notes))]
+
+
+def _across_axes(axes: Mapping[str, Any]) -> list[Any]:
+    rates = {a: [r for r in ax.get("rates", []) if isinstance(r, dict)] for a, ax in axes.items()}
+    blocks: list[Any] = []
+    amp_unit = rel_unit(*[_num(h.get("amplitude_rel")) for rr in rates.values() for r in rr
+                          for h in (r.get("systematic") or {}).get("harmonics") or []])
+    png = plots.one_rev(rates, amp_unit.scale, amp_unit.name)
+    if png:
+        blocks.append(Figure(png, "Once-per-revolution amplitude vs rate, relative and absolute "
+                                  "(cf. paper fig. 7)"))
+    unit = rel_unit(*[_num(r.get("intra_turn_instability_rel")) for rr in rates.values()
+                      for r in rr])
+    png = plots.intra_turn(rates, unit.scale, unit.name)
+    if png:
+        blocks.append(Figure(png, "Intra-turn instability vs rate, raw and floor-corrected "
+                                  "(cf. paper fig. 10)"))
+    png = plots.pairs({a: [p for p in ax.get("pairs", []) if isinstance(p, dict)]
+                       for a, ax in axes.items()})
+    if png:
+        blocks.append(Figure(png, "FOG scale k and bias ω0 per ± pair (METHOD.md A3)"))
+    return blocks
+
+
+def _per_turn_annex(src: Sources) -> tuple[Any, ...]:
+    rows = []
+    for axis, ax in (src.get("axes", {}) or {}).items():
+        for r in ax.get("rates", []):
+            w_set = _num(r.get("set_rate_dps"))
+            cr = [_num(x) for x in r.get("counter_rate_dps") or []]
+            if not w_set or not cr:
+                continue
+            dev = ", ".join(format_sig(((x or math.nan) / w_set - 1) * 1e6, 3, signed=True)
+                            .replace("n/a", "—") for x in cr)
+            rows.append((axis, _rate(w_set), dev))
+    return (Table(("Axis", "Set rate, °/s", "Per-turn rate deviations (ω_i/ω_set − 1), ppm, "
+                   "in turn order"), tuple(rows), widths=(0.9, 1.1, 6.0), align="lrl",
+                  caption="Per-turn counter rates (METHOD.md A1), relative to the set rate"),)
+
+
+# -- drift-pulse results -------------------------------------------------------------------
+
+def _drift_results(src: Sources, number: str) -> list[Section]:
+    drift = src.get("drift", {}) or {}
+    axes = drift.get("axes", {}) or {}
+    blocks: list[Any] = [Para("Drift in °/h; each value followed by its expanded uncertainty "
+                              "U (k = 2, about 95 %).")]
+    rows = [(axis, _vu(d.get("own_dph"), d.get("own_u_dph"), signed=True),
+             _vu(d.get("apparent_dph"), d.get("apparent_u_dph"), signed=True),
+             _text(len(d.get("cycles") or []) or None))
+            for axis, d in axes.items()]
+    if rows:
+        blocks.append(Table(("Axis", "Own drift ± U, °/h", "Apparent drift at 0° ± U, °/h",
+                             "Cycles"), tuple(rows), widths=(1.0, 2.4, 2.8, 1.0),
+                            align="lrrr", caption="Own and apparent drift per axis "
+                                                  "(METHOD.md B)"))
+    fields = []
+    if _num(drift.get("latitude_deg")) is not None:
+        fields.append(("Site latitude", f"{_num(drift['latitude_deg']):g}°"))
+    if _num(drift.get("azimuth_deg")) is not None:
+        az, azu = _num(drift["azimuth_deg"]), _num(drift.get("azimuth_u_deg"))
+        fields.append(("Platform azimuth (X input axis) ± U", _vu(az, azu) + " °"))
+        if azu is not None:
+            fields.append(("Azimuth U", format_value_u(azu * 60, None, sig_without_u=2)
+                           .joined("arcmin")))
+    if fields:
+        blocks.append(Fields(tuple(fields)))
+    crow = []
+    for axis, d in axes.items():
+        cycles = [c for c in d.get("cycles") or [] if isinstance(c, Mapping)]
+        for pos in dict.fromkeys(_num(c.get("position_deg")) or 0.0 for c in cycles):
+            w = [v for c in cycles if (_num(c.get("position_deg")) or 0.0) == pos
+                 for v in (_num(c.get("drift_dph")),) if v is not None]
+            if not w:
+                continue
+            mean = sum(w) / len(w)
+            std = math.sqrt(sum((x - mean) ** 2 for x in w) / (len(w) - 1)) if len(w) > 1 else None
+            crow.append((axis, f"{pos:g}", ", ".join(format_sig(x, 5, signed=True) for x in w),
+                         format_sig(mean, 5, signed=True),
+                         format_sig(std, 2) if std is not None else "—"))
+    if crow:
+        blocks.append(Table(("Axis", "Position, °", "Drift per cycle, °/h, in order",
+                             "Mean, °/h", "Std, °/h"), tuple(crow),
+                            widths=(0.7, 0.9, 5.0, 1.1, 0.9), align="lrlrr",
+                            caption="Drift estimate of every cycle, by platform position"))
+    png = plots.drift_cycles(axes)
+    if png:
+        blocks.append(Figure(png, "Drift estimate per cycle, by axis and platform position"))
+    for axis, d in axes.items():
+        cyc = d.get("example_cycle")
+        if isinstance(cyc, Mapping):
+            png = plots.drift_cycle(axis, cyc)
+            if png:
+                blocks.append(Figure(png, f"Axis {axis}: U(t) and the integrator output over "
+                                          "one cycle"))
+    return [Section(number, "Results", tuple(blocks), new_page=True)]
+
+
+# -- conformity, records, signatures -------------------------------------------------------
+
+def decision_rule_text(rule: str) -> str:
+    if rule == "guard-band":
+        return ("Decision rule: guarded acceptance with a guard band equal to U (ILAC-G8:09/2019 "
+                "§4.2.2). A check PASSES when |value| + U ≤ T: the value lies inside the "
+                "tolerance T with about 95 % confidence. It FAILS when |value| > T. When "
+                "|value| ≤ T < |value| + U the measured value is inside the tolerance but within "
+                "U of its limit, so conformity is not shown: this is stated as FAIL (guard "
+                "band). The risk of a false accept is at most about 2.5 %.")
+    return ("Decision rule: simple acceptance (ILAC-G8:09/2019 §4.2.1, shared risk). A check "
+            "PASSES when |value| ≤ T and FAILS when |value| > T; U is reported but not used in "
+            "the decision. For a value close to the limit the probability of a false accept "
+            "may approach 50 %; the capability column shows where U is small enough for this "
+            "rule to be sound.")
+
+
+def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
+    rule = str(src.get("decision_rule") or (checks[0].get("rule") if checks else "simple"))
+    blocks: list[Any] = [Para(decision_rule_text(rule)), Para(
+        "Measurement capability (RMG 63-2003): the expanded uncertainty of a check should not "
+        f"exceed 0.2-0.3 of its tolerance; a ratio U/T ≤ {CAPABILITY_LIMIT:g} is marked met.",
+        "body")]
+    if not checks:
+        blocks.append(Para("The procedure states no tolerances: no conformity checks were "
+                           "made and no statement of conformity is given for individual "
+                           "values."))
+        return tuple(blocks)
+    rows, notes = [], []
+    for i, c in enumerate(checks, start=1):
+        value, u, tol = _num(c.get("value_rel")), _num(c.get("u_rel")), _num(c.get("tolerance_rel"))
+        unit = rel_unit(value, u, tol)
+        ratio = _num(c.get("capability_ratio"))
+        if ratio is None and u is not None and tol:
+            ratio = u / tol
+        ok = c.get("capability_ok")
+        if ok is None and ratio is not None:
+            ok = ratio <= CAPABILITY_LIMIT
+        cap = "—" if ratio is None else f"{ratio:.2f} " + ("met" if ok else "not met")
+        inside = value is not None and tol is not None and abs(value) <= tol
+        label = verdict_label(c.get("verdict"), str(c.get("rule") or rule), inside)
+        quantity = QUANTITY_NAMES.get(str(c.get("quantity")), _text(c.get("quantity")))
+        rows.append((str(i), _text(c.get("axis")), _rate(c.get("set_rate_dps")), quantity,
+                     _vu(value, u, unit, signed=c.get("quantity") == "rate_error")
+                     + f" {unit.name}",
+                     (format_sig(tol * unit.scale, 3) + f" {unit.name}") if tol else "—",
+                     cap, label))
+        if label != "PASS" and c.get("reason"):
+            notes.append(f"Check {i}: {label}: {c['reason']}")
+        elif label != "PASS":
+            notes.append(f"Check {i}: {label}.")
+    blocks.append(Table(("#", "Axis", "Set rate, °/s", "Quantity", "Value ± U", "Tolerance T",
+                         "U/T (RMG 63)", "Verdict"), tuple(rows),
+                        widths=(0.4, 0.8, 1.0, 2.2, 1.9, 1.2, 1.2, 1.4), align="rlrlrrcc",
+                        caption="Conformity with the procedure's tolerances",
+                        notes=tuple(notes)))
+    return tuple(blocks)
+
+
+def _records(src: Sources) -> tuple[Any, ...]:
+    files = [f for f in src.get("raw_files", []) or [] if isinstance(f, dict)]
+    hashed_here = False
+    if not files and src.run_path is not None and (src.run_path / "raw").is_dir():
+        hashed_here = True
+        for p in sorted((src.run_path / "raw").rglob("*")):
+            if p.is_file():
+                files.append({"path": p.relative_to(src.run_path).as_posix(),
+                              "sha256": sha256_file(p), "bytes": p.stat().st_size})
+    inputs = []
+    if src.run_path is not None:
+        for name in ("procedure.yaml", "stand.yaml", "meta.json", "events.jsonl"):
+            p = src.run_path / name
+            if p.is_file():
+                inputs.append({"path": name, "sha256": sha256_file(p), "bytes": p.stat().st_size})
+    blocks: list[Any] = [Para(
+        "SHA-256 digests of the raw data as received from the instruments; anyone holding the "
+        "run directory can check that the results above were computed from these bytes "
+        "(`bench analyze RUN_DIR` recomputes them).")]
+    if files:
+        blocks.append(_hash_table(files, "Raw data files" + (
+            " (hashed when this certificate was issued)" if hashed_here else "")))
+    else:
+        blocks.append(Para("No raw data files were recorded.", "note"))
+    if inputs:
+        blocks.append(_hash_table(inputs, "Run records (inputs as used and the event log; "
+                                          "the event log's digest is at the time of issue)"))
+    return tuple(blocks)
+
+
+def _hash_table(files: Sequence[Mapping[str, Any]], caption: str) -> Table:
+    rows = tuple((_text(f.get("path")), f"{int(f['bytes']):,}".replace(",", " ")
+                  if _num(f.get("bytes")) is not None else "—", _text(f.get("sha256")))
+                 for f in files)
+    return Table(("File", "Bytes", "SHA-256"), rows, widths=(2.6, 1.0, 5.0), align="lrl",
+                 caption=caption, mono=True)
+
+
+def _signatures(cert: Mapping[str, Any], issue: str) -> tuple[Any, ...]:
+    signers = cert.get("signers")
+    if isinstance(signers, list) and signers:
+        pairs = tuple((str(s.get("role", "")), str(s.get("name", ""))) if isinstance(s, dict)
+                      else (str(s), "") for s in signers)
+    else:
+        pairs = (("Calibration performed by", ""), ("Reviewed and authorised by", ""))
+    return (Para(f"Date of issue: {issue}."), Signatures(pairs))

@@ -1,0 +1,304 @@
+"""The certificate's plots, as PNG bytes (matplotlib, Agg canvas, no pyplot state).
+
+Each function returns None when the result carries nothing to plot, so a partial run
+still gets a certificate. Figures follow the seed paper's (figs. 4-5, 7, 8-9, 10).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+DPI = 150
+WIDTH_IN = 7.0
+DIRECTIONS = ((+1, "+ direction", "o", "C0"), (-1, "− direction", "s", "C3"))
+
+
+def _png(fig: Figure) -> bytes:
+    FigureCanvasAgg(fig)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI)
+    return buf.getvalue()
+
+
+def _fig(rows: int, cols: int = 1, height_in: float = 2.6) -> tuple[Figure, np.ndarray]:
+    fig = Figure(figsize=(WIDTH_IN, height_in * rows), layout="constrained")
+    axs = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
+    for ax in axs:
+        ax.grid(True, which="both", alpha=0.3, lw=0.5)
+        ax.tick_params(labelsize=8)
+    return fig, axs
+
+
+def _num(x: Any) -> float:
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return math.nan
+    return v
+
+
+def _rate_axis(ax: Any, rates: Sequence[float]) -> None:
+    pos = [abs(r) for r in rates if r]
+    if pos and max(pos) / min(pos) > 20:
+        ax.set_xscale("log")
+    ax.set_xlabel("|commanded rate|, °/s", fontsize=8)
+
+
+def per_turn(axis: str, rates: Sequence[Mapping[str, Any]],
+             tolerances: Mapping[str, Sequence[tuple[float, float]]], unit: tuple[str, float],
+             inst_unit: tuple[str, float]) -> bytes | None:
+    """Per-turn rate error and instability vs rate, by direction (paper figs. 4-5)."""
+    if not rates:
+        return None
+    fig, (a1, a2) = _fig(2)
+    for sign, label, marker, color in DIRECTIONS:
+        rr = [r for r in rates if math.copysign(1, _num(r.get("set_rate_dps"))) == sign]
+        if not rr:
+            continue
+        x = np.array([abs(_num(r["set_rate_dps"])) for r in rr]) * (1 + 0.02 * sign)
+        for ax, key, (_uname, scale) in ((a1, "rate_error", unit),
+                                        (a2, "rate_instability", inst_unit)):
+            y = np.array([_num(r.get(f"{key}_rel")) for r in rr]) * scale
+            u = np.array([_num(r.get(f"{key}_u_rel")) for r in rr]) * scale
+            u = np.where(np.isfinite(u), u, 0.0)
+            ax.errorbar(x, y, yerr=u, fmt=marker, color=color, ms=4, capsize=3, lw=1,
+                        label=label)
+    for ax, key, (uname, scale), title in (
+            (a1, "rate_error", unit, "per-turn rate error δ (eq. 1)"),
+            (a2, "rate_instability", inst_unit, "per-turn rate instability σ (eq. 2)")):
+        tol = tolerances.get(key) or ()
+        if tol:
+            xs = [t[0] for t in tol]
+            ts = np.array([t[1] for t in tol]) * scale
+            ax.plot(xs, ts, "k--", lw=0.8, drawstyle="steps-mid", label="tolerance")
+            if key == "rate_error":
+                ax.plot(xs, -ts, "k--", lw=0.8, drawstyle="steps-mid")
+        ax.set_ylabel(f"{uname}", fontsize=8)
+        ax.set_title(f"Axis {axis}: {title}, U (k = 2) as bars", fontsize=9)
+        _rate_axis(ax, [_num(r.get("set_rate_dps")) for r in rates])
+        ax.legend(fontsize=7)
+    a1.axhline(0, color="0.5", lw=0.6)
+    a2.set_yscale("log")  # a tolerance far above the values must not flatten them
+    return _png(fig)
+
+
+def harmonic_model(harmonics: Sequence[Mapping[str, Any]], phi_deg: np.ndarray) -> np.ndarray:
+    """Sum of a_h cos(h phi + p_h), relative (METHOD.md A4)."""
+    out = np.zeros_like(phi_deg, dtype=float)
+    r = np.radians(phi_deg)
+    for h in harmonics:
+        out += _num(h.get("amplitude_rel")) * np.cos(
+            int(h.get("order", 1)) * r + math.radians(_num(h.get("phase_deg", 0.0))))
+    return out
+
+
+def systematic(axis: str, rates: Sequence[Mapping[str, Any]], scale: float,
+               uname: str) -> bytes | None:
+    """Systematic component vs angle with the fitted harmonics (paper figs. 8-9).
+
+    Rates that carry the paper's binned average get their own panel with it; otherwise
+    the fitted curves of every rate are overlaid (relative units, so a component that
+    grows in proportion to the rate gives one curve).
+    """
+    with_bins = [r for r in rates if (r.get("systematic") or {}).get("binned")]
+    fitted = [r for r in rates if (r.get("systematic") or {}).get("harmonics")]
+    if not fitted and not with_bins:
+        return None
+    phi = np.linspace(0.0, 360.0, 721)
+    panels = with_bins[:2] if with_bins else [None]
+    fig, axs = _fig(len(panels), height_in=2.6)
+    for ax, r in zip(axs, panels, strict=True):
+        if r is None:
+            for i, rr in enumerate(fitted):
+                ax.plot(phi, harmonic_model(rr["systematic"]["harmonics"], phi) * scale,
+                        lw=1, color=f"C{i % 10}", label=f"{_num(rr['set_rate_dps']):+g} °/s")
+            ax.set_title(f"Axis {axis}: fitted systematic component Δω_sys/ω_set vs angle",
+                         fontsize=9)
+        else:
+            b = r["systematic"]["binned"]
+            phi_b = np.asarray(b.get("phi_deg", []), dtype=float)
+            if "dw_rel" in b:
+                y = np.asarray(b["dw_rel"], dtype=float)
+            else:
+                y = np.asarray(b.get("dw_dps", []), dtype=float) / abs(_num(r["set_rate_dps"]))
+            turns = b.get("turns", r.get("turns"))
+            ax.plot(phi_b, y * scale, ".", ms=3, color="0.4",
+                    label=f"binned mean over {turns} turns (paper's estimator)")
+            h = r["systematic"].get("harmonics") or []
+            if h:
+                ax.plot(phi, harmonic_model(h, phi) * scale, "C3", lw=1.2,
+                        label=f"fitted harmonics 1…{max(int(x['order']) for x in h)}")
+            ax.set_title(f"Axis {axis} at {_num(r['set_rate_dps']):+g} °/s: systematic "
+                         "component vs angle", fontsize=9)
+        ax.set_xlim(0, 360)
+        ax.set_xticks(range(0, 361, 45))
+        ax.set_xlabel("table angle φ from the zero mark, °", fontsize=8)
+        ax.set_ylabel(f"Δω_sys / ω_set, {uname}", fontsize=8)
+        ax.legend(fontsize=7, ncol=2)
+    return _png(fig)
+
+
+def one_rev(axes: Mapping[str, Sequence[Mapping[str, Any]]], scale: float,
+            uname: str) -> bytes | None:
+    """Once-per-revolution amplitude vs rate, relative and absolute (paper fig. 7)."""
+    pts: dict[str, list[tuple[float, float, float]]] = {}
+    for axis, rates in axes.items():
+        for r in rates:
+            for h in (r.get("systematic") or {}).get("harmonics") or []:
+                if int(h.get("order", 0)) == 1:
+                    pts.setdefault(axis, []).append((_num(r["set_rate_dps"]),
+                                                     _num(h.get("amplitude_rel")),
+                                                     _num(h.get("amplitude_u_rel"))))
+    if not pts:
+        return None
+    fig, (a1, a2) = _fig(2, height_in=2.4)
+    for i, (axis, p) in enumerate(pts.items()):
+        for sign, label, marker, _ in DIRECTIONS:
+            q = [t for t in p if math.copysign(1, t[0]) == sign]
+            if not q:
+                continue
+            w = np.array([abs(t[0]) for t in q])
+            wj = w * (1 + 0.02 * sign)  # the two directions side by side
+            a = np.array([t[1] for t in q])
+            u = np.nan_to_num(np.array([t[2] for t in q]))
+            kw = dict(fmt=marker, color=f"C{i}", ms=4, capsize=3, lw=1,
+                      mfc="none" if sign < 0 else f"C{i}")
+            a1.errorbar(wj, a * scale, yerr=u * scale, label=f"{axis}, {label}", **kw)
+            a2.errorbar(wj, a * w, yerr=u * w, **kw)
+    a1.set_ylabel(f"1/rev amplitude, {uname} of ω_set", fontsize=8)
+    a2.set_ylabel("1/rev amplitude, °/s", fontsize=8)
+    a1.set_title("Once-per-revolution systematic amplitude vs rate, U (k = 2) as bars",
+                 fontsize=9)
+    allw = [abs(t[0]) for p in pts.values() for t in p if t[0]]
+    for ax in (a1, a2):
+        _rate_axis(ax, allw)
+    a1.set_ylim(bottom=0)
+    if allw and max(allw) / min(allw) > 20:
+        a2.set_yscale("log")  # the absolute amplitude grows with the rate
+    else:
+        a2.set_ylim(bottom=0)
+    a1.legend(fontsize=7, ncol=2)
+    return _png(fig)
+
+
+def intra_turn(axes: Mapping[str, Sequence[Mapping[str, Any]]], scale: float,
+               uname: str) -> bytes | None:
+    """Intra-turn instability vs rate, raw and floor-corrected, per axis (paper fig. 10)."""
+    names = [a for a, rr in axes.items()
+             if any(r.get("intra_turn_instability_rel") is not None for r in rr)]
+    if not names:
+        return None
+    fig, axs = _fig(len(names), height_in=2.4)
+    for ax, axis in zip(axs, names, strict=True):
+        rr = axes[axis]
+        for sign, label, marker, color in DIRECTIONS:
+            q = [r for r in rr if math.copysign(1, _num(r["set_rate_dps"])) == sign]
+            if not q:
+                continue
+            w = np.array([abs(_num(r["set_rate_dps"])) for r in q]) * (1 + 0.02 * sign)
+            for key, style, what in (("intra_turn_instability", "-", "raw"),
+                                     ("intra_turn_instability_corrected", "--",
+                                      "floor-corrected")):
+                y = np.array([_num(r.get(f"{key}_rel")) for r in q]) * scale
+                u = np.nan_to_num(np.array([_num(r.get(f"{key}_u_rel")) for r in q])) * scale
+                if np.all(~np.isfinite(y)):
+                    continue
+                ax.errorbar(w, y, yerr=u, fmt=marker + style, color=color, ms=4, capsize=2,
+                            lw=1, mfc="none" if what != "raw" else color,
+                            label=f"{label}, {what}")
+        _rate_axis(ax, [_num(r["set_rate_dps"]) for r in rr])
+        ax.set_yscale("log")
+        ax.set_ylabel(f"std(Δω_rand)/|ω_set|, {uname}", fontsize=8)
+        ax.set_title(f"Axis {axis}: intra-turn instability vs rate", fontsize=9)
+        ax.legend(fontsize=7, ncol=2)
+    return _png(fig)
+
+
+def pairs(axes: Mapping[str, Sequence[Mapping[str, Any]]]) -> bytes | None:
+    """k and w0 of the FOG per +/- pair, with U (k = 2) (METHOD.md A3).
+
+    k is drawn as its deviation from the axis's mean in ppm: two axes' FOGs differ by far
+    more than one FOG's k changes with rate, and that change is what the plot is for.
+    """
+    if not any(axes.values()):
+        return None
+    fig, (a1, a2) = _fig(2, height_in=2.3)
+    allw: list[float] = []
+    for i, (axis, pp) in enumerate(axes.items()):
+        if not pp:
+            continue
+        w = np.array([_num(p.get("rate_dps")) for p in pp])
+        allw += w.tolist()
+        k = np.array([_num(p.get("k")) for p in pp])
+        k_mean = float(np.nanmean(k))
+        kw = dict(fmt="o-", color=f"C{i}", ms=4, capsize=3, lw=1)
+        a1.errorbar(w, (k - k_mean) * 1e6, yerr=np.nan_to_num([_num(p.get("k_u")) for p in pp])
+                    * 1e6, label=f"axis {axis} (mean k = {k_mean:.7f})", **kw)
+        a2.errorbar(w, [_num(p.get("w0_dps")) for p in pp],
+                    yerr=np.nan_to_num([_num(p.get("w0_u_dps")) for p in pp]),
+                    label=f"axis {axis}", **kw)
+    a1.set_ylabel("k − mean k, ppm", fontsize=8)
+    a2.set_ylabel("ω0, °/s", fontsize=8)
+    a1.set_title("FOG cross-calibration per ± pair: scale k and bias ω0, U (k = 2) as bars",
+                 fontsize=9)
+    for ax in (a1, a2):
+        _rate_axis(ax, allw)
+        ax.legend(fontsize=7)
+    return _png(fig)
+
+
+def drift_cycle(axis: str, cycle: Mapping[str, Any]) -> bytes | None:
+    """U(t) of the angle sensor and the signed integrator output over one cycle."""
+    t = np.asarray(cycle.get("t_s", []), dtype=float)
+    u = np.asarray(cycle.get("u_v", []), dtype=float)
+    if t.size < 2 or u.size != t.size:
+        return None
+    fig, (a1, a2) = _fig(2, height_in=2.2)
+    a1.plot(t, u, "C0", lw=1)
+    a1.set_ylabel("U, V", fontsize=8)
+    a1.set_title(f"Axis {axis}: angle-sensor output U(t) and signed integral over one cycle",
+                 fontsize=9)
+    integ = np.asarray(cycle.get("integral_vs", []), dtype=float)
+    if integ.size == t.size:
+        a2.plot(t, integ, "C3", lw=1)
+    a2.set_ylabel("∫±U dt, V·s", fontsize=8)
+    a2.set_xlabel("time from the start of the first pulse, s", fontsize=8)
+    tc = _num(cycle.get("tc_s"))
+    for ax in (a1, a2):
+        if math.isfinite(tc):
+            ax.axvline(tc, color="0.4", lw=0.8, ls="--")
+    return _png(fig)
+
+
+def drift_cycles(axes: Mapping[str, Mapping[str, Any]]) -> bytes | None:
+    """Drift estimate of every cycle, by axis and platform position."""
+    names = [a for a, d in axes.items() if d.get("cycles")]
+    if not names:
+        return None
+    fig, axs = _fig(len(names), height_in=2.2)
+    for ax, axis in zip(axs, names, strict=True):
+        cyc = axes[axis]["cycles"]
+        positions = sorted({_num(c.get("position_deg", 0)) for c in cyc})
+        n = 0
+        for j, pos in enumerate(positions):
+            q = [c for c in cyc if _num(c.get("position_deg", 0)) == pos]
+            x = np.arange(n + 1, n + len(q) + 1)
+            y = np.array([_num(c.get("drift_dph")) for c in q])
+            ax.plot(x, y, "o", color=f"C{j}", ms=4, label=f"position {pos:g}°")
+            ax.hlines(np.mean(y), x[0] - 0.3, x[-1] + 0.3, color=f"C{j}", lw=0.8)
+            n += len(q)
+        own = _num(axes[axis].get("own_dph"))
+        if math.isfinite(own):
+            ax.axhline(own, color="k", lw=0.8, ls="--", label="own drift")
+        ax.set_ylabel("drift, °/h", fontsize=8)
+        ax.set_xlabel("cycle", fontsize=8)
+        ax.set_title(f"Axis {axis}: drift per cycle", fontsize=9)
+        ax.legend(fontsize=7)
+    return _png(fig)

@@ -1,0 +1,114 @@
+"""Rounding of a result and its expanded uncertainty for printing (GUM 7.2.6, EA-4/02).
+
+U is printed with at most two significant digits and the value is rounded to the same
+decimal place. EA-4/02 M:2022 asks for U to be rounded up, allowing the usual rounding
+only when it lowers U by no more than 5 %; with two digits the usual rounding never lowers
+U by more than 5 %, but the rule is kept general for `sig = 1`.
+
+Rounding is done in decimal on the shortest repr of the float, so 0.285 rounds to 0.29 as
+a reader doing it by hand expects, not to 0.28 as binary floating point would.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from decimal import ROUND_CEILING, ROUND_HALF_UP, Decimal
+
+MINUS = "\u2212"  # the typographic minus sign
+
+
+def _quantize(x: float, decimals: int, rounding: str = ROUND_HALF_UP) -> Decimal:
+    return Decimal(repr(float(x))).quantize(Decimal(1).scaleb(-decimals), rounding=rounding)
+
+
+def _text(d: Decimal, decimals: int, signed: bool = False) -> str:
+    """Fixed-point text of a quantized decimal; never '-0.00'; a true minus sign."""
+    if d == 0:
+        d = abs(d)
+    s = f"{d:.{max(decimals, 0)}f}"
+    if s.startswith("-"):
+        return MINUS + s[1:]
+    return ("+" + s) if signed and d > 0 else s
+
+
+def round_u(u: float, sig: int = 2) -> tuple[Decimal, int]:
+    """U rounded to at most `sig` significant digits, and the number of decimals kept.
+
+    `decimals` may be negative (U = 1234 -> 1200, decimals -2).
+    """
+    if not math.isfinite(u) or u <= 0:
+        raise ValueError(f"an expanded uncertainty must be finite and > 0, got {u!r}")
+    exponent = math.floor(math.log10(u))
+    decimals = sig - 1 - exponent
+    nearest = _quantize(u, decimals)
+    if nearest < Decimal(repr(float(u))) and (u - float(nearest)) / u > 0.05:
+        nearest = _quantize(u, decimals, ROUND_CEILING)  # EA-4/02: round up beyond 5 %
+    if nearest >= Decimal(10) ** (exponent + 1):
+        decimals -= 1  # 0.0997 -> 0.10, two digits, not 0.100
+        nearest = _quantize(float(nearest), decimals)
+    return nearest, decimals
+
+
+@dataclass(frozen=True)
+class Rounded:
+    """A value and its U as printed, both in the same unit and to the same decimal."""
+
+    value: str
+    u: str | None
+
+    def joined(self, unit: str = "") -> str:
+        tail = f" {unit}" if unit else ""
+        return f"{self.value} ± {self.u}{tail}" if self.u else f"{self.value}{tail}"
+
+
+def format_value_u(value: float | None, u: float | None, scale: float = 1.0,
+                   signed: bool = False, sig_without_u: int = 4) -> Rounded:
+    """Value and U (k = 2) multiplied by `scale` (e.g. 100 for %) and rounded to match.
+
+    Without a usable U the value keeps `sig_without_u` significant digits and U is None.
+    """
+    if value is None or not math.isfinite(value):
+        return Rounded("n/a", None)
+    v = value * scale
+    if u is not None and math.isfinite(u) and u > 0:
+        ur, decimals = round_u(u * scale)
+        return Rounded(_text(_quantize(v, decimals), decimals, signed), _text(ur, decimals))
+    return Rounded(format_sig(v, sig_without_u, signed), None)
+
+
+def format_sig(x: float, sig: int = 4, signed: bool = False) -> str:
+    """`x` with `sig` significant digits in fixed point (scientific when very large/small)."""
+    if x is None or not math.isfinite(x):
+        return "n/a"
+    if x == 0:
+        return "0"
+    exponent = math.floor(math.log10(abs(x)))
+    if exponent < -6 or exponent > 9:
+        s = f"{x:.{sig - 1}e}".replace("-", MINUS)
+        return ("+" + s) if signed and x > 0 else s
+    decimals = sig - 1 - exponent
+    return _text(_quantize(x, decimals), decimals, signed)
+
+
+@dataclass(frozen=True)
+class RelUnit:
+    """How a column of relative values is printed: % or ppm."""
+
+    name: str
+    scale: float
+
+
+PERCENT = RelUnit("%", 100.0)
+PPM = RelUnit("ppm", 1e6)
+
+
+def rel_unit(*magnitudes: float | None) -> RelUnit:
+    """ppm when every magnitude of the column is below 0.01 % (1e-4), else %.
+
+    One unit per column, so a reader compares rows without converting.
+    """
+    finite = [abs(m) for m in magnitudes if m is not None and math.isfinite(m)]
+    if finite and max(finite) < 1e-4:
+        return PPM
+    return PERCENT
