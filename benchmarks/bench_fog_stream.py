@@ -56,7 +56,7 @@ def main() -> int:
             now = clock.now()
             lags.append((now, now - (fog.end_index - 1) / args.rate_hz))
             if now >= next_report:
-                print(f"  t = {now:7.1f} s  samples {fog.end_index:9d}  lag {lags[-1]:.4f} s",
+                print(f"  t = {now:7.1f} s  samples {fog.end_index:9d}  lag {lags[-1][1]:.4f} s",
                       flush=True)
                 next_report += max(args.seconds / 6, 1.0)
             if time.monotonic() - t0 > 3 * args.seconds / args.speed + 30:

@@ -3,8 +3,7 @@
 A format is a row of data (`FrameFormat`): its size, header, a big-endian numpy
 structured dtype naming every field, which fields carry the three rates, the status
 bits that say each rate is valid, the sequence counter and its modulus, and the CRC
-that guards it. Adding a format is adding such a row (and, if its fields are not plain
-numpy types, a small `parse` function).
+that guards it. Adding a format is adding such a row.
 
 The decoder works on whole byte chunks with numpy: it finds every header, checks the
 CRC of every candidate at once, keeps the valid frames that do not overlap an earlier
@@ -29,7 +28,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -121,9 +120,6 @@ CRC32_MPEG2 = Crc32("CRC-32/MPEG-2", poly=0x04C11DB7, init=0xFFFFFFFF, xorout=0)
 
 # -- formats -----------------------------------------------------------------------------
 
-Parse = Callable[[np.ndarray], Mapping[str, np.ndarray]]
-
-
 @dataclass(frozen=True)
 class FrameFormat:
     """One binary output format of a FOG or IMU, as data."""
@@ -143,7 +139,6 @@ class FrameFormat:
     crc_span: int                      # the CRC covers bytes [0, crc_span)
     extra_fields: tuple[str, ...] = ()  # carried to CSV as they are (accelerations, ...)
     status_ok: int = 0                 # the status a healthy unit sends (for the twin)
-    parse: Parse | None = None         # only for fields numpy cannot view directly
 
     @property
     def size(self) -> int:
@@ -151,9 +146,6 @@ class FrameFormat:
 
     def fields_of(self, rows: np.ndarray, names: tuple[str, ...]) -> dict[str, np.ndarray]:
         """The named fields of (N, size) uint8 rows, in native byte order."""
-        if self.parse is not None:
-            parsed = self.parse(rows)
-            return {name: parsed[name] for name in names}
         rec = np.ascontiguousarray(rows).view(self.dtype).reshape(-1)
         return {name: rec[name].astype(rec[name].dtype.newbyteorder("=")) for name in names}
 
@@ -161,8 +153,6 @@ class FrameFormat:
                status: int | np.ndarray | None = None, temperature: int | np.ndarray = 0,
                extra: Mapping[str, np.ndarray | float] | None = None) -> np.ndarray:
         """Build N valid frames, (N, size) uint8, CRC included (the twin uses this)."""
-        if self.parse is not None:
-            raise NotImplementedError(f"format {self.name!r} has no encoder")
         n = len(sequence)
         rec = np.zeros(n, dtype=self.dtype)
         rec[self.dtype.names[0]] = int.from_bytes(self.header, "big")
