@@ -390,7 +390,12 @@ class Counter(ScpiInstrument):
         out = np.empty(n)
         for i in range(n):
             text = read.text()
-            reply = self.query(text, timeout_s=per_read_s + self.timeout_margin_s)
+            try:
+                reply = self.query(text, timeout_s=per_read_s + self.timeout_margin_s)
+            except CounterTimeout as e:
+                raise CounterTimeout(f"{e} (reading {i + 1} of {n}, each waits for a start "
+                                     f"edge and one turn of {acq.expected_period_s:.6g} s); "
+                                     f"{self._signal_hint()}", command=text) from e
             value = self._numbers(text, reply, 1)
             self._refuse_nan(text, value, 1, acq)
             out[i] = value[0]
@@ -419,12 +424,10 @@ class Counter(ScpiInstrument):
             if esr & ESR_OPC:
                 return
             if time.monotonic() > acq.deadline_real_s:
-                c = self.input
                 raise CounterTimeout(
                     f"{self.name}: {acq.n} {acq.what} at {acq.expected_period_s:.6g} s a "
                     f"turn not complete within {acq.deadline_real_s - acq.armed_real_s:.3g} "
-                    f"s (real); is the zero-mark signal reaching channel "
-                    f"{c.channel if c else '?'} and crossing {c.level_v if c else '?'} V?",
+                    f"s (real); {self._signal_hint()}",
                     command=self._need(self.words.initiate, "initiate").text())
             time.sleep(poll_s)
 
@@ -467,14 +470,18 @@ class Counter(ScpiInstrument):
                                     reply=reply.encode())
         return values
 
+    def _signal_hint(self) -> str:
+        c = self.input
+        return (f"is the zero-mark signal reaching channel {c.channel if c else '?'} and "
+                f"crossing {c.level_v if c else '?'} V?")
+
     def _refuse_nan(self, text: str, values: np.ndarray, n: int, acq: Acquisition) -> None:
         bad = is_scpi_nan(values)
         if bad.any():
             got = int(np.argmax(bad))
-            limit = (f"its timeout of {acq.instrument_timeout_s:.6g} s"
-                     if acq.instrument_timeout_s else "its measurement timeout")
+            limit = (f"its own timeout ({acq.instrument_timeout_s:.6g} s, instrument time)"
+                     if acq.instrument_timeout_s else "its own timeout")
             raise CounterMeasurementTimeout(
                 f"{self.name}: {text!r} returned 9.91E37 (measurement timeout): {got} of {n} "
-                f"readings came before {limit}; check the zero-mark signal and the trigger "
-                f"level ({self.input.level_v if self.input else '?'} V)", command=text)
+                f"readings came before {limit}; {self._signal_hint()}", command=text)
 

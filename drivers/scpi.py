@@ -445,9 +445,8 @@ class ScpiInstrument:
     def query(self, text: str, *, timeout_s: float | None = None) -> str:
         """Send a query and read its reply (one line, terminator removed)."""
         with self._lock:
-            self._tx(text)
             try:
-                return self._rx(text, self.command_timeout_s if timeout_s is None else timeout_s)
+                return self._exchange(text, timeout_s)
             except InstrumentTimeout as e:
                 errors = self._errors_after_silence()
                 if errors:
@@ -456,6 +455,10 @@ class ScpiInstrument:
                         + "; ".join(str(x) for x in errors), command=text,
                         errors=tuple(errors)) from e
                 raise
+
+    def _exchange(self, text: str, timeout_s: float | None = None) -> str:
+        self._tx(text)
+        return self._rx(text, self.command_timeout_s if timeout_s is None else timeout_s)
 
     def send(self, command: Command | str, *, check: bool = True, **values: Any) -> str:
         """Send a word (a Command, or a name in `self.words`); returns the text sent."""
@@ -489,7 +492,7 @@ class ScpiInstrument:
     # -- the error queue ------------------------------------------------------------------
     def next_error(self) -> ErrorEntry:
         text = self.error_query.text()
-        reply = self.query(text)
+        reply = self._exchange(text)
         try:
             return ErrorEntry.parse(reply)
         except ValueError as e:
@@ -597,15 +600,17 @@ class ScpiInstrument:
             try:
                 note = self.recover()
             except InstrumentConnectionError as e2:
-                e.add_note(str(e2))
                 if isinstance(e, InstrumentConnectionError):
+                    e.add_note(str(e2))
                     raise
                 raise self.error_kinds.connection(
                     f"{e} -- and then: {e2}", command=e.command) from e
-            e.add_note(note)
             if "reopened" in note and isinstance(e, InstrumentTimeout):
-                raise self.error_kinds.connection(
-                    f"{e}: the link was lost (it had to be reopened)", command=e.command) from e
+                lost = self.error_kinds.connection(
+                    f"{e}: the link was lost (it had to be reopened)", command=e.command)
+                lost.add_note(note)
+                raise lost from e
+            e.add_note(note)
             raise
 
 

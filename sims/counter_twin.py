@@ -160,9 +160,17 @@ class CounterTwin(ScpiServer):
             fmt = TIMESTAMP_FORMATS[p.timestamps or ""]
             if fmt.name == "pendulum-stst" and not self.timestamp_info:
                 return ",".join(str(i + 1) for i in range(values.size))
-            # times need 17 significant digits to keep 20 ps on an axis of hours
-            return fmt.encode(values, 16, p.reply_exp_digits)
+            return fmt.encode(values, self._time_digits(values), p.reply_exp_digits)
         return encode_values(values, p.reply_digits, p.reply_exp_digits)
+
+    def _time_digits(self, t_s: np.ndarray) -> int:
+        """Digits after the point that carry the resolution (up to 17 significant):
+        times on an axis of hours need more than the 15 a period needs."""
+        finite = np.abs(t_s[t_s < SCPI_NAN])
+        t_max = float(finite.max()) if finite.size else 1.0
+        span = math.floor(math.log10(max(t_max, 1e-300))) \
+            - math.floor(math.log10(self.profile.resolution_s))
+        return int(min(16, max(self.profile.reply_digits, span + 1)))
 
     # -- routes: one handler per word the profile has --------------------------------------
     def _route_words(self) -> None:
