@@ -126,6 +126,7 @@ class FogStats:
     gap_events: tuple[GapEvent, ...]
     stalls: tuple[StallEvent, ...]
     lag_s: float            # how far the newest sample trails the clock (latency)
+    index_uncertain_from: int | None  # set when frames were lost in whole counter wraps
 
 
 class _SampleStore:
@@ -260,8 +261,13 @@ class Fog:
         except (serial.SerialException, OSError) as e:
             raise FogError(f"cannot open FOG port {self.port}: {e}") from e
         if self.raw_path is not None:
-            self.raw_path.parent.mkdir(parents=True, exist_ok=True)
-            self._raw = open(self.raw_path, "wb")  # noqa: SIM115 (closed in close())
+            try:
+                self.raw_path.parent.mkdir(parents=True, exist_ok=True)
+                self._raw = open(self.raw_path, "wb")  # noqa: SIM115 (closed in close())
+            except OSError as e:
+                self._ser.close()
+                self._ser = None
+                raise FogError(f"cannot create the FOG raw capture {self.raw_path}: {e}") from e
         self._stop.clear()
         self._thread = threading.Thread(target=self._read_loop, name=f"fog-{self.port}",
                                         daemon=True)
@@ -427,7 +433,8 @@ class Fog:
                 lost_frames=d.lost_frames, skipped_bytes=d.skipped_bytes, bytes=d.bytes,
                 crc_events=tuple(CrcEvent(i, i / r, o) for i, o in d.crc_events),
                 gap_events=tuple(GapEvent(i, c, i / r) for i, c in d.gap_events),
-                stalls=tuple(self._stalls), lag_s=self._lag_s)
+                stalls=tuple(self._stalls), lag_s=self._lag_s,
+                index_uncertain_from=self._index_uncertain_from)
 
     @property
     def health(self) -> str:

@@ -192,6 +192,7 @@ def test_loss_of_whole_counter_wraps_is_flagged(tmp_path: Path) -> None:
         err = fog.last_error
     assert [(g.index, g.count) for g in stats.gap_events] == [(200, 72)]
     assert err is not None and "whole counter wraps" in err and "after 199" in err
+    assert stats.index_uncertain_from == 200
 
 
 def test_wait_timeout_is_scaled_by_clock_speed(tmp_path: Path) -> None:
@@ -224,6 +225,16 @@ def test_identity_and_open_errors(tmp_path: Path) -> None:
     assert "KVH DSP-1760" in fog.identity() and "kvh-a" in fog.identity()
     with pytest.raises(FogError, match="/dev/does-not-exist"):
         fog.open()
+    (tmp_path / "file").write_text("")
+    clock2 = VirtualClock(100.0, running=False)
+    stand = SimulatedStand(StandTruth(seed=1, axes={"outer": AxisTruth()}), {"outer": 1000},
+                           clock2)
+    with FogTwin(stand, "outer") as twin:
+        bad = Fog(twin.path, rate_hz=1000, raw_path=tmp_path / "file" / "fog.raw", clock=clock2)
+        with pytest.raises(FogError, match="raw capture"):
+            bad.open()
+        with Fog(twin.path, rate_hz=1000, raw_path=None, clock=clock2) as again:
+            assert again.health == "ok"            # the failed open let go of the port
     with pytest.raises(ValueError, match="units 'g'"):
         Fog("p", rate_hz=1000, raw_path=None, clock=clock, units="g")
     with pytest.raises(ValueError, match="axis 'w'"):
