@@ -374,6 +374,9 @@ class Axis:
     def enable(self) -> None:
         """Fault reset if needed, profile velocity mode, zero target, then Operation enabled."""
         state = self._read_state()
+        if state is State.FAULT_REACTION_ACTIVE:  # let the drive finish its fault reaction
+            self._wait_standstill(self._quick_stop_decel_dps2)
+            state = self._wait_state(State.FAULT)
         if state is State.FAULT:
             code = self._read(Od.ERROR_CODE)
             self._journal("fault_reset", code=f"0x{code:04X}", description=describe_error(code))
@@ -398,7 +401,11 @@ class Axis:
 
     def _go_to(self, target: State) -> None:
         state = self._read_state()
-        for cmd in path(state, target):
+        try:
+            commands = path(state, target)
+        except ValueError as e:
+            raise AxisError(f"axis {self.name}: {e}") from e
+        for cmd in commands:
             arc = transition(state, cmd)
             assert arc is not None
             self._write(Od.CONTROLWORD, cmd.word)
