@@ -58,6 +58,15 @@ class SimBench:
 
         cfg = self.stand_cfg
         try:
+            for a in self.axes:  # FOG twins first: they must see every sample from 0 on
+                f = cfg["axes"][a].get("fog")
+                if f:
+                    ft = FogTwin(self.stand, a, fmt=f.get("format", "kvh-a"),
+                                 axis_letter=f.get("axis", "z"),
+                                 units=f.get("units", "deg/s"))
+                    f["port"] = ft.start()
+                    self._stack.callback(ft.stop)
+                    self.twins[f"{a}.fog"] = ft
             for a in self.axes:
                 ac = cfg["axes"][a]
                 d = ac["drive"]
@@ -74,14 +83,6 @@ class SimBench:
                     c["resource"] = ct.start()
                     self._stack.callback(ct.stop)
                     self.twins[f"{a}.counter"] = ct
-                if ac.get("fog"):
-                    f = ac["fog"]
-                    ft = FogTwin(self.stand, a, fmt=f.get("format", "kvh-a"),
-                                 axis_letter=f.get("axis", "z"),
-                                 units=f.get("units", "deg/s"))
-                    f["port"] = ft.start()
-                    self._stack.callback(ft.stop)
-                    self.twins[f"{a}.fog"] = ft
             for factory in extra or []:
                 factory(self)
         except BaseException:
