@@ -84,6 +84,10 @@ class LimitError(AxisError, ValueError):
     """A command over the stand's limits: refused before anything was sent."""
 
 
+class ObjectRefused(AxisError):
+    """The drive answered an SDO with an abort (no such object, value out of range...)."""
+
+
 class AxisTimeout(AxisError, TimeoutError):
     """A wait (settling, standstill, state change) did not finish in time."""
 
@@ -177,6 +181,7 @@ class Axis:
         self._decel_dps2 = self.accel_dps2
         self._quick_stop_decel_dps2 = self.max_accel_dps2
         self.drive_watchdog_ms: int | None = None
+        self._started = False
 
     def _check_config(self, accel_dps2: float | None) -> None:
         where = f"axis {self.name} drive"
@@ -237,12 +242,16 @@ class Axis:
             raise AxisError(f"axis {self.name}: cannot open CAN bus {self.interface}:"
                             f"{self.channel}: {e}") from e
         self.network, self.node = network, node
+        self._started = False
         try:
             self._configure()
             self.enable()
         except BaseException:
             try:
-                self.close()
+                if self._started:  # NMT start was sent: the drive may be enabled
+                    self.close()
+                else:
+                    self._leave_bus()
             except Exception as e:  # noqa: BLE001 - the first error is the one to see
                 log.error("axis %s: cleanup after a failed open: %s", self.name, e)
             raise
@@ -301,6 +310,7 @@ class Axis:
             self.heartbeat_ms / 1000.0)
         self._write(Od.PRODUCER_HEARTBEAT, self.heartbeat_ms)
         self._configure_watchdog()
+        self._started = True
         node.nmt.state = "OPERATIONAL"
         self._wait_real(lambda: self._drive_nmt == NMT_STATE_OPERATIONAL,
                         max(STATE_TIMEOUT_S, 5 * self.heartbeat_ms / 1000.0),
@@ -319,38 +329,34 @@ class Axis:
             names = ", ".join(f"0x{i:04X} {Od(i).name.lower()}" for i in sorted(missing))
             raise AxisError(f"axis {self.name}: the drive's TPDOs do not carry {names}")
         self._tpdo_period_s = max(periods, default=0.01)
-        self._quick_stop_decel_dps2 = self.units.accel_to_dps2(
-            self._read(Od.QUICK_STOP_DECELERATION))
+        quick = self._read_optional(Od.QUICK_STOP_DECELERATION)
+        if quick:
+            self._quick_stop_decel_dps2 = self.units.accel_to_dps2(quick)
         self._journal("config", identity=self._identity,
                       counts_per_rev=self.units.counts_per_rev,
                       velocity_unit_counts_per_s=self.units.velocity_unit_counts_per_s,
                       accel_unit_counts_per_s2=self.units.accel_unit_counts_per_s2,
                       heartbeat_ms=self.heartbeat_ms, drive_watchdog_ms=self.drive_watchdog_ms,
-                      abort_connection_option=self._read(Od.ABORT_CONNECTION_OPTION),
+                      abort_connection_option=self._read_optional(Od.ABORT_CONNECTION_OPTION),
                       quick_stop_decel_dps2=self._quick_stop_decel_dps2,
                       max_rate_dps=self.max_rate_dps, max_accel_dps2=self.max_accel_dps2)
 
     def _read_identity(self) -> str:
         def text(index: Od) -> str:
-            try:
-                return str(self._read(index)).strip()
-            except AxisError:
-                return "?"
+            value = self._read_optional(index)
+            return "?" if value is None else str(value).strip()
         ident = []
         for sub, label in ((1, "vendor"), (2, "product"), (3, "revision"), (4, "serial")):
-            try:
-                value = self._read(Od.IDENTITY, sub)
+            value = self._read_optional(Od.IDENTITY, sub)
+            if value is not None:
                 ident.append(f"{label} {value}" if sub == 4 else f"{label} 0x{value:08X}")
-            except AxisError:
-                pass
         return (f"{text(Od.DEVICE_NAME)}, hw {text(Od.HARDWARE_VERSION)}, "
                 f"sw {text(Od.SOFTWARE_VERSION)}, " + ", ".join(ident))
 
     def _check_resolution(self) -> None:
-        try:
-            increments = self._read(Od.POSITION_ENCODER_RESOLUTION, 1)
-            revolutions = self._read(Od.POSITION_ENCODER_RESOLUTION, 2)
-        except AxisError:
+        increments = self._read_optional(Od.POSITION_ENCODER_RESOLUTION, 1)
+        revolutions = self._read_optional(Od.POSITION_ENCODER_RESOLUTION, 2)
+        if increments is None or revolutions is None:
             return  # a drive without 0x608F: the stand file's counts_per_rev is all we have
         if revolutions and increments / revolutions != self.units.counts_per_rev:
             raise AxisError(f"axis {self.name}: stand file says counts_per_rev = "
@@ -745,27 +751,38 @@ class Axis:
             name = "object"
         return f"{name} 0x{index:04X}" + (f":{sub}" if sub else "")
 
-    def _read(self, index: int, sub: int = 0) -> Any:
+    def _sdo(self, index: int, sub: int, value: int | None = None) -> Any:
+        """One SDO read (value None) or write, with errors that name the axis and object."""
+        what = self._describe(index, sub) + ("" if value is None else f" = {value}")
+        verb = "reading" if value is None else "writing"
         try:
-            return self._sdo_var(index, sub).raw
+            var = self._sdo_var(index, sub)
+            if value is None:
+                return var.raw
+            var.raw = value
+            return None
+        except KeyError as e:
+            raise ObjectRefused(f"axis {self.name}: {what} is not in the EDS "
+                                f"{self.eds_path.name}") from e
         except SdoAbortedError as e:
-            raise AxisError(f"axis {self.name}: drive node {self.node_id} refused to read "
-                            f"{self._describe(index, sub)}: {e}") from e
+            raise ObjectRefused(f"axis {self.name}: drive node {self.node_id} refused "
+                                f"{verb} {what}: {e}") from e
         except SdoCommunicationError as e:
             raise AxisError(f"axis {self.name}: no answer from drive node {self.node_id} on "
-                            f"{self.interface}:{self.channel} reading "
-                            f"{self._describe(index, sub)}: {e}") from e
+                            f"{self.interface}:{self.channel} {verb} {what}: {e}") from e
+
+    def _read(self, index: int, sub: int = 0) -> Any:
+        return self._sdo(index, sub)
+
+    def _read_optional(self, index: int, sub: int = 0) -> Any:
+        """None when the drive does not have the object (optional in CiA 301/402)."""
+        try:
+            return self._sdo(index, sub)
+        except ObjectRefused:
+            return None
 
     def _write(self, index: int, value: int, sub: int = 0) -> None:
-        try:
-            self._sdo_var(index, sub).raw = value
-        except SdoAbortedError as e:
-            raise AxisError(f"axis {self.name}: drive node {self.node_id} refused "
-                            f"{self._describe(index, sub)} = {value}: {e}") from e
-        except SdoCommunicationError as e:
-            raise AxisError(f"axis {self.name}: no answer from drive node {self.node_id} on "
-                            f"{self.interface}:{self.channel} writing "
-                            f"{self._describe(index, sub)} = {value}: {e}") from e
+        self._sdo(index, sub, int(value))
         self._journal("write", object=self._describe(index, sub), value=int(value))
 
     def _wait_real(self, done: Callable[[], bool], timeout_real_s: float, what: str,

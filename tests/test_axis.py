@@ -318,3 +318,12 @@ def test_opens_while_the_stand_clock_is_paused() -> None:
                 pytest.approx(30.0 * (1 + RATE_BIAS_REL), abs=2e-4)
     finally:
         r.twin.stop()
+
+
+@pytest.mark.timeout(10)
+def test_encoder_resolution_mismatch_is_refused_before_anything_moves(rig: Rig) -> None:
+    ax = rig.axis(counts_per_rev=2**18)  # the twin's 0x608F says 2^20
+    with pytest.raises(AxisError, match=r"counts_per_rev = 262144 .* 0x608F says 1048576/1"):
+        ax.open()
+    assert ax.network is None
+    assert rig.twin.state is State.SWITCH_ON_DISABLED
