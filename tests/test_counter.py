@@ -47,22 +47,21 @@ def open_pair(stand, model, **kw):
     return twin, counter
 
 
+def configured_pair(stand, model):
+    twin, counter = open_pair(stand, model)
+    with twin, counter:
+        counter.configure(channel=1, level_v=2.5)
+        yield twin, counter
+
+
 @pytest.fixture(params=sorted(PROFILES))
 def pair(request, stand):
-    twin, counter = open_pair(stand, request.param)
-    counter.configure(channel=1, level_v=2.5)
-    yield twin, counter
-    counter.close()
-    twin.stop()
+    yield from configured_pair(stand, request.param)
 
 
 @pytest.fixture(params=TIMESTAMP_MODELS)
 def ts_pair(request, stand):
-    twin, counter = open_pair(stand, request.param)
-    counter.configure(channel=1, level_v=2.5)
-    yield twin, counter
-    counter.close()
-    twin.stop()
+    yield from configured_pair(stand, request.param)
 
 
 def test_every_profile_identifies_and_takes_its_input_setup(pair):
