@@ -21,7 +21,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.certificate import write_certificate
-from bench.certificate.rounding import format_value_u, rel_unit, round_u
+from bench.certificate.rounding import format_limit, format_value_u, rel_unit, round_u
 from bench.certificate.sample import drift_pulse_result, rate_ladder_result
 from bench.journal import RunDir
 
@@ -71,6 +71,12 @@ def test_rounding_properties(u: float, value: float) -> None:
     assert dec_u == dec_v                              # value to the decimal of U
     assert abs(float(r.value.replace("\u2212", "-")) - value) <= 0.5 * 10 ** -dec_u * 1.0001 \
         or dec_u == 0
+
+
+@pytest.mark.parametrize("x, expected", [(7.51, "7.6"), (15.000000000000002, "15"),
+                                         (0.00996, "0.010"), (123.0, "130")])
+def test_upper_limits_round_up(x: float, expected: str) -> None:
+    assert format_limit(x)[0] == expected
 
 
 def test_relative_columns_in_ppm_below_one_hundredth_of_a_percent() -> None:
@@ -177,10 +183,14 @@ def test_values_printed_with_u_rounded_as_by_hand(ladder: dict[str, Any]) -> Non
         "+40.30 ± 0.84",           # its phase
         "0.0003 ± 0.0011 (not significant)",  # order 3: 3e-6 ± 1.1e-5 -> %
         "0.000200 ± 0.000030",     # mains 2.0e-4 ± 3.0e-5 deg/s
-        "0.1060 ± 0.0021",         # raw intra-turn 1.06e-3 ± 2.12e-5 -> %
-        "12.0 ± 2.4",              # floor-corrected 1.2e-5 ± 2.4e-6 -> ppm (own column)
-        "0.0210 ± 0.0063",         # over 1 deg: 2.1e-4 ± 6.3e-5 -> %
-        "1.10 ± 0.33",             # over 360 deg: 1.1e-6 ± 3.3e-7 -> ppm
+        # raw intra-turn 1.06e-3, U from 144000 samples: 2 * 1.06e-3 / sqrt(2 * 143999)
+        # = 3.95e-6 -> 0.000395 % -> 0.00040, marked as computed by the certificate
+        "0.10600 ± 0.00040*",
+        "12 (≤ 15)",               # floor-corrected 1.2e-5, upper limit 1.5e-5 -> ppm
+        # over 1 deg: 2.1e-4 over 1440 windows: U = 4.2e-4 / sqrt(2878) = 7.83e-6 -> %
+        "0.02100 ± 0.00078*",
+        # over 360 deg: 1.1e-6 over 4 windows: U = 2.2e-6 / sqrt(6) = 8.98e-7 -> ppm
+        "1.10 ± 0.90*",
         "+0.332",                  # per-turn annex, first turn of outer +10
     ]
     for s in expected:

@@ -26,6 +26,8 @@ from bench.certificate.rounding import (
     MINUS,
     PERCENT,
     RelUnit,
+    format_fixed,
+    format_limit,
     format_sig,
     format_value_u,
     rel_unit,
@@ -194,7 +196,7 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
     cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
     lab = str(cert.get("laboratory") or "Calibration laboratory (name not given)")
     cid = certificate_id(src)
-    checks = [c for c in src.get("checks", []) if isinstance(c, dict)]
+    checks = _checks(src)
     sections: list[Section] = []
     n = _Counter()
     sections.append(Section(n.next(), "Identification", _identification(src, cid, issue,
@@ -240,6 +242,27 @@ class _Counter:
     def next(self) -> str:
         self.i += 1
         return str(self.i)
+
+
+def _checks(src: Sources) -> list[dict[str, Any]]:
+    """The engine's checks[]; without it, the per-rate judgements of the analysis."""
+    if isinstance(src.result.get("checks"), list):
+        return [c for c in src.result["checks"] if isinstance(c, dict)]
+    out = []
+    for axis, ax in (src.get("axes", {}) or {}).items():
+        for r in ax.get("rates", []):
+            j = r.get("judgement")
+            if not isinstance(j, dict) or r.get("verdict") is None:
+                continue
+            rule = str(j.get("decision_rule", "simple"))
+            out.append({"axis": axis, "set_rate_dps": r.get("set_rate_dps"),
+                        "quantity": "rate_error", "value_rel": r.get("rate_error_rel"),
+                        "u_rel": r.get("rate_error_u_rel"),
+                        "tolerance_rel": j.get("tolerance_rel"), "verdict": r.get("verdict"),
+                        "rule": "simple" if rule.startswith("simple") else rule,
+                        "capability_ratio": j.get("capability_ratio"),
+                        "capability_ok": j.get("capable")})
+    return out
 
 
 def _stand(src: Sources) -> dict[str, Any]:
@@ -395,6 +418,14 @@ def _deviations(src: Sources, kind: str) -> tuple[Any, ...]:
                    "missing points.")
     for d in src.get("deviations", []) or []:
         run.append(_text(d))
+    for axis, d in ((src.get("drift", {}) or {}).get("axes", {}) or {}).items():
+        off = d.get("start_offset") if isinstance(d, Mapping) else None
+        if isinstance(off, Mapping) and off.get("detected"):
+            shift = format_value_u(_num(off.get("offset_s")), _num(off.get("offset_u_s")),
+                                   1e3, signed=True).joined("ms")
+            run.append(f"Axis {axis}: the digitizer's samples were {shift} "
+                       "off the pulse edges; the integration edges were placed where the "
+                       "pulses are (METHOD.md B: a half-sample offset would bias the drift).")
     blocks.append(Para("From the procedure, in this run:", "strong"))
     blocks += [Para(f"• {t}") for t in run] or [Para("None.")]
     return tuple(blocks)
@@ -436,25 +467,49 @@ def _instability_u(r: Mapping[str, Any]) -> tuple[float | None, bool]:
     return 2 * s / math.sqrt(2 * (n - 1)), True  # u(s) ~ s / sqrt(2(N-1)) for normal data
 
 
-def _over_angle(r: Mapping[str, Any]) -> dict[float, tuple[float | None, float | None]]:
-    """The random part averaged over 1/10/360 deg, in whichever shape the result gives."""
-    for key in ("instability_over_angle", "intra_turn_instability_over",
-                "averaged_instability", "instability_by_angle"):
-        data = r.get(key)
-        if isinstance(data, Mapping):
-            out = {}
-            for a, v in data.items():
-                if isinstance(v, Mapping):
-                    out[float(a)] = (_num(v.get("instability_rel", v.get("rel"))),
-                                     _num(v.get("u_rel")))
-                else:
-                    out[float(a)] = (_num(v), None)
-            return out
-        if isinstance(data, list):
-            return {float(d.get("angle_deg")): (
-                _num(d.get("instability_rel", d.get("rel"))), _num(d.get("u_rel")))
-                for d in data if isinstance(d, Mapping) and d.get("angle_deg") is not None}
-    return {}
+def _u_of_std(s: float | None, n: Any) -> float | None:
+    """U (k = 2) of a standard deviation from n independent values: 2 s / sqrt(2 (n - 1))."""
+    n = _num(n)
+    if s is None or n is None or n < 2:
+        return None
+    return 2 * s / math.sqrt(2 * (n - 1))
+
+
+@dataclass(frozen=True)
+class Averaged:
+    """The random part averaged over windows of `angle_deg` of table angle (METHOD.md A5)."""
+
+    angle_deg: float
+    raw: float | None
+    u: float | None
+    u_approx: bool
+    floor: float | None
+    corrected: float | None
+    blocks: int | None
+
+
+def _averaged(r: Mapping[str, Any]) -> list[Averaged]:
+    """Averages over 1/10/360 deg, from `intra_turn.averaged` (the analysis library's shape)
+    or a list/mapping under one of the older names."""
+    data: Any = (r.get("intra_turn") or {}).get("averaged")
+    for key in ("instability_over_angle", "intra_turn_instability_over", "averaged_instability"):
+        data = data if data is not None else r.get(key)
+    if isinstance(data, Mapping):
+        data = [{"angle_deg": a, **(v if isinstance(v, Mapping) else {"instability_rel": v})}
+                for a, v in data.items()]
+    out = []
+    for d in data or []:
+        if not isinstance(d, Mapping) or _num(d.get("angle_deg")) is None:
+            continue
+        raw = _num(d.get("instability_rel", d.get("rel")))
+        u = _num(d.get("u_rel"))
+        approx = u is None
+        if approx:
+            u = _u_of_std(raw, d.get("blocks"))
+        out.append(Averaged(float(d["angle_deg"]), raw, u, approx and u is not None,
+                            _num(d.get("floor_rel")), _num(d.get("corrected_rel")),
+                            int(d["blocks"]) if _num(d.get("blocks")) is not None else None))
+    return sorted(out, key=lambda x: x.angle_deg)
 
 
 def _ladder_results(src: Sources, number: str, checks: list[dict[str, Any]]
@@ -509,16 +564,20 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                      format_value_u(mean, mean_u, signed=True, sig_without_u=10).joined(),
                      _vu(r.get("rate_error_rel"), eu, err_unit, signed=True),
                      _vu(r.get("rate_instability_rel"), iu, inst_unit) + ("*" if approx else ""),
+                     format_value_u(_num(r.get("rate_instability_floor_rel")), None,
+                                    inst_unit.scale, sig_without_u=2).value
+                     if _num(r.get("rate_instability_floor_rel")) is not None else "—",
                      verdict_label(r.get("verdict"))))
-    notes = []
+    notes = ["Timing floor: the σ that the counter's and the zero-mark sensor's timing "
+             "errors alone would give (METHOD.md A1); a σ near it is not resolved."]
     if approximated:
         notes.append("* U of σ from the chi-square approximation U = 2σ/√(2(N−1)) for N turns "
                      "(normal per-turn rates); the result did not carry it.")
     blocks.append(Table(
         ("Set rate, °/s", "Turns", "Mean rate ± U, °/s",
          f"Rate error δ ± U, {err_unit.name}", f"Instability σ ± U, {inst_unit.name}",
-         "Verdict"),
-        tuple(rows), widths=(1.1, 0.7, 2.4, 2.0, 2.0, 1.1), align="rcrrrc",
+         f"Timing floor of σ, {inst_unit.name}", "Verdict"),
+        tuple(rows), widths=(1.0, 0.6, 2.3, 1.9, 1.9, 1.2, 1.0), align="rcrrrrc",
         caption=f"Axis {axis}: per-turn rate error and instability (METHOD.md A1-A2, eqs. 1-2)",
         notes=tuple(notes)))
     png = plots.per_turn(axis, rates, _tolerances(checks, axis),
@@ -530,16 +589,33 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
     # A3 cross-calibration
     if pairs:
         prow = []
+        has_drift = any(_num(p.get("drift_dps_per_h")) is not None for p in pairs)
         for p in pairs:
             w0, w0u = _num(p.get("w0_dps")), _num(p.get("w0_u_dps"))
-            prow.append((f"±{_num(p.get('rate_dps')) or 0:g}",
-                         _vu(p.get("k"), p.get("k_u")),
-                         _vu(w0, w0u, signed=True),
-                         format_value_u(w0, w0u, 3600.0, signed=True).joined()))
-        blocks.append(Table(("Pair, °/s", "k ± U", "ω0 ± U, °/s", "ω0 ± U, °/h"), tuple(prow),
-                            widths=(1.2, 2.6, 2.4, 2.2), align="rrrr",
+            row = [f"±{_num(p.get('rate_dps')) or 0:g}", _vu(p.get("k"), p.get("k_u")),
+                   _vu(w0, w0u, signed=True),
+                   format_value_u(w0, w0u, 3600.0, signed=True).joined()]
+            if has_drift:
+                row.append(_vu(p.get("drift_dps_per_h"), p.get("drift_u_dps_per_h"),
+                               signed=True))
+            prow.append(tuple(row))
+        header = ["Pair, °/s", "k ± U", "ω0 ± U, °/s", "ω0 ± U, °/h"]
+        notes = []
+        if has_drift:
+            header.append("Bias drift ± U, °/s per h")
+            methods_used = sorted({str(p.get("method")) for p in pairs if p.get("method")})
+            sources = sorted({str(p.get("drift_source")) for p in pairs
+                              if p.get("drift_source")})
+            notes.append("ω0 is the bias at the pair's reference time; the FOG's bias drift "
+                         "during the pair is estimated and removed"
+                         + (f" (method {', '.join(methods_used)}" if methods_used else "")
+                         + (f"; drift from {', '.join(sources)})" if sources else
+                            (")" if methods_used else "")) + ".")
+        blocks.append(Table(tuple(header), tuple(prow),
+                            widths=(1.0, 2.4, 2.1, 1.9, 2.1)[:len(header)], align="rrrrr"[
+                                :len(header)],
                             caption=f"Axis {axis}: FOG cross-calibration per ± pair "
-                                    "(METHOD.md A3, eqs. 5-6)"))
+                                    "(METHOD.md A3, eqs. 5-6)", notes=tuple(notes)))
     # A4 systematic
     sys_rows, mains_rows = [], []
     amp_unit = rel_unit(*[_num(h.get("amplitude_rel")) for r in rates
@@ -549,7 +625,10 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
         for h in s.get("harmonics") or []:
             a, au = _num(h.get("amplitude_rel")), _num(h.get("amplitude_u_rel"))
             w = abs(_num(r.get("set_rate_dps")) or 0.0)
-            significant = "" if a is None or au is None or a > au else " (not significant)"
+            detected = h.get("detected")
+            if detected is None:
+                detected = a is None or au is None or a > au
+            significant = "" if detected else " (not significant)"
             sys_rows.append((_rate(r.get("set_rate_dps")), _text(h.get("order")),
                              _vu(a, au, amp_unit) + significant,
                              format_value_u(a * w if a is not None else None,
@@ -572,8 +651,9 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                             caption=f"Axis {axis}: systematic intra-turn component, fitted "
                                     "harmonics Δω_sys = ω_set·Σ a_h cos(hφ + p_h) "
                                     "(METHOD.md A4)",
-                            notes=("An amplitude not larger than its U is marked not "
-                                   "significant: it is consistent with zero.",)))
+                            notes=("(not significant): the amplitude is not detected above "
+                                   "its uncertainty; it is consistent with zero and its phase "
+                                   "is meaningless.",)))
     if mains_rows:
         blocks.append(Table(("Set rate, °/s", "Frequency, Hz", "Amplitude ± U, °/s",
                              "Amplitude ± U, % of ω_set", "Phase ± U, °"), tuple(mains_rows),
@@ -589,52 +669,103 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
     return tuple(blocks)
 
 
+def _corrected_cell(r: Mapping[str, Any], unit: RelUnit) -> str:
+    """Floor-corrected instability: value ± U, or value with its k = 2 upper limit, or only
+    the limit when the table's own part is not resolved above the FOG's floor."""
+    intra = r.get("intra_turn") or {}
+    value = _num(r.get("intra_turn_instability_corrected_rel"))
+    u = _num(r.get("intra_turn_instability_corrected_u_rel"))
+    upper = _num(intra.get("corrected_upper_rel"))
+    if u is not None or upper is None:
+        return _vu(value, u, unit)
+    limit, decimals = format_limit(upper * unit.scale)
+    if intra.get("resolved") is False or value is None:
+        return f"< {limit} (not resolved)"
+    return f"{format_fixed(value * unit.scale, decimals)} (≤ {limit})"
+
+
 def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, Any]
                   ) -> list[Any]:
     if not any(r.get("intra_turn_instability_rel") is not None for r in rates):
         return []
-    angles = sorted({a for r in rates for a in _over_angle(r)})
-    raw_unit = rel_unit(*[_num(r.get("intra_turn_instability_rel")) for r in rates])
-    corr_unit = rel_unit(*[_num(r.get("intra_turn_instability_corrected_rel")) for r in rates])
-    angle_units = [rel_unit(*[_over_angle(r).get(a, (None, None))[0] for r in rates])
-                   for a in angles]
+    raws = [_num(r.get("intra_turn_instability_rel")) for r in rates]
+    raw_us: list[float | None] = []
+    approx = False
+    for r, raw in zip(rates, raws, strict=True):
+        u = _num(r.get("intra_turn_instability_u_rel"))
+        if u is None:
+            u = _u_of_std(raw, (r.get("intra_turn") or {}).get("samples"))
+            approx |= u is not None
+        raw_us.append(u)
+    floors = [_num((r.get("intra_turn") or {}).get("floor_rel")) for r in rates]
+    corr = [_num(r.get("intra_turn_instability_corrected_rel")) for r in rates]
+    uppers = [_num((r.get("intra_turn") or {}).get("corrected_upper_rel")) for r in rates]
+    raw_unit = rel_unit(*raws)
+    corr_unit = rel_unit(*corr, *uppers)
     rows = []
-    for r in rates:
-        over = _over_angle(r)
+    for r, raw, u, fl in zip(rates, raws, raw_us, floors, strict=True):
         rows.append((_rate(r.get("set_rate_dps")),
-                     _vu(r.get("intra_turn_instability_rel"),
-                         r.get("intra_turn_instability_u_rel"), raw_unit),
-                     _vu(r.get("intra_turn_instability_corrected_rel"),
-                         r.get("intra_turn_instability_corrected_u_rel"), corr_unit),
-                     *[_vu(*over.get(a, (None, None)), u)
-                       for a, u in zip(angles, angle_units, strict=True)]))
-    header = ("Set rate, °/s", f"Raw ± U, {raw_unit.name}",
-              f"Floor-corrected ± U, {corr_unit.name}",
-              *[f"Over {a:g}° ± U, {u.name}" for a, u in zip(angles, angle_units, strict=True)])
-    bw = {_num(r.get("bandwidth_hz")) for r in rates} - {None}
+                     _vu(raw, u, raw_unit) + ("*" if u is not None and approx
+                                                and r.get("intra_turn_instability_u_rel") is None
+                                                else ""),
+                     format_value_u(fl, None, raw_unit.scale, sig_without_u=2).value
+                     if fl is not None else "—",
+                     _corrected_cell(r, corr_unit)))
+    header = ("Set rate, °/s", f"Raw ± U, {raw_unit.name}", f"FOG floor, {raw_unit.name}",
+              f"Floor-corrected, {corr_unit.name}")
     notes = []
+    bw = {_num(r.get("bandwidth_hz", (r.get("intra_turn") or {}).get("bandwidth_hz")))
+          for r in rates} - {None}
     if bw:
-        notes.append("Raw and floor-corrected values at the FOG's output bandwidth: "
+        notes.append("At the FOG's output bandwidth: "
                      + ", ".join(f"{b:g} Hz" for b in sorted(bw)) + ".")
-    if floor:
+    sources = {str((r.get("intra_turn") or {}).get("floor_source")) for r in rates
+               if (r.get("intra_turn") or {}).get("floor_source")}
+    if floor or sources:
         noise = _num(floor.get("noise_dps", floor.get("sigma_dps")))
-        text = f"FOG noise floor from {floor.get('source', 'a record at rest')}"
+        text = "FOG noise floor from " + (", ".join(sorted(sources)) if sources else
+                                          str(floor.get("source", "a record at rest")))
         if noise is not None:
-            text += f": {format_sig(noise, 3)} °/s per sample"
+            text += f"; {format_sig(noise, 3)} °/s per sample"
         if _num(floor.get("rate_hz")) is not None:
             text += f" at {_num(floor.get('rate_hz')):g} Hz"
         if _num(floor.get("duration_s")) is not None:
-            text += f", {_num(floor.get('duration_s')):g} s record"
-        notes.append(text + "; removed in quadrature: √(raw² − floor²)/|ω_set|.")
-    if angles:
-        notes.append("Over θ°: standard deviation of the random part averaged over windows "
-                     "of θ degrees of table angle, relative to |ω_set| (for reading against a "
-                     "rate-table datasheet).")
-    n = len(header)
-    widths = (1.1, 1.9, 1.9, *([1.6] * (n - 3)))
-    return [Table(header, tuple(rows), widths=widths, align="r" * n,
-                  caption=f"Axis {axis}: intra-turn instability, std(Δω_rand)/|ω_set| "
-                          "(METHOD.md A5)", notes=tuple(notes))]
+            text += f", {_num(floor.get('duration_s')):g} s record at rest"
+        notes.append(text + ". Floor-corrected = √(raw² − floor²); (≤ x) is its upper limit "
+                            "at k = 2; 'not resolved' when the table's own part does not "
+                            "stand out of the FOG's noise.")
+    if approx:
+        notes.append("* U of the raw value from 2s/√(2(n−1)) over its n samples, assuming "
+                     "independent samples; the result did not carry it.")
+    blocks: list[Any] = [Table(header, tuple(rows), widths=(1.1, 2.0, 1.4, 2.2),
+                               align="rrrr", caption=f"Axis {axis}: intra-turn instability "
+                               "std(Δω_rand)/|ω_set| (METHOD.md A5)", notes=tuple(notes))]
+    averaged = [(r, a) for r in rates for a in _averaged(r)]
+    if averaged:
+        units = {ang: rel_unit(*[v for _, a in averaged if a.angle_deg == ang
+                                 for v in (a.raw, a.corrected)])
+                 for ang in {a.angle_deg for _, a in averaged}}
+        rows = []
+        for r, a in averaged:
+            unit = units[a.angle_deg]
+            rows.append((_rate(r.get("set_rate_dps")), f"{a.angle_deg:g}",
+                         _vu(a.raw, a.u, unit) + ("*" if a.u_approx else ""),
+                         format_value_u(a.floor, None, unit.scale, sig_without_u=2).value
+                         if a.floor is not None else "—",
+                         format_value_u(a.corrected, None, unit.scale, sig_without_u=2).value
+                         if a.corrected is not None else "not resolved",
+                         unit.name, _text(a.blocks)))
+        notes = ["Standard deviation of the random part averaged over consecutive windows of "
+                 "the stated table angle, relative to |ω_set|: comparable with a rate-table "
+                 "datasheet's rate stability over 1°, 10° or 360°."]
+        if any(a.u_approx for _, a in averaged):
+            notes.append("* U from 2s/√(2(n−1)) over the n windows.")
+        blocks.append(Table(("Set rate, °/s", "Window, °", "Raw ± U", "FOG floor",
+                             "Floor-corrected", "Unit", "Windows"), tuple(rows),
+                            widths=(1.1, 0.8, 2.0, 1.2, 1.4, 0.6, 0.9), align="rrrrrcr",
+                            caption=f"Axis {axis}: random part averaged over an angle "
+                                    "(METHOD.md A5)", notes=tuple(notes)))
+    return blocks
 
 
 def _across_axes(axes: Mapping[str, Any]) -> list[Any]:
@@ -677,20 +808,38 @@ def _per_turn_annex(src: Sources) -> tuple[Any, ...]:
 
 # -- drift-pulse results -------------------------------------------------------------------
 
+def _position(c: Mapping[str, Any]) -> float:
+    return _num(c.get("position_deg", c.get("table_deg"))) or 0.0
+
+
 def _drift_results(src: Sources, number: str) -> list[Section]:
     drift = src.get("drift", {}) or {}
-    axes = drift.get("axes", {}) or {}
+    axes = {a: d for a, d in (drift.get("axes", {}) or {}).items() if isinstance(d, Mapping)}
     blocks: list[Any] = [Para("Drift in °/h; each value followed by its expanded uncertainty "
                               "U (k = 2, about 95 %).")]
-    rows = [(axis, _vu(d.get("own_dph"), d.get("own_u_dph"), signed=True),
-             _vu(d.get("apparent_dph"), d.get("apparent_u_dph"), signed=True),
-             _text(len(d.get("cycles") or []) or None))
-            for axis, d in axes.items()]
+    has_nominal = any(_num(d.get("own_nominal_edges_dph")) is not None for d in axes.values())
+    rows = []
+    for axis, d in axes.items():
+        row = [axis, _vu(d.get("own_dph"), d.get("own_u_dph"), signed=True),
+               _vu(d.get("apparent_dph"), d.get("apparent_u_dph"), signed=True),
+               _text(len(d.get("cycles") or []) or None)]
+        if has_nominal:
+            row.insert(3, format_sig(_num(d.get("own_nominal_edges_dph")) or math.nan, 4,
+                                     signed=True))
+        rows.append(tuple(row))
     if rows:
-        blocks.append(Table(("Axis", "Own drift ± U, °/h", "Apparent drift at 0° ± U, °/h",
-                             "Cycles"), tuple(rows), widths=(1.0, 2.4, 2.8, 1.0),
-                            align="lrrr", caption="Own and apparent drift per axis "
-                                                  "(METHOD.md B)"))
+        header = ["Axis", "Own drift ± U, °/h", "Apparent drift at 0° ± U, °/h", "Cycles"]
+        notes = []
+        if has_nominal:
+            header.insert(3, "Own drift at nominal edges, °/h")
+            notes.append("Own drift at nominal edges: the same cycles integrated with the "
+                         "pulse edges at the digitizer's nominal sample times, as the paper's "
+                         "integrator does; shown for comparison only.")
+        blocks.append(Table(tuple(header), tuple(rows),
+                            widths=(0.8, 2.2, 2.6, 2.0, 0.8)[:len(header)] if has_nominal
+                            else (0.8, 2.4, 2.8, 1.0), align="lrrrr"[:len(header)],
+                            caption="Own and apparent drift per axis (METHOD.md B)",
+                            notes=tuple(notes)))
     fields = []
     if _num(drift.get("latitude_deg")) is not None:
         fields.append(("Site latitude", f"{_num(drift['latitude_deg']):g}°"))
@@ -698,29 +847,59 @@ def _drift_results(src: Sources, number: str) -> list[Section]:
         az, azu = _num(drift["azimuth_deg"]), _num(drift.get("azimuth_u_deg"))
         fields.append(("Platform azimuth (X input axis) ± U", _vu(az, azu) + " °"))
         if azu is not None:
-            fields.append(("Azimuth U", format_value_u(azu * 60, None, sig_without_u=2)
+            fields.append(("U of the azimuth", format_value_u(azu * 60, None, sig_without_u=2)
                            .joined("arcmin")))
+    if _num(drift.get("earth_horizontal_dph")) is not None:
+        text = _vu(drift["earth_horizontal_dph"], drift.get("earth_horizontal_u_dph")) + " °/h"
+        exp = _num(drift.get("earth_horizontal_expected_dph"))
+        if exp is not None:
+            ok = drift.get("earth_horizontal_consistent")
+            text += (f"; expected 15.041·cos(latitude) = {exp:.4f} °/h"
+                     + ("" if ok is None else (", consistent" if ok else ", NOT consistent")))
+        fields.append(("Horizontal Earth rate from the apparent drifts", text))
     if fields:
         blocks.append(Fields(tuple(fields)))
-    crow = []
+    prow = []
     for axis, d in axes.items():
-        cycles = [c for c in d.get("cycles") or [] if isinstance(c, Mapping)]
-        for pos in dict.fromkeys(_num(c.get("position_deg")) or 0.0 for c in cycles):
-            w = [v for c in cycles if (_num(c.get("position_deg")) or 0.0) == pos
-                 for v in (_num(c.get("drift_dph")),) if v is not None]
-            if not w:
-                continue
-            mean = sum(w) / len(w)
-            std = math.sqrt(sum((x - mean) ** 2 for x in w) / (len(w) - 1)) if len(w) > 1 else None
-            crow.append((axis, f"{pos:g}", ", ".join(format_sig(x, 5, signed=True) for x in w),
-                         format_sig(mean, 5, signed=True),
-                         format_sig(std, 2) if std is not None else "—"))
-    if crow:
-        blocks.append(Table(("Axis", "Position, °", "Drift per cycle, °/h, in order",
-                             "Mean, °/h", "Std, °/h"), tuple(crow),
-                            widths=(0.7, 0.9, 5.0, 1.1, 0.9), align="lrlrr",
-                            caption="Drift estimate of every cycle, by platform position"))
-    png = plots.drift_cycles(axes)
+        positions = [p for p in d.get("positions") or [] if isinstance(p, Mapping)]
+        if not positions:  # group the cycles by position
+            cycles = [c for c in d.get("cycles") or [] if isinstance(c, Mapping)]
+            for pos in dict.fromkeys(_position(c) for c in cycles):
+                w = [v for c in cycles if _position(c) == pos
+                     for v in (_num(c.get("drift_dph")),) if v is not None]
+                if w:
+                    mean = sum(w) / len(w)
+                    std = (math.sqrt(sum((x - mean) ** 2 for x in w) / (len(w) - 1))
+                           if len(w) > 1 else None)
+                    positions.append({"table_deg": pos, "cycles": len(w), "mean_dph": mean,
+                                      "std_dph": std, "drifts_dph": w})
+        for p in positions:
+            w = [v for v in (_num(x) for x in p.get("drifts_dph") or []) if v is not None]
+            prow.append((axis, f"{_position(p):g}", _text(p.get("cycles", len(w))),
+                         _vu(p.get("mean_dph"), p.get("u_dph"), signed=True),
+                         format_sig(_num(p.get("std_dph")) or math.nan, 2),
+                         ", ".join(format_sig(x, 5, signed=True) for x in w)))
+    if prow:
+        blocks.append(Table(("Axis", "Position, °", "Cycles", "Mean ± U, °/h", "Std, °/h",
+                             "Drift per cycle, °/h, in order"), tuple(prow),
+                            widths=(0.6, 0.8, 0.6, 1.8, 0.8, 4.0), align="lrrrrl",
+                            caption="Drift per platform position and per cycle"))
+    brow = []
+    for axis, d in axes.items():
+        budget = d.get("budget") or {}
+        own, app = budget.get("own_u_dph") or {}, budget.get("apparent_u_dph") or {}
+        for src_name in dict.fromkeys([*own, *app]):
+            brow.append((axis, _label(src_name),
+                         format_sig(_num(own.get(src_name)) or math.nan, 2),
+                         format_sig(_num(app.get(src_name)) or math.nan, 2)))
+    if brow:
+        blocks.append(Table(("Axis", "Source", "u(own), °/h", "u(apparent), °/h"),
+                            tuple(brow), widths=(0.7, 3.5, 1.5, 1.5), align="llrr",
+                            caption="Uncertainty budget: standard uncertainties (k = 1) per "
+                                    "source; U above is 2 × their root sum of squares"))
+    png = plots.drift_cycles({a: {**d, "cycles": [
+        {**c, "position_deg": _position(c)} for c in d.get("cycles") or []
+        if isinstance(c, Mapping)]} for a, d in axes.items()})
     if png:
         blocks.append(Figure(png, "Drift estimate per cycle, by axis and platform position"))
     for axis, d in axes.items():

@@ -74,7 +74,11 @@ def per_turn(axis: str, rates: Sequence[Mapping[str, Any]],
             (a1, "rate_error", unit, "per-turn rate error δ (eq. 1)"),
             (a2, "rate_instability", inst_unit, "per-turn rate instability σ (eq. 2)")):
         tol = tolerances.get(key) or ()
-        if tol:
+        if len(tol) == 1:
+            ax.axhline(tol[0][1] * scale, color="k", ls="--", lw=0.8, label="tolerance")
+            if key == "rate_error":
+                ax.axhline(-tol[0][1] * scale, color="k", ls="--", lw=0.8)
+        elif tol:
             xs = [t[0] for t in tol]
             ts = np.array([t[1] for t in tol]) * scale
             ax.plot(xs, ts, "k--", lw=0.8, drawstyle="steps-mid", label="tolerance")
@@ -123,14 +127,17 @@ def systematic(axis: str, rates: Sequence[Mapping[str, Any]], scale: float,
                          fontsize=9)
         else:
             b = r["systematic"]["binned"]
-            phi_b = np.asarray(b.get("phi_deg", []), dtype=float)
-            if "dw_rel" in b:
-                y = np.asarray(b["dw_rel"], dtype=float)
+            phi_b = np.asarray(b.get("centres_deg", b.get("phi_deg", [])), dtype=float)
+            if "deviation_rel" in b or "dw_rel" in b:
+                y = np.asarray(b.get("deviation_rel", b.get("dw_rel")), dtype=float)
             else:
                 y = np.asarray(b.get("dw_dps", []), dtype=float) / abs(_num(r["set_rate_dps"]))
+            u = np.asarray(b.get("u_rel") or np.zeros_like(y), dtype=float)
             turns = b.get("turns", r.get("turns"))
-            ax.plot(phi_b, y * scale, ".", ms=3, color="0.4",
-                    label=f"binned mean over {turns} turns (paper's estimator)")
+            if y.size == phi_b.size and y.size:
+                ax.errorbar(phi_b, y * scale, yerr=np.nan_to_num(u) * scale if u.size == y.size
+                            else None, fmt=".", ms=3, color="0.4", ecolor="0.75", lw=0.6,
+                            label=f"binned mean over {turns} turns (paper's estimator)")
             h = r["systematic"].get("harmonics") or []
             if h:
                 ax.plot(phi, harmonic_model(h, phi) * scale, "C3", lw=1.2,

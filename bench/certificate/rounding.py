@@ -77,6 +77,25 @@ def format_value_u(value: float | None, u: float | None, scale: float = 1.0,
     return Rounded(format_sig(v, sig_without_u, signed), None)
 
 
+def format_limit(x: float, sig: int = 2) -> tuple[str, int]:
+    """An upper limit to `sig` significant digits, rounded up (a limit is never lowered);
+    returns the text and its number of decimals. Float noise below 1e-9 is ignored."""
+    if not math.isfinite(x) or x <= 0:
+        raise ValueError(f"an upper limit must be finite and > 0, got {x!r}")
+    exponent = math.floor(math.log10(x))
+    decimals = sig - 1 - exponent
+    value = _quantize(x * (1 - 1e-9), decimals, ROUND_CEILING)
+    if value >= Decimal(10) ** (exponent + 1):
+        decimals -= 1
+        value = _quantize(float(value), decimals)
+    return _text(value, decimals), decimals
+
+
+def format_fixed(x: float, decimals: int, signed: bool = False) -> str:
+    """`x` rounded (half up, in decimal) to `decimals` places; negative places allowed."""
+    return _text(_quantize(x, decimals), decimals, signed)
+
+
 def format_sig(x: float, sig: int = 4, signed: bool = False) -> str:
     """`x` with `sig` significant digits in fixed point (scientific when very large/small)."""
     if x is None or not math.isfinite(x):

@@ -33,18 +33,24 @@ def _rate(set_dps: float, turns: int, err: float, err_u: float, inst: float, ins
         "rate_error_u_rel": err_u,
         "rate_instability_rel": inst,
         "rate_instability_u_rel": inst_u,
+        "rate_instability_floor_rel": 1.0e-9 * abs(set_dps),
         "intra_turn_instability_rel": raw,
-        "intra_turn_instability_u_rel": raw * 0.02,
         "intra_turn_instability_corrected_rel": corr,
-        "intra_turn_instability_corrected_u_rel": corr * 0.2,
-        "instability_over_angle": [
-            {"angle_deg": a, "instability_rel": v, "u_rel": v * 0.3}
-            for a, v in zip((1.0, 10.0, 360.0), over, strict=True)],
-        "bandwidth_hz": 1000.0,
+        "intra_turn": {   # bench.analysis.random_part.RandomPartResult.to_dict()
+            "instability_rel": raw, "floor_rel": math.sqrt(raw * raw - corr * corr),
+            "floor_source": "static record (Allan deviation)", "corrected_rel": corr,
+            "corrected_upper_rel": corr * 1.25, "resolved": True, "bandwidth_hz": 1000.0,
+            "std_dps": raw * abs(set_dps), "samples": 144_000,
+            "averaged": [
+                {"angle_deg": a, "instability_rel": v, "floor_rel": v * 0.5,
+                 "corrected_rel": v * math.sqrt(0.75), "blocks": n, "samples_per_block": 1.0}
+                for a, v, n in zip((1.0, 10.0, 360.0), over, (1440, 144, 4), strict=True)],
+        },
         "systematic": {
             "harmonics": harmonics,
             "mains": {"frequency_hz": 50.0, "amplitude_dps": mains_dps,
-                      "amplitude_u_dps": 3.0e-5, "phase_deg": 12.0, "phase_u_deg": 9.0},
+                      "amplitude_u_dps": 3.0e-5, "phase_deg": 12.0, "phase_u_deg": 9.0,
+                      "detected": True},
         },
         "verdict": verdict,
     }
@@ -53,11 +59,11 @@ def _rate(set_dps: float, turns: int, err: float, err_u: float, inst: float, ins
 def _outer_harmonics(sign: float) -> list[dict[str, float]]:
     return [
         {"order": 1, "amplitude_rel": 8.6e-4, "amplitude_u_rel": 1.23e-5,
-         "phase_deg": 40.3 if sign > 0 else -139.6, "phase_u_deg": 0.84},
+         "phase_deg": 40.3 if sign > 0 else -139.6, "phase_u_deg": 0.84, "detected": True},
         {"order": 2, "amplitude_rel": 1.5e-4, "amplitude_u_rel": 1.1e-5,
-         "phase_deg": -69.0, "phase_u_deg": 4.2},
+         "phase_deg": -69.0, "phase_u_deg": 4.2, "detected": True},
         {"order": 3, "amplitude_rel": 3.0e-6, "amplitude_u_rel": 1.1e-5,
-         "phase_deg": 17.0, "phase_u_deg": 180.0},
+         "phase_deg": 17.0, "phase_u_deg": 180.0, "detected": False},
     ]
 
 
@@ -67,13 +73,15 @@ def _binned(set_dps: float) -> dict[str, Any]:
     r = np.radians(phi)
     model = 8.6e-4 * np.cos(r + math.radians(40.3)) + 1.5e-4 * np.cos(2 * r - math.radians(69))
     ripple = 2.0e-5 * np.sin(7.3 * r + 0.4)
-    return {"phi_deg": phi.tolist(), "dw_rel": (model + ripple).tolist(), "turns": 4}
+    return {"bin_deg": 5.0, "centres_deg": phi.tolist(),
+            "deviation_rel": (model + ripple).tolist(), "u_rel": [3.0e-5] * phi.size,
+            "peak_to_peak_rel": float(np.ptp(model + ripple))}
 
 
 def rate_ladder_result() -> dict[str, Any]:
     """Two axes; outer 10 and 50 deg/s, inner 20 deg/s; guard-band decision rule."""
     h_in = [{"order": 1, "amplitude_rel": 2.0e-4, "amplitude_u_rel": 2.4e-5,
-             "phase_deg": 120.0, "phase_u_deg": 7.0}]
+             "phase_deg": 120.0, "phase_u_deg": 7.0, "detected": True}]
     outer = [
         _rate(10.0, 4, 3.04e-7, 1.23e-7, 2.6e-8, 2.2e-8, 1.06e-3, 1.2e-5, "pass",
               _outer_harmonics(1), 2.0e-4, (2.1e-4, 3.3e-5, 1.1e-6)),
@@ -91,14 +99,18 @@ def rate_ladder_result() -> dict[str, Any]:
         _rate(-20.0, 4, -1.0e-7, 3.5e-7, 2.2e-8, 1.9e-8, 5.2e-4, 6.1e-6, "pass",
               h_in, 1.1e-4, (1.0e-4, 1.5e-5, 5.1e-7)),
     ]
+    drift = {"method": "lsq-drift", "drift_source": "the three halves (+, -, +)"}
     pairs_outer = [
         {"rate_dps": 10.0, "k": 1.000299, "k_u": 2.34e-6, "w0_dps": 0.002013,
-         "w0_u_dps": 1.17e-4, "turns": 4},
+         "w0_u_dps": 1.17e-4, "drift_dps_per_h": 0.00104, "drift_u_dps_per_h": 0.00031,
+         **drift},
         {"rate_dps": 50.0, "k": 1.0002934, "k_u": 4.6e-7, "w0_dps": 0.002051,
-         "w0_u_dps": 1.2e-4, "turns": 4},
+         "w0_u_dps": 1.2e-4, "drift_dps_per_h": 0.00097, "drift_u_dps_per_h": 0.00029,
+         **drift},
     ]
     pairs_inner = [{"rate_dps": 20.0, "k": 0.9994985, "k_u": 1.2e-6, "w0_dps": -0.002994,
-                    "w0_u_dps": 1.2e-4, "turns": 4}]
+                    "w0_u_dps": 1.2e-4, "drift_dps_per_h": 0.00201,
+                    "drift_u_dps_per_h": 0.00030, **drift}]
 
     def check(axis: str, rate: float, value: float, u: float, verdict: str, reason: str,
               quantity: str = "rate_error", tol: float = 1.0e-6) -> dict[str, Any]:
@@ -169,15 +181,26 @@ def drift_pulse_result() -> dict[str, Any]:
     own = {"x": 0.0523, "y": -0.0311}
     axes: dict[str, Any] = {}
     for name in ("x", "y"):
-        cycles = []
+        cycles, positions = [], []
         for pos in (0.0, 180.0):
-            for i in range(4):
-                w = own[name] + (app[name] if pos == 0 else -app[name]) + 0.004 * math.sin(
-                    1.7 * i + (0 if name == "x" else 1) + pos / 90)
-                cycles.append({"position_deg": pos, "cycle": i + 1, "drift_dph": w})
+            w = [own[name] + (app[name] if pos == 0 else -app[name])
+                 + 0.004 * math.sin(1.7 * i + (0 if name == "x" else 1) + pos / 90)
+                 for i in range(4)]
+            cycles += [{"drift_dph": x, "drift_nominal_dph": x + 0.0011, "table_deg": pos}
+                       for x in w]
+            positions.append({"table_deg": pos, "cycles": 4, "mean_dph": float(np.mean(w)),
+                              "std_dph": float(np.std(w, ddof=1)), "u_dph": 0.0046,
+                              "drifts_dph": w})
         axes[name] = {"own_dph": own[name], "own_u_dph": 0.0031,
                       "apparent_dph": app[name], "apparent_u_dph": 0.0042,
-                      "cycles": cycles}
+                      "own_nominal_edges_dph": own[name] + 0.0011,
+                      "start_offset": {"offset_s": 2.5e-4, "offset_u_s": 1.0e-5,
+                                       "offset_samples": 0.5, "detected": True},
+                      "budget": {"own_u_dph": {"cycle_scatter": 0.0014, "k_as": 0.0002,
+                                               "pulse_mismatch": 0.0005},
+                                 "apparent_u_dph": {"cycle_scatter": 0.0016, "k_as": 0.0011,
+                                                    "pulse_mismatch": 0.0}},
+                      "positions": positions, "cycles": cycles}
     t = np.linspace(0.0, 10.0, 201)
     tc = 5.0
     alpha = np.where(t <= tc, 0.5 * t, 0.5 * (2 * tc - t))  # deg, rectangular pulses
@@ -209,6 +232,8 @@ def drift_pulse_result() -> dict[str, Any]:
         "sessions": 1,
         "aborted": False,
         "drift": {"latitude_deg": 70.0, "azimuth_deg": 80.02, "azimuth_u_deg": 0.031,
+                  "earth_horizontal_dph": wh + 0.002, "earth_horizontal_u_dph": 0.0045,
+                  "earth_horizontal_expected_dph": wh, "earth_horizontal_consistent": True,
                   "axes": axes},
         "checks": [],
     }
