@@ -426,7 +426,6 @@ class Axis:
         while True:
             state = self._read_state()
             if state is target:
-                self._journal("state", state=state.label)
                 return state
             if time.monotonic() > deadline:
                 raise AxisTimeout(f"axis {self.name}: drive did not reach {target.label} "
