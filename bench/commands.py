@@ -64,8 +64,11 @@ def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> dict[str, An
         from bench.certificate import write_certificate
     except ImportError:
         return result
-    for path in write_certificate(run, result):
-        progress.line(f"wrote {path}")
+    try:
+        for path in write_certificate(run, result):
+            progress.line(f"wrote {path}")
+    except Exception as e:  # noqa: BLE001 - result.json stands; say what is missing
+        _err(f"the certificate could not be written: {e!r}; result.json is in {run.path}")
     return result
 
 

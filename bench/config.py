@@ -37,7 +37,8 @@ COUNTER = Map({
     "slope": Key(Str(("POS", "NEG"))),
     "coupling": Key(Str(("DC", "AC"))),
     "impedance_ohm": Key(Num(min=0, exclusive_min=True)),
-    "trigger_jitter_s": Key(Num(min=0, unit="s")),
+    "trigger_jitter_s": Key(Num(min=0, unit="s"), False, "slot sensor edge jitter, std"),
+    "timebase_limit_rel": Key(Num(min=0), False, "timebase error limit (external reference)"),
     "timeout_margin_s": Key(Num(min=0, exclusive_min=True, unit="s")),
 })
 FOG = Map({
@@ -154,7 +155,7 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
     problems += validate(pdoc, kind.procedure_schema())
     sdoc: YamlDoc | None = None
     stand_ref = stand_path or pdoc.data.get("stand")
-    if isinstance(stand_ref, str):
+    if isinstance(stand_ref, str | Path):
         spath = Path(stand_ref)
         if stand_path is None and not spath.is_absolute():
             spath = Path(os.path.normpath(Path(procedure_path).parent / spath))

@@ -29,6 +29,7 @@ class AxisInstruments:
     counter: Any | None = None
     fog: Any | None = None
     identities: dict[str, str] = field(default_factory=dict)
+    logs: dict[str, JsonLines] = field(default_factory=dict)
 
 
 class Bench:
@@ -103,10 +104,13 @@ def open_axis(bench: Bench, name: str, axis_cfg: dict[str, Any], clock: Clock,
                  max_rate_dps=d["max_rate_dps"], max_accel_dps2=d["max_accel_dps2"],
                  clock=clock, counts_per_rev=d.get("counts_per_rev", DEFAULT_COUNTS_PER_REV),
                  **({"heartbeat_ms": d["heartbeat_ms"]} if "heartbeat_ms" in d else {}),
+                 **({"bitrate": d["bitrate"]} if "bitrate" in d else {}),
                  **({"eds_path": d["eds"]} if "eds" in d else {}),
                  raw=_raw_record_logger(drive_log, clock) if drive_log else None)
     bench.enter(drive)
     ax = AxisInstruments(name, drive)
+    if drive_log:
+        ax.logs["drive"] = drive_log
     bench.axes[name] = ax
     ax.identities["drive"] = drive.identity()
     c = axis_cfg.get("counter")
@@ -119,6 +123,8 @@ def open_axis(bench: Bench, name: str, axis_cfg: dict[str, Any], clock: Clock,
                            **({"timeout_margin_s": c["timeout_margin_s"]}
                               if "timeout_margin_s" in c else {}))
         bench.enter(cnt)
+        if clog:
+            ax.logs["counter"] = clog
         cnt.configure(**{k: c[k] for k in ("channel", "level_v", "slope", "coupling",
                                            "impedance_ohm") if k in c})
         ax.counter = cnt
@@ -130,7 +136,8 @@ def open_axis(bench: Bench, name: str, axis_cfg: dict[str, Any], clock: Clock,
         fg = Fog(f["port"], baudrate=f.get("baudrate", 921600), fmt=f.get("format", "kvh-a"),
                  axis=f.get("axis", "z"), rate_hz=f["rate_hz"],
                  units=f.get("units", "deg/s"),
-                 raw_path=run.raw_path(f"{name}-fog.bin") if run else None, clock=clock)
+                 raw_path=run.raw_path(f"{name}-fog.bin") if run else None, clock=clock,
+                 model=f.get("model"))
         bench.enter(fg)
         ax.fog = fg
         ax.identities["fog"] = fg.identity()

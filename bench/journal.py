@@ -50,6 +50,7 @@ class JsonLines:
         self._fsync = fsync
         self._f: IO[str] = open(path, "a", encoding="utf-8")
         self._lock = threading.Lock()
+        self.count = 0  # records written by this writer
 
     def write(self, record: dict[str, Any]) -> None:
         line = json.dumps(record, separators=(",", ":"), allow_nan=False) + "\n"
@@ -57,6 +58,7 @@ class JsonLines:
             if self._f.closed:
                 return
             self._f.write(line)
+            self.count += 1
             self._f.flush()
             if self._fsync:
                 os.fsync(self._f.fileno())

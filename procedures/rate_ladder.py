@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from bench.analysis.window import HalfRecord
 from bench.clock import Clock
 from bench.config import (
     COMMON_PROCEDURE_KEYS,
@@ -239,11 +240,13 @@ class RateLadder:
         ax = ctx.bench.axes[step.axis]
         fog = ax.fog
         duration = step.params["duration_s"]
-        i0 = fog.next_index
+        i0 = max(fog.end_index, math.ceil(ctx.clock.now() * fog.rate_hz))
         n = int(round(duration * fog.rate_hz))
         self._wait_fog(ctx, fog, i0 + n, duration, f"{step.axis}: FOG at rest")
+        s = fog.samples(i0, i0 + n)
+        ctx.state.setdefault("live", {})[step.unit] = s.rate_dps[s.valid]
         ctx.run.event("static", axis=step.axis, unit=step.unit, fog_from=i0, fog_to=i0 + n,
-                      rate_hz=fog.rate_hz)
+                      rate_hz=fog.rate_hz, lost=int(n - s.valid.sum()))
 
     def _wait_fog(self, ctx: RunContext, fog: Any, index: int, span_s: float, label: str) -> None:
         t_end = ctx.clock.now() + span_s
@@ -253,7 +256,8 @@ class RateLadder:
             if left <= 0:
                 break
             ctx.clock.sleep(min(left, max(span_s / 20, 0.5)))
-            ctx.bench.axes[next(iter(ctx.bench.axes))].drive.check()
+            for ax in ctx.bench.axes.values():
+                ax.drive.check()
         fog.wait_for_index(index, timeout_s=max(5.0, span_s * 0.2))
 
     def _do_set_rate(self, step: Step, ctx: RunContext) -> None:
@@ -272,6 +276,7 @@ class RateLadder:
         n = p["turns"]
         period = p["period_s"]
         counter, fog, drive = ax.counter, ax.fog, ax.drive
+        rec0 = ax.logs["counter"].count if "counter" in ax.logs else 0
         counter.arm(n + 1, period)
         t_arm = ctx.clock.now()
         t_end = t_arm + (n + 1) * period
@@ -284,12 +289,24 @@ class RateLadder:
         edges = counter.fetch()
         if len(edges) != n + 1:
             raise Abort(f"{step.axis}: the counter returned {len(edges)} edges, expected {n + 1}")
-        i_from = math.ceil(edges[0] * fog.rate_hz)
-        i_to = math.floor(edges[-1] * fog.rate_hz) + 1
-        fog.wait_for_index(i_to, timeout_s=10.0)
+        # the FOG samples that bracket the timed turns (the analysis integrates exactly
+        # from the first edge to the last, interpolating between samples)
+        i_from = math.floor(edges[0] * fog.rate_hz)
+        i_to = math.floor(edges[-1] * fog.rate_hz) + 2
+        rec1 = ax.logs["counter"].count if "counter" in ax.logs else 0
+        fog.wait_for_index(i_to, timeout_s=max(10.0, period))
+        s = fog.samples(i_from, i_to)
+        lost = int(s.valid.size - s.valid.sum())
+        ctx.state.setdefault("live", {}).setdefault(step.unit, []).append(
+            HalfRecord(1 if p["rate_dps"] > 0 else -1, edges, s.t_s[s.valid],
+                       s.rate_dps[s.valid]))
         ctx.run.event("acquire", axis=step.axis, unit=step.unit, half=p["half"],
                       set_rate_dps=p["rate_dps"], turns=n, edges_s=[float(e) for e in edges],
-                      fog_from=i_from, fog_to=i_to, rate_hz=fog.rate_hz)
+                      counter_records=[rec0, rec1], fog_from=i_from, fog_to=i_to,
+                      rate_hz=fog.rate_hz, fog_lost=lost)
+        if lost:
+            ctx.progress.line(f"  WARNING {step.axis}: {lost} FOG samples lost in this half "
+                              "(CRC or sequence gaps); the analysis uses the rest")
         w = 360.0 * n / (edges[-1] - edges[0])
         ctx.progress.line(f"  {step.axis} {p['rate_dps']:+g} deg/s: {n} turns timed, "
                           f"mean {math.copysign(w, p['rate_dps']):+.7f} deg/s")
@@ -297,11 +314,15 @@ class RateLadder:
     def _do_analyse(self, step: Step, ctx: RunContext) -> None:
         from procedures.rate_ladder_analysis import pair_summary
 
-        summary = pair_summary(ctx, step.axis, step.unit)
+        summary = pair_summary(ctx, step.axis, step.unit, step.params["rate_dps"])
         ctx.run.event("pair", axis=step.axis, unit=step.unit, **summary)
         ctx.progress.line(f"  {step.axis} +/-{step.params['rate_dps']:g} deg/s: "
                           + ", ".join(f"{k} {v:.6g}" for k, v in summary.items()
                                       if isinstance(v, float)))
+        live = ctx.state.get("live", {})
+        live.pop(step.unit, None)
+        fog = ctx.bench.axes[step.axis].fog
+        fog.discard_before(fog.end_index)
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
         drive = ctx.bench.axes[step.axis].drive

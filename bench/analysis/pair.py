@@ -1,0 +1,163 @@
+"""METHOD.md part A for one +/- rate pair: the entry point the engine calls.
+
+API
+    analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_hz: float,
+                 counter_budget: CounterBudget = CounterBudget(), harmonics: int = 4,
+                 mains_hz: float | None = 50.0, static_fog_dps: np.ndarray | None = None,
+                 fine_bin_deg: float = 1.0, binned_deg: float = 1.0,
+                 averaging_deg: Sequence[float] = (1.0, 10.0, 360.0),
+                 floor_samples: int = 1 << 20, chunk: int = DEFAULT_CHUNK) -> PairAnalysis
+
+`halves` in the order they ran (the engine's default '+w, -w, +w'); each HalfRecord has
+the sign of its command, the N + 1 zero-mark edge times bounding its timed turns, and the
+FOG samples (they may extend past the turns). `set_rate_dps` is the magnitude.
+
+Steps (each in its module):
+ 1. window.py   exact FOG integrals over each half's whole turns;
+ 2. turns.py    A1/A2 per direction from the edges;
+ 3. crosscal.py a provisional k, w0, drift from the per-turn means (for the angles);
+ 4. sums.py     one pass over the samples per half: angle, design rows, Gram, bin sums;
+ 5. systematic.py the harmonic + mains fit per direction; noise inflation over the pair;
+ 6. crosscal.py A3 from the half means, their uncertainty from the fit's residual;
+ 7. systematic.py, random_part.py: A4 and A5 with the final calibration.
+
+Cost: two reads of the FOG record (the integrals, then the pass) plus a subset for the
+noise floor; memory: a few chunk-sized buffers, whatever the record's length.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from bench.analysis.crosscal import DriftEstimate, HalfMean, cross_calibrate, fit_turns
+from bench.analysis.random_part import floor_from_fit, floor_from_static, random_part
+from bench.analysis.results import PairAnalysis, PairResult, RateResult, SystematicResult
+from bench.analysis.sums import Design, accumulate
+from bench.analysis.systematic import (
+    DirectionFit,
+    binned_systematic,
+    harmonic_block_deg,
+    harmonics_result,
+    long_block_deg,
+    mains_result,
+    noise_inflation,
+    solve_direction,
+)
+from bench.analysis.turns import FULL_TURN_DEG, CounterBudget, analyze_turns, turn_rates_dps
+from bench.analysis.window import DEFAULT_CHUNK, HalfRecord, Window
+
+_RATE_MATCH_REL = 1e-3
+
+
+def _check_rate(windows: Sequence[Window], fog_rate_hz: float, mains_hz: float | None) -> None:
+    if not fog_rate_hz > 0:
+        raise ValueError(f"fog_rate_hz must be > 0, got {fog_rate_hz}")
+    for w in windows:
+        if w.uniform_dt_s is not None and abs(w.uniform_dt_s * fog_rate_hz - 1) > _RATE_MATCH_REL:
+            raise ValueError(f"half {w.index}: FOG sample times say "
+                             f"{1 / w.uniform_dt_s:.6g} Hz, fog_rate_hz says {fog_rate_hz:g}")
+    if mains_hz is not None and 2 * mains_hz >= fog_rate_hz:
+        raise ValueError(f"mains_hz {mains_hz:g} is at or above the FOG's Nyquist frequency "
+                         f"({fog_rate_hz / 2:g} Hz): set mains_hz to None")
+
+
+def _turn_table(windows: Sequence[Window]) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                     np.ndarray]:
+    """Per-turn FOG means, counter rates, centre times and sample counts, all halves."""
+    f = np.concatenate([w.turn_fog_mean_dps for w in windows])
+    c = np.concatenate([turn_rates_dps(w.edges_s, w.sign) for w in windows])
+    t = np.concatenate([w.turn_centres_s for w in windows])
+    n = np.concatenate([w.turn_samples for w in windows]).astype(float)
+    return f, c, t, n
+
+
+def _half_means(fits: dict[int, DirectionFit], inflation_factor: float,
+                budget: CounterBudget) -> list[HalfMean]:
+    out = []
+    for fit in fits.values():
+        for ws in fit.sums:
+            win = ws.win
+            c = win.sign * FULL_TURN_DEG * win.turns / win.duration_s
+            out.append(HalfMean(
+                sign=win.sign, fog_mean_dps=win.fog_mean_dps,
+                # white: sigma / sqrt(n); coloured: the block-sum check scales it up
+                fog_mean_u_dps=fit.sigma_dps * math.sqrt(inflation_factor / ws.n),
+                counter_mean_dps=c,
+                counter_mean_u_dps=abs(c) * budget.period_u_s / win.duration_s,
+                t_centre_s=win.t_centre_s, turns=win.turns))
+    return sorted(out, key=lambda h: h.t_centre_s)
+
+
+def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_hz: float,
+                 counter_budget: CounterBudget | None = None, harmonics: int = 4,
+                 mains_hz: float | None = 50.0, static_fog_dps: np.ndarray | None = None,
+                 fine_bin_deg: float = 1.0, binned_deg: float = 1.0,
+                 averaging_deg: Sequence[float] = (1.0, 10.0, 360.0),
+                 floor_samples: int = 1 << 20, chunk: int = DEFAULT_CHUNK) -> PairAnalysis:
+    """METHOD.md A1-A5 for one +/- pair (see the module docstring)."""
+    budget = counter_budget or CounterBudget()
+    w_set = abs(float(set_rate_dps))
+    if not (w_set > 0 and math.isfinite(w_set)):
+        raise ValueError(f"set_rate_dps must be finite and non-zero, got {set_rate_dps}")
+    if len(halves) < 2:
+        raise ValueError(f"a pair needs at least two halves (+w and -w), got {len(halves)}")
+    design = Design(harmonics=harmonics, mains_hz=mains_hz, fine_bin_deg=fine_bin_deg)
+    windows = [Window.from_record(h, i, chunk) for i, h in enumerate(halves)]
+    _check_rate(windows, fog_rate_hz, mains_hz)
+    signs = sorted({w.sign for w in windows}, reverse=True)
+    if signs != [1, -1]:
+        raise ValueError("a pair needs halves of both signs")
+
+    turns = {s: analyze_turns([w.edges_s for w in windows if w.sign == s], s * w_set, budget)
+             for s in signs}
+
+    # provisional calibration from per-turn means: only the angles depend on it, weakly
+    f, c, t, n = _turn_table(windows)
+    provisional = fit_turns(f, c, t, n).calibration()
+
+    by_sign = {s: [accumulate(w, provisional, design, chunk) for w in windows if w.sign == s]
+               for s in signs}
+    fits = {s: solve_direction(by_sign[s]) for s in signs}
+    total_turns = sum(w.turns for w in windows)
+    infl_harm = noise_inflation(list(fits.values()), harmonic_block_deg(design))
+    infl_long = noise_inflation(list(fits.values()), long_block_deg(design, total_turns))
+
+    # the within-half drift (per-turn means weighted by their honest variance)
+    sig2 = {s: fits[s].sigma_dps ** 2 * infl_long.factor for s in signs}
+    var_turn = np.concatenate([np.full(w.turns, sig2[w.sign]) / w.turn_samples
+                               for w in windows])
+    var_turn += (c * budget.period_u_s / np.concatenate([w.turn_periods_s
+                                                           for w in windows])) ** 2
+    tf = fit_turns(f, c, t, 1.0 / var_turn)
+    drift = (DriftEstimate(tf.drift_dps_per_s, tf.drift_u_dps_per_s,
+                           "slope of the per-turn FOG means within the halves")
+             if math.isfinite(tf.drift_u_dps_per_s) else None)
+
+    halves_mean = _half_means(fits, infl_long.factor, budget)
+    xcal = cross_calibrate(halves_mean, drift=drift, timebase_u_rel=budget.timebase_u_rel)
+    final = xcal.calibration()
+    k_u_std = xcal.k_u / 2.0
+
+    floor = (floor_from_static(static_fog_dps) if static_fog_dps is not None else None)
+    rates = []
+    for s in signs:
+        fit = fits[s]
+        set_signed = s * w_set
+        sysres = SystematicResult(
+            harmonics=harmonics_result(fit, final.k, k_u_std, set_signed, infl_harm),
+            mains=mains_result(fit, final.k, k_u_std, infl_harm),
+            binned=binned_systematic(fit, final, set_signed, binned_deg, infl_harm),
+            residual_std_dps=fit.sigma_dps / abs(final.k), inflation=infl_harm)
+        fl = floor if floor is not None else floor_from_fit(fit, floor_samples)
+        rnd = random_part(fit, final, set_signed, fl, fog_rate_hz, averaging_deg)
+        wins = tuple({"half": ws.win.index, "turns": ws.win.turns,
+                      "t_start_s": float(ws.win.edges_s[0]),
+                      "t_end_s": float(ws.win.edges_s[-1]), "samples": ws.n}
+                     for ws in fit.sums)
+        rates.append(RateResult(turns_result=turns[s], systematic=sysres, random=rnd,
+                                windows=wins))
+    pair = PairResult(rate_dps=w_set, cal=xcal, noise_inflation=infl_long)
+    return PairAnalysis(rates=tuple(rates), pair=pair)

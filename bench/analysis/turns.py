@@ -1,0 +1,178 @@
+"""Per-turn rate, rate error and rate instability from zero-mark edge times (METHOD.md A1, A2).
+
+API
+    CounterBudget(timestamp_u_s=0.0, trigger_jitter_s=0.0, timebase_limit_rel=0.0)
+    period_rate_error(rate_dps, period_error_s, period_s) -> float        # METHOD.md A1
+    turn_rates_dps(edge_times_s, sign) -> np.ndarray                      # one per turn
+    edges_from_periods(first_edge_s, periods_s) -> np.ndarray
+    analyze_turns(windows, set_rate_dps, budget) -> TurnsResult
+
+`windows` is a sequence of edge-time arrays, one per window of whole turns at the same
+commanded rate (the engine's '+w, -w, +w' order gives two '+' windows). N + 1 edges bound
+N turns.
+
+Why edge timestamps and not the counter's period readings: the mean rate over a window
+is N * 360 / (t_N - t_0), so only the first and last edge's timing errors reach it; the
+per-turn periods share edges, so their errors are negatively correlated and averaging N
+periods does not beat the two-edge figure (METHOD.md A1; the paper's per-period error
+budget dT applies to each per-turn rate, not to the mean).
+
+The counter sees |T|: the sign of every rate is the sign of the command (METHOD.md A1).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+FULL_TURN_DEG = 360.0
+# a per-turn rate this far from the command means a missed or doubled zero mark
+_TURN_RATE_SANITY_REL = 0.1
+
+
+@dataclass(frozen=True)
+class CounterBudget:
+    """Timing error sources of the counter chain, per edge (standard uncertainties).
+
+    timestamp_u_s: the counter's own timestamp error per edge (resolution, interpolator,
+        trigger-level noise), standard deviation, s.
+    trigger_jitter_s: the slot sensor's edge-timing instability per edge, std, s (the
+        paper measured a rise-time std of 27 ns, METHOD.md A1).
+    timebase_limit_rel: the counter timebase's maximum relative frequency error (data
+        sheet, calibration certificate); treated as a rectangular distribution.
+    """
+
+    timestamp_u_s: float = 0.0
+    trigger_jitter_s: float = 0.0
+    timebase_limit_rel: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("timestamp_u_s", "trigger_jitter_s", "timebase_limit_rel"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"counter budget: {name} must be finite and >= 0, got {v}")
+
+    @property
+    def edge_u_s(self) -> float:
+        """Standard uncertainty of one edge's time."""
+        return math.hypot(self.timestamp_u_s, self.trigger_jitter_s)
+
+    @property
+    def period_u_s(self) -> float:
+        """Of one period: two independent edges (METHOD.md A1, dT per period)."""
+        return math.sqrt(2.0) * self.edge_u_s
+
+    @property
+    def timebase_u_rel(self) -> float:
+        return self.timebase_limit_rel / math.sqrt(3.0)
+
+    def to_dict(self) -> dict[str, float]:
+        return {"timestamp_u_s": self.timestamp_u_s, "trigger_jitter_s": self.trigger_jitter_s,
+                "timebase_limit_rel": self.timebase_limit_rel, "edge_u_s": self.edge_u_s,
+                "period_u_s": self.period_u_s, "timebase_u_rel": self.timebase_u_rel}
+
+
+def period_rate_error(rate_dps: float, period_error_s: float, period_s: float) -> float:
+    """Rate error caused by a period error dT: dw = w * dT / (T + dT) (METHOD.md A1)."""
+    return rate_dps * period_error_s / (period_s + period_error_s)
+
+
+def edges_from_periods(first_edge_s: float, periods_s: Sequence[float] | np.ndarray
+                       ) -> np.ndarray:
+    """Edge times from a gapless series of period readings (counter in period mode).
+
+    Each reading then carries both its edges' errors, and the reconstructed edges
+    accumulate them: prefer the counter's own timestamps when it has them.
+    """
+    p = np.asarray(periods_s, dtype=float)
+    if p.ndim != 1 or p.size == 0 or not np.all(p > 0):
+        raise ValueError("periods_s must be a non-empty 1-D array of positive periods")
+    return float(first_edge_s) + np.concatenate(([0.0], np.cumsum(p)))
+
+
+def check_edges(edge_times_s: np.ndarray, what: str) -> np.ndarray:
+    """Edge times as a float array; at least one whole turn, strictly increasing."""
+    e = np.asarray(edge_times_s, dtype=float)
+    if e.ndim != 1 or e.size < 2:
+        raise ValueError(f"{what}: need at least 2 zero-mark edges (one whole turn), "
+                         f"got {e.size}")
+    if not np.all(np.isfinite(e)):
+        raise ValueError(f"{what}: edge times must be finite")
+    if not np.all(np.diff(e) > 0):
+        raise ValueError(f"{what}: edge times must be strictly increasing")
+    return e
+
+
+def turn_rates_dps(edge_times_s: np.ndarray, sign: int) -> np.ndarray:
+    """w_i = sign * 360 / T_i (METHOD.md A1; the counter only sees |T|)."""
+    return sign * FULL_TURN_DEG / np.diff(edge_times_s)
+
+
+@dataclass(frozen=True)
+class TurnsResult:
+    """METHOD.md A1/A2 for one commanded rate (all windows of one sign)."""
+
+    set_rate_dps: float
+    turns: int
+    counter_rate_dps: tuple[float, ...]
+    mean_rate_dps: float               # total angle / total time over all timed turns
+    rate_error_rel: float              # (mean - set) / set, signed (eq. 1, signed)
+    rate_error_u_rel: float            # expanded, k = 2
+    rate_instability_rel: float | None  # eq. 2 (None below 2 turns)
+    rate_instability_floor_rel: float  # what edge timing alone adds to eq. 2
+    timing_u_rel: float                # standard, from the windows' end edges
+    timebase_u_rel: float              # standard, common to every rate
+    budget: CounterBudget
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "set_rate_dps": self.set_rate_dps,
+            "turns": self.turns,
+            "counter_rate_dps": list(self.counter_rate_dps),
+            "mean_rate_dps": self.mean_rate_dps,
+            "rate_error_rel": self.rate_error_rel,
+            "rate_error_u_rel": self.rate_error_u_rel,
+            "rate_instability_rel": self.rate_instability_rel,
+            "rate_instability_floor_rel": self.rate_instability_floor_rel,
+            "rate_error_budget": {"timing_u_rel": self.timing_u_rel,
+                                  "timebase_u_rel": self.timebase_u_rel,
+                                  "coverage_factor": 2.0, **self.budget.to_dict()},
+        }
+
+
+def analyze_turns(windows: Sequence[np.ndarray], set_rate_dps: float,
+                  budget: CounterBudget) -> TurnsResult:
+    """Per-turn rates, eq. 1 (signed), eq. 2 and U(k=2) of the mean rate error."""
+    if not windows:
+        raise ValueError("analyze_turns: no windows")
+    if set_rate_dps == 0 or not math.isfinite(set_rate_dps):
+        raise ValueError(f"analyze_turns: set rate must be finite and non-zero, got "
+                         f"{set_rate_dps}")
+    sign = 1 if set_rate_dps > 0 else -1
+    edges = [check_edges(e, f"window {i}") for i, e in enumerate(windows)]
+    rates = np.concatenate([turn_rates_dps(e, sign) for e in edges])
+    off = np.abs(rates / set_rate_dps - 1.0)
+    if np.any(off > _TURN_RATE_SANITY_REL):
+        i = int(np.argmax(off))
+        raise ValueError(f"turn {i}: counter rate {rates[i]:.6g} deg/s is "
+                         f"{off[i] * 100:.1f} % off the set {set_rate_dps:g} deg/s: "
+                         "a missed or extra zero mark?")
+    n_turns = int(rates.size)
+    total_s = float(sum(e[-1] - e[0] for e in edges))
+    # METHOD.md A1: mean over whole turns = angle / time; only each window's end edges count
+    mean = sign * FULL_TURN_DEG * n_turns / total_s
+    err = (mean - set_rate_dps) / set_rate_dps
+    timing_u_rel = math.sqrt(len(edges)) * budget.period_u_s / total_s
+    u = math.hypot(timing_u_rel, budget.timebase_u_rel)
+    # METHOD.md A2, eq. 2 with the square root the paper's print lost
+    instab = (float(np.std(rates, ddof=1) / abs(np.mean(rates))) if n_turns >= 2 else None)
+    floor = budget.period_u_s * n_turns / total_s  # dT / T per turn (METHOD.md A1)
+    return TurnsResult(
+        set_rate_dps=float(set_rate_dps), turns=n_turns,
+        counter_rate_dps=tuple(float(r) for r in rates), mean_rate_dps=float(mean),
+        rate_error_rel=float(err), rate_error_u_rel=2.0 * u, rate_instability_rel=instab,
+        rate_instability_floor_rel=float(floor), timing_u_rel=float(timing_u_rel),
+        timebase_u_rel=budget.timebase_u_rel, budget=budget)

@@ -1,0 +1,62 @@
+"""Statements of conformity: a measured value, its U (k = 2), a tolerance, a decision rule.
+
+Two rules, chosen in the procedure file (`decision_rule`), as ILAC-G8 describes them:
+- simple acceptance: pass when |value| <= tolerance; U is stated but does not move the
+  limit (the risk of a false pass near the limit is up to 50 %);
+- guard band by U: pass only when |value| + U <= tolerance (false pass below ~2.5 %); a
+  value inside the tolerance but within U of the limit fails, and says so.
+Beside each decision, the RMG 63-2003 capability rule: the measurement's error limit
+(here U) should not exceed 0.2-0.3 of the tolerance it checks (METHOD.md A6).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+RULES = {
+    "simple": "simple acceptance: pass when |value| <= tolerance (U stated, not subtracted)",
+    "guard-band": "guarded acceptance: pass when |value| + U <= tolerance (guard band = U)",
+}
+CAPABILITY_GOOD = 0.2
+CAPABILITY_LIMIT = 0.3
+
+
+@dataclass(frozen=True)
+class Check:
+    axis: str
+    set_rate_dps: float
+    quantity: str
+    value_rel: float
+    u_rel: float
+    tolerance_rel: float
+    rule: str
+    verdict: str
+    reason: str
+    capability_ratio: float
+    capability_ok: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def judge(axis: str, set_rate_dps: float, quantity: str, value_rel: float, u_rel: float,
+          tolerance_rel: float, rule: str) -> Check:
+    if rule not in RULES:
+        raise ValueError(f"decision rule {rule!r}: expected one of {', '.join(RULES)}")
+    mag = abs(value_rel)
+    ratio = u_rel / tolerance_rel
+    if mag > tolerance_rel:
+        verdict, reason = "fail", (f"|value| {mag:.3g} exceeds the tolerance "
+                                   f"{tolerance_rel:.3g}")
+    elif rule == "guard-band" and mag + u_rel > tolerance_rel:
+        verdict, reason = "fail", (f"|value| {mag:.3g} is inside the tolerance "
+                                   f"{tolerance_rel:.3g} but within U = {u_rel:.2g} of it: "
+                                   "the guard band is not met")
+    else:
+        verdict = "pass"
+        reason = (f"|value| + U = {mag + u_rel:.3g} <= tolerance {tolerance_rel:.3g}"
+                  if rule == "guard-band" else
+                  f"|value| {mag:.3g} <= tolerance {tolerance_rel:.3g}")
+    return Check(axis, set_rate_dps, quantity, value_rel, u_rel, tolerance_rel, rule, verdict,
+                 reason, ratio, ratio <= CAPABILITY_LIMIT)

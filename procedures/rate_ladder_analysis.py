@@ -1,0 +1,264 @@
+"""result.json for a rate-ladder run, from the run directory's raw data alone.
+
+The engine calls `analyze_run` at the end of a run and `bench analyze` calls it on a
+finished (or aborted) run directory: both read the same files, so they agree to the
+last digit. The FOG samples come from re-decoding the raw capture (the same decoder the
+live driver used); the zero-mark edges from re-parsing the counter's raw replies; the
+event log says only which samples and which replies belong to which half.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.analysis.pair import analyze_pair
+from bench.analysis.turns import CounterBudget
+from bench.analysis.window import HalfRecord
+from bench.config import Config
+from bench.conformity import RULES, judge
+from bench.engine import RunContext
+from bench.journal import RunDir, read_jsonl, sha256_file
+from drivers.counter_profiles import get_profile
+from drivers.fog import FogSamples, read_capture
+from drivers.scpi import parse_numbers
+
+SCHEMA = "bench.result/1"
+
+
+def counter_budget(stand_axis: dict[str, Any]) -> CounterBudget:
+    """METHOD.md A1: dT = sqrt(d_counter^2 + d_trigger^2), plus the timebase."""
+    c = stand_axis["counter"]
+    profile = get_profile(c["model"])
+    return CounterBudget(timestamp_u_s=profile.single_shot_s,
+                         trigger_jitter_s=float(c.get("trigger_jitter_s", 0.0)),
+                         timebase_limit_rel=float(c.get("timebase_limit_rel",
+                                                        profile.timebase_limit_rel)))
+
+
+def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int) -> np.ndarray:
+    """The zero-mark edges in the counter's raw replies of one acquisition."""
+    fmt = get_profile(model).timestamp_format
+    n_values = fmt.n_values(n_edges)
+    found = None
+    for r in records:
+        if r.get("dir") != "rx":
+            continue
+        try:
+            values = parse_numbers(r["data"])
+        except ValueError:
+            continue
+        if values.size == n_values:
+            found = fmt.decode(values)
+    if found is None:
+        raise ValueError(f"no counter reply with {n_edges} timestamps in the raw log")
+    return found
+
+
+class RawData:
+    """Lazy access to one run directory's raw files (decoded once each)."""
+
+    def __init__(self, run: RunDir, cfg: Config) -> None:
+        self.run = run
+        self.cfg = cfg
+
+    @lru_cache(maxsize=8)  # noqa: B019 - one RawData per analysis
+    def fog(self, session: int, axis: str) -> FogSamples:
+        f = self.cfg.stand_axis(axis)["fog"]
+        path = self.run.path / "raw" / f"s{session}" / f"{axis}-fog.bin"
+        samples, _ = read_capture(path, fmt=f.get("format", "kvh-a"), axis=f.get("axis", "z"),
+                                  rate_hz=f["rate_hz"], units=f.get("units", "deg/s"))
+        return samples
+
+    @lru_cache(maxsize=8)  # noqa: B019
+    def counter_log(self, session: int, axis: str) -> list[dict[str, Any]]:
+        path = self.run.path / "raw" / f"s{session}" / f"{axis}-counter.jsonl"
+        return list(read_jsonl(path))
+
+    def fog_slice(self, session: int, axis: str, i_from: int, i_to: int
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        s = self.fog(session, axis)
+        lo, hi = i_from - int(s.index[0]) if s.index.size else 0, i_to - int(s.index[0])
+        if s.index.size == 0 or lo < 0 or hi > s.index.size:
+            raise ValueError(f"{axis}: FOG samples {i_from}..{i_to} are not all in the raw "
+                             f"capture of session {session}")
+        ok = s.valid[lo:hi]
+        return s.t_s[lo:hi][ok], s.rate_dps[lo:hi][ok]
+
+    def half(self, e: dict[str, Any]) -> HalfRecord:
+        session, axis = e["session"], e["axis"]
+        log = self.counter_log(session, axis)
+        i0, i1 = e["counter_records"]
+        model = self.cfg.stand_axis(axis)["counter"]["model"]
+        edges = edges_from_replies(log[i0:i1], model, e["turns"] + 1)
+        t, w = self.fog_slice(session, axis, e["fog_from"], e["fog_to"])
+        return HalfRecord(int(math.copysign(1, e["set_rate_dps"])), edges, t, w)
+
+    def static(self, e: dict[str, Any]) -> np.ndarray:
+        return self.fog_slice(e["session"], e["axis"], e["fog_from"], e["fog_to"])[1]
+
+
+def _settings(cfg: Config) -> dict[str, Any]:
+    from procedures.rate_ladder import setting
+
+    return {k: setting(cfg, k) for k in ("turns", "sequence", "static_record_s", "harmonics",
+                                         "mains_hz", "decision_rule")}
+
+
+def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
+                 acquisitions: list[dict[str, Any]], static: dict[str, Any] | None) -> Any:
+    s = _settings(cfg)
+    fog_hz = cfg.stand_axis(axis)["fog"]["rate_hz"]
+    mains = s["mains_hz"] if 2 * s["mains_hz"] < fog_hz else None
+    halves = [raw.half(e) for e in sorted(acquisitions, key=lambda e: e["half"])]
+    return analyze_pair(halves, rate_dps, fog_rate_hz=fog_hz,
+                        counter_budget=counter_budget(cfg.stand_axis(axis)),
+                        harmonics=int(s["harmonics"]), mains_hz=mains,
+                        static_fog_dps=raw.static(static) if static else None)
+
+
+def _instability_u(value: float, turns: int) -> float:
+    """U (k = 2) of a relative standard deviation from N turns: s / sqrt(2 (N - 1))."""
+    return 2.0 * value / math.sqrt(2.0 * (turns - 1)) if turns > 1 else math.inf
+
+
+def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[dict[str, Any]]:
+    from procedures.rate_ladder import tolerance_for
+
+    tol = cfg.procedure.get("tolerance", {})
+    out = []
+    rate = entry["set_rate_dps"]
+    for quantity, value, u in (
+        ("rate_error", entry["rate_error_rel"], entry["rate_error_u_rel"]),
+        ("rate_instability", entry["rate_instability_rel"], entry["rate_instability_u_rel"]),
+        ("intra_turn_instability", entry["intra_turn_instability_rel"],
+         entry.get("intra_turn_instability_u_rel", 0.0)),
+    ):
+        t = tolerance_for(tol.get(quantity), rate)
+        if t is not None:
+            out.append(judge(axis, rate, quantity, value, u, t, rule).to_dict())
+    return out
+
+
+def _events_by(events: list[dict[str, Any]], kind: str) -> list[dict[str, Any]]:
+    return [e for e in events if e.get("event") == kind]
+
+
+def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
+    events = run.events()
+    raw = RawData(run, cfg)
+    rule = _settings(cfg)["decision_rule"]
+    done_in: dict[str, int] = {e["unit"]: e["session"] for e in _events_by(events, "unit_done")}
+    acquisitions = _events_by(events, "acquire")
+    statics = _events_by(events, "static")
+    result_axes: dict[str, Any] = {}
+    checks: list[dict[str, Any]] = []
+    complete = True
+    for axis, spec in cfg.procedure["axes"].items():
+        static = next((e for e in reversed(statics) if e["axis"] == axis
+                       and done_in.get(e["unit"]) == e["session"]), None)
+        rates: list[dict[str, Any]] = []
+        pairs: list[dict[str, Any]] = []
+        for rate in spec["rates_dps"]:
+            unit = f"{axis}/{rate:g}dps"
+            if unit not in done_in:
+                complete = False
+                continue
+            acqs = [e for e in acquisitions if e["unit"] == unit
+                    and e["session"] == done_in[unit]]
+            pa = analyze_unit(raw, cfg, axis, rate, acqs, static)
+            for r in pa.rates:
+                d = r.to_dict()
+                d["rate_instability_u_rel"] = _instability_u(d["rate_instability_rel"],
+                                                             d["turns"])
+                d["session"] = done_in[unit]
+                c = _checks(cfg, axis, d, rule)
+                d["checks"] = c
+                d["verdict"] = "fail" if any(x["verdict"] == "fail" for x in c) else "pass"
+                checks += c
+                rates.append(d)
+            pairs.append(pa.pair.to_dict())
+        floor = None
+        if static is not None:
+            from bench.analysis.allan import allan_deviation
+
+            w = raw.static(static)
+            hz = cfg.stand_axis(axis)["fog"]["rate_hz"]
+            curve = allan_deviation(w, hz)
+            floor = {"source": "Allan deviation of a static FOG record",
+                     "samples": int(w.size), "duration_s": w.size / hz,
+                     "sample_std_dps": float(np.std(w, ddof=1)),
+                     "allan_tau_s": list(curve.tau_s), "allan_dev_dps": list(curve.adev)}
+        result_axes[axis] = {"rates": rates, "pairs": pairs, "noise_floor": floor}
+    if not complete:
+        verdict = "incomplete"
+    else:
+        verdict = "fail" if any(c["verdict"] == "fail" for c in checks) else "pass"
+    return {
+        "schema": SCHEMA,
+        "procedure": cfg.kind,
+        "verdict": verdict,
+        **run_header(run, cfg, events),
+        "decision_rule": rule,
+        "decision_rule_text": RULES[rule],
+        "method": {**_settings(cfg), "tolerance": cfg.procedure.get("tolerance", {})},
+        "checks": checks,
+        "axes": result_axes,
+    }
+
+
+def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]]) -> dict[str, Any]:
+    """What every procedure kind's result.json says about the run (certificate header)."""
+    meta = run.meta
+    identities: dict[str, dict[str, str]] = {}
+    for e in _events_by(events, "identity"):
+        identities[e["axis"]] = {k: v for k, v in e.items()
+                                 if k not in ("utc", "t_s", "session", "event", "axis")}
+    starts = _events_by(events, "session_start")
+    ends = _events_by(events, "completed") + _events_by(events, "abort")
+    raw_files = []
+    for p in sorted((run.path / "raw").rglob("*")):
+        if p.is_file():
+            raw_files.append({"path": str(p.relative_to(run.path)), "sha256": sha256_file(p),
+                              "bytes": p.stat().st_size})
+    return {
+        "title": cfg.procedure.get("title", cfg.procedure_path.stem),
+        "run_dir": run.path.name,
+        "procedure_file": {"name": meta["procedure_name"], "sha256": meta["procedure_sha256"]},
+        "stand": {**cfg.stand["stand"], "file": Path(meta["stand_file"]).name,
+                  "sha256": meta["stand_sha256"], "simulated": "sim" in cfg.stand},
+        "instruments": identities,
+        "dates": {"created_utc": meta["created_utc"],
+                  "started_utc": starts[0]["utc"] if starts else None,
+                  "completed_utc": ends[-1]["utc"] if ends else None},
+        "conditions": cfg.procedure.get("conditions", {}),
+        "certificate": cfg.procedure.get("certificate", {}),
+        "sessions": len(starts),
+        "aborted": bool(_events_by(events, "abort")),
+        "raw_files": raw_files,
+    }
+
+
+def pair_summary(ctx: RunContext, axis: str, unit: str, rate_dps: float) -> dict[str, Any]:
+    """A first look at the pair just measured, from the live data (the same analysis the
+    final result.json makes from the raw files)."""
+    live = ctx.state.setdefault("live", {})
+    halves = live.get(unit, [])
+    static = live.get(f"{axis}/static")
+    cfg = ctx.cfg
+    s = _settings(cfg)
+    fog_hz = cfg.stand_axis(axis)["fog"]["rate_hz"]
+    pa = analyze_pair(halves, rate_dps, fog_rate_hz=fog_hz,
+                      counter_budget=counter_budget(cfg.stand_axis(axis)),
+                      harmonics=int(s["harmonics"]),
+                      mains_hz=s["mains_hz"] if 2 * s["mains_hz"] < fog_hz else None,
+                      static_fog_dps=static)
+    out: dict[str, Any] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps}
+    for r in pa.rates:
+        sign = "+" if r.set_rate_dps > 0 else "-"
+        out[f"rate_error_rel{sign}"] = r.rate_error_rel
+    return out
