@@ -140,7 +140,7 @@ class Axis:
                  eds_path: str | Path = DEFAULT_EDS_PATH, heartbeat_ms: int = 50,
                  watchdog_ms: int | None = None, controller_node_id: int = 0x7F,
                  accel_dps2: float | None = None, bitrate: int | None = None,
-                 raw: RawSink | None = None) -> None:
+                 feedback_journal_s: float = 0.1, raw: RawSink | None = None) -> None:
         self.name = name
         self.interface = interface
         self.channel = channel
@@ -149,6 +149,10 @@ class Axis:
         self.eds_path = Path(eds_path)
         self.bitrate = bitrate
         self.raw = raw
+        #: clock seconds between journaled feedback records (0: every TPDO; 100 Hz of
+        #: TPDOs for a 10 h ladder would be millions of lines the analysis never reads)
+        self.feedback_journal_s = float(feedback_journal_s)
+        self._feedback_journaled_t: float | None = None
         self.units = DriveUnits(int(counts_per_rev), float(velocity_unit_counts_per_s),
                                 float(accel_unit_counts_per_s2))
         self.max_rate_dps = float(max_rate_dps)
@@ -667,8 +671,11 @@ class Axis:
                 self._feedback = f
                 self._samples.append(f)
                 self._seq += 1
-                self._journal("feedback", t_s=t, velocity_dps=f.velocity_dps,
-                              position_deg=f.position_deg, statusword=f.statusword)
+                last = self._feedback_journaled_t
+                if last is None or t - last >= self.feedback_journal_s:
+                    self._feedback_journaled_t = t
+                    self._journal("feedback", t_s=t, velocity_dps=f.velocity_dps,
+                                  position_deg=f.position_deg, statusword=f.statusword)
             self._lock.notify_all()
 
     def _on_heartbeat(self, nmt_state: int) -> None:

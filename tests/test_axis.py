@@ -42,6 +42,7 @@ class Rig:
     def axis(self, **kw: object) -> Axis:
         args: dict = dict(interface="virtual", channel=self.channel, node_id=NODE,
                           max_rate_dps=MAX_RATE, max_accel_dps2=MAX_ACCEL, clock=self.clock,
+                          feedback_journal_s=0.0,
                           raw=lambda kind, rec: self.journal.append((kind, rec)))
         args.update(kw)
         return Axis("outer", **args)
