@@ -395,11 +395,7 @@ class Axis:
             state = self._wait_state(State.SWITCH_ON_DISABLED)
         with self._lock:
             self._fault = None
-        self._write(Od.MODES_OF_OPERATION, self.mode.code)
-        shown = self._read(Od.MODES_OF_OPERATION_DISPLAY)
-        if shown != self.mode.code:
-            raise AxisError(f"axis {self.name}: drive shows mode {shown} after 0x6060 = "
-                            f"{self.mode.code} ({self.mode.name})")
+        self._select_mode(PROFILE_VELOCITY)
         self._write(Od.TARGET_VELOCITY, 0)  # a drive enables onto the set-point it holds
         self._target_dps = 0.0
         self._send_accel(self.accel_dps2)
@@ -408,6 +404,15 @@ class Axis:
                         and self._state is State.OPERATION_ENABLED,
                         STATE_TIMEOUT_S + 5 * self._tpdo_period_s,
                         "TPDOs showing operation enabled")
+
+    def _select_mode(self, mode: Mode) -> None:
+        """Write 0x6060 and check 0x6061 shows it (modes are rows of cia402.MODES)."""
+        self._write(Od.MODES_OF_OPERATION, mode.code)
+        shown = self._read(Od.MODES_OF_OPERATION_DISPLAY)
+        if shown != mode.code:
+            raise AxisError(f"axis {self.name}: drive shows mode {shown} after 0x6060 = "
+                            f"{mode.code} ({mode.name})")
+        self.mode = mode
 
     def _go_to(self, target: State) -> None:
         state = self._read_state()
@@ -471,6 +476,8 @@ class Axis:
         self._check_rate(rate_dps)
         self._check_accel(accel)
         self.check()
+        if self.mode is not PROFILE_VELOCITY:
+            self._select_mode(PROFILE_VELOCITY)
         state = self.state
         if state is not State.OPERATION_ENABLED:
             raise AxisError(f"axis {self.name}: cannot set a rate, the drive is in "
