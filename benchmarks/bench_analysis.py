@@ -1,0 +1,119 @@
+"""Benchmark: METHOD.md part A on the paper's slowest rate (run on demand).
+
+    python benchmarks/bench_analysis.py [--order +-] [--rate-hz 1000] [--repeat 3]
+
+Simulates 5 turns at 0.1 deg/s per half with the FOG at 1 kHz (18 M samples per half,
+sims.stand.AxisModel with the paper-like outer axis), then times `analyze_pair` on one
+core and reports samples/s and the analysis's peak memory (tracemalloc: numpy's
+allocations) against the record's size (the FOG times and rates it is handed).
+Goal: >= 30 M samples/s, peak <= 3x the record.
+"""
+
+from __future__ import annotations
+
+import os
+
+# one core: BLAS must not spread the Gram products over the machine
+for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+import tracemalloc  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from bench.analysis import CounterBudget, HalfRecord, analyze_pair  # noqa: E402
+from sims.stand import AxisModel, AxisTruth, FogTruth, Harmonic, Mains  # noqa: E402
+
+TRUTH = AxisTruth(
+    rate_bias_rel=2e-6, harmonics=(Harmonic(1, 8.6e-4, 40.0),), mains=Mains(50.0, 2e-4, 0.0),
+    rate_noise_dps=1e-4, turn_jitter_s=27e-9,
+    fog=FogTruth(scale=1.0003, bias_dps=0.002, misalignment_deg=0.2, noise_dps=0.01,
+                 bias_drift_dps_per_h=0.001))
+
+
+def simulate(rate_dps: float, turns: int, order: str, fog_rate_hz: float, seed: int
+             ) -> list[HalfRecord]:
+    model = AxisModel(TRUTH, fog_rate_hz, seed)
+    n_est = int((len(order) * (turns + 1.6) * 360.0 / rate_dps + 10) * fog_rate_hz)
+    fog = np.empty(n_est)
+    filled = [0]
+
+    def listen(chunk) -> None:
+        n0, m = chunk.n0, chunk.fog_dps.size
+        fog[n0:n0 + m] = chunk.fog_dps
+        filled[0] = n0 + m
+
+    model.listeners.append(listen)
+    t, edges, signs = 0.0, [], []
+    period = 360.0 / rate_dps
+    for ch in order:
+        sign = 1 if ch == "+" else -1
+        seg = model.command_rate(t, sign * rate_dps, 10.0)
+        t_ok = seg.t_end_s + 0.5
+        t_end = t_ok + (turns + 1.5) * period
+        model.advance_to(t_end)
+        zm = model.zero_marks(t_ok, t_end)
+        edges.append(zm.t_edge_s[:turns + 1].copy())
+        signs.append(sign)
+        t = float(zm.t_edge_s[turns]) + 0.05 * period
+    model.advance_to(t + 1.0)
+    f = fog[:filled[0]]
+    t_all = np.arange(f.size) / fog_rate_hz
+    return [HalfRecord(s, e, t_all, f) for s, e in zip(signs, edges, strict=True)]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--order", default="+-", help="halves, e.g. +- or +-+ (default +-)")
+    ap.add_argument("--rate-hz", type=float, default=1000.0)
+    ap.add_argument("--rate-dps", type=float, default=0.1)
+    ap.add_argument("--turns", type=int, default=5)
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+
+    t0 = time.perf_counter()
+    halves = simulate(args.rate_dps, args.turns, args.order, args.rate_hz, seed=7)
+    gen_s = time.perf_counter() - t0
+    rec = halves[0]
+    record_bytes = rec.fog_t_s.nbytes + rec.fog_dps.nbytes
+    in_turns = sum(int(np.searchsorted(rec.fog_t_s, h.edge_times_s[-1])
+                       - np.searchsorted(rec.fog_t_s, h.edge_times_s[0])) for h in halves)
+    print(f"record: {rec.fog_dps.size / 1e6:.1f} M samples ({record_bytes / 2**20:.0f} MiB "
+          f"of times and rates), {in_turns / 1e6:.1f} M inside the timed turns, "
+          f"{len(halves)} halves; simulated in {gen_s:.1f} s")
+
+    kw = dict(fog_rate_hz=args.rate_hz, counter_budget=CounterBudget(trigger_jitter_s=27e-9))
+    best = float("inf")
+    for _ in range(args.repeat):
+        t0 = time.perf_counter()
+        res = analyze_pair(halves, args.rate_dps, **kw)
+        best = min(best, time.perf_counter() - t0)
+    tracemalloc.start()
+    analyze_pair(halves, args.rate_dps, **kw)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+
+    print(f"analysis: {best:.3f} s best of {args.repeat} -> "
+          f"{in_turns / best / 1e6:.1f} M samples/s (goal >= 30)")
+    print(f"peak memory of the analysis: {peak / 2**20:.1f} MiB = "
+          f"{peak / record_bytes:.3f} x the record (goal <= 3)")
+    p = res.pair
+    print(f"k = {p.k:.7f} +/- {p.k_u:.1e} (truth {TRUTH.fog.k:.7f}), "
+          f"w0 = {p.w0_dps:+.6f} +/- {p.w0_u_dps:.1e} deg/s at t = {p.cal.t_ref_s:.0f} s "
+          f"(truth {float(TRUTH.fog.bias_at(p.cal.t_ref_s)):+.6f}), {p.cal.method}")
+    for r in res.rates:
+        h = r.systematic.harmonics[0]
+        print(f"{r.set_rate_dps:+g} deg/s: 1/rev {h.amplitude_rel:.2e} +/- "
+              f"{h.amplitude_u_rel:.1e} at {h.phase_deg:.1f} +/- {h.phase_u_deg:.1f} deg "
+              "(truth 8.6e-04 at 40 deg); intra-turn "
+              f"{r.random.instability_rel * 100:.2f} % (floor {r.random.floor_rel * 100:.2f} %)")
+
+
+if __name__ == "__main__":
+    main()
