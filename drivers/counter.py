@@ -409,7 +409,7 @@ class Counter(ScpiInstrument):
         half the longest credible span (about when the data can first be there) and runs
         every 1/50 of it: a few dozen exchanges in the journal at most.
         """
-        poll_s = min(max(acq.span_real_s / 50.0, 0.005), 0.5)
+        poll_s = min(max(acq.span_real_s / 50.0, 0.005), 2.0)
         time.sleep(max(acq.armed_real_s + 0.5 * acq.span_real_s - time.monotonic(), 0.0))
         while True:
             text = ESR_Q.text()

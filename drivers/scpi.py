@@ -317,6 +317,8 @@ class ScpiInstrument:
     #: sent by `recover()` before `*OPC?`: end any measurement, clear status
     recovery_commands: tuple[Command, ...] = (CLS,)
     words: Any = None
+    #: the last `recover()` had to reopen the link
+    reopened: bool = False
 
     def __init__(self, resource: str, *, visa_library: str = "@py", raw: RawCallback | None = None,
                  command_timeout_s: float = 2.0, name: str | None = None,
@@ -569,6 +571,7 @@ class ScpiInstrument:
         Raises the connection error kind if neither works.
         """
         with self._lock:
+            self.reopened = False
             if self._inst is not None:
                 try:
                     stale = self.resync()
@@ -578,6 +581,7 @@ class ScpiInstrument:
                     pass
             try:
                 self.reconnect()
+                self.reopened = True
                 self.resync()
             except InstrumentError as e:
                 self._drop_session()
@@ -605,7 +609,7 @@ class ScpiInstrument:
                     raise
                 raise self.error_kinds.connection(
                     f"{e} -- and then: {e2}", command=e.command) from e
-            if "reopened" in note and isinstance(e, InstrumentTimeout):
+            if self.reopened and isinstance(e, InstrumentTimeout):
                 lost = self.error_kinds.connection(
                     f"{e}: the link was lost (it had to be reopened)", command=e.command)
                 lost.add_note(note)
