@@ -1,0 +1,335 @@
+"""The angle-sensor readout of the drift-pulse method (METHOD.md B): a SCPI digitizing DMM.
+
+A Keysight 34465A (DIG option) records U(t) of the command angle sensor in step with the
+pulses: DC volts on a fixed range, a fixed aperture, auto-zero off (with it on, every
+other reading would be a zero measurement and the interval would not hold), N samples on
+the sample timer after one external trigger (the pulse generator's trigger output).
+
+    ABOR; CONF:VOLT:DC r; VOLT:RANG r; VOLT:APER a; VOLT:ZERO:AUTO OFF; VOLT:IMP:AUTO ON;
+    TRIG:SOUR EXT; TRIG:SLOP POS; TRIG:DEL d; TRIG:COUN 1;
+    SAMP:SOUR TIM; SAMP:TIM dt; SAMP:COUN n; FORM ASC                  -- configure()
+    INIT; *OPC; STAT:OPER:COND? until "waiting for trigger"            -- arm()
+    *ESR? until operation complete; FETC?                              -- fetch()
+
+Timing: the first sample starts the trigger delay after the trigger edge, then one every
+interval. An integrating reading is the mean over its aperture, so it belongs to the
+aperture's middle: sample k stands for `delay + k * dt + aperture / 2` after the edge
+(`DigitizerSetup.sample_time_s`). That half aperture is a real offset against the pulse
+edges (METHOD.md B's half-sample pitfall in another guise); the procedure sets the
+trigger delay so the samples' middles land on the edges.
+
+Waits are real seconds scaled by the clock's speed (a virtual stand runs faster).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.clock import Clock
+from drivers.scpi import (
+    ABORT,
+    CLS,
+    ESR_OPC,
+    ESR_Q,
+    IDN,
+    INIT,
+    OPC,
+    Command,
+    ErrorKinds,
+    InstrumentCommandError,
+    InstrumentConnectionError,
+    InstrumentError,
+    InstrumentReplyError,
+    InstrumentTimeout,
+    RawCallback,
+    ScpiInstrument,
+    parse_numbers,
+)
+from drivers.scpi_profile import handshake, lookup_profile
+
+
+class DmmError(InstrumentError):
+    """Anything the digitizer, or the way to it, did wrong."""
+
+
+class DmmCommandError(DmmError, InstrumentCommandError):
+    pass
+
+
+class DmmTimeout(DmmError, InstrumentTimeout):
+    pass
+
+
+class DmmReplyError(DmmError, InstrumentReplyError):
+    pass
+
+
+class DmmConnectionError(DmmError, InstrumentConnectionError):
+    pass
+
+
+class DmmOverload(DmmError):
+    """A reading beyond the range (the DMM answers +/-9.9E37)."""
+
+
+@dataclass(frozen=True)
+class DmmWords:
+    """The SCPI words of a digitizing DMM model, by role."""
+
+    configure_dcv: Command = Command("CONFigure:VOLTage[:DC]", "{range_v}")
+    range: Command = Command("[SENSe:]VOLTage[:DC]:RANGe", "{range_v}")
+    aperture: Command = Command("[SENSe:]VOLTage[:DC]:APERture", "{aperture_s}")
+    autozero: Command = Command("[SENSe:]VOLTage[:DC]:ZERO:AUTO", "{state}")
+    impedance_auto: Command = Command("[SENSe:]VOLTage[:DC]:IMPedance:AUTO", "{state}",
+                                      doc="ON: >10 Gohm input on the 10 V range and below")
+    trigger_source: Command = Command("TRIGger:SOURce", "{source}", doc="EXTernal")
+    trigger_slope: Command = Command("TRIGger:SLOPe", "{slope}")
+    trigger_delay: Command = Command("TRIGger:DELay", "{delay_s}")
+    trigger_count: Command = Command("TRIGger:COUNt", "{count}")
+    sample_source: Command = Command("SAMPle:SOURce", "{source}", doc="TIMer")
+    sample_timer: Command = Command("SAMPle:TIMer", "{interval_s}")
+    sample_count: Command = Command("SAMPle:COUNt", "{count}")
+    format_data: Command = Command("FORMat[:DATA]", "{format}")
+    operation_condition: Command = Command("STATus:OPERation:CONDition?")
+    abort: Command = ABORT
+    initiate: Command = INIT
+    fetch: Command = Command("FETCh?", doc="the readings of the last measurement")
+
+
+@dataclass(frozen=True)
+class DmmProfile:
+    model: str
+    maker: str
+    description: str
+    words: DmmWords
+    idn_pattern: str | None
+    ranges_v: tuple[float, ...]
+    aperture_range_s: tuple[float, float]
+    min_interval_s: float
+    interval_overhead_s: float     # the timer interval must exceed the aperture by this
+    max_readings: int
+    max_trigger_delay_s: float
+    waiting_for_trigger_bit: int   # STAT:OPER:COND? bit set while armed
+    overload_v: float = 9.9e37
+    notes: str = ""
+    idn: str = ""
+
+
+KEYSIGHT_34465A = DmmProfile(
+    model="keysight-34465a",
+    maker="Keysight",
+    description="Truevolt 34465A 6.5-digit DMM with the DIG (digitizing) option",
+    words=DmmWords(),
+    idn_pattern=r"3446[05]A",
+    ranges_v=(0.1, 1.0, 10.0, 100.0, 1000.0),
+    aperture_range_s=(20e-6, 1.0),
+    min_interval_s=20e-6,          # 50 kSa/s with the DIG option
+    interval_overhead_s=10e-6,
+    max_readings=50_000,           # reading memory without the MEM option (2 M with it)
+    max_trigger_delay_s=3600.0,
+    waiting_for_trigger_bit=0x20,
+    notes=("Words as the 34465A Programming Reference spells them (SAMP:SOUR TIM, "
+           "SAMP:TIM, SAMP:COUN, TRIG:SOUR EXT, VOLT:APER, VOLT:ZERO:AUTO). Unsure: the "
+           "minimum interval over the aperture (10 us assumed) and STAT:OPER:COND? bit 5 "
+           "as 'waiting for trigger' (used only to know the DMM is armed before the "
+           "generator fires; if wrong, arm() times out by name on the first connection)."),
+    idn="Keysight Technologies,34465A,MY00000000,A.03.01-03.15-03.01-00.52-03-02",
+)
+
+PROFILES: dict[str, DmmProfile] = {p.model: p for p in (KEYSIGHT_34465A,)}
+
+
+def get_profile(model: str) -> DmmProfile:
+    return lookup_profile(PROFILES, model, "DMM")
+
+
+@dataclass(frozen=True)
+class DigitizerSetup:
+    """A configured record: how many samples, how far apart, and when each one is."""
+
+    range_v: float
+    aperture_s: float
+    interval_s: float
+    count: int
+    trigger_delay_s: float
+    slope: str
+
+    @property
+    def duration_s(self) -> float:
+        return self.trigger_delay_s + (self.count - 1) * self.interval_s + self.aperture_s
+
+    def sample_time_s(self, k: np.ndarray | int) -> np.ndarray:
+        """Sample k's time after the trigger edge: the middle of its aperture."""
+        return self.trigger_delay_s + np.asarray(k) * self.interval_s + 0.5 * self.aperture_s
+
+
+#: the wait for a record may run this fraction over its nominal length
+SPAN_SLACK_REL = 0.25
+
+
+class Digitizer(ScpiInstrument):
+    """A SCPI DMM recording one triggered burst of samples at a fixed interval."""
+
+    error_kinds = ErrorKinds(command=DmmCommandError, timeout=DmmTimeout,
+                             reply=DmmReplyError, connection=DmmConnectionError)
+
+    def __init__(self, resource: str, profile: DmmProfile, clock: Clock, *,
+                 raw: RawCallback | None = None, command_timeout_s: float = 2.0,
+                 timeout_margin_s: float = 5.0, visa_library: str = "@py") -> None:
+        self.profile = profile
+        self.words = profile.words
+        self.clock = clock
+        self.timeout_margin_s = float(timeout_margin_s)
+        self.recovery_commands = (profile.words.abort, CLS)
+        self.setup: DigitizerSetup | None = None
+        self._armed_real_s: float | None = None
+        super().__init__(resource, visa_library=visa_library, raw=raw,
+                         command_timeout_s=command_timeout_s,
+                         name=f"DMM {profile.model} at {resource}")
+
+    @classmethod
+    def open(cls, resource: str, model: str | DmmProfile, clock: Clock, *,
+             raw: RawCallback | None = None, check_identity: bool = True,
+             timeout_margin_s: float = 5.0, visa_library: str = "@py") -> Digitizer:
+        """Open, bring to a known idle state, check it is the model named."""
+        profile = get_profile(model) if isinstance(model, str) else model
+        dmm = cls(resource, profile, clock, raw=raw, timeout_margin_s=timeout_margin_s,
+                  visa_library=visa_library)
+        handshake(dmm, profile.idn_pattern if check_identity else None, profile.model,
+                  "dmm", DmmError)
+        return dmm
+
+    def __enter__(self) -> Digitizer:
+        return self
+
+    def identify(self) -> str:
+        return self.ask(IDN)
+
+    def configure(self, range_v: float, aperture_s: float, interval_s: float, count: int,
+                  trigger_delay_s: float = 0.0, slope: str = "POS") -> DigitizerSetup:
+        """Set up one externally triggered record of `count` samples `interval_s` apart."""
+        p = self.profile
+        problems = []
+        if not any(math.isclose(range_v, r) for r in p.ranges_v):
+            problems.append(f"range {range_v:g} V (one of {', '.join(f'{r:g}' for r in p.ranges_v)})")
+        if not p.aperture_range_s[0] <= aperture_s <= p.aperture_range_s[1]:
+            problems.append(f"aperture {aperture_s:g} s (range {p.aperture_range_s[0]:g} .. "
+                            f"{p.aperture_range_s[1]:g} s)")
+        if interval_s < max(p.min_interval_s, aperture_s + p.interval_overhead_s):
+            problems.append(f"interval {interval_s:g} s is shorter than the aperture plus "
+                            f"{p.interval_overhead_s:g} s (or the model's minimum "
+                            f"{p.min_interval_s:g} s)")
+        if not 1 <= count <= p.max_readings:
+            problems.append(f"{count} samples (the reading memory holds {p.max_readings})")
+        if not 0.0 <= trigger_delay_s <= p.max_trigger_delay_s:
+            problems.append(f"trigger delay {trigger_delay_s:g} s")
+        slope_u = slope.upper()[:3]
+        if slope_u not in ("POS", "NEG"):
+            problems.append(f"slope {slope!r} (POS or NEG)")
+        if problems:
+            raise DmmError(f"{self.name}: configure(): " + "; ".join(problems))
+        w = self.words
+        with self.recovering():
+            self.send(w.abort)
+            self.send(w.configure_dcv, range_v=range_v)
+            self.send(w.range, range_v=range_v)
+            self.send(w.aperture, aperture_s=aperture_s)
+            self.send(w.autozero, state=False)
+            self.send(w.impedance_auto, state=True)
+            self.send(w.trigger_source, source="EXT")
+            self.send(w.trigger_slope, slope=slope_u)
+            self.send(w.trigger_delay, delay_s=trigger_delay_s)
+            self.send(w.trigger_count, count=1)
+            self.send(w.sample_source, source="TIM")
+            self.send(w.sample_timer, interval_s=interval_s)
+            self.send(w.sample_count, count=int(count))
+            self.send(w.format_data, format="ASC")
+        self.setup = DigitizerSetup(float(range_v), float(aperture_s), float(interval_s),
+                                    int(count), float(trigger_delay_s), slope_u)
+        return self.setup
+
+    def arm(self) -> None:
+        """INIT and wait until the DMM waits for its trigger (bounded)."""
+        if self.setup is None:
+            raise DmmError(f"{self.name}: arm() before configure()")
+        w = self.words
+        bit = self.profile.waiting_for_trigger_bit
+        with self.recovering():
+            self.send(w.initiate)
+            self.write(OPC.text(), check=False)
+            deadline = time.monotonic() + self.command_timeout_s
+            while True:
+                text = w.operation_condition.text()
+                cond = self._int_reply(text, self.query(text))
+                if cond & bit:
+                    break
+                if time.monotonic() > deadline:
+                    raise DmmTimeout(f"{self.name}: not waiting for its trigger "
+                                     f"{self.command_timeout_s:g} s after INIT "
+                                     f"({text} = {cond})", command=w.initiate.text())
+                time.sleep(0.005)
+        self._armed_real_s = time.monotonic()
+
+    def fetch(self) -> np.ndarray:
+        """Wait for the record (bounded by its length over the clock's speed) and read it."""
+        if self.setup is None or self._armed_real_s is None:
+            raise DmmError(f"{self.name}: fetch() without arm()")
+        setup, armed = self.setup, self._armed_real_s
+        self._armed_real_s = None
+        span_real = setup.duration_s * (1.0 + SPAN_SLACK_REL) / self.clock.speed
+        deadline = armed + span_real + self.timeout_margin_s
+        poll_s = min(max(span_real / 50.0, 0.005), 0.5)
+        with self.recovering():
+            time.sleep(max(armed + 0.5 * span_real - time.monotonic(), 0.0))
+            while True:
+                esr = self._int_reply(ESR_Q.text(), self.query(ESR_Q.text()))
+                if esr & 0x3C:
+                    self.check_errors(f"the record (ESR {esr})")
+                if esr & ESR_OPC:
+                    break
+                if time.monotonic() > deadline:
+                    raise DmmTimeout(
+                        f"{self.name}: {setup.count} samples not complete within "
+                        f"{deadline - armed:.3g} s (real): did the trigger reach the DMM's "
+                        f"Ext Trig input?", command=self.words.initiate.text())
+                time.sleep(poll_s)
+            text = self.words.fetch.text()
+            reply = self.query(text, timeout_s=self.command_timeout_s + setup.count * 20 / 1e5)
+            try:
+                values = parse_numbers(reply)
+            except ValueError as e:
+                raise DmmReplyError(f"{self.name}: the reply to {text!r} is not a list of "
+                                    f"numbers ({e}): {reply[:80]!r}", command=text,
+                                    reply=reply.encode()[:200]) from e
+            if values.size != setup.count:
+                raise DmmReplyError(f"{self.name}: {text!r} returned {values.size} readings, "
+                                    f"expected {setup.count}", command=text)
+        over = np.abs(values) >= 0.999 * self.profile.overload_v
+        if over.any():
+            raise DmmOverload(f"{self.name}: {int(over.sum())} reading(s) beyond the "
+                              f"{setup.range_v:g} V range (first at sample "
+                              f"{int(np.argmax(over))}): the angle sensor's excursion is too "
+                              f"large for the range, or the pulse amplitude too high",
+                              command=text)
+        return values
+
+    def _int_reply(self, text: str, reply: str) -> int:
+        try:
+            return int(float(reply))
+        except ValueError as e:
+            raise DmmReplyError(f"{self.name}: {text!r} replied {reply!r}", command=text,
+                                reply=reply.encode()) from e
+
+    def close(self) -> None:
+        """Abort a record still armed (best effort), then close the link."""
+        if self._armed_real_s is not None and self.is_open:
+            try:
+                self.write(self.words.abort.text(), check=False)
+            except InstrumentError:
+                pass
+        self._armed_real_s = None
+        super().close()
