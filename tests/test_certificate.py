@@ -203,11 +203,14 @@ def test_conformity_states_rule_fail_and_capability(ladder: dict[str, Any]) -> N
     assert "guarded acceptance with a guard band equal to U" in conf
     assert "RMG 63-2003" in conf
     assert "FAIL: 2 of 7 checks" in _flat(ladder["texts"][0])
+    # the procedure's bands: 1e-5 below 10 deg/s, 1e-6 from 10 deg/s
+    assert "per-turn rate error |δ| |ω_set| < 10 °/s 10 ppm (0.001 %)" in conf
+    assert "per-turn rate error |δ| |ω_set| ≥ 10 °/s 1 ppm (0.0001 %)" in conf
     # check 3: +1.42 ppm against 1 ppm: out of tolerance
-    assert re.search(r"\+50 per-turn rate error \|δ\| \+1\.42 ± 0\.11 ppm 1\.00 ppm 0\.11 met "
+    assert re.search(r"\+50 per-turn rate error \|δ\| \+1\.42 ± 0\.11 ppm 1 ppm 0\.11 met "
                      r"FAIL\b", conf)
     # check 4: 0.95 + 0.10 > 1 ppm although 0.95 < 1: the guard band refuses it
-    assert re.search(r"\+0\.95 ± 0\.10 ppm 1\.00 ppm 0\.10 met FAIL \(guard band\)", conf)
+    assert re.search(r"\+0\.95 ± 0\.10 ppm 1 ppm 0\.10 met FAIL \(guard band\)", conf)
     assert "Check 4: FAIL (guard band): |δ| ≤ T but |δ| + U > T" in conf
     # check 6: U/T = 3.5e-7 / 1e-6 = 0.35 > 0.3: capability rule not met, still a pass
     assert re.search(r"0\.35 not met PASS", conf)

@@ -130,12 +130,18 @@ def _text(value: Any) -> str:
     if value is None or value == "":
         return NOT_RECORDED
     if isinstance(value, float):
-        return format_sig(value, 6).rstrip("0").rstrip(".") if value % 1 else f"{value:g}"
+        return f"{value:.6g}"
     if isinstance(value, list | tuple):
         return ", ".join(_text(v) for v in value)
     if isinstance(value, dict):
         return "; ".join(f"{k}: {_text(v)}" for k, v in value.items())
     return str(value).replace("+/-", "±")
+
+
+def _trim(x: float) -> str:
+    """A stated limit as written (1e-5 -> '0.00001'), no invented trailing zeros."""
+    s = format_sig(x, 6)
+    return s.rstrip("0").rstrip(".") if "." in s and "e" not in s else s
 
 
 def _rate(x: Any) -> str:
@@ -220,6 +226,8 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
     stand = _stand(src)
     subtitle = f"{stand.get('maker', '')} {stand.get('model', '')}, serial " \
                f"{stand.get('serial', NOT_RECORDED)}".strip()
+    if stand.get("simulated"):
+        subtitle += " (SIMULATED stand)"
     return Document(
         cert_id=cid,
         title="Calibration certificate",
@@ -292,20 +300,25 @@ def _identification(src: Sources, cid: str, issue: str, kind: str,
     ]
     if stand.get("location"):
         rows.append(("Location of the item", _text(stand["location"])))
+    if stand.get("simulated"):
+        rows.append(("Nature of the item", "SIMULATED stand (instrument twins on real "
+                     "channels): these results describe no physical table"))
     rows += [
         ("Procedure", {"rate-ladder": "rate ladder (METHOD.md part A)",
                        "drift-pulse": "drift by alternating-sign pulses (METHOD.md part B)"}
          .get(kind, kind)),
         ("Work started", _utc(started)),
-        ("Work completed", _utc(completed) if completed else "not completed"),
+        ("Work ended", (_utc(completed) + (" (aborted)" if src.get("aborted") else ""))
+         if completed else "not completed"),
         ("Date of issue", issue),
         ("Statement of conformity", _overall(src, checks)),
     ]
     skip = {"laboratory", "customer", "number", "id", "certificate_id", "prefix", "signers"}
     rows += [(_label(k), _text(v)) for k, v in cert.items() if k not in skip]
     blocks: list[Any] = [Fields(tuple(rows))]
-    blocks.append(Para(f"Software: ratebench {bench.__version__}. Run directory: "
-                       f"{src.run_path.name if src.run_path else NOT_RECORDED}.", "note"))
+    run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else NOT_RECORDED)
+    blocks.append(Para(f"Software: ratebench {bench.__version__}. Run directory: {run_dir}.",
+                       "note"))
     return tuple(blocks)
 
 
@@ -387,7 +400,8 @@ def _method(src: Sources, kind: str) -> tuple[Any, ...]:
     blocks: list[Any] = list(methods.B_TEXT if kind == "drift-pulse" else methods.A_TEXT)
     method = src.get("method", {}) or {}
     rows = [("Procedure file", _text(name)), ("Procedure file SHA-256", _text(sha))]
-    rows += [(_label(k), _text(v)) for k, v in method.items()]
+    rows += [(_label(k), _text(v)) for k, v in method.items()
+             if k not in ("decision_rule", "tolerance")]
     rows.append(("Decision rule", _rule_name(src.get("decision_rule"))))
     blocks.append(Fields(tuple(rows)))
     return tuple(blocks)
@@ -518,7 +532,7 @@ def _ladder_results(src: Sources, number: str, checks: list[dict[str, Any]]
     out = [Section(number, "Results", (Para(
         "Per axis, commanded rate and direction. Each value is followed by its expanded "
         "uncertainty U (k = 2, about 95 %). Signed rates: + is the table's positive sense."),),
-        new_page=True)]
+        )]
     sub = 0
     for axis, ax in axes.items():
         rates = [r for r in ax.get("rates", []) if isinstance(r, dict)]
@@ -577,7 +591,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
         ("Set rate, °/s", "Turns", "Mean rate ± U, °/s",
          f"Rate error δ ± U, {err_unit.name}", f"Instability σ ± U, {inst_unit.name}",
          f"Timing floor of σ, {inst_unit.name}", "Verdict"),
-        tuple(rows), widths=(1.0, 0.6, 2.3, 1.9, 1.9, 1.2, 1.0), align="rcrrrrc",
+        tuple(rows), widths=(0.9, 0.6, 2.8, 1.8, 1.8, 1.1, 0.9), align="rcrrrrc",
         caption=f"Axis {axis}: per-turn rate error and instability (METHOD.md A1-A2, eqs. 1-2)",
         notes=tuple(notes)))
     png = plots.per_turn(axis, rates, _tolerances(checks, axis),
@@ -638,8 +652,9 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
         if m:
             w = abs(_num(r.get("set_rate_dps")) or 0.0)
             a, au = _num(m.get("amplitude_dps")), _num(m.get("amplitude_u_dps"))
+            quiet = " (not significant)" if m.get("detected") is False else ""
             mains_rows.append((_rate(r.get("set_rate_dps")), _text(m.get("frequency_hz")),
-                               _vu(a, au),
+                               _vu(a, au) + quiet,
                                format_value_u(a / w if a is not None and w else None,
                                               au / w if au is not None and w else None,
                                               PERCENT.scale).joined(),
@@ -722,7 +737,8 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
     sources = {str((r.get("intra_turn") or {}).get("floor_source")) for r in rates
                if (r.get("intra_turn") or {}).get("floor_source")}
     if floor or sources:
-        noise = _num(floor.get("noise_dps", floor.get("sigma_dps")))
+        noise = _num(floor.get("noise_dps", floor.get("sigma_dps",
+                                                        floor.get("sample_std_dps"))))
         text = "FOG noise floor from " + (", ".join(sorted(sources)) if sources else
                                           str(floor.get("source", "a record at rest")))
         if noise is not None:
@@ -753,7 +769,7 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
                          format_value_u(a.floor, None, unit.scale, sig_without_u=2).value
                          if a.floor is not None else "—",
                          format_value_u(a.corrected, None, unit.scale, sig_without_u=2).value
-                         if a.corrected is not None else "not resolved",
+                         if a.corrected else "not resolved",
                          unit.name, _text(a.blocks)))
         notes = ["Standard deviation of the random part averaged over consecutive windows of "
                  "the stated table angle, relative to |ω_set|: comparable with a rate-table "
@@ -787,6 +803,10 @@ def _across_axes(axes: Mapping[str, Any]) -> list[Any]:
                        for a, ax in axes.items()})
     if png:
         blocks.append(Figure(png, "FOG scale k and bias ω0 per ± pair (METHOD.md A3)"))
+    png = plots.allan({a: ax.get("noise_floor") or {} for a, ax in axes.items()})
+    if png:
+        blocks.append(Figure(png, "Allan deviation of the FOG at rest: its noise floor "
+                                  "(METHOD.md A5)", width_frac=0.8))
     return blocks
 
 
@@ -909,7 +929,7 @@ def _drift_results(src: Sources, number: str) -> list[Section]:
             if png:
                 blocks.append(Figure(png, f"Axis {axis}: U(t) and the integrator output over "
                                           "one cycle"))
-    return [Section(number, "Results", tuple(blocks), new_page=True)]
+    return [Section(number, "Results", tuple(blocks))]
 
 
 # -- conformity, records, signatures -------------------------------------------------------
@@ -935,6 +955,9 @@ def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
         "Measurement capability (RMG 63-2003): the expanded uncertainty of a check should not "
         f"exceed 0.2-0.3 of its tolerance; a ratio U/T ≤ {CAPABILITY_LIMIT:g} is marked met.",
         "body")]
+    tol = (src.get("method", {}) or {}).get("tolerance") or src.procedure_file.get("tolerance")
+    if isinstance(tol, Mapping) and tol:
+        blocks.append(_tolerance_table(tol))
     if not checks:
         blocks.append(Para("The procedure states no tolerances: no conformity checks were "
                            "made and no statement of conformity is given for individual "
@@ -950,14 +973,14 @@ def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
         ok = c.get("capability_ok")
         if ok is None and ratio is not None:
             ok = ratio <= CAPABILITY_LIMIT
-        cap = "—" if ratio is None else f"{ratio:.2f} " + ("met" if ok else "not met")
+        cap = "—" if ratio is None else f"{format_sig(ratio, 2)} " + ("met" if ok else "not met")
         inside = value is not None and tol is not None and abs(value) <= tol
         label = verdict_label(c.get("verdict"), str(c.get("rule") or rule), inside)
         quantity = QUANTITY_NAMES.get(str(c.get("quantity")), _text(c.get("quantity")))
         rows.append((str(i), _text(c.get("axis")), _rate(c.get("set_rate_dps")), quantity,
                      _vu(value, u, unit, signed=c.get("quantity") == "rate_error")
                      + f" {unit.name}",
-                     (format_sig(tol * unit.scale, 3) + f" {unit.name}") if tol else "—",
+                     f"{_trim(tol * unit.scale)} {unit.name}" if tol else "—",
                      cap, label))
         if label != "PASS" and c.get("reason"):
             notes.append(f"Check {i}: {label}: {c['reason']}")
@@ -969,6 +992,31 @@ def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
                         caption="Conformity with the procedure's tolerances",
                         notes=tuple(notes)))
     return tuple(blocks)
+
+
+def _tolerance_table(tol: Mapping[str, Any]) -> Table:
+    """The procedure's tolerance bands (a band applies below its `below_dps`, in order)."""
+    rows = []
+    for quantity, bands in tol.items():
+        lo = 0.0
+        for band in bands if isinstance(bands, list) else []:
+            below, rel = _num(band.get("below_dps")), _num(band.get("rel"))
+            if below is not None:
+                where = (f"{lo:g} ≤ |ω_set| < {below:g} °/s" if lo else
+                         f"|ω_set| < {below:g} °/s")
+                lo = below
+            else:
+                where = f"|ω_set| ≥ {lo:g} °/s" if lo else "every rate"
+            if rel is None:
+                continue
+            unit = rel_unit(rel)
+            text = f"{_trim(rel * unit.scale)} {unit.name}"
+            if unit is not PERCENT:
+                text += f" ({_trim(rel * 100)} %)"
+            rows.append((QUANTITY_NAMES.get(quantity, _label(quantity)), where, text))
+    return Table(("Quantity", "Applies to", "Tolerance T"), tuple(rows),
+                 widths=(2.5, 2.5, 2.0), align="llr",
+                 caption="Tolerances stated in the procedure file (the table maker's claims)")
 
 
 def _records(src: Sources) -> tuple[Any, ...]:

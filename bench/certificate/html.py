@@ -10,7 +10,7 @@ import jinja2
 
 from bench.certificate.model import Document, Fields, Figure, Para, Signatures, Table
 
-BAD_PREFIXES = ("FAIL", "NOT MET", "INCOMPLETE")
+BAD_PREFIXES = ("FAIL", "NOT MET", "INCOMPLETE", "SIMULATED")
 
 
 def is_bad(cell: str) -> bool:

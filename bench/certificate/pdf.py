@@ -140,7 +140,10 @@ class _Pdf(FPDF):
         w = self.text_w * fig.width_frac
         h = w * h_px / w_px
         room = self.h - self.b_margin - self.get_y()
-        if h + 9 > room:
+        if h + 9 > room and 0.7 * h + 9 <= room:  # shrink a little rather than leave a gap
+            h = room - 9
+            w = h * w_px / h_px
+        elif h + 9 > room:
             self.add_page()
             room = self.h - self.b_margin - self.get_y()
         if h + 9 > room:  # taller than a page: shrink to fit

@@ -261,6 +261,26 @@ def pairs(axes: Mapping[str, Sequence[Mapping[str, Any]]]) -> bytes | None:
     return _png(fig)
 
 
+def allan(floors: Mapping[str, Mapping[str, Any]]) -> bytes | None:
+    """Allan deviation of each axis's static FOG record, with a white-noise slope guide."""
+    curves = {a: (np.asarray(f.get("allan_tau_s") or [], dtype=float),
+                  np.asarray(f.get("allan_dev_dps") or [], dtype=float))
+              for a, f in floors.items() if f}
+    curves = {a: c for a, c in curves.items() if c[0].size > 1 and c[0].size == c[1].size}
+    if not curves:
+        return None
+    fig, (ax,) = _fig(1, height_in=2.8)
+    for i, (axis, (tau, adev)) in enumerate(curves.items()):
+        ax.loglog(tau, adev, "o-", color=f"C{i}", ms=3, lw=1, label=f"axis {axis}")
+        ax.loglog(tau, adev[0] * np.sqrt(tau[0] / tau), ":", color=f"C{i}", lw=0.8,
+                  label=f"white noise, τ^-1/2 from the first point ({axis})")
+    ax.set_xlabel("averaging time τ, s", fontsize=8)
+    ax.set_ylabel("Allan deviation, °/s", fontsize=8)
+    ax.set_title("FOG at rest: Allan deviation", fontsize=9)
+    ax.legend(fontsize=7)
+    return _png(fig)
+
+
 def drift_cycle(axis: str, cycle: Mapping[str, Any]) -> bytes | None:
     """U(t) of the angle sensor and the signed integrator output over one cycle."""
     t = np.asarray(cycle.get("t_s", []), dtype=float)

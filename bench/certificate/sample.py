@@ -157,7 +157,10 @@ def rate_ladder_result() -> dict[str, Any]:
                         "customer": "Demo customer"},
         "decision_rule": "guard-band",
         "method": {"sequence": "+-+", "harmonics": 3, "mains_hz": 50.0,
-                   "static_record_s": 30.0, "turns": 4},
+                   "static_record_s": 30.0, "turns": 4, "decision_rule": "guard-band",
+                   "tolerance": {"rate_error": [{"below_dps": 10, "rel": 1.0e-5},
+                                                {"rel": 1.0e-6}],
+                                 "rate_instability": [{"rel": 1.0e-5}]}},
         "raw_files": [{"path": p, "sha256": f"{i:02x}" * 32, "bytes": n}
                       for i, (p, n) in enumerate(files, start=1)],
         "sessions": 2,

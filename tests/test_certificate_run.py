@@ -1,0 +1,143 @@
+"""A real run on the simulated bench: the certificate against its result.json.
+
+A one-axis, one-rate ladder with a rate-error tolerance the simulated table cannot meet
+(its per-turn mean is about -0.08 ppm off: rate bias 0.3 ppm less a^2/2 of its 1/rev
+harmonic, a = 8.6e-4), so the run exits 1 and the certificate must say FAIL and why.
+The printed numbers are compared with result.json rounded by a reference written here,
+independent of bench.certificate.rounding.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pypdfium2 as pdfium
+import pypdfium2.raw as pdfium_c
+import pytest
+
+pytest.importorskip("procedures.rate_ladder_analysis")
+
+ROOT = Path(__file__).resolve().parent.parent
+MINUS = "\u2212"
+
+
+def _ref(value: float, u: float, scale: float = 1.0, signed: bool = False) -> str:
+    """GUM rounding by hand: U to two significant digits, the value to the same decimal."""
+    big_u = u * scale
+    decimals = 1 - math.floor(math.log10(big_u))
+    u_r = round(big_u, decimals)
+    if u_r >= 10 ** (2 - decimals):
+        decimals -= 1
+        u_r = round(big_u, decimals)
+    v = f"{value * scale:+.{decimals}f}" if signed else f"{value * scale:.{decimals}f}"
+    return f"{v.replace('-', MINUS)} ± {u_r:.{decimals}f}"
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    tmp = tmp_path_factory.mktemp("certrun")
+    proc = tmp / "mini.yaml"
+    proc.write_text(f"""\
+procedure: rate-ladder
+title: Mini ladder for the certificate test
+stand: {ROOT / 'configs' / 'stands' / 'sim-two-axis.yaml'}
+turns: 2
+static_record_s: 5
+harmonics: 2
+prompts: false
+axes:
+  outer:
+    rates_dps: [50]
+tolerance:
+  rate_error:
+    - {{rel: 5.0e-8}}
+  rate_instability:
+    - {{rel: 1.0e-5}}
+decision_rule: guard-band
+conditions: {{temperature_c: "20 +/- 2"}}
+certificate: {{laboratory: Test lab, customer: Test customer, number: T-0001}}
+""")
+    out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--out",
+                          str(tmp / "runs")], capture_output=True, text=True, timeout=120,
+                         cwd=ROOT)
+    run_dir = Path(out.stdout.strip().splitlines()[-1])
+    pdf = pdfium.PdfDocument(run_dir / "certificate.pdf")
+    texts, images = [], 0
+    for page in pdf:
+        assert page.render(scale=0.3).to_numpy().min() < 128
+        texts.append(page.get_textpage().get_text_range())
+        images += len(list(page.get_objects(filter=[pdfium_c.FPDF_PAGEOBJ_IMAGE])))
+    return {"status": out.returncode, "stderr": out.stderr, "dir": run_dir, "texts": texts,
+            "images": images, "result": json.loads((run_dir / "result.json").read_text()),
+            "html": (run_dir / "certificate.html").read_text(encoding="utf-8")}
+
+
+def _flat(texts: list[str]) -> str:
+    return re.sub(r"\s+", " ", "\n".join(texts))
+
+
+@pytest.mark.timeout(120)
+def test_run_fails_and_writes_both_files(run: dict[str, Any]) -> None:
+    assert run["status"] == 1, run["stderr"]
+    assert run["result"]["verdict"] == "fail"
+    assert (run["dir"] / "certificate.html").stat().st_size > 10_000
+
+
+def test_pages_sections_and_identity(run: dict[str, Any]) -> None:
+    texts = run["texts"]
+    for i, t in enumerate(texts, start=1):
+        assert f"Page {i} of {len(texts)}" in t and "Certificate No. T-0001" in t
+    text = _flat(texts)
+    for s in ("1 Identification", "3 Method", "4 Deviations", "5 Conditions", "6 Results",
+              "6.1 Axis outer", "7 Conformity", "8 Records", "Statements", "Authorisation",
+              "End of certificate T-0001", "SIMULATED stand", "Test lab", "Test customer",
+              "Keysight Technologies,53230A", "KVH DSP-1760", "results relate only to the item",
+              "without the square root"):
+        assert s in text, s
+    r = run["result"]
+    assert r["procedure_file"]["sha256"] in text
+    assert r["stand"]["serial"] in text
+
+
+def test_values_match_result_json(run: dict[str, Any]) -> None:
+    text = _flat(run["texts"])
+    ax = run["result"]["axes"]["outer"]
+    assert len(ax["rates"]) == 2
+    for r in ax["rates"]:
+        # relative values of this column are below 1e-4: ppm
+        assert _ref(r["rate_error_rel"], r["rate_error_u_rel"], 1e6, signed=True) in text
+        h1 = next(h for h in r["systematic"]["harmonics"] if h["order"] == 1)
+        assert _ref(h1["amplitude_rel"], h1["amplitude_u_rel"], 100) in text   # %
+    for p in ax["pairs"]:
+        assert _ref(p["k"], p["k_u"]) in text
+        assert _ref(p["w0_dps"], p["w0_u_dps"], signed=True) in text
+
+
+def test_failed_checks_explained(run: dict[str, Any]) -> None:
+    text = _flat(run["texts"])
+    conf = text[text.index("7 Conformity"):text.index("8 Records")]
+    assert "guarded acceptance with a guard band equal to U" in conf
+    failed = [c for c in run["result"]["checks"] if c["verdict"] == "fail"]
+    assert failed
+    for i, c in enumerate(run["result"]["checks"], start=1):
+        if c["verdict"] == "fail":
+            assert f"Check {i}: FAIL" in conf
+    assert conf.count(" FAIL") >= len(failed)
+    assert "FAIL: " in _flat(run["texts"][:1])
+
+
+def test_raw_hashes_and_plots(run: dict[str, Any]) -> None:
+    joined = "".join(run["texts"]).replace("\r", "").replace("\n", "")
+    files = run["result"]["raw_files"]
+    assert files
+    for f in files:
+        assert f["sha256"] in joined
+    # per-turn, systematic, 1/rev, intra-turn, k and w0, Allan deviation
+    assert run["images"] == 6
+    assert run["html"].count("data:image/png;base64,") == 6
