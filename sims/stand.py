@@ -97,6 +97,15 @@ class AxisTruth:
             fog=FogTruth(**d.get("fog", {})),
         )
 
+    def mean_turn_rate_rel(self) -> float:
+        """The per-turn rate's relative deviation from w_set that this truth implies.
+
+        A counter averages over a turn in time: 360 / T with T = integral dphi / w(phi),
+        the harmonic mean of w over angle, so harmonics lower it by ~ sum(a^2) / 2.
+        """
+        phi = np.arange(0.0, 360.0, 360.0 / 4096)
+        return float(1.0 / np.mean(1.0 / (1.0 + self.shape_rel(phi))) - 1.0)
+
     def shape_rel(self, phi_deg: np.ndarray) -> np.ndarray:
         """Relative deviation of the rate from w_set at angle phi: bias + harmonics."""
         out = np.full(np.shape(phi_deg), self.rate_bias_rel, dtype=float)
