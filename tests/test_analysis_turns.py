@@ -54,9 +54,11 @@ def test_rate_error_instability_and_u_by_hand():
     # eq. 2 with the square root: relative standard deviation
     assert r.rate_instability_rel == pytest.approx(
         np.sqrt(np.sum((rates - rates.mean()) ** 2) / 4) / abs(rates.mean()), rel=1e-9)
-    # U: each window's two end edges, and the timebase (rectangular), k = 2
+    # U: each window's two end edges, the timebase (rectangular) and the turn-to-turn
+    # repeatability (eq. 2 / sqrt(N)), k = 2
     timing = math.sqrt(2 * 2) * 27e-9 / periods.sum()
-    u = math.hypot(timing, 2e-8 / math.sqrt(3))
+    repeat = r.rate_instability_rel / math.sqrt(5)
+    u = math.sqrt(timing ** 2 + (2e-8 / math.sqrt(3)) ** 2 + repeat ** 2)
     assert r.rate_error_u_rel == pytest.approx(2 * u, rel=1e-9)
     d = r.to_dict()
     assert d["set_rate_dps"] == -50.0 and d["turns"] == 5

@@ -246,6 +246,8 @@ def noise_inflation(fits: Sequence[DirectionFit], block_deg: float) -> NoiseInfl
     num, den, blocks = 0.0, 0.0, 0
     for fit in fits:
         s2 = fit.sigma_dps ** 2
+        if s2 == 0:            # a noise-free record: nothing to inflate
+            continue
         for w, ws in enumerate(fit.sums):
             cols = block_sums(bin_columns(ws), ws, block_deg)
             r = block_sums(bin_residuals(ws, fit.row_coef(w)), ws, block_deg)

@@ -17,6 +17,11 @@ per-turn periods share edges, so their errors are negatively correlated and aver
 periods does not beat the two-edge figure (METHOD.md A1; the paper's per-period error
 budget dT applies to each per-turn rate, not to the mean).
 
+U (k = 2) of the rate error combines: the timing of each window's two end edges, the
+counter's timebase (rectangular), and a Type A repeatability term, eq. 2's relative std
+over sqrt(N): the certificate states the table's rate error, of which these N turns are
+one sample, not only how well these N turns were timed.
+
 The counter sees |T|: the sign of every rate is the sign of the command (METHOD.md A1).
 """
 
@@ -126,6 +131,7 @@ class TurnsResult:
     timing_u_rel: float                # standard, from the windows' end edges
     timebase_u_rel: float              # standard, common to every rate
     budget: CounterBudget
+    repeatability_u_rel: float = 0.0   # standard, Type A: instability / sqrt(N)
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -139,6 +145,7 @@ class TurnsResult:
             "rate_instability_floor_rel": self.rate_instability_floor_rel,
             "rate_error_budget": {"timing_u_rel": self.timing_u_rel,
                                   "timebase_u_rel": self.timebase_u_rel,
+                                  "repeatability_u_rel": self.repeatability_u_rel,
                                   "coverage_factor": 2.0, **self.budget.to_dict()},
         }
 
@@ -166,13 +173,18 @@ def analyze_turns(windows: Sequence[np.ndarray], set_rate_dps: float,
     mean = sign * FULL_TURN_DEG * n_turns / total_s
     err = (mean - set_rate_dps) / set_rate_dps
     timing_u_rel = math.sqrt(len(edges)) * budget.period_u_s / total_s
-    u = math.hypot(timing_u_rel, budget.timebase_u_rel)
     # METHOD.md A2, eq. 2 with the square root the paper's print lost
     instab = (float(np.std(rates, ddof=1) / abs(np.mean(rates))) if n_turns >= 2 else None)
+    # Type A: the table's own turn-to-turn scatter makes the mean of N turns uncertain as
+    # an estimate of the table's rate error (sigma / sqrt(N)); the timing terms only say
+    # how well these particular N turns were timed
+    repeat_u_rel = instab / math.sqrt(n_turns) if instab is not None else 0.0
+    u = math.sqrt(timing_u_rel ** 2 + budget.timebase_u_rel ** 2 + repeat_u_rel ** 2)
     floor = budget.period_u_s * n_turns / total_s  # dT / T per turn (METHOD.md A1)
     return TurnsResult(
         set_rate_dps=float(set_rate_dps), turns=n_turns,
         counter_rate_dps=tuple(float(r) for r in rates), mean_rate_dps=float(mean),
         rate_error_rel=float(err), rate_error_u_rel=2.0 * u, rate_instability_rel=instab,
         rate_instability_floor_rel=float(floor), timing_u_rel=float(timing_u_rel),
-        timebase_u_rel=budget.timebase_u_rel, budget=budget)
+        timebase_u_rel=budget.timebase_u_rel, budget=budget,
+        repeatability_u_rel=float(repeat_u_rel))
