@@ -250,10 +250,10 @@ class ErrorEntry:
 
 def parse_numbers(text: str) -> np.ndarray:
     """A comma-separated list of SCPI numbers (NR1/NR2/NR3, `+1.0E-006` too)."""
-    parts = [p.strip() for p in text.strip().split(",")]
-    if not parts or any(not p for p in parts):
+    parts = text.strip().split(",")
+    if any(not p.strip() for p in parts):
         raise ValueError(f"empty field in {text[:80]!r}")
-    return np.array([float(p) for p in parts])
+    return np.asarray(parts, dtype=float)  # numpy parses the strings (and refuses junk)
 
 
 # -- errors ---------------------------------------------------------------------------------

@@ -134,7 +134,7 @@ class ScpiServer:
         self._inbox: collections.deque[str] = collections.deque()
         self._buffer = bytearray()
         self.route(IDN, on_query=lambda a: self.idn)
-        self.route(RST, on_set=lambda a: self._do_reset())
+        self.route(RST, on_set=lambda a: self.reset())
         self.route(CLS, on_set=lambda a: self.clear_status())
         self.route(OPC_Q, on_query=self._opc_query)
         self.route(OPC, on_set=self._opc)
@@ -358,9 +358,6 @@ class ScpiServer:
         return None
 
     # -- common commands ------------------------------------------------------------------
-    def _do_reset(self) -> None:
-        self.reset()
-
     def _opc(self, args: Mapping[str, str]) -> None:
         with self._lock:
             self._opc_pending = True
