@@ -284,3 +284,20 @@ def test_contract_keys_only_and_raw_files_hashed_from_the_run(tmp_path: Path) ->
     assert "0.15 ± 0.15*" in text
     assert "+0.13 ± 0.20" in text
     assert sum(images) >= 4
+
+
+@pytest.mark.timeout(60)
+def test_aborted_run_is_incomplete_and_says_why(tmp_path: Path) -> None:
+    from bench.certificate.build import build_document
+    from bench.certificate.html import render_html
+
+    result = {"schema": "bench.result/1", "verdict": "incomplete", "aborted": True,
+              "sessions": 1, "axes": {}, "checks": [],
+              "dates": {"started_utc": "2025-03-04T08:00:00+00:00",
+                        "completed_utc": "2025-03-04T08:30:00+00:00"}}
+    html = render_html(build_document(result, None, ISSUED))
+    assert "Result: INCOMPLETE" in html
+    assert "2025-03-04 08:30:00 UTC (aborted)" in html
+    assert "the run did not complete every step" in html
+    assert "The run was aborted before every step was done" in html
+    assert "no conformity checks were made" in html
