@@ -1,4 +1,5 @@
-"""One rate-table axis: a CiA 402 servo drive on CANopen, in profile velocity mode.
+"""One rate-table axis: a CiA 402 servo drive on CANopen, in profile velocity mode (and
+profile position mode for a turn to an angle, `move_to`).
 
 The same code drives a real drive and the drive twin (sims/drive_twin.py): it talks
 CANopen through the `canopen` package over python-can, and takes the bus from the
@@ -49,6 +50,7 @@ from drivers.cia402 import (
     DEFAULT_EDS_PATH,
     HEARTBEAT_LOST,
     NMT_STATE_OPERATIONAL,
+    PROFILE_POSITION,
     PROFILE_VELOCITY,
     Command,
     Cw,
@@ -62,6 +64,7 @@ from drivers.cia402 import (
     path,
     transition,
     unwrap_int32,
+    wrap_int32,
 )
 
 log = logging.getLogger(__name__)
@@ -74,6 +77,8 @@ REAL_MARGIN_S = 1.0
 STATE_TIMEOUT_S = 1.0
 #: SDO response timeout, real seconds (canopen's 0.3 s is short on a loaded host)
 SDO_TIMEOUT_S = 1.0
+#: |velocity actual| below which a drive in a mode without a speed-zero bit is at rest
+STANDSTILL_DPS = 1e-3
 
 
 class AxisError(RuntimeError):
@@ -90,6 +95,10 @@ class ObjectRefused(AxisError):
 
 class AxisTimeout(AxisError, TimeoutError):
     """A wait (settling, standstill, state change) did not finish in time."""
+
+
+class PositionError(AxisError):
+    """A move ended, but not within the position tolerance of its target."""
 
 
 class DriveFault(AxisError):
@@ -140,7 +149,8 @@ class Axis:
                  eds_path: str | Path = DEFAULT_EDS_PATH, heartbeat_ms: int = 50,
                  watchdog_ms: int | None = None, controller_node_id: int = 0x7F,
                  accel_dps2: float | None = None, bitrate: int | None = None,
-                 feedback_journal_s: float = 0.1, raw: RawSink | None = None) -> None:
+                 feedback_journal_s: float = 0.1, position_tolerance_deg: float = 0.01,
+                 raw: RawSink | None = None) -> None:
         self.name = name
         self.interface = interface
         self.channel = channel
@@ -157,6 +167,10 @@ class Axis:
                                 float(accel_unit_counts_per_s2))
         self.max_rate_dps = float(max_rate_dps)
         self.max_accel_dps2 = float(max_accel_dps2)
+        if not position_tolerance_deg > 0:
+            raise ValueError(f"axis {name} drive: position_tolerance_deg must be > 0, "
+                             f"got {position_tolerance_deg}")
+        self.position_tolerance_deg = float(position_tolerance_deg)
         self.heartbeat_ms = int(heartbeat_ms)
         self.watchdog_ms = watchdog_ms
         self.controller_node_id = int(controller_node_id)
@@ -511,6 +525,8 @@ class Axis:
         state = self._read_state()
         if state is State.OPERATION_ENABLED:
             self._write(Od.TARGET_VELOCITY, 0)
+            if self.mode is not PROFILE_VELOCITY:  # e.g. mid-move: PV at zero takes over
+                self._select_mode(PROFILE_VELOCITY)
             with self._lock:
                 self._target_dps = 0.0
             self._journal("command", rate_dps=0.0, sent_dps=0.0, velocity_units=0,
@@ -547,9 +563,81 @@ class Axis:
             v = abs(self._feedback.velocity_dps) if self._feedback else self.max_rate_dps
         ramp_s = v / max(decel_dps2, 1e-9)
         timeout = ramp_s / self.clock.speed + REAL_MARGIN_S + 5 * self._tpdo_period_s
+        bit = self.mode.speed_zero_bit
+        if bit is None:  # this mode's statusword has no speed-zero bit: velocity actual
+            self._wait_real(lambda: self._seq > seq0 and self._feedback is not None
+                            and abs(self._feedback.velocity_dps) <= STANDSTILL_DPS,
+                            timeout, "standstill (velocity actual)", check=False)
+            return
         self._wait_real(lambda: self._seq > seq0 and self._statusword is not None
-                        and bool(self._statusword & Sw.SPEED_ZERO),
+                        and bool(self._statusword & bit),
                         timeout, "standstill (statusword bit 12)", check=False)
+
+    # -- profile position ------------------------------------------------------------------
+    def move_to(self, position_deg: float, rate_dps: float, accel_dps2: float | None = None,
+                tolerance_deg: float | None = None) -> float:
+        """Turn to an absolute position (deg, the drive's position actual) in profile
+        position mode (0x6060 = 1, target 0x607A, cruise rate 0x6081) and wait there.
+
+        Refused unless at rest and enabled. Returns the position actual at arrival;
+        raises `PositionError` if it is not within `tolerance_deg` (default: the stand's
+        position tolerance) of the target, `DriveFault` on a fault during the move.
+        Afterwards the drive stays in profile position mode, holding; `set_rate` and
+        `stop` go back to profile velocity.
+        """
+        position_deg, rate_dps = float(position_deg), float(rate_dps)
+        accel = self.accel_dps2 if accel_dps2 is None else float(accel_dps2)
+        tol = self.position_tolerance_deg if tolerance_deg is None else float(tolerance_deg)
+        if not math.isfinite(position_deg):
+            raise LimitError(f"axis {self.name}: target position {position_deg} deg is not "
+                             f"a finite number (nothing was sent)")
+        if not rate_dps > 0:
+            raise LimitError(f"axis {self.name}: a move needs a rate > 0, got {rate_dps:g} "
+                             f"deg/s (nothing was sent)")
+        self._check_rate(rate_dps)
+        self._check_accel(accel)
+        self.check()
+        if self.state is not State.OPERATION_ENABLED:
+            raise AxisError(f"axis {self.name}: cannot move, the drive is in "
+                            f"{self.state.label if self.state else 'an unknown state'}")
+        start = self.feedback
+        if abs(start.velocity_dps) > STANDSTILL_DPS or self.target_dps != 0.0:
+            raise AxisError(f"axis {self.name}: a move starts from rest; stop first "
+                            f"(velocity actual {start.velocity_dps:.6g} deg/s)")
+        counts = self.units.deg_to_counts(position_deg)
+        self._select_mode(PROFILE_POSITION)
+        self._send_accel(accel)
+        self._write(Od.PROFILE_VELOCITY_PP, self.units.dps_to_velocity(rate_dps))
+        self._write(Od.TARGET_POSITION, wrap_int32(counts))
+        self._journal("move", target_deg=position_deg, from_deg=start.position_deg,
+                      rate_dps=rate_dps, accel_dps2=accel, tolerance_deg=tol)
+        enable = Command.ENABLE_OPERATION.word
+        self._write(Od.CONTROLWORD, enable | Cw.NEW_SET_POINT | Cw.CHANGE_SET_IMMEDIATELY)
+        self._wait_real(lambda: self._statusword is not None
+                        and bool(self._statusword & Sw.SET_POINT_ACKNOWLEDGE),
+                        STATE_TIMEOUT_S + 5 * self._tpdo_period_s,
+                        "the drive to acknowledge the new position (statusword bit 12)")
+        self._write(Od.CONTROLWORD, enable)
+        dist = abs(position_deg - start.position_deg)
+        move_s = dist / rate_dps + rate_dps / self._decel_dps2 + rate_dps / accel
+        with self._lock:
+            seq0 = self._seq
+
+        def arrived() -> bool:  # in fresh TPDOs: target reached, and at rest
+            f, sw = self._feedback, self._statusword
+            return (self._seq > seq0 + 1 and f is not None and sw is not None
+                    and bool(sw & Sw.TARGET_REACHED) and abs(f.velocity_dps) <= STANDSTILL_DPS)
+
+        self._wait_real(arrived, 1.5 * move_s / self.clock.speed + REAL_MARGIN_S
+                        + 5 * self._tpdo_period_s, f"the move to {position_deg:g} deg")
+        final = self.position_deg
+        self._journal("moved", target_deg=position_deg, position_deg=final,
+                      error_deg=final - position_deg)
+        if abs(final - position_deg) > tol:
+            raise PositionError(f"axis {self.name}: the move to {position_deg:g} deg ended at "
+                                f"{final:.6f} deg, {final - position_deg:+.6f} deg off, outside "
+                                f"the position tolerance {tol:g} deg")
+        return final
 
     # -- readings ---------------------------------------------------------------------
     @property

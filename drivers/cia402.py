@@ -49,12 +49,16 @@ class Od(IntEnum):
     MODES_OF_OPERATION = 0x6060
     MODES_OF_OPERATION_DISPLAY = 0x6061
     POSITION_ACTUAL = 0x6064  # position units (counts here)
+    POSITION_WINDOW = 0x6067  # position units; statusword bit 10 in PP
+    POSITION_WINDOW_TIME = 0x6068  # ms
     VELOCITY_ACTUAL = 0x606C  # velocity units
     VELOCITY_WINDOW = 0x606D  # velocity units; statusword bit 10 in PV
     VELOCITY_WINDOW_TIME = 0x606E  # ms
     VELOCITY_THRESHOLD = 0x606F  # velocity units; statusword bit 12 in PV
     VELOCITY_THRESHOLD_TIME = 0x6070  # ms
+    TARGET_POSITION = 0x607A  # position units; taken on controlword bit 4 in PP
     MAX_PROFILE_VELOCITY = 0x607F
+    PROFILE_VELOCITY_PP = 0x6081  # velocity units; the cruise rate of a PP move
     PROFILE_ACCELERATION = 0x6083  # acceleration units
     PROFILE_DECELERATION = 0x6084
     QUICK_STOP_DECELERATION = 0x6085
@@ -80,6 +84,9 @@ class Cw(IntEnum):
     ENABLE_VOLTAGE = 1 << 1
     QUICK_STOP = 1 << 2  # active low: 0 requests a quick stop
     ENABLE_OPERATION = 1 << 3
+    NEW_SET_POINT = 1 << 4  # profile position: take 0x607A on the rising edge
+    CHANGE_SET_IMMEDIATELY = 1 << 5  # profile position: abandon the move under way
+    RELATIVE = 1 << 6  # profile position: 0x607A relative to the present target
     FAULT_RESET = 1 << 7  # acts on its rising edge
     HALT = 1 << 8
 
@@ -129,9 +136,10 @@ class Sw(IntEnum):
     SWITCH_ON_DISABLED = 1 << 6
     WARNING = 1 << 7
     REMOTE = 1 << 9
-    TARGET_REACHED = 1 << 10
+    TARGET_REACHED = 1 << 10  # PV: velocity in 0x606D; PP: position in 0x6067, at rest
     INTERNAL_LIMIT = 1 << 11
     SPEED_ZERO = 1 << 12  # profile velocity mode: |velocity| <= 0x606F for 0x6070 ms
+    SET_POINT_ACKNOWLEDGE = 1 << 12  # profile position mode: the same bit, another meaning
     MAX_SLIPPAGE = 1 << 13
 
 
@@ -281,11 +289,19 @@ class AbortReaction(Enum):
 
 @dataclass(frozen=True)
 class Mode:
-    """One mode of operation: its 0x6060 code and the object that carries its set-point."""
+    """One mode of operation: its 0x6060 code and the object that carries its set-point.
+
+    `setpoint_on_write`: a write of the target starts the motion (PV); otherwise the
+    rising edge of controlword bit 4 does (PP). `speed_zero_bit`: the statusword bit
+    that shows standstill in this mode, or None where bit 12 means something else (PP:
+    set-point acknowledge) and standstill is read from velocity actual.
+    """
 
     code: int
     name: str
     target: Od
+    setpoint_on_write: bool = True
+    speed_zero_bit: int | None = Sw.SPEED_ZERO
 
     @property
     def supported_bit(self) -> int:
@@ -294,10 +310,12 @@ class Mode:
 
 
 PROFILE_VELOCITY = Mode(3, "profile velocity", Od.TARGET_VELOCITY)
+PROFILE_POSITION = Mode(1, "profile position", Od.TARGET_POSITION,
+                        setpoint_on_write=False, speed_zero_bit=None)
 
 #: every mode the project knows, by 0x6060 code (another mode is one more entry here and
 #: one more handler in the twin)
-MODES: dict[int, Mode] = {m.code: m for m in (PROFILE_VELOCITY,)}
+MODES: dict[int, Mode] = {m.code: m for m in (PROFILE_VELOCITY, PROFILE_POSITION)}
 
 
 # -- emergency codes (CiA 301 / CiA 402) ------------------------------------------

@@ -37,6 +37,7 @@ from drivers.cia402 import (
     HEARTBEAT_LOST,
     INT32_MAX,
     MODES,
+    PROFILE_POSITION,
     PROFILE_VELOCITY,
     QUICK_STOP_OPTIONS,
     SLOW_DOWN_OPTIONS,
@@ -65,6 +66,8 @@ ABORT_VALUE_TOO_LOW = 0x06090032
 ABORT_DEVICE_STATE = 0x08000022
 
 UINT16_MAX = 0xFFFF
+#: profile position: how many times the twin's position loop re-aims after a move
+PP_MAX_CORRECTIONS = 5
 
 #: objects whose value the twin computes when read (SDO or TPDO)
 _LIVE = frozenset({Od.STATUSWORD, Od.MODES_OF_OPERATION_DISPLAY, Od.POSITION_ACTUAL,
@@ -99,6 +102,7 @@ class DriveTwin:
                  max_accel_dps2: float = 1000.0, max_decel_dps2: float = 2000.0,
                  profile_accel_dps2: float = 200.0, quick_stop_decel_dps2: float = 1000.0,
                  standstill_dps: float = 0.001, coast_decel_dps2: float = 20.0,
+                 position_window_deg: float = 0.001, pp_velocity_dps: float = 10.0,
                  serial_number: int = 0) -> None:
         if not 1 <= node_id <= 127:
             raise ValueError(f"drive twin node_id must be 1..127, got {node_id}")
@@ -133,6 +137,10 @@ class DriveTwin:
                                                     accel, UINT32_MAX),
             (Od.QUICK_STOP_DECELERATION, 0): self._fit("quick_stop_decel_dps2",
                                                        quick_stop_decel_dps2, accel, UINT32_MAX),
+            (Od.POSITION_WINDOW, 0): self._fit("position_window_deg", position_window_deg,
+                                               self.units.deg_to_counts, UINT32_MAX),
+            (Od.PROFILE_VELOCITY_PP, 0): self._fit("pp_velocity_dps", pp_velocity_dps,
+                                                   velocity, UINT32_MAX),
             (Od.POSITION_ENCODER_RESOLUTION, 1): counts_per_rev,
             (Od.POSITION_ENCODER_RESOLUTION, 2): 1,
             (Od.CONSUMER_HEARTBEAT, 1): (controller_node_id << 16)
@@ -155,6 +163,10 @@ class DriveTwin:
         self._in_window_since: float | None = None
         self._speed_zero = True
         self._target_reached = False
+        self._set_point_ack = False           # PP: statusword bit 12
+        self._pp_target_deg: float | None = None
+        self._pp_corrections = 0
+        self._in_position_since: float | None = None
         # heartbeat consumer (0x1016:1): producer id, time, last reception (monotonic)
         self._hb_producer = 0
         self._hb_time_s = 0.0
@@ -168,7 +180,8 @@ class DriveTwin:
         self._tick_s = 0.01
         self._tpdo_last: dict[int, float] = {}
         #: mode code -> what entering Operation enabled or a new set-point does in it
-        self._mode_handlers = {PROFILE_VELOCITY.code: self._pv_follow_target}
+        self._mode_handlers = {PROFILE_VELOCITY.code: self._pv_follow_target,
+                               PROFILE_POSITION.code: self._pp_hold}
         self._initial[(Od.SUPPORTED_DRIVE_MODES, 0)] = sum(
             MODES[code].supported_bit for code in self._mode_handlers)
 
@@ -302,8 +315,11 @@ class DriveTwin:
             sw |= Sw.VOLTAGE_ENABLED
         if self._target_reached:
             sw |= Sw.TARGET_REACHED
-        if self._speed_zero:
-            sw |= Sw.SPEED_ZERO
+        zero_bit = MODES[self._mode].speed_zero_bit if self._mode in MODES else Sw.SPEED_ZERO
+        if zero_bit is not None and self._speed_zero:
+            sw |= zero_bit
+        if self._mode == PROFILE_POSITION.code and self._set_point_ack:
+            sw |= Sw.SET_POINT_ACKNOWLEDGE
         return sw
 
     def _on_write(self, index: int, subindex: int, od: Any, data: bytes) -> None:
@@ -315,7 +331,9 @@ class DriveTwin:
             elif index == Od.MODES_OF_OPERATION:
                 if value != 0 and value not in self._mode_handlers:
                     raise SdoAbortedError(ABORT_VALUE_RANGE)
-                self._mode = value
+                changed, self._mode = value != self._mode, value
+                if changed and value:  # the new mode takes over from its own set-point
+                    self._mode_handlers[value]()
             elif index == Od.TARGET_VELOCITY:
                 if abs(value) > self._get(Od.MAX_PROFILE_VELOCITY):
                     raise SdoAbortedError(ABORT_VALUE_TOO_HIGH)
@@ -330,13 +348,15 @@ class DriveTwin:
             elif index == Od.CONSUMER_HEARTBEAT and subindex == 1:
                 self._configure_consumer(value)
             mode = MODES.get(self._mode)
-            if mode is not None and index == mode.target:
+            if mode is not None and index == mode.target and mode.setpoint_on_write:
                 self._mode_handlers[mode.code](value)  # a new set-point of the active mode
 
     # -- state machine --------------------------------------------------------------
     def _on_controlword(self, cw: int) -> None:
         rising_reset = bool(cw & Cw.FAULT_RESET and not self._controlword & Cw.FAULT_RESET)
-        self._controlword = cw
+        previous, self._controlword = self._controlword, cw
+        if self._mode == PROFILE_POSITION.code:
+            self._pp_handshake(cw, previous)
         if rising_reset:
             if self._state is State.FAULT:
                 self._fault_reset()
@@ -423,6 +443,52 @@ class DriveTwin:
         self._command_profile(u.velocity_to_dps(target_units),
                               u.accel_to_dps2(self._get(Od.PROFILE_ACCELERATION)),
                               u.accel_to_dps2(self._get(Od.PROFILE_DECELERATION)))
+
+    def _pp_hold(self, target_units: int | None = None) -> None:
+        """Profile position on entry or enable: hold where the axis is (no set-point yet)."""
+        self._pp_target_deg = None
+
+    def _pp_handshake(self, cw: int, previous: int) -> None:
+        """PP set-point handshake: bit 4 rising takes 0x607A (ack on bit 12), falling clears."""
+        if not cw & Cw.NEW_SET_POINT:
+            self._set_point_ack = False
+            return
+        if previous & Cw.NEW_SET_POINT or self._state is not State.OPERATION_ENABLED \
+                or self._after_standstill is not None:
+            return
+        m = self.model
+        with m.lock:
+            t = self.clock.now()
+            m.advance_to(t)
+            if m.commanded_rate_at(max(t, m.t_s)) != 0.0:
+                return  # a move onto a moving axis is not modelled: no acknowledge
+            phi = m.angle_deg
+        target = self._get(Od.TARGET_POSITION)
+        here = wrap_int32(self.units.deg_to_counts(phi))
+        step = target if cw & Cw.RELATIVE else wrap_int32(target - here)
+        self._pp_move(phi, phi + self.units.counts_to_deg(step))
+        self._set_point_ack = True
+
+    def _pp_move(self, phi_deg: float, target_deg: float, correction: bool = False) -> None:
+        """A trapezoid (or triangle) from rest at phi to rest at the target, CiA 402 PP."""
+        if not correction:
+            self._pp_corrections = 0
+        u = self.units
+        v = u.velocity_to_dps(self._get(Od.PROFILE_VELOCITY_PP))
+        a = u.accel_to_dps2(self._get(Od.PROFILE_ACCELERATION))
+        d = u.accel_to_dps2(self._get(Od.PROFILE_DECELERATION))
+        dist = target_deg - phi_deg
+        self._pp_target_deg = target_deg
+        self._in_position_since = None
+        if dist == 0.0 or v <= 0.0:
+            return
+        peak = min(v, (2.0 * abs(dist) * a * d / (a + d)) ** 0.5)
+        cruise_s = (abs(dist) - peak * peak / (2 * a) - peak * peak / (2 * d)) / peak
+        m = self.model
+        with m.lock:
+            t0 = max(self.clock.now(), m.t_s)
+            m.command_rate(t0, peak if dist > 0 else -peak, a)
+            m.profile.command(t0 + peak / a + max(cruise_s, 0.0), 0.0, d)
 
     def _command_profile(self, target_dps: float, accel_dps2: float, decel_dps2: float) -> None:
         """The profile generator: slow down with decel, speed up with accel.
@@ -527,6 +593,25 @@ class DriveTwin:
                     self._get(Od.VELOCITY_WINDOW_TIME) / 1000.0
             else:
                 self._in_window_since = None
+                self._target_reached = False
+        elif self._state is State.OPERATION_ENABLED and self._mode == PROFILE_POSITION.code:
+            self._in_window_since = None
+            target = self._pp_target_deg
+            window = self.units.counts_to_deg(self._get(Od.POSITION_WINDOW))
+            at_rest = self._standing_still()
+            if at_rest and target is not None and abs(self.model.angle_deg - target) \
+                    > 0.5 * window and self._pp_corrections < PP_MAX_CORRECTIONS:
+                # the position loop: the table's own rate errors left it short or long
+                self._pp_corrections += 1
+                self._pp_move(self.model.angle_deg, target, correction=True)
+                at_rest = False
+            if at_rest and (target is None or abs(self.model.angle_deg - target) <= window):
+                if self._in_position_since is None:
+                    self._in_position_since = t
+                self._target_reached = t - self._in_position_since >= \
+                    self._get(Od.POSITION_WINDOW_TIME) / 1000.0
+            else:
+                self._in_position_since = None
                 self._target_reached = False
         else:
             self._in_window_since = None
