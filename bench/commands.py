@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -79,9 +80,6 @@ def _summary(result: dict[str, Any]) -> list[str]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from procedures import procedure_kind
-
-    progress = Progress()
     if args.resume:
         try:
             run = RunDir(args.resume)
@@ -97,38 +95,59 @@ def cmd_run(args: argparse.Namespace) -> int:
         run = None
     if cfg is None:
         return EXIT_INVALID
-    kind = procedure_kind(cfg.kind)
-    plan = kind.build_plan(cfg)
     if run is None:
         run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path)
+    status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume))
+    print(run.path)
+    return status
+
+
+SimHook = Callable[[Any], None]
+
+
+def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = False,
+                resume: bool = False, progress: Progress | None = None,
+                on_sim_started: SimHook | None = None) -> int:
+    """One session of a run (the first, or a --resume): returns the exit status.
+
+    Whatever happens inside, the axes are stopped, the instruments closed, what was
+    measured is analysed, and the run directory is left ready for `--resume`.
+    """
+    from procedures import procedure_kind
+
+    progress = progress or Progress()
+    kind = procedure_kind(cfg.kind)
+    plan = kind.build_plan(cfg)
     done = run.completed_units()
     todo = plan.remaining(done)
-    sim = None
+    simbench = None
     stand = cfg.stand
     status = EXIT_ABORTED
     with SignalGuard(progress.line) as guard:
         bench = None
         try:
-            if args.sim or cfg.has_sim:
+            if sim or cfg.has_sim:
                 progress.line("Starting the simulated bench (twins on real channels)...")
-                sim, stand = kind.start_sim(cfg)
-                clock: Any = sim.clock
+                simbench, stand = kind.start_sim(cfg)
+                clock: Any = simbench.clock
             else:
                 clock = MonotonicClock()
             run.begin_session(clock.now)
-            run.event("session_start", resume=bool(args.resume), sim=sim is not None,
+            run.event("session_start", resume=resume, sim=simbench is not None,
                       done_units=done, clock_speed=clock.speed, argv=sys.argv[1:])
             bench = kind.open_bench(cfg, stand, clock, run)
             for ax in bench.axes.values():
                 run.event("identity", axis=ax.name, **ax.identities)
-            if sim is not None:
-                sim.start_clock()
+            if simbench is not None:
+                simbench.start_clock()
+                if on_sim_started is not None:
+                    on_sim_started(simbench)
             progress.line(f"Run directory: {run.path}")
             if done:
                 progress.line(f"Resuming: {len(done)} unit(s) already done: {', '.join(done)}")
             progress.line(f"{len(todo.steps)} steps, estimated bench time "
                           f"{format_duration(todo.total_s)}")
-            ctx = RunContext(cfg, clock, bench, run, progress, yes=args.yes)
+            ctx = RunContext(cfg, clock, bench, run, progress, yes=yes)
             t0 = time.monotonic()
             Engine(ctx, kind.execute).run(todo, guard)
             run.event("completed", wall_s=time.monotonic() - t0)
@@ -140,15 +159,15 @@ def cmd_run(args: argparse.Namespace) -> int:
             _err(f"Aborted while setting up the bench: {e}")
             if bench is not None:
                 bench.safe_stop(progress.line)
-            if run._events is not None:
+            if run.session:
                 run.event("abort", reason=str(e), error=type(e).__name__)
             status = EXIT_ABORTED
         finally:
             guard.stopping = True
             if bench is not None:
                 bench.close()
-            if sim is not None:
-                sim.stop()
+            if simbench is not None:
+                simbench.stop()
         try:
             result = _write_outputs(run, cfg, progress)
         except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
@@ -164,10 +183,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         if status == EXIT_ABORTED:
             print(f"The run was aborted; the axes were stopped. Continue with: "
                   f"bench run --resume {run.path}")
-        if run._events is not None:
+        if run.session:
             run.event("exit", status=status)
         run.close()
-    print(run.path)
     return status
 
 

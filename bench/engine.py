@@ -68,7 +68,8 @@ class SignalGuard:
 
     def __exit__(self, *exc: object) -> None:
         for sig, old in self._old.items():
-            signal.signal(sig, old)
+            # once interrupted, more signals only cut short the last lines of output
+            signal.signal(sig, signal.SIG_IGN if self.count else old)
 
 
 class Progress:

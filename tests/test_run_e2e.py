@@ -139,6 +139,8 @@ def test_sigint_mid_acquisition_stops_the_axes_and_resume_completes(tmp_path: Pa
         time.sleep(0.05)
     assert run_dir is not None
     p.send_signal(signal.SIGINT)
+    time.sleep(0.05)
+    p.send_signal(signal.SIGINT)  # an impatient second Ctrl-C must not skip the stop
     out, err = p.communicate(timeout=60)
     assert p.returncode == 3, out + err
     assert out.strip().splitlines()[-1] == str(run_dir)
