@@ -180,3 +180,28 @@ def test_inputs_are_checked():
     short = type(h)(h.sign, h.edge_times_s, h.fog_t_s[:1000], h.fog_dps[:1000])
     with pytest.raises(ValueError, match="half 1: FOG samples .* do not cover"):
         analyze_pair([sp.halves[0], short], 100.0, fog_rate_hz=1000.0)
+
+
+@pytest.mark.timeout(60)
+def test_dropped_fog_frames():
+    """Frames lost in transit leave gaps in the FOG times: the integrals span them, the
+    mains tone is evaluated on the true times, and the results stay within U."""
+    sp = simulate_pair(paper_axis(), 50.0, 6, order="+-+", seed=14)
+    h0 = sp.halves[0]
+    keep = np.ones(h0.fog_t_s.size, dtype=bool)
+    for a in (20_000, 61_234, 100_000):      # three bursts of 37 lost frames
+        keep[a:a + 37] = False
+    t, f = h0.fog_t_s[keep], h0.fog_dps[keep]
+    sp.halves = [type(h)(h.sign, h.edge_times_s, t, f) for h in sp.halves]
+    res = analyze_pair(sp.halves, 50.0, fog_rate_hz=1000.0, counter_budget=BUDGET)
+    assert_within_u(res, sp)
+
+
+def test_non_finite_fog_samples_are_named():
+    sp = simulate_pair(paper_axis(), 100.0, 2, order="+-", seed=3)
+    f = sp.halves[0].fog_dps.copy()
+    i = int(np.searchsorted(sp.halves[1].fog_t_s, sp.halves[1].edge_times_s[1]))
+    f[i] = np.nan
+    hs = [type(h)(h.sign, h.edge_times_s, h.fog_t_s, f) for h in sp.halves]
+    with pytest.raises(ValueError, match="half 1: FOG samples .* not all finite"):
+        analyze_pair(hs, 100.0, fog_rate_hz=1000.0)

@@ -233,6 +233,9 @@ def accumulate(win: Window, cal: FogCalibration, design: Design,
         b = ps.buf if m == ps.buf.shape[1] else ps.buf[:, :m]
         gram += b @ b.T
         bins[:, ids] += np.add.reduceat(b[:design.bin_rows], starts, axis=1)
+    if not np.all(np.isfinite(gram)):
+        raise ValueError(f"half {win.index}: FOG samples in [{win.edges_s[0]:.3f}, "
+                         f"{win.edges_s[-1]:.3f}] s are not all finite (NaN or inf)")
     return WindowSums(win=win, cal=cal, design=design, y_centre_dps=y_centre, gram=gram,
                       bins=bins, chunk=chunk, chunk_i0=np.array(chunk_i0))
 

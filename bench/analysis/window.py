@@ -134,9 +134,11 @@ class Window:
         # cumulative trapezoid from sample s_lo up to the last sample <= each edge
         p_edge = np.searchsorted(t, e, "right") - 1
         cum = _cumtrapz_at(t, f, s_lo, np.maximum(p_edge, s_lo), chunk)
-        i_first = float(_partial(t, f, np.array([max(s_lo - 1, 0)]), np.array([t[s_lo]]))[0]
-                        - _partial(t, f, np.array([max(s_lo - 1, 0)]), e[:1])[0]) \
-            if t[s_lo] > e[0] and s_lo > 0 else 0.0
+        i_first = 0.0          # integral from t_0 to the first sample inside the window
+        if s_lo > 0 and t[s_lo] > e[0]:
+            p0 = np.array([s_lo - 1])
+            i_first = float(_partial(t, f, p0, t[s_lo:s_lo + 1])[0]
+                            - _partial(t, f, p0, e[:1])[0])
         # integral t_0 -> t_{p_j} is i_first + cum_j (p_j >= s_lo); then the part to t_j
         to_edge = _partial(t, f, np.maximum(p_edge, s_lo), e)
         edge_int = i_first + cum + to_edge
@@ -144,6 +146,9 @@ class Window:
         before = p_edge < s_lo
         edge_int[before] = 0.0
         edge_int[0] = 0.0
+        if not np.all(np.isfinite(edge_int)):
+            raise ValueError(f"{what}: FOG samples in [{e[0]:.3f}, {e[-1]:.3f}] s are not "
+                             "all finite (NaN or inf)")
         return cls(index=index, sign=int(rec.sign), edges_s=e, t=t, f=f, s_lo=s_lo,
                    s_hi=s_hi, turn_start=starts.astype(np.int64), edge_int=edge_int,
                    i_first=i_first, uniform_dt_s=uniform)
