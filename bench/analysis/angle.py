@@ -3,7 +3,7 @@
 API
     FogCalibration(k, w0_dps, drift_dps_per_s=0.0, t_ref_s=0.0)
         .true_rate_dps(fog_dps, t_s)    # METHOD.md A3: (w_fog - w0 - d (t - t_ref)) / k
-    turn_fraction(win, cal, c0, c1) -> (u, turn)     # samples c0..c1-1 of a Window
+    turn_fraction(win, cal, c0, c1, i_c0) -> (u, segments, raw_integral)  # one chunk
     sample_angles_deg(win, cal) -> np.ndarray        # whole window, for plots and checks
 
 Why not phi = j * w_set / f (the paper's index-to-angle map): it drifts by the rate error

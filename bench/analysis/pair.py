@@ -10,7 +10,15 @@ API
 
 `halves` in the order they ran (the engine's default '+w, -w, +w'); each HalfRecord has
 the sign of its command, the N + 1 zero-mark edge times bounding its timed turns, and the
-FOG samples (they may extend past the turns). `set_rate_dps` is the magnitude.
+FOG samples (they may extend past the turns). `set_rate_dps` is the magnitude. `static_fog_dps`: a record of the same FOG at rest, at
+fog_rate_hz, for the noise floor of METHOD.md A5 (without it, the pair's own residual
+gives the floor, and `floor_source` says so). `floor_samples`: how many samples per
+direction that own-data floor is estimated from. Raises ValueError, naming the half,
+for inputs that cannot give an honest result (FOG not covering the turns, a turn without
+samples, non-finite samples, a missed zero mark, one sign only, mains above Nyquist).
+
+Result: `PairAnalysis.rates` = (the '+' RateResult, the '-' RateResult), `.pair` the
+PairResult; `.to_dict()` of each is its result.json entry (CONTRACT §3).
 
 Steps (each in its module):
  1. window.py   exact FOG integrals over each half's whole turns;

@@ -17,7 +17,7 @@ so the analysis never holds more than a few chunk-sized temporaries.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -64,7 +64,6 @@ class Window:
     edge_int: np.ndarray       # N + 1 integrals of the FOG from t_0 to each edge, deg
     i_first: float             # integral from t_0 to the first sample in the window
     uniform_dt_s: float | None  # the grid step when samples are evenly spaced, else None
-    extra: dict = field(default_factory=dict)
 
     @property
     def turns(self) -> int:
