@@ -1,0 +1,43 @@
+"""The console script's small commands: --help, devices, bad invocations."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from bench.cli import main
+from tests.conftest import CONFIGS, ROOT
+
+
+def test_help_lists_every_contract_command() -> None:
+    out = subprocess.run([sys.executable, "-m", "bench", "--help"], cwd=ROOT, text=True,
+                         capture_output=True, timeout=60)
+    assert out.returncode == 0
+    for cmd in ("run", "validate", "plan", "analyze", "devices", "decode"):
+        assert cmd in out.stdout
+
+
+@pytest.mark.timeout(60)
+def test_devices_prints_each_instruments_identity(capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(["devices", str(CONFIGS / "stands" / "sim-two-axis.yaml")])
+    out = capsys.readouterr().out.splitlines()
+    assert rc == 0
+    rows = {(line.split()[0], line.split()[1]): line for line in out}
+    assert set(rows) == {(a, w) for a in ("outer", "inner") for w in ("drive", "counter", "fog")}
+    assert "Keysight Technologies,53230A" in rows["outer", "counter"]   # the twin's *IDN?
+    assert "CiA 402" in rows["inner", "drive"]                          # 0x1008 over SDO
+    assert "KVH DSP-1760" in rows["outer", "fog"]
+
+
+def test_run_without_a_procedure_is_invalid_input(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "--yes"]) == 2
+    assert "give a PROCEDURE.yaml" in capsys.readouterr().err
+
+
+def test_analyze_refuses_a_folder_that_is_not_a_run(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["analyze", str(tmp_path)]) == 2
+    assert "not a run directory" in capsys.readouterr().err
