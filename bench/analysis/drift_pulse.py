@@ -38,6 +38,7 @@ import numpy as np
 EARTH_RATE_DPH = 15.041  # METHOD.md B
 SECONDS_PER_HOUR = 3600.0
 COVERAGE_K = 2.0
+DETECTION_Z = 3.0
 
 #: input axis of each platform gyro relative to the X axis (METHOD.md B convention)
 HORIZONTAL_OFFSET_DEG = {"x": 0.0, "y": 90.0}
@@ -247,6 +248,25 @@ def cycle_drift_dph(record: CycleRecord, shape: PulseShape, k_as_v_per_deg: floa
     return w_dps * SECONDS_PER_HOUR, u_int
 
 
+def example_cycle(record: CycleRecord, start_s: float, max_points: int = 1000
+                  ) -> dict[str, Any]:
+    """One cycle for a plot: U(t) and the running signed integral, from the first edge.
+
+    The integrator adds U over the first pulse and subtracts it over the second
+    (METHOD.md B); it is shown decimated to at most `max_points`.
+    """
+    t = record.times_s - start_s
+    u = np.asarray(record.u_v, float)
+    tc = record.pulse_s
+    sign = np.where(t < 0, 0.0, np.where(t < tc, 1.0, np.where(t <= 2 * tc, -1.0, 0.0)))
+    su = sign * u
+    integral = np.concatenate(([0.0], np.cumsum(0.5 * (su[1:] + su[:-1]) * np.diff(t))))
+    step = max(1, int(math.ceil(t.size / max_points)))
+    return {"t_s": t[::step].tolist(), "u_v": u[::step].tolist(),
+            "integral_vs": integral[::step].tolist(), "tc_s": tc,
+            "note": "time from the first pulse edge (where the fit puts it)"}
+
+
 # -- statistics --------------------------------------------------------------------------
 @dataclass(frozen=True)
 class StartOffset:
@@ -263,8 +283,9 @@ class StartOffset:
 
     @property
     def significant(self) -> bool:
-        """Distinguishable from zero at k = 2: then the nominal edges would be biased."""
-        return abs(self.offset_s) > COVERAGE_K * self.offset_u_s
+        """Detected: more than 3 standard uncertainties from zero (a one-sample shift is
+        a hundred or more); the integration is corrected by it either way."""
+        return abs(self.offset_s) > DETECTION_Z * self.offset_u_s
 
     def to_dict(self) -> dict[str, Any]:
         return {"offset_s": self.offset_s, "offset_u_s": COVERAGE_K * self.offset_u_s,
@@ -363,6 +384,7 @@ class StatedErrors:
     k_as_u_rel: float = 0.0                   # standard uncertainty of k_as, relative
     pulse_mismatch_max_rel: float = 0.0       # |+/- amplitude mismatch| bound (rectangular)
     drift_random_walk_dph_per_rth: float = 0.0  # the gyro's own-drift random walk (its spec)
+    turn_tolerance_deg: float = 0.0           # how far a turn may land from its angle
 
 
 @dataclass(frozen=True)
@@ -383,6 +405,7 @@ class AxisDrift:
     budget_own_dph: dict[str, float] = field(default_factory=dict)   # standard u
     budget_apparent_dph: dict[str, float] = field(default_factory=dict)
     vertical: bool = False
+    example: dict[str, Any] | None = None       # one cycle for the certificate's plot
 
     @property
     def apparent_std_u_dph(self) -> float:
@@ -402,6 +425,7 @@ class AxisDrift:
                        "note": "standard uncertainties (k = 1) per source"},
             "positions": [p.to_dict() for p in self.positions],
             "cycles": [c.to_dict() for c in self.cycles],
+            **({"example_cycle": self.example} if self.example else {}),
         }
 
 
@@ -480,9 +504,16 @@ def analyse_axis(gyro: str, records: Sequence[CycleRecord], shape: PulseShape,
         "drift_random_walk": 0.0 if vertical else
         stated.drift_random_walk_dph_per_rth * math.sqrt(span_h) / 2.0,
     }
+    if latitude_deg is not None and not vertical:
+        # a turn e off 180 deg leaves (the other horizontal component) * e / 2 in the
+        # apparent drift; bounded by W_h e / 2, e uniform within the tolerance
+        w_h = EARTH_RATE_DPH * math.cos(math.radians(latitude_deg))
+        budget_app["turn_position"] = w_h * math.radians(stated.turn_tolerance_deg) / (
+            2.0 * math.sqrt(3.0))
     return AxisDrift(gyro, own, COVERAGE_K * _rss(budget_own), app,
                      COVERAGE_K * _rss(budget_app), tuple(positions), tuple(cycles), pooled,
-                     own_nom, app_nom, amplitude, budget_own, budget_app, vertical)
+                     own_nom, app_nom, amplitude, budget_own, budget_app, vertical,
+                     example_cycle(drift_records[0], pooled.offset_s))
 
 
 @dataclass(frozen=True)
@@ -510,16 +541,19 @@ class DriftResult:
                 <= self.earth_horizontal_u_dph)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"drift": {
+        """CONTRACT's drift keys; the azimuth and Earth-rate keys only with both x and y."""
+        out: dict[str, Any] = {
             "axes": {g: ax.to_dict() for g, ax in self.axes.items()},
-            "azimuth_deg": self.azimuth_deg, "azimuth_u_deg": self.azimuth_u_deg,
             "latitude_deg": self.latitude_deg,
-            "earth_horizontal_dph": self.earth_horizontal_dph,
-            "earth_horizontal_u_dph": self.earth_horizontal_u_dph,
             "earth_horizontal_expected_dph": self.earth_horizontal_expected_dph,
-            "earth_horizontal_consistent": self.earth_consistent,
             "coverage_k": COVERAGE_K,
-        }}
+        }
+        if self.azimuth_deg is not None:
+            out |= {"azimuth_deg": self.azimuth_deg, "azimuth_u_deg": self.azimuth_u_deg,
+                    "earth_horizontal_dph": self.earth_horizontal_dph,
+                    "earth_horizontal_u_dph": self.earth_horizontal_u_dph,
+                    "earth_horizontal_consistent": self.earth_consistent}
+        return {"drift": out}
 
 
 def azimuth_deg(app_x_dph: float, app_y_dph: float, u_x_dph: float, u_y_dph: float
