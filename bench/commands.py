@@ -174,6 +174,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             _err(f"analysis failed: {e!r}; the raw data is in {run.path}; "
                  f"fix and run `bench analyze {run.path}`")
             result = None
+            status = EXIT_ABORTED  # no verdict without an analysis
         if result is not None:
             print("\n".join(_summary(result)))
             if status == EXIT_PASS and result.get("verdict") == "fail":
