@@ -31,7 +31,7 @@ from bench.analysis import drift_pulse as dp
 from bench.clock import Clock
 from bench.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
 from bench.conformity import RULES, judge
-from bench.engine import RunContext
+from bench.engine import Abort, RunContext
 from bench.instruments import Bench, _raw_text_logger, open_axis
 from bench.journal import RunDir, read_jsonl
 from bench.plan import Plan, Step
@@ -506,9 +506,17 @@ class DriftPulse:
         shape = dp.pulse_shape(cfg.procedure["pulse"]["shape"])
         quick = []
         for g, u in data.items():
-            k_as = cfg.stand["platform"]["gyros"][g]["k_as_v_per_deg"]
+            spec = cfg.stand["platform"]["gyros"][g]
+            k_as = spec["k_as_v_per_deg"]
             rec = dp.CycleRecord(u, t.interval_s, t.first_sample_s, t.tc_s)
             a = dp.fit_offset(rec, shape).amplitude_v_per_dps / k_as
+            nominal = spec["precession_dps_per_v"] * amplitude
+            if not dp.MIN_AMPLITUDE_REL * nominal <= abs(a) <= nominal / dp.MIN_AMPLITUDE_REL:
+                raise Abort(f"gyro {g}: the angle sensor shows a precession of {a:.3g} deg/s "
+                            f"where the pulse should give {nominal:.3g} deg/s "
+                            f"(precession_dps_per_v x {amplitude:g} V): check the torque "
+                            f"sensor's current path from generator channel "
+                            f"{spec['awg_channel']} and the angle sensor's wiring to its DMM")
             w, _ = dp.cycle_drift_dph(rec, shape, k_as, 0.0, a)
             quick.append(f"{g} {w:+.4f}")
         kind = "timing cycle" if p["timing"] else "cycle"

@@ -177,3 +177,18 @@ def test_a_fault_during_the_turn_stops_the_axis_exits_3_and_resumes(tmp_path: Pa
     for g in ("x", "y"):
         assert [p["cycles"] for p in result["drift"]["axes"][g]["positions"]] == [4, 4]
     assert abs(result["drift"]["azimuth_deg"] - 80.0) <= result["drift"]["azimuth_u_deg"]
+
+
+@pytest.mark.timeout(60)
+def test_pulses_that_never_reach_the_torque_sensor_abort_by_name(tmp_path: Path) -> None:
+    cfg = load_config(_quick(tmp_path))
+    run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
+
+    def hook(sim: Any) -> None:
+        sim.twins["gyro-rig"].awg.inject("no-output")     # a broken wire, for one burst
+
+    assert run_session(cfg, run, yes=True, on_sim_started=hook) == EXIT_ABORTED
+    abort = next(e for e in run.events() if e["event"] == "abort")
+    assert "gyro x: the angle sensor shows a precession of" in abort["reason"]
+    assert "generator channel 1" in abort["reason"]
+    assert next(e for e in run.events() if e["event"] == "safe_stop")["ok"] is True

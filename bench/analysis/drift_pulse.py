@@ -39,6 +39,8 @@ EARTH_RATE_DPH = 15.041  # METHOD.md B
 SECONDS_PER_HOUR = 3600.0
 COVERAGE_K = 2.0
 DETECTION_Z = 3.0
+#: a cycle whose fitted precession is off the median by this factor had no proper pulse
+MIN_AMPLITUDE_REL = 0.5
 
 #: input axis of each platform gyro relative to the X axis (METHOD.md B convention)
 HORIZONTAL_OFFSET_DEG = {"x": 0.0, "y": 90.0}
@@ -448,6 +450,12 @@ def analyse_axis(gyro: str, records: Sequence[CycleRecord], shape: PulseShape,
     pooled = pool_offsets(list(fits.values()), dt)
     amplitude = float(np.median([fits[id(r)].amplitude_v_per_dps
                                  for r in drift_records])) / k_as_v_per_deg
+    for i, r in enumerate(drift_records):
+        a_i = fits[id(r)].amplitude_v_per_dps / k_as_v_per_deg
+        if not MIN_AMPLITUDE_REL * abs(amplitude) <= abs(a_i) <= abs(amplitude) / MIN_AMPLITUDE_REL:
+            raise ValueError(f"gyro {gyro}: cycle {i + 1} (at {r.table_deg:g} deg) shows a "
+                             f"precession of {a_i:.3g} deg/s against {amplitude:.3g} deg/s in "
+                             f"the others: its pulses did not reach the torque sensor as set")
     cycles = []
     for r in drift_records:
         f = fits[id(r)]
@@ -492,14 +500,14 @@ def analyse_axis(gyro: str, records: Sequence[CycleRecord], shape: PulseShape,
     offset_sens = 2.0 * a * shape.angle_end / tc  # |dw/dtau|, deg/s per s
     budget_own = {
         "repeatability": u_a_own,
-        "k_as": abs(own) * stated.k_as_u_rel,
+        "angle_sensor_scale": abs(own) * stated.k_as_u_rel,
         "pulse_mismatch": a * stated.pulse_mismatch_max_rel * shape.angle_mean
         / math.sqrt(3.0) * SECONDS_PER_HOUR,
         "start_offset": offset_sens * pooled.offset_u_s * SECONDS_PER_HOUR,
     }
     budget_app = {
         "repeatability": u_a_app,
-        "k_as": abs(app) * stated.k_as_u_rel,
+        "angle_sensor_scale": abs(app) * stated.k_as_u_rel,
         # the own drift wanders between the positions (conservative: the whole span)
         "drift_random_walk": 0.0 if vertical else
         stated.drift_random_walk_dph_per_rth * math.sqrt(span_h) / 2.0,
