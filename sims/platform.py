@@ -198,6 +198,8 @@ class GyroPlatform:
         if self._table is None:
             return np.zeros_like(t)
         with self._buf_lock:
+            if not self._heading_buf:  # the table ran ahead before we listened: it is here
+                return np.full_like(t, self._table.angle_deg)
             tb = np.concatenate([b[0] for b in self._heading_buf])
             pb = np.concatenate([b[1] for b in self._heading_buf])
             keep = max(int(np.searchsorted(tb, t[-1], side="right")) - 1, 0)
