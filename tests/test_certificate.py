@@ -301,3 +301,26 @@ def test_aborted_run_is_incomplete_and_says_why(tmp_path: Path) -> None:
     assert "the run did not complete every step" in html
     assert "The run was aborted before every step was done" in html
     assert "no conformity checks were made" in html
+
+
+@pytest.mark.timeout(60)
+def test_malformed_parts_are_named_not_fatal() -> None:
+    from bench.certificate.build import build_document
+    from bench.certificate.html import render_html
+
+    result = rate_ladder_result()
+    result["axes"]["outer"]["rates"][0]["systematic"] = "garbage"
+    result["axes"]["outer"]["rates"][1]["set_rate_dps"] = None
+    result["axes"]["inner"]["pairs"] = {"not": "a list"}
+    result["axes"]["outer"]["pairs"][0]["k"] = "abc"
+    result["raw_files"] = [1, 2]
+    result["conditions"] = "warm"
+    html = render_html(build_document(result, None, ISSUED))
+    for where in ("axes.outer.rates[0].systematic (expected a mapping, found str)",
+                  "axes.outer.rates[1] (no numeric set_rate_dps)",
+                  "axes.inner.pairs (expected a list, found dict)",
+                  "raw_files[0] (expected a mapping, found int)",
+                  "conditions (expected a mapping, found str)"):
+        assert f"result.json: {where} was malformed" in html, where
+    assert "+1.42 ± 0.11" in html          # the rest is still reported
+    assert "k ± U" in html and "n/a" in html

@@ -12,7 +12,7 @@ import datetime as dt
 import hashlib
 import json
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,6 +32,7 @@ from bench.certificate.rounding import (
     format_value_u,
     rel_unit,
 )
+from bench.certificate.shape import conform_result
 from bench.journal import read_jsonl, sha256_file
 
 NOT_RECORDED = "not recorded"
@@ -56,10 +57,12 @@ class Sources:
     stand_file: dict[str, Any] = field(default_factory=dict)
     procedure_file: dict[str, Any] = field(default_factory=dict)
     events: list[dict[str, Any]] = field(default_factory=list)
+    dropped: list[str] = field(default_factory=list)  # malformed parts of result.json
 
     @classmethod
     def load(cls, result: dict[str, Any], run_path: Path | None) -> Sources:
-        src = cls(result, run_path)
+        conformed, dropped = conform_result(result)
+        src = cls(conformed, run_path, dropped=dropped)
         if run_path is None:
             return src
         src.meta = _read_json(run_path / "meta.json")
@@ -432,6 +435,8 @@ def _deviations(src: Sources, kind: str) -> tuple[Any, ...]:
                    "missing points.")
     for d in src.get("deviations", []) or []:
         run.append(_text(d))
+    for where in src.dropped:
+        run.append(f"result.json: {where} was malformed and is not reported here.")
     for axis, d in ((src.get("drift", {}) or {}).get("axes", {}) or {}).items():
         off = d.get("start_offset") if isinstance(d, Mapping) else None
         if isinstance(off, Mapping) and off.get("detected"):
@@ -453,6 +458,16 @@ def _conditions(src: Sources) -> tuple[Any, ...]:
 
 
 # -- rate ladder results -------------------------------------------------------------------
+
+def _figure(caption: str, draw: Callable[..., bytes | None], *args: Any,
+            width_frac: float = 1.0) -> list[Any]:
+    """A plot as a figure block; data that cannot be drawn give a note, not a crash."""
+    try:
+        png = draw(*args)
+    except (ValueError, TypeError, KeyError, IndexError, ZeroDivisionError) as e:
+        return [Para(f"Figure not drawn ({caption}): its data are malformed ({e}).", "note")]
+    return [Figure(png, caption, width_frac)] if png else []
+
 
 def _tolerances(checks: Iterable[Mapping[str, Any]], axis: str
                 ) -> dict[str, list[tuple[float, float]]]:
@@ -594,12 +609,11 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
         tuple(rows), widths=(0.9, 0.6, 2.8, 1.8, 1.8, 1.1, 0.9), align="rcrrrrc",
         caption=f"Axis {axis}: per-turn rate error and instability (METHOD.md A1-A2, eqs. 1-2)",
         notes=tuple(notes)))
-    png = plots.per_turn(axis, rates, _tolerances(checks, axis),
-                         (f"δ, {err_unit.name}", err_unit.scale),
+    blocks += _figure(f"Axis {axis}: per-turn rate error and instability vs rate, both "
+                      "directions (cf. paper figs. 4-5)",
+                      plots.per_turn, axis, rates, _tolerances(checks, axis),
+                      (f"δ, {err_unit.name}", err_unit.scale),
                          (f"σ, {inst_unit.name}", inst_unit.scale))
-    if png:
-        blocks.append(Figure(png, f"Axis {axis}: per-turn rate error and instability vs rate, "
-                                  "both directions (cf. paper figs. 4-5)"))
     # A3 cross-calibration
     if pairs:
         prow = []
@@ -675,10 +689,9 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                             widths=(1.1, 1.0, 2.2, 2.2, 1.6), align="rrrrr",
                             caption=f"Axis {axis}: mains-frequency ripple, fitted in time "
                                     "(METHOD.md A4)"))
-    png = plots.systematic(axis, rates, amp_unit.scale, amp_unit.name)
-    if png:
-        blocks.append(Figure(png, f"Axis {axis}: systematic component vs table angle with the "
-                                  "fitted harmonics (cf. paper figs. 8-9)"))
+    blocks += _figure(f"Axis {axis}: systematic component vs table angle with the fitted "
+                      "harmonics (cf. paper figs. 8-9)",
+                      plots.systematic, axis, rates, amp_unit.scale, amp_unit.name)
     # A5 intra-turn
     blocks += _intra_blocks(axis, rates, ax.get("noise_floor") or {})
     return tuple(blocks)
@@ -789,24 +802,20 @@ def _across_axes(axes: Mapping[str, Any]) -> list[Any]:
     blocks: list[Any] = []
     amp_unit = rel_unit(*[_num(h.get("amplitude_rel")) for rr in rates.values() for r in rr
                           for h in (r.get("systematic") or {}).get("harmonics") or []])
-    png = plots.one_rev(rates, amp_unit.scale, amp_unit.name)
-    if png:
-        blocks.append(Figure(png, "Once-per-revolution amplitude vs rate, relative and absolute "
-                                  "(cf. paper fig. 7)"))
+    blocks += _figure("Once-per-revolution amplitude vs rate, relative and absolute "
+                      "(cf. paper fig. 7)",
+                      plots.one_rev, rates, amp_unit.scale, amp_unit.name)
     unit = rel_unit(*[_num(r.get("intra_turn_instability_rel")) for rr in rates.values()
                       for r in rr])
-    png = plots.intra_turn(rates, unit.scale, unit.name)
-    if png:
-        blocks.append(Figure(png, "Intra-turn instability vs rate, raw and floor-corrected "
-                                  "(cf. paper fig. 10)"))
-    png = plots.pairs({a: [p for p in ax.get("pairs", []) if isinstance(p, dict)]
-                       for a, ax in axes.items()})
-    if png:
-        blocks.append(Figure(png, "FOG scale k and bias ω0 per ± pair (METHOD.md A3)"))
-    png = plots.allan({a: ax.get("noise_floor") or {} for a, ax in axes.items()})
-    if png:
-        blocks.append(Figure(png, "Allan deviation of the FOG at rest: its noise floor "
-                                  "(METHOD.md A5)", width_frac=0.8))
+    blocks += _figure("Intra-turn instability vs rate, raw and floor-corrected "
+                      "(cf. paper fig. 10)",
+                      plots.intra_turn, rates, unit.scale, unit.name)
+    blocks += _figure("FOG scale k and bias ω0 per ± pair (METHOD.md A3)",
+                      plots.pairs, {a: [p for p in ax.get("pairs", []) if isinstance(p, dict)]
+                                    for a, ax in axes.items()})
+    blocks += _figure("Allan deviation of the FOG at rest: its noise floor (METHOD.md A5)",
+                      plots.allan, {a: ax.get("noise_floor") or {} for a, ax in axes.items()},
+                      width_frac=0.8)
     return blocks
 
 
@@ -917,18 +926,16 @@ def _drift_results(src: Sources, number: str) -> list[Section]:
                             tuple(brow), widths=(0.7, 3.5, 1.5, 1.5), align="llrr",
                             caption="Uncertainty budget: standard uncertainties (k = 1) per "
                                     "source; U above is 2 × their root sum of squares"))
-    png = plots.drift_cycles({a: {**d, "cycles": [
-        {**c, "position_deg": _position(c)} for c in d.get("cycles") or []
-        if isinstance(c, Mapping)]} for a, d in axes.items()})
-    if png:
-        blocks.append(Figure(png, "Drift estimate per cycle, by axis and platform position"))
+    blocks += _figure("Drift estimate per cycle, by axis and platform position",
+                      plots.drift_cycles,
+                      {a: {**d, "cycles": [{**c, "position_deg": _position(c)}
+                                           for c in d.get("cycles") or []]}
+                       for a, d in axes.items()})
     for axis, d in axes.items():
         cyc = d.get("example_cycle")
         if isinstance(cyc, Mapping):
-            png = plots.drift_cycle(axis, cyc)
-            if png:
-                blocks.append(Figure(png, f"Axis {axis}: U(t) and the integrator output over "
-                                          "one cycle"))
+            blocks += _figure(f"Axis {axis}: U(t) and the integrator output over one cycle",
+                              plots.drift_cycle, axis, cyc)
     return [Section(number, "Results", tuple(blocks))]
 
 

@@ -99,7 +99,7 @@ def harmonic_model(harmonics: Sequence[Mapping[str, Any]], phi_deg: np.ndarray) 
     r = np.radians(phi_deg)
     for h in harmonics:
         out += _num(h.get("amplitude_rel")) * np.cos(
-            int(h.get("order", 1)) * r + math.radians(_num(h.get("phase_deg", 0.0))))
+            int(_num(h.get("order", 1))) * r + math.radians(_num(h.get("phase_deg", 0.0))))
     return out
 
 
@@ -141,7 +141,7 @@ def systematic(axis: str, rates: Sequence[Mapping[str, Any]], scale: float,
             h = r["systematic"].get("harmonics") or []
             if h:
                 ax.plot(phi, harmonic_model(h, phi) * scale, "C3", lw=1.2,
-                        label=f"fitted harmonics 1…{max(int(x['order']) for x in h)}")
+                        label=f"fitted harmonics 1…{max(int(_num(x['order'])) for x in h)}")
             ax.set_title(f"Axis {axis} at {_num(r['set_rate_dps']):+g} °/s: systematic "
                          "component vs angle", fontsize=9)
         ax.set_xlim(0, 360)
@@ -159,7 +159,7 @@ def one_rev(axes: Mapping[str, Sequence[Mapping[str, Any]]], scale: float,
     for axis, rates in axes.items():
         for r in rates:
             for h in (r.get("systematic") or {}).get("harmonics") or []:
-                if int(h.get("order", 0)) == 1:
+                if int(_num(h.get("order", 0))) == 1:
                     pts.setdefault(axis, []).append((_num(r["set_rate_dps"]),
                                                      _num(h.get("amplitude_rel")),
                                                      _num(h.get("amplitude_u_rel"))))
@@ -244,6 +244,8 @@ def pairs(axes: Mapping[str, Sequence[Mapping[str, Any]]]) -> bytes | None:
         w = np.array([_num(p.get("rate_dps")) for p in pp])
         allw += w.tolist()
         k = np.array([_num(p.get("k")) for p in pp])
+        if not np.any(np.isfinite(k)):
+            continue
         k_mean = float(np.nanmean(k))
         kw = dict(fmt="o-", color=f"C{i}", ms=4, capsize=3, lw=1)
         a1.errorbar(w, (k - k_mean) * 1e6, yerr=np.nan_to_num([_num(p.get("k_u")) for p in pp])
