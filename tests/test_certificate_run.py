@@ -141,3 +141,53 @@ def test_raw_hashes_and_plots(run: dict[str, Any]) -> None:
     # per-turn, systematic, 1/rev, intra-turn, k and w0, Allan deviation
     assert run["images"] == 6
     assert run["html"].count("data:image/png;base64,") == 6
+
+
+@pytest.fixture(scope="module")
+def drift_run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """The paper's 70/80 deg case, 4 cycles per position, own drift tolerance 0.4 deg/h:
+    the twin's y gyro drifts about -0.42 deg/h, so that check fails."""
+    tmp = tmp_path_factory.mktemp("certdrift")
+    text = (ROOT / "configs" / "procedures" / "drift-demo.yaml").read_text()
+    text = re.sub(r"(?m)^stand: .*$", f"stand: {ROOT / 'configs' / 'stands'}/"
+                                      "sim-gyro-platform.yaml", text)
+    text = re.sub(r"(?m)^cycles: .*$", "cycles: 4", text)
+    text = re.sub(r"(?m)^timing_cycles: .*$", "timing_cycles: 2", text)
+    text = re.sub(r"(?m)^settle_s: .*$", "settle_s: 1", text)
+    text = re.sub(r"(?m)^  own_drift_dph: .*$", "  own_drift_dph: 0.4", text)
+    proc = tmp / "drift.yaml"
+    proc.write_text(text + "prompts: false\n")
+    out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--out",
+                          str(tmp / "runs")], capture_output=True, text=True, timeout=120,
+                         cwd=ROOT)
+    run_dir = Path(out.stdout.strip().splitlines()[-1])
+    pdf = pdfium.PdfDocument(run_dir / "certificate.pdf")
+    texts = [page.get_textpage().get_text_range() for page in pdf]
+    images = sum(len(list(page.get_objects(filter=[pdfium_c.FPDF_PAGEOBJ_IMAGE])))
+                 for page in pdf)
+    return {"status": out.returncode, "stderr": out.stderr, "texts": texts, "images": images,
+            "result": json.loads((run_dir / "result.json").read_text())}
+
+
+@pytest.mark.timeout(120)
+def test_drift_pulse_run_certificate(drift_run: dict[str, Any]) -> None:
+    assert drift_run["status"] == 1, drift_run["stderr"]
+    texts = drift_run["texts"]
+    for i, t in enumerate(texts, start=1):
+        assert f"Page {i} of {len(texts)}" in t
+    text = _flat(texts)
+    assert "alternating-sign controlled precession" in text and "End of certificate" in text
+    d = drift_run["result"]["drift"]
+    for axis, ax in d["axes"].items():
+        assert _ref(ax["own_dph"], ax["own_u_dph"], signed=True) in text, axis
+        assert _ref(ax["apparent_dph"], ax["apparent_u_dph"], signed=True) in text, axis
+    assert _ref(d["azimuth_deg"], d["azimuth_u_deg"]) + " °" in text
+    conf = text[text.index("7 Conformity"):text.index("8 Records")]
+    for i, c in enumerate(drift_run["result"]["checks"], start=1):
+        if c["verdict"] == "fail":
+            assert f"Check {i}: FAIL: " in conf
+    assert any(c["verdict"] == "fail" for c in drift_run["result"]["checks"])
+    assert "0.4 °/h" in conf
+    # drift per cycle; U(t) and the integrator output for each gyro that carries one
+    cycles = sum(1 for ax in d["axes"].values() if ax.get("example_cycle"))
+    assert drift_run["images"] == 1 + cycles

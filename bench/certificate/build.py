@@ -42,6 +42,10 @@ QUANTITY_NAMES = {
     "rate_instability": "per-turn rate instability σ",
     "intra_turn_instability": "intra-turn instability",
     "intra_turn_instability_corrected": "intra-turn instability, floor-corrected",
+    "own_drift": "own drift",
+    "apparent_drift": "apparent drift",
+    "earth_horizontal_rate": "horizontal Earth rate",
+    "azimuth": "platform azimuth",
 }
 
 
@@ -137,8 +141,17 @@ def _text(value: Any) -> str:
     if isinstance(value, list | tuple):
         return ", ".join(_text(v) for v in value)
     if isinstance(value, dict):
-        return "; ".join(f"{k}: {_text(v)}" for k, v in value.items())
+        return "; ".join(_key_value(k, v) for k, v in value.items())
     return str(value).replace("+/-", "±")
+
+
+def _key_value(key: str, value: Any) -> str:
+    """`max_rate_dps: 400` -> 'max rate: 400 °/s'."""
+    words = str(key).split("_")
+    unit = UNIT_SUFFIXES.get(words[-1].lower()) if len(words) > 1 else None
+    if unit and unit != "fraction":
+        return f"{' '.join(words[:-1])}: {_text(value)} {unit}"
+    return f"{' '.join(words)}: {_text(value)}"
 
 
 def _trim(x: float) -> str:
@@ -224,7 +237,9 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
     sections.append(Section(n.next(), "Records: raw data and inputs", _records(src)))
     if kind != "drift-pulse" and any(r.get("counter_rate_dps") for r in _all_rates(src)):
         sections.append(Section(n.next(), "Per-turn counter rates", _per_turn_annex(src)))
-    sections.append(Section(n.next(), "Statements", tuple(Para(t) for t in methods.STATEMENTS)))
+    statements = [t for t in methods.STATEMENTS
+                  if kind != "drift-pulse" or not t.startswith("Relative values")]
+    sections.append(Section(n.next(), "Statements", tuple(Para(t) for t in statements)))
     sections.append(Section(n.next(), "Authorisation", _signatures(cert, issue)))
     stand = _stand(src)
     subtitle = f"{stand.get('maker', '')} {stand.get('model', '')}, serial " \
@@ -377,8 +392,7 @@ def _instruments(src: Sources) -> tuple[Any, ...]:
         for role in roles:
             ident = (ids.get(axis) or {}).get(role)
             conf = (stand_axes.get(axis) or {}).get(role) or {}
-            setting = "; ".join(f"{k} {_text(v)}" for k, v in conf.items()) \
-                if isinstance(conf, dict) else _text(conf)
+            setting = _text(conf) if conf else ""
             rows.append((axis, role, _text(ident) if ident else "identity not recorded",
                          setting or "—"))
     if rows and all(r[3] == "—" for r in rows):
@@ -956,57 +970,118 @@ def decision_rule_text(rule: str) -> str:
             "rule to be sound.")
 
 
+ABSOLUTE_UNITS = {"dph": "°/h", "dps": "°/s", "deg": "°", "arcmin": "arcmin", "s": "s"}
+
+
+@dataclass(frozen=True)
+class CheckRow:
+    """One check, whatever its unit: relative (`value_rel`) or absolute (`value_dph`...)."""
+
+    value: float | None
+    u: float | None
+    tolerance: float | None
+    expected: float | None
+    suffix: str            # rel, dph, dps, deg...
+
+    @classmethod
+    def of(cls, c: Mapping[str, Any]) -> CheckRow:
+        for suffix in ("rel", *ABSOLUTE_UNITS):
+            if f"value_{suffix}" in c:
+                return cls(_num(c.get(f"value_{suffix}")), _num(c.get(f"u_{suffix}")),
+                           _num(c.get(f"tolerance_{suffix}")), _num(c.get(f"expected_{suffix}")),
+                           suffix)
+        return cls(None, None, None, None, "rel")
+
+    def texts(self, signed: bool) -> tuple[str, str]:
+        """(value ± U, tolerance or expected value) in the check's unit."""
+        if self.suffix == "rel":
+            unit = rel_unit(self.value, self.u, self.tolerance)
+            vu = f"{_vu(self.value, self.u, unit, signed)} {unit.name}"
+            tol = f"{_trim(self.tolerance * unit.scale)} {unit.name}" if self.tolerance else "—"
+            return vu, tol
+        name = ABSOLUTE_UNITS[self.suffix]
+        vu = f"{_vu(self.value, self.u, None, signed)} {name}"
+        if self.tolerance:
+            return vu, f"{_trim(self.tolerance)} {name}"
+        if self.expected is not None:
+            return vu, f"expected {format_value_u(self.expected, self.u).value} {name}"
+        return vu, "—"
+
+
 def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
     rule = str(src.get("decision_rule") or (checks[0].get("rule") if checks else "simple"))
-    blocks: list[Any] = [Para(decision_rule_text(rule)), Para(
+    blocks: list[Any] = [Para(decision_rule_text(rule))]
+    if any(c.get("rule") == "consistency" for c in checks):
+        blocks.append(Para("Consistency checks compare a measured value with the value physics "
+                           "expects (e.g. the horizontal Earth rate at the site's latitude): "
+                           "PASS when they differ by no more than U."))
+    blocks.append(Para(
         "Measurement capability (RMG 63-2003): the expanded uncertainty of a check should not "
-        f"exceed 0.2-0.3 of its tolerance; a ratio U/T ≤ {CAPABILITY_LIMIT:g} is marked met.",
-        "body")]
+        f"exceed 0.2-0.3 of its tolerance; a ratio U/T ≤ {CAPABILITY_LIMIT:g} is marked met."))
     tol = (src.get("method", {}) or {}).get("tolerance") or src.procedure_file.get("tolerance")
     if isinstance(tol, Mapping) and tol:
-        blocks.append(_tolerance_table(tol))
+        table = _tolerance_table(tol)
+        if table.rows:
+            blocks.append(table)
     if not checks:
         blocks.append(Para("The procedure states no tolerances: no conformity checks were "
                            "made and no statement of conformity is given for individual "
                            "values."))
         return tuple(blocks)
+    with_rate = all(_num(c.get("set_rate_dps")) is not None for c in checks)
     rows, notes = [], []
     for i, c in enumerate(checks, start=1):
-        value, u, tol = _num(c.get("value_rel")), _num(c.get("u_rel")), _num(c.get("tolerance_rel"))
-        unit = rel_unit(value, u, tol)
+        row = CheckRow.of(c)
         ratio = _num(c.get("capability_ratio"))
-        if ratio is None and u is not None and tol:
-            ratio = u / tol
+        if ratio is None and row.u is not None and row.tolerance:
+            ratio = row.u / row.tolerance
         ok = c.get("capability_ok")
         if ok is None and ratio is not None:
             ok = ratio <= CAPABILITY_LIMIT
         cap = "—" if ratio is None else f"{format_sig(ratio, 2)} " + ("met" if ok else "not met")
-        inside = value is not None and tol is not None and abs(value) <= tol
+        inside = (row.value is not None and row.tolerance is not None
+                  and abs(row.value) <= row.tolerance)
         label = verdict_label(c.get("verdict"), str(c.get("rule") or rule), inside)
-        quantity = QUANTITY_NAMES.get(str(c.get("quantity")), _text(c.get("quantity")))
-        rows.append((str(i), _text(c.get("axis")), _rate(c.get("set_rate_dps")), quantity,
-                     _vu(value, u, unit, signed=c.get("quantity") == "rate_error")
-                     + f" {unit.name}",
-                     f"{_trim(tol * unit.scale)} {unit.name}" if tol else "—",
-                     cap, label))
+        quantity = QUANTITY_NAMES.get(str(c.get("quantity")), _label(str(c.get("quantity"))))
+        signed = str(c.get("quantity")) not in ("rate_instability", "intra_turn_instability",
+                                                "intra_turn_instability_corrected")
+        vu, tol_text = row.texts(signed)
+        rate = _num(c.get("set_rate_dps"))
+        point = _rate(rate) if with_rate else (f"{_rate(rate)} °/s" if rate is not None else "—")
+        rows.append((str(i), _text(c.get("axis")), point, quantity, vu, tol_text, cap, label))
         if label != "PASS" and c.get("reason"):
             notes.append(f"Check {i}: {label}: {c['reason']}")
         elif label != "PASS":
             notes.append(f"Check {i}: {label}.")
-    blocks.append(Table(("#", "Axis", "Set rate, °/s", "Quantity", "Value ± U", "Tolerance T",
-                         "U/T (RMG 63)", "Verdict"), tuple(rows),
-                        widths=(0.4, 0.8, 1.0, 2.2, 1.9, 1.2, 1.2, 1.4), align="rlrlrrcc",
+    header = ["#", "Axis", "Set rate, °/s" if with_rate else "Point", "Quantity", "Value ± U",
+              "Tolerance T", "U/T (RMG 63)", "Verdict"]
+    widths = [0.4, 0.8, 1.0, 2.2, 1.9, 1.3, 1.2, 1.4]
+    align = "rlrlrrcc"
+    if all(r[2] == "—" for r in rows):  # no check is tied to a rate
+        rows = [r[:2] + r[3:] for r in rows]
+        del header[2], widths[2]
+        align = align[:2] + align[3:]
+    blocks.append(Table(tuple(header), tuple(rows), widths=tuple(widths), align=align,
                         caption="Conformity with the procedure's tolerances",
                         notes=tuple(notes)))
     return tuple(blocks)
 
 
 def _tolerance_table(tol: Mapping[str, Any]) -> Table:
-    """The procedure's tolerance bands (a band applies below its `below_dps`, in order)."""
+    """The procedure's tolerances: rate bands (a band applies below its `below_dps`, in
+    order) or one value per quantity with its unit in the key (`own_drift_dph: 0.5`)."""
     rows = []
     for quantity, bands in tol.items():
+        words = str(quantity).split("_")
+        if _num(bands) is not None and words[-1] in ABSOLUTE_UNITS:
+            name = " ".join(words[:-1])
+            rows.append((QUANTITY_NAMES.get("_".join(words[:-1]), name), "every measurement",
+                         f"{_trim(_num(bands))} {ABSOLUTE_UNITS[words[-1]]}"))
+            continue
         lo = 0.0
         for band in bands if isinstance(bands, list) else []:
+            if not isinstance(band, Mapping):
+                continue
             below, rel = _num(band.get("below_dps")), _num(band.get("rel"))
             if below is not None:
                 where = (f"{lo:g} ≤ |ω_set| < {below:g} °/s" if lo else
@@ -1023,7 +1098,7 @@ def _tolerance_table(tol: Mapping[str, Any]) -> Table:
             rows.append((QUANTITY_NAMES.get(quantity, _label(quantity)), where, text))
     return Table(("Quantity", "Applies to", "Tolerance T"), tuple(rows),
                  widths=(2.5, 2.5, 2.0), align="llr",
-                 caption="Tolerances stated in the procedure file (the table maker's claims)")
+                 caption="Tolerances stated in the procedure file")
 
 
 def _records(src: Sources) -> tuple[Any, ...]:
