@@ -39,6 +39,23 @@ def _ref(value: float, u: float, scale: float = 1.0, signed: bool = False) -> st
     return f"{v.replace('-', MINUS)} ± {u_r:.{decimals}f}"
 
 
+def _bench_run(proc: Path) -> dict[str, Any]:
+    """`bench run PROC --yes` in a subprocess; its certificate rendered and read back."""
+    out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--out",
+                          str(proc.parent / "runs")], capture_output=True, text=True,
+                         timeout=120, cwd=ROOT)
+    run_dir = Path(out.stdout.strip().splitlines()[-1])
+    pdf = pdfium.PdfDocument(run_dir / "certificate.pdf")
+    texts, images = [], 0
+    for page in pdf:
+        assert page.render(scale=0.3).to_numpy().min() < 128, "a page rendered blank"
+        texts.append(page.get_textpage().get_text_range())
+        images += len(list(page.get_objects(filter=[pdfium_c.FPDF_PAGEOBJ_IMAGE])))
+    return {"status": out.returncode, "stderr": out.stderr, "dir": run_dir, "texts": texts,
+            "images": images, "result": json.loads((run_dir / "result.json").read_text()),
+            "html": (run_dir / "certificate.html").read_text(encoding="utf-8")}
+
+
 @pytest.fixture(scope="module")
 def run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     tmp = tmp_path_factory.mktemp("certrun")
@@ -63,19 +80,7 @@ decision_rule: guard-band
 conditions: {{temperature_c: "20 +/- 2"}}
 certificate: {{laboratory: Test lab, customer: Test customer, number: T-0001}}
 """)
-    out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--out",
-                          str(tmp / "runs")], capture_output=True, text=True, timeout=120,
-                         cwd=ROOT)
-    run_dir = Path(out.stdout.strip().splitlines()[-1])
-    pdf = pdfium.PdfDocument(run_dir / "certificate.pdf")
-    texts, images = [], 0
-    for page in pdf:
-        assert page.render(scale=0.3).to_numpy().min() < 128
-        texts.append(page.get_textpage().get_text_range())
-        images += len(list(page.get_objects(filter=[pdfium_c.FPDF_PAGEOBJ_IMAGE])))
-    return {"status": out.returncode, "stderr": out.stderr, "dir": run_dir, "texts": texts,
-            "images": images, "result": json.loads((run_dir / "result.json").read_text()),
-            "html": (run_dir / "certificate.html").read_text(encoding="utf-8")}
+    return _bench_run(proc)
 
 
 def _flat(texts: list[str]) -> str:
@@ -157,16 +162,7 @@ def drift_run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     text = re.sub(r"(?m)^  own_drift_dph: .*$", "  own_drift_dph: 0.4", text)
     proc = tmp / "drift.yaml"
     proc.write_text(text + "prompts: false\n")
-    out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--out",
-                          str(tmp / "runs")], capture_output=True, text=True, timeout=120,
-                         cwd=ROOT)
-    run_dir = Path(out.stdout.strip().splitlines()[-1])
-    pdf = pdfium.PdfDocument(run_dir / "certificate.pdf")
-    texts = [page.get_textpage().get_text_range() for page in pdf]
-    images = sum(len(list(page.get_objects(filter=[pdfium_c.FPDF_PAGEOBJ_IMAGE])))
-                 for page in pdf)
-    return {"status": out.returncode, "stderr": out.stderr, "texts": texts, "images": images,
-            "result": json.loads((run_dir / "result.json").read_text())}
+    return _bench_run(proc)
 
 
 @pytest.mark.timeout(120)
