@@ -324,3 +324,15 @@ def test_malformed_parts_are_named_not_fatal() -> None:
         assert f"result.json: {where} was malformed" in html, where
     assert "+1.42 ± 0.11" in html          # the rest is still reported
     assert "k ± U" in html and "n/a" in html
+
+
+def test_a_check_without_u_claims_no_capability() -> None:
+    from bench.certificate.build import build_document
+    from bench.certificate.html import render_html
+
+    result = {"schema": "bench.result/1", "verdict": "pass", "axes": {}, "checks": [
+        {"axis": "outer", "set_rate_dps": 10.0, "quantity": "intra_turn_instability",
+         "value_rel": 1.0e-3, "u_rel": 0.0, "tolerance_rel": 2.0e-3, "rule": "simple",
+         "verdict": "pass", "capability_ratio": 0.0, "capability_ok": True}]}
+    html = render_html(build_document(result, None, ISSUED))
+    assert "no U stated" in html and "0 met" not in html

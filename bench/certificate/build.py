@@ -1038,7 +1038,12 @@ def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
         ok = c.get("capability_ok")
         if ok is None and ratio is not None:
             ok = ratio <= CAPABILITY_LIMIT
-        cap = "—" if ratio is None else f"{format_sig(ratio, 2)} " + ("met" if ok else "not met")
+        if row.u is None or row.u <= 0:
+            cap = "no U stated"  # a ratio of 0 would claim a capability nobody showed
+        elif ratio is None:
+            cap = "—"
+        else:
+            cap = f"{format_sig(ratio, 2)} " + ("met" if ok else "not met")
         inside = (row.value is not None and row.tolerance is not None
                   and abs(row.value) <= row.tolerance)
         label = verdict_label(c.get("verdict"), str(c.get("rule") or rule), inside)
