@@ -192,6 +192,10 @@ def test_values_printed_with_u_rounded_as_by_hand(ladder: dict[str, Any]) -> Non
         # over 360 deg: 1.1e-6 over 4 windows: U = 2.2e-6 / sqrt(6) = 8.98e-7 -> ppm
         "1.10 ± 0.90*",
         "+0.332",                  # per-turn annex, first turn of outer +10
+        # budget of outer +10 in ppm: timing 3.8e-10, timebase 5.8e-10, repeatability
+        # 1.23e-7 / 2 = 6.15e-8 (-> 0.062, half up), U 1.23e-7
+        "+10 0.00038 0.00058 0.062 0.12",
+        "counter single-shot timestamp 0.020 ns; zero-mark edge jitter 27 ns",
     ]
     for s in expected:
         assert s in text, s

@@ -623,6 +623,9 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
         tuple(rows), widths=(0.9, 0.6, 2.8, 1.8, 1.8, 1.1, 0.9), align="rcrrrrc",
         caption=f"Axis {axis}: per-turn rate error and instability (METHOD.md A1-A2, eqs. 1-2)",
         notes=tuple(notes)))
+    budget = _rate_error_budget(axis, rates)
+    if budget is not None:
+        blocks.append(budget)
     blocks += _figure(f"Axis {axis}: per-turn rate error and instability vs rate, both "
                       "directions (cf. paper figs. 4-5)",
                       plots.per_turn, axis, rates, _tolerances(checks, axis),
@@ -724,6 +727,46 @@ def _corrected_cell(r: Mapping[str, Any], unit: RelUnit) -> str:
     if intra.get("resolved") is False or value is None:
         return f"< {limit} (not resolved)"
     return f"{format_fixed(value * unit.scale, decimals)} (≤ {limit})"
+
+
+BUDGET_TERMS = (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
+                ("repeatability_u_rel", "repeatability (Type A)"))
+
+
+def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
+    """The standard uncertainties behind U of the rate error (METHOD.md A1-A2)."""
+    budgets = [(r, r.get("rate_error_budget")) for r in rates
+               if isinstance(r.get("rate_error_budget"), Mapping)]
+    if not budgets:
+        return None
+    terms = [(k, name) for k, name in BUDGET_TERMS if any(k in b for _, b in budgets)]
+    unit = rel_unit(*[_num(b.get(k)) for _, b in budgets for k, _ in terms],
+                    *[_num(r.get("rate_error_u_rel")) for r, _ in budgets])
+    rows = []
+    for r, b in budgets:
+        cells = [format_sig((_num(b.get(k)) or math.nan) * unit.scale, 2) for k, _ in terms]
+        u = _num(r.get("rate_error_u_rel"))
+        rows.append((_rate(r.get("set_rate_dps")), *cells,
+                     format_sig(u * unit.scale, 2) if u is not None else "n/a"))
+    first = budgets[0][1]
+    parts = []
+    for key, text, scale, unit_name in (("timestamp_u_s", "counter single-shot timestamp", 1e9, "ns"),
+                                        ("trigger_jitter_s", "zero-mark edge jitter", 1e9, "ns"),
+                                        ("timebase_limit_rel", "timebase limit", 1e6, "ppm")):
+        v = _num(first.get(key))
+        if v is not None:
+            parts.append(f"{text} {format_sig(v * scale, 2)} {unit_name}")
+    notes = ["Standard uncertainties (k = 1), relative to the set rate; U = k·√(Σu²), "
+             f"k = {_num(first.get('coverage_factor')) or 2:g}."]
+    if parts:
+        notes.append("Inputs: " + "; ".join(parts) + " (METHOD.md A1: ΔT = √(Δ_counter² + "
+                     "Δ_trigger²)).")
+    header = ("Set rate, °/s", *[f"u({name}), {unit.name}" for _, name in terms],
+              f"U (k = 2), {unit.name}")
+    return Table(header, tuple(rows), widths=(1.1, *([1.8] * len(terms)), 1.4),
+                 align="r" * len(header),
+                 caption=f"Axis {axis}: uncertainty budget of the per-turn rate error",
+                 notes=tuple(notes))
 
 
 def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, Any]

@@ -34,6 +34,10 @@ def _rate(set_dps: float, turns: int, err: float, err_u: float, inst: float, ins
         "rate_instability_rel": inst,
         "rate_instability_u_rel": inst_u,
         "rate_instability_floor_rel": 1.0e-9 * abs(set_dps),
+        "rate_error_budget": {   # bench.analysis.turns.TurnsResult.to_dict()
+            "timing_u_rel": 3.8e-10 * abs(set_dps) / 10, "timebase_u_rel": 5.8e-10,
+            "repeatability_u_rel": err_u / 2, "coverage_factor": 2.0,
+            "timestamp_u_s": 2e-11, "trigger_jitter_s": 2.7e-08, "timebase_limit_rel": 1e-09},
         "intra_turn_instability_rel": raw,
         "intra_turn_instability_corrected_rel": corr,
         "intra_turn": {   # bench.analysis.random_part.RandomPartResult.to_dict()
