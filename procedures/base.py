@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any, Protocol
 
 from bench.clock import Clock
 from bench.config import Config
+from bench.conformity import RULES
 from bench.engine import RunContext
 from bench.instruments import Bench
-from bench.journal import RunDir
+from bench.journal import RunDir, sha256_file
 from bench.plan import Plan, Step
 from bench.schema import Map
 from bench.simbench import SimBench
@@ -42,3 +44,73 @@ class ProcedureKind(Protocol):
 
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
         """result.json from the run directory's raw data alone."""
+
+
+class StepDispatch:
+    """Runs step `action` as method `_do_<action>`; the prompt step is the same for all."""
+
+    def execute(self, step: Step, ctx: RunContext) -> None:
+        getattr(self, f"_do_{step.action}")(step, ctx)
+
+    def _do_prompt(self, step: Step, ctx: RunContext) -> None:
+        ctx.prompt(step.describe)
+
+
+SCHEMA = "bench.result/1"
+
+
+def events_of(events: list[dict[str, Any]], kind: str) -> list[dict[str, Any]]:
+    return [e for e in events if e.get("event") == kind]
+
+
+def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]]) -> dict[str, Any]:
+    """What every procedure kind's result.json says about the run (certificate header)."""
+    meta = run.meta
+    identities: dict[str, dict[str, str]] = {}
+    for e in events_of(events, "identity"):
+        identities[e["axis"]] = {k: v for k, v in e.items()
+                                 if k not in ("utc", "t_s", "session", "event", "axis")}
+    starts = events_of(events, "session_start")
+    ends = events_of(events, "completed") + events_of(events, "abort")
+    raw_files = []
+    for p in sorted((run.path / "raw").rglob("*")):
+        if p.is_file():
+            raw_files.append({"path": str(p.relative_to(run.path)), "sha256": sha256_file(p),
+                              "bytes": p.stat().st_size})
+    return {
+        "title": cfg.procedure.get("title", cfg.procedure_path.stem),
+        "run_dir": run.path.name,
+        "procedure_file": {"name": meta["procedure_name"], "sha256": meta["procedure_sha256"]},
+        "stand": {**cfg.stand["stand"], "file": Path(meta["stand_file"]).name,
+                  "sha256": meta["stand_sha256"], "simulated": "sim" in cfg.stand},
+        "instruments": identities,
+        "dates": {"created_utc": meta["created_utc"],
+                  "started_utc": starts[0]["utc"] if starts else None,
+                  "completed_utc": ends[-1]["utc"] if ends else None},
+        "conditions": cfg.procedure.get("conditions", {}),
+        "certificate": cfg.procedure.get("certificate", {}),
+        "sessions": len(starts),
+        "aborted": bool(events_of(events, "abort")),
+        "raw_files": raw_files,
+    }
+
+
+def result_document(run: RunDir, cfg: Config, events: list[dict[str, Any]], *,
+                    complete: bool, checks: list[dict[str, Any]], rule: str,
+                    method: dict[str, Any], **body: Any) -> dict[str, Any]:
+    """result.json: the verdict from the checks, the run header, then the kind's results."""
+    if not complete:
+        verdict = "incomplete"
+    else:
+        verdict = "fail" if any(c["verdict"] == "fail" for c in checks) else "pass"
+    return {
+        "schema": SCHEMA,
+        "procedure": cfg.kind,
+        "verdict": verdict,
+        **run_header(run, cfg, events),
+        "decision_rule": rule,
+        "decision_rule_text": RULES[rule],
+        "method": method,
+        "checks": checks,
+        **body,
+    }

@@ -30,7 +30,7 @@ import numpy as np
 from bench.analysis import drift_pulse as dp
 from bench.clock import Clock
 from bench.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
-from bench.conformity import RULES, judge
+from bench.conformity import judge
 from bench.engine import Abort, RunContext
 from bench.instruments import Bench, _raw_text_logger, open_axis
 from bench.journal import RunDir, read_jsonl
@@ -43,10 +43,10 @@ from drivers.awg import WaveformGenerator
 from drivers.dmm import PROFILES as DMM_PROFILES
 from drivers.dmm import Digitizer
 from drivers.scpi import parse_numbers
+from procedures.base import StepDispatch, result_document
 from sims.platform import GyroTruth
 
 NAME = "drift-pulse"
-SCHEMA = "bench.result/1"
 GYRO_NAMES = ("x", "y", "z")
 
 # -- files ------------------------------------------------------------------------------
@@ -181,7 +181,7 @@ def _near_int(x: float) -> bool:
     return abs(x - round(x)) < 1e-6 * max(1.0, abs(x))
 
 
-class DriftPulse:
+class DriftPulse(StepDispatch):
     name = NAME
 
     def procedure_schema(self) -> Map:
@@ -425,13 +425,7 @@ class DriftPulse:
             raise
         return bench
 
-    # -- steps ----------------------------------------------------------------------------
-    def execute(self, step: Step, ctx: RunContext) -> None:
-        getattr(self, f"_do_{step.action}")(step, ctx)
-
-    def _do_prompt(self, step: Step, ctx: RunContext) -> None:
-        ctx.prompt(step.describe)
-
+    # -- steps (each action is a `_do_<action>` method) -----------------------------------
     def _do_setup(self, step: Step, ctx: RunContext) -> None:
         t = Timing.of(ctx.cfg)
         for g, dmm in ctx.bench.extra["dmms"].items():
@@ -553,8 +547,6 @@ def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
 
 
 def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, Any]:
-    from procedures.rate_ladder_analysis import run_header
-
     events = run.events()
     plan_units = set(kind.build_plan(cfg).units())
     done = {e["unit"]: e["session"] for e in events if e.get("event") == "unit_done"}
@@ -597,28 +589,15 @@ def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, 
     except ValueError as e:
         drift = {"axes": {}, "not_computed": str(e)}
         complete = False
-    if not complete:
-        verdict = "incomplete"
-    else:
-        verdict = "fail" if any(c["verdict"] == "fail" for c in checks) else "pass"
     t = Timing.of(cfg)
-    return {
-        "schema": SCHEMA,
-        "procedure": cfg.kind,
-        "verdict": verdict,
-        **run_header(run, cfg, events),
-        "decision_rule": rule,
-        "decision_rule_text": RULES[rule],
-        "method": {"method": "METHOD.md B: alternating-sign controlled precession",
-                   "pulse": cfg.procedure["pulse"], "timing_cycles": setting(cfg, "timing_cycles"),
-                   "cycles_per_position": setting(cfg, "cycles"),
-                   "positions_deg": setting(cfg, "positions_deg"),
-                   "sample_rate_hz": 1.0 / t.interval_s, "aperture_s": t.aperture_s,
-                   "site": cfg.procedure["site"],
-                   "tolerance": cfg.procedure.get("tolerance", {})},
-        "checks": checks,
-        "drift": drift,
-    }
+    method = {"method": "METHOD.md B: alternating-sign controlled precession",
+              "pulse": cfg.procedure["pulse"], "timing_cycles": setting(cfg, "timing_cycles"),
+              "cycles_per_position": setting(cfg, "cycles"),
+              "positions_deg": setting(cfg, "positions_deg"),
+              "sample_rate_hz": 1.0 / t.interval_s, "aperture_s": t.aperture_s,
+              "site": cfg.procedure["site"], "tolerance": cfg.procedure.get("tolerance", {})}
+    return result_document(run, cfg, events, complete=complete, checks=checks, rule=rule,
+                           method=method, drift=drift)
 
 
 def _checks(cfg: Config, result: dp.DriftResult, rule: str) -> list[dict[str, Any]]:

@@ -28,6 +28,7 @@ from bench.plan import Plan, Step, format_duration
 from bench.schema import Key, ListOf, Map, MapOf, Num, Str
 from bench.simbench import SimBench
 from bench.yamlfile import Problem
+from procedures.base import StepDispatch
 
 NAME = "rate-ladder"
 
@@ -101,7 +102,7 @@ def halves(turns: int, sequence: str) -> list[tuple[int, int]]:
     return [(+1, turns), (-1, turns)]
 
 
-class RateLadder:
+class RateLadder(StepDispatch):
     name = NAME
 
     # -- files -----------------------------------------------------------------------
@@ -226,13 +227,7 @@ class RateLadder:
             raise
         return bench
 
-    # -- steps -----------------------------------------------------------------------
-    def execute(self, step: Step, ctx: RunContext) -> None:
-        getattr(self, f"_do_{step.action}")(step, ctx)
-
-    def _do_prompt(self, step: Step, ctx: RunContext) -> None:
-        ctx.prompt(step.describe)
-
+    # -- steps (each action is a `_do_<action>` method) --------------------------------
     def _do_enable(self, step: Step, ctx: RunContext) -> None:
         ctx.bench.axes[step.axis].drive.enable()
 

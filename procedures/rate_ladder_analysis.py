@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -20,14 +19,13 @@ from bench.analysis.pair import analyze_pair
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.config import Config
-from bench.conformity import RULES, judge
+from bench.conformity import judge
 from bench.engine import RunContext
-from bench.journal import RunDir, read_jsonl, sha256_file
+from bench.journal import RunDir, read_jsonl
 from drivers.counter_profiles import get_profile
 from drivers.fog import FogSamples, read_capture
 from drivers.scpi import parse_numbers
-
-SCHEMA = "bench.result/1"
+from procedures.base import events_of, result_document
 
 
 def counter_budget(stand_axis: dict[str, Any]) -> CounterBudget:
@@ -144,17 +142,13 @@ def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[di
     return out
 
 
-def _events_by(events: list[dict[str, Any]], kind: str) -> list[dict[str, Any]]:
-    return [e for e in events if e.get("event") == kind]
-
-
 def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
     events = run.events()
     raw = RawData(run, cfg)
     rule = _settings(cfg)["decision_rule"]
-    done_in: dict[str, int] = {e["unit"]: e["session"] for e in _events_by(events, "unit_done")}
-    acquisitions = _events_by(events, "acquire")
-    statics = _events_by(events, "static")
+    done_in: dict[str, int] = {e["unit"]: e["session"] for e in events_of(events, "unit_done")}
+    acquisitions = events_of(events, "acquire")
+    statics = events_of(events, "static")
     result_axes: dict[str, Any] = {}
     checks: list[dict[str, Any]] = []
     complete = True
@@ -194,53 +188,10 @@ def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
                      "sample_std_dps": float(np.std(w, ddof=1)),
                      "allan_tau_s": list(curve.tau_s), "allan_dev_dps": list(curve.adev)}
         result_axes[axis] = {"rates": rates, "pairs": pairs, "noise_floor": floor}
-    if not complete:
-        verdict = "incomplete"
-    else:
-        verdict = "fail" if any(c["verdict"] == "fail" for c in checks) else "pass"
-    return {
-        "schema": SCHEMA,
-        "procedure": cfg.kind,
-        "verdict": verdict,
-        **run_header(run, cfg, events),
-        "decision_rule": rule,
-        "decision_rule_text": RULES[rule],
-        "method": {**_settings(cfg), "tolerance": cfg.procedure.get("tolerance", {})},
-        "checks": checks,
-        "axes": result_axes,
-    }
-
-
-def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]]) -> dict[str, Any]:
-    """What every procedure kind's result.json says about the run (certificate header)."""
-    meta = run.meta
-    identities: dict[str, dict[str, str]] = {}
-    for e in _events_by(events, "identity"):
-        identities[e["axis"]] = {k: v for k, v in e.items()
-                                 if k not in ("utc", "t_s", "session", "event", "axis")}
-    starts = _events_by(events, "session_start")
-    ends = _events_by(events, "completed") + _events_by(events, "abort")
-    raw_files = []
-    for p in sorted((run.path / "raw").rglob("*")):
-        if p.is_file():
-            raw_files.append({"path": str(p.relative_to(run.path)), "sha256": sha256_file(p),
-                              "bytes": p.stat().st_size})
-    return {
-        "title": cfg.procedure.get("title", cfg.procedure_path.stem),
-        "run_dir": run.path.name,
-        "procedure_file": {"name": meta["procedure_name"], "sha256": meta["procedure_sha256"]},
-        "stand": {**cfg.stand["stand"], "file": Path(meta["stand_file"]).name,
-                  "sha256": meta["stand_sha256"], "simulated": "sim" in cfg.stand},
-        "instruments": identities,
-        "dates": {"created_utc": meta["created_utc"],
-                  "started_utc": starts[0]["utc"] if starts else None,
-                  "completed_utc": ends[-1]["utc"] if ends else None},
-        "conditions": cfg.procedure.get("conditions", {}),
-        "certificate": cfg.procedure.get("certificate", {}),
-        "sessions": len(starts),
-        "aborted": bool(_events_by(events, "abort")),
-        "raw_files": raw_files,
-    }
+    return result_document(run, cfg, events, complete=complete, checks=checks, rule=rule,
+                           method={**_settings(cfg),
+                                   "tolerance": cfg.procedure.get("tolerance", {})},
+                           axes=result_axes)
 
 
 def pair_summary(ctx: RunContext, axis: str, unit: str, rate_dps: float) -> dict[str, Any]:

@@ -55,9 +55,9 @@ def test_rate_error_instability_and_u_by_hand():
     assert r.rate_instability_rel == pytest.approx(
         np.sqrt(np.sum((rates - rates.mean()) ** 2) / 4) / abs(rates.mean()), rel=1e-9)
     # U: each window's two end edges, the timebase (rectangular) and the turn-to-turn
-    # repeatability (eq. 2 / sqrt(N)), k = 2
+    # repeatability (eq. 2 / sqrt(N), times GUM-S1's sqrt((N-1)/(N-3)) for few turns), k = 2
     timing = math.sqrt(2 * 2) * 27e-9 / periods.sum()
-    repeat = r.rate_instability_rel / math.sqrt(5)
+    repeat = r.rate_instability_rel / math.sqrt(5) * math.sqrt(4 / 2)
     u = math.sqrt(timing ** 2 + (2e-8 / math.sqrt(3)) ** 2 + repeat ** 2)
     assert r.rate_error_u_rel == pytest.approx(2 * u, rel=1e-9)
     d = r.to_dict()

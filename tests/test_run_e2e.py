@@ -67,16 +67,16 @@ def comparisons(result: dict[str, Any]) -> list[tuple[str, float, float, float]]
 def check_against_truth(result: dict[str, Any]) -> None:
     """Each figure within its U (k = 2) of the truth, as a k = 2 interval promises.
 
-    k = 2 covers about 95 %: of several dozen figures, one or two fall outside by chance
-    (and more often where U rests on few turns). So: every figure within 1.5 U (about
-    k = 3), and at least 90 % of them within U.
+    k = 2 covers about 95 %: of the ~70 figures of the demo, three or four fall outside U by
+    chance in any run. So: at least 90 % of them within U, and none beyond 2 U (k = 4,
+    which a correct U passes with odds of about 1 in 200 per run of 70 figures).
     """
     rows = comparisons(result)
     outside = []
     for what, value, u, truth in rows:
         assert math.isfinite(u) and u > 0, f"{what}: U = {u}"
         ratio = abs(value - truth) / u
-        assert ratio <= 1.5, f"{what}: {value:.9g} is {ratio:.2f} U from the truth {truth:.9g}"
+        assert ratio <= 2.0, f"{what}: {value:.9g} is {ratio:.2f} U from the truth {truth:.9g}"
         if ratio > 1.0:
             outside.append(f"{what} ({ratio:.2f} U)")
     assert len(outside) <= 0.1 * len(rows), f"outside U: {outside} of {len(rows)}"

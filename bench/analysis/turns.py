@@ -19,8 +19,9 @@ budget dT applies to each per-turn rate, not to the mean).
 
 U (k = 2) of the rate error combines: the timing of each window's two end edges, the
 counter's timebase (rectangular), and a Type A repeatability term, eq. 2's relative std
-over sqrt(N): the certificate states the table's rate error, of which these N turns are
-one sample, not only how well these N turns were timed.
+over sqrt(N), widened for few turns as GUM Supplement 1 does (`small_sample_factor`): the
+certificate states the table's rate error, of which these N turns are one sample, not
+only how well these N turns were timed.
 
 The counter sees |T|: the sign of every rate is the sign of the command (METHOD.md A1).
 """
@@ -131,7 +132,7 @@ class TurnsResult:
     timing_u_rel: float                # standard, from the windows' end edges
     timebase_u_rel: float              # standard, common to every rate
     budget: CounterBudget
-    repeatability_u_rel: float = 0.0   # standard, Type A: instability / sqrt(N)
+    repeatability_u_rel: float = 0.0   # standard, Type A: instability / sqrt(N), widened
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -148,6 +149,20 @@ class TurnsResult:
                                   "repeatability_u_rel": self.repeatability_u_rel,
                                   "coverage_factor": 2.0, **self.budget.to_dict()},
         }
+
+
+def small_sample_factor(n: int) -> float:
+    """Scale s / sqrt(n) so that k = 2 still covers ~95 % when s rests on few turns.
+
+    GUM Supplement 1 (6.4.9): a mean of n readings of unknown variance has a scaled
+    t-distribution, standard deviation s / sqrt(n) * sqrt((n - 1) / (n - 3)) for n > 3;
+    below that the variance is unbounded and we use t_95(n - 1) / 2 instead.
+    """
+    if n > 3:
+        return math.sqrt((n - 1) / (n - 3))
+    from scipy.stats import t
+
+    return float(t.ppf(0.975, max(n - 1, 1)) / 2.0)
 
 
 def analyze_turns(windows: Sequence[np.ndarray], set_rate_dps: float,
@@ -178,7 +193,8 @@ def analyze_turns(windows: Sequence[np.ndarray], set_rate_dps: float,
     # Type A: the table's own turn-to-turn scatter makes the mean of N turns uncertain as
     # an estimate of the table's rate error (sigma / sqrt(N)); the timing terms only say
     # how well these particular N turns were timed
-    repeat_u_rel = instab / math.sqrt(n_turns) if instab is not None else 0.0
+    repeat_u_rel = (instab / math.sqrt(n_turns) * small_sample_factor(n_turns)
+                    if instab is not None else 0.0)
     u = math.sqrt(timing_u_rel ** 2 + budget.timebase_u_rel ** 2 + repeat_u_rel ** 2)
     floor = budget.period_u_s * n_turns / total_s  # dT / T per turn (METHOD.md A1)
     return TurnsResult(
