@@ -1,55 +1,60 @@
 """`bench devices STAND.yaml`: open each instrument, print its identity, close.
 
 The first thing to run on a new bench: it proves every address in the stand file
-reaches the instrument it names, before any procedure moves the table.
+reaches the instrument it names, before any procedure moves the table. A stand file
+does not say which procedure it serves, so it is checked against each procedure kind's
+stand schema and opened by the first kind it fits, through that kind's own code.
 """
 
 from __future__ import annotations
 
 import sys
+from typing import Any
 
 from bench.clock import MonotonicClock
-from bench.config import stand_schema
-from bench.instruments import Bench, open_axis
+from bench.config import Config
 from bench.schema import validate
-from bench.simbench import SimBench
-from bench.yamlfile import YamlError, load_yaml
+from bench.yamlfile import Problem, YamlError, load_yaml
 
 
 def list_devices(stand_path: str, sim: bool = False) -> int:
+    from procedures import procedure_kind, procedure_names
+
     try:
         doc = load_yaml(stand_path)
     except YamlError as e:
         print(e, file=sys.stderr)
         return 2
-    problems = validate(doc, stand_schema())
+    fits: list[tuple[list[Problem], str]] = []
+    for name in procedure_names():
+        fits.append((validate(doc, procedure_kind(name).stand_schema()), name))
+    problems, name = min(fits, key=lambda f: len(f[0]))
     if problems:
         for p in problems:
             print(p, file=sys.stderr)
         return 2
-    stand = doc.data
+    kind = procedure_kind(name)
+    cfg = Config(doc.path, doc.path, {"procedure": name}, doc.data, doc, doc)
     simbench = None
-    clock: object = MonotonicClock()
-    status = 0
+    stand: dict[str, Any] = doc.data
+    clock: Any = MonotonicClock()
+    bench = None
     try:
-        if sim or "sim" in stand:
-            simbench = SimBench(stand)
-            stand = simbench.start()
+        if sim or cfg.has_sim:
+            simbench, stand = kind.start_sim(cfg)
             clock = simbench.clock
+        bench = kind.open_bench(cfg, stand, clock, None)
+        if simbench is not None:
             simbench.start_clock()
-        for axis, cfg in stand["axes"].items():
-            bench = Bench()
-            try:
-                ax = open_axis(bench, axis, cfg, clock, None)  # type: ignore[arg-type]
-                for what, ident in ax.identities.items():
-                    print(f"{axis:<8} {what:<8} {ident}")
-                ax.drive.disable()
-            except Exception as e:  # noqa: BLE001 - report every instrument
-                print(f"{axis:<8} ERROR    {e}", file=sys.stderr)
-                status = 3
-            finally:
-                bench.close()
+        for axis, ax in bench.axes.items():
+            for what, ident in ax.identities.items():
+                print(f"{axis:<8} {what:<8} {ident}")
+        return 0
+    except Exception as e:  # noqa: BLE001 - say which instrument did not answer
+        print(f"ERROR: {e}", file=sys.stderr)
+        return 3
     finally:
+        if bench is not None:
+            bench.close()
         if simbench is not None:
             simbench.stop()
-    return status

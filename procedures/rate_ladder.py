@@ -209,7 +209,8 @@ class RateLadder(StepDispatch):
 
     # -- bench -----------------------------------------------------------------------
     def axes(self, cfg: Config) -> list[str]:
-        return list(cfg.procedure["axes"])
+        """The procedure's axes (every axis of the stand for `bench devices`)."""
+        return list(cfg.procedure.get("axes") or cfg.stand["axes"])
 
     def start_sim(self, cfg: Config) -> tuple[SimBench, dict[str, Any]]:
         sim = SimBench(cfg.stand, self.axes(cfg))

@@ -32,6 +32,16 @@ def test_devices_prints_each_instruments_identity(capsys: pytest.CaptureFixture[
     assert "KVH DSP-1760" in rows["outer", "fog"]
 
 
+@pytest.mark.timeout(60)
+def test_devices_opens_a_gyro_platform_stand_through_its_own_kind(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    rc = main(["devices", str(CONFIGS / "stands" / "sim-gyro-platform.yaml")])
+    out = capsys.readouterr().out
+    assert rc == 0
+    assert "33522B" in out                       # the AWG twin's *IDN?
+    assert out.count("34465A") == 2              # one digitizer per horizontal gyro
+
+
 def test_run_without_a_procedure_is_invalid_input(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["run", "--yes"]) == 2
     assert "give a PROCEDURE.yaml" in capsys.readouterr().err
