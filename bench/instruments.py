@@ -81,7 +81,7 @@ class Bench:
                 j.close()
 
 
-def _raw_text_logger(log: JsonLines, clock: Clock) -> Callable[[str, bytes], None]:
+def raw_text_logger(log: JsonLines, clock: Clock) -> Callable[[str, bytes], None]:
     def raw(direction: str, data: bytes) -> None:
         log.write({"t_s": clock.now(), "dir": direction, "data": data.decode("latin-1")})
     return raw
@@ -103,7 +103,7 @@ def open_axis(bench: Bench, name: str, axis_cfg: dict[str, Any], clock: Clock,
     drive = Axis(name, interface=d["interface"], channel=d["channel"], node_id=d["node_id"],
                  max_rate_dps=d["max_rate_dps"], max_accel_dps2=d["max_accel_dps2"],
                  clock=clock, counts_per_rev=d.get("counts_per_rev", DEFAULT_COUNTS_PER_REV),
-                 **({"heartbeat_ms": d["heartbeat_ms"]} if "heartbeat_ms" in d else {}),
+                 **{k: d[k] for k in ("heartbeat_ms", "watchdog_ms") if k in d},
                  **({"bitrate": d["bitrate"]} if "bitrate" in d else {}),
                  **({"eds_path": d["eds"]} if "eds" in d else {}),
                  raw=_raw_record_logger(drive_log, clock) if drive_log else None)
@@ -119,7 +119,7 @@ def open_axis(bench: Bench, name: str, axis_cfg: dict[str, Any], clock: Clock,
 
         clog = bench.log(run.raw_path(f"{name}-counter.jsonl")) if run else None
         cnt = Counter.open(c["resource"], c["model"], clock,
-                           raw=_raw_text_logger(clog, clock) if clog else None,
+                           raw=raw_text_logger(clog, clock) if clog else None,
                            **({"timeout_margin_s": c["timeout_margin_s"]}
                               if "timeout_margin_s" in c else {}))
         bench.enter(cnt)
