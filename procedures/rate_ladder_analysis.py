@@ -134,7 +134,7 @@ def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[di
         ("rate_error", entry["rate_error_rel"], entry["rate_error_u_rel"]),
         ("rate_instability", entry["rate_instability_rel"], entry["rate_instability_u_rel"]),
         ("intra_turn_instability", entry["intra_turn_instability_rel"],
-         entry.get("intra_turn_instability_u_rel", 0.0)),
+         entry["intra_turn_instability_u_rel"]),
     ):
         t = tolerance_for(tol.get(quantity), rate)
         if t is not None:

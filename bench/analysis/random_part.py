@@ -82,10 +82,23 @@ class AveragedInstability:
     blocks: int
     samples_per_block: float
 
+    @property
+    def u_rel(self) -> float | None:
+        """U (k = 2) of the std of `blocks` block means: s / sqrt(2 (n - 1)) each."""
+        return std_u_rel(self.instability_rel, self.blocks)
+
     def to_dict(self) -> dict[str, object]:
         return {"angle_deg": self.angle_deg, "instability_rel": self.instability_rel,
+                "u_rel": self.u_rel,
                 "floor_rel": self.floor_rel, "corrected_rel": self.corrected_rel,
                 "blocks": self.blocks, "samples_per_block": self.samples_per_block}
+
+
+def std_u_rel(std: float | None, n: int) -> float | None:
+    """U (k = 2) of a standard deviation estimated from n independent values."""
+    if std is None or n < 2:
+        return None
+    return 2.0 * std / math.sqrt(2.0 * (n - 1))
 
 
 @dataclass(frozen=True)

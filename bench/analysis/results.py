@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from bench.analysis.crosscal import CrossCalibration
-from bench.analysis.random_part import RandomPartResult
+from bench.analysis.random_part import RandomPartResult, std_u_rel
 from bench.analysis.systematic import (
     BinnedSystematic,
     HarmonicResult,
@@ -87,6 +87,9 @@ class RateResult:
         d: dict[str, Any] = tr.to_dict()
         d["intra_turn_instability_rel"] = self.random.instability_rel
         d["intra_turn_instability_corrected_rel"] = self.random.corrected_rel
+        # METHOD.md A5: U of a std from the record's samples (white random part assumed)
+        d["intra_turn_instability_u_rel"] = std_u_rel(self.random.instability_rel,
+                                                      self.random.samples)
         d["systematic"] = self.systematic.to_dict()
         d["intra_turn"] = self.random.to_dict()
         d["windows"] = [dict(w) for w in self.windows]
