@@ -32,40 +32,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.clock import Clock
-from drivers.scpi import (
-    IDN,
-    Command,
-    ErrorKinds,
-    InstrumentCommandError,
-    InstrumentConnectionError,
-    InstrumentError,
-    InstrumentReplyError,
-    InstrumentTimeout,
-    ParameterError,
-    RawCallback,
-    ScpiInstrument,
-)
-from drivers.scpi_profile import handshake, lookup_profile
+from drivers.scpi import Command, ErrorKinds, InstrumentError, ParameterError, RawCallback
+from drivers.scpi_profile import InstrumentProfile, ProfiledInstrument, lookup_profile
 
-
-class AwgError(InstrumentError):
-    """Anything the waveform generator, or the way to it, did wrong."""
-
-
-class AwgCommandError(AwgError, InstrumentCommandError):
-    """The generator's error queue reported an error (the message names the command)."""
-
-
-class AwgTimeout(AwgError, InstrumentTimeout):
-    pass
-
-
-class AwgReplyError(AwgError, InstrumentReplyError):
-    pass
-
-
-class AwgConnectionError(AwgError, InstrumentConnectionError):
-    pass
+AWG_ERRORS = ErrorKinds.family("Awg", "the waveform generator", __name__)
+AwgError, AwgCommandError, AwgTimeout, AwgReplyError, AwgConnectionError = AWG_ERRORS
 
 
 @dataclass(frozen=True)
@@ -110,23 +81,17 @@ class AwgWords:
     bus_trigger: Command = Command("*TRG", doc="IEEE 488.2 bus trigger")
 
 
-@dataclass(frozen=True)
-class AwgProfile:
+@dataclass(frozen=True, kw_only=True)
+class AwgProfile(InstrumentProfile):
     """One generator model: words, limits, and what its twin answers to *IDN?."""
 
-    model: str
-    maker: str
-    description: str
     words: AwgWords
-    idn_pattern: str | None
     channels: tuple[int, ...]
     max_points: int
     min_points: int
     sample_rate_range_hz: tuple[float, float]
     amplitude_range_vpp: tuple[float, float]      # into a high-impedance load
     dac_bits: int
-    notes: str = ""
-    idn: str = ""
 
 
 KEYSIGHT_33500B = AwgProfile(
@@ -183,39 +148,18 @@ def format_points(values: np.ndarray) -> str:
     return ",".join(f"{v:.7g}" for v in values)
 
 
-class WaveformGenerator(ScpiInstrument):
+class WaveformGenerator(ProfiledInstrument[AwgProfile]):
     """A SCPI arbitrary waveform generator that plays a pulse pair per bus trigger."""
 
-    error_kinds = ErrorKinds(command=AwgCommandError, timeout=AwgTimeout,
-                             reply=AwgReplyError, connection=AwgConnectionError)
+    error_kinds = AWG_ERRORS
+    kind, stand_key, profiles = "waveform generator", "awg", PROFILES
 
     def __init__(self, resource: str, profile: AwgProfile, clock: Clock, *,
                  raw: RawCallback | None = None, command_timeout_s: float = 5.0,
                  visa_library: str = "@py") -> None:
-        self.profile = profile
-        self.words = profile.words
-        self.clock = clock
         self.loaded: dict[int, LoadedPair] = {}
-        super().__init__(resource, visa_library=visa_library, raw=raw,
-                         command_timeout_s=command_timeout_s,
-                         name=f"waveform generator {profile.model} at {resource}")
-
-    @classmethod
-    def open(cls, resource: str, model: str | AwgProfile, clock: Clock, *,
-             raw: RawCallback | None = None, check_identity: bool = True,
-             visa_library: str = "@py") -> WaveformGenerator:
-        """Open, bring to a known idle state, check it is the model named."""
-        profile = get_profile(model) if isinstance(model, str) else model
-        awg = cls(resource, profile, clock, raw=raw, visa_library=visa_library)
-        handshake(awg, profile.idn_pattern if check_identity else None, profile.model,
-                  "awg", AwgError)
-        return awg
-
-    def __enter__(self) -> WaveformGenerator:
-        return self
-
-    def identify(self) -> str:
-        return self.ask(IDN)
+        super().__init__(resource, profile, clock, raw=raw,
+                         command_timeout_s=command_timeout_s, visa_library=visa_library)
 
     def _check_channel(self, channel: int) -> None:
         if channel not in self.profile.channels:

@@ -44,39 +44,19 @@ from drivers.scpi import (
     RST,
     Command,
     ErrorKinds,
-    InstrumentCommandError,
-    InstrumentConnectionError,
     InstrumentError,
-    InstrumentReplyError,
-    InstrumentTimeout,
     RawCallback,
     ScpiInstrument,
     parse_numbers,
 )
 
-
-class CounterError(InstrumentError):
-    """Anything the counter, or the way to it, did wrong."""
-
-
-class CounterCommandError(CounterError, InstrumentCommandError):
-    """The counter's error queue reported an error (the message names the command)."""
-
-
-class CounterTimeout(CounterError, InstrumentTimeout):
-    """The counter did not answer in time."""
+COUNTER_ERRORS = ErrorKinds.family("Counter", "the counter", __name__)
+(CounterError, CounterCommandError, CounterTimeout, CounterReplyError,
+ CounterConnectionError) = COUNTER_ERRORS
 
 
 class CounterMeasurementTimeout(CounterTimeout):
     """The counter answered 9.91E37: no (or too few) edges within its own timeout."""
-
-
-class CounterReplyError(CounterError, InstrumentReplyError):
-    """A reply that cannot be the data asked for (garbage, wrong count, not increasing)."""
-
-
-class CounterConnectionError(CounterError, InstrumentConnectionError):
-    """The link to the counter failed or was lost."""
 
 
 #: IEEE 488.2 ESR error bits: query (4), device-dependent (8), execution (16), command (32)
@@ -122,8 +102,7 @@ class Acquisition:
 class Counter(ScpiInstrument):
     """A SCPI frequency counter over pyvisa; see the module docstring for the sequence."""
 
-    error_kinds = ErrorKinds(command=CounterCommandError, timeout=CounterTimeout,
-                             reply=CounterReplyError, connection=CounterConnectionError)
+    error_kinds = COUNTER_ERRORS
 
     def __init__(self, resource: str, profile: CounterProfile, clock: Clock, *,
                  raw: RawCallback | None = None,

@@ -35,41 +35,18 @@ from drivers.scpi import (
     CLS,
     ESR_OPC,
     ESR_Q,
-    IDN,
     INIT,
     OPC,
     Command,
     ErrorKinds,
-    InstrumentCommandError,
-    InstrumentConnectionError,
     InstrumentError,
-    InstrumentReplyError,
-    InstrumentTimeout,
     RawCallback,
-    ScpiInstrument,
     parse_numbers,
 )
-from drivers.scpi_profile import handshake, lookup_profile
+from drivers.scpi_profile import InstrumentProfile, ProfiledInstrument, lookup_profile
 
-
-class DmmError(InstrumentError):
-    """Anything the digitizer, or the way to it, did wrong."""
-
-
-class DmmCommandError(DmmError, InstrumentCommandError):
-    pass
-
-
-class DmmTimeout(DmmError, InstrumentTimeout):
-    pass
-
-
-class DmmReplyError(DmmError, InstrumentReplyError):
-    pass
-
-
-class DmmConnectionError(DmmError, InstrumentConnectionError):
-    pass
+DMM_ERRORS = ErrorKinds.family("Dmm", "the digitizer", __name__)
+DmmError, DmmCommandError, DmmTimeout, DmmReplyError, DmmConnectionError = DMM_ERRORS
 
 
 class DmmOverload(DmmError):
@@ -100,13 +77,9 @@ class DmmWords:
     fetch: Command = Command("FETCh?", doc="the readings of the last measurement")
 
 
-@dataclass(frozen=True)
-class DmmProfile:
-    model: str
-    maker: str
-    description: str
+@dataclass(frozen=True, kw_only=True)
+class DmmProfile(InstrumentProfile):
     words: DmmWords
-    idn_pattern: str | None
     ranges_v: tuple[float, ...]
     aperture_range_s: tuple[float, float]
     min_interval_s: float
@@ -115,8 +88,6 @@ class DmmProfile:
     max_trigger_delay_s: float
     waiting_for_trigger_bit: int   # STAT:OPER:COND? bit set while armed
     overload_v: float = 9.9e37
-    notes: str = ""
-    idn: str = ""
 
 
 KEYSIGHT_34465A = DmmProfile(
@@ -171,43 +142,21 @@ class DigitizerSetup:
 SPAN_SLACK_REL = 0.25
 
 
-class Digitizer(ScpiInstrument):
+class Digitizer(ProfiledInstrument[DmmProfile]):
     """A SCPI DMM recording one triggered burst of samples at a fixed interval."""
 
-    error_kinds = ErrorKinds(command=DmmCommandError, timeout=DmmTimeout,
-                             reply=DmmReplyError, connection=DmmConnectionError)
+    error_kinds = DMM_ERRORS
+    kind, stand_key, profiles = "DMM", "dmm", PROFILES
 
     def __init__(self, resource: str, profile: DmmProfile, clock: Clock, *,
                  raw: RawCallback | None = None, command_timeout_s: float = 2.0,
                  timeout_margin_s: float = 5.0, visa_library: str = "@py") -> None:
-        self.profile = profile
-        self.words = profile.words
-        self.clock = clock
         self.timeout_margin_s = float(timeout_margin_s)
         self.recovery_commands = (profile.words.abort, CLS)
         self.setup: DigitizerSetup | None = None
         self._armed_real_s: float | None = None
-        super().__init__(resource, visa_library=visa_library, raw=raw,
-                         command_timeout_s=command_timeout_s,
-                         name=f"DMM {profile.model} at {resource}")
-
-    @classmethod
-    def open(cls, resource: str, model: str | DmmProfile, clock: Clock, *,
-             raw: RawCallback | None = None, check_identity: bool = True,
-             timeout_margin_s: float = 5.0, visa_library: str = "@py") -> Digitizer:
-        """Open, bring to a known idle state, check it is the model named."""
-        profile = get_profile(model) if isinstance(model, str) else model
-        dmm = cls(resource, profile, clock, raw=raw, timeout_margin_s=timeout_margin_s,
-                  visa_library=visa_library)
-        handshake(dmm, profile.idn_pattern if check_identity else None, profile.model,
-                  "dmm", DmmError)
-        return dmm
-
-    def __enter__(self) -> Digitizer:
-        return self
-
-    def identify(self) -> str:
-        return self.ask(IDN)
+        super().__init__(resource, profile, clock, raw=raw,
+                         command_timeout_s=command_timeout_s, visa_library=visa_library)
 
     def configure(self, range_v: float, aperture_s: float, interval_s: float, count: int,
                   trigger_delay_s: float = 0.0, slope: str = "POS") -> DigitizerSetup:

@@ -27,9 +27,9 @@ instance's `words` (a dataclass or mapping of Commands), so one driver class can
 several instrument models whose words differ. Placeholders a descriptor does not set
 (a channel, say) come from `instance.template_values()`.
 
-Error classes: a driver family subclasses `InstrumentError` and its kinds, and points
-`error_kinds` at them (see drivers/counter.py), so the base raises e.g. `CounterTimeout`
-while callers may still catch the generic `InstrumentTimeout`.
+Error classes: a driver family declares its own with `ErrorKinds.family("Counter", ...)`
+and points `error_kinds` at them (see drivers/counter.py), so the base raises e.g.
+`CounterTimeout` while callers may still catch the generic `InstrumentTimeout`.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, fields, is_dataclass
 from functools import cached_property
-from typing import Any, ClassVar, Generic, TypeVar
+from typing import Any, ClassVar, Generic, Self, TypeVar
 
 import numpy as np
 
@@ -299,6 +299,39 @@ class ErrorKinds:
     timeout: type[InstrumentTimeout] = InstrumentTimeout
     reply: type[InstrumentReplyError] = InstrumentReplyError
     connection: type[InstrumentConnectionError] = InstrumentConnectionError
+    #: the family's own root, which every kind above also derives from
+    base: type[InstrumentError] = InstrumentError
+
+    @classmethod
+    def family(cls, prefix: str, what: str, module: str) -> ErrorKinds:
+        """A driver family's exceptions, declared once: `<prefix>Error`, the family's root,
+        and `<prefix>CommandError`, `<prefix>Timeout`, `<prefix>ReplyError`,
+        `<prefix>ConnectionError`, each also the generic kind, so a caller may catch
+        `CounterTimeout` or any `InstrumentTimeout`. `what` names the instrument in their
+        docstrings ("the counter"); `module` is the `__name__` of the module that binds
+        the names (tracebacks show them there). Iterating gives root, command, timeout,
+        reply, connection: `(CounterError, ...) = COUNTER_ERRORS`.
+        """
+        def declare(suffix: str, kind: type, doc: str) -> Any:
+            bases = (kind,) if kind is InstrumentError else (base, kind)
+            return type(f"{prefix}{suffix}", bases, {"__doc__": doc, "__module__": module})
+
+        the = what[:1].upper() + what[1:]
+        base = declare("Error", InstrumentError, f"Anything {what}, or the way to it, did wrong.")
+        return cls(
+            command=declare("CommandError", InstrumentCommandError,
+                            f"{the}'s error queue reported an error (the message names the "
+                            "command)."),
+            timeout=declare("Timeout", InstrumentTimeout, f"{the} did not answer in time."),
+            reply=declare("ReplyError", InstrumentReplyError,
+                          "A reply that cannot be the data asked for (garbage, wrong count, "
+                          "out of order)."),
+            connection=declare("ConnectionError", InstrumentConnectionError,
+                               f"The link to {what} failed or was lost."),
+            base=base)
+
+    def __iter__(self) -> Iterator[Any]:
+        return iter((self.base, self.command, self.timeout, self.reply, self.connection))
 
 
 # -- the instrument -------------------------------------------------------------------------
@@ -378,7 +411,7 @@ class ScpiInstrument:
     def is_open(self) -> bool:
         return self._inst is not None
 
-    def __enter__(self) -> ScpiInstrument:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -490,6 +523,10 @@ class ScpiInstrument:
     def template_values(self) -> dict[str, Any]:
         """Default placeholder values for words (e.g. the channel); drivers override."""
         return {}
+
+    def identify(self) -> str:
+        """The instrument's `*IDN?` reply: maker, model, serial, firmware."""
+        return self.ask(IDN)
 
     # -- the error queue ------------------------------------------------------------------
     def next_error(self) -> ErrorEntry:

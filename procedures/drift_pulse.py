@@ -32,7 +32,7 @@ from bench.clock import Clock
 from bench.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
 from bench.conformity import judge
 from bench.engine import Abort, RunContext
-from bench.instruments import Bench, _raw_text_logger, open_axis
+from bench.instruments import Bench, open_axis, raw_text_logger
 from bench.journal import RunDir, read_jsonl
 from bench.plan import Plan, Step
 from bench.schema import Key, ListOf, Map, MapOf, Num, Str
@@ -400,7 +400,7 @@ class DriftPulse(StepDispatch):
         plat = stand["platform"]
 
         def raw(name: str) -> Any:
-            return _raw_text_logger(bench.log(run.raw_path(name)), clock) if run else None
+            return raw_text_logger(bench.log(run.raw_path(name)), clock) if run else None
 
         try:
             table = plat["table_axis"]

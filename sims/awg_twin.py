@@ -23,9 +23,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drivers.awg import AwgProfile, get_profile
-from sims.counter_twin import _bool, _enum, _number
 from sims.platform import GyroPlatform
-from sims.scpi_server import ExecError, ScpiServer
+from sims.scpi_server import (
+    ExecError,
+    ScpiServer,
+    bool_param,
+    bool_reply,
+    enum_param,
+    nr3,
+    number_param,
+    ranged_param,
+    suffix_item,
+)
 
 #: the trigger output's wire: (rising edge, falling edge), stand time
 TriggerListener = Callable[[float, float], None]
@@ -89,49 +98,43 @@ class AwgTwin(ScpiServer):
 
     # -- routes -----------------------------------------------------------------------------
     def _route_words(self) -> None:
-        w = self.profile.words
         ch = self._ch
-        table = {
+        self.route_words(self.profile.words, {
             "clear_volatile": (lambda a: self._clear(a), None),
             "arb_data": (self._arb_data, None),
             "arb_select": (self._arb_select, lambda a: f'"{ch(a).arb or ""}"'),
-            "function": (lambda a: setattr(ch(a), "function", _enum(
+            "function": (lambda a: setattr(ch(a), "function", enum_param(
                 a["function"], ("SINusoid", "SQUare", "RAMP", "PULSe", "ARBitrary", "DC",
                                 "NOISe", "TRIangle", "PRBS"))),
                          lambda a: ch(a).function),
-            "sample_rate": (self._sample_rate, lambda a: f"{ch(a).sample_rate_hz:+.9E}"),
-            "arb_filter": (lambda a: setattr(ch(a), "arb_filter", _enum(
+            "sample_rate": (self._sample_rate, lambda a: nr3(ch(a).sample_rate_hz)),
+            "arb_filter": (lambda a: setattr(ch(a), "arb_filter", enum_param(
                 a["filter"], ("NORMal", "STEP", "OFF"))), lambda a: ch(a).arb_filter),
-            "amplitude": (self._amplitude, lambda a: f"{ch(a).vpp:+.9E}"),
-            "offset": (lambda a: setattr(ch(a), "offset_v", _number(a["offset_v"], {})),
-                       lambda a: f"{ch(a).offset_v:+.9E}"),
-            "load": (self._load, lambda a: f"{ch(a).load_ohm:+.9E}"),
-            "burst_mode": (lambda a: setattr(ch(a), "burst_mode", _enum(
+            "amplitude": (self._amplitude, lambda a: nr3(ch(a).vpp)),
+            "offset": (lambda a: setattr(ch(a), "offset_v", number_param(a["offset_v"], {})),
+                       lambda a: nr3(ch(a).offset_v)),
+            "load": (self._load, lambda a: nr3(ch(a).load_ohm)),
+            "burst_mode": (lambda a: setattr(ch(a), "burst_mode", enum_param(
                 a["mode"], ("TRIGgered", "GATed"))), lambda a: ch(a).burst_mode),
             "burst_cycles": (self._cycles, lambda a: f"{ch(a).burst_cycles}"),
-            "burst_state": (lambda a: setattr(ch(a), "burst_on", _bool(a["state"])),
-                            lambda a: "1" if ch(a).burst_on else "0"),
-            "trigger_source": (lambda a: setattr(ch(a), "trigger_source", _enum(
+            "burst_state": (lambda a: setattr(ch(a), "burst_on", bool_param(a["state"])),
+                            lambda a: bool_reply(ch(a).burst_on)),
+            "trigger_source": (lambda a: setattr(ch(a), "trigger_source", enum_param(
                 a["source"], ("IMMediate", "EXTernal", "TIMer", "BUS"))),
                                lambda a: ch(a).trigger_source),
-            "trigger_delay": (self._delay, lambda a: f"{ch(a).trigger_delay_s:+.9E}"),
-            "output": (lambda a: setattr(ch(a), "output_on", _bool(a["state"])),
-                       lambda a: "1" if ch(a).output_on else "0"),
-            "trigger_out": (lambda a: setattr(self, "trig_out_on", _bool(a["state"])),
-                            lambda a: "1" if self.trig_out_on else "0"),
+            "trigger_delay": (self._delay, lambda a: nr3(ch(a).trigger_delay_s)),
+            "output": (lambda a: setattr(ch(a), "output_on", bool_param(a["state"])),
+                       lambda a: bool_reply(ch(a).output_on)),
+            "trigger_out": (lambda a: setattr(self, "trig_out_on", bool_param(a["state"])),
+                            lambda a: bool_reply(self.trig_out_on)),
             "trigger_out_source": (self._trig_out_source, lambda a: f"CH{self.trig_out_source}"),
-            "trigger_out_slope": (lambda a: setattr(self, "trig_out_slope", _enum(
+            "trigger_out_slope": (lambda a: setattr(self, "trig_out_slope", enum_param(
                 a["slope"], ("POSitive", "NEGative"))), lambda a: self.trig_out_slope),
             "bus_trigger": (lambda a: self._bus_trigger(), None),
-        }
-        for name, (on_set, on_query) in table.items():
-            self.route(getattr(w, name), on_set=on_set, on_query=on_query)
+        })
 
     def _ch(self, a: Mapping[str, str]) -> Channel:
-        n = int(a.get("channel") or 1)
-        if n not in self.channels:
-            raise ExecError(-114, "Header suffix out of range")
-        return self.channels[n]
+        return suffix_item(self.channels, a)
 
     def _clear(self, a: Mapping[str, str]) -> None:
         c = self._ch(a)
@@ -159,35 +162,25 @@ class AwgTwin(ScpiServer):
         c.arb = name
 
     def _sample_rate(self, a: Mapping[str, str]) -> None:
-        lo, hi = self.profile.sample_rate_range_hz
-        r = _number(a["rate_hz"], {"MIN": lo, "MAX": hi, "DEF": 40e3})
-        if not lo <= r <= hi:
-            raise ExecError(-222, "Data out of range")
-        self._ch(a).sample_rate_hz = r
+        rate_hz = ranged_param(a["rate_hz"], *self.profile.sample_rate_range_hz, default=40e3)
+        self._ch(a).sample_rate_hz = rate_hz
 
     def _amplitude(self, a: Mapping[str, str]) -> None:
-        lo, hi = self.profile.amplitude_range_vpp
-        v = _number(a["vpp"], {"MIN": lo, "MAX": hi, "DEF": 0.1})
-        if not lo <= v <= hi:
-            raise ExecError(-222, "Data out of range")
-        self._ch(a).vpp = v
+        self._ch(a).vpp = ranged_param(a["vpp"], *self.profile.amplitude_range_vpp, default=0.1)
 
     def _load(self, a: Mapping[str, str]) -> None:
         text = a["ohm"].strip().upper()
         self._ch(a).load_ohm = HIGH_Z_OHM if text.startswith("INF") else \
-            _number(text, {"MIN": 1.0, "MAX": 10e3, "DEF": 50.0})
+            number_param(text, {"MIN": 1.0, "MAX": 10e3, "DEF": 50.0})
 
     def _cycles(self, a: Mapping[str, str]) -> None:
-        n = int(_number(a["cycles"], {"MIN": 1, "DEF": 1}))
+        n = int(number_param(a["cycles"], {"MIN": 1, "DEF": 1}))
         if n < 1:
             raise ExecError(-222, "Data out of range")
         self._ch(a).burst_cycles = n
 
     def _delay(self, a: Mapping[str, str]) -> None:
-        d = _number(a["delay_s"], {"MIN": 0.0, "MAX": 1000.0, "DEF": 0.0})
-        if not 0.0 <= d <= 1000.0:
-            raise ExecError(-222, "Data out of range")
-        self._ch(a).trigger_delay_s = d
+        self._ch(a).trigger_delay_s = ranged_param(a["delay_s"], 0.0, 1000.0, default=0.0)
 
     def _trig_out_source(self, a: Mapping[str, str]) -> None:
         text = a["source"].strip().upper()

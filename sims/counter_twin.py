@@ -42,8 +42,19 @@ from drivers.counter_profiles import (
     encode_values,
     get_profile,
 )
-from drivers.scpi import SCPI_NAN, short_form
-from sims.scpi_server import ExecError, ScpiServer
+from drivers.scpi import SCPI_NAN
+from sims.scpi_server import (
+    ExecError,
+    ScpiServer,
+    bool_param,
+    bool_reply,
+    count_param,
+    enum_param,
+    nr3,
+    number_param,
+    ranged_param,
+    suffix_item,
+)
 from sims.stand import SimulatedStand
 
 
@@ -174,53 +185,39 @@ class CounterTwin(ScpiServer):
 
     # -- routes: one handler per word the profile has --------------------------------------
     def _route_words(self) -> None:
-        w = self.profile.words
-        table: dict[str, tuple[object, object, bool]] = {
-            "input_coupling": (self._set_coupling, lambda a: self._inp(a).coupling, False),
-            "input_impedance": (self._set_impedance,
-                                lambda a: _nr3(self._inp(a).impedance_ohm), False),
+        self.route_words(self.profile.words, {
+            "input_coupling": (self._set_coupling, lambda a: self._inp(a).coupling),
+            "input_impedance": (self._set_impedance, lambda a: nr3(self._inp(a).impedance_ohm)),
             "input_level_auto": (self._set_level_auto,
-                                 lambda a: "1" if self._inp(a).level_auto else "0", False),
-            "input_level": (self._set_level, lambda a: _nr3(self._inp(a).level_v), False),
-            "input_slope": (self._set_slope, lambda a: self._inp(a).slope, False),
-            "configure_timestamps": (self._conf_timestamps, None, False),
-            "configure_period": (self._conf_period, None, False),
-            "timestamp_rate": (self._set_rate, lambda a: _nr3(self.timestamp_rate_hz), False),
-            "timestamp_info": (self._set_tinf, lambda a: "1" if self.timestamp_info else "0",
-                               False),
-            "sample_count": (self._set_count, lambda a: f"+{self.sample_count}", False),
-            "gate_time": (self._set_gate, None, False),
-            "measurement_timeout": (self._set_timeout, lambda a: _nr3(
-                SCPI_NAN if self.timeout_s is None else self.timeout_s), False),
-            "format_data": (self._set_format, lambda a: "ASC", False),
-            "abort": (self._abort, None, False),
-            "initiate": (self._initiate, None, False),
+                                 lambda a: bool_reply(self._inp(a).level_auto)),
+            "input_level": (self._set_level, lambda a: nr3(self._inp(a).level_v)),
+            "input_slope": (self._set_slope, lambda a: self._inp(a).slope),
+            "configure_timestamps": (self._conf_timestamps, None),
+            "configure_period": (self._conf_period, None),
+            "timestamp_rate": (self._set_rate, lambda a: nr3(self.timestamp_rate_hz)),
+            "timestamp_info": (self._set_tinf, lambda a: bool_reply(self.timestamp_info)),
+            "sample_count": (self._set_count, lambda a: f"+{self.sample_count}"),
+            "gate_time": (self._set_gate, None),
+            "measurement_timeout": (self._set_timeout, lambda a: nr3(
+                SCPI_NAN if self.timeout_s is None else self.timeout_s)),
+            "format_data": (self._set_format, lambda a: "ASC"),
+            "abort": (self._abort, None),
+            "initiate": (self._initiate, None),
             "fetch": (None, self._fetch, True),
             "fetch_array": (None, self._fetch_array, True),
             "read": (None, self._read, True),
-        }
-        for name, (on_set, on_query, data) in table.items():
-            cmd = getattr(w, name)
-            if cmd is None:
-                continue
-            if cmd.is_query:
-                self.route(cmd, on_query=on_query, data=data)  # type: ignore[arg-type]
-            else:
-                self.route(cmd, on_set=on_set, on_query=on_query, data=data)  # type: ignore[arg-type]
+        })
 
     def _inp(self, a: Mapping[str, str]) -> InputState:
-        ch = int(a.get("channel") or 1)
-        if ch not in self.inputs:
-            raise ExecError(-114, "Header suffix out of range")
-        return self.inputs[ch]
+        return suffix_item(self.inputs, a)
 
     def _set_coupling(self, a: Mapping[str, str]) -> None:
-        self._inp(a).coupling = _enum(a["coupling"], self.profile.couplings)
+        self._inp(a).coupling = enum_param(a["coupling"], self.profile.couplings)
 
     def _set_impedance(self, a: Mapping[str, str]) -> None:
-        z = _number(a["impedance_ohm"], {"MIN": min(self.profile.impedances_ohm),
-                                          "MAX": max(self.profile.impedances_ohm),
-                                          "DEF": 1.0e6})
+        z = number_param(a["impedance_ohm"], {"MIN": min(self.profile.impedances_ohm),
+                                              "MAX": max(self.profile.impedances_ohm),
+                                              "DEF": 1.0e6})
         if not any(math.isclose(z, x) for x in self.profile.impedances_ohm):
             raise ExecError(-224, "Illegal parameter value")
         self._inp(a).impedance_ohm = z
@@ -230,29 +227,24 @@ class CounterTwin(ScpiServer):
         if state == "ONCE":  # one auto-level on a pulse this slow finds nothing useful
             self._inp(a).level_auto = False
             return
-        self._inp(a).level_auto = _bool(state)
+        self._inp(a).level_auto = bool_param(state)
 
     def _set_level(self, a: Mapping[str, str]) -> None:
-        lo, hi = self.profile.level_range_v
-        v = _number(a["level_v"], {"MIN": lo, "MAX": hi, "DEF": 0.0})
-        if not lo <= v <= hi:
-            raise ExecError(-222, "Data out of range")
+        v = ranged_param(a["level_v"], *self.profile.level_range_v, default=0.0)
         inp = self._inp(a)
         inp.level_v, inp.level_auto = v, False  # a level given turns auto-level off
 
     def _set_slope(self, a: Mapping[str, str]) -> None:
-        self._inp(a).slope = _enum(a["slope"], ("POSitive", "NEGative"))
+        self._inp(a).slope = enum_param(a["slope"], ("POSitive", "NEGative"))
 
     def _channel_list(self, a: Mapping[str, str]) -> int:
-        ch = int(_number(a["channel"], {}))
+        ch = int(number_param(a["channel"], {}))
         if ch not in self.profile.channels:
             raise ExecError(-222, "Data out of range")
         return ch
 
     def _conf_timestamps(self, a: Mapping[str, str]) -> None:
-        count = int(_number(a["count"], {"MIN": 1, "MAX": self.profile.max_count, "DEF": 100}))
-        if not 1 <= count <= self.profile.max_count:
-            raise ExecError(-222, "Data out of range")
+        count = count_param(a["count"], self.profile.max_count, default=100)
         self.function, self.function_channel = "timestamps", self._channel_list(a)
         self.sample_count = count
         self.timestamp_info = True  # CONF turns the timestamp information on (CNT-91)
@@ -264,19 +256,16 @@ class CounterTwin(ScpiServer):
         self.acquisition = None
 
     def _set_rate(self, a: Mapping[str, str]) -> None:
-        rate = _number(a["rate_hz"], {"MIN": 1e4, "MAX": 1e6, "DEF": 1e6})
+        rate = number_param(a["rate_hz"], {"MIN": 1e4, "MAX": 1e6, "DEF": 1e6})
         if not any(math.isclose(rate, r) for r in (1e4, 1e5, 8e5, 1e6)):
             raise ExecError(-224, "Illegal parameter value")
         self.timestamp_rate_hz = rate
 
     def _set_tinf(self, a: Mapping[str, str]) -> None:
-        self.timestamp_info = _bool(a["state"])
+        self.timestamp_info = bool_param(a["state"])
 
     def _set_count(self, a: Mapping[str, str]) -> None:
-        n = int(_number(a["count"], {"MIN": 1, "MAX": self.profile.max_count, "DEF": 1}))
-        if not 1 <= n <= self.profile.max_count:
-            raise ExecError(-222, "Data out of range")
-        self.sample_count = n
+        self.sample_count = count_param(a["count"], self.profile.max_count)
 
     def _set_gate(self, a: Mapping[str, str]) -> None:
         self.gate = a["gate_s"]  # one period per reading whatever the gate: turns are slow
@@ -287,13 +276,10 @@ class CounterTwin(ScpiServer):
         if value.startswith("INF"):
             self.timeout_s = None
             return
-        t = _number(value, {"MIN": lo, "MAX": hi, "DEF": 1.0})
-        if not lo <= t <= hi:
-            raise ExecError(-222, "Data out of range")
-        self.timeout_s = t
+        self.timeout_s = ranged_param(value, lo, hi, default=1.0)
 
     def _set_format(self, a: Mapping[str, str]) -> None:
-        if _enum(a["format"], ("ASCii", "REAL", "PACKed")) != "ASC":
+        if enum_param(a["format"], ("ASCii", "REAL", "PACKed")) != "ASC":
             raise ExecError(-224, "Illegal parameter value")  # the twin speaks ASCII only
 
     def _abort(self, a: Mapping[str, str]) -> None:
@@ -318,7 +304,7 @@ class CounterTwin(ScpiServer):
         values = self._readings(acq)
         assert acq is not None
         count = a["count"].upper()
-        n = values.size if count.startswith("MAX") else int(_number(count, {}))
+        n = values.size if count.startswith("MAX") else int(number_param(count, {}))
         if not 1 <= n <= values.size:
             raise ExecError(-222, "Data out of range")
         return self._encode(acq, values[:n])
@@ -329,39 +315,3 @@ class CounterTwin(ScpiServer):
         kind = "timestamps" if self.function == "timestamps" else "periods"
         acq = self._arm(kind, self.sample_count)  # type: ignore[arg-type]
         return self._encode(acq, self._readings(acq))
-
-
-# -- parameter parsing (the instrument's side) -----------------------------------------------
-
-def _number(text: str, named: Mapping[str, float]) -> float:
-    t = text.strip().upper()
-    for key, value in named.items():
-        if t.startswith(key[:3]):
-            return float(value)
-    try:
-        return float(t)
-    except ValueError:
-        raise ExecError(-104, "Data type error") from None
-
-
-def _bool(text: str) -> bool:
-    t = text.strip().upper()
-    if t in ("ON", "1"):
-        return True
-    if t in ("OFF", "0"):
-        return False
-    raise ExecError(-224, "Illegal parameter value")
-
-
-def _enum(text: str, choices: tuple[str, ...]) -> str:
-    """Match a character parameter in short or long form; returns the short form."""
-    t = text.strip().upper()
-    for c in choices:
-        if t in (short_form(c), c.upper()):
-            return short_form(c)
-    raise ExecError(-224, "Illegal parameter value")
-
-
-def _nr3(value: float) -> str:
-    return f"{value:+.9E}"
-

@@ -23,9 +23,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from drivers.dmm import DmmProfile, get_profile
-from sims.counter_twin import _bool, _enum, _number
 from sims.platform import GyroPlatform
-from sims.scpi_server import ExecError, ScpiServer
+from sims.scpi_server import (
+    ExecError,
+    ScpiServer,
+    bool_param,
+    bool_reply,
+    count_param,
+    enum_param,
+    nr3,
+    number_param,
+    ranged_param,
+)
 
 MEASURING_BIT = 0x10
 
@@ -96,35 +105,31 @@ class DmmTwin(ScpiServer):
 
     # -- routes -----------------------------------------------------------------------------
     def _route_words(self) -> None:
-        w = self.profile.words
-        nr3 = "{:+.9E}".format
-        table = {
+        self.route_words(self.profile.words, {
             "configure_dcv": (self._configure, None),
             "range": (self._range, lambda a: nr3(self.range_v)),
             "aperture": (self._aperture, lambda a: nr3(self.aperture_s)),
-            "autozero": (lambda a: setattr(self, "autozero", _bool(a["state"])),
-                         lambda a: "1" if self.autozero else "0"),
-            "impedance_auto": (lambda a: setattr(self, "impedance_auto", _bool(a["state"])),
-                               lambda a: "1" if self.impedance_auto else "0"),
-            "trigger_source": (lambda a: setattr(self, "trigger_source", _enum(
+            "autozero": (lambda a: setattr(self, "autozero", bool_param(a["state"])),
+                         lambda a: bool_reply(self.autozero)),
+            "impedance_auto": (lambda a: setattr(self, "impedance_auto", bool_param(a["state"])),
+                               lambda a: bool_reply(self.impedance_auto)),
+            "trigger_source": (lambda a: setattr(self, "trigger_source", enum_param(
                 a["source"], ("IMMediate", "EXTernal", "BUS", "INTernal"))),
                                lambda a: self.trigger_source),
-            "trigger_slope": (lambda a: setattr(self, "trigger_slope", _enum(
+            "trigger_slope": (lambda a: setattr(self, "trigger_slope", enum_param(
                 a["slope"], ("POSitive", "NEGative"))), lambda a: self.trigger_slope),
             "trigger_delay": (self._delay, lambda a: nr3(self.trigger_delay_s)),
             "trigger_count": (self._trigger_count, lambda a: f"{self.trigger_count}"),
-            "sample_source": (lambda a: setattr(self, "sample_source", _enum(
+            "sample_source": (lambda a: setattr(self, "sample_source", enum_param(
                 a["source"], ("IMMediate", "TIMer"))), lambda a: self.sample_source),
             "sample_timer": (self._timer, lambda a: nr3(self.sample_interval_s)),
             "sample_count": (self._count, lambda a: f"{self.sample_count}"),
             "format_data": (self._format, lambda a: "ASC"),
             "abort": (lambda a: setattr(self, "record", None), None),
             "initiate": (self._initiate, None),
-        }
-        for name, (on_set, on_query) in table.items():
-            self.route(getattr(w, name), on_set=on_set, on_query=on_query)
-        self.route(w.operation_condition, on_query=self._condition)
-        self.route(w.fetch, on_query=self._fetch, data=True)
+            "operation_condition": (None, self._condition),
+            "fetch": (None, self._fetch, True),
+        })
 
     def _configure(self, a: Mapping[str, str]) -> None:
         self.reset_measurement()
@@ -138,47 +143,35 @@ class DmmTwin(ScpiServer):
         self.record = None
 
     def _range(self, a: Mapping[str, str]) -> None:
-        r = _number(a["range_v"], {"MIN": 0.1, "MAX": 1000.0, "DEF": 10.0, "AUTO": 10.0})
+        r = number_param(a["range_v"], {"MIN": 0.1, "MAX": 1000.0, "DEF": 10.0, "AUTO": 10.0})
         match = [x for x in self.profile.ranges_v if x >= r * (1 - 1e-9)]
         if not match:
             raise ExecError(-222, "Data out of range")
         self.range_v = match[0]
 
     def _aperture(self, a: Mapping[str, str]) -> None:
-        lo, hi = self.profile.aperture_range_s
-        ap = _number(a["aperture_s"], {"MIN": lo, "MAX": hi, "DEF": 0.1})
-        if not lo <= ap <= hi:
-            raise ExecError(-222, "Data out of range")
-        self.aperture_s = ap
+        self.aperture_s = ranged_param(a["aperture_s"], *self.profile.aperture_range_s,
+                                       default=0.1)
 
     def _delay(self, a: Mapping[str, str]) -> None:
-        d = _number(a["delay_s"], {"MIN": 0.0, "MAX": self.profile.max_trigger_delay_s,
-                                   "DEF": 0.0})
-        if not 0.0 <= d <= self.profile.max_trigger_delay_s:
-            raise ExecError(-222, "Data out of range")
-        self.trigger_delay_s = d
+        self.trigger_delay_s = ranged_param(a["delay_s"], 0.0,
+                                            self.profile.max_trigger_delay_s, default=0.0)
 
     def _trigger_count(self, a: Mapping[str, str]) -> None:
-        n = int(_number(a["count"], {"MIN": 1, "DEF": 1}))
+        n = int(number_param(a["count"], {"MIN": 1, "DEF": 1}))
         if n != 1:
             raise ExecError(-221, "Settings conflict")  # the twin records one burst per INIT
         self.trigger_count = n
 
     def _timer(self, a: Mapping[str, str]) -> None:
-        t = _number(a["interval_s"], {"MIN": self.profile.min_interval_s, "MAX": 3600.0,
-                                      "DEF": 1.0})
-        if not self.profile.min_interval_s <= t <= 3600.0:
-            raise ExecError(-222, "Data out of range")
-        self.sample_interval_s = t
+        self.sample_interval_s = ranged_param(a["interval_s"], self.profile.min_interval_s,
+                                              3600.0, default=1.0)
 
     def _count(self, a: Mapping[str, str]) -> None:
-        n = int(_number(a["count"], {"MIN": 1, "MAX": self.profile.max_readings, "DEF": 1}))
-        if not 1 <= n <= self.profile.max_readings:
-            raise ExecError(-222, "Data out of range")
-        self.sample_count = n
+        self.sample_count = count_param(a["count"], self.profile.max_readings)
 
     def _format(self, a: Mapping[str, str]) -> None:
-        if _enum(a["format"], ("ASCii", "REAL")) != "ASC":
+        if enum_param(a["format"], ("ASCii", "REAL")) != "ASC":
             raise ExecError(-224, "Illegal parameter value")  # the twin speaks ASCII only
 
     # -- the record -----------------------------------------------------------------------
@@ -229,4 +222,4 @@ class DmmTwin(ScpiServer):
             u = self.platform.sample_u(self.gyro, t, rec.aperture_s)
             over = np.abs(u) > 1.2 * self.range_v
             rec.values = np.where(over, np.copysign(self.profile.overload_v, u), u)
-        return ",".join(f"{v:+.9E}" for v in rec.values)
+        return ",".join(nr3(v) for v in rec.values)

@@ -17,9 +17,12 @@ constants), to handlers:
             self.route(VOLT_RANGE, on_set=self._set_range, on_query=lambda a: nr3(self.range))
             self.route(READ, on_query=self._read, data=True)
 
+(or `route_words(words, {"range": (on_set, on_query), ...})` for a words dataclass.)
 A handler receives the header's numeric suffixes and the parameters as strings, by
 placeholder name, and returns the reply text (queries) or None; it raises `ExecError`
-for the error queue (-222 "Data out of range" ...). A handler that must wait (a
+for the error queue (-222 "Data out of range" ...). The parameter parsers at the end
+(`number_param`, `ranged_param`, `count_param`, `bool_param`, `enum_param`,
+`suffix_item`) raise the codes a real instrument would. A handler that must wait (a
 measurement) calls `self.wait(ready)`, which keeps reading the socket meanwhile: the
 client may disconnect, or send a line for which `is_interrupt()` is true (ABORt, our
 stand-in for a device clear, which a raw socket lacks), and the wait then ends with no
@@ -44,7 +47,7 @@ import socket
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar, TypeVar
 
 from drivers.scpi import (
     ABORT,
@@ -60,9 +63,13 @@ from drivers.scpi import (
     Command,
     ErrorEntry,
     ParameterError,
+    short_form,
 )
 
 Handler = Callable[[Mapping[str, str]], "str | None"]
+#: a word's handlers in a `route_words` table: (on_set, on_query) or (on_set, on_query, data)
+WordHandlers = tuple[Handler | None, Handler | None] | tuple[Handler | None, Handler | None, bool]
+T = TypeVar("T")
 
 #: what a 'garbage' fault sends instead of the reply (not ASCII, not numbers)
 GARBAGE = b"\xff\xfe#?\x00garbage\x15\n"
@@ -187,6 +194,19 @@ class ScpiServer:
         if command.is_query and on_set is not None:
             raise ValueError(f"{command.header!r} is a query; give on_query only")
         self.routes.append(Route(command, on_set, on_query, data))
+
+    def route_words(self, words: Any, table: Mapping[str, WordHandlers]) -> None:
+        """Serve a words dataclass by role: `table[role]` is (on_set, on_query[, data]).
+
+        A role the model has no word for (None) is skipped; a query-only word gets its
+        `on_query` alone.
+        """
+        for role, (on_set, on_query, *data) in table.items():
+            cmd: Command | None = getattr(words, role)
+            if cmd is None:
+                continue
+            self.route(cmd, on_set=None if cmd.is_query else on_set, on_query=on_query,
+                       data=bool(data and data[0]))
 
     def push_error(self, code: int, message: str) -> None:
         with self._lock:
@@ -332,10 +352,7 @@ class ScpiServer:
                 if route.data and is_query and self.take_fault("drop"):
                     raise _ClientGone
                 answer = handler(args)
-            except ParameterError as e:
-                self.push_error(e.code, e.message)
-                continue
-            except ExecError as e:
+            except (ParameterError, ExecError) as e:
                 self.push_error(e.code, e.message)
                 continue
             except _Interrupted:
@@ -399,3 +416,71 @@ def _split_units(line: str) -> list[str]:
             cur.append(ch)
     units.append("".join(cur))
     return units
+
+
+# -- parameters and replies (the instrument's side) ------------------------------------------
+
+def number_param(text: str, named: Mapping[str, float]) -> float:
+    """A numeric parameter, or one of the names it may take instead (`{"MIN": lo, ...}`,
+    matched on their first three letters); -104 if neither."""
+    t = text.strip().upper()
+    for key, value in named.items():
+        if t.startswith(key[:3]):
+            return float(value)
+    try:
+        return float(t)
+    except ValueError:
+        raise ExecError(-104, "Data type error") from None
+
+
+def ranged_param(text: str, low: float, high: float, default: float) -> float:
+    """A number within [low, high] that may also be MIN, MAX or DEFault; -222 outside."""
+    value = number_param(text, {"MIN": low, "MAX": high, "DEF": default})
+    if not low <= value <= high:
+        raise ExecError(-222, "Data out of range")
+    return value
+
+
+def count_param(text: str, high: int, default: int = 1) -> int:
+    """A count within [1, high] that may also be MIN, MAX or DEFault; -222 outside."""
+    n = int(number_param(text, {"MIN": 1, "MAX": high, "DEF": default}))
+    if not 1 <= n <= high:
+        raise ExecError(-222, "Data out of range")
+    return n
+
+
+def bool_param(text: str) -> bool:
+    """ON/1 or OFF/0; -224 otherwise."""
+    t = text.strip().upper()
+    if t in ("ON", "1"):
+        return True
+    if t in ("OFF", "0"):
+        return False
+    raise ExecError(-224, "Illegal parameter value")
+
+
+def enum_param(text: str, choices: tuple[str, ...]) -> str:
+    """Match a character parameter in short or long form; returns the short form."""
+    t = text.strip().upper()
+    for c in choices:
+        if t in (short_form(c), c.upper()):
+            return short_form(c)
+    raise ExecError(-224, "Illegal parameter value")
+
+
+def suffix_item(items: Mapping[int, T], args: Mapping[str, str], suffix: str = "channel") -> T:
+    """What a header's numeric suffix selects (an omitted suffix is 1); -114 if nothing."""
+    n = int(args.get(suffix) or 1)
+    if n not in items:
+        raise ExecError(-114, "Header suffix out of range")
+    return items[n]
+
+
+def nr3(value: float) -> str:
+    """A number as the reply of a setting's query: `+1.000000000E+01`."""
+    return f"{value:+.9E}"
+
+
+def bool_reply(value: bool) -> str:
+    """A boolean setting's query reply: 1 or 0."""
+    return "1" if value else "0"
