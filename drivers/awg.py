@@ -26,6 +26,7 @@ rejected by the instrument with -113 at `load_pair()`, by name.
 
 from __future__ import annotations
 
+import contextlib
 import re
 from dataclasses import dataclass
 
@@ -241,9 +242,7 @@ class WaveformGenerator(ProfiledInstrument[AwgProfile]):
     def close(self) -> None:
         """Outputs off (best effort), then close the link."""
         if self.is_open:
-            try:
+            with contextlib.suppress(InstrumentError):
                 for ch in self.profile.channels:
                     self.send(self.words.output, channel=ch, state=False, check=False)
-            except InstrumentError:
-                pass
         super().close()

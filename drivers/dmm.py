@@ -23,6 +23,7 @@ Waits are real seconds scaled by the clock's speed (a virtual stand runs faster)
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from dataclasses import dataclass
@@ -276,9 +277,7 @@ class Digitizer(ProfiledInstrument[DmmProfile]):
     def close(self) -> None:
         """Abort a record still armed (best effort), then close the link."""
         if self._armed_real_s is not None and self.is_open:
-            try:
+            with contextlib.suppress(InstrumentError):
                 self.write(self.words.abort.text(), check=False)
-            except InstrumentError:
-                pass
         self._armed_real_s = None
         super().close()
