@@ -165,15 +165,18 @@ def test_sigint_mid_acquisition_stops_the_axes_and_resume_completes(tmp_path: Pa
     assert result["verdict"] == "pass" and result["sessions"] == 2
     check_against_truth(result)
 
-    # the same procedure uninterrupted, same seed: equal within U
+    # the same procedure uninterrupted, same seed: equal within the U of the difference
+    # (k = 2 each, so as for the truth: >= 90 % within it, none beyond twice it)
     whole = bench("run", str(proc), "--yes", "--out", str(tmp_path / "whole"))
     assert whole.returncode == 0, whole.stderr
     ref = json.loads((Path(whole.stdout.strip().splitlines()[-1]) / "result.json").read_text())
+    ratios = []
     for a, b in zip(result["axes"]["outer"]["pairs"], ref["axes"]["outer"]["pairs"],
                     strict=True):
-        assert abs(a["k"] - b["k"]) <= math.hypot(a["k_u"], b["k_u"])
+        ratios.append(abs(a["k"] - b["k"]) / math.hypot(a["k_u"], b["k_u"]))
     for a, b in zip(result["axes"]["outer"]["rates"], ref["axes"]["outer"]["rates"],
                     strict=True):
-        assert abs(a["rate_error_rel"] - b["rate_error_rel"]) <= math.hypot(
-            a["rate_error_u_rel"], b["rate_error_u_rel"])
-
+        ratios.append(abs(a["rate_error_rel"] - b["rate_error_rel"]) / math.hypot(
+            a["rate_error_u_rel"], b["rate_error_u_rel"]))
+    assert len(ratios) == 9 and max(ratios) <= 2.0, ratios
+    assert sum(r > 1.0 for r in ratios) <= 1, ratios
