@@ -26,7 +26,7 @@ from bench.config import load_config
 from bench.journal import RunDir
 from drivers.cia402 import FOLLOWING_ERROR
 from sims.platform import GyroPlatform, PlatformTruth
-from tests.conftest import CONFIGS, ROOT
+from tests.conftest import CONFIGS, ROOT, when_step_starts
 
 DEMO = CONFIGS / "procedures" / "drift-demo.yaml"
 STAND = CONFIGS / "stands" / "sim-gyro-platform.yaml"
@@ -135,18 +135,9 @@ def test_the_papers_case_70_80_end_to_end(tmp_path: Path) -> None:
 
 
 def _when_turning_to(run: RunDir, deg: float, action: Any) -> threading.Thread:
-    def watch() -> None:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            if any(e.get("event") == "step_start" and e.get("action") == "turn"
-                   and f"to {deg:g} deg" in e.get("describe", "") for e in run.events()):
-                time.sleep(0.05)            # ~1 s of stand time into the turn
-                action()
-                return
-            time.sleep(0.01)
-    t = threading.Thread(target=watch, daemon=True)
-    t.start()
-    return t
+    # ~1 s of stand time into the turn
+    return when_step_starts(run, lambda e: e.get("action") == "turn"
+                            and f"to {deg:g} deg" in e.get("describe", ""), action)
 
 
 @pytest.mark.timeout(120)

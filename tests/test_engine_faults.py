@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import threading
-import time
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +19,7 @@ from bench.commands import EXIT_ABORTED, run_session
 from bench.config import load_config
 from bench.journal import RunDir
 from drivers.cia402 import OVER_TEMPERATURE
-from tests.conftest import CONFIGS
+from tests.conftest import CONFIGS, when_step_starts
 
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
 
@@ -36,18 +35,8 @@ def _procedure(tmp_path: Path) -> Path:
 
 def _when_acquiring(run: RunDir, unit: str, action: Any) -> threading.Thread:
     """Call `action` once the engine has started acquiring in `unit`."""
-    def watch() -> None:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            if any(e.get("event") == "step_start" and e.get("action") == "acquire"
-                   and e.get("unit") == unit for e in run.events()):
-                time.sleep(0.05)
-                action()
-                return
-            time.sleep(0.02)
-    t = threading.Thread(target=watch, daemon=True)
-    t.start()
-    return t
+    return when_step_starts(run, lambda e: e.get("action") == "acquire"
+                            and e.get("unit") == unit, action)
 
 
 def _drive_log(run: RunDir) -> list[dict[str, Any]]:
