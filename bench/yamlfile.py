@@ -6,11 +6,30 @@ so the loader keeps the line of every mapping key and sequence item it builds.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
+
+
+class _Loader(yaml.SafeLoader):
+    """YAML 1.1's SafeLoader, but `1e6` and `1.0e6` are numbers (as in YAML 1.2).
+
+    PyYAML reads an exponent without a sign as text, so `impedance_ohm: 1.0e6` would be
+    refused as "text"; an engineer writes it that way, so we read it as they mean it.
+    """
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                |[-+]?\.(?:inf|Inf|INF)
+                |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
 
 KeyPath = tuple[str | int, ...]
 
@@ -93,7 +112,7 @@ def load_yaml(path: str | Path) -> YamlDoc:
         raise YamlError(Problem(str(p), None, "(file)", "file not found")) from None
     except OSError as e:
         raise YamlError(Problem(str(p), None, "(file)", f"cannot read: {e.strerror}")) from None
-    loader = yaml.SafeLoader(text)
+    loader = _Loader(text)
     try:
         node = loader.get_single_node()
         lines: dict[KeyPath, int] = {}

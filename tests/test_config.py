@@ -124,3 +124,23 @@ def test_plan_estimates_the_papers_ladder_in_real_bench_time(
     # 5 turns at 0.1 deg/s is 5 h per direction: one pair alone is > 10 h per axis
     m = re.search(r"Estimated bench time: (\d+) h", out)
     assert m and int(m.group(1)) >= 20, out
+
+
+def test_numbers_with_an_unsigned_exponent_are_numbers(tmp_path: Path) -> None:
+    from bench.yamlfile import load_yaml
+
+    f = tmp_path / "n.yaml"
+    f.write_text("impedance_ohm: 1.0e6\nrate: 1e2\nrel: 1.0e-6\nname: 1e6x\nn: 12\n")
+    assert load_yaml(f).data == {"impedance_ohm": 1.0e6, "rate": 100.0, "rel": 1e-6,
+                                 "name": "1e6x", "n": 12}
+
+
+def test_every_shipped_stand_file_fits_a_procedure_kind() -> None:
+    from bench.schema import validate
+    from bench.yamlfile import load_yaml
+    from procedures import procedure_kind, procedure_names
+
+    for stand in sorted((CONFIGS / "stands").glob("*.yaml")):
+        doc = load_yaml(stand)
+        fits = [validate(doc, procedure_kind(n).stand_schema()) for n in procedure_names()]
+        assert any(not problems for problems in fits), (stand, fits)
