@@ -55,7 +55,7 @@ from drivers.cia402 import (
     transition,
     wrap_int32,
 )
-from sims.stand import AxisModel, Segment, SimulatedStand
+from sims.stand import AxisModel, SimulatedStand
 
 log = logging.getLogger(__name__)
 
@@ -491,24 +491,8 @@ class DriveTwin:
             m.profile.command(t0 + peak / a + max(cruise_s, 0.0), 0.0, d)
 
     def _command_profile(self, target_dps: float, accel_dps2: float, decel_dps2: float) -> None:
-        """The profile generator: slow down with decel, speed up with accel.
-
-        A reversal slows to rest with the deceleration, then speeds up the other way with
-        the acceleration: two segments of the stand model's rate profile.
-        """
-        m = self.model
-        with m.lock:
-            t = self.clock.now()
-            m.advance_to(t)
-            t0 = max(t, m.t_s)
-            w0 = m.commanded_rate_at(t0)
-            if w0 != 0.0 and target_dps != 0.0 and (w0 > 0) != (target_dps > 0):
-                seg = m.command_rate(t0, 0.0, decel_dps2)
-                m.profile.segments.append(Segment(seg.t_end_s, 0.0, target_dps, accel_dps2))
-            elif abs(target_dps) < abs(w0):
-                m.command_rate(t0, target_dps, decel_dps2)
-            else:
-                m.command_rate(t0, target_dps, accel_dps2)
+        """The profile generator (0x6083 up, 0x6084 down): the stand model's ramps."""
+        self.model.command_rate(self.clock.now(), target_dps, accel_dps2, decel_dps2)
 
     def _ramp_to_zero(self, ramp: Ramp) -> None:
         u = self.units

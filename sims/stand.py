@@ -150,13 +150,29 @@ class RateProfile:
     def __init__(self) -> None:
         self.segments: list[Segment] = [Segment(-math.inf, 0.0, 0.0, math.inf)]
 
-    def command(self, t_s: float, target_dps: float, accel_dps2: float) -> Segment:
-        if accel_dps2 <= 0:
-            raise ValueError(f"acceleration must be > 0, got {accel_dps2}")
-        # a command replaces anything scheduled after it
+    def command(self, t_s: float, target_dps: float, accel_dps2: float,
+                decel_dps2: float | None = None) -> Segment:
+        """A drive's profile generator: speed up with accel, slow down with decel.
+
+        A reversal slows to rest with decel, then speeds up the other way with accel (two
+        segments). A command may lie in the future (a scheduled stop); any command
+        replaces what was scheduled after its time. Returns the last segment.
+        """
+        decel = accel_dps2 if decel_dps2 is None else decel_dps2
+        if accel_dps2 <= 0 or decel <= 0:
+            raise ValueError(f"acceleration and deceleration must be > 0, got "
+                             f"{accel_dps2}, {decel}")
         self.segments = [s for s in self.segments if s.t0_s <= t_s]
         w_now = float(self.rate(np.array([t_s]))[0])
-        seg = Segment(t_s, w_now, float(target_dps), float(accel_dps2))
+        target = float(target_dps)
+        if w_now != 0.0 and target != 0.0 and (w_now > 0) != (target > 0):
+            stop = Segment(t_s, w_now, 0.0, float(decel))
+            self.segments.append(stop)
+            seg = Segment(stop.t_end_s, 0.0, target, float(accel_dps2))
+        elif abs(target) < abs(w_now):
+            seg = Segment(t_s, w_now, target, float(decel))
+        else:
+            seg = Segment(t_s, w_now, target, float(accel_dps2))
         self.segments.append(seg)
         return seg
 
@@ -250,11 +266,13 @@ class AxisModel:
     def rate_dps(self) -> float:
         return self._w_last
 
-    def command_rate(self, t_s: float, target_dps: float, accel_dps2: float) -> Segment:
-        """The drive's profile generator: ramp to target from time t_s."""
+    def command_rate(self, t_s: float, target_dps: float, accel_dps2: float,
+                     decel_dps2: float | None = None) -> Segment:
+        """The drive's profile generator: ramp to target from time t_s (RateProfile)."""
         with self.lock:
             self.advance_to(t_s)
-            return self.profile.command(max(t_s, self.t_s), target_dps, accel_dps2)
+            return self.profile.command(max(t_s, self.t_s), target_dps, accel_dps2,
+                                        decel_dps2)
 
     def commanded_rate_at(self, t_s: float) -> float:
         return float(self.profile.rate(np.array([t_s]))[0])

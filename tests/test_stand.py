@@ -100,3 +100,17 @@ def test_edge_jitter_has_the_stated_spread() -> None:
     d = m.t_edge_s - m.t_true_s
     assert d.size > 1900
     assert np.std(d) == pytest.approx(27e-9, rel=0.1)
+
+
+def test_a_reversal_slows_with_the_deceleration_then_speeds_up_with_the_acceleration() -> None:
+    ax = AxisModel(AxisTruth(), rate_hz=1000.0, seed=1)
+    chunks = _record(ax)
+    ax.command_rate(0.0, 100.0, 100.0)                  # at +100 from t = 1 s
+    ax.command_rate(2.0, -100.0, 50.0, decel_dps2=200.0)
+    ax.advance_to(6.0)
+    w = np.concatenate([c.rate_cmd_dps for c in chunks])
+    # 100 -> 0 at 200 deg/s^2 takes 0.5 s; 0 -> -100 at 50 deg/s^2 takes 2 s
+    assert w[2250] == pytest.approx(50.0)
+    assert w[2500] == pytest.approx(0.0, abs=1e-9)
+    assert w[3500] == pytest.approx(-50.0)
+    assert w[4500] == pytest.approx(-100.0)
