@@ -16,7 +16,6 @@ from typing import Any
 from bench.clock import Clock
 from bench.journal import JsonLines, RunDir
 
-DEFAULT_COUNTS_PER_REV = 1 << 20
 DEFAULT_FOG_RANGE_DPS = 490.0  # KVH DSP-1760's range; a stand file may say otherwise
 
 
@@ -82,12 +81,14 @@ class Bench:
 
 
 def raw_text_logger(log: JsonLines, clock: Clock) -> Callable[[str, bytes], None]:
+    """A raw-exchange sink for SCPI drivers: every byte, as text, with the bench time."""
     def raw(direction: str, data: bytes) -> None:
         log.write({"t_s": clock.now(), "dir": direction, "data": data.decode("latin-1")})
     return raw
 
 
 def _raw_record_logger(log: JsonLines, clock: Clock) -> Callable[[str, dict], None]:
+    """A sink for the drive's readings and commands (called from the CAN thread)."""
     def raw(kind: str, record: dict) -> None:
         log.write({"t_s": clock.now(), "kind": kind, **record})
     return raw
@@ -102,9 +103,9 @@ def open_axis(bench: Bench, name: str, axis_cfg: dict[str, Any], clock: Clock,
     drive_log = bench.log(run.raw_path(f"{name}-drive.jsonl")) if run else None
     drive = Axis(name, interface=d["interface"], channel=d["channel"], node_id=d["node_id"],
                  max_rate_dps=d["max_rate_dps"], max_accel_dps2=d["max_accel_dps2"],
-                 clock=clock, counts_per_rev=d.get("counts_per_rev", DEFAULT_COUNTS_PER_REV),
-                 **{k: d[k] for k in ("heartbeat_ms", "watchdog_ms") if k in d},
-                 **({"bitrate": d["bitrate"]} if "bitrate" in d else {}),
+                 clock=clock,
+                 **{k: d[k] for k in ("counts_per_rev", "heartbeat_ms", "watchdog_ms", "bitrate")
+                    if k in d},
                  **({"eds_path": d["eds"]} if "eds" in d else {}),
                  raw=_raw_record_logger(drive_log, clock) if drive_log else None)
     bench.enter(drive)
