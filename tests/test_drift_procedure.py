@@ -12,7 +12,6 @@ import json
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 from typing import Any
 
@@ -98,10 +97,8 @@ def test_the_papers_case_70_80_end_to_end(tmp_path: Path) -> None:
     """`bench run` on the demo: own drift within U on each axis, mean relative drift error
     below 0.34 % and azimuth error below 2 arcmin (the paper's simulated figures, METHOD.md
     B), the azimuth within its U of the truth; `bench analyze` gives the same figures."""
-    t0 = time.monotonic()
     p = subprocess.run([sys.executable, "-m", "bench", "run", str(DEMO), "--yes", "--out",
                         str(tmp_path)], cwd=ROOT, text=True, capture_output=True, timeout=110)
-    wall = time.monotonic() - t0
     assert p.returncode == EXIT_PASS, p.stderr[-2000:]
     run_dir = Path(p.stdout.strip().splitlines()[-1])
     result = json.loads((run_dir / "result.json").read_text())
@@ -122,7 +119,6 @@ def test_the_papers_case_70_80_end_to_end(tmp_path: Path) -> None:
     assert abs(drift["azimuth_deg"] - 80.0) <= drift["azimuth_u_deg"]
     assert drift["earth_horizontal_consistent"] is True
     assert (run_dir / "certificate.pdf").exists()
-    assert wall < 60, f"bench run took {wall:.1f} s"
     # the raw data alone give the same result
     a = subprocess.run([sys.executable, "-m", "bench", "analyze", str(run_dir)], cwd=ROOT,
                        text=True, capture_output=True, timeout=60)
