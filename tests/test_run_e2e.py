@@ -17,6 +17,7 @@ from typing import Any
 
 import pytest
 import yaml
+from scipy.stats import binom
 
 from sims.stand import AxisTruth
 from tests.conftest import CONFIGS, ROOT
@@ -64,22 +65,43 @@ def comparisons(result: dict[str, Any]) -> list[tuple[str, float, float, float]]
     return out
 
 
-def check_against_truth(result: dict[str, Any]) -> None:
-    """Each figure within its U (k = 2) of the truth, as a k = 2 interval promises.
+# A k = 2 interval covers about 95 %: in any run a few figures fall outside their U by
+# chance (over 24 stand seeds the demo put 0-5 of its 62 outside, 4.0 % in all; seed 1, the
+# shipped stand, puts 1-6 outside as thread timing moves the windows). So the check is a
+# count with a stated false-alarm rate, not "every one within U".
+FALSE_ALARM = 1e-3      # odds that a correct U fails the count, per check
+P_OUTSIDE = 0.05        # a correct k = 2 interval misses the truth this often
+HARD_LIMIT_U = 2.5      # no figure beyond 2.5 U (5 standard uncertainties: ~6e-7 each)
 
-    k = 2 covers about 95 %: of the ~70 figures of the demo, three or four fall outside U by
-    chance in any run. So: at least 90 % of them within U, and none beyond 2 U (k = 4,
-    which a correct U passes with odds of about 1 in 200 per run of 70 figures).
+
+def allowed_outside(n: int) -> int:
+    """Most of n figures that may fall outside U before the check calls U too small.
+
+    The binomial tail: a correct U exceeds it with odds <= FALSE_ALARM. For the demo's 62
+    figures it is 9; a U half its right size (68 % coverage, ~20 of 62 outside) passes
+    the count with odds of 1.4e-3.
     """
-    rows = comparisons(result)
+    return int(binom.isf(FALSE_ALARM, n, P_OUTSIDE))
+
+
+def assert_within_u(rows: list[tuple[str, float, float]]) -> None:
+    """rows: (what, |deviation|, U); checks the count outside U and the hard limit."""
     outside = []
-    for what, value, u, truth in rows:
+    for what, deviation, u in rows:
         assert math.isfinite(u) and u > 0, f"{what}: U = {u}"
-        ratio = abs(value - truth) / u
-        assert ratio <= 2.0, f"{what}: {value:.9g} is {ratio:.2f} U from the truth {truth:.9g}"
+        ratio = deviation / u
+        assert ratio <= HARD_LIMIT_U, f"{what}: {ratio:.2f} U from the reference"
         if ratio > 1.0:
             outside.append(f"{what} ({ratio:.2f} U)")
-    assert len(outside) <= 0.1 * len(rows), f"outside U: {outside} of {len(rows)}"
+    assert len(outside) <= allowed_outside(len(rows)), \
+        f"outside U: {len(outside)} of {len(rows)} (at most {allowed_outside(len(rows))}): " \
+        f"{outside}"
+
+
+def check_against_truth(result: dict[str, Any]) -> None:
+    """Each figure of result.json against the stand's truth, as its U (k = 2) promises."""
+    assert_within_u([(what, abs(value - truth), u)
+                     for what, value, u, truth in comparisons(result)])
 
 
 @pytest.mark.timeout(300)
@@ -166,17 +188,12 @@ def test_sigint_mid_acquisition_stops_the_axes_and_resume_completes(tmp_path: Pa
     check_against_truth(result)
 
     # the same procedure uninterrupted, same seed: equal within the U of the difference
-    # (k = 2 each, so as for the truth: >= 90 % within it, none beyond twice it)
+    # (k = 2 each; counted as for the truth)
     whole = bench("run", str(proc), "--yes", "--out", str(tmp_path / "whole"))
     assert whole.returncode == 0, whole.stderr
     ref = json.loads((Path(whole.stdout.strip().splitlines()[-1]) / "result.json").read_text())
-    ratios = []
-    for a, b in zip(result["axes"]["outer"]["pairs"], ref["axes"]["outer"]["pairs"],
-                    strict=True):
-        ratios.append(abs(a["k"] - b["k"]) / math.hypot(a["k_u"], b["k_u"]))
-    for a, b in zip(result["axes"]["outer"]["rates"], ref["axes"]["outer"]["rates"],
-                    strict=True):
-        ratios.append(abs(a["rate_error_rel"] - b["rate_error_rel"]) / math.hypot(
-            a["rate_error_u_rel"], b["rate_error_u_rel"]))
-    assert len(ratios) == 9 and max(ratios) <= 2.0, ratios
-    assert sum(r > 1.0 for r in ratios) <= 1, ratios
+    mine, theirs = comparisons(result), comparisons(ref)
+    assert [r[0] for r in mine] == [r[0] for r in theirs] and len(mine) == 42
+    # errors compared, not values: w0's truth moves with the time it refers to
+    assert_within_u([(what, abs((a - ta) - (b - tb)), math.hypot(ua, ub))
+                     for (what, a, ua, ta), (_, b, ub, tb) in zip(mine, theirs, strict=True)])
