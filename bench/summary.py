@@ -1,8 +1,14 @@
-"""The summary table `bench run` and `bench analyze` print at the end."""
+"""The summary table `bench run` and `bench analyze` print at the end.
+
+Values and U are rounded as on the certificate (U to two significant digits, the value
+to U's decimal), so the console never shows a figure the certificate does not.
+"""
 
 from __future__ import annotations
 
 from typing import Any
+
+from bench.certificate.rounding import format_value_u
 
 
 def _pct(x: float | None, digits: int = 3) -> str:
@@ -10,7 +16,7 @@ def _pct(x: float | None, digits: int = 3) -> str:
 
 
 def _ppm(x: float | None) -> str:
-    return "-" if x is None else f"{x * 1e6:+.3f}"
+    return "-" if x is None else f"{x * 1e6:.3f}"
 
 
 def summary_lines(result: dict[str, Any]) -> list[str]:
@@ -22,23 +28,27 @@ def summary_lines(result: dict[str, Any]) -> list[str]:
         out += [head, "-" * len(head)]
         for name, ax in axes.items():
             for r in ax.get("rates", []):
-                u = r.get("rate_error_u_rel")
-                err = f"{_ppm(r.get('rate_error_rel'))} ± {'-' if u is None else f'{u * 1e6:.2g}'}"
+                err = format_value_u(r.get("rate_error_rel"), r.get("rate_error_u_rel"),
+                                     1e6, signed=True).joined()
                 out.append(
                     f"{name:<7}{r['set_rate_dps']:>+11g}{r.get('turns', 0):>6}  {err:<26}"
-                    f"{_ppm(r.get('rate_instability_rel'))[1:]:>12}"
+                    f"{_ppm(r.get('rate_instability_rel')):>12}"
                     f"{_pct(r.get('intra_turn_instability_rel')):>12}"
                     f"{_pct(r.get('intra_turn_instability_corrected_rel')):>12}  "
                     f"{r.get('verdict', '-').upper()}")
             for p in ax.get("pairs", []):
-                out.append(f"{name:<7}{p['rate_dps']:>11g}  k = {p['k']:.7f} ± {p['k_u']:.1e}"
-                           f"   w0 = {p['w0_dps']:+.5f} ± {p['w0_u_dps']:.1e} deg/s")
+                k = format_value_u(p["k"], p["k_u"]).joined()
+                w0 = format_value_u(p["w0_dps"], p["w0_u_dps"], signed=True).joined("deg/s")
+                out.append(f"{name:<7}{p['rate_dps']:>11g}  k = {k}   w0 = {w0}")
     drift = result.get("drift")
     if drift:
         for name, ax in drift.get("axes", {}).items():
-            out.append(f"{name}: own drift {ax['own_dph']:+.4f} ± {ax['own_u_dph']:.4f} deg/h, "
-                       f"apparent {ax['apparent_dph']:+.4f} ± {ax['apparent_u_dph']:.4f} deg/h")
+            own = format_value_u(ax["own_dph"], ax["own_u_dph"], signed=True).joined("deg/h")
+            app = format_value_u(ax["apparent_dph"], ax["apparent_u_dph"],
+                                 signed=True).joined("deg/h")
+            out.append(f"{name}: own drift {own}, apparent {app}")
         if "azimuth_deg" in drift:
-            out.append(f"azimuth {drift['azimuth_deg']:.3f} ± {drift['azimuth_u_deg']:.3f} deg")
+            az = format_value_u(drift["azimuth_deg"], drift["azimuth_u_deg"]).joined("deg")
+            out.append(f"azimuth {az}")
     out.append(f"verdict: {str(result.get('verdict', '-')).upper()}")
     return out
