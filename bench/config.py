@@ -11,7 +11,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from bench.schema import Any_, Bool, Key, ListOf, Map, MapOf, Num, Str, validate
+from bench.canbus import bus_problems
+from bench.schema import Any_, Bool, Check, Key, ListOf, Map, MapOf, Num, Str, validate
 from bench.yamlfile import Problem, YamlDoc, YamlError, load_yaml
 
 # -- stand file ---------------------------------------------------------------------
@@ -20,6 +21,9 @@ DRIVE = Map({
     "interface": Key(Str(), True, "python-can interface: socketcan, pcan, kvaser, virtual..."),
     "channel": Key(Str(), True, "python-can channel, e.g. can0"),
     "node_id": Key(Num(min=1, max=127, integer=True), True),
+    "controller_node_id": Key(Num(min=1, max=127, integer=True), False,
+                              "this axis's controller node on the bus, whose heartbeat "
+                              "the drive watches (default: highest id free on the bus)"),
     "bitrate": Key(Num(min=10_000, max=1_000_000, integer=True)),
     "max_rate_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), True),
     "max_accel_dps2": Key(Num(min=0, exclusive_min=True, unit="deg/s^2"), True),
@@ -89,7 +93,8 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
     """The stand file's schema; a procedure kind may add instruments of its own."""
     return Map({
         "stand": Key(IDENTITY, True),
-        "axes": Key(MapOf(Map({**STAND_AXIS_KEYS, **(extra_axis or {})})), True),
+        "axes": Key(Check(MapOf(Map({**STAND_AXIS_KEYS, **(extra_axis or {})})),
+                          bus_problems), True),
         "sim": Key(Map({**SIM_KEYS, **(extra_sim or {})})),
         **(extra_top or {}),
     })

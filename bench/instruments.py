@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.canbus import controller_node_ids
 from bench.clock import Clock
 from bench.journal import JsonLines, RunDir
 
@@ -94,16 +95,21 @@ def _raw_record_logger(log: JsonLines, clock: Clock) -> Callable[[str, dict], No
     return raw
 
 
-def open_axis(bench: Bench, name: str, axis_cfg: dict[str, Any], clock: Clock,
+def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
               run: RunDir | None, *, counter: bool = True, fog: bool = True) -> AxisInstruments:
-    """Open one axis's instruments (drive first, so a failure later still stops it)."""
+    """Open one axis's instruments (drive first, so a failure later still stops it).
+
+    `stand_axes` is the stand's whole `axes:` mapping: the axes sharing a CAN bus decide
+    together which controller node id each one uses (bench/canbus.py).
+    """
     from drivers.axis import Axis
 
+    axis_cfg = stand_axes[name]
     d = axis_cfg["drive"]
     drive_log = bench.log(run.raw_path(f"{name}-drive.jsonl")) if run else None
     drive = Axis(name, interface=d["interface"], channel=d["channel"], node_id=d["node_id"],
                  max_rate_dps=d["max_rate_dps"], max_accel_dps2=d["max_accel_dps2"],
-                 clock=clock,
+                 clock=clock, controller_node_id=controller_node_ids(stand_axes)[name],
                  **{k: d[k] for k in ("counts_per_rev", "heartbeat_ms", "watchdog_ms", "bitrate")
                     if k in d},
                  **({"eds_path": d["eds"]} if "eds" in d else {}),

@@ -173,10 +173,14 @@ class MapOf(Node):
 
 @dataclass(frozen=True)
 class Check(Node):
-    """A schema plus a rule that needs the whole value (e.g. min < max)."""
+    """A schema plus a rule that needs the whole value (e.g. min < max).
+
+    The rule returns None, a message about the whole value, or (path inside the value,
+    message) pairs, so each problem is reported at the line of the key that causes it.
+    """
 
     inner: Node
-    rule: Callable[[Any], str | None]
+    rule: Callable[[Any], str | None | list[tuple[KeyPath, str]]]
 
     @property
     def description(self) -> str:  # type: ignore[override]
@@ -186,9 +190,9 @@ class Check(Node):
         before = len(out)
         self.inner.check(value, path, doc, out)
         if len(out) == before:
-            msg = self.rule(value)
-            if msg:
-                out.append(doc.problem(path, msg))
+            found = self.rule(value)
+            for sub, msg in [((), found)] if isinstance(found, str) else found or []:
+                out.append(doc.problem((*path, *sub), msg))
 
 
 def validate(doc: YamlDoc, schema: Node) -> list[Problem]:

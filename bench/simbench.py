@@ -16,6 +16,7 @@ import uuid
 from collections.abc import Callable
 from typing import Any
 
+from bench.canbus import bus_name, controller_node_ids
 from sims.clock import VirtualClock
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
 
@@ -67,16 +68,21 @@ class SimBench:
                     f["port"] = ft.start()
                     self._stack.callback(ft.stop)
                     self.twins[f"{a}.fog"] = ft
+            # one virtual bus per CAN bus of the stand file: the same axes share one, so
+            # the node ids (and each axis's controller id) are those of the real bench
+            controllers = controller_node_ids(cfg["axes"])
+            buses: dict[str, str] = {}
             for a in self.axes:
                 ac = cfg["axes"][a]
                 d = ac["drive"]
-                twin = DriveTwin(self.stand, a, interface="virtual", channel=self.channel,
-                                 node_id=d["node_id"],
+                channel = buses.setdefault(bus_name(d), f"{self.channel}-{len(buses)}")
+                twin = DriveTwin(self.stand, a, interface="virtual", channel=channel,
+                                 node_id=d["node_id"], controller_node_id=controllers[a],
                                  **({"counts_per_rev": d["counts_per_rev"]}
                                     if "counts_per_rev" in d else {}))
                 self._stack.enter_context(twin)
                 self.twins[f"{a}.drive"] = twin
-                d["interface"], d["channel"] = "virtual", self.channel
+                d["interface"], d["channel"] = "virtual", channel
                 if ac.get("counter"):
                     c = ac["counter"]
                     ct = CounterTwin(self.stand, a, model=c["model"])

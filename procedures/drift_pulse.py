@@ -404,7 +404,7 @@ class DriftPulse(StepDispatch):
 
         try:
             table = plat["table_axis"]
-            open_axis(bench, table, stand["axes"][table], clock, run, counter=False, fog=False)
+            open_axis(bench, table, stand["axes"], clock, run, counter=False, fog=False)
             awg = WaveformGenerator.open(plat["awg"]["resource"], plat["awg"]["model"], clock,
                                          raw=raw("awg.jsonl"))
             bench.enter(awg)

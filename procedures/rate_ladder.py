@@ -221,7 +221,7 @@ class RateLadder(StepDispatch):
         bench = Bench()
         try:
             for axis in self.axes(cfg):
-                open_axis(bench, axis, stand["axes"][axis], clock, run)
+                open_axis(bench, axis, stand["axes"], clock, run)
         except BaseException:
             bench.safe_stop(lambda s: None) if bench.axes else None
             bench.close()
