@@ -66,6 +66,7 @@ from drivers.cia402 import (
     unwrap_int32,
     wrap_int32,
 )
+from drivers.heartbeat import HeartbeatProducer
 
 log = logging.getLogger(__name__)
 
@@ -323,9 +324,11 @@ class Axis:
         self._identity = self._read_identity()
         self._check_resolution()
         # heartbeats both ways: ours (the drive's watchdog eats it), the drive's (we watch)
-        self._hb_task = self._network().send_periodic(
-            COB_HEARTBEAT + self.controller_node_id, bytes([NMT_STATE_OPERATIONAL]),
-            self.heartbeat_ms / 1000.0)
+        # from a thread of ours, not the bus's periodic task (drivers/heartbeat.py says why)
+        self._hb_task = HeartbeatProducer(
+            self._network(), COB_HEARTBEAT + self.controller_node_id,
+            bytes([NMT_STATE_OPERATIONAL]), self.heartbeat_ms / 1000.0,
+            name=f"axis {self.name} heartbeat").start()
         self._write(Od.PRODUCER_HEARTBEAT, self.heartbeat_ms)
         self._configure_watchdog()
         self._started = True

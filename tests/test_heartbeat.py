@@ -1,0 +1,146 @@
+"""The controller's heartbeat stops when the controller stops, so the drive stops the table.
+
+The suspended-controller test runs the controller in a second process and the drive twin
+here, on python-can's udp_multicast bus (a real channel between processes: the virtual
+bus is per process). SocketCAN, where the bus's own periodic task would be a kernel task
+that outlives a suspended process, is out of a twin's reach (it needs the vcan module and
+root), so one test stands in for it by taking `send_periodic` away from the bus.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import threading
+import time
+import uuid
+
+import can
+import pytest
+
+from drivers.axis import Axis
+from drivers.cia402 import State
+from drivers.heartbeat import HeartbeatProducer
+from sims.clock import VirtualClock
+from sims.drive_twin import DriveTwin
+from sims.stand import AxisTruth, SimulatedStand, StandTruth
+from tests.conftest import ROOT
+
+CONTROLLER = """
+import sys, time
+from bench.clock import MonotonicClock
+from drivers.axis import Axis
+ax = Axis("outer", interface="udp_multicast", channel=sys.argv[1], node_id=2,
+          max_rate_dps=100.0, max_accel_dps2=500.0, clock=MonotonicClock(),
+          heartbeat_ms=50, watchdog_ms=300)
+ax.open()
+ax.set_rate(20.0)
+print("running", flush=True)
+time.sleep(120)
+"""
+
+
+class Recorder:
+    """A sink for frames: when each was sent."""
+
+    def __init__(self, stall_at: int | None = None, stall_s: float = 0.0) -> None:
+        self.times: list[float] = []
+        self.stall_at, self.stall_s = stall_at, stall_s
+
+    def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
+        self.times.append(time.monotonic())
+        if len(self.times) == self.stall_at:
+            time.sleep(self.stall_s)
+
+
+def test_period_is_kept_and_a_stall_is_not_made_up_by_a_burst() -> None:
+    rec = Recorder(stall_at=5, stall_s=0.25)
+    hb = HeartbeatProducer(rec, 0x77F, b"\x05", 0.02).start()
+    time.sleep(0.6)
+    hb.stop()
+    gaps = [b - a for a, b in zip(rec.times, rec.times[1:], strict=False)]
+    assert 0.24 <= gaps[4] <= 0.35                      # the stall shows on the bus
+    assert min(gaps) >= 0.015                           # no catch-up burst after it
+    assert 0.018 <= sorted(gaps)[len(gaps) // 2] <= 0.03
+    n = hb.sent
+    time.sleep(0.1)
+    assert hb.sent == n                                 # stopped means stopped
+
+
+@pytest.mark.timeout(20)
+def test_heartbeat_does_not_use_the_bus_periodic_task(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Stand-in for SocketCAN's kernel task (see the module docstring): with the bus's
+    `send_periodic` taken away, the axis still heartbeats and its drive hears it."""
+    real = can.BusABC.send_periodic
+
+    def refuse_ours(bus: can.BusABC, msgs: can.Message, *args: object, **kw: object) -> object:
+        if isinstance(msgs, can.Message) and msgs.arbitration_id == 0x77F:
+            raise AssertionError("the controller's heartbeat must not be a bus periodic task")
+        return real(bus, msgs, *args, **kw)       # the drive twin's own heartbeat (0x702)
+
+    clock = VirtualClock(20.0)
+    stand = SimulatedStand(StandTruth(seed=2, axes={"outer": AxisTruth()}), {"outer": 100.0},
+                           clock)
+    channel = f"test-hb-{uuid.uuid4().hex[:10]}"
+    with DriveTwin(stand, "outer", channel=channel, node_id=2) as twin:
+        monkeypatch.setattr(can.BusABC, "send_periodic", refuse_ours)
+        with Axis("outer", interface="virtual", channel=channel, node_id=2, max_rate_dps=100.0,
+                  max_accel_dps2=500.0, clock=clock, heartbeat_ms=50, watchdog_ms=200) as ax:
+            ax.set_rate(10.0)
+            time.sleep(0.6)                              # three watchdog times
+            assert twin.watchdog_trips == [] and twin.state is State.OPERATION_ENABLED
+
+
+def _multicast_group() -> str:
+    """A group of our own on 239.x (site-local); skip where loopback multicast is off."""
+    group = f"239.74.{random.randint(0, 255)}.{random.randint(1, 254)}"
+    try:
+        with can.Bus(interface="udp_multicast", channel=group) as a, \
+                can.Bus(interface="udp_multicast", channel=group) as b:
+            a.send(can.Message(arbitration_id=0x123, data=b"ok", is_extended_id=False))
+            if b.recv(1.0) is None:
+                pytest.skip("this machine does not loop multicast back")
+    except (OSError, can.CanError) as e:
+        pytest.skip(f"udp_multicast bus unavailable here: {e}")
+    return group
+
+
+@pytest.mark.timeout(60)
+def test_a_suspended_controller_has_its_table_stopped() -> None:
+    """Ctrl-Z (SIGSTOP here) on the controller: the drive's watchdog trips after its time."""
+    group = _multicast_group()
+    clock = VirtualClock(1.0)
+    stand = SimulatedStand(StandTruth(seed=4, axes={"outer": AxisTruth()}), {"outer": 100.0},
+                           clock)
+    twin = DriveTwin(stand, "outer", interface="udp_multicast", channel=group, node_id=2)
+    twin.start()
+    proc = subprocess.Popen([sys.executable, "-c", CONTROLLER, group], cwd=ROOT, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        line: list[str] = []
+        reader = threading.Thread(target=lambda: line.append(proc.stdout.readline()))
+        reader.start()
+        reader.join(30)
+        assert line and line[0].strip() == "running", proc.stderr.read() if proc.poll() else ""
+        time.sleep(0.5)                                  # heartbeats flow, no trip
+        assert twin.watchdog_trips == [] and twin.state is State.OPERATION_ENABLED
+        assert stand.axes["outer"].commanded_rate_at(clock.now()) == pytest.approx(20.0, abs=1e-6)
+        os.kill(proc.pid, signal.SIGSTOP)
+        deadline = time.monotonic() + 5.0
+        while not twin.watchdog_trips and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert twin.watchdog_trips, "the drive still hears a suspended controller"
+        assert 0.3 <= twin.watchdog_trips[0].silence_s <= 0.45
+        deadline = time.monotonic() + 2.0                # quick stop, then FAULT
+        while twin.state is not State.FAULT and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert twin.state is State.FAULT
+        assert stand.axes["outer"].commanded_rate_at(clock.now() + 1.0) == 0.0   # stopping
+    finally:
+        os.kill(proc.pid, signal.SIGKILL)
+        os.kill(proc.pid, signal.SIGCONT)
+        proc.wait(10)
+        twin.stop()
