@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import traceback
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -56,21 +57,23 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return EXIT_PASS
 
 
-def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> dict[str, Any]:
+def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> tuple[dict[str, Any], bool]:
+    """result.json, then the certificate; returns the result and whether the certificate
+    was written (a run that leaves no certificate must not exit as if it had)."""
+    from bench.certificate import write_certificate
     from procedures import procedure_kind
 
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json("result.json", result)
     try:
-        from bench.certificate import write_certificate
-    except ImportError:
-        return result
-    try:
         for path in write_certificate(run, result):
             progress.line(f"wrote {path}")
     except Exception as e:  # noqa: BLE001 - result.json stands; say what is missing
-        _err(f"the certificate could not be written: {e!r}; result.json is in {run.path}")
-    return result
+        traceback.print_exc(file=sys.stderr)            # a bug to report: keep its trace
+        _err(f"the certificate could not be written: {e!r}; result.json is in {run.path}; "
+             f"once fixed, `bench analyze {run.path}` writes it")
+        return result, False
+    return result, True
 
 
 def _summary(result: dict[str, Any]) -> list[str]:
@@ -168,8 +171,9 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                 bench.close()
             if simbench is not None:
                 simbench.stop()
+        certificate = False
         try:
-            result = _write_outputs(run, cfg, progress)
+            result, certificate = _write_outputs(run, cfg, progress)
         except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
             _err(f"analysis failed: {e!r}; the raw data is in {run.path}; "
                  f"fix and run `bench analyze {run.path}`")
@@ -181,7 +185,9 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                 status = EXIT_FAIL
             if status == EXIT_PASS and result.get("verdict") == "incomplete":
                 status = EXIT_ABORTED
-        if status == EXIT_ABORTED:
+        if status in (EXIT_PASS, EXIT_FAIL) and not certificate:
+            status = EXIT_ABORTED  # measured, but nothing to sign: not a completed run
+        elif status == EXIT_ABORTED:
             print(f"The run was aborted; the axes were stopped. Continue with: "
                   f"bench run --resume {run.path}")
         if run.session:
@@ -199,9 +205,11 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     cfg = _load(str(run.procedure_file), run.stand_file)
     if cfg is None:
         return EXIT_INVALID
-    result = _write_outputs(run, cfg, Progress())
+    result, certificate = _write_outputs(run, cfg, Progress())
     print("\n".join(_summary(result)))
     print(run.path / "result.json")
+    if not certificate:
+        return EXIT_ABORTED
     return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(result.get("verdict"), EXIT_ABORTED)
 
 

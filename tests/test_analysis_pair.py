@@ -205,3 +205,24 @@ def test_non_finite_fog_samples_are_named():
     hs = [type(h)(h.sign, h.edge_times_s, h.fog_t_s, f) for h in sp.halves]
     with pytest.raises(ValueError, match="half 1: FOG samples .* not all finite"):
         analyze_pair(hs, 100.0, fog_rate_hz=1000.0)
+
+
+def test_upper_limit_when_the_raw_falls_below_the_floor(at50):
+    """A static record 5 % noisier than the FOG in motion: raw^2 - floor^2 < 0 well beyond
+    its scatter. The k = 2 limit is then the measurement's sensitivity, sqrt(2 u_diff), and
+    u_diff >= sqrt(2 / n) raw^2 (the raw variance's own scatter): never zero."""
+    sp, _ = at50
+    static = AxisModel(paper_axis(), 1000.0, 99)
+    rec: list[np.ndarray] = []
+    static.listeners.append(lambda c: rec.append(c.fog_dps))
+    static.advance_to(100.0)
+    noisier = 1.05 * (np.concatenate(rec) - np.mean(np.concatenate(rec)))
+    res = analyze_pair(sp.halves, 50.0, fog_rate_hz=1000.0, counter_budget=BUDGET,
+                       static_fog_dps=noisier)
+    for r in res.rates:
+        rnd = r.random
+        raw, n = rnd.instability_rel, rnd.samples
+        assert rnd.floor_rel == pytest.approx(1.05 * raw, rel=0.02)
+        assert not rnd.resolved and rnd.corrected_rel == 0.0
+        assert rnd.corrected_upper_rel >= math.sqrt(2 * math.sqrt(2 / n)) * raw
+        assert rnd.corrected_upper_rel < 0.3 * raw

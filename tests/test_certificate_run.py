@@ -187,3 +187,24 @@ def test_drift_pulse_run_certificate(drift_run: dict[str, Any]) -> None:
     # drift per cycle; U(t) and the integrator output for each gyro that carries one
     cycles = sum(1 for ax in d["axes"].values() if ax.get("example_cycle"))
     assert drift_run["images"] == 1 + cycles
+
+
+def test_a_run_that_leaves_no_certificate_does_not_exit_as_completed(
+        run: dict[str, Any], monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """A bug in the certificate (patched in: no twin produces one on demand) must not end
+    as exit 0 or 1 with nothing to sign; result.json is still written, and the message
+    says how to get the certificate once fixed."""
+    import bench.certificate
+    from bench.cli import main
+
+    def broken(*args: object, **kw: object) -> list[Path]:
+        raise ValueError("an upper limit must be finite and > 0, got 0.0")
+
+    monkeypatch.setattr(bench.certificate, "write_certificate", broken)
+    before = (run["dir"] / "result.json").read_bytes()
+    assert main(["analyze", str(run["dir"])]) == 3
+    err = capsys.readouterr().err
+    assert "the certificate could not be written: ValueError('an upper limit" in err
+    assert f"`bench analyze {run['dir']}` writes it" in err
+    assert (run["dir"] / "result.json").read_bytes() == before

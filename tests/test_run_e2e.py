@@ -115,6 +115,9 @@ def test_demo_attestation_recovers_the_stand_truth(tmp_path: Path) -> None:
     assert result["verdict"] == "pass"
     assert [r["set_rate_dps"] for r in result["axes"]["outer"]["rates"]] == \
         [10, -10, 50, -50, 200, -200]
+    assert "could not be written" not in out.stderr, out.stderr
+    for name in ("certificate.pdf", "certificate.html"):
+        assert (run_dir / name).stat().st_size > 10_000, name
     check_against_truth(result)
 
     # bench analyze rebuilds result.json from the raw data alone, identically
@@ -185,6 +188,7 @@ def test_sigint_mid_acquisition_stops_the_axes_and_resume_completes(tmp_path: Pa
     assert resumed.returncode == 0, resumed.stdout + resumed.stderr
     result = json.loads((run_dir / "result.json").read_text())
     assert result["verdict"] == "pass" and result["sessions"] == 2
+    assert (run_dir / "certificate.pdf").exists(), resumed.stderr
     check_against_truth(result)
 
     # the same procedure uninterrupted, same seed: equal within the U of the difference

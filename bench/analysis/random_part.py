@@ -22,7 +22,9 @@ the table's non-white (slow) random rate only: say so next to it (`floor_source`
 
 A corrected figure is only meaningful when the raw variance exceeds the floor's by more
 than the estimates' own scatter: `resolved` says whether it does, and
-`corrected_upper_rel` bounds it (k = 2) when it does not.
+`corrected_upper_rel` bounds it (k = 2) when it does not: sqrt(max(diff, 0) + 2 u_diff),
+so a raw variance that falls below the floor by chance never gives a limit tighter than
+the measurement's sensitivity (a limit of zero would be one).
 """
 
 from __future__ import annotations
@@ -163,7 +165,9 @@ def random_part(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,
     return RandomPartResult(
         instability_rel=raw, floor_rel=floor_rel, floor_source=floor.source,
         corrected_rel=math.sqrt(max(diff, 0.0)),
-        corrected_upper_rel=math.sqrt(max(diff + COVERAGE * u_diff, 0.0)),
+        # never below the sensitivity: a raw variance under the floor by chance (diff < 0)
+        # gives the limit a zero difference would, not a tighter one (or zero)
+        corrected_upper_rel=math.sqrt(max(diff, 0.0) + COVERAGE * u_diff),
         resolved=diff > COVERAGE * u_diff, bandwidth_hz=sample_rate_hz / 2.0,
         std_dps=math.sqrt(var_raw) / abs(cal.k), samples=fit.n, averaged=averaged)
 

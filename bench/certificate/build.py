@@ -721,7 +721,7 @@ def _corrected_cell(r: Mapping[str, Any], unit: RelUnit) -> str:
     value = _num(r.get("intra_turn_instability_corrected_rel"))
     u = _num(r.get("intra_turn_instability_corrected_u_rel"))
     upper = _num(intra.get("corrected_upper_rel"))
-    if u is not None or upper is None:
+    if u is not None or upper is None or not upper > 0:   # a noiseless (simulated) FOG: 0
         return _vu(value, u, unit)
     limit, decimals = format_limit(upper * unit.scale)
     if intra.get("resolved") is False or value is None:
