@@ -62,9 +62,11 @@ def test_period_is_kept_and_a_stall_is_not_made_up_by_a_burst() -> None:
     time.sleep(0.6)
     hb.stop()
     gaps = [b - a for a, b in zip(rec.times, rec.times[1:], strict=False)]
-    assert 0.24 <= gaps[4] <= 0.35                      # the stall shows on the bus
-    assert min(gaps) >= 0.015                           # no catch-up burst after it
-    assert 0.018 <= sorted(gaps)[len(gaps) // 2] <= 0.03
+    assert gaps[4] >= 0.24                              # the stall shows on the bus
+    # no catch-up burst after it: the 12 missed periods would all go out at once
+    resumed = rec.times[5]
+    assert sum(resumed <= t <= resumed + 0.1 for t in rec.times) <= 0.1 / 0.02 + 2
+    assert 0.015 <= sorted(gaps)[len(gaps) // 2] <= 0.04
     n = hb.sent
     time.sleep(0.1)
     assert hb.sent == n                                 # stopped means stopped
@@ -133,7 +135,7 @@ def test_a_suspended_controller_has_its_table_stopped() -> None:
         while not twin.watchdog_trips and time.monotonic() < deadline:
             time.sleep(0.01)
         assert twin.watchdog_trips, "the drive still hears a suspended controller"
-        assert 0.3 <= twin.watchdog_trips[0].silence_s <= 0.45
+        assert 0.3 <= twin.watchdog_trips[0].silence_s <= 0.6   # its own 300 ms
         deadline = time.monotonic() + 2.0                # quick stop, then FAULT
         while twin.state is not State.FAULT and time.monotonic() < deadline:
             time.sleep(0.01)
