@@ -27,6 +27,7 @@ Rows of the design buffer: 0 const, 1 tau, 2 y (raw FOG minus a centring constan
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -206,7 +207,7 @@ class _Pass:
         return np.concatenate(starts), np.concatenate(ids)
 
 
-def _chunks(win: Window, chunk: int):
+def _chunks(win: Window, chunk: int) -> Iterator[tuple[int, int]]:
     c0 = win.s_lo
     while c0 < win.s_hi:
         c1 = min(c0 + chunk, win.s_hi)
