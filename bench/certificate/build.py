@@ -705,7 +705,12 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                              "Amplitude ± U, % of ω_set", "Phase ± U, °"), tuple(mains_rows),
                             widths=(1.1, 1.0, 2.2, 2.2, 1.6), align="rrrrr",
                             caption=f"Axis {axis}: mains-frequency ripple, fitted in time "
-                                    "(METHOD.md A4)"))
+                                    "(METHOD.md A4)",
+                            notes=("One tone of fixed frequency and phase over each "
+                                   "direction's record. Grid-frequency wander during the "
+                                   "record (of the order of 1 / record length or more) "
+                                   "spreads the tone and lowers the amplitude found; "
+                                   "(not significant) as for the harmonics.",)))
     blocks += _figure(f"Axis {axis}: systematic component vs table angle with the fitted "
                       "harmonics (cf. paper figs. 8-9)",
                       plots.systematic, axis, rates, amp_unit.scale, amp_unit.name)
