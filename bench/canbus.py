@@ -14,8 +14,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from bench.yamlfile import KeyPath
-
-CONTROLLER_NODE_ID = 0x7F     # the usual master id; further axes take 0x7E, 0x7D, ...
+from drivers.cia402 import CONTROLLER_NODE_ID  # further axes on a bus take 0x7E, 0x7D, ...
 
 
 def bus_name(drive: Mapping[str, Any]) -> str:

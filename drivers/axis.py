@@ -47,6 +47,7 @@ from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 from bench.clock import Clock
 from drivers.cia402 import (
     COB_HEARTBEAT,
+    CONTROLLER_NODE_ID,
     DEFAULT_EDS_PATH,
     HEARTBEAT_LOST,
     NMT_STATE_OPERATIONAL,
@@ -148,7 +149,7 @@ class Axis:
                  counts_per_rev: int = 1 << 20, velocity_unit_counts_per_s: float = 1.0e-3,
                  accel_unit_counts_per_s2: float = 1.0,
                  eds_path: str | Path = DEFAULT_EDS_PATH, heartbeat_ms: int = 50,
-                 watchdog_ms: int | None = None, controller_node_id: int = 0x7F,
+                 watchdog_ms: int | None = None, controller_node_id: int = CONTROLLER_NODE_ID,
                  accel_dps2: float | None = None, bitrate: int | None = None,
                  feedback_journal_s: float = 0.1, position_tolerance_deg: float = 0.01,
                  raw: RawSink | None = None) -> None:

@@ -72,6 +72,7 @@ class Od(IntEnum):
 #: COB-ID bases of CiA 301's predefined connection set (+ node id)
 COB_EMCY = 0x080
 COB_HEARTBEAT = 0x700
+CONTROLLER_NODE_ID = 0x7F     # the controller's (NMT master's) usual node id
 NMT_STATE_OPERATIONAL = 0x05
 
 # -- controlword (0x6040) ------------------------------------------------------------

@@ -32,6 +32,7 @@ from canopen.sdo import SdoAbortedError
 
 from drivers.cia402 import (
     COB_HEARTBEAT,
+    CONTROLLER_NODE_ID,
     DEFAULT_EDS_PATH,
     FAULT_REACTION_OPTIONS,
     HEARTBEAT_LOST,
@@ -96,7 +97,7 @@ class DriveTwin:
     def __init__(self, stand: SimulatedStand, axis: str, *, interface: str = "virtual",
                  channel: str, node_id: int, eds_path: str | Path = DEFAULT_EDS_PATH,
                  servo_tolerance_dps: float = 0.02, watchdog_s: float = 0.25,
-                 controller_node_id: int = 0x7F, counts_per_rev: int = 1 << 20,
+                 controller_node_id: int = CONTROLLER_NODE_ID, counts_per_rev: int = 1 << 20,
                  velocity_unit_counts_per_s: float = 1.0e-3,
                  accel_unit_counts_per_s2: float = 1.0, max_rate_dps: float = 720.0,
                  max_accel_dps2: float = 1000.0, max_decel_dps2: float = 2000.0,

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import time
 import uuid
-from pathlib import Path
 
 import pytest
 
@@ -19,7 +18,6 @@ from drivers.cia402 import State
 from sims.clock import VirtualClock
 from sims.drive_twin import DriveTwin
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
-from tests.test_config import _replace, _validate, files  # noqa: F401 - the fixture
 
 
 def _axes(*drives: dict) -> dict[str, dict]:
@@ -48,17 +46,6 @@ def test_an_id_used_twice_on_a_bus_is_named_at_its_key() -> None:
                                         ("a2", "drive", "controller_node_id")]
     assert "node id 2 on CAN bus socketcan:can0 is already axis 'a0''s drive" in problems[0][1]
     assert "already axis 'a2''s drive" in problems[1][1]
-
-
-def test_validate_refuses_two_drives_with_one_node_id(files: tuple[Path, Path],  # noqa: F811
-                                                      capsys: pytest.CaptureFixture[str]
-                                                      ) -> None:
-    proc, stand = files
-    line = _replace(stand, "node_id: 3", "node_id: 2")
-    rc, err = _validate(proc, capsys)
-    assert rc == 2
-    assert (f"{stand}:{line}: axes.inner.drive.node_id: node id 2 on CAN bus virtual:bench "
-            f"is already axis 'outer''s drive") in err
 
 
 @pytest.mark.timeout(30)

@@ -73,6 +73,17 @@ def test_wrong_type_in_the_stand_file(files: tuple[Path, Path],
     assert "'three'" in err
 
 
+def test_validate_refuses_two_drives_with_one_node_id(files: tuple[Path, Path],
+                                                      capsys: pytest.CaptureFixture[str]
+                                                      ) -> None:
+    proc, stand = files
+    line = _replace(stand, "node_id: 3", "node_id: 2")
+    rc, err = _validate(proc, capsys)
+    assert rc == 2
+    assert (f"{stand}:{line}: axes.inner.drive.node_id: node id 2 on CAN bus virtual:bench "
+            f"is already axis 'outer''s drive") in err
+
+
 def test_rate_above_the_axis_limit(files: tuple[Path, Path],
                                    capsys: pytest.CaptureFixture[str]) -> None:
     proc, _ = files
