@@ -18,12 +18,23 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", default="runs", help="folder for the run directory (runs/)")
     run.add_argument("--yes", action="store_true", help="answer operator prompts with yes")
     run.add_argument("--resume", metavar="RUN_DIR", help="continue an interrupted run")
+    run.add_argument("--records", metavar="URL",
+                     help="records database (default records.sqlite in the --out folder)")
+    state = run.add_mutually_exclusive_group()
+    state.add_argument("--as-found", dest="calibration_state", action="store_const",
+                       const="as-found", help="this run measures the table as found")
+    state.add_argument("--as-left", dest="calibration_state", action="store_const",
+                       const="as-left", help="this run measures the table as left (adjusted)")
+    run.add_argument("--adjustment", metavar="NOTE", help="what was adjusted since as-found")
+    run.add_argument("--operator", help="who runs it (default: the login name)")
     val = sub.add_parser("validate", help="check procedure and stand files; exit 2 on problems")
     val.add_argument("procedure")
     plan = sub.add_parser("plan", help="print the steps and the estimated bench time")
     plan.add_argument("procedure")
     ana = sub.add_parser("analyze", help="recompute result.json and certificate from raw data")
     ana.add_argument("run_dir")
+    ana.add_argument("--records", metavar="URL",
+                     help="records database (default records.sqlite beside the run)")
     dev = sub.add_parser("devices", help="open each instrument, print its identity")
     dev.add_argument("stand")
     dev.add_argument("--sim", action="store_true", help="open the twins instead")
@@ -31,6 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
     dec.add_argument("raw_file")
     dec.add_argument("--format", required=True, dest="fmt", help="frame format, e.g. kvh-a")
     dec.add_argument("--csv", help="write the samples to this CSV file")
+    from bench.records.commands import add_parsers
+
+    add_parsers(sub)
     return p
 
 
@@ -39,6 +53,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "decode":
         from bench.decode import decode_command
         return decode_command(args.raw_file, args.fmt, args.csv)
+    if args.command in ("history", "records", "due"):
+        from bench.records.commands import dispatch
+        return dispatch(args)
     from bench import commands
     return commands.dispatch(args)
 

@@ -20,6 +20,14 @@ from bench.config import Config, ConfigError, load_config
 from bench.engine import Abort, Engine, Progress, RunContext, SignalGuard
 from bench.journal import RunDir
 from bench.plan import format_duration
+from bench.records.hooks import (
+    RecordsTarget,
+    history_sections,
+    mark_run,
+    register_run,
+    target,
+    warn_if_overdue,
+)
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
@@ -57,16 +65,19 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return EXIT_PASS
 
 
-def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> tuple[dict[str, Any], bool]:
-    """result.json, then the certificate; returns the result and whether the certificate
-    was written (a run that leaves no certificate must not exit as if it had)."""
+def _write_outputs(run: RunDir, cfg: Config, progress: Progress,
+                   records: RecordsTarget | None = None) -> tuple[dict[str, Any], bool]:
+    """result.json, then the certificate (with the table's history when the records hold
+    one); returns the result and whether the certificate was written (a run that leaves
+    no certificate must not exit as if it had)."""
     from bench.certificate import write_certificate
     from procedures import procedure_kind
 
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json("result.json", result)
+    history = history_sections(run.path, result, records, _err) if records else []
     try:
-        for path in write_certificate(run, result):
+        for path in write_certificate(run, result, extra_sections=history):
             progress.line(f"wrote {path}")
     except Exception as e:  # noqa: BLE001 - result.json stands; say what is missing
         traceback.print_exc(file=sys.stderr)            # a bug to report: keep its trace
@@ -100,7 +111,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     if run is None:
         run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path)
-    status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume))
+        mark_run(run.path, cfg.procedure, args.calibration_state, args.adjustment,
+                 args.operator)
+    status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),
+                         records=args.records)
     print(run.path)
     return status
 
@@ -110,15 +124,19 @@ SimHook = Callable[[Any], None]
 
 def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = False,
                 resume: bool = False, progress: Progress | None = None,
-                on_sim_started: SimHook | None = None) -> int:
+                on_sim_started: SimHook | None = None, records: str | None = None) -> int:
     """One session of a run (the first, or a --resume): returns the exit status.
 
     Whatever happens inside, the axes are stopped, the instruments closed, what was
-    measured is analysed, and the run directory is left ready for `--resume`.
+    measured is analysed, and the run directory is left ready for `--resume`. The run is
+    registered in the records (`records` URL, default records.sqlite in the runs folder)
+    at its end; a records database that cannot be reached only warns.
     """
     from procedures import procedure_kind
 
     progress = progress or Progress()
+    where = target(run.path.parent, records, _err)
+    overdue = warn_if_overdue(cfg.stand, where, _err)
     kind = procedure_kind(cfg.kind)
     plan = kind.build_plan(cfg)
     done = run.completed_units()
@@ -138,6 +156,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             run.begin_session(clock.now)
             run.event("session_start", resume=resume, sim=simbench is not None,
                       done_units=done, clock_speed=clock.speed, argv=sys.argv[1:])
+            if overdue:
+                run.event("records_overdue", text=overdue)
             bench = kind.open_bench(cfg, stand, clock, run)
             for ax in bench.axes.values():
                 run.event("identity", axis=ax.name, **ax.identities)
@@ -173,7 +193,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                 simbench.stop()
         certificate = False
         try:
-            result, certificate = _write_outputs(run, cfg, progress)
+            result, certificate = _write_outputs(run, cfg, progress, where)
         except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
             _err(f"analysis failed: {e!r}; the raw data is in {run.path}; "
                  f"fix and run `bench analyze {run.path}`")
@@ -193,6 +213,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
         if run.session:
             run.event("exit", status=status)
         run.close()
+    if result is not None:
+        register_run(run.path, where, _err, result)
     return status
 
 
@@ -205,7 +227,9 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     cfg = _load(str(run.procedure_file), run.stand_file)
     if cfg is None:
         return EXIT_INVALID
-    result, certificate = _write_outputs(run, cfg, Progress())
+    where = target(run.path.parent, args.records, _err)
+    result, certificate = _write_outputs(run, cfg, Progress(), where)
+    register_run(run.path, where, _err, result)
     print("\n".join(_summary(result)))
     print(run.path / "result.json")
     if not certificate:

@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import datetime as dt
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
-from bench.certificate.build import build_document
+from bench.certificate.build import ExtraSection, build_document
 from bench.certificate.html import render_html
 from bench.certificate.model import Document
 from bench.certificate.pdf import render_pdf
@@ -36,18 +37,22 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 
 def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | None = None,
-                 issued: dt.date | None = None) -> list[Path]:
+                 issued: dt.date | None = None,
+                 extra_sections: Sequence[ExtraSection] = ()) -> list[Path]:
     """Build the certificate from `result` (and the run directory, if any) into `out_dir`."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    doc = build_document(result, run_path, issued)
+    doc = build_document(result, run_path, issued, extra_sections)
     html_path, pdf_path = out / HTML_NAME, out / PDF_NAME
     _write_atomic(html_path, render_html(doc).encode("utf-8"))
     _write_atomic(pdf_path, render_pdf(doc))
     return [html_path, pdf_path]
 
 
-def write_certificate(run: _HasPath, result: dict[str, Any],
-                      issued: dt.date | None = None) -> list[Path]:
-    """certificate.html and certificate.pdf in the run directory; returns their paths."""
-    return render_files(result, run.path, run.path, issued)
+def write_certificate(run: _HasPath, result: dict[str, Any], issued: dt.date | None = None,
+                      extra_sections: Sequence[ExtraSection] = ()) -> list[Path]:
+    """certificate.html and certificate.pdf in the run directory; returns their paths.
+
+    `extra_sections` (title, blocks) come from outside the run directory (the table's
+    history from the records) and are placed before the statements."""
+    return render_files(result, run.path, run.path, issued, extra_sections)

@@ -209,8 +209,13 @@ def certificate_id(src: Sources) -> str:
 
 # -- the document --------------------------------------------------------------------------
 
+#: a section from outside the run directory (the records' history): title and blocks
+ExtraSection = tuple[str, tuple[Any, ...]]
+
+
 def build_document(result: dict[str, Any], run_path: Path | None = None,
-                   issued: dt.date | None = None) -> Document:
+                   issued: dt.date | None = None,
+                   extra_sections: Sequence[ExtraSection] = ()) -> Document:
     src = Sources.load(result, run_path)
     issue = (issued or dt.datetime.now(dt.UTC).date()).isoformat()
     kind = src.get("procedure") or src.procedure_file.get("procedure") or (
@@ -237,6 +242,8 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
     sections.append(Section(n.next(), "Records: raw data and inputs", _records(src)))
     if kind != "drift-pulse" and any(r.get("counter_rate_dps") for r in _all_rates(src)):
         sections.append(Section(n.next(), "Per-turn counter rates", _per_turn_annex(src)))
+    for title, blocks in extra_sections:
+        sections.append(Section(n.next(), title, tuple(blocks)))
     statements = [t for t in methods.STATEMENTS
                   if kind != "drift-pulse" or not t.startswith("Relative values")]
     sections.append(Section(n.next(), "Statements", tuple(Para(t) for t in statements)))
