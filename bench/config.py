@@ -47,6 +47,19 @@ COUNTER = Map({
     "trigger_jitter_s": Key(Num(min=0, unit="s"), False, "slot sensor edge jitter, std"),
     "timebase_limit_rel": Key(Num(min=0), False, "timebase error limit (external reference)"),
     "timeout_margin_s": Key(Num(min=0, exclusive_min=True, unit="s")),
+    "time_tie": Key(Map({
+        "source": Key(Str(("fog-sync", "host-clock")), True,
+                      "how the counter's start event is placed on the FOG's time axis: "
+                      "fog-sync (external trigger from the FOG's sync output) or host-clock"),
+        "sync_period_s": Key(Num(min=0, exclusive_min=True, unit="s"), False,
+                             "FOG time between sync pulses (pulse k at k * period)"),
+        "latency_s": Key(Num(min=0, unit="s"), False, "sync pulse to counter trigger, "
+                         "calibrated"),
+        "latency_u_s": Key(Num(min=0, unit="s"), False, "its standard uncertainty (with "
+                           "jitter)"),
+        "host_window_s": Key(Num(min=0, unit="s"), False, "how well the host knows the "
+                             "FOG's time axis"),
+    }), False, "drivers/time_tie.py; a stand without a sim: block must state it"),
 })
 FOG = Map({
     "port": Key(Str(), True, "serial port, e.g. /dev/ttyUSB0"),
@@ -77,6 +90,8 @@ SIM_AXIS = Map({
     "rate_noise_dps": Key(Num(min=0)),
     "turn_jitter_s": Key(Num(min=0)),
     "fog": Key(SIM_FOG),
+    "time_tie": Key(Map({"latency_s": Key(Num(min=0)), "jitter_s": Key(Num(min=0))}),
+                    False, "the FOG sync to counter trigger link: true latency and jitter"),
 })
 SIM_KEYS: dict[str, Key] = {
     "seed": Key(Num(min=0, integer=True)),

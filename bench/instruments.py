@@ -123,10 +123,12 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
     c = axis_cfg.get("counter")
     if counter and c:
         from drivers.counter import Counter
+        from drivers.time_tie import TimeTie
 
         clog = bench.log(run.raw_path(f"{name}-counter.jsonl")) if run else None
         cnt = Counter.open(c["resource"], c["model"], clock,
                            raw=raw_text_logger(clog, clock) if clog else None,
+                           time_tie=TimeTie.from_stand(c.get("time_tie")),
                            **({"timeout_margin_s": c["timeout_margin_s"]}
                               if "timeout_margin_s" in c else {}))
         bench.enter(cnt)

@@ -29,6 +29,21 @@ DEFAULT_AXIS_TRUTH: dict[str, Any] = {
 TwinFactory = Callable[["SimBench"], None]
 
 
+def sync_link(counter_cfg: dict[str, Any], sim_axis: dict[str, Any]) -> Any:
+    """The FOG-sync-to-counter link the twins model for a `fog-sync` time tie: pulses
+    every `sync_period_s`, the sim truth's latency and jitter (default: exactly the
+    latency the stand declares). None when the stand ties otherwise (nothing wired)."""
+    from sims.counter_twin import SyncLink
+
+    tie = counter_cfg.get("time_tie") or {}
+    if tie.get("source") != "fog-sync":
+        return None
+    truth = sim_axis.get("time_tie") or {}
+    return SyncLink(period_s=float(tie.get("sync_period_s", 1.0)),
+                    latency_s=float(truth.get("latency_s", tie.get("latency_s", 0.0))),
+                    jitter_s=float(truth.get("jitter_s", 0.0)))
+
+
 class SimBench:
     """Owns the stand, the clock and the twins; a context manager that stops them all."""
 
@@ -47,6 +62,7 @@ class SimBench:
                   for a in axes}
         self.stand = SimulatedStand(truth, fog_hz, self.clock)
         self.axes = axes
+        self._sim_axes = sim_axes
         self.channel = f"sim-{uuid.uuid4().hex[:8]}"
         self.twins: dict[str, Any] = {}
         self._stack = contextlib.ExitStack()
@@ -58,6 +74,8 @@ class SimBench:
         from sims.fog_twin import FogTwin
 
         cfg = self.stand_cfg
+        sim = cfg.get("sim") or {}
+        sim_axes = self._sim_axes
         try:
             for a in self.axes:  # FOG twins first: they must see every sample from 0 on
                 f = cfg["axes"][a].get("fog")
@@ -85,7 +103,9 @@ class SimBench:
                 d["interface"], d["channel"] = "virtual", channel
                 if ac.get("counter"):
                     c = ac["counter"]
-                    ct = CounterTwin(self.stand, a, model=c["model"])
+                    ct = CounterTwin(self.stand, a, model=c["model"],
+                                     sync=sync_link(c, sim_axes.get(a) or {}),
+                                     seed=int(sim.get("seed", 0)))
                     c["resource"] = ct.start()
                     self._stack.callback(ct.stop)
                     self.twins[f"{a}.counter"] = ct

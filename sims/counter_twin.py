@@ -53,6 +53,7 @@ from drivers.counter_profiles import (
     encode_values,
     get_profile,
 )
+from drivers.counter_profiles import nr3 as profile_nr3
 from drivers.scpi import SCPI_NAN
 from sims.scpi_server import (
     ExecError,
@@ -128,6 +129,8 @@ class CounterTwin(ScpiServer):
                  seed: int = 0) -> None:
         self.profile: CounterProfile = get_profile(model)
         super().__init__(idn=self.profile.idn, host=host, port=port)
+        if self.profile.maker.startswith("Keysight"):  # `+0,"No error"` (Prog. Ref.)
+            self.error_code_format = "{:+d}"
         self.stand = stand
         self.axis = stand.axis(axis)
         self.clock = stand.clock
@@ -177,6 +180,7 @@ class CounterTwin(ScpiServer):
             else:
                 t_start = self.sync.next_pulse_s(t_arm, self.rng)
         self.acquisition = TwinAcquisition(kind, n, ch, t_arm, self.timeout_s, blind, t_start)
+        self.last_acquisition = self.acquisition  # kept after the client leaves (tests)
         return self.acquisition
 
     def _progress(self, acq: TwinAcquisition) -> bool:
@@ -240,18 +244,18 @@ class CounterTwin(ScpiServer):
     def _route_words(self) -> None:
         self.route_words(self.profile.words, {
             "input_coupling": (self._set_coupling, lambda a: self._inp(a).coupling),
-            "input_impedance": (self._set_impedance, lambda a: nr3(self._inp(a).impedance_ohm)),
+            "input_impedance": (self._set_impedance, lambda a: self._nr3(self._inp(a).impedance_ohm)),
             "input_level_auto": (self._set_level_auto,
                                  lambda a: bool_reply(self._inp(a).level_auto)),
-            "input_level": (self._set_level, lambda a: nr3(self._inp(a).level_v)),
+            "input_level": (self._set_level, lambda a: self._nr3(self._inp(a).level_v)),
             "input_slope": (self._set_slope, lambda a: self._inp(a).slope),
             "configure_timestamps": (self._conf_timestamps, None),
             "configure_period": (self._conf_period, None),
-            "timestamp_rate": (self._set_rate, lambda a: nr3(self.timestamp_rate_hz)),
+            "timestamp_rate": (self._set_rate, lambda a: self._nr3(self.timestamp_rate_hz)),
             "timestamp_info": (self._set_tinf, lambda a: bool_reply(self.timestamp_info)),
             "sample_count": (self._set_count, lambda a: f"+{self.sample_count}"),
             "gate_time": (self._set_gate, None),
-            "measurement_timeout": (self._set_timeout, lambda a: nr3(
+            "measurement_timeout": (self._set_timeout, lambda a: self._nr3(
                 9.9e37 if self.timeout_s is None else self.timeout_s)),  # p. 459: 9.9E37
             "format_data": (self._set_format, lambda a: "ASC"),
             "trigger_source": (self._set_trigger_source, lambda a: self.trigger_source),
@@ -261,6 +265,11 @@ class CounterTwin(ScpiServer):
             "fetch_array": (None, self._fetch_array, True),
             "read": (None, self._read, True),
         })
+
+    def _nr3(self, value: float) -> str:
+        """A setting's query reply as the model prints it: `+1.00000000E+006` (53230A
+        Programmer's Reference p. 377, p. 459)."""
+        return profile_nr3(value, 8, self.profile.reply_exp_digits)
 
     def _inp(self, a: Mapping[str, str]) -> InputState:
         return suffix_item(self.inputs, a)
