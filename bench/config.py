@@ -68,7 +68,12 @@ FOG = Map({
     "axis": Key(Str(("x", "y", "z"))),
     "rate_hz": Key(Num(min=0, exclusive_min=True, unit="Hz"), True),
     "range_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
-    "units": Key(Str()),
+    "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), True,
+                  "what the rotational fields carry; KVH's power-on default is delta "
+                  "radians, 'rad' (1775 IMU Technical Manual, Table 5-10)"),
+    "configure": Key(Str(("set", "verify", "declare")), False,
+                     "set: configure the FOG at connect and read back; verify: read back "
+                     "only; declare (default): trust fog.units"),
     "model": Key(Str()),
     "sign": Key(Num(min=-1, max=1, integer=True)),
 })
@@ -80,8 +85,11 @@ HARMONIC = Map({
     "amplitude_rel": Key(Num(min=0), True),
     "phase_deg": Key(Num()),
 })
-SIM_FOG = Map({k: Key(Num()) for k in ("scale", "bias_dps", "misalignment_deg",
-                                        "noise_dps", "bias_drift_dps_per_h")})
+SIM_FOG = Map({**{k: Key(Num()) for k in ("scale", "bias_dps", "misalignment_deg",
+                                           "noise_dps", "bias_drift_dps_per_h")},
+               "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), False,
+                            "what the twin carries before the bench configures it "
+                            "(default: delta radians, or the declared fog.units)")})
 SIM_AXIS = Map({
     "rate_bias_rel": Key(Num()),
     "harmonics": Key(ListOf(HARMONIC)),

@@ -144,7 +144,7 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
 
         fg = Fog(f["port"], baudrate=f.get("baudrate", 921600), fmt=f.get("format", "kvh-a"),
                  axis=f.get("axis", "z"), rate_hz=f["rate_hz"],
-                 units=f.get("units", "deg/s"),
+                 units=f.get("units"), configure=f.get("configure", "declare"),
                  raw_path=run.raw_path(f"{name}-fog.bin") if run else None, clock=clock,
                  model=f.get("model"))
         bench.enter(fg)

@@ -44,6 +44,20 @@ def sync_link(counter_cfg: dict[str, Any], sim_axis: dict[str, Any]) -> Any:
                     jitter_s=float(truth.get("jitter_s", 0.0)))
 
 
+def twin_fog_units(fog_cfg: dict[str, Any], sim_axis: dict[str, Any]) -> str:
+    """What the FOG twin carries before the bench talks to it: the sim truth's
+    `fog.units`, else a declared `fog.units` (a FOG configured earlier), else the KVH
+    power-on default, delta radians (drivers/kvh_config.py)."""
+    from drivers.kvh_config import POWER_ON_UNITS
+
+    truth = (sim_axis.get("fog") or {}).get("units")
+    if truth:
+        return str(truth)
+    if fog_cfg.get("configure", "declare") == "declare" and fog_cfg.get("units"):
+        return str(fog_cfg["units"])
+    return POWER_ON_UNITS
+
+
 class SimBench:
     """Owns the stand, the clock and the twins; a context manager that stops them all."""
 
@@ -82,7 +96,7 @@ class SimBench:
                 if f:
                     ft = FogTwin(self.stand, a, fmt=f.get("format", "kvh-a"),
                                  axis_letter=f.get("axis", "z"),
-                                 units=f.get("units", "deg/s"))
+                                 units=twin_fog_units(f, sim_axes.get(a) or {}))
                     f["port"] = ft.start()
                     self._stack.callback(ft.stop)
                     self.twins[f"{a}.fog"] = ft
