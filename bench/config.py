@@ -200,6 +200,8 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
                 problems.append(e.problem)
         else:
             problems += validate(sdoc, kind.stand_schema())
+            if not problems:
+                problems += real_stand_problems(sdoc)
     if problems or sdoc is None:
         raise ConfigError(problems)
     cfg = Config(Path(procedure_path), sdoc.path, pdoc.data, sdoc.data, pdoc, sdoc)
@@ -207,6 +209,30 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
     if problems:
         raise ConfigError(problems)
     return cfg
+
+
+def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
+    """What a real stand (no `sim:` block) must state because no driver can guess it.
+
+    The FOG's units are required by the schema for every stand; here, the time tie: on
+    twins one clock ties the counter to the FOG, on hardware only a physical link does
+    (drivers/time_tie.py), so a real stand with a counter and a FOG must say how.
+    """
+    data = sdoc.data if isinstance(sdoc.data, dict) else {}
+    if "sim" in data:
+        return []
+    out = []
+    for name, axis in (data.get("axes") or {}).items():
+        if not isinstance(axis, dict):
+            continue
+        counter, fog = axis.get("counter"), axis.get("fog")
+        if isinstance(counter, dict) and fog and "time_tie" not in counter:
+            out.append(sdoc.problem(
+                ("axes", name, "counter"),
+                "a real stand must state counter.time_tie (how the counter's start event "
+                "is placed on the FOG's time axis: source fog-sync with sync_period_s, "
+                "latency_s and latency_u_s, or host-clock); see drivers/time_tie.py"))
+    return out
 
 
 def check_axis_names(cfg: Config, axes_key: str = "axes") -> list[Problem]:
