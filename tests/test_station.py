@@ -34,7 +34,6 @@ from bench.station.live import (
     FogSettings,
     decimate,
     fog_trace,
-    live_state,
     progress_of,
     tail_jsonl,
     turn_rates,
