@@ -59,6 +59,8 @@
       const n = st.turns.deviation_ppm.length;
       station.charts.turns.setData([Array.from({ length: n }, (_, i) => i + 1), st.turns.deviation_ppm]);
       $("turns-text").textContent = `${st.turns.axis || ""} at ${st.turns.set_rate_dps} deg/s: ${n} turns`;
+    } else {
+      $("turns-text").textContent = "no half timed yet in this run";
     }
     const log = $("log");
     log.textContent = "";
