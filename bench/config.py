@@ -35,6 +35,13 @@ DRIVE = Map({
     "settle_tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
     "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg")),
     "eds": Key(Str()),
+    "unit_factors": Key(Any_(), False,
+                        "'read' (the drive's factor group 0x608F/0x6091/0x60A9/0x60AA is "
+                        "read at connect) or {velocity: rpm|inc/s|0.001 inc/s|..., "
+                        "acceleration: rpm/s|inc/s2|...} written at connect and read back; "
+                        "a stand without a sim: block must state it"),
+    "pdo": Key(Str(("set", "verify")), False,
+               "TPDO transmission type / event timer: verify (default) or set at connect"),
 })
 COUNTER = Map({
     "resource": Key(Str(), True, "VISA resource string"),
@@ -100,6 +107,9 @@ SIM_AXIS = Map({
     "fog": Key(SIM_FOG),
     "time_tie": Key(Map({"latency_s": Key(Num(min=0)), "jitter_s": Key(Num(min=0))}),
                     False, "the FOG sync to counter trigger link: true latency and jitter"),
+    "drive": Key(Map({"velocity_unit": Key(Str()), "acceleration_unit": Key(Str()),
+                      "tpdo_event_timer_ms": Key(Num(min=0, integer=True))}), False,
+                 "the drive twin's factor group (e.g. rpm, rpm/s) and TPDO event timer"),
 })
 SIM_KEYS: dict[str, Key] = {
     "seed": Key(Num(min=0, integer=True)),
@@ -225,6 +235,13 @@ def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
     for name, axis in (data.get("axes") or {}).items():
         if not isinstance(axis, dict):
             continue
+        drive = axis.get("drive")
+        if isinstance(drive, dict) and "unit_factors" not in drive:
+            out.append(sdoc.problem(
+                ("axes", name, "drive"),
+                "a real stand must state drive.unit_factors: 'read' (the drive's factor "
+                "group is read at connect) or {velocity: ..., acceleration: ...} to set "
+                "(common drives default to rpm or inc/s; see drivers/cia402.py)"))
         counter, fog = axis.get("counter"), axis.get("fog")
         if isinstance(counter, dict) and fog and "time_tie" not in counter:
             out.append(sdoc.problem(

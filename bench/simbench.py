@@ -108,8 +108,13 @@ class SimBench:
                 ac = cfg["axes"][a]
                 d = ac["drive"]
                 channel = buses.setdefault(bus_name(d), f"{self.channel}-{len(buses)}")
+                drive_truth = (sim_axes.get(a) or {}).get("drive") or {}
                 twin = DriveTwin(self.stand, a, interface="virtual", channel=channel,
                                  node_id=d["node_id"], controller_node_id=controllers[a],
+                                 **{k: drive_truth[k] for k in ("velocity_unit",
+                                                                "acceleration_unit",
+                                                                "tpdo_event_timer_ms")
+                                    if k in drive_truth},
                                  **({"counts_per_rev": d["counts_per_rev"]}
                                     if "counts_per_rev" in d else {}))
                 self._stack.enter_context(twin)

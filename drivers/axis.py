@@ -355,6 +355,12 @@ class Axis:
             name=f"axis {self.name} heartbeat").start()
         self._write(Od.PRODUCER_HEARTBEAT, self.heartbeat_ms)
         self._configure_watchdog()
+        self.readback["drive.heartbeat consumer 0x1016:1"] = (
+            f"node {self.controller_node_id}, {self.drive_watchdog_ms} ms")
+        max_v = self._read_optional(Od.MAX_PROFILE_VELOCITY)
+        if max_v is not None:
+            self.readback["drive.max profile velocity 0x607F"] = \
+                f"{self.units.velocity_to_dps(int(max_v)):.6g} deg/s"
         self._started = True
         node.nmt.state = "OPERATIONAL"
         self._wait_real(lambda: self._drive_nmt == NMT_STATE_OPERATIONAL,
