@@ -35,8 +35,8 @@ from typing import Any
 
 import numpy as np
 
-EARTH_RATE_DPH = 15.041  # METHOD.md B
-SECONDS_PER_HOUR = 3600.0
+from drivers.units import EARTH_RATE_DPH, SECONDS_PER_HOUR
+
 COVERAGE_K = 2.0
 DETECTION_Z = 3.0
 #: a cycle whose fitted precession is off the median by this factor had no proper pulse
