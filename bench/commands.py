@@ -123,7 +123,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
     """One session of a run (the first, or a --resume): returns the exit status.
 
     Whatever happens inside, the axes are stopped, the instruments closed, what was
-    measured is analysed, and the run directory is left ready for `--resume`.
+    measured is analyzed, and the run directory is left ready for `--resume`.
     """
     progress = progress or Progress()
     kind = procedure_kind(cfg.kind)

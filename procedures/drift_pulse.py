@@ -558,7 +558,7 @@ def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, 
     drift: dict[str, Any]
     checks: list[dict[str, Any]] = []
     try:
-        result = dp.analyse(records, shape, {g: plat[g]["k_as_v_per_deg"] for g in gyros},
+        result = dp.analyze(records, shape, {g: plat[g]["k_as_v_per_deg"] for g in gyros},
                             cfg.procedure["site"]["latitude_deg"], stated)
         drift = result.to_dict()["drift"]
         checks = _checks(cfg, result, rule)

@@ -20,6 +20,7 @@ from typing import Any
 import yaml
 
 import bench
+from bench.analysis.random_part import std_u_rel
 from bench.certificate import methods, plots
 from bench.certificate.model import Document, Fields, Figure, Para, Section, Signatures, Table
 from bench.certificate.rounding import (
@@ -504,18 +505,14 @@ def _instability_u(r: Mapping[str, Any]) -> tuple[float | None, bool]:
     if u is not None:
         return u, False
     s, n = _num(r.get("rate_instability_rel")), len(r.get("counter_rate_dps") or [])
-    n = n or int(r.get("turns") or 0)
-    if s is None or n < 2:
-        return None, False
-    return 2 * s / math.sqrt(2 * (n - 1)), True  # u(s) ~ s / sqrt(2(N-1)) for normal data
+    u = std_u_rel(s, n or int(r.get("turns") or 0))
+    return u, u is not None
 
 
 def _u_of_std(s: float | None, n: Any) -> float | None:
-    """U (k = 2) of a standard deviation from n independent values: 2 s / sqrt(2 (n - 1))."""
+    """U (k = 2) of a standard deviation from n values, when the result does not give it."""
     n = _num(n)
-    if s is None or n is None or n < 2:
-        return None
-    return 2 * s / math.sqrt(2 * (n - 1))
+    return None if n is None else std_u_rel(s, int(n))
 
 
 @dataclass(frozen=True)

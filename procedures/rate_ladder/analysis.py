@@ -17,6 +17,7 @@ import numpy as np
 
 from bench.analysis.allan import allan_deviation
 from bench.analysis.pair import analyze_pair
+from bench.analysis.random_part import std_u_rel
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.config import Config
@@ -120,8 +121,9 @@ def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
 
 
 def _instability_u(value: float, turns: int) -> float:
-    """U (k = 2) of a relative standard deviation from N turns: s / sqrt(2 (N - 1))."""
-    return 2.0 * value / math.sqrt(2.0 * (turns - 1)) if turns > 1 else math.inf
+    """U (k = 2) of eq. 2's sigma from N turns (infinite from one turn)."""
+    u = std_u_rel(value, turns)
+    return math.inf if u is None else u
 
 
 def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[dict[str, Any]]:

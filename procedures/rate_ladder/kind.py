@@ -5,7 +5,7 @@ magnitude the halves of a +/- pair, by default in the order +w, -w, +w with the 
 the + direction split around the - half, so a linear FOG bias drift cancels in the
 cross-calibration (METHOD.md A3, "beyond the paper"); each half: set the rate, settle,
 time N whole turns with the counter while the FOG streams; then cross-calibrate and
-analyse the pair.
+analyze the pair.
 """
 
 from __future__ import annotations
@@ -126,7 +126,7 @@ class RateLadder(StepDispatch):
                                       {"rate_dps": target, "turns": n, "half": j,
                                        "period_s": period}))
                     rate_now = target
-                steps.append(Step("analyse", axis, f"cross-calibrate and analyse the "
+                steps.append(Step("analyze", axis, f"cross-calibrate and analyze the "
                                   f"+/-{rate:g} deg/s pair", 0.0, unit, {"rate_dps": rate}))
             steps.append(Step("stop", axis, "ramp to zero, disable", abs(rate_now) / accel,
                               None, {"accel_dps2": accel}))
@@ -233,7 +233,7 @@ class RateLadder(StepDispatch):
         ctx.progress.line(f"  {step.axis} {p['rate_dps']:+g} deg/s: {n} turns timed, "
                           f"mean {math.copysign(w, p['rate_dps']):+.7f} deg/s")
 
-    def _do_analyse(self, step: Step, ctx: RunContext) -> None:
+    def _do_analyze(self, step: Step, ctx: RunContext) -> None:
         summary = pair_summary(ctx, step.axis, step.unit, step.params["rate_dps"])
         ctx.run.event("pair", axis=step.axis, unit=step.unit, **summary)
         ctx.progress.line(f"  {step.axis} +/-{step.params['rate_dps']:g} deg/s: "
