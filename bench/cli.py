@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 import sys
 
+from bench import commands
+from bench.decode import decode_command
+from bench.station.serve import cmd_serve
+
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
@@ -18,6 +22,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", default="runs", help="folder for the run directory (runs/)")
     run.add_argument("--yes", action="store_true", help="answer operator prompts with yes")
     run.add_argument("--resume", metavar="RUN_DIR", help="continue an interrupted run")
+    run.add_argument("--example", metavar="NAME",
+                     help="run a procedure shipped inside the package (demo, drift-demo)")
     val = sub.add_parser("validate", help="check procedure and stand files; exit 2 on problems")
     val.add_argument("procedure")
     plan = sub.add_parser("plan", help="print the steps and the estimated bench time")
@@ -45,12 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.command == "decode":
-        from bench.decode import decode_command
         return decode_command(args.raw_file, args.fmt, args.csv)
     if args.command == "serve":
-        from bench.station.serve import cmd_serve
         return cmd_serve(args)
-    from bench import commands
     return commands.dispatch(args)
 
 

@@ -18,10 +18,10 @@ from dataclasses import dataclass, field
 from types import FrameType
 from typing import IO, Any, Protocol
 
-from bench.clock import Clock
 from bench.config import Config
 from bench.journal import RunDir
 from bench.plan import Plan, Step, format_duration
+from drivers.clock import Clock
 
 
 class Abort(Exception):
