@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from bench.config import ConfigError, load_config
+from bench.config import ConfigError
+from bench.loader import load_config
 
 ROOT = Path(__file__).resolve().parents[1]
 PROCEDURE = """procedure: rate-ladder
