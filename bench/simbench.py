@@ -87,6 +87,8 @@ class SimBench:
                     c = ac["counter"]
                     ct = CounterTwin(self.stand, a, model=c["model"])
                     c["resource"] = ct.start()
+                    # the twin knows its zero-mark signal: mid-swing is a sound level
+                    c.setdefault("level_v", sum(ct.signal_v) / 2)
                     self._stack.callback(ct.stop)
                     self.twins[f"{a}.counter"] = ct
             for factory in extra or []:
