@@ -12,6 +12,9 @@ from __future__ import annotations
 
 #: the shortest real-time margin any wait gets beyond its scaled clock time (seconds)
 MIN_REAL_MARGIN_S = 5.0
+#: how far past its limit a wait may go while data still arrive late (a slow host); a
+#: stream that stays further behind than this is a fault, not a slow machine
+MAX_LATE_REAL_S = 60.0
 
 
 def real_limit_s(clock_s: float, speed: float, margin_s: float = MIN_REAL_MARGIN_S) -> float:

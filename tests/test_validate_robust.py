@@ -91,18 +91,26 @@ def test_a_slow_rate_that_would_take_months_is_refused(
 
 
 def test_a_real_stand_without_a_trigger_level_is_refused(
-        demo: tuple[Path, Path], capsys: pytest.CaptureFixture[str]) -> None:
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """CONTRACT's example stand has no level_v: the counter would refuse to arm it."""
-    proc, stand = demo
-    text = stand.read_text()
-    real = text[: text.index("\nsim:")] + "\n"          # no sim block: a real stand
-    assert "level_v: 2.5, " in real
-    stand.write_text(real.replace("level_v: 2.5, ", ""))
+    text = (CONFIGS / "stands" / "example-real.yaml").read_text()
+    assert "level_v: 2.5, " in text
+    stand = tmp_path / "stand.yaml"
+    stand.write_text(text.replace("level_v: 2.5, ", ""))
+    proc = tmp_path / "p.yaml"
+    proc.write_text("procedure: rate-ladder\nstand: stand.yaml\n"
+                    "axes: {outer: {rates_dps: [10]}}\n")
     assert main(["validate", str(proc)]) == 2
     err = capsys.readouterr().err
-    assert ": axes.outer.counter: missing level_v" in err, err
-    assert ": axes.inner.counter: missing level_v" in err, err
-    stand.write_text(text.replace("level_v: 2.5, ", ""))  # the twin defaults it
+    assert f"{stand}:" in err and ": axes.outer.counter: missing level_v" in err, err
+    stand.write_text(text)
+    assert main(["validate", str(proc)]) == 0, capsys.readouterr().err
+
+
+def test_a_simulated_stand_may_leave_the_level_to_its_twin(
+        demo: tuple[Path, Path], capsys: pytest.CaptureFixture[str]) -> None:
+    proc, stand = demo
+    stand.write_text(stand.read_text().replace("level_v: 2.5, ", ""))
     assert main(["validate", str(proc)]) == 0, capsys.readouterr().err
 
 

@@ -15,7 +15,9 @@ from typing import Any
 
 import numpy as np
 
+from bench.analysis.allan import allan_deviation
 from bench.analysis.pair import analyze_pair
+from bench.analysis.random_part import std_u_rel
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.config import Config
@@ -26,20 +28,25 @@ from drivers.counter_profiles import get_profile
 from drivers.fog import FogSamples, read_capture
 from drivers.scpi import parse_numbers
 from procedures.base import events_of, result_document
+from procedures.rate_ladder.settings import setting, tolerance_for
 
 
 def counter_budget(stand_axis: dict[str, Any]) -> CounterBudget:
     """METHOD.md A1: dT = sqrt(d_counter^2 + d_trigger^2), plus the timebase."""
     c = stand_axis["counter"]
     profile = get_profile(c["model"])
-    return CounterBudget(timestamp_u_s=profile.single_shot_s,
+    tie = c.get("time_tie") or {}
+    return CounterBudget(time_tie_u_s=float(tie.get("latency_u_s", 0.0)),
+                         timestamp_u_s=profile.single_shot_s,
                          trigger_jitter_s=float(c.get("trigger_jitter_s", 0.0)),
                          timebase_limit_rel=float(c.get("timebase_limit_rel",
                                                         profile.timebase_limit_rel)))
 
 
-def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int) -> np.ndarray:
-    """The zero-mark edges in the counter's raw replies of one acquisition."""
+def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int,
+                       t_start_s: float = 0.0) -> np.ndarray:
+    """The zero-mark edges in the counter's raw replies of one acquisition, placed on the
+    FOG's axis by the start event the time tie gave during the run (journaled)."""
     fmt = get_profile(model).timestamp_format
     n_values = fmt.n_values(n_edges)
     found = None
@@ -54,7 +61,7 @@ def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int) 
             found = fmt.decode(values)
     if found is None:
         raise ValueError(f"no counter reply with {n_edges} timestamps in the raw log")
-    return found
+    return t_start_s + found
 
 
 class RawData:
@@ -92,7 +99,8 @@ class RawData:
         log = self.counter_log(session, axis)
         i0, i1 = e["counter_records"]
         model = self.cfg.stand_axis(axis)["counter"]["model"]
-        edges = edges_from_replies(log[i0:i1], model, e["turns"] + 1)
+        edges = edges_from_replies(log[i0:i1], model, e["turns"] + 1,
+                                   float(e.get("counter_t0_s", 0.0)))
         t, w = self.fog_slice(session, axis, e["fog_from"], e["fog_to"])
         return HalfRecord(int(math.copysign(1, e["set_rate_dps"])), edges, t, w)
 
@@ -101,8 +109,6 @@ class RawData:
 
 
 def _settings(cfg: Config) -> dict[str, Any]:
-    from procedures.rate_ladder import setting
-
     return {k: setting(cfg, k) for k in ("turns", "sequence", "static_record_s", "harmonics",
                                          "mains_hz", "decision_rule")}
 
@@ -120,13 +126,12 @@ def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
 
 
 def _instability_u(value: float, turns: int) -> float:
-    """U (k = 2) of a relative standard deviation from N turns: s / sqrt(2 (N - 1))."""
-    return 2.0 * value / math.sqrt(2.0 * (turns - 1)) if turns > 1 else math.inf
+    """U (k = 2) of eq. 2's sigma from N turns (infinite from one turn)."""
+    u = std_u_rel(value, turns)
+    return math.inf if u is None else u
 
 
 def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[dict[str, Any]]:
-    from procedures.rate_ladder import tolerance_for
-
     tol = cfg.procedure.get("tolerance", {})
     out = []
     rate = entry["set_rate_dps"]
@@ -178,8 +183,6 @@ def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
             pairs.append(pa.pair.to_dict())
         floor = None
         if static is not None:
-            from bench.analysis.allan import allan_deviation
-
             w = raw.static(static)
             hz = cfg.stand_axis(axis)["fog"]["rate_hz"]
             curve = allan_deviation(w, hz)
