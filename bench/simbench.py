@@ -127,6 +127,8 @@ class SimBench:
                                      sync=sync_link(c, sim_axes.get(a) or {}),
                                      seed=int(sim.get("seed", 0)))
                     c["resource"] = ct.start()
+                    # the twin knows its zero-mark signal: mid-swing is a sound level
+                    c.setdefault("level_v", sum(ct.signal_v) / 2)
                     self._stack.callback(ct.stop)
                     self.twins[f"{a}.counter"] = ct
             for factory in extra or []:
