@@ -62,3 +62,17 @@ def test_a_real_stand_without_drive_unit_factors_is_refused(tmp_path):
 def test_stated_it_validates(tmp_path):
     cfg = load(tmp_path, TIE, ", units: deg/s, configure: set")
     assert cfg.stand["axes"]["outer"]["fog"]["configure"] == "set"
+
+
+def test_every_counter_profile_names_its_manual_or_says_unverified():
+    from bench.instruments import with_readback
+    from drivers.counter_profiles import PROFILES
+
+    manuals = {m: p.manual for m, p in PROFILES.items()}
+    assert manuals["generic-scpi-period"].startswith("unverified")      # AKIP-5102
+    assert "p. 240" in manuals["keysight-53230a"] and "p. 459" in manuals["keysight-53230a"]
+    assert "p. 8-35" in manuals["pendulum-cnt-91"]
+    text = with_readback("AKIP,AKIP-5102/1,1,1.00", {"counter.level_v": "+2.5E+00"},
+                         "UNVERIFIED (no manual found)")
+    assert text == ("AKIP,AKIP-5102/1,1,1.00; read back: counter.level_v = +2.5E+00; "
+                    "driver checked against: UNVERIFIED (no manual found)")
