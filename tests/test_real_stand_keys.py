@@ -76,3 +76,15 @@ def test_every_counter_profile_names_its_manual_or_says_unverified():
                          "UNVERIFIED (no manual found)")
     assert text == ("AKIP,AKIP-5102/1,1,1.00; read back: counter.level_v = +2.5E+00; "
                     "driver checked against: UNVERIFIED (no manual found)")
+
+
+def test_a_simulated_stand_must_also_say_its_fog_units(tmp_path):
+    """The FOG twin powers on in delta radians as the unit does: no units, no run."""
+    stand = (ROOT / "configs" / "stands" / "sim-two-axis.yaml").read_text()
+    stand = stand.replace("units: deg/s, configure: set}   # from its power-on delta radians",
+                          "}")
+    (tmp_path / "stand.yaml").write_text(stand)
+    (tmp_path / "p.yaml").write_text(PROCEDURE)
+    with pytest.raises(ConfigError) as e:
+        load_config(tmp_path / "p.yaml")
+    assert "stand.yaml:17: axes.outer.fog: missing required key 'units'" in str(e.value)
