@@ -87,4 +87,5 @@ def test_a_simulated_stand_must_also_say_its_fog_units(tmp_path):
     (tmp_path / "p.yaml").write_text(PROCEDURE)
     with pytest.raises(ConfigError) as e:
         load_config(tmp_path / "p.yaml")
-    assert "stand.yaml:17: axes.outer.fog: missing required key 'units'" in str(e.value)
+    line = stand[:stand.index("    fog:")].count("\n") + 1
+    assert f"stand.yaml:{line}: axes.outer.fog: missing required key 'units'" in str(e.value)
