@@ -473,10 +473,14 @@ class DriftPulse(StepDispatch):
         end = ctx.clock.now() + duration_s
         while (left := end - ctx.clock.now()) > 0:
             drive.check()
+            ctx.progress.advance(duration_s - left, duration_s,
+                                 f"{duration_s - left:.0f} of {duration_s:g} s")
             ctx.clock.sleep(min(left, 1.0))
         drive.check()
 
     def _do_cycle(self, step: Step, ctx: RunContext) -> None:
+        from bench.certificate.rounding import format_sig  # the certificate's; in a run only
+
         cfg, p = ctx.cfg, step.params
         t = Timing.of(cfg)
         amplitude = self.timing_amplitude(cfg) if p["timing"] else \
@@ -512,7 +516,9 @@ class DriftPulse(StepDispatch):
                             f"sensor's current path from generator channel "
                             f"{spec['awg_channel']} and the angle sensor's wiring to its DMM")
             w, _ = dp.cycle_drift_dph(rec, shape, k_as, 0.0, a)
-            quick.append(f"{g} {w:+.4f}")
+            quick.append(f"{g} {format_sig(w, 5, signed=True)}")  # as the certificate prints
+        ctx.progress.reading("drift", f"{', '.join(quick)} °/h (cycle {p['index']}, "
+                             f"{p['position_deg']:g}°)")
         kind = "timing cycle" if p["timing"] else "cycle"
         ctx.progress.line(f"  {kind} {p['index']} at {p['position_deg']:g} deg: drift "
                           f"{', '.join(quick)} deg/h (nominal edges)")

@@ -241,6 +241,11 @@ class RateLadder(StepDispatch):
         self._wait_fog(ctx, fog, i0 + n, duration, f"{step.axis}: FOG at rest")
         s = fog.samples(i0, i0 + n)
         ctx.state.setdefault("live", {})[step.unit] = s.rate_dps[s.valid]
+        from bench.certificate.rounding import format_sig  # the certificate's; loaded in a run
+
+        if s.valid.any():
+            ctx.progress.reading("FOG mean", f"{step.axis} at rest "
+                                 f"{format_sig(float(s.rate_dps[s.valid].mean()), 4, True)} °/s")
         ctx.run.event("static", axis=step.axis, unit=step.unit, fog_from=i0, fog_to=i0 + n,
                       rate_hz=fog.rate_hz, lost=int(n - s.valid.sum()))
 
@@ -248,7 +253,8 @@ class RateLadder(StepDispatch):
         t_end = ctx.clock.now() + span_s
         while True:
             left = t_end - ctx.clock.now()
-            ctx.progress.detail(f"  {label}: {max(left, 0):.0f} s left")
+            ctx.progress.advance(min(span_s - left, span_s), span_s,
+                                 f"{label}: {span_s - max(left, 0):.0f} of {span_s:g} s")
             if left <= 0:
                 break
             ctx.clock.sleep(min(left, max(span_s / 20, 0.5)))
@@ -263,7 +269,12 @@ class RateLadder(StepDispatch):
     def _do_settle(self, step: Step, ctx: RunContext) -> None:
         drive = ctx.bench.axes[step.axis].drive
         p = step.params
-        rate = drive.wait_settled(p["tolerance_dps"], p["hold_s"], p["timeout_s"])
+        def held(held_s: float) -> None:
+            ctx.progress.advance(held_s, p["hold_s"], f"within ±{p['tolerance_dps']:g} deg/s "
+                                 f"for {min(held_s, p['hold_s']):.1f} of {p['hold_s']:g} s")
+
+        rate = drive.wait_settled(p["tolerance_dps"], p["hold_s"], p["timeout_s"],
+                                  on_hold=held)
         ctx.run.event("settled", axis=step.axis, unit=step.unit, rate_dps=rate)
 
     def _do_acquire(self, step: Step, ctx: RunContext) -> None:
@@ -277,9 +288,9 @@ class RateLadder(StepDispatch):
         t_arm = ctx.clock.now()
         t_end = t_arm + (n + 1) * period
         while (left := t_end - ctx.clock.now()) > 0:
-            turn = min(n, int((ctx.clock.now() - t_arm) / period))
-            ctx.progress.detail(f"  {step.axis} {p['rate_dps']:+g} deg/s: turn {turn}/{n}, "
-                                f"{format_duration(left)} of this half left")
+            turn = min(n, max(int((ctx.clock.now() - t_arm) / period) - 1, 0))
+            ctx.progress.advance(turn, n, f"{turn} of {n} turns timed at "
+                                 f"{p['rate_dps']:+g} deg/s, {format_duration(left)} left")
             ctx.clock.sleep(min(left, max(period / 4, 0.25)))
             drive.check()
         edges = counter.fetch()
@@ -301,20 +312,36 @@ class RateLadder(StepDispatch):
                       counter_records=[rec0, rec1], fog_from=i_from, fog_to=i_to,
                       rate_hz=fog.rate_hz, fog_lost=lost)
         if lost:
-            ctx.progress.line(f"  WARNING {step.axis}: {lost} FOG samples lost in this half "
+            ctx.progress.warn(f"  WARNING {step.axis}: {lost} FOG samples lost in this half "
                               "(CRC or sequence gaps); the analysis uses the rest")
-        w = 360.0 * n / (edges[-1] - edges[0])
-        ctx.progress.line(f"  {step.axis} {p['rate_dps']:+g} deg/s: {n} turns timed, "
-                          f"mean {math.copysign(w, p['rate_dps']):+.7f} deg/s")
+        self._show_half(ctx, step.axis, p["rate_dps"], edges, s.rate_dps[s.valid])
+
+    @staticmethod
+    def _show_half(ctx: RunContext, axis: str, set_dps: float, edges: Any, fog_dps: Any
+                   ) -> None:
+        """The half just timed: per-turn rate deviations (ω_i/ω_set − 1, METHOD.md A1) in
+        ppm to 3 significant digits as the certificate's annex prints them; the FOG mean."""
+        from bench.certificate.rounding import format_sig  # the certificate's; loaded in a run
+
+        dev_ppm = [(360.0 / (b - a) / abs(set_dps) - 1.0) * 1e6
+                   for a, b in zip(edges[:-1], edges[1:], strict=True)]
+        mean_ppm = (360.0 * (len(edges) - 1) / (edges[-1] - edges[0]) / abs(set_dps) - 1) * 1e6
+        label = f"{axis} {set_dps:+g} deg/s"
+        ctx.progress.reading("per-turn rate deviation",
+                             f"{label} turn {len(dev_ppm)}: "
+                             f"{format_sig(dev_ppm[-1], 3, True)} ppm")
+        if len(fog_dps):
+            ctx.progress.reading("FOG mean", f"{format_sig(float(fog_dps.mean()), 6, True)} °/s")
+        ctx.progress.line(f"  {label}: {len(dev_ppm)} turns timed, mean rate deviation "
+                          f"{format_sig(mean_ppm, 3, True)} ppm (per turn: "
+                          + ", ".join(format_sig(d, 3, True) for d in dev_ppm) + ")")
 
     def _do_analyse(self, step: Step, ctx: RunContext) -> None:
         from procedures.rate_ladder_analysis import pair_summary
 
         summary = pair_summary(ctx, step.axis, step.unit, step.params["rate_dps"])
         ctx.run.event("pair", axis=step.axis, unit=step.unit, **summary)
-        ctx.progress.line(f"  {step.axis} +/-{step.params['rate_dps']:g} deg/s: "
-                          + ", ".join(f"{k} {v:.6g}" for k, v in summary.items()
-                                      if isinstance(v, float)))
+        ctx.progress.line(pair_line(step.axis, step.params["rate_dps"], summary))
         live = ctx.state.get("live", {})
         live.pop(step.unit, None)
         fog = ctx.bench.axes[step.axis].fog
@@ -333,3 +360,20 @@ class RateLadder(StepDispatch):
 
 
 KIND = RateLadder()
+
+
+def pair_line(axis: str, rate_dps: float, summary: dict[str, Any]) -> str:
+    """A pair's first look, rounded as the certificate rounds (U to two significant digits,
+    the value to match; relative errors in ppm or % as the certificate would choose)."""
+    from bench.certificate.rounding import format_value_u, rel_unit  # loaded in a run only
+
+    k = format_value_u(summary.get("k"), summary.get("k_u")).joined()
+    w0 = format_value_u(summary.get("w0_dps"), summary.get("w0_u_dps"), signed=True).joined()
+    errs = [(sign, summary.get(f"rate_error_rel{sign}"), summary.get(f"rate_error_u_rel{sign}"))
+            for sign in "+-" if f"rate_error_rel{sign}" in summary]
+    unit = rel_unit(*[v for _, e, u in errs for v in (e, u)])
+    text = f"  {axis} ±{rate_dps:g} deg/s: k = {k}, ω0 = {w0} °/s"
+    for sign, e, u in errs:
+        text += (f", δ({'+' if sign == '+' else '−'}) = "
+                 f"{format_value_u(e, u, unit.scale, signed=True).joined(unit.name)}")
+    return text

@@ -208,8 +208,10 @@ def pair_summary(ctx: RunContext, axis: str, unit: str, rate_dps: float) -> dict
                       harmonics=int(s["harmonics"]),
                       mains_hz=s["mains_hz"] if 2 * s["mains_hz"] < fog_hz else None,
                       static_fog_dps=static)
-    out: dict[str, Any] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps}
+    out: dict[str, Any] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps,
+                           "w0_u_dps": pa.pair.w0_u_dps}
     for r in pa.rates:
         sign = "+" if r.set_rate_dps > 0 else "-"
         out[f"rate_error_rel{sign}"] = r.rate_error_rel
+        out[f"rate_error_u_rel{sign}"] = r.rate_error_u_rel
     return out
