@@ -36,6 +36,14 @@ def build_parser() -> argparse.ArgumentParser:
     dec.add_argument("raw_file")
     dec.add_argument("--format", required=True, dest="fmt", help="frame format, e.g. kvh-a")
     dec.add_argument("--csv", help="write the samples to this CSV file")
+    srv = sub.add_parser("serve", help="local web station view: live runs and records")
+    srv.add_argument("--runs", default="runs", help="the runs folder to show (runs/)")
+    srv.add_argument("--records", metavar="URL", help="records database URL")
+    srv.add_argument("--port", type=int, default=8765, help="TCP port (8765; 0 picks one)")
+    srv.add_argument("--host", default="127.0.0.1",
+                     help="address to bind (127.0.0.1); another one needs --token")
+    srv.add_argument("--token", help="token for stop requests and remote viewers "
+                                     "(default: $BENCH_STATION_TOKEN, else one is made up)")
     return p
 
 
@@ -53,6 +61,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "decode":
         from bench.decode import decode_command
         return decode_command(args.raw_file, args.fmt, args.csv)
+    if args.command == "serve":
+        from bench.station.serve import cmd_serve
+        return cmd_serve(args)
     from bench import commands
     return commands.dispatch(args)
 

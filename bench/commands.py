@@ -8,6 +8,7 @@ operator (the axes were stopped, the data kept, `--resume` works).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 import traceback
@@ -148,7 +149,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             run.begin_session(clock.now)
             run.event("session_start", resume=resume, sim=simbench is not None,
                       done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
-                      version=__version__, prompts="--yes" if yes else "operator")
+                      version=__version__, prompts="--yes" if yes else "operator",
+                      pid=os.getpid())
             bench = kind.open_bench(cfg, stand, clock, run)
             for ax in bench.axes.values():
                 run.event("identity", axis=ax.name, **ax.identities)

@@ -126,7 +126,8 @@ class Engine:
         steps = plan.steps
         remaining = [sum(s.estimate_s for s in steps[i:]) for i in range(len(steps))]
         last_of_unit = {s.unit: i for i, s in enumerate(steps) if s.unit}
-        ctx.run.event("plan", steps=len(steps), estimate_s=plan.total_s)
+        ctx.run.event("plan", steps=len(steps), estimate_s=plan.total_s,
+                      step_estimates_s=[s.estimate_s for s in steps])
         timeline = Timeline([s.estimate_s for s in steps], ctx.clock.now)
         ctx.progress.begin(steps, timeline)
         try:
