@@ -68,7 +68,7 @@ class JsonConsole(PlainConsole):
 
     def ask(self, text: str) -> str:
         self.emit("prompt", text=text)
-        return input("Press Enter when done (or type 'abort'): ")
+        return self.read_answer()
 
     def summary(self, summary: Summary) -> None:
         """The certificate's figures as text cells (the numbers as the certificate prints

@@ -132,7 +132,7 @@ class LiveConsole(PlainConsole):
         self._stop()
         try:
             self.console.print(Text(text, style="bold magenta"))
-            return self.console.input("Press Enter when done (or type 'abort'): ")
+            return self.read_answer()
         finally:
             if running:
                 self._start()

@@ -19,6 +19,8 @@ from bench.console.report import Summary, print_summary
 from bench.console.timeline import Eta, Timeline
 from bench.plan import Step
 
+ANSWER_PROMPT = "Press Enter when done (or type 'abort'): "
+
 
 class PlainConsole:
     """Plain lines on a stream (stderr by default): one line per step, results, faults.
@@ -80,7 +82,7 @@ class PlainConsole:
     def ask(self, text: str) -> str:
         """Ask the operator; returns the answer typed (a terminal is checked by the caller)."""
         self.line(text)
-        return input("Press Enter when done (or type 'abort'): ")
+        return self.read_answer()
 
     def summary(self, summary: Summary) -> None:
         """The end-of-run summary (the certificate's figures) on standard output; the
@@ -99,6 +101,16 @@ class PlainConsole:
     def _out_line(self, text: str) -> None:
         self.out.write(text + "\n")
         self.out.flush()
+
+    def read_answer(self) -> str:
+        """The operator's answer from standard input; the question goes to the console's
+        stream, so standard output keeps only the summary and the run directory."""
+        self.stream.write(ANSWER_PROMPT)
+        self.stream.flush()
+        line = sys.stdin.readline()
+        if not line:
+            raise EOFError("standard input closed while waiting for the operator")
+        return line.rstrip("\n")
 
     def close(self) -> None:
         """Release the display; safe to call twice."""

@@ -21,7 +21,7 @@ class QuietConsole(PlainConsole):
 
     def ask(self, text: str) -> str:
         super().line(text)
-        return input("Press Enter when done (or type 'abort'): ")
+        return self.read_answer()
 
     def summary(self, summary: Summary) -> None:
         self._out_line(f"verdict: {summary.verdict}")
