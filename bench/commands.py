@@ -67,19 +67,20 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole
     """result.json, then the certificate; returns the result and the certificate's document
     (None when it could not be written: a run that leaves no certificate must not exit as
     if it had)."""
-    from bench.certificate import issue_certificate
+    from bench.certificate import write_certificate
     from procedures import procedure_kind
 
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json("result.json", result)
     try:
-        doc, paths = issue_certificate(run, result)
-        for path in paths:
+        documents: list[Document] = []
+        for path in write_certificate(run, result, documents=documents):
             progress.line(f"wrote {path}")
+        doc = documents[-1]
     except Exception as e:  # noqa: BLE001 - result.json stands; say what is missing
         traceback.print_exc(file=sys.stderr)            # a bug to report: keep its trace
-        _err(f"the certificate could not be written: {e!r}; result.json is in {run.path}; "
-             f"once fixed, `bench analyze {run.path}` writes it")
+        progress.warn(f"the certificate could not be written: {e!r}; result.json is in "
+                      f"{run.path}; once fixed, `bench analyze {run.path}` writes it")
         return result, None
     return result, doc
 
@@ -169,10 +170,10 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             run.event("completed", wall_s=time.monotonic() - t0)
             status = EXIT_PASS
         except Abort as e:
-            _err(f"Aborted: {e}")
+            progress.warn(f"Aborted: {e}")
             status = EXIT_ABORTED
         except Exception as e:  # noqa: BLE001 - opening failed before the engine ran
-            _err(f"Aborted while setting up the bench: {e}")
+            progress.warn(f"Aborted while setting up the bench: {e}")
             if bench is not None:
                 bench.safe_stop(progress.line)
             if run.session:
@@ -189,8 +190,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
         try:
             result, doc = _write_outputs(run, cfg, progress)
         except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
-            _err(f"analysis failed: {e!r}; the raw data is in {run.path}; "
-                 f"fix and run `bench analyze {run.path}`")
+            progress.warn(f"analysis failed: {e!r}; the raw data is in {run.path}; "
+                          f"fix and run `bench analyze {run.path}`")
             result = None
             status = EXIT_ABORTED  # no verdict without an analysis
         if result is not None:
