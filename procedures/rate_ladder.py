@@ -244,8 +244,8 @@ class RateLadder(StepDispatch):
         from bench.certificate.rounding import format_sig  # the certificate's; loaded in a run
 
         if s.valid.any():
-            ctx.progress.reading("FOG mean", f"{step.axis} at rest "
-                                 f"{format_sig(float(s.rate_dps[s.valid].mean()), 4, True)} °/s")
+            ctx.progress.reading("FOG mean", f"{format_sig(float(s.rate_dps[s.valid].mean()), 4, True)}"
+                                 f" °/s, {step.axis} at rest")
         ctx.run.event("static", axis=step.axis, unit=step.unit, fog_from=i0, fog_to=i0 + n,
                       rate_hz=fog.rate_hz, lost=int(n - s.valid.sum()))
 
@@ -331,7 +331,8 @@ class RateLadder(StepDispatch):
                              f"{label} turn {len(dev_ppm)}: "
                              f"{format_sig(dev_ppm[-1], 3, True)} ppm")
         if len(fog_dps):
-            ctx.progress.reading("FOG mean", f"{format_sig(float(fog_dps.mean()), 6, True)} °/s")
+            ctx.progress.reading("FOG mean", f"{format_sig(float(fog_dps.mean()), 6, True)} °/s "
+                                 f"over the {label} half")
         ctx.progress.line(f"  {label}: {len(dev_ppm)} turns timed, mean rate deviation "
                           f"{format_sig(mean_ppm, 3, True)} ppm (per turn: "
                           + ", ".join(format_sig(d, 3, True) for d in dev_ppm) + ")")

@@ -134,7 +134,7 @@ def test_demo_on_a_terminal_live_display_prompts_and_summary(tmp_path: Path) -> 
     # the per-step bar and the latest readings under it
     assert re.search(r"\d of [24] turns timed at [+-]\d+ deg/s", text)
     assert re.search(r"within ±[\d.]+ deg/s for [\d.]+ of 2 s", text)
-    assert "per-turn rate deviation" in text and "FOG mean" in text
+    assert "latest per-turn rate deviation: " in text and "latest FOG mean: " in text
 
     # the prompts: asked on the terminal, answered by a person, journaled, certified
     events = [json.loads(line) for line in (run_dir / "events.jsonl").read_text().splitlines()]

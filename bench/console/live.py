@@ -1,9 +1,11 @@
 """The live display on a terminal (rich): where the run is, how long it has left, what it
 measured last; messages, faults and prompts printed above it, never overwritten.
 
-    ━━━━━━━━━━━━━━━━━━╸━━━━━━━━━  step 23/58  41 %  bench time left 9 min 41 s  wall ≈ 6.3 s (92× real time, measured)
-    outer acquire  4 turns at -10 deg/s (half 2/3)  ━━━━━━╸━━━━━  turn 2 of 4 timed
-    latest  outer −10 deg/s: per-turn rate deviation −0.124 ppm   FOG mean −9.99702 °/s
+    ━━━━━━━━╸━━━━━━━━━━━  step 23/58   41 %  bench time left 9 min 41 s  wall about 6.3 s at 92× measured
+                          outer acquire: 4 turns at -10 deg/s (half 2/3, 2 min 24 s)
+    ━━━━━━━━━╸━━━━━━━━━━  2 of 4 turns timed at -10 deg/s, 1 min 12 s left
+    latest per-turn rate deviation: outer +10 deg/s turn 2: −0.0792 ppm
+    latest FOG mean: +9.99702 °/s
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from bench.console.plain import PlainConsole, eta_wall
 from bench.console.timeline import Timeline
 from bench.plan import Step
 
-BAR_WIDTH = 28
+BAR_WIDTH = 20
 
 
 class _View:
@@ -39,29 +41,32 @@ class _View:
         eta = o.eta()
         if eta is None or eta.index < 0:
             return Text("starting…", style="dim")
-        top = Table.grid(padding=(0, 1))
-        top.add_row(ProgressBar(total=1000, completed=eta.done_fraction * 1000,
-                                width=BAR_WIDTH),
-                    Text(f"step {eta.index + 1}/{eta.steps}", style="bold"),
-                    Text(f"{eta.done_fraction * 100:3.0f} %"),
-                    Text(f"bench time left {eta.bench_text()}"),
-                    Text(f"wall {eta_wall(eta)}", style="cyan"))
         step = o.steps[eta.index]
         if step_progress is not None:
             done, total, text = step_progress
             fraction = done / total if total > 0 else 0.0
         else:
             fraction, text = eta.step_fraction, ""
-        mid = Table.grid(padding=(0, 1))
-        mid.add_row(Text(f"{step.axis or ''} {step.action}", style="bold"),
-                    Text(step.describe, overflow="ellipsis", no_wrap=True),
-                    ProgressBar(total=1000, completed=min(max(fraction, 0.0), 1.0) * 1000,
-                                width=BAR_WIDTH // 2),
-                    Text(text))
-        rows: list[RenderableType] = [top, mid]
-        if readings:
-            rows.append(Text("latest  " + "   ".join(f"{k} {v}" for k, v in readings.items()),
-                             style="dim", overflow="ellipsis", no_wrap=True))
+        grid = Table.grid(padding=(0, 1), expand=True)
+        grid.add_column(width=BAR_WIDTH, no_wrap=True)
+        grid.add_column(ratio=1, no_wrap=True, overflow="ellipsis")
+        grid.add_row(ProgressBar(total=1000, completed=eta.done_fraction * 1000,
+                                 width=BAR_WIDTH),
+                     Text.assemble((f"step {eta.index + 1}/{eta.steps}", "bold"),
+                                   f"  {eta.done_fraction * 100:3.0f} %"
+                                   f"  bench time left {eta.bench_text()}  ",
+                                   (f"wall {eta_wall(eta)}", "cyan"), no_wrap=True,
+                                   overflow="ellipsis"))
+        grid.add_row(Text(""), Text.assemble((f"{step.axis or ''} {step.action}: ", "bold"),
+                                             step.describe, no_wrap=True,
+                                             overflow="ellipsis"))
+        grid.add_row(ProgressBar(total=1000, completed=min(max(fraction, 0.0), 1.0) * 1000,
+                                 width=BAR_WIDTH),
+                     Text(text, no_wrap=True, overflow="ellipsis"))
+        rows: list[RenderableType] = [grid]
+        for name, value in readings.items():
+            rows.append(Text(f"latest {name}: {value}", style="dim", no_wrap=True,
+                             overflow="ellipsis"))
         return Group(*rows)
 
 
