@@ -6,6 +6,9 @@ import argparse
 import sys
 
 import bench
+from bench import commands
+from bench.decode import decode_command
+from bench.station.serve import cmd_serve
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -21,6 +24,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", default="runs", help="folder for the run directory (runs/)")
     run.add_argument("--yes", action="store_true", help="answer operator prompts with yes")
     run.add_argument("--resume", metavar="RUN_DIR", help="continue an interrupted run")
+    run.add_argument("--example", metavar="NAME",
+                     help="run a procedure shipped inside the package (demo, drift-demo)")
     _console_options(run)
     val = sub.add_parser("validate", help="check procedure and stand files; exit 2 on problems")
     val.add_argument("procedure")
@@ -59,12 +64,9 @@ def _console_options(cmd: argparse.ArgumentParser) -> None:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.command == "decode":
-        from bench.decode import decode_command
         return decode_command(args.raw_file, args.fmt, args.csv)
     if args.command == "serve":
-        from bench.station.serve import cmd_serve
         return cmd_serve(args)
-    from bench import commands
     return commands.dispatch(args)
 
 

@@ -17,14 +17,19 @@ from pathlib import Path
 from typing import Any
 
 from bench import __version__
+from bench.certificate import write_certificate
 from bench.certificate.model import Document
-from bench.clock import MonotonicClock
-from bench.config import Config, ConfigError, load_config
+from bench.config import Config, ConfigError
 from bench.console import PlainConsole, open_console
+from bench.devices import list_devices
 from bench.engine import Abort, Engine, RunContext, SignalGuard
+from bench.examples import example_path
 from bench.journal import RunDir
+from bench.loader import load_config
 from bench.plan import format_duration
+from bench.registry import procedure_kind
 from bench.summary import Summary, summarize
+from drivers.clock import MonotonicClock
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
@@ -52,8 +57,6 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
-    from procedures import procedure_kind
-
     cfg = _load(args.procedure)
     if cfg is None:
         return EXIT_INVALID
@@ -67,9 +70,6 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole
     """result.json, then the certificate; returns the result and the certificate's document
     (None when it could not be written: a run that leaves no certificate must not exit as
     if it had)."""
-    from bench.certificate import write_certificate
-    from procedures import procedure_kind
-
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json("result.json", result)
     try:
@@ -101,10 +101,20 @@ def cmd_run(args: argparse.Namespace) -> int:
             return EXIT_INVALID
         cfg = _load(str(run.procedure_file), run.stand_file)
     else:
-        if not args.procedure:
-            _err("bench run: give a PROCEDURE.yaml, or --resume RUN_DIR")
+        procedure = args.procedure
+        if getattr(args, "example", None):
+            if procedure:
+                _err("bench run: give a PROCEDURE.yaml or --example NAME, not both")
+                return EXIT_INVALID
+            try:
+                procedure = str(example_path(args.example))
+            except KeyError as e:
+                _err(f"bench run --example: {e.args[0]}")
+                return EXIT_INVALID
+        if not procedure:
+            _err("bench run: give a PROCEDURE.yaml, --example NAME, or --resume RUN_DIR")
             return EXIT_INVALID
-        cfg = _load(args.procedure)
+        cfg = _load(procedure)
         run = None
     if cfg is None:
         return EXIT_INVALID
@@ -126,10 +136,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
     """One session of a run (the first, or a --resume): returns the exit status.
 
     Whatever happens inside, the axes are stopped, the instruments closed, what was
-    measured is analysed, and the run directory is left ready for `--resume`.
+    measured is analyzed, and the run directory is left ready for `--resume`.
     """
-    from procedures import procedure_kind
-
     progress = progress or open_console()
     kind = procedure_kind(cfg.kind)
     plan = kind.build_plan(cfg)
@@ -230,8 +238,6 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
 
 def cmd_devices(args: argparse.Namespace) -> int:
-    from bench.devices import list_devices
-
     return list_devices(args.stand, sim=args.sim)
 
 

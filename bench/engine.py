@@ -17,11 +17,11 @@ from dataclasses import dataclass, field
 from types import FrameType
 from typing import Any, Protocol
 
-from bench.clock import Clock
 from bench.config import Config
-from bench.console import PlainConsole, Timeline
 from bench.journal import RunDir, utc_now
 from bench.plan import Plan, Step
+from bench.progress import Progress
+from drivers.clock import Clock
 
 
 class Abort(Exception):
@@ -72,9 +72,6 @@ class SignalGuard:
             signal.signal(sig, signal.SIG_IGN if self.count else old)
 
 
-Progress = PlainConsole  # the console's interface; `bench.console` has the others
-
-
 @dataclass
 class RunContext:
     """What a procedure kind's step needs: config, clock, instruments, journal, console."""
@@ -83,7 +80,7 @@ class RunContext:
     clock: Clock
     bench: Any
     run: RunDir
-    progress: PlainConsole
+    progress: Progress
     yes: bool = False
     state: dict[str, Any] = field(default_factory=dict)
     eta_s: Callable[[], float] = lambda: 0.0
@@ -128,17 +125,14 @@ class Engine:
         last_of_unit = {s.unit: i for i, s in enumerate(steps) if s.unit}
         ctx.run.event("plan", steps=len(steps), estimate_s=plan.total_s,
                       step_estimates_s=[s.estimate_s for s in steps])
-        timeline = Timeline([s.estimate_s for s in steps], ctx.clock.now)
-        ctx.progress.begin(steps, timeline)
+        ctx.progress.begin(steps, ctx.clock.now)
         try:
             for i, step in enumerate(steps):
                 ctx.eta_s = (lambda i=i: remaining[i])
-                timeline.start(i)
                 ctx.progress.step(i)
                 ctx.run.event("step_start", index=i, action=step.action, axis=step.axis,
                               unit=step.unit, describe=step.describe)
                 self.execute(step, ctx)
-                timeline.finish(i)
                 ctx.progress.step_done(i)
                 ctx.run.event("step_done", index=i, action=step.action, unit=step.unit)
                 if step.unit and last_of_unit[step.unit] == i:

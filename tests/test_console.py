@@ -14,6 +14,7 @@ from bench.console import JsonConsole, PlainConsole, QuietConsole, Timeline, for
 from bench.console.report import table_lines
 from bench.console.timeline import fit_step_cost
 from bench.plan import Step
+from bench.progress import RELATIVE, Figure
 from bench.summary import summarize
 
 
@@ -143,19 +144,43 @@ def test_json_log_is_one_object_per_line() -> None:
     steps = [Step("static", "outer", "FOG at rest", 30.0), Step("stop", "outer", "stop", 1.0)]
     stream = io.StringIO()
     con = JsonConsole(stream, out=io.StringIO())
-    con.begin(steps, Timeline([s.estimate_s for s in steps], lambda: c.bench_s,
-                              lambda: c.wall_s))
-    con.timeline.start(0)
+    con.begin(steps, lambda: c.bench_s)
     con.step(0)
-    con.reading("FOG mean", "+0.002 °/s")
+    con.reading("FOG mean", "outer at rest", Figure("", 0.0019987, unit="°/s", signed=True))
     con.warn("  WARNING x")
+    con.result("outer ±10 deg/s", Figure("k", 1.00029253, 3.8e-6))
     con.summary(summarize(_doc()))
     recs = [json.loads(line) for line in stream.getvalue().splitlines()]
-    assert [r["event"] for r in recs] == ["plan", "step", "reading", "warning", "summary"]
+    assert [r["event"] for r in recs] == ["plan", "step", "reading", "warning", "result",
+                                          "summary"]
     assert recs[0]["bench_estimate_s"] == 31.0
     assert recs[1]["index"] == 1 and recs[1]["bench_left_s"] == 31.0
-    assert recs[4]["verdict"] == "FAIL"
-    assert recs[4]["tables"][0]["rows"][0][5] == "< 0.018 (not resolved)"
+    assert recs[2]["text"] == "+0.001999 °/s" and recs[2]["figures"][0]["value"] == 0.0019987
+    assert recs[4]["figures"][0] == {"name": "k", "value": 1.00029253, "u": 3.8e-6, "unit": "",
+                                     "text": "1.0002925 ± 0.0000038"}
+    assert recs[5]["verdict"] == "FAIL"
+    assert recs[5]["tables"][0]["rows"][0][5] == "< 0.018 (not resolved)"
+
+
+def test_figures_are_rounded_as_the_certificate_rounds() -> None:
+    """Hand-rounded: U to two significant digits and the value to its decimal; fractions
+    of one line in one unit (ppm below 1e-4); without U, the stated significant digits."""
+    out = io.StringIO()
+    con = PlainConsole(out, out=io.StringIO())
+    con.result("outer ±10 deg/s",
+               Figure("k", 1.00029253, 3.87e-6), Figure("ω0", 0.00206612, 3.76e-5, "°/s",
+                                                         signed=True),
+               Figure("δ(+)", -1.0049e-7, 1.2e-7, RELATIVE, signed=True),
+               Figure("δ(−)", -1.349e-7, 1.17e-7, RELATIVE, signed=True))
+    con.result("outer +10 deg/s, 2 turns timed",
+               Figure("turn 1", -1.5108e-7, unit=RELATIVE, signed=True, digits=3),
+               Figure("turn 2", -7.9249e-8, unit=RELATIVE, signed=True, digits=3))
+    con.result("big", Figure("δ", 2.5e-4, 1.07e-5, RELATIVE, signed=True))
+    assert out.getvalue().splitlines() == [
+        "  outer ±10 deg/s: k = 1.0002925 ± 0.0000039, ω0 = +0.002066 ± 0.000038 °/s, "
+        "δ(+) = \u22120.10 ± 0.12 ppm, δ(\u2212) = \u22120.13 ± 0.12 ppm",
+        "  outer +10 deg/s, 2 turns timed: turn 1 = \u22120.151 ppm, turn 2 = \u22120.0792 ppm",
+        "  big: δ = +0.0250 ± 0.0011 %"]
 
 
 def test_prompts_on_the_certificate_say_who_answered() -> None:

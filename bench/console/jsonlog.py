@@ -9,14 +9,15 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
+from bench.console.figures import figure_text, figures_text
 from bench.console.plain import PlainConsole
 from bench.console.report import Summary
-from bench.console.timeline import Timeline
 from bench.journal import utc_now
 from bench.plan import Step
+from bench.progress import Figure
 
 
 class JsonConsole(PlainConsole):
@@ -26,11 +27,11 @@ class JsonConsole(PlainConsole):
                           + "\n")
         self.stream.flush()
 
-    def begin(self, steps: Sequence[Step], timeline: Timeline) -> None:
-        super().begin(steps, timeline)
-        self.emit("plan", steps=len(steps), bench_estimate_s=timeline.total_s)
+    def begin(self, steps: Sequence[Step], clock_now: Callable[[], float]) -> None:
+        super().begin(steps, clock_now)
+        self.emit("plan", steps=len(steps), bench_estimate_s=sum(s.estimate_s for s in steps))
 
-    def step(self, index: int) -> None:
+    def show_step(self, index: int) -> None:
         step = self.steps[index]
         eta = self.eta()
         self.emit("step", index=index + 1, steps=len(self.steps), action=step.action,
@@ -40,6 +41,7 @@ class JsonConsole(PlainConsole):
                   speed=eta.speed if eta else None)
 
     def step_done(self, index: int) -> None:
+        super().step_done(index)
         self.emit("step_done", index=index + 1)
 
     def end(self) -> None:
@@ -63,8 +65,13 @@ class JsonConsole(PlainConsole):
             self.emit("progress", done=done, total=total, text=text)
             self._last_detail = now
 
-    def reading(self, name: str, text: str) -> None:
-        self.emit("reading", name=name, text=text)
+    def reading(self, name: str, label: str, *figures: Figure) -> None:
+        self.emit("reading", name=name, label=label, text=figures_text(figures),
+                  figures=[_figure(f) for f in figures])
+
+    def result(self, label: str, *figures: Figure) -> None:
+        self.emit("result", label=label, text=figures_text(figures),
+                  figures=[_figure(f) for f in figures])
 
     def ask(self, text: str) -> str:
         self.emit("prompt", text=text)
@@ -77,3 +84,8 @@ class JsonConsole(PlainConsole):
                   tables=[{"title": t.title, "header": list(t.header),
                            "rows": [list(r) for r in t.rows]} for t in summary.tables],
                   fields=dict(summary.fields))
+
+
+def _figure(f: Figure) -> dict[str, Any]:
+    """The number unrounded (as in result.json) and as the certificate would print it."""
+    return {"name": f.name, "value": f.value, "u": f.u, "unit": f.unit, "text": figure_text(f)}

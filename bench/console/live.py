@@ -11,7 +11,7 @@ measured last; messages, faults and prompts printed above it, never overwritten.
 from __future__ import annotations
 
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import IO
 
 from rich.console import Console, Group, RenderableType
@@ -20,9 +20,10 @@ from rich.progress_bar import ProgressBar
 from rich.table import Table
 from rich.text import Text
 
+from bench.console.figures import figures_text
 from bench.console.plain import PlainConsole, eta_wall
-from bench.console.timeline import Timeline
 from bench.plan import Step
+from bench.progress import Figure
 
 BAR_WIDTH = 20
 
@@ -87,8 +88,8 @@ class LiveConsole(PlainConsole):
                          redirect_stdout=True, redirect_stderr=True)
         self._running = False
 
-    def begin(self, steps: Sequence[Step], timeline: Timeline) -> None:
-        super().begin(steps, timeline)
+    def begin(self, steps: Sequence[Step], clock_now: Callable[[], float]) -> None:
+        super().begin(steps, clock_now)
         self._start()
 
     def _start(self) -> None:
@@ -101,7 +102,7 @@ class LiveConsole(PlainConsole):
             self.live.stop()
             self._running = False
 
-    def step(self, index: int) -> None:
+    def show_step(self, index: int) -> None:
         with self.lock:
             self.step_progress = None
         if self._running:
@@ -127,7 +128,8 @@ class LiveConsole(PlainConsole):
         with self.lock:
             self.step_progress = (done, total, text)
 
-    def reading(self, name: str, text: str) -> None:
+    def reading(self, name: str, label: str, *figures: Figure) -> None:
+        text = f"{figures_text(figures)} ({label})" if label else figures_text(figures)
         with self.lock:
             self.readings[name] = text
 

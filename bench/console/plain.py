@@ -9,15 +9,17 @@ from __future__ import annotations
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import IO
 
 from rich.console import Console
 from rich.text import Text
 
+from bench.console.figures import figures_text
 from bench.console.report import Summary, print_summary
 from bench.console.timeline import Eta, Timeline
 from bench.plan import Step
+from bench.progress import Figure
 
 ANSWER_PROMPT = "Press Enter when done (or type 'abort'): "
 
@@ -41,16 +43,24 @@ class PlainConsole:
         self.steps: Sequence[Step] = ()
 
     # -- what the engine reports ------------------------------------------------------
-    def begin(self, steps: Sequence[Step], timeline: Timeline) -> None:
+    def begin(self, steps: Sequence[Step], clock_now: Callable[[], float]) -> None:
         """The plan (or what is left of it) is about to run."""
-        self.steps, self.timeline = steps, timeline
+        self.steps = steps
+        self.timeline = Timeline([s.estimate_s for s in steps], clock_now)
 
     def step(self, index: int) -> None:
         """Step `index` starts: one line, with bench and wall time left."""
+        if self.timeline is not None:
+            self.timeline.start(index)
+        self.show_step(index)
+
+    def show_step(self, index: int) -> None:
         self.line(self.step_text(index, self.eta()))
 
     def step_done(self, index: int) -> None:
-        """Step `index` finished (the live display moves its bar; lines say nothing)."""
+        """Step `index` finished: its wall time teaches the estimate."""
+        if self.timeline is not None:
+            self.timeline.finish(index)
 
     def end(self) -> None:
         """The plan ran to its end or was aborted; nothing more will move."""
@@ -76,8 +86,13 @@ class PlainConsole:
         """The current step's own progress: `done` of `total` (turns, seconds held)."""
         self.detail(f"  {text}")
 
-    def reading(self, name: str, text: str) -> None:
-        """The latest value of a live quantity (per-turn rate deviation, FOG mean)."""
+    def reading(self, name: str, label: str, *figures: Figure) -> None:
+        """The latest value of a live quantity (per-turn rate deviation, FOG mean): shown
+        by the live display only; a log keeps the result lines instead."""
+
+    def result(self, label: str, *figures: Figure) -> None:
+        """A line of results, rounded as the certificate rounds."""
+        self.line(f"  {label}: {figures_text(figures)}")
 
     def ask(self, text: str) -> str:
         """Ask the operator; returns the answer typed (a terminal is checked by the caller)."""

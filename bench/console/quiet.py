@@ -7,7 +7,7 @@ from bench.console.report import Summary
 
 
 class QuietConsole(PlainConsole):
-    def step(self, index: int) -> None:
+    def show_step(self, index: int) -> None:
         pass
 
     def line(self, text: str) -> None:

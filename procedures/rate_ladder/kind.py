@@ -5,7 +5,7 @@ magnitude the halves of a +/- pair, by default in the order +w, -w, +w with the 
 the + direction split around the - half, so a linear FOG bias drift cancels in the
 cross-calibration (METHOD.md A3, "beyond the paper"); each half: set the rate, settle,
 time N whole turns with the counter while the FOG streams; then cross-calibrate and
-analyse the pair.
+analyze the pair.
 """
 
 from __future__ import annotations
@@ -14,92 +14,19 @@ import math
 from typing import Any
 
 from bench.analysis.window import HalfRecord
-from bench.clock import Clock
-from bench.config import (
-    COMMON_PROCEDURE_KEYS,
-    Config,
-    check_axis_names,
-    stand_schema,
-)
+from bench.config import Config, check_axis_names, stand_schema
 from bench.engine import Abort, RunContext
 from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, open_axis
 from bench.journal import RunDir
 from bench.plan import Plan, Step, format_duration
-from bench.schema import Key, ListOf, Map, MapOf, Num, Str
+from bench.progress import RELATIVE, Figure
+from bench.schema import Map
 from bench.simbench import SimBench
 from bench.yamlfile import Problem
+from drivers.clock import Clock
 from procedures.base import StepDispatch
-
-NAME = "rate-ladder"
-
-BAND = Map({
-    "below_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), False,
-                     "the band applies to rates below this; omit on the last band"),
-    "rel": Key(Num(min=0, exclusive_min=True), True, "tolerance, a fraction (1e-6 = 1 ppm)"),
-})
-SETTLE = Map({
-    "tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
-    "tolerance_rel": Key(Num(min=0, exclusive_min=True)),
-    "hold_s": Key(Num(min=0, unit="s")),
-    "timeout_s": Key(Num(min=0, exclusive_min=True, unit="s")),
-})
-AXIS = Map({
-    "rates_dps": Key(ListOf(Num(min=0, exclusive_min=True, unit="deg/s"), min_len=1), True),
-    "turns": Key(Num(min=1, max=10_000, integer=True)),
-    "prompt": Key(Str(), False, "what the operator must do before this axis"),
-})
-PROCEDURE = Map({
-    **COMMON_PROCEDURE_KEYS,
-    "turns": Key(Num(min=1, max=10_000, integer=True), False, "turns per rate and direction"),
-    "sequence": Key(Str(("+-", "+-+")), False, "order of the halves of a pair"),
-    "accel_dps2": Key(Num(min=0, exclusive_min=True, unit="deg/s^2")),
-    "settle": Key(SETTLE),
-    "static_record_s": Key(Num(min=0, unit="s"), False, "FOG at rest per axis (noise floor)"),
-    "harmonics": Key(Num(min=1, max=20, integer=True), False, "orders 1..H fitted in angle"),
-    "mains_hz": Key(Num(min=0, exclusive_min=True, unit="Hz")),
-    "axes": Key(MapOf(AXIS, min_len=1), True),
-    "tolerance": Key(Map({
-        "rate_error": Key(ListOf(BAND, min_len=1)),
-        "rate_instability": Key(ListOf(BAND, min_len=1)),
-        "intra_turn_instability": Key(ListOf(BAND, min_len=1)),
-    })),
-})
-
-DEFAULTS: dict[str, Any] = {
-    "turns": 5,
-    "sequence": "+-+",
-    "static_record_s": 60.0,
-    "harmonics": 4,
-    "mains_hz": 50.0,
-    "decision_rule": "simple",
-    "prompts": True,
-}
-SETTLE_DEFAULTS = {"tolerance_rel": 1e-3, "tolerance_dps": 0.005, "hold_s": 2.0,
-                   "timeout_s": 60.0}
-
-
-def setting(cfg: Config, key: str) -> Any:
-    return cfg.procedure.get(key, DEFAULTS.get(key))
-
-
-def tolerance_for(bands: list[dict[str, float]] | None, rate_dps: float) -> float | None:
-    """The first band whose `below_dps` exceeds |rate|, else the band without one."""
-    if not bands:
-        return None
-    for band in bands:
-        if "below_dps" in band and abs(rate_dps) < band["below_dps"]:
-            return float(band["rel"])
-    for band in bands:
-        if "below_dps" not in band:
-            return float(band["rel"])
-    return None
-
-
-def halves(turns: int, sequence: str) -> list[tuple[int, int]]:
-    """(sign, turns) per half. '+-+' splits the + turns around the - half."""
-    if sequence == "+-+" and turns >= 2:
-        return [(+1, (turns + 1) // 2), (-1, turns), (+1, turns // 2)]
-    return [(+1, turns), (-1, turns)]
+from procedures.rate_ladder.analysis import analyze_run, pair_summary
+from procedures.rate_ladder.settings import NAME, PROCEDURE, SETTLE_DEFAULTS, halves, setting
 
 
 class RateLadder(StepDispatch):
@@ -200,7 +127,7 @@ class RateLadder(StepDispatch):
                                       {"rate_dps": target, "turns": n, "half": j,
                                        "period_s": period}))
                     rate_now = target
-                steps.append(Step("analyse", axis, f"cross-calibrate and analyse the "
+                steps.append(Step("analyze", axis, f"cross-calibrate and analyze the "
                                   f"+/-{rate:g} deg/s pair", 0.0, unit, {"rate_dps": rate}))
             steps.append(Step("stop", axis, "ramp to zero, disable", abs(rate_now) / accel,
                               None, {"accel_dps2": accel}))
@@ -241,11 +168,10 @@ class RateLadder(StepDispatch):
         self._wait_fog(ctx, fog, i0 + n, duration, f"{step.axis}: FOG at rest")
         s = fog.samples(i0, i0 + n)
         ctx.state.setdefault("live", {})[step.unit] = s.rate_dps[s.valid]
-        from bench.certificate.rounding import format_sig  # the certificate's; loaded in a run
-
         if s.valid.any():
-            ctx.progress.reading("FOG mean", f"{format_sig(float(s.rate_dps[s.valid].mean()), 4, True)}"
-                                 f" °/s, {step.axis} at rest")
+            ctx.progress.reading("FOG mean", f"{step.axis} at rest",
+                                 Figure("", float(s.rate_dps[s.valid].mean()), unit="°/s",
+                                        signed=True))
         ctx.run.event("static", axis=step.axis, unit=step.unit, fog_from=i0, fog_to=i0 + n,
                       rate_hz=fog.rate_hz, lost=int(n - s.valid.sum()))
 
@@ -319,30 +245,29 @@ class RateLadder(StepDispatch):
     @staticmethod
     def _show_half(ctx: RunContext, axis: str, set_dps: float, edges: Any, fog_dps: Any
                    ) -> None:
-        """The half just timed: per-turn rate deviations (ω_i/ω_set − 1, METHOD.md A1) in
-        ppm to 3 significant digits as the certificate's annex prints them; the FOG mean."""
-        from bench.certificate.rounding import format_sig  # the certificate's; loaded in a run
-
-        dev_ppm = [(360.0 / (b - a) / abs(set_dps) - 1.0) * 1e6
-                   for a, b in zip(edges[:-1], edges[1:], strict=True)]
-        mean_ppm = (360.0 * (len(edges) - 1) / (edges[-1] - edges[0]) / abs(set_dps) - 1) * 1e6
+        """The half just timed: its per-turn rate deviations ω_i/ω_set − 1 (METHOD.md A1)
+        to 3 significant digits, as the certificate's annex prints them; the FOG mean."""
+        dev = [360.0 / (b - a) / abs(set_dps) - 1.0
+               for a, b in zip(edges[:-1], edges[1:], strict=True)]
+        mean = 360.0 * (len(edges) - 1) / (edges[-1] - edges[0]) / abs(set_dps) - 1.0
         label = f"{axis} {set_dps:+g} deg/s"
-        ctx.progress.reading("per-turn rate deviation",
-                             f"{label} turn {len(dev_ppm)}: "
-                             f"{format_sig(dev_ppm[-1], 3, True)} ppm")
+        ctx.progress.reading("per-turn rate deviation", f"{label}, turn {len(dev)}",
+                             Figure("", dev[-1], unit=RELATIVE, signed=True, digits=3))
         if len(fog_dps):
-            ctx.progress.reading("FOG mean", f"{format_sig(float(fog_dps.mean()), 6, True)} °/s "
-                                 f"over the {label} half")
-        ctx.progress.line(f"  {label}: {len(dev_ppm)} turns timed, mean rate deviation "
-                          f"{format_sig(mean_ppm, 3, True)} ppm (per turn: "
-                          + ", ".join(format_sig(d, 3, True) for d in dev_ppm) + ")")
+            ctx.progress.reading("FOG mean", f"the {label} half",
+                                 Figure("", float(fog_dps.mean()), unit="°/s", signed=True,
+                                        digits=6))
+        ctx.progress.result(f"{label}, {len(dev)} turns timed",
+                            Figure("mean rate deviation", mean, unit=RELATIVE, signed=True,
+                                   digits=3),
+                            *[Figure(f"turn {i + 1}", d, unit=RELATIVE, signed=True, digits=3)
+                              for i, d in enumerate(dev)])
 
-    def _do_analyse(self, step: Step, ctx: RunContext) -> None:
-        from procedures.rate_ladder_analysis import pair_summary
-
+    def _do_analyze(self, step: Step, ctx: RunContext) -> None:
         summary = pair_summary(ctx, step.axis, step.unit, step.params["rate_dps"])
         ctx.run.event("pair", axis=step.axis, unit=step.unit, **summary)
-        ctx.progress.line(pair_line(step.axis, step.params["rate_dps"], summary))
+        ctx.progress.result(f"{step.axis} ±{step.params['rate_dps']:g} deg/s",
+                            *pair_figures(summary))
         live = ctx.state.get("live", {})
         live.pop(step.unit, None)
         fog = ctx.bench.axes[step.axis].fog
@@ -355,26 +280,18 @@ class RateLadder(StepDispatch):
 
     # -- analysis --------------------------------------------------------------------
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
-        from procedures.rate_ladder_analysis import analyze_run
-
         return analyze_run(run, cfg)
 
 
 KIND = RateLadder()
 
 
-def pair_line(axis: str, rate_dps: float, summary: dict[str, Any]) -> str:
-    """A pair's first look, rounded as the certificate rounds (U to two significant digits,
-    the value to match; relative errors in ppm or % as the certificate would choose)."""
-    from bench.certificate.rounding import format_value_u, rel_unit  # loaded in a run only
-
-    k = format_value_u(summary.get("k"), summary.get("k_u")).joined()
-    w0 = format_value_u(summary.get("w0_dps"), summary.get("w0_u_dps"), signed=True).joined()
-    errs = [(sign, summary.get(f"rate_error_rel{sign}"), summary.get(f"rate_error_u_rel{sign}"))
-            for sign in "+-" if f"rate_error_rel{sign}" in summary]
-    unit = rel_unit(*[v for _, e, u in errs for v in (e, u)])
-    text = f"  {axis} ±{rate_dps:g} deg/s: k = {k}, ω0 = {w0} °/s"
-    for sign, e, u in errs:
-        text += (f", δ({'+' if sign == '+' else '−'}) = "
-                 f"{format_value_u(e, u, unit.scale, signed=True).joined(unit.name)}")
-    return text
+def pair_figures(summary: dict[str, Any]) -> list[Figure]:
+    """A pair's first look (METHOD.md A3 k and ω0; eq. 1 δ per direction) with U (k = 2)."""
+    out = [Figure("k", summary.get("k"), summary.get("k_u")),
+           Figure("ω0", summary.get("w0_dps"), summary.get("w0_u_dps"), "°/s", signed=True)]
+    for sign, name in (("+", "δ(+)"), ("-", "δ(−)")):
+        if f"rate_error_rel{sign}" in summary:
+            out.append(Figure(name, summary[f"rate_error_rel{sign}"],
+                              summary.get(f"rate_error_u_rel{sign}"), RELATIVE, signed=True))
+    return out
