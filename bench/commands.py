@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from bench import __version__
-from bench.certificate import write_certificate
+from bench import certificate as certificates
 from bench.certificate.model import Document
 from bench.config import Config, ConfigError
 from bench.console import PlainConsole, open_console
@@ -74,7 +74,7 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole
     run.write_json("result.json", result)
     try:
         documents: list[Document] = []
-        for path in write_certificate(run, result, documents=documents):
+        for path in certificates.write_certificate(run, result, documents=documents):
             progress.line(f"wrote {path}")
         doc = documents[-1]
     except Exception as e:  # noqa: BLE001 - result.json stands; say what is missing

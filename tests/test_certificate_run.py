@@ -193,13 +193,13 @@ def test_a_run_that_leaves_no_certificate_does_not_exit_as_completed(
     """A bug in the certificate (patched in: no twin produces one on demand) must not end
     as exit 0 or 1 with nothing to sign; result.json is still written, and the message
     says how to get the certificate once fixed."""
-    import bench.commands
+    import bench.certificate
     from bench.cli import main
 
     def broken(*args: object, **kw: object) -> list[Path]:
         raise ValueError("an upper limit must be finite and > 0, got 0.0")
 
-    monkeypatch.setattr(bench.commands, "write_certificate", broken)  # as the CLI calls it
+    monkeypatch.setattr(bench.certificate, "write_certificate", broken)
     before = (run["dir"] / "result.json").read_bytes()
     assert main(["analyze", str(run["dir"])]) == 3
     err = capsys.readouterr().err
