@@ -31,6 +31,8 @@ def build_parser() -> argparse.ArgumentParser:
     dec.add_argument("raw_file")
     dec.add_argument("--format", required=True, dest="fmt", help="frame format, e.g. kvh-a")
     dec.add_argument("--csv", help="write the samples to this CSV file")
+    from bench.dcc.command import add_parsers
+    add_parsers(sub)
     return p
 
 
@@ -39,6 +41,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "decode":
         from bench.decode import decode_command
         return decode_command(args.raw_file, args.fmt, args.csv)
+    if args.command in ("dcc", "verify"):
+        from bench.dcc.command import COMMANDS
+        return COMMANDS[args.command](args)
     from bench import commands
     return commands.dispatch(args)
 

@@ -58,8 +58,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
 
 def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> tuple[dict[str, Any], bool]:
-    """result.json, then the certificate; returns the result and whether the certificate
-    was written (a run that leaves no certificate must not exit as if it had)."""
+    """result.json, then the certificate (PDF, HTML, DCC); returns the result and whether
+    the certificate was written (a run that leaves no certificate must not exit as if it
+    had, nor one whose DCC does not validate)."""
     from bench.certificate import write_certificate
     from procedures import procedure_kind
 
@@ -73,7 +74,9 @@ def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> tuple[dict[s
         _err(f"the certificate could not be written: {e!r}; result.json is in {run.path}; "
              f"once fixed, `bench analyze {run.path}` writes it")
         return result, False
-    return result, True
+    from bench.dcc.command import write_run_dcc  # certificate.dcc.xml beside the PDF
+
+    return result, write_run_dcc(run.path, result, cfg.stand, progress.line)
 
 
 def _summary(result: dict[str, Any]) -> list[str]:

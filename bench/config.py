@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.canbus import bus_problems
+from bench.dcc.settings import STAND_DCC
 from bench.schema import Any_, Bool, Check, Key, ListOf, Map, MapOf, Num, Str, validate
 from bench.yamlfile import Problem, YamlDoc, YamlError, load_yaml
 
@@ -96,6 +97,7 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
         "axes": Key(Check(MapOf(Map({**STAND_AXIS_KEYS, **(extra_axis or {})})),
                           bus_problems), True),
         "sim": Key(Map({**SIM_KEYS, **(extra_sim or {})})),
+        "dcc": Key(STAND_DCC, False, "DCC settings: lab settings file, signing key (paths)"),
         **(extra_top or {}),
     })
 
