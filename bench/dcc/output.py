@@ -46,8 +46,8 @@ class DccOutcome:
         return describe(self.validation, where) + (" (signed, XAdES)" if self.signed else "")
 
 
-def dcc_bytes(tree: etree._ElementTree) -> bytes:
-    return etree.tostring(tree, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+def dcc_bytes(tree: etree._ElementTree, pretty: bool = True) -> bytes:
+    return etree.tostring(tree, xml_declaration=True, encoding="UTF-8", pretty_print=pretty)
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
@@ -70,15 +70,19 @@ def write_dcc(run_path: Path, result: dict[str, Any], stand: dict[str, Any] | No
         return DccOutcome(None, None, skipped=f"the run's verdict is {verdict!r}; a DCC is "
                                                 "written only for a completed run")
     settings = lab if lab is not None else resolve_settings(stand, lab_file)
-    tree = build_dcc(DccInputs(result, run_path, settings, issued))
+    data = dcc_bytes(build_dcc(DccInputs(result, run_path, settings, issued)))
     signed = False
     if settings.signing is not None:
         from bench.dcc.signing import sign_tree
 
         check_key_outside(settings.signing, run_path)
-        tree = sign_tree(tree, settings.signing)
+        # laid out first, then signed and written as is: re-indenting would change the
+        # signed bytes' whitespace and break the signature
+        parser = etree.XMLParser(huge_tree=True, no_network=True, resolve_entities=False)
+        signed_tree = sign_tree(etree.ElementTree(etree.fromstring(data, parser)),
+                                settings.signing)
+        data = dcc_bytes(signed_tree, pretty=False)
         signed = True
-    data = dcc_bytes(tree)
     validation = validate_dcc(data)
     target, other = run_path / DCC_NAME, run_path / INVALID_NAME
     if validation.valid:
