@@ -1,7 +1,7 @@
 """Procedure and stand files: load, validate, cross-check (CONTRACT §2).
 
-`load_config` returns a `Config` or raises `ConfigError` carrying every problem found,
-each naming file, line and key path. Nothing moves before this has passed.
+The schemas of the keys every procedure kind shares, and `Config`, what the loader
+(bench/loader.py) returns once both files have passed.
 """
 
 from __future__ import annotations
@@ -12,9 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from bench.canbus import bus_problems
-from bench.dcc.settings import STAND_DCC
-from bench.schema import Any_, Bool, Check, Key, ListOf, Map, MapOf, Num, Str, validate
-from bench.yamlfile import Problem, YamlDoc, YamlError, load_yaml
+from bench.schema import Any_, Bool, Check, Key, ListOf, Map, MapOf, Num, Str
+from bench.yamlfile import Problem, YamlDoc
 
 # -- stand file ---------------------------------------------------------------------
 
@@ -84,6 +83,28 @@ SIM_KEYS: dict[str, Key] = {
     "clock_speed": Key(Num(min=0, exclusive_min=True), False, "virtual seconds per real one"),
     "axes": Key(MapOf(SIM_AXIS)),
 }
+
+
+def _absolute_path(value: Any) -> str | None:
+    """A key or certificate is named by its path, never pasted in (the stand file is
+    copied into every run directory); relative paths would depend on the cwd."""
+    if isinstance(value, str) and "-----BEGIN" in value:
+        return "expected the path of a PEM file, not the key or certificate itself"
+    if isinstance(value, str) and not Path(os.path.expanduser(value)).is_absolute():
+        return f"expected an absolute path (or ~/...), got {value!r}"
+    return None
+
+
+ABSOLUTE_PATH = Check(Str(), _absolute_path)
+SIGNING = Map({    # the DCC's signing key (bench/dcc/settings.py, docs/dcc.md)
+    "key": Key(ABSOLUTE_PATH, True, "PEM private key (PKCS#8 or traditional), absolute path"),
+    "certificate": Key(ABSOLUTE_PATH, True, "PEM X.509 certificate of that key, chain after"),
+    "password_env": Key(Str(), False, "environment variable holding the key's password"),
+})
+STAND_DCC = Map({
+    "lab": Key(ABSOLUTE_PATH, False, "lab settings file (YAML), absolute path"),
+    "signing": Key(SIGNING),
+})
 IDENTITY = Map({"maker": Key(Str(), True), "model": Key(Str(), True),
                 "serial": Key(Str(), True), "location": Key(Str())})
 
@@ -97,7 +118,7 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
         "axes": Key(Check(MapOf(Map({**STAND_AXIS_KEYS, **(extra_axis or {})})),
                           bus_problems), True),
         "sim": Key(Map({**SIM_KEYS, **(extra_sim or {})})),
-        "dcc": Key(STAND_DCC, False, "DCC settings: lab settings file, signing key (paths)"),
+        "dcc": Key(STAND_DCC, False, "DCC: lab settings file, signing key (paths only)"),
         **(extra_top or {}),
     })
 
@@ -144,48 +165,6 @@ class ConfigError(Exception):
     def __init__(self, problems: list[Problem]) -> None:
         self.problems = problems
         super().__init__("\n".join(str(p) for p in problems))
-
-
-def load_config(procedure_path: str | Path, stand_path: str | Path | None = None) -> Config:
-    """Load, validate and cross-check a procedure and its stand; ConfigError lists all."""
-    from procedures import procedure_kind, procedure_names
-
-    problems: list[Problem] = []
-    try:
-        pdoc = load_yaml(procedure_path)
-    except YamlError as e:
-        raise ConfigError([e.problem]) from None
-    if not isinstance(pdoc.data, dict):
-        raise ConfigError([pdoc.problem((), "expected a mapping (procedure: ..., stand: ...)")])
-    name = pdoc.data.get("procedure")
-    if name not in procedure_names():
-        raise ConfigError([pdoc.problem(("procedure",), f"expected one of "
-                                        f"{', '.join(procedure_names())}, got {name!r}")])
-    kind = procedure_kind(name)
-    problems += validate(pdoc, kind.procedure_schema())
-    sdoc: YamlDoc | None = None
-    stand_ref = stand_path or pdoc.data.get("stand")
-    if isinstance(stand_ref, str | Path):
-        spath = Path(stand_ref)
-        if stand_path is None and not spath.is_absolute():
-            spath = Path(os.path.normpath(Path(procedure_path).parent / spath))
-        try:
-            sdoc = load_yaml(spath)
-        except YamlError as e:
-            if e.problem.key == "(file)":
-                problems.append(pdoc.problem(("stand",), f"stand file {spath}: "
-                                             f"{e.problem.message}"))
-            else:
-                problems.append(e.problem)
-        else:
-            problems += validate(sdoc, kind.stand_schema())
-    if problems or sdoc is None:
-        raise ConfigError(problems)
-    cfg = Config(Path(procedure_path), sdoc.path, pdoc.data, sdoc.data, pdoc, sdoc)
-    problems += kind.cross_check(cfg)
-    if problems:
-        raise ConfigError(problems)
-    return cfg
 
 
 def check_axis_names(cfg: Config, axes_key: str = "axes") -> list[Problem]:

@@ -16,19 +16,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.config import SIGNING, STAND_DCC
 from bench.schema import Bool, Check, Key, ListOf, Map, Str, validate
 from bench.yamlfile import YamlError, load_yaml
 
+__all__ = ["ENV_LAB", "STAND_DCC", "LabSettings", "SettingsError", "load_lab_file",
+           "resolve_settings"]
+
 ENV_LAB = "BENCH_LAB_SETTINGS"
 PERFORMANCE_LOCATIONS = ("laboratory", "customer", "laboratoryBranch", "customerBranch", "other")
-
-
-def _path_rule(value: Any) -> str | None:
-    if isinstance(value, str) and "-----BEGIN" in value:
-        return "expected the path of a PEM file, not the key or certificate itself"
-    if isinstance(value, str) and not Path(os.path.expanduser(value)).is_absolute():
-        return f"expected an absolute path (or ~/...), got {value!r}"
-    return None
 
 
 def _country_rule(value: Any) -> str | None:
@@ -37,13 +33,7 @@ def _country_rule(value: Any) -> str | None:
     return None
 
 
-PEM_PATH = Check(Str(), _path_rule)
 COUNTRY = Check(Str(), _country_rule)
-SIGNING = Map({
-    "key": Key(PEM_PATH, True, "PEM private key (PKCS#8 or traditional), absolute path"),
-    "certificate": Key(PEM_PATH, True, "PEM X.509 certificate of that key (chain may follow)"),
-    "password_env": Key(Str(), False, "environment variable holding the key's password"),
-})
 LOCATION = Map({k: Key(COUNTRY if k == "country_code" else Str())
                 for k in ("street", "street_no", "post_code", "city", "state", "country_code",
                           "further")})
@@ -58,11 +48,6 @@ LAB_FILE = Map({
     "country_code": Key(COUNTRY, False, "country where the calibration is performed"),
     "performance_location": Key(Str(PERFORMANCE_LOCATIONS)),
     "responsible_persons": Key(ListOf(PERSON)),
-    "signing": Key(SIGNING),
-})
-#: the stand file's optional `dcc:` key (bench/config.py adds it to the stand schema)
-STAND_DCC = Map({
-    "lab": Key(Check(Str(), _path_rule), False, "lab settings file (YAML), absolute path"),
     "signing": Key(SIGNING),
 })
 
