@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +23,9 @@ from lxml import etree
 
 from bench.dcc.units import unit_list_problems
 
-SCHEMA_DIR = Path(__file__).resolve().parent / "schemas"
+#: package data read through importlib.resources; libxml2 needs them as real files, which
+#: they are in a checkout and in any installed wheel (not inside a zip archive)
+SCHEMA_DIR = Path(str(resources.files("bench.dcc").joinpath("schemas")))
 DCC_XSD = SCHEMA_DIR / "dcc" / "v3.3.0" / "dcc.xsd"
 NS = {"dcc": "https://ptb.de/dcc", "si": "https://ptb.de/si",
       "ds": "http://www.w3.org/2000/09/xmldsig#"}

@@ -9,7 +9,7 @@ Layout (docs/dcc.md walks through it):
                          the item with its serial, laboratory, responsible persons,
                          customer, statements (decision rule and overall conformity,
                          location, raw-data SHA-256 digests, simulated stand)
-    measurementResults   methods (METHOD.md sections), conditions, then one
+    measurementResults   methods (docs/method.md sections), conditions, then one
                          measurementResult per axis (rate ladder) or one for the
                          platform (drift pulse); each check's conformity sits on the
                          quantity it judges
@@ -23,6 +23,7 @@ import datetime as dt
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -66,14 +67,27 @@ ILAC_G8 = "ILAC-G8:09/2019"
 RULE_REFERENCE = {"simple": "4.2.1 simple acceptance (shared risk)",
                   "guard-band": "4.2.2 guarded acceptance, guard band w = U"}
 
-# the METHOD.md sections each procedure uses, with the certificate's wording of each
-A_SECTIONS = (("A1", "Per-turn rate (fixed-angle method)"),
-              ("A2", "Per-turn rate error and instability (eqs. 1-2)"),
-              ("A3", "Cross-calibration of the FOG against the counter (eqs. 5-6)"),
-              ("A4", "Systematic intra-turn component (harmonics in angle, mains in time)"),
-              ("A5", "Random component and intra-turn instability"))
-B_SECTIONS = (("B", "Gyro drift by alternating-sign controlled precession; own and apparent "
-                    "drift from two platform positions; azimuth from two horizontal axes"),)
+# the method document's sections each procedure uses (bench/method.md = docs/method.md)
+A_SECTIONS = ("A1", "A2", "A3", "A4", "A5", "A6")
+B_SECTIONS = ("B",)
+METHOD_DOC = "docs/method.md"
+
+
+def method_sections() -> tuple[bytes, dict[str, tuple[str, str]]]:
+    """The method document as shipped, and section -> (heading, text) from its headings
+    (`### A1. ...`, `## B. ...`)."""
+    data = resources.files("bench").joinpath("method.md").read_bytes()
+    sections: dict[str, tuple[str, str]] = {}
+    current: str | None = None
+    for line in data.decode("utf-8").splitlines():
+        m = re.match(r"#{2,3} ([A-Z]\d?)\. (.*)", line)
+        if m:
+            current = m.group(1)
+            sections[current] = (m.group(2).strip(), "")
+        elif current is not None and not line.startswith("#"):
+            head, body = sections[current]
+            sections[current] = (head, (body + " " + line.strip()).strip())
+    return data, sections
 
 
 @dataclass
@@ -366,13 +380,21 @@ def _digests(sts: etree._Element, src: Sources) -> None:
 
 def _common_results(results: etree._Element, src: Sources, kind: str) -> None:
     used = el(results, "usedMethods")
-    sections = B_SECTIONS if kind == "drift-pulse" else A_SECTIONS
-    ref = methods.B_REFERENCE if kind == "drift-pulse" else methods.A_REFERENCE
-    for sec, title in sections:
+    document, sections = method_sections()
+    m = el(used, "usedMethod", id="methodDocument", ref_type=V.METHOD)
+    name(m, f"ratebench method document ({METHOD_DOC}), as shipped with this release")
+    desc = text_el(m, "description", methods.B_REFERENCE if kind == "drift-pulse"
+                   else methods.A_REFERENCE)
+    f = el(desc, "file")
+    el(f, "fileName", "method.md")
+    el(f, "mimeType", "text/markdown")
+    el(f, "dataBase64", base64.b64encode(document).decode("ascii"))
+    for sec in B_SECTIONS if kind == "drift-pulse" else A_SECTIONS:
+        heading, text = sections.get(sec, (f"section {sec}", f"see {METHOD_DOC}"))
         m = el(used, "usedMethod", id=ident("method", sec), ref_type=V.METHOD)
-        name(m, f"METHOD.md {sec}: {title}")
-        text_el(m, "description", ref)
-        el(m, "reference", f"ratebench method document (METHOD.md, docs/method.md) section {sec}")
+        name(m, f"{METHOD_DOC} {sec}: {heading}")
+        text_el(m, "description", text or f"see {METHOD_DOC}")
+        el(m, "reference", f"{METHOD_DOC} section {sec} (embedded above)")
     pf = src.get("procedure_file", {}) or {}
     proc_name = pf.get("name") or src.meta.get("procedure_name")
     if proc_name:
@@ -477,11 +499,13 @@ def _conformity(q: etree._Element, found: list[tuple[int, dict[str, Any]]], unit
         tol, expected = num(c.get(f"tolerance_{suffix}")), num(c.get(f"expected_{suffix}"))
         cunit = U.BY_SUFFIX.get(suffix, unit)
         data = el(md, "data")
+        cid = ident("check", i + 1)
         if tol is not None:
-            quantity(data, None, "lower acceptance limit (-T)", V.LIMIT_LOW, -tol, cunit)
-            quantity(data, None, "upper acceptance limit (+T)", V.LIMIT_HIGH, tol, cunit)
+            quantity(data, f"{cid}_low", "lower acceptance limit (-T)", V.LIMIT_LOW, -tol, cunit)
+            quantity(data, f"{cid}_high", "upper acceptance limit (+T)", V.LIMIT_HIGH, tol,
+                     cunit)
         if expected is not None:
-            quantity(data, None, "expected value", V.REFERENCE, expected, cunit)
+            quantity(data, f"{cid}_expected", "expected value", V.REFERENCE, expected, cunit)
         if not len(data):
             md.remove(data)
 
@@ -525,7 +549,7 @@ def _ladder(results: etree._Element, src: Sources, checks: _Checks) -> None:
         sd = num(floor.get("sample_std_dps")) if isinstance(floor, Mapping) else None
         if sd is not None:
             r = el(res, "result", id=ident("floor", axis), ref_type=V.FOG_FLOOR)
-            name(r, f"Axis {axis}: FOG noise floor at rest (METHOD.md A5)")
+            name(r, f"Axis {axis}: FOG noise floor at rest (docs/method.md A5)")
             text_el(r, "description", f"{floor.get('source', 'record at rest')}; "
                     f"{floor.get('samples', NOT_RECORDED)} samples over "
                     f"{floor.get('duration_s', NOT_RECORDED)} s.")
@@ -539,7 +563,7 @@ def _ladder(results: etree._Element, src: Sources, checks: _Checks) -> None:
 
 
 def _per_turn_u(r: Mapping[str, Any], rates: list[float]) -> list[float] | None:
-    """U (k = 2) of each per-turn rate, METHOD.md A1: dw/w = dT/T with T = 360/|w|, combined
+    """U (k = 2) of each per-turn rate, docs/method.md A1: dw/w = dT/T with T = 360/|w|, combined
     with the counter timebase: U = 2 |w| sqrt((u_T |w| / 360)^2 + u_tb^2)."""
     b = r.get("rate_error_budget")
     if not isinstance(b, Mapping) or num(b.get("period_u_s")) is None:
@@ -585,33 +609,33 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
         mean = sum(cr) / len(cr)
     eu = num(r.get("rate_error_u_rel"))
     if mean is not None:
-        q("mean_rate_dps", "mean rate over the turns (counter, METHOD.md A2)", V.MEASURED,
+        q("mean_rate_dps", "mean rate over the turns (counter, docs/method.md A2)", V.MEASURED,
           U.DEG_PER_S, value=mean, u=eu * abs(w_set) if eu is not None and w_set else None,
           note="U = U(rate error) x |set rate|.")
-    q("rate_error_rel", "per-turn rate error (mean - set) / |set| (METHOD.md A2 eq. 1, "
+    q("rate_error_rel", "per-turn rate error (mean - set) / |set| (docs/method.md A2 eq. 1, "
       "signed)", f"{V.ERROR} {V.RATE_ERROR}", U.ONE, "rate_error_u_rel", check="rate_error")
     q("rate_instability_rel", "per-turn rate instability, relative std of the per-turn rates "
-      "(METHOD.md A2 eq. 2)", V.RATE_INSTABILITY, U.ONE, "rate_instability_u_rel",
+      "(docs/method.md A2 eq. 2)", V.RATE_INSTABILITY, U.ONE, "rate_instability_u_rel",
       check="rate_instability")
     q("rate_instability_floor_rel", "timing floor of the instability (counter and zero-mark "
-      "timing alone, METHOD.md A1)", V.TIMING_FLOOR, U.ONE)
+      "timing alone, docs/method.md A1)", V.TIMING_FLOOR, U.ONE)
     if cr:
         us = _per_turn_u(r, cr)
         list_quantity(data, ident(rid, "counter_rate_dps"), "per-turn rates from the counter, "
-                      "in turn order (METHOD.md A1)", f"{V.MEASURED} {V.PER_TURN}", cr,
+                      "in turn order (docs/method.md A1)", f"{V.MEASURED} {V.PER_TURN}", cr,
                       U.DEG_PER_S, us, note=None if us is not None else
                       "U not stated: result.json carries no timing budget for this rate.")
     intra = r.get("intra_turn") or {}
     q("intra_turn_instability_rel", "intra-turn instability std(random part) / |set| at the "
-      "FOG bandwidth (METHOD.md A5)", V.INTRA_TURN, U.ONE, "intra_turn_instability_u_rel",
+      "FOG bandwidth (docs/method.md A5)", V.INTRA_TURN, U.ONE, "intra_turn_instability_u_rel",
       check="intra_turn_instability")
     if isinstance(intra, Mapping) and num(intra.get("floor_rel")) is not None:
-        q("floor_rel", "FOG noise floor, relative to |set| (METHOD.md A5)", V.FOG_FLOOR, U.ONE,
+        q("floor_rel", "FOG noise floor, relative to |set| (docs/method.md A5)", V.FOG_FLOOR, U.ONE,
           value=num(intra.get("floor_rel")), label=f"{path}.intra_turn.floor_rel")
     upper = num(intra.get("corrected_upper_rel")) if isinstance(intra, Mapping) else None
     resolved = intra.get("resolved") if isinstance(intra, Mapping) else None
     q("intra_turn_instability_corrected_rel", "intra-turn instability with the FOG noise "
-      "floor removed in quadrature (METHOD.md A5)", V.INTRA_TURN_CORRECTED, U.ONE,
+      "floor removed in quadrature (docs/method.md A5)", V.INTRA_TURN_CORRECTED, U.ONE,
       None if upper is not None else "intra_turn_instability_corrected_u_rel",
       u=num(r.get("intra_turn_instability_corrected_u_rel")),
       note=("not resolved above the FOG noise floor; read the upper limit" if resolved is False
@@ -632,7 +656,7 @@ def _averaged(data: etree._Element, rid: str, path: str, intra: Any) -> None:
         lst = el(data, "list", id=ident(rid, "avg", f"{num(a['angle_deg']):g}"),
                  ref_type=V.AVERAGED)
         name(lst, f"random part averaged over {num(a['angle_deg']):g} deg of table angle "
-                  "(METHOD.md A5)")
+                  "(docs/method.md A5)")
         p = f"{path}.intra_turn.averaged[{j}]"
         quantity(lst, None, "window", V.WINDOW, num(a["angle_deg"]) or 0.0, U.DEG,
                  label=f"{p}.angle_deg")
@@ -659,7 +683,7 @@ def _systematic(data: etree._Element, rid: str, path: str, s: Any) -> None:
         hid = ident(rid, "h", order)
         lst = el(data, "list", id=hid, ref_type=V.HARMONIC)
         name(lst, f"systematic intra-turn component, harmonic {order}: "
-                  "w_set * a cos(h phi + p) (METHOD.md A4)")
+                  "w_set * a cos(h phi + p) (docs/method.md A4)")
         if h.get("detected") is False:
             text_el(lst, "description", "not significant: the amplitude is consistent with "
                     "zero and its phase is meaningless")
@@ -678,7 +702,7 @@ def _systematic(data: etree._Element, rid: str, path: str, s: Any) -> None:
     if isinstance(m, Mapping) and num(m.get("amplitude_dps")) is not None:
         mid = ident(rid, "mains")
         lst = el(data, "list", id=mid, ref_type=V.MAINS)
-        name(lst, "mains-frequency ripple, one tone fitted in time (METHOD.md A4)")
+        name(lst, "mains-frequency ripple, one tone fitted in time (docs/method.md A4)")
         if m.get("detected") is False:
             text_el(lst, "description", "not significant")
         p = f"{path}.systematic.mains"
@@ -699,7 +723,7 @@ def _pair_result(res: etree._Element, axis: str, i: int, p: Mapping[str, Any]) -
     pid = ident("pair", axis, f"{rate:g}" if rate is not None else i)
     path = f"axes.{axis}.pairs[{i}]"
     result = el(res, "result", id=pid, ref_type=V.PAIR)
-    name(result, f"Axis {axis}, cross-calibration of the FOG at +/-{rate:g} deg/s (METHOD.md "
+    name(result, f"Axis {axis}, cross-calibration of the FOG at +/-{rate:g} deg/s (docs/method.md "
                  "A3 eqs. 5-6)" if rate is not None else f"Axis {axis}, pair {i + 1}")
     if p.get("method"):
         text_el(result, "description", f"method {p.get('method')}"
@@ -727,7 +751,7 @@ def _pair_result(res: etree._Element, axis: str, i: int, p: Mapping[str, Any]) -
 def _drift(results: etree._Element, src: Sources, checks: _Checks) -> None:
     drift = src.get("drift", {}) or {}
     mr = el(results, "measurementResult", id="platform", ref_id="item")
-    name(mr, "Gyro platform: own and apparent drift per axis, azimuth (METHOD.md B)")
+    name(mr, "Gyro platform: own and apparent drift per axis, azimuth (docs/method.md B)")
     lat = num(drift.get("latitude_deg"))
     if lat is not None:
         conds = el(mr, "influenceConditions")
