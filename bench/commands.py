@@ -16,7 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from bench.certificate import write_certificate
+from bench import certificate as certificates
 from bench.config import Config, ConfigError
 from bench.dcc.command import write_run_dcc
 from bench.devices import list_devices
@@ -70,7 +70,7 @@ def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> tuple[dict[s
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json("result.json", result)
     try:
-        for path in write_certificate(run, result):
+        for path in certificates.write_certificate(run, result):
             progress.line(f"wrote {path}")
     except Exception as e:  # noqa: BLE001 - result.json stands; say what is missing
         traceback.print_exc(file=sys.stderr)            # a bug to report: keep its trace
