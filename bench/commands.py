@@ -21,6 +21,7 @@ from bench import certificate as certificates
 from bench.certificate.model import Document
 from bench.config import Config, ConfigError
 from bench.console import PlainConsole, open_console
+from bench.dcc.command import write_run_dcc
 from bench.devices import list_devices
 from bench.engine import Abort, Engine, RunContext, SignalGuard
 from bench.examples import example_path
@@ -67,9 +68,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
 def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole
                    ) -> tuple[dict[str, Any], Document | None]:
-    """result.json, then the certificate; returns the result and the certificate's document
-    (None when it could not be written: a run that leaves no certificate must not exit as
-    if it had)."""
+    """result.json, then the certificate (PDF, HTML, DCC); returns the result and the
+    certificate's document (None when it could not be written: a run that leaves no
+    certificate must not exit as if it had, nor one whose DCC does not validate)."""
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json("result.json", result)
     try:
@@ -81,6 +82,8 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole
         traceback.print_exc(file=sys.stderr)            # a bug to report: keep its trace
         progress.warn(f"the certificate could not be written: {e!r}; result.json is in "
                       f"{run.path}; once fixed, `bench analyze {run.path}` writes it")
+        return result, None
+    if not write_run_dcc(run.path, result, cfg.stand, progress.line):  # the DCC
         return result, None
     return result, doc
 
