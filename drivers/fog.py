@@ -23,7 +23,9 @@ flags the indices after that point as uncertain (health "error").
 from __future__ import annotations
 
 import math
+import select
 import threading
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -31,7 +33,7 @@ from typing import IO, Any
 import numpy as np
 import serial
 
-from bench.clock import Clock
+from bench.clock import Clock, real_budget_s
 from drivers.fog_formats import (
     AXES,
     FORMATS,
@@ -53,6 +55,8 @@ RATE_UNITS = ("deg/s", "rad/s", "deg", "rad")
 
 _READ_TIMEOUT_S = 0.05     # real seconds a read waits for the first byte
 _BATCH_BYTES = 1 << 16     # decode in batches of up to this many bytes
+_BATCH_GAP_S = 0.001       # real seconds a batch waits for the next piece of a fast stream
+_BATCH_REAL_S = 0.005      # ... and at most this long in all (a slow stream's latency)
 _WAIT_MARGIN_S = 0.25      # real seconds added to every scaled wait
 _STALL_FRAMES = 64         # a silence this many frame periods long is a stall,
 _STALL_REAL_S = 0.1        # ... and at least this many real seconds (OS, USB latency)
@@ -212,7 +216,7 @@ class Fog:
 
     `rate_hz` is the FOG's output rate (from the stand file), `units` what its
     rotational data mean, `axis` which of x, y, z is the table axis's sensitive axis.
-    Real-time waits are `timeout_s / clock.speed` plus a margin.
+    Real-time waits are `timeout_s / min_speed(clock)` plus a margin (bench/clock.py).
     """
 
     def __init__(self, port: str, *, baudrate: int = 921600, fmt: str = "kvh-a",
@@ -316,13 +320,7 @@ class Fog:
             while not self._stop.is_set():
                 data = ser.read(max(1, ser.in_waiting))
                 if data:
-                    chunks = [data]
-                    size = len(data)
-                    while size < _BATCH_BYTES and (w := ser.in_waiting):
-                        more = ser.read(min(w, _BATCH_BYTES - size))
-                        chunks.append(more)
-                        size += len(more)
-                    data = b"".join(chunks)
+                    data = self._batch(ser, data)
                     if self._raw is not None:
                         self._raw.write(data)
                         self._raw.flush()
@@ -343,6 +341,31 @@ class Fog:
         finally:
             with self._cond:
                 self._cond.notify_all()
+
+    @staticmethod
+    def _batch(ser: serial.Serial, first: bytes) -> bytes:
+        """More of what is arriving, up to _BATCH_BYTES or _BATCH_REAL_S.
+
+        A pty or a USB adapter hands over a few kB a read; decoding each piece on its own
+        costs more than the bytes (a fixed cost per call), so a fast stream is gathered
+        for a moment first: waiting up to _BATCH_GAP_S for the next piece, never holding
+        a batch longer than _BATCH_REAL_S (the latency a slow stream sees).
+        """
+        chunks = [first]
+        size = len(first)
+        fileno = getattr(ser, "fileno", None)
+        t_end = time.monotonic() + _BATCH_REAL_S
+        while size < _BATCH_BYTES:
+            w = ser.in_waiting
+            if not w:
+                if fileno is None or time.monotonic() >= t_end or \
+                        not select.select([fileno()], [], [], _BATCH_GAP_S)[0]:
+                    break
+                continue
+            more = ser.read(min(w, _BATCH_BYTES - size))
+            chunks.append(more)
+            size += len(more)
+        return b"".join(chunks)
 
     def _ingest(self, data: bytes, now: float, resumed: StallEvent | None) -> None:
         with self._cond:
@@ -398,7 +421,7 @@ class Fog:
 
     def wait_for_index(self, i: int, timeout_s: float) -> None:
         """Block until sample i is known; timeout_s on the clock, scaled to real time."""
-        real_s = timeout_s / self.clock.speed + _WAIT_MARGIN_S
+        real_s = real_budget_s(self.clock, timeout_s) + _WAIT_MARGIN_S
         with self._cond:
             ok = self._cond.wait_for(
                 lambda: self._store.end > i or self._thread is None
