@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from bench.analysis.window import HalfRecord
 from bench.clock import Clock
 from bench.config import (
     COMMON_PROCEDURE_KEYS,
@@ -100,6 +99,12 @@ def halves(turns: int, sequence: str) -> list[tuple[int, int]]:
     if sequence == "+-+" and turns >= 2:
         return [(+1, (turns + 1) // 2), (-1, turns), (+1, turns // 2)]
     return [(+1, turns), (-1, turns)]
+
+
+def _fog_losses(fog: Any) -> int:
+    """Frames the FOG's decoder found lost or broken so far (a half's count: the change)."""
+    st = fog.stats
+    return int(st.lost_frames + st.crc_errors)
 
 
 class RateLadder(StepDispatch):
@@ -238,11 +243,14 @@ class RateLadder(StepDispatch):
         duration = step.params["duration_s"]
         i0 = max(fog.end_index, math.ceil(ctx.clock.now() * fog.rate_hz))
         n = int(round(duration * fog.rate_hz))
+        lost0 = _fog_losses(fog)
+        mark = fog.checkpoint()  # where the record starts in the raw capture (or before)
         self._wait_fog(ctx, fog, i0 + n, duration, f"{step.axis}: FOG at rest")
-        s = fog.samples(i0, i0 + n)
-        ctx.state.setdefault("live", {})[step.unit] = s.rate_dps[s.valid]
-        ctx.run.event("static", axis=step.axis, unit=step.unit, fog_from=i0, fog_to=i0 + n,
-                      rate_hz=fog.rate_hz, lost=int(n - s.valid.sum()))
+        event = dict(axis=step.axis, unit=step.unit, fog_from=i0, fog_to=i0 + n,
+                     rate_hz=fog.rate_hz, lost=_fog_losses(fog) - lost0, fog_capture=mark)
+        # the samples stay in the raw capture: the analysis reads them from there
+        ctx.state.setdefault("live", {})[step.unit] = {**event, "session": ctx.run.session}
+        ctx.run.event("static", **event)
 
     def _wait_fog(self, ctx: RunContext, fog: Any, index: int, span_s: float, label: str) -> None:
         t_end = ctx.clock.now() + span_s
@@ -273,6 +281,8 @@ class RateLadder(StepDispatch):
         period = p["period_s"]
         counter, fog, drive = ax.counter, ax.fog, ax.drive
         rec0 = ax.logs["counter"].count if "counter" in ax.logs else 0
+        lost0 = _fog_losses(fog)
+        mark = fog.checkpoint()  # the raw capture up to here holds no sample of this half
         counter.arm(n + 1, period)
         t_arm = ctx.clock.now()
         t_end = t_arm + (n + 1) * period
@@ -291,18 +301,19 @@ class RateLadder(StepDispatch):
         i_to = math.floor(edges[-1] * fog.rate_hz) + 2
         rec1 = ax.logs["counter"].count if "counter" in ax.logs else 0
         fog.wait_for_index(i_to, timeout_s=max(10.0, period))
-        s = fog.samples(i_from, i_to)
-        lost = int(s.valid.size - s.valid.sum())
+        lost = _fog_losses(fog) - lost0
+        event = dict(axis=step.axis, unit=step.unit, half=p["half"],
+                     set_rate_dps=p["rate_dps"], turns=n, edges_s=[float(e) for e in edges],
+                     counter_records=[rec0, rec1], fog_from=i_from, fog_to=i_to,
+                     rate_hz=fog.rate_hz, fog_lost=lost, fog_capture=mark)
+        # the FOG samples stay in the raw capture: the pair's analysis reads them there
         ctx.state.setdefault("live", {}).setdefault(step.unit, []).append(
-            HalfRecord(1 if p["rate_dps"] > 0 else -1, edges, s.t_s[s.valid],
-                       s.rate_dps[s.valid]))
-        ctx.run.event("acquire", axis=step.axis, unit=step.unit, half=p["half"],
-                      set_rate_dps=p["rate_dps"], turns=n, edges_s=[float(e) for e in edges],
-                      counter_records=[rec0, rec1], fog_from=i_from, fog_to=i_to,
-                      rate_hz=fog.rate_hz, fog_lost=lost)
+            {**event, "session": ctx.run.session})
+        ctx.run.event("acquire", **event)
         if lost:
-            ctx.progress.line(f"  WARNING {step.axis}: {lost} FOG samples lost in this half "
-                              "(CRC or sequence gaps); the analysis uses the rest")
+            ctx.progress.line(f"  WARNING {step.axis}: {lost} FOG frames lost or broken "
+                              "during this half (CRC or sequence gaps); the analysis uses "
+                              "the rest")
         w = 360.0 * n / (edges[-1] - edges[0])
         ctx.progress.line(f"  {step.axis} {p['rate_dps']:+g} deg/s: {n} turns timed, "
                           f"mean {math.copysign(w, p['rate_dps']):+.7f} deg/s")
@@ -315,10 +326,7 @@ class RateLadder(StepDispatch):
         ctx.progress.line(f"  {step.axis} +/-{step.params['rate_dps']:g} deg/s: "
                           + ", ".join(f"{k} {v:.6g}" for k, v in summary.items()
                                       if isinstance(v, float)))
-        live = ctx.state.get("live", {})
-        live.pop(step.unit, None)
-        fog = ctx.bench.axes[step.axis].fog
-        fog.discard_before(fog.end_index)
+        ctx.state.get("live", {}).pop(step.unit, None)
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
         drive = ctx.bench.axes[step.axis].drive

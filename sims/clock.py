@@ -14,7 +14,9 @@ pace: the stand runs as fast as every twin keeps up. A fixed speed stays availab
 is a cap, and without pacers the clock runs exactly at it. Whatever the pacers say, the
 clock never runs slower than `floor_speed` (real time by default: a real bench's pace),
 so a twin that died cannot freeze the run, and `min_speed` is a speed every real-time
-budget for failure detection can rely on.
+budget for failure detection can rely on. Pacing twins that nobody reads (the bench is
+closing) hold the clock at that floor: nothing is measured, and the drive twins' CAN
+threads are not made to generate hours of stand samples while they answer the stop.
 """
 
 from __future__ import annotations
@@ -30,8 +32,8 @@ MAX = "max"
 DEFAULT_LEAD_S = 20.0
 #: the paced clock never runs slower than real time (the pace of a real bench)
 REAL_TIME = 1.0
-#: "max" with no pacer registered yet (nothing streams): a finite top speed all the same
-UNPACED_MAX_SPEED = 2000.0
+#: "max" on a stand with no twin that paces (nothing streams): a finite top speed all the same
+UNPACED_MAX_SPEED = 500.0
 _SPEED_WINDOW_REAL_S = 0.5   # real seconds over which the running speed is measured
 _POLL_MAX_REAL_S = 0.02      # a paced sleep looks at the clock at least this often
 _POLL_MIN_REAL_S = 0.0005
@@ -138,6 +140,8 @@ class VirtualClock:
         limit = min((p() for p in self._pacers), default=math.inf) + self.lead_s
         if math.isfinite(limit):  # a twin streams: stay within lead_s of its data
             t_new = max(self._t_s + self.floor_speed * dt_real, min(free, limit))
+        elif self._pacers:  # twins that pace, but nobody reads them (closing): no hurry
+            t_new = self._t_s + self.floor_speed * dt_real
         else:
             t_new = free
         self._t_s = max(self._t_s, t_new)
