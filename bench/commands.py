@@ -8,6 +8,7 @@ operator (the axes were stopped, the data kept, `--resume` works).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 import traceback
@@ -15,11 +16,17 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from bench.clock import MonotonicClock
-from bench.config import Config, ConfigError, load_config
+from bench.certificate import write_certificate
+from bench.config import Config, ConfigError
+from bench.devices import list_devices
 from bench.engine import Abort, Engine, Progress, RunContext, SignalGuard
+from bench.examples import example_path
 from bench.journal import RunDir
+from bench.loader import load_config
 from bench.plan import format_duration
+from bench.registry import procedure_kind
+from bench.summary import summary_lines
+from drivers.clock import MonotonicClock
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
@@ -47,8 +54,6 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
-    from procedures import procedure_kind
-
     cfg = _load(args.procedure)
     if cfg is None:
         return EXIT_INVALID
@@ -60,9 +65,6 @@ def cmd_plan(args: argparse.Namespace) -> int:
 def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> tuple[dict[str, Any], bool]:
     """result.json, then the certificate; returns the result and whether the certificate
     was written (a run that leaves no certificate must not exit as if it had)."""
-    from bench.certificate import write_certificate
-    from procedures import procedure_kind
-
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json("result.json", result)
     try:
@@ -77,8 +79,6 @@ def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> tuple[dict[s
 
 
 def _summary(result: dict[str, Any]) -> list[str]:
-    from bench.summary import summary_lines
-
     return summary_lines(result)
 
 
@@ -91,10 +91,20 @@ def cmd_run(args: argparse.Namespace) -> int:
             return EXIT_INVALID
         cfg = _load(str(run.procedure_file), run.stand_file)
     else:
-        if not args.procedure:
-            _err("bench run: give a PROCEDURE.yaml, or --resume RUN_DIR")
+        procedure = args.procedure
+        if getattr(args, "example", None):
+            if procedure:
+                _err("bench run: give a PROCEDURE.yaml or --example NAME, not both")
+                return EXIT_INVALID
+            try:
+                procedure = str(example_path(args.example))
+            except KeyError as e:
+                _err(f"bench run --example: {e.args[0]}")
+                return EXIT_INVALID
+        if not procedure:
+            _err("bench run: give a PROCEDURE.yaml, --example NAME, or --resume RUN_DIR")
             return EXIT_INVALID
-        cfg = _load(args.procedure)
+        cfg = _load(procedure)
         run = None
     if cfg is None:
         return EXIT_INVALID
@@ -114,10 +124,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
     """One session of a run (the first, or a --resume): returns the exit status.
 
     Whatever happens inside, the axes are stopped, the instruments closed, what was
-    measured is analysed, and the run directory is left ready for `--resume`.
+    measured is analyzed, and the run directory is left ready for `--resume`.
     """
-    from procedures import procedure_kind
-
     progress = progress or Progress()
     kind = procedure_kind(cfg.kind)
     plan = kind.build_plan(cfg)
@@ -137,7 +145,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                 clock = MonotonicClock()
             run.begin_session(clock.now)
             run.event("session_start", resume=resume, sim=simbench is not None,
-                      done_units=done, clock_speed=clock.speed, argv=sys.argv[1:])
+                      done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
+                      pid=os.getpid())
             bench = kind.open_bench(cfg, stand, clock, run)
             for ax in bench.axes.values():
                 run.event("identity", axis=ax.name, **ax.identities)
@@ -214,8 +223,6 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
 
 def cmd_devices(args: argparse.Namespace) -> int:
-    from bench.devices import list_devices
-
     return list_devices(args.stand, sim=args.sim)
 
 

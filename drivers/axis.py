@@ -21,7 +21,7 @@ What it does, and why:
 
 Time: heartbeats, SDO and TPDO periods are real time (the CAN side); ramps, holds and
 settling are in the clock's seconds, and real-time timeouts are scaled by the slowest
-the clock can run (`bench.clock.min_speed`) with a margin.
+the clock can run (`drivers.clock.min_speed`) with a margin.
 
 Threads: `raw` and the feedback bookkeeping run in canopen's receive thread; the
 engine's `raw` callable must be thread-safe (an exception in it is kept and raised by
@@ -44,7 +44,6 @@ from typing import Any
 import canopen
 from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 
-from bench.clock import Clock, real_budget_s
 from drivers.cia402 import (
     COB_HEARTBEAT,
     CONTROLLER_NODE_ID,
@@ -67,6 +66,7 @@ from drivers.cia402 import (
     unwrap_int32,
     wrap_int32,
 )
+from drivers.clock import Clock, real_budget_s
 from drivers.heartbeat import HeartbeatProducer
 
 log = logging.getLogger(__name__)

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.clock import Clock, real_budget_s
+from drivers.clock import Clock, real_budget_s
 from drivers.scpi import (
     ABORT,
     CLS,

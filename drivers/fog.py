@@ -34,7 +34,7 @@ from typing import IO, Any
 import numpy as np
 import serial
 
-from bench.clock import Clock, real_budget_s
+from drivers.clock import Clock, real_budget_s
 from drivers.fog_formats import (
     AXES,
     FORMATS,
@@ -217,7 +217,7 @@ class Fog:
 
     `rate_hz` is the FOG's output rate (from the stand file), `units` what its
     rotational data mean, `axis` which of x, y, z is the table axis's sensitive axis.
-    Real-time waits are `timeout_s / min_speed(clock)` plus a margin (bench/clock.py).
+    Real-time waits are `timeout_s / min_speed(clock)` plus a margin (drivers/clock.py).
     """
 
     def __init__(self, port: str, *, baudrate: int = 921600, fmt: str = "kvh-a",
