@@ -18,7 +18,7 @@ from bench.analysis import CounterBudget, HalfRecord, analyze_pair
 from bench.analysis.disk import DiskArray
 from drivers.fog import CaptureCursor, read_capture
 from drivers.fog_formats import StreamDecoder, get_format
-from procedures.rate_ladder_analysis import window_on_disk
+from procedures.rate_ladder.analysis import window_on_disk
 from tests.test_analysis_sim import paper_axis, simulate_pair
 
 RATE_HZ = 1000.0

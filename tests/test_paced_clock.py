@@ -16,8 +16,8 @@ import pytest
 import yaml
 
 from bench.commands import EXIT_PASS, run_session
-from bench.config import load_config
 from bench.journal import RunDir
+from bench.loader import load_config
 from sims.clock import VirtualClock, parse_speed
 from tests.conftest import CONFIGS
 from tests.test_run_e2e import check_against_truth
