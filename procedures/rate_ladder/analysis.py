@@ -25,7 +25,6 @@ from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.config import Config
 from bench.conformity import judge
-from bench.engine import RunContext
 from bench.journal import RunDir, read_jsonl
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor
@@ -271,15 +270,19 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData) -> dict[str, Any]:
                            axes=result_axes)
 
 
-def pair_summary(ctx: RunContext, axis: str, unit: str, rate_dps: float) -> dict[str, Any]:
-    """A first look at the pair just measured, from the live data (the same analysis the
-    final result.json makes from the raw files)."""
-    live = ctx.state.setdefault("live", {})
-    raw = ctx.state.get("raw")
-    if raw is None:  # one reader for the session: its cursors move on from pair to pair
-        raw = ctx.state["raw"] = RawData(ctx.run, ctx.cfg, live=True)
-    pa = analyze_unit(raw, ctx.cfg, axis, rate_dps, live.get(unit, []),
-                      live.get(f"{axis}/static"))
+_WORKER_READERS: dict[str, RawData] = {}  # in the analysis worker: one per run directory
+
+
+def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
+                 acquisitions: list[dict[str, Any]], static: dict[str, Any] | None
+                 ) -> dict[str, Any]:
+    """A first look at the pair just measured (the same analysis the final result.json
+    makes), from the raw capture as it is being written; runs in the analysis worker
+    (bench.engine.AnalysisWorker), whose reader moves on from pair to pair."""
+    raw = _WORKER_READERS.get(run_path)
+    if raw is None:
+        raw = _WORKER_READERS[run_path] = RawData(RunDir(run_path), cfg, live=True)
+    pa = analyze_unit(raw, cfg, axis, rate_dps, acquisitions, static)
     out: dict[str, Any] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps}
     for r in pa.rates:
         sign = "+" if r.set_rate_dps > 0 else "-"

@@ -245,12 +245,25 @@ class RateLadder(StepDispatch):
                           f"mean {math.copysign(w, p['rate_dps']):+.7f} deg/s")
 
     def _do_analyze(self, step: Step, ctx: RunContext) -> None:
-        summary = pair_summary(ctx, step.axis, step.unit, step.params["rate_dps"])
-        ctx.run.event("pair", axis=step.axis, unit=step.unit, **summary)
-        ctx.progress.line(f"  {step.axis} +/-{step.params['rate_dps']:g} deg/s: "
-                          + ", ".join(f"{k} {v:.6g}" for k, v in summary.items()
-                                      if isinstance(v, float)))
-        ctx.state.get("live", {}).pop(step.unit, None)
+        """A first look at the pair, in the analysis worker: acquisition goes on meanwhile
+        (the result.json analysis is made again from the raw files at the end)."""
+        live = ctx.state.get("live", {})
+        axis, unit, rate = step.axis, step.unit, step.params["rate_dps"]
+
+        def done(summary: dict[str, Any] | None, error: BaseException | None) -> None:
+            if error is not None:
+                ctx.run.event("pair_failed", axis=axis, unit=unit, error=repr(error))
+                ctx.progress.line(f"  WARNING {axis} +/-{rate:g} deg/s: the first look at the "
+                                  f"pair failed ({error}); the final analysis will say more")
+                return
+            assert summary is not None
+            ctx.run.event("pair", axis=axis, unit=unit, **summary)
+            ctx.progress.line(f"  {axis} +/-{rate:g} deg/s: "
+                              + ", ".join(f"{k} {v:.6g}" for k, v in summary.items()
+                                          if isinstance(v, float)))
+
+        ctx.worker.submit(pair_summary, str(ctx.run.path), ctx.cfg, axis, rate,
+                          live.pop(unit, []), live.get(f"{axis}/static"), on_done=done)
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
         drive = ctx.bench.axes[step.axis].drive
