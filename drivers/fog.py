@@ -46,6 +46,8 @@ from drivers.fog_formats import (
     decode,
     get_format,
 )
+from drivers.kvh_config import MODES, FogSettings, KvhConfigError, KvhConfigurator
+from drivers.waits import MAX_LATE_REAL_S, MIN_REAL_MARGIN_S
 
 __all__ = ["FORMATS", "CaptureCursor", "DecodeState", "DecodeStats", "Fog", "FogError",
            "FogSamples", "FogStats", "FogTimeout", "Frames", "StreamDecoder", "decode", "dps_per_unit",
@@ -58,7 +60,6 @@ _READ_TIMEOUT_S = 0.05     # real seconds a read waits for the first byte
 _BATCH_BYTES = 1 << 16     # decode in batches of up to this many bytes
 _BATCH_GAP_S = 0.001       # real seconds a batch waits for the next piece of a fast stream
 _BATCH_REAL_S = 0.005      # ... and at most this long in all (a slow stream's latency)
-_WAIT_MARGIN_S = 0.25      # real seconds added to every scaled wait
 _STALL_FRAMES = 64         # a silence this many frame periods long is a stall,
 _STALL_REAL_S = 0.1        # ... and at least this many real seconds (OS, USB latency)
 _ALIAS_MIN_REAL_S = 0.02   # the wrap check needs half a wrap to last this long in real time
@@ -217,14 +218,29 @@ class Fog:
 
     `rate_hz` is the FOG's output rate (from the stand file), `units` what its
     rotational data mean, `axis` which of x, y, z is the table axis's sensitive axis.
-    Real-time waits are `timeout_s / min_speed(clock)` plus a margin (drivers/clock.py).
+    Real-time waits are `timeout_s / min_speed(clock)` plus a margin (drivers/clock.py,
+    drivers/waits.py).
     """
 
     def __init__(self, port: str, *, baudrate: int = 921600, fmt: str = "kvh-a",
-                 axis: str = "z", rate_hz: float, units: str = "deg/s",
+                 axis: str = "z", rate_hz: float, units: str | None,
                  raw_path: Path | str | None, clock: Clock, model: str | None = None,
                  serial_kwargs: dict[str, Any] | None = None,
-                 keep_samples: int | None = None) -> None:
+                 keep_samples: int | None = None,
+                 configure: str = "declare",
+                 wait_margin_s: float = MIN_REAL_MARGIN_S) -> None:
+        if units is None:
+            raise FogError(
+                f"FOG on {port}: the stand names no fog.units; a KVH FOG's rotational data "
+                "are delta radians after power-on (1775 IMU Technical Manual, Table 5-10), "
+                "so the bench will not guess: set fog.units and fog.configure (set, verify "
+                "or declare)")
+        if configure not in MODES:
+            raise FogError(f"FOG on {port}: fog.configure {configure!r}: one of "
+                           f"{', '.join(MODES)}")
+        self.configure = configure
+        #: what the FOG read back at connect (fog.configure set or verify)
+        self.readback: dict[str, str] = {}
         self.format: FrameFormat = get_format(fmt)
         if axis not in self.format.valid_bits:
             raise ValueError(f"FOG axis {axis!r} unknown for format {self.format.name!r} "
@@ -241,6 +257,8 @@ class Fog:
         self.clock = clock
         self.model = model
         self._serial_kwargs = dict(serial_kwargs or {})
+        #: real seconds a wait allows beyond its scaled time, and of silence before it fails
+        self.wait_margin_s = float(wait_margin_s)
         self._axis_col = AXES.index(axis)
         self._valid_mask = 1 << self.format.valid_bits[axis]
         self._ser: serial.Serial | None = None
@@ -269,6 +287,19 @@ class Fog:
                                       **self._serial_kwargs)
         except (serial.SerialException, OSError) as e:
             raise FogError(f"cannot open FOG port {self.port}: {e}") from e
+        if self.configure != "declare":
+            try:
+                self.readback = KvhConfigurator(_SerialLines(self._ser), port=self.port).apply(
+                    FogSettings(self.units, self.rate_hz,
+                                self.format.name.rsplit("-", 1)[-1].upper(), self.configure))
+                # what is left of the dialogue is not the record: the capture starts at
+                # the first binary byte after Configuration Mode ends
+                time.sleep(0.05)
+                self._ser.reset_input_buffer()
+            except (KvhConfigError, serial.SerialException, OSError) as e:
+                self._ser.close()
+                self._ser = None
+                raise FogError(str(e)) from e
         if self.raw_path is not None:
             try:
                 self.raw_path.parent.mkdir(parents=True, exist_ok=True)
@@ -311,8 +342,10 @@ class Fog:
     def identity(self) -> str:
         """FOGs answer no *IDN?: the identity is what the stand file says."""
         model = self.model or self.format.title
+        how = {"set": "set and read back", "verify": "read back",
+               "declare": "declared, not read back"}[self.configure]
         return f"{model}; format {self.format.name}; axis {self.axis}; {self.rate_hz:g} Hz; " \
-               f"{self.units}; {self.port} at {self.baudrate} Bd"
+               f"{self.units} ({how}); {self.port} at {self.baudrate} Bd"
 
     # -- reader -----------------------------------------------------------------------------
     def _read_loop(self) -> None:
@@ -427,14 +460,35 @@ class Fog:
             return self._store.end
 
     def wait_for_index(self, i: int, timeout_s: float) -> None:
-        """Block until sample i is known; timeout_s on the clock, scaled to real time."""
-        real_s = real_budget_s(self.clock, timeout_s) + _WAIT_MARGIN_S
+        """Block until sample i is known.
+
+        The limit is `timeout_s` on the clock scaled to real time plus a margin of at least
+        `wait_margin_s` (drivers/waits.py), and it is only reached once the stream has
+        also been silent for that margin: samples still arriving late mean a slow host
+        (or a twin behind its clock), which slows the run but must not abort it, up to
+        `MAX_LATE_REAL_S` beyond the limit (a stream that never catches up is a fault).
+        """
+        start = time.monotonic()
+        deadline = start + real_budget_s(self.clock, timeout_s) + self.wait_margin_s
+        last_end, last_progress = -1, start
+        ok = True
         with self._cond:
-            ok = self._cond.wait_for(
-                lambda: self._store.end > i or self._thread is None
-                or not self._thread.is_alive(), timeout=real_s)
-            if self._store.end > i:
-                return
+            while True:
+                done = self._cond.wait_for(
+                    lambda: self._store.end > i or self._thread is None
+                    or not self._thread.is_alive(),
+                    timeout=max(min(deadline - time.monotonic(), 0.5), 0.01))
+                if self._store.end > i:
+                    return
+                if done:        # the reader has stopped
+                    break
+                now = time.monotonic()
+                if self._store.end != last_end:
+                    last_end, last_progress = self._store.end, now
+                if now >= deadline and (now - last_progress >= self.wait_margin_s
+                                        or now >= deadline + MAX_LATE_REAL_S):
+                    ok = False
+                    break
         if self.last_error:
             raise FogError(self.last_error)
         if not ok:
@@ -488,6 +542,29 @@ class Fog:
             return "degraded"
         return "ok"
 
+
+
+class _SerialLines:
+    """A pyserial port as the line link drivers/kvh_config.py talks through."""
+
+    def __init__(self, ser: serial.Serial) -> None:
+        self.ser = ser
+
+    def write(self, data: bytes) -> None:
+        self.ser.write(data)
+        self.ser.flush()
+
+    def read(self, timeout_s: float) -> bytes:
+        deadline = time.monotonic() + timeout_s
+        line = bytearray()
+        while time.monotonic() < deadline:
+            b = self.ser.read(1)
+            if b in (b"\n", b"\r"):
+                if line:
+                    return bytes(line)
+                continue
+            line.extend(b)
+        return bytes(line)
 
 
 def read_capture(raw_path: Path | str, *, fmt: str = "kvh-a", axis: str = "z",

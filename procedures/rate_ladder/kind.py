@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from bench.config import Config, check_axis_names, stand_schema
+from bench.config import STEP_MAX_S, Config, check_axis_names, stand_schema
 from bench.engine import Abort, RunContext
 from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, open_axis
 from bench.journal import RunDir
@@ -57,9 +57,20 @@ class RateLadder(StepDispatch):
                 if not stand_axis.get(what):
                     out.append(sdoc.problem(("axes", axis), f"the rate ladder needs a {what} "
                                                             f"on axis {axis!r}"))
+            counter = stand_axis.get("counter")
+            if counter and "level_v" not in counter and not cfg.has_sim:
+                # the counter refuses to arm without it; say so before anything moves
+                out.append(sdoc.problem(("axes", axis, "counter"), "missing level_v: a real "
+                                        "stand needs an absolute trigger level in volts (a "
+                                        "once-per-rev pulse is too slow for auto-level)"))
             fog_range = (fog or {}).get("range_dps", DEFAULT_FOG_RANGE_DPS)
+            turns = int(spec.get("turns", setting(cfg, "turns")))
             for i, rate in enumerate(spec["rates_dps"]):
                 where = ("axes", axis, "rates_dps", i)
+                if (turns + 1) * 360.0 / rate > STEP_MAX_S:
+                    out.append(pdoc.problem(where, f"{turns} turns at {rate:g} deg/s take "
+                               f"{format_duration(turns * 360.0 / rate)} of bench time per "
+                               f"direction (more than {format_duration(STEP_MAX_S)})"))
                 if rate > drive["max_rate_dps"]:
                     out.append(pdoc.problem(where, f"{rate:g} deg/s exceeds axis {axis!r}'s "
                                f"max_rate_dps {drive['max_rate_dps']:g} "
@@ -219,6 +230,7 @@ class RateLadder(StepDispatch):
             ctx.clock.sleep(min(left, max(period / 4, 0.25)))
             drive.check()
         edges = counter.fetch()
+        acq = counter.last_acquisition
         if len(edges) != n + 1:
             raise Abort(f"{step.axis}: the counter returned {len(edges)} edges, expected {n + 1}")
         # the FOG samples that bracket the timed turns (the analysis integrates exactly
@@ -230,6 +242,7 @@ class RateLadder(StepDispatch):
         lost = _fog_losses(fog) - lost0
         event = dict(axis=step.axis, unit=step.unit, half=p["half"],
                      set_rate_dps=p["rate_dps"], turns=n, edges_s=[float(e) for e in edges],
+                     counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
                      counter_records=[rec0, rec1], fog_from=i_from, fog_to=i_to,
                      rate_hz=fog.rate_hz, fog_lost=lost, fog_capture=mark)
         # the FOG samples stay in the raw capture: the pair's analysis reads them there
