@@ -8,11 +8,14 @@ disable) before anything else. A second Ctrl-C while stopping does not skip the 
 
 from __future__ import annotations
 
+import multiprocessing
 import signal
 import sys
 import threading
 import traceback
 from collections.abc import Callable
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import wait as futures_wait
 from dataclasses import dataclass, field
 from types import FrameType
 from typing import Any, Protocol
@@ -72,6 +75,47 @@ class SignalGuard:
             signal.signal(sig, signal.SIG_IGN if self.count else old)
 
 
+class AnalysisWorker:
+    """Heavy analysis in a process of its own, so it cannot starve acquisition.
+
+    The FOG's serial reader, the CAN heartbeat and the twins are threads of the bench
+    process: a pair's analysis there (seconds of numpy at 36 M samples) would hold the
+    interpreter while frames and heartbeats are due. In a worker process it runs on the
+    other core, and the run goes on acquiring the next pair meanwhile. `submit` never
+    blocks; `on_done(result, error)` runs in a thread of this process when it is done.
+    The worker is started ("spawn": never a fork of a process with CAN threads) at the
+    first submit and kept for the session, so it keeps its state between jobs.
+    """
+
+    def __init__(self) -> None:
+        self._pool: ProcessPoolExecutor | None = None
+        self._pending: list[Future[Any]] = []
+
+    def submit(self, fn: Callable[..., Any], *args: Any,
+               on_done: Callable[[Any, BaseException | None], None]) -> None:
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(max_workers=1,
+                                             mp_context=multiprocessing.get_context("spawn"))
+        fut = self._pool.submit(fn, *args)
+
+        def done(f: Future[Any]) -> None:
+            if f.cancelled():
+                return
+            err = f.exception()
+            on_done(None if err else f.result(), err)
+        fut.add_done_callback(done)
+        self._pending.append(fut)
+
+    def close(self, wait: bool = True) -> None:
+        """Let submitted jobs finish (wait=True) or drop those not started, then stop."""
+        if self._pool is not None:
+            if wait:
+                futures_wait(self._pending)
+            self._pool.shutdown(wait=True, cancel_futures=not wait)
+            self._pool = None
+        self._pending.clear()
+
+
 @dataclass
 class RunContext:
     """What a procedure kind's step needs: config, clock, instruments, journal, console."""
@@ -84,6 +128,7 @@ class RunContext:
     yes: bool = False
     state: dict[str, Any] = field(default_factory=dict)
     eta_s: Callable[[], float] = lambda: 0.0
+    worker: AnalysisWorker = field(default_factory=AnalysisWorker)
 
     def prompt(self, text: str) -> None:
         """An operator prompt: a person answers it on a terminal, or --yes answers it for
@@ -137,6 +182,7 @@ class Engine:
                 ctx.run.event("step_done", index=i, action=step.action, unit=step.unit)
                 if step.unit and last_of_unit[step.unit] == i:
                     ctx.run.event("unit_done", unit=step.unit)
+            ctx.worker.close(wait=True)  # the last pair's first look, before "completed"
             ctx.progress.end()
         except BaseException as exc:  # noqa: BLE001 - every failure must stop the table
             guard.stopping = True
@@ -146,6 +192,7 @@ class Engine:
             ctx.run.event("abort", reason=reason, error=type(exc).__name__,
                           traceback=traceback.format_exc(limit=8))
             self.safe_stop()
+            ctx.worker.close(wait=False)
             if isinstance(exc, Abort):
                 raise
             raise Abort(reason) from exc
