@@ -161,6 +161,8 @@ def test_the_invalid_public_example_is_refused_and_the_valid_ones_pass() -> None
     assert any("degreeCelsius" in line for line in bad.unit_errors)   # not D-SI: degreecelsius
     for good in ("minimal-rate-table-3.3.0.xml", "dcclib-valid-3.3.0.xml"):
         assert validate_dcc(EXAMPLES / good).valid, good
+    done = _cli("verify", str(EXAMPLES / "lutaml-sample-INVALID-3.3.0.xml"), "--no-result")
+    assert done.returncode == 1 and "FAIL  schema: 11 problem(s)" in done.stdout
 
 
 def test_unit_strings_are_checked_beyond_the_schema() -> None:
