@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 from bench.plan import format_duration
 
+MIN_TIMED_FRACTION = 0.01
+
 
 def format_eta(seconds: float | None) -> str:
     """A time left as a person reads it: minutes and seconds, tenths below ten seconds.
@@ -125,7 +127,10 @@ class Timeline:
         bench_left = current_left + later
         done = 1.0 - bench_left / self.total_s if self.total_s > 0 else i / max(n, 1)
         wall_left: float | None = None
-        fit = fit_step_cost(self._timed, self._walls) if any(self._timed) else None
+        # a line fitted to a few short steps says little about hours of turning: wait for
+        # steps that together make at least MIN_TIMED_FRACTION of the plan's bench time
+        timed_enough = sum(self._timed) >= MIN_TIMED_FRACTION * self.total_s and any(self._timed)
+        fit = fit_step_cost(self._timed, self._walls) if timed_enough else None
         if fit is not None:
             a, b = fit
             in_step_wall = self._wall_now() - self._step_wall0
