@@ -777,11 +777,14 @@ class Axis:
         with self._lock:
             return self._target_dps
 
-    def wait_settled(self, tolerance_dps: float, hold_s: float, timeout_s: float) -> float:
+    def wait_settled(self, tolerance_dps: float, hold_s: float, timeout_s: float,
+                     on_hold: Callable[[float], None] | None = None) -> float:
         """Wait until every velocity reading for `hold_s` (clock s) is within tolerance.
 
         Returns the mean velocity actual over that hold. Raises `AxisTimeout` when it does
-        not settle within `timeout_s` (clock s), `DriveFault` on a drive fault.
+        not settle within `timeout_s` (clock s), `DriveFault` on a drive fault. `on_hold`
+        hears how long the readings have stayed within tolerance so far (clock s), for an
+        operator watching the settle.
         """
         if not tolerance_dps > 0 or hold_s < 0 or not timeout_s > 0:
             raise ValueError(f"axis {self.name}: wait_settled needs tolerance_dps > 0, "
@@ -807,6 +810,8 @@ class Axis:
                     run.append(f)
                 else:
                     run.clear()
+            if on_hold is not None and new:
+                on_hold(run[-1].t_s - run[0].t_s if len(run) >= 2 else 0.0)
             if len(run) >= 2 and run[-1].t_s - run[0].t_s >= hold_s:
                 mean = math.fsum(f.velocity_dps for f in run) / len(run)
                 self._journal("settled", target_dps=target, mean_dps=mean, samples=len(run),

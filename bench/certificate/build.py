@@ -23,6 +23,7 @@ import bench
 from bench.analysis.random_part import std_u_rel
 from bench.certificate import methods, plots
 from bench.certificate.model import Document, Fields, Figure, Para, Section, Signatures, Table
+from bench.certificate.operator import prompt_blocks, software_note
 from bench.certificate.rounding import (
     MINUS,
     PERCENT,
@@ -336,8 +337,7 @@ def _identification(src: Sources, cid: str, issue: str, kind: str,
     rows += [(_label(k), _text(v)) for k, v in cert.items() if k not in skip]
     blocks: list[Any] = [Fields(tuple(rows))]
     run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else NOT_RECORDED)
-    blocks.append(Para(f"Software: ratebench {bench.__version__}. Run directory: {run_dir}.",
-                       "note"))
+    blocks.append(software_note(src.meta, src.events, bench.__version__, str(run_dir)))
     return tuple(blocks)
 
 
@@ -468,8 +468,10 @@ def _deviations(src: Sources, kind: str) -> tuple[Any, ...]:
 def _conditions(src: Sources) -> tuple[Any, ...]:
     cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
     if not cond:
-        return (Para("No conditions were recorded in the procedure file."),)
-    return (Fields(tuple((_label(k), _text(v)) for k, v in cond.items())),)
+        return (Para("No conditions were recorded in the procedure file."),
+                *prompt_blocks(src.events))
+    return (Fields(tuple((_label(k), _text(v)) for k, v in cond.items())),
+            *prompt_blocks(src.events))
 
 
 # -- rate ladder results -------------------------------------------------------------------

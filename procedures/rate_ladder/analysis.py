@@ -312,8 +312,10 @@ def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
     if raw is None:
         raw = _WORKER_READERS[run_path] = RawData(RunDir(run_path), cfg, live=True)
     pa = analyze_unit(raw, cfg, axis, rate_dps, acquisitions, static)
-    out: dict[str, Any] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps}
+    out: dict[str, Any] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps,
+                           "w0_u_dps": pa.pair.w0_u_dps}
     for r in pa.rates:
         sign = "+" if r.set_rate_dps > 0 else "-"
         out[f"rate_error_rel{sign}"] = r.rate_error_rel
+        out[f"rate_error_u_rel{sign}"] = r.rate_error_u_rel
     return out

@@ -18,6 +18,7 @@ from bench.engine import Abort, RunContext
 from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, open_axis
 from bench.journal import RunDir
 from bench.plan import Plan, Step, format_duration
+from bench.progress import RELATIVE, Figure
 from bench.schema import Map
 from bench.simbench import SimBench
 from bench.yamlfile import Problem
@@ -192,12 +193,17 @@ class RateLadder(StepDispatch):
         event = dict(axis=step.axis, unit=step.unit, fog_from=i0, fog_to=i0 + n,
                      rate_hz=fog.rate_hz, lost=_fog_losses(fog) - lost0, fog_capture=mark)
         ctx.run.event("static", **event)  # the samples stay in the raw capture
+        mean = _fog_mean_dps(fog)
+        if mean is not None:
+            ctx.progress.reading("FOG mean", f"{step.axis} at rest",
+                                 Figure("", mean, unit="°/s", signed=True))
 
     def _wait_fog(self, ctx: RunContext, fog: Any, index: int, span_s: float, label: str) -> None:
         t_end = ctx.clock.now() + span_s
         while True:
             left = t_end - ctx.clock.now()
-            ctx.progress.detail(f"  {label}: {max(left, 0):.0f} s left")
+            ctx.progress.advance(min(span_s - left, span_s), span_s,
+                                 f"{label}: {span_s - max(left, 0):.0f} of {span_s:g} s")
             if left <= 0:
                 break
             ctx.clock.sleep(min(left, max(span_s / 20, 0.5)))
@@ -212,7 +218,12 @@ class RateLadder(StepDispatch):
     def _do_settle(self, step: Step, ctx: RunContext) -> None:
         drive = ctx.bench.axes[step.axis].drive
         p = step.params
-        rate = drive.wait_settled(p["tolerance_dps"], p["hold_s"], p["timeout_s"])
+        def held(held_s: float) -> None:
+            ctx.progress.advance(held_s, p["hold_s"], f"within ±{p['tolerance_dps']:g} deg/s "
+                                 f"for {min(held_s, p['hold_s']):.1f} of {p['hold_s']:g} s")
+
+        rate = drive.wait_settled(p["tolerance_dps"], p["hold_s"], p["timeout_s"],
+                                  on_hold=held)
         ctx.run.event("settled", axis=step.axis, unit=step.unit, rate_dps=rate)
 
     def _do_acquire(self, step: Step, ctx: RunContext) -> None:
@@ -228,9 +239,9 @@ class RateLadder(StepDispatch):
         t_arm = ctx.clock.now()
         t_end = t_arm + (n + 1) * period
         while (left := t_end - ctx.clock.now()) > 0:
-            turn = min(n, int((ctx.clock.now() - t_arm) / period))
-            ctx.progress.detail(f"  {step.axis} {p['rate_dps']:+g} deg/s: turn {turn}/{n}, "
-                                f"{format_duration(left)} of this half left")
+            turn = min(n, max(int((ctx.clock.now() - t_arm) / period) - 1, 0))
+            ctx.progress.advance(turn, n, f"{turn} of {n} turns timed at "
+                                 f"{p['rate_dps']:+g} deg/s, {format_duration(left)} left")
             ctx.clock.sleep(min(left, max(period / 4, 0.25)))
             drive.check()
         edges = counter.fetch()
@@ -253,12 +264,30 @@ class RateLadder(StepDispatch):
         # this event completes the half (a --resume keeps it, docs/resume.md)
         ctx.run.event("acquire", **event)
         if lost:
-            ctx.progress.line(f"  WARNING {step.axis}: {lost} FOG frames lost or broken "
+            ctx.progress.warn(f"  WARNING {step.axis}: {lost} FOG frames lost or broken "
                               "during this half (CRC or sequence gaps); the analysis uses "
                               "the rest")
-        w = 360.0 * n / (edges[-1] - edges[0])
-        ctx.progress.line(f"  {step.axis} {p['rate_dps']:+g} deg/s: {n} turns timed, "
-                          f"mean {math.copysign(w, p['rate_dps']):+.7f} deg/s")
+        self._show_half(ctx, step.axis, p["rate_dps"], edges, _fog_mean_dps(fog))
+
+    @staticmethod
+    def _show_half(ctx: RunContext, axis: str, set_dps: float, edges: Any,
+                   fog_mean_dps: float | None) -> None:
+        """The half just timed: its per-turn rate deviations ω_i/ω_set − 1 (METHOD.md A1)
+        to 3 significant digits, as the certificate's annex prints them; the FOG mean."""
+        dev = [360.0 / (b - a) / abs(set_dps) - 1.0
+               for a, b in zip(edges[:-1], edges[1:], strict=True)]
+        mean = 360.0 * (len(edges) - 1) / (edges[-1] - edges[0]) / abs(set_dps) - 1.0
+        label = f"{axis} {set_dps:+g} deg/s"
+        ctx.progress.reading("per-turn rate deviation", f"{label}, turn {len(dev)}",
+                             Figure("", dev[-1], unit=RELATIVE, signed=True, digits=3))
+        if fog_mean_dps is not None:
+            ctx.progress.reading("FOG mean", f"end of the {label} half",
+                                 Figure("", fog_mean_dps, unit="°/s", signed=True, digits=6))
+        ctx.progress.result(f"{label}, {len(dev)} turns timed",
+                            Figure("mean rate deviation", mean, unit=RELATIVE, signed=True,
+                                   digits=3),
+                            *[Figure(f"turn {i + 1}", d, unit=RELATIVE, signed=True, digits=3)
+                              for i, d in enumerate(dev)])
 
     def _do_analyze(self, step: Step, ctx: RunContext) -> None:
         """A first look at the pair, in the analysis worker: acquisition goes on meanwhile
@@ -269,14 +298,12 @@ class RateLadder(StepDispatch):
         def done(summary: dict[str, Any] | None, error: BaseException | None) -> None:
             if error is not None:
                 ctx.run.event("pair_failed", axis=axis, unit=unit, error=repr(error))
-                ctx.progress.line(f"  WARNING {axis} +/-{rate:g} deg/s: the first look at the "
+                ctx.progress.warn(f"  WARNING {axis} +/-{rate:g} deg/s: the first look at the "
                                   f"pair failed ({error}); the final analysis will say more")
                 return
             assert summary is not None
             ctx.run.event("pair", axis=axis, unit=unit, **summary)
-            ctx.progress.line(f"  {axis} +/-{rate:g} deg/s: "
-                              + ", ".join(f"{k} {v:.6g}" for k, v in summary.items()
-                                          if isinstance(v, float)))
+            ctx.progress.result(f"{axis} ±{rate:g} deg/s", *pair_figures(summary))
 
         ctx.worker.submit(pair_summary, str(ctx.run.path), ctx.cfg, axis, rate,
                           unit_halves(events, unit, ctx.run.session),
@@ -333,3 +360,25 @@ class RateLadder(StepDispatch):
 
 
 KIND = RateLadder()
+
+
+def _fog_mean_dps(fog: Any, span_s: float = 1.0) -> float | None:
+    """The mean of the FOG's last `span_s` of valid samples (the live store keeps about a
+    minute); None when there are none."""
+    i_to = fog.end_index
+    try:
+        s = fog.samples(max(i_to - int(span_s * fog.rate_hz), 0), i_to)
+    except ValueError:        # discarded or not yet arrived: nothing to show
+        return None
+    return float(s.rate_dps[s.valid].mean()) if s.valid.any() else None
+
+
+def pair_figures(summary: dict[str, Any]) -> list[Figure]:
+    """A pair's first look (METHOD.md A3 k and ω0; eq. 1 δ per direction) with U (k = 2)."""
+    out = [Figure("k", summary.get("k"), summary.get("k_u")),
+           Figure("ω0", summary.get("w0_dps"), summary.get("w0_u_dps"), "°/s", signed=True)]
+    for sign, name in (("+", "δ(+)"), ("-", "δ(−)")):
+        if f"rate_error_rel{sign}" in summary:
+            out.append(Figure(name, summary[f"rate_error_rel{sign}"],
+                              summary.get(f"rate_error_u_rel{sign}"), RELATIVE, signed=True))
+    return out
