@@ -83,7 +83,7 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole
         progress.warn(f"the certificate could not be written: {e!r}; result.json is in "
                       f"{run.path}; once fixed, `bench analyze {run.path}` writes it")
         return result, None
-    if not write_run_dcc(run.path, result, cfg.stand, progress.line):  # the DCC
+    if not write_run_dcc(run.path, result, cfg.stand, progress.line, warn=progress.warn):
         return result, None
     return result, doc
 
