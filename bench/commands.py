@@ -8,6 +8,7 @@ operator (the axes were stopped, the data kept, `--resume` works).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 import traceback
@@ -15,10 +16,17 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from bench.clock import MonotonicClock
-from bench.config import Config, ConfigError, load_config
-from bench.engine import Abort, Engine, Progress, RunContext, SignalGuard
+from bench import __version__
+from bench import certificate as certificates
+from bench.certificate.model import Document
+from bench.config import Config, ConfigError
+from bench.console import PlainConsole, open_console
+from bench.dcc.command import write_run_dcc
+from bench.devices import list_devices
+from bench.engine import Abort, Engine, RunContext, SignalGuard
+from bench.examples import example_path
 from bench.journal import RunDir
+from bench.loader import load_config
 from bench.plan import format_duration
 from bench.records.hooks import (
     RecordsTarget,
@@ -28,6 +36,9 @@ from bench.records.hooks import (
     target,
     warn_if_overdue,
 )
+from bench.registry import procedure_kind
+from bench.summary import Summary, summarize
+from drivers.clock import MonotonicClock
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
@@ -55,8 +66,6 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
-    from procedures import procedure_kind
-
     cfg = _load(args.procedure)
     if cfg is None:
         return EXIT_INVALID
@@ -65,32 +74,37 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return EXIT_PASS
 
 
-def _write_outputs(run: RunDir, cfg: Config, progress: Progress,
-                   records: RecordsTarget | None = None) -> tuple[dict[str, Any], bool]:
-    """result.json, then the certificate (with the table's history when the records hold
-    one); returns the result and whether the certificate was written (a run that leaves
-    no certificate must not exit as if it had)."""
-    from bench.certificate import write_certificate
-    from procedures import procedure_kind
-
+def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
+                   records: RecordsTarget | None = None
+                   ) -> tuple[dict[str, Any], Document | None]:
+    """result.json, then the certificate (PDF, HTML, DCC); returns the result and the
+    certificate's document (None when it could not be written: a run that leaves no
+    certificate must not exit as if it had, nor one whose DCC does not validate)."""
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json("result.json", result)
-    history = history_sections(run.path, result, records, _err) if records else []
+    # the table's history from the records, when they hold any (never fails the run)
+    history = history_sections(run.path, result, records, progress.warn) if records else []
     try:
-        for path in write_certificate(run, result, extra_sections=history):
+        documents: list[Document] = []
+        for path in certificates.write_certificate(run, result, documents=documents,
+                                                   extra_sections=history):
             progress.line(f"wrote {path}")
+        doc = documents[-1]
     except Exception as e:  # noqa: BLE001 - result.json stands; say what is missing
         traceback.print_exc(file=sys.stderr)            # a bug to report: keep its trace
-        _err(f"the certificate could not be written: {e!r}; result.json is in {run.path}; "
-             f"once fixed, `bench analyze {run.path}` writes it")
-        return result, False
-    return result, True
+        progress.warn(f"the certificate could not be written: {e!r}; result.json is in "
+                      f"{run.path}; once fixed, `bench analyze {run.path}` writes it")
+        return result, None
+    if not write_run_dcc(run.path, result, cfg.stand, progress.line, warn=progress.warn):
+        return result, None
+    return result, doc
 
 
-def _summary(result: dict[str, Any]) -> list[str]:
-    from bench.summary import summary_lines
-
-    return summary_lines(result)
+def _summary(result: dict[str, Any], doc: Document | None) -> Summary:
+    """The certificate's figures; without a certificate, only the verdict."""
+    if doc is not None:
+        return summarize(doc)
+    return Summary((), (), "", str(result.get("verdict", "incomplete")).upper())
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -102,10 +116,20 @@ def cmd_run(args: argparse.Namespace) -> int:
             return EXIT_INVALID
         cfg = _load(str(run.procedure_file), run.stand_file)
     else:
-        if not args.procedure:
-            _err("bench run: give a PROCEDURE.yaml, or --resume RUN_DIR")
+        procedure = args.procedure
+        if getattr(args, "example", None):
+            if procedure:
+                _err("bench run: give a PROCEDURE.yaml or --example NAME, not both")
+                return EXIT_INVALID
+            try:
+                procedure = str(example_path(args.example))
+            except KeyError as e:
+                _err(f"bench run --example: {e.args[0]}")
+                return EXIT_INVALID
+        if not procedure:
+            _err("bench run: give a PROCEDURE.yaml, --example NAME, or --resume RUN_DIR")
             return EXIT_INVALID
-        cfg = _load(args.procedure)
+        cfg = _load(procedure)
         run = None
     if cfg is None:
         return EXIT_INVALID
@@ -113,8 +137,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path)
         mark_run(run.path, cfg.procedure, args.calibration_state, args.adjustment,
                  args.operator)
+    console = open_console(quiet=args.quiet, log_json=args.log_json)
     status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),
-                         records=args.records)
+                         progress=console, records=args.records)
     print(run.path)
     return status
 
@@ -123,24 +148,24 @@ SimHook = Callable[[Any], None]
 
 
 def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = False,
-                resume: bool = False, progress: Progress | None = None,
+                resume: bool = False, progress: PlainConsole | None = None,
                 on_sim_started: SimHook | None = None, records: str | None = None) -> int:
     """One session of a run (the first, or a --resume): returns the exit status.
 
     Whatever happens inside, the axes are stopped, the instruments closed, what was
-    measured is analysed, and the run directory is left ready for `--resume`. The run is
-    registered in the records (`records` URL, default records.sqlite in the runs folder)
-    at its end; a records database that cannot be reached only warns.
+    measured is analyzed, and the run directory is left ready for `--resume`. At its end
+    the run is registered in the records (`records` URL, default records.sqlite in the
+    runs folder); a records database that cannot be reached only warns.
     """
-    from procedures import procedure_kind
-
-    progress = progress or Progress()
-    where = target(run.path.parent, records, _err)
-    overdue = warn_if_overdue(cfg.stand, where, _err)
+    progress = progress or open_console()
+    where = target(run.path.parent, records, progress.warn)
+    overdue = warn_if_overdue(cfg.stand, where, progress.warn)
     kind = procedure_kind(cfg.kind)
     plan = kind.build_plan(cfg)
     done = run.completed_units()
     todo = plan.remaining(done)
+    if resume and hasattr(kind, "resume_plan"):  # finer than the unit (a rate ladder's halves)
+        todo = kind.resume_plan(todo, run)
     simbench = None
     stand = cfg.stand
     status = EXIT_ABORTED
@@ -155,7 +180,9 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                 clock = MonotonicClock()
             run.begin_session(clock.now)
             run.event("session_start", resume=resume, sim=simbench is not None,
-                      done_units=done, clock_speed=clock.speed, argv=sys.argv[1:])
+                      done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
+                      version=__version__, prompts="--yes" if yes else "operator",
+                      pid=os.getpid())
             if overdue:
                 run.event("records_overdue", text=overdue)
             bench = kind.open_bench(cfg, stand, clock, run)
@@ -176,10 +203,10 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             run.event("completed", wall_s=time.monotonic() - t0)
             status = EXIT_PASS
         except Abort as e:
-            _err(f"Aborted: {e}")
+            progress.warn(f"Aborted: {e}")
             status = EXIT_ABORTED
         except Exception as e:  # noqa: BLE001 - opening failed before the engine ran
-            _err(f"Aborted while setting up the bench: {e}")
+            progress.warn(f"Aborted while setting up the bench: {e}")
             if bench is not None:
                 bench.safe_stop(progress.line)
             if run.session:
@@ -187,25 +214,26 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             status = EXIT_ABORTED
         finally:
             guard.stopping = True
+            progress.close()
             if bench is not None:
                 bench.close()
             if simbench is not None:
                 simbench.stop()
-        certificate = False
+        doc: Document | None = None
         try:
-            result, certificate = _write_outputs(run, cfg, progress, where)
+            result, doc = _write_outputs(run, cfg, progress, where)
         except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
-            _err(f"analysis failed: {e!r}; the raw data is in {run.path}; "
-                 f"fix and run `bench analyze {run.path}`")
+            progress.warn(f"analysis failed: {e!r}; the raw data is in {run.path}; "
+                          f"fix and run `bench analyze {run.path}`")
             result = None
             status = EXIT_ABORTED  # no verdict without an analysis
         if result is not None:
-            print("\n".join(_summary(result)))
+            progress.summary(_summary(result, doc))
             if status == EXIT_PASS and result.get("verdict") == "fail":
                 status = EXIT_FAIL
             if status == EXIT_PASS and result.get("verdict") == "incomplete":
                 status = EXIT_ABORTED
-        if status in (EXIT_PASS, EXIT_FAIL) and not certificate:
+        if status in (EXIT_PASS, EXIT_FAIL) and doc is None:
             status = EXIT_ABORTED  # measured, but nothing to sign: not a completed run
         elif status == EXIT_ABORTED:
             print(f"The run was aborted; the axes were stopped. Continue with: "
@@ -214,7 +242,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             run.event("exit", status=status)
         run.close()
     if result is not None:
-        register_run(run.path, where, _err, result)
+        register_run(run.path, where, progress.warn, result)
     return status
 
 
@@ -227,19 +255,18 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     cfg = _load(str(run.procedure_file), run.stand_file)
     if cfg is None:
         return EXIT_INVALID
-    where = target(run.path.parent, args.records, _err)
-    result, certificate = _write_outputs(run, cfg, Progress(), where)
-    register_run(run.path, where, _err, result)
-    print("\n".join(_summary(result)))
+    console = open_console(quiet=args.quiet, log_json=args.log_json)
+    where = target(run.path.parent, args.records, console.warn)
+    result, doc = _write_outputs(run, cfg, console, where)
+    register_run(run.path, where, console.warn, result)
+    console.summary(_summary(result, doc))
     print(run.path / "result.json")
-    if not certificate:
+    if doc is None:
         return EXIT_ABORTED
     return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(result.get("verdict"), EXIT_ABORTED)
 
 
 def cmd_devices(args: argparse.Namespace) -> int:
-    from bench.devices import list_devices
-
     return list_devices(args.stand, sim=args.sim)
 
 

@@ -1,7 +1,7 @@
 """Procedure and stand files: load, validate, cross-check (CONTRACT §2).
 
-`load_config` returns a `Config` or raises `ConfigError` carrying every problem found,
-each naming file, line and key path. Nothing moves before this has passed.
+The schemas of the keys every procedure kind shares, and `Config`, what the loader
+(bench/loader.py) returns once both files have passed.
 """
 
 from __future__ import annotations
@@ -12,8 +12,18 @@ from pathlib import Path
 from typing import Any
 
 from bench.canbus import bus_problems
-from bench.schema import Any_, Bool, Check, Key, ListOf, Map, MapOf, Num, Str, validate
-from bench.yamlfile import Problem, YamlDoc, YamlError, load_yaml
+from bench.schema import Any_, Bool, Check, Key, ListOf, Map, MapOf, Num, OneOf, Str
+from bench.yamlfile import Problem, YamlDoc
+
+# -- what is physically plausible for a rate table (wider than any real bench) ----------
+#: a rate table's fastest axes turn some 10 000 deg/s; its slowest useful rate is around
+#: 0.001 deg/s (one turn in 100 h): anything outside is a typing slip, not a bench
+RATE_MIN_DPS, RATE_MAX_DPS = 1e-3, 20_000.0
+ACCEL_MAX_DPS2 = 100_000.0
+#: the counter's input range (a 10x probe on +/-5 V)
+LEVEL_MAX_V = 50.0
+#: one step of a plan longer than this (bench time) is refused: nobody runs it
+STEP_MAX_S = 7 * 86_400.0
 
 # -- stand file ---------------------------------------------------------------------
 
@@ -25,8 +35,9 @@ DRIVE = Map({
                               "this axis's controller node on the bus, whose heartbeat "
                               "the drive watches (default: highest id free on the bus)"),
     "bitrate": Key(Num(min=10_000, max=1_000_000, integer=True)),
-    "max_rate_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), True),
-    "max_accel_dps2": Key(Num(min=0, exclusive_min=True, unit="deg/s^2"), True),
+    "max_rate_dps": Key(Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"), True),
+    "max_accel_dps2": Key(Num(min=0, exclusive_min=True, max=ACCEL_MAX_DPS2,
+                              unit="deg/s^2"), True),
     "counts_per_rev": Key(Num(min=1, integer=True)),
     "heartbeat_ms": Key(Num(min=10, max=10_000, integer=True), False,
                         "controller heartbeat period; the drive watches it"),
@@ -35,27 +46,56 @@ DRIVE = Map({
     "settle_tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
     "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg")),
     "eds": Key(Str()),
+    "unit_factors": Key(Any_(), False,
+                        "'read' (the drive's factor group 0x608F/0x6091/0x60A9/0x60AA is "
+                        "read at connect) or {velocity: rpm|inc/s|0.001 inc/s|..., "
+                        "acceleration: rpm/s|inc/s2|...} written at connect and read back; "
+                        "a stand without a sim: block must state it"),
+    "pdo": Key(Str(("set", "verify")), False,
+               "TPDO transmission type / event timer: verify (default) or set at connect"),
 })
 COUNTER = Map({
     "resource": Key(Str(), True, "VISA resource string"),
     "model": Key(Str(), True, "counter profile"),
     "channel": Key(Num(min=1, max=4, integer=True)),
-    "level_v": Key(Num(unit="V")),
+    "level_v": Key(Num(min=-LEVEL_MAX_V, max=LEVEL_MAX_V, unit="V"), False,
+                   "absolute trigger level; required on a real stand (a twin defaults it)"),
     "slope": Key(Str(("POS", "NEG"))),
     "coupling": Key(Str(("DC", "AC"))),
     "impedance_ohm": Key(Num(min=0, exclusive_min=True)),
     "trigger_jitter_s": Key(Num(min=0, unit="s"), False, "slot sensor edge jitter, std"),
     "timebase_limit_rel": Key(Num(min=0), False, "timebase error limit (external reference)"),
-    "timeout_margin_s": Key(Num(min=0, exclusive_min=True, unit="s")),
+    "reference": Key(Str(("external", "internal")), False,
+                     "timebase: set at connect and read back (53230A SENS:ROSC:SOUR); a "
+                     "timebase_limit_rel below the model's needs 'external'"),
+    "timeout_margin_s": Key(Num(min=0, exclusive_min=True, max=3600, unit="s")),
+    "time_tie": Key(Map({
+        "source": Key(Str(("fog-sync", "host-clock")), True,
+                      "how the counter's start event is placed on the FOG's time axis: "
+                      "fog-sync (external trigger from the FOG's sync output) or host-clock"),
+        "sync_period_s": Key(Num(min=0, exclusive_min=True, unit="s"), False,
+                             "FOG time between sync pulses (pulse k at k * period)"),
+        "latency_s": Key(Num(min=0, unit="s"), False, "sync pulse to counter trigger, "
+                         "calibrated"),
+        "latency_u_s": Key(Num(min=0, unit="s"), False, "its standard uncertainty (with "
+                           "jitter)"),
+        "host_window_s": Key(Num(min=0, unit="s"), False, "how well the host knows the "
+                             "FOG's time axis"),
+    }), False, "drivers/time_tie.py; a stand without a sim: block must state it"),
 })
 FOG = Map({
     "port": Key(Str(), True, "serial port, e.g. /dev/ttyUSB0"),
-    "baudrate": Key(Num(min=1200, integer=True)),
+    "baudrate": Key(Num(min=1200, max=16_000_000, integer=True)),
     "format": Key(Str(), False, "frame format, e.g. kvh-a"),
     "axis": Key(Str(("x", "y", "z"))),
-    "rate_hz": Key(Num(min=0, exclusive_min=True, unit="Hz"), True),
-    "range_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
-    "units": Key(Str()),
+    "rate_hz": Key(Num(min=1, max=100_000, unit="Hz"), True),
+    "range_dps": Key(Num(min=0, exclusive_min=True, max=100_000, unit="deg/s")),
+    "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), True,
+                  "what the rotational fields carry; KVH's power-on default is delta "
+                  "radians, 'rad' (1775 IMU Technical Manual, Table 5-10)"),
+    "configure": Key(Str(("set", "verify", "declare")), False,
+                     "set: configure the FOG at connect and read back; verify: read back "
+                     "only; declare (default): trust fog.units"),
     "model": Key(Str()),
     "sign": Key(Num(min=-1, max=1, integer=True)),
 })
@@ -67,8 +107,11 @@ HARMONIC = Map({
     "amplitude_rel": Key(Num(min=0), True),
     "phase_deg": Key(Num()),
 })
-SIM_FOG = Map({k: Key(Num()) for k in ("scale", "bias_dps", "misalignment_deg",
-                                        "noise_dps", "bias_drift_dps_per_h")})
+SIM_FOG = Map({**{k: Key(Num()) for k in ("scale", "bias_dps", "misalignment_deg",
+                                           "noise_dps", "bias_drift_dps_per_h")},
+               "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), False,
+                            "what the twin carries before the bench configures it "
+                            "(default: delta radians, or the declared fog.units)")})
 SIM_AXIS = Map({
     "rate_bias_rel": Key(Num()),
     "harmonics": Key(ListOf(HARMONIC)),
@@ -77,12 +120,40 @@ SIM_AXIS = Map({
     "rate_noise_dps": Key(Num(min=0)),
     "turn_jitter_s": Key(Num(min=0)),
     "fog": Key(SIM_FOG),
+    "time_tie": Key(Map({"latency_s": Key(Num(min=0)), "jitter_s": Key(Num(min=0))}),
+                    False, "the FOG sync to counter trigger link: true latency and jitter"),
+    "drive": Key(Map({"velocity_unit": Key(Str()), "acceleration_unit": Key(Str()),
+                      "tpdo_event_timer_ms": Key(Num(min=0, integer=True))}), False,
+                 "the drive twin's factor group (e.g. rpm, rpm/s) and TPDO event timer"),
 })
 SIM_KEYS: dict[str, Key] = {
     "seed": Key(Num(min=0, integer=True)),
-    "clock_speed": Key(Num(min=0, exclusive_min=True), False, "virtual seconds per real one"),
+    "clock_speed": Key(OneOf(Num(min=0, exclusive_min=True), Str(("max",))), False,
+                       "virtual seconds per real one, or max: as fast as every twin keeps up"),
     "axes": Key(MapOf(SIM_AXIS)),
 }
+
+
+def _absolute_path(value: Any) -> str | None:
+    """A key or certificate is named by its path, never pasted in (the stand file is
+    copied into every run directory); relative paths would depend on the cwd."""
+    if isinstance(value, str) and "-----BEGIN" in value:
+        return "expected the path of a PEM file, not the key or certificate itself"
+    if isinstance(value, str) and not Path(os.path.expanduser(value)).is_absolute():
+        return f"expected an absolute path (or ~/...), got {value!r}"
+    return None
+
+
+ABSOLUTE_PATH = Check(Str(), _absolute_path)
+SIGNING = Map({    # the DCC's signing key (bench/dcc/settings.py, docs/dcc.md)
+    "key": Key(ABSOLUTE_PATH, True, "PEM private key (PKCS#8 or traditional), absolute path"),
+    "certificate": Key(ABSOLUTE_PATH, True, "PEM X.509 certificate of that key, chain after"),
+    "password_env": Key(Str(), False, "environment variable holding the key's password"),
+})
+STAND_DCC = Map({
+    "lab": Key(ABSOLUTE_PATH, False, "lab settings file (YAML), absolute path"),
+    "signing": Key(SIGNING),
+})
 IDENTITY = Map({"maker": Key(Str(), True), "model": Key(Str(), True),
                 "serial": Key(Str(), True), "location": Key(Str()),
                 "recertification_interval_days": Key(
@@ -99,6 +170,7 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
         "axes": Key(Check(MapOf(Map({**STAND_AXIS_KEYS, **(extra_axis or {})})),
                           bus_problems), True),
         "sim": Key(Map({**SIM_KEYS, **(extra_sim or {})})),
+        "dcc": Key(STAND_DCC, False, "DCC: lab settings file, signing key (paths only)"),
         **(extra_top or {}),
     })
 
@@ -152,46 +224,35 @@ class ConfigError(Exception):
         super().__init__("\n".join(str(p) for p in problems))
 
 
-def load_config(procedure_path: str | Path, stand_path: str | Path | None = None) -> Config:
-    """Load, validate and cross-check a procedure and its stand; ConfigError lists all."""
-    from procedures import procedure_kind, procedure_names
+def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
+    """What a real stand (no `sim:` block) must state because no driver can guess it.
 
-    problems: list[Problem] = []
-    try:
-        pdoc = load_yaml(procedure_path)
-    except YamlError as e:
-        raise ConfigError([e.problem]) from None
-    if not isinstance(pdoc.data, dict):
-        raise ConfigError([pdoc.problem((), "expected a mapping (procedure: ..., stand: ...)")])
-    name = pdoc.data.get("procedure")
-    if name not in procedure_names():
-        raise ConfigError([pdoc.problem(("procedure",), f"expected one of "
-                                        f"{', '.join(procedure_names())}, got {name!r}")])
-    kind = procedure_kind(name)
-    problems += validate(pdoc, kind.procedure_schema())
-    sdoc: YamlDoc | None = None
-    stand_ref = stand_path or pdoc.data.get("stand")
-    if isinstance(stand_ref, str | Path):
-        spath = Path(stand_ref)
-        if stand_path is None and not spath.is_absolute():
-            spath = Path(os.path.normpath(Path(procedure_path).parent / spath))
-        try:
-            sdoc = load_yaml(spath)
-        except YamlError as e:
-            if e.problem.key == "(file)":
-                problems.append(pdoc.problem(("stand",), f"stand file {spath}: "
-                                             f"{e.problem.message}"))
-            else:
-                problems.append(e.problem)
-        else:
-            problems += validate(sdoc, kind.stand_schema())
-    if problems or sdoc is None:
-        raise ConfigError(problems)
-    cfg = Config(Path(procedure_path), sdoc.path, pdoc.data, sdoc.data, pdoc, sdoc)
-    problems += kind.cross_check(cfg)
-    if problems:
-        raise ConfigError(problems)
-    return cfg
+    The FOG's units are required by the schema for every stand; here, the time tie: on
+    twins one clock ties the counter to the FOG, on hardware only a physical link does
+    (drivers/time_tie.py), so a real stand with a counter and a FOG must say how.
+    """
+    data = sdoc.data if isinstance(sdoc.data, dict) else {}
+    if "sim" in data:
+        return []
+    out = []
+    for name, axis in (data.get("axes") or {}).items():
+        if not isinstance(axis, dict):
+            continue
+        drive = axis.get("drive")
+        if isinstance(drive, dict) and "unit_factors" not in drive:
+            out.append(sdoc.problem(
+                ("axes", name, "drive"),
+                "a real stand must state drive.unit_factors: 'read' (the drive's factor "
+                "group is read at connect) or {velocity: ..., acceleration: ...} to set "
+                "(common drives default to rpm or inc/s; see drivers/cia402.py)"))
+        counter, fog = axis.get("counter"), axis.get("fog")
+        if isinstance(counter, dict) and fog and "time_tie" not in counter:
+            out.append(sdoc.problem(
+                ("axes", name, "counter"),
+                "a real stand must state counter.time_tie (how the counter's start event "
+                "is placed on the FOG's time axis: source fog-sync with sync_period_s, "
+                "latency_s and latency_u_s, or host-clock); see drivers/time_tie.py"))
+    return out
 
 
 def check_axis_names(cfg: Config, axes_key: str = "axes") -> list[Problem]:

@@ -14,10 +14,17 @@ from pathlib import Path
 from typing import Any
 
 from bench.canbus import controller_node_ids
-from bench.clock import Clock
 from bench.journal import JsonLines, RunDir
+from drivers.axis import Axis
+from drivers.clock import Clock
+from drivers.counter import Counter
+from drivers.fog import Fog
+from drivers.time_tie import TimeTie
 
 DEFAULT_FOG_RANGE_DPS = 490.0  # KVH DSP-1760's range; a stand file may say otherwise
+#: seconds of FOG samples the live driver keeps: the run's memory must not grow with its
+#: length; the analysis reads every sample from the raw capture (drivers.fog.CaptureCursor)
+LIVE_FOG_KEEP_S = 60.0
 
 
 @dataclass
@@ -81,6 +88,18 @@ class Bench:
                 j.close()
 
 
+def with_readback(identity: str, readback: dict[str, Any], manual: str | None = None) -> str:
+    """An instrument's identity with the settings it read back at connect (and the manual
+    its driver follows): one string, so the run's `identity` event, `bench devices` and
+    the certificate's instrument table all carry them."""
+    out = identity
+    if readback:
+        out += "; read back: " + ", ".join(f"{k} = {v}" for k, v in readback.items())
+    if manual:
+        out += f"; driver checked against: {manual}"
+    return out
+
+
 def raw_text_logger(log: JsonLines, clock: Clock) -> Callable[[str, bytes], None]:
     """A raw-exchange sink for SCPI drivers: every byte, as text, with the bench time."""
     def raw(direction: str, data: bytes) -> None:
@@ -102,15 +121,14 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
     `stand_axes` is the stand's whole `axes:` mapping: the axes sharing a CAN bus decide
     together which controller node id each one uses (bench/canbus.py).
     """
-    from drivers.axis import Axis
-
     axis_cfg = stand_axes[name]
     d = axis_cfg["drive"]
     drive_log = bench.log(run.raw_path(f"{name}-drive.jsonl")) if run else None
     drive = Axis(name, interface=d["interface"], channel=d["channel"], node_id=d["node_id"],
                  max_rate_dps=d["max_rate_dps"], max_accel_dps2=d["max_accel_dps2"],
                  clock=clock, controller_node_id=controller_node_ids(stand_axes)[name],
-                 **{k: d[k] for k in ("counts_per_rev", "heartbeat_ms", "watchdog_ms", "bitrate")
+                 **{k: d[k] for k in ("counts_per_rev", "heartbeat_ms", "watchdog_ms", "bitrate",
+                                      "unit_factors", "pdo")
                     if k in d},
                  **({"eds_path": d["eds"]} if "eds" in d else {}),
                  raw=_raw_record_logger(drive_log, clock) if drive_log else None)
@@ -119,14 +137,13 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
     if drive_log:
         ax.logs["drive"] = drive_log
     bench.axes[name] = ax
-    ax.identities["drive"] = drive.identity()
+    ax.identities["drive"] = with_readback(drive.identity(), drive.readback)
     c = axis_cfg.get("counter")
     if counter and c:
-        from drivers.counter import Counter
-
         clog = bench.log(run.raw_path(f"{name}-counter.jsonl")) if run else None
         cnt = Counter.open(c["resource"], c["model"], clock,
                            raw=raw_text_logger(clog, clock) if clog else None,
+                           time_tie=TimeTie.from_stand(c.get("time_tie")),
                            **({"timeout_margin_s": c["timeout_margin_s"]}
                               if "timeout_margin_s" in c else {}))
         bench.enter(cnt)
@@ -134,18 +151,22 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
             ax.logs["counter"] = clog
         cnt.configure(**{k: c[k] for k in ("channel", "level_v", "slope", "coupling",
                                            "impedance_ohm") if k in c})
+        cnt.verify_reference(c.get("reference"), c.get("timebase_limit_rel"))
         ax.counter = cnt
-        ax.identities["counter"] = cnt.identify()
+        manual = cnt.profile.manual
+        ax.identities["counter"] = with_readback(
+            cnt.identify(), {**cnt.readback, "time tie": cnt.time_tie.source},
+            "UNVERIFIED (no manual found)" if manual.startswith("unverified")
+            else manual.split(":")[0])
     f = axis_cfg.get("fog")
     if fog and f:
-        from drivers.fog import Fog
-
         fg = Fog(f["port"], baudrate=f.get("baudrate", 921600), fmt=f.get("format", "kvh-a"),
                  axis=f.get("axis", "z"), rate_hz=f["rate_hz"],
-                 units=f.get("units", "deg/s"),
+                 units=f.get("units"), configure=f.get("configure", "declare"),
                  raw_path=run.raw_path(f"{name}-fog.bin") if run else None, clock=clock,
-                 model=f.get("model"))
+                 model=f.get("model"),
+                 keep_samples=int(LIVE_FOG_KEEP_S * f["rate_hz"]) if run else None)
         bench.enter(fg)
         ax.fog = fg
-        ax.identities["fog"] = fg.identity()
+        ax.identities["fog"] = with_readback(fg.identity(), fg.readback)
     return ax

@@ -31,6 +31,14 @@ def _type_name(value: Any) -> str:
             list: "a list", dict: "a mapping"}.get(type(value), type(value).__name__)
 
 
+def _finite(value: int | float) -> bool:
+    """Finite and usable as a float (an integer of 400 digits is not)."""
+    try:
+        return math.isfinite(value) and abs(float(value)) < 1e300
+    except OverflowError:
+        return False
+
+
 @dataclass(frozen=True)
 class Num(Node):
     """A real number (int or float) within optional bounds."""
@@ -54,7 +62,7 @@ class Num(Node):
 
     def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         ok_type = isinstance(value, int) if self.integer else isinstance(value, int | float)
-        if isinstance(value, bool) or not ok_type or not math.isfinite(value):
+        if isinstance(value, bool) or not ok_type or not _finite(value):
             out.append(doc.problem(path, f"expected {self.description}, got {_type_name(value)}"
                                          f" {value!r}"))
             return
@@ -95,6 +103,29 @@ class Any_(Node):
 
     def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         return
+
+
+@dataclass(frozen=True)
+class OneOf(Node):
+    """A value any one of several schemas accepts (e.g. a number, or the word max)."""
+
+    options: tuple[Node, ...]
+
+    def __init__(self, *options: Node) -> None:
+        object.__setattr__(self, "options", options)
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return " or ".join(o.description for o in self.options)
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        for o in self.options:
+            found: list[Problem] = []
+            o.check(value, path, doc, found)
+            if not found:
+                return
+        out.append(doc.problem(path, f"expected {self.description}, got "
+                                     f"{_type_name(value)} {value!r}"))
 
 
 @dataclass(frozen=True)

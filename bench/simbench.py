@@ -17,7 +17,12 @@ from collections.abc import Callable
 from typing import Any
 
 from bench.canbus import bus_name, controller_node_ids
-from sims.clock import VirtualClock
+from sims.clock import MAX, VirtualClock, parse_speed
+from sims.counter_twin import CounterTwin
+from sims.drive_twin import DriveTwin
+from sims.fog_twin import FogTwin
+from sims.gyro_rig import start_gyro_rig
+from sims.platform import GyroTruth, PlatformTruth
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
 
 #: truth used by `--sim` for an axis the stand file's `sim:` block does not describe
@@ -27,6 +32,35 @@ DEFAULT_AXIS_TRUTH: dict[str, Any] = {
 }
 
 TwinFactory = Callable[["SimBench"], None]
+
+
+def sync_link(counter_cfg: dict[str, Any], sim_axis: dict[str, Any]) -> Any:
+    """The FOG-sync-to-counter link the twins model for a `fog-sync` time tie: pulses
+    every `sync_period_s`, the sim truth's latency and jitter (default: exactly the
+    latency the stand declares). None when the stand ties otherwise (nothing wired)."""
+    from sims.counter_twin import SyncLink
+
+    tie = counter_cfg.get("time_tie") or {}
+    if tie.get("source") != "fog-sync":
+        return None
+    truth = sim_axis.get("time_tie") or {}
+    return SyncLink(period_s=float(tie.get("sync_period_s", 1.0)),
+                    latency_s=float(truth.get("latency_s", tie.get("latency_s", 0.0))),
+                    jitter_s=float(truth.get("jitter_s", 0.0)))
+
+
+def twin_fog_units(fog_cfg: dict[str, Any], sim_axis: dict[str, Any]) -> str:
+    """What the FOG twin carries before the bench talks to it: the sim truth's
+    `fog.units`, else a declared `fog.units` (a FOG configured earlier), else the KVH
+    power-on default, delta radians (drivers/kvh_config.py)."""
+    from drivers.kvh_config import POWER_ON_UNITS
+
+    truth = (sim_axis.get("fog") or {}).get("units")
+    if truth:
+        return str(truth)
+    if fog_cfg.get("configure", "declare") == "declare" and fog_cfg.get("units"):
+        return str(fog_cfg["units"])
+    return POWER_ON_UNITS
 
 
 class SimBench:
@@ -40,33 +74,34 @@ class SimBench:
         truth = StandTruth(
             seed=int(sim.get("seed", 0)),
             axes={a: AxisTruth.from_mapping(sim_axes.get(a, DEFAULT_AXIS_TRUTH)) for a in axes},
-            clock_speed=float(sim.get("clock_speed", 100.0)),
+            clock_speed=parse_speed(sim.get("clock_speed"), MAX),
         )
         self.clock = VirtualClock(truth.clock_speed, running=False)
         fog_hz = {a: float((self.stand_cfg["axes"][a].get("fog") or {}).get("rate_hz", 1000.0))
                   for a in axes}
         self.stand = SimulatedStand(truth, fog_hz, self.clock)
         self.axes = axes
+        self._sim_axes = sim_axes
         self.channel = f"sim-{uuid.uuid4().hex[:8]}"
         self.twins: dict[str, Any] = {}
         self._stack = contextlib.ExitStack()
 
     def start(self, extra: list[TwinFactory] | None = None) -> dict[str, Any]:
         """Start every twin; return the stand mapping pointing at them."""
-        from sims.counter_twin import CounterTwin
-        from sims.drive_twin import DriveTwin
-        from sims.fog_twin import FogTwin
-
         cfg = self.stand_cfg
+        sim = cfg.get("sim") or {}
+        sim_axes = self._sim_axes
         try:
             for a in self.axes:  # FOG twins first: they must see every sample from 0 on
                 f = cfg["axes"][a].get("fog")
                 if f:
                     ft = FogTwin(self.stand, a, fmt=f.get("format", "kvh-a"),
                                  axis_letter=f.get("axis", "z"),
-                                 units=f.get("units", "deg/s"))
+                                 units=twin_fog_units(f, sim_axes.get(a) or {}))
                     f["port"] = ft.start()
                     self._stack.callback(ft.stop)
+                    # the stand runs no faster than this FOG's frames go out (sims/clock.py)
+                    self._stack.callback(self.clock.pace(ft.delivered_s))
                     self.twins[f"{a}.fog"] = ft
             # one virtual bus per CAN bus of the stand file: the same axes share one, so
             # the node ids (and each axis's controller id) are those of the real bench
@@ -76,8 +111,13 @@ class SimBench:
                 ac = cfg["axes"][a]
                 d = ac["drive"]
                 channel = buses.setdefault(bus_name(d), f"{self.channel}-{len(buses)}")
+                drive_truth = (sim_axes.get(a) or {}).get("drive") or {}
                 twin = DriveTwin(self.stand, a, interface="virtual", channel=channel,
                                  node_id=d["node_id"], controller_node_id=controllers[a],
+                                 **{k: drive_truth[k] for k in ("velocity_unit",
+                                                                "acceleration_unit",
+                                                                "tpdo_event_timer_ms")
+                                    if k in drive_truth},
                                  **({"counts_per_rev": d["counts_per_rev"]}
                                     if "counts_per_rev" in d else {}))
                 self._stack.enter_context(twin)
@@ -85,8 +125,12 @@ class SimBench:
                 d["interface"], d["channel"] = "virtual", channel
                 if ac.get("counter"):
                     c = ac["counter"]
-                    ct = CounterTwin(self.stand, a, model=c["model"])
+                    ct = CounterTwin(self.stand, a, model=c["model"],
+                                     sync=sync_link(c, sim_axes.get(a) or {}),
+                                     seed=int(sim.get("seed", 0)))
                     c["resource"] = ct.start()
+                    # the twin knows its zero-mark signal: mid-swing is a sound level
+                    c.setdefault("level_v", sum(ct.signal_v) / 2)
                     self._stack.callback(ct.stop)
                     self.twins[f"{a}.counter"] = ct
             for factory in extra or []:
@@ -106,9 +150,40 @@ class SimBench:
 
     def stop(self) -> None:
         self._stack.close()
+        self.clock.pause()
 
     def __enter__(self) -> SimBench:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+#: the keys of a stand file's `sim.platform.gyros.<gyro>` truth (the gyro twin's fields)
+SIM_GYRO_KEYS: tuple[str, ...] = tuple(GyroTruth.__dataclass_fields__)
+
+
+def gyro_rig_factory(gyros: list[str]) -> TwinFactory:
+    """The twins of a gyro platform on the stand's turntable (the stand file's `platform:`
+    and `sim.platform` blocks): the platform, its waveform generator and one DMM per gyro
+    in `gyros`, each address rewritten to its twin's."""
+
+    def add_platform(sb: SimBench) -> None:
+        plat = sb.stand_cfg["platform"]
+        sim_cfg = sb.stand_cfg.get("sim") or {}
+        sp = sim_cfg["platform"]
+        truth = PlatformTruth.from_mapping(
+            {**sp, "gyros": {g: sp["gyros"][g] for g in gyros},
+             "table_axis": plat["table_axis"]},
+            seed=int(sim_cfg.get("seed", 0)))
+        rig = start_gyro_rig(sb.stand, truth,
+                             {g: plat["gyros"][g]["awg_channel"] for g in gyros},
+                             awg_model=plat["awg"]["model"],
+                             dmm_model=plat["gyros"][gyros[0]]["dmm"]["model"],
+                             awg_options=sim_cfg.get("awg"), dmm_options=sim_cfg.get("dmm"))
+        sb.add("gyro-rig", rig, rig.stop)
+        plat["awg"]["resource"] = rig.awg.resource
+        for g in gyros:
+            plat["gyros"][g]["dmm"]["resource"] = rig.dmms[g].resource
+
+    return add_platform

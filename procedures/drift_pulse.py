@@ -28,23 +28,23 @@ from typing import Any
 import numpy as np
 
 from bench.analysis import drift_pulse as dp
-from bench.clock import Clock
 from bench.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
 from bench.conformity import judge
 from bench.engine import Abort, RunContext
 from bench.instruments import Bench, open_axis, raw_text_logger
 from bench.journal import RunDir, read_jsonl
 from bench.plan import Plan, Step
+from bench.progress import Figure
 from bench.schema import Key, ListOf, Map, MapOf, Num, Str
-from bench.simbench import SimBench
+from bench.simbench import SIM_GYRO_KEYS, SimBench, gyro_rig_factory
 from bench.yamlfile import Problem
 from drivers.awg import PROFILES as AWG_PROFILES
 from drivers.awg import WaveformGenerator
+from drivers.clock import Clock
 from drivers.dmm import PROFILES as DMM_PROFILES
 from drivers.dmm import Digitizer
 from drivers.scpi import parse_numbers
 from procedures.base import StepDispatch, result_document
-from sims.platform import GyroTruth
 
 NAME = "drift-pulse"
 GYRO_NAMES = ("x", "y", "z")
@@ -114,7 +114,7 @@ PLATFORM = Map({
 SIM_PLATFORM = Map({
     "latitude_deg": Key(Num(min=-90, max=90), True),
     "azimuth_deg": Key(Num(), True, "the X input axis at turntable 0, from north"),
-    "gyros": Key(MapOf(Map({k: Key(Num()) for k in GyroTruth.__dataclass_fields__})), True),
+    "gyros": Key(MapOf(Map({k: Key(Num()) for k in SIM_GYRO_KEYS})), True),
 })
 SIM_AWG = Map({"output_latency_s": Key(Num(min=0)), "trigger_out_skew_s": Key(Num()),
                "trigger_out_width_s": Key(Num(min=0)), "load_ohm": Key(Num(min=1))})
@@ -368,31 +368,8 @@ class DriftPulse(StepDispatch):
 
     # -- bench ----------------------------------------------------------------------------
     def start_sim(self, cfg: Config) -> tuple[SimBench, dict[str, Any]]:
-        from sims.gyro_rig import start_gyro_rig
-        from sims.platform import PlatformTruth
-
-        table = self.table(cfg)
-        sim = SimBench(cfg.stand, [table])
-        sim_cfg = cfg.stand.get("sim") or {}
-        gyros = self.gyros(cfg)
-
-        def add_platform(sb: SimBench) -> None:
-            plat = sb.stand_cfg["platform"]
-            sp = sim_cfg["platform"]
-            truth = PlatformTruth.from_mapping(
-                {**sp, "gyros": {g: sp["gyros"][g] for g in gyros}, "table_axis": table},
-                seed=int(sim_cfg.get("seed", 0)))
-            rig = start_gyro_rig(sb.stand, truth,
-                                 {g: plat["gyros"][g]["awg_channel"] for g in gyros},
-                                 awg_model=plat["awg"]["model"],
-                                 dmm_model=plat["gyros"][gyros[0]]["dmm"]["model"],
-                                 awg_options=sim_cfg.get("awg"), dmm_options=sim_cfg.get("dmm"))
-            sb.add("gyro-rig", rig, rig.stop)
-            plat["awg"]["resource"] = rig.awg.resource
-            for g in gyros:
-                plat["gyros"][g]["dmm"]["resource"] = rig.dmms[g].resource
-
-        return sim, sim.start(extra=[add_platform])
+        sim = SimBench(cfg.stand, [self.table(cfg)])
+        return sim, sim.start(extra=[gyro_rig_factory(self.gyros(cfg))])
 
     def open_bench(self, cfg: Config, stand: dict[str, Any], clock: Clock,
                    run: RunDir | None) -> Bench:
@@ -473,6 +450,8 @@ class DriftPulse(StepDispatch):
         end = ctx.clock.now() + duration_s
         while (left := end - ctx.clock.now()) > 0:
             drive.check()
+            ctx.progress.advance(duration_s - left, duration_s,
+                                 f"{axis}: {duration_s - left:.1f} of {duration_s:g} s waited")
             ctx.clock.sleep(min(left, 1.0))
         drive.check()
 
@@ -512,10 +491,12 @@ class DriftPulse(StepDispatch):
                             f"sensor's current path from generator channel "
                             f"{spec['awg_channel']} and the angle sensor's wiring to its DMM")
             w, _ = dp.cycle_drift_dph(rec, shape, k_as, 0.0, a)
-            quick.append(f"{g} {w:+.4f}")
+            # 5 significant digits, as the certificate prints the drift of each cycle
+            quick.append(Figure(g, w, unit="°/h", signed=True, digits=5))
         kind = "timing cycle" if p["timing"] else "cycle"
-        ctx.progress.line(f"  {kind} {p['index']} at {p['position_deg']:g} deg: drift "
-                          f"{', '.join(quick)} deg/h (nominal edges)")
+        where = f"{kind} {p['index']} at {p['position_deg']:g}°"
+        ctx.progress.reading("drift", where, *quick)
+        ctx.progress.result(f"{where}, drift at nominal edges", *quick)
         self._wait(ctx, step.axis, float(setting(cfg, "gap_s")))
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
@@ -582,7 +563,7 @@ def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, 
     drift: dict[str, Any]
     checks: list[dict[str, Any]] = []
     try:
-        result = dp.analyse(records, shape, {g: plat[g]["k_as_v_per_deg"] for g in gyros},
+        result = dp.analyze(records, shape, {g: plat[g]["k_as_v_per_deg"] for g in gyros},
                             cfg.procedure["site"]["latitude_deg"], stated)
         drift = result.to_dict()["drift"]
         checks = _checks(cfg, result, rule)

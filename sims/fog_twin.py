@@ -7,6 +7,15 @@ The twin listens to the stand's axis from sample 0 and writes stand sample n as 
 itself: writes block while the reader is behind, and the frames go out late, not never.
 Faults are injected on purpose, by stand sample, and recorded in the twin's truth.
 
+Configuration (drivers/kvh_config.py, 1775 IMU ICD sections 3.3, 7 and 8): the twin
+answers `=CONFIG,1|0`, `=OUTPUTFMT,`, `=ROTFMT,`, `=ROTUNITS,`, `=DR,` and their `?`
+queries as the ICD's conventions say (a command echoes without '=', a query answers
+`NAME,value`, an unknown word in Configuration Mode `INVALID,...`; in Normal Mode input
+is ignored). Its rotational fields start at the KVH power-on default, delta radians
+(Table 5-10), unless built with `units` (a FOG configured earlier, kept in its
+non-volatile memory). The frames' rate stays the stand's: `=DR` is stored and read
+back, but the twin cannot change how often the stand samples.
+
 Two details of real ports matter here. pyserial flushes the input queue when it opens
 the port, so the twin writes nothing until a reader has the slave open and the stand
 clock runs (the engine starts the clock after opening every instrument). And the
@@ -17,6 +26,7 @@ master as the absence of POLLHUP.
 from __future__ import annotations
 
 import errno
+import math
 import os
 import select
 import threading
@@ -29,6 +39,7 @@ import numpy as np
 
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, get_format
+from drivers.kvh_config import DATA_RATES_HZ, POWER_ON_UNITS, UNIT_WORDS, WORDS, units_of
 from sims.stand import AxisChunk, SimulatedStand
 
 _TICK_S = 0.002            # real seconds between looks at the clock when idle
@@ -106,7 +117,7 @@ class FogTwin:
     """Frames of one stand axis's FOG on a pty. Create it before the stand clock starts."""
 
     def __init__(self, stand: SimulatedStand, axis: str, *, fmt: str = "kvh-a",
-                 axis_letter: str = "z", units: str = "deg/s", temperature: int = 25,
+                 axis_letter: str = "z", units: str = POWER_ON_UNITS, temperature: int = 25,
                  keep_truth: bool = False) -> None:
         self.format = get_format(fmt)
         if axis_letter not in AXES:
@@ -118,10 +129,18 @@ class FogTwin:
         self.units = units
         self._col = AXES.index(axis_letter)
         self._dps_per_unit = dps_per_unit(units, self.rate_hz)
+        self.config_mode = False
+        self.data_rate_hz = int(round(self.rate_hz))
+        self.frame_letter = self.format.name.rsplit("-", 1)[-1].upper()
+        self._inbuf = bytearray()
+        self.commands: list[str] = []  # every line received (tests)
         self.temperature = int(temperature)
         self.keep_truth = keep_truth
         self._faults: list[Fault] = []
-        self._queue: deque[bytes | _Hold] = deque()
+        self._queue: deque[tuple[bytes, int] | _Hold] = deque()
+        self._sent_n = 0          # frames up to this stand sample are out on the port
+        self._reading = False     # a reader has the port open
+        self._slow: tuple[float, float, int] | None = None  # (frames/real s, since, sent)
         self._qlock = threading.Lock()
         self._next_sample = 0
         self._truth: list[tuple[np.ndarray, ...]] = []
@@ -160,7 +179,7 @@ class FogTwin:
         rows = self.format.encode(idx, rates, temperature=self.temperature).copy()
         keep = np.ones(n, dtype=bool)
         intact = np.ones(n, dtype=bool)
-        cuts: dict[int, list[bytes | _Hold]] = {}
+        cuts: dict[int, list[_Hold | tuple[bytes, int]]] = {}
         for f in self._faults:
             if isinstance(f, Corrupt | Drop):
                 lo, hi = max(f.sample, n0), min(f.sample + f.count, n0 + n)
@@ -177,20 +196,20 @@ class FogTwin:
                     keep[lo - n0:hi - n0] = False
             elif n0 <= f.sample < n0 + n:
                 if isinstance(f, Garbage):
-                    cuts.setdefault(f.sample, []).append(self._garbage(f))
+                    cuts.setdefault(f.sample, []).append((self._garbage(f), f.sample))
                 elif isinstance(f, Stall):
                     cuts.setdefault(f.sample, []).append(
                         _Hold(f.sample / self.rate_hz + f.duration_s))
-        items: list[bytes | _Hold] = []
+        items: list[tuple[bytes, int] | _Hold] = []
         at = n0
         for s in sorted(cuts) + [n0 + n]:
             seg = slice(at - n0, s - n0)
             if s > at:
-                items.append(rows[seg][keep[seg]].tobytes())
+                items.append((rows[seg][keep[seg]].tobytes(), s))
             items.extend(cuts.get(s, []))
             at = s
         with self._qlock:
-            self._queue.extend(i for i in items if not isinstance(i, bytes) or i)
+            self._queue.extend(items)
         self._next_sample = n0 + n
         self.frames_encoded += int(keep.sum())
         if self.keep_truth:
@@ -209,6 +228,23 @@ class FogTwin:
             noise[tail:tail + len(h)] = h[:f.nbytes - tail]
         return noise.tobytes()
 
+    def slow_down(self, frames_per_real_s: float | None) -> None:
+        """From now on send at most this many frames a real second (None: no limit).
+
+        A twin slowed on purpose stands for a loaded machine or a slow link: the paced
+        clock must follow it (sims/clock.py), never leave the FOG's reader waiting.
+        """
+        if frames_per_real_s is not None and not frames_per_real_s > 0:
+            raise ValueError(f"frames_per_real_s must be > 0, got {frames_per_real_s}")
+        self._slow = (None if frames_per_real_s is None
+                      else (float(frames_per_real_s), time.monotonic(), self._sent_n))
+
+    def _throttle(self) -> None:
+        slow = self._slow
+        if slow is not None:
+            rate, since, sent0 = slow
+            time.sleep(max(since + (self._sent_n - sent0) / rate - time.monotonic(), 0.0))
+
     # -- the port ----------------------------------------------------------------------------
     def start(self) -> str:
         """Open the pty and start writing; returns the slave path for the driver."""
@@ -225,6 +261,19 @@ class FogTwin:
                                         daemon=True)
         self._thread.start()
         return self.path
+
+    def delivered_s(self) -> float:
+        """The clock's pacer: stand time up to which frames are out on the port.
+
+        A twin nobody reads (no reader yet, or the reader gone) paces nothing (inf), and a
+        stall injected on purpose holds the frames, not the clock.
+        """
+        if not self._reading or self._stop.is_set():
+            return math.inf
+        with self._qlock:
+            head = self._queue[0] if self._queue else None
+        sent_s = (self._sent_n - 1) / self.rate_hz
+        return max(head.until_s, sent_s) if isinstance(head, _Hold) else sent_s
 
     def stop(self) -> None:
         self._stop.set()
@@ -255,16 +304,77 @@ class FogTwin:
         poller.register(self._master, select.POLLOUT)
         seen: float | None = None
         while not self._stop.is_set():  # the gate: a reader settled, and a running clock
+            self._serve_commands()
             if seen is None and self._reader_present(poller):
                 seen = time.monotonic()
+                self._reading = True
             if seen is not None and time.monotonic() - seen >= _OPEN_SETTLE_S \
                     and getattr(self.clock, "running", True):
                 break
             time.sleep(_TICK_S)
         while not self._stop.is_set():
+            self._serve_commands()
+            if self.config_mode:  # no binary output in Configuration Mode (ICD 3.3)
+                time.sleep(_TICK_S)
+                continue
             self.axis.advance_to(self.clock.now())
             if not self._drain(poller):
                 time.sleep(_TICK_S)
+
+    # -- configuration (ICD section 7) -------------------------------------------------------
+    def _serve_commands(self) -> None:
+        assert self._master is not None
+        try:
+            data = os.read(self._master, 4096)
+        except (BlockingIOError, OSError):
+            return
+        self._inbuf.extend(data)
+        while True:
+            cut = [i for i in (self._inbuf.find(b"\r"), self._inbuf.find(b"\n")) if i >= 0]
+            if not cut:
+                return
+            i = min(cut)
+            line = bytes(self._inbuf[:i]).decode("ascii", "replace").strip()
+            del self._inbuf[:i + 1]
+            if line:
+                self.commands.append(line)
+                reply = self._answer(line)
+                if reply is not None:
+                    os.write(self._master, (reply + "\r\n").encode("ascii"))
+
+    def _answer(self, line: str) -> str | None:
+        w = WORDS
+        body = line[1:].upper()
+        name, _, arg = body.partition(",")
+        if line.startswith("=") and name == w.config and arg in ("0", "1"):
+            self.config_mode = arg == "1"
+            return body
+        if not self.config_mode:
+            return None  # Normal Mode ignores input (ICD section 7)
+        fmt, units = UNIT_WORDS[self.units]
+        values = {w.output_format: self.frame_letter, w.rot_format: fmt, w.rot_units: units,
+                  w.data_rate: str(self.data_rate_hz)}
+        if line.startswith("?") and name in values and not arg:
+            return f"{name},{values[name]}"
+        if line.startswith("="):
+            ok = ((name == w.rot_format and arg in ("DELTA", "RATE"))
+                  or (name == w.rot_units and arg in ("DEG", "RAD"))
+                  or (name == w.output_format and arg == self.frame_letter)
+                  or (name == w.data_rate and arg.isdigit() and int(arg) in DATA_RATES_HZ))
+            if ok:
+                if name == w.rot_format:
+                    self._set_units(units_of(arg, units))
+                elif name == w.rot_units:
+                    self._set_units(units_of(fmt, arg))
+                elif name == w.data_rate:
+                    self.data_rate_hz = int(arg)
+                return body
+        return "INVALID," + line
+
+    def _set_units(self, units: str) -> None:
+        with self.axis.lock:
+            self.units = units
+            self._dps_per_unit = dps_per_unit(units, self.rate_hz)
 
     def _drain(self, poller: select.poll) -> bool:
         """Write what is due; False if there was nothing to write."""
@@ -280,7 +390,10 @@ class FogTwin:
                         self._queue.appendleft(item)
                     return wrote
                 continue
-            self._write_all(item, poller)
+            data, n_end = item
+            self._write_all(data, poller)
+            self._sent_n = max(self._sent_n, n_end)
+            self._throttle()
             wrote = True
         return wrote
 
@@ -289,11 +402,14 @@ class FogTwin:
         while view and not self._stop.is_set():
             try:
                 k = os.write(self._master, view)  # type: ignore[arg-type]
+                self._reading = True
                 view = view[k:]
                 self.bytes_written += k
             except BlockingIOError:
                 events = poller.poll(_WRITE_POLL_MS)
-                if any(ev & select.POLLHUP for _, ev in events):
+                gone = any(ev & select.POLLHUP for _, ev in events)
+                self._reading = not gone  # a reader gone paces nothing
+                if gone:
                     time.sleep(_WRITE_POLL_MS / 1000)  # reader gone: keep the frames
             except OSError as e:
                 if e.errno != errno.EIO:

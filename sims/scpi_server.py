@@ -147,7 +147,7 @@ class ScpiServer:
         self.route(OPC, on_set=self._opc)
         self.route(WAI, on_set=lambda a: self.wait(lambda: not self.pending()))
         self.route(ESR_Q, on_query=self._esr_query)
-        self.route(SYST_ERR, on_query=lambda a: str(self.pop_error()))
+        self.route(SYST_ERR, on_query=lambda a: self.error_text(self.pop_error()))
 
     # -- lifecycle --------------------------------------------------------------------------
     def start(self) -> str:
@@ -219,6 +219,13 @@ class ScpiServer:
     def pop_error(self) -> ErrorEntry:
         with self._lock:
             return self.errors.popleft() if self.errors else ErrorEntry(0, "No error")
+
+    #: how an error entry's code is printed: "{:d}" (`0,"No error"`, SCPI-99) or
+    #: "{:+d}" (`+0,"No error"`, as Keysight's manuals print it)
+    error_code_format: ClassVar[str] = "{:d}"
+
+    def error_text(self, entry: ErrorEntry) -> str:
+        return f'{self.error_code_format.format(entry.code)},"{entry.message}"'
 
     def clear_status(self) -> None:
         """*CLS: the error queue, the ESR and a pending *OPC."""
@@ -336,7 +343,7 @@ class ScpiServer:
             if not header:
                 continue
             is_query = header.endswith("?")
-            found = self._find(header, is_query)
+            found = self._find(header, is_query, params)
             if found is None:
                 self.push_error(-113, "Undefined header")
                 continue
@@ -346,9 +353,7 @@ class ScpiServer:
                 self.push_error(-113, "Undefined header")
                 continue
             try:
-                args = {**suffixes, **(route.command.parse_params(params)
-                                        if (not is_query or route.command.is_query) else
-                                        _no_params(params))}
+                args = {**suffixes, **self._params(route, is_query, params)}
                 if route.data and is_query and self.take_fault("drop"):
                     raise _ClientGone
                 answer = handler(args)
@@ -367,12 +372,29 @@ class ScpiServer:
             return None
         return (";".join(answers) + "\n").encode("ascii")
 
-    def _find(self, header: str, is_query: bool) -> tuple[Route, dict[str, str]] | None:
+    def _find(self, header: str, is_query: bool, params: str = ""
+              ) -> tuple[Route, dict[str, str]] | None:
+        """The route for a header; where two match (a setting's query form `SAMP:TIM?` and
+        a query-only word with a parameter, `SAMP:TIM? MIN`), the one whose parameters
+        parse."""
+        found = []
         for route in self.routes:
             m = route.command.match(header, query=is_query)
             if m is not None:
-                return route, m
-        return None
+                found.append((route, m))
+        for route, m in found:
+            try:
+                self._params(route, is_query, params)
+            except ParameterError:
+                continue
+            return route, m
+        return found[0] if found else None
+
+    @staticmethod
+    def _params(route: Route, is_query: bool, params: str) -> dict[str, str]:
+        if not is_query or route.command.is_query:
+            return route.command.parse_params(params)
+        return _no_params(params)
 
     # -- common commands ------------------------------------------------------------------
     def _opc(self, args: Mapping[str, str]) -> None:

@@ -26,9 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from sims.clock import VirtualClock
-
-SECONDS_PER_HOUR = 3600.0
+from drivers.units import SECONDS_PER_HOUR
+from sims.clock import MAX, VirtualClock, parse_speed
 
 
 @dataclass(frozen=True)
@@ -94,7 +93,8 @@ class AxisTruth:
             mains=Mains(**mains) if mains else None,
             rate_noise_dps=float(d.get("rate_noise_dps", 0.0)),
             turn_jitter_s=float(d.get("turn_jitter_s", 0.0)),
-            fog=FogTruth(**d.get("fog", {})),
+            # `fog.units` is the FOG twin's (what it carries before configuration)
+            fog=FogTruth(**{k: v for k, v in d.get("fog", {}).items() if k != "units"}),
         )
 
     def mean_turn_rate_rel(self) -> float:
@@ -369,14 +369,14 @@ class StandTruth:
 
     seed: int
     axes: dict[str, AxisTruth]
-    clock_speed: float = 100.0
+    clock_speed: float = math.inf   # top speed; inf: `max`, as fast as the twins keep up
 
     @classmethod
     def from_mapping(cls, d: Mapping[str, Any]) -> StandTruth:
         return cls(
             seed=int(d.get("seed", 0)),
             axes={name: AxisTruth.from_mapping(a or {}) for name, a in d.get("axes", {}).items()},
-            clock_speed=float(d.get("clock_speed", 100.0)),
+            clock_speed=parse_speed(d.get("clock_speed"), MAX),
         )
 
 

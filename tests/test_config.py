@@ -49,9 +49,8 @@ def test_bad_yaml_syntax(files: tuple[Path, Path], capsys: pytest.CaptureFixture
     line = _replace(proc, "turns: 4", "turns: [4")
     rc, err = _validate(proc, capsys)
     assert rc == 2
-    m = re.search(rf"{re.escape(str(proc))}:(\d+): \(syntax\): YAML syntax", err)
-    assert m, err
-    assert int(m.group(1)) >= line
+    # reported where the broken list opens, at its key, not where the parser noticed
+    assert f"{proc}:{line}: turns: YAML syntax" in err, err
 
 
 def test_unknown_key_is_named_with_its_line(files: tuple[Path, Path],
@@ -147,9 +146,9 @@ def test_numbers_with_an_unsigned_exponent_are_numbers(tmp_path: Path) -> None:
 
 
 def test_every_shipped_stand_file_fits_a_procedure_kind() -> None:
+    from bench.registry import procedure_kind, procedure_names
     from bench.schema import validate
     from bench.yamlfile import load_yaml
-    from procedures import procedure_kind, procedure_names
 
     for stand in sorted((CONFIGS / "stands").glob("*.yaml")):
         doc = load_yaml(stand)

@@ -37,22 +37,31 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 
 def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | None = None,
-                 issued: dt.date | None = None,
+                 issued: dt.date | None = None, *,
+                 documents: list[Document] | None = None,
                  extra_sections: Sequence[ExtraSection] = ()) -> list[Path]:
-    """Build the certificate from `result` (and the run directory, if any) into `out_dir`."""
+    """Build the certificate from `result` (and the run directory, if any) into `out_dir`.
+
+    `documents`, if given, receives the document the files were rendered from (the
+    console's summary is cut from it, so it prints the certificate's own text)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     doc = build_document(result, run_path, issued, extra_sections)
+    if documents is not None:
+        documents.append(doc)
     html_path, pdf_path = out / HTML_NAME, out / PDF_NAME
     _write_atomic(html_path, render_html(doc).encode("utf-8"))
     _write_atomic(pdf_path, render_pdf(doc))
     return [html_path, pdf_path]
 
 
-def write_certificate(run: _HasPath, result: dict[str, Any], issued: dt.date | None = None,
+def write_certificate(run: _HasPath, result: dict[str, Any],
+                      issued: dt.date | None = None, *,
+                      documents: list[Document] | None = None,
                       extra_sections: Sequence[ExtraSection] = ()) -> list[Path]:
     """certificate.html and certificate.pdf in the run directory; returns their paths.
 
     `extra_sections` (title, blocks) come from outside the run directory (the table's
     history from the records) and are placed before the statements."""
-    return render_files(result, run.path, run.path, issued, extra_sections)
+    return render_files(result, run.path, run.path, issued, documents=documents,
+                        extra_sections=extra_sections)

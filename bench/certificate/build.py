@@ -20,8 +20,10 @@ from typing import Any
 import yaml
 
 import bench
+from bench.analysis.random_part import std_u_rel
 from bench.certificate import methods, plots
 from bench.certificate.model import Document, Fields, Figure, Para, Section, Signatures, Table
+from bench.certificate.operator import prompt_blocks, software_note
 from bench.certificate.rounding import (
     MINUS,
     PERCENT,
@@ -329,8 +331,8 @@ def _identification(src: Sources, cid: str, issue: str, kind: str,
         rows.append(("Nature of the item", "SIMULATED stand (instrument twins on real "
                      "channels): these results describe no physical table"))
     rows += [
-        ("Procedure", {"rate-ladder": "rate ladder (METHOD.md part A)",
-                       "drift-pulse": "drift by alternating-sign pulses (METHOD.md part B)"}
+        ("Procedure", {"rate-ladder": "rate ladder (docs/method.md part A)",
+                       "drift-pulse": "drift by alternating-sign pulses (docs/method.md part B)"}
          .get(kind, kind)),
         ("Work started", _utc(started)),
         ("Work ended", (_utc(completed) + (" (aborted)" if src.get("aborted") else ""))
@@ -342,8 +344,7 @@ def _identification(src: Sources, cid: str, issue: str, kind: str,
     rows += [(_label(k), _text(v)) for k, v in cert.items() if k not in skip]
     blocks: list[Any] = [Fields(tuple(rows))]
     run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else NOT_RECORDED)
-    blocks.append(Para(f"Software: ratebench {bench.__version__}. Run directory: {run_dir}.",
-                       "note"))
+    blocks.append(software_note(src.meta, src.events, bench.__version__, str(run_dir)))
     return tuple(blocks)
 
 
@@ -439,7 +440,7 @@ def _deviations(src: Sources, kind: str) -> tuple[Any, ...]:
         if seq in methods.SEQUENCE_TEXT:
             items.insert(0, methods.SEQUENCE_TEXT[seq])
         blocks.append(Para("From the source paper's method (each one an improvement, "
-                           "METHOD.md A3-A5):", "strong"))
+                           "docs/method.md A3-A5):", "strong"))
         blocks += [Para(f"• {t}") for t in items]
     run: list[str] = []
     sessions = src.get("sessions")
@@ -465,7 +466,7 @@ def _deviations(src: Sources, kind: str) -> tuple[Any, ...]:
                                    1e3, signed=True).joined("ms")
             run.append(f"Axis {axis}: the digitizer's samples were {shift} "
                        "off the pulse edges; the integration edges were placed where the "
-                       "pulses are (METHOD.md B: a half-sample offset would bias the drift).")
+                       "pulses are (docs/method.md B: a half-sample offset would bias the drift).")
     blocks.append(Para("From the procedure, in this run:", "strong"))
     blocks += [Para(f"• {t}") for t in run] or [Para("None.")]
     return tuple(blocks)
@@ -474,8 +475,10 @@ def _deviations(src: Sources, kind: str) -> tuple[Any, ...]:
 def _conditions(src: Sources) -> tuple[Any, ...]:
     cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
     if not cond:
-        return (Para("No conditions were recorded in the procedure file."),)
-    return (Fields(tuple((_label(k), _text(v)) for k, v in cond.items())),)
+        return (Para("No conditions were recorded in the procedure file."),
+                *prompt_blocks(src.events))
+    return (Fields(tuple((_label(k), _text(v)) for k, v in cond.items())),
+            *prompt_blocks(src.events))
 
 
 # -- rate ladder results -------------------------------------------------------------------
@@ -511,23 +514,19 @@ def _instability_u(r: Mapping[str, Any]) -> tuple[float | None, bool]:
     if u is not None:
         return u, False
     s, n = _num(r.get("rate_instability_rel")), len(r.get("counter_rate_dps") or [])
-    n = n or int(r.get("turns") or 0)
-    if s is None or n < 2:
-        return None, False
-    return 2 * s / math.sqrt(2 * (n - 1)), True  # u(s) ~ s / sqrt(2(N-1)) for normal data
+    u = std_u_rel(s, n or int(r.get("turns") or 0))
+    return u, u is not None
 
 
 def _u_of_std(s: float | None, n: Any) -> float | None:
-    """U (k = 2) of a standard deviation from n independent values: 2 s / sqrt(2 (n - 1))."""
+    """U (k = 2) of a standard deviation from n values, when the result does not give it."""
     n = _num(n)
-    if s is None or n is None or n < 2:
-        return None
-    return 2 * s / math.sqrt(2 * (n - 1))
+    return None if n is None else std_u_rel(s, int(n))
 
 
 @dataclass(frozen=True)
 class Averaged:
-    """The random part averaged over windows of `angle_deg` of table angle (METHOD.md A5)."""
+    """The random part averaged over windows of `angle_deg` of table angle (docs/method.md A5)."""
 
     angle_deg: float
     raw: float | None
@@ -619,7 +618,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                      if _num(r.get("rate_instability_floor_rel")) is not None else "—",
                      verdict_label(r.get("verdict"))))
     notes = ["Timing floor: the σ that the counter's and the zero-mark sensor's timing "
-             "errors alone would give (METHOD.md A1); a σ near it is not resolved."]
+             "errors alone would give (docs/method.md A1); a σ near it is not resolved."]
     if approximated:
         notes.append("* U of σ from the chi-square approximation U = 2σ/√(2(N−1)) for N turns "
                      "(normal per-turn rates); the result did not carry it.")
@@ -628,7 +627,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
          f"Rate error δ ± U, {err_unit.name}", f"Instability σ ± U, {inst_unit.name}",
          f"Timing floor of σ, {inst_unit.name}", "Verdict"),
         tuple(rows), widths=(0.9, 0.6, 2.8, 1.8, 1.8, 1.1, 0.9), align="rcrrrrc",
-        caption=f"Axis {axis}: per-turn rate error and instability (METHOD.md A1-A2, eqs. 1-2)",
+        caption=f"Axis {axis}: per-turn rate error and instability (docs/method.md A1-A2, eqs. 1-2)",
         notes=tuple(notes)))
     budget = _rate_error_budget(axis, rates)
     if budget is not None:
@@ -663,11 +662,18 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                          + (f" (method {', '.join(methods_used)}" if methods_used else "")
                          + (f"; drift from {', '.join(sources)})" if sources else
                             (")" if methods_used else "")) + ".")
+        for p in pairs:  # a resumed pair: which half came from which session (docs/resume.md)
+            hs = [int(s) for s in p.get("half_sessions") or [] if isinstance(s, int | float)]
+            if len(set(hs)) > 1:
+                notes.append(f"Pair ±{_num(p.get('rate_dps')) or 0:g} °/s was resumed: "
+                             + ", ".join(f"half {i + 1} from session {s}"
+                                         for i, s in enumerate(hs))
+                             + f". FOG bias {p.get('bias_model', '')}.")
         blocks.append(Table(tuple(header), tuple(prow),
                             widths=(1.0, 2.4, 2.1, 1.9, 2.1)[:len(header)], align="rrrrr"[
                                 :len(header)],
                             caption=f"Axis {axis}: FOG cross-calibration per ± pair "
-                                    "(METHOD.md A3, eqs. 5-6)", notes=tuple(notes)))
+                                    "(docs/method.md A3, eqs. 5-6)", notes=tuple(notes)))
     # A4 systematic
     sys_rows, mains_rows = [], []
     amp_unit = rel_unit(*[_num(h.get("amplitude_rel")) for r in rates
@@ -703,7 +709,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                             tuple(sys_rows), widths=(1.1, 0.8, 2.4, 2.2, 1.8), align="rcrrr",
                             caption=f"Axis {axis}: systematic intra-turn component, fitted "
                                     "harmonics Δω_sys = ω_set·Σ a_h cos(hφ + p_h) "
-                                    "(METHOD.md A4)",
+                                    "(docs/method.md A4)",
                             notes=("(not significant): the amplitude is not detected above "
                                    "its uncertainty; it is consistent with zero and its phase "
                                    "is meaningless.",)))
@@ -712,7 +718,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                              "Amplitude ± U, % of ω_set", "Phase ± U, °"), tuple(mains_rows),
                             widths=(1.1, 1.0, 2.2, 2.2, 1.6), align="rrrrr",
                             caption=f"Axis {axis}: mains-frequency ripple, fitted in time "
-                                    "(METHOD.md A4)",
+                                    "(docs/method.md A4)",
                             notes=("One tone of fixed frequency and phase over each "
                                    "direction's record. Grid-frequency wander during the "
                                    "record (of the order of 1 / record length or more) "
@@ -746,7 +752,7 @@ BUDGET_TERMS = (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counte
 
 
 def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
-    """The standard uncertainties behind U of the rate error (METHOD.md A1-A2)."""
+    """The standard uncertainties behind U of the rate error (docs/method.md A1-A2)."""
     budgets = [(r, r.get("rate_error_budget")) for r in rates
                if isinstance(r.get("rate_error_budget"), Mapping)]
     if not budgets:
@@ -764,14 +770,17 @@ def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
     parts = []
     for key, text, scale, unit_name in (("timestamp_u_s", "counter single-shot timestamp", 1e9, "ns"),
                                         ("trigger_jitter_s", "zero-mark edge jitter", 1e9, "ns"),
-                                        ("timebase_limit_rel", "timebase limit", 1e6, "ppm")):
+                                        ("timebase_limit_rel", "timebase limit", 1e6, "ppm"),
+                                        ("time_tie_u_s", "time tie to the FOG axis (moves "
+                                         "the FOG window and the harmonics' phase, not the "
+                                         "counter's rate)", 1e6, "µs")):
         v = _num(first.get(key))
         if v is not None:
             parts.append(f"{text} {format_sig(v * scale, 2)} {unit_name}")
     notes = ["Standard uncertainties (k = 1), relative to the set rate; U = k·√(Σu²), "
              f"k = {_num(first.get('coverage_factor')) or 2:g}."]
     if parts:
-        notes.append("Inputs: " + "; ".join(parts) + " (METHOD.md A1: ΔT = √(Δ_counter² + "
+        notes.append("Inputs: " + "; ".join(parts) + " (docs/method.md A1: ΔT = √(Δ_counter² + "
                      "Δ_trigger²)).")
     header = ("Set rate, °/s", *[f"u({name}), {unit.name}" for _, name in terms],
               f"U (k = 2), {unit.name}")
@@ -837,7 +846,7 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
                      "independent samples; the result did not carry it.")
     blocks: list[Any] = [Table(header, tuple(rows), widths=(1.1, 2.0, 1.4, 2.2),
                                align="rrrr", caption=f"Axis {axis}: intra-turn instability "
-                               "std(Δω_rand)/|ω_set| (METHOD.md A5)", notes=tuple(notes))]
+                               "std(Δω_rand)/|ω_set| (docs/method.md A5)", notes=tuple(notes))]
     averaged = [(r, a) for r in rates for a in _averaged(r)]
     if averaged:
         units = {ang: rel_unit(*[v for _, a in averaged if a.angle_deg == ang
@@ -862,7 +871,7 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
                              "Floor-corrected", "Unit", "Windows"), tuple(rows),
                             widths=(1.1, 0.8, 2.0, 1.2, 1.4, 0.6, 0.9), align="rrrrrcr",
                             caption=f"Axis {axis}: random part averaged over an angle "
-                                    "(METHOD.md A5)", notes=tuple(notes)))
+                                    "(docs/method.md A5)", notes=tuple(notes)))
     return blocks
 
 
@@ -879,10 +888,10 @@ def _across_axes(axes: Mapping[str, Any]) -> list[Any]:
     blocks += _figure("Intra-turn instability vs rate, raw and floor-corrected "
                       "(cf. paper fig. 10)",
                       plots.intra_turn, rates, unit.scale, unit.name)
-    blocks += _figure("FOG scale k and bias ω0 per ± pair (METHOD.md A3)",
+    blocks += _figure("FOG scale k and bias ω0 per ± pair (docs/method.md A3)",
                       plots.pairs, {a: [p for p in ax.get("pairs", []) if isinstance(p, dict)]
                                     for a, ax in axes.items()})
-    blocks += _figure("Allan deviation of the FOG at rest: its noise floor (METHOD.md A5)",
+    blocks += _figure("Allan deviation of the FOG at rest: its noise floor (docs/method.md A5)",
                       plots.allan, {a: ax.get("noise_floor") or {} for a, ax in axes.items()},
                       width_frac=0.8)
     return blocks
@@ -901,7 +910,7 @@ def _per_turn_annex(src: Sources) -> tuple[Any, ...]:
             rows.append((axis, _rate(w_set), dev))
     return (Table(("Axis", "Set rate, °/s", "Per-turn rate deviations (ω_i/ω_set − 1), ppm, "
                    "in turn order"), tuple(rows), widths=(0.9, 1.1, 6.0), align="lrl",
-                  caption="Per-turn counter rates (METHOD.md A1), relative to the set rate"),)
+                  caption="Per-turn counter rates (docs/method.md A1), relative to the set rate"),)
 
 
 # -- drift-pulse results -------------------------------------------------------------------
@@ -936,7 +945,7 @@ def _drift_results(src: Sources, number: str) -> list[Section]:
         blocks.append(Table(tuple(header), tuple(rows),
                             widths=(0.8, 2.2, 2.6, 2.0, 0.8)[:len(header)] if has_nominal
                             else (0.8, 2.4, 2.8, 1.0), align="lrrrr"[:len(header)],
-                            caption="Own and apparent drift per axis (METHOD.md B)",
+                            caption="Own and apparent drift per axis (docs/method.md B)",
                             notes=tuple(notes)))
     fields = []
     if _num(drift.get("latitude_deg")) is not None:

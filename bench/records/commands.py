@@ -6,6 +6,7 @@ import argparse
 import csv
 import datetime as dt
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -52,19 +53,18 @@ def add_parsers(sub: Any) -> None:
     due.add_argument("--today", type=dt.date.fromisoformat, help=argparse.SUPPRESS)
 
 
-def dispatch(args: argparse.Namespace) -> int:
-    try:
-        if args.command == "history":
-            return cmd_history(args)
-        if args.command == "due":
-            return cmd_due(args)
-        return cmd_import(args)
-    except SettingsError as e:
-        _err(str(e))
-        return EXIT_INVALID
-    except RecordsError as e:
-        _err(str(e))
-        return EXIT_FAIL
+def _guarded(cmd: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+    """A bad lab settings file is invalid input (2); an unreachable database exits 1."""
+    def run(args: argparse.Namespace) -> int:
+        try:
+            return cmd(args)
+        except SettingsError as e:
+            _err(str(e))
+            return EXIT_INVALID
+        except RecordsError as e:
+            _err(str(e))
+            return EXIT_FAIL
+    return run
 
 
 def cmd_import(args: argparse.Namespace) -> int:
@@ -177,3 +177,9 @@ def cmd_due(args: argparse.Namespace) -> int:
         print(f"{t.serial:<16} {((t.maker or '') + ' ' + (t.model or '')).strip()[:34]:<34} "
               f"{last:<11} {interval:>6} d  {str(i.due_date or 'now'):<11} {i.status}")
     return EXIT_OK
+
+
+#: command name -> handler, for bench/cli.py
+RECORDS_COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
+    "history": _guarded(cmd_history), "records": _guarded(cmd_import),
+    "due": _guarded(cmd_due)}
