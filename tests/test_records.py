@@ -267,10 +267,11 @@ def test_concurrent_registrations_of_a_new_table_lose_nothing(
     def write(rec_: Any) -> None:
         try:
             with Records.open(db.url) as rec:
-                barrier.wait()
+                barrier.wait(timeout=60)
                 assert rec.register(rec_) == "new"
         except BaseException as e:  # noqa: BLE001 - reported below
             errors.append(e)
+            barrier.abort()
     threads = [threading.Thread(target=write, args=(r,)) for r in records]
     for t in threads:
         t.start()

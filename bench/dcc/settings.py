@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.config import SIGNING, STAND_DCC
-from bench.schema import Bool, Check, Key, ListOf, Map, Str, validate
+from bench.schema import Bool, Check, Key, ListOf, Map, MapOf, Num, Str, validate
 from bench.yamlfile import YamlError, load_yaml
 
 __all__ = ["ENV_LAB", "STAND_DCC", "LabSettings", "SettingsError", "load_lab_file",
@@ -49,6 +49,13 @@ LAB_FILE = Map({
     "performance_location": Key(Str(PERFORMANCE_LOCATIONS)),
     "responsible_persons": Key(ListOf(PERSON)),
     "signing": Key(SIGNING),
+    # the records' keys (bench/records/settings.py reads them): one lab file for both
+    "records": Key(Str(), False, "records database URL"),
+    "recertification": Key(Map({
+        "default_interval_days": Key(Num(min=1, integer=True, unit="d")),
+        "tables": Key(MapOf(Num(min=1, integer=True, unit="d")), False,
+                      "serial: recertification interval, days"),
+    })),
 })
 
 

@@ -7,7 +7,8 @@ operator, every reported figure with U (k = 2) and its check verdict, the certif
 number and the SHA-256 of the certificate files.
 
 Where: `--records URL` (SQLAlchemy URL: `sqlite:///path`, `postgresql://user@host/db`),
-else `records:` in the lab settings (`lab.yaml` in the runs folder, or $BENCH_LAB; see
+else `records:` in the lab settings (`lab.yaml` in the runs folder, or
+$BENCH_LAB_SETTINGS, the DCC's lab file; see
 `settings.py`), else `records.sqlite` in the runs folder (CONTRACT §1). One code path for
 SQLite and PostgreSQL (SQLAlchemy Core, `schema.py`); the schema is migrated by Alembic
 at every open (`migrations/`, shipped in the package). A run never fails over its

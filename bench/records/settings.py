@@ -1,8 +1,9 @@
 """Lab settings: where the records live and how often each table is recertified.
 
 Read once into a frozen `LabSettings`. The file is `lab.yaml` in the runs folder, or the
-file named by the environment variable BENCH_LAB (a lab server's URL shared by every
-bench is written there once instead of on every command line):
+file named by the environment variable BENCH_LAB_SETTINGS, the lab file the DCC reads its
+laboratory and signing key from (a lab server's URL shared by every bench is written there
+once instead of on every command line); only these two keys are read here:
 
     records: postgresql://bench@labserver/records     # else records.sqlite in the runs folder
     recertification:
@@ -20,7 +21,7 @@ from typing import Any
 import yaml
 
 LAB_FILE = "lab.yaml"
-LAB_ENV = "BENCH_LAB"
+LAB_ENV = "BENCH_LAB_SETTINGS"          # the same lab file as the DCC's (bench/dcc/settings.py)
 RECORDS_FILE = "records.sqlite"
 DEFAULT_RUNS = "runs"
 
@@ -49,7 +50,7 @@ def _days(value: Any, where: str) -> int:
 
 def load_lab_settings(runs_dir: str | Path | None = None,
                       path: str | Path | None = None) -> LabSettings:
-    """The lab settings in force: `path`, else $BENCH_LAB, else RUNS_DIR/lab.yaml, else none."""
+    """The lab settings in force: `path`, else $BENCH_LAB_SETTINGS, else RUNS_DIR/lab.yaml, else none."""
     chosen = path or os.environ.get(LAB_ENV) or None
     if chosen is None:
         candidate = Path(runs_dir or DEFAULT_RUNS) / LAB_FILE
@@ -65,10 +66,6 @@ def load_lab_settings(runs_dir: str | Path | None = None,
         raise SettingsError(f"{p}: not valid YAML: {e}") from None
     if not isinstance(data, dict):
         raise SettingsError(f"{p}: expected a mapping (records:, recertification:)")
-    unknown = set(data) - {"records", "recertification"}
-    if unknown:
-        raise SettingsError(f"{p}: unknown key(s) {', '.join(sorted(unknown))} "
-                            f"(expected records, recertification)")
     url = data.get("records")
     if url is not None and not isinstance(url, str):
         raise SettingsError(f"{p}: records: expected a database URL, got {url!r}")

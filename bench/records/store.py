@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import datetime as dt
 import random
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -30,6 +31,9 @@ MIGRATIONS = Path(__file__).resolve().parent / "migrations"
 CONNECT_TIMEOUT_S = 5          # an unreachable lab server must not hold a run up
 SQLITE_BUSY_S = 30.0           # another bench holding the SQLite file: wait this long
 RETRIES = 8
+#: Alembic's command API keeps its context in module globals: one migration at a time
+#: per process (other processes are kept apart by the database's own transactions)
+_MIGRATE_LOCK = threading.Lock()
 T = TypeVar("T")
 
 
@@ -209,7 +213,7 @@ class Records:
 
         cfg = AlembicConfig()
         cfg.set_main_option("script_location", str(MIGRATIONS))
-        with self.engine.begin() as conn:
+        with _MIGRATE_LOCK, self.engine.begin() as conn:
             cfg.attributes["connection"] = conn
             command.upgrade(cfg, "head")
 
