@@ -90,11 +90,11 @@ def warn_if_overdue(stand: dict[str, Any], where: RecordsTarget, warn: Warn,
              f"when the database is back")
         return None
     item = next((i for i in items if i.table.serial == serial), None)
-    if item is None or (item.days_left is not None and item.days_left >= 0):
-        return None
+    if item is None or item.days_left is None or item.days_left >= 0:
+        return None         # in time, or never passed (a first certification is no recall)
     last = item.table.last_certificate or "none"
-    text = (f"WARNING: table {serial} is {item.status.lower()} for recertification "
-            f"(due {item.due_date or 'now'}; last certificate {last}, interval "
+    text = (f"WARNING: table {serial} is overdue for recertification by {-item.days_left} d "
+            f"(due {item.due_date}; last certificate {last}, interval "
             f"{where.interval_for(serial, item.table.interval_days)} d)")
     warn(text)
     return text
