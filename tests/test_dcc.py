@@ -517,3 +517,29 @@ def test_lab_settings_fill_the_administrative_data(demo: dict[str, Any], tmp_pat
     assert person.findtext("dcc:mainSigner", None, NS) == "true"
     assert root.find(".//ds:Signature", NS) is None
     assert root.find(".//dcc:statement[@refType='ratebench_countryNotConfigured']", NS) is None
+
+
+def test_a_damaged_result_still_gives_a_valid_dcc(demo: dict[str, Any]) -> None:
+    """Each top-level key of result.json removed, each key of its first rate, pair and
+    check replaced by text: the writer neither crashes nor writes an invalid DCC (it leaves
+    the damaged value out; `bench verify` would then name it). Dropping `axes` once gave
+    a DCC without any measurementResult, which the schema refuses."""
+    from bench.dcc.writer import DccInputs, build_dcc
+
+    result = demo["result"]
+    ax = result["axes"]["outer"]
+    places = [(result, k, "drop") for k in result]
+    for part in (ax["rates"][0], ax["pairs"][0], result["checks"][0]):
+        places += [(part, k, "text") for k in part]
+    assert len(places) > 60
+    for node, key, damage in places:
+        saved = node[key]
+        if damage == "drop":
+            del node[key]
+        else:
+            node[key] = "garbage"
+        try:
+            v = validate_dcc(build_dcc(DccInputs(result, embed_pdf=False)))
+        finally:
+            node[key] = saved
+        assert v.valid, (key, damage, v.lines()[:3])

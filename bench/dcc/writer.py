@@ -173,6 +173,13 @@ def build_dcc(inputs: DccInputs) -> etree._ElementTree:
         _drift(results, src, checks)
     else:
         _ladder(results, src, checks)
+    if results.find(f"{{{DCC_NS}}}measurementResult") is None:    # the DCC needs one
+        mr = el(results, "measurementResult", id="noResults")
+        name(mr, "No results")
+        r = el(el(mr, "results"), "result")
+        name(r, "No results")
+        text_el(el(r, "data"), "text", "result.json carries no results: nothing was measured "
+                "to completion, or its results were malformed.")
     _leftover_checks(root, src, checks)
     pdf = inputs.run_path / PDF_NAME if inputs.run_path is not None else None
     if inputs.embed_pdf and pdf is not None and pdf.is_file():
