@@ -11,6 +11,7 @@ fail `bench verify`.
 from __future__ import annotations
 
 import contextlib
+import copy
 import datetime as dt
 import hashlib
 import io
@@ -526,7 +527,7 @@ def test_a_damaged_result_still_gives_a_valid_dcc(demo: dict[str, Any]) -> None:
     a DCC without any measurementResult, which the schema refuses."""
     from bench.dcc.writer import DccInputs, build_dcc
 
-    result = demo["result"]
+    result = copy.deepcopy(demo["result"])
     ax = result["axes"]["outer"]
     places = [(result, k, "drop") for k in result]
     for part in (ax["rates"][0], ax["pairs"][0], result["checks"][0]):
