@@ -544,3 +544,27 @@ def test_a_damaged_result_still_gives_a_valid_dcc(demo: dict[str, Any]) -> None:
         finally:
             node[key] = saved
         assert v.valid, (key, damage, v.lines()[:3])
+
+
+def test_which_lab_settings_and_key_are_in_force(tmp_path: Path,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """--lab, then the stand's dcc.lab, then $BENCH_LAB_SETTINGS; a key named in the stand
+    file overrides the lab file's."""
+    from bench.dcc.settings import resolve_settings
+
+    key, cert = _throwaway_key(tmp_path / "keys", "lab")
+    (tmp_path / "a").mkdir()
+    first = _lab_file(tmp_path / "a", key, cert)
+    second = tmp_path / "b.yaml"
+    second.write_text("laboratory: {name: Second Lab}\n")
+    assert resolve_settings({}).laboratory is None                 # nothing configured
+    monkeypatch.setenv(ENV_LAB, str(second))
+    assert resolve_settings({}).laboratory.name == "Second Lab"
+    assert resolve_settings({"dcc": {"lab": str(first)}}).laboratory.name == "Test Rate Lab"
+    assert resolve_settings({"dcc": {"lab": str(first)}}, lab_file=second).laboratory.name \
+        == "Second Lab"
+    own = {"key": str(tmp_path / "stand.key.pem"), "certificate": str(cert)}
+    chosen = resolve_settings({"dcc": {"lab": str(first), "signing": own}})
+    assert chosen.laboratory.name == "Test Rate Lab"
+    assert chosen.signing.key_file == tmp_path / "stand.key.pem"
+    assert resolve_settings({"dcc": {"lab": str(first)}}).signing.key_file == key
