@@ -241,6 +241,10 @@ def test_demo_every_value_and_u_equals_result_json(demo: dict[str, Any]) -> None
             _assert_value_u(reals, result, f"{p}.intra_turn_instability_rel",
                             f"{p}.intra_turn_instability_u_rel", r"\one")
             assert reals[f"{p}.set_rate_dps"]["unit"] == r"\degree\second\tothe{-1}"
+            budget = [reals[f"{p}.rate_error_budget.{k}"]["value"]
+                      for k in ("timing_u_rel", "timebase_u_rel", "repeatability_u_rel")]
+            assert 2 * sum(u * u for u in budget) ** 0.5 == pytest.approx(   # U = 2 u_c
+                reals[f"{p}.rate_error_rel"]["U"], rel=1e-9)
             for j in range(len(r["systematic"]["harmonics"])):
                 h_p = f"{p}.systematic.harmonics[{j}]"
                 _assert_value_u(reals, result, f"{h_p}.amplitude_rel", f"{h_p}.amplitude_u_rel",
@@ -411,6 +415,10 @@ def test_drift_demo_dcc_validates_and_carries_every_value(drift: dict[str, Any])
         _assert_value_u(reals, result, f"{p}.own_dph", f"{p}.own_u_dph", r"\degree\hour\tothe{-1}")
         _assert_value_u(reals, result, f"{p}.apparent_dph", f"{p}.apparent_u_dph",
                         r"\degree\hour\tothe{-1}")
+        own = [v["value"] for k, v in reals.items() if k.startswith(f"{p}.budget.own_u_dph.")]
+        assert len(own) >= 2
+        assert 2 * sum(u * u for u in own) ** 0.5 == pytest.approx(
+            reals[f"{p}.own_dph"]["U"], rel=1e-9)
     _assert_value_u(reals, result, "drift.azimuth_deg", "drift.azimuth_u_deg", r"\degree")
     root = _tree(path)
     for i, c in enumerate(result["checks"], start=1):
