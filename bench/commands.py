@@ -146,6 +146,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
     plan = kind.build_plan(cfg)
     done = run.completed_units()
     todo = plan.remaining(done)
+    if resume and hasattr(kind, "resume_plan"):  # finer than the unit (a rate ladder's halves)
+        todo = kind.resume_plan(todo, run)
     simbench = None
     stand = cfg.stand
     status = EXIT_ABORTED

@@ -65,6 +65,9 @@ COUNTER = Map({
     "impedance_ohm": Key(Num(min=0, exclusive_min=True)),
     "trigger_jitter_s": Key(Num(min=0, unit="s"), False, "slot sensor edge jitter, std"),
     "timebase_limit_rel": Key(Num(min=0), False, "timebase error limit (external reference)"),
+    "reference": Key(Str(("external", "internal")), False,
+                     "timebase: set at connect and read back (53230A SENS:ROSC:SOUR); a "
+                     "timebase_limit_rel below the model's needs 'external'"),
     "timeout_margin_s": Key(Num(min=0, exclusive_min=True, max=3600, unit="s")),
     "time_tie": Key(Map({
         "source": Key(Str(("fog-sync", "host-clock")), True,

@@ -151,6 +151,7 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
             ax.logs["counter"] = clog
         cnt.configure(**{k: c[k] for k in ("channel", "level_v", "slope", "coupling",
                                            "impedance_ohm") if k in c})
+        cnt.verify_reference(c.get("reference"), c.get("timebase_limit_rel"))
         ax.counter = cnt
         manual = cnt.profile.manual
         ax.identities["counter"] = with_readback(

@@ -45,6 +45,8 @@ class CounterWords:
     timestamp_rate: Command | None = None
     timestamp_info: Command | None = None
     trigger_source: Command | None = None
+    reference_source: Command | None = None
+    reference_check: Command | None = None
     sample_count: Command | None = None
     gate_time: Command | None = None
     measurement_timeout: Command | None = None
@@ -277,6 +279,10 @@ KEYSIGHT_53230A = CounterProfile(
                                         "in non-volatile memory: read, set, restored"),
         trigger_source=Command("TRIGger[:SEQuence]:SOURce", "{source}",
                                doc="IMMediate, EXTernal or BUS; EXT for the time tie"),
+        reference_source=Command("[SENSe:]ROSCillator:SOURce", "{source}",
+                                 doc="INTernal or EXTernal timebase (EXT also ends AUTO)"),
+        reference_check=Command("[SENSe:]ROSCillator:EXTernal:CHECk", "{when}",
+                                doc="ONCE: checks the Ext Ref In signal, errors if none"),
         fetch=Command("FETCh?", doc="readings of the last INIT"),
     ),
     timestamps="keysight-tst",
@@ -293,7 +299,8 @@ KEYSIGHT_53230A = CounterProfile(
     manual=("Keysight 53220A/53230A Programmer's Reference: MEASure:ARRay:TSTamp? p. 240, "
             "SENSe:TSTamp:RATE p. 377 (*RST 1.0E6), SYSTem:TIMeout p. 459 (per measurement, "
             "non-volatile, 9.9E37 disabled); User's Guide 'Time stamp' (count+1 elements, "
-            "values are period x scale factor)"),
+            "values are period x scale factor) and 'Time base' (SENS:ROSC:SOUR EXT; "
+            "SENS:ROSC:EXT:CHEC ONCE; SYST:ERR?, p. 69/81)"),
     notes=("53220A/53230A Programmer's Reference: CONF:ARR:TST, SENS:TST:RATE, SYST:TIM, "
            "INP:LEV:AUTO, reply 'prescaler, intervals' (count+1 values). Period mode "
            "(CONF:PER; SAMP:COUN N) is modelled with dead time: consecutive readings time "

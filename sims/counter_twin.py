@@ -126,7 +126,7 @@ class CounterTwin(ScpiServer):
                  host: str = "127.0.0.1", port: int = 0, *, signal_channel: int = 1,
                  signal_low_v: float = 0.0, signal_high_v: float = 5.0,
                  sync: SyncLink | None = None, timeout_s: float | None = None,
-                 seed: int = 0) -> None:
+                 seed: int = 0, external_reference: bool = True) -> None:
         self.profile: CounterProfile = get_profile(model)
         super().__init__(idn=self.profile.idn, host=host, port=port)
         if self.profile.maker.startswith("Keysight"):  # `+0,"No error"` (Prog. Ref.)
@@ -139,6 +139,11 @@ class CounterTwin(ScpiServer):
         self.inputs: dict[int, InputState] = {}
         self.acquisition: TwinAcquisition | None = None
         self.sync = sync
+        #: a valid 10 MHz at Ext Ref In (the stand's GPS-disciplined reference)
+        self.external_reference = external_reference
+        #: the timebase in use; SENS:ROSC:SOUR is not reset by *RST here (simplification:
+        #: the manual's *RST value of the auto selection is not modelled)
+        self.reference = "EXT" if external_reference else "INT"
         self.rng = np.random.default_rng(seed)
         #: SYST:TIM, non-volatile: not touched by *RST (None: disabled, as shipped)
         self.timeout_s: float | None = timeout_s
@@ -259,6 +264,8 @@ class CounterTwin(ScpiServer):
                 9.9e37 if self.timeout_s is None else self.timeout_s)),  # p. 459: 9.9E37
             "format_data": (self._set_format, lambda a: "ASC"),
             "trigger_source": (self._set_trigger_source, lambda a: self.trigger_source),
+            "reference_source": (self._set_reference, lambda a: self.reference),
+            "reference_check": (self._check_reference, None),
             "abort": (self._abort, None),
             "initiate": (self._initiate, None),
             "fetch": (None, self._fetch, True),
@@ -340,6 +347,14 @@ class CounterTwin(ScpiServer):
             self.timeout_s = None
             return
         self.timeout_s = ranged_param(value, lo, hi, default=1.0)
+
+    def _set_reference(self, a: Mapping[str, str]) -> None:
+        self.reference = enum_param(a["source"], ("INTernal", "EXTernal"))
+
+    def _check_reference(self, a: Mapping[str, str]) -> None:
+        """SENS:ROSC:EXT:CHEC ONCE: an error when no valid signal is at Ext Ref In."""
+        if enum_param(a["when"], ("ONCE",)) and not self.external_reference:
+            raise ExecError(-241, "Hardware missing; no valid external timebase")
 
     def _set_trigger_source(self, a: Mapping[str, str]) -> None:
         self.trigger_source = enum_param(a["source"], ("IMMediate", "EXTernal", "BUS"))
