@@ -19,6 +19,7 @@ from bench.clock import MonotonicClock
 from bench.config import Config, ConfigError, load_config
 from bench.engine import Abort, Engine, Progress, RunContext, SignalGuard
 from bench.journal import RunDir
+from bench.lab import lab_path
 from bench.plan import format_duration
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
@@ -99,7 +100,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if cfg is None:
         return EXIT_INVALID
     if run is None:
-        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path)
+        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path,
+                            lab_path(cfg.procedure_path, cfg.procedure.get("certificate")))
     status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume))
     print(run.path)
     return status

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.canbus import bus_problems
+from bench.lab import lab_problems
 from bench.schema import Any_, Bool, Check, Key, ListOf, Map, MapOf, Num, Str, validate
 from bench.yamlfile import Problem, YamlDoc, YamlError, load_yaml
 
@@ -161,6 +162,7 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
                                         f"{', '.join(procedure_names())}, got {name!r}")])
     kind = procedure_kind(name)
     problems += validate(pdoc, kind.procedure_schema())
+    problems += lab_problems(Path(procedure_path), pdoc, pdoc.data.get("certificate"))
     sdoc: YamlDoc | None = None
     stand_ref = stand_path or pdoc.data.get("stand")
     if isinstance(stand_ref, str | Path):

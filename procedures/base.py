@@ -11,6 +11,7 @@ from bench.conformity import RULES
 from bench.engine import RunContext
 from bench.instruments import Bench
 from bench.journal import RunDir, sha256_file
+from bench.lab import certificate_settings
 from bench.plan import Plan, Step
 from bench.schema import Map
 from bench.simbench import SimBench
@@ -88,7 +89,8 @@ def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]]) -> dict[s
                   "started_utc": starts[0]["utc"] if starts else None,
                   "completed_utc": ends[-1]["utc"] if ends else None},
         "conditions": cfg.procedure.get("conditions", {}),
-        "certificate": cfg.procedure.get("certificate", {}),
+        "certificate": certificate_settings(cfg.procedure_path,
+                                            cfg.procedure.get("certificate", {})),
         "sessions": len(starts),
         "aborted": bool(events_of(events, "abort")),
         "raw_files": raw_files,

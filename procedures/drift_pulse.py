@@ -93,6 +93,8 @@ PROCEDURE = Map({
 })
 
 GYRO = Map({
+    "model": Key(Str(), False, "the gyro's model (printed as part of the item calibrated)"),
+    "serial": Key(Str(), False, "the gyro's serial number (printed as part of the item)"),
     "awg_channel": Key(Num(min=1, max=4, integer=True), True),
     "dmm": Key(Map({"resource": Key(Str(), True, "VISA resource string"),
                     "model": Key(Str(tuple(DMM_PROFILES)), True)}), True),

@@ -210,7 +210,7 @@ def test_conformity_states_rule_fail_and_capability(ladder: dict[str, Any]) -> N
     conf = conf[conf.index("7 Conformity"):conf.index("8 Records")]
     assert "guarded acceptance with a guard band equal to U" in conf
     assert "RMG 63-2003" in conf
-    assert "FAIL: 2 of 7 checks" in _flat(ladder["texts"][0])
+    assert "FAIL: 2 of 7 conformity checks" in _flat(ladder["texts"][0])
     # the procedure's bands: 1e-5 below 10 deg/s, 1e-6 from 10 deg/s
     assert "per-turn rate error |δ| |ω_set| < 10 °/s 10 ppm (0.001 %)" in conf
     assert "per-turn rate error |δ| |ω_set| ≥ 10 °/s 1 ppm (0.0001 %)" in conf

@@ -20,8 +20,9 @@ from typing import Any
 import yaml
 
 import bench
-from bench.certificate import methods, plots
+from bench.certificate import methods, plots, register
 from bench.certificate.model import Document, Fields, Figure, Para, Section, Signatures, Table
+from bench.certificate.register import Issue
 from bench.certificate.rounding import (
     MINUS,
     PERCENT,
@@ -186,16 +187,22 @@ def verdict_label(verdict: Any, rule: str | None = None, inside_tolerance: bool 
 # -- the certificate id ----------------------------------------------------------------
 
 def certificate_id(src: Sources) -> str:
-    """The laboratory's own number if the procedure gives one, else one from the data.
+    """The base number of the run's certificates: the laboratory's own if the procedure
+    gives one, else `<prefix>-<date of completion>-<8 hex digits>`.
 
-    The generated id is a digest of result.json: the same results give the same id, any
-    change of a result (a re-analysis) gives a new one.
+    The digits identify the run (its directory and creation time), so two runs never share
+    a number; each issue of one run adds its revision (register.numbered). Without a run
+    (a specimen) the digits are a digest of the results.
     """
-    cert = src.get("certificate", {}) or {}
+    cert = _cert(src)
     for key in ("number", "id", "certificate_id"):
         if cert.get(key):
             return str(cert[key])
-    digest = hashlib.sha256(json.dumps(src.result, sort_keys=True, default=str).encode())
+    run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else None)
+    created = (src.get("dates", {}) or {}).get("created_utc") or src.meta.get("created_utc")
+    identity = (f"{run_dir}|{created}" if run_dir else
+                json.dumps(src.result, sort_keys=True, default=str))
+    digest = hashlib.sha256(identity.encode())
     stamp = (src.get("dates", {}) or {}).get("completed_utc") or src.meta.get("created_utc")
     day = ""
     if stamp:
@@ -207,24 +214,40 @@ def certificate_id(src: Sources) -> str:
     return "-".join(p for p in (str(prefix), day, digest.hexdigest()[:8].upper()) if p)
 
 
+def _cert(src: Sources) -> dict[str, Any]:
+    """The certificate settings: the procedure's `certificate:` block over the lab's file."""
+    cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
+    return dict(cert) if isinstance(cert, Mapping) else {}
+
+
 # -- the document --------------------------------------------------------------------------
 
+AUTHORITATIVE = ("The PDF file certificate.pdf is the authoritative form of this certificate; "
+                 "the HTML rendering carries the same content for reading on screen.")
+SIMULATED_MARK = "SIMULATED RUN: NOT A CALIBRATION"
+
+
 def build_document(result: dict[str, Any], run_path: Path | None = None,
-                   issued: dt.date | None = None) -> Document:
+                   issued: dt.date | None = None, issue: Issue | None = None) -> Document:
+    """The certificate for one issue. Without `issue` it is the run's next one (revision 1
+    when nothing was issued yet), dated today or `issued`, and nothing is recorded."""
     src = Sources.load(result, run_path)
-    issue = (issued or dt.datetime.now(dt.UTC).date()).isoformat()
+    cid = certificate_id(src)
+    if issue is None:
+        when = (dt.datetime.combine(issued, dt.time(12), dt.UTC) if issued
+                else dt.datetime.now(dt.UTC))
+        issue = register.next_issue(run_path, cid, when)
     kind = src.get("procedure") or src.procedure_file.get("procedure") or (
         "drift-pulse" if src.get("drift") else "rate-ladder")
-    cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
+    cert = _cert(src)
     lab = str(cert.get("laboratory") or "Calibration laboratory (name not given)")
-    cid = certificate_id(src)
     checks = _checks(src)
     sections: list[Section] = []
     n = _Counter()
-    sections.append(Section(n.next(), "Identification", _identification(src, cid, issue,
+    sections.append(Section(n.next(), "Identification", _identification(src, issue,
                                                                        kind, checks)))
     sections.append(Section(n.next(), "Item calibrated and measuring instruments",
-                            _instruments(src)))
+                            _instruments(src, kind)))
     sections.append(Section(n.next(), "Method", _method(src, kind)))
     sections.append(Section(n.next(), "Deviations", _deviations(src, kind)))
     sections.append(Section(n.next(), "Conditions", _conditions(src)))
@@ -239,25 +262,28 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
         sections.append(Section(n.next(), "Per-turn counter rates", _per_turn_annex(src)))
     statements = [t for t in methods.STATEMENTS
                   if kind != "drift-pulse" or not t.startswith("Relative values")]
+    statements.append(AUTHORITATIVE)
     sections.append(Section(n.next(), "Statements", tuple(Para(t) for t in statements)))
     sections.append(Section(n.next(), "Authorisation", _signatures(cert, issue)))
-    stand = _stand(src)
-    subtitle = f"{stand.get('maker', '')} {stand.get('model', '')}, serial " \
-               f"{stand.get('serial', NOT_RECORDED)}".strip()
-    if stand.get("simulated"):
+    item, serial = _item(src, kind)
+    subtitle = f"{item}, serial {serial}"
+    simulated = bool(_stand(src).get("simulated"))
+    if simulated:
         subtitle += " (SIMULATED stand)"
     return Document(
-        cert_id=cid,
+        cert_id=issue.number,
         title="Calibration certificate",
         subtitle=subtitle,
         laboratory=lab,
-        issue_date=issue,
+        issue_date=issue.issue_date,
         verdict=str(src.get("verdict", "incomplete")),
         sections=tuple(sections),
         footer="This certificate shall not be reproduced except in full without the written "
-               "approval of the issuing laboratory.",
+               "approval of the issuing laboratory. " + AUTHORITATIVE.split(";")[0] + ".",
         meta={"run_title": str(src.get("title") or src.procedure_file.get("title") or ""),
-              "procedure": kind},
+              "procedure": kind, "revision": str(issue.revision),
+              "replaces": issue.replaces or "", "scope": _scope_line(src, checks, kind)},
+        watermark=SIMULATED_MARK if simulated else "",
     )
 
 
@@ -301,26 +327,71 @@ def _all_rates(src: Sources) -> list[dict[str, Any]]:
     return [r for ax in (src.get("axes", {}) or {}).values() for r in ax.get("rates", [])]
 
 
-def _identification(src: Sources, cid: str, issue: str, kind: str,
+def _item(src: Sources, kind: str) -> tuple[str, str]:
+    """(what was calibrated, its serial): for the drift procedure the platform under test
+    and its gyros, for the rate ladder the rate table named in the stand file."""
+    if kind == "drift-pulse":
+        plat = src.stand_file.get("platform", {}) or {}
+        ident = plat.get("identity", {}) or {}
+        if ident:
+            gyros = plat.get("gyros", {}) or {}
+            names = "; ".join(
+                f"{g}: " + ", ".join(
+                    str(v) for v in (spec.get("model"), spec.get("serial") and
+                                     f"serial {spec['serial']}") if v)
+                if isinstance(spec, Mapping) and (spec.get("model") or spec.get("serial"))
+                else f"{g}: serial not given in the stand file"
+                for g, spec in gyros.items())
+            text = f"{_text(ident.get('maker'))} {_text(ident.get('model'))}"
+            if names:
+                text += f", with its gyros ({names})"
+            return text, _text(ident.get("serial"))
+        return ("gyro platform (identity not given in the stand file's platform.identity)",
+                NOT_RECORDED)
+    stand = _stand(src)
+    return f"{_text(stand.get('maker'))} {_text(stand.get('model'))}", _text(stand.get("serial"))
+
+
+def _identification(src: Sources, issue: Issue, kind: str,
                     checks: list[dict[str, Any]]) -> tuple[Any, ...]:
     stand = _stand(src)
-    cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
+    cert = _cert(src)
     dates = src.get("dates", {}) or {}
     started = dates.get("started_utc") or _first_event(src, "session_start")
     completed = dates.get("completed_utc") or _last_event(src, "completed")
+    item, serial = _item(src, kind)
     rows: list[tuple[str, str]] = [
-        ("Certificate number", cid),
+        ("Certificate number", issue.number),
+        ("Revision", f"{issue.revision}" + (f"; replaces certificate {issue.replaces}, "
+                                            "which is withdrawn" if issue.replaces else
+                                            " (first issue)")),
         ("Title of the work", _text(src.get("title") or src.procedure_file.get("title"))),
         ("Issued by", _text(cert.get("laboratory"))),
-        ("Customer", _text(cert.get("customer"))),
-        ("Item calibrated", f"{_text(stand.get('maker'))}, {_text(stand.get('model'))}"),
-        ("Serial number", _text(stand.get("serial"))),
+        ("Laboratory address", _text(cert.get("address"))),
     ]
-    if stand.get("location"):
-        rows.append(("Location of the item", _text(stand["location"])))
+    if cert.get("accreditation"):
+        rows.append(("Accreditation", _text(cert["accreditation"])))
+    rows += [
+        ("Customer", _text(cert.get("customer"))),
+        ("Customer address", _text(cert.get("customer_address"))),
+        ("Customer contact", _text(cert.get("customer_contact"))),
+        ("Item calibrated", item),
+        ("Serial number", serial),
+    ]
+    if kind == "rate-ladder":
+        rows.append(("Item: what was calibrated",
+                     ", ".join(f"axis {a}" for a in (src.get("axes", {}) or {}))
+                     + "; rates are signed in each axis's positive sense (the drive's "
+                       "positive count direction), angles from the zero mark"))
+    if kind == "drift-pulse":
+        rows.append(("Test stand used", f"{_text(stand.get('maker'))} "
+                                        f"{_text(stand.get('model'))}, serial "
+                                        f"{_text(stand.get('serial'))}"))
+    site = cert.get("site") or stand.get("location")
+    rows.append(("Site of calibration", _text(site)))
     if stand.get("simulated"):
-        rows.append(("Nature of the item", "SIMULATED stand (instrument twins on real "
-                     "channels): these results describe no physical table"))
+        rows.append(("Nature of the work", "SIMULATED run (instrument twins on real channels): "
+                     "these results describe no physical item; every page is marked"))
     rows += [
         ("Procedure", {"rate-ladder": "rate ladder (METHOD.md part A)",
                        "drift-pulse": "drift by alternating-sign pulses (METHOD.md part B)"}
@@ -328,15 +399,17 @@ def _identification(src: Sources, cid: str, issue: str, kind: str,
         ("Work started", _utc(started)),
         ("Work ended", (_utc(completed) + (" (aborted)" if src.get("aborted") else ""))
          if completed else "not completed"),
-        ("Date of issue", issue),
-        ("Statement of conformity", _overall(src, checks)),
+        ("Date of issue (authorisation)", issue.issue_date),
+        ("Statement of conformity", _overall(src, checks, kind)),
     ]
-    skip = {"laboratory", "customer", "number", "id", "certificate_id", "prefix", "signers"}
+    skip = {"laboratory", "customer", "number", "id", "certificate_id", "prefix", "signers",
+            "signatories", "address", "accreditation", "customer_address", "customer_contact",
+            "site", "lab", "authoritative", "specification"}
     rows += [(_label(k), _text(v)) for k, v in cert.items() if k not in skip]
     blocks: list[Any] = [Fields(tuple(rows))]
     run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else NOT_RECORDED)
-    blocks.append(Para(f"Software: ratebench {bench.__version__}. Run directory: {run_dir}.",
-                       "note"))
+    blocks.append(Para(f"Software: ratebench {bench.__version__}. Run directory: {run_dir}. "
+                       + AUTHORITATIVE, "note"))
     return tuple(blocks)
 
 
@@ -349,19 +422,76 @@ def _last_event(src: Sources, kind: str) -> str | None:
     return found[-1] if found else None
 
 
-def _overall(src: Sources, checks: list[dict[str, Any]]) -> str:
+def check_class(c: Mapping[str, Any]) -> str:
+    """'consistency' (physics cross-check, not conformity), 'not-assessed' (excluded from
+    conformity, e.g. a σ at the timing floor), or 'conformity'."""
+    if str(c.get("rule")) == "consistency":
+        return "consistency"
+    if str(c.get("verdict")) == "not-assessed":
+        return "not-assessed"
+    return "conformity"
+
+
+#: what each procedure measures that a datasheet may specify, beside the checked quantities
+MEASURED = {
+    "rate-ladder": (("rate_error", "per-turn rate error"),
+                    ("rate_instability", "per-turn rate instability"),
+                    ("systematic", "once-per-revolution and higher harmonics of the rate"),
+                    ("mains", "mains-frequency ripple"),
+                    ("intra_turn_instability", "intra-turn instability"),
+                    ("stability_over_angle", "rate stability over 1°, 10°, 360°")),
+    "drift-pulse": (("own_drift", "own drift"), ("apparent_drift", "apparent drift"),
+                    ("azimuth", "platform azimuth")),
+}
+
+
+def _coverage(checks: list[dict[str, Any]], kind: str) -> tuple[list[str], list[str], int]:
+    """(quantities the verdict covers, quantities not assessed, checks excluded)."""
+    conf = [c for c in checks if check_class(c) == "conformity"]
+    covered = list(dict.fromkeys(str(c.get("quantity")) for c in conf))
+    names = [QUANTITY_NAMES.get(q, _label(q)) for q in covered]
+    not_assessed = [text for key, text in MEASURED.get(kind, ()) if key not in covered]
+    excluded = sum(1 for c in checks if check_class(c) == "not-assessed")
+    return names, not_assessed, excluded
+
+
+def _scope_line(src: Sources, checks: list[dict[str, Any]], kind: str) -> str:
+    names, not_assessed, excluded = _coverage(checks, kind)
+    if not names:
+        return "No statement of conformity: the procedure states no tolerances."
+    text = "The verdict covers: " + ", ".join(names) + "."
+    if excluded:
+        text += f" {excluded} check(s) could not be assessed (section Conformity)."
+    if not_assessed:
+        text += " Not assessed: " + ", ".join(not_assessed) + "."
+    return text
+
+
+def _overall(src: Sources, checks: list[dict[str, Any]], kind: str = "rate-ladder") -> str:
     verdict = str(src.get("verdict", "incomplete")).lower()
-    failed = [c for c in checks if str(c.get("verdict", "")).lower() != "pass"]
+    conf = [c for c in checks if check_class(c) == "conformity"]
+    failed = [c for c in conf if str(c.get("verdict", "")).lower() != "pass"]
+    cons = [c for c in checks if check_class(c) == "consistency"]
     rule = _rule_name(src.get("decision_rule"))
-    if verdict == "pass":
-        return (f"PASS: all {len(checks)} checks met the tolerances under the {rule} "
-                "decision rule (section Conformity)" if checks else
-                "PASS: no check failed (the procedure states no tolerances)")
-    if verdict == "fail":
-        return (f"FAIL: {len(failed)} of {len(checks)} checks did not meet the tolerances under "
-                f"the {rule} decision rule (section Conformity)")
-    return ("INCOMPLETE: the run did not complete every step; no statement of conformity is "
-            "made for the points not measured")
+    scope = _scope_line(src, checks, kind)
+    cons_text = ""
+    if cons:
+        bad = sum(1 for c in cons if str(c.get("verdict")).lower() != "pass")
+        cons_text = (f" Consistency checks (not conformity): {len(cons) - bad} of {len(cons)} "
+                     "consistent" + (", the measurement is in doubt" if bad else "") + ".")
+    if verdict == "incomplete":
+        return ("INCOMPLETE: the run did not complete every step; no statement of conformity is "
+                "made for the points not measured." + cons_text)
+    if not conf:
+        return (f"{verdict.upper()}: no conformity check was made (the procedure states no "
+                "tolerances)." + cons_text)
+    if not failed:
+        head = (f"PASS: all {len(conf)} conformity checks met the specification under the "
+                f"{rule} decision rule (section Conformity).")
+    else:
+        head = (f"FAIL: {len(failed)} of {len(conf)} conformity checks did not meet the "
+                f"specification under the {rule} decision rule (section Conformity).")
+    return f"{head} {scope}{cons_text}"
 
 
 def _rule_name(rule: Any) -> str:
@@ -369,12 +499,14 @@ def _rule_name(rule: Any) -> str:
             "simple": "simple acceptance"}.get(str(rule or "simple"), str(rule))
 
 
-def _instruments(src: Sources) -> tuple[Any, ...]:
+def _instruments(src: Sources, kind: str) -> tuple[Any, ...]:
     stand = _stand(src)
+    item, serial = _item(src, kind)
+    what = "Test stand used (the laboratory's)" if kind == "drift-pulse" else "Rate table"
     blocks: list[Any] = [Fields((
-        ("Maker", _text(stand.get("maker"))),
-        ("Model", _text(stand.get("model"))),
-        ("Serial number", _text(stand.get("serial"))),
+        ("Item calibrated", f"{item}, serial {serial}"),
+        (what, f"{_text(stand.get('maker'))} {_text(stand.get('model'))}, serial "
+               f"{_text(stand.get('serial'))}"),
         ("Stand file", f"{_text(stand.get('file') or src.meta.get('stand_file'))}"),
         ("Stand file SHA-256", _text(stand.get("sha256") or src.meta.get("stand_sha256"))),
     ))]
@@ -1192,11 +1324,27 @@ def _hash_table(files: Sequence[Mapping[str, Any]], caption: str) -> Table:
                  caption=caption, mono=True)
 
 
-def _signatures(cert: Mapping[str, Any], issue: str) -> tuple[Any, ...]:
-    signers = cert.get("signers")
+def _signatures(cert: Mapping[str, Any], issue: Issue) -> tuple[Any, ...]:
+    """Named signatories with their functions (the lab's settings); the one who authorises
+    the issue dates it, and that date is the date of issue."""
+    signers = cert.get("signatories") or cert.get("signers")
+    pairs: list[tuple[str, str]] = []
+    authoriser = ""
     if isinstance(signers, list) and signers:
-        pairs = tuple((str(s.get("role", "")), str(s.get("name", ""))) if isinstance(s, dict)
-                      else (str(s), "") for s in signers)
+        for sg in signers:
+            if not isinstance(sg, Mapping):
+                pairs.append((str(sg), ""))
+                continue
+            function = str(sg.get("function") or sg.get("role") or "")
+            name = str(sg.get("name") or "")
+            pairs.append((function, name))
+            if sg.get("authorises") or "authoris" in function.lower():
+                authoriser = authoriser or f"{name}, {function}"
     else:
-        pairs = (("Calibration performed by", ""), ("Reviewed and authorised by", ""))
-    return (Para(f"Date of issue: {issue}."), Signatures(pairs))
+        pairs = [("Calibration performed by", ""), ("Reviewed and authorised by", "")]
+    text = (f"Date of issue: {issue.issue_date}, the date on which this certificate was "
+            "authorised for issue" + (f" by {authoriser}." if authoriser else "."))
+    if issue.replaces:
+        text += (f" Revision {issue.revision}: it replaces certificate {issue.replaces}, "
+                 "which is withdrawn.")
+    return (Para(text), Signatures(tuple(pairs)))

@@ -71,7 +71,7 @@ def per_turn(axis: str, rates: Sequence[Mapping[str, Any]],
             ax.errorbar(x, y, yerr=u, fmt=marker, color=color, ms=4, capsize=3, lw=1,
                         label=label)
     for ax, key, (uname, scale), title in (
-            (a1, "rate_error", unit, "per-turn rate error δ (eq. 1)"),
+            (a1, "rate_error", unit, "per-turn rate error δ = (mean − ω_set)/ω_set (eq. 1)"),
             (a2, "rate_instability", inst_unit, "per-turn rate instability σ (eq. 2)")):
         tol = tolerances.get(key) or ()
         if len(tol) == 1:
