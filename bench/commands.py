@@ -8,6 +8,7 @@ operator (the axes were stopped, the data kept, `--resume` works).
 from __future__ import annotations
 
 import argparse
+import datetime as dt
 import sys
 import time
 import traceback
@@ -18,9 +19,11 @@ from typing import Any
 from bench.clock import MonotonicClock
 from bench.config import Config, ConfigError, load_config
 from bench.engine import Abort, Engine, Progress, RunContext, SignalGuard
+from bench.instruments import StandClaimError, check_references
 from bench.journal import RunDir
 from bench.lab import lab_path
 from bench.plan import format_duration
+from bench.traceability import overdue, overdue_warning
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
@@ -140,6 +143,10 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             run.begin_session(clock.now)
             run.event("session_start", resume=resume, sim=simbench is not None,
                       done_units=done, clock_speed=clock.speed, argv=sys.argv[1:])
+            for t in overdue(cfg.stand, dt.datetime.now(dt.UTC).date()):
+                progress.line(overdue_warning(t))
+                run.event("calibration_overdue", where=t.where, item=t.item,
+                          certificate=t.certificate, due=t.due.isoformat() if t.due else None)
             bench = kind.open_bench(cfg, stand, clock, run)
             for ax in bench.axes.values():
                 run.event("identity", axis=ax.name, **ax.identities)
@@ -147,6 +154,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                 simbench.start_clock()
                 if on_sim_started is not None:
                     on_sim_started(simbench)
+            check_references(cfg.stand["axes"], bench)
             progress.line(f"Run directory: {run.path}")
             if done:
                 progress.line(f"Resuming: {len(done)} unit(s) already done: {', '.join(done)}")
@@ -160,6 +168,10 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
         except Abort as e:
             _err(f"Aborted: {e}")
             status = EXIT_ABORTED
+        except StandClaimError as e:  # raised while opening: no axis was commanded yet
+            _err(f"Refused: {cfg.stand_path}: {e}")
+            run.event("refused", reason=str(e))
+            status = EXIT_INVALID
         except Exception as e:  # noqa: BLE001 - opening failed before the engine ran
             _err(f"Aborted while setting up the bench: {e}")
             if bench is not None:
@@ -174,8 +186,10 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             if simbench is not None:
                 simbench.stop()
         certificate = False
+        result = None
         try:
-            result, certificate = _write_outputs(run, cfg, progress)
+            if status != EXIT_INVALID:  # a refused stand measured nothing: nothing to issue
+                result, certificate = _write_outputs(run, cfg, progress)
         except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
             _err(f"analysis failed: {e!r}; the raw data is in {run.path}; "
                  f"fix and run `bench analyze {run.path}`")

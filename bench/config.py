@@ -13,11 +13,24 @@ from typing import Any
 
 from bench.canbus import bus_problems
 from bench.lab import lab_problems
-from bench.schema import Any_, Bool, Check, Key, ListOf, Map, MapOf, Num, Str, validate
+from bench.schema import Any_, Bool, Check, Date, Key, ListOf, Map, MapOf, Num, Str, validate
 from bench.yamlfile import Problem, YamlDoc, YamlError, load_yaml
 
 # -- stand file ---------------------------------------------------------------------
 
+CALIBRATION = Map({
+    "certificate": Key(Str(), True, "the calibration certificate's number"),
+    "issuer": Key(Str(), True, "the laboratory that issued it"),
+    "due": Key(Date(), True, "calibration due date, YYYY-MM-DD"),
+    "traces": Key(Str(), False, "the quantity it traces to SI, e.g. 'time interval to the "
+                                "SI second'"),
+})
+TRACEABLE = Map({   # a reference the bench does not drive (a 10 MHz source, a sensor)
+    "item": Key(Str(), True, "what it is, e.g. 'GPS-disciplined 10 MHz reference'"),
+    "serial": Key(Str()),
+    "certificate": Key(Str(), True), "issuer": Key(Str(), True), "due": Key(Date(), True),
+    "traces": Key(Str()),
+})
 DRIVE = Map({
     "interface": Key(Str(), True, "python-can interface: socketcan, pcan, kvaser, virtual..."),
     "channel": Key(Str(), True, "python-can channel, e.g. can0"),
@@ -36,6 +49,7 @@ DRIVE = Map({
     "settle_tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
     "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg")),
     "eds": Key(Str()),
+    "calibration": Key(CALIBRATION, False, "the encoder's calibration certificate, if any"),
 })
 COUNTER = Map({
     "resource": Key(Str(), True, "VISA resource string"),
@@ -48,6 +62,10 @@ COUNTER = Map({
     "trigger_jitter_s": Key(Num(min=0, unit="s"), False, "slot sensor edge jitter, std"),
     "timebase_limit_rel": Key(Num(min=0), False, "timebase error limit (external reference)"),
     "timeout_margin_s": Key(Num(min=0, exclusive_min=True, unit="s")),
+    "reference": Key(Str(("internal", "external")), False,
+                     "the timebase reference the stand claims; read back from the counter "
+                     "where it can say (53230A ROSC:SOUR?), a false claim is refused"),
+    "calibration": Key(CALIBRATION, False, "the counter's calibration certificate"),
 })
 FOG = Map({
     "port": Key(Str(), True, "serial port, e.g. /dev/ttyUSB0"),
@@ -59,6 +77,7 @@ FOG = Map({
     "units": Key(Str()),
     "model": Key(Str()),
     "sign": Key(Num(min=-1, max=1, integer=True)),
+    "calibration": Key(CALIBRATION, False, "the FOG's calibration certificate, if any"),
 })
 STAND_AXIS_KEYS: dict[str, Key] = {
     "drive": Key(DRIVE, True), "counter": Key(COUNTER), "fog": Key(FOG),
@@ -78,6 +97,8 @@ SIM_AXIS = Map({
     "rate_noise_dps": Key(Num(min=0)),
     "turn_jitter_s": Key(Num(min=0)),
     "fog": Key(SIM_FOG),
+    "counter_external_reference": Key(Bool(), False, "a valid 10 MHz is wired to the "
+                                      "counter's Ref In (default false: internal oscillator)"),
 })
 SIM_KEYS: dict[str, Key] = {
     "seed": Key(Num(min=0, integer=True)),
@@ -97,6 +118,8 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
         "axes": Key(Check(MapOf(Map({**STAND_AXIS_KEYS, **(extra_axis or {})})),
                           bus_problems), True),
         "sim": Key(Map({**SIM_KEYS, **(extra_sim or {})})),
+        "traceability": Key(ListOf(TRACEABLE), False, "references and sensors the bench "
+                            "does not drive, with their calibration certificates"),
         **(extra_top or {}),
     })
 

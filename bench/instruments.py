@@ -30,6 +30,7 @@ class AxisInstruments:
     fog: Any | None = None
     identities: dict[str, str] = field(default_factory=dict)
     logs: dict[str, JsonLines] = field(default_factory=dict)
+    reference: str | None = None  # the counter's timebase reference as read back
 
 
 class Bench:
@@ -73,12 +74,45 @@ class Bench:
         if errors:
             raise RuntimeError("; ".join(errors))
 
+    def abandon(self, error: BaseException) -> None:
+        """Opening failed with `error`: stop what was opened, close all, keep `error` the
+        one reported (a stop that fails too, e.g. on a clock not yet started, is noted on
+        it, not raised in its place)."""
+        if self.axes:
+            try:
+                self.safe_stop(lambda s: None)
+            except Exception as e:  # noqa: BLE001 - the opening error is the one to report
+                error.add_note(f"stopping the axes after it failed too: {e}")
+        self.close()
+
     def close(self) -> None:
         try:
             self._stack.close()
         finally:
             for j in self._logs:
                 j.close()
+
+
+class StandClaimError(Exception):
+    """The stand file claims what the instrument, asked, denies: the input is invalid."""
+
+
+def check_references(stand_axes: dict[str, Any], bench: Bench) -> None:
+    """Refuse a claimed external reference a counter is not on (the traceability of the
+    second rests on it, and the stand's timebase limit assumes it). Called once the
+    instruments are open and before anything moves."""
+    for axis, ax in bench.axes.items():
+        claimed = ((stand_axes.get(axis) or {}).get("counter") or {}).get("reference")
+        check_reference(axis, claimed, ax.reference)
+
+
+def check_reference(axis: str, claimed: str | None, reported: str | None) -> None:
+    if claimed == "external" and reported == "INT":
+        raise StandClaimError(
+            f"axes.{axis}.counter.reference says external, but the counter reports its "
+            "internal oscillator (ROSCillator:SOURce? INT): connect the 10 MHz reference "
+            "to Ref In, or set reference: internal and the internal oscillator's "
+            "timebase_limit_rel")
 
 
 def raw_text_logger(log: JsonLines, clock: Clock) -> Callable[[str, bytes], None]:
@@ -136,6 +170,12 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
                                            "impedance_ohm") if k in c})
         ax.counter = cnt
         ax.identities["counter"] = cnt.identify()
+        reported = cnt.reference_source()
+        ax.identities["counter_reference"] = (
+            {"INT": "internal oscillator", "EXT": "external reference (Ref In)"}[reported]
+            + f" ({cnt.words.reference_source.query_text()} {reported})"
+            if reported else "not reported by this model")
+        ax.reference = reported
     f = axis_cfg.get("fog")
     if fog and f:
         from drivers.fog import Fog

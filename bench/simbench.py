@@ -85,7 +85,9 @@ class SimBench:
                 d["interface"], d["channel"] = "virtual", channel
                 if ac.get("counter"):
                     c = ac["counter"]
-                    ct = CounterTwin(self.stand, a, model=c["model"])
+                    truth = ((self.stand_cfg.get("sim") or {}).get("axes") or {}).get(a) or {}
+                    ct = CounterTwin(self.stand, a, model=c["model"], external_reference=bool(
+                        truth.get("counter_external_reference", False)))
                     c["resource"] = ct.start()
                     self._stack.callback(ct.stop)
                     self.twins[f"{a}.counter"] = ct

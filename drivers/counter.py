@@ -174,6 +174,19 @@ class Counter(ScpiInstrument):
     def identify(self) -> str:
         return self.ask(IDN)
 
+    def reference_source(self) -> str | None:
+        """The timebase reference in use, as the counter reports it: 'INT' or 'EXT'; None
+        when the model has no word for it (the stand file's claim then stands unchecked)."""
+        word = self.words.reference_source
+        if word is None:
+            return None
+        reply = self.ask(word).strip().strip('"').upper()
+        for short, long in (("INT", "INTERNAL"), ("EXT", "EXTERNAL")):
+            if reply in (short, long):
+                return short
+        raise CounterError(f"{self.name}: {word.query_text()} answered {reply!r}, expected "
+                           "INT or EXT", command=word.query_text())
+
     def reset(self) -> None:
         """*RST, *CLS, wait for completion. The input set-up is re-sent by the next arm()."""
         self._armed = None

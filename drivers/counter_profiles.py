@@ -54,6 +54,9 @@ class CounterWords:
     fetch: Command | None = None
     fetch_array: Command | None = None
     read: Command | None = None
+    # traceability: which timebase reference the counter runs on (INT or EXT)
+    reference_source: Command | None = None
+    reference_auto: Command | None = None
 
 
 # -- reply formats: how each model lays out its data (decode for the driver, encode for
@@ -239,6 +242,12 @@ KEYSIGHT_53230A = CounterProfile(
         measurement_timeout=Command("SYSTem:TIMeout", "{timeout_s}",
                                     doc="per-measurement timeout; 9.91E37 when it fires"),
         fetch=Command("FETCh?", doc="readings of the last INIT"),
+        reference_source=Command("[SENSe:]ROSCillator:SOURce", "{source}",
+                                 doc="INTernal or EXTernal; the query answers INT or EXT, "
+                                     "the reference in use"),
+        reference_auto=Command("[SENSe:]ROSCillator:SOURce:AUTO", "{state}",
+                               doc="ON (*RST): EXT when a valid 10 MHz is at Ref In, else "
+                                   "INT; setting a source turns it OFF"),
     ),
     timestamps="keysight-tst",
     periods="init-fetch",
@@ -252,7 +261,10 @@ KEYSIGHT_53230A = CounterProfile(
     single_shot_s=20e-12,
     timebase_limit_rel=1.0e-6,
     notes=("53220A/53230A Programmer's Reference: CONF:ARR:TST, SENS:TST:RATE, SYST:TIM, "
-           "INP:LEV:AUTO, reply 'prescaler, times' (count+1 values). Period mode "
+           "INP:LEV:AUTO, reply 'prescaler, times' (count+1 values). Reference: "
+           "ROSC:SOUR? answers INT or EXT; with ROSC:SOUR:AUTO ON (*RST) the counter takes "
+           "the rear Ref In when a valid signal is there, else its internal oscillator; "
+           "`SENS:ROSC:SOUR EXT` also turns AUTO off (User's Guide, ch. 3). Period mode "
            "(CONF:PER; SAMP:COUN N) is modelled with dead time: consecutive readings time "
            "every other turn; use timestamps for consecutive turns. Timebase: standard "
            "TCXO, +/-1e-6 assumed (1-year aging and temperature); option 010 OCXO is far "

@@ -94,7 +94,8 @@ class CounterTwin(ScpiServer):
 
     def __init__(self, stand: SimulatedStand, axis: str, model: str = "keysight-53230a",
                  host: str = "127.0.0.1", port: int = 0, *, signal_channel: int = 1,
-                 signal_low_v: float = 0.0, signal_high_v: float = 5.0) -> None:
+                 signal_low_v: float = 0.0, signal_high_v: float = 5.0,
+                 external_reference: bool = False) -> None:
         self.profile: CounterProfile = get_profile(model)
         super().__init__(idn=self.profile.idn, host=host, port=port)
         self.stand = stand
@@ -102,6 +103,8 @@ class CounterTwin(ScpiServer):
         self.clock = stand.clock
         self.signal_channel = signal_channel
         self.signal_v = (float(signal_low_v), float(signal_high_v))
+        #: a valid 10 MHz at the rear Ref In (the stand's truth, not a setting)
+        self.external_reference = bool(external_reference)
         self.inputs: dict[int, InputState] = {}
         self.acquisition: TwinAcquisition | None = None
         self.reset()
@@ -118,6 +121,8 @@ class CounterTwin(ScpiServer):
         self.timestamp_rate_hz = 1.0e6
         self.gate = "DEF"
         self.acquisition = None
+        self.reference_auto = True   # ROSC:SOUR:AUTO ON at *RST
+        self.reference_selected = "INT"
 
     def pending(self) -> bool:
         return self.acquisition is not None and not self._progress(self.acquisition)
@@ -206,7 +211,24 @@ class CounterTwin(ScpiServer):
             "fetch": (None, self._fetch, True),
             "fetch_array": (None, self._fetch_array, True),
             "read": (None, self._read, True),
+            "reference_source": (self._set_reference, lambda a: self._reference_in_use()),
+            "reference_auto": (self._set_reference_auto,
+                               lambda a: bool_reply(self.reference_auto)),
         })
+
+    # -- the timebase reference (53220A/53230A User's Guide, ch. 3) -------------------------
+    def _reference_in_use(self) -> str:
+        """AUTO: EXT when a valid reference is at Ref In, else INT; else the selection."""
+        if self.reference_auto:
+            return "EXT" if self.external_reference else "INT"
+        return self.reference_selected
+
+    def _set_reference(self, a: Mapping[str, str]) -> None:
+        self.reference_selected = enum_param(a["source"], ("INTernal", "EXTernal"))
+        self.reference_auto = False  # selecting a source disables automatic selection
+
+    def _set_reference_auto(self, a: Mapping[str, str]) -> None:
+        self.reference_auto = bool_param(a["state"])
 
     def _inp(self, a: Mapping[str, str]) -> InputState:
         return suffix_item(self.inputs, a)

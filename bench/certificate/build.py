@@ -35,6 +35,7 @@ from bench.certificate.rounding import (
 )
 from bench.certificate.shape import conform_result
 from bench.journal import read_jsonl, sha256_file
+from bench.traceability import MEASURING_ROLES, traced_items
 
 NOT_RECORDED = "not recorded"
 CAPABILITY_LIMIT = 0.3  # RMG 63-2003: the measurement's error limit <= 0.2-0.3 of the tolerance
@@ -539,7 +540,60 @@ def _instruments(src: Sources, kind: str) -> tuple[Any, ...]:
                                     "(*IDN?, drive identity objects, FOG model)"))
     else:
         blocks.append(Para("Instrument identities: not recorded.", "note"))
+    blocks += _traceability(src)
     return tuple(blocks)
+
+
+def _work_date(src: Sources) -> dt.date | None:
+    stamp = ((src.get("dates", {}) or {}).get("started_utc")
+             or _first_event(src, "session_start") or src.meta.get("created_utc"))
+    try:
+        return dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00")).date()
+    except (TypeError, ValueError):
+        return None
+
+
+def _traceability(src: Sources) -> tuple[Any, ...]:
+    """Where each measured quantity's traceability to the SI comes from (17025 7.8.4.1 c):
+    the stand file's calibration certificates, and the counter reference as read back."""
+    items = traced_items(src.stand_file)
+    if not items:
+        return (Para("Metrological traceability: the stand file states no calibration "
+                     "certificates; NOT SHOWN for any instrument.", "strong"),)
+    on = _work_date(src)
+    rows = []
+    overdue_seen = False
+    for t in items:
+        if not t.stated:
+            status = ("NOT TRACEABLE: no calibration certificate in the stand file"
+                      if t.where.rsplit(".", 1)[-1] in MEASURING_ROLES else
+                      "no calibration stated (not used for a measured value)")
+        elif on is not None and t.overdue(on):
+            overdue_seen = True
+            status = f"PAST DUE on the date of the work ({on.isoformat()})"
+        else:
+            status = "valid on the date of the work" if on else "validity not checked"
+        rows.append((t.item, _text(t.certificate) if t.stated else "—",
+                     _text(t.issuer) if t.stated else "—",
+                     t.due.isoformat() if t.due else "—", _text(t.traces) if t.traces else
+                     "—", status))
+    notes = ["From the stand file (its SHA-256 above). Due dates are compared with the date "
+             "the work started."]
+    if overdue_seen:
+        notes.append("An instrument past its calibration due date was used: the run warned "
+                     "at its start; results depending on it are not shown to be traceable.")
+    ids = src.get("instruments", {}) or {}
+    refs = [(a, v.get("counter_reference")) for a, v in ids.items()
+            if isinstance(v, Mapping) and v.get("counter_reference")]
+    stand_axes = src.stand_file.get("axes", {}) or {}
+    for axis, ref in refs:
+        claimed = ((stand_axes.get(axis) or {}).get("counter") or {}).get("reference")
+        notes.append(f"Counter reference, axis {axis}: read back from the counter: {ref}"
+                     + (f"; the stand file states {claimed}" if claimed else "") + ".")
+    return (Table(("Item", "Certificate", "Issued by", "Due", "Quantity traced",
+                   "Status"), tuple(rows), widths=(2.2, 1.5, 1.6, 0.9, 2.3, 1.6),
+                  align="llllll", caption="Metrological traceability: calibration of the "
+                  "instruments and references used", notes=tuple(notes)),)
 
 
 def _method(src: Sources, kind: str) -> tuple[Any, ...]:
