@@ -26,11 +26,13 @@ from bench.certificate.register import Issue
 from bench.certificate.rounding import (
     MINUS,
     PERCENT,
+    Presented,
     RelUnit,
-    format_fixed,
-    format_limit,
     format_sig,
     format_value_u,
+    is_resolved,
+    present,
+    present_phase,
     rel_unit,
 )
 from bench.certificate.shape import conform_result
@@ -696,6 +698,20 @@ def _instability_u(r: Mapping[str, Any]) -> tuple[float | None, bool]:
     return 2 * s / math.sqrt(2 * (n - 1)), True  # u(s) ~ s / sqrt(2(N-1)) for normal data
 
 
+def sigma_presented(r: Mapping[str, Any], u: float | None) -> Presented:
+    """Eq. 2's σ under the one rule, with the timing floor as its zero: resolved when
+    σ − U > floor (the analysis's `rate_instability_resolved`), else '< L', L the
+    one-sided chi-square upper limit (`rate_instability_upper_rel`) or σ + U."""
+    s = _num(r.get("rate_instability_rel"))
+    floor = _num(r.get("rate_instability_floor_rel"))
+    resolved = r.get("rate_instability_resolved")
+    if resolved is None:
+        resolved = (s is not None and u is not None
+                    and s - u > (floor if floor is not None else 0.0))
+    upper = _num(r.get("rate_instability_upper_rel"))
+    return present(s, u, resolved=bool(resolved), upper=upper)
+
+
 def _u_of_std(s: float | None, n: Any) -> float | None:
     """U (k = 2) of a standard deviation from n independent values: 2 s / sqrt(2 (n - 1))."""
     n = _num(n)
@@ -715,6 +731,16 @@ class Averaged:
     floor: float | None
     corrected: float | None
     blocks: int | None
+    upper: float | None = None        # k = 2 upper limit of the corrected figure
+    resolved: bool | None = None
+
+    @property
+    def sensitivity(self) -> float | None:
+        """The smallest table figure these n windows could resolve: where the excess
+        variance equals 2 u of the measured variance, (8 / (n - 1))^(1/4) * measured."""
+        if self.raw is None or not self.blocks or self.blocks < 2:
+            return None
+        return self.raw * (8.0 / (self.blocks - 1)) ** 0.25
 
 
 def _averaged(r: Mapping[str, Any]) -> list[Averaged]:
@@ -735,9 +761,18 @@ def _averaged(r: Mapping[str, Any]) -> list[Averaged]:
         approx = u is None
         if approx:
             u = _u_of_std(raw, d.get("blocks"))
+        corrected, upper = _num(d.get("corrected_rel")), _num(d.get("corrected_upper_rel"))
+        resolved = d.get("resolved")
+        if resolved is None:   # an older result: the k = 2 test on the excess variance
+            resolved = bool(corrected) and u is not None and raw is not None \
+                and corrected ** 2 > 2 * raw * u
+        if upper is None and raw is not None and u is not None:
+            fl = _num(d.get("floor_rel")) or 0.0
+            upper = math.sqrt(max(raw * raw - fl * fl, 0.0) + 2 * raw * u)
         out.append(Averaged(float(d["angle_deg"]), raw, u, approx and u is not None,
-                            _num(d.get("floor_rel")), _num(d.get("corrected_rel")),
-                            int(d["blocks"]) if _num(d.get("blocks")) is not None else None))
+                            _num(d.get("floor_rel")), corrected,
+                            int(d["blocks"]) if _num(d.get("blocks")) is not None else None,
+                            upper, bool(resolved)))
     return sorted(out, key=lambda x: x.angle_deg)
 
 
@@ -780,6 +815,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                          *[u for u, _ in inst_us])
     rows = []
     approximated = False
+    unresolved_sigma = False
     for r, (iu, approx) in zip(rates, inst_us, strict=True):
         approximated |= approx
         set_rate = _num(r.get("set_rate_dps"))
@@ -789,16 +825,24 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
             mean = sum(cr) / len(cr)
         eu = _num(r.get("rate_error_u_rel"))
         mean_u = eu * abs(set_rate) if eu is not None and set_rate else None
+        sigma = sigma_presented(r, iu)
+        unresolved_sigma |= not sigma.resolved
         rows.append((_rate(set_rate), _text(r.get("turns")),
                      format_value_u(mean, mean_u, signed=True, sig_without_u=10).joined(),
                      _vu(r.get("rate_error_rel"), eu, err_unit, signed=True),
-                     _vu(r.get("rate_instability_rel"), iu, inst_unit) + ("*" if approx else ""),
-                     format_value_u(_num(r.get("rate_instability_floor_rel")), None,
-                                    inst_unit.scale, sig_without_u=2).value
+                     present(_num(r.get("rate_instability_rel")), iu, inst_unit.scale,
+                             resolved=sigma.resolved, upper=sigma.limit).text
+                     + ("*" if approx and sigma.resolved else ""),
+                     format_sig(_num(r.get("rate_instability_floor_rel")) * inst_unit.scale, 2)
                      if _num(r.get("rate_instability_floor_rel")) is not None else "—",
                      verdict_label(r.get("verdict"))))
-    notes = ["Timing floor: the σ that the counter's and the zero-mark sensor's timing "
-             "errors alone would give (METHOD.md A1); a σ near it is not resolved."]
+    notes = ["Timing floor of σ = ΔT / T, with ΔT = √2 · Δ_edge the timing of one period "
+             "(section 3, A1): the σ the counter's and the zero-mark sensor's timing errors "
+             "alone would give."]
+    if unresolved_sigma:
+        notes.append("'< L': σ is not resolved above the timing floor (σ − U ≤ floor): L is "
+                     "its one-sided 97.5 % upper limit for normal per-turn rates (chi-square, "
+                     "N − 1 degrees of freedom); such a σ is left out of conformity.")
     if approximated:
         notes.append("* U of σ from the chi-square approximation U = 2σ/√(2(N−1)) for N turns "
                      "(normal per-turn rates); the result did not carry it.")
@@ -857,25 +901,27 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
             a, au = _num(h.get("amplitude_rel")), _num(h.get("amplitude_u_rel"))
             w = abs(_num(r.get("set_rate_dps")) or 0.0)
             detected = h.get("detected")
-            if detected is None:
-                detected = a is None or au is None or a > au
-            significant = "" if detected else " (not significant)"
+            resolved = bool(detected) if detected is not None else is_resolved(a, au)
             sys_rows.append((_rate(r.get("set_rate_dps")), _text(h.get("order")),
-                             _vu(a, au, amp_unit) + significant,
-                             format_value_u(a * w if a is not None else None,
-                                            au * w if au is not None else None).joined(),
-                             _vu(h.get("phase_deg"), h.get("phase_u_deg"), signed=True)))
+                             present(a, au, amp_unit.scale, resolved=resolved).text,
+                             present(a * w if a is not None else None,
+                                     au * w if au is not None else None,
+                                     resolved=resolved).text,
+                             present_phase(_num(h.get("phase_deg")), _num(h.get("phase_u_deg")),
+                                           resolved)))
         m = s.get("mains") or {}
         if m:
             w = abs(_num(r.get("set_rate_dps")) or 0.0)
             a, au = _num(m.get("amplitude_dps")), _num(m.get("amplitude_u_dps"))
-            quiet = " (not significant)" if m.get("detected") is False else ""
+            detected = m.get("detected")
+            resolved = bool(detected) if detected is not None else is_resolved(a, au)
             mains_rows.append((_rate(r.get("set_rate_dps")), _text(m.get("frequency_hz")),
-                               _vu(a, au) + quiet,
-                               format_value_u(a / w if a is not None and w else None,
-                                              au / w if au is not None and w else None,
-                                              PERCENT.scale).joined(),
-                               _vu(m.get("phase_deg"), m.get("phase_u_deg"), signed=True)))
+                               present(a, au, resolved=resolved).text,
+                               present(a / w if a is not None and w else None,
+                                       au / w if au is not None and w else None,
+                                       PERCENT.scale, resolved=resolved).text,
+                               present_phase(_num(m.get("phase_deg")),
+                                             _num(m.get("phase_u_deg")), resolved)))
     if sys_rows:
         blocks.append(Table(("Set rate, °/s", "Order h", f"Amplitude ± U, {amp_unit.name} "
                              "of ω_set", "Amplitude ± U, °/s", "Phase p_h ± U, °"),
@@ -883,9 +929,10 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                             caption=f"Axis {axis}: systematic intra-turn component, fitted "
                                     "harmonics Δω_sys = ω_set·Σ a_h cos(hφ + p_h) "
                                     "(METHOD.md A4)",
-                            notes=("(not significant): the amplitude is not detected above "
-                                   "its uncertainty; it is consistent with zero and its phase "
-                                   "is meaningless.",)))
+                            notes=("'< L': the amplitude is not resolved (a ≤ U, the one "
+                                   "rule of section 6); L = a + U is its one-sided upper "
+                                   "limit, and its phase, which then means nothing, is "
+                                   "printed '—'.",)))
     if mains_rows:
         blocks.append(Table(("Set rate, °/s", "Frequency, Hz", "Amplitude ± U, °/s",
                              "Amplitude ± U, % of ω_set", "Phase ± U, °"), tuple(mains_rows),
@@ -896,7 +943,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                                    "direction's record. Grid-frequency wander during the "
                                    "record (of the order of 1 / record length or more) "
                                    "spreads the tone and lowers the amplitude found; "
-                                   "(not significant) as for the harmonics.",)))
+                                   "'< L' and '—' as for the harmonics.",)))
     blocks += _figure(f"Axis {axis}: systematic component vs table angle with the fitted "
                       "harmonics (cf. paper figs. 8-9)",
                       plots.systematic, axis, rates, amp_unit.scale, amp_unit.name)
@@ -906,18 +953,21 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
 
 
 def _corrected_cell(r: Mapping[str, Any], unit: RelUnit) -> str:
-    """Floor-corrected instability: value ± U, or value with its k = 2 upper limit, or only
-    the limit when the table's own part is not resolved above the FOG's floor."""
+    """Floor-corrected instability under the one rule: value ± U when resolved and a U is
+    given, else its k = 2 upper limit '< L' (never a bare value)."""
     intra = r.get("intra_turn") or {}
     value = _num(r.get("intra_turn_instability_corrected_rel"))
     u = _num(r.get("intra_turn_instability_corrected_u_rel"))
     upper = _num(intra.get("corrected_upper_rel"))
-    if u is not None or upper is None or not upper > 0:   # a noiseless (simulated) FOG: 0
-        return _vu(value, u, unit)
-    limit, decimals = format_limit(upper * unit.scale)
-    if intra.get("resolved") is False or value is None:
-        return f"< {limit} (not resolved)"
-    return f"{format_fixed(value * unit.scale, decimals)} (≤ {limit})"
+    resolved = intra.get("resolved")
+    if u is not None and resolved is not False:
+        return present(value, u, unit.scale, resolved=True).text
+    if resolved and value is not None and upper is not None and upper > value:
+        # the limit's distance from the value is its k = 2 half-width (one-sided)
+        return present(value, upper - value, unit.scale, resolved=True).text
+    if upper is None and value == 0.0:
+        return "0 (noiseless FOG)"   # a simulated FOG without noise: nothing to remove
+    return present(value, None, unit.scale, resolved=False, upper=upper).text
 
 
 BUDGET_TERMS = (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
@@ -1008,41 +1058,75 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
             text += f" at {_num(floor.get('rate_hz')):g} Hz"
         if _num(floor.get("duration_s")) is not None:
             text += f", {_num(floor.get('duration_s')):g} s record at rest"
-        notes.append(text + ". Floor-corrected = √(raw² − floor²); (≤ x) is its upper limit "
-                            "at k = 2; 'not resolved' when the table's own part does not "
-                            "stand out of the FOG's noise.")
+        notes.append(text + ". Floor-corrected = √(raw² − floor²) ± U when the table's own "
+                            "part stands out of the FOG's noise (raw² − floor² > its U, the "
+                            "one rule); otherwise '< L', L = √(max(raw² − floor², 0) + U) "
+                            "its one-sided k = 2 upper limit.")
     if approx:
         notes.append("* U of the raw value from 2s/√(2(n−1)) over its n samples, assuming "
                      "independent samples; the result did not carry it.")
     blocks: list[Any] = [Table(header, tuple(rows), widths=(1.1, 2.0, 1.4, 2.2),
                                align="rrrr", caption=f"Axis {axis}: intra-turn instability "
                                "std(Δω_rand)/|ω_set| (METHOD.md A5)", notes=tuple(notes))]
-    averaged = [(r, a) for r in rates for a in _averaged(r)]
-    if averaged:
-        units = {ang: rel_unit(*[v for _, a in averaged if a.angle_deg == ang
-                                 for v in (a.raw, a.corrected)])
-                 for ang in {a.angle_deg for _, a in averaged}}
-        rows = []
-        for r, a in averaged:
-            unit = units[a.angle_deg]
-            rows.append((_rate(r.get("set_rate_dps")), f"{a.angle_deg:g}",
-                         _vu(a.raw, a.u, unit) + ("*" if a.u_approx else ""),
-                         format_value_u(a.floor, None, unit.scale, sig_without_u=2).value
-                         if a.floor is not None else "—",
-                         format_value_u(a.corrected, None, unit.scale, sig_without_u=2).value
-                         if a.corrected else "not resolved",
-                         unit.name, _text(a.blocks)))
-        notes = ["Standard deviation of the random part averaged over consecutive windows of "
-                 "the stated table angle, relative to |ω_set|: comparable with a rate-table "
-                 "datasheet's rate stability over 1°, 10° or 360°."]
-        if any(a.u_approx for _, a in averaged):
-            notes.append("* U from 2s/√(2(n−1)) over the n windows.")
-        blocks.append(Table(("Set rate, °/s", "Window, °", "Raw ± U", "FOG floor",
-                             "Floor-corrected", "Unit", "Windows"), tuple(rows),
-                            widths=(1.1, 0.8, 2.0, 1.2, 1.4, 0.6, 0.9), align="rrrrrcr",
-                            caption=f"Axis {axis}: random part averaged over an angle "
-                                    "(METHOD.md A5)", notes=tuple(notes)))
+    blocks += _stability_blocks(axis, rates)
     return blocks
+
+
+def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
+    """Rate stability over an angle, as a datasheet states it (METHOD.md A5): over 1° and
+    10° from the FOG (with what this FOG can verify), over 360° from the counter's
+    per-turn rates, whose timing floor is far below the FOG's."""
+    rows = []
+    limited = False
+    for r in rates:
+        for a in _averaged(r):
+            if a.angle_deg >= 360.0:
+                continue   # one turn: the counter's σ below
+            unit = rel_unit(a.raw, a.floor, a.upper)
+            own = (present(a.corrected, a.upper - a.corrected, unit.scale, resolved=True).text
+                   if a.resolved and a.corrected is not None and a.upper is not None
+                   and a.upper > a.corrected else
+                   present(a.corrected, None, unit.scale, resolved=False, upper=a.upper).text)
+            limited |= not a.resolved
+            rows.append((_rate(r.get("set_rate_dps")), f"{a.angle_deg:g}", "FOG",
+                         present(a.raw, a.u, unit.scale, resolved=True).text
+                         + ("*" if a.u_approx else ""),
+                         format_sig(a.floor * unit.scale, 2) if a.floor is not None else "—",
+                         own, format_sig(a.sensitivity * unit.scale, 2)
+                         if a.sensitivity is not None else "—", unit.name, _text(a.blocks)))
+        s, (iu, approx) = _num(r.get("rate_instability_rel")), _instability_u(r)
+        if s is not None:
+            sigma = sigma_presented(r, iu)
+            unit = rel_unit(s, sigma.limit)
+            floor = _num(r.get("rate_instability_floor_rel"))
+            rows.append((_rate(r.get("set_rate_dps")), "360", "counter",
+                         present(s, iu, unit.scale, resolved=True).text
+                         + ("*" if approx else ""),
+                         format_sig(floor * unit.scale, 2) if floor is not None else "—",
+                         present(s, iu, unit.scale, resolved=sigma.resolved,
+                                 upper=sigma.limit).text,
+                         format_sig(floor * unit.scale, 2) if floor is not None else "—",
+                         unit.name, _text(r.get("turns"))))
+    if not rows:
+        return []
+    approx_note = ["* U from 2s/√(2(n−1)) over the n windows (turns); the result did not "
+                   "carry it."] if any(r[3].endswith("*") for r in rows) else []
+    notes = ["Rate stability over an angle: the standard deviation of the table rate averaged "
+             "over consecutive windows of that angle, relative to |ω_set|, as a rate-table "
+             "datasheet states it. Over 1° and 10° it comes from the FOG (floor: the FOG's own "
+             "noise averaged over the window; table's own = √(measured² − floor²)); over 360° "
+             "from the counter's per-turn rates (σ of eq. 2; floor: the timing floor).",
+             "Capability: 'smallest verifiable' is the smallest table figure this measurement "
+             "could show as resolved, (8/(n − 1))^¼ × measured for n windows, or the "
+             "counter's timing floor. A datasheet figure below it cannot be verified with "
+             "this FOG or counter; '< L' states only that the table is within L.",
+             *approx_note]
+    return [Table(("Set rate, °/s", "Window, °", "From", "Measured ± U", "Floor",
+                   "Table's own", "Smallest verifiable", "Unit", "Windows"), tuple(rows),
+                  widths=(1.0, 0.8, 0.8, 1.7, 0.9, 1.5, 1.1, 0.6, 0.8),
+                  align="rrlrrrrcr",
+                  caption=f"Axis {axis}: rate stability over 1°, 10° and 360° (METHOD.md A5)",
+                  notes=tuple(notes))]
 
 
 def _across_axes(axes: Mapping[str, Any]) -> list[Any]:
