@@ -134,6 +134,12 @@ COMMON_PROCEDURE_KEYS: dict[str, Key] = {
     "certificate": Key(MapOf(Any_()), False, "customer, laboratory, ... for the certificate"),
     "decision_rule": Key(Str(("simple", "guard-band"))),
     "prompts": Key(Bool()),
+    "specification": Key(Map({
+        "source": Key(Str(), True, "the document the tolerances come from: maker, title, "
+                                   "revision, date"),
+        "definitions": Key(MapOf(Str()), False, "how the document defines each figure, by "
+                                                "tolerance key"),
+    }), False, "where the tolerances come from; printed with the statement of conformity"),
 }
 
 

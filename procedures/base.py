@@ -89,6 +89,7 @@ def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]]) -> dict[s
                   "started_utc": starts[0]["utc"] if starts else None,
                   "completed_utc": ends[-1]["utc"] if ends else None},
         "conditions": cfg.procedure.get("conditions", {}),
+        "specification": cfg.procedure.get("specification"),
         "certificate": certificate_settings(cfg.procedure_path,
                                             cfg.procedure.get("certificate", {})),
         "sessions": len(starts),

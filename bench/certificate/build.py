@@ -26,8 +26,10 @@ from bench.certificate.register import Issue
 from bench.certificate.rounding import (
     MINUS,
     PERCENT,
+    RESOLUTION_RULE,
     Presented,
     RelUnit,
+    format_limit,
     format_sig,
     format_value_u,
     is_resolved,
@@ -184,6 +186,8 @@ def verdict_label(verdict: Any, rule: str | None = None, inside_tolerance: bool 
         return "FAIL (guard band)" if rule == "guard-band" and inside_tolerance else "FAIL"
     if v == "incomplete":
         return "INCOMPLETE"
+    if v == "not-assessed":
+        return "NOT ASSESSED"
     return v.upper() or "—"
 
 
@@ -781,7 +785,8 @@ def _ladder_results(src: Sources, number: str, checks: list[dict[str, Any]]
     axes = src.get("axes", {}) or {}
     out = [Section(number, "Results", (Para(
         "Per axis, commanded rate and direction. Each value is followed by its expanded "
-        "uncertainty U (k = 2, about 95 %). Signed rates: + is the table's positive sense."),),
+        "uncertainty U (k = 2, about 95 %). Signed rates: + is the table's positive sense."),
+        Para("Quantities that may not be resolved. " + RESOLUTION_RULE, "note")),
         )]
     sub = 0
     for axis, ax in axes.items():
@@ -1276,11 +1281,15 @@ def _drift_results(src: Sources, number: str) -> list[Section]:
 def decision_rule_text(rule: str) -> str:
     if rule == "guard-band":
         return ("Decision rule: guarded acceptance with a guard band equal to U (ILAC-G8:09/2019 "
-                "§4.2.2). A check PASSES when |value| + U ≤ T: the value lies inside the "
-                "tolerance T with about 95 % confidence. It FAILS when |value| > T. When "
+                "§4.2.2). A check PASSES when |value| + U ≤ T and FAILS when |value| > T. When "
                 "|value| ≤ T < |value| + U the measured value is inside the tolerance but within "
                 "U of its limit, so conformity is not shown: this is stated as FAIL (guard "
-                "band). The risk of a false accept is at most about 2.5 %.")
+                "band). For σ the guard is its one-sided 97.5 % upper limit (chi-square with "
+                "N − 1 degrees of freedom) in place of |value| + U. Risk: the probability of a "
+                "false accept is at most about 2.5 % where the value's distribution is normal "
+                "(the rate error: a mean of N turns with the small-sample factor of section 3) "
+                "or, for σ, where the per-turn rates are normal; it is not claimed for other "
+                "distributions.")
     return ("Decision rule: simple acceptance (ILAC-G8:09/2019 §4.2.1, shared risk). A check "
             "PASSES when |value| ≤ T and FAILS when |value| > T; U is reported but not used in "
             "the decision. For a value close to the limit the probability of a false accept "
@@ -1326,13 +1335,25 @@ class CheckRow:
         return vu, "—"
 
 
+def _specification(src: Sources) -> list[Any]:
+    spec = src.get("specification") or src.procedure_file.get("specification")
+    if not isinstance(spec, Mapping) or not spec.get("source"):
+        return [Para("Specification: NOT IDENTIFIED. The procedure file names no source for "
+                     "its tolerances (key specification.source); the checks below compare "
+                     "with the procedure's numbers only.", "strong")]
+    rows = [("Specification", _text(spec["source"]))]
+    for key, text in (spec.get("definitions") or {}).items():
+        name = QUANTITY_NAMES.get(str(key), QUANTITY_NAMES.get(str(key).rsplit("_", 1)[0],
+                                                              _label(str(key))))
+        rows.append((f"Definition: {name}", _text(text)))
+    return [Fields(tuple(rows))]
+
+
 def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
     rule = str(src.get("decision_rule") or (checks[0].get("rule") if checks else "simple"))
-    blocks: list[Any] = [Para(decision_rule_text(rule))]
-    if any(c.get("rule") == "consistency" for c in checks):
-        blocks.append(Para("Consistency checks compare a measured value with the value physics "
-                           "expects (e.g. the horizontal Earth rate at the site's latitude): "
-                           "PASS when they differ by no more than U."))
+    kind = src.get("procedure") or ("drift-pulse" if src.get("drift") else "rate-ladder")
+    blocks: list[Any] = [*_specification(src), Para(decision_rule_text(rule))]
+    blocks.append(Para("Scope. " + _scope_line(src, checks, kind)))
     blocks.append(Para(
         "Measurement capability (RMG 63-2003): the expanded uncertainty of a check should not "
         f"exceed 0.2-0.3 of its tolerance; a ratio U/T ≤ {CAPABILITY_LIMIT:g} is marked met."))
@@ -1346,6 +1367,8 @@ def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
                            "made and no statement of conformity is given for individual "
                            "values."))
         return tuple(blocks)
+    consistency = [c for c in checks if check_class(c) == "consistency"]
+    checks = [c for c in checks if check_class(c) != "consistency"]
     with_rate = all(_num(c.get("set_rate_dps")) is not None for c in checks)
     rows, notes = [], []
     for i, c in enumerate(checks, start=1):
@@ -1369,6 +1392,15 @@ def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
         signed = str(c.get("quantity")) not in ("rate_instability", "intra_turn_instability",
                                                 "intra_turn_instability_corrected")
         vu, tol_text = row.texts(signed)
+        if check_class(c) == "not-assessed":
+            unit = rel_unit(row.value, row.tolerance)
+            limit = _num(c.get("upper_rel"))
+            vu = present(row.value, row.u, unit.scale, resolved=False,
+                         upper=limit).with_unit(unit.name) + " (timing floor)"
+            cap = "—"
+        elif _num(c.get("upper_rel")) is not None and row.suffix == "rel":
+            unit = rel_unit(row.value, row.u, row.tolerance)
+            vu += f"; 97.5 % limit {format_limit(_num(c['upper_rel']) * unit.scale)[0]}"
         rate = _num(c.get("set_rate_dps"))
         point = _rate(rate) if with_rate else (f"{_rate(rate)} °/s" if rate is not None else "—")
         rows.append((str(i), _text(c.get("axis")), point, quantity, vu, tol_text, cap, label))
@@ -1384,10 +1416,33 @@ def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
         rows = [r[:2] + r[3:] for r in rows]
         del header[2], widths[2]
         align = align[:2] + align[3:]
-    blocks.append(Table(tuple(header), tuple(rows), widths=tuple(widths), align=align,
-                        caption="Conformity with the procedure's tolerances",
-                        notes=tuple(notes)))
+    if rows:
+        blocks.append(Table(tuple(header), tuple(rows), widths=tuple(widths), align=align,
+                            caption="Conformity with the specification's tolerances",
+                            notes=tuple(notes)))
+    if consistency:
+        blocks.append(_consistency_table(consistency))
     return tuple(blocks)
+
+
+def _consistency_table(checks: list[dict[str, Any]]) -> Table:
+    """Physics cross-checks: they test the measurement, not the item, and are no part of
+    the statement of conformity."""
+    rows = []
+    for c in checks:
+        row = CheckRow.of(c)
+        vu, expected = row.texts(signed=False)
+        rows.append((_text(c.get("axis")), QUANTITY_NAMES.get(str(c.get("quantity")),
+                                                             _label(str(c.get("quantity")))),
+                     vu, expected, "consistent" if str(c.get("verdict")) == "pass"
+                     else "NOT CONSISTENT"))
+    return Table(("Axis", "Quantity", "Measured ± U", "Expected", "Result"), tuple(rows),
+                 widths=(0.8, 2.2, 2.0, 2.0, 1.3), align="llrrc",
+                 caption="Consistency checks (not part of the statement of conformity)",
+                 notes=("A measured value against the value physics expects (the horizontal "
+                        "Earth rate 15.041 °/h · cos(latitude)): consistent when they differ by "
+                        "no more than U. An inconsistency puts the measurement in doubt (e.g. "
+                        "k_as, levelling); it says nothing about the item's specification.",))
 
 
 def _tolerance_table(tol: Mapping[str, Any]) -> Table:
