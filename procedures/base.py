@@ -15,6 +15,7 @@ from bench.lab import certificate_settings
 from bench.plan import Plan, Step
 from bench.schema import Map
 from bench.simbench import SimBench
+from bench.uncertainty_names import UNCERTAINTY_NAMING, with_explicit_names
 from bench.yamlfile import Problem
 
 
@@ -106,8 +107,9 @@ def result_document(run: RunDir, cfg: Config, events: list[dict[str, Any]], *,
         verdict = "incomplete"
     else:
         verdict = "fail" if any(c["verdict"] == "fail" for c in checks) else "pass"
-    return {
+    return with_explicit_names({
         "schema": SCHEMA,
+        "uncertainty_names": UNCERTAINTY_NAMING,
         "procedure": cfg.kind,
         "verdict": verdict,
         **run_header(run, cfg, events),
@@ -116,4 +118,4 @@ def result_document(run: RunDir, cfg: Config, events: list[dict[str, Any]], *,
         "method": method,
         "checks": checks,
         **body,
-    }
+    })
