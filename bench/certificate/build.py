@@ -529,11 +529,18 @@ def _instruments(src: Sources, kind: str) -> tuple[Any, ...]:
     for axis in dict.fromkeys([*ids, *stand_axes]):
         roles = dict.fromkeys([*(ids.get(axis) or {}), *(stand_axes.get(axis) or {})])
         for role in roles:
+            if role == "counter_reference":
+                continue   # in the traceability table
             ident = (ids.get(axis) or {}).get(role)
             conf = (stand_axes.get(axis) or {}).get(role) or {}
+            conf = {k: v for k, v in conf.items() if k != "calibration"} \
+                if isinstance(conf, Mapping) else conf
             setting = _text(conf) if conf else ""
-            rows.append((axis, role, _text(ident) if ident else "identity not recorded",
-                         setting or "—"))
+            text = _text(ident) if ident else "identity not recorded"
+            if role == "fog" and ident:
+                text = ("as configured in the stand file (a FOG answers no identity query): "
+                        + text)
+            rows.append((axis, role, text, setting or "—"))
     if rows and all(r[3] == "—" for r in rows):
         blocks.append(Table(("Axis", "Instrument", "Identity (as reported)"),
                             tuple(r[:3] for r in rows), widths=(0.9, 1.0, 5.0), align="lll",
@@ -546,8 +553,22 @@ def _instruments(src: Sources, kind: str) -> tuple[Any, ...]:
                                     "(*IDN?, drive identity objects, FOG model)"))
     else:
         blocks.append(Para("Instrument identities: not recorded.", "note"))
+    blocks += _shared_identities(rows)
     blocks += _traceability(src)
     return tuple(blocks)
+
+
+def _shared_identities(rows: list[tuple[str, str, str, str]]) -> list[Any]:
+    """Two instruments of one kind answering with one identity (maker, model, serial) are
+    either one instrument or misreporting: the reader must be told."""
+    seen: dict[tuple[str, str], list[str]] = {}
+    for axis, role, ident, _ in rows:
+        if role in ("counter", "drive") and ident and not ident.startswith("identity not"):
+            seen.setdefault((role, ident), []).append(axis)
+    return [Para(f"CHECK: the {role}s of axes {', '.join(axes)} report the same identity "
+                 f"({ident}); two instruments cannot share a serial number. On a simulated "
+                 "bench the twins answer their model's default identity.", "strong")
+            for (role, ident), axes in seen.items() if len(axes) > 1]
 
 
 def _work_date(src: Sources) -> dt.date | None:
@@ -660,7 +681,9 @@ def _conditions(src: Sources) -> tuple[Any, ...]:
     cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
     if not cond:
         return (Para("No conditions were recorded in the procedure file."),)
-    return (Fields(tuple((_label(k), _text(v)) for k, v in cond.items())),)
+    return (Para("As stated in the procedure file: the nominal conditions of the laboratory, "
+                 "not measured during this run.", "note"),
+            Fields(tuple((_label(k), _text(v)) for k, v in cond.items())))
 
 
 # -- rate ladder results -------------------------------------------------------------------
@@ -883,12 +906,14 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
         notes = []
         if has_drift:
             header.append("Bias drift ± U, °/s per h")
-            methods_used = sorted({str(p.get("method")) for p in pairs if p.get("method")})
+            methods_used = sorted({CALIBRATION_METHODS.get(str(p.get("method")),
+                                                           str(p.get("method")))
+                                   for p in pairs if p.get("method")})
             sources = sorted({str(p.get("drift_source")) for p in pairs
                               if p.get("drift_source")})
             notes.append("ω0 is the bias at the pair's reference time; the FOG's bias drift "
                          "during the pair is estimated and removed"
-                         + (f" (method {', '.join(methods_used)}" if methods_used else "")
+                         + (f" ({'; '.join(methods_used)}" if methods_used else "")
                          + (f"; drift from {', '.join(sources)})" if sources else
                             (")" if methods_used else "")) + ".")
         blocks.append(Table(tuple(header), tuple(prow),
@@ -974,6 +999,13 @@ def _corrected_cell(r: Mapping[str, Any], unit: RelUnit) -> str:
         return "0 (noiseless FOG)"   # a simulated FOG without noise: nothing to remove
     return present(value, None, unit.scale, resolved=False, upper=upper).text
 
+
+#: the analysis's names for its cross-calibration methods, in words (METHOD.md A3)
+CALIBRATION_METHODS = {
+    "lsq-drift": "k, ω0 and a linear bias drift fitted by least squares to the halves' means",
+    "eq5-6": "k and ω0 from eqs. 5-6",
+    "eq5-6, drift-corrected": "k and ω0 from eqs. 5-6 after removing the bias drift",
+}
 
 BUDGET_TERMS = (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
                 ("repeatability_u_rel", "repeatability (Type A)"))
