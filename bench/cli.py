@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 import sys
 
+from bench import commands
+from bench.decode import decode_command
+from bench.station.serve import cmd_serve
+
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
@@ -18,6 +22,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", default="runs", help="folder for the run directory (runs/)")
     run.add_argument("--yes", action="store_true", help="answer operator prompts with yes")
     run.add_argument("--resume", metavar="RUN_DIR", help="continue an interrupted run")
+    run.add_argument("--example", metavar="NAME",
+                     help="run a procedure shipped inside the package (demo, drift-demo)")
     val = sub.add_parser("validate", help="check procedure and stand files; exit 2 on problems")
     val.add_argument("procedure")
     plan = sub.add_parser("plan", help="print the steps and the estimated bench time")
@@ -31,15 +37,23 @@ def build_parser() -> argparse.ArgumentParser:
     dec.add_argument("raw_file")
     dec.add_argument("--format", required=True, dest="fmt", help="frame format, e.g. kvh-a")
     dec.add_argument("--csv", help="write the samples to this CSV file")
+    srv = sub.add_parser("serve", help="local web station view: live runs and records")
+    srv.add_argument("--runs", default="runs", help="the runs folder to show (runs/)")
+    srv.add_argument("--records", metavar="URL", help="records database URL")
+    srv.add_argument("--port", type=int, default=8765, help="TCP port (8765; 0 picks one)")
+    srv.add_argument("--host", default="127.0.0.1",
+                     help="address to bind (127.0.0.1); another one needs --token")
+    srv.add_argument("--token", help="token for stop requests and remote viewers "
+                                     "(default: $BENCH_STATION_TOKEN, else one is made up)")
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.command == "decode":
-        from bench.decode import decode_command
         return decode_command(args.raw_file, args.fmt, args.csv)
-    from bench import commands
+    if args.command == "serve":
+        return cmd_serve(args)
     return commands.dispatch(args)
 
 

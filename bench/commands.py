@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import os
 import sys
 import time
 import traceback
@@ -16,14 +17,20 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from bench.clock import MonotonicClock
-from bench.config import Config, ConfigError, load_config
+from bench.certificate import write_certificate
+from bench.config import Config, ConfigError
+from bench.devices import list_devices
 from bench.engine import Abort, Engine, Progress, RunContext, SignalGuard
+from bench.examples import example_path
 from bench.instruments import StandClaimError, check_references
 from bench.journal import RunDir
 from bench.lab import lab_path
+from bench.loader import load_config
 from bench.plan import format_duration
+from bench.registry import procedure_kind
+from bench.summary import summary_lines
 from bench.traceability import overdue, overdue_warning
+from drivers.clock import MonotonicClock
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
@@ -51,8 +58,6 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
-    from procedures import procedure_kind
-
     cfg = _load(args.procedure)
     if cfg is None:
         return EXIT_INVALID
@@ -64,9 +69,6 @@ def cmd_plan(args: argparse.Namespace) -> int:
 def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> tuple[dict[str, Any], bool]:
     """result.json, then the certificate; returns the result and whether the certificate
     was written (a run that leaves no certificate must not exit as if it had)."""
-    from bench.certificate import write_certificate
-    from procedures import procedure_kind
-
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json("result.json", result)
     try:
@@ -81,8 +83,6 @@ def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> tuple[dict[s
 
 
 def _summary(result: dict[str, Any]) -> list[str]:
-    from bench.summary import summary_lines
-
     return summary_lines(result)
 
 
@@ -95,10 +95,20 @@ def cmd_run(args: argparse.Namespace) -> int:
             return EXIT_INVALID
         cfg = _load(str(run.procedure_file), run.stand_file)
     else:
-        if not args.procedure:
-            _err("bench run: give a PROCEDURE.yaml, or --resume RUN_DIR")
+        procedure = args.procedure
+        if getattr(args, "example", None):
+            if procedure:
+                _err("bench run: give a PROCEDURE.yaml or --example NAME, not both")
+                return EXIT_INVALID
+            try:
+                procedure = str(example_path(args.example))
+            except KeyError as e:
+                _err(f"bench run --example: {e.args[0]}")
+                return EXIT_INVALID
+        if not procedure:
+            _err("bench run: give a PROCEDURE.yaml, --example NAME, or --resume RUN_DIR")
             return EXIT_INVALID
-        cfg = _load(args.procedure)
+        cfg = _load(procedure)
         run = None
     if cfg is None:
         return EXIT_INVALID
@@ -119,10 +129,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
     """One session of a run (the first, or a --resume): returns the exit status.
 
     Whatever happens inside, the axes are stopped, the instruments closed, what was
-    measured is analysed, and the run directory is left ready for `--resume`.
+    measured is analyzed, and the run directory is left ready for `--resume`.
     """
-    from procedures import procedure_kind
-
     progress = progress or Progress()
     kind = procedure_kind(cfg.kind)
     plan = kind.build_plan(cfg)
@@ -142,7 +150,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                 clock = MonotonicClock()
             run.begin_session(clock.now)
             run.event("session_start", resume=resume, sim=simbench is not None,
-                      done_units=done, clock_speed=clock.speed, argv=sys.argv[1:])
+                      done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
+                      pid=os.getpid())
             for t in overdue(cfg.stand, dt.datetime.now(dt.UTC).date()):
                 progress.line(overdue_warning(t))
                 run.event("calibration_overdue", where=t.where, item=t.item,
@@ -230,8 +239,6 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
 
 def cmd_devices(args: argparse.Namespace) -> int:
-    from bench.devices import list_devices
-
     return list_devices(args.stand, sim=args.sim)
 
 

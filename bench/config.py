@@ -1,20 +1,18 @@
 """Procedure and stand files: load, validate, cross-check (CONTRACT §2).
 
-`load_config` returns a `Config` or raises `ConfigError` carrying every problem found,
-each naming file, line and key path. Nothing moves before this has passed.
+The schemas of the keys every procedure kind shares, and `Config`, what the loader
+(bench/loader.py) returns once both files have passed.
 """
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from bench.canbus import bus_problems
-from bench.lab import lab_problems
-from bench.schema import Any_, Bool, Check, Date, Key, ListOf, Map, MapOf, Num, Str, validate
-from bench.yamlfile import Problem, YamlDoc, YamlError, load_yaml
+from bench.schema import Any_, Bool, Check, Date, Key, ListOf, Map, MapOf, Num, Str
+from bench.yamlfile import Problem, YamlDoc
 
 # -- stand file ---------------------------------------------------------------------
 
@@ -172,49 +170,6 @@ class ConfigError(Exception):
     def __init__(self, problems: list[Problem]) -> None:
         self.problems = problems
         super().__init__("\n".join(str(p) for p in problems))
-
-
-def load_config(procedure_path: str | Path, stand_path: str | Path | None = None) -> Config:
-    """Load, validate and cross-check a procedure and its stand; ConfigError lists all."""
-    from procedures import procedure_kind, procedure_names
-
-    problems: list[Problem] = []
-    try:
-        pdoc = load_yaml(procedure_path)
-    except YamlError as e:
-        raise ConfigError([e.problem]) from None
-    if not isinstance(pdoc.data, dict):
-        raise ConfigError([pdoc.problem((), "expected a mapping (procedure: ..., stand: ...)")])
-    name = pdoc.data.get("procedure")
-    if name not in procedure_names():
-        raise ConfigError([pdoc.problem(("procedure",), f"expected one of "
-                                        f"{', '.join(procedure_names())}, got {name!r}")])
-    kind = procedure_kind(name)
-    problems += validate(pdoc, kind.procedure_schema())
-    problems += lab_problems(Path(procedure_path), pdoc, pdoc.data.get("certificate"))
-    sdoc: YamlDoc | None = None
-    stand_ref = stand_path or pdoc.data.get("stand")
-    if isinstance(stand_ref, str | Path):
-        spath = Path(stand_ref)
-        if stand_path is None and not spath.is_absolute():
-            spath = Path(os.path.normpath(Path(procedure_path).parent / spath))
-        try:
-            sdoc = load_yaml(spath)
-        except YamlError as e:
-            if e.problem.key == "(file)":
-                problems.append(pdoc.problem(("stand",), f"stand file {spath}: "
-                                             f"{e.problem.message}"))
-            else:
-                problems.append(e.problem)
-        else:
-            problems += validate(sdoc, kind.stand_schema())
-    if problems or sdoc is None:
-        raise ConfigError(problems)
-    cfg = Config(Path(procedure_path), sdoc.path, pdoc.data, sdoc.data, pdoc, sdoc)
-    problems += kind.cross_check(cfg)
-    if problems:
-        raise ConfigError(problems)
-    return cfg
 
 
 def check_axis_names(cfg: Config, axes_key: str = "axes") -> list[Problem]:

@@ -11,15 +11,14 @@ from __future__ import annotations
 import sys
 from typing import Any
 
-from bench.clock import MonotonicClock
 from bench.config import Config
+from bench.registry import procedure_kind, procedure_names
 from bench.schema import validate
 from bench.yamlfile import Problem, YamlError, load_yaml
+from drivers.clock import MonotonicClock
 
 
 def list_devices(stand_path: str, sim: bool = False) -> int:
-    from procedures import procedure_kind, procedure_names
-
     try:
         doc = load_yaml(stand_path)
     except YamlError as e:

@@ -18,10 +18,10 @@ from dataclasses import dataclass, field
 from types import FrameType
 from typing import IO, Any, Protocol
 
-from bench.clock import Clock
 from bench.config import Config
 from bench.journal import RunDir
 from bench.plan import Plan, Step, format_duration
+from drivers.clock import Clock
 
 
 class Abort(Exception):
@@ -144,7 +144,8 @@ class Engine:
         steps = plan.steps
         remaining = [sum(s.estimate_s for s in steps[i:]) for i in range(len(steps))]
         last_of_unit = {s.unit: i for i, s in enumerate(steps) if s.unit}
-        ctx.run.event("plan", steps=len(steps), estimate_s=plan.total_s)
+        ctx.run.event("plan", steps=len(steps), estimate_s=plan.total_s,
+                      step_estimates_s=[s.estimate_s for s in steps])
         try:
             for i, step in enumerate(steps):
                 ctx.eta_s = (lambda i=i: remaining[i])

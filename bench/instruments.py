@@ -14,8 +14,11 @@ from pathlib import Path
 from typing import Any
 
 from bench.canbus import controller_node_ids
-from bench.clock import Clock
 from bench.journal import JsonLines, RunDir
+from drivers.axis import Axis
+from drivers.clock import Clock
+from drivers.counter import Counter
+from drivers.fog import Fog
 
 DEFAULT_FOG_RANGE_DPS = 490.0  # KVH DSP-1760's range; a stand file may say otherwise
 
@@ -136,8 +139,6 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
     `stand_axes` is the stand's whole `axes:` mapping: the axes sharing a CAN bus decide
     together which controller node id each one uses (bench/canbus.py).
     """
-    from drivers.axis import Axis
-
     axis_cfg = stand_axes[name]
     d = axis_cfg["drive"]
     drive_log = bench.log(run.raw_path(f"{name}-drive.jsonl")) if run else None
@@ -156,8 +157,6 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
     ax.identities["drive"] = drive.identity()
     c = axis_cfg.get("counter")
     if counter and c:
-        from drivers.counter import Counter
-
         clog = bench.log(run.raw_path(f"{name}-counter.jsonl")) if run else None
         cnt = Counter.open(c["resource"], c["model"], clock,
                            raw=raw_text_logger(clog, clock) if clog else None,
@@ -178,8 +177,6 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
         ax.reference = reported
     f = axis_cfg.get("fog")
     if fog and f:
-        from drivers.fog import Fog
-
         fg = Fog(f["port"], baudrate=f.get("baudrate", 921600), fmt=f.get("format", "kvh-a"),
                  axis=f.get("axis", "z"), rate_hz=f["rate_hz"],
                  units=f.get("units", "deg/s"),

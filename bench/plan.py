@@ -15,7 +15,7 @@ from typing import Any
 class Step:
     """One thing the bench does. `estimate_s` is bench time on a real table."""
 
-    action: str  # prompt, static, enable, set_rate, settle, acquire, analyse, stop, ...
+    action: str  # prompt, static, enable, set_rate, settle, acquire, analyze, stop, ...
     axis: str | None
     describe: str
     estimate_s: float = 0.0

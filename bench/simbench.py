@@ -18,6 +18,11 @@ from typing import Any
 
 from bench.canbus import bus_name, controller_node_ids
 from sims.clock import VirtualClock
+from sims.counter_twin import CounterTwin
+from sims.drive_twin import DriveTwin
+from sims.fog_twin import FogTwin
+from sims.gyro_rig import start_gyro_rig
+from sims.platform import GyroTruth, PlatformTruth
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
 
 #: truth used by `--sim` for an axis the stand file's `sim:` block does not describe
@@ -53,10 +58,6 @@ class SimBench:
 
     def start(self, extra: list[TwinFactory] | None = None) -> dict[str, Any]:
         """Start every twin; return the stand mapping pointing at them."""
-        from sims.counter_twin import CounterTwin
-        from sims.drive_twin import DriveTwin
-        from sims.fog_twin import FogTwin
-
         cfg = self.stand_cfg
         try:
             for a in self.axes:  # FOG twins first: they must see every sample from 0 on
@@ -114,3 +115,33 @@ class SimBench:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+#: the keys of a stand file's `sim.platform.gyros.<gyro>` truth (the gyro twin's fields)
+SIM_GYRO_KEYS: tuple[str, ...] = tuple(GyroTruth.__dataclass_fields__)
+
+
+def gyro_rig_factory(gyros: list[str]) -> TwinFactory:
+    """The twins of a gyro platform on the stand's turntable (the stand file's `platform:`
+    and `sim.platform` blocks): the platform, its waveform generator and one DMM per gyro
+    in `gyros`, each address rewritten to its twin's."""
+
+    def add_platform(sb: SimBench) -> None:
+        plat = sb.stand_cfg["platform"]
+        sim_cfg = sb.stand_cfg.get("sim") or {}
+        sp = sim_cfg["platform"]
+        truth = PlatformTruth.from_mapping(
+            {**sp, "gyros": {g: sp["gyros"][g] for g in gyros},
+             "table_axis": plat["table_axis"]},
+            seed=int(sim_cfg.get("seed", 0)))
+        rig = start_gyro_rig(sb.stand, truth,
+                             {g: plat["gyros"][g]["awg_channel"] for g in gyros},
+                             awg_model=plat["awg"]["model"],
+                             dmm_model=plat["gyros"][gyros[0]]["dmm"]["model"],
+                             awg_options=sim_cfg.get("awg"), dmm_options=sim_cfg.get("dmm"))
+        sb.add("gyro-rig", rig, rig.stop)
+        plat["awg"]["resource"] = rig.awg.resource
+        for g in gyros:
+            plat["gyros"][g]["dmm"]["resource"] = rig.dmms[g].resource
+
+    return add_platform

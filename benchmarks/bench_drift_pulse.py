@@ -4,7 +4,7 @@
 
 Records the paper's case (latitude 70 deg, azimuth 80 deg; 5 s pulses; 4 timing cycles and
 N cycles at 0 and 180 deg, two gyros) straight from the platform twin, then times
-`analyse` on one core. Goals: the twin generates >= 2 M samples/s; the analysis handles
+`analyze` on one core. Goals: the twin generates >= 2 M samples/s; the analysis handles
 >= 1 M samples/s (a demo's 1 M samples in about a second), so `bench analyze` of a long
 run stays interactive.
 """
@@ -44,7 +44,7 @@ def main() -> int:
     best = float("inf")
     for _ in range(args.repeat):
         t0 = time.perf_counter()
-        res = dp.analyse(recs, shape, {"x": 2.0, "y": 2.0}, 70.0)
+        res = dp.analyze(recs, shape, {"x": 2.0, "y": 2.0}, 70.0)
         best = min(best, time.perf_counter() - t0)
     print(f"samples: {n:,} in {sum(len(r) for r in recs.values())} cycle records")
     print(f"twin:     {gen_s:.2f} s, {n / gen_s / 1e6:.2f} M samples/s (goal >= 2)")

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.clock import Clock
+from drivers.clock import Clock
 from drivers.scpi import Command, ErrorKinds, InstrumentError, ParameterError, RawCallback
 from drivers.scpi_profile import InstrumentProfile, ProfiledInstrument, lookup_profile
 

@@ -44,7 +44,6 @@ from typing import Any
 import canopen
 from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 
-from bench.clock import Clock
 from drivers.cia402 import (
     COB_HEARTBEAT,
     CONTROLLER_NODE_ID,
@@ -67,6 +66,7 @@ from drivers.cia402 import (
     unwrap_int32,
     wrap_int32,
 )
+from drivers.clock import Clock
 from drivers.heartbeat import HeartbeatProducer
 
 log = logging.getLogger(__name__)

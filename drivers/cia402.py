@@ -2,7 +2,7 @@
 
 The driver (drivers/axis.py) and the drive twin (sims/drive_twin.py) both read these
 tables, so the two ends cannot disagree about what a bit or an index means. The
-object dictionary itself lives in configs/profiles/bench-drive.eds (both ends load it);
+object dictionary itself lives in drivers/profiles/bench-drive.eds (both ends load it);
 this module names the objects the code touches.
 
 Sources: CiA 301 (heartbeat, EMCY, identity), CiA 402 part 2 (state machine, modes,
@@ -16,10 +16,11 @@ import math
 from collections import deque
 from dataclasses import dataclass
 from enum import Enum, IntEnum
-from pathlib import Path
+
+from drivers.profiles import EDS_NAME, profile_path
 
 #: this project's EDS: a CiA 402 servo drive with profile velocity mode
-DEFAULT_EDS_PATH = Path(__file__).resolve().parent.parent / "configs" / "profiles" / "bench-drive.eds"
+DEFAULT_EDS_PATH = profile_path(EDS_NAME)
 
 #: CiA 301 0x1000: profile 402 (low word), servo drive (0x0002 in the high word)
 DEVICE_TYPE_SERVO_402 = 0x0002_0192

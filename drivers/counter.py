@@ -32,7 +32,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from bench.clock import Clock
+from drivers.clock import Clock
 from drivers.counter_profiles import CounterProfile, get_profile, is_scpi_nan
 from drivers.scpi import (
     CLS,

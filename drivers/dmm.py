@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.clock import Clock
+from drivers.clock import Clock
 from drivers.scpi import (
     ABORT,
     CLS,

@@ -31,7 +31,7 @@ from typing import IO, Any
 import numpy as np
 import serial
 
-from bench.clock import Clock
+from drivers.clock import Clock
 from drivers.fog_formats import (
     AXES,
     FORMATS,

@@ -9,7 +9,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar, Generic, Self, TypeVar
 
-from bench.clock import Clock
+from drivers.clock import Clock
 from drivers.scpi import IDN, RawCallback, ScpiInstrument
 
 T = TypeVar("T")

@@ -28,7 +28,6 @@ from typing import Any
 import numpy as np
 
 from bench.analysis import drift_pulse as dp
-from bench.clock import Clock
 from bench.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
 from bench.conformity import judge
 from bench.engine import Abort, RunContext
@@ -36,15 +35,15 @@ from bench.instruments import Bench, open_axis, raw_text_logger
 from bench.journal import RunDir, read_jsonl
 from bench.plan import Plan, Step
 from bench.schema import Key, ListOf, Map, MapOf, Num, Str
-from bench.simbench import SimBench
+from bench.simbench import SIM_GYRO_KEYS, SimBench, gyro_rig_factory
 from bench.yamlfile import Problem
 from drivers.awg import PROFILES as AWG_PROFILES
 from drivers.awg import WaveformGenerator
+from drivers.clock import Clock
 from drivers.dmm import PROFILES as DMM_PROFILES
 from drivers.dmm import Digitizer
 from drivers.scpi import parse_numbers
 from procedures.base import StepDispatch, result_document
-from sims.platform import GyroTruth
 
 NAME = "drift-pulse"
 GYRO_NAMES = ("x", "y", "z")
@@ -119,7 +118,7 @@ PLATFORM = Map({
 SIM_PLATFORM = Map({
     "latitude_deg": Key(Num(min=-90, max=90), True),
     "azimuth_deg": Key(Num(), True, "the X input axis at turntable 0, from north"),
-    "gyros": Key(MapOf(Map({k: Key(Num()) for k in GyroTruth.__dataclass_fields__})), True),
+    "gyros": Key(MapOf(Map({k: Key(Num()) for k in SIM_GYRO_KEYS})), True),
 })
 SIM_AWG = Map({"output_latency_s": Key(Num(min=0)), "trigger_out_skew_s": Key(Num()),
                "trigger_out_width_s": Key(Num(min=0)), "load_ohm": Key(Num(min=1))})
@@ -373,31 +372,8 @@ class DriftPulse(StepDispatch):
 
     # -- bench ----------------------------------------------------------------------------
     def start_sim(self, cfg: Config) -> tuple[SimBench, dict[str, Any]]:
-        from sims.gyro_rig import start_gyro_rig
-        from sims.platform import PlatformTruth
-
-        table = self.table(cfg)
-        sim = SimBench(cfg.stand, [table])
-        sim_cfg = cfg.stand.get("sim") or {}
-        gyros = self.gyros(cfg)
-
-        def add_platform(sb: SimBench) -> None:
-            plat = sb.stand_cfg["platform"]
-            sp = sim_cfg["platform"]
-            truth = PlatformTruth.from_mapping(
-                {**sp, "gyros": {g: sp["gyros"][g] for g in gyros}, "table_axis": table},
-                seed=int(sim_cfg.get("seed", 0)))
-            rig = start_gyro_rig(sb.stand, truth,
-                                 {g: plat["gyros"][g]["awg_channel"] for g in gyros},
-                                 awg_model=plat["awg"]["model"],
-                                 dmm_model=plat["gyros"][gyros[0]]["dmm"]["model"],
-                                 awg_options=sim_cfg.get("awg"), dmm_options=sim_cfg.get("dmm"))
-            sb.add("gyro-rig", rig, rig.stop)
-            plat["awg"]["resource"] = rig.awg.resource
-            for g in gyros:
-                plat["gyros"][g]["dmm"]["resource"] = rig.dmms[g].resource
-
-        return sim, sim.start(extra=[add_platform])
+        sim = SimBench(cfg.stand, [self.table(cfg)])
+        return sim, sim.start(extra=[gyro_rig_factory(self.gyros(cfg))])
 
     def open_bench(self, cfg: Config, stand: dict[str, Any], clock: Clock,
                    run: RunDir | None) -> Bench:
@@ -585,7 +561,7 @@ def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, 
     drift: dict[str, Any]
     checks: list[dict[str, Any]] = []
     try:
-        result = dp.analyse(records, shape, {g: plat[g]["k_as_v_per_deg"] for g in gyros},
+        result = dp.analyze(records, shape, {g: plat[g]["k_as_v_per_deg"] for g in gyros},
                             cfg.procedure["site"]["latitude_deg"], stated)
         drift = result.to_dict()["drift"]
         checks = _checks(cfg, result, rule)

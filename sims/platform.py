@@ -34,11 +34,14 @@ from typing import Any
 
 import numpy as np
 
-from bench.analysis.drift_pulse import EARTH_RATE_DPH, HORIZONTAL_OFFSET_DEG, VERTICAL_GYROS
+from drivers.units import ARCSEC_PER_DEG, EARTH_RATE_DPH, SECONDS_PER_HOUR
 from sims.stand import AxisChunk, AxisModel, SimulatedStand
 
-SECONDS_PER_HOUR = 3600.0
-ARCSEC_PER_DEG = 3600.0
+#: how the twin's gyros are mounted: each horizontal gyro's input axis from the X axis,
+#: and which gyros are vertical (the platform as built; the estimator has its own copy
+#: of this convention, so a mistake in either shows up as a test failure)
+HORIZONTAL_OFFSET_DEG = {"x": 0.0, "y": 90.0}
+VERTICAL_GYROS = ("z",)
 
 
 @dataclass(frozen=True)

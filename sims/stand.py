@@ -26,9 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from drivers.units import SECONDS_PER_HOUR
 from sims.clock import VirtualClock
-
-SECONDS_PER_HOUR = 3600.0
 
 
 @dataclass(frozen=True)

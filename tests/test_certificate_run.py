@@ -21,8 +21,6 @@ import pypdfium2 as pdfium
 import pypdfium2.raw as pdfium_c
 import pytest
 
-pytest.importorskip("procedures.rate_ladder_analysis")
-
 ROOT = Path(__file__).resolve().parent.parent
 MINUS = "\u2212"
 

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from bench.cli import main
+from bench.examples import example_names, example_path
 from tests.conftest import CONFIGS, ROOT
 
 
@@ -51,3 +52,18 @@ def test_analyze_refuses_a_folder_that_is_not_a_run(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["analyze", str(tmp_path)]) == 2
     assert "not a run directory" in capsys.readouterr().err
+
+
+def test_the_shipped_examples_are_the_configs_procedures_and_valid(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    assert example_names() == ["demo", "drift-demo"]                  # CONTRACT §1
+    for name in example_names():
+        path = example_path(name)
+        assert path.read_bytes() == (CONFIGS / "procedures" / f"{name}.yaml").read_bytes()
+        assert main(["validate", str(path)]) == 0
+    assert "valid drift-pulse procedure" in capsys.readouterr().out
+
+
+def test_run_an_unknown_example_is_invalid_input(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "--example", "nope", "--yes"]) == 2
+    assert "demo, drift-demo" in capsys.readouterr().err

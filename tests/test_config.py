@@ -148,9 +148,9 @@ def test_numbers_with_an_unsigned_exponent_are_numbers(tmp_path: Path) -> None:
 
 
 def test_every_shipped_stand_file_fits_a_procedure_kind() -> None:
+    from bench.registry import procedure_kind, procedure_names
     from bench.schema import validate
     from bench.yamlfile import load_yaml
-    from procedures import procedure_kind, procedure_names
 
     for stand in sorted((CONFIGS / "stands").glob("*.yaml")):
         doc = load_yaml(stand)

@@ -14,6 +14,7 @@ from drivers.counter_profiles import (
     get_profile,
     nr3,
 )
+from drivers.profiles import PYVISA_SIM_COUNTERS, profile_path
 from drivers.scpi import parse_numbers
 from sims.clock import VirtualClock
 
@@ -61,8 +62,8 @@ def test_quantise_to_the_resolution():
     ("pendulum-cnt-91", "GPIB0::10::INSTR"),
     ("generic-scpi-period", "ASRL1::INSTR"),
 ])
-def test_pyvisa_sim_static_counters_open_and_identify(model, resource, configs):
-    lib = f"{configs / 'profiles' / 'counters-sim.yaml'}@sim"
+def test_pyvisa_sim_static_counters_open_and_identify(model, resource):
+    lib = f"{profile_path(PYVISA_SIM_COUNTERS)}@sim"      # package data, as installed
     with Counter.open(resource, model, VirtualClock(1.0), visa_library=lib) as counter:
         assert counter.identify() == PROFILES[model].idn      # the twin's identity too
         assert counter.drain_errors() == []

@@ -49,7 +49,7 @@ def test_signed_integral_of_a_ramp_is_exact_on_and_off_the_samples() -> None:
 def test_noise_free_cycles_give_the_true_drift(shape: str) -> None:
     truth = paper_truth()
     recs, plat = record_cycles(truth, dp.SHAPES[shape], cycles=4)
-    res = dp.analyse(recs, dp.SHAPES[shape], K_AS, 70.0)
+    res = dp.analyze(recs, dp.SHAPES[shape], K_AS, 70.0)
     for g, ax in res.axes.items():
         assert ax.own_dph == pytest.approx(truth.gyros[g].own_drift_dph, abs=2e-6)
         assert ax.apparent_dph == pytest.approx(truth.apparent_dph(g), abs=2e-6)
@@ -77,7 +77,7 @@ def test_a_shifted_digitizer_is_detected_and_corrected(shift_samples: float) -> 
     truth = paper_truth(**REALISTIC)
     recs, plat = record_cycles(truth, dp.SHAPES["rectangular"], cycles=6, timing_cycles=4,
                                shift_s=shift_s)
-    res = dp.analyse(recs, dp.SHAPES["rectangular"], K_AS, 70.0, STATED)
+    res = dp.analyze(recs, dp.SHAPES["rectangular"], K_AS, 70.0, STATED)
     t_end = recs["x"][-1].t_start_s + 2 * TC_S
     for g, ax in res.axes.items():
         so = ax.start_offset
@@ -95,7 +95,7 @@ def test_an_aligned_digitizer_is_not_flagged_and_an_aperture_is_no_offset() -> N
     truth = paper_truth(**REALISTIC)
     recs, _ = record_cycles(truth, dp.SHAPES["rectangular"], cycles=4, timing_cycles=4,
                             aperture_s=0.4e-3)   # centroid half an aperture later, and said
-    res = dp.analyse(recs, dp.SHAPES["rectangular"], K_AS, 70.0, STATED)
+    res = dp.analyze(recs, dp.SHAPES["rectangular"], K_AS, 70.0, STATED)
     for ax in res.axes.values():
         assert abs(ax.start_offset.samples) < 0.02
         assert not ax.start_offset.significant or abs(ax.start_offset.offset_s) < 5e-6
@@ -108,7 +108,7 @@ def test_paper_case_latitude_70_azimuth_80_meets_the_papers_figures() -> None:
     this analysis must do at least as well, and its U must cover the truth."""
     truth = paper_truth(seed=11, **REALISTIC)
     recs, plat = record_cycles(truth, dp.SHAPES["rectangular"], cycles=10, timing_cycles=4)
-    res = dp.analyse(recs, dp.SHAPES["rectangular"], K_AS, 70.0, STATED)
+    res = dp.analyze(recs, dp.SHAPES["rectangular"], K_AS, 70.0, STATED)
     t_end = recs["x"][-1].t_start_s + 2 * TC_S
     rel = []
     for g, ax in res.axes.items():
@@ -132,7 +132,7 @@ def test_four_positions_fit_own_and_both_components() -> None:
     truth = paper_truth()
     recs, _ = record_cycles(truth, dp.SHAPES["rectangular"], cycles=4,
                             positions=(0.0, 90.0, 180.0, 270.0))
-    res = dp.analyse(recs, dp.SHAPES["rectangular"], K_AS, 70.0)
+    res = dp.analyze(recs, dp.SHAPES["rectangular"], K_AS, 70.0)
     wh = 15.041 * math.cos(math.radians(70))
     for g, off in (("x", 0.0), ("y", 90.0)):
         ax = res.axes[g]
@@ -162,4 +162,4 @@ def test_one_position_cannot_separate() -> None:
     recs, _ = record_cycles(paper_truth(angle_noise_arcsec=1.0), dp.SHAPES["rectangular"],
                             cycles=4, positions=(0.0,))
     with pytest.raises(ValueError, match="180 deg apart"):
-        dp.analyse(recs, dp.SHAPES["rectangular"], K_AS, 70.0)
+        dp.analyze(recs, dp.SHAPES["rectangular"], K_AS, 70.0)

@@ -21,8 +21,8 @@ import yaml
 
 from bench.cli import main
 from bench.commands import EXIT_ABORTED, EXIT_INVALID, EXIT_PASS, run_session
-from bench.config import load_config
 from bench.journal import RunDir
+from bench.loader import load_config
 from drivers.cia402 import FOLLOWING_ERROR
 from sims.platform import GyroPlatform, PlatformTruth
 from tests.conftest import CONFIGS, ROOT, when_step_starts

@@ -16,8 +16,8 @@ import pytest
 import yaml
 
 from bench.commands import EXIT_ABORTED, run_session
-from bench.config import load_config
 from bench.journal import RunDir
+from bench.loader import load_config
 from drivers.cia402 import OVER_TEMPERATURE
 from tests.conftest import CONFIGS, when_step_starts
 

@@ -31,7 +31,7 @@ from tests.conftest import ROOT
 
 CONTROLLER = """
 import sys, time
-from bench.clock import MonotonicClock
+from drivers.clock import MonotonicClock
 from drivers.axis import Axis
 ax = Axis("outer", interface="udp_multicast", channel=sys.argv[1], node_id=2,
           max_rate_dps=100.0, max_accel_dps2=500.0, clock=MonotonicClock(),

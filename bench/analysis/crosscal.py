@@ -40,9 +40,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.analysis.angle import FogCalibration
+from drivers.units import SECONDS_PER_HOUR
 
 COVERAGE = 2.0
-SECONDS_PER_HOUR = 3600.0
 
 
 @dataclass(frozen=True)

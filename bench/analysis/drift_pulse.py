@@ -35,8 +35,8 @@ from typing import Any
 
 import numpy as np
 
-EARTH_RATE_DPH = 15.041  # METHOD.md B
-SECONDS_PER_HOUR = 3600.0
+from drivers.units import EARTH_RATE_DPH, SECONDS_PER_HOUR
+
 COVERAGE_K = 2.0
 DETECTION_Z = 3.0
 #: a cycle whose fitted precession is off the median by this factor had no proper pulse
@@ -435,7 +435,7 @@ def _rss(parts: Mapping[str, float]) -> float:
     return math.sqrt(sum(v * v for v in parts.values()))
 
 
-def analyse_axis(gyro: str, records: Sequence[CycleRecord], shape: PulseShape,
+def analyze_axis(gyro: str, records: Sequence[CycleRecord], shape: PulseShape,
                  k_as_v_per_deg: float, stated: StatedErrors = StatedErrors(),
                  latitude_deg: float | None = None) -> AxisDrift:
     """Every cycle of one gyro at every position -> its own and apparent drift."""
@@ -574,12 +574,12 @@ def azimuth_deg(app_x_dph: float, app_y_dph: float, u_x_dph: float, u_y_dph: flo
     return a, math.degrees(u)
 
 
-def analyse(records: Mapping[str, Sequence[CycleRecord]], shape: PulseShape,
+def analyze(records: Mapping[str, Sequence[CycleRecord]], shape: PulseShape,
             k_as_v_per_deg: Mapping[str, float], latitude_deg: float,
             stated: Mapping[str, StatedErrors] | None = None) -> DriftResult:
     """Every gyro's cycles -> own and apparent drifts, the azimuth, the Earth-rate check."""
     stated = stated or {}
-    axes = {g: analyse_axis(g, recs, shape, k_as_v_per_deg[g],
+    axes = {g: analyze_axis(g, recs, shape, k_as_v_per_deg[g],
                             stated.get(g, StatedErrors()), latitude_deg)
             for g, recs in records.items()}
     az = az_u = wh = wh_u = None

@@ -117,7 +117,8 @@ class AveragedInstability:
 
 
 def std_u_rel(std: float | None, n: int) -> float | None:
-    """U (k = 2) of a standard deviation estimated from n independent values."""
+    """U (k = 2) of a standard deviation estimated from n independent values (normal data:
+    u(s) = s / sqrt(2 (n - 1)), docs/method.md A2). The one place this formula lives."""
     if std is None or n < 2:
         return None
     return 2.0 * std / math.sqrt(2.0 * (n - 1))

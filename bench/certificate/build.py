@@ -20,6 +20,7 @@ from typing import Any
 import yaml
 
 import bench
+from bench.analysis.random_part import std_u_rel
 from bench.certificate import methods, plots, register
 from bench.certificate.model import Document, Fields, Figure, Para, Section, Signatures, Table
 from bench.certificate.register import Issue
@@ -400,8 +401,8 @@ def _identification(src: Sources, issue: Issue, kind: str,
         rows.append(("Nature of the work", "SIMULATED run (instrument twins on real channels): "
                      "these results describe no physical item; every page is marked"))
     rows += [
-        ("Procedure", {"rate-ladder": "rate ladder (METHOD.md part A)",
-                       "drift-pulse": "drift by alternating-sign pulses (METHOD.md part B)"}
+        ("Procedure", {"rate-ladder": "rate ladder (docs/method.md part A)",
+                       "drift-pulse": "drift by alternating-sign pulses (docs/method.md part B)"}
          .get(kind, kind)),
         ("Work started", _utc(started)),
         ("Work ended", (_utc(completed) + (" (aborted)" if src.get("aborted") else ""))
@@ -645,7 +646,7 @@ def _deviations(src: Sources, kind: str) -> tuple[Any, ...]:
         if seq in methods.SEQUENCE_TEXT:
             items.insert(0, methods.SEQUENCE_TEXT[seq])
         blocks.append(Para("From the source paper's method (each one an improvement, "
-                           "METHOD.md A3-A5):", "strong"))
+                           "docs/method.md A3-A5):", "strong"))
         blocks += [Para(f"• {t}") for t in items]
     run: list[str] = []
     sessions = src.get("sessions")
@@ -671,7 +672,7 @@ def _deviations(src: Sources, kind: str) -> tuple[Any, ...]:
                                    1e3, signed=True).joined("ms")
             run.append(f"Axis {axis}: the digitizer's samples were {shift} "
                        "off the pulse edges; the integration edges were placed where the "
-                       "pulses are (METHOD.md B: a half-sample offset would bias the drift).")
+                       "pulses are (docs/method.md B: a half-sample offset would bias the drift).")
     blocks.append(Para("From the procedure, in this run:", "strong"))
     blocks += [Para(f"• {t}") for t in run] or [Para("None.")]
     return tuple(blocks)
@@ -719,10 +720,8 @@ def _instability_u(r: Mapping[str, Any]) -> tuple[float | None, bool]:
     if u is not None:
         return u, False
     s, n = _num(r.get("rate_instability_rel")), len(r.get("counter_rate_dps") or [])
-    n = n or int(r.get("turns") or 0)
-    if s is None or n < 2:
-        return None, False
-    return 2 * s / math.sqrt(2 * (n - 1)), True  # u(s) ~ s / sqrt(2(N-1)) for normal data
+    u = std_u_rel(s, n or int(r.get("turns") or 0))
+    return u, u is not None
 
 
 def sigma_presented(r: Mapping[str, Any], u: float | None) -> Presented:
@@ -740,16 +739,14 @@ def sigma_presented(r: Mapping[str, Any], u: float | None) -> Presented:
 
 
 def _u_of_std(s: float | None, n: Any) -> float | None:
-    """U (k = 2) of a standard deviation from n independent values: 2 s / sqrt(2 (n - 1))."""
+    """U (k = 2) of a standard deviation from n values, when the result does not give it."""
     n = _num(n)
-    if s is None or n is None or n < 2:
-        return None
-    return 2 * s / math.sqrt(2 * (n - 1))
+    return None if n is None else std_u_rel(s, int(n))
 
 
 @dataclass(frozen=True)
 class Averaged:
-    """The random part averaged over windows of `angle_deg` of table angle (METHOD.md A5)."""
+    """The random part averaged over windows of `angle_deg` of table angle (docs/method.md A5)."""
 
     angle_deg: float
     raw: float | None
@@ -879,7 +876,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
          f"Rate error δ ± U, {err_unit.name}", f"Instability σ ± U, {inst_unit.name}",
          f"Timing floor of σ, {inst_unit.name}", "Verdict"),
         tuple(rows), widths=(0.9, 0.6, 2.8, 1.8, 1.8, 1.1, 0.9), align="rcrrrrc",
-        caption=f"Axis {axis}: per-turn rate error and instability (METHOD.md A1-A2, eqs. 1-2)",
+        caption=f"Axis {axis}: per-turn rate error and instability (docs/method.md A1-A2, eqs. 1-2)",
         notes=tuple(notes)))
     budget = _rate_error_budget(axis, rates)
     if budget is not None:
@@ -920,7 +917,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                             widths=(1.0, 2.4, 2.1, 1.9, 2.1)[:len(header)], align="rrrrr"[
                                 :len(header)],
                             caption=f"Axis {axis}: FOG cross-calibration per ± pair "
-                                    "(METHOD.md A3, eqs. 5-6)", notes=tuple(notes)))
+                                    "(docs/method.md A3, eqs. 5-6)", notes=tuple(notes)))
     # A4 systematic
     sys_rows, mains_rows = [], []
     amp_unit = rel_unit(*[_num(h.get("amplitude_rel")) for r in rates
@@ -958,7 +955,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                             tuple(sys_rows), widths=(1.1, 0.8, 2.4, 2.2, 1.8), align="rcrrr",
                             caption=f"Axis {axis}: systematic intra-turn component, fitted "
                                     "harmonics Δω_sys = ω_set·Σ a_h cos(hφ + p_h) "
-                                    "(METHOD.md A4)",
+                                    "(docs/method.md A4)",
                             notes=("'< L': the amplitude is not resolved (a ≤ U, the one "
                                    "rule of section 6); L = a + U is its one-sided upper "
                                    "limit, and its phase, which then means nothing, is "
@@ -968,7 +965,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                              "Amplitude ± U, % of ω_set", "Phase ± U, °"), tuple(mains_rows),
                             widths=(1.1, 1.0, 2.2, 2.2, 1.6), align="rrrrr",
                             caption=f"Axis {axis}: mains-frequency ripple, fitted in time "
-                                    "(METHOD.md A4)",
+                                    "(docs/method.md A4)",
                             notes=("One tone of fixed frequency and phase over each "
                                    "direction's record. Grid-frequency wander during the "
                                    "record (of the order of 1 / record length or more) "
@@ -1000,7 +997,7 @@ def _corrected_cell(r: Mapping[str, Any], unit: RelUnit) -> str:
     return present(value, None, unit.scale, resolved=False, upper=upper).text
 
 
-#: the analysis's names for its cross-calibration methods, in words (METHOD.md A3)
+#: the analysis's names for its cross-calibration methods, in words (docs/method.md A3)
 CALIBRATION_METHODS = {
     "lsq-drift": "k, ω0 and a linear bias drift fitted by least squares to the halves' means",
     "eq5-6": "k and ω0 from eqs. 5-6",
@@ -1012,7 +1009,7 @@ BUDGET_TERMS = (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counte
 
 
 def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
-    """The standard uncertainties behind U of the rate error (METHOD.md A1-A2)."""
+    """The standard uncertainties behind U of the rate error (docs/method.md A1-A2)."""
     budgets = [(r, r.get("rate_error_budget")) for r in rates
                if isinstance(r.get("rate_error_budget"), Mapping)]
     if not budgets:
@@ -1037,7 +1034,7 @@ def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
     notes = ["Standard uncertainties (k = 1), relative to the set rate; U = k·√(Σu²), "
              f"k = {_num(first.get('coverage_factor')) or 2:g}."]
     if parts:
-        notes.append("Inputs: " + "; ".join(parts) + " (METHOD.md A1: ΔT = √(Δ_counter² + "
+        notes.append("Inputs: " + "; ".join(parts) + " (docs/method.md A1: ΔT = √(Δ_counter² + "
                      "Δ_trigger²)).")
     header = ("Set rate, °/s", *[f"u({name}), {unit.name}" for _, name in terms],
               f"U (k = 2), {unit.name}")
@@ -1104,13 +1101,13 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
                      "independent samples; the result did not carry it.")
     blocks: list[Any] = [Table(header, tuple(rows), widths=(1.1, 2.0, 1.4, 2.2),
                                align="rrrr", caption=f"Axis {axis}: intra-turn instability "
-                               "std(Δω_rand)/|ω_set| (METHOD.md A5)", notes=tuple(notes))]
+                               "std(Δω_rand)/|ω_set| (docs/method.md A5)", notes=tuple(notes))]
     blocks += _stability_blocks(axis, rates)
     return blocks
 
 
 def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
-    """Rate stability over an angle, as a datasheet states it (METHOD.md A5): over 1° and
+    """Rate stability over an angle, as a datasheet states it (docs/method.md A5): over 1° and
     10° from the FOG (with what this FOG can verify), over 360° from the counter's
     per-turn rates, whose timing floor is far below the FOG's."""
     rows = []
@@ -1162,7 +1159,7 @@ def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
                    "Table's own", "Smallest verifiable", "Unit", "Windows"), tuple(rows),
                   widths=(1.0, 0.8, 0.8, 1.7, 0.9, 1.5, 1.1, 0.6, 0.8),
                   align="rrlrrrrcr",
-                  caption=f"Axis {axis}: rate stability over 1°, 10° and 360° (METHOD.md A5)",
+                  caption=f"Axis {axis}: rate stability over 1°, 10° and 360° (docs/method.md A5)",
                   notes=tuple(notes))]
 
 
@@ -1179,10 +1176,10 @@ def _across_axes(axes: Mapping[str, Any]) -> list[Any]:
     blocks += _figure("Intra-turn instability vs rate, raw and floor-corrected "
                       "(cf. paper fig. 10)",
                       plots.intra_turn, rates, unit.scale, unit.name)
-    blocks += _figure("FOG scale k and bias ω0 per ± pair (METHOD.md A3)",
+    blocks += _figure("FOG scale k and bias ω0 per ± pair (docs/method.md A3)",
                       plots.pairs, {a: [p for p in ax.get("pairs", []) if isinstance(p, dict)]
                                     for a, ax in axes.items()})
-    blocks += _figure("Allan deviation of the FOG at rest: its noise floor (METHOD.md A5)",
+    blocks += _figure("Allan deviation of the FOG at rest: its noise floor (docs/method.md A5)",
                       plots.allan, {a: ax.get("noise_floor") or {} for a, ax in axes.items()},
                       width_frac=0.8)
     return blocks
@@ -1201,7 +1198,7 @@ def _per_turn_annex(src: Sources) -> tuple[Any, ...]:
             rows.append((axis, _rate(w_set), dev))
     return (Table(("Axis", "Set rate, °/s", "Per-turn rate deviations (ω_i/ω_set − 1), ppm, "
                    "in turn order"), tuple(rows), widths=(0.9, 1.1, 6.0), align="lrl",
-                  caption="Per-turn counter rates (METHOD.md A1), relative to the set rate"),)
+                  caption="Per-turn counter rates (docs/method.md A1), relative to the set rate"),)
 
 
 # -- drift-pulse results -------------------------------------------------------------------
@@ -1236,7 +1233,7 @@ def _drift_results(src: Sources, number: str) -> list[Section]:
         blocks.append(Table(tuple(header), tuple(rows),
                             widths=(0.8, 2.2, 2.6, 2.0, 0.8)[:len(header)] if has_nominal
                             else (0.8, 2.4, 2.8, 1.0), align="lrrrr"[:len(header)],
-                            caption="Own and apparent drift per axis (METHOD.md B)",
+                            caption="Own and apparent drift per axis (docs/method.md B)",
                             notes=tuple(notes)))
     fields = []
     if _num(drift.get("latitude_deg")) is not None:

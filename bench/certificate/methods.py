@@ -1,4 +1,4 @@
-"""The method statements printed on the certificate (METHOD.md parts A and B, restated).
+"""The method statements printed on the certificate (docs/method.md parts A and B, restated).
 
 Kept as data beside the builder so a reviewer can read the certificate's wording in one
 place. Formulas use plain Unicode that both the HTML and the PDF font (DejaVu) carry.
@@ -10,7 +10,7 @@ from bench.certificate.model import Para
 
 A_REFERENCE = ("Intra-turn rate instability of a rate-table axis by the fixed-angle method with "
                "a zero-mark sensor, a frequency counter and a fibre-optic gyro (FOG) "
-               "cross-calibrated against the counter (METHOD.md part A; seed paper 000).")
+               "cross-calibrated against the counter (docs/method.md part A; seed paper 000).")
 
 A_TEXT: tuple[Para, ...] = (
     Para(A_REFERENCE),
@@ -87,7 +87,7 @@ SEQUENCE_TEXT = {
 
 B_REFERENCE = ("Own and apparent drift of a gyro-stabilised platform by alternating-sign "
                "controlled precession, and the platform azimuth from two horizontal axes "
-               "(METHOD.md part B; seed paper 004).")
+               "(docs/method.md part B; seed paper 004).")
 
 B_TEXT: tuple[Para, ...] = (
     Para(B_REFERENCE),

@@ -16,6 +16,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.certificate import render_files
+
 
 def _rate(set_dps: float, turns: int, err: float, err_u: float, inst: float, inst_u: float,
           raw: float, corr: float, verdict: str, harmonics: list[dict[str, float]],
@@ -247,8 +249,6 @@ def drift_pulse_result() -> dict[str, Any]:
 
 
 if __name__ == "__main__":  # preview: python -m bench.certificate.sample OUT_DIR
-    from bench.certificate import render_files
-
     out = Path(sys.argv[1] if len(sys.argv) > 1 else ".")
     for name, result in (("rate-ladder", rate_ladder_result()),
                          ("drift-pulse", drift_pulse_result())):

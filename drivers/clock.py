@@ -3,6 +3,9 @@
 On a real bench the clock is the host's monotonic clock. On the simulated bench it is
 the simulated stand's virtual clock (sims.clock.VirtualClock), which runs faster than
 real time; the engine's code is the same for both.
+
+It lives with the drivers because they are the bottom layer: every driver waits and
+timestamps through it, and nothing here may import from above (bench, sims, procedures).
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ magnitude the halves of a +/- pair, by default in the order +w, -w, +w with the 
 the + direction split around the - half, so a linear FOG bias drift cancels in the
 cross-calibration (METHOD.md A3, "beyond the paper"); each half: set the rate, settle,
 time N whole turns with the counter while the FOG streams; then cross-calibrate and
-analyse the pair.
+analyze the pair.
 """
 
 from __future__ import annotations
@@ -14,92 +14,18 @@ import math
 from typing import Any
 
 from bench.analysis.window import HalfRecord
-from bench.clock import Clock
-from bench.config import (
-    COMMON_PROCEDURE_KEYS,
-    Config,
-    check_axis_names,
-    stand_schema,
-)
+from bench.config import Config, check_axis_names, stand_schema
 from bench.engine import Abort, RunContext
 from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, open_axis
 from bench.journal import RunDir
 from bench.plan import Plan, Step, format_duration
-from bench.schema import Key, ListOf, Map, MapOf, Num, Str
+from bench.schema import Map
 from bench.simbench import SimBench
 from bench.yamlfile import Problem
+from drivers.clock import Clock
 from procedures.base import StepDispatch
-
-NAME = "rate-ladder"
-
-BAND = Map({
-    "below_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), False,
-                     "the band applies to rates below this; omit on the last band"),
-    "rel": Key(Num(min=0, exclusive_min=True), True, "tolerance, a fraction (1e-6 = 1 ppm)"),
-})
-SETTLE = Map({
-    "tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
-    "tolerance_rel": Key(Num(min=0, exclusive_min=True)),
-    "hold_s": Key(Num(min=0, unit="s")),
-    "timeout_s": Key(Num(min=0, exclusive_min=True, unit="s")),
-})
-AXIS = Map({
-    "rates_dps": Key(ListOf(Num(min=0, exclusive_min=True, unit="deg/s"), min_len=1), True),
-    "turns": Key(Num(min=1, max=10_000, integer=True)),
-    "prompt": Key(Str(), False, "what the operator must do before this axis"),
-})
-PROCEDURE = Map({
-    **COMMON_PROCEDURE_KEYS,
-    "turns": Key(Num(min=1, max=10_000, integer=True), False, "turns per rate and direction"),
-    "sequence": Key(Str(("+-", "+-+")), False, "order of the halves of a pair"),
-    "accel_dps2": Key(Num(min=0, exclusive_min=True, unit="deg/s^2")),
-    "settle": Key(SETTLE),
-    "static_record_s": Key(Num(min=0, unit="s"), False, "FOG at rest per axis (noise floor)"),
-    "harmonics": Key(Num(min=1, max=20, integer=True), False, "orders 1..H fitted in angle"),
-    "mains_hz": Key(Num(min=0, exclusive_min=True, unit="Hz")),
-    "axes": Key(MapOf(AXIS, min_len=1), True),
-    "tolerance": Key(Map({
-        "rate_error": Key(ListOf(BAND, min_len=1)),
-        "rate_instability": Key(ListOf(BAND, min_len=1)),
-        "intra_turn_instability": Key(ListOf(BAND, min_len=1)),
-    })),
-})
-
-DEFAULTS: dict[str, Any] = {
-    "turns": 5,
-    "sequence": "+-+",
-    "static_record_s": 60.0,
-    "harmonics": 4,
-    "mains_hz": 50.0,
-    "decision_rule": "simple",
-    "prompts": True,
-}
-SETTLE_DEFAULTS = {"tolerance_rel": 1e-3, "tolerance_dps": 0.005, "hold_s": 2.0,
-                   "timeout_s": 60.0}
-
-
-def setting(cfg: Config, key: str) -> Any:
-    return cfg.procedure.get(key, DEFAULTS.get(key))
-
-
-def tolerance_for(bands: list[dict[str, float]] | None, rate_dps: float) -> float | None:
-    """The first band whose `below_dps` exceeds |rate|, else the band without one."""
-    if not bands:
-        return None
-    for band in bands:
-        if "below_dps" in band and abs(rate_dps) < band["below_dps"]:
-            return float(band["rel"])
-    for band in bands:
-        if "below_dps" not in band:
-            return float(band["rel"])
-    return None
-
-
-def halves(turns: int, sequence: str) -> list[tuple[int, int]]:
-    """(sign, turns) per half. '+-+' splits the + turns around the - half."""
-    if sequence == "+-+" and turns >= 2:
-        return [(+1, (turns + 1) // 2), (-1, turns), (+1, turns // 2)]
-    return [(+1, turns), (-1, turns)]
+from procedures.rate_ladder.analysis import analyze_run, pair_summary
+from procedures.rate_ladder.settings import NAME, PROCEDURE, SETTLE_DEFAULTS, halves, setting
 
 
 class RateLadder(StepDispatch):
@@ -200,7 +126,7 @@ class RateLadder(StepDispatch):
                                       {"rate_dps": target, "turns": n, "half": j,
                                        "period_s": period}))
                     rate_now = target
-                steps.append(Step("analyse", axis, f"cross-calibrate and analyse the "
+                steps.append(Step("analyze", axis, f"cross-calibrate and analyze the "
                                   f"+/-{rate:g} deg/s pair", 0.0, unit, {"rate_dps": rate}))
             steps.append(Step("stop", axis, "ramp to zero, disable", abs(rate_now) / accel,
                               None, {"accel_dps2": accel}))
@@ -306,9 +232,7 @@ class RateLadder(StepDispatch):
         ctx.progress.line(f"  {step.axis} {p['rate_dps']:+g} deg/s: {n} turns timed, "
                           f"mean {math.copysign(w, p['rate_dps']):+.7f} deg/s")
 
-    def _do_analyse(self, step: Step, ctx: RunContext) -> None:
-        from procedures.rate_ladder_analysis import pair_summary
-
+    def _do_analyze(self, step: Step, ctx: RunContext) -> None:
         summary = pair_summary(ctx, step.axis, step.unit, step.params["rate_dps"])
         ctx.run.event("pair", axis=step.axis, unit=step.unit, **summary)
         ctx.progress.line(f"  {step.axis} +/-{step.params['rate_dps']:g} deg/s: "
@@ -326,8 +250,6 @@ class RateLadder(StepDispatch):
 
     # -- analysis --------------------------------------------------------------------
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
-        from procedures.rate_ladder_analysis import analyze_run
-
         return analyze_run(run, cfg)
 
 

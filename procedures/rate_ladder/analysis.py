@@ -15,7 +15,9 @@ from typing import Any
 
 import numpy as np
 
+from bench.analysis.allan import allan_deviation
 from bench.analysis.pair import analyze_pair
+from bench.analysis.random_part import std_u_rel
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.config import Config
@@ -26,6 +28,7 @@ from drivers.counter_profiles import get_profile
 from drivers.fog import FogSamples, read_capture
 from drivers.scpi import parse_numbers
 from procedures.base import events_of, result_document
+from procedures.rate_ladder.settings import setting, tolerance_for
 
 
 def counter_budget(stand_axis: dict[str, Any]) -> CounterBudget:
@@ -101,8 +104,6 @@ class RawData:
 
 
 def _settings(cfg: Config) -> dict[str, Any]:
-    from procedures.rate_ladder import setting
-
     return {k: setting(cfg, k) for k in ("turns", "sequence", "static_record_s", "harmonics",
                                          "mains_hz", "decision_rule")}
 
@@ -120,8 +121,9 @@ def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
 
 
 def _instability_u(value: float, turns: int) -> float:
-    """U (k = 2) of a relative standard deviation from N turns: s / sqrt(2 (N - 1))."""
-    return 2.0 * value / math.sqrt(2.0 * (turns - 1)) if turns > 1 else math.inf
+    """U (k = 2) of eq. 2's sigma from N turns (infinite from one turn)."""
+    u = std_u_rel(value, turns)
+    return math.inf if u is None else u
 
 
 #: one-sided coverage of the upper limit of sigma (the k = 2 level of a normal variable)
@@ -146,8 +148,6 @@ def sigma_resolved(value: float, u: float, floor: float) -> bool:
 
 
 def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[dict[str, Any]]:
-    from procedures.rate_ladder import tolerance_for
-
     tol = cfg.procedure.get("tolerance", {})
     out = []
     rate = entry["set_rate_dps"]
@@ -234,8 +234,6 @@ def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
             pairs.append(pa.pair.to_dict())
         floor = None
         if static is not None:
-            from bench.analysis.allan import allan_deviation
-
             w = raw.static(static)
             hz = cfg.stand_axis(axis)["fog"]["rate_hz"]
             curve = allan_deviation(w, hz)

@@ -1,0 +1,328 @@
+"""The station view (`bench serve`): live state read from run directories, its security
+rules, and the page itself driven in a real headless browser during a simulated run.
+
+The browser test needs Debian's chromium and chromium-driver (.ci/run installs them); it
+is skipped, saying so, where they are missing. The one place a request is not real: a
+request from a non-local address cannot be made on this sandboxed machine (no network
+but loopback), so that rule is checked through Flask's WSGI test client with the remote
+address set, and the server's refusal to bind another address without a token through
+its argument parser.
+"""
+
+from __future__ import annotations
+
+import argparse
+import http.client
+import json
+import math
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from bench.station.app import StationSettings, create_app
+from bench.station.live import (
+    FogSettings,
+    decimate,
+    fog_trace,
+    progress_of,
+    tail_jsonl,
+    turn_rates,
+)
+from bench.station.serve import settings_from_args
+from drivers.fog_formats import get_format
+from tests.conftest import CONFIGS, ROOT
+
+TOKEN = "s3cret-token"
+ARTIFACTS = Path(os.environ.get("BENCH_TEST_ARTIFACTS", ROOT / "test-artifacts")) / "station"
+
+
+# -- the live state, from files, against hand-derived values ---------------------------
+
+def test_turn_rates_from_edges_hand_derived() -> None:
+    # METHOD.md A1: w = 360 / T. Turn 1: T = 36 s -> 10 deg/s exactly; turn 2:
+    # T = 36.000036 s -> 10 / (1 + 1e-6) deg/s, a deviation of -1/(1 + 1e-6) ppm.
+    t = turn_rates({"edges_s": [5.0, 41.0, 77.000036], "set_rate_dps": -10.0, "axis": "outer"})
+    assert t["rate_dps"][0] == pytest.approx(-10.0, rel=1e-15)
+    assert t["rate_dps"][1] == pytest.approx(-10.0 / (1 + 1e-6), rel=1e-12)
+    assert t["deviation_ppm"] == pytest.approx([0.0, -1 / (1 + 1e-6)], abs=1e-6)
+
+
+def test_decimate_is_block_means() -> None:
+    t = np.arange(10.0)
+    y = np.array([1.0, 3.0] * 5)
+    ts, ys = decimate(t, y, points=5)
+    assert ts == [0.5, 2.5, 4.5, 6.5, 8.5] and ys == [2.0] * 5  # every-2nd would give 1.0
+
+
+def test_progress_eta_from_measured_speed() -> None:
+    # three steps of 100, 200, 300 s; the second started at bench t = 100 s and 40 bench
+    # seconds have passed in it; 140 bench seconds took 14 wall seconds (speed 10).
+    ev = [
+        {"event": "plan", "steps": 3, "estimate_s": 600.0, "step_estimates_s": [100, 200, 300],
+         "t_s": 0.0, "utc": "2026-01-01T00:00:00+00:00"},
+        {"event": "step_start", "index": 0, "action": "a", "t_s": 0.0,
+         "utc": "2026-01-01T00:00:00+00:00"},
+        {"event": "step_done", "index": 0, "t_s": 100.0, "utc": "2026-01-01T00:00:10+00:00"},
+        {"event": "step_start", "index": 1, "action": "b", "describe": "x", "t_s": 100.0,
+         "utc": "2026-01-01T00:00:10+00:00"},
+        {"event": "settled", "t_s": 140.0, "utc": "2026-01-01T00:00:14+00:00"},
+    ]
+    p = progress_of(ev)
+    assert p["step"]["number"] == 2 and p["steps_done"] == 1
+    assert p["bench_left_s"] == pytest.approx(200 + 300 - 40)
+    assert p["speed"] == pytest.approx(10.0)
+    assert p["wall_left_s"] == pytest.approx(46.0)
+    assert p["fraction"] == pytest.approx(1 - 460 / 600)
+
+
+def test_tail_skips_partial_and_torn_lines(tmp_path: Path) -> None:
+    f = tmp_path / "x.jsonl"
+    f.write_text("".join(json.dumps({"i": i}) + "\n" for i in range(100)) + '{"i": 10')
+    recs = tail_jsonl(f, 50)
+    assert recs and all(set(r) == {"i"} for r in recs) and recs[-1] == {"i": 99}
+    assert tail_jsonl(tmp_path / "missing.jsonl", 50) == []
+
+
+@pytest.mark.parametrize("units,scale", [("deg/s", 1.0), ("rad", 200 * 180 / math.pi)])
+def test_fog_trace_decodes_the_capture_tail(tmp_path: Path, units: str, scale: float) -> None:
+    fmt = get_format("kvh-a")
+    n = 2000
+    truth_dps = np.linspace(-5.0, 5.0, n)
+    rates = np.zeros((n, 3))
+    rates[:, 2] = truth_dps / scale
+    raw = tmp_path / "outer-fog.bin"
+    raw.write_bytes(fmt.encode(np.arange(n) % fmt.sequence_modulus, rates).tobytes())
+    tr = fog_trace(raw, FogSettings("kvh-a", "z", units, 200.0), tail_s=5.0)  # last 1000
+    assert len(tr["t_s"]) == len(tr["rate_dps"]) > 0
+    assert tr["t_s"][0] == pytest.approx(1000 / 200 + (math.ceil(1000 / 600) - 1) / 2 / 200)
+    k = math.ceil(1000 / 600)
+    want = truth_dps[1000:1000 + 1000 // k * k].reshape(-1, k).mean(axis=1)
+    assert np.allclose(tr["rate_dps"], want, rtol=1e-6, atol=1e-5)   # float32 frames
+
+
+# -- security: token, Host header, traversal -------------------------------------------
+
+@pytest.fixture
+def runs_folder(tmp_path: Path) -> Path:
+    run = tmp_path / "runs" / "20260101-000000-demo"
+    run.mkdir(parents=True)
+    (run / "events.jsonl").write_text(json.dumps(
+        {"utc": "2026-01-01T00:00:00+00:00", "t_s": 0.0, "session": 1,
+         "event": "session_start", "pid": 1}) + "\n")
+    (run / "result.json").write_text('{"verdict": "pass"}')
+    (run / "stand.yaml").write_text("stand: {maker: m, model: x, serial: S1}\n")
+    (tmp_path / "secret.txt").write_text("not for the web")
+    return tmp_path / "runs"
+
+
+def _client(runs: Path, host: str = "127.0.0.1"):
+    app = create_app(StationSettings(runs, TOKEN, host, 8765),
+                     send_signal=lambda pid, sig: pytest.fail("no signal may be sent"))
+    return app.test_client()
+
+
+def test_remote_address_needs_the_token(runs_folder: Path) -> None:
+    c = _client(runs_folder, host="0.0.0.0")
+    remote = {"REMOTE_ADDR": "192.0.2.7"}
+    assert c.get("/", environ_base=remote, headers={"Host": "0.0.0.0:8765"}).status_code == 403
+    ok = c.get("/", environ_base=remote, headers={"Host": "0.0.0.0:8765", "X-Bench-Token": TOKEN})
+    assert ok.status_code == 200
+    local = c.get("/", environ_base={"REMOTE_ADDR": "127.0.0.1"}, headers={"Host": "0.0.0.0:8765"})
+    assert local.status_code == 200
+
+
+def test_stop_needs_the_token_even_locally(runs_folder: Path) -> None:
+    c = _client(runs_folder)
+    r = c.post("/api/runs/20260101-000000-demo/stop")
+    assert r.status_code == 403 and "token" in r.get_json()["error"]
+    # with the token, a run whose process is gone is refused, and nothing is signalled
+    r = c.post("/api/runs/20260101-000000-demo/stop", headers={"X-Bench-Token": TOKEN})
+    assert r.status_code == 409
+
+
+def test_foreign_host_header_is_refused(runs_folder: Path) -> None:
+    assert _client(runs_folder).get("/", headers={"Host": "evil.example"}).status_code == 403
+
+
+def test_serve_refuses_a_public_address_without_a_token(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("BENCH_STATION_TOKEN", raising=False)
+    args = argparse.Namespace(runs="runs", records=None, port=0, host="0.0.0.0", token=None)
+    with pytest.raises(SystemExit, match="token"):
+        settings_from_args(args)
+    s, made = settings_from_args(argparse.Namespace(**{**vars(args), "host": "127.0.0.1"}))
+    assert made and len(s.token) >= 16
+
+
+@pytest.fixture
+def server(runs_folder: Path) -> Iterator[tuple[subprocess.Popen[str], int]]:
+    proc, port = _start_server(runs_folder)
+    yield proc, port
+    _stop(proc)
+
+
+def _start_server(runs: Path) -> tuple[subprocess.Popen[str], int]:
+    proc = subprocess.Popen([sys.executable, "-m", "bench", "serve", "--runs", str(runs),
+                             "--port", "0", "--token", TOKEN], cwd=ROOT, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    assert proc.stdout is not None
+    line = proc.stdout.readline()
+    m = re.search(r"http://127\.0\.0\.1:(\d+)/", line)
+    assert m, line
+    return proc, int(m.group(1))
+
+
+def _stop(proc: subprocess.Popen[str]) -> None:
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+
+
+def _raw_get(port: int, path: str) -> int:
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+    conn.putrequest("GET", path, skip_host=True)
+    conn.putheader("Host", f"127.0.0.1:{port}")
+    conn.endheaders()
+    status = conn.getresponse().status
+    conn.close()
+    return status
+
+
+@pytest.mark.parametrize("path", [
+    "/files/20260101-000000-demo/../../secret.txt",
+    "/files/..%2F..%2Fsecret.txt/result.json",
+    "/files/20260101-000000-demo/..%2F..%2Fsecret.txt",
+    "/files/20260101-000000-demo/stand.yaml",          # in the run, but not a download
+    "/files/%2e%2e/secret.txt",
+    "/run/..",
+    "/static/../../../../etc/passwd",
+])
+def test_path_traversal_is_refused(server: tuple[subprocess.Popen[str], int], path: str) -> None:
+    _, port = server
+    assert _raw_get(port, path) in (400, 403, 404)
+    assert _raw_get(port, "/files/20260101-000000-demo/result.json") == 200
+
+
+# -- the page, in a real browser, during a simulated run --------------------------------
+
+def _chromium() -> tuple[str, str] | None:
+    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    driver = shutil.which("chromedriver") or (
+        "/usr/bin/chromedriver" if Path("/usr/bin/chromedriver").exists() else None)
+    return (browser, driver) if browser and driver else None
+
+
+def _slow_demo(tmp: Path) -> Path:
+    """One axis, one rate pair, clock at 5x (about 25 s of wall time): slow enough for a person (and the test) to
+    watch the steps advance, short enough for CI."""
+    stand = yaml.safe_load((CONFIGS / "stands" / "sim-two-axis.yaml").read_text())
+    stand["sim"]["clock_speed"] = 5
+    (tmp / "stand.yaml").write_text(yaml.safe_dump(stand, sort_keys=False))
+    proc = yaml.safe_load((CONFIGS / "procedures" / "demo.yaml").read_text())
+    proc.update(stand="stand.yaml", turns=2, static_record_s=10,
+                axes={"outer": {"rates_dps": [30]}})
+    (tmp / "station-demo.yaml").write_text(yaml.safe_dump(proc, sort_keys=False))
+    return tmp / "station-demo.yaml"
+
+
+def _wait(cond, timeout_s: float, what: str, poll_s: float = 0.2):  # noqa: ANN001, ANN202
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = cond()
+        if value:
+            return value
+        time.sleep(poll_s)
+    pytest.fail(f"timed out after {timeout_s} s waiting for {what}")
+
+
+@pytest.mark.timeout(400)
+def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
+    found = _chromium()
+    if found is None:
+        pytest.skip("chromium and chromium-driver are not installed (Debian packages "
+                    "`chromium chromium-driver`; .ci/run installs them)")
+    from selenium import webdriver
+    from selenium.webdriver.chrome.options import Options
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.common.by import By
+
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    procedure = _slow_demo(tmp_path)
+    run_proc = subprocess.Popen([sys.executable, "-m", "bench", "run", str(procedure), "--yes",
+                                 "--out", str(runs)], cwd=ROOT, text=True,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    server_proc, port = _start_server(runs)
+    opts = Options()
+    opts.binary_location = found[0]
+    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+              "--window-size=1280,1400"):
+        opts.add_argument(a)
+    driver = webdriver.Chrome(service=Service(found[1]), options=opts)
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    try:
+        run_dir = _wait(lambda: next(iter(p for p in runs.iterdir() if p.is_dir()), None),
+                        60, "the run directory")
+        base = f"http://127.0.0.1:{port}"
+        driver.get(f"{base}/run/{run_dir.name}")
+
+        def state(js: str):  # noqa: ANN202
+            return driver.execute_script(f"return {js}")
+
+        first = _wait(lambda: state("window.station?.state?.progress?.step?.number"), 60,
+                      "a step on the page")
+        _wait(lambda: (state("window.station?.state?.progress?.step?.number") or 0) > first,
+              120, "the step to advance")
+        _wait(lambda: (driver.execute_script(
+            "return window.station?.charts?.fog?.data[0].length") or 0) > 10, 90,
+            "FOG points in the plot")
+        frac = state("window.station?.state?.progress?.fraction")
+        assert 0 < frac < 1
+        assert "Step" in driver.find_element(By.ID, "step").text
+        assert "wall time left" in driver.find_element(By.ID, "eta").text
+        driver.save_screenshot(str(ARTIFACTS / "live-run.png"))
+
+        # the one action: a stop request with the token, exactly Ctrl-C
+        driver.find_element(By.ID, "token").send_keys(TOKEN)
+        driver.find_element(By.ID, "stop").click()
+        _wait(lambda: "stop requested" in driver.find_element(By.ID, "stop-result").text, 20,
+              "the stop request's answer")
+        out, err = run_proc.communicate(timeout=120)
+        assert run_proc.returncode == 3, err[-2000:]
+        assert "interrupted by SIGINT" in err
+        _wait(lambda: state("window.station?.state?.status") == "aborted", 30,
+              "the page to show the abort")
+
+        resumed = subprocess.run([sys.executable, "-m", "bench", "run", "--resume",
+                                  str(run_dir), "--yes"], cwd=ROOT, text=True,
+                                 capture_output=True, timeout=300)
+        assert resumed.returncode == 0, resumed.stderr[-2000:]
+        _wait(lambda: state("window.station?.state?.status") == "passed", 30,
+              "the page to show the resumed run passed")
+        assert state("window.station?.state?.sessions") == 2
+
+        serial = yaml.safe_load((run_dir / "stand.yaml").read_text())["stand"]["serial"]
+        driver.get(f"{base}/records/{serial}")
+        _wait(lambda: driver.execute_script(
+            "const i = document.getElementById('trend'); return i.complete && i.naturalWidth"),
+            30, "the trend plot")
+        assert run_dir.name in driver.find_element(By.ID, "history").text
+        driver.save_screenshot(str(ARTIFACTS / "table-history.png"))
+        print(f"screenshots: {ARTIFACTS / 'live-run.png'}, {ARTIFACTS / 'table-history.png'}")
+    finally:
+        driver.quit()
+        if run_proc.poll() is None:
+            run_proc.send_signal(signal.SIGINT)
+            run_proc.wait(timeout=60)
+        _stop(server_proc)
