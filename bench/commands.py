@@ -158,7 +158,9 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                           certificate=t.certificate, due=t.due.isoformat() if t.due else None)
             bench = kind.open_bench(cfg, stand, clock, run)
             for ax in bench.axes.values():
-                run.event("identity", axis=ax.name, **ax.identities)
+                run.event("identity", axis=ax.name, **ax.identities,
+                          **({"counter_reference": ax.reference_text}
+                             if ax.reference_text else {}))
             if simbench is not None:
                 simbench.start_clock()
                 if on_sim_started is not None:

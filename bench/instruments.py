@@ -34,6 +34,7 @@ class AxisInstruments:
     identities: dict[str, str] = field(default_factory=dict)
     logs: dict[str, JsonLines] = field(default_factory=dict)
     reference: str | None = None  # the counter's timebase reference as read back
+    reference_text: str | None = None  # the same, for the journal and the certificate
 
 
 class Bench:
@@ -170,11 +171,11 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
         ax.counter = cnt
         ax.identities["counter"] = cnt.identify()
         reported = cnt.reference_source()
-        ax.identities["counter_reference"] = (
+        ax.reference = reported
+        ax.reference_text = (
             {"INT": "internal oscillator", "EXT": "external reference (Ref In)"}[reported]
             + f" ({cnt.words.reference_source.query_text()} {reported})"
             if reported else "not reported by this model")
-        ax.reference = reported
     f = axis_cfg.get("fog")
     if fog and f:
         fg = Fog(f["port"], baudrate=f.get("baudrate", 921600), fmt=f.get("format", "kvh-a"),

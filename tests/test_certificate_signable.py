@@ -193,14 +193,20 @@ def test_named_signatories_from_the_lab_settings(tmp_path: Path) -> None:
     assert "certificate.pdf is the authoritative form" in text
 
 
-@pytest.mark.parametrize("bad", [{"lab": 3}])
-def test_lab_key_must_be_a_path(tmp_path: Path, bad: dict[str, Any]) -> None:
-    from bench.config import ConfigError, load_config
+@pytest.mark.parametrize("lab, message", [
+    ("3", "certificate.lab: expected the path of a lab settings file"),
+    ("nowhere.yaml", "certificate.lab: lab settings file"),
+])
+def test_a_bad_lab_key_is_named_by_file_line_and_key(tmp_path: Path, lab: str,
+                                                     message: str) -> None:
+    from bench.config import ConfigError
+    from bench.loader import load_config
 
     proc = (ROOT / "configs/procedures/demo.yaml").read_text()
     proc = proc.replace("stand: ../stands/", f"stand: {ROOT}/configs/stands/")
-    proc = proc.replace("  lab: ../lab.yaml", f"  lab: {bad['lab']}")
+    proc = proc.replace("  lab: ../lab.yaml", f"  lab: {lab}")
     (tmp_path / "p.yaml").write_text(proc)
+    line = proc[:proc.index(f"  lab: {lab}")].count("\n") + 1
     with pytest.raises(ConfigError) as e:
         load_config(tmp_path / "p.yaml")
-    assert "certificate.lab" in str(e.value) or "certificate" in str(e.value)
+    assert f"p.yaml:{line}: {message}" in str(e.value)
