@@ -48,6 +48,13 @@ DRIVE = Map({
     "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg")),
     "eds": Key(Str()),
     "calibration": Key(CALIBRATION, False, "the encoder's calibration certificate, if any"),
+    "unit_factors": Key(Any_(), False,
+                        "'read' (the drive's factor group 0x608F/0x6091/0x60A9/0x60AA is "
+                        "read at connect) or {velocity: rpm|inc/s|0.001 inc/s|..., "
+                        "acceleration: rpm/s|inc/s2|...} written at connect and read back; "
+                        "a stand without a sim: block must state it"),
+    "pdo": Key(Str(("set", "verify")), False,
+               "TPDO transmission type / event timer: verify (default) or set at connect"),
 })
 COUNTER = Map({
     "resource": Key(Str(), True, "VISA resource string"),
@@ -64,6 +71,19 @@ COUNTER = Map({
                      "the timebase reference the stand claims; read back from the counter "
                      "where it can say (53230A ROSC:SOUR?), a false claim is refused"),
     "calibration": Key(CALIBRATION, False, "the counter's calibration certificate"),
+    "time_tie": Key(Map({
+        "source": Key(Str(("fog-sync", "host-clock")), True,
+                      "how the counter's start event is placed on the FOG's time axis: "
+                      "fog-sync (external trigger from the FOG's sync output) or host-clock"),
+        "sync_period_s": Key(Num(min=0, exclusive_min=True, unit="s"), False,
+                             "FOG time between sync pulses (pulse k at k * period)"),
+        "latency_s": Key(Num(min=0, unit="s"), False, "sync pulse to counter trigger, "
+                         "calibrated"),
+        "latency_u_s": Key(Num(min=0, unit="s"), False, "its standard uncertainty (with "
+                           "jitter)"),
+        "host_window_s": Key(Num(min=0, unit="s"), False, "how well the host knows the "
+                             "FOG's time axis"),
+    }), False, "drivers/time_tie.py; a stand without a sim: block must state it"),
 })
 FOG = Map({
     "port": Key(Str(), True, "serial port, e.g. /dev/ttyUSB0"),
@@ -72,7 +92,12 @@ FOG = Map({
     "axis": Key(Str(("x", "y", "z"))),
     "rate_hz": Key(Num(min=0, exclusive_min=True, unit="Hz"), True),
     "range_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
-    "units": Key(Str()),
+    "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), True,
+                  "what the rotational fields carry; KVH's power-on default is delta "
+                  "radians, 'rad' (1775 IMU Technical Manual, Table 5-10)"),
+    "configure": Key(Str(("set", "verify", "declare")), False,
+                     "set: configure the FOG at connect and read back; verify: read back "
+                     "only; declare (default): trust fog.units"),
     "model": Key(Str()),
     "sign": Key(Num(min=-1, max=1, integer=True)),
     "calibration": Key(CALIBRATION, False, "the FOG's calibration certificate, if any"),
@@ -85,8 +110,11 @@ HARMONIC = Map({
     "amplitude_rel": Key(Num(min=0), True),
     "phase_deg": Key(Num()),
 })
-SIM_FOG = Map({k: Key(Num()) for k in ("scale", "bias_dps", "misalignment_deg",
-                                        "noise_dps", "bias_drift_dps_per_h")})
+SIM_FOG = Map({**{k: Key(Num()) for k in ("scale", "bias_dps", "misalignment_deg",
+                                           "noise_dps", "bias_drift_dps_per_h")},
+               "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), False,
+                            "what the twin carries before the bench configures it "
+                            "(default: delta radians, or the declared fog.units)")})
 SIM_AXIS = Map({
     "rate_bias_rel": Key(Num()),
     "harmonics": Key(ListOf(HARMONIC)),
@@ -97,6 +125,11 @@ SIM_AXIS = Map({
     "fog": Key(SIM_FOG),
     "counter_external_reference": Key(Bool(), False, "a valid 10 MHz is wired to the "
                                       "counter's Ref In (default false: internal oscillator)"),
+    "time_tie": Key(Map({"latency_s": Key(Num(min=0)), "jitter_s": Key(Num(min=0))}),
+                    False, "the FOG sync to counter trigger link: true latency and jitter"),
+    "drive": Key(Map({"velocity_unit": Key(Str()), "acceleration_unit": Key(Str()),
+                      "tpdo_event_timer_ms": Key(Num(min=0, integer=True))}), False,
+                 "the drive twin's factor group (e.g. rpm, rpm/s) and TPDO event timer"),
 })
 SIM_KEYS: dict[str, Key] = {
     "seed": Key(Num(min=0, integer=True)),
@@ -170,6 +203,37 @@ class ConfigError(Exception):
     def __init__(self, problems: list[Problem]) -> None:
         self.problems = problems
         super().__init__("\n".join(str(p) for p in problems))
+
+
+def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
+    """What a real stand (no `sim:` block) must state because no driver can guess it.
+
+    The FOG's units are required by the schema for every stand; here, the time tie: on
+    twins one clock ties the counter to the FOG, on hardware only a physical link does
+    (drivers/time_tie.py), so a real stand with a counter and a FOG must say how.
+    """
+    data = sdoc.data if isinstance(sdoc.data, dict) else {}
+    if "sim" in data:
+        return []
+    out = []
+    for name, axis in (data.get("axes") or {}).items():
+        if not isinstance(axis, dict):
+            continue
+        drive = axis.get("drive")
+        if isinstance(drive, dict) and "unit_factors" not in drive:
+            out.append(sdoc.problem(
+                ("axes", name, "drive"),
+                "a real stand must state drive.unit_factors: 'read' (the drive's factor "
+                "group is read at connect) or {velocity: ..., acceleration: ...} to set "
+                "(common drives default to rpm or inc/s; see drivers/cia402.py)"))
+        counter, fog = axis.get("counter"), axis.get("fog")
+        if isinstance(counter, dict) and fog and "time_tie" not in counter:
+            out.append(sdoc.problem(
+                ("axes", name, "counter"),
+                "a real stand must state counter.time_tie (how the counter's start event "
+                "is placed on the FOG's time axis: source fog-sync with sync_period_s, "
+                "latency_s and latency_u_s, or host-clock); see drivers/time_tie.py"))
+    return out
 
 
 def check_axis_names(cfg: Config, axes_key: str = "axes") -> list[Problem]:

@@ -19,6 +19,7 @@ from drivers.axis import Axis
 from drivers.clock import Clock
 from drivers.counter import Counter
 from drivers.fog import Fog
+from drivers.time_tie import TimeTie
 
 DEFAULT_FOG_RANGE_DPS = 490.0  # KVH DSP-1760's range; a stand file may say otherwise
 
@@ -97,6 +98,16 @@ class Bench:
                 j.close()
 
 
+def with_readback(identity: str, readback: dict[str, Any], manual: str | None = None) -> str:
+    """An instrument's identity with the settings it read back at connect (and the manual
+    its driver follows): one string, so the run's `identity` event, `bench devices` and
+    the certificate's instrument table all carry them."""
+    out = identity
+    if readback:
+        out += "; read back: " + ", ".join(f"{k} = {v}" for k, v in readback.items())
+    if manual:
+        out += f"; driver checked against: {manual}"
+    return out
 class StandClaimError(Exception):
     """The stand file claims what the instrument, asked, denies: the input is invalid."""
 
@@ -146,7 +157,8 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
     drive = Axis(name, interface=d["interface"], channel=d["channel"], node_id=d["node_id"],
                  max_rate_dps=d["max_rate_dps"], max_accel_dps2=d["max_accel_dps2"],
                  clock=clock, controller_node_id=controller_node_ids(stand_axes)[name],
-                 **{k: d[k] for k in ("counts_per_rev", "heartbeat_ms", "watchdog_ms", "bitrate")
+                 **{k: d[k] for k in ("counts_per_rev", "heartbeat_ms", "watchdog_ms", "bitrate",
+                                      "unit_factors", "pdo")
                     if k in d},
                  **({"eds_path": d["eds"]} if "eds" in d else {}),
                  raw=_raw_record_logger(drive_log, clock) if drive_log else None)
@@ -155,12 +167,13 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
     if drive_log:
         ax.logs["drive"] = drive_log
     bench.axes[name] = ax
-    ax.identities["drive"] = drive.identity()
+    ax.identities["drive"] = with_readback(drive.identity(), drive.readback)
     c = axis_cfg.get("counter")
     if counter and c:
         clog = bench.log(run.raw_path(f"{name}-counter.jsonl")) if run else None
         cnt = Counter.open(c["resource"], c["model"], clock,
                            raw=raw_text_logger(clog, clock) if clog else None,
+                           time_tie=TimeTie.from_stand(c.get("time_tie")),
                            **({"timeout_margin_s": c["timeout_margin_s"]}
                               if "timeout_margin_s" in c else {}))
         bench.enter(cnt)
@@ -169,7 +182,11 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
         cnt.configure(**{k: c[k] for k in ("channel", "level_v", "slope", "coupling",
                                            "impedance_ohm") if k in c})
         ax.counter = cnt
-        ax.identities["counter"] = cnt.identify()
+        manual = cnt.profile.manual
+        ax.identities["counter"] = with_readback(
+            cnt.identify(), {**cnt.readback, "time tie": cnt.time_tie.source},
+            "UNVERIFIED (no manual found)" if manual.startswith("unverified")
+            else manual.split(":")[0])
         reported = cnt.reference_source()
         ax.reference = reported
         ax.reference_text = (
@@ -180,10 +197,10 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
     if fog and f:
         fg = Fog(f["port"], baudrate=f.get("baudrate", 921600), fmt=f.get("format", "kvh-a"),
                  axis=f.get("axis", "z"), rate_hz=f["rate_hz"],
-                 units=f.get("units", "deg/s"),
+                 units=f.get("units"), configure=f.get("configure", "declare"),
                  raw_path=run.raw_path(f"{name}-fog.bin") if run else None, clock=clock,
                  model=f.get("model"))
         bench.enter(fg)
         ax.fog = fg
-        ax.identities["fog"] = fg.identity()
+        ax.identities["fog"] = with_readback(fg.identity(), fg.readback)
     return ax

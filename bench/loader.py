@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from bench.config import Config, ConfigError
+from bench.config import Config, ConfigError, real_stand_problems
 from bench.lab import lab_problems
 from bench.registry import procedure_kind, procedure_names
 from bench.schema import validate
@@ -48,6 +48,8 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
                 problems.append(e.problem)
         else:
             problems += validate(sdoc, kind.stand_schema())
+            if not problems:
+                problems += real_stand_problems(sdoc)
     if problems or sdoc is None:
         raise ConfigError(problems)
     cfg = Config(Path(procedure_path), sdoc.path, pdoc.data, sdoc.data, pdoc, sdoc)

@@ -34,6 +34,35 @@ DEFAULT_AXIS_TRUTH: dict[str, Any] = {
 TwinFactory = Callable[["SimBench"], None]
 
 
+def sync_link(counter_cfg: dict[str, Any], sim_axis: dict[str, Any]) -> Any:
+    """The FOG-sync-to-counter link the twins model for a `fog-sync` time tie: pulses
+    every `sync_period_s`, the sim truth's latency and jitter (default: exactly the
+    latency the stand declares). None when the stand ties otherwise (nothing wired)."""
+    from sims.counter_twin import SyncLink
+
+    tie = counter_cfg.get("time_tie") or {}
+    if tie.get("source") != "fog-sync":
+        return None
+    truth = sim_axis.get("time_tie") or {}
+    return SyncLink(period_s=float(tie.get("sync_period_s", 1.0)),
+                    latency_s=float(truth.get("latency_s", tie.get("latency_s", 0.0))),
+                    jitter_s=float(truth.get("jitter_s", 0.0)))
+
+
+def twin_fog_units(fog_cfg: dict[str, Any], sim_axis: dict[str, Any]) -> str:
+    """What the FOG twin carries before the bench talks to it: the sim truth's
+    `fog.units`, else a declared `fog.units` (a FOG configured earlier), else the KVH
+    power-on default, delta radians (drivers/kvh_config.py)."""
+    from drivers.kvh_config import POWER_ON_UNITS
+
+    truth = (sim_axis.get("fog") or {}).get("units")
+    if truth:
+        return str(truth)
+    if fog_cfg.get("configure", "declare") == "declare" and fog_cfg.get("units"):
+        return str(fog_cfg["units"])
+    return POWER_ON_UNITS
+
+
 class SimBench:
     """Owns the stand, the clock and the twins; a context manager that stops them all."""
 
@@ -52,6 +81,7 @@ class SimBench:
                   for a in axes}
         self.stand = SimulatedStand(truth, fog_hz, self.clock)
         self.axes = axes
+        self._sim_axes = sim_axes
         self.channel = f"sim-{uuid.uuid4().hex[:8]}"
         self.twins: dict[str, Any] = {}
         self._stack = contextlib.ExitStack()
@@ -59,13 +89,15 @@ class SimBench:
     def start(self, extra: list[TwinFactory] | None = None) -> dict[str, Any]:
         """Start every twin; return the stand mapping pointing at them."""
         cfg = self.stand_cfg
+        sim = cfg.get("sim") or {}
+        sim_axes = self._sim_axes
         try:
             for a in self.axes:  # FOG twins first: they must see every sample from 0 on
                 f = cfg["axes"][a].get("fog")
                 if f:
                     ft = FogTwin(self.stand, a, fmt=f.get("format", "kvh-a"),
                                  axis_letter=f.get("axis", "z"),
-                                 units=f.get("units", "deg/s"))
+                                 units=twin_fog_units(f, sim_axes.get(a) or {}))
                     f["port"] = ft.start()
                     self._stack.callback(ft.stop)
                     self.twins[f"{a}.fog"] = ft
@@ -77,8 +109,13 @@ class SimBench:
                 ac = cfg["axes"][a]
                 d = ac["drive"]
                 channel = buses.setdefault(bus_name(d), f"{self.channel}-{len(buses)}")
+                drive_truth = (sim_axes.get(a) or {}).get("drive") or {}
                 twin = DriveTwin(self.stand, a, interface="virtual", channel=channel,
                                  node_id=d["node_id"], controller_node_id=controllers[a],
+                                 **{k: drive_truth[k] for k in ("velocity_unit",
+                                                                "acceleration_unit",
+                                                                "tpdo_event_timer_ms")
+                                    if k in drive_truth},
                                  **({"counts_per_rev": d["counts_per_rev"]}
                                     if "counts_per_rev" in d else {}))
                 self._stack.enter_context(twin)
@@ -86,9 +123,11 @@ class SimBench:
                 d["interface"], d["channel"] = "virtual", channel
                 if ac.get("counter"):
                     c = ac["counter"]
-                    truth = ((self.stand_cfg.get("sim") or {}).get("axes") or {}).get(a) or {}
-                    ct = CounterTwin(self.stand, a, model=c["model"], external_reference=bool(
-                        truth.get("counter_external_reference", False)))
+                    ct = CounterTwin(self.stand, a, model=c["model"],
+                                     sync=sync_link(c, sim_axes.get(a) or {}),
+                                     seed=int(sim.get("seed", 0)),
+                                     external_reference=bool((sim_axes.get(a) or {}).get(
+                                         "counter_external_reference", False)))
                     c["resource"] = ct.start()
                     self._stack.callback(ct.stop)
                     self.twins[f"{a}.counter"] = ct

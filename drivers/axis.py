@@ -35,7 +35,7 @@ import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
@@ -49,6 +49,7 @@ from drivers.cia402 import (
     CONTROLLER_NODE_ID,
     DEFAULT_EDS_PATH,
     HEARTBEAT_LOST,
+    NAMED_SI_UNITS,
     NMT_STATE_OPERATIONAL,
     PROFILE_POSITION,
     PROFILE_VELOCITY,
@@ -59,9 +60,11 @@ from drivers.cia402 import (
     Od,
     State,
     Sw,
+    UnitFactors,
     decode_state,
     describe_error,
     path,
+    si_unit_text,
     transition,
     unwrap_int32,
     wrap_int32,
@@ -152,7 +155,8 @@ class Axis:
                  watchdog_ms: int | None = None, controller_node_id: int = CONTROLLER_NODE_ID,
                  accel_dps2: float | None = None, bitrate: int | None = None,
                  feedback_journal_s: float = 0.1, position_tolerance_deg: float = 0.01,
-                 raw: RawSink | None = None) -> None:
+                 raw: RawSink | None = None, unit_factors: str | Mapping[str, str] = "read",
+                 pdo: str = "verify") -> None:
         self.name = name
         self.interface = interface
         self.channel = channel
@@ -167,6 +171,24 @@ class Axis:
         self._feedback_journaled_t: float | None = None
         self.units = DriveUnits(int(counts_per_rev), float(velocity_unit_counts_per_s),
                                 float(accel_unit_counts_per_s2))
+        #: "read" (the drive's factor group is the truth) or {velocity, acceleration}:
+        #: SI unit names (cia402.NAMED_SI_UNITS) written at connect and read back
+        self.unit_factors_setting = unit_factors
+        if not isinstance(unit_factors, str):
+            bad = [v for v in unit_factors.values() if v not in NAMED_SI_UNITS]
+            if bad or set(unit_factors) - {"velocity", "acceleration"}:
+                raise ValueError(f"axis {name} drive: unit_factors {dict(unit_factors)!r}: "
+                                 f"keys velocity, acceleration; units one of "
+                                 f"{', '.join(NAMED_SI_UNITS)}")
+        elif unit_factors != "read":
+            raise ValueError(f"axis {name} drive: unit_factors {unit_factors!r}: 'read' or "
+                             "a mapping {velocity: ..., acceleration: ...}")
+        if pdo not in ("set", "verify"):
+            raise ValueError(f"axis {name} drive: pdo {pdo!r}: 'set' or 'verify'")
+        self.pdo_setting = pdo
+        #: the factor group and PDO timing as read back at connect (bench devices, journal)
+        self.factors: UnitFactors | None = None
+        self.readback: dict[str, Any] = {}
         self.max_rate_dps = float(max_rate_dps)
         self.max_accel_dps2 = float(max_accel_dps2)
         if not position_tolerance_deg > 0:
@@ -324,6 +346,7 @@ class Axis:
                             f"(0x1000 device type = 0x{device_type:08X})")
         self._identity = self._read_identity()
         self._check_resolution()
+        self._read_unit_factors()
         # heartbeats both ways: ours (the drive's watchdog eats it), the drive's (we watch)
         # from a thread of ours, not the bus's periodic task (drivers/heartbeat.py says why)
         self._hb_task = HeartbeatProducer(
@@ -332,16 +355,23 @@ class Axis:
             name=f"axis {self.name} heartbeat").start()
         self._write(Od.PRODUCER_HEARTBEAT, self.heartbeat_ms)
         self._configure_watchdog()
+        self.readback["drive.heartbeat consumer 0x1016:1"] = (
+            f"node {self.controller_node_id}, {self.drive_watchdog_ms} ms")
+        max_v = self._read_optional(Od.MAX_PROFILE_VELOCITY)
+        if max_v is not None:
+            self.readback["drive.max profile velocity 0x607F"] = \
+                f"{self.units.velocity_to_dps(int(max_v)):.6g} deg/s"
         self._started = True
         node.nmt.state = "OPERATIONAL"
         self._wait_real(lambda: self._drive_nmt == NMT_STATE_OPERATIONAL,
                         max(STATE_TIMEOUT_S, 5 * self.heartbeat_ms / 1000.0),
                         "the drive's heartbeat to show NMT operational", check=False)
-        node.tpdo.read()  # the drive's TPDO mapping, by SDO
+        node.tpdo.read()  # the drive's TPDO mapping and communication parameters, by SDO
         mapped: set[int] = set()
         periods = []
-        for pdo in node.tpdo.map.values():
+        for n, pdo in node.tpdo.map.items():
             if pdo.enabled and pdo.map:
+                self._check_tpdo_timing(n, pdo)
                 mapped |= {var.index for var in pdo.map}
                 pdo.add_callback(self._on_tpdo)
                 if pdo.event_timer:
@@ -361,7 +391,85 @@ class Axis:
                       heartbeat_ms=self.heartbeat_ms, drive_watchdog_ms=self.drive_watchdog_ms,
                       abort_connection_option=self._read_optional(Od.ABORT_CONNECTION_OPTION),
                       quick_stop_decel_dps2=self._quick_stop_decel_dps2,
-                      max_rate_dps=self.max_rate_dps, max_accel_dps2=self.max_accel_dps2)
+                      max_rate_dps=self.max_rate_dps, max_accel_dps2=self.max_accel_dps2,
+                      factors=self.factors.as_record() if self.factors else None,
+                      readback=self.readback)
+
+    def _read_unit_factors(self) -> None:
+        """The factor group (0x608F, 0x6091, 0x6096, 0x6097, 0x60A9, 0x60AA): what one
+        velocity and acceleration unit of this drive is, read (or set, then read) at
+        connect, because common drives default to rpm or inc/s, not our 0.001 count/s.
+
+        A drive without the SI unit objects keeps the stand's conversion (journaled as
+        such). The stand's limits are checked again in the drive's real units.
+        """
+        want = self.unit_factors_setting
+        if not isinstance(want, str):
+            for key, index in (("velocity", Od.SI_UNIT_VELOCITY),
+                               ("acceleration", Od.SI_UNIT_ACCELERATION)):
+                if key in want:
+                    self._write(index, NAMED_SI_UNITS[want[key]])
+
+        def pair(index: Od) -> tuple[int, int]:
+            a, b = self._read_optional(index, 1), self._read_optional(index, 2)
+            return (1, 1) if a is None or b is None else (int(a), int(b))
+
+        v_si = self._read_optional(Od.SI_UNIT_VELOCITY)
+        a_si = self._read_optional(Od.SI_UNIT_ACCELERATION)
+        if v_si is None or a_si is None:
+            self.readback["drive.unit_factors"] = "no SI unit objects: the stand's units"
+            return
+        inc, revs = pair(Od.POSITION_ENCODER_RESOLUTION)
+        gear = pair(Od.GEAR_RATIO)
+        factors = UnitFactors(inc, revs, gear[0], gear[1], int(v_si), int(a_si),
+                              pair(Od.VELOCITY_FACTOR), pair(Od.ACCELERATION_FACTOR))
+        if not isinstance(want, str):
+            for key, code in (("velocity", factors.velocity_si),
+                              ("acceleration", factors.acceleration_si)):
+                if key in want and code != NAMED_SI_UNITS[want[key]]:
+                    raise AxisError(f"axis {self.name}: drive.unit_factors.{key}: wrote "
+                                    f"{want[key]}, the drive reads back "
+                                    f"{si_unit_text(code)}")
+        try:
+            units = factors.drive_units()
+        except ValueError as e:
+            raise AxisError(f"axis {self.name}: drive.unit_factors: {e}") from e
+        if units.counts_per_rev != self.units.counts_per_rev:
+            raise AxisError(f"axis {self.name}: drive.counts_per_rev = "
+                            f"{self.units.counts_per_rev} but the drive's 0x608F/0x6091 give "
+                            f"{units.counts_per_rev} increments per revolution")
+        self.units = units
+        self.factors = factors
+        self.readback.update({f"drive.factor {k}": v for k, v in factors.as_record().items()})
+        try:
+            self._check_config(None)
+        except ValueError as e:
+            raise AxisError(f"{e} (in the drive's units as read back: "
+                            f"{si_unit_text(factors.velocity_si)}, "
+                            f"{si_unit_text(factors.acceleration_si)})") from e
+
+    def _check_tpdo_timing(self, n: int, pdo: Any) -> None:
+        """CiA 301 TPDO communication (0x1800+n-1): sub 2 transmission type, sub 5 event
+        timer (ms). Types 254/255 send on an event; with event timer 0 the event is only a
+        change of the mapped data, so a table at rest would send nothing and the
+        standstill wait would stall. Types 1..240 need a SYNC producer we do not run.
+        With drive.pdo: set, the driver writes type 255 and a 10 ms timer (the PDO
+        disabled while it does, CiA 301 7.5.2.35) and reads them back.
+        """
+        key = f"drive.pdo (TPDO{n})"
+        ok = pdo.trans_type in (254, 255) and bool(pdo.event_timer)
+        if not ok and self.pdo_setting == "set":
+            pdo.trans_type, pdo.event_timer = 255, 10
+            pdo.save()
+            pdo.read()
+            ok = pdo.trans_type in (254, 255) and bool(pdo.event_timer)
+        self.readback[f"{key} transmission type"] = pdo.trans_type
+        self.readback[f"{key} event timer ms"] = pdo.event_timer
+        if not ok:
+            raise AxisError(f"axis {self.name}: {key}: transmission type {pdo.trans_type}, "
+                            f"event timer {pdo.event_timer} ms: the drive would not send "
+                            "feedback at rest (or only on SYNC); set drive.pdo: set, or "
+                            "configure the drive for event-driven TPDOs with a timer")
 
     def _read_identity(self) -> str:
         def text(index: Od) -> str:

@@ -16,6 +16,7 @@ import math
 from collections import deque
 from dataclasses import dataclass
 from enum import Enum, IntEnum
+from typing import Any
 
 from drivers.profiles import EDS_NAME, profile_path
 
@@ -64,6 +65,12 @@ class Od(IntEnum):
     PROFILE_DECELERATION = 0x6084
     QUICK_STOP_DECELERATION = 0x6085
     POSITION_ENCODER_RESOLUTION = 0x608F  # sub 1 increments, sub 2 motor revolutions
+    GEAR_RATIO = 0x6091  # sub 1 motor revolutions, sub 2 shaft revolutions
+    FEED_CONSTANT = 0x6092  # sub 1 feed, sub 2 shaft revolutions
+    VELOCITY_FACTOR = 0x6096  # sub 1 numerator, sub 2 divisor
+    ACCELERATION_FACTOR = 0x6097  # sub 1 numerator, sub 2 divisor
+    SI_UNIT_VELOCITY = 0x60A9  # prefix, unit, time, 0 (one byte each, high to low)
+    SI_UNIT_ACCELERATION = 0x60AA  # prefix, unit, time, time
     MAX_ACCELERATION = 0x60C5
     MAX_DECELERATION = 0x60C6
     TARGET_VELOCITY = 0x60FF
@@ -439,6 +446,112 @@ class DriveUnits:
     def max_accel_dps2(self) -> float:
         """The largest acceleration 0x6083 (UNSIGNED32) can carry in these units."""
         return self.accel_to_dps2(UINT32_MAX)
+
+
+# -- the factor group (CiA 402-2 / IEC 61800-7-201 "factor group", 0x608F..0x60AA) ----
+#
+# SI unit objects (0x60A9 velocity, 0x60AA acceleration) are four bytes, high to low:
+# the power-of-ten prefix (signed), the numerator's unit code, then the denominator's
+# time code(s). Sources: Synapticon SOMANET object 0x60A9 (1 RPM = 0x00B44700, 0.001 RPM
+# = 0xFDB44700); Nanotec PD4-E technical manual 5.3.1 "Units" (revolution 0xB4, degree
+# 0x41, radian 0x10). Unverified against CiA 402-2 itself (not public): the increment
+# code 0xB5, the second 0x03, and 0x60AA's layout (a second time byte for s^2).
+
+SI_UNIT_DEG = {0xB4: 360.0, 0x41: 1.0, 0x10: 180.0 / math.pi}  # per numerator unit
+SI_UNIT_INCREMENT = 0xB5
+SI_TIME_S = {0x03: 1.0, 0x47: 60.0, 0x48: 3600.0}  # second, minute, hour
+
+
+def si_unit(prefix: int, unit: int, time1: int, time2: int = 0) -> int:
+    """Encode an SI unit object: `si_unit(-3, 0xB5, 0x03)` = 0.001 inc/s = 0xFDB50300."""
+    return ((prefix & 0xFF) << 24) | (unit << 16) | (time1 << 8) | time2
+
+
+def si_unit_text(code: int) -> str:
+    prefix = ((code >> 24) & 0xFF) - 256 * (((code >> 24) & 0xFF) >= 128)
+    names = {0xB4: "rev", 0x41: "deg", 0x10: "rad", SI_UNIT_INCREMENT: "inc"}
+    times = {0x03: "s", 0x47: "min", 0x48: "h", 0: ""}
+    unit, t1, t2 = (code >> 16) & 0xFF, (code >> 8) & 0xFF, code & 0xFF
+    den = "/".join(times.get(t, f"0x{t:02X}") for t in (t1, t2) if t)
+    scale = "" if prefix == 0 else f"1e{prefix} "
+    return f"{scale}{names.get(unit, f'0x{unit:02X}')}/{den} (0x{code:08X})"
+
+
+def si_unit_deg(code: int, counts_per_rev: float, *, accel: bool) -> float:
+    """deg/s (or deg/s^2 with `accel`) of one drive unit of an SI unit object."""
+    b = code.to_bytes(4, "big")
+    prefix = int.from_bytes(b[:1], "big", signed=True)
+    unit, t1, t2 = b[1], b[2], b[3]
+    if unit == SI_UNIT_INCREMENT:
+        per_unit = 360.0 / counts_per_rev
+    elif unit in SI_UNIT_DEG:
+        per_unit = SI_UNIT_DEG[unit]
+    else:
+        raise ValueError(f"SI unit 0x{code:08X}: numerator code 0x{unit:02X} unknown "
+                         f"(know revolution 0xB4, degree 0x41, radian 0x10, increment 0xB5)")
+    times = (t1, t2) if accel else (t1,)
+    if (not accel and t2) or any(t not in SI_TIME_S for t in times):
+        raise ValueError(f"SI unit 0x{code:08X}: time code(s) not of a "
+                         f"{'per-second-squared' if accel else 'per-second'} unit")
+    per_s = math.prod(SI_TIME_S[t] for t in times)
+    return per_unit * 10.0 ** prefix / per_s
+
+
+@dataclass(frozen=True)
+class UnitFactors:
+    """The drive's factor group as read back: what one drive unit is at the table axis."""
+
+    encoder_increments: int
+    motor_revolutions: int
+    gear_motor_revs: int
+    gear_shaft_revs: int
+    velocity_si: int
+    acceleration_si: int
+    velocity_factor: tuple[int, int] = (1, 1)
+    acceleration_factor: tuple[int, int] = (1, 1)
+
+    @property
+    def counts_per_rev(self) -> float:
+        """Encoder increments per revolution of the table (shaft), 0x608F and 0x6091."""
+        return (self.encoder_increments / self.motor_revolutions
+                * self.gear_motor_revs / self.gear_shaft_revs)
+
+    def drive_units(self) -> DriveUnits:
+        """The conversion to deg, deg/s and deg/s^2 these factors imply.
+
+        0x6096/0x6097 other than 1/1 are refused: how a drive applies them (before or
+        after the SI unit) differs between makers, and a guess is a factor error.
+        """
+        for name, f in (("0x6096 velocity factor", self.velocity_factor),
+                        ("0x6097 acceleration factor", self.acceleration_factor)):
+            if f[1] == 0 or f[0] != f[1]:
+                raise ValueError(f"{name} = {f[0]}/{f[1]}: only 1/1 is supported")
+        cpr = self.counts_per_rev
+        if cpr != round(cpr) or cpr <= 0:
+            raise ValueError(f"0x608F/0x6091 give {cpr:g} increments per table revolution: "
+                             "not a whole positive number")
+        deg_per_count = 360.0 / cpr
+        return DriveUnits(int(round(cpr)),
+                          si_unit_deg(self.velocity_si, cpr, accel=False) / deg_per_count,
+                          si_unit_deg(self.acceleration_si, cpr, accel=True) / deg_per_count)
+
+    def as_record(self) -> dict[str, Any]:
+        return {"0x608F": f"{self.encoder_increments}/{self.motor_revolutions}",
+                "0x6091": f"{self.gear_motor_revs}/{self.gear_shaft_revs}",
+                "0x6096": "/".join(map(str, self.velocity_factor)),
+                "0x6097": "/".join(map(str, self.acceleration_factor)),
+                "0x60A9": si_unit_text(self.velocity_si),
+                "0x60AA": si_unit_text(self.acceleration_si)}
+
+
+#: the SI units the stand file may name for drive.unit_factors (set at connect)
+NAMED_SI_UNITS: dict[str, int] = {
+    "inc/s": si_unit(0, SI_UNIT_INCREMENT, 0x03), "0.001 inc/s": si_unit(-3, 0xB5, 0x03),
+    "rpm": si_unit(0, 0xB4, 0x47), "0.001 rpm": si_unit(-3, 0xB4, 0x47),
+    "deg/s": si_unit(0, 0x41, 0x03), "0.001 deg/s": si_unit(-3, 0x41, 0x03),
+    "inc/s2": si_unit(0, SI_UNIT_INCREMENT, 0x03, 0x03),
+    "rpm/s": si_unit(0, 0xB4, 0x47, 0x03), "deg/s2": si_unit(0, 0x41, 0x03, 0x03),
+}
 
 
 def wrap_int32(value: int) -> int:

@@ -42,6 +42,7 @@ from drivers.scpi import (
     OPC,
     OPC_Q,
     RST,
+    SCPI_NAN,
     Command,
     ErrorKinds,
     InstrumentError,
@@ -49,6 +50,8 @@ from drivers.scpi import (
     ScpiInstrument,
     parse_numbers,
 )
+from drivers.time_tie import TimeTie, TimeTieAmbiguous
+from drivers.transport import Transport
 
 COUNTER_ERRORS = ErrorKinds.family("Counter", "the counter", __name__)
 (CounterError, CounterCommandError, CounterTimeout, CounterReplyError,
@@ -96,6 +99,9 @@ class Acquisition:
     span_real_s: float       # longest credible duration, real seconds (no margin)
     deadline_real_s: float   # time.monotonic() by which the data must be there
     instrument_timeout_s: float | None
+    #: the start event on the FOG's time axis and its standard uncertainty (time tie)
+    t_start_s: float = 0.0
+    t_start_u_s: float = 0.0
     values: np.ndarray | None = field(default=None)
 
 
@@ -108,8 +114,14 @@ class Counter(ScpiInstrument):
                  raw: RawCallback | None = None,
                  timeout_margin_s: float = DEFAULT_TIMEOUT_MARGIN_S,
                  command_timeout_s: float = DEFAULT_COMMAND_TIMEOUT_S,
-                 visa_library: str = "@py") -> None:
+                 visa_library: str = "@py", time_tie: TimeTie | None = None,
+                 transport: Transport | None = None) -> None:
         self.profile = profile
+        self.time_tie = time_tie or TimeTie()
+        #: every setting the measurement depends on, as the counter reads it back
+        self.readback: dict[str, str] = {}
+        #: SYST:TIM as found at open (non-volatile on a 53230A): restored at close
+        self._saved_timeout: str | None = None
         self.words = profile.words
         self.clock = clock
         self.timeout_margin_s = float(timeout_margin_s)
@@ -119,24 +131,29 @@ class Counter(ScpiInstrument):
         self.last_acquisition: Acquisition | None = None
         super().__init__(resource, visa_library=visa_library, raw=raw,
                          command_timeout_s=command_timeout_s,
-                         name=f"counter {profile.model} at {resource}")
+                         name=f"counter {profile.model} at {resource}", transport=transport)
 
     @classmethod
     def open(cls, resource: str, model: str | CounterProfile, clock: Clock, *,
              raw: RawCallback | None = None,
              timeout_margin_s: float = DEFAULT_TIMEOUT_MARGIN_S,
              command_timeout_s: float = DEFAULT_COMMAND_TIMEOUT_S,
-             visa_library: str = "@py", check_identity: bool = True) -> Counter:
-        """Open the counter, bring it to a known idle state, check it is the model named."""
+             visa_library: str = "@py", check_identity: bool = True,
+             time_tie: TimeTie | None = None, transport: Transport | None = None) -> Counter:
+        """Open the counter, bring it to a known idle state, check it is the model named,
+        and note the measurement timeout it holds (restored at close)."""
         profile = get_profile(model) if isinstance(model, str) else model
         counter = cls(resource, profile, clock, raw=raw, timeout_margin_s=timeout_margin_s,
-                      command_timeout_s=command_timeout_s, visa_library=visa_library)
+                      command_timeout_s=command_timeout_s, visa_library=visa_library,
+                      time_tie=time_tie, transport=transport)
         try:
             with counter.recovering():
                 counter.resync()
                 counter.drain_errors()
                 if check_identity:
                     counter._check_identity()
+                if profile.words.measurement_timeout is not None:
+                    counter._saved_timeout = counter.ask(profile.words.measurement_timeout)
         except BaseException:
             counter.close()
             raise
@@ -154,13 +171,21 @@ class Counter(ScpiInstrument):
         return self
 
     def close(self) -> None:
-        """Abort a measurement still armed (best effort), then close the link."""
+        """Abort a measurement still armed, restore the measurement timeout found at open
+        (53220A/53230A Programmer's Reference p. 459: it is non-volatile, so a changed value
+        would outlive the run), then close the link; all best effort."""
         if self._armed is not None and self.is_open and self.words.abort is not None:
             try:
                 self.write(self.words.abort.text(), check=False)
             except InstrumentError:
                 pass
         self._armed = None
+        if self._saved_timeout is not None and self.is_open:
+            try:
+                self.send(self.words.measurement_timeout,
+                          timeout_s=_timeout_param(self._saved_timeout))
+            except InstrumentError:
+                pass
         super().close()
 
     # -- what the engine calls ------------------------------------------------------------
@@ -227,6 +252,7 @@ class Counter(ScpiInstrument):
                                  float(impedance_ohm))
         with self.recovering():
             self._send_input()
+            self._verify_input()
         return self.input
 
     def arm(self, n: int, expected_period_s: float, *, what: What = "edges",
@@ -307,6 +333,30 @@ class Counter(ScpiInstrument):
         self.send(w.input_level, level_v=c.level_v)
         self.send(w.input_slope, slope=c.slope)
 
+    def _verify_input(self) -> None:
+        """Read every input setting back; a difference refuses the run by stand key."""
+        w, c = self.words, self.input
+        assert c is not None
+        self._verify("counter.coupling", w.input_coupling, c.coupling)
+        self._verify("counter.impedance_ohm", w.input_impedance, c.impedance_ohm)
+        if w.input_level_auto is not None:
+            self._verify("counter.level_auto", w.input_level_auto, False)
+        self._verify("counter.level_v", w.input_level, c.level_v)
+        self._verify("counter.slope", w.input_slope, c.slope)
+
+    def _verify(self, key: str, word: Command | None, expected: Any) -> str | None:
+        """Ask `word` back and compare with what was set; record it in `readback`."""
+        if word is None:
+            return None
+        text = word.query_text(**self.template_values())
+        got = self.query(text).strip()
+        self.readback[key] = got
+        if not _same_setting(got, expected):
+            raise CounterError(f"{self.name}: {key}: set {expected!r}, the counter reads back "
+                               f"{got!r} ({text}): the stand file and the instrument disagree",
+                               command=text)
+        return got
+
     def _span_s(self, method: str, n_read: int, period_s: float) -> float:
         """Longest credible time for the readings, in instrument (virtual) seconds."""
         turns = {"timestamps": n_read,          # first edge within a turn, then n-1 turns
@@ -326,28 +376,43 @@ class Counter(ScpiInstrument):
         self._send_input()
         if w.format_data is not None:
             self.send(w.format_data, format="ASCii")
+        tie = self.time_tie
         if method == "timestamps":
             if w.timestamp_info is not None:
                 self.send(w.timestamp_info, state=True)
             if w.timestamp_rate is not None and p.timestamp_rate_hz:
                 self.send(w.timestamp_rate, rate_hz=p.timestamp_rate_hz)
+                self._verify("counter.timestamp_rate_hz", w.timestamp_rate, p.timestamp_rate_hz)
+            if tie.uses_external_trigger and w.trigger_source is None:
+                raise CounterError(f"{self.name}: the {p.model} profile has no trigger-source "
+                                   "word, so the stand's time tie 'fog-sync' cannot be made")
         elif method == "init-fetch":
             if w.gate_time is not None:
                 self.send(w.gate_time, gate_s="MIN")
             self.send(self._need(w.sample_count, "sample_count"), count=n_read)
+        if w.trigger_source is not None and method != "read":
+            external = method == "timestamps" and tie.uses_external_trigger
+            source = "EXT" if external else "IMM"
+            self.send(w.trigger_source, source=source)
+            self._verify("counter.time_tie.source", w.trigger_source, source)
         span = self._span_s(method, n_read, period_s)
+        if method == "timestamps" and tie.uses_external_trigger:
+            span += tie.sync_period_s  # the wait for the first sync pulse
         inst_timeout = None
         if w.measurement_timeout is not None and p.measurement_timeout_range_s:
+            # SYSTem:TIMeout bounds each reading, not the acquisition (Programmer's
+            # Reference p. 459): one reading is at most a wait for a start edge and a turn
             lo, hi = p.measurement_timeout_range_s
-            inst_timeout = max(span, lo)
+            inst_timeout = max(2.0 * period_s * (1.0 + SPAN_SLACK_REL), lo)
             self.send(w.measurement_timeout,
                       timeout_s=inst_timeout if inst_timeout <= hi else "INFinity")
             inst_timeout = inst_timeout if inst_timeout <= hi else None
         real_span = span / self.clock.speed
+        t_start = t_start_u = 0.0
         if method == "read":  # READ? measures when asked: arm only configures
             real_span *= n_read
         else:
-            self.send(self._need(w.initiate, "initiate"))
+            t_start, t_start_u = self._initiate()
             self.write(OPC.text(), check=False)
         now = time.monotonic()
         return Acquisition(
@@ -355,7 +420,31 @@ class Counter(ScpiInstrument):
             consecutive=(method == "timestamps" or p.periods_gap_free),
             armed_at_s=self.clock.now(), armed_real_s=now, span_real_s=real_span,
             deadline_real_s=now + real_span + self.timeout_margin_s,
-            instrument_timeout_s=inst_timeout)
+            instrument_timeout_s=inst_timeout, t_start_s=t_start, t_start_u_s=t_start_u)
+
+    def _initiate(self, attempts: int = 8) -> tuple[float, float]:
+        """INIT, bracketed by the clock; returns the start event on the FOG's axis.
+
+        The checked write (INIT, then SYST:ERR?) returns once the counter has taken INIT,
+        so INIT took effect inside [before, after]. With a fog-sync tie, a sync pulse
+        inside that window makes the start ambiguous: abort and try again.
+        """
+        w = self.words
+        init = self._need(w.initiate, "initiate")
+        last: TimeTieAmbiguous | None = None
+        for _ in range(attempts):
+            before = self.clock.now()
+            self.send(init)
+            after = self.clock.now()
+            try:
+                return self.time_tie.start_s(before, after)
+            except TimeTieAmbiguous as e:
+                last = e
+                if w.abort is not None:
+                    self.send(w.abort)
+        raise CounterError(f"{self.name}: the time tie stayed ambiguous over {attempts} "
+                           f"INITs: {last}; is the host too slow for sync_period_s "
+                           f"{self.time_tie.sync_period_s:g} s?", command=init.text())
 
     def _need(self, word: Command | None, role: str) -> Command:
         if word is None:
@@ -424,30 +513,53 @@ class Counter(ScpiInstrument):
             time.sleep(poll_s)
 
     def _fetch_values(self, acq: Acquisition, n_read: int) -> np.ndarray:
-        w, p = self.words, self.profile
-        if w.fetch is not None:
-            text = w.fetch.text()
-        else:
-            text = self._need(w.fetch_array, "fetch").text(count=n_read)
-        # transfer time: ~25 bytes a value; a slow link still moves 100 kB/s
-        reply = self.query(text, timeout_s=self.command_timeout_s + n_read * 25 / 1e5)
-        if acq.method == "timestamps":
-            fmt = p.timestamp_format
-            values = self._numbers(text, reply, fmt.n_values(n_read))
+        p = self.profile
+        is_ts = acq.method == "timestamps"
+        fmt = p.timestamp_format if is_ts else None
+        per_result = (fmt.n_values(2) - fmt.n_values(1)) if fmt is not None else 1
+        text, reply, values = self._fetch_numbers(n_read, per_result, fmt)
+        if fmt is not None:
             try:
-                edges = fmt.decode(values)
+                since_start = fmt.decode(values)
             except ValueError as e:
                 raise CounterReplyError(f"{self.name}: reply to {text!r}: {e}",
                                         command=text, reply=reply.encode()) from e
-            self._refuse_nan(text, edges, n_read, acq)
-            if np.any(np.diff(edges) <= 0):
+            nan = values[-n_read:] >= 0.999 * SCPI_NAN
+            since_start[nan] = SCPI_NAN
+            self._refuse_nan(text, since_start, n_read, acq)
+            if np.any(np.diff(since_start) <= 0):
                 raise CounterReplyError(
                     f"{self.name}: the timestamps in the reply to {text!r} do not increase "
-                    f"(first ones: {edges[:4]})", command=text, reply=reply.encode())
-            return edges
-        values = self._numbers(text, reply, n_read)
+                    f"(first ones: {since_start[:4]})", command=text, reply=reply.encode())
+            return acq.t_start_s + since_start
         self._refuse_nan(text, values, n_read, acq)
         return values
+
+    def _fetch_numbers(self, n_read: int, per_result: int, fmt: Any
+                       ) -> tuple[str, str, np.ndarray]:
+        """All readings: one FETC?, or FETC:ARR? in chunks of the model's limit (the
+        CNT-91 gives at most 10 000 results a call, Programmer's Handbook p. 8-35; each
+        call returns the next results)."""
+        w, p = self.words, self.profile
+        if w.fetch is not None:
+            text = w.fetch.text()
+            reply = self.query(text, timeout_s=self._transfer_s(n_read))
+            n = fmt.n_values(n_read) if fmt is not None else n_read
+            return text, reply, self._numbers(text, reply, n)
+        array = self._need(w.fetch_array, "fetch")
+        chunk = p.fetch_max_results or n_read
+        parts, replies, text = [], [], ""
+        for first in range(0, n_read, chunk):
+            k = min(chunk, n_read - first)
+            text = array.text(count=k)
+            reply = self.query(text, timeout_s=self._transfer_s(k))
+            parts.append(self._numbers(text, reply, k * per_result))
+            replies.append(reply)
+        return text, ",".join(replies), np.concatenate(parts)
+
+    def _transfer_s(self, n: int) -> float:
+        # transfer time: ~25 bytes a value; a slow link still moves 100 kB/s
+        return self.command_timeout_s + n * 25 / 1e5
 
     def _numbers(self, text: str, reply: str, expected: int) -> np.ndarray:
         try:
@@ -477,3 +589,27 @@ class Counter(ScpiInstrument):
                 f"{self.name}: {text!r} returned 9.91E37 (measurement timeout): {got} of {n} "
                 f"readings came before {limit}; {self._signal_hint()}", command=text)
 
+
+
+def _timeout_param(reply: str) -> str:
+    """A SYST:TIM? reply as the value to send back (9.9E37 means disabled: INFinity)."""
+    try:
+        value = float(reply)
+    except ValueError:
+        return reply.strip()
+    return "INFinity" if value >= 9.8e37 else reply.strip()
+
+
+def _same_setting(reply: str, expected: Any) -> bool:
+    """A read-back reply against the value set: numbers to 1e-9, booleans as 0/1/ON/OFF,
+    words by their short form (`POS` for POSitive, `EXT` for EXTernal)."""
+    text = reply.strip().strip('"').upper()
+    if isinstance(expected, bool):
+        return text in (("1", "ON") if expected else ("0", "OFF"))
+    if isinstance(expected, (int, float)):
+        try:
+            return math.isclose(float(text), float(expected), rel_tol=1e-9, abs_tol=1e-12)
+        except ValueError:
+            return False
+    want = str(expected).upper()
+    return text.startswith(want[:3]) and want.startswith(text[:3])

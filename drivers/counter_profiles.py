@@ -44,6 +44,7 @@ class CounterWords:
     configure_period: Command | None = None
     timestamp_rate: Command | None = None
     timestamp_info: Command | None = None
+    trigger_source: Command | None = None
     sample_count: Command | None = None
     gate_time: Command | None = None
     measurement_timeout: Command | None = None
@@ -69,15 +70,22 @@ def nr3(value: float, digits: int = 15, exp_digits: int = 2) -> str:
 
 
 class TimestampFormat:
-    """How a model lays out N timestamps in its reply."""
+    """How a model lays out N timestamps in its reply.
+
+    `decode` gives the edges as times since the measurement's start event (the trigger
+    that began it), which no reply carries on any other axis: placing them on the FOG's
+    time axis is the time tie's job (drivers/time_tie.py).
+    """
 
     name = ""
 
-    def encode(self, edges_s: np.ndarray, digits: int, exp_digits: int) -> str:
+    def encode(self, edges_s: np.ndarray, t_start_s: float, digits: int,
+               exp_digits: int) -> str:
+        """The twin's reply for edges at `edges_s`, the start event at `t_start_s`."""
         raise NotImplementedError
 
     def decode(self, values: np.ndarray) -> np.ndarray:
-        """Edge times from the reply's numbers; raises ValueError saying what is wrong."""
+        """Edge times since the start event; raises ValueError saying what is wrong."""
         raise NotImplementedError
 
     def n_values(self, n_edges: int) -> int:
@@ -85,55 +93,77 @@ class TimestampFormat:
 
 
 class KeysightTimestamps(TimestampFormat):
-    """53230A `CONF:ARR:TST`: the prescaler (scale factor) first, then the N times.
+    """53230A `CONF:ARR:TST`: the prescaler, then `count` intervals, not edge times.
 
+    53220A/53230A Programmer's Reference, MEASure:ARRay:TSTamp? (p. 240, "Return Format":
+    the prescaler, then the measurements) and SENSe:TSTamp:RATE (p. 377, typical response
+    `+13,+1.29383828200000E-006,+1.29352315400000E-006,...`); User's Guide, "Time stamp
+    measurements" (p. 88-89 in the Agilent edition, p. 100-101 in Keysight's): "count+1
+    elements are actually returned", and each value is "the signal period itself (scale
+    factor = 1 ...) or the signal period multiplied by the scale factor". So value k is
+    the interval from stamp k-1 to stamp k; we take stamp 0 as the start event (the
+    trigger), which is how the time tie places the first zero mark (unverified on a real
+    53230A: the manual's examples run on a free-running input).
     A prescaler k > 1 means only every k-th edge was stamped (the counter does that for
     inputs faster than the timestamp rate); a once-per-rev signal must give 1.
-    Unsure: the Programmer's Reference's example reply (`+13,+1.2938E-006,+1.2935E-006`)
-    could be read as intervals, not times; we take the values as times on the counter's
-    axis and `decode` refuses values that do not increase, so the other reading would
-    show at once on a real 53230A.
     """
 
     name = "keysight-tst"
 
-    def encode(self, edges_s: np.ndarray, digits: int, exp_digits: int) -> str:
-        return ",".join(["+1"] + [nr3(t, digits, exp_digits) for t in edges_s])
+    def encode(self, edges_s: np.ndarray, t_start_s: float, digits: int,
+               exp_digits: int) -> str:
+        intervals = np.diff(np.concatenate([[t_start_s], np.asarray(edges_s, float)]))
+        return ",".join(["+1"] + [nr3(t, digits, exp_digits) for t in intervals])
 
     def decode(self, values: np.ndarray) -> np.ndarray:
         if values.size < 2:
-            raise ValueError("expected the prescaler and at least one timestamp")
+            raise ValueError("expected the prescaler and at least one interval")
         if values[0] != 1:
             raise ValueError(f"prescaler {values[0]:g}: the counter stamped only every "
                              f"{values[0]:g}-th edge (input too fast for SENS:TST:RATE)")
-        return values[1:]
+        intervals = values[1:]
+        finite = intervals[intervals < 0.999 * SCPI_NAN]
+        if np.any(finite <= 0):
+            bad = int(np.argmax(finite <= 0))
+            raise ValueError(f"interval {bad + 1} is {finite[bad]:g} s: the 53230A's "
+                             "values are intervals between stamps and must be positive")
+        return np.cumsum(intervals)
 
     def n_values(self, n_edges: int) -> int:
         return n_edges + 1
 
 
 class PendulumStst(TimestampFormat):
-    """CNT-91 `CONF:ARR:STST` with `FORM:TINF ON`: pairs (X, TS) per edge.
+    """CNT-91 `CONF:ARR:STST` with `FORM:TINF ON`: pairs (X, TS) per stamp.
 
-    X is the counter's count of trigger-level crossings, so a missed edge shows as a
-    step of 2 in X; the driver refuses such data rather than return a two-turn period.
+    CNT-90 series Programmer's Handbook, :MEASure:ARRay:STSTamp? (p. 8-72): "The X
+    counter records the number of trigger level crossings"; TS is "seconds since a certain
+    start event that is not available for external control", so only differences of TS
+    mean anything. The handbook does not say X steps by one per stamp; it says stamps
+    have a dead time (down to 4 us) in which crossings are counted but not stamped. So
+    the rule here: every stamp must follow the previous one by the same number of
+    crossings as the first pair does; a larger step is a crossing that was counted but
+    not stamped (a missed zero mark), and the data are refused rather than returned as a
+    two-turn period.
     """
 
     name = "pendulum-stst"
 
-    def encode(self, edges_s: np.ndarray, digits: int, exp_digits: int,
+    def encode(self, edges_s: np.ndarray, t_start_s: float, digits: int, exp_digits: int,
                x0: int = 1) -> str:
-        return ",".join(f"{x0 + i},{nr3(t, digits, exp_digits)}" for i, t in enumerate(edges_s))
+        return ",".join(f"{x0 + i},{nr3(t - t_start_s, digits, exp_digits)}"
+                        for i, t in enumerate(edges_s))
 
     def decode(self, values: np.ndarray) -> np.ndarray:
         if values.size < 2 or values.size % 2:
             raise ValueError(f"expected (X, TS) pairs, got {values.size} values")
         x, ts = values[0::2], values[1::2]
         steps = np.diff(x)
-        if np.any(steps != 1):
-            bad = int(np.argmax(steps != 1))
+        if steps.size and (steps[0] < 1 or np.any(steps != steps[0])):
+            bad = int(np.argmax(steps != steps[0])) if steps[0] >= 1 else 0
             raise ValueError(f"the crossing count X steps by {steps[bad]:g} after "
-                             f"timestamp {bad + 1}: edges were missed")
+                             f"timestamp {bad + 1} (by {steps[0]:g} before): crossings "
+                             "were counted but not stamped, edges were missed")
         return ts
 
     def n_values(self, n_edges: int) -> int:
@@ -183,6 +213,11 @@ class CounterProfile:
     measurement_timeout_range_s: tuple[float, float] | None = None
     #: value sent to `timestamp_rate` (Hz), if the model has that word
     timestamp_rate_hz: float | None = None
+    #: most results one FETC:ARR? may ask for (None: the model fetches all at once)
+    fetch_max_results: int | None = None
+    #: where the words, limits and reply formats were checked: manual and section, or
+    #: "unverified" when no manual was found
+    manual: str = "unverified"
     #: metrology (METHOD.md A1, d_counter)
     resolution_s: float = 1e-9
     single_shot_s: float = 1e-9
@@ -240,7 +275,10 @@ KEYSIGHT_53230A = CounterProfile(
         gate_time=Command("[SENSe:]FREQuency:GATE:TIME", "{gate_s}",
                           doc="shortest gate: one period per reading"),
         measurement_timeout=Command("SYSTem:TIMeout", "{timeout_s}",
-                                    doc="per-measurement timeout; 9.91E37 when it fires"),
+                                    doc="per-reading timeout (not per acquisition), kept "
+                                        "in non-volatile memory: read, set, restored"),
+        trigger_source=Command("TRIGger[:SEQuence]:SOURce", "{source}",
+                               doc="IMMediate, EXTernal or BUS; EXT for the time tie"),
         fetch=Command("FETCh?", doc="readings of the last INIT"),
         reference_source=Command("[SENSe:]ROSCillator:SOURce", "{source}",
                                  doc="INTernal or EXTernal; the query answers INT or EXT, "
@@ -260,8 +298,12 @@ KEYSIGHT_53230A = CounterProfile(
     resolution_s=20e-12,
     single_shot_s=20e-12,
     timebase_limit_rel=1.0e-6,
+    manual=("Keysight 53220A/53230A Programmer's Reference: MEASure:ARRay:TSTamp? p. 240, "
+            "SENSe:TSTamp:RATE p. 377 (*RST 1.0E6), SYSTem:TIMeout p. 459 (per measurement, "
+            "non-volatile, 9.9E37 disabled); User's Guide 'Time stamp' (count+1 elements, "
+            "values are period x scale factor)"),
     notes=("53220A/53230A Programmer's Reference: CONF:ARR:TST, SENS:TST:RATE, SYST:TIM, "
-           "INP:LEV:AUTO, reply 'prescaler, times' (count+1 values). Reference: "
+           "INP:LEV:AUTO, reply 'prescaler, intervals' (count+1 values). Reference: "
            "ROSC:SOUR? answers INT or EXT; with ROSC:SOUR:AUTO ON (*RST) the counter takes "
            "the rear Ref In when a valid signal is there, else its internal oscillator; "
            "`SENS:ROSC:SOUR EXT` also turns AUTO off (User's Guide, ch. 3). Period mode "
@@ -284,13 +326,19 @@ PENDULUM_CNT91 = CounterProfile(
                                      doc="N single time stamps of trigger-level crossings"),
         timestamp_info=Command("FORMat:TINFormation", "{state}",
                                doc="ON: each result is (X count, timestamp)"),
-        fetch_array=Command("FETCh:ARRay?", "{count}", doc="N results of the last INIT"),
+        fetch_array=Command("FETCh:ARRay?", "{count}",
+                            doc="the next <count> results (at most 10 000 a call)"),
     ),
     timestamps="pendulum-stst",
     periods=None,
     channels=(1, 2),
     level_range_v=(-5.0, 5.0),
     max_count=1_000_000,
+    fetch_max_results=10_000,
+    manual=("Pendulum CNT-90 series Programmer's Handbook: :FETCh:ARRay? p. 8-35 (the next "
+            "<size> results, 'maximum limit is 10000'), :FORMat:SMAX p. 8-39, "
+            ":MEASure:ARRay:STSTamp? p. 8-72 (X counter = trigger-level crossings; TS since "
+            "an unknown start event). Unverified: the largest STST array size"),
     resolution_s=50e-12,
     single_shot_s=50e-12,
     timebase_limit_rel=2.0e-6,
@@ -326,6 +374,7 @@ GENERIC_SCPI_PERIOD = CounterProfile(
     resolution_s=1e-9,
     single_shot_s=1e-9,
     timebase_limit_rel=5.0e-6,
+    manual="unverified: no AKIP-5102 manual found; SCPI-99 words as the HP 53131A's",
     notes=("SCPI-99 words as the HP 53131A uses them (trigger level and slope in "
            "SENSe:EVENt, coupling and impedance in INPut), which most SCPI period "
            "counters copy; the AKIP-5102's own manual was not available to us, so check "

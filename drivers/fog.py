@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -43,6 +44,7 @@ from drivers.fog_formats import (
     decode,
     get_format,
 )
+from drivers.kvh_config import MODES, FogSettings, KvhConfigError, KvhConfigurator
 
 __all__ = ["FORMATS", "DecodeState", "DecodeStats", "Fog", "FogError", "FogSamples",
            "FogStats", "FogTimeout", "Frames", "StreamDecoder", "decode", "dps_per_unit",
@@ -216,9 +218,22 @@ class Fog:
     """
 
     def __init__(self, port: str, *, baudrate: int = 921600, fmt: str = "kvh-a",
-                 axis: str = "z", rate_hz: float, units: str = "deg/s",
+                 axis: str = "z", rate_hz: float, units: str | None,
                  raw_path: Path | str | None, clock: Clock, model: str | None = None,
-                 serial_kwargs: dict[str, Any] | None = None) -> None:
+                 serial_kwargs: dict[str, Any] | None = None,
+                 configure: str = "declare") -> None:
+        if units is None:
+            raise FogError(
+                f"FOG on {port}: the stand names no fog.units; a KVH FOG's rotational data "
+                "are delta radians after power-on (1775 IMU Technical Manual, Table 5-10), "
+                "so the bench will not guess: set fog.units and fog.configure (set, verify "
+                "or declare)")
+        if configure not in MODES:
+            raise FogError(f"FOG on {port}: fog.configure {configure!r}: one of "
+                           f"{', '.join(MODES)}")
+        self.configure = configure
+        #: what the FOG read back at connect (fog.configure set or verify)
+        self.readback: dict[str, str] = {}
         self.format: FrameFormat = get_format(fmt)
         if axis not in self.format.valid_bits:
             raise ValueError(f"FOG axis {axis!r} unknown for format {self.format.name!r} "
@@ -260,6 +275,19 @@ class Fog:
                                       **self._serial_kwargs)
         except (serial.SerialException, OSError) as e:
             raise FogError(f"cannot open FOG port {self.port}: {e}") from e
+        if self.configure != "declare":
+            try:
+                self.readback = KvhConfigurator(_SerialLines(self._ser), port=self.port).apply(
+                    FogSettings(self.units, self.rate_hz,
+                                self.format.name.rsplit("-", 1)[-1].upper(), self.configure))
+                # what is left of the dialogue is not the record: the capture starts at
+                # the first binary byte after Configuration Mode ends
+                time.sleep(0.05)
+                self._ser.reset_input_buffer()
+            except (KvhConfigError, serial.SerialException, OSError) as e:
+                self._ser.close()
+                self._ser = None
+                raise FogError(str(e)) from e
         if self.raw_path is not None:
             try:
                 self.raw_path.parent.mkdir(parents=True, exist_ok=True)
@@ -302,8 +330,10 @@ class Fog:
     def identity(self) -> str:
         """FOGs answer no *IDN?: the identity is what the stand file says."""
         model = self.model or self.format.title
+        how = {"set": "set and read back", "verify": "read back",
+               "declare": "declared, not read back"}[self.configure]
         return f"{model}; format {self.format.name}; axis {self.axis}; {self.rate_hz:g} Hz; " \
-               f"{self.units}; {self.port} at {self.baudrate} Bd"
+               f"{self.units} ({how}); {self.port} at {self.baudrate} Bd"
 
     # -- reader -----------------------------------------------------------------------------
     def _read_loop(self) -> None:
@@ -446,6 +476,29 @@ class Fog:
             return "degraded"
         return "ok"
 
+
+
+class _SerialLines:
+    """A pyserial port as the line link drivers/kvh_config.py talks through."""
+
+    def __init__(self, ser: serial.Serial) -> None:
+        self.ser = ser
+
+    def write(self, data: bytes) -> None:
+        self.ser.write(data)
+        self.ser.flush()
+
+    def read(self, timeout_s: float) -> bytes:
+        deadline = time.monotonic() + timeout_s
+        line = bytearray()
+        while time.monotonic() < deadline:
+            b = self.ser.read(1)
+            if b in (b"\n", b"\r"):
+                if line:
+                    return bytes(line)
+                continue
+            line.extend(b)
+        return bytes(line)
 
 
 def read_capture(raw_path: Path | str, *, fmt: str = "kvh-a", axis: str = "z",

@@ -45,6 +45,13 @@ from typing import Any, ClassVar, Generic, Self, TypeVar
 
 import numpy as np
 
+from drivers.transport import (
+    TranscriptMismatch,
+    Transport,
+    TransportTimeout,
+    VisaTransport,
+)
+
 RawCallback = Callable[[str, bytes], None]
 
 # -- commands as data -------------------------------------------------------------------
@@ -356,7 +363,7 @@ class ScpiInstrument:
     def __init__(self, resource: str, *, visa_library: str = "@py", raw: RawCallback | None = None,
                  command_timeout_s: float = 2.0, name: str | None = None,
                  read_termination: str = "\n", write_termination: str = "\n",
-                 error_query: Command = SYST_ERR) -> None:
+                 error_query: Command = SYST_ERR, transport: Transport | None = None) -> None:
         self.resource = resource
         self.visa_library = visa_library
         self.raw = raw
@@ -366,28 +373,26 @@ class ScpiInstrument:
         self.write_termination = write_termination
         self.error_query = error_query
         self._lock = threading.RLock()
-        self._rm: Any = None
-        self._inst: Any = None
+        #: a transport given by the caller (a transcript): used as is, never reopened
+        self._given = transport
+        self._inst: Transport | None = None
         self.connect()
 
     # -- connection ---------------------------------------------------------------------
     def connect(self) -> None:
-        import pyvisa
-
+        if self._given is not None:
+            self._inst = self._given
+            return
         try:
-            if self._rm is None:
-                self._rm = pyvisa.ResourceManager(self.visa_library)
-            self._inst = self._rm.open_resource(
-                self.resource, read_termination=self.read_termination,
-                write_termination=self.write_termination,
-                timeout=self._ms(self.command_timeout_s), open_timeout=self._ms(5.0))
+            self._inst = VisaTransport(
+                self.resource, visa_library=self.visa_library,
+                read_termination=self.read_termination,
+                write_termination=self.write_termination, timeout_s=self.command_timeout_s)
         except Exception as e:  # pyvisa raises VisaIOError, OSError, ValueError ...
             self._inst = None
             raise self.error_kinds.connection(
                 f"{self.name}: cannot open VISA resource {self.resource!r} "
                 f"(library {self.visa_library!r}): {e}") from e
-        if self.resource.upper().endswith("::SOCKET"):
-            _socket_options(self._inst)
 
     def reconnect(self) -> None:
         self._drop_session()
@@ -395,17 +400,15 @@ class ScpiInstrument:
 
     def _drop_session(self) -> None:
         inst, self._inst = self._inst, None
-        if inst is not None:
+        if inst is not None and inst is not self._given:
             with contextlib.suppress(Exception):
                 inst.close()
 
     def close(self) -> None:
         with self._lock:
             self._drop_session()
-            rm, self._rm = self._rm, None
-            if rm is not None:
-                with contextlib.suppress(Exception):
-                    rm.close()
+            if self._given is not None:
+                self._given.close()
 
     @property
     def is_open(self) -> bool:
@@ -417,12 +420,8 @@ class ScpiInstrument:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    @staticmethod
-    def _ms(seconds: float) -> int:
-        return max(1, int(round(seconds * 1000.0)))
-
     # -- bytes ----------------------------------------------------------------------------
-    def _require(self) -> Any:
+    def _require(self) -> Transport:
         if self._inst is None:
             raise self.error_kinds.connection(f"{self.name}: not connected")
         return self._inst
@@ -433,33 +432,25 @@ class ScpiInstrument:
         if self.raw:
             self.raw("tx", data)
         try:
-            inst.write_raw(data)
+            inst.write(data)
+        except TranscriptMismatch:
+            raise
         except Exception as e:
             raise self.error_kinds.connection(
                 f"{self.name}: writing {text!r} failed: {e}", command=text) from e
 
     def _rx(self, command: str, timeout_s: float) -> str:
-        import pyvisa
-
         inst = self._require()
-        inst.timeout = self._ms(timeout_s)
         try:
-            data = inst.read_raw()
-        except pyvisa.errors.VisaIOError as e:
-            if e.error_code == pyvisa.constants.StatusCode.error_timeout:
-                raise self.error_kinds.timeout(
-                    f"{self.name}: no reply to {command!r} within {timeout_s:.3g} s",
-                    command=command) from e
-            raise self.error_kinds.connection(
-                f"{self.name}: reading the reply to {command!r} failed: {e}",
+            data = inst.read(timeout_s)
+        except TransportTimeout as e:
+            raise self.error_kinds.timeout(
+                f"{self.name}: no reply to {command!r} within {timeout_s:.3g} s",
                 command=command) from e
         except Exception as e:
             raise self.error_kinds.connection(
                 f"{self.name}: reading the reply to {command!r} failed: {e}",
                 command=command) from e
-        finally:
-            with contextlib.suppress(Exception):
-                inst.timeout = self._ms(self.command_timeout_s)
         if self.raw:
             self.raw("rx", data)
         try:
@@ -565,16 +556,11 @@ class ScpiInstrument:
             return []
 
     def _clear_input(self) -> None:
-        """Device clear, where the interface has one (GPIB, USBTMC, VXI-11).
-
-        Not on a raw socket: it has no device clear, and pyvisa-py's `clear()` there spins
-        forever once the peer has closed. Late replies on a socket are skipped by `resync`.
-        """
-        if self.resource.upper().endswith("::SOCKET"):
-            return
-        inst = self._require()
-        with contextlib.suppress(Exception):
-            inst.clear()
+        """Device clear, where the interface has one (see `VisaTransport.clear`); late
+        replies on a raw socket are skipped by `resync`."""
+        if self._inst is not None:
+            with contextlib.suppress(Exception):
+                self._inst.clear()
 
     # -- known state ------------------------------------------------------------------------
     def resync(self, timeout_s: float | None = None) -> list[str]:
@@ -653,31 +639,6 @@ class ScpiInstrument:
                 raise lost from e
             e.add_note(note)
             raise
-
-
-def _socket_options(inst: Any) -> None:
-    """TCP_NODELAY and keepalive on a raw SCPI socket.
-
-    Without NODELAY a command and its SYST:ERR? wait for the instrument's delayed ACK
-    (40 ms or more each, Nagle); NI-VISA sets it by default, pyvisa-py 0.8 does not, and
-    its VI_ATTR_TCPIP_NODELAY setter is mis-wired (raises UnknownAttribute; see
-    nominal-io/instro#156), so we set it on pyvisa-py's socket when we find one.
-    Keepalive lets a long wait notice a dead link.
-    """
-    import socket
-
-    import pyvisa
-
-    with contextlib.suppress(Exception):
-        inst.set_visa_attribute(pyvisa.constants.VI_ATTR_TCPIP_KEEPALIVE, True)
-    sessions = getattr(inst.visalib, "sessions", None)  # pyvisa-py only
-    sock = getattr(sessions.get(inst.session), "interface", None) if sessions else None
-    if isinstance(sock, socket.socket):
-        with contextlib.suppress(OSError):
-            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        return
-    with contextlib.suppress(Exception):
-        inst.set_visa_attribute(pyvisa.constants.VI_ATTR_TCPIP_NODELAY, True)
 
 
 def _show(data: bytes, limit: int = 60) -> str:

@@ -8,17 +8,28 @@ sensor's jitter), on the stand's time axis, rounded to the profile's resolution 
 for the 53230A). It waits in real time until the virtual clock has passed the last edge
 it reports, so a driver sees the same timing a real counter would give it, sped up.
 
-Measurement modes, as the profiles describe them:
-- timestamps: n consecutive edges (53230A: `+1,t1,..,tn`; CNT-91: `1,t1,2,t2,..`);
+Measurement modes, as the manuals describe them:
+- timestamps: n consecutive edges after the start event (53230A: `+1,d1,..,dn`, the
+  prescaler and then the interval from each stamp to the next, stamp 0 being the start
+  event, Programmer's Reference p. 240/377 and User's Guide "Time stamp"; CNT-91:
+  `1,ts1,2,ts2,..`, TS since the start event, Programmer's Handbook p. 8-72). The start
+  event is INIT with TRIG:SOUR IMM (the *RST value) or, with TRIG:SOUR EXT, the first
+  pulse of the FOG's sync output after INIT as it reaches the counter through the
+  `SyncLink` (its latency and jitter: the physical time tie, drivers/time_tie.py);
 - period readings (53230A CONF:PER with SAMP:COUN n): each reading times one turn from
   the first edge after the previous reading ended, so readings are every other turn;
 - READ? (generic counter): one period, from the first edge after the READ? arrived.
+
+SYSTem:TIMeout is per reading and non-volatile (Programmer's Reference p. 459): *RST
+leaves it, and it starts disabled (as shipped) unless the twin is built with another.
+FETC:ARR? returns the next results each call, at most `fetch_max_results` (CNT-91:
+10 000, Programmer's Handbook p. 8-35); more is -222.
 
 The input is modelled just enough to make a wrong set-up fail as on a bench: the zero
 mark is wired to `signal_channel` and swings `signal_low_v .. signal_high_v`; a level
 outside that swing, another channel, or auto-level left ON (it cannot settle on a
 once-per-revolution pulse) sees no edges. With no edges, a model with a measurement
-timeout (53230A SYST:TIM, counted from the arm, in virtual seconds) answers 9.91E37 for
+timeout (53230A SYST:TIM, counted per reading, in virtual seconds) answers 9.91E37 for
 the missing readings; one without it never answers, as a real counter would not.
 The slope and coupling are stored but do not move the edges (the stand has one edge
 per mark).
@@ -42,6 +53,7 @@ from drivers.counter_profiles import (
     encode_values,
     get_profile,
 )
+from drivers.counter_profiles import nr3 as profile_nr3
 from drivers.scpi import SCPI_NAN
 from sims.scpi_server import (
     ExecError,
@@ -69,6 +81,22 @@ class InputState:
     slope: str = "POS"
 
 
+@dataclass(frozen=True)
+class SyncLink:
+    """The FOG's sync output wired to the counter's external trigger: a pulse at FOG time
+    k * period_s (every n-th sample), reaching the counter `latency_s` later with a
+    Gaussian `jitter_s` (std) of its own."""
+
+    period_s: float
+    latency_s: float = 0.0
+    jitter_s: float = 0.0
+
+    def next_pulse_s(self, t_s: float, rng: np.random.Generator) -> float:
+        """When the first sync pulse after stand time t_s reaches the counter."""
+        k = math.floor(t_s / self.period_s) + 1
+        return k * self.period_s + self.latency_s + self.jitter_s * float(rng.standard_normal())
+
+
 @dataclass
 class TwinAcquisition:
     """A measurement in progress (or done) on the twin."""
@@ -77,10 +105,12 @@ class TwinAcquisition:
     n: int                      # readings
     channel: int
     t_arm_s: float              # stand time of INIT / READ?
-    timeout_s: float | None     # the instrument's own timeout, virtual s
+    timeout_s: float | None     # the instrument's own per-reading timeout, virtual s
     blind: bool                 # no edges reach the counter (set-up or 'no-trigger')
+    t_start_s: float = 0.0      # the start event: INIT, or the sync pulse (TRIG:SOUR EXT)
     values: np.ndarray | None = None
     edges_s: np.ndarray = field(default_factory=lambda: np.empty(0))
+    fetched: int = 0            # results already sent by FETC:ARR?
 
     @property
     def edges_needed(self) -> int:
@@ -95,9 +125,12 @@ class CounterTwin(ScpiServer):
     def __init__(self, stand: SimulatedStand, axis: str, model: str = "keysight-53230a",
                  host: str = "127.0.0.1", port: int = 0, *, signal_channel: int = 1,
                  signal_low_v: float = 0.0, signal_high_v: float = 5.0,
-                 external_reference: bool = False) -> None:
+                 sync: SyncLink | None = None, timeout_s: float | None = None,
+                 seed: int = 0, external_reference: bool = False) -> None:
         self.profile: CounterProfile = get_profile(model)
         super().__init__(idn=self.profile.idn, host=host, port=port)
+        if self.profile.maker.startswith("Keysight"):  # `+0,"No error"` (Prog. Ref.)
+            self.error_code_format = "{:+d}"
         self.stand = stand
         self.axis = stand.axis(axis)
         self.clock = stand.clock
@@ -107,6 +140,10 @@ class CounterTwin(ScpiServer):
         self.external_reference = bool(external_reference)
         self.inputs: dict[int, InputState] = {}
         self.acquisition: TwinAcquisition | None = None
+        self.sync = sync
+        self.rng = np.random.default_rng(seed)
+        #: SYST:TIM, non-volatile: not touched by *RST (None: disabled, as shipped)
+        self.timeout_s: float | None = timeout_s
         self.reset()
         self._route_words()
 
@@ -116,7 +153,7 @@ class CounterTwin(ScpiServer):
         self.function: str | None = None
         self.function_channel = 1
         self.sample_count = 1
-        self.timeout_s: float | None = None
+        self.trigger_source = "IMM"
         self.timestamp_info = False
         self.timestamp_rate_hz = 1.0e6
         self.gate = "DEF"
@@ -139,7 +176,15 @@ class CounterTwin(ScpiServer):
     def _arm(self, kind: Literal["timestamps", "periods"], n: int) -> TwinAcquisition:
         ch = self.function_channel
         blind = self.take_fault("no-trigger") or not self._sees_edges(ch)
-        self.acquisition = TwinAcquisition(kind, n, ch, self.clock.now(), self.timeout_s, blind)
+        t_arm = self.clock.now()
+        t_start = t_arm
+        if self.trigger_source == "EXT":
+            if self.sync is None:
+                blind = True  # nothing is wired to the external trigger input
+            else:
+                t_start = self.sync.next_pulse_s(t_arm, self.rng)
+        self.acquisition = TwinAcquisition(kind, n, ch, t_arm, self.timeout_s, blind, t_start)
+        self.last_acquisition = self.acquisition  # kept after the client leaves (tests)
         return self.acquisition
 
     def _progress(self, acq: TwinAcquisition) -> bool:
@@ -147,11 +192,18 @@ class CounterTwin(ScpiServer):
         if acq.values is not None:
             return True
         now = self.clock.now()
-        if not acq.blind:
+        if not acq.blind and now > acq.t_start_s:
             self.axis.advance_to(now)
-            acq.edges_s = self.axis.zero_marks(acq.t_arm_s, now).t_edge_s
+            acq.edges_s = self.axis.zero_marks(acq.t_start_s, now).t_edge_s
         need = acq.edges_needed
-        timed_out = acq.timeout_s is not None and now >= acq.t_arm_s + acq.timeout_s
+        # per reading (p. 459): the next stamp must come within the timeout of the last
+        stamps = np.concatenate([[max(acq.t_start_s, acq.t_arm_s)], acq.edges_s[:need]])
+        late = (np.flatnonzero(np.diff(stamps) > acq.timeout_s) if acq.timeout_s is not None
+                else np.empty(0, int))
+        if late.size:
+            acq.edges_s = acq.edges_s[:int(late[0])]
+        timed_out = acq.timeout_s is not None and (
+            late.size > 0 or now >= stamps[-1] + acq.timeout_s)
         if acq.edges_s.size < need and not timed_out:
             return False
         edges = self.profile.quantise(acq.edges_s[:need])
@@ -176,7 +228,11 @@ class CounterTwin(ScpiServer):
             fmt = TIMESTAMP_FORMATS[p.timestamps or ""]
             if fmt.name == "pendulum-stst" and not self.timestamp_info:
                 return ",".join(str(i + 1) for i in range(values.size))
-            return fmt.encode(values, self._time_digits(values), p.reply_exp_digits)
+            nan = values >= 0.999 * SCPI_NAN
+            text = fmt.encode(np.where(nan, acq.t_start_s, values), acq.t_start_s,
+                              self._time_digits(values[~nan] - acq.t_start_s),
+                              p.reply_exp_digits)
+            return _nan_tail(text, int(nan.sum()))
         return encode_values(values, p.reply_digits, p.reply_exp_digits)
 
     def _time_digits(self, t_s: np.ndarray) -> int:
@@ -192,20 +248,21 @@ class CounterTwin(ScpiServer):
     def _route_words(self) -> None:
         self.route_words(self.profile.words, {
             "input_coupling": (self._set_coupling, lambda a: self._inp(a).coupling),
-            "input_impedance": (self._set_impedance, lambda a: nr3(self._inp(a).impedance_ohm)),
+            "input_impedance": (self._set_impedance, lambda a: self._nr3(self._inp(a).impedance_ohm)),
             "input_level_auto": (self._set_level_auto,
                                  lambda a: bool_reply(self._inp(a).level_auto)),
-            "input_level": (self._set_level, lambda a: nr3(self._inp(a).level_v)),
+            "input_level": (self._set_level, lambda a: self._nr3(self._inp(a).level_v)),
             "input_slope": (self._set_slope, lambda a: self._inp(a).slope),
             "configure_timestamps": (self._conf_timestamps, None),
             "configure_period": (self._conf_period, None),
-            "timestamp_rate": (self._set_rate, lambda a: nr3(self.timestamp_rate_hz)),
+            "timestamp_rate": (self._set_rate, lambda a: self._nr3(self.timestamp_rate_hz)),
             "timestamp_info": (self._set_tinf, lambda a: bool_reply(self.timestamp_info)),
             "sample_count": (self._set_count, lambda a: f"+{self.sample_count}"),
             "gate_time": (self._set_gate, None),
-            "measurement_timeout": (self._set_timeout, lambda a: nr3(
-                SCPI_NAN if self.timeout_s is None else self.timeout_s)),
+            "measurement_timeout": (self._set_timeout, lambda a: self._nr3(
+                9.9e37 if self.timeout_s is None else self.timeout_s)),  # p. 459: 9.9E37
             "format_data": (self._set_format, lambda a: "ASC"),
+            "trigger_source": (self._set_trigger_source, lambda a: self.trigger_source),
             "abort": (self._abort, None),
             "initiate": (self._initiate, None),
             "fetch": (None, self._fetch, True),
@@ -215,6 +272,11 @@ class CounterTwin(ScpiServer):
             "reference_auto": (self._set_reference_auto,
                                lambda a: bool_reply(self.reference_auto)),
         })
+
+    def _nr3(self, value: float) -> str:
+        """A setting's query reply as the model prints it: `+1.00000000E+006` (53230A
+        Programmer's Reference p. 377, p. 459)."""
+        return profile_nr3(value, 8, self.profile.reply_exp_digits)
 
     # -- the timebase reference (53220A/53230A User's Guide, ch. 3) -------------------------
     def _reference_in_use(self) -> str:
@@ -300,6 +362,9 @@ class CounterTwin(ScpiServer):
             return
         self.timeout_s = ranged_param(value, lo, hi, default=1.0)
 
+    def _set_trigger_source(self, a: Mapping[str, str]) -> None:
+        self.trigger_source = enum_param(a["source"], ("IMMediate", "EXTernal", "BUS"))
+
     def _set_format(self, a: Mapping[str, str]) -> None:
         if enum_param(a["format"], ("ASCii", "REAL", "PACKed")) != "ASC":
             raise ExecError(-224, "Illegal parameter value")  # the twin speaks ASCII only
@@ -326,10 +391,14 @@ class CounterTwin(ScpiServer):
         values = self._readings(acq)
         assert acq is not None
         count = a["count"].upper()
-        n = values.size if count.startswith("MAX") else int(number_param(count, {}))
-        if not 1 <= n <= values.size:
+        left = values.size - acq.fetched
+        limit = self.profile.fetch_max_results or values.size
+        n = min(left, limit) if count.startswith("MAX") else int(number_param(count, {}))
+        if not 1 <= n <= min(left, limit):
             raise ExecError(-222, "Data out of range")
-        return self._encode(acq, values[:n])
+        part = values[acq.fetched:acq.fetched + n]
+        acq.fetched += n
+        return self._encode(acq, part)
 
     def _read(self, a: Mapping[str, str]) -> str:
         if self.function is None:
@@ -337,3 +406,12 @@ class CounterTwin(ScpiServer):
         kind = "timestamps" if self.function == "timestamps" else "periods"
         acq = self._arm(kind, self.sample_count)  # type: ignore[arg-type]
         return self._encode(acq, self._readings(acq))
+
+
+def _nan_tail(text: str, n_nan: int) -> str:
+    """Replace the last n values of a reply by 9.91E37 (readings that timed out)."""
+    if n_nan == 0:
+        return text
+    parts = text.split(",")
+    parts[len(parts) - n_nan:] = [nr3(SCPI_NAN)] * n_nan
+    return ",".join(parts)

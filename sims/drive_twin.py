@@ -19,6 +19,7 @@ checks the watchdog, and transmits the TPDOs.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
@@ -38,6 +39,7 @@ from drivers.cia402 import (
     HEARTBEAT_LOST,
     INT32_MAX,
     MODES,
+    NAMED_SI_UNITS,
     PROFILE_POSITION,
     PROFILE_VELOCITY,
     QUICK_STOP_OPTIONS,
@@ -51,6 +53,7 @@ from drivers.cia402 import (
     Ramp,
     State,
     Sw,
+    UnitFactors,
     decode_command,
     describe_error,
     transition,
@@ -98,8 +101,10 @@ class DriveTwin:
                  channel: str, node_id: int, eds_path: str | Path = DEFAULT_EDS_PATH,
                  servo_tolerance_dps: float = 0.02, watchdog_s: float = 0.25,
                  controller_node_id: int = CONTROLLER_NODE_ID, counts_per_rev: int = 1 << 20,
-                 velocity_unit_counts_per_s: float = 1.0e-3,
-                 accel_unit_counts_per_s2: float = 1.0, max_rate_dps: float = 720.0,
+                 velocity_unit: str | int = "0.001 inc/s",
+                 acceleration_unit: str | int = "inc/s2",
+                 gear_ratio: tuple[int, int] = (1, 1), tpdo_event_timer_ms: int | None = None,
+                 max_rate_dps: float = 720.0,
                  max_accel_dps2: float = 1000.0, max_decel_dps2: float = 2000.0,
                  profile_accel_dps2: float = 200.0, quick_stop_decel_dps2: float = 1000.0,
                  standstill_dps: float = 0.001, coast_decel_dps2: float = 20.0,
@@ -115,35 +120,46 @@ class DriveTwin:
         self.channel = channel
         self.node_id = node_id
         self.eds_path = Path(eds_path)
-        self.units = DriveUnits(counts_per_rev, velocity_unit_counts_per_s,
-                                accel_unit_counts_per_s2)
+        # the factor group (CiA 402 0x608F, 0x6091, 0x60A9, 0x60AA): the twin's units
+        # follow from its own factor objects, as a real drive's do, and change when the
+        # controller writes 0x60A9/0x60AA (outside Operation enabled)
+        motor_revs = 1
+        self.factors = UnitFactors(counts_per_rev * gear_ratio[1] // gear_ratio[0]
+                                   if counts_per_rev * gear_ratio[1] % gear_ratio[0] == 0
+                                   else counts_per_rev, motor_revs, gear_ratio[0],
+                                   gear_ratio[1], _si(velocity_unit), _si(acceleration_unit))
+        self.units: DriveUnits = self.factors.drive_units()
         self.coast_decel_dps2 = float(coast_decel_dps2)
-        velocity, accel = self.units.dps_to_velocity, self.units.dps2_to_accel
-        # every object in drive units is set from deg-based arguments, so the EDS defaults
-        # (written for 2^20 counts/rev) never meet other units
+        self._tpdo_event_timer_ms = tpdo_event_timer_ms
+        #: unit-dependent objects as deg-based values, refitted when the units change
+        self._deg_values = {
+            "velocity": {(Od.VELOCITY_WINDOW, 0): ("servo_tolerance_dps", servo_tolerance_dps,
+                                                   UINT16_MAX),
+                         (Od.VELOCITY_THRESHOLD, 0): ("standstill_dps", standstill_dps,
+                                                      UINT16_MAX),
+                         (Od.MAX_PROFILE_VELOCITY, 0): ("max_rate_dps", max_rate_dps,
+                                                        UINT32_MAX),
+                         (Od.PROFILE_VELOCITY_PP, 0): ("pp_velocity_dps", pp_velocity_dps,
+                                                       UINT32_MAX)},
+            "accel": {(Od.MAX_ACCELERATION, 0): ("max_accel_dps2", max_accel_dps2, UINT32_MAX),
+                      (Od.MAX_DECELERATION, 0): ("max_decel_dps2", max_decel_dps2, UINT32_MAX),
+                      (Od.PROFILE_ACCELERATION, 0): ("profile_accel_dps2", profile_accel_dps2,
+                                                     UINT32_MAX),
+                      (Od.PROFILE_DECELERATION, 0): ("profile_accel_dps2", profile_accel_dps2,
+                                                     UINT32_MAX),
+                      (Od.QUICK_STOP_DECELERATION, 0): ("quick_stop_decel_dps2",
+                                                        quick_stop_decel_dps2, UINT32_MAX)},
+        }
+        f = self.factors
         self._initial = {
-            (Od.VELOCITY_WINDOW, 0): self._fit("servo_tolerance_dps", servo_tolerance_dps,
-                                               velocity, UINT16_MAX),
-            (Od.VELOCITY_THRESHOLD, 0): self._fit("standstill_dps", standstill_dps,
-                                                  velocity, UINT16_MAX),
-            (Od.MAX_PROFILE_VELOCITY, 0): self._fit("max_rate_dps", max_rate_dps,
-                                                    velocity, UINT32_MAX),
-            (Od.MAX_ACCELERATION, 0): self._fit("max_accel_dps2", max_accel_dps2, accel,
-                                                UINT32_MAX),
-            (Od.MAX_DECELERATION, 0): self._fit("max_decel_dps2", max_decel_dps2, accel,
-                                                UINT32_MAX),
-            (Od.PROFILE_ACCELERATION, 0): self._fit("profile_accel_dps2", profile_accel_dps2,
-                                                    accel, UINT32_MAX),
-            (Od.PROFILE_DECELERATION, 0): self._fit("profile_accel_dps2", profile_accel_dps2,
-                                                    accel, UINT32_MAX),
-            (Od.QUICK_STOP_DECELERATION, 0): self._fit("quick_stop_decel_dps2",
-                                                       quick_stop_decel_dps2, accel, UINT32_MAX),
+            **self._unit_objects(),
+            (Od.GEAR_RATIO, 1): f.gear_motor_revs, (Od.GEAR_RATIO, 2): f.gear_shaft_revs,
+            (Od.SI_UNIT_VELOCITY, 0): f.velocity_si,
+            (Od.SI_UNIT_ACCELERATION, 0): f.acceleration_si,
             (Od.POSITION_WINDOW, 0): self._fit("position_window_deg", position_window_deg,
                                                self.units.deg_to_counts, UINT32_MAX),
-            (Od.PROFILE_VELOCITY_PP, 0): self._fit("pp_velocity_dps", pp_velocity_dps,
-                                                   velocity, UINT32_MAX),
-            (Od.POSITION_ENCODER_RESOLUTION, 1): counts_per_rev,
-            (Od.POSITION_ENCODER_RESOLUTION, 2): 1,
+            (Od.POSITION_ENCODER_RESOLUTION, 1): f.encoder_increments,
+            (Od.POSITION_ENCODER_RESOLUTION, 2): f.motor_revolutions,
             (Od.CONSUMER_HEARTBEAT, 1): (controller_node_id << 16)
             | self._fit("watchdog_s", watchdog_s, lambda s: round(s * 1000), UINT16_MAX),
             (Od.IDENTITY, 4): serial_number,
@@ -180,11 +196,36 @@ class DriveTwin:
         self._stop = threading.Event()
         self._tick_s = 0.01
         self._tpdo_last: dict[int, float] = {}
+        self._tpdo_values: dict[int, list[int]] = {}
         #: mode code -> what entering Operation enabled or a new set-point does in it
         self._mode_handlers = {PROFILE_VELOCITY.code: self._pv_follow_target,
                                PROFILE_POSITION.code: self._pp_hold}
         self._initial[(Od.SUPPORTED_DRIVE_MODES, 0)] = sum(
             MODES[code].supported_bit for code in self._mode_handlers)
+
+    def _unit_objects(self) -> dict[tuple[int, int], int]:
+        """Every velocity and acceleration object in the present units."""
+        convert = {"velocity": self.units.dps_to_velocity, "accel": self.units.dps2_to_accel}
+        return {key: self._fit(name, value, convert[kind], limit)
+                for kind, table in self._deg_values.items()
+                for key, (name, value, limit) in table.items()}
+
+    def _change_units(self, index: int, code: int) -> None:
+        """0x60A9/0x60AA written: new units; the limits keep their meaning in deg/s."""
+        if self._state is State.OPERATION_ENABLED:
+            raise SdoAbortedError(ABORT_DEVICE_STATE)
+        f = self.factors
+        new = UnitFactors(f.encoder_increments, f.motor_revolutions, f.gear_motor_revs,
+                          f.gear_shaft_revs,
+                          code if index == Od.SI_UNIT_VELOCITY else f.velocity_si,
+                          code if index == Od.SI_UNIT_ACCELERATION else f.acceleration_si)
+        try:
+            units = new.drive_units()
+        except ValueError as e:
+            raise SdoAbortedError(ABORT_VALUE_RANGE) from e
+        self.factors, self.units = new, units
+        for (i, sub), value in self._unit_objects().items():
+            self._put(i, sub, value)
 
     @staticmethod
     def _fit(key: str, value: float, convert: Any, limit: int) -> int:
@@ -206,6 +247,10 @@ class DriveTwin:
         self._network, self._node = network, node
         for (index, sub), value in self._initial.items():
             self._put(index, sub, value)
+        if self._tpdo_event_timer_ms is not None:  # e.g. 0: TPDOs only on change
+            for sub in range(4):
+                with contextlib.suppress(KeyError):
+                    self._put(0x1800 + sub, 5, self._tpdo_event_timer_ms)
         node.tpdo.read(from_od=True)
         timers = [m.event_timer for m in node.tpdo.map.values() if m.enabled and m.event_timer]
         self._tick_s = min(timers, default=10) / 1000.0
@@ -348,6 +393,15 @@ class DriveTwin:
                     raise SdoAbortedError(ABORT_VALUE_TOO_HIGH)
             elif index == Od.CONSUMER_HEARTBEAT and subindex == 1:
                 self._configure_consumer(value)
+            elif index in (Od.SI_UNIT_VELOCITY, Od.SI_UNIT_ACCELERATION):
+                self._change_units(index, value)
+            elif 0x1800 <= index <= 0x1803 and subindex in (2, 5) and self._node is not None:
+                pdo = self._node.tpdo.map.get(index - 0x1800 + 1)
+                if pdo is not None:  # CiA 301: the communication parameters take effect
+                    if subindex == 2:
+                        pdo.trans_type = value
+                    else:
+                        pdo.event_timer = value
             mode = MODES.get(self._mode)
             if mode is not None and index == mode.target and mode.setpoint_on_write:
                 self._mode_handlers[mode.code](value)  # a new set-point of the active mode
@@ -549,14 +603,22 @@ class DriveTwin:
                 return
             now = time.monotonic()
             for n, pdo in node.tpdo.map.items():
+                # CiA 301: types 254/255 send on an event: the event timer's expiry, or,
+                # with the timer at 0, a change of the mapped data (nothing at rest)
                 period = (pdo.event_timer or 0) / 1000.0
-                if not pdo.enabled or not period or now - self._tpdo_last.get(n, -1e9) < \
-                        period - 0.5 * self._tick_s:
+                if not pdo.enabled or (period and now - self._tpdo_last.get(n, -1e9) <
+                                       period - 0.5 * self._tick_s):
                     continue
-                for var in pdo.map:
-                    var.raw = self._live(var.index) if var.index in _LIVE else self._get(var.index)
+                values = [self._live(v.index) if v.index in _LIVE else self._get(v.index)
+                          for v in pdo.map]
+                if not period and (pdo.trans_type not in (254, 255)
+                                   or values == self._tpdo_values.get(n)):
+                    continue
+                for var, value in zip(pdo.map, values, strict=True):
+                    var.raw = value
                 pdo.transmit()
                 self._tpdo_last[n] = now
+                self._tpdo_values[n] = values
 
     def _update_motion_bits(self, t: float, w: float) -> None:
         """Statusword bits 12 (speed 0) and 10 (target reached), on stand time (CiA 402 PV)."""
@@ -643,3 +705,8 @@ class DriveTwin:
             if self._state is State.OPERATION_ENABLED:
                 self._quick_stop()
 
+
+
+def _si(unit: str | int) -> int:
+    """An SI unit object's value: a name of cia402.NAMED_SI_UNITS, or the code itself."""
+    return unit if isinstance(unit, int) else NAMED_SI_UNITS[unit]

@@ -7,6 +7,15 @@ The twin listens to the stand's axis from sample 0 and writes stand sample n as 
 itself: writes block while the reader is behind, and the frames go out late, not never.
 Faults are injected on purpose, by stand sample, and recorded in the twin's truth.
 
+Configuration (drivers/kvh_config.py, 1775 IMU ICD sections 3.3, 7 and 8): the twin
+answers `=CONFIG,1|0`, `=OUTPUTFMT,`, `=ROTFMT,`, `=ROTUNITS,`, `=DR,` and their `?`
+queries as the ICD's conventions say (a command echoes without '=', a query answers
+`NAME,value`, an unknown word in Configuration Mode `INVALID,...`; in Normal Mode input
+is ignored). Its rotational fields start at the KVH power-on default, delta radians
+(Table 5-10), unless built with `units` (a FOG configured earlier, kept in its
+non-volatile memory). The frames' rate stays the stand's: `=DR` is stored and read
+back, but the twin cannot change how often the stand samples.
+
 Two details of real ports matter here. pyserial flushes the input queue when it opens
 the port, so the twin writes nothing until a reader has the slave open and the stand
 clock runs (the engine starts the clock after opening every instrument). And the
@@ -29,6 +38,7 @@ import numpy as np
 
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, get_format
+from drivers.kvh_config import DATA_RATES_HZ, POWER_ON_UNITS, UNIT_WORDS, WORDS, units_of
 from sims.stand import AxisChunk, SimulatedStand
 
 _TICK_S = 0.002            # real seconds between looks at the clock when idle
@@ -106,7 +116,7 @@ class FogTwin:
     """Frames of one stand axis's FOG on a pty. Create it before the stand clock starts."""
 
     def __init__(self, stand: SimulatedStand, axis: str, *, fmt: str = "kvh-a",
-                 axis_letter: str = "z", units: str = "deg/s", temperature: int = 25,
+                 axis_letter: str = "z", units: str = POWER_ON_UNITS, temperature: int = 25,
                  keep_truth: bool = False) -> None:
         self.format = get_format(fmt)
         if axis_letter not in AXES:
@@ -118,6 +128,11 @@ class FogTwin:
         self.units = units
         self._col = AXES.index(axis_letter)
         self._dps_per_unit = dps_per_unit(units, self.rate_hz)
+        self.config_mode = False
+        self.data_rate_hz = int(round(self.rate_hz))
+        self.frame_letter = self.format.name.rsplit("-", 1)[-1].upper()
+        self._inbuf = bytearray()
+        self.commands: list[str] = []  # every line received (tests)
         self.temperature = int(temperature)
         self.keep_truth = keep_truth
         self._faults: list[Fault] = []
@@ -255,6 +270,7 @@ class FogTwin:
         poller.register(self._master, select.POLLOUT)
         seen: float | None = None
         while not self._stop.is_set():  # the gate: a reader settled, and a running clock
+            self._serve_commands()
             if seen is None and self._reader_present(poller):
                 seen = time.monotonic()
             if seen is not None and time.monotonic() - seen >= _OPEN_SETTLE_S \
@@ -262,9 +278,68 @@ class FogTwin:
                 break
             time.sleep(_TICK_S)
         while not self._stop.is_set():
+            self._serve_commands()
+            if self.config_mode:  # no binary output in Configuration Mode (ICD 3.3)
+                time.sleep(_TICK_S)
+                continue
             self.axis.advance_to(self.clock.now())
             if not self._drain(poller):
                 time.sleep(_TICK_S)
+
+    # -- configuration (ICD section 7) -------------------------------------------------------
+    def _serve_commands(self) -> None:
+        assert self._master is not None
+        try:
+            data = os.read(self._master, 4096)
+        except (BlockingIOError, OSError):
+            return
+        self._inbuf.extend(data)
+        while True:
+            cut = [i for i in (self._inbuf.find(b"\r"), self._inbuf.find(b"\n")) if i >= 0]
+            if not cut:
+                return
+            i = min(cut)
+            line = bytes(self._inbuf[:i]).decode("ascii", "replace").strip()
+            del self._inbuf[:i + 1]
+            if line:
+                self.commands.append(line)
+                reply = self._answer(line)
+                if reply is not None:
+                    os.write(self._master, (reply + "\r\n").encode("ascii"))
+
+    def _answer(self, line: str) -> str | None:
+        w = WORDS
+        body = line[1:].upper()
+        name, _, arg = body.partition(",")
+        if line.startswith("=") and name == w.config and arg in ("0", "1"):
+            self.config_mode = arg == "1"
+            return body
+        if not self.config_mode:
+            return None  # Normal Mode ignores input (ICD section 7)
+        fmt, units = UNIT_WORDS[self.units]
+        values = {w.output_format: self.frame_letter, w.rot_format: fmt, w.rot_units: units,
+                  w.data_rate: str(self.data_rate_hz)}
+        if line.startswith("?") and name in values and not arg:
+            return f"{name},{values[name]}"
+        if line.startswith("="):
+            ok = ((name == w.rot_format and arg in ("DELTA", "RATE"))
+                  or (name == w.rot_units and arg in ("DEG", "RAD"))
+                  or (name == w.output_format and arg == self.frame_letter)
+                  or (name == w.data_rate and arg.isdigit() and int(arg) in DATA_RATES_HZ))
+            if ok:
+                if name == w.rot_format:
+                    self._set_units(units_of(arg, units))
+                elif name == w.rot_units:
+                    self._set_units(units_of(fmt, arg))
+                elif name == w.data_rate:
+                    self.data_rate_hz = int(arg)
+                return body
+        return "INVALID," + line
+
+    def _set_units(self, units: str) -> None:
+        with self.axis.lock:
+            self.units = units
+            self._dps_per_unit = dps_per_unit(units, self.rate_hz)
 
     def _drain(self, poller: select.poll) -> bool:
         """Write what is due; False if there was nothing to write."""

@@ -147,7 +147,7 @@ class ScpiServer:
         self.route(OPC, on_set=self._opc)
         self.route(WAI, on_set=lambda a: self.wait(lambda: not self.pending()))
         self.route(ESR_Q, on_query=self._esr_query)
-        self.route(SYST_ERR, on_query=lambda a: str(self.pop_error()))
+        self.route(SYST_ERR, on_query=lambda a: self.error_text(self.pop_error()))
 
     # -- lifecycle --------------------------------------------------------------------------
     def start(self) -> str:
@@ -219,6 +219,13 @@ class ScpiServer:
     def pop_error(self) -> ErrorEntry:
         with self._lock:
             return self.errors.popleft() if self.errors else ErrorEntry(0, "No error")
+
+    #: how an error entry's code is printed: "{:d}" (`0,"No error"`, SCPI-99) or
+    #: "{:+d}" (`+0,"No error"`, as Keysight's manuals print it)
+    error_code_format: ClassVar[str] = "{:d}"
+
+    def error_text(self, entry: ErrorEntry) -> str:
+        return f'{self.error_code_format.format(entry.code)},"{entry.message}"'
 
     def clear_status(self) -> None:
         """*CLS: the error queue, the ESR and a pending *OPC."""

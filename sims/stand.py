@@ -93,7 +93,8 @@ class AxisTruth:
             mains=Mains(**mains) if mains else None,
             rate_noise_dps=float(d.get("rate_noise_dps", 0.0)),
             turn_jitter_s=float(d.get("turn_jitter_s", 0.0)),
-            fog=FogTruth(**d.get("fog", {})),
+            # `fog.units` is the FOG twin's (what it carries before configuration)
+            fog=FogTruth(**{k: v for k, v in d.get("fog", {}).items() if k != "units"}),
         )
 
     def mean_turn_rate_rel(self) -> float:

@@ -18,7 +18,7 @@ import pytest
 
 import drivers.axis as axis_mod
 from drivers.axis import Axis, AxisError, DriveFault, LimitError
-from drivers.cia402 import FOLLOWING_ERROR, OVER_TEMPERATURE, State
+from drivers.cia402 import FOLLOWING_ERROR, OVER_TEMPERATURE, SI_UNIT_INCREMENT, State, si_unit
 from sims.clock import VirtualClock
 from sims.drive_twin import DriveTwin
 from sims.stand import AxisChunk, AxisTruth, SimulatedStand, StandTruth
@@ -265,7 +265,9 @@ def test_position_unwraps_across_int32(rig: Rig) -> None:
     # 2^30 counts per turn: INTEGER32 position wraps every 2 turns
     units = dict(counts_per_rev=2**30, velocity_unit_counts_per_s=1000.0,
                  accel_unit_counts_per_s2=1000.0)
-    r = make_rig(**units)
+    # the twin's factor group says the same: 1e3 inc/s and 1e3 inc/s^2 (0x60A9, 0x60AA)
+    r = make_rig(counts_per_rev=2**30, velocity_unit=si_unit(3, SI_UNIT_INCREMENT, 0x03),
+                 acceleration_unit=si_unit(3, SI_UNIT_INCREMENT, 0x03, 0x03))
     r.twin.start()
     try:
         with r.axis(**units) as ax:

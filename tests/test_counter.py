@@ -22,7 +22,8 @@ from drivers.counter import (
 )
 from drivers.counter_profiles import PROFILES
 from drivers.scpi import Command
-from sims.counter_twin import CounterTwin
+from drivers.time_tie import TimeTie
+from sims.counter_twin import CounterTwin, SyncLink
 from tests.counter_rig import AXIS, PERIOD_S, SPEED, truth_edges, turning_stand
 
 TIMESTAMP_MODELS = [m for m, p in PROFILES.items() if p.supports_timestamps]
@@ -35,11 +36,18 @@ def stand():
     return turning_stand()
 
 
+#: the FOG's sync output on the counter's external trigger: a pulse every 2 virtual s
+#: (10 ms real at SPEED), 3 us of link latency, known exactly here (no jitter)
+SYNC = SyncLink(period_s=2.0, latency_s=3e-6)
+TIE = TimeTie("fog-sync", sync_period_s=2.0, latency_s=3e-6)
+
+
 def open_pair(stand, model, **kw):
-    twin = CounterTwin(stand, AXIS, model=model)
+    twin = CounterTwin(stand, AXIS, model=model, sync=SYNC)
     resource = twin.start()
+    tie = TIE if PROFILES[model].words.trigger_source is not None else None
     try:
-        counter = Counter.open(resource, model, stand.clock,
+        counter = Counter.open(resource, model, stand.clock, time_tie=tie,
                                timeout_margin_s=kw.pop("timeout_margin_s", 1.0), **kw)
     except BaseException:
         twin.stop()
@@ -77,11 +85,16 @@ def test_edges_are_the_stands_next_edges_after_the_arm(ts_pair, stand):
     twin, counter = ts_pair
     res = counter.profile.resolution_s
     edges = counter.acquire_edges(6, PERIOD_S)
-    t_arm = twin.acquisition.t_arm_s
-    truth = truth_edges(stand, t_arm, edges[-1] + 0.5 * PERIOD_S)
-    assert truth.size == 6                    # consecutive: no edge skipped, none extra
-    assert truth[0] >= t_arm                  # the first edge after the arm
-    np.testing.assert_array_less(np.abs(edges - truth), 0.5 * res + 1e-15 * truth)
+    t_start = twin.acquisition.t_start_s
+    truth = truth_edges(stand, t_start, t_start + 6.5 * PERIOD_S)
+    assert truth.size >= 6 and truth[6:].size <= 1
+    truth = truth[:6]                         # consecutive: no edge skipped, none extra
+    assert truth[0] >= t_start                # the first edge after the start event
+    if counter.time_tie.uses_external_trigger:  # the tie places them on the stand's axis
+        np.testing.assert_array_less(np.abs(edges - truth), 0.5 * res + 1e-15 * truth)
+    else:  # CNT-91: TS from a start event the host only brackets (p. 8-72)
+        assert abs(edges[0] - truth[0]) < 0.2
+        edges = edges - edges[0] + truth[0]
     np.testing.assert_array_less(np.abs(np.diff(edges) - np.diff(truth)), res * 1.001)
     # not nominal: the harmonic makes the turns differ by far more than the resolution
     assert np.ptp(np.diff(edges)) > 1e3 * res
@@ -92,7 +105,7 @@ def test_periods_from_timestamps_are_consecutive_true_periods(ts_pair, stand):
     periods = counter.acquire_periods(5, PERIOD_S)
     acq = counter.last_acquisition
     assert acq.consecutive and acq.method == "timestamps" and periods.size == 5
-    truth = truth_edges(stand, twin.acquisition.t_arm_s, np.inf)[:6]
+    truth = truth_edges(stand, twin.acquisition.t_start_s, np.inf)[:6]
     err = periods - np.diff(truth)
     assert np.max(np.abs(err)) <= counter.profile.resolution_s * 1.001
 
@@ -139,7 +152,10 @@ def test_raw_callback_sees_every_byte_and_the_data_is_unaltered(stand):
     reply = [b for d, b in log[log.index(("tx", b"FETC?\n")):] if d == "rx"][0]
     assert i > tx.index(b"INIT\n")
     values = [float(v) for v in reply.decode().strip().split(",")]
-    assert values[0] == 1 and values[1:] == list(edges)   # prescaler, then the times
+    assert values[0] == 1                                  # prescaler, then intervals
+    t_start = counter.last_acquisition.t_start_s
+    assert values[1] == pytest.approx(edges[0] - t_start, abs=1e-10)
+    np.testing.assert_allclose(values[2:], np.diff(edges), rtol=0, atol=1e-10)
     assert re.search(rb"E[+-]\d{3}(,|\n)", reply)          # the 53230A's 3-digit exponent
 
 
@@ -149,9 +165,13 @@ def test_timeouts_scale_with_the_expected_period_and_the_clock(stand):
         counter.configure(level_v=2.5)
         acq = counter.arm(8, 4.0)
         allowed = acq.deadline_real_s - acq.armed_real_s
-        assert allowed == pytest.approx(8 * 4.0 * 1.25 / SPEED + 0.7, rel=1e-6)
-        assert twin.timeout_s == pytest.approx(8 * 4.0 * 1.25)   # instrument s (virtual)
+        # n turns, plus the wait for the first sync pulse of the time tie
+        assert allowed == pytest.approx((8 * 4.0 * 1.25 + TIE.sync_period_s) / SPEED + 0.7,
+                                        rel=1e-6)
+        # per reading (Programmer's Reference p. 459): a start edge and one turn
+        assert twin.timeout_s == pytest.approx(2 * 4.0 * 1.25)   # instrument s (virtual)
         counter.fetch()
+    assert twin.timeout_s is None   # non-volatile: restored to what it was (disabled)
 
 
 def test_wrong_model_is_refused_by_identity(stand):

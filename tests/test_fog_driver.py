@@ -199,7 +199,7 @@ def test_wait_timeout_is_scaled_by_clock_speed(tmp_path: Path) -> None:
     clock = VirtualClock(100.0, running=False)  # never started: no frame ever comes
     stand = SimulatedStand(StandTruth(seed=1, axes={"outer": AxisTruth()}), {"outer": 1000}, clock)
     with FogTwin(stand, "outer") as twin, Fog(twin.path, rate_hz=1000, raw_path=None,
-                                              clock=clock) as fog:
+                                              clock=clock, units="rad") as fog:
         t0 = time.monotonic()
         with pytest.raises(FogTimeout, match="sample 0 .* within 50 s"):
             fog.wait_for_index(0, timeout_s=50.0)      # 0.5 s real + margin
@@ -221,7 +221,7 @@ def test_samples_range_checks_and_discard(tmp_path: Path) -> None:
 def test_identity_and_open_errors(tmp_path: Path) -> None:
     clock = VirtualClock(1.0)
     fog = Fog("/dev/does-not-exist", rate_hz=1000, raw_path=None, clock=clock,
-              model="KVH DSP-1760")
+              model="KVH DSP-1760", units="rad")
     assert "KVH DSP-1760" in fog.identity() and "kvh-a" in fog.identity()
     with pytest.raises(FogError, match="/dev/does-not-exist"):
         fog.open()
@@ -230,17 +230,20 @@ def test_identity_and_open_errors(tmp_path: Path) -> None:
     stand = SimulatedStand(StandTruth(seed=1, axes={"outer": AxisTruth()}), {"outer": 1000},
                            clock2)
     with FogTwin(stand, "outer") as twin:
-        bad = Fog(twin.path, rate_hz=1000, raw_path=tmp_path / "file" / "fog.raw", clock=clock2)
+        bad = Fog(twin.path, rate_hz=1000, raw_path=tmp_path / "file" / "fog.raw", clock=clock2,
+                  units="rad")
         with pytest.raises(FogError, match="raw capture"):
             bad.open()
-        with Fog(twin.path, rate_hz=1000, raw_path=None, clock=clock2) as again:
+        with Fog(twin.path, rate_hz=1000, raw_path=None, clock=clock2, units="rad") as again:
             assert again.health == "ok"            # the failed open let go of the port
     with pytest.raises(ValueError, match="units 'g'"):
         Fog("p", rate_hz=1000, raw_path=None, clock=clock, units="g")
     with pytest.raises(ValueError, match="axis 'w'"):
-        Fog("p", rate_hz=1000, raw_path=None, clock=clock, axis="w")
+        Fog("p", rate_hz=1000, raw_path=None, clock=clock, axis="w", units="rad")
     with pytest.raises(ValueError, match="unknown FOG frame format"):
-        Fog("p", rate_hz=1000, raw_path=None, clock=clock, fmt="nope")
+        Fog("p", rate_hz=1000, raw_path=None, clock=clock, fmt="nope", units="rad")
+    with pytest.raises(FogError, match="names no fog.units.*delta radians"):
+        Fog("p", rate_hz=1000, raw_path=None, clock=clock, units=None)
 
 
 def test_twin_refuses_a_stand_already_running() -> None:

@@ -49,14 +49,20 @@ class CounterBudget:
         paper measured a rise-time std of 27 ns, METHOD.md A1).
     timebase_limit_rel: the counter timebase's maximum relative frequency error (data
         sheet, calibration certificate); treated as a rectangular distribution.
+    time_tie_u_s: how well the counter's start event sits on the FOG's time axis (the
+        time tie, drivers/time_tie.py), std, s. It shifts every edge alike against the
+        FOG record, so it leaves the counter's rates alone; it moves the FOG window and
+        the phase of the harmonics (360 * h * u / T deg), reported beside them.
     """
 
     timestamp_u_s: float = 0.0
     trigger_jitter_s: float = 0.0
     timebase_limit_rel: float = 0.0
+    time_tie_u_s: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("timestamp_u_s", "trigger_jitter_s", "timebase_limit_rel"):
+        for name in ("timestamp_u_s", "trigger_jitter_s", "timebase_limit_rel",
+                     "time_tie_u_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"counter budget: {name} must be finite and >= 0, got {v}")
@@ -78,6 +84,7 @@ class CounterBudget:
     def to_dict(self) -> dict[str, float]:
         return {"timestamp_u_s": self.timestamp_u_s, "trigger_jitter_s": self.trigger_jitter_s,
                 "timebase_limit_rel": self.timebase_limit_rel, "edge_u_s": self.edge_u_s,
+                "time_tie_u_s": self.time_tie_u_s,
                 "period_u_s": self.period_u_s, "timebase_u_rel": self.timebase_u_rel}
 
 

@@ -1027,7 +1027,10 @@ def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
     parts = []
     for key, text, scale, unit_name in (("timestamp_u_s", "counter single-shot timestamp", 1e9, "ns"),
                                         ("trigger_jitter_s", "zero-mark edge jitter", 1e9, "ns"),
-                                        ("timebase_limit_rel", "timebase limit", 1e6, "ppm")):
+                                        ("timebase_limit_rel", "timebase limit", 1e6, "ppm"),
+                                        ("time_tie_u_s", "time tie to the FOG axis (moves "
+                                         "the FOG window and the harmonics' phase, not the "
+                                         "counter's rate)", 1e6, "µs")):
         v = _num(first.get(key))
         if v is not None:
             parts.append(f"{text} {format_sig(v * scale, 2)} {unit_name}")

@@ -35,14 +35,18 @@ def counter_budget(stand_axis: dict[str, Any]) -> CounterBudget:
     """METHOD.md A1: dT = sqrt(d_counter^2 + d_trigger^2), plus the timebase."""
     c = stand_axis["counter"]
     profile = get_profile(c["model"])
-    return CounterBudget(timestamp_u_s=profile.single_shot_s,
+    tie = c.get("time_tie") or {}
+    return CounterBudget(time_tie_u_s=float(tie.get("latency_u_s", 0.0)),
+                         timestamp_u_s=profile.single_shot_s,
                          trigger_jitter_s=float(c.get("trigger_jitter_s", 0.0)),
                          timebase_limit_rel=float(c.get("timebase_limit_rel",
                                                         profile.timebase_limit_rel)))
 
 
-def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int) -> np.ndarray:
-    """The zero-mark edges in the counter's raw replies of one acquisition."""
+def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int,
+                       t_start_s: float = 0.0) -> np.ndarray:
+    """The zero-mark edges in the counter's raw replies of one acquisition, placed on the
+    FOG's axis by the start event the time tie gave during the run (journaled)."""
     fmt = get_profile(model).timestamp_format
     n_values = fmt.n_values(n_edges)
     found = None
@@ -57,7 +61,7 @@ def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int) 
             found = fmt.decode(values)
     if found is None:
         raise ValueError(f"no counter reply with {n_edges} timestamps in the raw log")
-    return found
+    return t_start_s + found
 
 
 class RawData:
@@ -95,7 +99,8 @@ class RawData:
         log = self.counter_log(session, axis)
         i0, i1 = e["counter_records"]
         model = self.cfg.stand_axis(axis)["counter"]["model"]
-        edges = edges_from_replies(log[i0:i1], model, e["turns"] + 1)
+        edges = edges_from_replies(log[i0:i1], model, e["turns"] + 1,
+                                   float(e.get("counter_t0_s", 0.0)))
         t, w = self.fog_slice(session, axis, e["fog_from"], e["fog_to"])
         return HalfRecord(int(math.copysign(1, e["set_rate_dps"])), edges, t, w)
 

@@ -208,6 +208,7 @@ class RateLadder(StepDispatch):
             ctx.clock.sleep(min(left, max(period / 4, 0.25)))
             drive.check()
         edges = counter.fetch()
+        acq = counter.last_acquisition
         if len(edges) != n + 1:
             raise Abort(f"{step.axis}: the counter returned {len(edges)} edges, expected {n + 1}")
         # the FOG samples that bracket the timed turns (the analysis integrates exactly
@@ -223,6 +224,7 @@ class RateLadder(StepDispatch):
                        s.rate_dps[s.valid]))
         ctx.run.event("acquire", axis=step.axis, unit=step.unit, half=p["half"],
                       set_rate_dps=p["rate_dps"], turns=n, edges_s=[float(e) for e in edges],
+                      counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
                       counter_records=[rec0, rec1], fog_from=i_from, fog_to=i_to,
                       rate_hz=fog.rate_hz, fog_lost=lost)
         if lost:

@@ -1,0 +1,64 @@
+"""A real stand (no sim: block) must state what no driver can guess (issue 11):
+the FOG's units (KVH power-on default: delta radians) and the counter's time tie."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from bench.config import ConfigError
+from bench.loader import load_config
+
+ROOT = Path(__file__).resolve().parents[1]
+PROCEDURE = """procedure: rate-ladder
+stand: stand.yaml
+turns: 4
+axes:
+  outer: {rates_dps: [10]}
+tolerance:
+  rate_error:
+    - {rel: 1.0e-6}
+"""
+STAND = """stand: {maker: A, model: B, serial: "1"}
+axes:
+  outer:
+    drive:   {interface: socketcan, channel: can0, node_id: 2, max_rate_dps: 400,
+              max_accel_dps2: 200%(factors)s}
+    counter: {resource: "TCPIP0::192.0.2.5::5025::SOCKET", model: keysight-53230a,
+              level_v: 2.5%(tie)s}
+    fog:     {port: /dev/ttyUSB0, format: kvh-a, axis: z, rate_hz: 1000%(units)s}
+"""
+TIE = ",\n              time_tie: {source: fog-sync, sync_period_s: 5, latency_s: 2.0e-6}"
+
+
+def load(tmp_path: Path, tie: str, units: str, factors: str = ", unit_factors: read"):
+    (tmp_path / "p.yaml").write_text(PROCEDURE)
+    (tmp_path / "stand.yaml").write_text(STAND % {"tie": tie, "units": units,
+                                                  "factors": factors})
+    return load_config(tmp_path / "p.yaml")
+
+
+def test_a_real_stand_without_fog_units_is_refused_by_file_line_key(tmp_path):
+    with pytest.raises(ConfigError) as e:
+        load(tmp_path, TIE, "")
+    assert "stand.yaml:9: axes.outer.fog: missing required key 'units'" in str(e.value)
+
+
+def test_a_real_stand_without_a_time_tie_is_refused(tmp_path):
+    with pytest.raises(ConfigError) as e:
+        load(tmp_path, "", ", units: rad, configure: verify")
+    assert "stand.yaml:6: axes.outer.counter: a real stand must state counter.time_tie" \
+        in str(e.value)
+
+
+def test_a_real_stand_without_drive_unit_factors_is_refused(tmp_path):
+    with pytest.raises(ConfigError) as e:
+        load(tmp_path, TIE, ", units: rad", factors="")
+    assert "stand.yaml:4: axes.outer.drive: a real stand must state drive.unit_factors" \
+        in str(e.value)
+
+
+def test_stated_it_validates(tmp_path):
+    cfg = load(tmp_path, TIE, ", units: deg/s, configure: set")
+    assert cfg.stand["axes"]["outer"]["fog"]["configure"] == "set"
