@@ -6,6 +6,8 @@ import argparse
 import sys
 
 from bench import commands
+from bench.dcc.command import COMMANDS as DCC_COMMANDS
+from bench.dcc.command import add_parsers as add_dcc_parsers
 from bench.decode import decode_command
 from bench.station.serve import cmd_serve
 
@@ -45,6 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="address to bind (127.0.0.1); another one needs --token")
     srv.add_argument("--token", help="token for stop requests and remote viewers "
                                      "(default: $BENCH_STATION_TOKEN, else one is made up)")
+    add_dcc_parsers(sub)
     return p
 
 
@@ -54,6 +57,8 @@ def main(argv: list[str] | None = None) -> int:
         return decode_command(args.raw_file, args.fmt, args.csv)
     if args.command == "serve":
         return cmd_serve(args)
+    if args.command in DCC_COMMANDS:
+        return DCC_COMMANDS[args.command](args)
     return commands.dispatch(args)
 
 

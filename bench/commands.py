@@ -17,8 +17,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from bench.certificate import write_certificate
+from bench import certificate as certificates
 from bench.config import Config, ConfigError
+from bench.dcc.command import write_run_dcc
 from bench.devices import list_devices
 from bench.engine import Abort, Engine, Progress, RunContext, SignalGuard
 from bench.examples import example_path
@@ -67,19 +68,20 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
 
 def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> tuple[dict[str, Any], bool]:
-    """result.json, then the certificate; returns the result and whether the certificate
-    was written (a run that leaves no certificate must not exit as if it had)."""
+    """result.json, then the certificate (PDF, HTML, DCC); returns the result and whether
+    the certificate was written (a run that leaves no certificate must not exit as if it
+    had, nor one whose DCC does not validate)."""
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json("result.json", result)
     try:
-        for path in write_certificate(run, result):
+        for path in certificates.write_certificate(run, result):
             progress.line(f"wrote {path}")
     except Exception as e:  # noqa: BLE001 - result.json stands; say what is missing
         traceback.print_exc(file=sys.stderr)            # a bug to report: keep its trace
         _err(f"the certificate could not be written: {e!r}; result.json is in {run.path}; "
              f"once fixed, `bench analyze {run.path}` writes it")
         return result, False
-    return result, True
+    return result, write_run_dcc(run.path, result, cfg.stand, progress.line)  # the DCC
 
 
 def _summary(result: dict[str, Any]) -> list[str]:

@@ -6,6 +6,7 @@ The schemas of the keys every procedure kind shares, and `Config`, what the load
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -13,6 +14,16 @@ from typing import Any
 from bench.canbus import bus_problems
 from bench.schema import Any_, Bool, Check, Date, Key, ListOf, Map, MapOf, Num, Str
 from bench.yamlfile import Problem, YamlDoc
+
+# -- what is physically plausible for a rate table (wider than any real bench) ----------
+#: a rate table's fastest axes turn some 10 000 deg/s; its slowest useful rate is around
+#: 0.001 deg/s (one turn in 100 h): anything outside is a typing slip, not a bench
+RATE_MIN_DPS, RATE_MAX_DPS = 1e-3, 20_000.0
+ACCEL_MAX_DPS2 = 100_000.0
+#: the counter's input range (a 10x probe on +/-5 V)
+LEVEL_MAX_V = 50.0
+#: one step of a plan longer than this (bench time) is refused: nobody runs it
+STEP_MAX_S = 7 * 86_400.0
 
 # -- stand file ---------------------------------------------------------------------
 
@@ -37,8 +48,9 @@ DRIVE = Map({
                               "this axis's controller node on the bus, whose heartbeat "
                               "the drive watches (default: highest id free on the bus)"),
     "bitrate": Key(Num(min=10_000, max=1_000_000, integer=True)),
-    "max_rate_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), True),
-    "max_accel_dps2": Key(Num(min=0, exclusive_min=True, unit="deg/s^2"), True),
+    "max_rate_dps": Key(Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"), True),
+    "max_accel_dps2": Key(Num(min=0, exclusive_min=True, max=ACCEL_MAX_DPS2,
+                              unit="deg/s^2"), True),
     "counts_per_rev": Key(Num(min=1, integer=True)),
     "heartbeat_ms": Key(Num(min=10, max=10_000, integer=True), False,
                         "controller heartbeat period; the drive watches it"),
@@ -60,13 +72,14 @@ COUNTER = Map({
     "resource": Key(Str(), True, "VISA resource string"),
     "model": Key(Str(), True, "counter profile"),
     "channel": Key(Num(min=1, max=4, integer=True)),
-    "level_v": Key(Num(unit="V")),
+    "level_v": Key(Num(min=-LEVEL_MAX_V, max=LEVEL_MAX_V, unit="V"), False,
+                   "absolute trigger level; required on a real stand (a twin defaults it)"),
     "slope": Key(Str(("POS", "NEG"))),
     "coupling": Key(Str(("DC", "AC"))),
     "impedance_ohm": Key(Num(min=0, exclusive_min=True)),
     "trigger_jitter_s": Key(Num(min=0, unit="s"), False, "slot sensor edge jitter, std"),
     "timebase_limit_rel": Key(Num(min=0), False, "timebase error limit (external reference)"),
-    "timeout_margin_s": Key(Num(min=0, exclusive_min=True, unit="s")),
+    "timeout_margin_s": Key(Num(min=0, exclusive_min=True, max=3600, unit="s")),
     "reference": Key(Str(("internal", "external")), False,
                      "the timebase reference the stand claims; read back from the counter "
                      "where it can say (53230A ROSC:SOUR?), a false claim is refused"),
@@ -87,11 +100,11 @@ COUNTER = Map({
 })
 FOG = Map({
     "port": Key(Str(), True, "serial port, e.g. /dev/ttyUSB0"),
-    "baudrate": Key(Num(min=1200, integer=True)),
+    "baudrate": Key(Num(min=1200, max=16_000_000, integer=True)),
     "format": Key(Str(), False, "frame format, e.g. kvh-a"),
     "axis": Key(Str(("x", "y", "z"))),
-    "rate_hz": Key(Num(min=0, exclusive_min=True, unit="Hz"), True),
-    "range_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
+    "rate_hz": Key(Num(min=1, max=100_000, unit="Hz"), True),
+    "range_dps": Key(Num(min=0, exclusive_min=True, max=100_000, unit="deg/s")),
     "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), True,
                   "what the rotational fields carry; KVH's power-on default is delta "
                   "radians, 'rad' (1775 IMU Technical Manual, Table 5-10)"),
@@ -136,6 +149,28 @@ SIM_KEYS: dict[str, Key] = {
     "clock_speed": Key(Num(min=0, exclusive_min=True), False, "virtual seconds per real one"),
     "axes": Key(MapOf(SIM_AXIS)),
 }
+
+
+def _absolute_path(value: Any) -> str | None:
+    """A key or certificate is named by its path, never pasted in (the stand file is
+    copied into every run directory); relative paths would depend on the cwd."""
+    if isinstance(value, str) and "-----BEGIN" in value:
+        return "expected the path of a PEM file, not the key or certificate itself"
+    if isinstance(value, str) and not Path(os.path.expanduser(value)).is_absolute():
+        return f"expected an absolute path (or ~/...), got {value!r}"
+    return None
+
+
+ABSOLUTE_PATH = Check(Str(), _absolute_path)
+SIGNING = Map({    # the DCC's signing key (bench/dcc/settings.py, docs/dcc.md)
+    "key": Key(ABSOLUTE_PATH, True, "PEM private key (PKCS#8 or traditional), absolute path"),
+    "certificate": Key(ABSOLUTE_PATH, True, "PEM X.509 certificate of that key, chain after"),
+    "password_env": Key(Str(), False, "environment variable holding the key's password"),
+})
+STAND_DCC = Map({
+    "lab": Key(ABSOLUTE_PATH, False, "lab settings file (YAML), absolute path"),
+    "signing": Key(SIGNING),
+})
 IDENTITY = Map({"maker": Key(Str(), True), "model": Key(Str(), True),
                 "serial": Key(Str(), True), "location": Key(Str())})
 
@@ -151,6 +186,7 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
         "sim": Key(Map({**SIM_KEYS, **(extra_sim or {})})),
         "traceability": Key(ListOf(TRACEABLE), False, "references and sensors the bench "
                             "does not drive, with their calibration certificates"),
+        "dcc": Key(STAND_DCC, False, "DCC: lab settings file, signing key (paths only)"),
         **(extra_top or {}),
     })
 

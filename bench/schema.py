@@ -32,6 +32,14 @@ def _type_name(value: Any) -> str:
             list: "a list", dict: "a mapping"}.get(type(value), type(value).__name__)
 
 
+def _finite(value: int | float) -> bool:
+    """Finite and usable as a float (an integer of 400 digits is not)."""
+    try:
+        return math.isfinite(value) and abs(float(value)) < 1e300
+    except OverflowError:
+        return False
+
+
 @dataclass(frozen=True)
 class Num(Node):
     """A real number (int or float) within optional bounds."""
@@ -55,7 +63,7 @@ class Num(Node):
 
     def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         ok_type = isinstance(value, int) if self.integer else isinstance(value, int | float)
-        if isinstance(value, bool) or not ok_type or not math.isfinite(value):
+        if isinstance(value, bool) or not ok_type or not _finite(value):
             out.append(doc.problem(path, f"expected {self.description}, got {_type_name(value)}"
                                          f" {value!r}"))
             return

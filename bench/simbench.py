@@ -129,6 +129,8 @@ class SimBench:
                                      external_reference=bool((sim_axes.get(a) or {}).get(
                                          "counter_external_reference", False)))
                     c["resource"] = ct.start()
+                    # the twin knows its zero-mark signal: mid-swing is a sound level
+                    c.setdefault("level_v", sum(ct.signal_v) / 2)
                     self._stack.callback(ct.stop)
                     self.twins[f"{a}.counter"] = ct
             for factory in extra or []:

@@ -84,46 +84,171 @@ class YamlError(Exception):
         self.problem = problem
 
 
-def _build(node: yaml.Node, path: KeyPath, lines: dict[KeyPath, int],
-           loader: yaml.SafeLoader) -> Any:
-    lines.setdefault(path, node.start_mark.line + 1)
-    if isinstance(node, yaml.MappingNode):
-        out: dict[str, Any] = {}
-        for key_node, value_node in node.value:
-            key = loader.construct_object(key_node, deep=True)
-            sub = (*path, key)
-            if key in out:
-                raise YamlError(Problem("", key_node.start_mark.line + 1, keypath_str(sub),
-                                        "duplicate key"))
-            lines[sub] = key_node.start_mark.line + 1
-            out[key] = _build(value_node, sub, lines, loader)
-        return out
-    if isinstance(node, yaml.SequenceNode):
-        return [_build(item, (*path, i), lines, loader) for i, item in enumerate(node.value)]
-    return loader.construct_object(node, deep=True)
+#: deeper than this is not a bench file (and would exhaust Python's stack)
+MAX_DEPTH = 64
+#: values built from one file; aliases can multiply a small file into millions
+MAX_VALUES = 200_000
+
+
+class _Builder:
+    """Plain data from a node tree, refusing what no bench file needs and what would
+    crash the loader: recursive aliases, deep nesting, alias bombs, lists as keys."""
+
+    def __init__(self, loader: yaml.SafeLoader) -> None:
+        self.loader = loader
+        self.lines: dict[KeyPath, int] = {}
+        self.count = 0
+        self._open: set[int] = set()  # ids of the collections being built (alias loops)
+
+    def _refuse(self, node: yaml.Node, path: KeyPath, message: str) -> YamlError:
+        return YamlError(Problem("", node.start_mark.line + 1, keypath_str(path), message))
+
+    def _scalar(self, node: yaml.Node, path: KeyPath) -> Any:
+        try:
+            return self.loader.construct_object(node, deep=True)
+        except yaml.MarkedYAMLError as e:
+            raise self._refuse(node, path, f"YAML: {e.problem or e.context}") from None
+        except (ValueError, TypeError, OverflowError) as e:  # e.g. a date 2024-13-45
+            raise self._refuse(node, path, f"cannot read the value {node.value!r}: "
+                                           f"{e}") from None
+
+    def build(self, node: yaml.Node, path: KeyPath = ()) -> Any:
+        self.lines.setdefault(path, node.start_mark.line + 1)
+        self.count += 1
+        if self.count > MAX_VALUES:
+            raise self._refuse(node, path, f"more than {MAX_VALUES} values (aliases "
+                                           "repeating a large block?)")
+        if len(path) > MAX_DEPTH:
+            raise self._refuse(node, path[:8], f"nested deeper than {MAX_DEPTH} levels")
+        if not isinstance(node, yaml.MappingNode | yaml.SequenceNode):
+            return self._scalar(node, path)
+        if id(node) in self._open:
+            raise self._refuse(node, path, "an alias refers to a collection it is inside "
+                                           "(a recursive alias)")
+        self._open.add(id(node))
+        try:
+            if isinstance(node, yaml.SequenceNode):
+                return [self.build(item, (*path, i)) for i, item in enumerate(node.value)]
+            out: dict[Any, Any] = {}
+            for key_node, value_node in node.value:
+                if not isinstance(key_node, yaml.ScalarNode):
+                    kind = "a list" if isinstance(key_node, yaml.SequenceNode) else "a mapping"
+                    raise self._refuse(key_node, (*path, "?"),
+                                       f"a key must be a name, not {kind}")
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    raise self._refuse(key_node, (*path, "<<"), "merge keys (<<) are not "
+                                                                "supported; write the keys")
+                key = self._scalar(key_node, (*path, "?"))
+                if not isinstance(key, str | int | float | bool) and key is not None:
+                    raise self._refuse(key_node, (*path, "?"),
+                                       f"a key must be a name, not {type(key).__name__}")
+                sub = (*path, key)
+                if key in out:
+                    raise self._refuse(key_node, sub, "duplicate key")
+                self.lines[sub] = key_node.start_mark.line + 1
+                out[key] = self.build(value_node, sub)
+            return out
+        finally:
+            self._open.discard(id(node))
+
+
+def _syntax_path(text: str) -> tuple[KeyPath, int | None]:
+    """The key path of the innermost collection open where the parser gave up, and the
+    line it was opened on: "rates_dps: [10, 20" unclosed is reported at rates_dps, not
+    at the next line where the parser noticed."""
+    frames: list[list[Any]] = []  # [path, is_map, expecting_key, key_or_index, line]
+
+    def child_path() -> KeyPath:
+        if not frames:
+            return ()
+        path, is_map, expecting_key, k, _ = frames[-1]
+        return (*path, "?") if is_map and expecting_key else (*path, k)
+
+    def advance() -> None:
+        if frames:
+            f = frames[-1]
+            if f[1]:
+                f[2] = not f[2]
+            else:
+                f[3] += 1
+
+    try:
+        for ev in yaml.parse(text, Loader=_Loader):
+            if isinstance(ev, yaml.MappingStartEvent | yaml.SequenceStartEvent):
+                frames.append([child_path(), isinstance(ev, yaml.MappingStartEvent), True,
+                               0, ev.start_mark.line + 1])
+            elif isinstance(ev, yaml.MappingEndEvent | yaml.SequenceEndEvent):
+                frames.pop()
+                advance()
+            elif isinstance(ev, yaml.ScalarEvent | yaml.AliasEvent):
+                if frames and frames[-1][1] and frames[-1][2]:
+                    frames[-1][3] = getattr(ev, "value", "?")
+                advance()
+    except (yaml.YAMLError, RecursionError):
+        pass
+    if not frames:
+        return (), None
+    return frames[-1][0], frames[-1][4]
+
+
+def _line_of_offset(text: str, offset: int) -> int:
+    return text.count("\n", 0, max(offset, 0)) + 1
 
 
 def load_yaml(path: str | Path) -> YamlDoc:
-    """Parse a YAML file into plain data plus key-path lines; YamlError if unreadable."""
+    """Parse a YAML file into plain data plus key-path lines; YamlError if unreadable.
+
+    Never raises anything else, whatever the bytes: `bench validate` answers every file
+    with its problems (file, line, key), not a traceback.
+    """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        raw = p.read_bytes()
     except FileNotFoundError:
         raise YamlError(Problem(str(p), None, "(file)", "file not found")) from None
-    except OSError as e:
-        raise YamlError(Problem(str(p), None, "(file)", f"cannot read: {e.strerror}")) from None
-    loader = _Loader(text)
+    except (OSError, ValueError) as e:
+        why = e.strerror if isinstance(e, OSError) and e.strerror else str(e)
+        raise YamlError(Problem(str(p), None, "(file)", f"cannot read: {why}")) from None
     try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = raw.count(b"\n", 0, e.start) + 1
+        raise YamlError(Problem(str(p), line, "(file)", f"not UTF-8 text: byte "
+                                f"0x{raw[e.start]:02x} at offset {e.start}")) from None
+    loader: _Loader | None = None
+    try:
+        loader = _Loader(text)
         node = loader.get_single_node()
-        lines: dict[KeyPath, int] = {}
-        data = _build(node, (), lines, loader) if node is not None else None
+        builder = _Builder(loader)
+        data = builder.build(node) if node is not None else None
+        lines = builder.lines or {(): 1}  # an empty file: its problems are on line 1
+    except yaml.reader.ReaderError as e:
+        char = f"U+{e.character:04X}" if isinstance(e.character, int) else repr(e.character)
+        raise YamlError(Problem(str(p), _line_of_offset(text, e.position), "(file)",
+                                f"control character {char} is not allowed in YAML "
+                                f"(offset {e.position})")) from None
     except yaml.MarkedYAMLError as e:
-        mark = e.problem_mark or e.context_mark
-        line = mark.line + 1 if mark else None
+        where, opened = _syntax_path(text)
+        noticed = e.problem_mark.line + 1 if e.problem_mark else None
+        line = opened if opened is not None and "flow" in (e.context or "") else noticed
         msg = f"YAML syntax: {e.problem or e.context}"
-        raise YamlError(Problem(str(p), line, "(syntax)", msg)) from None
+        if e.context and e.problem:
+            msg += f" ({e.context}"
+            msg += f" opened at line {e.context_mark.line + 1})" if e.context_mark else ")"
+        if noticed is not None and noticed != line:
+            msg += f"; noticed at line {noticed}"
+        key = keypath_str(where) if where else "(syntax)"
+        raise YamlError(Problem(str(p), line, key, msg)) from None
+    except yaml.YAMLError as e:
+        raise YamlError(Problem(str(p), None, "(syntax)", f"YAML: {e}")) from None
+    except RecursionError:
+        line = getattr(loader, "line", None)
+        raise YamlError(Problem(str(p), line + 1 if isinstance(line, int) else None,
+                                "(syntax)", f"nested too deeply (more than {MAX_DEPTH} "
+                                "levels)")) from None
     except YamlError as e:
         raise YamlError(Problem(str(p), e.problem.line, e.problem.key, e.problem.message)) from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
     return YamlDoc(p, data, lines)

@@ -80,8 +80,9 @@ class TimestampFormat:
     name = ""
 
     def encode(self, edges_s: np.ndarray, t_start_s: float, digits: int,
-               exp_digits: int) -> str:
-        """The twin's reply for edges at `edges_s`, the start event at `t_start_s`."""
+               exp_digits: int, first_index: int = 0) -> str:
+        """The twin's reply for edges at `edges_s`, the start event at `t_start_s`;
+        `first_index` is the first edge's place in the acquisition (a later chunk)."""
         raise NotImplementedError
 
     def decode(self, values: np.ndarray) -> np.ndarray:
@@ -111,7 +112,7 @@ class KeysightTimestamps(TimestampFormat):
     name = "keysight-tst"
 
     def encode(self, edges_s: np.ndarray, t_start_s: float, digits: int,
-               exp_digits: int) -> str:
+               exp_digits: int, first_index: int = 0) -> str:
         intervals = np.diff(np.concatenate([[t_start_s], np.asarray(edges_s, float)]))
         return ",".join(["+1"] + [nr3(t, digits, exp_digits) for t in intervals])
 
@@ -150,8 +151,8 @@ class PendulumStst(TimestampFormat):
     name = "pendulum-stst"
 
     def encode(self, edges_s: np.ndarray, t_start_s: float, digits: int, exp_digits: int,
-               x0: int = 1) -> str:
-        return ",".join(f"{x0 + i},{nr3(t - t_start_s, digits, exp_digits)}"
+               first_index: int = 0) -> str:
+        return ",".join(f"{first_index + i + 1},{nr3(t - t_start_s, digits, exp_digits)}"
                         for i, t in enumerate(edges_s))
 
     def decode(self, values: np.ndarray) -> np.ndarray:

@@ -45,6 +45,7 @@ from drivers.fog_formats import (
     get_format,
 )
 from drivers.kvh_config import MODES, FogSettings, KvhConfigError, KvhConfigurator
+from drivers.waits import MAX_LATE_REAL_S, MIN_REAL_MARGIN_S
 
 __all__ = ["FORMATS", "DecodeState", "DecodeStats", "Fog", "FogError", "FogSamples",
            "FogStats", "FogTimeout", "Frames", "StreamDecoder", "decode", "dps_per_unit",
@@ -55,7 +56,6 @@ RATE_UNITS = ("deg/s", "rad/s", "deg", "rad")
 
 _READ_TIMEOUT_S = 0.05     # real seconds a read waits for the first byte
 _BATCH_BYTES = 1 << 16     # decode in batches of up to this many bytes
-_WAIT_MARGIN_S = 0.25      # real seconds added to every scaled wait
 _STALL_FRAMES = 64         # a silence this many frame periods long is a stall,
 _STALL_REAL_S = 0.1        # ... and at least this many real seconds (OS, USB latency)
 _ALIAS_MIN_REAL_S = 0.02   # the wrap check needs half a wrap to last this long in real time
@@ -214,14 +214,15 @@ class Fog:
 
     `rate_hz` is the FOG's output rate (from the stand file), `units` what its
     rotational data mean, `axis` which of x, y, z is the table axis's sensitive axis.
-    Real-time waits are `timeout_s / clock.speed` plus a margin.
+    Real-time waits are `timeout_s / clock.speed` plus a margin (drivers/waits.py).
     """
 
     def __init__(self, port: str, *, baudrate: int = 921600, fmt: str = "kvh-a",
                  axis: str = "z", rate_hz: float, units: str | None,
                  raw_path: Path | str | None, clock: Clock, model: str | None = None,
                  serial_kwargs: dict[str, Any] | None = None,
-                 configure: str = "declare") -> None:
+                 configure: str = "declare",
+                 wait_margin_s: float = MIN_REAL_MARGIN_S) -> None:
         if units is None:
             raise FogError(
                 f"FOG on {port}: the stand names no fog.units; a KVH FOG's rotational data "
@@ -250,6 +251,8 @@ class Fog:
         self.clock = clock
         self.model = model
         self._serial_kwargs = dict(serial_kwargs or {})
+        #: real seconds a wait allows beyond its scaled time, and of silence before it fails
+        self.wait_margin_s = float(wait_margin_s)
         self._axis_col = AXES.index(axis)
         self._valid_mask = 1 << self.format.valid_bits[axis]
         self._ser: serial.Serial | None = None
@@ -427,14 +430,35 @@ class Fog:
             return self._store.end
 
     def wait_for_index(self, i: int, timeout_s: float) -> None:
-        """Block until sample i is known; timeout_s on the clock, scaled to real time."""
-        real_s = timeout_s / self.clock.speed + _WAIT_MARGIN_S
+        """Block until sample i is known.
+
+        The limit is `timeout_s` on the clock scaled to real time plus a margin of at least
+        `wait_margin_s` (drivers/waits.py), and it is only reached once the stream has
+        also been silent for that margin: samples still arriving late mean a slow host
+        (or a twin behind its clock), which slows the run but must not abort it, up to
+        `MAX_LATE_REAL_S` beyond the limit (a stream that never catches up is a fault).
+        """
+        start = time.monotonic()
+        deadline = start + timeout_s / self.clock.speed + self.wait_margin_s
+        last_end, last_progress = -1, start
+        ok = True
         with self._cond:
-            ok = self._cond.wait_for(
-                lambda: self._store.end > i or self._thread is None
-                or not self._thread.is_alive(), timeout=real_s)
-            if self._store.end > i:
-                return
+            while True:
+                done = self._cond.wait_for(
+                    lambda: self._store.end > i or self._thread is None
+                    or not self._thread.is_alive(),
+                    timeout=max(min(deadline - time.monotonic(), 0.5), 0.01))
+                if self._store.end > i:
+                    return
+                if done:        # the reader has stopped
+                    break
+                now = time.monotonic()
+                if self._store.end != last_end:
+                    last_end, last_progress = self._store.end, now
+                if now >= deadline and (now - last_progress >= self.wait_margin_s
+                                        or now >= deadline + MAX_LATE_REAL_S):
+                    ok = False
+                    break
         if self.last_error:
             raise FogError(self.last_error)
         if not ok:

@@ -222,7 +222,7 @@ class CounterTwin(ScpiServer):
         assert acq.values is not None
         return acq.values
 
-    def _encode(self, acq: TwinAcquisition, values: np.ndarray) -> str:
+    def _encode(self, acq: TwinAcquisition, values: np.ndarray, first: int = 0) -> str:
         p = self.profile
         if acq.kind == "timestamps":
             fmt = TIMESTAMP_FORMATS[p.timestamps or ""]
@@ -231,7 +231,7 @@ class CounterTwin(ScpiServer):
             nan = values >= 0.999 * SCPI_NAN
             text = fmt.encode(np.where(nan, acq.t_start_s, values), acq.t_start_s,
                               self._time_digits(values[~nan] - acq.t_start_s),
-                              p.reply_exp_digits)
+                              p.reply_exp_digits, first)
             return _nan_tail(text, int(nan.sum()))
         return encode_values(values, p.reply_digits, p.reply_exp_digits)
 
@@ -396,9 +396,9 @@ class CounterTwin(ScpiServer):
         n = min(left, limit) if count.startswith("MAX") else int(number_param(count, {}))
         if not 1 <= n <= min(left, limit):
             raise ExecError(-222, "Data out of range")
-        part = values[acq.fetched:acq.fetched + n]
+        first = acq.fetched
         acq.fetched += n
-        return self._encode(acq, part)
+        return self._encode(acq, values[first:first + n], first)
 
     def _read(self, a: Mapping[str, str]) -> str:
         if self.function is None:

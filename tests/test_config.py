@@ -50,9 +50,8 @@ def test_bad_yaml_syntax(files: tuple[Path, Path], capsys: pytest.CaptureFixture
     line = _replace(proc, "turns: 4", "turns: [4")
     rc, err = _validate(proc, capsys)
     assert rc == 2
-    m = re.search(rf"{re.escape(str(proc))}:(\d+): \(syntax\): YAML syntax", err)
-    assert m, err
-    assert int(m.group(1)) >= line
+    # reported where the broken list opens, at its key, not where the parser noticed
+    assert f"{proc}:{line}: turns: YAML syntax" in err, err
 
 
 def test_unknown_key_is_named_with_its_line(files: tuple[Path, Path],

@@ -166,8 +166,9 @@ def test_units_and_axis_from_config(tmp_path: Path, units: str, axis_letter: str
 
 
 def test_lossless_stall_times_out_then_catches_up(tmp_path: Path) -> None:
-    # 30 s of silence at speed 50 is 0.6 s real, longer than the wait's real margin
+    # 30 s of silence at speed 50 is 0.6 s real, longer than the (shortened) real margin
     with rig(tmp_path, Stall(500, 30.0), speed=50.0) as (fog, _, _):
+        fog.wait_margin_s = 0.25  # shorter than the bench's minimum, to see the timeout soon
         with pytest.raises(FogTimeout, match="sample 2000"):
             fog.wait_for_index(2000, timeout_s=1.0)
         wait(fog, 32_000)
@@ -199,7 +200,8 @@ def test_wait_timeout_is_scaled_by_clock_speed(tmp_path: Path) -> None:
     clock = VirtualClock(100.0, running=False)  # never started: no frame ever comes
     stand = SimulatedStand(StandTruth(seed=1, axes={"outer": AxisTruth()}), {"outer": 1000}, clock)
     with FogTwin(stand, "outer") as twin, Fog(twin.path, rate_hz=1000, raw_path=None,
-                                              clock=clock, units="rad") as fog:
+                                              clock=clock, units="rad",
+                                              wait_margin_s=0.25) as fog:
         t0 = time.monotonic()
         with pytest.raises(FogTimeout, match="sample 0 .* within 50 s"):
             fog.wait_for_index(0, timeout_s=50.0)      # 0.5 s real + margin

@@ -14,7 +14,7 @@ import math
 from typing import Any
 
 from bench.analysis.window import HalfRecord
-from bench.config import Config, check_axis_names, stand_schema
+from bench.config import STEP_MAX_S, Config, check_axis_names, stand_schema
 from bench.engine import Abort, RunContext
 from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, open_axis
 from bench.journal import RunDir
@@ -52,9 +52,20 @@ class RateLadder(StepDispatch):
                 if not stand_axis.get(what):
                     out.append(sdoc.problem(("axes", axis), f"the rate ladder needs a {what} "
                                                             f"on axis {axis!r}"))
+            counter = stand_axis.get("counter")
+            if counter and "level_v" not in counter and not cfg.has_sim:
+                # the counter refuses to arm without it; say so before anything moves
+                out.append(sdoc.problem(("axes", axis, "counter"), "missing level_v: a real "
+                                        "stand needs an absolute trigger level in volts (a "
+                                        "once-per-rev pulse is too slow for auto-level)"))
             fog_range = (fog or {}).get("range_dps", DEFAULT_FOG_RANGE_DPS)
+            turns = int(spec.get("turns", setting(cfg, "turns")))
             for i, rate in enumerate(spec["rates_dps"]):
                 where = ("axes", axis, "rates_dps", i)
+                if (turns + 1) * 360.0 / rate > STEP_MAX_S:
+                    out.append(pdoc.problem(where, f"{turns} turns at {rate:g} deg/s take "
+                               f"{format_duration(turns * 360.0 / rate)} of bench time per "
+                               f"direction (more than {format_duration(STEP_MAX_S)})"))
                 if rate > drive["max_rate_dps"]:
                     out.append(pdoc.problem(where, f"{rate:g} deg/s exceeds axis {axis!r}'s "
                                f"max_rate_dps {drive['max_rate_dps']:g} "

@@ -4,24 +4,33 @@ from __future__ import annotations
 
 from typing import Any
 
-from bench.config import COMMON_PROCEDURE_KEYS, Config
+from bench.config import (
+    ACCEL_MAX_DPS2,
+    COMMON_PROCEDURE_KEYS,
+    RATE_MAX_DPS,
+    RATE_MIN_DPS,
+    STEP_MAX_S,
+    Config,
+)
 from bench.schema import Key, ListOf, Map, MapOf, Num, Str
 
 NAME = "rate-ladder"
 
 BAND = Map({
-    "below_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), False,
+    "below_dps": Key(Num(min=0, exclusive_min=True, max=RATE_MAX_DPS, unit="deg/s"), False,
                      "the band applies to rates below this; omit on the last band"),
-    "rel": Key(Num(min=0, exclusive_min=True), True, "tolerance, a fraction (1e-6 = 1 ppm)"),
+    "rel": Key(Num(min=0, exclusive_min=True, max=1), True,
+               "tolerance, a fraction (1e-6 = 1 ppm)"),
 })
 SETTLE = Map({
-    "tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
-    "tolerance_rel": Key(Num(min=0, exclusive_min=True)),
-    "hold_s": Key(Num(min=0, unit="s")),
-    "timeout_s": Key(Num(min=0, exclusive_min=True, unit="s")),
+    "tolerance_dps": Key(Num(min=0, exclusive_min=True, max=100, unit="deg/s")),
+    "tolerance_rel": Key(Num(min=0, exclusive_min=True, max=1)),
+    "hold_s": Key(Num(min=0, max=86_400, unit="s")),
+    "timeout_s": Key(Num(min=0, exclusive_min=True, max=STEP_MAX_S, unit="s")),
 })
 AXIS = Map({
-    "rates_dps": Key(ListOf(Num(min=0, exclusive_min=True, unit="deg/s"), min_len=1), True),
+    "rates_dps": Key(ListOf(Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"),
+                            min_len=1), True),
     "turns": Key(Num(min=1, max=10_000, integer=True)),
     "prompt": Key(Str(), False, "what the operator must do before this axis"),
 })
@@ -29,11 +38,12 @@ PROCEDURE = Map({
     **COMMON_PROCEDURE_KEYS,
     "turns": Key(Num(min=1, max=10_000, integer=True), False, "turns per rate and direction"),
     "sequence": Key(Str(("+-", "+-+")), False, "order of the halves of a pair"),
-    "accel_dps2": Key(Num(min=0, exclusive_min=True, unit="deg/s^2")),
+    "accel_dps2": Key(Num(min=0, exclusive_min=True, max=ACCEL_MAX_DPS2, unit="deg/s^2")),
     "settle": Key(SETTLE),
-    "static_record_s": Key(Num(min=0, unit="s"), False, "FOG at rest per axis (noise floor)"),
+    "static_record_s": Key(Num(min=0, max=86_400, unit="s"), False,
+                           "FOG at rest per axis (noise floor)"),
     "harmonics": Key(Num(min=1, max=20, integer=True), False, "orders 1..H fitted in angle"),
-    "mains_hz": Key(Num(min=0, exclusive_min=True, unit="Hz")),
+    "mains_hz": Key(Num(min=1, max=1000, unit="Hz")),
     "axes": Key(MapOf(AXIS, min_len=1), True),
     "tolerance": Key(Map({
         "rate_error": Key(ListOf(BAND, min_len=1)),
