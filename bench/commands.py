@@ -17,11 +17,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from bench import __version__
 from bench import certificate as certificates
+from bench.certificate.model import Document
 from bench.config import Config, ConfigError
+from bench.console import PlainConsole, open_console
 from bench.dcc.command import write_run_dcc
 from bench.devices import list_devices
-from bench.engine import Abort, Engine, Progress, RunContext, SignalGuard
+from bench.engine import Abort, Engine, RunContext, SignalGuard
 from bench.examples import example_path
 from bench.instruments import StandClaimError, check_references
 from bench.journal import RunDir
@@ -29,7 +32,7 @@ from bench.lab import lab_path
 from bench.loader import load_config
 from bench.plan import format_duration
 from bench.registry import procedure_kind
-from bench.summary import summary_lines
+from bench.summary import Summary, summarize
 from bench.traceability import overdue, overdue_warning
 from drivers.clock import MonotonicClock
 
@@ -67,25 +70,33 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return EXIT_PASS
 
 
-def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> tuple[dict[str, Any], bool]:
-    """result.json, then the certificate (PDF, HTML, DCC); returns the result and whether
-    the certificate was written (a run that leaves no certificate must not exit as if it
-    had, nor one whose DCC does not validate)."""
+def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole
+                   ) -> tuple[dict[str, Any], Document | None]:
+    """result.json, then the certificate (PDF, HTML, DCC); returns the result and the
+    certificate's document (None when it could not be written: a run that leaves no
+    certificate must not exit as if it had, nor one whose DCC does not validate)."""
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json("result.json", result)
     try:
-        for path in certificates.write_certificate(run, result):
+        documents: list[Document] = []
+        for path in certificates.write_certificate(run, result, documents=documents):
             progress.line(f"wrote {path}")
+        doc = documents[-1]
     except Exception as e:  # noqa: BLE001 - result.json stands; say what is missing
         traceback.print_exc(file=sys.stderr)            # a bug to report: keep its trace
-        _err(f"the certificate could not be written: {e!r}; result.json is in {run.path}; "
-             f"once fixed, `bench analyze {run.path}` writes it")
-        return result, False
-    return result, write_run_dcc(run.path, result, cfg.stand, progress.line)  # the DCC
+        progress.warn(f"the certificate could not be written: {e!r}; result.json is in "
+                      f"{run.path}; once fixed, `bench analyze {run.path}` writes it")
+        return result, None
+    if not write_run_dcc(run.path, result, cfg.stand, progress.line):  # the DCC
+        return result, None
+    return result, doc
 
 
-def _summary(result: dict[str, Any]) -> list[str]:
-    return summary_lines(result)
+def _summary(result: dict[str, Any], doc: Document | None) -> Summary:
+    """The certificate's figures; without a certificate, only the verdict."""
+    if doc is not None:
+        return summarize(doc)
+    return Summary((), (), "", str(result.get("verdict", "incomplete")).upper())
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -117,7 +128,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     if run is None:
         run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path,
                             lab_path(cfg.procedure_path, cfg.procedure.get("certificate")))
-    status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume))
+    console = open_console(quiet=args.quiet, log_json=args.log_json)
+    status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),
+                         progress=console)
     print(run.path)
     return status
 
@@ -126,14 +139,14 @@ SimHook = Callable[[Any], None]
 
 
 def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = False,
-                resume: bool = False, progress: Progress | None = None,
+                resume: bool = False, progress: PlainConsole | None = None,
                 on_sim_started: SimHook | None = None) -> int:
     """One session of a run (the first, or a --resume): returns the exit status.
 
     Whatever happens inside, the axes are stopped, the instruments closed, what was
     measured is analyzed, and the run directory is left ready for `--resume`.
     """
-    progress = progress or Progress()
+    progress = progress or open_console()
     kind = procedure_kind(cfg.kind)
     plan = kind.build_plan(cfg)
     done = run.completed_units()
@@ -153,6 +166,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             run.begin_session(clock.now)
             run.event("session_start", resume=resume, sim=simbench is not None,
                       done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
+                      version=__version__, prompts="--yes" if yes else "operator",
                       pid=os.getpid())
             for t in overdue(cfg.stand, dt.datetime.now(dt.UTC).date()):
                 progress.line(overdue_warning(t))
@@ -179,14 +193,14 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             run.event("completed", wall_s=time.monotonic() - t0)
             status = EXIT_PASS
         except Abort as e:
-            _err(f"Aborted: {e}")
+            progress.warn(f"Aborted: {e}")
             status = EXIT_ABORTED
         except StandClaimError as e:  # raised while opening: no axis was commanded yet
             _err(f"Refused: {cfg.stand_path}: {e}")
             run.event("refused", reason=str(e))
             status = EXIT_INVALID
         except Exception as e:  # noqa: BLE001 - opening failed before the engine ran
-            _err(f"Aborted while setting up the bench: {e}")
+            progress.warn(f"Aborted while setting up the bench: {e}")
             if bench is not None:
                 bench.safe_stop(progress.line)
             if run.session:
@@ -194,27 +208,28 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             status = EXIT_ABORTED
         finally:
             guard.stopping = True
+            progress.close()
             if bench is not None:
                 bench.close()
             if simbench is not None:
                 simbench.stop()
-        certificate = False
+        doc: Document | None = None
         result = None
         try:
             if status != EXIT_INVALID:  # a refused stand measured nothing: nothing to issue
-                result, certificate = _write_outputs(run, cfg, progress)
+                result, doc = _write_outputs(run, cfg, progress)
         except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
-            _err(f"analysis failed: {e!r}; the raw data is in {run.path}; "
-                 f"fix and run `bench analyze {run.path}`")
+            progress.warn(f"analysis failed: {e!r}; the raw data is in {run.path}; "
+                          f"fix and run `bench analyze {run.path}`")
             result = None
             status = EXIT_ABORTED  # no verdict without an analysis
         if result is not None:
-            print("\n".join(_summary(result)))
+            progress.summary(_summary(result, doc))
             if status == EXIT_PASS and result.get("verdict") == "fail":
                 status = EXIT_FAIL
             if status == EXIT_PASS and result.get("verdict") == "incomplete":
                 status = EXIT_ABORTED
-        if status in (EXIT_PASS, EXIT_FAIL) and not certificate:
+        if status in (EXIT_PASS, EXIT_FAIL) and doc is None:
             status = EXIT_ABORTED  # measured, but nothing to sign: not a completed run
         elif status == EXIT_ABORTED:
             print(f"The run was aborted; the axes were stopped. Continue with: "
@@ -234,10 +249,11 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     cfg = _load(str(run.procedure_file), run.stand_file)
     if cfg is None:
         return EXIT_INVALID
-    result, certificate = _write_outputs(run, cfg, Progress())
-    print("\n".join(_summary(result)))
+    console = open_console(quiet=args.quiet, log_json=args.log_json)
+    result, doc = _write_outputs(run, cfg, console)
+    console.summary(_summary(result, doc))
     print(run.path / "result.json")
-    if not certificate:
+    if doc is None:
         return EXIT_ABORTED
     return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(result.get("verdict"), EXIT_ABORTED)
 

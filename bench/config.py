@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.canbus import bus_problems
-from bench.schema import Any_, Bool, Check, Date, Key, ListOf, Map, MapOf, Num, Str
+from bench.schema import Any_, Bool, Check, Date, Key, ListOf, Map, MapOf, Num, OneOf, Str
 from bench.yamlfile import Problem, YamlDoc
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
@@ -146,7 +146,8 @@ SIM_AXIS = Map({
 })
 SIM_KEYS: dict[str, Key] = {
     "seed": Key(Num(min=0, integer=True)),
-    "clock_speed": Key(Num(min=0, exclusive_min=True), False, "virtual seconds per real one"),
+    "clock_speed": Key(OneOf(Num(min=0, exclusive_min=True), Str(("max",))), False,
+                       "virtual seconds per real one, or max: as fast as every twin keeps up"),
     "axes": Key(MapOf(SIM_AXIS)),
 }
 

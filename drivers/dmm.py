@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.clock import Clock
+from drivers.clock import Clock, real_budget_s
 from drivers.scpi import (
     ABORT,
     CLS,
@@ -257,7 +257,8 @@ class Digitizer(ProfiledInstrument[DmmProfile]):
         setup, armed = self.setup, self._armed_real_s
         self._armed_real_s = None
         span_real = setup.duration_s * (1.0 + SPAN_SLACK_REL) / self.clock.speed
-        deadline = armed + span_real + self.timeout_margin_s
+        deadline = armed + real_budget_s(self.clock, setup.duration_s * (1.0 + SPAN_SLACK_REL)) \
+            + self.timeout_margin_s
         poll_s = min(max(span_real / 50.0, 0.005), 0.5)
         with self.recovering():
             time.sleep(max(armed + 0.5 * span_real - time.monotonic(), 0.0))

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import signal
 import subprocess
 import sys
@@ -116,6 +117,10 @@ def test_demo_attestation_recovers_the_stand_truth(tmp_path: Path) -> None:
     assert [r["set_rate_dps"] for r in result["axes"]["outer"]["rates"]] == \
         [10, -10, 50, -50, 200, -200]
     assert "could not be written" not in out.stderr, out.stderr
+    # not a terminal (a log file): plain lines, exactly one per step, in order
+    step_lines = [int(m.group(1)) for m in re.finditer(r"^\[(\d+)/58\] ", out.stderr, re.M)]
+    assert step_lines == list(range(1, 59)), step_lines
+    assert "\x1b[" not in out.stderr + out.stdout
     for name in ("certificate.pdf", "certificate.html"):
         assert (run_dir / name).stat().st_size > 10_000, name
     check_against_truth(result)

@@ -39,12 +39,15 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 
 def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | None = None,
-                 issued: dt.date | None = None) -> list[Path]:
+                 issued: dt.date | None = None, *,
+                 documents: list[Document] | None = None) -> list[Path]:
     """Issue the certificate for `result` into `out_dir`.
 
     With a run directory each call is a new issue: the next revision in the run's register
     (register.py), numbered uniquely and naming the issue it replaces; the issue is
-    recorded once both files are written.
+    recorded once both files are written. `documents`, if given, receives the document the
+    files were rendered from (the console's summary is cut from it, so it prints the
+    certificate's own text).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -54,6 +57,8 @@ def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | N
     src = Sources.load(result, run_path)
     issue = register.next_issue(run_path, certificate_id(src), when, digest)
     doc = build_document(result, run_path, issued, issue)
+    if documents is not None:
+        documents.append(doc)
     html_path, pdf_path = out / HTML_NAME, out / PDF_NAME
     _write_atomic(html_path, render_html(doc).encode("utf-8"))
     _write_atomic(pdf_path, render_pdf(doc))
@@ -63,6 +68,7 @@ def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | N
 
 
 def write_certificate(run: _HasPath, result: dict[str, Any],
-                      issued: dt.date | None = None) -> list[Path]:
+                      issued: dt.date | None = None, *,
+                      documents: list[Document] | None = None) -> list[Path]:
     """certificate.html and certificate.pdf in the run directory; returns their paths."""
-    return render_files(result, run.path, run.path, issued)
+    return render_files(result, run.path, run.path, issued, documents=documents)

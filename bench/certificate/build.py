@@ -23,6 +23,7 @@ import bench
 from bench.analysis.random_part import std_u_rel
 from bench.certificate import methods, plots, register
 from bench.certificate.model import Document, Fields, Figure, Para, Section, Signatures, Table
+from bench.certificate.operator import prompt_blocks, software_note
 from bench.certificate.register import Issue
 from bench.certificate.rounding import (
     MINUS,
@@ -222,6 +223,13 @@ def certificate_id(src: Sources) -> str:
     return "-".join(p for p in (str(prefix), day, digest.hexdigest()[:8].upper()) if p)
 
 
+def issued_number(src: Sources) -> str:
+    """The number of the run's latest issue (what the PDF beside it carries); the base
+    number when nothing was issued yet. For other forms of the same certificate (DCC)."""
+    done = register.issues(src.run_path)
+    return done[-1].number if done else certificate_id(src)
+
+
 def _cert(src: Sources) -> dict[str, Any]:
     """The certificate settings: the procedure's `certificate:` block over the lab's file."""
     cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
@@ -416,8 +424,8 @@ def _identification(src: Sources, issue: Issue, kind: str,
     rows += [(_label(k), _text(v)) for k, v in cert.items() if k not in skip]
     blocks: list[Any] = [Fields(tuple(rows))]
     run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else NOT_RECORDED)
-    blocks.append(Para(f"Software: ratebench {bench.__version__}. Run directory: {run_dir}. "
-                       + AUTHORITATIVE, "note"))
+    blocks.append(software_note(src.meta, src.events, bench.__version__, str(run_dir)))
+    blocks.append(Para(AUTHORITATIVE, "note"))
     return tuple(blocks)
 
 
@@ -681,10 +689,12 @@ def _deviations(src: Sources, kind: str) -> tuple[Any, ...]:
 def _conditions(src: Sources) -> tuple[Any, ...]:
     cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
     if not cond:
-        return (Para("No conditions were recorded in the procedure file."),)
+        return (Para("No conditions were recorded in the procedure file."),
+                *prompt_blocks(src.events))
     return (Para("As stated in the procedure file: the nominal conditions of the laboratory, "
                  "not measured during this run.", "note"),
-            Fields(tuple((_label(k), _text(v)) for k, v in cond.items())))
+            Fields(tuple((_label(k), _text(v)) for k, v in cond.items())),
+            *prompt_blocks(src.events))
 
 
 # -- rate ladder results -------------------------------------------------------------------
