@@ -87,7 +87,7 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole
         progress.warn(f"the certificate could not be written: {e!r}; result.json is in "
                       f"{run.path}; once fixed, `bench analyze {run.path}` writes it")
         return result, None
-    if not write_run_dcc(run.path, result, cfg.stand, progress.line):  # the DCC
+    if not write_run_dcc(run.path, result, cfg.stand, progress.line, warn=progress.warn):
         return result, None
     return result, doc
 
@@ -151,6 +151,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
     plan = kind.build_plan(cfg)
     done = run.completed_units()
     todo = plan.remaining(done)
+    if resume and hasattr(kind, "resume_plan"):  # finer than the unit (a rate ladder's halves)
+        todo = kind.resume_plan(todo, run)
     simbench = None
     stand = cfg.stand
     status = EXIT_ABORTED
@@ -181,7 +183,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                 simbench.start_clock()
                 if on_sim_started is not None:
                     on_sim_started(simbench)
-            check_references(cfg.stand["axes"], bench)
+            check_references(bench)
             progress.line(f"Run directory: {run.path}")
             if done:
                 progress.line(f"Resuming: {len(done)} unit(s) already done: {', '.join(done)}")

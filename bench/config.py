@@ -79,10 +79,10 @@ COUNTER = Map({
     "impedance_ohm": Key(Num(min=0, exclusive_min=True)),
     "trigger_jitter_s": Key(Num(min=0, unit="s"), False, "slot sensor edge jitter, std"),
     "timebase_limit_rel": Key(Num(min=0), False, "timebase error limit (external reference)"),
+    "reference": Key(Str(("external", "internal")), False,
+                     "timebase: set at connect and read back (53230A SENS:ROSC:SOUR); a "
+                     "timebase_limit_rel below the model's needs 'external'"),
     "timeout_margin_s": Key(Num(min=0, exclusive_min=True, max=3600, unit="s")),
-    "reference": Key(Str(("internal", "external")), False,
-                     "the timebase reference the stand claims; read back from the counter "
-                     "where it can say (53230A ROSC:SOUR?), a false claim is refused"),
     "calibration": Key(CALIBRATION, False, "the counter's calibration certificate"),
     "time_tie": Key(Map({
         "source": Key(Str(("fog-sync", "host-clock")), True,
@@ -137,7 +137,7 @@ SIM_AXIS = Map({
     "turn_jitter_s": Key(Num(min=0)),
     "fog": Key(SIM_FOG),
     "counter_external_reference": Key(Bool(), False, "a valid 10 MHz is wired to the "
-                                      "counter's Ref In (default false: internal oscillator)"),
+                                      "counter's Ext Ref In (default true)"),
     "time_tie": Key(Map({"latency_s": Key(Num(min=0)), "jitter_s": Key(Num(min=0))}),
                     False, "the FOG sync to counter trigger link: true latency and jitter"),
     "drive": Key(Map({"velocity_unit": Key(Str()), "acceleration_unit": Key(Str()),

@@ -12,6 +12,7 @@ import multiprocessing
 import signal
 import sys
 import threading
+import time
 import traceback
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
@@ -90,6 +91,9 @@ class AnalysisWorker:
     def __init__(self) -> None:
         self._pool: ProcessPoolExecutor | None = None
         self._pending: list[Future[Any]] = []
+        self._submitted: dict[Future[Any], float] = {}  # monotonic time of each submit
+        self._took_s: list[float] = []                  # wall time of each finished job
+        self._lock = threading.Lock()
 
     def submit(self, fn: Callable[..., Any], *args: Any,
                on_done: Callable[[Any, BaseException | None], None]) -> None:
@@ -97,14 +101,31 @@ class AnalysisWorker:
             self._pool = ProcessPoolExecutor(max_workers=1,
                                              mp_context=multiprocessing.get_context("spawn"))
         fut = self._pool.submit(fn, *args)
+        with self._lock:
+            self._submitted[fut] = time.monotonic()
 
         def done(f: Future[Any]) -> None:
+            with self._lock:
+                t0 = self._submitted.pop(f, None)
+                if t0 is not None and not f.cancelled():
+                    self._took_s.append(time.monotonic() - t0)
             if f.cancelled():
                 return
             err = f.exception()
             on_done(None if err else f.result(), err)
         fut.add_done_callback(done)
         self._pending.append(fut)
+
+    def backlog_s(self) -> float:
+        """Wall seconds the jobs not yet done should still take (one at a time, each as
+        long as those done took on average); 0 when none is pending or none has finished
+        yet to measure by. The run's end waits for them: the console's ETA counts it."""
+        with self._lock:
+            if not self._submitted or not self._took_s:
+                return 0.0
+            mean = sum(self._took_s) / len(self._took_s)
+            oldest = min(self._submitted.values())
+            return max(mean * len(self._submitted) - (time.monotonic() - oldest), 0.0)
 
     def close(self, wait: bool = True) -> None:
         """Let submitted jobs finish (wait=True) or drop those not started, then stop."""
@@ -170,7 +191,7 @@ class Engine:
         last_of_unit = {s.unit: i for i, s in enumerate(steps) if s.unit}
         ctx.run.event("plan", steps=len(steps), estimate_s=plan.total_s,
                       step_estimates_s=[s.estimate_s for s in steps])
-        ctx.progress.begin(steps, ctx.clock.now)
+        ctx.progress.begin(steps, ctx.clock.now, ctx.worker.backlog_s)
         try:
             for i, step in enumerate(steps):
                 ctx.eta_s = (lambda i=i: remaining[i])

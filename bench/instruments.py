@@ -17,7 +17,7 @@ from bench.canbus import controller_node_ids
 from bench.journal import JsonLines, RunDir
 from drivers.axis import Axis
 from drivers.clock import Clock
-from drivers.counter import Counter
+from drivers.counter import Counter, CounterError
 from drivers.fog import Fog
 from drivers.time_tie import TimeTie
 
@@ -37,8 +37,8 @@ class AxisInstruments:
     fog: Any | None = None
     identities: dict[str, str] = field(default_factory=dict)
     logs: dict[str, JsonLines] = field(default_factory=dict)
-    reference: str | None = None  # the counter's timebase reference as read back
-    reference_text: str | None = None  # the same, for the journal and the certificate
+    reference_text: str | None = None  # the counter's timebase as read back (journal)
+    refusal: Exception | None = None   # a stand claim the instruments denied at opening
 
 
 class Bench:
@@ -115,22 +115,14 @@ class StandClaimError(Exception):
     """The stand file claims what the instrument, asked, denies: the input is invalid."""
 
 
-def check_references(stand_axes: dict[str, Any], bench: Bench) -> None:
-    """Refuse a claimed external reference a counter is not on (the traceability of the
-    second rests on it, and the stand's timebase limit assumes it). Called once the
-    instruments are open and before anything moves."""
-    for axis, ax in bench.axes.items():
-        claimed = ((stand_axes.get(axis) or {}).get("counter") or {}).get("reference")
-        check_reference(axis, claimed, ax.reference)
-
-
-def check_reference(axis: str, claimed: str | None, reported: str | None) -> None:
-    if claimed == "external" and reported == "INT":
-        raise StandClaimError(
-            f"axes.{axis}.counter.reference says external, but the counter reports its "
-            "internal oscillator (ROSCillator:SOURce? INT): connect the 10 MHz reference "
-            "to Ref In, or set reference: internal and the internal oscillator's "
-            "timebase_limit_rel")
+def check_references(bench: Bench) -> None:
+    """Refuse a run whose stand claims a counter reference the counter denied when it was
+    opened (Counter.verify_reference: the traceability of the second rests on it, and the
+    stand's timebase limit assumes it). Called once the bench can stop safely, before
+    anything moves."""
+    for ax in bench.axes.values():
+        if ax.refusal is not None:
+            raise ax.refusal
 
 
 def raw_text_logger(log: JsonLines, clock: Clock) -> Callable[[str, bytes], None]:
@@ -184,18 +176,24 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
             ax.logs["counter"] = clog
         cnt.configure(**{k: c[k] for k in ("channel", "level_v", "slope", "coupling",
                                            "impedance_ohm") if k in c})
+        try:
+            cnt.verify_reference(c.get("reference"), c.get("timebase_limit_rel"))
+        except CounterError as e:
+            # refused by check_references once the bench can stop safely, before any move
+            ax.refusal = StandClaimError(f"axes.{name}.counter.reference: {e}")
+        got = str(cnt.readback.get("counter.reference", "")).upper()
+        ax.reference_text = (
+            "external reference at Ext Ref In (SENS:ROSC:SOUR? EXT, signal checked with "
+            "SENS:ROSC:EXT:CHEC ONCE)" if got.startswith("EXT") else
+            "internal oscillator (SENS:ROSC:SOUR? INT)" if got.startswith("INT") else
+            "not confirmed: the counter refused the stand's reference (see the run's "
+            "refusal)" if ax.refusal else "not reported by this model")
         ax.counter = cnt
         manual = cnt.profile.manual
         ax.identities["counter"] = with_readback(
             cnt.identify(), {**cnt.readback, "time tie": cnt.time_tie.source},
             "UNVERIFIED (no manual found)" if manual.startswith("unverified")
             else manual.split(":")[0])
-        reported = cnt.reference_source()
-        ax.reference = reported
-        ax.reference_text = (
-            {"INT": "internal oscillator", "EXT": "external reference (Ref In)"}[reported]
-            + f" ({cnt.words.reference_source.query_text()} {reported})"
-            if reported else "not reported by this model")
     f = axis_cfg.get("fog")
     if fog and f:
         fg = Fog(f["port"], baudrate=f.get("baudrate", 921600), fmt=f.get("format", "kvh-a"),

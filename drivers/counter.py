@@ -200,19 +200,6 @@ class Counter(ScpiInstrument):
     def identify(self) -> str:
         return self.ask(IDN)
 
-    def reference_source(self) -> str | None:
-        """The timebase reference in use, as the counter reports it: 'INT' or 'EXT'; None
-        when the model has no word for it (the stand file's claim then stands unchecked)."""
-        word = self.words.reference_source
-        if word is None:
-            return None
-        reply = self.ask(word).strip().strip('"').upper()
-        for short, long in (("INT", "INTERNAL"), ("EXT", "EXTERNAL")):
-            if reply in (short, long):
-                return short
-        raise CounterError(f"{self.name}: {word.query_text()} answered {reply!r}, expected "
-                           "INT or EXT", command=word.query_text())
-
     def reset(self) -> None:
         """*RST, *CLS, wait for completion. The input set-up is re-sent by the next arm()."""
         self._armed = None
@@ -333,6 +320,43 @@ class Counter(ScpiInstrument):
             self.send(w.input_level_auto, state=False)
         self.send(w.input_level, level_v=c.level_v)
         self.send(w.input_slope, slope=c.slope)
+
+    def verify_reference(self, reference: str | None, timebase_limit_rel: float | None
+                         ) -> str | None:
+        """The timebase the stand's budget assumes, set (or read) and checked at connect.
+
+        53220A/53230A User's Guide, "Time base" (p. 69 Agilent edition, p. 81 Keysight):
+        `SENS:ROSC:SOUR EXT` (which also ends automatic selection), then
+        `SENS:ROSC:EXT:CHEC ONCE` and `SYST:ERR?`: an error if no valid signal is at Ext
+        Ref In. `reference` is the stand's counter.reference ("external", "internal" or
+        None: only read). A stand that claims a timebase limit below the model's own
+        (counter.timebase_limit_rel) must run on an external reference.
+        """
+        w = self.words
+        if w.reference_source is None:
+            if reference is not None:
+                raise CounterError(f"{self.name}: counter.reference: the {self.profile.model} "
+                                   "profile has no reference-source word")
+            return None
+        with self.recovering():
+            if reference is not None:
+                source = "EXT" if reference == "external" else "INT"
+                self.send(w.reference_source, source=source)
+                if source == "EXT" and w.reference_check is not None:
+                    self.send(w.reference_check, when="ONCE")  # an error if no signal
+            got = self.query(w.reference_source.query_text()).strip()
+        self.readback["counter.reference"] = got
+        if reference is not None and not _same_setting(got, "EXT" if reference == "external"
+                                                       else "INT"):
+            raise CounterError(f"{self.name}: counter.reference: set {reference}, the counter "
+                               f"reads back {got!r}")
+        if (timebase_limit_rel is not None and timebase_limit_rel
+                < self.profile.timebase_limit_rel and not _same_setting(got, "EXT")):
+            raise CounterError(
+                f"{self.name}: counter.timebase_limit_rel = {timebase_limit_rel:g} assumes an "
+                f"external reference, but the counter runs on {got!r}; set "
+                "counter.reference: external (and connect Ext Ref In)")
+        return got
 
     def _verify_input(self) -> None:
         """Read every input setting back; a difference refuses the run by stand key."""

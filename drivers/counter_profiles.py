@@ -45,6 +45,8 @@ class CounterWords:
     timestamp_rate: Command | None = None
     timestamp_info: Command | None = None
     trigger_source: Command | None = None
+    reference_source: Command | None = None
+    reference_check: Command | None = None
     sample_count: Command | None = None
     gate_time: Command | None = None
     measurement_timeout: Command | None = None
@@ -55,9 +57,6 @@ class CounterWords:
     fetch: Command | None = None
     fetch_array: Command | None = None
     read: Command | None = None
-    # traceability: which timebase reference the counter runs on (INT or EXT)
-    reference_source: Command | None = None
-    reference_auto: Command | None = None
 
 
 # -- reply formats: how each model lays out its data (decode for the driver, encode for
@@ -280,13 +279,11 @@ KEYSIGHT_53230A = CounterProfile(
                                         "in non-volatile memory: read, set, restored"),
         trigger_source=Command("TRIGger[:SEQuence]:SOURce", "{source}",
                                doc="IMMediate, EXTernal or BUS; EXT for the time tie"),
-        fetch=Command("FETCh?", doc="readings of the last INIT"),
         reference_source=Command("[SENSe:]ROSCillator:SOURce", "{source}",
-                                 doc="INTernal or EXTernal; the query answers INT or EXT, "
-                                     "the reference in use"),
-        reference_auto=Command("[SENSe:]ROSCillator:SOURce:AUTO", "{state}",
-                               doc="ON (*RST): EXT when a valid 10 MHz is at Ref In, else "
-                                   "INT; setting a source turns it OFF"),
+                                 doc="INTernal or EXTernal timebase (EXT also ends AUTO)"),
+        reference_check=Command("[SENSe:]ROSCillator:EXTernal:CHECk", "{when}",
+                                doc="ONCE: checks the Ext Ref In signal, errors if none"),
+        fetch=Command("FETCh?", doc="readings of the last INIT"),
     ),
     timestamps="keysight-tst",
     periods="init-fetch",
@@ -302,12 +299,10 @@ KEYSIGHT_53230A = CounterProfile(
     manual=("Keysight 53220A/53230A Programmer's Reference: MEASure:ARRay:TSTamp? p. 240, "
             "SENSe:TSTamp:RATE p. 377 (*RST 1.0E6), SYSTem:TIMeout p. 459 (per measurement, "
             "non-volatile, 9.9E37 disabled); User's Guide 'Time stamp' (count+1 elements, "
-            "values are period x scale factor)"),
+            "values are period x scale factor) and 'Time base' (SENS:ROSC:SOUR EXT; "
+            "SENS:ROSC:EXT:CHEC ONCE; SYST:ERR?, p. 69/81)"),
     notes=("53220A/53230A Programmer's Reference: CONF:ARR:TST, SENS:TST:RATE, SYST:TIM, "
-           "INP:LEV:AUTO, reply 'prescaler, intervals' (count+1 values). Reference: "
-           "ROSC:SOUR? answers INT or EXT; with ROSC:SOUR:AUTO ON (*RST) the counter takes "
-           "the rear Ref In when a valid signal is there, else its internal oscillator; "
-           "`SENS:ROSC:SOUR EXT` also turns AUTO off (User's Guide, ch. 3). Period mode "
+           "INP:LEV:AUTO, reply 'prescaler, intervals' (count+1 values). Period mode "
            "(CONF:PER; SAMP:COUN N) is modelled with dead time: consecutive readings time "
            "every other turn; use timestamps for consecutive turns. Timebase: standard "
            "TCXO, +/-1e-6 assumed (1-year aging and temperature); option 010 OCXO is far "

@@ -454,7 +454,7 @@ class DriftPulse(StepDispatch):
         while (left := end - ctx.clock.now()) > 0:
             drive.check()
             ctx.progress.advance(duration_s - left, duration_s,
-                                 f"{duration_s - left:.0f} of {duration_s:g} s")
+                                 f"{axis}: {duration_s - left:.1f} of {duration_s:g} s waited")
             ctx.clock.sleep(min(left, 1.0))
         drive.check()
 

@@ -126,7 +126,7 @@ class CounterTwin(ScpiServer):
                  host: str = "127.0.0.1", port: int = 0, *, signal_channel: int = 1,
                  signal_low_v: float = 0.0, signal_high_v: float = 5.0,
                  sync: SyncLink | None = None, timeout_s: float | None = None,
-                 seed: int = 0, external_reference: bool = False) -> None:
+                 seed: int = 0, external_reference: bool = True) -> None:
         self.profile: CounterProfile = get_profile(model)
         super().__init__(idn=self.profile.idn, host=host, port=port)
         if self.profile.maker.startswith("Keysight"):  # `+0,"No error"` (Prog. Ref.)
@@ -136,11 +136,14 @@ class CounterTwin(ScpiServer):
         self.clock = stand.clock
         self.signal_channel = signal_channel
         self.signal_v = (float(signal_low_v), float(signal_high_v))
-        #: a valid 10 MHz at the rear Ref In (the stand's truth, not a setting)
-        self.external_reference = bool(external_reference)
         self.inputs: dict[int, InputState] = {}
         self.acquisition: TwinAcquisition | None = None
         self.sync = sync
+        #: a valid 10 MHz at Ext Ref In (the stand's GPS-disciplined reference)
+        self.external_reference = external_reference
+        #: the timebase in use; SENS:ROSC:SOUR is not reset by *RST here (simplification:
+        #: the manual's *RST value of the auto selection is not modelled)
+        self.reference = "EXT" if external_reference else "INT"
         self.rng = np.random.default_rng(seed)
         #: SYST:TIM, non-volatile: not touched by *RST (None: disabled, as shipped)
         self.timeout_s: float | None = timeout_s
@@ -158,8 +161,6 @@ class CounterTwin(ScpiServer):
         self.timestamp_rate_hz = 1.0e6
         self.gate = "DEF"
         self.acquisition = None
-        self.reference_auto = True   # ROSC:SOUR:AUTO ON at *RST
-        self.reference_selected = "INT"
 
     def pending(self) -> bool:
         return self.acquisition is not None and not self._progress(self.acquisition)
@@ -263,34 +264,19 @@ class CounterTwin(ScpiServer):
                 9.9e37 if self.timeout_s is None else self.timeout_s)),  # p. 459: 9.9E37
             "format_data": (self._set_format, lambda a: "ASC"),
             "trigger_source": (self._set_trigger_source, lambda a: self.trigger_source),
+            "reference_source": (self._set_reference, lambda a: self.reference),
+            "reference_check": (self._check_reference, None),
             "abort": (self._abort, None),
             "initiate": (self._initiate, None),
             "fetch": (None, self._fetch, True),
             "fetch_array": (None, self._fetch_array, True),
             "read": (None, self._read, True),
-            "reference_source": (self._set_reference, lambda a: self._reference_in_use()),
-            "reference_auto": (self._set_reference_auto,
-                               lambda a: bool_reply(self.reference_auto)),
         })
 
     def _nr3(self, value: float) -> str:
         """A setting's query reply as the model prints it: `+1.00000000E+006` (53230A
         Programmer's Reference p. 377, p. 459)."""
         return profile_nr3(value, 8, self.profile.reply_exp_digits)
-
-    # -- the timebase reference (53220A/53230A User's Guide, ch. 3) -------------------------
-    def _reference_in_use(self) -> str:
-        """AUTO: EXT when a valid reference is at Ref In, else INT; else the selection."""
-        if self.reference_auto:
-            return "EXT" if self.external_reference else "INT"
-        return self.reference_selected
-
-    def _set_reference(self, a: Mapping[str, str]) -> None:
-        self.reference_selected = enum_param(a["source"], ("INTernal", "EXTernal"))
-        self.reference_auto = False  # selecting a source disables automatic selection
-
-    def _set_reference_auto(self, a: Mapping[str, str]) -> None:
-        self.reference_auto = bool_param(a["state"])
 
     def _inp(self, a: Mapping[str, str]) -> InputState:
         return suffix_item(self.inputs, a)
@@ -361,6 +347,14 @@ class CounterTwin(ScpiServer):
             self.timeout_s = None
             return
         self.timeout_s = ranged_param(value, lo, hi, default=1.0)
+
+    def _set_reference(self, a: Mapping[str, str]) -> None:
+        self.reference = enum_param(a["source"], ("INTernal", "EXTernal"))
+
+    def _check_reference(self, a: Mapping[str, str]) -> None:
+        """SENS:ROSC:EXT:CHEC ONCE: an error when no valid signal is at Ext Ref In."""
+        if enum_param(a["when"], ("ONCE",)) and not self.external_reference:
+            raise ExecError(-241, "Hardware missing; no valid external timebase")
 
     def _set_trigger_source(self, a: Mapping[str, str]) -> None:
         self.trigger_source = enum_param(a["source"], ("IMMediate", "EXTernal", "BUS"))

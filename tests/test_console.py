@@ -67,6 +67,21 @@ def test_wall_left_is_measured_not_the_configured_speed() -> None:
     assert eta.step_fraction == pytest.approx(0.5)
 
 
+def test_work_beside_the_steps_is_a_floor_under_the_wall_estimate() -> None:
+    """A pair's analysis still running in the worker (2 s owed) outlasts the last step's
+    0.2 s: the run ends when both are done."""
+    c = Clocks()
+    owed = [0.0]
+    tl = Timeline([30.0, 30.0], lambda: c.bench_s, lambda: c.wall_s, backlog_s=lambda: owed[0])
+    tl.start(0)
+    c.spend(30.0, 0.2)
+    tl.finish(0)
+    tl.start(1)
+    assert tl.now().wall_left_s == pytest.approx(0.2)
+    owed[0] = 2.0
+    assert tl.now().wall_left_s == pytest.approx(2.0)
+
+
 def test_no_wall_estimate_before_a_step_with_bench_time_was_timed() -> None:
     c = Clocks()
     tl = Timeline([0.0, 30.0], lambda: c.bench_s, lambda: c.wall_s)

@@ -161,6 +161,8 @@ def test_the_invalid_public_example_is_refused_and_the_valid_ones_pass() -> None
     assert any("degreeCelsius" in line for line in bad.unit_errors)   # not D-SI: degreecelsius
     for good in ("minimal-rate-table-3.3.0.xml", "dcclib-valid-3.3.0.xml"):
         assert validate_dcc(EXAMPLES / good).valid, good
+    done = _cli("verify", str(EXAMPLES / "lutaml-sample-INVALID-3.3.0.xml"), "--no-result")
+    assert done.returncode == 1 and "FAIL  schema: 11 problem(s)" in done.stdout
 
 
 def test_unit_strings_are_checked_beyond_the_schema() -> None:
@@ -460,3 +462,60 @@ def test_a_key_inside_the_run_directory_is_refused(drift: dict[str, Any], tmp_pa
     assert done.returncode == 3
     assert "lies inside the run directory" in done.stderr
     assert not (run / "certificate.dcc.xml").exists()
+
+
+# -- the laboratory's settings -------------------------------------------------------------
+
+def test_stand_dcc_key_refuses_relative_and_pasted_keys(tmp_path: Path) -> None:
+    """`bench validate` names file, line and key of a key path that is relative or of a
+    key pasted into the stand file (the stand file travels into every run directory)."""
+    (tmp_path / "stands").mkdir()
+    (tmp_path / "procedures").mkdir()
+    stand = tmp_path / "stands" / "sim-two-axis.yaml"
+    proc = tmp_path / "procedures" / "demo.yaml"
+    shutil.copy(CONFIGS / "procedures" / "demo.yaml", proc)
+    text = (CONFIGS / "stands" / "sim-two-axis.yaml").read_text()
+    line = text.count("\n") + 3     # a blank line, `dcc:`, then `signing:`
+    stand.write_text(text + "\ndcc:\n  signing: {key: keys/lab.pem, certificate: "
+                            "'-----BEGIN CERTIFICATE----- MIIB...'}\n")
+    done = _cli("validate", str(proc))
+    assert done.returncode == 2
+    assert f"{stand}:{line}: dcc.signing.key: expected an absolute path" in done.stderr
+    assert "dcc.signing.certificate: expected the path of a PEM file" in done.stderr
+    stand.write_text(text + f"\ndcc:\n  signing: {{key: {tmp_path}/k.pem, "
+                            f"certificate: {tmp_path}/c.pem}}\n")
+    assert _cli("validate", str(proc)).returncode == 0
+
+
+def test_lab_file_problems_name_file_line_and_key(demo: dict[str, Any], tmp_path: Path) -> None:
+    lab = tmp_path / "lab.yaml"
+    lab.write_text("laboratory: {name: Lab}\ncountry_code: Germany\nperformance_location: moon\n"
+                   "signing: {key: relative.pem}\n")
+    run = _copy_run(demo, tmp_path / "run")
+    done = _cli("dcc", str(run), "--lab", str(lab))
+    assert done.returncode == 3
+    for where in (f"{lab}:2: country_code: expected an ISO 3166-1 alpha-2 code",
+                  f"{lab}:3: performance_location: expected one of laboratory",
+                  f"{lab}:4: signing.key: expected an absolute path",
+                  f"{lab}:4: signing: missing required key 'certificate'"):
+        assert where in done.stderr, where
+    assert not (run / "certificate.dcc.xml").exists()
+
+
+def test_lab_settings_fill_the_administrative_data(demo: dict[str, Any], tmp_path: Path) -> None:
+    key, cert = _throwaway_key(tmp_path / "keys", "unused")
+    lab = _lab_file(tmp_path, key, cert)
+    lab.write_text(lab.read_text().split("signing:")[0])           # the same lab, unsigned
+    run = _copy_run(demo, tmp_path / "run")
+    assert _cli("dcc", str(run), "--lab", str(lab)).returncode == 0
+    root = _tree(run / "certificate.dcc.xml")
+    adm = root.find("dcc:administrativeData", NS)
+    assert adm.findtext("dcc:coreData/dcc:countryCodeISO3166_1", None, NS) == "DE"
+    contact = adm.find("dcc:calibrationLaboratory/dcc:contact", NS)
+    assert contact.findtext("dcc:name/dcc:content", None, NS) == "Test Rate Lab"
+    assert contact.findtext("dcc:location/dcc:city", None, NS) == "Example City"
+    person = adm.find("dcc:respPersons/dcc:respPerson", NS)
+    assert person.findtext("dcc:person/dcc:name/dcc:content", None, NS) == "A. Tester"
+    assert person.findtext("dcc:mainSigner", None, NS) == "true"
+    assert root.find(".//ds:Signature", NS) is None
+    assert root.find(".//dcc:statement[@refType='ratebench_countryNotConfigured']", NS) is None

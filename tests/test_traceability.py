@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 from bench.traceability import overdue, traced_items
-from drivers.counter import Counter
+from drivers.counter import Counter, CounterError
 from sims.counter_twin import CounterTwin
 from tests.counter_rig import AXIS, turning_stand
 
@@ -28,27 +28,21 @@ ROOT = Path(__file__).resolve().parents[1]
 STAND = ROOT / "configs" / "stands" / "sim-two-axis.yaml"
 
 
-@pytest.mark.parametrize("wired, expected", [(True, "EXT"), (False, "INT")])
-def test_counter_reports_the_reference_in_use(wired: bool, expected: str) -> None:
+@pytest.mark.parametrize("wired", [True, False])
+def test_counter_reference_set_checked_and_read_back(wired: bool) -> None:
+    """The stand's claim is set (SENS:ROSC:SOUR EXT), the signal checked (EXT:CHEC ONCE)
+    and read back; without a signal at Ext Ref In the counter refuses it (User's Guide)."""
     stand = turning_stand()
     with CounterTwin(stand, AXIS, model="keysight-53230a", external_reference=wired) as twin:
         counter = Counter.open(twin.resource, "keysight-53230a", stand.clock)
         try:
-            assert counter.reference_source() == expected
-            # the manual: choosing a source turns automatic selection off
-            counter.write("SENS:ROSC:SOUR INT")
-            assert counter.reference_source() == "INT"
-            assert counter.query("ROSC:SOUR:AUTO?").strip() == "0"
-        finally:
-            counter.close()
-
-
-def test_a_model_without_the_word_reports_nothing() -> None:
-    stand = turning_stand()
-    with CounterTwin(stand, AXIS, model="pendulum-cnt-91", external_reference=True) as twin:
-        counter = Counter.open(twin.resource, "pendulum-cnt-91", stand.clock)
-        try:
-            assert counter.reference_source() is None
+            if wired:
+                assert counter.verify_reference("external", 1e-9) == "EXT"
+                assert counter.readback["counter.reference"] == "EXT"
+            else:
+                with pytest.raises(CounterError):
+                    counter.verify_reference("external", 1e-9)
+            assert counter.verify_reference("internal", None) == "INT"
         finally:
             counter.close()
 
@@ -73,7 +67,7 @@ axes:
 @pytest.mark.timeout(120)
 def test_claimed_external_reference_that_is_not_there_is_refused(tmp_path: Path) -> None:
     text = STAND.read_text()
-    # the outer counter's Ref In is left unconnected in the twin stand's truth
+    # the outer counter's Ext Ref In is left unconnected in the twin stand's truth
     first = text.index("counter_external_reference: true")
     text = text[:first] + "counter_external_reference: false" + text[first + 33:]
     proc = _mini(tmp_path, text)
@@ -81,8 +75,7 @@ def test_claimed_external_reference_that_is_not_there_is_refused(tmp_path: Path)
                           str(tmp_path / "runs")], capture_output=True, text=True,
                          timeout=120, cwd=ROOT)
     assert out.returncode == 2, out.stderr
-    assert "axes.outer.counter.reference says external" in out.stderr
-    assert "ROSCillator:SOURce? INT" in out.stderr
+    assert "Refused:" in out.stderr and "axes.outer.counter.reference:" in out.stderr
     run_dir = Path(out.stdout.strip().splitlines()[-1])
     events = [json.loads(x) for x in (run_dir / "events.jsonl").read_text().splitlines()]
     kinds = [e["event"] for e in events]
@@ -120,4 +113,5 @@ def test_past_due_warns_at_start_and_on_the_certificate(tmp_path: Path) -> None:
     flat = re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html))
     assert "PAST DUE on the date of the work" in flat
     assert "SIM-CAL-53230A-0117" in flat
-    assert "read back from the counter: external reference (Ref In) (ROSC:SOUR? EXT)" in flat
+    assert ("read back from the counter: external reference at Ext Ref In "
+            "(SENS:ROSC:SOUR? EXT" in flat)

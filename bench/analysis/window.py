@@ -41,6 +41,9 @@ class HalfRecord:
     edge_times_s: np.ndarray
     fog_t_s: np.ndarray
     fog_dps: np.ndarray
+    # the session (bench run or --resume) that acquired it: each session has a time axis
+    # and a FOG bias of its own (a resumed pair, pair.py)
+    session: int = 0
 
 
 def _partial(t: np.ndarray, f: np.ndarray, p: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -923,6 +923,13 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                          + (f" ({'; '.join(methods_used)}" if methods_used else "")
                          + (f"; drift from {', '.join(sources)})" if sources else
                             (")" if methods_used else "")) + ".")
+        for p in pairs:  # a resumed pair: which half came from which session (docs/resume.md)
+            hs = [int(s) for s in p.get("half_sessions") or [] if isinstance(s, int | float)]
+            if len(set(hs)) > 1:
+                notes.append(f"Pair ±{_num(p.get('rate_dps')) or 0:g} °/s was resumed: "
+                             + ", ".join(f"half {i + 1} from session {s}"
+                                         for i, s in enumerate(hs))
+                             + f". FOG bias {p.get('bias_model', '')}.")
         blocks.append(Table(tuple(header), tuple(prow),
                             widths=(1.0, 2.4, 2.1, 1.9, 2.1)[:len(header)], align="rrrrr"[
                                 :len(header)],

@@ -21,22 +21,23 @@ def _err(text: str) -> None:
 
 
 def write_run_dcc(run_path: Path, result: dict[str, Any], stand: Mapping[str, Any] | None,
-                  line: Callable[[str], None] = print, lab_file: str | Path | None = None
-                  ) -> bool:
+                  line: Callable[[str], None] = print, lab_file: str | Path | None = None,
+                  warn: Callable[[str], None] = _err) -> bool:
     """Write RUN_DIR/certificate.dcc.xml after the PDF; False when the run has no valid DCC
-    (the caller then exits 3), True when it was written or the run has no verdict."""
+    (the caller then exits 3), True when it was written or the run has no verdict.
+    `line` and `warn` are the console's (bench.progress): a message, a fault."""
     from bench.dcc.output import write_dcc
     from bench.dcc.settings import SettingsError
 
     try:
         outcome = write_dcc(run_path, result, dict(stand or {}), lab_file)
     except SettingsError as e:
-        _err(f"the DCC could not be written: {e}; result.json and the PDF are in {run_path}; "
+        warn(f"the DCC could not be written: {e}; result.json and the PDF are in {run_path}; "
              f"once fixed, `bench dcc {run_path}` writes it")
         return False
     except Exception as e:  # noqa: BLE001 - a bug to report; the PDF and result.json stand
         traceback.print_exc(file=sys.stderr)
-        _err(f"the DCC could not be written: {e!r}; once fixed, `bench dcc {run_path}` "
+        warn(f"the DCC could not be written: {e!r}; once fixed, `bench dcc {run_path}` "
              "writes it")
         return False
     if outcome.skipped:
@@ -45,9 +46,9 @@ def write_run_dcc(run_path: Path, result: dict[str, Any], stand: Mapping[str, An
     if outcome.ok:
         line(f"wrote {outcome.path} ({'signed, ' if outcome.signed else ''}valid DCC 3.3.0)")
         return True
-    _err(outcome.message())
-    _err(f"the DCC does not validate and was kept as {run_path / 'certificate.dcc.invalid.xml'}"
-         f" for diagnosis; once fixed, `bench dcc {run_path}` writes it")
+    warn(outcome.message() + f"\nthe DCC does not validate and was kept as "
+         f"{run_path / 'certificate.dcc.invalid.xml'} for diagnosis; once fixed, "
+         f"`bench dcc {run_path}` writes it")
     return False
 
 

@@ -67,6 +67,7 @@ def write_dcc(run_path: Path, result: dict[str, Any], stand: dict[str, Any] | No
     run_path = Path(run_path)
     verdict = str(result.get("verdict") or "incomplete").lower()
     if verdict not in VERDICTS:
+        (run_path / DCC_NAME).unlink(missing_ok=True)   # it would stand for other results
         return DccOutcome(None, None, skipped=f"the run's verdict is {verdict!r}; a DCC is "
                                                 "written only for a completed run")
     settings = lab if lab is not None else resolve_settings(stand, lab_file)

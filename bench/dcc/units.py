@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Iterable
+from functools import lru_cache
 
 from dsi_unit import DsiUnit
 
@@ -31,8 +32,10 @@ BY_SUFFIX: dict[str, str] = {
 }
 
 
+@lru_cache(maxsize=512)
 def unit_problem(unit: str) -> str | None:
-    """Why `unit` is not a valid D-SI unit string, or None when it is."""
+    """Why `unit` is not a valid D-SI unit string, or None when it is (a DCC repeats a
+    handful of units hundreds of times, so each is parsed once)."""
     if not unit or unit != unit.strip():
         return f"D-SI unit {unit!r}: empty or padded with blanks"
     with warnings.catch_warnings():

@@ -326,6 +326,10 @@ def _statements(sts: etree._Element, src: Sources, kind: str, country: Any) -> N
     for i, text in enumerate(methods.STATEMENTS):
         if kind == "drift-pulse" and text.startswith("Relative values"):
             continue
+        text = (text.replace("as identified in section 1", "identified under items")
+                .replace("printed in % or in ppm (1 ppm = 0.0001 %) as the column header "
+                         "states", "given here as plain fractions (unit \\one); the PDF "
+                         "prints them in % or ppm"))
         _statement(sts, None, text, norms=("ISO/IEC 17025:2017",),
                    references=("7.8",) if i else ("7.8.2.1 l)",))
     verdict = str(src.get("verdict") or "incomplete").lower()

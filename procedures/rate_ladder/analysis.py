@@ -166,7 +166,8 @@ class RawData:
     def half(self, e: dict[str, Any]) -> HalfRecord:
         t, w = self.fog_window(e["session"], e["axis"], e["fog_from"], e["fog_to"],
                                e.get("fog_capture"))
-        return HalfRecord(int(math.copysign(1, e["set_rate_dps"])), self.edges(e), t, w)
+        return HalfRecord(int(math.copysign(1, e["set_rate_dps"])), self.edges(e), t, w,
+                          session=int(e["session"]))
 
     def static(self, e: dict[str, Any]) -> np.ndarray:
         """The FOG at rest, in memory (minutes of samples, for the floor and Allan)."""
@@ -181,6 +182,33 @@ class RawData:
 def _settings(cfg: Config) -> dict[str, Any]:
     return {k: setting(cfg, k) for k in ("turns", "sequence", "static_record_s", "harmonics",
                                          "mains_hz", "decision_rule")}
+
+
+def unit_halves(events: list[dict[str, Any]], unit: str, session: int
+                ) -> list[dict[str, Any]]:
+    """A unit's acquisitions as of `session`: for each half, the last one acquired up to it.
+
+    A half is kept once acquired (its acquire event is written when it is complete), so a
+    resumed pair may take its halves from several sessions (docs/resume.md).
+    """
+    by_half: dict[int, dict[str, Any]] = {}
+    for e in events_of(events, "acquire"):
+        if e["unit"] == unit and e["session"] <= session:
+            by_half[int(e["half"])] = e
+    return [by_half[h] for h in sorted(by_half)]
+
+
+def unit_acquisitions(events: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Acquisitions of the units not yet done (what a --resume may keep)."""
+    done = {e["unit"] for e in events_of(events, "unit_done")}
+    return [e for e in events_of(events, "acquire") if e["unit"] not in done]
+
+
+def static_record(events: list[dict[str, Any]], axis: str) -> dict[str, Any] | None:
+    """The axis's FOG-at-rest record that completed its unit (the last such)."""
+    done_in = {e["unit"]: e["session"] for e in events_of(events, "unit_done")}
+    return next((e for e in reversed(events_of(events, "static")) if e["axis"] == axis
+                 and done_in.get(e["unit"]) == e["session"]), None)
 
 
 def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
@@ -281,14 +309,11 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData) -> dict[str, Any]:
     events = run.events()
     rule = _settings(cfg)["decision_rule"]
     done_in: dict[str, int] = {e["unit"]: e["session"] for e in events_of(events, "unit_done")}
-    acquisitions = events_of(events, "acquire")
-    statics = events_of(events, "static")
     result_axes: dict[str, Any] = {}
     checks: list[dict[str, Any]] = []
     complete = True
     for axis, spec in cfg.procedure["axes"].items():
-        static = next((e for e in reversed(statics) if e["axis"] == axis
-                       and done_in.get(e["unit"]) == e["session"]), None)
+        static = static_record(events, axis)
         rates: list[dict[str, Any]] = []
         pairs: list[dict[str, Any]] = []
         for rate in spec["rates_dps"]:
@@ -296,8 +321,7 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData) -> dict[str, Any]:
             if unit not in done_in:
                 complete = False
                 continue
-            acqs = [e for e in acquisitions if e["unit"] == unit
-                    and e["session"] == done_in[unit]]
+            acqs = unit_halves(events, unit, done_in[unit])
             pa = analyze_unit(raw, cfg, axis, rate, acqs, static)
             for r in pa.rates:
                 d = r.to_dict()

@@ -24,7 +24,13 @@ from bench.simbench import SimBench
 from bench.yamlfile import Problem
 from drivers.clock import Clock
 from procedures.base import StepDispatch
-from procedures.rate_ladder.analysis import analyze_run, pair_summary
+from procedures.rate_ladder.analysis import (
+    analyze_run,
+    pair_summary,
+    static_record,
+    unit_acquisitions,
+    unit_halves,
+)
 from procedures.rate_ladder.settings import NAME, PROCEDURE, SETTLE_DEFAULTS, halves, setting
 
 
@@ -185,9 +191,7 @@ class RateLadder(StepDispatch):
         self._wait_fog(ctx, fog, i0 + n, duration, f"{step.axis}: FOG at rest")
         event = dict(axis=step.axis, unit=step.unit, fog_from=i0, fog_to=i0 + n,
                      rate_hz=fog.rate_hz, lost=_fog_losses(fog) - lost0, fog_capture=mark)
-        # the samples stay in the raw capture: the analysis reads them from there
-        ctx.state.setdefault("live", {})[step.unit] = {**event, "session": ctx.run.session}
-        ctx.run.event("static", **event)
+        ctx.run.event("static", **event)  # the samples stay in the raw capture
         mean = _fog_mean_dps(fog)
         if mean is not None:
             ctx.progress.reading("FOG mean", f"{step.axis} at rest",
@@ -255,9 +259,8 @@ class RateLadder(StepDispatch):
                      counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
                      counter_records=[rec0, rec1], fog_from=i_from, fog_to=i_to,
                      rate_hz=fog.rate_hz, fog_lost=lost, fog_capture=mark)
-        # the FOG samples stay in the raw capture: the pair's analysis reads them there
-        ctx.state.setdefault("live", {}).setdefault(step.unit, []).append(
-            {**event, "session": ctx.run.session})
+        # the FOG samples stay in the raw capture: the pair's analysis reads them there;
+        # this event completes the half (a --resume keeps it, docs/resume.md)
         ctx.run.event("acquire", **event)
         if lost:
             ctx.progress.warn(f"  WARNING {step.axis}: {lost} FOG frames lost or broken "
@@ -288,8 +291,8 @@ class RateLadder(StepDispatch):
     def _do_analyze(self, step: Step, ctx: RunContext) -> None:
         """A first look at the pair, in the analysis worker: acquisition goes on meanwhile
         (the result.json analysis is made again from the raw files at the end)."""
-        live = ctx.state.get("live", {})
         axis, unit, rate = step.axis, step.unit, step.params["rate_dps"]
+        events = ctx.run.events()  # the halves may come from earlier sessions (--resume)
 
         def done(summary: dict[str, Any] | None, error: BaseException | None) -> None:
             if error is not None:
@@ -302,7 +305,48 @@ class RateLadder(StepDispatch):
             ctx.progress.result(f"{axis} ±{rate:g} deg/s", *pair_figures(summary))
 
         ctx.worker.submit(pair_summary, str(ctx.run.path), ctx.cfg, axis, rate,
-                          live.pop(unit, []), live.get(f"{axis}/static"), on_done=done)
+                          unit_halves(events, unit, ctx.run.session),
+                          static_record(events, axis), on_done=done)
+
+    # -- resume ----------------------------------------------------------------------
+    def resume_plan(self, plan: Plan, run: RunDir) -> Plan:
+        """What a --resume still runs: every half already acquired is kept (docs/resume.md).
+
+        `plan` holds the units not done; of each, the halves acquired in earlier sessions
+        are dropped with their set-rate and settle steps. A pair must keep one session
+        that holds both signs (its FOG calibration, bench/analysis/pair.py): when neither
+        an earlier session nor what is left would hold both, the pair is acquired whole.
+        """
+        events = run.events()
+        kept: dict[str, dict[int, int]] = {}  # unit -> half -> (sign) of the kept halves
+        sessions: dict[str, dict[int, set[int]]] = {}
+        for e in unit_acquisitions(events):
+            kept.setdefault(e["unit"], {})[int(e["half"])] = 1 if e["set_rate_dps"] > 0 else -1
+            sessions.setdefault(e["unit"], {}).setdefault(int(e["session"]), set()).add(
+                1 if e["set_rate_dps"] > 0 else -1)
+        drop: dict[str, set[int]] = {}
+        for unit, halves_done in kept.items():
+            left = {(1 if s.params["rate_dps"] > 0 else -1) for s in plan.steps
+                    if s.unit == unit and s.action == "acquire"
+                    and s.params["half"] not in halves_done}
+            whole_session = any(signs == {1, -1} for signs in sessions[unit].values())
+            if whole_session or left == {1, -1}:
+                drop[unit] = set(halves_done)
+        steps: list[Step] = []
+        pending: list[Step] = []  # a half's set_rate and settle wait for its acquire
+        for s in plan.steps:
+            if s.unit in drop and s.action in ("set_rate", "settle"):
+                pending.append(s)
+                continue
+            if s.unit in drop and s.action == "acquire":
+                if s.params["half"] not in drop[s.unit]:
+                    steps += [*pending, s]
+                pending = []
+                continue
+            steps += pending
+            pending = []
+            steps.append(s)
+        return Plan(plan.title, tuple(steps + pending))
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
         drive = ctx.bench.axes[step.axis].drive
