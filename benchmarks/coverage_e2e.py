@@ -42,8 +42,7 @@ def run_seed(seed: int, out: Path) -> dict | None:
     (out / "stands" / f"s{seed}.yaml").write_text(stand_text)
     proc = out / "procedures" / f"p{seed}.yaml"
     proc.write_text(DEMO.read_text().replace("../stands/sim-two-axis.yaml",
-                                             f"../stands/s{seed}.yaml")
-                    .replace("../lab.yaml", str(ROOT / "configs" / "lab.yaml")))
+                                             f"../stands/s{seed}.yaml"))
     p = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--out",
                         str(out / "runs" / str(seed))], cwd=ROOT, capture_output=True,
                        text=True, timeout=600)

@@ -154,7 +154,6 @@ def drift_run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     text = (ROOT / "configs" / "procedures" / "drift-demo.yaml").read_text()
     text = re.sub(r"(?m)^stand: .*$", f"stand: {ROOT / 'configs' / 'stands'}/"
                                       "sim-gyro-platform.yaml", text)
-    text = re.sub(r"(?m)^  lab: .*$", f"  lab: {ROOT / 'configs' / 'lab.yaml'}", text)
     text = re.sub(r"(?m)^cycles: .*$", "cycles: 4", text)
     text = re.sub(r"(?m)^timing_cycles: .*$", "timing_cycles: 2", text)
     text = re.sub(r"(?m)^settle_s: .*$", "settle_s: 1", text)

@@ -21,7 +21,6 @@ def files(tmp_path: Path) -> tuple[Path, Path]:
     proc = tmp_path / "procedures" / "demo.yaml"
     shutil.copy(CONFIGS / "stands" / "sim-two-axis.yaml", stand)
     shutil.copy(CONFIGS / "procedures" / "demo.yaml", proc)
-    shutil.copy(CONFIGS / "lab.yaml", tmp_path / "lab.yaml")
     return proc, stand
 
 

@@ -33,9 +33,6 @@ STAND = CONFIGS / "stands" / "sim-gyro-platform.yaml"
 
 def _write(tmp_path: Path, name: str, data: dict[str, Any]) -> Path:
     path = tmp_path / name
-    cert = data.get("certificate")
-    if isinstance(cert, dict) and "lab" in cert:  # the lab settings stay where they are
-        cert["lab"] = str(CONFIGS / "lab.yaml")
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
 
