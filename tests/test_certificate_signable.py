@@ -204,9 +204,29 @@ def test_a_bad_lab_key_is_named_by_file_line_and_key(tmp_path: Path, lab: str,
 
     proc = (ROOT / "configs/procedures/demo.yaml").read_text()
     proc = proc.replace("stand: ../stands/", f"stand: {ROOT}/configs/stands/")
-    proc = proc.replace("  lab: ../lab.yaml", f"  lab: {lab}")
+    proc = proc.replace("  customer: Demo customer", f"  lab: {lab}\n  customer: Demo customer")
     (tmp_path / "p.yaml").write_text(proc)
     line = proc[:proc.index(f"  lab: {lab}")].count("\n") + 1
     with pytest.raises(ConfigError) as e:
         load_config(tmp_path / "p.yaml")
     assert f"p.yaml:{line}: {message}" in str(e.value)
+
+
+def test_a_lab_file_is_read_and_copied_into_the_run(tmp_path: Path) -> None:
+    """`certificate: {lab: FILE}`: its keys under the procedure's own, kept with the run."""
+    from bench.lab import certificate_settings, lab_path
+
+    proc = tmp_path / "p.yaml"
+    shutil.copyfile(ROOT / "configs/lab.yaml", tmp_path / "lab.yaml")
+    cert = {"lab": "lab.yaml", "customer": "C"}
+    assert lab_path(proc, cert) == tmp_path / "lab.yaml"
+    merged = certificate_settings(proc, cert)
+    assert merged["customer"] == "C" and merged["address"].startswith("1 Example Street")
+    assert [s["name"] for s in merged["signatories"]] == ["A. Ivanova", "P. Petrov"]
+    # in a run directory, the copy made when the run started is the one read
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "meta.json").write_text("{}")
+    assert lab_path(run / "procedure.yaml", cert) is None      # no copy: not guessed
+    shutil.copyfile(ROOT / "configs/lab.yaml", run / "lab.yaml")
+    assert lab_path(run / "procedure.yaml", cert) == run / "lab.yaml"
