@@ -8,6 +8,7 @@ operator (the axes were stopped, the data kept, `--resume` works).
 from __future__ import annotations
 
 import argparse
+import datetime as dt
 import os
 import sys
 import time
@@ -25,11 +26,14 @@ from bench.dcc.command import write_run_dcc
 from bench.devices import list_devices
 from bench.engine import Abort, Engine, RunContext, SignalGuard
 from bench.examples import example_path
+from bench.instruments import StandClaimError, check_references
 from bench.journal import RunDir
+from bench.lab import lab_path
 from bench.loader import load_config
 from bench.plan import format_duration
 from bench.registry import procedure_kind
 from bench.summary import Summary, summarize
+from bench.traceability import overdue, overdue_warning
 from drivers.clock import MonotonicClock
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
@@ -122,7 +126,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if cfg is None:
         return EXIT_INVALID
     if run is None:
-        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path)
+        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path,
+                            lab_path(cfg.procedure_path, cfg.procedure.get("certificate")))
     console = open_console(quiet=args.quiet, log_json=args.log_json)
     status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),
                          progress=console)
@@ -165,13 +170,20 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                       done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
                       version=__version__, prompts="--yes" if yes else "operator",
                       pid=os.getpid())
+            for t in overdue(cfg.stand, dt.datetime.now(dt.UTC).date()):
+                progress.line(overdue_warning(t))
+                run.event("calibration_overdue", where=t.where, item=t.item,
+                          certificate=t.certificate, due=t.due.isoformat() if t.due else None)
             bench = kind.open_bench(cfg, stand, clock, run)
             for ax in bench.axes.values():
-                run.event("identity", axis=ax.name, **ax.identities)
+                run.event("identity", axis=ax.name, **ax.identities,
+                          **({"counter_reference": ax.reference_text}
+                             if ax.reference_text else {}))
             if simbench is not None:
                 simbench.start_clock()
                 if on_sim_started is not None:
                     on_sim_started(simbench)
+            check_references(bench)
             progress.line(f"Run directory: {run.path}")
             if done:
                 progress.line(f"Resuming: {len(done)} unit(s) already done: {', '.join(done)}")
@@ -185,6 +197,10 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
         except Abort as e:
             progress.warn(f"Aborted: {e}")
             status = EXIT_ABORTED
+        except StandClaimError as e:  # raised while opening: no axis was commanded yet
+            _err(f"Refused: {cfg.stand_path}: {e}")
+            run.event("refused", reason=str(e))
+            status = EXIT_INVALID
         except Exception as e:  # noqa: BLE001 - opening failed before the engine ran
             progress.warn(f"Aborted while setting up the bench: {e}")
             if bench is not None:
@@ -200,8 +216,10 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             if simbench is not None:
                 simbench.stop()
         doc: Document | None = None
+        result = None
         try:
-            result, doc = _write_outputs(run, cfg, progress)
+            if status != EXIT_INVALID:  # a refused stand measured nothing: nothing to issue
+                result, doc = _write_outputs(run, cfg, progress)
         except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
             progress.warn(f"analysis failed: {e!r}; the raw data is in {run.path}; "
                           f"fix and run `bench analyze {run.path}`")

@@ -13,7 +13,7 @@ from lxml import etree
 
 import bench
 from bench.certificate import methods
-from bench.certificate.build import Sources, certificate_id, decision_rule_text
+from bench.certificate.build import Sources, decision_rule_text, issued_number
 from bench.dcc import vocab as V
 from bench.dcc.conformity import ILAC_G8, RULE_REFERENCE, checks_of
 from bench.dcc.settings import LabSettings
@@ -71,7 +71,7 @@ def administrative(adm: etree._Element, src: Sources, lab: LabSettings, kind: st
     el(core, "countryCodeISO3166_1", str(country or UNKNOWN_COUNTRY))
     el(core, "usedLangCodeISO639_1", "en")
     el(core, "mandatoryLangCodeISO639_1", "en")
-    el(core, "uniqueIdentifier", certificate_id(src))
+    el(core, "uniqueIdentifier", issued_number(src))   # the PDF's number, this issue
     ids = el(core, "identifications")
     run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else None)
     if run_dir:
