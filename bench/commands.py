@@ -19,8 +19,10 @@ from typing import Any
 from bench.certificate import write_certificate
 from bench.config import Config, ConfigError
 from bench.devices import list_devices
+from bench.diskspace import expected_raw_bytes, space_problem
 from bench.engine import Abort, Engine, Progress, RunContext, SignalGuard
 from bench.examples import example_path
+from bench.instruments import StopErrors
 from bench.journal import RunDir
 from bench.loader import load_config
 from bench.plan import format_duration
@@ -131,11 +133,22 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
     plan = kind.build_plan(cfg)
     done = run.completed_units()
     todo = plan.remaining(done)
+    axes = sorted({st.axis for st in todo.steps if st.axis and st.axis in cfg.stand["axes"]})
+    short = space_problem(run.path, expected_raw_bytes(cfg.stand, axes, todo.total_s))
+    if short:
+        _err(f"Not started: {short}")
+        print(f"Free some space, then: bench run --resume {run.path}")
+        return EXIT_ABORTED
     simbench = None
     stand = cfg.stand
     status = EXIT_ABORTED
+    # one rule for the whole session: the first cause is what the operator reads; what
+    # goes wrong later, while stopping, is added beneath it and never replaces it
+    cause: str | None = None
+    later: list[str] = []
     with SignalGuard(progress.line) as guard:
         bench = None
+        engine_ran = False
         try:
             if sim or cfg.has_sim:
                 progress.line("Starting the simulated bench (twins on real channels)...")
@@ -161,25 +174,47 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                           f"{format_duration(todo.total_s)}")
             ctx = RunContext(cfg, clock, bench, run, progress, yes=yes)
             t0 = time.monotonic()
+            engine_ran = True
             Engine(ctx, kind.execute).run(todo, guard)
             run.event("completed", wall_s=time.monotonic() - t0)
             status = EXIT_PASS
-        except Abort as e:
-            _err(f"Aborted: {e}")
+        except BaseException as e:  # noqa: BLE001 - whatever it is, the stop follows
+            guard.stopping = True
             status = EXIT_ABORTED
-        except Exception as e:  # noqa: BLE001 - opening failed before the engine ran
-            _err(f"Aborted while setting up the bench: {e}")
-            if bench is not None:
-                bench.safe_stop(progress.line)
-            if run.session:
-                run.event("abort", reason=str(e), error=type(e).__name__)
-            status = EXIT_ABORTED
+            later += list(getattr(e, "__notes__", []))
+            if isinstance(e, Abort) and engine_ran:   # the engine stopped and journaled it
+                cause = str(e)
+            else:
+                where = "while running" if engine_ran else "while setting up the bench"
+                cause = f"{where}: {e or type(e).__name__}"
+                if bench is not None:
+                    later += bench.stop_and_close(progress.line)
+                    bench = None
+                later += _journal(run, "abort", reason=str(e) or type(e).__name__,
+                                  error=type(e).__name__)
+            if not isinstance(e, Exception | KeyboardInterrupt):
+                raise  # SystemExit and the like: the finally below still stops the bench
         finally:
             guard.stopping = True
             if bench is not None:
-                bench.close()
+                try:
+                    bench.close()
+                except StopErrors as e:
+                    later += e.errors
+                except Exception as e:  # noqa: BLE001
+                    later.append(f"closing the instruments: {e}")
             if simbench is not None:
-                simbench.stop()
+                try:
+                    simbench.stop()
+                except Exception as e:  # noqa: BLE001
+                    later.append(f"stopping the simulated bench: {e}")
+        if later:
+            status = EXIT_ABORTED  # something may not have stopped: never a clean exit
+            cause = cause or "the run completed, but stopping the bench failed"
+        if cause is not None:
+            _err(f"Aborted: {cause}")
+            for note in dict.fromkeys(n.removeprefix("also, while stopping: ") for n in later):
+                _err(f"  also, while stopping: {note}")
         certificate = False
         try:
             result, certificate = _write_outputs(run, cfg, progress)
@@ -200,9 +235,24 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             print(f"The run was aborted; the axes were stopped. Continue with: "
                   f"bench run --resume {run.path}")
         if run.session:
-            run.event("exit", status=status)
-        run.close()
+            for err in _journal(run, "exit", status=status, cause=cause, later=later):
+                _err(f"  also: {err}")
+        try:
+            run.close()
+        except Exception as e:  # noqa: BLE001
+            _err(f"  also: closing the event log: {e}")
     return status
+
+
+def _journal(run: RunDir, kind: str, **fields: Any) -> list[str]:
+    """An event written on the stop path: a failure to write it is reported, not raised."""
+    if not run.session:
+        return []
+    try:
+        run.event(kind, **fields)
+    except Exception as e:  # noqa: BLE001 - e.g. a full disk: say so, keep stopping
+        return [f"the {kind} event could not be journaled: {e}"]
+    return []
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:

@@ -165,19 +165,34 @@ class Engine:
             guard.stopping = True
             reason = str(exc) or type(exc).__name__
             ctx.progress.line(f"ABORT: {reason}")
-            ctx.run.event("abort", reason=reason, error=type(exc).__name__,
-                          traceback=traceback.format_exc(limit=8))
-            self.safe_stop()
-            if isinstance(exc, Abort):
+            later: list[str] = []
+            try:
+                ctx.run.event("abort", reason=reason, error=type(exc).__name__,
+                              traceback=traceback.format_exc(limit=8))
+            except Exception as e:  # noqa: BLE001 - the stop comes first, whatever the disk
+                later.append(f"the abort could not be journaled: {e}")
+            later += self.safe_stop()
+            out = exc if isinstance(exc, Abort) else Abort(reason)
+            for note in later:
+                out.add_note(f"also, while stopping: {note}")
+            if out is exc:
                 raise
-            raise Abort(reason) from exc
+            raise out from exc
 
-    def safe_stop(self) -> None:
+    def safe_stop(self) -> list[str]:
+        """Stop every axis; returns what went wrong (never raises: it runs after a fault)."""
         ctx = self.ctx
         ctx.progress.line("Stopping every axis (ramp to zero, then disable)...")
+        errors: list[str] = []
         try:
             ctx.bench.safe_stop(ctx.progress.line)
-            ctx.run.event("safe_stop", ok=True)
+            ok, error = True, None
         except BaseException as e:  # noqa: BLE001
-            ctx.run.event("safe_stop", ok=False, error=repr(e))
+            ok, error = False, repr(e)
+            errors.append(f"safe stop: {e}")
             ctx.progress.line(f"SAFE STOP FAILED: {e!r}: check the table by hand")
+        try:
+            ctx.run.event("safe_stop", ok=ok, **({"error": error} if error else {}))
+        except Exception as e:  # noqa: BLE001
+            errors.append(f"the safe stop could not be journaled: {e}")
+        return errors

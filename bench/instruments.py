@@ -7,7 +7,6 @@ serial port, the CAN channel) before this module opens them.
 
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,14 +41,17 @@ class Bench:
     def __init__(self) -> None:
         self.axes: dict[str, AxisInstruments] = {}
         self.extra: dict[str, Any] = {}
-        self._stack = contextlib.ExitStack()
+        self._closers: list[tuple[str, Callable[[], Any]]] = []
         self._logs: list[JsonLines] = []
 
     def enter(self, cm: Any) -> Any:
-        return self._stack.enter_context(cm)
+        obj = cm.__enter__()
+        name = getattr(obj, "name", None) or getattr(obj, "port", None) or type(obj).__name__
+        self._closers.append((str(name), lambda: cm.__exit__(None, None, None)))
+        return obj
 
     def callback(self, fn: Callable[[], Any]) -> None:
-        self._stack.callback(fn)
+        self._closers.append((getattr(fn, "__qualname__", "cleanup"), fn))
 
     def log(self, path: Path) -> JsonLines:
         j = JsonLines(path)
@@ -78,11 +80,53 @@ class Bench:
             raise RuntimeError("; ".join(errors))
 
     def close(self) -> None:
-        try:
-            self._stack.close()
-        finally:
-            for j in self._logs:
+        """Close every instrument (last opened first), then the raw logs. Every one is
+        tried whatever the others do; the errors are raised together (`StopErrors`)."""
+        errors: list[str] = []
+        while self._closers:
+            what, fn = self._closers.pop()
+            try:
+                fn()
+            except Exception as e:  # noqa: BLE001 - the others must still be closed
+                errors.append(f"{what}: {e}")
+        for j in self._logs:
+            try:
                 j.close()
+            except Exception as e:  # noqa: BLE001
+                errors.append(f"raw log {j.path}: {e}")
+        if errors:
+            raise StopErrors(errors)
+
+    def stop_and_close(self, log: Callable[[str], None]) -> list[str]:
+        """After a failure: safe stop, then close. Returns the errors, raises none: the
+        first cause stays what the operator reads, these go beneath it."""
+        errors: list[str] = []
+        if self.axes:
+            try:
+                self.safe_stop(log)
+            except Exception as e:  # noqa: BLE001
+                errors.append(f"safe stop: {e}")
+        try:
+            self.close()
+        except StopErrors as e:
+            errors += e.errors
+        except Exception as e:  # noqa: BLE001
+            errors.append(f"closing the instruments: {e}")
+        return errors
+
+
+def abandon(bench: Bench, exc: BaseException) -> None:
+    """Stop and close a bench that failed to open; errors meanwhile go beneath `exc`."""
+    for err in bench.stop_and_close(lambda s: None):
+        exc.add_note(f"also, while stopping: {err}")
+
+
+class StopErrors(RuntimeError):
+    """Errors met while stopping and closing (each names its instrument or file)."""
+
+    def __init__(self, errors: list[str]) -> None:
+        super().__init__("; ".join(errors))
+        self.errors = errors
 
 
 def with_readback(identity: str, readback: dict[str, Any], manual: str | None = None) -> str:

@@ -31,7 +31,7 @@ from bench.analysis import drift_pulse as dp
 from bench.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
 from bench.conformity import judge
 from bench.engine import Abort, RunContext
-from bench.instruments import Bench, open_axis, raw_text_logger
+from bench.instruments import Bench, abandon, open_axis, raw_text_logger
 from bench.journal import RunDir, read_jsonl
 from bench.plan import Plan, Step
 from bench.schema import Key, ListOf, Map, MapOf, Num, Str
@@ -394,10 +394,8 @@ class DriftPulse(StepDispatch):
             bench.axes[table].identities["awg"] = awg.identify()
             for g, dmm in bench.extra["dmms"].items():
                 bench.axes[table].identities[f"{g}-dmm"] = dmm.identify()
-        except BaseException:
-            if bench.axes:
-                bench.safe_stop(lambda s: None)
-            bench.close()
+        except BaseException as e:
+            abandon(bench, e)
             raise
         return bench
 

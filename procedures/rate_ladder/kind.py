@@ -16,7 +16,7 @@ from typing import Any
 from bench.analysis.window import HalfRecord
 from bench.config import STEP_MAX_S, Config, check_axis_names, stand_schema
 from bench.engine import Abort, RunContext
-from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, open_axis
+from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, abandon, open_axis
 from bench.journal import RunDir
 from bench.plan import Plan, Step, format_duration
 from bench.schema import Map
@@ -159,9 +159,8 @@ class RateLadder(StepDispatch):
         try:
             for axis in self.axes(cfg):
                 open_axis(bench, axis, stand["axes"], clock, run)
-        except BaseException:
-            bench.safe_stop(lambda s: None) if bench.axes else None
-            bench.close()
+        except BaseException as e:
+            abandon(bench, e)
             raise
         return bench
 
