@@ -43,9 +43,9 @@ ROOT = Path(__file__).resolve().parents[1]
 def _procedure(folder: Path) -> Path:
     proc = folder / "p.yaml"
     proc.write_text(yaml.safe_dump({
-        "procedure": "rate-ladder", "stand": str(STAND), "turns": 3, "sequence": "+-",
+        "procedure": "rate-ladder", "stand": str(STAND), "turns": 2, "sequence": "+-",
         "static_record_s": 3, "harmonics": 1, "prompts": False,
-        "axes": {"outer": {"rates_dps": [200, 300]}},
+        "axes": {"outer": {"rates_dps": [20, 30]}},
     }))
     return proc
 
@@ -137,23 +137,20 @@ def test_counter_without_trigger_in_acquire(tmp_path: Path) -> None:
 @pytest.mark.timeout(120)
 def test_a_failure_while_stopping_is_added_beneath_the_first_cause(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """The drive faults (the first cause), then falls silent, so it cannot be told to stop
-    (a later error): the operator reads the fault first, the loud stop error beneath."""
+    """The drive's heartbeat stops (the first cause); it then cannot be told to stop (a
+    later error): the operator reads the cause first, the loud stop error beneath it."""
     cfg = load_config(_procedure(tmp_path))
     run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
-
-    def fault(sim: Any) -> None:
-        sim.twins["outer.drive"].inject(OVER_TEMPERATURE)
-        sim.twins["outer.drive"].silence_heartbeat()
-
-    status, seen = _session(cfg, run, fault, "acquire")
+    status, seen = _session(cfg, run, FAULTS["drive-heartbeat-lost"], "settle")
     _assert_aborted_cleanly(run, status, seen)
     err = capsys.readouterr().err
     lines = err[err.index("Aborted: "):].splitlines()
-    assert "0x4310" in lines[0], err
-    assert any("COULD NOT BE TOLD TO STOP" in ln for ln in lines[1:]), err
+    assert "no heartbeat from the drive" in lines[0], err
+    loud = [ln for ln in lines[1:] if "COULD NOT BE TOLD TO STOP" in ln]
+    assert loud and "watchdog (0x1016" in loud[0], err
     exit_event = [e for e in run.events() if e["event"] == "exit"][-1]
-    assert "0x4310" in exit_event["cause"]
+    assert "no heartbeat from the drive" in exit_event["cause"]
+    assert any("COULD NOT BE TOLD TO STOP" in x for x in exit_event["later"])
 
 
 def test_torn_journal_tail_resume_starts_on_a_fresh_line(tmp_path: Path) -> None:
