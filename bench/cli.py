@@ -5,7 +5,10 @@ from __future__ import annotations
 import argparse
 import sys
 
+import bench
 from bench import commands
+from bench.dcc.command import COMMANDS as DCC_COMMANDS
+from bench.dcc.command import add_parsers as add_dcc_parsers
 from bench.decode import decode_command
 from bench.station.serve import cmd_serve
 
@@ -15,6 +18,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="bench",
         description="Attest rotary rate tables: run YAML procedures on real instruments "
                     "or on their simulated twins, and issue a certificate.")
+    p.add_argument("--version", action="version", version=f"bench (ratebench) {bench.__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     run = sub.add_parser("run", help="run a procedure; prints the run directory last")
     run.add_argument("procedure", nargs="?", help="procedure YAML file")
@@ -24,12 +28,14 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--resume", metavar="RUN_DIR", help="continue an interrupted run")
     run.add_argument("--example", metavar="NAME",
                      help="run a procedure shipped inside the package (demo, drift-demo)")
+    _console_options(run)
     val = sub.add_parser("validate", help="check procedure and stand files; exit 2 on problems")
     val.add_argument("procedure")
     plan = sub.add_parser("plan", help="print the steps and the estimated bench time")
     plan.add_argument("procedure")
     ana = sub.add_parser("analyze", help="recompute result.json and certificate from raw data")
     ana.add_argument("run_dir")
+    _console_options(ana)
     dev = sub.add_parser("devices", help="open each instrument, print its identity")
     dev.add_argument("stand")
     dev.add_argument("--sim", action="store_true", help="open the twins instead")
@@ -45,7 +51,17 @@ def build_parser() -> argparse.ArgumentParser:
                      help="address to bind (127.0.0.1); another one needs --token")
     srv.add_argument("--token", help="token for stop requests and remote viewers "
                                      "(default: $BENCH_STATION_TOKEN, else one is made up)")
+    add_dcc_parsers(sub)
     return p
+
+
+def _console_options(cmd: argparse.ArgumentParser) -> None:
+    """How the run is shown: a live display on a terminal, plain lines otherwise."""
+    shown = cmd.add_mutually_exclusive_group()
+    shown.add_argument("--quiet", action="store_true",
+                       help="print only faults, warnings, prompts and the verdict")
+    shown.add_argument("--log-json", action="store_true",
+                       help="progress and summary as JSON lines on standard error")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -54,6 +70,8 @@ def main(argv: list[str] | None = None) -> int:
         return decode_command(args.raw_file, args.fmt, args.csv)
     if args.command == "serve":
         return cmd_serve(args)
+    if args.command in DCC_COMMANDS:
+        return DCC_COMMANDS[args.command](args)
     return commands.dispatch(args)
 
 

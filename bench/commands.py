@@ -16,18 +16,22 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from bench.certificate import write_certificate
+from bench import __version__
+from bench import certificate as certificates
+from bench.certificate.model import Document
 from bench.config import Config, ConfigError
+from bench.console import PlainConsole, open_console
+from bench.dcc.command import write_run_dcc
 from bench.devices import list_devices
 from bench.diskspace import expected_raw_bytes, space_problem
-from bench.engine import Abort, Engine, Progress, RunContext, SignalGuard
+from bench.engine import Abort, Engine, RunContext, SignalGuard
 from bench.examples import example_path
 from bench.instruments import StopErrors
 from bench.journal import RunDir
 from bench.loader import load_config
 from bench.plan import format_duration
 from bench.registry import procedure_kind
-from bench.summary import summary_lines
+from bench.summary import Summary, summarize
 from drivers.clock import MonotonicClock
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
@@ -64,24 +68,33 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return EXIT_PASS
 
 
-def _write_outputs(run: RunDir, cfg: Config, progress: Progress) -> tuple[dict[str, Any], bool]:
-    """result.json, then the certificate; returns the result and whether the certificate
-    was written (a run that leaves no certificate must not exit as if it had)."""
+def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole
+                   ) -> tuple[dict[str, Any], Document | None]:
+    """result.json, then the certificate (PDF, HTML, DCC); returns the result and the
+    certificate's document (None when it could not be written: a run that leaves no
+    certificate must not exit as if it had, nor one whose DCC does not validate)."""
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json("result.json", result)
     try:
-        for path in write_certificate(run, result):
+        documents: list[Document] = []
+        for path in certificates.write_certificate(run, result, documents=documents):
             progress.line(f"wrote {path}")
+        doc = documents[-1]
     except Exception as e:  # noqa: BLE001 - result.json stands; say what is missing
         traceback.print_exc(file=sys.stderr)            # a bug to report: keep its trace
-        _err(f"the certificate could not be written: {e!r}; result.json is in {run.path}; "
-             f"once fixed, `bench analyze {run.path}` writes it")
-        return result, False
-    return result, True
+        progress.warn(f"the certificate could not be written: {e!r}; result.json is in "
+                      f"{run.path}; once fixed, `bench analyze {run.path}` writes it")
+        return result, None
+    if not write_run_dcc(run.path, result, cfg.stand, progress.line, warn=progress.warn):
+        return result, None
+    return result, doc
 
 
-def _summary(result: dict[str, Any]) -> list[str]:
-    return summary_lines(result)
+def _summary(result: dict[str, Any], doc: Document | None) -> Summary:
+    """The certificate's figures; without a certificate, only the verdict."""
+    if doc is not None:
+        return summarize(doc)
+    return Summary((), (), "", str(result.get("verdict", "incomplete")).upper())
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -112,7 +125,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     if run is None:
         run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path)
-    status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume))
+    console = open_console(quiet=args.quiet, log_json=args.log_json)
+    status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),
+                         progress=console)
     print(run.path)
     return status
 
@@ -121,18 +136,20 @@ SimHook = Callable[[Any], None]
 
 
 def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = False,
-                resume: bool = False, progress: Progress | None = None,
+                resume: bool = False, progress: PlainConsole | None = None,
                 on_sim_started: SimHook | None = None) -> int:
     """One session of a run (the first, or a --resume): returns the exit status.
 
     Whatever happens inside, the axes are stopped, the instruments closed, what was
     measured is analyzed, and the run directory is left ready for `--resume`.
     """
-    progress = progress or Progress()
+    progress = progress or open_console()
     kind = procedure_kind(cfg.kind)
     plan = kind.build_plan(cfg)
     done = run.completed_units()
     todo = plan.remaining(done)
+    if resume and hasattr(kind, "resume_plan"):  # finer than the unit (a rate ladder's halves)
+        todo = kind.resume_plan(todo, run)
     axes = sorted({st.axis for st in todo.steps if st.axis and st.axis in cfg.stand["axes"]})
     short = space_problem(run.path, expected_raw_bytes(cfg.stand, axes, todo.total_s))
     if short:
@@ -159,6 +176,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             run.begin_session(clock.now)
             run.event("session_start", resume=resume, sim=simbench is not None,
                       done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
+                      version=__version__, prompts="--yes" if yes else "operator",
                       pid=os.getpid())
             bench = kind.open_bench(cfg, stand, clock, run)
             for ax in bench.axes.values():
@@ -196,6 +214,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                 raise  # SystemExit and the like: the finally below still stops the bench
         finally:
             guard.stopping = True
+            progress.close()
             if bench is not None:
                 try:
                     bench.close()
@@ -212,24 +231,24 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             status = EXIT_ABORTED  # something may not have stopped: never a clean exit
             cause = cause or "the run completed, but stopping the bench failed"
         if cause is not None:
-            _err(f"Aborted: {cause}")
+            progress.warn(f"Aborted: {cause}")
             for note in dict.fromkeys(n.removeprefix("also, while stopping: ") for n in later):
-                _err(f"  also, while stopping: {note}")
-        certificate = False
+                progress.warn(f"  also, while stopping: {note}")
+        doc: Document | None = None
         try:
-            result, certificate = _write_outputs(run, cfg, progress)
+            result, doc = _write_outputs(run, cfg, progress)
         except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
-            _err(f"analysis failed: {e!r}; the raw data is in {run.path}; "
-                 f"fix and run `bench analyze {run.path}`")
+            progress.warn(f"analysis failed: {e!r}; the raw data is in {run.path}; "
+                          f"fix and run `bench analyze {run.path}`")
             result = None
             status = EXIT_ABORTED  # no verdict without an analysis
         if result is not None:
-            print("\n".join(_summary(result)))
+            progress.summary(_summary(result, doc))
             if status == EXIT_PASS and result.get("verdict") == "fail":
                 status = EXIT_FAIL
             if status == EXIT_PASS and result.get("verdict") == "incomplete":
                 status = EXIT_ABORTED
-        if status in (EXIT_PASS, EXIT_FAIL) and not certificate:
+        if status in (EXIT_PASS, EXIT_FAIL) and doc is None:
             status = EXIT_ABORTED  # measured, but nothing to sign: not a completed run
         elif status == EXIT_ABORTED:
             print(f"The run was aborted; the axes were stopped. Continue with: "
@@ -264,10 +283,11 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     cfg = _load(str(run.procedure_file), run.stand_file)
     if cfg is None:
         return EXIT_INVALID
-    result, certificate = _write_outputs(run, cfg, Progress())
-    print("\n".join(_summary(result)))
+    console = open_console(quiet=args.quiet, log_json=args.log_json)
+    result, doc = _write_outputs(run, cfg, console)
+    console.summary(_summary(result, doc))
     print(run.path / "result.json")
-    if not certificate:
+    if doc is None:
         return EXIT_ABORTED
     return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(result.get("verdict"), EXIT_ABORTED)
 

@@ -6,12 +6,13 @@ The schemas of the keys every procedure kind shares, and `Config`, what the load
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from bench.canbus import bus_problems
-from bench.schema import Any_, Bool, Check, Key, ListOf, Map, MapOf, Num, Str
+from bench.schema import Any_, Bool, Check, Key, ListOf, Map, MapOf, Num, OneOf, Str
 from bench.yamlfile import Problem, YamlDoc
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
@@ -64,6 +65,9 @@ COUNTER = Map({
     "impedance_ohm": Key(Num(min=0, exclusive_min=True)),
     "trigger_jitter_s": Key(Num(min=0, unit="s"), False, "slot sensor edge jitter, std"),
     "timebase_limit_rel": Key(Num(min=0), False, "timebase error limit (external reference)"),
+    "reference": Key(Str(("external", "internal")), False,
+                     "timebase: set at connect and read back (53230A SENS:ROSC:SOUR); a "
+                     "timebase_limit_rel below the model's needs 'external'"),
     "timeout_margin_s": Key(Num(min=0, exclusive_min=True, max=3600, unit="s")),
     "time_tie": Key(Map({
         "source": Key(Str(("fog-sync", "host-clock")), True,
@@ -124,9 +128,32 @@ SIM_AXIS = Map({
 })
 SIM_KEYS: dict[str, Key] = {
     "seed": Key(Num(min=0, integer=True)),
-    "clock_speed": Key(Num(min=0, exclusive_min=True), False, "virtual seconds per real one"),
+    "clock_speed": Key(OneOf(Num(min=0, exclusive_min=True), Str(("max",))), False,
+                       "virtual seconds per real one, or max: as fast as every twin keeps up"),
     "axes": Key(MapOf(SIM_AXIS)),
 }
+
+
+def _absolute_path(value: Any) -> str | None:
+    """A key or certificate is named by its path, never pasted in (the stand file is
+    copied into every run directory); relative paths would depend on the cwd."""
+    if isinstance(value, str) and "-----BEGIN" in value:
+        return "expected the path of a PEM file, not the key or certificate itself"
+    if isinstance(value, str) and not Path(os.path.expanduser(value)).is_absolute():
+        return f"expected an absolute path (or ~/...), got {value!r}"
+    return None
+
+
+ABSOLUTE_PATH = Check(Str(), _absolute_path)
+SIGNING = Map({    # the DCC's signing key (bench/dcc/settings.py, docs/dcc.md)
+    "key": Key(ABSOLUTE_PATH, True, "PEM private key (PKCS#8 or traditional), absolute path"),
+    "certificate": Key(ABSOLUTE_PATH, True, "PEM X.509 certificate of that key, chain after"),
+    "password_env": Key(Str(), False, "environment variable holding the key's password"),
+})
+STAND_DCC = Map({
+    "lab": Key(ABSOLUTE_PATH, False, "lab settings file (YAML), absolute path"),
+    "signing": Key(SIGNING),
+})
 IDENTITY = Map({"maker": Key(Str(), True), "model": Key(Str(), True),
                 "serial": Key(Str(), True), "location": Key(Str())})
 
@@ -140,6 +167,7 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
         "axes": Key(Check(MapOf(Map({**STAND_AXIS_KEYS, **(extra_axis or {})})),
                           bus_problems), True),
         "sim": Key(Map({**SIM_KEYS, **(extra_sim or {})})),
+        "dcc": Key(STAND_DCC, False, "DCC: lab settings file, signing key (paths only)"),
         **(extra_top or {}),
     })
 

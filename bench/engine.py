@@ -8,19 +8,23 @@ disable) before anything else. A second Ctrl-C while stopping does not skip the 
 
 from __future__ import annotations
 
+import multiprocessing
 import signal
 import sys
 import threading
 import time
 import traceback
 from collections.abc import Callable
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import wait as futures_wait
 from dataclasses import dataclass, field
 from types import FrameType
-from typing import IO, Any, Protocol
+from typing import Any, Protocol
 
 from bench.config import Config
-from bench.journal import RunDir
-from bench.plan import Plan, Step, format_duration
+from bench.journal import RunDir, utc_now
+from bench.plan import Plan, Step
+from bench.progress import Progress
 from drivers.clock import Clock
 
 
@@ -72,38 +76,70 @@ class SignalGuard:
             signal.signal(sig, signal.SIG_IGN if self.count else old)
 
 
-class Progress:
-    """Progress lines: rewritten in place on a terminal, plain lines otherwise."""
+class AnalysisWorker:
+    """Heavy analysis in a process of its own, so it cannot starve acquisition.
 
-    def __init__(self, stream: IO[str] | None = None, min_interval_s: float = 2.0) -> None:
-        self.stream = stream or sys.stderr
-        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
-        self.min_interval_s = min_interval_s
-        self._last_detail = 0.0
-        self._open_line = False
+    The FOG's serial reader, the CAN heartbeat and the twins are threads of the bench
+    process: a pair's analysis there (seconds of numpy at 36 M samples) would hold the
+    interpreter while frames and heartbeats are due. In a worker process it runs on the
+    other core, and the run goes on acquiring the next pair meanwhile. `submit` never
+    blocks; `on_done(result, error)` runs in a thread of this process when it is done.
+    The worker is started ("spawn": never a fork of a process with CAN threads) at the
+    first submit and kept for the session, so it keeps its state between jobs.
+    """
 
-    def line(self, text: str) -> None:
-        if self._open_line:
-            self.stream.write("\n")
-            self._open_line = False
-        self.stream.write(text + "\n")
-        self.stream.flush()
+    def __init__(self) -> None:
+        self._pool: ProcessPoolExecutor | None = None
+        self._pending: list[Future[Any]] = []
+        self._submitted: dict[Future[Any], float] = {}  # monotonic time of each submit
+        self._took_s: list[float] = []                  # wall time of each finished job
+        self._lock = threading.Lock()
 
-    def detail(self, text: str, force: bool = False) -> None:
-        """A frequent update (turn counter): in place on a tty, throttled otherwise."""
-        now = time.monotonic()
-        if self.tty:
-            self.stream.write("\r\033[K" + text)
-            self.stream.flush()
-            self._open_line = True
-        elif force or now - self._last_detail >= self.min_interval_s:
-            self.line(text)
-            self._last_detail = now
+    def submit(self, fn: Callable[..., Any], *args: Any,
+               on_done: Callable[[Any, BaseException | None], None]) -> None:
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(max_workers=1,
+                                             mp_context=multiprocessing.get_context("spawn"))
+        fut = self._pool.submit(fn, *args)
+        with self._lock:
+            self._submitted[fut] = time.monotonic()
+
+        def done(f: Future[Any]) -> None:
+            with self._lock:
+                t0 = self._submitted.pop(f, None)
+                if t0 is not None and not f.cancelled():
+                    self._took_s.append(time.monotonic() - t0)
+            if f.cancelled():
+                return
+            err = f.exception()
+            on_done(None if err else f.result(), err)
+        fut.add_done_callback(done)
+        self._pending.append(fut)
+
+    def backlog_s(self) -> float:
+        """Wall seconds the jobs not yet done should still take (one at a time, each as
+        long as those done took on average); 0 when none is pending or none has finished
+        yet to measure by. The run's end waits for them: the console's ETA counts it."""
+        with self._lock:
+            if not self._submitted or not self._took_s:
+                return 0.0
+            mean = sum(self._took_s) / len(self._took_s)
+            oldest = min(self._submitted.values())
+            return max(mean * len(self._submitted) - (time.monotonic() - oldest), 0.0)
+
+    def close(self, wait: bool = True) -> None:
+        """Let submitted jobs finish (wait=True) or drop those not started, then stop."""
+        if self._pool is not None:
+            if wait:
+                futures_wait(self._pending)
+            self._pool.shutdown(wait=True, cancel_futures=not wait)
+            self._pool = None
+        self._pending.clear()
 
 
 @dataclass
 class RunContext:
-    """What a procedure kind's step needs: config, clock, instruments, journal, progress."""
+    """What a procedure kind's step needs: config, clock, instruments, journal, console."""
 
     cfg: Config
     clock: Clock
@@ -113,18 +149,27 @@ class RunContext:
     yes: bool = False
     state: dict[str, Any] = field(default_factory=dict)
     eta_s: Callable[[], float] = lambda: 0.0
+    worker: AnalysisWorker = field(default_factory=AnalysisWorker)
 
     def prompt(self, text: str) -> None:
-        """An operator prompt; --yes answers it (unattended runs, CI)."""
-        self.run.event("prompt", text=text, answered="yes" if self.yes else "operator")
+        """An operator prompt: a person answers it on a terminal, or --yes answers it for
+        an unattended run. Either way the answer, who gave it and when are journaled (the
+        certificate lists them)."""
+        asked = utc_now()
         if self.yes:
-            self.progress.line(f"PROMPT  {text}  [--yes]")
+            self.run.event("prompt", text=text, answered="yes", answered_by="--yes",
+                           answer="", asked_utc=asked, answered_utc=asked)
+            self.progress.warn(f"PROMPT  {text}  [answered by --yes]")
             return
         if not sys.stdin.isatty():
             raise Abort(f"operator prompt needs an answer and stdin is not a terminal "
                         f"(use --yes for unattended runs): {text}")
-        answer = input(f"{text}\nPress Enter when done (or type 'abort'): ")
-        if answer.strip().lower() in ("abort", "a", "no", "n"):
+        answer = self.progress.ask(f"PROMPT  {text}").strip()
+        aborted = answer.lower() in ("abort", "a", "no", "n")
+        self.run.event("prompt", text=text, answered="abort" if aborted else "yes",
+                       answered_by="operator", answer=answer, asked_utc=asked,
+                       answered_utc=utc_now())
+        if aborted:
             raise Abort("the operator aborted at a prompt")
 
 
@@ -146,25 +191,25 @@ class Engine:
         last_of_unit = {s.unit: i for i, s in enumerate(steps) if s.unit}
         ctx.run.event("plan", steps=len(steps), estimate_s=plan.total_s,
                       step_estimates_s=[s.estimate_s for s in steps])
+        ctx.progress.begin(steps, ctx.clock.now, ctx.worker.backlog_s)
         try:
             for i, step in enumerate(steps):
                 ctx.eta_s = (lambda i=i: remaining[i])
-                eta_real = remaining[i] / ctx.clock.speed
-                ctx.progress.line(
-                    f"[{i + 1}/{len(steps)}] {step.axis or '':<6} {step.action:<9} "
-                    f"{step.describe}   (bench time left {format_duration(remaining[i])}"
-                    + (f", about {format_duration(eta_real)} here)" if ctx.clock.speed != 1
-                       else ")"))
+                ctx.progress.step(i)
                 ctx.run.event("step_start", index=i, action=step.action, axis=step.axis,
                               unit=step.unit, describe=step.describe)
                 self.execute(step, ctx)
+                ctx.progress.step_done(i)
                 ctx.run.event("step_done", index=i, action=step.action, unit=step.unit)
                 if step.unit and last_of_unit[step.unit] == i:
                     ctx.run.event("unit_done", unit=step.unit)
+            ctx.worker.close(wait=True)  # the last pair's first look, before "completed"
+            ctx.progress.end()
         except BaseException as exc:  # noqa: BLE001 - every failure must stop the table
             guard.stopping = True
+            ctx.progress.end()
             reason = str(exc) or type(exc).__name__
-            ctx.progress.line(f"ABORT: {reason}")
+            ctx.progress.warn(f"ABORT: {reason}")
             later: list[str] = []
             try:
                 ctx.run.event("abort", reason=reason, error=type(exc).__name__,
@@ -172,6 +217,7 @@ class Engine:
             except Exception as e:  # noqa: BLE001 - the stop comes first, whatever the disk
                 later.append(f"the abort could not be journaled: {e}")
             later += self.safe_stop()
+            ctx.worker.close(wait=False)
             out = exc if isinstance(exc, Abort) else Abort(reason)
             for note in later:
                 out.add_note(f"also, while stopping: {note}")
@@ -190,7 +236,7 @@ class Engine:
         except BaseException as e:  # noqa: BLE001
             ok, error = False, repr(e)
             errors.append(f"safe stop: {e}")
-            ctx.progress.line(f"SAFE STOP FAILED: {e!r}: check the table by hand")
+            ctx.progress.warn(f"SAFE STOP FAILED: {e!r}: check the table by hand")
         try:
             ctx.run.event("safe_stop", ok=ok, **({"error": error} if error else {}))
         except Exception as e:  # noqa: BLE001

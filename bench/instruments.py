@@ -21,6 +21,9 @@ from drivers.fog import Fog
 from drivers.time_tie import TimeTie
 
 DEFAULT_FOG_RANGE_DPS = 490.0  # KVH DSP-1760's range; a stand file may say otherwise
+#: seconds of FOG samples the live driver keeps: the run's memory must not grow with its
+#: length; the analysis reads every sample from the raw capture (drivers.fog.CaptureCursor)
+LIVE_FOG_KEEP_S = 60.0
 
 
 @dataclass
@@ -192,6 +195,7 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
             ax.logs["counter"] = clog
         cnt.configure(**{k: c[k] for k in ("channel", "level_v", "slope", "coupling",
                                            "impedance_ohm") if k in c})
+        cnt.verify_reference(c.get("reference"), c.get("timebase_limit_rel"))
         ax.counter = cnt
         manual = cnt.profile.manual
         ax.identities["counter"] = with_readback(
@@ -204,7 +208,8 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
                  axis=f.get("axis", "z"), rate_hz=f["rate_hz"],
                  units=f.get("units"), configure=f.get("configure", "declare"),
                  raw_path=run.raw_path(f"{name}-fog.bin") if run else None, clock=clock,
-                 model=f.get("model"))
+                 model=f.get("model"),
+                 keep_samples=int(LIVE_FOG_KEEP_S * f["rate_hz"]) if run else None)
         bench.enter(fg)
         ax.fog = fg
         ax.identities["fog"] = with_readback(fg.identity(), fg.readback)

@@ -106,6 +106,29 @@ class Any_(Node):
 
 
 @dataclass(frozen=True)
+class OneOf(Node):
+    """A value any one of several schemas accepts (e.g. a number, or the word max)."""
+
+    options: tuple[Node, ...]
+
+    def __init__(self, *options: Node) -> None:
+        object.__setattr__(self, "options", options)
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return " or ".join(o.description for o in self.options)
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        for o in self.options:
+            found: list[Problem] = []
+            o.check(value, path, doc, found)
+            if not found:
+                return
+        out.append(doc.problem(path, f"expected {self.description}, got "
+                                     f"{_type_name(value)} {value!r}"))
+
+
+@dataclass(frozen=True)
 class ListOf(Node):
     item: Node
     min_len: int = 0

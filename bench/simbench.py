@@ -17,7 +17,7 @@ from collections.abc import Callable
 from typing import Any
 
 from bench.canbus import bus_name, controller_node_ids
-from sims.clock import VirtualClock
+from sims.clock import MAX, VirtualClock, parse_speed
 from sims.counter_twin import CounterTwin
 from sims.drive_twin import DriveTwin
 from sims.fog_twin import FogTwin
@@ -74,7 +74,7 @@ class SimBench:
         truth = StandTruth(
             seed=int(sim.get("seed", 0)),
             axes={a: AxisTruth.from_mapping(sim_axes.get(a, DEFAULT_AXIS_TRUTH)) for a in axes},
-            clock_speed=float(sim.get("clock_speed", 100.0)),
+            clock_speed=parse_speed(sim.get("clock_speed"), MAX),
         )
         self.clock = VirtualClock(truth.clock_speed, running=False)
         fog_hz = {a: float((self.stand_cfg["axes"][a].get("fog") or {}).get("rate_hz", 1000.0))
@@ -100,6 +100,8 @@ class SimBench:
                                  units=twin_fog_units(f, sim_axes.get(a) or {}))
                     f["port"] = ft.start()
                     self._stack.callback(ft.stop)
+                    # the stand runs no faster than this FOG's frames go out (sims/clock.py)
+                    self._stack.callback(self.clock.pace(ft.delivered_s))
                     self.twins[f"{a}.fog"] = ft
             # one virtual bus per CAN bus of the stand file: the same axes share one, so
             # the node ids (and each axis's controller id) are those of the real bench
@@ -151,6 +153,7 @@ class SimBench:
             if hasattr(twin, "settle_after_controller"):
                 twin.settle_after_controller()
         self._stack.close()
+        self.clock.pause()
 
     def __enter__(self) -> SimBench:
         return self

@@ -1,54 +1,108 @@
-"""The summary table `bench run` and `bench analyze` print at the end.
+"""The summary `bench run` and `bench analyze` print at the end: the certificate's own cells.
 
-Values and U are rounded as on the certificate (U to two significant digits, the value
-to U's decimal), so the console never shows a figure the certificate does not.
+The summary is cut from the certificate's document model (the tables the certificate
+prints), never formatted a second time, so every number on the console is the
+certificate's text for the same quantity: U to two significant digits, the value to
+match, unresolved figures as "< limit", the unit in the column header.
 """
 
 from __future__ import annotations
 
-from typing import Any
+import re
+from collections.abc import Sequence
 
-from bench.certificate.rounding import format_value_u
+from bench.certificate.model import Document, Fields, Table
+from bench.console.report import STATEMENT_FIELD, Summary, SummaryTable
+
+# (caption after "Axis <name>: ", header prefix in the certificate, header on the console)
+LADDER_COLUMNS = (
+    ("per-turn rate error", "Set rate", None),
+    ("per-turn rate error", "Turns", None),
+    ("per-turn rate error", "Rate error", None),
+    ("per-turn rate error", "Instability", None),
+    ("intra-turn instability", "Raw ± U", "Intra-turn raw ± U"),
+    ("intra-turn instability", "Floor-corrected", None),
+    ("per-turn rate error", "Verdict", None),
+)
+PAIR_COLUMNS = (
+    ("FOG cross-calibration", "Pair", None),
+    ("FOG cross-calibration", "k ± U", None),
+    ("FOG cross-calibration", "ω0 ± U, °/s", None),
+)
+DRIFT_CAPTION = "Own and apparent drift per axis"
+DRIFT_HEADERS = ("Axis", "Own drift", "Apparent drift")
+AZIMUTH_FIELD = "Platform azimuth"
 
 
-def _pct(x: float | None, digits: int = 3) -> str:
-    return "-" if x is None else f"{x * 100:.{digits}f} %"
+def _tables(doc: Document) -> list[Table]:
+    return [b for s in doc.sections for b in s.blocks if isinstance(b, Table)]
 
 
-def _ppm(x: float | None) -> str:
-    return "-" if x is None else f"{x * 1e6:.3f}"
+def _fields(doc: Document) -> dict[str, str]:
+    return {k: v for s in doc.sections for b in s.blocks if isinstance(b, Fields)
+            for k, v in b.rows}
 
 
-def summary_lines(result: dict[str, Any]) -> list[str]:
-    out = [""]
-    axes = result.get("axes") or {}
-    if axes:
-        head = (f"{'axis':<7}{'set deg/s':>11}{'turns':>6}  {'rate error ± U(k=2), ppm':<26}"
-                f"{'instab. ppm':>12}{'intra-turn':>12}{'corrected':>12}  verdict")
-        out += [head, "-" * len(head)]
-        for name, ax in axes.items():
-            for r in ax.get("rates", []):
-                err = format_value_u(r.get("rate_error_rel"), r.get("rate_error_u_rel"),
-                                     1e6, signed=True).joined()
-                out.append(
-                    f"{name:<7}{r['set_rate_dps']:>+11g}{r.get('turns', 0):>6}  {err:<26}"
-                    f"{_ppm(r.get('rate_instability_rel')):>12}"
-                    f"{_pct(r.get('intra_turn_instability_rel')):>12}"
-                    f"{_pct(r.get('intra_turn_instability_corrected_rel')):>12}  "
-                    f"{r.get('verdict', '-').upper()}")
-            for p in ax.get("pairs", []):
-                k = format_value_u(p["k"], p["k_u"]).joined()
-                w0 = format_value_u(p["w0_dps"], p["w0_u_dps"], signed=True).joined("deg/s")
-                out.append(f"{name:<7}{p['rate_dps']:>11g}  k = {k}   w0 = {w0}")
-    drift = result.get("drift")
-    if drift:
-        for name, ax in drift.get("axes", {}).items():
-            own = format_value_u(ax["own_dph"], ax["own_u_dph"], signed=True).joined("deg/h")
-            app = format_value_u(ax["apparent_dph"], ax["apparent_u_dph"],
-                                 signed=True).joined("deg/h")
-            out.append(f"{name}: own drift {own}, apparent {app}")
-        if "azimuth_deg" in drift:
-            az = format_value_u(drift["azimuth_deg"], drift["azimuth_u_deg"]).joined("deg")
-            out.append(f"azimuth {az}")
-    out.append(f"verdict: {str(result.get('verdict', '-')).upper()}")
+def _column(table: Table, prefix: str) -> int | None:
+    return next((i for i, h in enumerate(table.header) if h.startswith(prefix)), None)
+
+
+def _axis_tables(doc: Document) -> dict[str, dict[str, Table]]:
+    """Per axis, its tables keyed by caption (the text after 'Axis <name>: ')."""
+    out: dict[str, dict[str, Table]] = {}
+    for t in _tables(doc):
+        m = re.match(r"Axis (\S+): (.*)", t.caption)
+        if m:
+            out.setdefault(m.group(1), {})[m.group(2)] = t
     return out
+
+
+def _find(tables: dict[str, Table], caption: str) -> Table | None:
+    return next((t for c, t in tables.items() if c.startswith(caption)), None)
+
+
+def _joined(title: str, tables: dict[str, Table],
+            columns: Sequence[tuple[str, str, str | None]]) -> SummaryTable | None:
+    """Columns of several tables of one axis, rows joined on the first column (the rate)."""
+    picked: list[tuple[Table, int, str]] = []
+    for caption, prefix, shown in columns:
+        t = _find(tables, caption)
+        i = _column(t, prefix) if t is not None else None
+        if t is not None and i is not None:
+            name = t.header[i]
+            picked.append((t, i, shown + name[len(prefix):] if shown else name))
+    if not picked:
+        return None
+    base = picked[0][0]
+    keyed = {id(t): {row[0]: row for row in t.rows} for t, _, _ in picked}
+    rows = []
+    for key in (row[0] for row in base.rows):
+        cells = []
+        for t, i, _ in picked:
+            row = keyed[id(t)].get(key)
+            cells.append(row[i] if row is not None else "—")
+        rows.append(tuple(cells))
+    align = "".join((t.align[i] if i < len(t.align) else "r") for t, i, _ in picked)
+    return SummaryTable(title, tuple(name for _, _, name in picked), tuple(rows), align)
+
+
+def summarize(doc: Document) -> Summary:
+    """The figures the console shows, as the certificate prints them."""
+    tables: list[SummaryTable] = []
+    for axis, by_caption in _axis_tables(doc).items():
+        for title, columns in ((f"Axis {axis}", LADDER_COLUMNS),
+                               (f"Axis {axis}, FOG cross-calibration per ± pair", PAIR_COLUMNS)):
+            t = _joined(title, by_caption, columns)
+            if t is not None and t.rows:
+                tables.append(t)
+    drift = next((t for t in _tables(doc) if t.caption.startswith(DRIFT_CAPTION)), None)
+    if drift is not None:
+        idx = [i for p in DRIFT_HEADERS for i in (_column(drift, p),) if i is not None]
+        tables.append(SummaryTable("Drift", tuple(drift.header[i] for i in idx),
+                                   tuple(tuple(r[i] for i in idx) for r in drift.rows),
+                                   "".join(drift.align[i] if i < len(drift.align) else "r"
+                                           for i in idx)))
+    fields = _fields(doc)
+    picked = tuple((k, v) for k, v in fields.items() if k.startswith(AZIMUTH_FIELD))
+    verdict = str(doc.verdict or "incomplete").upper()
+    return Summary(tuple(tables), picked, fields.get(STATEMENT_FIELD, ""), verdict)

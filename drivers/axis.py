@@ -20,8 +20,8 @@ What it does, and why:
 - Leaving the context, by return or by exception, ramps to zero and disables.
 
 Time: heartbeats, SDO and TPDO periods are real time (the CAN side); ramps, holds and
-settling are in the clock's seconds, and real-time timeouts are scaled by
-`clock.speed` with a margin.
+settling are in the clock's seconds, and real-time timeouts are scaled by the slowest
+the clock can run (`drivers.clock.min_speed`) with a margin.
 
 Threads: `raw` and the feedback bookkeeping run in canopen's receive thread; the
 engine's `raw` callable must be thread-safe (an exception in it is kept and raised by
@@ -70,7 +70,7 @@ from drivers.cia402 import (
     unwrap_int32,
     wrap_int32,
 )
-from drivers.clock import Clock
+from drivers.clock import Clock, real_budget_s
 from drivers.heartbeat import HeartbeatProducer
 from drivers.waits import MIN_REAL_MARGIN_S
 
@@ -699,7 +699,7 @@ class Axis:
             seq0 = self._seq
             v = abs(self._feedback.velocity_dps) if self._feedback else self.max_rate_dps
         ramp_s = v / max(decel_dps2, 1e-9)
-        timeout = ramp_s / self.clock.speed + REAL_MARGIN_S + 5 * self._tpdo_period_s
+        timeout = real_budget_s(self.clock, ramp_s) + REAL_MARGIN_S + 5 * self._tpdo_period_s
         bit = self.mode.speed_zero_bit
         if bit is None:  # this mode's statusword has no speed-zero bit: velocity actual
             self._wait_real(lambda: self._seq > seq0 and self._feedback is not None
@@ -765,7 +765,7 @@ class Axis:
             return (self._seq > seq0 + 1 and f is not None and sw is not None
                     and bool(sw & Sw.TARGET_REACHED) and abs(f.velocity_dps) <= STANDSTILL_DPS)
 
-        self._wait_real(arrived, 1.5 * move_s / self.clock.speed + REAL_MARGIN_S
+        self._wait_real(arrived, real_budget_s(self.clock, 1.5 * move_s) + REAL_MARGIN_S
                         + 5 * self._tpdo_period_s, f"the move to {position_deg:g} deg")
         final = self.position_deg
         self._journal("moved", target_deg=position_deg, position_deg=final,
@@ -800,16 +800,19 @@ class Axis:
         with self._lock:
             return self._target_dps
 
-    def wait_settled(self, tolerance_dps: float, hold_s: float, timeout_s: float) -> float:
+    def wait_settled(self, tolerance_dps: float, hold_s: float, timeout_s: float,
+                     on_hold: Callable[[float], None] | None = None) -> float:
         """Wait until every velocity reading for `hold_s` (clock s) is within tolerance.
 
         Returns the mean velocity actual over that hold. Raises `AxisTimeout` when it does
-        not settle within `timeout_s` (clock s), `DriveFault` on a drive fault.
+        not settle within `timeout_s` (clock s), `DriveFault` on a drive fault. `on_hold`
+        hears how long the readings have stayed within tolerance so far (clock s), for an
+        operator watching the settle.
         """
         if not tolerance_dps > 0 or hold_s < 0 or not timeout_s > 0:
             raise ValueError(f"axis {self.name}: wait_settled needs tolerance_dps > 0, "
                              f"hold_s >= 0 and timeout_s > 0")
-        deadline = time.monotonic() + timeout_s / self.clock.speed + REAL_MARGIN_S
+        deadline = time.monotonic() + real_budget_s(self.clock, timeout_s) + REAL_MARGIN_S
         with self._lock:
             seq = self._seq
         run: list[Feedback] = []
@@ -830,6 +833,8 @@ class Axis:
                     run.append(f)
                 else:
                     run.clear()
+            if on_hold is not None and new:
+                on_hold(run[-1].t_s - run[0].t_s if len(run) >= 2 else 0.0)
             if len(run) >= 2 and run[-1].t_s - run[0].t_s >= hold_s:
                 mean = math.fsum(f.velocity_dps for f in run) / len(run)
                 self._journal("settled", target_dps=target, mean_dps=mean, samples=len(run),

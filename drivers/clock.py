@@ -28,6 +28,7 @@ class MonotonicClock:
     """Real seconds since construction."""
 
     speed: float = 1.0
+    min_speed: float = 1.0
 
     def __init__(self) -> None:
         self._t0 = time.monotonic()
@@ -38,3 +39,19 @@ class MonotonicClock:
     def sleep(self, duration_s: float) -> None:
         if duration_s > 0:
             time.sleep(duration_s)
+
+
+def min_speed(clock: Clock) -> float:
+    """The slowest `clock` can run, virtual seconds per real one.
+
+    Real-time budgets that detect a failure (an instrument that never answers) divide a
+    span of bench time by this, not by `speed`: a paced simulated clock slows down when a
+    twin lags (sims.clock), and a wait budgeted at its top speed would call a slow machine
+    a dead instrument.
+    """
+    return float(getattr(clock, "min_speed", clock.speed))
+
+
+def real_budget_s(clock: Clock, bench_s: float) -> float:
+    """The longest `bench_s` seconds of bench time can take in real time."""
+    return bench_s / min_speed(clock)

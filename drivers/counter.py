@@ -12,8 +12,8 @@ is the same:
     *ESR? until bit 0 (operation complete); FETC? ; SYST:ERR?           -- fetch()
 
 Every configuring write is followed by `SYST:ERR?`, so an error names its command.
-Waits are in real seconds and scale with the clock (a virtual stand runs `clock.speed`
-times faster): a wait for n turns of period T allows n * T * (1 + slack) / clock.speed
+Waits are in real seconds and scale with the clock (a virtual stand runs up to `clock.speed`
+times faster): a wait for n turns of period T allows n * T * (1 + slack) / min_speed(clock)
 plus `timeout_margin_s`. The instrument's own measurement timeout (when the model has
 one) is set to the same span in instrument seconds, so a missing signal comes back as
 9.91E37 before the VISA timeout; either way the error is a `CounterTimeout`, and after
@@ -32,7 +32,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from drivers.clock import Clock
+from drivers.clock import Clock, real_budget_s
 from drivers.counter_profiles import CounterProfile, get_profile, is_scpi_nan
 from drivers.scpi import (
     CLS,
@@ -95,6 +95,7 @@ class Acquisition:
     expected_period_s: float
     consecutive: bool        # periods are between consecutive zero marks
     armed_at_s: float        # clock time just after INIT (stand time on a twin)
+    span_s: float            # longest credible duration, clock seconds (no margin)
     armed_real_s: float      # time.monotonic() then
     span_real_s: float       # longest credible duration, real seconds (no margin)
     deadline_real_s: float   # time.monotonic() by which the data must be there
@@ -320,6 +321,43 @@ class Counter(ScpiInstrument):
         self.send(w.input_level, level_v=c.level_v)
         self.send(w.input_slope, slope=c.slope)
 
+    def verify_reference(self, reference: str | None, timebase_limit_rel: float | None
+                         ) -> str | None:
+        """The timebase the stand's budget assumes, set (or read) and checked at connect.
+
+        53220A/53230A User's Guide, "Time base" (p. 69 Agilent edition, p. 81 Keysight):
+        `SENS:ROSC:SOUR EXT` (which also ends automatic selection), then
+        `SENS:ROSC:EXT:CHEC ONCE` and `SYST:ERR?`: an error if no valid signal is at Ext
+        Ref In. `reference` is the stand's counter.reference ("external", "internal" or
+        None: only read). A stand that claims a timebase limit below the model's own
+        (counter.timebase_limit_rel) must run on an external reference.
+        """
+        w = self.words
+        if w.reference_source is None:
+            if reference is not None:
+                raise CounterError(f"{self.name}: counter.reference: the {self.profile.model} "
+                                   "profile has no reference-source word")
+            return None
+        with self.recovering():
+            if reference is not None:
+                source = "EXT" if reference == "external" else "INT"
+                self.send(w.reference_source, source=source)
+                if source == "EXT" and w.reference_check is not None:
+                    self.send(w.reference_check, when="ONCE")  # an error if no signal
+            got = self.query(w.reference_source.query_text()).strip()
+        self.readback["counter.reference"] = got
+        if reference is not None and not _same_setting(got, "EXT" if reference == "external"
+                                                       else "INT"):
+            raise CounterError(f"{self.name}: counter.reference: set {reference}, the counter "
+                               f"reads back {got!r}")
+        if (timebase_limit_rel is not None and timebase_limit_rel
+                < self.profile.timebase_limit_rel and not _same_setting(got, "EXT")):
+            raise CounterError(
+                f"{self.name}: counter.timebase_limit_rel = {timebase_limit_rel:g} assumes an "
+                f"external reference, but the counter runs on {got!r}; set "
+                "counter.reference: external (and connect Ext Ref In)")
+        return got
+
     def _verify_input(self) -> None:
         """Read every input setting back; a difference refuses the run by stand key."""
         w, c = self.words, self.input
@@ -395,9 +433,11 @@ class Counter(ScpiInstrument):
                       timeout_s=inst_timeout if inst_timeout <= hi else "INFinity")
             inst_timeout = inst_timeout if inst_timeout <= hi else None
         real_span = span / self.clock.speed
+        budget = real_budget_s(self.clock, span)  # a paced clock may run slower than speed
         t_start = t_start_u = 0.0
         if method == "read":  # READ? measures when asked: arm only configures
             real_span *= n_read
+            budget *= n_read
         else:
             t_start, t_start_u = self._initiate()
             self.write(OPC.text(), check=False)
@@ -405,8 +445,8 @@ class Counter(ScpiInstrument):
         return Acquisition(
             what=what, method=method, n=n, expected_period_s=period_s,
             consecutive=(method == "timestamps" or p.periods_gap_free),
-            armed_at_s=self.clock.now(), armed_real_s=now, span_real_s=real_span,
-            deadline_real_s=now + real_span + self.timeout_margin_s,
+            armed_at_s=self.clock.now(), span_s=span, armed_real_s=now, span_real_s=real_span,
+            deadline_real_s=now + budget + self.timeout_margin_s,
             instrument_timeout_s=inst_timeout, t_start_s=t_start, t_start_u_s=t_start_u)
 
     def _initiate(self, attempts: int = 8) -> tuple[float, float]:
@@ -454,7 +494,7 @@ class Counter(ScpiInstrument):
     def _read_periods(self, acq: Acquisition, n: int) -> np.ndarray:
         """One READ? per period, each allowed two turns (wait for a start, one turn)."""
         read = self._need(self.words.read, "read")
-        per_read_s = self._span_s("read", 1, acq.expected_period_s) / self.clock.speed
+        per_read_s = real_budget_s(self.clock, self._span_s("read", 1, acq.expected_period_s))
         out = np.empty(n)
         for i in range(n):
             text = read.text()
@@ -478,7 +518,7 @@ class Counter(ScpiInstrument):
         every 1/50 of it: a few dozen exchanges in the journal at most.
         """
         poll_s = min(max(acq.span_real_s / 50.0, 0.005), 2.0)
-        time.sleep(max(acq.armed_real_s + 0.5 * acq.span_real_s - time.monotonic(), 0.0))
+        self.clock.sleep(acq.armed_at_s + 0.5 * acq.span_s - self.clock.now())
         while True:
             text = ESR_Q.text()
             reply = self.query(text)

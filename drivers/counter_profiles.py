@@ -45,6 +45,8 @@ class CounterWords:
     timestamp_rate: Command | None = None
     timestamp_info: Command | None = None
     trigger_source: Command | None = None
+    reference_source: Command | None = None
+    reference_check: Command | None = None
     sample_count: Command | None = None
     gate_time: Command | None = None
     measurement_timeout: Command | None = None
@@ -77,8 +79,9 @@ class TimestampFormat:
     name = ""
 
     def encode(self, edges_s: np.ndarray, t_start_s: float, digits: int,
-               exp_digits: int) -> str:
-        """The twin's reply for edges at `edges_s`, the start event at `t_start_s`."""
+               exp_digits: int, first_index: int = 0) -> str:
+        """The twin's reply for edges at `edges_s`, the start event at `t_start_s`;
+        `first_index` is the first edge's place in the acquisition (a later chunk)."""
         raise NotImplementedError
 
     def decode(self, values: np.ndarray) -> np.ndarray:
@@ -108,7 +111,7 @@ class KeysightTimestamps(TimestampFormat):
     name = "keysight-tst"
 
     def encode(self, edges_s: np.ndarray, t_start_s: float, digits: int,
-               exp_digits: int) -> str:
+               exp_digits: int, first_index: int = 0) -> str:
         intervals = np.diff(np.concatenate([[t_start_s], np.asarray(edges_s, float)]))
         return ",".join(["+1"] + [nr3(t, digits, exp_digits) for t in intervals])
 
@@ -147,8 +150,8 @@ class PendulumStst(TimestampFormat):
     name = "pendulum-stst"
 
     def encode(self, edges_s: np.ndarray, t_start_s: float, digits: int, exp_digits: int,
-               x0: int = 1) -> str:
-        return ",".join(f"{x0 + i},{nr3(t - t_start_s, digits, exp_digits)}"
+               first_index: int = 0) -> str:
+        return ",".join(f"{first_index + i + 1},{nr3(t - t_start_s, digits, exp_digits)}"
                         for i, t in enumerate(edges_s))
 
     def decode(self, values: np.ndarray) -> np.ndarray:
@@ -276,6 +279,10 @@ KEYSIGHT_53230A = CounterProfile(
                                         "in non-volatile memory: read, set, restored"),
         trigger_source=Command("TRIGger[:SEQuence]:SOURce", "{source}",
                                doc="IMMediate, EXTernal or BUS; EXT for the time tie"),
+        reference_source=Command("[SENSe:]ROSCillator:SOURce", "{source}",
+                                 doc="INTernal or EXTernal timebase (EXT also ends AUTO)"),
+        reference_check=Command("[SENSe:]ROSCillator:EXTernal:CHECk", "{when}",
+                                doc="ONCE: checks the Ext Ref In signal, errors if none"),
         fetch=Command("FETCh?", doc="readings of the last INIT"),
     ),
     timestamps="keysight-tst",
@@ -292,7 +299,8 @@ KEYSIGHT_53230A = CounterProfile(
     manual=("Keysight 53220A/53230A Programmer's Reference: MEASure:ARRay:TSTamp? p. 240, "
             "SENSe:TSTamp:RATE p. 377 (*RST 1.0E6), SYSTem:TIMeout p. 459 (per measurement, "
             "non-volatile, 9.9E37 disabled); User's Guide 'Time stamp' (count+1 elements, "
-            "values are period x scale factor)"),
+            "values are period x scale factor) and 'Time base' (SENS:ROSC:SOUR EXT; "
+            "SENS:ROSC:EXT:CHEC ONCE; SYST:ERR?, p. 69/81)"),
     notes=("53220A/53230A Programmer's Reference: CONF:ARR:TST, SENS:TST:RATE, SYST:TIM, "
            "INP:LEV:AUTO, reply 'prescaler, intervals' (count+1 values). Period mode "
            "(CONF:PER; SAMP:COUN N) is modelled with dead time: consecutive readings time "

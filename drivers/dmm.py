@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.clock import Clock
+from drivers.clock import Clock, real_budget_s
 from drivers.scpi import (
     ABORT,
     CLS,
@@ -45,6 +45,7 @@ from drivers.scpi import (
     parse_numbers,
 )
 from drivers.scpi_profile import InstrumentProfile, ProfiledInstrument, lookup_profile
+from drivers.transport import Transport
 
 DMM_ERRORS = ErrorKinds.family("Dmm", "the digitizer", __name__)
 DmmError, DmmCommandError, DmmTimeout, DmmReplyError, DmmConnectionError = DMM_ERRORS
@@ -70,6 +71,10 @@ class DmmWords:
     trigger_count: Command = Command("TRIGger:COUNt", "{count}")
     sample_source: Command = Command("SAMPle:SOURce", "{source}", doc="TIMer")
     sample_timer: Command = Command("SAMPle:TIMer", "{interval_s}")
+    sample_timer_limit: Command = Command(
+        "SAMPle:TIMer?", "{limit}", doc="MIN: the measurement-dependent shortest interval")
+    questionable_event: Command = Command(
+        "STATus:QUEStionable[:EVENt]?", doc="read-and-clear; bit 2: sample timing violation")
     sample_count: Command = Command("SAMPle:COUNt", "{count}")
     format_data: Command = Command("FORMat[:DATA]", "{format}")
     operation_condition: Command = Command("STATus:OPERation:CONDition?")
@@ -89,6 +94,8 @@ class DmmProfile(InstrumentProfile):
     max_trigger_delay_s: float
     waiting_for_trigger_bit: int   # STAT:OPER:COND? bit set while armed
     overload_v: float = 9.9e37
+    #: STAT:QUES bit: "Sample Timing Violation ... Sample timing may not be valid"
+    sample_timing_violation_bit: int = 0x04
 
 
 KEYSIGHT_34465A = DmmProfile(
@@ -104,6 +111,10 @@ KEYSIGHT_34465A = DmmProfile(
     max_readings=50_000,           # reading memory without the MEM option (2 M with it)
     max_trigger_delay_s=3600.0,
     waiting_for_trigger_bit=0x20,
+    manual=("Keysight Truevolt Series Operating and Service Guide, SCPI Programming "
+            "Reference: SAMPle:TIMer (MIN is measurement dependent, not enforced; query "
+            "SAMPle:TIMer? MIN), STATus:QUEStionable bit 2 'Sample Timing Violation' (bit "
+            "table as in the 34410A guide's STATus:QUEStionable)"),
     notes=("Words as the 34465A Programming Reference spells them (SAMP:SOUR TIM, "
            "SAMP:TIM, SAMP:COUN, TRIG:SOUR EXT, VOLT:APER, VOLT:ZERO:AUTO). Unsure: the "
            "minimum interval over the aperture (10 us assumed) and STAT:OPER:COND? bit 5 "
@@ -151,13 +162,17 @@ class Digitizer(ProfiledInstrument[DmmProfile]):
 
     def __init__(self, resource: str, profile: DmmProfile, clock: Clock, *,
                  raw: RawCallback | None = None, command_timeout_s: float = 2.0,
-                 timeout_margin_s: float = 5.0, visa_library: str = "@py") -> None:
+                 timeout_margin_s: float = 5.0, visa_library: str = "@py",
+                 transport: Transport | None = None) -> None:
         self.timeout_margin_s = float(timeout_margin_s)
         self.recovery_commands = (profile.words.abort, CLS)
         self.setup: DigitizerSetup | None = None
+        #: settings the record depends on, as the DMM reads them back
+        self.readback: dict[str, float | int] = {}
         self._armed_real_s: float | None = None
         super().__init__(resource, profile, clock, raw=raw,
-                         command_timeout_s=command_timeout_s, visa_library=visa_library)
+                         command_timeout_s=command_timeout_s, visa_library=visa_library,
+                         transport=transport)
 
     def configure(self, range_v: float, aperture_s: float, interval_s: float, count: int,
                   trigger_delay_s: float = 0.0, slope: str = "POS") -> DigitizerSetup:
@@ -198,6 +213,17 @@ class Digitizer(ProfiledInstrument[DmmProfile]):
             self.send(w.sample_timer, interval_s=interval_s)
             self.send(w.sample_count, count=int(count))
             self.send(w.format_data, format="ASC")
+            # the shortest interval is measurement dependent and not enforced (the
+            # manual's SAMPle:TIMer remarks): read it for this set-up, and refuse below it
+            text = w.sample_timer_limit.text(limit="MIN")
+            minimum = self._float_reply(text, self.query(text))
+            self.readback["dmm.sample_timer_min_s"] = minimum
+            if interval_s < minimum:
+                raise DmmError(f"{self.name}: sample interval {interval_s:g} s is below "
+                               f"SAMP:TIM? MIN = {minimum:g} s for this range, aperture and "
+                               "auto-zero: the samples would fall off their grid",
+                               command=text)
+            self.query(w.questionable_event.text())  # read-and-clear before the record
         self.setup = DigitizerSetup(float(range_v), float(aperture_s), float(interval_s),
                                     int(count), float(trigger_delay_s), slope_u)
         return self.setup
@@ -231,7 +257,8 @@ class Digitizer(ProfiledInstrument[DmmProfile]):
         setup, armed = self.setup, self._armed_real_s
         self._armed_real_s = None
         span_real = setup.duration_s * (1.0 + SPAN_SLACK_REL) / self.clock.speed
-        deadline = armed + span_real + self.timeout_margin_s
+        deadline = armed + real_budget_s(self.clock, setup.duration_s * (1.0 + SPAN_SLACK_REL)) \
+            + self.timeout_margin_s
         poll_s = min(max(span_real / 50.0, 0.005), 0.5)
         with self.recovering():
             time.sleep(max(armed + 0.5 * span_real - time.monotonic(), 0.0))
@@ -258,6 +285,14 @@ class Digitizer(ProfiledInstrument[DmmProfile]):
             if values.size != setup.count:
                 raise DmmReplyError(f"{self.name}: {text!r} returned {values.size} readings, "
                                     f"expected {setup.count}", command=text)
+            text = self.words.questionable_event.text()
+            ques = self._int_reply(text, self.query(text))
+            self.readback["dmm.questionable_event"] = ques
+            if ques & self.profile.sample_timing_violation_bit:
+                raise DmmError(f"{self.name}: STAT:QUES bit 2 (sample timing violation) is "
+                               f"set after the record: the samples are not on their "
+                               f"{setup.interval_s:g} s grid; lengthen the interval or shorten "
+                               "the aperture", command=text)
         over = np.abs(values) >= 0.999 * self.profile.overload_v
         if over.any():
             raise DmmOverload(f"{self.name}: {int(over.sum())} reading(s) beyond the "
@@ -266,6 +301,13 @@ class Digitizer(ProfiledInstrument[DmmProfile]):
                               f"large for the range, or the pulse amplitude too high",
                               command=text)
         return values
+
+    def _float_reply(self, text: str, reply: str) -> float:
+        try:
+            return float(reply)
+        except ValueError as e:
+            raise DmmReplyError(f"{self.name}: {text!r} replied {reply!r}", command=text,
+                                reply=reply.encode()) from e
 
     def _int_reply(self, text: str, reply: str) -> int:
         try:

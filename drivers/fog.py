@@ -23,8 +23,10 @@ flags the indices after that point as uncertain (health "error").
 from __future__ import annotations
 
 import math
+import select
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -32,7 +34,7 @@ from typing import IO, Any
 import numpy as np
 import serial
 
-from drivers.clock import Clock
+from drivers.clock import Clock, real_budget_s
 from drivers.fog_formats import (
     AXES,
     FORMATS,
@@ -47,8 +49,8 @@ from drivers.fog_formats import (
 from drivers.kvh_config import MODES, FogSettings, KvhConfigError, KvhConfigurator
 from drivers.waits import MAX_LATE_REAL_S, MIN_REAL_MARGIN_S
 
-__all__ = ["FORMATS", "DecodeState", "DecodeStats", "Fog", "FogError", "FogSamples",
-           "FogStats", "FogTimeout", "Frames", "StreamDecoder", "decode", "dps_per_unit",
+__all__ = ["FORMATS", "CaptureCursor", "DecodeState", "DecodeStats", "Fog", "FogError",
+           "FogSamples", "FogStats", "FogTimeout", "Frames", "StreamDecoder", "decode", "dps_per_unit",
            "read_capture"]
 
 # units a FOG's rotational data can carry; "deg" and "rad" are delta angles per sample
@@ -56,6 +58,8 @@ RATE_UNITS = ("deg/s", "rad/s", "deg", "rad")
 
 _READ_TIMEOUT_S = 0.05     # real seconds a read waits for the first byte
 _BATCH_BYTES = 1 << 16     # decode in batches of up to this many bytes
+_BATCH_GAP_S = 0.001       # real seconds a batch waits for the next piece of a fast stream
+_BATCH_REAL_S = 0.005      # ... and at most this long in all (a slow stream's latency)
 _STALL_FRAMES = 64         # a silence this many frame periods long is a stall,
 _STALL_REAL_S = 0.1        # ... and at least this many real seconds (OS, USB latency)
 _ALIAS_MIN_REAL_S = 0.02   # the wrap check needs half a wrap to last this long in real time
@@ -214,13 +218,15 @@ class Fog:
 
     `rate_hz` is the FOG's output rate (from the stand file), `units` what its
     rotational data mean, `axis` which of x, y, z is the table axis's sensitive axis.
-    Real-time waits are `timeout_s / clock.speed` plus a margin (drivers/waits.py).
+    Real-time waits are `timeout_s / min_speed(clock)` plus a margin (drivers/clock.py,
+    drivers/waits.py).
     """
 
     def __init__(self, port: str, *, baudrate: int = 921600, fmt: str = "kvh-a",
                  axis: str = "z", rate_hz: float, units: str | None,
                  raw_path: Path | str | None, clock: Clock, model: str | None = None,
                  serial_kwargs: dict[str, Any] | None = None,
+                 keep_samples: int | None = None,
                  configure: str = "declare",
                  wait_margin_s: float = MIN_REAL_MARGIN_S) -> None:
         if units is None:
@@ -262,6 +268,9 @@ class Fog:
         self._cond = threading.Condition()
         self._decoder = StreamDecoder(self.format)
         self._store = _SampleStore()
+        # None: every sample stays readable; n: only the newest n or more (a long run's
+        # memory must not grow with its length: the raw capture holds them all)
+        self.keep_samples = keep_samples
         self._stalls: list[StallEvent] = []
         self._lag_s = math.nan
         self._lag_before: float | None = None
@@ -356,13 +365,7 @@ class Fog:
             while not self._stop.is_set():
                 data = ser.read(max(1, ser.in_waiting))
                 if data:
-                    chunks = [data]
-                    size = len(data)
-                    while size < _BATCH_BYTES and (w := ser.in_waiting):
-                        more = ser.read(min(w, _BATCH_BYTES - size))
-                        chunks.append(more)
-                        size += len(more)
-                    data = b"".join(chunks)
+                    data = self._batch(ser, data)
                     if self._raw is not None:
                         try:
                             self._raw.write(data)
@@ -388,11 +391,38 @@ class Fog:
             with self._cond:
                 self._cond.notify_all()
 
+    @staticmethod
+    def _batch(ser: serial.Serial, first: bytes) -> bytes:
+        """More of what is arriving, up to _BATCH_BYTES or _BATCH_REAL_S.
+
+        A pty or a USB adapter hands over a few kB a read; decoding each piece on its own
+        costs more than the bytes (a fixed cost per call), so a fast stream is gathered
+        for a moment first: waiting up to _BATCH_GAP_S for the next piece, never holding
+        a batch longer than _BATCH_REAL_S (the latency a slow stream sees).
+        """
+        chunks = [first]
+        size = len(first)
+        fileno = getattr(ser, "fileno", None)
+        t_end = time.monotonic() + _BATCH_REAL_S
+        while size < _BATCH_BYTES:
+            w = ser.in_waiting
+            if not w:
+                if fileno is None or time.monotonic() >= t_end or \
+                        not select.select([fileno()], [], [], _BATCH_GAP_S)[0]:
+                    break
+                continue
+            more = ser.read(min(w, _BATCH_BYTES - size))
+            chunks.append(more)
+            size += len(more)
+        return b"".join(chunks)
+
     def _ingest(self, data: bytes, now: float, resumed: StallEvent | None) -> None:
         with self._cond:
             frames = self._decoder.feed(data)
             if len(frames):
                 self._store.add(frames, self._axis_col, self._scale, self._valid_mask)
+                if self.keep_samples is not None and self._store.n > 2 * self.keep_samples:
+                    self._store.discard_before(self._store.end - self.keep_samples)
                 self._watch_clock(now, resumed)
             self._cond.notify_all()
 
@@ -450,7 +480,7 @@ class Fog:
         `MAX_LATE_REAL_S` beyond the limit (a stream that never catches up is a fault).
         """
         start = time.monotonic()
-        deadline = start + timeout_s / self.clock.speed + self.wait_margin_s
+        deadline = start + real_budget_s(self.clock, timeout_s) + self.wait_margin_s
         last_end, last_progress = -1, start
         ok = True
         with self._cond:
@@ -478,6 +508,18 @@ class Fog:
                 f"within {timeout_s:g} s; newest sample {self._store.end - 1}, "
                 f"{self._decoder.bytes} bytes received")
         raise FogError(f"FOG on {self.port} is not open")
+
+    def checkpoint(self) -> dict[str, Any]:
+        """Where the decoder stands in the raw capture now (JSON-able).
+
+        A CaptureCursor started from it decodes the rest of the capture exactly as from
+        the file's beginning, without reading what lies before: an hour into a run, the
+        analysis of the next window need not re-decode the hour.
+        """
+        with self._cond:
+            s = self._decoder.state
+        return {"offset": s.offset, "last_index": s.last_index,
+                "last_sequence": s.last_sequence, "last_end": s.last_end}
 
     def samples(self, i_from: int, i_to: int) -> FogSamples:
         """Samples i_from .. i_to - 1; they must have arrived and not been discarded."""
@@ -556,3 +598,67 @@ def read_capture(raw_path: Path | str, *, fmt: str = "kvh-a", axis: str = "z",
         while chunk := fh.read(chunk_bytes):
             store.add(dec.feed(chunk), col, scale, mask)
     return store.samples(0, store.end, float(rate_hz)), dec
+
+
+class CaptureCursor:
+    """A raw capture read forward in chunks: the samples of index windows, in order.
+
+    For analysing a long run: the decoder runs once over the file, from where the last
+    window ended to where the next one ends, and only about `chunk_bytes` of frames are
+    decoded and held at a time, however long the capture. The same decoder and the same
+    frame-to-sample conversion as `Fog` and `read_capture`, so the samples are
+    bit-identical to theirs. The file may still be growing (a live run): a window is
+    read once its bytes are in the file.
+    """
+
+    def __init__(self, raw_path: Path | str, *, fmt: str = "kvh-a", axis: str = "z",
+                 rate_hz: float, units: str = "deg/s", chunk_bytes: int = 1 << 20,
+                 start: dict[str, Any] | None = None) -> None:
+        f = get_format(fmt)
+        if axis not in f.valid_bits:
+            raise ValueError(f"FOG axis {axis!r} unknown for format {f.name!r}")
+        self.raw_path = Path(raw_path)
+        self.rate_hz = float(rate_hz)
+        self.decoder = StreamDecoder(f)
+        self._store = _SampleStore()
+        self._col, self._scale = AXES.index(axis), dps_per_unit(units, rate_hz)
+        self._mask = 1 << f.valid_bits[axis]
+        self._chunk_bytes = int(chunk_bytes)
+        self._fh: IO[bytes] = open(self.raw_path, "rb")  # noqa: SIM115 (closed in close())
+        if start is not None:  # a Fog.checkpoint(): continue the decoder from there
+            self.decoder.state = DecodeState(int(start["offset"]), int(start["last_index"]),
+                                             start["last_sequence"], int(start["last_end"]))
+            self._fh.seek(int(start["offset"]))
+            self._store.base = int(start["last_index"]) + 1
+
+    @property
+    def position(self) -> int:
+        """The first sample index still readable (windows must start at or after it)."""
+        return self._store.base
+
+    def close(self) -> None:
+        self._fh.close()
+
+    def _more(self) -> bool:
+        data = self._fh.read(self._chunk_bytes)
+        if data:
+            self._store.add(self.decoder.feed(data), self._col, self._scale, self._mask)
+        return bool(data)
+
+    def window(self, i_from: int, i_to: int, chunk: int = 1 << 16) -> Iterator[FogSamples]:
+        """Samples i_from .. i_to - 1 (lost ones as invalid rows), `chunk` at a time."""
+        if i_from < self._store.base:
+            raise ValueError(f"{self.raw_path}: samples before {self._store.base} are "
+                             f"already passed (asked from {i_from}); open a new cursor")
+        at = i_from
+        while at < i_to:
+            self._store.discard_before(at)
+            hi = min(at + chunk, i_to)
+            while self._store.end < hi and self._more():
+                self._store.discard_before(at)
+            if self._store.end < hi:
+                raise ValueError(f"{self.raw_path}: FOG samples {i_from}..{i_to} are not all "
+                                 f"in the capture (it ends at sample {self._store.end})")
+            yield self._store.samples(at, hi, self.rate_hz)
+            at = hi
+        self._store.discard_before(i_to)

@@ -11,6 +11,7 @@ from typing import Any, ClassVar, Generic, Self, TypeVar
 
 from drivers.clock import Clock
 from drivers.scpi import IDN, RawCallback, ScpiInstrument
+from drivers.transport import Transport
 
 T = TypeVar("T")
 
@@ -25,6 +26,8 @@ class InstrumentProfile:
     words: Any                   # the model's SCPI words by role (a dataclass of Commands)
     idn_pattern: str | None      # what *IDN? must match (None: not checked)
     notes: str = ""              # where the real syntax is unsure
+    #: the manual and sections the words were checked against, or "unverified"
+    manual: str = "unverified"
     idn: str = ""                # what the model's twin answers to *IDN?
 
 
@@ -56,13 +59,14 @@ class ProfiledInstrument(ScpiInstrument, Generic[P]):
 
     def __init__(self, resource: str, profile: P, clock: Clock, *,
                  raw: RawCallback | None = None, command_timeout_s: float = 2.0,
-                 visa_library: str = "@py") -> None:
+                 visa_library: str = "@py", transport: Transport | None = None) -> None:
         self.profile = profile
         self.words = profile.words
         self.clock = clock
         super().__init__(resource, visa_library=visa_library, raw=raw,
                          command_timeout_s=command_timeout_s,
-                         name=f"{self.kind} {profile.model} at {resource}")
+                         name=f"{self.kind} {profile.model} at {resource}",
+                         transport=transport)
 
     @classmethod
     def open(cls, resource: str, model: str | P, clock: Clock, *,

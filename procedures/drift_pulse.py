@@ -34,6 +34,7 @@ from bench.engine import Abort, RunContext
 from bench.instruments import Bench, abandon, open_axis, raw_text_logger
 from bench.journal import RunDir, read_jsonl
 from bench.plan import Plan, Step
+from bench.progress import Figure
 from bench.schema import Key, ListOf, Map, MapOf, Num, Str
 from bench.simbench import SIM_GYRO_KEYS, SimBench, gyro_rig_factory
 from bench.yamlfile import Problem
@@ -447,6 +448,8 @@ class DriftPulse(StepDispatch):
         end = ctx.clock.now() + duration_s
         while (left := end - ctx.clock.now()) > 0:
             drive.check()
+            ctx.progress.advance(duration_s - left, duration_s,
+                                 f"{axis}: {duration_s - left:.1f} of {duration_s:g} s waited")
             ctx.clock.sleep(min(left, 1.0))
         drive.check()
 
@@ -486,10 +489,12 @@ class DriftPulse(StepDispatch):
                             f"sensor's current path from generator channel "
                             f"{spec['awg_channel']} and the angle sensor's wiring to its DMM")
             w, _ = dp.cycle_drift_dph(rec, shape, k_as, 0.0, a)
-            quick.append(f"{g} {w:+.4f}")
+            # 5 significant digits, as the certificate prints the drift of each cycle
+            quick.append(Figure(g, w, unit="°/h", signed=True, digits=5))
         kind = "timing cycle" if p["timing"] else "cycle"
-        ctx.progress.line(f"  {kind} {p['index']} at {p['position_deg']:g} deg: drift "
-                          f"{', '.join(quick)} deg/h (nominal edges)")
+        where = f"{kind} {p['index']} at {p['position_deg']:g}°"
+        ctx.progress.reading("drift", where, *quick)
+        ctx.progress.result(f"{where}, drift at nominal edges", *quick)
         self._wait(ctx, step.axis, float(setting(cfg, "gap_s")))
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:

@@ -126,7 +126,7 @@ class CounterTwin(ScpiServer):
                  host: str = "127.0.0.1", port: int = 0, *, signal_channel: int = 1,
                  signal_low_v: float = 0.0, signal_high_v: float = 5.0,
                  sync: SyncLink | None = None, timeout_s: float | None = None,
-                 seed: int = 0) -> None:
+                 seed: int = 0, external_reference: bool = True) -> None:
         self.profile: CounterProfile = get_profile(model)
         super().__init__(idn=self.profile.idn, host=host, port=port)
         if self.profile.maker.startswith("Keysight"):  # `+0,"No error"` (Prog. Ref.)
@@ -139,6 +139,11 @@ class CounterTwin(ScpiServer):
         self.inputs: dict[int, InputState] = {}
         self.acquisition: TwinAcquisition | None = None
         self.sync = sync
+        #: a valid 10 MHz at Ext Ref In (the stand's GPS-disciplined reference)
+        self.external_reference = external_reference
+        #: the timebase in use; SENS:ROSC:SOUR is not reset by *RST here (simplification:
+        #: the manual's *RST value of the auto selection is not modelled)
+        self.reference = "EXT" if external_reference else "INT"
         self.rng = np.random.default_rng(seed)
         #: SYST:TIM, non-volatile: not touched by *RST (None: disabled, as shipped)
         self.timeout_s: float | None = timeout_s
@@ -218,7 +223,7 @@ class CounterTwin(ScpiServer):
         assert acq.values is not None
         return acq.values
 
-    def _encode(self, acq: TwinAcquisition, values: np.ndarray) -> str:
+    def _encode(self, acq: TwinAcquisition, values: np.ndarray, first: int = 0) -> str:
         p = self.profile
         if acq.kind == "timestamps":
             fmt = TIMESTAMP_FORMATS[p.timestamps or ""]
@@ -227,7 +232,7 @@ class CounterTwin(ScpiServer):
             nan = values >= 0.999 * SCPI_NAN
             text = fmt.encode(np.where(nan, acq.t_start_s, values), acq.t_start_s,
                               self._time_digits(values[~nan] - acq.t_start_s),
-                              p.reply_exp_digits)
+                              p.reply_exp_digits, first)
             return _nan_tail(text, int(nan.sum()))
         return encode_values(values, p.reply_digits, p.reply_exp_digits)
 
@@ -259,6 +264,8 @@ class CounterTwin(ScpiServer):
                 9.9e37 if self.timeout_s is None else self.timeout_s)),  # p. 459: 9.9E37
             "format_data": (self._set_format, lambda a: "ASC"),
             "trigger_source": (self._set_trigger_source, lambda a: self.trigger_source),
+            "reference_source": (self._set_reference, lambda a: self.reference),
+            "reference_check": (self._check_reference, None),
             "abort": (self._abort, None),
             "initiate": (self._initiate, None),
             "fetch": (None, self._fetch, True),
@@ -341,6 +348,14 @@ class CounterTwin(ScpiServer):
             return
         self.timeout_s = ranged_param(value, lo, hi, default=1.0)
 
+    def _set_reference(self, a: Mapping[str, str]) -> None:
+        self.reference = enum_param(a["source"], ("INTernal", "EXTernal"))
+
+    def _check_reference(self, a: Mapping[str, str]) -> None:
+        """SENS:ROSC:EXT:CHEC ONCE: an error when no valid signal is at Ext Ref In."""
+        if enum_param(a["when"], ("ONCE",)) and not self.external_reference:
+            raise ExecError(-241, "Hardware missing; no valid external timebase")
+
     def _set_trigger_source(self, a: Mapping[str, str]) -> None:
         self.trigger_source = enum_param(a["source"], ("IMMediate", "EXTernal", "BUS"))
 
@@ -375,9 +390,9 @@ class CounterTwin(ScpiServer):
         n = min(left, limit) if count.startswith("MAX") else int(number_param(count, {}))
         if not 1 <= n <= min(left, limit):
             raise ExecError(-222, "Data out of range")
-        part = values[acq.fetched:acq.fetched + n]
+        first = acq.fetched
         acq.fetched += n
-        return self._encode(acq, part)
+        return self._encode(acq, values[first:first + n], first)
 
     def _read(self, a: Mapping[str, str]) -> str:
         if self.function is None:

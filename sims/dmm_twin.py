@@ -62,6 +62,7 @@ class DmmTwin(ScpiServer):
     """A DMM of `model` on the angle sensor of `gyro` of the platform."""
 
     fault_names = ScpiServer.fault_names | {"no-trigger"}
+    error_code_format = "{:+d}"  # `+0,"No error"`, as Keysight's manuals print it
 
     def __init__(self, platform: GyroPlatform, gyro: str, model: str = "keysight-34465a",
                  host: str = "127.0.0.1", port: int = 0, *,
@@ -91,6 +92,7 @@ class DmmTwin(ScpiServer):
         self.trigger_count = 1
         self.sample_source = "IMM"
         self.sample_interval_s = 1.0
+        self.questionable = 0
         self.sample_count = 1
         self.record = None
 
@@ -122,6 +124,8 @@ class DmmTwin(ScpiServer):
             "trigger_count": (self._trigger_count, lambda a: f"{self.trigger_count}"),
             "sample_source": (lambda a: setattr(self, "sample_source", enum_param(
                 a["source"], ("IMMediate", "TIMer"))), lambda a: self.sample_source),
+            "sample_timer_limit": (None, self._timer_limit),
+            "questionable_event": (None, self._questionable),
             "sample_timer": (self._timer, lambda a: nr3(self.sample_interval_s)),
             "sample_count": (self._count, lambda a: f"{self.sample_count}"),
             "format_data": (self._format, lambda a: "ASC"),
@@ -164,8 +168,31 @@ class DmmTwin(ScpiServer):
         self.trigger_count = n
 
     def _timer(self, a: Mapping[str, str]) -> None:
-        self.sample_interval_s = ranged_param(a["interval_s"], self.profile.min_interval_s,
-                                              3600.0, default=1.0)
+        # "the MIN value is not enforced, and you can specify an <interval> less than MIN
+        # (even zero)" (SAMPle:TIMer remarks): any interval down to 0 is taken
+        self.sample_interval_s = ranged_param(a["interval_s"], 0.0, 3600.0, default=1.0)
+
+    def sampling_time_s(self) -> float:
+        """How long one sample takes in this set-up: the aperture plus the overhead, twice
+        over with auto-zero on (a zero reading after each one). The model's guess of the
+        measurement-dependent MIN (the manual gives no formula)."""
+        one = self.aperture_s + self.profile.interval_overhead_s
+        return 2 * one if self.autozero else one
+
+    def _timer_limit(self, a: Mapping[str, str]) -> str:
+        which = a["limit"].upper()
+        if which.startswith("MIN"):
+            return nr3(max(self.sampling_time_s(), self.profile.min_interval_s))
+        if which.startswith("MAX"):
+            return nr3(3600.0)
+        if which.startswith("DEF"):
+            return nr3(1.0)
+        raise ExecError(-224, "Illegal parameter value")
+
+    def _questionable(self, a: Mapping[str, str]) -> str:
+        with self._lock:
+            value, self.questionable = self.questionable, 0  # read-and-clear (event)
+        return f"+{value}"
 
     def _count(self, a: Mapping[str, str]) -> None:
         self.sample_count = count_param(a["count"], self.profile.max_readings)
@@ -179,9 +206,13 @@ class DmmTwin(ScpiServer):
         if self.pending():
             raise ExecError(-213, "Init ignored")
         timed = self.sample_source == "TIM"
-        if timed and self.sample_interval_s < self.aperture_s + self.profile.interval_overhead_s:
-            raise ExecError(-221, "Settings conflict")
         interval = self.sample_interval_s if timed else self.aperture_s + 1e-3
+        if timed and interval < self.sampling_time_s():
+            # not refused: the samples come as fast as they can, off the timer's grid, and
+            # Questionable Data bit 2 says so (STATus:QUEStionable, "Sample Timing
+            # Violation ... Sample timing may not be valid")
+            interval = self.sampling_time_s()
+            self.questionable |= self.profile.sample_timing_violation_bit
         rec = Record(self.sample_count, interval, self.aperture_s, self.trigger_delay_s,
                      blind=self.take_fault("no-trigger"))
         with self._lock:

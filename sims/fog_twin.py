@@ -26,6 +26,7 @@ master as the absence of POLLHUP.
 from __future__ import annotations
 
 import errno
+import math
 import os
 import select
 import threading
@@ -136,7 +137,10 @@ class FogTwin:
         self.temperature = int(temperature)
         self.keep_truth = keep_truth
         self._faults: list[Fault] = []
-        self._queue: deque[bytes | _Hold] = deque()
+        self._queue: deque[tuple[bytes, int] | _Hold] = deque()
+        self._sent_n = 0          # frames up to this stand sample are out on the port
+        self._reading = False     # a reader has the port open
+        self._slow: tuple[float, float, int] | None = None  # (frames/real s, since, sent)
         self._qlock = threading.Lock()
         self._next_sample = 0
         self._truth: list[tuple[np.ndarray, ...]] = []
@@ -175,7 +179,7 @@ class FogTwin:
         rows = self.format.encode(idx, rates, temperature=self.temperature).copy()
         keep = np.ones(n, dtype=bool)
         intact = np.ones(n, dtype=bool)
-        cuts: dict[int, list[bytes | _Hold]] = {}
+        cuts: dict[int, list[_Hold | tuple[bytes, int]]] = {}
         for f in self._faults:
             if isinstance(f, Corrupt | Drop):
                 lo, hi = max(f.sample, n0), min(f.sample + f.count, n0 + n)
@@ -192,20 +196,20 @@ class FogTwin:
                     keep[lo - n0:hi - n0] = False
             elif n0 <= f.sample < n0 + n:
                 if isinstance(f, Garbage):
-                    cuts.setdefault(f.sample, []).append(self._garbage(f))
+                    cuts.setdefault(f.sample, []).append((self._garbage(f), f.sample))
                 elif isinstance(f, Stall):
                     cuts.setdefault(f.sample, []).append(
                         _Hold(f.sample / self.rate_hz + f.duration_s))
-        items: list[bytes | _Hold] = []
+        items: list[tuple[bytes, int] | _Hold] = []
         at = n0
         for s in sorted(cuts) + [n0 + n]:
             seg = slice(at - n0, s - n0)
             if s > at:
-                items.append(rows[seg][keep[seg]].tobytes())
+                items.append((rows[seg][keep[seg]].tobytes(), s))
             items.extend(cuts.get(s, []))
             at = s
         with self._qlock:
-            self._queue.extend(i for i in items if not isinstance(i, bytes) or i)
+            self._queue.extend(items)
         self._next_sample = n0 + n
         self.frames_encoded += int(keep.sum())
         if self.keep_truth:
@@ -224,6 +228,23 @@ class FogTwin:
             noise[tail:tail + len(h)] = h[:f.nbytes - tail]
         return noise.tobytes()
 
+    def slow_down(self, frames_per_real_s: float | None) -> None:
+        """From now on send at most this many frames a real second (None: no limit).
+
+        A twin slowed on purpose stands for a loaded machine or a slow link: the paced
+        clock must follow it (sims/clock.py), never leave the FOG's reader waiting.
+        """
+        if frames_per_real_s is not None and not frames_per_real_s > 0:
+            raise ValueError(f"frames_per_real_s must be > 0, got {frames_per_real_s}")
+        self._slow = (None if frames_per_real_s is None
+                      else (float(frames_per_real_s), time.monotonic(), self._sent_n))
+
+    def _throttle(self) -> None:
+        slow = self._slow
+        if slow is not None:
+            rate, since, sent0 = slow
+            time.sleep(max(since + (self._sent_n - sent0) / rate - time.monotonic(), 0.0))
+
     # -- the port ----------------------------------------------------------------------------
     def start(self) -> str:
         """Open the pty and start writing; returns the slave path for the driver."""
@@ -240,6 +261,19 @@ class FogTwin:
                                         daemon=True)
         self._thread.start()
         return self.path
+
+    def delivered_s(self) -> float:
+        """The clock's pacer: stand time up to which frames are out on the port.
+
+        A twin nobody reads (no reader yet, or the reader gone) paces nothing (inf), and a
+        stall injected on purpose holds the frames, not the clock.
+        """
+        if not self._reading or self._stop.is_set():
+            return math.inf
+        with self._qlock:
+            head = self._queue[0] if self._queue else None
+        sent_s = (self._sent_n - 1) / self.rate_hz
+        return max(head.until_s, sent_s) if isinstance(head, _Hold) else sent_s
 
     def stop(self) -> None:
         self._stop.set()
@@ -273,6 +307,7 @@ class FogTwin:
             self._serve_commands()
             if seen is None and self._reader_present(poller):
                 seen = time.monotonic()
+                self._reading = True
             if seen is not None and time.monotonic() - seen >= _OPEN_SETTLE_S \
                     and getattr(self.clock, "running", True):
                 break
@@ -355,7 +390,10 @@ class FogTwin:
                         self._queue.appendleft(item)
                     return wrote
                 continue
-            self._write_all(item, poller)
+            data, n_end = item
+            self._write_all(data, poller)
+            self._sent_n = max(self._sent_n, n_end)
+            self._throttle()
             wrote = True
         return wrote
 
@@ -364,11 +402,14 @@ class FogTwin:
         while view and not self._stop.is_set():
             try:
                 k = os.write(self._master, view)  # type: ignore[arg-type]
+                self._reading = True
                 view = view[k:]
                 self.bytes_written += k
             except BlockingIOError:
                 events = poller.poll(_WRITE_POLL_MS)
-                if any(ev & select.POLLHUP for _, ev in events):
+                gone = any(ev & select.POLLHUP for _, ev in events)
+                self._reading = not gone  # a reader gone paces nothing
+                if gone:
                     time.sleep(_WRITE_POLL_MS / 1000)  # reader gone: keep the frames
             except OSError as e:
                 if e.errno != errno.EIO:

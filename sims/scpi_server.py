@@ -343,7 +343,7 @@ class ScpiServer:
             if not header:
                 continue
             is_query = header.endswith("?")
-            found = self._find(header, is_query)
+            found = self._find(header, is_query, params)
             if found is None:
                 self.push_error(-113, "Undefined header")
                 continue
@@ -353,9 +353,7 @@ class ScpiServer:
                 self.push_error(-113, "Undefined header")
                 continue
             try:
-                args = {**suffixes, **(route.command.parse_params(params)
-                                        if (not is_query or route.command.is_query) else
-                                        _no_params(params))}
+                args = {**suffixes, **self._params(route, is_query, params)}
                 if route.data and is_query and self.take_fault("drop"):
                     raise _ClientGone
                 answer = handler(args)
@@ -374,12 +372,29 @@ class ScpiServer:
             return None
         return (";".join(answers) + "\n").encode("ascii")
 
-    def _find(self, header: str, is_query: bool) -> tuple[Route, dict[str, str]] | None:
+    def _find(self, header: str, is_query: bool, params: str = ""
+              ) -> tuple[Route, dict[str, str]] | None:
+        """The route for a header; where two match (a setting's query form `SAMP:TIM?` and
+        a query-only word with a parameter, `SAMP:TIM? MIN`), the one whose parameters
+        parse."""
+        found = []
         for route in self.routes:
             m = route.command.match(header, query=is_query)
             if m is not None:
-                return route, m
-        return None
+                found.append((route, m))
+        for route, m in found:
+            try:
+                self._params(route, is_query, params)
+            except ParameterError:
+                continue
+            return route, m
+        return found[0] if found else None
+
+    @staticmethod
+    def _params(route: Route, is_query: bool, params: str) -> dict[str, str]:
+        if not is_query or route.command.is_query:
+            return route.command.parse_params(params)
+        return _no_params(params)
 
     # -- common commands ------------------------------------------------------------------
     def _opc(self, args: Mapping[str, str]) -> None:

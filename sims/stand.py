@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from drivers.units import SECONDS_PER_HOUR
-from sims.clock import VirtualClock
+from sims.clock import MAX, VirtualClock, parse_speed
 
 
 @dataclass(frozen=True)
@@ -369,14 +369,14 @@ class StandTruth:
 
     seed: int
     axes: dict[str, AxisTruth]
-    clock_speed: float = 100.0
+    clock_speed: float = math.inf   # top speed; inf: `max`, as fast as the twins keep up
 
     @classmethod
     def from_mapping(cls, d: Mapping[str, Any]) -> StandTruth:
         return cls(
             seed=int(d.get("seed", 0)),
             axes={name: AxisTruth.from_mapping(a or {}) for name, a in d.get("axes", {}).items()},
-            clock_speed=float(d.get("clock_speed", 100.0)),
+            clock_speed=parse_speed(d.get("clock_speed"), MAX),
         )
 
 

@@ -21,6 +21,15 @@ def test_help_lists_every_contract_command() -> None:
         assert cmd in out.stdout
 
 
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    import bench
+
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0
+    assert capsys.readouterr().out.strip() == f"bench (ratebench) {bench.__version__}"
+
+
 @pytest.mark.timeout(60)
 def test_devices_prints_each_instruments_identity(capsys: pytest.CaptureFixture[str]) -> None:
     rc = main(["devices", str(CONFIGS / "stands" / "sim-two-axis.yaml")])

@@ -93,7 +93,8 @@ def test_edges_are_the_stands_next_edges_after_the_arm(ts_pair, stand):
     if counter.time_tie.uses_external_trigger:  # the tie places them on the stand's axis
         np.testing.assert_array_less(np.abs(edges - truth), 0.5 * res + 1e-15 * truth)
     else:  # CNT-91: TS from a start event the host only brackets (p. 8-72)
-        assert abs(edges[0] - truth[0]) < 0.2
+        # INIT took effect inside the bracket the driver timed: within its stated u
+        assert abs(edges[0] - truth[0]) <= counter.last_acquisition.t_start_u_s + 1e-9
         edges = edges - edges[0] + truth[0]
     np.testing.assert_array_less(np.abs(np.diff(edges) - np.diff(truth)), res * 1.001)
     # not nominal: the harmonic makes the turns differ by far more than the resolution

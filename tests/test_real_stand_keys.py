@@ -62,3 +62,30 @@ def test_a_real_stand_without_drive_unit_factors_is_refused(tmp_path):
 def test_stated_it_validates(tmp_path):
     cfg = load(tmp_path, TIE, ", units: deg/s, configure: set")
     assert cfg.stand["axes"]["outer"]["fog"]["configure"] == "set"
+
+
+def test_every_counter_profile_names_its_manual_or_says_unverified():
+    from bench.instruments import with_readback
+    from drivers.counter_profiles import PROFILES
+
+    manuals = {m: p.manual for m, p in PROFILES.items()}
+    assert manuals["generic-scpi-period"].startswith("unverified")      # AKIP-5102
+    assert "p. 240" in manuals["keysight-53230a"] and "p. 459" in manuals["keysight-53230a"]
+    assert "p. 8-35" in manuals["pendulum-cnt-91"]
+    text = with_readback("AKIP,AKIP-5102/1,1,1.00", {"counter.level_v": "+2.5E+00"},
+                         "UNVERIFIED (no manual found)")
+    assert text == ("AKIP,AKIP-5102/1,1,1.00; read back: counter.level_v = +2.5E+00; "
+                    "driver checked against: UNVERIFIED (no manual found)")
+
+
+def test_a_simulated_stand_must_also_say_its_fog_units(tmp_path):
+    """The FOG twin powers on in delta radians as the unit does: no units, no run."""
+    stand = (ROOT / "configs" / "stands" / "sim-two-axis.yaml").read_text()
+    stand = stand.replace("units: deg/s, configure: set}   # from its power-on delta radians",
+                          "}")
+    (tmp_path / "stand.yaml").write_text(stand)
+    (tmp_path / "p.yaml").write_text(PROCEDURE)
+    with pytest.raises(ConfigError) as e:
+        load_config(tmp_path / "p.yaml")
+    line = stand[:stand.index("    fog:")].count("\n") + 1
+    assert f"stand.yaml:{line}: axes.outer.fog: missing required key 'units'" in str(e.value)

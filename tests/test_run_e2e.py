@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import signal
 import subprocess
 import sys
@@ -116,6 +117,10 @@ def test_demo_attestation_recovers_the_stand_truth(tmp_path: Path) -> None:
     assert [r["set_rate_dps"] for r in result["axes"]["outer"]["rates"]] == \
         [10, -10, 50, -50, 200, -200]
     assert "could not be written" not in out.stderr, out.stderr
+    # not a terminal (a log file): plain lines, exactly one per step, in order
+    step_lines = [int(m.group(1)) for m in re.finditer(r"^\[(\d+)/58\] ", out.stderr, re.M)]
+    assert step_lines == list(range(1, 59)), step_lines
+    assert "\x1b[" not in out.stderr + out.stdout
     for name in ("certificate.pdf", "certificate.html"):
         assert (run_dir / name).stat().st_size > 10_000, name
     check_against_truth(result)
@@ -129,9 +134,15 @@ def test_demo_attestation_recovers_the_stand_truth(tmp_path: Path) -> None:
 
 
 def _small_procedure(tmp_path: Path) -> Path:
+    # a fixed clock speed: a half at 200 deg/s must last long enough (0.36 s real) for
+    # the test to interrupt it in the middle
+    stand = yaml.safe_load(STAND.read_text())
+    stand["sim"]["clock_speed"] = 20
+    stand_path = tmp_path / "stand-20x.yaml"
+    stand_path.write_text(yaml.safe_dump(stand))
     proc = tmp_path / "small.yaml"
     proc.write_text(yaml.safe_dump({
-        "procedure": "rate-ladder", "title": "interrupt and resume", "stand": str(STAND),
+        "procedure": "rate-ladder", "title": "interrupt and resume", "stand": str(stand_path),
         "turns": 4, "static_record_s": 10, "harmonics": 2,
         "axes": {"outer": {"rates_dps": [100, 200, 300]}},
         "tolerance": {"rate_error": [{"rel": 1e-6}]},
@@ -150,7 +161,7 @@ def test_sigint_mid_acquisition_stops_the_axes_and_resume_completes(tmp_path: Pa
     p = subprocess.Popen([sys.executable, "-m", "bench", "run", str(proc), "--yes",
                           "--out", str(runs)], cwd=ROOT, text=True,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    # wait until the second pair is being acquired, then Ctrl-C
+    # wait until the second half of the second pair is being acquired, then Ctrl-C
     deadline = time.monotonic() + 120
     run_dir = None
     while time.monotonic() < deadline:
@@ -158,8 +169,11 @@ def test_sigint_mid_acquisition_stops_the_axes_and_resume_completes(tmp_path: Pa
         if dirs and (dirs[0] / "events.jsonl").exists():
             run_dir = dirs[0]
             ev = _events(run_dir)
-            if any(e["event"] == "step_start" and e.get("action") == "acquire"
-                   and e.get("unit") == "outer/200dps" for e in ev):
+            if any(e["event"] == "acquire" and e.get("unit") == "outer/200dps"
+                   and e.get("half") == 0 for e in ev) and \
+                    any(e["event"] == "step_start" and e.get("action") == "acquire"
+                        and e.get("unit") == "outer/200dps"
+                        and "half 2/" in e.get("describe", "") for e in ev):
                 break
         time.sleep(0.05)
     assert run_dir is not None
@@ -190,6 +204,14 @@ def test_sigint_mid_acquisition_stops_the_axes_and_resume_completes(tmp_path: Pa
     assert result["verdict"] == "pass" and result["sessions"] == 2
     assert (run_dir / "certificate.pdf").exists(), resumed.stderr
     check_against_truth(result)
+    # the first half was kept, not acquired again: only the cut half and the last one
+    ev = _events(run_dir)
+    again = [e["half"] for e in ev if e["event"] == "acquire"
+             and e["unit"] == "outer/200dps" and e["session"] == 2]
+    assert again == [1, 2]
+    pair = next(p for p in result["axes"]["outer"]["pairs"] if p["rate_dps"] == 200)
+    assert pair["half_sessions"] == [1, 2, 2]
+    assert "per session" in pair["bias_model"] and pair["method"] == "eq5-6, drift-corrected"
 
     # the same procedure uninterrupted, same seed: equal within the U of the difference
     # (k = 2 each; counted as for the truth)

@@ -152,3 +152,37 @@ def test_the_twin_answers_the_same_transcript():
     # the twin's intervals are the stand's: first from the start event, then turn periods
     np.testing.assert_allclose(np.cumsum(values[1:]) + acq.t_start_s, truth, rtol=0,
                                atol=KEYSIGHT_53230A.resolution_s)
+
+
+def test_an_external_reference_is_set_checked_and_read_back():
+    """User's Guide 'Time base' (p. 69 Agilent / p. 81 Keysight edition): SENS:ROSC:SOUR
+    EXT, SENS:ROSC:EXT:CHEC ONCE, SYST:ERR? (an error if no valid signal)."""
+    exchanges = [*open_and_identify(),
+                 *checked("ROSC:SOUR EXT"), *checked("ROSC:EXT:CHEC ONCE"),
+                 ("ROSC:SOUR?", "EXT"),
+                 *checked("SYST:TIM +1.00000000E+000")]
+    with expected_protocol(make_counter, exchanges) as counter:
+        assert counter.verify_reference("external", 1e-9) == "EXT"
+        counter.close()
+    assert counter.readback["counter.reference"] == "EXT"
+
+
+def test_a_timebase_claim_on_the_internal_reference_is_refused():
+    exchanges = [*open_and_identify(), ("ROSC:SOUR?", "INT"),
+                 *checked("SYST:TIM +1.00000000E+000")]
+    with expected_protocol(make_counter, exchanges) as counter:
+        with pytest.raises(Exception, match="counter.timebase_limit_rel = 1e-09 assumes an "
+                                            "external reference, but the counter runs on "
+                                            "'INT'"):
+            counter.verify_reference(None, 1e-9)
+        counter.close()
+
+
+def test_the_twin_refuses_the_check_without_a_reference_signal():
+    stand = turning_stand()
+    twin = CounterTwin(stand, AXIS, model="keysight-53230a", external_reference=False)
+    with twin:
+        replay_on_twin(twin.start(), [
+            ("ROSC:SOUR EXT", None), ("SYST:ERR?", NO_ERROR_KEYSIGHT),
+            ("ROSC:EXT:CHEC ONCE", None), ("SYST:ERR?", Like("", r"-241,.*")),
+            ("ROSC:SOUR?", "EXT")])

@@ -83,11 +83,13 @@ def _turn_table(windows: Sequence[Window]) -> tuple[np.ndarray, np.ndarray, np.n
 
 
 def _half_means(fits: dict[int, DirectionFit], inflation_factor: float,
-                budget: CounterBudget) -> list[HalfMean]:
+                budget: CounterBudget, keep: set[int]) -> list[HalfMean]:
     out = []
     for fit in fits.values():
         for ws in fit.sums:
             win = ws.win
+            if win.index not in keep:
+                continue
             c = win.sign * FULL_TURN_DEG * win.turns / win.duration_s
             out.append(HalfMean(
                 sign=win.sign, fog_mean_dps=win.fog_mean_dps,
@@ -97,6 +99,28 @@ def _half_means(fits: dict[int, DirectionFit], inflation_factor: float,
                 counter_mean_u_dps=abs(c) * budget.period_u_s / win.duration_s,
                 t_centre_s=win.t_centre_s, turns=win.turns))
     return sorted(out, key=lambda h: h.t_centre_s)
+
+
+def _anchor_session(halves: Sequence[HalfRecord]) -> int | None:
+    """The session whose halves calibrate the FOG when a pair spans sessions, else None.
+
+    Each session (a run, a --resume) has its own time axis and the FOG its own bias
+    (re-powered, re-warmed): halves of different sessions share k but not w0 or the
+    drift. k, w0 and the drift come from the one session that holds both signs (the one
+    with the most turns, the later on a tie); the other halves still give their turns
+    (rate error, instability) and their intra-turn content (each window has its own
+    constant and slope in the systematic fit). docs/resume.md states the rule.
+    """
+    sessions = {h.session for h in halves}
+    if len(sessions) == 1:
+        return None
+    both = [s for s in sessions if {h.sign for h in halves if h.session == s} == {1, -1}]
+    if not both:
+        raise ValueError(f"the pair's halves come from sessions {sorted(sessions)} and no "
+                         "session holds both signs: k cannot be told from the per-session "
+                         "FOG bias; re-acquire the pair")
+    turns = {s: sum(h.edge_times_s.size - 1 for h in halves if h.session == s) for s in both}
+    return max(both, key=lambda s: (turns[s], s))
 
 
 def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_hz: float,
@@ -121,9 +145,13 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
 
     turns = {s: analyze_turns([w.edges_s for w in windows if w.sign == s], s * w_set, budget)
              for s in signs}
+    anchor = _anchor_session(halves)
+    # the windows that calibrate the FOG: all, or those of the anchor session
+    cal_windows = [w for w, h in zip(windows, halves, strict=True)
+                   if anchor is None or h.session == anchor]
 
     # provisional calibration from per-turn means: only the angles depend on it, weakly
-    f, c, t, n = _turn_table(windows)
+    f, c, t, n = _turn_table(cal_windows)
     provisional = fit_turns(f, c, t, n).calibration()
 
     by_sign = {s: [accumulate(w, provisional, design, chunk) for w in windows if w.sign == s]
@@ -136,15 +164,16 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
     # the within-half drift (per-turn means weighted by their honest variance)
     sig2 = {s: fits[s].sigma_dps ** 2 * infl_long.factor for s in signs}
     var_turn = np.concatenate([np.full(w.turns, sig2[w.sign]) / w.turn_samples
-                               for w in windows])
+                               for w in cal_windows])
     var_turn += (c * budget.period_u_s / np.concatenate([w.turn_periods_s
-                                                           for w in windows])) ** 2
+                                                           for w in cal_windows])) ** 2
     tf = fit_turns(f, c, t, 1.0 / var_turn)
     drift = (DriftEstimate(tf.drift_dps_per_s, tf.drift_u_dps_per_s,
                            "slope of the per-turn FOG means within the halves")
              if math.isfinite(tf.drift_u_dps_per_s) else None)
 
-    halves_mean = _half_means(fits, infl_long.factor, budget)
+    cal_index = {w.index for w in cal_windows}
+    halves_mean = _half_means(fits, infl_long.factor, budget, cal_index)
     xcal = cross_calibrate(halves_mean, drift=drift, timebase_u_rel=budget.timebase_u_rel)
     final = xcal.calibration()
     k_u_std = xcal.k_u / 2.0
@@ -163,9 +192,23 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
         rnd = random_part(fit, final, set_signed, fl, fog_rate_hz, averaging_deg)
         wins = tuple({"half": ws.win.index, "turns": ws.win.turns,
                       "t_start_s": float(ws.win.edges_s[0]),
-                      "t_end_s": float(ws.win.edges_s[-1]), "samples": ws.n}
+                      "t_end_s": float(ws.win.edges_s[-1]), "samples": ws.n,
+                      "session": halves[ws.win.index].session}
                      for ws in fit.sums)
         rates.append(RateResult(turns_result=turns[s], systematic=sysres, random=rnd,
                                 windows=wins))
-    pair = PairResult(rate_dps=w_set, cal=xcal, noise_inflation=infl_long)
+    sessions = tuple(h.session for h in halves)
+    if anchor is None:
+        pair = PairResult(rate_dps=w_set, cal=xcal, noise_inflation=infl_long,
+                          sessions=sessions)
+    else:
+        others = [str(i + 1) for i, h in enumerate(halves) if h.session != anchor]
+        pair = PairResult(
+            rate_dps=w_set, cal=xcal, noise_inflation=infl_long, sessions=sessions,
+            bias_model=(f"per session: the pair spans sessions {sorted(set(sessions))}; "
+                        f"k, w0 and the drift (and their U) from session {anchor}'s halves "
+                        f"only; half {', '.join(others)} from another session, with a FOG "
+                        "bias and drift of its own, enter the turns and the intra-turn fit "
+                        "but not k"))
+    return PairAnalysis(rates=tuple(rates), pair=pair)
     return PairAnalysis(rates=tuple(rates), pair=pair)

@@ -106,6 +106,9 @@ class PairResult:
     rate_dps: float
     cal: CrossCalibration
     noise_inflation: NoiseInflation     # applied to the FOG half-mean uncertainties
+    # which session acquired each half (in order), and how the FOG bias is modelled
+    sessions: tuple[int, ...] = ()
+    bias_model: str = "one session: one bias and one linear drift for the pair"
 
     @property
     def k(self) -> float:
@@ -125,7 +128,8 @@ class PairResult:
 
     def to_dict(self) -> dict[str, Any]:
         d = {"rate_dps": self.rate_dps, **self.cal.to_dict(),
-             "noise_inflation": self.noise_inflation.to_dict()}
+             "noise_inflation": self.noise_inflation.to_dict(),
+             "half_sessions": list(self.sessions), "bias_model": self.bias_model}
         return clean(d)
 
 

@@ -11,7 +11,9 @@ counter timed (METHOD.md A3) whatever the edges' position between samples. Gaps 
 frames) are allowed: the trapezoid spans them.
 
 The arrays are not copied: slices are views, and every pass over samples runs in chunks,
-so the analysis never holds more than a few chunk-sized temporaries.
+so the analysis never holds more than a few chunk-sized temporaries. The FOG arrays may
+be DiskArrays (disk.py): a record of any length is then read from its file chunk by
+chunk, with the same values and so the same result.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.analysis.disk import DiskArray, as_samples, searchsorted
 from bench.analysis.turns import check_edges
 
 DEFAULT_CHUNK = 1 << 16
@@ -38,6 +41,9 @@ class HalfRecord:
     edge_times_s: np.ndarray
     fog_t_s: np.ndarray
     fog_dps: np.ndarray
+    # the session (bench run or --resume) that acquired it: each session has a time axis
+    # and a FOG bias of its own (a resumed pair, pair.py)
+    session: int = 0
 
 
 def _partial(t: np.ndarray, f: np.ndarray, p: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -56,8 +62,8 @@ class Window:
     index: int
     sign: int
     edges_s: np.ndarray        # N + 1 edge times
-    t: np.ndarray              # full FOG time array (view of the record's)
-    f: np.ndarray              # full FOG rate array
+    t: np.ndarray | DiskArray  # full FOG time array (view of the record's, or on disk)
+    f: np.ndarray | DiskArray  # full FOG rate array
     s_lo: int                  # first sample with t >= t_0
     s_hi: int                  # one past the last sample with t <= t_N
     turn_start: np.ndarray     # N + 1 sample indices: turn j is [turn_start[j], turn_start[j+1])
@@ -108,8 +114,8 @@ class Window:
         if rec.sign not in (1, -1):
             raise ValueError(f"{what}: sign must be +1 or -1, got {rec.sign!r}")
         e = check_edges(rec.edge_times_s, what)
-        t = np.asarray(rec.fog_t_s, dtype=float)
-        f = np.asarray(rec.fog_dps, dtype=float)
+        t = as_samples(rec.fog_t_s)   # a DiskArray stays on disk (disk.py)
+        f = as_samples(rec.fog_dps)
         if t.ndim != 1 or t.shape != f.shape:
             raise ValueError(f"{what}: fog_t_s and fog_dps must be 1-D of equal length "
                              f"(got {t.shape} and {f.shape})")
@@ -117,9 +123,9 @@ class Window:
             lo, hi = (t[0], t[-1]) if t.size else (math.nan, math.nan)
             raise ValueError(f"{what}: FOG samples [{lo:.6f}, {hi:.6f}] s do not cover the "
                              f"timed turns [{e[0]:.6f}, {e[-1]:.6f}] s")
-        s_lo = int(np.searchsorted(t, e[0], "left"))
-        s_hi = int(np.searchsorted(t, e[-1], "right"))
-        starts = np.searchsorted(t, e, "left")
+        s_lo = int(searchsorted(t, e[0], "left"))
+        s_hi = int(searchsorted(t, e[-1], "right"))
+        starts = searchsorted(t, e, "left")
         starts[-1] = s_hi
         if np.any(np.diff(starts) <= 0):
             raise ValueError(f"{what}: a turn holds no FOG sample (FOG rate too low for "
@@ -131,7 +137,7 @@ class Window:
         uniform = (dt if dt > 0 and abs(span - (b - a) * dt) <= _UNIFORM_TOL * dt
                    and _grid_ok(t, a, b, dt) else None)
         # cumulative trapezoid from sample s_lo up to the last sample <= each edge
-        p_edge = np.searchsorted(t, e, "right") - 1
+        p_edge = searchsorted(t, e, "right") - 1
         cum = _cumtrapz_at(t, f, s_lo, np.maximum(p_edge, s_lo), chunk)
         i_first = 0.0          # integral from t_0 to the first sample inside the window
         if s_lo > 0 and t[s_lo] > e[0]:

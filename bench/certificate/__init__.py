@@ -36,11 +36,17 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 
 def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | None = None,
-                 issued: dt.date | None = None) -> list[Path]:
-    """Build the certificate from `result` (and the run directory, if any) into `out_dir`."""
+                 issued: dt.date | None = None, *,
+                 documents: list[Document] | None = None) -> list[Path]:
+    """Build the certificate from `result` (and the run directory, if any) into `out_dir`.
+
+    `documents`, if given, receives the document the files were rendered from (the
+    console's summary is cut from it, so it prints the certificate's own text)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     doc = build_document(result, run_path, issued)
+    if documents is not None:
+        documents.append(doc)
     html_path, pdf_path = out / HTML_NAME, out / PDF_NAME
     _write_atomic(html_path, render_html(doc).encode("utf-8"))
     _write_atomic(pdf_path, render_pdf(doc))
@@ -48,6 +54,7 @@ def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | N
 
 
 def write_certificate(run: _HasPath, result: dict[str, Any],
-                      issued: dt.date | None = None) -> list[Path]:
+                      issued: dt.date | None = None, *,
+                      documents: list[Document] | None = None) -> list[Path]:
     """certificate.html and certificate.pdf in the run directory; returns their paths."""
-    return render_files(result, run.path, run.path, issued)
+    return render_files(result, run.path, run.path, issued, documents=documents)

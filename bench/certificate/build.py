@@ -23,6 +23,7 @@ import bench
 from bench.analysis.random_part import std_u_rel
 from bench.certificate import methods, plots
 from bench.certificate.model import Document, Fields, Figure, Para, Section, Signatures, Table
+from bench.certificate.operator import prompt_blocks, software_note
 from bench.certificate.rounding import (
     MINUS,
     PERCENT,
@@ -336,8 +337,7 @@ def _identification(src: Sources, cid: str, issue: str, kind: str,
     rows += [(_label(k), _text(v)) for k, v in cert.items() if k not in skip]
     blocks: list[Any] = [Fields(tuple(rows))]
     run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else NOT_RECORDED)
-    blocks.append(Para(f"Software: ratebench {bench.__version__}. Run directory: {run_dir}.",
-                       "note"))
+    blocks.append(software_note(src.meta, src.events, bench.__version__, str(run_dir)))
     return tuple(blocks)
 
 
@@ -468,8 +468,10 @@ def _deviations(src: Sources, kind: str) -> tuple[Any, ...]:
 def _conditions(src: Sources) -> tuple[Any, ...]:
     cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
     if not cond:
-        return (Para("No conditions were recorded in the procedure file."),)
-    return (Fields(tuple((_label(k), _text(v)) for k, v in cond.items())),)
+        return (Para("No conditions were recorded in the procedure file."),
+                *prompt_blocks(src.events))
+    return (Fields(tuple((_label(k), _text(v)) for k, v in cond.items())),
+            *prompt_blocks(src.events))
 
 
 # -- rate ladder results -------------------------------------------------------------------
@@ -653,6 +655,13 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                          + (f" (method {', '.join(methods_used)}" if methods_used else "")
                          + (f"; drift from {', '.join(sources)})" if sources else
                             (")" if methods_used else "")) + ".")
+        for p in pairs:  # a resumed pair: which half came from which session (docs/resume.md)
+            hs = [int(s) for s in p.get("half_sessions") or [] if isinstance(s, int | float)]
+            if len(set(hs)) > 1:
+                notes.append(f"Pair ±{_num(p.get('rate_dps')) or 0:g} °/s was resumed: "
+                             + ", ".join(f"half {i + 1} from session {s}"
+                                         for i, s in enumerate(hs))
+                             + f". FOG bias {p.get('bias_model', '')}.")
         blocks.append(Table(tuple(header), tuple(prow),
                             widths=(1.0, 2.4, 2.1, 1.9, 2.1)[:len(header)], align="rrrrr"[
                                 :len(header)],

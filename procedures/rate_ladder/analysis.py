@@ -10,22 +10,24 @@ event log says only which samples and which replies belong to which half.
 from __future__ import annotations
 
 import math
+import tempfile
 from functools import lru_cache
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from bench.analysis.allan import allan_deviation
+from bench.analysis.disk import DiskArray
 from bench.analysis.pair import analyze_pair
 from bench.analysis.random_part import std_u_rel
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.config import Config
 from bench.conformity import judge
-from bench.engine import RunContext
 from bench.journal import RunDir, read_jsonl
 from drivers.counter_profiles import get_profile
-from drivers.fog import FogSamples, read_capture
+from drivers.fog import CaptureCursor
 from drivers.scpi import parse_numbers
 from procedures.base import events_of, result_document
 from procedures.rate_ladder.settings import setting, tolerance_for
@@ -64,48 +66,117 @@ def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int,
     return t_start_s + found
 
 
-class RawData:
-    """Lazy access to one run directory's raw files (decoded once each)."""
+def window_on_disk(cursor: CaptureCursor, i_from: int, i_to: int, stem: Path
+                   ) -> tuple[DiskArray, DiskArray]:
+    """FOG samples i_from .. i_to - 1 that are valid, as (times, rates) files at `stem`:
+    what a HalfRecord holds, written chunk by chunk, read back the same way."""
+    t_path, f_path = stem.with_suffix(".t.f64"), stem.with_suffix(".f.f64")
+    with open(t_path, "wb") as ft, open(f_path, "wb") as ff:
+        for s in cursor.window(i_from, i_to):
+            ft.write(s.t_s[s.valid].tobytes())
+            ff.write(s.rate_dps[s.valid].tobytes())
+    return DiskArray(t_path), DiskArray(f_path)
 
-    def __init__(self, run: RunDir, cfg: Config) -> None:
+
+class RawData:
+    """One run directory's raw files, read as the analysis needs them, in bounded memory.
+
+    A FOG window (a half's samples) is decoded from the raw capture in chunks by a cursor
+    that moves forward through the file (drivers.fog.CaptureCursor), and its valid
+    samples are written to a scratch file the analysis reads chunk by chunk
+    (bench.analysis.disk.DiskArray): the memory used does not grow with the record.
+    `live=True` (during a run) takes the zero-mark edges from the acquire event instead
+    of re-parsing the counter's growing log: the same numbers (JSON keeps a float exact).
+    """
+
+    def __init__(self, run: RunDir, cfg: Config, *, live: bool = False,
+                 chunk_bytes: int = 1 << 20) -> None:
         self.run = run
         self.cfg = cfg
+        self.live = live
+        self.chunk_bytes = chunk_bytes
+        self._cursors: dict[tuple[int, str], CaptureCursor] = {}
+        self._scratch = tempfile.TemporaryDirectory(prefix="ratebench-windows-")
+        self._windows: list[DiskArray] = []
+        self._statics: dict[tuple[int, str, int, int], np.ndarray] = {}
 
-    @lru_cache(maxsize=8)  # noqa: B019 - one RawData per analysis
-    def fog(self, session: int, axis: str) -> FogSamples:
-        f = self.cfg.stand_axis(axis)["fog"]
-        path = self.run.path / "raw" / f"s{session}" / f"{axis}-fog.bin"
-        samples, _ = read_capture(path, fmt=f.get("format", "kvh-a"), axis=f.get("axis", "z"),
-                                  rate_hz=f["rate_hz"], units=f.get("units", "deg/s"))
-        return samples
+    def close(self) -> None:
+        self.drop_windows()
+        for c in self._cursors.values():
+            c.close()
+        self._cursors.clear()
+        self._scratch.cleanup()
+
+    def __enter__(self) -> RawData:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def drop_windows(self) -> None:
+        """Delete the scratch files of the windows read so far (a pair is done)."""
+        for w in self._windows:
+            w.close()
+            w.path.unlink(missing_ok=True)
+        self._windows.clear()
 
     @lru_cache(maxsize=8)  # noqa: B019
     def counter_log(self, session: int, axis: str) -> list[dict[str, Any]]:
         path = self.run.path / "raw" / f"s{session}" / f"{axis}-counter.jsonl"
         return list(read_jsonl(path))
 
-    def fog_slice(self, session: int, axis: str, i_from: int, i_to: int
-                  ) -> tuple[np.ndarray, np.ndarray]:
-        s = self.fog(session, axis)
-        lo, hi = i_from - int(s.index[0]) if s.index.size else 0, i_to - int(s.index[0])
-        if s.index.size == 0 or lo < 0 or hi > s.index.size:
-            raise ValueError(f"{axis}: FOG samples {i_from}..{i_to} are not all in the raw "
-                             f"capture of session {session}")
-        ok = s.valid[lo:hi]
-        return s.t_s[lo:hi][ok], s.rate_dps[lo:hi][ok]
+    def _cursor(self, session: int, axis: str, i_from: int,
+                 mark: dict[str, Any] | None = None) -> CaptureCursor:
+        """A cursor at or before sample i_from: the current one, or one started afresh at
+        the event's capture checkpoint `mark` (or the file's start) when that is nearer."""
+        key = (session, axis)
+        c = self._cursors.get(key)
+        start = mark if mark is not None and mark["last_index"] < i_from else None
+        ahead = start is not None and (c is None or c.position <= start["last_index"])
+        if c is None or c.position > i_from or ahead:
+            if c is not None:
+                c.close()
+            f = self.cfg.stand_axis(axis)["fog"]
+            c = CaptureCursor(self.run.path / "raw" / f"s{session}" / f"{axis}-fog.bin",
+                              fmt=f.get("format", "kvh-a"), axis=f.get("axis", "z"),
+                              rate_hz=f["rate_hz"], units=f.get("units", "deg/s"),
+                              chunk_bytes=self.chunk_bytes, start=start)
+            self._cursors[key] = c
+        return c
 
-    def half(self, e: dict[str, Any]) -> HalfRecord:
+    def fog_window(self, session: int, axis: str, i_from: int, i_to: int,
+                   mark: dict[str, Any] | None = None) -> tuple[DiskArray, DiskArray]:
+        """The valid samples i_from .. i_to - 1 (times, rates), on disk."""
+        cursor = self._cursor(session, axis, i_from, mark)
+        stem = Path(self._scratch.name) / f"s{session}-{axis}-{i_from}-{i_to}"
+        t, f = window_on_disk(cursor, i_from, i_to, stem)
+        self._windows += [t, f]
+        return t, f
+
+    def edges(self, e: dict[str, Any]) -> np.ndarray:
+        if self.live:
+            return np.asarray(e["edges_s"], dtype=float)
         session, axis = e["session"], e["axis"]
         log = self.counter_log(session, axis)
         i0, i1 = e["counter_records"]
         model = self.cfg.stand_axis(axis)["counter"]["model"]
-        edges = edges_from_replies(log[i0:i1], model, e["turns"] + 1,
-                                   float(e.get("counter_t0_s", 0.0)))
-        t, w = self.fog_slice(session, axis, e["fog_from"], e["fog_to"])
-        return HalfRecord(int(math.copysign(1, e["set_rate_dps"])), edges, t, w)
+        return edges_from_replies(log[i0:i1], model, e["turns"] + 1,
+                                  float(e.get("counter_t0_s", 0.0)))
+
+    def half(self, e: dict[str, Any]) -> HalfRecord:
+        t, w = self.fog_window(e["session"], e["axis"], e["fog_from"], e["fog_to"],
+                               e.get("fog_capture"))
+        return HalfRecord(int(math.copysign(1, e["set_rate_dps"])), self.edges(e), t, w,
+                          session=int(e["session"]))
 
     def static(self, e: dict[str, Any]) -> np.ndarray:
-        return self.fog_slice(e["session"], e["axis"], e["fog_from"], e["fog_to"])[1]
+        """The FOG at rest, in memory (minutes of samples, for the floor and Allan)."""
+        key = (e["session"], e["axis"], e["fog_from"], e["fog_to"])
+        if key not in self._statics:
+            cursor = self._cursor(e["session"], e["axis"], e["fog_from"], e.get("fog_capture"))
+            parts = [s.rate_dps[s.valid] for s in cursor.window(e["fog_from"], e["fog_to"])]
+            self._statics[key] = np.concatenate(parts) if parts else np.empty(0)
+        return self._statics[key]
 
 
 def _settings(cfg: Config) -> dict[str, Any]:
@@ -113,16 +184,47 @@ def _settings(cfg: Config) -> dict[str, Any]:
                                          "mains_hz", "decision_rule")}
 
 
+def unit_halves(events: list[dict[str, Any]], unit: str, session: int
+                ) -> list[dict[str, Any]]:
+    """A unit's acquisitions as of `session`: for each half, the last one acquired up to it.
+
+    A half is kept once acquired (its acquire event is written when it is complete), so a
+    resumed pair may take its halves from several sessions (docs/resume.md).
+    """
+    by_half: dict[int, dict[str, Any]] = {}
+    for e in events_of(events, "acquire"):
+        if e["unit"] == unit and e["session"] <= session:
+            by_half[int(e["half"])] = e
+    return [by_half[h] for h in sorted(by_half)]
+
+
+def unit_acquisitions(events: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Acquisitions of the units not yet done (what a --resume may keep)."""
+    done = {e["unit"] for e in events_of(events, "unit_done")}
+    return [e for e in events_of(events, "acquire") if e["unit"] not in done]
+
+
+def static_record(events: list[dict[str, Any]], axis: str) -> dict[str, Any] | None:
+    """The axis's FOG-at-rest record that completed its unit (the last such)."""
+    done_in = {e["unit"]: e["session"] for e in events_of(events, "unit_done")}
+    return next((e for e in reversed(events_of(events, "static")) if e["axis"] == axis
+                 and done_in.get(e["unit"]) == e["session"]), None)
+
+
 def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
                  acquisitions: list[dict[str, Any]], static: dict[str, Any] | None) -> Any:
     s = _settings(cfg)
     fog_hz = cfg.stand_axis(axis)["fog"]["rate_hz"]
     mains = s["mains_hz"] if 2 * s["mains_hz"] < fog_hz else None
+    static_dps = raw.static(static) if static else None  # before the halves: in file order
     halves = [raw.half(e) for e in sorted(acquisitions, key=lambda e: e["half"])]
-    return analyze_pair(halves, rate_dps, fog_rate_hz=fog_hz,
-                        counter_budget=counter_budget(cfg.stand_axis(axis)),
-                        harmonics=int(s["harmonics"]), mains_hz=mains,
-                        static_fog_dps=raw.static(static) if static else None)
+    try:
+        return analyze_pair(halves, rate_dps, fog_rate_hz=fog_hz,
+                            counter_budget=counter_budget(cfg.stand_axis(axis)),
+                            harmonics=int(s["harmonics"]), mains_hz=mains,
+                            static_fog_dps=static_dps)
+    finally:
+        raw.drop_windows()
 
 
 def _instability_u(value: float, turns: int) -> float:
@@ -148,18 +250,19 @@ def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[di
 
 
 def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
+    with RawData(run, cfg) as raw:
+        return _analyze_run(run, cfg, raw)
+
+
+def _analyze_run(run: RunDir, cfg: Config, raw: RawData) -> dict[str, Any]:
     events = run.events()
-    raw = RawData(run, cfg)
     rule = _settings(cfg)["decision_rule"]
     done_in: dict[str, int] = {e["unit"]: e["session"] for e in events_of(events, "unit_done")}
-    acquisitions = events_of(events, "acquire")
-    statics = events_of(events, "static")
     result_axes: dict[str, Any] = {}
     checks: list[dict[str, Any]] = []
     complete = True
     for axis, spec in cfg.procedure["axes"].items():
-        static = next((e for e in reversed(statics) if e["axis"] == axis
-                       and done_in.get(e["unit"]) == e["session"]), None)
+        static = static_record(events, axis)
         rates: list[dict[str, Any]] = []
         pairs: list[dict[str, Any]] = []
         for rate in spec["rates_dps"]:
@@ -167,8 +270,7 @@ def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
             if unit not in done_in:
                 complete = False
                 continue
-            acqs = [e for e in acquisitions if e["unit"] == unit
-                    and e["session"] == done_in[unit]]
+            acqs = unit_halves(events, unit, done_in[unit])
             pa = analyze_unit(raw, cfg, axis, rate, acqs, static)
             for r in pa.rates:
                 d = r.to_dict()
@@ -197,22 +299,23 @@ def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
                            axes=result_axes)
 
 
-def pair_summary(ctx: RunContext, axis: str, unit: str, rate_dps: float) -> dict[str, Any]:
-    """A first look at the pair just measured, from the live data (the same analysis the
-    final result.json makes from the raw files)."""
-    live = ctx.state.setdefault("live", {})
-    halves = live.get(unit, [])
-    static = live.get(f"{axis}/static")
-    cfg = ctx.cfg
-    s = _settings(cfg)
-    fog_hz = cfg.stand_axis(axis)["fog"]["rate_hz"]
-    pa = analyze_pair(halves, rate_dps, fog_rate_hz=fog_hz,
-                      counter_budget=counter_budget(cfg.stand_axis(axis)),
-                      harmonics=int(s["harmonics"]),
-                      mains_hz=s["mains_hz"] if 2 * s["mains_hz"] < fog_hz else None,
-                      static_fog_dps=static)
-    out: dict[str, Any] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps}
+_WORKER_READERS: dict[str, RawData] = {}  # in the analysis worker: one per run directory
+
+
+def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
+                 acquisitions: list[dict[str, Any]], static: dict[str, Any] | None
+                 ) -> dict[str, Any]:
+    """A first look at the pair just measured (the same analysis the final result.json
+    makes), from the raw capture as it is being written; runs in the analysis worker
+    (bench.engine.AnalysisWorker), whose reader moves on from pair to pair."""
+    raw = _WORKER_READERS.get(run_path)
+    if raw is None:
+        raw = _WORKER_READERS[run_path] = RawData(RunDir(run_path), cfg, live=True)
+    pa = analyze_unit(raw, cfg, axis, rate_dps, acquisitions, static)
+    out: dict[str, Any] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps,
+                           "w0_u_dps": pa.pair.w0_u_dps}
     for r in pa.rates:
         sign = "+" if r.set_rate_dps > 0 else "-"
         out[f"rate_error_rel{sign}"] = r.rate_error_rel
+        out[f"rate_error_u_rel{sign}"] = r.rate_error_u_rel
     return out

@@ -13,19 +13,31 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from bench.analysis.window import HalfRecord
 from bench.config import STEP_MAX_S, Config, check_axis_names, stand_schema
 from bench.engine import Abort, RunContext
 from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, abandon, open_axis
 from bench.journal import RunDir
 from bench.plan import Plan, Step, format_duration
+from bench.progress import RELATIVE, Figure
 from bench.schema import Map
 from bench.simbench import SimBench
 from bench.yamlfile import Problem
 from drivers.clock import Clock
 from procedures.base import StepDispatch
-from procedures.rate_ladder.analysis import analyze_run, pair_summary
+from procedures.rate_ladder.analysis import (
+    analyze_run,
+    pair_summary,
+    static_record,
+    unit_acquisitions,
+    unit_halves,
+)
 from procedures.rate_ladder.settings import NAME, PROCEDURE, SETTLE_DEFAULTS, halves, setting
+
+
+def _fog_losses(fog: Any) -> int:
+    """Frames the FOG's decoder found lost or broken so far (a half's count: the change)."""
+    st = fog.stats
+    return int(st.lost_frames + st.crc_errors)
 
 
 class RateLadder(StepDispatch):
@@ -174,17 +186,23 @@ class RateLadder(StepDispatch):
         duration = step.params["duration_s"]
         i0 = max(fog.end_index, math.ceil(ctx.clock.now() * fog.rate_hz))
         n = int(round(duration * fog.rate_hz))
+        lost0 = _fog_losses(fog)
+        mark = fog.checkpoint()  # where the record starts in the raw capture (or before)
         self._wait_fog(ctx, fog, i0 + n, duration, f"{step.axis}: FOG at rest")
-        s = fog.samples(i0, i0 + n)
-        ctx.state.setdefault("live", {})[step.unit] = s.rate_dps[s.valid]
-        ctx.run.event("static", axis=step.axis, unit=step.unit, fog_from=i0, fog_to=i0 + n,
-                      rate_hz=fog.rate_hz, lost=int(n - s.valid.sum()))
+        event = dict(axis=step.axis, unit=step.unit, fog_from=i0, fog_to=i0 + n,
+                     rate_hz=fog.rate_hz, lost=_fog_losses(fog) - lost0, fog_capture=mark)
+        ctx.run.event("static", **event)  # the samples stay in the raw capture
+        mean = _fog_mean_dps(fog)
+        if mean is not None:
+            ctx.progress.reading("FOG mean", f"{step.axis} at rest",
+                                 Figure("", mean, unit="°/s", signed=True))
 
     def _wait_fog(self, ctx: RunContext, fog: Any, index: int, span_s: float, label: str) -> None:
         t_end = ctx.clock.now() + span_s
         while True:
             left = t_end - ctx.clock.now()
-            ctx.progress.detail(f"  {label}: {max(left, 0):.0f} s left")
+            ctx.progress.advance(min(span_s - left, span_s), span_s,
+                                 f"{label}: {span_s - max(left, 0):.0f} of {span_s:g} s")
             if left <= 0:
                 break
             ctx.clock.sleep(min(left, max(span_s / 20, 0.5)))
@@ -199,7 +217,12 @@ class RateLadder(StepDispatch):
     def _do_settle(self, step: Step, ctx: RunContext) -> None:
         drive = ctx.bench.axes[step.axis].drive
         p = step.params
-        rate = drive.wait_settled(p["tolerance_dps"], p["hold_s"], p["timeout_s"])
+        def held(held_s: float) -> None:
+            ctx.progress.advance(held_s, p["hold_s"], f"within ±{p['tolerance_dps']:g} deg/s "
+                                 f"for {min(held_s, p['hold_s']):.1f} of {p['hold_s']:g} s")
+
+        rate = drive.wait_settled(p["tolerance_dps"], p["hold_s"], p["timeout_s"],
+                                  on_hold=held)
         ctx.run.event("settled", axis=step.axis, unit=step.unit, rate_dps=rate)
 
     def _do_acquire(self, step: Step, ctx: RunContext) -> None:
@@ -209,13 +232,15 @@ class RateLadder(StepDispatch):
         period = p["period_s"]
         counter, fog, drive = ax.counter, ax.fog, ax.drive
         rec0 = ax.logs["counter"].count if "counter" in ax.logs else 0
+        lost0 = _fog_losses(fog)
+        mark = fog.checkpoint()  # the raw capture up to here holds no sample of this half
         counter.arm(n + 1, period)
         t_arm = ctx.clock.now()
         t_end = t_arm + (n + 1) * period
         while (left := t_end - ctx.clock.now()) > 0:
-            turn = min(n, int((ctx.clock.now() - t_arm) / period))
-            ctx.progress.detail(f"  {step.axis} {p['rate_dps']:+g} deg/s: turn {turn}/{n}, "
-                                f"{format_duration(left)} of this half left")
+            turn = min(n, max(int((ctx.clock.now() - t_arm) / period) - 1, 0))
+            ctx.progress.advance(turn, n, f"{turn} of {n} turns timed at "
+                                 f"{p['rate_dps']:+g} deg/s, {format_duration(left)} left")
             ctx.clock.sleep(min(left, max(period / 4, 0.25)))
             drive.check()
         edges = counter.fetch()
@@ -228,33 +253,100 @@ class RateLadder(StepDispatch):
         i_to = math.floor(edges[-1] * fog.rate_hz) + 2
         rec1 = ax.logs["counter"].count if "counter" in ax.logs else 0
         fog.wait_for_index(i_to, timeout_s=max(10.0, period))
-        s = fog.samples(i_from, i_to)
-        lost = int(s.valid.size - s.valid.sum())
-        ctx.state.setdefault("live", {}).setdefault(step.unit, []).append(
-            HalfRecord(1 if p["rate_dps"] > 0 else -1, edges, s.t_s[s.valid],
-                       s.rate_dps[s.valid]))
-        ctx.run.event("acquire", axis=step.axis, unit=step.unit, half=p["half"],
-                      set_rate_dps=p["rate_dps"], turns=n, edges_s=[float(e) for e in edges],
-                      counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
-                      counter_records=[rec0, rec1], fog_from=i_from, fog_to=i_to,
-                      rate_hz=fog.rate_hz, fog_lost=lost)
+        lost = _fog_losses(fog) - lost0
+        event = dict(axis=step.axis, unit=step.unit, half=p["half"],
+                     set_rate_dps=p["rate_dps"], turns=n, edges_s=[float(e) for e in edges],
+                     counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
+                     counter_records=[rec0, rec1], fog_from=i_from, fog_to=i_to,
+                     rate_hz=fog.rate_hz, fog_lost=lost, fog_capture=mark)
+        # the FOG samples stay in the raw capture: the pair's analysis reads them there;
+        # this event completes the half (a --resume keeps it, docs/resume.md)
+        ctx.run.event("acquire", **event)
         if lost:
-            ctx.progress.line(f"  WARNING {step.axis}: {lost} FOG samples lost in this half "
-                              "(CRC or sequence gaps); the analysis uses the rest")
-        w = 360.0 * n / (edges[-1] - edges[0])
-        ctx.progress.line(f"  {step.axis} {p['rate_dps']:+g} deg/s: {n} turns timed, "
-                          f"mean {math.copysign(w, p['rate_dps']):+.7f} deg/s")
+            ctx.progress.warn(f"  WARNING {step.axis}: {lost} FOG frames lost or broken "
+                              "during this half (CRC or sequence gaps); the analysis uses "
+                              "the rest")
+        self._show_half(ctx, step.axis, p["rate_dps"], edges, _fog_mean_dps(fog))
+
+    @staticmethod
+    def _show_half(ctx: RunContext, axis: str, set_dps: float, edges: Any,
+                   fog_mean_dps: float | None) -> None:
+        """The half just timed: its per-turn rate deviations ω_i/ω_set − 1 (METHOD.md A1)
+        to 3 significant digits, as the certificate's annex prints them; the FOG mean."""
+        dev = [360.0 / (b - a) / abs(set_dps) - 1.0
+               for a, b in zip(edges[:-1], edges[1:], strict=True)]
+        mean = 360.0 * (len(edges) - 1) / (edges[-1] - edges[0]) / abs(set_dps) - 1.0
+        label = f"{axis} {set_dps:+g} deg/s"
+        ctx.progress.reading("per-turn rate deviation", f"{label}, turn {len(dev)}",
+                             Figure("", dev[-1], unit=RELATIVE, signed=True, digits=3))
+        if fog_mean_dps is not None:
+            ctx.progress.reading("FOG mean", f"end of the {label} half",
+                                 Figure("", fog_mean_dps, unit="°/s", signed=True, digits=6))
+        ctx.progress.result(f"{label}, {len(dev)} turns timed",
+                            Figure("mean rate deviation", mean, unit=RELATIVE, signed=True,
+                                   digits=3),
+                            *[Figure(f"turn {i + 1}", d, unit=RELATIVE, signed=True, digits=3)
+                              for i, d in enumerate(dev)])
 
     def _do_analyze(self, step: Step, ctx: RunContext) -> None:
-        summary = pair_summary(ctx, step.axis, step.unit, step.params["rate_dps"])
-        ctx.run.event("pair", axis=step.axis, unit=step.unit, **summary)
-        ctx.progress.line(f"  {step.axis} +/-{step.params['rate_dps']:g} deg/s: "
-                          + ", ".join(f"{k} {v:.6g}" for k, v in summary.items()
-                                      if isinstance(v, float)))
-        live = ctx.state.get("live", {})
-        live.pop(step.unit, None)
-        fog = ctx.bench.axes[step.axis].fog
-        fog.discard_before(fog.end_index)
+        """A first look at the pair, in the analysis worker: acquisition goes on meanwhile
+        (the result.json analysis is made again from the raw files at the end)."""
+        axis, unit, rate = step.axis, step.unit, step.params["rate_dps"]
+        events = ctx.run.events()  # the halves may come from earlier sessions (--resume)
+
+        def done(summary: dict[str, Any] | None, error: BaseException | None) -> None:
+            if error is not None:
+                ctx.run.event("pair_failed", axis=axis, unit=unit, error=repr(error))
+                ctx.progress.warn(f"  WARNING {axis} +/-{rate:g} deg/s: the first look at the "
+                                  f"pair failed ({error}); the final analysis will say more")
+                return
+            assert summary is not None
+            ctx.run.event("pair", axis=axis, unit=unit, **summary)
+            ctx.progress.result(f"{axis} ±{rate:g} deg/s", *pair_figures(summary))
+
+        ctx.worker.submit(pair_summary, str(ctx.run.path), ctx.cfg, axis, rate,
+                          unit_halves(events, unit, ctx.run.session),
+                          static_record(events, axis), on_done=done)
+
+    # -- resume ----------------------------------------------------------------------
+    def resume_plan(self, plan: Plan, run: RunDir) -> Plan:
+        """What a --resume still runs: every half already acquired is kept (docs/resume.md).
+
+        `plan` holds the units not done; of each, the halves acquired in earlier sessions
+        are dropped with their set-rate and settle steps. A pair must keep one session
+        that holds both signs (its FOG calibration, bench/analysis/pair.py): when neither
+        an earlier session nor what is left would hold both, the pair is acquired whole.
+        """
+        events = run.events()
+        kept: dict[str, dict[int, int]] = {}  # unit -> half -> (sign) of the kept halves
+        sessions: dict[str, dict[int, set[int]]] = {}
+        for e in unit_acquisitions(events):
+            kept.setdefault(e["unit"], {})[int(e["half"])] = 1 if e["set_rate_dps"] > 0 else -1
+            sessions.setdefault(e["unit"], {}).setdefault(int(e["session"]), set()).add(
+                1 if e["set_rate_dps"] > 0 else -1)
+        drop: dict[str, set[int]] = {}
+        for unit, halves_done in kept.items():
+            left = {(1 if s.params["rate_dps"] > 0 else -1) for s in plan.steps
+                    if s.unit == unit and s.action == "acquire"
+                    and s.params["half"] not in halves_done}
+            whole_session = any(signs == {1, -1} for signs in sessions[unit].values())
+            if whole_session or left == {1, -1}:
+                drop[unit] = set(halves_done)
+        steps: list[Step] = []
+        pending: list[Step] = []  # a half's set_rate and settle wait for its acquire
+        for s in plan.steps:
+            if s.unit in drop and s.action in ("set_rate", "settle"):
+                pending.append(s)
+                continue
+            if s.unit in drop and s.action == "acquire":
+                if s.params["half"] not in drop[s.unit]:
+                    steps += [*pending, s]
+                pending = []
+                continue
+            steps += pending
+            pending = []
+            steps.append(s)
+        return Plan(plan.title, tuple(steps + pending))
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
         drive = ctx.bench.axes[step.axis].drive
@@ -267,3 +359,25 @@ class RateLadder(StepDispatch):
 
 
 KIND = RateLadder()
+
+
+def _fog_mean_dps(fog: Any, span_s: float = 1.0) -> float | None:
+    """The mean of the FOG's last `span_s` of valid samples (the live store keeps about a
+    minute); None when there are none."""
+    i_to = fog.end_index
+    try:
+        s = fog.samples(max(i_to - int(span_s * fog.rate_hz), 0), i_to)
+    except ValueError:        # discarded or not yet arrived: nothing to show
+        return None
+    return float(s.rate_dps[s.valid].mean()) if s.valid.any() else None
+
+
+def pair_figures(summary: dict[str, Any]) -> list[Figure]:
+    """A pair's first look (METHOD.md A3 k and ω0; eq. 1 δ per direction) with U (k = 2)."""
+    out = [Figure("k", summary.get("k"), summary.get("k_u")),
+           Figure("ω0", summary.get("w0_dps"), summary.get("w0_u_dps"), "°/s", signed=True)]
+    for sign, name in (("+", "δ(+)"), ("-", "δ(−)")):
+        if f"rate_error_rel{sign}" in summary:
+            out.append(Figure(name, summary[f"rate_error_rel{sign}"],
+                              summary.get(f"rate_error_u_rel{sign}"), RELATIVE, signed=True))
+    return out

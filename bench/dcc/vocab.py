@@ -1,0 +1,91 @@
+"""refType names: PTB's DCC good-practice vocabulary (`basic_*`) and our own (`ratebench_*`).
+
+A refType tells a machine reader what a DCC element means without parsing its human name.
+Where the good-practice vocabulary has a term we use it; quantities it has no term for
+(rate instability, FOG scale, own drift, ...) get a `ratebench_` term, defined in
+docs/dcc.md. Both namespaces are declared in the DCC's refTypeDefinitions, as the DCC
+schema asks, so a reader knows where each term is defined.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+# PTB DCC good practice, namespace "basic"
+NOMINAL = "basic_nominalValue"
+MEASURED = "basic_measuredValue"
+ERROR = "basic_measurementError"
+REFERENCE = "basic_referenceValue"
+CONFORMITY = "basic_conformity"
+LIMIT_LOW = "basic_acceptanceLimitLower"
+LIMIT_HIGH = "basic_acceptanceLimitUpper"
+METHOD = "basic_calibrationMethod"
+UNCERTAINTY = "basic_uncertainty"
+NORMAL_USED = "basic_normalUsed"
+TEMPERATURE = "basic_temperature"
+TEMPERATURE_MIN, TEMPERATURE_MAX = "basic_temperatureMin", "basic_temperatureMax"
+HUMIDITY = "basic_humidityRelative"
+HUMIDITY_MIN, HUMIDITY_MAX = "basic_humidityRelativeMin", "basic_humidityRelativeMax"
+
+# ours, namespace "ratebench" (docs/dcc.md, section "refTypes")
+RB = "ratebench_"
+SET_RATE = RB + "setRate"
+TURNS = RB + "turns"
+RATE_ERROR = RB + "rateError"
+RATE_INSTABILITY = RB + "rateInstability"
+TIMING_FLOOR = RB + "timingFloor"
+INTRA_TURN = RB + "intraTurnInstability"
+INTRA_TURN_CORRECTED = RB + "intraTurnInstabilityCorrected"
+INTRA_TURN_UPPER = RB + "intraTurnInstabilityUpperLimit"
+FOG_FLOOR = RB + "fogNoiseFloor"
+AVERAGED = RB + "averagedInstability"
+WINDOW = RB + "averagingWindow"
+PER_TURN = RB + "perTurnRate"
+HARMONIC = RB + "harmonic"
+HARMONIC_ORDER = RB + "harmonicOrder"
+AMPLITUDE = RB + "amplitude"
+PHASE = RB + "phase"
+FREQUENCY = RB + "frequency"
+MAINS = RB + "mainsRipple"
+PAIR = RB + "crossCalibrationPair"
+FOG_SCALE = RB + "fogScale"
+FOG_BIAS = RB + "fogBias"
+FOG_BIAS_DRIFT = RB + "fogBiasDrift"
+OWN_DRIFT = RB + "ownDrift"
+APPARENT_DRIFT = RB + "apparentDrift"
+DRIFT_POSITION = RB + "driftPerPosition"
+DRIFT_CYCLES = RB + "driftPerCycle"
+TABLE_POSITION = RB + "tablePosition"
+STD = RB + "standardDeviation"
+AZIMUTH = RB + "azimuth"
+EARTH_RATE = RB + "earthHorizontalRate"
+LATITUDE = RB + "siteLatitude"
+RAW_DIGESTS = RB + "rawDataDigests"
+SHA256 = RB + "sha256"
+SIMULATED = RB + "simulatedStand"
+LOCATION = RB + "itemLocation"
+COUNTRY_UNKNOWN = RB + "countryNotConfigured"
+CONDITION = RB + "condition"
+RUN_DIRECTORY = RB + "runDirectory"
+
+
+@dataclass(frozen=True)
+class Namespace:
+    name: str
+    prefix: str
+    link: str
+    description: str
+
+
+BASIC = Namespace(
+    "DCC good practice: basic refTypes", "basic",
+    "https://digilab.ptb.de/dkd/refType/vocab/index.php?tema=2",
+    "The 'basic' namespace of PTB's refType vocabulary: terms common to all measurands "
+    "(nominal value, measured value, measurement error, conformity, acceptance limits, ...).")
+RATEBENCH = Namespace(
+    "ratebench refTypes", "ratebench", "urn:x-ratebench:dcc:reftypes:1",
+    "Terms of the ratebench rate-table bench for quantities the basic vocabulary does not "
+    "name (per-turn rate error and instability, intra-turn instability, FOG cross-calibration, "
+    "gyro drift, azimuth, raw-data digests); each is defined in the project's docs/dcc.md, "
+    "section refTypes, with the METHOD.md section it comes from.")
+NAMESPACES = (BASIC, RATEBENCH)

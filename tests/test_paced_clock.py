@@ -1,0 +1,102 @@
+"""The paced simulation clock: a twin that lags slows the stand's clock, never aborts a run.
+
+The clock's bounds are checked as upper bounds on virtual time, which a loaded machine
+can only make smaller: no test here depends on how fast the machine is.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from bench.commands import EXIT_PASS, run_session
+from bench.journal import RunDir
+from bench.loader import load_config
+from sims.clock import VirtualClock, parse_speed
+from tests.conftest import CONFIGS
+from tests.test_run_e2e import check_against_truth
+
+STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
+
+
+def test_clock_speed_max_and_numbers_parse() -> None:
+    assert parse_speed("max") == math.inf
+    assert parse_speed(None) == math.inf  # the default for simulated stands
+    assert parse_speed(300) == 300.0
+    with pytest.raises(ValueError, match="max"):
+        parse_speed("fast")
+    with pytest.raises(ValueError, match="> 0"):
+        parse_speed(0)
+
+
+def test_a_fixed_speed_clock_without_pacers_runs_at_its_speed() -> None:
+    clock = VirtualClock(50.0)
+    assert clock.speed == clock.min_speed == 50.0
+    assert not clock.paced
+
+
+def test_a_pacer_holds_the_clock_within_its_lead() -> None:
+    delivered = [10.0]
+    clock = VirtualClock("max", lead_s=1.0, running=False)
+    unpace = clock.pace(lambda: delivered[0])
+    assert clock.min_speed == 1.0  # a paced clock promises real time, no more
+    m0 = time.monotonic()
+    clock.start()
+    time.sleep(0.2)
+    # the twin delivered up to 10 s: the clock may lead it by 1 s, plus real time
+    assert clock.now() <= 10.0 + 1.0 + (time.monotonic() - m0) * clock.floor_speed
+    delivered[0] = 50.0
+    clock.sleep_until(40.0)  # the twin caught up: the clock follows at once
+    assert 40.0 <= clock.now() <= 51.0 + (time.monotonic() - m0)
+    unpace()
+    assert not clock.paced
+
+
+def _procedure(tmp_path: Path, clock_speed: Any) -> Path:
+    stand = yaml.safe_load(STAND.read_text())
+    stand["sim"]["clock_speed"] = clock_speed
+    stand_path = tmp_path / "stand.yaml"
+    stand_path.write_text(yaml.safe_dump(stand))
+    proc = tmp_path / "p.yaml"
+    proc.write_text(yaml.safe_dump({
+        "procedure": "rate-ladder", "stand": str(stand_path), "turns": 4,
+        "static_record_s": 5, "harmonics": 2, "axes": {"outer": {"rates_dps": [100, 200]}},
+    }))
+    return proc
+
+
+FROZEN_FRAMES_PER_S = 30_000.0   # a FOG at 1 kHz slowed to 30x real time
+
+
+@pytest.mark.timeout(180)
+def test_a_slowed_twin_slows_the_clock_and_the_run_completes(tmp_path: Path) -> None:
+    """clock_speed 300 with a FOG that can only keep 30x: before pacing this aborted."""
+    cfg = load_config(_procedure(tmp_path, 300))
+    run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
+    started: list[float] = []
+
+    def slow(sim: Any) -> None:
+        started.append(time.monotonic())
+        sim.twins["outer.fog"].slow_down(FROZEN_FRAMES_PER_S)
+
+    status = run_session(cfg, run, yes=True, on_sim_started=slow)
+    real_s = time.monotonic() - started[0]
+    events = run.events()
+    assert status == EXIT_PASS, [e for e in events if e["event"] == "abort"]
+    done = next(e for e in events if e["event"] == "completed")
+    lead_s = 20.0
+    # the clock never ran more than its lead ahead of what the slowed FOG had sent
+    # (plus the moment before the slow-down took hold, at the top speed)
+    assert done["t_s"] <= FROZEN_FRAMES_PER_S / 1000.0 * real_s + lead_s + 300 * 0.5, \
+        (done["t_s"], real_s)
+    result = json.loads((run.path / "result.json").read_text())
+    assert result["verdict"] == "pass"
+    assert [r["set_rate_dps"] for r in result["axes"]["outer"]["rates"]] == [100, -100,
+                                                                             200, -200]
+    check_against_truth(result)
