@@ -61,6 +61,14 @@ FAULTS: dict[str, Callable[[Any], None]] = {
     "sigterm": _signal(signal.SIGTERM),
 }
 PHASES = ("static", "set_rate", "settle", "acquire")
+#: an EMCY while the drive is still disabled (the static record) is journaled and cleared
+#: by the enable that follows (CiA 402 fault reset): not an abort, so not a cell here
+NOT_ABORTS = {("drive-emcy", "static")}
+CELLS = [(f, ph) for f in sorted(FAULTS) for ph in PHASES if (f, ph) not in NOT_ABORTS]
+#: cells whose run is also resumed (each resume is a whole run and a certificate: the
+#: suite keeps to a few; RATEBENCH_RESUME_ALL=1 resumes every acquire-phase cell)
+RESUMED = {("sigint", "acquire"), ("drive-heartbeat-lost", "acquire")}
+RESUME_ALL = os.environ.get("RATEBENCH_RESUME_ALL") == "1"
 
 
 def _raw_hashes(run: RunDir, session: int) -> dict[str, str]:
@@ -96,9 +104,8 @@ def _assert_aborted_cleanly(run: RunDir, status: int, seen: dict[str, Any]) -> N
     assert axis.commanded_rate_at(t_end + 3600.0) == 0.0, "the axis was left turning"
 
 
-@pytest.mark.timeout(180)
-@pytest.mark.parametrize("phase", PHASES)
-@pytest.mark.parametrize("fault", sorted(FAULTS))
+@pytest.mark.timeout(240)
+@pytest.mark.parametrize("fault,phase", CELLS)
 def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str,
                                                 tmp_path: Path) -> None:
     cfg = load_config(_procedure(tmp_path))
@@ -111,7 +118,7 @@ def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str,
         assert "heartbeat" in text, exit_event
         assert "COULD NOT BE TOLD TO STOP" in text and "watchdog" in text, exit_event
         assert seen["sim"].twins["outer.drive"].watchdog_trips, "the drive's watchdog idle"
-    if phase != "acquire":
+    if (fault, phase) not in RESUMED and not (RESUME_ALL and phase == "acquire"):
         return
     before = _raw_hashes(run, 1)
     again = RunDir(run.path)
