@@ -43,7 +43,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def _procedure(folder: Path) -> Path:
     proc = folder / "p.yaml"
     proc.write_text(yaml.safe_dump({
-        "procedure": "rate-ladder", "stand": str(STAND), "turns": 2, "sequence": "+-",
+        "procedure": "rate-ladder", "stand": str(STAND), "turns": 4, "sequence": "+-",
         "static_record_s": 3, "harmonics": 1, "prompts": False,
         "axes": {"outer": {"rates_dps": [20, 30]}},
     }))
