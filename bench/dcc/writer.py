@@ -173,6 +173,13 @@ def build_dcc(inputs: DccInputs) -> etree._ElementTree:
         _drift(results, src, checks)
     else:
         _ladder(results, src, checks)
+    if results.find(f"{{{DCC_NS}}}measurementResult") is None:    # the DCC needs one
+        mr = el(results, "measurementResult", id="noResults")
+        name(mr, "No results")
+        r = el(el(mr, "results"), "result")
+        name(r, "No results")
+        text_el(el(r, "data"), "text", "result.json carries no results: nothing was measured "
+                "to completion, or its results were malformed.")
     _leftover_checks(root, src, checks)
     pdf = inputs.run_path / PDF_NAME if inputs.run_path is not None else None
     if inputs.embed_pdf and pdf is not None and pdf.is_file():
@@ -648,8 +655,29 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
         q("corrected_upper_rel", "upper limit (k = 2) of the floor-corrected intra-turn "
           "instability", V.INTRA_TURN_UPPER, U.ONE, value=upper,
           label=f"{path}.intra_turn.corrected_upper_rel")
+    _budget(data, ident(rid, "budget"), "uncertainty budget of the rate error: standard "
+            "uncertainties (k = 1) relative to |set|; U = 2 sqrt(sum u^2) (docs/method.md "
+            "A1-A2)", r.get("rate_error_budget"), f"{path}.rate_error_budget",
+            (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
+             ("repeatability_u_rel", "repeatability (Type A)")), U.ONE)
     _averaged(data, rid, path, intra)
     _systematic(data, rid, path, r.get("systematic") or {})
+
+
+def _budget(data: etree._Element, lid: str, title: str, budget: Any, path: str,
+            terms: Sequence[tuple[str, str]], unit: str) -> None:
+    """The standard uncertainties behind a U, one quantity per source (no U of their own)."""
+    if not isinstance(budget, Mapping):
+        return
+    found = [(k, label, num(budget.get(k))) for k, label in terms]
+    found = [(k, label, v) for k, label, v in found if v is not None]
+    if not found:
+        return
+    lst = el(data, "list", id=lid, ref_type=V.BUDGET)
+    name(lst, title)
+    for key, label, v in found:
+        quantity(lst, ident(lid, key), f"u({label})", V.STANDARD_UNCERTAINTY, v, unit,
+                 label=f"{path}.{key}")
 
 
 def _averaged(data: etree._Element, rid: str, path: str, intra: Any) -> None:
@@ -789,6 +817,14 @@ def _drift(results: etree._Element, src: Sources, checks: _Checks) -> None:
                             else "U not stated in result.json.")
             if check:
                 _conformity(node, checks.take(axis, None, check), U.DEG_PER_H)
+        budget = d.get("budget") if isinstance(d.get("budget"), Mapping) else {}
+        for key, what in (("own_u_dph", "own"), ("apparent_u_dph", "apparent")):
+            terms = budget.get(key)
+            if isinstance(terms, Mapping):
+                _budget(data, ident(aid, "budget", what), f"uncertainty budget of the {what} "
+                        "drift: standard uncertainties (k = 1) per source; U = 2 sqrt(sum "
+                        "u^2) (docs/method.md B)", terms, f"{path}.budget.{key}",
+                        tuple((str(k), str(k).replace("_", " ")) for k in terms), U.DEG_PER_H)
         for j, pos in enumerate(d.get("positions") or []):
             if not isinstance(pos, Mapping):
                 continue
