@@ -235,13 +235,22 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             for note in dict.fromkeys(n.removeprefix("also, while stopping: ") for n in later):
                 progress.warn(f"  also, while stopping: {note}")
         doc: Document | None = None
+        guard.writing = True  # the axes are stopped: Ctrl-C now leaves the writing
         try:
             result, doc = _write_outputs(run, cfg, progress)
+        except KeyboardInterrupt as e:
+            progress.warn(f"{e or 'interrupted'}: the axes were already stopped; result.json "
+                          f"and the certificate may be missing or from an earlier session: "
+                          f"`bench analyze {run.path}` writes them from the raw data")
+            result = None
+            status = EXIT_ABORTED
+            cause = cause or "interrupted while writing the outputs"
         except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
             progress.warn(f"analysis failed: {e!r}; the raw data is in {run.path}; "
                           f"fix and run `bench analyze {run.path}`")
             result = None
             status = EXIT_ABORTED  # no verdict without an analysis
+        guard.writing = False
         if result is not None:
             progress.summary(_summary(result, doc))
             if status == EXIT_PASS and result.get("verdict") == "fail":

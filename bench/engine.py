@@ -51,6 +51,9 @@ class SignalGuard:
 
     def __init__(self, log: Callable[[str], None]) -> None:
         self.stopping = False
+        #: the axes are stopped and the outputs are being written: a signal now ends the
+        #: writing (KeyboardInterrupt), since nothing is left to protect but derived files
+        self.writing = False
         self.count = 0
         self._log = log
         self._old: dict[int, Any] = {}
@@ -58,6 +61,9 @@ class SignalGuard:
     def _handler(self, signum: int, frame: FrameType | None) -> None:
         self.count += 1
         name = signal.Signals(signum).name
+        if self.writing:
+            self.writing = False
+            raise KeyboardInterrupt(name)
         if self.stopping:
             self._log(f"{name} received: the axes are being stopped first; please wait")
             return

@@ -16,6 +16,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -209,3 +210,29 @@ def test_sigkill_mid_acquire_then_resume(tmp_path: Path) -> None:
     assert result["sessions"] == 2
     for r in result["axes"]["outer"]["rates"]:
         assert abs(r["rate_error_rel"] - TRUTH_REL) <= HARD_LIMIT_U * r["rate_error_u_rel"], r
+
+
+@pytest.mark.timeout(120)
+def test_ctrl_c_while_the_outputs_are_written_is_honoured(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The axes are stopped by then: Ctrl-C ends the writing (exit 3, an exit event, the
+    way back via `bench analyze`) instead of being answered and ignored."""
+    cfg = load_config(_procedure(tmp_path))
+    run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
+
+    def interrupt_while_writing() -> None:
+        deadline = time.monotonic() + 100
+        while time.monotonic() < deadline:
+            if (run.path / "result.json").exists():   # written first, then the certificate
+                os.kill(os.getpid(), signal.SIGINT)
+                return
+            time.sleep(0.01)
+
+    threading.Thread(target=interrupt_while_writing, daemon=True).start()
+    status = run_session(cfg, run, yes=True)
+    assert status == EXIT_ABORTED
+    err = capsys.readouterr().err
+    assert f"bench analyze {run.path}" in err, err
+    assert "being stopped first" not in err
+    last = run.events()[-1]
+    assert last["event"] == "exit" and last["status"] == EXIT_ABORTED
