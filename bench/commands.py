@@ -8,6 +8,7 @@ operator (the axes were stopped, the data kept, `--resume` works).
 from __future__ import annotations
 
 import argparse
+import datetime as dt
 import os
 import sys
 import time
@@ -26,12 +27,14 @@ from bench.devices import list_devices
 from bench.diskspace import expected_raw_bytes, space_problem
 from bench.engine import Abort, Engine, RunContext, SignalGuard
 from bench.examples import example_path
-from bench.instruments import StopErrors
+from bench.instruments import StandClaimError, StopErrors, check_references
 from bench.journal import RunDir
+from bench.lab import lab_path
 from bench.loader import load_config
 from bench.plan import format_duration
 from bench.registry import procedure_kind
 from bench.summary import Summary, summarize
+from bench.traceability import overdue, overdue_warning
 from drivers.clock import MonotonicClock
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
@@ -124,7 +127,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if cfg is None:
         return EXIT_INVALID
     if run is None:
-        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path)
+        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path,
+                            lab_path(cfg.procedure_path, cfg.procedure.get("certificate")))
     console = open_console(quiet=args.quiet, log_json=args.log_json)
     status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),
                          progress=console)
@@ -178,13 +182,20 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                       done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
                       version=__version__, prompts="--yes" if yes else "operator",
                       pid=os.getpid())
+            for t in overdue(cfg.stand, dt.datetime.now(dt.UTC).date()):
+                progress.line(overdue_warning(t))
+                run.event("calibration_overdue", where=t.where, item=t.item,
+                          certificate=t.certificate, due=t.due.isoformat() if t.due else None)
             bench = kind.open_bench(cfg, stand, clock, run)
             for ax in bench.axes.values():
-                run.event("identity", axis=ax.name, **ax.identities)
+                run.event("identity", axis=ax.name, **ax.identities,
+                          **({"counter_reference": ax.reference_text}
+                             if ax.reference_text else {}))
             if simbench is not None:
                 simbench.start_clock()
                 if on_sim_started is not None:
                     on_sim_started(simbench)
+            check_references(bench)
             progress.line(f"Run directory: {run.path}")
             if done:
                 progress.line(f"Resuming: {len(done)} unit(s) already done: {', '.join(done)}")
@@ -196,6 +207,11 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             Engine(ctx, kind.execute).run(todo, guard)
             run.event("completed", wall_s=time.monotonic() - t0)
             status = EXIT_PASS
+        except StandClaimError as e:  # raised while opening: no axis was commanded yet
+            guard.stopping = True
+            _err(f"Refused: {cfg.stand_path}: {e}")
+            later += _journal(run, "refused", reason=str(e))
+            status = EXIT_INVALID
         except BaseException as e:  # noqa: BLE001 - whatever it is, the stop follows
             guard.stopping = True
             status = EXIT_ABORTED
@@ -235,9 +251,11 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             for note in dict.fromkeys(n.removeprefix("also, while stopping: ") for n in later):
                 progress.warn(f"  also, while stopping: {note}")
         doc: Document | None = None
+        result = None
         guard.writing = True  # the axes are stopped: Ctrl-C now leaves the writing
         try:
-            result, doc = _write_outputs(run, cfg, progress)
+            if status != EXIT_INVALID:  # a refused stand measured nothing: nothing to issue
+                result, doc = _write_outputs(run, cfg, progress)
         except KeyboardInterrupt as e:
             progress.warn(f"{e or 'interrupted'}: the axes were already stopped; result.json "
                           f"and the certificate may be missing or from an earlier session: "

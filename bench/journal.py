@@ -157,6 +157,7 @@ class RunDir:
 
     PROCEDURE = "procedure.yaml"
     STAND = "stand.yaml"
+    LAB = "lab.yaml"
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
@@ -167,7 +168,8 @@ class RunDir:
         self._clock_now = lambda: None
 
     @classmethod
-    def create(cls, out_dir: str | Path, procedure_path: Path, stand_path: Path) -> RunDir:
+    def create(cls, out_dir: str | Path, procedure_path: Path, stand_path: Path,
+               lab_path: Path | None = None) -> RunDir:
         stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
         base = Path(out_dir) / f"{stamp}-{procedure_path.stem}"
         path, n = base, 1
@@ -177,6 +179,8 @@ class RunDir:
         path.mkdir(parents=True)
         shutil.copyfile(procedure_path, path / cls.PROCEDURE)
         shutil.copyfile(stand_path, path / cls.STAND)
+        if lab_path is not None:  # the laboratory's settings as used (bench.lab)
+            shutil.copyfile(lab_path, path / cls.LAB)
         meta = {
             "procedure_file": str(procedure_path),
             "procedure_name": procedure_path.name,

@@ -285,7 +285,9 @@ def test_demo_conformity_per_check_with_its_rule_and_limits(demo: dict[str, Any]
     for i, c in enumerate(result["checks"], start=1):
         md = root.find(f".//dcc:metaData[@id='check_{i}']", NS)
         assert md is not None, i
-        assert md.findtext("dcc:conformity", None, NS) == c["verdict"]
+        # a check left out of conformity (a sigma at the timing floor) states none
+        expected = c["verdict"] if c["verdict"] in ("pass", "fail") else None
+        assert md.findtext("dcc:conformity", None, NS) == expected
         assert md.findtext("dcc:norm", None, NS) == "ILAC-G8:09/2019"
         assert "guard" in md.findtext("dcc:reference", "", NS)
         low = md.find("dcc:data/dcc:quantity[@refType='basic_acceptanceLimitLower']/si:real", NS)

@@ -31,7 +31,7 @@ from lxml import etree
 
 import bench
 from bench.certificate import methods
-from bench.certificate.build import Sources, certificate_id, decision_rule_text
+from bench.certificate.build import Sources, decision_rule_text, issued_number
 from bench.dcc import units as U
 from bench.dcc import vocab as V
 from bench.dcc.settings import LabSettings
@@ -219,7 +219,7 @@ def _administrative(adm: etree._Element, src: Sources, lab: LabSettings, kind: s
     el(core, "countryCodeISO3166_1", str(country or UNKNOWN_COUNTRY))
     el(core, "usedLangCodeISO639_1", "en")
     el(core, "mandatoryLangCodeISO639_1", "en")
-    el(core, "uniqueIdentifier", certificate_id(src))
+    el(core, "uniqueIdentifier", issued_number(src))
     ids = el(core, "identifications")
     run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else None)
     if run_dir:

@@ -15,7 +15,7 @@ from typing import Any
 
 from bench.config import STEP_MAX_S, Config, check_axis_names, stand_schema
 from bench.engine import Abort, RunContext
-from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, abandon, open_axis
+from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, open_axis
 from bench.journal import RunDir
 from bench.plan import Plan, Step, format_duration
 from bench.progress import RELATIVE, Figure
@@ -172,7 +172,7 @@ class RateLadder(StepDispatch):
             for axis in self.axes(cfg):
                 open_axis(bench, axis, stand["axes"], clock, run)
         except BaseException as e:
-            abandon(bench, e)
+            bench.abandon(e)
             raise
         return bench
 
