@@ -194,8 +194,9 @@ def test_values_printed_with_u_rounded_as_by_hand(ladder: dict[str, Any]) -> Non
         "0.10600 ± 0.00040*",
         # floor-corrected 1.2e-5, resolved, upper limit 1.5e-5: U = 3e-6 -> ppm
         "12.0 ± 3.0",
-        # over 1 deg: 2.1e-4 over 1440 windows: U = 4.2e-4 / sqrt(2878) = 7.83e-6 -> %
-        "0.02100 ± 0.00078*",
+        # over 1 deg: 2.1e-4 over 1440 windows: U = 4.2e-4 / sqrt(2878) = 7.83e-6 -> ppm
+        # (the stability table is in ppm throughout)
+        "210.0 ± 7.8*",
         # over 360 deg from the counter: sigma 2.6e-8 ± 2.2e-8 with timing floor 1e-8 is not
         # resolved (2.6 - 2.2 < 1): measured, floor, '< sigma + U' = 4.8e-8 -> ppm
         "+10 360 counter 0.026 ± 0.022 0.010 < 0.048",

@@ -28,6 +28,7 @@ from bench.certificate.register import Issue
 from bench.certificate.rounding import (
     MINUS,
     PERCENT,
+    PPM,
     RESOLUTION_RULE,
     Presented,
     RelUnit,
@@ -603,12 +604,12 @@ def _traceability(src: Sources) -> tuple[Any, ...]:
         if not t.stated:
             status = ("NOT TRACEABLE: no calibration certificate in the stand file"
                       if t.where.rsplit(".", 1)[-1] in MEASURING_ROLES else
-                      "no calibration stated (not used for a measured value)")
+                      "none stated (no measured value rests on it)")
         elif on is not None and t.overdue(on):
             overdue_seen = True
             status = f"PAST DUE on the date of the work ({on.isoformat()})"
         else:
-            status = "valid on the date of the work" if on else "validity not checked"
+            status = "valid on the work's date" if on else "validity not checked"
         rows.append((t.item, _text(t.certificate) if t.stated else "—",
                      _text(t.issuer) if t.stated else "—",
                      t.due.isoformat() if t.due else "—", _text(t.traces) if t.traces else
@@ -627,7 +628,7 @@ def _traceability(src: Sources) -> tuple[Any, ...]:
         notes.append(f"Counter reference, axis {axis}: read back from the counter: {ref}"
                      + (f"; the stand file states {claimed}" if claimed else "") + ".")
     return (Table(("Item", "Certificate", "Issued by", "Due", "Quantity traced",
-                   "Status"), tuple(rows), widths=(2.2, 1.5, 1.6, 0.9, 2.3, 1.6),
+                   "Status"), tuple(rows), widths=(1.9, 2.0, 1.6, 1.2, 2.2, 1.5),
                   align="llllll", caption="Metrological traceability: calibration of the "
                   "instruments and references used", notes=tuple(notes)),)
 
@@ -819,12 +820,14 @@ def _ladder_results(src: Sources, number: str, checks: list[dict[str, Any]]
         Para("Quantities that may not be resolved. " + RESOLUTION_RULE, "note")),
         )]
     sub = 0
+    # one unit per quantity on the whole certificate, whatever the axis
+    every = [r for ax in axes.values() for r in ax.get("rates", []) if isinstance(r, dict)]
     for axis, ax in axes.items():
         rates = [r for r in ax.get("rates", []) if isinstance(r, dict)]
         pairs = [p for p in ax.get("pairs", []) if isinstance(p, dict)]
         sub += 1
         out.append(Section(f"{number}.{sub}", f"Axis {axis}",
-                           _axis_blocks(axis, rates, pairs, ax, checks), level=2))
+                           _axis_blocks(axis, rates, pairs, ax, checks, every), level=2))
     figs = _across_axes(axes)
     if figs:
         sub += 1
@@ -837,17 +840,19 @@ def _ladder_results(src: Sources, number: str, checks: list[dict[str, Any]]
 
 
 def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, Any]],
-                 ax: Mapping[str, Any], checks: list[dict[str, Any]]) -> tuple[Any, ...]:
+                 ax: Mapping[str, Any], checks: list[dict[str, Any]],
+                 every: list[dict[str, Any]]) -> tuple[Any, ...]:
+    """One axis's results; `every` is every axis's rates, so that one quantity has one
+    unit on the whole certificate."""
     blocks: list[Any] = []
     # A1/A2 per-turn
-    err_unit = rel_unit(*[v for r in rates for v in (_num(r.get("rate_error_rel")),
+    err_unit = rel_unit(*[v for r in every for v in (_num(r.get("rate_error_rel")),
                                                       _num(r.get("rate_error_u_rel")))],
-                        *[t for c in checks if c.get("axis") == axis
-                          and c.get("quantity") == "rate_error"
+                        *[t for c in checks if c.get("quantity") == "rate_error"
                           for t in (_num(c.get("tolerance_rel")),)])
     inst_us = [_instability_u(r) for r in rates]
-    inst_unit = rel_unit(*[_num(r.get("rate_instability_rel")) for r in rates],
-                         *[u for u, _ in inst_us])
+    inst_unit = rel_unit(*[_num(r.get("rate_instability_rel")) for r in every],
+                         *[_instability_u(r)[0] for r in every])
     rows = []
     approximated = False
     unresolved_sigma = False
@@ -937,7 +942,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                                     "(docs/method.md A3, eqs. 5-6)", notes=tuple(notes)))
     # A4 systematic
     sys_rows, mains_rows = [], []
-    amp_unit = rel_unit(*[_num(h.get("amplitude_rel")) for r in rates
+    amp_unit = rel_unit(*[_num(h.get("amplitude_rel")) for r in every
                           for h in (r.get("systematic") or {}).get("harmonics") or []])
     for r in rates:
         s = r.get("systematic") or {}
@@ -992,7 +997,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                       "harmonics (cf. paper figs. 8-9)",
                       plots.systematic, axis, rates, amp_unit.scale, amp_unit.name)
     # A5 intra-turn
-    blocks += _intra_blocks(axis, rates, ax.get("noise_floor") or {})
+    blocks += _intra_blocks(axis, rates, ax.get("noise_floor") or {}, every)
     return tuple(blocks)
 
 
@@ -1064,8 +1069,8 @@ def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
                  notes=tuple(notes))
 
 
-def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, Any]
-                  ) -> list[Any]:
+def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, Any],
+                  every: list[dict[str, Any]]) -> list[Any]:
     if not any(r.get("intra_turn_instability_rel") is not None for r in rates):
         return []
     raws = [_num(r.get("intra_turn_instability_rel")) for r in rates]
@@ -1078,10 +1083,10 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
             approx |= u is not None
         raw_us.append(u)
     floors = [_num((r.get("intra_turn") or {}).get("floor_rel")) for r in rates]
-    corr = [_num(r.get("intra_turn_instability_corrected_rel")) for r in rates]
-    uppers = [_num((r.get("intra_turn") or {}).get("corrected_upper_rel")) for r in rates]
-    raw_unit = rel_unit(*raws)
-    corr_unit = rel_unit(*corr, *uppers)
+    raw_unit = rel_unit(*[_num(r.get("intra_turn_instability_rel")) for r in every])
+    corr_unit = rel_unit(*[_num(r.get("intra_turn_instability_corrected_rel")) for r in every],
+                         *[_num((r.get("intra_turn") or {}).get("corrected_upper_rel"))
+                           for r in every])
     rows = []
     for r, raw, u, fl in zip(rates, raws, raw_us, floors, strict=True):
         rows.append((_rate(r.get("set_rate_dps")),
@@ -1136,7 +1141,7 @@ def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
         for a in _averaged(r):
             if a.angle_deg >= 360.0:
                 continue   # one turn: the counter's σ below
-            unit = rel_unit(a.raw, a.floor, a.upper)
+            unit = PPM
             own = (present(a.corrected, a.upper - a.corrected, unit.scale, resolved=True).text
                    if a.resolved and a.corrected is not None and a.upper is not None
                    and a.upper > a.corrected else
@@ -1147,11 +1152,11 @@ def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
                          + ("*" if a.u_approx else ""),
                          format_sig(a.floor * unit.scale, 2) if a.floor is not None else "—",
                          own, format_sig(a.sensitivity * unit.scale, 2)
-                         if a.sensitivity is not None else "—", unit.name, _text(a.blocks)))
+                         if a.sensitivity is not None else "—", _text(a.blocks)))
         s, (iu, approx) = _num(r.get("rate_instability_rel")), _instability_u(r)
         if s is not None:
             sigma = sigma_presented(r, iu)
-            unit = rel_unit(s, sigma.limit)
+            unit = PPM
             floor = _num(r.get("rate_instability_floor_rel"))
             rows.append((_rate(r.get("set_rate_dps")), "360", "counter",
                          present(s, iu, unit.scale, resolved=True).text
@@ -1160,7 +1165,7 @@ def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
                          present(s, iu, unit.scale, resolved=sigma.resolved,
                                  upper=sigma.limit).text,
                          format_sig(floor * unit.scale, 2) if floor is not None else "—",
-                         unit.name, _text(r.get("turns"))))
+                         _text(r.get("turns"))))
     if not rows:
         return []
     approx_note = ["* U from 2s/√(2(n−1)) over the n windows (turns); the result did not "
@@ -1175,10 +1180,10 @@ def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
              "counter's timing floor. A datasheet figure below it cannot be verified with "
              "this FOG or counter; '< L' states only that the table is within L.",
              *approx_note]
-    return [Table(("Set rate, °/s", "Window, °", "From", "Measured ± U", "Floor",
-                   "Table's own", "Smallest verifiable", "Unit", "Windows"), tuple(rows),
-                  widths=(1.0, 0.8, 0.8, 1.7, 0.9, 1.5, 1.1, 0.6, 0.8),
-                  align="rrlrrrrcr",
+    return [Table(("Set rate, °/s", "Window, °", "From", "Measured ± U, ppm", "Floor, ppm",
+                   "Table's own, ppm", "Smallest verifiable, ppm", "Windows"), tuple(rows),
+                  widths=(1.0, 0.8, 0.8, 1.8, 0.9, 1.6, 1.2, 0.8),
+                  align="rrlrrrrr",
                   caption=f"Axis {axis}: rate stability over 1°, 10° and 360° (docs/method.md A5)",
                   notes=tuple(notes))]
 
