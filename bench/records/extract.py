@@ -204,10 +204,10 @@ def figures_of(result: dict[str, Any]) -> list[FigureRecord]:
 
 def certificate_number(result: dict[str, Any], run_path: Path) -> str | None:
     """The number printed on the certificate (the certificate's own rule decides it)."""
-    from bench.certificate.build import Sources, certificate_id
+    from bench.certificate.build import Sources, issued_number
 
     try:
-        return certificate_id(Sources.load(result, run_path))
+        return issued_number(Sources.load(result, run_path))
     except Exception:  # noqa: BLE001 - a malformed result still gets registered
         return None
 

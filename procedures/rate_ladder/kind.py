@@ -171,9 +171,8 @@ class RateLadder(StepDispatch):
         try:
             for axis in self.axes(cfg):
                 open_axis(bench, axis, stand["axes"], clock, run)
-        except BaseException:
-            bench.safe_stop(lambda s: None) if bench.axes else None
-            bench.close()
+        except BaseException as e:
+            bench.abandon(e)
             raise
         return bench
 
