@@ -51,6 +51,9 @@ class SignalGuard:
 
     def __init__(self, log: Callable[[str], None]) -> None:
         self.stopping = False
+        #: the axes are stopped and the outputs are being written: a signal now ends the
+        #: writing (KeyboardInterrupt), since nothing is left to protect but derived files
+        self.writing = False
         self.count = 0
         self._log = log
         self._old: dict[int, Any] = {}
@@ -58,6 +61,9 @@ class SignalGuard:
     def _handler(self, signum: int, frame: FrameType | None) -> None:
         self.count += 1
         name = signal.Signals(signum).name
+        if self.writing:
+            self.writing = False
+            raise KeyboardInterrupt(name)
         if self.stopping:
             self._log(f"{name} received: the axes are being stopped first; please wait")
             return
@@ -210,20 +216,35 @@ class Engine:
             ctx.progress.end()
             reason = str(exc) or type(exc).__name__
             ctx.progress.warn(f"ABORT: {reason}")
-            ctx.run.event("abort", reason=reason, error=type(exc).__name__,
-                          traceback=traceback.format_exc(limit=8))
-            self.safe_stop()
+            later: list[str] = []
+            try:
+                ctx.run.event("abort", reason=reason, error=type(exc).__name__,
+                              traceback=traceback.format_exc(limit=8))
+            except Exception as e:  # noqa: BLE001 - the stop comes first, whatever the disk
+                later.append(f"the abort could not be journaled: {e}")
+            later += self.safe_stop()
             ctx.worker.close(wait=False)
-            if isinstance(exc, Abort):
+            out = exc if isinstance(exc, Abort) else Abort(reason)
+            for note in later:
+                out.add_note(f"also, while stopping: {note}")
+            if out is exc:
                 raise
-            raise Abort(reason) from exc
+            raise out from exc
 
-    def safe_stop(self) -> None:
+    def safe_stop(self) -> list[str]:
+        """Stop every axis; returns what went wrong (never raises: it runs after a fault)."""
         ctx = self.ctx
         ctx.progress.line("Stopping every axis (ramp to zero, then disable)...")
+        errors: list[str] = []
         try:
             ctx.bench.safe_stop(ctx.progress.line)
-            ctx.run.event("safe_stop", ok=True)
+            ok, error = True, None
         except BaseException as e:  # noqa: BLE001
-            ctx.run.event("safe_stop", ok=False, error=repr(e))
+            ok, error = False, repr(e)
+            errors.append(f"safe stop: {e}")
             ctx.progress.warn(f"SAFE STOP FAILED: {e!r}: check the table by hand")
+        try:
+            ctx.run.event("safe_stop", ok=ok, **({"error": error} if error else {}))
+        except Exception as e:  # noqa: BLE001
+            errors.append(f"the safe stop could not be journaled: {e}")
+        return errors

@@ -7,7 +7,6 @@ serial port, the CAN channel) before this module opens them.
 
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,14 +46,17 @@ class Bench:
     def __init__(self) -> None:
         self.axes: dict[str, AxisInstruments] = {}
         self.extra: dict[str, Any] = {}
-        self._stack = contextlib.ExitStack()
+        self._closers: list[tuple[str, Callable[[], Any]]] = []
         self._logs: list[JsonLines] = []
 
     def enter(self, cm: Any) -> Any:
-        return self._stack.enter_context(cm)
+        obj = cm.__enter__()
+        name = getattr(obj, "name", None) or getattr(obj, "port", None) or type(obj).__name__
+        self._closers.append((str(name), lambda: cm.__exit__(None, None, None)))
+        return obj
 
     def callback(self, fn: Callable[[], Any]) -> None:
-        self._stack.callback(fn)
+        self._closers.append((getattr(fn, "__qualname__", "cleanup"), fn))
 
     def log(self, path: Path) -> JsonLines:
         j = JsonLines(path)
@@ -84,21 +86,53 @@ class Bench:
 
     def abandon(self, error: BaseException) -> None:
         """Opening failed with `error`: stop what was opened, close all, keep `error` the
-        one reported (a stop that fails too, e.g. on a clock not yet started, is noted on
-        it, not raised in its place)."""
-        if self.axes:
-            try:
-                self.safe_stop(lambda s: None)
-            except Exception as e:  # noqa: BLE001 - the opening error is the one to report
-                error.add_note(f"stopping the axes after it failed too: {e}")
-        self.close()
+        one reported (what fails meanwhile, e.g. a stop on a clock not yet started, is
+        noted on it, never raised in its place)."""
+        for err in self.stop_and_close(lambda s: None):
+            error.add_note(f"also, while stopping: {err}")
 
     def close(self) -> None:
-        try:
-            self._stack.close()
-        finally:
-            for j in self._logs:
+        """Close every instrument (last opened first), then the raw logs. Every one is
+        tried whatever the others do; the errors are raised together (`StopErrors`)."""
+        errors: list[str] = []
+        while self._closers:
+            what, fn = self._closers.pop()
+            try:
+                fn()
+            except Exception as e:  # noqa: BLE001 - the others must still be closed
+                errors.append(f"{what}: {e}")
+        for j in self._logs:
+            try:
                 j.close()
+            except Exception as e:  # noqa: BLE001
+                errors.append(f"raw log {j.path}: {e}")
+        if errors:
+            raise StopErrors(errors)
+
+    def stop_and_close(self, log: Callable[[str], None]) -> list[str]:
+        """After a failure: safe stop, then close. Returns the errors, raises none: the
+        first cause stays what the operator reads, these go beneath it."""
+        errors: list[str] = []
+        if self.axes:
+            try:
+                self.safe_stop(log)
+            except Exception as e:  # noqa: BLE001
+                errors.append(f"safe stop: {e}")
+        try:
+            self.close()
+        except StopErrors as e:
+            errors += e.errors
+        except Exception as e:  # noqa: BLE001
+            errors.append(f"closing the instruments: {e}")
+        return errors
+
+
+class StopErrors(RuntimeError):
+    """Errors met while stopping and closing (each names its instrument or file)."""
+
+    def __init__(self, errors: list[str]) -> None:
+        super().__init__("; ".join(errors))
+        self.errors = errors
 
 
 def with_readback(identity: str, readback: dict[str, Any], manual: str | None = None) -> str:

@@ -151,6 +151,9 @@ class SimBench:
         self.clock.start()
 
     def stop(self) -> None:
+        for twin in self.twins.values():
+            if hasattr(twin, "settle_after_controller"):
+                twin.settle_after_controller()
         self._stack.close()
         self.clock.pause()
 
