@@ -506,6 +506,10 @@ def _overall(src: Sources, checks: list[dict[str, Any]], kind: str = "rate-ladde
     if verdict == "incomplete":
         return ("INCOMPLETE: the run did not complete every step; no statement of conformity is "
                 "made for the points not measured." + cons_text)
+    excluded = sum(1 for c in checks if check_class(c) == "not-assessed")
+    if not conf and excluded:
+        return (f"NO STATEMENT OF CONFORMITY: none of the {excluded} check(s) could be "
+                "assessed (section Conformity)." + cons_text)
     if not conf:
         return (f"{verdict.upper()}: no conformity check was made (the procedure states no "
                 "tolerances)." + cons_text)
