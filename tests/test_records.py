@@ -29,6 +29,7 @@ import yaml
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 
+from bench.cli import main
 from bench.journal import sha256_file
 from bench.records import Records, record_of
 from bench.records.extract import figures_of
@@ -50,6 +51,18 @@ STATES: tuple[tuple[str, ...], ...] = ((), ("--as-found",),
 def bench(*args: str, timeout: float = 240) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "bench", *args], cwd=ROOT, text=True,
                           capture_output=True, timeout=timeout)
+
+
+def cli(*args: str) -> subprocess.CompletedProcess[str]:
+    """A records command in-process (the same `main` as the console script; no run is
+    started, so no interpreter start-up per call)."""
+    import contextlib
+    import io
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(list(args))
+    return subprocess.CompletedProcess(["bench", *args], code, out.getvalue(), err.getvalue())
 
 
 def bench_bg(*args: str) -> subprocess.Popen[str]:
@@ -147,7 +160,7 @@ def recerts(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 
 
 def _history_csv(tmp_path: Path, *where: str) -> list[dict[str, str]]:
-    out = bench("history", SERIAL, *where, "--csv", str(tmp_path / "h.csv"),
+    out = cli("history", SERIAL, *where, "--csv", str(tmp_path / "h.csv"),
                 "--plot", str(tmp_path / "h.png"))
     assert out.returncode == 0, out.stderr
     assert (tmp_path / "h.png").read_bytes()[:4] == b"\x89PNG"
@@ -216,10 +229,10 @@ def test_three_recertifications_show_the_drift_and_the_third_certificate_its_his
 @pytest.mark.timeout(600)
 def test_import_is_idempotent_and_history_reads_the_database(
         recerts: dict[str, Any], db: Db, tmp_path: Path) -> None:
-    first = bench("records", "import", str(recerts["runs"]), "--records", db.url)
+    first = cli("records", "import", str(recerts["runs"]), "--records", db.url)
     assert first.returncode == 0, first.stderr
     assert "3 new, 0 updated, 0 already recorded" in first.stdout
-    again = bench("records", "import", str(recerts["runs"]), "--records", db.url)
+    again = cli("records", "import", str(recerts["runs"]), "--records", db.url)
     assert "0 new, 0 updated, 3 already recorded" in again.stdout, again.stdout
     rows = _history_csv(tmp_path, "--records", db.url)
     _check_drift(rows, recerts)
@@ -237,7 +250,7 @@ def test_import_is_idempotent_and_history_reads_the_database(
             r["rate_error_rel"], r["rate_error_u_rel"], r["verdict"], 1e-5)
         p = result["axes"]["outer"]["pairs"][0]
         assert kept[("k", 100.0)].value == p["k"] and kept[("k", 100.0)].u == p["k_u"]
-    missing = bench("history", "NO-SUCH-TABLE", "--records", db.url)
+    missing = cli("history", "NO-SUCH-TABLE", "--records", db.url)
     assert missing.returncode == 1 and "no run of table" in missing.stderr
 
 
@@ -301,13 +314,13 @@ def _old_copy(run_dir: Path, folder: Path, when: str) -> Path:
 def test_due_dates_and_the_overdue_warning_at_a_run_start(
         recerts: dict[str, Any], db: Db, tmp_path: Path) -> None:
     old = _old_copy(recerts["dirs"][0], tmp_path / "old", "2024-03-01T10:00:00+00:00")
-    assert bench("records", "import", str(tmp_path / "old"), "--records", db.url
+    assert cli("records", "import", str(tmp_path / "old"), "--records", db.url
                  ).returncode == 0
-    due = bench("due", "--records", db.url, "--today", "2025-03-10")
+    due = cli("due", "--records", db.url, "--today", "2025-03-10")
     assert due.returncode == 0 and SERIAL in due.stdout and "OVERDUE by 9 d" in due.stdout
-    soon = bench("due", "--records", db.url, "--today", "2025-02-20")
+    soon = cli("due", "--records", db.url, "--today", "2025-02-20")
     assert "due in 9 d" in soon.stdout
-    quiet = bench("due", "--records", db.url, "--today", "2024-06-01")
+    quiet = cli("due", "--records", db.url, "--today", "2024-06-01")
     assert SERIAL not in quiet.stdout
     stand = yaml.safe_load((old / "stand.yaml").read_text())
     said: list[str] = []
@@ -319,16 +332,25 @@ def test_due_dates_and_the_overdue_warning_at_a_run_start(
         {"records": db.url, "recertification": {"tables": {SERIAL: 10000}}}))
     assert warn_if_overdue(stand, target(tmp_path), said.append) is None
     (tmp_path / "lab.yaml").write_text("recertification: {tables: {X: -1}}\n")
-    bad = bench("due", "--runs", str(tmp_path))
+    bad = cli("due", "--runs", str(tmp_path))
     assert bad.returncode == 2 and "lab.yaml: recertification.tables.X" in bad.stderr
+
+
+@pytest.fixture
+def pg_db(pg: PgServer) -> Db:
+    name = f"records_{uuid.uuid4().hex[:10]}"
+    return Db("postgresql", pg.create_database(name), lambda: pg.block(name),
+              lambda: pg.unblock(name))
 
 
 @pytest.mark.timeout(600)
 def test_two_benches_register_at_once_and_an_overdue_table_is_said_at_the_start(
-        recerts: dict[str, Any], db: Db, tmp_path: Path) -> None:
-    """Two runs of one overdue table write into one database at the same time."""
+        recerts: dict[str, Any], pg_db: Db, tmp_path: Path) -> None:
+    """Two runs of one overdue table write into one lab PostgreSQL database at the same
+    time (SQLite's writers are raced in the threaded test above)."""
+    db = pg_db
     _old_copy(recerts["dirs"][0], tmp_path / "old", "2024-01-01T10:00:00+00:00")
-    assert bench("records", "import", str(tmp_path / "old"), "--records", db.url
+    assert cli("records", "import", str(tmp_path / "old"), "--records", db.url
                  ).returncode == 0
     procs = []
     for i in range(2):
@@ -375,7 +397,7 @@ def test_a_database_lost_mid_run_warns_and_a_later_import_registers_the_run(
     db.unblock()
     with Records.open(db.url) as rec:
         assert rec.runs(SERIAL) == []
-    later = bench("records", "import", str(out_dir), "--records", db.url)
+    later = cli("records", "import", str(out_dir), "--records", db.url)
     assert later.returncode == 0 and "1 new" in later.stdout, later.stdout + later.stderr
     with Records.open(db.url) as rec:
         (r,) = rec.runs(SERIAL)
