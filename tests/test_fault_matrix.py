@@ -236,3 +236,53 @@ def test_ctrl_c_while_the_outputs_are_written_is_honoured(
     assert "being stopped first" not in err
     last = run.events()[-1]
     assert last["event"] == "exit" and last["status"] == EXIT_ABORTED
+
+
+@pytest.fixture
+def small_disk(tmp_path: Path) -> Any:
+    """A small file system of its own (tmpfs), to be filled: needs root and mount(2)."""
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=48m", "tmpfs", str(mnt)],
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here ({done.stderr.strip()}): the full-disk cell "
+                    "needs root and mount(2)")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], check=False)
+
+
+def _fill(folder: Path) -> None:
+    """Another process fills the disk: write until the file system says ENOSPC."""
+    block = b"\0" * (1 << 20)
+    with open(folder / "filler", "wb") as f:
+        try:
+            while True:
+                f.write(block)
+                f.flush()
+        except OSError:
+            pass
+
+
+@pytest.mark.timeout(180)
+def test_full_disk_mid_acquire_names_the_file_and_resumes(
+        tmp_path: Path, small_disk: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cfg = load_config(_procedure(tmp_path))
+    run = RunDir.create(small_disk, cfg.procedure_path, cfg.stand_path)
+    status, seen = _session(cfg, run, lambda sim: _fill(small_disk), "acquire")
+    err = capsys.readouterr().err
+    assert status == EXIT_ABORTED, err
+    assert "Traceback" not in err
+    assert "No space left on device" in err and f"cannot write {run.path}" in err, err
+    axis = seen["sim"].stand.axes["outer"]
+    assert axis.commanded_rate_at(seen["sim"].clock.now() + 3600.0) == 0.0
+    before = _raw_hashes(run, 1)
+    (small_disk / "filler").unlink()                    # the operator frees space
+    again = RunDir(run.path)
+    status2, _ = _session(cfg, again, resume=True)
+    assert status2 == EXIT_PASS, capsys.readouterr().err
+    assert _raw_hashes(again, 1) == before
+    starts = [e for e in again.events() if e["event"] == "session_start"]
+    assert [e["session"] for e in starts] == [1, 2]     # the journal stayed readable
