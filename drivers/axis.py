@@ -965,8 +965,10 @@ class Axis:
         return max(self._drive_hb_last, stall_end)
 
     def _heartbeat_limit_s(self) -> float:
-        """Real silence after which the drive counts as gone (4 heartbeats + 0.1 s)."""
-        return 4 * self.heartbeat_ms / 1000.0 + 0.1
+        """Real silence after which the drive counts as gone: 4 heartbeats + 0.1 s, and
+        never less than the bench's real-time minimum (a loaded controller PC can starve
+        our receive thread that long; the drive's own watchdog guards the table)."""
+        return max(4 * self.heartbeat_ms / 1000.0 + 0.1, MIN_REAL_MARGIN_S)
 
     def _drive_silence_s(self) -> float | None:
         """How long the drive has not sent a heartbeat, if longer than the limit."""

@@ -72,6 +72,13 @@ RESUMED = {("sigint", "acquire"), ("drive-heartbeat-lost", "acquire")}
 RESUME_ALL = os.environ.get("RATEBENCH_RESUME_ALL") == "1"
 
 
+def _hear_silence_sooner(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The controller notices a silent drive after at least the bench's real-time minimum
+    (5 s); the paced clock would finish this short ladder first. Here the floor is 1 s
+    (a test setting, not the bench's): the drive's own watchdog keeps its 5 s."""
+    monkeypatch.setattr("drivers.axis.MIN_REAL_MARGIN_S", 1.0)
+
+
 def _raw_hashes(run: RunDir, session: int) -> dict[str, str]:
     folder = run.path / "raw" / f"s{session}"
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest()
@@ -107,8 +114,10 @@ def _assert_aborted_cleanly(run: RunDir, status: int, seen: dict[str, Any]) -> N
 
 @pytest.mark.timeout(240)
 @pytest.mark.parametrize("fault,phase", CELLS)
-def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str,
-                                                tmp_path: Path) -> None:
+def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str, tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    if fault == "drive-heartbeat-lost":
+        _hear_silence_sooner(monkeypatch)
     cfg = load_config(_procedure(tmp_path))
     run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
     status, seen = _session(cfg, run, FAULTS[fault], phase)
@@ -144,9 +153,11 @@ def test_counter_without_trigger_in_acquire(tmp_path: Path) -> None:
 
 @pytest.mark.timeout(120)
 def test_a_failure_while_stopping_is_added_beneath_the_first_cause(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
     """The drive's heartbeat stops (the first cause); it then cannot be told to stop (a
     later error): the operator reads the cause first, the loud stop error beneath it."""
+    _hear_silence_sooner(monkeypatch)
     cfg = load_config(_procedure(tmp_path))
     run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
     status, seen = _session(cfg, run, FAULTS["drive-heartbeat-lost"], "settle")
