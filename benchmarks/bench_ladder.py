@@ -56,10 +56,10 @@ def prepare(args: argparse.Namespace, tmp: Path) -> Path:
     if args.turns_scale != 1:
         proc["turns"] = int(proc.get("turns", 5) * args.turns_scale)
         proc["static_record_s"] = proc.get("static_record_s", 60) * args.turns_scale
-    (tmp / "stand.yaml").write_text(yaml.safe_dump(stand))
+    (tmp / "stand.yaml").write_text(yaml.safe_dump(stand, sort_keys=False))
     proc["stand"] = str(tmp / "stand.yaml")
     out = tmp / "procedure.yaml"
-    out.write_text(yaml.safe_dump(proc))
+    out.write_text(yaml.safe_dump(proc, sort_keys=False))
     return out
 
 
