@@ -8,6 +8,7 @@ operator (the axes were stopped, the data kept, `--resume` works).
 from __future__ import annotations
 
 import argparse
+import datetime as dt
 import os
 import sys
 import time
@@ -23,13 +24,17 @@ from bench.config import Config, ConfigError
 from bench.console import PlainConsole, open_console
 from bench.dcc.command import write_run_dcc
 from bench.devices import list_devices
+from bench.diskspace import expected_raw_bytes, space_problem
 from bench.engine import Abort, Engine, RunContext, SignalGuard
 from bench.examples import example_path
+from bench.instruments import StandClaimError, StopErrors, check_references
 from bench.journal import RunDir
+from bench.lab import lab_path
 from bench.loader import load_config
 from bench.plan import format_duration
 from bench.registry import procedure_kind
 from bench.summary import Summary, summarize
+from bench.traceability import overdue, overdue_warning
 from drivers.clock import MonotonicClock
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
@@ -122,7 +127,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if cfg is None:
         return EXIT_INVALID
     if run is None:
-        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path)
+        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path,
+                            lab_path(cfg.procedure_path, cfg.procedure.get("certificate")))
     console = open_console(quiet=args.quiet, log_json=args.log_json)
     status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),
                          progress=console)
@@ -148,11 +154,22 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
     todo = plan.remaining(done)
     if resume and hasattr(kind, "resume_plan"):  # finer than the unit (a rate ladder's halves)
         todo = kind.resume_plan(todo, run)
+    axes = sorted({st.axis for st in todo.steps if st.axis and st.axis in cfg.stand["axes"]})
+    short = space_problem(run.path, expected_raw_bytes(cfg.stand, axes, todo.total_s))
+    if short:
+        _err(f"Not started: {short}")
+        print(f"Free some space, then: bench run --resume {run.path}")
+        return EXIT_ABORTED
     simbench = None
     stand = cfg.stand
     status = EXIT_ABORTED
+    # one rule for the whole session: the first cause is what the operator reads; what
+    # goes wrong later, while stopping, is added beneath it and never replaces it
+    cause: str | None = None
+    later: list[str] = []
     with SignalGuard(progress.line) as guard:
         bench = None
+        engine_ran = False
         try:
             if sim or cfg.has_sim:
                 progress.line("Starting the simulated bench (twins on real channels)...")
@@ -165,13 +182,20 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                       done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
                       version=__version__, prompts="--yes" if yes else "operator",
                       pid=os.getpid())
+            for t in overdue(cfg.stand, dt.datetime.now(dt.UTC).date()):
+                progress.line(overdue_warning(t))
+                run.event("calibration_overdue", where=t.where, item=t.item,
+                          certificate=t.certificate, due=t.due.isoformat() if t.due else None)
             bench = kind.open_bench(cfg, stand, clock, run)
             for ax in bench.axes.values():
-                run.event("identity", axis=ax.name, **ax.identities)
+                run.event("identity", axis=ax.name, **ax.identities,
+                          **({"counter_reference": ax.reference_text}
+                             if ax.reference_text else {}))
             if simbench is not None:
                 simbench.start_clock()
                 if on_sim_started is not None:
                     on_sim_started(simbench)
+            check_references(bench)
             progress.line(f"Run directory: {run.path}")
             if done:
                 progress.line(f"Resuming: {len(done)} unit(s) already done: {', '.join(done)}")
@@ -179,34 +203,72 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                           f"{format_duration(todo.total_s)}")
             ctx = RunContext(cfg, clock, bench, run, progress, yes=yes)
             t0 = time.monotonic()
+            engine_ran = True
             Engine(ctx, kind.execute).run(todo, guard)
             run.event("completed", wall_s=time.monotonic() - t0)
             status = EXIT_PASS
-        except Abort as e:
-            progress.warn(f"Aborted: {e}")
+        except StandClaimError as e:  # raised while opening: no axis was commanded yet
+            guard.stopping = True
+            _err(f"Refused: {cfg.stand_path}: {e}")
+            later += _journal(run, "refused", reason=str(e))
+            status = EXIT_INVALID
+        except BaseException as e:  # noqa: BLE001 - whatever it is, the stop follows
+            guard.stopping = True
             status = EXIT_ABORTED
-        except Exception as e:  # noqa: BLE001 - opening failed before the engine ran
-            progress.warn(f"Aborted while setting up the bench: {e}")
-            if bench is not None:
-                bench.safe_stop(progress.line)
-            if run.session:
-                run.event("abort", reason=str(e), error=type(e).__name__)
-            status = EXIT_ABORTED
+            later += list(getattr(e, "__notes__", []))
+            if isinstance(e, Abort) and engine_ran:   # the engine stopped and journaled it
+                cause = str(e)
+            else:
+                where = "while running" if engine_ran else "while setting up the bench"
+                cause = f"{where}: {e or type(e).__name__}"
+                if bench is not None:
+                    later += bench.stop_and_close(progress.line)
+                    bench = None
+                later += _journal(run, "abort", reason=str(e) or type(e).__name__,
+                                  error=type(e).__name__)
+            if not isinstance(e, Exception | KeyboardInterrupt):
+                raise  # SystemExit and the like: the finally below still stops the bench
         finally:
             guard.stopping = True
             progress.close()
             if bench is not None:
-                bench.close()
+                try:
+                    bench.close()
+                except StopErrors as e:
+                    later += e.errors
+                except Exception as e:  # noqa: BLE001
+                    later.append(f"closing the instruments: {e}")
             if simbench is not None:
-                simbench.stop()
+                try:
+                    simbench.stop()
+                except Exception as e:  # noqa: BLE001
+                    later.append(f"stopping the simulated bench: {e}")
+        if later:
+            status = EXIT_ABORTED  # something may not have stopped: never a clean exit
+            cause = cause or "the run completed, but stopping the bench failed"
+        if cause is not None:
+            progress.warn(f"Aborted: {cause}")
+            for note in dict.fromkeys(n.removeprefix("also, while stopping: ") for n in later):
+                progress.warn(f"  also, while stopping: {note}")
         doc: Document | None = None
+        result = None
+        guard.writing = True  # the axes are stopped: Ctrl-C now leaves the writing
         try:
-            result, doc = _write_outputs(run, cfg, progress)
+            if status != EXIT_INVALID:  # a refused stand measured nothing: nothing to issue
+                result, doc = _write_outputs(run, cfg, progress)
+        except KeyboardInterrupt as e:
+            progress.warn(f"{e or 'interrupted'}: the axes were already stopped; result.json "
+                          f"and the certificate may be missing or from an earlier session: "
+                          f"`bench analyze {run.path}` writes them from the raw data")
+            result = None
+            status = EXIT_ABORTED
+            cause = cause or "interrupted while writing the outputs"
         except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
             progress.warn(f"analysis failed: {e!r}; the raw data is in {run.path}; "
                           f"fix and run `bench analyze {run.path}`")
             result = None
             status = EXIT_ABORTED  # no verdict without an analysis
+        guard.writing = False
         if result is not None:
             progress.summary(_summary(result, doc))
             if status == EXIT_PASS and result.get("verdict") == "fail":
@@ -219,9 +281,24 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             print(f"The run was aborted; the axes were stopped. Continue with: "
                   f"bench run --resume {run.path}")
         if run.session:
-            run.event("exit", status=status)
-        run.close()
+            for err in _journal(run, "exit", status=status, cause=cause, later=later):
+                _err(f"  also: {err}")
+        try:
+            run.close()
+        except Exception as e:  # noqa: BLE001
+            _err(f"  also: closing the event log: {e}")
     return status
+
+
+def _journal(run: RunDir, kind: str, **fields: Any) -> list[str]:
+    """An event written on the stop path: a failure to write it is reported, not raised."""
+    if not run.session:
+        return []
+    try:
+        run.event(kind, **fields)
+    except Exception as e:  # noqa: BLE001 - e.g. a full disk: say so, keep stopping
+        return [f"the {kind} event could not be journaled: {e}"]
+    return []
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:

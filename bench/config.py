@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.canbus import bus_problems
-from bench.schema import Any_, Bool, Check, Key, ListOf, Map, MapOf, Num, OneOf, Str
+from bench.schema import Any_, Bool, Check, Date, Key, ListOf, Map, MapOf, Num, OneOf, Str
 from bench.yamlfile import Problem, YamlDoc
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
@@ -27,6 +27,19 @@ STEP_MAX_S = 7 * 86_400.0
 
 # -- stand file ---------------------------------------------------------------------
 
+CALIBRATION = Map({
+    "certificate": Key(Str(), True, "the calibration certificate's number"),
+    "issuer": Key(Str(), True, "the laboratory that issued it"),
+    "due": Key(Date(), True, "calibration due date, YYYY-MM-DD"),
+    "traces": Key(Str(), False, "the quantity it traces to SI, e.g. 'time interval to the "
+                                "SI second'"),
+})
+TRACEABLE = Map({   # a reference the bench does not drive (a 10 MHz source, a sensor)
+    "item": Key(Str(), True, "what it is, e.g. 'GPS-disciplined 10 MHz reference'"),
+    "serial": Key(Str()),
+    "certificate": Key(Str(), True), "issuer": Key(Str(), True), "due": Key(Date(), True),
+    "traces": Key(Str()),
+})
 DRIVE = Map({
     "interface": Key(Str(), True, "python-can interface: socketcan, pcan, kvaser, virtual..."),
     "channel": Key(Str(), True, "python-can channel, e.g. can0"),
@@ -46,6 +59,7 @@ DRIVE = Map({
     "settle_tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
     "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg")),
     "eds": Key(Str()),
+    "calibration": Key(CALIBRATION, False, "the encoder's calibration certificate, if any"),
     "unit_factors": Key(Any_(), False,
                         "'read' (the drive's factor group 0x608F/0x6091/0x60A9/0x60AA is "
                         "read at connect) or {velocity: rpm|inc/s|0.001 inc/s|..., "
@@ -69,6 +83,7 @@ COUNTER = Map({
                      "timebase: set at connect and read back (53230A SENS:ROSC:SOUR); a "
                      "timebase_limit_rel below the model's needs 'external'"),
     "timeout_margin_s": Key(Num(min=0, exclusive_min=True, max=3600, unit="s")),
+    "calibration": Key(CALIBRATION, False, "the counter's calibration certificate"),
     "time_tie": Key(Map({
         "source": Key(Str(("fog-sync", "host-clock")), True,
                       "how the counter's start event is placed on the FOG's time axis: "
@@ -98,6 +113,7 @@ FOG = Map({
                      "only; declare (default): trust fog.units"),
     "model": Key(Str()),
     "sign": Key(Num(min=-1, max=1, integer=True)),
+    "calibration": Key(CALIBRATION, False, "the FOG's calibration certificate, if any"),
 })
 STAND_AXIS_KEYS: dict[str, Key] = {
     "drive": Key(DRIVE, True), "counter": Key(COUNTER), "fog": Key(FOG),
@@ -120,6 +136,8 @@ SIM_AXIS = Map({
     "rate_noise_dps": Key(Num(min=0)),
     "turn_jitter_s": Key(Num(min=0)),
     "fog": Key(SIM_FOG),
+    "counter_external_reference": Key(Bool(), False, "a valid 10 MHz is wired to the "
+                                      "counter's Ext Ref In (default true)"),
     "time_tie": Key(Map({"latency_s": Key(Num(min=0)), "jitter_s": Key(Num(min=0))}),
                     False, "the FOG sync to counter trigger link: true latency and jitter"),
     "drive": Key(Map({"velocity_unit": Key(Str()), "acceleration_unit": Key(Str()),
@@ -167,6 +185,8 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
         "axes": Key(Check(MapOf(Map({**STAND_AXIS_KEYS, **(extra_axis or {})})),
                           bus_problems), True),
         "sim": Key(Map({**SIM_KEYS, **(extra_sim or {})})),
+        "traceability": Key(ListOf(TRACEABLE), False, "references and sensors the bench "
+                            "does not drive, with their calibration certificates"),
         "dcc": Key(STAND_DCC, False, "DCC: lab settings file, signing key (paths only)"),
         **(extra_top or {}),
     })
@@ -182,6 +202,12 @@ COMMON_PROCEDURE_KEYS: dict[str, Key] = {
     "certificate": Key(MapOf(Any_()), False, "customer, laboratory, ... for the certificate"),
     "decision_rule": Key(Str(("simple", "guard-band"))),
     "prompts": Key(Bool()),
+    "specification": Key(Map({
+        "source": Key(Str(), True, "the document the tolerances come from: maker, title, "
+                                   "revision, date"),
+        "definitions": Key(MapOf(Str()), False, "how the document defines each figure, by "
+                                                "tolerance key"),
+    }), False, "where the tolerances come from; printed with the statement of conformity"),
 }
 
 

@@ -4,7 +4,8 @@ Decodes a raw FOG capture offline with the same stream decoder the live driver r
 in the same kind of pieces, so what it prints is what the run saw: frames, CRC
 failures, sequence gaps (each with its first lost index and count), bytes that were
 no frame, and a cut-off frame at the end. Exit status: 0 a clean capture, 1 decoded
-but with CRC failures or lost frames, 2 the file or the format is invalid.
+but with CRC failures or lost frames, or no frame at all (then every known format is
+tried and named), 2 the file or the format is invalid.
 """
 
 from __future__ import annotations
@@ -48,7 +49,29 @@ def decode_command(raw_file: str, fmt: str, csv_path: str | None) -> int:
         if out is not None:
             out.close()
     print_summary(dec, path)
+    if dec.frames == 0:
+        print(f"bench decode: no frame of format {fmt} in {path} ({dec.bytes} bytes); "
+              f"{other_formats(path, fmt)}", file=sys.stderr)
+        return 1
     return 1 if dec.crc_errors or dec.lost_frames else 0
+
+
+def other_formats(path: Path, tried: str) -> str:
+    """Which other formats the start of the capture decodes as (the likely mix-up)."""
+    with open(path, "rb") as f:
+        head = f.read(_CHUNK_BYTES)
+    found = []
+    for name in sorted(FORMATS):
+        if name != tried:
+            d = StreamDecoder(name)
+            d.feed(head)
+            found.append(f"{name}: {d.frames} frame(s)")
+    tried_all = ", ".join(sorted(FORMATS))
+    hits = [f for f in found if not f.endswith(": 0 frame(s)")]
+    if hits:
+        return f"formats tried: {tried_all}; the first {len(head)} bytes decode as " \
+               f"{'; '.join(hits)}: give that --format"
+    return f"formats tried: {tried_all}; none decodes any frame (not a FOG capture?)"
 
 
 def csv_columns(dec: StreamDecoder) -> list[str]:

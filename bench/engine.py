@@ -12,6 +12,7 @@ import multiprocessing
 import signal
 import sys
 import threading
+import time
 import traceback
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
@@ -50,6 +51,9 @@ class SignalGuard:
 
     def __init__(self, log: Callable[[str], None]) -> None:
         self.stopping = False
+        #: the axes are stopped and the outputs are being written: a signal now ends the
+        #: writing (KeyboardInterrupt), since nothing is left to protect but derived files
+        self.writing = False
         self.count = 0
         self._log = log
         self._old: dict[int, Any] = {}
@@ -57,6 +61,9 @@ class SignalGuard:
     def _handler(self, signum: int, frame: FrameType | None) -> None:
         self.count += 1
         name = signal.Signals(signum).name
+        if self.writing:
+            self.writing = False
+            raise KeyboardInterrupt(name)
         if self.stopping:
             self._log(f"{name} received: the axes are being stopped first; please wait")
             return
@@ -103,6 +110,9 @@ class AnalysisWorker:
     def __init__(self) -> None:
         self._pool: ProcessPoolExecutor | None = None
         self._pending: list[Future[Any]] = []
+        self._submitted: dict[Future[Any], float] = {}  # monotonic time of each submit
+        self._took_s: list[float] = []                  # wall time of each finished job
+        self._lock = threading.Lock()
 
     def submit(self, fn: Callable[..., Any], *args: Any,
                on_done: Callable[[Any, BaseException | None], None]) -> None:
@@ -111,14 +121,31 @@ class AnalysisWorker:
                                              mp_context=multiprocessing.get_context("spawn"),
                                              initializer=_yield_the_cpu)
         fut = self._pool.submit(fn, *args)
+        with self._lock:
+            self._submitted[fut] = time.monotonic()
 
         def done(f: Future[Any]) -> None:
+            with self._lock:
+                t0 = self._submitted.pop(f, None)
+                if t0 is not None and not f.cancelled():
+                    self._took_s.append(time.monotonic() - t0)
             if f.cancelled():
                 return
             err = f.exception()
             on_done(None if err else f.result(), err)
         fut.add_done_callback(done)
         self._pending.append(fut)
+
+    def backlog_s(self) -> float:
+        """Wall seconds the jobs not yet done should still take (one at a time, each as
+        long as those done took on average); 0 when none is pending or none has finished
+        yet to measure by. The run's end waits for them: the console's ETA counts it."""
+        with self._lock:
+            if not self._submitted or not self._took_s:
+                return 0.0
+            mean = sum(self._took_s) / len(self._took_s)
+            oldest = min(self._submitted.values())
+            return max(mean * len(self._submitted) - (time.monotonic() - oldest), 0.0)
 
     def close(self, wait: bool = True) -> None:
         """Let submitted jobs finish (wait=True) or drop those not started, then stop."""
@@ -184,7 +211,7 @@ class Engine:
         last_of_unit = {s.unit: i for i, s in enumerate(steps) if s.unit}
         ctx.run.event("plan", steps=len(steps), estimate_s=plan.total_s,
                       step_estimates_s=[s.estimate_s for s in steps])
-        ctx.progress.begin(steps, ctx.clock.now)
+        ctx.progress.begin(steps, ctx.clock.now, ctx.worker.backlog_s)
         try:
             for i, step in enumerate(steps):
                 ctx.eta_s = (lambda i=i: remaining[i])
@@ -203,20 +230,35 @@ class Engine:
             ctx.progress.end()
             reason = str(exc) or type(exc).__name__
             ctx.progress.warn(f"ABORT: {reason}")
-            ctx.run.event("abort", reason=reason, error=type(exc).__name__,
-                          traceback=traceback.format_exc(limit=8))
-            self.safe_stop()
+            later: list[str] = []
+            try:
+                ctx.run.event("abort", reason=reason, error=type(exc).__name__,
+                              traceback=traceback.format_exc(limit=8))
+            except Exception as e:  # noqa: BLE001 - the stop comes first, whatever the disk
+                later.append(f"the abort could not be journaled: {e}")
+            later += self.safe_stop()
             ctx.worker.close(wait=False)
-            if isinstance(exc, Abort):
+            out = exc if isinstance(exc, Abort) else Abort(reason)
+            for note in later:
+                out.add_note(f"also, while stopping: {note}")
+            if out is exc:
                 raise
-            raise Abort(reason) from exc
+            raise out from exc
 
-    def safe_stop(self) -> None:
+    def safe_stop(self) -> list[str]:
+        """Stop every axis; returns what went wrong (never raises: it runs after a fault)."""
         ctx = self.ctx
         ctx.progress.line("Stopping every axis (ramp to zero, then disable)...")
+        errors: list[str] = []
         try:
             ctx.bench.safe_stop(ctx.progress.line)
-            ctx.run.event("safe_stop", ok=True)
+            ok, error = True, None
         except BaseException as e:  # noqa: BLE001
-            ctx.run.event("safe_stop", ok=False, error=repr(e))
+            ok, error = False, repr(e)
+            errors.append(f"safe stop: {e}")
             ctx.progress.warn(f"SAFE STOP FAILED: {e!r}: check the table by hand")
+        try:
+            ctx.run.event("safe_stop", ok=ok, **({"error": error} if error else {}))
+        except Exception as e:  # noqa: BLE001
+            errors.append(f"the safe stop could not be journaled: {e}")
+        return errors

@@ -7,7 +7,6 @@ serial port, the CAN channel) before this module opens them.
 
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,7 +16,7 @@ from bench.canbus import controller_node_ids
 from bench.journal import JsonLines, RunDir
 from drivers.axis import Axis
 from drivers.clock import Clock
-from drivers.counter import Counter
+from drivers.counter import Counter, CounterError
 from drivers.fog import Fog
 from drivers.time_tie import TimeTie
 
@@ -37,6 +36,8 @@ class AxisInstruments:
     fog: Any | None = None
     identities: dict[str, str] = field(default_factory=dict)
     logs: dict[str, JsonLines] = field(default_factory=dict)
+    reference_text: str | None = None  # the counter's timebase as read back (journal)
+    refusal: Exception | None = None   # a stand claim the instruments denied at opening
 
 
 class Bench:
@@ -45,14 +46,17 @@ class Bench:
     def __init__(self) -> None:
         self.axes: dict[str, AxisInstruments] = {}
         self.extra: dict[str, Any] = {}
-        self._stack = contextlib.ExitStack()
+        self._closers: list[tuple[str, Callable[[], Any]]] = []
         self._logs: list[JsonLines] = []
 
     def enter(self, cm: Any) -> Any:
-        return self._stack.enter_context(cm)
+        obj = cm.__enter__()
+        name = getattr(obj, "name", None) or getattr(obj, "port", None) or type(obj).__name__
+        self._closers.append((str(name), lambda: cm.__exit__(None, None, None)))
+        return obj
 
     def callback(self, fn: Callable[[], Any]) -> None:
-        self._stack.callback(fn)
+        self._closers.append((getattr(fn, "__qualname__", "cleanup"), fn))
 
     def log(self, path: Path) -> JsonLines:
         j = JsonLines(path)
@@ -80,12 +84,55 @@ class Bench:
         if errors:
             raise RuntimeError("; ".join(errors))
 
+    def abandon(self, error: BaseException) -> None:
+        """Opening failed with `error`: stop what was opened, close all, keep `error` the
+        one reported (what fails meanwhile, e.g. a stop on a clock not yet started, is
+        noted on it, never raised in its place)."""
+        for err in self.stop_and_close(lambda s: None):
+            error.add_note(f"also, while stopping: {err}")
+
     def close(self) -> None:
-        try:
-            self._stack.close()
-        finally:
-            for j in self._logs:
+        """Close every instrument (last opened first), then the raw logs. Every one is
+        tried whatever the others do; the errors are raised together (`StopErrors`)."""
+        errors: list[str] = []
+        while self._closers:
+            what, fn = self._closers.pop()
+            try:
+                fn()
+            except Exception as e:  # noqa: BLE001 - the others must still be closed
+                errors.append(f"{what}: {e}")
+        for j in self._logs:
+            try:
                 j.close()
+            except Exception as e:  # noqa: BLE001
+                errors.append(f"raw log {j.path}: {e}")
+        if errors:
+            raise StopErrors(errors)
+
+    def stop_and_close(self, log: Callable[[str], None]) -> list[str]:
+        """After a failure: safe stop, then close. Returns the errors, raises none: the
+        first cause stays what the operator reads, these go beneath it."""
+        errors: list[str] = []
+        if self.axes:
+            try:
+                self.safe_stop(log)
+            except Exception as e:  # noqa: BLE001
+                errors.append(f"safe stop: {e}")
+        try:
+            self.close()
+        except StopErrors as e:
+            errors += e.errors
+        except Exception as e:  # noqa: BLE001
+            errors.append(f"closing the instruments: {e}")
+        return errors
+
+
+class StopErrors(RuntimeError):
+    """Errors met while stopping and closing (each names its instrument or file)."""
+
+    def __init__(self, errors: list[str]) -> None:
+        super().__init__("; ".join(errors))
+        self.errors = errors
 
 
 def with_readback(identity: str, readback: dict[str, Any], manual: str | None = None) -> str:
@@ -98,6 +145,18 @@ def with_readback(identity: str, readback: dict[str, Any], manual: str | None = 
     if manual:
         out += f"; driver checked against: {manual}"
     return out
+class StandClaimError(Exception):
+    """The stand file claims what the instrument, asked, denies: the input is invalid."""
+
+
+def check_references(bench: Bench) -> None:
+    """Refuse a run whose stand claims a counter reference the counter denied when it was
+    opened (Counter.verify_reference: the traceability of the second rests on it, and the
+    stand's timebase limit assumes it). Called once the bench can stop safely, before
+    anything moves."""
+    for ax in bench.axes.values():
+        if ax.refusal is not None:
+            raise ax.refusal
 
 
 def raw_text_logger(log: JsonLines, clock: Clock) -> Callable[[str, bytes], None]:
@@ -151,7 +210,18 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
             ax.logs["counter"] = clog
         cnt.configure(**{k: c[k] for k in ("channel", "level_v", "slope", "coupling",
                                            "impedance_ohm") if k in c})
-        cnt.verify_reference(c.get("reference"), c.get("timebase_limit_rel"))
+        try:
+            cnt.verify_reference(c.get("reference"), c.get("timebase_limit_rel"))
+        except CounterError as e:
+            # refused by check_references once the bench can stop safely, before any move
+            ax.refusal = StandClaimError(f"axes.{name}.counter.reference: {e}")
+        got = str(cnt.readback.get("counter.reference", "")).upper()
+        ax.reference_text = (
+            "external reference at Ext Ref In (SENS:ROSC:SOUR? EXT, signal checked with "
+            "SENS:ROSC:EXT:CHEC ONCE)" if got.startswith("EXT") else
+            "internal oscillator (SENS:ROSC:SOUR? INT)" if got.startswith("INT") else
+            "not confirmed: the counter refused the stand's reference (see the run's "
+            "refusal)" if ax.refusal else "not reported by this model")
         ax.counter = cnt
         manual = cnt.profile.manual
         ax.identities["counter"] = with_readback(

@@ -17,6 +17,7 @@ being written; raw instrument data goes to files of their own, as received.
 from __future__ import annotations
 
 import datetime as dt
+import errno
 import hashlib
 import json
 import os
@@ -41,14 +42,30 @@ def utc_now() -> str:
     return dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
 
 
+class JournalError(OSError):
+    """A run-directory file could not be written; the message names the file."""
+
+
+def _write_error(path: Path, e: OSError) -> JournalError:
+    why = e.strerror or str(e)
+    if e.errno == errno.ENOSPC:
+        why += " (the disk is full)"
+    err = JournalError(e.errno or 0, f"cannot write {path}: {why}")
+    err.filename = str(path)
+    return err
+
+
 class JsonLines:
     """An append-only JSON-lines file; `fsync=True` syncs every line to disk."""
 
     def __init__(self, path: Path, fsync: bool = False) -> None:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._f: IO[str] = open(path, "a", encoding="utf-8")
+        except OSError as e:
+            raise _write_error(path, e) from e
         self.path = path
         self._fsync = fsync
-        self._f: IO[str] = open(path, "a", encoding="utf-8")
         self._lock = threading.Lock()
         self.count = 0  # records written by this writer
 
@@ -57,34 +74,82 @@ class JsonLines:
         with self._lock:
             if self._f.closed:
                 return
-            self._f.write(line)
+            try:
+                self._f.write(line)
+                self._f.flush()
+                if self._fsync:
+                    os.fsync(self._f.fileno())
+            except OSError as e:
+                raise _write_error(self.path, e) from e
             self.count += 1
-            self._f.flush()
-            if self._fsync:
-                os.fsync(self._f.fileno())
+
+    def end_line(self) -> None:
+        """End a torn last line, so the next record starts on a line of its own."""
+        with self._lock:
+            try:
+                self._f.write("\n")
+                self._f.flush()
+            except OSError as e:
+                raise _write_error(self.path, e) from e
 
     def sync(self) -> None:
         with self._lock:
             if not self._f.closed:
-                self._f.flush()
-                os.fsync(self._f.fileno())
+                try:
+                    self._f.flush()
+                    os.fsync(self._f.fileno())
+                except OSError as e:
+                    raise _write_error(self.path, e) from e
 
     def close(self) -> None:
         with self._lock:
-            if not self._f.closed:
+            if self._f.closed:
+                return
+            try:
                 self._f.flush()
                 os.fsync(self._f.fileno())
-                self._f.close()
+            except OSError as e:
+                raise _write_error(self.path, e) from e
+            finally:
+                try:
+                    self._f.close()
+                except OSError:
+                    pass  # the flush above already failed and was reported
+
+
+def scan_jsonl(path: Path) -> tuple[list[dict[str, Any]], list[int]]:
+    """Records of a JSON-lines file, and the numbers of the lines that are not records
+    (a torn last line after a crash or power loss mid-write, or a line a resume once
+    appended onto one). A reader tolerates them and reports them; it never crashes."""
+    records: list[dict[str, Any]] = []
+    bad: list[int] = []
+    with open(path, encoding="utf-8", errors="replace") as f:
+        for n, line in enumerate(f, 1):
+            try:
+                rec = json.loads(line)
+            except json.JSONDecodeError:
+                rec = None
+            if isinstance(rec, dict):
+                records.append(rec)
+            elif line.strip():
+                bad.append(n)
+    return records, bad
 
 
 def read_jsonl(path: Path) -> Iterator[dict[str, Any]]:
-    """Records of a JSON-lines file; a torn last line (a crash mid-write) is skipped."""
-    with open(path, encoding="utf-8") as f:
-        for line in f:
-            try:
-                yield json.loads(line)
-            except json.JSONDecodeError:
-                continue
+    """Records of a JSON-lines file; a torn line (a crash mid-write) is skipped."""
+    yield from scan_jsonl(path)[0]
+
+
+def torn_tail_bytes(path: Path) -> int:
+    """Bytes after the last newline: a line torn by a crash mid-write (0 if none)."""
+    with open(path, "rb") as f:
+        f.seek(0, os.SEEK_END)
+        size = f.tell()
+        back = min(size, 1 << 20)
+        f.seek(size - back)
+        tail = f.read()
+    return len(tail) - (tail.rfind(b"\n") + 1)
 
 
 class RunDir:
@@ -92,6 +157,7 @@ class RunDir:
 
     PROCEDURE = "procedure.yaml"
     STAND = "stand.yaml"
+    LAB = "lab.yaml"
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
@@ -102,7 +168,8 @@ class RunDir:
         self._clock_now = lambda: None
 
     @classmethod
-    def create(cls, out_dir: str | Path, procedure_path: Path, stand_path: Path) -> RunDir:
+    def create(cls, out_dir: str | Path, procedure_path: Path, stand_path: Path,
+               lab_path: Path | None = None) -> RunDir:
         stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
         base = Path(out_dir) / f"{stamp}-{procedure_path.stem}"
         path, n = base, 1
@@ -112,6 +179,8 @@ class RunDir:
         path.mkdir(parents=True)
         shutil.copyfile(procedure_path, path / cls.PROCEDURE)
         shutil.copyfile(stand_path, path / cls.STAND)
+        if lab_path is not None:  # the laboratory's settings as used (bench.lab)
+            shutil.copyfile(lab_path, path / cls.LAB)
         meta = {
             "procedure_file": str(procedure_path),
             "procedure_name": procedure_path.name,
@@ -142,10 +211,21 @@ class RunDir:
         """Each `bench run` or `--resume` is a session with its own raw folder."""
         sessions = [e.get("session", 0) for e in self.events()]
         self.session = max(sessions, default=0) + 1
-        self.raw_dir.mkdir(parents=True, exist_ok=True)
-        self._events = JsonLines(self.path / "events.jsonl", fsync=True)
+        try:
+            self.raw_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise _write_error(self.raw_dir, e) from e
+        log = self.path / "events.jsonl"
+        torn = torn_tail_bytes(log)
+        self._events = JsonLines(log, fsync=True)
+        if torn:  # a crash mid-write: this session starts on a fresh line, not on the torn one
+            self._events.end_line()
         if clock_now is not None:
             self._clock_now = clock_now
+        if torn:
+            self.event("torn_tail", file="events.jsonl", bytes=torn,
+                       note="a line cut short by a crash or power loss; kept as written, "
+                            "readers skip it")
         return self.session
 
     @property
@@ -177,6 +257,11 @@ class RunDir:
         """Write atomically: a reader never sees half a result.json."""
         target = self.path / name
         tmp = target.with_suffix(target.suffix + ".tmp")
-        tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
-        os.replace(tmp, target)
+        text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+        try:
+            tmp.write_text(text)
+            os.replace(tmp, target)
+        except OSError as e:
+            tmp.unlink(missing_ok=True)
+            raise _write_error(target, e) from e
         return target

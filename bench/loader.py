@@ -10,6 +10,7 @@ import os
 from pathlib import Path
 
 from bench.config import Config, ConfigError, real_stand_problems
+from bench.lab import lab_problems
 from bench.registry import procedure_kind, procedure_names
 from bench.schema import validate
 from bench.yamlfile import Problem, YamlDoc, YamlError, load_yaml
@@ -30,6 +31,7 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
                                         f"{', '.join(procedure_names())}, got {name!r}")])
     kind = procedure_kind(name)
     problems += validate(pdoc, kind.procedure_schema())
+    problems += lab_problems(Path(procedure_path), pdoc, pdoc.data.get("certificate"))
     sdoc: YamlDoc | None = None
     stand_ref = stand_path or pdoc.data.get("stand")
     if isinstance(stand_ref, str | Path):

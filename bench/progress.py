@@ -28,6 +28,7 @@ class Figure:
     unit: str = ""          # "°/s", "°/h", or RELATIVE
     signed: bool = False
     digits: int = 4         # significant digits when there is no U
+    magnitude: bool = False  # a size (a σ, an amplitude): "< limit" when not resolved
 
 
 class Progress(Protocol):
@@ -35,8 +36,11 @@ class Progress(Protocol):
 
     interactive: bool
 
-    def begin(self, steps: Sequence[Step], clock_now: Callable[[], float]) -> None:
-        """The plan (or what is left of it) starts; `clock_now` is the bench clock."""
+    def begin(self, steps: Sequence[Step], clock_now: Callable[[], float],
+              backlog_s: Callable[[], float] | None = None) -> None:
+        """The plan (or what is left of it) starts; `clock_now` is the bench clock;
+        `backlog_s` the wall time still owed by work done beside the steps (a pair's
+        analysis in the worker), which the end of the run waits for."""
 
     def step(self, index: int) -> None:
         """Step `index` starts."""

@@ -7,6 +7,7 @@ misspelt `turnz: 50` must not silently fall back to a default on a day-long run.
 
 from __future__ import annotations
 
+import datetime as dt
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -86,6 +87,31 @@ class Str(Node):
                                          f"{_type_name(value)} {value!r}"))
         elif self.choices and value not in self.choices:
             out.append(doc.problem(path, f"expected {self.description}, got {value!r}"))
+
+
+@dataclass(frozen=True)
+class Date(Node):
+    """A calendar date, YYYY-MM-DD (YAML may already have made it a date)."""
+
+    description = "a date YYYY-MM-DD"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if parse_date(value) is None:
+            out.append(doc.problem(path, f"expected {self.description}, got {value!r}"))
+
+
+def parse_date(value: Any) -> dt.date | None:
+    """A date from YAML (a date, or text YYYY-MM-DD); None if it is not one."""
+    if isinstance(value, dt.datetime):
+        return value.date()
+    if isinstance(value, dt.date):
+        return value
+    if isinstance(value, str):
+        try:
+            return dt.date.fromisoformat(value.strip())
+        except ValueError:
+            return None
+    return None
 
 
 @dataclass(frozen=True)

@@ -127,7 +127,9 @@ class SimBench:
                     c = ac["counter"]
                     ct = CounterTwin(self.stand, a, model=c["model"],
                                      sync=sync_link(c, sim_axes.get(a) or {}),
-                                     seed=int(sim.get("seed", 0)))
+                                     seed=int(sim.get("seed", 0)),
+                                     external_reference=bool((sim_axes.get(a) or {}).get(
+                                         "counter_external_reference", True)))
                     c["resource"] = ct.start()
                     # the twin knows its zero-mark signal: mid-swing is a sound level
                     c.setdefault("level_v", sum(ct.signal_v) / 2)
@@ -149,6 +151,9 @@ class SimBench:
         self.clock.start()
 
     def stop(self) -> None:
+        for twin in self.twins.values():
+            if hasattr(twin, "settle_after_controller"):
+                twin.settle_after_controller()
         self._stack.close()
         self.clock.pause()
 

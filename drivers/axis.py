@@ -53,6 +53,7 @@ from drivers.cia402 import (
     NMT_STATE_OPERATIONAL,
     PROFILE_POSITION,
     PROFILE_VELOCITY,
+    AbortReaction,
     Command,
     Cw,
     DriveUnits,
@@ -98,6 +99,27 @@ class LimitError(AxisError, ValueError):
 
 class ObjectRefused(AxisError):
     """The drive answered an SDO with an abort (no such object, value out of range...)."""
+
+
+class DriveUnreachable(AxisError):
+    """The drive cannot be told to stop (its heartbeat is silent): only its own heartbeat
+    watchdog can stop the table now, once our heartbeat stops. Says so loudly."""
+
+    def __init__(self, axis: str, silence_s: float, watchdog_ms: int | None,
+                 abort_option: int | None) -> None:
+        try:
+            reaction = AbortReaction(abort_option).name.lower().replace("_", " ") \
+                if abort_option is not None else None
+        except ValueError:
+            reaction = f"option {abort_option}"
+        what = (f"its heartbeat watchdog (0x1016, {watchdog_ms} ms) trips as our heartbeat "
+                f"stops now" if watchdog_ms else "it watches no heartbeat of ours (0x1016 "
+                "is 0): NOTHING STOPS IT but its own limits")
+        then = (f" and reacts with {reaction} (0x6007)" if reaction and watchdog_ms else "")
+        super().__init__(
+            f"AXIS {axis.upper()} COULD NOT BE TOLD TO STOP: the drive has been silent for "
+            f"{silence_s:.2f} s; {what}{then}. Check the table before going near it.")
+        self.axis, self.silence_s, self.watchdog_ms = axis, silence_s, watchdog_ms
 
 
 class AxisTimeout(AxisError, TimeoutError):
@@ -225,6 +247,7 @@ class Axis:
         self._decel_dps2 = self.accel_dps2
         self._quick_stop_decel_dps2 = self.max_accel_dps2
         self.drive_watchdog_ms: int | None = None
+        self.abort_connection_option: int | None = None  # 0x6007, read at connect
         self._started = False
 
     def _check_config(self, accel_dps2: float | None) -> None:
@@ -308,9 +331,8 @@ class Axis:
         try:
             silence = self._drive_silence_s()
             if silence is not None:
-                raise AxisError(f"axis {self.name}: leaving: the drive has been silent for "
-                                f"{silence:.3f} s; it could not be told to stop (its "
-                                f"heartbeat watchdog, 0x1016, must stop the table)")
+                raise DriveUnreachable(self.name, silence, self.drive_watchdog_ms,
+                                       self.abort_connection_option)
             try:
                 self.stop()
             except Exception as e:  # noqa: BLE001 - try the harder stop
@@ -386,12 +408,13 @@ class Axis:
         quick = self._read_optional(Od.QUICK_STOP_DECELERATION)
         if quick:
             self._quick_stop_decel_dps2 = self.units.accel_to_dps2(quick)
+        self.abort_connection_option = self._read_optional(Od.ABORT_CONNECTION_OPTION)
         self._journal("config", identity=self._identity,
                       counts_per_rev=self.units.counts_per_rev,
                       velocity_unit_counts_per_s=self.units.velocity_unit_counts_per_s,
                       accel_unit_counts_per_s2=self.units.accel_unit_counts_per_s2,
                       heartbeat_ms=self.heartbeat_ms, drive_watchdog_ms=self.drive_watchdog_ms,
-                      abort_connection_option=self._read_optional(Od.ABORT_CONNECTION_OPTION),
+                      abort_connection_option=self.abort_connection_option,
                       quick_stop_decel_dps2=self._quick_stop_decel_dps2,
                       max_rate_dps=self.max_rate_dps, max_accel_dps2=self.max_accel_dps2,
                       factors=self.factors.as_record() if self.factors else None,

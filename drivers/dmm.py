@@ -112,9 +112,9 @@ KEYSIGHT_34465A = DmmProfile(
     max_trigger_delay_s=3600.0,
     waiting_for_trigger_bit=0x20,
     manual=("Keysight Truevolt Series Operating and Service Guide, SCPI Programming "
-            "Reference: SAMPle:TIMer (MIN is measurement dependent, not enforced; query "
-            "SAMPle:TIMer? MIN), STATus:QUEStionable bit 2 'Sample Timing Violation' (bit "
-            "table as in the 34410A guide's STATus:QUEStionable)"),
+            "Reference: SAMPle:TIMer (MIN measurement dependent; SAMPle:TIMer? MIN). "
+            "Unverified for the 34465A itself, taken from the 34410A/11A User's Guide: MIN "
+            "not enforced; STATus:QUEStionable bit 2 'Sample Timing Violation'"),
     notes=("Words as the 34465A Programming Reference spells them (SAMP:SOUR TIM, "
            "SAMP:TIM, SAMP:COUN, TRIG:SOUR EXT, VOLT:APER, VOLT:ZERO:AUTO). Unsure: the "
            "minimum interval over the aperture (10 us assumed) and STAT:OPER:COND? bit 5 "

@@ -328,8 +328,15 @@ class Fog:
             self._ser.close()
             self._ser = None
         if self._raw is not None:
-            self._raw.close()
-            self._raw = None
+            raw, self._raw = self._raw, None
+            try:
+                raw.close()
+            except OSError as e:
+                raise FogError(f"FOG on {self.port}: cannot write the raw capture "
+                               f"{self.raw_path}: {e.strerror}") from e
+            finally:
+                with self._cond:
+                    self._cond.notify_all()
         with self._cond:
             self._cond.notify_all()
 
@@ -360,8 +367,12 @@ class Fog:
                 if data:
                     data = self._batch(ser, data)
                     if self._raw is not None:
-                        self._raw.write(data)
-                        self._raw.flush()
+                        try:
+                            self._raw.write(data)
+                            self._raw.flush()
+                        except OSError as e:
+                            raise OSError(e.errno, f"cannot write the raw capture "
+                                          f"{self.raw_path}: {e.strerror}") from e
                     now = self.clock.now()
                     resumed = None
                     if silent_since is not None and now - silent_since >= stall_s:

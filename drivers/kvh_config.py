@@ -19,7 +19,9 @@ stops its binary output in Configuration Mode and resumes it on leaving. Data ra
 Unverified (the stored manual pages we could read do not show them): the exact spelling
 of the words that enter Configuration Mode and select the rotational format and units.
 We use `=CONFIG,1` / `=CONFIG,0`, `=ROTFMT,<DELTA|RATE>`, `=ROTUNITS,<DEG|RAD>` and
-`=OUTPUTFMT,<A|B|C>` as the 1750/1775 ICDs are cited by KVH users; a unit that spells
+`=OUTPUTFMT,<A|B|C>` as the 1750/1775 ICDs are cited by KVH users (the same pattern as
+the accelerometers' `=LINFMT` and `?LINUNITS` -> `LINUNITS,<METERS|FEET>`, ICD 8.24,
+which we could read); a unit that spells
 them otherwise answers INVALID, which this module reports by name at connect, so a wrong
 word is found on the first connection, never in a result.
 """

@@ -373,6 +373,8 @@ class ScpiInstrument:
         self.write_termination = write_termination
         self.error_query = error_query
         self._lock = threading.RLock()
+        #: the first command since which the error queue has not been read (None: clean)
+        self._unchecked_since: str | None = None
         #: a transport given by the caller (a transcript): used as is, never reopened
         self._given = transport
         self._inst: Transport | None = None
@@ -462,15 +464,40 @@ class ScpiInstrument:
 
     # -- text -----------------------------------------------------------------------------
     def write(self, text: str, *, check: bool = True) -> None:
-        """Send one program message; with `check`, raise if the error queue then holds any."""
+        """Send one program message; with `check`, raise if the error queue then holds any.
+
+        Errors queued before it (after an unchecked command or a query, or raised by the
+        instrument on its own) are drained first and named as such: they are not blamed
+        on this command.
+        """
         with self._lock:
+            if not check:
+                self._tx(text)
+                self._unchecked_since = self._unchecked_since or text
+                return
+            earlier: list[ErrorEntry] = []
+            since = self._unchecked_since
+            if since is not None and not text.lstrip().upper().startswith("*CLS"):
+                earlier = self.drain_errors()  # (*CLS empties the queue: nothing to blame)
+            self._unchecked_since = None
             self._tx(text)
-            if check:
-                self.check_errors(text)
+            errors = self.drain_errors()
+            if earlier or errors:
+                parts = []
+                if errors:
+                    parts.append(f"after {text!r} the instrument reported "
+                                 + "; ".join(str(e) for e in errors))
+                if earlier:
+                    parts.append(f"before {text!r} its error queue already held "
+                                 + "; ".join(str(e) for e in earlier)
+                                 + f" (from {since!r} or later, or the instrument itself)")
+                raise self.error_kinds.command(f"{self.name}: " + "; ".join(parts),
+                                               command=text, errors=tuple(errors + earlier))
 
     def query(self, text: str, *, timeout_s: float | None = None) -> str:
         """Send a query and read its reply (one line, terminator removed)."""
         with self._lock:
+            self._unchecked_since = self._unchecked_since or text
             try:
                 return self._exchange(text, timeout_s)
             except InstrumentTimeout as e:
@@ -542,6 +569,7 @@ class ScpiInstrument:
 
     def check_errors(self, after: str) -> None:
         errors = self.drain_errors()
+        self._unchecked_since = None
         if errors:
             raise self.error_kinds.command(
                 f"{self.name}: after {after!r} the instrument reported "

@@ -14,7 +14,9 @@ from bench.config import Config
 from bench.conformity import RULES
 from bench.engine import RunContext
 from bench.journal import RunDir, sha256_file
+from bench.lab import certificate_settings
 from bench.plan import Step
+from bench.uncertainty_names import UNCERTAINTY_NAMING, with_explicit_names
 
 
 class StepDispatch:
@@ -79,7 +81,9 @@ def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]],
                   "started_utc": starts[0]["utc"] if starts else None,
                   "completed_utc": ends[-1]["utc"] if ends else None},
         "conditions": cfg.procedure.get("conditions", {}),
-        "certificate": cfg.procedure.get("certificate", {}),
+        "specification": cfg.procedure.get("specification"),
+        "certificate": certificate_settings(cfg.procedure_path,
+                                            cfg.procedure.get("certificate", {})),
         "sessions": len(starts),
         "aborted": bool(events_of(events, "abort")),
         "raw_files": raw_files,
@@ -95,8 +99,9 @@ def result_document(run: RunDir, cfg: Config, events: list[dict[str, Any]], *,
         verdict = "incomplete"
     else:
         verdict = "fail" if any(c["verdict"] == "fail" for c in checks) else "pass"
-    return {
+    return with_explicit_names({
         "schema": SCHEMA,
+        "uncertainty_names": UNCERTAINTY_NAMING,
         "procedure": cfg.kind,
         "verdict": verdict,
         **run_header(run, cfg, events, raw_hashes),
@@ -105,4 +110,4 @@ def result_document(run: RunDir, cfg: Config, events: list[dict[str, Any]], *,
         "method": method,
         "checks": checks,
         **body,
-    }
+    })

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from bench.analysis import drift_pulse as dp
-from bench.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
+from bench.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
 from bench.conformity import judge
 from bench.engine import Abort, RunContext
 from bench.instruments import Bench, open_axis, raw_text_logger
@@ -93,9 +93,12 @@ PROCEDURE = Map({
 })
 
 GYRO = Map({
+    "model": Key(Str(), False, "the gyro's model (printed as part of the item calibrated)"),
+    "serial": Key(Str(), False, "the gyro's serial number (printed as part of the item)"),
     "awg_channel": Key(Num(min=1, max=4, integer=True), True),
     "dmm": Key(Map({"resource": Key(Str(), True, "VISA resource string"),
-                    "model": Key(Str(tuple(DMM_PROFILES)), True)}), True),
+                    "model": Key(Str(tuple(DMM_PROFILES)), True),
+                    "calibration": Key(CALIBRATION, False, "the DMM's certificate")}), True),
     "k_as_v_per_deg": Key(Num(min=0, exclusive_min=True, unit="V/deg"), True,
                           "the command angle sensor's transfer coefficient"),
     "k_as_u_rel": Key(Num(min=0), False, "its standard uncertainty, relative"),
@@ -108,7 +111,9 @@ PLATFORM = Map({
     "identity": Key(IDENTITY, False, "the platform under test"),
     "table_axis": Key(Str(), True, "the stand axis the platform sits on"),
     "awg": Key(Map({"resource": Key(Str(), True),
-                    "model": Key(Str(tuple(AWG_PROFILES)), True)}), True),
+                    "model": Key(Str(tuple(AWG_PROFILES)), True),
+                    "calibration": Key(CALIBRATION, False, "the generator's certificate")}),
+               True),
     "gyros": Key(MapOf(GYRO, min_len=1), True),
 })
 SIM_PLATFORM = Map({
@@ -395,10 +400,8 @@ class DriftPulse(StepDispatch):
             bench.axes[table].identities["awg"] = awg.identify()
             for g, dmm in bench.extra["dmms"].items():
                 bench.axes[table].identities[f"{g}-dmm"] = dmm.identify()
-        except BaseException:
-            if bench.axes:
-                bench.safe_stop(lambda s: None)
-            bench.close()
+        except BaseException as e:
+            bench.abandon(e)
             raise
         return bench
 
@@ -451,7 +454,7 @@ class DriftPulse(StepDispatch):
         while (left := end - ctx.clock.now()) > 0:
             drive.check()
             ctx.progress.advance(duration_s - left, duration_s,
-                                 f"{duration_s - left:.0f} of {duration_s:g} s")
+                                 f"{axis}: {duration_s - left:.1f} of {duration_s:g} s waited")
             ctx.clock.sleep(min(left, 1.0))
         drive.check()
 

@@ -169,7 +169,8 @@ class DmmTwin(ScpiServer):
 
     def _timer(self, a: Mapping[str, str]) -> None:
         # "the MIN value is not enforced, and you can specify an <interval> less than MIN
-        # (even zero)" (SAMPle:TIMer remarks): any interval down to 0 is taken
+        # (even zero)" (34410A/11A User's Guide, SAMPle:TIMer remarks; the Truevolt guide
+        # says MIN is measurement dependent): any interval down to 0 is taken
         self.sample_interval_s = ranged_param(a["interval_s"], 0.0, 3600.0, default=1.0)
 
     def sampling_time_s(self) -> float:

@@ -284,6 +284,23 @@ class DriveTwin:
             finally:
                 self._network = None
 
+    def silence_heartbeat(self) -> None:
+        """Fault hook: the drive's heartbeat producer dies while its TPDOs go on (the fault
+        campaign's "drive heartbeat lost")."""
+        if self._node is not None:
+            self._node.nmt.stop_heartbeat()
+
+    def settle_after_controller(self, limit_s: float = 2.0) -> None:
+        """A real drive outlives the controller that left it: wait (real time, at most
+        `limit_s`) until a drive left with its power stage on has let its heartbeat
+        watchdog act, so the stand shows what the table would do."""
+        deadline = time.monotonic() + min(limit_s, self._hb_time_s + 0.5)
+        while self._thread is not None and time.monotonic() < deadline:
+            with self._lock:
+                if not self._state.power_stage_on or not self._hb_producer:
+                    return
+            time.sleep(0.02)
+
     def __enter__(self) -> DriveTwin:
         return self.start()
 
@@ -574,8 +591,9 @@ class DriveTwin:
     def _run(self) -> None:
         next_t = time.monotonic()
         while not self._stop.is_set():
-            if time.monotonic() - next_t > STARVED_TICKS * self._tick_s:
-                self._was_starved()
+            late = time.monotonic() - next_t
+            if late > STARVED_TICKS * self._tick_s:
+                self._was_starved(late)
             try:
                 self._tick()
             except Exception:  # noqa: BLE001 - a twin must not die silently mid-test
@@ -685,14 +703,14 @@ class DriveTwin:
         with self._lock:
             self._hb_last = time.monotonic()
 
-    def _was_starved(self) -> None:
+    def _was_starved(self, late_s: float) -> None:
         """A real drive has a processor of its own; the twin shares the host's with the
-        controller. When the twin itself was not run for a while (a loaded host), the
-        controller's heartbeats of that while may still sit in the bus queue: monitoring
-        restarts now instead of calling the host's stall the controller's silence."""
+        controller. The time the twin itself was not run (a loaded host) is not counted
+        as the controller's silence: the controller's heartbeats of that while may still
+        sit in the bus queue."""
         with self._lock:
             if self._hb_last is not None:
-                self._hb_last = max(self._hb_last, time.monotonic())
+                self._hb_last = min(self._hb_last + late_s, time.monotonic())
 
     def _check_watchdog(self, t: float) -> None:
         if not self._hb_producer or self._hb_last is None:

@@ -185,16 +185,21 @@ def test_values_printed_with_u_rounded_as_by_hand(ladder: dict[str, Any]) -> Non
         "+7.25 ± 0.42",            # w0 in deg/h: 7.2468 ± 0.4212
         "0.0860 ± 0.0012",         # 1/rev 8.6e-4 ± 1.23e-5 -> %
         "+40.30 ± 0.84",           # its phase
-        "0.0003 ± 0.0011 (not significant)",  # order 3: 3e-6 ± 1.1e-5 -> %
+        # order 3: 3e-6 ± 1.1e-5 is not resolved (a <= U): its one-sided limit a + U =
+        # 1.4e-5 -> 0.0014 %, rounded up; its phase '—'
+        "3 < 0.0014 < 0.00014 —",
         "0.000200 ± 0.000030",     # mains 2.0e-4 ± 3.0e-5 deg/s
         # raw intra-turn 1.06e-3, U from 144000 samples: 2 * 1.06e-3 / sqrt(2 * 143999)
         # = 3.95e-6 -> 0.000395 % -> 0.00040, marked as computed by the certificate
         "0.10600 ± 0.00040*",
-        "12 (≤ 15)",               # floor-corrected 1.2e-5, upper limit 1.5e-5 -> ppm
-        # over 1 deg: 2.1e-4 over 1440 windows: U = 4.2e-4 / sqrt(2878) = 7.83e-6 -> %
-        "0.02100 ± 0.00078*",
-        # over 360 deg: 1.1e-6 over 4 windows: U = 2.2e-6 / sqrt(6) = 8.98e-7 -> ppm
-        "1.10 ± 0.90*",
+        # floor-corrected 1.2e-5, resolved, upper limit 1.5e-5: U = 3e-6 -> ppm
+        "12.0 ± 3.0",
+        # over 1 deg: 2.1e-4 over 1440 windows: U = 4.2e-4 / sqrt(2878) = 7.83e-6 -> ppm
+        # (the stability table is in ppm throughout)
+        "210.0 ± 7.8*",
+        # over 360 deg from the counter: sigma 2.6e-8 ± 2.2e-8 with timing floor 1e-8 is not
+        # resolved (2.6 - 2.2 < 1): measured, floor, '< sigma + U' = 4.8e-8 -> ppm
+        "+10 360 counter 0.026 ± 0.022 0.010 < 0.048",
         "+0.332",                  # per-turn annex, first turn of outer +10
         # budget of outer +10 in ppm: timing 3.8e-10, timebase 5.8e-10, repeatability
         # 1.23e-7 / 2 = 6.15e-8 (-> 0.062, half up), U 1.23e-7
@@ -210,7 +215,7 @@ def test_conformity_states_rule_fail_and_capability(ladder: dict[str, Any]) -> N
     conf = conf[conf.index("7 Conformity"):conf.index("8 Records")]
     assert "guarded acceptance with a guard band equal to U" in conf
     assert "RMG 63-2003" in conf
-    assert "FAIL: 2 of 7 checks" in _flat(ladder["texts"][0])
+    assert "FAIL: 2 of 7 conformity checks" in _flat(ladder["texts"][0])
     # the procedure's bands: 1e-5 below 10 deg/s, 1e-6 from 10 deg/s
     assert "per-turn rate error |δ| |ω_set| < 10 °/s 10 ppm (0.001 %)" in conf
     assert "per-turn rate error |δ| |ω_set| ≥ 10 °/s 1 ppm (0.0001 %)" in conf
@@ -289,7 +294,8 @@ def test_contract_keys_only_and_raw_files_hashed_from_the_run(tmp_path: Path) ->
     assert "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad" in \
         "".join(texts).replace("\n", "").replace("\r", "")
     # sigma's U from chi-square when absent: 2 * 0.15 / sqrt(4) = 0.15 ppm, marked
-    assert "0.15 ± 0.15*" in text
+    assert "0.15 ± 0.15*" in text      # measured, in the 360 deg stability row
+    assert "< 0.30" in text            # not resolved (sigma <= U): its upper limit
     assert "+0.13 ± 0.20" in text
     assert sum(images) >= 4
 

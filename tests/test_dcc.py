@@ -11,6 +11,7 @@ fail `bench verify`.
 from __future__ import annotations
 
 import contextlib
+import copy
 import datetime as dt
 import hashlib
 import io
@@ -240,6 +241,10 @@ def test_demo_every_value_and_u_equals_result_json(demo: dict[str, Any]) -> None
             _assert_value_u(reals, result, f"{p}.intra_turn_instability_rel",
                             f"{p}.intra_turn_instability_u_rel", r"\one")
             assert reals[f"{p}.set_rate_dps"]["unit"] == r"\degree\second\tothe{-1}"
+            budget = [reals[f"{p}.rate_error_budget.{k}"]["value"]
+                      for k in ("timing_u_rel", "timebase_u_rel", "repeatability_u_rel")]
+            assert 2 * sum(u * u for u in budget) ** 0.5 == pytest.approx(   # U = 2 u_c
+                reals[f"{p}.rate_error_rel"]["U"], rel=1e-9)
             for j in range(len(r["systematic"]["harmonics"])):
                 h_p = f"{p}.systematic.harmonics[{j}]"
                 _assert_value_u(reals, result, f"{h_p}.amplitude_rel", f"{h_p}.amplitude_u_rel",
@@ -280,7 +285,9 @@ def test_demo_conformity_per_check_with_its_rule_and_limits(demo: dict[str, Any]
     for i, c in enumerate(result["checks"], start=1):
         md = root.find(f".//dcc:metaData[@id='check_{i}']", NS)
         assert md is not None, i
-        assert md.findtext("dcc:conformity", None, NS) == c["verdict"]
+        # a check left out of conformity (a sigma at the timing floor) states none
+        expected = c["verdict"] if c["verdict"] in ("pass", "fail") else None
+        assert md.findtext("dcc:conformity", None, NS) == expected
         assert md.findtext("dcc:norm", None, NS) == "ILAC-G8:09/2019"
         assert "guard" in md.findtext("dcc:reference", "", NS)
         low = md.find("dcc:data/dcc:quantity[@refType='basic_acceptanceLimitLower']/si:real", NS)
@@ -410,6 +417,10 @@ def test_drift_demo_dcc_validates_and_carries_every_value(drift: dict[str, Any])
         _assert_value_u(reals, result, f"{p}.own_dph", f"{p}.own_u_dph", r"\degree\hour\tothe{-1}")
         _assert_value_u(reals, result, f"{p}.apparent_dph", f"{p}.apparent_u_dph",
                         r"\degree\hour\tothe{-1}")
+        own = [v["value"] for k, v in reals.items() if k.startswith(f"{p}.budget.own_u_dph.")]
+        assert len(own) >= 2
+        assert 2 * sum(u * u for u in own) ** 0.5 == pytest.approx(
+            reals[f"{p}.own_dph"]["U"], rel=1e-9)
     _assert_value_u(reals, result, "drift.azimuth_deg", "drift.azimuth_u_deg", r"\degree")
     root = _tree(path)
     for i, c in enumerate(result["checks"], start=1):
@@ -517,3 +528,53 @@ def test_lab_settings_fill_the_administrative_data(demo: dict[str, Any], tmp_pat
     assert person.findtext("dcc:mainSigner", None, NS) == "true"
     assert root.find(".//ds:Signature", NS) is None
     assert root.find(".//dcc:statement[@refType='ratebench_countryNotConfigured']", NS) is None
+
+
+def test_a_damaged_result_still_gives_a_valid_dcc(demo: dict[str, Any]) -> None:
+    """Each top-level key of result.json removed, each key of its first rate, pair and
+    check replaced by text: the writer neither crashes nor writes an invalid DCC (it leaves
+    the damaged value out; `bench verify` would then name it). Dropping `axes` once gave
+    a DCC without any measurementResult, which the schema refuses."""
+    from bench.dcc.writer import DccInputs, build_dcc
+
+    result = copy.deepcopy(demo["result"])
+    ax = result["axes"]["outer"]
+    places = [(result, k, "drop") for k in result]
+    for part in (ax["rates"][0], ax["pairs"][0], result["checks"][0]):
+        places += [(part, k, "text") for k in part]
+    assert len(places) > 60
+    for node, key, damage in places:
+        saved = node[key]
+        if damage == "drop":
+            del node[key]
+        else:
+            node[key] = "garbage"
+        try:
+            v = validate_dcc(build_dcc(DccInputs(result, embed_pdf=False)))
+        finally:
+            node[key] = saved
+        assert v.valid, (key, damage, v.lines()[:3])
+
+
+def test_which_lab_settings_and_key_are_in_force(tmp_path: Path,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """--lab, then the stand's dcc.lab, then $BENCH_LAB_SETTINGS; a key named in the stand
+    file overrides the lab file's."""
+    from bench.dcc.settings import resolve_settings
+
+    key, cert = _throwaway_key(tmp_path / "keys", "lab")
+    (tmp_path / "a").mkdir()
+    first = _lab_file(tmp_path / "a", key, cert)
+    second = tmp_path / "b.yaml"
+    second.write_text("laboratory: {name: Second Lab}\n")
+    assert resolve_settings({}).laboratory is None                 # nothing configured
+    monkeypatch.setenv(ENV_LAB, str(second))
+    assert resolve_settings({}).laboratory.name == "Second Lab"
+    assert resolve_settings({"dcc": {"lab": str(first)}}).laboratory.name == "Test Rate Lab"
+    assert resolve_settings({"dcc": {"lab": str(first)}}, lab_file=second).laboratory.name \
+        == "Second Lab"
+    own = {"key": str(tmp_path / "stand.key.pem"), "certificate": str(cert)}
+    chosen = resolve_settings({"dcc": {"lab": str(first), "signing": own}})
+    assert chosen.laboratory.name == "Test Rate Lab"
+    assert chosen.signing.key_file == tmp_path / "stand.key.pem"
+    assert resolve_settings({"dcc": {"lab": str(first)}}).signing.key_file == key

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import random
 import struct
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -292,3 +293,21 @@ def test_sync_is_never_lost_for_good(segments: list[tuple], cuts: list[int]) -> 
 
 def test_decode_state_default_is_stream_start() -> None:
     assert DecodeState() == DecodeState(offset=0, last_index=-1, last_sequence=None)
+
+
+def test_decode_command_exits_1_when_nothing_decodes(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Random bytes, or a kvh-a capture read as kvh-b: exit 1, naming the formats tried."""
+    from bench.cli import main
+
+    noise = tmp_path / "noise.bin"
+    noise.write_bytes(np.random.default_rng(13).bytes(20_000))
+    assert main(["decode", str(noise), "--format", "kvh-a"]) == 1
+    err = capsys.readouterr().err
+    assert "no frame of format kvh-a" in err and "formats tried: kvh-a, kvh-b" in err, err
+    capture = tmp_path / "a.bin"
+    capture.write_bytes(stream(range(50)))
+    assert main(["decode", str(capture), "--format", "kvh-b"]) == 1
+    err = capsys.readouterr().err
+    assert "decode as kvh-a: 50 frame(s)" in err, err
+    assert main(["decode", str(capture), "--format", "kvh-a"]) == 0

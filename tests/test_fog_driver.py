@@ -151,7 +151,7 @@ def test_bench_decode_invalid_input(tmp_path: Path) -> None:
     assert decode_command(str(tmp_path / "missing.raw"), "kvh-a", None) == 2
     (tmp_path / "x.raw").write_bytes(b"")
     assert decode_command(str(tmp_path / "x.raw"), "nope", None) == 2
-    assert decode_command(str(tmp_path / "x.raw"), "kvh-a", None) == 0
+    assert decode_command(str(tmp_path / "x.raw"), "kvh-a", None) == 1  # no frame (CONTRACT)
 
 
 @pytest.mark.parametrize(("units", "axis_letter"), [("rad/s", "x"), ("deg", "y"), ("rad", "z")])

@@ -188,6 +188,21 @@ def test_error_queue_codes_order_overflow_and_esr(box):
             drv.write("NOPE")
 
 
+def test_an_error_already_queued_is_not_blamed_on_the_next_command(box):
+    """An unchecked command leaves -113 in the queue; the next checked (valid) command is
+    reported as clean, and the old error as queued before it (issue 13's 'ABOR')."""
+    with BoxDriver(box.resource) as drv:
+        drv.write("NOPE", check=False)
+        with pytest.raises(InstrumentCommandError) as info:
+            drv.write("SOUR1:GAIN 2")
+        text = str(info.value)
+        assert "after 'SOUR1:GAIN 2'" not in text, text
+        assert "before 'SOUR1:GAIN 2' its error queue already held -113" in text, text
+        assert "from 'NOPE'" in text
+        drv.write("SOUR1:GAIN 3")                     # the queue is clean again
+        assert drv.query("SOUR1:GAIN?") == "+3.000000E+00"
+
+
 def test_several_units_in_one_message_answer_on_one_line(box):
     with BoxDriver(box.resource) as drv:
         assert drv.query("*IDN?;SOUR1:GAIN 5;:SOUR1:GAIN?") == "Test,Box,1,0;+5.000000E+00"

@@ -3,13 +3,15 @@ Data bit 2 (sample timing violation), as the manual says; the driver with no ser
 the twin over TCP.
 
 Sources: Keysight Truevolt Series Operating and Service Guide, SCPI Programming
-Reference, SAMPle:TIMer: "The value of MIN is measurement dependent. It depends on the
-integration time (resolution), whether autozero is on, whether autorange is on, and the
-measurement range ... the MIN value is not enforced, and you can specify an <interval>
-less than MIN (even zero). Execute SAMPle:TIMer? MIN to determine the current value of
-MIN"; STATus:QUEStionable bit table (as in the 34410A guide): bit 2, decimal 4, "Sample
-Timing Violation: A sample timing violation has occurred involving the SAMPle:TIMer
-command. Sample timing may not be valid." The event register is cleared when read.
+Reference, SAMPle:TIMer (p. 309 in the manualslib copy): "The value of MIN is measurement
+dependent. It depends on such things as the integration time, autozero on or off,
+autorange on or off, and the measurement range ... Execute SAMPle:TIMer? MIN to determine
+the recommended interval". From the same family's 34410A/11A User's Guide (SAMPle:TIMer
+and STATus:QUEStionable, not found for the 34465A itself): "the MIN value is not
+enforced, and you can specify an <interval> less than MIN (even zero)"; Questionable Data
+bit 2, decimal 4, "Sample Timing Violation: A sample timing violation has occurred
+involving the SAMPle:TIMer command. Sample timing may not be valid." The event register
+is cleared when read.
 """
 
 from __future__ import annotations

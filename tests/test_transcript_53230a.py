@@ -186,3 +186,25 @@ def test_the_twin_refuses_the_check_without_a_reference_signal():
             ("ROSC:SOUR EXT", None), ("SYST:ERR?", NO_ERROR_KEYSIGHT),
             ("ROSC:EXT:CHEC ONCE", None), ("SYST:ERR?", Like("", r"-241,.*")),
             ("ROSC:SOUR?", "EXT")])
+
+
+def test_fog_sync_tie_places_the_edges_after_the_next_sync_pulse():
+    """TRIG:SOUR EXT from the FOG's sync output (every 5 s of FOG time, 2 us of link):
+    INIT at host time 100.0 -> the start event is the pulse at 105 s + 2 us, and the
+    manual's intervals run from there (drivers/time_tie.py)."""
+    tie = TimeTie("fog-sync", sync_period_s=5.0, latency_s=2e-6, latency_u_s=2e-7)
+    exchanges = [*open_and_identify(), *input_setup(), *input_readback(),
+                 *arm_timestamps(4, "EXT"), ("*ESR?", "+1"),
+                 ("FETC?", "+1," + ",".join(INTERVALS)), ("SYST:ERR?", NO_ERROR_KEYSIGHT),
+                 *checked("SYST:TIM +1.00000000E+000")]
+    with expected_protocol(lambda t: make_counter(t, tie), exchanges) as counter:
+        counter.configure(channel=1, level_v=2.5, slope="POS", coupling="DC",
+                          impedance_ohm=1e6)
+        edges = counter.acquire_edges(4, 1.0)
+        acq = counter.last_acquisition
+        counter.close()
+    intervals = np.array([float(v) for v in INTERVALS])
+    assert acq.t_start_s == pytest.approx(105.0 + 2e-6, abs=1e-12)
+    assert acq.t_start_u_s == 2e-7
+    np.testing.assert_allclose(edges, 105.0 + 2e-6 + np.cumsum(intervals), rtol=0,
+                               atol=1e-12)

@@ -89,10 +89,30 @@ class AveragedInstability:
         """U (k = 2) of the std of `blocks` block means: s / sqrt(2 (n - 1)) each."""
         return std_u_rel(self.instability_rel, self.blocks)
 
+    def _excess(self) -> tuple[float, float] | None:
+        """(s^2 - floor^2, its standard uncertainty from the n block means' scatter)."""
+        s, n = self.instability_rel, self.blocks
+        if s is None or n < 2 or not math.isfinite(self.floor_rel):
+            return None
+        return s * s - self.floor_rel ** 2, math.sqrt(2.0 / (n - 1)) * s * s
+
+    @property
+    def resolved(self) -> bool | None:
+        """The table's own part stands out of the FOG's averaged floor (k = 2, as A5)."""
+        ex = self._excess()
+        return None if ex is None else ex[0] > COVERAGE * ex[1]
+
+    @property
+    def corrected_upper_rel(self) -> float | None:
+        """k = 2 upper limit of the floor-corrected figure, never below the sensitivity."""
+        ex = self._excess()
+        return None if ex is None else math.sqrt(max(ex[0], 0.0) + COVERAGE * ex[1])
+
     def to_dict(self) -> dict[str, object]:
         return {"angle_deg": self.angle_deg, "instability_rel": self.instability_rel,
                 "u_rel": self.u_rel,
                 "floor_rel": self.floor_rel, "corrected_rel": self.corrected_rel,
+                "corrected_upper_rel": self.corrected_upper_rel, "resolved": self.resolved,
                 "blocks": self.blocks, "samples_per_block": self.samples_per_block}
 
 

@@ -23,7 +23,11 @@ stay honest under coloured noise (FOG flicker, table wander), the residual's sum
 angle blocks of about a quarter of the highest harmonic's period are compared with what
 white noise gives; their ratio ("noise inflation", never below 1) scales the covariance.
 Amplitude and phase uncertainties are first-order (delta method): fine when the
-amplitude is well above its uncertainty, which `detected` states (a >= 3 u).
+amplitude is well above its uncertainty. `detected` is the bench's one rule for a
+magnitude (docs/certificate.md, "Numbers"): resolved when it exceeds its expanded
+uncertainty, a > U = 2 u. For pure noise an amplitude passes that test with probability
+exp(-2) ~ 14 % (a Rayleigh variable), so an undetected harmonic is reported as an upper
+limit and a detected one near U is read with that in mind.
 """
 
 from __future__ import annotations
@@ -50,7 +54,7 @@ class HarmonicResult:
     amplitude_u_rel: float      # expanded, k = 2
     phase_deg: float            # in (-180, 180]
     phase_u_deg: float          # expanded, k = 2
-    detected: bool              # amplitude >= 3 standard uncertainties
+    detected: bool              # amplitude > U (k = 2): the one rule for a magnitude
 
     def to_dict(self) -> dict[str, object]:
         return {"order": self.order, "amplitude_rel": self.amplitude_rel,
@@ -297,7 +301,7 @@ def harmonics_result(fit: DirectionFit, k: float, k_u_std: float, set_rate_dps: 
         amp, u_amp, ph, u_ph = _amp_phase(a, b, cov)
         out.append(HarmonicResult(order=h, amplitude_rel=amp, amplitude_u_rel=COVERAGE * u_amp,
                                   phase_deg=ph, phase_u_deg=min(COVERAGE * u_ph, 180.0),
-                                  detected=amp >= 3 * u_amp))
+                                  detected=amp > COVERAGE * u_amp))
     return tuple(out)
 
 
@@ -312,7 +316,8 @@ def mains_result(fit: DirectionFit, k: float, k_u_std: float, inflation: NoiseIn
     amp, u_amp, ph, u_ph = _amp_phase(a, b, cov)
     return MainsResult(frequency_hz=float(design.mains_hz), amplitude_dps=amp,
                        amplitude_u_dps=COVERAGE * u_amp, phase_deg=ph,
-                       phase_u_deg=min(COVERAGE * u_ph, 180.0), detected=amp >= 3 * u_amp)
+                       phase_u_deg=min(COVERAGE * u_ph, 180.0),
+                       detected=amp > COVERAGE * u_amp)
 
 
 def binned_systematic(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,

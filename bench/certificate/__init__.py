@@ -9,11 +9,14 @@ content follows ISO/IEC 17025 clause 7.8; how to read it: docs/certificate.md.
 from __future__ import annotations
 
 import datetime as dt
+import hashlib
+import json
 import os
 from pathlib import Path
 from typing import Any, Protocol
 
-from bench.certificate.build import build_document
+from bench.certificate import register
+from bench.certificate.build import Sources, build_document, certificate_id
 from bench.certificate.html import render_html
 from bench.certificate.model import Document
 from bench.certificate.pdf import render_pdf
@@ -38,18 +41,29 @@ def _write_atomic(path: Path, data: bytes) -> None:
 def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | None = None,
                  issued: dt.date | None = None, *,
                  documents: list[Document] | None = None) -> list[Path]:
-    """Build the certificate from `result` (and the run directory, if any) into `out_dir`.
+    """Issue the certificate for `result` into `out_dir`.
 
-    `documents`, if given, receives the document the files were rendered from (the
-    console's summary is cut from it, so it prints the certificate's own text)."""
+    With a run directory each call is a new issue: the next revision in the run's register
+    (register.py), numbered uniquely and naming the issue it replaces; the issue is
+    recorded once both files are written. `documents`, if given, receives the document the
+    files were rendered from (the console's summary is cut from it, so it prints the
+    certificate's own text).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    doc = build_document(result, run_path, issued)
+    digest = hashlib.sha256(json.dumps(result, sort_keys=True, default=str).encode()).hexdigest()
+    when = (dt.datetime.combine(issued, dt.time(12), dt.UTC) if issued
+            else dt.datetime.now(dt.UTC))
+    src = Sources.load(result, run_path)
+    issue = register.next_issue(run_path, certificate_id(src), when, digest)
+    doc = build_document(result, run_path, issued, issue)
     if documents is not None:
         documents.append(doc)
     html_path, pdf_path = out / HTML_NAME, out / PDF_NAME
     _write_atomic(html_path, render_html(doc).encode("utf-8"))
     _write_atomic(pdf_path, render_pdf(doc))
+    if run_path is not None:
+        register.record(run_path, issue)
     return [html_path, pdf_path]
 
 

@@ -21,21 +21,28 @@ import yaml
 
 import bench
 from bench.analysis.random_part import std_u_rel
-from bench.certificate import methods, plots
+from bench.certificate import methods, plots, register
 from bench.certificate.model import Document, Fields, Figure, Para, Section, Signatures, Table
 from bench.certificate.operator import prompt_blocks, software_note
+from bench.certificate.register import Issue
 from bench.certificate.rounding import (
     MINUS,
     PERCENT,
+    PPM,
+    RESOLUTION_RULE,
+    Presented,
     RelUnit,
-    format_fixed,
     format_limit,
     format_sig,
     format_value_u,
+    is_resolved,
+    present,
+    present_phase,
     rel_unit,
 )
 from bench.certificate.shape import conform_result
 from bench.journal import read_jsonl, sha256_file
+from bench.traceability import MEASURING_ROLES, traced_items
 
 NOT_RECORDED = "not recorded"
 CAPABILITY_LIMIT = 0.3  # RMG 63-2003: the measurement's error limit <= 0.2-0.3 of the tolerance
@@ -182,22 +189,30 @@ def verdict_label(verdict: Any, rule: str | None = None, inside_tolerance: bool 
         return "FAIL (guard band)" if rule == "guard-band" and inside_tolerance else "FAIL"
     if v == "incomplete":
         return "INCOMPLETE"
+    if v == "not-assessed":
+        return "NOT ASSESSED"
     return v.upper() or "—"
 
 
 # -- the certificate id ----------------------------------------------------------------
 
 def certificate_id(src: Sources) -> str:
-    """The laboratory's own number if the procedure gives one, else one from the data.
+    """The base number of the run's certificates: the laboratory's own if the procedure
+    gives one, else `<prefix>-<date of completion>-<8 hex digits>`.
 
-    The generated id is a digest of result.json: the same results give the same id, any
-    change of a result (a re-analysis) gives a new one.
+    The digits identify the run (its directory and creation time), so two runs never share
+    a number; each issue of one run adds its revision (register.numbered). Without a run
+    (a specimen) the digits are a digest of the results.
     """
-    cert = src.get("certificate", {}) or {}
+    cert = _cert(src)
     for key in ("number", "id", "certificate_id"):
         if cert.get(key):
             return str(cert[key])
-    digest = hashlib.sha256(json.dumps(src.result, sort_keys=True, default=str).encode())
+    run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else None)
+    created = (src.get("dates", {}) or {}).get("created_utc") or src.meta.get("created_utc")
+    identity = (f"{run_dir}|{created}" if run_dir else
+                json.dumps(src.result, sort_keys=True, default=str))
+    digest = hashlib.sha256(identity.encode())
     stamp = (src.get("dates", {}) or {}).get("completed_utc") or src.meta.get("created_utc")
     day = ""
     if stamp:
@@ -209,24 +224,47 @@ def certificate_id(src: Sources) -> str:
     return "-".join(p for p in (str(prefix), day, digest.hexdigest()[:8].upper()) if p)
 
 
+def issued_number(src: Sources) -> str:
+    """The number of the run's latest issue (what the PDF beside it carries); the base
+    number when nothing was issued yet. For other forms of the same certificate (DCC)."""
+    done = register.issues(src.run_path)
+    return done[-1].number if done else certificate_id(src)
+
+
+def _cert(src: Sources) -> dict[str, Any]:
+    """The certificate settings: the procedure's `certificate:` block over the lab's file."""
+    cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
+    return dict(cert) if isinstance(cert, Mapping) else {}
+
+
 # -- the document --------------------------------------------------------------------------
 
+AUTHORITATIVE = ("The PDF file certificate.pdf is the authoritative form of this certificate; "
+                 "the HTML rendering carries the same content for reading on screen.")
+SIMULATED_MARK = "SIMULATED RUN: NOT A CALIBRATION"
+
+
 def build_document(result: dict[str, Any], run_path: Path | None = None,
-                   issued: dt.date | None = None) -> Document:
+                   issued: dt.date | None = None, issue: Issue | None = None) -> Document:
+    """The certificate for one issue. Without `issue` it is the run's next one (revision 1
+    when nothing was issued yet), dated today or `issued`, and nothing is recorded."""
     src = Sources.load(result, run_path)
-    issue = (issued or dt.datetime.now(dt.UTC).date()).isoformat()
+    cid = certificate_id(src)
+    if issue is None:
+        when = (dt.datetime.combine(issued, dt.time(12), dt.UTC) if issued
+                else dt.datetime.now(dt.UTC))
+        issue = register.next_issue(run_path, cid, when)
     kind = src.get("procedure") or src.procedure_file.get("procedure") or (
         "drift-pulse" if src.get("drift") else "rate-ladder")
-    cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
+    cert = _cert(src)
     lab = str(cert.get("laboratory") or "Calibration laboratory (name not given)")
-    cid = certificate_id(src)
     checks = _checks(src)
     sections: list[Section] = []
     n = _Counter()
-    sections.append(Section(n.next(), "Identification", _identification(src, cid, issue,
+    sections.append(Section(n.next(), "Identification", _identification(src, issue,
                                                                        kind, checks)))
     sections.append(Section(n.next(), "Item calibrated and measuring instruments",
-                            _instruments(src)))
+                            _instruments(src, kind)))
     sections.append(Section(n.next(), "Method", _method(src, kind)))
     sections.append(Section(n.next(), "Deviations", _deviations(src, kind)))
     sections.append(Section(n.next(), "Conditions", _conditions(src)))
@@ -241,25 +279,28 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
         sections.append(Section(n.next(), "Per-turn counter rates", _per_turn_annex(src)))
     statements = [t for t in methods.STATEMENTS
                   if kind != "drift-pulse" or not t.startswith("Relative values")]
+    statements.append(AUTHORITATIVE)
     sections.append(Section(n.next(), "Statements", tuple(Para(t) for t in statements)))
     sections.append(Section(n.next(), "Authorisation", _signatures(cert, issue)))
-    stand = _stand(src)
-    subtitle = f"{stand.get('maker', '')} {stand.get('model', '')}, serial " \
-               f"{stand.get('serial', NOT_RECORDED)}".strip()
-    if stand.get("simulated"):
+    item, serial = _item(src, kind)
+    subtitle = f"{item}, serial {serial}"
+    simulated = bool(_stand(src).get("simulated"))
+    if simulated:
         subtitle += " (SIMULATED stand)"
     return Document(
-        cert_id=cid,
+        cert_id=issue.number,
         title="Calibration certificate",
         subtitle=subtitle,
         laboratory=lab,
-        issue_date=issue,
+        issue_date=issue.issue_date,
         verdict=str(src.get("verdict", "incomplete")),
         sections=tuple(sections),
         footer="This certificate shall not be reproduced except in full without the written "
-               "approval of the issuing laboratory.",
+               "approval of the issuing laboratory. " + AUTHORITATIVE.split(";")[0] + ".",
         meta={"run_title": str(src.get("title") or src.procedure_file.get("title") or ""),
-              "procedure": kind},
+              "procedure": kind, "revision": str(issue.revision),
+              "replaces": issue.replaces or "", "scope": _scope_line(src, checks, kind)},
+        watermark=SIMULATED_MARK if simulated else "",
     )
 
 
@@ -303,26 +344,71 @@ def _all_rates(src: Sources) -> list[dict[str, Any]]:
     return [r for ax in (src.get("axes", {}) or {}).values() for r in ax.get("rates", [])]
 
 
-def _identification(src: Sources, cid: str, issue: str, kind: str,
+def _item(src: Sources, kind: str) -> tuple[str, str]:
+    """(what was calibrated, its serial): for the drift procedure the platform under test
+    and its gyros, for the rate ladder the rate table named in the stand file."""
+    if kind == "drift-pulse":
+        plat = src.stand_file.get("platform", {}) or {}
+        ident = plat.get("identity", {}) or {}
+        if ident:
+            gyros = plat.get("gyros", {}) or {}
+            names = "; ".join(
+                f"{g}: " + ", ".join(
+                    str(v) for v in (spec.get("model"), spec.get("serial") and
+                                     f"serial {spec['serial']}") if v)
+                if isinstance(spec, Mapping) and (spec.get("model") or spec.get("serial"))
+                else f"{g}: serial not given in the stand file"
+                for g, spec in gyros.items())
+            text = f"{_text(ident.get('maker'))} {_text(ident.get('model'))}"
+            if names:
+                text += f", with its gyros ({names})"
+            return text, _text(ident.get("serial"))
+        return ("gyro platform (identity not given in the stand file's platform.identity)",
+                NOT_RECORDED)
+    stand = _stand(src)
+    return f"{_text(stand.get('maker'))} {_text(stand.get('model'))}", _text(stand.get("serial"))
+
+
+def _identification(src: Sources, issue: Issue, kind: str,
                     checks: list[dict[str, Any]]) -> tuple[Any, ...]:
     stand = _stand(src)
-    cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
+    cert = _cert(src)
     dates = src.get("dates", {}) or {}
     started = dates.get("started_utc") or _first_event(src, "session_start")
     completed = dates.get("completed_utc") or _last_event(src, "completed")
+    item, serial = _item(src, kind)
     rows: list[tuple[str, str]] = [
-        ("Certificate number", cid),
+        ("Certificate number", issue.number),
+        ("Revision", f"{issue.revision}" + (f"; replaces certificate {issue.replaces}, "
+                                            "which is withdrawn" if issue.replaces else
+                                            " (first issue)")),
         ("Title of the work", _text(src.get("title") or src.procedure_file.get("title"))),
         ("Issued by", _text(cert.get("laboratory"))),
-        ("Customer", _text(cert.get("customer"))),
-        ("Item calibrated", f"{_text(stand.get('maker'))}, {_text(stand.get('model'))}"),
-        ("Serial number", _text(stand.get("serial"))),
+        ("Laboratory address", _text(cert.get("address"))),
     ]
-    if stand.get("location"):
-        rows.append(("Location of the item", _text(stand["location"])))
+    if cert.get("accreditation"):
+        rows.append(("Accreditation", _text(cert["accreditation"])))
+    rows += [
+        ("Customer", _text(cert.get("customer"))),
+        ("Customer address", _text(cert.get("customer_address"))),
+        ("Customer contact", _text(cert.get("customer_contact"))),
+        ("Item calibrated", item),
+        ("Serial number", serial),
+    ]
+    if kind == "rate-ladder":
+        rows.append(("Item: what was calibrated",
+                     ", ".join(f"axis {a}" for a in (src.get("axes", {}) or {}))
+                     + "; rates are signed in each axis's positive sense (the drive's "
+                       "positive count direction), angles from the zero mark"))
+    if kind == "drift-pulse":
+        rows.append(("Test stand used", f"{_text(stand.get('maker'))} "
+                                        f"{_text(stand.get('model'))}, serial "
+                                        f"{_text(stand.get('serial'))}"))
+    site = cert.get("site") or stand.get("location")
+    rows.append(("Site of calibration", _text(site)))
     if stand.get("simulated"):
-        rows.append(("Nature of the item", "SIMULATED stand (instrument twins on real "
-                     "channels): these results describe no physical table"))
+        rows.append(("Nature of the work", "SIMULATED run (instrument twins on real channels): "
+                     "these results describe no physical item; every page is marked"))
     rows += [
         ("Procedure", {"rate-ladder": "rate ladder (docs/method.md part A)",
                        "drift-pulse": "drift by alternating-sign pulses (docs/method.md part B)"}
@@ -330,14 +416,17 @@ def _identification(src: Sources, cid: str, issue: str, kind: str,
         ("Work started", _utc(started)),
         ("Work ended", (_utc(completed) + (" (aborted)" if src.get("aborted") else ""))
          if completed else "not completed"),
-        ("Date of issue", issue),
-        ("Statement of conformity", _overall(src, checks)),
+        ("Date of issue (authorisation)", issue.issue_date),
+        ("Statement of conformity", _overall(src, checks, kind)),
     ]
-    skip = {"laboratory", "customer", "number", "id", "certificate_id", "prefix", "signers"}
+    skip = {"laboratory", "customer", "number", "id", "certificate_id", "prefix", "signers",
+            "signatories", "address", "accreditation", "customer_address", "customer_contact",
+            "site", "lab", "authoritative", "specification"}
     rows += [(_label(k), _text(v)) for k, v in cert.items() if k not in skip]
     blocks: list[Any] = [Fields(tuple(rows))]
     run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else NOT_RECORDED)
     blocks.append(software_note(src.meta, src.events, bench.__version__, str(run_dir)))
+    blocks.append(Para(AUTHORITATIVE, "note"))
     return tuple(blocks)
 
 
@@ -350,19 +439,76 @@ def _last_event(src: Sources, kind: str) -> str | None:
     return found[-1] if found else None
 
 
-def _overall(src: Sources, checks: list[dict[str, Any]]) -> str:
+def check_class(c: Mapping[str, Any]) -> str:
+    """'consistency' (physics cross-check, not conformity), 'not-assessed' (excluded from
+    conformity, e.g. a σ at the timing floor), or 'conformity'."""
+    if str(c.get("rule")) == "consistency":
+        return "consistency"
+    if str(c.get("verdict")) == "not-assessed":
+        return "not-assessed"
+    return "conformity"
+
+
+#: what each procedure measures that a datasheet may specify, beside the checked quantities
+MEASURED = {
+    "rate-ladder": (("rate_error", "per-turn rate error"),
+                    ("rate_instability", "per-turn rate instability"),
+                    ("systematic", "once-per-revolution and higher harmonics of the rate"),
+                    ("mains", "mains-frequency ripple"),
+                    ("intra_turn_instability", "intra-turn instability"),
+                    ("stability_over_angle", "rate stability over 1°, 10°, 360°")),
+    "drift-pulse": (("own_drift", "own drift"), ("apparent_drift", "apparent drift"),
+                    ("azimuth", "platform azimuth")),
+}
+
+
+def _coverage(checks: list[dict[str, Any]], kind: str) -> tuple[list[str], list[str], int]:
+    """(quantities the verdict covers, quantities not assessed, checks excluded)."""
+    conf = [c for c in checks if check_class(c) == "conformity"]
+    covered = list(dict.fromkeys(str(c.get("quantity")) for c in conf))
+    names = [QUANTITY_NAMES.get(q, _label(q)) for q in covered]
+    not_assessed = [text for key, text in MEASURED.get(kind, ()) if key not in covered]
+    excluded = sum(1 for c in checks if check_class(c) == "not-assessed")
+    return names, not_assessed, excluded
+
+
+def _scope_line(src: Sources, checks: list[dict[str, Any]], kind: str) -> str:
+    names, not_assessed, excluded = _coverage(checks, kind)
+    if not names:
+        return "No statement of conformity: the procedure states no tolerances."
+    text = "The verdict covers: " + ", ".join(names) + "."
+    if excluded:
+        text += f" {excluded} check(s) could not be assessed (section Conformity)."
+    if not_assessed:
+        text += " Not assessed: " + ", ".join(not_assessed) + "."
+    return text
+
+
+def _overall(src: Sources, checks: list[dict[str, Any]], kind: str = "rate-ladder") -> str:
     verdict = str(src.get("verdict", "incomplete")).lower()
-    failed = [c for c in checks if str(c.get("verdict", "")).lower() != "pass"]
+    conf = [c for c in checks if check_class(c) == "conformity"]
+    failed = [c for c in conf if str(c.get("verdict", "")).lower() != "pass"]
+    cons = [c for c in checks if check_class(c) == "consistency"]
     rule = _rule_name(src.get("decision_rule"))
-    if verdict == "pass":
-        return (f"PASS: all {len(checks)} checks met the tolerances under the {rule} "
-                "decision rule (section Conformity)" if checks else
-                "PASS: no check failed (the procedure states no tolerances)")
-    if verdict == "fail":
-        return (f"FAIL: {len(failed)} of {len(checks)} checks did not meet the tolerances under "
-                f"the {rule} decision rule (section Conformity)")
-    return ("INCOMPLETE: the run did not complete every step; no statement of conformity is "
-            "made for the points not measured")
+    scope = _scope_line(src, checks, kind)
+    cons_text = ""
+    if cons:
+        bad = sum(1 for c in cons if str(c.get("verdict")).lower() != "pass")
+        cons_text = (f" Consistency checks (not conformity): {len(cons) - bad} of {len(cons)} "
+                     "consistent" + (", the measurement is in doubt" if bad else "") + ".")
+    if verdict == "incomplete":
+        return ("INCOMPLETE: the run did not complete every step; no statement of conformity is "
+                "made for the points not measured." + cons_text)
+    if not conf:
+        return (f"{verdict.upper()}: no conformity check was made (the procedure states no "
+                "tolerances)." + cons_text)
+    if not failed:
+        head = (f"PASS: all {len(conf)} conformity checks met the specification under the "
+                f"{rule} decision rule (section Conformity).")
+    else:
+        head = (f"FAIL: {len(failed)} of {len(conf)} conformity checks did not meet the "
+                f"specification under the {rule} decision rule (section Conformity).")
+    return f"{head} {scope}{cons_text}"
 
 
 def _rule_name(rule: Any) -> str:
@@ -370,12 +516,14 @@ def _rule_name(rule: Any) -> str:
             "simple": "simple acceptance"}.get(str(rule or "simple"), str(rule))
 
 
-def _instruments(src: Sources) -> tuple[Any, ...]:
+def _instruments(src: Sources, kind: str) -> tuple[Any, ...]:
     stand = _stand(src)
+    item, serial = _item(src, kind)
+    what = "Test stand used (the laboratory's)" if kind == "drift-pulse" else "Rate table"
     blocks: list[Any] = [Fields((
-        ("Maker", _text(stand.get("maker"))),
-        ("Model", _text(stand.get("model"))),
-        ("Serial number", _text(stand.get("serial"))),
+        ("Item calibrated", f"{item}, serial {serial}"),
+        (what, f"{_text(stand.get('maker'))} {_text(stand.get('model'))}, serial "
+               f"{_text(stand.get('serial'))}"),
         ("Stand file", f"{_text(stand.get('file') or src.meta.get('stand_file'))}"),
         ("Stand file SHA-256", _text(stand.get("sha256") or src.meta.get("stand_sha256"))),
     ))]
@@ -391,11 +539,18 @@ def _instruments(src: Sources) -> tuple[Any, ...]:
     for axis in dict.fromkeys([*ids, *stand_axes]):
         roles = dict.fromkeys([*(ids.get(axis) or {}), *(stand_axes.get(axis) or {})])
         for role in roles:
+            if role == "counter_reference":
+                continue   # in the traceability table
             ident = (ids.get(axis) or {}).get(role)
             conf = (stand_axes.get(axis) or {}).get(role) or {}
+            conf = {k: v for k, v in conf.items() if k != "calibration"} \
+                if isinstance(conf, Mapping) else conf
             setting = _text(conf) if conf else ""
-            rows.append((axis, role, _text(ident) if ident else "identity not recorded",
-                         setting or "—"))
+            text = _text(ident) if ident else "identity not recorded"
+            if role == "fog" and ident:
+                text = ("as configured in the stand file (a FOG answers no identity query): "
+                        + text)
+            rows.append((axis, role, text, setting or "—"))
     if rows and all(r[3] == "—" for r in rows):
         blocks.append(Table(("Axis", "Instrument", "Identity (as reported)"),
                             tuple(r[:3] for r in rows), widths=(0.9, 1.0, 5.0), align="lll",
@@ -408,7 +563,74 @@ def _instruments(src: Sources) -> tuple[Any, ...]:
                                     "(*IDN?, drive identity objects, FOG model)"))
     else:
         blocks.append(Para("Instrument identities: not recorded.", "note"))
+    blocks += _shared_identities(rows)
+    blocks += _traceability(src)
     return tuple(blocks)
+
+
+def _shared_identities(rows: list[tuple[str, str, str, str]]) -> list[Any]:
+    """Two instruments of one kind answering with one identity (maker, model, serial) are
+    either one instrument or misreporting: the reader must be told."""
+    seen: dict[tuple[str, str], list[str]] = {}
+    for axis, role, ident, _ in rows:
+        if role in ("counter", "drive") and ident and not ident.startswith("identity not"):
+            seen.setdefault((role, ident), []).append(axis)
+    return [Para(f"CHECK: the {role}s of axes {', '.join(axes)} report the same identity "
+                 f"({ident}); two instruments cannot share a serial number. On a simulated "
+                 "bench the twins answer their model's default identity.", "strong")
+            for (role, ident), axes in seen.items() if len(axes) > 1]
+
+
+def _work_date(src: Sources) -> dt.date | None:
+    stamp = ((src.get("dates", {}) or {}).get("started_utc")
+             or _first_event(src, "session_start") or src.meta.get("created_utc"))
+    try:
+        return dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00")).date()
+    except (TypeError, ValueError):
+        return None
+
+
+def _traceability(src: Sources) -> tuple[Any, ...]:
+    """Where each measured quantity's traceability to the SI comes from (17025 7.8.4.1 c):
+    the stand file's calibration certificates, and the counter reference as read back."""
+    items = traced_items(src.stand_file)
+    if not items:
+        return (Para("Metrological traceability: the stand file states no calibration "
+                     "certificates; NOT SHOWN for any instrument.", "strong"),)
+    on = _work_date(src)
+    rows = []
+    overdue_seen = False
+    for t in items:
+        if not t.stated:
+            status = ("NOT TRACEABLE: no calibration certificate in the stand file"
+                      if t.where.rsplit(".", 1)[-1] in MEASURING_ROLES else
+                      "none stated (no measured value rests on it)")
+        elif on is not None and t.overdue(on):
+            overdue_seen = True
+            status = f"PAST DUE on the date of the work ({on.isoformat()})"
+        else:
+            status = "valid on the work's date" if on else "validity not checked"
+        rows.append((t.item, _text(t.certificate) if t.stated else "—",
+                     _text(t.issuer) if t.stated else "—",
+                     t.due.isoformat() if t.due else "—", _text(t.traces) if t.traces else
+                     "—", status))
+    notes = ["From the stand file (its SHA-256 above). Due dates are compared with the date "
+             "the work started."]
+    if overdue_seen:
+        notes.append("An instrument past its calibration due date was used: the run warned "
+                     "at its start; results depending on it are not shown to be traceable.")
+    ids = src.get("instruments", {}) or {}
+    refs = [(a, v.get("counter_reference")) for a, v in ids.items()
+            if isinstance(v, Mapping) and v.get("counter_reference")]
+    stand_axes = src.stand_file.get("axes", {}) or {}
+    for axis, ref in refs:
+        claimed = ((stand_axes.get(axis) or {}).get("counter") or {}).get("reference")
+        notes.append(f"Counter reference, axis {axis}: read back from the counter: {ref}"
+                     + (f"; the stand file states {claimed}" if claimed else "") + ".")
+    return (Table(("Item", "Certificate", "Issued by", "Due", "Quantity traced",
+                   "Status"), tuple(rows), widths=(1.9, 2.0, 1.6, 1.2, 2.2, 1.5),
+                  align="llllll", caption="Metrological traceability: calibration of the "
+                  "instruments and references used", notes=tuple(notes)),)
 
 
 def _method(src: Sources, kind: str) -> tuple[Any, ...]:
@@ -470,7 +692,9 @@ def _conditions(src: Sources) -> tuple[Any, ...]:
     if not cond:
         return (Para("No conditions were recorded in the procedure file."),
                 *prompt_blocks(src.events))
-    return (Fields(tuple((_label(k), _text(v)) for k, v in cond.items())),
+    return (Para("As stated in the procedure file: the nominal conditions of the laboratory, "
+                 "not measured during this run.", "note"),
+            Fields(tuple((_label(k), _text(v)) for k, v in cond.items())),
             *prompt_blocks(src.events))
 
 
@@ -511,6 +735,20 @@ def _instability_u(r: Mapping[str, Any]) -> tuple[float | None, bool]:
     return u, u is not None
 
 
+def sigma_presented(r: Mapping[str, Any], u: float | None) -> Presented:
+    """Eq. 2's σ under the one rule, with the timing floor as its zero: resolved when
+    σ − U > floor (the analysis's `rate_instability_resolved`), else '< L', L the
+    one-sided chi-square upper limit (`rate_instability_upper_rel`) or σ + U."""
+    s = _num(r.get("rate_instability_rel"))
+    floor = _num(r.get("rate_instability_floor_rel"))
+    resolved = r.get("rate_instability_resolved")
+    if resolved is None:
+        resolved = (s is not None and u is not None
+                    and s - u > (floor if floor is not None else 0.0))
+    upper = _num(r.get("rate_instability_upper_rel"))
+    return present(s, u, resolved=bool(resolved), upper=upper)
+
+
 def _u_of_std(s: float | None, n: Any) -> float | None:
     """U (k = 2) of a standard deviation from n values, when the result does not give it."""
     n = _num(n)
@@ -528,6 +766,16 @@ class Averaged:
     floor: float | None
     corrected: float | None
     blocks: int | None
+    upper: float | None = None        # k = 2 upper limit of the corrected figure
+    resolved: bool | None = None
+
+    @property
+    def sensitivity(self) -> float | None:
+        """The smallest table figure these n windows could resolve: where the excess
+        variance equals 2 u of the measured variance, (8 / (n - 1))^(1/4) * measured."""
+        if self.raw is None or not self.blocks or self.blocks < 2:
+            return None
+        return self.raw * (8.0 / (self.blocks - 1)) ** 0.25
 
 
 def _averaged(r: Mapping[str, Any]) -> list[Averaged]:
@@ -548,9 +796,18 @@ def _averaged(r: Mapping[str, Any]) -> list[Averaged]:
         approx = u is None
         if approx:
             u = _u_of_std(raw, d.get("blocks"))
+        corrected, upper = _num(d.get("corrected_rel")), _num(d.get("corrected_upper_rel"))
+        resolved = d.get("resolved")
+        if resolved is None:   # an older result: the k = 2 test on the excess variance
+            resolved = bool(corrected) and u is not None and raw is not None \
+                and corrected ** 2 > 2 * raw * u
+        if upper is None and raw is not None and u is not None:
+            fl = _num(d.get("floor_rel")) or 0.0
+            upper = math.sqrt(max(raw * raw - fl * fl, 0.0) + 2 * raw * u)
         out.append(Averaged(float(d["angle_deg"]), raw, u, approx and u is not None,
-                            _num(d.get("floor_rel")), _num(d.get("corrected_rel")),
-                            int(d["blocks"]) if _num(d.get("blocks")) is not None else None))
+                            _num(d.get("floor_rel")), corrected,
+                            int(d["blocks"]) if _num(d.get("blocks")) is not None else None,
+                            upper, bool(resolved)))
     return sorted(out, key=lambda x: x.angle_deg)
 
 
@@ -559,15 +816,18 @@ def _ladder_results(src: Sources, number: str, checks: list[dict[str, Any]]
     axes = src.get("axes", {}) or {}
     out = [Section(number, "Results", (Para(
         "Per axis, commanded rate and direction. Each value is followed by its expanded "
-        "uncertainty U (k = 2, about 95 %). Signed rates: + is the table's positive sense."),),
+        "uncertainty U (k = 2, about 95 %). Signed rates: + is the table's positive sense."),
+        Para("Quantities that may not be resolved. " + RESOLUTION_RULE, "note")),
         )]
     sub = 0
+    # one unit per quantity on the whole certificate, whatever the axis
+    every = [r for ax in axes.values() for r in ax.get("rates", []) if isinstance(r, dict)]
     for axis, ax in axes.items():
         rates = [r for r in ax.get("rates", []) if isinstance(r, dict)]
         pairs = [p for p in ax.get("pairs", []) if isinstance(p, dict)]
         sub += 1
         out.append(Section(f"{number}.{sub}", f"Axis {axis}",
-                           _axis_blocks(axis, rates, pairs, ax, checks), level=2))
+                           _axis_blocks(axis, rates, pairs, ax, checks, every), level=2))
     figs = _across_axes(axes)
     if figs:
         sub += 1
@@ -580,19 +840,22 @@ def _ladder_results(src: Sources, number: str, checks: list[dict[str, Any]]
 
 
 def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, Any]],
-                 ax: Mapping[str, Any], checks: list[dict[str, Any]]) -> tuple[Any, ...]:
+                 ax: Mapping[str, Any], checks: list[dict[str, Any]],
+                 every: list[dict[str, Any]]) -> tuple[Any, ...]:
+    """One axis's results; `every` is every axis's rates, so that one quantity has one
+    unit on the whole certificate."""
     blocks: list[Any] = []
     # A1/A2 per-turn
-    err_unit = rel_unit(*[v for r in rates for v in (_num(r.get("rate_error_rel")),
+    err_unit = rel_unit(*[v for r in every for v in (_num(r.get("rate_error_rel")),
                                                       _num(r.get("rate_error_u_rel")))],
-                        *[t for c in checks if c.get("axis") == axis
-                          and c.get("quantity") == "rate_error"
+                        *[t for c in checks if c.get("quantity") == "rate_error"
                           for t in (_num(c.get("tolerance_rel")),)])
     inst_us = [_instability_u(r) for r in rates]
-    inst_unit = rel_unit(*[_num(r.get("rate_instability_rel")) for r in rates],
-                         *[u for u, _ in inst_us])
+    inst_unit = rel_unit(*[_num(r.get("rate_instability_rel")) for r in every],
+                         *[_instability_u(r)[0] for r in every])
     rows = []
     approximated = False
+    unresolved_sigma = False
     for r, (iu, approx) in zip(rates, inst_us, strict=True):
         approximated |= approx
         set_rate = _num(r.get("set_rate_dps"))
@@ -602,16 +865,24 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
             mean = sum(cr) / len(cr)
         eu = _num(r.get("rate_error_u_rel"))
         mean_u = eu * abs(set_rate) if eu is not None and set_rate else None
+        sigma = sigma_presented(r, iu)
+        unresolved_sigma |= not sigma.resolved
         rows.append((_rate(set_rate), _text(r.get("turns")),
                      format_value_u(mean, mean_u, signed=True, sig_without_u=10).joined(),
                      _vu(r.get("rate_error_rel"), eu, err_unit, signed=True),
-                     _vu(r.get("rate_instability_rel"), iu, inst_unit) + ("*" if approx else ""),
-                     format_value_u(_num(r.get("rate_instability_floor_rel")), None,
-                                    inst_unit.scale, sig_without_u=2).value
+                     present(_num(r.get("rate_instability_rel")), iu, inst_unit.scale,
+                             resolved=sigma.resolved, upper=sigma.limit).text
+                     + ("*" if approx and sigma.resolved else ""),
+                     format_sig(_num(r.get("rate_instability_floor_rel")) * inst_unit.scale, 2)
                      if _num(r.get("rate_instability_floor_rel")) is not None else "—",
                      verdict_label(r.get("verdict"))))
-    notes = ["Timing floor: the σ that the counter's and the zero-mark sensor's timing "
-             "errors alone would give (docs/method.md A1); a σ near it is not resolved."]
+    notes = ["Timing floor of σ = ΔT / T, with ΔT = √2 · Δ_edge the timing of one period "
+             "(section 3, A1): the σ the counter's and the zero-mark sensor's timing errors "
+             "alone would give."]
+    if unresolved_sigma:
+        notes.append("'< L': σ is not resolved above the timing floor (σ − U ≤ floor): L is "
+                     "its one-sided 97.5 % upper limit for normal per-turn rates (chi-square, "
+                     "N − 1 degrees of freedom); such a σ is left out of conformity.")
     if approximated:
         notes.append("* U of σ from the chi-square approximation U = 2σ/√(2(N−1)) for N turns "
                      "(normal per-turn rates); the result did not carry it.")
@@ -647,12 +918,14 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
         notes = []
         if has_drift:
             header.append("Bias drift ± U, °/s per h")
-            methods_used = sorted({str(p.get("method")) for p in pairs if p.get("method")})
+            methods_used = sorted({CALIBRATION_METHODS.get(str(p.get("method")),
+                                                           str(p.get("method")))
+                                   for p in pairs if p.get("method")})
             sources = sorted({str(p.get("drift_source")) for p in pairs
                               if p.get("drift_source")})
             notes.append("ω0 is the bias at the pair's reference time; the FOG's bias drift "
                          "during the pair is estimated and removed"
-                         + (f" (method {', '.join(methods_used)}" if methods_used else "")
+                         + (f" ({'; '.join(methods_used)}" if methods_used else "")
                          + (f"; drift from {', '.join(sources)})" if sources else
                             (")" if methods_used else "")) + ".")
         for p in pairs:  # a resumed pair: which half came from which session (docs/resume.md)
@@ -669,7 +942,7 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                                     "(docs/method.md A3, eqs. 5-6)", notes=tuple(notes)))
     # A4 systematic
     sys_rows, mains_rows = [], []
-    amp_unit = rel_unit(*[_num(h.get("amplitude_rel")) for r in rates
+    amp_unit = rel_unit(*[_num(h.get("amplitude_rel")) for r in every
                           for h in (r.get("systematic") or {}).get("harmonics") or []])
     for r in rates:
         s = r.get("systematic") or {}
@@ -677,25 +950,27 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
             a, au = _num(h.get("amplitude_rel")), _num(h.get("amplitude_u_rel"))
             w = abs(_num(r.get("set_rate_dps")) or 0.0)
             detected = h.get("detected")
-            if detected is None:
-                detected = a is None or au is None or a > au
-            significant = "" if detected else " (not significant)"
+            resolved = bool(detected) if detected is not None else is_resolved(a, au)
             sys_rows.append((_rate(r.get("set_rate_dps")), _text(h.get("order")),
-                             _vu(a, au, amp_unit) + significant,
-                             format_value_u(a * w if a is not None else None,
-                                            au * w if au is not None else None).joined(),
-                             _vu(h.get("phase_deg"), h.get("phase_u_deg"), signed=True)))
+                             present(a, au, amp_unit.scale, resolved=resolved).text,
+                             present(a * w if a is not None else None,
+                                     au * w if au is not None else None,
+                                     resolved=resolved).text,
+                             present_phase(_num(h.get("phase_deg")), _num(h.get("phase_u_deg")),
+                                           resolved)))
         m = s.get("mains") or {}
         if m:
             w = abs(_num(r.get("set_rate_dps")) or 0.0)
             a, au = _num(m.get("amplitude_dps")), _num(m.get("amplitude_u_dps"))
-            quiet = " (not significant)" if m.get("detected") is False else ""
+            detected = m.get("detected")
+            resolved = bool(detected) if detected is not None else is_resolved(a, au)
             mains_rows.append((_rate(r.get("set_rate_dps")), _text(m.get("frequency_hz")),
-                               _vu(a, au) + quiet,
-                               format_value_u(a / w if a is not None and w else None,
-                                              au / w if au is not None and w else None,
-                                              PERCENT.scale).joined(),
-                               _vu(m.get("phase_deg"), m.get("phase_u_deg"), signed=True)))
+                               present(a, au, resolved=resolved).text,
+                               present(a / w if a is not None and w else None,
+                                       au / w if au is not None and w else None,
+                                       PERCENT.scale, resolved=resolved).text,
+                               present_phase(_num(m.get("phase_deg")),
+                                             _num(m.get("phase_u_deg")), resolved)))
     if sys_rows:
         blocks.append(Table(("Set rate, °/s", "Order h", f"Amplitude ± U, {amp_unit.name} "
                              "of ω_set", "Amplitude ± U, °/s", "Phase p_h ± U, °"),
@@ -703,9 +978,10 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                             caption=f"Axis {axis}: systematic intra-turn component, fitted "
                                     "harmonics Δω_sys = ω_set·Σ a_h cos(hφ + p_h) "
                                     "(docs/method.md A4)",
-                            notes=("(not significant): the amplitude is not detected above "
-                                   "its uncertainty; it is consistent with zero and its phase "
-                                   "is meaningless.",)))
+                            notes=("'< L': the amplitude is not resolved (a ≤ U, the one "
+                                   "rule of section 6); L = a + U is its one-sided upper "
+                                   "limit, and its phase, which then means nothing, is "
+                                   "printed '—'.",)))
     if mains_rows:
         blocks.append(Table(("Set rate, °/s", "Frequency, Hz", "Amplitude ± U, °/s",
                              "Amplitude ± U, % of ω_set", "Phase ± U, °"), tuple(mains_rows),
@@ -716,29 +992,39 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                                    "direction's record. Grid-frequency wander during the "
                                    "record (of the order of 1 / record length or more) "
                                    "spreads the tone and lowers the amplitude found; "
-                                   "(not significant) as for the harmonics.",)))
+                                   "'< L' and '—' as for the harmonics.",)))
     blocks += _figure(f"Axis {axis}: systematic component vs table angle with the fitted "
                       "harmonics (cf. paper figs. 8-9)",
                       plots.systematic, axis, rates, amp_unit.scale, amp_unit.name)
     # A5 intra-turn
-    blocks += _intra_blocks(axis, rates, ax.get("noise_floor") or {})
+    blocks += _intra_blocks(axis, rates, ax.get("noise_floor") or {}, every)
     return tuple(blocks)
 
 
 def _corrected_cell(r: Mapping[str, Any], unit: RelUnit) -> str:
-    """Floor-corrected instability: value ± U, or value with its k = 2 upper limit, or only
-    the limit when the table's own part is not resolved above the FOG's floor."""
+    """Floor-corrected instability under the one rule: value ± U when resolved and a U is
+    given, else its k = 2 upper limit '< L' (never a bare value)."""
     intra = r.get("intra_turn") or {}
     value = _num(r.get("intra_turn_instability_corrected_rel"))
     u = _num(r.get("intra_turn_instability_corrected_u_rel"))
     upper = _num(intra.get("corrected_upper_rel"))
-    if u is not None or upper is None or not upper > 0:   # a noiseless (simulated) FOG: 0
-        return _vu(value, u, unit)
-    limit, decimals = format_limit(upper * unit.scale)
-    if intra.get("resolved") is False or value is None:
-        return f"< {limit} (not resolved)"
-    return f"{format_fixed(value * unit.scale, decimals)} (≤ {limit})"
+    resolved = intra.get("resolved")
+    if u is not None and resolved is not False:
+        return present(value, u, unit.scale, resolved=True).text
+    if resolved and value is not None and upper is not None and upper > value:
+        # the limit's distance from the value is its k = 2 half-width (one-sided)
+        return present(value, upper - value, unit.scale, resolved=True).text
+    if upper is None and value == 0.0:
+        return "0 (noiseless FOG)"   # a simulated FOG without noise: nothing to remove
+    return present(value, None, unit.scale, resolved=False, upper=upper).text
 
+
+#: the analysis's names for its cross-calibration methods, in words (docs/method.md A3)
+CALIBRATION_METHODS = {
+    "lsq-drift": "k, ω0 and a linear bias drift fitted by least squares to the halves' means",
+    "eq5-6": "k and ω0 from eqs. 5-6",
+    "eq5-6, drift-corrected": "k and ω0 from eqs. 5-6 after removing the bias drift",
+}
 
 BUDGET_TERMS = (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
                 ("repeatability_u_rel", "repeatability (Type A)"))
@@ -783,8 +1069,8 @@ def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
                  notes=tuple(notes))
 
 
-def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, Any]
-                  ) -> list[Any]:
+def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, Any],
+                  every: list[dict[str, Any]]) -> list[Any]:
     if not any(r.get("intra_turn_instability_rel") is not None for r in rates):
         return []
     raws = [_num(r.get("intra_turn_instability_rel")) for r in rates]
@@ -797,10 +1083,10 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
             approx |= u is not None
         raw_us.append(u)
     floors = [_num((r.get("intra_turn") or {}).get("floor_rel")) for r in rates]
-    corr = [_num(r.get("intra_turn_instability_corrected_rel")) for r in rates]
-    uppers = [_num((r.get("intra_turn") or {}).get("corrected_upper_rel")) for r in rates]
-    raw_unit = rel_unit(*raws)
-    corr_unit = rel_unit(*corr, *uppers)
+    raw_unit = rel_unit(*[_num(r.get("intra_turn_instability_rel")) for r in every])
+    corr_unit = rel_unit(*[_num(r.get("intra_turn_instability_corrected_rel")) for r in every],
+                         *[_num((r.get("intra_turn") or {}).get("corrected_upper_rel"))
+                           for r in every])
     rows = []
     for r, raw, u, fl in zip(rates, raws, raw_us, floors, strict=True):
         rows.append((_rate(r.get("set_rate_dps")),
@@ -831,41 +1117,75 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
             text += f" at {_num(floor.get('rate_hz')):g} Hz"
         if _num(floor.get("duration_s")) is not None:
             text += f", {_num(floor.get('duration_s')):g} s record at rest"
-        notes.append(text + ". Floor-corrected = √(raw² − floor²); (≤ x) is its upper limit "
-                            "at k = 2; 'not resolved' when the table's own part does not "
-                            "stand out of the FOG's noise.")
+        notes.append(text + ". Floor-corrected = √(raw² − floor²) ± U when the table's own "
+                            "part stands out of the FOG's noise (raw² − floor² > its U, the "
+                            "one rule); otherwise '< L', L = √(max(raw² − floor², 0) + U) "
+                            "its one-sided k = 2 upper limit.")
     if approx:
         notes.append("* U of the raw value from 2s/√(2(n−1)) over its n samples, assuming "
                      "independent samples; the result did not carry it.")
     blocks: list[Any] = [Table(header, tuple(rows), widths=(1.1, 2.0, 1.4, 2.2),
                                align="rrrr", caption=f"Axis {axis}: intra-turn instability "
                                "std(Δω_rand)/|ω_set| (docs/method.md A5)", notes=tuple(notes))]
-    averaged = [(r, a) for r in rates for a in _averaged(r)]
-    if averaged:
-        units = {ang: rel_unit(*[v for _, a in averaged if a.angle_deg == ang
-                                 for v in (a.raw, a.corrected)])
-                 for ang in {a.angle_deg for _, a in averaged}}
-        rows = []
-        for r, a in averaged:
-            unit = units[a.angle_deg]
-            rows.append((_rate(r.get("set_rate_dps")), f"{a.angle_deg:g}",
-                         _vu(a.raw, a.u, unit) + ("*" if a.u_approx else ""),
-                         format_value_u(a.floor, None, unit.scale, sig_without_u=2).value
-                         if a.floor is not None else "—",
-                         format_value_u(a.corrected, None, unit.scale, sig_without_u=2).value
-                         if a.corrected else "not resolved",
-                         unit.name, _text(a.blocks)))
-        notes = ["Standard deviation of the random part averaged over consecutive windows of "
-                 "the stated table angle, relative to |ω_set|: comparable with a rate-table "
-                 "datasheet's rate stability over 1°, 10° or 360°."]
-        if any(a.u_approx for _, a in averaged):
-            notes.append("* U from 2s/√(2(n−1)) over the n windows.")
-        blocks.append(Table(("Set rate, °/s", "Window, °", "Raw ± U", "FOG floor",
-                             "Floor-corrected", "Unit", "Windows"), tuple(rows),
-                            widths=(1.1, 0.8, 2.0, 1.2, 1.4, 0.6, 0.9), align="rrrrrcr",
-                            caption=f"Axis {axis}: random part averaged over an angle "
-                                    "(docs/method.md A5)", notes=tuple(notes)))
+    blocks += _stability_blocks(axis, rates)
     return blocks
+
+
+def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
+    """Rate stability over an angle, as a datasheet states it (docs/method.md A5): over 1° and
+    10° from the FOG (with what this FOG can verify), over 360° from the counter's
+    per-turn rates, whose timing floor is far below the FOG's."""
+    rows = []
+    limited = False
+    for r in rates:
+        for a in _averaged(r):
+            if a.angle_deg >= 360.0:
+                continue   # one turn: the counter's σ below
+            unit = PPM
+            own = (present(a.corrected, a.upper - a.corrected, unit.scale, resolved=True).text
+                   if a.resolved and a.corrected is not None and a.upper is not None
+                   and a.upper > a.corrected else
+                   present(a.corrected, None, unit.scale, resolved=False, upper=a.upper).text)
+            limited |= not a.resolved
+            rows.append((_rate(r.get("set_rate_dps")), f"{a.angle_deg:g}", "FOG",
+                         present(a.raw, a.u, unit.scale, resolved=True).text
+                         + ("*" if a.u_approx else ""),
+                         format_sig(a.floor * unit.scale, 2) if a.floor is not None else "—",
+                         own, format_sig(a.sensitivity * unit.scale, 2)
+                         if a.sensitivity is not None else "—", _text(a.blocks)))
+        s, (iu, approx) = _num(r.get("rate_instability_rel")), _instability_u(r)
+        if s is not None:
+            sigma = sigma_presented(r, iu)
+            unit = PPM
+            floor = _num(r.get("rate_instability_floor_rel"))
+            rows.append((_rate(r.get("set_rate_dps")), "360", "counter",
+                         present(s, iu, unit.scale, resolved=True).text
+                         + ("*" if approx else ""),
+                         format_sig(floor * unit.scale, 2) if floor is not None else "—",
+                         present(s, iu, unit.scale, resolved=sigma.resolved,
+                                 upper=sigma.limit).text,
+                         format_sig(floor * unit.scale, 2) if floor is not None else "—",
+                         _text(r.get("turns"))))
+    if not rows:
+        return []
+    approx_note = ["* U from 2s/√(2(n−1)) over the n windows (turns); the result did not "
+                   "carry it."] if any(r[3].endswith("*") for r in rows) else []
+    notes = ["Rate stability over an angle: the standard deviation of the table rate averaged "
+             "over consecutive windows of that angle, relative to |ω_set|, as a rate-table "
+             "datasheet states it. Over 1° and 10° it comes from the FOG (floor: the FOG's own "
+             "noise averaged over the window; table's own = √(measured² − floor²)); over 360° "
+             "from the counter's per-turn rates (σ of eq. 2; floor: the timing floor).",
+             "Capability: 'smallest verifiable' is the smallest table figure this measurement "
+             "could show as resolved, (8/(n − 1))^¼ × measured for n windows, or the "
+             "counter's timing floor. A datasheet figure below it cannot be verified with "
+             "this FOG or counter; '< L' states only that the table is within L.",
+             *approx_note]
+    return [Table(("Set rate, °/s", "Window, °", "From", "Measured ± U, ppm", "Floor, ppm",
+                   "Table's own, ppm", "Smallest verifiable, ppm", "Windows"), tuple(rows),
+                  widths=(1.0, 0.8, 0.8, 1.8, 0.9, 1.6, 1.2, 0.8),
+                  align="rrlrrrrr",
+                  caption=f"Axis {axis}: rate stability over 1°, 10° and 360° (docs/method.md A5)",
+                  notes=tuple(notes))]
 
 
 def _across_axes(axes: Mapping[str, Any]) -> list[Any]:
@@ -1015,11 +1335,15 @@ def _drift_results(src: Sources, number: str) -> list[Section]:
 def decision_rule_text(rule: str) -> str:
     if rule == "guard-band":
         return ("Decision rule: guarded acceptance with a guard band equal to U (ILAC-G8:09/2019 "
-                "§4.2.2). A check PASSES when |value| + U ≤ T: the value lies inside the "
-                "tolerance T with about 95 % confidence. It FAILS when |value| > T. When "
+                "§4.2.2). A check PASSES when |value| + U ≤ T and FAILS when |value| > T. When "
                 "|value| ≤ T < |value| + U the measured value is inside the tolerance but within "
                 "U of its limit, so conformity is not shown: this is stated as FAIL (guard "
-                "band). The risk of a false accept is at most about 2.5 %.")
+                "band). For σ the guard is its one-sided 97.5 % upper limit (chi-square with "
+                "N − 1 degrees of freedom) in place of |value| + U. Risk: the probability of a "
+                "false accept is at most about 2.5 % where the value's distribution is normal "
+                "(the rate error: a mean of N turns with the small-sample factor of section 3) "
+                "or, for σ, where the per-turn rates are normal; it is not claimed for other "
+                "distributions.")
     return ("Decision rule: simple acceptance (ILAC-G8:09/2019 §4.2.1, shared risk). A check "
             "PASSES when |value| ≤ T and FAILS when |value| > T; U is reported but not used in "
             "the decision. For a value close to the limit the probability of a false accept "
@@ -1065,13 +1389,25 @@ class CheckRow:
         return vu, "—"
 
 
+def _specification(src: Sources) -> list[Any]:
+    spec = src.get("specification") or src.procedure_file.get("specification")
+    if not isinstance(spec, Mapping) or not spec.get("source"):
+        return [Para("Specification: NOT IDENTIFIED. The procedure file names no source for "
+                     "its tolerances (key specification.source); the checks below compare "
+                     "with the procedure's numbers only.", "strong")]
+    rows = [("Specification", _text(spec["source"]))]
+    for key, text in (spec.get("definitions") or {}).items():
+        name = QUANTITY_NAMES.get(str(key), QUANTITY_NAMES.get(str(key).rsplit("_", 1)[0],
+                                                              _label(str(key))))
+        rows.append((f"Definition: {name}", _text(text)))
+    return [Fields(tuple(rows))]
+
+
 def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
     rule = str(src.get("decision_rule") or (checks[0].get("rule") if checks else "simple"))
-    blocks: list[Any] = [Para(decision_rule_text(rule))]
-    if any(c.get("rule") == "consistency" for c in checks):
-        blocks.append(Para("Consistency checks compare a measured value with the value physics "
-                           "expects (e.g. the horizontal Earth rate at the site's latitude): "
-                           "PASS when they differ by no more than U."))
+    kind = src.get("procedure") or ("drift-pulse" if src.get("drift") else "rate-ladder")
+    blocks: list[Any] = [*_specification(src), Para(decision_rule_text(rule))]
+    blocks.append(Para("Scope. " + _scope_line(src, checks, kind)))
     blocks.append(Para(
         "Measurement capability (RMG 63-2003): the expanded uncertainty of a check should not "
         f"exceed 0.2-0.3 of its tolerance; a ratio U/T ≤ {CAPABILITY_LIMIT:g} is marked met."))
@@ -1085,6 +1421,8 @@ def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
                            "made and no statement of conformity is given for individual "
                            "values."))
         return tuple(blocks)
+    consistency = [c for c in checks if check_class(c) == "consistency"]
+    checks = [c for c in checks if check_class(c) != "consistency"]
     with_rate = all(_num(c.get("set_rate_dps")) is not None for c in checks)
     rows, notes = [], []
     for i, c in enumerate(checks, start=1):
@@ -1108,6 +1446,15 @@ def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
         signed = str(c.get("quantity")) not in ("rate_instability", "intra_turn_instability",
                                                 "intra_turn_instability_corrected")
         vu, tol_text = row.texts(signed)
+        if check_class(c) == "not-assessed":
+            unit = rel_unit(row.value, row.tolerance)
+            limit = _num(c.get("upper_rel"))
+            vu = present(row.value, row.u, unit.scale, resolved=False,
+                         upper=limit).with_unit(unit.name) + " (timing floor)"
+            cap = "—"
+        elif _num(c.get("upper_rel")) is not None and row.suffix == "rel":
+            unit = rel_unit(row.value, row.u, row.tolerance)
+            vu += f"; 97.5 % limit {format_limit(_num(c['upper_rel']) * unit.scale)[0]}"
         rate = _num(c.get("set_rate_dps"))
         point = _rate(rate) if with_rate else (f"{_rate(rate)} °/s" if rate is not None else "—")
         rows.append((str(i), _text(c.get("axis")), point, quantity, vu, tol_text, cap, label))
@@ -1123,10 +1470,33 @@ def _conformity(src: Sources, checks: list[dict[str, Any]]) -> tuple[Any, ...]:
         rows = [r[:2] + r[3:] for r in rows]
         del header[2], widths[2]
         align = align[:2] + align[3:]
-    blocks.append(Table(tuple(header), tuple(rows), widths=tuple(widths), align=align,
-                        caption="Conformity with the procedure's tolerances",
-                        notes=tuple(notes)))
+    if rows:
+        blocks.append(Table(tuple(header), tuple(rows), widths=tuple(widths), align=align,
+                            caption="Conformity with the specification's tolerances",
+                            notes=tuple(notes)))
+    if consistency:
+        blocks.append(_consistency_table(consistency))
     return tuple(blocks)
+
+
+def _consistency_table(checks: list[dict[str, Any]]) -> Table:
+    """Physics cross-checks: they test the measurement, not the item, and are no part of
+    the statement of conformity."""
+    rows = []
+    for c in checks:
+        row = CheckRow.of(c)
+        vu, expected = row.texts(signed=False)
+        rows.append((_text(c.get("axis")), QUANTITY_NAMES.get(str(c.get("quantity")),
+                                                             _label(str(c.get("quantity")))),
+                     vu, expected, "consistent" if str(c.get("verdict")) == "pass"
+                     else "NOT CONSISTENT"))
+    return Table(("Axis", "Quantity", "Measured ± U", "Expected", "Result"), tuple(rows),
+                 widths=(0.8, 2.2, 2.0, 2.0, 1.3), align="llrrc",
+                 caption="Consistency checks (not part of the statement of conformity)",
+                 notes=("A measured value against the value physics expects (the horizontal "
+                        "Earth rate 15.041 °/h · cos(latitude)): consistent when they differ by "
+                        "no more than U. An inconsistency puts the measurement in doubt (e.g. "
+                        "k_as, levelling); it says nothing about the item's specification.",))
 
 
 def _tolerance_table(tol: Mapping[str, Any]) -> Table:
@@ -1201,11 +1571,27 @@ def _hash_table(files: Sequence[Mapping[str, Any]], caption: str) -> Table:
                  caption=caption, mono=True)
 
 
-def _signatures(cert: Mapping[str, Any], issue: str) -> tuple[Any, ...]:
-    signers = cert.get("signers")
+def _signatures(cert: Mapping[str, Any], issue: Issue) -> tuple[Any, ...]:
+    """Named signatories with their functions (the lab's settings); the one who authorises
+    the issue dates it, and that date is the date of issue."""
+    signers = cert.get("signatories") or cert.get("signers")
+    pairs: list[tuple[str, str]] = []
+    authoriser = ""
     if isinstance(signers, list) and signers:
-        pairs = tuple((str(s.get("role", "")), str(s.get("name", ""))) if isinstance(s, dict)
-                      else (str(s), "") for s in signers)
+        for sg in signers:
+            if not isinstance(sg, Mapping):
+                pairs.append((str(sg), ""))
+                continue
+            function = str(sg.get("function") or sg.get("role") or "")
+            name = str(sg.get("name") or "")
+            pairs.append((function, name))
+            if sg.get("authorises") or "authoris" in function.lower():
+                authoriser = authoriser or f"{name}, {function}"
     else:
-        pairs = (("Calibration performed by", ""), ("Reviewed and authorised by", ""))
-    return (Para(f"Date of issue: {issue}."), Signatures(pairs))
+        pairs = [("Calibration performed by", ""), ("Reviewed and authorised by", "")]
+    text = (f"Date of issue: {issue.issue_date}, the date on which this certificate was "
+            "authorised for issue" + (f" by {authoriser}." if authoriser else "."))
+    if issue.replaces:
+        text += (f" Revision {issue.revision}: it replaces certificate {issue.replaces}, "
+                 "which is withdrawn.")
+    return (Para(text), Signatures(tuple(pairs)))

@@ -19,12 +19,29 @@ A_TEXT: tuple[Para, ...] = (
          "the table top streams the instantaneous rate. The counter sees only |T|: the sign of "
          "the per-turn rate is the sign of the commanded rate."),
     Para("A1 Per-turn rate (fixed-angle method), one value per revolution i:", "strong"),
-    Para("ω_i = 360° / T_i;   error of one period  ΔT = √(Δ_counter² + Δ_trigger²),  "
-         "Δω ≈ ω·ΔT / T", "formula"),
+    Para("ω_i = 360° / T_i", "formula"),
+    Para("Timing of one zero-mark edge (standard uncertainty), of one period (two independent "
+         "edges) and the per-turn rate error it causes:", "body"),
+    Para("Δ_edge = √(Δ_counter² + Δ_trigger²);   ΔT = √2 · Δ_edge;   Δω/ω ≈ ΔT / T",
+         "formula"),
+    Para("The source paper's ΔT = √(Δ_counter² + Δ_trigger²) is written per edge here; a "
+         "period has two edges. The timing floor of σ printed with the results is ΔT / T, "
+         "T the mean period: the σ that edge timing alone would give.", "note"),
     Para("A2 Per-turn rate error and instability over N turns at the commanded rate ω_set:",
          "strong"),
-    Para("δ = (mean(ω_i) − ω_set) / |ω_set|     (eq. 1, reported signed)", "formula"),
+    Para("δ = (mean(ω_i) − ω_set) / ω_set     (eq. 1, signed; computed exactly so)",
+         "formula"),
+    Para("Sign convention: ω_set and ω_i carry the sign of the direction, so δ > 0 means the "
+         "table turns faster than commanded in either direction and δ < 0 slower. The source "
+         "paper's eq. 1 is |mean − ω_set| / |ω_set|, which is |δ|; the conformity checks "
+         "compare |δ| with the tolerance. mean(ω_i) is the mean over whole turns, N·360° / "
+         "(t_N − t_0).", "note"),
     Para("σ = √( Σ (ω_i − mean(ω))² / (N − 1) ) / |mean(ω)|     (eq. 2)", "formula"),
+    Para("U of δ (k = 2) combines the timing of each window's two end edges, the counter's "
+         "timebase (rectangular) and the turn-to-turn repeatability, a Type A term widened "
+         "for few turns by the small-sample factor of GUM Supplement 1, 6.4.9:", "body"),
+    Para("u_rep = σ / √N · √((N − 1) / (N − 3))  for N > 3  (t₀.₉₇₅(N − 1) / 2 for N ≤ 3);   "
+         "U = 2·√(u_timing² + u_timebase² + u_rep²)", "formula"),
     Para("Note on eq. 2: the source paper prints eq. 2 without the square root (a variance "
          "divided by the mean, which has units of °/s). This certificate uses the relative "
          "standard deviation above, which is what the paper's numbers and its text describe.",

@@ -86,6 +86,7 @@ class Document:
     footer: str
     end_text: str = "End of certificate"
     meta: dict[str, str] = field(default_factory=dict)
+    watermark: str = ""  # printed across every page (a simulated run)
 
     def figures(self) -> list[Figure]:
         return [b for s in self.sections for b in s.blocks if isinstance(b, Figure)]

@@ -64,7 +64,23 @@ class _Pdf(FPDF):
         self.set_line_width(0.4)
         self.line(self.l_margin, self.get_y() + 1, self.w - self.r_margin, self.get_y() + 1)
         self.set_text_color(0, 0, 0)
+        if self.doc.watermark:
+            self._watermark()
         self.set_y(22)
+
+    def _watermark(self) -> None:
+        """Across the page, light, under the content drawn after it; and in the header."""
+        y = self.get_y()
+        self.set_font(SANS, "B", 34)
+        self.set_text_color(238, 200, 200)
+        with self.rotation(45, x=self.w / 2, y=self.h / 2):
+            self.set_xy(0, self.h / 2 - 8)
+            self.cell(self.w, 16, self.doc.watermark, align="C")
+        self.set_font(SANS, "B", 7.5)
+        self.set_text_color(139, 0, 0)
+        self.set_xy(self.l_margin, y + 1.5)
+        self.cell(0, 3.5, self.doc.watermark, align="C")
+        self.set_text_color(0, 0, 0)
 
     def footer(self) -> None:
         self.set_y(-14)
@@ -170,7 +186,7 @@ class _Pdf(FPDF):
             self.line(x, y, x + col, y)
             self.set_xy(x, y + 1)
             self.set_font(SANS, "", 8)
-            text = f"{role}{': ' + name if name else ''}\nName, signature, date"
+            text = f"{name + ', ' if name else ''}{role}\nSignature and date"
             self.multi_cell(col, 3.8, text)
         self.set_y(y + 12)
 
@@ -195,12 +211,20 @@ def render_pdf(doc: Document) -> bytes:
              new_x=XPos.LMARGIN, new_y=YPos.NEXT)
     pdf.set_text_color(0, 0, 0)
     pdf.set_fill_color(255, 255, 255)
-    pdf.ln(3)
+    pdf.ln(1)
+    if doc.meta.get("scope"):
+        pdf.set_font(SANS, "", 8.5)
+        pdf.multi_cell(0, 4.2, doc.meta["scope"], new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+    if doc.meta.get("replaces"):
+        pdf.set_font(SANS, "B", 8.5)
+        pdf.multi_cell(0, 4.2, f"Revision {doc.meta.get('revision')}: replaces certificate "
+                               f"{doc.meta['replaces']}, which is withdrawn.",
+                       new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+    pdf.ln(2)
     figure_no = 0
     for s in doc.sections:
-        if s.new_page:
-            pdf.add_page()
-        elif pdf.will_page_break(25):
+        keep = 75 if any(isinstance(b, Signatures) for b in s.blocks) else 25
+        if s.new_page or pdf.will_page_break(keep):  # a heading stays with what follows
             pdf.add_page()
         pdf.set_font(SANS, "B", 12 if s.level == 1 else 10.5)
         pdf.ln(2 if s.level == 1 else 1)

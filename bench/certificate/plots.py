@@ -68,10 +68,19 @@ def per_turn(axis: str, rates: Sequence[Mapping[str, Any]],
             y = np.array([_num(r.get(f"{key}_rel")) for r in rr]) * scale
             u = np.array([_num(r.get(f"{key}_u_rel")) for r in rr]) * scale
             u = np.where(np.isfinite(u), u, 0.0)
-            ax.errorbar(x, y, yerr=u, fmt=marker, color=color, ms=4, capsize=3, lw=1,
-                        label=label)
+            ok = np.ones(len(rr), dtype=bool)
+            if key == "rate_instability":   # a σ at the timing floor: its limit only
+                ok = np.array([r.get("rate_instability_resolved") is not False for r in rr])
+                up = np.array([_num(r.get("rate_instability_upper_rel")) for r in rr]) * scale
+                lim = ~ok & np.isfinite(up)
+                if np.any(lim):
+                    ax.plot(x[lim], up[lim], "v", color=color, ms=5, mfc="none",
+                            label=f"{label}: upper limit (not resolved)")
+            if np.any(ok):
+                ax.errorbar(x[ok], y[ok], yerr=u[ok], fmt=marker, color=color, ms=4,
+                            capsize=3, lw=1, label=label)
     for ax, key, (uname, scale), title in (
-            (a1, "rate_error", unit, "per-turn rate error δ (eq. 1)"),
+            (a1, "rate_error", unit, "per-turn rate error δ = (mean − ω_set)/ω_set (eq. 1)"),
             (a2, "rate_instability", inst_unit, "per-turn rate instability σ (eq. 2)")):
         tol = tolerances.get(key) or ()
         if len(tol) == 1:
@@ -88,6 +97,13 @@ def per_turn(axis: str, rates: Sequence[Mapping[str, Any]],
         ax.set_title(f"Axis {axis}: {title}, U (k = 2) as bars", fontsize=9)
         _rate_axis(ax, [_num(r.get("set_rate_dps")) for r in rates])
         ax.legend(fontsize=7)
+    floors = sorted({(abs(_num(r.get("set_rate_dps"))),
+                      _num(r.get("rate_instability_floor_rel")) * inst_unit[1])
+                     for r in rates if math.isfinite(_num(r.get("rate_instability_floor_rel")))})
+    if floors:
+        a2.plot([f[0] for f in floors], [f[1] for f in floors], ":", color="0.4", lw=1,
+                label="timing floor of σ")
+        a2.legend(fontsize=7)
     a1.axhline(0, color="0.5", lw=0.6)
     a2.set_yscale("log")  # a tolerance far above the values must not flatten them
     return _png(fig)
@@ -210,16 +226,27 @@ def intra_turn(axes: Mapping[str, Sequence[Mapping[str, Any]]], scale: float,
             if not q:
                 continue
             w = np.array([abs(_num(r["set_rate_dps"])) for r in q]) * (1 + 0.02 * sign)
-            for key, style, what in (("intra_turn_instability", "-", "raw"),
-                                     ("intra_turn_instability_corrected", "--",
-                                      "floor-corrected")):
-                y = np.array([_num(r.get(f"{key}_rel")) for r in q]) * scale
-                u = np.nan_to_num(np.array([_num(r.get(f"{key}_u_rel")) for r in q])) * scale
-                if np.all(~np.isfinite(y)):
-                    continue
-                ax.errorbar(w, y, yerr=u, fmt=marker + style, color=color, ms=4, capsize=2,
-                            lw=1, mfc="none" if what != "raw" else color,
-                            label=f"{label}, {what}")
+            y = np.array([_num(r.get("intra_turn_instability_rel")) for r in q]) * scale
+            u = np.nan_to_num(np.array([_num(r.get("intra_turn_instability_u_rel"))
+                                        for r in q])) * scale
+            if np.any(np.isfinite(y)):
+                ax.errorbar(w, y, yerr=u, fmt=marker + "-", color=color, ms=4, capsize=2,
+                            lw=1, label=f"{label}, raw")
+            # floor-corrected: a resolved value with its bars; an unresolved one only as
+            # its upper limit (a downward triangle), never as a point estimate
+            intra = [r.get("intra_turn") or {} for r in q]
+            res = np.array([i.get("resolved") is not False for i in intra])
+            c = np.array([_num(r.get("intra_turn_instability_corrected_rel")) for r in q])
+            up = np.array([_num(i.get("corrected_upper_rel")) for i in intra])
+            if np.any(res & np.isfinite(c)):
+                err = np.where(np.isfinite(up) & res, up - c, 0.0) * scale
+                ax.errorbar(w[res], c[res] * scale, yerr=[np.zeros(res.sum()), err[res]],
+                            fmt=marker + "--", color=color, ms=4, capsize=2, lw=1,
+                            mfc="none", label=f"{label}, floor-corrected")
+            lim = ~res & np.isfinite(up)
+            if np.any(lim):
+                ax.plot(w[lim], up[lim] * scale, "v", color=color, ms=5, mfc="none",
+                        label=f"{label}, floor-corrected: upper limit (not resolved)")
         _rate_axis(ax, [_num(r["set_rate_dps"]) for r in rr])
         ax.set_yscale("log")
         ax.set_ylabel(f"std(Δω_rand)/|ω_set|, {uname}", fontsize=8)

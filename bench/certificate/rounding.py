@@ -131,3 +131,72 @@ def rel_unit(*magnitudes: float | None) -> RelUnit:
     if finite and max(finite) < 1e-4:
         return PPM
     return PERCENT
+
+
+# -- one rule for quantities that may not be resolved (certificate, console summary) --------
+
+RESOLUTION_K = 2.0
+RESOLUTION_RULE = (
+    "One rule for every magnitude (an amplitude, a standard deviation, a floor-corrected "
+    "figure): it is resolved when it exceeds its expanded uncertainty U (k = 2), i.e. "
+    "value > 2u. A resolved magnitude is printed 'value ± U'. Otherwise it is printed "
+    "'< L', L being its one-sided upper limit at k = 2 (value + U, or the limit stated "
+    "beside it), rounded up; its phase, if any, is printed '—'. No value is printed "
+    "without its U.")
+NOT_STATED = "—"
+
+
+@dataclass(frozen=True)
+class Presented:
+    """A magnitude as printed under the one rule: `text` is 'value ± U' or '< L'."""
+
+    text: str
+    resolved: bool
+    limit: float | None = None  # the one-sided upper limit, unscaled, when not resolved
+
+    def with_unit(self, unit: str) -> str:
+        return f"{self.text} {unit}" if unit and self.text != NOT_STATED else self.text
+
+
+def is_resolved(value: float | None, u_expanded: float | None,
+                k: float = RESOLUTION_K) -> bool:
+    """The k = 2 test, stated once: |value| > U (= k u). Without a usable U nothing is
+    resolved, since nothing shows that the value stands out of its own scatter."""
+    if value is None or u_expanded is None:
+        return False
+    if not (math.isfinite(value) and math.isfinite(u_expanded)) or u_expanded <= 0:
+        return False
+    return abs(value) > u_expanded * k / RESOLUTION_K
+
+
+def present(value: float | None, u_expanded: float | None, scale: float = 1.0, *,
+            upper: float | None = None, resolved: bool | None = None,
+            signed: bool = False) -> Presented:
+    """A magnitude and its U (k = 2) as the certificate and the console print it.
+
+    `upper` is a one-sided upper limit computed elsewhere (e.g. a floor-corrected figure's);
+    without it the limit is |value| + U. `resolved` overrides the k = 2 test when the
+    caller has a stricter one (a sigma at or below the counter's timing floor). A value
+    with no usable U is never printed bare: it is printed as its limit when one is given,
+    else as '—'.
+    """
+    if resolved is None:
+        resolved = is_resolved(value, u_expanded)
+    if resolved and value is not None and u_expanded is not None:
+        return Presented(format_value_u(value, u_expanded, scale, signed).joined(), True)
+    limit = upper
+    if limit is None and value is not None and u_expanded is not None \
+            and math.isfinite(value) and math.isfinite(u_expanded) and u_expanded > 0:
+        limit = abs(value) + u_expanded
+    if limit is None or not math.isfinite(limit) or limit <= 0:
+        return Presented(NOT_STATED, False)
+    return Presented(f"< {format_limit(limit * scale)[0]}", False, limit)
+
+
+def present_phase(phase: float | None, u_expanded: float | None, amplitude_resolved: bool,
+                  signed: bool = True) -> str:
+    """A phase is printed only with a resolved amplitude; else '—' (it means nothing)."""
+    if not amplitude_resolved or phase is None or u_expanded is None \
+            or not math.isfinite(u_expanded) or u_expanded <= 0:
+        return NOT_STATED
+    return format_value_u(phase, u_expanded, signed=signed).joined()

@@ -27,8 +27,9 @@ class JsonConsole(PlainConsole):
                           + "\n")
         self.stream.flush()
 
-    def begin(self, steps: Sequence[Step], clock_now: Callable[[], float]) -> None:
-        super().begin(steps, clock_now)
+    def begin(self, steps: Sequence[Step], clock_now: Callable[[], float],
+              backlog_s: Callable[[], float] | None = None) -> None:
+        super().begin(steps, clock_now, backlog_s)
         self.emit("plan", steps=len(steps), bench_estimate_s=sum(s.estimate_s for s in steps))
 
     def show_step(self, index: int) -> None:

@@ -88,8 +88,9 @@ class LiveConsole(PlainConsole):
                          redirect_stdout=True, redirect_stderr=True)
         self._running = False
 
-    def begin(self, steps: Sequence[Step], clock_now: Callable[[], float]) -> None:
-        super().begin(steps, clock_now)
+    def begin(self, steps: Sequence[Step], clock_now: Callable[[], float],
+              backlog_s: Callable[[], float] | None = None) -> None:
+        super().begin(steps, clock_now, backlog_s)
         self._start()
 
     def _start(self) -> None:

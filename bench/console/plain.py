@@ -43,10 +43,12 @@ class PlainConsole:
         self.steps: Sequence[Step] = ()
 
     # -- what the engine reports ------------------------------------------------------
-    def begin(self, steps: Sequence[Step], clock_now: Callable[[], float]) -> None:
+    def begin(self, steps: Sequence[Step], clock_now: Callable[[], float],
+              backlog_s: Callable[[], float] | None = None) -> None:
         """The plan (or what is left of it) is about to run."""
         self.steps = steps
-        self.timeline = Timeline([s.estimate_s for s in steps], clock_now)
+        self.timeline = Timeline([s.estimate_s for s in steps], clock_now,
+                                 backlog_s=backlog_s)
 
     def step(self, index: int) -> None:
         """Step `index` starts: one line, with bench and wall time left."""

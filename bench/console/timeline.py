@@ -6,7 +6,9 @@ time or as fast as the twins keep up (`clock_speed: max`), and every step also c
 time that the plan does not count (analysing a pair, opening a file). So each finished
 step's wall time is fitted as `wall = a * estimate + b` (a: wall seconds per bench
 second, the inverse of the measured speed; b: the fixed cost of a step), and the steps
-still to do are predicted with the same line.
+still to do are predicted with the same line. Work that runs beside the steps (a pair's
+first look in the analysis worker) is waited for at the end: its measured backlog is a
+floor under the estimate.
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from bench.plan import format_duration
+
+MIN_TIMED_FRACTION = 0.01
 
 
 def format_eta(seconds: float | None) -> str:
@@ -91,11 +95,13 @@ class Timeline:
     """The plan's steps against the clock: fed by the engine, read by the consoles."""
 
     def __init__(self, estimates_s: Sequence[float], clock_now: Callable[[], float],
-                 wall_now: Callable[[], float] = time.monotonic) -> None:
+                 wall_now: Callable[[], float] = time.monotonic,
+                 backlog_s: Callable[[], float] | None = None) -> None:
         self.estimates_s = [max(float(e), 0.0) for e in estimates_s]
         self.total_s = sum(self.estimates_s)
         self._clock_now = clock_now
         self._wall_now = wall_now
+        self._backlog_s = backlog_s or (lambda: 0.0)
         self.index = -1
         self._walls: list[float] = []
         self._timed: list[float] = []
@@ -125,12 +131,17 @@ class Timeline:
         bench_left = current_left + later
         done = 1.0 - bench_left / self.total_s if self.total_s > 0 else i / max(n, 1)
         wall_left: float | None = None
-        fit = fit_step_cost(self._timed, self._walls) if any(self._timed) else None
+        # a line fitted to a few short steps says little about hours of turning: wait for
+        # steps that together make at least MIN_TIMED_FRACTION of the plan's bench time
+        timed_enough = sum(self._timed) >= MIN_TIMED_FRACTION * self.total_s and any(self._timed)
+        fit = fit_step_cost(self._timed, self._walls) if timed_enough else None
         if fit is not None:
             a, b = fit
             in_step_wall = self._wall_now() - self._step_wall0
             current = max(a * est[i] + b - in_step_wall, 0.0)
-            wall_left = current + a * later + b * (n - i - 1)
+            # work beside the steps (the worker's analyses) runs meanwhile; the end waits
+            # for whichever finishes last
+            wall_left = max(current + a * later + b * (n - i - 1), self._backlog_s())
         wall_run = self._wall_now() - self._wall0
         bench_run = self._clock_now() - self._bench0
         speed = bench_run / wall_run if wall_run > 0.5 and bench_run > 0 else None

@@ -75,11 +75,13 @@ class Report:
         self.lines.append(f"      {text}")
 
 
-def compare_values(root: etree._Element, result: dict[str, Any], report: Report) -> None:
-    """Every quantity and conformity in `root` against the DCC result.json would give."""
+def compare_values(root: etree._Element, result: dict[str, Any], report: Report,
+                   run_path: Path | None = None) -> None:
+    """Every quantity and conformity in `root` against the DCC result.json would give (the
+    run directory supplies the certificate's issue number)."""
     from bench.dcc.writer import DccInputs, build_dcc
 
-    expected_root = build_dcc(DccInputs(result, None, embed_pdf=False)).getroot()
+    expected_root = build_dcc(DccInputs(result, run_path, embed_pdf=False)).getroot()
     want, got = read_quantities(expected_root), read_quantities(root)
     problems = [f"{k}: missing from the file" for k in want if k not in got]
     problems += [f"{k}: not in result.json" for k in got if k not in want]
@@ -147,7 +149,7 @@ def verify_file(path: Path, result_path: Path | None = None, cert: Path | None =
         report.note("values: not compared (the signed content cannot be trusted)")
     elif result_path.is_file():
         result = json.loads(result_path.read_text(encoding="utf-8"))
-        compare_values(content, result, report)
+        compare_values(content, result, report, result_path.parent)
         _compare_pdf(content, path.parent, report)
     elif need_result:
         report.bad(f"values: no result.json at {result_path} (give --result, or "

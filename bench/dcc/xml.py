@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from lxml import etree
+
+from bench.dcc import vocab as V
 
 DCC_NS = "https://ptb.de/dcc"
 SI_NS = "https://ptb.de/si"
@@ -21,6 +23,7 @@ NSMAP = {"dcc": DCC_NS, "si": SI_NS, "xsi": XSI_NS}
 LANG = "en"
 COVERAGE_FACTOR = "2"
 COVERAGE_PROBABILITY = "0.95"
+NOT_RECORDED = "not recorded"   # a required field nobody recorded: the gap shows
 
 
 def num(x: Any) -> float | None:
@@ -137,3 +140,37 @@ def list_quantity(parent: etree._Element, qid: str | None, title: str, ref_type:
         text_el(q, "description", note)
     si_real_list(q, list(values), unit, None if us is None else list(us))
     return q
+
+
+def statement(parent: etree._Element, ref_type: str | None, declaration: str, *,
+              sid: str | None = None, title: str | None = None, norms: Sequence[str] = (),
+              references: Sequence[str] = (), conformity: str | None = None
+              ) -> etree._Element:
+    """A dcc:statement (statementMetaDataType, its children in the schema's order)."""
+    st = el(parent, "statement", ref_type=ref_type, id=sid)
+    if title:
+        name(st, title)
+    for norm in norms:
+        el(st, "norm", norm)
+    for ref in references:
+        el(st, "reference", ref)
+    text_el(st, "declaration", declaration)
+    if conformity:
+        el(st, "conformity", conformity)
+    return st
+
+
+def budget_list(data: etree._Element, lid: str, title: str, budget: Any, path: str,
+                terms: Sequence[tuple[str, str]], unit: str) -> None:
+    """The standard uncertainties behind a U, one quantity per source (no U of their own)."""
+    if not isinstance(budget, Mapping):
+        return
+    found = [(k, label, num(budget.get(k))) for k, label in terms]
+    found = [(k, label, v) for k, label, v in found if v is not None]
+    if not found:
+        return
+    lst = el(data, "list", id=lid, ref_type=V.BUDGET)
+    name(lst, title)
+    for key, label, v in found:
+        quantity(lst, ident(lid, key), f"u({label})", V.STANDARD_UNCERTAINTY, v, unit,
+                 label=f"{path}.{key}")

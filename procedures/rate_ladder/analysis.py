@@ -24,7 +24,7 @@ from bench.analysis.random_part import std_u_rel
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.config import Config
-from bench.conformity import judge
+from bench.conformity import CAPABILITY_LIMIT, judge
 from bench.journal import RunDir, read_jsonl
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor
@@ -233,6 +233,27 @@ def _instability_u(value: float, turns: int) -> float:
     return math.inf if u is None else u
 
 
+#: one-sided coverage of the upper limit of sigma (the k = 2 level of a normal variable)
+SIGMA_UPPER_P = 0.975
+
+
+def instability_upper(value: float, turns: int) -> float:
+    """One-sided upper limit of eq. 2's sigma from N turns at SIGMA_UPPER_P, for normal
+    per-turn rates: sigma * sqrt((N - 1) / chi2_{1-p}(N - 1)). From 4 turns this is 3.7
+    sigma: the normal approximation 2 s / sqrt(2 (N - 1)) understates it badly."""
+    if turns < 2:
+        return math.inf
+    from scipy.stats import chi2
+
+    return value * math.sqrt((turns - 1) / float(chi2.ppf(1.0 - SIGMA_UPPER_P, turns - 1)))
+
+
+def sigma_resolved(value: float, u: float, floor: float) -> bool:
+    """METHOD.md A1/A2: sigma shows the table's own turn-to-turn scatter only when it stands
+    above the timing floor by more than its U (the one k = 2 rule, on the excess)."""
+    return value - u > floor
+
+
 def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[dict[str, Any]]:
     tol = cfg.procedure.get("tolerance", {})
     out = []
@@ -244,9 +265,39 @@ def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[di
          entry["intra_turn_instability_u_rel"]),
     ):
         t = tolerance_for(tol.get(quantity), rate)
-        if t is not None:
-            out.append(judge(axis, rate, quantity, value, u, t, rule).to_dict())
+        if t is None:
+            continue
+        if quantity == "rate_instability":
+            out.append(sigma_check(axis, rate, entry, t, rule))
+            continue
+        out.append(judge(axis, rate, quantity, value, u, t, rule).to_dict())
     return out
+
+
+def sigma_check(axis: str, rate: float, entry: dict[str, Any], tolerance: float,
+                rule: str) -> dict[str, Any]:
+    """Conformity of eq. 2's sigma. Not assessed when sigma is not resolved above the
+    counter chain's timing floor (it then says nothing about the table); otherwise judged
+    with the one-sided chi-square upper limit as the guard (the false-accept risk of the
+    guard-band rule is then at most 1 - SIGMA_UPPER_P for normal per-turn rates)."""
+    value, u = entry["rate_instability_rel"], entry["rate_instability_u_rel"]
+    floor = entry["rate_instability_floor_rel"]
+    upper = entry["rate_instability_upper_rel"]
+    if not sigma_resolved(value, u, floor):
+        c = judge(axis, rate, "rate_instability", value, u, tolerance, rule).to_dict()
+        c.update(verdict="not-assessed", upper_rel=upper, floor_rel=floor,
+                 reason=f"sigma {value:.2g} is not resolved above the counter chain's "
+                        f"timing floor {floor:.2g} (sigma - U <= floor): it does not show the "
+                        "table's turn-to-turn instability and is left out of conformity")
+        return c
+    c = judge(axis, rate, "rate_instability", value, upper - value, tolerance, rule).to_dict()
+    c.update(u_rel=u, upper_rel=upper, floor_rel=floor, capability_ratio=u / tolerance,
+             capability_ok=u / tolerance <= CAPABILITY_LIMIT)
+    if rule == "guard-band" and value <= tolerance:
+        c["reason"] = (f"one-sided upper limit {upper:.3g} (chi-square, "
+                       f"{SIGMA_UPPER_P * 100:g} %) {'<=' if upper <= tolerance else '>'} "
+                       f"tolerance {tolerance:.3g}")
+    return c
 
 
 def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
@@ -278,6 +329,11 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
                 d = r.to_dict()
                 d["rate_instability_u_rel"] = _instability_u(d["rate_instability_rel"],
                                                              d["turns"])
+                d["rate_instability_upper_rel"] = instability_upper(
+                    d["rate_instability_rel"], d["turns"])
+                d["rate_instability_resolved"] = sigma_resolved(
+                    d["rate_instability_rel"], d["rate_instability_u_rel"],
+                    d["rate_instability_floor_rel"])
                 d["session"] = done_in[unit]
                 c = _checks(cfg, axis, d, rule)
                 d["checks"] = c

@@ -171,9 +171,8 @@ class RateLadder(StepDispatch):
         try:
             for axis in self.axes(cfg):
                 open_axis(bench, axis, stand["axes"], clock, run)
-        except BaseException:
-            bench.safe_stop(lambda s: None) if bench.axes else None
-            bench.close()
+        except BaseException as e:
+            bench.abandon(e)
             raise
         return bench
 
@@ -258,6 +257,7 @@ class RateLadder(StepDispatch):
         event = dict(axis=step.axis, unit=step.unit, half=p["half"],
                      set_rate_dps=p["rate_dps"], turns=n, edges_s=[float(e) for e in edges],
                      counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
+                     counter_readback=dict(counter.readback),
                      counter_records=[rec0, rec1], fog_from=i_from, fog_to=i_to,
                      rate_hz=fog.rate_hz, fog_lost=lost, fog_capture=mark)
         # the FOG samples stay in the raw capture: the pair's analysis reads them there;

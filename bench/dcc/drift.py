@@ -1,0 +1,114 @@
+"""The drift-pulse procedure's measurementResult (docs/method.md part B): per gyro axis the
+own and apparent drift with their budgets and the drift per platform position and cycle;
+the platform azimuth and the horizontal Earth rate.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from lxml import etree
+
+from bench.certificate.build import Sources
+from bench.dcc import units as U
+from bench.dcc import vocab as V
+from bench.dcc.conformity import Checks, judge
+from bench.dcc.xml import budget_list, el, ident, list_quantity, name, num, quantity, text_el
+
+
+def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None:
+    drift = src.get("drift", {}) or {}
+    mr = el(results, "measurementResult", id="platform", ref_id="item")
+    name(mr, "Gyro platform: own and apparent drift per axis, azimuth (docs/method.md B)")
+    lat = num(drift.get("latitude_deg"))
+    if lat is not None:
+        conds = el(mr, "influenceConditions")
+        c = el(conds, "influenceCondition", id="siteLatitude", ref_type=V.LATITUDE)
+        name(c, "Site latitude")
+        quantity(el(c, "data"), None, "latitude", V.LATITUDE, lat, U.DEG,
+                 label="drift.latitude_deg")
+    res = el(mr, "results")
+    for axis, d in (drift.get("axes", {}) or {}).items():
+        if not isinstance(d, Mapping):
+            continue
+        path = f"drift.axes.{axis}"
+        aid = ident("drift", axis)
+        r = el(res, "result", id=aid, ref_type=V.MEASURED)
+        name(r, f"Axis {axis}: drift, deg/h")
+        data = el(r, "data")
+        for key, u_key, title, ref, check in (
+                ("own_dph", "own_u_dph", "own drift (w_0 + w_180) / 2",
+                 f"{V.MEASURED} {V.OWN_DRIFT}", "own_drift"),
+                ("apparent_dph", "apparent_u_dph", "apparent drift at position 0, "
+                 "(w_0 - w_180) / 2", f"{V.MEASURED} {V.APPARENT_DRIFT}", "apparent_drift"),
+                ("own_nominal_edges_dph", None, "own drift with the pulse edges at the "
+                 "nominal sample times (the paper's integrator; for comparison)", V.OWN_DRIFT,
+                 None)):
+            v = num(d.get(key))
+            if v is None:
+                continue
+            uu = num(d.get(u_key)) if u_key else None
+            node = quantity(data, ident(aid, key), title, ref, v, U.DEG_PER_H, uu,
+                            label=f"{path}.{key}", note=None if uu is not None or not u_key
+                            else "U not stated in result.json.")
+            if check:
+                judge(node, checks.take(axis, None, check), U.DEG_PER_H)
+        budget = d.get("budget") if isinstance(d.get("budget"), Mapping) else {}
+        for key, what in (("own_u_dph", "own"), ("apparent_u_dph", "apparent")):
+            terms = budget.get(key)
+            if isinstance(terms, Mapping):
+                budget_list(data, ident(aid, "budget", what), f"uncertainty budget of the {what} "
+                        "drift: standard uncertainties (k = 1) per source; U = 2 sqrt(sum "
+                        "u^2) (docs/method.md B)", terms, f"{path}.budget.{key}",
+                        tuple((str(k), str(k).replace("_", " ")) for k in terms), U.DEG_PER_H)
+        for j, pos in enumerate(d.get("positions") or []):
+            if not isinstance(pos, Mapping):
+                continue
+            table = num(pos.get("table_deg", pos.get("position_deg"))) or 0.0
+            pp = f"{path}.positions[{j}]"
+            lst = el(data, "list", id=ident(aid, "pos", f"{table:g}"), ref_type=V.DRIFT_POSITION)
+            name(lst, f"platform turned to {table:g} deg: drift per cycle and mean")
+            quantity(lst, None, "platform position", V.TABLE_POSITION, table, U.DEG,
+                     label=f"{pp}.table_deg")
+            mean = num(pos.get("mean_dph"))
+            if mean is not None:
+                uu = num(pos.get("u_dph"))
+                quantity(lst, ident(aid, "pos", f"{table:g}", "mean_dph"), "mean drift",
+                         V.MEASURED, mean, U.DEG_PER_H, uu, label=f"{pp}.mean_dph",
+                         note=None if uu is not None else "U not stated in result.json.")
+            if num(pos.get("std_dph")) is not None:
+                quantity(lst, None, "standard deviation of the cycles", V.STD,
+                         num(pos["std_dph"]) or 0.0, U.DEG_PER_H, label=f"{pp}.std_dph")
+            w = [v for v in (num(x) for x in pos.get("drifts_dph") or []) if v is not None]
+            if w:
+                list_quantity(lst, ident(aid, "pos", f"{table:g}", "drifts_dph"),
+                              "drift of each cycle, in order", V.DRIFT_CYCLES, w,
+                              U.DEG_PER_H, note="Single-cycle values; their scatter (the "
+                              "standard deviation above) is their uncertainty.")
+    if num(drift.get("azimuth_deg")) is not None or num(drift.get("earth_horizontal_dph")) \
+            is not None:
+        r = el(res, "result", id="azimuth", ref_type=V.MEASURED)
+        name(r, "Platform azimuth and horizontal Earth rate from the apparent drifts")
+        data = el(r, "data")
+        for key, u_key, title, ref, unit, check in (
+                ("azimuth_deg", "azimuth_u_deg", "platform azimuth of the X input axis, "
+                 "A = atan2(-app_y, app_x)", f"{V.MEASURED} {V.AZIMUTH}", U.DEG, "azimuth"),
+                ("earth_horizontal_dph", "earth_horizontal_u_dph", "horizontal Earth rate "
+                 "from the apparent drifts", f"{V.MEASURED} {V.EARTH_RATE}", U.DEG_PER_H,
+                 "earth_horizontal_rate"),
+                ("earth_horizontal_expected_dph", None, "expected 15.041 deg/h x cos(latitude)",
+                 f"{V.REFERENCE} {V.EARTH_RATE}", U.DEG_PER_H, None)):
+            v = num(drift.get(key))
+            if v is None:
+                continue
+            uu = num(drift.get(u_key)) if u_key else None
+            node = quantity(data, ident("drift", key), title, ref, v, unit, uu,
+                            label=f"drift.{key}", note=None if uu is not None or not u_key
+                            else "U not stated in result.json.")
+            if check:
+                judge(node, checks.take(None, None, check), unit)
+    if not len(res):
+        r = el(res, "result")
+        name(r, "No drift results")
+        text_el(el(r, "data"), "text", "Nothing was measured to completion.")
+

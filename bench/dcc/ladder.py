@@ -1,0 +1,252 @@
+"""The rate ladder's measurementResults (docs/method.md part A): per axis, per commanded
+rate the per-turn error and instability, the per-turn rates as a list, the intra-turn
+instability, the fitted harmonics and mains ripple; per +/- pair the FOG's k and w0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from lxml import etree
+
+from bench.certificate.build import Sources
+from bench.dcc import units as U
+from bench.dcc import vocab as V
+from bench.dcc.conformity import Checks, judge
+from bench.dcc.xml import (
+    NOT_RECORDED,
+    budget_list,
+    el,
+    ident,
+    list_quantity,
+    name,
+    num,
+    quantity,
+    rate_token,
+    text_el,
+)
+
+
+def ladder_results(results: etree._Element, src: Sources, checks: Checks) -> None:
+    axes = src.get("axes", {}) or {}
+    for axis, ax in axes.items():
+        if not isinstance(ax, Mapping):
+            continue
+        mr = el(results, "measurementResult", id=ident("axis", axis), ref_id="item")
+        name(mr, f"Axis {axis}: per-turn rate, FOG cross-calibration and intra-turn "
+                 "instability (rate ladder)")
+        text_el(mr, "description", "Per commanded rate and direction (signed: + is the "
+                "table's positive sense). Relative values are plain fractions of the "
+                "commanded rate (unit \\one).")
+        res = el(mr, "results")
+        for i, r in enumerate(ax.get("rates") or []):
+            if isinstance(r, Mapping):
+                _rate_result(res, axis, i, r, checks)
+        for i, p in enumerate(ax.get("pairs") or []):
+            if isinstance(p, Mapping):
+                _pair_result(res, axis, i, p)
+        floor = ax.get("noise_floor") or {}
+        sd = num(floor.get("sample_std_dps")) if isinstance(floor, Mapping) else None
+        if sd is not None:
+            r = el(res, "result", id=ident("floor", axis), ref_type=V.FOG_FLOOR)
+            name(r, f"Axis {axis}: FOG noise floor at rest (docs/method.md A5)")
+            text_el(r, "description", f"{floor.get('source', 'record at rest')}; "
+                    f"{floor.get('samples', NOT_RECORDED)} samples over "
+                    f"{floor.get('duration_s', NOT_RECORDED)} s.")
+            quantity(el(r, "data"), ident("q", axis, "floor_std"), "standard deviation of "
+                     "one FOG sample at rest", V.FOG_FLOOR, sd, U.DEG_PER_S,
+                     label=f"axes.{axis}.noise_floor.sample_std_dps")
+        if not len(res):
+            r = el(res, "result")
+            name(r, f"Axis {axis}: no results")
+            text_el(el(r, "data"), "text", "Nothing was measured to completion on this axis.")
+
+
+def _per_turn_u(r: Mapping[str, Any], rates: list[float]) -> list[float] | None:
+    """U (k = 2) of each per-turn rate, docs/method.md A1: dw/w = dT/T with T = 360/|w|, combined
+    with the counter timebase: U = 2 |w| sqrt((u_T |w| / 360)^2 + u_tb^2)."""
+    b = r.get("rate_error_budget")
+    if not isinstance(b, Mapping) or num(b.get("period_u_s")) is None:
+        return None
+    u_t, u_tb = num(b.get("period_u_s")) or 0.0, num(b.get("timebase_u_rel")) or 0.0
+    return [2 * abs(w) * ((u_t * abs(w) / 360.0) ** 2 + u_tb ** 2) ** 0.5 for w in rates]
+
+
+def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
+                 checks: Checks) -> None:
+    w_set = num(r.get("set_rate_dps"))
+    tok = rate_token(w_set)
+    path = f"axes.{axis}.rates[{i}]"
+    rid = ident("r", axis, tok)
+    result = el(res, "result", id=rid, ref_type=V.MEASURED)
+    name(result, f"Axis {axis}, set rate {w_set:+g} deg/s" if w_set is not None
+         else f"Axis {axis}, rate {i + 1}")
+    verdict = r.get("verdict")
+    if verdict:
+        text_el(result, "description", f"Verdict at this rate: {str(verdict).upper()}.")
+    data = el(result, "data")
+
+    def q(key: str, title: str, ref: str, unit: str, u_key: str | None = None,
+          u: float | None = None, note: str | None = None, check: str | None = None,
+          value: float | None = None, label: str | None = None) -> etree._Element | None:
+        v = value if value is not None else num(r.get(key))
+        if v is None:
+            return None
+        uu = u if u is not None else (num(r.get(u_key)) if u_key else None)
+        if uu is None and u_key is not None:
+            note = (note + " " if note else "") + "U not stated in result.json."
+        node = quantity(data, ident(rid, key), title, ref, v, unit, uu,
+                        label=label or f"{path}.{key}", note=note)
+        if check:
+            judge(node, checks.take(axis, w_set, check), unit)
+        return node
+
+    q("set_rate_dps", "commanded (set) rate", f"{V.NOMINAL} {V.SET_RATE}", U.DEG_PER_S)
+    q("turns", "whole turns timed", V.TURNS, U.ONE)
+    cr = [v for v in (num(x) for x in r.get("counter_rate_dps") or []) if v is not None]
+    mean = num(r.get("mean_rate_dps"))
+    if mean is None and cr:
+        mean = sum(cr) / len(cr)
+    eu = num(r.get("rate_error_u_rel"))
+    if mean is not None:
+        q("mean_rate_dps", "mean rate over the turns (counter, docs/method.md A2)", V.MEASURED,
+          U.DEG_PER_S, value=mean, u=eu * abs(w_set) if eu is not None and w_set else None,
+          note="U = U(rate error) x |set rate|.")
+    q("rate_error_rel", "per-turn rate error (mean - set) / |set| (docs/method.md A2 eq. 1, "
+      "signed)", f"{V.ERROR} {V.RATE_ERROR}", U.ONE, "rate_error_u_rel", check="rate_error")
+    q("rate_instability_rel", "per-turn rate instability, relative std of the per-turn rates "
+      "(docs/method.md A2 eq. 2)", V.RATE_INSTABILITY, U.ONE, "rate_instability_u_rel",
+      check="rate_instability")
+    q("rate_instability_floor_rel", "timing floor of the instability (counter and zero-mark "
+      "timing alone, docs/method.md A1)", V.TIMING_FLOOR, U.ONE)
+    if cr:
+        us = _per_turn_u(r, cr)
+        list_quantity(data, ident(rid, "counter_rate_dps"), "per-turn rates from the counter, "
+                      "in turn order (docs/method.md A1)", f"{V.MEASURED} {V.PER_TURN}", cr,
+                      U.DEG_PER_S, us, note=None if us is not None else
+                      "U not stated: result.json carries no timing budget for this rate.")
+    intra = r.get("intra_turn") or {}
+    q("intra_turn_instability_rel", "intra-turn instability std(random part) / |set| at the "
+      "FOG bandwidth (docs/method.md A5)", V.INTRA_TURN, U.ONE, "intra_turn_instability_u_rel",
+      check="intra_turn_instability")
+    if isinstance(intra, Mapping) and num(intra.get("floor_rel")) is not None:
+        q("floor_rel", "FOG noise floor, relative to |set| (docs/method.md A5)", V.FOG_FLOOR, U.ONE,
+          value=num(intra.get("floor_rel")), label=f"{path}.intra_turn.floor_rel")
+    upper = num(intra.get("corrected_upper_rel")) if isinstance(intra, Mapping) else None
+    resolved = intra.get("resolved") if isinstance(intra, Mapping) else None
+    q("intra_turn_instability_corrected_rel", "intra-turn instability with the FOG noise "
+      "floor removed in quadrature (docs/method.md A5)", V.INTRA_TURN_CORRECTED, U.ONE,
+      None if upper is not None else "intra_turn_instability_corrected_u_rel",
+      u=num(r.get("intra_turn_instability_corrected_u_rel")),
+      note=("not resolved above the FOG noise floor; read the upper limit" if resolved is False
+            else None), check="intra_turn_instability_corrected")
+    if upper is not None:
+        q("corrected_upper_rel", "upper limit (k = 2) of the floor-corrected intra-turn "
+          "instability", V.INTRA_TURN_UPPER, U.ONE, value=upper,
+          label=f"{path}.intra_turn.corrected_upper_rel")
+    budget_list(data, ident(rid, "budget"), "uncertainty budget of the rate error: standard "
+            "uncertainties (k = 1) relative to |set|; U = 2 sqrt(sum u^2) (docs/method.md "
+            "A1-A2)", r.get("rate_error_budget"), f"{path}.rate_error_budget",
+            (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
+             ("repeatability_u_rel", "repeatability (Type A)")), U.ONE)
+    _averaged(data, rid, path, intra)
+    _systematic(data, rid, path, r.get("systematic") or {})
+
+
+def _averaged(data: etree._Element, rid: str, path: str, intra: Any) -> None:
+    rows = intra.get("averaged") if isinstance(intra, Mapping) else None
+    for j, a in enumerate(rows or []):
+        if not isinstance(a, Mapping) or num(a.get("angle_deg")) is None:
+            continue
+        lst = el(data, "list", id=ident(rid, "avg", f"{num(a['angle_deg']):g}"),
+                 ref_type=V.AVERAGED)
+        name(lst, f"random part averaged over {num(a['angle_deg']):g} deg of table angle "
+                  "(docs/method.md A5)")
+        p = f"{path}.intra_turn.averaged[{j}]"
+        quantity(lst, None, "window", V.WINDOW, num(a["angle_deg"]) or 0.0, U.DEG,
+                 label=f"{p}.angle_deg")
+        v = num(a.get("instability_rel"))
+        if v is not None:
+            uu = num(a.get("u_rel"))
+            quantity(lst, ident(rid, "avg", f"{num(a['angle_deg']):g}", "instability_rel"),
+                     "instability, relative to |set|", V.INTRA_TURN, v, U.ONE, uu,
+                     label=f"{p}.instability_rel",
+                     note=None if uu is not None else "U not stated in result.json.")
+        for key, title, ref in (("floor_rel", "FOG noise floor", V.FOG_FLOOR),
+                                ("corrected_rel", "floor-corrected", V.INTRA_TURN_CORRECTED)):
+            if num(a.get(key)) is not None:
+                quantity(lst, None, title, ref, num(a[key]) or 0.0, U.ONE, label=f"{p}.{key}")
+
+
+def _systematic(data: etree._Element, rid: str, path: str, s: Any) -> None:
+    if not isinstance(s, Mapping):
+        return
+    for j, h in enumerate(s.get("harmonics") or []):
+        if not isinstance(h, Mapping) or num(h.get("order")) is None:
+            continue
+        order = int(num(h["order"]) or 0)
+        hid = ident(rid, "h", order)
+        lst = el(data, "list", id=hid, ref_type=V.HARMONIC)
+        name(lst, f"systematic intra-turn component, harmonic {order}: "
+                  "w_set * a cos(h phi + p) (docs/method.md A4)")
+        if h.get("detected") is False:
+            text_el(lst, "description", "not significant: the amplitude is consistent with "
+                    "zero and its phase is meaningless")
+        p = f"{path}.systematic.harmonics[{j}]"
+        quantity(lst, None, "order h", V.HARMONIC_ORDER, order, U.ONE, label=f"{p}.order")
+        for key, u_key, title, ref, unit in (
+                ("amplitude_rel", "amplitude_u_rel", "amplitude a, relative to |set|",
+                 V.AMPLITUDE, U.ONE),
+                ("phase_deg", "phase_u_deg", "phase p", V.PHASE, U.DEG)):
+            v = num(h.get(key))
+            if v is not None:
+                uu = num(h.get(u_key))
+                quantity(lst, ident(hid, key), title, ref, v, unit, uu, label=f"{p}.{key}",
+                         note=None if uu is not None else "U not stated in result.json.")
+    m = s.get("mains")
+    if isinstance(m, Mapping) and num(m.get("amplitude_dps")) is not None:
+        mid = ident(rid, "mains")
+        lst = el(data, "list", id=mid, ref_type=V.MAINS)
+        name(lst, "mains-frequency ripple, one tone fitted in time (docs/method.md A4)")
+        if m.get("detected") is False:
+            text_el(lst, "description", "not significant")
+        p = f"{path}.systematic.mains"
+        for key, u_key, title, ref, unit in (
+                ("frequency_hz", None, "frequency", V.FREQUENCY, U.HERTZ),
+                ("amplitude_dps", "amplitude_u_dps", "amplitude", V.AMPLITUDE, U.DEG_PER_S),
+                ("phase_deg", "phase_u_deg", "phase", V.PHASE, U.DEG)):
+            v = num(m.get(key))
+            if v is not None:
+                uu = num(m.get(u_key)) if u_key else None
+                quantity(lst, ident(mid, key), title, ref, v, unit, uu, label=f"{p}.{key}",
+                         note=None if uu is not None or u_key is None
+                         else "U not stated in result.json.")
+
+
+def _pair_result(res: etree._Element, axis: str, i: int, p: Mapping[str, Any]) -> None:
+    rate = num(p.get("rate_dps"))
+    pid = ident("pair", axis, f"{rate:g}" if rate is not None else i)
+    path = f"axes.{axis}.pairs[{i}]"
+    result = el(res, "result", id=pid, ref_type=V.PAIR)
+    name(result, f"Axis {axis}, cross-calibration of the FOG at +/-{rate:g} deg/s (docs/method.md "
+                 "A3 eqs. 5-6)" if rate is not None else f"Axis {axis}, pair {i + 1}")
+    if p.get("method"):
+        text_el(result, "description", f"method {p.get('method')}"
+                + (f"; bias drift {p.get('drift_source')}" if p.get("drift_source") else ""))
+    data = el(result, "data")
+    for key, u_key, title, ref, unit in (
+            ("rate_dps", None, "pair rate magnitude", V.NOMINAL, U.DEG_PER_S),
+            ("k", "k_u", "FOG scale k (eq. 5)", f"{V.MEASURED} {V.FOG_SCALE}", U.ONE),
+            ("w0_dps", "w0_u_dps", "FOG bias w0 (eq. 6)", f"{V.MEASURED} {V.FOG_BIAS}",
+             U.DEG_PER_S),
+            ("drift_dps_per_h", "drift_u_dps_per_h", "FOG bias drift during the pair, deg/s "
+             "per hour", f"{V.MEASURED} {V.FOG_BIAS_DRIFT}", r"\degree\second\tothe{-1}"
+             r"\hour\tothe{-1}")):
+        v = num(p.get(key))
+        if v is None:
+            continue
+        uu = num(p.get(u_key)) if u_key else None
+        quantity(data, ident(pid, key), title, ref, v, unit, uu, label=f"{path}.{key}",
+                 note=None if uu is not None or u_key is None else
+                 "U not stated in result.json.")

@@ -1,0 +1,141 @@
+"""The DCC's usedMethods, usedSoftware, measuringEquipments and influenceConditions,
+common to every measurementResult: the method document embedded, one entry per section
+used, the procedure file, the GUM statement, the instruments, the recorded conditions.
+"""
+
+from __future__ import annotations
+
+import base64
+import re
+from collections.abc import Mapping
+from importlib import resources
+from typing import Any
+
+from lxml import etree
+
+import bench
+from bench.certificate import methods
+from bench.certificate.build import Sources
+from bench.dcc import units as U
+from bench.dcc import vocab as V
+from bench.dcc.xml import DCC_NS, NOT_RECORDED, el, ident, name, num, quantity, text_el
+
+# the method document's sections each procedure uses (bench/method.md = docs/method.md)
+A_SECTIONS = ("A1", "A2", "A3", "A4", "A5", "A6")
+B_SECTIONS = ("B",)
+METHOD_DOC = "docs/method.md"
+
+
+def method_sections() -> tuple[bytes, dict[str, tuple[str, str]]]:
+    """The method document as shipped, and section -> (heading, text) from its headings
+    (`### A1. ...`, `## B. ...`)."""
+    data = resources.files("bench").joinpath("method.md").read_bytes()
+    sections: dict[str, tuple[str, str]] = {}
+    current: str | None = None
+    for line in data.decode("utf-8").splitlines():
+        m = re.match(r"#{2,3} ([A-Z]\d?)\. (.*)", line)
+        if m:
+            current = m.group(1)
+            sections[current] = (m.group(2).strip(), "")
+        elif current is not None and not line.startswith("#"):
+            head, body = sections[current]
+            sections[current] = (head, (body + " " + line.strip()).strip())
+    return data, sections
+
+
+def methods_and_conditions(results: etree._Element, src: Sources, kind: str) -> None:
+    used = el(results, "usedMethods")
+    document, sections = method_sections()
+    m = el(used, "usedMethod", id="methodDocument", ref_type=V.METHOD)
+    name(m, f"ratebench method document ({METHOD_DOC}), as shipped with this release")
+    desc = text_el(m, "description", methods.B_REFERENCE if kind == "drift-pulse"
+                   else methods.A_REFERENCE)
+    f = el(desc, "file")
+    el(f, "fileName", "method.md")
+    el(f, "mimeType", "text/markdown")
+    el(f, "dataBase64", base64.b64encode(document).decode("ascii"))
+    for sec in B_SECTIONS if kind == "drift-pulse" else A_SECTIONS:
+        heading, text = sections.get(sec, (f"section {sec}", f"see {METHOD_DOC}"))
+        m = el(used, "usedMethod", id=ident("method", sec), ref_type=V.METHOD)
+        name(m, f"{METHOD_DOC} {sec}: {heading}")
+        text_el(m, "description", text or f"see {METHOD_DOC}")
+        el(m, "reference", f"{METHOD_DOC} section {sec} (embedded above)")
+    pf = src.get("procedure_file", {}) or {}
+    proc_name = pf.get("name") or src.meta.get("procedure_name")
+    if proc_name:
+        m = el(used, "usedMethod", id="procedureFile")
+        name(m, f"Procedure file {proc_name}")
+        text_el(m, "description", f"The procedure as run, SHA-256 "
+                f"{pf.get('sha256') or src.meta.get('procedure_sha256') or NOT_RECORDED}; "
+                f"settings: {_flat(src.get('method', {}) or {})}.")
+    m = el(used, "usedMethod", id="uncertaintyMethod", ref_type=V.UNCERTAINTY)
+    name(m, "Expanded measurement uncertainty")
+    text_el(m, "description", "Every U is the standard uncertainty multiplied by the "
+            "coverage factor k = 2, which for a normal distribution gives a coverage "
+            "probability of about 95 %. Values and U are given unrounded as computed; the "
+            "PDF prints them rounded (U to two significant digits).")
+    el(m, "norm", "JCGM 100:2008 (GUM)")
+    sw = el(results, "usedSoftware")
+    s = el(sw, "software")
+    name(s, "ratebench analysis")
+    el(s, "release", bench.__version__)
+    el(s, "type", "application")
+    equipment = _equipment(src)
+    if equipment is not None:
+        results.append(equipment)
+    cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
+    if isinstance(cond, Mapping) and cond:
+        conds = el(results, "influenceConditions")
+        for key, value in cond.items():
+            _condition(conds, str(key), value)
+
+
+def _flat(d: Mapping[str, Any]) -> str:
+    return "; ".join(f"{k} = {v}" for k, v in d.items() if k != "tolerance") or NOT_RECORDED
+
+
+def _equipment(src: Sources) -> etree._Element | None:
+    ids = src.get("instruments", {}) or {}
+    if not isinstance(ids, Mapping) or not ids:
+        return None
+    eq = etree.Element(f"{{{DCC_NS}}}measuringEquipments")
+    for axis, roles in ids.items():
+        for role, identity in (roles or {}).items():
+            me = el(eq, "measuringEquipment", id=ident("eq", axis, role),
+                    ref_type=V.NORMAL_USED if role == "counter" else None)
+            name(me, f"Axis {axis}: {role}")
+            text_el(me, "description", f"Identity as reported: {identity}")
+    return eq if len(eq) else None
+
+
+_NUMBER = r"[-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?"
+_CONDITION_UNITS = {"c": (U.CELSIUS, V.TEMPERATURE, V.TEMPERATURE_MIN, V.TEMPERATURE_MAX),
+                    "pct": (U.PERCENT, V.HUMIDITY, V.HUMIDITY_MIN, V.HUMIDITY_MAX),
+                    "hpa": (U.HECTOPASCAL, V.CONDITION, None, None)}
+
+
+def _condition(conds: etree._Element, key: str, value: Any) -> None:
+    """A recorded condition: '20 +/- 2' under `temperature_c` becomes 18 ... 22 degC; text
+    that is not a number with its unit stays text (it is never guessed)."""
+    suffix = key.rsplit("_", 1)[-1].lower() if "_" in key else ""
+    text = str(value)
+    if key.lower().startswith("humid") and text.strip().endswith("%"):
+        suffix, text = "pct", text.strip()[:-1]
+    spec = _CONDITION_UNITS.get(suffix)
+    label = key.rsplit("_", 1)[0] if spec else key
+    c = el(conds, "influenceCondition", id=ident("cond", key),
+           ref_type=spec[1] if spec else V.CONDITION)
+    name(c, label.replace("_", " ").capitalize())
+    text_el(c, "description", f"As recorded in the procedure file: {key}: {value}")
+    data = el(c, "data")
+    m = re.fullmatch(rf"\s*({_NUMBER})\s*(?:(?:\+/-|±)\s*({_NUMBER}))?\s*", text)
+    if spec is None or m is None:
+        text_el(data, "text", str(value))
+        return
+    unit, _, low_ref, high_ref = spec
+    centre, half = float(m.group(1)), num(m.group(2))
+    if half is not None and low_ref and high_ref:
+        quantity(data, None, "minimum", low_ref, centre - half, unit)
+        quantity(data, None, "maximum", high_ref, centre + half, unit)
+    else:
+        quantity(data, None, "stated value", V.NOMINAL, centre, unit)

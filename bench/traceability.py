@@ -1,0 +1,92 @@
+"""Metrological traceability as the stand file states it (ISO/IEC 17025 6.5, 7.8.4.1 c).
+
+Every instrument of the stand may carry `calibration: {certificate, issuer, due, traces}`,
+and `traceability:` lists the references and sensors the bench does not drive (a 10 MHz
+reference, the zero-mark sensor, a shunt). This module walks the stand for them once, so
+the start of a run can warn about a calibration past its due date and the certificate
+can print where each result's traceability comes from.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from bench.schema import parse_date
+
+#: instruments whose absence of a calibration breaks the chain to the SI (by stand role)
+MEASURING_ROLES = ("counter", "dmm")
+
+
+@dataclass(frozen=True)
+class Traced:
+    """One calibrated item of the stand."""
+
+    where: str                 # key path in the stand file, e.g. axes.outer.counter
+    item: str
+    certificate: str | None
+    issuer: str | None
+    due: dt.date | None
+    traces: str | None
+
+    def overdue(self, on: dt.date) -> bool:
+        return self.due is not None and on > self.due
+
+    @property
+    def stated(self) -> bool:
+        return self.certificate is not None
+
+
+def _name(path: tuple[str, ...], spec: Mapping[str, Any]) -> str:
+    role = path[-1]
+    where = " ".join(p for p in path[1:-1] if p not in ("axes", "gyros"))
+    model = spec.get("model")
+    return f"{role}{' ' + str(model) if model else ''}{f' ({where})' if where else ''}"
+
+
+def _walk(node: Any, path: tuple[str, ...]) -> Iterator[tuple[tuple[str, ...], Mapping]]:
+    if not isinstance(node, Mapping):
+        return
+    for key, value in node.items():
+        if key == "sim" and not path:
+            continue  # the twins' truth, not the bench
+        if isinstance(value, Mapping):
+            sub = (*path, str(key))
+            if "resource" in value or "port" in value or "interface" in value \
+                    or "calibration" in value:
+                yield sub, value
+            yield from _walk(value, sub)
+
+
+def traced_items(stand: Mapping[str, Any]) -> list[Traced]:
+    """Every instrument of the stand (with or without a stated calibration) and every
+    entry of its `traceability:` list."""
+    out = []
+    for path, spec in _walk(stand, ()):
+        cal = spec.get("calibration")
+        cal = cal if isinstance(cal, Mapping) else {}
+        out.append(Traced(".".join(path), _name(path, spec),
+                          str(cal["certificate"]) if cal.get("certificate") else None,
+                          str(cal["issuer"]) if cal.get("issuer") else None,
+                          parse_date(cal.get("due")), cal.get("traces")))
+    for i, t in enumerate(stand.get("traceability") or []):
+        if isinstance(t, Mapping):
+            item = str(t.get("item", ""))
+            if t.get("serial"):
+                item += f", serial {t['serial']}"
+            out.append(Traced(f"traceability[{i}]", item, str(t.get("certificate")),
+                              str(t.get("issuer")), parse_date(t.get("due")),
+                              t.get("traces")))
+    return out
+
+
+def overdue(stand: Mapping[str, Any], on: dt.date) -> list[Traced]:
+    return [t for t in traced_items(stand) if t.overdue(on)]
+
+
+def overdue_warning(t: Traced) -> str:
+    return (f"WARNING: {t.item} ({t.where}.calibration): calibration certificate "
+            f"{t.certificate} was due on {t.due.isoformat() if t.due else '?'}; the "
+            "certificate of this run will say so")

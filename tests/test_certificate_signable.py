@@ -1,0 +1,232 @@
+"""Issue 18: a certificate a 17025 laboratory can sign.
+
+Each test reads the certificate as a reader would (the rendered HTML, and the PDF's own
+text) and checks it against a truth worked out independently of the certificate code:
+the per-turn rates are built from edge times with a known mean, the item from the stand
+file shipped in configs/, the numbering from the register on disk.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import html as html_lib
+import re
+import shutil
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pypdfium2 as pdfium
+import pytest
+
+from bench.analysis.turns import CounterBudget, analyze_turns
+from bench.certificate import write_certificate
+from bench.certificate.build import build_document
+from bench.certificate.html import render_html
+from bench.certificate.register import REGISTER_NAME, issues
+from bench.certificate.sample import drift_pulse_result
+from bench.journal import RunDir
+
+ROOT = Path(__file__).resolve().parents[1]
+ISSUED = dt.date(2026, 11, 22)
+MINUS = "\u2212"
+
+
+def _run_dir(path: Path) -> RunDir:
+    (path / "events.jsonl").touch()
+    return RunDir(path)
+
+
+def _cells(html: str, caption_start: str) -> list[list[str]]:
+    """The body rows of the table whose caption starts with `caption_start`."""
+    i = html.index(caption_start)
+    body = html[html.index("<tbody>", i):html.index("</tbody>", i)]
+    rows = re.findall(r"<tr>(.*?)</tr>", body, flags=re.S)
+    return [[html_lib.unescape(re.sub(r"<[^>]+>", "", c)).strip()
+             for c in re.findall(r"<td[^>]*>(.*?)</td>", r, flags=re.S)] for r in rows]
+
+
+def _number(text: str) -> float:
+    return float(text.replace(MINUS, "-").replace("+", ""))
+
+
+# -- one sign convention, printed as computed ------------------------------------------------
+
+def _ladder_result(truth_rel: dict[float, float]) -> dict[str, Any]:
+    """Per-turn results from edge times whose mean rate is set * (1 + truth)."""
+    budget = CounterBudget(timestamp_u_s=2e-11, trigger_jitter_s=2.7e-8,
+                           timebase_limit_rel=1e-9)
+    rates = []
+    for set_dps, rel in truth_rel.items():
+        period = 360.0 / (abs(set_dps) * (1 + rel))
+        wobble = np.array([0.0, 3e-7, -2e-7, 1e-7, 0.0]) * period
+        edges = 100.0 + np.arange(5) * period + wobble
+        rates.append(analyze_turns([edges], set_dps, budget).to_dict())
+    return {"schema": "bench.result/1", "procedure": "rate-ladder", "verdict": "pass",
+            "axes": {"outer": {"rates": rates, "pairs": []}}}
+
+
+def _printed_formula(html: str) -> str:
+    """The right-hand side of eq. 1 as printed."""
+    line = next(m for m in re.findall(r'<p class="formula">(.*?)</p>', html, flags=re.S)
+                if "eq. 1" in m)
+    rhs = html_lib.unescape(line).split("=", 1)[1].split("(eq. 1")[0].strip()
+    return rhs
+
+
+def _apply(formula: str, mean: float, set_rate: float) -> float:
+    """Evaluate the printed formula on printed inputs: its symbols and bars, nothing else."""
+    expr = formula.replace("mean(ω_i)", "m").replace("ω_set", "s").replace(MINUS, "-")
+    expr = re.sub(r"\|([^|]+)\|", r"abs(\1)", expr)
+    assert re.fullmatch(r"[ms()+\-*/ absx]+", expr), expr
+    return float(eval(expr, {"abs": abs}, {"m": mean, "s": set_rate}))  # noqa: S307
+
+
+def test_printed_formula_on_printed_inputs_gives_printed_delta() -> None:
+    # truth: slower than commanded by 0.12 ppm at -10 deg/s, faster by 0.25 ppm at +10
+    result = _ladder_result({10.0: 2.5e-7, -10.0: -1.2e-7})
+    html = render_html(build_document(result, None, ISSUED))
+    formula = _printed_formula(html)
+    rows = _cells(html, "Axis outer: per-turn rate error and instability")
+    assert [r[0] for r in rows] == ["+10", f"{MINUS}10"]
+    for row, truth in zip(rows, (2.5e-7, -1.2e-7), strict=True):
+        set_rate = _number(row[0])
+        mean_text, _ = row[2].split(" ± ")
+        delta_text, delta_u = row[3].split(" ± ")
+        mean, delta_ppm = _number(mean_text), _number(delta_text)
+        recomputed_ppm = _apply(formula, mean, set_rate) * 1e6
+        # the printed mean is rounded to its last digit: half of it, relative to |set|
+        last = 10.0 ** -len(mean_text.split(".")[1]) if "." in mean_text else 1.0
+        slack = 0.5 * last / abs(set_rate) * 1e6 + 0.5 * 10.0 ** -len(
+            delta_text.split(".")[1])
+        assert abs(recomputed_ppm - delta_ppm) <= slack, (row, formula)
+        assert np.sign(delta_ppm) == np.sign(truth)         # the sign of the truth
+        assert abs(delta_ppm - truth * 1e6) <= _number(delta_u)
+
+
+def test_per_edge_timing_and_small_sample_factor_are_printed() -> None:
+    html = html_lib.unescape(render_html(build_document(
+        _ladder_result({10.0: 1e-7}), None, ISSUED)))
+    assert "Δ_edge = √(Δ_counter² + Δ_trigger²);   ΔT = √2 · Δ_edge" in html
+    assert "√((N − 1) / (N − 3))" in html
+
+
+# -- the item is what was calibrated -----------------------------------------------------
+
+def test_drift_certificate_item_is_the_platform_with_its_gyros(tmp_path: Path) -> None:
+    run = _run_dir(tmp_path)
+    shutil.copyfile(ROOT / "configs/stands/sim-gyro-platform.yaml", run.path / "stand.yaml")
+    result = drift_pulse_result()
+    result["stand"] = {"maker": "Simulated Gyro Lab", "model": "GP-3 platform test stand",
+                       "serial": "SIM-0004", "simulated": True}
+    write_certificate(run, result, issued=ISSUED)
+    html = (run.path / "certificate.html").read_text(encoding="utf-8")
+    item: dict[str, str] = {}
+    for k, v in _fields(html):   # section 1 (Identification) first
+        item.setdefault(k, v)
+    assert item["Item calibrated"] == (
+        "Simulated Gyro Works TGS-3 three-axis gyrostabiliser, with its gyros (x: TG-1 "
+        "floated rate-integrating gyro, serial SIM-G-0711; y: TG-1 floated rate-integrating "
+        "gyro, serial SIM-G-0712)")
+    assert item["Serial number"] == "SIM-P-0070"
+    assert "SIM-0004" in item["Test stand used"]
+    assert "describe no physical table" not in html
+
+
+def _fields(html: str) -> list[tuple[str, str]]:
+    rows = re.findall(r"<tr><td>(.*?)</td><td[^>]*>(.*?)</td></tr>", html, flags=re.S)
+    return [(html_lib.unescape(k), html_lib.unescape(v)) for k, v in rows]
+
+
+# -- document control -------------------------------------------------------------------
+
+def _pdf_text(path: Path) -> list[str]:
+    return [p.get_textpage().get_text_range() for p in pdfium.PdfDocument(path)]
+
+
+def test_issuing_twice_gives_two_numbers_the_second_naming_the_first(tmp_path: Path) -> None:
+    run = _run_dir(tmp_path)
+    result = _ladder_result({10.0: 1e-7})
+    result.update(run_dir=run.path.name, dates={"created_utc": "2026-11-22T10:00:00Z",
+                                                "completed_utc": "2026-11-22T11:00:00Z"})
+    write_certificate(run, result, issued=ISSUED)
+    first = re.search(r"Certificate No\. (\S+)", _pdf_text(run.path / "certificate.pdf")[0])[1]
+    write_certificate(run, result, issued=ISSUED + dt.timedelta(days=1))
+    pages = _pdf_text(run.path / "certificate.pdf")
+    second = re.search(r"Certificate No\. (\S+)", pages[0])[1]
+    assert first != second
+    assert f"replaces certificate {first}" in re.sub(r"\s+", " ", pages[0])
+    register = issues(run.path)
+    assert [i.number for i in register] == [first, second]
+    assert [i.revision for i in register] == [1, 2]
+    assert register[1].replaces == first and register[1].issue_date == "2026-11-23"
+    assert len((run.path / REGISTER_NAME).read_text().splitlines()) == 2
+
+
+def test_simulated_run_is_marked_on_every_page(tmp_path: Path) -> None:
+    run = _run_dir(tmp_path)
+    result = _ladder_result({10.0: 1e-7, -10.0: 1e-7})
+    result["stand"] = {"maker": "Sim", "model": "ST", "serial": "S1", "simulated": True}
+    write_certificate(run, result, issued=ISSUED)
+    pages = _pdf_text(run.path / "certificate.pdf")
+    assert len(pages) > 2
+    assert all("SIMULATED RUN: NOT A CALIBRATION" in p for p in pages)
+    real = _run_dir(tmp_path / "real") if (tmp_path / "real").mkdir() is None else None
+    result["stand"]["simulated"] = False
+    write_certificate(real, result, issued=ISSUED)
+    assert not any("SIMULATED" in p for p in _pdf_text(real.path / "certificate.pdf"))
+
+
+def test_named_signatories_from_the_lab_settings(tmp_path: Path) -> None:
+    import yaml
+
+    run = _run_dir(tmp_path)
+    lab = yaml.safe_load((ROOT / "configs/lab.yaml").read_text())
+    result = _ladder_result({10.0: 1e-7})
+    result["certificate"] = lab
+    write_certificate(run, result, issued=ISSUED)
+    text = re.sub(r"\s+", " ", "".join(_pdf_text(run.path / "certificate.pdf")))
+    assert "A. Ivanova, Calibration engineer (performed the calibration)" in text
+    assert ("Date of issue: 2026-11-22, the date on which this certificate was authorised "
+            "for issue by P. Petrov, Technical manager (authorised signatory)") in text
+    assert "1 Example Street" in text
+    assert "certificate.pdf is the authoritative form" in text
+
+
+@pytest.mark.parametrize("lab, message", [
+    ("3", "certificate.lab: expected the path of a lab settings file"),
+    ("nowhere.yaml", "certificate.lab: lab settings file"),
+])
+def test_a_bad_lab_key_is_named_by_file_line_and_key(tmp_path: Path, lab: str,
+                                                     message: str) -> None:
+    from bench.config import ConfigError
+    from bench.loader import load_config
+
+    proc = (ROOT / "configs/procedures/demo.yaml").read_text()
+    proc = proc.replace("stand: ../stands/", f"stand: {ROOT}/configs/stands/")
+    proc = proc.replace("  customer: Demo customer", f"  lab: {lab}\n  customer: Demo customer")
+    (tmp_path / "p.yaml").write_text(proc)
+    line = proc[:proc.index(f"  lab: {lab}")].count("\n") + 1
+    with pytest.raises(ConfigError) as e:
+        load_config(tmp_path / "p.yaml")
+    assert f"p.yaml:{line}: {message}" in str(e.value)
+
+
+def test_a_lab_file_is_read_and_copied_into_the_run(tmp_path: Path) -> None:
+    """`certificate: {lab: FILE}`: its keys under the procedure's own, kept with the run."""
+    from bench.lab import certificate_settings, lab_path
+
+    proc = tmp_path / "p.yaml"
+    shutil.copyfile(ROOT / "configs/lab.yaml", tmp_path / "lab.yaml")
+    cert = {"lab": "lab.yaml", "customer": "C"}
+    assert lab_path(proc, cert) == tmp_path / "lab.yaml"
+    merged = certificate_settings(proc, cert)
+    assert merged["customer"] == "C" and merged["address"].startswith("1 Example Street")
+    assert [s["name"] for s in merged["signatories"]] == ["A. Ivanova", "P. Petrov"]
+    # in a run directory, the copy made when the run started is the one read
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "meta.json").write_text("{}")
+    assert lab_path(run / "procedure.yaml", cert) is None      # no copy: not guessed
+    shutil.copyfile(ROOT / "configs/lab.yaml", run / "lab.yaml")
+    assert lab_path(run / "procedure.yaml", cert) == run / "lab.yaml"

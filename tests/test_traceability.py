@@ -1,0 +1,117 @@
+"""Traceability: the counter's reference read back over SCPI, a false claim refused, the
+calibration certificates and due dates from the stand file.
+
+The driver talks to the counter twin over its real TCP channel; the twin answers
+ROSCillator:SOURce? as the 53220A/53230A User's Guide says (AUTO at *RST: EXT when a valid
+reference is at Ref In, else INT; selecting a source turns AUTO off). The refusal test runs
+`bench run` on a twin stand whose counter has no reference wired while the stand file
+claims one: exit 2, nothing measured, the key named.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from bench.traceability import overdue, traced_items
+from drivers.counter import Counter, CounterError
+from sims.counter_twin import CounterTwin
+from tests.counter_rig import AXIS, turning_stand
+
+ROOT = Path(__file__).resolve().parents[1]
+STAND = ROOT / "configs" / "stands" / "sim-two-axis.yaml"
+
+
+@pytest.mark.parametrize("wired", [True, False])
+def test_counter_reference_set_checked_and_read_back(wired: bool) -> None:
+    """The stand's claim is set (SENS:ROSC:SOUR EXT), the signal checked (EXT:CHEC ONCE)
+    and read back; without a signal at Ext Ref In the counter refuses it (User's Guide)."""
+    stand = turning_stand()
+    with CounterTwin(stand, AXIS, model="keysight-53230a", external_reference=wired) as twin:
+        counter = Counter.open(twin.resource, "keysight-53230a", stand.clock)
+        try:
+            if wired:
+                assert counter.verify_reference("external", 1e-9) == "EXT"
+                assert counter.readback["counter.reference"] == "EXT"
+            else:
+                with pytest.raises(CounterError):
+                    counter.verify_reference("external", 1e-9)
+            assert counter.verify_reference("internal", None) == "INT"
+        finally:
+            counter.close()
+
+
+def _mini(tmp: Path, stand_text: str) -> Path:
+    (tmp / "stand.yaml").write_text(stand_text)
+    proc = tmp / "mini.yaml"
+    proc.write_text(f"""\
+procedure: rate-ladder
+title: reference check
+stand: {tmp / 'stand.yaml'}
+turns: 2
+static_record_s: 2
+prompts: false
+axes:
+  outer:
+    rates_dps: [50]
+""")
+    return proc
+
+
+@pytest.mark.timeout(120)
+def test_claimed_external_reference_that_is_not_there_is_refused(tmp_path: Path) -> None:
+    text = STAND.read_text()
+    # the outer counter's Ext Ref In is left unconnected in the twin stand's truth
+    first = text.index("counter_external_reference: true")
+    text = text[:first] + "counter_external_reference: false" + text[first + 33:]
+    proc = _mini(tmp_path, text)
+    out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--out",
+                          str(tmp_path / "runs")], capture_output=True, text=True,
+                         timeout=120, cwd=ROOT)
+    assert out.returncode == 2, out.stderr
+    assert "Refused:" in out.stderr and "axes.outer.counter.reference:" in out.stderr
+    run_dir = Path(out.stdout.strip().splitlines()[-1])
+    events = [json.loads(x) for x in (run_dir / "events.jsonl").read_text().splitlines()]
+    kinds = [e["event"] for e in events]
+    assert "refused" in kinds and "acquire" not in kinds and "set_rate" not in kinds
+    assert not (run_dir / "certificate.pdf").exists()
+
+
+def test_calibrations_and_due_dates_from_the_stand_file() -> None:
+    import yaml
+
+    stand = yaml.safe_load(STAND.read_text())
+    items = {t.where: t for t in traced_items(stand)}
+    counter = items["axes.outer.counter"]
+    assert counter.certificate == "SIM-CAL-53230A-0117"
+    assert counter.due == dt.date(2027, 6, 30)
+    assert "SI second" in counter.traces
+    assert items["traceability[0]"].item.startswith("GPS-disciplined 10 MHz reference")
+    assert not items["axes.outer.fog"].stated
+    assert overdue(stand, dt.date(2027, 1, 31)) == []
+    late = overdue(stand, dt.date(2027, 2, 1))
+    assert [t.where for t in late] == ["traceability[1]"]   # the slot sensors, due 01-31
+
+
+@pytest.mark.timeout(120)
+def test_past_due_warns_at_start_and_on_the_certificate(tmp_path: Path) -> None:
+    text = STAND.read_text().replace("due: 2027-01-31", "due: 2020-01-31")
+    proc = _mini(tmp_path, text)
+    out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--out",
+                          str(tmp_path / "runs")], capture_output=True, text=True,
+                         timeout=120, cwd=ROOT)
+    assert "WARNING: zero-mark slot sensors" in out.stdout + out.stderr
+    assert "was due on 2020-01-31" in out.stdout + out.stderr
+    run_dir = Path(out.stdout.strip().splitlines()[-1])
+    html = (run_dir / "certificate.html").read_text(encoding="utf-8")
+    flat = re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html))
+    assert "PAST DUE on the date of the work" in flat
+    assert "SIM-CAL-53230A-0117" in flat
+    assert ("read back from the counter: external reference at Ext Ref In "
+            "(SENS:ROSC:SOUR? EXT" in flat)
