@@ -28,6 +28,7 @@ class Figure:
     unit: str = ""          # "°/s", "°/h", or RELATIVE
     signed: bool = False
     digits: int = 4         # significant digits when there is no U
+    magnitude: bool = False  # a size (a σ, an amplitude): "< limit" when not resolved
 
 
 class Progress(Protocol):

@@ -191,11 +191,16 @@ def test_figures_are_rounded_as_the_certificate_rounds() -> None:
                Figure("turn 1", -1.5108e-7, unit=RELATIVE, signed=True, digits=3),
                Figure("turn 2", -7.9249e-8, unit=RELATIVE, signed=True, digits=3))
     con.result("big", Figure("δ", 2.5e-4, 1.07e-5, RELATIVE, signed=True))
+    # magnitudes under the certificate's one rule: resolved when |value| > U, else "< |v| + U"
+    con.result("σ", Figure("resolved", 5.0e-8, 2.0e-8, RELATIVE, magnitude=True),
+               Figure("not", 3.0e-8, 4.0e-8, RELATIVE, magnitude=True),
+               Figure("no U", 3.0e-8, None, RELATIVE, magnitude=True))
     assert out.getvalue().splitlines() == [
         "  outer ±10 deg/s: k = 1.0002925 ± 0.0000039, ω0 = +0.002066 ± 0.000038 °/s, "
         "δ(+) = \u22120.10 ± 0.12 ppm, δ(\u2212) = \u22120.13 ± 0.12 ppm",
         "  outer +10 deg/s, 2 turns timed: turn 1 = \u22120.151 ppm, turn 2 = \u22120.0792 ppm",
-        "  big: δ = +0.0250 ± 0.0011 %"]
+        "  big: δ = +0.0250 ± 0.0011 %",
+        "  σ: resolved = 0.050 ± 0.020 ppm, not = < 0.070 ppm, no U = \u2014"]
 
 
 def test_prompts_on_the_certificate_say_who_answered() -> None:

@@ -3,14 +3,16 @@
 The one place the console turns a measured number into text: a value with U through the
 certificate's `format_value_u` (U to two significant digits, the value to match), a value
 without U to its stated significant digits (`format_sig`), fractions in ppm or % chosen as
-the certificate chooses a column's unit (`rel_unit`).
+the certificate chooses a column's unit (`rel_unit`). A magnitude goes through the
+certificate's one rule for unresolved values (`present`): "value ± U" when it stands out of
+its U (k = 2), else its upper limit "< L".
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
-from bench.certificate.rounding import RelUnit, format_sig, format_value_u, rel_unit
+from bench.certificate.rounding import RelUnit, format_sig, format_value_u, present, rel_unit
 from bench.progress import RELATIVE, Figure
 
 
@@ -27,6 +29,8 @@ def figure_text(f: Figure, rel: RelUnit | None = None) -> str:
         scale, unit = rel.scale, rel.name
     if f.value is None:
         return "n/a"
+    if f.magnitude:
+        return present(f.value, f.u, scale).with_unit(unit)
     if f.u is not None:
         return format_value_u(f.value, f.u, scale, f.signed).joined(unit)
     text = format_sig(f.value * scale, f.digits, f.signed)
