@@ -29,7 +29,7 @@ from bench.journal import RunDir, read_jsonl
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor
 from drivers.scpi import parse_numbers
-from procedures.base import events_of, result_document
+from procedures.base import RawHashes, events_of, result_document
 from procedures.rate_ladder.settings import setting, tolerance_for
 
 
@@ -312,11 +312,13 @@ def sigma_check(axis: str, rate: float, entry: dict[str, Any], tolerance: float,
 
 
 def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
+    hashes = RawHashes(run)  # in threads, while the pairs are decoded and analysed
     with RawData(run, cfg) as raw:
-        return _analyze_run(run, cfg, raw)
+        return _analyze_run(run, cfg, raw, hashes)
 
 
-def _analyze_run(run: RunDir, cfg: Config, raw: RawData) -> dict[str, Any]:
+def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
+                 ) -> dict[str, Any]:
     events = run.events()
     rule = _settings(cfg)["decision_rule"]
     done_in: dict[str, int] = {e["unit"]: e["session"] for e in events_of(events, "unit_done")}
@@ -354,6 +356,7 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData) -> dict[str, Any]:
                      "allan_tau_s": list(curve.tau_s), "allan_dev_dps": list(curve.adev)}
         result_axes[axis] = {"rates": rates, "pairs": pairs, "noise_floor": floor}
     return result_document(run, cfg, events, complete=complete, checks=checks, rule=rule,
+                           raw_hashes=hashes,
                            method={**_settings(cfg),
                                    "tolerance": cfg.procedure.get("tolerance", {})},
                            axes=result_axes)
