@@ -10,6 +10,8 @@ from bench import commands
 from bench.dcc.command import COMMANDS as DCC_COMMANDS
 from bench.dcc.command import add_parsers as add_dcc_parsers
 from bench.decode import decode_command
+from bench.records.commands import RECORDS_COMMANDS
+from bench.records.commands import add_parsers as add_records_parsers
 from bench.station.serve import cmd_serve
 
 
@@ -28,6 +30,15 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--resume", metavar="RUN_DIR", help="continue an interrupted run")
     run.add_argument("--example", metavar="NAME",
                      help="run a procedure shipped inside the package (demo, drift-demo)")
+    run.add_argument("--records", metavar="URL",
+                     help="records database (default records.sqlite in the --out folder)")
+    state = run.add_mutually_exclusive_group()
+    state.add_argument("--as-found", dest="calibration_state", action="store_const",
+                       const="as-found", help="this run measures the table as found")
+    state.add_argument("--as-left", dest="calibration_state", action="store_const",
+                       const="as-left", help="this run measures the table as left (adjusted)")
+    run.add_argument("--adjustment", metavar="NOTE", help="what was adjusted since as-found")
+    run.add_argument("--operator", help="who runs it (default: the login name)")
     _console_options(run)
     val = sub.add_parser("validate", help="check procedure and stand files; exit 2 on problems")
     val.add_argument("procedure")
@@ -35,6 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
     plan.add_argument("procedure")
     ana = sub.add_parser("analyze", help="recompute result.json and certificate from raw data")
     ana.add_argument("run_dir")
+    ana.add_argument("--records", metavar="URL",
+                     help="records database (default records.sqlite beside the run)")
     _console_options(ana)
     dev = sub.add_parser("devices", help="open each instrument, print its identity")
     dev.add_argument("stand")
@@ -52,6 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     srv.add_argument("--token", help="token for stop requests and remote viewers "
                                      "(default: $BENCH_STATION_TOKEN, else one is made up)")
     add_dcc_parsers(sub)
+    add_records_parsers(sub)
     return p
 
 
@@ -70,6 +84,8 @@ def main(argv: list[str] | None = None) -> int:
         return decode_command(args.raw_file, args.fmt, args.csv)
     if args.command == "serve":
         return cmd_serve(args)
+    if args.command in RECORDS_COMMANDS:
+        return RECORDS_COMMANDS[args.command](args)
     if args.command in DCC_COMMANDS:
         return DCC_COMMANDS[args.command](args)
     return commands.dispatch(args)

@@ -32,6 +32,14 @@ from bench.journal import RunDir
 from bench.lab import lab_path
 from bench.loader import load_config
 from bench.plan import format_duration
+from bench.records.hooks import (
+    RecordsTarget,
+    history_sections,
+    mark_run,
+    register_run,
+    target,
+    warn_if_overdue,
+)
 from bench.registry import procedure_kind
 from bench.summary import Summary, summarize
 from bench.traceability import overdue, overdue_warning
@@ -71,16 +79,20 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return EXIT_PASS
 
 
-def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole
+def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
+                   records: RecordsTarget | None = None
                    ) -> tuple[dict[str, Any], Document | None]:
     """result.json, then the certificate (PDF, HTML, DCC); returns the result and the
     certificate's document (None when it could not be written: a run that leaves no
     certificate must not exit as if it had, nor one whose DCC does not validate)."""
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json("result.json", result)
+    # the table's history from the records, when they hold any (never fails the run)
+    history = history_sections(run.path, result, records, progress.warn) if records else []
     try:
         documents: list[Document] = []
-        for path in certificates.write_certificate(run, result, documents=documents):
+        for path in certificates.write_certificate(run, result, documents=documents,
+                                                   extra_sections=history):
             progress.line(f"wrote {path}")
         doc = documents[-1]
     except Exception as e:  # noqa: BLE001 - result.json stands; say what is missing
@@ -129,9 +141,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     if run is None:
         run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path,
                             lab_path(cfg.procedure_path, cfg.procedure.get("certificate")))
+        mark_run(run.path, cfg.procedure, args.calibration_state, args.adjustment,
+                 args.operator)
     console = open_console(quiet=args.quiet, log_json=args.log_json)
     status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),
-                         progress=console)
+                         progress=console, records=args.records)
     print(run.path)
     return status
 
@@ -141,13 +155,17 @@ SimHook = Callable[[Any], None]
 
 def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = False,
                 resume: bool = False, progress: PlainConsole | None = None,
-                on_sim_started: SimHook | None = None) -> int:
+                on_sim_started: SimHook | None = None, records: str | None = None) -> int:
     """One session of a run (the first, or a --resume): returns the exit status.
 
     Whatever happens inside, the axes are stopped, the instruments closed, what was
-    measured is analyzed, and the run directory is left ready for `--resume`.
+    measured is analyzed, and the run directory is left ready for `--resume`. At its end
+    the run is registered in the records (`records` URL, default records.sqlite in the
+    runs folder); a records database that cannot be reached only warns.
     """
     progress = progress or open_console()
+    where = target(run.path.parent, records, progress.warn)
+    table_overdue = warn_if_overdue(cfg.stand, where, progress.warn)
     kind = procedure_kind(cfg.kind)
     plan = kind.build_plan(cfg)
     done = run.completed_units()
@@ -186,6 +204,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                 progress.line(overdue_warning(t))
                 run.event("calibration_overdue", where=t.where, item=t.item,
                           certificate=t.certificate, due=t.due.isoformat() if t.due else None)
+            if table_overdue:
+                run.event("records_overdue", text=table_overdue)
             bench = kind.open_bench(cfg, stand, clock, run)
             for ax in bench.axes.values():
                 run.event("identity", axis=ax.name, **ax.identities,
@@ -255,7 +275,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
         guard.writing = True  # the axes are stopped: Ctrl-C now leaves the writing
         try:
             if status != EXIT_INVALID:  # a refused stand measured nothing: nothing to issue
-                result, doc = _write_outputs(run, cfg, progress)
+                result, doc = _write_outputs(run, cfg, progress, where)
         except KeyboardInterrupt as e:
             progress.warn(f"{e or 'interrupted'}: the axes were already stopped; result.json "
                           f"and the certificate may be missing or from an earlier session: "
@@ -287,6 +307,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             run.close()
         except Exception as e:  # noqa: BLE001
             _err(f"  also: closing the event log: {e}")
+    if result is not None:
+        register_run(run.path, where, progress.warn, result)
     return status
 
 
@@ -311,7 +333,9 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     if cfg is None:
         return EXIT_INVALID
     console = open_console(quiet=args.quiet, log_json=args.log_json)
-    result, doc = _write_outputs(run, cfg, console)
+    where = target(run.path.parent, args.records, console.warn)
+    result, doc = _write_outputs(run, cfg, console, where)
+    register_run(run.path, where, console.warn, result)
     console.summary(_summary(result, doc))
     print(run.path / "result.json")
     if doc is None:

@@ -173,7 +173,10 @@ STAND_DCC = Map({
     "signing": Key(SIGNING),
 })
 IDENTITY = Map({"maker": Key(Str(), True), "model": Key(Str(), True),
-                "serial": Key(Str(), True), "location": Key(Str())})
+                "serial": Key(Str(), True), "location": Key(Str()),
+                "recertification_interval_days": Key(
+                    Num(min=1, integer=True, unit="d"), False,
+                    "the table's recertification interval (lab settings may override)")})
 
 
 def stand_schema(extra_top: dict[str, Key] | None = None,
@@ -202,6 +205,11 @@ COMMON_PROCEDURE_KEYS: dict[str, Key] = {
     "certificate": Key(MapOf(Any_()), False, "customer, laboratory, ... for the certificate"),
     "decision_rule": Key(Str(("simple", "guard-band"))),
     "prompts": Key(Bool()),
+    "calibration_state": Key(Str(("as-found", "as-left")), False,
+                             "as-found before an adjustment, as-left after (the records "
+                             "pair them; --as-found/--as-left win)"),
+    "adjustment_note": Key(Str(), False, "what was adjusted since the as-found run"),
+    "operator": Key(Str(), False, "who runs the procedure (default: the login name)"),
     "specification": Key(Map({
         "source": Key(Str(), True, "the document the tolerances come from: maker, title, "
                                    "revision, date"),

@@ -82,13 +82,26 @@ class SignalGuard:
             signal.signal(sig, signal.SIG_IGN if self.count else old)
 
 
+#: how much lower the analysis worker's CPU priority is than the bench's (nice steps)
+WORKER_NICE = 10
+
+
+def _yield_the_cpu() -> None:
+    """In the worker: a lower priority, so on a busy machine the acquisition threads (FOG
+    reader, heartbeat, twins) get the CPU first and the analysis waits."""
+    import os
+
+    os.nice(WORKER_NICE)
+
+
 class AnalysisWorker:
     """Heavy analysis in a process of its own, so it cannot starve acquisition.
 
     The FOG's serial reader, the CAN heartbeat and the twins are threads of the bench
     process: a pair's analysis there (seconds of numpy at 36 M samples) would hold the
     interpreter while frames and heartbeats are due. In a worker process it runs on the
-    other core, and the run goes on acquiring the next pair meanwhile. `submit` never
+    other core, at a lower priority (WORKER_NICE), and the run goes on acquiring the next
+    pair meanwhile. `submit` never
     blocks; `on_done(result, error)` runs in a thread of this process when it is done.
     The worker is started ("spawn": never a fork of a process with CAN threads) at the
     first submit and kept for the session, so it keeps its state between jobs.
@@ -105,7 +118,8 @@ class AnalysisWorker:
                on_done: Callable[[Any, BaseException | None], None]) -> None:
         if self._pool is None:
             self._pool = ProcessPoolExecutor(max_workers=1,
-                                             mp_context=multiprocessing.get_context("spawn"))
+                                             mp_context=multiprocessing.get_context("spawn"),
+                                             initializer=_yield_the_cpu)
         fut = self._pool.submit(fn, *args)
         with self._lock:
             self._submitted[fut] = time.monotonic()

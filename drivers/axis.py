@@ -865,11 +865,12 @@ class Axis:
                 err, self._raw_error = self._raw_error, None
                 raise AxisError(f"axis {self.name}: the raw-data callback failed: {err}") \
                     from err
-            if (self._fault is None and self._drive_hb_last is not None
-                    and now - self._drive_hb_last > self._heartbeat_limit_s()):
+            last = self._drive_heard_s()
+            if (self._fault is None and last is not None
+                    and now - last > self._heartbeat_limit_s()):
                 self._set_fault(HEARTBEAT_LOST.code,
                                 f"no heartbeat from the drive for "
-                                f"{now - self._drive_hb_last:.3f} s (it sends every "
+                                f"{now - last:.3f} s (it sends every "
                                 f"{self.heartbeat_ms} ms)", 0)
             fault = self._fault
         if fault is not None:
@@ -954,14 +955,25 @@ class Axis:
             raise AxisError(f"axis {self.name}: not open (use it as a context manager)")
         return self.network
 
+    def _drive_heard_s(self) -> float | None:
+        """When the drive's heartbeat was last heard, or the end of a stall of this host
+        (our own heartbeat thread woke late), if later: a drive's heartbeats sent while
+        the host starved this process may not have been read yet; that is not silence."""
+        if self._drive_hb_last is None:
+            return None
+        stall_end = self._hb_task.host_stall_end if self._hb_task is not None else 0.0
+        return max(self._drive_hb_last, stall_end)
+
     def _heartbeat_limit_s(self) -> float:
-        """Real silence after which the drive counts as gone (4 heartbeats + 0.1 s)."""
-        return 4 * self.heartbeat_ms / 1000.0 + 0.1
+        """Real silence after which the drive counts as gone: 4 heartbeats + 0.1 s, and
+        never less than the bench's real-time minimum (a loaded controller PC can starve
+        our receive thread that long; the drive's own watchdog guards the table)."""
+        return max(4 * self.heartbeat_ms / 1000.0 + 0.1, MIN_REAL_MARGIN_S)
 
     def _drive_silence_s(self) -> float | None:
         """How long the drive has not sent a heartbeat, if longer than the limit."""
         with self._lock:
-            last = self._drive_hb_last
+            last = self._drive_heard_s()
         if last is None:
             return None
         silence = time.monotonic() - last

@@ -31,6 +31,9 @@ class HeartbeatProducer:
             raise ValueError(f"heartbeat period must be > 0 s, got {period_s}")
         self.sender, self.cob_id, self.data, self.period_s = sender, cob_id, bytes(data), period_s
         self.sent = 0
+        #: when this thread last woke more than a period late (time.monotonic()): the host
+        #: starved the process, so whatever the drive sent meanwhile may not have been read
+        self.host_stall_end = 0.0
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
 
@@ -47,6 +50,9 @@ class HeartbeatProducer:
         next_t = time.monotonic()
         failing = False
         while True:
+            now = time.monotonic()
+            if now - next_t > self.period_s:
+                self.host_stall_end = now
             try:
                 self.sender.send_message(self.cob_id, self.data)
                 self.sent += 1

@@ -6,6 +6,7 @@ The plug-in interface itself (what the engine asks of a kind) is
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +36,31 @@ def events_of(events: list[dict[str, Any]], kind: str) -> list[dict[str, Any]]:
     return [e for e in events if e.get("event") == kind]
 
 
-def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]]) -> dict[str, Any]:
+class RawHashes:
+    """The SHA-256 of every raw file, hashed in threads from the moment this is made.
+
+    A day's run holds gigabytes of raw capture: hashing them after the analysis added
+    their reading time to every `bench run` and `bench analyze`. File reads and hashlib
+    release the interpreter, so the hashes are taken while the analysis decodes.
+    """
+
+    def __init__(self, run: RunDir) -> None:
+        self._run = run
+        self._files = [p for p in sorted((run.path / "raw").rglob("*")) if p.is_file()]
+        self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="sha256")
+        self._hashes = [self._pool.submit(sha256_file, p) for p in self._files]
+
+    def result(self) -> list[dict[str, Any]]:
+        try:
+            return [{"path": str(p.relative_to(self._run.path)), "sha256": h.result(),
+                     "bytes": p.stat().st_size} for p, h in zip(self._files, self._hashes,
+                                                                 strict=True)]
+        finally:
+            self._pool.shutdown(wait=False, cancel_futures=True)
+
+
+def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]],
+               raw_hashes: RawHashes | None = None) -> dict[str, Any]:
     """What every procedure kind's result.json says about the run (certificate header)."""
     meta = run.meta
     identities: dict[str, dict[str, str]] = {}
@@ -44,11 +69,7 @@ def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]]) -> dict[s
                                  if k not in ("utc", "t_s", "session", "event", "axis")}
     starts = events_of(events, "session_start")
     ends = events_of(events, "completed") + events_of(events, "abort")
-    raw_files = []
-    for p in sorted((run.path / "raw").rglob("*")):
-        if p.is_file():
-            raw_files.append({"path": str(p.relative_to(run.path)), "sha256": sha256_file(p),
-                              "bytes": p.stat().st_size})
+    raw_files = (raw_hashes or RawHashes(run)).result()
     return {
         "title": cfg.procedure.get("title", cfg.procedure_path.stem),
         "run_dir": run.path.name,
@@ -71,7 +92,8 @@ def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]]) -> dict[s
 
 def result_document(run: RunDir, cfg: Config, events: list[dict[str, Any]], *,
                     complete: bool, checks: list[dict[str, Any]], rule: str,
-                    method: dict[str, Any], **body: Any) -> dict[str, Any]:
+                    method: dict[str, Any], raw_hashes: RawHashes | None = None,
+                    **body: Any) -> dict[str, Any]:
     """result.json: the verdict from the checks, the run header, then the kind's results."""
     if not complete:
         verdict = "incomplete"
@@ -82,7 +104,7 @@ def result_document(run: RunDir, cfg: Config, events: list[dict[str, Any]], *,
         "uncertainty_names": UNCERTAINTY_NAMING,
         "procedure": cfg.kind,
         "verdict": verdict,
-        **run_header(run, cfg, events),
+        **run_header(run, cfg, events, raw_hashes),
         "decision_rule": rule,
         "decision_rule_text": RULES[rule],
         "method": method,

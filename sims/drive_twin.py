@@ -290,11 +290,12 @@ class DriveTwin:
         if self._node is not None:
             self._node.nmt.stop_heartbeat()
 
-    def settle_after_controller(self, limit_s: float = 2.0) -> None:
+    def settle_after_controller(self, limit_s: float = 15.0) -> None:
         """A real drive outlives the controller that left it: wait (real time, at most
         `limit_s`) until a drive left with its power stage on has let its heartbeat
         watchdog act, so the stand shows what the table would do."""
-        deadline = time.monotonic() + min(limit_s, self._hb_time_s + 0.5)
+        # its watchdog time, plus what the twin's own starvation may add (_was_starved)
+        deadline = time.monotonic() + min(limit_s, self._hb_time_s + 5.0)
         while self._thread is not None and time.monotonic() < deadline:
             with self._lock:
                 if not self._state.power_stage_on or not self._hb_producer:

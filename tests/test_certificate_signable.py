@@ -230,3 +230,31 @@ def test_a_lab_file_is_read_and_copied_into_the_run(tmp_path: Path) -> None:
     assert lab_path(run / "procedure.yaml", cert) is None      # no copy: not guessed
     shutil.copyfile(ROOT / "configs/lab.yaml", run / "lab.yaml")
     assert lab_path(run / "procedure.yaml", cert) == run / "lab.yaml"
+
+
+# -- a sigma at the timing floor -----------------------------------------------------------
+
+def test_sigma_below_the_timing_floor_is_flagged_and_left_out_of_conformity() -> None:
+    """Edges with 1 us of jitter over 5 turns at 360 deg/s (T = 1 s): the timing floor is
+    sqrt(2) * 1e-6 = 1.41 ppm; the turn-to-turn scatter built in is 0.1 ppm, far below it."""
+    from procedures.rate_ladder.analysis import sigma_check, with_sigma_terms
+
+    budget = CounterBudget(timestamp_u_s=0.0, trigger_jitter_s=1e-6, timebase_limit_rel=0.0)
+    edges = 10.0 + np.arange(6) * 1.0 + np.array([0, 1e-7, -1e-7, 1e-7, -1e-7, 0])
+    d = with_sigma_terms(analyze_turns([edges], 360.0, budget).to_dict())
+    assert abs(d["rate_instability_floor_rel"] - 2 ** 0.5 * 1e-6) < 1e-12
+    assert d["rate_instability_rel"] < d["rate_instability_floor_rel"]
+    assert d["rate_instability_resolved"] is False
+    check = sigma_check("outer", 360.0, d, 1e-7, "guard-band")   # a tolerance it exceeds
+    assert check["verdict"] == "not-assessed"                    # not a FAIL, not a PASS
+    assert "timing floor" in check["reason"]
+    result = {"schema": "bench.result/1", "procedure": "rate-ladder", "verdict": "pass",
+              "decision_rule": "guard-band", "checks": [check],
+              "axes": {"outer": {"rates": [{**d, "verdict": "pass"}], "pairs": []}}}
+    html = html_lib.unescape(render_html(build_document(result, None, ISSUED)))
+    row = _cells(html, "Axis outer: per-turn rate error and instability")[0]
+    limit_ppm = d["rate_instability_upper_rel"] * 1e6
+    assert row[4].startswith("< ") and float(row[4][2:]) >= limit_ppm   # a limit, rounded up
+    conf = _cells(html, "Conformity with the specification")[0]
+    assert conf[-1] == "NOT ASSESSED" and "(timing floor)" in conf[4]
+    assert "NO STATEMENT OF CONFORMITY: none of the 1 check(s) could be assessed" in html

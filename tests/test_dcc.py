@@ -315,6 +315,9 @@ def test_bench_dcc_rewrites_and_bench_verify_accepts(demo: dict[str, Any]) -> No
     ok = _cli("verify", str(path))
     assert ok.returncode == 0, ok.stdout + ok.stderr
     assert "verify: OK" in ok.stdout and "not signed" in ok.stdout
+    core = _tree(path).find("dcc:administrativeData/dcc:coreData", NS)
+    pdf_text = (demo["dir"] / "certificate.html").read_text(encoding="utf-8")
+    assert core.findtext("dcc:uniqueIdentifier", "", NS) in pdf_text   # the PDF's number
 
 
 def _copy_run(run: dict[str, Any], dest: Path) -> Path:
@@ -578,3 +581,24 @@ def test_which_lab_settings_and_key_are_in_force(tmp_path: Path,
     assert chosen.laboratory.name == "Test Rate Lab"
     assert chosen.signing.key_file == tmp_path / "stand.key.pem"
     assert resolve_settings({"dcc": {"lab": str(first)}}).signing.key_file == key
+
+
+def test_a_reissued_certificate_says_what_it_substitutes(demo: dict[str, Any],
+                                                        tmp_path: Path) -> None:
+    """A re-analysis issues a new revision of the certificate (bench.certificate.register):
+    the DCC carries the issue's number and names the one it replaces."""
+    from bench.certificate import register
+
+    run = _copy_run(demo, tmp_path / "run")
+    shutil.copy2(demo["dir"] / register.REGISTER_NAME, run / register.REGISTER_NAME)
+    first = register.issues(run)[-1]
+    again = register.next_issue(run, first.number, dt.datetime(2027, 3, 4, 12, tzinfo=dt.UTC))
+    register.record(run, again)
+    assert _cli("dcc", str(run)).returncode == 0
+    core = _tree(run / "certificate.dcc.xml").find("dcc:administrativeData/dcc:coreData", NS)
+    assert core.findtext("dcc:uniqueIdentifier", "", NS) == again.number != first.number
+    assert core.findtext("dcc:issueDate", "", NS) == "2027-03-04"
+    change = core.find("dcc:reportAmendedSubstituted", NS)
+    assert change.findtext("dcc:typeOfChange", "", NS) == "substituted"
+    assert change.findtext("dcc:replacedUniqueIdentifier", "", NS) == first.number
+    assert _cli("verify", str(run / "certificate.dcc.xml")).returncode == 0

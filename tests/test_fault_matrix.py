@@ -72,6 +72,13 @@ RESUMED = {("sigint", "acquire"), ("drive-heartbeat-lost", "acquire")}
 RESUME_ALL = os.environ.get("RATEBENCH_RESUME_ALL") == "1"
 
 
+def _hear_silence_sooner(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The controller notices a silent drive after at least the bench's real-time minimum
+    (5 s); the paced clock would finish this short ladder first. Here the floor is 1 s
+    (a test setting, not the bench's): the drive's own watchdog keeps its 5 s."""
+    monkeypatch.setattr("drivers.axis.MIN_REAL_MARGIN_S", 1.0)
+
+
 def _raw_hashes(run: RunDir, session: int) -> dict[str, str]:
     folder = run.path / "raw" / f"s{session}"
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest()
@@ -107,8 +114,10 @@ def _assert_aborted_cleanly(run: RunDir, status: int, seen: dict[str, Any]) -> N
 
 @pytest.mark.timeout(240)
 @pytest.mark.parametrize("fault,phase", CELLS)
-def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str,
-                                                tmp_path: Path) -> None:
+def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str, tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    if fault == "drive-heartbeat-lost":
+        _hear_silence_sooner(monkeypatch)
     cfg = load_config(_procedure(tmp_path))
     run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
     status, seen = _session(cfg, run, FAULTS[fault], phase)
@@ -144,9 +153,11 @@ def test_counter_without_trigger_in_acquire(tmp_path: Path) -> None:
 
 @pytest.mark.timeout(120)
 def test_a_failure_while_stopping_is_added_beneath_the_first_cause(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
     """The drive's heartbeat stops (the first cause); it then cannot be told to stop (a
     later error): the operator reads the cause first, the loud stop error beneath it."""
+    _hear_silence_sooner(monkeypatch)
     cfg = load_config(_procedure(tmp_path))
     run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
     status, seen = _session(cfg, run, FAULTS["drive-heartbeat-lost"], "settle")
@@ -236,3 +247,53 @@ def test_ctrl_c_while_the_outputs_are_written_is_honoured(
     assert "being stopped first" not in err
     last = run.events()[-1]
     assert last["event"] == "exit" and last["status"] == EXIT_ABORTED
+
+
+@pytest.fixture
+def small_disk(tmp_path: Path) -> Any:
+    """A small file system of its own (tmpfs), to be filled: needs root and mount(2)."""
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=48m", "tmpfs", str(mnt)],
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here ({done.stderr.strip()}): the full-disk cell "
+                    "needs root and mount(2)")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], check=False)
+
+
+def _fill(folder: Path) -> None:
+    """Another process fills the disk: write until the file system says ENOSPC."""
+    block = b"\0" * (1 << 20)
+    with open(folder / "filler", "wb") as f:
+        try:
+            while True:
+                f.write(block)
+                f.flush()
+        except OSError:
+            pass
+
+
+@pytest.mark.timeout(180)
+def test_full_disk_mid_acquire_names_the_file_and_resumes(
+        tmp_path: Path, small_disk: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cfg = load_config(_procedure(tmp_path))
+    run = RunDir.create(small_disk, cfg.procedure_path, cfg.stand_path)
+    status, seen = _session(cfg, run, lambda sim: _fill(small_disk), "acquire")
+    err = capsys.readouterr().err
+    assert status == EXIT_ABORTED, err
+    assert "Traceback" not in err
+    assert "No space left on device" in err and f"cannot write {run.path}" in err, err
+    axis = seen["sim"].stand.axes["outer"]
+    assert axis.commanded_rate_at(seen["sim"].clock.now() + 3600.0) == 0.0
+    before = _raw_hashes(run, 1)
+    (small_disk / "filler").unlink()                    # the operator frees space
+    again = RunDir(run.path)
+    status2, _ = _session(cfg, again, resume=True)
+    assert status2 == EXIT_PASS, capsys.readouterr().err
+    assert _raw_hashes(again, 1) == before
+    starts = [e for e in again.events() if e["event"] == "session_start"]
+    assert [e["session"] for e in starts] == [1, 2]     # the journal stayed readable

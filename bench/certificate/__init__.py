@@ -12,11 +12,12 @@ import datetime as dt
 import hashlib
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
 from bench.certificate import register
-from bench.certificate.build import Sources, build_document, certificate_id
+from bench.certificate.build import ExtraSection, Sources, build_document, certificate_id
 from bench.certificate.html import render_html
 from bench.certificate.model import Document
 from bench.certificate.pdf import render_pdf
@@ -40,7 +41,8 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | None = None,
                  issued: dt.date | None = None, *,
-                 documents: list[Document] | None = None) -> list[Path]:
+                 documents: list[Document] | None = None,
+                 extra_sections: Sequence[ExtraSection] = ()) -> list[Path]:
     """Issue the certificate for `result` into `out_dir`.
 
     With a run directory each call is a new issue: the next revision in the run's register
@@ -56,7 +58,7 @@ def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | N
             else dt.datetime.now(dt.UTC))
     src = Sources.load(result, run_path)
     issue = register.next_issue(run_path, certificate_id(src), when, digest)
-    doc = build_document(result, run_path, issued, issue)
+    doc = build_document(result, run_path, issued, issue, extra_sections)
     if documents is not None:
         documents.append(doc)
     html_path, pdf_path = out / HTML_NAME, out / PDF_NAME
@@ -69,6 +71,11 @@ def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | N
 
 def write_certificate(run: _HasPath, result: dict[str, Any],
                       issued: dt.date | None = None, *,
-                      documents: list[Document] | None = None) -> list[Path]:
-    """certificate.html and certificate.pdf in the run directory; returns their paths."""
-    return render_files(result, run.path, run.path, issued, documents=documents)
+                      documents: list[Document] | None = None,
+                      extra_sections: Sequence[ExtraSection] = ()) -> list[Path]:
+    """certificate.html and certificate.pdf in the run directory; returns their paths.
+
+    `extra_sections` (title, blocks) come from outside the run directory (the table's
+    history from the records) and are placed before the statements."""
+    return render_files(result, run.path, run.path, issued, documents=documents,
+                        extra_sections=extra_sections)

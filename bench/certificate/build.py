@@ -244,8 +244,13 @@ AUTHORITATIVE = ("The PDF file certificate.pdf is the authoritative form of this
 SIMULATED_MARK = "SIMULATED RUN: NOT A CALIBRATION"
 
 
+#: a section from outside the run directory (the records' history): title and blocks
+ExtraSection = tuple[str, tuple[Any, ...]]
+
+
 def build_document(result: dict[str, Any], run_path: Path | None = None,
-                   issued: dt.date | None = None, issue: Issue | None = None) -> Document:
+                   issued: dt.date | None = None, issue: Issue | None = None,
+                   extra_sections: Sequence[ExtraSection] = ()) -> Document:
     """The certificate for one issue. Without `issue` it is the run's next one (revision 1
     when nothing was issued yet), dated today or `issued`, and nothing is recorded."""
     src = Sources.load(result, run_path)
@@ -277,6 +282,8 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
     sections.append(Section(n.next(), "Records: raw data and inputs", _records(src)))
     if kind != "drift-pulse" and any(r.get("counter_rate_dps") for r in _all_rates(src)):
         sections.append(Section(n.next(), "Per-turn counter rates", _per_turn_annex(src)))
+    for title, blocks in extra_sections:
+        sections.append(Section(n.next(), title, tuple(blocks)))
     statements = [t for t in methods.STATEMENTS
                   if kind != "drift-pulse" or not t.startswith("Relative values")]
     statements.append(AUTHORITATIVE)
@@ -499,6 +506,10 @@ def _overall(src: Sources, checks: list[dict[str, Any]], kind: str = "rate-ladde
     if verdict == "incomplete":
         return ("INCOMPLETE: the run did not complete every step; no statement of conformity is "
                 "made for the points not measured." + cons_text)
+    excluded = sum(1 for c in checks if check_class(c) == "not-assessed")
+    if not conf and excluded:
+        return (f"NO STATEMENT OF CONFORMITY: none of the {excluded} check(s) could be "
+                "assessed (section Conformity)." + cons_text)
     if not conf:
         return (f"{verdict.upper()}: no conformity check was made (the procedure states no "
                 "tolerances)." + cons_text)

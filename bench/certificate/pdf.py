@@ -187,7 +187,7 @@ class _Pdf(FPDF):
             self.set_xy(x, y + 1)
             self.set_font(SANS, "", 8)
             text = f"{name + ', ' if name else ''}{role}\nSignature and date"
-            self.multi_cell(col, 3.8, text)
+            self.multi_cell(col, 3.8, text, align="L")
         self.set_y(y + 12)
 
 

@@ -12,7 +12,7 @@ from typing import Any
 from lxml import etree
 
 import bench
-from bench.certificate import methods
+from bench.certificate import methods, register
 from bench.certificate.build import Sources, decision_rule_text, issued_number
 from bench.dcc import vocab as V
 from bench.dcc.conformity import ILAC_G8, RULE_REFERENCE, checks_of
@@ -96,7 +96,12 @@ def administrative(adm: etree._Element, src: Sources, lab: LabSettings, kind: st
     el(core, "endPerformanceDate", end)
     el(core, "performanceLocation", lab.performance_location
        or str(cert.get("performance_location") or "laboratory"))
-    el(core, "issueDate", issue)
+    latest = register.issues(src.run_path)
+    el(core, "issueDate", latest[-1].issue_date if latest else issue)   # the PDF's issue
+    if latest and latest[-1].replaces:      # a re-analysis re-issues: say what it replaces
+        change = el(core, "reportAmendedSubstituted")
+        el(change, "typeOfChange", "substituted")
+        el(change, "replacedUniqueIdentifier", latest[-1].replaces)
     _item(el(adm, "items"), src, kind)
     labx = el(adm, "calibrationLaboratory")
     if lab.laboratory and lab.laboratory.code:
@@ -175,7 +180,10 @@ def _statements(sts: etree._Element, src: Sources, kind: str, country: Any) -> N
                          "states", "given here as plain fractions (unit \\one); the PDF "
                          "prints them in % or ppm"))
         statement(sts, None, text, norms=("ISO/IEC 17025:2017",),
-                   references=("7.8",) if i else ("7.8.2.1 l)",))
+                  references=("7.8",) if i else ("7.8.2.1 l)",))
+    statement(sts, None, "The PDF embedded here (certificate.pdf, under document) is the "
+              "authoritative form of this certificate; this XML carries the same results, "
+              "unrounded, for machines to read.")
     verdict = str(src.get("verdict") or "incomplete").lower()
     rule = str(src.get("decision_rule") or "simple")
     overall = {"pass": "pass", "fail": "fail"}.get(verdict)
@@ -183,8 +191,8 @@ def _statements(sts: etree._Element, src: Sources, kind: str, country: Any) -> N
     text = (f"Overall statement of conformity: {verdict.upper()} ({n} check(s), each stated "
             "with the quantity it judges). " + decision_rule_text(rule))
     statement(sts, V.CONFORMITY, text, sid="overallConformity", title="Conformity",
-               norms=(ILAC_G8,), references=(RULE_REFERENCE.get(rule, rule),),
-               conformity=overall)
+              norms=(ILAC_G8,), references=(RULE_REFERENCE.get(rule, rule),),
+              conformity=overall)
     stand = stand_of(src)
     if stand.get("location"):
         st = statement(sts, V.LOCATION, "Location of the item during the calibration.")
@@ -192,11 +200,11 @@ def _statements(sts: etree._Element, src: Sources, kind: str, country: Any) -> N
         text_el(loc, "further", str(stand["location"]))
     if stand.get("simulated"):
         statement(sts, V.SIMULATED, "SIMULATED stand: every instrument was a simulated "
-                   "twin on a real channel; the results describe no physical item.")
+                  "twin on a real channel; the results describe no physical item.")
     if not country:
         statement(sts, V.COUNTRY_UNKNOWN, "The laboratory configured no country: the "
-                   f"country code {UNKNOWN_COUNTRY} (ISO 3166-1 user-assigned) stands for "
-                   "'not recorded'.")
+                  f"country code {UNKNOWN_COUNTRY} (ISO 3166-1 user-assigned) stands for "
+                  "'not recorded'.")
     _digests(sts, src)
 
 
@@ -212,9 +220,9 @@ def _digests(sts: etree._Element, src: Sources) -> None:
         statement(sts, V.RAW_DIGESTS, "No raw data files were recorded.")
         return
     st = statement(sts, V.RAW_DIGESTS, "SHA-256 digests of the raw data as received from "
-                    "the instruments (path in the run directory, then the digest in hex); "
-                    "`bench analyze RUN_DIR` recomputes every result from these bytes.",
-                    title="Raw data files")
+                   "the instruments (path in the run directory, then the digest in hex); "
+                   "`bench analyze RUN_DIR` recomputes every result from these bytes.",
+                   title="Raw data files")
     data = el(st, "data")
     for f in files:
         t = el(data, "text", ref_type=V.SHA256)

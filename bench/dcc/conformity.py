@@ -95,6 +95,6 @@ def leftover_checks(root: etree._Element, src: Sources, checks: Checks) -> None:
     for i, c in rest:
         verdict = {"pass": "pass", "fail": "fail"}.get(str(c.get("verdict")).lower())
         statement(sts, V.CONFORMITY, f"Check {i + 1} ({c.get('axis')}, "
-                   f"{c.get('quantity')}): {str(c.get('verdict') or '').upper()}: "
-                   f"{c.get('reason') or 'no reason recorded'}",
-                   sid=ident("check", i + 1), conformity=verdict)
+                  f"{c.get('quantity')}): {str(c.get('verdict') or '').upper()}: "
+                  f"{c.get('reason') or 'no reason recorded'}",
+                  sid=ident("check", i + 1), conformity=verdict)

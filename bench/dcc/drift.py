@@ -57,10 +57,12 @@ def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None
         for key, what in (("own_u_dph", "own"), ("apparent_u_dph", "apparent")):
             terms = budget.get(key)
             if isinstance(terms, Mapping):
-                budget_list(data, ident(aid, "budget", what), f"uncertainty budget of the {what} "
-                        "drift: standard uncertainties (k = 1) per source; U = 2 sqrt(sum "
-                        "u^2) (docs/method.md B)", terms, f"{path}.budget.{key}",
-                        tuple((str(k), str(k).replace("_", " ")) for k in terms), U.DEG_PER_H)
+                budget_list(data, ident(aid, "budget", what),
+                            f"uncertainty budget of the {what} drift: standard uncertainties "
+                            "(k = 1) per source; U = 2 sqrt(sum u^2) (docs/method.md B)",
+                            terms, f"{path}.budget.{key}",
+                            tuple((str(k), str(k).replace("_", " ")) for k in terms),
+                            U.DEG_PER_H)
         for j, pos in enumerate(d.get("positions") or []):
             if not isinstance(pos, Mapping):
                 continue

@@ -145,11 +145,12 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
         q("corrected_upper_rel", "upper limit (k = 2) of the floor-corrected intra-turn "
           "instability", V.INTRA_TURN_UPPER, U.ONE, value=upper,
           label=f"{path}.intra_turn.corrected_upper_rel")
-    budget_list(data, ident(rid, "budget"), "uncertainty budget of the rate error: standard "
-            "uncertainties (k = 1) relative to |set|; U = 2 sqrt(sum u^2) (docs/method.md "
-            "A1-A2)", r.get("rate_error_budget"), f"{path}.rate_error_budget",
-            (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
-             ("repeatability_u_rel", "repeatability (Type A)")), U.ONE)
+    budget_list(data, ident(rid, "budget"),
+                "uncertainty budget of the rate error: standard uncertainties (k = 1) relative "
+                "to |set|; U = 2 sqrt(sum u^2) (docs/method.md A1-A2)",
+                r.get("rate_error_budget"), f"{path}.rate_error_budget",
+                (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
+                 ("repeatability_u_rel", "repeatability (Type A)")), U.ONE)
     _averaged(data, rid, path, intra)
     _systematic(data, rid, path, r.get("systematic") or {})
 

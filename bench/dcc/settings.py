@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from bench.config import SIGNING, STAND_DCC
-from bench.schema import Bool, Check, Key, ListOf, Map, Str, validate
+from bench.schema import Bool, Check, Key, ListOf, Map, MapOf, Num, Str, validate
 from bench.yamlfile import YamlError, load_yaml
 
 __all__ = ["ENV_LAB", "STAND_DCC", "LabSettings", "SettingsError", "load_lab_file",
@@ -49,6 +49,13 @@ LAB_FILE = Map({
     "performance_location": Key(Str(PERFORMANCE_LOCATIONS)),
     "responsible_persons": Key(ListOf(PERSON)),
     "signing": Key(SIGNING),
+    # the records' keys (bench/records/settings.py reads them): one lab file for both
+    "records": Key(Str(), False, "records database URL"),
+    "recertification": Key(Map({
+        "default_interval_days": Key(Num(min=1, integer=True, unit="d")),
+        "tables": Key(MapOf(Num(min=1, integer=True, unit="d")), False,
+                      "serial: recertification interval, days"),
+    })),
 })
 
 
@@ -102,7 +109,6 @@ class LabSettings:
     persons: tuple[Person, ...] = ()
     signing: Signing | None = None
     source: str = ""
-    notes: tuple[str, ...] = field(default_factory=tuple)
 
 
 _LOCATION_ELEMENTS = {"street": "street", "street_no": "streetNo", "post_code": "postCode",
@@ -152,11 +158,7 @@ def resolve_settings(stand: Mapping[str, Any] | None, lab_file: str | Path | Non
     chosen = lab_file or dcc.get("lab") or os.environ.get(ENV_LAB)
     settings = load_lab_file(os.path.expanduser(str(chosen))) if chosen else LabSettings()
     stand_signing = _signing(dcc.get("signing"), f"{stand_origin}: dcc.signing")
-    if stand_signing is not None:
-        settings = LabSettings(settings.laboratory, settings.country_code,
-                               settings.performance_location, settings.persons, stand_signing,
-                               settings.source)
-    return settings
+    return settings if stand_signing is None else replace(settings, signing=stand_signing)
 
 
 def check_key_outside(signing: Signing, run_path: Path) -> None:

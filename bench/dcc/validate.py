@@ -38,12 +38,6 @@ URI_MAP: dict[str, Path] = {f"https://{host}/{rel}": SCHEMA_DIR / rel
 MAX_ERRORS = 20
 
 
-def uri_mapper(uri: str) -> str:
-    """A published schema URL -> its local file (xmlschema's `uri_mapper` hook)."""
-    local = URI_MAP.get(uri)
-    return str(local) if local else uri
-
-
 class LocalSchemas(etree.Resolver):
     """libxml2's resolver: the schemas' import URLs -> the shipped files, nothing else."""
 

@@ -29,7 +29,7 @@ from bench.journal import RunDir, read_jsonl
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor
 from drivers.scpi import parse_numbers
-from procedures.base import events_of, result_document
+from procedures.base import RawHashes, events_of, result_document
 from procedures.rate_ladder.settings import setting, tolerance_for
 
 
@@ -248,6 +248,17 @@ def instability_upper(value: float, turns: int) -> float:
     return value * math.sqrt((turns - 1) / float(chi2.ppf(1.0 - SIGMA_UPPER_P, turns - 1)))
 
 
+def with_sigma_terms(d: dict[str, Any]) -> dict[str, Any]:
+    """A rate's entry with eq. 2's U, its one-sided upper limit and whether it is resolved
+    above the timing floor (what the certificate and the conformity check read)."""
+    s, n = d["rate_instability_rel"], d["turns"]
+    d["rate_instability_u_rel"] = _instability_u(s, n)
+    d["rate_instability_upper_rel"] = instability_upper(s, n)
+    d["rate_instability_resolved"] = sigma_resolved(s, d["rate_instability_u_rel"],
+                                                    d["rate_instability_floor_rel"])
+    return d
+
+
 def sigma_resolved(value: float, u: float, floor: float) -> bool:
     """METHOD.md A1/A2: sigma shows the table's own turn-to-turn scatter only when it stands
     above the timing floor by more than its U (the one k = 2 rule, on the excess)."""
@@ -301,11 +312,13 @@ def sigma_check(axis: str, rate: float, entry: dict[str, Any], tolerance: float,
 
 
 def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
+    hashes = RawHashes(run)  # in threads, while the pairs are decoded and analysed
     with RawData(run, cfg) as raw:
-        return _analyze_run(run, cfg, raw)
+        return _analyze_run(run, cfg, raw, hashes)
 
 
-def _analyze_run(run: RunDir, cfg: Config, raw: RawData) -> dict[str, Any]:
+def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
+                 ) -> dict[str, Any]:
     events = run.events()
     rule = _settings(cfg)["decision_rule"]
     done_in: dict[str, int] = {e["unit"]: e["session"] for e in events_of(events, "unit_done")}
@@ -324,14 +337,7 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData) -> dict[str, Any]:
             acqs = unit_halves(events, unit, done_in[unit])
             pa = analyze_unit(raw, cfg, axis, rate, acqs, static)
             for r in pa.rates:
-                d = r.to_dict()
-                d["rate_instability_u_rel"] = _instability_u(d["rate_instability_rel"],
-                                                             d["turns"])
-                d["rate_instability_upper_rel"] = instability_upper(
-                    d["rate_instability_rel"], d["turns"])
-                d["rate_instability_resolved"] = sigma_resolved(
-                    d["rate_instability_rel"], d["rate_instability_u_rel"],
-                    d["rate_instability_floor_rel"])
+                d = with_sigma_terms(r.to_dict())
                 d["session"] = done_in[unit]
                 c = _checks(cfg, axis, d, rule)
                 d["checks"] = c
@@ -350,6 +356,7 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData) -> dict[str, Any]:
                      "allan_tau_s": list(curve.tau_s), "allan_dev_dps": list(curve.adev)}
         result_axes[axis] = {"rates": rates, "pairs": pairs, "noise_floor": floor}
     return result_document(run, cfg, events, complete=complete, checks=checks, rule=rule,
+                           raw_hashes=hashes,
                            method={**_settings(cfg),
                                    "tolerance": cfg.procedure.get("tolerance", {})},
                            axes=result_axes)

@@ -1,0 +1,185 @@
+"""`bench history`, `bench records import`, `bench due` (CONTRACT §1)."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime as dt
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from bench.records.extract import NotARun, find_runs, record_of
+from bench.records.hooks import target
+from bench.records.settings import DEFAULT_RUNS, SettingsError
+from bench.records.store import Records, RecordsError, TrendPoint, redact
+
+EXIT_OK, EXIT_FAIL, EXIT_INVALID = 0, 1, 2
+CSV_COLUMNS = ("serial", "axis", "quantity", "set_rate_dps", "date_utc", "value", "u",
+               "unit", "tolerance", "verdict", "certificate_number", "calibration_state",
+               "run_uid")
+#: what `bench history` prints per run (the CSV has every figure)
+SHOWN = {"rate_error_rel": ("rate error", 1e6, "ppm"),
+         "rate_instability_rel": ("instability", 1e6, "ppm"),
+         "own_drift_dph": ("own drift", 1.0, "deg/h"),
+         "apparent_drift_dph": ("apparent drift", 1.0, "deg/h")}
+
+
+def _err(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def add_parsers(sub: Any) -> None:
+    """The records subcommands, added to the `bench` parser."""
+    his = sub.add_parser("history", help="every recorded run of one table, with a trend plot")
+    his.add_argument("serial", help="the table's serial number (stand.serial)")
+    where = his.add_mutually_exclusive_group()
+    where.add_argument("--runs", help="runs folder whose records.sqlite to read (runs/)")
+    where.add_argument("--records", help="records database URL")
+    his.add_argument("--csv", help="write every recorded figure of the table to this CSV")
+    his.add_argument("--plot", help="trend plot PNG (default history-SERIAL.png here)")
+    rec = sub.add_parser("records", help="the records database")
+    rsub = rec.add_subparsers(dest="records_command", required=True, metavar="ACTION")
+    imp = rsub.add_parser("import", help="register existing run directories (idempotent)")
+    imp.add_argument("runs_dir")
+    imp.add_argument("--records", help="records database URL (default RUNS_DIR/records.sqlite)")
+    due = sub.add_parser("due", help="tables due or overdue for recertification")
+    due.add_argument("--records", help="records database URL")
+    due.add_argument("--runs", default=DEFAULT_RUNS, help="runs folder (records.sqlite, lab.yaml)")
+    due.add_argument("--within", type=int, default=30, metavar="DAYS",
+                     help="also list tables due within DAYS (30)")
+    due.add_argument("--all", action="store_true", help="list every table with an interval")
+    due.add_argument("--today", type=dt.date.fromisoformat, help=argparse.SUPPRESS)
+
+
+def _guarded(cmd: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+    """A bad lab settings file is invalid input (2); an unreachable database exits 1."""
+    def run(args: argparse.Namespace) -> int:
+        try:
+            return cmd(args)
+        except SettingsError as e:
+            _err(str(e))
+            return EXIT_INVALID
+        except RecordsError as e:
+            _err(str(e))
+            return EXIT_FAIL
+    return run
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    runs_dir = Path(args.runs_dir)
+    if not runs_dir.is_dir():
+        _err(f"{runs_dir}: no such folder")
+        return EXIT_INVALID
+    where = target(runs_dir, args.records)
+    counts = {"new": 0, "updated": 0, "unchanged": 0, "skipped": 0}
+    with Records.open(where.url) as rec:
+        for path in find_runs(runs_dir):
+            try:
+                record = record_of(path)
+            except NotARun as e:
+                _err(f"skipped: {e}")
+                counts["skipped"] += 1
+                continue
+            outcome = rec.register(record, where.interval_for(record.serial,
+                                                              record.interval_days))
+            counts[outcome] += 1
+            if outcome != "unchanged":
+                print(f"{outcome:<9} {record.serial}  {record.certificate_number}  {path}")
+    print(f"records {redact(where.url)}: {counts['new']} new, {counts['updated']} updated, "
+          f"{counts['unchanged']} already recorded, {counts['skipped']} skipped")
+    return EXIT_OK
+
+
+def _date(p: TrendPoint) -> str:
+    return p.date_utc.isoformat(timespec="seconds") if p.date_utc else ""
+
+
+def cmd_history(args: argparse.Namespace) -> int:
+    where = target(args.runs or DEFAULT_RUNS, args.records)
+    with Records.open(where.url) as rec:
+        runs = rec.runs(args.serial)
+        points = rec.trend(args.serial)
+        table = rec.table(args.serial)
+    if not runs:
+        _err(f"no run of table {args.serial!r} in {redact(where.url)}"
+             + ("" if args.records else f" (run `bench records import "
+                                         f"{args.runs or DEFAULT_RUNS}` first?)"))
+        return EXIT_FAIL
+    assert table is not None
+    print(f"table {table.serial}: {table.maker or ''} {table.model or ''}".rstrip())
+    print(f"{len(runs)} run(s) in {redact(where.url)}")
+    for r in runs:
+        state = f" [{r.calibration_state}]" if r.calibration_state else ""
+        when = r.date_utc.strftime("%Y-%m-%d %H:%M") if r.date_utc else "?"
+        print(f"  {when}  {r.certificate_number or '-':<24} {r.kind:<11} "
+              f"{r.verdict.upper():<10}{state}  {r.run_dir}")
+        if r.adjustment_note:
+            print(f"      adjustment: {r.adjustment_note}")
+    print("figures with U (k = 2), per axis and rate:")
+    groups: dict[tuple[str, float | None, str], list[TrendPoint]] = {}
+    for p in points:
+        if p.figure.quantity in SHOWN:
+            groups.setdefault((p.figure.axis, p.figure.set_rate_dps, p.figure.quantity),
+                              []).append(p)
+    for (axis, rate, quantity), pts in sorted(
+            groups.items(), key=lambda kv: (kv[0][0], kv[0][2], kv[0][1] or 0.0)):
+        name, scale, unit = SHOWN[quantity]
+        where_txt = f"{axis} {rate:+g} deg/s" if rate is not None else axis
+        print(f"  {where_txt} {name}, {unit}:")
+        for p in pts:
+            f = p.figure
+            u = f"± {f.u * scale:.3g}" if f.u is not None else ""
+            tol = f"  (tolerance {f.tolerance * scale:.3g})" if f.tolerance else ""
+            print(f"    {_date(p)}  {f.value * scale:+.4g} {u}  "
+                  f"{(f.verdict or '').upper()}{tol}")
+    if args.csv:
+        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh)
+            w.writerow(CSV_COLUMNS)
+            for p in points:
+                f = p.figure
+                w.writerow((args.serial, f.axis, f.quantity,
+                            "" if f.set_rate_dps is None else repr(f.set_rate_dps), _date(p),
+                            repr(f.value), "" if f.u is None else repr(f.u), f.unit,
+                            "" if f.tolerance is None else repr(f.tolerance), f.verdict or "",
+                            p.certificate_number or "", p.calibration_state or "", p.run_uid))
+        print(f"csv: {args.csv}")
+    from bench.records.trend import trend_png
+
+    png = trend_png(points, f"Table {args.serial}: trend across recertifications")
+    if png is not None:
+        plot = Path(args.plot or f"history-{_safe(args.serial)}.png")
+        plot.write_bytes(png)
+        print(f"trend plot: {plot}")
+    return EXIT_OK
+
+
+def _safe(serial: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in serial)
+
+
+def cmd_due(args: argparse.Namespace) -> int:
+    where = target(args.runs, args.records)
+    with Records.open(where.url) as rec:
+        items = rec.due(today=args.today, within_days=args.within,
+                        intervals=where.interval_for, everything=args.all)
+    if not items:
+        print(f"no table due within {args.within} d ({redact(where.url)})")
+        return EXIT_OK
+    print(f"{'serial':<16} {'table':<34} {'last pass':<11} {'interval':>8}  "
+          f"{'due':<11} status")
+    for i in items:
+        t = i.table
+        last = t.last_pass_utc.date().isoformat() if t.last_pass_utc else "-"
+        interval = where.interval_for(t.serial, t.interval_days)
+        print(f"{t.serial:<16} {((t.maker or '') + ' ' + (t.model or '')).strip()[:34]:<34} "
+              f"{last:<11} {interval:>6} d  {str(i.due_date or 'now'):<11} {i.status}")
+    return EXIT_OK
+
+
+#: command name -> handler, for bench/cli.py
+RECORDS_COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
+    "history": _guarded(cmd_history), "records": _guarded(cmd_import),
+    "due": _guarded(cmd_due)}
