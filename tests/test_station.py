@@ -112,8 +112,9 @@ def test_fog_trace_decodes_the_capture_tail(tmp_path: Path, units: str, scale: f
 
 # -- security: token, Host header, traversal -------------------------------------------
 
-@pytest.fixture
-def runs_folder(tmp_path: Path) -> Path:
+@pytest.fixture(scope="module")
+def runs_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    tmp_path = tmp_path_factory.mktemp("station")
     run = tmp_path / "runs" / "20260101-000000-demo"
     run.mkdir(parents=True)
     (run / "events.jsonl").write_text(json.dumps(
@@ -163,7 +164,7 @@ def test_serve_refuses_a_public_address_without_a_token(monkeypatch: pytest.Monk
     assert made and len(s.token) >= 16
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def server(runs_folder: Path) -> Iterator[tuple[subprocess.Popen[str], int]]:
     proc, port = _start_server(runs_folder)
     yield proc, port
