@@ -143,11 +143,13 @@ def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str, tmp_path
 
 
 @pytest.mark.timeout(120)
-def test_counter_without_trigger_in_acquire(tmp_path: Path) -> None:
+@pytest.mark.parametrize("fault", ["no-trigger", "garbage", "drop"])
+def test_counter_fault_in_acquire(fault: str, tmp_path: Path) -> None:
+    """The counter's own fault hooks (sims/scpi_server.py), hit on its data queries."""
     cfg = load_config(_procedure(tmp_path))
     run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
     status, seen = _session(cfg, run, lambda sim: sim.twins["outer.counter"].inject(
-        "no-trigger", count=5), "acquire")
+        fault, count=50), "acquire")
     _assert_aborted_cleanly(run, status, seen)
 
 
