@@ -171,9 +171,9 @@ def server(runs_folder: Path) -> Iterator[tuple[subprocess.Popen[str], int]]:
     _stop(proc)
 
 
-def _start_server(runs: Path) -> tuple[subprocess.Popen[str], int]:
+def _start_server(runs: Path, port: int = 0) -> tuple[subprocess.Popen[str], int]:
     proc = subprocess.Popen([sys.executable, "-m", "bench", "serve", "--runs", str(runs),
-                             "--port", "0", "--token", TOKEN], cwd=ROOT, text=True,
+                             "--port", str(port), "--token", TOKEN], cwd=ROOT, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     assert proc.stdout is not None
     line = proc.stdout.readline()
@@ -285,6 +285,18 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
                       "a step on the page")
         _wait(lambda: (state("window.station?.state?.progress?.step?.number") or 0) > first,
               120, "the step to advance")
+        # the view is not in the run's path: a server restart and a page reload lose
+        # nothing; the page reconnects by itself and goes on showing the run
+        _stop(server_proc)
+        server_proc, _ = _start_server(runs, port)
+        seen = state("window.station.updates")
+        _wait(lambda: state("window.station.updates") > seen, 60,
+              "the page to reconnect to the restarted server")
+        assert run_proc.poll() is None, "the run must not notice the view going away"
+        driver.refresh()
+        second = _wait(lambda: state("window.station?.state?.progress?.step?.number"), 60,
+                       "a step on the reloaded page")
+        assert second >= first
         _wait(lambda: (driver.execute_script(
             "return window.station?.charts?.fog?.data[0].length") or 0) > 10, 90,
             "FOG points in the plot")
