@@ -112,8 +112,9 @@ def test_fog_trace_decodes_the_capture_tail(tmp_path: Path, units: str, scale: f
 
 # -- security: token, Host header, traversal -------------------------------------------
 
-@pytest.fixture
-def runs_folder(tmp_path: Path) -> Path:
+@pytest.fixture(scope="module")
+def runs_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    tmp_path = tmp_path_factory.mktemp("station")
     run = tmp_path / "runs" / "20260101-000000-demo"
     run.mkdir(parents=True)
     (run / "events.jsonl").write_text(json.dumps(
@@ -163,16 +164,16 @@ def test_serve_refuses_a_public_address_without_a_token(monkeypatch: pytest.Monk
     assert made and len(s.token) >= 16
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def server(runs_folder: Path) -> Iterator[tuple[subprocess.Popen[str], int]]:
     proc, port = _start_server(runs_folder)
     yield proc, port
     _stop(proc)
 
 
-def _start_server(runs: Path) -> tuple[subprocess.Popen[str], int]:
+def _start_server(runs: Path, port: int = 0) -> tuple[subprocess.Popen[str], int]:
     proc = subprocess.Popen([sys.executable, "-m", "bench", "serve", "--runs", str(runs),
-                             "--port", "0", "--token", TOKEN], cwd=ROOT, text=True,
+                             "--port", str(port), "--token", TOKEN], cwd=ROOT, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     assert proc.stdout is not None
     line = proc.stdout.readline()
@@ -284,6 +285,18 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
                       "a step on the page")
         _wait(lambda: (state("window.station?.state?.progress?.step?.number") or 0) > first,
               120, "the step to advance")
+        # the view is not in the run's path: a server restart and a page reload lose
+        # nothing; the page reconnects by itself and goes on showing the run
+        _stop(server_proc)
+        server_proc, _ = _start_server(runs, port)
+        seen = state("window.station.updates")
+        _wait(lambda: state("window.station.updates") > seen, 60,
+              "the page to reconnect to the restarted server")
+        assert run_proc.poll() is None, "the run must not notice the view going away"
+        driver.refresh()
+        second = _wait(lambda: state("window.station?.state?.progress?.step?.number"), 60,
+                       "a step on the reloaded page")
+        assert second >= first
         _wait(lambda: (driver.execute_script(
             "return window.station?.charts?.fog?.data[0].length") or 0) > 10, 90,
             "FOG points in the plot")

@@ -107,7 +107,7 @@ def create_app(settings: StationSettings,
     @app.get("/")
     def index() -> str:
         return render_template("index.html.j2", runs=list_runs(runs), version=bench.__version__,
-                               tables=records.tables())
+                               tables=records.tables(), records_error=records.error)
 
     @app.get("/run/<name>")
     def run_page(name: str) -> str:
@@ -167,7 +167,7 @@ def create_app(settings: StationSettings,
     @app.get("/records")
     def records_page() -> str:
         return render_template("records.html.j2", tables=records.tables(),
-                               version=bench.__version__)
+                               records_error=records.error, version=bench.__version__)
 
     @app.get("/records/<serial>")
     def table_page(serial: str) -> str:
