@@ -43,6 +43,7 @@ from bench.records.hooks import (
 from bench.registry import procedure_kind
 from bench.summary import Summary, summarize
 from bench.traceability import overdue, overdue_warning
+from drivers.axis import NOT_STOPPED
 from drivers.clock import MonotonicClock
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
@@ -298,7 +299,9 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
         if status in (EXIT_PASS, EXIT_FAIL) and doc is None:
             status = EXIT_ABORTED  # measured, but nothing to sign: not a completed run
         elif status == EXIT_ABORTED:
-            print(f"The run was aborted; the axes were stopped. Continue with: "
+            stopped = ("AN AXIS COULD NOT BE TOLD TO STOP (above): check the table first"
+                       if any(NOT_STOPPED in n for n in later) else "the axes were stopped")
+            print(f"The run was aborted; {stopped}. Continue with: "
                   f"bench run --resume {run.path}")
         if run.session:
             for err in _journal(run, "exit", status=status, cause=cause, later=later):

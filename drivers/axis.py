@@ -101,6 +101,10 @@ class ObjectRefused(AxisError):
     """The drive answered an SDO with an abort (no such object, value out of range...)."""
 
 
+#: the words that say, loudly, that an axis may still be turning (the CLI looks for them)
+NOT_STOPPED = "COULD NOT BE TOLD TO STOP"
+
+
 class DriveUnreachable(AxisError):
     """The drive cannot be told to stop (its heartbeat is silent): only its own heartbeat
     watchdog can stop the table now, once our heartbeat stops. Says so loudly."""
@@ -117,7 +121,7 @@ class DriveUnreachable(AxisError):
                 "is 0): NOTHING STOPS IT but its own limits")
         then = (f" and reacts with {reaction} (0x6007)" if reaction and watchdog_ms else "")
         super().__init__(
-            f"AXIS {axis.upper()} COULD NOT BE TOLD TO STOP: the drive has been silent for "
+            f"AXIS {axis.upper()} {NOT_STOPPED}: the drive has been silent for "
             f"{silence_s:.2f} s; {what}{then}. Check the table before going near it.")
         self.axis, self.silence_s, self.watchdog_ms = axis, silence_s, watchdog_ms
 

@@ -466,19 +466,20 @@ class ScpiInstrument:
     def write(self, text: str, *, check: bool = True) -> None:
         """Send one program message; with `check`, raise if the error queue then holds any.
 
-        Errors queued before it (after an unchecked command or a query, or raised by the
-        instrument on its own) are drained first and named as such: they are not blamed
-        on this command.
+        Errors queued since an unchecked command are drained first and named as such:
+        they are not blamed on this command. *CLS empties the queue (IEEE 488.2 10.3), so
+        after it there is nothing to blame.
         """
         with self._lock:
+            clears = text.lstrip().upper().startswith("*CLS")
             if not check:
                 self._tx(text)
-                self._unchecked_since = self._unchecked_since or text
+                self._unchecked_since = None if clears else (self._unchecked_since or text)
                 return
             earlier: list[ErrorEntry] = []
             since = self._unchecked_since
-            if since is not None and not text.lstrip().upper().startswith("*CLS"):
-                earlier = self.drain_errors()  # (*CLS empties the queue: nothing to blame)
+            if since is not None and not clears:
+                earlier = self.drain_errors()
             self._unchecked_since = None
             self._tx(text)
             errors = self.drain_errors()
@@ -495,9 +496,15 @@ class ScpiInstrument:
                                                command=text, errors=tuple(errors + earlier))
 
     def query(self, text: str, *, timeout_s: float | None = None) -> str:
-        """Send a query and read its reply (one line, terminator removed)."""
+        """Send a query and read its reply (one line, terminator removed).
+
+        A query does not mark the error queue unchecked: a query the instrument cannot
+        answer gives no reply, and that silence is where its error is read
+        (`_errors_after_silence`). Only an unchecked write leaves the queue to be drained
+        before the next checked one, so the manuals' transcripts keep one SYST:ERR? per
+        setting.
+        """
         with self._lock:
-            self._unchecked_since = self._unchecked_since or text
             try:
                 return self._exchange(text, timeout_s)
             except InstrumentTimeout as e:
@@ -601,6 +608,8 @@ class ScpiInstrument:
             self._clear_input()
             for cmd in self.recovery_commands:
                 self._tx(cmd.text())
+                if cmd.text().upper().startswith("*CLS"):
+                    self._unchecked_since = None     # the queue is empty now
             text = OPC_Q.text()
             self._tx(text)
             stale: list[str] = []

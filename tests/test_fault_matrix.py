@@ -41,10 +41,23 @@ HARD_LIMIT_U = 2.5
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _procedure(folder: Path) -> Path:
+#: a top clock speed for the cells whose fault is noticed only after a real-time silence
+#: (a lost drive heartbeat): at the paced clock's `max` this short ladder ends in about a
+#: second of wall time, before the silence can count; at 30x the rest of the ladder lasts
+#: 10 s or more of wall time after the fault, a loaded machine only slowing it further
+SLOW_CLOCK = 30
+
+
+def _procedure(folder: Path, clock_speed: float | None = None) -> Path:
+    stand = STAND
+    if clock_speed is not None:
+        doc = yaml.safe_load(STAND.read_text())
+        doc["sim"]["clock_speed"] = clock_speed
+        stand = folder / "stand.yaml"
+        stand.write_text(yaml.safe_dump(doc))
     proc = folder / "p.yaml"
     proc.write_text(yaml.safe_dump({
-        "procedure": "rate-ladder", "stand": str(STAND), "turns": 4, "sequence": "+-",
+        "procedure": "rate-ladder", "stand": str(stand), "turns": 4, "sequence": "+-",
         "static_record_s": 3, "harmonics": 1, "prompts": False,
         "axes": {"outer": {"rates_dps": [20, 30]}},
     }))
@@ -116,9 +129,10 @@ def _assert_aborted_cleanly(run: RunDir, status: int, seen: dict[str, Any]) -> N
 @pytest.mark.parametrize("fault,phase", CELLS)
 def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str, tmp_path: Path,
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
-    if fault == "drive-heartbeat-lost":
+    slow = fault == "drive-heartbeat-lost"
+    if slow:
         _hear_silence_sooner(monkeypatch)
-    cfg = load_config(_procedure(tmp_path))
+    cfg = load_config(_procedure(tmp_path, SLOW_CLOCK if slow else None))
     run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
     status, seen = _session(cfg, run, FAULTS[fault], phase)
     _assert_aborted_cleanly(run, status, seen)
@@ -160,7 +174,7 @@ def test_a_failure_while_stopping_is_added_beneath_the_first_cause(
     """The drive's heartbeat stops (the first cause); it then cannot be told to stop (a
     later error): the operator reads the cause first, the loud stop error beneath it."""
     _hear_silence_sooner(monkeypatch)
-    cfg = load_config(_procedure(tmp_path))
+    cfg = load_config(_procedure(tmp_path, SLOW_CLOCK))
     run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
     status, seen = _session(cfg, run, FAULTS["drive-heartbeat-lost"], "settle")
     _assert_aborted_cleanly(run, status, seen)
