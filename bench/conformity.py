@@ -6,7 +6,7 @@ Two rules, chosen in the procedure file (`decision_rule`), as ILAC-G8 describes 
 - guard band by U: pass only when |value| + U <= tolerance (false pass below ~2.5 %); a
   value inside the tolerance but within U of the limit fails, and says so.
 Beside each decision, the RMG 63-2003 capability rule: the measurement's error limit
-(here U) should not exceed 0.2-0.3 of the tolerance it checks (METHOD.md A6).
+(here U) should not exceed 0.2-0.3 of the tolerance it checks (docs/method.md A6).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Benchmark: METHOD.md part A on the paper's slowest rate (run on demand).
+"""Benchmark: docs/method.md part A on the paper's slowest rate (run on demand).
 
     python benchmarks/bench_analysis.py [--order +-] [--rate-hz 1000] [--repeat 3]
 

@@ -1,4 +1,4 @@
-"""The pulse generator of the drift-pulse method (METHOD.md B): a SCPI arbitrary
+"""The pulse generator of the drift-pulse method (docs/method.md B): a SCPI arbitrary
 waveform generator playing the +/- pulse pair once per bus trigger.
 
 The pair is uploaded as an arbitrary waveform (values in [-1, 1]) and played as a burst
@@ -112,7 +112,7 @@ KEYSIGHT_33500B = AwgProfile(
            "Unsure: whether FUNC:ARB wants the name quoted (we quote it) and whether the "
            "trigger output marks the burst start after TRIG:DEL (we keep TRIG:DEL 0, so "
            "both readings agree); the record's start offset is measured anyway "
-           "(timing cycles, METHOD.md B)."),
+           "(timing cycles, docs/method.md B)."),
     idn="Keysight Technologies,33522B,MY00000000,4.03-1.19-2.00-58-00",
 )
 

@@ -1,4 +1,4 @@
-"""The frequency counter: the reference of the fixed-angle method (METHOD.md A1).
+"""The frequency counter: the reference of the fixed-angle method (docs/method.md A1).
 
 The counter times the zero-mark pulses, one per table revolution. What the engine wants
 from it is N+1 consecutive edge timestamps (so N whole turns and exactly when they

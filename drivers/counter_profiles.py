@@ -4,7 +4,7 @@ One `CounterProfile` per model. The driver (drivers/counter.py) sends these word
 twin (sims/counter_twin.py) parses the same objects, so a word lives here once. A word a
 model lacks is `None`; the driver then uses another way or says the model cannot.
 
-Metrology (METHOD.md A1: dT = sqrt(d_counter^2 + d_trigger^2)): each profile carries what
+Metrology (docs/method.md A1: dT = sqrt(d_counter^2 + d_trigger^2)): each profile carries what
 the error budget needs of the counter: the single-shot error of one timestamp, the
 reading's resolution (the twin quantises to it) and the timebase's fractional frequency
 limit. The figures are the datasheets' as we know them, to be replaced by the numbers of
@@ -218,7 +218,7 @@ class CounterProfile:
     #: where the words, limits and reply formats were checked: manual and section, or
     #: "unverified" when no manual was found
     manual: str = "unverified"
-    #: metrology (METHOD.md A1, d_counter)
+    #: metrology (docs/method.md A1, d_counter)
     resolution_s: float = 1e-9
     single_shot_s: float = 1e-9
     timebase_limit_rel: float = 1e-6
@@ -247,7 +247,7 @@ class CounterProfile:
     def period_u_s(self, period_s: float) -> float:
         """Standard uncertainty (k=1) of one period from the counter alone, s.
 
-        METHOD.md A1 (d_counter): two independent timestamps, each with the single-shot
+        docs/method.md A1 (d_counter): two independent timestamps, each with the single-shot
         error, plus the timebase's fractional error times the period. The trigger error
         (d_trigger) is the sensor's and the stand file's, not the counter's.
         """

@@ -1,4 +1,4 @@
-"""The angle-sensor readout of the drift-pulse method (METHOD.md B): a SCPI digitizing DMM.
+"""The angle-sensor readout of the drift-pulse method (docs/method.md B): a SCPI digitizing DMM.
 
 A Keysight 34465A (DIG option) records U(t) of the command angle sensor in step with the
 pulses: DC volts on a fixed range, a fixed aperture, auto-zero off (with it on, every
@@ -15,7 +15,7 @@ Timing: the first sample starts the trigger delay after the trigger edge, then o
 interval. An integrating reading is the mean over its aperture, so it belongs to the
 aperture's middle: sample k stands for `delay + k * dt + aperture / 2` after the edge
 (`DigitizerSetup.sample_time_s`). That half aperture is a real offset against the pulse
-edges (METHOD.md B's half-sample pitfall in another guise); the procedure sets the
+edges (docs/method.md B's half-sample pitfall in another guise); the procedure sets the
 trigger delay so the samples' middles land on the edges.
 
 Waits are real seconds scaled by the clock's speed (a virtual stand runs faster).

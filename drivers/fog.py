@@ -1,6 +1,6 @@
 """A fibre-optic gyro streaming binary frames over a serial port.
 
-The FOG is the only instrument that sees inside a turn (METHOD.md A3-A5), and a lost
+The FOG is the only instrument that sees inside a turn (docs/method.md A3-A5), and a lost
 or misread frame is a wrong instability figure, so this driver is built around one
 rule: the bytes are the record. A background thread reads the port for as long as it
 is open, appends every byte as received to the raw capture file (flushed after every

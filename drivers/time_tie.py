@@ -3,7 +3,7 @@
 Why it must be explicit: a 53230A reports intervals from its start event, a CNT-91 time
 stamps "since a certain start event that is not available for external control"
 (CNT-90 series Programmer's Handbook p. 8-72); neither reply says when that was on the
-FOG's time axis, and the analysis cuts the FOG record at the zero marks (METHOD.md A3).
+FOG's time axis, and the analysis cuts the FOG record at the zero marks (docs/method.md A3).
 On twins sharing one clock the tie came for free; on hardware it needs a physical link.
 
 Sources (stand key `counter.time_tie.source`):

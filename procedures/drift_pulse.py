@@ -1,4 +1,4 @@
-"""Gyro drift by alternating-sign pulses (METHOD.md B, seed 004), as a procedure kind.
+"""Gyro drift by alternating-sign pulses (docs/method.md B, seed 004), as a procedure kind.
 
 The gyro platform sits on a turntable axis of the stand. At each turntable position
 (0 and 180 deg by default) the bench runs N cycles; in each, one bus trigger makes the
@@ -6,7 +6,7 @@ waveform generator play the +/- pulse pair into every gyro's torque sensor at on
 through its trigger output, starts every gyro's digitizing DMM on the angle sensor, in
 step with the pulses. The first position begins with a few large-amplitude timing
 cycles, which only locate the pulses in the records (the digitizer's start offset: the
-half-sample pitfall of METHOD.md B); the drift comes from the measuring cycles. Between
+half-sample pitfall of docs/method.md B); the drift comes from the measuring cycles. Between
 positions the drive turns the platform in profile position mode (CiA 402, 0x6060 = 1).
 
 Timing, so that samples lie on the pulse edges: the generator's sample rate divides the
@@ -262,7 +262,7 @@ class DriftPulse(StepDispatch):
         if not _near_int(t.tc_s / t.interval_s):
             out.append(pdoc.problem(("pulse", "duration_s"), f"Tc = {t.tc_s:g} s is not a whole "
                                     f"number of DMM intervals ({t.interval_s:g} s): the pulse "
-                                    f"edges must fall on samples (METHOD.md B)"))
+                                    f"edges must fall on samples (docs/method.md B)"))
         if not _near_int(t.tc_s / t.interval_s / t.points):
             out.append(pdoc.problem(("pulse", "points"), f"{t.points} points per pulse: the "
                                     f"generator's step ({1 / t.awg_rate_hz:g} s) must be a whole "
@@ -574,7 +574,7 @@ def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, 
         drift = {"axes": {}, "not_computed": str(e)}
         complete = False
     t = Timing.of(cfg)
-    method = {"method": "METHOD.md B: alternating-sign controlled precession",
+    method = {"method": "docs/method.md B: alternating-sign controlled precession",
               "pulse": cfg.procedure["pulse"], "timing_cycles": setting(cfg, "timing_cycles"),
               "cycles_per_position": setting(cfg, "cycles"),
               "positions_deg": setting(cfg, "positions_deg"),

@@ -1,11 +1,11 @@
-"""The simulated gyro platform of METHOD.md B: the truth the drift-pulse twins sample.
+"""The simulated gyro platform of docs/method.md B: the truth the drift-pulse twins sample.
 
 A gyro-stabilised platform (the seed paper's figs. 1 and 3) sits on a turntable axis of
 the simulated stand. Each of its gyros (x and y horizontal, z vertical if wanted) has a
 torque sensor, driven by the pulse generator's voltage through a current amplifier, and
 a command angle sensor. The platform angle about a gyro's axis is
 
-    alpha(t) = alpha0 + int (w_own(t) + w_app(t)) dt + int w_c(t) dt       (METHOD.md B)
+    alpha(t) = alpha0 + int (w_own(t) + w_app(t)) dt + int w_c(t) dt       (docs/method.md B)
 
 with w_c = k_ts * i / H (here `precession_dps_per_v` * volts, the + and - polarities of
 the current amplifier mismatched by `pulse_mismatch_rel`), w_own the gyro's own drift
@@ -15,7 +15,7 @@ input axis at the platform's heading. The angle sensor reads U = k_as * alpha pl
 Time and heading: one time axis, the stand's virtual clock. The platform's heading is
 `azimuth_deg` (the X input axis's azimuth, from north, clockwise seen from above, with
 the turntable at 0) plus the turntable axis's angle: the model listens to that axis's
-chunks, so a 180 deg turn by the drive twin flips the apparent drift (METHOD.md B).
+chunks, so a 180 deg turn by the drive twin flips the apparent drift (docs/method.md B).
 Convention: the turntable's positive sense turns the platform clockwise seen from above.
 
 The slow part (drift) is integrated on a grid of `grid_hz` as the model advances, in
@@ -89,7 +89,7 @@ class PlatformTruth:
 
     @property
     def earth_horizontal_dph(self) -> float:
-        """W_h = 15.041 cos(latitude) (METHOD.md B)."""
+        """W_h = 15.041 cos(latitude) (docs/method.md B)."""
         return EARTH_RATE_DPH * math.cos(math.radians(self.latitude_deg))
 
     @property
@@ -97,7 +97,7 @@ class PlatformTruth:
         return EARTH_RATE_DPH * math.sin(math.radians(self.latitude_deg))
 
     def apparent_dph(self, gyro: str, table_deg: float | np.ndarray = 0.0) -> Any:
-        """Earth-rate projection on the gyro's input axis (METHOD.md B convention)."""
+        """Earth-rate projection on the gyro's input axis (docs/method.md B convention)."""
         if gyro in VERTICAL_GYROS:
             return self.earth_vertical_dph + 0.0 * np.asarray(table_deg)
         heading = self.azimuth_deg + HORIZONTAL_OFFSET_DEG[gyro] + np.asarray(table_deg)
@@ -289,7 +289,7 @@ class GyroPlatform:
         """The pulse generator's output on a gyro's torque sensor from t0 (zero-order hold).
 
         Each run of one sign is a pulse; its edges get the truth's timing jitter, and the
-        negative polarity the current amplifier's mismatch (METHOD.md B error sources).
+        negative polarity the current amplifier's mismatch (docs/method.md B error sources).
         """
         truth = self.truth.gyros[gyro]
         v = np.asarray(volts, dtype=float)
@@ -309,7 +309,7 @@ class GyroPlatform:
             knots = t0_s + np.interp(np.arange(n + 1), edges,
                                      edges * sample_interval_s + jitter)
             gain = np.where(v < 0, 1.0 + truth.pulse_mismatch_rel, 1.0)
-            rate = truth.precession_dps_per_v * v * gain  # METHOD.md B: w_c = k_ts i / H
+            rate = truth.precession_dps_per_v * v * gain  # docs/method.md B: w_c = k_ts i / H
             self._pulses[gyro].append(_ControlPulse(knots, rate))
 
     def _control_angle(self, g: str, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -331,7 +331,7 @@ class GyroPlatform:
     # -- the angle sensor --------------------------------------------------------------
     def sample_u(self, gyro: str, t_s: np.ndarray | float, aperture_s: float = 0.0
                  ) -> np.ndarray:
-        """The angle sensor's output U = k_as * alpha + noise (V), METHOD.md B.
+        """The angle sensor's output U = k_as * alpha + noise (V), docs/method.md B.
 
         With an aperture, each value is the mean of U over [t, t + aperture], as an
         integrating digitizer reports it; the noise is per value.

@@ -60,7 +60,7 @@ class FogTruth:
 
     @property
     def k(self) -> float:
-        """METHOD.md A3: k = M cos(g)."""
+        """docs/method.md A3: k = M cos(g)."""
         return self.scale * math.cos(math.radians(self.misalignment_deg))
 
     @property

@@ -20,7 +20,7 @@ TURN_RATE_DPS = 30.0
 
 
 def paper_truth(seed: int = 3, **errors: float) -> PlatformTruth:
-    """The paper's simulation case: latitude 70 deg, azimuth 80 deg (METHOD.md B)."""
+    """The paper's simulation case: latitude 70 deg, azimuth 80 deg (docs/method.md B)."""
     gyro = dict(precession_dps_per_v=0.1, k_as_v_per_deg=2.0, angle_offset_deg=0.3, **errors)
     return PlatformTruth(70.0, 80.0, {"x": GyroTruth(own_drift_dph=0.35, **gyro),
                                       "y": GyroTruth(own_drift_dph=-0.42, **gyro)},

@@ -1,4 +1,4 @@
-"""Allan deviation and the white-noise floor (METHOD.md A5) against hand values."""
+"""Allan deviation and the white-noise floor (docs/method.md A5) against hand values."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""METHOD.md A3 on hand-built half means (exact arithmetic, no simulation)."""
+"""docs/method.md A3 on hand-built half means (exact arithmetic, no simulation)."""
 
 from __future__ import annotations
 

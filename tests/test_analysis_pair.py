@@ -145,7 +145,7 @@ def test_slowest_rate_within_u():
     assert res.pair.k_u < 2e-4
     # drift found to better than 1 %: the truth is 0.001 deg/s/h
     assert res.pair.cal.drift_dps_per_s * 3600 == pytest.approx(0.001, rel=0.01)
-    for r in res.rates:          # the FOG noise dominates at this rate (METHOD.md A5)
+    for r in res.rates:          # the FOG noise dominates at this rate (docs/method.md A5)
         assert r.random.instability_rel == pytest.approx(0.01 / 0.1, rel=0.02)
 
 

@@ -19,7 +19,7 @@ from sims.stand import AxisModel, AxisTruth, FogTruth, Harmonic, Mains
 
 
 def paper_axis(**over) -> AxisTruth:
-    """The paper-like outer axis of the brief (METHOD.md A6)."""
+    """The paper-like outer axis of the brief (docs/method.md A6)."""
     base = dict(
         rate_bias_rel=2e-6,
         harmonics=(Harmonic(1, 8.6e-4, 40.0),),

@@ -1,4 +1,4 @@
-"""METHOD.md A4: angle of each sample, binned estimator and harmonic fit against truth."""
+"""docs/method.md A4: angle of each sample, binned estimator and harmonic fit against truth."""
 
 from __future__ import annotations
 
@@ -51,7 +51,7 @@ def test_binned_estimator_on_a_pure_harmonic(pure):
         b = r.systematic.binned
         phi = np.radians(np.array(b.centres_deg))
         half = math.radians(b.bin_deg) / 2
-        # METHOD.md A4: the mean over a bin of a cos(phi + p) is a cos(phi_c + p) sinc(half)
+        # docs/method.md A4: the mean over a bin of a cos(phi + p) is a cos(phi_c + p) sinc(half)
         expect = A * math.sin(half) / half * np.cos(phi + math.radians(P))
         assert np.allclose(b.deviation_rel, expect, atol=2e-6), r.set_rate_dps
         assert b.peak_to_peak_rel == pytest.approx(2 * A, rel=0.02)

@@ -1,4 +1,4 @@
-"""METHOD.md A1/A2 against hand-derived values."""
+"""docs/method.md A1/A2 against hand-derived values."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from bench.analysis.turns import (
 
 
 def test_a1_check_value():
-    # METHOD.md A1: dT = 0.1 us at 1000 deg/s (T = 0.36 s) gives dw/w = 2.8e-7
+    # docs/method.md A1: dT = 0.1 us at 1000 deg/s (T = 0.36 s) gives dw/w = 2.8e-7
     rel = period_rate_error(1000.0, 0.1e-6, 0.36) / 1000.0
     assert rel == pytest.approx(2.8e-7, rel=0.01)
     assert rel == pytest.approx(0.1e-6 / (0.36 + 0.1e-6), rel=1e-12)

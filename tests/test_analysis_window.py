@@ -1,4 +1,4 @@
-"""Exact FOG integrals over whole turns (METHOD.md A3: the FOG mean over exactly the
+"""Exact FOG integrals over whole turns (docs/method.md A3: the FOG mean over exactly the
 turns the counter timed), wherever the edges fall between samples."""
 
 from __future__ import annotations

@@ -236,7 +236,7 @@ def test_profiles_have_the_error_budget_data():
         assert p.resolution_s > 0 and p.single_shot_s > 0 and p.timebase_limit_rel > 0
         assert p.notes
     k = PROFILES["keysight-53230a"]
-    # METHOD.md A1 d_counter by hand: sqrt(2) * 20 ps and 1e-6/sqrt(3) * 0.36 s
+    # docs/method.md A1 d_counter by hand: sqrt(2) * 20 ps and 1e-6/sqrt(3) * 0.36 s
     assert k.period_u_s(0.36) == pytest.approx(np.hypot(np.sqrt(2) * 20e-12,
                                                         1e-6 / np.sqrt(3) * 0.36))
     assert k.period_u_s(0.36) == pytest.approx(2.0785e-7, rel=1e-4)

@@ -272,7 +272,7 @@ def test_demo_per_turn_rates_are_lists_with_u_from_method_a1(demo: dict[str, Any
         assert values == r["counter_rate_dps"]
         us = [float(x) for x in q.findtext(".//si:valueExpandedMUXMLList", "", NS).split()]
         b = r["rate_error_budget"]
-        for w, u in zip(values, us, strict=True):   # METHOD.md A1 by hand: T = 360/|w|
+        for w, u in zip(values, us, strict=True):   # docs/method.md A1 by hand: T = 360/|w|
             period = 360.0 / abs(w)
             assert u == pytest.approx(2 * abs(w) * ((b["period_u_s"] / period) ** 2
                                                     + b["timebase_u_rel"] ** 2) ** 0.5,

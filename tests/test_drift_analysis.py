@@ -69,7 +69,7 @@ def test_the_control_term_is_what_a_sawtooth_needs() -> None:
 
 @pytest.mark.parametrize("shift_samples", [1.0, 0.5, -1.0])
 def test_a_shifted_digitizer_is_detected_and_corrected(shift_samples: float) -> None:
-    """The half-sample pitfall (METHOD.md B): the digitizer starts late or early against
+    """The half-sample pitfall (docs/method.md B): the digitizer starts late or early against
     the pulses and is not told. The nominal-edge integrator is biased by
     2 a shift / Tc (hand-derived: 0.072 deg/h per sample at 0.1 deg/s, 5 s, 2 kHz);
     the analysis finds the shift and puts the edges where the pulses are."""
@@ -103,7 +103,7 @@ def test_an_aligned_digitizer_is_not_flagged_and_an_aperture_is_no_offset() -> N
 
 @pytest.mark.timeout(60)
 def test_paper_case_latitude_70_azimuth_80_meets_the_papers_figures() -> None:
-    """METHOD.md B: at 70 deg latitude and 80 deg azimuth the paper reports a mean relative
+    """docs/method.md B: at 70 deg latitude and 80 deg azimuth the paper reports a mean relative
     drift error of 0.34 % and an azimuth error of 2 arcmin; with realistic error sources
     this analysis must do at least as well, and its U must cover the truth."""
     truth = paper_truth(seed=11, **REALISTIC)

@@ -1,5 +1,5 @@
 """The pulse generator and the digitizing DMM against their twins over real SCPI sockets,
-checked against the platform twin's truth (METHOD.md B)."""
+checked against the platform twin's truth (docs/method.md B)."""
 
 from __future__ import annotations
 

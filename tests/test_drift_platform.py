@@ -1,4 +1,4 @@
-"""The gyro-platform twin against hand-derived truth (METHOD.md B)."""
+"""The gyro-platform twin against hand-derived truth (docs/method.md B)."""
 
 from __future__ import annotations
 

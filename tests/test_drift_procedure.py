@@ -95,7 +95,7 @@ def _truth_over(run_dir: Path) -> tuple[PlatformTruth, GyroPlatform, float, floa
 @pytest.mark.timeout(120)
 def test_the_papers_case_70_80_end_to_end(tmp_path: Path) -> None:
     """`bench run` on the demo: own drift within U on each axis, mean relative drift error
-    below 0.34 % and azimuth error below 2 arcmin (the paper's simulated figures, METHOD.md
+    below 0.34 % and azimuth error below 2 arcmin (the paper's simulated figures, docs/method.md
     B), the azimuth within its U of the truth; `bench analyze` gives the same figures."""
     p = subprocess.run([sys.executable, "-m", "bench", "run", str(DEMO), "--yes", "--out",
                         str(tmp_path)], cwd=ROOT, text=True, capture_output=True, timeout=110)

@@ -49,7 +49,7 @@ ARTIFACTS = Path(os.environ.get("BENCH_TEST_ARTIFACTS", ROOT / "test-artifacts")
 # -- the live state, from files, against hand-derived values ---------------------------
 
 def test_turn_rates_from_edges_hand_derived() -> None:
-    # METHOD.md A1: w = 360 / T. Turn 1: T = 36 s -> 10 deg/s exactly; turn 2:
+    # docs/method.md A1: w = 360 / T. Turn 1: T = 36 s -> 10 deg/s exactly; turn 2:
     # T = 36.000036 s -> 10 / (1 + 1e-6) deg/s, a deviation of -1/(1 + 1e-6) ppm.
     t = turn_rates({"edges_s": [5.0, 41.0, 77.000036], "set_rate_dps": -10.0, "axis": "outer"})
     assert t["rate_dps"][0] == pytest.approx(-10.0, rel=1e-15)

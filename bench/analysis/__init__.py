@@ -1,7 +1,7 @@
-"""METHOD.md part A as a library: no I/O, numbers in, frozen results out.
+"""docs/method.md part A as a library: no I/O, numbers in, frozen results out.
 
 Entry point: `analyze_pair(halves, set_rate_dps, fog_rate_hz=..., ...) -> PairAnalysis`
-(pair.py). Modules, each a step of METHOD.md A:
+(pair.py). Modules, each a step of docs/method.md A:
 
     turns.py        A1/A2  per-turn rates, rate error and U (k = 2), rate instability
     window.py              exact FOG integrals over each half's whole turns

@@ -1,4 +1,4 @@
-"""Allan deviation of a FOG record, and the FOG's white-noise floor (METHOD.md A5).
+"""Allan deviation of a FOG record, and the FOG's white-noise floor (docs/method.md A5).
 
 API
     allan_deviation(rate_dps, rate_hz, m=None) -> AllanCurve   # overlapping estimator

@@ -1,8 +1,8 @@
-"""The table angle of every FOG sample, from zero marks and the calibrated FOG (METHOD.md A4).
+"""The table angle of every FOG sample, from zero marks and the calibrated FOG (docs/method.md A4).
 
 API
     FogCalibration(k, w0_dps, drift_dps_per_s=0.0, t_ref_s=0.0)
-        .true_rate_dps(fog_dps, t_s)    # METHOD.md A3: (w_fog - w0 - d (t - t_ref)) / k
+        .true_rate_dps(fog_dps, t_s)    # docs/method.md A3: (w_fog - w0 - d (t - t_ref)) / k
     turn_fraction(win, cal, c0, c1, i_c0) -> (u, segments, raw_integral)  # one chunk
     sample_angles_deg(win, cal) -> np.ndarray        # whole window, for plots and checks
 
@@ -25,7 +25,7 @@ from bench.analysis.window import Window
 
 @dataclass(frozen=True)
 class FogCalibration:
-    """w_fog = k * w_true + w0 + d * (t - t_ref) (METHOD.md A3 with a linear bias drift)."""
+    """w_fog = k * w_true + w0 + d * (t - t_ref) (docs/method.md A3 with a linear bias drift)."""
 
     k: float
     w0_dps: float

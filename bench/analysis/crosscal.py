@@ -1,4 +1,4 @@
-"""Cross-calibration of the FOG against the counter, per +/- rate pair (METHOD.md A3).
+"""Cross-calibration of the FOG against the counter, per +/- rate pair (docs/method.md A3).
 
 API
     HalfMean(sign, fog_mean_dps, fog_mean_u_dps, counter_mean_dps, counter_mean_u_dps,
@@ -20,7 +20,7 @@ estimate's uncertainty enters k's (method "eq5-6, drift-corrected"); `k_eq5` kee
 value as the paper prints it.
 
 Three or more halves with both signs (e.g. +w, -w, +w): weighted least squares of
-F_h = k C_h + w0 + d (t_h - t_ref), so a linear drift cancels (METHOD.md A3, beyond the
+F_h = k C_h + w0 + d (t_h - t_ref), so a linear drift cancels (docs/method.md A3, beyond the
 paper). t_ref is the weighted mean time, where w0 and d are uncorrelated. With more than
 three halves the residual chi^2 is checked and the uncertainties are scaled by the Birge
 ratio when it exceeds 1 (a drift that is not linear then shows in the uncertainty).
@@ -132,8 +132,8 @@ def _two_halves(plus: HalfMean, minus: HalfMean, drift: DriftEstimate | None,
     fp, fm = plus.fog_mean_dps, minus.fog_mean_dps
     cp, cm = plus.counter_mean_dps, minus.counter_mean_dps
     dc = cp - cm
-    k = (fp - fm) / dc                       # METHOD.md A3, eq. 5
-    w0 = fp - k * cp                         # METHOD.md A3, eq. 6
+    k = (fp - fm) / dc                       # docs/method.md A3, eq. 5
+    w0 = fp - k * cp                         # docs/method.md A3, eq. 6
     t_ref = (minus.t_centre_s * cp - plus.t_centre_s * cm) / dc
     # first-order propagation (partial derivatives of eq. 5 and 6)
     var_k = ((plus.fog_mean_u_dps ** 2 + minus.fog_mean_u_dps ** 2)
@@ -147,7 +147,7 @@ def _two_halves(plus: HalfMean, minus: HalfMean, drift: DriftEstimate | None,
     k_eq5 = k
     if drift is not None:
         d, u_d, source = drift.dps_per_s, drift.u_dps_per_s, drift.source
-        # METHOD.md A3 beyond the paper: remove the linear drift's leak into eq. 5's k;
+        # docs/method.md A3 beyond the paper: remove the linear drift's leak into eq. 5's k;
         # w0 of eq. 6 (with eq. 5's k) is already the bias at t_ref
         leak = (plus.t_centre_s - minus.t_centre_s) / dc
         k = k_eq5 - d * leak
@@ -172,7 +172,7 @@ def _lsq_drift(halves: tuple[HalfMean, ...], timebase_u_rel: float) -> CrossCali
         w = 1.0 / (uf ** 2 + (k * uc) ** 2)
         t_ref = float(np.sum(w * t) / np.sum(w))
         x = np.column_stack([c, np.ones_like(c), t - t_ref])
-        beta, cov, chi2 = _wls(x, f, w)    # METHOD.md A3 with drift: F = k C + w0 + d (t - t_ref)
+        beta, cov, chi2 = _wls(x, f, w)    # docs/method.md A3 with drift: F = k C + w0 + d (t - t_ref)
         k = float(beta[0])
     dof = len(halves) - 3
     birge = math.sqrt(chi2 / dof) if dof > 0 else 1.0

@@ -1,11 +1,11 @@
-"""Gyro drift by alternating-sign controlled precession (METHOD.md B, seed 004).
+"""Gyro drift by alternating-sign controlled precession (docs/method.md B, seed 004).
 
 One cycle: a torque-sensor pulse of duration Tc, then the same pulse with the opposite
 sign; the command angle sensor's output U(t) is integrated with the sign of the active
 pulse, and
 
     U_int = int_0^Tc U dt - int_Tc^2Tc U dt = -k_as w Tc^2 + k_as * control term
-    w     = -U_int / (k_as Tc^2) + a * c_shape                          (METHOD.md B)
+    w     = -U_int / (k_as Tc^2) + a * c_shape                          (docs/method.md B)
 
 where c_shape = 2 int_0^1 G du - G(1) is zero for shapes symmetric in time (rectangular,
 triangular) and a is the precession amplitude, fitted from U(t) itself for the others.
@@ -13,7 +13,7 @@ The integral is the trapezoid rule over samples that lie on the pulse edges.
 
 Beyond the paper. The edges are where the pulses are, not where the digitizer thinks
 they are: a start offset tau between the digitizer's samples and the pulses leaves
-2 a G(1) tau / Tc in w (a half sample at 2 kHz, 0.5 deg/s, 5 s: 0.18 deg/h, METHOD.md B),
+2 a G(1) tau / Tc in w (a half sample at 2 kHz, 0.5 deg/s, 5 s: 0.18 deg/h, docs/method.md B),
 and it looks like own drift. So every cycle is also fitted with the model
 U = c0 + c1 t + b P(t - tau) (P the unit pulse-pair angle), the offsets are pooled over
 the cycles, and the integration windows are put where the pulses are; the offset and its
@@ -42,7 +42,7 @@ DETECTION_Z = 3.0
 #: a cycle whose fitted precession is off the median by this factor had no proper pulse
 MIN_AMPLITUDE_REL = 0.5
 
-#: input axis of each platform gyro relative to the X axis (METHOD.md B convention)
+#: input axis of each platform gyro relative to the X axis (docs/method.md B convention)
 HORIZONTAL_OFFSET_DEG = {"x": 0.0, "y": 90.0}
 VERTICAL_GYROS = ("z",)
 
@@ -63,7 +63,7 @@ class PulseShape:
 
     @property
     def control_coeff(self) -> float:
-        """c_shape = 2 int_0^1 G du - G(1): the control term per a Tc^2 (METHOD.md B)."""
+        """c_shape = 2 int_0^1 G du - G(1): the control term per a Tc^2 (docs/method.md B)."""
         return 2.0 * self.angle_mean - self.angle_end
 
     @property
@@ -161,7 +161,7 @@ def _antiderivative(t: np.ndarray, u: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 def signed_integral(t_s: np.ndarray, u_v: np.ndarray, start_s: float, pulse_s: float
                     ) -> float:
-    """U_int = int_s^{s+Tc} U dt - int_{s+Tc}^{s+2Tc} U dt, trapezoid (METHOD.md B).
+    """U_int = int_s^{s+Tc} U dt - int_{s+Tc}^{s+2Tc} U dt, trapezoid (docs/method.md B).
 
     With the edges on samples this is the plain trapezoid rule over each half; off the
     samples the partial intervals are integrated on the same linear interpolant.
@@ -186,7 +186,7 @@ def fit_offset(record: CycleRecord, shape: PulseShape, max_iter: int = 12) -> Of
     """Where the pulses are in the record: Gauss-Newton on the offset, the rest linear.
 
     The fit uses the nominal window [0, 2 Tc]: over it a +/- amplitude mismatch is
-    absorbed by the linear and pulse terms (it cannot be told from drift there, METHOD.md
+    absorbed by the linear and pulse terms (it cannot be told from drift there, docs/method.md
     B), so it does not bias the offset.
     """
     t = record.times_s
@@ -243,7 +243,7 @@ class CycleResult:
 
 def cycle_drift_dph(record: CycleRecord, shape: PulseShape, k_as_v_per_deg: float,
                     start_s: float, amplitude_dps: float) -> tuple[float, float]:
-    """w = -U_int / (k_as Tc^2) + a c_shape, deg/h, and U_int (METHOD.md B)."""
+    """w = -U_int / (k_as Tc^2) + a c_shape, deg/h, and U_int (docs/method.md B)."""
     tc = record.pulse_s
     u_int = signed_integral(record.times_s, record.u_v, start_s, tc)
     w_dps = -u_int / (k_as_v_per_deg * tc * tc) + amplitude_dps * shape.control_coeff
@@ -255,7 +255,7 @@ def example_cycle(record: CycleRecord, start_s: float, max_points: int = 1000
     """One cycle for a plot: U(t) and the running signed integral, from the first edge.
 
     The integrator adds U over the first pulse and subtracts it over the second
-    (METHOD.md B); it is shown decimated to at most `max_points`.
+    (docs/method.md B); it is shown decimated to at most `max_points`.
     """
     t = record.times_s - start_s
     u = np.asarray(record.u_v, float)
@@ -351,7 +351,7 @@ class PositionMean:
 
 
 def separate(positions: Sequence[PositionMean]) -> tuple[np.ndarray, np.ndarray]:
-    """Own and apparent drift from the positions (METHOD.md B, as least squares).
+    """Own and apparent drift from the positions (docs/method.md B, as least squares).
 
     Model: w(theta) = own + c cos(theta) - s sin(theta), c the apparent drift at 0 deg.
     For 0 and 180 deg only this is own = (w0 + w180)/2, app = (w0 - w180)/2. With other
@@ -492,7 +492,7 @@ def analyze_axis(gyro: str, records: Sequence[CycleRecord], shape: PulseShape,
         own, app = float(est[0]), float(est[1])
         own_nom, app_nom = float(est_nom[0]), float(est_nom[1])
         u_a_own, u_a_app = math.sqrt(cov[0, 0]), math.sqrt(cov[1, 1])
-    # type B (METHOD.md B): the mismatch and the start offset act alike at every position,
+    # type B (docs/method.md B): the mismatch and the start offset act alike at every position,
     # so they sit in the own drift only; k_as scales everything
     a = abs(amplitude)
     span_h = (max(r.t_start_s for r in drift_records)
@@ -537,7 +537,7 @@ class DriftResult:
 
     @property
     def earth_horizontal_expected_dph(self) -> float:
-        """W_h = 15.041 cos(latitude) (METHOD.md B)."""
+        """W_h = 15.041 cos(latitude) (docs/method.md B)."""
         return EARTH_RATE_DPH * math.cos(math.radians(self.latitude_deg))
 
     @property
@@ -566,7 +566,7 @@ class DriftResult:
 
 def azimuth_deg(app_x_dph: float, app_y_dph: float, u_x_dph: float, u_y_dph: float
                 ) -> tuple[float, float]:
-    """A = atan2(-app_y, app_x) and its standard uncertainty (METHOD.md B), deg."""
+    """A = atan2(-app_y, app_x) and its standard uncertainty (docs/method.md B), deg."""
     a = math.degrees(math.atan2(-app_y_dph, app_x_dph)) % 360.0
     r2 = app_x_dph ** 2 + app_y_dph ** 2
     # dA/dx = y / r^2, dA/dy = -x / r^2 (rad per deg/h); the two axes are independent

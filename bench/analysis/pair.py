@@ -1,4 +1,4 @@
-"""METHOD.md part A for one +/- rate pair: the entry point the engine calls.
+"""docs/method.md part A for one +/- rate pair: the entry point the engine calls.
 
 API
     analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_hz: float,
@@ -11,7 +11,7 @@ API
 `halves` in the order they ran (the engine's default '+w, -w, +w'); each HalfRecord has
 the sign of its command, the N + 1 zero-mark edge times bounding its timed turns, and the
 FOG samples (they may extend past the turns). `set_rate_dps` is the magnitude. `static_fog_dps`: a record of the same FOG at rest, at
-fog_rate_hz, for the noise floor of METHOD.md A5 (without it, the pair's own residual
+fog_rate_hz, for the noise floor of docs/method.md A5 (without it, the pair's own residual
 gives the floor, and `floor_source` says so). `floor_samples`: how many samples per
 direction that own-data floor is estimated from. Raises ValueError, naming the half,
 for inputs that cannot give an honest result (FOG not covering the turns, a turn without
@@ -129,7 +129,7 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
                  fine_bin_deg: float = 1.0, binned_deg: float = 1.0,
                  averaging_deg: Sequence[float] = (1.0, 10.0, 360.0),
                  floor_samples: int = 1 << 20, chunk: int = DEFAULT_CHUNK) -> PairAnalysis:
-    """METHOD.md A1-A5 for one +/- pair (see the module docstring)."""
+    """docs/method.md A1-A5 for one +/- pair (see the module docstring)."""
     budget = counter_budget or CounterBudget()
     w_set = abs(float(set_rate_dps))
     if not (w_set > 0 and math.isfinite(w_set)):

@@ -1,4 +1,4 @@
-"""The random intra-turn component and its instability (METHOD.md A5).
+"""The random intra-turn component and its instability (docs/method.md A5).
 
 API
     NoiseFloor(sigma_dps, terms, source)                       # the FOG's white noise
@@ -7,8 +7,8 @@ API
     random_part(fit, cal, set_rate_dps, floor, sample_rate_hz, averaging_deg)
         -> RandomPartResult
 
-The random part is Dw_rand = w_true - Dw_sys(phi) - mean (METHOD.md A5), with w_true the
-calibrated FOG (METHOD.md A3, including the linear bias drift the calibration found) and
+The random part is Dw_rand = w_true - Dw_sys(phi) - mean (docs/method.md A5), with w_true the
+calibrated FOG (docs/method.md A3, including the linear bias drift the calibration found) and
 Dw_sys the fitted harmonics and mains tone. Its standard deviation over |w_set| is the
 raw intra-turn instability at the FOG's bandwidth (half its output rate). The FOG's own
 noise is removed in quadrature, and the random part is also averaged over angles (1, 10,
@@ -172,13 +172,13 @@ def random_part(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,
     mean_raw = total / fit.n                     # k * (mean of the random part so far)
     rss = 0.0
     for ws, c in zip(fit.sums, coefs, strict=True):
-        c[ROW_CONST] += mean_raw                 # METHOD.md A5: minus the mean
+        c[ROW_CONST] += mean_raw                 # docs/method.md A5: minus the mean
         v = -c
         v[ROW_Y] = 1.0
         rss += float(v @ ws.gram @ v)
     scale = 1.0 / abs(cal.k * set_rate_dps)
     var_raw = max(rss, 0.0) / (fit.n - 1)
-    raw = math.sqrt(var_raw) * scale             # METHOD.md A5: std(Dw_rand) / |w_set|
+    raw = math.sqrt(var_raw) * scale             # docs/method.md A5: std(Dw_rand) / |w_set|
     floor_rel = floor.sigma_dps * scale
     diff = raw ** 2 - floor_rel ** 2
     u_diff = math.hypot(math.sqrt(2.0 / fit.n) * raw ** 2, floor.var_u * scale ** 2)

@@ -28,7 +28,7 @@ from bench.analysis.systematic import (
 )
 from bench.analysis.turns import TurnsResult
 
-# RMG 63-2003: the measurement's error limit within 0.2-0.3 of the tolerance (METHOD.md A6)
+# RMG 63-2003: the measurement's error limit within 0.2-0.3 of the tolerance (docs/method.md A6)
 CAPABILITY_MAX = 0.3
 
 
@@ -61,7 +61,7 @@ class SystematicResult:
 
 @dataclass(frozen=True)
 class RateResult:
-    """METHOD.md A1-A5 for one commanded rate and direction."""
+    """docs/method.md A1-A5 for one commanded rate and direction."""
 
     turns_result: TurnsResult
     systematic: SystematicResult
@@ -87,7 +87,7 @@ class RateResult:
         d: dict[str, Any] = tr.to_dict()
         d["intra_turn_instability_rel"] = self.random.instability_rel
         d["intra_turn_instability_corrected_rel"] = self.random.corrected_rel
-        # METHOD.md A5: U of a std from the record's samples (white random part assumed)
+        # docs/method.md A5: U of a std from the record's samples (white random part assumed)
         d["intra_turn_instability_u_rel"] = std_u_rel(self.random.instability_rel,
                                                       self.random.samples)
         d["systematic"] = self.systematic.to_dict()
@@ -101,7 +101,7 @@ class RateResult:
 
 @dataclass(frozen=True)
 class PairResult:
-    """METHOD.md A3 for one +/- pair."""
+    """docs/method.md A3 for one +/- pair."""
 
     rate_dps: float
     cal: CrossCalibration

@@ -1,4 +1,4 @@
-"""The one pass over the FOG samples: sufficient statistics for METHOD.md A4 and A5.
+"""The one pass over the FOG samples: sufficient statistics for docs/method.md A4 and A5.
 
 API
     Design(harmonics, mains_hz, fine_bin_deg=1.0)
@@ -11,10 +11,10 @@ The linear model of the raw FOG in one window,
     f = c + e * tau + [mc cos(2 pi f_m t) + ms sin(2 pi f_m t)]
           + sum_h (ac_h cos(h phi) + as_h sin(h phi)),      tau = (t - t_centre) / (D / 2)
 
-(METHOD.md A4: harmonics of the angle plus a tone in time; c and e absorb the FOG's bias
+(docs/method.md A4: harmonics of the angle plus a tone in time; c and e absorb the FOG's bias
 and its drift), is fitted from its Gram matrix [A y]^T [A y], built chunk by chunk. The
 residual sum of squares for any coefficient vector follows from the same matrix, so the
-random part of METHOD.md A5 needs no second pass. Sums of (1, tau, y, mains) over fine
+random part of docs/method.md A5 needs no second pass. Sums of (1, tau, y, mains) over fine
 angle bins (1 deg by default, aligned with each turn's zero mark) give the paper's binned
 estimator, the random part averaged over angles, and block sums for a noise estimate robust
 to coloured noise. A bin's harmonic content comes from its centre angle (with the sinc
@@ -246,7 +246,7 @@ def residual_differences(ws: WindowSums, coef: np.ndarray, max_samples: int
     """Sum of squared successive differences of the fit residual, and their count.
 
     Run on evenly spaced chunks holding about max_samples samples: the white noise at the
-    sample rate needs far fewer samples than the record has (METHOD.md A5 floor).
+    sample rate needs far fewer samples than the record has (docs/method.md A5 floor).
     `coef` is the fitted coefficient of every buffer row (0 for y).
     """
     win, design, chunk = ws.win, ws.design, ws.chunk

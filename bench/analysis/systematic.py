@@ -1,4 +1,4 @@
-"""The systematic intra-turn component (METHOD.md A4): harmonic fit and the binned estimator.
+"""The systematic intra-turn component (docs/method.md A4): harmonic fit and the binned estimator.
 
 API
     solve_direction(sums: Sequence[WindowSums]) -> DirectionFit
@@ -15,7 +15,7 @@ A cos(2 pi f t + p) in deg/s of table rate, t on the stand's time axis.
 Fit: one direction's windows share the harmonics and the mains tone; each window has its
 own constant and linear trend (the FOG's bias and its drift, whatever the calibration
 made of them). The model is fitted to the raw FOG, so the harmonic and mains
-coefficients are k times the table's: dividing by k (from METHOD.md A3) gives the table's,
+coefficients are k times the table's: dividing by k (from docs/method.md A3) gives the table's,
 and k's uncertainty enters theirs.
 
 Uncertainties: the least-squares covariance sigma^2 (A^T A)^-1 holds for white noise. To
@@ -322,7 +322,7 @@ def mains_result(fit: DirectionFit, k: float, k_u_std: float, inflation: NoiseIn
 
 def binned_systematic(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,
                       bin_deg: float, inflation: NoiseInflation) -> BinnedSystematic:
-    """METHOD.md A4, the paper's estimator, with angles from the zero marks."""
+    """docs/method.md A4, the paper's estimator, with angles from the zero marks."""
     design = fit.design
     m = round(bin_deg / design.fine_bin_deg)
     if m < 1 or abs(bin_deg / design.fine_bin_deg - m) > 1e-9 or 360 % bin_deg:
@@ -335,7 +335,7 @@ def binned_systematic(fit: DirectionFit, cal: FogCalibration, set_rate_dps: floa
         win = ws.win
         b = ws.bins
         cnt = b[ROW_CONST]
-        # sum of the calibrated rate per fine bin (METHOD.md A3: (w_fog - w0 - d (t - tr)) / k)
+        # sum of the calibrated rate per fine bin (docs/method.md A3: (w_fog - w0 - d (t - tr)) / k)
         t_sum = win.t_centre_s * cnt + 0.5 * win.duration_s * b[ROW_TAU]
         cal_sum = (b[ROW_Y] + (ws.y_centre_dps - cal.w0_dps) * cnt
                    - cal.drift_dps_per_s * (t_sum - cal.t_ref_s * cnt)) / cal.k
@@ -347,7 +347,7 @@ def binned_systematic(fit: DirectionFit, cal: FogCalibration, set_rate_dps: floa
         s += per_turn_s
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = s / n
-        dev = (mean - set_rate_dps) / set_rate_dps   # METHOD.md A4: Dw_sys / w_set
+        dev = (mean - set_rate_dps) / set_rate_dps   # docs/method.md A4: Dw_sys / w_set
         u = (COVERAGE * fit.sigma_dps * np.sqrt(inflation.factor / n)
              / abs(cal.k * set_rate_dps))
     centres = (np.arange(nb) + 0.5) * bin_deg

@@ -1,8 +1,8 @@
-"""Per-turn rate, rate error and rate instability from zero-mark edge times (METHOD.md A1, A2).
+"""Per-turn rate, rate error and rate instability from zero-mark edge times (docs/method.md A1, A2).
 
 API
     CounterBudget(timestamp_u_s=0.0, trigger_jitter_s=0.0, timebase_limit_rel=0.0)
-    period_rate_error(rate_dps, period_error_s, period_s) -> float        # METHOD.md A1
+    period_rate_error(rate_dps, period_error_s, period_s) -> float        # docs/method.md A1
     turn_rates_dps(edge_times_s, sign) -> np.ndarray                      # one per turn
     edges_from_periods(first_edge_s, periods_s) -> np.ndarray
     analyze_turns(windows, set_rate_dps, budget) -> TurnsResult
@@ -14,7 +14,7 @@ N turns.
 Why edge timestamps and not the counter's period readings: the mean rate over a window
 is N * 360 / (t_N - t_0), so only the first and last edge's timing errors reach it; the
 per-turn periods share edges, so their errors are negatively correlated and averaging N
-periods does not beat the two-edge figure (METHOD.md A1; the paper's per-period error
+periods does not beat the two-edge figure (docs/method.md A1; the paper's per-period error
 budget dT applies to each per-turn rate, not to the mean).
 
 U (k = 2) of the rate error combines: the timing of each window's two end edges, the
@@ -23,7 +23,7 @@ over sqrt(N), widened for few turns as GUM Supplement 1 does (`small_sample_fact
 certificate states the table's rate error, of which these N turns are one sample, not
 only how well these N turns were timed.
 
-The counter sees |T|: the sign of every rate is the sign of the command (METHOD.md A1).
+The counter sees |T|: the sign of every rate is the sign of the command (docs/method.md A1).
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ class CounterBudget:
     timestamp_u_s: the counter's own timestamp error per edge (resolution, interpolator,
         trigger-level noise), standard deviation, s.
     trigger_jitter_s: the slot sensor's edge-timing instability per edge, std, s (the
-        paper measured a rise-time std of 27 ns, METHOD.md A1).
+        paper measured a rise-time std of 27 ns, docs/method.md A1).
     timebase_limit_rel: the counter timebase's maximum relative frequency error (data
         sheet, calibration certificate); treated as a rectangular distribution.
     time_tie_u_s: how well the counter's start event sits on the FOG's time axis (the
@@ -74,7 +74,7 @@ class CounterBudget:
 
     @property
     def period_u_s(self) -> float:
-        """Of one period: two independent edges (METHOD.md A1, dT per period)."""
+        """Of one period: two independent edges (docs/method.md A1, dT per period)."""
         return math.sqrt(2.0) * self.edge_u_s
 
     @property
@@ -89,7 +89,7 @@ class CounterBudget:
 
 
 def period_rate_error(rate_dps: float, period_error_s: float, period_s: float) -> float:
-    """Rate error caused by a period error dT: dw = w * dT / (T + dT) (METHOD.md A1)."""
+    """Rate error caused by a period error dT: dw = w * dT / (T + dT) (docs/method.md A1)."""
     return rate_dps * period_error_s / (period_s + period_error_s)
 
 
@@ -120,13 +120,13 @@ def check_edges(edge_times_s: np.ndarray, what: str) -> np.ndarray:
 
 
 def turn_rates_dps(edge_times_s: np.ndarray, sign: int) -> np.ndarray:
-    """w_i = sign * 360 / T_i (METHOD.md A1; the counter only sees |T|)."""
+    """w_i = sign * 360 / T_i (docs/method.md A1; the counter only sees |T|)."""
     return sign * FULL_TURN_DEG / np.diff(edge_times_s)
 
 
 @dataclass(frozen=True)
 class TurnsResult:
-    """METHOD.md A1/A2 for one commanded rate (all windows of one sign)."""
+    """docs/method.md A1/A2 for one commanded rate (all windows of one sign)."""
 
     set_rate_dps: float
     turns: int
@@ -191,11 +191,11 @@ def analyze_turns(windows: Sequence[np.ndarray], set_rate_dps: float,
                          "a missed or extra zero mark?")
     n_turns = int(rates.size)
     total_s = float(sum(e[-1] - e[0] for e in edges))
-    # METHOD.md A1: mean over whole turns = angle / time; only each window's end edges count
+    # docs/method.md A1: mean over whole turns = angle / time; only each window's end edges count
     mean = sign * FULL_TURN_DEG * n_turns / total_s
     err = (mean - set_rate_dps) / set_rate_dps
     timing_u_rel = math.sqrt(len(edges)) * budget.period_u_s / total_s
-    # METHOD.md A2, eq. 2 with the square root the paper's print lost
+    # docs/method.md A2, eq. 2 with the square root the paper's print lost
     instab = (float(np.std(rates, ddof=1) / abs(np.mean(rates))) if n_turns >= 2 else None)
     # Type A: the table's own turn-to-turn scatter makes the mean of N turns uncertain as
     # an estimate of the table's rate error (sigma / sqrt(N)); the timing terms only say
@@ -203,7 +203,7 @@ def analyze_turns(windows: Sequence[np.ndarray], set_rate_dps: float,
     repeat_u_rel = (instab / math.sqrt(n_turns) * small_sample_factor(n_turns)
                     if instab is not None else 0.0)
     u = math.sqrt(timing_u_rel ** 2 + budget.timebase_u_rel ** 2 + repeat_u_rel ** 2)
-    floor = budget.period_u_s * n_turns / total_s  # dT / T per turn (METHOD.md A1)
+    floor = budget.period_u_s * n_turns / total_s  # dT / T per turn (docs/method.md A1)
     return TurnsResult(
         set_rate_dps=float(set_rate_dps), turns=n_turns,
         counter_rate_dps=tuple(float(r) for r in rates), mean_rate_dps=float(mean),

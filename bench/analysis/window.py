@@ -7,7 +7,7 @@ API
 The FOG arrays may run past the timed turns (ramps, settling); only samples inside
 [t_0, t_N] count, and the integral of the FOG over [t_0, t_j] is taken exactly for the
 linear interpolant between samples, so a window's FOG mean is over exactly the turns the
-counter timed (METHOD.md A3) whatever the edges' position between samples. Gaps (dropped
+counter timed (docs/method.md A3) whatever the edges' position between samples. Gaps (dropped
 frames) are allowed: the trapezoid spans them.
 
 The arrays are not copied: slices are views, and every pass over samples runs in chunks,
@@ -89,7 +89,7 @@ class Window:
 
     @property
     def fog_mean_dps(self) -> float:
-        """Time-mean of the FOG over exactly the timed turns (METHOD.md A3)."""
+        """Time-mean of the FOG over exactly the timed turns (docs/method.md A3)."""
         return float(self.edge_int[-1] / self.duration_s)
 
     @property

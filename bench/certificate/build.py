@@ -652,7 +652,7 @@ def _method(src: Sources, kind: str) -> tuple[Any, ...]:
     method = src.get("method", {}) or {}
     rows = [("Procedure file", _text(name)), ("Procedure file SHA-256", _text(sha))]
     rows += [(_label(k), _text(v)) for k, v in method.items()
-             if k not in ("decision_rule", "tolerance")]
+             if k not in ("decision_rule", "tolerance", "turns_per_axis")]
     rows.append(("Decision rule", _rule_name(src.get("decision_rule"))))
     blocks.append(Fields(tuple(rows)))
     return tuple(blocks)

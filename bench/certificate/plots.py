@@ -110,7 +110,7 @@ def per_turn(axis: str, rates: Sequence[Mapping[str, Any]],
 
 
 def harmonic_model(harmonics: Sequence[Mapping[str, Any]], phi_deg: np.ndarray) -> np.ndarray:
-    """Sum of a_h cos(h phi + p_h), relative (METHOD.md A4)."""
+    """Sum of a_h cos(h phi + p_h), relative (docs/method.md A4)."""
     out = np.zeros_like(phi_deg, dtype=float)
     r = np.radians(phi_deg)
     for h in harmonics:
@@ -256,7 +256,7 @@ def intra_turn(axes: Mapping[str, Sequence[Mapping[str, Any]]], scale: float,
 
 
 def pairs(axes: Mapping[str, Sequence[Mapping[str, Any]]]) -> bytes | None:
-    """k and w0 of the FOG per +/- pair, with U (k = 2) (METHOD.md A3).
+    """k and w0 of the FOG per +/- pair, with U (k = 2) (docs/method.md A3).
 
     k is drawn as its deviation from the axis's mean in ppm: two axes' FOGs differ by far
     more than one FOG's k changes with rate, and that change is what the plot is for.

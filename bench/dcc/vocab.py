@@ -89,5 +89,5 @@ RATEBENCH = Namespace(
     "Terms of the ratebench rate-table bench for quantities the basic vocabulary does not "
     "name (per-turn rate error and instability, intra-turn instability, FOG cross-calibration, "
     "gyro drift, azimuth, raw-data digests); each is defined in the project's docs/dcc.md, "
-    "section refTypes, with the METHOD.md section it comes from.")
+    "section refTypes, with the docs/method.md section it comes from.")
 NAMESPACES = (BASIC, RATEBENCH)

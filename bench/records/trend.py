@@ -2,7 +2,7 @@
 
 Top row: the table itself, rate error and per-turn instability against date with U
 (k = 2) bars and the tolerance band. Bottom row: the FOG's cross-calibration, k and w0
-(METHOD.md A3), whose drift between recertifications tells the gyro's own ageing apart
+(docs/method.md A3), whose drift between recertifications tells the gyro's own ageing apart
 from the table's. A drift-pulse history plots own and apparent drift instead.
 """
 

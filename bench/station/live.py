@@ -26,7 +26,7 @@ import yaml
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, DecodeState, decode, get_format
 
-FULL_TURN_DEG = 360.0             # one zero mark per turn (METHOD.md A1)
+FULL_TURN_DEG = 360.0             # one zero mark per turn (docs/method.md A1)
 TRACE_POINTS = 600                # a plot of a half never needs more points than pixels
 FOG_TAIL_S = 30.0                 # bench seconds of FOG record shown
 DRIVE_TAIL_BYTES = 96 * 1024      # about 600 feedback readings
@@ -142,7 +142,7 @@ def drive_trace(raw: Path) -> dict[str, list[float]]:
 
 
 def turn_rates(acquire: dict[str, Any]) -> dict[str, Any]:
-    """Per-turn rates of one timed half from its zero-mark edges (METHOD.md A1: w = 360/T,
+    """Per-turn rates of one timed half from its zero-mark edges (docs/method.md A1: w = 360/T,
     signed as commanded) and their deviation from the set rate (eq. 1, per turn)."""
     edges = np.asarray(acquire.get("edges_s") or [], dtype=np.float64)
     set_dps = float(acquire.get("set_rate_dps", 0.0))

@@ -30,11 +30,11 @@ from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, events_of, result_document
-from procedures.rate_ladder.settings import setting, tolerance_for
+from procedures.rate_ladder.settings import LadderSettings, tolerance_for
 
 
 def counter_budget(stand_axis: dict[str, Any]) -> CounterBudget:
-    """METHOD.md A1: dT = sqrt(d_counter^2 + d_trigger^2), plus the timebase."""
+    """docs/method.md A1: dT = sqrt(d_counter^2 + d_trigger^2), plus the timebase."""
     c = stand_axis["counter"]
     profile = get_profile(c["model"])
     tie = c.get("time_tie") or {}
@@ -180,8 +180,7 @@ class RawData:
 
 
 def _settings(cfg: Config) -> dict[str, Any]:
-    return {k: setting(cfg, k) for k in ("turns", "sequence", "static_record_s", "harmonics",
-                                         "mains_hz", "decision_rule")}
+    return LadderSettings.from_config(cfg).method()
 
 
 def unit_halves(events: list[dict[str, Any]], unit: str, session: int
@@ -260,7 +259,7 @@ def with_sigma_terms(d: dict[str, Any]) -> dict[str, Any]:
 
 
 def sigma_resolved(value: float, u: float, floor: float) -> bool:
-    """METHOD.md A1/A2: sigma shows the table's own turn-to-turn scatter only when it stands
+    """docs/method.md A1/A2: sigma shows the table's own turn-to-turn scatter only when it stands
     above the timing floor by more than its U (the one k = 2 rule, on the excess)."""
     return value - u > floor
 

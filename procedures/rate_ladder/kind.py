@@ -1,9 +1,9 @@
-"""The +/-w rate ladder of METHOD.md part A (seed 000), as a procedure kind.
+"""The +/-w rate ladder of docs/method.md part A (seed 000), as a procedure kind.
 
-Per axis: a record of the FOG at rest (its noise floor, METHOD.md A5); then for each rate
+Per axis: a record of the FOG at rest (its noise floor, docs/method.md A5); then for each rate
 magnitude the halves of a +/- pair, by default in the order +w, -w, +w with the turns of
 the + direction split around the - half, so a linear FOG bias drift cancels in the
-cross-calibration (METHOD.md A3, "beyond the paper"); each half: set the rate, settle,
+cross-calibration (docs/method.md A3, "beyond the paper"); each half: set the rate, settle,
 time N whole turns with the counter while the FOG streams; then cross-calibrate and
 analyze the pair.
 """
@@ -31,7 +31,13 @@ from procedures.rate_ladder.analysis import (
     unit_acquisitions,
     unit_halves,
 )
-from procedures.rate_ladder.settings import NAME, PROCEDURE, SETTLE_DEFAULTS, halves, setting
+from procedures.rate_ladder.settings import (
+    NAME,
+    PROCEDURE,
+    SETTLE_DEFAULTS,
+    LadderSettings,
+    halves,
+)
 
 
 def _fog_losses(fog: Any) -> int:
@@ -71,7 +77,7 @@ class RateLadder(StepDispatch):
                                         "stand needs an absolute trigger level in volts (a "
                                         "once-per-rev pulse is too slow for auto-level)"))
             fog_range = (fog or {}).get("range_dps", DEFAULT_FOG_RANGE_DPS)
-            turns = int(spec.get("turns", setting(cfg, "turns")))
+            turns = LadderSettings.from_config(cfg).axes[axis].turns
             for i, rate in enumerate(spec["rates_dps"]):
                 where = ("axes", axis, "rates_dps", i)
                 if (turns + 1) * 360.0 / rate > STEP_MAX_S:
@@ -112,25 +118,26 @@ class RateLadder(StepDispatch):
     def build_plan(self, cfg: Config) -> Plan:
         steps: list[Step] = []
         settle = self.settle(cfg)
-        static_s = float(setting(cfg, "static_record_s"))
-        for axis, spec in cfg.procedure["axes"].items():
-            turns = int(spec.get("turns", setting(cfg, "turns")))
+        ladder = LadderSettings.from_config(cfg)
+        static_s = ladder.static_record_s
+        for axis, spec in ladder.axes.items():
+            turns = spec.turns
             accel = self.accel(cfg, axis)
-            if setting(cfg, "prompts"):
-                text = spec.get("prompt") or (
+            if ladder.prompts:
+                text = spec.prompt or (
                     f"Mount the FOG on the {axis} axis (sensitive axis along the table axis), "
                     f"connect the {axis} zero-mark sensor to the counter")
                 steps.append(Step("prompt", axis, text))
             if static_s > 0:
                 steps.append(Step("static", axis, f"FOG at rest for {static_s:g} s (noise floor, "
-                                  "METHOD.md A5)", static_s, f"{axis}/static",
+                                  "docs/method.md A5)", static_s, f"{axis}/static",
                                   {"duration_s": static_s}))
             steps.append(Step("enable", axis, "drive to Operation Enabled, profile velocity",
                               1.0))
             rate_now = 0.0
-            for rate in spec["rates_dps"]:
+            for rate in spec.rates_dps:
                 unit = f"{axis}/{rate:g}dps"
-                parts = halves(turns, setting(cfg, "sequence"))
+                parts = halves(turns, ladder.sequence)
                 for j, (sign, n) in enumerate(parts):
                     target = sign * rate
                     steps.append(Step("set_rate", axis, f"{target:+g} deg/s",
@@ -272,7 +279,7 @@ class RateLadder(StepDispatch):
     @staticmethod
     def _show_half(ctx: RunContext, axis: str, set_dps: float, edges: Any,
                    fog_mean_dps: float | None) -> None:
-        """The half just timed: its per-turn rate deviations ω_i/ω_set − 1 (METHOD.md A1)
+        """The half just timed: its per-turn rate deviations ω_i/ω_set − 1 (docs/method.md A1)
         to 3 significant digits, as the certificate's annex prints them; the FOG mean."""
         dev = [360.0 / (b - a) / abs(set_dps) - 1.0
                for a, b in zip(edges[:-1], edges[1:], strict=True)]
@@ -374,7 +381,7 @@ def _fog_mean_dps(fog: Any, span_s: float = 1.0) -> float | None:
 
 
 def pair_figures(summary: dict[str, Any]) -> list[Figure]:
-    """A pair's first look (METHOD.md A3 k and ω0; eq. 1 δ per direction) with U (k = 2)."""
+    """A pair's first look (docs/method.md A3 k and ω0; eq. 1 δ per direction) with U (k = 2)."""
     out = [Figure("k", summary.get("k"), summary.get("k_u")),
            Figure("ω0", summary.get("w0_dps"), summary.get("w0_u_dps"), "°/s", signed=True)]
     for sign, name in (("+", "δ(+)"), ("-", "δ(−)")):

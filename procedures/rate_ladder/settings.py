@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any
 
 from bench.config import (
@@ -67,6 +70,56 @@ SETTLE_DEFAULTS = {"tolerance_rel": 1e-3, "tolerance_dps": 0.005, "hold_s": 2.0,
 
 def setting(cfg: Config, key: str) -> Any:
     return cfg.procedure.get(key, DEFAULTS.get(key))
+
+
+@dataclass(frozen=True)
+class AxisSettings:
+    """One axis of the ladder as it runs: its own `turns` where it gives one."""
+
+    name: str
+    rates_dps: tuple[float, ...]
+    turns: int
+    prompt: str | None
+
+
+@dataclass(frozen=True)
+class LadderSettings:
+    """The validated procedure file, parsed once; every default comes from DEFAULTS.
+
+    The plan, the analysis and the certificate's Method table all read these, so a
+    per-axis `turns` is what each of them says (issue 12)."""
+
+    turns: int                 # the file's top-level default, per rate and direction
+    sequence: str
+    static_record_s: float
+    harmonics: int
+    mains_hz: float
+    decision_rule: str
+    prompts: bool
+    axes: Mapping[str, AxisSettings]
+
+    @classmethod
+    def from_config(cls, cfg: Config) -> LadderSettings:
+        turns = int(setting(cfg, "turns"))
+        axes = {name: AxisSettings(name, tuple(float(r) for r in spec["rates_dps"]),
+                                   int(spec.get("turns", turns)), spec.get("prompt"))
+                for name, spec in cfg.procedure["axes"].items()}
+        return cls(turns=turns, sequence=str(setting(cfg, "sequence")),
+                   static_record_s=float(setting(cfg, "static_record_s")),
+                   harmonics=int(setting(cfg, "harmonics")),
+                   mains_hz=float(setting(cfg, "mains_hz")),
+                   decision_rule=str(setting(cfg, "decision_rule")),
+                   prompts=bool(setting(cfg, "prompts")), axes=MappingProxyType(axes))
+
+    def method(self) -> dict[str, Any]:
+        """The settings result.json records under `method` (the certificate's Method
+        table): `turns` is one number when every axis ran it, else per axis in words."""
+        per_axis = {a.name: a.turns for a in self.axes.values()}
+        turns: int | str = (next(iter(per_axis.values())) if len(set(per_axis.values())) == 1
+                            else ", ".join(f"{k} {v}" for k, v in per_axis.items()))
+        return {"turns": turns, "turns_per_axis": per_axis, "sequence": self.sequence,
+                "static_record_s": self.static_record_s, "harmonics": self.harmonics,
+                "mains_hz": self.mains_hz, "decision_rule": self.decision_rule}
 
 
 def tolerance_for(bands: list[dict[str, float]] | None, rate_dps: float) -> float | None:
