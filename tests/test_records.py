@@ -35,6 +35,8 @@ from bench.records import Records, record_of
 from bench.records.extract import figures_of
 from bench.records.hooks import target, warn_if_overdue
 from bench.records.schema import metadata
+from bench.records.store import TrendPoint
+from bench.records.trend import trend_png
 from sims.stand import AxisTruth
 from tests.conftest import CONFIGS, ROOT
 from tests.pg_server import PgServer, PgUnavailable
@@ -425,6 +427,32 @@ def test_drift_pulse_figures_are_recorded_with_u_and_verdict() -> None:
     assert (x.value, x.u, x.unit, x.tolerance, x.verdict) == (0.1, 0.02, "deg/h", 0.5, "pass")
     assert figs[("y", "own_drift_dph")].verdict is None     # no check was made of it
     assert figs[("platform", "azimuth_deg")].u == 0.05
+
+
+def test_an_unresolved_sigma_is_kept_and_drawn_as_its_upper_limit() -> None:
+    """The one rule for unresolved figures (issue 18) reaches the records: a sigma not
+    resolved above the timing floor is kept as the certificate prints it, '< limit', and
+    the trend plot draws a limit marker, not a point with U bars."""
+    import datetime as dt
+
+
+
+    result = {"procedure": "rate-ladder", "verdict": "pass", "checks": [
+        {"axis": "outer", "set_rate_dps": 50.0, "quantity": "rate_instability",
+         "verdict": "not-assessed", "rule": "guard-band", "tolerance_rel": 1e-5}],
+        "axes": {"outer": {"rates": [
+            {"set_rate_dps": 50.0, "rate_error_rel": 1e-7, "rate_error_u_rel": 4e-8,
+             "rate_instability_rel": 2e-8, "rate_instability_u_rel": 3e-8,
+             "rate_instability_resolved": False, "rate_instability_upper_rel": 7.3e-8}]}}}
+    (sig,) = [f for f in figures_of(result) if f.quantity == "rate_instability_rel"]
+    assert sig.is_limit and sig.value == 7.3e-8 and sig.u is None
+    assert sig.verdict == "not-assessed"
+    (err,) = [f for f in figures_of(result) if f.quantity == "rate_error_rel"]
+    assert not err.is_limit and err.u == 4e-8
+    day = dt.datetime(2026, 1, 1)
+    png = trend_png([TrendPoint("a", day, "C-1", None, sig), TrendPoint("a", day, "C-1",
+                                                                          None, err)])
+    assert png is not None and png[:4] == b"\x89PNG"
 
 
 def test_a_run_without_any_reachable_database_still_completes(tmp_path: Path) -> None:

@@ -113,7 +113,7 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
         q("mean_rate_dps", "mean rate over the turns (counter, docs/method.md A2)", V.MEASURED,
           U.DEG_PER_S, value=mean, u=eu * abs(w_set) if eu is not None and w_set else None,
           note="U = U(rate error) x |set rate|.")
-    q("rate_error_rel", "per-turn rate error (mean - set) / |set| (docs/method.md A2 eq. 1, "
+    q("rate_error_rel", "per-turn rate error (mean - set) / set (docs/method.md A2 eq. 1, "
       "signed)", f"{V.ERROR} {V.RATE_ERROR}", U.ONE, "rate_error_u_rel", check="rate_error")
     q("rate_instability_rel", "per-turn rate instability, relative std of the per-turn rates "
       "(docs/method.md A2 eq. 2)", V.RATE_INSTABILITY, U.ONE, "rate_instability_u_rel",

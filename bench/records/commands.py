@@ -132,8 +132,9 @@ def cmd_history(args: argparse.Namespace) -> int:
             f = p.figure
             u = f"± {f.u * scale:.3g}" if f.u is not None else ""
             tol = f"  (tolerance {f.tolerance * scale:.3g})" if f.tolerance else ""
-            print(f"    {_date(p)}  {f.value * scale:+.4g} {u}  "
-                  f"{(f.verdict or '').upper()}{tol}")
+            shown = (f"< {f.value * scale:.3g} (not resolved)" if f.is_limit
+                     else f"{f.value * scale:+.4g} {u}")
+            print(f"    {_date(p)}  {shown}  {(f.verdict or '').upper()}{tol}")
     if args.csv:
         with open(args.csv, "w", newline="", encoding="utf-8") as fh:
             w = csv.writer(fh)

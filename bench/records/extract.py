@@ -30,6 +30,11 @@ class NotARun(ValueError):
     """A folder that is no finished run directory (no result.json to register)."""
 
 
+#: the `rule` of a figure kept as its one-sided upper limit (not resolved): `value` is
+#: the limit, `u` is None; printed "< value", drawn as a limit (issue 18's one rule)
+UPPER_LIMIT = "upper-limit"
+
+
 @dataclass(frozen=True)
 class FigureRecord:
     """One reported figure with its expanded uncertainty (k = 2) and check verdict."""
@@ -43,6 +48,10 @@ class FigureRecord:
     tolerance: float | None = None
     verdict: str | None = None
     rule: str | None = None
+
+    @property
+    def is_limit(self) -> bool:
+        return self.rule == UPPER_LIMIT
 
 
 @dataclass(frozen=True)
@@ -141,7 +150,7 @@ def _checks_index(result: dict[str, Any]) -> dict[tuple[str, str, float | None],
 
 def _fig(axis: str, quantity: str, rate: float | None, value: Any, u: Any, unit: str,
          checks: dict[tuple[str, str, float | None], dict[str, Any]],
-         check_name: str | None = None) -> FigureRecord | None:
+         check_name: str | None = None, upper_limit: bool = False) -> FigureRecord | None:
     v = _num(value)
     if v is None:
         return None
@@ -153,7 +162,8 @@ def _fig(axis: str, quantity: str, rate: float | None, value: Any, u: Any, unit:
         tol = _num(c.get("tolerance_rel", c.get("tolerance_dph")))
     return FigureRecord(axis, quantity, rate, v, _num(u), unit, tol,
                         str(c["verdict"]) if c and c.get("verdict") else None,
-                        str(c["rule"]) if c and c.get("rule") else None)
+                        UPPER_LIMIT if upper_limit else (
+                            str(c["rule"]) if c and c.get("rule") else None))
 
 
 def figures_of(result: dict[str, Any]) -> list[FigureRecord]:
@@ -167,8 +177,17 @@ def figures_of(result: dict[str, Any]) -> list[FigureRecord]:
             rate = _num(r.get("set_rate_dps"))
             out.append(_fig(axis, "rate_error_rel", rate, r.get("rate_error_rel"),
                             r.get("rate_error_u_rel"), "1", checks, "rate_error"))
-            out.append(_fig(axis, "rate_instability_rel", rate, r.get("rate_instability_rel"),
-                            r.get("rate_instability_u_rel"), "1", checks, "rate_instability"))
+            if r.get("rate_instability_resolved") is False:
+                # not resolved above the counter's timing floor: the records keep what the
+                # certificate prints, the one-sided upper limit, with no U (the one rule
+                # for unresolved figures, docs/certificate.md); the trend draws it as a limit
+                out.append(_fig(axis, "rate_instability_rel", rate,
+                                r.get("rate_instability_upper_rel"), None, "1", checks,
+                                "rate_instability", upper_limit=True))
+            else:
+                out.append(_fig(axis, "rate_instability_rel", rate,
+                                r.get("rate_instability_rel"), r.get("rate_instability_u_rel"),
+                                "1", checks, "rate_instability"))
             out.append(_fig(axis, "intra_turn_instability_rel", rate,
                             r.get("intra_turn_instability_rel"),
                             r.get("intra_turn_instability_u_rel"), "1", checks,

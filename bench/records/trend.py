@@ -81,8 +81,16 @@ def _panel(ax: object, pn: Panel, points: list[TrendPoint]) -> None:
         offset = 1.0 if pn.quantity == "k" else 0.0
         y = [(p.figure.value - offset) * pn.scale for p in pts]
         u = [(p.figure.u or 0.0) * pn.scale for p in pts]
-        ax.errorbar(x, y, yerr=u, fmt="o-", ms=3, lw=0.8, capsize=3, color=f"C{i % 10}",
-                    label=name)
+        color = f"C{i % 10}"
+        ax.plot(x, y, "-", lw=0.5, color=color, alpha=0.5)
+        est = [j for j, p in enumerate(pts) if not p.figure.is_limit]
+        if est:
+            ax.errorbar([x[j] for j in est], [y[j] for j in est], yerr=[u[j] for j in est],
+                        fmt="o", ms=3, capsize=3, color=color, label=name)
+        lim = [j for j, p in enumerate(pts) if p.figure.is_limit]
+        if lim:   # not resolved: the upper limit, drawn as one (never a point with U)
+            ax.plot([x[j] for j in lim], [y[j] for j in lim], "v", ms=5, mfc="none",
+                    color=color, label=f"{name}: upper limit" if not est else None)
         for p in pts:
             if p.calibration_state:
                 ax.annotate(p.calibration_state, (p.date_utc, (p.figure.value - offset)
@@ -112,4 +120,6 @@ def _panel(ax: object, pn: Panel, points: list[TrendPoint]) -> None:
         lbl.set_rotation(25)
         lbl.set_horizontalalignment("right")
     ax.legend(fontsize=5.5, ncol=2, loc="best")
-    ax.set_title(pn.label.split(",")[0] + " (error bars: U, k = 2)", fontsize=8)
+    ax.set_title(pn.label.split(",")[0] + " (error bars: U, k = 2; ▽ upper limit, "
+                 "not resolved)" if any(p.figure.is_limit for p in points)
+                 else pn.label.split(",")[0] + " (error bars: U, k = 2)", fontsize=8)
