@@ -639,7 +639,7 @@ class Axis:
                             f"{state.label if state else 'an unknown state'} "
                             f"(enable() brings it to operation enabled)")
         self._send_accel(accel)
-        units = self.units.dps_to_velocity(rate_dps)
+        units = self.units.dps_to_velocity(rate_dps, limit_dps=self.max_rate_dps)
         self._write(Od.TARGET_VELOCITY, units)
         sent = self.units.velocity_to_dps(units)
         with self._lock:
@@ -649,7 +649,7 @@ class Axis:
         return sent
 
     def _send_accel(self, accel_dps2: float) -> None:
-        units = self.units.dps2_to_accel(accel_dps2)
+        units = self.units.dps2_to_accel(accel_dps2, limit_dps2=self.max_accel_dps2)
         if units != self._accel_sent:
             self._write(Od.PROFILE_ACCELERATION, units)
             self._write(Od.PROFILE_DECELERATION, units)
@@ -748,7 +748,8 @@ class Axis:
         counts = self.units.deg_to_counts(position_deg)
         self._select_mode(PROFILE_POSITION)
         self._send_accel(accel)
-        self._write(Od.PROFILE_VELOCITY_PP, self.units.dps_to_velocity(rate_dps))
+        self._write(Od.PROFILE_VELOCITY_PP,
+                    self.units.dps_to_velocity(rate_dps, limit_dps=self.max_rate_dps))
         self._write(Od.TARGET_POSITION, wrap_int32(counts))
         self._journal("move", target_deg=position_deg, from_deg=start.position_deg,
                       rate_dps=rate_dps, accel_dps2=accel, tolerance_deg=tol)

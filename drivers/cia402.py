@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum, IntEnum
 from typing import Any
@@ -391,6 +392,13 @@ INT32_MAX = 2**31 - 1
 UINT32_MAX = 2**32 - 1
 
 
+
+def _within(units: int, limit: float | None, to_deg: Callable[[int], float]) -> int:
+    """Step a rounded command one unit toward zero if it lands beyond `limit` (deg)."""
+    if limit is not None and abs(to_deg(units)) > limit and units != 0:
+        units -= 1 if units > 0 else -1
+    return units
+
 @dataclass(frozen=True)
 class DriveUnits:
     """Drive units <-> deg, deg/s, deg/s^2: the one place the conversion lives.
@@ -425,14 +433,19 @@ class DriveUnits:
     def counts_to_deg(self, counts: int) -> float:
         return counts * self.deg_per_count
 
-    def dps_to_velocity(self, dps: float) -> int:
-        return round(dps / (self.deg_per_count * self.velocity_unit_counts_per_s))
+    def dps_to_velocity(self, dps: float, limit_dps: float | None = None) -> int:
+        """The nearest drive unit; with `limit_dps`, never beyond it in magnitude (a
+        coarse unit, 1 rpm = 6 deg/s, would otherwise round 400 deg/s up to 402)."""
+        units = round(dps / (self.deg_per_count * self.velocity_unit_counts_per_s))
+        return _within(units, limit_dps, self.velocity_to_dps)
 
     def velocity_to_dps(self, units: int) -> float:
         return units * self.deg_per_count * self.velocity_unit_counts_per_s
 
-    def dps2_to_accel(self, dps2: float) -> int:
-        return round(dps2 / (self.deg_per_count * self.accel_unit_counts_per_s2))
+    def dps2_to_accel(self, dps2: float, limit_dps2: float | None = None) -> int:
+        """The nearest drive unit; with `limit_dps2`, never beyond it in magnitude."""
+        units = round(dps2 / (self.deg_per_count * self.accel_unit_counts_per_s2))
+        return _within(units, limit_dps2, self.accel_to_dps2)
 
     def accel_to_dps2(self, units: int) -> float:
         return units * self.deg_per_count * self.accel_unit_counts_per_s2

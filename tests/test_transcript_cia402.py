@@ -98,3 +98,25 @@ def test_tpdos_only_on_change_are_refused_or_set():
             ax.stop()              # the standstill wait needs feedback at rest
     finally:
         r.twin.stop()
+
+
+def test_a_coarse_unit_never_rounds_a_command_beyond_the_stand_limit():
+    """1 rpm = 6 deg/s: 400 deg/s is 66.7 rpm, nearest 67 rpm = 402 deg/s, over the stand's
+    400; the command steps one unit toward zero instead (396 deg/s). The same for the
+    acceleration: 200 deg/s^2 is 33.3 rpm/s, sent as 33 (198 deg/s^2), never 34."""
+    u = UnitFactors(2**20, 1, 1, 1, NAMED_SI_UNITS["rpm"],
+                    NAMED_SI_UNITS["rpm/s"]).drive_units()
+    assert u.dps_to_velocity(400.0) == 67                      # nearest, unbounded
+    assert u.dps_to_velocity(400.0, limit_dps=400.0) == 66
+    assert u.dps_to_velocity(-400.0, limit_dps=400.0) == -66
+    assert u.dps_to_velocity(102.0, limit_dps=400.0) == 17     # inside the limit: nearest
+    assert u.dps2_to_accel(200.0, limit_dps2=200.0) == 33
+    r = make_rig(velocity_unit="rpm", acceleration_unit="rpm/s")
+    r.twin.start()
+    try:
+        with r.axis() as ax:
+            ax.enable()
+            assert ax.set_rate(MAX_RATE) == pytest.approx(396.0)
+            ax.stop()
+    finally:
+        r.twin.stop()

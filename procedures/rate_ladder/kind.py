@@ -15,7 +15,7 @@ from typing import Any
 
 from bench.config import STEP_MAX_S, Config, check_axis_names, stand_schema
 from bench.engine import Abort, RunContext
-from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, open_axis
+from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, StandClaimError, open_axis
 from bench.journal import RunDir
 from bench.plan import Plan, Step, format_duration
 from bench.progress import RELATIVE, Figure
@@ -37,6 +37,7 @@ from procedures.rate_ladder.settings import (
     SETTLE_DEFAULTS,
     LadderSettings,
     halves,
+    tolerance_for,
 )
 
 
@@ -178,9 +179,14 @@ class RateLadder(StepDispatch):
         try:
             for axis in self.axes(cfg):
                 open_axis(bench, axis, stand["axes"], clock, run)
+            refused = uncommandable_rates(cfg, bench)
         except BaseException as e:
             bench.abandon(e)
             raise
+        if refused:
+            error = StandClaimError("; ".join(refused))
+            bench.abandon(error)
+            raise error
         return bench
 
     # -- steps (each action is a `_do_<action>` method) --------------------------------
@@ -388,4 +394,38 @@ def pair_figures(summary: dict[str, Any]) -> list[Figure]:
         if f"rate_error_rel{sign}" in summary:
             out.append(Figure(name, summary[f"rate_error_rel{sign}"],
                               summary.get(f"rate_error_u_rel{sign}"), RELATIVE, signed=True))
+    return out
+
+
+#: with no rate-error tolerance stated, the command may miss the rate by at most this
+#: (1 ppm, the finest band of CONTRACT's example): the rate error is measured against it
+COMMAND_RESOLUTION_REL_MAX = 1e-6
+
+
+def uncommandable_rates(cfg: Config, bench: Bench) -> list[str]:
+    """Rates the drive, in the units it reported at connect, cannot be told exactly enough.
+
+    The rate error (docs/method.md A2, eq. 1) is taken against the commanded rate: a
+    command rounded to a coarse unit (1 rpm = 6 deg/s: 100 deg/s is sent as 102) would be
+    certified as a table error. Refused before anything moves when the rounding exceeds a
+    tenth of the rate-error tolerance at that rate, or COMMAND_RESOLUTION_REL_MAX."""
+    bands = (cfg.procedure.get("tolerance") or {}).get("rate_error")
+    out: list[str] = []
+    for axis, spec in LadderSettings.from_config(cfg).axes.items():
+        if axis not in bench.axes:
+            continue
+        drive = bench.axes[axis].drive
+        for rate in spec.rates_dps:
+            sent = drive.units.velocity_to_dps(
+                drive.units.dps_to_velocity(rate, limit_dps=drive.max_rate_dps))
+            off_rel = abs(sent - rate) / rate
+            tol = tolerance_for(bands, rate)
+            limit = 0.1 * tol if tol else COMMAND_RESOLUTION_REL_MAX
+            if off_rel > limit:
+                step = drive.units.velocity_to_dps(1)
+                out.append(f"axis {axis}: {rate:g} deg/s cannot be commanded in the drive's "
+                           f"velocity unit ({step:.6g} deg/s, read from 0x60A9 at connect): "
+                           f"it would be sent as {sent:.9g} deg/s, {off_rel:.2g} off, more "
+                           f"than {limit:.2g}; set a finer unit (stand key "
+                           f"axes.{axis}.drive.unit_factors.velocity) or another rate")
     return out
