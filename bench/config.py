@@ -278,6 +278,16 @@ def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
                 "a real stand must state counter.time_tie (how the counter's start event "
                 "is placed on the FOG's time axis: source fog-sync with sync_period_s, "
                 "latency_s and latency_u_s, or host-clock); see drivers/time_tie.py"))
+        tie = counter.get("time_tie") if isinstance(counter, dict) else None
+        if isinstance(tie, dict) and tie.get("source") == "fog-sync":
+            missing = [k for k in ("sync_period_s", "latency_s", "latency_u_s")
+                       if k not in tie]
+            if missing:   # else the tie's uncertainty would silently be 0 in the budget
+                out.append(sdoc.problem(
+                    ("axes", name, "counter", "time_tie"),
+                    f"a fog-sync time tie on a real stand must state {', '.join(missing)} "
+                    "(the link's calibrated latency and its standard uncertainty enter "
+                    "the counter's budget); see drivers/time_tie.py"))
     return out
 
 

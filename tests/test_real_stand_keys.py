@@ -29,7 +29,8 @@ axes:
               level_v: 2.5%(tie)s}
     fog:     {port: /dev/ttyUSB0, format: kvh-a, axis: z, rate_hz: 1000%(units)s}
 """
-TIE = ",\n              time_tie: {source: fog-sync, sync_period_s: 5, latency_s: 2.0e-6}"
+TIE = (",\n              time_tie: {source: fog-sync, sync_period_s: 5, latency_s: 2.0e-6, "
+       "latency_u_s: 2.0e-7}")
 
 
 def load(tmp_path: Path, tie: str, units: str, factors: str = ", unit_factors: read"):
@@ -57,6 +58,14 @@ def test_a_real_stand_without_drive_unit_factors_is_refused(tmp_path):
         load(tmp_path, TIE, ", units: rad", factors="")
     assert "stand.yaml:4: axes.outer.drive: a real stand must state drive.unit_factors" \
         in str(e.value)
+
+
+def test_a_fog_sync_tie_without_its_latency_uncertainty_is_refused(tmp_path):
+    """Without latency_u_s the tie's term in the counter budget would silently be 0."""
+    with pytest.raises(ConfigError) as e:
+        load(tmp_path, TIE.replace(", latency_u_s: 2.0e-7", ""), ", units: rad")
+    assert ("stand.yaml:8: axes.outer.counter.time_tie: a fog-sync time tie on a real "
+            "stand must state latency_u_s") in str(e.value), str(e.value)
 
 
 def test_stated_it_validates(tmp_path):
