@@ -160,6 +160,12 @@ class FogTwin:
             self.axis.listeners.append(self._on_chunk)
 
     # -- faults --------------------------------------------------------------------------------
+    @property
+    def next_sample(self) -> int:
+        """The first stand sample not yet encoded: a fault must lie at or after it."""
+        with self.axis.lock:
+            return self._next_sample
+
     def inject(self, *faults: Fault) -> None:
         """Schedule faults by stand sample; each must lie ahead of what is already encoded."""
         with self.axis.lock:

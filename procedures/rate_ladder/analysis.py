@@ -338,6 +338,10 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
             for r in pa.rates:
                 d = with_sigma_terms(r.to_dict())
                 d["session"] = done_in[unit]
+                # frames the FOG's decoder lost or found broken in this direction's halves
+                # (their samples are left out of the window; the integrals run on time)
+                d["fog_lost_frames"] = sum(int(e.get("fog_lost", 0)) for e in acqs
+                                           if (e["set_rate_dps"] > 0) == (r.set_rate_dps > 0))
                 c = _checks(cfg, axis, d, rule)
                 d["checks"] = c
                 d["verdict"] = "fail" if any(x["verdict"] == "fail" for x in c) else "pass"
