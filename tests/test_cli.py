@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -76,3 +77,32 @@ def test_the_shipped_examples_are_the_configs_procedures_and_valid(
 def test_run_an_unknown_example_is_invalid_input(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["run", "--example", "nope", "--yes"]) == 2
     assert "demo, drift-demo" in capsys.readouterr().err
+
+
+def _one_pair(tmp_path: Path) -> Path:
+    proc = tmp_path / "one-pair.yaml"
+    proc.write_text(
+        f"procedure: rate-ladder\nstand: {CONFIGS / 'stands' / 'sim-two-axis.yaml'}\n"
+        "turns: 4\nsequence: '+-'\nstatic_record_s: 2\nharmonics: 1\nprompts: false\n"
+        "axes:\n  outer: {rates_dps: [60]}\n")
+    return proc
+
+
+@pytest.mark.timeout(240)
+@pytest.mark.parametrize("mode", ["--quiet", "--log-json"])
+def test_quiet_and_json_log_modes_through_the_cli(mode: str, tmp_path: Path) -> None:
+    """--quiet: stdout holds the verdict and the run directory, stderr nothing; --log-json:
+    every stderr line is one JSON object (a log collector reads it), stdout as usual."""
+    out = subprocess.run([sys.executable, "-m", "bench", "run", str(_one_pair(tmp_path)),
+                          "--yes", "--out", str(tmp_path / "runs"), mode], cwd=ROOT,
+                         text=True, capture_output=True, timeout=200)
+    assert out.returncode == 0, out.stderr
+    run_dir = Path(out.stdout.strip().splitlines()[-1])
+    assert (run_dir / "certificate.pdf").stat().st_size > 0
+    if mode == "--quiet":
+        assert out.stdout.strip().splitlines() == ["verdict: PASS", str(run_dir)], out.stdout
+        assert out.stderr == ""
+    else:
+        objects = [json.loads(line) for line in out.stderr.splitlines()]
+        kinds = {o.get("type") or o.get("kind") or o.get("event") for o in objects}
+        assert len(objects) > 10 and None not in kinds, kinds
