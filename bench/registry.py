@@ -7,16 +7,18 @@ A procedure package registers itself in its distribution's metadata:
 
 so the engine, the CLI and the certificate find it without naming it: adding a
 procedure touches no file outside its own package and its entry point. The kind's
-interface (what the engine asks of it) is `ProcedureKind` below.
+interface (what the engine and the certificate ask of it) is `ProcedureKind` below; its
+certificate hooks, with neutral answers, come from `bench.certificate.parts.CertificateParts`.
 """
 
 from __future__ import annotations
 
 import importlib
 import pkgutil
+from collections.abc import Mapping, Sequence
 from functools import cache
 from importlib.metadata import entry_points
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from bench.config import Config
 from bench.engine import RunContext
@@ -27,6 +29,10 @@ from bench.schema import Map
 from bench.simbench import SimBench
 from bench.yamlfile import Problem
 from drivers.clock import Clock
+
+if TYPE_CHECKING:   # the certificate's package imports this module when it is loaded
+    from bench.certificate.model import Section
+    from bench.certificate.parts import Sources
 
 GROUP = "ratebench.procedures"
 #: where an install whose metadata predates the entry points finds the kinds (an old
@@ -63,6 +69,12 @@ class ProcedureKind(Protocol):
 
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
         """result.json from the run directory's raw data alone."""
+
+    def certificate_sections(self, src: Sources, number: str,
+                             checks: Sequence[Mapping[str, Any]]) -> list[Section]:
+        """The certificate's results section `number` (and its subsections) from
+        result.json. The other questions the certificate asks (item, method, deviations,
+        annexes, statements) and their neutral answers: inherit `CertificateParts`."""
 
 
 @cache

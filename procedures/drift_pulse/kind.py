@@ -45,6 +45,7 @@ from drivers.dmm import PROFILES as DMM_PROFILES
 from drivers.dmm import Digitizer
 from drivers.scpi import parse_numbers
 from procedures.base import StepDispatch, result_document
+from procedures.drift_pulse.certificate import DriftCertificate
 
 NAME = "drift-pulse"
 GYRO_NAMES = ("x", "y", "z")
@@ -186,7 +187,7 @@ def _near_int(x: float) -> bool:
     return abs(x - round(x)) < 1e-6 * max(1.0, abs(x))
 
 
-class DriftPulse(StepDispatch):
+class DriftPulse(StepDispatch, DriftCertificate):
     name = NAME
 
     def procedure_schema(self) -> Map:

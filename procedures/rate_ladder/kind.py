@@ -31,6 +31,7 @@ from procedures.rate_ladder.analysis import (
     unit_acquisitions,
     unit_halves,
 )
+from procedures.rate_ladder.certificate import LadderCertificate
 from procedures.rate_ladder.settings import (
     NAME,
     PROCEDURE,
@@ -47,7 +48,7 @@ def _fog_losses(fog: Any) -> int:
     return int(st.lost_frames + st.crc_errors)
 
 
-class RateLadder(StepDispatch):
+class RateLadder(StepDispatch, LadderCertificate):
     name = NAME
 
     # -- files -----------------------------------------------------------------------

@@ -1,0 +1,224 @@
+"""The drift procedure's part of its calibration certificate (docs/method.md part B).
+
+The certificate (bench/certificate/build.py) asks the kind for these through
+`CertificateParts`: the platform under test as the item, the method statement, the
+digitizer's start offset as a deviation, and the results: own and apparent drift per
+axis, the azimuth, the drift per position and cycle, the budget and the plots.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from bench.certificate import methods, plots
+from bench.certificate.model import Block, Fields, Para, Section, Table
+from bench.certificate.parts import (
+    NOT_RECORDED,
+    CertificateParts,
+    Sources,
+    figure_of,
+    label_of,
+    num,
+    stand_of,
+    text_of,
+    vu_text,
+)
+from bench.certificate.rounding import format_sig, format_value_u
+
+# -- the method statement (docs/method.md part B, restated) ---------------------------------
+
+B_TEXT: tuple[Para, ...] = (
+    Para(methods.B_REFERENCE),
+    Para("A torque sensor applies a control pulse of duration Tc, then the same pulse with "
+         "opposite sign; the command angle sensor gives U(t) = k_as·α(t). An integrator adds U "
+         "during the first pulse and subtracts it during the second:", "body"),
+    Para("U_int = ∫₀^Tc U dt − ∫_Tc^2Tc U dt = −k_as·ω·Tc²,    ω = −U_int / (k_as·Tc²)",
+         "formula"),
+    Para("For any pulse shape symmetric in time the torque-sensor scale, the angular momentum "
+         "and the pulse amplitude drop out; for a non-symmetric shape the control term "
+         "2∫A dt − A(Tc)·Tc is computed and removed. Samples lie on the pulse edges and the "
+         "integral uses the trapezoid rule (a half-sample offset would leave a control residue "
+         "of about amplitude / (fs·Tc)).", "body"),
+    Para("The platform is turned by 180° about the vertical and the cycles repeated: the "
+         "apparent drift changes sign, the own drift does not:", "body"),
+    Para("ω_own = (ω_0 + ω_180) / 2,   ω_app = (ω_0 − ω_180) / 2", "formula"),
+    Para("Apparent drift of a horizontal axis whose input axis points at azimuth ψ: "
+         "Ω_h·cos ψ with Ω_h = 15.041 °/h · cos(latitude). With the X input axis at azimuth A "
+         "and Y at A + 90°: app_x = Ω_h cos A, app_y = −Ω_h sin A, A = atan2(−app_y, app_x).",
+         "body"),
+)
+
+# -- what the certificate asks ---------------------------------------------------------------
+
+class DriftCertificate(CertificateParts):
+    """The drift procedure's answers to the certificate (mixed into the kind)."""
+
+    certificate_procedure_name = "drift by alternating-sign pulses (docs/method.md part B)"
+    certificate_measured = (("own_drift", "own drift"), ("apparent_drift", "apparent drift"),
+                            ("azimuth", "platform azimuth"))
+    certificate_quantities = {
+        "own_drift": "own drift",
+        "apparent_drift": "apparent drift",
+        "earth_horizontal_rate": "horizontal Earth rate",
+        "azimuth": "platform azimuth",
+    }
+
+    def certificate_recognises(self, src: Sources) -> bool:
+        return bool(src.get("drift"))
+
+    def certificate_item(self, src: Sources) -> tuple[str, str]:
+        """The platform under test and its gyros (the stand is the laboratory's)."""
+        plat = src.stand_file.get("platform", {}) or {}
+        ident = plat.get("identity", {}) or {}
+        if not ident:
+            return ("gyro platform (identity not given in the stand file's "
+                    "platform.identity)", NOT_RECORDED)
+        gyros = plat.get("gyros", {}) or {}
+        names = "; ".join(
+            f"{g}: " + ", ".join(
+                str(v) for v in (spec.get("model"), spec.get("serial") and
+                                 f"serial {spec['serial']}") if v)
+            if isinstance(spec, Mapping) and (spec.get("model") or spec.get("serial"))
+            else f"{g}: serial not given in the stand file"
+            for g, spec in gyros.items())
+        text = f"{text_of(ident.get('maker'))} {text_of(ident.get('model'))}"
+        if names:
+            text += f", with its gyros ({names})"
+        return text, text_of(ident.get("serial"))
+
+    def certificate_identification(self, src: Sources) -> Sequence[tuple[str, str]]:
+        stand = stand_of(src)
+        return [("Test stand used", f"{text_of(stand.get('maker'))} "
+                                    f"{text_of(stand.get('model'))}, serial "
+                                    f"{text_of(stand.get('serial'))}")]
+
+    def certificate_method(self, src: Sources) -> Sequence[Block]:
+        return B_TEXT
+
+    def certificate_run_deviations(self, src: Sources) -> Sequence[str]:
+        run = []
+        for axis, d in ((src.get("drift", {}) or {}).get("axes", {}) or {}).items():
+            off = d.get("start_offset") if isinstance(d, Mapping) else None
+            if isinstance(off, Mapping) and off.get("detected"):
+                shift = format_value_u(num(off.get("offset_s")), num(off.get("offset_u_s")),
+                                       1e3, signed=True).joined("ms")
+                run.append(f"Axis {axis}: the digitizer's samples were {shift} "
+                           "off the pulse edges; the integration edges were placed where the "
+                           "pulses are (docs/method.md B: a half-sample offset would bias the "
+                           "drift).")
+        return run
+
+    def certificate_sections(self, src: Sources, number: str,
+                             checks: Sequence[Mapping[str, Any]]) -> list[Section]:
+        return _drift_results(src, number)
+
+    def certificate_statements(self, statements: Sequence[str]) -> list[str]:
+        """No relative values here: the drift is in °/h."""
+        return [t for t in statements if not t.startswith("Relative values")]
+
+
+# -- the results -----------------------------------------------------------------------------
+
+def _position(c: Mapping[str, Any]) -> float:
+    return num(c.get("position_deg", c.get("table_deg"))) or 0.0
+
+
+def _drift_results(src: Sources, number: str) -> list[Section]:
+    drift = src.get("drift", {}) or {}
+    axes = {a: d for a, d in (drift.get("axes", {}) or {}).items() if isinstance(d, Mapping)}
+    blocks: list[Any] = [Para("Drift in °/h; each value followed by its expanded uncertainty "
+                              "U (k = 2, about 95 %).")]
+    has_nominal = any(num(d.get("own_nominal_edges_dph")) is not None for d in axes.values())
+    rows = []
+    for axis, d in axes.items():
+        row = [axis, vu_text(d.get("own_dph"), d.get("own_u_dph"), signed=True),
+               vu_text(d.get("apparent_dph"), d.get("apparent_u_dph"), signed=True),
+               text_of(len(d.get("cycles") or []) or None)]
+        if has_nominal:
+            row.insert(3, format_sig(num(d.get("own_nominal_edges_dph")) or math.nan, 4,
+                                     signed=True))
+        rows.append(tuple(row))
+    if rows:
+        header = ["Axis", "Own drift ± U, °/h", "Apparent drift at 0° ± U, °/h", "Cycles"]
+        notes = []
+        if has_nominal:
+            header.insert(3, "Own drift at nominal edges, °/h")
+            notes.append("Own drift at nominal edges: the same cycles integrated with the "
+                         "pulse edges at the digitizer's nominal sample times, as the paper's "
+                         "integrator does; shown for comparison only.")
+        blocks.append(Table(tuple(header), tuple(rows),
+                            widths=(0.8, 2.2, 2.6, 2.0, 0.8)[:len(header)] if has_nominal
+                            else (0.8, 2.4, 2.8, 1.0), align="lrrrr"[:len(header)],
+                            caption="Own and apparent drift per axis (docs/method.md B)",
+                            notes=tuple(notes)))
+    fields = []
+    if num(drift.get("latitude_deg")) is not None:
+        fields.append(("Site latitude", f"{num(drift['latitude_deg']):g}°"))
+    if num(drift.get("azimuth_deg")) is not None:
+        az, azu = num(drift["azimuth_deg"]), num(drift.get("azimuth_u_deg"))
+        fields.append(("Platform azimuth (X input axis) ± U", vu_text(az, azu) + " °"))
+        if azu is not None:
+            fields.append(("U of the azimuth", format_value_u(azu * 60, None, sig_without_u=2)
+                           .joined("arcmin")))
+    if num(drift.get("earth_horizontal_dph")) is not None:
+        text = vu_text(drift["earth_horizontal_dph"], drift.get("earth_horizontal_u_dph")) + " °/h"
+        exp = num(drift.get("earth_horizontal_expected_dph"))
+        if exp is not None:
+            ok = drift.get("earth_horizontal_consistent")
+            text += (f"; expected 15.041·cos(latitude) = {exp:.4f} °/h"
+                     + ("" if ok is None else (", consistent" if ok else ", NOT consistent")))
+        fields.append(("Horizontal Earth rate from the apparent drifts", text))
+    if fields:
+        blocks.append(Fields(tuple(fields)))
+    prow = []
+    for axis, d in axes.items():
+        positions = [p for p in d.get("positions") or [] if isinstance(p, Mapping)]
+        if not positions:  # group the cycles by position
+            cycles = [c for c in d.get("cycles") or [] if isinstance(c, Mapping)]
+            for pos in dict.fromkeys(_position(c) for c in cycles):
+                w = [v for c in cycles if _position(c) == pos
+                     for v in (num(c.get("drift_dph")),) if v is not None]
+                if w:
+                    mean = sum(w) / len(w)
+                    std = (math.sqrt(sum((x - mean) ** 2 for x in w) / (len(w) - 1))
+                           if len(w) > 1 else None)
+                    positions.append({"table_deg": pos, "cycles": len(w), "mean_dph": mean,
+                                      "std_dph": std, "drifts_dph": w})
+        for p in positions:
+            w = [v for v in (num(x) for x in p.get("drifts_dph") or []) if v is not None]
+            prow.append((axis, f"{_position(p):g}", text_of(p.get("cycles", len(w))),
+                         vu_text(p.get("mean_dph"), p.get("u_dph"), signed=True),
+                         format_sig(num(p.get("std_dph")) or math.nan, 2),
+                         ", ".join(format_sig(x, 5, signed=True) for x in w)))
+    if prow:
+        blocks.append(Table(("Axis", "Position, °", "Cycles", "Mean ± U, °/h", "Std, °/h",
+                             "Drift per cycle, °/h, in order"), tuple(prow),
+                            widths=(0.6, 0.8, 0.6, 1.8, 0.8, 4.0), align="lrrrrl",
+                            caption="Drift per platform position and per cycle"))
+    brow = []
+    for axis, d in axes.items():
+        budget = d.get("budget") or {}
+        own, app = budget.get("own_u_dph") or {}, budget.get("apparent_u_dph") or {}
+        for src_name in dict.fromkeys([*own, *app]):
+            brow.append((axis, label_of(src_name),
+                         format_sig(num(own.get(src_name)) or math.nan, 2),
+                         format_sig(num(app.get(src_name)) or math.nan, 2)))
+    if brow:
+        blocks.append(Table(("Axis", "Source", "u(own), °/h", "u(apparent), °/h"),
+                            tuple(brow), widths=(0.7, 3.5, 1.5, 1.5), align="llrr",
+                            caption="Uncertainty budget: standard uncertainties (k = 1) per "
+                                    "source; U above is 2 × their root sum of squares"))
+    blocks += figure_of("Drift estimate per cycle, by axis and platform position",
+                      plots.drift_cycles,
+                      {a: {**d, "cycles": [{**c, "position_deg": _position(c)}
+                                           for c in d.get("cycles") or []]}
+                       for a, d in axes.items()})
+    for axis, d in axes.items():
+        cyc = d.get("example_cycle")
+        if isinstance(cyc, Mapping):
+            blocks += figure_of(f"Axis {axis}: U(t) and the integrator output over one cycle",
+                              plots.drift_cycle, axis, cyc)
+    return [Section(number, "Results", tuple(blocks))]
+

@@ -1,0 +1,706 @@
+"""The rate ladder's part of its calibration certificate (docs/method.md part A).
+
+The certificate (bench/certificate/build.py) asks the kind for these through
+`CertificateParts`: the method statement, the source paper's deviations, the results per
+axis (A1-A5) with their plots, and the annex of per-turn counter rates. Values are printed
+with the certificate's own rounding rules and helpers, so they read as the rest of it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from bench.analysis.random_part import std_u_rel
+from bench.certificate import methods, plots
+from bench.certificate.model import Block, Para, Section, Table
+from bench.certificate.parts import (
+    CertificateParts,
+    Sources,
+    TitledBlocks,
+    figure_of,
+    num,
+    rate_text,
+    text_of,
+    verdict_label,
+    vu_text,
+)
+from bench.certificate.rounding import (
+    PERCENT,
+    PPM,
+    RESOLUTION_RULE,
+    Presented,
+    RelUnit,
+    format_sig,
+    format_value_u,
+    is_resolved,
+    present,
+    present_phase,
+    rel_unit,
+)
+
+# -- the method statement (docs/method.md part A, restated) ---------------------------------
+
+A_TEXT: tuple[Para, ...] = (
+    Para(methods.A_REFERENCE),
+    Para("Measuring chain. An optical slot sensor on the base gives one pulse per revolution "
+         "(the zero mark); a frequency counter times the period T between zero marks; a FOG on "
+         "the table top streams the instantaneous rate. The counter sees only |T|: the sign of "
+         "the per-turn rate is the sign of the commanded rate."),
+    Para("A1 Per-turn rate (fixed-angle method), one value per revolution i:", "strong"),
+    Para("ω_i = 360° / T_i", "formula"),
+    Para("Timing of one zero-mark edge (standard uncertainty), of one period (two independent "
+         "edges) and the per-turn rate error it causes:", "body"),
+    Para("Δ_edge = √(Δ_counter² + Δ_trigger²);   ΔT = √2 · Δ_edge;   Δω/ω ≈ ΔT / T",
+         "formula"),
+    Para("The source paper's ΔT = √(Δ_counter² + Δ_trigger²) is written per edge here; a "
+         "period has two edges. The timing floor of σ printed with the results is ΔT / T, "
+         "T the mean period: the σ that edge timing alone would give.", "note"),
+    Para("A2 Per-turn rate error and instability over N turns at the commanded rate ω_set:",
+         "strong"),
+    Para("δ = (mean(ω_i) − ω_set) / ω_set     (eq. 1, signed; computed exactly so)",
+         "formula"),
+    Para("Sign convention: ω_set and ω_i carry the sign of the direction, so δ > 0 means the "
+         "table turns faster than commanded in either direction and δ < 0 slower. The source "
+         "paper's eq. 1 is |mean − ω_set| / |ω_set|, which is |δ|; the conformity checks "
+         "compare |δ| with the tolerance. mean(ω_i) is the mean over whole turns, N·360° / "
+         "(t_N − t_0).", "note"),
+    Para("σ = √( Σ (ω_i − mean(ω))² / (N − 1) ) / |mean(ω)|     (eq. 2)", "formula"),
+    Para("U of δ (k = 2) combines the timing of each window's two end edges, the counter's "
+         "timebase (rectangular) and the turn-to-turn repeatability, a Type A term widened "
+         "for few turns by the small-sample factor of GUM Supplement 1, 6.4.9:", "body"),
+    Para("u_rep = σ / √N · √((N − 1) / (N − 3))  for N > 3  (t₀.₉₇₅(N − 1) / 2 for N ≤ 3);   "
+         "U = 2·√(u_timing² + u_timebase² + u_rep²)", "formula"),
+    Para("Note on eq. 2: the source paper prints eq. 2 without the square root (a variance "
+         "divided by the mean, which has units of °/s). This certificate uses the relative "
+         "standard deviation above, which is what the paper's numbers and its text describe.",
+         "note"),
+    Para("A3 Cross-calibration of the FOG against the counter for each ± pair of rates "
+         "(ω+ = −ω−); FOG model ω_fog = k·ω_true + ω0, with FOG means taken over exactly "
+         "the turns the counter timed:", "strong"),
+    Para("k = (Ω_fog+ − Ω_fog−) / (Ω_cnt+ − Ω_cnt−)   (eq. 5);   "
+         "ω0 = Ω_fog+ − k·Ω_cnt+   (eq. 6);   ω_true(t) = (ω_fog(t) − ω0) / k", "formula"),
+    Para("A4 Systematic intra-turn component: every FOG sample is given its table angle φ "
+         "from the zero-mark timestamps and the integrated calibrated rate (angle domain), "
+         "and the harmonic model Δω_sys(φ) = ω_set·Σ a_h cos(hφ + p_h), h = 1…H, plus a "
+         "mains-frequency tone in time, is fitted by linear least squares; amplitude and phase "
+         "are reported with their uncertainties. The paper's binned average by angle is kept "
+         "for comparison in the plots.", "body"),
+    Para("A5 Random component and intra-turn instability:", "strong"),
+    Para("Δω_rand = ω_true − Δω_sys(φ) − ω_set;   intra-turn instability = std(Δω_rand) / "
+         "|ω_set|", "formula"),
+    Para("It is reported at the FOG's output bandwidth (raw), with the FOG's own noise floor "
+         "removed in quadrature (floor-corrected), and for the random part averaged over "
+         "1°, 10° and 360° of table angle, so it can be read against a rate-table "
+         "datasheet.", "body"),
+)
+
+A_IMPROVEMENTS: tuple[str, ...] = (
+    "Angle assignment from zero-mark timestamps and the integrated calibrated rate, instead of "
+    "the paper's sample index × ω_set / f mapping (which accumulates error when the table's "
+    "rate is off).",
+    "Least-squares fit of harmonics 1…H in angle and of the mains tone in time, with "
+    "uncertainties, in place of the binned average alone.",
+    "The FOG's noise floor (from a record at rest or from the pair's own data) is removed in "
+    "quadrature; the raw figure is printed beside the corrected one.",
+    "Intra-turn instability is also given averaged over 1°, 10° and 360°.",
+)
+
+SEQUENCE_TEXT = {
+    "+-+": "Halves of each pair run in the symmetric order +ω, −ω, +ω (the + turns split "
+           "around the − half), so a linear FOG bias drift cancels in k and ω0; the paper ran "
+           "+ω then −ω.",
+    "+-": "Halves of each pair run in the paper's order +ω then −ω; a FOG bias drift during the "
+          "pair enters k and ω0 and is part of their uncertainty.",
+}
+
+# -- what the certificate asks ---------------------------------------------------------------
+
+class LadderCertificate(CertificateParts):
+    """The rate ladder's answers to the certificate (mixed into the kind)."""
+
+    certificate_procedure_name = "rate ladder (docs/method.md part A)"
+    certificate_stand_label = "Rate table"
+    certificate_measured = (
+        ("rate_error", "per-turn rate error"),
+        ("rate_instability", "per-turn rate instability"),
+        ("systematic", "once-per-revolution and higher harmonics of the rate"),
+        ("mains", "mains-frequency ripple"),
+        ("intra_turn_instability", "intra-turn instability"),
+        ("stability_over_angle", "rate stability over 1°, 10°, 360°"))
+    certificate_quantities = {
+        "rate_error": "per-turn rate error |δ|",
+        "rate_instability": "per-turn rate instability σ",
+        "intra_turn_instability": "intra-turn instability",
+        "intra_turn_instability_corrected": "intra-turn instability, floor-corrected",
+    }
+    certificate_unsigned = frozenset({"rate_instability", "intra_turn_instability",
+                                      "intra_turn_instability_corrected"})
+
+    def certificate_recognises(self, src: Sources) -> bool:
+        return "axes" in src.result     # CONTRACT §3's binding keys: results per axis
+
+    def certificate_identification(self, src: Sources) -> Sequence[tuple[str, str]]:
+        return [("Item: what was calibrated",
+                 ", ".join(f"axis {a}" for a in (src.get("axes", {}) or {}))
+                 + "; rates are signed in each axis's positive sense (the drive's "
+                   "positive count direction), angles from the zero mark")]
+
+    def certificate_method(self, src: Sources) -> Sequence[Block]:
+        return A_TEXT
+
+    def certificate_method_deviations(self, src: Sources) -> Sequence[Block]:
+        seq = (src.get("method", {}) or {}).get("sequence")
+        items = list(A_IMPROVEMENTS)
+        if seq in SEQUENCE_TEXT:
+            items.insert(0, SEQUENCE_TEXT[seq])
+        return [Para("From the source paper's method (each one an improvement, "
+                     "docs/method.md A3-A5):", "strong"), *(Para(f"• {t}") for t in items)]
+
+    def certificate_checks(self, src: Sources) -> list[dict[str, Any]]:
+        """The per-rate judgements of the analysis (a result without checks[])."""
+        out = []
+        for axis, ax in (src.get("axes", {}) or {}).items():
+            for r in ax.get("rates", []):
+                j = r.get("judgement")
+                if not isinstance(j, dict) or r.get("verdict") is None:
+                    continue
+                rule = str(j.get("decision_rule", "simple"))
+                out.append({"axis": axis, "set_rate_dps": r.get("set_rate_dps"),
+                            "quantity": "rate_error", "value_rel": r.get("rate_error_rel"),
+                            "u_rel": r.get("rate_error_u_rel"),
+                            "tolerance_rel": j.get("tolerance_rel"), "verdict": r.get("verdict"),
+                            "rule": "simple" if rule.startswith("simple") else rule,
+                            "capability_ratio": j.get("capability_ratio"),
+                            "capability_ok": j.get("capable")})
+        return out
+
+    def certificate_sections(self, src: Sources, number: str,
+                             checks: Sequence[Mapping[str, Any]]) -> list[Section]:
+        return _ladder_results(src, number, checks)
+
+    def certificate_annexes(self, src: Sources) -> Sequence[TitledBlocks]:
+        if not any(r.get("counter_rate_dps") for r in _all_rates(src)):
+            return ()
+        return (("Per-turn counter rates", _per_turn_annex(src)),)
+
+
+def _all_rates(src: Sources) -> list[dict[str, Any]]:
+    return [r for ax in (src.get("axes", {}) or {}).values() for r in ax.get("rates", [])]
+
+
+# -- the results -----------------------------------------------------------------------------
+
+def _tolerances(checks: Iterable[Mapping[str, Any]], axis: str
+                ) -> dict[str, list[tuple[float, float]]]:
+    out: dict[str, list[tuple[float, float]]] = {}
+    for c in checks:
+        rate, tol = num(c.get("set_rate_dps")), num(c.get("tolerance_rel"))
+        if c.get("axis") == axis and rate is not None and tol is not None:
+            out.setdefault(str(c.get("quantity")), []).append((abs(rate), tol))
+    return {k: sorted(set(v)) for k, v in out.items()}
+
+
+
+def _instability_u(r: Mapping[str, Any]) -> tuple[float | None, bool]:
+    """U of eq. 2's sigma: the result's, else the chi-square approximation (k = 2)."""
+    u = num(r.get("rate_instability_u_rel"))
+    if u is not None:
+        return u, False
+    s, n = num(r.get("rate_instability_rel")), len(r.get("counter_rate_dps") or [])
+    u = std_u_rel(s, n or int(r.get("turns") or 0))
+    return u, u is not None
+
+
+def sigma_presented(r: Mapping[str, Any], u: float | None) -> Presented:
+    """Eq. 2's σ under the one rule, with the timing floor as its zero: resolved when
+    σ − U > floor (the analysis's `rate_instability_resolved`), else '< L', L the
+    one-sided chi-square upper limit (`rate_instability_upper_rel`) or σ + U."""
+    s = num(r.get("rate_instability_rel"))
+    floor = num(r.get("rate_instability_floor_rel"))
+    resolved = r.get("rate_instability_resolved")
+    if resolved is None:
+        resolved = (s is not None and u is not None
+                    and s - u > (floor if floor is not None else 0.0))
+    upper = num(r.get("rate_instability_upper_rel"))
+    return present(s, u, resolved=bool(resolved), upper=upper)
+
+
+def _u_of_std(s: float | None, n: Any) -> float | None:
+    """U (k = 2) of a standard deviation from n values, when the result does not give it."""
+    n = num(n)
+    return None if n is None else std_u_rel(s, int(n))
+
+
+@dataclass(frozen=True)
+class Averaged:
+    """The random part averaged over windows of `angle_deg` of table angle (docs/method.md A5)."""
+
+    angle_deg: float
+    raw: float | None
+    u: float | None
+    u_approx: bool
+    floor: float | None
+    corrected: float | None
+    blocks: int | None
+    upper: float | None = None        # k = 2 upper limit of the corrected figure
+    resolved: bool | None = None
+
+    @property
+    def sensitivity(self) -> float | None:
+        """The smallest table figure these n windows could resolve: where the excess
+        variance equals 2 u of the measured variance, (8 / (n - 1))^(1/4) * measured."""
+        if self.raw is None or not self.blocks or self.blocks < 2:
+            return None
+        return self.raw * (8.0 / (self.blocks - 1)) ** 0.25
+
+
+def _averaged(r: Mapping[str, Any]) -> list[Averaged]:
+    """Averages over 1/10/360 deg, from `intra_turn.averaged` (the analysis library's shape)
+    or a list/mapping under one of the older names."""
+    data: Any = (r.get("intra_turn") or {}).get("averaged")
+    for key in ("instability_over_angle", "intra_turn_instability_over", "averaged_instability"):
+        data = data if data is not None else r.get(key)
+    if isinstance(data, Mapping):
+        data = [{"angle_deg": a, **(v if isinstance(v, Mapping) else {"instability_rel": v})}
+                for a, v in data.items()]
+    out = []
+    for d in data or []:
+        if not isinstance(d, Mapping) or num(d.get("angle_deg")) is None:
+            continue
+        raw = num(d.get("instability_rel", d.get("rel")))
+        u = num(d.get("u_rel"))
+        approx = u is None
+        if approx:
+            u = _u_of_std(raw, d.get("blocks"))
+        corrected, upper = num(d.get("corrected_rel")), num(d.get("corrected_upper_rel"))
+        resolved = d.get("resolved")
+        if resolved is None:   # an older result: the k = 2 test on the excess variance
+            resolved = bool(corrected) and u is not None and raw is not None \
+                and corrected ** 2 > 2 * raw * u
+        if upper is None and raw is not None and u is not None:
+            fl = num(d.get("floor_rel")) or 0.0
+            upper = math.sqrt(max(raw * raw - fl * fl, 0.0) + 2 * raw * u)
+        out.append(Averaged(float(d["angle_deg"]), raw, u, approx and u is not None,
+                            num(d.get("floor_rel")), corrected,
+                            int(d["blocks"]) if num(d.get("blocks")) is not None else None,
+                            upper, bool(resolved)))
+    return sorted(out, key=lambda x: x.angle_deg)
+
+
+def _ladder_results(src: Sources, number: str, checks: list[dict[str, Any]]
+                    ) -> list[Section]:
+    axes = src.get("axes", {}) or {}
+    out = [Section(number, "Results", (Para(
+        "Per axis, commanded rate and direction. Each value is followed by its expanded "
+        "uncertainty U (k = 2, about 95 %). Signed rates: + is the table's positive sense."),
+        Para("Quantities that may not be resolved. " + RESOLUTION_RULE, "note")),
+        )]
+    sub = 0
+    # one unit per quantity on the whole certificate, whatever the axis
+    every = [r for ax in axes.values() for r in ax.get("rates", []) if isinstance(r, dict)]
+    for axis, ax in axes.items():
+        rates = [r for r in ax.get("rates", []) if isinstance(r, dict)]
+        pairs = [p for p in ax.get("pairs", []) if isinstance(p, dict)]
+        sub += 1
+        out.append(Section(f"{number}.{sub}", f"Axis {axis}",
+                           _axis_blocks(axis, rates, pairs, ax, checks, every), level=2))
+    figs = _across_axes(axes)
+    if figs:
+        sub += 1
+        out.append(Section(f"{number}.{sub}", "All axes: trends with rate", tuple(figs), level=2))
+    if not axes:
+        out.append(Section(f"{number}.1", "No results", (Para(
+            "The result carries no axis results: nothing was measured to completion."),),
+            level=2))
+    return out
+
+
+def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, Any]],
+                 ax: Mapping[str, Any], checks: list[dict[str, Any]],
+                 every: list[dict[str, Any]]) -> tuple[Any, ...]:
+    """One axis's results; `every` is every axis's rates, so that one quantity has one
+    unit on the whole certificate."""
+    blocks: list[Any] = []
+    # A1/A2 per-turn
+    err_unit = rel_unit(*[v for r in every for v in (num(r.get("rate_error_rel")),
+                                                      num(r.get("rate_error_u_rel")))],
+                        *[t for c in checks if c.get("quantity") == "rate_error"
+                          for t in (num(c.get("tolerance_rel")),)])
+    inst_us = [_instability_u(r) for r in rates]
+    inst_unit = rel_unit(*[num(r.get("rate_instability_rel")) for r in every],
+                         *[_instability_u(r)[0] for r in every])
+    rows = []
+    approximated = False
+    unresolved_sigma = False
+    for r, (iu, approx) in zip(rates, inst_us, strict=True):
+        approximated |= approx
+        set_rate = num(r.get("set_rate_dps"))
+        mean = num(r.get("mean_rate_dps"))
+        cr = [v for v in (num(x) for x in r.get("counter_rate_dps") or []) if v is not None]
+        if mean is None and cr:
+            mean = sum(cr) / len(cr)
+        eu = num(r.get("rate_error_u_rel"))
+        mean_u = eu * abs(set_rate) if eu is not None and set_rate else None
+        sigma = sigma_presented(r, iu)
+        unresolved_sigma |= not sigma.resolved
+        rows.append((rate_text(set_rate), text_of(r.get("turns")),
+                     format_value_u(mean, mean_u, signed=True, sig_without_u=10).joined(),
+                     vu_text(r.get("rate_error_rel"), eu, err_unit, signed=True),
+                     present(num(r.get("rate_instability_rel")), iu, inst_unit.scale,
+                             resolved=sigma.resolved, upper=sigma.limit).text
+                     + ("*" if approx and sigma.resolved else ""),
+                     format_sig(num(r.get("rate_instability_floor_rel")) * inst_unit.scale, 2)
+                     if num(r.get("rate_instability_floor_rel")) is not None else "—",
+                     verdict_label(r.get("verdict"))))
+    notes = ["Timing floor of σ = ΔT / T, with ΔT = √2 · Δ_edge the timing of one period "
+             "(section 3, A1): the σ the counter's and the zero-mark sensor's timing errors "
+             "alone would give."]
+    if unresolved_sigma:
+        notes.append("'< L': σ is not resolved above the timing floor (σ − U ≤ floor): L is "
+                     "its one-sided 97.5 % upper limit for normal per-turn rates (chi-square, "
+                     "N − 1 degrees of freedom); such a σ is left out of conformity.")
+    if approximated:
+        notes.append("* U of σ from the chi-square approximation U = 2σ/√(2(N−1)) for N turns "
+                     "(normal per-turn rates); the result did not carry it.")
+    blocks.append(Table(
+        ("Set rate, °/s", "Turns", "Mean rate ± U, °/s",
+         f"Rate error δ ± U, {err_unit.name}", f"Instability σ ± U, {inst_unit.name}",
+         f"Timing floor of σ, {inst_unit.name}", "Verdict"),
+        tuple(rows), widths=(0.9, 0.6, 2.8, 1.8, 1.8, 1.1, 0.9), align="rcrrrrc",
+        caption=f"Axis {axis}: per-turn rate error and instability (docs/method.md A1-A2, eqs. 1-2)",
+        notes=tuple(notes)))
+    budget = _rate_error_budget(axis, rates)
+    if budget is not None:
+        blocks.append(budget)
+    blocks += figure_of(f"Axis {axis}: per-turn rate error and instability vs rate, both "
+                      "directions (cf. paper figs. 4-5)",
+                      plots.per_turn, axis, rates, _tolerances(checks, axis),
+                      (f"δ, {err_unit.name}", err_unit.scale),
+                         (f"σ, {inst_unit.name}", inst_unit.scale))
+    # A3 cross-calibration
+    if pairs:
+        prow = []
+        has_drift = any(num(p.get("drift_dps_per_h")) is not None for p in pairs)
+        for p in pairs:
+            w0, w0u = num(p.get("w0_dps")), num(p.get("w0_u_dps"))
+            row = [f"±{num(p.get('rate_dps')) or 0:g}", vu_text(p.get("k"), p.get("k_u")),
+                   vu_text(w0, w0u, signed=True),
+                   format_value_u(w0, w0u, 3600.0, signed=True).joined()]
+            if has_drift:
+                row.append(vu_text(p.get("drift_dps_per_h"), p.get("drift_u_dps_per_h"),
+                               signed=True))
+            prow.append(tuple(row))
+        header = ["Pair, °/s", "k ± U", "ω0 ± U, °/s", "ω0 ± U, °/h"]
+        notes = []
+        if has_drift:
+            header.append("Bias drift ± U, °/s per h")
+            methods_used = sorted({CALIBRATION_METHODS.get(str(p.get("method")),
+                                                           str(p.get("method")))
+                                   for p in pairs if p.get("method")})
+            sources = sorted({str(p.get("drift_source")) for p in pairs
+                              if p.get("drift_source")})
+            notes.append("ω0 is the bias at the pair's reference time; the FOG's bias drift "
+                         "during the pair is estimated and removed"
+                         + (f" ({'; '.join(methods_used)}" if methods_used else "")
+                         + (f"; drift from {', '.join(sources)})" if sources else
+                            (")" if methods_used else "")) + ".")
+        for p in pairs:  # a resumed pair: which half came from which session (docs/resume.md)
+            hs = [int(s) for s in p.get("half_sessions") or [] if isinstance(s, int | float)]
+            if len(set(hs)) > 1:
+                notes.append(f"Pair ±{num(p.get('rate_dps')) or 0:g} °/s was resumed: "
+                             + ", ".join(f"half {i + 1} from session {s}"
+                                         for i, s in enumerate(hs))
+                             + f". FOG bias {p.get('bias_model', '')}.")
+        blocks.append(Table(tuple(header), tuple(prow),
+                            widths=(1.0, 2.4, 2.1, 1.9, 2.1)[:len(header)], align="rrrrr"[
+                                :len(header)],
+                            caption=f"Axis {axis}: FOG cross-calibration per ± pair "
+                                    "(docs/method.md A3, eqs. 5-6)", notes=tuple(notes)))
+    # A4 systematic
+    sys_rows, mains_rows = [], []
+    amp_unit = rel_unit(*[num(h.get("amplitude_rel")) for r in every
+                          for h in (r.get("systematic") or {}).get("harmonics") or []])
+    for r in rates:
+        s = r.get("systematic") or {}
+        for h in s.get("harmonics") or []:
+            a, au = num(h.get("amplitude_rel")), num(h.get("amplitude_u_rel"))
+            w = abs(num(r.get("set_rate_dps")) or 0.0)
+            detected = h.get("detected")
+            resolved = bool(detected) if detected is not None else is_resolved(a, au)
+            sys_rows.append((rate_text(r.get("set_rate_dps")), text_of(h.get("order")),
+                             present(a, au, amp_unit.scale, resolved=resolved).text,
+                             present(a * w if a is not None else None,
+                                     au * w if au is not None else None,
+                                     resolved=resolved).text,
+                             present_phase(num(h.get("phase_deg")), num(h.get("phase_u_deg")),
+                                           resolved)))
+        m = s.get("mains") or {}
+        if m:
+            w = abs(num(r.get("set_rate_dps")) or 0.0)
+            a, au = num(m.get("amplitude_dps")), num(m.get("amplitude_u_dps"))
+            detected = m.get("detected")
+            resolved = bool(detected) if detected is not None else is_resolved(a, au)
+            mains_rows.append((rate_text(r.get("set_rate_dps")), text_of(m.get("frequency_hz")),
+                               present(a, au, resolved=resolved).text,
+                               present(a / w if a is not None and w else None,
+                                       au / w if au is not None and w else None,
+                                       PERCENT.scale, resolved=resolved).text,
+                               present_phase(num(m.get("phase_deg")),
+                                             num(m.get("phase_u_deg")), resolved)))
+    if sys_rows:
+        blocks.append(Table(("Set rate, °/s", "Order h", f"Amplitude ± U, {amp_unit.name} "
+                             "of ω_set", "Amplitude ± U, °/s", "Phase p_h ± U, °"),
+                            tuple(sys_rows), widths=(1.1, 0.8, 2.4, 2.2, 1.8), align="rcrrr",
+                            caption=f"Axis {axis}: systematic intra-turn component, fitted "
+                                    "harmonics Δω_sys = ω_set·Σ a_h cos(hφ + p_h) "
+                                    "(docs/method.md A4)",
+                            notes=("'< L': the amplitude is not resolved (a ≤ U, the one "
+                                   "rule of section 6); L = a + U is its one-sided upper "
+                                   "limit, and its phase, which then means nothing, is "
+                                   "printed '—'.",)))
+    if mains_rows:
+        blocks.append(Table(("Set rate, °/s", "Frequency, Hz", "Amplitude ± U, °/s",
+                             "Amplitude ± U, % of ω_set", "Phase ± U, °"), tuple(mains_rows),
+                            widths=(1.1, 1.0, 2.2, 2.2, 1.6), align="rrrrr",
+                            caption=f"Axis {axis}: mains-frequency ripple, fitted in time "
+                                    "(docs/method.md A4)",
+                            notes=("One tone of fixed frequency and phase over each "
+                                   "direction's record. Grid-frequency wander during the "
+                                   "record (of the order of 1 / record length or more) "
+                                   "spreads the tone and lowers the amplitude found; "
+                                   "'< L' and '—' as for the harmonics.",)))
+    blocks += figure_of(f"Axis {axis}: systematic component vs table angle with the fitted "
+                      "harmonics (cf. paper figs. 8-9)",
+                      plots.systematic, axis, rates, amp_unit.scale, amp_unit.name)
+    # A5 intra-turn
+    blocks += _intra_blocks(axis, rates, ax.get("noise_floor") or {}, every)
+    return tuple(blocks)
+
+
+def _corrected_cell(r: Mapping[str, Any], unit: RelUnit) -> str:
+    """Floor-corrected instability under the one rule: value ± U when resolved and a U is
+    given, else its k = 2 upper limit '< L' (never a bare value)."""
+    intra = r.get("intra_turn") or {}
+    value = num(r.get("intra_turn_instability_corrected_rel"))
+    u = num(r.get("intra_turn_instability_corrected_u_rel"))
+    upper = num(intra.get("corrected_upper_rel"))
+    resolved = intra.get("resolved")
+    if u is not None and resolved is not False:
+        return present(value, u, unit.scale, resolved=True).text
+    if resolved and value is not None and upper is not None and upper > value:
+        # the limit's distance from the value is its k = 2 half-width (one-sided)
+        return present(value, upper - value, unit.scale, resolved=True).text
+    if upper is None and value == 0.0:
+        return "0 (noiseless FOG)"   # a simulated FOG without noise: nothing to remove
+    return present(value, None, unit.scale, resolved=False, upper=upper).text
+
+
+#: the analysis's names for its cross-calibration methods, in words (docs/method.md A3)
+CALIBRATION_METHODS = {
+    "lsq-drift": "k, ω0 and a linear bias drift fitted by least squares to the halves' means",
+    "eq5-6": "k and ω0 from eqs. 5-6",
+    "eq5-6, drift-corrected": "k and ω0 from eqs. 5-6 after removing the bias drift",
+}
+
+BUDGET_TERMS = (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
+                ("repeatability_u_rel", "repeatability (Type A)"))
+
+
+def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
+    """The standard uncertainties behind U of the rate error (docs/method.md A1-A2)."""
+    budgets = [(r, r.get("rate_error_budget")) for r in rates
+               if isinstance(r.get("rate_error_budget"), Mapping)]
+    if not budgets:
+        return None
+    terms = [(k, name) for k, name in BUDGET_TERMS if any(k in b for _, b in budgets)]
+    unit = rel_unit(*[num(b.get(k)) for _, b in budgets for k, _ in terms],
+                    *[num(r.get("rate_error_u_rel")) for r, _ in budgets])
+    rows = []
+    for r, b in budgets:
+        cells = [format_sig((num(b.get(k)) or math.nan) * unit.scale, 2) for k, _ in terms]
+        u = num(r.get("rate_error_u_rel"))
+        rows.append((rate_text(r.get("set_rate_dps")), *cells,
+                     format_sig(u * unit.scale, 2) if u is not None else "n/a"))
+    first = budgets[0][1]
+    parts = []
+    for key, text, scale, unit_name in (("timestamp_u_s", "counter single-shot timestamp", 1e9, "ns"),
+                                        ("trigger_jitter_s", "zero-mark edge jitter", 1e9, "ns"),
+                                        ("timebase_limit_rel", "timebase limit", 1e6, "ppm"),
+                                        ("time_tie_u_s", "time tie to the FOG axis (moves "
+                                         "the FOG window and the harmonics' phase, not the "
+                                         "counter's rate)", 1e6, "µs")):
+        v = num(first.get(key))
+        if v is not None:
+            parts.append(f"{text} {format_sig(v * scale, 2)} {unit_name}")
+    notes = ["Standard uncertainties (k = 1), relative to the set rate; U = k·√(Σu²), "
+             f"k = {num(first.get('coverage_factor')) or 2:g}."]
+    if parts:
+        notes.append("Inputs: " + "; ".join(parts) + " (docs/method.md A1: ΔT = √(Δ_counter² + "
+                     "Δ_trigger²)).")
+    header = ("Set rate, °/s", *[f"u({name}), {unit.name}" for _, name in terms],
+              f"U (k = 2), {unit.name}")
+    return Table(header, tuple(rows), widths=(1.1, *([1.8] * len(terms)), 1.4),
+                 align="r" * len(header),
+                 caption=f"Axis {axis}: uncertainty budget of the per-turn rate error",
+                 notes=tuple(notes))
+
+
+def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, Any],
+                  every: list[dict[str, Any]]) -> list[Any]:
+    if not any(r.get("intra_turn_instability_rel") is not None for r in rates):
+        return []
+    raws = [num(r.get("intra_turn_instability_rel")) for r in rates]
+    raw_us: list[float | None] = []
+    approx = False
+    for r, raw in zip(rates, raws, strict=True):
+        u = num(r.get("intra_turn_instability_u_rel"))
+        if u is None:
+            u = _u_of_std(raw, (r.get("intra_turn") or {}).get("samples"))
+            approx |= u is not None
+        raw_us.append(u)
+    floors = [num((r.get("intra_turn") or {}).get("floor_rel")) for r in rates]
+    raw_unit = rel_unit(*[num(r.get("intra_turn_instability_rel")) for r in every])
+    corr_unit = rel_unit(*[num(r.get("intra_turn_instability_corrected_rel")) for r in every],
+                         *[num((r.get("intra_turn") or {}).get("corrected_upper_rel"))
+                           for r in every])
+    rows = []
+    for r, raw, u, fl in zip(rates, raws, raw_us, floors, strict=True):
+        rows.append((rate_text(r.get("set_rate_dps")),
+                     vu_text(raw, u, raw_unit) + ("*" if u is not None and approx
+                                                and r.get("intra_turn_instability_u_rel") is None
+                                                else ""),
+                     format_value_u(fl, None, raw_unit.scale, sig_without_u=2).value
+                     if fl is not None else "—",
+                     _corrected_cell(r, corr_unit)))
+    header = ("Set rate, °/s", f"Raw ± U, {raw_unit.name}", f"FOG floor, {raw_unit.name}",
+              f"Floor-corrected, {corr_unit.name}")
+    notes = []
+    bw = {num(r.get("bandwidth_hz", (r.get("intra_turn") or {}).get("bandwidth_hz")))
+          for r in rates} - {None}
+    if bw:
+        notes.append("At the FOG's output bandwidth: "
+                     + ", ".join(f"{b:g} Hz" for b in sorted(bw)) + ".")
+    sources = {str((r.get("intra_turn") or {}).get("floor_source")) for r in rates
+               if (r.get("intra_turn") or {}).get("floor_source")}
+    if floor or sources:
+        noise = num(floor.get("noise_dps", floor.get("sigma_dps",
+                                                        floor.get("sample_std_dps"))))
+        text = "FOG noise floor from " + (", ".join(sorted(sources)) if sources else
+                                          str(floor.get("source", "a record at rest")))
+        if noise is not None:
+            text += f"; {format_sig(noise, 3)} °/s per sample"
+        if num(floor.get("rate_hz")) is not None:
+            text += f" at {num(floor.get('rate_hz')):g} Hz"
+        if num(floor.get("duration_s")) is not None:
+            text += f", {num(floor.get('duration_s')):g} s record at rest"
+        notes.append(text + ". Floor-corrected = √(raw² − floor²) ± U when the table's own "
+                            "part stands out of the FOG's noise (raw² − floor² > its U, the "
+                            "one rule); otherwise '< L', L = √(max(raw² − floor², 0) + U) "
+                            "its one-sided k = 2 upper limit.")
+    if approx:
+        notes.append("* U of the raw value from 2s/√(2(n−1)) over its n samples, assuming "
+                     "independent samples; the result did not carry it.")
+    blocks: list[Any] = [Table(header, tuple(rows), widths=(1.1, 2.0, 1.4, 2.2),
+                               align="rrrr", caption=f"Axis {axis}: intra-turn instability "
+                               "std(Δω_rand)/|ω_set| (docs/method.md A5)", notes=tuple(notes))]
+    blocks += _stability_blocks(axis, rates)
+    return blocks
+
+
+def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
+    """Rate stability over an angle, as a datasheet states it (docs/method.md A5): over 1° and
+    10° from the FOG (with what this FOG can verify), over 360° from the counter's
+    per-turn rates, whose timing floor is far below the FOG's."""
+    rows = []
+    limited = False
+    for r in rates:
+        for a in _averaged(r):
+            if a.angle_deg >= 360.0:
+                continue   # one turn: the counter's σ below
+            unit = PPM
+            own = (present(a.corrected, a.upper - a.corrected, unit.scale, resolved=True).text
+                   if a.resolved and a.corrected is not None and a.upper is not None
+                   and a.upper > a.corrected else
+                   present(a.corrected, None, unit.scale, resolved=False, upper=a.upper).text)
+            limited |= not a.resolved
+            rows.append((rate_text(r.get("set_rate_dps")), f"{a.angle_deg:g}", "FOG",
+                         present(a.raw, a.u, unit.scale, resolved=True).text
+                         + ("*" if a.u_approx else ""),
+                         format_sig(a.floor * unit.scale, 2) if a.floor is not None else "—",
+                         own, format_sig(a.sensitivity * unit.scale, 2)
+                         if a.sensitivity is not None else "—", text_of(a.blocks)))
+        s, (iu, approx) = num(r.get("rate_instability_rel")), _instability_u(r)
+        if s is not None:
+            sigma = sigma_presented(r, iu)
+            unit = PPM
+            floor = num(r.get("rate_instability_floor_rel"))
+            rows.append((rate_text(r.get("set_rate_dps")), "360", "counter",
+                         present(s, iu, unit.scale, resolved=True).text
+                         + ("*" if approx else ""),
+                         format_sig(floor * unit.scale, 2) if floor is not None else "—",
+                         present(s, iu, unit.scale, resolved=sigma.resolved,
+                                 upper=sigma.limit).text,
+                         format_sig(floor * unit.scale, 2) if floor is not None else "—",
+                         text_of(r.get("turns"))))
+    if not rows:
+        return []
+    approx_note = ["* U from 2s/√(2(n−1)) over the n windows (turns); the result did not "
+                   "carry it."] if any(r[3].endswith("*") for r in rows) else []
+    notes = ["Rate stability over an angle: the standard deviation of the table rate averaged "
+             "over consecutive windows of that angle, relative to |ω_set|, as a rate-table "
+             "datasheet states it. Over 1° and 10° it comes from the FOG (floor: the FOG's own "
+             "noise averaged over the window; table's own = √(measured² − floor²)); over 360° "
+             "from the counter's per-turn rates (σ of eq. 2; floor: the timing floor).",
+             "Capability: 'smallest verifiable' is the smallest table figure this measurement "
+             "could show as resolved, (8/(n − 1))^¼ × measured for n windows, or the "
+             "counter's timing floor. A datasheet figure below it cannot be verified with "
+             "this FOG or counter; '< L' states only that the table is within L.",
+             *approx_note]
+    return [Table(("Set rate, °/s", "Window, °", "From", "Measured ± U, ppm", "Floor, ppm",
+                   "Table's own, ppm", "Smallest verifiable, ppm", "Windows"), tuple(rows),
+                  widths=(1.0, 0.8, 0.8, 1.8, 0.9, 1.6, 1.2, 0.8),
+                  align="rrlrrrrr",
+                  caption=f"Axis {axis}: rate stability over 1°, 10° and 360° (docs/method.md A5)",
+                  notes=tuple(notes))]
+
+
+def _across_axes(axes: Mapping[str, Any]) -> list[Any]:
+    rates = {a: [r for r in ax.get("rates", []) if isinstance(r, dict)] for a, ax in axes.items()}
+    blocks: list[Any] = []
+    amp_unit = rel_unit(*[num(h.get("amplitude_rel")) for rr in rates.values() for r in rr
+                          for h in (r.get("systematic") or {}).get("harmonics") or []])
+    blocks += figure_of("Once-per-revolution amplitude vs rate, relative and absolute "
+                      "(cf. paper fig. 7)",
+                      plots.one_rev, rates, amp_unit.scale, amp_unit.name)
+    unit = rel_unit(*[num(r.get("intra_turn_instability_rel")) for rr in rates.values()
+                      for r in rr])
+    blocks += figure_of("Intra-turn instability vs rate, raw and floor-corrected "
+                      "(cf. paper fig. 10)",
+                      plots.intra_turn, rates, unit.scale, unit.name)
+    blocks += figure_of("FOG scale k and bias ω0 per ± pair (docs/method.md A3)",
+                      plots.pairs, {a: [p for p in ax.get("pairs", []) if isinstance(p, dict)]
+                                    for a, ax in axes.items()})
+    blocks += figure_of("Allan deviation of the FOG at rest: its noise floor (docs/method.md A5)",
+                      plots.allan, {a: ax.get("noise_floor") or {} for a, ax in axes.items()},
+                      width_frac=0.8)
+    return blocks
+
+
+def _per_turn_annex(src: Sources) -> tuple[Any, ...]:
+    rows = []
+    for axis, ax in (src.get("axes", {}) or {}).items():
+        for r in ax.get("rates", []):
+            w_set = num(r.get("set_rate_dps"))
+            cr = [num(x) for x in r.get("counter_rate_dps") or []]
+            if not w_set or not cr:
+                continue
+            dev = ", ".join(format_sig(((x or math.nan) / w_set - 1) * 1e6, 3, signed=True)
+                            .replace("n/a", "—") for x in cr)
+            rows.append((axis, rate_text(w_set), dev))
+    return (Table(("Axis", "Set rate, °/s", "Per-turn rate deviations (ω_i/ω_set − 1), ppm, "
+                   "in turn order"), tuple(rows), widths=(0.9, 1.1, 6.0), align="lrl",
+                  caption="Per-turn counter rates (docs/method.md A1), relative to the set rate"),)
+
