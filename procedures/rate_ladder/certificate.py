@@ -129,7 +129,8 @@ class LadderCertificate(CertificateParts):
         ("systematic", "once-per-revolution and higher harmonics of the rate"),
         ("mains", "mains-frequency ripple"),
         ("intra_turn_instability", "intra-turn instability"),
-        ("stability_over_angle", "rate stability over 1°, 10°, 360°"))
+        # over 360° the rate stability is σ of the per-turn rates (rate_instability)
+        ("stability_over_angle", "rate stability over 1° and 10° (FOG)"))
     certificate_quantities = {
         "rate_error": "per-turn rate error |δ|",
         "rate_instability": "per-turn rate instability σ",
