@@ -145,6 +145,14 @@ def with_readback(identity: str, readback: dict[str, Any], manual: str | None = 
     if manual:
         out += f"; driver checked against: {manual}"
     return out
+def manual_note(manual: str) -> str:
+    """What `bench devices` and the certificate say of a driver profile's source: the
+    manual it was checked against, or UNVERIFIED where no manual was found."""
+    if manual.strip().lower().startswith("unverified"):
+        return "UNVERIFIED (no manual found)"
+    return manual.split(":")[0]
+
+
 class StandClaimError(Exception):
     """The stand file claims what the instrument, asked, denies: the input is invalid."""
 
@@ -223,11 +231,9 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
             "not confirmed: the counter refused the stand's reference (see the run's "
             "refusal)" if ax.refusal else "not reported by this model")
         ax.counter = cnt
-        manual = cnt.profile.manual
         ax.identities["counter"] = with_readback(
             cnt.identify(), {**cnt.readback, "time tie": cnt.time_tie.source},
-            "UNVERIFIED (no manual found)" if manual.startswith("unverified")
-            else manual.split(":")[0])
+            manual_note(cnt.profile.manual))
     f = axis_cfg.get("fog")
     if fog and f:
         fg = Fog(f["port"], baudrate=f.get("baudrate", 921600), fmt=f.get("format", "kvh-a"),

@@ -51,6 +51,10 @@ def test_devices_opens_a_gyro_platform_stand_through_its_own_kind(
     assert rc == 0
     assert "33522B" in out                       # the AWG twin's *IDN?
     assert out.count("34465A") == 2              # one digitizer per horizontal gyro
+    # the AWG profile's words were checked against no manual: said where the user looks
+    awg = next(line for line in out.splitlines() if "33522B" in line)
+    assert "UNVERIFIED (no manual found)" in awg, awg
+    assert out.count("checked against: Keysight Truevolt") == 2
 
 
 def test_run_without_a_procedure_is_invalid_input(capsys: pytest.CaptureFixture[str]) -> None:

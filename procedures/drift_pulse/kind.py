@@ -31,7 +31,7 @@ from bench.analysis import drift_pulse as dp
 from bench.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
 from bench.conformity import judge
 from bench.engine import Abort, RunContext
-from bench.instruments import Bench, open_axis, raw_text_logger
+from bench.instruments import Bench, manual_note, open_axis, raw_text_logger, with_readback
 from bench.journal import RunDir, read_jsonl
 from bench.plan import Plan, Step
 from bench.progress import Figure
@@ -398,9 +398,11 @@ class DriftPulse(StepDispatch, DriftCertificate):
                 dmm = Digitizer.open(d["resource"], d["model"], clock, raw=raw(f"{g}-dmm.jsonl"))
                 bench.enter(dmm)
                 bench.extra["dmms"][g] = dmm
-            bench.axes[table].identities["awg"] = awg.identify()
+            bench.axes[table].identities["awg"] = with_readback(
+                awg.identify(), {}, manual_note(awg.profile.manual))
             for g, dmm in bench.extra["dmms"].items():
-                bench.axes[table].identities[f"{g}-dmm"] = dmm.identify()
+                bench.axes[table].identities[f"{g}-dmm"] = with_readback(
+                    dmm.identify(), {}, manual_note(dmm.profile.manual))
         except BaseException as e:
             bench.abandon(e)
             raise

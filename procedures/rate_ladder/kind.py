@@ -410,6 +410,8 @@ def uncommandable_rates(cfg: Config, bench: Bench) -> list[str]:
     command rounded to a coarse unit (1 rpm = 6 deg/s: 100 deg/s is sent as 102) would be
     certified as a table error. Refused before anything moves when the rounding exceeds a
     tenth of the rate-error tolerance at that rate, or COMMAND_RESOLUTION_REL_MAX."""
+    if not cfg.procedure.get("axes"):    # `bench devices`: a stand with no procedure
+        return []
     bands = (cfg.procedure.get("tolerance") or {}).get("rate_error")
     out: list[str] = []
     for axis, spec in LadderSettings.from_config(cfg).axes.items():
