@@ -14,8 +14,10 @@ from lxml import etree
 import bench
 from bench.certificate import methods, register
 from bench.certificate.build import Sources, decision_rule_text, issued_number
+from bench.certificate.parts import CertificateParts
 from bench.dcc import vocab as V
 from bench.dcc.conformity import ILAC_G8, RULE_REFERENCE, checks_of
+from bench.dcc.parts import DccParts
 from bench.dcc.settings import LabSettings
 from bench.dcc.xml import NOT_RECORDED, el, name, num, statement, text_el
 
@@ -45,8 +47,10 @@ def stand_of(src: Sources) -> dict[str, Any]:
     return stand
 
 
-def administrative(adm: etree._Element, src: Sources, lab: LabSettings, kind: str,
-                   issue: str) -> None:
+def administrative(adm: etree._Element, src: Sources, lab: LabSettings,
+                   parts: CertificateParts, kind: DccParts, issue: str) -> None:
+    """`parts` answers as on the certificate (its closing statements), `kind` for the DCC
+    (the item)."""
     cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
     soft = el(adm, "dccSoftware")
     versions = dict.fromkeys([bench.__version__, str(src.meta.get("bench_version") or
@@ -133,7 +137,7 @@ def administrative(adm: etree._Element, src: Sources, lab: LabSettings, kind: st
     name(customer, str(cert.get("customer") or f"customer {NOT_RECORDED}"))
     where = cert.get("customer_location")
     _location(customer, (("further", str(where)),) if where else ())
-    _statements(el(adm, "statements"), src, kind, country)
+    _statements(el(adm, "statements"), src, parts, country)
 
 
 def _location(parent: etree._Element, fields: Sequence[tuple[str, str]]) -> None:
@@ -145,14 +149,13 @@ def _location(parent: etree._Element, fields: Sequence[tuple[str, str]]) -> None
             el(loc, tag, value)
 
 
-def _item(items: etree._Element, src: Sources, kind: str) -> None:
+def _item(items: etree._Element, src: Sources, kind: DccParts) -> None:
     stand = stand_of(src)
     item = el(items, "item", id="item")
-    what = "gyro-platform test stand" if kind == "drift-pulse" else "rotary rate table"
+    what, named_axes = kind.dcc_item(src)
     name(item, " ".join(str(x) for x in (stand.get("maker"), stand.get("model")) if x)
          or f"{what} ({NOT_RECORDED})")
-    axes = ", ".join(str(a) for a in (src.get("axes") or (src.get("drift") or {}).get("axes")
-                                      or {}))
+    axes = ", ".join(named_axes)
     text = f"Item calibrated: {what}" + (f"; axes {axes}" if axes else "") + "."
     if stand.get("simulated"):
         text += (" SIMULATED stand: instrument twins on real channels; these results "
@@ -171,16 +174,16 @@ def _item(items: etree._Element, src: Sources, kind: str) -> None:
     name(idn, "Serial number")
 
 
-def _statements(sts: etree._Element, src: Sources, kind: str, country: Any) -> None:
-    for i, text in enumerate(methods.STATEMENTS):
-        if kind == "drift-pulse" and text.startswith("Relative values"):
-            continue
+def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
+                country: Any) -> None:
+    first = methods.STATEMENTS[0]
+    for text in parts.certificate_statements(methods.STATEMENTS):   # those the PDF prints
+        refs = ("7.8.2.1 l)",) if text == first else ("7.8",)
         text = (text.replace("as identified in section 1", "identified under items")
                 .replace("printed in % or in ppm (1 ppm = 0.0001 %) as the column header "
                          "states", "given here as plain fractions (unit \\one); the PDF "
                          "prints them in % or ppm"))
-        statement(sts, None, text, norms=("ISO/IEC 17025:2017",),
-                  references=("7.8",) if i else ("7.8.2.1 l)",))
+        statement(sts, None, text, norms=("ISO/IEC 17025:2017",), references=refs)
     statement(sts, None, "The PDF embedded here (certificate.pdf, under document) is the "
               "authoritative form of this certificate; this XML carries the same results, "
               "unrounded, for machines to read.")

@@ -12,7 +12,7 @@ from typing import Any
 
 from lxml import etree
 
-from bench.certificate.build import Sources
+from bench.certificate.parts import Sources
 from bench.dcc import units as U
 from bench.dcc import vocab as V
 from bench.dcc.xml import DCC_NS, el, ident, name, num, quantity, statement, text_el

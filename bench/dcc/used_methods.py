@@ -14,15 +14,13 @@ from typing import Any
 from lxml import etree
 
 import bench
-from bench.certificate import methods
 from bench.certificate.build import Sources
 from bench.dcc import units as U
 from bench.dcc import vocab as V
+from bench.dcc.parts import DccParts
 from bench.dcc.xml import DCC_NS, NOT_RECORDED, el, ident, name, num, quantity, text_el
 
-# the method document's sections each procedure uses (bench/method.md = docs/method.md)
-A_SECTIONS = ("A1", "A2", "A3", "A4", "A5", "A6")
-B_SECTIONS = ("B",)
+# bench/method.md = docs/method.md; each procedure kind names the sections it follows
 METHOD_DOC = "docs/method.md"
 
 
@@ -43,18 +41,18 @@ def method_sections() -> tuple[bytes, dict[str, tuple[str, str]]]:
     return data, sections
 
 
-def methods_and_conditions(results: etree._Element, src: Sources, kind: str) -> None:
+def methods_and_conditions(results: etree._Element, src: Sources, kind: DccParts) -> None:
     used = el(results, "usedMethods")
     document, sections = method_sections()
+    reference, followed = kind.dcc_used_methods(src)
     m = el(used, "usedMethod", id="methodDocument", ref_type=V.METHOD)
     name(m, f"ratebench method document ({METHOD_DOC}), as shipped with this release")
-    desc = text_el(m, "description", methods.B_REFERENCE if kind == "drift-pulse"
-                   else methods.A_REFERENCE)
+    desc = text_el(m, "description", reference)
     f = el(desc, "file")
     el(f, "fileName", "method.md")
     el(f, "mimeType", "text/markdown")
     el(f, "dataBase64", base64.b64encode(document).decode("ascii"))
-    for sec in B_SECTIONS if kind == "drift-pulse" else A_SECTIONS:
+    for sec in followed:
         heading, text = sections.get(sec, (f"section {sec}", f"see {METHOD_DOC}"))
         m = el(used, "usedMethod", id=ident("method", sec), ref_type=V.METHOD)
         name(m, f"{METHOD_DOC} {sec}: {heading}")

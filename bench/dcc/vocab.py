@@ -2,8 +2,9 @@
 
 A refType tells a machine reader what a DCC element means without parsing its human name.
 Where the good-practice vocabulary has a term we use it; quantities it has no term for
-(rate instability, FOG scale, own drift, ...) get a `ratebench_` term, defined in
-docs/dcc.md. Both namespaces are declared in the DCC's refTypeDefinitions, as the DCC
+get a `ratebench_` term, defined in docs/dcc.md. The terms every DCC uses are here; a
+procedure kind defines its quantities' terms in its DCC part (`procedures/*/dcc.py`, as
+`RB + "name"`). Both namespaces are declared in the DCC's refTypeDefinitions, as the DCC
 schema asks, so a reader knows where each term is defined.
 """
 
@@ -27,39 +28,8 @@ TEMPERATURE_MIN, TEMPERATURE_MAX = "basic_temperatureMin", "basic_temperatureMax
 HUMIDITY = "basic_humidityRelative"
 HUMIDITY_MIN, HUMIDITY_MAX = "basic_humidityRelativeMin", "basic_humidityRelativeMax"
 
-# ours, namespace "ratebench" (docs/dcc.md, section "refTypes")
+# ours, namespace "ratebench" (docs/dcc.md, section "refTypes"); a kind's own: RB + "name"
 RB = "ratebench_"
-SET_RATE = RB + "setRate"
-TURNS = RB + "turns"
-RATE_ERROR = RB + "rateError"
-RATE_INSTABILITY = RB + "rateInstability"
-TIMING_FLOOR = RB + "timingFloor"
-INTRA_TURN = RB + "intraTurnInstability"
-INTRA_TURN_CORRECTED = RB + "intraTurnInstabilityCorrected"
-INTRA_TURN_UPPER = RB + "intraTurnInstabilityUpperLimit"
-FOG_FLOOR = RB + "fogNoiseFloor"
-AVERAGED = RB + "averagedInstability"
-WINDOW = RB + "averagingWindow"
-PER_TURN = RB + "perTurnRate"
-HARMONIC = RB + "harmonic"
-HARMONIC_ORDER = RB + "harmonicOrder"
-AMPLITUDE = RB + "amplitude"
-PHASE = RB + "phase"
-FREQUENCY = RB + "frequency"
-MAINS = RB + "mainsRipple"
-PAIR = RB + "crossCalibrationPair"
-FOG_SCALE = RB + "fogScale"
-FOG_BIAS = RB + "fogBias"
-FOG_BIAS_DRIFT = RB + "fogBiasDrift"
-OWN_DRIFT = RB + "ownDrift"
-APPARENT_DRIFT = RB + "apparentDrift"
-DRIFT_POSITION = RB + "driftPerPosition"
-DRIFT_CYCLES = RB + "driftPerCycle"
-TABLE_POSITION = RB + "tablePosition"
-STD = RB + "standardDeviation"
-AZIMUTH = RB + "azimuth"
-EARTH_RATE = RB + "earthHorizontalRate"
-LATITUDE = RB + "siteLatitude"
 BUDGET = RB + "uncertaintyBudget"
 STANDARD_UNCERTAINTY = RB + "standardUncertainty"
 RAW_DIGESTS = RB + "rawDataDigests"

@@ -9,10 +9,10 @@ Layout (docs/dcc.md walks through it):
                          the item with its serial, laboratory, responsible persons,
                          customer, statements (decision rule and overall conformity,
                          location, raw-data SHA-256 digests, simulated stand)
-    measurementResults   methods (docs/method.md sections), conditions, then one
-                         measurementResult per axis (rate ladder) or one for the
-                         platform (drift pulse); each check's conformity sits on the
-                         quantity it judges
+    measurementResults   methods (docs/method.md sections), conditions, then the
+                         procedure kind's measurementResults (its `dcc_results`,
+                         bench.dcc.parts.DccParts); each check's conformity sits on
+                         the quantity it judges
     document             certificate.pdf, the human-readable certificate
 """
 
@@ -26,17 +26,18 @@ from typing import Any
 
 from lxml import etree
 
-from bench.certificate.build import Sources
+from bench.certificate.build import Sources, procedure_of
 from bench.dcc.admin import administrative
 from bench.dcc.conformity import Checks, checks_of, leftover_checks
-from bench.dcc.drift import drift_results
-from bench.dcc.ladder import ladder_results
+from bench.dcc.parts import DccParts
 from bench.dcc.settings import LabSettings
 from bench.dcc.used_methods import methods_and_conditions
 from bench.dcc.validate import SCHEMA_LOCATION
 from bench.dcc.xml import DCC_NS, XSI_NS, el, name, text_el
 
 PDF_NAME = "certificate.pdf"
+#: what a procedure kind that says nothing of itself in the DCC (or none installed) answers
+NEUTRAL = DccParts()
 
 
 @dataclass(frozen=True)
@@ -53,19 +54,16 @@ class DccInputs:
 def build_dcc(inputs: DccInputs) -> etree._ElementTree:
     """The DCC as an lxml tree (unsigned); `bench.dcc.validate` checks it."""
     src = Sources.load(inputs.result, inputs.run_path)
-    kind = src.get("procedure") or src.procedure_file.get("procedure") or (
-        "drift-pulse" if src.get("drift") else "rate-ladder")
+    proc = procedure_of(src)        # the kind, found as the certificate finds it
+    kind = proc.parts if isinstance(proc.parts, DccParts) else NEUTRAL
     checks = Checks(checks_of(src))
     root = el(None, "digitalCalibrationCertificate", schemaVersion="3.3.0")
     root.set(f"{{{XSI_NS}}}schemaLocation", SCHEMA_LOCATION)
     issue = (inputs.issued or dt.datetime.now(dt.UTC).date()).isoformat()
-    administrative(el(root, "administrativeData"), src, inputs.lab, kind, issue)
+    administrative(el(root, "administrativeData"), src, inputs.lab, proc.parts, kind, issue)
     results = el(root, "measurementResults")
     methods_and_conditions(results, src, kind)
-    if kind == "drift-pulse":
-        drift_results(results, src, checks)
-    else:
-        ladder_results(results, src, checks)
+    kind.dcc_results(results, src, checks)
     if results.find(f"{{{DCC_NS}}}measurementResult") is None:    # the DCC needs one
         mr = el(results, "measurementResult", id="noResults")
         name(mr, "No results")

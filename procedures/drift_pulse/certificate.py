@@ -26,6 +26,7 @@ from bench.certificate.parts import (
     vu_text,
 )
 from bench.certificate.rounding import format_sig, format_value_u
+from procedures.drift_pulse.dcc import DriftDcc
 
 # -- the method statement (docs/method.md part B, restated) ---------------------------------
 
@@ -52,8 +53,9 @@ B_TEXT: tuple[Para, ...] = (
 
 # -- what the certificate asks ---------------------------------------------------------------
 
-class DriftCertificate(CertificateParts):
-    """The drift procedure's answers to the certificate (mixed into the kind)."""
+class DriftCertificate(DriftDcc, CertificateParts):
+    """The drift procedure's answers to the certificate, and to its DCC (procedures/
+    drift_pulse/dcc.py), mixed into the kind."""
 
     certificate_procedure_name = "drift by alternating-sign pulses (docs/method.md part B)"
     certificate_measured = (("own_drift", "own drift"), ("apparent_drift", "apparent drift"),

@@ -40,6 +40,7 @@ from bench.certificate.rounding import (
     present_phase,
     rel_unit,
 )
+from procedures.rate_ladder.dcc import LadderDcc
 
 # -- the method statement (docs/method.md part A, restated) ---------------------------------
 
@@ -118,8 +119,9 @@ SEQUENCE_TEXT = {
 
 # -- what the certificate asks ---------------------------------------------------------------
 
-class LadderCertificate(CertificateParts):
-    """The rate ladder's answers to the certificate (mixed into the kind)."""
+class LadderCertificate(LadderDcc, CertificateParts):
+    """The rate ladder's answers to the certificate, and to its DCC (procedures/rate_ladder/
+    dcc.py), mixed into the kind."""
 
     certificate_procedure_name = "rate ladder (docs/method.md part A)"
     certificate_stand_label = "Rate table"

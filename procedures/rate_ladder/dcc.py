@@ -1,19 +1,22 @@
-"""The rate ladder's measurementResults (docs/method.md part A): per axis, per commanded
-rate the per-turn error and instability, the per-turn rates as a list, the intra-turn
+"""The rate ladder's part of the DCC (docs/method.md part A): per axis, per commanded rate
+the per-turn error and instability, the per-turn rates as a list, the intra-turn
 instability, the fitted harmonics and mains ripple; per +/- pair the FOG's k and w0.
+`LadderDcc` answers the DCC writer's questions (bench.dcc.parts.DccParts).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from lxml import etree
 
-from bench.certificate.build import Sources
+from bench.certificate import methods
+from bench.certificate.parts import Sources
 from bench.dcc import units as U
 from bench.dcc import vocab as V
 from bench.dcc.conformity import Checks, judge
+from bench.dcc.parts import DccParts
 from bench.dcc.xml import (
     NOT_RECORDED,
     budget_list,
@@ -26,6 +29,46 @@ from bench.dcc.xml import (
     rate_token,
     text_el,
 )
+
+# the ladder's refTypes, namespace "ratebench" (docs/dcc.md, section "refTypes")
+SET_RATE = V.RB + "setRate"
+TURNS = V.RB + "turns"
+RATE_ERROR = V.RB + "rateError"
+RATE_INSTABILITY = V.RB + "rateInstability"
+TIMING_FLOOR = V.RB + "timingFloor"
+INTRA_TURN = V.RB + "intraTurnInstability"
+INTRA_TURN_CORRECTED = V.RB + "intraTurnInstabilityCorrected"
+INTRA_TURN_UPPER = V.RB + "intraTurnInstabilityUpperLimit"
+FOG_FLOOR = V.RB + "fogNoiseFloor"
+AVERAGED = V.RB + "averagedInstability"
+WINDOW = V.RB + "averagingWindow"
+PER_TURN = V.RB + "perTurnRate"
+HARMONIC = V.RB + "harmonic"
+HARMONIC_ORDER = V.RB + "harmonicOrder"
+AMPLITUDE = V.RB + "amplitude"
+PHASE = V.RB + "phase"
+FREQUENCY = V.RB + "frequency"
+MAINS = V.RB + "mainsRipple"
+PAIR = V.RB + "crossCalibrationPair"
+FOG_SCALE = V.RB + "fogScale"
+FOG_BIAS = V.RB + "fogBias"
+FOG_BIAS_DRIFT = V.RB + "fogBiasDrift"
+
+#: the sections of docs/method.md the ladder follows
+METHOD_SECTIONS = ("A1", "A2", "A3", "A4", "A5", "A6")
+
+
+class LadderDcc(DccParts):
+    """The rate ladder's answers to the DCC (mixed into the kind)."""
+
+    def dcc_item(self, src: Sources) -> tuple[str, Sequence[str]]:
+        return "rotary rate table", [str(a) for a in src.get("axes") or {}]
+
+    def dcc_used_methods(self, src: Sources) -> tuple[str, Sequence[str]]:
+        return methods.A_REFERENCE, METHOD_SECTIONS
+
+    def dcc_results(self, results: etree._Element, src: Sources, checks: Checks) -> None:
+        ladder_results(results, src, checks)
 
 
 def ladder_results(results: etree._Element, src: Sources, checks: Checks) -> None:
@@ -49,13 +92,13 @@ def ladder_results(results: etree._Element, src: Sources, checks: Checks) -> Non
         floor = ax.get("noise_floor") or {}
         sd = num(floor.get("sample_std_dps")) if isinstance(floor, Mapping) else None
         if sd is not None:
-            r = el(res, "result", id=ident("floor", axis), ref_type=V.FOG_FLOOR)
+            r = el(res, "result", id=ident("floor", axis), ref_type=FOG_FLOOR)
             name(r, f"Axis {axis}: FOG noise floor at rest (docs/method.md A5)")
             text_el(r, "description", f"{floor.get('source', 'record at rest')}; "
                     f"{floor.get('samples', NOT_RECORDED)} samples over "
                     f"{floor.get('duration_s', NOT_RECORDED)} s.")
             quantity(el(r, "data"), ident("q", axis, "floor_std"), "standard deviation of "
-                     "one FOG sample at rest", V.FOG_FLOOR, sd, U.DEG_PER_S,
+                     "one FOG sample at rest", FOG_FLOOR, sd, U.DEG_PER_S,
                      label=f"axes.{axis}.noise_floor.sample_std_dps")
         if not len(res):
             r = el(res, "result")
@@ -102,8 +145,8 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
             judge(node, checks.take(axis, w_set, check), unit)
         return node
 
-    q("set_rate_dps", "commanded (set) rate", f"{V.NOMINAL} {V.SET_RATE}", U.DEG_PER_S)
-    q("turns", "whole turns timed", V.TURNS, U.ONE)
+    q("set_rate_dps", "commanded (set) rate", f"{V.NOMINAL} {SET_RATE}", U.DEG_PER_S)
+    q("turns", "whole turns timed", TURNS, U.ONE)
     cr = [v for v in (num(x) for x in r.get("counter_rate_dps") or []) if v is not None]
     mean = num(r.get("mean_rate_dps"))
     if mean is None and cr:
@@ -114,36 +157,36 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
           U.DEG_PER_S, value=mean, u=eu * abs(w_set) if eu is not None and w_set else None,
           note="U = U(rate error) x |set rate|.")
     q("rate_error_rel", "per-turn rate error (mean - set) / set (docs/method.md A2 eq. 1, "
-      "signed)", f"{V.ERROR} {V.RATE_ERROR}", U.ONE, "rate_error_u_rel", check="rate_error")
+      "signed)", f"{V.ERROR} {RATE_ERROR}", U.ONE, "rate_error_u_rel", check="rate_error")
     q("rate_instability_rel", "per-turn rate instability, relative std of the per-turn rates "
-      "(docs/method.md A2 eq. 2)", V.RATE_INSTABILITY, U.ONE, "rate_instability_u_rel",
+      "(docs/method.md A2 eq. 2)", RATE_INSTABILITY, U.ONE, "rate_instability_u_rel",
       check="rate_instability")
     q("rate_instability_floor_rel", "timing floor of the instability (counter and zero-mark "
-      "timing alone, docs/method.md A1)", V.TIMING_FLOOR, U.ONE)
+      "timing alone, docs/method.md A1)", TIMING_FLOOR, U.ONE)
     if cr:
         us = _per_turn_u(r, cr)
         list_quantity(data, ident(rid, "counter_rate_dps"), "per-turn rates from the counter, "
-                      "in turn order (docs/method.md A1)", f"{V.MEASURED} {V.PER_TURN}", cr,
+                      "in turn order (docs/method.md A1)", f"{V.MEASURED} {PER_TURN}", cr,
                       U.DEG_PER_S, us, note=None if us is not None else
                       "U not stated: result.json carries no timing budget for this rate.")
     intra = r.get("intra_turn") or {}
     q("intra_turn_instability_rel", "intra-turn instability std(random part) / |set| at the "
-      "FOG bandwidth (docs/method.md A5)", V.INTRA_TURN, U.ONE, "intra_turn_instability_u_rel",
+      "FOG bandwidth (docs/method.md A5)", INTRA_TURN, U.ONE, "intra_turn_instability_u_rel",
       check="intra_turn_instability")
     if isinstance(intra, Mapping) and num(intra.get("floor_rel")) is not None:
-        q("floor_rel", "FOG noise floor, relative to |set| (docs/method.md A5)", V.FOG_FLOOR, U.ONE,
+        q("floor_rel", "FOG noise floor, relative to |set| (docs/method.md A5)", FOG_FLOOR, U.ONE,
           value=num(intra.get("floor_rel")), label=f"{path}.intra_turn.floor_rel")
     upper = num(intra.get("corrected_upper_rel")) if isinstance(intra, Mapping) else None
     resolved = intra.get("resolved") if isinstance(intra, Mapping) else None
     q("intra_turn_instability_corrected_rel", "intra-turn instability with the FOG noise "
-      "floor removed in quadrature (docs/method.md A5)", V.INTRA_TURN_CORRECTED, U.ONE,
+      "floor removed in quadrature (docs/method.md A5)", INTRA_TURN_CORRECTED, U.ONE,
       None if upper is not None else "intra_turn_instability_corrected_u_rel",
       u=num(r.get("intra_turn_instability_corrected_u_rel")),
       note=("not resolved above the FOG noise floor; read the upper limit" if resolved is False
             else None), check="intra_turn_instability_corrected")
     if upper is not None:
         q("corrected_upper_rel", "upper limit (k = 2) of the floor-corrected intra-turn "
-          "instability", V.INTRA_TURN_UPPER, U.ONE, value=upper,
+          "instability", INTRA_TURN_UPPER, U.ONE, value=upper,
           label=f"{path}.intra_turn.corrected_upper_rel")
     budget_list(data, ident(rid, "budget"),
                 "uncertainty budget of the rate error: standard uncertainties (k = 1) relative "
@@ -161,21 +204,21 @@ def _averaged(data: etree._Element, rid: str, path: str, intra: Any) -> None:
         if not isinstance(a, Mapping) or num(a.get("angle_deg")) is None:
             continue
         lst = el(data, "list", id=ident(rid, "avg", f"{num(a['angle_deg']):g}"),
-                 ref_type=V.AVERAGED)
+                 ref_type=AVERAGED)
         name(lst, f"random part averaged over {num(a['angle_deg']):g} deg of table angle "
                   "(docs/method.md A5)")
         p = f"{path}.intra_turn.averaged[{j}]"
-        quantity(lst, None, "window", V.WINDOW, num(a["angle_deg"]) or 0.0, U.DEG,
+        quantity(lst, None, "window", WINDOW, num(a["angle_deg"]) or 0.0, U.DEG,
                  label=f"{p}.angle_deg")
         v = num(a.get("instability_rel"))
         if v is not None:
             uu = num(a.get("u_rel"))
             quantity(lst, ident(rid, "avg", f"{num(a['angle_deg']):g}", "instability_rel"),
-                     "instability, relative to |set|", V.INTRA_TURN, v, U.ONE, uu,
+                     "instability, relative to |set|", INTRA_TURN, v, U.ONE, uu,
                      label=f"{p}.instability_rel",
                      note=None if uu is not None else "U not stated in result.json.")
-        for key, title, ref in (("floor_rel", "FOG noise floor", V.FOG_FLOOR),
-                                ("corrected_rel", "floor-corrected", V.INTRA_TURN_CORRECTED)):
+        for key, title, ref in (("floor_rel", "FOG noise floor", FOG_FLOOR),
+                                ("corrected_rel", "floor-corrected", INTRA_TURN_CORRECTED)):
             if num(a.get(key)) is not None:
                 quantity(lst, None, title, ref, num(a[key]) or 0.0, U.ONE, label=f"{p}.{key}")
 
@@ -188,18 +231,18 @@ def _systematic(data: etree._Element, rid: str, path: str, s: Any) -> None:
             continue
         order = int(num(h["order"]) or 0)
         hid = ident(rid, "h", order)
-        lst = el(data, "list", id=hid, ref_type=V.HARMONIC)
+        lst = el(data, "list", id=hid, ref_type=HARMONIC)
         name(lst, f"systematic intra-turn component, harmonic {order}: "
                   "w_set * a cos(h phi + p) (docs/method.md A4)")
         if h.get("detected") is False:
             text_el(lst, "description", "not significant: the amplitude is consistent with "
                     "zero and its phase is meaningless")
         p = f"{path}.systematic.harmonics[{j}]"
-        quantity(lst, None, "order h", V.HARMONIC_ORDER, order, U.ONE, label=f"{p}.order")
+        quantity(lst, None, "order h", HARMONIC_ORDER, order, U.ONE, label=f"{p}.order")
         for key, u_key, title, ref, unit in (
                 ("amplitude_rel", "amplitude_u_rel", "amplitude a, relative to |set|",
-                 V.AMPLITUDE, U.ONE),
-                ("phase_deg", "phase_u_deg", "phase p", V.PHASE, U.DEG)):
+                 AMPLITUDE, U.ONE),
+                ("phase_deg", "phase_u_deg", "phase p", PHASE, U.DEG)):
             v = num(h.get(key))
             if v is not None:
                 uu = num(h.get(u_key))
@@ -208,15 +251,15 @@ def _systematic(data: etree._Element, rid: str, path: str, s: Any) -> None:
     m = s.get("mains")
     if isinstance(m, Mapping) and num(m.get("amplitude_dps")) is not None:
         mid = ident(rid, "mains")
-        lst = el(data, "list", id=mid, ref_type=V.MAINS)
+        lst = el(data, "list", id=mid, ref_type=MAINS)
         name(lst, "mains-frequency ripple, one tone fitted in time (docs/method.md A4)")
         if m.get("detected") is False:
             text_el(lst, "description", "not significant")
         p = f"{path}.systematic.mains"
         for key, u_key, title, ref, unit in (
-                ("frequency_hz", None, "frequency", V.FREQUENCY, U.HERTZ),
-                ("amplitude_dps", "amplitude_u_dps", "amplitude", V.AMPLITUDE, U.DEG_PER_S),
-                ("phase_deg", "phase_u_deg", "phase", V.PHASE, U.DEG)):
+                ("frequency_hz", None, "frequency", FREQUENCY, U.HERTZ),
+                ("amplitude_dps", "amplitude_u_dps", "amplitude", AMPLITUDE, U.DEG_PER_S),
+                ("phase_deg", "phase_u_deg", "phase", PHASE, U.DEG)):
             v = num(m.get(key))
             if v is not None:
                 uu = num(m.get(u_key)) if u_key else None
@@ -229,7 +272,7 @@ def _pair_result(res: etree._Element, axis: str, i: int, p: Mapping[str, Any]) -
     rate = num(p.get("rate_dps"))
     pid = ident("pair", axis, f"{rate:g}" if rate is not None else i)
     path = f"axes.{axis}.pairs[{i}]"
-    result = el(res, "result", id=pid, ref_type=V.PAIR)
+    result = el(res, "result", id=pid, ref_type=PAIR)
     name(result, f"Axis {axis}, cross-calibration of the FOG at +/-{rate:g} deg/s (docs/method.md "
                  "A3 eqs. 5-6)" if rate is not None else f"Axis {axis}, pair {i + 1}")
     if p.get("method"):
@@ -238,11 +281,11 @@ def _pair_result(res: etree._Element, axis: str, i: int, p: Mapping[str, Any]) -
     data = el(result, "data")
     for key, u_key, title, ref, unit in (
             ("rate_dps", None, "pair rate magnitude", V.NOMINAL, U.DEG_PER_S),
-            ("k", "k_u", "FOG scale k (eq. 5)", f"{V.MEASURED} {V.FOG_SCALE}", U.ONE),
-            ("w0_dps", "w0_u_dps", "FOG bias w0 (eq. 6)", f"{V.MEASURED} {V.FOG_BIAS}",
+            ("k", "k_u", "FOG scale k (eq. 5)", f"{V.MEASURED} {FOG_SCALE}", U.ONE),
+            ("w0_dps", "w0_u_dps", "FOG bias w0 (eq. 6)", f"{V.MEASURED} {FOG_BIAS}",
              U.DEG_PER_S),
             ("drift_dps_per_h", "drift_u_dps_per_h", "FOG bias drift during the pair, deg/s "
-             "per hour", f"{V.MEASURED} {V.FOG_BIAS_DRIFT}", r"\degree\second\tothe{-1}"
+             "per hour", f"{V.MEASURED} {FOG_BIAS_DRIFT}", r"\degree\second\tothe{-1}"
              r"\hour\tothe{-1}")):
         v = num(p.get(key))
         if v is None:

@@ -1,19 +1,50 @@
-"""The drift-pulse procedure's measurementResult (docs/method.md part B): per gyro axis the
+"""The drift-pulse procedure's part of the DCC (docs/method.md part B): per gyro axis the
 own and apparent drift with their budgets and the drift per platform position and cycle;
-the platform azimuth and the horizontal Earth rate.
+the platform azimuth and the horizontal Earth rate. `DriftDcc` answers the DCC writer's
+questions (bench.dcc.parts.DccParts).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 from lxml import etree
 
-from bench.certificate.build import Sources
+from bench.certificate import methods
+from bench.certificate.parts import Sources
 from bench.dcc import units as U
 from bench.dcc import vocab as V
 from bench.dcc.conformity import Checks, judge
+from bench.dcc.parts import DccParts
 from bench.dcc.xml import budget_list, el, ident, list_quantity, name, num, quantity, text_el
+
+# the drift procedure's refTypes, namespace "ratebench" (docs/dcc.md, section "refTypes")
+OWN_DRIFT = V.RB + "ownDrift"
+APPARENT_DRIFT = V.RB + "apparentDrift"
+DRIFT_POSITION = V.RB + "driftPerPosition"
+DRIFT_CYCLES = V.RB + "driftPerCycle"
+TABLE_POSITION = V.RB + "tablePosition"
+STD = V.RB + "standardDeviation"
+AZIMUTH = V.RB + "azimuth"
+EARTH_RATE = V.RB + "earthHorizontalRate"
+LATITUDE = V.RB + "siteLatitude"
+
+#: the sections of docs/method.md the drift procedure follows
+METHOD_SECTIONS = ("B",)
+
+
+class DriftDcc(DccParts):
+    """The drift procedure's answers to the DCC (mixed into the kind)."""
+
+    def dcc_item(self, src: Sources) -> tuple[str, Sequence[str]]:
+        axes = src.get("axes") or (src.get("drift") or {}).get("axes") or {}
+        return "gyro-platform test stand", [str(a) for a in axes]
+
+    def dcc_used_methods(self, src: Sources) -> tuple[str, Sequence[str]]:
+        return methods.B_REFERENCE, METHOD_SECTIONS
+
+    def dcc_results(self, results: etree._Element, src: Sources, checks: Checks) -> None:
+        drift_results(results, src, checks)
 
 
 def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None:
@@ -23,9 +54,9 @@ def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None
     lat = num(drift.get("latitude_deg"))
     if lat is not None:
         conds = el(mr, "influenceConditions")
-        c = el(conds, "influenceCondition", id="siteLatitude", ref_type=V.LATITUDE)
+        c = el(conds, "influenceCondition", id="siteLatitude", ref_type=LATITUDE)
         name(c, "Site latitude")
-        quantity(el(c, "data"), None, "latitude", V.LATITUDE, lat, U.DEG,
+        quantity(el(c, "data"), None, "latitude", LATITUDE, lat, U.DEG,
                  label="drift.latitude_deg")
     res = el(mr, "results")
     for axis, d in (drift.get("axes", {}) or {}).items():
@@ -38,11 +69,11 @@ def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None
         data = el(r, "data")
         for key, u_key, title, ref, check in (
                 ("own_dph", "own_u_dph", "own drift (w_0 + w_180) / 2",
-                 f"{V.MEASURED} {V.OWN_DRIFT}", "own_drift"),
+                 f"{V.MEASURED} {OWN_DRIFT}", "own_drift"),
                 ("apparent_dph", "apparent_u_dph", "apparent drift at position 0, "
-                 "(w_0 - w_180) / 2", f"{V.MEASURED} {V.APPARENT_DRIFT}", "apparent_drift"),
+                 "(w_0 - w_180) / 2", f"{V.MEASURED} {APPARENT_DRIFT}", "apparent_drift"),
                 ("own_nominal_edges_dph", None, "own drift with the pulse edges at the "
-                 "nominal sample times (the paper's integrator; for comparison)", V.OWN_DRIFT,
+                 "nominal sample times (the paper's integrator; for comparison)", OWN_DRIFT,
                  None)):
             v = num(d.get(key))
             if v is None:
@@ -68,9 +99,9 @@ def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None
                 continue
             table = num(pos.get("table_deg", pos.get("position_deg"))) or 0.0
             pp = f"{path}.positions[{j}]"
-            lst = el(data, "list", id=ident(aid, "pos", f"{table:g}"), ref_type=V.DRIFT_POSITION)
+            lst = el(data, "list", id=ident(aid, "pos", f"{table:g}"), ref_type=DRIFT_POSITION)
             name(lst, f"platform turned to {table:g} deg: drift per cycle and mean")
-            quantity(lst, None, "platform position", V.TABLE_POSITION, table, U.DEG,
+            quantity(lst, None, "platform position", TABLE_POSITION, table, U.DEG,
                      label=f"{pp}.table_deg")
             mean = num(pos.get("mean_dph"))
             if mean is not None:
@@ -79,12 +110,12 @@ def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None
                          V.MEASURED, mean, U.DEG_PER_H, uu, label=f"{pp}.mean_dph",
                          note=None if uu is not None else "U not stated in result.json.")
             if num(pos.get("std_dph")) is not None:
-                quantity(lst, None, "standard deviation of the cycles", V.STD,
+                quantity(lst, None, "standard deviation of the cycles", STD,
                          num(pos["std_dph"]) or 0.0, U.DEG_PER_H, label=f"{pp}.std_dph")
             w = [v for v in (num(x) for x in pos.get("drifts_dph") or []) if v is not None]
             if w:
                 list_quantity(lst, ident(aid, "pos", f"{table:g}", "drifts_dph"),
-                              "drift of each cycle, in order", V.DRIFT_CYCLES, w,
+                              "drift of each cycle, in order", DRIFT_CYCLES, w,
                               U.DEG_PER_H, note="Single-cycle values; their scatter (the "
                               "standard deviation above) is their uncertainty.")
     if num(drift.get("azimuth_deg")) is not None or num(drift.get("earth_horizontal_dph")) \
@@ -94,12 +125,12 @@ def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None
         data = el(r, "data")
         for key, u_key, title, ref, unit, check in (
                 ("azimuth_deg", "azimuth_u_deg", "platform azimuth of the X input axis, "
-                 "A = atan2(-app_y, app_x)", f"{V.MEASURED} {V.AZIMUTH}", U.DEG, "azimuth"),
+                 "A = atan2(-app_y, app_x)", f"{V.MEASURED} {AZIMUTH}", U.DEG, "azimuth"),
                 ("earth_horizontal_dph", "earth_horizontal_u_dph", "horizontal Earth rate "
-                 "from the apparent drifts", f"{V.MEASURED} {V.EARTH_RATE}", U.DEG_PER_H,
+                 "from the apparent drifts", f"{V.MEASURED} {EARTH_RATE}", U.DEG_PER_H,
                  "earth_horizontal_rate"),
                 ("earth_horizontal_expected_dph", None, "expected 15.041 deg/h x cos(latitude)",
-                 f"{V.REFERENCE} {V.EARTH_RATE}", U.DEG_PER_H, None)):
+                 f"{V.REFERENCE} {EARTH_RATE}", U.DEG_PER_H, None)):
             v = num(drift.get(key))
             if v is None:
                 continue

@@ -1,0 +1,124 @@
+"""A third procedure kind, `dwell`, written the way README "How to add a procedure" says:
+it imports only what a procedure may (the engine's interfaces, the certificate's and the
+DCC's vocabulary, procedures.base) and is registered by name, as an entry point would
+register it (tests/test_procedure_plugin.py). Its plan is one step that waits on the bench
+clock; no instrument is opened. Its analysis reads the journal back and states one
+figure, the time waited, checked against a tolerance.
+
+`KIND` also answers the DCC (`bench.dcc.parts.DccParts`); `QUIET` is the same kind
+without a DCC part of its own, which still gets a valid DCC from the neutral answers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from lxml import etree
+
+from bench.certificate.model import Para, Section, Table
+from bench.certificate.parts import CertificateParts, Sources, num
+from bench.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config
+from bench.dcc import units as U
+from bench.dcc import vocab as V
+from bench.dcc.conformity import Checks, judge
+from bench.dcc.parts import DccParts
+from bench.dcc.xml import el, name, quantity
+from bench.engine import RunContext
+from bench.instruments import Bench
+from bench.journal import RunDir
+from bench.plan import Plan, Step
+from bench.schema import Key, Map, Num
+from bench.simbench import SimBench
+from bench.yamlfile import Problem
+from drivers.clock import Clock
+from procedures.base import StepDispatch, result_document
+
+NAME = "dwell"
+TITLE = "Dwell on the bench clock"
+WAITED = V.RB + "dwellTime"      # the kind's own refType
+
+
+class Dwell(StepDispatch, CertificateParts):
+    """Waits `dwell_s` of bench time and reports how long it waited."""
+
+    name = NAME
+    certificate_procedure_name = "dwell (a test plug-in)"
+    certificate_quantities = {"dwell_time": "time waited"}
+
+    def procedure_schema(self) -> Map:
+        return Map({**COMMON_PROCEDURE_KEYS,
+                    "dwell_s": Key(Num(min=0, exclusive_min=True, unit="s"), True),
+                    "tolerance_s": Key(Num(min=0, exclusive_min=True, unit="s"), True)})
+
+    def stand_schema(self) -> Map:
+        return Map({"stand": Key(IDENTITY, True), "axes": Key(Map({}))})
+
+    def cross_check(self, cfg: Config) -> list[Problem]:
+        return []
+
+    def build_plan(self, cfg: Config) -> Plan:
+        dwell = float(cfg.procedure["dwell_s"])
+        return Plan(cfg.procedure.get("title", TITLE),
+                    (Step("dwell", None, f"wait {dwell:g} s", dwell, "dwell",
+                          {"duration_s": dwell}),))
+
+    def start_sim(self, cfg: Config) -> tuple[SimBench, dict[str, Any]]:
+        raise NotImplementedError("the dwell needs no twins")
+
+    def open_bench(self, cfg: Config, stand: dict[str, Any], clock: Clock,
+                   run: RunDir | None) -> Bench:
+        return Bench()
+
+    def _do_dwell(self, step: Step, ctx: RunContext) -> None:
+        start = ctx.clock.now()
+        ctx.clock.sleep(step.params["duration_s"])
+        ctx.run.event("dwelt", waited_s=ctx.clock.now() - start)
+
+    def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
+        events = run.events()
+        waited = [e["waited_s"] for e in events if e.get("event") == "dwelt"]
+        dwell, tol = float(cfg.procedure["dwell_s"]), float(cfg.procedure["tolerance_s"])
+        checks = []
+        if waited:
+            error = waited[-1] - dwell
+            ok = abs(error) <= tol
+            checks.append({"axis": None, "quantity": "dwell_time", "unit": "s",
+                           "value_s": error, "u_s": 0.0, "tolerance_s": tol,
+                           "rule": "simple", "verdict": "pass" if ok else "fail",
+                           "reason": f"|{error:.3g}| s {'<=' if ok else '>'} {tol:g} s"})
+        return result_document(run, cfg, events, complete=bool(waited), checks=checks,
+                               rule="simple", method={"dwell_s": dwell},
+                               dwell={"waited_s": waited[-1] if waited else None})
+
+    def certificate_sections(self, src: Sources, number: str,
+                             checks: Sequence[Mapping[str, Any]]) -> list[Section]:
+        waited = num((src.get("dwell", {}) or {}).get("waited_s"))
+        text = "not recorded" if waited is None else f"{waited:.3f}"
+        return [Section(number, "Dwell results", (
+            Table(("Quantity", "Value, s"), (("time waited", text),)),
+            Para("Bench time between the start and the end of the dwell step."),))]
+
+
+class DwellWithDcc(DccParts, Dwell):
+    """The dwell, with its one figure in the DCC."""
+
+    def dcc_item(self, src: Sources) -> tuple[str, Sequence[str]]:
+        return "bench clock", ()
+
+    def dcc_results(self, results: etree._Element, src: Sources, checks: Checks) -> None:
+        waited = num((src.get("dwell", {}) or {}).get("waited_s"))
+        if waited is None:
+            return
+        mr = el(results, "measurementResult", id="dwell", ref_id="item")
+        name(mr, "Dwell")
+        result = el(el(mr, "results"), "result", id="dwellResult", ref_type=V.MEASURED)
+        name(result, "Time waited on the bench clock")
+        data = el(result, "data")
+        node = quantity(data, "dwell_waited", "time waited", WAITED, waited, U.SECOND,
+                        label="dwell.waited_s")
+        judge(node, checks.take(None, None, "dwell_time"), U.SECOND)
+
+
+KIND = DwellWithDcc()
+QUIET = Dwell()
