@@ -220,6 +220,38 @@ COMMON_PROCEDURE_KEYS: dict[str, Key] = {
 
 
 @dataclass(frozen=True)
+class FogSettings:
+    """A stand's `fog:` block, parsed once, every default here (the schema above says
+    which keys are required): the live driver, the twin, the analysis reading the raw
+    capture, the disk-space estimate and the station view all take it from here."""
+
+    port: str
+    rate_hz: float
+    units: str
+    baudrate: int = 921600
+    format: str = "kvh-a"
+    axis: str = "z"
+    configure: str = "declare"
+    model: str | None = None
+
+    @classmethod
+    def of(cls, fog: dict[str, Any]) -> FogSettings:
+        fields = {k: fog[k] for k in ("baudrate", "format", "axis", "configure", "model")
+                  if k in fog}
+        return cls(port=str(fog["port"]), rate_hz=float(fog["rate_hz"]),
+                   units=str(fog["units"]), **fields)
+
+    @classmethod
+    def of_axis(cls, stand: dict[str, Any], axis: str) -> FogSettings | None:
+        """The FOG of `axis`, or None when the axis has none (or the stand is damaged:
+        the station view reads run directories it did not write)."""
+        f = ((stand.get("axes") or {}).get(axis) or {}).get("fog")
+        if not isinstance(f, dict) or not all(k in f for k in ("port", "rate_hz", "units")):
+            return None
+        return cls.of(f)
+
+
+@dataclass(frozen=True)
 class Config:
     """A validated procedure with its stand."""
 
@@ -240,6 +272,10 @@ class Config:
 
     def stand_axis(self, name: str) -> dict[str, Any]:
         return self.stand["axes"][name]
+
+    def fog(self, axis: str) -> FogSettings:
+        """The axis's FOG settings (validated: a procedure that needs a FOG has one)."""
+        return FogSettings.of(self.stand["axes"][axis]["fog"])
 
 
 class ConfigError(Exception):

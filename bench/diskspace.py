@@ -10,6 +10,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
+from bench.config import FogSettings
 from drivers.fog_formats import get_format
 
 #: drive, counter and event logs per axis and bench second (the demo writes ~0.2 kB/s)
@@ -24,14 +25,14 @@ def expected_raw_bytes(stand: dict[str, Any], axes: list[str], bench_s: float) -
     """Bytes the raw files of `axes` take for `bench_s` seconds of bench time."""
     total = 0.0
     for name in axes:
-        fog = (stand["axes"].get(name) or {}).get("fog")
+        fog = FogSettings.of_axis(stand, name)
         per_s = LOG_BYTES_PER_AXIS_S
         if fog:
             try:
-                frame = get_format(fog.get("format", "kvh-a")).size
+                frame = get_format(fog.format).size
             except (KeyError, ValueError):
                 frame = 64
-            per_s += float(fog["rate_hz"]) * frame
+            per_s += fog.rate_hz * frame
         total += per_s * bench_s
     return total
 

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.canbus import controller_node_ids
+from bench.config import FogSettings
 from bench.journal import JsonLines, RunDir
 from drivers.axis import Axis
 from drivers.clock import Clock
@@ -234,14 +235,13 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
         ax.identities["counter"] = with_readback(
             cnt.identify(), {**cnt.readback, "time tie": cnt.time_tie.source},
             manual_note(cnt.profile.manual))
-    f = axis_cfg.get("fog")
-    if fog and f:
-        fg = Fog(f["port"], baudrate=f.get("baudrate", 921600), fmt=f.get("format", "kvh-a"),
-                 axis=f.get("axis", "z"), rate_hz=f["rate_hz"],
-                 units=f.get("units"), configure=f.get("configure", "declare"),
+    if fog and axis_cfg.get("fog"):
+        f = FogSettings.of(axis_cfg["fog"])
+        fg = Fog(f.port, baudrate=f.baudrate, fmt=f.format, axis=f.axis, rate_hz=f.rate_hz,
+                 units=f.units, configure=f.configure,
                  raw_path=run.raw_path(f"{name}-fog.bin") if run else None, clock=clock,
-                 model=f.get("model"),
-                 keep_samples=int(LIVE_FOG_KEEP_S * f["rate_hz"]) if run else None)
+                 model=f.model,
+                 keep_samples=int(LIVE_FOG_KEEP_S * f.rate_hz) if run else None)
         bench.enter(fg)
         ax.fog = fg
         ax.identities["fog"] = with_readback(fg.identity(), fg.readback)

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from typing import Any
 
 from bench.canbus import bus_name, controller_node_ids
+from bench.config import FogSettings
 from drivers.waits import MIN_REAL_MARGIN_S
 from sims.clock import MAX, VirtualClock, parse_speed
 from sims.counter_twin import CounterTwin
@@ -25,6 +26,9 @@ from sims.fog_twin import FogTwin
 from sims.gyro_rig import start_gyro_rig
 from sims.platform import GyroTruth, PlatformTruth
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
+
+#: the stand's sample rate for an axis that carries no FOG (the twins' time grid)
+SIM_GRID_HZ = 1000.0
 
 #: truth used by `--sim` for an axis the stand file's `sim:` block does not describe
 DEFAULT_AXIS_TRUTH: dict[str, Any] = {
@@ -78,8 +82,9 @@ class SimBench:
             clock_speed=parse_speed(sim.get("clock_speed"), MAX),
         )
         self.clock = VirtualClock(truth.clock_speed, running=False)
-        fog_hz = {a: float((self.stand_cfg["axes"][a].get("fog") or {}).get("rate_hz", 1000.0))
-                  for a in axes}
+        fogs = {a: FogSettings.of_axis(self.stand_cfg, a) for a in axes}
+        # an axis with no FOG is still sampled, on a grid of its own (SIM_GRID_HZ)
+        fog_hz = {a: f.rate_hz if f else SIM_GRID_HZ for a, f in fogs.items()}
         self.stand = SimulatedStand(truth, fog_hz, self.clock)
         self.axes = axes
         self._sim_axes = sim_axes
@@ -96,8 +101,8 @@ class SimBench:
             for a in self.axes:  # FOG twins first: they must see every sample from 0 on
                 f = cfg["axes"][a].get("fog")
                 if f:
-                    ft = FogTwin(self.stand, a, fmt=f.get("format", "kvh-a"),
-                                 axis_letter=f.get("axis", "z"),
+                    fs = FogSettings.of(f)
+                    ft = FogTwin(self.stand, a, fmt=fs.format, axis_letter=fs.axis,
                                  units=twin_fog_units(f, sim_axes.get(a) or {}))
                     f["port"] = ft.start()
                     self._stack.callback(ft.stop)

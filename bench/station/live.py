@@ -16,13 +16,13 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
 
+from bench.config import FogSettings
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, DecodeState, decode, get_format
 
@@ -89,24 +89,6 @@ def decimate(t: np.ndarray, y: np.ndarray, points: int = TRACE_POINTS
     return [round(float(v), 4) for v in tb], [float(v) for v in yb]
 
 
-@dataclass(frozen=True)
-class FogSettings:
-    """What the live trace needs to turn raw frames into deg/s."""
-
-    fmt: str
-    axis: str
-    units: str
-    rate_hz: float
-
-    @staticmethod
-    def of(stand: dict[str, Any], axis: str) -> FogSettings | None:
-        f = ((stand.get("axes") or {}).get(axis) or {}).get("fog")
-        if not isinstance(f, dict) or "rate_hz" not in f:
-            return None
-        return FogSettings(str(f.get("format", "kvh-a")), str(f.get("axis", "z")),
-                           str(f.get("units", "deg/s")), float(f["rate_hz"]))
-
-
 def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S
               ) -> dict[str, list[float]]:
     """The last `tail_s` of a FOG capture, decoded and decimated (bench time, deg/s).
@@ -115,7 +97,7 @@ def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S
     bytes were lost, a few frames off after a corrupt stretch, which a live plot can bear.
     """
     try:
-        f = get_format(fog.fmt)
+        f = get_format(fog.format)
         size = raw.stat().st_size
     except (FileNotFoundError, ValueError, KeyError):
         return {"t_s": [], "rate_dps": []}
@@ -239,7 +221,7 @@ def live_state(run_path: Path) -> dict[str, Any]:
     fog: dict[str, list[float]] = {"t_s": [], "rate_dps": []}
     drive: dict[str, list[float]] = {"t_s": [], "velocity_dps": []}
     if raw is not None and axis:
-        settings = FogSettings.of(stand, axis) if isinstance(stand, dict) else None
+        settings = FogSettings.of_axis(stand, axis) if isinstance(stand, dict) else None
         if settings is not None:
             fog = fog_trace(raw / f"{axis}-fog.bin", settings)
         drive = drive_trace(raw / f"{axis}-drive.jsonl")

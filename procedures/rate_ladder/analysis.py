@@ -136,10 +136,9 @@ class RawData:
         if c is None or c.position > i_from or ahead:
             if c is not None:
                 c.close()
-            f = self.cfg.stand_axis(axis)["fog"]
+            f = self.cfg.fog(axis)
             c = CaptureCursor(self.run.path / "raw" / f"s{session}" / f"{axis}-fog.bin",
-                              fmt=f.get("format", "kvh-a"), axis=f.get("axis", "z"),
-                              rate_hz=f["rate_hz"], units=f.get("units", "deg/s"),
+                              fmt=f.format, axis=f.axis, rate_hz=f.rate_hz, units=f.units,
                               chunk_bytes=self.chunk_bytes, start=start)
             self._cursors[key] = c
         return c
@@ -213,7 +212,7 @@ def static_record(events: list[dict[str, Any]], axis: str) -> dict[str, Any] | N
 def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
                  acquisitions: list[dict[str, Any]], static: dict[str, Any] | None) -> Any:
     s = _settings(cfg)
-    fog_hz = cfg.stand_axis(axis)["fog"]["rate_hz"]
+    fog_hz = cfg.fog(axis).rate_hz
     mains = s["mains_hz"] if 2 * s["mains_hz"] < fog_hz else None
     static_dps = raw.static(static) if static else None  # before the halves: in file order
     halves = [raw.half(e) for e in sorted(acquisitions, key=lambda e: e["half"])]
@@ -351,7 +350,7 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
         floor = None
         if static is not None:
             w = raw.static(static)
-            hz = cfg.stand_axis(axis)["fog"]["rate_hz"]
+            hz = cfg.fog(axis).rate_hz
             curve = allan_deviation(w, hz)
             floor = {"source": "Allan deviation of a static FOG record",
                      "samples": int(w.size), "duration_s": w.size / hz,
