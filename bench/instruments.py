@@ -65,23 +65,9 @@ class Bench:
         return j
 
     def safe_stop(self, log: Callable[[str], None]) -> None:
-        errors = []
-        for ax in self.axes.values():
-            drive = ax.drive
-            try:
-                drive.stop()
-                log(f"  {ax.name}: ramped to zero")
-            except Exception as e:  # noqa: BLE001 - try the harder stops
-                log(f"  {ax.name}: ramp to zero failed ({e}); quick stop")
-                try:
-                    drive.quick_stop()
-                except Exception as e2:  # noqa: BLE001
-                    errors.append(f"{ax.name}: {e2}")
-            try:
-                drive.disable()
-                log(f"  {ax.name}: disabled")
-            except Exception as e:  # noqa: BLE001
-                errors.append(f"{ax.name}: disable failed: {e}")
+        """Every axis through the drive's one stop sequence (drivers/axis.py safe_stop)."""
+        errors = [f"{ax.name}: {e}" for ax in self.axes.values()
+                  for e in ax.drive.safe_stop(log)]
         if errors:
             raise RuntimeError("; ".join(errors))
 

@@ -337,22 +337,34 @@ class Axis:
             if silence is not None:
                 raise DriveUnreachable(self.name, silence, self.drive_watchdog_ms,
                                        self.abort_connection_option)
-            try:
-                self.stop()
-            except Exception as e:  # noqa: BLE001 - try the harder stop
-                errors.append(f"ramp to zero: {e}")
-                try:
-                    self.quick_stop()
-                except Exception as e2:  # noqa: BLE001
-                    errors.append(f"quick stop: {e2}")
-            try:
-                self.disable()
-            except Exception as e:  # noqa: BLE001
-                errors.append(f"disable: {e}")
+            errors = self.safe_stop()
         finally:
             self._leave_bus()
         if errors:
             raise AxisError(f"axis {self.name}: leaving: " + "; ".join(errors))
+
+    def safe_stop(self, log: Callable[[str], None] | None = None) -> list[str]:
+        """The one stop sequence (a run's end, an abort, a failed open): ramp to zero with
+        the profile deceleration, else a quick stop; then disable. Returns what failed,
+        raises nothing: the caller decides whose error the operator reads first."""
+        say = log or (lambda text: None)
+        errors: list[str] = []
+        try:
+            self.stop()
+            say(f"  {self.name}: ramped to zero")
+        except Exception as e:  # noqa: BLE001 - try the harder stop
+            say(f"  {self.name}: ramp to zero failed ({e}); quick stop")
+            errors.append(f"ramp to zero: {e}")
+            try:
+                self.quick_stop()
+            except Exception as e2:  # noqa: BLE001
+                errors.append(f"quick stop: {e2}")
+        try:
+            self.disable()
+            say(f"  {self.name}: disabled")
+        except Exception as e:  # noqa: BLE001
+            errors.append(f"disable: {e}")
+        return errors
 
     def _leave_bus(self) -> None:
         network, self.network = self.network, None
