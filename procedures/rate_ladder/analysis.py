@@ -30,6 +30,7 @@ from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, events_of, result_document
+from procedures.rate_ladder.events import HalfAcquired, StaticRecorded
 from procedures.rate_ladder.settings import LadderSettings, tolerance_for
 
 
@@ -152,28 +153,24 @@ class RawData:
         self._windows += [t, f]
         return t, f
 
-    def edges(self, e: dict[str, Any]) -> np.ndarray:
+    def edges(self, h: HalfAcquired) -> np.ndarray:
         if self.live:
-            return np.asarray(e["edges_s"], dtype=float)
-        session, axis = e["session"], e["axis"]
-        log = self.counter_log(session, axis)
-        i0, i1 = e["counter_records"]
-        model = self.cfg.stand_axis(axis)["counter"]["model"]
-        return edges_from_replies(log[i0:i1], model, e["turns"] + 1,
-                                  float(e.get("counter_t0_s", 0.0)))
+            return np.asarray(h.edges_s, dtype=float)
+        log = self.counter_log(h.session, h.axis)
+        i0, i1 = h.counter_records
+        model = self.cfg.stand_axis(h.axis)["counter"]["model"]
+        return edges_from_replies(log[i0:i1], model, h.turns + 1, float(h.counter_t0_s))
 
-    def half(self, e: dict[str, Any]) -> HalfRecord:
-        t, w = self.fog_window(e["session"], e["axis"], e["fog_from"], e["fog_to"],
-                               e.get("fog_capture"))
-        return HalfRecord(int(math.copysign(1, e["set_rate_dps"])), self.edges(e), t, w,
-                          session=int(e["session"]))
+    def half(self, h: HalfAcquired) -> HalfRecord:
+        t, w = self.fog_window(h.session, h.axis, h.fog_from, h.fog_to, h.fog_capture)
+        return HalfRecord(h.sign, self.edges(h), t, w, session=h.session)
 
-    def static(self, e: dict[str, Any]) -> np.ndarray:
+    def static(self, e: StaticRecorded) -> np.ndarray:
         """The FOG at rest, in memory (minutes of samples, for the floor and Allan)."""
-        key = (e["session"], e["axis"], e["fog_from"], e["fog_to"])
+        key = (e.session, e.axis, e.fog_from, e.fog_to)
         if key not in self._statics:
-            cursor = self._cursor(e["session"], e["axis"], e["fog_from"], e.get("fog_capture"))
-            parts = [s.rate_dps[s.valid] for s in cursor.window(e["fog_from"], e["fog_to"])]
+            cursor = self._cursor(e.session, e.axis, e.fog_from, e.fog_capture)
+            parts = [s.rate_dps[s.valid] for s in cursor.window(e.fog_from, e.fog_to)]
             self._statics[key] = np.concatenate(parts) if parts else np.empty(0)
         return self._statics[key]
 
@@ -183,39 +180,39 @@ def _settings(cfg: Config) -> dict[str, Any]:
 
 
 def unit_halves(events: list[dict[str, Any]], unit: str, session: int
-                ) -> list[dict[str, Any]]:
+                ) -> list[HalfAcquired]:
     """A unit's acquisitions as of `session`: for each half, the last one acquired up to it.
 
     A half is kept once acquired (its acquire event is written when it is complete), so a
     resumed pair may take its halves from several sessions (docs/resume.md).
     """
-    by_half: dict[int, dict[str, Any]] = {}
-    for e in events_of(events, "acquire"):
-        if e["unit"] == unit and e["session"] <= session:
-            by_half[int(e["half"])] = e
+    by_half: dict[int, HalfAcquired] = {}
+    for h in HalfAcquired.all_in(events):
+        if h.unit == unit and h.session <= session:
+            by_half[h.half] = h
     return [by_half[h] for h in sorted(by_half)]
 
 
-def unit_acquisitions(events: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def unit_acquisitions(events: list[dict[str, Any]]) -> list[HalfAcquired]:
     """Acquisitions of the units not yet done (what a --resume may keep)."""
     done = {e["unit"] for e in events_of(events, "unit_done")}
-    return [e for e in events_of(events, "acquire") if e["unit"] not in done]
+    return [h for h in HalfAcquired.all_in(events) if h.unit not in done]
 
 
-def static_record(events: list[dict[str, Any]], axis: str) -> dict[str, Any] | None:
+def static_record(events: list[dict[str, Any]], axis: str) -> StaticRecorded | None:
     """The axis's FOG-at-rest record that completed its unit (the last such)."""
     done_in = {e["unit"]: e["session"] for e in events_of(events, "unit_done")}
-    return next((e for e in reversed(events_of(events, "static")) if e["axis"] == axis
-                 and done_in.get(e["unit"]) == e["session"]), None)
+    return next((s for s in reversed(StaticRecorded.all_in(events)) if s.axis == axis
+                 and done_in.get(s.unit) == s.session), None)
 
 
 def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
-                 acquisitions: list[dict[str, Any]], static: dict[str, Any] | None) -> Any:
+                 acquisitions: list[HalfAcquired], static: StaticRecorded | None) -> Any:
     s = _settings(cfg)
     fog_hz = cfg.fog(axis).rate_hz
     mains = s["mains_hz"] if 2 * s["mains_hz"] < fog_hz else None
     static_dps = raw.static(static) if static else None  # before the halves: in file order
-    halves = [raw.half(e) for e in sorted(acquisitions, key=lambda e: e["half"])]
+    halves = [raw.half(h) for h in sorted(acquisitions, key=lambda h: h.half)]
     try:
         return analyze_pair(halves, rate_dps, fog_rate_hz=fog_hz,
                             counter_budget=counter_budget(cfg.stand_axis(axis)),
@@ -339,8 +336,8 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
                 d["session"] = done_in[unit]
                 # frames the FOG's decoder lost or found broken in this direction's halves
                 # (their samples are left out of the window; the integrals run on time)
-                d["fog_lost_frames"] = sum(int(e.get("fog_lost", 0)) for e in acqs
-                                           if (e["set_rate_dps"] > 0) == (r.set_rate_dps > 0))
+                d["fog_lost_frames"] = sum(h.fog_lost for h in acqs
+                                           if h.sign == (1 if r.set_rate_dps > 0 else -1))
                 c = _checks(cfg, axis, d, rule)
                 d["checks"] = c
                 d["verdict"] = "fail" if any(x["verdict"] == "fail" for x in c) else "pass"
@@ -368,7 +365,7 @@ _WORKER_READERS: dict[str, RawData] = {}  # in the analysis worker: one per run 
 
 
 def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
-                 acquisitions: list[dict[str, Any]], static: dict[str, Any] | None
+                 acquisitions: list[HalfAcquired], static: StaticRecorded | None
                  ) -> dict[str, Any]:
     """A first look at the pair just measured (the same analysis the final result.json
     makes), from the raw capture as it is being written; runs in the analysis worker

@@ -32,6 +32,7 @@ from procedures.rate_ladder.analysis import (
     unit_halves,
 )
 from procedures.rate_ladder.certificate import LadderCertificate
+from procedures.rate_ladder.events import HalfAcquired, StaticRecorded
 from procedures.rate_ladder.settings import (
     NAME,
     PROCEDURE,
@@ -203,9 +204,9 @@ class RateLadder(StepDispatch, LadderCertificate):
         lost0 = _fog_losses(fog)
         mark = fog.checkpoint()  # where the record starts in the raw capture (or before)
         self._wait_fog(ctx, fog, i0 + n, duration, f"{step.axis}: FOG at rest")
-        event = dict(axis=step.axis, unit=step.unit, fog_from=i0, fog_to=i0 + n,
-                     rate_hz=fog.rate_hz, lost=_fog_losses(fog) - lost0, fog_capture=mark)
-        ctx.run.event("static", **event)  # the samples stay in the raw capture
+        StaticRecorded(step.axis, step.unit, fog_from=i0, fog_to=i0 + n, rate_hz=fog.rate_hz,
+                       lost=_fog_losses(fog) - lost0, fog_capture=mark
+                       ).write(ctx.run)   # the samples stay in the raw capture
         mean = _fog_mean_dps(fog)
         if mean is not None:
             ctx.progress.reading("FOG mean", f"{step.axis} at rest",
@@ -268,15 +269,14 @@ class RateLadder(StepDispatch, LadderCertificate):
         rec1 = ax.logs["counter"].count if "counter" in ax.logs else 0
         fog.wait_for_index(i_to, timeout_s=max(10.0, period))
         lost = _fog_losses(fog) - lost0
-        event = dict(axis=step.axis, unit=step.unit, half=p["half"],
-                     set_rate_dps=p["rate_dps"], turns=n, edges_s=[float(e) for e in edges],
-                     counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
-                     counter_readback=dict(counter.readback),
-                     counter_records=[rec0, rec1], fog_from=i_from, fog_to=i_to,
-                     rate_hz=fog.rate_hz, fog_lost=lost, fog_capture=mark)
         # the FOG samples stay in the raw capture: the pair's analysis reads them there;
         # this event completes the half (a --resume keeps it, docs/resume.md)
-        ctx.run.event("acquire", **event)
+        HalfAcquired(step.axis, step.unit, half=p["half"], set_rate_dps=p["rate_dps"], turns=n,
+                     edges_s=[float(e) for e in edges], counter_records=[rec0, rec1],
+                     fog_from=i_from, fog_to=i_to, rate_hz=fog.rate_hz,
+                     counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
+                     counter_readback=dict(counter.readback), fog_lost=lost,
+                     fog_capture=mark).write(ctx.run)
         if lost:
             ctx.progress.warn(f"  WARNING {step.axis}: {lost} FOG frames lost or broken "
                               "during this half (CRC or sequence gaps); the analysis uses "
@@ -335,10 +335,9 @@ class RateLadder(StepDispatch, LadderCertificate):
         events = run.events()
         kept: dict[str, dict[int, int]] = {}  # unit -> half -> (sign) of the kept halves
         sessions: dict[str, dict[int, set[int]]] = {}
-        for e in unit_acquisitions(events):
-            kept.setdefault(e["unit"], {})[int(e["half"])] = 1 if e["set_rate_dps"] > 0 else -1
-            sessions.setdefault(e["unit"], {}).setdefault(int(e["session"]), set()).add(
-                1 if e["set_rate_dps"] > 0 else -1)
+        for h in unit_acquisitions(events):
+            kept.setdefault(h.unit, {})[h.half] = h.sign
+            sessions.setdefault(h.unit, {}).setdefault(h.session, set()).add(h.sign)
         drop: dict[str, set[int]] = {}
         for unit, halves_done in kept.items():
             left = {(1 if s.params["rate_dps"] > 0 else -1) for s in plan.steps
