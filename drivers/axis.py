@@ -413,6 +413,8 @@ class Axis:
             if pdo.enabled and pdo.map:
                 self._check_tpdo_timing(n, pdo)
                 mapped |= {var.index for var in pdo.map}
+                self.readback[f"drive.pdo (TPDO{n}) mapping"] = " + ".join(
+                    f"0x{var.index:04X}" for var in pdo.map)
                 pdo.add_callback(self._on_tpdo)
                 if pdo.event_timer:
                     periods.append(pdo.event_timer / 1000.0)
@@ -424,6 +426,9 @@ class Axis:
         quick = self._read_optional(Od.QUICK_STOP_DECELERATION)
         if quick:
             self._quick_stop_decel_dps2 = self.units.accel_to_dps2(quick)
+        self.readback["drive.quick stop deceleration 0x6085"] = (
+            f"{self._quick_stop_decel_dps2:.6g} deg/s^2" + ("" if quick else
+                                                          " (not reported: our limit)"))
         self.abort_connection_option = self._read_optional(Od.ABORT_CONNECTION_OPTION)
         self._journal("config", identity=self._identity,
                       counts_per_rev=self.units.counts_per_rev,

@@ -40,6 +40,9 @@ def test_devices_prints_each_instruments_identity(capsys: pytest.CaptureFixture[
     assert set(rows) == {(a, w) for a in ("outer", "inner") for w in ("drive", "counter", "fog")}
     assert "Keysight Technologies,53230A" in rows["outer", "counter"]   # the twin's *IDN?
     assert "CiA 402" in rows["inner", "drive"]                          # 0x1008 over SDO
+    # what the measurement rests on, read back at connect (issue 11): the feedback PDOs
+    assert "drive.pdo (TPDO1) mapping = 0x606C + 0x6064" in rows["inner", "drive"]
+    assert "drive.quick stop deceleration 0x6085 = " in rows["inner", "drive"]
     assert "KVH DSP-1760" in rows["outer", "fog"]
 
 
