@@ -43,6 +43,10 @@ from procedures.rate_ladder.settings import (
 )
 
 
+def _turns(n: int) -> str:
+    return f"{n} turn" if n == 1 else f"{n} turns"
+
+
 def _fog_losses(fog: Any) -> int:
     """Frames the FOG's decoder found lost or broken so far (a half's count: the change)."""
     st = fog.stats
@@ -152,7 +156,7 @@ class RateLadder(StepDispatch, LadderCertificate):
                                       {"tolerance_dps": tol, "hold_s": settle["hold_s"],
                                        "timeout_s": settle["timeout_s"]}))
                     period = 360.0 / rate
-                    steps.append(Step("acquire", axis, f"{n} turns at {target:+g} deg/s "
+                    steps.append(Step("acquire", axis, f"{_turns(n)} at {target:+g} deg/s "
                                       f"(half {j + 1}/{len(parts)}, "
                                       f"{format_duration(n * period)})",
                                       (n + 1) * period, unit,
@@ -254,7 +258,7 @@ class RateLadder(StepDispatch, LadderCertificate):
         t_end = t_arm + (n + 1) * period
         while (left := t_end - ctx.clock.now()) > 0:
             turn = min(n, max(int((ctx.clock.now() - t_arm) / period) - 1, 0))
-            ctx.progress.advance(turn, n, f"{turn} of {n} turns timed at "
+            ctx.progress.advance(turn, n, f"{turn} of {_turns(n)} timed at "
                                  f"{p['rate_dps']:+g} deg/s, {format_duration(left)} left")
             ctx.clock.sleep(min(left, max(period / 4, 0.25)))
             drive.check()
@@ -297,7 +301,7 @@ class RateLadder(StepDispatch, LadderCertificate):
         if fog_mean_dps is not None:
             ctx.progress.reading("FOG mean", f"end of the {label} half",
                                  Figure("", fog_mean_dps, unit="°/s", signed=True, digits=6))
-        ctx.progress.result(f"{label}, {len(dev)} turns timed",
+        ctx.progress.result(f"{label}, {_turns(len(dev))} timed",
                             Figure("mean rate deviation", mean, unit=RELATIVE, signed=True,
                                    digits=3),
                             *[Figure(f"turn {i + 1}", d, unit=RELATIVE, signed=True, digits=3)

@@ -58,7 +58,7 @@
     if (st.turns && st.turns.deviation_ppm) {
       const n = st.turns.deviation_ppm.length;
       station.charts.turns.setData([Array.from({ length: n }, (_, i) => i + 1), st.turns.deviation_ppm]);
-      $("turns-text").textContent = `${st.turns.axis || ""} at ${st.turns.set_rate_dps} deg/s: ${n} turns`;
+      $("turns-text").textContent = `${st.turns.axis || ""} at ${st.turns.set_rate_dps} deg/s: ${n} ${n === 1 ? "turn" : "turns"}`;
     } else {
       $("turns-text").textContent = "no half timed yet in this run";
     }
