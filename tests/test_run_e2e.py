@@ -165,9 +165,10 @@ def test_sigint_mid_acquisition_stops_the_axes_and_resume_completes(tmp_path: Pa
     deadline = time.monotonic() + 120
     run_dir = None
     while time.monotonic() < deadline:
-        dirs = list(runs.glob("*")) if runs.exists() else []
-        if dirs and (dirs[0] / "events.jsonl").exists():
-            run_dir = dirs[0]
+        # the run directory, not records.sqlite beside it (glob order is the disk's)
+        logs = list(runs.glob("*/events.jsonl")) if runs.exists() else []
+        if logs:
+            run_dir = logs[0].parent
             ev = _events(run_dir)
             if any(e["event"] == "acquire" and e.get("unit") == "outer/200dps"
                    and e.get("half") == 0 for e in ev) and \

@@ -127,7 +127,12 @@ class LiveConsole(PlainConsole):
 
     def advance(self, done: float, total: float, text: str) -> None:
         with self.lock:
+            first = self.step_progress is None
             self.step_progress = (done, total, text)
+        if first and self._running:
+            # a step's own bar is drawn at least once, however fast the paced clock runs
+            # it through (a 2 s settle can take 20 ms of wall time on the twins)
+            self.live.refresh()
 
     def reading(self, name: str, label: str, *figures: Figure) -> None:
         text = f"{figures_text(figures)} ({label})" if label else figures_text(figures)
