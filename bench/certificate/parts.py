@@ -11,7 +11,6 @@ so that both print a value the same way. Nothing here names a procedure.
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,6 +18,7 @@ from typing import Any
 
 import yaml
 
+from bench.analysis.finite import finite_number as num
 from bench.certificate.model import Block, Figure, Para, Section
 from bench.certificate.rounding import MINUS, RelUnit, format_value_u
 from bench.certificate.shape import conform_result
@@ -85,15 +85,6 @@ def stand_of(src: Sources) -> dict[str, Any]:
 
 # -- values as printed ---------------------------------------------------------------------
 
-def num(x: Any) -> float | None:
-    """A finite number, or None (booleans, text and NaN are not numbers here)."""
-    if isinstance(x, bool) or x is None:
-        return None
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
 
 
 UNIT_SUFFIXES = {"c": "°C", "deg": "°", "pct": "%", "hpa": "hPa", "hz": "Hz", "s": "s",

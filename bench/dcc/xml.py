@@ -7,13 +7,13 @@ certificate's rounding (GUM, 2 significant digits of U) stays a matter of the PD
 
 from __future__ import annotations
 
-import math
 import re
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from lxml import etree
 
+from bench.analysis.finite import finite_number as num
 from bench.dcc import vocab as V
 
 DCC_NS = "https://ptb.de/dcc"
@@ -26,15 +26,6 @@ COVERAGE_PROBABILITY = "0.95"
 NOT_RECORDED = "not recorded"   # a required field nobody recorded: the gap shows
 
 
-def num(x: Any) -> float | None:
-    """A finite float, or None (missing, text, NaN, inf, a bool)."""
-    if x is None or isinstance(x, bool):
-        return None
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
 
 
 def dec(x: float) -> str:

@@ -10,7 +10,6 @@ from __future__ import annotations
 import datetime as dt
 import hashlib
 import json
-import math
 import socket
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +17,7 @@ from typing import Any
 
 import yaml
 
+from bench.analysis.finite import finite_number as _num
 from bench.journal import sha256_file
 
 #: files of a run directory that make up its certificate (hashed into the records)
@@ -119,14 +119,6 @@ def run_uid(meta: dict[str, Any], run_dir: str) -> str:
     return hashlib.sha256(key.encode()).hexdigest()[:32]
 
 
-def _num(x: Any) -> float | None:
-    if isinstance(x, bool) or x is None:
-        return None
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
 
 
 def _read_json(path: Path) -> dict[str, Any]:
