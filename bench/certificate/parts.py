@@ -47,7 +47,7 @@ class Sources:
         src = cls(conformed, run_path, dropped=dropped)
         if run_path is None:
             return src
-        src.meta = _read_json(run_path / "meta.json")
+        src.meta = read_json_object(run_path / "meta.json")
         src.stand_file = _read_yaml(run_path / "stand.yaml")
         src.procedure_file = _read_yaml(run_path / "procedure.yaml")
         events = run_path / "events.jsonl"
@@ -60,7 +60,8 @@ class Sources:
         return default if value is None else value
 
 
-def _read_json(path: Path) -> dict[str, Any]:
+def read_json_object(path: Path) -> dict[str, Any]:
+    """A JSON object from a run directory's file, or {} if it is missing or damaged."""
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):

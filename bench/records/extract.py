@@ -18,6 +18,7 @@ from typing import Any
 import yaml
 
 from bench.analysis.finite import finite_number as _num
+from bench.certificate.parts import read_json_object
 from bench.journal import sha256_file
 
 #: files of a run directory that make up its certificate (hashed into the records)
@@ -117,16 +118,6 @@ def run_uid(meta: dict[str, Any], run_dir: str) -> str:
     key = "|".join(str(meta.get(k, "")) for k in ("created_utc", "procedure_sha256",
                                                   "stand_sha256")) + "|" + run_dir
     return hashlib.sha256(key.encode()).hexdigest()[:32]
-
-
-
-
-def _read_json(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return {}
-    return data if isinstance(data, dict) else {}
 
 
 def _checks_index(result: dict[str, Any]) -> dict[tuple[str, str, float | None], dict[str, Any]]:
@@ -229,10 +220,10 @@ def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> Run
     if result is None:
         if not (path / "result.json").is_file() or not (path / "events.jsonl").is_file():
             raise NotARun(f"{path}: no result.json and events.jsonl (not a finished run)")
-        result = _read_json(path / "result.json")
+        result = read_json_object(path / "result.json")
     if not result:
         raise NotARun(f"{path}/result.json: not a readable result")
-    meta = _read_json(path / "meta.json")
+    meta = read_json_object(path / "meta.json")
     try:
         stand_file = yaml.safe_load((path / "stand.yaml").read_text(encoding="utf-8")) or {}
     except (OSError, yaml.YAMLError):
@@ -288,5 +279,5 @@ def find_runs(runs_dir: str | Path) -> list[Path]:
     """Run directories under `runs_dir` (itself, its children, or deeper), oldest first."""
     root = Path(runs_dir)
     found = {p.parent for p in root.rglob("result.json") if (p.parent / "events.jsonl").is_file()}
-    return sorted(found, key=lambda p: (_read_json(p / "meta.json").get("created_utc", ""),
+    return sorted(found, key=lambda p: (read_json_object(p / "meta.json").get("created_utc", ""),
                                         p.name))
