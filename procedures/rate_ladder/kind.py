@@ -67,6 +67,7 @@ class RateLadder(StepDispatch, LadderCertificate):
         out = check_axis_names(cfg)
         pdoc, sdoc = cfg.procedure_doc, cfg.stand_doc
         accel = cfg.procedure.get("accel_dps2")
+        ladder = LadderSettings.from_config(cfg)
         for axis, spec in cfg.procedure["axes"].items():
             if axis not in cfg.stand["axes"]:
                 continue
@@ -84,7 +85,7 @@ class RateLadder(StepDispatch, LadderCertificate):
                                         "stand needs an absolute trigger level in volts (a "
                                         "once-per-rev pulse is too slow for auto-level)"))
             fog_range = (fog or {}).get("range_dps", DEFAULT_FOG_RANGE_DPS)
-            turns = LadderSettings.from_config(cfg).axes[axis].turns
+            turns = ladder.axes[axis].turns
             for i, rate in enumerate(spec["rates_dps"]):
                 where = ("axes", axis, "rates_dps", i)
                 if (turns + 1) * 360.0 / rate > STEP_MAX_S:
