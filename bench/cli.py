@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 
 import bench
@@ -79,6 +80,10 @@ def _console_options(cmd: argparse.ArgumentParser) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # canopen logs an SDO abort it sends as a warning; without a handler Python prints it
+    # to stderr above our own message, and the first line the operator reads would be a
+    # library's echo of the cause, not the cause (the session reports every fault itself)
+    logging.getLogger("canopen").addHandler(logging.NullHandler())
     args = build_parser().parse_args(argv)
     if args.command == "decode":
         return decode_command(args.raw_file, args.fmt, args.csv)

@@ -240,8 +240,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
             if isinstance(e, Abort) and engine_ran:   # the engine stopped and journaled it
                 cause = str(e)
             else:
-                where = "while running" if engine_ran else "while setting up the bench"
-                cause = f"{where}: {e or type(e).__name__}"
+                phase = "while running" if engine_ran else "while setting up the bench"
+                cause = f"{phase}: {e or type(e).__name__}"
                 if bench is not None:
                     later += bench.stop_and_close(progress.line)
                     bench = None

@@ -9,6 +9,7 @@ disable) before anything else. A second Ctrl-C while stopping does not skip the 
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
 import sys
 import threading
@@ -86,12 +87,29 @@ class SignalGuard:
 WORKER_NICE = 10
 
 
-def _yield_the_cpu() -> None:
+#: how often the analysis worker checks that the bench process that started it still lives (s)
+PARENT_WATCH_S = 0.5
+
+
+def _worker_init(parent_pid: int) -> None:
     """In the worker: a lower priority, so on a busy machine the acquisition threads (FOG
-    reader, heartbeat, twins) get the CPU first and the analysis waits."""
+    reader, heartbeat, twins) get the CPU first and the analysis waits; and an end when the
+    bench process ends, however it ends.
+
+    A SIGKILLed bench runs no cleanup: its worker, blocked on the job queue, would live on
+    reparented to PID 1, holding the raw files and the bench's stdout/stderr open (so a
+    `bench run ... | tee log` never ends). The worker watches its parent instead.
+    """
     import os
 
     os.nice(WORKER_NICE)
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(PARENT_WATCH_S)
+        os._exit(1)  # the bench is gone: nobody will read a result; no cleanup to run
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
 class AnalysisWorker:
@@ -113,13 +131,15 @@ class AnalysisWorker:
         self._submitted: dict[Future[Any], float] = {}  # monotonic time of each submit
         self._took_s: list[float] = []                  # wall time of each finished job
         self._lock = threading.Lock()
+        self._failed: list[str] = []  # what an on_done raised: reported by close()
 
     def submit(self, fn: Callable[..., Any], *args: Any,
                on_done: Callable[[Any, BaseException | None], None]) -> None:
         if self._pool is None:
             self._pool = ProcessPoolExecutor(max_workers=1,
                                              mp_context=multiprocessing.get_context("spawn"),
-                                             initializer=_yield_the_cpu)
+                                             initializer=_worker_init,
+                                             initargs=(os.getpid(),))
         fut = self._pool.submit(fn, *args)
         with self._lock:
             self._submitted[fut] = time.monotonic()
@@ -132,7 +152,13 @@ class AnalysisWorker:
             if f.cancelled():
                 return
             err = f.exception()
-            on_done(None if err else f.result(), err)
+            try:
+                on_done(None if err else f.result(), err)
+            except Exception as e:  # noqa: BLE001 - e.g. a full disk while journaling it
+                # raised here it would be printed by concurrent.futures as a traceback;
+                # the session reports it with the rest instead (close())
+                with self._lock:
+                    self._failed.append(f"a pair's first look could not be reported: {e}")
         fut.add_done_callback(done)
         self._pending.append(fut)
 
@@ -147,14 +173,18 @@ class AnalysisWorker:
             oldest = min(self._submitted.values())
             return max(mean * len(self._submitted) - (time.monotonic() - oldest), 0.0)
 
-    def close(self, wait: bool = True) -> None:
-        """Let submitted jobs finish (wait=True) or drop those not started, then stop."""
+    def close(self, wait: bool = True) -> list[str]:
+        """Let submitted jobs finish (wait=True) or drop those not started, then stop;
+        returns what went wrong reporting their results (safe to call twice)."""
         if self._pool is not None:
             if wait:
                 futures_wait(self._pending)
             self._pool.shutdown(wait=True, cancel_futures=not wait)
             self._pool = None
         self._pending.clear()
+        with self._lock:
+            failed, self._failed = self._failed, []
+        return failed
 
 
 @dataclass
@@ -223,7 +253,9 @@ class Engine:
                 ctx.run.event("step_done", index=i, action=step.action, unit=step.unit)
                 if step.unit and last_of_unit[step.unit] == i:
                     ctx.run.event("unit_done", unit=step.unit)
-            ctx.worker.close(wait=True)  # the last pair's first look, before "completed"
+            # the last pair's first look, before "completed"
+            for problem in ctx.worker.close(wait=True):
+                ctx.progress.warn(f"WARNING: {problem}")
             ctx.progress.end()
         except BaseException as exc:  # noqa: BLE001 - every failure must stop the table
             guard.stopping = True
@@ -237,7 +269,7 @@ class Engine:
             except Exception as e:  # noqa: BLE001 - the stop comes first, whatever the disk
                 later.append(f"the abort could not be journaled: {e}")
             later += self.safe_stop()
-            ctx.worker.close(wait=False)
+            later += ctx.worker.close(wait=False)
             out = exc if isinstance(exc, Abort) else Abort(reason)
             for note in later:
                 out.add_note(f"also, while stopping: {note}")
