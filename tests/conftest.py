@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -12,6 +13,16 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
+
+
+def unavailable(reason: str) -> None:
+    """A test's server or facility (PostgreSQL, a browser, a multicast bus, a tmpfs) is
+    missing: in CI (`CI` set, as .ci/run's caller does) that is a failure, since .ci/run
+    installs them and a skip would hide the gap; on a developer's machine, a skip saying so.
+    """
+    if os.environ.get("CI"):
+        pytest.fail(f"{reason} (CI installs it: see .ci/run)", pytrace=False)
+    pytest.skip(reason)
 
 
 @pytest.fixture

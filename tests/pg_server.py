@@ -4,7 +4,7 @@ The distribution's PostgreSQL binaries (Debian `postgresql`, installed by .ci/ru
 from a temporary directory on a free port. initdb and postgres refuse to run as root,
 and CI runs as root, so as root they run as the `postgres` system user (runuser).
 `PgServer.start()` raises `PgUnavailable` with the reason when that cannot be done; the
-tests then skip with that reason.
+tests then skip with that reason (in CI they fail: tests.conftest.unavailable).
 """
 
 from __future__ import annotations

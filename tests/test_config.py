@@ -39,7 +39,9 @@ def _validate(proc: Path, capsys: pytest.CaptureFixture[str]) -> tuple[int, str]
 
 
 def test_the_shipped_configs_are_valid(capsys: pytest.CaptureFixture[str]) -> None:
-    for proc in sorted((CONFIGS / "procedures").glob("*.yaml")):
+    procedures = sorted((CONFIGS / "procedures").glob("*.yaml"))
+    assert len(procedures) >= 3, procedures  # demo, drift-demo, paper-ladder at least
+    for proc in procedures:
         rc, err = _validate(proc, capsys)
         assert rc == 0, (proc, err)
 
@@ -150,7 +152,9 @@ def test_every_shipped_stand_file_fits_a_procedure_kind() -> None:
     from bench.schema import validate
     from bench.yamlfile import load_yaml
 
-    for stand in sorted((CONFIGS / "stands").glob("*.yaml")):
+    stands = sorted((CONFIGS / "stands").glob("*.yaml"))
+    assert len(stands) >= 3, stands  # two sim stands and the real example at least
+    for stand in stands:
         doc = load_yaml(stand)
         fits = [validate(doc, procedure_kind(n).stand_schema()) for n in procedure_names()]
         assert any(not problems for problems in fits), (stand, fits)

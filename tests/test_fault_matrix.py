@@ -31,7 +31,7 @@ from bench.loader import load_config
 from drivers.cia402 import OVER_TEMPERATURE
 from sims.fog_twin import Corrupt, Drop, Garbage, Stall
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, when_step_starts
+from tests.conftest import CONFIGS, unavailable, when_step_starts
 
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
 TRUTH_REL = AxisTruth.from_mapping(
@@ -326,7 +326,7 @@ def small_disk(tmp_path: Path) -> Any:
     done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=48m", "tmpfs", str(mnt)],
                           capture_output=True, text=True)
     if done.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here ({done.stderr.strip()}): the full-disk cell "
+        unavailable(f"cannot mount a tmpfs here ({done.stderr.strip()}): the full-disk cell "
                     "needs root and mount(2)")
     try:
         yield mnt

@@ -27,7 +27,7 @@ from drivers.heartbeat import HeartbeatProducer
 from sims.clock import VirtualClock
 from sims.drive_twin import DriveTwin
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
-from tests.conftest import ROOT
+from tests.conftest import ROOT, unavailable
 
 CONTROLLER = """
 import sys, time
@@ -104,9 +104,9 @@ def _multicast_group() -> str:
                 can.Bus(interface="udp_multicast", channel=group) as b:
             a.send(can.Message(arbitration_id=0x123, data=b"ok", is_extended_id=False))
             if b.recv(1.0) is None:
-                pytest.skip("this machine does not loop multicast back")
+                unavailable("this machine does not loop multicast back")
     except (OSError, can.CanError) as e:
-        pytest.skip(f"udp_multicast bus unavailable here: {e}")
+        unavailable(f"udp_multicast bus unavailable here: {e}")
     return group
 
 

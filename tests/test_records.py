@@ -38,7 +38,7 @@ from bench.records.schema import metadata
 from bench.records.store import TrendPoint
 from bench.records.trend import trend_png
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, ROOT
+from tests.conftest import CONFIGS, ROOT, unavailable
 from tests.pg_server import PgServer, PgUnavailable
 from tests.test_run_e2e import assert_within_u
 
@@ -106,7 +106,7 @@ def pg() -> Iterator[PgServer]:
     try:
         server = PgServer().start()
     except PgUnavailable as e:
-        pytest.skip(f"no PostgreSQL server for the records tests: {e}")
+        unavailable(f"no PostgreSQL server for the records tests: {e}")
     try:
         yield server
     finally:

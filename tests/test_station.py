@@ -40,7 +40,7 @@ from bench.station.live import (
 )
 from bench.station.serve import settings_from_args
 from drivers.fog_formats import get_format
-from tests.conftest import CONFIGS, ROOT
+from tests.conftest import CONFIGS, ROOT, unavailable
 
 TOKEN = "s3cret-token"
 ARTIFACTS = Path(os.environ.get("BENCH_TEST_ARTIFACTS", ROOT / "test-artifacts")) / "station"
@@ -251,7 +251,7 @@ def _wait(cond, timeout_s: float, what: str, poll_s: float = 0.2):  # noqa: ANN0
 def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
     found = _chromium()
     if found is None:
-        pytest.skip("chromium and chromium-driver are not installed (Debian packages "
+        unavailable("chromium and chromium-driver are not installed (Debian packages "
                     "`chromium chromium-driver`; .ci/run installs them)")
     from selenium import webdriver
     from selenium.webdriver.chrome.options import Options
