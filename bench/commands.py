@@ -343,7 +343,8 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     print(run.path / "result.json")
     if doc is None:
         return EXIT_ABORTED
-    return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(result.get("verdict"), EXIT_ABORTED)
+    return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(str(result.get("verdict")),
+                                                      EXIT_ABORTED)
 
 
 def cmd_devices(args: argparse.Namespace) -> int:

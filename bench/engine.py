@@ -8,6 +8,7 @@ disable) before anything else. A second Ctrl-C while stopping does not skip the 
 
 from __future__ import annotations
 
+import functools
 import multiprocessing
 import os
 import signal
@@ -244,7 +245,7 @@ class Engine:
         ctx.progress.begin(steps, ctx.clock.now, ctx.worker.backlog_s)
         try:
             for i, step in enumerate(steps):
-                ctx.eta_s = (lambda i=i: remaining[i])
+                ctx.eta_s = functools.partial(remaining.__getitem__, i)
                 ctx.progress.step(i)
                 ctx.run.event("step_start", index=i, action=step.action, axis=step.axis,
                               unit=step.unit, describe=step.describe)

@@ -23,6 +23,20 @@ class Step:
     params: dict[str, Any] = field(default_factory=dict)
 
     @property
+    def on_axis(self) -> str:
+        """The axis of a step that acts on one; a step built without one is a plan bug."""
+        if self.axis is None:
+            raise ValueError(f"step {self.action!r} ({self.describe}) names no axis")
+        return self.axis
+
+    @property
+    def in_unit(self) -> str:
+        """The unit of a step that completes part of one (for --resume)."""
+        if self.unit is None:
+            raise ValueError(f"step {self.action!r} ({self.describe}) belongs to no unit")
+        return self.unit
+
+    @property
     def key(self) -> str:
         return f"{self.unit or self.axis or '-'}:{self.action}:{self.describe}"
 

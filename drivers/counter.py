@@ -59,7 +59,8 @@ COUNTER_ERRORS = ErrorKinds.family("Counter", "the counter", __name__)
  CounterConnectionError) = COUNTER_ERRORS
 
 
-class CounterMeasurementTimeout(CounterTimeout):
+# the family is declared at run time (ErrorKinds.family): mypy cannot see its classes
+class CounterMeasurementTimeout(CounterTimeout):  # type: ignore[misc,valid-type]
     """The counter answered 9.91E37: no (or too few) edges within its own timeout."""
 
 

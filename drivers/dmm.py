@@ -51,7 +51,8 @@ DMM_ERRORS = ErrorKinds.family("Dmm", "the digitizer", __name__)
 DmmError, DmmCommandError, DmmTimeout, DmmReplyError, DmmConnectionError = DMM_ERRORS
 
 
-class DmmOverload(DmmError):
+# the family is declared at run time (ErrorKinds.family): mypy cannot see its classes
+class DmmOverload(DmmError):  # type: ignore[misc,valid-type]
     """A reading beyond the range (the DMM answers +/-9.9E37)."""
 
 

@@ -155,6 +155,7 @@ class FrameFormat:
         """Build N valid frames, (N, size) uint8, CRC included (the twin uses this)."""
         n = len(sequence)
         rec = np.zeros(n, dtype=self.dtype)
+        assert self.dtype.names is not None  # a structured frame dtype
         rec[self.dtype.names[0]] = int.from_bytes(self.header, "big")
         rates = np.asarray(rates, dtype=np.float32).reshape(n, 3)
         for k, name in enumerate(self.rate_fields):

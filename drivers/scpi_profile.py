@@ -7,7 +7,7 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, Generic, Self, TypeVar
+from typing import Any, ClassVar, Generic, Self, TypeVar, cast
 
 from drivers.clock import Clock
 from drivers.scpi import IDN, RawCallback, ScpiInstrument
@@ -77,8 +77,9 @@ class ProfiledInstrument(ScpiInstrument, Generic[P]):
         `options` go to the constructor (e.g. the digitizer's `timeout_margin_s`). On
         failure the link is closed and the family's error raised.
         """
-        profile = (lookup_profile(cls.profiles, model, cls.kind) if isinstance(model, str)
-                   else model)
+        # the class's profiles are all of its own profile type (a ClassVar cannot say P)
+        profile: P = (cast(P, lookup_profile(cls.profiles, model, cls.kind))
+                      if isinstance(model, str) else model)
         inst = cls(resource, profile, clock, raw=raw, visa_library=visa_library, **options)
         pattern = profile.idn_pattern if check_identity else None
         try:

@@ -24,7 +24,10 @@ import re
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol, TypeVar
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar, cast
+
+if TYPE_CHECKING:  # pyvisa is imported where a link is opened, not at import
+    from pyvisa.resources import MessageBasedResource
 
 
 class TransportTimeout(TimeoutError):
@@ -58,10 +61,11 @@ class VisaTransport:
         self.resource = resource
         self._rm = pyvisa.ResourceManager(visa_library)
         try:
-            self._inst = self._rm.open_resource(
+            # a message-based resource (TCPIP SOCKET/INSTR, ASRL, USB): raw reads and writes
+            self._inst = cast("MessageBasedResource", self._rm.open_resource(
                 resource, read_termination=read_termination,
                 write_termination=write_termination, timeout=_ms(timeout_s),
-                open_timeout=_ms(open_timeout_s))
+                open_timeout=_ms(open_timeout_s)))
         except BaseException:
             with contextlib.suppress(Exception):
                 self._rm.close()

@@ -222,7 +222,7 @@ class ScpiServer:
 
     #: how an error entry's code is printed: "{:d}" (`0,"No error"`, SCPI-99) or
     #: "{:+d}" (`+0,"No error"`, as Keysight's manuals print it)
-    error_code_format: ClassVar[str] = "{:d}"
+    error_code_format: str = "{:d}"   # a twin may set its own (the 53230A: "{:+d}")
 
     def error_text(self, entry: ErrorEntry) -> str:
         return f'{self.error_code_format.format(entry.code)},"{entry.message}"'

@@ -102,7 +102,11 @@ class DiskArray:
         return out if np.ndim(v) else out[0]
 
 
-def as_samples(x: Any) -> np.ndarray | DiskArray:
+#: a 1-D record held in memory or read from its file in chunks
+Samples = np.ndarray | DiskArray
+
+
+def as_samples(x: Any) -> Samples:
     """A record's samples as the analysis reads them: on disk stays on disk."""
     return x if isinstance(x, DiskArray) else np.asarray(x, dtype=float)
 

@@ -543,7 +543,7 @@ class DriftResult:
     @property
     def earth_consistent(self) -> bool | None:
         """Measured W_h agrees with the latitude's within U: k_as and levelling check."""
-        if self.earth_horizontal_dph is None:
+        if self.earth_horizontal_dph is None or self.earth_horizontal_u_dph is None:
             return None
         return (abs(self.earth_horizontal_dph - self.earth_horizontal_expected_dph)
                 <= self.earth_horizontal_u_dph)

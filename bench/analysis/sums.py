@@ -126,6 +126,7 @@ class _Pass:
         self.tab = None
         if design.has_mains and win.uniform_dt_s is not None:
             # uniform grid: cos/sin(w (t0 + j dt)) by rotating a table, no trig per sample
+            assert design.mains_hz is not None  # has_mains
             arg = TWO_PI * design.mains_hz * win.uniform_dt_s * np.arange(m)
             self.tab = (np.cos(arg), np.sin(arg))
         nb = design.bins_per_turn
@@ -149,6 +150,7 @@ class _Pass:
         return (i_raw, *self._bins(u, segs))
 
     def _mains(self, t: np.ndarray, mc: np.ndarray, ms: np.ndarray) -> None:
+        assert self.design.mains_hz is not None  # only called when has_mains
         w = TWO_PI * self.design.mains_hz
         m = t.size
         if self.tab is not None:

@@ -314,6 +314,7 @@ def mains_result(fit: DirectionFit, k: float, k_u_std: float, inflation: NoiseIn
     v = np.array([a, b])
     cov = cov + np.outer(v, v) * (k_u_std / k) ** 2
     amp, u_amp, ph, u_ph = _amp_phase(a, b, cov)
+    assert design.mains_hz is not None  # has_mains
     return MainsResult(frequency_hz=float(design.mains_hz), amplitude_dps=amp,
                        amplitude_u_dps=COVERAGE * u_amp, phase_deg=ph,
                        phase_u_deg=min(COVERAGE * u_ph, 180.0),

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bench.analysis.disk import DiskArray, as_samples, searchsorted
+from bench.analysis.disk import DiskArray, Samples, as_samples, searchsorted
 from bench.analysis.turns import check_edges
 
 DEFAULT_CHUNK = 1 << 16
@@ -39,14 +39,14 @@ class HalfRecord:
 
     sign: int
     edge_times_s: np.ndarray
-    fog_t_s: np.ndarray
-    fog_dps: np.ndarray
+    fog_t_s: Samples
+    fog_dps: Samples
     # the session (bench run or --resume) that acquired it: each session has a time axis
     # and a FOG bias of its own (a resumed pair, pair.py)
     session: int = 0
 
 
-def _partial(t: np.ndarray, f: np.ndarray, p: np.ndarray, x: np.ndarray) -> np.ndarray:
+def _partial(t: Samples, f: Samples, p: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Integral of the linear interpolant from sample p to time x (t_p <= x <= t_p+1)."""
     dx = x - t[p]
     nxt = np.minimum(p + 1, t.size - 1)
@@ -159,13 +159,13 @@ class Window:
                    i_first=i_first, uniform_dt_s=uniform)
 
 
-def _grid_ok(t: np.ndarray, a: int, b: int, dt: float) -> bool:
+def _grid_ok(t: Samples, a: int, b: int, dt: float) -> bool:
     """Spot-check a few interior samples against the grid (cheap, O(1))."""
     probe = np.linspace(a, b, 17).astype(np.int64)
     return bool(np.all(np.abs(t[probe] - (t[a] + (probe - a) * dt)) <= 1e-3 * dt))
 
 
-def _cumtrapz_at(t: np.ndarray, f: np.ndarray, start: int, idx: np.ndarray,
+def _cumtrapz_at(t: Samples, f: Samples, start: int, idx: np.ndarray,
                  chunk: int) -> np.ndarray:
     """Trapezoid integral from sample `start` to each sample in sorted `idx`, in chunks."""
     out = np.zeros(idx.size)

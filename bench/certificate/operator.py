@@ -46,7 +46,7 @@ def prompt_blocks(events: Sequence[Mapping[str, Any]]) -> tuple[Any, ...]:
         return ()
     rows = tuple((str(e.get("session", "")), str(e.get("text", "")),
                   _utc(e.get("answered_utc") or e.get("utc")), _answer(e)) for e in prompts)
-    notes = ()
+    notes: tuple[str, ...] = ()
     if any(_answered_by(e) == "--yes" for e in prompts):
         notes = ("--yes: the run was started unattended and the set-up steps were not "
                  "confirmed by a person at the time of the run.",)

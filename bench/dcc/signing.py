@@ -118,6 +118,7 @@ def verify_signature(data: bytes, trusted_cert: bytes | None = None,
     """
     verifier = XAdESVerifier()
     embedded = embedded_certificate(data)
+    signer: x509.Certificate | None
     if trusted_cert is not None:
         results = verifier.verify(data, x509_cert=trusted_cert.decode("ascii"),
                                   expect_references=EXPECT_REFERENCES)

@@ -245,7 +245,7 @@ def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> Run
         serial=serial,
         maker=_opt(ident.get("maker")), model=_opt(ident.get("model")),
         location=_opt(ident.get("location")),
-        interval_days=int(interval) if _num(interval) else None,
+        interval_days=int(iv) if (iv := _num(interval)) else None,
         kind=str(result.get("procedure") or ("drift-pulse" if result.get("drift")
                                              else "rate-ladder")),
         title=_opt(result.get("title")),

@@ -68,10 +68,10 @@ def history_section(rec: Records, current: RunRecord, where: str) -> list[tuple[
     earlier = _earlier(rec, current)
     blocks: list[Any] = []
     if current.calibration_state:
-        rows = [("Calibration state of this run", current.calibration_state)]
+        state = [("Calibration state of this run", current.calibration_state)]
         if current.adjustment_note:
-            rows.append(("Adjustment", current.adjustment_note))
-        blocks.append(Fields(tuple(rows)))
+            state.append(("Adjustment", current.adjustment_note))
+        blocks.append(Fields(tuple(state)))
     if not earlier:
         return [(TITLE, tuple(blocks))] if blocks else []
     prev = earlier[-1]
@@ -79,7 +79,7 @@ def history_section(rec: Records, current: RunRecord, where: str) -> list[tuple[
         f"The laboratory's records ({where}) hold {len(earlier)} earlier run(s) of table "
         f"serial {current.serial}. The previous certificate, and the digests by which its "
         f"files can be checked:"))
-    rows: list[tuple[str, str]] = [("Previous certificate number", prev.certificate_number or "not recorded"),
+    rows = [("Previous certificate number", prev.certificate_number or "not recorded"),
             ("Its date", _date(prev)),
             ("Its verdict", prev.verdict.upper()),
             ("Its calibration state", prev.calibration_state or "not stated")]

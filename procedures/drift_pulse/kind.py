@@ -449,7 +449,7 @@ class DriftPulse(StepDispatch, DriftCertificate):
         ctx.progress.line(f"  platform at {final:.4f} deg (target {p['position_deg']:g})")
 
     def _do_settle(self, step: Step, ctx: RunContext) -> None:
-        self._wait(ctx, step.axis, step.params["duration_s"])
+        self._wait(ctx, step.on_axis, step.params["duration_s"])
 
     def _wait(self, ctx: RunContext, axis: str, duration_s: float) -> None:
         drive = ctx.bench.axes[axis].drive
@@ -503,7 +503,7 @@ class DriftPulse(StepDispatch, DriftCertificate):
         where = f"{kind} {p['index']} at {p['position_deg']:g}°"
         ctx.progress.reading("drift", where, *quick)
         ctx.progress.result(f"{where}, drift at nominal edges", *quick)
-        self._wait(ctx, step.axis, float(setting(cfg, "gap_s")))
+        self._wait(ctx, step.on_axis, float(setting(cfg, "gap_s")))
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
         ctx.bench.extra["awg"].outputs_off()
@@ -599,7 +599,7 @@ def _checks(cfg: Config, result: dp.DriftResult, rule: str) -> list[dict[str, An
                     "value_dph": ax.own_dph, "u_dph": ax.own_u_dph, "tolerance_dph": float(tol),
                     **{k: c[k] for k in ("rule", "verdict", "reason", "capability_ratio",
                                          "capability_ok")}})
-    if result.earth_consistent is not None:
+    if result.earth_consistent is not None and result.earth_horizontal_dph is not None:
         diff = result.earth_horizontal_dph - result.earth_horizontal_expected_dph
         out.append({"axis": "x,y", "quantity": "earth_horizontal_rate", "unit": "deg/h",
                     "value_dph": result.earth_horizontal_dph,

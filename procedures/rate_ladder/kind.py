@@ -209,7 +209,7 @@ class RateLadder(StepDispatch, LadderCertificate):
         lost0 = _fog_losses(fog)
         mark = fog.checkpoint()  # where the record starts in the raw capture (or before)
         self._wait_fog(ctx, fog, i0 + n, duration, f"{step.axis}: FOG at rest")
-        StaticRecorded(step.axis, step.unit, fog_from=i0, fog_to=i0 + n, rate_hz=fog.rate_hz,
+        StaticRecorded(step.on_axis, step.in_unit, fog_from=i0, fog_to=i0 + n, rate_hz=fog.rate_hz,
                        lost=_fog_losses(fog) - lost0, fog_capture=mark
                        ).write(ctx.run)   # the samples stay in the raw capture
         mean = _fog_mean_dps(fog)
@@ -276,7 +276,7 @@ class RateLadder(StepDispatch, LadderCertificate):
         lost = _fog_losses(fog) - lost0
         # the FOG samples stay in the raw capture: the pair's analysis reads them there;
         # this event completes the half (a --resume keeps it, docs/resume.md)
-        HalfAcquired(step.axis, step.unit, half=p["half"], set_rate_dps=p["rate_dps"], turns=n,
+        HalfAcquired(step.on_axis, step.in_unit, half=p["half"], set_rate_dps=p["rate_dps"], turns=n,
                      edges_s=[float(e) for e in edges], counter_records=[rec0, rec1],
                      fog_from=i_from, fog_to=i_to, rate_hz=fog.rate_hz,
                      counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
@@ -286,7 +286,7 @@ class RateLadder(StepDispatch, LadderCertificate):
             ctx.progress.warn(f"  WARNING {step.axis}: {lost} FOG frames lost or broken "
                               "during this half (CRC or sequence gaps); the analysis uses "
                               "the rest")
-        self._show_half(ctx, step.axis, p["rate_dps"], edges, _fog_mean_dps(fog))
+        self._show_half(ctx, step.on_axis, p["rate_dps"], edges, _fog_mean_dps(fog))
 
     @staticmethod
     def _show_half(ctx: RunContext, axis: str, set_dps: float, edges: Any,
@@ -311,7 +311,7 @@ class RateLadder(StepDispatch, LadderCertificate):
     def _do_analyze(self, step: Step, ctx: RunContext) -> None:
         """A first look at the pair, in the analysis worker: acquisition goes on meanwhile
         (the result.json analysis is made again from the raw files at the end)."""
-        axis, unit, rate = step.axis, step.unit, step.params["rate_dps"]
+        axis, unit, rate = step.on_axis, step.in_unit, step.params["rate_dps"]
         events = ctx.run.events()  # the halves may come from earlier sessions (--resume)
 
         def done(summary: dict[str, Any] | None, error: BaseException | None) -> None:
