@@ -171,7 +171,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
     plan = kind.build_plan(cfg)
     done = run.completed_units()
     todo = plan.remaining(done)
-    if resume and hasattr(kind, "resume_plan"):  # finer than the unit (a rate ladder's halves)
+    if resume:  # finer than the unit where the kind keeps parts (a rate ladder's halves)
         todo = kind.resume_plan(todo, run)
     axes = sorted({st.axis for st in todo.steps if st.axis and st.axis in cfg.stand["axes"]})
     short = space_problem(run.path, expected_raw_bytes(cfg.stand, axes, todo.total_s))

@@ -7,19 +7,26 @@ serial port, the CAN channel) before this module opens them.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from bench.canbus import controller_node_ids
 from bench.config import FogSettings
 from bench.journal import JsonLines, RunDir
+from bench.protocols import Counter as CounterLike
+from bench.protocols import Drive
+from bench.protocols import Fog as FogLike
 from drivers.axis import Axis
 from drivers.clock import Clock
 from drivers.counter import Counter, CounterError
 from drivers.fog import Fog
 from drivers.time_tie import TimeTie
+
+T = TypeVar("T")
 
 DEFAULT_FOG_RANGE_DPS = 490.0  # KVH DSP-1760's range; a stand file may say otherwise
 #: seconds of FOG samples the live driver keeps: the run's memory must not grow with its
@@ -32,9 +39,9 @@ class AxisInstruments:
     """One table axis: its drive, and the counter and FOG that watch it."""
 
     name: str
-    drive: Any
-    counter: Any | None = None
-    fog: Any | None = None
+    drive: Drive
+    counter: CounterLike | None = None
+    fog: FogLike | None = None
     identities: dict[str, str] = field(default_factory=dict)
     logs: dict[str, JsonLines] = field(default_factory=dict)
     reference_text: str | None = None  # the counter's timebase as read back (journal)
@@ -42,27 +49,38 @@ class AxisInstruments:
 
 
 class Bench:
-    """All instruments of a run; `safe_stop` ramps every axis to zero and disables it."""
+    """All instruments of a run; `safe_stop` ramps every axis to zero and disables it.
+
+    What is opened is entered on one ExitStack, so it is closed last-opened-first, each
+    closer whatever the others raise; the errors come back together (`StopErrors`), never
+    one in place of another. Closing twice is harmless (the stack is empty then).
+    """
 
     def __init__(self) -> None:
         self.axes: dict[str, AxisInstruments] = {}
         self.extra: dict[str, Any] = {}
-        self._closers: list[tuple[str, Callable[[], Any]]] = []
-        self._logs: list[JsonLines] = []
+        self._stack = contextlib.ExitStack()
+        self._errors: list[str] = []
 
-    def enter(self, cm: Any) -> Any:
+    def enter(self, cm: AbstractContextManager[T]) -> T:
         obj = cm.__enter__()
         name = getattr(obj, "name", None) or getattr(obj, "port", None) or type(obj).__name__
-        self._closers.append((str(name), lambda: cm.__exit__(None, None, None)))
+        self._stack.callback(self._closing, str(name), lambda: cm.__exit__(None, None, None))
         return obj
 
     def callback(self, fn: Callable[[], Any]) -> None:
-        self._closers.append((getattr(fn, "__qualname__", "cleanup"), fn))
+        self._stack.callback(self._closing, getattr(fn, "__qualname__", "cleanup"), fn)
 
     def log(self, path: Path) -> JsonLines:
         j = JsonLines(path)
-        self._logs.append(j)
+        self._stack.callback(self._closing, f"raw log {j.path}", j.close)
         return j
+
+    def _closing(self, what: str, fn: Callable[[], Any]) -> None:
+        try:
+            fn()
+        except Exception as e:  # noqa: BLE001 - the others must still be closed
+            self._errors.append(f"{what}: {e}")
 
     def safe_stop(self, log: Callable[[str], None]) -> None:
         """Every axis through the drive's one stop sequence (drivers/axis.py safe_stop)."""
@@ -79,20 +97,10 @@ class Bench:
             error.add_note(f"also, while stopping: {err}")
 
     def close(self) -> None:
-        """Close every instrument (last opened first), then the raw logs. Every one is
-        tried whatever the others do; the errors are raised together (`StopErrors`)."""
-        errors: list[str] = []
-        while self._closers:
-            what, fn = self._closers.pop()
-            try:
-                fn()
-            except Exception as e:  # noqa: BLE001 - the others must still be closed
-                errors.append(f"{what}: {e}")
-        for j in self._logs:
-            try:
-                j.close()
-            except Exception as e:  # noqa: BLE001
-                errors.append(f"raw log {j.path}: {e}")
+        """Close every instrument and raw log (last opened first). Every one is tried
+        whatever the others do; the errors are raised together (`StopErrors`)."""
+        self._stack.close()
+        errors, self._errors = self._errors, []
         if errors:
             raise StopErrors(errors)
 

@@ -67,6 +67,10 @@ class ProcedureKind(Protocol):
     def execute(self, step: Step, ctx: RunContext) -> None:
         """Do one step on the bench."""
 
+    def resume_plan(self, plan: Plan, run: RunDir) -> Plan:
+        """What a --resume runs of `plan` (the units not done); `procedures.base.StepDispatch`
+        answers "all of it"."""
+
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
         """result.json from the run directory's raw data alone."""
 

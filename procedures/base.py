@@ -15,7 +15,7 @@ from bench.conformity import RULES
 from bench.engine import RunContext
 from bench.journal import RunDir, sha256_file
 from bench.lab import certificate_settings
-from bench.plan import Step
+from bench.plan import Plan, Step
 from bench.uncertainty_names import UNCERTAINTY_NAMING, with_explicit_names
 
 
@@ -27,6 +27,11 @@ class StepDispatch:
 
     def _do_prompt(self, step: Step, ctx: RunContext) -> None:
         ctx.prompt(step.describe)
+
+    def resume_plan(self, plan: Plan, run: RunDir) -> Plan:
+        """What a --resume runs of `plan` (the units not done): all of it, unless the kind
+        keeps finer parts of a unit (the rate ladder keeps each half already acquired)."""
+        return plan
 
 
 SCHEMA = "bench.result/1"
