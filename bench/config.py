@@ -98,11 +98,16 @@ COUNTER = Map({
                              "FOG's time axis"),
     }), False, "drivers/time_tie.py; a stand without a sim: block must state it"),
 })
+#: the FOG keys' defaults, used by the schema's reference and by `FogSettings` (one place)
+FOG_DEFAULTS: dict[str, Any] = {"baudrate": 921600, "format": "kvh-a", "axis": "z",
+                                "configure": "declare"}
 FOG = Map({
     "port": Key(Str(), True, "serial port, e.g. /dev/ttyUSB0"),
-    "baudrate": Key(Num(min=1200, max=16_000_000, integer=True)),
-    "format": Key(Str(), False, "frame format, e.g. kvh-a"),
-    "axis": Key(Str(("x", "y", "z"))),
+    "baudrate": Key(Num(min=1200, max=16_000_000, integer=True), False, "serial line rate",
+                     FOG_DEFAULTS["baudrate"]),
+    "format": Key(Str(), False, "frame format, e.g. kvh-a", FOG_DEFAULTS["format"]),
+    "axis": Key(Str(("x", "y", "z")), False, "the FOG axis along the table axis",
+                 FOG_DEFAULTS["axis"]),
     "rate_hz": Key(Num(min=1, max=100_000, unit="Hz"), True),
     "range_dps": Key(Num(min=0, exclusive_min=True, max=100_000, unit="deg/s")),
     "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), True,
@@ -110,7 +115,7 @@ FOG = Map({
                   "radians, 'rad' (1775 IMU Technical Manual, Table 5-10)"),
     "configure": Key(Str(("set", "verify", "declare")), False,
                      "set: configure the FOG at connect and read back; verify: read back "
-                     "only; declare (default): trust fog.units"),
+                     "only; declare: trust fog.units", FOG_DEFAULTS["configure"]),
     "model": Key(Str()),
     "sign": Key(Num(min=-1, max=1, integer=True)),
     "calibration": Key(CALIBRATION, False, "the FOG's calibration certificate, if any"),
@@ -198,13 +203,16 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
 # -- procedure file: the keys every procedure kind shares ------------------------------
 
 COMMON_PROCEDURE_KEYS: dict[str, Key] = {
-    "procedure": Key(Str(), True),
-    "title": Key(Str()),
+    "procedure": Key(Str(), True, "the procedure kind (bench schema procedure KIND)"),
+    "title": Key(Str(), False, "printed on the plan and the certificate (default: the file "
+                               "name)"),
     "stand": Key(Str(), True, "stand file, relative to this file"),
     "conditions": Key(MapOf(Any_()), False, "recorded conditions, printed on the certificate"),
     "certificate": Key(MapOf(Any_()), False, "customer, laboratory, ... for the certificate"),
-    "decision_rule": Key(Str(("simple", "guard-band"))),
-    "prompts": Key(Bool()),
+    "decision_rule": Key(Str(("simple", "guard-band")), False, "how a verdict is decided "
+                         "against the tolerance (ILAC-G8); default simple acceptance"),
+    "prompts": Key(Bool(), False, "ask the operator before each axis (mount the FOG...); "
+                                  "default true, --yes answers"),
     "calibration_state": Key(Str(("as-found", "as-left")), False,
                              "as-found before an adjustment, as-left after (the records "
                              "pair them; --as-found/--as-left win)"),
@@ -228,10 +236,10 @@ class FogSettings:
     port: str
     rate_hz: float
     units: str
-    baudrate: int = 921600
-    format: str = "kvh-a"
-    axis: str = "z"
-    configure: str = "declare"
+    baudrate: int = FOG_DEFAULTS["baudrate"]
+    format: str = FOG_DEFAULTS["format"]
+    axis: str = FOG_DEFAULTS["axis"]
+    configure: str = FOG_DEFAULTS["configure"]
     model: str | None = None
 
     @classmethod
