@@ -30,7 +30,7 @@ from bench.examples import example_path
 from bench.instruments import StandClaimError, StopErrors, check_references
 from bench.journal import RunDir
 from bench.lab import lab_path
-from bench.loader import load_config
+from bench.loader import is_stand_file, load_config, load_stand
 from bench.plan import format_duration
 from bench.records.hooks import (
     RecordsTarget,
@@ -43,6 +43,7 @@ from bench.records.hooks import (
 from bench.registry import procedure_kind
 from bench.summary import Summary, summarize
 from bench.traceability import overdue, overdue_warning
+from bench.yamlfile import YamlError, load_yaml
 from drivers.axis import NOT_STOPPED
 from drivers.clock import MonotonicClock
 
@@ -64,6 +65,21 @@ def _load(procedure: str, stand: str | Path | None = None) -> Config | None:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    try:
+        alone = is_stand_file(load_yaml(args.procedure))
+    except YamlError:
+        alone = False        # load_config reports it
+    if alone:
+        try:
+            load_stand(args.procedure)
+        except ConfigError as e:
+            _err(f"{len(e.problems)} problem(s):")
+            for p in e.problems:
+                _err(f"  {p}")
+            return EXIT_INVALID
+        print(f"stand {args.procedure}: valid (procedures naming it are checked against "
+              "it by bench validate PROCEDURE.yaml)")
+        return EXIT_PASS
     cfg = _load(args.procedure)
     if cfg is None:
         return EXIT_INVALID

@@ -14,6 +14,7 @@ from typing import Any
 from bench.canbus import bus_problems
 from bench.schema import Any_, Bool, Check, Date, Key, ListOf, Map, MapOf, Num, OneOf, Str
 from bench.yamlfile import Problem, YamlDoc
+from drivers.counter_profiles import get_profile
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
 #: a rate table's fastest axes turn some 10 000 deg/s; its slowest useful rate is around
@@ -96,7 +97,8 @@ COUNTER = Map({
                            "jitter)"),
         "host_window_s": Key(Num(min=0, unit="s"), False, "how well the host knows the "
                              "FOG's time axis"),
-    }), False, "drivers/time_tie.py; a stand without a sim: block must state it"),
+    }), False, "how the counter's start is tied to the FOG's time axis (docs/"
+               "configuration.md); a stand without a sim: block must state it"),
 })
 #: the FOG keys' defaults, used by the schema's reference and by `FogSettings` (one place)
 FOG_DEFAULTS: dict[str, Any] = {"baudrate": 921600, "format": "kvh-a", "axis": "z",
@@ -302,10 +304,11 @@ def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
     (drivers/time_tie.py), so a real stand with a counter and a FOG must say how.
     """
     data = sdoc.data if isinstance(sdoc.data, dict) else {}
+    axes = data.get("axes") if isinstance(data.get("axes"), dict) else {}
+    out = reference_problems(sdoc, axes)
     if "sim" in data:
-        return []
-    out = []
-    for name, axis in (data.get("axes") or {}).items():
+        return out
+    for name, axis in axes.items():
         if not isinstance(axis, dict):
             continue
         drive = axis.get("drive")
@@ -314,14 +317,16 @@ def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
                 ("axes", name, "drive"),
                 "a real stand must state drive.unit_factors: 'read' (the drive's factor "
                 "group is read at connect) or {velocity: ..., acceleration: ...} to set "
-                "(common drives default to rpm or inc/s; see drivers/cia402.py)"))
+                "(common drives default to rpm or inc/s; see docs/configuration.md, "
+                "axes.<name>.drive.unit_factors)"))
         counter, fog = axis.get("counter"), axis.get("fog")
         if isinstance(counter, dict) and fog and "time_tie" not in counter:
             out.append(sdoc.problem(
                 ("axes", name, "counter"),
                 "a real stand must state counter.time_tie (how the counter's start event "
                 "is placed on the FOG's time axis: source fog-sync with sync_period_s, "
-                "latency_s and latency_u_s, or host-clock); see drivers/time_tie.py"))
+                "latency_s and latency_u_s, or host-clock); see docs/configuration.md, "
+                "axes.<name>.counter.time_tie"))
         tie = counter.get("time_tie") if isinstance(counter, dict) else None
         if isinstance(tie, dict) and tie.get("source") == "fog-sync":
             missing = [k for k in ("sync_period_s", "latency_s", "latency_u_s")
@@ -331,7 +336,50 @@ def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
                     ("axes", name, "counter", "time_tie"),
                     f"a fog-sync time tie on a real stand must state {', '.join(missing)} "
                     "(the link's calibrated latency and its standard uncertainty enter "
-                    "the counter's budget); see drivers/time_tie.py"))
+                    "the counter's budget); see docs/configuration.md, "
+                    "axes.<name>.counter.time_tie"))
+    return out
+
+
+def reference_problems(sdoc: YamlDoc, axes: dict[Any, Any]) -> list[Problem]:
+    """The counter's timebase as the stand states it, against its budget.
+
+    The budget takes the timebase limit from `timebase_limit_rel`, else from the
+    counter model's internal oscillator; the counter is set to `reference` and read back
+    (drivers/counter.py refuses a different read-back). A stand saying `external` without
+    the external reference's limit would put the internal oscillator's limit in the
+    budget of a counter running on another clock; one saying `internal` with a limit
+    below the oscillator's claims what it does not have. A real stand must say which.
+    """
+    out = []
+    real = "sim" not in (sdoc.data if isinstance(sdoc.data, dict) else {})
+    for name, axis in axes.items():
+        counter = axis.get("counter") if isinstance(axis, dict) else None
+        if not isinstance(counter, dict):
+            continue
+        where = ("axes", name, "counter")
+        ref, limit = counter.get("reference"), counter.get("timebase_limit_rel")
+        if ref is None and real:
+            out.append(sdoc.problem(where, "a real stand must state counter.reference: "
+                                    "external (a 10 MHz reference at Ext Ref In, with its "
+                                    "timebase_limit_rel) or internal; the counter is set to it "
+                                    "and read back (docs/configuration.md)"))
+        elif ref == "external" and limit is None:
+            out.append(sdoc.problem((*where, "reference"), "reference: external needs the "
+                                    "external reference's timebase_limit_rel (from its "
+                                    "certificate); without it the budget would assume the "
+                                    "counter's internal oscillator"))
+        elif ref == "internal" and isinstance(limit, int | float):
+            try:
+                own = get_profile(str(counter.get("model"))).timebase_limit_rel
+            except (KeyError, ValueError):
+                continue
+            if limit < own:
+                out.append(sdoc.problem((*where, "timebase_limit_rel"),
+                                        f"{limit:g} is below the {counter.get('model')}'s "
+                                        f"internal oscillator limit {own:g}, but reference is "
+                                        "internal: state reference: external (and connect "
+                                        "Ext Ref In) or the oscillator's limit"))
     return out
 
 

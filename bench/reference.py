@@ -11,12 +11,12 @@ from __future__ import annotations
 import json
 import sys
 from dataclasses import dataclass
-from functools import reduce
 from typing import Any
 
 from bench.lab import LAB
+from bench.loader import any_stand_schema
 from bench.registry import procedure_kind, procedure_names
-from bench.schema import Check, Key, ListOf, Map, MapOf, Node, Num, OneOf, merge
+from bench.schema import Check, Key, ListOf, Map, MapOf, Node, Num, OneOf
 
 JSON_SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
 DOCS_PATH = "docs/configuration.md"
@@ -24,9 +24,7 @@ DOCS_PATH = "docs/configuration.md"
 
 def stand_node() -> Map:
     """The stand file as every installed procedure kind reads it (their union)."""
-    node = reduce(merge, [procedure_kind(n).stand_schema() for n in procedure_names()])
-    assert isinstance(node, Map)
-    return _note_kind_only(node)
+    return _note_kind_only(any_stand_schema())
 
 
 def _note_kind_only(node: Map) -> Map:
