@@ -88,14 +88,20 @@ def _cross_checks(kind: Any, cfg: Config) -> list[Problem]:
     return out
 
 
-def load_stand(stand_path: str | Path) -> YamlDoc:
-    """A stand file validated alone (`bench validate STAND.yaml`); ConfigError lists all."""
+def _mapping_file(path: str | Path, shape: str) -> YamlDoc:
+    """A YAML file whose top level is a mapping, else ConfigError (nothing more to check)."""
     try:
-        sdoc = load_yaml(stand_path)
+        doc = load_yaml(path)
     except YamlError as e:
         raise ConfigError([e.problem]) from None
-    if not isinstance(sdoc.data, dict):
-        raise ConfigError([sdoc.problem((), "expected a mapping (stand: ..., axes: ...)")])
+    if not isinstance(doc.data, dict):
+        raise ConfigError([doc.problem((), f"expected a mapping ({shape})")])
+    return doc
+
+
+def load_stand(stand_path: str | Path) -> YamlDoc:
+    """A stand file validated alone (`bench validate STAND.yaml`); ConfigError lists all."""
+    sdoc = _mapping_file(stand_path, "stand: ..., axes: ...")
     problems = validate(sdoc, any_stand_schema()) + real_stand_problems(sdoc)
     if problems:
         raise ConfigError(problems)
@@ -106,12 +112,7 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
     """Load, validate and cross-check a procedure and its stand; ConfigError lists all."""
     problems: list[Problem] = []
     refused: list[Problem] = []   # the schema's: those values are left out of cross-checks
-    try:
-        pdoc = load_yaml(procedure_path)
-    except YamlError as e:
-        raise ConfigError([e.problem]) from None
-    if not isinstance(pdoc.data, dict):
-        raise ConfigError([pdoc.problem((), "expected a mapping (procedure: ..., stand: ...)")])
+    pdoc = _mapping_file(procedure_path, "procedure: ..., stand: ...")
     name = pdoc.data.get("procedure")
     kind = procedure_kind(name) if name in procedure_names() else None
     if kind is None:

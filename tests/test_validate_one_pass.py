@@ -9,6 +9,7 @@ import pytest
 
 from bench.cli import main
 from tests.conftest import CONFIGS
+from tests.test_validate_robust import demo  # noqa: F401 - the fixture
 
 
 def _break(path: Path, old: str, new: str) -> int:
@@ -20,13 +21,8 @@ def _break(path: Path, old: str, new: str) -> int:
 
 
 def test_five_independent_problems_in_two_files_are_reported_at_once(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    (tmp_path / "stands").mkdir()
-    (tmp_path / "procedures").mkdir()
-    stand = tmp_path / "stands" / "sim-two-axis.yaml"
-    proc = tmp_path / "procedures" / "demo.yaml"
-    shutil.copy(CONFIGS / "stands" / "sim-two-axis.yaml", stand)
-    shutil.copy(CONFIGS / "procedures" / "demo.yaml", proc)
+        demo: tuple[Path, Path], capsys: pytest.CaptureFixture[str]) -> None:  # noqa: F811
+    proc, stand = demo
     # two in the stand's schema
     s1 = _break(stand, "node_id: 3", "node_id: three")
     s2 = _break(stand, "level_v: 2.5, slope: POS", "level_v: 2.5, slope: UP")
