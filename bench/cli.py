@@ -76,6 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
                           "hardware. Exit 0, or 2 when the files are invalid.")
     plan.add_argument("procedure", metavar="PROCEDURE",
                       help="the procedure YAML file (its stand file is read too)")
+    plan.add_argument("--out", default="runs", metavar="DIR",
+                      help="the runs folder whose free space is compared (runs/)")
     sch = sub.add_parser("schema", help="configuration reference: every key of a file",
                          description="The configuration reference, generated from the "
                          "schema bench validate checks with: key, type, unit, default, "
