@@ -224,6 +224,21 @@ def _chromium() -> tuple[str, str] | None:
     return (browser, driver) if browser and driver else None
 
 
+def _browser(found: tuple[str, str], height: int):  # noqa: ANN202
+    """Headless chromium through Debian's chromedriver."""
+    from selenium import webdriver
+    from selenium.webdriver.chrome.options import Options
+    from selenium.webdriver.chrome.service import Service
+
+    opts = Options()
+    opts.binary_location = found[0]
+    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+              f"--window-size=1280,{height}"):
+        opts.add_argument(a)
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    return webdriver.Chrome(service=Service(found[1]), options=opts)
+
+
 def _slow_demo(tmp: Path) -> Path:
     """One axis, one rate pair, clock at 5x (about 25 s of wall time): slow enough for a person (and the test) to
     watch the steps advance, short enough for CI."""
@@ -253,9 +268,6 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
     if found is None:
         pytest.skip("chromium and chromium-driver are not installed (Debian packages "
                     "`chromium chromium-driver`; .ci/run installs them)")
-    from selenium import webdriver
-    from selenium.webdriver.chrome.options import Options
-    from selenium.webdriver.chrome.service import Service
     from selenium.webdriver.common.by import By
 
     runs = tmp_path / "runs"
@@ -265,13 +277,7 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
                                  "--out", str(runs)], cwd=ROOT, text=True,
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     server_proc, port = _start_server(runs)
-    opts = Options()
-    opts.binary_location = found[0]
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-              "--window-size=1280,1400"):
-        opts.add_argument(a)
-    driver = webdriver.Chrome(service=Service(found[1]), options=opts)
-    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    driver = _browser(found, height=1400)
     try:
         run_dir = _wait(lambda: next(iter(p for p in runs.iterdir() if p.is_dir()), None),
                         60, "the run directory")
@@ -378,9 +384,6 @@ def test_page_warns_of_a_silent_fog_and_shows_the_final_results(tmp_path: Path) 
     shows the final results table and no stop form."""
     import threading
 
-    from selenium import webdriver
-    from selenium.webdriver.chrome.options import Options
-    from selenium.webdriver.chrome.service import Service
     from selenium.webdriver.common.by import By
 
     from bench.commands import run_session
@@ -410,13 +413,7 @@ def test_page_warns_of_a_silent_fog_and_shows_the_final_results(tmp_path: Path) 
     bench = threading.Thread(target=lambda: outcome.setdefault(
         "status", run_session(cfg, run, yes=True, on_sim_started=hook)), daemon=True)
     server_proc, port = _start_server(runs)
-    opts = Options()
-    opts.binary_location = found[0]
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-              "--window-size=1280,1600"):
-        opts.add_argument(a)
-    driver = webdriver.Chrome(service=Service(found[1]), options=opts)
-    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    driver = _browser(found, height=1600)
     try:
         bench.start()
         _wait(lambda: (run.path / "events.jsonl").exists(), 60, "the run's journal")
