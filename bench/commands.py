@@ -254,6 +254,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                 progress.line(f"Resuming: {len(done)} unit(s) already done: {', '.join(done)}")
             progress.line(f"{len(todo.steps)} steps, estimated bench time "
                           f"{format_duration(todo.total_s)}")
+            for w in todo.warnings:
+                progress.warn(f"Warning: {w}")
             ctx = RunContext(cfg, clock, bench, run, progress, yes=yes)
             t0 = time.monotonic()
             engine_ran = True
