@@ -129,3 +129,14 @@ def test_init_writes_commented_files_that_validate(
     assert main(["plan", str(folder / "procedure.yaml")]) == 0
     assert main(["init", str(folder)]) == 2          # never overwrites
     assert "not overwriting" in capsys.readouterr().err
+
+
+def test_every_key_of_the_stand_and_the_ladder_says_what_it_means() -> None:
+    from bench.reference import rows, schema_node, stand_node
+
+    # the drift-pulse kind's own blocks (platform, its twins) are that kind's to document
+    theirs = ("platform", "sim.platform", "sim.awg", "sim.dmm")
+    missing = [r.path for r in rows(stand_node())
+               if not r.meaning and not r.path.startswith(theirs)]
+    missing += [r.path for r in rows(schema_node("procedure", "rate-ladder")) if not r.meaning]
+    assert not missing, missing

@@ -52,7 +52,7 @@ SETTLE = Map({
 })
 AXIS = Map({
     "rates_dps": Key(ListOf(Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"),
-                            min_len=1), True),
+                            min_len=1), True, "rate magnitudes; each runs +w then -w"),
     "turns": Key(Num(min=1, max=10_000, integer=True), False,
                  "turns per rate and direction on this axis (default: the file's turns)"),
     "prompt": Key(Str(), False, "what the operator must do before this axis"),
@@ -74,10 +74,13 @@ PROCEDURE = Map({
                     "rate disturbance", DEFAULTS["mains_hz"]),
     "axes": Key(MapOf(AXIS, min_len=1), True, "the axes to certify, by their stand names"),
     "tolerance": Key(Map({
-        "rate_error": Key(ListOf(BAND, min_len=1)),
-        "rate_instability": Key(ListOf(BAND, min_len=1)),
-        "intra_turn_instability": Key(ListOf(BAND, min_len=1)),
-    })),
+        "rate_error": Key(ListOf(BAND, min_len=1), False, "|mean - set| / |set| (eq. 1)"),
+        "rate_instability": Key(ListOf(BAND, min_len=1), False, "per-turn rate std / rate "
+                                "(eq. 2)"),
+        "intra_turn_instability": Key(ListOf(BAND, min_len=1), False, "std of the random "
+                                      "part within a turn / rate"),
+    }), False, "what the table's maker claims, by rate band; a figure without a band is "
+       "reported, not judged"),
 })
 
 def setting(cfg: Config, key: str) -> Any:
