@@ -71,7 +71,7 @@ def _cross_checks(kind: Any, cfg: Config) -> list[Problem]:
     an axis whose files are too broken to check does not hide the others."""
     try:
         return list(kind.cross_check(cfg))
-    except (KeyError, TypeError, ValueError, AttributeError, IndexError):
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError, ArithmeticError):
         pass
     axes = cfg.procedure.get("axes")
     out: list[Problem] = []
@@ -83,7 +83,7 @@ def _cross_checks(kind: Any, cfg: Config) -> list[Problem]:
                      cfg.procedure_doc, cfg.stand_doc)
         try:
             out += [p for p in kind.cross_check(one) if p not in out]
-        except (KeyError, TypeError, ValueError, AttributeError, IndexError):
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError, ArithmeticError):
             continue
     return out
 
