@@ -30,7 +30,8 @@ examples:
 exit status:
   0  completed and every check passed
   1  completed and some check failed (the certificate says which)
-  2  the input is invalid (nothing was moved)
+  2  the input is invalid, or the runs folder has no room for the raw data (nothing
+     was moved)
   3  aborted by a fault or by the operator (axes stopped, data kept; --resume works)
 
 documentation: README.md and docs/ (configuration.md: every key of every file)
@@ -45,7 +46,13 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--version", action="version", version=f"bench (ratebench) {bench.__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    run = sub.add_parser("run", help="run a procedure; prints the run directory last")
+    run = sub.add_parser("run", help="run a procedure; prints the run directory last",
+                         description="Run a procedure on its stand (twins if the stand has "
+                         "a sim: block, or with --sim) and write a run directory; its path "
+                         "is the last line printed. Examples: bench run p.yaml --yes; bench "
+                         "run --resume runs/RUN_DIR. Exit 0 passed, 1 a check failed, 2 "
+                         "invalid input or no room for the raw data (nothing moved), 3 "
+                         "aborted (axes stopped, data kept, --resume continues).")
     run.add_argument("procedure", nargs="?", help="procedure YAML file")
     run.add_argument("--sim", action="store_true", help="run every instrument as its twin")
     run.add_argument("--out", default="runs", help="folder for the run directory (runs/)")
