@@ -391,11 +391,14 @@ def reference_problems(sdoc: YamlDoc, axes: dict[Any, Any]) -> list[Problem]:
             continue
         where = ("axes", name, "counter")
         ref, limit = counter.get("reference"), counter.get("timebase_limit_rel")
-        if ref is None and real:
-            out.append(sdoc.problem(where, "a real stand must state counter.reference: "
-                                    "external (a 10 MHz reference at Ext Ref In, with its "
-                                    "timebase_limit_rel) or internal; the counter is set to it "
-                                    "and read back (docs/configuration.md)"))
+        if ref is None:
+            # twins too: a twin's counter runs on its external reference by default, and a
+            # budget taking the internal oscillator's limit would contradict its read-back
+            out.append(sdoc.problem(where, f"{'a real stand' if real else 'the stand'} must "
+                                    "state counter.reference: external (a 10 MHz reference "
+                                    "at Ext Ref In, with its timebase_limit_rel) or internal; "
+                                    "the counter is set to it and read back, and the budget "
+                                    "takes its limit (docs/configuration.md)"))
         elif ref == "external" and limit is None:
             out.append(sdoc.problem((*where, "reference"), "reference: external needs the "
                                     "external reference's timebase_limit_rel (from its "
