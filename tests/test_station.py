@@ -454,3 +454,27 @@ def test_page_warns_of_a_silent_fog_and_shows_the_final_results(tmp_path: Path) 
         driver.quit()
         bench.join(timeout=120)
         _stop(server_proc)
+
+
+def test_results_rows_as_they_come_and_final() -> None:
+    from bench.station.live import final_rows, pair_rows
+    events = [{"event": "settled", "axis": "outer"},
+              {"event": "pair", "axis": "outer", "unit": "outer/10dps", "k": 1.0003,
+               "k_u": 4e-6, "w0_dps": 0.002, "w0_u_dps": 4e-5,
+               "directions": [{"set_rate_dps": 10.0, "turns": 4, "rate_error_rel": -1e-7,
+                               "rate_error_U_rel": 6e-8, "rate_instability_rel": 3e-8,
+                               "verdict": "pass"},
+                              {"set_rate_dps": -10.0, "turns": 4, "rate_error_rel": 2e-5,
+                               "rate_error_U_rel": 1e-7, "rate_instability_rel": 5e-8,
+                               "verdict": "fail"}]}]
+    rows = pair_rows(events)
+    assert [(r["set_rate_dps"], r["verdict"], r["k"]) for r in rows] == [
+        (10.0, "pass", 1.0003), (-10.0, "fail", 1.0003)]
+    result = {"axes": {"outer": {
+        "rates": [{"set_rate_dps": 10.0, "rate_error_rel": -1e-7, "rate_error_u_rel": 6e-8,
+                   "rate_instability_rel": 3e-8, "turns": 4, "verdict": "pass"}],
+        "pairs": [{"rate_dps": 10.0, "k": 1.0003, "k_u": 4e-6, "w0_dps": 0.002,
+                   "w0_u_dps": 4e-5}]}}}
+    (row,) = final_rows(result)
+    assert row["k"] == 1.0003 and row["rate_error_U_rel"] == 6e-8 and row["verdict"] == "pass"
+    assert final_rows({"axes": {"outer": "damaged"}}) == []
