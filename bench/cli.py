@@ -13,17 +13,47 @@ from bench.dcc.command import add_parsers as add_dcc_parsers
 from bench.decode import decode_command
 from bench.records.commands import RECORDS_COMMANDS
 from bench.records.commands import add_parsers as add_records_parsers
+from bench.reference import schema_command
+from bench.starter import init_command
 from bench.station.serve import cmd_serve
+
+EPILOG = """\
+examples:
+  bench init mylab                       commented stand, procedure and lab files
+  bench validate mylab/procedure.yaml    every problem of both files, file:line: key
+  bench plan mylab/procedure.yaml        steps, bench time, raw data volume
+  bench run mylab/procedure.yaml --yes   run; prints the run directory last
+  bench run --example demo --sim --yes   the shipped demo on simulated twins
+  bench run --resume runs/RUN_DIR        continue an interrupted run
+  bench serve --runs runs                the station page at http://127.0.0.1:8765/
+  bench schema stand                     every stand key (also: procedure KIND, lab)
+
+exit status:
+  0  completed and every check passed
+  1  completed and some check failed (the certificate says which)
+  2  the input is invalid, or the runs folder has no room for the raw data (nothing
+     was moved)
+  3  aborted by a fault or by the operator (axes stopped, data kept; --resume works)
+
+documentation: README.md and docs/ (configuration.md: every key of every file)
+"""
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="bench",
         description="Attest rotary rate tables: run YAML procedures on real instruments "
-                    "or on their simulated twins, and issue a certificate.")
+                    "or on their simulated twins, and issue a certificate.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--version", action="version", version=f"bench (ratebench) {bench.__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    run = sub.add_parser("run", help="run a procedure; prints the run directory last")
+    run = sub.add_parser("run", help="run a procedure; prints the run directory last",
+                         description="Run a procedure on its stand (twins if the stand has "
+                         "a sim: block, or with --sim) and write a run directory; its path "
+                         "is the last line printed. Examples: bench run p.yaml --yes; bench "
+                         "run --resume runs/RUN_DIR. Exit 0 passed, 1 a check failed, 2 "
+                         "invalid input or no room for the raw data (nothing moved), 3 "
+                         "aborted (axes stopped, data kept, --resume continues).")
     run.add_argument("procedure", nargs="?", help="procedure YAML file")
     run.add_argument("--sim", action="store_true", help="run every instrument as its twin")
     run.add_argument("--out", default="runs", help="folder for the run directory (runs/)")
@@ -41,10 +71,40 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--adjustment", metavar="NOTE", help="what was adjusted since as-found")
     run.add_argument("--operator", help="who runs it (default: the login name)")
     _console_options(run)
-    val = sub.add_parser("validate", help="check procedure and stand files; exit 2 on problems")
-    val.add_argument("procedure")
-    plan = sub.add_parser("plan", help="print the steps and the estimated bench time")
-    plan.add_argument("procedure")
+    val = sub.add_parser("validate", help="check procedure and stand files; exit 2 on problems",
+                         description="Check a procedure file and the stand file it names "
+                         "(or a stand file alone) and print every problem at once, each "
+                         "with file:line and key path. Exit 0 valid, 2 invalid.")
+    val.add_argument("procedure", metavar="FILE",
+                     help="a procedure YAML file (its stand is checked with it), or a "
+                          "stand YAML file alone")
+    plan = sub.add_parser("plan", help="print the steps, bench time and data volume",
+                          description="Print the steps the run will take, the estimated "
+                          "bench time and the raw data it will write; touches no "
+                          "hardware. Exit 0, or 2 when the files are invalid.")
+    plan.add_argument("procedure", metavar="PROCEDURE",
+                      help="the procedure YAML file (its stand file is read too)")
+    plan.add_argument("--out", default="runs", metavar="DIR",
+                      help="the runs folder whose free space is compared (runs/)")
+    sch = sub.add_parser("schema", help="configuration reference: every key of a file",
+                         description="The configuration reference, generated from the "
+                         "schema bench validate checks with: key, type, unit, default, "
+                         "meaning, whether required. Examples: bench schema stand; "
+                         "bench schema procedure rate-ladder --json; bench schema lab")
+    sch.add_argument("target", nargs="?", choices=("stand", "procedure", "lab"),
+                     default="stand", help="which file (stand)")
+    sch.add_argument("kind", nargs="?", metavar="KIND",
+                     help="the procedure kind (rate-ladder, drift-pulse), for procedure")
+    sch.add_argument("--json", action="store_true", help="print a JSON Schema instead")
+    sch.add_argument("--markdown", action="store_true",
+                     help="print docs/configuration.md (every file)")
+    ini = sub.add_parser("init", help="write commented stand, procedure and lab files",
+                         description="Write stand.yaml, procedure.yaml and lab.yaml, "
+                         "commented, that validate: on the twins (runs at once), or with "
+                         "--real for a real bench. Never overwrites (exit 2).")
+    ini.add_argument("dir", nargs="?", default=".", help="folder to write into (.)")
+    ini.add_argument("--real", action="store_true",
+                     help="a real bench: no sim: block, the keys hardware needs")
     ana = sub.add_parser("analyze", help="recompute result.json and certificate from raw data")
     ana.add_argument("run_dir")
     ana.add_argument("--records", metavar="URL",
@@ -89,6 +149,10 @@ def main(argv: list[str] | None = None) -> int:
         return decode_command(args.raw_file, args.fmt, args.csv)
     if args.command == "serve":
         return cmd_serve(args)
+    if args.command == "schema":
+        return schema_command(args.target, args.kind, args.json, args.markdown)
+    if args.command == "init":
+        return init_command(args.dir, args.real)
     if args.command in RECORDS_COMMANDS:
         return RECORDS_COMMANDS[args.command](args)
     if args.command in DCC_COMMANDS:

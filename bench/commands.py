@@ -24,13 +24,13 @@ from bench.config import Config, ConfigError
 from bench.console import PlainConsole, open_console
 from bench.dcc.command import write_run_dcc
 from bench.devices import list_devices
-from bench.diskspace import expected_raw_bytes, space_problem
+from bench.diskspace import data_volume_lines, expected_raw_bytes, space_problem
 from bench.engine import Abort, Engine, RunContext, SignalGuard
 from bench.examples import example_path
 from bench.instruments import StandClaimError, StopErrors, check_references
 from bench.journal import RunDir
 from bench.lab import lab_path
-from bench.loader import load_config
+from bench.loader import is_stand_file, load_config, load_stand
 from bench.plan import format_duration
 from bench.records.hooks import (
     RecordsTarget,
@@ -43,6 +43,7 @@ from bench.records.hooks import (
 from bench.registry import procedure_kind
 from bench.summary import Summary, summarize
 from bench.traceability import overdue, overdue_warning
+from bench.yamlfile import YamlError, load_yaml
 from drivers.axis import NOT_STOPPED
 from drivers.clock import MonotonicClock
 
@@ -64,6 +65,21 @@ def _load(procedure: str, stand: str | Path | None = None) -> Config | None:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    try:
+        alone = is_stand_file(load_yaml(args.procedure))
+    except YamlError:
+        alone = False        # load_config reports it
+    if alone:
+        try:
+            load_stand(args.procedure)
+        except ConfigError as e:
+            _err(f"{len(e.problems)} problem(s):")
+            for p in e.problems:
+                _err(f"  {p}")
+            return EXIT_INVALID
+        print(f"stand {args.procedure}: valid (procedures naming it are checked against "
+              "it by bench validate PROCEDURE.yaml)")
+        return EXIT_PASS
     cfg = _load(args.procedure)
     if cfg is None:
         return EXIT_INVALID
@@ -77,7 +93,20 @@ def cmd_plan(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     plan = procedure_kind(cfg.kind).build_plan(cfg)
     print("\n".join(plan.lines()))
+    print("\n".join(data_volume_lines(cfg.stand, _plan_axes(cfg, plan), plan.total_s,
+                                      Path(args.out))))
     return EXIT_PASS
+
+
+def _plan_axes(cfg: Config, plan: Any) -> list[str]:
+    """The stand axes the plan's steps use (their instruments record while it runs)."""
+    return sorted({st.axis for st in plan.steps if st.axis and st.axis in cfg.stand["axes"]})
+
+
+def _room_for(cfg: Config, plan: Any, folder: Path) -> str | None:
+    """Why the runs folder cannot hold the plan's raw data, or None."""
+    return space_problem(folder, expected_raw_bytes(cfg.stand, _plan_axes(cfg, plan),
+                                                    plan.total_s))
 
 
 def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
@@ -140,6 +169,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     if cfg is None:
         return EXIT_INVALID
     if run is None:
+        short = _room_for(cfg, procedure_kind(cfg.kind).build_plan(cfg), Path(args.out))
+        if short:   # before the run directory exists: nothing written, nothing moved
+            _err(f"Not started: {short}")
+            return EXIT_INVALID
         run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path,
                             lab_path(cfg.procedure_path, cfg.procedure.get("certificate")))
         mark_run(run.path, cfg.procedure, args.calibration_state, args.adjustment,
@@ -173,12 +206,11 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
     todo = plan.remaining(done)
     if resume:  # finer than the unit where the kind keeps parts (a rate ladder's halves)
         todo = kind.resume_plan(todo, run)
-    axes = sorted({st.axis for st in todo.steps if st.axis and st.axis in cfg.stand["axes"]})
-    short = space_problem(run.path, expected_raw_bytes(cfg.stand, axes, todo.total_s))
+    short = _room_for(cfg, todo, run.path)
     if short:
         _err(f"Not started: {short}")
         print(f"Free some space, then: bench run --resume {run.path}")
-        return EXIT_ABORTED
+        return EXIT_INVALID
     simbench = None
     stand = cfg.stand
     status = EXIT_ABORTED
@@ -222,6 +254,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                 progress.line(f"Resuming: {len(done)} unit(s) already done: {', '.join(done)}")
             progress.line(f"{len(todo.steps)} steps, estimated bench time "
                           f"{format_duration(todo.total_s)}")
+            for w in todo.warnings:
+                progress.warn(f"Warning: {w}")
             ctx = RunContext(cfg, clock, bench, run, progress, yes=yes)
             t0 = time.monotonic()
             engine_ran = True

@@ -14,6 +14,7 @@ from typing import Any
 from bench.canbus import bus_problems
 from bench.schema import Any_, Bool, Check, Date, Key, ListOf, Map, MapOf, Num, OneOf, Str
 from bench.yamlfile import Problem, YamlDoc
+from drivers.counter_profiles import get_profile
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
 #: a rate table's fastest axes turn some 10 000 deg/s; its slowest useful rate is around
@@ -36,29 +37,37 @@ CALIBRATION = Map({
 })
 TRACEABLE = Map({   # a reference the bench does not drive (a 10 MHz source, a sensor)
     "item": Key(Str(), True, "what it is, e.g. 'GPS-disciplined 10 MHz reference'"),
-    "serial": Key(Str()),
-    "certificate": Key(Str(), True), "issuer": Key(Str(), True), "due": Key(Date(), True),
-    "traces": Key(Str()),
+    "serial": Key(Str(), False, "its serial number"),
+    "certificate": Key(Str(), True, "its calibration certificate's number"),
+    "issuer": Key(Str(), True, "the laboratory that issued it"),
+    "due": Key(Date(), True, "calibration due date, YYYY-MM-DD"),
+    "traces": Key(Str(), False, "the quantity it traces to SI"),
 })
 DRIVE = Map({
     "interface": Key(Str(), True, "python-can interface: socketcan, pcan, kvaser, virtual..."),
     "channel": Key(Str(), True, "python-can channel, e.g. can0"),
-    "node_id": Key(Num(min=1, max=127, integer=True), True),
+    "node_id": Key(Num(min=1, max=127, integer=True), True, "the drive's CANopen node id"),
     "controller_node_id": Key(Num(min=1, max=127, integer=True), False,
                               "this axis's controller node on the bus, whose heartbeat "
                               "the drive watches (default: highest id free on the bus)"),
-    "bitrate": Key(Num(min=10_000, max=1_000_000, integer=True)),
-    "max_rate_dps": Key(Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"), True),
+    "bitrate": Key(Num(min=10_000, max=1_000_000, integer=True, unit="bit/s"), False,
+                   "CAN bit rate, where the interface needs it (socketcan takes the link's)"),
+    "max_rate_dps": Key(Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"), True,
+                        "the axis's rate limit: a command above it is refused, never clipped"),
     "max_accel_dps2": Key(Num(min=0, exclusive_min=True, max=ACCEL_MAX_DPS2,
-                              unit="deg/s^2"), True),
-    "counts_per_rev": Key(Num(min=1, integer=True)),
+                              unit="deg/s^2"), True, "the axis's acceleration limit (and the "
+                          "ramps' default)"),
+    "counts_per_rev": Key(Num(min=1, integer=True), False, "encoder counts per revolution "
+                          "(position and velocity units of the drive)"),
     "heartbeat_ms": Key(Num(min=10, max=10_000, integer=True), False,
                         "controller heartbeat period; the drive watches it"),
     "watchdog_ms": Key(Num(min=20, max=65_535, integer=True), False,
                        "drive stops the axis when the controller is silent this long"),
-    "settle_tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
-    "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg")),
-    "eds": Key(Str()),
+    "settle_tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), False,
+                                "the drive's own velocity window (CiA 402 0x606D)"),
+    "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg"), False,
+                                  "how close a position move must land (profile position)"),
+    "eds": Key(Str(), False, "the drive's EDS file, for canopen's object dictionary"),
     "calibration": Key(CALIBRATION, False, "the encoder's calibration certificate, if any"),
     "unit_factors": Key(Any_(), False,
                         "'read' (the drive's factor group 0x608F/0x6091/0x60A9/0x60AA is "
@@ -71,18 +80,22 @@ DRIVE = Map({
 COUNTER = Map({
     "resource": Key(Str(), True, "VISA resource string"),
     "model": Key(Str(), True, "counter profile"),
-    "channel": Key(Num(min=1, max=4, integer=True)),
+    "channel": Key(Num(min=1, max=4, integer=True), False, "input channel of the zero-mark "
+                   "pulse"),
     "level_v": Key(Num(min=-LEVEL_MAX_V, max=LEVEL_MAX_V, unit="V"), False,
                    "absolute trigger level; required on a real stand (a twin defaults it)"),
-    "slope": Key(Str(("POS", "NEG"))),
-    "coupling": Key(Str(("DC", "AC"))),
-    "impedance_ohm": Key(Num(min=0, exclusive_min=True)),
+    "slope": Key(Str(("POS", "NEG")), False, "the pulse edge timed"),
+    "coupling": Key(Str(("DC", "AC")), False, "input coupling"),
+    "impedance_ohm": Key(Num(min=0, exclusive_min=True, unit="ohm"), False,
+                         "input impedance (50 or 1e6)"),
     "trigger_jitter_s": Key(Num(min=0, unit="s"), False, "slot sensor edge jitter, std"),
     "timebase_limit_rel": Key(Num(min=0), False, "timebase error limit (external reference)"),
     "reference": Key(Str(("external", "internal")), False,
                      "timebase: set at connect and read back (53230A SENS:ROSC:SOUR); a "
                      "timebase_limit_rel below the model's needs 'external'"),
-    "timeout_margin_s": Key(Num(min=0, exclusive_min=True, max=3600, unit="s")),
+    "timeout_margin_s": Key(Num(min=0, exclusive_min=True, max=3600, unit="s"), False,
+                            "extra time allowed beyond a half's expected turns before "
+                            "the counter counts as silent"),
     "calibration": Key(CALIBRATION, False, "the counter's calibration certificate"),
     "time_tie": Key(Map({
         "source": Key(Str(("fog-sync", "host-clock")), True,
@@ -96,59 +109,81 @@ COUNTER = Map({
                            "jitter)"),
         "host_window_s": Key(Num(min=0, unit="s"), False, "how well the host knows the "
                              "FOG's time axis"),
-    }), False, "drivers/time_tie.py; a stand without a sim: block must state it"),
+    }), False, "how the counter's start is tied to the FOG's time axis (docs/"
+               "configuration.md); a stand without a sim: block must state it"),
 })
+#: the FOG keys' defaults, used by the schema's reference and by `FogSettings` (one place)
+FOG_DEFAULTS: dict[str, Any] = {"baudrate": 921600, "format": "kvh-a", "axis": "z",
+                                "configure": "declare"}
 FOG = Map({
     "port": Key(Str(), True, "serial port, e.g. /dev/ttyUSB0"),
-    "baudrate": Key(Num(min=1200, max=16_000_000, integer=True)),
-    "format": Key(Str(), False, "frame format, e.g. kvh-a"),
-    "axis": Key(Str(("x", "y", "z"))),
-    "rate_hz": Key(Num(min=1, max=100_000, unit="Hz"), True),
-    "range_dps": Key(Num(min=0, exclusive_min=True, max=100_000, unit="deg/s")),
+    "baudrate": Key(Num(min=1200, max=16_000_000, integer=True), False, "serial line rate",
+                     FOG_DEFAULTS["baudrate"]),
+    "format": Key(Str(), False, "frame format, e.g. kvh-a", FOG_DEFAULTS["format"]),
+    "axis": Key(Str(("x", "y", "z")), False, "the FOG axis along the table axis",
+                 FOG_DEFAULTS["axis"]),
+    "rate_hz": Key(Num(min=1, max=100_000, unit="Hz"), True, "the FOG's output (frame) rate"),
+    "range_dps": Key(Num(min=0, exclusive_min=True, max=100_000, unit="deg/s"), False,
+                     "the FOG's measuring range: a rate above it is refused"),
     "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), True,
                   "what the rotational fields carry; KVH's power-on default is delta "
                   "radians, 'rad' (1775 IMU Technical Manual, Table 5-10)"),
     "configure": Key(Str(("set", "verify", "declare")), False,
                      "set: configure the FOG at connect and read back; verify: read back "
-                     "only; declare (default): trust fog.units"),
-    "model": Key(Str()),
-    "sign": Key(Num(min=-1, max=1, integer=True)),
+                     "only; declare: trust fog.units", FOG_DEFAULTS["configure"]),
+    "model": Key(Str(), False, "maker and model, for the certificate"),
+    "sign": Key(Num(min=-1, max=1, integer=True), False, "-1 when the FOG is mounted with "
+                "its sensitive axis against the table's positive sense"),
     "calibration": Key(CALIBRATION, False, "the FOG's calibration certificate, if any"),
 })
 STAND_AXIS_KEYS: dict[str, Key] = {
-    "drive": Key(DRIVE, True), "counter": Key(COUNTER), "fog": Key(FOG),
+    "drive": Key(DRIVE, True, "the axis's servo drive (CANopen CiA 402)"),
+    "counter": Key(COUNTER, False, "the counter timing the zero-mark pulse, once per turn"),
+    "fog": Key(FOG, False, "the reference gyro (FOG) mounted on the axis"),
 }
 HARMONIC = Map({
-    "order": Key(Num(min=1, integer=True), True),
-    "amplitude_rel": Key(Num(min=0), True),
-    "phase_deg": Key(Num()),
+    "order": Key(Num(min=1, integer=True), True, "h: cycles per turn"),
+    "amplitude_rel": Key(Num(min=0), True, "a, relative to the set rate"),
+    "phase_deg": Key(Num(unit="deg"), False, "p, at the zero mark"),
 })
-SIM_FOG = Map({**{k: Key(Num()) for k in ("scale", "bias_dps", "misalignment_deg",
-                                           "noise_dps", "bias_drift_dps_per_h")},
+SIM_FOG = Map({**{k: Key(Num(unit=u), False, doc) for k, u, doc in (
+                   ("scale", "", "scale factor"), ("bias_dps", "deg/s", "bias w0"),
+                   ("misalignment_deg", "deg", "sensitive axis to table axis"),
+                   ("noise_dps", "deg/s", "white noise std per sample"),
+                   ("bias_drift_dps_per_h", "deg/s/h", "linear bias drift from the start"))},
                "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), False,
                             "what the twin carries before the bench configures it "
                             "(default: delta radians, or the declared fog.units)")})
 SIM_AXIS = Map({
-    "rate_bias_rel": Key(Num()),
-    "harmonics": Key(ListOf(HARMONIC)),
-    "mains": Key(Map({"frequency_hz": Key(Num(min=0, exclusive_min=True)),
-                      "amplitude_dps": Key(Num(min=0)), "phase_deg": Key(Num())})),
-    "rate_noise_dps": Key(Num(min=0)),
-    "turn_jitter_s": Key(Num(min=0)),
-    "fog": Key(SIM_FOG),
+    "rate_bias_rel": Key(Num(), False, "mean table rate = set x (1 + this)"),
+    "harmonics": Key(ListOf(HARMONIC), False, "w_true - w_set = w_set x sum a cos(h phi + p)"),
+    "mains": Key(Map({"frequency_hz": Key(Num(min=0, exclusive_min=True, unit="Hz"), False,
+                                          "the ripple's frequency"),
+                      "amplitude_dps": Key(Num(min=0, unit="deg/s"), False, "its amplitude"),
+                      "phase_deg": Key(Num(unit="deg"), False, "its phase at t = 0")}),
+                 False,
+                 "a mains-frequency rate ripple"),
+    "rate_noise_dps": Key(Num(min=0, unit="deg/s"), False, "white table rate noise while "
+                          "turning, std per FOG sample"),
+    "turn_jitter_s": Key(Num(min=0, unit="s"), False, "zero-mark edge timing std"),
+    "fog": Key(SIM_FOG, False, "the FOG's truth: k = scale cos(misalignment), w0 = bias"),
     "counter_external_reference": Key(Bool(), False, "a valid 10 MHz is wired to the "
                                       "counter's Ext Ref In (default true)"),
-    "time_tie": Key(Map({"latency_s": Key(Num(min=0)), "jitter_s": Key(Num(min=0))}),
+    "time_tie": Key(Map({"latency_s": Key(Num(min=0, unit="s"), False, "true latency"),
+                         "jitter_s": Key(Num(min=0, unit="s"), False, "its jitter, std")}),
                     False, "the FOG sync to counter trigger link: true latency and jitter"),
-    "drive": Key(Map({"velocity_unit": Key(Str()), "acceleration_unit": Key(Str()),
-                      "tpdo_event_timer_ms": Key(Num(min=0, integer=True))}), False,
+    "drive": Key(Map({"velocity_unit": Key(Str(), False, "e.g. rpm, inc/s"),
+                      "acceleration_unit": Key(Str(), False, "e.g. rpm/s, inc/s2"),
+                      "tpdo_event_timer_ms": Key(Num(min=0, integer=True, unit="ms"), False,
+                                                 "0: TPDOs on change only")}), False,
                  "the drive twin's factor group (e.g. rpm, rpm/s) and TPDO event timer"),
 })
 SIM_KEYS: dict[str, Key] = {
-    "seed": Key(Num(min=0, integer=True)),
+    "seed": Key(Num(min=0, integer=True), False, "the twins' random seed: a run's numbers "
+                "depend on it and the files alone"),
     "clock_speed": Key(OneOf(Num(min=0, exclusive_min=True), Str(("max",))), False,
                        "virtual seconds per real one, or max: as fast as every twin keeps up"),
-    "axes": Key(MapOf(SIM_AXIS)),
+    "axes": Key(MapOf(SIM_AXIS), False, "each axis's truth, by stand axis name"),
 }
 
 
@@ -170,10 +205,12 @@ SIGNING = Map({    # the DCC's signing key (bench/dcc/settings.py, docs/dcc.md)
 })
 STAND_DCC = Map({
     "lab": Key(ABSOLUTE_PATH, False, "lab settings file (YAML), absolute path"),
-    "signing": Key(SIGNING),
+    "signing": Key(SIGNING, False, "the DCC's signing key and certificate (docs/dcc.md)"),
 })
-IDENTITY = Map({"maker": Key(Str(), True), "model": Key(Str(), True),
-                "serial": Key(Str(), True), "location": Key(Str()),
+IDENTITY = Map({"maker": Key(Str(), True, "the table's maker"),
+                "model": Key(Str(), True, "its model"),
+                "serial": Key(Str(), True, "its serial number (text; the records key)"),
+                "location": Key(Str(), False, "where it stands"),
                 "recertification_interval_days": Key(
                     Num(min=1, integer=True, unit="d"), False,
                     "the table's recertification interval (lab settings may override)")})
@@ -184,10 +221,12 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
                  extra_sim: dict[str, Key] | None = None) -> Map:
     """The stand file's schema; a procedure kind may add instruments of its own."""
     return Map({
-        "stand": Key(IDENTITY, True),
+        "stand": Key(IDENTITY, True, "the rate table under test"),
         "axes": Key(Check(MapOf(Map({**STAND_AXIS_KEYS, **(extra_axis or {})})),
-                          bus_problems), True),
-        "sim": Key(Map({**SIM_KEYS, **(extra_sim or {})})),
+                          bus_problems), True, "the table's axes, by the names procedures "
+                    "use"),
+        "sim": Key(Map({**SIM_KEYS, **(extra_sim or {})}), False, "the twins' truth: "
+                   "present, the stand runs on simulated twins; absent, on hardware"),
         "traceability": Key(ListOf(TRACEABLE), False, "references and sensors the bench "
                             "does not drive, with their calibration certificates"),
         "dcc": Key(STAND_DCC, False, "DCC: lab settings file, signing key (paths only)"),
@@ -198,13 +237,16 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
 # -- procedure file: the keys every procedure kind shares ------------------------------
 
 COMMON_PROCEDURE_KEYS: dict[str, Key] = {
-    "procedure": Key(Str(), True),
-    "title": Key(Str()),
+    "procedure": Key(Str(), True, "the procedure kind (bench schema procedure KIND)"),
+    "title": Key(Str(), False, "printed on the plan and the certificate (default: the file "
+                               "name)"),
     "stand": Key(Str(), True, "stand file, relative to this file"),
     "conditions": Key(MapOf(Any_()), False, "recorded conditions, printed on the certificate"),
     "certificate": Key(MapOf(Any_()), False, "customer, laboratory, ... for the certificate"),
-    "decision_rule": Key(Str(("simple", "guard-band"))),
-    "prompts": Key(Bool()),
+    "decision_rule": Key(Str(("simple", "guard-band")), False, "how a verdict is decided "
+                         "against the tolerance (ILAC-G8); default simple acceptance"),
+    "prompts": Key(Bool(), False, "ask the operator before each axis (mount the FOG...); "
+                                  "default true, --yes answers"),
     "calibration_state": Key(Str(("as-found", "as-left")), False,
                              "as-found before an adjustment, as-left after (the records "
                              "pair them; --as-found/--as-left win)"),
@@ -228,10 +270,10 @@ class FogSettings:
     port: str
     rate_hz: float
     units: str
-    baudrate: int = 921600
-    format: str = "kvh-a"
-    axis: str = "z"
-    configure: str = "declare"
+    baudrate: int = FOG_DEFAULTS["baudrate"]
+    format: str = FOG_DEFAULTS["format"]
+    axis: str = FOG_DEFAULTS["axis"]
+    configure: str = FOG_DEFAULTS["configure"]
     model: str | None = None
 
     @classmethod
@@ -294,10 +336,11 @@ def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
     (drivers/time_tie.py), so a real stand with a counter and a FOG must say how.
     """
     data = sdoc.data if isinstance(sdoc.data, dict) else {}
+    axes = data.get("axes") if isinstance(data.get("axes"), dict) else {}
+    out = reference_problems(sdoc, axes)
     if "sim" in data:
-        return []
-    out = []
-    for name, axis in (data.get("axes") or {}).items():
+        return out
+    for name, axis in axes.items():
         if not isinstance(axis, dict):
             continue
         drive = axis.get("drive")
@@ -306,14 +349,16 @@ def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
                 ("axes", name, "drive"),
                 "a real stand must state drive.unit_factors: 'read' (the drive's factor "
                 "group is read at connect) or {velocity: ..., acceleration: ...} to set "
-                "(common drives default to rpm or inc/s; see drivers/cia402.py)"))
+                "(common drives default to rpm or inc/s; see docs/configuration.md, "
+                "axes.<name>.drive.unit_factors)"))
         counter, fog = axis.get("counter"), axis.get("fog")
         if isinstance(counter, dict) and fog and "time_tie" not in counter:
             out.append(sdoc.problem(
                 ("axes", name, "counter"),
                 "a real stand must state counter.time_tie (how the counter's start event "
                 "is placed on the FOG's time axis: source fog-sync with sync_period_s, "
-                "latency_s and latency_u_s, or host-clock); see drivers/time_tie.py"))
+                "latency_s and latency_u_s, or host-clock); see docs/configuration.md, "
+                "axes.<name>.counter.time_tie"))
         tie = counter.get("time_tie") if isinstance(counter, dict) else None
         if isinstance(tie, dict) and tie.get("source") == "fog-sync":
             missing = [k for k in ("sync_period_s", "latency_s", "latency_u_s")
@@ -323,7 +368,53 @@ def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
                     ("axes", name, "counter", "time_tie"),
                     f"a fog-sync time tie on a real stand must state {', '.join(missing)} "
                     "(the link's calibrated latency and its standard uncertainty enter "
-                    "the counter's budget); see drivers/time_tie.py"))
+                    "the counter's budget); see docs/configuration.md, "
+                    "axes.<name>.counter.time_tie"))
+    return out
+
+
+def reference_problems(sdoc: YamlDoc, axes: dict[Any, Any]) -> list[Problem]:
+    """The counter's timebase as the stand states it, against its budget.
+
+    The budget takes the timebase limit from `timebase_limit_rel`, else from the
+    counter model's internal oscillator; the counter is set to `reference` and read back
+    (drivers/counter.py refuses a different read-back). A stand saying `external` without
+    the external reference's limit would put the internal oscillator's limit in the
+    budget of a counter running on another clock; one saying `internal` with a limit
+    below the oscillator's claims what it does not have. A real stand must say which.
+    """
+    out = []
+    real = "sim" not in (sdoc.data if isinstance(sdoc.data, dict) else {})
+    for name, axis in axes.items():
+        counter = axis.get("counter") if isinstance(axis, dict) else None
+        if not isinstance(counter, dict):
+            continue
+        where = ("axes", name, "counter")
+        ref, limit = counter.get("reference"), counter.get("timebase_limit_rel")
+        if ref is None:
+            # twins too: a twin's counter runs on its external reference by default, and a
+            # budget taking the internal oscillator's limit would contradict its read-back
+            out.append(sdoc.problem(where, f"{'a real stand' if real else 'the stand'} must "
+                                    "state counter.reference: external (a 10 MHz reference "
+                                    "at Ext Ref In, with its timebase_limit_rel) or internal; "
+                                    "the counter is set to it and read back, and the budget "
+                                    "takes its limit (docs/configuration.md)"))
+        elif ref == "external" and limit is None:
+            out.append(sdoc.problem((*where, "reference"), "reference: external needs the "
+                                    "external reference's timebase_limit_rel (from its "
+                                    "certificate); without it the budget would assume the "
+                                    "counter's internal oscillator"))
+        elif ref == "internal" and isinstance(limit, int | float):
+            try:
+                own = get_profile(str(counter.get("model"))).timebase_limit_rel
+            except (KeyError, ValueError):
+                continue
+            if limit < own:
+                out.append(sdoc.problem((*where, "timebase_limit_rel"),
+                                        f"{limit:g} is below the {counter.get('model')}'s "
+                                        f"internal oscillator limit {own:g}, but reference is "
+                                        "internal: state reference: external (and connect "
+                                        "Ext Ref In) or the oscillator's limit"))
     return out
 
 

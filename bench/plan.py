@@ -56,6 +56,9 @@ def format_duration(seconds: float) -> str:
 class Plan:
     title: str
     steps: tuple[Step, ...]
+    #: what the operator should know before starting (e.g. an odd turn count split
+    #: unevenly); printed by `bench plan` and at the start of `bench run`
+    warnings: tuple[str, ...] = ()
 
     @property
     def total_s(self) -> float:
@@ -77,18 +80,22 @@ class Plan:
         axes_left = {s.axis for s in self.steps if s.unit and s.unit not in done}
         keep = [s for s in self.steps
                 if (s.unit not in done if s.unit else s.axis in axes_left or s.axis is None)]
-        return Plan(self.title, tuple(keep))
+        return Plan(self.title, tuple(keep), self.warnings)
 
     def lines(self) -> list[str]:
-        out = [f"Plan: {self.title}", "",
-               f"{'#':>{len(str(len(self.steps)))}}  {'starts at':>12}  {'axis':<8} "
-               f"{'action':<9} what"]
-        t = 0.0
+        """The plan as a table whose columns fit the longest axis name and action."""
         width = len(str(len(self.steps)))
+        axis_w = max([len("axis"), *(len(s.axis or "") for s in self.steps)])
+        action_w = max([len("action"), *(len(s.action) for s in self.steps)])
+        out = [f"Plan: {self.title}", "",
+               f"{'#':>{width}}  {'starts at':>12}  {'axis':<{axis_w}}  "
+               f"{'action':<{action_w}}  what"]
+        t = 0.0
         for i, s in enumerate(self.steps, 1):
-            out.append(f"{i:>{width}}  {format_duration(t):>12}  {s.axis or '':<8} "
-                       f"{s.action:<9} {s.describe}")
+            out.append(f"{i:>{width}}  {format_duration(t):>12}  {s.axis or '':<{axis_w}}  "
+                       f"{s.action:<{action_w}}  {s.describe}")
             t += s.estimate_s
-        out += ["", f"Estimated bench time: {format_duration(self.total_s)} "
-                    f"({self.total_s:.0f} s) for {len(self.steps)} steps"]
+        out += [""] + [f"Warning: {w}" for w in self.warnings]
+        out += [f"Estimated bench time: {format_duration(self.total_s)} "
+                f"({self.total_s:.0f} s) for {len(self.steps)} steps"]
         return out

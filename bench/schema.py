@@ -17,12 +17,22 @@ from bench.yamlfile import KeyPath, Problem, YamlDoc
 
 
 class Node:
-    """A schema for one value."""
+    """A schema for one value.
+
+    The same node checks a file (`check`), describes itself in the reference
+    (`description`, `unit_text`) and states itself as JSON Schema (`json_schema`), so
+    `bench schema`, docs/configuration.md and `bench validate` cannot disagree.
+    """
 
     description = "a value"
+    unit_text = ""
 
     def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         raise NotImplementedError
+
+    def json_schema(self) -> dict[str, Any]:
+        """This node as JSON Schema (draft 2020-12) of the file's data."""
+        return {}
 
 
 def _type_name(value: Any) -> str:
@@ -61,6 +71,20 @@ class Num(Node):
         unit = f" {self.unit}" if self.unit else ""
         return kind + (f" {' and '.join(bits)}" if bits else "") + unit
 
+    @property
+    def unit_text(self) -> str:  # type: ignore[override]
+        return self.unit
+
+    def json_schema(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"type": "integer" if self.integer else "number"}
+        if self.min is not None:
+            out["exclusiveMinimum" if self.exclusive_min else "minimum"] = self.min
+        if self.max is not None:
+            out["maximum"] = self.max
+        if self.unit:
+            out["x-unit"] = self.unit
+        return out
+
     def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         ok_type = isinstance(value, int) if self.integer else isinstance(value, int | float)
         if isinstance(value, bool) or not ok_type or not _finite(value):
@@ -88,6 +112,9 @@ class Str(Node):
         elif self.choices and value not in self.choices:
             out.append(doc.problem(path, f"expected {self.description}, got {value!r}"))
 
+    def json_schema(self) -> dict[str, Any]:
+        return {"type": "string", **({"enum": list(self.choices)} if self.choices else {})}
+
 
 @dataclass(frozen=True)
 class Date(Node):
@@ -98,6 +125,9 @@ class Date(Node):
     def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if parse_date(value) is None:
             out.append(doc.problem(path, f"expected {self.description}, got {value!r}"))
+
+    def json_schema(self) -> dict[str, Any]:
+        return {"type": "string", "format": "date"}
 
 
 def parse_date(value: Any) -> dt.date | None:
@@ -121,6 +151,9 @@ class Bool(Node):
     def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if not isinstance(value, bool):
             out.append(doc.problem(path, f"expected true or false, got {value!r}"))
+
+    def json_schema(self) -> dict[str, Any]:
+        return {"type": "boolean"}
 
 
 @dataclass(frozen=True)
@@ -153,6 +186,13 @@ class OneOf(Node):
         out.append(doc.problem(path, f"expected {self.description}, got "
                                      f"{_type_name(value)} {value!r}"))
 
+    @property
+    def unit_text(self) -> str:  # type: ignore[override]
+        return next((o.unit_text for o in self.options if o.unit_text), "")
+
+    def json_schema(self) -> dict[str, Any]:
+        return {"anyOf": [o.json_schema() for o in self.options]}
+
 
 @dataclass(frozen=True)
 class ListOf(Node):
@@ -173,12 +213,24 @@ class ListOf(Node):
         for i, v in enumerate(value):
             self.item.check(v, (*path, i), doc, out)
 
+    @property
+    def unit_text(self) -> str:  # type: ignore[override]
+        return self.item.unit_text
+
+    def json_schema(self) -> dict[str, Any]:
+        out = {"type": "array", "items": self.item.json_schema()}
+        return {**out, "minItems": self.min_len} if self.min_len else out
+
 
 @dataclass(frozen=True)
 class Key:
+    """A key of a mapping: its schema, whether it must be written, what it means, and
+    its default when omitted (None: no default; the reference says what happens)."""
+
     node: Node
     required: bool = False
     doc: str = ""
+    default: Any = None
 
 
 @dataclass(frozen=True)
@@ -205,6 +257,20 @@ class Map(Node):
                 out.append(doc.problem(path, f"missing required key {k!r} "
                                              f"({spec.node.description})"))
 
+    def json_schema(self) -> dict[str, Any]:
+        props: dict[str, Any] = {}
+        for k, spec in self.keys.items():
+            s = spec.node.json_schema()
+            if spec.doc:
+                s = {**s, "description": spec.doc}
+            if spec.default is not None:
+                s = {**s, "default": spec.default}
+            props[k] = s
+        out: dict[str, Any] = {"type": "object", "properties": props,
+                               "additionalProperties": False}
+        required = [k for k, spec in self.keys.items() if spec.required]
+        return {**out, "required": required} if required else out
+
 
 @dataclass(frozen=True)
 class MapOf(Node):
@@ -227,6 +293,10 @@ class MapOf(Node):
         for k, v in value.items():
             self.value.check(v, (*path, str(k)), doc, out)
 
+    def json_schema(self) -> dict[str, Any]:
+        out = {"type": "object", "additionalProperties": self.value.json_schema()}
+        return {**out, "minProperties": self.min_len} if self.min_len else out
+
 
 @dataclass(frozen=True)
 class Check(Node):
@@ -243,6 +313,14 @@ class Check(Node):
     def description(self) -> str:  # type: ignore[override]
         return self.inner.description
 
+    @property
+    def unit_text(self) -> str:  # type: ignore[override]
+        return self.inner.unit_text
+
+    def json_schema(self) -> dict[str, Any]:
+        """The inner schema: the rule needs the whole value and stays `bench validate`'s."""
+        return self.inner.json_schema()
+
     def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         before = len(out)
         self.inner.check(value, path, doc, out)
@@ -256,3 +334,30 @@ def validate(doc: YamlDoc, schema: Node) -> list[Problem]:
     out: list[Problem] = []
     schema.check(doc.data, (), doc, out)
     return out
+
+
+def merge(a: Node, b: Node) -> Node:
+    """One schema accepting what either accepts, key by key (the stand file every
+    procedure kind reads): a key is required only where both require it."""
+    if a == b:
+        return a
+    if isinstance(a, Map) and isinstance(b, Map):
+        keys: dict[str, Key] = {}
+        for k in (*a.keys, *(k for k in b.keys if k not in a.keys)):
+            ka, kb = a.keys.get(k), b.keys.get(k)
+            if ka is None or kb is None:
+                only = ka or kb
+                assert only is not None
+                keys[k] = Key(only.node, False, only.doc, only.default)
+            else:
+                keys[k] = Key(merge(ka.node, kb.node), ka.required and kb.required,
+                              ka.doc or kb.doc,
+                              ka.default if ka.default is not None else kb.default)
+        return Map(keys)
+    if isinstance(a, MapOf) and isinstance(b, MapOf):
+        return MapOf(merge(a.value, b.value), min(a.min_len, b.min_len))
+    if isinstance(a, ListOf) and isinstance(b, ListOf):
+        return ListOf(merge(a.item, b.item), min(a.min_len, b.min_len))
+    if isinstance(a, Check) and isinstance(b, Check) and a.rule is b.rule:
+        return Check(merge(a.inner, b.inner), a.rule)
+    return OneOf(a, b)

@@ -191,6 +191,34 @@ def _syntax_path(text: str) -> tuple[KeyPath, int | None]:
     return frames[-1][0], frames[-1][4]
 
 
+#: PyYAML's phrases and what they mean in a bench file
+_PLAIN = (
+    ("found character '\\t'", "a tab character{at}: YAML indents with spaces only; "
+                               "replace the tab with spaces"),
+    ("mapping values are not allowed", "a colon where a value was expected{at}: indent "
+                                       "the key under its parent, or quote a value "
+                                       "containing ': '"),
+    ("could not find expected ':'", "a line without 'key: value'{at}: add the colon, or "
+                                    "indent it under the key it continues"),
+    ("expected <block end>", "the indentation does not match the lines above{at}: keys "
+                             "of one mapping start in the same column"),
+    ("found undefined alias", "an alias (*name) with no anchor (&name) before it{at}"),
+)
+
+
+def _plain_sentence(problem: str, text: str, line: int | None) -> str | None:
+    """PyYAML's message as a plain sentence, naming the key written on that line."""
+    for phrase, sentence in _PLAIN:
+        if phrase in problem:
+            at = ""
+            if line is not None:
+                src = text.splitlines()[line - 1] if line <= text.count("\n") + 1 else ""
+                m = re.match(r"\s*-?\s*([\w.+-]+)\s*:", src)
+                at = f" on the line of {m.group(1)!r}" if m else f" on line {line}"
+            return sentence.format(at=at)
+    return None
+
+
 def _line_of_offset(text: str, offset: int) -> int:
     return text.count("\n", 0, max(offset, 0)) + 1
 
@@ -232,7 +260,10 @@ def load_yaml(path: str | Path) -> YamlDoc:
         noticed = e.problem_mark.line + 1 if e.problem_mark else None
         line = opened if opened is not None and "flow" in (e.context or "") else noticed
         msg = f"YAML syntax: {e.problem or e.context}"
-        if e.context and e.problem:
+        plain = _plain_sentence(str(e.problem or e.context), text, noticed)
+        if plain:
+            msg = f"{plain} (YAML: {e.problem or e.context})"
+        elif e.context and e.problem:
             msg += f" ({e.context}"
             msg += f" opened at line {e.context_mark.line + 1})" if e.context_mark else ")"
         if noticed is not None and noticed != line:

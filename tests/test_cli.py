@@ -113,3 +113,89 @@ def test_quiet_and_json_log_modes_through_the_cli(mode: str, tmp_path: Path) -> 
         objects = [json.loads(line) for line in out.stderr.splitlines()]
         kinds = {o.get("type") or o.get("kind") or o.get("event") for o in objects}
         assert len(objects) > 10 and None not in kinds, kinds
+
+
+# -- issue 26: help, plan layout, logs, history plot -----------------------------------
+
+def test_help_gives_examples_and_exit_codes(capsys) -> None:  # noqa: ANN001
+    import pytest as _pytest
+
+    from bench.cli import main as _main
+    with _pytest.raises(SystemExit):
+        _main(["--help"])
+    out = capsys.readouterr().out
+    assert "examples:" in out and "bench init mylab" in out
+    for code in ("0  completed", "1  completed", "2  the input is invalid", "3  aborted"):
+        assert code in out, code
+    for cmd in ("validate", "plan"):
+        with _pytest.raises(SystemExit):
+            _main([cmd, "--help"])
+        text = capsys.readouterr().out
+        assert "stand" in text and "Exit" in text, text
+
+
+def _demo_with(tmp_path, axis: str, turns: int):  # noqa: ANN001, ANN202
+    import yaml
+
+    from tests.conftest import CONFIGS
+    stand = yaml.safe_load((CONFIGS / "stands" / "sim-two-axis.yaml").read_text())
+    stand["axes"] = {axis: stand["axes"]["outer"]}
+    stand["sim"]["axes"] = {axis: stand["sim"]["axes"]["outer"]}
+    (tmp_path / "stand.yaml").write_text(yaml.safe_dump(stand, sort_keys=False))
+    proc = yaml.safe_load((CONFIGS / "procedures" / "demo.yaml").read_text())
+    proc.update(stand="stand.yaml", turns=turns, axes={axis: {"rates_dps": [10]}})
+    (tmp_path / "p.yaml").write_text(yaml.safe_dump(proc, sort_keys=False))
+    return tmp_path / "p.yaml"
+
+
+def test_plan_columns_fit_a_long_axis_name_and_odd_turns_are_warned(tmp_path,  # noqa: ANN001
+                                                                    capsys) -> None:  # noqa: ANN001
+    from bench.cli import main as _main
+    assert _main(["plan", str(_demo_with(tmp_path, "elevation_gimbal", 5))]) == 0
+    out = capsys.readouterr().out
+    rows = [ln for ln in out.splitlines() if "elevation_gimbal" in ln and "deg/s" in ln]
+    # the action column starts at the same place on every row
+    starts = {ln.index(a) for ln in rows for a in ("set_rate", "settle", "acquire")
+              if f" {a} " in ln}
+    assert len(starts) == 1, rows
+    assert "Warning: axis elevation_gimbal: 5 turns with sequence +-+ split the + " \
+           "direction 3/2" in out
+    # 3 turns at 10 deg/s plus the lead-in turn: 4 x 36 s = 2 min 24 s
+    assert "3 turns at +10 deg/s (half 1/3, 2 min 24 s with the lead-in turn)" in out
+    assert _main(["plan", str(_demo_with(tmp_path, "outer", 4))]) == 0
+    assert "Warning" not in capsys.readouterr().out
+
+
+def test_a_log_has_one_line_per_step_and_no_zero_of_n_noise() -> None:
+    import io
+
+    from bench.console import PlainConsole
+    from bench.plan import Step
+    from bench.progress import Figure
+
+    out = io.StringIO()
+    con = PlainConsole(out, min_interval_s=0.0)
+    steps = [Step("static", "outer", "FOG at rest for 30 s", 30.0),
+             Step("acquire", "outer", "2 turns at +10 deg/s", 108.0)]
+    con.begin(steps, lambda: 0.0)
+    con.step(0)
+    con.advance(0, 30, "FOG at rest: 0 of 30 s")
+    con.advance(15, 30, "FOG at rest: 15 of 30 s")
+    con.step_done(0)
+    con.step(1)
+    for turn in range(3):
+        con.advance(turn, 2, f"{turn} of 2 turns timed")
+    con.result("outer +10 deg/s, 2 turns timed", Figure("mean", 1e-7))
+    con.warn("FOG: 3 frames lost")
+    lines = out.getvalue().splitlines()
+    assert len(lines) == 4, lines
+    assert lines[0].startswith("[1/2] outer") and lines[1].startswith("[2/2] outer")
+    assert "outer +10 deg/s, 2 turns timed" in lines[2] and "frames lost" in lines[3]
+    assert not any(" of 30 s" in ln or "turns timed" in ln and ln.startswith("  0") for ln in lines)
+
+
+def test_history_plot_defaults_beside_the_records(tmp_path) -> None:  # noqa: ANN001
+    from bench.records.commands import _records_folder
+    db = tmp_path / "lab" / "records.sqlite"
+    assert _records_folder(f"sqlite:///{db}", "runs") == db.parent
+    assert _records_folder("postgresql://u@h/db", str(tmp_path / "runs")) == tmp_path / "runs"

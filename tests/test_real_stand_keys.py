@@ -26,7 +26,7 @@ axes:
     drive:   {interface: socketcan, channel: can0, node_id: 2, max_rate_dps: 400,
               max_accel_dps2: 200%(factors)s}
     counter: {resource: "TCPIP0::192.0.2.5::5025::SOCKET", model: keysight-53230a,
-              level_v: 2.5%(tie)s}
+              level_v: 2.5, reference: internal%(tie)s}
     fog:     {port: /dev/ttyUSB0, format: kvh-a, axis: z, rate_hz: 1000%(units)s}
 """
 TIE = (",\n              time_tie: {source: fog-sync, sync_period_s: 5, latency_s: 2.0e-6, "
@@ -98,3 +98,24 @@ def test_a_simulated_stand_must_also_say_its_fog_units(tmp_path):
         load_config(tmp_path / "p.yaml")
     line = stand[:stand.index("    fog:")].count("\n") + 1
     assert f"stand.yaml:{line}: axes.outer.fog: missing required key 'units'" in str(e.value)
+
+
+@pytest.mark.parametrize("stated,expected", [
+    ("", "stand.yaml:6: axes.outer.counter: a real stand must state counter.reference"),
+    (", reference: external", "axes.outer.counter.reference: reference: external needs the "
+                              "external reference's timebase_limit_rel"),
+    (", reference: internal, timebase_limit_rel: 1.0e-9",
+     "axes.outer.counter.timebase_limit_rel: 1e-09 is below the keysight-53230a's internal "
+     "oscillator limit"),
+])
+def test_the_counter_reference_is_stated_and_agrees_with_the_budget(tmp_path, stated,
+                                                                    expected):
+    """Issue 26: a counter without reference silently got the internal 1 ppm limit in its
+    budget while reading back EXT; the stand states it and the budget follows it."""
+    (tmp_path / "p.yaml").write_text(PROCEDURE)
+    (tmp_path / "stand.yaml").write_text(
+        (STAND % {"tie": TIE, "units": ", units: deg/s", "factors": ", unit_factors: read"}
+         ).replace(", reference: internal", stated))
+    with pytest.raises(ConfigError) as e:
+        load_config(tmp_path / "p.yaml")
+    assert expected in str(e.value), str(e.value)

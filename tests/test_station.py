@@ -224,6 +224,21 @@ def _chromium() -> tuple[str, str] | None:
     return (browser, driver) if browser and driver else None
 
 
+def _browser(found: tuple[str, str], height: int):  # noqa: ANN202
+    """Headless chromium through Debian's chromedriver."""
+    from selenium import webdriver
+    from selenium.webdriver.chrome.options import Options
+    from selenium.webdriver.chrome.service import Service
+
+    opts = Options()
+    opts.binary_location = found[0]
+    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+              f"--window-size=1280,{height}"):
+        opts.add_argument(a)
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    return webdriver.Chrome(service=Service(found[1]), options=opts)
+
+
 def _slow_demo(tmp: Path) -> Path:
     """One axis, one rate pair, clock at 5x (about 25 s of wall time): slow enough for a person (and the test) to
     watch the steps advance, short enough for CI."""
@@ -253,9 +268,6 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
     if found is None:
         unavailable("chromium and chromium-driver are not installed (Debian packages "
                     "`chromium chromium-driver`; .ci/run installs them)")
-    from selenium import webdriver
-    from selenium.webdriver.chrome.options import Options
-    from selenium.webdriver.chrome.service import Service
     from selenium.webdriver.common.by import By
 
     runs = tmp_path / "runs"
@@ -265,13 +277,7 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
                                  "--out", str(runs)], cwd=ROOT, text=True,
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     server_proc, port = _start_server(runs)
-    opts = Options()
-    opts.binary_location = found[0]
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-              "--window-size=1280,1400"):
-        opts.add_argument(a)
-    driver = webdriver.Chrome(service=Service(found[1]), options=opts)
-    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    driver = _browser(found, height=1400)
     try:
         run_dir = _wait(lambda: next(iter(p for p in runs.iterdir() if p.is_dir()), None),
                         60, "the run directory")
@@ -339,3 +345,136 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
             run_proc.send_signal(signal.SIGINT)
             run_proc.wait(timeout=60)
         _stop(server_proc)
+
+
+# -- health and results (issue 26) ------------------------------------------------------
+
+def test_health_flags_a_silent_fog_only_while_running(tmp_path: Path) -> None:
+    """Ages from the files' modification times, against a given `now` (hand-set mtimes)."""
+    from bench.station.live import FOG_SILENT_S, STALE_S, health
+    raw = tmp_path / "raw" / "s1"
+    raw.mkdir(parents=True)
+    (tmp_path / "events.jsonl").write_text("")
+    for name in ("outer-fog.bin", "outer-drive.jsonl", "outer-counter.jsonl"):
+        (raw / name).write_bytes(b"x")
+    now = 1_000_000.0
+    os.utime(tmp_path / "events.jsonl", (now - 1, now - 1))
+    os.utime(raw / "outer-drive.jsonl", (now - 0.5, now - 0.5))
+    os.utime(raw / "outer-counter.jsonl", (now - 0.5, now - 0.5))
+    os.utime(raw / "outer-fog.bin", (now - FOG_SILENT_S - 1, now - FOG_SILENT_S - 1))
+    tail = {"tail_s": 30.0, "tail_crc_errors": 2, "tail_lost_frames": 0}
+    acq = [{"axis": "outer", "fog_lost": 3}, {"axis": "outer", "fog_lost": 1}]
+    h = health(tmp_path, raw, ["outer"], True, tail, "outer", acq, now=now)
+    assert h["axes"][0]["fog_lost_in_halves"] == 4
+    assert h["axes"][0]["fog_age_s"] == pytest.approx(FOG_SILENT_S + 1)
+    assert h["last_update_s"] == pytest.approx(0.5) and not h["stale"]
+    assert any(w.startswith("FOG outer: no data for 3 s") for w in h["warnings"]), h
+    assert any("2 CRC errors" in w for w in h["warnings"]), h
+    late = now + STALE_S + 1
+    h = health(tmp_path, raw, ["outer"], True, tail, "outer", acq, now=late)
+    assert h["stale"] and h["warnings"][0].startswith("no update for")
+    assert health(tmp_path, raw, ["outer"], False, tail, "outer", acq, now=late)[
+        "warnings"] == []
+
+
+@pytest.mark.timeout(400)
+def test_page_warns_of_a_silent_fog_and_shows_the_final_results(tmp_path: Path) -> None:
+    """A FOG twin that stops sending (its frames held for 40 bench seconds, while the rest
+    of the bench runs on) shows a health warning on the page within 5 s; the finished run
+    shows the final results table and no stop form."""
+    import threading
+
+    from selenium.webdriver.common.by import By
+
+    from bench.commands import run_session
+    from bench.journal import RunDir
+    from bench.loader import load_config
+    from sims.fog_twin import Stall
+    from tests.conftest import when_step_starts
+
+    found = _chromium()
+    assert found, "chromium and chromium-driver are needed (.ci/run installs them)"
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    cfg = load_config(_slow_demo(tmp_path))
+    run = RunDir.create(runs, cfg.procedure_path, cfg.stand_path)
+    silenced: dict[str, float] = {}
+
+    def silence(sim) -> None:  # noqa: ANN001
+        fog = sim.twins["outer.fog"]
+        fog.inject(Stall(fog.next_sample + 50, duration_s=40.0, lose=False))
+        silenced["t"] = time.monotonic()
+
+    def hook(sim) -> None:  # noqa: ANN001
+        when_step_starts(run, lambda e: e.get("action") == "acquire", lambda: silence(sim),
+                         delay_s=0.5)
+
+    outcome: dict[str, int] = {}
+    bench = threading.Thread(target=lambda: outcome.setdefault(
+        "status", run_session(cfg, run, yes=True, on_sim_started=hook)), daemon=True)
+    server_proc, port = _start_server(runs)
+    driver = _browser(found, height=1600)
+    try:
+        bench.start()
+        _wait(lambda: (run.path / "events.jsonl").exists(), 60, "the run's journal")
+        driver.get(f"http://127.0.0.1:{port}/run/{run.path.name}")
+        _wait(lambda: driver.find_elements(By.ID, "stop"), 30, "the stop form while running")
+        _wait(lambda: "t" in silenced, 120, "the FOG twin to be silenced")
+
+        def warned() -> bool:
+            text = driver.find_element(By.ID, "health-warnings").text
+            return "FOG outer: no data" in text
+
+        _wait(warned, 5.0, "a health warning within 5 s of the FOG falling silent",
+              poll_s=0.1)
+        print(f"health warning after {time.monotonic() - silenced['t']:.1f} s")
+        driver.save_screenshot(str(ARTIFACTS / "fog-silent.png"))
+        bench.join(timeout=300)
+        assert outcome.get("status") == 0, outcome
+        _wait(lambda: driver.execute_script("return window.station?.state?.status")
+              == "passed", 30, "the page to show the run passed")
+        _wait(lambda: len(driver.find_elements(
+            By.CSS_SELECTOR, "#results-table.final tbody tr")) == 2, 30,
+            "the final results table (+30 and -30 deg/s)")
+        rows = driver.find_element(By.ID, "results-table").text
+        result = json.loads((run.path / "result.json").read_text())
+        delta = result["axes"]["outer"]["rates"][0]["rate_error_rel"] * 1e6
+        assert f"{delta:.3f}" in rows, rows
+        assert "pass" in rows
+        assert not driver.find_elements(By.ID, "stop")      # the live page dropped it
+        driver.refresh()
+        _wait(lambda: driver.execute_script("return window.station?.state?.status")
+              == "passed", 30, "the reloaded page")
+        assert not driver.find_elements(By.ID, "stop")      # and a fresh page has none
+        assert driver.find_elements(By.CSS_SELECTOR, "#results-table.final tbody tr")
+        log = driver.find_element(By.ID, "log").text
+        assert "settled: outer at +30 deg/s" in log, log
+        driver.save_screenshot(str(ARTIFACTS / "finished-run.png"))
+    finally:
+        driver.quit()
+        bench.join(timeout=120)
+        _stop(server_proc)
+
+
+def test_results_rows_as_they_come_and_final() -> None:
+    from bench.station.live import final_rows, pair_rows
+    events = [{"event": "settled", "axis": "outer"},
+              {"event": "pair", "axis": "outer", "unit": "outer/10dps", "k": 1.0003,
+               "k_u": 4e-6, "w0_dps": 0.002, "w0_u_dps": 4e-5,
+               "directions": [{"set_rate_dps": 10.0, "turns": 4, "rate_error_rel": -1e-7,
+                               "rate_error_U_rel": 6e-8, "rate_instability_rel": 3e-8,
+                               "verdict": "pass"},
+                              {"set_rate_dps": -10.0, "turns": 4, "rate_error_rel": 2e-5,
+                               "rate_error_U_rel": 1e-7, "rate_instability_rel": 5e-8,
+                               "verdict": "fail"}]}]
+    rows = pair_rows(events)
+    assert [(r["set_rate_dps"], r["verdict"], r["k"]) for r in rows] == [
+        (10.0, "pass", 1.0003), (-10.0, "fail", 1.0003)]
+    result = {"axes": {"outer": {
+        "rates": [{"set_rate_dps": 10.0, "rate_error_rel": -1e-7, "rate_error_u_rel": 6e-8,
+                   "rate_instability_rel": 3e-8, "turns": 4, "verdict": "pass"}],
+        "pairs": [{"rate_dps": 10.0, "k": 1.0003, "k_u": 4e-6, "w0_dps": 0.002,
+                   "w0_u_dps": 4e-5}]}}}
+    (row,) = final_rows(result)
+    assert row["k"] == 1.0003 and row["rate_error_U_rel"] == 6e-8 and row["verdict"] == "pass"
+    assert final_rows({"axes": {"outer": "damaged"}}) == []

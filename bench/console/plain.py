@@ -85,8 +85,11 @@ class PlainConsole:
             self._last_detail = now
 
     def advance(self, done: float, total: float, text: str) -> None:
-        """The current step's own progress: `done` of `total` (turns, seconds held)."""
-        self.detail(f"  {text}")
+        """The current step's own progress: `done` of `total` (turns, seconds held).
+
+        Shown by the live display's step bar only: a log keeps one line per step, with
+        the results, faults and prompts (a day's ladder once left 127 "N of M turns
+        timed" lines for 68 steps, and "0 of 30 s" lines that said nothing)."""
 
     def reading(self, name: str, label: str, *figures: Figure) -> None:
         """The latest value of a live quantity (per-turn rate deviation, FOG mean): shown
@@ -138,8 +141,9 @@ class PlainConsole:
 
     def step_text(self, index: int, eta: Eta | None) -> str:
         step = self.steps[index]
-        head = (f"[{index + 1}/{len(self.steps)}] {step.axis or '':<6} {step.action:<9} "
-                f"{step.describe}")
+        axis_w = max([6, *(len(s.axis or "") for s in self.steps)])
+        head = (f"[{index + 1}/{len(self.steps)}] {step.axis or '':<{axis_w}} "
+                f"{step.action:<9} {step.describe}")
         if eta is None:
             return head
         return f"{head}   (bench time left {eta.bench_text()}, wall {eta_wall(eta)})"

@@ -38,7 +38,8 @@ def add_parsers(sub: Any) -> None:
     where.add_argument("--runs", help="runs folder whose records.sqlite to read (runs/)")
     where.add_argument("--records", help="records database URL")
     his.add_argument("--csv", help="write every recorded figure of the table to this CSV")
-    his.add_argument("--plot", help="trend plot PNG (default history-SERIAL.png here)")
+    his.add_argument("--plot", help="trend plot PNG (default history-SERIAL.png beside the "
+                                    "records database, or in the runs folder)")
     rec = sub.add_parser("records", help="the records database")
     rsub = rec.add_subparsers(dest="records_command", required=True, metavar="ACTION")
     imp = rsub.add_parser("import", help="register existing run directories (idempotent)")
@@ -151,10 +152,26 @@ def cmd_history(args: argparse.Namespace) -> int:
 
     png = trend_png(points, f"Table {args.serial}: trend across recertifications")
     if png is not None:
-        plot = Path(args.plot or f"history-{_safe(args.serial)}.png")
+        plot = Path(args.plot) if args.plot else (
+            _records_folder(where.url, args.runs or DEFAULT_RUNS)
+            / f"history-{_safe(args.serial)}.png")
         plot.write_bytes(png)
         print(f"trend plot: {plot}")
     return EXIT_OK
+
+
+def _records_folder(url: str, runs: str) -> Path:
+    """Where the records are: a SQLite file's folder, else the runs folder (a database
+    server has no folder of ours), never the current folder unasked."""
+    from sqlalchemy.engine import make_url
+
+    try:
+        u = make_url(url)
+    except Exception:  # noqa: BLE001 - an odd URL: the runs folder
+        return Path(runs)
+    if u.drivername.startswith("sqlite") and u.database not in (None, "", ":memory:"):
+        return Path(u.database).parent
+    return Path(runs)
 
 
 def _safe(serial: str) -> str:

@@ -12,6 +12,7 @@ import io
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
@@ -44,6 +45,11 @@ def _series_name(p: TrendPoint) -> str:
     return f"{f.axis}{rate}"
 
 
+#: the series' colours (a qualitative map of 20) and, past 20 series, their markers
+SERIES_COLOURS = colormaps["tab20"]
+SERIES_MARKERS = "osD^"
+
+
 def trend_png(points: Sequence[TrendPoint], title: str = "") -> bytes | None:
     """The trend figure, or None when no point has a date and a plotted quantity."""
     points = [p for p in points if p.date_utc is not None]
@@ -59,8 +65,9 @@ def trend_png(points: Sequence[TrendPoint], title: str = "") -> bytes | None:
         ax.set_visible(False)
     for ax, pn in zip(axs, panels, strict=False):
         _panel(ax, pn, [p for p in points if p.figure.quantity == pn.quantity])
-    if title:
-        fig.suptitle(title, fontsize=9)
+    note = "error bars: U (k = 2)" + ("; ▽ upper limit (not resolved)"
+                                      if any(p.figure.is_limit for p in points) else "")
+    fig.suptitle(f"{title}\n{note}" if title else note, fontsize=9)
     FigureCanvasAgg(fig)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=DPI)
@@ -76,17 +83,25 @@ def _panel(ax: object, pn: Panel, points: list[TrendPoint]) -> None:
     lows = [(p.figure.value - offset - (p.figure.u or 0.0)) * pn.scale for p in points]
     highs = [(p.figure.value - offset + (p.figure.u or 0.0)) * pn.scale for p in points]
     lo, hi = min(lows), max(highs)
-    for i, (name, pts) in enumerate(sorted(series.items())):
+    def order(item: tuple[str, list[TrendPoint]]) -> tuple[str, float, float]:
+        """Axis, then rate magnitude, + before - (not 10 before 2 as text sorts)."""
+        f = item[1][0].figure
+        rate = f.set_rate_dps or 0.0
+        return f.axis, abs(rate), -rate
+
+    for i, (name, pts) in enumerate(sorted(series.items(), key=order)):
         x = [p.date_utc for p in pts]
         offset = 1.0 if pn.quantity == "k" else 0.0
         y = [(p.figure.value - offset) * pn.scale for p in pts]
         u = [(p.figure.u or 0.0) * pn.scale for p in pts]
-        color = f"C{i % 10}"
+        # 20 distinct colours, then another marker: 12 series never share a look
+        color = SERIES_COLOURS(i % 20)
+        marker = SERIES_MARKERS[(i // 20) % len(SERIES_MARKERS)]
         ax.plot(x, y, "-", lw=0.5, color=color, alpha=0.5)
         est = [j for j, p in enumerate(pts) if not p.figure.is_limit]
         if est:
             ax.errorbar([x[j] for j in est], [y[j] for j in est], yerr=[u[j] for j in est],
-                        fmt="o", ms=3, capsize=3, color=color, label=name)
+                        fmt=marker, ms=3, capsize=3, color=color, label=name)
         lim = [j for j, p in enumerate(pts) if p.figure.is_limit]
         if lim:   # not resolved: the upper limit, drawn as one (never a point with U)
             ax.plot([x[j] for j in lim], [y[j] for j in lim], "v", ms=5, mfc="none",
@@ -120,6 +135,6 @@ def _panel(ax: object, pn: Panel, points: list[TrendPoint]) -> None:
         lbl.set_rotation(25)
         lbl.set_horizontalalignment("right")
     ax.legend(fontsize=5.5, ncol=2, loc="best")
-    ax.set_title(pn.label.split(",")[0] + " (error bars: U, k = 2; ▽ upper limit, "
-                 "not resolved)" if any(p.figure.is_limit for p in points)
-                 else pn.label.split(",")[0] + " (error bars: U, k = 2)", fontsize=8)
+    # a short title fits a half-width panel; what the bars and marks mean is said once,
+    # under the figure's title
+    ax.set_title(pn.label.split(",")[0], fontsize=8)

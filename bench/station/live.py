@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import time
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +32,7 @@ TRACE_POINTS = 600                # a plot of a half never needs more points tha
 FOG_TAIL_S = 30.0                 # bench seconds of FOG record shown
 DRIVE_TAIL_BYTES = 96 * 1024      # about 600 feedback readings
 EVENT_KINDS_SHOWN = ("abort", "safe_stop", "prompt", "completed", "exit", "session_start",
-                     "pair", "settled")
+                     "pair", "pair_failed", "settled")
 
 
 def tail_jsonl(path: Path, max_bytes: int) -> list[dict[str, Any]]:
@@ -90,7 +91,7 @@ def decimate(t: np.ndarray, y: np.ndarray, points: int = TRACE_POINTS
 
 
 def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S
-              ) -> dict[str, list[float]]:
+              ) -> dict[str, Any]:
     """The last `tail_s` of a FOG capture, decoded and decimated (bench time, deg/s).
 
     Time is the frame's position in the capture over the output rate: exact while no
@@ -106,14 +107,16 @@ def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S
     with open(raw, "rb") as fh:
         fh.seek(start)
         buf = fh.read(size - start)
-    frames, _, _ = decode(buf, f, DecodeState(offset=start))
+    frames, _, stats = decode(buf, f, DecodeState(offset=start))
+    seen = {"tail_s": tail_s, "tail_crc_errors": int(stats.crc_errors),
+            "tail_lost_frames": int(stats.lost_frames)}
     if not len(frames) or fog.axis not in AXES:
-        return {"t_s": [], "rate_dps": []}
+        return {"t_s": [], "rate_dps": [], **seen}
     scale = dps_per_unit(fog.units, fog.rate_hz)
     t = frames.offset.astype(np.float64) / f.size / fog.rate_hz
     y = frames.rates[:, AXES.index(fog.axis)].astype(np.float64) * scale
     ts, ys = decimate(t, y)
-    return {"t_s": ts, "rate_dps": ys}
+    return {"t_s": ts, "rate_dps": ys, **seen}
 
 
 def drive_trace(raw: Path) -> dict[str, list[float]]:
@@ -175,7 +178,7 @@ def progress_of(session: list[dict[str, Any]]) -> dict[str, Any]:
     fraction = None
     if steps:
         fraction = len(done) / steps
-        if left_s is not None and total_s > 0:
+        if left_s is not None and total_s > 0 and len(done) < steps:
             fraction = min(1.0, max(0.0, 1 - left_s / total_s))
     return {
         "steps": steps,
@@ -190,6 +193,112 @@ def progress_of(session: list[dict[str, Any]]) -> dict[str, Any]:
         "speed": speed,
         "wall_left_s": (left_s / speed) if (left_s is not None and speed) else None,
     }
+
+
+#: wall seconds without new data after which a running bench is flagged on the page: the
+#: FOG streams hundreds of frames a second and the drive its feedback every few tens of ms,
+#: so a second or two of silence is already a fault (a hung bench otherwise looks normal)
+FOG_SILENT_S = 2.0
+DRIVE_SILENT_S = 2.0
+#: the page's "last update" turns into a stale warning after this long
+STALE_S = 5.0
+
+
+def _age_s(path: Path, now: float) -> float | None:
+    """Wall seconds since `path` was last written, or None if it does not exist."""
+    try:
+        return max(0.0, now - path.stat().st_mtime)
+    except OSError:
+        return None
+
+
+def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
+           fog_tail: dict[str, Any], axis: str | None,
+           acquires: list[dict[str, Any]], now: float | None = None) -> dict[str, Any]:
+    """The bench's health as its files show it: when each instrument was last heard, the
+    FOG's lost and broken frames, and how long since anything was written.
+
+    Ages are wall time from the files' modification times (the bench writes every frame
+    and reading as it arrives); warnings only while the run is running: a finished run's
+    files are quiet by design.
+    """
+    now = time.time() if now is None else now
+    per_axis = []
+    warnings: list[str] = []
+    ages = [a for a in [_age_s(run_path / "events.jsonl", now)] if a is not None]
+    for name in axes:
+        lost = sum(int(e.get("fog_lost", 0) or 0) for e in acquires if e.get("axis") == name)
+        row: dict[str, Any] = {"axis": name, "fog_lost_in_halves": lost}
+        for inst, suffix in (("fog", "fog.bin"), ("drive", "drive.jsonl"),
+                             ("counter", "counter.jsonl")):
+            age = _age_s(raw / f"{name}-{suffix}", now) if raw is not None else None
+            row[f"{inst}_age_s"] = age
+            if age is not None:
+                ages.append(age)
+        if name == axis:
+            row["fog_tail_s"] = fog_tail.get("tail_s")
+            row["fog_tail_crc_errors"] = fog_tail.get("tail_crc_errors")
+            row["fog_tail_lost_frames"] = fog_tail.get("tail_lost_frames")
+            if running:
+                fog_age, drive_age = row["fog_age_s"], row["drive_age_s"]
+                if fog_age is not None and fog_age > FOG_SILENT_S:
+                    warnings.append(f"FOG {name}: no data for {fog_age:.0f} s")
+                if drive_age is not None and drive_age > DRIVE_SILENT_S:
+                    warnings.append(f"drive {name}: not heard for {drive_age:.0f} s "
+                                    "(heartbeat/feedback)")
+                if row["fog_tail_crc_errors"]:
+                    warnings.append(f"FOG {name}: {row['fog_tail_crc_errors']} CRC errors in "
+                                    f"the last {FOG_TAIL_S:g} s")
+                if row["fog_tail_lost_frames"]:
+                    warnings.append(f"FOG {name}: {row['fog_tail_lost_frames']} frames lost "
+                                    f"in the last {FOG_TAIL_S:g} s")
+        per_axis.append(row)
+    last = min(ages) if ages else None
+    stale = running and last is not None and last > STALE_S
+    if stale:
+        warnings.insert(0, f"no update for {last:.0f} s: the bench may be hung")
+    return {"axes": per_axis, "last_update_s": last, "stale": stale,
+            "stale_after_s": STALE_S, "warnings": warnings}
+
+
+def pair_rows(events: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The results as they come: one row per axis, rate and direction from each pair's
+    first look (the `pair` event; k and w0 per pair, delta +/- U, sigma, verdict)."""
+    rows = []
+    for e in events:
+        if e.get("event") != "pair":
+            continue
+        for d in e.get("directions") or []:
+            rows.append({"axis": e.get("axis"), "set_rate_dps": d.get("set_rate_dps"),
+                         "k": e.get("k"), "k_U": e.get("k_u"), "w0_dps": e.get("w0_dps"),
+                         "w0_U_dps": e.get("w0_u_dps"),
+                         "rate_error_rel": d.get("rate_error_rel"),
+                         "rate_error_U_rel": d.get("rate_error_U_rel"),
+                         "rate_instability_rel": d.get("rate_instability_rel"),
+                         "turns": d.get("turns"), "verdict": d.get("verdict")})
+    return rows
+
+
+def final_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
+    """The final table from result.json: per axis and rate the figures the certificate
+    prints (rate error +/- U, instability, verdict) with the pair's k and w0."""
+    rows = []
+    for axis, body in (result.get("axes") or {}).items():
+        if not isinstance(body, dict):
+            continue
+        pairs = {p.get("rate_dps"): p for p in body.get("pairs") or [] if isinstance(p, dict)}
+        for r in body.get("rates") or []:
+            if not isinstance(r, dict):
+                continue
+            pair = pairs.get(abs(r.get("set_rate_dps") or 0), {})
+            rows.append({"axis": axis, "set_rate_dps": r.get("set_rate_dps"),
+                         "k": pair.get("k"), "k_U": pair.get("k_u"),
+                         "w0_dps": pair.get("w0_dps"), "w0_U_dps": pair.get("w0_u_dps"),
+                         "rate_error_rel": r.get("rate_error_rel"),
+                         "rate_error_U_rel": r.get("rate_error_u_rel"),
+                         "rate_instability_rel": r.get("rate_instability_rel"),
+                         "turns": r.get("turns"), "verdict": r.get("verdict")})
+    return rows
 
 
 def live_state(run_path: Path) -> dict[str, Any]:
@@ -218,7 +327,7 @@ def live_state(run_path: Path) -> dict[str, Any]:
     prog = progress_of(session)
     axis = (prog["step"] or {}).get("axis")
     raw = run_path / "raw" / f"s{session_no}" if session_no else None
-    fog: dict[str, list[float]] = {"t_s": [], "rate_dps": []}
+    fog: dict[str, Any] = {"t_s": [], "rate_dps": []}
     drive: dict[str, list[float]] = {"t_s": [], "velocity_dps": []}
     if raw is not None and axis:
         settings = FogSettings.of_axis(stand, axis) if isinstance(stand, dict) else None
@@ -226,12 +335,20 @@ def live_state(run_path: Path) -> dict[str, Any]:
             fog = fog_trace(raw / f"{axis}-fog.bin", settings)
         drive = drive_trace(raw / f"{axis}-drive.jsonl")
     acquires = [e for e in events if e.get("event") == "acquire"]
+    # the per-turn panel shows the axis now running, never the previous axis's last half
+    shown_acquires = [e for e in acquires if not axis or e.get("axis") == axis]
     result = None
+    final: list[dict[str, Any]] = []
     if (run_path / "result.json").exists() and status != "running":
         try:
-            result = json.loads((run_path / "result.json").read_text()).get("verdict")
+            doc = json.loads((run_path / "result.json").read_text())
+            result = doc.get("verdict") if isinstance(doc, dict) else None
+            final = final_rows(doc) if isinstance(doc, dict) else []
         except (OSError, json.JSONDecodeError):
             result = None
+    axes_now = [str(a) for a in ((stand.get("axes") or {}) if isinstance(stand, dict)
+                                 else {})]
+    used = [a for a in axes_now if any(e.get("axis") == a for e in session)] or axes_now
     shown = [{k: v for k, v in e.items() if k not in ("traceback",)}
              for e in events if e.get("event") in EVENT_KINDS_SHOWN][-40:]
     ident = (stand.get("stand") or {}) if isinstance(stand, dict) else {}
@@ -245,8 +362,11 @@ def live_state(run_path: Path) -> dict[str, Any]:
         "sessions": len(starts),
         "pid": pid,
         "progress": prog,
-        "turns": turn_rates(acquires[-1]) if acquires else None,
+        "turns": turn_rates(shown_acquires[-1]) if shown_acquires else None,
         "fog": {"axis": axis, **fog},
+        "health": health(run_path, raw, used, status == "running", fog, axis, acquires),
+        "results": pair_rows(events),
+        "final": final,
         "drive": {"axis": axis, **drive},
         "faults": [e for e in shown if e.get("event") in ("abort", "safe_stop")
                    and not e.get("ok", False)],

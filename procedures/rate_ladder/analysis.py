@@ -376,8 +376,20 @@ def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
     pa = analyze_unit(raw, cfg, axis, rate_dps, acquisitions, static)
     out: dict[str, Any] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps,
                            "w0_u_dps": pa.pair.w0_u_dps}
+    rule = _settings(cfg)["decision_rule"]
+    directions = []
     for r in pa.rates:
         sign = "+" if r.set_rate_dps > 0 else "-"
         out[f"rate_error_rel{sign}"] = r.rate_error_rel
         out[f"rate_error_u_rel{sign}"] = r.rate_error_u_rel
+        # the station page's row: the same figures and checks result.json will hold
+        d = with_sigma_terms(r.to_dict())
+        checks = _checks(cfg, axis, d, rule)
+        directions.append({
+            "set_rate_dps": r.set_rate_dps, "turns": d.get("turns"),
+            "rate_error_rel": r.rate_error_rel, "rate_error_U_rel": r.rate_error_u_rel,
+            "rate_instability_rel": d.get("rate_instability_rel"),
+            "verdict": ("fail" if any(c["verdict"] == "fail" for c in checks)
+                        else "pass" if checks else "not-assessed")})
+    out["directions"] = directions
     return out

@@ -159,7 +159,8 @@ class RateLadder(StepDispatch, LadderCertificate):
                     period = 360.0 / rate
                     steps.append(Step("acquire", axis, f"{_turns(n)} at {target:+g} deg/s "
                                       f"(half {j + 1}/{len(parts)}, "
-                                      f"{format_duration(n * period)})",
+                                      f"{format_duration((n + 1) * period)} with the "
+                                      "lead-in turn)",
                                       (n + 1) * period, unit,
                                       {"rate_dps": target, "turns": n, "half": j,
                                        "period_s": period}))
@@ -169,7 +170,14 @@ class RateLadder(StepDispatch, LadderCertificate):
             steps.append(Step("stop", axis, "ramp to zero, disable", abs(rate_now) / accel,
                               None, {"accel_dps2": accel}))
         title = cfg.procedure.get("title", cfg.procedure_path.stem)
-        return Plan(title, tuple(steps))
+        warnings = tuple(
+            f"axis {axis}: {spec.turns} turns with sequence +-+ split the + direction "
+            f"{halves(spec.turns, '+-+')[0][1]}/{halves(spec.turns, '+-+')[2][1]} around the "
+            "- half; an even count splits it evenly (a linear FOG drift then cancels "
+            "exactly, docs/method.md A3)"
+            for axis, spec in ladder.axes.items()
+            if ladder.sequence == "+-+" and spec.turns >= 3 and spec.turns % 2)
+        return Plan(title, tuple(steps), warnings)
 
     # -- bench -----------------------------------------------------------------------
     def axes(self, cfg: Config) -> list[str]:

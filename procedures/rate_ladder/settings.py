@@ -19,42 +19,6 @@ from bench.schema import Key, ListOf, Map, MapOf, Num, Str
 
 NAME = "rate-ladder"
 
-BAND = Map({
-    "below_dps": Key(Num(min=0, exclusive_min=True, max=RATE_MAX_DPS, unit="deg/s"), False,
-                     "the band applies to rates below this; omit on the last band"),
-    "rel": Key(Num(min=0, exclusive_min=True, max=1), True,
-               "tolerance, a fraction (1e-6 = 1 ppm)"),
-})
-SETTLE = Map({
-    "tolerance_dps": Key(Num(min=0, exclusive_min=True, max=100, unit="deg/s")),
-    "tolerance_rel": Key(Num(min=0, exclusive_min=True, max=1)),
-    "hold_s": Key(Num(min=0, max=86_400, unit="s")),
-    "timeout_s": Key(Num(min=0, exclusive_min=True, max=STEP_MAX_S, unit="s")),
-})
-AXIS = Map({
-    "rates_dps": Key(ListOf(Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"),
-                            min_len=1), True),
-    "turns": Key(Num(min=1, max=10_000, integer=True)),
-    "prompt": Key(Str(), False, "what the operator must do before this axis"),
-})
-PROCEDURE = Map({
-    **COMMON_PROCEDURE_KEYS,
-    "turns": Key(Num(min=1, max=10_000, integer=True), False, "turns per rate and direction"),
-    "sequence": Key(Str(("+-", "+-+")), False, "order of the halves of a pair"),
-    "accel_dps2": Key(Num(min=0, exclusive_min=True, max=ACCEL_MAX_DPS2, unit="deg/s^2")),
-    "settle": Key(SETTLE),
-    "static_record_s": Key(Num(min=0, max=86_400, unit="s"), False,
-                           "FOG at rest per axis (noise floor)"),
-    "harmonics": Key(Num(min=1, max=20, integer=True), False, "orders 1..H fitted in angle"),
-    "mains_hz": Key(Num(min=1, max=1000, unit="Hz")),
-    "axes": Key(MapOf(AXIS, min_len=1), True),
-    "tolerance": Key(Map({
-        "rate_error": Key(ListOf(BAND, min_len=1)),
-        "rate_instability": Key(ListOf(BAND, min_len=1)),
-        "intra_turn_instability": Key(ListOf(BAND, min_len=1)),
-    })),
-})
-
 DEFAULTS: dict[str, Any] = {
     "turns": 5,
     "sequence": "+-+",
@@ -67,6 +31,57 @@ DEFAULTS: dict[str, Any] = {
 SETTLE_DEFAULTS = {"tolerance_rel": 1e-3, "tolerance_dps": 0.005, "hold_s": 2.0,
                    "timeout_s": 60.0}
 
+
+BAND = Map({
+    "below_dps": Key(Num(min=0, exclusive_min=True, max=RATE_MAX_DPS, unit="deg/s"), False,
+                     "the band applies to rates below this; omit on the last band"),
+    "rel": Key(Num(min=0, exclusive_min=True, max=1), True,
+               "tolerance, a fraction (1e-6 = 1 ppm)"),
+})
+SETTLE = Map({
+    "tolerance_dps": Key(Num(min=0, exclusive_min=True, max=100, unit="deg/s"), False,
+                         "settled when within the larger of this and tolerance_rel x rate",
+                         SETTLE_DEFAULTS["tolerance_dps"]),
+    "tolerance_rel": Key(Num(min=0, exclusive_min=True, max=1), False,
+                         "settling tolerance relative to the rate", SETTLE_DEFAULTS["tolerance_rel"]),
+    "hold_s": Key(Num(min=0, max=86_400, unit="s"), False,
+                  "how long the rate must stay within tolerance", SETTLE_DEFAULTS["hold_s"]),
+    "timeout_s": Key(Num(min=0, exclusive_min=True, max=STEP_MAX_S, unit="s"), False,
+                     "a rate that has not settled by then aborts the run",
+                     SETTLE_DEFAULTS["timeout_s"]),
+})
+AXIS = Map({
+    "rates_dps": Key(ListOf(Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"),
+                            min_len=1), True, "rate magnitudes; each runs +w then -w"),
+    "turns": Key(Num(min=1, max=10_000, integer=True), False,
+                 "turns per rate and direction on this axis (default: the file's turns)"),
+    "prompt": Key(Str(), False, "what the operator must do before this axis"),
+})
+PROCEDURE = Map({
+    **COMMON_PROCEDURE_KEYS,
+    "turns": Key(Num(min=1, max=10_000, integer=True), False, "turns per rate and direction; "
+                 "an odd count with sequence +-+ splits the + half unevenly", DEFAULTS["turns"]),
+    "sequence": Key(Str(("+-", "+-+")), False, "order of the halves of a pair (+-+ "
+                    "cancels a linear FOG bias drift)", DEFAULTS["sequence"]),
+    "accel_dps2": Key(Num(min=0, exclusive_min=True, max=ACCEL_MAX_DPS2, unit="deg/s^2"),
+                      False, "ramp acceleration (default and limit: the drive's max_accel_dps2)"),
+    "settle": Key(SETTLE, False, "when a rate counts as reached"),
+    "static_record_s": Key(Num(min=0, max=86_400, unit="s"), False,
+                           "FOG at rest per axis (noise floor)", DEFAULTS["static_record_s"]),
+    "harmonics": Key(Num(min=1, max=20, integer=True), False, "orders 1..H fitted in angle",
+                     DEFAULTS["harmonics"]),
+    "mains_hz": Key(Num(min=1, max=1000, unit="Hz"), False, "mains frequency fitted as a "
+                    "rate disturbance", DEFAULTS["mains_hz"]),
+    "axes": Key(MapOf(AXIS, min_len=1), True, "the axes to certify, by their stand names"),
+    "tolerance": Key(Map({
+        "rate_error": Key(ListOf(BAND, min_len=1), False, "|mean - set| / |set| (eq. 1)"),
+        "rate_instability": Key(ListOf(BAND, min_len=1), False, "per-turn rate std / rate "
+                                "(eq. 2)"),
+        "intra_turn_instability": Key(ListOf(BAND, min_len=1), False, "std of the random "
+                                      "part within a turn / rate"),
+    }), False, "what the table's maker claims, by rate band; a figure without a band is "
+       "reported, not judged"),
+})
 
 def setting(cfg: Config, key: str) -> Any:
     return cfg.procedure.get(key, DEFAULTS.get(key))

@@ -36,6 +36,83 @@
   station.charts.turns = chart("chart-turns", "deviation", "ppm", true);
   station.charts.turns.axes[0].label = "turn";
 
+  function num(v, digits) {
+    return (v === null || v === undefined || !isFinite(v)) ? "-" : Number(v).toPrecision(digits);
+  }
+  function ppm(v, digits) {
+    return (v === null || v === undefined || !isFinite(v)) ? "-" : (v * 1e6).toFixed(digits);
+  }
+  function age(s) {
+    return (s === null || s === undefined) ? "-" : `${s.toFixed(s < 10 ? 1 : 0)} s ago`;
+  }
+  function cells(tr, values) {
+    for (const v of values) {
+      const td = document.createElement("td");
+      td.textContent = v;
+      tr.appendChild(td);
+    }
+  }
+
+  function renderHealth(h) {
+    if (!h) return;
+    const running = station.state && station.state.status === "running";
+    $("last-update").textContent = h.last_update_s === null || h.last_update_s === undefined
+      ? "" : `- last update ${age(h.last_update_s)}${h.stale ? " (STALE)" : ""}`;
+    $("health").classList.toggle("stale", !!h.stale);
+    const ul = $("health-warnings");
+    ul.textContent = "";
+    for (const w of h.warnings || []) {
+      const li = document.createElement("li");
+      li.textContent = w;
+      ul.appendChild(li);
+    }
+    const body = $("health-table").querySelector("tbody");
+    body.textContent = "";
+    for (const a of h.axes || []) {
+      const tr = document.createElement("tr");
+      const tail = a.fog_tail_crc_errors === undefined ? "-" : `${a.fog_tail_crc_errors} / ${a.fog_tail_lost_frames}`;
+      cells(tr, [a.axis, running ? age(a.fog_age_s) : "-", String(a.fog_lost_in_halves), tail,
+        running ? age(a.drive_age_s) : "-", running ? age(a.counter_age_s) : "-"]);
+      body.appendChild(tr);
+    }
+  }
+
+  function renderResults(st) {
+    const final = (st.final || []).length > 0;
+    const rows = final ? st.final : (st.results || []);
+    $("results-title").textContent = final
+      ? "Final results (result.json; the certificate prints these)"
+      : "Results as they come (first look per pair; the certificate is computed again from the raw data)";
+    $("results-table").classList.toggle("final", final);
+    const body = $("results-table").querySelector("tbody");
+    body.textContent = "";
+    for (const r of rows) {
+      const tr = document.createElement("tr");
+      tr.className = r.verdict || "";
+      cells(tr, [r.axis, (r.set_rate_dps > 0 ? "+" : "") + r.set_rate_dps,
+        `${num(r.k, 7)} ± ${num(r.k_U, 2)}`, `${num(r.w0_dps, 4)} ± ${num(r.w0_U_dps, 2)}`,
+        `${ppm(r.rate_error_rel, 3)} ± ${ppm(r.rate_error_U_rel, 3)}`, ppm(r.rate_instability_rel, 3),
+        r.turns === undefined || r.turns === null ? "-" : String(r.turns), r.verdict || "-"]);
+      body.appendChild(tr);
+    }
+    $("results-none").style.display = rows.length ? "none" : "";
+  }
+
+  function milestone(e) {
+    const rate = e.rate_dps !== undefined ? `${e.rate_dps > 0 ? "+" : ""}${e.rate_dps} deg/s` : "";
+    const mag = e.unit ? e.unit.split("/")[1].replace("dps", " deg/s") : "";
+    if (e.event === "settled") {
+      const set = mag ? `${e.rate_dps < 0 ? "-" : "+"}${mag}` : rate;
+      return `settled: ${e.axis || ""} at ${set}` + (mag ? ` (drive reads ${num(e.rate_dps, 7)} deg/s)` : "");
+    }
+    if (e.event === "pair") {
+      return `pair analysed: ${e.axis || ""} +/-${mag}: k = ${num(e.k, 7)} ± ${num(e.k_u, 2)}, ` +
+        `ω0 = ${num(e.w0_dps, 4)} ± ${num(e.w0_u_dps, 2)} deg/s`;
+    }
+    if (e.event === "pair_failed") return `pair first look failed: ${e.axis || ""} +/-${mag} (${e.error || ""})`;
+    return null;
+  }
+
   function render(st) {
     station.state = st;
     station.updates += 1;
@@ -67,15 +144,21 @@
     for (const e of st.log || []) {
       const li = document.createElement("li");
       li.className = e.event;
-      let text = `${(e.utc || "").slice(11, 19)} UTC, session ${e.session}: ${e.event}`;
-      if (e.reason) text += ` - ${e.reason}`;
-      if (e.text) text += ` - ${e.text} (${e.answered || ""})`;
-      if (e.event === "exit") text += ` with status ${e.status}`;
-      if (e.event === "pair") text += ` ${e.axis} +/-${e.unit ? e.unit.split("/")[1] : ""}`;
-      if (e.error) text += ` (${e.error})`;
+      const said = milestone(e);
+      let text = `${(e.utc || "").slice(11, 19)} UTC, session ${e.session}: ${said || e.event}`;
+      if (!said) {
+        if (e.reason) text += ` - ${e.reason}`;
+        if (e.text) text += ` - ${e.text} (${e.answered || ""})`;
+        if (e.event === "exit") text += ` with status ${e.status}`;
+        if (e.error) text += ` (${e.error})`;
+      }
       li.textContent = text;
       log.appendChild(li);
     }
+    renderHealth(st.health);
+    renderResults(st);
+    const controls = $("controls");
+    if (controls && st.status !== "running" && st.status !== "created") controls.remove();   // nothing left to stop
     const files = $("files");
     files.textContent = "";
     for (const f of st.files || []) {
@@ -91,6 +174,7 @@
   const source = new EventSource(`/api/runs/${encodeURIComponent(run)}/stream`);
   source.addEventListener("state", (ev) => render(JSON.parse(ev.data)));
 
+  if (!$("stop")) return;                       // a finished run: no stop form
   $("token").value = sessionStorage.getItem("bench-token") || "";
   $("stop").addEventListener("click", async () => {
     const token = $("token").value;
