@@ -28,6 +28,7 @@ from drivers.cia402 import DEFAULT_EDS_PATH, Od, State
 from sims.clock import VirtualClock
 from sims.drive_twin import DriveTwin
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
+from tests.test_axis import wait_until as wait_for
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -76,15 +77,6 @@ def client(twin: DriveTwin) -> Iterator[Client]:
         yield c
     finally:
         c.close()
-
-
-def wait_for(predicate, timeout_s: float) -> bool:  # noqa: ANN001
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.005)
-    return bool(predicate())
 
 
 def turning(c: Client, rate_dps: float) -> None:
