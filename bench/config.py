@@ -138,6 +138,10 @@ SIM_AXIS = Map({
     "fog": Key(SIM_FOG),
     "counter_external_reference": Key(Bool(), False, "a valid 10 MHz is wired to the "
                                       "counter's Ext Ref In (default true)"),
+    "counter_first_value": Key(Str(("from-start", "edge-to-edge")), False,
+                               "how the 53230A twin reads its first timestamp value: from "
+                               "the trigger (default) or edge to edge (the Programmer's "
+                               "Reference's SENSe:TSTamp:RATE example)"),
     "time_tie": Key(Map({"latency_s": Key(Num(min=0)), "jitter_s": Key(Num(min=0))}),
                     False, "the FOG sync to counter trigger link: true latency and jitter"),
     "drive": Key(Map({"velocity_unit": Key(Str()), "acceleration_unit": Key(Str()),

@@ -159,7 +159,9 @@ class SimBench:
                                      sync=sync_link(c, sim_axes.get(a) or {}),
                                      seed=int(sim.get("seed", 0)),
                                      external_reference=bool((sim_axes.get(a) or {}).get(
-                                         "counter_external_reference", True)))
+                                         "counter_external_reference", True)),
+                                     first_value=str((sim_axes.get(a) or {}).get(
+                                         "counter_first_value", "from-start")))
                     c["resource"] = ct.start()
                     # the twin knows its zero-mark signal: mid-swing is a sound level
                     c.setdefault("level_v", sum(ct.signal_v) / 2)

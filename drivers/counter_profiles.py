@@ -133,6 +133,43 @@ class KeysightTimestamps(TimestampFormat):
         return n_edges + 1
 
 
+# -- the 53230A's first timestamp value: two readings of the manual ------------------------
+#
+# The Programmer's Reference (SENSe:TSTamp:RATE, typical response
+# `+13,+1.29383828200000E-006,+1.29352315400000E-006,...`) shows, on a free-running
+# input, a first value equal to a full period: stamp 0 is then the first EDGE, not the
+# trigger, and the reply says nothing about when that edge came after the trigger. The
+# twin long assumed the other reading (value 1 = trigger to first edge). No public
+# client program we read (opronningen/53230A-Toolkit, joewhalen/keysight_53230A,
+# francescobenfenati/Agilent-53230A-remote-control) uses the first value at all.
+# So the tie must not rest on either reading: `first_interval_is_a_turn` tells them apart
+# on the data (a trigger falls anywhere in a turn, an edge-to-edge value is one turn like
+# the others), and the driver refuses edges whose first value is a full turn.
+
+FIRST_VALUE_READINGS = ("from-start", "edge-to-edge")
+#: the manual's example (SENSe:TSTamp:RATE): stamp 0 is an edge
+MANUAL_FIRST_VALUE = "edge-to-edge"
+
+
+def first_interval_is_a_turn(intervals_s: np.ndarray, expected_period_s: float,
+                             resolution_s: float) -> bool:
+    """True when the first interval is as long as the full turns after it (within their
+    own scatter, 10 sigma, never tighter than 20 resolution steps), or, with fewer than
+    three turns to compare, within 1e-3 of the expected period.
+
+    A trigger-to-first-edge value is uniform over a turn: it looks like a turn by chance
+    with probability about (window / turn), 1e-7 at the stand's jitter."""
+    v = np.asarray(intervals_s, float)
+    v = v[v < 0.999 * SCPI_NAN]
+    if v.size < 1:
+        return False
+    turns = v[1:]
+    if turns.size >= 3:
+        window = max(10.0 * float(np.std(turns, ddof=1)), 20.0 * resolution_s)
+        return abs(float(v[0]) - float(np.median(turns))) <= window
+    return abs(float(v[0]) - expected_period_s) <= 1e-3 * expected_period_s
+
+
 class PendulumStst(TimestampFormat):
     """CNT-91 `CONF:ARR:STST` with `FORM:TINF ON`: pairs (X, TS) per stamp.
 

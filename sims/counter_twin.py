@@ -48,6 +48,7 @@ from typing import Literal
 import numpy as np
 
 from drivers.counter_profiles import (
+    FIRST_VALUE_READINGS,
     TIMESTAMP_FORMATS,
     CounterProfile,
     encode_values,
@@ -111,10 +112,15 @@ class TwinAcquisition:
     values: np.ndarray | None = None
     edges_s: np.ndarray = field(default_factory=lambda: np.empty(0))
     fetched: int = 0            # results already sent by FETC:ARR?
+    #: stamp 0: the start event, or (first_value "edge-to-edge") the first edge after it
+    edge_to_edge: bool = False
+    stamp0_s: float | None = None
 
     @property
     def edges_needed(self) -> int:
-        return self.n if self.kind == "timestamps" else 2 * self.n
+        if self.kind == "timestamps":
+            return self.n + (1 if self.edge_to_edge else 0)
+        return 2 * self.n
 
 
 class CounterTwin(ScpiServer):
@@ -126,11 +132,19 @@ class CounterTwin(ScpiServer):
                  host: str = "127.0.0.1", port: int = 0, *, signal_channel: int = 1,
                  signal_low_v: float = 0.0, signal_high_v: float = 5.0,
                  sync: SyncLink | None = None, timeout_s: float | None = None,
-                 seed: int = 0, external_reference: bool = True) -> None:
+                 seed: int = 0, external_reference: bool = True,
+                 first_value: str = "from-start") -> None:
         self.profile: CounterProfile = get_profile(model)
         super().__init__(idn=self.profile.idn, host=host, port=port)
         if self.profile.maker.startswith("Keysight"):  # `+0,"No error"` (Prog. Ref.)
             self.error_code_format = "{:+d}"
+        if first_value not in FIRST_VALUE_READINGS:
+            raise ValueError(f"counter twin first_value {first_value!r}: one of "
+                             f"{', '.join(FIRST_VALUE_READINGS)}")
+        #: how the 53230A's first timestamp value is read (counter_profiles,
+        #: MANUAL_FIRST_VALUE): from the start event, or edge to edge (the manual's
+        #: SENSe:TSTamp:RATE example); each plausible reading is a setting
+        self.first_value = first_value
         self.stand = stand
         self.axis = stand.axis(axis)
         self.clock = stand.clock
@@ -184,7 +198,10 @@ class CounterTwin(ScpiServer):
                 blind = True  # nothing is wired to the external trigger input
             else:
                 t_start = self.sync.next_pulse_s(t_arm, self.rng)
-        self.acquisition = TwinAcquisition(kind, n, ch, t_arm, self.timeout_s, blind, t_start)
+        self.acquisition = TwinAcquisition(
+            kind, n, ch, t_arm, self.timeout_s, blind, t_start,
+            edge_to_edge=(kind == "timestamps" and self.first_value == "edge-to-edge"
+                          and self.profile.timestamps == "keysight-tst"))
         self.last_acquisition = self.acquisition  # kept after the client leaves (tests)
         return self.acquisition
 
@@ -208,7 +225,10 @@ class CounterTwin(ScpiServer):
         if acq.edges_s.size < need and not timed_out:
             return False
         edges = self.profile.quantise(acq.edges_s[:need])
-        if acq.kind == "timestamps":
+        if acq.kind == "timestamps" and acq.edge_to_edge:
+            acq.stamp0_s = float(edges[0]) if edges.size else acq.t_start_s
+            values = edges[1:]
+        elif acq.kind == "timestamps":
             values = edges
         else:
             pairs = edges.size // 2
@@ -230,8 +250,9 @@ class CounterTwin(ScpiServer):
             if fmt.name == "pendulum-stst" and not self.timestamp_info:
                 return ",".join(str(i + 1) for i in range(values.size))
             nan = values >= 0.999 * SCPI_NAN
-            text = fmt.encode(np.where(nan, acq.t_start_s, values), acq.t_start_s,
-                              self._time_digits(values[~nan] - acq.t_start_s),
+            stamp0 = acq.t_start_s if acq.stamp0_s is None else acq.stamp0_s
+            text = fmt.encode(np.where(nan, stamp0, values), stamp0,
+                              self._time_digits(values[~nan] - stamp0),
                               p.reply_exp_digits, first)
             return _nan_tail(text, int(nan.sum()))
         return encode_values(values, p.reply_digits, p.reply_exp_digits)
