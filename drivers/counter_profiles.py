@@ -221,6 +221,47 @@ def is_scpi_nan(values: np.ndarray) -> np.ndarray:
     return np.asarray(values) >= 0.999 * SCPI_NAN
 
 
+# -- what users' own 53230A scripts send (the twin serves these; the driver needs none) ------
+
+@dataclass(frozen=True)
+class Keysight53230aScriptWords:
+    """Words of the 53220A/53230A Programmer's Reference that public client programs
+    send (opronningen/53230A-Toolkit: R/R.cs `:DATA:REMOVE? n,WAIT`, Ag53230A.cs
+    `Abort;*WAI;*LRN?`, `FORM ASC,15` / `REAL,64`, `FORM:BORD`; 53230A_Model.cs the
+    `:TRIG:COUN`, `:TRIG:DEL`, `:TRIG:SLOP`, `:FREQ:MODE` settings; joewhalen/
+    keysight_53230A counter.py `TRIG:SOUR IMM; COUN MAX`, `SENS:FREQ:MODE REC`, `R?`;
+    francescobenfenati/Agilent-53230A-remote-control `READ?`). Parameter lists are
+    parsed by the twin itself (raw routes)."""
+
+    read_remove: Command = Command("R?", doc="[<max>]: readings removed, definite-length block")
+    data_remove: Command = Command("DATA:REMove?", doc="<n>[,WAIT]: n readings removed")
+    data_points: Command = Command("DATA:POINts?", doc="readings in memory")
+    measure_timestamps: Command = Command("MEASure:ARRay:TSTamp?", doc="(<n>),(@<ch>)")
+    measure_period: Command = Command("MEASure:PERiod?", doc="[<exp>,<res>,](@<ch>)")
+    measure_frequency: Command = Command("MEASure[:SCALar]:FREQuency?",
+                                         doc="[<exp>,<res>,](@<ch>)")
+    configure_period: Command = Command("CONFigure:PERiod", doc="[<exp>,<res>,](@<ch>)")
+    configure_frequency: Command = Command("CONFigure[:SCALar]:FREQuency",
+                                           doc="[<exp>,<res>,](@<ch>)")
+    configure_timestamp: Command = Command("CONFigure:TSTamp", doc="[(@<ch>)]")
+    configure_query: Command = Command("CONFigure?", doc="the function and its channel")
+    learn: Command = Command("*LRN?", doc="the settings as commands that restore them")
+    status_byte: Command = Command("*STB?", doc="status byte")
+    scpi_version: Command = Command("SYSTem:VERSion?", doc="SCPI version: 1994.0")
+    trigger_count: Command = Command("TRIGger[:SEQuence]:COUNt", doc="1..1e6, MIN, MAX, DEF")
+    trigger_delay: Command = Command("TRIGger[:SEQuence]:DELay", doc="0..3600 s")
+    trigger_slope: Command = Command("TRIGger[:SEQuence]:SLOPe", doc="POSitive, NEGative")
+    byte_order: Command = Command("FORMat:BORDer", doc="NORMal, SWAPped")
+    frequency_mode: Command = Command("[SENSe:]FREQuency:MODE",
+                                      doc="AUTO, CONTinuous, RCONtinuous, RECiprocal")
+    format_data: Command = Command("FORMat[:DATA]", doc="ASCii[,<1..15>] or REAL[,64]")
+
+
+KEYSIGHT_53230A_SCRIPT_WORDS = Keysight53230aScriptWords()
+#: reading memory (Programmer's Reference, DATA:POINts?: 1,000,000 readings)
+KEYSIGHT_53230A_MEMORY = 1_000_000
+
+
 # -- the profile ----------------------------------------------------------------------------
 
 @dataclass(frozen=True)
@@ -321,6 +362,7 @@ KEYSIGHT_53230A = CounterProfile(
         reference_check=Command("[SENSe:]ROSCillator:EXTernal:CHECk", "{when}",
                                 doc="ONCE: checks the Ext Ref In signal, errors if none"),
         fetch=Command("FETCh?", doc="readings of the last INIT"),
+        read=Command("READ?", doc="ABORt, INIT, FETCh? in one"),
     ),
     timestamps="keysight-tst",
     periods="init-fetch",
@@ -344,6 +386,7 @@ KEYSIGHT_53230A = CounterProfile(
            "every other turn; use timestamps for consecutive turns. Timebase: standard "
            "TCXO, +/-1e-6 assumed (1-year aging and temperature); option 010 OCXO is far "
            "better: take the calibration certificate's figure."),
+    reply_digits=14,   # 15 significant: `+1.29383828200000E-006` (SENSe:TSTamp:RATE)
     reply_exp_digits=3,
     idn="Keysight Technologies,53230A,MY00000000,03.02-1519.2432-3.15-4.16-127-155-35",
 )
