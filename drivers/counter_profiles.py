@@ -258,6 +258,38 @@ class Keysight53230aScriptWords:
 
 
 KEYSIGHT_53230A_SCRIPT_WORDS = Keysight53230aScriptWords()
+
+
+@dataclass(frozen=True)
+class Cnt91ScriptWords:
+    """Words PyMeasure's CNT91 driver (pymeasure.instruments.pendulum.cnt91) sends,
+    as the CNT-90 series Programmer's Handbook names them: FORMat:SMAX p. 8-39,
+    :ACQuisition:APERture p. 8-92 (2e-8..1000 s), :CONFigure:ARRay:FREQuency[:BTB],
+    ARM:SOURce/SLOPe/COUNt, INITiate:CONTinuous, :CALibration:INTerpolator:AUTO."""
+
+    format_smax: Command = Command("FORMat:SMAX?", doc="most results one FETC:ARR? gives")
+    continuous: Command = Command("INITiate:CONTinuous", doc="ON/OFF or 1/0")
+    aperture: Command = Command("ACQuisition:APERture", doc="gate time, 2e-8..1000 s")
+    arm_source: Command = Command("ARM[:STARt][:LAYer2]:SOURce",
+                                  doc="IMMediate, EXTernal1, EXTernal2, EXTernal4")
+    arm_slope: Command = Command("ARM[:STARt][:LAYer2]:SLOPe", doc="POSitive, NEGative")
+    arm_count: Command = Command("ARM[:STARt][:LAYer1]:COUNt", doc="1..2e9, INF")
+    interpolator_auto: Command = Command("CALibration:INTerpolator:AUTO", doc="ON/OFF")
+    configure_frequency_array: Command = Command("CONFigure:ARRay:FREQuency",
+                                                 doc="<n>,(@<ch>): n frequencies")
+    configure_frequency_array_btb: Command = Command("CONFigure:ARRay:FREQuency:BTB",
+                                                     doc="<n>,(@<ch>): back to back")
+    configure_frequency: Command = Command("CONFigure[:SCALar]:FREQuency", doc="[(@<ch>)]")
+    configure_period: Command = Command("CONFigure[:SCALar]:PERiod", doc="[(@<ch>)]")
+    measure_frequency: Command = Command("MEASure[:SCALar]:FREQuency?", doc="[(@<ch>)]")
+    measure_period: Command = Command("MEASure[:SCALar]:PERiod?", doc="[(@<ch>)]")
+    read: Command = Command("READ?", doc="INIT and FETCh? in one")
+    fetch: Command = Command("FETCh?", doc="the last result")
+    status_byte: Command = Command("*STB?")
+    options: Command = Command("*OPT?")
+
+
+CNT91_SCRIPT_WORDS = Cnt91ScriptWords()
 #: reading memory (Programmer's Reference, DATA:POINts?: 1,000,000 readings)
 KEYSIGHT_53230A_MEMORY = 1_000_000
 

@@ -48,6 +48,7 @@ from typing import Literal
 import numpy as np
 
 from drivers.counter_profiles import (
+    CNT91_SCRIPT_WORDS,
     FIRST_VALUE_READINGS,
     KEYSIGHT_53230A_MEMORY,
     KEYSIGHT_53230A_SCRIPT_WORDS,
@@ -120,6 +121,11 @@ class TwinAcquisition:
     stamp0_s: float | None = None
     #: frequency readings (CONF:FREQ, MEAS:FREQ?): 1 / period
     invert: bool = False
+    #: gated readings (CNT-91 ACQ:APER): each spans whole turns until the gate time has
+    #: passed; back to back, the next starts where it ended (no dead time)
+    walk: bool = False
+    gate_s: float = 0.0
+    back_to_back: bool = False
 
     @property
     def edges_needed(self) -> int:
@@ -170,6 +176,8 @@ class CounterTwin(ScpiServer):
         self._route_words()
         if self.profile.model == "keysight-53230a":
             self._route_script_words()
+        elif self.profile.model == "pendulum-cnt-91":
+            self._route_cnt91_words()
 
     # -- state ----------------------------------------------------------------------------
     def reset(self) -> None:
@@ -194,6 +202,11 @@ class CounterTwin(ScpiServer):
         self.invert = False
         if self.profile.model == "keysight-53230a":  # *RST function: FREQ 1
             self.function, self.invert = "periods", True
+        # CNT-91 (Programmer's Handbook): gate 10 ms, single measurements, arming IMM
+        self.aperture_s = 0.01
+        self.walk = self.back_to_back = self.continuous = False
+        self.arm_source, self.arm_slope, self.arm_count = "IMM", "POS", 1
+        self.interpolator_auto = True
 
     def pending(self) -> bool:
         return self.acquisition is not None and not self._progress(self.acquisition)
@@ -226,7 +239,9 @@ class CounterTwin(ScpiServer):
             kind, n, ch, t_arm, self.timeout_s, blind, t_start,
             edge_to_edge=(kind == "timestamps" and self.first_value == "edge-to-edge"
                           and self.profile.timestamps == "keysight-tst"),
-            invert=kind == "periods" and self.invert)
+            invert=kind == "periods" and self.invert,
+            walk=kind == "periods" and self.walk, gate_s=self.aperture_s,
+            back_to_back=self.back_to_back)
         self.last_acquisition = self.acquisition  # kept after the client leaves (tests)
         return self.acquisition
 
@@ -238,6 +253,12 @@ class CounterTwin(ScpiServer):
         if not acq.blind and now > acq.t_start_s:
             self.axis.advance_to(now)
             acq.edges_s = self.axis.zero_marks(acq.t_start_s, now).t_edge_s
+        if acq.walk:
+            readings = self._walk(acq)
+            if readings.size < acq.n:
+                return False
+            acq.values = readings[:acq.n]
+            return True
         need = acq.edges_needed
         # per reading (p. 459): the next stamp must come within the timeout of the last
         stamps = np.concatenate([[max(acq.t_start_s, acq.t_arm_s)], acq.edges_s[:need]])
@@ -263,12 +284,31 @@ class CounterTwin(ScpiServer):
         acq.values = np.concatenate([values, np.full(acq.n - values.size, SCPI_NAN)])
         return True
 
+    def _walk(self, acq: TwinAcquisition) -> np.ndarray:
+        """Gated readings from the edges so far: each from an edge to the first edge at
+        least the gate time later (a reciprocal counter's measurement, CNT-90 series
+        Programmer's Handbook, :ACQuisition:APERture), frequency = turns / time."""
+        e = self.profile.quantise(acq.edges_s)
+        out: list[float] = []
+        i = 0
+        while len(out) < acq.n and i < e.size:
+            later = np.flatnonzero(e[i + 1:] - e[i] >= acq.gate_s)
+            if not later.size:
+                break
+            j = i + 1 + int(later[0])
+            span, turns = e[j] - e[i], j - i
+            out.append(turns / span if acq.invert else span / turns)
+            i = j if acq.back_to_back else j + 1
+        return np.array(out)
+
     def _available(self, acq: TwinAcquisition) -> np.ndarray:
         """The readings that exist now (all of them once the acquisition is done): what
         R?, DATA:REM? and DATA:POIN? see of the reading memory."""
         if self._progress(acq):
             assert acq.values is not None
             return acq.values
+        if acq.walk:
+            return self._walk(acq)
         edges = self.profile.quantise(acq.edges_s[:acq.edges_needed])
         if acq.kind == "timestamps":
             if acq.edge_to_edge:
@@ -649,6 +689,73 @@ class CounterTwin(ScpiServer):
                 parts.append(f":INP{ch}:LEV {self._nr3_15(inp.level_v)}")
         return ";".join(parts)
 
+    # -- CNT-91 words PyMeasure's driver sends (counter_profiles.Cnt91ScriptWords) ------
+    def _route_cnt91_words(self) -> None:
+        w = CNT91_SCRIPT_WORDS
+        smax = self.profile.fetch_max_results or self.profile.max_count
+        self.route(w.format_smax, on_query=lambda a: str(smax))
+        self.route(w.continuous, on_set=lambda a: setattr(
+            self, "continuous", _scpi_bool(a["raw"])),
+            on_query=lambda a: bool_reply(self.continuous), raw=True)
+        self.route(w.aperture, on_set=lambda a: setattr(
+            self, "aperture_s", ranged_param(a["raw"], 2e-8, 1000.0, 0.01)),
+            on_query=lambda a: self._nr3(self.aperture_s), raw=True)
+        self.route(w.arm_source, on_set=self._set_arm_source,
+                   on_query=lambda a: self.arm_source, raw=True)
+        self.route(w.arm_slope, on_set=lambda a: setattr(
+            self, "arm_slope", enum_param(a["raw"], ("POSitive", "NEGative"))),
+            on_query=lambda a: self.arm_slope, raw=True)
+        self.route(w.arm_count, on_set=lambda a: setattr(
+            self, "arm_count", count_param(a["raw"], 2_000_000_000)),
+            on_query=lambda a: str(self.arm_count), raw=True)
+        self.route(w.interpolator_auto, on_set=lambda a: setattr(
+            self, "interpolator_auto", _scpi_bool(a["raw"])),
+            on_query=lambda a: bool_reply(self.interpolator_auto), raw=True)
+        self.route(w.configure_frequency_array_btb,
+                   on_set=lambda a: self._conf_gated(a, invert=True, array=True, btb=True),
+                   raw=True)
+        self.route(w.configure_frequency_array,
+                   on_set=lambda a: self._conf_gated(a, invert=True, array=True, btb=False),
+                   raw=True)
+        self.route(w.configure_frequency, on_set=lambda a: self._conf_gated(
+            a, invert=True, array=False, btb=False), raw=True)
+        self.route(w.configure_period, on_set=lambda a: self._conf_gated(
+            a, invert=False, array=False, btb=False), raw=True)
+        self.route(w.measure_frequency, on_query=lambda a: self._measure_gated(a, True),
+                   data=True, raw=True)
+        self.route(w.measure_period, on_query=lambda a: self._measure_gated(a, False),
+                   data=True, raw=True)
+        self.route(w.read, on_query=self._read, data=True)
+        self.route(w.fetch, on_query=self._fetch, data=True)
+        self.route(w.status_byte, on_query=lambda a: str(4 if self.errors else 0))
+        self.route(w.options, on_query=lambda a: "0")  # IEEE 488.2 10.20: none
+
+    def _set_arm_source(self, a: Mapping[str, str]) -> None:
+        src = a["raw"].strip().upper()
+        names = {"IMM": "IMM", "IMMEDIATE": "IMM", "EXT1": "EXT1", "EXTERNAL1": "EXT1",
+                 "EXT2": "EXT2", "EXTERNAL2": "EXT2", "EXT4": "EXT4", "EXTERNAL4": "EXT4"}
+        if src not in names:
+            raise ExecError(-224, "Illegal parameter value")
+        self.arm_source = names[src]
+        self.trigger_source = "IMM" if self.arm_source == "IMM" else "EXT"
+
+    def _conf_gated(self, a: Mapping[str, str], *, invert: bool, array: bool,
+                    btb: bool) -> None:
+        """CONF:ARR:FREQ[:BTB] <n>,(@ch), CONF:FREQ [(@ch)], CONF:PER [(@ch)]."""
+        text = a["raw"].replace(" ", "")
+        count, chan = "1", text
+        if array:
+            count, _, chan = text.partition(",")
+        self.sample_count = count_param(count, self.profile.max_count)
+        self.function_channel = self._channel_list({"channel": chan.strip("(@)")}) \
+            if chan else 1
+        self.function, self.invert, self.walk, self.back_to_back = "periods", invert, True, btb
+        self.acquisition = None
+
+    def _measure_gated(self, a: Mapping[str, str], invert: bool) -> str | bytes:
+        self._conf_gated(a, invert=invert, array=False, btb=False)
+        return self._read({})
+
 
 def _nan_tail(text: str, n_nan: int) -> str:
     """Replace the last n values of a reply by 9.91E37 (readings that timed out)."""
@@ -663,3 +770,11 @@ def _block(data: bytes) -> bytes:
     """IEEE 488.2 definite-length arbitrary block: `#<digits><length><data>`."""
     length = str(len(data))
     return f"#{len(length)}{length}".encode("ascii") + data
+
+
+def _scpi_bool(text: str) -> bool:
+    """A SCPI boolean: ON/OFF, or a number (non-zero is ON once rounded, SCPI-99 7.3)."""
+    t = text.strip().upper()
+    if t in ("ON", "OFF"):
+        return t == "ON"
+    return round(number_param(t, {})) != 0
