@@ -276,3 +276,15 @@ def test_eds_declares_what_the_twin_starts_with(client: Client) -> None:
     # no text before the first section: CiA 306 keeps comments in [Comments]
     first = DEFAULT_EDS_PATH.read_text().lstrip().splitlines()[0]
     assert first == "[FileInfo]"
+
+
+def test_an_independent_eds_checker_reads_the_eds_cleanly() -> None:
+    """eds-utils (PyPI) reads EDS files section by section; the old leading comment
+    block made it fail outright. Its only remark now is that [ManufacturerObjects] lists
+    no object, which it reports as 'missing' (CiA 306 allows SupportedObjects=0)."""
+    from eds_utils.core.file_io.read_eds import read_eds
+
+    eds, errors = read_eds(str(DEFAULT_EDS_PATH))
+    assert errors == ["AUTO-FIXED: Section [ManufacturerObjects] was missing"]
+    od = canopen.import_od(str(DEFAULT_EDS_PATH), NODE)
+    assert {0x1400, 0x1401, 0x1600, 0x1601, 0x605D, 0x1005} <= set(od.indices)
