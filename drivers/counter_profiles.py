@@ -230,8 +230,9 @@ class Keysight53230aScriptWords:
     `Abort;*WAI;*LRN?`, `FORM ASC,15` / `REAL,64`, `FORM:BORD`; 53230A_Model.cs the
     `:TRIG:COUN`, `:TRIG:DEL`, `:TRIG:SLOP`, `:FREQ:MODE` settings; joewhalen/
     keysight_53230A counter.py `TRIG:SOUR IMM; COUN MAX`, `SENS:FREQ:MODE REC`, `R?`;
-    francescobenfenati/Agilent-53230A-remote-control `READ?`). Parameter lists are
-    parsed by the twin itself (raw routes)."""
+    francescobenfenati/Agilent-53230A-remote-control `READ?`; TimingKeepers/
+    measuring_instr driver/ks53230.py `CONF:PER DEF,DEF,(@1)`, `TRIGger:...`). Parameter
+    lists are parsed by the twin itself (raw routes)."""
 
     read_remove: Command = Command("R?", doc="[<max>]: readings removed, definite-length block")
     data_remove: Command = Command("DATA:REMove?", doc="<n>[,WAIT]: n readings removed")

@@ -201,3 +201,29 @@ def test_measure_and_status_words_through_pyvisa(rig) -> None:
         assert inst.query("SYST:ERR?") == '-222,"Data out of range"'
     finally:
         inst.close()
+
+
+def test_white_rabbit_ks53230_period_freq_and_trigger_settings(rig) -> None:
+    """TimingKeepers/measuring_instr driver/ks53230.py (the White Rabbit calibration
+    tool's KS53230 class): configureTrigger sends `TRIGGer:COUNt n`, `TRIGGer:DELay
+    0.000000`, `TRIGGer:SOURce imm`, `TRIGGer:SLOPe pos`; period() and freq() send
+    `CONF:PER DEF,DEF,(@1)` / `CONF:FREQ DEF,DEF,(@1)`, trigLevel `INPUT1:LEVEL:AUTO OFF`,
+    `INPUT1:LEVEL 2.500`, then `INPUT1:COUPLING DC`, `INIT`, `READ?`."""
+    stand, twin, s = rig
+    for line in ("TRIGGer:COUNt 1", "TRIGGer:DELay 0.000000", "TRIGGer:SOURce imm",
+                 "TRIGGer:SLOPe pos"):
+        s.write(line)
+    no_error(s)
+    assert (twin.trigger_source, twin.trigger_slope, twin.trigger_count) == ("IMM", "POS", 1)
+    for conf, invert in (("CONF:PER DEF,DEF,(@1)", False), ("CONF:FREQ DEF,DEF,(@1)", True)):
+        s.write(conf)
+        s.write("INPUT1:LEVEL:AUTO OFF")
+        s.write("INPUT1:LEVEL 2.500")
+        s.write("INPUT1:COUPLING DC")
+        s.write("INIT")
+        reply = s.query("READ?")
+        t0 = twin.last_acquisition.t_start_s
+        e = truth_edges(stand, t0, np.inf)
+        period = e[1] - e[0]
+        assert float(reply) == pytest.approx(1.0 / period if invert else period, rel=1e-10)
+    no_error(s)
