@@ -15,6 +15,20 @@ canopen does not copy a LocalNode's data store into its TPDOs, so a tick thread 
 it: every TPDO event timer (10 ms in the EDS) it advances the model, refreshes the
 statusword bits that depend on motion, finishes ramps that end in a state change,
 checks the watchdog, and transmits the TPDOs.
+
+What a CiA 402/301 drive does and canopen's LocalNode does not, the twin adds (checked
+with canopen's own BaseNode402, tests/test_drive_p402_client.py):
+- NMT (CiA 301 7.3.2): Stopped, Reset Node and Reset Communication while the power stage
+  is on take the abort-connection reaction 0x6007 (CiA 402); a reset restores its area
+  of the OD and ends in a boot-up message and pre-operational; no SDO in Stopped; PDOs
+  only in Operational.
+- PDOs (CiA 301 7.5.2.35-38): COB-ID bit 31, transmission type (254/255 on event, 1-240
+  every n-th SYNC), mapping (changed only while the PDO is not valid; mappable objects,
+  64 bits at most) in effect as written; RPDOs write their objects as an SDO would.
+- CiA 402: transition 16 only for quick-stop codes 5-8; the halt bit with 0x605D;
+  every quick-stop, shutdown, disable-operation and fault-reaction code; reserved option
+  codes refused (abort 0x06090030); the factor group (0x608F, 0x6091, 0x6096, 0x6097,
+  0x60A9, 0x60AA) applied when written.
 """
 
 from __future__ import annotations
