@@ -69,11 +69,12 @@ def serve(stand_path: str, stop: threading.Event | None = None) -> int:
     stand["sim"] = sim_block
     cfg = dataclasses.replace(cfg, stand=stand)
     stop = stop or threading.Event()
-    previous = {sig: signal.signal(sig, lambda *_: stop.set())
-                for sig in (signal.SIGINT, signal.SIGTERM)} \
-        if threading.current_thread() is threading.main_thread() else {}
+    previous: dict[int, Any] = {}
     simbench = None
     try:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                previous[sig] = signal.signal(sig, lambda *_: stop.set())
         simbench, served = procedure_kind(cfg.kind).start_sim(cfg)
         simbench.start_clock()
         for line in address_lines(simbench, served):
