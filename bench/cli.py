@@ -125,6 +125,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="address to bind (127.0.0.1); another one needs --token")
     srv.add_argument("--token", help="token for stop requests and remote viewers "
                                      "(default: $BENCH_STATION_TOKEN, else one is made up)")
+    sim = sub.add_parser("sim", help="start the stand's twins alone; print their addresses")
+    sim.add_argument("stand", help="stand YAML file")
     add_dcc_parsers(sub)
     add_records_parsers(sub)
     return p
@@ -153,6 +155,9 @@ def main(argv: list[str] | None = None) -> int:
         return schema_command(args.target, args.kind, args.json, args.markdown)
     if args.command == "init":
         return init_command(args.dir, args.real)
+    if args.command == "sim":
+        from bench.simserve import serve
+        return serve(args.stand)
     if args.command in RECORDS_COMMANDS:
         return RECORDS_COMMANDS[args.command](args)
     if args.command in DCC_COMMANDS:

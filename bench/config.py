@@ -169,6 +169,10 @@ SIM_AXIS = Map({
     "fog": Key(SIM_FOG, False, "the FOG's truth: k = scale cos(misalignment), w0 = bias"),
     "counter_external_reference": Key(Bool(), False, "a valid 10 MHz is wired to the "
                                       "counter's Ext Ref In (default true)"),
+    "counter_first_value": Key(Str(("from-start", "edge-to-edge")), False,
+                               "how the 53230A twin reads its first timestamp value: from "
+                               "the trigger (default) or edge to edge (the Programmer's "
+                               "Reference's SENSe:TSTamp:RATE example)"),
     "time_tie": Key(Map({"latency_s": Key(Num(min=0, unit="s"), False, "true latency"),
                          "jitter_s": Key(Num(min=0, unit="s"), False, "its jitter, std")}),
                     False, "the FOG sync to counter trigger link: true latency and jitter"),

@@ -18,12 +18,14 @@ from bench.yamlfile import Problem, YamlError, load_yaml
 from drivers.clock import MonotonicClock
 
 
-def list_devices(stand_path: str, sim: bool = False) -> int:
+def stand_config(stand_path: str) -> Config | None:
+    """A stand file alone as a Config of the first procedure kind whose stand schema it
+    fits; None (its problems printed, file, line and key) when it fits none."""
     try:
         doc = load_yaml(stand_path)
     except YamlError as e:
         print(e, file=sys.stderr)
-        return 2
+        return None
     fits: list[tuple[list[Problem], str]] = []
     for name in procedure_names():
         fits.append((validate(doc, procedure_kind(name).stand_schema()), name))
@@ -31,9 +33,16 @@ def list_devices(stand_path: str, sim: bool = False) -> int:
     if problems:
         for p in problems:
             print(p, file=sys.stderr)
+        return None
+    return Config(doc.path, doc.path, {"procedure": name}, doc.data, doc, doc)
+
+
+def list_devices(stand_path: str, sim: bool = False) -> int:
+    cfg = stand_config(stand_path)
+    if cfg is None:
         return 2
-    kind = procedure_kind(name)
-    cfg = Config(doc.path, doc.path, {"procedure": name}, doc.data, doc, doc)
+    kind = procedure_kind(cfg.kind)
+    doc = cfg.stand_doc
     simbench = None
     stand: dict[str, Any] = doc.data
     clock: Any = MonotonicClock()

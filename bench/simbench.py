@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import socket
 import uuid
 from collections.abc import Callable
 from typing import Any
@@ -37,6 +38,20 @@ DEFAULT_AXIS_TRUTH: dict[str, Any] = {
 }
 
 TwinFactory = Callable[["SimBench"], None]
+
+#: `sim.can_bus` (set by `bench sim`): the python-can interface the drive twins join;
+#: "virtual" (in-process, the default) or "udp_multicast" (another process can join)
+CAN_BUS_KEY = "can_bus"
+#: the multicast group of the first CAN bus of a stand on udp_multicast (one more a bus)
+UDP_MULTICAST_GROUP = "239.74.163.{n}"
+
+
+def _free_udp_port() -> int:
+    """A UDP port no one on this host uses now: one `bench sim` a port, so two of them
+    (or a test beside one) never hear each other's frames."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("", 0))
+        return int(s.getsockname()[1])
 
 
 def sync_link(counter_cfg: dict[str, Any], sim_axis: dict[str, Any]) -> Any:
@@ -89,6 +104,8 @@ class SimBench:
         self.axes = axes
         self._sim_axes = sim_axes
         self.channel = f"sim-{uuid.uuid4().hex[:8]}"
+        self.can_interface = str(sim.get(CAN_BUS_KEY, "virtual"))
+        self.can_port = _free_udp_port() if self.can_interface == "udp_multicast" else None
         self.twins: dict[str, Any] = {}
         self._stack = contextlib.ExitStack()
 
@@ -116,9 +133,11 @@ class SimBench:
             for a in self.axes:
                 ac = cfg["axes"][a]
                 d = ac["drive"]
-                channel = buses.setdefault(bus_name(d), f"{self.channel}-{len(buses)}")
+                channel = buses.setdefault(bus_name(d), self._bus_channel(len(buses)))
                 drive_truth = (sim_axes.get(a) or {}).get("drive") or {}
-                twin = DriveTwin(self.stand, a, interface="virtual", channel=channel,
+                bus_options = {"port": self.can_port} if self.can_port is not None else {}
+                twin = DriveTwin(self.stand, a, interface=self.can_interface, channel=channel,
+                                 bus_options=bus_options,
                                  node_id=d["node_id"], controller_node_id=controllers[a],
                                  **{k: drive_truth[k] for k in ("velocity_unit",
                                                                 "acceleration_unit",
@@ -128,7 +147,7 @@ class SimBench:
                                     if "counts_per_rev" in d else {}))
                 self._stack.enter_context(twin)
                 self.twins[f"{a}.drive"] = twin
-                d["interface"], d["channel"] = "virtual", channel
+                d["interface"], d["channel"] = self.can_interface, channel
                 # the twin shares this process with the controller: a starved host stalls
                 # both, so its watchdog allows the bench's stated real-time minimum
                 hb_ms = d.get("heartbeat_ms", 50)
@@ -140,7 +159,9 @@ class SimBench:
                                      sync=sync_link(c, sim_axes.get(a) or {}),
                                      seed=int(sim.get("seed", 0)),
                                      external_reference=bool((sim_axes.get(a) or {}).get(
-                                         "counter_external_reference", True)))
+                                         "counter_external_reference", True)),
+                                     first_value=str((sim_axes.get(a) or {}).get(
+                                         "counter_first_value", "from-start")))
                     c["resource"] = ct.start()
                     # the twin knows its zero-mark signal: mid-swing is a sound level
                     c.setdefault("level_v", sum(ct.signal_v) / 2)
@@ -152,6 +173,11 @@ class SimBench:
             self.stop()
             raise
         return cfg
+
+    def _bus_channel(self, n: int) -> str:
+        if self.can_interface == "udp_multicast":
+            return UDP_MULTICAST_GROUP.format(n=2 + n)
+        return f"{self.channel}-{n}"
 
     def add(self, name: str, twin: Any, stop: Callable[[], Any]) -> None:
         """For procedure kinds with instruments of their own (e.g. a gyro platform's)."""

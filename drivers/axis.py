@@ -53,6 +53,7 @@ from drivers.cia402 import (
     NMT_STATE_OPERATIONAL,
     PROFILE_POSITION,
     PROFILE_VELOCITY,
+    QUICK_STOP_STAYS,
     AbortReaction,
     Command,
     Cw,
@@ -252,6 +253,7 @@ class Axis:
         self._quick_stop_decel_dps2 = self.max_accel_dps2
         self.drive_watchdog_ms: int | None = None
         self.abort_connection_option: int | None = None  # 0x6007, read at connect
+        self.quick_stop_option: int | None = None  # 0x605A, read at connect
         self._started = False
 
     def _check_config(self, accel_dps2: float | None) -> None:
@@ -430,6 +432,10 @@ class Axis:
             f"{self._quick_stop_decel_dps2:.6g} deg/s^2" + ("" if quick else
                                                           " (not reported: our limit)"))
         self.abort_connection_option = self._read_optional(Od.ABORT_CONNECTION_OPTION)
+        # 0x605A decides whether transition 16 exists (codes 5-8): the driver takes only
+        # the arcs the configured code allows (cia402.path)
+        self.quick_stop_option = self._read_optional(Od.QUICK_STOP_OPTION)
+        self.readback["drive.quick stop option code 0x605A"] = str(self.quick_stop_option)
         self._journal("config", identity=self._identity,
                       counts_per_rev=self.units.counts_per_rev,
                       velocity_unit_counts_per_s=self.units.velocity_unit_counts_per_s,
@@ -559,6 +565,10 @@ class Axis:
         if state is State.FAULT_REACTION_ACTIVE:  # let the drive finish its fault reaction
             self._wait_standstill(self._quick_stop_decel_dps2)
             state = self._wait_state(State.FAULT)
+        if state is State.QUICK_STOP_ACTIVE and self.quick_stop_option not in QUICK_STOP_STAYS:
+            # 0x605A 0-4: the drive leaves quick stop for Switch on disabled by itself
+            self._wait_standstill(self._quick_stop_decel_dps2)
+            state = self._wait_state(State.SWITCH_ON_DISABLED)
         if state is State.FAULT:
             code = self._read(Od.ERROR_CODE)
             self._journal("fault_reset", code=f"0x{code:04X}", description=describe_error(code))
@@ -589,11 +599,11 @@ class Axis:
     def _go_to(self, target: State) -> None:
         state = self._read_state()
         try:
-            commands = path(state, target)
+            commands = path(state, target, self.quick_stop_option)
         except ValueError as e:
             raise AxisError(f"axis {self.name}: {e}") from e
         for cmd in commands:
-            arc = transition(state, cmd)
+            arc = transition(state, cmd, self.quick_stop_option)
             assert arc is not None
             self._write(Od.CONTROLWORD, cmd.word)
             state = self._wait_state(arc.target)

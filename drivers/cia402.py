@@ -39,6 +39,8 @@ class Od(IntEnum):
     CONSUMER_HEARTBEAT = 0x1016  # sub 1: (producer node id << 16) | time_ms
     PRODUCER_HEARTBEAT = 0x1017  # ms
     IDENTITY = 0x1018  # subs 1..4: vendor, product, revision, serial
+    RPDO1_COMM = 0x1400
+    RPDO1_MAP = 0x1600
     TPDO1_COMM = 0x1800
     TPDO1_MAP = 0x1A00
     ABORT_CONNECTION_OPTION = 0x6007
@@ -48,6 +50,7 @@ class Od(IntEnum):
     QUICK_STOP_OPTION = 0x605A
     SHUTDOWN_OPTION = 0x605B
     DISABLE_OPERATION_OPTION = 0x605C
+    HALT_OPTION = 0x605D
     FAULT_REACTION_OPTION = 0x605E
     MODES_OF_OPERATION = 0x6060
     MODES_OF_OPERATION_DISPLAY = 0x6061
@@ -79,6 +82,7 @@ class Od(IntEnum):
 
 
 #: COB-ID bases of CiA 301's predefined connection set (+ node id)
+COB_SYNC = 0x080
 COB_EMCY = 0x080
 COB_HEARTBEAT = 0x700
 CONTROLLER_NODE_ID = 0x7F     # the controller's (NMT master's) usual node id
@@ -226,10 +230,22 @@ TRANSITIONS: tuple[Transition, ...] = (
 )
 
 
-def transition(source: State, command: Command) -> Transition | None:
-    """The arc a command takes from a state, or None when the command does nothing there."""
+#: 0x605A codes that stay in Quick stop active after standstill: only these allow
+#: transition 16 back to Operation enabled (CiA 402-2 / IEC 61800-7-201, quick stop
+#: option code; restated in the Nanotec PD4-E manual, 0x605A, and Synapticon's)
+QUICK_STOP_STAYS = frozenset({5, 6, 7, 8})
+
+
+def transition(source: State, command: Command,
+               quick_stop_option: int | None = None) -> Transition | None:
+    """The arc a command takes from a state, or None when the command does nothing there.
+
+    Transition 16 (Quick stop active -> Operation enabled) exists only for quick stop
+    option codes 5-8; with `quick_stop_option` unknown (None) it is not offered."""
     for t in TRANSITIONS:
         if t.source is source and t.command is command:
+            if t.number == 16 and quick_stop_option not in QUICK_STOP_STAYS:
+                return None
             return t
     return None
 
@@ -239,12 +255,15 @@ def transition(source: State, command: Command) -> Transition | None:
 _PATH_AVOIDS = frozenset({9, 12, 34, 7, 10, 11})
 
 
-def path(source: State, target: State) -> list[Command]:
-    """Commands that take the drive from `source` to `target` (shortest, by TRANSITIONS)."""
+def path(source: State, target: State, quick_stop_option: int | None = None) -> list[Command]:
+    """Commands that take the drive from `source` to `target` (shortest, by TRANSITIONS);
+    transition 16 only where `quick_stop_option` allows it (QUICK_STOP_STAYS)."""
     if source is target:
         return []
-    arcs = [t for t in TRANSITIONS if t.number not in _PATH_AVOIDS
-            or (target is State.SWITCH_ON_DISABLED and t.number in (7, 10, 12))]
+    arcs = [t for t in TRANSITIONS
+            if (t.number not in _PATH_AVOIDS
+                or (target is State.SWITCH_ON_DISABLED and t.number in (7, 10, 12)))
+            and (t.number != 16 or quick_stop_option in QUICK_STOP_STAYS)]
     seen = {source}
     queue: deque[tuple[State, list[Command]]] = deque([(source, [])])
     while queue:
@@ -266,32 +285,60 @@ class Ramp(Enum):
 
     PROFILE = "profile deceleration 0x6084"
     QUICK_STOP = "quick stop deceleration 0x6085"
+    CURRENT_LIMIT = "at the current limit (the twin: max deceleration 0x60C6)"
+    VOLTAGE_LIMIT = "at the voltage limit (the twin: max deceleration 0x60C6)"
     COAST = "none (coast)"
 
+
+# Option codes, CiA 402-2 (IEC 61800-7-201) 0x605A..0x605E, as restated in the Nanotec
+# PD4-E technical manual (object descriptions 605Ah-605Eh) and Synapticon's object
+# reference. Values not listed are reserved (or manufacturer specific, < 0): a drive
+# refuses them with SDO abort 0x06090030 (value range of parameter exceeded, CiA 301).
 
 #: 0x605A quick stop option code -> (ramp, state after standstill)
 QUICK_STOP_OPTIONS: dict[int, tuple[Ramp, State]] = {
     0: (Ramp.COAST, State.SWITCH_ON_DISABLED),
     1: (Ramp.PROFILE, State.SWITCH_ON_DISABLED),
     2: (Ramp.QUICK_STOP, State.SWITCH_ON_DISABLED),
+    3: (Ramp.CURRENT_LIMIT, State.SWITCH_ON_DISABLED),
+    4: (Ramp.VOLTAGE_LIMIT, State.SWITCH_ON_DISABLED),
     5: (Ramp.PROFILE, State.QUICK_STOP_ACTIVE),
     6: (Ramp.QUICK_STOP, State.QUICK_STOP_ACTIVE),
+    7: (Ramp.CURRENT_LIMIT, State.QUICK_STOP_ACTIVE),
+    8: (Ramp.VOLTAGE_LIMIT, State.QUICK_STOP_ACTIVE),
 }
 
 #: 0x605B shutdown and 0x605C disable-operation option codes -> ramp before the power stage opens
 SLOW_DOWN_OPTIONS: dict[int, Ramp] = {0: Ramp.COAST, 1: Ramp.PROFILE}
 
+#: 0x605D halt option code -> ramp (the drive stays in Operation enabled)
+HALT_OPTIONS: dict[int, Ramp] = {1: Ramp.PROFILE, 2: Ramp.QUICK_STOP, 3: Ramp.CURRENT_LIMIT,
+                                 4: Ramp.VOLTAGE_LIMIT}
+
 #: 0x605E fault reaction option code -> ramp before the Fault state
-FAULT_REACTION_OPTIONS: dict[int, Ramp] = {0: Ramp.COAST, 1: Ramp.PROFILE, 2: Ramp.QUICK_STOP}
+FAULT_REACTION_OPTIONS: dict[int, Ramp] = {0: Ramp.COAST, 1: Ramp.PROFILE, 2: Ramp.QUICK_STOP,
+                                           3: Ramp.CURRENT_LIMIT, 4: Ramp.VOLTAGE_LIMIT}
 
 
 class AbortReaction(Enum):
-    """0x6007 abort connection option code: what a lost controller heartbeat does."""
+    """0x6007 abort connection option code: what a lost controller heartbeat (or NMT
+    Stopped / a reset while enabled) does. 4..32767 reserved."""
 
     NONE = 0
     FAULT = 1
     DISABLE_VOLTAGE = 2
     QUICK_STOP = 3
+
+
+#: option-code object -> the values it takes (anything else: abort 0x06090030)
+OPTION_CODES: dict[int, frozenset[int]] = {
+    0x6007: frozenset(r.value for r in AbortReaction),
+    0x605A: frozenset(QUICK_STOP_OPTIONS),
+    0x605B: frozenset(SLOW_DOWN_OPTIONS),
+    0x605C: frozenset(SLOW_DOWN_OPTIONS),
+    0x605D: frozenset(HALT_OPTIONS),
+    0x605E: frozenset(FAULT_REACTION_OPTIONS),
+}
 
 
 # -- modes of operation -----------------------------------------------------------
@@ -529,24 +576,29 @@ class UnitFactors:
         return (self.encoder_increments / self.motor_revolutions
                 * self.gear_motor_revs / self.gear_shaft_revs)
 
-    def drive_units(self) -> DriveUnits:
+    def drive_units(self, apply_factors: bool = False) -> DriveUnits:
         """The conversion to deg, deg/s and deg/s^2 these factors imply.
 
         0x6096/0x6097 other than 1/1 are refused: how a drive applies them (before or
-        after the SI unit) differs between makers, and a guess is a factor error.
+        after the SI unit) differs between makers, and a guess is a factor error. The
+        twin (`apply_factors`) applies them one way: a drive unit is num/div of the SI
+        unit (the DSP 402 v2 reading; unverified against CiA 402-2 itself).
         """
         for name, f in (("0x6096 velocity factor", self.velocity_factor),
                         ("0x6097 acceleration factor", self.acceleration_factor)):
-            if f[1] == 0 or f[0] != f[1]:
+            if f[1] == 0 or f[0] == 0 or (f[0] != f[1] and not apply_factors):
                 raise ValueError(f"{name} = {f[0]}/{f[1]}: only 1/1 is supported")
         cpr = self.counts_per_rev
         if cpr != round(cpr) or cpr <= 0:
             raise ValueError(f"0x608F/0x6091 give {cpr:g} increments per table revolution: "
                              "not a whole positive number")
         deg_per_count = 360.0 / cpr
+        vf = self.velocity_factor[0] / self.velocity_factor[1]
+        af = self.acceleration_factor[0] / self.acceleration_factor[1]
         return DriveUnits(int(round(cpr)),
-                          si_unit_deg(self.velocity_si, cpr, accel=False) / deg_per_count,
-                          si_unit_deg(self.acceleration_si, cpr, accel=True) / deg_per_count)
+                          vf * si_unit_deg(self.velocity_si, cpr, accel=False) / deg_per_count,
+                          af * si_unit_deg(self.acceleration_si, cpr, accel=True)
+                          / deg_per_count)
 
     def as_record(self) -> dict[str, Any]:
         return {"0x608F": f"{self.encoder_increments}/{self.motor_revolutions}",

@@ -33,7 +33,12 @@ from typing import Any, Literal
 import numpy as np
 
 from drivers.clock import Clock, real_budget_s
-from drivers.counter_profiles import CounterProfile, get_profile, is_scpi_nan
+from drivers.counter_profiles import (
+    CounterProfile,
+    first_interval_is_a_turn,
+    get_profile,
+    is_scpi_nan,
+)
 from drivers.scpi import (
     CLS,
     ESR_OPC,
@@ -556,6 +561,8 @@ class Counter(ScpiInstrument):
             nan = values[-n_read:] >= 0.999 * SCPI_NAN
             since_start[nan] = SCPI_NAN
             self._refuse_nan(text, since_start, n_read, acq)
+            if fmt.name == "keysight-tst":
+                self._check_first_value(text, values[1:], acq)
             if np.any(np.diff(since_start) <= 0):
                 raise CounterReplyError(
                     f"{self.name}: the timestamps in the reply to {text!r} do not increase "
@@ -563,6 +570,32 @@ class Counter(ScpiInstrument):
             return acq.t_start_s + since_start
         self._refuse_nan(text, values, n_read, acq)
         return values
+
+    def _check_first_value(self, text: str, intervals_s: np.ndarray,
+                           acq: Acquisition) -> None:
+        """The 53230A's first value: trigger to first edge, or (the Programmer's
+        Reference's SENSe:TSTamp:RATE example) first edge to second, a full turn
+        (counter_profiles, MANUAL_FIRST_VALUE). Only the first places the edges on the
+        FOG's axis; a first value as long as a turn cannot be told from the second
+        reading, so edges are refused rather than placed up to a turn wrong. Periods
+        need no tie: every full-turn interval is one."""
+        full = first_interval_is_a_turn(intervals_s, acq.expected_period_s,
+                                        self.profile.resolution_s)
+        self.readback["counter.first timestamp value"] = (
+            "a full turn (edge to edge)" if full else "trigger to first edge")
+        if full and acq.what == "edges":
+            turn_s = float(np.median(intervals_s[1:])) if intervals_s.size > 1 \
+                else acq.expected_period_s
+            raise CounterError(
+                f"{self.name}: the first value of the reply to {text!r} "
+                f"({intervals_s[0]:.12g} s) is as long as the full turns after it "
+                f"({turn_s:.12g} s): "
+                "the counter stamps from its first edge, not from the trigger (as the "
+                "53220A/53230A Programmer's Reference's SENSe:TSTamp:RATE example shows), so "
+                "when the edges came after the trigger is unknown and they cannot be tied "
+                "to the FOG's time axis (misplaced by up to a turn, harmonic phases "
+                "wrong); refused. Periods (the rate) do not need the tie",
+                command=text)
 
     def _fetch_numbers(self, n_read: int, per_result: int, fmt: Any
                        ) -> tuple[str, str, np.ndarray]:

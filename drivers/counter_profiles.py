@@ -133,6 +133,43 @@ class KeysightTimestamps(TimestampFormat):
         return n_edges + 1
 
 
+# -- the 53230A's first timestamp value: two readings of the manual ------------------------
+#
+# The Programmer's Reference (SENSe:TSTamp:RATE, typical response
+# `+13,+1.29383828200000E-006,+1.29352315400000E-006,...`) shows, on a free-running
+# input, a first value equal to a full period: stamp 0 is then the first EDGE, not the
+# trigger, and the reply says nothing about when that edge came after the trigger. The
+# twin long assumed the other reading (value 1 = trigger to first edge). No public
+# client program we read (opronningen/53230A-Toolkit, joewhalen/keysight_53230A,
+# francescobenfenati/Agilent-53230A-remote-control) uses the first value at all.
+# So the tie must not rest on either reading: `first_interval_is_a_turn` tells them apart
+# on the data (a trigger falls anywhere in a turn, an edge-to-edge value is one turn like
+# the others), and the driver refuses edges whose first value is a full turn.
+
+FIRST_VALUE_READINGS = ("from-start", "edge-to-edge")
+#: the manual's example (SENSe:TSTamp:RATE): stamp 0 is an edge
+MANUAL_FIRST_VALUE = "edge-to-edge"
+
+
+def first_interval_is_a_turn(intervals_s: np.ndarray, expected_period_s: float,
+                             resolution_s: float) -> bool:
+    """True when the first interval is as long as the full turns after it (within their
+    own scatter, 10 sigma, never tighter than 20 resolution steps), or, with fewer than
+    three turns to compare, within 1e-3 of the expected period.
+
+    A trigger-to-first-edge value is uniform over a turn: it looks like a turn by chance
+    with probability about (window / turn), 1e-7 at the stand's jitter."""
+    v = np.asarray(intervals_s, float)
+    v = v[v < 0.999 * SCPI_NAN]
+    if v.size < 1:
+        return False
+    turns = v[1:]
+    if turns.size >= 3:
+        window = max(10.0 * float(np.std(turns, ddof=1)), 20.0 * resolution_s)
+        return abs(float(v[0]) - float(np.median(turns))) <= window
+    return abs(float(v[0]) - expected_period_s) <= 1e-3 * expected_period_s
+
+
 class PendulumStst(TimestampFormat):
     """CNT-91 `CONF:ARR:STST` with `FORM:TINF ON`: pairs (X, TS) per stamp.
 
@@ -182,6 +219,80 @@ def encode_values(values: np.ndarray, digits: int = 15, exp_digits: int = 2) -> 
 def is_scpi_nan(values: np.ndarray) -> np.ndarray:
     """Readings that are SCPI's 9.91E37 (a measurement that timed out)."""
     return np.asarray(values) >= 0.999 * SCPI_NAN
+
+
+# -- what users' own 53230A scripts send (the twin serves these; the driver needs none) ------
+
+@dataclass(frozen=True)
+class Keysight53230aScriptWords:
+    """Words of the 53220A/53230A Programmer's Reference that public client programs
+    send (opronningen/53230A-Toolkit: R/R.cs `:DATA:REMOVE? n,WAIT`, Ag53230A.cs
+    `Abort;*WAI;*LRN?`, `FORM ASC,15` / `REAL,64`, `FORM:BORD`; 53230A_Model.cs the
+    `:TRIG:COUN`, `:TRIG:DEL`, `:TRIG:SLOP`, `:FREQ:MODE` settings; joewhalen/
+    keysight_53230A counter.py `TRIG:SOUR IMM; COUN MAX`, `SENS:FREQ:MODE REC`, `R?`;
+    francescobenfenati/Agilent-53230A-remote-control `READ?`; TimingKeepers/
+    measuring_instr driver/ks53230.py `CONF:PER DEF,DEF,(@1)`, `TRIGger:...`). Parameter
+    lists are parsed by the twin itself (raw routes)."""
+
+    read_remove: Command = Command("R?", doc="[<max>]: readings removed, definite-length block")
+    data_remove: Command = Command("DATA:REMove?", doc="<n>[,WAIT]: n readings removed")
+    data_points: Command = Command("DATA:POINts?", doc="readings in memory")
+    measure_timestamps: Command = Command("MEASure:ARRay:TSTamp?", doc="(<n>),(@<ch>)")
+    measure_period: Command = Command("MEASure:PERiod?", doc="[<exp>,<res>,](@<ch>)")
+    measure_frequency: Command = Command("MEASure[:SCALar]:FREQuency?",
+                                         doc="[<exp>,<res>,](@<ch>)")
+    configure_period: Command = Command("CONFigure:PERiod", doc="[<exp>,<res>,](@<ch>)")
+    configure_frequency: Command = Command("CONFigure[:SCALar]:FREQuency",
+                                           doc="[<exp>,<res>,](@<ch>)")
+    configure_timestamp: Command = Command("CONFigure:TSTamp", doc="[(@<ch>)]")
+    configure_query: Command = Command("CONFigure?", doc="the function and its channel")
+    learn: Command = Command("*LRN?", doc="the settings as commands that restore them")
+    status_byte: Command = Command("*STB?", doc="status byte")
+    scpi_version: Command = Command("SYSTem:VERSion?", doc="SCPI version: 1994.0")
+    trigger_count: Command = Command("TRIGger[:SEQuence]:COUNt", doc="1..1e6, MIN, MAX, DEF")
+    trigger_delay: Command = Command("TRIGger[:SEQuence]:DELay", doc="0..3600 s")
+    trigger_slope: Command = Command("TRIGger[:SEQuence]:SLOPe", doc="POSitive, NEGative")
+    byte_order: Command = Command("FORMat:BORDer", doc="NORMal, SWAPped")
+    frequency_mode: Command = Command("[SENSe:]FREQuency:MODE",
+                                      doc="AUTO, CONTinuous, RCONtinuous, RECiprocal")
+    format_data: Command = Command("FORMat[:DATA]", doc="ASCii[,<1..15>] or REAL[,64]")
+
+
+KEYSIGHT_53230A_SCRIPT_WORDS = Keysight53230aScriptWords()
+
+
+@dataclass(frozen=True)
+class Cnt91ScriptWords:
+    """Words PyMeasure's CNT91 driver (pymeasure.instruments.pendulum.cnt91) sends,
+    as the CNT-90 series Programmer's Handbook names them: FORMat:SMAX p. 8-39,
+    :ACQuisition:APERture p. 8-92 (2e-8..1000 s), :CONFigure:ARRay:FREQuency[:BTB],
+    ARM:SOURce/SLOPe/COUNt, INITiate:CONTinuous, :CALibration:INTerpolator:AUTO."""
+
+    format_smax: Command = Command("FORMat:SMAX?", doc="most results one FETC:ARR? gives")
+    continuous: Command = Command("INITiate:CONTinuous", doc="ON/OFF or 1/0")
+    aperture: Command = Command("ACQuisition:APERture", doc="gate time, 2e-8..1000 s")
+    arm_source: Command = Command("ARM[:STARt][:LAYer2]:SOURce",
+                                  doc="IMMediate, EXTernal1, EXTernal2, EXTernal4")
+    arm_slope: Command = Command("ARM[:STARt][:LAYer2]:SLOPe", doc="POSitive, NEGative")
+    arm_count: Command = Command("ARM[:STARt][:LAYer1]:COUNt", doc="1..2e9, INF")
+    interpolator_auto: Command = Command("CALibration:INTerpolator:AUTO", doc="ON/OFF")
+    configure_frequency_array: Command = Command("CONFigure:ARRay:FREQuency",
+                                                 doc="<n>,(@<ch>): n frequencies")
+    configure_frequency_array_btb: Command = Command("CONFigure:ARRay:FREQuency:BTB",
+                                                     doc="<n>,(@<ch>): back to back")
+    configure_frequency: Command = Command("CONFigure[:SCALar]:FREQuency", doc="[(@<ch>)]")
+    configure_period: Command = Command("CONFigure[:SCALar]:PERiod", doc="[(@<ch>)]")
+    measure_frequency: Command = Command("MEASure[:SCALar]:FREQuency?", doc="[(@<ch>)]")
+    measure_period: Command = Command("MEASure[:SCALar]:PERiod?", doc="[(@<ch>)]")
+    read: Command = Command("READ?", doc="INIT and FETCh? in one")
+    fetch: Command = Command("FETCh?", doc="the last result")
+    status_byte: Command = Command("*STB?")
+    options: Command = Command("*OPT?")
+
+
+CNT91_SCRIPT_WORDS = Cnt91ScriptWords()
+#: reading memory (Programmer's Reference, DATA:POINts?: 1,000,000 readings)
+KEYSIGHT_53230A_MEMORY = 1_000_000
 
 
 # -- the profile ----------------------------------------------------------------------------
@@ -284,6 +395,7 @@ KEYSIGHT_53230A = CounterProfile(
         reference_check=Command("[SENSe:]ROSCillator:EXTernal:CHECk", "{when}",
                                 doc="ONCE: checks the Ext Ref In signal, errors if none"),
         fetch=Command("FETCh?", doc="readings of the last INIT"),
+        read=Command("READ?", doc="ABORt, INIT, FETCh? in one"),
     ),
     timestamps="keysight-tst",
     periods="init-fetch",
@@ -307,6 +419,7 @@ KEYSIGHT_53230A = CounterProfile(
            "every other turn; use timestamps for consecutive turns. Timebase: standard "
            "TCXO, +/-1e-6 assumed (1-year aging and temperature); option 010 OCXO is far "
            "better: take the calibration certificate's figure."),
+    reply_digits=14,   # 15 significant: `+1.29383828200000E-006` (SENSe:TSTamp:RATE)
     reply_exp_digits=3,
     idn="Keysight Technologies,53230A,MY00000000,03.02-1519.2432-3.15-4.16-127-155-35",
 )

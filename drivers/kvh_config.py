@@ -17,7 +17,9 @@ stops its binary output in Configuration Mode and resumes it on leaving. Data ra
 `=DR,<1|5|10|25|50|100|250|500|750|1000|3600|5000>` and `?DR` (section 8.8, 8.9, p. 33).
 
 Unverified (the stored manual pages we could read do not show them): the exact spelling
-of the words that enter Configuration Mode and select the rotational format and units.
+of the words that enter Configuration Mode and select the rotational format and units,
+and of =LINFMT, =LINUNITS, =TEMPUNITS and =FILTEN (their queries' answers follow the
+`NAME,value` pattern of ?LINUNITS, ICD 8.24, and ?FILTTYPE, ICD 8.17).
 We use `=CONFIG,1` / `=CONFIG,0`, `=ROTFMT,<DELTA|RATE>`, `=ROTUNITS,<DEG|RAD>` and
 `=OUTPUTFMT,<A|B|C>` as the 1750/1775 ICDs are cited by KVH users (the same pattern as
 the accelerometers' `=LINFMT` and `?LINUNITS` -> `LINUNITS,<METERS|FEET>`, ICD 8.24,
@@ -53,6 +55,26 @@ class KvhWords:
     rot_format: str = "ROTFMT"
     rot_units: str = "ROTUNITS"
     output_format: str = "OUTPUTFMT"
+    # what users' own scripts also send (1775 ICD section 8)
+    baud: str = "BAUD"            # 8.3/8.4 (p. 30-31): =BAUD,<n> / ?BAUD -> BAUD,<n>
+    lin_format: str = "LINFMT"    # 8.2x: accelerations in g (default) or delta velocity
+    lin_units: str = "LINUNITS"   # 8.24 (p. 46): ?LINUNITS -> LINUNITS,<METERS|FEET>
+    temp_units: str = "TEMPUNITS"  # temperature field: degrees C or F (Table 5-2)
+    filter_enable: str = "FILTEN"  # =FILTEN,<A|G>,<0|1> / ?FILTEN,<A|G> (unverified)
+    reset_config: str = "RSTCFG"  # factory configuration; the baud rate stays (Table 9-x
+    #                               note 1, p. 56 of the ICD)
+
+
+#: the accepted baud rates (ICD 8.3)
+BAUD_RATES = (9600, 19200, 38400, 57600, 115200, 460800, 576000, 921600, 4147200)
+#: linear (accelerometer) data: (LINFMT, LINUNITS) words; g is the power-on default
+LIN_FORMATS = ("ACCEL", "DELTA")
+LIN_UNITS = ("METERS", "FEET")
+TEMP_UNITS = ("C", "F")
+#: standard gravity, m/s^2: a unit at rest with its axis up reads +1 g on it (ICD
+#: Table 9-x note 4, "+1 G due to Earth gravity when its positive axis is up")
+G0_MPS2 = 9.80665
+FEET_PER_METER = 1.0 / 0.3048
 
 
 WORDS = KvhWords()

@@ -48,13 +48,17 @@ from typing import Literal
 import numpy as np
 
 from drivers.counter_profiles import (
+    CNT91_SCRIPT_WORDS,
+    FIRST_VALUE_READINGS,
+    KEYSIGHT_53230A_MEMORY,
+    KEYSIGHT_53230A_SCRIPT_WORDS,
     TIMESTAMP_FORMATS,
     CounterProfile,
     encode_values,
     get_profile,
 )
 from drivers.counter_profiles import nr3 as profile_nr3
-from drivers.scpi import SCPI_NAN
+from drivers.scpi import SCPI_NAN, parse_numbers
 from sims.scpi_server import (
     ExecError,
     ScpiServer,
@@ -111,10 +115,23 @@ class TwinAcquisition:
     values: np.ndarray | None = None
     edges_s: np.ndarray = field(default_factory=lambda: np.empty(0))
     fetched: int = 0            # results already sent by FETC:ARR?
+    removed: int = 0            # reading-memory items removed by R? / DATA:REM?
+    #: stamp 0: the start event, or (first_value "edge-to-edge") the first edge after it
+    edge_to_edge: bool = False
+    stamp0_s: float | None = None
+    #: frequency readings (CONF:FREQ, MEAS:FREQ?): 1 / period
+    invert: bool = False
+    #: gated readings (CNT-91 ACQ:APER): each spans whole turns until the gate time has
+    #: passed; back to back, the next starts where it ended (no dead time)
+    walk: bool = False
+    gate_s: float = 0.0
+    back_to_back: bool = False
 
     @property
     def edges_needed(self) -> int:
-        return self.n if self.kind == "timestamps" else 2 * self.n
+        if self.kind == "timestamps":
+            return self.n + (1 if self.edge_to_edge else 0)
+        return 2 * self.n
 
 
 class CounterTwin(ScpiServer):
@@ -126,11 +143,19 @@ class CounterTwin(ScpiServer):
                  host: str = "127.0.0.1", port: int = 0, *, signal_channel: int = 1,
                  signal_low_v: float = 0.0, signal_high_v: float = 5.0,
                  sync: SyncLink | None = None, timeout_s: float | None = None,
-                 seed: int = 0, external_reference: bool = True) -> None:
+                 seed: int = 0, external_reference: bool = True,
+                 first_value: str = "from-start") -> None:
         self.profile: CounterProfile = get_profile(model)
         super().__init__(idn=self.profile.idn, host=host, port=port)
         if self.profile.maker.startswith("Keysight"):  # `+0,"No error"` (Prog. Ref.)
             self.error_code_format = "{:+d}"
+        if first_value not in FIRST_VALUE_READINGS:
+            raise ValueError(f"counter twin first_value {first_value!r}: one of "
+                             f"{', '.join(FIRST_VALUE_READINGS)}")
+        #: how the 53230A's first timestamp value is read (counter_profiles,
+        #: MANUAL_FIRST_VALUE): from the start event, or edge to edge (the manual's
+        #: SENSe:TSTamp:RATE example); each plausible reading is a setting
+        self.first_value = first_value
         self.stand = stand
         self.axis = stand.axis(axis)
         self.clock = stand.clock
@@ -149,6 +174,10 @@ class CounterTwin(ScpiServer):
         self.timeout_s: float | None = timeout_s
         self.reset()
         self._route_words()
+        if self.profile.model == "keysight-53230a":
+            self._route_script_words()
+        elif self.profile.model == "pendulum-cnt-91":
+            self._route_cnt91_words()
 
     # -- state ----------------------------------------------------------------------------
     def reset(self) -> None:
@@ -161,6 +190,23 @@ class CounterTwin(ScpiServer):
         self.timestamp_rate_hz = 1.0e6
         self.gate = "DEF"
         self.acquisition = None
+        # 53230A *RST values (Programmer's Reference: TRIG:COUN 1, TRIG:DEL 0,
+        # TRIG:SLOP NEG, FORM ASC, FORM:BORD NORM, FREQ:MODE AUTO)
+        self.trigger_count = 1
+        self.trigger_delay_s = 0.0
+        self.trigger_slope = "NEG"
+        self.data_format = "ASC"
+        self.ascii_digits = 15
+        self.byte_order = "NORM"
+        self.frequency_mode = "AUTO"
+        self.invert = False
+        if self.profile.model == "keysight-53230a":  # *RST function: FREQ 1
+            self.function, self.invert = "periods", True
+        # CNT-91 (Programmer's Handbook): gate 10 ms, single measurements, arming IMM
+        self.aperture_s = 0.01
+        self.walk = self.back_to_back = self.continuous = False
+        self.arm_source, self.arm_slope, self.arm_count = "IMM", "POS", 1
+        self.interpolator_auto = True
 
     def pending(self) -> bool:
         return self.acquisition is not None and not self._progress(self.acquisition)
@@ -174,6 +220,11 @@ class CounterTwin(ScpiServer):
         low, high = self.signal_v
         return channel == self.signal_channel and not s.level_auto and low < s.level_v < high
 
+    def _per_init(self) -> int:
+        """Readings one INIT makes: SAMP:COUN x TRIG:COUN, at most the memory's."""
+        return min(self.sample_count * self.trigger_count, KEYSIGHT_53230A_MEMORY
+                   if self.profile.model == "keysight-53230a" else self.profile.max_count)
+
     def _arm(self, kind: Literal["timestamps", "periods"], n: int) -> TwinAcquisition:
         ch = self.function_channel
         blind = self.take_fault("no-trigger") or not self._sees_edges(ch)
@@ -184,7 +235,13 @@ class CounterTwin(ScpiServer):
                 blind = True  # nothing is wired to the external trigger input
             else:
                 t_start = self.sync.next_pulse_s(t_arm, self.rng)
-        self.acquisition = TwinAcquisition(kind, n, ch, t_arm, self.timeout_s, blind, t_start)
+        self.acquisition = TwinAcquisition(
+            kind, n, ch, t_arm, self.timeout_s, blind, t_start,
+            edge_to_edge=(kind == "timestamps" and self.first_value == "edge-to-edge"
+                          and self.profile.timestamps == "keysight-tst"),
+            invert=kind == "periods" and self.invert,
+            walk=kind == "periods" and self.walk, gate_s=self.aperture_s,
+            back_to_back=self.back_to_back)
         self.last_acquisition = self.acquisition  # kept after the client leaves (tests)
         return self.acquisition
 
@@ -196,6 +253,12 @@ class CounterTwin(ScpiServer):
         if not acq.blind and now > acq.t_start_s:
             self.axis.advance_to(now)
             acq.edges_s = self.axis.zero_marks(acq.t_start_s, now).t_edge_s
+        if acq.walk:
+            readings = self._walk(acq)
+            if readings.size < acq.n:
+                return False
+            acq.values = readings[:acq.n]
+            return True
         need = acq.edges_needed
         # per reading (p. 459): the next stamp must come within the timeout of the last
         stamps = np.concatenate([[max(acq.t_start_s, acq.t_arm_s)], acq.edges_s[:need]])
@@ -208,13 +271,54 @@ class CounterTwin(ScpiServer):
         if acq.edges_s.size < need and not timed_out:
             return False
         edges = self.profile.quantise(acq.edges_s[:need])
-        if acq.kind == "timestamps":
+        if acq.kind == "timestamps" and acq.edge_to_edge:
+            acq.stamp0_s = float(edges[0]) if edges.size else acq.t_start_s
+            values = edges[1:]
+        elif acq.kind == "timestamps":
             values = edges
         else:
             pairs = edges.size // 2
             values = edges[1:2 * pairs:2] - edges[0:2 * pairs:2]
+            if acq.invert:
+                values = 1.0 / values
         acq.values = np.concatenate([values, np.full(acq.n - values.size, SCPI_NAN)])
         return True
+
+    def _walk(self, acq: TwinAcquisition) -> np.ndarray:
+        """Gated readings from the edges so far: each from an edge to the first edge at
+        least the gate time later (a reciprocal counter's measurement, CNT-90 series
+        Programmer's Handbook, :ACQuisition:APERture), frequency = turns / time."""
+        e = self.profile.quantise(acq.edges_s)
+        out: list[float] = []
+        i = 0
+        while len(out) < acq.n and i < e.size:
+            later = np.flatnonzero(e[i + 1:] - e[i] >= acq.gate_s)
+            if not later.size:
+                break
+            j = i + 1 + int(later[0])
+            span, turns = e[j] - e[i], j - i
+            out.append(turns / span if acq.invert else span / turns)
+            i = j if acq.back_to_back else j + 1
+        return np.array(out)
+
+    def _available(self, acq: TwinAcquisition) -> np.ndarray:
+        """The readings that exist now (all of them once the acquisition is done): what
+        R?, DATA:REM? and DATA:POIN? see of the reading memory."""
+        if self._progress(acq):
+            assert acq.values is not None
+            return acq.values
+        if acq.walk:
+            return self._walk(acq)
+        edges = self.profile.quantise(acq.edges_s[:acq.edges_needed])
+        if acq.kind == "timestamps":
+            if acq.edge_to_edge:
+                if edges.size:
+                    acq.stamp0_s = float(edges[0])
+                return edges[1:]
+            return edges
+        pairs = edges.size // 2
+        values = edges[1:2 * pairs:2] - edges[0:2 * pairs:2]
+        return 1.0 / values if acq.invert else values
 
     def _readings(self, acq: TwinAcquisition | None) -> np.ndarray:
         if acq is None:
@@ -230,11 +334,25 @@ class CounterTwin(ScpiServer):
             if fmt.name == "pendulum-stst" and not self.timestamp_info:
                 return ",".join(str(i + 1) for i in range(values.size))
             nan = values >= 0.999 * SCPI_NAN
-            text = fmt.encode(np.where(nan, acq.t_start_s, values), acq.t_start_s,
-                              self._time_digits(values[~nan] - acq.t_start_s),
+            stamp0 = acq.t_start_s if acq.stamp0_s is None else acq.stamp0_s
+            digits = (self.ascii_digits - 1 if fmt.name == "keysight-tst"  # intervals
+                      else self._time_digits(values[~nan] - stamp0))
+            text = fmt.encode(np.where(nan, stamp0, values), stamp0, digits,
                               p.reply_exp_digits, first)
             return _nan_tail(text, int(nan.sum()))
-        return encode_values(values, p.reply_digits, p.reply_exp_digits)
+        digits = self.ascii_digits - 1 if p.model == "keysight-53230a" else p.reply_digits
+        return encode_values(values, digits, p.reply_exp_digits)
+
+    def _reply(self, acq: TwinAcquisition, values: np.ndarray, first: int = 0) -> str | bytes:
+        """ASCII (FORM ASC), or FORM REAL,64: a definite-length block of doubles, byte
+        order FORM:BORD (NORMal: big-endian), Programmer's Reference FORMat subsystem."""
+        return self._formatted(self._encode(acq, values, first))
+
+    def _formatted(self, text: str) -> str | bytes:
+        if self.data_format != "REAL":
+            return text
+        numbers = parse_numbers(text)
+        return _block(numbers.astype(">f8" if self.byte_order == "NORM" else "<f8").tobytes())
 
     def _time_digits(self, t_s: np.ndarray) -> int:
         """Digits after the point that carry the resolution (up to 17 significant):
@@ -323,6 +441,7 @@ class CounterTwin(ScpiServer):
     def _conf_period(self, a: Mapping[str, str]) -> None:
         self.function, self.function_channel = "periods", self._channel_list(a)
         self.sample_count = 1
+        self.invert = False
         self.acquisition = None
 
     def _set_rate(self, a: Mapping[str, str]) -> None:
@@ -372,15 +491,15 @@ class CounterTwin(ScpiServer):
         if self.pending():
             raise ExecError(-213, "Init ignored")
         kind = "timestamps" if self.function == "timestamps" else "periods"
-        self._arm(kind, self.sample_count)  # type: ignore[arg-type]
+        self._arm(kind, self._per_init())  # type: ignore[arg-type]
 
-    def _fetch(self, a: Mapping[str, str]) -> str:
+    def _fetch(self, a: Mapping[str, str]) -> str | bytes:
         acq = self.acquisition
         values = self._readings(acq)
         assert acq is not None
-        return self._encode(acq, values)
+        return self._reply(acq, values)
 
-    def _fetch_array(self, a: Mapping[str, str]) -> str:
+    def _fetch_array(self, a: Mapping[str, str]) -> str | bytes:
         acq = self.acquisition
         values = self._readings(acq)
         assert acq is not None
@@ -392,14 +511,250 @@ class CounterTwin(ScpiServer):
             raise ExecError(-222, "Data out of range")
         first = acq.fetched
         acq.fetched += n
-        return self._encode(acq, values[first:first + n], first)
+        return self._reply(acq, values[first:first + n], first)
 
-    def _read(self, a: Mapping[str, str]) -> str:
+    def _read(self, a: Mapping[str, str]) -> str | bytes:
         if self.function is None:
             raise ExecError(-221, "Settings conflict")
         kind = "timestamps" if self.function == "timestamps" else "periods"
-        acq = self._arm(kind, self.sample_count)  # type: ignore[arg-type]
-        return self._encode(acq, self._readings(acq))
+        acq = self._arm(kind, self._per_init())  # type: ignore[arg-type]
+        return self._reply(acq, self._readings(acq))
+
+    # -- 53230A words users' own scripts send (counter_profiles.Keysight53230aScriptWords)
+    def _route_script_words(self) -> None:
+        """The 53230A as the public client programs script it (Programmer's Reference:
+        MEASure, CONFigure, DATA, FORMat, TRIGger subsystems; R?, *LRN?, *STB?)."""
+        w = KEYSIGHT_53230A_SCRIPT_WORDS
+        first = {"first": True, "raw": True}  # ahead of the profile's templated forms
+        self.route(w.format_data, on_set=self._set_format_raw, on_query=lambda a: (
+            f"ASC,{self.ascii_digits}" if self.data_format == "ASC" else "REAL,64"), **first)
+        self.route(w.configure_period, on_set=lambda a: self._conf_scalar(a, invert=False),
+                   **first)
+        self.route(w.configure_frequency, on_set=lambda a: self._conf_scalar(a, invert=True),
+                   raw=True)
+        self.route(w.configure_timestamp, on_set=self._conf_tst, raw=True)
+        self.route(w.measure_period, on_query=lambda a: self._measure_scalar(a, False),
+                   data=True, raw=True)
+        self.route(w.measure_frequency, on_query=lambda a: self._measure_scalar(a, True),
+                   data=True, raw=True)
+        self.route(w.measure_timestamps, on_query=self._measure_tst, data=True, raw=True)
+        self.route(w.read_remove, on_query=self._r_query, data=True, raw=True)
+        self.route(w.data_remove, on_query=self._data_remove, data=True, raw=True)
+        self.route(w.data_points, on_query=lambda a: f"+{len(self._memory())}")
+        self.route(w.configure_query, on_query=self._conf_query)
+        self.route(w.learn, on_query=self._learn)
+        self.route(w.status_byte, on_query=lambda a: f"+{4 if self.errors else 0}")
+        self.route(w.scpi_version, on_query=lambda a: "1994.0")
+        self.route(w.trigger_count, on_set=self._set_trigger_count, on_query=lambda a: (
+            f"+{self.trigger_count}"), raw=True)
+        self.route(w.trigger_delay, on_set=self._set_trigger_delay,
+                   on_query=lambda a: self._nr3_15(self.trigger_delay_s), raw=True)
+        self.route(w.trigger_slope, on_set=lambda a: setattr(
+            self, "trigger_slope", enum_param(a["raw"], ("POSitive", "NEGative"))),
+            on_query=lambda a: self.trigger_slope, raw=True)
+        self.route(w.byte_order, on_set=lambda a: setattr(
+            self, "byte_order", enum_param(a["raw"], ("NORMal", "SWAPped"))),
+            on_query=lambda a: self.byte_order, raw=True)
+        self.route(w.frequency_mode, on_set=lambda a: setattr(
+            self, "frequency_mode", enum_param(a["raw"], ("AUTO", "CONTinuous",
+                                                          "RCONtinuous", "RECiprocal"))),
+            on_query=lambda a: self.frequency_mode, raw=True)
+
+    def _nr3_15(self, value: float) -> str:
+        return profile_nr3(value, 14, self.profile.reply_exp_digits)
+
+    def _set_format_raw(self, a: Mapping[str, str]) -> None:
+        """FORMat[:DATA] ASCii[,<digits 1..15>] | REAL[,64]."""
+        kind, _, length = a["raw"].partition(",")
+        fmt = enum_param(kind, ("ASCii", "REAL"))
+        if fmt == "ASC":
+            digits = int(number_param(length, {"MIN": 1, "MAX": 15, "DEF": 15})) \
+                if length.strip() else 15
+            if not 1 <= digits <= 15:
+                raise ExecError(-222, "Data out of range")
+            self.data_format, self.ascii_digits = "ASC", digits
+        else:
+            if length.strip() and int(number_param(length, {"DEF": 64})) != 64:
+                raise ExecError(-224, "Illegal parameter value")
+            self.data_format = "REAL"
+
+    def _scalar_channel(self, raw: str) -> int:
+        """`[<expected>,<resolution>,](@<ch>)` or nothing (channel 1): the channel."""
+        text = raw.replace(" ", "")
+        parts = [p for p in text.split(",") if p] if text else []
+        chan = 1
+        if parts and parts[-1].startswith("(@"):
+            chan = self._channel_list({"channel": parts.pop().strip("(@)")})
+        if len(parts) > 2:
+            raise ExecError(-108, "Parameter not allowed")
+        for p in parts:  # expected value and resolution: numbers, MIN, MAX or DEF
+            number_param(p, {"MIN": 0.0, "MAX": 0.0, "DEF": 0.0})
+        return chan
+
+    def _conf_scalar(self, a: Mapping[str, str], invert: bool) -> None:
+        self.function_channel = self._scalar_channel(a["raw"])
+        self.function, self.sample_count, self.invert = "periods", 1, invert
+        self.trigger_count = 1
+        self.acquisition = None
+
+    def _measure_scalar(self, a: Mapping[str, str], invert: bool) -> str | bytes:
+        self._conf_scalar(a, invert)
+        return self._read({})
+
+    def _conf_tst(self, a: Mapping[str, str]) -> None:
+        text = a["raw"].replace(" ", "")
+        chan = self._channel_list({"channel": text.strip("(@)")}) if text else 1
+        self.function, self.function_channel = "timestamps", chan
+        self.acquisition = None
+
+    def _measure_tst(self, a: Mapping[str, str]) -> str | bytes:
+        count, _, chan = a["raw"].replace(" ", "").partition("),(")
+        self._conf_timestamps({"count": count.strip("()"), "channel": chan.strip("(@)")
+                               if chan else "1"})
+        return self._read({})
+
+    def _memory(self) -> list[str]:
+        """The reading memory not yet removed, as the instrument would print each item.
+        For timestamps the prescaler is the first item (count+1 elements, User's Guide
+        'Time stamp'), so DATA:POIN? counts it and a removal may take it."""
+        acq = self.acquisition
+        if acq is None:
+            return []
+        values = self._available(acq)
+        items = self._encode(acq, values).split(",") if values.size else []
+        return items[acq.removed:]
+
+    def _remove(self, n: int) -> str | bytes:
+        acq = self.acquisition
+        assert acq is not None
+        items = self._memory()[:n]
+        acq.removed += len(items)
+        return self._formatted(",".join(items))
+
+    def _r_query(self, a: Mapping[str, str]) -> bytes:
+        """R? [<max>]: the readings in memory (at most max), removed, as a definite-length
+        block; `#10` when there are none (joewhalen/keysight_53230A counter.py)."""
+        raw = a["raw"].strip()
+        limit = int(number_param(raw, {"MIN": 1, "MAX": KEYSIGHT_53230A_MEMORY,
+                                       "DEF": KEYSIGHT_53230A_MEMORY})) if raw else None
+        n = len(self._memory())
+        n = n if limit is None else min(n, limit)
+        if n == 0:
+            return b"#10"
+        reply = self._remove(n)
+        return reply if isinstance(reply, bytes) else _block(reply.encode("ascii"))
+
+    def _data_remove(self, a: Mapping[str, str]) -> str | bytes:
+        """DATA:REMove? <n>[,WAIT]: n readings removed; with WAIT, once they exist; without,
+        -230 when fewer are in memory (opronningen/53230A-Toolkit R/R.cs)."""
+        count, _, wait = a["raw"].replace(" ", "").partition(",")
+        n = count_param(count, KEYSIGHT_53230A_MEMORY)
+        if self.acquisition is None:
+            raise ExecError(-230, "Data corrupt or stale")
+        if wait:
+            enum_param(wait, ("WAIT",))
+            self.wait(lambda: len(self._memory()) >= n)
+        elif len(self._memory()) < n:
+            raise ExecError(-230, "Data corrupt or stale")
+        return self._remove(n)
+
+    def _conf_query(self, a: Mapping[str, str]) -> str:
+        """CONFigure?: the function and channel, quoted (unverified layout)."""
+        name = {"timestamps": "TST", "periods": "FREQ" if self.invert else "PER"}.get(
+            self.function or "", "FREQ")
+        return f'"{name} (@{self.function_channel})"'
+
+    def _set_trigger_count(self, a: Mapping[str, str]) -> None:
+        self.trigger_count = count_param(a["raw"], KEYSIGHT_53230A_MEMORY)
+
+    def _set_trigger_delay(self, a: Mapping[str, str]) -> None:
+        self.trigger_delay_s = ranged_param(a["raw"], 0.0, 3600.0, 0.0)
+
+    def _learn(self, a: Mapping[str, str]) -> str:
+        """*LRN?: the settings as the commands that restore them, `;`-separated, as
+        opronningen/53230A-Toolkit's LearnConfig splits them."""
+        parts = ["*RST", f":TRIG:SOUR {self.trigger_source}",
+                 f":TRIG:SLOP {self.trigger_slope}", f":TRIG:COUN +{self.trigger_count}",
+                 f":TRIG:DEL {self._nr3_15(self.trigger_delay_s)}",
+                 f":SAMP:COUN +{self.sample_count}",
+                 "FORM " + (f"ASC,{self.ascii_digits}" if self.data_format == "ASC"
+                            else "REAL,64"),
+                 f"FORM:BORD {self.byte_order}", f":FREQ:MODE {self.frequency_mode}",
+                 f":TST:RATE {self._nr3_15(self.timestamp_rate_hz)}"]
+        for ch, inp in sorted(self.inputs.items()):
+            parts += [f":INP{ch}:COUP {inp.coupling}", f":INP{ch}:IMP "
+                      f"{self._nr3_15(inp.impedance_ohm)}", f":INP{ch}:SLOP {inp.slope}",
+                      f":INP{ch}:LEV:AUTO {'ON' if inp.level_auto else 'OFF'}"]
+            if not inp.level_auto:
+                parts.append(f":INP{ch}:LEV {self._nr3_15(inp.level_v)}")
+        return ";".join(parts)
+
+    # -- CNT-91 words PyMeasure's driver sends (counter_profiles.Cnt91ScriptWords) ------
+    def _route_cnt91_words(self) -> None:
+        w = CNT91_SCRIPT_WORDS
+        smax = self.profile.fetch_max_results or self.profile.max_count
+        self.route(w.format_smax, on_query=lambda a: str(smax))
+        self.route(w.continuous, on_set=lambda a: setattr(
+            self, "continuous", _scpi_bool(a["raw"])),
+            on_query=lambda a: bool_reply(self.continuous), raw=True)
+        self.route(w.aperture, on_set=lambda a: setattr(
+            self, "aperture_s", ranged_param(a["raw"], 2e-8, 1000.0, 0.01)),
+            on_query=lambda a: self._nr3(self.aperture_s), raw=True)
+        self.route(w.arm_source, on_set=self._set_arm_source,
+                   on_query=lambda a: self.arm_source, raw=True)
+        self.route(w.arm_slope, on_set=lambda a: setattr(
+            self, "arm_slope", enum_param(a["raw"], ("POSitive", "NEGative"))),
+            on_query=lambda a: self.arm_slope, raw=True)
+        self.route(w.arm_count, on_set=lambda a: setattr(
+            self, "arm_count", count_param(a["raw"], 2_000_000_000)),
+            on_query=lambda a: str(self.arm_count), raw=True)
+        self.route(w.interpolator_auto, on_set=lambda a: setattr(
+            self, "interpolator_auto", _scpi_bool(a["raw"])),
+            on_query=lambda a: bool_reply(self.interpolator_auto), raw=True)
+        self.route(w.configure_frequency_array_btb,
+                   on_set=lambda a: self._conf_gated(a, invert=True, array=True, btb=True),
+                   raw=True)
+        self.route(w.configure_frequency_array,
+                   on_set=lambda a: self._conf_gated(a, invert=True, array=True, btb=False),
+                   raw=True)
+        self.route(w.configure_frequency, on_set=lambda a: self._conf_gated(
+            a, invert=True, array=False, btb=False), raw=True)
+        self.route(w.configure_period, on_set=lambda a: self._conf_gated(
+            a, invert=False, array=False, btb=False), raw=True)
+        self.route(w.measure_frequency, on_query=lambda a: self._measure_gated(a, True),
+                   data=True, raw=True)
+        self.route(w.measure_period, on_query=lambda a: self._measure_gated(a, False),
+                   data=True, raw=True)
+        self.route(w.read, on_query=self._read, data=True)
+        self.route(w.fetch, on_query=self._fetch, data=True)
+        self.route(w.status_byte, on_query=lambda a: str(4 if self.errors else 0))
+        self.route(w.options, on_query=lambda a: "0")  # IEEE 488.2 10.20: none
+
+    def _set_arm_source(self, a: Mapping[str, str]) -> None:
+        src = a["raw"].strip().upper()
+        names = {"IMM": "IMM", "IMMEDIATE": "IMM", "EXT1": "EXT1", "EXTERNAL1": "EXT1",
+                 "EXT2": "EXT2", "EXTERNAL2": "EXT2", "EXT4": "EXT4", "EXTERNAL4": "EXT4"}
+        if src not in names:
+            raise ExecError(-224, "Illegal parameter value")
+        self.arm_source = names[src]
+        self.trigger_source = "IMM" if self.arm_source == "IMM" else "EXT"
+
+    def _conf_gated(self, a: Mapping[str, str], *, invert: bool, array: bool,
+                    btb: bool) -> None:
+        """CONF:ARR:FREQ[:BTB] <n>,(@ch), CONF:FREQ [(@ch)], CONF:PER [(@ch)]."""
+        text = a["raw"].replace(" ", "")
+        count, chan = "1", text
+        if array:
+            count, _, chan = text.partition(",")
+        self.sample_count = count_param(count, self.profile.max_count)
+        self.function_channel = self._channel_list({"channel": chan.strip("(@)")}) \
+            if chan else 1
+        self.function, self.invert, self.walk, self.back_to_back = "periods", invert, True, btb
+        self.acquisition = None
+
+    def _measure_gated(self, a: Mapping[str, str], invert: bool) -> str | bytes:
+        self._conf_gated(a, invert=invert, array=False, btb=False)
+        return self._read({})
 
 
 def _nan_tail(text: str, n_nan: int) -> str:
@@ -409,3 +764,17 @@ def _nan_tail(text: str, n_nan: int) -> str:
     parts = text.split(",")
     parts[len(parts) - n_nan:] = [nr3(SCPI_NAN)] * n_nan
     return ",".join(parts)
+
+
+def _block(data: bytes) -> bytes:
+    """IEEE 488.2 definite-length arbitrary block: `#<digits><length><data>`."""
+    length = str(len(data))
+    return f"#{len(length)}{length}".encode("ascii") + data
+
+
+def _scpi_bool(text: str) -> bool:
+    """A SCPI boolean: ON/OFF, or a number (non-zero is ON once rounded, SCPI-99 7.3)."""
+    t = text.strip().upper()
+    if t in ("ON", "OFF"):
+        return t == "ON"
+    return round(number_param(t, {})) != 0

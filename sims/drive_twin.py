@@ -15,12 +15,28 @@ canopen does not copy a LocalNode's data store into its TPDOs, so a tick thread 
 it: every TPDO event timer (10 ms in the EDS) it advances the model, refreshes the
 statusword bits that depend on motion, finishes ramps that end in a state change,
 checks the watchdog, and transmits the TPDOs.
+
+What a CiA 402/301 drive does and canopen's LocalNode does not, the twin adds (checked
+with canopen's own BaseNode402, tests/test_drive_p402_client.py):
+- NMT (CiA 301 7.3.2): Stopped, Reset Node and Reset Communication while the power stage
+  is on take the abort-connection reaction 0x6007 (CiA 402); a reset restores its area
+  of the OD and ends in a boot-up message and pre-operational; no SDO in Stopped; PDOs
+  only in Operational.
+- PDOs (CiA 301 7.5.2.35-38): COB-ID bit 31, transmission type (254/255 on event, 1-240
+  every n-th SYNC), mapping (changed only while the PDO is not valid; mappable objects,
+  64 bits at most) in effect as written; RPDOs write their objects as an SDO would.
+- CiA 402: transition 16 only for quick-stop codes 5-8; the halt bit with 0x605D;
+  every quick-stop, shutdown, disable-operation and fault-reaction code; reserved option
+  codes refused (abort 0x06090030); the factor group (0x608F, 0x6091, 0x6096, 0x6097,
+  0x60A9, 0x60AA) applied when written.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
+import struct
 import threading
 import time
 from dataclasses import dataclass
@@ -28,18 +44,23 @@ from pathlib import Path
 from typing import Any
 
 import canopen
+from canopen.nmt import NmtSlave
 from canopen.objectdictionary import ODVariable
+from canopen.pdo.base import PdoMap
 from canopen.sdo import SdoAbortedError
 
 from drivers.cia402 import (
     COB_HEARTBEAT,
+    COB_SYNC,
     CONTROLLER_NODE_ID,
     DEFAULT_EDS_PATH,
     FAULT_REACTION_OPTIONS,
+    HALT_OPTIONS,
     HEARTBEAT_LOST,
     INT32_MAX,
     MODES,
     NAMED_SI_UNITS,
+    OPTION_CODES,
     PROFILE_POSITION,
     PROFILE_VELOCITY,
     QUICK_STOP_OPTIONS,
@@ -69,6 +90,17 @@ ABORT_VALUE_TOO_HIGH = 0x06090031
 ABORT_VALUE_TOO_LOW = 0x06090032
 ABORT_DEVICE_STATE = 0x08000022
 
+ABORT_NOT_MAPPABLE = 0x06040041
+ABORT_PDO_LENGTH = 0x06040042
+
+#: CiA 301 NMT command specifiers and states (as canopen numbers them)
+NMT_START, NMT_STOP, NMT_PRE_OPERATIONAL, NMT_RESET_NODE, NMT_RESET_COMM = 1, 2, 128, 129, 130
+NMT_STOPPED, NMT_OPERATIONAL, NMT_PRE_OP, NMT_INITIALISING = 4, 5, 127, 0
+#: real seconds from an NMT reset to the boot-up message (the drive re-initialising)
+RESET_BOOT_S = 0.1
+#: CiA 301 PDO communication parameter: COB-ID bit 31 "PDO not valid"
+PDO_NOT_VALID = 1 << 31
+
 UINT16_MAX = 0xFFFF
 #: profile position: how many times the twin's position loop re-aims after a move
 PP_MAX_CORRECTIONS = 5
@@ -96,6 +128,21 @@ class WatchdogTrip:
         return self.tripped_real_s - self.last_heartbeat_real_s
 
 
+class _DriveNmt(NmtSlave):
+    """canopen's NMT slave takes every command as a bare state change: a reset never
+    boots up again. The twin acts on each command as CiA 301 (7.3.2) and CiA 402 (0x6007)
+    say; see DriveTwin._on_nmt."""
+
+    def __init__(self, node_id: int, local_node: canopen.LocalNode, twin: DriveTwin) -> None:
+        super().__init__(node_id, local_node)
+        self._twin = twin
+
+    def on_command(self, can_id: int, data: bytes, timestamp: float) -> None:
+        cmd, node_id = struct.unpack_from("BB", data)
+        if node_id in (self.id, 0):
+            self._twin._on_nmt(cmd)
+
+
 class DriveTwin:
     """The drive of `stand.axes[axis]` as CANopen node `node_id` on `interface:channel`."""
 
@@ -111,7 +158,8 @@ class DriveTwin:
                  profile_accel_dps2: float = 200.0, quick_stop_decel_dps2: float = 1000.0,
                  standstill_dps: float = 0.001, coast_decel_dps2: float = 20.0,
                  position_window_deg: float = 0.001, pp_velocity_dps: float = 10.0,
-                 serial_number: int = 0) -> None:
+                 serial_number: int = 0,
+                 bus_options: dict[str, Any] | None = None) -> None:
         if not 1 <= node_id <= 127:
             raise ValueError(f"drive twin node_id must be 1..127, got {node_id}")
         self.stand = stand
@@ -120,6 +168,8 @@ class DriveTwin:
         self.clock = stand.clock
         self.interface = interface
         self.channel = channel
+        #: more python-can bus arguments (e.g. udp_multicast's port)
+        self.bus_options = dict(bus_options or {})
         self.node_id = node_id
         self.eds_path = Path(eds_path)
         # the factor group (CiA 402 0x608F, 0x6091, 0x60A9, 0x60AA): the twin's units
@@ -131,6 +181,8 @@ class DriveTwin:
                                    else counts_per_rev, motor_revs, gear_ratio[0],
                                    gear_ratio[1], _si(velocity_unit), _si(acceleration_unit))
         self.units: DriveUnits = self.factors.drive_units()
+        self._factors0 = self.factors
+        self._sync_count = 0
         self.coast_decel_dps2 = float(coast_decel_dps2)
         self._tpdo_event_timer_ms = tpdo_event_timer_ms
         #: unit-dependent objects as deg-based values, refitted when the units change
@@ -212,22 +264,229 @@ class DriveTwin:
                 for kind, table in self._deg_values.items()
                 for key, (name, value, limit) in table.items()}
 
-    def _change_units(self, index: int, code: int) -> None:
-        """0x60A9/0x60AA written: new units; the limits keep their meaning in deg/s."""
-        if self._state is State.OPERATION_ENABLED:
+    #: the factor group's objects -> the UnitFactors field each sub-index sets
+    _FACTOR_FIELDS: dict[tuple[int, int], str] = {
+        (Od.POSITION_ENCODER_RESOLUTION, 1): "encoder_increments",
+        (Od.POSITION_ENCODER_RESOLUTION, 2): "motor_revolutions",
+        (Od.GEAR_RATIO, 1): "gear_motor_revs", (Od.GEAR_RATIO, 2): "gear_shaft_revs",
+        (Od.SI_UNIT_VELOCITY, 0): "velocity_si", (Od.SI_UNIT_ACCELERATION, 0): "acceleration_si",
+        (Od.VELOCITY_FACTOR, 1): "velocity_factor", (Od.VELOCITY_FACTOR, 2): "velocity_factor",
+        (Od.ACCELERATION_FACTOR, 1): "acceleration_factor",
+        (Od.ACCELERATION_FACTOR, 2): "acceleration_factor",
+    }
+
+    def _change_units(self, index: int, sub: int, code: int) -> None:
+        """A factor-group object written (0x608F, 0x6091, 0x6096, 0x6097, 0x60A9,
+        0x60AA): new units, applied as a drive applies them; the limits keep their meaning
+        in deg/s. Refused while the power stage is on (abort 0x08000022)."""
+        if self._state.power_stage_on:
             raise SdoAbortedError(ABORT_DEVICE_STATE)
+        field = self._FACTOR_FIELDS[(index, sub)]
         f = self.factors
-        new = UnitFactors(f.encoder_increments, f.motor_revolutions, f.gear_motor_revs,
-                          f.gear_shaft_revs,
-                          code if index == Od.SI_UNIT_VELOCITY else f.velocity_si,
-                          code if index == Od.SI_UNIT_ACCELERATION else f.acceleration_si)
+        value: Any = code
+        if field in ("velocity_factor", "acceleration_factor"):
+            old = getattr(f, field)
+            value = (code, old[1]) if sub == 1 else (old[0], code)
+        new = dataclasses.replace(f, **{field: value})
         try:
-            units = new.drive_units()
-        except ValueError as e:
+            units = new.drive_units(apply_factors=True)
+            if units.counts_per_rev <= 0:
+                raise ValueError("no increments")
+        except (ValueError, ZeroDivisionError) as e:
             raise SdoAbortedError(ABORT_VALUE_RANGE) from e
         self.factors, self.units = new, units
-        for (i, sub), value in self._unit_objects().items():
-            self._put(i, sub, value)
+        for (i, s), v in self._unit_objects().items():
+            self._put(i, s, v)
+
+    # -- NMT (CiA 301 7.3.2) and the PDOs (CiA 301 7.2.2) --------------------------------
+    def _load_defaults(self, first: int, last: int) -> None:
+        """Objects first..last back to their power-on values (the EDS's, then the twin's)."""
+        node = self._node
+        assert node is not None
+        for index in [i for i in node.data_store if first <= i <= last]:
+            del node.data_store[index]
+        if first <= Od.POSITION_ENCODER_RESOLUTION <= last:
+            self.factors, self.units = self._factors0, self._factors0.drive_units()
+        for (index, sub), value in self._initial.items():
+            if first <= index <= last:
+                self._put(index, sub, value)
+        if first <= 0x1800 <= last and self._tpdo_event_timer_ms is not None:
+            for n in range(4):  # e.g. 0: TPDOs only on change
+                with contextlib.suppress(KeyError):
+                    self._put(0x1800 + n, 5, self._tpdo_event_timer_ms)
+
+    def _read_pdos(self) -> None:
+        """Every PDO's communication and mapping parameters as the OD holds them now."""
+        node = self._node
+        assert node is not None
+        for pdo in node.tpdo.map.values():
+            pdo.read(from_od=False)
+        for pdo in node.rpdo.map.values():
+            self._reload_rpdo(pdo)
+        timers = [m.event_timer for m in node.tpdo.map.values() if m.enabled and m.event_timer]
+        self._tick_s = min(timers, default=10) / 1000.0
+        self._sync_count = 0
+
+    def _boot_up(self) -> None:
+        """Initialisation done: boot-up message, then pre-operational on its own, with
+        the heartbeat producer (0x1017) started (CiA 301 7.3.2.2)."""
+        node = self._node
+        assert node is not None
+        node.nmt._state = NMT_INITIALISING
+        node.nmt.stop_heartbeat()
+        node.nmt.send_command(NMT_RESET_NODE)  # canopen sends the boot-up message here
+        node.nmt._state = NMT_PRE_OP
+        # the boot-up message is the first heartbeat: the next one follows a period later
+        # (canopen's producer would send one at once, and a client waiting for the
+        # boot-up, NmtMaster.wait_for_bootup, would see that one instead)
+        period_ms = self._get(Od.PRODUCER_HEARTBEAT)
+        if period_ms:
+            timer = threading.Timer(period_ms / 1000.0, self._start_heartbeat, (period_ms,))
+            timer.daemon = True
+            timer.start()
+
+    def _start_heartbeat(self, period_ms: int) -> None:
+        with self._lock:
+            node = self._node
+            if node is not None and not self._stop.is_set() \
+                    and node.nmt._state != NMT_INITIALISING:
+                node.nmt.start_heartbeat(period_ms)
+
+    def _boot_up_if_running(self) -> None:
+        with self._lock:
+            if self._node is not None and self._network is not None \
+                    and not self._stop.is_set():
+                self._boot_up()
+
+    def _on_nmt(self, cmd: int) -> None:
+        """An NMT command from the master. Stopped and the resets, while the power stage
+        is on, take the abort-connection reaction 0x6007 (CiA 402); a reset then boots up
+        again; SDO is not served in Stopped (CiA 301)."""
+        node = self._node
+        if node is None:
+            return
+        with self._lock:
+            if cmd in (NMT_STOP, NMT_RESET_NODE, NMT_RESET_COMM) \
+                    and node.nmt._state != NMT_STOPPED:
+                self._abort_connection(f"NMT command {cmd}", emcy=cmd == NMT_STOP)
+            if cmd == NMT_START:
+                node.nmt._state = NMT_OPERATIONAL
+            elif cmd == NMT_STOP:
+                node.nmt._state = NMT_STOPPED
+            elif cmd == NMT_PRE_OPERATIONAL:
+                node.nmt._state = NMT_PRE_OP
+            elif cmd in (NMT_RESET_NODE, NMT_RESET_COMM):
+                if cmd == NMT_RESET_NODE:  # the application area back to power-on values
+                    self._reset_application()
+                self._load_defaults(0x1000, 0x1FFF)  # the communication area
+                self._read_pdos()
+                self._configure_consumer(self._get(Od.CONSUMER_HEARTBEAT, 1))
+                node.nmt._state = NMT_INITIALISING
+                node.nmt.stop_heartbeat()
+                # a drive takes a while to initialise: a client that sends the reset
+                # and then waits for the boot-up (canopen's wait_for_bootup) sees it
+                timer = threading.Timer(RESET_BOOT_S, self._boot_up_if_running)
+                timer.daemon = True
+                timer.start()
+                return
+            else:
+                return
+            node.nmt.update_heartbeat()
+
+    def _reset_application(self) -> None:
+        """Reset node: 0x2000-0x9FFF to power-on values, the 402 state machine restarts
+        (transitions 0, 1); an axis still driven is let go."""
+        if self._state.power_stage_on and self._after_standstill is None:
+            self._ramp_to_zero(Ramp.COAST)
+        self._mode = 0
+        self._controlword = 0
+        self._fault, self._error_register = None, 0
+        self._pp_target_deg = None
+        self._load_defaults(0x2000, 0x9FFF)
+        if self._state.power_stage_on:
+            self._after_standstill = State.SWITCH_ON_DISABLED
+        else:
+            self._state, self._after_standstill = State.SWITCH_ON_DISABLED, None
+
+    def _pdo_parameter(self, index: int, sub: int, value: int, data: bytes) -> None:
+        """A PDO communication (0x1400/0x1800) or mapping (0x1600/0x1A00) parameter
+        written: checked as CiA 301 7.5.2.35-38 says, then in effect at once."""
+        node = self._node
+        assert node is not None
+        tx = index >= 0x1800
+        base = 0x1800 if tx else 0x1400
+        mapping = (index & 0x0200) != 0
+        number = (index - base - (0x200 if mapping else 0)) + 1
+        pdo = (node.tpdo if tx else node.rpdo).map.get(number)
+        if pdo is None:
+            return
+        if not mapping and sub == 1:
+            if not value & PDO_NOT_VALID and pdo.enabled and value & 0x7FF != pdo.cob_id:
+                raise SdoAbortedError(ABORT_VALUE_RANGE)  # a valid PDO's COB-ID stays
+        elif not mapping and sub == 2 and 241 <= value <= 251:
+            raise SdoAbortedError(ABORT_VALUE_RANGE)  # reserved transmission types
+        elif mapping and sub == 0:
+            bits = 0
+            for n in range(1, value + 1):
+                entry = self._get(index, n)
+                try:
+                    var = self._odvar(entry >> 16, (entry >> 8) & 0xFF)
+                except KeyError as e:
+                    raise SdoAbortedError(ABORT_NOT_MAPPABLE) from e
+                if not var.pdo_mappable:
+                    raise SdoAbortedError(ABORT_NOT_MAPPABLE)
+                bits += entry & 0xFF
+            if bits > 64:
+                raise SdoAbortedError(ABORT_PDO_LENGTH)
+        elif mapping and pdo.enabled:
+            raise SdoAbortedError(ABORT_DEVICE_STATE)  # remap only a disabled PDO
+        node.data_store.setdefault(index, {})[sub] = data  # stored now, read back below
+        if tx:
+            pdo.read(from_od=False)
+            self._tpdo_values.pop(number, None)
+        else:
+            self._reload_rpdo(pdo)
+
+    def _reload_rpdo(self, pdo: PdoMap) -> None:
+        """Read an RPDO's parameters and listen on its (new) COB-ID, if valid."""
+        network = self._network
+        if network is not None and pdo.cob_id is not None:
+            with contextlib.suppress(KeyError, ValueError):
+                network.unsubscribe(pdo.cob_id, pdo.on_message)
+        pdo.read(from_od=False)
+        if network is not None:
+            pdo.subscribe()
+
+    def _on_rpdo(self, pdo: PdoMap) -> None:
+        """An RPDO received: its objects written as an SDO write would (only when
+        operational; synchronous RPDOs would wait for the SYNC: the twin applies at once)."""
+        node = self._node
+        if node is None or node.nmt._state != NMT_OPERATIONAL:
+            return
+        for var in pdo.map:
+            with contextlib.suppress(SdoAbortedError):
+                node.set_data(var.index, var.subindex, var.get_data())
+
+    def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:
+        """SYNC: synchronous TPDOs (type 0: acyclic, 1-240: every n-th SYNC)."""
+        node = self._node
+        if node is None or node.nmt._state != NMT_OPERATIONAL:
+            return
+        with self._lock:
+            self._sync_count += 1
+            for pdo in node.tpdo.map.values():
+                tt = pdo.trans_type
+                if pdo.enabled and tt is not None and 1 <= tt <= 240 \
+                        and self._sync_count % tt == 0:
+                    self._send_tpdo(pdo)
+
+    def _send_tpdo(self, pdo: PdoMap) -> list[int]:
+        values = [self._live(v.index) if v.index in _LIVE else self._get(v.index, v.subindex)
+                  for v in pdo.map]
+        for var, value in zip(pdo.map, values, strict=True):
+            var.raw = value
+        pdo.transmit()
+        return values
 
     @staticmethod
     def _fit(key: str, value: float, convert: Any, limit: int) -> int:
@@ -245,25 +504,30 @@ class DriveTwin:
         network = canopen.Network()
         network.NOTIFIER_CYCLE = 0.1  # disconnect() waits up to one cycle
         node = canopen.LocalNode(self.node_id, str(self.eds_path))
+        # the twin's own reactions to NMT commands and SDO requests (CiA 301)
+        node._write_callbacks.remove(node.nmt.on_write)
+        node.nmt = _DriveNmt(self.node_id, node, self)
+        node.add_write_callback(node.nmt.on_write)
+        serve_sdo = node.sdo.on_request
+        node.sdo.on_request = lambda can_id, data, ts: (  # type: ignore[method-assign]
+            None if node.nmt._state == NMT_STOPPED else serve_sdo(can_id, data, ts))
+        # the EDS declares 0x1016:1; a twin configured otherwise says so in its own OD
+        node.object_dictionary[Od.CONSUMER_HEARTBEAT][1].default = \
+            self._initial[(Od.CONSUMER_HEARTBEAT, 1)]
         network.add_node(node)
         self._network, self._node = network, node
-        for (index, sub), value in self._initial.items():
-            self._put(index, sub, value)
-        if self._tpdo_event_timer_ms is not None:  # e.g. 0: TPDOs only on change
-            for sub in range(4):
-                with contextlib.suppress(KeyError):
-                    self._put(0x1800 + sub, 5, self._tpdo_event_timer_ms)
-        node.tpdo.read(from_od=True)
-        timers = [m.event_timer for m in node.tpdo.map.values() if m.enabled and m.event_timer]
-        self._tick_s = min(timers, default=10) / 1000.0
+        self._load_defaults(0x1000, 0xFFFF)
         node.add_read_callback(self._on_read)
         node.add_write_callback(self._on_write)
+        network.connect(interface=self.interface, channel=self.channel, **self.bus_options)
+        for pdo in node.rpdo.map.values():
+            pdo.add_callback(self._on_rpdo)
+        network.subscribe(COB_SYNC, self._on_sync)
+        self._read_pdos()
         self._configure_consumer(self._get(Od.CONSUMER_HEARTBEAT, 1))
-        network.connect(interface=self.interface, channel=self.channel)
-        node.nmt.send_command(0x81)  # reset node: boot-up message
         with self._lock:
             self._state = State.SWITCH_ON_DISABLED  # transitions 0 and 1: self-test passed
-        node.nmt.send_command(0x80)  # pre-operational: heartbeat producer starts (0x1017)
+        self._boot_up()
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name=f"drive-twin-{self.axis}",
                                         daemon=True)
@@ -413,21 +677,41 @@ class DriveTwin:
                     raise SdoAbortedError(ABORT_VALUE_TOO_HIGH)
             elif index == Od.CONSUMER_HEARTBEAT and subindex == 1:
                 self._configure_consumer(value)
-            elif index in (Od.SI_UNIT_VELOCITY, Od.SI_UNIT_ACCELERATION):
-                self._change_units(index, value)
-            elif 0x1800 <= index <= 0x1803 and subindex in (2, 5) and self._node is not None:
-                pdo = self._node.tpdo.map.get(index - 0x1800 + 1)
-                if pdo is not None:  # CiA 301: the communication parameters take effect
-                    if subindex == 2:
-                        pdo.trans_type = value
-                    else:
-                        pdo.event_timer = value
+            elif (index, subindex) in self._FACTOR_FIELDS:
+                self._change_units(index, subindex, value)
+            elif index in OPTION_CODES:
+                if value not in OPTION_CODES[index]:  # reserved or manufacturer specific
+                    raise SdoAbortedError(ABORT_VALUE_RANGE)
+            elif 0x1400 <= index <= 0x1BFF:
+                self._pdo_parameter(index, subindex, value, data)
             mode = MODES.get(self._mode)
             if mode is not None and index == mode.target and mode.setpoint_on_write:
                 self._mode_handlers[mode.code](value)  # a new set-point of the active mode
 
     # -- state machine --------------------------------------------------------------
     def _on_controlword(self, cw: int) -> None:
+        previous = self._controlword
+        self._state_machine(cw)
+        if self._state is State.OPERATION_ENABLED and self._after_standstill is None \
+                and (cw ^ previous) & Cw.HALT:
+            self._halt_changed()
+
+    @property
+    def _halted(self) -> bool:
+        return bool(self._controlword & Cw.HALT)
+
+    def _halt_changed(self) -> None:
+        """Controlword bit 8 (CiA 402 halt): set, the axis stops with the ramp 0x605D
+        says and stays in Operation enabled; cleared, it takes up its set-point again
+        (PV: 0x60FF; PP: the move under way)."""
+        if self._halted:
+            self._ramp_to_zero(HALT_OPTIONS.get(self._get(Od.HALT_OPTION), Ramp.PROFILE))
+        elif self._mode == PROFILE_VELOCITY.code:
+            self._pv_follow_target()
+        elif self._mode == PROFILE_POSITION.code and self._pp_target_deg is not None:
+            self._pp_move(self.model.angle_deg, self._pp_target_deg, correction=True)
+
+    def _state_machine(self, cw: int) -> None:
         rising_reset = bool(cw & Cw.FAULT_RESET and not self._controlword & Cw.FAULT_RESET)
         previous, self._controlword = self._controlword, cw
         if self._mode == PROFILE_POSITION.code:
@@ -439,7 +723,7 @@ class DriveTwin:
         cmd = decode_command(cw)
         if cmd is None:
             return
-        arc = transition(self._state, cmd)
+        arc = transition(self._state, cmd, self._get(Od.QUICK_STOP_OPTION))
         if arc is None:
             return
         n = arc.number
@@ -510,7 +794,8 @@ class DriveTwin:
     # -- motion -----------------------------------------------------------------------
     def _pv_follow_target(self, target_units: int | None = None) -> None:
         """Profile velocity: ramp to 0x60FF with 0x6083 up and 0x6084 down (CiA 402 PV)."""
-        if self._state is not State.OPERATION_ENABLED or self._after_standstill is not None:
+        if self._state is not State.OPERATION_ENABLED or self._after_standstill is not None \
+                or self._halted:
             return
         if target_units is None:
             target_units = self._get(Od.TARGET_VELOCITY)
@@ -529,7 +814,7 @@ class DriveTwin:
             self._set_point_ack = False
             return
         if previous & Cw.NEW_SET_POINT or self._state is not State.OPERATION_ENABLED \
-                or self._after_standstill is not None:
+                or self._after_standstill is not None or cw & Cw.HALT:
             return
         m = self.model
         with m.lock:
@@ -575,6 +860,9 @@ class DriveTwin:
             decel = u.accel_to_dps2(self._get(Od.PROFILE_DECELERATION))
         elif ramp is Ramp.QUICK_STOP:
             decel = u.accel_to_dps2(self._get(Od.QUICK_STOP_DECELERATION))
+        elif ramp in (Ramp.CURRENT_LIMIT, Ramp.VOLTAGE_LIMIT):
+            # the stand model has no torque: the drive's max deceleration stands for it
+            decel = u.accel_to_dps2(self._get(Od.MAX_DECELERATION))
         else:
             decel = self.coast_decel_dps2  # friction alone; the stand model has no coast
         self._command_profile(0.0, decel, decel)
@@ -632,16 +920,14 @@ class DriveTwin:
                 if not pdo.enabled or (period and now - self._tpdo_last.get(n, -1e9) <
                                        period - 0.5 * self._tick_s):
                     continue
-                values = [self._live(v.index) if v.index in _LIVE else self._get(v.index)
-                          for v in pdo.map]
-                if not period and (pdo.trans_type not in (254, 255)
-                                   or values == self._tpdo_values.get(n)):
+                if pdo.trans_type not in (254, 255):
+                    continue  # synchronous: sent on SYNC (_on_sync)
+                values = [self._live(v.index) if v.index in _LIVE else
+                          self._get(v.index, v.subindex) for v in pdo.map]
+                if not period and values == self._tpdo_values.get(n):
                     continue
-                for var, value in zip(pdo.map, values, strict=True):
-                    var.raw = value
-                pdo.transmit()
+                self._tpdo_values[n] = self._send_tpdo(pdo)
                 self._tpdo_last[n] = now
-                self._tpdo_values[n] = values
 
     def _update_motion_bits(self, t: float, w: float) -> None:
         """Statusword bits 12 (speed 0) and 10 (target reached), on stand time (CiA 402 PV)."""
@@ -653,7 +939,11 @@ class DriveTwin:
         else:
             self._speed_zero_since = None
             self._speed_zero = False
-        if self._state is State.OPERATION_ENABLED and self._mode == PROFILE_VELOCITY.code:
+        if self._state is State.OPERATION_ENABLED and self._halted:
+            # CiA 402 PV/PP bit 10 with halt = 1: the axis has stopped (velocity 0)
+            self._in_window_since = self._in_position_since = None
+            self._target_reached = self._speed_zero
+        elif self._state is State.OPERATION_ENABLED and self._mode == PROFILE_VELOCITY.code:
             target = self.units.velocity_to_dps(self._get(Od.TARGET_VELOCITY))
             window = self.units.velocity_to_dps(self._get(Od.VELOCITY_WINDOW))
             if abs(w - target) <= window:
@@ -725,9 +1015,18 @@ class DriveTwin:
         log.warning("drive twin %s: no heartbeat from node %d for %.3f s: %s", self.axis,
                     self._hb_producer, now - self._hb_last, reaction.name)
         self._hb_last = None  # re-armed by the next heartbeat
+        self._abort_connection("heartbeat lost")
+
+    def _abort_connection(self, why: str, emcy: bool = True) -> None:
+        """CiA 402 0x6007: the reaction to a lost connection (heartbeat, NMT Stopped, a
+        reset) while the power stage is on."""
+        reaction = AbortReaction(self._get(Od.ABORT_CONNECTION_OPTION))
         if not self._state.power_stage_on or reaction is AbortReaction.NONE:
-            self._send_emcy(HEARTBEAT_LOST)
-        elif reaction is AbortReaction.FAULT:
+            if emcy and why == "heartbeat lost":
+                self._send_emcy(HEARTBEAT_LOST)
+            return
+        log.warning("drive twin %s: %s: %s", self.axis, why, reaction.name)
+        if reaction is AbortReaction.FAULT:
             self._raise_fault(HEARTBEAT_LOST)
         elif reaction is AbortReaction.DISABLE_VOLTAGE:
             self._send_emcy(HEARTBEAT_LOST)
@@ -736,7 +1035,6 @@ class DriveTwin:
             self._send_emcy(HEARTBEAT_LOST)
             if self._state is State.OPERATION_ENABLED:
                 self._quick_stop()
-
 
 
 def _si(unit: str | int) -> int:

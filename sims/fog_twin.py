@@ -13,8 +13,14 @@ queries as the ICD's conventions say (a command echoes without '=', a query answ
 `NAME,value`, an unknown word in Configuration Mode `INVALID,...`; in Normal Mode input
 is ignored). Its rotational fields start at the KVH power-on default, delta radians
 (Table 5-10), unless built with `units` (a FOG configured earlier, kept in its
-non-volatile memory). The frames' rate stays the stand's: `=DR` is stored and read
-back, but the twin cannot change how often the stand samples.
+non-volatile memory). `=DR` sets the frame rate: a rate that divides the stand's sample
+rate sends one frame per that many samples (delta angles summed, rates averaged, the
+sequence counting frames); a faster one, or one that does not divide it, is refused with
+INVALID (a twin limit: the stand samples no faster). It also answers `=BAUD`, `=LINFMT`,
+`=LINUNITS`, `=TEMPUNITS`, `=FILTEN,<A|G>,<0|1>`, `=RSTCFG` and their queries (the 1775
+ICD section 8; drivers/kvh_config.py says which spellings are unverified). Its
+accelerometers read +1 g on the sensitive axis at rest and while turning (mounted along
+the table axis, vertical; the ICD's polarity: +1 g with the positive axis up).
 
 Two details of real ports matter here. pyserial flushes the input queue when it opens
 the port, so the twin writes nothing until a reader has the slave open and the stand
@@ -39,7 +45,19 @@ import numpy as np
 
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, get_format
-from drivers.kvh_config import DATA_RATES_HZ, POWER_ON_UNITS, UNIT_WORDS, WORDS, units_of
+from drivers.kvh_config import (
+    BAUD_RATES,
+    DATA_RATES_HZ,
+    FEET_PER_METER,
+    G0_MPS2,
+    LIN_FORMATS,
+    LIN_UNITS,
+    POWER_ON_UNITS,
+    TEMP_UNITS,
+    UNIT_WORDS,
+    WORDS,
+    units_of,
+)
 from sims.stand import AxisChunk, SimulatedStand
 
 _TICK_S = 0.002            # real seconds between looks at the clock when idle
@@ -132,6 +150,10 @@ class FogTwin:
         self.config_mode = False
         self.data_rate_hz = int(round(self.rate_hz))
         self.frame_letter = self.format.name.rsplit("-", 1)[-1].upper()
+        self.baud = 921600
+        self.lin_format, self.lin_units, self.temp_units = "ACCEL", "METERS", "C"
+        self.filter_enabled = {"A": True, "G": True}
+        self._carry: list[tuple[np.ndarray, np.ndarray]] = []  # samples of a partial frame
         self._inbuf = bytearray()
         self.commands: list[str] = []  # every line received (tests)
         self.temperature = int(temperature)
@@ -176,13 +198,66 @@ class FogTwin:
                 self._faults.append(f)
 
     # -- encoding (runs in whichever thread advances the axis) -------------------------------
+    def _linear(self) -> np.ndarray:
+        """The three linear fields of one frame at rest on a vertical axis: +1 g up,
+        or its delta velocity over the frame (LINFMT DELTA, m/s or ft/s)."""
+        out = np.zeros(3, dtype=np.float32)
+        g = 1.0 if self.lin_format == "ACCEL" else G0_MPS2 / self.data_rate_hz * (
+            FEET_PER_METER if self.lin_units == "FEET" else 1.0)
+        out[self._col] = g
+        return out
+
+    def _frame_temperature(self) -> int:
+        return self.temperature if self.temp_units == "C" else round(
+            self.temperature * 9 / 5 + 32)
+
+    def _encode_rows(self, seq: np.ndarray, value: np.ndarray) -> np.ndarray:
+        n = len(seq)
+        rates = np.zeros((n, 3), dtype=np.float32)
+        rates[:, self._col] = value
+        lin = self._linear()
+        extra = {name: lin[k] for k, name in enumerate(("ax", "ay", "az"))}
+        return self.format.encode(seq, rates, temperature=self._frame_temperature(),
+                                  extra=extra).copy()
+
+    def _decimation(self) -> int:
+        return max(int(round(self.rate_hz)) // self.data_rate_hz, 1)
+
+    def _on_decimated_chunk(self, chunk: AxisChunk, k: int) -> None:
+        """=DR below the stand's rate: one frame per k stand samples (frame g covers
+        samples g*k .. g*k+k-1): delta angles summed, rates averaged. Faults are by
+        stand sample and act at the stand's own rate only (not modelled here)."""
+        n0, n = chunk.n0, len(chunk.t_s)
+        value = (chunk.fog_dps / self._dps_per_unit).astype(np.float64)
+        self._carry.append((np.arange(n0, n0 + n, dtype=np.int64), value))
+        idx = np.concatenate([c[0] for c in self._carry])
+        val = np.concatenate([c[1] for c in self._carry])
+        first = int(-(-idx[0] // k) * k)      # the first whole frame's first sample
+        keep_from = first - int(idx[0])
+        whole = (len(idx) - keep_from) // k
+        if whole > 0:
+            groups = val[keep_from:keep_from + whole * k].reshape(whole, k)
+            frame_value = groups.sum(axis=1) if self.units in ("deg", "rad") \
+                else groups.mean(axis=1)
+            seq = np.arange(first // k, first // k + whole, dtype=np.int64)
+            rows = self._encode_rows(seq, frame_value.astype(np.float32))
+            with self._qlock:
+                self._queue.append((rows.tobytes(), first + whole * k))
+            self.frames_encoded += whole
+        rest = keep_from + whole * k
+        self._carry = [(idx[rest:], val[rest:])] if rest < len(idx) else []
+        self._next_sample = n0 + n
+
     def _on_chunk(self, chunk: AxisChunk) -> None:
+        k = self._decimation()
+        if k > 1:
+            self._on_decimated_chunk(chunk, k)
+            return
+        self._carry = []
         n0, n = chunk.n0, len(chunk.t_s)
         idx = np.arange(n0, n0 + n, dtype=np.int64)
-        rates = np.zeros((n, 3), dtype=np.float32)
         value = (chunk.fog_dps / self._dps_per_unit).astype(np.float32)
-        rates[:, self._col] = value
-        rows = self.format.encode(idx, rates, temperature=self.temperature).copy()
+        rows = self._encode_rows(idx, value)
         keep = np.ones(n, dtype=bool)
         intact = np.ones(n, dtype=bool)
         cuts: dict[int, list[_Hold | tuple[bytes, int]]] = {}
@@ -345,8 +420,22 @@ class FogTwin:
             if line:
                 self.commands.append(line)
                 reply = self._answer(line)
-                if reply is not None:
-                    os.write(self._master, (reply + "\r\n").encode("ascii"))
+                if reply is not None:  # after the frames already queued in the port
+                    self._write_reply((reply + "\r\n").encode("ascii"))
+
+    def _write_reply(self, data: bytes) -> None:
+        """Write a reply whole, waiting while the port's buffer is full (a reader still
+        busy with the frames sent before Configuration Mode)."""
+        assert self._master is not None
+        view = memoryview(data)
+        deadline = time.monotonic() + 5.0
+        while view and not self._stop.is_set() and time.monotonic() < deadline:
+            try:
+                view = view[os.write(self._master, view):]
+            except BlockingIOError:
+                select.select([], [self._master], [], _WRITE_POLL_MS / 1000)
+            except OSError:
+                return  # no reader: the reply is lost, as on a cable nobody listens to
 
     def _answer(self, line: str) -> str | None:
         w = WORDS
@@ -359,23 +448,60 @@ class FogTwin:
             return None  # Normal Mode ignores input (ICD section 7)
         fmt, units = UNIT_WORDS[self.units]
         values = {w.output_format: self.frame_letter, w.rot_format: fmt, w.rot_units: units,
-                  w.data_rate: str(self.data_rate_hz)}
+                  w.data_rate: str(self.data_rate_hz), w.baud: str(self.baud),
+                  w.lin_format: self.lin_format, w.lin_units: self.lin_units,
+                  w.temp_units: self.temp_units}
         if line.startswith("?") and name in values and not arg:
             return f"{name},{values[name]}"
-        if line.startswith("="):
-            ok = ((name == w.rot_format and arg in ("DELTA", "RATE"))
-                  or (name == w.rot_units and arg in ("DEG", "RAD"))
-                  or (name == w.output_format and arg == self.frame_letter)
-                  or (name == w.data_rate and arg.isdigit() and int(arg) in DATA_RATES_HZ))
-            if ok:
-                if name == w.rot_format:
-                    self._set_units(units_of(arg, units))
-                elif name == w.rot_units:
-                    self._set_units(units_of(fmt, arg))
-                elif name == w.data_rate:
-                    self.data_rate_hz = int(arg)
-                return body
+        if line.startswith("?") and name == w.filter_enable and arg in ("A", "G"):
+            return f"{name},{arg},{int(self.filter_enabled[arg])}"
+        if line.startswith("=") and self._setting(name, arg, fmt, units):
+            return body
         return "INVALID," + line
+
+    def _setting(self, name: str, arg: str, fmt: str, units: str) -> bool:
+        """Apply one `=NAME,arg` (Configuration Mode); False: the unit refuses it."""
+        w = WORDS
+        if name == w.rot_format and arg in ("DELTA", "RATE"):
+            self._set_units(units_of(arg, units))
+        elif name == w.rot_units and arg in ("DEG", "RAD"):
+            self._set_units(units_of(fmt, arg))
+        elif name == w.output_format and arg in ("A", "B"):
+            self._set_output_format(arg)
+        elif name == w.data_rate and arg.isdigit() and int(arg) in DATA_RATES_HZ:
+            if int(round(self.rate_hz)) % int(arg):
+                return False  # twin limit: the stand samples at rate_hz, no faster
+            with self.axis.lock:
+                self.data_rate_hz = int(arg)
+        elif name == w.baud and arg.isdigit() and int(arg) in BAUD_RATES:
+            self.baud = int(arg)
+        elif name == w.lin_format and arg in LIN_FORMATS:
+            self.lin_format = arg
+        elif name == w.lin_units and arg in LIN_UNITS:
+            self.lin_units = arg
+        elif name == w.temp_units and arg in TEMP_UNITS:
+            self.temp_units = arg
+        elif name == w.filter_enable and arg[:2] in ("A,", "G,") and arg[2:] in ("0", "1"):
+            self.filter_enabled[arg[0]] = arg[2:] == "1"
+        elif name == w.reset_config and not arg:
+            self._factory_config()  # the baud rate stays (ICD, RSTCFG note)
+        else:
+            return False
+        return True
+
+    def _factory_config(self) -> None:
+        with self.axis.lock:
+            self.data_rate_hz = int(round(self.rate_hz))
+            self.units = POWER_ON_UNITS
+            self._dps_per_unit = dps_per_unit(self.units, self.rate_hz)
+        self._set_output_format("A")
+        self.lin_format, self.lin_units, self.temp_units = "ACCEL", "METERS", "C"
+        self.filter_enabled = {"A": True, "G": True}
+
+    def _set_output_format(self, letter: str) -> None:
+        with self.axis.lock:
+            self.format = get_format(f"kvh-{letter.lower()}")
+            self.frame_letter = letter
 
     def _set_units(self, units: str) -> None:
         with self.axis.lock:

@@ -29,8 +29,13 @@ stand-in for a device clear, which a raw socket lacks), and the wait then ends w
 reply. Overlapped operations (INIT) report through `pending()`, which `*OPC?`, `*OPC`
 and `*WAI` honour.
 
-Simplification: each `;`-separated unit is parsed from the root (SCPI's "implied path"
-after `;` is not followed); drivers here send one command per message.
+Header compounding (SCPI-99 vol. 1, 6.2.4): after `;` a header without a leading `:`
+continues from the previous header's path (`TRIG:SOUR IMM; COUN MAX` is TRIG:COUN); a
+leading `:` starts from the root; common commands (`*...`) leave the path alone. A
+header the path makes unknown is -113, as on the instrument.
+
+A route with `raw=True` gets its whole parameter text as `args["raw"]`, for parameter
+lists a template cannot say (`MEAS:PER? DEF,DEF,(@1)`, `FORM ASC,15`, `R? 100`).
 
 Faults, injected from the test's thread with `inject(name, count=1)`, act on the next
 data query (a route with `data=True`): 'garbage' replaces its reply with bytes that are
@@ -66,7 +71,7 @@ from drivers.scpi import (
     short_form,
 )
 
-Handler = Callable[[Mapping[str, str]], "str | None"]
+Handler = Callable[[Mapping[str, str]], "str | bytes | None"]
 #: a word's handlers in a `route_words` table: (on_set, on_query) or (on_set, on_query, data)
 WordHandlers = tuple[Handler | None, Handler | None] | tuple[Handler | None, Handler | None, bool]
 T = TypeVar("T")
@@ -100,6 +105,7 @@ class Route:
     on_set: Handler | None
     on_query: Handler | None
     data: bool
+    raw: bool = False
 
 
 def esr_bit_for(code: int) -> int:
@@ -189,11 +195,18 @@ class ScpiServer:
 
     # -- routes, errors, faults -----------------------------------------------------------
     def route(self, command: Command, on_set: Handler | None = None,
-              on_query: Handler | None = None, data: bool = False) -> None:
-        """Serve a word: `on_set` for the command, `on_query` for its query form."""
+              on_query: Handler | None = None, data: bool = False, raw: bool = False,
+              first: bool = False) -> None:
+        """Serve a word: `on_set` for the command, `on_query` for its query form;
+        `raw`: the parameter text unparsed (args["raw"]); `first`: ahead of the routes
+        already there (a model's own form of a word)."""
         if command.is_query and on_set is not None:
             raise ValueError(f"{command.header!r} is a query; give on_query only")
-        self.routes.append(Route(command, on_set, on_query, data))
+        r = Route(command, on_set, on_query, data, raw)
+        if first:
+            self.routes.insert(0, r)
+        else:
+            self.routes.append(r)
 
     def route_words(self, words: Any, table: Mapping[str, WordHandlers]) -> None:
         """Serve a words dataclass by role: `table[role]` is (on_set, on_query[, data]).
@@ -337,11 +350,14 @@ class ScpiServer:
     def execute(self, line: str) -> bytes | None:
         """Run one program message; returns the bytes to send (None: nothing)."""
         answers: list[str] = []
+        binary: list[bytes] = []
         garbage = False
+        path: list[str] = []
         for unit in _split_units(line):
             header, _, params = unit.strip().partition(" ")
             if not header:
                 continue
+            header, path = _compound(header, path)
             is_query = header.endswith("?")
             found = self._find(header, is_query, params)
             if found is None:
@@ -362,12 +378,16 @@ class ScpiServer:
                 continue
             except _Interrupted:
                 return None
-            if is_query and answer is not None:
+            if is_query and isinstance(answer, bytes):
+                binary.append(answer)  # a definite-length block (FORM REAL)
+            elif is_query and answer is not None:
                 answers.append(answer)
-                if route.data and self.take_fault("garbage"):
-                    garbage = True
+            if is_query and answer is not None and route.data and self.take_fault("garbage"):
+                garbage = True
         if garbage:
             return GARBAGE
+        if binary:
+            return b";".join([*(a.encode("ascii") for a in answers), *binary]) + b"\n"
         if not answers:
             return None
         return (";".join(answers) + "\n").encode("ascii")
@@ -392,6 +412,8 @@ class ScpiServer:
 
     @staticmethod
     def _params(route: Route, is_query: bool, params: str) -> dict[str, str]:
+        if route.raw:
+            return {"raw": params.strip()}
         if not is_query or route.command.is_query:
             return route.command.parse_params(params)
         return _no_params(params)
@@ -418,6 +440,18 @@ def _no_params(params: str) -> dict[str, str]:
     if params.strip():
         raise ParameterError(-108, "Parameter not allowed")
     return {}
+
+
+def _compound(header: str, path: list[str]) -> tuple[str, list[str]]:
+    """SCPI-99 6.2.4: the full header of a unit, and the path the next unit continues
+    from (the nodes before this header's last one)."""
+    if header.startswith("*"):
+        return header, path
+    if header.startswith(":"):
+        nodes = header[1:].split(":")
+    else:
+        nodes = [*path, *header.split(":")]
+    return ":" + ":".join(nodes), nodes[:-1]
 
 
 def _split_units(line: str) -> list[str]:

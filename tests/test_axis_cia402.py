@@ -58,7 +58,12 @@ def test_command_words_are_what_the_profile_prints() -> None:
 
 def test_transitions_carry_their_profile_numbers() -> None:
     assert transition(State.OPERATION_ENABLED, Command.QUICK_STOP).number == 11
-    assert transition(State.QUICK_STOP_ACTIVE, Command.ENABLE_OPERATION).number == 16
+    # transition 16 only where 0x605A keeps the drive in quick stop active (codes 5-8,
+    # CiA 402-2 quick stop option code): with code 2 a real drive refuses it (issue 24)
+    assert transition(State.QUICK_STOP_ACTIVE, Command.ENABLE_OPERATION) is None
+    assert transition(State.QUICK_STOP_ACTIVE, Command.ENABLE_OPERATION, 2) is None
+    for code in (5, 6, 7, 8):
+        assert transition(State.QUICK_STOP_ACTIVE, Command.ENABLE_OPERATION, code).number == 16
     assert transition(State.FAULT, Command.FAULT_RESET).number == 15
     assert transition(State.SWITCH_ON_DISABLED, Command.ENABLE_OPERATION) is None
 
@@ -74,6 +79,11 @@ def test_paths_go_one_step_at_a_time_and_never_coast() -> None:
     assert first in (Command.SWITCH_ON, Command.SHUTDOWN)
     assert second is Command.DISABLE_VOLTAGE
     assert path(State.QUICK_STOP_ACTIVE, State.SWITCH_ON_DISABLED) == [Command.DISABLE_VOLTAGE]
+    # the driver never takes transition 16 unless the configured 0x605A allows it
+    with pytest.raises(ValueError):
+        path(State.QUICK_STOP_ACTIVE, State.OPERATION_ENABLED, quick_stop_option=2)
+    assert path(State.QUICK_STOP_ACTIVE, State.OPERATION_ENABLED, quick_stop_option=6) == [
+        Command.ENABLE_OPERATION]
     with pytest.raises(ValueError, match="no controlword path"):
         path(State.SWITCH_ON_DISABLED, State.FAULT)
 
