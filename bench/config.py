@@ -58,6 +58,8 @@ DRIVE = Map({
                        "drive stops the axis when the controller is silent this long"),
     "settle_tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s")),
     "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg")),
+    "serial": Key(Str(), False, "the instrument's serial number: the key of its "
+                                "check values (bench control)"),
     "eds": Key(Str()),
     "calibration": Key(CALIBRATION, False, "the encoder's calibration certificate, if any"),
     "unit_factors": Key(Any_(), False,
@@ -71,6 +73,8 @@ DRIVE = Map({
 COUNTER = Map({
     "resource": Key(Str(), True, "VISA resource string"),
     "model": Key(Str(), True, "counter profile"),
+    "serial": Key(Str(), False, "the instrument's serial number: the key of its "
+                                "check values (bench control)"),
     "channel": Key(Num(min=1, max=4, integer=True)),
     "level_v": Key(Num(min=-LEVEL_MAX_V, max=LEVEL_MAX_V, unit="V"), False,
                    "absolute trigger level; required on a real stand (a twin defaults it)"),
@@ -111,6 +115,8 @@ FOG = Map({
     "configure": Key(Str(("set", "verify", "declare")), False,
                      "set: configure the FOG at connect and read back; verify: read back "
                      "only; declare (default): trust fog.units"),
+    "serial": Key(Str(), False, "the instrument's serial number: the key of its "
+                                "check values (bench control)"),
     "model": Key(Str()),
     "sign": Key(Num(min=-1, max=1, integer=True)),
     "calibration": Key(CALIBRATION, False, "the FOG's calibration certificate, if any"),
@@ -125,6 +131,13 @@ HARMONIC = Map({
 })
 SIM_FOG = Map({**{k: Key(Num()) for k in ("scale", "bias_dps", "misalignment_deg",
                                            "noise_dps", "bias_drift_dps_per_h")},
+               # a FOG that drifts across runs (bench/simdrift.py, bench control)
+               "scale_step": Key(Map({"from_run": Key(Num(min=1, integer=True), True),
+                                      "rel": Key(Num(), True)}), False,
+                                 "scale x (1 + rel) from run from_run on"),
+               "scale_ramp": Key(Map({"from_run": Key(Num(min=1, integer=True), True),
+                                      "rel_per_run": Key(Num(), True)}), False,
+                                 "scale x (1 + rel_per_run per run) from run from_run on"),
                "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), False,
                             "what the twin carries before the bench configures it "
                             "(default: delta radians, or the declared fog.units)")})
@@ -149,6 +162,9 @@ SIM_KEYS: dict[str, Key] = {
     "clock_speed": Key(OneOf(Num(min=0, exclusive_min=True), Str(("max",))), False,
                        "virtual seconds per real one, or max: as fast as every twin keeps up"),
     "axes": Key(MapOf(SIM_AXIS)),
+    "run_number": Key(Num(min=1, integer=True), False,
+                      "this run's number for a drifting twin (default: 1 + the runs of "
+                      "this table in the records)"),
 }
 
 
