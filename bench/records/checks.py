@@ -66,8 +66,8 @@ def _serial_of(stated: Any, reported: str | None, unique: bool, fallback: str) -
     instrument's place on the stand (STAND-SERIAL/axis/role)."""
     if stated not in (None, ""):
         return str(stated)
-    if reported and unique:
-        return reported
+    if reported and unique and not re.fullmatch(r"[A-Za-z]*0*", reported):
+        return reported       # (all zeros: a twin's or an unset serial, no identity)
     return fallback
 
 
