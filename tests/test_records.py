@@ -264,8 +264,36 @@ def test_the_migrations_build_exactly_the_schema(db: Db) -> None:
                 conn, opts={"version_table": "records_alembic_version"}), metadata)
         assert diff == []
         names = set(sa.inspect(rec.engine).get_table_names())
-        assert {"tables", "runs", "figures", "cert_files",
-                "records_alembic_version"} <= names
+        assert {"tables", "runs", "figures", "cert_files", "instruments", "checks",
+                "reviews", "records_alembic_version"} <= names
+        assert rec.revision() == "r0002"
+
+
+def test_check_values_and_reviews_on_both_databases(recerts: dict[str, Any], db: Db) -> None:
+    """Each run's check values land per instrument serial, in run order, with U; a review
+    is journaled with who, why and what it covers (issue 28)."""
+    from bench.records.control import NOT_ENOUGH, instrument_status
+
+    fog = f"{SERIAL}/outer/fog"
+    with Records.open(db.url) as rec:
+        for d in recerts["dirs"]:
+            assert rec.register(record_of(d)) == "new"
+            assert rec.register(record_of(d)) == "unchanged"
+        assert {i.serial for i in rec.instruments()} == {
+            fog, f"{SERIAL}/outer/counter", f"{SERIAL}/outer/drive"}
+        pts = [p for p in rec.checks(fog) if p.check.quantity == "k"]
+        pairs = [json.loads((d / "result.json").read_text())["axes"]["outer"]["pairs"][0]
+                 for d in recerts["dirs"]]
+        assert [(p.check.value, p.check.u, p.check.set_rate_dps) for p in pts] == [
+            (q["k"], q["k_u"], 100.0) for q in pairs]
+        noise = [p for p in rec.checks(fog) if p.check.quantity == "noise_floor_dps"]
+        assert len(noise) == 3 and all(0.008 < p.check.value < 0.012 for p in noise)
+        status = instrument_status(rec, fog)
+        assert status is not None and status.state == NOT_ENOUGH and status.runs == 3
+        rec.add_review(fog, "Q. Manager", "scale re-checked", status.line, pts[-1].date_utc)
+        (r,) = rec.reviews(fog)
+        assert (r.reviewer, r.text, r.through_utc) == ("Q. Manager", "scale re-checked",
+                                                       pts[-1].date_utc)
 
 
 def test_concurrent_registrations_of_a_new_table_lose_nothing(
