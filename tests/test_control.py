@@ -98,8 +98,8 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
         history: dict[str, Any]) -> None:
     runs, shifted = history["runs"], history["shifted"]
     # the twin drifted in run 9 (its number from the records), by the step asked for
-    assert f"sim: axis outer FOG scale x (1 +{history['step_rel']:.3g}) in run 9" \
-        in history["out9"].stdout + history["out9"].stderr
+    assert json.loads((shifted / "meta.json").read_text())["sim_run_number"] == 9
+    assert "sim_run_number" not in json.loads((history["dirs"][0] / "meta.json").read_text())
     k9 = json.loads((shifted / "result.json").read_text())["axes"]["outer"]["pairs"][0]
     assert abs(k9["k"] - history["k"] * (1 + history["step_rel"])) < 3 * history["k_u"]
 
@@ -221,3 +221,40 @@ def test_the_drift_keys_change_only_the_runs_they_name() -> None:
     assert drifted(stand, 9)[0]["sim"]["axes"]["outer"]["fog"]["scale"] == \
         pytest.approx(1.0003 * (1 + 2e-5 + 7e-7))
     assert "scale_step" in stand["sim"]["axes"]["outer"]["fog"]     # input untouched
+
+
+@pytest.mark.timeout(300)
+def test_the_station_shows_the_status_and_the_charts_in_a_real_browser(
+        history: dict[str, Any]) -> None:
+    from tests.test_station import _chromium, _start_server, _stop
+
+    found = _chromium()
+    if found is None:
+        pytest.skip("chromium and chromium-driver are not installed (Debian packages "
+                    "`chromium chromium-driver`; .ci/run installs them)")
+    from selenium import webdriver
+    from selenium.webdriver.chrome.options import Options
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.common.by import By
+
+    server, port = _start_server(history["runs"])
+    opts = Options()
+    opts.binary_location = found[0]
+    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage"):
+        opts.add_argument(a)
+    driver = webdriver.Chrome(service=Service(found[1]), options=opts)
+    try:
+        base = f"http://127.0.0.1:{port}"
+        driver.get(f"{base}/records")
+        rows = driver.find_element(By.ID, "instruments").text
+        assert FOG in rows and "SIM-0001/outer/counter" in rows
+        driver.find_element(By.LINK_TEXT, FOG).click()
+        status = driver.find_element(By.ID, "status").text
+        assert "WE1" in status or "reviewed by" in status, status   # before/after review
+        ok = driver.execute_script(
+            "const i = document.getElementById('control'); return i.complete && i.naturalWidth")
+        assert ok, "the control chart image did not load"
+        assert "baseline: the first 8 runs" in driver.find_element(By.TAG_NAME, "main").text
+    finally:
+        driver.quit()
+        _stop(server)

@@ -252,8 +252,10 @@ def cmd_control(args: argparse.Namespace) -> int:
             print(f"  centre {s.centre:.9g}, sigma {s.sigma:.3g} ({s.sigma_source}); limits "
                   f"{s.centre - 3 * s.sigma:.9g} .. {s.centre + 3 * s.sigma:.9g}")
         print(f"  {'#':>3} {'date (UTC)':<17} {'value':>16} {'U (k=2)':>10} {'z':>7} "
-              f"{'EWMA':>16}  signal  run")
-        signals = {g.run_uid: g for g in s.signals}
+              f"{'EWMA':>16}  {'signal':<8} run")
+        signals: dict[str, list[str]] = {}
+        for g in s.signals:
+            signals.setdefault(g.run_uid, []).append(g.rule)
         for i, p in enumerate(s.points):
             c = p.check
             z = (f"{(c.value - s.centre) / s.sigma:+7.2f}" if s.centre is not None and s.sigma
@@ -264,7 +266,7 @@ def cmd_control(args: argparse.Namespace) -> int:
             print(f"  {i + 1:>3} {when:<17} {c.value:>16.9g} "
                   f"{'' if c.u is None else format(c.u, '.2g'):>10} {z} "
                   f"{'' if ew is None else format(ew, '.9g'):>16}  "
-                  f"{g.rule if g else '':<7} {p.run_dir}")
+                  f"{'+'.join(g) if g else '':<8} {p.run_dir}")
     for r in status.reviews:
         print(f"\nreview {r.utc:%Y-%m-%d %H:%M UTC} by {r.reviewer}: {r.text}")
     png = control_png(status)

@@ -20,7 +20,7 @@ def control_png(status: InstrumentStatus) -> bytes | None:
     series = [s for s in status.series if s.points][:MAX_SERIES]
     if not series:
         return None
-    fig = Figure(figsize=(8.0, 2.2 * len(series) + 0.6), layout="constrained")
+    fig = Figure(figsize=(9.0, 2.4 * len(series) + 0.6), layout="constrained")
     axs = fig.subplots(len(series), 1, squeeze=False).ravel()
     for ax, s in zip(axs, series, strict=True):
         n = list(range(1, len(s.points) + 1))
@@ -51,12 +51,13 @@ def control_png(status: InstrumentStatus) -> bytes | None:
         if bad:
             ax.plot([a for a, _ in bad], [b for _, b in bad], "x", ms=9, mew=2, color="red",
                     label="signal (rule broken)")
-        ax.set_ylabel(s.label, fontsize=7)
+        ax.set_ylabel(s.label.rsplit(", ", 1)[-1], fontsize=7)
+        ax.ticklabel_format(axis="y", useOffset=False)
         ax.set_xlabel("run (oldest first)", fontsize=7)
         ax.tick_params(labelsize=7)
         ax.grid(True, alpha=0.3, lw=0.5)
         ax.legend(fontsize=5.5, ncol=3, loc="best")
-        ax.set_title(f"{s.label}: {s.baseline_text}", fontsize=8)
+        ax.set_title(f"{s.label}\n{s.baseline_text}", fontsize=7)
     fig.suptitle(f"Control charts, {status.name}: {status.state}", fontsize=9)
     FigureCanvasAgg(fig)
     buf = io.BytesIO()

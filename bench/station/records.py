@@ -135,7 +135,10 @@ class RecordsView:
                 return None
             series = []
             for s in st.series:
-                signals = {g.run_uid: g.rule for g in s.signals}
+                signals: dict[str, str] = {}
+                for g in s.signals:
+                    signals[g.run_uid] = "+".join(x for x in (signals.get(g.run_uid), g.rule)
+                                                  if x)
                 series.append({
                     "label": s.label, "baseline": s.baseline_text, "centre": s.centre,
                     "sigma": s.sigma, "sigma_source": s.sigma_source,
