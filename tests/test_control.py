@@ -258,3 +258,14 @@ def test_the_station_shows_the_status_and_the_charts_in_a_real_browser(
     finally:
         driver.quit()
         _stop(server)
+
+
+def test_a_review_may_restart_the_baseline() -> None:
+    pts = _points(BASE + [5.0])
+    review = ReviewInfo("S", T0 + dt.timedelta(days=30), "QM", "FOG repaired", None,
+                        pts[-1].date_utc, new_baseline=True)
+    s = status_of("S", "fog", None, _points(BASE + [5.0, 5.1, 4.9]), [review])
+    assert s.state == NOT_ENOUGH and s.runs == 3 and "baseline restarted" in s.line
+    later = _points(BASE + [5.0 + 0.1 * (i % 3) for i in range(BASELINE_RUNS + 1)])
+    s = status_of("S", "fog", None, later, [review])
+    assert s.state == IN_CONTROL and s.series[0].centre == pytest.approx(5.0875)

@@ -61,6 +61,9 @@ def add_parsers(sub: Any) -> None:
     con.add_argument("--review", metavar="TEXT",
                      help="record a review of SERIAL's status: why it may be used (journaled)")
     con.add_argument("--by", metavar="NAME", help="who reviews (default: the login name)")
+    con.add_argument("--new-baseline", action="store_true",
+                     help="with --review: the instrument changed for good (repaired, "
+                          "adjusted): its charts restart at the last run, a new baseline")
     con.add_argument("--plot", help="control chart PNG (default control-SERIAL.png beside "
                                     "the records)")
 
@@ -209,6 +212,9 @@ def cmd_control(args: argparse.Namespace) -> int:
     from bench.records.control_plot import control_png
 
     where = target(args.runs or DEFAULT_RUNS, args.records)
+    if args.new_baseline and args.review is None:
+        _err("bench control --new-baseline: only with --review TEXT (who decided it, and why)")
+        return EXIT_INVALID
     if args.review is not None and not args.serial:
         _err("bench control --review: name the instrument: bench control SERIAL --review TEXT")
         return EXIT_INVALID
@@ -238,7 +244,7 @@ def cmd_control(args: argparse.Namespace) -> int:
             last = max((p.date_utc for s in status.series for p in s.points if p.date_utc),
                        default=None)
             r = rec.add_review(args.serial, who, args.review.strip(), status.line, last,
-                               socket.gethostname())
+                               socket.gethostname(), new_baseline=args.new_baseline)
             print(f"review recorded: {r.reviewer}, {r.utc:%Y-%m-%d %H:%M:%S UTC}, covering "
                   f"the runs up to {last:%Y-%m-%d %H:%M:%S UTC}: {r.text}"
                   if last else f"review recorded: {r.reviewer}: {r.text}")

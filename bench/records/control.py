@@ -213,6 +213,11 @@ class InstrumentStatus:
         """One line: the status, the rule, the count, the review."""
         if self.state == NOT_ENOUGH:
             text = f"not enough history ({self.runs} of {BASELINE_RUNS} runs for a baseline)"
+            r = next((r for r in reversed(self.reviews) if r.new_baseline), None)
+            if r is not None and r.through_utc is not None:
+                text += (f"; baseline restarted at the run of "
+                         f"{r.through_utc:%Y-%m-%d %H:%M} UTC by the review of "
+                         f"{r.reviewer} on {r.utc:%Y-%m-%d}: {r.text}")
         elif self.state == OUT_OF_CONTROL:
             first = self.open_signals[0]
             more = len(self.open_signals) - 1
@@ -236,6 +241,10 @@ class InstrumentStatus:
 def status_of(serial: str, role: str, model: str | None, points: Sequence[CheckPoint],
               reviews: Sequence[ReviewInfo]) -> InstrumentStatus:
     """The status from the points given (e.g. up to one run) and every review recorded."""
+    restart = max((r.through_utc for r in reviews if r.new_baseline and r.through_utc),
+                  default=None)
+    if restart is not None:    # a reviewed change (a repair, a new level): chart afresh
+        points = [p for p in points if p.date_utc is None or p.date_utc >= restart]
     series = charts(points)
     runs = len({p.run_uid for p in points})
     if not any(s.has_baseline for s in series):

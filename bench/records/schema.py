@@ -118,5 +118,6 @@ reviews = sa.Table(                                   # append-only: the review 
     sa.Column("text", sa.Text, nullable=False),
     sa.Column("status", sa.Text),                     # the status it reviewed, as shown
     sa.Column("through_utc", sa.DateTime),            # covers signals of runs up to this date
+    sa.Column("new_baseline", sa.Boolean),            # the chart restarts at that run
     sa.Column("host", sa.String(255)),
 )

@@ -209,6 +209,7 @@ class ReviewInfo:
     text: str
     status: str | None
     through_utc: dt.datetime | None
+    new_baseline: bool = False        # the charts restart at the last run it saw
 
 
 class Records:
@@ -479,7 +480,8 @@ class Records:
                               x.u, x.unit)) for x in rows]
 
     def add_review(self, serial: str, reviewer: str, text: str, status: str | None,
-                   through_utc: dt.datetime | None, host: str | None = None) -> ReviewInfo:
+                   through_utc: dt.datetime | None, host: str | None = None,
+                   new_baseline: bool = False) -> ReviewInfo:
         """Journal a review of one instrument's control status (append-only)."""
         now = _now()
         through = through_utc.astimezone(dt.UTC).replace(tzinfo=None) \
@@ -493,10 +495,10 @@ class Records:
                     raise RecordsError(f"no instrument {serial!r} in {redact(self.url)}")
                 conn.execute(sa.insert(s.reviews).values(
                     instrument_id=iid, utc=now, reviewer=reviewer, text=text, status=status,
-                    through_utc=through, host=host))
+                    through_utc=through, host=host, new_baseline=new_baseline))
         _retrying("review", write)
         return ReviewInfo(serial, _utc(now) or dt.datetime.now(dt.UTC), reviewer, text,
-                          status, _utc(through))
+                          status, _utc(through), new_baseline)
 
     def reviews(self, serial: str) -> list[ReviewInfo]:
         """The review journal of one instrument, oldest first."""
@@ -506,7 +508,8 @@ class Records:
                 s.instruments, v.instrument_id == i.id).where(i.serial == serial)
                 .order_by(v.utc, v.id)).all()
         return [ReviewInfo(serial, _utc(x.utc) or dt.datetime.now(dt.UTC), x.reviewer,
-                           x.text, x.status, _utc(x.through_utc)) for x in rows]
+                           x.text, x.status, _utc(x.through_utc), bool(x.new_baseline))
+                for x in rows]
 
     def due(self, today: dt.date | None = None, within_days: int = 30,
             intervals: Callable[[str, int | None], int | None] | None = None,

@@ -50,6 +50,7 @@ def upgrade() -> None:
         sa.Column("text", sa.Text, nullable=False),
         sa.Column("status", sa.Text),
         sa.Column("through_utc", sa.DateTime),
+        sa.Column("new_baseline", sa.Boolean),
         sa.Column("host", sa.String(255)),
     )
 
