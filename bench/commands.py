@@ -32,6 +32,7 @@ from bench.journal import RunDir
 from bench.lab import lab_path
 from bench.loader import is_stand_file, load_config, load_stand
 from bench.plan import format_duration
+from bench.records.assurance import drifting_config, warn_at_start, write_assurance
 from bench.records.hooks import (
     RecordsTarget,
     history_sections,
@@ -119,6 +120,8 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
     run.write_json("result.json", result)
     # the table's history from the records, when they hold any (never fails the run)
     history = history_sections(run.path, result, records, progress.warn) if records else []
+    if records:   # each instrument's control status, for the traceability section
+        write_assurance(run.path, records, progress.warn, result)
     try:
         documents: list[Document] = []
         for path in certificates.write_certificate(run, result, documents=documents,
@@ -200,6 +203,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
     progress = progress or open_console()
     where = target(run.path.parent, records, progress.warn)
     table_overdue = warn_if_overdue(cfg.stand, where, progress.warn)
+    out_of_control = warn_at_start(cfg.stand, where, progress.warn)
     kind = procedure_kind(cfg.kind)
     plan = kind.build_plan(cfg)
     done = run.completed_units()
@@ -224,7 +228,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
         try:
             if sim or cfg.has_sim:
                 progress.line("Starting the simulated bench (twins on real channels)...")
-                simbench, stand = kind.start_sim(cfg)
+                simbench, stand = kind.start_sim(drifting_config(cfg, run.path, where,
+                                                                 progress.line))
                 clock: Any = simbench.clock
             else:
                 clock = MonotonicClock()
@@ -239,6 +244,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                           certificate=t.certificate, due=t.due.isoformat() if t.due else None)
             if table_overdue:
                 run.event("records_overdue", text=table_overdue)
+            for text in out_of_control:
+                run.event("out_of_control", text=text)
             bench = kind.open_bench(cfg, stand, clock, run)
             for ax in bench.axes.values():
                 run.event("identity", axis=ax.name, **ax.identities,

@@ -68,6 +68,8 @@ DRIVE = Map({
     "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg"), False,
                                   "how close a position move must land (profile position)"),
     "eds": Key(Str(), False, "the drive's EDS file, for canopen's object dictionary"),
+    "serial": Key(Str(), False, "the instrument's serial number: the key of its "
+                                "check values (bench control)"),
     "calibration": Key(CALIBRATION, False, "the encoder's calibration certificate, if any"),
     "unit_factors": Key(Any_(), False,
                         "'read' (the drive's factor group 0x608F/0x6091/0x60A9/0x60AA is "
@@ -80,6 +82,8 @@ DRIVE = Map({
 COUNTER = Map({
     "resource": Key(Str(), True, "VISA resource string"),
     "model": Key(Str(), True, "counter profile"),
+    "serial": Key(Str(), False, "the instrument's serial number: the key of its "
+                                "check values (bench control)"),
     "channel": Key(Num(min=1, max=4, integer=True), False, "input channel of the zero-mark "
                    "pulse"),
     "level_v": Key(Num(min=-LEVEL_MAX_V, max=LEVEL_MAX_V, unit="V"), False,
@@ -131,6 +135,8 @@ FOG = Map({
     "configure": Key(Str(("set", "verify", "declare")), False,
                      "set: configure the FOG at connect and read back; verify: read back "
                      "only; declare: trust fog.units", FOG_DEFAULTS["configure"]),
+    "serial": Key(Str(), False, "the instrument's serial number: the key of its "
+                                "check values (bench control)"),
     "model": Key(Str(), False, "maker and model, for the certificate"),
     "sign": Key(Num(min=-1, max=1, integer=True), False, "-1 when the FOG is mounted with "
                 "its sensitive axis against the table's positive sense"),
@@ -151,6 +157,13 @@ SIM_FOG = Map({**{k: Key(Num(unit=u), False, doc) for k, u, doc in (
                    ("misalignment_deg", "deg", "sensitive axis to table axis"),
                    ("noise_dps", "deg/s", "white noise std per sample"),
                    ("bias_drift_dps_per_h", "deg/s/h", "linear bias drift from the start"))},
+               # a FOG that drifts across runs (bench/simdrift.py, bench control)
+               "scale_step": Key(Map({"from_run": Key(Num(min=1, integer=True), True),
+                                      "rel": Key(Num(), True)}), False,
+                                 "scale x (1 + rel) from run from_run on"),
+               "scale_ramp": Key(Map({"from_run": Key(Num(min=1, integer=True), True),
+                                      "rel_per_run": Key(Num(), True)}), False,
+                                 "scale x (1 + rel_per_run per run) from run from_run on"),
                "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), False,
                             "what the twin carries before the bench configures it "
                             "(default: delta radians, or the declared fog.units)")})
@@ -188,6 +201,9 @@ SIM_KEYS: dict[str, Key] = {
     "clock_speed": Key(OneOf(Num(min=0, exclusive_min=True), Str(("max",))), False,
                        "virtual seconds per real one, or max: as fast as every twin keeps up"),
     "axes": Key(MapOf(SIM_AXIS), False, "each axis's truth, by stand axis name"),
+    "run_number": Key(Num(min=1, integer=True), False,
+                      "this run's number for a drifting twin (default: 1 + the runs of "
+                      "this table in the records)"),
 }
 
 

@@ -239,7 +239,7 @@ def test_import_is_idempotent_and_history_reads_the_database(
     rows = _history_csv(tmp_path, "--records", db.url)
     _check_drift(rows, recerts)
     with Records.open(db.url) as rec:
-        assert rec.revision() == "r0001"
+        assert rec.revision() == "r0002"
         (t,) = rec.tables()
         assert (t.serial, t.runs, t.interval_days) == (SERIAL, 3, 365)
         # every figure of result.json is kept, with its U and verdict
@@ -264,8 +264,62 @@ def test_the_migrations_build_exactly_the_schema(db: Db) -> None:
                 conn, opts={"version_table": "records_alembic_version"}), metadata)
         assert diff == []
         names = set(sa.inspect(rec.engine).get_table_names())
-        assert {"tables", "runs", "figures", "cert_files",
-                "records_alembic_version"} <= names
+        assert {"tables", "runs", "figures", "cert_files", "instruments", "checks",
+                "reviews", "records_alembic_version"} <= names
+        assert rec.revision() == "r0002"
+
+
+def test_a_database_of_r0001_is_upgraded_and_import_adds_the_check_values(
+        recerts: dict[str, Any], db: Db) -> None:
+    """Runs registered before r0002 (no check values) get them from `records import`."""
+    from alembic import command
+    from alembic.config import Config as AlembicConfig
+
+    from bench.records.store import MIGRATIONS, make_engine
+
+    engine = make_engine(db.url)
+    cfg = AlembicConfig()
+    cfg.set_main_option("script_location", str(MIGRATIONS))
+    with engine.begin() as conn:
+        cfg.attributes["connection"] = conn
+        command.upgrade(cfg, "r0001")
+    old = Records(engine, db.url)            # the r0001 schema, as an older bench left it
+    assert old.revision() == "r0001"
+    for d in recerts["dirs"]:
+        assert old.register(dataclasses.replace(record_of(d), checks=())) == "new"
+    engine.dispose()
+    out = cli("records", "import", str(recerts["runs"]), "--records", db.url)
+    assert "0 new, 3 updated, 0 already recorded" in out.stdout, out.stdout + out.stderr
+    with Records.open(db.url) as rec:
+        assert rec.revision() == "r0002"
+        assert len({p.run_uid for p in rec.checks(f"{SERIAL}/outer/fog")}) == 3
+
+
+def test_check_values_and_reviews_on_both_databases(recerts: dict[str, Any], db: Db) -> None:
+    """Each run's check values land per instrument serial, in run order, with U; a review
+    is journaled with who, why and what it covers (issue 28)."""
+    from bench.records.control import NOT_ENOUGH, instrument_status
+
+    fog = f"{SERIAL}/outer/fog"
+    with Records.open(db.url) as rec:
+        for d in recerts["dirs"]:
+            assert rec.register(record_of(d)) == "new"
+            assert rec.register(record_of(d)) == "unchanged"
+        assert {i.serial for i in rec.instruments()} == {
+            fog, f"{SERIAL}/outer/counter", f"{SERIAL}/outer/drive"}
+        pts = [p for p in rec.checks(fog) if p.check.quantity == "k"]
+        pairs = [json.loads((d / "result.json").read_text())["axes"]["outer"]["pairs"][0]
+                 for d in recerts["dirs"]]
+        assert [(p.check.value, p.check.u, p.check.set_rate_dps) for p in pts] == [
+            (q["k"], q["k_u"], 100.0) for q in pairs]
+        noise = [p for p in rec.checks(fog) if p.check.quantity == "noise_floor_dps"]
+        assert len(noise) == 3 and all(0.008 < p.check.value < 0.012 for p in noise)
+        status = instrument_status(rec, fog)
+        assert status is not None and status.state == NOT_ENOUGH and status.runs == 3
+        rec.add_review(fog, "Q. Manager", "scale re-checked", status.line, pts[-1].date_utc)
+        (r,) = rec.reviews(fog)
+        assert (r.reviewer, r.text, r.through_utc) == ("Q. Manager", "scale re-checked",
+                                                       pts[-1].date_utc)
 
 
 def test_concurrent_registrations_of_a_new_table_lose_nothing(

@@ -473,6 +473,8 @@ def _traceability(src: Sources) -> tuple[Any, ...]:
         claimed = ((stand_axes.get(axis) or {}).get("counter") or {}).get("reference")
         notes.append(f"Counter reference, axis {axis}: read back from the counter: {ref}"
                      + (f"; the stand file states {claimed}" if claimed else "") + ".")
+    from bench.records.assurance_notes import certificate_notes  # issue 28: 17025 7.7 status
+    notes += certificate_notes(src.run_path)
     return (Table(("Item", "Certificate", "Issued by", "Due", "Quantity traced",
                    "Status"), tuple(rows), widths=(1.9, 2.0, 1.6, 1.2, 2.2, 1.5),
                   align="llllll", caption="Metrological traceability: calibration of the "

@@ -38,6 +38,16 @@ Read API (for tools such as the web station view; every call opens no run direct
     trend_png(points, title) -> PNG bytes | None   (rate error and instability with U bars
                                              and tolerance band; FOG k and w0)
 
+Measurement assurance (ISO/IEC 17025 7.7; checks.py, control.py, assurance.py):
+
+        rec.instruments()   -> [InstrumentInfo]  serial, role, model, first/last seen
+        rec.checks(serial)  -> [CheckPoint]      run_uid, run_dir, table_serial, date_utc,
+                                                 check (quantity, set_rate_dps, value, u, unit)
+        rec.reviews(serial) -> [ReviewInfo]      utc, reviewer, text, status, through_utc
+        rec.add_review(serial, reviewer, text, status, through_utc)
+    control.instrument_status(rec, serial) -> InstrumentStatus  (state, line, series, signals)
+    assurance.assurance_refusals(run_dir, records_url) -> [str]  (bench authorise)
+
 Quantities (`FigureRecord.quantity`, unit in the name as in result.json):
 rate_error_rel, rate_instability_rel, intra_turn_instability_rel,
 intra_turn_instability_corrected_rel, harmonic<N>_amplitude_rel, mains_amplitude_dps

@@ -52,6 +52,21 @@ def add_parsers(sub: Any) -> None:
                      help="also list tables due within DAYS (30)")
     due.add_argument("--all", action="store_true", help="list every table with an interval")
     due.add_argument("--today", type=dt.date.fromisoformat, help=argparse.SUPPRESS)
+    con = sub.add_parser("control", help="measurement assurance: each instrument's control "
+                                         "status; with SERIAL its control charts")
+    con.add_argument("serial", nargs="?", help="an instrument's serial (bench control lists "
+                                               "them)")
+    where = con.add_mutually_exclusive_group()
+    where.add_argument("--runs", help="runs folder whose records.sqlite to read (runs/)")
+    where.add_argument("--records", help="records database URL")
+    con.add_argument("--review", metavar="TEXT",
+                     help="record a review of SERIAL's status: why it may be used (journaled)")
+    con.add_argument("--by", metavar="NAME", help="who reviews (default: the login name)")
+    con.add_argument("--new-baseline", action="store_true",
+                     help="with --review: the instrument changed for good (repaired, "
+                          "adjusted): its charts restart at the last run, a new baseline")
+    con.add_argument("--plot", help="control chart PNG (default control-SERIAL.png beside "
+                                    "the records)")
 
 
 def _guarded(cmd: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
@@ -197,7 +212,96 @@ def cmd_due(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _plot_path(args: argparse.Namespace, url: str, serial: str) -> Path:
+    if args.plot:
+        return Path(args.plot)
+    folder = (Path(url.removeprefix("sqlite:///")).parent if url.startswith("sqlite:///")
+              else Path(args.runs or DEFAULT_RUNS))
+    return folder / f"control-{_safe(serial)}.png"
+
+
+def cmd_control(args: argparse.Namespace) -> int:
+    """`bench control [SERIAL] [--review TEXT]` (docs/method.md C)."""
+    import getpass
+    import socket
+
+    from bench.records.control import OUT_OF_CONTROL, all_statuses, instrument_status
+    from bench.records.control_plot import control_png
+
+    where = target(args.runs or DEFAULT_RUNS, args.records)
+    if args.new_baseline and args.review is None:
+        _err("bench control --new-baseline: only with --review TEXT (who decided it, and why)")
+        return EXIT_INVALID
+    if args.review is not None and not args.serial:
+        _err("bench control --review: name the instrument: bench control SERIAL --review TEXT")
+        return EXIT_INVALID
+    if args.review is not None and not args.review.strip():
+        _err("bench control --review: say why the instrument may be used (TEXT is empty)")
+        return EXIT_INVALID
+    with Records.open(where.url) as rec:
+        if not args.serial:
+            statuses = all_statuses(rec)
+            if not statuses:
+                _err(f"no instrument check values in {redact(where.url)}")
+                return EXIT_FAIL
+            print(f"{len(statuses)} instrument(s) in {redact(where.url)}:")
+            for s in statuses:
+                print(f"  {s.line}")
+            return EXIT_FAIL if any(s.state == OUT_OF_CONTROL for s in statuses) else EXIT_OK
+        status = instrument_status(rec, args.serial)
+        if status is None:
+            _err(f"no instrument {args.serial!r} in {redact(where.url)} (`bench control` "
+                 f"lists them)")
+            return EXIT_FAIL
+        if args.review is not None:
+            try:
+                who = args.by or getpass.getuser()
+            except (KeyError, OSError):
+                who = "unknown"
+            last = max((p.date_utc for s in status.series for p in s.points if p.date_utc),
+                       default=None)
+            r = rec.add_review(args.serial, who, args.review.strip(), status.line, last,
+                               socket.gethostname(), new_baseline=args.new_baseline)
+            print(f"review recorded: {r.reviewer}, {r.utc:%Y-%m-%d %H:%M:%S UTC}, covering "
+                  f"the runs up to {last:%Y-%m-%d %H:%M:%S UTC}: {r.text}"
+                  if last else f"review recorded: {r.reviewer}: {r.text}")
+            status = instrument_status(rec, args.serial)
+            assert status is not None
+    print(status.line)
+    for s in status.series:
+        print(f"\n{s.label}")
+        print(f"  {s.baseline_text}")
+        if s.centre is not None and s.sigma is not None:
+            print(f"  centre {s.centre:.9g}, sigma {s.sigma:.3g} ({s.sigma_source}); limits "
+                  f"{s.centre - 3 * s.sigma:.9g} .. {s.centre + 3 * s.sigma:.9g}")
+        print(f"  {'#':>3} {'date (UTC)':<17} {'value':>16} {'U (k=2)':>10} {'z':>7} "
+              f"{'EWMA':>16}  {'signal':<8} run")
+        signals: dict[str, list[str]] = {}
+        for g in s.signals:
+            signals.setdefault(g.run_uid, []).append(g.rule)
+        for i, p in enumerate(s.points):
+            c = p.check
+            z = (f"{(c.value - s.centre) / s.sigma:+7.2f}" if s.centre is not None and s.sigma
+                 else f"{'':>7}")
+            ew = s.ewma[i] if i < len(s.ewma) else None
+            when = p.date_utc.strftime("%Y-%m-%d %H:%M") if p.date_utc else "?"
+            g = signals.get(p.run_uid)
+            print(f"  {i + 1:>3} {when:<17} {c.value:>16.9g} "
+                  f"{'' if c.u is None else format(c.u, '.2g'):>10} {z} "
+                  f"{'' if ew is None else format(ew, '.9g'):>16}  "
+                  f"{'+'.join(g) if g else '':<8} {p.run_dir}")
+    for r in status.reviews:
+        print(f"\nreview {r.utc:%Y-%m-%d %H:%M UTC} by {r.reviewer}: {r.text}")
+    png = control_png(status)
+    if png is not None:
+        plot = _plot_path(args, where.url, args.serial)
+        plot.parent.mkdir(parents=True, exist_ok=True)
+        plot.write_bytes(png)
+        print(f"control charts: {plot}")
+    return EXIT_FAIL if status.state == OUT_OF_CONTROL else EXIT_OK
+
+
 #: command name -> handler, for bench/cli.py
 RECORDS_COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "history": _guarded(cmd_history), "records": _guarded(cmd_import),
-    "due": _guarded(cmd_due)}
+    "due": _guarded(cmd_due), "control": _guarded(cmd_control)}

@@ -20,6 +20,7 @@ import yaml
 from bench.analysis.finite import finite_number as _num
 from bench.certificate.parts import read_json_object
 from bench.journal import sha256_file
+from bench.records.checks import CheckRecord, checks_of
 
 #: files of a run directory that make up its certificate (hashed into the records)
 CERTIFICATE_FILES = ("certificate.pdf", "certificate.html", "certificate.dcc.xml")
@@ -88,6 +89,7 @@ class RunRecord:
     bench_version: str | None
     figures: tuple[FigureRecord, ...] = ()
     cert_files: tuple[tuple[str, str, int], ...] = ()   # (name, sha256, bytes)
+    checks: tuple[CheckRecord, ...] = ()    # the bench's own instruments (checks.py)
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -268,6 +270,8 @@ def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> Run
         bench_version=_opt(meta.get("bench_version")),
         figures=tuple(figures_of(result)),
         cert_files=cert_files,
+        checks=tuple(checks_of(path, result, stand_file if isinstance(stand_file, dict)
+                               else {})),
     )
 
 

@@ -80,3 +80,44 @@ cert_files = sa.Table(
     sa.Column("bytes", sa.BigInteger, nullable=False),
     sa.UniqueConstraint("run_id", "name", name="uq_cert_files_run_name"),
 )
+
+# -- measurement assurance (ISO/IEC 17025 7.7; migration r0002) ------------------------------
+
+instruments = sa.Table(
+    "instruments", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("serial", sa.String(120), nullable=False, unique=True),
+    sa.Column("role", sa.String(40), nullable=False),     # fog | counter | drive | gyro
+    sa.Column("model", sa.String(200)),
+    sa.Column("first_seen_utc", sa.DateTime),
+    sa.Column("last_seen_utc", sa.DateTime),
+)
+
+checks = sa.Table(
+    "checks", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("run_id", sa.Integer, sa.ForeignKey("runs.id", ondelete="CASCADE"),
+              nullable=False, index=True),
+    sa.Column("instrument_id", sa.Integer, sa.ForeignKey("instruments.id"), nullable=False,
+              index=True),
+    sa.Column("axis", sa.String(60), nullable=False),
+    sa.Column("quantity", sa.String(80), nullable=False),
+    sa.Column("set_rate_dps", sa.Float),              # |rate| of a per-rate value, else None
+    sa.Column("value", sa.Float, nullable=False),
+    sa.Column("u", sa.Float),                         # expanded, k = 2, same unit
+    sa.Column("unit", sa.String(20), nullable=False),
+)
+
+reviews = sa.Table(                                   # append-only: the review journal
+    "reviews", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("instrument_id", sa.Integer, sa.ForeignKey("instruments.id"), nullable=False,
+              index=True),
+    sa.Column("utc", sa.DateTime, nullable=False),
+    sa.Column("reviewer", sa.String(200), nullable=False),
+    sa.Column("text", sa.Text, nullable=False),
+    sa.Column("status", sa.Text),                     # the status it reviewed, as shown
+    sa.Column("through_utc", sa.DateTime),            # covers signals of runs up to this date
+    sa.Column("new_baseline", sa.Boolean),            # the chart restarts at that run
+    sa.Column("host", sa.String(255)),
+)

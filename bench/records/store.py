@@ -25,6 +25,7 @@ from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 
 from bench.records import schema as s
+from bench.records.checks import CheckRecord
 from bench.records.extract import FigureRecord, RunRecord
 
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"
@@ -176,6 +177,41 @@ class DueItem:
         return f"due in {self.days_left} d"
 
 
+@dataclass(frozen=True)
+class InstrumentInfo:
+    """One of the bench's own instruments, known by its check values."""
+
+    serial: str
+    role: str
+    model: str | None
+    first_seen_utc: dt.datetime | None
+    last_seen_utc: dt.datetime | None
+
+
+@dataclass(frozen=True)
+class CheckPoint:
+    """One check value placed in time: a point of a control chart."""
+
+    run_uid: str
+    run_dir: str
+    table_serial: str
+    date_utc: dt.datetime | None
+    check: CheckRecord
+
+
+@dataclass(frozen=True)
+class ReviewInfo:
+    """A recorded review of an instrument's control status: who, when, why."""
+
+    serial: str
+    utc: dt.datetime
+    reviewer: str
+    text: str
+    status: str | None
+    through_utc: dt.datetime | None
+    new_baseline: bool = False        # the charts restart at the last run it saw
+
+
 class Records:
     """The records database. Write: `register`. Read: `tables`, `runs`, `trend`, `due`."""
 
@@ -248,7 +284,12 @@ class Records:
                     .where(s.cert_files.c.run_id == old.id))}
                 if old.result_sha256 == rec.result_sha256 and old_files == {
                         n: h for n, h, _ in rec.cert_files}:
-                    return "unchanged"
+                    if not rec.checks or conn.execute(sa.select(s.checks.c.id).where(
+                            s.checks.c.run_id == old.id).limit(1)).first() is not None:
+                        return "unchanged"
+                    # registered before the records kept check values (r0002): add them
+                    self._insert_checks(conn, old.id, rec, now)
+                    return "updated"
             row = {
                 "uid": rec.uid, "table_id": table_id, "kind": rec.kind, "title": rec.title,
                 "run_dir": rec.run_dir, "run_path": rec.run_path, "host": rec.host,
@@ -271,6 +312,7 @@ class Records:
                 conn.execute(sa.update(s.runs).where(s.runs.c.id == run_id).values(**row))
                 conn.execute(sa.delete(s.figures).where(s.figures.c.run_id == run_id))
                 conn.execute(sa.delete(s.cert_files).where(s.cert_files.c.run_id == run_id))
+                conn.execute(sa.delete(s.checks).where(s.checks.c.run_id == run_id))
             if rec.figures:
                 conn.execute(sa.insert(s.figures), [
                     {"run_id": run_id, "axis": f.axis, "quantity": f.quantity,
@@ -281,7 +323,31 @@ class Records:
                 conn.execute(sa.insert(s.cert_files), [
                     {"run_id": run_id, "name": n, "sha256": h, "bytes": b}
                     for n, h, b in rec.cert_files])
+            self._insert_checks(conn, run_id, rec, now)
             return "new" if old is None else "updated"
+
+    def _insert_checks(self, conn: Connection, run_id: int, rec: RunRecord,
+                       now: dt.datetime) -> None:
+        ids: dict[str, int] = {}
+        for c in rec.checks:
+            if c.serial not in ids:
+                ids[c.serial] = self._instrument_id(conn, c, now)
+        if rec.checks:
+            conn.execute(sa.insert(s.checks), [
+                {"run_id": run_id, "instrument_id": ids[c.serial], "axis": c.axis,
+                 "quantity": c.quantity, "set_rate_dps": c.set_rate_dps, "value": c.value,
+                 "u": c.u, "unit": c.unit} for c in rec.checks])
+
+    def _instrument_id(self, conn: Connection, c: CheckRecord, now: dt.datetime) -> int:
+        i = s.instruments.c
+        row = conn.execute(sa.select(i.id).where(i.serial == c.serial)).first()
+        if row is None:   # a concurrent first registration: IntegrityError, retried whole
+            return conn.execute(sa.insert(s.instruments).values(
+                serial=c.serial, role=c.role, model=c.model, first_seen_utc=now,
+                last_seen_utc=now).returning(i.id)).scalar_one()
+        conn.execute(sa.update(s.instruments).where(i.id == row.id).values(
+            last_seen_utc=now, **({"model": c.model} if c.model else {})))
+        return int(row.id)
 
     def _table_id(self, conn: Connection, rec: RunRecord, interval_days: int | None,
                   now: dt.datetime) -> int:
@@ -384,6 +450,66 @@ class Records:
         return [TrendPoint(runs[x.run_id].uid, runs[x.run_id].date_utc,
                            runs[x.run_id].certificate_number,
                            runs[x.run_id].calibration_state, _figure(x)) for x in rows]
+
+    # -- measurement assurance (control.py reads through these) ----------------------------
+    def instruments(self) -> list[InstrumentInfo]:
+        """Every instrument that has check values, by serial."""
+        with self.engine.connect() as conn:
+            rows = conn.execute(sa.select(s.instruments).order_by(
+                s.instruments.c.serial)).all()
+        return [InstrumentInfo(x.serial, x.role, x.model, _utc(x.first_seen_utc),
+                               _utc(x.last_seen_utc)) for x in rows]
+
+    def checks(self, serial: str) -> list[CheckPoint]:
+        """Every check value of one instrument, oldest run first."""
+        c, r, i, t = s.checks.c, s.runs.c, s.instruments.c, s.tables.c
+        with self.engine.connect() as conn:
+            rows = conn.execute(
+                sa.select(s.checks, r.uid, r.run_dir, r.completed_utc, r.started_utc,
+                          r.created_utc, t.serial.label("table_serial"))
+                .join(s.runs, c.run_id == r.id).join(s.instruments, c.instrument_id == i.id)
+                .join(s.tables, r.table_id == t.id)
+                .where(i.serial == serial)).all()
+        epoch = dt.datetime.min
+        rows = sorted(rows, key=lambda x: (x.completed_utc or x.started_utc or x.created_utc
+                                           or epoch, x.run_id, x.id))
+        return [CheckPoint(
+            run_uid=x.uid, run_dir=x.run_dir, table_serial=x.table_serial,
+            date_utc=_utc(x.completed_utc or x.started_utc or x.created_utc),
+            check=CheckRecord(serial, "", None, x.axis, x.quantity, x.set_rate_dps, x.value,
+                              x.u, x.unit)) for x in rows]
+
+    def add_review(self, serial: str, reviewer: str, text: str, status: str | None,
+                   through_utc: dt.datetime | None, host: str | None = None,
+                   new_baseline: bool = False) -> ReviewInfo:
+        """Journal a review of one instrument's control status (append-only)."""
+        now = _now()
+        through = through_utc.astimezone(dt.UTC).replace(tzinfo=None) \
+            if through_utc is not None and through_utc.tzinfo else through_utc
+
+        def write() -> None:
+            with self._tx() as conn:
+                iid = conn.execute(sa.select(s.instruments.c.id).where(
+                    s.instruments.c.serial == serial)).scalar()
+                if iid is None:
+                    raise RecordsError(f"no instrument {serial!r} in {redact(self.url)}")
+                conn.execute(sa.insert(s.reviews).values(
+                    instrument_id=iid, utc=now, reviewer=reviewer, text=text, status=status,
+                    through_utc=through, host=host, new_baseline=new_baseline))
+        _retrying("review", write)
+        return ReviewInfo(serial, _utc(now) or dt.datetime.now(dt.UTC), reviewer, text,
+                          status, _utc(through), new_baseline)
+
+    def reviews(self, serial: str) -> list[ReviewInfo]:
+        """The review journal of one instrument, oldest first."""
+        v, i = s.reviews.c, s.instruments.c
+        with self.engine.connect() as conn:
+            rows = conn.execute(sa.select(s.reviews).join(
+                s.instruments, v.instrument_id == i.id).where(i.serial == serial)
+                .order_by(v.utc, v.id)).all()
+        return [ReviewInfo(serial, _utc(x.utc) or dt.datetime.now(dt.UTC), x.reviewer,
+                           x.text, x.status, _utc(x.through_utc), bool(x.new_baseline))
+                for x in rows]
 
     def due(self, today: dt.date | None = None, within_days: int = 30,
             intervals: Callable[[str, int | None], int | None] | None = None,

@@ -166,8 +166,25 @@ def create_app(settings: StationSettings,
 
     @app.get("/records")
     def records_page() -> str:
-        return render_template("records.html.j2", tables=records.tables(),
-                               records_error=records.error, version=bench.__version__)
+        tables = records.tables()
+        error = records.error
+        return render_template("records.html.j2", tables=tables, records_error=error,
+                               instruments=records.instruments(), version=bench.__version__)
+
+    @app.get("/instrument/<path:serial>")
+    def instrument_page(serial: str) -> str:
+        control = records.control(serial)
+        if control is None:
+            abort(404)
+        return render_template("instrument.html.j2", serial=serial, control=control,
+                               version=bench.__version__)
+
+    @app.get("/api/instrument/<path:serial>/control.png")
+    def control_png(serial: str) -> Response:
+        png = records.control_png(serial)
+        if png is None:
+            abort(404)
+        return Response(png, mimetype="image/png")
 
     @app.get("/records/<serial>")
     def table_page(serial: str) -> str:

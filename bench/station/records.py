@@ -15,6 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from bench.records import Records, RecordsError, target
+from bench.records.control import OUT_OF_CONTROL, all_statuses, instrument_status
+from bench.records.control_plot import control_png
 from bench.records.trend import trend_png
 from bench.station.live import DOWNLOADS
 
@@ -114,3 +116,43 @@ class RecordsView:
             if rec is None or rec.table(serial) is None:
                 return None
             return trend_png(rec.trend(serial), f"table {serial}")
+
+    # -- measurement assurance (bench control's statuses and charts) -------------------------
+    def instruments(self) -> list[dict[str, Any]]:
+        with self._open() as rec:
+            if rec is None:
+                return []
+            return [{"serial": s.serial, "role": s.role, "model": s.model, "state": s.state,
+                     "runs": s.runs, "rule": s.rule, "line": s.line,
+                     "out": s.state == OUT_OF_CONTROL} for s in all_statuses(rec)]
+
+    def control(self, serial: str) -> dict[str, Any] | None:
+        with self._open() as rec:
+            if rec is None:
+                return None
+            st = instrument_status(rec, serial)
+            if st is None:
+                return None
+            series = []
+            for s in st.series:
+                signals: dict[str, str] = {}
+                for g in s.signals:
+                    signals[g.run_uid] = "+".join(x for x in (signals.get(g.run_uid), g.rule)
+                                                  if x)
+                series.append({
+                    "label": s.label, "baseline": s.baseline_text, "centre": s.centre,
+                    "sigma": s.sigma, "sigma_source": s.sigma_source,
+                    "points": [{"date_utc": _iso(p.date_utc), "run": p.run_dir,
+                                "value": p.check.value, "u": p.check.u,
+                                "ewma": s.ewma[i] if i < len(s.ewma) else None,
+                                "signal": signals.get(p.run_uid)}
+                               for i, p in enumerate(s.points)]})
+            return {"serial": serial, "name": st.name, "state": st.state, "line": st.line,
+                    "out": st.state == OUT_OF_CONTROL, "series": series,
+                    "reviews": [{"utc": _iso(r.utc), "reviewer": r.reviewer, "text": r.text}
+                                for r in st.reviews]}
+
+    def control_png(self, serial: str) -> bytes | None:
+        with self._open() as rec:
+            st = instrument_status(rec, serial) if rec is not None else None
+            return control_png(st) if st is not None else None

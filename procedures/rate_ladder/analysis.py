@@ -352,6 +352,7 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
             floor = {"source": "Allan deviation of a static FOG record",
                      "samples": int(w.size), "duration_s": w.size / hz,
                      "sample_std_dps": float(np.std(w, ddof=1)),
+                     "mean_dps": float(np.mean(w)),   # bias at rest (bench control)
                      "allan_tau_s": list(curve.tau_s), "allan_dev_dps": list(curve.adev)}
         result_axes[axis] = {"rates": rates, "pairs": pairs, "noise_floor": floor}
     return result_document(run, cfg, events, complete=complete, checks=checks, rule=rule,
