@@ -29,6 +29,7 @@ from typing import Any
 from bench.devices import stand_config
 from bench.registry import procedure_kind
 from bench.simbench import CAN_BUS_KEY, SimBench
+from bench.simdrift import drifted, stated_run_number
 
 #: where `bench sim` puts its drives: a bus another process can join
 SIM_CAN_INTERFACE = "udp_multicast"
@@ -67,6 +68,11 @@ def serve(stand_path: str, stop: threading.Event | None = None) -> int:
     sim_block["clock_speed"] = 1
     sim_block[CAN_BUS_KEY] = SIM_CAN_INTERFACE
     stand["sim"] = sim_block
+    # a drifting twin (bench control's demonstrations) takes its run's truth; no records
+    # here, so the run is the one the stand states, else the first
+    stand, notes = drifted(stand, stated_run_number(stand) or 1)
+    for note in notes:
+        print(note, file=sys.stderr)
     cfg = dataclasses.replace(cfg, stand=stand)
     stop = stop or threading.Event()
     previous: dict[int, Any] = {}
