@@ -47,6 +47,7 @@ from bench.analysis.sums import Design, accumulate
 from bench.analysis.systematic import (
     DirectionFit,
     binned_systematic,
+    detection_dict,
     harmonic_block_deg,
     harmonics_result,
     long_block_deg,
@@ -187,7 +188,8 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
             harmonics=harmonics_result(fit, final.k, k_u_std, set_signed, infl_harm),
             mains=mains_result(fit, final.k, k_u_std, infl_harm),
             binned=binned_systematic(fit, final, set_signed, binned_deg, infl_harm),
-            residual_std_dps=fit.sigma_dps / abs(final.k), inflation=infl_harm)
+            residual_std_dps=fit.sigma_dps / abs(final.k), inflation=infl_harm,
+            detection=detection_dict(design))
         fl = floor if floor is not None else floor_from_fit(fit, floor_samples)
         rnd = random_part(fit, final, set_signed, fl, fog_rate_hz, averaging_deg)
         wins = tuple({"half": ws.win.index, "turns": ws.win.turns,
@@ -210,5 +212,4 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
                         f"only; half {', '.join(others)} from another session, with a FOG "
                         "bias and drift of its own, enter the turns and the intra-turn fit "
                         "but not k"))
-    return PairAnalysis(rates=tuple(rates), pair=pair)
     return PairAnalysis(rates=tuple(rates), pair=pair)

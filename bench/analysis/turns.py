@@ -140,6 +140,7 @@ class TurnsResult:
     timebase_u_rel: float              # standard, common to every rate
     budget: CounterBudget
     repeatability_u_rel: float = 0.0   # standard, Type A: instability / sqrt(N), widened
+    repeatability_basis: str = ""      # which sigma the Type A term rests on, and why
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -154,6 +155,7 @@ class TurnsResult:
             "rate_error_budget": {"timing_u_rel": self.timing_u_rel,
                                   "timebase_u_rel": self.timebase_u_rel,
                                   "repeatability_u_rel": self.repeatability_u_rel,
+                                  "repeatability_basis": self.repeatability_basis,
                                   "coverage_factor": 2.0, **self.budget.to_dict()},
         }
 
@@ -197,17 +199,31 @@ def analyze_turns(windows: Sequence[np.ndarray], set_rate_dps: float,
     timing_u_rel = math.sqrt(len(edges)) * budget.period_u_s / total_s
     # docs/method.md A2, eq. 2 with the square root the paper's print lost
     instab = (float(np.std(rates, ddof=1) / abs(np.mean(rates))) if n_turns >= 2 else None)
+    floor = budget.period_u_s * n_turns / total_s  # dT / T per turn (docs/method.md A1)
     # Type A: the table's own turn-to-turn scatter makes the mean of N turns uncertain as
     # an estimate of the table's rate error (sigma / sqrt(N)); the timing terms only say
-    # how well these particular N turns were timed
-    repeat_u_rel = (instab / math.sqrt(n_turns) * small_sample_factor(n_turns)
-                    if instab is not None else 0.0)
+    # how well these particular N turns were timed. docs/method.md A2: the per-turn rates
+    # scatter at least by the timing floor, so a sample sigma below it (few turns, chance)
+    # is raised to the floor: the Type A term never rests on less than is known
+    basis_sigma, basis = type_a_sigma(instab, floor, n_turns)
+    repeat_u_rel = basis_sigma / math.sqrt(n_turns) * small_sample_factor(n_turns)
     u = math.sqrt(timing_u_rel ** 2 + budget.timebase_u_rel ** 2 + repeat_u_rel ** 2)
-    floor = budget.period_u_s * n_turns / total_s  # dT / T per turn (docs/method.md A1)
     return TurnsResult(
         set_rate_dps=float(set_rate_dps), turns=n_turns,
         counter_rate_dps=tuple(float(r) for r in rates), mean_rate_dps=float(mean),
         rate_error_rel=float(err), rate_error_u_rel=2.0 * u, rate_instability_rel=instab,
         rate_instability_floor_rel=float(floor), timing_u_rel=float(timing_u_rel),
         timebase_u_rel=budget.timebase_u_rel, budget=budget,
-        repeatability_u_rel=float(repeat_u_rel))
+        repeatability_u_rel=float(repeat_u_rel), repeatability_basis=basis)
+
+
+def type_a_sigma(sample_rel: float | None, floor_rel: float, n: int) -> tuple[float, str]:
+    """The sigma a Type A term of N turns rests on, and the budget's words for it
+    (docs/method.md A2): the sample sigma, or the timing floor when the sample falls below
+    it; the scaled-t factor for n - 1 degrees of freedom is applied by the caller."""
+    if sample_rel is None:
+        return 0.0, "one turn: no Type A term"
+    if sample_rel < floor_rel:
+        return floor_rel, (f"timing floor {floor_rel:.3g} (sample sigma {sample_rel:.3g} "
+                           f"of {n} turns lies below it), scaled t with {n - 1} dof")
+    return sample_rel, f"sample sigma of {n} turns, scaled t with {n - 1} dof"

@@ -24,7 +24,7 @@ from bench.analysis.random_part import std_u_rel
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.config import Config
-from bench.conformity import CAPABILITY_LIMIT, judge
+from bench.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from bench.journal import RunDir, read_jsonl
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor
@@ -282,27 +282,29 @@ def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[di
 
 def sigma_check(axis: str, rate: float, entry: dict[str, Any], tolerance: float,
                 rule: str) -> dict[str, Any]:
-    """Conformity of eq. 2's sigma. Not assessed when sigma is not resolved above the
-    counter chain's timing floor (it then says nothing about the table); otherwise judged
-    with the one-sided chi-square upper limit as the guard (the false-accept risk of the
-    guard-band rule is then at most 1 - SIGMA_UPPER_P for normal per-turn rates)."""
+    """Conformity of eq. 2's sigma. Resolved above the counter chain's timing floor: judged
+    with the one-sided chi-square upper limit as the guard (false-accept risk at most
+    1 - SIGMA_UPPER_P for normal per-turn rates). Not resolved: stated as "< L" (L the same
+    chi-square limit, which bounds the table's sigma whatever the floor's share) and judged
+    by the one rule for limits (bench.conformity.judge_limit): pass when L is within the
+    tolerance, not assessed only when it is not."""
     value, u = entry["rate_instability_rel"], entry["rate_instability_u_rel"]
     floor = entry["rate_instability_floor_rel"]
     upper = entry["rate_instability_upper_rel"]
+    level = f"{SIGMA_UPPER_P * 100:g} % chi-square"
     if not sigma_resolved(value, u, floor):
-        c = judge(axis, rate, "rate_instability", value, u, tolerance, rule).to_dict()
-        c.update(verdict="not-assessed", upper_rel=upper, floor_rel=floor,
-                 reason=f"sigma {value:.2g} is not resolved above the counter chain's "
-                        f"timing floor {floor:.2g} (sigma - U <= floor): it does not show the "
-                        "table's turn-to-turn instability and is left out of conformity")
+        c = judge_limit(axis, rate, "rate_instability", value, u, upper, tolerance, rule,
+                        level).to_dict()
+        c.update(floor_rel=floor)
+        c["reason"] += (f" (sigma {value:.2g} is not resolved above the timing floor "
+                        f"{floor:.2g}: sigma - U <= floor)")
         return c
     c = judge(axis, rate, "rate_instability", value, upper - value, tolerance, rule).to_dict()
     c.update(u_rel=u, upper_rel=upper, floor_rel=floor, capability_ratio=u / tolerance,
              capability_ok=u / tolerance <= CAPABILITY_LIMIT)
     if rule == "guard-band" and value <= tolerance:
-        c["reason"] = (f"one-sided upper limit {upper:.3g} (chi-square, "
-                       f"{SIGMA_UPPER_P * 100:g} %) {'<=' if upper <= tolerance else '>'} "
-                       f"tolerance {tolerance:.3g}")
+        c["reason"] = (f"one-sided upper limit {upper:.3g} ({level}) "
+                       f"{'<=' if upper <= tolerance else '>'} tolerance {tolerance:.3g}")
     return c
 
 
