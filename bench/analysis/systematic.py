@@ -75,11 +75,14 @@ class MainsResult:
     phase_deg: float
     phase_u_deg: float
     detected: bool
+    significance: float = 0.0   # chi2 (2 dof) of the tone's coefficients
+    source: str = "given"       # where frequency_hz comes from (set by the procedure)
 
     def to_dict(self) -> dict[str, object]:
         return {"frequency_hz": self.frequency_hz, "amplitude_dps": self.amplitude_dps,
                 "amplitude_u_dps": self.amplitude_u_dps, "phase_deg": self.phase_deg,
-                "phase_u_deg": self.phase_u_deg, "detected": self.detected}
+                "phase_u_deg": self.phase_u_deg, "detected": self.detected,
+                "significance_chi2": self.significance, "source": self.source}
 
 
 @dataclass(frozen=True)
@@ -350,11 +353,12 @@ def mains_result(fit: DirectionFit, k: float, k_u_std: float, inflation: NoiseIn
     v = np.array([a, b])
     cov = cov_noise + np.outer(v, v) * (k_u_std / k) ** 2
     amp, u_amp, ph, u_ph = _amp_phase(a, b, cov)
+    q = _significance(a, b, cov_noise)
     return MainsResult(frequency_hz=float(design.mains_hz), amplitude_dps=amp,
                        amplitude_u_dps=COVERAGE * u_amp, phase_deg=ph,
                        phase_u_deg=min(COVERAGE * u_ph, 180.0),
-                       detected=(_significance(a, b, cov_noise)
-                                 > detection_threshold(tones_tested(design))))
+                       detected=q > detection_threshold(tones_tested(design)),
+                       significance=q)
 
 
 def binned_systematic(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,

@@ -9,6 +9,7 @@ event log says only which samples and which replies belong to which half.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import tempfile
 from functools import lru_cache
@@ -21,6 +22,8 @@ from bench.analysis.allan import allan_deviation
 from bench.analysis.disk import DiskArray
 from bench.analysis.pair import analyze_pair
 from bench.analysis.random_part import std_u_rel
+from bench.analysis.results import PairAnalysis
+from bench.analysis.systematic import detection_threshold
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.config import Config
@@ -31,7 +34,12 @@ from drivers.fog import CaptureCursor
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, events_of, result_document
 from procedures.rate_ladder.events import HalfAcquired, StaticRecorded
-from procedures.rate_ladder.settings import LadderSettings, tolerance_for
+from procedures.rate_ladder.settings import (
+    MAINS_CANDIDATES_HZ,
+    MAINS_FOUND,
+    LadderSettings,
+    tolerance_for,
+)
 
 
 def counter_budget(stand_axis: dict[str, Any]) -> CounterBudget:
@@ -208,18 +216,53 @@ def static_record(events: list[dict[str, Any]], axis: str) -> StaticRecorded | N
 
 def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
                  acquisitions: list[HalfAcquired], static: StaticRecorded | None) -> Any:
+    """docs/method.md A1-A5 for one pair. Mains: the stated frequency (procedure, else the
+    stand's grid), or, when neither states it, each candidate grid is fitted and the one
+    whose tone is the more significant is kept (`systematic.mains.source` says which)."""
     s = _settings(cfg)
     fog_hz = cfg.fog(axis).rate_hz
-    mains = s["mains_hz"] if 2 * s["mains_hz"] < fog_hz else None
     static_dps = raw.static(static) if static else None  # before the halves: in file order
     halves = [raw.half(h) for h in sorted(acquisitions, key=lambda h: h.half)]
+    stated = s["mains_hz"]
+    candidates = [stated] if stated is not None else list(MAINS_CANDIDATES_HZ)
+    candidates = [m for m in candidates if 2 * m < fog_hz] or [None]
     try:
-        return analyze_pair(halves, rate_dps, fog_rate_hz=fog_hz,
-                            counter_budget=counter_budget(cfg.stand_axis(axis)),
-                            harmonics=int(s["harmonics"]), mains_hz=mains,
-                            static_fog_dps=static_dps)
+        best, best_q = None, -math.inf
+        for mains in candidates:
+            pa = analyze_pair(halves, rate_dps, fog_rate_hz=fog_hz,
+                              counter_budget=counter_budget(cfg.stand_axis(axis)),
+                              harmonics=int(s["harmonics"]), mains_hz=mains,
+                              static_fog_dps=static_dps)
+            q = sum(r.systematic.mains.significance for r in pa.rates
+                    if r.systematic.mains is not None)
+            if best is None or q > best_q:
+                best, best_q = pa, q
+        source = s["mains_source"] if stated is not None else (
+            f"{MAINS_FOUND}: chi2 summed over both directions "
+            f"{best_q:.3g}" if candidates != [None] else "above the FOG's Nyquist frequency")
+        return with_mains_source(best, source, searched=len(candidates))
     finally:
         raw.drop_windows()
+
+
+def with_mains_source(pa: PairAnalysis, source: str, searched: int) -> PairAnalysis:
+    """The pair's mains results with where their frequency came from; a tone picked among
+    `searched` candidate grids is detected against a threshold that counts them as tests
+    too (docs/method.md A4, the false-alarm rate)."""
+    rates = []
+    for r in pa.rates:
+        m = r.systematic.mains
+        if m is not None:
+            design_tests = int(r.systematic.detection.get("tones_tested", 1))
+            tests = design_tests + searched - 1
+            m = dataclasses.replace(m, source=source,
+                                    detected=m.significance > detection_threshold(tests))
+            r = dataclasses.replace(r, systematic=dataclasses.replace(
+                r.systematic, mains=m, detection={**r.systematic.detection,
+                                                  "tones_tested": tests,
+                                                  "chi2_threshold": detection_threshold(tests)}))
+        rates.append(r)
+    return PairAnalysis(rates=tuple(rates), pair=pa.pair)
 
 
 def _instability_u(value: float, turns: int) -> float:

@@ -39,7 +39,9 @@ from procedures.rate_ladder.settings import (
     SETTLE_DEFAULTS,
     LadderSettings,
     halves,
+    mains_of,
     tolerance_for,
+    validation_notes,
 )
 
 
@@ -107,6 +109,13 @@ class RateLadder(StepDispatch, LadderCertificate):
                 if mains and 2 * mains.get("frequency_hz", 50) >= fog["rate_hz"]:
                     out.append(sdoc.problem(("axes", axis, "fog", "rate_hz"),
                                             "the FOG rate must exceed twice the mains frequency"))
+                stated, source = mains_of(cfg)
+                if mains and stated is not None and mains.get("frequency_hz") != stated:
+                    doc = pdoc if source.startswith("procedure") else sdoc
+                    out.append(doc.problem(("mains_hz",), f"mains_hz {stated:g} Hz, but the "
+                               f"stand's sim truth of axis {axis!r} has its mains tone at "
+                               f"{mains.get('frequency_hz'):g} Hz: set mains_hz to the "
+                               "lab's grid"))
         for name in ("rate_error", "rate_instability", "intra_turn_instability"):
             bands = cfg.procedure.get("tolerance", {}).get(name)
             if bands and "below_dps" in bands[-1]:
@@ -114,6 +123,10 @@ class RateLadder(StepDispatch, LadderCertificate):
                                         "the last band must have no below_dps (it covers "
                                         "every rate above the others)"))
         return out
+
+    def notes(self, cfg: Config) -> list[str]:
+        """Advice `bench validate` prints beside 'valid' (nothing wrong, something unstated)."""
+        return validation_notes(cfg)
 
     # -- plan ------------------------------------------------------------------------
     def accel(self, cfg: Config, axis: str) -> float:
