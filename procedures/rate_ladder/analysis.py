@@ -9,7 +9,6 @@ event log says only which samples and which replies belong to which half.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import tempfile
 from functools import lru_cache
@@ -20,10 +19,8 @@ import numpy as np
 
 from bench.analysis.allan import allan_deviation
 from bench.analysis.disk import DiskArray
-from bench.analysis.pair import analyze_pair
+from bench.analysis.pair import analyze_pair_mains
 from bench.analysis.random_part import std_u_rel
-from bench.analysis.results import PairAnalysis
-from bench.analysis.systematic import detection_threshold
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.config import Config
@@ -224,45 +221,15 @@ def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
     static_dps = raw.static(static) if static else None  # before the halves: in file order
     halves = [raw.half(h) for h in sorted(acquisitions, key=lambda h: h.half)]
     stated = s["mains_hz"]
-    candidates = [stated] if stated is not None else list(MAINS_CANDIDATES_HZ)
-    candidates = [m for m in candidates if 2 * m < fog_hz] or [None]
     try:
-        best, best_q = None, -math.inf
-        for mains in candidates:
-            pa = analyze_pair(halves, rate_dps, fog_rate_hz=fog_hz,
-                              counter_budget=counter_budget(cfg.stand_axis(axis)),
-                              harmonics=int(s["harmonics"]), mains_hz=mains,
-                              static_fog_dps=static_dps)
-            q = sum(r.systematic.mains.significance for r in pa.rates
-                    if r.systematic.mains is not None)
-            if best is None or q > best_q:
-                best, best_q = pa, q
-        source = s["mains_source"] if stated is not None else (
-            f"{MAINS_FOUND}: chi2 summed over both directions "
-            f"{best_q:.3g}" if candidates != [None] else "above the FOG's Nyquist frequency")
-        return with_mains_source(best, source, searched=len(candidates))
+        return analyze_pair_mains(
+            halves, rate_dps, fog_rate_hz=fog_hz,
+            candidates_hz=[stated] if stated is not None else list(MAINS_CANDIDATES_HZ),
+            source=s["mains_source"] if stated is not None else MAINS_FOUND,
+            counter_budget=counter_budget(cfg.stand_axis(axis)),
+            harmonics=int(s["harmonics"]), static_fog_dps=static_dps)
     finally:
         raw.drop_windows()
-
-
-def with_mains_source(pa: PairAnalysis, source: str, searched: int) -> PairAnalysis:
-    """The pair's mains results with where their frequency came from; a tone picked among
-    `searched` candidate grids is detected against a threshold that counts them as tests
-    too (docs/method.md A4, the false-alarm rate)."""
-    rates = []
-    for r in pa.rates:
-        m = r.systematic.mains
-        if m is not None:
-            design_tests = int(r.systematic.detection.get("tones_tested", 1))
-            tests = design_tests + searched - 1
-            m = dataclasses.replace(m, source=source,
-                                    detected=m.significance > detection_threshold(tests))
-            r = dataclasses.replace(r, systematic=dataclasses.replace(
-                r.systematic, mains=m, detection={**r.systematic.detection,
-                                                  "tones_tested": tests,
-                                                  "chi2_threshold": detection_threshold(tests)}))
-        rates.append(r)
-    return PairAnalysis(rates=tuple(rates), pair=pa.pair)
 
 
 def _instability_u(value: float, turns: int) -> float:
