@@ -194,7 +194,8 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
             residual_std_dps=fit.sigma_dps / abs(final.k), inflation=infl_harm,
             detection=detection_dict(design))
         fl = floor if floor is not None else floor_from_fit(fit, floor_samples)
-        rnd = random_part(fit, final, set_signed, fl, fog_rate_hz, averaging_deg)
+        rnd = random_part(fit, final, set_signed, fl, fog_rate_hz, averaging_deg,
+                          own_bias=frozenset(range(len(windows))) - cal_index)
         wins = tuple({"half": ws.win.index, "turns": ws.win.turns,
                       "t_start_s": float(ws.win.edges_s[0]),
                       "t_end_s": float(ws.win.edges_s[-1]), "samples": ws.n,

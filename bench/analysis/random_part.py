@@ -137,20 +137,21 @@ class AveragedInstability:
     corrected_rel: float | None
     blocks: int
     samples_per_block: float
+    floor_dof: float = math.inf    # of the FOG floor's variance
+    dof: float = 0.0               # of the block means' variance (blocks - 1, less 2 per
+    #                                window with a bias of its own)
 
     @property
     def u_rel(self) -> float | None:
-        """U (k = 2) of the std of `blocks` block means: s / sqrt(2 (n - 1)) each."""
-        return std_u_rel(self.instability_rel, self.blocks)
-
-    floor_dof: float = math.inf    # of the FOG floor's variance
+        """U of the std of the block means (chi-square, `std_u_rel`)."""
+        return std_u_rel(self.instability_rel, self.blocks, self.dof)
 
     @property
     def difference(self) -> VarianceDifference | None:
         s, n = self.instability_rel, self.blocks
-        if s is None or n < 2 or not math.isfinite(self.floor_rel):
+        if s is None or n < 2 or self.dof < 1 or not math.isfinite(self.floor_rel):
             return None
-        return VarianceDifference.of(s, n - 1, self.floor_rel, self.floor_dof)
+        return VarianceDifference.of(s, self.dof, self.floor_rel, self.floor_dof)
 
     @property
     def resolved(self) -> bool | None:
@@ -174,16 +175,27 @@ class AveragedInstability:
                 "floor_rel": self.floor_rel, "corrected_rel": self.corrected_rel,
                 "corrected_upper_rel": self.corrected_upper_rel,
                 "corrected_lower_rel": self.corrected_lower_rel, "resolved": self.resolved,
-                "interval_level": LEVEL,
+                "interval_level": LEVEL, "dof": self.dof,
                 "blocks": self.blocks, "samples_per_block": self.samples_per_block}
 
 
-def std_u_rel(std: float | None, n: int) -> float | None:
-    """U (k = 2) of a standard deviation estimated from n independent values (normal data:
-    u(s) = s / sqrt(2 (n - 1)), docs/method.md A2). The one place this formula lives."""
-    if std is None or n < 2:
+def std_u_rel(std: float | None, n: int, dof: float | None = None) -> float | None:
+    """U of a standard deviation estimated from n independent normal values (dof n - 1
+    unless stated), docs/method.md A2: the half-width that covers the chi-square 95 %
+    interval [s sqrt(nu / chi2_0.975), s sqrt(nu / chi2_0.025)] on both sides. For many
+    values it is 2 s / sqrt(2 nu); for few it is wider above (4 values: 2.7 s), where
+    the normal approximation would leave the truth outside far more than 5 % of the time.
+    The one place this formula lives."""
+    nu = (n - 1) if dof is None else dof
+    if std is None or nu < 1:
         return None
-    return 2.0 * std / math.sqrt(2.0 * (n - 1))
+    if nu > 1e4:
+        return 2.0 * std / math.sqrt(2.0 * nu)
+    from scipy.stats import chi2
+
+    hi = std * math.sqrt(nu / float(chi2.ppf(0.025, nu)))
+    lo = std * math.sqrt(nu / float(chi2.ppf(0.975, nu)))
+    return max(hi - std, std - lo)
 
 
 @dataclass(frozen=True)
@@ -215,34 +227,43 @@ class RandomPartResult:
                 "samples": self.samples, "averaged": [a.to_dict() for a in self.averaged]}
 
 
-def _a5_row_coefs(fit: DirectionFit, cal: FogCalibration) -> tuple[list[np.ndarray], float]:
-    """Row coefficients per window of: f - w0 - d (t - t_ref) - Dw_sys*k, before removing
-    the mean; and that model's residual sum over all samples."""
-    coefs = []
-    total = 0.0
+def _a5_row_coefs(fit: DirectionFit, cal: FogCalibration, own_bias: frozenset[int]
+                  ) -> list[np.ndarray]:
+    """Row coefficients per window of the random part (docs/method.md A5), k times:
+    f - w0 - d (t - t_ref) - Dw_sys*k minus its mean over the calibrated windows. A window
+    in `own_bias` (a half from another session than the calibration's: its FOG bias and
+    time axis are its own, docs/resume.md) keeps the constant and trend the fit gave it
+    (its own mean is then removed, by the fit)."""
+    coefs: list[np.ndarray] = []
+    total, n = 0.0, 0
     for w, ws in enumerate(fit.sums):
         win = ws.win
         c = fit.row_coef(w)                      # shared rows: harmonics and mains
-        d = cal.drift_dps_per_s
-        # y = f - y_centre and t = t_centre + (D / 2) tau, so the calibration's bias and drift
-        # are a constant and a tau term in the window's own columns
-        c[ROW_CONST] = cal.w0_dps + d * (win.t_centre_s - cal.t_ref_s) - ws.y_centre_dps
-        c[ROW_TAU] = d * 0.5 * win.duration_s
+        if win.index not in own_bias:
+            d = cal.drift_dps_per_s
+            # y = f - y_centre and t = t_centre + (D / 2) tau, so the calibration's bias and
+            # drift are a constant and a tau term in the window's own columns
+            c[ROW_CONST] = cal.w0_dps + d * (win.t_centre_s - cal.t_ref_s) - ws.y_centre_dps
+            c[ROW_TAU] = d * 0.5 * win.duration_s
+            v = -c
+            v[ROW_Y] = 1.0
+            total += float(ws.gram[ROW_CONST] @ v)
+            n += ws.n
         coefs.append(c)
-        v = -c
-        v[ROW_Y] = 1.0
-        total += float(ws.gram[ROW_CONST] @ v)
-    return coefs, total
+    mean_raw = total / n if n else 0.0           # k * (mean of the random part)
+    for ws, c in zip(fit.sums, coefs, strict=True):
+        if ws.win.index not in own_bias:
+            c[ROW_CONST] += mean_raw             # docs/method.md A5: minus the mean
+    return coefs
 
 
 def random_part(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,
                 floor: NoiseFloor, sample_rate_hz: float,
-                averaging_deg: Sequence[float] = (1.0, 10.0, 360.0)) -> RandomPartResult:
-    coefs, total = _a5_row_coefs(fit, cal)
-    mean_raw = total / fit.n                     # k * (mean of the random part so far)
+                averaging_deg: Sequence[float] = (1.0, 10.0, 360.0),
+                own_bias: frozenset[int] = frozenset()) -> RandomPartResult:
+    coefs = _a5_row_coefs(fit, cal, own_bias)
     rss = 0.0
     for ws, c in zip(fit.sums, coefs, strict=True):
-        c[ROW_CONST] += mean_raw                 # docs/method.md A5: minus the mean
         v = -c
         v[ROW_Y] = 1.0
         rss += float(v @ ws.gram @ v)
@@ -252,7 +273,8 @@ def random_part(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,
     floor_rel = floor.sigma_dps * scale
     n_params = fit.n_params
     diff = VarianceDifference.of(raw, fit.n - n_params, floor_rel, floor.dof)
-    averaged = tuple(_averaged(fit, coefs, scale, floor, a) for a in averaging_deg)
+    averaged = tuple(_averaged(fit, coefs, scale, floor, a, own_bias)
+                     for a in averaging_deg)
     return RandomPartResult(
         instability_rel=raw, floor_rel=floor_rel, floor_source=floor.source,
         corrected_rel=diff.value, corrected_upper_rel=diff.upper, resolved=diff.resolved,
@@ -262,27 +284,34 @@ def random_part(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,
 
 
 def _averaged(fit: DirectionFit, coefs: list[np.ndarray], scale: float, floor: NoiseFloor,
-              angle_deg: float) -> AveragedInstability:
+              angle_deg: float, own_bias: frozenset[int] = frozenset()
+              ) -> AveragedInstability:
+    """docs/method.md A5: the random part's means over blocks of angle_deg. A window with a
+    constant and trend of its own (`own_bias`) takes two degrees of freedom from its
+    blocks' means: the dof says so, and the std is over it."""
     fine = fit.design.fine_bin_deg
     m = angle_deg / fine
     if angle_deg <= 0 or 360 % angle_deg or abs(m - round(m)) > 1e-9:
         raise ValueError(f"averaging angle {angle_deg} deg must divide 360 and be a "
                          f"multiple of the fine bin {fine} deg")
     means, counts = [], []
+    own = 0
     for ws, c in zip(fit.sums, coefs, strict=True):
         r = block_sums(bin_residuals(ws, c), ws, angle_deg)
         n = block_sums(ws.bins[ROW_CONST], ws, angle_deg)
         keep = n > 0
         means.append(r[keep] / n[keep])
         counts.append(n[keep])
+        own += ws.win.index in own_bias
     mu = np.concatenate(means)
     cnt = np.concatenate(counts)
     per_block = float(cnt.mean()) if cnt.size else 0.0
     floor_rel = floor.sigma_dps * scale / math.sqrt(per_block) if per_block else math.nan
-    if mu.size < 2:
+    dof = mu.size - 1 - 2 * own
+    if mu.size < 2 or dof < 1:
         return AveragedInstability(float(angle_deg), None, floor_rel, None, int(mu.size),
-                                   per_block, floor.dof)
-    s = float(np.std(mu, ddof=1)) * scale
+                                   per_block, floor.dof, max(dof, 0))
+    s = math.sqrt(float(np.sum((mu - mu.mean()) ** 2)) / dof) * scale
     return AveragedInstability(float(angle_deg), s, floor_rel,
                                math.sqrt(max(s * s - floor_rel * floor_rel, 0.0)),
-                               int(mu.size), per_block, floor.dof)
+                               int(mu.size), per_block, floor.dof, dof)
