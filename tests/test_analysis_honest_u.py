@@ -167,3 +167,22 @@ def test_validate_names_the_mains_key_when_none_is_set(
     stand.write_text(yaml.safe_dump(s))
     assert main(["validate", str(proc)]) == 0
     assert "mains_hz not set" not in capsys.readouterr().out
+
+
+def test_type_a_is_pooled_over_the_pair_s_two_directions() -> None:
+    """+ turns that happen to agree to 0.01 ppm, - turns that scatter by ~20 ppm: each
+    direction's Type A rests on the pooled sigma (6 dof), not on its own 3-dof sample."""
+    from bench.analysis.turns import pool_type_a
+
+    budget = CounterBudget(trigger_jitter_s=1e-9)
+    quiet = 10.0 + np.arange(5) * 1.0 + np.array([0, 1e-8, -1e-8, 1e-8, 0])
+    loud = 10.0 + np.arange(5) * 1.0 + np.array([0, 2e-5, -2e-5, 2e-5, 0])
+    plus, minus = pool_type_a([analyze_turns([quiet], 360.0, budget),
+                               analyze_turns([loud], -360.0, budget)])
+    rel = [np.asarray(r.counter_rate_dps) / 360.0 for r in (plus, minus)]
+    pooled = math.sqrt(sum(float(np.sum((x - x.mean()) ** 2)) for x in rel) / 6)
+    for r in (plus, minus):
+        assert r.repeatability_u_rel == pytest.approx(pooled / 2 * math.sqrt(6 / 4), rel=1e-9)
+        assert "pooled" in r.repeatability_basis and "6 dof" in r.repeatability_basis
+        assert r.rate_error_u_rel == pytest.approx(2 * math.sqrt(
+            r.timing_u_rel ** 2 + r.timebase_u_rel ** 2 + r.repeatability_u_rel ** 2))

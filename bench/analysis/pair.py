@@ -58,7 +58,13 @@ from bench.analysis.systematic import (
     noise_inflation,
     solve_direction,
 )
-from bench.analysis.turns import FULL_TURN_DEG, CounterBudget, analyze_turns, turn_rates_dps
+from bench.analysis.turns import (
+    FULL_TURN_DEG,
+    CounterBudget,
+    analyze_turns,
+    pool_type_a,
+    turn_rates_dps,
+)
 from bench.analysis.window import DEFAULT_CHUNK, HalfRecord, Window
 
 _RATE_MATCH_REL = 1e-3
@@ -147,8 +153,10 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
     if signs != [1, -1]:
         raise ValueError("a pair needs halves of both signs")
 
-    turns = {s: analyze_turns([w.edges_s for w in windows if w.sign == s], s * w_set, budget)
-             for s in signs}
+    # docs/method.md A2: the Type A term pooled over both directions of the pair
+    turns = dict(zip(signs, pool_type_a([analyze_turns([w.edges_s for w in windows
+                                                        if w.sign == s], s * w_set, budget)
+                                         for s in signs]), strict=True))
     anchor = _anchor_session(halves)
     # the windows that calibrate the FOG: all, or those of the anchor session
     cal_windows = [w for w, h in zip(windows, halves, strict=True)

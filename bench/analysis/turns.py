@@ -28,6 +28,7 @@ The counter sees |T|: the sign of every rate is the sign of the command (docs/me
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -160,18 +161,48 @@ class TurnsResult:
         }
 
 
-def small_sample_factor(n: int) -> float:
+def small_sample_factor(n: int, dof: float | None = None) -> float:
     """Scale s / sqrt(n) so that k = 2 still covers ~95 % when s rests on few turns.
 
     GUM Supplement 1 (6.4.9): a mean of n readings of unknown variance has a scaled
-    t-distribution, standard deviation s / sqrt(n) * sqrt((n - 1) / (n - 3)) for n > 3;
-    below that the variance is unbounded and we use t_95(n - 1) / 2 instead.
+    t-distribution, standard deviation s / sqrt(n) * sqrt(nu / (nu - 2)) for nu = n - 1
+    > 2 degrees of freedom (or those of a pooled s); below that the variance is unbounded
+    and we use t_95(nu) / 2 instead.
     """
-    if n > 3:
-        return math.sqrt((n - 1) / (n - 3))
+    nu = (n - 1) if dof is None else dof
+    if nu > 2:
+        return math.sqrt(nu / (nu - 2))
     from scipy.stats import t
 
-    return float(t.ppf(0.975, max(n - 1, 1)) / 2.0)
+    return float(t.ppf(0.975, max(nu, 1)) / 2.0)
+
+
+def pool_type_a(results: Sequence[TurnsResult]) -> list[TurnsResult]:
+    """docs/method.md A2: the Type A term of each direction of one pair from the per-turn
+    scatter pooled over both (the same table at the same |rate|: one sigma in the model),
+    nu = sum (N_i - 1) degrees of freedom, still never below each direction's timing floor.
+    The rate error's U is recomputed with it; each budget names its basis."""
+    ss, nu = 0.0, 0
+    for r in results:
+        rel = np.asarray(r.counter_rate_dps) / abs(r.set_rate_dps)
+        if rel.size >= 2:
+            ss += float(np.sum((rel - rel.mean()) ** 2))
+            nu += rel.size - 1
+    if len(results) < 2 or nu < 2:
+        return list(results)
+    pooled = math.sqrt(ss / nu)
+    out = []
+    for r in results:
+        basis_sigma = max(pooled, r.rate_instability_floor_rel)
+        what = ("timing floor" if pooled < r.rate_instability_floor_rel else
+                "sample sigma pooled over both directions")
+        basis = (f"{what} {basis_sigma:.3g} (pooled sigma {pooled:.3g} from "
+                 f"{len(results)} directions, {nu} dof), scaled t with {nu} dof")
+        rep = basis_sigma / math.sqrt(r.turns) * small_sample_factor(r.turns, nu)
+        u = math.sqrt(r.timing_u_rel ** 2 + r.timebase_u_rel ** 2 + rep ** 2)
+        out.append(dataclasses.replace(r, rate_error_u_rel=2.0 * u, repeatability_u_rel=rep,
+                                       repeatability_basis=basis))
+    return out
 
 
 def analyze_turns(windows: Sequence[np.ndarray], set_rate_dps: float,
