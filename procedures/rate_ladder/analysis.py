@@ -72,6 +72,21 @@ def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int,
     return t_start_s + found
 
 
+def counter_start_s(h: HalfAcquired) -> float:
+    """The counter's start on the half's session FOG axis, from the journaled time tie
+    (the sync pulse number, its period and the link's latency) when there is one; it must
+    agree with the start the run used, else the journal is inconsistent and says so."""
+    tie = h.time_tie or {}
+    if "sync_pulse" not in tie:
+        return float(h.counter_t0_s)
+    t0 = int(tie["sync_pulse"]) * float(tie["sync_period_s"]) + float(tie["latency_s"])
+    if abs(t0 - float(h.counter_t0_s)) > 1e-6:
+        raise ValueError(f"{h.unit} half {h.half} (session {h.session}): the journaled time "
+                         f"tie places the counter's start at {t0:.9f} s, the run used "
+                         f"{h.counter_t0_s:.9f} s")
+    return t0
+
+
 def window_on_disk(cursor: CaptureCursor, i_from: int, i_to: int, stem: Path
                    ) -> tuple[DiskArray, DiskArray]:
     """FOG samples i_from .. i_to - 1 that are valid, as (times, rates) files at `stem`:
@@ -164,7 +179,7 @@ class RawData:
         log = self.counter_log(h.session, h.axis)
         i0, i1 = h.counter_records
         model = self.cfg.stand_axis(h.axis)["counter"]["model"]
-        return edges_from_replies(log[i0:i1], model, h.turns + 1, float(h.counter_t0_s))
+        return edges_from_replies(log[i0:i1], model, h.turns + 1, counter_start_s(h))
 
     def half(self, h: HalfAcquired) -> HalfRecord:
         t, w = self.fog_window(h.session, h.axis, h.fog_from, h.fog_to, h.fog_capture)
