@@ -17,7 +17,7 @@ import pytest
 import yaml
 from scipy.stats import binom, chi2
 
-from bench.analysis.random_part import VarianceDifference, std_u_rel
+from bench.analysis.random_part import VarianceDifference, std_interval_u_rel
 from bench.analysis.systematic import detection_threshold
 from bench.analysis.turns import CounterBudget, analyze_turns
 from bench.cli import main
@@ -57,14 +57,14 @@ def test_type_a_never_rests_on_a_sigma_below_the_timing_floor() -> None:
 
 def test_u_of_a_std_from_few_values_is_the_chi_square_interval() -> None:
     # hand-derived: 4 values (3 dof), chi2_0.025(3) = 0.2158: upper 3.728 s
-    assert std_u_rel(1.0, 4) == pytest.approx(math.sqrt(3 / chi2.ppf(0.025, 3)) - 1, rel=1e-9)
-    assert std_u_rel(1.0, 4) == pytest.approx(2.728, abs=1e-3)
+    assert std_interval_u_rel(1.0, 4) == pytest.approx(math.sqrt(3 / chi2.ppf(0.025, 3)) - 1, rel=1e-9)
+    assert std_interval_u_rel(1.0, 4) == pytest.approx(2.728, abs=1e-3)
     # many values: the normal approximation 2 s / sqrt(2 nu)
-    assert std_u_rel(1.0, 200_001) == pytest.approx(2 / math.sqrt(400_000), rel=1e-9)
+    assert std_interval_u_rel(1.0, 200_001) == pytest.approx(2 / math.sqrt(400_000), rel=1e-9)
     # a coverage count: s from 5 normal values, the truth 1 inside s +/- U
     rng = np.random.default_rng(7)
     s = np.std(rng.standard_normal((2000, 5)), axis=1, ddof=1)
-    miss = sum(abs(x - 1.0) > std_u_rel(float(x), 5) for x in s)
+    miss = sum(abs(x - 1.0) > std_interval_u_rel(float(x), 5) for x in s)
     assert miss <= most_misses(2000), miss
 
 

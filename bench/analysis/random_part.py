@@ -143,8 +143,8 @@ class AveragedInstability:
 
     @property
     def u_rel(self) -> float | None:
-        """U of the std of the block means (chi-square, `std_u_rel`)."""
-        return std_u_rel(self.instability_rel, self.blocks, self.dof)
+        """U of the std of the block means (chi-square, `std_interval_u_rel`)."""
+        return std_interval_u_rel(self.instability_rel, self.blocks, self.dof)
 
     @property
     def difference(self) -> VarianceDifference | None:
@@ -179,7 +179,16 @@ class AveragedInstability:
                 "blocks": self.blocks, "samples_per_block": self.samples_per_block}
 
 
-def std_u_rel(std: float | None, n: int, dof: float | None = None) -> float | None:
+def std_u_rel(std: float | None, n: int) -> float | None:
+    """The normal approximation U = 2 s / sqrt(2 (n - 1)) of a standard deviation from n
+    values: what a result without a stated U (an older run) is read with; the analysis
+    states `std_interval_u_rel` instead."""
+    if std is None or n < 2:
+        return None
+    return 2.0 * std / math.sqrt(2.0 * (n - 1))
+
+
+def std_interval_u_rel(std: float | None, n: int, dof: float | None = None) -> float | None:
     """U of a standard deviation estimated from n independent normal values (dof n - 1
     unless stated), docs/method.md A2: the half-width that covers the chi-square 95 %
     interval [s sqrt(nu / chi2_0.975), s sqrt(nu / chi2_0.025)] on both sides. For many

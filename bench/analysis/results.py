@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from bench.analysis.crosscal import CrossCalibration
-from bench.analysis.random_part import RandomPartResult, std_u_rel
+from bench.analysis.random_part import RandomPartResult, std_interval_u_rel
 from bench.analysis.systematic import (
     BinnedSystematic,
     HarmonicResult,
@@ -91,7 +91,7 @@ class RateResult:
         d["intra_turn_instability_rel"] = self.random.instability_rel
         d["intra_turn_instability_corrected_rel"] = self.random.corrected_rel
         # docs/method.md A5: U of a std from the record's samples (white random part assumed)
-        d["intra_turn_instability_u_rel"] = std_u_rel(self.random.instability_rel,
+        d["intra_turn_instability_u_rel"] = std_interval_u_rel(self.random.instability_rel,
                                                       self.random.samples)
         # docs/method.md A5: the corrected figure's U only when it is resolved (JCGM 101);
         # otherwise it is stated as '< intra_turn.corrected_upper_rel'

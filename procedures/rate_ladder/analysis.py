@@ -20,7 +20,7 @@ import numpy as np
 from bench.analysis.allan import allan_deviation
 from bench.analysis.disk import DiskArray
 from bench.analysis.pair import analyze_pair_mains
-from bench.analysis.random_part import std_u_rel
+from bench.analysis.random_part import std_interval_u_rel
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.config import Config
@@ -249,7 +249,7 @@ def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
 
 def _instability_u(value: float, turns: int) -> float:
     """U (k = 2) of eq. 2's sigma from N turns (infinite from one turn)."""
-    u = std_u_rel(value, turns)
+    u = std_interval_u_rel(value, turns)
     return math.inf if u is None else u
 
 
