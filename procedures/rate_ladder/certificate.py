@@ -364,7 +364,9 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
     if unresolved_sigma:
         notes.append("'< L': σ is not resolved above the timing floor (σ − U ≤ floor): L is "
                      "its one-sided 97.5 % upper limit for normal per-turn rates (chi-square, "
-                     "N − 1 degrees of freedom); such a σ is left out of conformity.")
+                     "N − 1 degrees of freedom). In a conformity check such a σ conforms when L is "
+                     "within the tolerance, and is not assessed only when it is not "
+                     "(docs/method.md A2, the one rule for '< L').")
     if approximated:
         notes.append("* U of σ from the chi-square approximation U = 2σ/√(2(N−1)) for N turns "
                      "(normal per-turn rates); the result did not carry it.")
@@ -599,10 +601,11 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
             text += f" at {num(floor.get('rate_hz')):g} Hz"
         if num(floor.get("duration_s")) is not None:
             text += f", {num(floor.get('duration_s')):g} s record at rest"
-        notes.append(text + ". Floor-corrected = √(raw² − floor²) ± U when the table's own "
-                            "part stands out of the FOG's noise (raw² − floor² > its U, the "
-                            "one rule); otherwise '< L', L = √(max(raw² − floor², 0) + U) "
-                            "its one-sided k = 2 upper limit.")
+        notes.append(text + ". Floor-corrected = √(raw² − floor²), its interval from a "
+                            "JCGM 101 Monte Carlo of the two variances (docs/method.md A5): "
+                            "± U when the interval's lower end (2.5 %) is above zero, "
+                            "otherwise '< L', L the square root of the difference's 97.5 % "
+                            "quantile.")
     if approx:
         notes.append("* U of the raw value from 2s/√(2(n−1)) over its n samples, assuming "
                      "independent samples; the result did not carry it.")
