@@ -268,21 +268,31 @@ def instability_upper(value: float, turns: int) -> float:
     return value * math.sqrt((turns - 1) / float(chi2.ppf(1.0 - SIGMA_UPPER_P, turns - 1)))
 
 
+def instability_lower(value: float, turns: int) -> float:
+    """The chi-square lower limit of eq. 2's sigma at 1 - SIGMA_UPPER_P (0 below 2 turns)."""
+    if turns < 2:
+        return 0.0
+    from scipy.stats import chi2
+
+    return value * math.sqrt((turns - 1) / float(chi2.ppf(SIGMA_UPPER_P, turns - 1)))
+
+
 def with_sigma_terms(d: dict[str, Any]) -> dict[str, Any]:
-    """A rate's entry with eq. 2's U, its one-sided upper limit and whether it is resolved
+    """A rate's entry with eq. 2's U, its chi-square limits and whether it is resolved
     above the timing floor (what the certificate and the conformity check read)."""
     s, n = d["rate_instability_rel"], d["turns"]
     d["rate_instability_u_rel"] = _instability_u(s, n)
     d["rate_instability_upper_rel"] = instability_upper(s, n)
-    d["rate_instability_resolved"] = sigma_resolved(s, d["rate_instability_u_rel"],
+    d["rate_instability_lower_rel"] = instability_lower(s, n)
+    d["rate_instability_resolved"] = sigma_resolved(d["rate_instability_lower_rel"],
                                                     d["rate_instability_floor_rel"])
     return d
 
 
-def sigma_resolved(value: float, u: float, floor: float) -> bool:
-    """docs/method.md A1/A2: sigma shows the table's own turn-to-turn scatter only when it stands
-    above the timing floor by more than its U (the one k = 2 rule, on the excess)."""
-    return value - u > floor
+def sigma_resolved(lower: float, floor: float) -> bool:
+    """docs/method.md A1/A2: sigma shows the table's own turn-to-turn scatter only when its
+    chi-square lower limit (2.5 %) stands above the timing floor."""
+    return lower > floor
 
 
 def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[dict[str, Any]]:
@@ -317,12 +327,13 @@ def sigma_check(axis: str, rate: float, entry: dict[str, Any], tolerance: float,
     floor = entry["rate_instability_floor_rel"]
     upper = entry["rate_instability_upper_rel"]
     level = f"{SIGMA_UPPER_P * 100:g} % chi-square"
-    if not sigma_resolved(value, u, floor):
+    if not entry["rate_instability_resolved"]:
         c = judge_limit(axis, rate, "rate_instability", value, u, upper, tolerance, rule,
                         level).to_dict()
         c.update(floor_rel=floor)
         c["reason"] += (f" (sigma {value:.2g} is not resolved above the timing floor "
-                        f"{floor:.2g}: sigma - U <= floor)")
+                        f"{floor:.2g}: its {100 - SIGMA_UPPER_P * 100:g} % chi-square lower "
+                        "limit is at or below it)")
         return c
     c = judge(axis, rate, "rate_instability", value, upper - value, tolerance, rule).to_dict()
     c.update(u_rel=u, upper_rel=upper, floor_rel=floor, capability_ratio=u / tolerance,
