@@ -138,8 +138,8 @@ class AveragedInstability:
     blocks: int
     samples_per_block: float
     floor_dof: float = math.inf    # of the FOG floor's variance
-    dof: float = 0.0               # of the block means' variance (blocks - 1, less 2 per
-    #                                window with a bias of its own)
+    dof: float = 0.0               # of the block means' variance: blocks less 1 per
+    #                                calibrated window, 2 per window with its own bias
 
     @property
     def u_rel(self) -> float | None:
@@ -295,9 +295,11 @@ def random_part(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,
 def _averaged(fit: DirectionFit, coefs: list[np.ndarray], scale: float, floor: NoiseFloor,
               angle_deg: float, own_bias: frozenset[int] = frozenset()
               ) -> AveragedInstability:
-    """docs/method.md A5: the random part's means over blocks of angle_deg. A window with a
-    constant and trend of its own (`own_bias`) takes two degrees of freedom from its
-    blocks' means: the dof says so, and the std is over it."""
+    """docs/method.md A5: the random part's means over blocks of angle_deg. The
+    calibration (k, w0 and the drift from the half means, A3) fits each calibrated window's
+    mean, and a window with a constant and trend of its own (`own_bias`) fits two: each
+    takes that many degrees of freedom from the blocks' means (for 360 deg blocks, 4 turns
+    in two windows of '+-+' leave 2, not 3): the dof says so, and the std is over it."""
     fine = fit.design.fine_bin_deg
     m = angle_deg / fine
     if angle_deg <= 0 or 360 % angle_deg or abs(m - round(m)) > 1e-9:
@@ -316,7 +318,7 @@ def _averaged(fit: DirectionFit, coefs: list[np.ndarray], scale: float, floor: N
     cnt = np.concatenate(counts)
     per_block = float(cnt.mean()) if cnt.size else 0.0
     floor_rel = floor.sigma_dps * scale / math.sqrt(per_block) if per_block else math.nan
-    dof = mu.size - 1 - 2 * own
+    dof = mu.size - (len(fit.sums) - own) - 2 * own
     if mu.size < 2 or dof < 1:
         return AveragedInstability(float(angle_deg), None, floor_rel, None, int(mu.size),
                                    per_block, floor.dof, max(dof, 0))
