@@ -18,6 +18,12 @@ counter's timing floor), `bare` (no harmonics, no mains: every detection is fals
 session boundary inside the pair: halves [1, 2, 2] or [1, 1, 2], each session with a time
 axis and a FOG bias of its own: what an interrupt in acquire or settle leaves; an
 interrupt between pairs or axes leaves whole pairs in one session, the `paper` case).
+
+Seen 2026-11-24, seeds 0:60, 50 deg/s, 4 turns (the strata share seeds, so their rows are
+correlated): every two-sided type 93.3-98.9 % per stratum (mains at 60 Hz 93.3 %, 1 deg
+raw on the bare axis 93.3 %); one-sided statements far above a near-zero truth cover
+trivially (10 deg corrected 100 %; rate error and sigma in `quiet`/`floor` 100 %); false
+detected 0.8-1.2 %, false resolved (quiet) 2.5 %. About 1 s of CPU per pair.
 """
 
 from __future__ import annotations
