@@ -85,6 +85,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
     if cfg is None:
         return EXIT_INVALID
     print(f"{cfg.procedure_path}: valid {cfg.kind} procedure; stand {cfg.stand_path}: valid")
+    for note in getattr(procedure_kind(cfg.kind), "notes", lambda _c: [])(cfg):
+        print(f"note: {note}")
     return EXIT_PASS
 
 

@@ -250,6 +250,9 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
         "traceability": Key(ListOf(TRACEABLE), False, "references and sensors the bench "
                             "does not drive, with their calibration certificates"),
         "dcc": Key(STAND_DCC, False, "DCC: lab settings file, signing key (paths only)"),
+        "mains_hz": Key(Num(min=1, max=1000, unit="Hz"), False,
+                        "the lab's mains frequency (50 or 60); without it the analysis "
+                        "finds the mains tone from the data"),
         **(extra_top or {}),
     })
 

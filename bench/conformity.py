@@ -5,6 +5,10 @@ Two rules, chosen in the procedure file (`decision_rule`), as ILAC-G8 describes 
   limit (the risk of a false pass near the limit is up to 50 %);
 - guard band by U: pass only when |value| + U <= tolerance (false pass below ~2.5 %); a
   value inside the tolerance but within U of the limit fails, and says so.
+One rule for a quantity that is not resolved (an upper limit "< L" instead of value +/- U,
+`judge_limit`): it conforms when L is within the tolerance, under either rule (L is already
+a one-sided limit at the stated level, so it is its own guard band); it is NOT ASSESSED only
+when L exceeds the tolerance (the data then neither show conformity nor refute it).
 Beside each decision, the RMG 63-2003 capability rule: the measurement's error limit
 (here U) should not exceed 0.2-0.3 of the tolerance it checks (docs/method.md A6).
 """
@@ -35,6 +39,8 @@ class Check:
     reason: str
     capability_ratio: float
     capability_ok: bool
+    upper_rel: float | None = None   # the one-sided limit L of an unresolved value
+    one_sided: bool = False          # the statement is "< L" (judged on L, judge_limit)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -60,3 +66,24 @@ def judge(axis: str, set_rate_dps: float, quantity: str, value_rel: float, u_rel
                   f"|value| {mag:.3g} <= tolerance {tolerance_rel:.3g}")
     return Check(axis, set_rate_dps, quantity, value_rel, u_rel, tolerance_rel, rule, verdict,
                  reason, ratio, ratio <= CAPABILITY_LIMIT)
+
+
+def judge_limit(axis: str, set_rate_dps: float, quantity: str, value_rel: float,
+                u_rel: float, upper_rel: float, tolerance_rel: float, rule: str,
+                level: str) -> Check:
+    """An unresolved quantity stated as "< L" (L = upper_rel, one-sided at `level`): pass
+    when L <= tolerance, else not assessed (the module docstring's one rule)."""
+    if rule not in RULES:
+        raise ValueError(f"decision rule {rule!r}: expected one of {', '.join(RULES)}")
+    ratio = u_rel / tolerance_rel
+    if upper_rel <= tolerance_rel:
+        verdict = "pass"
+        reason = (f"not resolved: < {upper_rel:.3g} ({level} one-sided limit) <= tolerance "
+                  f"{tolerance_rel:.3g}")
+    else:
+        verdict = "not-assessed"
+        reason = (f"not resolved: its {level} one-sided limit {upper_rel:.3g} exceeds the "
+                  f"tolerance {tolerance_rel:.3g}, so the data neither show conformity nor "
+                  "refute it")
+    return Check(axis, set_rate_dps, quantity, value_rel, u_rel, tolerance_rel, rule, verdict,
+                 reason, ratio, ratio <= CAPABILITY_LIMIT, upper_rel=upper_rel, one_sided=True)

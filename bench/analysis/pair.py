@@ -35,8 +35,10 @@ noise floor; memory: a few chunk-sized buffers, whatever the record's length.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -47,6 +49,8 @@ from bench.analysis.sums import Design, accumulate
 from bench.analysis.systematic import (
     DirectionFit,
     binned_systematic,
+    detection_dict,
+    detection_threshold,
     harmonic_block_deg,
     harmonics_result,
     long_block_deg,
@@ -54,7 +58,13 @@ from bench.analysis.systematic import (
     noise_inflation,
     solve_direction,
 )
-from bench.analysis.turns import FULL_TURN_DEG, CounterBudget, analyze_turns, turn_rates_dps
+from bench.analysis.turns import (
+    FULL_TURN_DEG,
+    CounterBudget,
+    analyze_turns,
+    pool_type_a,
+    turn_rates_dps,
+)
 from bench.analysis.window import DEFAULT_CHUNK, HalfRecord, Window
 
 _RATE_MATCH_REL = 1e-3
@@ -143,8 +153,10 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
     if signs != [1, -1]:
         raise ValueError("a pair needs halves of both signs")
 
-    turns = {s: analyze_turns([w.edges_s for w in windows if w.sign == s], s * w_set, budget)
-             for s in signs}
+    # docs/method.md A2: the Type A term pooled over both directions of the pair
+    turns = dict(zip(signs, pool_type_a([analyze_turns([w.edges_s for w in windows
+                                                        if w.sign == s], s * w_set, budget)
+                                         for s in signs]), strict=True))
     anchor = _anchor_session(halves)
     # the windows that calibrate the FOG: all, or those of the anchor session
     cal_windows = [w for w, h in zip(windows, halves, strict=True)
@@ -187,9 +199,11 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
             harmonics=harmonics_result(fit, final.k, k_u_std, set_signed, infl_harm),
             mains=mains_result(fit, final.k, k_u_std, infl_harm),
             binned=binned_systematic(fit, final, set_signed, binned_deg, infl_harm),
-            residual_std_dps=fit.sigma_dps / abs(final.k), inflation=infl_harm)
+            residual_std_dps=fit.sigma_dps / abs(final.k), inflation=infl_harm,
+            detection=detection_dict(design))
         fl = floor if floor is not None else floor_from_fit(fit, floor_samples)
-        rnd = random_part(fit, final, set_signed, fl, fog_rate_hz, averaging_deg)
+        rnd = random_part(fit, final, set_signed, fl, fog_rate_hz, averaging_deg,
+                          own_bias=frozenset(range(len(windows))) - cal_index)
         wins = tuple({"half": ws.win.index, "turns": ws.win.turns,
                       "t_start_s": float(ws.win.edges_s[0]),
                       "t_end_s": float(ws.win.edges_s[-1]), "samples": ws.n,
@@ -211,4 +225,49 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
                         "bias and drift of its own, enter the turns and the intra-turn fit "
                         "but not k"))
     return PairAnalysis(rates=tuple(rates), pair=pair)
-    return PairAnalysis(rates=tuple(rates), pair=pair)
+
+
+def analyze_pair_mains(halves: Sequence[HalfRecord], set_rate_dps: float, *,
+                       fog_rate_hz: float, candidates_hz: Sequence[float], source: str,
+                       **kwargs: Any) -> PairAnalysis:
+    """analyze_pair with the mains frequency stated (one candidate) or found from the data
+    (docs/method.md A4): every candidate below the FOG's Nyquist frequency is fitted and the
+    one whose tone is the more significant over both directions is kept; its detection
+    counts the candidates tried as tests too, so the false-alarm rate stays as stated.
+    `systematic.mains.source` says where the frequency came from."""
+    usable = [float(m) for m in candidates_hz if 2 * m < fog_rate_hz]
+    if not usable:
+        return analyze_pair(halves, set_rate_dps, fog_rate_hz=fog_rate_hz, mains_hz=None,
+                            **kwargs)
+    best, best_q = None, -math.inf
+    for mains in usable:
+        pa = analyze_pair(halves, set_rate_dps, fog_rate_hz=fog_rate_hz, mains_hz=mains,
+                          **kwargs)
+        q = sum(r.systematic.mains.significance for r in pa.rates
+                if r.systematic.mains is not None)
+        if best is None or q > best_q:
+            best, best_q = pa, q
+    assert best is not None
+    if len(usable) > 1:
+        source = (f"{source}: {best.rates[0].systematic.mains.frequency_hz:g} Hz of "
+                  f"{', '.join(f'{m:g}' for m in usable)} (chi2 over both directions "
+                  f"{best_q:.3g})" if best.rates[0].systematic.mains else source)
+    return _with_mains_source(best, source, searched=len(usable))
+
+
+def _with_mains_source(pa: PairAnalysis, source: str, searched: int) -> PairAnalysis:
+    """The pair's mains results with where their frequency came from; a tone picked among
+    `searched` candidates is detected against a threshold that counts them as tests."""
+    rates = []
+    for r in pa.rates:
+        m = r.systematic.mains
+        if m is not None:
+            tests = int(r.systematic.detection.get("tones_tested", 1)) + searched - 1
+            threshold = detection_threshold(tests)
+            m = dataclasses.replace(m, source=source, detected=m.significance > threshold)
+            r = dataclasses.replace(r, systematic=dataclasses.replace(
+                r.systematic, mains=m, detection={**r.systematic.detection,
+                                                  "tones_tested": tests,
+                                                  "chi2_threshold": threshold}))
+        rates.append(r)
+    return PairAnalysis(rates=tuple(rates), pair=pa.pair)

@@ -20,11 +20,16 @@ one, the white part of the pair's own residual (successive differences). The lat
 counts all white noise at the sample rate as the FOG's, so the corrected figure is then
 the table's non-white (slow) random rate only: say so next to it (`floor_source`).
 
-A corrected figure is only meaningful when the raw variance exceeds the floor's by more
-than the estimates' own scatter: `resolved` says whether it does, and
-`corrected_upper_rel` bounds it (k = 2) when it does not: sqrt(max(diff, 0) + 2 u_diff),
-so a raw variance that falls below the floor by chance never gives a limit tighter than
-the measurement's sensitivity (a limit of zero would be one).
+A corrected figure is a difference of two estimated variances, raw^2 - floor^2, whose
+truth may be near zero (a table far quieter than its FOG): there the linear propagation
+fails. Its interval comes from a JCGM 101 Monte Carlo (`VarianceDifference`): each variance
+is drawn from its state of knowledge, s^2 nu / chi2_nu (nu the degrees of freedom of its
+estimate: samples minus fitted parameters for the raw figure, 2/3 of the successive
+differences for the floor), and the difference's 2.5 % and 97.5 % quantiles bound it.
+`resolved` only when the 2.5 % quantile is above zero; then value with [lower, upper], else
+"< L" with L the square root of the 97.5 % quantile (`corrected_upper_rel`), never below
+what the floor's own uncertainty allows to be seen. The same holds for the figures
+averaged over 1, 10, 360 deg (blocks - 1 degrees of freedom for the raw one).
 """
 
 from __future__ import annotations
@@ -57,6 +62,55 @@ class NoiseFloor:
         """Standard uncertainty of sigma^2 (white noise, overlapping differences)."""
         return math.sqrt(3.0 / self.terms) * self.sigma_dps ** 2
 
+    @property
+    def dof(self) -> float:
+        """Effective degrees of freedom of sigma^2: 2 / (relative variance) = 2 terms / 3."""
+        return 2.0 * self.terms / 3.0
+
+
+#: the Monte Carlo's draws and its fixed seed: a run's figures depend on its data alone
+MC_DRAWS = 40_000
+MC_SEED = 20_221
+#: two-sided level of the corrected figures' intervals; the limit "< L" is one-sided at
+#: (1 + LEVEL) / 2, the same level as the interval's upper end
+LEVEL = 0.95
+
+
+@dataclass(frozen=True)
+class VarianceDifference:
+    """sqrt(raw^2 - floor^2) with its JCGM 101 interval (docs/method.md A5)."""
+
+    value: float            # sqrt(max(raw^2 - floor^2, 0))
+    lower: float            # sqrt of the difference's (1 - LEVEL) / 2 quantile (>= 0)
+    upper: float            # sqrt of the (1 + LEVEL) / 2 quantile: the limit L
+    resolved: bool          # the lower quantile is above zero
+
+    @property
+    def u(self) -> float | None:
+        """Half-width that covers [lower, upper] around the value (resolved only)."""
+        if not self.resolved:
+            return None
+        return max(self.upper - self.value, self.value - self.lower)
+
+    @classmethod
+    def of(cls, raw: float, raw_dof: float, floor: float, floor_dof: float
+           ) -> VarianceDifference:
+        diff = raw * raw - floor * floor
+        value = math.sqrt(max(diff, 0.0))
+        if not (raw_dof > 0 and math.isfinite(floor)):
+            return cls(value, 0.0, math.inf, False)
+        rng = np.random.default_rng(MC_SEED)
+        x_raw = raw_dof / rng.chisquare(raw_dof, MC_DRAWS)
+        v_floor = (floor * floor * floor_dof / rng.chisquare(floor_dof, MC_DRAWS)
+                   if floor_dof > 0 and math.isfinite(floor_dof) else floor * floor)
+        lo = float(np.quantile(raw * raw * x_raw - v_floor, (1 - LEVEL) / 2))
+        # the limit never below the sensitivity: a raw variance under the floor by chance
+        # gives the limit an observed zero difference would, not a tighter one (or zero)
+        top = max(raw, floor)
+        hi = float(np.quantile(top * top * x_raw - v_floor, (1 + LEVEL) / 2))
+        return cls(value, math.sqrt(max(float(lo), 0.0)), math.sqrt(max(float(hi), 0.0)),
+                   bool(lo > 0))
+
 
 def floor_from_static(static_fog_dps: np.ndarray) -> NoiseFloor:
     sigma, pairs = white_noise(static_fog_dps)
@@ -83,45 +137,74 @@ class AveragedInstability:
     corrected_rel: float | None
     blocks: int
     samples_per_block: float
+    floor_dof: float = math.inf    # of the FOG floor's variance
+    dof: float = 0.0               # of the block means' variance: blocks less 1 per
+    #                                calibrated window, 2 per window with its own bias
 
     @property
     def u_rel(self) -> float | None:
-        """U (k = 2) of the std of `blocks` block means: s / sqrt(2 (n - 1)) each."""
-        return std_u_rel(self.instability_rel, self.blocks)
+        """U of the std of the block means (chi-square, `std_interval_u_rel`)."""
+        return std_interval_u_rel(self.instability_rel, self.blocks, self.dof)
 
-    def _excess(self) -> tuple[float, float] | None:
-        """(s^2 - floor^2, its standard uncertainty from the n block means' scatter)."""
+    @property
+    def difference(self) -> VarianceDifference | None:
         s, n = self.instability_rel, self.blocks
-        if s is None or n < 2 or not math.isfinite(self.floor_rel):
+        if s is None or n < 2 or self.dof < 1 or not math.isfinite(self.floor_rel):
             return None
-        return s * s - self.floor_rel ** 2, math.sqrt(2.0 / (n - 1)) * s * s
+        return VarianceDifference.of(s, self.dof, self.floor_rel, self.floor_dof)
 
     @property
     def resolved(self) -> bool | None:
-        """The table's own part stands out of the FOG's averaged floor (k = 2, as A5)."""
-        ex = self._excess()
-        return None if ex is None else ex[0] > COVERAGE * ex[1]
+        """The table's own part stands out of the FOG's averaged floor (A5, JCGM 101)."""
+        d = self.difference
+        return None if d is None else d.resolved
 
     @property
     def corrected_upper_rel(self) -> float | None:
-        """k = 2 upper limit of the floor-corrected figure, never below the sensitivity."""
-        ex = self._excess()
-        return None if ex is None else math.sqrt(max(ex[0], 0.0) + COVERAGE * ex[1])
+        d = self.difference
+        return None if d is None else d.upper
+
+    @property
+    def corrected_lower_rel(self) -> float | None:
+        d = self.difference
+        return None if d is None else d.lower
 
     def to_dict(self) -> dict[str, object]:
         return {"angle_deg": self.angle_deg, "instability_rel": self.instability_rel,
                 "u_rel": self.u_rel,
                 "floor_rel": self.floor_rel, "corrected_rel": self.corrected_rel,
-                "corrected_upper_rel": self.corrected_upper_rel, "resolved": self.resolved,
+                "corrected_upper_rel": self.corrected_upper_rel,
+                "corrected_lower_rel": self.corrected_lower_rel, "resolved": self.resolved,
+                "interval_level": LEVEL, "dof": self.dof,
                 "blocks": self.blocks, "samples_per_block": self.samples_per_block}
 
 
 def std_u_rel(std: float | None, n: int) -> float | None:
-    """U (k = 2) of a standard deviation estimated from n independent values (normal data:
-    u(s) = s / sqrt(2 (n - 1)), docs/method.md A2). The one place this formula lives."""
+    """The normal approximation U = 2 s / sqrt(2 (n - 1)) of a standard deviation from n
+    values: what a result without a stated U (an older run) is read with; the analysis
+    states `std_interval_u_rel` instead."""
     if std is None or n < 2:
         return None
     return 2.0 * std / math.sqrt(2.0 * (n - 1))
+
+
+def std_interval_u_rel(std: float | None, n: int, dof: float | None = None) -> float | None:
+    """U of a standard deviation estimated from n independent normal values (dof n - 1
+    unless stated), docs/method.md A2: the half-width that covers the chi-square 95 %
+    interval [s sqrt(nu / chi2_0.975), s sqrt(nu / chi2_0.025)] on both sides. For many
+    values it is 2 s / sqrt(2 nu); for few it is wider above (4 values: 2.7 s), where
+    the normal approximation would leave the truth outside far more than 5 % of the time.
+    The one place this formula lives."""
+    nu = (n - 1) if dof is None else dof
+    if std is None or nu < 1:
+        return None
+    if nu > 1e4:
+        return 2.0 * std / math.sqrt(2.0 * nu)
+    from scipy.stats import chi2
+
+    hi = std * math.sqrt(nu / float(chi2.ppf(0.025, nu)))
+    lo = std * math.sqrt(nu / float(chi2.ppf(0.975, nu)))
+    return max(hi - std, std - lo)
 
 
 @dataclass(frozen=True)
@@ -130,49 +213,66 @@ class RandomPartResult:
     floor_rel: float
     floor_source: str
     corrected_rel: float                 # sqrt(max(0, raw^2 - floor^2))
-    corrected_upper_rel: float           # k = 2 upper bound
+    corrected_upper_rel: float           # the (1 + LEVEL) / 2 limit L (JCGM 101)
     resolved: bool
     bandwidth_hz: float
     std_dps: float                       # std of the random part, deg/s of table rate
     samples: int
     averaged: tuple[AveragedInstability, ...]
+    corrected_lower_rel: float = 0.0     # the (1 - LEVEL) / 2 end of the interval
+    corrected_u_rel: float | None = None  # half-width covering [lower, upper], resolved only
+    floor_dof: float = math.inf
 
     def to_dict(self) -> dict[str, object]:
         return {"instability_rel": self.instability_rel, "floor_rel": self.floor_rel,
                 "floor_source": self.floor_source, "corrected_rel": self.corrected_rel,
-                "corrected_upper_rel": self.corrected_upper_rel, "resolved": self.resolved,
+                "corrected_upper_rel": self.corrected_upper_rel,
+                "corrected_lower_rel": self.corrected_lower_rel,
+                "corrected_u_rel": self.corrected_u_rel, "interval_level": LEVEL,
+                "interval_method": "JCGM 101 Monte Carlo of raw^2 - floor^2 (scaled "
+                                   "inverse chi-square per variance)",
+                "floor_dof": self.floor_dof, "resolved": self.resolved,
                 "bandwidth_hz": self.bandwidth_hz, "std_dps": self.std_dps,
                 "samples": self.samples, "averaged": [a.to_dict() for a in self.averaged]}
 
 
-def _a5_row_coefs(fit: DirectionFit, cal: FogCalibration) -> tuple[list[np.ndarray], float]:
-    """Row coefficients per window of: f - w0 - d (t - t_ref) - Dw_sys*k, before removing
-    the mean; and that model's residual sum over all samples."""
-    coefs = []
-    total = 0.0
+def _a5_row_coefs(fit: DirectionFit, cal: FogCalibration, own_bias: frozenset[int]
+                  ) -> list[np.ndarray]:
+    """Row coefficients per window of the random part (docs/method.md A5), k times:
+    f - w0 - d (t - t_ref) - Dw_sys*k minus its mean over the calibrated windows. A window
+    in `own_bias` (a half from another session than the calibration's: its FOG bias and
+    time axis are its own, docs/resume.md) keeps the constant and trend the fit gave it
+    (its own mean is then removed, by the fit)."""
+    coefs: list[np.ndarray] = []
+    total, n = 0.0, 0
     for w, ws in enumerate(fit.sums):
         win = ws.win
         c = fit.row_coef(w)                      # shared rows: harmonics and mains
-        d = cal.drift_dps_per_s
-        # y = f - y_centre and t = t_centre + (D / 2) tau, so the calibration's bias and drift
-        # are a constant and a tau term in the window's own columns
-        c[ROW_CONST] = cal.w0_dps + d * (win.t_centre_s - cal.t_ref_s) - ws.y_centre_dps
-        c[ROW_TAU] = d * 0.5 * win.duration_s
+        if win.index not in own_bias:
+            d = cal.drift_dps_per_s
+            # y = f - y_centre and t = t_centre + (D / 2) tau, so the calibration's bias and
+            # drift are a constant and a tau term in the window's own columns
+            c[ROW_CONST] = cal.w0_dps + d * (win.t_centre_s - cal.t_ref_s) - ws.y_centre_dps
+            c[ROW_TAU] = d * 0.5 * win.duration_s
+            v = -c
+            v[ROW_Y] = 1.0
+            total += float(ws.gram[ROW_CONST] @ v)
+            n += ws.n
         coefs.append(c)
-        v = -c
-        v[ROW_Y] = 1.0
-        total += float(ws.gram[ROW_CONST] @ v)
-    return coefs, total
+    mean_raw = total / n if n else 0.0           # k * (mean of the random part)
+    for ws, c in zip(fit.sums, coefs, strict=True):
+        if ws.win.index not in own_bias:
+            c[ROW_CONST] += mean_raw             # docs/method.md A5: minus the mean
+    return coefs
 
 
 def random_part(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,
                 floor: NoiseFloor, sample_rate_hz: float,
-                averaging_deg: Sequence[float] = (1.0, 10.0, 360.0)) -> RandomPartResult:
-    coefs, total = _a5_row_coefs(fit, cal)
-    mean_raw = total / fit.n                     # k * (mean of the random part so far)
+                averaging_deg: Sequence[float] = (1.0, 10.0, 360.0),
+                own_bias: frozenset[int] = frozenset()) -> RandomPartResult:
+    coefs = _a5_row_coefs(fit, cal, own_bias)
     rss = 0.0
     for ws, c in zip(fit.sums, coefs, strict=True):
-        c[ROW_CONST] += mean_raw                 # docs/method.md A5: minus the mean
         v = -c
         v[ROW_Y] = 1.0
         rss += float(v @ ws.gram @ v)
@@ -180,41 +280,49 @@ def random_part(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,
     var_raw = max(rss, 0.0) / (fit.n - 1)
     raw = math.sqrt(var_raw) * scale             # docs/method.md A5: std(Dw_rand) / |w_set|
     floor_rel = floor.sigma_dps * scale
-    diff = raw ** 2 - floor_rel ** 2
-    u_diff = math.hypot(math.sqrt(2.0 / fit.n) * raw ** 2, floor.var_u * scale ** 2)
-    averaged = tuple(_averaged(fit, coefs, scale, floor, a) for a in averaging_deg)
+    n_params = fit.n_params
+    diff = VarianceDifference.of(raw, fit.n - n_params, floor_rel, floor.dof)
+    averaged = tuple(_averaged(fit, coefs, scale, floor, a, own_bias)
+                     for a in averaging_deg)
     return RandomPartResult(
         instability_rel=raw, floor_rel=floor_rel, floor_source=floor.source,
-        corrected_rel=math.sqrt(max(diff, 0.0)),
-        # never below the sensitivity: a raw variance under the floor by chance (diff < 0)
-        # gives the limit a zero difference would, not a tighter one (or zero)
-        corrected_upper_rel=math.sqrt(max(diff, 0.0) + COVERAGE * u_diff),
-        resolved=diff > COVERAGE * u_diff, bandwidth_hz=sample_rate_hz / 2.0,
-        std_dps=math.sqrt(var_raw) / abs(cal.k), samples=fit.n, averaged=averaged)
+        corrected_rel=diff.value, corrected_upper_rel=diff.upper, resolved=diff.resolved,
+        bandwidth_hz=sample_rate_hz / 2.0,
+        std_dps=math.sqrt(var_raw) / abs(cal.k), samples=fit.n, averaged=averaged,
+        corrected_lower_rel=diff.lower, corrected_u_rel=diff.u, floor_dof=floor.dof)
 
 
 def _averaged(fit: DirectionFit, coefs: list[np.ndarray], scale: float, floor: NoiseFloor,
-              angle_deg: float) -> AveragedInstability:
+              angle_deg: float, own_bias: frozenset[int] = frozenset()
+              ) -> AveragedInstability:
+    """docs/method.md A5: the random part's means over blocks of angle_deg. The
+    calibration (k, w0 and the drift from the half means, A3) fits each calibrated window's
+    mean, and a window with a constant and trend of its own (`own_bias`) fits two: each
+    takes that many degrees of freedom from the blocks' means (for 360 deg blocks, 4 turns
+    in two windows of '+-+' leave 2, not 3): the dof says so, and the std is over it."""
     fine = fit.design.fine_bin_deg
     m = angle_deg / fine
     if angle_deg <= 0 or 360 % angle_deg or abs(m - round(m)) > 1e-9:
         raise ValueError(f"averaging angle {angle_deg} deg must divide 360 and be a "
                          f"multiple of the fine bin {fine} deg")
     means, counts = [], []
+    own = 0
     for ws, c in zip(fit.sums, coefs, strict=True):
         r = block_sums(bin_residuals(ws, c), ws, angle_deg)
         n = block_sums(ws.bins[ROW_CONST], ws, angle_deg)
         keep = n > 0
         means.append(r[keep] / n[keep])
         counts.append(n[keep])
+        own += ws.win.index in own_bias
     mu = np.concatenate(means)
     cnt = np.concatenate(counts)
     per_block = float(cnt.mean()) if cnt.size else 0.0
     floor_rel = floor.sigma_dps * scale / math.sqrt(per_block) if per_block else math.nan
-    if mu.size < 2:
+    dof = mu.size - (len(fit.sums) - own) - 2 * own
+    if mu.size < 2 or dof < 1:
         return AveragedInstability(float(angle_deg), None, floor_rel, None, int(mu.size),
-                                   per_block)
-    s = float(np.std(mu, ddof=1)) * scale
+                                   per_block, floor.dof, max(dof, 0))
+    s = math.sqrt(float(np.sum((mu - mu.mean()) ** 2)) / dof) * scale
     return AveragedInstability(float(angle_deg), s, floor_rel,
                                math.sqrt(max(s * s - floor_rel * floor_rel, 0.0)),
-                               int(mu.size), per_block)
+                               int(mu.size), per_block, floor.dof, dof)

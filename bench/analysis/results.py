@@ -15,11 +15,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from bench.analysis.crosscal import CrossCalibration
-from bench.analysis.random_part import RandomPartResult, std_u_rel
+from bench.analysis.random_part import RandomPartResult, std_interval_u_rel
 from bench.analysis.systematic import (
     BinnedSystematic,
     HarmonicResult,
@@ -50,13 +51,15 @@ class SystematicResult:
     binned: BinnedSystematic
     residual_std_dps: float             # of the fit, deg/s of table rate
     inflation: NoiseInflation           # applied to the harmonic and mains uncertainties
+    detection: Mapping[str, object] = dataclasses.field(default_factory=dict)  # the rule
 
     def to_dict(self) -> dict[str, object]:
         return {"harmonics": [h.to_dict() for h in self.harmonics],
                 "mains": self.mains.to_dict() if self.mains else None,
                 "binned": self.binned.to_dict(),
                 "residual_std_dps": self.residual_std_dps,
-                "noise_inflation": self.inflation.to_dict()}
+                "noise_inflation": self.inflation.to_dict(),
+                "detection": dict(self.detection)}
 
 
 @dataclass(frozen=True)
@@ -88,8 +91,11 @@ class RateResult:
         d["intra_turn_instability_rel"] = self.random.instability_rel
         d["intra_turn_instability_corrected_rel"] = self.random.corrected_rel
         # docs/method.md A5: U of a std from the record's samples (white random part assumed)
-        d["intra_turn_instability_u_rel"] = std_u_rel(self.random.instability_rel,
+        d["intra_turn_instability_u_rel"] = std_interval_u_rel(self.random.instability_rel,
                                                       self.random.samples)
+        # docs/method.md A5: the corrected figure's U only when it is resolved (JCGM 101);
+        # otherwise it is stated as '< intra_turn.corrected_upper_rel'
+        d["intra_turn_instability_corrected_u_rel"] = self.random.corrected_u_rel
         d["systematic"] = self.systematic.to_dict()
         d["intra_turn"] = self.random.to_dict()
         d["windows"] = [dict(w) for w in self.windows]

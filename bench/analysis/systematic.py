@@ -24,10 +24,13 @@ angle blocks of about a quarter of the highest harmonic's period are compared wi
 white noise gives; their ratio ("noise inflation", never below 1) scales the covariance.
 Amplitude and phase uncertainties are first-order (delta method): fine when the
 amplitude is well above its uncertainty. `detected` is the bench's one rule for a
-magnitude (docs/certificate.md, "Numbers"): resolved when it exceeds its expanded
-uncertainty, a > U = 2 u. For pure noise an amplitude passes that test with probability
-exp(-2) ~ 14 % (a Rayleigh variable), so an undetected harmonic is reported as an upper
-limit and a detected one near U is read with that in mind.
+magnitude is a test with a stated false-alarm rate (docs/method.md A4): a tone (a
+harmonic order or the mains line) is `detected` when its two fitted coefficients are
+jointly significant, q = (a, b) C^-1 (a, b)^T > chi2_2 quantile at 1 - alpha_1, with
+alpha_1 = 1 - (1 - DETECTION_FALSE_ALARM)^(1/m) (Sidak) for the m tones fitted in one
+direction: the chance that any order whose truth is zero is called detected is then
+DETECTION_FALSE_ALARM (white or inflation-corrected noise). An undetected tone is reported
+as an upper limit.
 """
 
 from __future__ import annotations
@@ -43,6 +46,8 @@ from bench.analysis.angle import FogCalibration
 from bench.analysis.sums import ROW_CONST, ROW_TAU, ROW_Y, Design, WindowSums
 
 COVERAGE = 2.0
+#: family-wise false-alarm rate of the tone detection over all orders tested in a direction
+DETECTION_FALSE_ALARM = 0.05
 _DIVISORS_360 = [d for d in range(1, 361) if 360 % d == 0]
 MIN_LONG_BLOCKS = 32
 
@@ -70,11 +75,14 @@ class MainsResult:
     phase_deg: float
     phase_u_deg: float
     detected: bool
+    significance: float = 0.0   # chi2 (2 dof) of the tone's coefficients
+    source: str = "given"       # where frequency_hz comes from (set by the procedure)
 
     def to_dict(self) -> dict[str, object]:
         return {"frequency_hz": self.frequency_hz, "amplitude_dps": self.amplitude_dps,
                 "amplitude_u_dps": self.amplitude_u_dps, "phase_deg": self.phase_deg,
-                "phase_u_deg": self.phase_u_deg, "detected": self.detected}
+                "phase_u_deg": self.phase_u_deg, "detected": self.detected,
+                "significance_chi2": self.significance, "source": self.source}
 
 
 @dataclass(frozen=True)
@@ -288,20 +296,51 @@ def _pair_cov(fit: DirectionFit, row: int, scale: float, inflation: NoiseInflati
     return a, b, cov
 
 
+def tones_tested(design: Design) -> int:
+    """How many tones one direction's detection tests: the harmonic orders and the mains."""
+    return design.harmonics + (1 if design.has_mains else 0)
+
+
+def detection_threshold(tests: int, false_alarm: float = DETECTION_FALSE_ALARM) -> float:
+    """chi2 (2 dof) threshold of one tone so that m tests together alarm at `false_alarm`
+    (Sidak): for 2 dof the quantile is closed form, -2 ln(alpha_1)."""
+    alpha_1 = 1.0 - (1.0 - false_alarm) ** (1.0 / max(tests, 1))
+    return -2.0 * math.log(alpha_1)
+
+
+def _significance(a: float, b: float, cov: np.ndarray) -> float:
+    """q = v C^-1 v: chi2 with 2 dof when the tone's truth is zero."""
+    v = np.array([a, b])
+    try:
+        return float(v @ np.linalg.solve(cov, v))
+    except np.linalg.LinAlgError:
+        return 0.0
+
+
+def detection_dict(design: Design) -> dict[str, object]:
+    """The rule as result.json states it beside the tones."""
+    m = tones_tested(design)
+    return {"rule": "chi-square (2 dof) test of each tone's two coefficients, Sidak-"
+                    "corrected for the tones fitted in the direction",
+            "family_false_alarm": DETECTION_FALSE_ALARM, "tones_tested": m,
+            "chi2_threshold": detection_threshold(m)}
+
+
 def harmonics_result(fit: DirectionFit, k: float, k_u_std: float, set_rate_dps: float,
                      inflation: NoiseInflation) -> tuple[HarmonicResult, ...]:
     """Relative harmonic amplitudes of the table rate, with expanded uncertainties."""
     design = fit.design
     out = []
     scale = 1.0 / (k * set_rate_dps)
+    threshold = detection_threshold(tones_tested(design))
     for h in range(1, design.harmonics + 1):
-        a, b, cov = _pair_cov(fit, design.row_harm + 2 * (h - 1), scale, inflation)
+        a, b, cov_noise = _pair_cov(fit, design.row_harm + 2 * (h - 1), scale, inflation)
         v = np.array([a, b])
-        cov = cov + np.outer(v, v) * (k_u_std / k) ** 2   # k's share (relative)
+        cov = cov_noise + np.outer(v, v) * (k_u_std / k) ** 2   # k's share (relative)
         amp, u_amp, ph, u_ph = _amp_phase(a, b, cov)
         out.append(HarmonicResult(order=h, amplitude_rel=amp, amplitude_u_rel=COVERAGE * u_amp,
                                   phase_deg=ph, phase_u_deg=min(COVERAGE * u_ph, 180.0),
-                                  detected=amp > COVERAGE * u_amp))
+                                  detected=_significance(a, b, cov_noise) > threshold))
     return tuple(out)
 
 
@@ -310,15 +349,17 @@ def mains_result(fit: DirectionFit, k: float, k_u_std: float, inflation: NoiseIn
     design = fit.design
     if not design.has_mains:
         return None
-    a, b, cov = _pair_cov(fit, design.row_mains, 1.0 / k, inflation)
+    a, b, cov_noise = _pair_cov(fit, design.row_mains, 1.0 / k, inflation)
     v = np.array([a, b])
-    cov = cov + np.outer(v, v) * (k_u_std / k) ** 2
+    cov = cov_noise + np.outer(v, v) * (k_u_std / k) ** 2
     amp, u_amp, ph, u_ph = _amp_phase(a, b, cov)
     assert design.mains_hz is not None  # has_mains
+    q = _significance(a, b, cov_noise)
     return MainsResult(frequency_hz=float(design.mains_hz), amplitude_dps=amp,
                        amplitude_u_dps=COVERAGE * u_amp, phase_deg=ph,
                        phase_u_deg=min(COVERAGE * u_ph, 180.0),
-                       detected=amp > COVERAGE * u_amp)
+                       detected=q > detection_threshold(tones_tested(design)),
+                       significance=q)
 
 
 def binned_systematic(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,

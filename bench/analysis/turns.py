@@ -28,6 +28,7 @@ The counter sees |T|: the sign of every rate is the sign of the command (docs/me
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -140,6 +141,7 @@ class TurnsResult:
     timebase_u_rel: float              # standard, common to every rate
     budget: CounterBudget
     repeatability_u_rel: float = 0.0   # standard, Type A: instability / sqrt(N), widened
+    repeatability_basis: str = ""      # which sigma the Type A term rests on, and why
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -154,22 +156,53 @@ class TurnsResult:
             "rate_error_budget": {"timing_u_rel": self.timing_u_rel,
                                   "timebase_u_rel": self.timebase_u_rel,
                                   "repeatability_u_rel": self.repeatability_u_rel,
+                                  "repeatability_basis": self.repeatability_basis,
                                   "coverage_factor": 2.0, **self.budget.to_dict()},
         }
 
 
-def small_sample_factor(n: int) -> float:
+def small_sample_factor(n: int, dof: float | None = None) -> float:
     """Scale s / sqrt(n) so that k = 2 still covers ~95 % when s rests on few turns.
 
     GUM Supplement 1 (6.4.9): a mean of n readings of unknown variance has a scaled
-    t-distribution, standard deviation s / sqrt(n) * sqrt((n - 1) / (n - 3)) for n > 3;
-    below that the variance is unbounded and we use t_95(n - 1) / 2 instead.
+    t-distribution, standard deviation s / sqrt(n) * sqrt(nu / (nu - 2)) for nu = n - 1
+    > 2 degrees of freedom (or those of a pooled s); below that the variance is unbounded
+    and we use t_95(nu) / 2 instead.
     """
-    if n > 3:
-        return math.sqrt((n - 1) / (n - 3))
+    nu = (n - 1) if dof is None else dof
+    if nu > 2:
+        return math.sqrt(nu / (nu - 2))
     from scipy.stats import t
 
-    return float(t.ppf(0.975, max(n - 1, 1)) / 2.0)
+    return float(t.ppf(0.975, max(nu, 1)) / 2.0)
+
+
+def pool_type_a(results: Sequence[TurnsResult]) -> list[TurnsResult]:
+    """docs/method.md A2: the Type A term of each direction of one pair from the per-turn
+    scatter pooled over both (the same table at the same |rate|: one sigma in the model),
+    nu = sum (N_i - 1) degrees of freedom, still never below each direction's timing floor.
+    The rate error's U is recomputed with it; each budget names its basis."""
+    ss, nu = 0.0, 0
+    for r in results:
+        rel = np.asarray(r.counter_rate_dps) / abs(r.set_rate_dps)
+        if rel.size >= 2:
+            ss += float(np.sum((rel - rel.mean()) ** 2))
+            nu += rel.size - 1
+    if len(results) < 2 or nu < 2:
+        return list(results)
+    pooled = math.sqrt(ss / nu)
+    out = []
+    for r in results:
+        basis_sigma = max(pooled, r.rate_instability_floor_rel)
+        what = ("timing floor" if pooled < r.rate_instability_floor_rel else
+                "sample sigma pooled over both directions")
+        basis = (f"{what} {basis_sigma:.3g} (pooled sigma {pooled:.3g} from "
+                 f"{len(results)} directions, {nu} dof), scaled t with {nu} dof")
+        rep = basis_sigma / math.sqrt(r.turns) * small_sample_factor(r.turns, nu)
+        u = math.sqrt(r.timing_u_rel ** 2 + r.timebase_u_rel ** 2 + rep ** 2)
+        out.append(dataclasses.replace(r, rate_error_u_rel=2.0 * u, repeatability_u_rel=rep,
+                                       repeatability_basis=basis))
+    return out
 
 
 def analyze_turns(windows: Sequence[np.ndarray], set_rate_dps: float,
@@ -197,17 +230,31 @@ def analyze_turns(windows: Sequence[np.ndarray], set_rate_dps: float,
     timing_u_rel = math.sqrt(len(edges)) * budget.period_u_s / total_s
     # docs/method.md A2, eq. 2 with the square root the paper's print lost
     instab = (float(np.std(rates, ddof=1) / abs(np.mean(rates))) if n_turns >= 2 else None)
+    floor = budget.period_u_s * n_turns / total_s  # dT / T per turn (docs/method.md A1)
     # Type A: the table's own turn-to-turn scatter makes the mean of N turns uncertain as
     # an estimate of the table's rate error (sigma / sqrt(N)); the timing terms only say
-    # how well these particular N turns were timed
-    repeat_u_rel = (instab / math.sqrt(n_turns) * small_sample_factor(n_turns)
-                    if instab is not None else 0.0)
+    # how well these particular N turns were timed. docs/method.md A2: the per-turn rates
+    # scatter at least by the timing floor, so a sample sigma below it (few turns, chance)
+    # is raised to the floor: the Type A term never rests on less than is known
+    basis_sigma, basis = type_a_sigma(instab, floor, n_turns)
+    repeat_u_rel = basis_sigma / math.sqrt(n_turns) * small_sample_factor(n_turns)
     u = math.sqrt(timing_u_rel ** 2 + budget.timebase_u_rel ** 2 + repeat_u_rel ** 2)
-    floor = budget.period_u_s * n_turns / total_s  # dT / T per turn (docs/method.md A1)
     return TurnsResult(
         set_rate_dps=float(set_rate_dps), turns=n_turns,
         counter_rate_dps=tuple(float(r) for r in rates), mean_rate_dps=float(mean),
         rate_error_rel=float(err), rate_error_u_rel=2.0 * u, rate_instability_rel=instab,
         rate_instability_floor_rel=float(floor), timing_u_rel=float(timing_u_rel),
         timebase_u_rel=budget.timebase_u_rel, budget=budget,
-        repeatability_u_rel=float(repeat_u_rel))
+        repeatability_u_rel=float(repeat_u_rel), repeatability_basis=basis)
+
+
+def type_a_sigma(sample_rel: float | None, floor_rel: float, n: int) -> tuple[float, str]:
+    """The sigma a Type A term of N turns rests on, and the budget's words for it
+    (docs/method.md A2): the sample sigma, or the timing floor when the sample falls below
+    it; the scaled-t factor for n - 1 degrees of freedom is applied by the caller."""
+    if sample_rel is None:
+        return 0.0, "one turn: no Type A term"
+    if sample_rel < floor_rel:
+        return floor_rel, (f"timing floor {floor_rel:.3g} (sample sigma {sample_rel:.3g} "
+                           f"of {n} turns lies below it), scaled t with {n - 1} dof")
+    return sample_rel, f"sample sigma of {n} turns, scaled t with {n - 1} dof"

@@ -645,7 +645,8 @@ def _conformity(src: Sources, checks: list[dict[str, Any]], proc: Procedure
         quantity = proc.quantity(c.get("quantity"))
         signed = str(c.get("quantity")) not in proc.parts.certificate_unsigned
         vu, tol_text = row.texts(signed)
-        if check_class(c) == "not-assessed":
+        if check_class(c) == "not-assessed" or c.get("one_sided"):
+            # an unresolved value is stated as '< L' and judged on L (bench.conformity)
             unit = rel_unit(row.value, row.tolerance)
             limit = num(c.get("upper_rel"))
             vu = present(row.value, row.u, unit.scale, resolved=False,

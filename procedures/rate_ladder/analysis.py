@@ -19,19 +19,24 @@ import numpy as np
 
 from bench.analysis.allan import allan_deviation
 from bench.analysis.disk import DiskArray
-from bench.analysis.pair import analyze_pair
-from bench.analysis.random_part import std_u_rel
+from bench.analysis.pair import analyze_pair_mains
+from bench.analysis.random_part import std_interval_u_rel
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.config import Config
-from bench.conformity import CAPABILITY_LIMIT, judge
+from bench.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from bench.journal import RunDir, read_jsonl
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, events_of, result_document
 from procedures.rate_ladder.events import HalfAcquired, StaticRecorded
-from procedures.rate_ladder.settings import LadderSettings, tolerance_for
+from procedures.rate_ladder.settings import (
+    MAINS_CANDIDATES_HZ,
+    MAINS_FOUND,
+    LadderSettings,
+    tolerance_for,
+)
 
 
 def counter_budget(stand_axis: dict[str, Any]) -> CounterBudget:
@@ -65,6 +70,21 @@ def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int,
     if found is None:
         raise ValueError(f"no counter reply with {n_edges} timestamps in the raw log")
     return t_start_s + found
+
+
+def counter_start_s(h: HalfAcquired) -> float:
+    """The counter's start on the half's session FOG axis, from the journaled time tie
+    (the sync pulse number, its period and the link's latency) when there is one; it must
+    agree with the start the run used, else the journal is inconsistent and says so."""
+    tie = h.time_tie or {}
+    if "sync_pulse" not in tie:
+        return float(h.counter_t0_s)
+    t0 = int(tie["sync_pulse"]) * float(tie["sync_period_s"]) + float(tie["latency_s"])
+    if abs(t0 - float(h.counter_t0_s)) > 1e-6:
+        raise ValueError(f"{h.unit} half {h.half} (session {h.session}): the journaled time "
+                         f"tie places the counter's start at {t0:.9f} s, the run used "
+                         f"{h.counter_t0_s:.9f} s")
+    return t0
 
 
 def window_on_disk(cursor: CaptureCursor, i_from: int, i_to: int, stem: Path
@@ -159,7 +179,7 @@ class RawData:
         log = self.counter_log(h.session, h.axis)
         i0, i1 = h.counter_records
         model = self.cfg.stand_axis(h.axis)["counter"]["model"]
-        return edges_from_replies(log[i0:i1], model, h.turns + 1, float(h.counter_t0_s))
+        return edges_from_replies(log[i0:i1], model, h.turns + 1, counter_start_s(h))
 
     def half(self, h: HalfAcquired) -> HalfRecord:
         t, w = self.fog_window(h.session, h.axis, h.fog_from, h.fog_to, h.fog_capture)
@@ -208,23 +228,28 @@ def static_record(events: list[dict[str, Any]], axis: str) -> StaticRecorded | N
 
 def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
                  acquisitions: list[HalfAcquired], static: StaticRecorded | None) -> Any:
+    """docs/method.md A1-A5 for one pair. Mains: the stated frequency (procedure, else the
+    stand's grid), or, when neither states it, each candidate grid is fitted and the one
+    whose tone is the more significant is kept (`systematic.mains.source` says which)."""
     s = _settings(cfg)
     fog_hz = cfg.fog(axis).rate_hz
-    mains = s["mains_hz"] if 2 * s["mains_hz"] < fog_hz else None
     static_dps = raw.static(static) if static else None  # before the halves: in file order
     halves = [raw.half(h) for h in sorted(acquisitions, key=lambda h: h.half)]
+    stated = s["mains_hz"]
     try:
-        return analyze_pair(halves, rate_dps, fog_rate_hz=fog_hz,
-                            counter_budget=counter_budget(cfg.stand_axis(axis)),
-                            harmonics=int(s["harmonics"]), mains_hz=mains,
-                            static_fog_dps=static_dps)
+        return analyze_pair_mains(
+            halves, rate_dps, fog_rate_hz=fog_hz,
+            candidates_hz=[stated] if stated is not None else list(MAINS_CANDIDATES_HZ),
+            source=s["mains_source"] if stated is not None else MAINS_FOUND,
+            counter_budget=counter_budget(cfg.stand_axis(axis)),
+            harmonics=int(s["harmonics"]), static_fog_dps=static_dps)
     finally:
         raw.drop_windows()
 
 
 def _instability_u(value: float, turns: int) -> float:
     """U (k = 2) of eq. 2's sigma from N turns (infinite from one turn)."""
-    u = std_u_rel(value, turns)
+    u = std_interval_u_rel(value, turns)
     return math.inf if u is None else u
 
 
@@ -243,21 +268,31 @@ def instability_upper(value: float, turns: int) -> float:
     return value * math.sqrt((turns - 1) / float(chi2.ppf(1.0 - SIGMA_UPPER_P, turns - 1)))
 
 
+def instability_lower(value: float, turns: int) -> float:
+    """The chi-square lower limit of eq. 2's sigma at 1 - SIGMA_UPPER_P (0 below 2 turns)."""
+    if turns < 2:
+        return 0.0
+    from scipy.stats import chi2
+
+    return value * math.sqrt((turns - 1) / float(chi2.ppf(SIGMA_UPPER_P, turns - 1)))
+
+
 def with_sigma_terms(d: dict[str, Any]) -> dict[str, Any]:
-    """A rate's entry with eq. 2's U, its one-sided upper limit and whether it is resolved
+    """A rate's entry with eq. 2's U, its chi-square limits and whether it is resolved
     above the timing floor (what the certificate and the conformity check read)."""
     s, n = d["rate_instability_rel"], d["turns"]
     d["rate_instability_u_rel"] = _instability_u(s, n)
     d["rate_instability_upper_rel"] = instability_upper(s, n)
-    d["rate_instability_resolved"] = sigma_resolved(s, d["rate_instability_u_rel"],
+    d["rate_instability_lower_rel"] = instability_lower(s, n)
+    d["rate_instability_resolved"] = sigma_resolved(d["rate_instability_lower_rel"],
                                                     d["rate_instability_floor_rel"])
     return d
 
 
-def sigma_resolved(value: float, u: float, floor: float) -> bool:
-    """docs/method.md A1/A2: sigma shows the table's own turn-to-turn scatter only when it stands
-    above the timing floor by more than its U (the one k = 2 rule, on the excess)."""
-    return value - u > floor
+def sigma_resolved(lower: float, floor: float) -> bool:
+    """docs/method.md A1/A2: sigma shows the table's own turn-to-turn scatter only when its
+    chi-square lower limit (2.5 %) stands above the timing floor."""
+    return lower > floor
 
 
 def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[dict[str, Any]]:
@@ -282,27 +317,30 @@ def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[di
 
 def sigma_check(axis: str, rate: float, entry: dict[str, Any], tolerance: float,
                 rule: str) -> dict[str, Any]:
-    """Conformity of eq. 2's sigma. Not assessed when sigma is not resolved above the
-    counter chain's timing floor (it then says nothing about the table); otherwise judged
-    with the one-sided chi-square upper limit as the guard (the false-accept risk of the
-    guard-band rule is then at most 1 - SIGMA_UPPER_P for normal per-turn rates)."""
+    """Conformity of eq. 2's sigma. Resolved above the counter chain's timing floor: judged
+    with the one-sided chi-square upper limit as the guard (false-accept risk at most
+    1 - SIGMA_UPPER_P for normal per-turn rates). Not resolved: stated as "< L" (L the same
+    chi-square limit, which bounds the table's sigma whatever the floor's share) and judged
+    by the one rule for limits (bench.conformity.judge_limit): pass when L is within the
+    tolerance, not assessed only when it is not."""
     value, u = entry["rate_instability_rel"], entry["rate_instability_u_rel"]
     floor = entry["rate_instability_floor_rel"]
     upper = entry["rate_instability_upper_rel"]
-    if not sigma_resolved(value, u, floor):
-        c = judge(axis, rate, "rate_instability", value, u, tolerance, rule).to_dict()
-        c.update(verdict="not-assessed", upper_rel=upper, floor_rel=floor,
-                 reason=f"sigma {value:.2g} is not resolved above the counter chain's "
-                        f"timing floor {floor:.2g} (sigma - U <= floor): it does not show the "
-                        "table's turn-to-turn instability and is left out of conformity")
+    level = f"{SIGMA_UPPER_P * 100:g} % chi-square"
+    if not entry["rate_instability_resolved"]:
+        c = judge_limit(axis, rate, "rate_instability", value, u, upper, tolerance, rule,
+                        level).to_dict()
+        c.update(floor_rel=floor)
+        c["reason"] += (f" (sigma {value:.2g} is not resolved above the timing floor "
+                        f"{floor:.2g}: its {100 - SIGMA_UPPER_P * 100:g} % chi-square lower "
+                        "limit is at or below it)")
         return c
     c = judge(axis, rate, "rate_instability", value, upper - value, tolerance, rule).to_dict()
     c.update(u_rel=u, upper_rel=upper, floor_rel=floor, capability_ratio=u / tolerance,
              capability_ok=u / tolerance <= CAPABILITY_LIMIT)
     if rule == "guard-band" and value <= tolerance:
-        c["reason"] = (f"one-sided upper limit {upper:.3g} (chi-square, "
-                       f"{SIGMA_UPPER_P * 100:g} %) {'<=' if upper <= tolerance else '>'} "
-                       f"tolerance {tolerance:.3g}")
+        c["reason"] = (f"one-sided upper limit {upper:.3g} ({level}) "
+                       f"{'<=' if upper <= tolerance else '>'} tolerance {tolerance:.3g}")
     return c
 
 

@@ -219,7 +219,7 @@ def _instability_u(r: Mapping[str, Any]) -> tuple[float | None, bool]:
 
 def sigma_presented(r: Mapping[str, Any], u: float | None) -> Presented:
     """Eq. 2's σ under the one rule, with the timing floor as its zero: resolved when
-    σ − U > floor (the analysis's `rate_instability_resolved`), else '< L', L the
+    its lower limit > floor (the analysis's `rate_instability_resolved`), else '< L', L the
     one-sided chi-square upper limit (`rate_instability_upper_rel`) or σ + U."""
     s = num(r.get("rate_instability_rel"))
     floor = num(r.get("rate_instability_floor_rel"))
@@ -362,9 +362,11 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
              "(section 3, A1): the σ the counter's and the zero-mark sensor's timing errors "
              "alone would give."]
     if unresolved_sigma:
-        notes.append("'< L': σ is not resolved above the timing floor (σ − U ≤ floor): L is "
-                     "its one-sided 97.5 % upper limit for normal per-turn rates (chi-square, "
-                     "N − 1 degrees of freedom); such a σ is left out of conformity.")
+        notes.append("'< L': σ is not resolved above the timing floor (its 2.5 % chi-square "
+                     "lower limit ≤ floor): L is its one-sided 97.5 % upper limit for normal "
+                     "per-turn rates (chi-square, N − 1 degrees of freedom). In a conformity "
+                     "check such a σ conforms when L is within the tolerance, and is not "
+                     "assessed only when it is not (docs/method.md A2, the one rule for '< L').")
     if approximated:
         notes.append("* U of σ from the chi-square approximation U = 2σ/√(2(N−1)) for N turns "
                      "(normal per-turn rates); the result did not carry it.")
@@ -599,10 +601,11 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
             text += f" at {num(floor.get('rate_hz')):g} Hz"
         if num(floor.get("duration_s")) is not None:
             text += f", {num(floor.get('duration_s')):g} s record at rest"
-        notes.append(text + ". Floor-corrected = √(raw² − floor²) ± U when the table's own "
-                            "part stands out of the FOG's noise (raw² − floor² > its U, the "
-                            "one rule); otherwise '< L', L = √(max(raw² − floor², 0) + U) "
-                            "its one-sided k = 2 upper limit.")
+        notes.append(text + ". Floor-corrected = √(raw² − floor²), its interval from a "
+                            "JCGM 101 Monte Carlo of the two variances (docs/method.md A5): "
+                            "± U when the interval's lower end (2.5 %) is above zero, "
+                            "otherwise '< L', L the square root of the difference's 97.5 % "
+                            "quantile.")
     if approx:
         notes.append("* U of the raw value from 2s/√(2(n−1)) over its n samples, assuming "
                      "independent samples; the result did not carry it.")

@@ -73,6 +73,12 @@ class HalfAcquired(LadderEvent):
     counter_readback: dict[str, Any] = field(default_factory=dict)
     fog_lost: int = 0
     fog_capture: dict[str, Any] | None = None
+    # how counter_t0_s was placed on the FOG's time axis (drivers/time_tie.py): the tie's
+    # source, sync period, latency and its u, the sync pulse that started the counter,
+    # when it was armed, and the FOG's sample index convention (index n at n / rate_hz
+    # from the session's stand-clock zero): all a later analysis needs to re-place the
+    # half after a restart, each session on its own axis (docs/resume.md)
+    time_tie: dict[str, Any] = field(default_factory=dict)
 
     @property
     def sign(self) -> int:

@@ -39,7 +39,9 @@ from procedures.rate_ladder.settings import (
     SETTLE_DEFAULTS,
     LadderSettings,
     halves,
+    mains_of,
     tolerance_for,
+    validation_notes,
 )
 
 
@@ -107,6 +109,13 @@ class RateLadder(StepDispatch, LadderCertificate):
                 if mains and 2 * mains.get("frequency_hz", 50) >= fog["rate_hz"]:
                     out.append(sdoc.problem(("axes", axis, "fog", "rate_hz"),
                                             "the FOG rate must exceed twice the mains frequency"))
+                stated, source = mains_of(cfg)
+                if mains and stated is not None and mains.get("frequency_hz") != stated:
+                    doc = pdoc if source.startswith("procedure") else sdoc
+                    out.append(doc.problem(("mains_hz",), f"mains_hz {stated:g} Hz, but the "
+                               f"stand's sim truth of axis {axis!r} has its mains tone at "
+                               f"{mains.get('frequency_hz'):g} Hz: set mains_hz to the "
+                               "lab's grid"))
         for name in ("rate_error", "rate_instability", "intra_turn_instability"):
             bands = cfg.procedure.get("tolerance", {}).get(name)
             if bands and "below_dps" in bands[-1]:
@@ -114,6 +123,10 @@ class RateLadder(StepDispatch, LadderCertificate):
                                         "the last band must have no below_dps (it covers "
                                         "every rate above the others)"))
         return out
+
+    def notes(self, cfg: Config) -> list[str]:
+        """Advice `bench validate` prints beside 'valid' (nothing wrong, something unstated)."""
+        return validation_notes(cfg)
 
     # -- plan ------------------------------------------------------------------------
     def accel(self, cfg: Config, axis: str) -> float:
@@ -289,7 +302,8 @@ class RateLadder(StepDispatch, LadderCertificate):
                      fog_from=i_from, fog_to=i_to, rate_hz=fog.rate_hz,
                      counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
                      counter_readback=dict(counter.readback), fog_lost=lost,
-                     fog_capture=mark).write(ctx.run)
+                     fog_capture=mark, time_tie=time_tie_record(counter, acq, fog)
+                     ).write(ctx.run)
         if lost:
             ctx.progress.warn(f"  WARNING {step.axis}: {lost} FOG frames lost or broken "
                               "during this half (CRC or sequence gaps); the analysis uses "
@@ -386,6 +400,22 @@ class RateLadder(StepDispatch, LadderCertificate):
 
 
 KIND = RateLadder()
+
+
+def time_tie_record(counter: Any, acq: Any, fog: Any) -> dict[str, Any]:
+    """The half's time tie as journaled (HalfAcquired.time_tie): the tie's settings, the
+    sync pulse number behind the start (fog-sync), the arming time, and the FOG index
+    convention, so the start can be placed again on the session's FOG axis."""
+    tie = counter.time_tie
+    rec: dict[str, Any] = {**tie.as_record(), "t_start_s": acq.t_start_s,
+                           "t_start_u_s": acq.t_start_u_s, "armed_at_s": acq.armed_at_s,
+                           "fog_rate_hz": fog.rate_hz,
+                           "fog_index_origin": "first frame received = index 0 = stand "
+                                               "time 0 of this session"}
+    if tie.uses_external_trigger:
+        rec["sync_pulse"] = round((acq.t_start_s - tie.latency_s) / tie.sync_period_s)
+        rec["fog_index_at_start"] = (acq.t_start_s - tie.latency_s) * fog.rate_hz
+    return rec
 
 
 def _fog_mean_dps(fog: Any, span_s: float = 1.0) -> float | None:

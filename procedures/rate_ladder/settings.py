@@ -24,7 +24,6 @@ DEFAULTS: dict[str, Any] = {
     "sequence": "+-+",
     "static_record_s": 60.0,
     "harmonics": 4,
-    "mains_hz": 50.0,
     "decision_rule": "simple",
     "prompts": True,
 }
@@ -70,8 +69,9 @@ PROCEDURE = Map({
                            "FOG at rest per axis (noise floor)", DEFAULTS["static_record_s"]),
     "harmonics": Key(Num(min=1, max=20, integer=True), False, "orders 1..H fitted in angle",
                      DEFAULTS["harmonics"]),
-    "mains_hz": Key(Num(min=1, max=1000, unit="Hz"), False, "mains frequency fitted as a "
-                    "rate disturbance", DEFAULTS["mains_hz"]),
+    "mains_hz": Key(Num(min=1, max=1000, unit="Hz"), False,
+                    "mains frequency of the lab's grid; overrides the stand's `mains_hz` "
+                    "(without either, found from the data: 50 and 60 Hz are tried)"),
     "axes": Key(MapOf(AXIS, min_len=1), True, "the axes to certify, by their stand names"),
     "tolerance": Key(Map({
         "rate_error": Key(ListOf(BAND, min_len=1), False, "|mean - set| / |set| (eq. 1)"),
@@ -108,7 +108,8 @@ class LadderSettings:
     sequence: str
     static_record_s: float
     harmonics: int
-    mains_hz: float
+    mains_hz: float | None      # None: found from the data (MAINS_CANDIDATES_HZ)
+    mains_source: str
     decision_rule: str
     prompts: bool
     axes: Mapping[str, AxisSettings]
@@ -116,13 +117,14 @@ class LadderSettings:
     @classmethod
     def from_config(cls, cfg: Config) -> LadderSettings:
         turns = int(setting(cfg, "turns"))
+        mains_hz, mains_source = mains_of(cfg)
         axes = {name: AxisSettings(name, tuple(float(r) for r in spec["rates_dps"]),
                                    int(spec.get("turns", turns)), spec.get("prompt"))
                 for name, spec in cfg.procedure["axes"].items()}
         return cls(turns=turns, sequence=str(setting(cfg, "sequence")),
                    static_record_s=float(setting(cfg, "static_record_s")),
                    harmonics=int(setting(cfg, "harmonics")),
-                   mains_hz=float(setting(cfg, "mains_hz")),
+                   mains_hz=mains_hz, mains_source=mains_source,
                    decision_rule=str(setting(cfg, "decision_rule")),
                    prompts=bool(setting(cfg, "prompts")), axes=MappingProxyType(axes))
 
@@ -134,7 +136,34 @@ class LadderSettings:
                             else ", ".join(f"{k} {v}" for k, v in per_axis.items()))
         return {"turns": turns, "turns_per_axis": per_axis, "sequence": self.sequence,
                 "static_record_s": self.static_record_s, "harmonics": self.harmonics,
-                "mains_hz": self.mains_hz, "decision_rule": self.decision_rule}
+                "mains_hz": self.mains_hz, "mains_source": self.mains_source,
+                "decision_rule": self.decision_rule}
+
+
+#: the grids a mains tone is looked for at when neither file states the lab's
+MAINS_CANDIDATES_HZ = (50.0, 60.0)
+MAINS_FOUND = "found from the data (50 and 60 Hz tried; the larger significant tone)"
+
+
+def mains_of(cfg: Config) -> tuple[float | None, str]:
+    """The mains frequency and where it comes from: the procedure's `mains_hz`, else the
+    stand's top-level `mains_hz` (the lab's grid, CONTRACT §2), else None: the analysis
+    finds it from the data (never a silent 50)."""
+    if cfg.procedure.get("mains_hz") is not None:
+        return float(cfg.procedure["mains_hz"]), "procedure file (mains_hz)"
+    if cfg.stand.get("mains_hz") is not None:
+        return float(cfg.stand["mains_hz"]), "stand file (mains_hz, the lab's grid)"
+    return None, MAINS_FOUND
+
+
+def validation_notes(cfg: Config) -> list[str]:
+    """What `bench validate` says beside 'valid' for a rate ladder."""
+    if mains_of(cfg)[0] is None:
+        return [f"{cfg.stand_path}: key mains_hz not set (neither in the stand nor in "
+                f"{cfg.procedure_path.name}): the mains tone will be found from the data "
+                "(50 and 60 Hz tried); set mains_hz: 50 or 60 at the stand file's top "
+                "level to state the lab's grid"]
+    return []
 
 
 def tolerance_for(bands: list[dict[str, float]] | None, rate_dps: float) -> float | None:
