@@ -328,6 +328,11 @@ class SteppedClock:
             ch = self._channels.setdefault(name, _Channel(open=True))
             ch.consumed += n
 
+    def has_consumer(self, name: str) -> bool:
+        with self._cond:
+            ch = self._channels.get(name)
+            return ch is not None and ch.open
+
     def backlog(self, name: str) -> int:
         """Units sent on `name` not yet consumed (0 when no consumer has it open)."""
         with self._cond:
