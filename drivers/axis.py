@@ -89,6 +89,8 @@ RawSink = Callable[[str, dict], None]
 #: real seconds added to every wait scaled from the clock (CAN latency, thread wake-ups,
 #: a loaded host): the bench's stated minimum (drivers/waits.py)
 REAL_MARGIN_S = MIN_REAL_MARGIN_S
+#: on a stepped clock (a co-simulation) waits for readings look this often, stand s
+STEPPED_POLL_S = 0.05
 #: real seconds to wait for one 402 state change or NMT start (the same minimum)
 STATE_TIMEOUT_S = MIN_REAL_MARGIN_S
 #: SDO response timeout, real seconds (canopen's 0.3 s is short on a loaded host)
@@ -624,7 +626,7 @@ class Axis:
                 if self.clock.now() > t_end:
                     raise AxisTimeout(f"axis {self.name}: drive did not reach {target.label} "
                                       f"(it shows {state.label})")
-                self.clock.sleep(self._tpdo_period_s)
+                self.clock.sleep(max(self._tpdo_period_s, STEPPED_POLL_S))
                 continue
             if time.monotonic() > deadline:
                 raise AxisTimeout(f"axis {self.name}: drive did not reach {target.label} "
@@ -890,7 +892,7 @@ class Axis:
                 if self.clock.now() > t_end:
                     deadline = 0.0
                     continue
-                self.clock.sleep(self._tpdo_period_s)
+                self.clock.sleep(max(self._tpdo_period_s, STEPPED_POLL_S))
                 continue
             with self._lock:
                 self._lock.wait(timeout=0.05)
@@ -1105,7 +1107,7 @@ class Axis:
                     raise AxisTimeout(f"axis {self.name}: timed out after {timeout_real_s:.2f} "
                                       f"s (stand time) waiting for {what}")
                 before = self.clock.now()
-                self.clock.sleep(self._tpdo_period_s)
+                self.clock.sleep(max(self._tpdo_period_s, STEPPED_POLL_S))
                 if self.clock.now() <= before:  # paused: nothing moves on stand time
                     with self._lock:
                         self._lock.wait(timeout=0.02)

@@ -217,7 +217,7 @@ STEPPED_SPEEDS = (math.inf,)
 DEFAULT_MAX_STEP_S = 1.0
 #: real seconds a stepped clock waits for a participant to settle before passing it over
 GUARD_REAL_S = 20.0
-_SETTLE_POLL_REAL_S = 0.0002
+_SETTLE_POLL_REAL_S = 0.002
 
 
 class Participant(Protocol):
@@ -267,6 +267,8 @@ class SteppedClock:
         self._participants: list[Participant] = []
         self._channels: dict[str, _Channel] = {}
         self._passed_over: set[int] = set()
+        self._progress = threading.Condition(threading.Lock())
+        self._generation = 0
         self._m0 = time.monotonic()
         self._t0 = self._t_s
         self.steps = 0
@@ -327,6 +329,13 @@ class SteppedClock:
         with self._cond:
             ch = self._channels.setdefault(name, _Channel(open=True))
             ch.consumed += n
+        self.poke()
+
+    def poke(self) -> None:
+        """Something a participant's `settled` depends on changed: look again now."""
+        with self._progress:
+            self._generation += 1
+            self._progress.notify_all()
 
     def has_consumer(self, name: str) -> bool:
         with self._cond:
@@ -403,15 +412,19 @@ class SteppedClock:
             parts = list(self._participants)
         m0 = time.monotonic()
         for p in parts:
-            while not p.settled(t, final):
-                waited = time.monotonic() - m0
-                if waited > GUARD_REAL_S:
+            while True:
+                gen = self._generation
+                if p.settled(t, final):
+                    break
+                if time.monotonic() - m0 > GUARD_REAL_S:
                     if id(p) not in self._passed_over:
                         self._passed_over.add(id(p))
                         log.warning("stepped clock: %r did not settle at t = %.6f s within "
                                     "%.0f s of real time; passed over", p, t, GUARD_REAL_S)
                     break
-                time.sleep(_SETTLE_POLL_REAL_S if waited < 0.01 else 0.002)
+                with self._progress:  # woken by consumed()/poke(), else look again soon
+                    self._progress.wait_for(lambda g=gen: self._generation != g,
+                                            _SETTLE_POLL_REAL_S)
         self.settle_wait_real_s += time.monotonic() - m0
 
 

@@ -19,7 +19,8 @@ checks the watchdog, and transmits the TPDOs.
 On the co-simulation clock (sims/clock.py SteppedClock) the ticks are the clock's events
 instead, on a grid of stand time: every event timer while anything moves or changes
 (a ramp, a state change, `ACTIVE_S` after any write from the controller, until target
-reached), every `STEADY_TICK_S` once the table turns steadily (the TPDOs then carry
+reached; but no faster than `FINE_TICK_S`), every `STEADY_TICK_S` once the table turns
+steadily (the TPDOs then carry
 what the last one did, to within the noise, and 100 a second over a 29-hour ladder would
 cost more than the measurement). The controller's consumption of the TPDOs is counted on
 the channel `can_channel_name(channel, node)`, so each reading is stamped at the stand
@@ -89,6 +90,9 @@ STARVED_TICKS = 5
 ACTIVE_S = 3.0
 #: co-simulation: stand seconds between ticks while the table turns steadily
 STEADY_TICK_S = 1.0
+#: co-simulation: the shortest stand time between ticks (the event timer's 10 ms would
+#: make five steps of the clock for each one that matters to a settle or a ramp)
+FINE_TICK_S = 0.05
 
 #: objects whose value the twin computes when read (SDO or TPDO)
 _LIVE = frozenset({Od.STATUSWORD, Od.MODES_OF_OPERATION_DISPLAY, Od.POSITION_ACTUAL,
@@ -640,7 +644,7 @@ class DriveTwin:
                     or self._state is State.QUICK_STOP_ACTIVE
                     or (self._state is State.OPERATION_ENABLED and not self._target_reached)
                     or t_s < self.model.profile.settle_time_s() + ACTIVE_S)
-        period = self._tick_s if busy else max(STEADY_TICK_S, self._tick_s)
+        period = max(FINE_TICK_S, self._tick_s) if busy else max(STEADY_TICK_S, self._tick_s)
         return (math.floor(t_s / period + 1e-9) + 1) * period
 
     def advance(self, t_s: float) -> None:

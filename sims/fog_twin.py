@@ -365,6 +365,8 @@ class FogTwin:
                 break
             time.sleep(_TICK_S)
         self._gate_open = True
+        if self._stepped:
+            self.clock.poke()
         while not self._stop.is_set():
             self._serve_commands()
             if self.config_mode:  # no binary output in Configuration Mode (ICD 3.3)
