@@ -214,7 +214,7 @@ class VirtualClock:
 #: `sim: clock_speed` values that select the co-simulation (SteppedClock)
 STEPPED_SPEEDS = (math.inf,)
 #: longest single jump of a stepped clock (virtual s): bounds what a twin encodes at once
-DEFAULT_MAX_STEP_S = 1.0
+DEFAULT_MAX_STEP_S = 10.0
 #: real seconds a stepped clock waits for a participant to settle before passing it over
 GUARD_REAL_S = 20.0
 _SETTLE_POLL_REAL_S = 0.002
