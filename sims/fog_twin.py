@@ -360,7 +360,13 @@ class FogTwin:
             if seen is None and self._reader_present(poller):
                 seen = time.monotonic()
                 self._reading = True
-            if seen is not None and time.monotonic() - seen >= _OPEN_SETTLE_S \
+            if self._stepped:
+                # the driver says when it records (after its configuration dialogue and
+                # the flush that ends it): frames written before would be flushed, and
+                # the first frame read would not be stand sample 0
+                if seen is not None and self.clock.has_consumer(self.path):
+                    break
+            elif seen is not None and time.monotonic() - seen >= _OPEN_SETTLE_S \
                     and getattr(self.clock, "running", True):
                 break
             time.sleep(_TICK_S)
