@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import sys
 import uuid
 from collections.abc import Callable
 from typing import Any
@@ -23,7 +24,7 @@ from typing import Any
 from bench.canbus import bus_name, controller_node_ids
 from bench.config import FogSettings
 from drivers.waits import MIN_REAL_MARGIN_S
-from sims.clock import MAX, make_clock, parse_speed
+from sims.clock import GIL_SWITCH_S, MAX, SteppedClock, make_clock, parse_speed
 from sims.counter_twin import CounterTwin
 from sims.drive_twin import DriveTwin
 from sims.fog_twin import FogTwin
@@ -96,6 +97,10 @@ class SimBench:
         self.channel = f"sim-{uuid.uuid4().hex[:8]}"
         self.twins: dict[str, Any] = {}
         self._stack = contextlib.ExitStack()
+        if isinstance(self.clock, SteppedClock):  # hand-offs every step (sims/clock.py)
+            switch = sys.getswitchinterval()
+            sys.setswitchinterval(GIL_SWITCH_S)
+            self._stack.callback(sys.setswitchinterval, switch)
 
     def start(self, extra: list[TwinFactory] | None = None) -> dict[str, Any]:
         """Start every twin; return the stand mapping pointing at them."""

@@ -67,6 +67,7 @@ _READ_TIMEOUT_S = 0.05     # real seconds a read waits for the first byte
 _BATCH_BYTES = 1 << 16     # decode in batches of up to this many bytes
 _BATCH_GAP_S = 0.001       # real seconds a batch waits for the next piece of a fast stream
 _BATCH_REAL_S = 0.005      # ... and at most this long in all (a slow stream's latency)
+_STEPPED_GAP_S = 0.0002    # on a stepped clock: a step's frames come in one burst
 _STALL_FRAMES = 64         # a silence this many frame periods long is a stall,
 _STALL_REAL_S = 0.1        # ... and at least this many real seconds (OS, USB latency)
 _ALIAS_MIN_REAL_S = 0.02   # the wrap check needs half a wrap to last this long in real time
@@ -373,7 +374,7 @@ class Fog:
         # the FOG's (a hold on the clock's own time is seen as late samples, not here)
         stall_s = math.inf if stepped(self.clock) else \
             max(_STALL_FRAMES / self.rate_hz, _STALL_REAL_S * self.clock.speed)
-        gap_s = 0.0 if stepped(self.clock) else _BATCH_GAP_S
+        gap_s = _STEPPED_GAP_S if stepped(self.clock) else _BATCH_GAP_S
         started = False
         try:
             while not self._stop.is_set():
@@ -414,7 +415,7 @@ class Fog:
         costs more than the bytes (a fixed cost per call), so a fast stream is gathered
         for a moment first: waiting up to _BATCH_GAP_S for the next piece, never holding
         a batch longer than _BATCH_REAL_S (the latency a slow stream sees). On a stepped
-        clock a step's frames are all written before the step ends: no wait (gap_s 0).
+        clock a step's frames come in one burst: a far shorter gap ends the batch.
         """
         chunks = [first]
         size = len(first)

@@ -30,6 +30,11 @@ what the stand produced up to t, on any machine, at any load. A participant that
 settle within `GUARD_REAL_S` of real time (a dead twin, a reader gone) is reported once
 and passed over: a broken twin cannot freeze the run.
 
+A step hands work from thread to thread (the stepping thread, a twin's writer, a
+driver's reader, the CAN notifier): `GIL_SWITCH_S` is the interpreter's switch interval
+while a stepped clock runs (SimBench sets it), so a hand-off does not wait the default
+5 ms behind a thread decoding frames.
+
 Heartbeats and their watchdogs stay in real time (drivers/heartbeat.py): they guard
 the link, not the measurement, and their tests are about real-time behaviour.
 
@@ -214,7 +219,9 @@ class VirtualClock:
 #: `sim: clock_speed` values that select the co-simulation (SteppedClock)
 STEPPED_SPEEDS = (math.inf,)
 #: longest single jump of a stepped clock (virtual s): bounds what a twin encodes at once
-DEFAULT_MAX_STEP_S = 10.0
+DEFAULT_MAX_STEP_S = 30.0
+#: the interpreter's thread switch interval while a stepped clock runs (s; default 0.005)
+GIL_SWITCH_S = 0.0005
 #: real seconds a stepped clock waits for a participant to settle before passing it over
 GUARD_REAL_S = 20.0
 _SETTLE_POLL_REAL_S = 0.002

@@ -89,7 +89,7 @@ STARVED_TICKS = 5
 #: co-simulation: stand seconds of ticks at the event timer after any controller write
 ACTIVE_S = 3.0
 #: co-simulation: stand seconds between ticks while the table turns steadily
-STEADY_TICK_S = 5.0
+STEADY_TICK_S = 30.0
 #: co-simulation: the shortest stand time between ticks (the event timer's 10 ms would
 #: make five steps of the clock for each one that matters to a settle or a ramp)
 FINE_TICK_S = 0.05

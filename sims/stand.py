@@ -367,14 +367,21 @@ class AxisModel:
             noise = self._rng("table", k).standard_normal(n) * self.truth.rate_noise_dps
             noise[~turning] = 0.0
         dt = 1.0 / self.rate_hz
-        # fixed point of phi = phi_last + cumtrapz(w(phi, t)); first guess ignores harmonics
-        phi = phi_last + np.cumsum(w_cmd) * dt
-        for _ in range(_FIXED_POINT_PASSES):
-            w = self._rate(t, w_cmd, phi, noise)
-            prev = np.concatenate(([w_last], w[:-1]))
-            phi = phi_last + np.cumsum(0.5 * (prev + w)) * dt
-        if n0 == 0:  # the first sample is the origin, not a step from it
-            phi -= 0.5 * (w_last + w[0]) * dt
+        if w_last == 0.0 and not turning.any():
+            # at rest the whole block (every error source is scaled by, or gated on, the
+            # commanded rate): the same numbers the solve below gives, without it
+            w = np.zeros(n)
+            phi = np.full(n, phi_last)
+        else:
+            # fixed point of phi = phi_last + cumtrapz(w(phi, t)); the first guess
+            # ignores harmonics
+            phi = phi_last + np.cumsum(w_cmd) * dt
+            for _ in range(_FIXED_POINT_PASSES):
+                w = self._rate(t, w_cmd, phi, noise)
+                prev = np.concatenate(([w_last], w[:-1]))
+                phi = phi_last + np.cumsum(0.5 * (prev + w)) * dt
+            if n0 == 0:  # the first sample is the origin, not a step from it
+                phi -= 0.5 * (w_last + w[0]) * dt
         fog = self.truth.fog
         fog_dps = fog.k * w + fog.bias_at(t)
         if fog.noise_dps:
