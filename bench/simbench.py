@@ -6,6 +6,10 @@ virtual bus).
 its twin's, so `bench.instruments` opens them exactly as it would open hardware. The
 clock starts paused: the twins and drivers connect first, then `start_clock()`, so the
 FOG's first frame is the stand's sample 0 and all instruments share one time axis.
+
+The clock is the co-simulation's (sims/clock.py SteppedClock) unless the stand file asks
+for a real-time pace (`sim: clock_speed: N`): then results depend only on the seed and
+the files, never on the machine's load.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import socket
+import sys
 import uuid
 from collections.abc import Callable
 from typing import Any
@@ -20,7 +25,7 @@ from typing import Any
 from bench.canbus import bus_name, controller_node_ids
 from bench.config import FogSettings
 from drivers.waits import MIN_REAL_MARGIN_S
-from sims.clock import MAX, VirtualClock, parse_speed
+from sims.clock import GIL_SWITCH_S, MAX, SteppedClock, make_clock, parse_speed
 from sims.counter_twin import CounterTwin
 from sims.drive_twin import DriveTwin
 from sims.fog_twin import FogTwin
@@ -96,7 +101,8 @@ class SimBench:
             axes={a: AxisTruth.from_mapping(sim_axes.get(a, DEFAULT_AXIS_TRUTH)) for a in axes},
             clock_speed=parse_speed(sim.get("clock_speed"), MAX),
         )
-        self.clock = VirtualClock(truth.clock_speed, running=False)
+        # `clock_speed: max` (the default): the co-simulation, deterministic; N: paced
+        self.clock = make_clock(truth.clock_speed, running=False)
         fogs = {a: FogSettings.of_axis(self.stand_cfg, a) for a in axes}
         # an axis with no FOG is still sampled, on a grid of its own (SIM_GRID_HZ)
         fog_hz = {a: f.rate_hz if f else SIM_GRID_HZ for a, f in fogs.items()}
@@ -108,6 +114,10 @@ class SimBench:
         self.can_port = _free_udp_port() if self.can_interface == "udp_multicast" else None
         self.twins: dict[str, Any] = {}
         self._stack = contextlib.ExitStack()
+        if isinstance(self.clock, SteppedClock):  # hand-offs every step (sims/clock.py)
+            switch = sys.getswitchinterval()
+            sys.setswitchinterval(GIL_SWITCH_S)
+            self._stack.callback(sys.setswitchinterval, switch)
 
     def start(self, extra: list[TwinFactory] | None = None) -> dict[str, Any]:
         """Start every twin; return the stand mapping pointing at them."""

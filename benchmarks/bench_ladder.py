@@ -8,18 +8,29 @@ max`), and samples the resident memory of the whole process tree (the bench, its
 analysis worker) every 0.2 s with psutil. Options rewrite copies of the procedure and
 stand: the FOG's rate, a subset of axes or rates, more turns (a longer ladder). Prints
 one line: bench time, wall time, peak RSS of the tree, frames lost, exit status.
-Goals (issue 14, this 2-core machine): paper ladder <= 5 min wall; peak RSS <= 1 GB at
-1 kHz and <= 1.5 GB at 5 kHz, the same for a ladder twice as long; 0 frames lost.
+Goals (issue 27, this 2-core machine): paper ladder <= 120 s wall, <= 500 MB peak RSS of
+the process tree; memory flat in duration (a ladder twice as long); 0 frames lost.
+
+`--profile` runs the ladder in this process instead and says where the CPU time goes,
+by component: the bench thread (the engine, the clock's steps, the stand's samples,
+the FOG twins' encoding, the drive twins' ticks: split by cProfile), the FOG twins'
+writer threads (the channel), the FOG drivers' reader threads (decode and the raw
+capture), the CAN threads, the analysis worker process, and the real time the clock
+waited for participants to settle.
 """
 
 from __future__ import annotations
 
 import argparse
+import cProfile
+import io
 import json
 import os
+import pstats
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -63,6 +74,93 @@ def prepare(args: argparse.Namespace, tmp: Path) -> Path:
     return out
 
 
+#: cProfile's cumulative time of these functions (bench thread), by component
+_MAIN_PARTS = {
+    "stand samples (sims/stand.py _generate)": "_generate",
+    "FOG twin encoding (sims/fog_twin.py _on_chunk)": "_on_chunk",
+    "drive twin ticks (sims/drive_twin.py _tick)": "_tick",
+    "clock settle waits (sims/clock.py _settle)": "_settle",
+    "journal (bench/journal.py)": "journal.py",
+    "analysis in the bench thread (procedures analysis)": "analysis.py",
+}
+
+
+def _thread_cpu(stop: threading.Event, out: dict[str, float]) -> None:
+    """Sample the CPU time of every thread of this process by name (threads end)."""
+    me = psutil.Process()
+    while True:
+        names = {t.native_id: t.name for t in threading.enumerate()}
+        seen: dict[int, float] = {}
+        for th in me.threads():
+            seen[th.id] = th.user_time + th.system_time
+        for tid, cpu in seen.items():
+            key = f"{names.get(tid, '?')}#{tid}"
+            out[key] = max(out.get(key, 0.0), cpu)
+        for ch in me.children(recursive=True):
+            try:
+                c = ch.cpu_times()
+                out[f"worker#{ch.pid}"] = max(out.get(f"worker#{ch.pid}", 0.0),
+                                              c.user + c.system)
+            except psutil.Error:
+                pass
+        if stop.wait(0.5):
+            return
+
+
+def profile(procedure: Path, out: Path) -> None:
+    sys.path.insert(0, str(ROOT))
+    from bench.commands import run_session
+    from bench.journal import RunDir
+    from bench.loader import load_config
+
+    cfg = load_config(procedure)
+    run = RunDir.create(out, cfg.procedure_path, cfg.stand_path)
+    seen: dict[str, object] = {}
+    cpu: dict[str, float] = {}
+    stop = threading.Event()
+    sampler = threading.Thread(target=_thread_cpu, args=(stop, cpu), daemon=True)
+    sampler.start()
+    prof = cProfile.Profile()
+    t0 = time.monotonic()
+    prof.enable()
+    status = run_session(cfg, run, yes=True,
+                         on_sim_started=lambda sim: seen.setdefault("sim", sim))
+    prof.disable()
+    wall = time.monotonic() - t0
+    stop.set()
+    sampler.join()
+    stats = pstats.Stats(prof, stream=io.StringIO())
+    cum: dict[str, float] = {}
+    for (file, _line, func), (_cc, _nc, _tt, ct, _callers) in stats.stats.items():
+        for label, key in _MAIN_PARTS.items():
+            if key == func or (key.endswith(".py") and file.endswith(key)):
+                cum[label] = max(cum.get(label, 0.0), ct)
+    groups: dict[str, float] = {}
+    for key, t in cpu.items():
+        name = key.split("#")[0]
+        group = ("bench thread (all of the above, and the rest)" if name == "MainThread"
+                 else "FOG twin writers (the pty channel)" if name.startswith("fog-twin")
+                 else "FOG driver readers (decode, raw capture)" if name.startswith("fog-")
+                 else "analysis worker process" if name == "worker"
+                 else "sha256 of the raw files" if name.startswith("sha256")
+                 else "CAN (python-can, canopen, heartbeats)" if name.startswith(
+                     ("Thread", "can", "heartbeat", "drive-twin"))
+                 else f"other threads ({name})")
+        groups[group] = groups.get(group, 0.0) + t
+    clock = seen.get("sim")
+    c = getattr(clock, "clock", None)
+    print(f"status {status}, wall {wall:.1f} s, bench time {getattr(c, 'now', lambda: 0)():.0f} s, "
+          f"clock steps {getattr(c, 'steps', '?')}")
+    print("CPU seconds by thread group:")
+    for g, t in sorted(groups.items(), key=lambda x: -x[1]):
+        print(f"  {t:8.1f}  {g}")
+    print("bench thread, cumulative seconds (cProfile):")
+    for label, t in sorted(cum.items(), key=lambda x: -x[1]):
+        print(f"  {t:8.1f}  {label}")
+    print(f"  {getattr(c, 'settle_wait_real_s', 0.0):8.1f}  real time the clock waited for "
+          f"participants to settle")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--procedure", default="configs/procedures/paper-ladder.yaml")
@@ -71,11 +169,16 @@ def main() -> int:
     ap.add_argument("--rates", nargs="*", type=float, default=None)
     ap.add_argument("--turns-scale", type=float, default=1.0, help="2: a ladder twice as long")
     ap.add_argument("--out", type=Path, default=None, help="keep the run directory here")
+    ap.add_argument("--profile", action="store_true",
+                    help="run in this process and say where the time goes")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory(prefix="bench-ladder-") as tmp_s:
         tmp = Path(tmp_s)
         procedure = prepare(args, tmp)
         out = args.out or tmp / "runs"
+        if args.profile:
+            profile(procedure, out)
+            return 0
         env = {**os.environ, "PYTHONPATH": str(ROOT)}
         t0 = time.monotonic()
         p = subprocess.Popen([sys.executable, "-m", "bench", "run", str(procedure), "--yes",

@@ -71,7 +71,15 @@ from drivers.cia402 import (
     unwrap_int32,
     wrap_int32,
 )
-from drivers.clock import Clock, real_budget_s
+from drivers.clock import (
+    Clock,
+    can_channel_name,
+    channel_closed,
+    channel_opened,
+    consumed,
+    real_budget_s,
+    stepped,
+)
 from drivers.heartbeat import HeartbeatProducer
 from drivers.waits import MIN_REAL_MARGIN_S
 
@@ -82,6 +90,8 @@ RawSink = Callable[[str, dict], None]
 #: real seconds added to every wait scaled from the clock (CAN latency, thread wake-ups,
 #: a loaded host): the bench's stated minimum (drivers/waits.py)
 REAL_MARGIN_S = MIN_REAL_MARGIN_S
+#: on a stepped clock (a co-simulation) waits for readings look this often, stand s
+STEPPED_POLL_S = 0.05
 #: real seconds to wait for one 402 state change or NMT start (the same minimum)
 STATE_TIMEOUT_S = MIN_REAL_MARGIN_S
 #: SDO response timeout, real seconds (canopen's 0.3 s is short on a loaded host)
@@ -370,6 +380,7 @@ class Axis:
 
     def _leave_bus(self) -> None:
         network, self.network = self.network, None
+        channel_closed(self.clock, can_channel_name(self.channel, self.node_id))
         if self._hb_task is not None:
             try:
                 self._hb_task.stop()
@@ -407,7 +418,8 @@ class Axis:
         node.nmt.state = "OPERATIONAL"
         self._wait_real(lambda: self._drive_nmt == NMT_STATE_OPERATIONAL,
                         max(STATE_TIMEOUT_S, 5 * self.heartbeat_ms / 1000.0),
-                        "the drive's heartbeat to show NMT operational", check=False)
+                        "the drive's heartbeat to show NMT operational", check=False,
+                        real_time=True)
         node.tpdo.read()  # the drive's TPDO mapping and communication parameters, by SDO
         mapped: set[int] = set()
         periods = []
@@ -425,6 +437,7 @@ class Axis:
             names = ", ".join(f"0x{i:04X} {Od(i).name.lower()}" for i in sorted(missing))
             raise AxisError(f"axis {self.name}: the drive's TPDOs do not carry {names}")
         self._tpdo_period_s = max(periods, default=0.01)
+        channel_opened(self.clock, can_channel_name(self.channel, self.node_id))
         quick = self._read_optional(Od.QUICK_STOP_DECELERATION)
         if quick:
             self._quick_stop_decel_dps2 = self.units.accel_to_dps2(quick)
@@ -614,10 +627,17 @@ class Axis:
 
     def _wait_state(self, target: State) -> State:
         deadline = time.monotonic() + STATE_TIMEOUT_S
+        t_end = self.clock.now() + STATE_TIMEOUT_S
         while True:
             state = self._read_state()
             if state is target:
                 return state
+            if stepped(self.clock):  # co-simulation: the drive changes on stand time
+                if self.clock.now() > t_end:
+                    raise AxisTimeout(f"axis {self.name}: drive did not reach {target.label} "
+                                      f"(it shows {state.label})")
+                self.clock.sleep(max(self._tpdo_period_s, STEPPED_POLL_S))
+                continue
             if time.monotonic() > deadline:
                 raise AxisTimeout(f"axis {self.name}: drive did not reach {target.label} "
                                   f"(it shows {state.label})")
@@ -845,6 +865,7 @@ class Axis:
             raise ValueError(f"axis {self.name}: wait_settled needs tolerance_dps > 0, "
                              f"hold_s >= 0 and timeout_s > 0")
         deadline = time.monotonic() + real_budget_s(self.clock, timeout_s) + REAL_MARGIN_S
+        t_end = self.clock.now() + timeout_s
         with self._lock:
             seq = self._seq
         run: list[Feedback] = []
@@ -877,6 +898,12 @@ class Axis:
                                   f"{tolerance_dps:g} deg/s of {target:g} deg/s for {hold_s:g} s "
                                   f"in {timeout_s:g} s (last velocity actual: "
                                   f"{'none' if last_v is None else f'{last_v:.6g} deg/s'})")
+            if stepped(self.clock):  # co-simulation: the next readings are stand time away
+                if self.clock.now() > t_end:
+                    deadline = 0.0
+                    continue
+                self.clock.sleep(max(self._tpdo_period_s, STEPPED_POLL_S))
+                continue
             with self._lock:
                 self._lock.wait(timeout=0.05)
 
@@ -947,6 +974,7 @@ class Axis:
                     self._journal("feedback", t_s=t, velocity_dps=f.velocity_dps,
                                   position_deg=f.position_deg, statusword=f.statusword)
             self._lock.notify_all()
+        consumed(self.clock, can_channel_name(self.channel, self.node_id), 1)
 
     def _on_heartbeat(self, nmt_state: int) -> None:
         with self._lock:
@@ -1073,7 +1101,26 @@ class Axis:
         self._journal("write", object=self._describe(index, sub), value=int(value))
 
     def _wait_real(self, done: Callable[[], bool], timeout_real_s: float, what: str,
-                   check: bool = True) -> None:
+                   check: bool = True, real_time: bool = False) -> None:
+        """Wait for `done()` (TPDO readings, unless `real_time`: heartbeats). On a
+        stepped clock a wait for readings is on stand time, its limit taken as clock s."""
+        if stepped(self.clock) and not real_time:
+            t_end = self.clock.now() + timeout_real_s
+            real_end = time.monotonic() + timeout_real_s + REAL_MARGIN_S
+            while True:
+                if check:
+                    self.check()
+                with self._lock:
+                    if done():
+                        return
+                if self.clock.now() > t_end or time.monotonic() > real_end:
+                    raise AxisTimeout(f"axis {self.name}: timed out after {timeout_real_s:.2f} "
+                                      f"s (stand time) waiting for {what}")
+                before = self.clock.now()
+                self.clock.sleep(max(self._tpdo_period_s, STEPPED_POLL_S))
+                if self.clock.now() <= before:  # paused: nothing moves on stand time
+                    with self._lock:
+                        self._lock.wait(timeout=0.02)
         deadline = time.monotonic() + timeout_real_s
         while True:
             if check:

@@ -4,6 +4,14 @@ On a real bench the clock is the host's monotonic clock. On the simulated bench 
 the simulated stand's virtual clock (sims.clock.VirtualClock), which runs faster than
 real time; the engine's code is the same for both.
 
+A clock may be `stepped` (sims.clock.SteppedClock, the co-simulation of the twins): its
+time passes only while a thread waits on it, and only once every twin and every reader
+has finished with the instant before. Drivers then wait for an instrument by waiting on
+the clock (drivers/waits.py), and tell it what they consumed of each channel
+(`channel_opened`, `consumed`, `channel_closed`: a pty's bytes, a CAN node's TPDOs), so
+the clock knows when a channel is drained. On any other clock (hardware's) these calls
+do nothing and waits are in real time.
+
 It lives with the drivers because they are the bottom layer: every driver waits and
 timestamps through it, and nothing here may import from above (bench, sims, procedures).
 """
@@ -55,3 +63,33 @@ def min_speed(clock: Clock) -> float:
 def real_budget_s(clock: Clock, bench_s: float) -> float:
     """The longest `bench_s` seconds of bench time can take in real time."""
     return bench_s / min_speed(clock)
+
+
+def stepped(clock: Clock) -> bool:
+    """True when `clock`'s time passes only in waits on it (a co-simulation)."""
+    return bool(getattr(clock, "stepped", False))
+
+
+def channel_opened(clock: Clock, name: str) -> None:
+    """A driver reads channel `name` from now on (a stepped clock counts it)."""
+    hook = getattr(clock, "channel_opened", None)
+    if hook is not None:
+        hook(name)
+
+
+def consumed(clock: Clock, name: str, n: int) -> None:
+    """A driver has consumed `n` units of channel `name` (bytes, messages)."""
+    hook = getattr(clock, "consumed", None)
+    if hook is not None:
+        hook(name, n)
+
+
+def channel_closed(clock: Clock, name: str) -> None:
+    hook = getattr(clock, "channel_closed", None)
+    if hook is not None:
+        hook(name)
+
+
+def can_channel_name(channel: str, node_id: int) -> str:
+    """A CAN node's TPDOs as one channel of a stepped clock (driver and twin agree)."""
+    return f"can:{channel}:{node_id}"

@@ -32,7 +32,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from drivers.clock import Clock, real_budget_s
+from drivers.clock import Clock, real_budget_s, stepped
 from drivers.counter_profiles import (
     CounterProfile,
     first_interval_is_a_turn,
@@ -525,6 +525,8 @@ class Counter(ScpiInstrument):
         every 1/50 of it: a few dozen exchanges in the journal at most.
         """
         poll_s = min(max(acq.span_real_s / 50.0, 0.005), 2.0)
+        poll_clock_s = min(max(acq.span_s / 50.0, 0.005), 2.0)
+        clock_margin_s = self.timeout_margin_s  # clock s: a stepped clock runs no slower
         self.clock.sleep(acq.armed_at_s + 0.5 * acq.span_s - self.clock.now())
         while True:
             text = ESR_Q.text()
@@ -538,6 +540,15 @@ class Counter(ScpiInstrument):
                 self.check_errors(f"the measurement (ESR {esr})")
             if esr & ESR_OPC:
                 return
+            if stepped(self.clock):  # co-simulation: the polls are on clock time
+                if self.clock.now() > acq.armed_at_s + acq.span_s + clock_margin_s:
+                    raise CounterTimeout(
+                        f"{self.name}: {acq.n} {acq.what} at {acq.expected_period_s:.6g} s a "
+                        f"turn not complete within {acq.span_s + clock_margin_s:.6g} s; "
+                        f"{self._signal_hint()}",
+                        command=self._need(self.words.initiate, "initiate").text())
+                self.clock.sleep(poll_clock_s)
+                continue
             if time.monotonic() > acq.deadline_real_s:
                 raise CounterTimeout(
                     f"{self.name}: {acq.n} {acq.what} at {acq.expected_period_s:.6g} s a "

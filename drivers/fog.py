@@ -34,7 +34,14 @@ from typing import IO, Any
 import numpy as np
 import serial
 
-from drivers.clock import Clock, real_budget_s
+from drivers.clock import (
+    Clock,
+    channel_closed,
+    channel_opened,
+    consumed,
+    real_budget_s,
+    stepped,
+)
 from drivers.fog_formats import (
     AXES,
     FORMATS,
@@ -47,7 +54,7 @@ from drivers.fog_formats import (
     get_format,
 )
 from drivers.kvh_config import MODES, FogSettings, KvhConfigError, KvhConfigurator
-from drivers.waits import MAX_LATE_REAL_S, MIN_REAL_MARGIN_S
+from drivers.waits import MAX_LATE_REAL_S, MIN_REAL_MARGIN_S, wait_on_clock
 
 __all__ = ["FORMATS", "CaptureCursor", "DecodeState", "DecodeStats", "Fog", "FogError",
            "FogSamples", "FogStats", "FogTimeout", "Frames", "StreamDecoder", "decode", "dps_per_unit",
@@ -60,9 +67,11 @@ _READ_TIMEOUT_S = 0.05     # real seconds a read waits for the first byte
 _BATCH_BYTES = 1 << 16     # decode in batches of up to this many bytes
 _BATCH_GAP_S = 0.001       # real seconds a batch waits for the next piece of a fast stream
 _BATCH_REAL_S = 0.005      # ... and at most this long in all (a slow stream's latency)
+_STEPPED_GAP_S = 0.0002    # on a stepped clock: a step's frames come in one burst
 _STALL_FRAMES = 64         # a silence this many frame periods long is a stall,
 _STALL_REAL_S = 0.1        # ... and at least this many real seconds (OS, USB latency)
 _ALIAS_MIN_REAL_S = 0.02   # the wrap check needs half a wrap to last this long in real time
+_LATE_STEP_S = 0.05        # stepped clock: clock s between looks for samples overdue
 _ALIAS_WINDOW_S = 0.5      # real seconds over which the lag after a silence is watched
 
 
@@ -309,6 +318,7 @@ class Fog:
                 self._ser = None
                 raise FogError(f"cannot create the FOG raw capture {self.raw_path}: {e}") from e
         self._stop.clear()
+        channel_opened(self.clock, self.port)  # a stepped clock counts what we consume
         self._thread = threading.Thread(target=self._read_loop, name=f"fog-{self.port}",
                                         daemon=True)
         self._thread.start()
@@ -316,6 +326,7 @@ class Fog:
 
     def close(self) -> None:
         self._stop.set()
+        channel_closed(self.clock, self.port)
         if self._ser is not None:
             try:
                 self._ser.cancel_read()
@@ -359,13 +370,17 @@ class Fog:
         ser = self._ser
         assert ser is not None
         silent_since: float | None = None
-        stall_s = max(_STALL_FRAMES / self.rate_hz, _STALL_REAL_S * self.clock.speed)
+        # a stepped clock stands still while nothing waits on it: silence there is not
+        # the FOG's (a hold on the clock's own time is seen as late samples, not here)
+        stall_s = math.inf if stepped(self.clock) else \
+            max(_STALL_FRAMES / self.rate_hz, _STALL_REAL_S * self.clock.speed)
+        gap_s = _STEPPED_GAP_S if stepped(self.clock) else _BATCH_GAP_S
         started = False
         try:
             while not self._stop.is_set():
                 data = ser.read(max(1, ser.in_waiting))
                 if data:
-                    data = self._batch(ser, data)
+                    data = self._batch(ser, data, gap_s)
                     if self._raw is not None:
                         try:
                             self._raw.write(data)
@@ -382,6 +397,7 @@ class Fog:
                     silent_since = None
                     started = True
                     self._ingest(data, now, resumed)
+                    consumed(self.clock, self.port, len(data))  # after it is readable
                 elif silent_since is None and started:
                     silent_since = self.clock.now()
         except Exception as e:  # noqa: BLE001 (the reader must report, not vanish)
@@ -392,13 +408,14 @@ class Fog:
                 self._cond.notify_all()
 
     @staticmethod
-    def _batch(ser: serial.Serial, first: bytes) -> bytes:
+    def _batch(ser: serial.Serial, first: bytes, gap_s: float = _BATCH_GAP_S) -> bytes:
         """More of what is arriving, up to _BATCH_BYTES or _BATCH_REAL_S.
 
         A pty or a USB adapter hands over a few kB a read; decoding each piece on its own
         costs more than the bytes (a fixed cost per call), so a fast stream is gathered
         for a moment first: waiting up to _BATCH_GAP_S for the next piece, never holding
-        a batch longer than _BATCH_REAL_S (the latency a slow stream sees).
+        a batch longer than _BATCH_REAL_S (the latency a slow stream sees). On a stepped
+        clock a step's frames come in one burst: a far shorter gap ends the batch.
         """
         chunks = [first]
         size = len(first)
@@ -407,8 +424,8 @@ class Fog:
         while size < _BATCH_BYTES:
             w = ser.in_waiting
             if not w:
-                if fileno is None or time.monotonic() >= t_end or \
-                        not select.select([fileno()], [], [], _BATCH_GAP_S)[0]:
+                if fileno is None or time.monotonic() >= t_end or not gap_s or \
+                        not select.select([fileno()], [], [], gap_s)[0]:
                     break
                 continue
             more = ser.read(min(w, _BATCH_BYTES - size))
@@ -478,7 +495,12 @@ class Fog:
         also been silent for that margin: samples still arriving late mean a slow host
         (or a twin behind its clock), which slows the run but must not abort it, up to
         `MAX_LATE_REAL_S` beyond the limit (a stream that never catches up is a fault).
+        On a stepped clock the wait is on clock time (drivers/waits.py): the clock passes
+        to when sample i is due, and the limit is `timeout_s` of clock time.
         """
+        if stepped(self.clock):
+            self._wait_stepped(i, timeout_s)
+            return
         start = time.monotonic()
         deadline = start + real_budget_s(self.clock, timeout_s) + self.wait_margin_s
         last_end, last_progress = -1, start
@@ -508,6 +530,30 @@ class Fog:
                 f"within {timeout_s:g} s; newest sample {self._store.end - 1}, "
                 f"{self._decoder.bytes} bytes received")
         raise FogError(f"FOG on {self.port} is not open")
+
+    def _wait_stepped(self, i: int, timeout_s: float) -> None:
+        def due_in_s() -> float:  # clock time until sample i is due at the FOG's rate
+            with self._cond:
+                due = (i + 1 - self._store.end) / self.rate_hz
+            return due if due > 0 else _LATE_STEP_S  # due, not there: held up (a stall)
+
+        def known() -> bool:
+            with self._cond:
+                return self._store.end > i or self._thread is None \
+                    or not self._thread.is_alive()
+
+        wait_on_clock(self.clock, known, due_in_s() + timeout_s, due_in_s)
+        if self.last_error:
+            raise FogError(self.last_error)
+        with self._cond:
+            if self._store.end > i:
+                return
+        if self._thread is None or not self._thread.is_alive():
+            raise FogError(f"FOG on {self.port} is not open")
+        raise FogTimeout(
+            f"FOG on {self.port}: sample {i} (t = {i / self.rate_hz:.4f} s) did not arrive "
+            f"within {timeout_s:g} s; newest sample {self._store.end - 1}, "
+            f"{self._decoder.bytes} bytes received")
 
     def checkpoint(self) -> dict[str, Any]:
         """Where the decoder stands in the raw capture now (JSON-able).

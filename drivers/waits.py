@@ -6,9 +6,18 @@ than `MIN_REAL_MARGIN_S`. On a loaded host (two busy processes on two cores) a t
 be starved for a second or more, and a twin producing 100 000 FOG frames a real second
 falls behind its clock: 10 s of stand time at 100x is 0.1 s real, far less than such a
 hiccup. A slow machine must slow the run, not abort it.
+
+On a stepped clock (a co-simulation, drivers/clock.py) a wait for an instrument is a
+wait on the clock: `wait_on_clock` lets clock time pass in steps until the instrument is
+ready, and its limit is clock time, so when a wait ends depends on the data alone.
 """
 
 from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+from drivers.clock import Clock
 
 #: the shortest real-time margin any wait gets beyond its scaled clock time (seconds)
 MIN_REAL_MARGIN_S = 5.0
@@ -20,3 +29,30 @@ MAX_LATE_REAL_S = 60.0
 def real_limit_s(clock_s: float, speed: float, margin_s: float = MIN_REAL_MARGIN_S) -> float:
     """Real seconds allowed for a wait of `clock_s` on a clock running `speed` x real time."""
     return max(clock_s, 0.0) / speed + max(margin_s, MIN_REAL_MARGIN_S)
+
+
+#: real seconds between looks while a stepped clock stands still (paused: nothing runs)
+_PAUSED_POLL_REAL_S = 0.005
+
+
+def wait_on_clock(clock: Clock, ready: Callable[[], bool], timeout_s: float,
+                  step_s: float | Callable[[], float]) -> bool:
+    """On a stepped clock: let up to `timeout_s` of clock time pass, `step_s` at a time
+    (a number, or a function saying how far to the next look), until `ready()`.
+
+    Returns whether it became ready. If the clock stands still (paused), the wait falls
+    back on real time with the same limit, so it ends either way.
+    """
+    t_end = clock.now() + timeout_s
+    real_end = time.monotonic() + timeout_s + MIN_REAL_MARGIN_S
+    while not ready():
+        t = clock.now()
+        if t >= t_end:
+            return False
+        step = step_s() if callable(step_s) else step_s
+        clock.sleep(min(max(step, 1e-6), t_end - t))
+        if clock.now() <= t:  # a paused clock: nothing will change by clock time
+            if time.monotonic() > real_end:
+                return bool(ready())
+            time.sleep(_PAUSED_POLL_REAL_S)
+    return True

@@ -1,4 +1,44 @@
-"""The simulated stand's virtual clock: the only clock any twin reads.
+"""The simulated stand's clocks: the only clocks any twin reads.
+
+Two kinds. `SteppedClock` (the default for twins, `sim: clock_speed: max` or no key) is a
+conservative co-simulation: virtual time passes only while the bench waits on the clock,
+and only once every twin and every driver reader has finished reacting to what the
+previous instant held. `VirtualClock` (`clock_speed: N`) is paced by wall time, for
+rehearsals in front of an operator; results then depend on how the machine schedules.
+
+Co-simulation (SteppedClock). The participants are:
+- the bench thread(s), which advance time by waiting on the clock (`sleep`,
+  `sleep_until`); the drivers turn each wait for an instrument (a reply, N frames, a
+  settle, a measurement complete) into such waits when the clock says `stepped`
+  (drivers/waits.py), so a wait ends at a virtual time fixed by the data, never by
+  thread scheduling;
+- the twins, joined with `join(participant)`: each says when its next event is
+  (`next_event_s`: the drive's next TPDO tick), is told when time reaches it
+  (`advance(t)`, called in the waiting thread, so every twin acts at exactly that t), and
+  says whether it has delivered what [0, t] holds (`settled(t, final)`);
+- the channels between them: a twin counts what it put on a channel
+  (`sent(name, n)`: bytes on a pty, TPDOs on a CAN bus), a driver what it consumed
+  (`consumed(name, n)`, through drivers/clock.py, so drivers import nothing from sims).
+  A channel is drained when its consumer has taken all that was sent.
+
+A step: all participants settled at t, then t jumps to the earliest of the waiting
+thread's target, every participant's next event and `t + max_step_s`; each participant
+advances to it. Between the steps of one wait a streaming channel (the FOG's bytes) may
+trail by its lead (a bounded backlog, so the twin encodes while the driver decodes);
+when the wait ends every channel is drained: what the bench reads at time t is exactly
+what the stand produced up to t, on any machine, at any load. A participant that does not
+settle within `GUARD_REAL_S` of real time (a dead twin, a reader gone) is reported once
+and passed over: a broken twin cannot freeze the run.
+
+A step hands work from thread to thread (the stepping thread, a twin's writer, a
+driver's reader, the CAN notifier): `GIL_SWITCH_S` is the interpreter's switch interval
+while a stepped clock runs (SimBench sets it), so a hand-off does not wait the default
+5 ms behind a thread decoding frames.
+
+Heartbeats and their watchdogs stay in real time (drivers/heartbeat.py): they guard
+the link, not the measurement, and their tests are about real-time behaviour.
+
+The paced clock (VirtualClock), as before:
 
 Virtual seconds run up to `top_speed` times faster than real ones, so a ladder that would
 take hours on a real table takes minutes. Twins never keep a clock of their own; they ask
@@ -21,10 +61,15 @@ threads are not made to generate hours of stand samples while they answer the st
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+log = logging.getLogger(__name__)
 
 #: `sim: clock_speed: max`
 MAX = "max"
@@ -169,3 +214,232 @@ class VirtualClock:
     def real_seconds(self, virtual_s: float) -> float:
         """The longest a virtual interval can take in real time (for real-time timeouts)."""
         return virtual_s / self.min_speed
+
+
+#: `sim: clock_speed` values that select the co-simulation (SteppedClock)
+STEPPED_SPEEDS = (math.inf,)
+#: longest single jump of a stepped clock (virtual s): bounds what a twin encodes at once
+DEFAULT_MAX_STEP_S = 30.0
+#: the interpreter's thread switch interval while a stepped clock runs (s; default 0.005)
+GIL_SWITCH_S = 0.0005
+#: real seconds a stepped clock waits for a participant to settle before passing it over
+GUARD_REAL_S = 20.0
+_SETTLE_POLL_REAL_S = 0.002
+
+
+class Participant(Protocol):
+    """A twin in the co-simulation (see the module docstring)."""
+
+    def next_event_s(self, t_s: float) -> float:
+        """The next virtual time after `t_s` at which it must act (inf: none)."""
+        ...
+
+    def advance(self, t_s: float) -> None:
+        """Time is now `t_s`: produce what [.., t_s] holds (called in the waiting thread)."""
+        ...
+
+    def settled(self, t_s: float, final: bool) -> bool:
+        """Its output up to `t_s` is delivered and consumed (`final`: fully; else within
+        its lead)."""
+        ...
+
+
+@dataclass
+class _Channel:
+    sent: int = 0
+    consumed: int = 0
+    open: bool = False
+
+
+class SteppedClock:
+    """Virtual time that passes only in waits, when every participant is settled."""
+
+    stepped = True
+    paced = False
+    #: real-time budgets (drivers/clock.py) treat a stepped clock's seconds as real ones:
+    #: generous, since a stepped stand runs far faster than real time
+    min_speed = REAL_TIME
+
+    def __init__(self, start_s: float = 0.0, running: bool = True, *,
+                 max_step_s: float = DEFAULT_MAX_STEP_S) -> None:
+        if not max_step_s > 0:
+            raise ValueError(f"max_step_s must be > 0, got {max_step_s}")
+        self.max_step_s = float(max_step_s)
+        self.top_speed = math.inf
+        self._t_s = float(start_s)
+        self._running = running
+        self._cond = threading.Condition()
+        self._stepper: threading.Thread | None = None
+        self._targets: dict[int, float] = {}
+        self._participants: list[Participant] = []
+        self._channels: dict[str, _Channel] = {}
+        self._passed_over: set[int] = set()
+        self._progress = threading.Condition(threading.Lock())
+        self._generation = 0
+        self._m0 = time.monotonic()
+        self._t0 = self._t_s
+        self.steps = 0
+        self.settle_wait_real_s = 0.0   # real time spent waiting for participants (profile)
+
+    # -- what the drivers and the engine see -------------------------------------------
+    @property
+    def speed(self) -> float:
+        """Virtual seconds per real second so far (an estimate for progress displays)."""
+        dt = time.monotonic() - self._m0
+        v = (self._t_s - self._t0) / dt if dt > 0 else 0.0
+        return max(v, REAL_TIME)
+
+    @property
+    def running(self) -> bool:
+        return self._running
+
+    def start(self) -> None:
+        with self._cond:
+            self._running = True
+
+    def pause(self) -> None:
+        with self._cond:
+            self._running = False
+            self._cond.notify_all()
+
+    def now(self) -> float:
+        return self._t_s
+
+    def real_seconds(self, virtual_s: float) -> float:
+        return virtual_s / self.min_speed
+
+    def pace(self, pacer: Pacer) -> Callable[[], None]:
+        """Pacers belong to the wall-time clock; a stepped clock's twins settle instead."""
+        return lambda: None
+
+    # -- channels ----------------------------------------------------------------------
+    def channel_opened(self, name: str) -> None:
+        with self._cond:
+            ch = self._channels.setdefault(name, _Channel())
+            ch.open, ch.sent, ch.consumed = True, 0, 0
+
+    def channel_closed(self, name: str) -> None:
+        with self._cond:
+            ch = self._channels.get(name)
+            if ch is not None:
+                ch.open = False
+            self._cond.notify_all()
+
+    def sent(self, name: str, n: int) -> None:
+        """A twin put `n` units on channel `name` (counted while a consumer has it open)."""
+        with self._cond:
+            ch = self._channels.get(name)
+            if ch is not None and ch.open:
+                ch.sent += n
+
+    def consumed(self, name: str, n: int) -> None:
+        with self._cond:
+            ch = self._channels.setdefault(name, _Channel(open=True))
+            ch.consumed += n
+        self.poke()
+
+    def poke(self) -> None:
+        """Something a participant's `settled` depends on changed: look again now."""
+        with self._progress:
+            self._generation += 1
+            self._progress.notify_all()
+
+    def has_consumer(self, name: str) -> bool:
+        with self._cond:
+            ch = self._channels.get(name)
+            return ch is not None and ch.open
+
+    def backlog(self, name: str) -> int:
+        """Units sent on `name` not yet consumed (0 when no consumer has it open)."""
+        with self._cond:
+            ch = self._channels.get(name)
+            return max(ch.sent - ch.consumed, 0) if ch is not None and ch.open else 0
+
+    def join(self, participant: Participant) -> Callable[[], None]:
+        """Add a twin to the co-simulation; returns the undo."""
+        with self._cond:
+            self._participants.append(participant)
+
+        def leave() -> None:
+            with self._cond:
+                if participant in self._participants:
+                    self._participants.remove(participant)
+        return leave
+
+    # -- waiting -----------------------------------------------------------------------
+    def sleep(self, duration_s: float) -> None:
+        if duration_s > 0:
+            self.sleep_until(self._t_s + duration_s)
+
+    def sleep_until(self, t_s: float) -> None:
+        """Let virtual time pass to `t_s`, stepping every participant on the way."""
+        me = threading.get_ident()
+        if not self._running:
+            # a paused clock: nothing runs (before the bench starts, after it stops);
+            # a wait on it returns at once, time standing still, as on a paused stand
+            return
+        try:
+            while True:
+                with self._cond:
+                    if self._t_s >= t_s or not self._running:
+                        break
+                    self._targets[me] = t_s
+                    if self._stepper is not None and self._stepper is not threading.current_thread():
+                        self._cond.wait(0.05)
+                        continue
+                    self._stepper = threading.current_thread()
+                    target = min(self._targets.values())
+                try:
+                    self._step_towards(target)
+                finally:
+                    with self._cond:
+                        self._stepper = None
+                        self._cond.notify_all()
+            self._settle(self._t_s, final=True)
+        finally:
+            with self._cond:
+                self._targets.pop(me, None)
+
+    def _step_towards(self, target: float) -> None:
+        t = self._t_s
+        self._settle(t, final=False)
+        with self._cond:
+            parts = list(self._participants)
+        t_next = min([target, t + self.max_step_s]
+                     + [p.next_event_s(t) for p in parts])
+        t_next = max(t_next, math.nextafter(t, math.inf))
+        with self._cond:
+            self._t_s = t_next
+            self.steps += 1
+        for p in parts:
+            p.advance(t_next)
+
+    def _settle(self, t: float, final: bool) -> None:
+        with self._cond:
+            parts = list(self._participants)
+        m0 = time.monotonic()
+        for p in parts:
+            while True:
+                gen = self._generation
+                if p.settled(t, final):
+                    break
+                if time.monotonic() - m0 > GUARD_REAL_S:
+                    if id(p) not in self._passed_over:
+                        self._passed_over.add(id(p))
+                        log.warning("stepped clock: %r did not settle at t = %.6f s within "
+                                    "%.0f s of real time; passed over", p, t, GUARD_REAL_S)
+                    break
+                with self._progress:  # woken by consumed()/poke(), else look again soon
+                    self._progress.wait_for(lambda g=gen: self._generation != g,
+                                            _SETTLE_POLL_REAL_S)
+        self.settle_wait_real_s += time.monotonic() - m0
+
+
+def make_clock(speed: float, running: bool = True) -> VirtualClock | SteppedClock:
+    """The clock a `sim: clock_speed` asks for: max (inf) co-simulates, N paces."""
+    if speed in STEPPED_SPEEDS:
+        # runs from the start: its time passes only in waits, so nothing moves before the
+        # bench waits, and TPDOs the bench's opening waits for come in clock steps (a
+        # real-time tick would interleave them with the bench's writes by scheduling)
+        return SteppedClock(running=True)
+    return VirtualClock(speed, running=running)

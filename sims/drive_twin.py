@@ -29,6 +29,16 @@ with canopen's own BaseNode402, tests/test_drive_p402_client.py):
   every quick-stop, shutdown, disable-operation and fault-reaction code; reserved option
   codes refused (abort 0x06090030); the factor group (0x608F, 0x6091, 0x6096, 0x6097,
   0x60A9, 0x60AA) applied when written.
+
+On the co-simulation clock (sims/clock.py SteppedClock) the ticks are the clock's events
+instead, on a grid of stand time: every event timer while anything moves or changes
+(a ramp, a state change, `ACTIVE_S` after any write from the controller, until target
+reached; but no faster than `FINE_TICK_S`), every `STEADY_TICK_S` once the table turns
+steadily (the TPDOs then carry
+what the last one did, to within the noise, and 100 a second over a 29-hour ladder would
+cost more than the measurement). The controller's consumption of the TPDOs is counted on
+the channel `can_channel_name(channel, node)`, so each reading is stamped at the stand
+time of its tick. The thread then only keeps the heartbeat watchdog, in real time.
 """
 
 from __future__ import annotations
@@ -36,6 +46,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import logging
+import math
 import struct
 import threading
 import time
@@ -80,6 +91,7 @@ from drivers.cia402 import (
     transition,
     wrap_int32,
 )
+from drivers.clock import can_channel_name
 from sims.stand import AxisModel, SimulatedStand
 
 log = logging.getLogger(__name__)
@@ -106,6 +118,13 @@ UINT16_MAX = 0xFFFF
 PP_MAX_CORRECTIONS = 5
 #: a tick this many periods late means the twin itself was not run (a loaded host)
 STARVED_TICKS = 5
+#: co-simulation: stand seconds of ticks at the event timer after any controller write
+ACTIVE_S = 3.0
+#: co-simulation: stand seconds between ticks while the table turns steadily
+STEADY_TICK_S = 30.0
+#: co-simulation: the shortest stand time between ticks (the event timer's 10 ms would
+#: make five steps of the clock for each one that matters to a settle or a ramp)
+FINE_TICK_S = 0.05
 
 #: objects whose value the twin computes when read (SDO or TPDO)
 _LIVE = frozenset({Od.STATUSWORD, Od.MODES_OF_OPERATION_DISPLAY, Od.POSITION_ACTUAL,
@@ -171,6 +190,10 @@ class DriveTwin:
         #: more python-can bus arguments (e.g. udp_multicast's port)
         self.bus_options = dict(bus_options or {})
         self.node_id = node_id
+        self._stepped = bool(getattr(self.clock, "stepped", False))
+        self._leave: Any = None
+        self._busy_until_s = 0.0
+        self._can_name = can_channel_name(channel, node_id)
         self.eds_path = Path(eds_path)
         # the factor group (CiA 402 0x608F, 0x6091, 0x60A9, 0x60AA): the twin's units
         # follow from its own factor objects, as a real drive's do, and change when the
@@ -250,6 +273,7 @@ class DriveTwin:
         self._stop = threading.Event()
         self._tick_s = 0.01
         self._tpdo_last: dict[int, float] = {}
+        self._tpdo_last_paused: dict[int, float] = {}  # stepped clock paused: real time
         self._tpdo_values: dict[int, list[int]] = {}
         #: mode code -> what entering Operation enabled or a new set-point does in it
         self._mode_handlers = {PROFILE_VELOCITY.code: self._pv_follow_target,
@@ -529,14 +553,21 @@ class DriveTwin:
             self._state = State.SWITCH_ON_DISABLED  # transitions 0 and 1: self-test passed
         self._boot_up()
         self._stop.clear()
-        self._thread = threading.Thread(target=self._run, name=f"drive-twin-{self.axis}",
-                                        daemon=True)
+        if self._stepped:
+            node.add_write_callback(self._note_write)
+            self._leave = self.clock.join(self)
+        self._thread = threading.Thread(
+            target=self._run_watchdog if self._stepped else self._run,
+            name=f"drive-twin-{self.axis}", daemon=True)
         self._thread.start()
         return self
 
     def stop(self) -> None:
         """Leave the bus (the table keeps whatever ramp it was on)."""
         self._stop.set()
+        if self._leave is not None:
+            self._leave()
+            self._leave = None
         if self._thread is not None:
             self._thread.join(timeout=5.0)
             self._thread = None
@@ -894,12 +925,48 @@ class DriveTwin:
                 delay = 0.0
             self._stop.wait(delay)
 
-    def _tick(self) -> None:
+    # -- the co-simulation (sims/clock.py SteppedClock) ----------------------------------
+    def next_event_s(self, t_s: float) -> float:
+        with self._lock:
+            busy = (t_s < self._busy_until_s or self._after_standstill is not None
+                    or self._state is State.QUICK_STOP_ACTIVE
+                    or (self._state is State.OPERATION_ENABLED and not self._target_reached)
+                    or t_s < self.model.profile.settle_time_s() + ACTIVE_S)
+        period = max(FINE_TICK_S, self._tick_s) if busy else max(STEADY_TICK_S, self._tick_s)
+        return (math.floor(t_s / period + 1e-9) + 1) * period
+
+    def advance(self, t_s: float) -> None:
+        try:
+            self._tick(t_s)
+        except Exception:  # noqa: BLE001 - a twin must not die silently mid-test
+            log.exception("drive twin %s: tick failed", self.axis)
+
+    def settled(self, t_s: float, final: bool) -> bool:
+        """Every TPDO sent so far consumed by the controller (each stamped at its tick)."""
+        return self.clock.backlog(self._can_name) == 0
+
+    def _note_write(self, index: int, subindex: int, od: Any, data: bytes) -> None:
+        self._busy_until_s = self.clock.now() + ACTIVE_S
+
+    def _run_watchdog(self) -> None:
+        """Stepped clock: the thread keeps only the heartbeat watchdog (real time), and
+        ticks in real time while the clock is paused (the bench opening or closing: the
+        stand stands still, but the controller still hears the drive's TPDOs)."""
+        while not self._stop.wait(self._tick_s):
+            if not self.clock.running:
+                try:
+                    self._tick(self.clock.now(), gate_s=time.monotonic())
+                except Exception:  # noqa: BLE001 - a twin must not die silently mid-test
+                    log.exception("drive twin %s: tick failed", self.axis)
+            with self._lock:
+                self._check_watchdog(self.clock.now())
+
+    def _tick(self, t_stepped: float | None = None, gate_s: float | None = None) -> None:
         node = self._node
         if node is None:
             return
         with self._lock:
-            t = self.clock.now()
+            t = self.clock.now() if t_stepped is None else t_stepped
             with self.model.lock:
                 self.model.advance_to(t)
                 w = self.model.rate_dps
@@ -909,15 +976,18 @@ class DriveTwin:
             self._update_motion_bits(t, w)
             if self._after_standstill is not None and self._standing_still():
                 self._state, self._after_standstill = self._after_standstill, None
-            self._check_watchdog(t)
+            if t_stepped is None:
+                self._check_watchdog(t)
             if node.nmt.state != "OPERATIONAL":
                 return
-            now = time.monotonic()
+            now = gate_s if gate_s is not None else \
+                time.monotonic() if t_stepped is None else t_stepped
+            book = self._tpdo_last_paused if gate_s is not None else self._tpdo_last
             for n, pdo in node.tpdo.map.items():
                 # CiA 301: types 254/255 send on an event: the event timer's expiry, or,
                 # with the timer at 0, a change of the mapped data (nothing at rest)
                 period = (pdo.event_timer or 0) / 1000.0
-                if not pdo.enabled or (period and now - self._tpdo_last.get(n, -1e9) <
+                if not pdo.enabled or (period and now - book.get(n, -1e9) <
                                        period - 0.5 * self._tick_s):
                     continue
                 if pdo.trans_type not in (254, 255):
@@ -927,7 +997,9 @@ class DriveTwin:
                 if not period and values == self._tpdo_values.get(n):
                     continue
                 self._tpdo_values[n] = self._send_tpdo(pdo)
-                self._tpdo_last[n] = now
+                if self._stepped and len(pdo.map):
+                    self.clock.sent(self._can_name, 1)
+                book[n] = now
 
     def _update_motion_bits(self, t: float, w: float) -> None:
         """Statusword bits 12 (speed 0) and 10 (target reached), on stand time (CiA 402 PV)."""

@@ -22,6 +22,12 @@ ICD section 8; drivers/kvh_config.py says which spellings are unverified). Its
 accelerometers read +1 g on the sensitive axis at rest and while turning (mounted along
 the table axis, vertical; the ICD's polarity: +1 g with the positive axis up).
 
+Time. On the co-simulation clock (sims/clock.py SteppedClock) the twin is a participant:
+the clock's steps release the stand's samples (`advance`), the frames go out on the pty,
+and the clock counts the bytes through the channel named by the pty's path: a step ends
+only when the driver has consumed what the twin wrote (`settled`). On a paced clock the
+twin's thread follows the clock itself and paces it (`delivered_s`).
+
 Two details of real ports matter here. pyserial flushes the input queue when it opens
 the port, so the twin writes nothing until a reader has the slave open and the stand
 clock runs (the engine starts the clock after opening every instrument). And the
@@ -40,6 +46,7 @@ import time
 import tty
 from collections import deque
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -63,6 +70,9 @@ from sims.stand import AxisChunk, SimulatedStand
 _TICK_S = 0.002            # real seconds between looks at the clock when idle
 _OPEN_SETTLE_S = 0.05      # real seconds for pyserial to configure and flush after open
 _WRITE_POLL_MS = 50
+#: on a stepped clock, bytes the channel may hold between the steps of one wait (queued
+#: in the twin, in the pty, not yet decoded): the twin encodes while the driver decodes
+_LEAD_BYTES = 4 << 20
 
 
 @dataclass(frozen=True)
@@ -169,6 +179,11 @@ class FogTwin:
         self._master: int | None = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
+        self._wake = threading.Event()   # frames queued: the writer need not wait a tick
+        self._gate_open = False          # a reader settled on the port, the clock runs
+        self._queued_bytes = 0
+        self._stepped = bool(getattr(self.clock, "stepped", False))
+        self._leave: Any = None
         self.path: str | None = None
         self.bytes_written = 0
         self.frames_encoded = 0
@@ -291,6 +306,8 @@ class FogTwin:
             at = s
         with self._qlock:
             self._queue.extend(items)
+            self._queued_bytes += sum(len(i[0]) for i in items if isinstance(i, tuple))
+        self._wake.set()
         self._next_sample = n0 + n
         self.frames_encoded += int(keep.sum())
         if self.keep_truth:
@@ -341,7 +358,32 @@ class FogTwin:
         self._thread = threading.Thread(target=self._run, name=f"fog-twin-{self.axis.name}",
                                         daemon=True)
         self._thread.start()
+        if self._stepped:
+            self._leave = self.clock.join(self)
         return self.path
+
+    # -- the co-simulation (sims/clock.py SteppedClock) -------------------------------------
+    def next_event_s(self, t_s: float) -> float:
+        return math.inf  # frames follow the stand's samples; a hold ends with the clock
+
+    def advance(self, t_s: float) -> None:
+        self.axis.advance_to(t_s)
+
+    def settled(self, t_s: float, final: bool) -> bool:
+        """Frames up to t_s out and decoded (final), or within the lead of it."""
+        if self._stop.is_set() or self.path is None \
+                or not self.clock.has_consumer(self.path) or self.config_mode:
+            return True
+        if not self._gate_open:
+            return False
+        with self._qlock:
+            head = self._queue[0] if self._queue else None
+            queued = self._queued_bytes
+        due = head is not None and (not isinstance(head, _Hold) or head.until_s <= t_s)
+        backlog = self.clock.backlog(self.path)
+        if final:
+            return not due and backlog == 0
+        return queued + backlog <= _LEAD_BYTES
 
     def delivered_s(self) -> float:
         """The clock's pacer: stand time up to which frames are out on the port.
@@ -358,6 +400,10 @@ class FogTwin:
 
     def stop(self) -> None:
         self._stop.set()
+        self._wake.set()
+        if self._leave is not None:
+            self._leave()
+            self._leave = None
         if self._thread is not None:
             self._thread.join(timeout=5.0)
             self._thread = None
@@ -389,18 +435,29 @@ class FogTwin:
             if seen is None and self._reader_present(poller):
                 seen = time.monotonic()
                 self._reading = True
-            if seen is not None and time.monotonic() - seen >= _OPEN_SETTLE_S \
+            if self._stepped:
+                # the driver says when it records (after its configuration dialogue and
+                # the flush that ends it): frames written before would be flushed, and
+                # the first frame read would not be stand sample 0
+                if seen is not None and self.clock.has_consumer(self.path):
+                    break
+            elif seen is not None and time.monotonic() - seen >= _OPEN_SETTLE_S \
                     and getattr(self.clock, "running", True):
                 break
             time.sleep(_TICK_S)
+        self._gate_open = True
+        if self._stepped:
+            self.clock.poke()
         while not self._stop.is_set():
             self._serve_commands()
             if self.config_mode:  # no binary output in Configuration Mode (ICD 3.3)
                 time.sleep(_TICK_S)
                 continue
-            self.axis.advance_to(self.clock.now())
+            if not self._stepped:  # a paced clock: the twin follows it (stepped: advance())
+                self.axis.advance_to(self.clock.now())
             if not self._drain(poller):
-                time.sleep(_TICK_S)
+                self._wake.wait(_TICK_S)
+                self._wake.clear()
 
     # -- configuration (ICD section 7) -------------------------------------------------------
     def _serve_commands(self) -> None:
@@ -516,12 +573,14 @@ class FogTwin:
                 if not self._queue:
                     return wrote
                 item = self._queue.popleft()
-            if isinstance(item, _Hold):
-                if self.clock.now() < item.until_s:
-                    with self._qlock:
+                if isinstance(item, _Hold):
+                    if self.clock.now() < item.until_s:
                         self._queue.appendleft(item)
-                    return wrote
-                continue
+                        return wrote
+                    continue
+                self._queued_bytes -= len(item[0])
+                if self._stepped and self.path is not None:
+                    self.clock.sent(self.path, len(item[0]))  # counted before it can be read
             data, n_end = item
             self._write_all(data, poller)
             self._sent_n = max(self._sent_n, n_end)

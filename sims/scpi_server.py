@@ -80,6 +80,8 @@ T = TypeVar("T")
 GARBAGE = b"\xff\xfe#?\x00garbage\x15\n"
 
 _POLL_S = 0.02
+#: clock seconds a waiting handler lets pass between looks on a stepped clock
+_STEPPED_POLL_S = 0.01
 
 
 class ExecError(Exception):
@@ -283,10 +285,18 @@ class ScpiServer:
     def wait(self, ready: Callable[[], bool], poll_s: float = _POLL_S) -> None:
         """Block a handler until `ready()`, reading the client meanwhile.
 
-        Raises (internally) when the client leaves or an interrupting line arrives.
+        Raises (internally) when the client leaves or an interrupting line arrives. On a
+        stepped clock (sims/clock.py) the client is blocked on this reply, so the wait
+        lets the instrument's clock time pass itself, `_STEPPED_POLL_S` at a time.
         """
+        clock = getattr(self, "clock", None)
+        stepped = bool(getattr(clock, "stepped", False))
         while not ready():
-            self._pump(poll_s)
+            if stepped and clock is not None and clock.running:
+                clock.sleep(_STEPPED_POLL_S)
+                self._pump(0.0)
+            else:
+                self._pump(poll_s)
             if any(self.is_interrupt(line) for line in self._inbox):
                 raise _Interrupted
 

@@ -219,30 +219,59 @@ class ZeroMarks:
 ChunkListener = Callable[[AxisChunk], None]
 
 _FIXED_POINT_PASSES = 3
+#: the stand's generation grid: samples are computed in blocks of this many, each from
+#: the state at its start and from random numbers keyed by (seed, axis, stream, block)
+BLOCK_SAMPLES = 4096
+_STREAMS = {"table": 0, "fog": 1, "edge": 2}
+
+
+@dataclass
+class _Block:
+    """One block of the grid as computed for the profile of version `version`."""
+
+    k: int
+    version: int
+    t_s: np.ndarray
+    w_cmd: np.ndarray
+    w: np.ndarray
+    phi: np.ndarray
+    fog_dps: np.ndarray
+    marks: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # sample, true, edge, sense
 
 
 class AxisModel:
-    """One table axis and the FOG mounted on it, advanced on the FOG's sample grid."""
+    """One table axis and the FOG mounted on it, advanced on the FOG's sample grid.
+
+    Reproducible whatever asks for samples when: samples are computed in fixed blocks of
+    `BLOCK_SAMPLES` on the grid, each from the state at the block's start, with random
+    numbers drawn from a generator keyed by (seed, axis, stream, block index) (a
+    counter-based scheme, numpy SeedSequence spawn keys). Samples are released up to
+    each `advance_to(t)`; a command changes only samples after the last released one,
+    and a block computed before the command is computed again: its released prefix comes
+    out bit for bit the same (every step of the computation is causal: cumulative sums
+    and pointwise terms), so where the chunk boundaries fall (which twin asked, at which
+    step of the clock) never changes a number.
+    """
 
     def __init__(self, truth: AxisTruth, rate_hz: float, seed: int | np.random.SeedSequence,
-                 name: str = "axis") -> None:
+                 name: str = "axis", block_samples: int = BLOCK_SAMPLES) -> None:
         self.name = name
         self.truth = truth
         self.rate_hz = float(rate_hz)
         if truth.mains and truth.mains.amplitude_dps and truth.mains.frequency_hz * 2 >= rate_hz:
             raise ValueError(f"{name}: FOG rate {rate_hz} Hz cannot carry the "
                              f"{truth.mains.frequency_hz} Hz mains tone (Nyquist)")
-        ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
-        table_ss, fog_ss, edge_ss = ss.spawn(3)
-        # separate streams: draws of one error source never shift another's
-        self._rng_table = np.random.default_rng(table_ss)
-        self._rng_fog = np.random.default_rng(fog_ss)
-        self._rng_edge = np.random.default_rng(edge_ss)
+        self._ss = seed if isinstance(seed, np.random.SeedSequence) \
+            else np.random.SeedSequence(seed)
+        self.block_samples = int(block_samples)
         self.profile = RateProfile()
+        self._profile_version = 0
         self.listeners: list[ChunkListener] = []
-        self._n_next = 0  # next grid sample to generate
+        self._n_next = 0  # next grid sample to release
         self._phi_last = 0.0
         self._w_last = 0.0
+        self._block_start: tuple[int, float, float] = (0, 0.0, 0.0)  # (k, phi, w) before it
+        self._block: _Block | None = None
         self._marks_true: list[np.ndarray] = []
         self._marks_edge: list[np.ndarray] = []
         self._marks_sense: list[np.ndarray] = []
@@ -271,22 +300,50 @@ class AxisModel:
         """The drive's profile generator: ramp to target from time t_s (RateProfile)."""
         with self.lock:
             self.advance_to(t_s)
-            return self.profile.command(max(t_s, self.t_s), target_dps, accel_dps2,
-                                        decel_dps2)
+            seg = self.profile.command(max(t_s, self.t_s), target_dps, accel_dps2,
+                                       decel_dps2)
+            self._profile_version += 1
+            return seg
 
     def commanded_rate_at(self, t_s: float) -> float:
         return float(self.profile.rate(np.array([t_s]))[0])
 
     # -- generation -----------------------------------------------------------------
     def advance_to(self, t_s: float, max_chunk: int = 2_000_000) -> None:
-        """Generate every grid sample with time <= t_s, in chunks, telling listeners."""
+        """Release every grid sample with time <= t_s, in chunks, telling listeners."""
         with self.lock:
             n_end = math.floor(t_s * self.rate_hz + 1e-9) + 1
+            B = self.block_samples
             while self._n_next < n_end:
-                n = min(n_end - self._n_next, max_chunk)
-                chunk = self._generate(self._n_next, n)
+                k = self._n_next // B
+                block = self._block_for(k)
+                lo = self._n_next - k * B
+                hi = min(n_end - k * B, B, lo + max_chunk)
+                chunk = AxisChunk(self._n_next, block.t_s[lo:hi], block.w_cmd[lo:hi],
+                                  block.w[lo:hi], block.phi[lo:hi], block.fog_dps[lo:hi])
+                self._release_marks(block, k * B + lo, k * B + hi)
+                self._n_next = k * B + hi
+                self._phi_last = float(block.phi[hi - 1])
+                self._w_last = float(block.w[hi - 1])
+                if hi == B:  # the block is out whole: its end is the next one's start
+                    self._block_start = (k + 1, self._phi_last, self._w_last)
+                    self._block = None
                 for listener in list(self.listeners):
                     listener(chunk)
+
+    def _block_for(self, k: int) -> _Block:
+        b = self._block
+        if b is not None and b.k == k and b.version == self._profile_version:
+            return b
+        k0, phi0, w0 = self._block_start
+        assert k0 == k, (k0, k)
+        self._block = self._generate(k, phi0, w0)
+        return self._block
+
+    def _rng(self, stream: str, k: int) -> np.random.Generator:
+        ss = np.random.SeedSequence(self._ss.entropy,
+                                    spawn_key=(*self._ss.spawn_key, _STREAMS[stream], k))
+        return np.random.default_rng(ss)
 
     def _rate(self, t_s: np.ndarray, w_cmd: np.ndarray, phi_deg: np.ndarray,
               noise_dps: np.ndarray) -> np.ndarray:
@@ -298,56 +355,69 @@ class AxisModel:
             w += np.where(w_cmd != 0.0, tone, 0.0)
         return w + noise_dps
 
-    def _generate(self, n0: int, n: int) -> AxisChunk:
+    def _generate(self, k: int, phi_last: float, w_last: float) -> _Block:
+        n = self.block_samples
+        n0 = k * n
         idx = np.arange(n0, n0 + n, dtype=np.int64)
         t = idx / self.rate_hz
         w_cmd = self.profile.rate(t)
         turning = w_cmd != 0.0
         noise = np.zeros(n)
         if self.truth.rate_noise_dps:
-            noise = self._rng_table.standard_normal(n) * self.truth.rate_noise_dps
+            noise = self._rng("table", k).standard_normal(n) * self.truth.rate_noise_dps
             noise[~turning] = 0.0
         dt = 1.0 / self.rate_hz
-        # fixed point of phi = phi_last + cumtrapz(w(phi, t)); first guess ignores harmonics
-        phi = self._phi_last + np.cumsum(w_cmd) * dt
-        for _ in range(_FIXED_POINT_PASSES):
-            w = self._rate(t, w_cmd, phi, noise)
-            prev = np.concatenate(([self._w_last], w[:-1]))
-            phi = self._phi_last + np.cumsum(0.5 * (prev + w)) * dt
-        if n0 == 0:  # the first sample is the origin, not a step from it
-            phi -= 0.5 * (self._w_last + w[0]) * dt
-        self._record_marks(t, phi)
+        if w_last == 0.0 and not turning.any():
+            # at rest the whole block (every error source is scaled by, or gated on, the
+            # commanded rate): the same numbers the solve below gives, without it
+            w = np.zeros(n)
+            phi = np.full(n, phi_last)
+        else:
+            # fixed point of phi = phi_last + cumtrapz(w(phi, t)); the first guess
+            # ignores harmonics
+            phi = phi_last + np.cumsum(w_cmd) * dt
+            for _ in range(_FIXED_POINT_PASSES):
+                w = self._rate(t, w_cmd, phi, noise)
+                prev = np.concatenate(([w_last], w[:-1]))
+                phi = phi_last + np.cumsum(0.5 * (prev + w)) * dt
+            if n0 == 0:  # the first sample is the origin, not a step from it
+                phi -= 0.5 * (w_last + w[0]) * dt
         fog = self.truth.fog
         fog_dps = fog.k * w + fog.bias_at(t)
         if fog.noise_dps:
-            fog_dps += self._rng_fog.standard_normal(n) * fog.noise_dps
-        self._n_next = n0 + n
-        self._phi_last = float(phi[-1])
-        self._w_last = float(w[-1])
-        return AxisChunk(n0, t, w_cmd, w, phi, fog_dps)
+            fog_dps += self._rng("fog", k).standard_normal(n) * fog.noise_dps
+        return _Block(k, self._profile_version, t, w_cmd, w, phi, fog_dps,
+                      self._marks(k, t, phi, phi_last))
 
-    def _record_marks(self, t: np.ndarray, phi: np.ndarray) -> None:
+    def _marks(self, k: int, t: np.ndarray, phi: np.ndarray, phi_last: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Zero-mark crossings in a block: (sample index after, true time, edge, sense)."""
         dt = 1.0 / self.rate_hz
         t_all = np.concatenate(([t[0] - dt], t))
-        phi_all = np.concatenate(([self._phi_last], phi))
+        phi_all = np.concatenate(([phi_last], phi))
         turn = np.floor(phi_all / 360.0)
         step = np.diff(turn)
         where = np.nonzero(step)[0]
-        if self._n_next == 0:
+        if k == 0:
             where = where[where > 0]
-        if where.size == 0:
-            return
         # one crossing per step (a step of several turns per sample is impossible here)
         sense = np.sign(step[where])
         mark_phi = np.where(sense > 0, turn[where + 1], turn[where]) * 360.0
         frac = (mark_phi - phi_all[where]) / (phi_all[where + 1] - phi_all[where])
         t_true = t_all[where] + frac * dt
         jitter = self.truth.turn_jitter_s
-        t_edge = t_true + (self._rng_edge.standard_normal(t_true.size) * jitter if jitter
-                           else 0.0)
-        self._marks_true.append(t_true)
-        self._marks_edge.append(np.asarray(t_edge, dtype=float))
-        self._marks_sense.append(sense.astype(np.int8))
+        t_edge = t_true + (self._rng("edge", k).standard_normal(t_true.size) * jitter
+                           if jitter and t_true.size else 0.0)
+        sample = k * self.block_samples + where
+        return sample, t_true, np.asarray(t_edge, dtype=float), sense.astype(np.int8)
+
+    def _release_marks(self, block: _Block, n_from: int, n_to: int) -> None:
+        sample, t_true, t_edge, sense = block.marks
+        keep = (sample >= n_from) & (sample < n_to)
+        if keep.any():
+            self._marks_true.append(t_true[keep])
+            self._marks_edge.append(t_edge[keep])
+            self._marks_sense.append(sense[keep])
 
     def zero_marks(self, t_from_s: float = -math.inf, t_to_s: float = math.inf) -> ZeroMarks:
         """Zero marks whose edge time lies in [t_from_s, t_to_s), from what is generated."""

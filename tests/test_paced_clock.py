@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -18,7 +19,7 @@ import yaml
 from bench.commands import EXIT_PASS, run_session
 from bench.journal import RunDir
 from bench.loader import load_config
-from sims.clock import VirtualClock, parse_speed
+from sims.clock import SteppedClock, VirtualClock, parse_speed
 from tests.conftest import CONFIGS
 from tests.test_run_e2e import check_against_truth
 
@@ -100,3 +101,66 @@ def test_a_slowed_twin_slows_the_clock_and_the_run_completes(tmp_path: Path) -> 
     assert [r["set_rate_dps"] for r in result["axes"]["outer"]["rates"]] == [100, -100,
                                                                              200, -200]
     check_against_truth(result)
+
+
+class _Ticker:
+    """A participant that acts every `period_s` and is settled a while after each act
+    (a twin whose output takes real time to be consumed)."""
+
+    def __init__(self, clock: SteppedClock, period_s: float) -> None:
+        self.clock, self.period_s = clock, period_s
+        self.acts: list[float] = []
+        self._ready_at = 0.0
+
+    def next_event_s(self, t_s: float) -> float:
+        return (math.floor(t_s / self.period_s + 1e-9) + 1) * self.period_s
+
+    def advance(self, t_s: float) -> None:
+        if abs(t_s / self.period_s - round(t_s / self.period_s)) < 1e-9:
+            self.acts.append(t_s)
+            self._ready_at = time.monotonic() + 0.002
+
+    def settled(self, t_s: float, final: bool) -> bool:
+        return time.monotonic() >= self._ready_at
+
+
+def test_a_stepped_clock_passes_time_only_in_waits_and_stops_at_every_event() -> None:
+    """The co-simulation clock (issue 27): time stands while nothing waits, a wait steps
+    through every participant's events in order, and a channel not drained holds it."""
+    clock = SteppedClock(max_step_s=10.0)
+    ticker = _Ticker(clock, 0.25)
+    leave = clock.join(ticker)
+    assert clock.stepped and clock.now() == 0.0
+    time.sleep(0.05)
+    assert clock.now() == 0.0                   # no wait: no time
+    clock.sleep(1.1)
+    assert clock.now() == pytest.approx(1.1)
+    assert ticker.acts == pytest.approx([0.25, 0.5, 0.75, 1.0])
+    # a channel: the wait ends only once its consumer has taken what was sent
+    clock.channel_opened("pty")
+    clock.sent("pty", 100)
+    assert clock.backlog("pty") == 100
+
+    class _Pty:
+        def next_event_s(self, t_s: float) -> float:
+            return math.inf
+
+        def advance(self, t_s: float) -> None:
+            pass
+
+        def settled(self, t_s: float, final: bool) -> bool:
+            return clock.backlog("pty") == 0 or not final
+
+    leave_pty = clock.join(_Pty())
+    done = threading.Event()
+    threading.Thread(target=lambda: (clock.sleep_until(2.0), done.set()), daemon=True).start()
+    time.sleep(0.1)
+    assert not done.is_set()
+    clock.consumed("pty", 100)
+    assert done.wait(5.0)
+    assert clock.now() == pytest.approx(2.0)
+    leave_pty()
+    leave()
+    clock.channel_closed("pty")
+    clock.sent("pty", 5)                         # nobody reads: nothing to wait for
+    assert clock.backlog("pty") == 0

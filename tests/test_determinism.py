@@ -1,0 +1,114 @@
+"""A run's numbers depend on its seed and files alone, never on machine load (issue 27).
+
+Two `bench run --example demo` on the twins' co-simulation clock (sims/clock.py
+SteppedClock), the second with two busy processes beside it on this (2-core) machine:
+every value in result.json is the same (what names the run, its dates and the pty or
+port a twin happened to get aside), and so is every figure of the certificate. Before the
+co-simulation three runs of seed 1 gave 15/5, 14/6 and 12/8 checks met/not assessed.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+#: result.json keys that say when or where, not what was measured
+_WHEN_WHERE = {"dates", "run_dir"}
+#: what differs between two runs in text: a certificate's number (from the run's time),
+#: a date or time of day, the run directory's name, a twin's pty or TCP port
+_VOLATILE = [
+    (re.compile(r"RT-\d{8}-[0-9A-F]{8}"), "RT-<number>"),
+    (re.compile(r"\d{4}-\d\d-\d\d([ T]\d\d:\d\d(:\d\d(\.\d+)?)?( UTC|[+-]\d\d:\d\d)?)?"),
+     "<date>"),
+    (re.compile(r"\d{8}-\d{6}-demo"), "<run>"),
+    (re.compile(r"/dev/pts/\d+"), "<pty>"),
+    (re.compile(r"127\.0\.0\.1::\d+"), "127.0.0.1::<port>"),
+    # the files that journal the session's wall-clock dates: their size and digest
+    (re.compile(r'(<td class="l">(?:meta\.json|events\.jsonl)</td>)<td class="r">[^<]+</td>'
+                r'<td class="l">[0-9a-f]{64}</td>'), r"\1<size and digest>"),
+]
+
+
+def _normal(text: str) -> str:
+    for pattern, repl in _VOLATILE:
+        text = pattern.sub(repl, text)
+    return text
+
+
+def _strip(doc: Any) -> Any:
+    if isinstance(doc, dict):
+        return {k: _strip(v) for k, v in doc.items() if k not in _WHEN_WHERE}
+    if isinstance(doc, list):
+        return [_strip(v) for v in doc]
+    if isinstance(doc, str):
+        return _normal(doc)
+    return doc
+
+
+def _differences(a: Any, b: Any, where: str = "") -> Iterator[str]:
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b)):
+            yield from _differences(a.get(k), b.get(k), f"{where}/{k}")
+    elif isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            yield from _differences(x, y, f"{where}[{i}]")
+    elif a != b:
+        yield f"{where}: {a!r} != {b!r}"
+
+
+@contextmanager
+def _busy(n: int) -> Iterator[None]:
+    """`n` processes spinning on a CPU each, for as long as the block runs."""
+    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+    try:
+        yield
+    finally:
+        for p in procs:
+            p.kill()
+        for p in procs:
+            p.wait()
+
+
+def _demo(out: Path) -> Path:
+    proc = subprocess.run([sys.executable, "-m", "bench", "run", "--example", "demo", "--yes",
+                           "--quiet", "--out", str(out)],
+                          capture_output=True, text=True, timeout=900, check=False)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    runs = [p for p in out.iterdir() if (p / "result.json").is_file()]
+    assert len(runs) == 1, list(out.iterdir())
+    return runs[0]
+
+
+def _certificate_text(run: Path) -> str:
+    html = (run / "certificate.html").read_text(encoding="utf-8")
+    return _normal(html)
+
+
+@pytest.mark.timeout(1200)
+def test_the_demo_gives_the_same_numbers_quiet_and_beside_two_busy_processes(
+        tmp_path: Path) -> None:
+    quiet = _demo(tmp_path / "quiet")
+    with _busy(2):
+        loaded = _demo(tmp_path / "loaded")
+    a = _strip(json.loads((quiet / "result.json").read_text()))
+    b = _strip(json.loads((loaded / "result.json").read_text()))
+    diffs = list(_differences(a, b))
+    assert not diffs, "\n".join(diffs[:30])
+    # a check that can fail: the results carry figures, and the raw records are equal
+    assert a["axes"]["outer"]["rates"], a["axes"]
+    assert any(f["sha256"] for f in a["raw_files"])
+    ca, cb = _certificate_text(quiet), _certificate_text(loaded)
+    if ca != cb:
+        la, lb = ca.splitlines(), cb.splitlines()
+        lines = [f"line {i + 1}:\n  {x}\n  {y}"
+                 for i, (x, y) in enumerate(zip(la, lb, strict=False)) if x != y]
+        pytest.fail(f"certificates differ ({len(la)} and {len(lb)} lines):\n"
+                    + "\n".join(lines[:10]))
