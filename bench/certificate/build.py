@@ -116,6 +116,7 @@ def _cert(src: Sources) -> dict[str, Any]:
 AUTHORITATIVE = ("The PDF file certificate.pdf is the authoritative form of this certificate; "
                  "the HTML rendering carries the same content for reading on screen.")
 SIMULATED_MARK = "SIMULATED RUN: NOT A CALIBRATION"
+DRAFT_MARK = "DRAFT, NOT AUTHORISED"
 
 
 #: a section from outside the run directory (the records' history): title and blocks
@@ -164,14 +165,13 @@ def _parts(name: str) -> CertificateParts:
 def build_document(result: dict[str, Any], run_path: Path | None = None,
                    issued: dt.date | None = None, issue: Issue | None = None,
                    extra_sections: Sequence[ExtraSection] = ()) -> Document:
-    """The certificate for one issue. Without `issue` it is the run's next one (revision 1
-    when nothing was issued yet), dated today or `issued`, and nothing is recorded."""
+    """The certificate for one issue; without `issue` (or with an unauthorised one) the
+    DRAFT of the run's next revision: marked DRAFT, NOT AUTHORISED on every page, no date
+    of issue, no authorisation claimed. `issued` is kept for callers that dated drafts."""
     src = Sources.load(result, run_path)
     cid = certificate_id(src)
     if issue is None:
-        when = (dt.datetime.combine(issued, dt.time(12), dt.UTC) if issued
-                else dt.datetime.now(dt.UTC))
-        issue = register.next_issue(run_path, cid, when)
+        issue = register.draft(run_path, cid)
     proc = procedure_of(src)
     cert = _cert(src)
     lab = str(cert.get("laboratory") or "Calibration laboratory (name not given)")
@@ -199,20 +199,22 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
     simulated = bool(stand_of(src).get("simulated"))
     if simulated:
         subtitle += " (SIMULATED stand)"
+    marks = [m for m in (DRAFT_MARK if issue.draft else "",
+                         SIMULATED_MARK if simulated else "") if m]
     return Document(
-        cert_id=issue.number,
+        cert_id=issue.number + (" (DRAFT)" if issue.draft else ""),
         title="Calibration certificate",
         subtitle=subtitle,
         laboratory=lab,
-        issue_date=issue.issue_date,
+        issue_date=issue.issue_date if not issue.draft else "",
         verdict=str(src.get("verdict", "incomplete")),
         sections=tuple(sections),
         footer="This certificate shall not be reproduced except in full without the written "
                "approval of the issuing laboratory. " + AUTHORITATIVE.split(";")[0] + ".",
         meta={"run_title": str(src.get("title") or src.procedure_file.get("title") or ""),
               "procedure": proc.name, "revision": str(issue.revision),
-              "replaces": issue.replaces or "", "scope": _scope_line(src, checks, proc)},
-        watermark=SIMULATED_MARK if simulated else "",
+              "replaces": "" if issue.draft else issue.replaces or "", "scope": _scope_line(src, checks, proc)},
+        watermark=" / ".join(marks),
     )
 
 
@@ -242,9 +244,7 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
     item, serial = proc.parts.certificate_item(src)
     rows: list[tuple[str, str]] = [
         ("Certificate number", issue.number),
-        ("Revision", f"{issue.revision}" + (f"; replaces certificate {issue.replaces}, "
-                                            "which is withdrawn" if issue.replaces else
-                                            " (first issue)")),
+        ("Revision", _revision_text(issue)),
         ("Title of the work", text_of(src.get("title") or src.procedure_file.get("title"))),
         ("Issued by", text_of(cert.get("laboratory"))),
         ("Laboratory address", text_of(cert.get("address"))),
@@ -269,7 +269,8 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
         ("Work started", _utc(started)),
         ("Work ended", (_utc(completed) + (" (aborted)" if src.get("aborted") else ""))
          if completed else "not completed"),
-        ("Date of issue (authorisation)", issue.issue_date),
+        ("Date of issue (authorisation)", "none: DRAFT, NOT AUTHORISED" if issue.draft
+         else issue.issue_date),
         ("Statement of conformity", _overall(src, checks, proc)),
     ]
     skip = {"laboratory", "customer", "number", "id", "certificate_id", "prefix", "signers",
@@ -767,27 +768,53 @@ def _hash_table(files: Sequence[Mapping[str, Any]], caption: str) -> Table:
                  caption=caption, mono=True)
 
 
+def _revision_text(issue: Issue) -> str:
+    """Which revision, what it replaces, and (ISO/IEC 17025 7.8.8) why and what changed."""
+    if issue.draft:
+        text = (f"{issue.revision} (DRAFT" + (f" of a re-issue; certificate {issue.replaces} "
+                                             "stands until it is issued)" if issue.replaces
+                                             else ")"))
+        return text
+    if not issue.replaces:
+        return f"{issue.revision} (first issue)"
+    text = f"{issue.revision}; replaces certificate {issue.replaces}, which is withdrawn"
+    if issue.reason:
+        text += f". Reason: {issue.reason}"
+    if issue.changes:
+        text += ". What changed: " + "; ".join(issue.changes)
+    return text
+
+
 def _signatures(cert: Mapping[str, Any], issue: Issue) -> tuple[Any, ...]:
-    """Named signatories with their functions (the lab's settings); the one who authorises
-    the issue dates it, and that date is the date of issue."""
+    """Named signatories with their functions (the lab's settings). Only an issue that
+    `bench authorise` recorded names who authorised it and when; a draft claims neither."""
     signers = cert.get("signatories") or cert.get("signers")
     pairs: list[tuple[str, str]] = []
-    authoriser = ""
     if isinstance(signers, list) and signers:
         for sg in signers:
             if not isinstance(sg, Mapping):
                 pairs.append((str(sg), ""))
                 continue
-            function = str(sg.get("function") or sg.get("role") or "")
-            name = str(sg.get("name") or "")
-            pairs.append((function, name))
-            if sg.get("authorises") or "authoris" in function.lower():
-                authoriser = authoriser or f"{name}, {function}"
+            if sg.get("authorises") or sg.get("main_signer"):
+                continue          # the authoriser's line is the issue's own, below
+            pairs.append((str(sg.get("function") or sg.get("role") or ""),
+                          str(sg.get("name") or "")))
     else:
-        pairs = [("Calibration performed by", ""), ("Reviewed and authorised by", "")]
+        pairs = [("Calibration performed by", "")]
+    if issue.draft:
+        pairs.append(("Reviewed and authorised by", ""))
+        return (Para("DRAFT, NOT AUTHORISED: this draft has not been authorised for issue "
+                     "and is not a certificate. An authorised signatory issues it with "
+                     "`bench authorise RUN_DIR --signatory NAME`.", "strong"),
+                Signatures(tuple(pairs)))
+    who = ", ".join(x for x in (issue.signatory, issue.function) if x)
+    pairs.append((f"{issue.function or 'Authorised signatory'}; authorised this issue",
+                  str(issue.signatory)))
     text = (f"Date of issue: {issue.issue_date}, the date on which this certificate was "
-            "authorised for issue" + (f" by {authoriser}." if authoriser else "."))
+            f"authorised for issue by {who} ({issue.issued_utc}).")
     if issue.replaces:
         text += (f" Revision {issue.revision}: it replaces certificate {issue.replaces}, "
                  "which is withdrawn.")
+        if issue.reason:
+            text += f" Reason for the re-issue: {issue.reason}."
     return (Para(text), Signatures(tuple(pairs)))

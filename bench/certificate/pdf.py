@@ -56,7 +56,9 @@ class _Pdf(FPDF):
         self.cell(0, 4, self.doc.laboratory, new_x=XPos.LMARGIN, new_y=YPos.TOP)
         self.cell(0, 4, f"Certificate No. {self.doc.cert_id}", align="R",
                   new_x=XPos.LMARGIN, new_y=YPos.NEXT)
-        self.cell(0, 4, f"{self.doc.title}, issued {self.doc.issue_date}",
+        issued = (f"issued {self.doc.issue_date}" if self.doc.issue_date
+                  else "DRAFT, NOT AUTHORISED, not issued")
+        self.cell(0, 4, f"{self.doc.title}, {issued}",
                   new_x=XPos.LMARGIN, new_y=YPos.TOP)
         self.cell(0, 4, f"Page {self.page_no()} of {{nb}}", align="R",
                   new_x=XPos.LMARGIN, new_y=YPos.NEXT)

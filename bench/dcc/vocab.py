@@ -39,6 +39,8 @@ LOCATION = RB + "itemLocation"
 COUNTRY_UNKNOWN = RB + "countryNotConfigured"
 CONDITION = RB + "condition"
 RUN_DIRECTORY = RB + "runDirectory"
+DRAFT = RB + "draftNotAuthorised"
+AUTHORISATION = RB + "authorisation"
 
 
 @dataclass(frozen=True)
