@@ -112,6 +112,8 @@ FOG = Map({
                      "set: configure the FOG at connect and read back; verify: read back "
                      "only; declare (default): trust fog.units"),
     "model": Key(Str()),
+    "serial": Key(Str(), False, "the FOG's serial number (it answers no identity query, so "
+                  "the certificate prints it as the stand file states it)"),
     "sign": Key(Num(min=-1, max=1, integer=True)),
     "calibration": Key(CALIBRATION, False, "the FOG's calibration certificate, if any"),
 })
@@ -140,6 +142,10 @@ SIM_AXIS = Map({
                                       "counter's Ext Ref In (default true)"),
     "time_tie": Key(Map({"latency_s": Key(Num(min=0)), "jitter_s": Key(Num(min=0))}),
                     False, "the FOG sync to counter trigger link: true latency and jitter"),
+    "serials": Key(Map({"counter": Key(Str()), "drive": Key(Num(min=0, max=2**32 - 1,
+                                                                 integer=True))}), False,
+                   "the serial each twin reports: the counter's *IDN? serial field, the "
+                   "drive's identity object 0x1018:4"),
     "drive": Key(Map({"velocity_unit": Key(Str()), "acceleration_unit": Key(Str()),
                       "tpdo_event_timer_ms": Key(Num(min=0, integer=True))}), False,
                  "the drive twin's factor group (e.g. rpm, rpm/s) and TPDO event timer"),

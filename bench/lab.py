@@ -49,8 +49,9 @@ SIGNATORY = Map({
     "main_signer": Key(Bool(), False, "the same as authorises (the DCC's word)"),
 })
 LAB = Map({
-    "laboratory": Key(OneOf(Str(), CONTACT), True,
-                      "the laboratory's name (or name, code, email, phone, location)"),
+    "laboratory": Key(OneOf(Str(), CONTACT), False,
+                      "the laboratory's name (or name, code, email, phone, location); the "
+                      "certificate says 'name not given' without it"),
     "address": Key(Str(), False, "the laboratory's address, printed (ISO/IEC 17025 7.8.2.1 b)"),
     "location": Key(LOCATION, False, "the address in parts, for the DCC"),
     "email": Key(Str()), "phone": Key(Str()),

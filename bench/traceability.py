@@ -131,10 +131,34 @@ def identity_problems(instruments: Mapping[str, Any]) -> list[str]:
             if serial is None:
                 problems.append(f"the {where} reported no serial number")
                 continue
-            model = str(ident).split(";")[0].split(",")[:2]
-            seen.setdefault((role, f"{model}|{serial}"), []).append(where)
-    for (_role, key), where in seen.items():
+            maker = str(ident).split(";")[0].split(",")[0].strip()
+            seen.setdefault((maker, serial), []).append(where)
+    for (_maker, serial), where in seen.items():
         if len(where) > 1:
-            problems.append(f"the {', '.join(where)} report one serial "
-                            f"({key.split('|')[1]}): two instruments cannot share it")
+            problems.append(f"the {', '.join(where)} report one serial ({serial}) of one "
+                            "maker: two instruments cannot share it")
     return problems
+
+
+#: roles that answer no identity query: their serial is the stand file's (and said so)
+DECLARED_IDENTITY_ROLES = ("fog",)
+
+
+def with_declared_serials(instruments: Mapping[str, Any],
+                          stand: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """The identities as reported, with the stand file's serial added for an instrument
+    that answers no identity query (a FOG), marked as stated, not read back."""
+    out: dict[str, dict[str, Any]] = {}
+    axes = stand.get("axes") or {}
+    for axis, roles in instruments.items():
+        if not isinstance(roles, Mapping):
+            continue
+        out[axis] = dict(roles)
+        for role in DECLARED_IDENTITY_ROLES:
+            spec = (axes.get(axis) or {}).get(role) if isinstance(axes, Mapping) else None
+            if role in roles and isinstance(spec, Mapping) and spec.get("serial") \
+                    and serial_of(roles[role]) is None:
+                head, sep, tail = str(roles[role]).partition("; read back:")
+                out[axis][role] = (f"{head}; serial {spec['serial']} (as the stand file "
+                                   f"states; it answers no identity query){sep}{tail}")
+    return out

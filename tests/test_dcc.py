@@ -401,9 +401,9 @@ def signed(drift: dict[str, Any], tmp_path: Path, monkeypatch: pytest.MonkeyPatc
     lab = _lab_file(tmp_path, key, cert)
     run = _copy_run(drift, tmp_path / "run")
     monkeypatch.setenv("TEST_DCC_KEY_PASSWORD", "s3cret")
-    done = _cli("dcc", str(run), "--lab", str(lab))
+    done = _cli("authorise", str(run), "--signatory", "A. Tester", "--lab", str(lab))
     assert done.returncode == 0, done.stderr
-    assert "signed" in done.stdout
+    assert "DCC signed (XAdES)" in done.stdout
     return {"run": run, "lab": lab, "cert": cert, "file": run / "certificate.dcc.xml"}
 
 
@@ -441,7 +441,7 @@ def test_signed_dcc_verifies_and_keeps_the_key_out_of_the_run(signed: dict[str, 
     lab = root.find("dcc:administrativeData/dcc:calibrationLaboratory", NS)
     assert lab.findtext("dcc:calibrationLaboratoryCode", None, NS) == "D-K-00000-01"
     for f in signed["run"].rglob("*"):
-        assert b"PRIVATE KEY" not in f.read_bytes(), f
+        assert not f.is_file() or b"PRIVATE KEY" not in f.read_bytes(), f
     done = _cli("verify", str(signed["file"]), "--cert", str(signed["cert"]))
     assert done.returncode == 0, done.stdout + done.stderr
     assert "signature: XAdES verifies; signer CN=Test Rate Lab DCC signing" in done.stdout
@@ -470,10 +470,14 @@ def test_a_key_inside_the_run_directory_is_refused(drift: dict[str, Any], tmp_pa
     run = _copy_run(drift, tmp_path / "run")
     key, cert = _throwaway_key(run / "keys", "careless")
     monkeypatch.setenv("TEST_DCC_KEY_PASSWORD", "s3cret")
-    done = _cli("dcc", str(run), "--lab", str(_lab_file(tmp_path, key, cert)))
-    assert done.returncode == 3
+    assert _cli("dcc", str(run)).returncode == 0                    # the draft, unsigned
+    draft = (run / "certificate.dcc.xml").read_bytes()
+    done = _cli("authorise", str(run), "--signatory", "A. Tester", "--lab",
+                str(_lab_file(tmp_path, key, cert)))
+    assert done.returncode == 2
     assert "lies inside the run directory" in done.stderr
-    assert not (run / "certificate.dcc.xml").exists()
+    assert (run / "certificate.dcc.xml").read_bytes() == draft     # nothing issued
+    assert not (run / "issued").exists()
 
 
 # -- the laboratory's settings -------------------------------------------------------------
@@ -519,7 +523,13 @@ def test_lab_settings_fill_the_administrative_data(demo: dict[str, Any], tmp_pat
     lab = _lab_file(tmp_path, key, cert)
     lab.write_text(lab.read_text().split("signing:")[0])           # the same lab, unsigned
     run = _copy_run(demo, tmp_path / "run")
-    assert _cli("dcc", str(run), "--lab", str(lab)).returncode == 0
+    assert _cli("dcc", str(run), "--lab", str(lab)).returncode == 0     # the draft
+    draft = _tree(run / "certificate.dcc.xml").find("dcc:administrativeData", NS)
+    person = draft.find("dcc:respPersons/dcc:respPerson", NS)
+    assert person.findtext("dcc:person/dcc:name/dcc:content", None, NS) == "A. Tester"
+    assert person.find("dcc:mainSigner", NS) is None                  # nobody authorised it
+    done = _cli("authorise", str(run), "--signatory", "A. Tester", "--lab", str(lab))
+    assert done.returncode == 0, done.stderr
     root = _tree(run / "certificate.dcc.xml")
     adm = root.find("dcc:administrativeData", NS)
     assert adm.findtext("dcc:coreData/dcc:countryCodeISO3166_1", None, NS) == "DE"
@@ -585,19 +595,20 @@ def test_which_lab_settings_and_key_are_in_force(tmp_path: Path,
 
 def test_a_reissued_certificate_says_what_it_substitutes(demo: dict[str, Any],
                                                         tmp_path: Path) -> None:
-    """A re-analysis issues a new revision of the certificate (bench.certificate.register):
-    the DCC carries the issue's number and names the one it replaces."""
+    """A re-issue (bench authorise --reason) is a new revision of the certificate
+    (bench.certificate.register): the DCC carries the issue's number and names the one it
+    replaces."""
     from bench.certificate import register
 
     run = _copy_run(demo, tmp_path / "run")
-    shutil.copy2(demo["dir"] / register.REGISTER_NAME, run / register.REGISTER_NAME)
+    assert _cli("authorise", str(run), "--signatory", "P. Petrov").returncode == 0
     first = register.issues(run)[-1]
-    again = register.next_issue(run, first.number, dt.datetime(2027, 3, 4, 12, tzinfo=dt.UTC))
-    register.record(run, again)
-    assert _cli("dcc", str(run)).returncode == 0
+    assert _cli("authorise", str(run), "--signatory", "P. Petrov",
+                "--reason", "test of a re-issue").returncode == 0
+    again = register.issues(run)[-1]
     core = _tree(run / "certificate.dcc.xml").find("dcc:administrativeData/dcc:coreData", NS)
     assert core.findtext("dcc:uniqueIdentifier", "", NS) == again.number != first.number
-    assert core.findtext("dcc:issueDate", "", NS) == "2027-03-04"
+    assert core.findtext("dcc:issueDate", "", NS) == again.issue_date
     change = core.find("dcc:reportAmendedSubstituted", NS)
     assert change.findtext("dcc:typeOfChange", "", NS) == "substituted"
     assert change.findtext("dcc:replacedUniqueIdentifier", "", NS) == first.number

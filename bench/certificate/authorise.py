@@ -35,7 +35,7 @@ from typing import Any
 from bench.certificate import HTML_NAME, PDF_NAME, register, render_files, result_digest
 from bench.certificate.build import Sources, certificate_id, stand_of
 from bench.lab import Lab, LabError, Signatory, run_lab
-from bench.traceability import identity_problems
+from bench.traceability import identity_problems, with_declared_serials
 
 EXIT_ISSUED, EXIT_REFUSED, EXIT_FAILED = 0, 2, 3
 ISSUED_DIR = "issued"
@@ -83,7 +83,9 @@ def _identities(ctx: IssueContext) -> list[str]:
     found = ctx.result.get("instruments")
     if not isinstance(found, Mapping) or not found:
         return ["the run recorded no instrument identities (result.json instruments)"]
-    return [f"{p} (ISO/IEC 17025 6.4.13 a)" for p in identity_problems(found)]
+    stand = _stand(ctx.run_path)
+    return [f"{p} (ISO/IEC 17025 6.4.13 a)"
+            for p in identity_problems(with_declared_serials(found, stand))]
 
 
 #: the checks every issue passes; extend with add_pre_issue_check

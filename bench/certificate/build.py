@@ -43,7 +43,7 @@ from bench.certificate.rounding import (
 )
 from bench.journal import sha256_file
 from bench.registry import procedure_kind, procedure_names
-from bench.traceability import MEASURING_ROLES, traced_items
+from bench.traceability import serial_of, traced_items, with_declared_serials
 
 __all__ = ["NOT_RECORDED", "Sources", "build_document", "certificate_id", "decision_rule_text",
            "issued_number", "verdict_label"]
@@ -374,7 +374,7 @@ def _instruments(src: Sources, proc: Procedure) -> tuple[Any, ...]:
         ("Stand file", f"{text_of(stand.get('file') or src.meta.get('stand_file'))}"),
         ("Stand file SHA-256", text_of(stand.get("sha256") or src.meta.get("stand_sha256"))),
     ))]
-    ids = src.get("instruments", {}) or {}
+    ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
     if not ids:  # the event log records each axis's identities at the start of a session
         for e in src.events:
             if e.get("event") == "identity" and e.get("axis"):
@@ -437,6 +437,47 @@ def _work_date(src: Sources) -> dt.date | None:
         return None
 
 
+#: stand roles that command the item and measure nothing a result rests on
+COMMANDING_ROLES = ("drive",)
+
+
+def _serial_read_back(ids: Mapping[str, Any], t: Any) -> str:
+    """The serial the instrument reported in this run (its identity), not the stand file's.
+    An instrument at `axes.<axis>.<role>` reported under ids[axis][role]; one elsewhere
+    (a platform's `gyros.x.dmm`) under its role, or `<gyro>-<role>`, on the table axis."""
+    parts = t.where.split(".")
+    if parts[0].startswith("traceability"):
+        return "—"
+    names = [parts[-1]] + ([f"{parts[-2]}-{parts[-1]}"] if len(parts) > 1 else [])
+    axes = [parts[1]] if parts[0] == "axes" and len(parts) > 2 else list(ids)
+    for axis in axes:
+        roles = ids.get(axis)
+        for role in names if isinstance(roles, Mapping) else ():
+            if role in roles:
+                return serial_of(roles[role]) or "NONE REPORTED"
+    return "not recorded"
+
+
+def _trace_status(src: Sources, t: Any) -> str:
+    """Without a stated calibration: what a result of this run rests on it, truthfully."""
+    if t.stated:
+        return ""
+    role = t.where.rsplit(".", 1)[-1]
+    axis = t.where.split(".")[-2] if "." in t.where else ""
+    pairs = ((src.get("axes", {}) or {}).get(axis) or {}).get("pairs") if axis else None
+    if role in COMMANDING_ROLES and pairs is not None:
+        return ("none needed: it commands the rate; every reported rate is measured by "
+                "the counter and the FOG, none read from the drive")
+    if role in COMMANDING_ROLES:
+        return ("none stated: it commands the position; no reported value is read from it "
+                "(its stated position tolerance enters the budget as a bound)")
+    if role == "fog" and pairs:
+        return ("in-situ calibration: scale k and bias w0 cross-calibrated against the "
+                "counter for each +/- pair (docs/method.md A3, eq. 5-6), "
+                "so its rates are traceable through the counter's time base")
+    return "NOT TRACEABLE: no calibration certificate in the stand file, yet results rest on it"
+
+
 def _traceability(src: Sources) -> tuple[Any, ...]:
     """Where each measured quantity's traceability to the SI comes from (17025 7.8.4.1 c):
     the stand file's calibration certificates, and the counter reference as read back."""
@@ -447,17 +488,16 @@ def _traceability(src: Sources) -> tuple[Any, ...]:
     on = _work_date(src)
     rows = []
     overdue_seen = False
+    ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
     for t in items:
-        if not t.stated:
-            status = ("NOT TRACEABLE: no calibration certificate in the stand file"
-                      if t.where.rsplit(".", 1)[-1] in MEASURING_ROLES else
-                      "none stated (no measured value rests on it)")
-        elif on is not None and t.overdue(on):
+        status = _trace_status(src, t)
+        if t.stated and on is not None and t.overdue(on):
             overdue_seen = True
             status = f"PAST DUE on the date of the work ({on.isoformat()})"
-        else:
+        elif t.stated:
             status = "valid on the work's date" if on else "validity not checked"
-        rows.append((t.item, text_of(t.certificate) if t.stated else "—",
+        rows.append((t.item, _serial_read_back(ids, t),
+                     text_of(t.certificate) if t.stated else "—",
                      text_of(t.issuer) if t.stated else "—",
                      t.due.isoformat() if t.due else "—", text_of(t.traces) if t.traces else
                      "—", status))
@@ -474,9 +514,10 @@ def _traceability(src: Sources) -> tuple[Any, ...]:
         claimed = ((stand_axes.get(axis) or {}).get("counter") or {}).get("reference")
         notes.append(f"Counter reference, axis {axis}: read back from the counter: {ref}"
                      + (f"; the stand file states {claimed}" if claimed else "") + ".")
-    return (Table(("Item", "Certificate", "Issued by", "Due", "Quantity traced",
-                   "Status"), tuple(rows), widths=(1.9, 2.0, 1.6, 1.2, 2.2, 1.5),
-                  align="llllll", caption="Metrological traceability: calibration of the "
+    return (Table(("Item", "Serial (read back)", "Certificate", "Issued by", "Due",
+                   "Quantity traced", "Status"), tuple(rows),
+                  widths=(1.7, 1.3, 1.7, 1.4, 1.1, 1.9, 2.2),
+                  align="lllllll", caption="Metrological traceability: calibration of the "
                   "instruments and references used", notes=tuple(notes)),)
 
 

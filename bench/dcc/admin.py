@@ -95,7 +95,7 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
         core.remove(ids)
     dates = src.get("dates", {}) or {}
     begin = (_date(dates.get("started_utc")) or _date(_event(src, "session_start"))
-             or _date(dates.get("created_utc")) or _date(src.meta.get("created_utc")) or issue)
+             or _date(dates.get("created_utc")) or _date(src.meta.get("created_utc")) or today)
     end = (_date(dates.get("completed_utc")) or _date(_event(src, "completed", last=True))
            or begin)
     el(core, "beginPerformanceDate", begin)
@@ -118,7 +118,10 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
         el(contact, "phone", lab.phone)
     _location(contact, lab.location or ((("further", lab.address),) if lab.address else ()))
     persons = el(adm, "respPersons")
-    people = [(s.name, s.function or None) for s in lab.signatories if not s.authorises]
+    # a draft names the lab's signatories, none as main signer (nobody authorised it); an
+    # issue those who did not authorise, then the one who did, its main signer
+    people = [(s.name, s.function or None) for s in lab.signatories
+              if issue.draft or not s.authorises]
     if not issue.draft:
         people.append((str(issue.signatory), issue.function or "Authorised signatory"))
     for person_name, role in people or [("", "Calibration performed by")]:

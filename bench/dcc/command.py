@@ -44,7 +44,8 @@ def write_run_dcc(run_path: Path, result: dict[str, Any], stand: Mapping[str, An
         line(outcome.message())
         return True
     if outcome.ok:
-        line(f"wrote {outcome.path} ({'signed, ' if outcome.signed else 'DRAFT, '}valid DCC 3.3.0)")
+        line(f"wrote {outcome.path} (valid DCC 3.3.0), a DRAFT, NOT AUTHORISED: "
+             "`bench authorise` issues it")
         return True
     warn(outcome.message() + f"\nthe DCC does not validate and was kept as "
          f"{run_path / 'certificate.dcc.invalid.xml'} for diagnosis; once fixed, "
