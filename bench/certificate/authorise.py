@@ -22,6 +22,7 @@ issue nobody could check is not issued.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as dt
 import json
 import os
@@ -222,11 +223,11 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
     try:
         outcome = write_dcc(run_path, result, stand, lab=lab, issue=issue, out_dir=work)
     except LabError as e:
-        shutil.rmtree(work, ignore_errors=True)
+        _discard(work)
         return _refuse([f"the DCC could not be signed: {e}"], run_path)
     if not outcome.ok:
         _err(outcome.message())
-        shutil.rmtree(work, ignore_errors=True)
+        _discard(work)
         _err(f"bench authorise: not issued: the DCC does not validate ({run_path})")
         return EXIT_FAILED
     register.record(run_path, issue)
@@ -251,6 +252,13 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
     for name in (PDF_NAME, HTML_NAME, DCC_NAME):
         line(f"wrote {final / name}")
     return EXIT_ISSUED
+
+
+def _discard(work: Path) -> None:
+    """Remove what a refused issue began to write (and `issued/` if it is left empty)."""
+    shutil.rmtree(work, ignore_errors=True)
+    with contextlib.suppress(OSError):
+        work.parent.rmdir()
 
 
 def _mark_withdrawn(run_path: Path, old: register.Issue, new: register.Issue) -> None:

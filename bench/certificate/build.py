@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import bench
+from bench.budget import budget_sites
 from bench.certificate import methods, register
 from bench.certificate.model import Document, Fields, Para, Section, Signatures, Table
 from bench.certificate.operator import prompt_blocks, software_note
@@ -190,6 +191,10 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
     sections.append(Section(n.next(), "Records: raw data and inputs", _records(src)))
     for title, blocks in [*proc.parts.certificate_annexes(src), *extra_sections]:
         sections.append(Section(n.next(), title, tuple(blocks)))
+    budgets = budget_tables(src.result)
+    if budgets:
+        sections.append(Section(n.next(), "Uncertainty budgets (EA-4/02)", budgets,
+                                new_page=True))
     statements = proc.parts.certificate_statements(methods.STATEMENTS)
     statements.append(AUTHORITATIVE)
     sections.append(Section(n.next(), "Statements", tuple(Para(t) for t in statements)))
@@ -216,6 +221,48 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
               "replaces": "" if issue.draft else issue.replaces or "", "scope": _scope_line(src, checks, proc)},
         watermark=" / ".join(marks),
     )
+
+
+def _g(x: float | None, sig: int = 3) -> str:
+    if x is None:
+        return "—"
+    return format_sig(x, sig) if x != 0 else "0"
+
+
+def budget_tables(result: Mapping[str, Any]) -> tuple[Any, ...]:
+    """One table per budget in result.json (bench.budget), in EA-4/02's columns."""
+    sites = budget_sites(result)
+    if not sites:
+        return ()
+    blocks: list[Any] = [Para(
+        "Each budget (EA-4/02 M:2022 section 4): input quantity X_i, estimate x_i, standard "
+        "uncertainty u(x_i), distribution, sensitivity coefficient c_i, contribution "
+        "u_i(y) = |c_i|·u(x_i) and degrees of freedom ν_i (∞: Type B or very many samples); "
+        "u_c(y) = √Σu_i(y)², ν_eff by Welch-Satterthwaite, U = k·u_c with the k the "
+        "analysis uses. Values are in the units named (1: a plain fraction, 1e-6 = 1 ppm). "
+        "Each budget is checked against the U reported with the result.", "note")]
+    for where, _owner, b in sites:
+        un = "" if b.unit == "1" else f" {b.unit}"
+        rows = tuple((t.quantity, _g(t.estimate, 6), _g(t.ustd), t.distribution,
+                      _g(t.sensitivity), _g(t.contribution),
+                      "∞" if t.dof is None or t.dof > 1e4 else f"{t.dof:.0f}")
+                     for t in b.terms)
+        nu = b.dof_eff
+        agree = b.reproduces
+        notes = [f"u_c = {_g(b.ustd)}{un}; ν_eff = "
+                 f"{'∞' if nu is None or nu > 1e4 else f'{nu:.1f}'}; k = {b.k:g}; "
+                 f"U = {_g(b.U, 2)}{un}" +
+                 ("" if b.reported_U is None else
+                  f"; U reported with the result {_g(b.reported_U, 2)}{un} "
+                  + ("(reproduced)" if agree else "(NOT reproduced by this budget)"))]
+        if b.note:
+            notes.append(b.note)
+        blocks.append(Table(("Quantity X_i", "Estimate x_i", "u(x_i)", "Distribution",
+                             "c_i", "u_i(y)", "ν_i"), rows,
+                            widths=(3.4, 1.3, 1.0, 1.2, 1.0, 1.0, 0.6), align="lrrlrrr",
+                            caption=f"{b.quantity}, {where}: estimate "
+                                    f"{_g(b.estimate, 6)}{un}", notes=tuple(notes)))
+    return tuple(blocks)
 
 
 class _Counter:

@@ -41,6 +41,7 @@ CONDITION = RB + "condition"
 RUN_DIRECTORY = RB + "runDirectory"
 DRAFT = RB + "draftNotAuthorised"
 AUTHORISATION = RB + "authorisation"
+SENSITIVITY = RB + "sensitivityCoefficient"
 
 
 @dataclass(frozen=True)

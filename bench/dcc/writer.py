@@ -29,6 +29,7 @@ from lxml import etree
 from bench.certificate import register
 from bench.certificate.build import Sources, certificate_id, procedure_of
 from bench.dcc.admin import administrative
+from bench.dcc.budgets import budget_results
 from bench.dcc.conformity import Checks, checks_of, leftover_checks
 from bench.dcc.parts import DccParts
 from bench.dcc.used_methods import methods_and_conditions
@@ -72,6 +73,7 @@ def build_dcc(inputs: DccInputs) -> etree._ElementTree:
     results = el(root, "measurementResults")
     methods_and_conditions(results, src, kind)
     kind.dcc_results(results, src, checks)
+    budget_results(results, inputs.result)
     if results.find(f"{{{DCC_NS}}}measurementResult") is None:    # the DCC needs one
         mr = el(results, "measurementResult", id="noResults")
         name(mr, "No results")

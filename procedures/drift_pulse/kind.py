@@ -515,7 +515,9 @@ class DriftPulse(StepDispatch, DriftCertificate):
 
     # -- analysis -------------------------------------------------------------------------
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
-        return analyze_run(run, cfg, self)
+        from procedures.drift_pulse.budgets import add_budgets
+
+        return add_budgets(analyze_run(run, cfg, self))
 
 
 KIND = DriftPulse()

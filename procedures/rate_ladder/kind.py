@@ -374,7 +374,9 @@ class RateLadder(StepDispatch, LadderCertificate):
 
     # -- analysis --------------------------------------------------------------------
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
-        return analyze_run(run, cfg)
+        from procedures.rate_ladder.budgets import add_budgets
+
+        return add_budgets(analyze_run(run, cfg))
 
 
 KIND = RateLadder()
