@@ -11,6 +11,7 @@ import contextlib
 import io
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -229,3 +230,113 @@ def test_an_incomplete_run_is_not_issued(run: Path) -> None:
     (run / "result.json").write_text(json.dumps(result))
     done = _cli("authorise", str(run), "--signatory", "P. Petrov")
     assert done.returncode == 2 and "incomplete run certifies nothing" in done.stderr
+
+
+# -- the DCC states what the PDF states -------------------------------------------------
+
+SCALES = (1.0, 100.0, 1e6, 60.0, 3600.0, 1 / 3600)    # fraction, %, ppm, arcmin, ...
+
+
+def _num(text: str) -> float:
+    return float(text.replace("−", "-").replace("+", ""))
+
+
+def _decimals(text: str) -> int:
+    return len(text.split(".")[1]) if "." in text else 0
+
+
+def _dcc_values(root: etree._Element) -> list[tuple[float, float | None]]:
+    """Every (value, U) of the DCC, unrounded, from si:real and si:realListXMLList."""
+    si = {"si": "https://ptb.de/si"}
+    out: list[tuple[float, float | None]] = []
+    for real in root.iterfind(".//si:real", si):
+        u = real.findtext("si:measurementUncertaintyUnivariate/si:expandedMU/"
+                          "si:valueExpandedMU", None, si)
+        out.append((float(real.findtext("si:value", None, si)), float(u) if u else None))
+    for lst in root.iterfind(".//si:realListXMLList", si):
+        vs = [float(x) for x in lst.findtext("si:valueXMLList", "", si).split()]
+        us = lst.findtext("si:measurementUncertaintyUnivariateXMLList/si:expandedMUXMLList/"
+                          "si:valueExpandedMUXMLList", None, si)
+        out += list(zip(vs, [float(x) for x in us.split()] if us else [None] * len(vs),
+                        strict=True))
+    return out
+
+
+def _figures_missing(pdf_text: str, root: etree._Element, rates: set[float]
+                     ) -> tuple[list[str], list[str], int]:
+    """Each 'v ± U' of the PDF must be a DCC value and U that print so (at the PDF's
+    decimals, in one of the PDF's units; a figure per °/s of the set rate or per % of it
+    is the DCC's relative value times or over the set rate); each '< L' a DCC value (or
+    value + U) that prints as L."""
+    values = _dcc_values(root)
+    scales = [s * f for s in SCALES for f in (1.0, *rates, *(1 / r for r in rates))]
+    pairs = re.findall(r"([−+]?\d[\d.]*)\s*±\s*(\d[\d.]*)", pdf_text)
+    limits = re.findall(r"<\s*(\d[\d.]*)", pdf_text)
+
+    def near(x: float, y: float, d: int) -> bool:
+        return abs(x - y) <= 0.5 * 10 ** -d * 1.0001 + 1e-15
+
+    bad_pairs = [f"{v} ± {u}" for v, u in pairs
+                 if not any(uu is not None and near(val * s, _num(v), _decimals(u))
+                            and abs(uu * s - _num(u)) <= 10 ** -_decimals(u) * 1.0001
+                            for val, uu in values for s in scales)]
+    bad_limits = [f"< {x}" for x in limits
+                  if not any(near(val * s, _num(x), _decimals(x))
+                             or (uu is not None and near((val + uu) * s, _num(x), _decimals(x)))
+                             for val, uu in values for s in scales)]
+    return bad_pairs, bad_limits, len(pairs) + len(limits)
+
+
+@pytest.fixture(scope="module")
+def drift_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("authorise-drift")
+    env = {k: v for k, v in os.environ.items() if k != ENV_LAB}
+    done = subprocess.run([sys.executable, "-m", "bench", "run", "--example", "drift-demo",
+                           "--yes", "--quiet", "--out", str(out)], cwd=ROOT, text=True,
+                          capture_output=True, timeout=300, env=env)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return Path(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize("which", ["demo", "drift"])
+def test_the_dcc_states_what_the_pdf_states(which: str, request: pytest.FixtureRequest,
+                                            tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    shutil.copytree(request.getfixturevalue(f"{which}_run"), run)
+    assert _cli("authorise", str(run), "--signatory", "P. Petrov").returncode == 0
+    issued = run / "issued" / register.issues(run)[-1].number
+    pages = _pages(issued / "certificate.pdf")
+    text = "\n".join(pages)
+    root = _tree(issued / "certificate.dcc.xml")
+    result = json.loads((run / "result.json").read_text())
+    # the figures (the conditions section's nominal values are stated, not measured, and
+    # are the procedure file's text in the DCC too)
+    figures = text.split("Conditions", 1)[0] + text.split("Conformity", 1)[-1]
+    rates = {abs(r["set_rate_dps"]) for a in (result.get("axes") or {}).values()
+             for r in a.get("rates", [])}
+    bad_pairs, bad_limits, n = _figures_missing(figures, root, rates)
+    assert n > (100 if which == "demo" else 10)
+    assert bad_pairs == [] and bad_limits == []
+    # the same people, laboratory, addresses and customer
+    adm = root.find("dcc:administrativeData", NS)
+    cert = result["certificate"]
+    c = "dcc:name/dcc:content"
+    assert adm.findtext(f"dcc:calibrationLaboratory/dcc:contact/{c}", None, NS) \
+        == cert["laboratory"]
+    assert cert["laboratory"] in text and cert["address"] in " ".join(text.split())
+    assert cert["address"] in [x.text for x in adm.iterfind(
+        "dcc:calibrationLaboratory/dcc:contact/dcc:location/dcc:further/dcc:content", NS)]
+    assert adm.findtext(f"dcc:customer/{c}", None, NS) == cert["customer"]
+    further = [x.text for x in adm.iterfind("dcc:customer/dcc:location/dcc:further/"
+                                            "dcc:content", NS)]
+    assert cert["customer_address"] in further
+    assert f"Contact: {cert['customer_contact']}" in further
+    for s in (cert["customer"], cert["customer_address"], cert["customer_contact"]):
+        assert s in " ".join(text.split())
+    people = {rp.findtext(f"dcc:person/{c}", None, NS)
+              for rp in adm.iterfind("dcc:respPersons/dcc:respPerson", NS)}
+    assert people == {s["name"] for s in cert["signatories"]}
+    for name in people:
+        assert name in text
+    assert _main_signers(root) == ["P. Petrov"]
+    assert "SIMULATED" in adm.findtext(".//dcc:item/dcc:description/dcc:content", "", NS)

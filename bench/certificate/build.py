@@ -578,8 +578,23 @@ def _method(src: Sources, proc: Procedure) -> tuple[Any, ...]:
     rows += [(label_of(k), text_of(v)) for k, v in method.items()
              if k not in ("decision_rule", "tolerance", "turns_per_axis")]
     rows.append(("Decision rule", _rule_name(src.get("decision_rule"))))
+    ident = methods.PROCEDURES.get(proc.name)
+    if ident is not None:
+        code, part, paper = ident
+        version = str(src.meta.get("bench_version") or bench.__version__)
+        rows += [("Procedure ID and revision", f"{code}, revision {version} (ratebench "
+                  f"{version}; method: docs/method.md part {part}, shipped as "
+                  f"bench/method.md{_method_digest()})"),
+                 (f"Reference [{part}]", paper),
+                 ("Validation", methods.VALIDATION)]
     blocks.append(Fields(tuple(rows)))
     return tuple(blocks)
+
+
+def _method_digest() -> str:
+    """The method document this release ships, by its SHA-256 (what the revision means)."""
+    path = Path(bench.__file__).parent / "method.md"
+    return f", SHA-256 {sha256_file(path)[:16]}…" if path.is_file() else ""
 
 
 def _deviations(src: Sources, proc: Procedure) -> tuple[Any, ...]:
@@ -607,14 +622,45 @@ def _deviations(src: Sources, proc: Procedure) -> tuple[Any, ...]:
     return tuple(blocks)
 
 
+def _measured_conditions(src: Sources) -> list[Any]:
+    """What the bench measured itself: the FOG's temperature per half (procedures that
+    record it, `conditions_measured`); the room: not measured unless a sensor says so."""
+    measured = src.get("conditions_measured")
+    if not isinstance(measured, Mapping):
+        return []
+    blocks: list[Any] = []
+    fog = measured.get("fog_temperature")
+    if isinstance(fog, Mapping) and isinstance(fog.get("axes"), Mapping):
+        rows = []
+        for axis, ax in fog["axes"].items():
+            for h in ax.get("halves") or []:
+                half = num(h.get("half"))
+                rows.append((axis, rate_text(h.get("set_rate_dps")),
+                             "—" if half is None else str(int(half) + 1),
+                             _g(h.get("min_c"), 4), _g(h.get("mean_c"), 4),
+                             _g(h.get("max_c"), 4)))
+        blocks.append(Table(("Axis", "Set rate, °/s", "Half", "Min, °C", "Mean, °C",
+                             "Max, °C"), tuple(rows), align="lrrrrr",
+                            caption="Measured: temperature of the FOG on the table top, per "
+                                    "half, from its frames (integer °C resolution); the "
+                                    "temperature of the item's table top, not of the room"))
+    if not measured.get("room"):
+        blocks.append(Para("Room temperature and humidity: not measured by the bench.",
+                           "note"))
+    return blocks
+
+
 def _conditions(src: Sources) -> tuple[Any, ...]:
     cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
+    measured = _measured_conditions(src)
     if not cond:
-        return (Para("No conditions were recorded in the procedure file."),
+        return (*measured, Para("No nominal conditions were stated in the procedure file."),
                 *prompt_blocks(src.events))
-    return (Para("As stated in the procedure file: the nominal conditions of the laboratory, "
-                 "not measured during this run.", "note"),
-            Fields(tuple((label_of(k), text_of(v)) for k, v in cond.items())),
+    return (*measured,
+            Para("As stated in the procedure file: the nominal conditions of the laboratory, "
+                 "NOT measured during this run.", "note"),
+            Fields(tuple((f"{label_of(k)} (nominal, not measured)", text_of(v))
+                         for k, v in cond.items())),
             *prompt_blocks(src.events))
 
 

@@ -375,8 +375,9 @@ class RateLadder(StepDispatch, LadderCertificate):
     # -- analysis --------------------------------------------------------------------
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
         from procedures.rate_ladder.budgets import add_budgets
+        from procedures.rate_ladder.conditions import add_conditions
 
-        return add_budgets(analyze_run(run, cfg))
+        return add_conditions(add_budgets(analyze_run(run, cfg)), run, cfg)
 
 
 KIND = RateLadder()
