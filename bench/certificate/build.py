@@ -322,7 +322,9 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
     ]
     skip = {"laboratory", "customer", "number", "id", "certificate_id", "prefix", "signers",
             "signatories", "address", "accreditation", "customer_address", "customer_contact",
-            "site", "lab", "authoritative", "specification"}
+            "site", "lab", "authoritative", "specification", "location", "email", "phone",
+            "code", "country_code", "performance_location", "signing", "require_signed_dcc",
+            "records", "recertification", "responsible_persons"}
     rows += [(label_of(k), text_of(v)) for k, v in cert.items() if k not in skip]
     blocks: list[Any] = [Fields(tuple(rows))]
     run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else NOT_RECORDED)

@@ -116,7 +116,8 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
         el(contact, "eMail", lab.email)
     if lab.phone:
         el(contact, "phone", lab.phone)
-    _location(contact, lab.location or ((("further", lab.address),) if lab.address else ()))
+    # the address as the PDF prints it, after its parts (where the lab file gives them)
+    _location(contact, (*lab.location, *((("further", lab.address),) if lab.address else ())))
     persons = el(adm, "respPersons")
     # a draft names the lab's signatories, none as main signer (nobody authorised it); an
     # issue those who did not authorise, then the one who did, its main signer
