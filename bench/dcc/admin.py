@@ -13,7 +13,7 @@ from lxml import etree
 
 import bench
 from bench.certificate import methods
-from bench.certificate.build import Sources, decision_rule_text
+from bench.certificate.build import Sources, check_class, decision_rule_text
 from bench.certificate.parts import CertificateParts
 from bench.certificate.register import Issue
 from bench.dcc import vocab as V
@@ -206,9 +206,14 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
     verdict = str(src.get("verdict") or "incomplete").lower()
     rule = str(src.get("decision_rule") or "simple")
     overall = {"pass": "pass", "fail": "fail"}.get(verdict)
-    n = len(checks_of(src))
-    text = (f"Overall statement of conformity: {verdict.upper()} ({n} check(s), each stated "
-            "with the quantity it judges). " + decision_rule_text(rule))
+    classes = [check_class(c) for c in checks_of(src)]
+    n, na = classes.count("conformity"), classes.count("not-assessed")
+    cons = classes.count("consistency")
+    text = (f"Overall statement of conformity: {verdict.upper()} ({n} check(s) of conformity, "
+            "each stated with the quantity it judges"
+            + (f"; {na} check(s) NOT ASSESSED, left out of the verdict" if na else "")
+            + (f"; {cons} consistency check(s), not conformity" if cons else "")
+            + "). " + decision_rule_text(rule))
     statement(sts, V.CONFORMITY, text, sid="overallConformity", title="Conformity",
               norms=(ILAC_G8,), references=(RULE_REFERENCE.get(rule, rule),),
               conformity=overall)
