@@ -349,8 +349,8 @@ def test_verify_finds_a_value_changed_in_an_unsigned_file(demo: dict[str, Any],
     r0 = demo["result"]["axes"]["outer"]["rates"][0]
     text = path.read_text(encoding="utf-8")
     old = f"<si:value>{r0['rate_error_rel']!r}</si:value>"
-    assert text.count(old) == 1
-    path.write_text(text.replace(old, "<si:value>0.0</si:value>"), encoding="utf-8")
+    assert text.count(old) == 2      # the result, then its budget's estimate (annex)
+    path.write_text(text.replace(old, "<si:value>0.0</si:value>", 1), encoding="utf-8")
     done = _cli("verify", str(path))
     assert done.returncode == 1
     assert "r_outer_p10_rate_error_rel: value (0.0,)" in done.stdout
@@ -452,8 +452,8 @@ def test_tampered_signed_dcc_fails_verify(signed: dict[str, Path], tmp_path: Pat
     text = signed["file"].read_text(encoding="utf-8")
     own = json.loads((signed["run"] / "result.json").read_text())["drift"]["axes"]["x"]["own_dph"]
     old = f"<si:value>{own!r}</si:value>"
-    assert text.count(old) == 1
-    signed["file"].write_text(text.replace(old, f"<si:value>{own + 0.1!r}</si:value>"),
+    assert text.count(old) == 2      # the result, then its budget's estimate (annex)
+    signed["file"].write_text(text.replace(old, f"<si:value>{own + 0.1!r}</si:value>", 1),
                               encoding="utf-8")
     done = _cli("verify", str(signed["file"]), "--cert", str(signed["cert"]))
     assert done.returncode == 1

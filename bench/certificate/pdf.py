@@ -75,9 +75,11 @@ class _Pdf(FPDF):
         y = self.get_y()
         self.set_font(SANS, "B", 34)
         self.set_text_color(238, 200, 200)
+        marks = self.doc.watermark.split(" / ")     # one mark per line across the page
         with self.rotation(45, x=self.w / 2, y=self.h / 2):
-            self.set_xy(0, self.h / 2 - 8)
-            self.cell(self.w, 16, self.doc.watermark, align="C")
+            for i, mark in enumerate(marks):
+                self.set_xy(0, self.h / 2 - 8 + (i - (len(marks) - 1) / 2) * 18)
+                self.cell(self.w, 16, mark, align="C")
         self.set_font(SANS, "B", 7.5)
         self.set_text_color(139, 0, 0)
         self.set_xy(self.l_margin, y + 1.5)
