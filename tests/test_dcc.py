@@ -290,11 +290,22 @@ def test_demo_conformity_per_check_with_its_rule_and_limits(demo: dict[str, Any]
         assert md.findtext("dcc:conformity", None, NS) == expected
         assert md.findtext("dcc:norm", None, NS) == "ILAC-G8:09/2019"
         assert "guard" in md.findtext("dcc:reference", "", NS)
-        low = md.find("dcc:data/dcc:quantity[@refType='basic_acceptanceLimitLower']/si:real", NS)
-        high = md.find("dcc:data/dcc:quantity[@refType='basic_acceptanceLimitUpper']/si:real",
-                       NS)
-        assert float(low.findtext("si:value", "", NS)) == -c["tolerance_rel"]
-        assert float(high.findtext("si:value", "", NS)) == c["tolerance_rel"]
+        def limit(ref: str, md: Any = md) -> float | None:
+            q = md.find(f"dcc:data/dcc:quantity[@refType='{ref}']/si:real/si:value", NS)
+            return None if q is None else float(q.text)
+
+
+        # T is the tolerance; under guarded acceptance (w = U) a value is accepted within
+        # T - U; a sigma has no lower limit and its upper limit is held against T
+        assert limit("ratebench_toleranceLimitUpper") == c["tolerance_rel"]
+        if c["quantity"] == "rate_error":
+            assert limit("ratebench_toleranceLimitLower") == -c["tolerance_rel"]
+            assert limit("basic_acceptanceLimitUpper") == c["tolerance_rel"] - c["U_rel"]
+            assert limit("basic_acceptanceLimitLower") == -c["tolerance_rel"] + c["U_rel"]
+        else:
+            assert limit("ratebench_toleranceLimitLower") is None
+            assert limit("basic_acceptanceLimitLower") is None
+            assert limit("basic_acceptanceLimitUpper") == c["tolerance_rel"]
         judged = md.getparent().getparent()     # the quantity the check judges
         label = judged.findtext("si:real/si:label", "", NS)
         assert label.endswith(f"{c['quantity']}_rel")

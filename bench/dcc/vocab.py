@@ -42,6 +42,8 @@ RUN_DIRECTORY = RB + "runDirectory"
 DRAFT = RB + "draftNotAuthorised"
 AUTHORISATION = RB + "authorisation"
 SENSITIVITY = RB + "sensitivityCoefficient"
+TOLERANCE_LOW = RB + "toleranceLimitLower"      # the maker's specification, not acceptance
+TOLERANCE_HIGH = RB + "toleranceLimitUpper"
 
 
 @dataclass(frozen=True)
