@@ -178,10 +178,15 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
           value=num(intra.get("floor_rel")), label=f"{path}.intra_turn.floor_rel")
     upper = num(intra.get("corrected_upper_rel")) if isinstance(intra, Mapping) else None
     resolved = intra.get("resolved") if isinstance(intra, Mapping) else None
+    corrected = num(r.get("intra_turn_instability_corrected_rel"))
+    corrected_u = num(r.get("intra_turn_instability_corrected_u_rel"))
+    if corrected_u is None and resolved and upper is not None and corrected is not None \
+            and upper > corrected:
+        corrected_u = upper - corrected   # as the PDF: the k = 2 limit's distance (A5)
     q("intra_turn_instability_corrected_rel", "intra-turn instability with the FOG noise "
       "floor removed in quadrature (docs/method.md A5)", INTRA_TURN_CORRECTED, U.ONE,
       None if upper is not None else "intra_turn_instability_corrected_u_rel",
-      u=num(r.get("intra_turn_instability_corrected_u_rel")),
+      u=corrected_u if resolved is not False else None,
       note=("not resolved above the FOG noise floor; read the upper limit" if resolved is False
             else None), check="intra_turn_instability_corrected")
     if upper is not None:
