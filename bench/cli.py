@@ -8,6 +8,8 @@ import sys
 
 import bench
 from bench import commands
+from bench.certificate.authorise import add_parser as add_authorise_parser
+from bench.certificate.authorise import cmd_authorise
 from bench.dcc.command import COMMANDS as DCC_COMMANDS
 from bench.dcc.command import add_parsers as add_dcc_parsers
 from bench.decode import decode_command
@@ -128,6 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim = sub.add_parser("sim", help="start the stand's twins alone; print their addresses")
     sim.add_argument("stand", help="stand YAML file")
     add_dcc_parsers(sub)
+    add_authorise_parser(sub)
     add_records_parsers(sub)
     return p
 
@@ -160,6 +163,8 @@ def main(argv: list[str] | None = None) -> int:
         return serve(args.stand)
     if args.command in RECORDS_COMMANDS:
         return RECORDS_COMMANDS[args.command](args)
+    if args.command == "authorise":
+        return cmd_authorise(args)
     if args.command in DCC_COMMANDS:
         return DCC_COMMANDS[args.command](args)
     return commands.dispatch(args)

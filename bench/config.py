@@ -135,8 +135,9 @@ FOG = Map({
     "configure": Key(Str(("set", "verify", "declare")), False,
                      "set: configure the FOG at connect and read back; verify: read back "
                      "only; declare: trust fog.units", FOG_DEFAULTS["configure"]),
-    "serial": Key(Str(), False, "the instrument's serial number: the key of its "
-                                "check values (bench control)"),
+    "serial": Key(Str(), False, "the FOG's serial number (it answers no identity query, "
+                  "so the certificate prints it as the stand file states it; the key of its "
+                  "check values, bench control)"),
     "model": Key(Str(), False, "maker and model, for the certificate"),
     "sign": Key(Num(min=-1, max=1, integer=True), False, "-1 when the FOG is mounted with "
                 "its sensitive axis against the table's positive sense"),
@@ -189,6 +190,10 @@ SIM_AXIS = Map({
     "time_tie": Key(Map({"latency_s": Key(Num(min=0, unit="s"), False, "true latency"),
                          "jitter_s": Key(Num(min=0, unit="s"), False, "its jitter, std")}),
                     False, "the FOG sync to counter trigger link: true latency and jitter"),
+    "serials": Key(Map({"counter": Key(Str()), "drive": Key(Num(min=0, max=2**32 - 1,
+                                                                 integer=True))}), False,
+                   "the serial each twin reports: the counter's *IDN? serial field, the "
+                   "drive's identity object 0x1018:4"),
     "drive": Key(Map({"velocity_unit": Key(Str(), False, "e.g. rpm, inc/s"),
                       "acceleration_unit": Key(Str(), False, "e.g. rpm/s, inc/s2"),
                       "tpdo_event_timer_ms": Key(Num(min=0, integer=True, unit="ms"), False,

@@ -145,6 +145,7 @@ class SimBench:
                 d = ac["drive"]
                 channel = buses.setdefault(bus_name(d), self._bus_channel(len(buses)))
                 drive_truth = (sim_axes.get(a) or {}).get("drive") or {}
+                serials = (sim_axes.get(a) or {}).get("serials") or {}
                 bus_options = {"port": self.can_port} if self.can_port is not None else {}
                 twin = DriveTwin(self.stand, a, interface=self.can_interface, channel=channel,
                                  bus_options=bus_options,
@@ -154,7 +155,9 @@ class SimBench:
                                                                 "tpdo_event_timer_ms")
                                     if k in drive_truth},
                                  **({"counts_per_rev": d["counts_per_rev"]}
-                                    if "counts_per_rev" in d else {}))
+                                    if "counts_per_rev" in d else {}),
+                                 **({"serial_number": int(serials["drive"])}
+                                    if "drive" in serials else {}))
                 self._stack.enter_context(twin)
                 self.twins[f"{a}.drive"] = twin
                 d["interface"], d["channel"] = self.can_interface, channel
@@ -172,6 +175,9 @@ class SimBench:
                                          "counter_external_reference", True)),
                                      first_value=str((sim_axes.get(a) or {}).get(
                                          "counter_first_value", "from-start")))
+                    if serials.get("counter"):    # the stand's serial in *IDN? field 3
+                        idn = ct.idn.split(",")
+                        ct.idn = ",".join([*idn[:2], str(serials["counter"]), *idn[3:]])
                     c["resource"] = ct.start()
                     # the twin knows its zero-mark signal: mid-swing is a sound level
                     c.setdefault("level_v", sum(ct.signal_v) / 2)
@@ -228,12 +234,21 @@ def gyro_rig_factory(gyros: list[str]) -> TwinFactory:
             {**sp, "gyros": {g: sp["gyros"][g] for g in gyros},
              "table_axis": plat["table_axis"]},
             seed=int(sim_cfg.get("seed", 0)))
+        awg_options = dict(sim_cfg.get("awg") or {})
+        dmm_options = dict(sim_cfg.get("dmm") or {})
+        awg_serial, dmm_serials = awg_options.pop("serial", None), dmm_options.pop("serials", {})
         rig = start_gyro_rig(sb.stand, truth,
                              {g: plat["gyros"][g]["awg_channel"] for g in gyros},
                              awg_model=plat["awg"]["model"],
                              dmm_model=plat["gyros"][gyros[0]]["dmm"]["model"],
-                             awg_options=sim_cfg.get("awg"), dmm_options=sim_cfg.get("dmm"))
+                             awg_options=awg_options, dmm_options=dmm_options)
         sb.add("gyro-rig", rig, rig.stop)
+        # the stand's serials in *IDN? field 3 (each twin reads its idn at every query)
+        for twin, serial in ((rig.awg, awg_serial),
+                             *((rig.dmms[g], dmm_serials.get(g)) for g in gyros)):
+            if serial:
+                idn = twin.idn.split(",")
+                twin.idn = ",".join([*idn[:2], str(serial), *idn[3:]])
         plat["awg"]["resource"] = rig.awg.resource
         for g in gyros:
             plat["gyros"][g]["dmm"]["resource"] = rig.dmms[g].resource

@@ -163,7 +163,8 @@ def test_identification_and_method(ladder: dict[str, Any]) -> None:
               "Keysight Technologies,53230A,MY50001234,02.05-1519.666",
               "KVH DSP-1760", "CiA 402 drive node 3",
               "demo.yaml", "ab" * 32,                      # procedure file name and SHA-256
-              "2025-03-04 08:15:02 UTC", "2025-03-04 11:47:40 UTC", "2025-03-06",
+              "2025-03-04 08:15:02 UTC", "2025-03-04 11:47:40 UTC",
+              "Date of issue (authorisation) none: DRAFT, NOT AUTHORISED",
               "without the square root",                   # the eq. 2 note
               "Temperature, °C", "20 ± 2",
               "ran in 2 sessions",                         # a deviation of this run

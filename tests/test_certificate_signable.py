@@ -20,10 +20,10 @@ import pypdfium2 as pdfium
 import pytest
 
 from bench.analysis.turns import CounterBudget, analyze_turns
-from bench.certificate import write_certificate
+from bench.certificate import render_files, write_certificate
 from bench.certificate.build import build_document
 from bench.certificate.html import render_html
-from bench.certificate.register import REGISTER_NAME, issues
+from bench.certificate.register import REGISTER_NAME, issues, next_issue, record
 from bench.certificate.sample import drift_pulse_result
 from bench.journal import RunDir
 
@@ -144,7 +144,11 @@ def _pdf_text(path: Path) -> list[str]:
     return [p.get_textpage().get_text_range() for p in pdfium.PdfDocument(path)]
 
 
-def test_issuing_twice_gives_two_numbers_the_second_naming_the_first(tmp_path: Path) -> None:
+def test_drafts_are_not_issues_and_name_the_revision_they_would_become(
+        tmp_path: Path) -> None:
+    """`bench run` / `bench analyze` write drafts: no issue is recorded, so writing one
+    twice gives the same draft number; once revision 1 is issued (bench authorise records
+    it), the next draft is revision 2's and claims nothing withdrawn yet."""
     run = _run_dir(tmp_path)
     result = _ladder_result({10.0: 1e-7})
     result.update(run_dir=run.path.name, dates={"created_utc": "2026-11-22T10:00:00Z",
@@ -153,14 +157,16 @@ def test_issuing_twice_gives_two_numbers_the_second_naming_the_first(tmp_path: P
     first = re.search(r"Certificate No\. (\S+)", _pdf_text(run.path / "certificate.pdf")[0])[1]
     write_certificate(run, result, issued=ISSUED + dt.timedelta(days=1))
     pages = _pdf_text(run.path / "certificate.pdf")
-    second = re.search(r"Certificate No\. (\S+)", pages[0])[1]
-    assert first != second
-    assert f"replaces certificate {first}" in re.sub(r"\s+", " ", pages[0])
-    register = issues(run.path)
-    assert [i.number for i in register] == [first, second]
-    assert [i.revision for i in register] == [1, 2]
-    assert register[1].replaces == first and register[1].issue_date == "2026-11-23"
-    assert len((run.path / REGISTER_NAME).read_text().splitlines()) == 2
+    assert re.search(r"Certificate No\. (\S+)", pages[0])[1] == first
+    assert all("DRAFT, NOT AUTHORISED" in p for p in pages)
+    assert issues(run.path) == [] and not (run.path / REGISTER_NAME).exists()
+    record(run.path, next_issue(run.path, first, dt.datetime(2026, 11, 23, 9, tzinfo=dt.UTC),
+                                signatory="P. Petrov"))
+    write_certificate(run, result)
+    text = re.sub(r"\s+", " ", " ".join(_pdf_text(run.path / "certificate.pdf")))
+    assert f"Certificate No. {first}-R2 (DRAFT)" in text
+    assert "which is withdrawn" not in text
+    assert f"DRAFT of a re-issue; certificate {first} stands until it is issued" in text
 
 
 def test_simulated_run_is_marked_on_every_page(tmp_path: Path) -> None:
@@ -187,6 +193,12 @@ def test_named_signatories_from_the_lab_settings(tmp_path: Path) -> None:
     write_certificate(run, result, issued=ISSUED)
     text = re.sub(r"\s+", " ", "".join(_pdf_text(run.path / "certificate.pdf")))
     assert "A. Ivanova, Calibration engineer (performed the calibration)" in text
+    assert "Date of issue:" not in text and "authorised for issue by" not in text  # a draft
+    issue = next_issue(run.path, "RT-TEST", dt.datetime(2026, 11, 22, 9, tzinfo=dt.UTC),
+                       signatory="P. Petrov", function="Technical manager (authorised "
+                       "signatory)")
+    render_files(result, run.path, run.path, issue=issue)
+    text = re.sub(r"\s+", " ", "".join(_pdf_text(run.path / "certificate.pdf")))
     assert ("Date of issue: 2026-11-22, the date on which this certificate was authorised "
             "for issue by P. Petrov, Technical manager (authorised signatory)") in text
     assert "1 Example Street" in text

@@ -290,11 +290,22 @@ def test_demo_conformity_per_check_with_its_rule_and_limits(demo: dict[str, Any]
         assert md.findtext("dcc:conformity", None, NS) == expected
         assert md.findtext("dcc:norm", None, NS) == "ILAC-G8:09/2019"
         assert "guard" in md.findtext("dcc:reference", "", NS)
-        low = md.find("dcc:data/dcc:quantity[@refType='basic_acceptanceLimitLower']/si:real", NS)
-        high = md.find("dcc:data/dcc:quantity[@refType='basic_acceptanceLimitUpper']/si:real",
-                       NS)
-        assert float(low.findtext("si:value", "", NS)) == -c["tolerance_rel"]
-        assert float(high.findtext("si:value", "", NS)) == c["tolerance_rel"]
+        def limit(ref: str, md: Any = md) -> float | None:
+            q = md.find(f"dcc:data/dcc:quantity[@refType='{ref}']/si:real/si:value", NS)
+            return None if q is None else float(q.text)
+
+
+        # T is the tolerance; under guarded acceptance (w = U) a value is accepted within
+        # T - U; a sigma has no lower limit and its upper limit is held against T
+        assert limit("ratebench_toleranceLimitUpper") == c["tolerance_rel"]
+        if c["quantity"] == "rate_error":
+            assert limit("ratebench_toleranceLimitLower") == -c["tolerance_rel"]
+            assert limit("basic_acceptanceLimitUpper") == c["tolerance_rel"] - c["U_rel"]
+            assert limit("basic_acceptanceLimitLower") == -c["tolerance_rel"] + c["U_rel"]
+        else:
+            assert limit("ratebench_toleranceLimitLower") is None
+            assert limit("basic_acceptanceLimitLower") is None
+            assert limit("basic_acceptanceLimitUpper") == c["tolerance_rel"]
         judged = md.getparent().getparent()     # the quantity the check judges
         label = judged.findtext("si:real/si:label", "", NS)
         assert label.endswith(f"{c['quantity']}_rel")
@@ -349,8 +360,8 @@ def test_verify_finds_a_value_changed_in_an_unsigned_file(demo: dict[str, Any],
     r0 = demo["result"]["axes"]["outer"]["rates"][0]
     text = path.read_text(encoding="utf-8")
     old = f"<si:value>{r0['rate_error_rel']!r}</si:value>"
-    assert text.count(old) == 1
-    path.write_text(text.replace(old, "<si:value>0.0</si:value>"), encoding="utf-8")
+    assert text.count(old) == 2      # the result, then its budget's estimate (annex)
+    path.write_text(text.replace(old, "<si:value>0.0</si:value>", 1), encoding="utf-8")
     done = _cli("verify", str(path))
     assert done.returncode == 1
     assert "r_outer_p10_rate_error_rel: value (0.0,)" in done.stdout
@@ -401,9 +412,9 @@ def signed(drift: dict[str, Any], tmp_path: Path, monkeypatch: pytest.MonkeyPatc
     lab = _lab_file(tmp_path, key, cert)
     run = _copy_run(drift, tmp_path / "run")
     monkeypatch.setenv("TEST_DCC_KEY_PASSWORD", "s3cret")
-    done = _cli("dcc", str(run), "--lab", str(lab))
+    done = _cli("authorise", str(run), "--signatory", "A. Tester", "--lab", str(lab))
     assert done.returncode == 0, done.stderr
-    assert "signed" in done.stdout
+    assert "DCC signed (XAdES)" in done.stdout
     return {"run": run, "lab": lab, "cert": cert, "file": run / "certificate.dcc.xml"}
 
 
@@ -441,7 +452,7 @@ def test_signed_dcc_verifies_and_keeps_the_key_out_of_the_run(signed: dict[str, 
     lab = root.find("dcc:administrativeData/dcc:calibrationLaboratory", NS)
     assert lab.findtext("dcc:calibrationLaboratoryCode", None, NS) == "D-K-00000-01"
     for f in signed["run"].rglob("*"):
-        assert b"PRIVATE KEY" not in f.read_bytes(), f
+        assert not f.is_file() or b"PRIVATE KEY" not in f.read_bytes(), f
     done = _cli("verify", str(signed["file"]), "--cert", str(signed["cert"]))
     assert done.returncode == 0, done.stdout + done.stderr
     assert "signature: XAdES verifies; signer CN=Test Rate Lab DCC signing" in done.stdout
@@ -452,8 +463,8 @@ def test_tampered_signed_dcc_fails_verify(signed: dict[str, Path], tmp_path: Pat
     text = signed["file"].read_text(encoding="utf-8")
     own = json.loads((signed["run"] / "result.json").read_text())["drift"]["axes"]["x"]["own_dph"]
     old = f"<si:value>{own!r}</si:value>"
-    assert text.count(old) == 1
-    signed["file"].write_text(text.replace(old, f"<si:value>{own + 0.1!r}</si:value>"),
+    assert text.count(old) == 2      # the result, then its budget's estimate (annex)
+    signed["file"].write_text(text.replace(old, f"<si:value>{own + 0.1!r}</si:value>", 1),
                               encoding="utf-8")
     done = _cli("verify", str(signed["file"]), "--cert", str(signed["cert"]))
     assert done.returncode == 1
@@ -470,10 +481,14 @@ def test_a_key_inside_the_run_directory_is_refused(drift: dict[str, Any], tmp_pa
     run = _copy_run(drift, tmp_path / "run")
     key, cert = _throwaway_key(run / "keys", "careless")
     monkeypatch.setenv("TEST_DCC_KEY_PASSWORD", "s3cret")
-    done = _cli("dcc", str(run), "--lab", str(_lab_file(tmp_path, key, cert)))
-    assert done.returncode == 3
+    assert _cli("dcc", str(run)).returncode == 0                    # the draft, unsigned
+    draft = (run / "certificate.dcc.xml").read_bytes()
+    done = _cli("authorise", str(run), "--signatory", "A. Tester", "--lab",
+                str(_lab_file(tmp_path, key, cert)))
+    assert done.returncode == 2
     assert "lies inside the run directory" in done.stderr
-    assert not (run / "certificate.dcc.xml").exists()
+    assert (run / "certificate.dcc.xml").read_bytes() == draft     # nothing issued
+    assert not (run / "issued").exists()
 
 
 # -- the laboratory's settings -------------------------------------------------------------
@@ -519,7 +534,13 @@ def test_lab_settings_fill_the_administrative_data(demo: dict[str, Any], tmp_pat
     lab = _lab_file(tmp_path, key, cert)
     lab.write_text(lab.read_text().split("signing:")[0])           # the same lab, unsigned
     run = _copy_run(demo, tmp_path / "run")
-    assert _cli("dcc", str(run), "--lab", str(lab)).returncode == 0
+    assert _cli("dcc", str(run), "--lab", str(lab)).returncode == 0     # the draft
+    draft = _tree(run / "certificate.dcc.xml").find("dcc:administrativeData", NS)
+    person = draft.find("dcc:respPersons/dcc:respPerson", NS)
+    assert person.findtext("dcc:person/dcc:name/dcc:content", None, NS) == "A. Tester"
+    assert person.find("dcc:mainSigner", NS) is None                  # nobody authorised it
+    done = _cli("authorise", str(run), "--signatory", "A. Tester", "--lab", str(lab))
+    assert done.returncode == 0, done.stderr
     root = _tree(run / "certificate.dcc.xml")
     adm = root.find("dcc:administrativeData", NS)
     assert adm.findtext("dcc:coreData/dcc:countryCodeISO3166_1", None, NS) == "DE"
@@ -585,19 +606,20 @@ def test_which_lab_settings_and_key_are_in_force(tmp_path: Path,
 
 def test_a_reissued_certificate_says_what_it_substitutes(demo: dict[str, Any],
                                                         tmp_path: Path) -> None:
-    """A re-analysis issues a new revision of the certificate (bench.certificate.register):
-    the DCC carries the issue's number and names the one it replaces."""
+    """A re-issue (bench authorise --reason) is a new revision of the certificate
+    (bench.certificate.register): the DCC carries the issue's number and names the one it
+    replaces."""
     from bench.certificate import register
 
     run = _copy_run(demo, tmp_path / "run")
-    shutil.copy2(demo["dir"] / register.REGISTER_NAME, run / register.REGISTER_NAME)
+    assert _cli("authorise", str(run), "--signatory", "P. Petrov").returncode == 0
     first = register.issues(run)[-1]
-    again = register.next_issue(run, first.number, dt.datetime(2027, 3, 4, 12, tzinfo=dt.UTC))
-    register.record(run, again)
-    assert _cli("dcc", str(run)).returncode == 0
+    assert _cli("authorise", str(run), "--signatory", "P. Petrov",
+                "--reason", "test of a re-issue").returncode == 0
+    again = register.issues(run)[-1]
     core = _tree(run / "certificate.dcc.xml").find("dcc:administrativeData/dcc:coreData", NS)
     assert core.findtext("dcc:uniqueIdentifier", "", NS) == again.number != first.number
-    assert core.findtext("dcc:issueDate", "", NS) == "2027-03-04"
+    assert core.findtext("dcc:issueDate", "", NS) == again.issue_date
     change = core.find("dcc:reportAmendedSubstituted", NS)
     assert change.findtext("dcc:typeOfChange", "", NS) == "substituted"
     assert change.findtext("dcc:replacedUniqueIdentifier", "", NS) == first.number

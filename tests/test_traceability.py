@@ -115,3 +115,42 @@ def test_past_due_warns_at_start_and_on_the_certificate(tmp_path: Path) -> None:
     assert "SIM-CAL-53230A-0117" in flat
     assert ("read back from the counter: external reference at Ext Ref In "
             "(SENS:ROSC:SOUR? EXT" in flat)
+
+
+def test_serials_as_read_back_and_identities_that_do_not_single_an_instrument_out() -> None:
+    from bench.traceability import identity_problems, serial_of, with_declared_serials
+
+    idn = "Keysight Technologies,53230A,MY62000117,03.02-1519.2432; read back: x = 1"
+    drive = "Bench CiA 402 drive, hw sim-1, sw 0.1.0, serial 41001; read back: 0x6091 = 1/1"
+    fog = "KVH DSP-1760; format kvh-a; axis z; 1000 Hz; deg/s (set and read back)"
+    assert serial_of(idn) == "MY62000117"          # *IDN? field 3 (IEEE 488.2)
+    assert serial_of(drive) == "41001"             # identity object 0x1018:4
+    assert serial_of(drive.replace("41001", "0")) is None     # 0: the maker set none
+    assert serial_of(fog) is None
+    ids = {"outer": {"counter": idn, "drive": drive, "fog": fog},
+           "inner": {"counter": idn, "drive": drive.replace("41001", "0"), "fog": fog,
+                     "counter_reference": "external reference at Ext Ref In"}}
+    assert identity_problems(ids) == [
+        "the fog of outer reported no serial number",
+        "the drive of inner reported no serial number",
+        "the fog of inner reported no serial number",
+        "the counter of outer, counter of inner report one serial (MY62000117) of one maker: "
+        "two instruments cannot share it"]
+    stand = {"axes": {"outer": {"fog": {"serial": "1760-20231"}},
+                      "inner": {"fog": {"serial": "1760-20232"}}}}
+    declared = with_declared_serials(ids, stand)
+    assert serial_of(declared["outer"]["fog"]) == "1760-20231"
+    assert "as the stand file states" in declared["inner"]["fog"]
+    assert not any("fog" in p for p in identity_problems(declared))
+
+
+def test_budgets_combine_as_ea_4_02_says() -> None:
+    """u_c = sqrt(sum (c_i u_i)^2); nu_eff by Welch-Satterthwaite (hand-derived)."""
+    from bench.budget import NORMAL, STUDENT_T, Budget, Term, from_dict
+
+    b = Budget("y", "y", "1", 1.0, (Term("a", 1.0, 3.0, STUDENT_T, 1.0, 4.0),
+                                     Term("b", 0.0, 2.0, NORMAL, -2.0, None)), 2.0, 10.0)
+    assert b.ustd == 5.0                              # sqrt(3^2 + 4^2)
+    assert b.dof_eff == 5.0 ** 4 / (3.0 ** 4 / 4.0)   # only the Type A term has finite dof
+    assert b.U == 10.0 and b.reproduces is True
+    assert from_dict(b.to_dict()) == b

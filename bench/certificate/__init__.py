@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from bench.certificate import register
-from bench.certificate.build import ExtraSection, Sources, build_document, certificate_id
+from bench.certificate.build import ExtraSection, build_document
 from bench.certificate.html import render_html
 from bench.certificate.model import Document
 from bench.certificate.pdf import render_pdf
@@ -26,7 +26,7 @@ HTML_NAME = "certificate.html"
 PDF_NAME = "certificate.pdf"
 
 __all__ = ["Document", "build_document", "render_files", "render_html", "render_pdf",
-           "write_certificate"]
+           "result_digest", "write_certificate"]
 
 
 class _HasPath(Protocol):
@@ -42,38 +42,37 @@ def _write_atomic(path: Path, data: bytes) -> None:
 def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | None = None,
                  issued: dt.date | None = None, *,
                  documents: list[Document] | None = None,
-                 extra_sections: Sequence[ExtraSection] = ()) -> list[Path]:
-    """Issue the certificate for `result` into `out_dir`.
+                 extra_sections: Sequence[ExtraSection] = (),
+                 issue: register.Issue | None = None) -> list[Path]:
+    """Render the certificate for `result` into `out_dir`: the DRAFT of the run's next
+    revision, or, given an `issue` that `bench authorise` is recording, that issue.
 
-    With a run directory each call is a new issue: the next revision in the run's register
-    (register.py), numbered uniquely and naming the issue it replaces; the issue is
-    recorded once both files are written. `documents`, if given, receives the document the
-    files were rendered from (the console's summary is cut from it, so it prints the
-    certificate's own text).
+    Nothing is recorded here: a draft is not an issue (register.py). `documents`, if
+    given, receives the document the files were rendered from (the console's summary is
+    cut from it, so it prints the certificate's own text).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    digest = hashlib.sha256(json.dumps(result, sort_keys=True, default=str).encode()).hexdigest()
-    when = (dt.datetime.combine(issued, dt.time(12), dt.UTC) if issued
-            else dt.datetime.now(dt.UTC))
-    src = Sources.load(result, run_path)
-    issue = register.next_issue(run_path, certificate_id(src), when, digest)
     doc = build_document(result, run_path, issued, issue, extra_sections)
     if documents is not None:
         documents.append(doc)
     html_path, pdf_path = out / HTML_NAME, out / PDF_NAME
     _write_atomic(html_path, render_html(doc).encode("utf-8"))
     _write_atomic(pdf_path, render_pdf(doc))
-    if run_path is not None:
-        register.record(run_path, issue)
     return [html_path, pdf_path]
+
+
+def result_digest(result: dict[str, Any]) -> str:
+    """SHA-256 of the result as the certificate read it (the register states it)."""
+    return hashlib.sha256(json.dumps(result, sort_keys=True, default=str).encode()).hexdigest()
 
 
 def write_certificate(run: _HasPath, result: dict[str, Any],
                       issued: dt.date | None = None, *,
                       documents: list[Document] | None = None,
                       extra_sections: Sequence[ExtraSection] = ()) -> list[Path]:
-    """certificate.html and certificate.pdf in the run directory; returns their paths.
+    """The DRAFT certificate.html and certificate.pdf in the run directory (`bench run`,
+    `bench analyze`); `bench authorise` issues it. Returns their paths.
 
     `extra_sections` (title, blocks) come from outside the run directory (the table's
     history from the records) and are placed before the statements."""

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import bench
+from bench.budget import budget_sites
 from bench.certificate import methods, register
 from bench.certificate.model import Document, Fields, Para, Section, Signatures, Table
 from bench.certificate.operator import prompt_blocks, software_note
@@ -43,7 +44,7 @@ from bench.certificate.rounding import (
 )
 from bench.journal import sha256_file
 from bench.registry import procedure_kind, procedure_names
-from bench.traceability import MEASURING_ROLES, traced_items
+from bench.traceability import serial_of, traced_items, with_declared_serials
 
 __all__ = ["NOT_RECORDED", "Sources", "build_document", "certificate_id", "decision_rule_text",
            "issued_number", "verdict_label"]
@@ -116,6 +117,7 @@ def _cert(src: Sources) -> dict[str, Any]:
 AUTHORITATIVE = ("The PDF file certificate.pdf is the authoritative form of this certificate; "
                  "the HTML rendering carries the same content for reading on screen.")
 SIMULATED_MARK = "SIMULATED RUN: NOT A CALIBRATION"
+DRAFT_MARK = "DRAFT, NOT AUTHORISED"
 
 
 #: a section from outside the run directory (the records' history): title and blocks
@@ -164,14 +166,13 @@ def _parts(name: str) -> CertificateParts:
 def build_document(result: dict[str, Any], run_path: Path | None = None,
                    issued: dt.date | None = None, issue: Issue | None = None,
                    extra_sections: Sequence[ExtraSection] = ()) -> Document:
-    """The certificate for one issue. Without `issue` it is the run's next one (revision 1
-    when nothing was issued yet), dated today or `issued`, and nothing is recorded."""
+    """The certificate for one issue; without `issue` (or with an unauthorised one) the
+    DRAFT of the run's next revision: marked DRAFT, NOT AUTHORISED on every page, no date
+    of issue, no authorisation claimed. `issued` is kept for callers that dated drafts."""
     src = Sources.load(result, run_path)
     cid = certificate_id(src)
     if issue is None:
-        when = (dt.datetime.combine(issued, dt.time(12), dt.UTC) if issued
-                else dt.datetime.now(dt.UTC))
-        issue = register.next_issue(run_path, cid, when)
+        issue = register.draft(run_path, cid)
     proc = procedure_of(src)
     cert = _cert(src)
     lab = str(cert.get("laboratory") or "Calibration laboratory (name not given)")
@@ -190,6 +191,10 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
     sections.append(Section(n.next(), "Records: raw data and inputs", _records(src)))
     for title, blocks in [*proc.parts.certificate_annexes(src), *extra_sections]:
         sections.append(Section(n.next(), title, tuple(blocks)))
+    budgets = budget_tables(src.result)
+    if budgets:
+        sections.append(Section(n.next(), "Uncertainty budgets (EA-4/02)", budgets,
+                                new_page=True))
     statements = proc.parts.certificate_statements(methods.STATEMENTS)
     statements.append(AUTHORITATIVE)
     sections.append(Section(n.next(), "Statements", tuple(Para(t) for t in statements)))
@@ -199,21 +204,65 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
     simulated = bool(stand_of(src).get("simulated"))
     if simulated:
         subtitle += " (SIMULATED stand)"
+    marks = [m for m in (DRAFT_MARK if issue.draft else "",
+                         SIMULATED_MARK if simulated else "") if m]
     return Document(
-        cert_id=issue.number,
+        cert_id=issue.number + (" (DRAFT)" if issue.draft else ""),
         title="Calibration certificate",
         subtitle=subtitle,
         laboratory=lab,
-        issue_date=issue.issue_date,
+        issue_date=issue.issue_date if not issue.draft else "",
         verdict=str(src.get("verdict", "incomplete")),
         sections=tuple(sections),
         footer="This certificate shall not be reproduced except in full without the written "
                "approval of the issuing laboratory. " + AUTHORITATIVE.split(";")[0] + ".",
         meta={"run_title": str(src.get("title") or src.procedure_file.get("title") or ""),
               "procedure": proc.name, "revision": str(issue.revision),
-              "replaces": issue.replaces or "", "scope": _scope_line(src, checks, proc)},
-        watermark=SIMULATED_MARK if simulated else "",
+              "replaces": "" if issue.draft else issue.replaces or "", "scope": _scope_line(src, checks, proc)},
+        watermark=" / ".join(marks),
     )
+
+
+def _g(x: float | None, sig: int = 3) -> str:
+    if x is None:
+        return "—"
+    return format_sig(x, sig) if x != 0 else "0"
+
+
+def budget_tables(result: Mapping[str, Any]) -> tuple[Any, ...]:
+    """One table per budget in result.json (bench.budget), in EA-4/02's columns."""
+    sites = budget_sites(result)
+    if not sites:
+        return ()
+    blocks: list[Any] = [Para(
+        "Each budget (EA-4/02 M:2022 section 4): input quantity X_i, estimate x_i, standard "
+        "uncertainty u(x_i), distribution, sensitivity coefficient c_i, contribution "
+        "u_i(y) = |c_i|·u(x_i) and degrees of freedom ν_i (∞: Type B or very many samples); "
+        "u_c(y) = √Σu_i(y)², ν_eff by Welch-Satterthwaite, U = k·u_c with the k the "
+        "analysis uses. Values are in the units named (1: a plain fraction, 1e-6 = 1 ppm). "
+        "Each budget is checked against the U reported with the result.", "note")]
+    for where, _owner, b in sites:
+        un = "" if b.unit == "1" else f" {b.unit}"
+        rows = tuple((t.quantity, _g(t.estimate, 6), _g(t.ustd), t.distribution,
+                      _g(t.sensitivity), _g(t.contribution),
+                      "∞" if t.dof is None or t.dof > 1e4 else f"{t.dof:.0f}")
+                     for t in b.terms)
+        nu = b.dof_eff
+        agree = b.reproduces
+        notes = [f"u_c = {_g(b.ustd)}{un}; ν_eff = "
+                 f"{'∞' if nu is None or nu > 1e4 else f'{nu:.1f}'}; k = {b.k:g}; "
+                 f"U = {_g(b.U, 2)}{un}" +
+                 ("" if b.reported_U is None else
+                  f"; U reported with the result {_g(b.reported_U, 2)}{un} "
+                  + ("(reproduced)" if agree else "(NOT reproduced by this budget)"))]
+        if b.note:
+            notes.append(b.note)
+        blocks.append(Table(("Quantity X_i", "Estimate x_i", "u(x_i)", "Distribution",
+                             "c_i", "u_i(y)", "ν_i"), rows,
+                            widths=(3.4, 1.3, 1.0, 1.2, 1.0, 1.0, 0.6), align="lrrlrrr",
+                            caption=f"{b.quantity}, {where}: estimate "
+                                    f"{_g(b.estimate, 6)}{un}", notes=tuple(notes)))
+    return tuple(blocks)
 
 
 class _Counter:
@@ -242,9 +291,7 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
     item, serial = proc.parts.certificate_item(src)
     rows: list[tuple[str, str]] = [
         ("Certificate number", issue.number),
-        ("Revision", f"{issue.revision}" + (f"; replaces certificate {issue.replaces}, "
-                                            "which is withdrawn" if issue.replaces else
-                                            " (first issue)")),
+        ("Revision", _revision_text(issue)),
         ("Title of the work", text_of(src.get("title") or src.procedure_file.get("title"))),
         ("Issued by", text_of(cert.get("laboratory"))),
         ("Laboratory address", text_of(cert.get("address"))),
@@ -269,12 +316,15 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
         ("Work started", _utc(started)),
         ("Work ended", (_utc(completed) + (" (aborted)" if src.get("aborted") else ""))
          if completed else "not completed"),
-        ("Date of issue (authorisation)", issue.issue_date),
+        ("Date of issue (authorisation)", "none: DRAFT, NOT AUTHORISED" if issue.draft
+         else issue.issue_date),
         ("Statement of conformity", _overall(src, checks, proc)),
     ]
     skip = {"laboratory", "customer", "number", "id", "certificate_id", "prefix", "signers",
             "signatories", "address", "accreditation", "customer_address", "customer_contact",
-            "site", "lab", "authoritative", "specification"}
+            "site", "lab", "authoritative", "specification", "location", "email", "phone",
+            "code", "country_code", "performance_location", "signing", "require_signed_dcc",
+            "records", "recertification", "responsible_persons"}
     rows += [(label_of(k), text_of(v)) for k, v in cert.items() if k not in skip]
     blocks: list[Any] = [Fields(tuple(rows))]
     run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else NOT_RECORDED)
@@ -373,7 +423,7 @@ def _instruments(src: Sources, proc: Procedure) -> tuple[Any, ...]:
         ("Stand file", f"{text_of(stand.get('file') or src.meta.get('stand_file'))}"),
         ("Stand file SHA-256", text_of(stand.get("sha256") or src.meta.get("stand_sha256"))),
     ))]
-    ids = src.get("instruments", {}) or {}
+    ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
     if not ids:  # the event log records each axis's identities at the start of a session
         for e in src.events:
             if e.get("event") == "identity" and e.get("axis"):
@@ -436,6 +486,47 @@ def _work_date(src: Sources) -> dt.date | None:
         return None
 
 
+#: stand roles that command the item and measure nothing a result rests on
+COMMANDING_ROLES = ("drive",)
+
+
+def _serial_read_back(ids: Mapping[str, Any], t: Any) -> str:
+    """The serial the instrument reported in this run (its identity), not the stand file's.
+    An instrument at `axes.<axis>.<role>` reported under ids[axis][role]; one elsewhere
+    (a platform's `gyros.x.dmm`) under its role, or `<gyro>-<role>`, on the table axis."""
+    parts = t.where.split(".")
+    if parts[0].startswith("traceability"):
+        return "—"
+    names = [parts[-1]] + ([f"{parts[-2]}-{parts[-1]}"] if len(parts) > 1 else [])
+    axes = [parts[1]] if parts[0] == "axes" and len(parts) > 2 else list(ids)
+    for axis in axes:
+        roles = ids.get(axis)
+        for role in names if isinstance(roles, Mapping) else ():
+            if role in roles:
+                return serial_of(roles[role]) or "NONE REPORTED"
+    return "not recorded"
+
+
+def _trace_status(src: Sources, t: Any) -> str:
+    """Without a stated calibration: what a result of this run rests on it, truthfully."""
+    if t.stated:
+        return ""
+    role = t.where.rsplit(".", 1)[-1]
+    axis = t.where.split(".")[-2] if "." in t.where else ""
+    pairs = ((src.get("axes", {}) or {}).get(axis) or {}).get("pairs") if axis else None
+    if role in COMMANDING_ROLES and pairs is not None:
+        return ("none needed: it commands the rate; every reported rate is measured by "
+                "the counter and the FOG, none read from the drive")
+    if role in COMMANDING_ROLES:
+        return ("none stated: it commands the position; no reported value is read from it "
+                "(its stated position tolerance enters the budget as a bound)")
+    if role == "fog" and pairs:
+        return ("in-situ calibration: scale k and bias w0 cross-calibrated against the "
+                "counter for each +/- pair (docs/method.md A3, eq. 5-6), "
+                "so its rates are traceable through the counter's time base")
+    return "NOT TRACEABLE: no calibration certificate in the stand file, yet results rest on it"
+
+
 def _traceability(src: Sources) -> tuple[Any, ...]:
     """Where each measured quantity's traceability to the SI comes from (17025 7.8.4.1 c):
     the stand file's calibration certificates, and the counter reference as read back."""
@@ -446,17 +537,16 @@ def _traceability(src: Sources) -> tuple[Any, ...]:
     on = _work_date(src)
     rows = []
     overdue_seen = False
+    ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
     for t in items:
-        if not t.stated:
-            status = ("NOT TRACEABLE: no calibration certificate in the stand file"
-                      if t.where.rsplit(".", 1)[-1] in MEASURING_ROLES else
-                      "none stated (no measured value rests on it)")
-        elif on is not None and t.overdue(on):
+        status = _trace_status(src, t)
+        if t.stated and on is not None and t.overdue(on):
             overdue_seen = True
             status = f"PAST DUE on the date of the work ({on.isoformat()})"
-        else:
+        elif t.stated:
             status = "valid on the work's date" if on else "validity not checked"
-        rows.append((t.item, text_of(t.certificate) if t.stated else "—",
+        rows.append((t.item, _serial_read_back(ids, t),
+                     text_of(t.certificate) if t.stated else "—",
                      text_of(t.issuer) if t.stated else "—",
                      t.due.isoformat() if t.due else "—", text_of(t.traces) if t.traces else
                      "—", status))
@@ -475,9 +565,10 @@ def _traceability(src: Sources) -> tuple[Any, ...]:
                      + (f"; the stand file states {claimed}" if claimed else "") + ".")
     from bench.records.assurance_notes import certificate_notes  # issue 28: 17025 7.7 status
     notes += certificate_notes(src.run_path)
-    return (Table(("Item", "Certificate", "Issued by", "Due", "Quantity traced",
-                   "Status"), tuple(rows), widths=(1.9, 2.0, 1.6, 1.2, 2.2, 1.5),
-                  align="llllll", caption="Metrological traceability: calibration of the "
+    return (Table(("Item", "Serial (read back)", "Certificate", "Issued by", "Due",
+                   "Quantity traced", "Status"), tuple(rows),
+                  widths=(1.7, 1.3, 1.7, 1.4, 1.1, 1.9, 2.2),
+                  align="lllllll", caption="Metrological traceability: calibration of the "
                   "instruments and references used", notes=tuple(notes)),)
 
 
@@ -491,8 +582,23 @@ def _method(src: Sources, proc: Procedure) -> tuple[Any, ...]:
     rows += [(label_of(k), text_of(v)) for k, v in method.items()
              if k not in ("decision_rule", "tolerance", "turns_per_axis")]
     rows.append(("Decision rule", _rule_name(src.get("decision_rule"))))
+    ident = methods.PROCEDURES.get(proc.name)
+    if ident is not None:
+        code, part, paper = ident
+        version = str(src.meta.get("bench_version") or bench.__version__)
+        rows += [("Procedure ID and revision", f"{code}, revision {version} (ratebench "
+                  f"{version}; method: docs/method.md part {part}, shipped as "
+                  f"bench/method.md{_method_digest()})"),
+                 (f"Reference [{part}]", paper),
+                 ("Validation", methods.VALIDATION)]
     blocks.append(Fields(tuple(rows)))
     return tuple(blocks)
+
+
+def _method_digest() -> str:
+    """The method document this release ships, by its SHA-256 (what the revision means)."""
+    path = Path(bench.__file__).parent / "method.md"
+    return f", SHA-256 {sha256_file(path)[:16]}…" if path.is_file() else ""
 
 
 def _deviations(src: Sources, proc: Procedure) -> tuple[Any, ...]:
@@ -520,14 +626,45 @@ def _deviations(src: Sources, proc: Procedure) -> tuple[Any, ...]:
     return tuple(blocks)
 
 
+def _measured_conditions(src: Sources) -> list[Any]:
+    """What the bench measured itself: the FOG's temperature per half (procedures that
+    record it, `conditions_measured`); the room: not measured unless a sensor says so."""
+    measured = src.get("conditions_measured")
+    if not isinstance(measured, Mapping):
+        return []
+    blocks: list[Any] = []
+    fog = measured.get("fog_temperature")
+    if isinstance(fog, Mapping) and isinstance(fog.get("axes"), Mapping):
+        rows = []
+        for axis, ax in fog["axes"].items():
+            for h in ax.get("halves") or []:
+                half = num(h.get("half"))
+                rows.append((axis, rate_text(h.get("set_rate_dps")),
+                             "—" if half is None else str(int(half) + 1),
+                             _g(h.get("min_c"), 4), _g(h.get("mean_c"), 4),
+                             _g(h.get("max_c"), 4)))
+        blocks.append(Table(("Axis", "Set rate, °/s", "Half", "Min, °C", "Mean, °C",
+                             "Max, °C"), tuple(rows), align="lrrrrr",
+                            caption="Measured: temperature of the FOG on the table top, per "
+                                    "half, from its frames (integer °C resolution); the "
+                                    "temperature of the item's table top, not of the room"))
+    if not measured.get("room"):
+        blocks.append(Para("Room temperature and humidity: not measured by the bench.",
+                           "note"))
+    return blocks
+
+
 def _conditions(src: Sources) -> tuple[Any, ...]:
     cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
+    measured = _measured_conditions(src)
     if not cond:
-        return (Para("No conditions were recorded in the procedure file."),
+        return (*measured, Para("No nominal conditions were stated in the procedure file."),
                 *prompt_blocks(src.events))
-    return (Para("As stated in the procedure file: the nominal conditions of the laboratory, "
-                 "not measured during this run.", "note"),
-            Fields(tuple((label_of(k), text_of(v)) for k, v in cond.items())),
+    return (*measured,
+            Para("As stated in the procedure file: the nominal conditions of the laboratory, "
+                 "NOT measured during this run.", "note"),
+            Fields(tuple((f"{label_of(k)} (nominal, not measured)", text_of(v))
+                         for k, v in cond.items())),
             *prompt_blocks(src.events))
 
 
@@ -770,27 +907,53 @@ def _hash_table(files: Sequence[Mapping[str, Any]], caption: str) -> Table:
                  caption=caption, mono=True)
 
 
+def _revision_text(issue: Issue) -> str:
+    """Which revision, what it replaces, and (ISO/IEC 17025 7.8.8) why and what changed."""
+    if issue.draft:
+        text = (f"{issue.revision} (DRAFT" + (f" of a re-issue; certificate {issue.replaces} "
+                                             "stands until it is issued)" if issue.replaces
+                                             else ")"))
+        return text
+    if not issue.replaces:
+        return f"{issue.revision} (first issue)"
+    text = f"{issue.revision}; replaces certificate {issue.replaces}, which is withdrawn"
+    if issue.reason:
+        text += f". Reason: {issue.reason}"
+    if issue.changes:
+        text += ". What changed: " + "; ".join(issue.changes)
+    return text
+
+
 def _signatures(cert: Mapping[str, Any], issue: Issue) -> tuple[Any, ...]:
-    """Named signatories with their functions (the lab's settings); the one who authorises
-    the issue dates it, and that date is the date of issue."""
+    """Named signatories with their functions (the lab's settings). Only an issue that
+    `bench authorise` recorded names who authorised it and when; a draft claims neither."""
     signers = cert.get("signatories") or cert.get("signers")
     pairs: list[tuple[str, str]] = []
-    authoriser = ""
     if isinstance(signers, list) and signers:
         for sg in signers:
             if not isinstance(sg, Mapping):
                 pairs.append((str(sg), ""))
                 continue
-            function = str(sg.get("function") or sg.get("role") or "")
-            name = str(sg.get("name") or "")
-            pairs.append((function, name))
-            if sg.get("authorises") or "authoris" in function.lower():
-                authoriser = authoriser or f"{name}, {function}"
+            if sg.get("authorises") or sg.get("main_signer"):
+                continue          # the authoriser's line is the issue's own, below
+            pairs.append((str(sg.get("function") or sg.get("role") or ""),
+                          str(sg.get("name") or "")))
     else:
-        pairs = [("Calibration performed by", ""), ("Reviewed and authorised by", "")]
+        pairs = [("Calibration performed by", "")]
+    if issue.draft:
+        pairs.append(("Reviewed and authorised by", ""))
+        return (Para("DRAFT, NOT AUTHORISED: this draft has not been authorised for issue "
+                     "and is not a certificate. An authorised signatory issues it with "
+                     "`bench authorise RUN_DIR --signatory NAME`.", "strong"),
+                Signatures(tuple(pairs)))
+    who = ", ".join(x for x in (issue.signatory, issue.function) if x)
+    pairs.append((f"{issue.function or 'Authorised signatory'}; authorised this issue",
+                  str(issue.signatory)))
     text = (f"Date of issue: {issue.issue_date}, the date on which this certificate was "
-            "authorised for issue" + (f" by {authoriser}." if authoriser else "."))
+            f"authorised for issue by {who} ({issue.issued_utc}).")
     if issue.replaces:
         text += (f" Revision {issue.revision}: it replaces certificate {issue.replaces}, "
                  "which is withdrawn.")
+        if issue.reason:
+            text += f" Reason for the re-issue: {issue.reason}."
     return (Para(text), Signatures(tuple(pairs)))

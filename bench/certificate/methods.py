@@ -8,13 +8,32 @@ carry.
 
 from __future__ import annotations
 
+#: the source papers, as bibliographic references (docs/method.md parts A and B)
+PAPER_A = ("Lazarev V. A., Ivanov P. A., Uskov A. D. Method for assessing intra-turn "
+           "instability of rotation speed of a simulation stand axes. Journal of Instrument "
+           "Engineering (Izvestiya vysshikh uchebnykh zavedenii. Priborostroenie), 2025, "
+           "vol. 68, no. 1, pp. 67-78 (in Russian). DOI: 10.17586/0021-3454-2025-68-1-67-78.")
+PAPER_B = ("Alternating-sign pulse method of measuring the drift rate of gyroscopic devices "
+           "during controlled precession (in Russian). Authors, journal and year are not "
+           "stated in the copy the project holds (METHOD.md, seed 004_99d89a9903540a42).")
+
 A_REFERENCE = ("Intra-turn rate instability of a rate-table axis by the fixed-angle method with "
                "a zero-mark sensor, a frequency counter and a fibre-optic gyro (FOG) "
-               "cross-calibrated against the counter (docs/method.md part A; seed paper 000).")
+               "cross-calibrated against the counter (docs/method.md part A, after [A]).")
 
 B_REFERENCE = ("Own and apparent drift of a gyro-stabilised platform by alternating-sign "
                "controlled precession, and the platform azimuth from two horizontal axes "
-               "(docs/method.md part B; seed paper 004).")
+               "(docs/method.md part B, after [B]).")
+
+#: procedure IDs: (kind) -> (ID, the method part, the paper it follows)
+PROCEDURES = {"rate-ladder": ("RB-RL", "A", PAPER_A), "drift-pulse": ("RB-DP", "B", PAPER_B)}
+
+VALIDATION = ("Non-standard method (ISO/IEC 17025 7.2.2). Its implementation in this "
+              "software release is checked against known truth: the simulated stand's twins "
+              "(every reported interval against the twin's truth over many seeds), the "
+              "source paper's check values, and hand-derived values (the project's test "
+              "suite and benchmark campaigns for this release). No comparison with a "
+              "physical reference artefact is recorded here.")
 
 STATEMENTS: tuple[str, ...] = (
     "The results relate only to the item calibrated, as identified in section 1, at the "

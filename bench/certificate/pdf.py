@@ -56,7 +56,9 @@ class _Pdf(FPDF):
         self.cell(0, 4, self.doc.laboratory, new_x=XPos.LMARGIN, new_y=YPos.TOP)
         self.cell(0, 4, f"Certificate No. {self.doc.cert_id}", align="R",
                   new_x=XPos.LMARGIN, new_y=YPos.NEXT)
-        self.cell(0, 4, f"{self.doc.title}, issued {self.doc.issue_date}",
+        issued = (f"issued {self.doc.issue_date}" if self.doc.issue_date
+                  else "DRAFT, NOT AUTHORISED, not issued")
+        self.cell(0, 4, f"{self.doc.title}, {issued}",
                   new_x=XPos.LMARGIN, new_y=YPos.TOP)
         self.cell(0, 4, f"Page {self.page_no()} of {{nb}}", align="R",
                   new_x=XPos.LMARGIN, new_y=YPos.NEXT)
@@ -73,9 +75,11 @@ class _Pdf(FPDF):
         y = self.get_y()
         self.set_font(SANS, "B", 34)
         self.set_text_color(238, 200, 200)
+        marks = self.doc.watermark.split(" / ")     # one mark per line across the page
         with self.rotation(45, x=self.w / 2, y=self.h / 2):
-            self.set_xy(0, self.h / 2 - 8)
-            self.cell(self.w, 16, self.doc.watermark, align="C")
+            for i, mark in enumerate(marks):
+                self.set_xy(0, self.h / 2 - 8 + (i - (len(marks) - 1) / 2) * 18)
+                self.cell(self.w, 16, mark, align="C")
         self.set_font(SANS, "B", 7.5)
         self.set_text_color(139, 0, 0)
         self.set_xy(self.l_margin, y + 1.5)

@@ -1,14 +1,16 @@
-"""The run's certificate register: one number per issue, revisions that name what they replace.
+"""The run's certificate register: who issued which revision, when and why.
 
 ISO/IEC 17025 7.8.8: an amended certificate is a new document, uniquely identified, that
-refers to the one it replaces. So every issue (the first `bench run`, each later
-`bench analyze`) gets its own number and revision, appended to `certificate-register.jsonl`
-in the run directory; the register is never rewritten, so the chain of issues survives.
+refers to the one it replaces and says why. `bench run` and `bench analyze` write drafts,
+which are not issues and are not recorded; only `bench authorise` issues (bench/certificate/
+authorise.py): it appends one line to `certificate-register.jsonl` in the run directory,
+naming the authorising signatory, the time, the reason for a re-issue and what changed.
+The register is never rewritten, so the chain of issues survives; each issued revision's
+files are kept under `issued/<number>/` and never overwritten.
 
 Numbers: the laboratory's own (`certificate.number`) or `<prefix>-<date of completion>-<8
 hex digits of the run's identity>`; revision 1 is the number itself, revision n >= 2 is
-`<number>-R<n>`. The issue date is the date of authorisation: the moment the certificate is
-issued under the named authorising signatory.
+`<number>-R<n>`. The issue date is the date of authorisation.
 """
 
 from __future__ import annotations
@@ -32,13 +34,31 @@ class Issue:
     issued_utc: str
     replaces: str | None = None
     result_sha256: str | None = None
+    signatory: str | None = None      # who authorised the issue (None: a draft)
+    function: str | None = None       # their function in the laboratory
+    reason: str | None = None         # why a revision was re-issued (7.8.8)
+    changes: tuple[str, ...] = ()     # what differs from the revision it replaces
 
     @property
     def issue_date(self) -> str:
         return self.issued_utc[:10]
 
+    @property
+    def draft(self) -> bool:
+        """Not (yet) authorised: no date of issue, no authoriser."""
+        return not self.issued_utc
+
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        d = asdict(self)
+        d["changes"] = list(self.changes)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Issue:
+        return cls(str(d["number"]), int(d["revision"]), str(d["issued_utc"]),
+                   d.get("replaces"), d.get("result_sha256"), d.get("signatory"),
+                   d.get("function"), d.get("reason"),
+                   tuple(str(c) for c in d.get("changes") or ()))
 
 
 def numbered(base: str, revision: int) -> str:
@@ -56,22 +76,26 @@ def issues(run_path: Path | None) -> list[Issue]:
     out = []
     for line in path.read_text(encoding="utf-8").splitlines():
         try:
-            d = json.loads(line)
-            out.append(Issue(str(d["number"]), int(d["revision"]), str(d["issued_utc"]),
-                             d.get("replaces"), d.get("result_sha256")))
+            out.append(Issue.from_dict(json.loads(line)))
         except (ValueError, KeyError, TypeError):
             continue  # a torn last line from a crash: the earlier issues still stand
     return out
 
 
-def next_issue(run_path: Path | None, base: str, when: dt.datetime,
-               result_sha256: str | None = None) -> Issue:
-    """The issue that the next rendering will be: one revision after the last recorded."""
+def next_issue(run_path: Path | None, base: str, when: dt.datetime | None,
+               result_sha256: str | None = None, **authorised: Any) -> Issue:
+    """The next revision after the last recorded: a draft when `when` is None, else the
+    issue authorised then (signatory, function, reason, changes as keywords)."""
     previous = issues(run_path)
     revision = (previous[-1].revision + 1) if previous else 1
-    stamp = when.astimezone(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+    stamp = when.astimezone(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ") if when else ""
     return Issue(numbered(base, revision), revision, stamp,
-                 previous[-1].number if previous else None, result_sha256)
+                 previous[-1].number if previous else None, result_sha256, **authorised)
+
+
+def draft(run_path: Path | None, base: str) -> Issue:
+    """The revision a draft would become if authorised now; not recorded."""
+    return next_issue(run_path, base, None)
 
 
 def record(run_path: Path, issue: Issue) -> None:

@@ -141,8 +141,9 @@ RESOLUTION_RULE = (
     "figure): it is resolved when it exceeds its expanded uncertainty U (k = 2), i.e. "
     "value > 2u. A resolved magnitude is printed 'value ± U'. Otherwise it is printed "
     "'< L', L being its one-sided upper limit at k = 2 (value + U, or the limit stated "
-    "beside it), rounded up; its phase, if any, is printed '—'. No value is printed "
-    "without its U.")
+    "beside it), rounded up; its phase, if any, is printed '—'. A measured result is "
+    "printed with its U or as such a limit; floors, settings, nominal values and the "
+    "budget's inputs are stated as what they are, without a U of their own.")
 NOT_STATED = "—"
 
 

@@ -12,14 +12,15 @@ from typing import Any
 from lxml import etree
 
 import bench
-from bench.certificate import methods, register
-from bench.certificate.build import Sources, decision_rule_text, issued_number
+from bench.certificate import methods
+from bench.certificate.build import Sources, check_class, decision_rule_text
 from bench.certificate.parts import CertificateParts
+from bench.certificate.register import Issue
 from bench.dcc import vocab as V
 from bench.dcc.conformity import ILAC_G8, RULE_REFERENCE, checks_of
 from bench.dcc.parts import DccParts
-from bench.dcc.settings import LabSettings
 from bench.dcc.xml import NOT_RECORDED, el, name, num, statement, text_el
+from bench.lab import Lab
 
 UNKNOWN_COUNTRY = "ZZ"   # ISO 3166-1 user-assigned code: the laboratory did not configure one
 
@@ -47,10 +48,13 @@ def stand_of(src: Sources) -> dict[str, Any]:
     return stand
 
 
-def administrative(adm: etree._Element, src: Sources, lab: LabSettings,
-                   parts: CertificateParts, kind: DccParts, issue: str) -> None:
+def administrative(adm: etree._Element, src: Sources, lab: Lab,
+                   parts: CertificateParts, kind: DccParts, issue: Issue,
+                   today: str) -> None:
     """`parts` answers as on the certificate (its closing statements), `kind` for the DCC
-    (the item)."""
+    (the item). `issue` is the PDF's: a draft (no mainSigner, a DRAFT statement, the
+    date the draft was written as issueDate, which the schema requires) or the issue
+    `bench authorise` records (its authoriser the mainSigner)."""
     cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
     soft = el(adm, "dccSoftware")
     versions = dict.fromkeys([bench.__version__, str(src.meta.get("bench_version") or
@@ -69,13 +73,11 @@ def administrative(adm: etree._Element, src: Sources, lab: LabSettings,
         el(d, "namespace", ns.prefix)
         el(d, "link", ns.link)
     core = el(adm, "coreData")
-    country = (lab.country_code or cert.get("country_code")
-               or dict(lab.laboratory.location.fields).get("countryCode")
-               if lab.laboratory else lab.country_code or cert.get("country_code"))
+    country = lab.country or cert.get("country_code")
     el(core, "countryCodeISO3166_1", str(country or UNKNOWN_COUNTRY))
     el(core, "usedLangCodeISO639_1", "en")
     el(core, "mandatoryLangCodeISO639_1", "en")
-    el(core, "uniqueIdentifier", issued_number(src))   # the PDF's number, this issue
+    el(core, "uniqueIdentifier", issue.number)   # the PDF's number, this issue
     ids = el(core, "identifications")
     run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else None)
     if run_dir:
@@ -93,51 +95,51 @@ def administrative(adm: etree._Element, src: Sources, lab: LabSettings,
         core.remove(ids)
     dates = src.get("dates", {}) or {}
     begin = (_date(dates.get("started_utc")) or _date(_event(src, "session_start"))
-             or _date(dates.get("created_utc")) or _date(src.meta.get("created_utc")) or issue)
+             or _date(dates.get("created_utc")) or _date(src.meta.get("created_utc")) or today)
     end = (_date(dates.get("completed_utc")) or _date(_event(src, "completed", last=True))
            or begin)
     el(core, "beginPerformanceDate", begin)
     el(core, "endPerformanceDate", end)
-    el(core, "performanceLocation", lab.performance_location
-       or str(cert.get("performance_location") or "laboratory"))
-    latest = register.issues(src.run_path)
-    el(core, "issueDate", latest[-1].issue_date if latest else issue)   # the PDF's issue
-    if latest and latest[-1].replaces:      # a re-analysis re-issues: say what it replaces
+    el(core, "performanceLocation", lab.performance_location)
+    el(core, "issueDate", today if issue.draft else issue.issue_date)
+    if issue.replaces and not issue.draft:      # a re-issue: say what it replaces
         change = el(core, "reportAmendedSubstituted")
         el(change, "typeOfChange", "substituted")
-        el(change, "replacedUniqueIdentifier", latest[-1].replaces)
+        el(change, "replacedUniqueIdentifier", issue.replaces)
     _item(el(adm, "items"), src, kind)
     labx = el(adm, "calibrationLaboratory")
-    if lab.laboratory and lab.laboratory.code:
-        el(labx, "calibrationLaboratoryCode", lab.laboratory.code)
+    if lab.code:
+        el(labx, "calibrationLaboratoryCode", lab.code)
     contact = el(labx, "contact")
-    lab_name = (lab.laboratory.name if lab.laboratory else None) or cert.get("laboratory")
-    name(contact, str(lab_name or f"laboratory {NOT_RECORDED}"))
-    if lab.laboratory and lab.laboratory.email:
-        el(contact, "eMail", lab.laboratory.email)
-    if lab.laboratory and lab.laboratory.phone:
-        el(contact, "phone", lab.laboratory.phone)
-    _location(contact, lab.laboratory.location.fields if lab.laboratory else ())
+    name(contact, str(lab.name or f"laboratory {NOT_RECORDED}"))
+    if lab.email:
+        el(contact, "eMail", lab.email)
+    if lab.phone:
+        el(contact, "phone", lab.phone)
+    # the address as the PDF prints it, after its parts (where the lab file gives them)
+    _location(contact, (*lab.location, *((("further", lab.address),) if lab.address else ())))
     persons = el(adm, "respPersons")
-    people = [(p.name, p.role, p.main_signer) for p in lab.persons]
-    if not people:
-        signers = cert.get("signers")
-        for s in signers if isinstance(signers, list) else []:
-            if isinstance(s, Mapping):
-                people.append((str(s.get("name") or ""), str(s.get("role") or "") or None,
-                               bool(s.get("main_signer"))))
-    for person_name, role, main in people or [("", "Calibration performed by", False)]:
+    # a draft names the lab's signatories, none as main signer (nobody authorised it); an
+    # issue those who did not authorise, then the one who did, its main signer
+    people = [(s.name, s.function or None) for s in lab.signatories
+              if issue.draft or not s.authorises]
+    if not issue.draft:
+        people.append((str(issue.signatory), issue.function or "Authorised signatory"))
+    for person_name, role in people or [("", "Calibration performed by")]:
         rp = el(persons, "respPerson")
-        name(el(rp, "person"), person_name or f"name {NOT_RECORDED} (signs the PDF by hand)")
+        name(el(rp, "person"), person_name or f"name {NOT_RECORDED}")
         if role:
             el(rp, "role", role)
-        if main:
+        if not issue.draft and person_name == issue.signatory:
             el(rp, "mainSigner", "true")
     customer = el(adm, "customer")
     name(customer, str(cert.get("customer") or f"customer {NOT_RECORDED}"))
-    where = cert.get("customer_location")
-    _location(customer, (("further", str(where)),) if where else ())
-    _statements(el(adm, "statements"), src, parts, country)
+    where = cert.get("customer_address") or cert.get("customer_location")
+    fields = [("further", str(where))] if where else []
+    if cert.get("customer_contact"):
+        fields.append(("further", f"Contact: {cert['customer_contact']}"))
+    _location(customer, fields)
+    _statements(el(adm, "statements"), src, parts, country, issue)
 
 
 def _location(parent: etree._Element, fields: Sequence[tuple[str, str]]) -> None:
@@ -175,7 +177,21 @@ def _item(items: etree._Element, src: Sources, kind: DccParts) -> None:
 
 
 def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
-                country: Any) -> None:
+                country: Any, issue: Issue) -> None:
+    if issue.draft:
+        statement(sts, V.DRAFT, "DRAFT, NOT AUTHORISED: this draft has not been authorised "
+                  "for issue and is not a certificate; `bench authorise RUN_DIR --signatory "
+                  "NAME` issues it.", sid="draftStatus", title="Draft")
+    else:
+        text = (f"Authorised for issue on {issue.issue_date} ({issue.issued_utc}) by "
+                f"{issue.signatory}" + (f", {issue.function}" if issue.function else "") + ".")
+        if issue.replaces:
+            text += (f" Revision {issue.revision}: it replaces certificate {issue.replaces}, "
+                     "which is withdrawn." + (f" Reason: {issue.reason}." if issue.reason
+                                               else "")
+                     + (" What changed: " + "; ".join(issue.changes) + "."
+                        if issue.changes else ""))
+        statement(sts, V.AUTHORISATION, text, sid="authorisation", title="Authorisation")
     first = methods.STATEMENTS[0]
     for text in parts.certificate_statements(methods.STATEMENTS):   # those the PDF prints
         refs = ("7.8.2.1 l)",) if text == first else ("7.8",)
@@ -190,9 +206,14 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
     verdict = str(src.get("verdict") or "incomplete").lower()
     rule = str(src.get("decision_rule") or "simple")
     overall = {"pass": "pass", "fail": "fail"}.get(verdict)
-    n = len(checks_of(src))
-    text = (f"Overall statement of conformity: {verdict.upper()} ({n} check(s), each stated "
-            "with the quantity it judges). " + decision_rule_text(rule))
+    classes = [check_class(c) for c in checks_of(src)]
+    n, na = classes.count("conformity"), classes.count("not-assessed")
+    cons = classes.count("consistency")
+    text = (f"Overall statement of conformity: {verdict.upper()} ({n} check(s) of conformity, "
+            "each stated with the quantity it judges"
+            + (f"; {na} check(s) NOT ASSESSED, left out of the verdict" if na else "")
+            + (f"; {cons} consistency check(s), not conformity" if cons else "")
+            + "). " + decision_rule_text(rule))
     statement(sts, V.CONFORMITY, text, sid="overallConformity", title="Conformity",
               norms=(ILAC_G8,), references=(RULE_REFERENCE.get(rule, rule),),
               conformity=overall)

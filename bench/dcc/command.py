@@ -44,7 +44,8 @@ def write_run_dcc(run_path: Path, result: dict[str, Any], stand: Mapping[str, An
         line(outcome.message())
         return True
     if outcome.ok:
-        line(f"wrote {outcome.path} ({'signed, ' if outcome.signed else ''}valid DCC 3.3.0)")
+        line(f"wrote {outcome.path} (valid DCC 3.3.0), a DRAFT, NOT AUTHORISED: "
+             "`bench authorise` issues it")
         return True
     warn(outcome.message() + f"\nthe DCC does not validate and was kept as "
          f"{run_path / 'certificate.dcc.invalid.xml'} for diagnosis; once fixed, "
@@ -109,31 +110,38 @@ def cmd_verify(args: argparse.Namespace) -> int:
         _err(f"{path}: not found")
         return EXIT_INVALID
     cert = Path(args.cert) if args.cert else None
-    if cert is None and not args.ca:
-        cert = _lab_certificate(args.lab)
+    lab = _lab_of(args.lab, path.parent)
+    if cert is None and not args.ca and lab is not None and lab.signing is not None:
+        cert = lab.signing.certificate_file
     report = verify_file(path, Path(args.result) if args.result else None, cert,
-                         Path(args.ca) if args.ca else None, need_result=not args.no_result)
+                         Path(args.ca) if args.ca else None, need_result=not args.no_result,
+                         require_signed=bool(lab and lab.require_signed_dcc))
     print(f"{path}:")
     print("\n".join(f"  {line}" for line in report.lines))
     print("verify: FAILED" if report.failed else "verify: OK")
     return EXIT_FAIL if report.failed else EXIT_PASS
 
 
-def _lab_certificate(lab_file: str | None) -> Path | None:
-    """The lab's own signing certificate (from its settings), trusted by default."""
+def _lab_of(lab_file: str | None, folder: Path) -> Any:
+    """The lab whose DCC this is: `--lab`, else $BENCH_LAB_SETTINGS, else the lab file
+    copied into the run directory the file lies in (or its parent, for an issued
+    revision's folder); None when none is found or it is unusable (said on stderr)."""
     import os
 
     from bench.dcc.settings import ENV_LAB, SettingsError, load_lab_file
+    from bench.lab import RUN_COPY
 
     chosen = lab_file or os.environ.get(ENV_LAB)
     if not chosen:
-        return None
+        near = [d / RUN_COPY for d in (folder, *folder.parents[:2]) if (d / RUN_COPY).is_file()]
+        if not near:
+            return None
+        chosen = str(near[0])
     try:
-        signing = load_lab_file(chosen).signing
+        return load_lab_file(chosen)
     except SettingsError as e:
         _err(f"note: {e}; the signer's identity is not checked against the lab's certificate")
         return None
-    return signing.certificate_file if signing is not None else None
 
 
 def add_parsers(sub: Any) -> None:

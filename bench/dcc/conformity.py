@@ -76,13 +76,45 @@ def judge(q: etree._Element, found: list[tuple[int, dict[str, Any]]], unit: str)
         data = el(md, "data")
         cid = ident("check", i + 1)
         if tol is not None:
-            quantity(data, f"{cid}_low", "lower acceptance limit (-T)", V.LIMIT_LOW, -tol, cunit)
-            quantity(data, f"{cid}_high", "upper acceptance limit (+T)", V.LIMIT_HIGH, tol,
-                     cunit)
+            _limits(data, cid, c, rule, suffix, tol, cunit)
         if expected is not None:
             quantity(data, f"{cid}_expected", "expected value", V.REFERENCE, expected, cunit)
         if not len(data):
             md.remove(data)
+
+
+def _limits(data: etree._Element, cid: str, c: dict[str, Any], rule: str, suffix: str,
+            tol: float, unit: str) -> None:
+    """The tolerance T (the maker's specification) and the acceptance limits the decision
+    rule derives from it (ILAC-G8:09/2019 4.2): simple acceptance accepts within T;
+    guarded acceptance within T - U for a two-sided value; a standard deviation (one-sided,
+    never below 0) has no lower limit, and under guarded acceptance its one-sided upper
+    limit, not the value, is held against T."""
+    one_sided = "instability" in str(c.get("quantity") or "")
+    if not one_sided:
+        quantity(data, f"{cid}_tol_low", "lower tolerance limit (-T)", V.TOLERANCE_LOW,
+                 -tol, unit)
+    quantity(data, f"{cid}_tol_high", "upper tolerance limit (+T)", V.TOLERANCE_HIGH, tol,
+             unit)
+    u = num(c.get(f"U_{suffix}")) if num(c.get(f"U_{suffix}")) is not None else \
+        num(c.get(f"u_{suffix}"))
+    if rule == "guard-band" and one_sided:
+        upper = num(c.get(f"upper_{suffix}"))
+        if upper is not None:
+            quantity(data, f"{cid}_upper", "one-sided 97.5 % upper limit of the value "
+                     "(chi-square), held against the acceptance limit", V.REFERENCE, upper,
+                     unit)
+        quantity(data, f"{cid}_high", "upper acceptance limit for that upper limit (T)",
+                 V.LIMIT_HIGH, tol, unit)
+        return
+    guard = u if rule == "guard-band" and u is not None else 0.0
+    if rule == "guard-band" and u is None:
+        return                   # no U: no guarded acceptance limit can be stated
+    if not one_sided:
+        quantity(data, f"{cid}_low", "lower acceptance limit (-T + w)" if guard else
+                 "lower acceptance limit (-T)", V.LIMIT_LOW, -tol + guard, unit)
+    quantity(data, f"{cid}_high", "upper acceptance limit (T - w)" if guard else
+             "upper acceptance limit (T)", V.LIMIT_HIGH, tol - guard, unit)
 
 
 def leftover_checks(root: etree._Element, src: Sources, checks: Checks) -> None:

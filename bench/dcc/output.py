@@ -15,10 +15,12 @@ from typing import Any
 
 from lxml import etree
 
+from bench.certificate.register import Issue
 from bench.dcc import DCC_NAME, INVALID_NAME
-from bench.dcc.settings import LabSettings, SettingsError, check_key_outside, resolve_settings
+from bench.dcc.settings import SettingsError, check_key_outside, resolve_settings
 from bench.dcc.validate import Validation, describe, validate_dcc
 from bench.dcc.writer import DccInputs, build_dcc
+from bench.lab import Lab, run_lab
 
 VERDICTS = ("pass", "fail")
 
@@ -58,22 +60,28 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 def write_dcc(run_path: Path, result: dict[str, Any], stand: dict[str, Any] | None = None,
               lab_file: str | Path | None = None, issued: dt.date | None = None,
-              lab: LabSettings | None = None) -> DccOutcome:
-    """Build, sign (when the lab configured a key), validate and write the DCC.
+              lab: Lab | None = None, issue: Issue | None = None,
+              out_dir: Path | None = None) -> DccOutcome:
+    """Build, validate and write the DCC: the draft (never signed: nobody authorised
+    it), or the `issue` being authorised, signed when the lab configured a key.
 
     A run without a verdict (incomplete) gets no DCC: it certifies nothing. Raises
-    SettingsError when the lab's settings or key are unusable.
+    SettingsError when the lab's settings or key are unusable. `out_dir` (default the
+    run directory) is where it goes; the embedded PDF is the one there.
     """
     run_path = Path(run_path)
+    out = Path(out_dir) if out_dir is not None else run_path
     verdict = str(result.get("verdict") or "incomplete").lower()
     if verdict not in VERDICTS:
-        (run_path / DCC_NAME).unlink(missing_ok=True)   # it would stand for other results
+        (out / DCC_NAME).unlink(missing_ok=True)   # it would stand for other results
         return DccOutcome(None, None, skipped=f"the run's verdict is {verdict!r}; a DCC is "
                                                 "written only for a completed run")
-    settings = lab if lab is not None else resolve_settings(stand, lab_file)
-    data = dcc_bytes(build_dcc(DccInputs(result, run_path, settings, issued)))
+    settings = lab if lab is not None else resolve_settings(
+        stand, lab_file, base=run_lab(run_path, result.get("certificate")))
+    data = dcc_bytes(build_dcc(DccInputs(result, run_path, settings, issued, issue=issue,
+                                         pdf_dir=out)))
     signed = False
-    if settings.signing is not None:
+    if settings.signing is not None and issue is not None and not issue.draft:
         from bench.dcc.signing import sign_tree
 
         check_key_outside(settings.signing, run_path)
@@ -85,7 +93,7 @@ def write_dcc(run_path: Path, result: dict[str, Any], stand: dict[str, Any] | No
         data = dcc_bytes(signed_tree, pretty=False)
         signed = True
     validation = validate_dcc(data)
-    target, other = run_path / DCC_NAME, run_path / INVALID_NAME
+    target, other = out / DCC_NAME, out / INVALID_NAME
     if validation.valid:
         _write_atomic(target, data)
         other.unlink(missing_ok=True)

@@ -19,6 +19,7 @@ from bench.dcc import units as U
 from bench.dcc import vocab as V
 from bench.dcc.parts import DccParts
 from bench.dcc.xml import DCC_NS, NOT_RECORDED, el, ident, name, num, quantity, text_el
+from bench.traceability import serial_of, with_declared_serials
 
 # bench/method.md = docs/method.md; each procedure kind names the sections it follows
 METHOD_DOC = "docs/method.md"
@@ -82,10 +83,38 @@ def methods_and_conditions(results: etree._Element, src: Sources, kind: DccParts
     if equipment is not None:
         results.append(equipment)
     cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
-    if isinstance(cond, Mapping) and cond:
+    measured = _fog_temperatures(src)
+    if (isinstance(cond, Mapping) and cond) or measured:
         conds = el(results, "influenceConditions")
-        for key, value in cond.items():
+        for axis, ax in measured:
+            _measured_temperature(conds, axis, ax)
+        for key, value in (cond.items() if isinstance(cond, Mapping) else ()):
             _condition(conds, str(key), value)
+
+
+def _fog_temperatures(src: Sources) -> list[tuple[str, Mapping[str, Any]]]:
+    m = src.get("conditions_measured")
+    fog = m.get("fog_temperature") if isinstance(m, Mapping) else None
+    axes = fog.get("axes") if isinstance(fog, Mapping) else None
+    return [(str(a), v) for a, v in axes.items() if isinstance(v, Mapping)] \
+        if isinstance(axes, Mapping) else []
+
+
+def _measured_temperature(conds: etree._Element, axis: str, ax: Mapping[str, Any]) -> None:
+    """The FOG's temperature over the axis's halves, as the bench measured it."""
+    c = el(conds, "influenceCondition", id=ident("cond", "fog-temperature", axis),
+           ref_type=V.TEMPERATURE)
+    name(c, f"Temperature of the FOG on the table top, axis {axis} (measured)")
+    text_el(c, "description", "Measured by the bench: the temperature field of every FOG "
+            "frame (integer deg C) over all halves of the axis; the table top at the FOG, "
+            "not the room. Per half: the PDF's conditions table.")
+    data = el(c, "data")
+    for key, title, ref in (("min_c", "minimum", V.TEMPERATURE_MIN),
+                            ("mean_c", "mean", V.TEMPERATURE),
+                            ("max_c", "maximum", V.TEMPERATURE_MAX)):
+        if num(ax.get(key)) is not None:
+            quantity(data, ident("cond", "fog-temperature", axis, key), title, ref,
+                     float(ax[key]), U.CELSIUS)
 
 
 def _flat(d: Mapping[str, Any]) -> str:
@@ -96,13 +125,18 @@ def _equipment(src: Sources) -> etree._Element | None:
     ids = src.get("instruments", {}) or {}
     if not isinstance(ids, Mapping) or not ids:
         return None
+    ids = with_declared_serials(ids, src.stand_file)
     eq = etree.Element(f"{{{DCC_NS}}}measuringEquipments")
     for axis, roles in ids.items():
         for role, identity in (roles or {}).items():
             me = el(eq, "measuringEquipment", id=ident("eq", axis, role),
                     ref_type=V.NORMAL_USED if role == "counter" else None)
             name(me, f"Axis {axis}: {role}")
-            text_el(me, "description", f"Identity as reported: {identity}")
+            serial = serial_of(identity)
+            text_el(me, "description", f"Identity as reported: {identity}. Serial "
+                    f"{serial or 'NOT REPORTED'}. Calibration: as the PDF's traceability "
+                    "table states (the stand file's certificate, or the in-situ "
+                    "cross-calibration for the FOG)")
     return eq if len(eq) else None
 
 
@@ -124,7 +158,8 @@ def _condition(conds: etree._Element, key: str, value: Any) -> None:
     c = el(conds, "influenceCondition", id=ident("cond", key),
            ref_type=spec[1] if spec else V.CONDITION)
     name(c, label.replace("_", " ").capitalize())
-    text_el(c, "description", f"As recorded in the procedure file: {key}: {value}")
+    text_el(c, "description", f"As stated in the procedure file (nominal, NOT measured): "
+            f"{key}: {value}")
     data = el(c, "data")
     m = re.fullmatch(rf"\s*({_NUMBER})\s*(?:(?:\+/-|±)\s*({_NUMBER}))?\s*", text)
     if spec is None or m is None:

@@ -75,13 +75,27 @@ class Report:
         self.lines.append(f"      {text}")
 
 
+def _issue_of(root: etree._Element, run_path: Path | None) -> Any:
+    """The issue the file claims to be, as the run's register records it; None for a
+    draft (which the writer rebuilds as the run's next revision) or an unknown number."""
+    from bench.certificate import register
+
+    if root.find(".//dcc:statement[@id='draftStatus']", NS) is not None:
+        return None
+    number = root.findtext("dcc:administrativeData/dcc:coreData/dcc:uniqueIdentifier",
+                           None, NS)
+    return next((i for i in register.issues(run_path) if i.number == number), None)
+
+
 def compare_values(root: etree._Element, result: dict[str, Any], report: Report,
                    run_path: Path | None = None) -> None:
     """Every quantity and conformity in `root` against the DCC result.json would give (the
-    run directory supplies the certificate's issue number)."""
+    run directory's register supplies the certificate's issue number)."""
     from bench.dcc.writer import DccInputs, build_dcc
 
-    expected_root = build_dcc(DccInputs(result, run_path, embed_pdf=False)).getroot()
+    issue = _issue_of(root, run_path)
+    expected_root = build_dcc(DccInputs(result, run_path, embed_pdf=False,
+                                        issue=issue)).getroot()
     want, got = read_quantities(expected_root), read_quantities(root)
     problems = [f"{k}: missing from the file" for k in want if k not in got]
     problems += [f"{k}: not in result.json" for k in got if k not in want]
@@ -113,7 +127,10 @@ def compare_values(root: etree._Element, result: dict[str, Any], report: Report,
 
 
 def verify_file(path: Path, result_path: Path | None = None, cert: Path | None = None,
-                ca: Path | None = None, need_result: bool = True) -> Report:
+                ca: Path | None = None, need_result: bool = True,
+                require_signed: bool = False) -> Report:
+    """`require_signed`: the lab signs its DCCs (bench.lab.Lab.require_signed_dcc), so an
+    unsigned file, a draft included, is not one of its certificates."""
     report = Report()
     data = path.read_bytes()
     try:
@@ -142,6 +159,12 @@ def verify_file(path: Path, result_path: Path | None = None, cert: Path | None =
         else:
             report.ok(f"signature: XAdES verifies; signer {check.subject}; {check.trust}")
             content = check.signed_root
+    elif require_signed:
+        report.bad("signature: the file is not signed, and the laboratory signs its DCCs "
+                   "(lab settings: signing / require_signed_dcc)" +
+                   ("; it is a DRAFT, NOT AUTHORISED (bench authorise issues it)"
+                    if root.find(".//dcc:statement[@id='draftStatus']", NS) is not None
+                    else ""))
     else:
         report.note("signature: the file is not signed")
     result_path = result_path or path.parent / "result.json"

@@ -39,6 +39,11 @@ LOCATION = RB + "itemLocation"
 COUNTRY_UNKNOWN = RB + "countryNotConfigured"
 CONDITION = RB + "condition"
 RUN_DIRECTORY = RB + "runDirectory"
+DRAFT = RB + "draftNotAuthorised"
+AUTHORISATION = RB + "authorisation"
+SENSITIVITY = RB + "sensitivityCoefficient"
+TOLERANCE_LOW = RB + "toleranceLimitLower"      # the maker's specification, not acceptance
+TOLERANCE_HIGH = RB + "toleranceLimitUpper"
 
 
 @dataclass(frozen=True)

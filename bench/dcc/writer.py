@@ -26,14 +26,16 @@ from typing import Any
 
 from lxml import etree
 
-from bench.certificate.build import Sources, procedure_of
+from bench.certificate import register
+from bench.certificate.build import Sources, certificate_id, procedure_of
 from bench.dcc.admin import administrative
+from bench.dcc.budgets import budget_results
 from bench.dcc.conformity import Checks, checks_of, leftover_checks
 from bench.dcc.parts import DccParts
-from bench.dcc.settings import LabSettings
 from bench.dcc.used_methods import methods_and_conditions
 from bench.dcc.validate import SCHEMA_LOCATION
 from bench.dcc.xml import DCC_NS, XSI_NS, el, name, text_el
+from bench.lab import Lab, run_lab
 
 PDF_NAME = "certificate.pdf"
 #: what a procedure kind that says nothing of itself in the DCC (or none installed) answers
@@ -42,13 +44,16 @@ NEUTRAL = DccParts()
 
 @dataclass(frozen=True)
 class DccInputs:
-    """What the writer reads: the result, its run directory, the lab's settings."""
+    """What the writer reads: the result, its run directory, the lab's settings (None:
+    the run's own, bench.lab.run_lab), and the issue (None: the draft of the next one)."""
 
     result: dict[str, Any]
     run_path: Path | None = None
-    lab: LabSettings = LabSettings()
+    lab: Lab | None = None
     issued: dt.date | None = None
     embed_pdf: bool = True
+    issue: register.Issue | None = None
+    pdf_dir: Path | None = None     # where certificate.pdf is (default the run directory)
 
 
 def build_dcc(inputs: DccInputs) -> etree._ElementTree:
@@ -59,11 +64,16 @@ def build_dcc(inputs: DccInputs) -> etree._ElementTree:
     checks = Checks(checks_of(src))
     root = el(None, "digitalCalibrationCertificate", schemaVersion="3.3.0")
     root.set(f"{{{XSI_NS}}}schemaLocation", SCHEMA_LOCATION)
-    issue = (inputs.issued or dt.datetime.now(dt.UTC).date()).isoformat()
-    administrative(el(root, "administrativeData"), src, inputs.lab, proc.parts, kind, issue)
+    today = (inputs.issued or dt.datetime.now(dt.UTC).date()).isoformat()
+    issue = inputs.issue or register.draft(inputs.run_path, certificate_id(src))
+    lab = inputs.lab
+    if lab is None:
+        lab = run_lab(inputs.run_path, src.get("certificate")) if inputs.run_path else Lab()
+    administrative(el(root, "administrativeData"), src, lab, proc.parts, kind, issue, today)
     results = el(root, "measurementResults")
     methods_and_conditions(results, src, kind)
     kind.dcc_results(results, src, checks)
+    budget_results(results, inputs.result)
     if results.find(f"{{{DCC_NS}}}measurementResult") is None:    # the DCC needs one
         mr = el(results, "measurementResult", id="noResults")
         name(mr, "No results")
@@ -72,7 +82,8 @@ def build_dcc(inputs: DccInputs) -> etree._ElementTree:
         text_el(el(r, "data"), "text", "result.json carries no results: nothing was measured "
                 "to completion, or its results were malformed.")
     leftover_checks(root, src, checks)
-    pdf = inputs.run_path / PDF_NAME if inputs.run_path is not None else None
+    where = inputs.pdf_dir or inputs.run_path
+    pdf = where / PDF_NAME if where is not None else None
     if inputs.embed_pdf and pdf is not None and pdf.is_file():
         doc = el(root, "document", id="certificatePdf")
         name(doc, "Calibration certificate, human-readable (PDF, same content)")

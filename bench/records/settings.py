@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
+from bench.yamlfile import YamlError, load_yaml
 
 LAB_FILE = "lab.yaml"
 LAB_ENV = "BENCH_LAB_SETTINGS"          # the same lab file as the DCC's (bench/dcc/settings.py)
@@ -58,12 +58,10 @@ def load_lab_settings(runs_dir: str | Path | None = None,
             return LabSettings()
         chosen = candidate
     p = Path(chosen)
-    try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8")) or {}
-    except OSError as e:
-        raise SettingsError(f"{p}: cannot read the lab settings: {e.strerror}") from None
-    except yaml.YAMLError as e:
-        raise SettingsError(f"{p}: not valid YAML: {e}") from None
+    try:   # the project's YAML reader, as for every reader of the lab file (bench.lab)
+        data = load_yaml(p).data or {}
+    except YamlError as e:
+        raise SettingsError(f"{p}: cannot read the lab settings: {e.problem}") from None
     if not isinstance(data, dict):
         raise SettingsError(f"{p}: expected a mapping (records:, recertification:)")
     url = data.get("records")

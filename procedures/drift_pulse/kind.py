@@ -123,8 +123,10 @@ SIM_PLATFORM = Map({
     "gyros": Key(MapOf(Map({k: Key(Num()) for k in SIM_GYRO_KEYS})), True),
 })
 SIM_AWG = Map({"output_latency_s": Key(Num(min=0)), "trigger_out_skew_s": Key(Num()),
-               "trigger_out_width_s": Key(Num(min=0)), "load_ohm": Key(Num(min=1))})
-SIM_DMM = Map({"trigger_latency_s": Key(Num(min=0))})
+               "trigger_out_width_s": Key(Num(min=0)), "load_ohm": Key(Num(min=1)),
+               "serial": Key(Str(), False, "the serial the twin reports (*IDN? field 3)")})
+SIM_DMM = Map({"trigger_latency_s": Key(Num(min=0)),
+               "serials": Key(MapOf(Str()), False, "gyro: the serial its DMM twin reports")})
 
 DEFAULTS: dict[str, Any] = {"cycles": 10, "timing_cycles": 4, "positions_deg": [0.0, 180.0],
                             "gap_s": 0.5, "settle_s": 5.0, "decision_rule": "simple",
@@ -513,7 +515,9 @@ class DriftPulse(StepDispatch, DriftCertificate):
 
     # -- analysis -------------------------------------------------------------------------
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
-        return analyze_run(run, cfg, self)
+        from procedures.drift_pulse.budgets import add_budgets
+
+        return add_budgets(analyze_run(run, cfg, self))
 
 
 KIND = DriftPulse()

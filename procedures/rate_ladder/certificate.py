@@ -159,8 +159,8 @@ class LadderCertificate(LadderDcc, CertificateParts):
         items = list(A_IMPROVEMENTS)
         if seq in SEQUENCE_TEXT:
             items.insert(0, SEQUENCE_TEXT[seq])
-        return [Para("From the source paper's method (each one an improvement, "
-                     "docs/method.md A3-A5):", "strong"), *(Para(f"• {t}") for t in items)]
+        return [Para("Where this procedure differs from the source paper's method "
+                     "(docs/method.md A3-A5):", "strong"), *(Para(f"• {t}") for t in items)]
 
     def certificate_checks(self, src: Sources) -> list[dict[str, Any]]:
         """The per-rate judgements of the analysis (a result without checks[])."""

@@ -178,10 +178,15 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
           value=num(intra.get("floor_rel")), label=f"{path}.intra_turn.floor_rel")
     upper = num(intra.get("corrected_upper_rel")) if isinstance(intra, Mapping) else None
     resolved = intra.get("resolved") if isinstance(intra, Mapping) else None
+    corrected = num(r.get("intra_turn_instability_corrected_rel"))
+    corrected_u = num(r.get("intra_turn_instability_corrected_u_rel"))
+    if corrected_u is None and resolved and upper is not None and corrected is not None \
+            and upper > corrected:
+        corrected_u = upper - corrected   # as the PDF: the k = 2 limit's distance (A5)
     q("intra_turn_instability_corrected_rel", "intra-turn instability with the FOG noise "
       "floor removed in quadrature (docs/method.md A5)", INTRA_TURN_CORRECTED, U.ONE,
       None if upper is not None else "intra_turn_instability_corrected_u_rel",
-      u=num(r.get("intra_turn_instability_corrected_u_rel")),
+      u=corrected_u if resolved is not False else None,
       note=("not resolved above the FOG noise floor; read the upper limit" if resolved is False
             else None), check="intra_turn_instability_corrected")
     if upper is not None:
@@ -217,10 +222,21 @@ def _averaged(data: etree._Element, rid: str, path: str, intra: Any) -> None:
                      "instability, relative to |set|", INTRA_TURN, v, U.ONE, uu,
                      label=f"{p}.instability_rel",
                      note=None if uu is not None else "U not stated in result.json.")
-        for key, title, ref in (("floor_rel", "FOG noise floor", FOG_FLOOR),
-                                ("corrected_rel", "floor-corrected", INTRA_TURN_CORRECTED)):
-            if num(a.get(key)) is not None:
-                quantity(lst, None, title, ref, num(a[key]) or 0.0, U.ONE, label=f"{p}.{key}")
+        if num(a.get("floor_rel")) is not None:
+            quantity(lst, None, "FOG noise floor", FOG_FLOOR, num(a["floor_rel"]) or 0.0,
+                     U.ONE, label=f"{p}.floor_rel")
+        corrected, upper = num(a.get("corrected_rel")), num(a.get("corrected_upper_rel"))
+        if corrected is not None:
+            # as the PDF: resolved, value ± (its k = 2 limit's distance); else the limit
+            cu = (upper - corrected if a.get("resolved") and upper is not None
+                  and upper > corrected else None)
+            quantity(lst, None, "floor-corrected", INTRA_TURN_CORRECTED, corrected, U.ONE, cu,
+                     label=f"{p}.corrected_rel",
+                     note=None if cu is not None else "not resolved above the FOG noise "
+                     "floor; read the upper limit")
+        if upper is not None:
+            quantity(lst, None, "upper limit (k = 2) of the floor-corrected value",
+                     INTRA_TURN_UPPER, upper, U.ONE, label=f"{p}.corrected_upper_rel")
 
 
 def _systematic(data: etree._Element, rid: str, path: str, s: Any) -> None:

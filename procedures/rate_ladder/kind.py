@@ -396,7 +396,10 @@ class RateLadder(StepDispatch, LadderCertificate):
 
     # -- analysis --------------------------------------------------------------------
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
-        return analyze_run(run, cfg)
+        from procedures.rate_ladder.budgets import add_budgets
+        from procedures.rate_ladder.conditions import add_conditions
+
+        return add_conditions(add_budgets(analyze_run(run, cfg)), run, cfg)
 
 
 KIND = RateLadder()

@@ -1,0 +1,159 @@
+"""Uncertainty budgets in the form of EA-4/02 M:2022 (section 4 and its examples): for each
+input quantity its estimate, standard uncertainty, distribution, sensitivity coefficient,
+contribution to the standard uncertainty of the result and degrees of freedom; then the
+combined standard uncertainty, the effective degrees of freedom (Welch-Satterthwaite,
+EA-4/02 annex E) and the expanded uncertainty as the analysis states it.
+
+The procedure kinds build their budgets from the analysis results (procedures/*/budgets.py)
+and add them to result.json; the certificate and the DCC print what is there. A budget
+whose combined uncertainty does not reproduce the U the analysis reports says so: the
+reader sees both, nothing is adjusted to agree.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+NORMAL = "normal"
+RECTANGULAR = "rectangular"
+STUDENT_T = "Student t"
+CHI_SQUARE = "chi-square (a standard deviation)"
+AGREE_REL = 0.05      # a budget "reproduces" the reported U within 5 %
+
+
+@dataclass(frozen=True)
+class Term:
+    """One input quantity X_i of a budget."""
+
+    quantity: str                  # what it is, with its symbol
+    estimate: float | None         # x_i (None: a correction of zero, or not a number)
+    ustd: float                    # u(x_i), in the input's own unit
+    distribution: str
+    sensitivity: float             # c_i = df/dx_i, result unit per input unit
+    dof: float | None = None       # nu_i; None for infinite (Type B, or very many)
+    unit: str = ""                 # the input's unit
+
+    @property
+    def contribution(self) -> float:
+        """u_i(y) = |c_i| u(x_i), in the result's unit."""
+        return abs(self.sensitivity) * self.ustd
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"quantity": self.quantity, "estimate": self.estimate, "unit": self.unit,
+                "ustd": self.ustd, "distribution": self.distribution,
+                "sensitivity": self.sensitivity, "contribution_ustd": self.contribution,
+                "dof": self.dof}
+
+
+@dataclass(frozen=True)
+class Budget:
+    """The budget of one reported quantity `key` (its result.json key)."""
+
+    quantity: str
+    key: str
+    unit: str
+    estimate: float | None
+    terms: tuple[Term, ...]
+    k: float = 2.0                       # the coverage factor the analysis used
+    reported_U: float | None = None      # the U the analysis reports for it
+    note: str = ""
+
+    @property
+    def ustd(self) -> float:
+        """u_c(y) = sqrt(sum u_i(y)^2) (EA-4/02 eq. 4.3; uncorrelated inputs)."""
+        return math.sqrt(sum(t.contribution ** 2 for t in self.terms))
+
+    @property
+    def dof_eff(self) -> float | None:
+        """nu_eff = u_c^4 / sum(u_i^4 / nu_i) (EA-4/02 eq. E.1); None for infinite."""
+        finite = [(t.contribution, t.dof) for t in self.terms if t.dof is not None]
+        denom = sum(c ** 4 / d for c, d in finite if d > 0 and c > 0)
+        return None if denom == 0 else self.ustd ** 4 / denom
+
+    @property
+    def U(self) -> float:  # noqa: N802 - the symbol of the expanded uncertainty
+        return self.k * self.ustd
+
+    @property
+    def reproduces(self) -> bool | None:
+        """Does the budget give the U the analysis reports (within AGREE_REL)?"""
+        if self.reported_U is None or self.reported_U <= 0:
+            return None
+        return abs(self.U - self.reported_U) <= AGREE_REL * self.reported_U
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"quantity": self.quantity, "key": self.key, "unit": self.unit,
+                "estimate": self.estimate, "terms": [t.to_dict() for t in self.terms],
+                "combined_ustd": self.ustd, "dof_eff": self.dof_eff, "coverage_factor": self.k,
+                "U_budget": self.U, "U_reported": self.reported_U,
+                "reproduces_reported_U": self.reproduces, "note": self.note}
+
+
+def num(x: Any) -> float | None:
+    if isinstance(x, bool) or not isinstance(x, int | float):
+        return None
+    return float(x) if math.isfinite(x) else None
+
+
+def from_dict(d: Mapping[str, Any]) -> Budget | None:
+    """A budget as result.json carries it (None when it is not one)."""
+    try:
+        terms = tuple(Term(str(t["quantity"]), num(t.get("estimate")), float(t["ustd"]),
+                           str(t["distribution"]), float(t["sensitivity"]),
+                           num(t.get("dof")), str(t.get("unit") or ""))
+                      for t in d["terms"])
+        return Budget(str(d["quantity"]), str(d["key"]), str(d.get("unit") or ""),
+                      num(d.get("estimate")), terms, float(d.get("coverage_factor") or 2.0),
+                      num(d.get("U_reported")), str(d.get("note") or ""))
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def budgets_in(node: Any) -> Sequence[Mapping[str, Any]]:
+    """Every budget dict under `node` (a `budgets` list anywhere), in document order."""
+    out: list[Mapping[str, Any]] = []
+    if isinstance(node, Mapping):
+        for k, v in node.items():
+            if k == "budgets" and isinstance(v, list):
+                out += [b for b in v if isinstance(b, Mapping) and "terms" in b]
+            else:
+                out += budgets_in(v)
+    elif isinstance(node, list):
+        for v in node:
+            out += budgets_in(v)
+    return out
+
+
+def _site(path: tuple[Any, ...], node: Mapping[str, Any]) -> str:
+    """Where a budget belongs, for a reader: 'axis outer, +10 deg/s', 'axis x', ..."""
+    axis = next((str(path[i + 1]) for i in range(len(path) - 1)
+                 if path[i] == "axes"), None)
+    where = [f"axis {axis}"] if axis else []
+    if num(node.get("set_rate_dps")) is not None:
+        where.append(f"{num(node['set_rate_dps']):+g} °/s")
+    elif num(node.get("rate_dps")) is not None:
+        where.append(f"pair ±{num(node['rate_dps']):g} °/s")
+    return ", ".join(where) or "overall"
+
+
+def budget_sites(node: Any, path: tuple[Any, ...] = ()) -> list[tuple[str, str, Budget]]:
+    """(where, result.json path of the owner, budget) for every budget under `node`."""
+    out: list[tuple[str, str, Budget]] = []
+    if isinstance(node, Mapping):
+        for k, v in node.items():
+            if k == "budgets" and isinstance(v, list):
+                owner = ".".join(str(p) if not isinstance(p, int) else f"[{p}]"
+                                 for p in path).replace(".[", "[")
+                for d in v:
+                    b = from_dict(d) if isinstance(d, Mapping) else None
+                    if b is not None:
+                        out.append((_site(path, node), owner, b))
+            else:
+                out += budget_sites(v, (*path, k))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            out += budget_sites(v, (*path, i))
+    return out

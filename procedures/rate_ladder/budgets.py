@@ -1,0 +1,200 @@
+"""The rate ladder's uncertainty budgets (EA-4/02 form, bench.budget), built from the
+analysis results in result.json and added to it (`budgets` lists; additions only):
+
+- per rate: the rate error delta (eq. 1), the intra-turn instability (raw and floor
+  corrected, docs/method.md A5), each harmonic's amplitude and phase (A4);
+- per +/- pair: the FOG's scale k and bias w0 (A3, eq. 5-6), propagated through the
+  weighted least-squares fit of the halves' FOG means on the counter's means (the same
+  model the analysis fits: a bias and, with three or more halves, a linear drift).
+
+The analysis (bench/analysis, procedures/rate_ladder/analysis.py) decides the values and
+their U; this module only lays out where each U comes from.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from bench.budget import CHI_SQUARE, NORMAL, RECTANGULAR, STUDENT_T, Budget, Term, num
+
+
+def _half_u(x: Any) -> float | None:
+    """A standard uncertainty from an expanded one (k = 2, CONTRACT: _U_/_u_)."""
+    v = num(x)
+    return None if v is None else v / 2.0
+
+
+def rate_error_budget(r: Mapping[str, Any]) -> Budget | None:
+    """delta = mean(per-turn rates)/set - 1 (eq. 1): repeatability of the turns (Type A),
+    the counter's time-stamping and the time base (Type B)."""
+    b = r.get("rate_error_budget")
+    if not isinstance(b, Mapping):
+        return None
+    turns = int(num(r.get("turns")) or 0)
+    k = num(b.get("coverage_factor")) or 2.0
+    terms = []
+    rep = num(b.get("repeatability_ustd_rel"))
+    if rep is not None:
+        terms.append(Term("mean of the per-turn rate errors (repeatability, Type A)",
+                          num(r.get("rate_error_rel")), rep, STUDENT_T, 1.0,
+                          float(turns - 1) if turns > 1 else None, "1"))
+    timing = num(b.get("timing_ustd_rel"))
+    if timing is not None:
+        terms.append(Term("turn period timing: zero-mark edges and time tie (Type B)", 0.0,
+                          timing, NORMAL, 1.0, None, "1"))
+    base = num(b.get("timebase_ustd_rel"))
+    if base is not None:
+        terms.append(Term(f"counter time base, limit {num(b.get('timebase_limit_rel'))} "
+                          "(Type B)", 0.0, base, RECTANGULAR, 1.0, None, "1"))
+    if not terms:
+        return None
+    return Budget("rate error δ (relative)", "rate_error_rel", "1",
+                  num(r.get("rate_error_rel")), tuple(terms), k,
+                  num(r.get("rate_error_U_rel") or r.get("rate_error_u_rel")))
+
+
+def _scale_term(pair: Mapping[str, Any] | None, value: float | None) -> list[Term]:
+    """The FOG's scale k converts its rates to the table's: a relative value read through
+    the FOG scales as 1/k (sensitivity -value/k)."""
+    if pair is None or value is None:
+        return []
+    k, uk = num(pair.get("k")), _half_u(pair.get("k_U") or pair.get("k_u"))
+    if not k or uk is None:
+        return []
+    return [Term("FOG scale k from the cross-calibration (eq. 5)", k, uk, NORMAL,
+                 -value / k, None, "1")]
+
+
+def harmonic_budgets(r: Mapping[str, Any], pair: Mapping[str, Any] | None) -> list[Budget]:
+    sysm = r.get("systematic") if isinstance(r.get("systematic"), Mapping) else {}
+    intra = r.get("intra_turn") if isinstance(r.get("intra_turn"), Mapping) else {}
+    samples = num(intra.get("samples"))
+    out = []
+    harmonics = [h for h in sysm.get("harmonics") or [] if isinstance(h, Mapping)]
+    dof = samples - (2 * len(harmonics) + 1) if samples else None
+    for h in harmonics:
+        order = int(num(h.get("order")) or 0)
+        a, ua = num(h.get("amplitude_rel")), _half_u(h.get("amplitude_U_rel")
+                                                     or h.get("amplitude_u_rel"))
+        if a is not None and ua is not None:
+            out.append(Budget(
+                f"harmonic {order} amplitude a{order} (relative)",
+                f"systematic.harmonics[{order - 1}].amplitude_rel", "1", a,
+                (Term("least-squares fit of the FOG record over whole turns (Type A)", a,
+                      ua, STUDENT_T, 1.0, dof, "1"), *_scale_term(pair, a)),
+                2.0, 2 * ua))
+        p, up = num(h.get("phase_deg")), _half_u(h.get("phase_U_deg") or h.get("phase_u_deg"))
+        if p is not None and up is not None:
+            out.append(Budget(
+                f"harmonic {order} phase p{order}", f"systematic.harmonics[{order - 1}].phase_deg",
+                "deg", p,
+                (Term("least-squares fit of the FOG record over whole turns (Type A)", p,
+                      up, STUDENT_T, 1.0, dof, "deg"),
+                 *([Term("FOG scale k (a scale does not move a phase)",
+                         num(pair.get("k")), _half_u(pair.get("k_U")) or 0.0, NORMAL, 0.0,
+                         None, "1")] if pair and num(pair.get("k")) else [])),
+                2.0, 2 * up,
+                note="" if h.get("detected", True) else "harmonic not detected: its phase is "
+                                                        "undetermined"))
+    return out
+
+
+def intra_turn_budgets(r: Mapping[str, Any], pair: Mapping[str, Any] | None,
+                       floor: Mapping[str, Any] | None) -> list[Budget]:
+    """sigma_raw (A5) and sigma_c = sqrt(sigma_raw^2 - sigma_floor^2) (A5: the FOG's own
+    noise removed), relative to |set|."""
+    intra = r.get("intra_turn") if isinstance(r.get("intra_turn"), Mapping) else {}
+    raw = num(r.get("intra_turn_instability_rel"))
+    u_raw = _half_u(r.get("intra_turn_instability_U_rel") or r.get("intra_turn_instability_u_rel"))
+    n = num(intra.get("samples"))
+    if raw is None or u_raw is None:
+        return []
+    out = [Budget("intra-turn instability σ, raw (relative)", "intra_turn_instability_rel",
+                  "1", raw, (Term("standard deviation of the random part of the FOG rate "
+                                  "(Type A)", raw, u_raw, CHI_SQUARE, 1.0,
+                                  n - 1 if n else None, "1"), *_scale_term(pair, raw)),
+                  2.0, 2 * u_raw)]
+    fl, corrected = num(intra.get("floor_rel")), num(r.get("intra_turn_instability_corrected_rel"))
+    n_floor = num((floor or {}).get("samples"))
+    if fl is not None and corrected and corrected > 0 and n_floor and n_floor > 1:
+        u_floor = fl / math.sqrt(2 * (n_floor - 1))   # sigma of a sigma from n samples
+        out.append(Budget(
+            "intra-turn instability σ, FOG noise floor removed (relative)",
+            "intra_turn_instability_corrected_rel", "1", corrected,
+            (Term("σ raw (above)", raw, u_raw, CHI_SQUARE, raw / corrected,
+                  n - 1 if n else None, "1"),
+             Term("FOG noise floor σ_floor from the static record (Type A)", fl, u_floor,
+                  CHI_SQUARE, -fl / corrected, n_floor - 1, "1")),
+            2.0, None,
+            note="" if intra.get("resolved") else
+            "not resolved from the floor: the certificate states an upper limit, not this "
+            "value with a U"))
+    return out
+
+
+def pair_budgets(pair: Mapping[str, Any]) -> list[Budget]:
+    """k and w0 as the weighted least-squares fit of F_i = k C_i + w0 (+ d (t_i - t_ref))
+    over the pair's halves (eq. 5-6); c_i = dk/dF_i from the fit's gain matrix, and
+    dk/dC_i = -k dk/dF_i (a counter mean moves the fit as a FOG mean of -k times it)."""
+    halves = [h for h in pair.get("halves") or [] if isinstance(h, Mapping)]
+    rows = [(num(h.get("counter_mean_dps")), num(h.get("fog_mean_dps")),
+             num(h.get("fog_mean_ustd_dps")), num(h.get("counter_mean_ustd_dps")),
+             num(h.get("t_centre_s")), int(num(h.get("turns")) or 0), h.get("sign"))
+            for h in halves]
+    if len(rows) < 2 or any(v is None for r in rows for v in r[:5]):
+        return []
+    t_ref = num(pair.get("w0_t_ref_s")) or 0.0
+    drift = "drift" in str(pair.get("method") or "") and len(rows) >= 3
+    a = np.array([[c, 1.0, *(((t - t_ref) / 3600.0,) if drift else ())]
+                  for c, _, _, _, t, _, _ in rows])
+    # the halves' FOG means carry the noise inflation already (bench/analysis/pair.py)
+    w = np.diag([1.0 / u ** 2 for _, _, u, _, _, _, _ in rows])
+    gain = np.linalg.solve(a.T @ w @ a, a.T @ w)          # beta = gain @ F
+    beta = gain @ np.array([f for _, f, _, _, _, _, _ in rows])
+    out = []
+    for idx, (name, key, unit, reported) in enumerate((
+            ("FOG scale k (eq. 5)", "k", "1", pair.get("k_U") or pair.get("k_u")),
+            ("FOG bias ω0 (eq. 6)", "w0_dps", "deg/s",
+             pair.get("w0_U_dps") or pair.get("w0_u_dps")))):
+        terms = []
+        for i, (c, f, uf, uc, _t, turns, sign) in enumerate(rows):
+            s = "+" if (num(sign) or 0) > 0 else "−"
+            terms.append(Term(f"FOG mean rate, half {i + 1} ({s}) (Type A)", f,
+                              uf, NORMAL, float(gain[idx, i]), None, "deg/s"))
+            terms.append(Term(f"counter mean rate, half {i + 1} ({s}) (Type A)", c, uc,
+                              STUDENT_T, float(-beta[0] * gain[idx, i]),
+                              float(turns - 1) if turns > 1 else None, "deg/s"))
+        out.append(Budget(name, key, unit, num(pair.get(key)), tuple(terms), 2.0,
+                          num(reported),
+                          note=str(pair.get("bias_model") or "") if drift else ""))
+    return out
+
+
+def _pair_of(axis: Mapping[str, Any], set_rate: float | None) -> Mapping[str, Any] | None:
+    if set_rate is None:
+        return None
+    return next((p for p in axis.get("pairs") or [] if isinstance(p, Mapping)
+                 and num(p.get("rate_dps")) == abs(set_rate)), None)
+
+
+def add_budgets(result: dict[str, Any]) -> dict[str, Any]:
+    """result.json with a `budgets` list on every rate and pair (additions only)."""
+    for axis in (result.get("axes") or {}).values():
+        if not isinstance(axis, dict):
+            continue
+        floor = axis.get("noise_floor") if isinstance(axis.get("noise_floor"), Mapping) else None
+        for r in axis.get("rates") or []:
+            if not isinstance(r, dict):
+                continue
+            pair = _pair_of(axis, num(r.get("set_rate_dps")))
+            found = [b for b in (rate_error_budget(r),) if b is not None]
+            found += intra_turn_budgets(r, pair, floor) + harmonic_budgets(r, pair)
+            r["budgets"] = [b.to_dict() for b in found]
+        for p in axis.get("pairs") or []:
+            if isinstance(p, dict):
+                p["budgets"] = [b.to_dict() for b in pair_budgets(p)]
+    return result

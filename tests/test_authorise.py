@@ -1,0 +1,346 @@
+"""Draft, authorise, re-issue (issue 23): what a quality manager checks before signing.
+
+One demo run on the twins (subprocess, as an operator starts it); then `bench authorise`
+and `bench verify` in this process on copies of its run directory. The PDFs are read back
+with pypdfium2 (an independent reader), the DCCs with lxml.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pypdfium2 as pdfium
+import pytest
+from lxml import etree
+
+from bench.certificate import authorise as auth
+from bench.certificate import register
+from bench.cli import main
+from bench.dcc.settings import ENV_LAB
+from tests.conftest import ROOT
+from tests.test_dcc import _lab_file, _throwaway_key
+
+NS = {"dcc": "https://ptb.de/dcc", "ds": "http://www.w3.org/2000/09/xmldsig#"}
+DRAFT = "DRAFT, NOT AUTHORISED"
+
+
+@pytest.fixture(autouse=True)
+def _no_lab_of_the_developer(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv(ENV_LAB, raising=False)
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess[str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = main(list(args))
+    return subprocess.CompletedProcess(list(args), rc, out.getvalue(), err.getvalue())
+
+
+@pytest.fixture(scope="module")
+def demo_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("authorise-demo")
+    env = {k: v for k, v in os.environ.items() if k != ENV_LAB}
+    done = subprocess.run([sys.executable, "-m", "bench", "run", "--example", "demo", "--yes",
+                           "--quiet", "--out", str(out)], cwd=ROOT, text=True,
+                          capture_output=True, timeout=300, env=env)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return Path(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture
+def run(demo_run: Path, tmp_path: Path) -> Path:
+    copy = tmp_path / demo_run.name
+    shutil.copytree(demo_run, copy)
+    return copy
+
+
+def _pages(pdf: Path) -> list[str]:
+    doc = pdfium.PdfDocument(str(pdf))
+    try:
+        return [" ".join(page.get_textpage().get_text_range().split()) for page in doc]
+    finally:
+        doc.close()
+
+
+def _tree(path: Path) -> etree._Element:
+    return etree.parse(str(path), etree.XMLParser(huge_tree=True)).getroot()
+
+
+def _main_signers(root: etree._Element) -> list[str]:
+    return [rp.findtext("dcc:person/dcc:name/dcc:content", None, NS)
+            for rp in root.iterfind(".//dcc:respPerson", NS)
+            if rp.findtext("dcc:mainSigner", None, NS) == "true"]
+
+
+def _bytes(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def test_draft_authorise_reissue(run: Path) -> None:
+    # the draft: marked on every page, no date of issue, no authorisation claimed
+    pages = _pages(run / "certificate.pdf")
+    assert len(pages) > 3
+    assert all(DRAFT in p for p in pages)
+    text = " ".join(pages)
+    assert "Date of issue:" not in text and "authorised for issue by" not in text
+    assert "Date of issue (authorisation) none: DRAFT, NOT AUTHORISED" in text
+    draft_dcc = _tree(run / "certificate.dcc.xml")
+    assert draft_dcc.find(".//dcc:statement[@id='draftStatus']", NS) is not None
+    assert _main_signers(draft_dcc) == []
+    assert not (run / register.REGISTER_NAME).exists()
+
+    # a signatory the lab does not authorise (she performed the work): refused, nothing kept
+    done = _cli("authorise", str(run), "--signatory", "A. Ivanova")
+    assert done.returncode == 2, done.stdout
+    assert "'A. Ivanova' is not a signatory the lab settings authorise" in done.stderr
+    assert "P. Petrov" in done.stderr
+    assert not (run / register.REGISTER_NAME).exists() and not (run / "issued").exists()
+
+    # the issue: names the authoriser in the PDF and as the DCC's main signer
+    done = _cli("authorise", str(run), "--signatory", "P. Petrov")
+    assert done.returncode == 0, done.stderr
+    first = register.issues(run)
+    assert [(i.revision, i.signatory) for i in first] == [(1, "P. Petrov")]
+    rev1 = run / "issued" / first[0].number
+    pages = _pages(rev1 / "certificate.pdf")
+    assert not any("DRAFT" in p for p in pages)
+    text = " ".join(pages)
+    assert (f"Date of issue: {first[0].issue_date}, the date on which this certificate was "
+            "authorised for issue by P. Petrov, Technical manager") in text
+    dcc = _tree(rev1 / "certificate.dcc.xml")
+    assert _main_signers(dcc) == ["P. Petrov"]
+    assert dcc.find(".//dcc:statement[@id='draftStatus']", NS) is None
+    assert dcc.findtext(".//dcc:coreData/dcc:uniqueIdentifier", None, NS) == first[0].number
+    assert (run / "certificate.pdf").read_bytes() == (rev1 / "certificate.pdf").read_bytes()
+    kept = _bytes(rev1)
+
+    # a re-issue without a reason: refused
+    done = _cli("authorise", str(run), "--signatory", "P. Petrov")
+    assert done.returncode == 2
+    assert "must say why (--reason TEXT" in done.stderr
+    assert len(register.issues(run)) == 1
+
+    # re-analysed (a new draft of revision 2, revision 1 untouched), then re-issued
+    assert _cli("analyze", str(run), "--quiet").returncode == 0
+    pages = _pages(run / "certificate.pdf")
+    assert all(DRAFT in p for p in pages)
+    assert f"{first[0].number}-R2 (DRAFT)" in pages[0]
+    assert _bytes(rev1) == kept
+    reason = "customer contact corrected on the customer's request"
+    done = _cli("authorise", str(run), "--signatory", "P. Petrov", "--reason", reason)
+    assert done.returncode == 0, done.stderr
+    second = register.issues(run)[-1]
+    assert (second.revision, second.replaces, second.reason) == (2, first[0].number, reason)
+    now = _bytes(rev1)
+    assert {k: now[k] for k in kept} == kept                      # byte for byte
+    assert set(now) - set(kept) == {auth.WITHDRAWN_NAME}
+    assert "WITHDRAWN" in (rev1 / auth.WITHDRAWN_NAME).read_text()
+    text = " ".join(_pages(run / "issued" / second.number / "certificate.pdf"))
+    assert f"replaces certificate {first[0].number}, which is withdrawn" in text
+    assert f"Reason for the re-issue: {reason}" in text
+    assert "What changed: results unchanged" in text
+    dcc = _tree(run / "issued" / second.number / "certificate.dcc.xml")
+    assert dcc.findtext(".//dcc:reportAmendedSubstituted/dcc:replacedUniqueIdentifier",
+                        None, NS) == first[0].number
+    assert reason in dcc.findtext(".//dcc:statement[@id='authorisation']/dcc:declaration/"
+                                  "dcc:content", "", NS)
+
+    # every issued DCC verifies against the result.json it was issued with
+    for issue in register.issues(run):
+        done = _cli("verify", str(run / "issued" / issue.number / "certificate.dcc.xml"))
+        assert done.returncode == 0, done.stdout
+
+
+def test_changes_are_stated_as_facts() -> None:
+    old = {"verdict": "pass", "axes": {"outer": {"rates": [{"rate_error_rel": 1e-7}]}}}
+    new = {"verdict": "pass", "axes": {"outer": {"rates": [{"rate_error_rel": 2e-7}]}}}
+    assert auth.changes_between(old, new) == (
+        "axes.outer.rates[0].rate_error_rel: 1e-07 -> 2e-07",)
+    assert auth.changes_between(old, old)[0].startswith("results unchanged")
+
+
+def test_signed_issue_and_unsigned_draft_under_a_lab_that_signs(
+        run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    key, cert = _throwaway_key(tmp_path / "keys", "Test Rate Lab DCC signing")
+    lab = _lab_file(tmp_path, key, cert)
+    monkeypatch.setenv("TEST_DCC_KEY_PASSWORD", "s3cret")
+    # the draft is not signed: a lab that signs its DCCs does not accept it
+    done = _cli("verify", str(run / "certificate.dcc.xml"), "--lab", str(lab))
+    assert done.returncode == 1
+    assert "FAIL  signature: the file is not signed, and the laboratory signs" in done.stdout
+    assert "DRAFT" in done.stdout
+    # issued by the lab's main signer (responsible_persons, main_signer: true): signed
+    done = _cli("authorise", str(run), "--signatory", "P. Petrov", "--lab", str(lab))
+    assert done.returncode == 2 and "A. Tester" in done.stderr
+    done = _cli("authorise", str(run), "--signatory", "A. Tester", "--lab", str(lab))
+    assert done.returncode == 0, done.stderr
+    assert "DCC signed (XAdES)" in done.stdout
+    issued = run / "issued" / register.issues(run)[-1].number / "certificate.dcc.xml"
+    root = _tree(issued)
+    assert root.find("ds:Signature", NS) is not None
+    assert _main_signers(root) == ["A. Tester"]
+    done = _cli("verify", str(issued), "--lab", str(lab))
+    assert done.returncode == 0, done.stdout
+    assert "signer CN=Test Rate Lab DCC signing" in done.stdout
+
+
+def test_a_pre_issue_check_refuses(run: Path) -> None:
+    """The hook measurement assurance plugs into: any reason given refuses the issue."""
+    seen: list[auth.IssueContext] = []
+
+    def out_of_control(ctx: auth.IssueContext) -> list[str]:
+        seen.append(ctx)
+        return ["counter MY00000000 is out of statistical control and not reviewed"]
+
+    auth.add_pre_issue_check(out_of_control)
+    try:
+        done = _cli("authorise", str(run), "--signatory", "P. Petrov")
+    finally:
+        auth.PRE_ISSUE_CHECKS.remove(out_of_control)
+    assert done.returncode == 2
+    assert "out of statistical control and not reviewed" in done.stderr
+    assert seen and seen[0].signatory.name == "P. Petrov" and seen[0].simulated
+    assert not (run / "issued").exists()
+
+
+def test_a_real_stand_with_shared_or_missing_serials_is_not_issued(run: Path) -> None:
+    result = json.loads((run / "result.json").read_text())
+    result["stand"]["simulated"] = False                  # as if the instruments were real
+    result["instruments"]["inner"]["counter"] = result["instruments"]["outer"]["counter"]
+    result["instruments"]["outer"]["drive"] = "Drive maker, model X, serial 0"
+    (run / "result.json").write_text(json.dumps(result))
+    done = _cli("authorise", str(run), "--signatory", "P. Petrov")
+    assert done.returncode == 2
+    assert "the drive of outer reported no serial number" in done.stderr
+    assert "report one serial" in done.stderr
+
+
+def test_an_incomplete_run_is_not_issued(run: Path) -> None:
+    result: dict[str, Any] = json.loads((run / "result.json").read_text())
+    result["verdict"] = "incomplete"
+    (run / "result.json").write_text(json.dumps(result))
+    done = _cli("authorise", str(run), "--signatory", "P. Petrov")
+    assert done.returncode == 2 and "incomplete run certifies nothing" in done.stderr
+
+
+# -- the DCC states what the PDF states -------------------------------------------------
+
+SCALES = (1.0, 100.0, 1e6, 60.0, 3600.0, 1 / 3600)    # fraction, %, ppm, arcmin, ...
+
+
+def _num(text: str) -> float:
+    return float(text.replace("−", "-").replace("+", ""))
+
+
+def _decimals(text: str) -> int:
+    return len(text.split(".")[1]) if "." in text else 0
+
+
+def _dcc_values(root: etree._Element) -> list[tuple[float, float | None]]:
+    """Every (value, U) of the DCC, unrounded, from si:real and si:realListXMLList."""
+    si = {"si": "https://ptb.de/si"}
+    out: list[tuple[float, float | None]] = []
+    for real in root.iterfind(".//si:real", si):
+        u = real.findtext("si:measurementUncertaintyUnivariate/si:expandedMU/"
+                          "si:valueExpandedMU", None, si)
+        out.append((float(real.findtext("si:value", None, si)), float(u) if u else None))
+    for lst in root.iterfind(".//si:realListXMLList", si):
+        vs = [float(x) for x in lst.findtext("si:valueXMLList", "", si).split()]
+        us = lst.findtext("si:measurementUncertaintyUnivariateXMLList/si:expandedMUXMLList/"
+                          "si:valueExpandedMUXMLList", None, si)
+        out += list(zip(vs, [float(x) for x in us.split()] if us else [None] * len(vs),
+                        strict=True))
+    return out
+
+
+def _figures_missing(pdf_text: str, root: etree._Element, rates: set[float]
+                     ) -> tuple[list[str], list[str], int]:
+    """Each 'v ± U' of the PDF must be a DCC value and U that print so (at the PDF's
+    decimals, in one of the PDF's units; a figure per °/s of the set rate or per % of it
+    is the DCC's relative value times or over the set rate); each '< L' a DCC value (or
+    value + U) that prints as L."""
+    values = _dcc_values(root)
+    scales = [s * f for s in SCALES for f in (1.0, *rates, *(1 / r for r in rates))]
+    pairs = re.findall(r"([−+]?\d[\d.]*)\s*±\s*(\d[\d.]*)", pdf_text)
+    limits = re.findall(r"<\s*(\d[\d.]*)", pdf_text)
+
+    def near(x: float, y: float, d: int) -> bool:
+        return abs(x - y) <= 0.5 * 10 ** -d * 1.0001 + 1e-15
+
+    bad_pairs = [f"{v} ± {u}" for v, u in pairs
+                 if not any(uu is not None and near(val * s, _num(v), _decimals(u))
+                            and abs(uu * s - _num(u)) <= 10 ** -_decimals(u) * 1.0001
+                            for val, uu in values for s in scales)]
+    bad_limits = [f"< {x}" for x in limits
+                  if not any(near(val * s, _num(x), _decimals(x))
+                             or (uu is not None and near((val + uu) * s, _num(x), _decimals(x)))
+                             for val, uu in values for s in scales)]
+    return bad_pairs, bad_limits, len(pairs) + len(limits)
+
+
+@pytest.fixture(scope="module")
+def drift_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("authorise-drift")
+    env = {k: v for k, v in os.environ.items() if k != ENV_LAB}
+    done = subprocess.run([sys.executable, "-m", "bench", "run", "--example", "drift-demo",
+                           "--yes", "--quiet", "--out", str(out)], cwd=ROOT, text=True,
+                          capture_output=True, timeout=300, env=env)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return Path(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize("which", ["demo", "drift"])
+def test_the_dcc_states_what_the_pdf_states(which: str, request: pytest.FixtureRequest,
+                                            tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    shutil.copytree(request.getfixturevalue(f"{which}_run"), run)
+    assert _cli("authorise", str(run), "--signatory", "P. Petrov").returncode == 0
+    issued = run / "issued" / register.issues(run)[-1].number
+    pages = _pages(issued / "certificate.pdf")
+    text = "\n".join(pages)
+    root = _tree(issued / "certificate.dcc.xml")
+    result = json.loads((run / "result.json").read_text())
+    # the figures, line by line (a nominal condition is the procedure file's text, in the
+    # DCC too)
+    doc = pdfium.PdfDocument(str(issued / "certificate.pdf"))
+    raw = "\n".join(page.get_textpage().get_text_range() for page in doc)
+    doc.close()
+    figures = re.sub(r"\(nominal,\s+not measured\)[^\n]*", "", raw)
+    rates = {abs(r["set_rate_dps"]) for a in (result.get("axes") or {}).values()
+             for r in a.get("rates", [])}
+    bad_pairs, bad_limits, n = _figures_missing(figures, root, rates)
+    assert n > (100 if which == "demo" else 10)
+    assert not bad_pairs, bad_pairs
+    assert not bad_limits, bad_limits
+    # the same people, laboratory, addresses and customer
+    adm = root.find("dcc:administrativeData", NS)
+    cert = result["certificate"]
+    c = "dcc:name/dcc:content"
+    assert adm.findtext(f"dcc:calibrationLaboratory/dcc:contact/{c}", None, NS) \
+        == cert["laboratory"]
+    assert cert["laboratory"] in text and cert["address"] in " ".join(text.split())
+    assert cert["address"] in [x.text for x in adm.iterfind(
+        "dcc:calibrationLaboratory/dcc:contact/dcc:location/dcc:further/dcc:content", NS)]
+    assert adm.findtext(f"dcc:customer/{c}", None, NS) == cert["customer"]
+    further = [x.text for x in adm.iterfind("dcc:customer/dcc:location/dcc:further/"
+                                            "dcc:content", NS)]
+    assert cert["customer_address"] in further
+    assert f"Contact: {cert['customer_contact']}" in further
+    for s in (cert["customer"], cert["customer_address"], cert["customer_contact"]):
+        assert s in " ".join(text.split())
+    people = {rp.findtext(f"dcc:person/{c}", None, NS)
+              for rp in adm.iterfind("dcc:respPersons/dcc:respPerson", NS)}
+    assert people == {s["name"] for s in cert["signatories"]}
+    for name in people:
+        assert name in text
+    assert _main_signers(root) == ["P. Petrov"]
+    assert "SIMULATED" in adm.findtext(".//dcc:item/dcc:description/dcc:content", "", NS)
