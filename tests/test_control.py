@@ -136,6 +136,11 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     refusals = assurance_refusals(shifted)
     assert len(refusals) == 1 and FOG in refusals[0] and "WE1" in refusals[0], refusals
     assert assurance_refusals(history["dirs"][-1]) == []   # run 8 rests on no signal
+    lab = str(CONFIGS / "lab.yaml")   # P. Petrov authorises there
+    refused = cli("authorise", str(shifted), "--signatory", "P. Petrov", "--lab", lab)
+    assert refused.returncode == 2, refused.stdout + refused.stderr
+    assert FOG in refused.stderr and "WE1" in refused.stderr, refused.stderr
+    assert not list((shifted / "issued").glob("*/certificate.pdf"))
 
     # a review with who and why lifts the refusal; the certificate then states it
     why = "FOG SIM-0001/outer/fog re-checked against the reference table; scale confirmed"
@@ -152,6 +157,12 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     doc = json.loads((shifted / "assurance.json").read_text())
     fog = next(i for i in doc["instruments"] if i["serial"] == FOG)
     assert fog["state"] == IN_CONTROL and fog["last_review"]["reviewer"] == "Q. Manager"
+    # with the review recorded, authorise issues; the issued certificate states the review
+    issued = cli("authorise", str(shifted), "--signatory", "P. Petrov", "--lab", lab)
+    assert issued.returncode == 0, issued.stdout + issued.stderr
+    (html,) = (shifted / "issued").glob("*/certificate.html")
+    text = re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html.read_text(encoding="utf-8")))
+    assert "reviewed by Q. Manager" in text and why in text
 
 
 # -- the rules, each broken alone, on series built by hand ----------------------------------

@@ -56,6 +56,7 @@ class IssueContext:
     reason: str | None
     previous: tuple[register.Issue, ...]     # the issues recorded so far, oldest first
     simulated: bool                           # twins, not instruments
+    records_url: str | None = None            # the records (None: the run's default)
 
 
 PreIssueCheck = Callable[[IssueContext], list[str]]
@@ -89,8 +90,19 @@ def _identities(ctx: IssueContext) -> list[str]:
             for p in identity_problems(with_declared_serials(found, stand))]
 
 
+def _assurance(ctx: IssueContext) -> list[str]:
+    """ISO/IEC 17025 7.7: no issue resting on an instrument out of statistical control
+    until a review is recorded (`bench control SERIAL --review TEXT --by NAME`). Also
+    refreshes the run's assurance.json, so the issued certificate states each
+    instrument's status and the review."""
+    from bench.records.assurance import assurance_refusals
+
+    return assurance_refusals(ctx.run_path, ctx.records_url)
+
+
 #: the checks every issue passes; extend with add_pre_issue_check
-PRE_ISSUE_CHECKS: list[PreIssueCheck] = [_complete, _reason_for_reissue, _identities]
+PRE_ISSUE_CHECKS: list[PreIssueCheck] = [_complete, _reason_for_reissue, _identities,
+                                         _assurance]
 
 
 def add_pre_issue_check(check: PreIssueCheck) -> PreIssueCheck:
@@ -169,7 +181,8 @@ def issue_dir(run_path: Path, number: str) -> Path:
 
 
 def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
-              lab_file: str | None = None, line: Callable[[str], None] = print) -> int:
+              lab_file: str | None = None, line: Callable[[str], None] = print,
+              records_url: str | None = None) -> int:
     """Issue the run's draft; returns the exit status (0 issued, 2 refused, 3 failed)."""
     from bench.dcc.output import write_dcc
     from bench.dcc.settings import resolve_settings
@@ -198,7 +211,7 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
     previous = tuple(i for i in register.issues(run_path) if not i.draft)
     src = Sources.load(result, run_path)
     ctx = IssueContext(run_path, result, lab, who, reason, previous,
-                       bool(stand_of(src).get("simulated")))
+                       bool(stand_of(src).get("simulated")), records_url)
     refused = refusals(ctx)
     if refused:
         return _refuse(refused, run_path)
@@ -278,7 +291,8 @@ def cmd_authorise(args: argparse.Namespace) -> int:
     if not run_path.is_dir():
         _err(f"bench authorise: {run_path}: no such run directory")
         return EXIT_REFUSED
-    return authorise(run_path, args.signatory, args.reason, args.lab)
+    return authorise(run_path, args.signatory, args.reason, args.lab,
+                     records_url=args.records)
 
 
 def add_parser(sub: Any) -> None:
@@ -290,3 +304,6 @@ def add_parser(sub: Any) -> None:
                    help="who authorises the issue (a signatory the lab file authorises)")
     p.add_argument("--reason", help="why a revision is re-issued (required for a re-issue)")
     p.add_argument("--lab", help="lab settings file (default: the run's own)")
+    p.add_argument("--records", metavar="URL",
+                   help="records database for the instruments' assurance status (default "
+                        "records.sqlite beside the run)")
