@@ -42,6 +42,7 @@ from bench.records.hooks import (
     warn_if_overdue,
 )
 from bench.registry import procedure_kind
+from bench.simbench import for_session
 from bench.summary import Summary, summarize
 from bench.traceability import overdue, overdue_warning
 from bench.yamlfile import YamlError, load_yaml
@@ -230,8 +231,10 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
         try:
             if sim or cfg.has_sim:
                 progress.line("Starting the simulated bench (twins on real channels)...")
-                simbench, stand = kind.start_sim(drifting_config(cfg, run.path, where,
-                                                                 progress.line))
+                sim_cfg = drifting_config(cfg, run.path, where, progress.line)
+                if resume:  # the twins' noise of this session, not a replay of the first
+                    sim_cfg = for_session(sim_cfg, run.next_session())
+                simbench, stand = kind.start_sim(sim_cfg)
                 clock: Any = simbench.clock
             else:
                 clock = MonotonicClock()

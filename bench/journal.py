@@ -207,10 +207,13 @@ class RunDir:
         return self.path / self.STAND
 
     # -- sessions and events ------------------------------------------------------------
+    def next_session(self) -> int:
+        """The number the next `begin_session` gives (1 for a new run)."""
+        return max((e.get("session", 0) for e in self.events()), default=0) + 1
+
     def begin_session(self, clock_now: Any = None) -> int:
         """Each `bench run` or `--resume` is a session with its own raw folder."""
-        sessions = [e.get("session", 0) for e in self.events()]
-        self.session = max(sessions, default=0) + 1
+        self.session = self.next_session()
         try:
             self.raw_dir.mkdir(parents=True, exist_ok=True)
         except OSError as e:

@@ -16,14 +16,17 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import dataclasses
 import socket
 import sys
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
+import numpy as np
+
 from bench.canbus import bus_name, controller_node_ids
-from bench.config import FogSettings
+from bench.config import Config, FogSettings
 from drivers.waits import MIN_REAL_MARGIN_S
 from sims.clock import GIL_SWITCH_S, MAX, SteppedClock, make_clock, parse_speed
 from sims.counter_twin import CounterTwin
@@ -47,6 +50,26 @@ TwinFactory = Callable[["SimBench"], None]
 #: `sim.can_bus` (set by `bench sim`): the python-can interface the drive twins join;
 #: "virtual" (in-process, the default) or "udp_multicast" (another process can join)
 CAN_BUS_KEY = "can_bus"
+#: `sim.session` (set by the run for a --resume): the session these twins serve
+SESSION_KEY = "session"
+
+
+def for_session(cfg: Config, session: int) -> Config:
+    """`cfg` with its twins set up for session `session` of a run (`session_seed`)."""
+    stand = copy.deepcopy(cfg.stand)
+    stand["sim"] = {**(stand.get("sim") or {}), SESSION_KEY: int(session)}
+    return dataclasses.replace(cfg, stand=stand)
+
+
+def session_seed(sim: Mapping[str, Any]) -> int:
+    """The twins' seed for this session: the stand's for the first; for a --resume,
+    one derived from (seed, session). Each session's clock starts at stand time 0, so with
+    the stand's seed session 2 would replay session 1's noise sample for sample and the
+    halves measured in the two sessions would share it. Deterministic all the same."""
+    seed, session = int(sim.get("seed", 0)), int(sim.get(SESSION_KEY, 1))
+    if session <= 1:
+        return seed
+    return int(np.random.SeedSequence([seed, session]).generate_state(1)[0])
 #: the multicast group of the first CAN bus of a stand on udp_multicast (one more a bus)
 UDP_MULTICAST_GROUP = "239.74.163.{n}"
 
@@ -97,7 +120,7 @@ class SimBench:
         axes = axes if axes is not None else list(self.stand_cfg["axes"])
         sim_axes = sim.get("axes") or {}
         truth = StandTruth(
-            seed=int(sim.get("seed", 0)),
+            seed=session_seed(sim),
             axes={a: AxisTruth.from_mapping(sim_axes.get(a, DEFAULT_AXIS_TRUTH)) for a in axes},
             clock_speed=parse_speed(sim.get("clock_speed"), MAX),
         )
@@ -170,7 +193,7 @@ class SimBench:
                     c = ac["counter"]
                     ct = CounterTwin(self.stand, a, model=c["model"],
                                      sync=sync_link(c, sim_axes.get(a) or {}),
-                                     seed=int(sim.get("seed", 0)),
+                                     seed=session_seed(sim),
                                      external_reference=bool((sim_axes.get(a) or {}).get(
                                          "counter_external_reference", True)),
                                      first_value=str((sim_axes.get(a) or {}).get(
@@ -233,7 +256,7 @@ def gyro_rig_factory(gyros: list[str]) -> TwinFactory:
         truth = PlatformTruth.from_mapping(
             {**sp, "gyros": {g: sp["gyros"][g] for g in gyros},
              "table_axis": plat["table_axis"]},
-            seed=int(sim_cfg.get("seed", 0)))
+            seed=int(sim_cfg.get("seed", 0)))  # the platform's drift walk is its truth
         awg_options = dict(sim_cfg.get("awg") or {})
         dmm_options = dict(sim_cfg.get("dmm") or {})
         awg_serial, dmm_serials = awg_options.pop("serial", None), dmm_options.pop("serials", {})
