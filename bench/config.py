@@ -159,11 +159,15 @@ SIM_FOG = Map({**{k: Key(Num(unit=u), False, doc) for k, u, doc in (
                    ("noise_dps", "deg/s", "white noise std per sample"),
                    ("bias_drift_dps_per_h", "deg/s/h", "linear bias drift from the start"))},
                # a FOG that drifts across runs (bench/simdrift.py, bench control)
-               "scale_step": Key(Map({"from_run": Key(Num(min=1, integer=True), True),
-                                      "rel": Key(Num(), True)}), False,
+               "scale_step": Key(Map({"from_run": Key(Num(min=1, integer=True), True,
+                                                      "the first run with the step"),
+                                      "rel": Key(Num(), True, "the step, a fraction of the "
+                                                 "scale")}), False,
                                  "scale x (1 + rel) from run from_run on"),
-               "scale_ramp": Key(Map({"from_run": Key(Num(min=1, integer=True), True),
-                                      "rel_per_run": Key(Num(), True)}), False,
+               "scale_ramp": Key(Map({"from_run": Key(Num(min=1, integer=True), True,
+                                                      "the first run of the ramp"),
+                                      "rel_per_run": Key(Num(), True, "the change per run, "
+                                                         "a fraction of the scale")}), False,
                                  "scale x (1 + rel_per_run per run) from run from_run on"),
                "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), False,
                             "what the twin carries before the bench configures it "
@@ -190,8 +194,9 @@ SIM_AXIS = Map({
     "time_tie": Key(Map({"latency_s": Key(Num(min=0, unit="s"), False, "true latency"),
                          "jitter_s": Key(Num(min=0, unit="s"), False, "its jitter, std")}),
                     False, "the FOG sync to counter trigger link: true latency and jitter"),
-    "serials": Key(Map({"counter": Key(Str()), "drive": Key(Num(min=0, max=2**32 - 1,
-                                                                 integer=True))}), False,
+    "serials": Key(Map({"counter": Key(Str(), False, "the counter twin's *IDN? serial"),
+                        "drive": Key(Num(min=0, max=2**32 - 1, integer=True), False,
+                                     "the drive twin's serial number, 0x1018:4")}), False,
                    "the serial each twin reports: the counter's *IDN? serial field, the "
                    "drive's identity object 0x1018:4"),
     "drive": Key(Map({"velocity_unit": Key(Str(), False, "e.g. rpm, inc/s"),

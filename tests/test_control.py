@@ -37,9 +37,9 @@ from bench.records.hooks import target
 from bench.records.store import CheckPoint, ReviewInfo
 from bench.simdrift import drifted
 from tests.conftest import CONFIGS, ROOT
-from tests.test_records import cli
+from tests.test_records import OUTER, cli
 
-FOG = "SIM-0001/outer/fog"
+FOG = OUTER["fog"]
 STABLE_RUNS = 8
 
 
@@ -107,7 +107,7 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     first = _html_text(history["dirs"][0])
     for role in ("fog", "counter", "drive"):
         assert re.search(rf"Measurement assurance \(ISO/IEC 17025 7\.7\), {role} "
-                         rf"SIM-0001/outer/{role}[^.]*: not enough history \(1 of "
+                         rf"{OUTER[role]}[^.]*: not enough history \(1 of "
                          rf"{BASELINE_RUNS} runs", first), role
     # the eighth: the FOG has its baseline and is in control
     assert f"fog {FOG} (KVH DSP-1760): in control (8 runs; baseline: the first 8 runs" \
@@ -124,7 +124,7 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     chart = cli("control", FOG, "--runs", str(runs))
     assert chart.returncode == 1
     assert "baseline: the first 8 runs" in chart.stdout and "WE1" in chart.stdout
-    png = runs / "control-SIM-0001_outer_fog.png"
+    png = runs / f"control-{FOG}.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
     # the certificate of run 9 says so; the next run's start warns; authorise refuses
@@ -143,7 +143,7 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     assert not list((shifted / "issued").glob("*/certificate.pdf"))
 
     # a review with who and why lifts the refusal; the certificate then states it
-    why = "FOG SIM-0001/outer/fog re-checked against the reference table; scale confirmed"
+    why = f"FOG {FOG} re-checked against the reference table; scale confirmed"
     bad = cli("control", FOG, "--runs", str(runs), "--review", "  ")
     assert bad.returncode == 2
     rev = cli("control", FOG, "--runs", str(runs), "--review", why, "--by", "Q. Manager")
@@ -258,7 +258,7 @@ def test_the_station_shows_the_status_and_the_charts_in_a_real_browser(
         base = f"http://127.0.0.1:{port}"
         driver.get(f"{base}/records")
         rows = driver.find_element(By.ID, "instruments").text
-        assert FOG in rows and "SIM-0001/outer/counter" in rows
+        assert FOG in rows and OUTER["counter"] in rows
         driver.find_element(By.LINK_TEXT, FOG).click()
         status = driver.find_element(By.ID, "status").text
         assert "WE1" in status or "reviewed by" in status, status   # before/after review

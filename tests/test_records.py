@@ -43,6 +43,10 @@ from tests.pg_server import PgServer, PgUnavailable
 from tests.test_run_e2e import assert_within_u
 
 SERIAL = "SIM-REC-1"
+#: the serials the outer axis's twins report (configs/stands/sim-two-axis.yaml: the FOG's
+#: as the stand states it, the counter's *IDN? field, the drive's 0x1018:4): check values
+#: are kept per instrument under them
+OUTER = {"fog": "1760-20231", "counter": "MY62000117", "drive": "41001"}
 #: the outer axis's mean rate bias at each recertification: the table drifts by
 #: +0.8 ppm, then is adjusted by +0.9 ppm (as-found -> as-left) -- far beyond U (~0.05 ppm)
 BIAS_REL = (3.0e-7, 1.1e-6, 2.0e-6)
@@ -292,7 +296,7 @@ def test_a_database_of_r0001_is_upgraded_and_import_adds_the_check_values(
     assert "0 new, 3 updated, 0 already recorded" in out.stdout, out.stdout + out.stderr
     with Records.open(db.url) as rec:
         assert rec.revision() == "r0002"
-        assert len({p.run_uid for p in rec.checks(f"{SERIAL}/outer/fog")}) == 3
+        assert len({p.run_uid for p in rec.checks(OUTER["fog"])}) == 3
 
 
 def test_check_values_and_reviews_on_both_databases(recerts: dict[str, Any], db: Db) -> None:
@@ -300,13 +304,13 @@ def test_check_values_and_reviews_on_both_databases(recerts: dict[str, Any], db:
     is journaled with who, why and what it covers (issue 28)."""
     from bench.records.control import NOT_ENOUGH, instrument_status
 
-    fog = f"{SERIAL}/outer/fog"
+    fog = OUTER["fog"]
     with Records.open(db.url) as rec:
         for d in recerts["dirs"]:
             assert rec.register(record_of(d)) == "new"
             assert rec.register(record_of(d)) == "unchanged"
         assert {i.serial for i in rec.instruments()} == {
-            fog, f"{SERIAL}/outer/counter", f"{SERIAL}/outer/drive"}
+            fog, OUTER["counter"], OUTER["drive"]}
         pts = [p for p in rec.checks(fog) if p.check.quantity == "k"]
         pairs = [json.loads((d / "result.json").read_text())["axes"]["outer"]["pairs"][0]
                  for d in recerts["dirs"]]

@@ -22,6 +22,7 @@ from scipy.stats import binom
 
 from sims.stand import AxisTruth
 from tests.conftest import CONFIGS, ROOT
+from tests.test_records import OUTER
 
 DEMO = CONFIGS / "procedures" / "demo.yaml"
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
@@ -126,10 +127,13 @@ def test_demo_attestation_recovers_the_stand_truth(tmp_path: Path) -> None:
     check_against_truth(result)
     # issue 28: one assurance line per instrument, a first run has 1 of 8 baseline runs
     html = re.sub(r"\s+", " ", (run_dir / "certificate.html").read_text(encoding="utf-8"))
+    # each under the serial it reports (the FOG's as the stand states it)
+    serials = {"outer": OUTER, "inner": {"fog": "1760-20232", "counter": "MY62000118",
+                                         "drive": "41002"}}
     for axis in ("outer", "inner"):
         for role in ("fog", "counter", "drive"):
             assert re.search(rf"Measurement assurance \(ISO/IEC 17025 7\.7\), {role} "
-                             rf"SIM-0001/{axis}/{role}[^.]*: not enough history \(1 of 8 runs",
+                             rf"{serials[axis][role]}[^.]*: not enough history \(1 of 8 runs",
                              html), (axis, role)
 
     # bench analyze rebuilds result.json from the raw data alone, identically
