@@ -369,7 +369,7 @@ def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
     (drivers/time_tie.py), so a real stand with a counter and a FOG must say how.
     """
     data = sdoc.data if isinstance(sdoc.data, dict) else {}
-    axes = data.get("axes") if isinstance(data.get("axes"), dict) else {}
+    axes = got if isinstance(got := data.get("axes"), dict) else {}
     out = reference_problems(sdoc, axes)
     if "sim" in data:
         return out

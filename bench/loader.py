@@ -20,14 +20,15 @@ from typing import Any
 from bench.config import Config, ConfigError, real_stand_problems
 from bench.lab import lab_problems
 from bench.registry import procedure_kind, procedure_names
-from bench.schema import Map, merge, validate
+from bench.schema import Map, Node, merge, validate
 from bench.yamlfile import KeyPath, Problem, YamlDoc, YamlError, keypath_str, load_yaml
 
 
 def any_stand_schema() -> Map:
     """The stand file as some installed procedure kind reads it (the kinds' union): what
     a stand validated alone, or named by an unknown procedure, is checked against."""
-    node = reduce(merge, [procedure_kind(n).stand_schema() for n in procedure_names()])
+    schemas: list[Node] = [procedure_kind(n).stand_schema() for n in procedure_names()]
+    node = reduce(merge, schemas)
     assert isinstance(node, Map)
     return node
 

@@ -170,6 +170,8 @@ class SimBench:
                 drive_truth = (sim_axes.get(a) or {}).get("drive") or {}
                 serials = (sim_axes.get(a) or {}).get("serials") or {}
                 bus_options = {"port": self.can_port} if self.can_port is not None else {}
+                serial_kw: dict[str, Any] = ({"serial_number": int(serials["drive"])}
+                                             if "drive" in serials else {})
                 twin = DriveTwin(self.stand, a, interface=self.can_interface, channel=channel,
                                  bus_options=bus_options,
                                  node_id=d["node_id"], controller_node_id=controllers[a],
@@ -179,8 +181,7 @@ class SimBench:
                                     if k in drive_truth},
                                  **({"counts_per_rev": d["counts_per_rev"]}
                                     if "counts_per_rev" in d else {}),
-                                 **({"serial_number": int(serials["drive"])}
-                                    if "drive" in serials else {}))
+                                 **serial_kw)
                 self._stack.enter_context(twin)
                 self.twins[f"{a}.drive"] = twin
                 d["interface"], d["channel"] = self.can_interface, channel

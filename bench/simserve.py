@@ -75,7 +75,7 @@ def serve(stand_path: str, stop: threading.Event | None = None) -> int:
         print(note, file=sys.stderr)
     cfg = dataclasses.replace(cfg, stand=stand)
     stop = stop or threading.Event()
-    previous: dict[int, Any] = {}
+    previous: dict[signal.Signals, Any] = {}
     simbench = None
     try:
         if threading.current_thread() is threading.main_thread():

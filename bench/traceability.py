@@ -133,9 +133,9 @@ def identity_problems(instruments: Mapping[str, Any]) -> list[str]:
                 continue
             maker = str(ident).split(";")[0].split(",")[0].strip()
             seen.setdefault((maker, serial), []).append(where)
-    for (_maker, serial), where in seen.items():
-        if len(where) > 1:
-            problems.append(f"the {', '.join(where)} report one serial ({serial}) of one "
+    for (_maker, serial), wheres in seen.items():
+        if len(wheres) > 1:
+            problems.append(f"the {', '.join(wheres)} report one serial ({serial}) of one "
                             "maker: two instruments cannot share it")
     return problems
 

@@ -31,7 +31,8 @@ _Loader.add_implicit_resolver(
                 |\.(?:nan|NaN|NAN))$""", re.X),
     list("-+0123456789."))
 
-KeyPath = tuple[str | int, ...]
+#: keys and list indexes from the top; a YAML key may also be a float or null (`1.5:`, `~:`)
+KeyPath = tuple[str | int | float | None, ...]
 
 
 def keypath_str(path: KeyPath) -> str:
@@ -176,7 +177,7 @@ def _syntax_path(text: str) -> tuple[KeyPath, int | None]:
         for ev in yaml.parse(text, Loader=_Loader):
             if isinstance(ev, yaml.MappingStartEvent | yaml.SequenceStartEvent):
                 frames.append([child_path(), isinstance(ev, yaml.MappingStartEvent), True,
-                               0, ev.start_mark.line + 1])
+                               0, ev.start_mark.line + 1 if ev.start_mark else None])
             elif isinstance(ev, yaml.MappingEndEvent | yaml.SequenceEndEvent):
                 frames.pop()
                 advance()
@@ -240,7 +241,7 @@ def load_yaml(path: str | Path) -> YamlDoc:
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as e:
-        line = raw.count(b"\n", 0, e.start) + 1
+        line: int | None = raw.count(b"\n", 0, e.start) + 1
         raise YamlError(Problem(str(p), line, "(file)", f"not UTF-8 text: byte "
                                 f"0x{raw[e.start]:02x} at offset {e.start}")) from None
     loader: _Loader | None = None

@@ -423,7 +423,9 @@ class Axis:
         node.tpdo.read()  # the drive's TPDO mapping and communication parameters, by SDO
         mapped: set[int] = set()
         periods = []
-        for n, pdo in node.tpdo.map.items():
+        tpdos = node.tpdo.map
+        assert tpdos is not None  # canopen types PdoBase.map Optional; TPDO sets it
+        for n, pdo in tpdos.items():
             if pdo.enabled and pdo.map:
                 self._check_tpdo_timing(n, pdo)
                 mapped |= {var.index for var in pdo.map}

@@ -429,9 +429,12 @@ class SteppedClock:
                         log.warning("stepped clock: %r did not settle at t = %.6f s within "
                                     "%.0f s of real time; passed over", p, t, GUARD_REAL_S)
                     break
+
+                def moved_on(g: int = gen) -> bool:
+                    return self._generation != g
+
                 with self._progress:  # woken by consumed()/poke(), else look again soon
-                    self._progress.wait_for(lambda g=gen: self._generation != g,
-                                            _SETTLE_POLL_REAL_S)
+                    self._progress.wait_for(moved_on, _SETTLE_POLL_REAL_S)
         self.settle_wait_real_s += time.monotonic() - m0
 
 

@@ -525,11 +525,12 @@ class CounterTwin(ScpiServer):
         """The 53230A as the public client programs script it (Programmer's Reference:
         MEASure, CONFigure, DATA, FORMat, TRIGger subsystems; R?, *LRN?, *STB?)."""
         w = KEYSIGHT_53230A_SCRIPT_WORDS
-        first = {"first": True, "raw": True}  # ahead of the profile's templated forms
+        # first: ahead of the profile's templated forms
         self.route(w.format_data, on_set=self._set_format_raw, on_query=lambda a: (
-            f"ASC,{self.ascii_digits}" if self.data_format == "ASC" else "REAL,64"), **first)
+            f"ASC,{self.ascii_digits}" if self.data_format == "ASC" else "REAL,64"),
+            first=True, raw=True)
         self.route(w.configure_period, on_set=lambda a: self._conf_scalar(a, invert=False),
-                   **first)
+                   first=True, raw=True)
         self.route(w.configure_frequency, on_set=lambda a: self._conf_scalar(a, invert=True),
                    raw=True)
         self.route(w.configure_timestamp, on_set=self._conf_tst, raw=True)

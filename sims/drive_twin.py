@@ -56,8 +56,8 @@ from typing import Any
 
 import canopen
 from canopen.nmt import NmtSlave
-from canopen.objectdictionary import ODVariable
-from canopen.pdo.base import PdoMap
+from canopen.objectdictionary import ODArray, ODVariable
+from canopen.pdo.base import PdoBase, PdoMap, PdoMaps
 from canopen.sdo import SdoAbortedError
 
 from drivers.cia402 import (
@@ -92,6 +92,7 @@ from drivers.cia402 import (
     wrap_int32,
 )
 from drivers.clock import can_channel_name
+from sims.clock import SteppedClock
 from sims.stand import AxisModel, SimulatedStand
 
 log = logging.getLogger(__name__)
@@ -343,11 +344,11 @@ class DriveTwin:
         """Every PDO's communication and mapping parameters as the OD holds them now."""
         node = self._node
         assert node is not None
-        for pdo in node.tpdo.map.values():
+        for pdo in _maps(node.tpdo).values():
             pdo.read(from_od=False)
-        for pdo in node.rpdo.map.values():
+        for pdo in _maps(node.rpdo).values():
             self._reload_rpdo(pdo)
-        timers = [m.event_timer for m in node.tpdo.map.values() if m.enabled and m.event_timer]
+        timers = [m.event_timer for m in _maps(node.tpdo).values() if m.enabled and m.event_timer]
         self._tick_s = min(timers, default=10) / 1000.0
         self._sync_count = 0
 
@@ -441,7 +442,7 @@ class DriveTwin:
         base = 0x1800 if tx else 0x1400
         mapping = (index & 0x0200) != 0
         number = (index - base - (0x200 if mapping else 0)) + 1
-        pdo = (node.tpdo if tx else node.rpdo).map.get(number)
+        pdo = _maps(node.tpdo if tx else node.rpdo).get(number)
         if pdo is None:
             return
         if not mapping and sub == 1:
@@ -491,14 +492,14 @@ class DriveTwin:
             with contextlib.suppress(SdoAbortedError):
                 node.set_data(var.index, var.subindex, var.get_data())
 
-    def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
         """SYNC: synchronous TPDOs (type 0: acyclic, 1-240: every n-th SYNC)."""
         node = self._node
         if node is None or node.nmt._state != NMT_OPERATIONAL:
             return
         with self._lock:
             self._sync_count += 1
-            for pdo in node.tpdo.map.values():
+            for pdo in _maps(node.tpdo).values():
                 tt = pdo.trans_type
                 if pdo.enabled and tt is not None and 1 <= tt <= 240 \
                         and self._sync_count % tt == 0:
@@ -536,15 +537,16 @@ class DriveTwin:
         node.sdo.on_request = lambda can_id, data, ts: (  # type: ignore[method-assign]
             None if node.nmt._state == NMT_STOPPED else serve_sdo(can_id, data, ts))
         # the EDS declares 0x1016:1; a twin configured otherwise says so in its own OD
-        node.object_dictionary[Od.CONSUMER_HEARTBEAT][1].default = \
-            self._initial[(Od.CONSUMER_HEARTBEAT, 1)]
+        consumer_heartbeat = node.object_dictionary[Od.CONSUMER_HEARTBEAT]
+        assert isinstance(consumer_heartbeat, ODArray)  # the EDS's 0x1016 (ObjectType 0x8)
+        consumer_heartbeat[1].default = self._initial[(Od.CONSUMER_HEARTBEAT, 1)]
         network.add_node(node)
         self._network, self._node = network, node
         self._load_defaults(0x1000, 0xFFFF)
         node.add_read_callback(self._on_read)
         node.add_write_callback(self._on_write)
         network.connect(interface=self.interface, channel=self.channel, **self.bus_options)
-        for pdo in node.rpdo.map.values():
+        for pdo in _maps(node.rpdo).values():
             pdo.add_callback(self._on_rpdo)
         network.subscribe(COB_SYNC, self._on_sync)
         self._read_pdos()
@@ -555,7 +557,7 @@ class DriveTwin:
         self._stop.clear()
         if self._stepped:
             node.add_write_callback(self._note_write)
-            self._leave = self.clock.join(self)
+            self._leave = self._stepped_clock.join(self)
         self._thread = threading.Thread(
             target=self._run_watchdog if self._stepped else self._run,
             name=f"drive-twin-{self.axis}", daemon=True)
@@ -926,6 +928,12 @@ class DriveTwin:
             self._stop.wait(delay)
 
     # -- the co-simulation (sims/clock.py SteppedClock) ----------------------------------
+    @property
+    def _stepped_clock(self) -> SteppedClock:
+        """The co-simulation's clock: reached only on a stepped stand (self._stepped)."""
+        assert isinstance(self.clock, SteppedClock)
+        return self.clock
+
     def next_event_s(self, t_s: float) -> float:
         with self._lock:
             busy = (t_s < self._busy_until_s or self._after_standstill is not None
@@ -943,7 +951,7 @@ class DriveTwin:
 
     def settled(self, t_s: float, final: bool) -> bool:
         """Every TPDO sent so far consumed by the controller (each stamped at its tick)."""
-        return self.clock.backlog(self._can_name) == 0
+        return self._stepped_clock.backlog(self._can_name) == 0
 
     def _note_write(self, index: int, subindex: int, od: Any, data: bytes) -> None:
         self._busy_until_s = self.clock.now() + ACTIVE_S
@@ -983,7 +991,7 @@ class DriveTwin:
             now = gate_s if gate_s is not None else \
                 time.monotonic() if t_stepped is None else t_stepped
             book = self._tpdo_last_paused if gate_s is not None else self._tpdo_last
-            for n, pdo in node.tpdo.map.items():
+            for n, pdo in _maps(node.tpdo).items():
                 # CiA 301: types 254/255 send on an event: the event timer's expiry, or,
                 # with the timer at 0, a change of the mapped data (nothing at rest)
                 period = (pdo.event_timer or 0) / 1000.0
@@ -998,7 +1006,7 @@ class DriveTwin:
                     continue
                 self._tpdo_values[n] = self._send_tpdo(pdo)
                 if self._stepped and len(pdo.map):
-                    self.clock.sent(self._can_name, 1)
+                    self._stepped_clock.sent(self._can_name, 1)
                 book[n] = now
 
     def _update_motion_bits(self, t: float, w: float) -> None:
@@ -1016,9 +1024,9 @@ class DriveTwin:
             self._in_window_since = self._in_position_since = None
             self._target_reached = self._speed_zero
         elif self._state is State.OPERATION_ENABLED and self._mode == PROFILE_VELOCITY.code:
-            target = self.units.velocity_to_dps(self._get(Od.TARGET_VELOCITY))
+            target_dps = self.units.velocity_to_dps(self._get(Od.TARGET_VELOCITY))
             window = self.units.velocity_to_dps(self._get(Od.VELOCITY_WINDOW))
-            if abs(w - target) <= window:
+            if abs(w - target_dps) <= window:
                 if self._in_window_since is None:
                     self._in_window_since = t
                 self._target_reached = t - self._in_window_since >= \
@@ -1062,7 +1070,7 @@ class DriveTwin:
         if self._hb_producer and network is not None:
             network.subscribe(COB_HEARTBEAT + producer, self._on_controller_heartbeat)
 
-    def _on_controller_heartbeat(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def _on_controller_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self._lock:
             self._hb_last = time.monotonic()
 
@@ -1107,6 +1115,12 @@ class DriveTwin:
             self._send_emcy(HEARTBEAT_LOST)
             if self._state is State.OPERATION_ENABLED:
                 self._quick_stop()
+
+
+def _maps(pdos: PdoBase) -> PdoMaps:
+    """A node's TPDO or RPDO maps: canopen types PdoBase.map Optional, TPDO and RPDO set it."""
+    assert pdos.map is not None
+    return pdos.map
 
 
 def _si(unit: str | int) -> int:

@@ -65,6 +65,7 @@ from drivers.kvh_config import (
     WORDS,
     units_of,
 )
+from sims.clock import SteppedClock
 from sims.stand import AxisChunk, SimulatedStand
 
 _TICK_S = 0.002            # real seconds between looks at the clock when idle
@@ -359,10 +360,16 @@ class FogTwin:
                                         daemon=True)
         self._thread.start()
         if self._stepped:
-            self._leave = self.clock.join(self)
+            self._leave = self._stepped_clock.join(self)
         return self.path
 
     # -- the co-simulation (sims/clock.py SteppedClock) -------------------------------------
+    @property
+    def _stepped_clock(self) -> SteppedClock:
+        """The co-simulation's clock: reached only on a stepped stand (self._stepped)."""
+        assert isinstance(self.clock, SteppedClock)
+        return self.clock
+
     def next_event_s(self, t_s: float) -> float:
         return math.inf  # frames follow the stand's samples; a hold ends with the clock
 
@@ -372,7 +379,7 @@ class FogTwin:
     def settled(self, t_s: float, final: bool) -> bool:
         """Frames up to t_s out and decoded (final), or within the lead of it."""
         if self._stop.is_set() or self.path is None \
-                or not self.clock.has_consumer(self.path) or self.config_mode:
+                or not self._stepped_clock.has_consumer(self.path) or self.config_mode:
             return True
         if not self._gate_open:
             return False
@@ -380,7 +387,7 @@ class FogTwin:
             head = self._queue[0] if self._queue else None
             queued = self._queued_bytes
         due = head is not None and (not isinstance(head, _Hold) or head.until_s <= t_s)
-        backlog = self.clock.backlog(self.path)
+        backlog = self._stepped_clock.backlog(self.path)
         if final:
             return not due and backlog == 0
         return queued + backlog <= _LEAD_BYTES
@@ -426,7 +433,7 @@ class FogTwin:
         return not any(ev & select.POLLHUP for _, ev in poller.poll(0))
 
     def _run(self) -> None:
-        assert self._master is not None
+        assert self._master is not None and self.path is not None  # set by start()
         poller = select.poll()
         poller.register(self._master, select.POLLOUT)
         seen: float | None = None
@@ -439,7 +446,7 @@ class FogTwin:
                 # the driver says when it records (after its configuration dialogue and
                 # the flush that ends it): frames written before would be flushed, and
                 # the first frame read would not be stand sample 0
-                if seen is not None and self.clock.has_consumer(self.path):
+                if seen is not None and self._stepped_clock.has_consumer(self.path):
                     break
             elif seen is not None and time.monotonic() - seen >= _OPEN_SETTLE_S \
                     and getattr(self.clock, "running", True):
@@ -447,7 +454,7 @@ class FogTwin:
             time.sleep(_TICK_S)
         self._gate_open = True
         if self._stepped:
-            self.clock.poke()
+            self._stepped_clock.poke()
         while not self._stop.is_set():
             self._serve_commands()
             if self.config_mode:  # no binary output in Configuration Mode (ICD 3.3)
@@ -580,7 +587,7 @@ class FogTwin:
                     continue
                 self._queued_bytes -= len(item[0])
                 if self._stepped and self.path is not None:
-                    self.clock.sent(self.path, len(item[0]))  # counted before it can be read
+                    self._stepped_clock.sent(self.path, len(item[0]))  # counted before it can be read
             data, n_end = item
             self._write_all(data, poller)
             self._sent_n = max(self._sent_n, n_end)

@@ -388,10 +388,11 @@ class ScpiServer:
                 continue
             except _Interrupted:
                 return None
-            if is_query and isinstance(answer, bytes):
-                binary.append(answer)  # a definite-length block (FORM REAL)
-            elif is_query and answer is not None:
-                answers.append(answer)
+            if is_query and answer is not None:
+                if isinstance(answer, bytes):
+                    binary.append(answer)  # a definite-length block (FORM REAL)
+                else:
+                    answers.append(answer)
             if is_query and answer is not None and route.data and self.take_fault("garbage"):
                 garbage = True
         if garbage:

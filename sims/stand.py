@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from drivers.units import SECONDS_PER_HOUR
-from sims.clock import MAX, VirtualClock, parse_speed
+from sims.clock import MAX, SteppedClock, VirtualClock, parse_speed
 
 
 @dataclass(frozen=True)
@@ -454,7 +454,7 @@ class SimulatedStand:
     """The simulated table: its axes and the one virtual clock all twins read."""
 
     def __init__(self, truth: StandTruth, fog_rate_hz: Mapping[str, float],
-                 clock: VirtualClock | None = None) -> None:
+                 clock: VirtualClock | SteppedClock | None = None) -> None:
         self.truth = truth
         self.clock = clock or VirtualClock(truth.clock_speed)
         seeds = np.random.SeedSequence(truth.seed).spawn(len(truth.axes))

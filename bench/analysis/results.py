@@ -51,7 +51,7 @@ class SystematicResult:
     binned: BinnedSystematic
     residual_std_dps: float             # of the fit, deg/s of table rate
     inflation: NoiseInflation           # applied to the harmonic and mains uncertainties
-    detection: Mapping[str, object] = dataclasses.field(default_factory=dict)  # the rule
+    detection: Mapping[str, str | float] = dataclasses.field(default_factory=dict)  # the rule
 
     def to_dict(self) -> dict[str, object]:
         return {"harmonics": [h.to_dict() for h in self.harmonics],

@@ -317,7 +317,7 @@ def _significance(a: float, b: float, cov: np.ndarray) -> float:
         return 0.0
 
 
-def detection_dict(design: Design) -> dict[str, object]:
+def detection_dict(design: Design) -> dict[str, str | float]:
     """The rule as result.json states it beside the tones."""
     m = tones_tested(design)
     return {"rule": "chi-square (2 dof) test of each tone's two coefficients, Sidak-"

@@ -501,7 +501,9 @@ def _serial_read_back(ids: Mapping[str, Any], t: Any) -> str:
     axes = [parts[1]] if parts[0] == "axes" and len(parts) > 2 else list(ids)
     for axis in axes:
         roles = ids.get(axis)
-        for role in names if isinstance(roles, Mapping) else ():
+        if not isinstance(roles, Mapping):
+            continue
+        for role in names:
             if role in roles:
                 return serial_of(roles[role]) or "NONE REPORTED"
     return "not recorded"
@@ -761,7 +763,8 @@ def _conformity(src: Sources, checks: list[dict[str, Any]], proc: Procedure
     consistency = [c for c in checks if check_class(c) == "consistency"]
     checks = [c for c in checks if check_class(c) != "consistency"]
     with_rate = all(num(c.get("set_rate_dps")) is not None for c in checks)
-    rows, notes = [], []
+    rows: list[tuple[str, ...]] = []
+    notes: list[str] = []
     for i, c in enumerate(checks, start=1):
         row = CheckRow.of(c)
         ratio = num(c.get("capability_ratio"))
@@ -789,9 +792,9 @@ def _conformity(src: Sources, checks: list[dict[str, Any]], proc: Procedure
             vu = present(row.value, row.u, unit.scale, resolved=False,
                          upper=limit).with_unit(unit.name) + " (timing floor)"
             cap = "—"
-        elif num(c.get("upper_rel")) is not None and row.suffix == "rel":
+        elif (upper_rel := num(c.get("upper_rel"))) is not None and row.suffix == "rel":
             unit = rel_unit(row.value, row.u, row.tolerance)
-            vu += f"; 97.5 % limit {format_limit(num(c['upper_rel']) * unit.scale)[0]}"
+            vu += f"; 97.5 % limit {format_limit(upper_rel * unit.scale)[0]}"
         rate = num(c.get("set_rate_dps"))
         point = rate_text(rate) if with_rate else (f"{rate_text(rate)} °/s" if rate is not None else "—")
         rows.append((str(i), text_of(c.get("axis")), point, quantity, vu, tol_text, cap, label))
@@ -841,10 +844,10 @@ def _tolerance_table(tol: Mapping[str, Any], proc: Procedure) -> Table:
     rows = []
     for quantity, bands in tol.items():
         words = str(quantity).split("_")
-        if num(bands) is not None and words[-1] in ABSOLUTE_UNITS:
+        if (value := num(bands)) is not None and words[-1] in ABSOLUTE_UNITS:
             name = " ".join(words[:-1])
             rows.append((proc.quantity("_".join(words[:-1]), name), "every measurement",
-                         f"{_trim(num(bands))} {ABSOLUTE_UNITS[words[-1]]}"))
+                         f"{_trim(value)} {ABSOLUTE_UNITS[words[-1]]}"))
             continue
         lo = 0.0
         for band in bands if isinstance(bands, list) else []:

@@ -64,7 +64,7 @@ def el(parent: etree._Element | None, tag: str, text: str | None = None,
 
 def text_el(parent: etree._Element, tag: str, text: str, **attrs: str | None) -> etree._Element:
     """A dcc:textType / richContentType element with one English content."""
-    node = el(parent, tag, **attrs)
+    node = el(parent, tag, None, DCC_NS, **attrs)
     el(node, "content", text or "-", lang=LANG)
     return node
 
@@ -156,8 +156,7 @@ def budget_list(data: etree._Element, lid: str, title: str, budget: Any, path: s
     """The standard uncertainties behind a U, one quantity per source (no U of their own)."""
     if not isinstance(budget, Mapping):
         return
-    found = [(k, label, num(budget.get(k))) for k, label in terms]
-    found = [(k, label, v) for k, label, v in found if v is not None]
+    found = [(k, label, v) for k, label in terms if (v := num(budget.get(k))) is not None]
     if not found:
         return
     lst = el(data, "list", id=lid, ref_type=V.BUDGET)

@@ -218,12 +218,12 @@ def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any
     stand_axes = stand.get("axes") or {}
     reported: dict[str, list[str | None]] = {"counter": [], "drive": []}
     for a in stand_axes:
-        got = ids.get(a) if isinstance(ids.get(a), Mapping) else {}
+        got = entry if isinstance(entry := ids.get(a), Mapping) else {}
         reported["counter"].append(_idn_serial(got.get("counter")))
         reported["drive"].append(_drive_serial(got.get("drive")))
 
     def serial(axis: str, role: str, conf: Mapping[str, Any]) -> str:
-        got = ids.get(axis) if isinstance(ids.get(axis), Mapping) else {}
+        got = entry if isinstance(entry := ids.get(axis), Mapping) else {}
         rep = (_idn_serial(got.get("counter")) if role == "counter" else
                _drive_serial(got.get("drive")) if role == "drive" else None)
         unique = rep is not None and reported.get(role, []).count(rep) == 1
@@ -256,7 +256,7 @@ def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any
     gyros = ((stand.get("platform") or {}).get("gyros") or {})
     plat = ((stand.get("platform") or {}).get("identity") or {}).get("serial") or stand_serial
     for g, d in drift.items() if isinstance(drift, Mapping) else ():
-        conf = gyros.get(g) if isinstance(gyros.get(g), Mapping) else {}
+        conf = gyro if isinstance(gyro := gyros.get(g), Mapping) else {}
         v = _num(d.get("own_dph")) if isinstance(d, Mapping) else None
         if v is not None:
             out.append(CheckRecord(_serial_of(conf.get("serial"), None, False,

@@ -245,9 +245,9 @@ def cmd_control(args: argparse.Namespace) -> int:
                 _err(f"no instrument check values in {redact(where.url)}")
                 return EXIT_FAIL
             print(f"{len(statuses)} instrument(s) in {redact(where.url)}:")
-            for s in statuses:
-                print(f"  {s.line}")
-            return EXIT_FAIL if any(s.state == OUT_OF_CONTROL for s in statuses) else EXIT_OK
+            for st in statuses:
+                print(f"  {st.line}")
+            return EXIT_FAIL if any(st.state == OUT_OF_CONTROL for st in statuses) else EXIT_OK
         status = instrument_status(rec, args.serial)
         if status is None:
             _err(f"no instrument {args.serial!r} in {redact(where.url)} (`bench control` "
@@ -285,11 +285,11 @@ def cmd_control(args: argparse.Namespace) -> int:
                  else f"{'':>7}")
             ew = s.ewma[i] if i < len(s.ewma) else None
             when = p.date_utc.strftime("%Y-%m-%d %H:%M") if p.date_utc else "?"
-            g = signals.get(p.run_uid)
+            rules = signals.get(p.run_uid)
             print(f"  {i + 1:>3} {when:<17} {c.value:>16.9g} "
                   f"{'' if c.u is None else format(c.u, '.2g'):>10} {z} "
                   f"{'' if ew is None else format(ew, '.9g'):>16}  "
-                  f"{'+'.join(g) if g else '':<8} {p.run_dir}")
+                  f"{'+'.join(rules) if rules else '':<8} {p.run_dir}")
     for r in status.reviews:
         print(f"\nreview {r.utc:%Y-%m-%d %H:%M UTC} by {r.reviewer}: {r.text}")
     png = control_png(status)

@@ -38,7 +38,8 @@ def control_png(status: InstrumentStatus) -> bytes | None:
                                label=f"±{k} sigma ({s.sigma_source})"
                                if sign > 0 and k == 3 else None)
             ew = [(i + 1, e, h) for i, (e, h) in enumerate(zip(s.ewma, s.ewma_limit,
-                                                                 strict=True)) if e is not None]
+                                                                 strict=True))
+                  if e is not None and h is not None]
             if ew:
                 ax.plot([a for a, _, _ in ew], [e for _, e, _ in ew], "s-", ms=3, lw=0.8,
                         color="C2", label="EWMA (lambda 0.2)")

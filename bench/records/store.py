@@ -353,8 +353,9 @@ class Records:
                   now: dt.datetime) -> int:
         t = s.tables.c
         row = conn.execute(sa.select(t.id).where(t.serial == rec.serial)).first()
-        values = {"maker": rec.maker, "model": rec.model, "location": rec.location,
-                  "last_seen_utc": now}
+        values: dict[str, str | int | dt.datetime | None] = {
+            "maker": rec.maker, "model": rec.model, "location": rec.location,
+            "last_seen_utc": now}
         if interval_days or rec.interval_days:
             values["interval_days"] = interval_days or rec.interval_days
         if row is None:

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from matplotlib import colormaps
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
@@ -74,7 +75,7 @@ def trend_png(points: Sequence[TrendPoint], title: str = "") -> bytes | None:
     return buf.getvalue()
 
 
-def _panel(ax: object, pn: Panel, points: list[TrendPoint]) -> None:
+def _panel(ax: Axes, pn: Panel, points: list[TrendPoint]) -> None:
     series: dict[str, list[TrendPoint]] = {}
     for p in points:
         series.setdefault(_series_name(p), []).append(p)
@@ -90,6 +91,8 @@ def _panel(ax: object, pn: Panel, points: list[TrendPoint]) -> None:
         return f.axis, abs(rate), -rate
 
     for i, (name, pts) in enumerate(sorted(series.items(), key=order)):
+        # dated points only (trend_png); the ignores below: matplotlib's stubs take no
+        # datetime x, which its units framework converts (matplotlib.dates)
         x = [p.date_utc for p in pts]
         offset = 1.0 if pn.quantity == "k" else 0.0
         y = [(p.figure.value - offset) * pn.scale for p in pts]
@@ -97,14 +100,16 @@ def _panel(ax: object, pn: Panel, points: list[TrendPoint]) -> None:
         # 20 distinct colours, then another marker: 12 series never share a look
         color = SERIES_COLOURS(i % 20)
         marker = SERIES_MARKERS[(i // 20) % len(SERIES_MARKERS)]
-        ax.plot(x, y, "-", lw=0.5, color=color, alpha=0.5)
+        ax.plot(x, y, "-", lw=0.5, color=color, alpha=0.5)  # type: ignore[arg-type]
         est = [j for j, p in enumerate(pts) if not p.figure.is_limit]
         if est:
-            ax.errorbar([x[j] for j in est], [y[j] for j in est], yerr=[u[j] for j in est],
+            ax.errorbar([x[j] for j in est], [y[j] for j in est],  # type: ignore[arg-type]
+                        yerr=[u[j] for j in est],
                         fmt=marker, ms=3, capsize=3, color=color, label=name)
         lim = [j for j, p in enumerate(pts) if p.figure.is_limit]
         if lim:   # not resolved: the upper limit, drawn as one (never a point with U)
-            ax.plot([x[j] for j in lim], [y[j] for j in lim], "v", ms=5, mfc="none",
+            ax.plot([x[j] for j in lim], [y[j] for j in lim],  # type: ignore[arg-type]
+                    "v", ms=5, mfc="none",
                     color=color, label=f"{name}: upper limit" if not est else None)
         for p in pts:
             if p.calibration_state:

@@ -36,7 +36,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     app = create_app(settings)
     server = create_server(app, host=settings.host, port=settings.port, threads=THREADS,
                            ident="ratebench-station")
-    port = server.effective_port  # type: ignore[attr-defined]
+    port = server.effective_port
     print(f"Station view of {settings.runs.resolve()} on http://{settings.host}:{port}/",
           flush=True)
     if made:

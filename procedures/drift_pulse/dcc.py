@@ -84,7 +84,7 @@ def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None
                             else "U not stated in result.json.")
             if check:
                 judge(node, checks.take(axis, None, check), U.DEG_PER_H)
-        budget = d.get("budget") if isinstance(d.get("budget"), Mapping) else {}
+        budget = got if isinstance(got := d.get("budget"), Mapping) else {}
         for key, what in (("own_u_dph", "own"), ("apparent_u_dph", "apparent")):
             terms = budget.get(key)
             if isinstance(terms, Mapping):

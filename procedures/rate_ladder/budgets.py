@@ -70,8 +70,8 @@ def _scale_term(pair: Mapping[str, Any] | None, value: float | None) -> list[Ter
 
 
 def harmonic_budgets(r: Mapping[str, Any], pair: Mapping[str, Any] | None) -> list[Budget]:
-    sysm = r.get("systematic") if isinstance(r.get("systematic"), Mapping) else {}
-    intra = r.get("intra_turn") if isinstance(r.get("intra_turn"), Mapping) else {}
+    sysm = got if isinstance(got := r.get("systematic"), Mapping) else {}
+    intra = got if isinstance(got := r.get("intra_turn"), Mapping) else {}
     samples = num(intra.get("samples"))
     out = []
     harmonics = [h for h in sysm.get("harmonics") or [] if isinstance(h, Mapping)]
@@ -107,7 +107,7 @@ def intra_turn_budgets(r: Mapping[str, Any], pair: Mapping[str, Any] | None,
                        floor: Mapping[str, Any] | None) -> list[Budget]:
     """sigma_raw (A5) and sigma_c = sqrt(sigma_raw^2 - sigma_floor^2) (A5: the FOG's own
     noise removed), relative to |set|."""
-    intra = r.get("intra_turn") if isinstance(r.get("intra_turn"), Mapping) else {}
+    intra = got if isinstance(got := r.get("intra_turn"), Mapping) else {}
     raw = num(r.get("intra_turn_instability_rel"))
     u_raw = _half_u(r.get("intra_turn_instability_U_rel") or r.get("intra_turn_instability_u_rel"))
     n = num(intra.get("samples"))
@@ -136,16 +136,25 @@ def intra_turn_budgets(r: Mapping[str, Any], pair: Mapping[str, Any] | None,
     return out
 
 
+def _half_row(h: Mapping[str, Any]
+              ) -> tuple[float, float, float, float, float, int, Any] | None:
+    """A half's counter mean, FOG mean, their standard uncertainties (FOG's first), time
+    centre, turns and sign; None when one of the five numbers is missing."""
+    c, f, uf, uc, t = (num(h.get(k)) for k in ("counter_mean_dps", "fog_mean_dps",
+                                                 "fog_mean_ustd_dps", "counter_mean_ustd_dps",
+                                                 "t_centre_s"))
+    if c is None or f is None or uf is None or uc is None or t is None:
+        return None
+    return c, f, uf, uc, t, int(num(h.get("turns")) or 0), h.get("sign")
+
+
 def pair_budgets(pair: Mapping[str, Any]) -> list[Budget]:
     """k and w0 as the weighted least-squares fit of F_i = k C_i + w0 (+ d (t_i - t_ref))
     over the pair's halves (eq. 5-6); c_i = dk/dF_i from the fit's gain matrix, and
     dk/dC_i = -k dk/dF_i (a counter mean moves the fit as a FOG mean of -k times it)."""
     halves = [h for h in pair.get("halves") or [] if isinstance(h, Mapping)]
-    rows = [(num(h.get("counter_mean_dps")), num(h.get("fog_mean_dps")),
-             num(h.get("fog_mean_ustd_dps")), num(h.get("counter_mean_ustd_dps")),
-             num(h.get("t_centre_s")), int(num(h.get("turns")) or 0), h.get("sign"))
-            for h in halves]
-    if len(rows) < 2 or any(v is None for r in rows for v in r[:5]):
+    rows = [row for h in halves if (row := _half_row(h)) is not None]
+    if len(rows) < 2 or len(rows) < len(halves):
         return []
     t_ref = num(pair.get("w0_t_ref_s")) or 0.0
     drift = "drift" in str(pair.get("method") or "") and len(rows) >= 3

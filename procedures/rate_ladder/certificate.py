@@ -281,8 +281,8 @@ def _averaged(r: Mapping[str, Any]) -> list[Averaged]:
         corrected, upper = num(d.get("corrected_rel")), num(d.get("corrected_upper_rel"))
         resolved = d.get("resolved")
         if resolved is None:   # an older result: the k = 2 test on the excess variance
-            resolved = bool(corrected) and u is not None and raw is not None \
-                and corrected ** 2 > 2 * raw * u
+            resolved = corrected is not None and corrected != 0 and u is not None \
+                and raw is not None and corrected ** 2 > 2 * raw * u
         if upper is None and raw is not None and u is not None:
             fl = num(d.get("floor_rel")) or 0.0
             upper = math.sqrt(max(raw * raw - fl * fl, 0.0) + 2 * raw * u)
@@ -293,7 +293,7 @@ def _averaged(r: Mapping[str, Any]) -> list[Averaged]:
     return sorted(out, key=lambda x: x.angle_deg)
 
 
-def _ladder_results(src: Sources, number: str, checks: list[dict[str, Any]]
+def _ladder_results(src: Sources, number: str, checks: Sequence[Mapping[str, Any]]
                     ) -> list[Section]:
     axes = src.get("axes", {}) or {}
     out = [Section(number, "Results", (Para(
@@ -322,7 +322,7 @@ def _ladder_results(src: Sources, number: str, checks: list[dict[str, Any]]
 
 
 def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, Any]],
-                 ax: Mapping[str, Any], checks: list[dict[str, Any]],
+                 ax: Mapping[str, Any], checks: Sequence[Mapping[str, Any]],
                  every: list[dict[str, Any]]) -> tuple[Any, ...]:
     """One axis's results; `every` is every axis's rates, so that one quantity has one
     unit on the whole certificate."""
@@ -355,8 +355,9 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                      present(num(r.get("rate_instability_rel")), iu, inst_unit.scale,
                              resolved=sigma.resolved, upper=sigma.limit).text
                      + ("*" if approx and sigma.resolved else ""),
-                     format_sig(num(r.get("rate_instability_floor_rel")) * inst_unit.scale, 2)
-                     if num(r.get("rate_instability_floor_rel")) is not None else "—",
+                     format_sig(floor_rel * inst_unit.scale, 2)
+                     if (floor_rel := num(r.get("rate_instability_floor_rel"))) is not None
+                     else "—",
                      verdict_label(r.get("verdict"))))
     notes = ["Timing floor of σ = ΔT / T, with ΔT = √2 · Δ_edge the timing of one period "
              "(section 3, A1): the σ the counter's and the zero-mark sensor's timing errors "
@@ -516,8 +517,7 @@ BUDGET_TERMS = (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counte
 
 def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
     """The standard uncertainties behind U of the rate error (docs/method.md A1-A2)."""
-    budgets = [(r, r.get("rate_error_budget")) for r in rates
-               if isinstance(r.get("rate_error_budget"), Mapping)]
+    budgets = [(r, b) for r in rates if isinstance(b := r.get("rate_error_budget"), Mapping)]
     if not budgets:
         return None
     terms = [(k, name) for k, name in BUDGET_TERMS if any(k in b for _, b in budgets)]
@@ -583,8 +583,9 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
     header = ("Set rate, °/s", f"Raw ± U, {raw_unit.name}", f"FOG floor, {raw_unit.name}",
               f"Floor-corrected, {corr_unit.name}")
     notes = []
-    bw = {num(r.get("bandwidth_hz", (r.get("intra_turn") or {}).get("bandwidth_hz")))
-          for r in rates} - {None}
+    bw = {b for r in rates
+          if (b := num(r.get("bandwidth_hz", (r.get("intra_turn") or {}).get("bandwidth_hz"))))
+          is not None}
     if bw:
         notes.append("At the FOG's output bandwidth: "
                      + ", ".join(f"{b:g} Hz" for b in sorted(bw)) + ".")

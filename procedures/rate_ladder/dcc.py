@@ -242,6 +242,7 @@ def _averaged(data: etree._Element, rid: str, path: str, intra: Any) -> None:
 def _systematic(data: etree._Element, rid: str, path: str, s: Any) -> None:
     if not isinstance(s, Mapping):
         return
+    u_key: str | None  # the loops below name a quantity's U key, the mains frequency none
     for j, h in enumerate(s.get("harmonics") or []):
         if not isinstance(h, Mapping) or num(h.get("order")) is None:
             continue
