@@ -576,12 +576,15 @@ class FogTwin:
         """Write what is due; False if there was nothing to write."""
         wrote = False
         while not self._stop.is_set():
+            # the clock's time is read before the queue's lock is taken: the paced clock
+            # calls delivered_s (which takes that lock) while it holds its own
+            now_s = self.clock.now()
             with self._qlock:
                 if not self._queue:
                     return wrote
                 item = self._queue.popleft()
                 if isinstance(item, _Hold):
-                    if self.clock.now() < item.until_s:
+                    if now_s < item.until_s:
                         self._queue.appendleft(item)
                         return wrote
                     continue
