@@ -13,6 +13,10 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
+#: the serials the outer axis's twins of configs/stands/sim-two-axis.yaml report (the FOG's
+#: as the stand states it, the counter's *IDN? field, the drive's 0x1018:4): the records
+#: keep check values per instrument under them
+OUTER_SERIALS = {"fog": "1760-20231", "counter": "MY62000117", "drive": "41001"}
 
 
 def unavailable(reason: str) -> None:

@@ -37,7 +37,8 @@ from bench.records.hooks import target
 from bench.records.store import CheckPoint, ReviewInfo
 from bench.simdrift import drifted
 from tests.conftest import CONFIGS, ROOT
-from tests.test_records import OUTER, cli
+from tests.conftest import OUTER_SERIALS as OUTER
+from tests.test_records import cli
 
 FOG = OUTER["fog"]
 STABLE_RUNS = 8

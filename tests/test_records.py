@@ -39,14 +39,11 @@ from bench.records.store import TrendPoint
 from bench.records.trend import trend_png
 from sims.stand import AxisTruth
 from tests.conftest import CONFIGS, ROOT, unavailable
+from tests.conftest import OUTER_SERIALS as OUTER
 from tests.pg_server import PgServer, PgUnavailable
 from tests.test_run_e2e import assert_within_u
 
 SERIAL = "SIM-REC-1"
-#: the serials the outer axis's twins report (configs/stands/sim-two-axis.yaml: the FOG's
-#: as the stand states it, the counter's *IDN? field, the drive's 0x1018:4): check values
-#: are kept per instrument under them
-OUTER = {"fog": "1760-20231", "counter": "MY62000117", "drive": "41001"}
 #: the outer axis's mean rate bias at each recertification: the table drifts by
 #: +0.8 ppm, then is adjusted by +0.9 ppm (as-found -> as-left) -- far beyond U (~0.05 ppm)
 BIAS_REL = (3.0e-7, 1.1e-6, 2.0e-6)

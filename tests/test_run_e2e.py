@@ -22,7 +22,7 @@ from scipy.stats import binom
 
 from sims.stand import AxisTruth
 from tests.conftest import CONFIGS, ROOT
-from tests.test_records import OUTER
+from tests.conftest import OUTER_SERIALS as OUTER
 
 DEMO = CONFIGS / "procedures" / "demo.yaml"
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
