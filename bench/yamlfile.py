@@ -213,7 +213,9 @@ def _plain_sentence(problem: str, text: str, line: int | None) -> str | None:
         if phrase in problem:
             at = ""
             if line is not None:
-                src = text.splitlines()[line - 1] if line <= text.count("\n") + 1 else ""
+                # PyYAML counts "\n" breaks; splitlines() also splits on \x0b, \x1c...
+                lines = text.split("\n")
+                src = lines[line - 1] if 0 < line <= len(lines) else ""
                 m = re.match(r"\s*-?\s*([\w.+-]+)\s*:", src)
                 at = f" on the line of {m.group(1)!r}" if m else f" on line {line}"
             return sentence.format(at=at)

@@ -176,3 +176,14 @@ def test_fuzz_procedure_file(proc: bytes, tmp_path: Path,
 def test_fuzz_stand_file(stand: bytes, tmp_path: Path,
                          capsys: pytest.CaptureFixture[str]) -> None:
     _fuzz_once(tmp_path, DEMO, stand, capsys)
+
+
+def test_a_syntax_error_on_a_line_past_the_text_still_gets_its_sentence() -> None:
+    """Found by the fuzz in CI: PyYAML counts only "\\n" breaks, str.splitlines() more
+    (\\x1c, \\x0b...), so a line number PyYAML reports could index past splitlines()."""
+    from bench.yamlfile import _plain_sentence
+
+    text = "turns: 4\n"   # line 2 is the empty one after the last break
+    assert _plain_sentence("found character '\\t' that cannot start any token", text, 2) \
+        == "a tab character on line 2: YAML indents with spaces only; replace the tab " \
+           "with spaces"

@@ -1,0 +1,91 @@
+"""Issue 22's stand, resumed beside two busy processes (on demand, not in the suite).
+
+One axis, 6 turns at 2, 20 and 90 deg/s, a 1/rev and a 2/rev harmonic, on a wall-paced
+clock (clock_speed 40, so that the cut lands inside a step), SIGINT in the 90 deg/s pair's
+second half, then `bench run --resume`; every figure against the twin's truth as
+tests/test_resume_truth.py counts them. Exit 0 when within the binomial bound and none
+beyond 2.5 U.
+
+    python benchmarks/resume_two_per_rev.py
+
+Run once at the end of the 2026-11-24 session (CI machine, fresh clone) it FAILED:
+'outer +2 harmonic 1 amplitude (27.00 U)', 'outer +20 rate error (6.74 U)',
+'outer +20 harmonic 1 amplitude (80.25 U)', ... (issue 22 stays open on it).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from tests.test_resume_truth import (  # noqa: E402
+    DEMO,
+    HARD_LIMIT_U,
+    STAND,
+    _interrupted_then_resumed,
+    _truths,
+    statements,
+)
+from tests.test_run_e2e import allowed_outside, comparisons  # noqa: E402
+
+
+def _two_per_rev(tmp_path: Path) -> Path:
+    """Issue 22's stand: one axis, 6 turns at 2, 20 and 90 deg/s, a 1/rev and a 2/rev
+    harmonic (at 90 deg/s an 85 ms offset between FOG and counter moved the 2/rev phase
+    by 15 deg before the FOG's flush at connect was fixed, issue 27)."""
+    stand = yaml.safe_load(STAND.read_text())
+    del stand["axes"]["inner"], stand["sim"]["axes"]["inner"]
+    stand["sim"]["clock_speed"] = 40
+    stand["sim"]["axes"]["outer"]["harmonics"] = [
+        {"order": 1, "amplitude_rel": 5.0e-4, "phase_deg": 40},
+        {"order": 2, "amplitude_rel": 3.0e-4, "phase_deg": -70}]
+    (tmp_path / "stand.yaml").write_text(yaml.safe_dump(stand))
+    proc = yaml.safe_load(DEMO.read_text())
+    proc.update(stand=str(tmp_path / "stand.yaml"), turns=6, static_record_s=10,
+                harmonics=2, axes={"outer": {"rates_dps": [2, 20, 90]}})
+    (tmp_path / "two-per-rev.yaml").write_text(yaml.safe_dump(proc))
+    return tmp_path / "two-per-rev.yaml"
+
+
+def check(tmp_path: Path) -> list[str]:
+    """Cut in the 90 deg/s pair's second half and resumed, with two processes spinning on
+    the two cores: every figure against the truth, the harmonic phases included."""
+    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+    try:
+        run_dir = _interrupted_then_resumed(
+            _two_per_rev(tmp_path), tmp_path / "runs",
+            lambda ev: any(e["event"] == "step_start" and e.get("action") == "acquire"
+                           and e.get("unit") == "outer/90dps"
+                           and "half 2/" in e.get("describe", "") for e in ev))
+    finally:
+        for b in busy:
+            b.kill()
+    result = json.loads((run_dir / "result.json").read_text())
+    assert result["sessions"] == 2
+    rows = [(what, abs(v - truth) / u) for what, v, u, truth in comparisons(result)]
+    phases = [w for w, _ in rows if "phase" in w and "90" in w]
+    assert phases, [w for w, _ in rows]            # the 90 deg/s phases are compared
+    rows += statements(result, _truths(run_dir), 1000.0)
+    beyond = [f"{w} ({r:.2f} U)" for w, r in rows if r > HARD_LIMIT_U]
+    outside = [f"{w} ({r:.2f} U)" for w, r in rows if r > 1.0]
+    print(f"{len(rows)} figures, {len(outside)} outside U (allowed "
+          f"{allowed_outside(len(rows))}), {len(beyond)} beyond {HARD_LIMIT_U} U")
+    for line in outside:
+        print("  outside:", line)
+    return beyond if beyond else ([] if len(outside) <= allowed_outside(len(rows))
+                                  else outside)
+
+
+
+if __name__ == "__main__":
+    with tempfile.TemporaryDirectory() as d:
+        bad = check(Path(d))
+    print("FAIL" if bad else "PASS", *bad, sep="\n  ")
+    sys.exit(1 if bad else 0)
