@@ -1,4 +1,4 @@
-from bench.cli import main
+from bench.app.cli import main
 
 if __name__ == "__main__":  # not when a spawned worker process imports it
     raise SystemExit(main())

@@ -80,7 +80,7 @@ _MAIN_PARTS = {
     "FOG twin encoding (sims/fog_twin.py _on_chunk)": "_on_chunk",
     "drive twin ticks (sims/drive_twin.py _tick)": "_tick",
     "clock settle waits (sims/clock.py _settle)": "_settle",
-    "journal (bench/journal.py)": "journal.py",
+    "journal (bench/core/journal.py)": "journal.py",
     "analysis in the bench thread (procedures analysis)": "analysis.py",
 }
 
@@ -109,9 +109,9 @@ def _thread_cpu(stop: threading.Event, out: dict[str, float]) -> None:
 
 def profile(procedure: Path, out: Path) -> None:
     sys.path.insert(0, str(ROOT))
-    from bench.commands import run_session
-    from bench.journal import RunDir
-    from bench.loader import load_config
+    from bench.app.commands import run_session
+    from bench.core.journal import RunDir
+    from bench.core.loader import load_config
 
     cfg = load_config(procedure)
     run = RunDir.create(out, cfg.procedure_path, cfg.stand_path)

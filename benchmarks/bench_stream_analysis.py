@@ -7,7 +7,7 @@ The bench's acquisition threads in one process, as in a run: the FOG twin writin
 frames on a pty at `rate-hz` on a clock at `speed` (1: real time, as on hardware), the
 FOG driver reading, capturing and decoding them, and a CANopen-style heartbeat producer
 (drivers.heartbeat, every 50 ms). Meanwhile an 18 M-sample pair is simulated and analysed
-as the rate ladder does it: in the analysis worker process (bench.engine.AnalysisWorker),
+as the rate ladder does it: in the analysis worker process (bench.core.engine.AnalysisWorker),
 or with --in-process in a thread of the bench process (how it was before issue 14).
 Prints one line: frames lost or broken, the FOG reader's worst lag behind the stand
 clock (real ms: on a real port, what the UART and kernel buffers must hold), the longest
@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bench.engine import AnalysisWorker
+from bench.core.engine import AnalysisWorker
 from drivers.fog import Fog
 from drivers.heartbeat import HeartbeatProducer
 from sims.clock import VirtualClock

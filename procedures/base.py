@@ -1,7 +1,7 @@
 """What the procedure kinds share: step dispatch and the result document's frame.
 
 The plug-in interface itself (what the engine asks of a kind) is
-`bench.registry.ProcedureKind`; kinds are found by entry point.
+`bench.core.registry.ProcedureKind`; kinds are found by entry point.
 """
 
 from __future__ import annotations
@@ -10,13 +10,13 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from bench.config import Config
-from bench.conformity import RULES
-from bench.engine import RunContext
-from bench.journal import RunDir, sha256_file
-from bench.lab import certificate_settings
-from bench.plan import Plan, Step
-from bench.uncertainty_names import UNCERTAINTY_NAMING, with_explicit_names
+from bench.core.config import Config
+from bench.core.engine import RunContext
+from bench.core.journal import RunDir, sha256_file
+from bench.core.lab import certificate_settings
+from bench.core.plan import Plan, Step
+from bench.report.conformity import RULES
+from bench.report.uncertainty_names import UNCERTAINTY_NAMING, with_explicit_names
 
 
 class StepDispatch:

@@ -5,7 +5,7 @@ register it (tests/test_procedure_plugin.py). Its plan is one step that waits on
 clock; no instrument is opened. Its analysis reads the journal back and states one
 figure, the time waited, checked against a tolerance.
 
-`KIND` also answers the DCC (`bench.dcc.parts.DccParts`); `QUIET` is the same kind
+`KIND` also answers the DCC (`bench.report.dcc.parts.DccParts`); `QUIET` is the same kind
 without a DCC part of its own, which still gets a valid DCC from the neutral answers.
 """
 
@@ -16,21 +16,21 @@ from typing import Any
 
 from lxml import etree
 
-from bench.certificate.model import Para, Section, Table
-from bench.certificate.parts import CertificateParts, Sources, num
-from bench.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config
-from bench.dcc import units as U
-from bench.dcc import vocab as V
-from bench.dcc.conformity import Checks, judge
-from bench.dcc.parts import DccParts
-from bench.dcc.xml import el, name, quantity
-from bench.engine import RunContext
-from bench.instruments import Bench
-from bench.journal import RunDir
-from bench.plan import Plan, Step
-from bench.schema import Key, Map, Num
-from bench.simbench import SimBench
-from bench.yamlfile import Problem
+from bench.core.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config
+from bench.core.engine import RunContext
+from bench.core.instruments import Bench
+from bench.core.journal import RunDir
+from bench.core.plan import Plan, Step
+from bench.core.schema import Key, Map, Num
+from bench.core.simbench import SimBench
+from bench.core.yamlfile import Problem
+from bench.report.certificate.model import Para, Section, Table
+from bench.report.certificate.parts import CertificateParts, Sources, num
+from bench.report.dcc import units as U
+from bench.report.dcc import vocab as V
+from bench.report.dcc.conformity import Checks, judge
+from bench.report.dcc.parts import DccParts
+from bench.report.dcc.xml import el, name, quantity
 from drivers.clock import Clock
 from procedures.base import StepDispatch, result_document
 

@@ -20,8 +20,8 @@ from scipy.stats import binom, chi2
 from bench.analysis.random_part import VarianceDifference, std_interval_u_rel
 from bench.analysis.systematic import detection_threshold
 from bench.analysis.turns import CounterBudget, analyze_turns
-from bench.cli import main
-from bench.conformity import judge_limit
+from bench.app.cli import main
+from bench.report.conformity import judge_limit
 from procedures.rate_ladder.analysis import sigma_check, with_sigma_terms
 from tests.conftest import CONFIGS
 

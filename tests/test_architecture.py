@@ -84,11 +84,11 @@ def _copy_tree(dst: Path) -> None:
 def test_the_contract_fails_when_a_driver_imports_the_engine(tmp_path: Path) -> None:
     _copy_tree(tmp_path)
     with open(tmp_path / "drivers" / "units.py", "a") as f:
-        f.write("\nfrom bench.engine import Abort  # noqa: E402,F401 - the bad import\n")
+        f.write("\nfrom bench.core.engine import Abort  # noqa: E402,F401 - the bad import\n")
     r = lint_imports(tmp_path)
     assert r.returncode != 0
     assert "Layers import downwards only BROKEN" in r.stdout
-    assert "drivers.units -> bench.engine" in r.stdout
+    assert "drivers.units -> bench.core.engine" in r.stdout
 
 
 def test_the_contract_fails_when_a_twin_imports_the_analysis(tmp_path: Path) -> None:
@@ -102,10 +102,26 @@ def test_the_contract_fails_when_a_twin_imports_the_analysis(tmp_path: Path) -> 
 
 def test_the_cycle_count_sees_a_cycle(tmp_path: Path, monkeypatch) -> None:
     _copy_tree(tmp_path)
-    with open(tmp_path / "bench" / "plan.py", "a") as f:
-        f.write("\n\ndef _late() -> None:\n    from bench.engine import Abort  # noqa: F401\n")
+    with open(tmp_path / "bench" / "core" / "plan.py", "a") as f:
+        f.write("\n\ndef _late() -> None:\n    from bench.core.engine import Abort  # noqa: F401\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     for name in [m for m in sys.modules if m.split(".")[0] in PACKAGES]:
         monkeypatch.delitem(sys.modules, name)
     cycles = import_cycles()
-    assert any("bench.plan" in c and "bench.engine" in c for c in cycles), cycles
+    assert any("bench.core.plan" in c and "bench.core.engine" in c for c in cycles), cycles
+
+
+def test_the_layers_contract_names_packages_in_a_few_lines() -> None:
+    """bench/ is arranged so its subpackages are the layers (issue 25): the contract lists
+    packages, at most 8 lines, none a single module where its package would do."""
+    import tomllib
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
+    layers = next(c["layers"] for c in config["contracts"] if c["type"] == "layers")
+    assert 3 <= len(layers) <= 8, layers
+    for line in layers:
+        for name in (n.strip() for n in line.replace("|", ":").split(":")):
+            package = ROOT.joinpath(*name.split("."))
+            assert (package / "__init__.py").is_file(), f"{name} is not a package"
+    flat = [p.name for p in (ROOT / "bench").glob("*.py")
+            if p.name not in {"__init__.py", "__main__.py"}]
+    assert flat == [], f"modules outside the layer packages: {flat}"

@@ -22,10 +22,10 @@ import pypdfium2 as pdfium
 import pytest
 from lxml import etree
 
-from bench.certificate import authorise as auth
-from bench.certificate import register
-from bench.cli import main
-from bench.dcc.settings import ENV_LAB
+from bench.app.certificate import authorise as auth
+from bench.app.certificate import register
+from bench.app.cli import main
+from bench.app.dcc.settings import ENV_LAB
 from tests.conftest import ROOT
 from tests.test_dcc import _lab_file, _throwaway_key
 

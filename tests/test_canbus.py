@@ -12,7 +12,7 @@ import uuid
 
 import pytest
 
-from bench.canbus import bus_problems, controller_node_ids
+from bench.core.canbus import bus_problems, controller_node_ids
 from drivers.axis import Axis
 from drivers.cia402 import State
 from sims.clock import VirtualClock

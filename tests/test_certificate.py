@@ -1,6 +1,6 @@
 """The certificate: rounding rules, and the PDF/HTML against hand-derived printed values.
 
-Expected strings are worked out by hand from the numbers in bench/certificate/sample.py
+Expected strings are worked out by hand from the numbers in bench/app/certificate/sample.py
 (e.g. rate error 3.04e-7 with U 1.23e-7 is 0.304 ± 0.123 ppm -> U to two digits 0.12,
 the value to the same decimal 0.30 -> "+0.30 ± 0.12"), never by calling the formatter.
 """
@@ -20,10 +20,10 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from bench.certificate import write_certificate
-from bench.certificate.rounding import format_limit, format_value_u, rel_unit, round_u
-from bench.certificate.sample import drift_pulse_result, rate_ladder_result
-from bench.journal import RunDir
+from bench.app.certificate import write_certificate
+from bench.app.certificate.sample import drift_pulse_result, rate_ladder_result
+from bench.core.journal import RunDir
+from bench.report.certificate.rounding import format_limit, format_value_u, rel_unit, round_u
 
 ISSUED = dt.date(2025, 3, 6)
 
@@ -304,8 +304,8 @@ def test_contract_keys_only_and_raw_files_hashed_from_the_run(tmp_path: Path) ->
 
 @pytest.mark.timeout(60)
 def test_aborted_run_is_incomplete_and_says_why(tmp_path: Path) -> None:
-    from bench.certificate.build import build_document
-    from bench.certificate.html import render_html
+    from bench.app.certificate.build import build_document
+    from bench.app.certificate.html import render_html
 
     result = {"schema": "bench.result/1", "verdict": "incomplete", "aborted": True,
               "sessions": 1, "axes": {}, "checks": [],
@@ -321,8 +321,8 @@ def test_aborted_run_is_incomplete_and_says_why(tmp_path: Path) -> None:
 
 @pytest.mark.timeout(60)
 def test_malformed_parts_are_named_not_fatal() -> None:
-    from bench.certificate.build import build_document
-    from bench.certificate.html import render_html
+    from bench.app.certificate.build import build_document
+    from bench.app.certificate.html import render_html
 
     result = rate_ladder_result()
     result["axes"]["outer"]["rates"][0]["systematic"] = "garbage"
@@ -343,8 +343,8 @@ def test_malformed_parts_are_named_not_fatal() -> None:
 
 
 def test_a_check_without_u_claims_no_capability() -> None:
-    from bench.certificate.build import build_document
-    from bench.certificate.html import render_html
+    from bench.app.certificate.build import build_document
+    from bench.app.certificate.html import render_html
 
     result = {"schema": "bench.result/1", "verdict": "pass", "axes": {}, "checks": [
         {"axis": "outer", "set_rate_dps": 10.0, "quantity": "intra_turn_instability",

@@ -4,7 +4,7 @@ A one-axis, one-rate ladder with a rate-error tolerance the simulated table cann
 (its per-turn mean is about -0.08 ppm off: rate bias 0.3 ppm less a^2/2 of its 1/rev
 harmonic, a = 8.6e-4), so the run exits 1 and the certificate must say FAIL and why.
 The printed numbers are compared with result.json rounded by a reference written here,
-independent of bench.certificate.rounding.
+independent of bench.report.certificate.rounding.
 """
 
 from __future__ import annotations
@@ -193,13 +193,13 @@ def test_a_run_that_leaves_no_certificate_does_not_exit_as_completed(
     """A bug in the certificate (patched in: no twin produces one on demand) must not end
     as exit 0 or 1 with nothing to sign; result.json is still written, and the message
     says how to get the certificate once fixed."""
-    import bench.certificate
-    from bench.cli import main
+    import bench.app.certificate
+    from bench.app.cli import main
 
     def broken(*args: object, **kw: object) -> list[Path]:
         raise ValueError("an upper limit must be finite and > 0, got 0.0")
 
-    monkeypatch.setattr(bench.certificate, "write_certificate", broken)
+    monkeypatch.setattr(bench.app.certificate, "write_certificate", broken)
     before = (run["dir"] / "result.json").read_bytes()
     assert main(["analyze", str(run["dir"])]) == 3
     err = capsys.readouterr().err

@@ -20,12 +20,12 @@ import pypdfium2 as pdfium
 import pytest
 
 from bench.analysis.turns import CounterBudget, analyze_turns
-from bench.certificate import render_files, write_certificate
-from bench.certificate.build import build_document
-from bench.certificate.html import render_html
-from bench.certificate.register import REGISTER_NAME, issues, next_issue, record
-from bench.certificate.sample import drift_pulse_result
-from bench.journal import RunDir
+from bench.app.certificate import render_files, write_certificate
+from bench.app.certificate.build import build_document
+from bench.app.certificate.html import render_html
+from bench.app.certificate.register import REGISTER_NAME, issues, next_issue, record
+from bench.app.certificate.sample import drift_pulse_result
+from bench.core.journal import RunDir
 
 ROOT = Path(__file__).resolve().parents[1]
 ISSUED = dt.date(2026, 11, 22)
@@ -211,8 +211,8 @@ def test_named_signatories_from_the_lab_settings(tmp_path: Path) -> None:
 ])
 def test_a_bad_lab_key_is_named_by_file_line_and_key(tmp_path: Path, lab: str,
                                                      message: str) -> None:
-    from bench.config import ConfigError
-    from bench.loader import load_config
+    from bench.core.config import ConfigError
+    from bench.core.loader import load_config
 
     proc = (ROOT / "configs/procedures/demo.yaml").read_text()
     proc = proc.replace("stand: ../stands/", f"stand: {ROOT}/configs/stands/")
@@ -226,7 +226,7 @@ def test_a_bad_lab_key_is_named_by_file_line_and_key(tmp_path: Path, lab: str,
 
 def test_a_lab_file_is_read_and_copied_into_the_run(tmp_path: Path) -> None:
     """`certificate: {lab: FILE}`: its keys under the procedure's own, kept with the run."""
-    from bench.lab import certificate_settings, lab_path
+    from bench.core.lab import certificate_settings, lab_path
 
     proc = tmp_path / "p.yaml"
     shutil.copyfile(ROOT / "configs/lab.yaml", tmp_path / "lab.yaml")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.cli import main
+from bench.app.cli import main
 from bench.examples import example_names, example_path
 from tests.conftest import CONFIGS, ROOT
 
@@ -120,7 +120,7 @@ def test_quiet_and_json_log_modes_through_the_cli(mode: str, tmp_path: Path) -> 
 def test_help_gives_examples_and_exit_codes(capsys) -> None:  # noqa: ANN001
     import pytest as _pytest
 
-    from bench.cli import main as _main
+    from bench.app.cli import main as _main
     with _pytest.raises(SystemExit):
         _main(["--help"])
     out = capsys.readouterr().out
@@ -150,7 +150,7 @@ def _demo_with(tmp_path, axis: str, turns: int):  # noqa: ANN001, ANN202
 
 def test_plan_columns_fit_a_long_axis_name_and_odd_turns_are_warned(tmp_path,  # noqa: ANN001
                                                                     capsys) -> None:  # noqa: ANN001
-    from bench.cli import main as _main
+    from bench.app.cli import main as _main
     assert _main(["plan", str(_demo_with(tmp_path, "elevation_gimbal", 5))]) == 0
     out = capsys.readouterr().out
     rows = [ln for ln in out.splitlines() if "elevation_gimbal" in ln and "deg/s" in ln]
@@ -169,9 +169,9 @@ def test_plan_columns_fit_a_long_axis_name_and_odd_turns_are_warned(tmp_path,  #
 def test_a_log_has_one_line_per_step_and_no_zero_of_n_noise() -> None:
     import io
 
-    from bench.console import PlainConsole
-    from bench.plan import Step
-    from bench.progress import Figure
+    from bench.app.console import PlainConsole
+    from bench.core.plan import Step
+    from bench.core.progress import Figure
 
     out = io.StringIO()
     con = PlainConsole(out, min_interval_s=0.0)
@@ -195,7 +195,7 @@ def test_a_log_has_one_line_per_step_and_no_zero_of_n_noise() -> None:
 
 
 def test_history_plot_defaults_beside_the_records(tmp_path) -> None:  # noqa: ANN001
-    from bench.records.commands import _records_folder
+    from bench.app.records.commands import _records_folder
     db = tmp_path / "lab" / "records.sqlite"
     assert _records_folder(f"sqlite:///{db}", "runs") == db.parent
     assert _records_folder("postgresql://u@h/db", str(tmp_path / "runs")) == tmp_path / "runs"

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.cli import main
+from bench.app.cli import main
 from tests.conftest import CONFIGS
 
 
@@ -139,7 +139,7 @@ def test_plan_estimates_the_papers_ladder_in_real_bench_time(
 
 
 def test_numbers_with_an_unsigned_exponent_are_numbers(tmp_path: Path) -> None:
-    from bench.yamlfile import load_yaml
+    from bench.core.yamlfile import load_yaml
 
     f = tmp_path / "n.yaml"
     f.write_text("impedance_ohm: 1.0e6\nrate: 1e2\nrel: 1.0e-6\nname: 1e6x\nn: 12\n")
@@ -148,9 +148,9 @@ def test_numbers_with_an_unsigned_exponent_are_numbers(tmp_path: Path) -> None:
 
 
 def test_every_shipped_stand_file_fits_a_procedure_kind() -> None:
-    from bench.registry import procedure_kind, procedure_names
-    from bench.schema import validate
-    from bench.yamlfile import load_yaml
+    from bench.core.registry import procedure_kind, procedure_names
+    from bench.core.schema import validate
+    from bench.core.yamlfile import load_yaml
 
     stands = sorted((CONFIGS / "stands").glob("*.yaml"))
     assert len(stands) >= 3, stands  # two sim stands and the real example at least

@@ -8,14 +8,14 @@ import json
 
 import pytest
 
-from bench.certificate.model import Document, Fields, Section, Table
-from bench.certificate.operator import prompt_blocks, software_note
-from bench.console import JsonConsole, PlainConsole, QuietConsole, Timeline, format_eta
-from bench.console.report import table_lines
-from bench.console.timeline import fit_step_cost
-from bench.plan import Step
-from bench.progress import RELATIVE, Figure
-from bench.summary import summarize
+from bench.app.certificate.operator import prompt_blocks, software_note
+from bench.app.console import JsonConsole, PlainConsole, QuietConsole, Timeline, format_eta
+from bench.app.console.report import table_lines
+from bench.app.console.timeline import fit_step_cost
+from bench.app.summary import summarize
+from bench.core.plan import Step
+from bench.core.progress import RELATIVE, Figure
+from bench.report.certificate.model import Document, Fields, Section, Table
 
 
 class Clocks:

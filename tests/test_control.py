@@ -23,9 +23,9 @@ from typing import Any
 import pytest
 import yaml
 
-from bench.records.assurance import assurance_refusals, warn_at_start
-from bench.records.checks import CheckRecord
-from bench.records.control import (
+from bench.app.records.assurance import assurance_refusals, warn_at_start
+from bench.app.records.checks import CheckRecord
+from bench.app.records.control import (
     BASELINE_RUNS,
     IN_CONTROL,
     NOT_ENOUGH,
@@ -33,9 +33,9 @@ from bench.records.control import (
     charts,
     status_of,
 )
-from bench.records.hooks import target
-from bench.records.store import CheckPoint, ReviewInfo
-from bench.simdrift import drifted
+from bench.app.records.hooks import target
+from bench.app.records.store import CheckPoint, ReviewInfo
+from bench.core.simdrift import drifted
 from tests.conftest import CONFIGS, ROOT
 from tests.conftest import OUTER_SERIALS as OUTER
 from tests.test_records import cli

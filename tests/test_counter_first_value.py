@@ -85,7 +85,7 @@ def test_a_demo_run_on_the_manuals_reading_is_refused_saying_why(tmp_path, capsy
     a message that says why (exit 3: aborted, axes stopped, data kept)."""
     from pathlib import Path
 
-    from bench.cli import main
+    from bench.app.cli import main
 
     root = Path(__file__).resolve().parents[1]
     (tmp_path / "stands").mkdir()

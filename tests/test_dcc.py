@@ -32,10 +32,10 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import NameOID
 from lxml import etree
 
-from bench.cli import main
-from bench.dcc.settings import ENV_LAB
-from bench.dcc.units import unit_problem
-from bench.dcc.validate import validate_dcc
+from bench.app.cli import main
+from bench.app.dcc.settings import ENV_LAB
+from bench.app.dcc.validate import validate_dcc
+from bench.report.dcc.units import unit_problem
 from tests.conftest import CONFIGS, ROOT, unavailable
 
 SCHEMAS = ROOT / "bench" / "dcc" / "schemas"
@@ -88,7 +88,7 @@ def drift(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     return _run("drift-demo.yaml", tmp_path_factory.mktemp("dcc-drift"))
 
 
-# -- reading back, independent of bench.dcc ------------------------------------------------
+# -- reading back, independent of bench.app.dcc ------------------------------------------------
 
 def _second_opinion(path: Path) -> list[str]:
     """xmlschema (pure Python, not the libxml2 our validator uses) on the shipped files, its
@@ -185,7 +185,7 @@ def test_validation_needs_no_network() -> None:
     if shutil.which("unshare") is None or subprocess.run(
             ["unshare", "-rn", "true"], capture_output=True).returncode != 0:
         unavailable("no network namespace here (unshare -rn)")
-    code = ("import sys; from pathlib import Path; from bench.dcc.validate import validate_dcc;"
+    code = ("import sys; from pathlib import Path; from bench.app.dcc.validate import validate_dcc;"
             "ok = validate_dcc(Path(sys.argv[1])).valid; bad = validate_dcc(Path(sys.argv[2]));"
             "print(ok, bad.valid, len(bad.schema_errors))")
     done = subprocess.run(["unshare", "-rn", sys.executable, "-c", code,
@@ -559,7 +559,7 @@ def test_a_damaged_result_still_gives_a_valid_dcc(demo: dict[str, Any]) -> None:
     check replaced by text: the writer neither crashes nor writes an invalid DCC (it leaves
     the damaged value out; `bench verify` would then name it). Dropping `axes` once gave
     a DCC without any measurementResult, which the schema refuses."""
-    from bench.dcc.writer import DccInputs, build_dcc
+    from bench.app.dcc.writer import DccInputs, build_dcc
 
     result = copy.deepcopy(demo["result"])
     ax = result["axes"]["outer"]
@@ -584,7 +584,7 @@ def test_which_lab_settings_and_key_are_in_force(tmp_path: Path,
                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     """--lab, then the stand's dcc.lab, then $BENCH_LAB_SETTINGS; a key named in the stand
     file overrides the lab file's."""
-    from bench.dcc.settings import resolve_settings
+    from bench.app.dcc.settings import resolve_settings
 
     key, cert = _throwaway_key(tmp_path / "keys", "lab")
     (tmp_path / "a").mkdir()
@@ -607,9 +607,9 @@ def test_which_lab_settings_and_key_are_in_force(tmp_path: Path,
 def test_a_reissued_certificate_says_what_it_substitutes(demo: dict[str, Any],
                                                         tmp_path: Path) -> None:
     """A re-issue (bench authorise --reason) is a new revision of the certificate
-    (bench.certificate.register): the DCC carries the issue's number and names the one it
+    (bench.app.certificate.register): the DCC carries the issue's number and names the one it
     replaces."""
-    from bench.certificate import register
+    from bench.app.certificate import register
 
     run = _copy_run(demo, tmp_path / "run")
     assert _cli("authorise", str(run), "--signatory", "P. Petrov").returncode == 0

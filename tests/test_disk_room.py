@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.cli import main
+from bench.app.cli import main
 from tests.conftest import CONFIGS
 from tests.test_fault_matrix import small_disk  # noqa: F401 - the real small tmpfs fixture
 

@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 import yaml
 
-from bench.cli import main
-from bench.commands import EXIT_ABORTED, EXIT_INVALID, EXIT_PASS, run_session
-from bench.journal import RunDir
-from bench.loader import load_config
+from bench.app.cli import main
+from bench.app.commands import EXIT_ABORTED, EXIT_INVALID, EXIT_PASS, run_session
+from bench.core.journal import RunDir
+from bench.core.loader import load_config
 from drivers.cia402 import FOLLOWING_ERROR
 from sims.platform import GyroPlatform, PlatformTruth
 from tests.conftest import CONFIGS, ROOT, when_step_starts

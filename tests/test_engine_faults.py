@@ -15,9 +15,9 @@ from typing import Any
 import pytest
 import yaml
 
-from bench.commands import EXIT_ABORTED, run_session
-from bench.journal import RunDir
-from bench.loader import load_config
+from bench.app.commands import EXIT_ABORTED, run_session
+from bench.core.journal import RunDir
+from bench.core.loader import load_config
 from drivers.cia402 import OVER_TEMPERATURE
 from tests.conftest import CONFIGS, when_step_starts
 

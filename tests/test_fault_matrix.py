@@ -25,9 +25,9 @@ from typing import Any
 import pytest
 import yaml
 
-from bench.commands import EXIT_ABORTED, EXIT_PASS, run_session
-from bench.journal import RunDir, read_jsonl
-from bench.loader import load_config
+from bench.app.commands import EXIT_ABORTED, EXIT_PASS, run_session
+from bench.core.journal import RunDir, read_jsonl
+from bench.core.loader import load_config
 from drivers.cia402 import OVER_TEMPERATURE
 from sims.fog_twin import Corrupt, Drop, Garbage, Stall
 from sims.stand import AxisTruth

@@ -298,7 +298,7 @@ def test_decode_state_default_is_stream_start() -> None:
 def test_decode_command_exits_1_when_nothing_decodes(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Random bytes, or a kvh-a capture read as kvh-b: exit 1, naming the formats tried."""
-    from bench.cli import main
+    from bench.app.cli import main
 
     noise = tmp_path / "noise.bin"
     noise.write_bytes(np.random.default_rng(13).bytes(20_000))

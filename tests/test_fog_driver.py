@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.decode import decode_command
+from bench.app.decode import decode_command
 from drivers.fog import Fog, FogError, FogTimeout, read_capture
 from drivers.fog_formats import StreamDecoder
 from sims.clock import VirtualClock

@@ -15,10 +15,10 @@ from pathlib import Path
 import pytest
 import yaml
 
-from bench.commands import EXIT_INVALID, EXIT_PASS, run_session
-from bench.journal import RunDir
-from bench.loader import load_config
-from bench.registry import procedure_kind
+from bench.app.commands import EXIT_INVALID, EXIT_PASS, run_session
+from bench.core.journal import RunDir
+from bench.core.loader import load_config
+from bench.core.registry import procedure_kind
 from procedures.rate_ladder.settings import LadderSettings
 from sims.stand import AxisTruth
 from tests.conftest import CONFIGS

@@ -16,9 +16,9 @@ from typing import Any
 import pytest
 import yaml
 
-from bench.commands import EXIT_PASS, run_session
-from bench.journal import RunDir
-from bench.loader import load_config
+from bench.app.commands import EXIT_PASS, run_session
+from bench.core.journal import RunDir
+from bench.core.loader import load_config
 from sims.clock import SteppedClock, VirtualClock, parse_speed
 from tests.conftest import CONFIGS
 from tests.test_run_e2e import check_against_truth

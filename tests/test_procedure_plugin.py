@@ -13,10 +13,10 @@ from pathlib import Path
 import pytest
 from lxml import etree
 
-from bench import registry
-from bench.cli import main
-from bench.dcc.settings import ENV_LAB
-from bench.dcc.validate import validate_dcc
+from bench.app.cli import main
+from bench.app.dcc.settings import ENV_LAB
+from bench.app.dcc.validate import validate_dcc
+from bench.core import registry
 
 NS = {"dcc": "https://ptb.de/dcc", "si": "https://ptb.de/si"}
 DWELL_S = 1.0

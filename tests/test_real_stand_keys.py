@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from bench.config import ConfigError
-from bench.loader import load_config
+from bench.core.config import ConfigError
+from bench.core.loader import load_config
 
 ROOT = Path(__file__).resolve().parents[1]
 PROCEDURE = """procedure: rate-ladder
@@ -74,7 +74,7 @@ def test_stated_it_validates(tmp_path):
 
 
 def test_every_counter_profile_names_its_manual_or_says_unverified():
-    from bench.instruments import with_readback
+    from bench.core.instruments import with_readback
     from drivers.counter_profiles import PROFILES
 
     manuals = {m: p.manual for m, p in PROFILES.items()}

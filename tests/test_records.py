@@ -29,14 +29,14 @@ import yaml
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 
-from bench.cli import main
-from bench.journal import sha256_file
-from bench.records import Records, record_of
-from bench.records.extract import figures_of
-from bench.records.hooks import target, warn_if_overdue
-from bench.records.schema import metadata
-from bench.records.store import TrendPoint
-from bench.records.trend import trend_png
+from bench.app.cli import main
+from bench.app.records import Records, record_of
+from bench.app.records.extract import figures_of
+from bench.app.records.hooks import target, warn_if_overdue
+from bench.app.records.schema import metadata
+from bench.app.records.store import TrendPoint
+from bench.app.records.trend import trend_png
+from bench.core.journal import sha256_file
 from sims.stand import AxisTruth
 from tests.conftest import CONFIGS, ROOT, unavailable
 from tests.conftest import OUTER_SERIALS as OUTER
@@ -276,7 +276,7 @@ def test_a_database_of_r0001_is_upgraded_and_import_adds_the_check_values(
     from alembic import command
     from alembic.config import Config as AlembicConfig
 
-    from bench.records.store import MIGRATIONS, make_engine
+    from bench.app.records.store import MIGRATIONS, make_engine
 
     engine = make_engine(db.url)
     cfg = AlembicConfig()
@@ -299,7 +299,7 @@ def test_a_database_of_r0001_is_upgraded_and_import_adds_the_check_values(
 def test_check_values_and_reviews_on_both_databases(recerts: dict[str, Any], db: Db) -> None:
     """Each run's check values land per instrument serial, in run order, with U; a review
     is journaled with who, why and what it covers (issue 28)."""
-    from bench.records.control import NOT_ENOUGH, instrument_status
+    from bench.app.records.control import NOT_ENOUGH, instrument_status
 
     fog = OUTER["fog"]
     with Records.open(db.url) as rec:

@@ -9,8 +9,8 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from bench.cli import main
-from bench.yamlfile import load_yaml
+from bench.app.cli import main
+from bench.core.yamlfile import load_yaml
 from tests.conftest import CONFIGS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -134,7 +134,7 @@ def test_init_writes_commented_files_that_validate(
 
 
 def test_every_key_of_the_stand_and_the_ladder_says_what_it_means() -> None:
-    from bench.reference import rows, schema_node, stand_node
+    from bench.app.reference import rows, schema_node, stand_node
 
     # the drift-pulse kind's own blocks (platform, its twins) are that kind's to document
     theirs = ("platform", "sim.platform", "sim.awg", "sim.dmm")

@@ -29,16 +29,16 @@ import numpy as np
 import pytest
 import yaml
 
-from bench.config import FogSettings
-from bench.station.app import StationSettings, create_app
-from bench.station.live import (
+from bench.app.station.app import StationSettings, create_app
+from bench.app.station.live import (
     decimate,
     fog_trace,
     progress_of,
     tail_jsonl,
     turn_rates,
 )
-from bench.station.serve import settings_from_args
+from bench.app.station.serve import settings_from_args
+from bench.core.config import FogSettings
 from drivers.fog_formats import get_format
 from tests.conftest import CONFIGS, ROOT, unavailable
 
@@ -351,7 +351,7 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
 
 def test_health_flags_a_silent_fog_only_while_running(tmp_path: Path) -> None:
     """Ages from the files' modification times, against a given `now` (hand-set mtimes)."""
-    from bench.station.live import FOG_SILENT_S, STALE_S, health
+    from bench.app.station.live import FOG_SILENT_S, STALE_S, health
     raw = tmp_path / "raw" / "s1"
     raw.mkdir(parents=True)
     (tmp_path / "events.jsonl").write_text("")
@@ -386,9 +386,9 @@ def test_page_warns_of_a_silent_fog_and_shows_the_final_results(tmp_path: Path) 
 
     from selenium.webdriver.common.by import By
 
-    from bench.commands import run_session
-    from bench.journal import RunDir
-    from bench.loader import load_config
+    from bench.app.commands import run_session
+    from bench.core.journal import RunDir
+    from bench.core.loader import load_config
     from sims.fog_twin import Stall
     from tests.conftest import when_step_starts
 
@@ -457,7 +457,7 @@ def test_page_warns_of_a_silent_fog_and_shows_the_final_results(tmp_path: Path) 
 
 
 def test_results_rows_as_they_come_and_final() -> None:
-    from bench.station.live import final_rows, pair_rows
+    from bench.app.station.live import final_rows, pair_rows
     events = [{"event": "settled", "axis": "outer"},
               {"event": "pair", "axis": "outer", "unit": "outer/10dps", "k": 1.0003,
                "k_u": 4e-6, "w0_dps": 0.002, "w0_u_dps": 4e-5,

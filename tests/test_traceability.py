@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.traceability import overdue, traced_items
+from bench.core.traceability import overdue, traced_items
 from drivers.counter import Counter, CounterError
 from sims.counter_twin import CounterTwin
 from tests.counter_rig import AXIS, turning_stand
@@ -118,7 +118,7 @@ def test_past_due_warns_at_start_and_on_the_certificate(tmp_path: Path) -> None:
 
 
 def test_serials_as_read_back_and_identities_that_do_not_single_an_instrument_out() -> None:
-    from bench.traceability import identity_problems, serial_of, with_declared_serials
+    from bench.core.traceability import identity_problems, serial_of, with_declared_serials
 
     idn = "Keysight Technologies,53230A,MY62000117,03.02-1519.2432; read back: x = 1"
     drive = "Bench CiA 402 drive, hw sim-1, sw 0.1.0, serial 41001; read back: 0x6091 = 1/1"
@@ -146,7 +146,7 @@ def test_serials_as_read_back_and_identities_that_do_not_single_an_instrument_ou
 
 def test_budgets_combine_as_ea_4_02_says() -> None:
     """u_c = sqrt(sum (c_i u_i)^2); nu_eff by Welch-Satterthwaite (hand-derived)."""
-    from bench.budget import NORMAL, STUDENT_T, Budget, Term, from_dict
+    from bench.report.budget import NORMAL, STUDENT_T, Budget, Term, from_dict
 
     b = Budget("y", "y", "1", 1.0, (Term("a", 1.0, 3.0, STUDENT_T, 1.0, 4.0),
                                      Term("b", 0.0, 2.0, NORMAL, -2.0, None)), 2.0, 10.0)

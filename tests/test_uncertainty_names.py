@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from bench.analysis.turns import CounterBudget, analyze_turns
-from bench.uncertainty_names import explicit_name, with_explicit_names
+from bench.report.uncertainty_names import explicit_name, with_explicit_names
 
 
 def test_names() -> None:

@@ -6,7 +6,7 @@ two significant digits, and '—' for a phase of an unresolved amplitude.
 
 from __future__ import annotations
 
-from bench.certificate.rounding import (
+from bench.report.certificate.rounding import (
     NOT_STATED,
     is_resolved,
     present,

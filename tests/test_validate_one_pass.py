@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.cli import main
+from bench.app.cli import main
 from tests.conftest import CONFIGS
 from tests.test_validate_robust import demo  # noqa: F401 - the fixture
 

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bench.cli import main
+from bench.app.cli import main
 from tests.conftest import CONFIGS
 
 MINIMAL_CASES = {  # the campaign's crashes: bytes, and the line the problem is on
@@ -181,7 +181,7 @@ def test_fuzz_stand_file(stand: bytes, tmp_path: Path,
 def test_a_syntax_error_on_a_line_past_the_text_still_gets_its_sentence() -> None:
     """Found by the fuzz in CI: PyYAML counts only "\\n" breaks, str.splitlines() more
     (\\x1c, \\x0b...), so a line number PyYAML reports could index past splitlines()."""
-    from bench.yamlfile import _plain_sentence
+    from bench.core.yamlfile import _plain_sentence
 
     text = "turns: 4\n"   # line 2 is the empty one after the last break
     assert _plain_sentence("found character '\\t' that cannot start any token", text, 2) \

@@ -1,4 +1,4 @@
-"""The drift-pulse procedure's uncertainty budgets (EA-4/02 form, bench.budget), built from
+"""The drift-pulse procedure's uncertainty budgets (EA-4/02 form, bench.report.budget), built from
 the analysis results in result.json and added to it (`budgets` lists; additions only):
 own and apparent drift per axis (docs/method.md B: w_own = (w_0 + w_180)/2, w_app =
 (w_0 - w_180)/2), and the platform azimuth A = atan2(-app_y, app_x) (method B).
@@ -14,7 +14,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from bench.budget import NORMAL, RECTANGULAR, STUDENT_T, Budget, Term, num
+from bench.report.budget import NORMAL, RECTANGULAR, STUDENT_T, Budget, Term, num
 
 #: each source the analysis names: (label, distribution, Type A?)
 SOURCES: dict[str, tuple[str, str, bool]] = {

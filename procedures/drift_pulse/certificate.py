@@ -1,6 +1,6 @@
 """The drift procedure's part of its calibration certificate (docs/method.md part B).
 
-The certificate (bench/certificate/build.py) asks the kind for these through
+The certificate (bench/app/certificate/build.py) asks the kind for these through
 `CertificateParts`: the platform under test as the item, the method statement, the
 digitizer's start offset as a deviation, and the results: own and apparent drift per
 axis, the azimuth, the drift per position and cycle, the budget and the plots.
@@ -12,9 +12,9 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from bench.certificate import methods, plots
-from bench.certificate.model import Block, Fields, Para, Section, Table
-from bench.certificate.parts import (
+from bench.report.certificate import methods, plots
+from bench.report.certificate.model import Block, Fields, Para, Section, Table
+from bench.report.certificate.parts import (
     NOT_RECORDED,
     CertificateParts,
     Sources,
@@ -25,7 +25,7 @@ from bench.certificate.parts import (
     text_of,
     vu_text,
 )
-from bench.certificate.rounding import format_sig, format_value_u
+from bench.report.certificate.rounding import format_sig, format_value_u
 from procedures.drift_pulse.dcc import DriftDcc
 
 # -- the method statement (docs/method.md part B, restated) ---------------------------------

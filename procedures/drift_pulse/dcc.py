@@ -1,7 +1,7 @@
 """The drift-pulse procedure's part of the DCC (docs/method.md part B): per gyro axis the
 own and apparent drift with their budgets and the drift per platform position and cycle;
 the platform azimuth and the horizontal Earth rate. `DriftDcc` answers the DCC writer's
-questions (bench.dcc.parts.DccParts).
+questions (bench.report.dcc.parts.DccParts).
 """
 
 from __future__ import annotations
@@ -10,13 +10,13 @@ from collections.abc import Mapping, Sequence
 
 from lxml import etree
 
-from bench.certificate import methods
-from bench.certificate.parts import Sources
-from bench.dcc import units as U
-from bench.dcc import vocab as V
-from bench.dcc.conformity import Checks, judge
-from bench.dcc.parts import DccParts
-from bench.dcc.xml import budget_list, el, ident, list_quantity, name, num, quantity, text_el
+from bench.report.certificate import methods
+from bench.report.certificate.parts import Sources
+from bench.report.dcc import units as U
+from bench.report.dcc import vocab as V
+from bench.report.dcc.conformity import Checks, judge
+from bench.report.dcc.parts import DccParts
+from bench.report.dcc.xml import budget_list, el, ident, list_quantity, name, num, quantity, text_el
 
 # the drift procedure's refTypes, namespace "ratebench" (docs/dcc.md, section "refTypes")
 OWN_DRIFT = V.RB + "ownDrift"

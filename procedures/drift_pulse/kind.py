@@ -28,16 +28,16 @@ from typing import Any
 import numpy as np
 
 from bench.analysis import drift_pulse as dp
-from bench.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
-from bench.conformity import judge
-from bench.engine import Abort, RunContext
-from bench.instruments import Bench, manual_note, open_axis, raw_text_logger, with_readback
-from bench.journal import RunDir, read_jsonl
-from bench.plan import Plan, Step
-from bench.progress import Figure
-from bench.schema import Key, ListOf, Map, MapOf, Num, Str
-from bench.simbench import SIM_GYRO_KEYS, SimBench, gyro_rig_factory
-from bench.yamlfile import Problem
+from bench.core.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
+from bench.core.engine import Abort, RunContext
+from bench.core.instruments import Bench, manual_note, open_axis, raw_text_logger, with_readback
+from bench.core.journal import RunDir, read_jsonl
+from bench.core.plan import Plan, Step
+from bench.core.progress import Figure
+from bench.core.schema import Key, ListOf, Map, MapOf, Num, Str
+from bench.core.simbench import SIM_GYRO_KEYS, SimBench, gyro_rig_factory
+from bench.core.yamlfile import Problem
+from bench.report.conformity import judge
 from drivers.awg import PROFILES as AWG_PROFILES
 from drivers.awg import WaveformGenerator
 from drivers.clock import Clock

@@ -23,9 +23,9 @@ from bench.analysis.pair import analyze_pair_mains
 from bench.analysis.random_part import std_interval_u_rel
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
-from bench.config import Config
-from bench.conformity import CAPABILITY_LIMIT, judge, judge_limit
-from bench.journal import RunDir, read_jsonl
+from bench.core.config import Config
+from bench.core.journal import RunDir, read_jsonl
+from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor
 from drivers.scpi import parse_numbers
@@ -321,7 +321,7 @@ def sigma_check(axis: str, rate: float, entry: dict[str, Any], tolerance: float,
     with the one-sided chi-square upper limit as the guard (false-accept risk at most
     1 - SIGMA_UPPER_P for normal per-turn rates). Not resolved: stated as "< L" (L the same
     chi-square limit, which bounds the table's sigma whatever the floor's share) and judged
-    by the one rule for limits (bench.conformity.judge_limit): pass when L is within the
+    by the one rule for limits (bench.report.conformity.judge_limit): pass when L is within the
     tolerance, not assessed only when it is not."""
     value, u = entry["rate_instability_rel"], entry["rate_instability_u_rel"]
     floor = entry["rate_instability_floor_rel"]
@@ -408,7 +408,7 @@ def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
                  ) -> dict[str, Any]:
     """A first look at the pair just measured (the same analysis the final result.json
     makes), from the raw capture as it is being written; runs in the analysis worker
-    (bench.engine.AnalysisWorker), whose reader moves on from pair to pair."""
+    (bench.core.engine.AnalysisWorker), whose reader moves on from pair to pair."""
     raw = _WORKER_READERS.get(run_path)
     if raw is None:
         raw = _WORKER_READERS[run_path] = RawData(RunDir(run_path), cfg, live=True)

@@ -1,4 +1,4 @@
-"""The rate ladder's uncertainty budgets (EA-4/02 form, bench.budget), built from the
+"""The rate ladder's uncertainty budgets (EA-4/02 form, bench.report.budget), built from the
 analysis results in result.json and added to it (`budgets` lists; additions only):
 
 - per rate: the rate error delta (eq. 1), the intra-turn instability (raw and floor
@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.budget import CHI_SQUARE, NORMAL, RECTANGULAR, STUDENT_T, Budget, Term, num
+from bench.report.budget import CHI_SQUARE, NORMAL, RECTANGULAR, STUDENT_T, Budget, Term, num
 
 
 def _half_u(x: Any) -> float | None:

@@ -1,6 +1,6 @@
 """The rate ladder's part of its calibration certificate (docs/method.md part A).
 
-The certificate (bench/certificate/build.py) asks the kind for these through
+The certificate (bench/app/certificate/build.py) asks the kind for these through
 `CertificateParts`: the method statement, the source paper's deviations, the results per
 axis (A1-A5) with their plots, and the annex of per-turn counter rates. Values are printed
 with the certificate's own rounding rules and helpers, so they read as the rest of it.
@@ -14,9 +14,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from bench.analysis.random_part import std_u_rel
-from bench.certificate import methods, plots
-from bench.certificate.model import Block, Para, Section, Table
-from bench.certificate.parts import (
+from bench.report.certificate import methods, plots
+from bench.report.certificate.model import Block, Para, Section, Table
+from bench.report.certificate.parts import (
     CertificateParts,
     Sources,
     TitledBlocks,
@@ -27,7 +27,7 @@ from bench.certificate.parts import (
     verdict_label,
     vu_text,
 )
-from bench.certificate.rounding import (
+from bench.report.certificate.rounding import (
     PERCENT,
     PPM,
     RESOLUTION_RULE,

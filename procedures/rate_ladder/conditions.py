@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from bench.config import Config
-from bench.journal import RunDir
+from bench.core.config import Config
+from bench.core.journal import RunDir
 from drivers.fog import CaptureCursor
 from procedures.rate_ladder.events import HalfAcquired
 

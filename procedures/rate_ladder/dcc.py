@@ -1,7 +1,7 @@
 """The rate ladder's part of the DCC (docs/method.md part A): per axis, per commanded rate
 the per-turn error and instability, the per-turn rates as a list, the intra-turn
 instability, the fitted harmonics and mains ripple; per +/- pair the FOG's k and w0.
-`LadderDcc` answers the DCC writer's questions (bench.dcc.parts.DccParts).
+`LadderDcc` answers the DCC writer's questions (bench.report.dcc.parts.DccParts).
 """
 
 from __future__ import annotations
@@ -11,13 +11,13 @@ from typing import Any
 
 from lxml import etree
 
-from bench.certificate import methods
-from bench.certificate.parts import Sources
-from bench.dcc import units as U
-from bench.dcc import vocab as V
-from bench.dcc.conformity import Checks, judge
-from bench.dcc.parts import DccParts
-from bench.dcc.xml import (
+from bench.report.certificate import methods
+from bench.report.certificate.parts import Sources
+from bench.report.dcc import units as U
+from bench.report.dcc import vocab as V
+from bench.report.dcc.conformity import Checks, judge
+from bench.report.dcc.parts import DccParts
+from bench.report.dcc.xml import (
     NOT_RECORDED,
     budget_list,
     el,

@@ -12,7 +12,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, TypeVar
 
-from bench.journal import RunDir
+from bench.core.journal import RunDir
 
 E = TypeVar("E", bound="LadderEvent")
 

@@ -13,15 +13,15 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from bench.config import STEP_MAX_S, Config, check_axis_names, stand_schema
-from bench.engine import Abort, RunContext
-from bench.instruments import DEFAULT_FOG_RANGE_DPS, Bench, StandClaimError, open_axis
-from bench.journal import RunDir
-from bench.plan import Plan, Step, format_duration
-from bench.progress import RELATIVE, Figure
-from bench.schema import Map
-from bench.simbench import SimBench
-from bench.yamlfile import Problem
+from bench.core.config import STEP_MAX_S, Config, check_axis_names, stand_schema
+from bench.core.engine import Abort, RunContext
+from bench.core.instruments import DEFAULT_FOG_RANGE_DPS, Bench, StandClaimError, open_axis
+from bench.core.journal import RunDir
+from bench.core.plan import Plan, Step, format_duration
+from bench.core.progress import RELATIVE, Figure
+from bench.core.schema import Map
+from bench.core.simbench import SimBench
+from bench.core.yamlfile import Problem
 from drivers.clock import Clock
 from procedures.base import StepDispatch
 from procedures.rate_ladder.analysis import (

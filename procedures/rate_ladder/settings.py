@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
 
-from bench.config import (
+from bench.core.config import (
     ACCEL_MAX_DPS2,
     COMMON_PROCEDURE_KEYS,
     RATE_MAX_DPS,
@@ -15,7 +15,7 @@ from bench.config import (
     STEP_MAX_S,
     Config,
 )
-from bench.schema import Key, ListOf, Map, MapOf, Num, Str
+from bench.core.schema import Key, ListOf, Map, MapOf, Num, Str
 
 NAME = "rate-ladder"
 

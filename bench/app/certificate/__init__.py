@@ -1,0 +1,80 @@
+"""The calibration certificate: result.json -> certificate.html and certificate.pdf.
+
+    write_certificate(run, result) -> [RUN_DIR/certificate.html, RUN_DIR/certificate.pdf]
+
+The engine calls this after writing result.json (`bench run`, `bench analyze`). The
+content follows ISO/IEC 17025 clause 7.8; how to read it: docs/certificate.md.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import json
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, Protocol
+
+from bench.app.certificate import register
+from bench.app.certificate.build import ExtraSection, build_document
+from bench.app.certificate.html import render_html
+from bench.app.certificate.pdf import render_pdf
+from bench.report.certificate.model import Document
+
+HTML_NAME = "certificate.html"
+PDF_NAME = "certificate.pdf"
+
+__all__ = ["Document", "build_document", "render_files", "render_html", "render_pdf",
+           "result_digest", "write_certificate"]
+
+
+class _HasPath(Protocol):
+    path: Path
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | None = None,
+                 issued: dt.date | None = None, *,
+                 documents: list[Document] | None = None,
+                 extra_sections: Sequence[ExtraSection] = (),
+                 issue: register.Issue | None = None) -> list[Path]:
+    """Render the certificate for `result` into `out_dir`: the DRAFT of the run's next
+    revision, or, given an `issue` that `bench authorise` is recording, that issue.
+
+    Nothing is recorded here: a draft is not an issue (register.py). `documents`, if
+    given, receives the document the files were rendered from (the console's summary is
+    cut from it, so it prints the certificate's own text).
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = build_document(result, run_path, issued, issue, extra_sections)
+    if documents is not None:
+        documents.append(doc)
+    html_path, pdf_path = out / HTML_NAME, out / PDF_NAME
+    _write_atomic(html_path, render_html(doc).encode("utf-8"))
+    _write_atomic(pdf_path, render_pdf(doc))
+    return [html_path, pdf_path]
+
+
+def result_digest(result: dict[str, Any]) -> str:
+    """SHA-256 of the result as the certificate read it (the register states it)."""
+    return hashlib.sha256(json.dumps(result, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def write_certificate(run: _HasPath, result: dict[str, Any],
+                      issued: dt.date | None = None, *,
+                      documents: list[Document] | None = None,
+                      extra_sections: Sequence[ExtraSection] = ()) -> list[Path]:
+    """The DRAFT certificate.html and certificate.pdf in the run directory (`bench run`,
+    `bench analyze`); `bench authorise` issues it. Returns their paths.
+
+    `extra_sections` (title, blocks) come from outside the run directory (the table's
+    history from the records) and are placed before the statements."""
+    return render_files(result, run.path, run.path, issued, documents=documents,
+                        extra_sections=extra_sections)

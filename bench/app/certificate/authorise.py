@@ -1,0 +1,309 @@
+"""`bench authorise RUN_DIR --signatory NAME [--reason TEXT]`: issue the run's draft.
+
+`bench run` and `bench analyze` write a draft (DRAFT, NOT AUTHORISED). Issuing it is a
+person's decision (ISO/IEC 17025 7.8.2.1 o): an authorised signatory named in the lab
+settings reviews the draft and runs this command, which
+1. refuses (exit 2, every reason printed) when the signatory is not one the lab file
+   authorises, when a re-issue gives no reason, or when a pre-issue check objects;
+2. renders the issue into `issued/<number>/` (PDF, HTML, the DCC naming the authoriser as
+   mainSigner, signed with the lab's key where one is configured, and the result.json it
+   states), written beside and moved into place only when all of it succeeded;
+3. records who, when, why and what changed in the run's register (register.py), marks the
+   revision it replaces withdrawn (a WITHDRAWN.txt beside its files, never a change to
+   them: 7.8.8), and copies the issue to the run directory's certificate.* files.
+
+Pre-issue checks: `PRE_ISSUE_CHECKS` is a list of functions `check(IssueContext) ->
+list[str]`, each returning the reasons to refuse (none: no objection). Other parts of the
+bench add theirs with `add_pre_issue_check` (measurement assurance: an instrument out of
+statistical control and not reviewed). A check that raises refuses the issue too: an
+issue nobody could check is not issued.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import datetime as dt
+import json
+import os
+import shutil
+import sys
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from bench.app.certificate import HTML_NAME, PDF_NAME, register, render_files, result_digest
+from bench.app.certificate.build import Sources, certificate_id, stand_of
+from bench.core.lab import Lab, LabError, Signatory, run_lab
+from bench.core.traceability import identity_problems, with_declared_serials
+
+EXIT_ISSUED, EXIT_REFUSED, EXIT_FAILED = 0, 2, 3
+ISSUED_DIR = "issued"
+WITHDRAWN_NAME = "WITHDRAWN.txt"
+RESULT_NAME = "result.json"
+DCC_NAME = "certificate.dcc.xml"
+
+
+@dataclass(frozen=True)
+class IssueContext:
+    """What a pre-issue check may look at: the run, its result, the lab, who issues."""
+
+    run_path: Path
+    result: Mapping[str, Any]
+    lab: Lab
+    signatory: Signatory
+    reason: str | None
+    previous: tuple[register.Issue, ...]     # the issues recorded so far, oldest first
+    simulated: bool                           # twins, not instruments
+    records_url: str | None = None            # the records (None: the run's default)
+
+
+PreIssueCheck = Callable[[IssueContext], list[str]]
+
+
+def _complete(ctx: IssueContext) -> list[str]:
+    verdict = str(ctx.result.get("verdict") or "incomplete").lower()
+    if verdict not in ("pass", "fail"):
+        return [f"the run's verdict is {verdict!r}: an incomplete run certifies nothing "
+                f"(`bench run --resume {ctx.run_path}` completes it)"]
+    return []
+
+
+def _reason_for_reissue(ctx: IssueContext) -> list[str]:
+    if ctx.previous and not (ctx.reason or "").strip():
+        return [f"certificate {ctx.previous[-1].number} is already issued: a re-issue "
+                "withdraws it and must say why (--reason TEXT; ISO/IEC 17025 7.8.8)"]
+    return []
+
+
+def _identities(ctx: IssueContext) -> list[str]:
+    """On a real stand every instrument a value rests on must be uniquely identified; on
+    twins the certificate prints what they reported and says it describes no item."""
+    if ctx.simulated:
+        return []
+    found = ctx.result.get("instruments")
+    if not isinstance(found, Mapping) or not found:
+        return ["the run recorded no instrument identities (result.json instruments)"]
+    stand = _stand(ctx.run_path)
+    return [f"{p} (ISO/IEC 17025 6.4.13 a)"
+            for p in identity_problems(with_declared_serials(found, stand))]
+
+
+def _assurance(ctx: IssueContext) -> list[str]:
+    """ISO/IEC 17025 7.7: no issue resting on an instrument out of statistical control
+    until a review is recorded (`bench control SERIAL --review TEXT --by NAME`). Also
+    refreshes the run's assurance.json, so the issued certificate states each
+    instrument's status and the review."""
+    from bench.app.records.assurance import assurance_refusals
+
+    return assurance_refusals(ctx.run_path, ctx.records_url)
+
+
+#: the checks every issue passes; extend with add_pre_issue_check
+PRE_ISSUE_CHECKS: list[PreIssueCheck] = [_complete, _reason_for_reissue, _identities,
+                                         _assurance]
+
+
+def add_pre_issue_check(check: PreIssueCheck) -> PreIssueCheck:
+    """Register a check run before every issue (usable as a decorator)."""
+    if check not in PRE_ISSUE_CHECKS:
+        PRE_ISSUE_CHECKS.append(check)
+    return check
+
+
+def refusals(ctx: IssueContext, checks: list[PreIssueCheck] | None = None) -> list[str]:
+    """Every reason not to issue, from every check (a check that fails refuses)."""
+    out: list[str] = []
+    for check in PRE_ISSUE_CHECKS if checks is None else checks:
+        try:
+            out += [str(r) for r in check(ctx) or ()]
+        except Exception as e:  # noqa: BLE001 - an issue nobody could check is not issued
+            out.append(f"pre-issue check {getattr(check, '__name__', check)!r} could not "
+                       f"run: {type(e).__name__}: {e}")
+    return out
+
+
+# -- what changed between two issued revisions -------------------------------------------
+
+def _leaves(node: Any, path: str = "") -> Iterator[tuple[str, Any]]:
+    if isinstance(node, Mapping):
+        for k, v in node.items():
+            yield from _leaves(v, f"{path}.{k}" if path else str(k))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            yield from _leaves(v, f"{path}[{i}]")
+    else:
+        yield path, node
+
+
+def changes_between(old: Mapping[str, Any] | None, new: Mapping[str, Any],
+                    limit: int = 12) -> tuple[str, ...]:
+    """What differs in result.json between the revision replaced and this one, as facts."""
+    if old is None:
+        return ("the replaced revision's result.json is not kept; differences not stated",)
+    before, after = dict(_leaves(old)), dict(_leaves(new))
+    diff = [f"{k}: {before.get(k, 'absent')!r} -> {after.get(k, 'absent')!r}"
+            for k in dict.fromkeys([*before, *after]) if before.get(k) != after.get(k)]
+    if not diff:
+        return ("results unchanged (result.json equal to the replaced revision's)",)
+    shown = diff[:limit]
+    if len(diff) > limit:
+        shown.append(f"and {len(diff) - limit} more value(s) of result.json")
+    return tuple(shown)
+
+
+# -- the command ----------------------------------------------------------------------------
+
+def _err(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def _refuse(reasons: list[str], run_path: Path) -> int:
+    _err(f"bench authorise: not issued ({run_path}):")
+    for r in reasons:
+        _err(f"  - {r}")
+    return EXIT_REFUSED
+
+
+def _stand(run_path: Path) -> dict[str, Any]:
+    from bench.core.yamlfile import YamlError, load_yaml
+
+    try:
+        data = load_yaml(run_path / "stand.yaml").data
+    except YamlError:
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def issue_dir(run_path: Path, number: str) -> Path:
+    return Path(run_path) / ISSUED_DIR / number
+
+
+def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
+              lab_file: str | None = None, line: Callable[[str], None] = print,
+              records_url: str | None = None) -> int:
+    """Issue the run's draft; returns the exit status (0 issued, 2 refused, 3 failed)."""
+    from bench.app.dcc.output import write_dcc
+    from bench.app.dcc.settings import resolve_settings
+
+    run_path = Path(run_path)
+    result_file = run_path / RESULT_NAME
+    if not result_file.is_file():
+        return _refuse([f"{result_file}: not found (`bench analyze {run_path}` writes it)"],
+                       run_path)
+    result_bytes = result_file.read_bytes()
+    try:
+        result = json.loads(result_bytes)
+    except ValueError as e:
+        return _refuse([f"{result_file}: not JSON: {e}"], run_path)
+    stand = _stand(run_path)
+    try:
+        lab = resolve_settings(stand, lab_file, base=run_lab(run_path, result.get("certificate")))
+    except LabError as e:
+        return _refuse([str(e)], run_path)
+    who = lab.authoriser(signatory_name)
+    if who is None:
+        allowed = ", ".join(s.name for s in lab.authorisers()) or "nobody"
+        return _refuse([f"{signatory_name!r} is not a signatory the lab settings authorise "
+                        f"to issue ({lab.source or 'lab settings'}: signatories with "
+                        f"authorises: true: {allowed})"], run_path)
+    previous = tuple(i for i in register.issues(run_path) if not i.draft)
+    src = Sources.load(result, run_path)
+    ctx = IssueContext(run_path, result, lab, who, reason, previous,
+                       bool(stand_of(src).get("simulated")), records_url)
+    refused = refusals(ctx)
+    if refused:
+        return _refuse(refused, run_path)
+    old = None
+    if previous:
+        kept = issue_dir(run_path, previous[-1].number) / RESULT_NAME
+        old = json.loads(kept.read_bytes()) if kept.is_file() else None
+    issue = register.next_issue(
+        run_path, certificate_id(src), dt.datetime.now(dt.UTC), result_digest(result),
+        signatory=who.name, function=who.function or None,
+        reason=(reason or "").strip() or None,
+        changes=changes_between(old, result) if previous else ())
+    final = issue_dir(run_path, issue.number)
+    if final.exists():
+        return _refuse([f"{final} exists: an issued revision's files are never "
+                        "overwritten"], run_path)
+    work = final.with_name(f".{issue.number}.partial")
+    shutil.rmtree(work, ignore_errors=True)
+    work.mkdir(parents=True)
+    (work / RESULT_NAME).write_bytes(result_bytes)          # what this issue states
+    render_files(result, work, run_path, issue=issue)
+    try:
+        outcome = write_dcc(run_path, result, stand, lab=lab, issue=issue, out_dir=work)
+    except LabError as e:
+        _discard(work)
+        return _refuse([f"the DCC could not be signed: {e}"], run_path)
+    if not outcome.ok:
+        _err(outcome.message())
+        _discard(work)
+        _err(f"bench authorise: not issued: the DCC does not validate ({run_path})")
+        return EXIT_FAILED
+    register.record(run_path, issue)
+    # the folder is self-contained: `bench verify issued/<n>/certificate.dcc.xml` reads
+    # result.json and the register beside it
+    (work / register.REGISTER_NAME).write_bytes((run_path / register.REGISTER_NAME)
+                                                .read_bytes())
+    os.replace(work, final)
+    if previous:
+        _mark_withdrawn(run_path, previous[-1], issue)
+    for name in (PDF_NAME, HTML_NAME, DCC_NAME):
+        tmp = run_path / f"{name}.tmp"
+        shutil.copyfile(final / name, tmp)
+        os.replace(tmp, run_path / name)
+    line(f"issued certificate {issue.number} (revision {issue.revision}), authorised by "
+         f"{who.name}" + (f", {who.function}" if who.function else "") +
+         f" at {issue.issued_utc}" + ("; DCC signed (XAdES)" if outcome.signed else
+                                      "; DCC not signed (the lab configured no key)"))
+    if issue.replaces:
+        line(f"withdrawn: {issue.replaces} (its files kept unchanged under "
+             f"{issue_dir(run_path, issue.replaces)})")
+    for name in (PDF_NAME, HTML_NAME, DCC_NAME):
+        line(f"wrote {final / name}")
+    return EXIT_ISSUED
+
+
+def _discard(work: Path) -> None:
+    """Remove what a refused issue began to write (and `issued/` if it is left empty)."""
+    shutil.rmtree(work, ignore_errors=True)
+    with contextlib.suppress(OSError):
+        work.parent.rmdir()
+
+
+def _mark_withdrawn(run_path: Path, old: register.Issue, new: register.Issue) -> None:
+    """A note beside the withdrawn revision's files; the files themselves stay as issued."""
+    folder = issue_dir(run_path, old.number)
+    if not folder.is_dir():
+        return
+    (folder / WITHDRAWN_NAME).write_text(
+        f"Certificate {old.number} was WITHDRAWN on {new.issued_utc}: replaced by "
+        f"certificate {new.number}, authorised by {new.signatory}.\n"
+        f"Reason: {new.reason}\n" + "".join(f"Changed: {c}\n" for c in new.changes),
+        encoding="utf-8")
+
+
+def cmd_authorise(args: argparse.Namespace) -> int:
+    run_path = Path(args.run_dir)
+    if not run_path.is_dir():
+        _err(f"bench authorise: {run_path}: no such run directory")
+        return EXIT_REFUSED
+    return authorise(run_path, args.signatory, args.reason, args.lab,
+                     records_url=args.records)
+
+
+def add_parser(sub: Any) -> None:
+    """The `authorise` subcommand (called by bench/app/cli.py)."""
+    p = sub.add_parser("authorise", help="issue the run's draft certificate under an "
+                                         "authorised signatory; exit 2 when refused")
+    p.add_argument("run_dir")
+    p.add_argument("--signatory", required=True,
+                   help="who authorises the issue (a signatory the lab file authorises)")
+    p.add_argument("--reason", help="why a revision is re-issued (required for a re-issue)")
+    p.add_argument("--lab", help="lab settings file (default: the run's own)")
+    p.add_argument("--records", metavar="URL",
+                   help="records database for the instruments' assurance status (default "
+                        "records.sqlite beside the run)")

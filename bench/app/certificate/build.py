@@ -1,0 +1,963 @@
+"""result.json (plus the run directory) -> the certificate's document model.
+
+Every figure printed is taken from result.json; what the result lacks is taken from the
+run directory's own records (meta.json, the copied stand and procedure files, the event
+log, the raw files themselves) and never invented. Anything neither has is printed as
+"not recorded", so a gap is visible to the reader instead of silently filled.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import bench
+from bench.app.certificate import register
+from bench.app.certificate.operator import prompt_blocks, software_note
+from bench.app.certificate.register import Issue
+from bench.core.journal import sha256_file
+from bench.core.registry import procedure_kind, procedure_names
+from bench.core.traceability import serial_of, traced_items, with_declared_serials
+from bench.report.budget import budget_sites
+from bench.report.certificate import methods
+from bench.report.certificate.model import Document, Fields, Para, Section, Signatures, Table
+from bench.report.certificate.parts import (
+    NOT_RECORDED,
+    CertificateParts,
+    Sources,
+    label_of,
+    num,
+    rate_text,
+    stand_of,
+    text_of,
+    verdict_label,
+    vu_text,
+)
+from bench.report.certificate.rounding import (
+    PERCENT,
+    format_limit,
+    format_sig,
+    format_value_u,
+    present,
+    rel_unit,
+)
+
+__all__ = ["NOT_RECORDED", "Sources", "build_document", "certificate_id", "decision_rule_text",
+           "issued_number", "verdict_label"]
+
+CAPABILITY_LIMIT = 0.3  # RMG 63-2003: the measurement's error limit <= 0.2-0.3 of the tolerance
+
+def _utc(stamp: str | None) -> str:
+    if not stamp:
+        return NOT_RECORDED
+    try:
+        t = dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00"))
+    except ValueError:
+        return str(stamp)
+    if t.tzinfo is not None:
+        t = t.astimezone(dt.UTC)
+    return t.strftime("%Y-%m-%d %H:%M:%S UTC")
+
+
+def _trim(x: float) -> str:
+    """A stated limit as written (1e-5 -> '0.00001'), no invented trailing zeros."""
+    s = format_sig(x, 6)
+    return s.rstrip("0").rstrip(".") if "." in s and "e" not in s else s
+
+
+# -- the certificate id ----------------------------------------------------------------
+
+def certificate_id(src: Sources) -> str:
+    """The base number of the run's certificates: the laboratory's own if the procedure
+    gives one, else `<prefix>-<date of completion>-<8 hex digits>`.
+
+    The digits identify the run (its directory and creation time), so two runs never share
+    a number; each issue of one run adds its revision (register.numbered). Without a run
+    (a specimen) the digits are a digest of the results.
+    """
+    cert = _cert(src)
+    for key in ("number", "id", "certificate_id"):
+        if cert.get(key):
+            return str(cert[key])
+    run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else None)
+    created = (src.get("dates", {}) or {}).get("created_utc") or src.meta.get("created_utc")
+    identity = (f"{run_dir}|{created}" if run_dir else
+                json.dumps(src.result, sort_keys=True, default=str))
+    digest = hashlib.sha256(identity.encode())
+    stamp = (src.get("dates", {}) or {}).get("completed_utc") or src.meta.get("created_utc")
+    day = ""
+    if stamp:
+        try:
+            day = dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00")).strftime("%Y%m%d")
+        except ValueError:
+            day = ""
+    prefix = cert.get("prefix", "RT")
+    return "-".join(p for p in (str(prefix), day, digest.hexdigest()[:8].upper()) if p)
+
+
+def issued_number(src: Sources) -> str:
+    """The number of the run's latest issue (what the PDF beside it carries); the base
+    number when nothing was issued yet. For other forms of the same certificate (DCC)."""
+    done = register.issues(src.run_path)
+    return done[-1].number if done else certificate_id(src)
+
+
+def _cert(src: Sources) -> dict[str, Any]:
+    """The certificate settings: the procedure's `certificate:` block over the lab's file."""
+    cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
+    return dict(cert) if isinstance(cert, Mapping) else {}
+
+
+# -- the document --------------------------------------------------------------------------
+
+AUTHORITATIVE = ("The PDF file certificate.pdf is the authoritative form of this certificate; "
+                 "the HTML rendering carries the same content for reading on screen.")
+SIMULATED_MARK = "SIMULATED RUN: NOT A CALIBRATION"
+DRAFT_MARK = "DRAFT, NOT AUTHORISED"
+
+
+#: a section from outside the run directory (the records' history): title and blocks
+ExtraSection = tuple[str, tuple[Any, ...]]
+
+#: what a procedure kind that says nothing of itself (or none installed) answers
+NEUTRAL = CertificateParts()
+
+
+@dataclass(frozen=True)
+class Procedure:
+    """The run's procedure kind, as the certificate sees it: its name and its answers."""
+
+    name: str
+    parts: CertificateParts
+
+    @property
+    def title(self) -> str:
+        return self.parts.certificate_procedure_name or self.name
+
+    def quantity(self, key: Any, default: str | None = None) -> str:
+        """A checked quantity in words."""
+        key = str(key)
+        return self.parts.certificate_quantities.get(
+            key, label_of(key) if default is None else default)
+
+
+def procedure_of(src: Sources) -> Procedure:
+    """The kind the result names; for an older result that names none, the installed
+    kind that recognises its keys (bench/core/registry.py: kinds are found by entry point)."""
+    name = str(src.get("procedure") or src.procedure_file.get("procedure") or "")
+    if not name:
+        name = next((n for n in procedure_names() if _parts(n).certificate_recognises(src)),
+                    "")
+    return Procedure(name, _parts(name))
+
+
+def _parts(name: str) -> CertificateParts:
+    try:
+        kind = procedure_kind(name)
+    except (KeyError, ImportError, AttributeError):   # not installed here
+        return NEUTRAL
+    return kind if isinstance(kind, CertificateParts) else NEUTRAL
+
+
+def build_document(result: dict[str, Any], run_path: Path | None = None,
+                   issued: dt.date | None = None, issue: Issue | None = None,
+                   extra_sections: Sequence[ExtraSection] = ()) -> Document:
+    """The certificate for one issue; without `issue` (or with an unauthorised one) the
+    DRAFT of the run's next revision: marked DRAFT, NOT AUTHORISED on every page, no date
+    of issue, no authorisation claimed. `issued` is kept for callers that dated drafts."""
+    src = Sources.load(result, run_path)
+    cid = certificate_id(src)
+    if issue is None:
+        issue = register.draft(run_path, cid)
+    proc = procedure_of(src)
+    cert = _cert(src)
+    lab = str(cert.get("laboratory") or "Calibration laboratory (name not given)")
+    checks = _checks(src, proc)
+    sections: list[Section] = []
+    n = _Counter()
+    sections.append(Section(n.next(), "Identification", _identification(src, issue,
+                                                                       proc, checks)))
+    sections.append(Section(n.next(), "Item calibrated and measuring instruments",
+                            _instruments(src, proc)))
+    sections.append(Section(n.next(), "Method", _method(src, proc)))
+    sections.append(Section(n.next(), "Deviations", _deviations(src, proc)))
+    sections.append(Section(n.next(), "Conditions", _conditions(src)))
+    sections += proc.parts.certificate_sections(src, n.next(), checks)
+    sections.append(Section(n.next(), "Conformity", _conformity(src, checks, proc)))
+    sections.append(Section(n.next(), "Records: raw data and inputs", _records(src)))
+    for title, blocks in [*proc.parts.certificate_annexes(src), *extra_sections]:
+        sections.append(Section(n.next(), title, tuple(blocks)))
+    budgets = budget_tables(src.result)
+    if budgets:
+        sections.append(Section(n.next(), "Uncertainty budgets (EA-4/02)", budgets,
+                                new_page=True))
+    statements = proc.parts.certificate_statements(methods.STATEMENTS)
+    statements.append(AUTHORITATIVE)
+    sections.append(Section(n.next(), "Statements", tuple(Para(t) for t in statements)))
+    sections.append(Section(n.next(), "Authorisation", _signatures(cert, issue)))
+    item, serial = proc.parts.certificate_item(src)
+    subtitle = f"{item}, serial {serial}"
+    simulated = bool(stand_of(src).get("simulated"))
+    if simulated:
+        subtitle += " (SIMULATED stand)"
+    marks = [m for m in (DRAFT_MARK if issue.draft else "",
+                         SIMULATED_MARK if simulated else "") if m]
+    return Document(
+        cert_id=issue.number + (" (DRAFT)" if issue.draft else ""),
+        title="Calibration certificate",
+        subtitle=subtitle,
+        laboratory=lab,
+        issue_date=issue.issue_date if not issue.draft else "",
+        verdict=str(src.get("verdict", "incomplete")),
+        sections=tuple(sections),
+        footer="This certificate shall not be reproduced except in full without the written "
+               "approval of the issuing laboratory. " + AUTHORITATIVE.split(";")[0] + ".",
+        meta={"run_title": str(src.get("title") or src.procedure_file.get("title") or ""),
+              "procedure": proc.name, "revision": str(issue.revision),
+              "replaces": "" if issue.draft else issue.replaces or "", "scope": _scope_line(src, checks, proc)},
+        watermark=" / ".join(marks),
+    )
+
+
+def _g(x: float | None, sig: int = 3) -> str:
+    if x is None:
+        return "—"
+    return format_sig(x, sig) if x != 0 else "0"
+
+
+def budget_tables(result: Mapping[str, Any]) -> tuple[Any, ...]:
+    """One table per budget in result.json (bench.report.budget), in EA-4/02's columns."""
+    sites = budget_sites(result)
+    if not sites:
+        return ()
+    blocks: list[Any] = [Para(
+        "Each budget (EA-4/02 M:2022 section 4): input quantity X_i, estimate x_i, standard "
+        "uncertainty u(x_i), distribution, sensitivity coefficient c_i, contribution "
+        "u_i(y) = |c_i|·u(x_i) and degrees of freedom ν_i (∞: Type B or very many samples); "
+        "u_c(y) = √Σu_i(y)², ν_eff by Welch-Satterthwaite, U = k·u_c with the k the "
+        "analysis uses. Values are in the units named (1: a plain fraction, 1e-6 = 1 ppm). "
+        "Each budget is checked against the U reported with the result.", "note")]
+    for where, _owner, b in sites:
+        un = "" if b.unit == "1" else f" {b.unit}"
+        rows = tuple((t.quantity, _g(t.estimate, 6), _g(t.ustd), t.distribution,
+                      _g(t.sensitivity), _g(t.contribution),
+                      "∞" if t.dof is None or t.dof > 1e4 else f"{t.dof:.0f}")
+                     for t in b.terms)
+        nu = b.dof_eff
+        agree = b.reproduces
+        notes = [f"u_c = {_g(b.ustd)}{un}; ν_eff = "
+                 f"{'∞' if nu is None or nu > 1e4 else f'{nu:.1f}'}; k = {b.k:g}; "
+                 f"U = {_g(b.U, 2)}{un}" +
+                 ("" if b.reported_U is None else
+                  f"; U reported with the result {_g(b.reported_U, 2)}{un} "
+                  + ("(reproduced)" if agree else "(NOT reproduced by this budget)"))]
+        if b.note:
+            notes.append(b.note)
+        blocks.append(Table(("Quantity X_i", "Estimate x_i", "u(x_i)", "Distribution",
+                             "c_i", "u_i(y)", "ν_i"), rows,
+                            widths=(3.4, 1.3, 1.0, 1.2, 1.0, 1.0, 0.6), align="lrrlrrr",
+                            caption=f"{b.quantity}, {where}: estimate "
+                                    f"{_g(b.estimate, 6)}{un}", notes=tuple(notes)))
+    return tuple(blocks)
+
+
+class _Counter:
+    def __init__(self) -> None:
+        self.i = 0
+
+    def next(self) -> str:
+        self.i += 1
+        return str(self.i)
+
+
+def _checks(src: Sources, proc: Procedure) -> list[dict[str, Any]]:
+    """The engine's checks[]; without it, what the kind reads from its own results."""
+    if isinstance(src.result.get("checks"), list):
+        return [c for c in src.result["checks"] if isinstance(c, dict)]
+    return proc.parts.certificate_checks(src)
+
+
+def _identification(src: Sources, issue: Issue, proc: Procedure,
+                    checks: list[dict[str, Any]]) -> tuple[Any, ...]:
+    stand = stand_of(src)
+    cert = _cert(src)
+    dates = src.get("dates", {}) or {}
+    started = dates.get("started_utc") or _first_event(src, "session_start")
+    completed = dates.get("completed_utc") or _last_event(src, "completed")
+    item, serial = proc.parts.certificate_item(src)
+    rows: list[tuple[str, str]] = [
+        ("Certificate number", issue.number),
+        ("Revision", _revision_text(issue)),
+        ("Title of the work", text_of(src.get("title") or src.procedure_file.get("title"))),
+        ("Issued by", text_of(cert.get("laboratory"))),
+        ("Laboratory address", text_of(cert.get("address"))),
+    ]
+    if cert.get("accreditation"):
+        rows.append(("Accreditation", text_of(cert["accreditation"])))
+    rows += [
+        ("Customer", text_of(cert.get("customer"))),
+        ("Customer address", text_of(cert.get("customer_address"))),
+        ("Customer contact", text_of(cert.get("customer_contact"))),
+        ("Item calibrated", item),
+        ("Serial number", serial),
+        *proc.parts.certificate_identification(src),
+    ]
+    site = cert.get("site") or stand.get("location")
+    rows.append(("Site of calibration", text_of(site)))
+    if stand.get("simulated"):
+        rows.append(("Nature of the work", "SIMULATED run (instrument twins on real channels): "
+                     "these results describe no physical item; every page is marked"))
+    rows += [
+        ("Procedure", proc.title),
+        ("Work started", _utc(started)),
+        ("Work ended", (_utc(completed) + (" (aborted)" if src.get("aborted") else ""))
+         if completed else "not completed"),
+        ("Date of issue (authorisation)", "none: DRAFT, NOT AUTHORISED" if issue.draft
+         else issue.issue_date),
+        ("Statement of conformity", _overall(src, checks, proc)),
+    ]
+    skip = {"laboratory", "customer", "number", "id", "certificate_id", "prefix", "signers",
+            "signatories", "address", "accreditation", "customer_address", "customer_contact",
+            "site", "lab", "authoritative", "specification", "location", "email", "phone",
+            "code", "country_code", "performance_location", "signing", "require_signed_dcc",
+            "records", "recertification", "responsible_persons"}
+    rows += [(label_of(k), text_of(v)) for k, v in cert.items() if k not in skip]
+    blocks: list[Any] = [Fields(tuple(rows))]
+    run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else NOT_RECORDED)
+    blocks.append(software_note(src.meta, src.events, bench.__version__, str(run_dir)))
+    blocks.append(Para(AUTHORITATIVE, "note"))
+    return tuple(blocks)
+
+
+def _first_event(src: Sources, kind: str) -> str | None:
+    return next((e.get("utc") for e in src.events if e.get("event") == kind), None)
+
+
+def _last_event(src: Sources, kind: str) -> str | None:
+    found = [e.get("utc") for e in src.events if e.get("event") == kind]
+    return found[-1] if found else None
+
+
+def check_class(c: Mapping[str, Any]) -> str:
+    """'consistency' (physics cross-check, not conformity), 'not-assessed' (excluded from
+    conformity, e.g. a σ at the timing floor), or 'conformity'."""
+    if str(c.get("rule")) == "consistency":
+        return "consistency"
+    if str(c.get("verdict")) == "not-assessed":
+        return "not-assessed"
+    return "conformity"
+
+
+def _coverage(checks: list[dict[str, Any]], proc: Procedure
+              ) -> tuple[list[str], list[str], int]:
+    """(quantities the verdict covers, quantities not assessed, checks excluded)."""
+    conf = [c for c in checks if check_class(c) == "conformity"]
+    covered = list(dict.fromkeys(str(c.get("quantity")) for c in conf))
+    names = [proc.quantity(q) for q in covered]
+    not_assessed = [text for key, text in proc.parts.certificate_measured
+                    if key not in covered]
+    excluded = sum(1 for c in checks if check_class(c) == "not-assessed")
+    return names, not_assessed, excluded
+
+
+def _scope_line(src: Sources, checks: list[dict[str, Any]], proc: Procedure) -> str:
+    names, not_assessed, excluded = _coverage(checks, proc)
+    if not names:
+        return "No statement of conformity: the procedure states no tolerances."
+    text = "The verdict covers: " + ", ".join(names) + "."
+    if excluded:
+        text += f" {excluded} check(s) could not be assessed (section Conformity)."
+    if not_assessed:
+        text += " Not assessed: " + ", ".join(not_assessed) + "."
+    return text
+
+
+def _overall(src: Sources, checks: list[dict[str, Any]], proc: Procedure) -> str:
+    verdict = str(src.get("verdict", "incomplete")).lower()
+    conf = [c for c in checks if check_class(c) == "conformity"]
+    failed = [c for c in conf if str(c.get("verdict", "")).lower() != "pass"]
+    cons = [c for c in checks if check_class(c) == "consistency"]
+    rule = _rule_name(src.get("decision_rule"))
+    scope = _scope_line(src, checks, proc)
+    cons_text = ""
+    if cons:
+        bad = sum(1 for c in cons if str(c.get("verdict")).lower() != "pass")
+        cons_text = (f" Consistency checks (not conformity): {len(cons) - bad} of {len(cons)} "
+                     "consistent" + (", the measurement is in doubt" if bad else "") + ".")
+    if verdict == "incomplete":
+        return ("INCOMPLETE: the run did not complete every step; no statement of conformity is "
+                "made for the points not measured." + cons_text)
+    excluded = sum(1 for c in checks if check_class(c) == "not-assessed")
+    if not conf and excluded:
+        return (f"NO STATEMENT OF CONFORMITY: none of the {excluded} check(s) could be "
+                "assessed (section Conformity)." + cons_text)
+    if not conf:
+        return (f"{verdict.upper()}: no conformity check was made (the procedure states no "
+                "tolerances)." + cons_text)
+    if not failed:
+        head = (f"PASS: all {len(conf)} conformity checks met the specification under the "
+                f"{rule} decision rule (section Conformity).")
+    else:
+        head = (f"FAIL: {len(failed)} of {len(conf)} conformity checks did not meet the "
+                f"specification under the {rule} decision rule (section Conformity).")
+    return f"{head} {scope}{cons_text}"
+
+
+def _rule_name(rule: Any) -> str:
+    return {"guard-band": "guard-band (guarded acceptance, w = U)",
+            "simple": "simple acceptance"}.get(str(rule or "simple"), str(rule))
+
+
+def _instruments(src: Sources, proc: Procedure) -> tuple[Any, ...]:
+    stand = stand_of(src)
+    item, serial = proc.parts.certificate_item(src)
+    what = proc.parts.certificate_stand_label
+    blocks: list[Any] = [Fields((
+        ("Item calibrated", f"{item}, serial {serial}"),
+        (what, f"{text_of(stand.get('maker'))} {text_of(stand.get('model'))}, serial "
+               f"{text_of(stand.get('serial'))}"),
+        ("Stand file", f"{text_of(stand.get('file') or src.meta.get('stand_file'))}"),
+        ("Stand file SHA-256", text_of(stand.get("sha256") or src.meta.get("stand_sha256"))),
+    ))]
+    ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
+    if not ids:  # the event log records each axis's identities at the start of a session
+        for e in src.events:
+            if e.get("event") == "identity" and e.get("axis"):
+                ids.setdefault(e["axis"], {}).update(
+                    {k: v for k, v in e.items()
+                     if k not in ("utc", "t_s", "session", "event", "axis")})
+    stand_axes = src.stand_file.get("axes", {}) or {}
+    rows = []
+    for axis in dict.fromkeys([*ids, *stand_axes]):
+        roles = dict.fromkeys([*(ids.get(axis) or {}), *(stand_axes.get(axis) or {})])
+        for role in roles:
+            if role == "counter_reference":
+                continue   # in the traceability table
+            ident = (ids.get(axis) or {}).get(role)
+            conf = (stand_axes.get(axis) or {}).get(role) or {}
+            conf = {k: v for k, v in conf.items() if k != "calibration"} \
+                if isinstance(conf, Mapping) else conf
+            setting = text_of(conf) if conf else ""
+            text = text_of(ident) if ident else "identity not recorded"
+            if role == "fog" and ident:
+                text = ("as configured in the stand file (a FOG answers no identity query): "
+                        + text)
+            rows.append((axis, role, text, setting or "—"))
+    if rows and all(r[3] == "—" for r in rows):
+        blocks.append(Table(("Axis", "Instrument", "Identity (as reported)"),
+                            tuple(r[:3] for r in rows), widths=(0.9, 1.0, 5.0), align="lll",
+                            caption="Instruments used, with the identity each reported "
+                                    "(*IDN?, drive identity objects, FOG model)"))
+    elif rows:
+        blocks.append(Table(("Axis", "Instrument", "Identity (as reported)", "Settings"),
+                            tuple(rows), widths=(0.9, 1.0, 3.2, 3.6), align="llll",
+                            caption="Instruments used, with the identity each reported "
+                                    "(*IDN?, drive identity objects, FOG model)"))
+    else:
+        blocks.append(Para("Instrument identities: not recorded.", "note"))
+    blocks += _shared_identities(rows)
+    blocks += _traceability(src)
+    return tuple(blocks)
+
+
+def _shared_identities(rows: list[tuple[str, str, str, str]]) -> list[Any]:
+    """Two instruments of one kind answering with one identity (maker, model, serial) are
+    either one instrument or misreporting: the reader must be told."""
+    seen: dict[tuple[str, str], list[str]] = {}
+    for axis, role, ident, _ in rows:
+        if role in ("counter", "drive") and ident and not ident.startswith("identity not"):
+            seen.setdefault((role, ident), []).append(axis)
+    return [Para(f"CHECK: the {role}s of axes {', '.join(axes)} report the same identity "
+                 f"({ident}); two instruments cannot share a serial number. On a simulated "
+                 "bench the twins answer their model's default identity.", "strong")
+            for (role, ident), axes in seen.items() if len(axes) > 1]
+
+
+def _work_date(src: Sources) -> dt.date | None:
+    stamp = ((src.get("dates", {}) or {}).get("started_utc")
+             or _first_event(src, "session_start") or src.meta.get("created_utc"))
+    try:
+        return dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00")).date()
+    except (TypeError, ValueError):
+        return None
+
+
+#: stand roles that command the item and measure nothing a result rests on
+COMMANDING_ROLES = ("drive",)
+
+
+def _serial_read_back(ids: Mapping[str, Any], t: Any) -> str:
+    """The serial the instrument reported in this run (its identity), not the stand file's.
+    An instrument at `axes.<axis>.<role>` reported under ids[axis][role]; one elsewhere
+    (a platform's `gyros.x.dmm`) under its role, or `<gyro>-<role>`, on the table axis."""
+    parts = t.where.split(".")
+    if parts[0].startswith("traceability"):
+        return "—"
+    names = [parts[-1]] + ([f"{parts[-2]}-{parts[-1]}"] if len(parts) > 1 else [])
+    axes = [parts[1]] if parts[0] == "axes" and len(parts) > 2 else list(ids)
+    for axis in axes:
+        roles = ids.get(axis)
+        if not isinstance(roles, Mapping):
+            continue
+        for role in names:
+            if role in roles:
+                return serial_of(roles[role]) or "NONE REPORTED"
+    return "not recorded"
+
+
+def _trace_status(src: Sources, t: Any) -> str:
+    """Without a stated calibration: what a result of this run rests on it, truthfully."""
+    if t.stated:
+        return ""
+    role = t.where.rsplit(".", 1)[-1]
+    axis = t.where.split(".")[-2] if "." in t.where else ""
+    pairs = ((src.get("axes", {}) or {}).get(axis) or {}).get("pairs") if axis else None
+    if role in COMMANDING_ROLES and pairs is not None:
+        return ("none needed: it commands the rate; every reported rate is measured by "
+                "the counter and the FOG, none read from the drive")
+    if role in COMMANDING_ROLES:
+        return ("none stated: it commands the position; no reported value is read from it "
+                "(its stated position tolerance enters the budget as a bound)")
+    if role == "fog" and pairs:
+        return ("in-situ calibration: scale k and bias w0 cross-calibrated against the "
+                "counter for each +/- pair (docs/method.md A3, eq. 5-6), "
+                "so its rates are traceable through the counter's time base")
+    return "NOT TRACEABLE: no calibration certificate in the stand file, yet results rest on it"
+
+
+def _traceability(src: Sources) -> tuple[Any, ...]:
+    """Where each measured quantity's traceability to the SI comes from (17025 7.8.4.1 c):
+    the stand file's calibration certificates, and the counter reference as read back."""
+    items = traced_items(src.stand_file)
+    if not items:
+        return (Para("Metrological traceability: the stand file states no calibration "
+                     "certificates; NOT SHOWN for any instrument.", "strong"),)
+    on = _work_date(src)
+    rows = []
+    overdue_seen = False
+    ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
+    for t in items:
+        status = _trace_status(src, t)
+        if t.stated and on is not None and t.overdue(on):
+            overdue_seen = True
+            status = f"PAST DUE on the date of the work ({on.isoformat()})"
+        elif t.stated:
+            status = "valid on the work's date" if on else "validity not checked"
+        rows.append((t.item, _serial_read_back(ids, t),
+                     text_of(t.certificate) if t.stated else "—",
+                     text_of(t.issuer) if t.stated else "—",
+                     t.due.isoformat() if t.due else "—", text_of(t.traces) if t.traces else
+                     "—", status))
+    notes = ["From the stand file (its SHA-256 above). Due dates are compared with the date "
+             "the work started."]
+    if overdue_seen:
+        notes.append("An instrument past its calibration due date was used: the run warned "
+                     "at its start; results depending on it are not shown to be traceable.")
+    ids = src.get("instruments", {}) or {}
+    refs = [(a, v.get("counter_reference")) for a, v in ids.items()
+            if isinstance(v, Mapping) and v.get("counter_reference")]
+    stand_axes = src.stand_file.get("axes", {}) or {}
+    for axis, ref in refs:
+        claimed = ((stand_axes.get(axis) or {}).get("counter") or {}).get("reference")
+        notes.append(f"Counter reference, axis {axis}: read back from the counter: {ref}"
+                     + (f"; the stand file states {claimed}" if claimed else "") + ".")
+    from bench.app.records.assurance_notes import certificate_notes  # issue 28: 17025 7.7 status
+    notes += certificate_notes(src.run_path)
+    return (Table(("Item", "Serial (read back)", "Certificate", "Issued by", "Due",
+                   "Quantity traced", "Status"), tuple(rows),
+                  widths=(1.7, 1.3, 1.7, 1.4, 1.1, 1.9, 2.2),
+                  align="lllllll", caption="Metrological traceability: calibration of the "
+                  "instruments and references used", notes=tuple(notes)),)
+
+
+def _method(src: Sources, proc: Procedure) -> tuple[Any, ...]:
+    pf = src.get("procedure_file", {}) or {}
+    name = pf.get("name") or src.meta.get("procedure_name")
+    sha = pf.get("sha256") or src.meta.get("procedure_sha256")
+    blocks: list[Any] = list(proc.parts.certificate_method(src))
+    method = src.get("method", {}) or {}
+    rows = [("Procedure file", text_of(name)), ("Procedure file SHA-256", text_of(sha))]
+    rows += [(label_of(k), text_of(v)) for k, v in method.items()
+             if k not in ("decision_rule", "tolerance", "turns_per_axis")]
+    rows.append(("Decision rule", _rule_name(src.get("decision_rule"))))
+    ident = methods.PROCEDURES.get(proc.name)
+    if ident is not None:
+        code, part, paper = ident
+        version = str(src.meta.get("bench_version") or bench.__version__)
+        rows += [("Procedure ID and revision", f"{code}, revision {version} (ratebench "
+                  f"{version}; method: docs/method.md part {part}, shipped as "
+                  f"bench/method.md{_method_digest()})"),
+                 (f"Reference [{part}]", paper),
+                 ("Validation", methods.VALIDATION)]
+    blocks.append(Fields(tuple(rows)))
+    return tuple(blocks)
+
+
+def _method_digest() -> str:
+    """The method document this release ships, by its SHA-256 (what the revision means)."""
+    path = Path(bench.__file__).parent / "method.md"
+    return f", SHA-256 {sha256_file(path)[:16]}…" if path.is_file() else ""
+
+
+def _deviations(src: Sources, proc: Procedure) -> tuple[Any, ...]:
+    blocks: list[Any] = list(proc.parts.certificate_method_deviations(src))
+    run: list[str] = []
+    sessions = src.get("sessions")
+    if isinstance(sessions, int) and sessions > 1:
+        run.append(f"The run was interrupted and resumed: it ran in {sessions} sessions. Each "
+                   "unit (a ± pair) was measured whole within one session.")
+    elif isinstance(sessions, list) and len(sessions) > 1:
+        run.append(f"The run was interrupted and resumed: it ran in {len(sessions)} sessions.")
+    if src.get("aborted"):
+        run.append("The run was aborted before every step was done; the points not measured "
+                   "are absent from the results.")
+    if str(src.get("verdict")) == "incomplete":
+        run.append("The result is incomplete: no statement of conformity is made for the "
+                   "missing points.")
+    for d in src.get("deviations", []) or []:
+        run.append(text_of(d))
+    for where in src.dropped:
+        run.append(f"result.json: {where} was malformed and is not reported here.")
+    run += proc.parts.certificate_run_deviations(src)
+    blocks.append(Para("From the procedure, in this run:", "strong"))
+    blocks += [Para(f"• {t}") for t in run] or [Para("None.")]
+    return tuple(blocks)
+
+
+def _measured_conditions(src: Sources) -> list[Any]:
+    """What the bench measured itself: the FOG's temperature per half (procedures that
+    record it, `conditions_measured`); the room: not measured unless a sensor says so."""
+    measured = src.get("conditions_measured")
+    if not isinstance(measured, Mapping):
+        return []
+    blocks: list[Any] = []
+    fog = measured.get("fog_temperature")
+    if isinstance(fog, Mapping) and isinstance(fog.get("axes"), Mapping):
+        rows = []
+        for axis, ax in fog["axes"].items():
+            for h in ax.get("halves") or []:
+                half = num(h.get("half"))
+                rows.append((axis, rate_text(h.get("set_rate_dps")),
+                             "—" if half is None else str(int(half) + 1),
+                             _g(h.get("min_c"), 4), _g(h.get("mean_c"), 4),
+                             _g(h.get("max_c"), 4)))
+        blocks.append(Table(("Axis", "Set rate, °/s", "Half", "Min, °C", "Mean, °C",
+                             "Max, °C"), tuple(rows), align="lrrrrr",
+                            caption="Measured: temperature of the FOG on the table top, per "
+                                    "half, from its frames (integer °C resolution); the "
+                                    "temperature of the item's table top, not of the room"))
+    if not measured.get("room"):
+        blocks.append(Para("Room temperature and humidity: not measured by the bench.",
+                           "note"))
+    return blocks
+
+
+def _conditions(src: Sources) -> tuple[Any, ...]:
+    cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
+    measured = _measured_conditions(src)
+    if not cond:
+        return (*measured, Para("No nominal conditions were stated in the procedure file."),
+                *prompt_blocks(src.events))
+    return (*measured,
+            Para("As stated in the procedure file: the nominal conditions of the laboratory, "
+                 "NOT measured during this run.", "note"),
+            Fields(tuple((f"{label_of(k)} (nominal, not measured)", text_of(v))
+                         for k, v in cond.items())),
+            *prompt_blocks(src.events))
+
+
+# -- conformity, records, signatures -------------------------------------------------------
+
+def decision_rule_text(rule: str) -> str:
+    if rule == "guard-band":
+        return ("Decision rule: guarded acceptance with a guard band equal to U (ILAC-G8:09/2019 "
+                "§4.2.2). A check PASSES when |value| + U ≤ T and FAILS when |value| > T. When "
+                "|value| ≤ T < |value| + U the measured value is inside the tolerance but within "
+                "U of its limit, so conformity is not shown: this is stated as FAIL (guard "
+                "band). For σ the guard is its one-sided 97.5 % upper limit (chi-square with "
+                "N − 1 degrees of freedom) in place of |value| + U. Risk: the probability of a "
+                "false accept is at most about 2.5 % where the value's distribution is normal "
+                "(the rate error: a mean of N turns with the small-sample factor of section 3) "
+                "or, for σ, where the per-turn rates are normal; it is not claimed for other "
+                "distributions.")
+    return ("Decision rule: simple acceptance (ILAC-G8:09/2019 §4.2.1, shared risk). A check "
+            "PASSES when |value| ≤ T and FAILS when |value| > T; U is reported but not used in "
+            "the decision. For a value close to the limit the probability of a false accept "
+            "may approach 50 %; the capability column shows where U is small enough for this "
+            "rule to be sound.")
+
+
+ABSOLUTE_UNITS = {"dph": "°/h", "dps": "°/s", "deg": "°", "arcmin": "arcmin", "s": "s"}
+
+
+@dataclass(frozen=True)
+class CheckRow:
+    """One check, whatever its unit: relative (`value_rel`) or absolute (`value_dph`...)."""
+
+    value: float | None
+    u: float | None
+    tolerance: float | None
+    expected: float | None
+    suffix: str            # rel, dph, dps, deg...
+
+    @classmethod
+    def of(cls, c: Mapping[str, Any]) -> CheckRow:
+        for suffix in ("rel", *ABSOLUTE_UNITS):
+            if f"value_{suffix}" in c:
+                return cls(num(c.get(f"value_{suffix}")), num(c.get(f"u_{suffix}")),
+                           num(c.get(f"tolerance_{suffix}")), num(c.get(f"expected_{suffix}")),
+                           suffix)
+        return cls(None, None, None, None, "rel")
+
+    def texts(self, signed: bool) -> tuple[str, str]:
+        """(value ± U, tolerance or expected value) in the check's unit."""
+        if self.suffix == "rel":
+            unit = rel_unit(self.value, self.u, self.tolerance)
+            vu = f"{vu_text(self.value, self.u, unit, signed)} {unit.name}"
+            tol = f"{_trim(self.tolerance * unit.scale)} {unit.name}" if self.tolerance else "—"
+            return vu, tol
+        name = ABSOLUTE_UNITS[self.suffix]
+        vu = f"{vu_text(self.value, self.u, None, signed)} {name}"
+        if self.tolerance:
+            return vu, f"{_trim(self.tolerance)} {name}"
+        if self.expected is not None:
+            return vu, f"expected {format_value_u(self.expected, self.u).value} {name}"
+        return vu, "—"
+
+
+def _specification(src: Sources, proc: Procedure) -> list[Any]:
+    spec = src.get("specification") or src.procedure_file.get("specification")
+    if not isinstance(spec, Mapping) or not spec.get("source"):
+        return [Para("Specification: NOT IDENTIFIED. The procedure file names no source for "
+                     "its tolerances (key specification.source); the checks below compare "
+                     "with the procedure's numbers only.", "strong")]
+    rows = [("Specification", text_of(spec["source"]))]
+    for key, text in (spec.get("definitions") or {}).items():
+        name = proc.quantity(key, proc.quantity(str(key).rsplit("_", 1)[0], label_of(key)))
+        rows.append((f"Definition: {name}", text_of(text)))
+    return [Fields(tuple(rows))]
+
+
+def _conformity(src: Sources, checks: list[dict[str, Any]], proc: Procedure
+                ) -> tuple[Any, ...]:
+    rule = str(src.get("decision_rule") or (checks[0].get("rule") if checks else "simple"))
+    blocks: list[Any] = [*_specification(src, proc), Para(decision_rule_text(rule))]
+    blocks.append(Para("Scope. " + _scope_line(src, checks, proc)))
+    blocks.append(Para(
+        "Measurement capability (RMG 63-2003): the expanded uncertainty of a check should not "
+        f"exceed 0.2-0.3 of its tolerance; a ratio U/T ≤ {CAPABILITY_LIMIT:g} is marked met."))
+    tol = (src.get("method", {}) or {}).get("tolerance") or src.procedure_file.get("tolerance")
+    if isinstance(tol, Mapping) and tol:
+        table = _tolerance_table(tol, proc)
+        if table.rows:
+            blocks.append(table)
+    if not checks:
+        blocks.append(Para("The procedure states no tolerances: no conformity checks were "
+                           "made and no statement of conformity is given for individual "
+                           "values."))
+        return tuple(blocks)
+    consistency = [c for c in checks if check_class(c) == "consistency"]
+    checks = [c for c in checks if check_class(c) != "consistency"]
+    with_rate = all(num(c.get("set_rate_dps")) is not None for c in checks)
+    rows: list[tuple[str, ...]] = []
+    notes: list[str] = []
+    for i, c in enumerate(checks, start=1):
+        row = CheckRow.of(c)
+        ratio = num(c.get("capability_ratio"))
+        if ratio is None and row.u is not None and row.tolerance:
+            ratio = row.u / row.tolerance
+        ok = c.get("capability_ok")
+        if ok is None and ratio is not None:
+            ok = ratio <= CAPABILITY_LIMIT
+        if row.u is None or row.u <= 0:
+            cap = "no U stated"  # a ratio of 0 would claim a capability nobody showed
+        elif ratio is None:
+            cap = "—"
+        else:
+            cap = f"{format_sig(ratio, 2)} " + ("met" if ok else "not met")
+        inside = (row.value is not None and row.tolerance is not None
+                  and abs(row.value) <= row.tolerance)
+        label = verdict_label(c.get("verdict"), str(c.get("rule") or rule), inside)
+        quantity = proc.quantity(c.get("quantity"))
+        signed = str(c.get("quantity")) not in proc.parts.certificate_unsigned
+        vu, tol_text = row.texts(signed)
+        if check_class(c) == "not-assessed" or c.get("one_sided"):
+            # an unresolved value is stated as '< L' and judged on L (bench.report.conformity)
+            unit = rel_unit(row.value, row.tolerance)
+            limit = num(c.get("upper_rel"))
+            vu = present(row.value, row.u, unit.scale, resolved=False,
+                         upper=limit).with_unit(unit.name) + " (timing floor)"
+            cap = "—"
+        elif (upper_rel := num(c.get("upper_rel"))) is not None and row.suffix == "rel":
+            unit = rel_unit(row.value, row.u, row.tolerance)
+            vu += f"; 97.5 % limit {format_limit(upper_rel * unit.scale)[0]}"
+        rate = num(c.get("set_rate_dps"))
+        point = rate_text(rate) if with_rate else (f"{rate_text(rate)} °/s" if rate is not None else "—")
+        rows.append((str(i), text_of(c.get("axis")), point, quantity, vu, tol_text, cap, label))
+        if label != "PASS" and c.get("reason"):
+            notes.append(f"Check {i}: {label}: {c['reason']}")
+        elif label != "PASS":
+            notes.append(f"Check {i}: {label}.")
+    header = ["#", "Axis", "Set rate, °/s" if with_rate else "Point", "Quantity", "Value ± U",
+              "Tolerance T", "U/T (RMG 63)", "Verdict"]
+    widths = [0.4, 0.8, 1.0, 2.2, 1.9, 1.3, 1.2, 1.4]
+    align = "rlrlrrcc"
+    if all(r[2] == "—" for r in rows):  # no check is tied to a rate
+        rows = [r[:2] + r[3:] for r in rows]
+        del header[2], widths[2]
+        align = align[:2] + align[3:]
+    if rows:
+        blocks.append(Table(tuple(header), tuple(rows), widths=tuple(widths), align=align,
+                            caption="Conformity with the specification's tolerances",
+                            notes=tuple(notes)))
+    if consistency:
+        blocks.append(_consistency_table(consistency, proc))
+    return tuple(blocks)
+
+
+def _consistency_table(checks: list[dict[str, Any]], proc: Procedure) -> Table:
+    """Physics cross-checks: they test the measurement, not the item, and are no part of
+    the statement of conformity."""
+    rows = []
+    for c in checks:
+        row = CheckRow.of(c)
+        vu, expected = row.texts(signed=False)
+        rows.append((text_of(c.get("axis")), proc.quantity(c.get("quantity")),
+                     vu, expected, "consistent" if str(c.get("verdict")) == "pass"
+                     else "NOT CONSISTENT"))
+    return Table(("Axis", "Quantity", "Measured ± U", "Expected", "Result"), tuple(rows),
+                 widths=(0.8, 2.2, 2.0, 2.0, 1.3), align="llrrc",
+                 caption="Consistency checks (not part of the statement of conformity)",
+                 notes=("A measured value against the value physics expects (the horizontal "
+                        "Earth rate 15.041 °/h · cos(latitude)): consistent when they differ by "
+                        "no more than U. An inconsistency puts the measurement in doubt (e.g. "
+                        "k_as, levelling); it says nothing about the item's specification.",))
+
+
+def _tolerance_table(tol: Mapping[str, Any], proc: Procedure) -> Table:
+    """The procedure's tolerances: rate bands (a band applies below its `below_dps`, in
+    order) or one value per quantity with its unit in the key (`<quantity>_dph: 0.5`)."""
+    rows = []
+    for quantity, bands in tol.items():
+        words = str(quantity).split("_")
+        if (value := num(bands)) is not None and words[-1] in ABSOLUTE_UNITS:
+            name = " ".join(words[:-1])
+            rows.append((proc.quantity("_".join(words[:-1]), name), "every measurement",
+                         f"{_trim(value)} {ABSOLUTE_UNITS[words[-1]]}"))
+            continue
+        lo = 0.0
+        for band in bands if isinstance(bands, list) else []:
+            if not isinstance(band, Mapping):
+                continue
+            below, rel = num(band.get("below_dps")), num(band.get("rel"))
+            if below is not None:
+                where = (f"{lo:g} ≤ |ω_set| < {below:g} °/s" if lo else
+                         f"|ω_set| < {below:g} °/s")
+                lo = below
+            else:
+                where = f"|ω_set| ≥ {lo:g} °/s" if lo else "every rate"
+            if rel is None:
+                continue
+            unit = rel_unit(rel)
+            text = f"{_trim(rel * unit.scale)} {unit.name}"
+            if unit is not PERCENT:
+                text += f" ({_trim(rel * 100)} %)"
+            rows.append((proc.quantity(quantity), where, text))
+    return Table(("Quantity", "Applies to", "Tolerance T"), tuple(rows),
+                 widths=(2.5, 2.5, 2.0), align="llr",
+                 caption="Tolerances stated in the procedure file")
+
+
+def _records(src: Sources) -> tuple[Any, ...]:
+    files = [f for f in src.get("raw_files", []) or [] if isinstance(f, dict)]
+    hashed_here = False
+    if not files and src.run_path is not None and (src.run_path / "raw").is_dir():
+        hashed_here = True
+        for p in sorted((src.run_path / "raw").rglob("*")):
+            if p.is_file():
+                files.append({"path": p.relative_to(src.run_path).as_posix(),
+                              "sha256": sha256_file(p), "bytes": p.stat().st_size})
+    inputs = []
+    if src.run_path is not None:
+        for name in ("procedure.yaml", "stand.yaml", "meta.json", "events.jsonl"):
+            p = src.run_path / name
+            if p.is_file():
+                inputs.append({"path": name, "sha256": sha256_file(p), "bytes": p.stat().st_size})
+    blocks: list[Any] = [Para(
+        "SHA-256 digests of the raw data as received from the instruments; anyone holding the "
+        "run directory can check that the results above were computed from these bytes "
+        "(`bench analyze RUN_DIR` recomputes them).")]
+    if files:
+        blocks.append(_hash_table(files, "Raw data files" + (
+            " (hashed when this certificate was issued)" if hashed_here else "")))
+    else:
+        blocks.append(Para("No raw data files were recorded.", "note"))
+    if inputs:
+        blocks.append(_hash_table(inputs, "Run records (inputs as used and the event log; "
+                                          "the event log's digest is at the time of issue)"))
+    return tuple(blocks)
+
+
+def _hash_table(files: Sequence[Mapping[str, Any]], caption: str) -> Table:
+    rows = tuple((text_of(f.get("path")), f"{int(f['bytes']):,}".replace(",", " ")
+                  if num(f.get("bytes")) is not None else "—", text_of(f.get("sha256")))
+                 for f in files)
+    return Table(("File", "Bytes", "SHA-256"), rows, widths=(2.6, 1.0, 5.0), align="lrl",
+                 caption=caption, mono=True)
+
+
+def _revision_text(issue: Issue) -> str:
+    """Which revision, what it replaces, and (ISO/IEC 17025 7.8.8) why and what changed."""
+    if issue.draft:
+        text = (f"{issue.revision} (DRAFT" + (f" of a re-issue; certificate {issue.replaces} "
+                                             "stands until it is issued)" if issue.replaces
+                                             else ")"))
+        return text
+    if not issue.replaces:
+        return f"{issue.revision} (first issue)"
+    text = f"{issue.revision}; replaces certificate {issue.replaces}, which is withdrawn"
+    if issue.reason:
+        text += f". Reason: {issue.reason}"
+    if issue.changes:
+        text += ". What changed: " + "; ".join(issue.changes)
+    return text
+
+
+def _signatures(cert: Mapping[str, Any], issue: Issue) -> tuple[Any, ...]:
+    """Named signatories with their functions (the lab's settings). Only an issue that
+    `bench authorise` recorded names who authorised it and when; a draft claims neither."""
+    signers = cert.get("signatories") or cert.get("signers")
+    pairs: list[tuple[str, str]] = []
+    if isinstance(signers, list) and signers:
+        for sg in signers:
+            if not isinstance(sg, Mapping):
+                pairs.append((str(sg), ""))
+                continue
+            if sg.get("authorises") or sg.get("main_signer"):
+                continue          # the authoriser's line is the issue's own, below
+            pairs.append((str(sg.get("function") or sg.get("role") or ""),
+                          str(sg.get("name") or "")))
+    else:
+        pairs = [("Calibration performed by", "")]
+    if issue.draft:
+        pairs.append(("Reviewed and authorised by", ""))
+        return (Para("DRAFT, NOT AUTHORISED: this draft has not been authorised for issue "
+                     "and is not a certificate. An authorised signatory issues it with "
+                     "`bench authorise RUN_DIR --signatory NAME`.", "strong"),
+                Signatures(tuple(pairs)))
+    who = ", ".join(x for x in (issue.signatory, issue.function) if x)
+    pairs.append((f"{issue.function or 'Authorised signatory'}; authorised this issue",
+                  str(issue.signatory)))
+    text = (f"Date of issue: {issue.issue_date}, the date on which this certificate was "
+            f"authorised for issue by {who} ({issue.issued_utc}).")
+    if issue.replaces:
+        text += (f" Revision {issue.revision}: it replaces certificate {issue.replaces}, "
+                 "which is withdrawn.")
+        if issue.reason:
+            text += f" Reason for the re-issue: {issue.reason}."
+    return (Para(text), Signatures(tuple(pairs)))

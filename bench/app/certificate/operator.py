@@ -1,0 +1,74 @@
+"""What the event log says about the people and the software behind a run: the operator's
+answers to the set-up prompts (or that --yes answered them), and the ratebench version of
+every session and of the certificate itself."""
+
+from __future__ import annotations
+
+import datetime as dt
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from bench.report.certificate.model import Para, Table
+
+NOT_RECORDED = "not recorded"
+
+
+def _utc(stamp: Any) -> str:
+    if not stamp:
+        return NOT_RECORDED
+    try:
+        t = dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00"))
+    except ValueError:
+        return str(stamp)
+    if t.tzinfo is not None:
+        t = t.astimezone(dt.UTC)
+    return t.strftime("%Y-%m-%d %H:%M:%S UTC")
+
+
+def _answered_by(e: Mapping[str, Any]) -> str:
+    """'--yes' or 'operator' (older logs say only answered: yes | operator)."""
+    return str(e.get("answered_by") or ("--yes" if e.get("answered") == "yes" else "operator"))
+
+
+def _answer(e: Mapping[str, Any]) -> str:
+    if _answered_by(e) == "--yes":
+        return "confirmed by --yes (unattended run: nobody was asked)"
+    typed = str(e.get("answer") or "").strip()
+    if e.get("answered") == "abort":
+        return f"aborted by the operator ({typed!r})"
+    return "confirmed by the operator" + (f" ({typed!r})" if typed else " (Enter)")
+
+
+def prompt_blocks(events: Sequence[Mapping[str, Any]]) -> tuple[Any, ...]:
+    """The set-up prompts of the run, in order, with who answered and when."""
+    prompts = [e for e in events if e.get("event") == "prompt"]
+    if not prompts:
+        return ()
+    rows = tuple((str(e.get("session", "")), str(e.get("text", "")),
+                  _utc(e.get("answered_utc") or e.get("utc")), _answer(e)) for e in prompts)
+    notes: tuple[str, ...] = ()
+    if any(_answered_by(e) == "--yes" for e in prompts):
+        notes = ("--yes: the run was started unattended and the set-up steps were not "
+                 "confirmed by a person at the time of the run.",)
+    return (Table(("Session", "Set-up step asked of the operator", "Answered", "Answer"), rows,
+                  widths=(0.7, 4.2, 1.7, 2.4), align="clll",
+                  caption="Operator prompts (set-up steps confirmed during the run)",
+                  notes=notes),)
+
+
+def software_note(meta: Mapping[str, Any], events: Sequence[Mapping[str, Any]],
+                  issuing_version: str, run_dir: str) -> Para:
+    """The version that created the run, ran each session and issued this certificate."""
+    sessions = {int(e.get("session") or 0): str(e["version"]) for e in events
+                if e.get("event") == "session_start" and e.get("version")}
+    created = meta.get("bench_version")
+    versions = sorted(set(sessions.values()) | ({str(created)} if created else set()))
+    if not versions:
+        ran = "version of the run not recorded"
+    elif len(versions) == 1:
+        ran = f"run with ratebench {versions[0]}"
+    else:
+        ran = "run with ratebench " + ", ".join(
+            f"{v} (session {s})" for s, v in sorted(sessions.items()))
+    return Para(f"Software: {ran}; certificate issued by ratebench {issuing_version}. "
+                f"Run directory: {run_dir}.", "note")

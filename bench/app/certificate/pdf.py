@@ -1,0 +1,259 @@
+"""The certificate as PDF with fpdf2 (pure Python; no system packages).
+
+The DejaVu fonts that ship inside matplotlib carry every glyph the certificate uses
+(ω, σ, √, ≤, ±, °), so no font has to be installed on the machine. Every page carries
+the certificate number and "Page i of n"; the last page ends with "End of certificate".
+"""
+
+from __future__ import annotations
+
+import io
+import struct
+from pathlib import Path
+
+import matplotlib
+from fpdf import FPDF, FontFace
+from fpdf.enums import TableCellFillMode, XPos, YPos
+
+from bench.app.certificate.html import is_bad
+from bench.report.certificate.model import Document, Fields, Figure, Para, Signatures, Table
+
+FONT_DIR = Path(matplotlib.get_data_path()) / "fonts" / "ttf"
+SANS, MONO = "DejaVu", "DejaVuMono"
+ALIGN = {"l": "LEFT", "r": "RIGHT", "c": "CENTER"}
+HEAD_FILL = (232, 236, 242)
+BAD = FontFace(emphasis="BOLD", color=(139, 0, 0), fill_color=(251, 229, 229))
+BODY_PT, SMALL_PT, TABLE_PT = 9.5, 7.5, 7.5
+
+
+def _png_size(png: bytes) -> tuple[int, int]:
+    if png[:8] != b"\x89PNG\r\n\x1a\n":
+        raise ValueError("a certificate figure must be a PNG")
+    w, h = struct.unpack(">II", png[16:24])
+    return w, h
+
+
+class _Pdf(FPDF):
+    def __init__(self, doc: Document) -> None:
+        super().__init__(orientation="P", unit="mm", format="A4")
+        self.doc = doc
+        self.add_font(SANS, "", FONT_DIR / "DejaVuSans.ttf")
+        self.add_font(SANS, "B", FONT_DIR / "DejaVuSans-Bold.ttf")
+        self.add_font(SANS, "I", FONT_DIR / "DejaVuSans-Oblique.ttf")
+        self.add_font(MONO, "", FONT_DIR / "DejaVuSansMono.ttf")
+        self.add_font(MONO, "B", FONT_DIR / "DejaVuSansMono-Bold.ttf")
+        self.set_margins(15, 22, 15)
+        self.set_auto_page_break(True, margin=18)
+        self.set_title(f"{doc.title} {doc.cert_id}")
+        self.set_author(doc.laboratory)
+        self.set_subject(doc.subtitle)
+        self.set_creator("ratebench")
+
+    def header(self) -> None:
+        self.set_y(9)
+        self.set_font(SANS, "", 8)
+        self.set_text_color(60, 60, 60)
+        self.cell(0, 4, self.doc.laboratory, new_x=XPos.LMARGIN, new_y=YPos.TOP)
+        self.cell(0, 4, f"Certificate No. {self.doc.cert_id}", align="R",
+                  new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        issued = (f"issued {self.doc.issue_date}" if self.doc.issue_date
+                  else "DRAFT, NOT AUTHORISED, not issued")
+        self.cell(0, 4, f"{self.doc.title}, {issued}",
+                  new_x=XPos.LMARGIN, new_y=YPos.TOP)
+        self.cell(0, 4, f"Page {self.page_no()} of {{nb}}", align="R",
+                  new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        self.set_draw_color(34, 51, 68)
+        self.set_line_width(0.4)
+        self.line(self.l_margin, self.get_y() + 1, self.w - self.r_margin, self.get_y() + 1)
+        self.set_text_color(0, 0, 0)
+        if self.doc.watermark:
+            self._watermark()
+        self.set_y(22)
+
+    def _watermark(self) -> None:
+        """Across the page, light, under the content drawn after it; and in the header."""
+        y = self.get_y()
+        self.set_font(SANS, "B", 34)
+        self.set_text_color(238, 200, 200)
+        marks = self.doc.watermark.split(" / ")     # one mark per line across the page
+        with self.rotation(45, x=self.w / 2, y=self.h / 2):
+            for i, mark in enumerate(marks):
+                self.set_xy(0, self.h / 2 - 8 + (i - (len(marks) - 1) / 2) * 18)
+                self.cell(self.w, 16, mark, align="C")
+        self.set_font(SANS, "B", 7.5)
+        self.set_text_color(139, 0, 0)
+        self.set_xy(self.l_margin, y + 1.5)
+        self.cell(0, 3.5, self.doc.watermark, align="C")
+        self.set_text_color(0, 0, 0)
+
+    def footer(self) -> None:
+        self.set_y(-14)
+        self.set_draw_color(150, 150, 170)
+        self.set_line_width(0.2)
+        self.line(self.l_margin, self.get_y(), self.w - self.r_margin, self.get_y())
+        self.set_font(SANS, "", 6.5)
+        self.set_text_color(80, 80, 80)
+        self.multi_cell(0, 3, self.doc.footer, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        self.set_text_color(0, 0, 0)
+
+    # -- blocks ----------------------------------------------------------------------------
+    @property
+    def text_w(self) -> float:
+        return self.w - self.l_margin - self.r_margin
+
+    def para(self, p: Para) -> None:
+        if p.style == "formula":
+            self.set_font(MONO, "", 8.5)
+            self.set_x(self.l_margin + 8)
+            self.multi_cell(self.text_w - 8, 4.4, p.text, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        else:
+            style = "B" if p.style == "strong" else ""
+            size = SMALL_PT + 0.5 if p.style == "note" else BODY_PT
+            self.set_font(SANS, style, size)
+            self.multi_cell(0, size * 0.48, p.text, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        self.ln(1.2)
+
+    def fields(self, f: Fields) -> None:
+        self.set_font(SANS, "", 8.5)
+        label = FontFace(emphasis="BOLD", fill_color=(244, 246, 249))
+        with self.table(col_widths=(1.0, 2.4), first_row_as_headings=False, line_height=4.2,
+                        text_align=("LEFT", "LEFT"), padding=(0.8, 1.5),
+                        cell_fill_mode=TableCellFillMode.NONE) as t:
+            for k, v in f.rows:
+                row = t.row()
+                row.cell(k, style=label)
+                row.cell(v, style=BAD if is_bad(v) else None)
+        self.ln(2)
+
+    def caption(self, text: str) -> None:
+        self.set_font(SANS, "I", 8)
+        self.multi_cell(0, 3.8, text, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        self.ln(0.6)
+
+    def table_block(self, tb: Table) -> None:
+        if self.will_page_break(22):
+            self.add_page()
+        if tb.caption:
+            self.caption(tb.caption)
+        n = len(tb.header)
+        widths = tb.widths if len(tb.widths) == n else (1.0,) * n
+        align = tuple(ALIGN.get(a, "LEFT") for a in (tb.align or "l" * n).ljust(n, "l"))
+        head = FontFace(emphasis="BOLD", fill_color=HEAD_FILL, size_pt=TABLE_PT)
+        self.set_font(MONO if tb.mono else SANS, "", 6.3 if tb.mono else TABLE_PT)
+        with self.table(col_widths=widths, text_align=align, line_height=3.6,
+                        headings_style=head, repeat_headings=1, padding=(0.6, 1.0),
+                        cell_fill_mode=TableCellFillMode.NONE) as t:
+            hrow = t.row()
+            for h in tb.header:
+                hrow.cell(h, align="CENTER")
+            for cells in tb.rows:
+                row = t.row()
+                for c in cells:
+                    row.cell(c, style=BAD if is_bad(c) else None)
+        self.set_font(SANS, "", SMALL_PT)
+        for note in tb.notes:
+            self.multi_cell(0, 3.4, note, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        self.ln(2.5)
+
+    def figure(self, fig: Figure, number: int) -> None:
+        w_px, h_px = _png_size(fig.png)
+        w = self.text_w * fig.width_frac
+        h = w * h_px / w_px
+        room = self.h - self.b_margin - self.get_y()
+        if h + 9 > room and 0.7 * h + 9 <= room:  # shrink a little rather than leave a gap
+            h = room - 9
+            w = h * w_px / h_px
+        elif h + 9 > room:
+            self.add_page()
+            room = self.h - self.b_margin - self.get_y()
+        if h + 9 > room:  # taller than a page: shrink to fit
+            h = room - 9
+            w = h * w_px / h_px
+        self.image(io.BytesIO(fig.png), x=self.l_margin + (self.text_w - w) / 2, w=w, h=h)
+        self.ln(1)
+        self.set_font(SANS, "I", 8)
+        self.multi_cell(0, 3.8, f"Figure {number}: {fig.caption}", align="C",
+                        new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        self.ln(3)
+
+    def signatures(self, s: Signatures) -> None:
+        if self.will_page_break(32):
+            self.add_page()
+        self.ln(12)
+        n = len(s.signers)
+        gap = 10.0
+        col = (self.text_w - gap * (n - 1)) / max(n, 1)
+        y = self.get_y()
+        for i, (role, name) in enumerate(s.signers):
+            x = self.l_margin + i * (col + gap)
+            self.set_draw_color(0, 0, 0)
+            self.line(x, y, x + col, y)
+            self.set_xy(x, y + 1)
+            self.set_font(SANS, "", 8)
+            text = f"{name + ', ' if name else ''}{role}\nSignature and date"
+            self.multi_cell(col, 3.8, text, align="L")
+        self.set_y(y + 12)
+
+
+def render_pdf(doc: Document) -> bytes:
+    pdf = _Pdf(doc)
+    pdf.add_page()
+    pdf.set_font(SANS, "B", 18)
+    pdf.cell(0, 10, doc.title, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+    pdf.set_font(SANS, "", 11)
+    pdf.multi_cell(0, 5.5, doc.subtitle, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+    if doc.meta.get("run_title"):
+        pdf.set_font(SANS, "I", 9.5)
+        pdf.multi_cell(0, 5, doc.meta["run_title"], new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+    pdf.ln(2)
+    colours = {"pass": ((216, 239, 216), (18, 77, 18)), "fail": ((246, 210, 210), (139, 0, 0))}
+    fill, ink = colours.get(doc.verdict, ((247, 236, 201), (107, 75, 0)))
+    pdf.set_fill_color(*fill)
+    pdf.set_text_color(*ink)
+    pdf.set_font(SANS, "B", 11)
+    pdf.cell(60, 7, f"Result: {doc.verdict.upper()}", fill=True, align="C",
+             new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+    pdf.set_text_color(0, 0, 0)
+    pdf.set_fill_color(255, 255, 255)
+    pdf.ln(1)
+    if doc.meta.get("scope"):
+        pdf.set_font(SANS, "", 8.5)
+        pdf.multi_cell(0, 4.2, doc.meta["scope"], new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+    if doc.meta.get("replaces"):
+        pdf.set_font(SANS, "B", 8.5)
+        pdf.multi_cell(0, 4.2, f"Revision {doc.meta.get('revision')}: replaces certificate "
+                               f"{doc.meta['replaces']}, which is withdrawn.",
+                       new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+    pdf.ln(2)
+    figure_no = 0
+    for s in doc.sections:
+        keep = 75 if any(isinstance(b, Signatures) for b in s.blocks) else 25
+        if s.new_page or pdf.will_page_break(keep):  # a heading stays with what follows
+            pdf.add_page()
+        pdf.set_font(SANS, "B", 12 if s.level == 1 else 10.5)
+        pdf.ln(2 if s.level == 1 else 1)
+        pdf.cell(0, 6.5, f"{s.number} {s.title}", new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        if s.level == 1:
+            pdf.set_draw_color(150, 150, 170)
+            pdf.set_line_width(0.2)
+            pdf.line(pdf.l_margin, pdf.get_y(), pdf.w - pdf.r_margin, pdf.get_y())
+        pdf.ln(1.5)
+        for b in s.blocks:
+            if isinstance(b, Para):
+                pdf.para(b)
+            elif isinstance(b, Fields):
+                pdf.fields(b)
+            elif isinstance(b, Table):
+                pdf.table_block(b)
+            elif isinstance(b, Figure):
+                figure_no += 1
+                pdf.figure(b, figure_no)
+            elif isinstance(b, Signatures):
+                pdf.signatures(b)
+            else:
+                raise TypeError(f"unknown certificate block {type(b).__name__}")
+    pdf.ln(6)
+    pdf.set_font(SANS, "B", 10)
+    pdf.cell(0, 6, f"— {doc.end_text} {doc.cert_id} —", align="C",
+             new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+    return bytes(pdf.output())

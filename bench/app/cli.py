@@ -1,0 +1,174 @@
+"""The `bench` command (CONTRACT §1). Each subcommand lives in its own module."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+
+import bench
+from bench.app import commands
+from bench.app.certificate.authorise import add_parser as add_authorise_parser
+from bench.app.certificate.authorise import cmd_authorise
+from bench.app.dcc.command import COMMANDS as DCC_COMMANDS
+from bench.app.dcc.command import add_parsers as add_dcc_parsers
+from bench.app.decode import decode_command
+from bench.app.records.commands import RECORDS_COMMANDS
+from bench.app.records.commands import add_parsers as add_records_parsers
+from bench.app.reference import schema_command
+from bench.app.starter import init_command
+from bench.app.station.serve import cmd_serve
+
+EPILOG = """\
+examples:
+  bench init mylab                       commented stand, procedure and lab files
+  bench validate mylab/procedure.yaml    every problem of both files, file:line: key
+  bench plan mylab/procedure.yaml        steps, bench time, raw data volume
+  bench run mylab/procedure.yaml --yes   run; prints the run directory last
+  bench run --example demo --sim --yes   the shipped demo on simulated twins
+  bench run --resume runs/RUN_DIR        continue an interrupted run
+  bench serve --runs runs                the station page at http://127.0.0.1:8765/
+  bench schema stand                     every stand key (also: procedure KIND, lab)
+
+exit status:
+  0  completed and every check passed
+  1  completed and some check failed (the certificate says which)
+  2  the input is invalid, or the runs folder has no room for the raw data (nothing
+     was moved)
+  3  aborted by a fault or by the operator (axes stopped, data kept; --resume works)
+
+documentation: README.md and docs/ (configuration.md: every key of every file)
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="bench",
+        description="Attest rotary rate tables: run YAML procedures on real instruments "
+                    "or on their simulated twins, and issue a certificate.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--version", action="version", version=f"bench (ratebench) {bench.__version__}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    run = sub.add_parser("run", help="run a procedure; prints the run directory last",
+                         description="Run a procedure on its stand (twins if the stand has "
+                         "a sim: block, or with --sim) and write a run directory; its path "
+                         "is the last line printed. Examples: bench run p.yaml --yes; bench "
+                         "run --resume runs/RUN_DIR. Exit 0 passed, 1 a check failed, 2 "
+                         "invalid input or no room for the raw data (nothing moved), 3 "
+                         "aborted (axes stopped, data kept, --resume continues).")
+    run.add_argument("procedure", nargs="?", help="procedure YAML file")
+    run.add_argument("--sim", action="store_true", help="run every instrument as its twin")
+    run.add_argument("--out", default="runs", help="folder for the run directory (runs/)")
+    run.add_argument("--yes", action="store_true", help="answer operator prompts with yes")
+    run.add_argument("--resume", metavar="RUN_DIR", help="continue an interrupted run")
+    run.add_argument("--example", metavar="NAME",
+                     help="run a procedure shipped inside the package (demo, drift-demo)")
+    run.add_argument("--records", metavar="URL",
+                     help="records database (default records.sqlite in the --out folder)")
+    state = run.add_mutually_exclusive_group()
+    state.add_argument("--as-found", dest="calibration_state", action="store_const",
+                       const="as-found", help="this run measures the table as found")
+    state.add_argument("--as-left", dest="calibration_state", action="store_const",
+                       const="as-left", help="this run measures the table as left (adjusted)")
+    run.add_argument("--adjustment", metavar="NOTE", help="what was adjusted since as-found")
+    run.add_argument("--operator", help="who runs it (default: the login name)")
+    _console_options(run)
+    val = sub.add_parser("validate", help="check procedure and stand files; exit 2 on problems",
+                         description="Check a procedure file and the stand file it names "
+                         "(or a stand file alone) and print every problem at once, each "
+                         "with file:line and key path. Exit 0 valid, 2 invalid.")
+    val.add_argument("procedure", metavar="FILE",
+                     help="a procedure YAML file (its stand is checked with it), or a "
+                          "stand YAML file alone")
+    plan = sub.add_parser("plan", help="print the steps, bench time and data volume",
+                          description="Print the steps the run will take, the estimated "
+                          "bench time and the raw data it will write; touches no "
+                          "hardware. Exit 0, or 2 when the files are invalid.")
+    plan.add_argument("procedure", metavar="PROCEDURE",
+                      help="the procedure YAML file (its stand file is read too)")
+    plan.add_argument("--out", default="runs", metavar="DIR",
+                      help="the runs folder whose free space is compared (runs/)")
+    sch = sub.add_parser("schema", help="configuration reference: every key of a file",
+                         description="The configuration reference, generated from the "
+                         "schema bench validate checks with: key, type, unit, default, "
+                         "meaning, whether required. Examples: bench schema stand; "
+                         "bench schema procedure rate-ladder --json; bench schema lab")
+    sch.add_argument("target", nargs="?", choices=("stand", "procedure", "lab"),
+                     default="stand", help="which file (stand)")
+    sch.add_argument("kind", nargs="?", metavar="KIND",
+                     help="the procedure kind (rate-ladder, drift-pulse), for procedure")
+    sch.add_argument("--json", action="store_true", help="print a JSON Schema instead")
+    sch.add_argument("--markdown", action="store_true",
+                     help="print docs/configuration.md (every file)")
+    ini = sub.add_parser("init", help="write commented stand, procedure and lab files",
+                         description="Write stand.yaml, procedure.yaml and lab.yaml, "
+                         "commented, that validate: on the twins (runs at once), or with "
+                         "--real for a real bench. Never overwrites (exit 2).")
+    ini.add_argument("dir", nargs="?", default=".", help="folder to write into (.)")
+    ini.add_argument("--real", action="store_true",
+                     help="a real bench: no sim: block, the keys hardware needs")
+    ana = sub.add_parser("analyze", help="recompute result.json and certificate from raw data")
+    ana.add_argument("run_dir")
+    ana.add_argument("--records", metavar="URL",
+                     help="records database (default records.sqlite beside the run)")
+    _console_options(ana)
+    dev = sub.add_parser("devices", help="open each instrument, print its identity")
+    dev.add_argument("stand")
+    dev.add_argument("--sim", action="store_true", help="open the twins instead")
+    dec = sub.add_parser("decode", help="decode a raw FOG capture")
+    dec.add_argument("raw_file")
+    dec.add_argument("--format", required=True, dest="fmt", help="frame format, e.g. kvh-a")
+    dec.add_argument("--csv", help="write the samples to this CSV file")
+    srv = sub.add_parser("serve", help="local web station view: live runs and records")
+    srv.add_argument("--runs", default="runs", help="the runs folder to show (runs/)")
+    srv.add_argument("--records", metavar="URL", help="records database URL")
+    srv.add_argument("--port", type=int, default=8765, help="TCP port (8765; 0 picks one)")
+    srv.add_argument("--host", default="127.0.0.1",
+                     help="address to bind (127.0.0.1); another one needs --token")
+    srv.add_argument("--token", help="token for stop requests and remote viewers "
+                                     "(default: $BENCH_STATION_TOKEN, else one is made up)")
+    sim = sub.add_parser("sim", help="start the stand's twins alone; print their addresses")
+    sim.add_argument("stand", help="stand YAML file")
+    add_dcc_parsers(sub)
+    add_authorise_parser(sub)
+    add_records_parsers(sub)
+    return p
+
+
+def _console_options(cmd: argparse.ArgumentParser) -> None:
+    """How the run is shown: a live display on a terminal, plain lines otherwise."""
+    shown = cmd.add_mutually_exclusive_group()
+    shown.add_argument("--quiet", action="store_true",
+                       help="print only faults, warnings, prompts and the verdict")
+    shown.add_argument("--log-json", action="store_true",
+                       help="progress and summary as JSON lines on standard error")
+
+
+def main(argv: list[str] | None = None) -> int:
+    # canopen logs an SDO abort it sends as a warning; without a handler Python prints it
+    # to stderr above our own message, and the first line the operator reads would be a
+    # library's echo of the cause, not the cause (the session reports every fault itself)
+    logging.getLogger("canopen").addHandler(logging.NullHandler())
+    args = build_parser().parse_args(argv)
+    if args.command == "decode":
+        return decode_command(args.raw_file, args.fmt, args.csv)
+    if args.command == "serve":
+        return cmd_serve(args)
+    if args.command == "schema":
+        return schema_command(args.target, args.kind, args.json, args.markdown)
+    if args.command == "init":
+        return init_command(args.dir, args.real)
+    if args.command == "sim":
+        from bench.app.simserve import serve
+        return serve(args.stand)
+    if args.command in RECORDS_COMMANDS:
+        return RECORDS_COMMANDS[args.command](args)
+    if args.command == "authorise":
+        return cmd_authorise(args)
+    if args.command in DCC_COMMANDS:
+        return DCC_COMMANDS[args.command](args)
+    return commands.dispatch(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

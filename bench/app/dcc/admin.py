@@ -1,0 +1,256 @@
+"""The DCC's administrativeData: software, refTypes, core data, item, laboratory,
+responsible persons, customer and the statements (conformity overall, location, raw-data
+digests). What nobody recorded says "not recorded"; nothing is invented.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from lxml import etree
+
+import bench
+from bench.app.certificate.build import Sources, check_class, decision_rule_text
+from bench.app.certificate.register import Issue
+from bench.core.lab import Lab
+from bench.report.certificate import methods
+from bench.report.certificate.parts import CertificateParts
+from bench.report.dcc import vocab as V
+from bench.report.dcc.conformity import ILAC_G8, RULE_REFERENCE, checks_of
+from bench.report.dcc.parts import DccParts
+from bench.report.dcc.xml import NOT_RECORDED, el, name, num, statement, text_el
+
+UNKNOWN_COUNTRY = "ZZ"   # ISO 3166-1 user-assigned code: the laboratory did not configure one
+
+
+def _date(stamp: Any) -> str | None:
+    if not stamp:
+        return None
+    try:
+        t = dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00"))
+    except ValueError:
+        return None
+    if t.tzinfo is not None:
+        t = t.astimezone(dt.UTC)
+    return t.date().isoformat()
+
+
+def _event(src: Sources, kind: str, last: bool = False) -> str | None:
+    found = [e.get("utc") for e in src.events if e.get("event") == kind]
+    return (found[-1] if last else found[0]) if found else None
+
+
+def stand_of(src: Sources) -> dict[str, Any]:
+    stand = dict(src.stand_file.get("stand", {}) or {})
+    stand.update({k: v for k, v in (src.get("stand", {}) or {}).items() if v is not None})
+    return stand
+
+
+def administrative(adm: etree._Element, src: Sources, lab: Lab,
+                   parts: CertificateParts, kind: DccParts, issue: Issue,
+                   today: str) -> None:
+    """`parts` answers as on the certificate (its closing statements), `kind` for the DCC
+    (the item). `issue` is the PDF's: a draft (no mainSigner, a DRAFT statement, the
+    date the draft was written as issueDate, which the schema requires) or the issue
+    `bench authorise` records (its authoriser the mainSigner)."""
+    cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
+    soft = el(adm, "dccSoftware")
+    versions = dict.fromkeys([bench.__version__, str(src.meta.get("bench_version") or
+                                                     bench.__version__)])
+    for i, version in enumerate(versions):
+        sw = el(soft, "software")
+        name(sw, "ratebench (rate-table attestation bench)")
+        el(sw, "release", version)
+        el(sw, "type", "application")
+        text_el(sw, "description", "wrote this DCC" if i == 0 else "ran the measurement")
+    defs = el(adm, "refTypeDefinitions")
+    for ns in V.NAMESPACES:
+        d = el(defs, "refTypeDefinition")
+        name(d, ns.name)
+        text_el(d, "description", ns.description)
+        el(d, "namespace", ns.prefix)
+        el(d, "link", ns.link)
+    core = el(adm, "coreData")
+    country = lab.country or cert.get("country_code")
+    el(core, "countryCodeISO3166_1", str(country or UNKNOWN_COUNTRY))
+    el(core, "usedLangCodeISO639_1", "en")
+    el(core, "mandatoryLangCodeISO639_1", "en")
+    el(core, "uniqueIdentifier", issue.number)   # the PDF's number, this issue
+    ids = el(core, "identifications")
+    run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else None)
+    if run_dir:
+        idn = el(ids, "identification", ref_type=V.RUN_DIRECTORY)
+        el(idn, "issuer", "calibrationLaboratory")
+        el(idn, "value", str(run_dir))
+        name(idn, "Run directory (raw data and result.json)")
+    title = src.get("title") or src.procedure_file.get("title")
+    if title:
+        idn = el(ids, "identification")
+        el(idn, "issuer", "calibrationLaboratory")
+        el(idn, "value", str(title))
+        name(idn, "Title of the work")
+    if not len(ids):
+        core.remove(ids)
+    dates = src.get("dates", {}) or {}
+    begin = (_date(dates.get("started_utc")) or _date(_event(src, "session_start"))
+             or _date(dates.get("created_utc")) or _date(src.meta.get("created_utc")) or today)
+    end = (_date(dates.get("completed_utc")) or _date(_event(src, "completed", last=True))
+           or begin)
+    el(core, "beginPerformanceDate", begin)
+    el(core, "endPerformanceDate", end)
+    el(core, "performanceLocation", lab.performance_location)
+    el(core, "issueDate", today if issue.draft else issue.issue_date)
+    if issue.replaces and not issue.draft:      # a re-issue: say what it replaces
+        change = el(core, "reportAmendedSubstituted")
+        el(change, "typeOfChange", "substituted")
+        el(change, "replacedUniqueIdentifier", issue.replaces)
+    _item(el(adm, "items"), src, kind)
+    labx = el(adm, "calibrationLaboratory")
+    if lab.code:
+        el(labx, "calibrationLaboratoryCode", lab.code)
+    contact = el(labx, "contact")
+    name(contact, str(lab.name or f"laboratory {NOT_RECORDED}"))
+    if lab.email:
+        el(contact, "eMail", lab.email)
+    if lab.phone:
+        el(contact, "phone", lab.phone)
+    # the address as the PDF prints it, after its parts (where the lab file gives them)
+    _location(contact, (*lab.location, *((("further", lab.address),) if lab.address else ())))
+    persons = el(adm, "respPersons")
+    # a draft names the lab's signatories, none as main signer (nobody authorised it); an
+    # issue those who did not authorise, then the one who did, its main signer
+    people = [(s.name, s.function or None) for s in lab.signatories
+              if issue.draft or not s.authorises]
+    if not issue.draft:
+        people.append((str(issue.signatory), issue.function or "Authorised signatory"))
+    for person_name, role in people or [("", "Calibration performed by")]:
+        rp = el(persons, "respPerson")
+        name(el(rp, "person"), person_name or f"name {NOT_RECORDED}")
+        if role:
+            el(rp, "role", role)
+        if not issue.draft and person_name == issue.signatory:
+            el(rp, "mainSigner", "true")
+    customer = el(adm, "customer")
+    name(customer, str(cert.get("customer") or f"customer {NOT_RECORDED}"))
+    where = cert.get("customer_address") or cert.get("customer_location")
+    fields = [("further", str(where))] if where else []
+    if cert.get("customer_contact"):
+        fields.append(("further", f"Contact: {cert['customer_contact']}"))
+    _location(customer, fields)
+    _statements(el(adm, "statements"), src, parts, country, issue)
+
+
+def _location(parent: etree._Element, fields: Sequence[tuple[str, str]]) -> None:
+    loc = el(parent, "location")
+    for tag, value in fields or (("further", f"address {NOT_RECORDED}"),):
+        if tag == "further":
+            text_el(loc, tag, value)
+        else:
+            el(loc, tag, value)
+
+
+def _item(items: etree._Element, src: Sources, kind: DccParts) -> None:
+    stand = stand_of(src)
+    item = el(items, "item", id="item")
+    what, named_axes = kind.dcc_item(src)
+    name(item, " ".join(str(x) for x in (stand.get("maker"), stand.get("model")) if x)
+         or f"{what} ({NOT_RECORDED})")
+    axes = ", ".join(named_axes)
+    text = f"Item calibrated: {what}" + (f"; axes {axes}" if axes else "") + "."
+    if stand.get("simulated"):
+        text += (" SIMULATED stand: instrument twins on real channels; these results "
+                 "describe no physical item.")
+    if stand.get("file"):
+        text += f" Stand file {stand['file']} (SHA-256 {stand.get('sha256', NOT_RECORDED)})."
+    text_el(item, "description", text)
+    if stand.get("maker"):
+        name(el(item, "manufacturer"), str(stand["maker"]))
+    if stand.get("model"):
+        el(item, "model", str(stand["model"]))
+    ids = el(item, "identifications")
+    idn = el(ids, "identification")
+    el(idn, "issuer", "manufacturer")
+    el(idn, "value", str(stand.get("serial") or NOT_RECORDED))
+    name(idn, "Serial number")
+
+
+def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
+                country: Any, issue: Issue) -> None:
+    if issue.draft:
+        statement(sts, V.DRAFT, "DRAFT, NOT AUTHORISED: this draft has not been authorised "
+                  "for issue and is not a certificate; `bench authorise RUN_DIR --signatory "
+                  "NAME` issues it.", sid="draftStatus", title="Draft")
+    else:
+        text = (f"Authorised for issue on {issue.issue_date} ({issue.issued_utc}) by "
+                f"{issue.signatory}" + (f", {issue.function}" if issue.function else "") + ".")
+        if issue.replaces:
+            text += (f" Revision {issue.revision}: it replaces certificate {issue.replaces}, "
+                     "which is withdrawn." + (f" Reason: {issue.reason}." if issue.reason
+                                               else "")
+                     + (" What changed: " + "; ".join(issue.changes) + "."
+                        if issue.changes else ""))
+        statement(sts, V.AUTHORISATION, text, sid="authorisation", title="Authorisation")
+    first = methods.STATEMENTS[0]
+    for text in parts.certificate_statements(methods.STATEMENTS):   # those the PDF prints
+        refs = ("7.8.2.1 l)",) if text == first else ("7.8",)
+        text = (text.replace("as identified in section 1", "identified under items")
+                .replace("printed in % or in ppm (1 ppm = 0.0001 %) as the column header "
+                         "states", "given here as plain fractions (unit \\one); the PDF "
+                         "prints them in % or ppm"))
+        statement(sts, None, text, norms=("ISO/IEC 17025:2017",), references=refs)
+    statement(sts, None, "The PDF embedded here (certificate.pdf, under document) is the "
+              "authoritative form of this certificate; this XML carries the same results, "
+              "unrounded, for machines to read.")
+    verdict = str(src.get("verdict") or "incomplete").lower()
+    rule = str(src.get("decision_rule") or "simple")
+    overall = {"pass": "pass", "fail": "fail"}.get(verdict)
+    classes = [check_class(c) for c in checks_of(src)]
+    n, na = classes.count("conformity"), classes.count("not-assessed")
+    cons = classes.count("consistency")
+    text = (f"Overall statement of conformity: {verdict.upper()} ({n} check(s) of conformity, "
+            "each stated with the quantity it judges"
+            + (f"; {na} check(s) NOT ASSESSED, left out of the verdict" if na else "")
+            + (f"; {cons} consistency check(s), not conformity" if cons else "")
+            + "). " + decision_rule_text(rule))
+    statement(sts, V.CONFORMITY, text, sid="overallConformity", title="Conformity",
+              norms=(ILAC_G8,), references=(RULE_REFERENCE.get(rule, rule),),
+              conformity=overall)
+    stand = stand_of(src)
+    if stand.get("location"):
+        st = statement(sts, V.LOCATION, "Location of the item during the calibration.")
+        loc = el(st, "location")
+        text_el(loc, "further", str(stand["location"]))
+    if stand.get("simulated"):
+        statement(sts, V.SIMULATED, "SIMULATED stand: every instrument was a simulated "
+                  "twin on a real channel; the results describe no physical item.")
+    if not country:
+        statement(sts, V.COUNTRY_UNKNOWN, "The laboratory configured no country: the "
+                  f"country code {UNKNOWN_COUNTRY} (ISO 3166-1 user-assigned) stands for "
+                  "'not recorded'.")
+    _digests(sts, src)
+
+
+def _digests(sts: etree._Element, src: Sources) -> None:
+    files = [f for f in src.get("raw_files", []) or [] if isinstance(f, Mapping)]
+    if not files and src.run_path is not None and (src.run_path / "raw").is_dir():
+        from bench.core.journal import sha256_file
+
+        files = [{"path": p.relative_to(src.run_path).as_posix(), "sha256": sha256_file(p),
+                  "bytes": p.stat().st_size}
+                 for p in sorted((src.run_path / "raw").rglob("*")) if p.is_file()]
+    if not files:
+        statement(sts, V.RAW_DIGESTS, "No raw data files were recorded.")
+        return
+    st = statement(sts, V.RAW_DIGESTS, "SHA-256 digests of the raw data as received from "
+                   "the instruments (path in the run directory, then the digest in hex); "
+                   "`bench analyze RUN_DIR` recomputes every result from these bytes.",
+                   title="Raw data files")
+    data = el(st, "data")
+    for f in files:
+        t = el(data, "text", ref_type=V.SHA256)
+        name(t, str(f.get("path") or NOT_RECORDED))
+        el(t, "content", str(f.get("sha256") or NOT_RECORDED))
+        if num(f.get("bytes")) is not None:
+            el(t, "content", f"{int(num(f.get('bytes')) or 0)} bytes")

@@ -1,0 +1,165 @@
+"""The DCC's part of the command line: the hook after the PDF, `bench dcc`, `bench verify`.
+
+Exit status as everywhere (CONTRACT §1): a run whose DCC does not validate has no
+certificate to sign, so it ends 3 like a run whose PDF could not be written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import traceback
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
+
+
+def _err(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def write_run_dcc(run_path: Path, result: dict[str, Any], stand: Mapping[str, Any] | None,
+                  line: Callable[[str], None] = print, lab_file: str | Path | None = None,
+                  warn: Callable[[str], None] = _err) -> bool:
+    """Write RUN_DIR/certificate.dcc.xml after the PDF; False when the run has no valid DCC
+    (the caller then exits 3), True when it was written or the run has no verdict.
+    `line` and `warn` are the console's (bench.core.progress): a message, a fault."""
+    from bench.app.dcc.output import write_dcc
+    from bench.app.dcc.settings import SettingsError
+
+    try:
+        outcome = write_dcc(run_path, result, dict(stand or {}), lab_file)
+    except SettingsError as e:
+        warn(f"the DCC could not be written: {e}; result.json and the PDF are in {run_path}; "
+             f"once fixed, `bench dcc {run_path}` writes it")
+        return False
+    except Exception as e:  # noqa: BLE001 - a bug to report; the PDF and result.json stand
+        traceback.print_exc(file=sys.stderr)
+        warn(f"the DCC could not be written: {e!r}; once fixed, `bench dcc {run_path}` "
+             "writes it")
+        return False
+    if outcome.skipped:
+        line(outcome.message())
+        return True
+    if outcome.ok:
+        line(f"wrote {outcome.path} (valid DCC 3.3.0), a DRAFT, NOT AUTHORISED: "
+             "`bench authorise` issues it")
+        return True
+    warn(outcome.message() + f"\nthe DCC does not validate and was kept as "
+         f"{run_path / 'certificate.dcc.invalid.xml'} for diagnosis; once fixed, "
+         f"`bench dcc {run_path}` writes it")
+    return False
+
+
+def _stand_of_run(run_path: Path) -> dict[str, Any] | None:
+    """The run's stand file (its copy in the run directory), with its `dcc:` key checked."""
+    from bench.app.dcc.settings import STAND_DCC
+    from bench.core.yamlfile import YamlError, load_yaml
+
+    path = run_path / "stand.yaml"
+    if not path.is_file():
+        return {}
+    try:
+        doc = load_yaml(path)
+    except YamlError as e:
+        _err(str(e.problem))
+        return None
+    data = doc.data if isinstance(doc.data, dict) else {}
+    problems: list[Any] = []
+    if "dcc" in data:
+        STAND_DCC.check(data["dcc"], ("dcc",), doc, problems)
+    for p in problems:
+        _err(str(p))
+    return None if problems else data
+
+
+def cmd_dcc(args: argparse.Namespace) -> int:
+    """`bench dcc RUN_DIR [--lab FILE]`: (re)write and validate certificate.dcc.xml."""
+    import json
+
+    run_path = Path(args.run_dir)
+    result_file = run_path / "result.json"
+    if not result_file.is_file():
+        _err(f"{result_file}: not found; `bench analyze {run_path}` writes it from the raw data")
+        return EXIT_INVALID
+    try:
+        result = json.loads(result_file.read_text(encoding="utf-8"))
+    except ValueError as e:
+        _err(f"{result_file}: not JSON: {e}")
+        return EXIT_INVALID
+    stand = _stand_of_run(run_path)
+    if stand is None:
+        return EXIT_INVALID
+    if not (run_path / "certificate.pdf").is_file():
+        _err(f"note: {run_path / 'certificate.pdf'} is missing, so the DCC carries no "
+             f"human-readable document; `bench analyze {run_path}` writes both")
+    if not write_run_dcc(run_path, result, stand, lab_file=args.lab):
+        return EXIT_ABORTED
+    verdict = str(result.get("verdict") or "").lower()
+    return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(verdict, EXIT_ABORTED)
+
+
+def cmd_verify(args: argparse.Namespace) -> int:
+    """`bench verify FILE`: schema, signature (if signed), values against result.json."""
+    from bench.app.dcc.verify import verify_file
+
+    path = Path(args.file)
+    if not path.is_file():
+        _err(f"{path}: not found")
+        return EXIT_INVALID
+    cert = Path(args.cert) if args.cert else None
+    lab = _lab_of(args.lab, path.parent)
+    if cert is None and not args.ca and lab is not None and lab.signing is not None:
+        cert = lab.signing.certificate_file
+    report = verify_file(path, Path(args.result) if args.result else None, cert,
+                         Path(args.ca) if args.ca else None, need_result=not args.no_result,
+                         require_signed=bool(lab and lab.require_signed_dcc))
+    print(f"{path}:")
+    print("\n".join(f"  {line}" for line in report.lines))
+    print("verify: FAILED" if report.failed else "verify: OK")
+    return EXIT_FAIL if report.failed else EXIT_PASS
+
+
+def _lab_of(lab_file: str | None, folder: Path) -> Any:
+    """The lab whose DCC this is: `--lab`, else $BENCH_LAB_SETTINGS, else the lab file
+    copied into the run directory the file lies in (or its parent, for an issued
+    revision's folder); None when none is found or it is unusable (said on stderr)."""
+    import os
+
+    from bench.app.dcc.settings import ENV_LAB, SettingsError, load_lab_file
+    from bench.core.lab import RUN_COPY
+
+    chosen = lab_file or os.environ.get(ENV_LAB)
+    if not chosen:
+        near = [d / RUN_COPY for d in (folder, *folder.parents[:2]) if (d / RUN_COPY).is_file()]
+        if not near:
+            return None
+        chosen = str(near[0])
+    try:
+        return load_lab_file(chosen)
+    except SettingsError as e:
+        _err(f"note: {e}; the signer's identity is not checked against the lab's certificate")
+        return None
+
+
+def add_parsers(sub: Any) -> None:
+    """The `dcc` and `verify` subcommands (called by bench/app/cli.py)."""
+    dcc = sub.add_parser("dcc", help="(re)write certificate.dcc.xml (PTB DCC 3.3.0) from "
+                                     "result.json and validate it offline")
+    dcc.add_argument("run_dir")
+    dcc.add_argument("--lab", help="lab settings file (contact, persons, signing key); "
+                                   "default: the stand's dcc.lab or $BENCH_LAB_SETTINGS")
+    ver = sub.add_parser("verify", help="check a DCC: schema, signature, values vs result.json")
+    ver.add_argument("file")
+    ver.add_argument("--result", help="the run's result.json (default: beside FILE)")
+    ver.add_argument("--cert", help="trusted signer certificate, PEM (default: the lab's own "
+                                    "from its settings, else the one in the file)")
+    ver.add_argument("--ca", help="CA certificates, PEM, to validate the signer's chain")
+    ver.add_argument("--lab", help="lab settings file whose signing certificate is trusted")
+    ver.add_argument("--no-result", action="store_true",
+                     help="check schema and signature only (no result.json at hand)")
+
+
+COMMANDS = {"dcc": cmd_dcc, "verify": cmd_verify}

@@ -1,0 +1,174 @@
+"""The DCC's usedMethods, usedSoftware, measuringEquipments and influenceConditions,
+common to every measurementResult: the method document embedded, one entry per section
+used, the procedure file, the GUM statement, the instruments, the recorded conditions.
+"""
+
+from __future__ import annotations
+
+import base64
+import re
+from collections.abc import Mapping
+from importlib import resources
+from typing import Any
+
+from lxml import etree
+
+import bench
+from bench.app.certificate.build import Sources
+from bench.core.traceability import serial_of, with_declared_serials
+from bench.report.dcc import units as U
+from bench.report.dcc import vocab as V
+from bench.report.dcc.parts import DccParts
+from bench.report.dcc.xml import DCC_NS, NOT_RECORDED, el, ident, name, num, quantity, text_el
+
+# bench/method.md = docs/method.md; each procedure kind names the sections it follows
+METHOD_DOC = "docs/method.md"
+
+
+def method_sections() -> tuple[bytes, dict[str, tuple[str, str]]]:
+    """The method document as shipped, and section -> (heading, text) from its headings
+    (`### A1. ...`, `## B. ...`)."""
+    data = resources.files("bench").joinpath("method.md").read_bytes()
+    sections: dict[str, tuple[str, str]] = {}
+    current: str | None = None
+    for line in data.decode("utf-8").splitlines():
+        m = re.match(r"#{2,3} ([A-Z]\d?)\. (.*)", line)
+        if m:
+            current = m.group(1)
+            sections[current] = (m.group(2).strip(), "")
+        elif current is not None and not line.startswith("#"):
+            head, body = sections[current]
+            sections[current] = (head, (body + " " + line.strip()).strip())
+    return data, sections
+
+
+def methods_and_conditions(results: etree._Element, src: Sources, kind: DccParts) -> None:
+    used = el(results, "usedMethods")
+    document, sections = method_sections()
+    reference, followed = kind.dcc_used_methods(src)
+    m = el(used, "usedMethod", id="methodDocument", ref_type=V.METHOD)
+    name(m, f"ratebench method document ({METHOD_DOC}), as shipped with this release")
+    desc = text_el(m, "description", reference)
+    f = el(desc, "file")
+    el(f, "fileName", "method.md")
+    el(f, "mimeType", "text/markdown")
+    el(f, "dataBase64", base64.b64encode(document).decode("ascii"))
+    for sec in followed:
+        heading, text = sections.get(sec, (f"section {sec}", f"see {METHOD_DOC}"))
+        m = el(used, "usedMethod", id=ident("method", sec), ref_type=V.METHOD)
+        name(m, f"{METHOD_DOC} {sec}: {heading}")
+        text_el(m, "description", text or f"see {METHOD_DOC}")
+        el(m, "reference", f"{METHOD_DOC} section {sec} (embedded above)")
+    pf = src.get("procedure_file", {}) or {}
+    proc_name = pf.get("name") or src.meta.get("procedure_name")
+    if proc_name:
+        m = el(used, "usedMethod", id="procedureFile")
+        name(m, f"Procedure file {proc_name}")
+        text_el(m, "description", f"The procedure as run, SHA-256 "
+                f"{pf.get('sha256') or src.meta.get('procedure_sha256') or NOT_RECORDED}; "
+                f"settings: {_flat(src.get('method', {}) or {})}.")
+    m = el(used, "usedMethod", id="uncertaintyMethod", ref_type=V.UNCERTAINTY)
+    name(m, "Expanded measurement uncertainty")
+    text_el(m, "description", "Every U is the standard uncertainty multiplied by the "
+            "coverage factor k = 2, which for a normal distribution gives a coverage "
+            "probability of about 95 %. Values and U are given unrounded as computed; the "
+            "PDF prints them rounded (U to two significant digits).")
+    el(m, "norm", "JCGM 100:2008 (GUM)")
+    sw = el(results, "usedSoftware")
+    s = el(sw, "software")
+    name(s, "ratebench analysis")
+    el(s, "release", bench.__version__)
+    el(s, "type", "application")
+    equipment = _equipment(src)
+    if equipment is not None:
+        results.append(equipment)
+    cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
+    measured = _fog_temperatures(src)
+    if (isinstance(cond, Mapping) and cond) or measured:
+        conds = el(results, "influenceConditions")
+        for axis, ax in measured:
+            _measured_temperature(conds, axis, ax)
+        for key, value in (cond.items() if isinstance(cond, Mapping) else ()):
+            _condition(conds, str(key), value)
+
+
+def _fog_temperatures(src: Sources) -> list[tuple[str, Mapping[str, Any]]]:
+    m = src.get("conditions_measured")
+    fog = m.get("fog_temperature") if isinstance(m, Mapping) else None
+    axes = fog.get("axes") if isinstance(fog, Mapping) else None
+    return [(str(a), v) for a, v in axes.items() if isinstance(v, Mapping)] \
+        if isinstance(axes, Mapping) else []
+
+
+def _measured_temperature(conds: etree._Element, axis: str, ax: Mapping[str, Any]) -> None:
+    """The FOG's temperature over the axis's halves, as the bench measured it."""
+    c = el(conds, "influenceCondition", id=ident("cond", "fog-temperature", axis),
+           ref_type=V.TEMPERATURE)
+    name(c, f"Temperature of the FOG on the table top, axis {axis} (measured)")
+    text_el(c, "description", "Measured by the bench: the temperature field of every FOG "
+            "frame (integer deg C) over all halves of the axis; the table top at the FOG, "
+            "not the room. Per half: the PDF's conditions table.")
+    data = el(c, "data")
+    for key, title, ref in (("min_c", "minimum", V.TEMPERATURE_MIN),
+                            ("mean_c", "mean", V.TEMPERATURE),
+                            ("max_c", "maximum", V.TEMPERATURE_MAX)):
+        if num(ax.get(key)) is not None:
+            quantity(data, ident("cond", "fog-temperature", axis, key), title, ref,
+                     float(ax[key]), U.CELSIUS)
+
+
+def _flat(d: Mapping[str, Any]) -> str:
+    return "; ".join(f"{k} = {v}" for k, v in d.items() if k != "tolerance") or NOT_RECORDED
+
+
+def _equipment(src: Sources) -> etree._Element | None:
+    ids = src.get("instruments", {}) or {}
+    if not isinstance(ids, Mapping) or not ids:
+        return None
+    ids = with_declared_serials(ids, src.stand_file)
+    eq = etree.Element(f"{{{DCC_NS}}}measuringEquipments")
+    for axis, roles in ids.items():
+        for role, identity in (roles or {}).items():
+            me = el(eq, "measuringEquipment", id=ident("eq", axis, role),
+                    ref_type=V.NORMAL_USED if role == "counter" else None)
+            name(me, f"Axis {axis}: {role}")
+            serial = serial_of(identity)
+            text_el(me, "description", f"Identity as reported: {identity}. Serial "
+                    f"{serial or 'NOT REPORTED'}. Calibration: as the PDF's traceability "
+                    "table states (the stand file's certificate, or the in-situ "
+                    "cross-calibration for the FOG)")
+    return eq if len(eq) else None
+
+
+_NUMBER = r"[-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?"
+_CONDITION_UNITS = {"c": (U.CELSIUS, V.TEMPERATURE, V.TEMPERATURE_MIN, V.TEMPERATURE_MAX),
+                    "pct": (U.PERCENT, V.HUMIDITY, V.HUMIDITY_MIN, V.HUMIDITY_MAX),
+                    "hpa": (U.HECTOPASCAL, V.CONDITION, None, None)}
+
+
+def _condition(conds: etree._Element, key: str, value: Any) -> None:
+    """A recorded condition: '20 +/- 2' under `temperature_c` becomes 18 ... 22 degC; text
+    that is not a number with its unit stays text (it is never guessed)."""
+    suffix = key.rsplit("_", 1)[-1].lower() if "_" in key else ""
+    text = str(value)
+    if key.lower().startswith("humid") and text.strip().endswith("%"):
+        suffix, text = "pct", text.strip()[:-1]
+    spec = _CONDITION_UNITS.get(suffix)
+    label = key.rsplit("_", 1)[0] if spec else key
+    c = el(conds, "influenceCondition", id=ident("cond", key),
+           ref_type=spec[1] if spec else V.CONDITION)
+    name(c, label.replace("_", " ").capitalize())
+    text_el(c, "description", f"As stated in the procedure file (nominal, NOT measured): "
+            f"{key}: {value}")
+    data = el(c, "data")
+    m = re.fullmatch(rf"\s*({_NUMBER})\s*(?:(?:\+/-|±)\s*({_NUMBER}))?\s*", text)
+    if spec is None or m is None:
+        text_el(data, "text", str(value))
+        return
+    unit, _, low_ref, high_ref = spec
+    centre, half = float(m.group(1)), num(m.group(2))
+    if half is not None and low_ref and high_ref:
+        quantity(data, None, "minimum", low_ref, centre - half, unit)
+        quantity(data, None, "maximum", high_ref, centre + half, unit)
+    else:
+        quantity(data, None, "stated value", V.NOMINAL, centre, unit)

@@ -1,0 +1,184 @@
+"""Where measurement assurance meets a run: its start, its certificate, its authorisation.
+
+- `warn_at_start`: an instrument of this stand out of control is warned on the console
+  (and journaled by the caller) before anything moves; the run goes on.
+- `write_assurance`: before the certificate is rendered, each instrument's status, with
+  this run's own check values on its charts, goes to RUN_DIR/assurance.json; the
+  certificate's traceability section prints it (`certificate_notes`).
+- `assurance_refusals(run_dir, records_url)`: what `bench authorise` must refuse on: one
+  text per instrument out of control with no review covering its signal (the rule named),
+  empty when the certificate may be issued. It refreshes assurance.json first, so the
+  certificate issued next states the status and the review as they are now.
+
+None of these fails a run: a records database that cannot be read is warned about and
+the certificate says the assurance was not assessed (authorise refuses then: a status
+nobody could read is no status).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import json
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from bench.app.records.assurance_notes import ASSURANCE_FILE, CLAUSE
+from bench.app.records.control import (
+    OUT_OF_CONTROL,
+    InstrumentStatus,
+    instrument_status,
+)
+from bench.app.records.extract import NotARun, record_of
+from bench.app.records.hooks import RecordsTarget, target
+from bench.app.records.store import CheckPoint, Records, RecordsError, redact
+from bench.core.simdrift import drifted, has_drift, stated_run_number
+from bench.report.certificate.parts import read_json_object
+
+Warn = Callable[[str], None]
+
+
+def _aware(t: dt.datetime | None) -> dt.datetime | None:
+    return None if t is None else t.replace(tzinfo=dt.UTC)
+
+
+def run_statuses(run_path: Path, url: str, result: Mapping[str, Any] | None = None
+                 ) -> list[InstrumentStatus]:
+    """The status of each instrument this run rests on, from the records and this run's
+    own check values (registered or not), with no point later than this run."""
+    record = record_of(run_path, dict(result) if result is not None else None)
+    when = _aware(record.date_utc)
+    extra = [CheckPoint(record.uid, record.run_dir, record.serial, when, c)
+             for c in record.checks]
+    out = []
+    with Records.open(url) as rec:
+        for serial in dict.fromkeys(c.serial for c in record.checks):
+            s = instrument_status(rec, serial, [e for e in extra if e.check.serial == serial],
+                                  through=when)
+            if s is not None:
+                out.append(s)
+    return out
+
+
+def _as_json(s: InstrumentStatus) -> dict[str, Any]:
+    r = s.last_review
+    return {"serial": s.serial, "role": s.role, "model": s.model, "state": s.state,
+            "runs": s.runs, "rule": s.rule, "line": s.line,
+            "open_signals": [g.line for g in s.open_signals],
+            "reviewed_signals": [g.line for g in s.reviewed_signals],
+            "last_review": None if r is None else {
+                "utc": r.utc.isoformat(), "reviewer": r.reviewer, "text": r.text,
+                "through_utc": r.through_utc.isoformat() if r.through_utc else None}}
+
+
+def write_assurance(run_path: Path, where: RecordsTarget | str, warn: Warn,
+                    result: Mapping[str, Any] | None = None) -> list[InstrumentStatus] | None:
+    """RUN_DIR/assurance.json for the certificate; None (and a note in the file) when the
+    records could not be read."""
+    url = where.url if isinstance(where, RecordsTarget) else where
+    doc: dict[str, Any] = {"records": redact(url),
+                           "assessed_utc": dt.datetime.now(dt.UTC).isoformat()}
+    statuses: list[InstrumentStatus] | None
+    try:
+        statuses = run_statuses(run_path, url, result)
+        doc["instruments"] = [_as_json(s) for s in statuses]
+    except NotARun as e:
+        doc["error"] = str(e)
+        statuses = None
+    except Exception as e:  # noqa: BLE001 - never fail a run over its records
+        warn(f"records: measurement assurance not assessed ({e})")
+        doc["error"] = str(e)
+        statuses = None
+    (run_path / ASSURANCE_FILE).write_text(json.dumps(doc, indent=2) + "\n",
+                                           encoding="utf-8")
+    return statuses
+
+
+def assurance_lines(statuses: Sequence[InstrumentStatus]) -> list[str]:
+    """One line per instrument for the certificate: in control, out of control with the
+    rule, or not enough history with the count; and any review."""
+    return [f"{CLAUSE}, {s.line}." for s in statuses]
+
+
+def refusals_of(statuses: Sequence[InstrumentStatus]) -> list[str]:
+    return [f"{s.name} is {OUT_OF_CONTROL}: {s.open_signals[0].line}; a review must be "
+            f"recorded first: bench control {s.serial} --review 'WHO: why'"
+            for s in statuses if s.state == OUT_OF_CONTROL]
+
+
+def assurance_refusals(run_dir: str | Path, records_url: str | None = None) -> list[str]:
+    """Why `bench authorise RUN_DIR` must refuse (empty: it may issue).
+
+    `records_url` None means what `bench analyze` uses (lab settings, else records.sqlite
+    beside the run). Refreshes RUN_DIR/assurance.json, so the certificate rendered next
+    states each instrument's status and any review recorded since the run."""
+    path = Path(run_dir)
+    where = target(path.parent, records_url)
+    problems: list[str] = []
+    statuses = write_assurance(path, where, problems.append)
+    if statuses is None:
+        doc = read_json_object(path / ASSURANCE_FILE)
+        return [f"{CLAUSE} cannot be assessed ({doc.get('error') or problems}); "
+                f"the certificate cannot state it"]
+    return refusals_of(statuses)
+
+
+def warn_at_start(stand: Mapping[str, Any], where: RecordsTarget, warn: Warn
+                  ) -> list[str]:
+    """At a run's start: warn about each instrument of this stand that is out of control
+    (its checks came from runs of this table, or the stand states its serial)."""
+    serial = str((stand.get("stand") or {}).get("serial") or "")
+    stated = {str(c["serial"]) for a in (stand.get("axes") or {}).values()
+              if isinstance(a, Mapping) for c in a.values()
+              if isinstance(c, Mapping) and c.get("serial")}
+    if where.url.startswith("sqlite:///") and \
+            not Path(where.url.removeprefix("sqlite:///")).exists():
+        return []       # no records yet: nothing to warn about, nothing to create
+    texts = []
+    try:
+        with Records.open(where.url) as rec:
+            for inst in rec.instruments():
+                pts = rec.checks(inst.serial)
+                if inst.serial not in stated and not any(p.table_serial == serial
+                                                         for p in pts):
+                    continue
+                s = instrument_status(rec, inst.serial)
+                if s is not None and s.state == OUT_OF_CONTROL:
+                    texts.append(f"WARNING: {s.name} is OUT OF CONTROL: "
+                                 f"{s.open_signals[0].line}; a certificate resting on it "
+                                 f"cannot be issued until a review is recorded (bench "
+                                 f"control {s.serial} --review 'WHO: why')")
+    except RecordsError as e:
+        warn(f"records: cannot check the instruments' control status: {e}")
+        return []
+    for t in texts:
+        warn(t)
+    return texts
+
+
+def drifting_config(cfg: Any, run_path: Path, where: RecordsTarget, say: Warn) -> Any:
+    """The run's config with a drifting twin's truth for this run (bench/core/simdrift.py).
+
+    The run number is `sim.run_number`, else 1 + the runs of this table in the records;
+    it is kept in meta.json, so a --resume drifts the same way as the first session."""
+    if not has_drift(cfg.stand):
+        return cfg
+    meta_path = run_path / "meta.json"
+    meta = read_json_object(meta_path)
+    number = meta.get("sim_run_number") or stated_run_number(cfg.stand)
+    if number is None:
+        serial = str((cfg.stand.get("stand") or {}).get("serial") or "")
+        try:
+            with Records.open(where.url) as rec:
+                number = 1 + len([r for r in rec.runs(serial) if r.run_dir != run_path.name])
+        except RecordsError as e:
+            say(f"records: cannot count this table's runs ({e}); the twins drift as run 1")
+            number = 1
+    if meta and "sim_run_number" not in meta:
+        meta["sim_run_number"] = int(number)
+        meta_path.write_text(json.dumps(meta, indent=2) + "\n")
+    stand, notes = drifted(cfg.stand, int(number))
+    for n in notes:
+        say(n)
+    return dataclasses.replace(cfg, stand=stand)

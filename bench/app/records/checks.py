@@ -1,0 +1,270 @@
+"""A run directory -> the check values it yields about the bench's own instruments.
+
+ISO/IEC 17025 7.7.1 asks a lab to show its results stay valid between calibrations of its
+equipment. Every run already measures the equipment it runs on; this module keeps those
+figures, per instrument serial, with their U (k = 2), so the control charts
+(`control.py`) can tell a FOG whose scale factor jumped from one that is stable
+(docs/method.md C1 says what each value is and where its U comes from):
+
+    fog      k and w0 per |rate| (eq. 5-6, result.json axes.<axis>.pairs[]); noise floor
+             (std of the static record) and bias at rest (its mean)
+    counter  zero-mark timing jitter (second differences of the edges of each half);
+             the reference read back (1 = external reference, 0 = internal)
+    drive    settle time beyond the ramp, and the rate ripple it reports while timed
+    gyro     the drift platform's own drift per gyro (drift-pulse runs)
+
+Everything is read from the run directory's own files, so `bench records import` keeps
+the same values as the end of the run did.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from bench.analysis.finite import finite_number as _num
+from bench.core.journal import read_jsonl
+
+#: the check quantities, their unit and what the chart calls them (one place)
+QUANTITIES: dict[str, tuple[str, str]] = {
+    "k": ("1", "FOG scale k (eq. 5)"),
+    "w0_dps": ("deg/s", "FOG bias w0 (eq. 6)"),
+    "noise_floor_dps": ("deg/s", "FOG noise floor at rest, std"),
+    "bias_at_rest_dps": ("deg/s", "FOG bias at rest, mean of the static record"),
+    "zero_mark_jitter_s": ("s", "zero-mark timing jitter, edge std"),
+    "reference_external": ("1", "counter reference read back (1 external, 0 internal)"),
+    "settle_time_s": ("s", "drive settle time beyond the ramp"),
+    "ripple_rel": ("1", "drive-reported rate ripple while timed, rms / |rate|"),
+    "own_drift_dph": ("deg/h", "drift platform's own drift"),
+}
+#: quantities that are attributes (a change from the baseline is the signal, not a spread)
+ATTRIBUTES = ("reference_external",)
+
+
+@dataclass(frozen=True)
+class CheckRecord:
+    """One check value of one instrument in one run, with U (k = 2) where it has one."""
+
+    serial: str
+    role: str                 # fog | counter | drive | gyro
+    model: str | None
+    axis: str
+    quantity: str
+    set_rate_dps: float | None   # |rate| for per-rate values, else None
+    value: float
+    u: float | None
+    unit: str
+
+
+def _serial_of(stated: Any, reported: str | None, unique: bool, fallback: str) -> str:
+    """The stand file's `serial:` wins (a FOG answers no identity query), then the serial
+    the instrument reported if no other instrument of the run reports the same, then the
+    instrument's place on the stand (STAND-SERIAL/axis/role)."""
+    if stated not in (None, ""):
+        return str(stated)
+    if reported and unique and not re.fullmatch(r"[A-Za-z]*0*", reported):
+        return reported       # (all zeros: a twin's or an unset serial, no identity)
+    return fallback
+
+
+def _idn_serial(text: str | None) -> str | None:
+    """*IDN? -> its third field (IEEE 488.2: maker, model, serial, firmware)."""
+    if not text:
+        return None
+    parts = text.split(";", 1)[0].split(",")
+    return parts[2].strip() or None if len(parts) >= 4 else None
+
+
+def _drive_serial(text: str | None) -> str | None:
+    """The drive identity (0x1018 sub 4) as the bench prints it: '..., serial N'."""
+    m = re.search(r"serial (\S+?)(?:[;,]|$)", text or "")
+    return m.group(1) if m else None
+
+
+def _std_u(std: float, dof: int) -> float | None:
+    """U (k = 2) of a standard deviation from `dof` degrees of freedom (chi-square, normal
+    data: ustd(s) = s / sqrt(2 dof)), docs/method.md C1."""
+    return 2.0 * std / math.sqrt(2.0 * dof) if dof > 0 else None
+
+
+def _fog(axis: str, ax: Mapping[str, Any], serial: str, model: str | None
+         ) -> list[CheckRecord]:
+    out = []
+
+    def add(q: str, rate: float | None, v: Any, u: Any) -> None:
+        x = _num(v)
+        if x is not None:
+            out.append(CheckRecord(serial, "fog", model, axis, q, rate, x, _num(u),
+                                   QUANTITIES[q][0]))
+
+    for p in ax.get("pairs") or []:
+        if isinstance(p, Mapping):
+            rate = _num(p.get("rate_dps"))
+            rate = abs(rate) if rate is not None else None
+            add("k", rate, p.get("k"), p.get("k_u"))
+            add("w0_dps", rate, p.get("w0_dps"), p.get("w0_u_dps"))
+    floor = ax.get("noise_floor")
+    if isinstance(floor, Mapping):
+        n = int(_num(floor.get("samples")) or 0)
+        std = _num(floor.get("sample_std_dps"))
+        if std is not None:
+            add("noise_floor_dps", None, std, _std_u(std, n - 1))
+        adev = [x for x in (_num(a) for a in floor.get("allan_dev_dps") or []) if x]
+        # the mean of the record: its standard uncertainty is no more than the Allan
+        # deviation at the longest averaging time computed (white and flicker noise:
+        # sigma_A(tau) falls or stays flat as tau grows), docs/method.md C1
+        add("bias_at_rest_dps", None, floor.get("mean_dps"),
+            2.0 * adev[-1] if adev else None)
+    return out
+
+
+def _jitter(axis: str, events: Sequence[Mapping[str, Any]], serial: str,
+            model: str | None) -> list[CheckRecord]:
+    """Zero-mark edge jitter from the second differences of each half's edges: for white
+    edge jitter s, d = e[i+1] - 2 e[i] + e[i-1] has variance 6 s^2 (docs/method.md C1)."""
+    sq, n = 0.0, 0
+    for e in events:
+        if e.get("event") != "acquire" or e.get("axis") != axis:
+            continue
+        edges = [x for x in (_num(t) for t in e.get("edges_s") or []) if x is not None]
+        for i in range(1, len(edges) - 1):
+            d = edges[i + 1] - 2.0 * edges[i] + edges[i - 1]
+            sq += d * d
+            n += 1
+    if n == 0:
+        return []
+    s = math.sqrt(sq / (6.0 * n))
+    return [CheckRecord(serial, "counter", model, axis, "zero_mark_jitter_s", None, s,
+                        _std_u(s, n), "s")]
+
+
+def _drive(axis: str, raw: Path, events: Sequence[Mapping[str, Any]], serial: str,
+           model: str | None) -> list[CheckRecord]:
+    """Settle time beyond the commanded ramp, and the ripple the drive reports while the
+    counter times turns (docs/method.md C1), from the drive's raw journal."""
+    files = sorted(raw.glob(f"s*/{axis}-drive.jsonl"))
+    if not files:
+        return []
+    settle: list[tuple[float, float]] = []      # (settle time, feedback interval)
+    windows = []
+    starts = {}
+    for e in events:
+        if e.get("axis") == axis and e.get("event") == "step_start" \
+                and e.get("action") == "acquire":
+            starts[(e.get("session"), e.get("unit"))] = _num(e.get("t_s"))
+        if e.get("axis") == axis and e.get("event") == "acquire":
+            t0 = starts.get((e.get("session"), e.get("unit")))
+            rate = _num(e.get("set_rate_dps"))
+            if t0 is not None and _num(e.get("t_s")) is not None and rate:
+                windows.append((str(e.get("session")), t0, float(e["t_s"]), rate))
+    ripple_sq, ripple_n = 0.0, 0
+    for f in files:
+        session = f.parent.name.removeprefix("s")
+        command: dict[str, Any] | None = None
+        last_w = 0.0
+        for r in read_jsonl(f):
+            kind = r.get("kind")
+            t = _num(r.get("t_s"))
+            if t is None:
+                continue
+            if kind == "command":
+                if command is not None:
+                    last_w = _num(command.get("sent_dps")) or last_w
+                command = r
+            elif kind == "settled" and command is not None:
+                accel = _num(command.get("accel_dps2")) or 0.0
+                target = _num(r.get("target_dps")) or 0.0
+                ramp = abs(target - last_w) / accel if accel > 0 else 0.0
+                hold = _num(r.get("hold_s")) or 0.0
+                samples = int(_num(r.get("samples")) or 1)
+                value = t - hold - (_num(command.get("t_s")) or 0.0) - ramp
+                settle.append((max(value, 0.0), hold / max(samples - 1, 1)))
+                last_w = target
+            elif kind == "feedback":
+                v = _num(r.get("velocity_dps"))
+                for s, a, b, rate in windows:
+                    if s == session and a <= t <= b and v is not None:
+                        ripple_sq += ((v - rate) / rate) ** 2
+                        ripple_n += 1
+    out = []
+    if settle:
+        mean = sum(v for v, _ in settle) / len(settle)
+        # each settle moment is known to one feedback interval (rectangular), and the
+        # mean of n of them to that over sqrt(n): U = 2 * dt / sqrt(3 n)
+        dt = max(d for _, d in settle)
+        out.append(CheckRecord(serial, "drive", model, axis, "settle_time_s", None, mean,
+                               2.0 * dt / math.sqrt(3.0 * len(settle)), "s"))
+    if ripple_n:
+        rms = math.sqrt(ripple_sq / ripple_n)
+        out.append(CheckRecord(serial, "drive", model, axis, "ripple_rel", None, rms,
+                               _std_u(rms, ripple_n), "1"))
+    return out
+
+
+def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any]
+              ) -> list[CheckRecord]:
+    """Every check value of one run, per instrument serial."""
+    events = list(read_jsonl(run_path / "events.jsonl")) \
+        if (run_path / "events.jsonl").is_file() else []
+    ident = dict(stand.get("stand") or {})
+    ident.update({k: v for k, v in (result.get("stand") or {}).items() if v is not None})
+    stand_serial = str(ident.get("serial") or "stand")
+    ids = result.get("instruments") or {}
+    ids = ids if isinstance(ids, Mapping) else {}
+    stand_axes = stand.get("axes") or {}
+    reported: dict[str, list[str | None]] = {"counter": [], "drive": []}
+    for a in stand_axes:
+        got = entry if isinstance(entry := ids.get(a), Mapping) else {}
+        reported["counter"].append(_idn_serial(got.get("counter")))
+        reported["drive"].append(_drive_serial(got.get("drive")))
+
+    def serial(axis: str, role: str, conf: Mapping[str, Any]) -> str:
+        got = entry if isinstance(entry := ids.get(axis), Mapping) else {}
+        rep = (_idn_serial(got.get("counter")) if role == "counter" else
+               _drive_serial(got.get("drive")) if role == "drive" else None)
+        unique = rep is not None and reported.get(role, []).count(rep) == 1
+        return _serial_of(conf.get("serial"), rep, unique, f"{stand_serial}/{axis}/{role}")
+
+    out: list[CheckRecord] = []
+    axes = result.get("axes") or {}
+    for axis, conf in stand_axes.items():
+        if not isinstance(conf, Mapping):
+            continue
+        ax = axes.get(axis) if isinstance(axes, Mapping) else None
+        fog = conf.get("fog")
+        if isinstance(fog, Mapping) and isinstance(ax, Mapping):
+            out += _fog(axis, ax, serial(axis, "fog", fog), _opt(fog.get("model")))
+        counter = conf.get("counter")
+        if isinstance(counter, Mapping) and isinstance(ax, Mapping):
+            sn, model = serial(axis, "counter", counter), _opt(counter.get("model"))
+            out += _jitter(axis, events, sn, model)
+            ref = (ids.get(axis) or {}).get("counter_reference") \
+                if isinstance(ids.get(axis), Mapping) else None
+            if ref:
+                out.append(CheckRecord(sn, "counter", model, axis, "reference_external",
+                                       None, 1.0 if "external" in str(ref).lower() else 0.0,
+                                       None, "1"))
+        drive = conf.get("drive")
+        if isinstance(drive, Mapping) and events:
+            out += _drive(axis, run_path / "raw", events, serial(axis, "drive", drive),
+                          _opt(drive.get("model")))
+    drift = (result.get("drift") or {}).get("axes") or {}
+    gyros = ((stand.get("platform") or {}).get("gyros") or {})
+    plat = ((stand.get("platform") or {}).get("identity") or {}).get("serial") or stand_serial
+    for g, d in drift.items() if isinstance(drift, Mapping) else ():
+        conf = gyro if isinstance(gyro := gyros.get(g), Mapping) else {}
+        v = _num(d.get("own_dph")) if isinstance(d, Mapping) else None
+        if v is not None:
+            out.append(CheckRecord(_serial_of(conf.get("serial"), None, False,
+                                              f"{plat}/{g}"), "gyro",
+                                   _opt(conf.get("model")), g, "own_drift_dph", None, v,
+                                   _num(d.get("own_u_dph")), "deg/h"))
+    return out
+
+
+def _opt(x: Any) -> str | None:
+    return None if x in (None, "") else str(x)

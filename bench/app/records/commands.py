@@ -1,0 +1,307 @@
+"""`bench history`, `bench records import`, `bench due` (CONTRACT §1)."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime as dt
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from bench.app.records.extract import NotARun, find_runs, record_of
+from bench.app.records.hooks import target
+from bench.app.records.settings import DEFAULT_RUNS, SettingsError
+from bench.app.records.store import Records, RecordsError, TrendPoint, redact
+
+EXIT_OK, EXIT_FAIL, EXIT_INVALID = 0, 1, 2
+CSV_COLUMNS = ("serial", "axis", "quantity", "set_rate_dps", "date_utc", "value", "u",
+               "unit", "tolerance", "verdict", "certificate_number", "calibration_state",
+               "run_uid")
+#: what `bench history` prints per run (the CSV has every figure)
+SHOWN = {"rate_error_rel": ("rate error", 1e6, "ppm"),
+         "rate_instability_rel": ("instability", 1e6, "ppm"),
+         "own_drift_dph": ("own drift", 1.0, "deg/h"),
+         "apparent_drift_dph": ("apparent drift", 1.0, "deg/h")}
+
+
+def _err(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def add_parsers(sub: Any) -> None:
+    """The records subcommands, added to the `bench` parser."""
+    his = sub.add_parser("history", help="every recorded run of one table, with a trend plot")
+    his.add_argument("serial", help="the table's serial number (stand.serial)")
+    where = his.add_mutually_exclusive_group()
+    where.add_argument("--runs", help="runs folder whose records.sqlite to read (runs/)")
+    where.add_argument("--records", help="records database URL")
+    his.add_argument("--csv", help="write every recorded figure of the table to this CSV")
+    his.add_argument("--plot", help="trend plot PNG (default history-SERIAL.png beside the "
+                                    "records database, or in the runs folder)")
+    rec = sub.add_parser("records", help="the records database")
+    rsub = rec.add_subparsers(dest="records_command", required=True, metavar="ACTION")
+    imp = rsub.add_parser("import", help="register existing run directories (idempotent)")
+    imp.add_argument("runs_dir")
+    imp.add_argument("--records", help="records database URL (default RUNS_DIR/records.sqlite)")
+    due = sub.add_parser("due", help="tables due or overdue for recertification")
+    due.add_argument("--records", help="records database URL")
+    due.add_argument("--runs", default=DEFAULT_RUNS, help="runs folder (records.sqlite, lab.yaml)")
+    due.add_argument("--within", type=int, default=30, metavar="DAYS",
+                     help="also list tables due within DAYS (30)")
+    due.add_argument("--all", action="store_true", help="list every table with an interval")
+    due.add_argument("--today", type=dt.date.fromisoformat, help=argparse.SUPPRESS)
+    con = sub.add_parser("control", help="measurement assurance: each instrument's control "
+                                         "status; with SERIAL its control charts")
+    con.add_argument("serial", nargs="?", help="an instrument's serial (bench control lists "
+                                               "them)")
+    where = con.add_mutually_exclusive_group()
+    where.add_argument("--runs", help="runs folder whose records.sqlite to read (runs/)")
+    where.add_argument("--records", help="records database URL")
+    con.add_argument("--review", metavar="TEXT",
+                     help="record a review of SERIAL's status: why it may be used (journaled)")
+    con.add_argument("--by", metavar="NAME", help="who reviews (default: the login name)")
+    con.add_argument("--new-baseline", action="store_true",
+                     help="with --review: the instrument changed for good (repaired, "
+                          "adjusted): its charts restart at the last run, a new baseline")
+    con.add_argument("--plot", help="control chart PNG (default control-SERIAL.png beside "
+                                    "the records)")
+
+
+def _guarded(cmd: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+    """A bad lab settings file is invalid input (2); an unreachable database exits 1."""
+    def run(args: argparse.Namespace) -> int:
+        try:
+            return cmd(args)
+        except SettingsError as e:
+            _err(str(e))
+            return EXIT_INVALID
+        except RecordsError as e:
+            _err(str(e))
+            return EXIT_FAIL
+    return run
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    runs_dir = Path(args.runs_dir)
+    if not runs_dir.is_dir():
+        _err(f"{runs_dir}: no such folder")
+        return EXIT_INVALID
+    where = target(runs_dir, args.records)
+    counts = {"new": 0, "updated": 0, "unchanged": 0, "skipped": 0}
+    with Records.open(where.url) as rec:
+        for path in find_runs(runs_dir):
+            try:
+                record = record_of(path)
+            except NotARun as e:
+                _err(f"skipped: {e}")
+                counts["skipped"] += 1
+                continue
+            outcome = rec.register(record, where.interval_for(record.serial,
+                                                              record.interval_days))
+            counts[outcome] += 1
+            if outcome != "unchanged":
+                print(f"{outcome:<9} {record.serial}  {record.certificate_number}  {path}")
+    print(f"records {redact(where.url)}: {counts['new']} new, {counts['updated']} updated, "
+          f"{counts['unchanged']} already recorded, {counts['skipped']} skipped")
+    return EXIT_OK
+
+
+def _date(p: TrendPoint) -> str:
+    return p.date_utc.isoformat(timespec="seconds") if p.date_utc else ""
+
+
+def cmd_history(args: argparse.Namespace) -> int:
+    where = target(args.runs or DEFAULT_RUNS, args.records)
+    with Records.open(where.url) as rec:
+        runs = rec.runs(args.serial)
+        points = rec.trend(args.serial)
+        table = rec.table(args.serial)
+    if not runs:
+        _err(f"no run of table {args.serial!r} in {redact(where.url)}"
+             + ("" if args.records else f" (run `bench records import "
+                                         f"{args.runs or DEFAULT_RUNS}` first?)"))
+        return EXIT_FAIL
+    assert table is not None
+    print(f"table {table.serial}: {table.maker or ''} {table.model or ''}".rstrip())
+    print(f"{len(runs)} run(s) in {redact(where.url)}")
+    for r in runs:
+        state = f" [{r.calibration_state}]" if r.calibration_state else ""
+        when = r.date_utc.strftime("%Y-%m-%d %H:%M") if r.date_utc else "?"
+        print(f"  {when}  {r.certificate_number or '-':<24} {r.kind:<11} "
+              f"{r.verdict.upper():<10}{state}  {r.run_dir}")
+        if r.adjustment_note:
+            print(f"      adjustment: {r.adjustment_note}")
+    print("figures with U (k = 2), per axis and rate:")
+    groups: dict[tuple[str, float | None, str], list[TrendPoint]] = {}
+    for p in points:
+        if p.figure.quantity in SHOWN:
+            groups.setdefault((p.figure.axis, p.figure.set_rate_dps, p.figure.quantity),
+                              []).append(p)
+    for (axis, rate, quantity), pts in sorted(
+            groups.items(), key=lambda kv: (kv[0][0], kv[0][2], kv[0][1] or 0.0)):
+        name, scale, unit = SHOWN[quantity]
+        where_txt = f"{axis} {rate:+g} deg/s" if rate is not None else axis
+        print(f"  {where_txt} {name}, {unit}:")
+        for p in pts:
+            f = p.figure
+            u = f"± {f.u * scale:.3g}" if f.u is not None else ""
+            tol = f"  (tolerance {f.tolerance * scale:.3g})" if f.tolerance else ""
+            shown = (f"< {f.value * scale:.3g} (not resolved)" if f.is_limit
+                     else f"{f.value * scale:+.4g} {u}")
+            print(f"    {_date(p)}  {shown}  {(f.verdict or '').upper()}{tol}")
+    if args.csv:
+        with open(args.csv, "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh)
+            w.writerow(CSV_COLUMNS)
+            for p in points:
+                f = p.figure
+                w.writerow((args.serial, f.axis, f.quantity,
+                            "" if f.set_rate_dps is None else repr(f.set_rate_dps), _date(p),
+                            repr(f.value), "" if f.u is None else repr(f.u), f.unit,
+                            "" if f.tolerance is None else repr(f.tolerance), f.verdict or "",
+                            p.certificate_number or "", p.calibration_state or "", p.run_uid))
+        print(f"csv: {args.csv}")
+    from bench.app.records.trend import trend_png
+
+    png = trend_png(points, f"Table {args.serial}: trend across recertifications")
+    if png is not None:
+        plot = Path(args.plot) if args.plot else (
+            _records_folder(where.url, args.runs or DEFAULT_RUNS)
+            / f"history-{_safe(args.serial)}.png")
+        plot.write_bytes(png)
+        print(f"trend plot: {plot}")
+    return EXIT_OK
+
+
+def _records_folder(url: str, runs: str) -> Path:
+    """Where the records are: a SQLite file's folder, else the runs folder (a database
+    server has no folder of ours), never the current folder unasked."""
+    from sqlalchemy.engine import make_url
+
+    try:
+        u = make_url(url)
+    except Exception:  # noqa: BLE001 - an odd URL: the runs folder
+        return Path(runs)
+    if u.drivername.startswith("sqlite") and u.database not in (None, "", ":memory:"):
+        return Path(u.database).parent
+    return Path(runs)
+
+
+def _safe(serial: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in serial)
+
+
+def cmd_due(args: argparse.Namespace) -> int:
+    where = target(args.runs, args.records)
+    with Records.open(where.url) as rec:
+        items = rec.due(today=args.today, within_days=args.within,
+                        intervals=where.interval_for, everything=args.all)
+    if not items:
+        print(f"no table due within {args.within} d ({redact(where.url)})")
+        return EXIT_OK
+    print(f"{'serial':<16} {'table':<34} {'last pass':<11} {'interval':>8}  "
+          f"{'due':<11} status")
+    for i in items:
+        t = i.table
+        last = t.last_pass_utc.date().isoformat() if t.last_pass_utc else "-"
+        interval = where.interval_for(t.serial, t.interval_days)
+        print(f"{t.serial:<16} {((t.maker or '') + ' ' + (t.model or '')).strip()[:34]:<34} "
+              f"{last:<11} {interval:>6} d  {str(i.due_date or 'now'):<11} {i.status}")
+    return EXIT_OK
+
+
+def _plot_path(args: argparse.Namespace, url: str, serial: str) -> Path:
+    if args.plot:
+        return Path(args.plot)
+    folder = (Path(url.removeprefix("sqlite:///")).parent if url.startswith("sqlite:///")
+              else Path(args.runs or DEFAULT_RUNS))
+    return folder / f"control-{_safe(serial)}.png"
+
+
+def cmd_control(args: argparse.Namespace) -> int:
+    """`bench control [SERIAL] [--review TEXT]` (docs/method.md C)."""
+    import getpass
+    import socket
+
+    from bench.app.records.control import OUT_OF_CONTROL, all_statuses, instrument_status
+    from bench.app.records.control_plot import control_png
+
+    where = target(args.runs or DEFAULT_RUNS, args.records)
+    if args.new_baseline and args.review is None:
+        _err("bench control --new-baseline: only with --review TEXT (who decided it, and why)")
+        return EXIT_INVALID
+    if args.review is not None and not args.serial:
+        _err("bench control --review: name the instrument: bench control SERIAL --review TEXT")
+        return EXIT_INVALID
+    if args.review is not None and not args.review.strip():
+        _err("bench control --review: say why the instrument may be used (TEXT is empty)")
+        return EXIT_INVALID
+    with Records.open(where.url) as rec:
+        if not args.serial:
+            statuses = all_statuses(rec)
+            if not statuses:
+                _err(f"no instrument check values in {redact(where.url)}")
+                return EXIT_FAIL
+            print(f"{len(statuses)} instrument(s) in {redact(where.url)}:")
+            for st in statuses:
+                print(f"  {st.line}")
+            return EXIT_FAIL if any(st.state == OUT_OF_CONTROL for st in statuses) else EXIT_OK
+        status = instrument_status(rec, args.serial)
+        if status is None:
+            _err(f"no instrument {args.serial!r} in {redact(where.url)} (`bench control` "
+                 f"lists them)")
+            return EXIT_FAIL
+        if args.review is not None:
+            try:
+                who = args.by or getpass.getuser()
+            except (KeyError, OSError):
+                who = "unknown"
+            last = max((p.date_utc for s in status.series for p in s.points if p.date_utc),
+                       default=None)
+            r = rec.add_review(args.serial, who, args.review.strip(), status.line, last,
+                               socket.gethostname(), new_baseline=args.new_baseline)
+            print(f"review recorded: {r.reviewer}, {r.utc:%Y-%m-%d %H:%M:%S UTC}, covering "
+                  f"the runs up to {last:%Y-%m-%d %H:%M:%S UTC}: {r.text}"
+                  if last else f"review recorded: {r.reviewer}: {r.text}")
+            status = instrument_status(rec, args.serial)
+            assert status is not None
+    print(status.line)
+    for s in status.series:
+        print(f"\n{s.label}")
+        print(f"  {s.baseline_text}")
+        if s.centre is not None and s.sigma is not None:
+            print(f"  centre {s.centre:.9g}, sigma {s.sigma:.3g} ({s.sigma_source}); limits "
+                  f"{s.centre - 3 * s.sigma:.9g} .. {s.centre + 3 * s.sigma:.9g}")
+        print(f"  {'#':>3} {'date (UTC)':<17} {'value':>16} {'U (k=2)':>10} {'z':>7} "
+              f"{'EWMA':>16}  {'signal':<8} run")
+        signals: dict[str, list[str]] = {}
+        for g in s.signals:
+            signals.setdefault(g.run_uid, []).append(g.rule)
+        for i, p in enumerate(s.points):
+            c = p.check
+            z = (f"{(c.value - s.centre) / s.sigma:+7.2f}" if s.centre is not None and s.sigma
+                 else f"{'':>7}")
+            ew = s.ewma[i] if i < len(s.ewma) else None
+            when = p.date_utc.strftime("%Y-%m-%d %H:%M") if p.date_utc else "?"
+            rules = signals.get(p.run_uid)
+            print(f"  {i + 1:>3} {when:<17} {c.value:>16.9g} "
+                  f"{'' if c.u is None else format(c.u, '.2g'):>10} {z} "
+                  f"{'' if ew is None else format(ew, '.9g'):>16}  "
+                  f"{'+'.join(rules) if rules else '':<8} {p.run_dir}")
+    for r in status.reviews:
+        print(f"\nreview {r.utc:%Y-%m-%d %H:%M UTC} by {r.reviewer}: {r.text}")
+    png = control_png(status)
+    if png is not None:
+        plot = _plot_path(args, where.url, args.serial)
+        plot.parent.mkdir(parents=True, exist_ok=True)
+        plot.write_bytes(png)
+        print(f"control charts: {plot}")
+    return EXIT_FAIL if status.state == OUT_OF_CONTROL else EXIT_OK
+
+
+#: command name -> handler, for bench/app/cli.py
+RECORDS_COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
+    "history": _guarded(cmd_history), "records": _guarded(cmd_import),
+    "due": _guarded(cmd_due), "control": _guarded(cmd_control)}

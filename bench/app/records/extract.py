@@ -1,0 +1,287 @@
+"""A run directory -> the record the database keeps of it (`RunRecord`).
+
+Everything comes from the run directory's own files (result.json, meta.json, stand.yaml,
+the certificate files), so `bench records import` can register a run long after it
+ended and get exactly what the end of the run would have registered.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import json
+import socket
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from bench.analysis.finite import finite_number as _num
+from bench.app.records.checks import CheckRecord, checks_of
+from bench.core.journal import sha256_file
+from bench.report.certificate.parts import read_json_object
+
+#: files of a run directory that make up its certificate (hashed into the records)
+CERTIFICATE_FILES = ("certificate.pdf", "certificate.html", "certificate.dcc.xml")
+#: meta.json keys written by `bench run` for the records (as-found/as-left, operator)
+STATES = ("as-found", "as-left")
+
+
+class NotARun(ValueError):
+    """A folder that is no finished run directory (no result.json to register)."""
+
+
+#: the `rule` of a figure kept as its one-sided upper limit (not resolved): `value` is
+#: the limit, `u` is None; printed "< value", drawn as a limit (issue 18's one rule)
+UPPER_LIMIT = "upper-limit"
+
+
+@dataclass(frozen=True)
+class FigureRecord:
+    """One reported figure with its expanded uncertainty (k = 2) and check verdict."""
+
+    axis: str
+    quantity: str            # rate_error_rel, rate_instability_rel, k, w0_dps, own_drift_dph...
+    set_rate_dps: float | None
+    value: float
+    u: float | None
+    unit: str                # "1" for fractions and k, "deg/s", "deg/h", "deg"
+    tolerance: float | None = None
+    verdict: str | None = None
+    rule: str | None = None
+
+    @property
+    def is_limit(self) -> bool:
+        return self.rule == UPPER_LIMIT
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """What the records keep of one run; `uid` finds the same run again on re-import."""
+
+    uid: str
+    serial: str
+    maker: str | None
+    model: str | None
+    location: str | None
+    interval_days: int | None
+    kind: str
+    title: str | None
+    run_dir: str
+    run_path: str
+    host: str
+    procedure_name: str | None
+    procedure_sha256: str | None
+    stand_sha256: str | None
+    result_sha256: str
+    created_utc: dt.datetime | None
+    started_utc: dt.datetime | None
+    completed_utc: dt.datetime | None
+    operator: str | None
+    verdict: str
+    calibration_state: str | None
+    adjustment_note: str | None
+    certificate_number: str | None
+    simulated: bool
+    sessions: int | None
+    aborted: bool
+    bench_version: str | None
+    figures: tuple[FigureRecord, ...] = ()
+    cert_files: tuple[tuple[str, str, int], ...] = ()   # (name, sha256, bytes)
+    checks: tuple[CheckRecord, ...] = ()    # the bench's own instruments (checks.py)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def date_utc(self) -> dt.datetime | None:
+        """The date a trend is plotted against: when the measurement ended."""
+        return self.completed_utc or self.started_utc or self.created_utc
+
+
+def parse_utc(stamp: Any) -> dt.datetime | None:
+    """ISO text -> naive UTC datetime (what the database stores); None if unreadable."""
+    if not stamp:
+        return None
+    if isinstance(stamp, dt.datetime):
+        t = stamp
+    else:
+        try:
+            t = dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00"))
+        except ValueError:
+            return None
+    if t.tzinfo is not None:
+        t = t.astimezone(dt.UTC).replace(tzinfo=None)
+    return t
+
+
+def run_uid(meta: dict[str, Any], run_dir: str) -> str:
+    """Stable over re-analysis and re-import, distinct between benches: creation time to
+    the millisecond, directory name and the input files' digests."""
+    key = "|".join(str(meta.get(k, "")) for k in ("created_utc", "procedure_sha256",
+                                                  "stand_sha256")) + "|" + run_dir
+    return hashlib.sha256(key.encode()).hexdigest()[:32]
+
+
+def _checks_index(result: dict[str, Any]) -> dict[tuple[str, str, float | None], dict[str, Any]]:
+    """checks[] by (axis, quantity, set rate): the verdict beside each figure."""
+    out: dict[tuple[str, str, float | None], dict[str, Any]] = {}
+    for c in result.get("checks") or []:
+        if not isinstance(c, dict):
+            continue
+        rate = _num(c.get("set_rate_dps"))
+        out[(str(c.get("axis")), str(c.get("quantity")), rate)] = c
+    return out
+
+
+def _fig(axis: str, quantity: str, rate: float | None, value: Any, u: Any, unit: str,
+         checks: dict[tuple[str, str, float | None], dict[str, Any]],
+         check_name: str | None = None, upper_limit: bool = False) -> FigureRecord | None:
+    v = _num(value)
+    if v is None:
+        return None
+    c = checks.get((axis, check_name, rate)) if check_name else None
+    if c is None and check_name:
+        c = checks.get((axis, check_name, None)) or checks.get((axis, check_name, 0.0))
+    tol = None
+    if c is not None:
+        tol = _num(c.get("tolerance_rel", c.get("tolerance_dph")))
+    return FigureRecord(axis, quantity, rate, v, _num(u), unit, tol,
+                        str(c["verdict"]) if c and c.get("verdict") else None,
+                        UPPER_LIMIT if upper_limit else (
+                            str(c["rule"]) if c and c.get("rule") else None))
+
+
+def figures_of(result: dict[str, Any]) -> list[FigureRecord]:
+    """Every reported figure of result.json with U (k = 2) and its check's verdict."""
+    checks = _checks_index(result)
+    out: list[FigureRecord | None] = []
+    for axis, ax in (result.get("axes") or {}).items():
+        if not isinstance(ax, dict):
+            continue
+        for r in ax.get("rates") or []:
+            rate = _num(r.get("set_rate_dps"))
+            out.append(_fig(axis, "rate_error_rel", rate, r.get("rate_error_rel"),
+                            r.get("rate_error_u_rel"), "1", checks, "rate_error"))
+            if r.get("rate_instability_resolved") is False:
+                # not resolved above the counter's timing floor: the records keep what the
+                # certificate prints, the one-sided upper limit, with no U (the one rule
+                # for unresolved figures, docs/certificate.md); the trend draws it as a limit
+                out.append(_fig(axis, "rate_instability_rel", rate,
+                                r.get("rate_instability_upper_rel"), None, "1", checks,
+                                "rate_instability", upper_limit=True))
+            else:
+                out.append(_fig(axis, "rate_instability_rel", rate,
+                                r.get("rate_instability_rel"), r.get("rate_instability_u_rel"),
+                                "1", checks, "rate_instability"))
+            out.append(_fig(axis, "intra_turn_instability_rel", rate,
+                            r.get("intra_turn_instability_rel"),
+                            r.get("intra_turn_instability_u_rel"), "1", checks,
+                            "intra_turn_instability"))
+            out.append(_fig(axis, "intra_turn_instability_corrected_rel", rate,
+                            r.get("intra_turn_instability_corrected_rel"), None, "1", checks,
+                            "intra_turn_instability_corrected"))
+            sysc = r.get("systematic") or {}
+            for h in sysc.get("harmonics") or []:
+                out.append(_fig(axis, f"harmonic{h.get('order')}_amplitude_rel", rate,
+                                h.get("amplitude_rel"), h.get("amplitude_u_rel"), "1", checks))
+            mains = sysc.get("mains") or {}
+            out.append(_fig(axis, "mains_amplitude_dps", rate, mains.get("amplitude_dps"),
+                            mains.get("amplitude_u_dps"), "deg/s", checks))
+        for p in ax.get("pairs") or []:
+            rate = _num(p.get("rate_dps"))
+            out.append(_fig(axis, "k", rate, p.get("k"), p.get("k_u"), "1", checks))
+            out.append(_fig(axis, "w0_dps", rate, p.get("w0_dps"), p.get("w0_u_dps"), "deg/s",
+                            checks))
+    drift = result.get("drift") or {}
+    for axis, d in (drift.get("axes") or {}).items():
+        if not isinstance(d, dict):
+            continue
+        out.append(_fig(axis, "own_drift_dph", None, d.get("own_dph"), d.get("own_u_dph"),
+                        "deg/h", checks, "own_drift"))
+        out.append(_fig(axis, "apparent_drift_dph", None, d.get("apparent_dph"),
+                        d.get("apparent_u_dph"), "deg/h", checks, "apparent_drift"))
+    if drift:
+        out.append(_fig("platform", "azimuth_deg", None, drift.get("azimuth_deg"),
+                        drift.get("azimuth_u_deg"), "deg", checks))
+    return [f for f in out if f is not None]
+
+
+def certificate_number(result: dict[str, Any], run_path: Path) -> str | None:
+    """The number printed on the certificate (the certificate's own rule decides it)."""
+    from bench.app.certificate.build import Sources, issued_number
+
+    try:
+        return issued_number(Sources.load(result, run_path))
+    except Exception:  # noqa: BLE001 - a malformed result still gets registered
+        return None
+
+
+def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> RunRecord:
+    """The record of a finished run directory; NotARun if it has no result.json."""
+    path = Path(run_path).resolve()
+    if result is None:
+        if not (path / "result.json").is_file() or not (path / "events.jsonl").is_file():
+            raise NotARun(f"{path}: no result.json and events.jsonl (not a finished run)")
+        result = read_json_object(path / "result.json")
+    if not result:
+        raise NotARun(f"{path}/result.json: not a readable result")
+    meta = read_json_object(path / "meta.json")
+    try:
+        stand_file = yaml.safe_load((path / "stand.yaml").read_text(encoding="utf-8")) or {}
+    except (OSError, yaml.YAMLError):
+        stand_file = {}
+    ident = dict((stand_file.get("stand") or {}) if isinstance(stand_file, dict) else {})
+    ident.update({k: v for k, v in (result.get("stand") or {}).items() if v is not None})
+    serial = str(ident.get("serial") or "").strip()
+    if not serial:
+        raise NotARun(f"{path}: the stand has no serial number (stand.serial)")
+    interval = ident.get("recertification_interval_days")
+    dates = result.get("dates") or {}
+    state = meta.get("calibration_state") or (result.get("records") or {}).get(
+        "calibration_state")
+    cert_files = tuple((name, sha256_file(path / name), (path / name).stat().st_size)
+                       for name in CERTIFICATE_FILES if (path / name).is_file())
+    blob = json.dumps(result, sort_keys=True, default=str).encode()
+    return RunRecord(
+        uid=run_uid(meta, path.name),
+        serial=serial,
+        maker=_opt(ident.get("maker")), model=_opt(ident.get("model")),
+        location=_opt(ident.get("location")),
+        interval_days=int(iv) if (iv := _num(interval)) else None,
+        kind=str(result.get("procedure") or ("drift-pulse" if result.get("drift")
+                                             else "rate-ladder")),
+        title=_opt(result.get("title")),
+        run_dir=path.name, run_path=str(path), host=socket.gethostname(),
+        procedure_name=_opt(meta.get("procedure_name")),
+        procedure_sha256=_opt(meta.get("procedure_sha256")),
+        stand_sha256=_opt(meta.get("stand_sha256")),
+        result_sha256=hashlib.sha256(blob).hexdigest(),
+        created_utc=parse_utc(dates.get("created_utc") or meta.get("created_utc")),
+        started_utc=parse_utc(dates.get("started_utc")),
+        completed_utc=parse_utc(dates.get("completed_utc")),
+        operator=_opt(meta.get("operator")),
+        verdict=str(result.get("verdict") or "incomplete"),
+        calibration_state=state if state in STATES else None,
+        adjustment_note=_opt(meta.get("adjustment_note")),
+        certificate_number=certificate_number(result, path),
+        simulated=bool((result.get("stand") or {}).get("simulated")),
+        sessions=int(result["sessions"]) if _num(result.get("sessions")) else None,
+        aborted=bool(result.get("aborted")),
+        bench_version=_opt(meta.get("bench_version")),
+        figures=tuple(figures_of(result)),
+        cert_files=cert_files,
+        checks=tuple(checks_of(path, result, stand_file if isinstance(stand_file, dict)
+                               else {})),
+    )
+
+
+def _opt(x: Any) -> str | None:
+    return None if x is None or x == "" else str(x)
+
+
+def find_runs(runs_dir: str | Path) -> list[Path]:
+    """Run directories under `runs_dir` (itself, its children, or deeper), oldest first."""
+    root = Path(runs_dir)
+    found = {p.parent for p in root.rglob("result.json") if (p.parent / "events.jsonl").is_file()}
+    return sorted(found, key=lambda p: (read_json_object(p / "meta.json").get("created_utc", ""),
+                                        p.name))

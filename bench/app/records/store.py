@@ -1,0 +1,556 @@
+"""The records store: one code path for SQLite and PostgreSQL (SQLAlchemy Core).
+
+`Records.open(url)` connects and brings the schema to the newest migration (Alembic,
+in-process, the scripts shipped in this package), so a database created by any earlier
+version is upgraded before it is used. Registration is one transaction per run and is
+retried when a concurrent writer got there first (a table's first row, a locked SQLite
+file): two benches registering at once both end up recorded.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import random
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TypeVar
+
+import sqlalchemy as sa
+from sqlalchemy import event
+from sqlalchemy.engine import Connection, Engine
+from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
+
+from bench.app.records import schema as s
+from bench.app.records.checks import CheckRecord
+from bench.app.records.extract import FigureRecord, RunRecord
+
+MIGRATIONS = Path(__file__).resolve().parent / "migrations"
+CONNECT_TIMEOUT_S = 5          # an unreachable lab server must not hold a run up
+SQLITE_BUSY_S = 30.0           # another bench holding the SQLite file: wait this long
+RETRIES = 8
+#: Alembic's command API keeps its context in module globals: one migration at a time
+#: per process (other processes are kept apart by the database's own transactions)
+_MIGRATE_LOCK = threading.Lock()
+T = TypeVar("T")
+
+
+class RecordsError(RuntimeError):
+    """The records database cannot be reached or used; the message says which and why."""
+
+
+def engine_url(url: str) -> str:
+    """postgresql:// means psycopg (version 3), the driver this project installs."""
+    for prefix in ("postgresql://", "postgres://"):
+        if url.startswith(prefix):
+            return "postgresql+psycopg://" + url[len(prefix):]
+    return url
+
+
+def make_engine(url: str) -> Engine:
+    real = engine_url(url)
+    if real.startswith("sqlite"):
+        path = real.split("///", 1)[1] if "///" in real else ""
+        if path and path != ":memory:":
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+        eng = sa.create_engine(real, connect_args={"timeout": SQLITE_BUSY_S})
+
+        # pysqlite opens transactions lazily and cannot wait for a write lock once it
+        # holds a read lock; BEGIN IMMEDIATE takes the write lock up front, so a second
+        # writer waits (busy timeout) instead of failing (SQLAlchemy's documented recipe).
+        @event.listens_for(eng, "connect")
+        def _no_implicit_begin(dbapi_conn: Any, _rec: Any) -> None:
+            dbapi_conn.isolation_level = None
+            dbapi_conn.execute("PRAGMA foreign_keys=ON")
+
+        @event.listens_for(eng, "begin")
+        def _begin_immediate(conn: Connection) -> None:
+            conn.exec_driver_sql("BEGIN IMMEDIATE")
+
+        return eng
+    args: dict[str, Any] = {}
+    if real.startswith("postgresql"):
+        args["connect_timeout"] = CONNECT_TIMEOUT_S
+    return sa.create_engine(real, connect_args=args, pool_pre_ping=True)
+
+
+def _retrying(what: str, fn: Callable[[], T]) -> T:
+    """Run `fn` again when a concurrent writer won a race; other errors pass through."""
+    for attempt in range(RETRIES):
+        try:
+            return fn()
+        except (IntegrityError, OperationalError) as e:
+            if attempt == RETRIES - 1 or not _is_race(e):
+                raise
+            time.sleep(0.05 * (2 ** attempt) * (0.5 + random.random()))
+    raise AssertionError("unreachable")
+
+
+def _is_race(e: DBAPIError) -> bool:
+    if isinstance(e, IntegrityError):
+        return True
+    text = str(e.orig).lower()
+    return any(m in text for m in ("locked", "deadlock", "could not serialize", "busy"))
+
+
+def _utc(t: dt.datetime | None) -> dt.datetime | None:
+    """Naive UTC from the database -> aware UTC for readers."""
+    return None if t is None else t.replace(tzinfo=dt.UTC)
+
+
+def _now() -> dt.datetime:
+    return dt.datetime.now(dt.UTC).replace(tzinfo=None)
+
+
+# -- the read API's records -----------------------------------------------------------------
+
+@dataclass(frozen=True)
+class TableInfo:
+    """One calibrated table (asset) and its recertification state."""
+
+    serial: str
+    maker: str | None
+    model: str | None
+    location: str | None
+    interval_days: int | None
+    runs: int
+    last_run_utc: dt.datetime | None
+    last_pass_utc: dt.datetime | None
+    last_certificate: str | None
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """One registered run of a table."""
+
+    id: int
+    uid: str
+    serial: str
+    kind: str
+    title: str | None
+    run_dir: str
+    run_path: str | None
+    host: str | None
+    procedure_name: str | None
+    procedure_sha256: str | None
+    date_utc: dt.datetime | None
+    started_utc: dt.datetime | None
+    completed_utc: dt.datetime | None
+    registered_utc: dt.datetime
+    operator: str | None
+    verdict: str
+    calibration_state: str | None
+    adjustment_note: str | None
+    certificate_number: str | None
+    simulated: bool
+    cert_files: dict[str, str]      # name -> SHA-256
+
+
+@dataclass(frozen=True)
+class TrendPoint:
+    """One figure of one run, placed in time: the unit of a trend."""
+
+    run_uid: str
+    date_utc: dt.datetime | None
+    certificate_number: str | None
+    calibration_state: str | None
+    figure: FigureRecord
+
+
+@dataclass(frozen=True)
+class DueItem:
+    """A table's next recertification."""
+
+    table: TableInfo
+    due_date: dt.date | None          # None: never passed, due now
+    days_left: int | None             # negative: overdue by that many days
+
+    @property
+    def status(self) -> str:
+        if self.days_left is None:
+            return "due (no passing run recorded)"
+        if self.days_left < 0:
+            return f"OVERDUE by {-self.days_left} d"
+        return f"due in {self.days_left} d"
+
+
+@dataclass(frozen=True)
+class InstrumentInfo:
+    """One of the bench's own instruments, known by its check values."""
+
+    serial: str
+    role: str
+    model: str | None
+    first_seen_utc: dt.datetime | None
+    last_seen_utc: dt.datetime | None
+
+
+@dataclass(frozen=True)
+class CheckPoint:
+    """One check value placed in time: a point of a control chart."""
+
+    run_uid: str
+    run_dir: str
+    table_serial: str
+    date_utc: dt.datetime | None
+    check: CheckRecord
+
+
+@dataclass(frozen=True)
+class ReviewInfo:
+    """A recorded review of an instrument's control status: who, when, why."""
+
+    serial: str
+    utc: dt.datetime
+    reviewer: str
+    text: str
+    status: str | None
+    through_utc: dt.datetime | None
+    new_baseline: bool = False        # the charts restart at the last run it saw
+
+
+class Records:
+    """The records database. Write: `register`. Read: `tables`, `runs`, `trend`, `due`."""
+
+    def __init__(self, engine: Engine, url: str) -> None:
+        self.engine = engine
+        self.url = url
+
+    @classmethod
+    def open(cls, url: str) -> Records:
+        """Connect and migrate to the newest schema; RecordsError if that cannot be done."""
+        try:
+            engine = make_engine(url)
+        except Exception as e:  # noqa: BLE001 - a bad URL is a reachability problem too
+            raise RecordsError(f"records database {redact(url)}: {e}") from e
+        rec = cls(engine, url)
+        try:
+            _retrying("migrate", rec.migrate)
+        except Exception as e:  # noqa: BLE001
+            engine.dispose()
+            raise RecordsError(f"records database {redact(url)}: {_short(e)}") from e
+        return rec
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+    def __enter__(self) -> Records:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def migrate(self) -> None:
+        from alembic import command
+        from alembic.config import Config as AlembicConfig
+
+        cfg = AlembicConfig()
+        cfg.set_main_option("script_location", str(MIGRATIONS))
+        with _MIGRATE_LOCK, self.engine.begin() as conn:
+            cfg.attributes["connection"] = conn
+            command.upgrade(cfg, "head")
+
+    def revision(self) -> str | None:
+        from alembic.runtime.migration import MigrationContext
+
+        with self.engine.connect() as conn:
+            ctx = MigrationContext.configure(
+                conn, opts={"version_table": "records_alembic_version"})
+            return ctx.get_current_revision()
+
+    @contextmanager
+    def _tx(self) -> Iterator[Connection]:
+        with self.engine.begin() as conn:
+            yield conn
+
+    # -- writing --------------------------------------------------------------------------
+    def register(self, rec: RunRecord, interval_days: int | None = None) -> str:
+        """Record one run (idempotent): 'new', 'updated' (re-analysed) or 'unchanged'."""
+        return _retrying("register", lambda: self._register(rec, interval_days))
+
+    def _register(self, rec: RunRecord, interval_days: int | None) -> str:
+        now = _now()
+        with self._tx() as conn:
+            table_id = self._table_id(conn, rec, interval_days, now)
+            old = conn.execute(sa.select(s.runs.c.id, s.runs.c.result_sha256)
+                               .where(s.runs.c.uid == rec.uid)).first()
+            old_files = {}
+            if old is not None:
+                old_files = {r.name: r.sha256 for r in conn.execute(
+                    sa.select(s.cert_files.c.name, s.cert_files.c.sha256)
+                    .where(s.cert_files.c.run_id == old.id))}
+                if old.result_sha256 == rec.result_sha256 and old_files == {
+                        n: h for n, h, _ in rec.cert_files}:
+                    if not rec.checks or conn.execute(sa.select(s.checks.c.id).where(
+                            s.checks.c.run_id == old.id).limit(1)).first() is not None:
+                        return "unchanged"
+                    # registered before the records kept check values (r0002): add them
+                    self._insert_checks(conn, old.id, rec, now)
+                    return "updated"
+            row = {
+                "uid": rec.uid, "table_id": table_id, "kind": rec.kind, "title": rec.title,
+                "run_dir": rec.run_dir, "run_path": rec.run_path, "host": rec.host,
+                "procedure_name": rec.procedure_name,
+                "procedure_sha256": rec.procedure_sha256, "stand_sha256": rec.stand_sha256,
+                "result_sha256": rec.result_sha256, "created_utc": rec.created_utc,
+                "started_utc": rec.started_utc, "completed_utc": rec.completed_utc,
+                "registered_utc": now, "operator": rec.operator, "verdict": rec.verdict,
+                "calibration_state": rec.calibration_state,
+                "adjustment_note": rec.adjustment_note,
+                "certificate_number": rec.certificate_number, "simulated": rec.simulated,
+                "sessions": rec.sessions, "aborted": rec.aborted,
+                "bench_version": rec.bench_version,
+            }
+            if old is None:
+                run_id = conn.execute(sa.insert(s.runs).values(**row)
+                                      .returning(s.runs.c.id)).scalar_one()
+            else:
+                run_id = old.id
+                conn.execute(sa.update(s.runs).where(s.runs.c.id == run_id).values(**row))
+                conn.execute(sa.delete(s.figures).where(s.figures.c.run_id == run_id))
+                conn.execute(sa.delete(s.cert_files).where(s.cert_files.c.run_id == run_id))
+                conn.execute(sa.delete(s.checks).where(s.checks.c.run_id == run_id))
+            if rec.figures:
+                conn.execute(sa.insert(s.figures), [
+                    {"run_id": run_id, "axis": f.axis, "quantity": f.quantity,
+                     "set_rate_dps": f.set_rate_dps, "value": f.value, "u": f.u,
+                     "unit": f.unit, "tolerance": f.tolerance, "verdict": f.verdict,
+                     "rule": f.rule} for f in rec.figures])
+            if rec.cert_files:
+                conn.execute(sa.insert(s.cert_files), [
+                    {"run_id": run_id, "name": n, "sha256": h, "bytes": b}
+                    for n, h, b in rec.cert_files])
+            self._insert_checks(conn, run_id, rec, now)
+            return "new" if old is None else "updated"
+
+    def _insert_checks(self, conn: Connection, run_id: int, rec: RunRecord,
+                       now: dt.datetime) -> None:
+        ids: dict[str, int] = {}
+        for c in rec.checks:
+            if c.serial not in ids:
+                ids[c.serial] = self._instrument_id(conn, c, now)
+        if rec.checks:
+            conn.execute(sa.insert(s.checks), [
+                {"run_id": run_id, "instrument_id": ids[c.serial], "axis": c.axis,
+                 "quantity": c.quantity, "set_rate_dps": c.set_rate_dps, "value": c.value,
+                 "u": c.u, "unit": c.unit} for c in rec.checks])
+
+    def _instrument_id(self, conn: Connection, c: CheckRecord, now: dt.datetime) -> int:
+        i = s.instruments.c
+        row = conn.execute(sa.select(i.id).where(i.serial == c.serial)).first()
+        if row is None:   # a concurrent first registration: IntegrityError, retried whole
+            return conn.execute(sa.insert(s.instruments).values(
+                serial=c.serial, role=c.role, model=c.model, first_seen_utc=now,
+                last_seen_utc=now).returning(i.id)).scalar_one()
+        conn.execute(sa.update(s.instruments).where(i.id == row.id).values(
+            last_seen_utc=now, **({"model": c.model} if c.model else {})))
+        return int(row.id)
+
+    def _table_id(self, conn: Connection, rec: RunRecord, interval_days: int | None,
+                  now: dt.datetime) -> int:
+        t = s.tables.c
+        row = conn.execute(sa.select(t.id).where(t.serial == rec.serial)).first()
+        values: dict[str, str | int | dt.datetime | None] = {
+            "maker": rec.maker, "model": rec.model, "location": rec.location,
+            "last_seen_utc": now}
+        if interval_days or rec.interval_days:
+            values["interval_days"] = interval_days or rec.interval_days
+        if row is None:
+            # a concurrent first registration of the same table raises IntegrityError
+            # here; the whole transaction is retried and then finds the row
+            return conn.execute(sa.insert(s.tables).values(
+                serial=rec.serial, first_seen_utc=now, **values)
+                .returning(t.id)).scalar_one()
+        conn.execute(sa.update(s.tables).where(t.id == row.id).values(**values))
+        return int(row.id)
+
+    # -- the read API (issue 17's station view reads through these) -------------------------
+    def tables(self) -> list[TableInfo]:
+        """Every table recorded, by serial."""
+        t, r = s.tables.c, s.runs.c
+        with self.engine.connect() as conn:
+            rows = conn.execute(sa.select(s.tables).order_by(t.serial)).all()
+            out = []
+            for row in rows:
+                runs = conn.execute(
+                    sa.select(r.verdict, r.certificate_number, r.completed_utc, r.started_utc,
+                              r.created_utc).where(r.table_id == row.id)).all()
+                dates = [(x.completed_utc or x.started_utc or x.created_utc, x) for x in runs]
+                dates = [(d, x) for d, x in dates if d is not None]
+                last = max(dates, key=lambda p: p[0], default=None)
+                passed = [d for d, x in dates if x.verdict == "pass"]
+                out.append(TableInfo(
+                    serial=row.serial, maker=row.maker, model=row.model,
+                    location=row.location, interval_days=row.interval_days, runs=len(runs),
+                    last_run_utc=_utc(last[0]) if last else None,
+                    last_pass_utc=_utc(max(passed)) if passed else None,
+                    last_certificate=last[1].certificate_number if last else None))
+            return out
+
+    def table(self, serial: str) -> TableInfo | None:
+        return next((t for t in self.tables() if t.serial == serial), None)
+
+    def runs(self, serial: str) -> list[RunInfo]:
+        """Every run of one table, oldest first (by the date the measurement ended)."""
+        r, t = s.runs.c, s.tables.c
+        with self.engine.connect() as conn:
+            rows = conn.execute(sa.select(s.runs, t.serial).join(
+                s.tables, r.table_id == t.id).where(t.serial == serial)).all()
+            files: dict[int, dict[str, str]] = {}
+            if rows:
+                for f in conn.execute(sa.select(s.cert_files).where(
+                        s.cert_files.c.run_id.in_([x.id for x in rows]))):
+                    files.setdefault(f.run_id, {})[f.name] = f.sha256
+        out = [RunInfo(
+            id=x.id, uid=x.uid, serial=x.serial, kind=x.kind, title=x.title,
+            run_dir=x.run_dir, run_path=x.run_path, host=x.host,
+            procedure_name=x.procedure_name, procedure_sha256=x.procedure_sha256,
+            date_utc=_utc(x.completed_utc or x.started_utc or x.created_utc),
+            started_utc=_utc(x.started_utc), completed_utc=_utc(x.completed_utc),
+            registered_utc=_utc(x.registered_utc) or dt.datetime.now(dt.UTC),
+            operator=x.operator, verdict=x.verdict, calibration_state=x.calibration_state,
+            adjustment_note=x.adjustment_note, certificate_number=x.certificate_number,
+            simulated=bool(x.simulated), cert_files=files.get(x.id, {})) for x in rows]
+        epoch = dt.datetime.min.replace(tzinfo=dt.UTC)
+        return sorted(out, key=lambda x: (x.date_utc or epoch, x.id))
+
+    def run(self, uid: str) -> RunInfo | None:
+        with self.engine.connect() as conn:
+            serial = conn.execute(sa.select(s.tables.c.serial).join(
+                s.runs, s.runs.c.table_id == s.tables.c.id)
+                .where(s.runs.c.uid == uid)).scalar()
+        if serial is None:
+            return None
+        return next((x for x in self.runs(serial) if x.uid == uid), None)
+
+    def figures(self, run_uid: str) -> list[FigureRecord]:
+        """Every figure of one run, as registered."""
+        f, r = s.figures.c, s.runs.c
+        with self.engine.connect() as conn:
+            rows = conn.execute(sa.select(s.figures).join(s.runs, f.run_id == r.id)
+                                .where(r.uid == run_uid).order_by(f.id)).all()
+        return [_figure(x) for x in rows]
+
+    def trend(self, serial: str, quantities: tuple[str, ...] | None = None,
+              ) -> list[TrendPoint]:
+        """Every figure of every run of one table, oldest run first."""
+        runs = {x.id: x for x in self.runs(serial)}
+        if not runs:
+            return []
+        f = s.figures.c
+        q = sa.select(s.figures).where(f.run_id.in_(list(runs)))
+        if quantities:
+            q = q.where(f.quantity.in_(quantities))
+        with self.engine.connect() as conn:
+            rows = conn.execute(q.order_by(f.id)).all()
+        order = {rid: i for i, rid in enumerate(runs)}
+        rows = sorted(rows, key=lambda x: (order[x.run_id], x.id))
+        return [TrendPoint(runs[x.run_id].uid, runs[x.run_id].date_utc,
+                           runs[x.run_id].certificate_number,
+                           runs[x.run_id].calibration_state, _figure(x)) for x in rows]
+
+    # -- measurement assurance (control.py reads through these) ----------------------------
+    def instruments(self) -> list[InstrumentInfo]:
+        """Every instrument that has check values, by serial."""
+        with self.engine.connect() as conn:
+            rows = conn.execute(sa.select(s.instruments).order_by(
+                s.instruments.c.serial)).all()
+        return [InstrumentInfo(x.serial, x.role, x.model, _utc(x.first_seen_utc),
+                               _utc(x.last_seen_utc)) for x in rows]
+
+    def checks(self, serial: str) -> list[CheckPoint]:
+        """Every check value of one instrument, oldest run first."""
+        c, r, i, t = s.checks.c, s.runs.c, s.instruments.c, s.tables.c
+        with self.engine.connect() as conn:
+            rows = conn.execute(
+                sa.select(s.checks, r.uid, r.run_dir, r.completed_utc, r.started_utc,
+                          r.created_utc, t.serial.label("table_serial"))
+                .join(s.runs, c.run_id == r.id).join(s.instruments, c.instrument_id == i.id)
+                .join(s.tables, r.table_id == t.id)
+                .where(i.serial == serial)).all()
+        epoch = dt.datetime.min
+        rows = sorted(rows, key=lambda x: (x.completed_utc or x.started_utc or x.created_utc
+                                           or epoch, x.run_id, x.id))
+        return [CheckPoint(
+            run_uid=x.uid, run_dir=x.run_dir, table_serial=x.table_serial,
+            date_utc=_utc(x.completed_utc or x.started_utc or x.created_utc),
+            check=CheckRecord(serial, "", None, x.axis, x.quantity, x.set_rate_dps, x.value,
+                              x.u, x.unit)) for x in rows]
+
+    def add_review(self, serial: str, reviewer: str, text: str, status: str | None,
+                   through_utc: dt.datetime | None, host: str | None = None,
+                   new_baseline: bool = False) -> ReviewInfo:
+        """Journal a review of one instrument's control status (append-only)."""
+        now = _now()
+        through = through_utc.astimezone(dt.UTC).replace(tzinfo=None) \
+            if through_utc is not None and through_utc.tzinfo else through_utc
+
+        def write() -> None:
+            with self._tx() as conn:
+                iid = conn.execute(sa.select(s.instruments.c.id).where(
+                    s.instruments.c.serial == serial)).scalar()
+                if iid is None:
+                    raise RecordsError(f"no instrument {serial!r} in {redact(self.url)}")
+                conn.execute(sa.insert(s.reviews).values(
+                    instrument_id=iid, utc=now, reviewer=reviewer, text=text, status=status,
+                    through_utc=through, host=host, new_baseline=new_baseline))
+        _retrying("review", write)
+        return ReviewInfo(serial, _utc(now) or dt.datetime.now(dt.UTC), reviewer, text,
+                          status, _utc(through), new_baseline)
+
+    def reviews(self, serial: str) -> list[ReviewInfo]:
+        """The review journal of one instrument, oldest first."""
+        v, i = s.reviews.c, s.instruments.c
+        with self.engine.connect() as conn:
+            rows = conn.execute(sa.select(s.reviews).join(
+                s.instruments, v.instrument_id == i.id).where(i.serial == serial)
+                .order_by(v.utc, v.id)).all()
+        return [ReviewInfo(serial, _utc(x.utc) or dt.datetime.now(dt.UTC), x.reviewer,
+                           x.text, x.status, _utc(x.through_utc), bool(x.new_baseline))
+                for x in rows]
+
+    def due(self, today: dt.date | None = None, within_days: int = 30,
+            intervals: Callable[[str, int | None], int | None] | None = None,
+            everything: bool = False) -> list[DueItem]:
+        """Tables due within `within_days` or overdue (all of them with `everything`).
+
+        `intervals(serial, stand_days)` may override a table's interval (lab settings).
+        A table with no interval from anywhere has no due date and is not listed.
+        """
+        today = today or dt.datetime.now(dt.UTC).date()
+        out = []
+        for t in self.tables():
+            days = intervals(t.serial, t.interval_days) if intervals else t.interval_days
+            if not days:
+                continue
+            if t.last_pass_utc is None:
+                item = DueItem(t, None, None)
+            else:
+                due = t.last_pass_utc.date() + dt.timedelta(days=days)
+                item = DueItem(t, due, (due - today).days)
+            if everything or item.days_left is None or item.days_left <= within_days:
+                out.append(item)
+        return sorted(out, key=lambda d: (d.days_left if d.days_left is not None else -10**9,
+                                          d.table.serial))
+
+
+def _figure(x: Any) -> FigureRecord:
+    return FigureRecord(axis=x.axis, quantity=x.quantity, set_rate_dps=x.set_rate_dps,
+                        value=x.value, u=x.u, unit=x.unit, tolerance=x.tolerance,
+                        verdict=x.verdict, rule=x.rule)
+
+
+def redact(url: str) -> str:
+    """A URL without its password, for messages."""
+    try:
+        return sa.engine.make_url(url).render_as_string(hide_password=True)
+    except Exception:  # noqa: BLE001
+        return url
+
+
+def _short(e: BaseException) -> str:
+    text = str(getattr(e, "orig", None) or e).strip().splitlines()
+    return text[0] if text else type(e).__name__

@@ -1,0 +1,100 @@
+"""`bench sim STAND.yaml`: the stand's twins alone, for scripts written elsewhere.
+
+A user develops a script against the digital twin of the bench before the bench exists:
+the counters answer SCPI on 127.0.0.1 (pyvisa), the FOGs stream on pseudo-terminals
+(pyserial), the drives sit on a python-can `udp_multicast` bus that another process
+joins (canopen). One line per instrument says where (CONTRACT §1):
+
+    outer counter TCPIP0::127.0.0.1::40113::SOCKET
+    outer fog /dev/pts/7
+    outer drive interface=udp_multicast channel=239.74.163.2 node=2 port=40987
+
+`port=` is udp_multicast's port (`can.Bus(..., port=N)`): each `bench sim` takes a
+free one, so two of them never hear each other's frames. The stand's clock runs in
+real time (clock_speed 1), whatever the stand file's `sim.clock_speed` says: a script
+on the other side lives in real time. Runs until Ctrl-C or SIGTERM, then stops every
+twin.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import signal
+import sys
+import threading
+from collections.abc import Iterator
+from typing import Any
+
+from bench.app.devices import stand_config
+from bench.core.registry import procedure_kind
+from bench.core.simbench import CAN_BUS_KEY, SimBench
+from bench.core.simdrift import drifted, stated_run_number
+
+#: where `bench sim` puts its drives: a bus another process can join
+SIM_CAN_INTERFACE = "udp_multicast"
+
+
+def address_lines(sim: SimBench, stand: dict[str, Any]) -> Iterator[str]:
+    """`AXIS KIND ADDRESS` for every instrument the twins serve (CONTRACT §1)."""
+    for axis in sim.axes:
+        ac = stand["axes"][axis]
+        if ac.get("counter"):
+            yield f"{axis} counter {ac['counter']['resource']}"
+        if ac.get("fog"):
+            yield f"{axis} fog {ac['fog']['port']}"
+        d = ac["drive"]
+        port = f" port={sim.can_port}" if sim.can_port is not None else ""
+        yield (f"{axis} drive interface={d['interface']} channel={d['channel']} "
+               f"node={d['node_id']}{port}")
+    platform = stand.get("platform") or {}
+    if platform.get("awg", {}).get("resource"):
+        yield f"platform awg {platform['awg']['resource']}"
+    for gyro, g in (platform.get("gyros") or {}).items():
+        if (g.get("dmm") or {}).get("resource"):
+            yield f"{gyro} dmm {g['dmm']['resource']}"
+
+
+def serve(stand_path: str, stop: threading.Event | None = None) -> int:
+    """Start the twins, print their addresses, run until `stop` (or a signal)."""
+    cfg = stand_config(stand_path)
+    if cfg is None:
+        return 2
+    if not cfg.has_sim:
+        print(f"{stand_path}: no `sim:` block; the twins run on built-in defaults",
+              file=sys.stderr)
+    stand = copy.deepcopy(cfg.stand)
+    sim_block = dict(stand.get("sim") or {})
+    sim_block["clock_speed"] = 1
+    sim_block[CAN_BUS_KEY] = SIM_CAN_INTERFACE
+    stand["sim"] = sim_block
+    # a drifting twin (bench control's demonstrations) takes its run's truth; no records
+    # here, so the run is the one the stand states, else the first
+    stand, notes = drifted(stand, stated_run_number(stand) or 1)
+    for note in notes:
+        print(note, file=sys.stderr)
+    cfg = dataclasses.replace(cfg, stand=stand)
+    stop = stop or threading.Event()
+    previous: dict[signal.Signals, Any] = {}
+    simbench = None
+    try:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                previous[sig] = signal.signal(sig, lambda *_: stop.set())
+        simbench, served = procedure_kind(cfg.kind).start_sim(cfg)
+        simbench.start_clock()
+        for line in address_lines(simbench, served):
+            print(line, flush=True)
+        print("twins running (real time); Ctrl-C stops them", file=sys.stderr, flush=True)
+        while not stop.wait(0.5):
+            pass
+        return 0
+    except Exception as e:  # noqa: BLE001 - say which twin did not start
+        print(f"ERROR: {e}", file=sys.stderr)
+        return 3
+    finally:
+        if simbench is not None:
+            simbench.stop()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        print("twins stopped", file=sys.stderr, flush=True)

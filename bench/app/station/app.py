@@ -1,0 +1,204 @@
+"""The station view's web application (Flask): live runs and the lab's records.
+
+Read-only but for one action, a stop request, which is exactly Ctrl-C: SIGINT to the bench
+process that journaled its pid in the run directory, so the engine's own safe stop runs
+(ramp to zero, disable, data kept, `--resume` continues). Nothing here can move a table.
+
+Security, in this order: a request from another host than this one needs the operator's
+token; a stop request always needs it; the Host header must name this server (a web page
+elsewhere cannot reach it through DNS rebinding); only the download files of run
+directories directly inside the runs folder are served.
+"""
+
+from __future__ import annotations
+
+import hmac
+import ipaddress
+import json
+import os
+import signal
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from flask import Flask, Response, abort, jsonify, render_template, request, send_from_directory
+
+import bench
+from bench.app.station.live import DOWNLOADS, list_runs, live_state, pid_alive
+from bench.app.station.records import RecordsView
+
+TOKEN_HEADER = "X-Bench-Token"
+TOKEN_COOKIE = "bench_token"
+STREAM_PERIOD_S = 1.0           # how often a live page gets the run's state
+STREAM_LIFETIME_S = 300.0       # a stream ends then; the browser reconnects by itself
+
+
+@dataclass(frozen=True)
+class StationSettings:
+    runs: Path
+    token: str
+    host: str = "127.0.0.1"
+    port: int = 8765
+    records_url: str | None = None
+
+
+def is_loopback(addr: str | None) -> bool:
+    try:
+        return ipaddress.ip_address((addr or "").split("%")[0]).is_loopback
+    except ValueError:
+        return False
+
+
+def _bench_process(pid: int) -> bool:
+    """The pid is a bench process still (a reused pid must never get our SIGINT):
+    `bench ...` or `python -m bench ...`."""
+    try:
+        argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+    except OSError:
+        return pid_alive(pid)     # no /proc (not Linux): trust the liveness check
+    return any(Path(os.fsdecode(a)).name == "bench" for a in argv[:1]) or \
+        any(argv[i] == b"-m" and argv[i + 1] == b"bench" for i in range(len(argv) - 1))
+
+
+def create_app(settings: StationSettings,
+               send_signal: Callable[[int, int], None] = os.kill) -> Flask:
+    app = Flask(__name__)
+    app.config["station"] = settings
+    runs = settings.runs.resolve()
+    records = RecordsView(runs, settings.records_url)
+
+    def run_dir(name: str) -> Path:
+        """A run directory directly inside the runs folder, or 404 (no traversal)."""
+        if not name or "/" in name or "\\" in name or name in (".", "..") \
+                or name.startswith("."):
+            abort(404)
+        p = (runs / name).resolve()
+        if p.parent != runs or not (p / "events.jsonl").is_file():
+            abort(404)
+        return p
+
+    def has_token() -> bool:
+        given = (request.headers.get(TOKEN_HEADER) or request.cookies.get(TOKEN_COOKIE)
+                 or request.args.get("token") or "")
+        return hmac.compare_digest(given.encode(), settings.token.encode())
+
+    allowed_hosts = {"127.0.0.1", "localhost", "[::1]", settings.host}
+
+    @app.before_request
+    def guard() -> Response | None:
+        host = request.host.rsplit(":", 1)[0] if not request.host.endswith("]") \
+            else request.host
+        if host not in allowed_hosts:
+            abort(403, "unknown Host header")
+        if not is_loopback(request.remote_addr) and not has_token():
+            abort(403, "a token is needed from another host")
+        return None
+
+    @app.after_request
+    def remember_token(resp: Response) -> Response:
+        # a token given once in the URL (?token=) is kept for the page's own requests
+        if request.args.get("token") and has_token():
+            resp.set_cookie(TOKEN_COOKIE, settings.token, httponly=True, samesite="Strict")
+        resp.headers["X-Content-Type-Options"] = "nosniff"
+        resp.headers["Content-Security-Policy"] = "default-src 'self'; img-src 'self' data:"
+        return resp
+
+    @app.get("/")
+    def index() -> str:
+        return render_template("index.html.j2", runs=list_runs(runs), version=bench.__version__,
+                               tables=records.tables(), records_error=records.error)
+
+    @app.get("/run/<name>")
+    def run_page(name: str) -> str:
+        p = run_dir(name)
+        return render_template("run.html.j2", run=p.name, state=live_state(p),
+                               version=bench.__version__)
+
+    @app.get("/api/runs")
+    def api_runs() -> Response:
+        return jsonify(list_runs(runs))
+
+    @app.get("/api/runs/<name>/state")
+    def api_state(name: str) -> Response:
+        return jsonify(live_state(run_dir(name)))
+
+    @app.get("/api/runs/<name>/stream")
+    def api_stream(name: str) -> Response:
+        p = run_dir(name)
+
+        def events() -> Iterator[str]:
+            last = None
+            t_end = time.monotonic() + STREAM_LIFETIME_S
+            yield "retry: 2000\n\n"
+            while time.monotonic() < t_end:
+                text = json.dumps(live_state(p), separators=(",", ":"), allow_nan=False)
+                if text != last:
+                    last = text
+                    yield f"event: state\ndata: {text}\n\n"
+                else:
+                    yield ": keep-alive\n\n"
+                time.sleep(STREAM_PERIOD_S)
+        return Response(events(), mimetype="text/event-stream",
+                        headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
+
+    @app.post("/api/runs/<name>/stop")
+    def api_stop(name: str) -> tuple[Response, int]:
+        if not has_token():
+            return jsonify(ok=False, error="the stop request needs the station's token"), 403
+        p = run_dir(name)
+        state = live_state(p)
+        pid = state.get("pid")
+        if state["status"] != "running" or not pid or not _bench_process(int(pid)):
+            return jsonify(ok=False, error=f"run {name} is not running ({state['status']})"), 409
+        send_signal(int(pid), signal.SIGINT)   # exactly Ctrl-C: the engine's safe stop
+        app.logger.warning("stop requested for %s (pid %s) from %s", name, pid,
+                           request.remote_addr)
+        return jsonify(ok=True, pid=pid, message="stop requested: the bench ramps every axis "
+                       "to zero and disables it; `bench run --resume` continues"), 202
+
+    @app.get("/files/<name>/<path:filename>")
+    def files(name: str, filename: str) -> Response:
+        p = run_dir(name)
+        if filename not in DOWNLOADS:
+            abort(404)
+        return send_from_directory(p, filename, as_attachment=filename.endswith(".xml"))
+
+    @app.get("/records")
+    def records_page() -> str:
+        tables = records.tables()
+        error = records.error
+        return render_template("records.html.j2", tables=tables, records_error=error,
+                               instruments=records.instruments(), version=bench.__version__)
+
+    @app.get("/instrument/<path:serial>")
+    def instrument_page(serial: str) -> str:
+        control = records.control(serial)
+        if control is None:
+            abort(404)
+        return render_template("instrument.html.j2", serial=serial, control=control,
+                               version=bench.__version__)
+
+    @app.get("/api/instrument/<path:serial>/control.png")
+    def control_png(serial: str) -> Response:
+        png = records.control_png(serial)
+        if png is None:
+            abort(404)
+        return Response(png, mimetype="image/png")
+
+    @app.get("/records/<serial>")
+    def table_page(serial: str) -> str:
+        history = records.history(serial)
+        if history is None:
+            abort(404)
+        return render_template("table.html.j2", serial=serial, history=history,
+                               version=bench.__version__)
+
+    @app.get("/api/records/<serial>/trend.png")
+    def trend_png(serial: str) -> Response:
+        png = records.trend_png(serial)
+        if png is None:
+            abort(404)
+        return Response(png, mimetype="image/png")
+
+    return app

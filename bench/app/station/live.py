@@ -1,0 +1,413 @@
+"""What a running (or finished) bench is doing, read from its run directory alone.
+
+The station view never talks to the bench process. The bench already journals every step
+(events.jsonl, fsynced per line) and streams every raw byte to raw/s<session>/; reading
+those files shows the run without sitting in its acquisition path, so a view that dies,
+hangs or is slow costs the run nothing, and a page reload or a server restart loses
+nothing either (the files are the state).
+
+Everything here is read-only and tolerant: a torn last line, a raw file not yet created,
+a run of an older version without the newer event fields: each gives less detail, never
+an error.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from bench.core.config import FogSettings
+from drivers.fog import dps_per_unit
+from drivers.fog_formats import AXES, DecodeState, decode, get_format
+
+FULL_TURN_DEG = 360.0             # one zero mark per turn (docs/method.md A1)
+TRACE_POINTS = 600                # a plot of a half never needs more points than pixels
+FOG_TAIL_S = 30.0                 # bench seconds of FOG record shown
+DRIVE_TAIL_BYTES = 96 * 1024      # about 600 feedback readings
+EVENT_KINDS_SHOWN = ("abort", "safe_stop", "prompt", "completed", "exit", "session_start",
+                     "pair", "pair_failed", "settled")
+
+
+def tail_jsonl(path: Path, max_bytes: int) -> list[dict[str, Any]]:
+    """The whole records in the last `max_bytes` of a JSON-lines file (first and torn
+    last lines skipped): a growing raw log is read in constant time."""
+    try:
+        size = path.stat().st_size
+        with open(path, "rb") as f:
+            start = max(0, size - max_bytes)
+            f.seek(start)
+            data = f.read(size - start)
+    except FileNotFoundError:
+        return []
+    lines = data.split(b"\n")
+    if start > 0:
+        lines = lines[1:]
+    out = []
+    for line in lines:
+        try:
+            out.append(json.loads(line))
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            continue
+    return out
+
+
+def read_events(run_path: Path) -> list[dict[str, Any]]:
+    """Every event of the run (all sessions); a torn last line is skipped."""
+    return tail_jsonl(run_path / "events.jsonl", 1 << 62)
+
+
+def pid_alive(pid: int | None) -> bool:
+    if not pid:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def decimate(t: np.ndarray, y: np.ndarray, points: int = TRACE_POINTS
+             ) -> tuple[list[float], list[float]]:
+    """Block means (not every k-th sample, which would alias the FOG's noise)."""
+    n = len(y)
+    if n == 0:
+        return [], []
+    k = max(1, math.ceil(n / points))
+    m = n // k * k
+    if m == 0:
+        return [float(t.mean())], [float(y.mean())]
+    tb = t[:m].reshape(-1, k).mean(axis=1)
+    yb = y[:m].reshape(-1, k).mean(axis=1)
+    return [round(float(v), 4) for v in tb], [float(v) for v in yb]
+
+
+def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S
+              ) -> dict[str, Any]:
+    """The last `tail_s` of a FOG capture, decoded and decimated (bench time, deg/s).
+
+    Time is the frame's position in the capture over the output rate: exact while no
+    bytes were lost, a few frames off after a corrupt stretch, which a live plot can bear.
+    """
+    try:
+        f = get_format(fog.format)
+        size = raw.stat().st_size
+    except (FileNotFoundError, ValueError, KeyError):
+        return {"t_s": [], "rate_dps": []}
+    want = int(tail_s * fog.rate_hz) * f.size
+    start = max(0, size - want)
+    with open(raw, "rb") as fh:
+        fh.seek(start)
+        buf = fh.read(size - start)
+    frames, _, stats = decode(buf, f, DecodeState(offset=start))
+    seen = {"tail_s": tail_s, "tail_crc_errors": int(stats.crc_errors),
+            "tail_lost_frames": int(stats.lost_frames)}
+    if not len(frames) or fog.axis not in AXES:
+        return {"t_s": [], "rate_dps": [], **seen}
+    scale = dps_per_unit(fog.units, fog.rate_hz)
+    t = frames.offset.astype(np.float64) / f.size / fog.rate_hz
+    y = frames.rates[:, AXES.index(fog.axis)].astype(np.float64) * scale
+    ts, ys = decimate(t, y)
+    return {"t_s": ts, "rate_dps": ys, **seen}
+
+
+def drive_trace(raw: Path) -> dict[str, list[float]]:
+    """The drive's recent velocity feedback (TPDO), for the settling plot."""
+    recs = [r for r in tail_jsonl(raw, DRIVE_TAIL_BYTES) if r.get("kind") == "feedback"]
+    return {"t_s": [float(r["t_s"]) for r in recs if r.get("t_s") is not None],
+            "velocity_dps": [float(r["velocity_dps"]) for r in recs if r.get("t_s") is not None]}
+
+
+def turn_rates(acquire: dict[str, Any]) -> dict[str, Any]:
+    """Per-turn rates of one timed half from its zero-mark edges (docs/method.md A1: w = 360/T,
+    signed as commanded) and their deviation from the set rate (eq. 1, per turn)."""
+    edges = np.asarray(acquire.get("edges_s") or [], dtype=np.float64)
+    set_dps = float(acquire.get("set_rate_dps", 0.0))
+    if edges.size < 2 or set_dps == 0:
+        return {"set_rate_dps": set_dps, "rate_dps": [], "deviation_ppm": []}
+    rate_dps = math.copysign(1.0, set_dps) * FULL_TURN_DEG / np.diff(edges)
+    dev_ppm = (rate_dps - set_dps) / set_dps * 1e6
+    return {"set_rate_dps": set_dps, "axis": acquire.get("axis"), "unit": acquire.get("unit"),
+            "rate_dps": [float(v) for v in rate_dps],
+            "deviation_ppm": [float(v) for v in dev_ppm]}
+
+
+def _utc_s(stamp: str) -> float:
+    from datetime import datetime
+    return datetime.fromisoformat(stamp).timestamp()
+
+
+def progress_of(session: list[dict[str, Any]]) -> dict[str, Any]:
+    """Step, progress and ETA of one session, in bench time and in wall time.
+
+    The wall ETA is the bench time left over the speed measured so far in this session
+    (bench seconds per wall second between its first and latest event), never the clock
+    speed configured: a loaded machine or a twin-paced clock changes the speed.
+    """
+    plan = next((e for e in reversed(session) if e.get("event") == "plan"), None)
+    steps = int(plan["steps"]) if plan else 0
+    estimates = list(plan.get("step_estimates_s") or []) if plan else []
+    total_s = float(plan["estimate_s"]) if plan else 0.0
+    starts = [e for e in session if e.get("event") == "step_start"]
+    done = {e.get("index") for e in session if e.get("event") == "step_done"}
+    cur = starts[-1] if starts else None
+    timed = [e for e in session if e.get("t_s") is not None and e.get("utc")]
+    now_bench = float(timed[-1]["t_s"]) if timed else 0.0
+    speed = None
+    if len(timed) >= 2:
+        dt_wall = _utc_s(timed[-1]["utc"]) - _utc_s(timed[0]["utc"])
+        dt_bench = float(timed[-1]["t_s"]) - float(timed[0]["t_s"])
+        if dt_wall > 0 and dt_bench > 0:
+            speed = dt_bench / dt_wall
+    left_s = None
+    if cur is not None and estimates and len(estimates) == steps:
+        i = int(cur["index"])
+        left_s = sum(estimates[i:]) if i not in done else sum(estimates[i + 1:])
+        if i not in done and cur.get("t_s") is not None:
+            left_s -= min(estimates[i], max(0.0, now_bench - float(cur["t_s"])))
+    elif total_s and cur is not None:
+        left_s = total_s * (1 - len(done) / max(steps, 1))
+    fraction = None
+    if steps:
+        fraction = len(done) / steps
+        if left_s is not None and total_s > 0 and len(done) < steps:
+            fraction = min(1.0, max(0.0, 1 - left_s / total_s))
+    return {
+        "steps": steps,
+        "steps_done": len(done),
+        "step": None if cur is None else {
+            "index": cur.get("index"), "number": int(cur.get("index", 0)) + 1,
+            "action": cur.get("action"), "axis": cur.get("axis"), "unit": cur.get("unit"),
+            "describe": cur.get("describe"), "done": cur.get("index") in done},
+        "fraction": fraction,
+        "bench_time_s": now_bench,
+        "bench_left_s": left_s,
+        "speed": speed,
+        "wall_left_s": (left_s / speed) if (left_s is not None and speed) else None,
+    }
+
+
+#: wall seconds without new data after which a running bench is flagged on the page: the
+#: FOG streams hundreds of frames a second and the drive its feedback every few tens of ms,
+#: so a second or two of silence is already a fault (a hung bench otherwise looks normal)
+FOG_SILENT_S = 2.0
+DRIVE_SILENT_S = 2.0
+#: the page's "last update" turns into a stale warning after this long
+STALE_S = 5.0
+
+
+def _age_s(path: Path, now: float) -> float | None:
+    """Wall seconds since `path` was last written, or None if it does not exist."""
+    try:
+        return max(0.0, now - path.stat().st_mtime)
+    except OSError:
+        return None
+
+
+def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
+           fog_tail: dict[str, Any], axis: str | None,
+           acquires: list[dict[str, Any]], now: float | None = None) -> dict[str, Any]:
+    """The bench's health as its files show it: when each instrument was last heard, the
+    FOG's lost and broken frames, and how long since anything was written.
+
+    Ages are wall time from the files' modification times (the bench writes every frame
+    and reading as it arrives); warnings only while the run is running: a finished run's
+    files are quiet by design.
+    """
+    now = time.time() if now is None else now
+    per_axis = []
+    warnings: list[str] = []
+    ages = [a for a in [_age_s(run_path / "events.jsonl", now)] if a is not None]
+    for name in axes:
+        lost = sum(int(e.get("fog_lost", 0) or 0) for e in acquires if e.get("axis") == name)
+        row: dict[str, Any] = {"axis": name, "fog_lost_in_halves": lost}
+        for inst, suffix in (("fog", "fog.bin"), ("drive", "drive.jsonl"),
+                             ("counter", "counter.jsonl")):
+            age = _age_s(raw / f"{name}-{suffix}", now) if raw is not None else None
+            row[f"{inst}_age_s"] = age
+            if age is not None:
+                ages.append(age)
+        if name == axis:
+            row["fog_tail_s"] = fog_tail.get("tail_s")
+            row["fog_tail_crc_errors"] = fog_tail.get("tail_crc_errors")
+            row["fog_tail_lost_frames"] = fog_tail.get("tail_lost_frames")
+            if running:
+                fog_age, drive_age = row["fog_age_s"], row["drive_age_s"]
+                if fog_age is not None and fog_age > FOG_SILENT_S:
+                    warnings.append(f"FOG {name}: no data for {fog_age:.0f} s")
+                if drive_age is not None and drive_age > DRIVE_SILENT_S:
+                    warnings.append(f"drive {name}: not heard for {drive_age:.0f} s "
+                                    "(heartbeat/feedback)")
+                if row["fog_tail_crc_errors"]:
+                    warnings.append(f"FOG {name}: {row['fog_tail_crc_errors']} CRC errors in "
+                                    f"the last {FOG_TAIL_S:g} s")
+                if row["fog_tail_lost_frames"]:
+                    warnings.append(f"FOG {name}: {row['fog_tail_lost_frames']} frames lost "
+                                    f"in the last {FOG_TAIL_S:g} s")
+        per_axis.append(row)
+    last = min(ages) if ages else None
+    stale = running and last is not None and last > STALE_S
+    if stale:
+        warnings.insert(0, f"no update for {last:.0f} s: the bench may be hung")
+    return {"axes": per_axis, "last_update_s": last, "stale": stale,
+            "stale_after_s": STALE_S, "warnings": warnings}
+
+
+def pair_rows(events: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The results as they come: one row per axis, rate and direction from each pair's
+    first look (the `pair` event; k and w0 per pair, delta +/- U, sigma, verdict)."""
+    rows = []
+    for e in events:
+        if e.get("event") != "pair":
+            continue
+        for d in e.get("directions") or []:
+            rows.append({"axis": e.get("axis"), "set_rate_dps": d.get("set_rate_dps"),
+                         "k": e.get("k"), "k_U": e.get("k_u"), "w0_dps": e.get("w0_dps"),
+                         "w0_U_dps": e.get("w0_u_dps"),
+                         "rate_error_rel": d.get("rate_error_rel"),
+                         "rate_error_U_rel": d.get("rate_error_U_rel"),
+                         "rate_instability_rel": d.get("rate_instability_rel"),
+                         "turns": d.get("turns"), "verdict": d.get("verdict")})
+    return rows
+
+
+def final_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
+    """The final table from result.json: per axis and rate the figures the certificate
+    prints (rate error +/- U, instability, verdict) with the pair's k and w0."""
+    rows = []
+    for axis, body in (result.get("axes") or {}).items():
+        if not isinstance(body, dict):
+            continue
+        pairs = {p.get("rate_dps"): p for p in body.get("pairs") or [] if isinstance(p, dict)}
+        for r in body.get("rates") or []:
+            if not isinstance(r, dict):
+                continue
+            pair = pairs.get(abs(r.get("set_rate_dps") or 0), {})
+            rows.append({"axis": axis, "set_rate_dps": r.get("set_rate_dps"),
+                         "k": pair.get("k"), "k_U": pair.get("k_u"),
+                         "w0_dps": pair.get("w0_dps"), "w0_U_dps": pair.get("w0_u_dps"),
+                         "rate_error_rel": r.get("rate_error_rel"),
+                         "rate_error_U_rel": r.get("rate_error_u_rel"),
+                         "rate_instability_rel": r.get("rate_instability_rel"),
+                         "turns": r.get("turns"), "verdict": r.get("verdict")})
+    return rows
+
+
+def live_state(run_path: Path) -> dict[str, Any]:
+    """The station's view of one run directory (JSON-ready)."""
+    run_path = Path(run_path)
+    events = read_events(run_path)
+    starts = [e for e in events if e.get("event") == "session_start"]
+    session_no = starts[-1].get("session") if starts else None
+    session = [e for e in events if e.get("session") == session_no] if starts else []
+    start = starts[-1] if starts else {}
+    exit_ev = next((e for e in reversed(session) if e.get("event") == "exit"), None)
+    pid = start.get("pid")
+    if exit_ev is not None:
+        status = {0: "passed", 1: "failed", 2: "invalid", 3: "aborted"}.get(
+            exit_ev.get("status"), "ended")
+    elif not starts:
+        status = "created"
+    elif pid is not None and not pid_alive(pid):
+        status = "stopped (the bench process is gone; resume it)"
+    else:
+        status = "running"
+    try:
+        stand = yaml.safe_load((run_path / "stand.yaml").read_text(encoding="utf-8")) or {}
+    except (OSError, yaml.YAMLError):
+        stand = {}
+    prog = progress_of(session)
+    axis = (prog["step"] or {}).get("axis")
+    raw = run_path / "raw" / f"s{session_no}" if session_no else None
+    fog: dict[str, Any] = {"t_s": [], "rate_dps": []}
+    drive: dict[str, list[float]] = {"t_s": [], "velocity_dps": []}
+    if raw is not None and axis:
+        settings = FogSettings.of_axis(stand, axis) if isinstance(stand, dict) else None
+        if settings is not None:
+            fog = fog_trace(raw / f"{axis}-fog.bin", settings)
+        drive = drive_trace(raw / f"{axis}-drive.jsonl")
+    acquires = [e for e in events if e.get("event") == "acquire"]
+    # the per-turn panel shows the axis now running, never the previous axis's last half
+    shown_acquires = [e for e in acquires if not axis or e.get("axis") == axis]
+    result = None
+    final: list[dict[str, Any]] = []
+    if (run_path / "result.json").exists() and status != "running":
+        try:
+            doc = json.loads((run_path / "result.json").read_text())
+            result = doc.get("verdict") if isinstance(doc, dict) else None
+            final = final_rows(doc) if isinstance(doc, dict) else []
+        except (OSError, json.JSONDecodeError):
+            result = None
+    axes_now = [str(a) for a in ((stand.get("axes") or {}) if isinstance(stand, dict)
+                                 else {})]
+    used = [a for a in axes_now if any(e.get("axis") == a for e in session)] or axes_now
+    shown = [{k: v for k, v in e.items() if k not in ("traceback",)}
+             for e in events if e.get("event") in EVENT_KINDS_SHOWN][-40:]
+    ident = (stand.get("stand") or {}) if isinstance(stand, dict) else {}
+    return {
+        "run": run_path.name,
+        "title": _title(run_path),
+        "stand": {k: ident.get(k) for k in ("maker", "model", "serial")},
+        "simulated": isinstance(stand, dict) and "sim" in stand,
+        "status": status,
+        "session": session_no,
+        "sessions": len(starts),
+        "pid": pid,
+        "progress": prog,
+        "turns": turn_rates(shown_acquires[-1]) if shown_acquires else None,
+        "fog": {"axis": axis, **fog},
+        "health": health(run_path, raw, used, status == "running", fog, axis, acquires),
+        "results": pair_rows(events),
+        "final": final,
+        "drive": {"axis": axis, **drive},
+        "faults": [e for e in shown if e.get("event") in ("abort", "safe_stop")
+                   and not e.get("ok", False)],
+        "prompts": [e for e in shown if e.get("event") == "prompt"],
+        "log": shown,
+        "verdict": result,
+        "files": [n for n in DOWNLOADS if (run_path / n).exists()],
+    }
+
+
+DOWNLOADS = ("certificate.pdf", "certificate.html", "certificate.dcc.xml", "result.json")
+
+
+def _title(run_path: Path) -> str:
+    try:
+        proc = yaml.safe_load((run_path / "procedure.yaml").read_text(encoding="utf-8")) or {}
+        return str(proc.get("title") or run_path.name) if isinstance(proc, dict) else run_path.name
+    except (OSError, yaml.YAMLError):
+        return run_path.name
+
+
+def list_runs(runs: Path) -> list[dict[str, Any]]:
+    """Every run directory in the runs folder, newest first, with its status."""
+    out = []
+    try:
+        dirs = [p for p in runs.iterdir() if (p / "events.jsonl").is_file()]
+    except FileNotFoundError:
+        return []
+    for p in sorted(dirs, key=lambda p: p.name, reverse=True):
+        events = read_events(p)
+        starts = [e for e in events if e.get("event") == "session_start"]
+        last = starts[-1].get("session") if starts else None
+        exit_ev = next((e for e in reversed(events) if e.get("event") == "exit"
+                        and e.get("session") == last), None)
+        if exit_ev is not None:
+            status = {0: "passed", 1: "failed", 3: "aborted"}.get(exit_ev.get("status"), "ended")
+        elif starts and pid_alive(starts[-1].get("pid")):
+            status = "running"
+        else:
+            status = "stopped" if starts else "created"
+        out.append({"run": p.name, "title": _title(p), "status": status,
+                    "sessions": len(starts),
+                    "started_utc": starts[0].get("utc") if starts else None})
+    return out

@@ -1,0 +1,158 @@
+"""The records half of the station view: tables, their runs, due dates and trends.
+
+Read through the lab's records database (bench.app.records' read API), the one place where
+every run of a table is registered. The view never creates or migrates a database: an
+SQLite file that does not exist yet is shown as "no records yet", with the command that
+makes it.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from bench.app.records import Records, RecordsError, target
+from bench.app.records.control import OUT_OF_CONTROL, all_statuses, instrument_status
+from bench.app.records.control_plot import control_png
+from bench.app.records.trend import trend_png
+from bench.app.station.live import DOWNLOADS
+
+
+def _iso(t: dt.datetime | dt.date | None) -> str | None:
+    return None if t is None else t.isoformat()
+
+
+class RecordsView:
+    """Tables and histories for the pages. Each call opens the database and closes it, so
+    a database that goes away (a lab server restarted) costs one page, not the server."""
+
+    def __init__(self, runs: Path, records_url: str | None = None) -> None:
+        self.runs = runs
+        self.where = target(runs, records_url, warn=lambda text: None)
+        self.error: str | None = None
+
+    @property
+    def url(self) -> str:
+        return self.where.url
+
+    def _absent(self) -> bool:
+        """A default SQLite file not made yet: nothing recorded, and nothing to create."""
+        if not self.url.startswith("sqlite:///"):
+            return False
+        return not Path(self.url.removeprefix("sqlite:///")).exists()
+
+    @contextmanager
+    def _open(self) -> Iterator[Records | None]:
+        self.error = None
+        if self._absent():
+            self.error = (f"no records database yet ({self.url}); runs register when they "
+                          f"end, or `bench records import {self.runs}`")
+            yield None
+            return
+        try:
+            rec = Records.open(self.url)
+        except RecordsError as e:
+            self.error = str(e)
+            yield None
+            return
+        try:
+            yield rec
+        finally:
+            rec.close()
+
+    def _due(self, rec: Records) -> dict[str, Any]:
+        return {d.table.serial: d for d in rec.due(intervals=self.where.interval_for,
+                                                   everything=True)}
+
+    def tables(self) -> list[dict[str, Any]]:
+        with self._open() as rec:
+            if rec is None:
+                return []
+            due = self._due(rec)
+            out = []
+            for t in rec.tables():
+                d = due.get(t.serial)
+                runs = rec.runs(t.serial)
+                out.append({"serial": t.serial, "maker": t.maker, "model": t.model,
+                            "runs": t.runs, "last_date_utc": _iso(t.last_run_utc),
+                            "last_verdict": runs[-1].verdict if runs else None,
+                            "last_certificate": t.last_certificate,
+                            "due_utc": _iso(d.due_date) if d else None,
+                            "due_status": d.status if d else "no interval set",
+                            "overdue": bool(d and d.days_left is not None and d.days_left < 0)})
+            return out
+
+    def history(self, serial: str) -> dict[str, Any] | None:
+        with self._open() as rec:
+            if rec is None:
+                return None
+            t = rec.table(serial)
+            if t is None:
+                return None
+            d = self._due(rec).get(serial)
+            runs = []
+            for r in rec.runs(serial):
+                local = self.runs / r.run_dir
+                runs.append({"run": r.run_dir, "title": r.title, "procedure": r.kind,
+                             "date_utc": _iso(r.date_utc), "verdict": r.verdict,
+                             "certificate_number": r.certificate_number,
+                             "found_left": r.calibration_state,
+                             "adjustment_note": r.adjustment_note,
+                             "simulated": r.simulated,
+                             "local": (local / "events.jsonl").is_file(),
+                             "files": [n for n in DOWNLOADS if (local / n).is_file()]})
+            return {"serial": serial, "maker": t.maker, "model": t.model,
+                    "location": t.location, "interval_days": t.interval_days,
+                    "due_utc": _iso(d.due_date) if d else None,
+                    "due_status": d.status if d else "no interval set",
+                    "overdue": bool(d and d.days_left is not None and d.days_left < 0),
+                    "runs": runs}
+
+    def trend_png(self, serial: str) -> bytes | None:
+        with self._open() as rec:
+            if rec is None or rec.table(serial) is None:
+                return None
+            return trend_png(rec.trend(serial), f"table {serial}")
+
+    # -- measurement assurance (bench control's statuses and charts) -------------------------
+    def instruments(self) -> list[dict[str, Any]]:
+        with self._open() as rec:
+            if rec is None:
+                return []
+            return [{"serial": s.serial, "role": s.role, "model": s.model, "state": s.state,
+                     "runs": s.runs, "rule": s.rule, "line": s.line,
+                     "out": s.state == OUT_OF_CONTROL} for s in all_statuses(rec)]
+
+    def control(self, serial: str) -> dict[str, Any] | None:
+        with self._open() as rec:
+            if rec is None:
+                return None
+            st = instrument_status(rec, serial)
+            if st is None:
+                return None
+            series = []
+            for s in st.series:
+                signals: dict[str, str] = {}
+                for g in s.signals:
+                    signals[g.run_uid] = "+".join(x for x in (signals.get(g.run_uid), g.rule)
+                                                  if x)
+                series.append({
+                    "label": s.label, "baseline": s.baseline_text, "centre": s.centre,
+                    "sigma": s.sigma, "sigma_source": s.sigma_source,
+                    "points": [{"date_utc": _iso(p.date_utc), "run": p.run_dir,
+                                "value": p.check.value, "u": p.check.u,
+                                "ewma": s.ewma[i] if i < len(s.ewma) else None,
+                                "signal": signals.get(p.run_uid)}
+                               for i, p in enumerate(s.points)]})
+            return {"serial": serial, "name": st.name, "state": st.state, "line": st.line,
+                    "out": st.state == OUT_OF_CONTROL, "series": series,
+                    "reviews": [{"utc": _iso(r.utc), "reviewer": r.reviewer, "text": r.text}
+                                for r in st.reviews]}
+
+    def control_png(self, serial: str) -> bytes | None:
+        with self._open() as rec:
+            st = instrument_status(rec, serial) if rec is not None else None
+            return control_png(st) if st is not None else None

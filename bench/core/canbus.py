@@ -1,0 +1,64 @@
+"""The stand's CAN buses: which axes share one, and the node ids each bus carries.
+
+Each axis's drive driver is a controller node of its own on its bus (its own canopen
+Network, heartbeat producer and SDO client), and that axis's drive watches exactly that
+node's heartbeat (0x1016:1). So axes on one bus (same interface and channel) need
+distinct drive node ids and distinct controller node ids: with one controller id for
+two axes, either axis's heartbeat would keep the other drive's watchdog fed, and two
+producers of one heartbeat COB-ID on a bus break CiA 301.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from bench.core.yamlfile import KeyPath
+from drivers.cia402 import CONTROLLER_NODE_ID  # further axes on a bus take 0x7E, 0x7D, ...
+
+
+def bus_name(drive: Mapping[str, Any]) -> str:
+    return f"{drive['interface']}:{drive['channel']}"
+
+
+def controller_node_ids(axes: Mapping[str, Mapping[str, Any]]) -> dict[str, int]:
+    """Per axis: its drive's `controller_node_id` if the stand gives one, or else the
+    highest node id still free on its bus (0x7F, 0x7E, ... in the stand file's order)."""
+    used: dict[str, set[int]] = {}
+    for ax in axes.values():
+        d = ax["drive"]
+        used.setdefault(bus_name(d), set()).update(
+            {d["node_id"]} | ({d["controller_node_id"]} if "controller_node_id" in d else set()))
+    out = {}
+    for name, ax in axes.items():
+        d = ax["drive"]
+        if "controller_node_id" in d:
+            out[name] = int(d["controller_node_id"])
+            continue
+        taken = used[bus_name(d)]
+        node = CONTROLLER_NODE_ID
+        while node in taken:
+            node -= 1
+        taken.add(node)
+        out[name] = node
+    return out
+
+
+def bus_problems(axes: Mapping[str, Mapping[str, Any]]) -> list[tuple[KeyPath, str]]:
+    """Node ids used twice on one bus, each named at the key that repeats it."""
+    out: list[tuple[KeyPath, str]] = []
+    seen: dict[tuple[str, int], str] = {}      # (bus, node id) -> what holds it
+    keys = [("node_id", "drive"), ("controller_node_id", "controller")]
+    for key, role in keys:
+        for name, ax in axes.items():
+            d = ax.get("drive") if isinstance(ax, Mapping) else None
+            if not isinstance(d, Mapping) or key not in d:
+                continue
+            where = (bus_name(d), int(d[key]))
+            if where in seen:
+                out.append(((name, "drive", key),
+                            f"node id {where[1]} on CAN bus {where[0]} is already axis "
+                            f"{seen[where]}; every node on a bus needs its own id"))
+            else:
+                seen[where] = f"{name!r}'s {role}"
+    return out

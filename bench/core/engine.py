@@ -1,0 +1,297 @@
+"""The engine: executes a plan's steps on a bench, and stops the table whatever happens.
+
+The engine is the same for every procedure kind and for real or simulated instruments:
+the kind executes each step; the engine journals it, reports progress, and on any
+exception, driver fault, Ctrl-C or SIGTERM stops every axis (ramp to zero, then
+disable) before anything else. A second Ctrl-C while stopping does not skip the stop.
+"""
+
+from __future__ import annotations
+
+import functools
+import multiprocessing
+import os
+import signal
+import sys
+import threading
+import time
+import traceback
+from collections.abc import Callable
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import wait as futures_wait
+from dataclasses import dataclass, field
+from types import FrameType
+from typing import Any, Protocol
+
+from bench.core.config import Config
+from bench.core.journal import RunDir, utc_now
+from bench.core.plan import Plan, Step
+from bench.core.progress import Progress
+from drivers.clock import Clock
+
+
+class Abort(Exception):
+    """The operator (Ctrl-C, SIGTERM) or a fault ended the run."""
+
+
+class Interrupted(Abort):
+    def __init__(self, signame: str) -> None:
+        super().__init__(f"interrupted by {signame}")
+        self.signame = signame
+
+
+class StoppableBench(Protocol):
+    """What the engine needs of the instruments: a safe stop and a close."""
+
+    def safe_stop(self, log: Callable[[str], None]) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class SignalGuard:
+    """SIGINT/SIGTERM become `Interrupted` in the main thread, except while stopping."""
+
+    def __init__(self, log: Callable[[str], None]) -> None:
+        self.stopping = False
+        #: the axes are stopped and the outputs are being written: a signal now ends the
+        #: writing (KeyboardInterrupt), since nothing is left to protect but derived files
+        self.writing = False
+        self.count = 0
+        self._log = log
+        self._old: dict[int, Any] = {}
+
+    def _handler(self, signum: int, frame: FrameType | None) -> None:
+        self.count += 1
+        name = signal.Signals(signum).name
+        if self.writing:
+            self.writing = False
+            raise KeyboardInterrupt(name)
+        if self.stopping:
+            self._log(f"{name} received: the axes are being stopped first; please wait")
+            return
+        self.stopping = True
+        raise Interrupted(name)
+
+    def __enter__(self) -> SignalGuard:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handler)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, old in self._old.items():
+            # once interrupted, more signals only cut short the last lines of output
+            signal.signal(sig, signal.SIG_IGN if self.count else old)
+
+
+#: how much lower the analysis worker's CPU priority is than the bench's (nice steps)
+WORKER_NICE = 10
+
+
+#: how often the analysis worker checks that the bench process that started it still lives (s)
+PARENT_WATCH_S = 0.5
+
+
+def _worker_init(parent_pid: int) -> None:
+    """In the worker: a lower priority, so on a busy machine the acquisition threads (FOG
+    reader, heartbeat, twins) get the CPU first and the analysis waits; and an end when the
+    bench process ends, however it ends.
+
+    A SIGKILLed bench runs no cleanup: its worker, blocked on the job queue, would live on
+    reparented to PID 1, holding the raw files and the bench's stdout/stderr open (so a
+    `bench run ... | tee log` never ends). The worker watches its parent instead.
+    """
+    import os
+
+    os.nice(WORKER_NICE)
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(PARENT_WATCH_S)
+        os._exit(1)  # the bench is gone: nobody will read a result; no cleanup to run
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
+class AnalysisWorker:
+    """Heavy analysis in a process of its own, so it cannot starve acquisition.
+
+    The FOG's serial reader, the CAN heartbeat and the twins are threads of the bench
+    process: a pair's analysis there (seconds of numpy at 36 M samples) would hold the
+    interpreter while frames and heartbeats are due. In a worker process it runs on the
+    other core, at a lower priority (WORKER_NICE), and the run goes on acquiring the next
+    pair meanwhile. `submit` never
+    blocks; `on_done(result, error)` runs in a thread of this process when it is done.
+    The worker is started ("spawn": never a fork of a process with CAN threads) at the
+    first submit and kept for the session, so it keeps its state between jobs.
+    """
+
+    def __init__(self) -> None:
+        self._pool: ProcessPoolExecutor | None = None
+        self._pending: list[Future[Any]] = []
+        self._submitted: dict[Future[Any], float] = {}  # monotonic time of each submit
+        self._took_s: list[float] = []                  # wall time of each finished job
+        self._lock = threading.Lock()
+        self._failed: list[str] = []  # what an on_done raised: reported by close()
+
+    def submit(self, fn: Callable[..., Any], *args: Any,
+               on_done: Callable[[Any, BaseException | None], None]) -> None:
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(max_workers=1,
+                                             mp_context=multiprocessing.get_context("spawn"),
+                                             initializer=_worker_init,
+                                             initargs=(os.getpid(),))
+        fut = self._pool.submit(fn, *args)
+        with self._lock:
+            self._submitted[fut] = time.monotonic()
+
+        def done(f: Future[Any]) -> None:
+            with self._lock:
+                t0 = self._submitted.pop(f, None)
+                if t0 is not None and not f.cancelled():
+                    self._took_s.append(time.monotonic() - t0)
+            if f.cancelled():
+                return
+            err = f.exception()
+            try:
+                on_done(None if err else f.result(), err)
+            except Exception as e:  # noqa: BLE001 - e.g. a full disk while journaling it
+                # raised here it would be printed by concurrent.futures as a traceback;
+                # the session reports it with the rest instead (close())
+                with self._lock:
+                    self._failed.append(f"a pair's first look could not be reported: {e}")
+        fut.add_done_callback(done)
+        self._pending.append(fut)
+
+    def backlog_s(self) -> float:
+        """Wall seconds the jobs not yet done should still take (one at a time, each as
+        long as those done took on average); 0 when none is pending or none has finished
+        yet to measure by. The run's end waits for them: the console's ETA counts it."""
+        with self._lock:
+            if not self._submitted or not self._took_s:
+                return 0.0
+            mean = sum(self._took_s) / len(self._took_s)
+            oldest = min(self._submitted.values())
+            return max(mean * len(self._submitted) - (time.monotonic() - oldest), 0.0)
+
+    def close(self, wait: bool = True) -> list[str]:
+        """Let submitted jobs finish (wait=True) or drop those not started, then stop;
+        returns what went wrong reporting their results (safe to call twice)."""
+        if self._pool is not None:
+            if wait:
+                futures_wait(self._pending)
+            self._pool.shutdown(wait=True, cancel_futures=not wait)
+            self._pool = None
+        self._pending.clear()
+        with self._lock:
+            failed, self._failed = self._failed, []
+        return failed
+
+
+@dataclass
+class RunContext:
+    """What a procedure kind's step needs: config, clock, instruments, journal, console."""
+
+    cfg: Config
+    clock: Clock
+    bench: Any
+    run: RunDir
+    progress: Progress
+    yes: bool = False
+    state: dict[str, Any] = field(default_factory=dict)
+    eta_s: Callable[[], float] = lambda: 0.0
+    worker: AnalysisWorker = field(default_factory=AnalysisWorker)
+
+    def prompt(self, text: str) -> None:
+        """An operator prompt: a person answers it on a terminal, or --yes answers it for
+        an unattended run. Either way the answer, who gave it and when are journaled (the
+        certificate lists them)."""
+        asked = utc_now()
+        if self.yes:
+            self.run.event("prompt", text=text, answered="yes", answered_by="--yes",
+                           answer="", asked_utc=asked, answered_utc=asked)
+            self.progress.warn(f"PROMPT  {text}  [answered by --yes]")
+            return
+        if not sys.stdin.isatty():
+            raise Abort(f"operator prompt needs an answer and stdin is not a terminal "
+                        f"(use --yes for unattended runs): {text}")
+        answer = self.progress.ask(f"PROMPT  {text}").strip()
+        aborted = answer.lower() in ("abort", "a", "no", "n")
+        self.run.event("prompt", text=text, answered="abort" if aborted else "yes",
+                       answered_by="operator", answer=answer, asked_utc=asked,
+                       answered_utc=utc_now())
+        if aborted:
+            raise Abort("the operator aborted at a prompt")
+
+
+StepRunner = Callable[[Step, RunContext], None]
+
+
+class Engine:
+    """Runs a plan, journals every step, and stops safely on anything."""
+
+    def __init__(self, ctx: RunContext, execute: StepRunner) -> None:
+        self.ctx = ctx
+        self.execute = execute
+
+    def run(self, plan: Plan, guard: SignalGuard) -> None:
+        """Execute every step; raises Abort (after the safe stop) on any failure."""
+        ctx = self.ctx
+        steps = plan.steps
+        remaining = [sum(s.estimate_s for s in steps[i:]) for i in range(len(steps))]
+        last_of_unit = {s.unit: i for i, s in enumerate(steps) if s.unit}
+        ctx.run.event("plan", steps=len(steps), estimate_s=plan.total_s,
+                      step_estimates_s=[s.estimate_s for s in steps])
+        ctx.progress.begin(steps, ctx.clock.now, ctx.worker.backlog_s)
+        try:
+            for i, step in enumerate(steps):
+                ctx.eta_s = functools.partial(remaining.__getitem__, i)
+                ctx.progress.step(i)
+                ctx.run.event("step_start", index=i, action=step.action, axis=step.axis,
+                              unit=step.unit, describe=step.describe)
+                self.execute(step, ctx)
+                ctx.progress.step_done(i)
+                ctx.run.event("step_done", index=i, action=step.action, unit=step.unit)
+                if step.unit and last_of_unit[step.unit] == i:
+                    ctx.run.event("unit_done", unit=step.unit)
+            # the last pair's first look, before "completed"
+            for problem in ctx.worker.close(wait=True):
+                ctx.progress.warn(f"WARNING: {problem}")
+            ctx.progress.end()
+        except BaseException as exc:  # noqa: BLE001 - every failure must stop the table
+            guard.stopping = True
+            ctx.progress.end()
+            reason = str(exc) or type(exc).__name__
+            ctx.progress.warn(f"ABORT: {reason}")
+            later: list[str] = []
+            try:
+                ctx.run.event("abort", reason=reason, error=type(exc).__name__,
+                              traceback=traceback.format_exc(limit=8))
+            except Exception as e:  # noqa: BLE001 - the stop comes first, whatever the disk
+                later.append(f"the abort could not be journaled: {e}")
+            later += self.safe_stop()
+            later += ctx.worker.close(wait=False)
+            out = exc if isinstance(exc, Abort) else Abort(reason)
+            for note in later:
+                out.add_note(f"also, while stopping: {note}")
+            if out is exc:
+                raise
+            raise out from exc
+
+    def safe_stop(self) -> list[str]:
+        """Stop every axis; returns what went wrong (never raises: it runs after a fault)."""
+        ctx = self.ctx
+        ctx.progress.line("Stopping every axis (ramp to zero, then disable)...")
+        errors: list[str] = []
+        try:
+            ctx.bench.safe_stop(ctx.progress.line)
+            ok, error = True, None
+        except BaseException as e:  # noqa: BLE001
+            ok, error = False, repr(e)
+            errors.append(f"safe stop: {e}")
+            ctx.progress.warn(f"SAFE STOP FAILED: {e!r}: check the table by hand")
+        try:
+            ctx.run.event("safe_stop", ok=ok, **({"error": error} if error else {}))
+        except Exception as e:  # noqa: BLE001
+            errors.append(f"the safe stop could not be journaled: {e}")
+        return errors

@@ -1,0 +1,242 @@
+"""Open a stand's instruments from its stand file: the same code for hardware and twins.
+
+The drivers do not know whether they talk to a real drive, counter and FOG or to their
+twins: the simulated bench only rewrites the stand's addresses (resource strings, the
+serial port, the CAN channel) before this module opens them.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable
+from contextlib import AbstractContextManager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TypeVar
+
+from bench.core.canbus import controller_node_ids
+from bench.core.config import FogSettings
+from bench.core.journal import JsonLines, RunDir
+from bench.core.protocols import Counter as CounterLike
+from bench.core.protocols import Drive
+from bench.core.protocols import Fog as FogLike
+from drivers.axis import Axis
+from drivers.clock import Clock
+from drivers.counter import Counter, CounterError
+from drivers.fog import Fog
+from drivers.time_tie import TimeTie
+
+T = TypeVar("T")
+
+DEFAULT_FOG_RANGE_DPS = 490.0  # KVH DSP-1760's range; a stand file may say otherwise
+#: seconds of FOG samples the live driver keeps: the run's memory must not grow with its
+#: length; the analysis reads every sample from the raw capture (drivers.fog.CaptureCursor)
+LIVE_FOG_KEEP_S = 60.0
+
+
+@dataclass
+class AxisInstruments:
+    """One table axis: its drive, and the counter and FOG that watch it."""
+
+    name: str
+    drive: Drive
+    counter: CounterLike | None = None
+    fog: FogLike | None = None
+    identities: dict[str, str] = field(default_factory=dict)
+    logs: dict[str, JsonLines] = field(default_factory=dict)
+    reference_text: str | None = None  # the counter's timebase as read back (journal)
+    refusal: Exception | None = None   # a stand claim the instruments denied at opening
+
+
+class Bench:
+    """All instruments of a run; `safe_stop` ramps every axis to zero and disables it.
+
+    What is opened is entered on one ExitStack, so it is closed last-opened-first, each
+    closer whatever the others raise; the errors come back together (`StopErrors`), never
+    one in place of another. Closing twice is harmless (the stack is empty then).
+    """
+
+    def __init__(self) -> None:
+        self.axes: dict[str, AxisInstruments] = {}
+        self.extra: dict[str, Any] = {}
+        self._stack = contextlib.ExitStack()
+        self._errors: list[str] = []
+
+    def enter(self, cm: AbstractContextManager[T]) -> T:
+        obj = cm.__enter__()
+        name = getattr(obj, "name", None) or getattr(obj, "port", None) or type(obj).__name__
+        self._stack.callback(self._closing, str(name), lambda: cm.__exit__(None, None, None))
+        return obj
+
+    def callback(self, fn: Callable[[], Any]) -> None:
+        self._stack.callback(self._closing, getattr(fn, "__qualname__", "cleanup"), fn)
+
+    def log(self, path: Path) -> JsonLines:
+        j = JsonLines(path)
+        self._stack.callback(self._closing, f"raw log {j.path}", j.close)
+        return j
+
+    def _closing(self, what: str, fn: Callable[[], Any]) -> None:
+        try:
+            fn()
+        except Exception as e:  # noqa: BLE001 - the others must still be closed
+            self._errors.append(f"{what}: {e}")
+
+    def safe_stop(self, log: Callable[[str], None]) -> None:
+        """Every axis through the drive's one stop sequence (drivers/axis.py safe_stop)."""
+        errors = [f"{ax.name}: {e}" for ax in self.axes.values()
+                  for e in ax.drive.safe_stop(log)]
+        if errors:
+            raise RuntimeError("; ".join(errors))
+
+    def abandon(self, error: BaseException) -> None:
+        """Opening failed with `error`: stop what was opened, close all, keep `error` the
+        one reported (what fails meanwhile, e.g. a stop on a clock not yet started, is
+        noted on it, never raised in its place)."""
+        for err in self.stop_and_close(lambda s: None):
+            error.add_note(f"also, while stopping: {err}")
+
+    def close(self) -> None:
+        """Close every instrument and raw log (last opened first). Every one is tried
+        whatever the others do; the errors are raised together (`StopErrors`)."""
+        self._stack.close()
+        errors, self._errors = self._errors, []
+        if errors:
+            raise StopErrors(errors)
+
+    def stop_and_close(self, log: Callable[[str], None]) -> list[str]:
+        """After a failure: safe stop, then close. Returns the errors, raises none: the
+        first cause stays what the operator reads, these go beneath it."""
+        errors: list[str] = []
+        if self.axes:
+            try:
+                self.safe_stop(log)
+            except Exception as e:  # noqa: BLE001
+                errors.append(f"safe stop: {e}")
+        try:
+            self.close()
+        except StopErrors as e:
+            errors += e.errors
+        except Exception as e:  # noqa: BLE001
+            errors.append(f"closing the instruments: {e}")
+        return errors
+
+
+class StopErrors(RuntimeError):
+    """Errors met while stopping and closing (each names its instrument or file)."""
+
+    def __init__(self, errors: list[str]) -> None:
+        super().__init__("; ".join(errors))
+        self.errors = errors
+
+
+def with_readback(identity: str, readback: dict[str, Any], manual: str | None = None) -> str:
+    """An instrument's identity with the settings it read back at connect (and the manual
+    its driver follows): one string, so the run's `identity` event, `bench devices` and
+    the certificate's instrument table all carry them."""
+    out = identity
+    if readback:
+        out += "; read back: " + ", ".join(f"{k} = {v}" for k, v in readback.items())
+    if manual:
+        out += f"; driver checked against: {manual}"
+    return out
+def manual_note(manual: str) -> str:
+    """What `bench devices` and the certificate say of a driver profile's source: the
+    manual it was checked against, or UNVERIFIED where no manual was found."""
+    if manual.strip().lower().startswith("unverified"):
+        return "UNVERIFIED (no manual found)"
+    return manual.split(":")[0]
+
+
+class StandClaimError(Exception):
+    """The stand file claims what the instrument, asked, denies: the input is invalid."""
+
+
+def check_references(bench: Bench) -> None:
+    """Refuse a run whose stand claims a counter reference the counter denied when it was
+    opened (Counter.verify_reference: the traceability of the second rests on it, and the
+    stand's timebase limit assumes it). Called once the bench can stop safely, before
+    anything moves."""
+    for ax in bench.axes.values():
+        if ax.refusal is not None:
+            raise ax.refusal
+
+
+def raw_text_logger(log: JsonLines, clock: Clock) -> Callable[[str, bytes], None]:
+    """A raw-exchange sink for SCPI drivers: every byte, as text, with the bench time."""
+    def raw(direction: str, data: bytes) -> None:
+        log.write({"t_s": clock.now(), "dir": direction, "data": data.decode("latin-1")})
+    return raw
+
+
+def _raw_record_logger(log: JsonLines, clock: Clock) -> Callable[[str, dict], None]:
+    """A sink for the drive's readings and commands (called from the CAN thread)."""
+    def raw(kind: str, record: dict) -> None:
+        log.write({"t_s": clock.now(), "kind": kind, **record})
+    return raw
+
+
+def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
+              run: RunDir | None, *, counter: bool = True, fog: bool = True) -> AxisInstruments:
+    """Open one axis's instruments (drive first, so a failure later still stops it).
+
+    `stand_axes` is the stand's whole `axes:` mapping: the axes sharing a CAN bus decide
+    together which controller node id each one uses (bench/core/canbus.py).
+    """
+    axis_cfg = stand_axes[name]
+    d = axis_cfg["drive"]
+    drive_log = bench.log(run.raw_path(f"{name}-drive.jsonl")) if run else None
+    drive = Axis(name, interface=d["interface"], channel=d["channel"], node_id=d["node_id"],
+                 max_rate_dps=d["max_rate_dps"], max_accel_dps2=d["max_accel_dps2"],
+                 clock=clock, controller_node_id=controller_node_ids(stand_axes)[name],
+                 **{k: d[k] for k in ("counts_per_rev", "heartbeat_ms", "watchdog_ms", "bitrate",
+                                      "unit_factors", "pdo")
+                    if k in d},
+                 **({"eds_path": d["eds"]} if "eds" in d else {}),
+                 raw=_raw_record_logger(drive_log, clock) if drive_log else None)
+    bench.enter(drive)
+    ax = AxisInstruments(name, drive)
+    if drive_log:
+        ax.logs["drive"] = drive_log
+    bench.axes[name] = ax
+    ax.identities["drive"] = with_readback(drive.identity(), drive.readback)
+    c = axis_cfg.get("counter")
+    if counter and c:
+        clog = bench.log(run.raw_path(f"{name}-counter.jsonl")) if run else None
+        cnt = Counter.open(c["resource"], c["model"], clock,
+                           raw=raw_text_logger(clog, clock) if clog else None,
+                           time_tie=TimeTie.from_stand(c.get("time_tie")),
+                           **({"timeout_margin_s": c["timeout_margin_s"]}
+                              if "timeout_margin_s" in c else {}))
+        bench.enter(cnt)
+        if clog:
+            ax.logs["counter"] = clog
+        cnt.configure(**{k: c[k] for k in ("channel", "level_v", "slope", "coupling",
+                                           "impedance_ohm") if k in c})
+        try:
+            cnt.verify_reference(c.get("reference"), c.get("timebase_limit_rel"))
+        except CounterError as e:
+            # refused by check_references once the bench can stop safely, before any move
+            ax.refusal = StandClaimError(f"axes.{name}.counter.reference: {e}")
+        got = str(cnt.readback.get("counter.reference", "")).upper()
+        ax.reference_text = (
+            "external reference at Ext Ref In (SENS:ROSC:SOUR? EXT, signal checked with "
+            "SENS:ROSC:EXT:CHEC ONCE)" if got.startswith("EXT") else
+            "internal oscillator (SENS:ROSC:SOUR? INT)" if got.startswith("INT") else
+            "not confirmed: the counter refused the stand's reference (see the run's "
+            "refusal)" if ax.refusal else "not reported by this model")
+        ax.counter = cnt
+        ax.identities["counter"] = with_readback(
+            cnt.identify(), {**cnt.readback, "time tie": cnt.time_tie.source},
+            manual_note(cnt.profile.manual))
+    if fog and axis_cfg.get("fog"):
+        f = FogSettings.of(axis_cfg["fog"])
+        fg = Fog(f.port, baudrate=f.baudrate, fmt=f.format, axis=f.axis, rate_hz=f.rate_hz,
+                 units=f.units, configure=f.configure,
+                 raw_path=run.raw_path(f"{name}-fog.bin") if run else None, clock=clock,
+                 model=f.model,
+                 keep_samples=int(LIVE_FOG_KEEP_S * f.rate_hz) if run else None)
+        bench.enter(fg)
+        ax.fog = fg
+        ax.identities["fog"] = with_readback(fg.identity(), fg.readback)
+    return ax

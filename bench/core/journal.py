@@ -1,0 +1,270 @@
+"""The run directory: resolved inputs, an append-only event log, every raw byte.
+
+A run directory is the evidence behind a certificate. The event log is JSON lines,
+flushed and fsynced at every write, so a crash or a power cut loses at most the line
+being written; raw instrument data goes to files of their own, as received.
+
+    RUN_DIR/
+      procedure.yaml  stand.yaml      the input files, byte for byte
+      meta.json                       names, SHA-256 of the inputs, versions
+      events.jsonl                    append-only event log (all sessions)
+      raw/s<session>/<axis>-fog.bin   FOG bytes as received
+      raw/s<session>/<axis>-counter.jsonl   every SCPI exchange, in order
+      raw/s<session>/<axis>-drive.jsonl     drive readings (TPDO), commands, EMCY
+      result.json, certificate.*      derived; `bench analyze` rebuilds them
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import errno
+import hashlib
+import json
+import os
+import shutil
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO, Any
+
+import bench
+
+
+def sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def utc_now() -> str:
+    return dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
+
+
+class JournalError(OSError):
+    """A run-directory file could not be written; the message names the file."""
+
+
+def _write_error(path: Path, e: OSError) -> JournalError:
+    why = e.strerror or str(e)
+    if e.errno == errno.ENOSPC:
+        why += " (the disk is full)"
+    err = JournalError(e.errno or 0, f"cannot write {path}: {why}")
+    err.filename = str(path)
+    return err
+
+
+class JsonLines:
+    """An append-only JSON-lines file; `fsync=True` syncs every line to disk."""
+
+    def __init__(self, path: Path, fsync: bool = False) -> None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._f: IO[str] = open(path, "a", encoding="utf-8")
+        except OSError as e:
+            raise _write_error(path, e) from e
+        self.path = path
+        self._fsync = fsync
+        self._lock = threading.Lock()
+        self.count = 0  # records written by this writer
+
+    def write(self, record: dict[str, Any]) -> None:
+        line = json.dumps(record, separators=(",", ":"), allow_nan=False) + "\n"
+        with self._lock:
+            if self._f.closed:
+                return
+            try:
+                self._f.write(line)
+                self._f.flush()
+                if self._fsync:
+                    os.fsync(self._f.fileno())
+            except OSError as e:
+                raise _write_error(self.path, e) from e
+            self.count += 1
+
+    def end_line(self) -> None:
+        """End a torn last line, so the next record starts on a line of its own."""
+        with self._lock:
+            try:
+                self._f.write("\n")
+                self._f.flush()
+            except OSError as e:
+                raise _write_error(self.path, e) from e
+
+    def sync(self) -> None:
+        with self._lock:
+            if not self._f.closed:
+                try:
+                    self._f.flush()
+                    os.fsync(self._f.fileno())
+                except OSError as e:
+                    raise _write_error(self.path, e) from e
+
+    def close(self) -> None:
+        with self._lock:
+            if self._f.closed:
+                return
+            try:
+                self._f.flush()
+                os.fsync(self._f.fileno())
+            except OSError as e:
+                raise _write_error(self.path, e) from e
+            finally:
+                try:
+                    self._f.close()
+                except OSError:
+                    pass  # the flush above already failed and was reported
+
+
+def scan_jsonl(path: Path) -> tuple[list[dict[str, Any]], list[int]]:
+    """Records of a JSON-lines file, and the numbers of the lines that are not records
+    (a torn last line after a crash or power loss mid-write, or a line a resume once
+    appended onto one). A reader tolerates them and reports them; it never crashes."""
+    records: list[dict[str, Any]] = []
+    bad: list[int] = []
+    with open(path, encoding="utf-8", errors="replace") as f:
+        for n, line in enumerate(f, 1):
+            try:
+                rec = json.loads(line)
+            except json.JSONDecodeError:
+                rec = None
+            if isinstance(rec, dict):
+                records.append(rec)
+            elif line.strip():
+                bad.append(n)
+    return records, bad
+
+
+def read_jsonl(path: Path) -> Iterator[dict[str, Any]]:
+    """Records of a JSON-lines file; a torn line (a crash mid-write) is skipped."""
+    yield from scan_jsonl(path)[0]
+
+
+def torn_tail_bytes(path: Path) -> int:
+    """Bytes after the last newline: a line torn by a crash mid-write (0 if none)."""
+    with open(path, "rb") as f:
+        f.seek(0, os.SEEK_END)
+        size = f.tell()
+        back = min(size, 1 << 20)
+        f.seek(size - back)
+        tail = f.read()
+    return len(tail) - (tail.rfind(b"\n") + 1)
+
+
+class RunDir:
+    """One run's directory. Create with `RunDir.create`, reopen with `RunDir(path)`."""
+
+    PROCEDURE = "procedure.yaml"
+    STAND = "stand.yaml"
+    LAB = "lab.yaml"
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        if not (self.path / "events.jsonl").exists():
+            raise FileNotFoundError(f"{self.path} is not a run directory (no events.jsonl)")
+        self._events: JsonLines | None = None
+        self.session = 0
+        self._clock_now = lambda: None
+
+    @classmethod
+    def create(cls, out_dir: str | Path, procedure_path: Path, stand_path: Path,
+               lab_path: Path | None = None) -> RunDir:
+        stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+        base = Path(out_dir) / f"{stamp}-{procedure_path.stem}"
+        path, n = base, 1
+        while path.exists():
+            n += 1
+            path = Path(f"{base}-{n}")
+        path.mkdir(parents=True)
+        shutil.copyfile(procedure_path, path / cls.PROCEDURE)
+        shutil.copyfile(stand_path, path / cls.STAND)
+        if lab_path is not None:  # the laboratory's settings as used (bench.core.lab)
+            shutil.copyfile(lab_path, path / cls.LAB)
+        meta = {
+            "procedure_file": str(procedure_path),
+            "procedure_name": procedure_path.name,
+            "procedure_sha256": sha256_file(procedure_path),
+            "stand_file": str(stand_path),
+            "stand_sha256": sha256_file(stand_path),
+            "created_utc": utc_now(),
+            "bench_version": bench.__version__,
+        }
+        (path / "meta.json").write_text(json.dumps(meta, indent=2) + "\n")
+        (path / "events.jsonl").touch()
+        return cls(path)
+
+    @property
+    def meta(self) -> dict[str, Any]:
+        return json.loads((self.path / "meta.json").read_text())
+
+    @property
+    def procedure_file(self) -> Path:
+        return self.path / self.PROCEDURE
+
+    @property
+    def stand_file(self) -> Path:
+        return self.path / self.STAND
+
+    # -- sessions and events ------------------------------------------------------------
+    def next_session(self) -> int:
+        """The number the next `begin_session` gives (1 for a new run)."""
+        return max((e.get("session", 0) for e in self.events()), default=0) + 1
+
+    def begin_session(self, clock_now: Any = None) -> int:
+        """Each `bench run` or `--resume` is a session with its own raw folder."""
+        self.session = self.next_session()
+        try:
+            self.raw_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise _write_error(self.raw_dir, e) from e
+        log = self.path / "events.jsonl"
+        torn = torn_tail_bytes(log)
+        self._events = JsonLines(log, fsync=True)
+        if torn:  # a crash mid-write: this session starts on a fresh line, not on the torn one
+            self._events.end_line()
+        if clock_now is not None:
+            self._clock_now = clock_now
+        if torn:
+            self.event("torn_tail", file="events.jsonl", bytes=torn,
+                       note="a line cut short by a crash or power loss; kept as written, "
+                            "readers skip it")
+        return self.session
+
+    @property
+    def raw_dir(self) -> Path:
+        return self.path / "raw" / f"s{self.session}"
+
+    def raw_path(self, name: str) -> Path:
+        return self.raw_dir / name
+
+    def event(self, kind: str, **fields: Any) -> None:
+        if self._events is None:
+            raise RuntimeError("begin_session() first")
+        rec = {"utc": utc_now(), "t_s": self._clock_now(), "session": self.session,
+               "event": kind, **fields}
+        self._events.write(rec)
+
+    def events(self) -> list[dict[str, Any]]:
+        return list(read_jsonl(self.path / "events.jsonl"))
+
+    def completed_units(self) -> list[str]:
+        return [e["unit"] for e in self.events() if e.get("event") == "unit_done"]
+
+    def close(self) -> None:
+        if self._events is not None:
+            self._events.close()
+
+    # -- derived files ----------------------------------------------------------------
+    def write_json(self, name: str, data: Any) -> Path:
+        """Write atomically: a reader never sees half a result.json."""
+        target = self.path / name
+        tmp = target.with_suffix(target.suffix + ".tmp")
+        text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+        try:
+            tmp.write_text(text)
+            os.replace(tmp, target)
+        except OSError as e:
+            tmp.unlink(missing_ok=True)
+            raise _write_error(target, e) from e
+        return target

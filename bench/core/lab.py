@@ -1,0 +1,271 @@
+"""The laboratory's own settings, one model for the certificate, the DCC, the records and
+the station: who issues the certificates, where, who may authorise them, the signing key.
+
+A procedure names the lab file with `certificate: {lab: ../lab.yaml}` (relative to the
+procedure file); its own `certificate:` keys override the lab file's. They are resolved
+once, when the run starts, into result.json's `certificate` block (and the lab file is
+copied into the run directory), so a certificate issued later shows who was authorised
+when the work was done. The DCC, `bench authorise`, the records and the station read the
+same keys through `parse_lab` / `load_lab` into one frozen `Lab`.
+
+Earlier lab files for the DCC wrote `laboratory:` as a mapping (name, code, email, phone,
+location) and `responsible_persons:` (name, role, main_signer); both forms are read here.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bench.core.config import SIGNING
+from bench.core.schema import Bool, Check, Key, ListOf, Map, MapOf, Num, OneOf, Str, validate
+from bench.core.yamlfile import Problem, YamlDoc, YamlError, load_yaml
+
+PERFORMANCE_LOCATIONS = ("laboratory", "customer", "laboratoryBranch", "customerBranch", "other")
+
+
+def _country_rule(value: Any) -> str | None:
+    if isinstance(value, str) and not (len(value) == 2 and value.isascii() and value.isupper()):
+        return f"expected an ISO 3166-1 alpha-2 code such as DE or FR, got {value!r}"
+    return None
+
+
+COUNTRY = Check(Str(), _country_rule)
+LOCATION = Map({k: Key(COUNTRY if k == "country_code" else Str())
+                for k in ("street", "street_no", "post_code", "city", "state", "country_code",
+                          "further")})
+CONTACT = Map({
+    "name": Key(Str(), True), "email": Key(Str()), "phone": Key(Str()),
+    "location": Key(LOCATION), "code": Key(Str(), False, "accreditation or laboratory code"),
+})
+SIGNATORY = Map({
+    "name": Key(Str(), True, "the person's name, printed under the signature line"),
+    "function": Key(Str(), False, "their function in the laboratory"),
+    "role": Key(Str(), False, "the same as function (the DCC's word)"),
+    "authorises": Key(Bool(), False, "true for a signatory who may authorise an issue"),
+    "main_signer": Key(Bool(), False, "the same as authorises (the DCC's word)"),
+})
+LAB = Map({
+    "laboratory": Key(OneOf(Str(), CONTACT), False,
+                      "the laboratory's name (or name, code, email, phone, location); the "
+                      "certificate says 'name not given' without it"),
+    "address": Key(Str(), False, "the laboratory's address, printed (ISO/IEC 17025 7.8.2.1 b)"),
+    "location": Key(LOCATION, False, "the address in parts, for the DCC"),
+    "email": Key(Str()), "phone": Key(Str()),
+    "code": Key(Str(), False, "accreditation or laboratory code"),
+    "accreditation": Key(Str(), False, "accreditation body and number, or 'not accredited'"),
+    "site": Key(Str(), False, "where calibrations are performed, when not at the address"),
+    "prefix": Key(Str(), False, "prefix of generated certificate numbers (default RT)"),
+    "country_code": Key(COUNTRY, False, "country where the calibration is performed"),
+    "performance_location": Key(Str(PERFORMANCE_LOCATIONS)),
+    "signatories": Key(ListOf(SIGNATORY, min_len=1), False,
+                       "named signatories with their functions; authorises: true for those "
+                       "who may authorise an issue (bench authorise --signatory)"),
+    "responsible_persons": Key(ListOf(SIGNATORY), False, "the same as signatories"),
+    "authoritative": Key(Str(("pdf",)), False, "the authoritative form (pdf)"),
+    "signing": Key(SIGNING, False, "the key the issued DCC is signed with (paths only)"),
+    "require_signed_dcc": Key(Bool(), False, "bench verify fails an unsigned DCC (default: "
+                              "true when signing is configured)"),
+    "records": Key(Str(), False, "records database URL"),
+    "recertification": Key(Map({
+        "default_interval_days": Key(Num(min=1, integer=True, unit="d")),
+        "tables": Key(MapOf(Num(min=1, integer=True, unit="d")), False,
+                      "serial: recertification interval, days"),
+    })),
+})
+
+RUN_COPY = "lab.yaml"  # the lab file as used, copied into the run directory
+DEFAULT_PREFIX = "RT"
+
+
+class LabError(Exception):
+    """A lab settings file or a signing key is unusable; the message names file and key."""
+
+
+@dataclass(frozen=True)
+class Signatory:
+    name: str
+    function: str = ""
+    authorises: bool = False
+
+
+@dataclass(frozen=True)
+class Signing:
+    key_file: Path
+    certificate_file: Path
+    password_env: str | None = None
+    origin: str = ""          # where it was configured, for messages
+
+    def password(self) -> bytes | None:
+        if not self.password_env:
+            return None
+        value = os.environ.get(self.password_env)
+        if value is None:
+            raise LabError(f"{self.origin}: signing.password_env names "
+                           f"{self.password_env}, which is not set")
+        return value.encode()
+
+
+_LOCATION_ELEMENTS = {"street": "street", "street_no": "streetNo", "post_code": "postCode",
+                      "city": "city", "state": "state", "country_code": "countryCode",
+                      "further": "further"}
+
+
+@dataclass(frozen=True)
+class Lab:
+    """The laboratory as its settings file states it; every default is here, once."""
+
+    name: str | None = None
+    address: str | None = None
+    location: tuple[tuple[str, str], ...] = ()   # (DCC element, text), in the file's order
+    email: str | None = None
+    phone: str | None = None
+    code: str | None = None
+    accreditation: str | None = None
+    site: str | None = None
+    prefix: str = DEFAULT_PREFIX
+    country_code: str | None = None
+    performance_location: str = "laboratory"
+    signatories: tuple[Signatory, ...] = ()
+    signing: Signing | None = None
+    require_signed_dcc: bool = False
+    records_url: str | None = None
+    default_interval_days: int | None = None
+    interval_days: Mapping[str, int] = field(default_factory=dict)
+    source: str = ""
+
+    @property
+    def laboratory(self) -> Lab | None:
+        """The contact part (the DCC's calibrationLaboratory); None when nothing is named."""
+        return self if self.name else None
+
+    @property
+    def country(self) -> str | None:
+        return self.country_code or dict(self.location).get("countryCode")
+
+    def authoriser(self, name: str) -> Signatory | None:
+        """The signatory of that name who may authorise an issue (case-insensitive)."""
+        want = " ".join(name.split()).casefold()
+        return next((s for s in self.signatories
+                     if s.authorises and " ".join(s.name.split()).casefold() == want), None)
+
+    def authorisers(self) -> tuple[Signatory, ...]:
+        return tuple(s for s in self.signatories if s.authorises)
+
+
+def _signatory(d: Mapping[str, Any]) -> Signatory:
+    function = str(d.get("function") or d.get("role") or "")
+    return Signatory(str(d.get("name") or ""), function,
+                     bool(d.get("authorises") or d.get("main_signer")))
+
+
+def _signing(d: Any, origin: str) -> Signing | None:
+    if not isinstance(d, Mapping) or not d.get("key") or not d.get("certificate"):
+        return None
+    return Signing(Path(os.path.expanduser(str(d["key"]))),
+                   Path(os.path.expanduser(str(d["certificate"]))), d.get("password_env"),
+                   origin)
+
+
+def _location(d: Any) -> tuple[tuple[str, str], ...]:
+    if not isinstance(d, Mapping):
+        return ()
+    return tuple((_LOCATION_ELEMENTS[k], str(v)) for k, v in d.items()
+                 if k in _LOCATION_ELEMENTS and str(v).strip())
+
+
+def parse_lab(data: Mapping[str, Any], source: str = "") -> Lab:
+    """One Lab from validated lab keys (a lab file, or result.json's `certificate` block,
+    whose other keys, the customer's, are not the lab's and are left alone)."""
+    contact = data.get("laboratory")
+    contact = contact if isinstance(contact, Mapping) else {"name": contact}
+    people = data.get("signatories") or data.get("responsible_persons") or []
+    rec = data.get("recertification") or {}
+    signing = _signing(data.get("signing"), f"{source or 'lab settings'}: signing")
+    require = data.get("require_signed_dcc")
+    return Lab(
+        name=str(contact["name"]) if contact.get("name") else None,
+        address=str(data["address"]) if data.get("address") else None,
+        location=_location(data.get("location") or contact.get("location")),
+        email=data.get("email") or contact.get("email"),
+        phone=data.get("phone") or contact.get("phone"),
+        code=data.get("code") or contact.get("code"),
+        accreditation=data.get("accreditation"), site=data.get("site"),
+        prefix=str(data.get("prefix") or DEFAULT_PREFIX),
+        country_code=data.get("country_code"),
+        performance_location=str(data.get("performance_location") or "laboratory"),
+        signatories=tuple(_signatory(p) for p in people if isinstance(p, Mapping)),
+        signing=signing,
+        require_signed_dcc=bool(signing is not None if require is None else require),
+        records_url=data.get("records"),
+        default_interval_days=rec.get("default_interval_days"),
+        interval_days=dict(rec.get("tables") or {}), source=source)
+
+
+def load_lab(path: str | Path) -> Lab:
+    """Parse and validate a lab settings file; every problem names file, line and key."""
+    try:
+        doc = load_yaml(path)
+    except YamlError as e:
+        raise LabError(str(e.problem)) from None
+    data = doc.data if doc.data is not None else {}
+    problems = validate(doc, LAB) if isinstance(data, dict) else [
+        doc.problem((), "expected a mapping (laboratory: ..., signatories: ...)")]
+    if problems:
+        raise LabError("lab settings: " + "; ".join(str(p) for p in problems))
+    return parse_lab(data, str(path))
+
+
+def lab_path(procedure_path: Path, certificate: Any) -> Path | None:
+    """The lab file a procedure names; in a run directory, the copy made when it started."""
+    ref = certificate.get("lab") if isinstance(certificate, dict) else None
+    if not isinstance(ref, str):
+        return None
+    here = procedure_path.parent
+    if (here / "meta.json").is_file():  # a run directory: its copy, if one was made
+        return here / RUN_COPY if (here / RUN_COPY).is_file() else None
+    p = Path(ref)
+    return p if p.is_absolute() else Path(os.path.normpath(procedure_path.parent / p))
+
+
+def lab_problems(procedure_path: Path, procedure_doc: YamlDoc,
+                 certificate: Any) -> list[Problem]:
+    """The lab file named by `certificate.lab`: it exists and its keys are known."""
+    path = lab_path(procedure_path, certificate)
+    if path is None:
+        if isinstance(certificate, dict) and not isinstance(certificate.get("lab", ""), str):
+            return [procedure_doc.problem(("certificate", "lab"),
+                                          "expected the path of a lab settings file")]
+        return []
+    try:
+        doc = load_yaml(path)
+    except YamlError as e:
+        if e.problem.key == "(file)":
+            return [procedure_doc.problem(("certificate", "lab"),
+                                          f"lab settings file {path}: {e.problem.message}")]
+        return [e.problem]
+    return validate(doc, LAB)
+
+
+def certificate_settings(procedure_path: Path, certificate: Any) -> dict[str, Any]:
+    """The lab file's keys under the procedure's own `certificate:` keys."""
+    own = dict(certificate) if isinstance(certificate, dict) else {}
+    path = lab_path(procedure_path, own)
+    if path is None:
+        return own
+    lab = load_yaml(path).data
+    merged = {**(lab if isinstance(lab, dict) else {}), **own}
+    merged["lab"] = path.name
+    return merged
+
+
+def run_lab(run_path: Path, certificate: Mapping[str, Any] | None) -> Lab:
+    """The lab as the run resolved it: result.json's `certificate` block (the lab file's
+    keys under the procedure's own), else the lab file copied into the run directory."""
+    if isinstance(certificate, Mapping) and certificate.get("laboratory"):
+        return parse_lab(certificate, f"{run_path / 'result.json'}: certificate")
+    copy = Path(run_path) / RUN_COPY
+    return load_lab(copy) if copy.is_file() else Lab()

@@ -1,0 +1,363 @@
+"""Schemas for the bench's YAML files, declared as data.
+
+A schema node checks one value and reports every problem it finds (not just the
+first) as a `Problem` naming file, line and key path. Unknown keys are refused: a
+misspelt `turnz: 50` must not silently fall back to a default on a day-long run.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from bench.core.yamlfile import KeyPath, Problem, YamlDoc
+
+
+class Node:
+    """A schema for one value.
+
+    The same node checks a file (`check`), describes itself in the reference
+    (`description`, `unit_text`) and states itself as JSON Schema (`json_schema`), so
+    `bench schema`, docs/configuration.md and `bench validate` cannot disagree.
+    """
+
+    description = "a value"
+    unit_text = ""
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        raise NotImplementedError
+
+    def json_schema(self) -> dict[str, Any]:
+        """This node as JSON Schema (draft 2020-12) of the file's data."""
+        return {}
+
+
+def _type_name(value: Any) -> str:
+    if value is None:
+        return "nothing"
+    return {bool: "true/false", int: "an integer", float: "a number", str: "text",
+            list: "a list", dict: "a mapping"}.get(type(value), type(value).__name__)
+
+
+def _finite(value: int | float) -> bool:
+    """Finite and usable as a float (an integer of 400 digits is not)."""
+    try:
+        return math.isfinite(value) and abs(float(value)) < 1e300
+    except OverflowError:
+        return False
+
+
+@dataclass(frozen=True)
+class Num(Node):
+    """A real number (int or float) within optional bounds."""
+
+    min: float | None = None
+    max: float | None = None
+    exclusive_min: bool = False
+    integer: bool = False
+    unit: str = ""
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        kind = "an integer" if self.integer else "a number"
+        bits = []
+        if self.min is not None:
+            bits.append(f"{'>' if self.exclusive_min else '>='} {self.min:g}")
+        if self.max is not None:
+            bits.append(f"<= {self.max:g}")
+        unit = f" {self.unit}" if self.unit else ""
+        return kind + (f" {' and '.join(bits)}" if bits else "") + unit
+
+    @property
+    def unit_text(self) -> str:  # type: ignore[override]
+        return self.unit
+
+    def json_schema(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"type": "integer" if self.integer else "number"}
+        if self.min is not None:
+            out["exclusiveMinimum" if self.exclusive_min else "minimum"] = self.min
+        if self.max is not None:
+            out["maximum"] = self.max
+        if self.unit:
+            out["x-unit"] = self.unit
+        return out
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        ok_type = isinstance(value, int) if self.integer else isinstance(value, int | float)
+        if isinstance(value, bool) or not ok_type or not _finite(value):
+            out.append(doc.problem(path, f"expected {self.description}, got {_type_name(value)}"
+                                         f" {value!r}"))
+            return
+        low_bad = self.min is not None and (value <= self.min if self.exclusive_min
+                                            else value < self.min)
+        if low_bad or (self.max is not None and value > self.max):
+            out.append(doc.problem(path, f"expected {self.description}, got {value!r}"))
+
+
+@dataclass(frozen=True)
+class Str(Node):
+    choices: tuple[str, ...] = ()
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return f"one of {', '.join(self.choices)}" if self.choices else "text"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if not isinstance(value, str):
+            out.append(doc.problem(path, f"expected {self.description}, got "
+                                         f"{_type_name(value)} {value!r}"))
+        elif self.choices and value not in self.choices:
+            out.append(doc.problem(path, f"expected {self.description}, got {value!r}"))
+
+    def json_schema(self) -> dict[str, Any]:
+        return {"type": "string", **({"enum": list(self.choices)} if self.choices else {})}
+
+
+@dataclass(frozen=True)
+class Date(Node):
+    """A calendar date, YYYY-MM-DD (YAML may already have made it a date)."""
+
+    description = "a date YYYY-MM-DD"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if parse_date(value) is None:
+            out.append(doc.problem(path, f"expected {self.description}, got {value!r}"))
+
+    def json_schema(self) -> dict[str, Any]:
+        return {"type": "string", "format": "date"}
+
+
+def parse_date(value: Any) -> dt.date | None:
+    """A date from YAML (a date, or text YYYY-MM-DD); None if it is not one."""
+    if isinstance(value, dt.datetime):
+        return value.date()
+    if isinstance(value, dt.date):
+        return value
+    if isinstance(value, str):
+        try:
+            return dt.date.fromisoformat(value.strip())
+        except ValueError:
+            return None
+    return None
+
+
+@dataclass(frozen=True)
+class Bool(Node):
+    description = "true or false"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if not isinstance(value, bool):
+            out.append(doc.problem(path, f"expected true or false, got {value!r}"))
+
+    def json_schema(self) -> dict[str, Any]:
+        return {"type": "boolean"}
+
+
+@dataclass(frozen=True)
+class Any_(Node):
+    description = "anything"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        return
+
+
+@dataclass(frozen=True)
+class OneOf(Node):
+    """A value any one of several schemas accepts (e.g. a number, or the word max)."""
+
+    options: tuple[Node, ...]
+
+    def __init__(self, *options: Node) -> None:
+        object.__setattr__(self, "options", options)
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return " or ".join(o.description for o in self.options)
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        for o in self.options:
+            found: list[Problem] = []
+            o.check(value, path, doc, found)
+            if not found:
+                return
+        out.append(doc.problem(path, f"expected {self.description}, got "
+                                     f"{_type_name(value)} {value!r}"))
+
+    @property
+    def unit_text(self) -> str:  # type: ignore[override]
+        return next((o.unit_text for o in self.options if o.unit_text), "")
+
+    def json_schema(self) -> dict[str, Any]:
+        return {"anyOf": [o.json_schema() for o in self.options]}
+
+
+@dataclass(frozen=True)
+class ListOf(Node):
+    item: Node
+    min_len: int = 0
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return f"a list of {self.item.description}"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if not isinstance(value, list):
+            out.append(doc.problem(path, f"expected {self.description}, got "
+                                         f"{_type_name(value)} {value!r}"))
+            return
+        if len(value) < self.min_len:
+            out.append(doc.problem(path, f"expected at least {self.min_len} item(s)"))
+        for i, v in enumerate(value):
+            self.item.check(v, (*path, i), doc, out)
+
+    @property
+    def unit_text(self) -> str:  # type: ignore[override]
+        return self.item.unit_text
+
+    def json_schema(self) -> dict[str, Any]:
+        out = {"type": "array", "items": self.item.json_schema()}
+        return {**out, "minItems": self.min_len} if self.min_len else out
+
+
+@dataclass(frozen=True)
+class Key:
+    """A key of a mapping: its schema, whether it must be written, what it means, and
+    its default when omitted (None: no default; the reference says what happens)."""
+
+    node: Node
+    required: bool = False
+    doc: str = ""
+    default: Any = None
+
+
+@dataclass(frozen=True)
+class Map(Node):
+    """A mapping with known keys; anything else is refused by name."""
+
+    keys: Mapping[str, Key] = field(default_factory=dict)
+    description = "a mapping"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if not isinstance(value, dict):
+            out.append(doc.problem(path, f"expected a mapping with keys "
+                                         f"{', '.join(self.keys)}, got {_type_name(value)}"))
+            return
+        for k, v in value.items():
+            spec = self.keys.get(k)
+            if spec is None:
+                out.append(doc.problem((*path, k), f"unknown key; allowed here: "
+                                                   f"{', '.join(self.keys)}"))
+            else:
+                spec.node.check(v, (*path, k), doc, out)
+        for k, spec in self.keys.items():
+            if spec.required and k not in value:
+                out.append(doc.problem(path, f"missing required key {k!r} "
+                                             f"({spec.node.description})"))
+
+    def json_schema(self) -> dict[str, Any]:
+        props: dict[str, Any] = {}
+        for k, spec in self.keys.items():
+            s = spec.node.json_schema()
+            if spec.doc:
+                s = {**s, "description": spec.doc}
+            if spec.default is not None:
+                s = {**s, "default": spec.default}
+            props[k] = s
+        out: dict[str, Any] = {"type": "object", "properties": props,
+                               "additionalProperties": False}
+        required = [k for k, spec in self.keys.items() if spec.required]
+        return {**out, "required": required} if required else out
+
+
+@dataclass(frozen=True)
+class MapOf(Node):
+    """A mapping from names the user chooses (axis names) to values of one schema."""
+
+    value: Node
+    min_len: int = 0
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return f"a mapping of names to {self.value.description}"
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if not isinstance(value, dict):
+            out.append(doc.problem(path, f"expected {self.description}, got "
+                                         f"{_type_name(value)}"))
+            return
+        if len(value) < self.min_len:
+            out.append(doc.problem(path, f"expected at least {self.min_len} entry"))
+        for k, v in value.items():
+            self.value.check(v, (*path, str(k)), doc, out)
+
+    def json_schema(self) -> dict[str, Any]:
+        out = {"type": "object", "additionalProperties": self.value.json_schema()}
+        return {**out, "minProperties": self.min_len} if self.min_len else out
+
+
+@dataclass(frozen=True)
+class Check(Node):
+    """A schema plus a rule that needs the whole value (e.g. min < max).
+
+    The rule returns None, a message about the whole value, or (path inside the value,
+    message) pairs, so each problem is reported at the line of the key that causes it.
+    """
+
+    inner: Node
+    rule: Callable[[Any], str | None | list[tuple[KeyPath, str]]]
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return self.inner.description
+
+    @property
+    def unit_text(self) -> str:  # type: ignore[override]
+        return self.inner.unit_text
+
+    def json_schema(self) -> dict[str, Any]:
+        """The inner schema: the rule needs the whole value and stays `bench validate`'s."""
+        return self.inner.json_schema()
+
+    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        before = len(out)
+        self.inner.check(value, path, doc, out)
+        if len(out) == before:
+            found = self.rule(value)
+            for sub, msg in [((), found)] if isinstance(found, str) else found or []:
+                out.append(doc.problem((*path, *sub), msg))
+
+
+def validate(doc: YamlDoc, schema: Node) -> list[Problem]:
+    out: list[Problem] = []
+    schema.check(doc.data, (), doc, out)
+    return out
+
+
+def merge(a: Node, b: Node) -> Node:
+    """One schema accepting what either accepts, key by key (the stand file every
+    procedure kind reads): a key is required only where both require it."""
+    if a == b:
+        return a
+    if isinstance(a, Map) and isinstance(b, Map):
+        keys: dict[str, Key] = {}
+        for k in (*a.keys, *(k for k in b.keys if k not in a.keys)):
+            ka, kb = a.keys.get(k), b.keys.get(k)
+            if ka is None or kb is None:
+                only = ka or kb
+                assert only is not None
+                keys[k] = Key(only.node, False, only.doc, only.default)
+            else:
+                keys[k] = Key(merge(ka.node, kb.node), ka.required and kb.required,
+                              ka.doc or kb.doc,
+                              ka.default if ka.default is not None else kb.default)
+        return Map(keys)
+    if isinstance(a, MapOf) and isinstance(b, MapOf):
+        return MapOf(merge(a.value, b.value), min(a.min_len, b.min_len))
+    if isinstance(a, ListOf) and isinstance(b, ListOf):
+        return ListOf(merge(a.item, b.item), min(a.min_len, b.min_len))
+    if isinstance(a, Check) and isinstance(b, Check) and a.rule is b.rule:
+        return Check(merge(a.inner, b.inner), a.rule)
+    return OneOf(a, b)

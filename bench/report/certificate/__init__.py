@@ -1,0 +1,1 @@
+"""Certificate building blocks: the document model, its parts, rounding, plots, method texts."""

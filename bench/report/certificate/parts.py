@@ -1,0 +1,238 @@
+"""What a procedure kind builds its part of the certificate from, and what it is asked.
+
+The certificate (build.py) writes the sections every certificate has and asks the
+procedure kind for the rest through `CertificateParts`, whose answers here are neutral: a
+kind inherits it and overrides what it has to say (its method, its results sections, its
+item). The kind builds its blocks from the document model (model.py), the rounding rules
+(rounding.py), the plots (plots.py) and the helpers below, which the certificate uses too,
+so that both print a value the same way. Nothing here names a procedure.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from bench.analysis.finite import finite_number as num
+from bench.core.journal import read_jsonl
+from bench.report.certificate.model import Block, Figure, Para, Section
+from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u
+from bench.report.certificate.shape import conform_result
+
+NOT_RECORDED = "not recorded"
+
+
+# -- the inputs ----------------------------------------------------------------------------
+
+@dataclass
+class Sources:
+    """result.json and whatever the run directory adds to it."""
+
+    result: dict[str, Any]
+    run_path: Path | None = None
+    meta: dict[str, Any] = field(default_factory=dict)
+    stand_file: dict[str, Any] = field(default_factory=dict)
+    procedure_file: dict[str, Any] = field(default_factory=dict)
+    events: list[dict[str, Any]] = field(default_factory=list)
+    dropped: list[str] = field(default_factory=list)  # malformed parts of result.json
+
+    @classmethod
+    def load(cls, result: dict[str, Any], run_path: Path | None) -> Sources:
+        conformed, dropped = conform_result(result)
+        src = cls(conformed, run_path, dropped=dropped)
+        if run_path is None:
+            return src
+        src.meta = read_json_object(run_path / "meta.json")
+        src.stand_file = _read_yaml(run_path / "stand.yaml")
+        src.procedure_file = _read_yaml(run_path / "procedure.yaml")
+        events = run_path / "events.jsonl"
+        if events.exists():
+            src.events = list(read_jsonl(events))
+        return src
+
+    def get(self, key: str, default: Any = None) -> Any:
+        value = self.result.get(key)
+        return default if value is None else value
+
+
+def read_json_object(path: Path) -> dict[str, Any]:
+    """A JSON object from a run directory's file, or {} if it is missing or damaged."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _read_yaml(path: Path) -> dict[str, Any]:
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def stand_of(src: Sources) -> dict[str, Any]:
+    """The stand's identity: the stand file's, with what result.json says over it."""
+    stand = dict(src.stand_file.get("stand", {}) or {})
+    stand.update({k: v for k, v in (src.get("stand", {}) or {}).items() if v is not None})
+    return stand
+
+
+# -- values as printed ---------------------------------------------------------------------
+
+
+
+UNIT_SUFFIXES = {"c": "°C", "deg": "°", "pct": "%", "hpa": "hPa", "hz": "Hz", "s": "s",
+                 "dps": "°/s", "dph": "°/h", "dps2": "°/s²", "v": "V", "rel": "fraction"}
+
+
+def label_of(key: str) -> str:
+    """`static_record_s` -> 'Static record, s'."""
+    words = str(key).split("_")
+    unit = UNIT_SUFFIXES.get(words[-1].lower()) if len(words) > 1 else None
+    text = " ".join(words[:-1] if unit else words)
+    text = text[:1].upper() + text[1:]
+    return f"{text}, {unit}" if unit else text
+
+
+def text_of(value: Any) -> str:
+    """Any recorded value as text; nothing recorded says so."""
+    if value is None or value == "":
+        return NOT_RECORDED
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, list | tuple):
+        return ", ".join(text_of(v) for v in value)
+    if isinstance(value, dict):
+        return "; ".join(_key_value(k, v) for k, v in value.items())
+    return str(value).replace("+/-", "±")
+
+
+def _key_value(key: str, value: Any) -> str:
+    """`max_rate_dps: 400` -> 'max rate: 400 °/s'."""
+    words = str(key).split("_")
+    unit = UNIT_SUFFIXES.get(words[-1].lower()) if len(words) > 1 else None
+    if unit and unit != "fraction":
+        return f"{' '.join(words[:-1])}: {text_of(value)} {unit}"
+    return f"{' '.join(words)}: {text_of(value)}"
+
+
+def rate_text(x: Any) -> str:
+    """A signed rate as written: '+10', '−10'."""
+    v = num(x)
+    if v is None:
+        return NOT_RECORDED
+    return f"{v:+g}".replace("-", MINUS)
+
+
+def vu_text(value: Any, u: Any, unit: RelUnit | None = None, signed: bool = False) -> str:
+    """'value ± U' under the rounding rules, in `unit` (relative) or as given."""
+    scale = unit.scale if unit else 1.0
+    return format_value_u(num(value), num(u), scale, signed).joined()
+
+
+def verdict_label(verdict: Any, rule: str | None = None, inside_tolerance: bool = False) -> str:
+    """How a verdict is printed; a guard-band refusal says so."""
+    v = str(verdict or "").strip().lower()
+    if v == "pass":
+        return "PASS"
+    if v in ("conditional", "conditional-pass"):
+        return "CONDITIONAL"
+    if v in ("fail-guard-band", "guard-band", "not-passed"):
+        return "FAIL (guard band)"
+    if v == "fail":
+        return "FAIL (guard band)" if rule == "guard-band" and inside_tolerance else "FAIL"
+    if v == "incomplete":
+        return "INCOMPLETE"
+    if v == "not-assessed":
+        return "NOT ASSESSED"
+    return v.upper() or "—"
+
+
+def figure_of(caption: str, draw: Callable[..., bytes | None], *args: Any,
+              width_frac: float = 1.0) -> list[Block]:
+    """A plot as a figure block; data that cannot be drawn give a note, not a crash."""
+    try:
+        png = draw(*args)
+    except (ValueError, TypeError, KeyError, IndexError, ZeroDivisionError) as e:
+        return [Para(f"Figure not drawn ({caption}): its data are malformed ({e}).", "note")]
+    return [Figure(png, caption, width_frac)] if png else []
+
+
+# -- what the certificate asks a procedure kind --------------------------------------------
+
+#: an annex or other section the kind adds after the records: title and blocks
+TitledBlocks = tuple[str, tuple[Block, ...]]
+
+
+class CertificateParts:
+    """The certificate's questions to a procedure kind, with neutral answers.
+
+    A kind inherits this (`class MyKind(StepDispatch, CertificateParts)`) and overrides
+    what it has to say; the certificate asks through these only and names no kind. A kind
+    that says nothing still gets a certificate: identification, instruments, conditions,
+    conformity with its checks, records and signatures.
+    """
+
+    #: the Identification's 'Procedure' row (empty: the kind's registered name)
+    certificate_procedure_name: str = ""
+    #: the Instruments' row that identifies the laboratory's stand
+    certificate_stand_label: str = "Test stand used (the laboratory's)"
+    #: what the procedure measures that a datasheet may specify: (quantity key, words);
+    #: those no check covers are listed as not assessed
+    certificate_measured: tuple[tuple[str, str], ...] = ()
+    #: the checks' quantity keys in words (others are printed from the key)
+    certificate_quantities: Mapping[str, str] = {}
+    #: quantities printed without a sign in the conformity table (magnitudes)
+    certificate_unsigned: frozenset[str] = frozenset()
+
+    def certificate_recognises(self, src: Sources) -> bool:
+        """Whether a result that names no procedure is this kind's (an older result)."""
+        return False
+
+    def certificate_item(self, src: Sources) -> tuple[str, str]:
+        """(what was calibrated, its serial); by default the stand named in the stand file."""
+        stand = stand_of(src)
+        return (f"{text_of(stand.get('maker'))} {text_of(stand.get('model'))}",
+                text_of(stand.get("serial")))
+
+    def certificate_identification(self, src: Sources) -> Sequence[tuple[str, str]]:
+        """Rows added to the Identification after the item's serial number."""
+        return ()
+
+    def certificate_method(self, src: Sources) -> Sequence[Block]:
+        """The method statement, printed before the procedure file's settings."""
+        return ()
+
+    def certificate_method_deviations(self, src: Sources) -> Sequence[Block]:
+        """How the method departs from its source, before the run's own deviations."""
+        return ()
+
+    def certificate_run_deviations(self, src: Sources) -> Sequence[str]:
+        """The kind's deviations in this run, one sentence each."""
+        return ()
+
+    def certificate_checks(self, src: Sources) -> list[dict[str, Any]]:
+        """The checks when result.json carries no checks[] (read from the kind's results)."""
+        return []
+
+    def certificate_sections(self, src: Sources, number: str,
+                             checks: Sequence[Mapping[str, Any]]) -> list[Section]:
+        """The results: the section numbered `number` and any subsections (`number`.n)."""
+        return [Section(number, "Results", (Para(
+            "The procedure kind states no results of its own on the certificate; they are "
+            "in result.json."),))]
+
+    def certificate_annexes(self, src: Sources) -> Sequence[TitledBlocks]:
+        """Sections after the records (per-turn data and the like)."""
+        return ()
+
+    def certificate_statements(self, statements: Sequence[str]) -> list[str]:
+        """The closing statements that apply to this kind's results."""
+        return list(statements)
