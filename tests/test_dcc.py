@@ -38,7 +38,7 @@ from bench.app.dcc.validate import validate_dcc
 from bench.report.dcc.units import unit_problem
 from tests.conftest import CONFIGS, ROOT, unavailable
 
-SCHEMAS = ROOT / "bench" / "dcc" / "schemas"
+SCHEMAS = ROOT / "bench" / "app" / "dcc" / "schemas"
 EXAMPLES = ROOT / "tests" / "data" / "dcc"
 NS = {"dcc": "https://ptb.de/dcc", "si": "https://ptb.de/si",
       "ds": "http://www.w3.org/2000/09/xmldsig#"}
