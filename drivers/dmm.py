@@ -51,6 +51,7 @@ from drivers.scpi import (
 )
 from drivers.scpi_profile import InstrumentProfile, ProfiledInstrument, lookup_profile
 from drivers.transport import Transport
+from drivers.waits import poll_time
 
 DMM_ERRORS = ErrorKinds.family("Dmm", "the digitizer", __name__)
 DmmError, DmmCommandError, DmmTimeout, DmmReplyError, DmmConnectionError = DMM_ERRORS
@@ -246,41 +247,39 @@ class Digitizer(ProfiledInstrument[DmmProfile]):
         with self.recovering():
             self.send(w.initiate)
             self.write(OPC.text(), check=False)
-            on_clock = stepped(self.clock)   # co-simulation: the polls are on clock time
-            start = self.clock.now() if on_clock else time.monotonic()
+            now, sleep = poll_time(self.clock)   # co-simulation: on clock time
+            start = now()
             while True:
                 text = w.operation_condition.text()
                 cond = self._int_reply(text, self.query(text))
                 if cond & bit:
                     break
-                now = self.clock.now() if on_clock else time.monotonic()
-                if now - start > self.command_timeout_s:
+                if now() - start > self.command_timeout_s:
                     raise DmmTimeout(f"{self.name}: not waiting for its trigger "
                                      f"{self.command_timeout_s:g} s after INIT "
                                      f"({text} = {cond})", command=w.initiate.text())
-                (self.clock.sleep if on_clock else time.sleep)(ARM_POLL_S)
+                sleep(ARM_POLL_S)
         self._armed_real_s = time.monotonic()
         self._armed_at_s = self.clock.now()
 
     def fetch(self) -> np.ndarray:
-        """Wait for the record (bounded by its length over the clock's speed) and read it."""
+        """Wait for the record (bounded by its length: in clock time on a stepped clock, else
+        in real time at the clock's speed) and read it."""
         if self.setup is None or self._armed_real_s is None:
             raise DmmError(f"{self.name}: fetch() without arm()")
         setup, armed, armed_at_s = self.setup, self._armed_real_s, self._armed_at_s
         self._armed_real_s = None
         span_s = setup.duration_s * (1.0 + SPAN_SLACK_REL)
+        now, sleep = poll_time(self.clock)
         if stepped(self.clock):
             # co-simulation: the first look, the polls and the limit are in clock time
             # (a stepped clock runs no slower than real time: the same margin holds)
-            now, sleep, unit = self.clock.now, self.clock.sleep, "stand time"
-            start, limit_s = armed_at_s, span_s + self.timeout_margin_s
-            first_s, poll_s = 0.5 * span_s, min(max(span_s / 50.0, 0.005), 0.5)
+            start, unit, span = armed_at_s, "stand time", span_s
+            limit_s = span_s + self.timeout_margin_s
         else:
-            span_real = span_s / self.clock.speed
-            now, sleep, unit = time.monotonic, time.sleep, "real"
-            start = armed
+            start, unit, span = armed, "real", span_s / self.clock.speed
             limit_s = real_budget_s(self.clock, span_s) + self.timeout_margin_s
-            first_s, poll_s = 0.5 * span_real, min(max(span_real / 50.0, 0.005), 0.5)
+        first_s, poll_s = 0.5 * span, min(max(span / 50.0, 0.005), 0.5)
         with self.recovering():
             sleep(max(start + first_s - now(), 0.0))
             while True:
