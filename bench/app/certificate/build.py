@@ -18,7 +18,7 @@ from typing import Any
 
 import bench
 from bench.app.certificate import register
-from bench.app.certificate.operator import prompt_blocks, software_note
+from bench.app.certificate.operator import prompt_blocks, software_note, utc_text
 from bench.app.certificate.register import Issue
 from bench.core.journal import sha256_file
 from bench.core.registry import procedure_kind, procedure_names
@@ -51,17 +51,6 @@ __all__ = ["NOT_RECORDED", "Sources", "build_document", "certificate_id", "decis
            "issued_number", "verdict_label"]
 
 CAPABILITY_LIMIT = 0.3  # RMG 63-2003: the measurement's error limit <= 0.2-0.3 of the tolerance
-
-def _utc(stamp: str | None) -> str:
-    if not stamp:
-        return NOT_RECORDED
-    try:
-        t = dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00"))
-    except ValueError:
-        return str(stamp)
-    if t.tzinfo is not None:
-        t = t.astimezone(dt.UTC)
-    return t.strftime("%Y-%m-%d %H:%M:%S UTC")
 
 
 def _trim(x: float) -> str:
@@ -314,8 +303,8 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
                      "these results describe no physical item; every page is marked"))
     rows += [
         ("Procedure", proc.title),
-        ("Work started", _utc(started)),
-        ("Work ended", (_utc(completed) + (" (aborted)" if src.get("aborted") else ""))
+        ("Work started", utc_text(started)),
+        ("Work ended", (utc_text(completed) + (" (aborted)" if src.get("aborted") else ""))
          if completed else "not completed"),
         ("Date of issue (authorisation)", "none: DRAFT, NOT AUTHORISED" if issue.draft
          else issue.issue_date),

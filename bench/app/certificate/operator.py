@@ -9,11 +9,11 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from bench.report.certificate.model import Para, Table
+from bench.report.certificate.parts import NOT_RECORDED
 
-NOT_RECORDED = "not recorded"
 
-
-def _utc(stamp: Any) -> str:
+def utc_text(stamp: Any) -> str:
+    """A journal stamp as the certificate prints it (UTC, to the second)."""
     if not stamp:
         return NOT_RECORDED
     try:
@@ -45,7 +45,7 @@ def prompt_blocks(events: Sequence[Mapping[str, Any]]) -> tuple[Any, ...]:
     if not prompts:
         return ()
     rows = tuple((str(e.get("session", "")), str(e.get("text", "")),
-                  _utc(e.get("answered_utc") or e.get("utc")), _answer(e)) for e in prompts)
+                  utc_text(e.get("answered_utc") or e.get("utc")), _answer(e)) for e in prompts)
     notes: tuple[str, ...] = ()
     if any(_answered_by(e) == "--yes" for e in prompts):
         notes = ("--yes: the run was started unattended and the set-up steps were not "

@@ -1,0 +1,337 @@
+"""One session of a run (the first, or a `--resume`): the object that owns it.
+
+Everything a session opens (the simulated bench, the instruments, the console) is entered
+on one ExitStack, and every path out, a completed run, a fault, Ctrl-C or a refusal,
+leaves through `_stop`: the one stop sequence (each axis ramped down, else quick stop,
+then disabled: drivers/axis.py safe_stop; then instruments and raw logs closed, last
+opened first; then the twins stopped). One rule for what the operator reads: the first
+cause; whatever goes wrong later, while stopping, is listed beneath it and never replaces
+it (python-can's `BusABC.shutdown` and Bluesky's `finalize_wrapper` are the models).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import os
+import sys
+import time
+import traceback
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from bench import __version__
+from bench.app import certificate as certificates
+from bench.app.console import PlainConsole, open_console
+from bench.app.dcc.command import write_run_dcc
+from bench.app.records.assurance import drifting_config, warn_at_start, write_assurance
+from bench.app.records.hooks import (
+    RecordsTarget,
+    history_sections,
+    register_run,
+    target,
+    warn_if_overdue,
+)
+from bench.app.summary import Summary, summarize
+from bench.core.config import Config
+from bench.core.diskspace import expected_raw_bytes, space_problem
+from bench.core.engine import Abort, Engine, RunContext, SignalGuard
+from bench.core.instruments import Bench, StandClaimError, StopErrors, check_references
+from bench.core.journal import RunDir
+from bench.core.plan import Plan, format_duration
+from bench.core.registry import procedure_kind
+from bench.core.simbench import SimBench, for_session
+from bench.core.traceability import overdue, overdue_warning
+from bench.report.certificate.model import Document
+from drivers.axis import NOT_STOPPED
+from drivers.clock import MonotonicClock
+
+EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
+
+SimHook = Callable[[Any], None]
+
+
+def err(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def plan_axes(cfg: Config, plan: Plan) -> list[str]:
+    """The stand axes the plan's steps use (their instruments record while it runs)."""
+    return sorted({st.axis for st in plan.steps if st.axis and st.axis in cfg.stand["axes"]})
+
+
+def room_for(cfg: Config, plan: Plan, folder: Path) -> str | None:
+    """Why the runs folder cannot hold the plan's raw data, or None."""
+    return space_problem(folder, expected_raw_bytes(cfg.stand, plan_axes(cfg, plan),
+                                                    plan.total_s))
+
+
+def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
+                  records: RecordsTarget | None = None
+                  ) -> tuple[dict[str, Any], Document | None]:
+    """result.json, then the certificate (PDF, HTML, DCC); returns the result and the
+    certificate's document (None when it could not be written: a run that leaves no
+    certificate must not exit as if it had, nor one whose DCC does not validate)."""
+    result = procedure_kind(cfg.kind).analyze(run, cfg)
+    run.write_json("result.json", result)
+    # the table's history from the records, when they hold any (never fails the run)
+    history = history_sections(run.path, result, records, progress.warn) if records else []
+    if records:   # each instrument's control status, for the traceability section
+        write_assurance(run.path, records, progress.warn, result)
+    try:
+        documents: list[Document] = []
+        for path in certificates.write_certificate(run, result, documents=documents,
+                                                   extra_sections=history):
+            progress.line(f"wrote {path}")
+        doc = documents[-1]
+    except Exception as e:  # noqa: BLE001 - result.json stands; say what is missing
+        traceback.print_exc(file=sys.stderr)            # a bug to report: keep its trace
+        progress.warn(f"the certificate could not be written: {e!r}; result.json is in "
+                      f"{run.path}; once fixed, `bench analyze {run.path}` writes it")
+        return result, None
+    if not write_run_dcc(run.path, result, cfg.stand, progress.line, warn=progress.warn):
+        return result, None
+    return result, doc
+
+
+def summary_of(result: dict[str, Any], doc: Document | None) -> Summary:
+    """The certificate's figures; without a certificate, only the verdict."""
+    if doc is not None:
+        return summarize(doc)
+    return Summary((), (), "", str(result.get("verdict", "incomplete")).upper())
+
+
+class RunSession:
+    """A session of a run: `run()` returns the exit status (CONTRACT §1).
+
+    Whatever happens inside, the axes are stopped, the instruments closed, what was
+    measured is analyzed, and the run directory is left ready for `--resume`. At its end
+    the run is registered in the records (`records` URL, default records.sqlite in the
+    runs folder); a records database that cannot be reached only warns.
+    """
+
+    def __init__(self, cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = False,
+                 resume: bool = False, progress: PlainConsole | None = None,
+                 on_sim_started: SimHook | None = None, records: str | None = None) -> None:
+        self.cfg, self.run_dir, self.sim, self.yes, self.resume = cfg, run, sim, yes, resume
+        self.progress = progress or open_console()
+        self.on_sim_started = on_sim_started
+        self.where = target(run.path.parent, records, self.progress.warn)
+        self.kind = procedure_kind(cfg.kind)
+        self.status = EXIT_ABORTED
+        self.cause: str | None = None       # the first cause: what the operator reads
+        self.later: list[str] = []          # what failed afterwards, while stopping
+        self.bench: Bench | None = None
+        self.simbench: SimBench | None = None
+        self.engine_ran = False
+        self.unsigned = False
+        self._stack = contextlib.ExitStack()
+
+    # -- the session, start to end -------------------------------------------------
+    def run(self) -> int:
+        table_overdue = warn_if_overdue(self.cfg.stand, self.where, self.progress.warn)
+        out_of_control = warn_at_start(self.cfg.stand, self.where, self.progress.warn)
+        plan = self.kind.build_plan(self.cfg)
+        done = self.run_dir.completed_units()
+        todo = plan.remaining(done)
+        if self.resume:  # finer than the unit where the kind keeps parts (a ladder's halves)
+            todo = self.kind.resume_plan(todo, self.run_dir)
+        short = room_for(self.cfg, todo, self.run_dir.path)
+        if short:
+            err(f"Not started: {short}")
+            print(f"Free some space, then: bench run --resume {self.run_dir.path}")
+            return EXIT_INVALID
+        result: dict[str, Any] | None = None
+        with SignalGuard(self.progress.line) as guard:
+            try:
+                self._measure(guard, todo, done, table_overdue, out_of_control)
+                self.status = EXIT_PASS
+            except StandClaimError as e:  # raised while opening: no axis commanded yet
+                guard.stopping = True
+                err(f"Refused: {self.cfg.stand_path}: {e}")
+                self.later += self._journal("refused", reason=str(e))
+                self.status = EXIT_INVALID
+            except BaseException as e:  # noqa: BLE001 - whatever it is, the stop follows
+                guard.stopping = True
+                self._failed(e)
+                if not isinstance(e, Exception | KeyboardInterrupt):
+                    raise  # SystemExit and the like: the finally below still stops
+            finally:
+                guard.stopping = True
+                self._stop()
+            self._report_cause()
+            result = self._write(guard)
+            self._finish(result)
+        if result is not None:
+            register_run(self.run_dir.path, self.where, self.progress.warn, result)
+        return self.status
+
+    def _measure(self, guard: SignalGuard, todo: Plan, done: list[str],
+                 table_overdue: str | None, out_of_control: list[str]) -> None:
+        cfg, run, progress = self.cfg, self.run_dir, self.progress
+        stand = cfg.stand
+        if self.sim or cfg.has_sim:
+            progress.line("Starting the simulated bench (twins on real channels)...")
+            sim_cfg = drifting_config(cfg, run.path, self.where, progress.line)
+            if self.resume:  # the twins' noise of this session, not a replay of the first
+                sim_cfg = for_session(sim_cfg, run.next_session())
+            self.simbench, stand = self.kind.start_sim(sim_cfg)
+            self._stack.callback(self._step_out, "stopping the simulated bench",
+                                 self.simbench.stop)
+            clock: Any = self.simbench.clock
+        else:
+            clock = MonotonicClock()
+        run.begin_session(clock.now)
+        run.event("session_start", resume=self.resume, sim=self.simbench is not None,
+                  done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
+                  version=__version__, prompts="--yes" if self.yes else "operator",
+                  pid=os.getpid())
+        for t in overdue(cfg.stand, dt.datetime.now(dt.UTC).date()):
+            progress.line(overdue_warning(t))
+            run.event("calibration_overdue", where=t.where, item=t.item,
+                      certificate=t.certificate, due=t.due.isoformat() if t.due else None)
+        if table_overdue:
+            run.event("records_overdue", text=table_overdue)
+        for text in out_of_control:
+            run.event("out_of_control", text=text)
+        self.bench = bench = self.kind.open_bench(cfg, stand, clock, run)
+        self._stack.callback(self._close_bench, bench)
+        for ax in bench.axes.values():
+            run.event("identity", axis=ax.name, **ax.identities,
+                      **({"counter_reference": ax.reference_text}
+                         if ax.reference_text else {}))
+        if self.simbench is not None:
+            self.simbench.start_clock()
+            if self.on_sim_started is not None:
+                self.on_sim_started(self.simbench)
+        check_references(bench)
+        progress.line(f"Run directory: {run.path}")
+        if done:
+            progress.line(f"Resuming: {len(done)} unit(s) already done: {', '.join(done)}")
+        progress.line(f"{len(todo.steps)} steps, estimated bench time "
+                      f"{format_duration(todo.total_s)}")
+        for w in todo.warnings:
+            progress.warn(f"Warning: {w}")
+        ctx = RunContext(cfg, clock, bench, run, progress, yes=self.yes)
+        t0 = time.monotonic()
+        self.engine_ran = True
+        Engine(ctx, self.kind.execute).run(todo, guard)
+        run.event("completed", wall_s=time.monotonic() - t0)
+
+    # -- the one stop path ---------------------------------------------------------
+    def _failed(self, e: BaseException) -> None:
+        """The first cause; a failure outside the engine also stops the axes here (the
+        engine stops and journals its own)."""
+        self.status = EXIT_ABORTED
+        self.later += list(getattr(e, "__notes__", []))
+        if isinstance(e, Abort) and self.engine_ran:
+            self.cause = str(e)
+            return
+        phase = "while running" if self.engine_ran else "while setting up the bench"
+        self.cause = f"{phase}: {e or type(e).__name__}"
+        if self.bench is not None:
+            self.later += self.bench.stop_and_close(self.progress.line)
+        self.later += self._journal("abort", reason=str(e) or type(e).__name__,
+                                    error=type(e).__name__)
+
+    def _stop(self) -> None:
+        """The console first (its live display ends), then the stack, last opened first:
+        the instruments (safe twice: after a failure `stop_and_close` has closed them
+        already), then the twins."""
+        self.progress.close()
+        self._stack.close()
+        if self.later:
+            self.status = EXIT_ABORTED  # something may not have stopped: never clean
+            self.cause = self.cause or "the run completed, but stopping the bench failed"
+
+    def _close_bench(self, bench: Bench) -> None:
+        try:
+            bench.close()
+        except StopErrors as e:
+            self.later += e.errors
+        except Exception as e:  # noqa: BLE001
+            self.later.append(f"closing the instruments: {e}")
+
+    def _step_out(self, what: str, fn: Callable[[], Any]) -> None:
+        try:
+            fn()
+        except Exception as e:  # noqa: BLE001 - the others must still be stopped
+            self.later.append(f"{what}: {e}")
+
+    def _report_cause(self) -> None:
+        if self.cause is None:
+            return
+        self.progress.warn(f"Aborted: {self.cause}")
+        for note in dict.fromkeys(n.removeprefix("also, while stopping: ") for n in self.later):
+            self.progress.warn(f"  also, while stopping: {note}")
+
+    def _journal(self, kind: str, **fields: Any) -> list[str]:
+        """An event written on the stop path: a failure to write it is reported, not
+        raised."""
+        if not self.run_dir.session:
+            return []
+        try:
+            self.run_dir.event(kind, **fields)
+        except Exception as e:  # noqa: BLE001 - e.g. a full disk: say so, keep stopping
+            return [f"the {kind} event could not be journaled: {e}"]
+        return []
+
+    # -- after the stop: outputs and exit ------------------------------------------
+    def _write(self, guard: SignalGuard) -> dict[str, Any] | None:
+        """result.json and the certificate (never for a refused stand: nothing was
+        measured). Ctrl-C now only ends the writing: the axes are already stopped."""
+        run, progress = self.run_dir, self.progress
+        result: dict[str, Any] | None = None
+        doc: Document | None = None
+        guard.writing = True
+        try:
+            if self.status != EXIT_INVALID:
+                result, doc = write_outputs(run, self.cfg, progress, self.where)
+        except KeyboardInterrupt as e:
+            progress.warn(f"{e or 'interrupted'}: the axes were already stopped; result.json "
+                          f"and the certificate may be missing or from an earlier session: "
+                          f"`bench analyze {run.path}` writes them from the raw data")
+            result = None
+            self.status = EXIT_ABORTED
+            self.cause = self.cause or "interrupted while writing the outputs"
+        except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
+            progress.warn(f"analysis failed: {e!r}; the raw data is in {run.path}; "
+                          f"fix and run `bench analyze {run.path}`")
+            result = None
+            self.status = EXIT_ABORTED  # no verdict without an analysis
+        guard.writing = False
+        if result is not None:
+            progress.summary(summary_of(result, doc))
+            if self.status == EXIT_PASS and result.get("verdict") == "fail":
+                self.status = EXIT_FAIL
+            if self.status == EXIT_PASS and result.get("verdict") == "incomplete":
+                self.status = EXIT_ABORTED
+        if self.status in (EXIT_PASS, EXIT_FAIL) and doc is None:
+            self.status = EXIT_ABORTED  # measured, but nothing to sign: not completed
+            self.unsigned = True        # (said above; a resume would not help)
+        return result
+
+    def _finish(self, result: dict[str, Any] | None) -> None:
+        run = self.run_dir
+        if self.status == EXIT_ABORTED and not self.unsigned:
+            stopped = ("AN AXIS COULD NOT BE TOLD TO STOP (above): check the table first"
+                       if any(NOT_STOPPED in n for n in self.later) else "the axes were stopped")
+            print(f"The run was aborted; {stopped}. Continue with: "
+                  f"bench run --resume {run.path}")
+        if run.session:
+            for e in self._journal("exit", status=self.status, cause=self.cause,
+                                   later=self.later):
+                err(f"  also: {e}")
+        try:
+            run.close()
+        except Exception as e:  # noqa: BLE001
+            err(f"  also: closing the event log: {e}")
+
+
+def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = False,
+                resume: bool = False, progress: PlainConsole | None = None,
+                on_sim_started: SimHook | None = None, records: str | None = None) -> int:
+    """One session of a run (`bench run`, `bench run --resume`): its exit status."""
+    return RunSession(cfg, run, sim=sim, yes=yes, resume=resume, progress=progress,
+                      on_sim_started=on_sim_started, records=records).run()
