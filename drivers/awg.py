@@ -22,6 +22,10 @@ the first edge.
 
 Where we were unsure of the real syntax the profile's `notes` says so; a wrong word is
 rejected by the instrument with -113 at `load_pair()`, by name.
+
+Waits: none beyond each command's checked reply. `*TRG` starts the burst and returns; the
+record's wait is the digitizer's (drivers/dmm.py), so on a stepped clock the burst starts
+at the clock's time when the bench triggers it, fixed by the data.
 """
 
 from __future__ import annotations

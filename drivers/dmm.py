@@ -18,7 +18,12 @@ aperture's middle: sample k stands for `delay + k * dt + aperture / 2` after the
 edges (docs/method.md B's half-sample pitfall in another guise); the procedure sets the
 trigger delay so the samples' middles land on the edges.
 
-Waits are real seconds scaled by the clock's speed (a virtual stand runs faster).
+Waits. On hardware and on a paced simulated stand they are real seconds scaled by the
+clock's speed (a virtual stand runs faster). On a stepped clock (the twins' co-simulation,
+drivers/clock.py) the same polls are spaced and bounded in clock time: the clock's time
+passes only while the bench waits, so the armed check and the wait for the record's end
+let it pass, and when each poll happens depends on the data alone, never on the host's
+load.
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drivers.clock import Clock, real_budget_s
+from drivers.clock import Clock, real_budget_s, stepped
 from drivers.scpi import (
     ABORT,
     CLS,
@@ -46,6 +51,7 @@ from drivers.scpi import (
 )
 from drivers.scpi_profile import InstrumentProfile, ProfiledInstrument, lookup_profile
 from drivers.transport import Transport
+from drivers.waits import poll_time
 
 DMM_ERRORS = ErrorKinds.family("Dmm", "the digitizer", __name__)
 DmmError, DmmCommandError, DmmTimeout, DmmReplyError, DmmConnectionError = DMM_ERRORS
@@ -153,6 +159,8 @@ class DigitizerSetup:
 
 #: the wait for a record may run this fraction over its nominal length
 SPAN_SLACK_REL = 0.25
+#: between looks at STAT:OPER:COND? while the DMM arms (s: real, or clock on a stepped clock)
+ARM_POLL_S = 0.005
 
 
 class Digitizer(ProfiledInstrument[DmmProfile]):
@@ -171,6 +179,7 @@ class Digitizer(ProfiledInstrument[DmmProfile]):
         #: settings the record depends on, as the DMM reads them back
         self.readback: dict[str, float | int] = {}
         self._armed_real_s: float | None = None
+        self._armed_at_s = 0.0   # the clock's time at arm()
         super().__init__(resource, profile, clock, raw=raw,
                          command_timeout_s=command_timeout_s, visa_library=visa_library,
                          transport=transport)
@@ -238,43 +247,53 @@ class Digitizer(ProfiledInstrument[DmmProfile]):
         with self.recovering():
             self.send(w.initiate)
             self.write(OPC.text(), check=False)
-            deadline = time.monotonic() + self.command_timeout_s
+            now, sleep = poll_time(self.clock)   # co-simulation: on clock time
+            start = now()
             while True:
                 text = w.operation_condition.text()
                 cond = self._int_reply(text, self.query(text))
                 if cond & bit:
                     break
-                if time.monotonic() > deadline:
+                if now() - start > self.command_timeout_s:
                     raise DmmTimeout(f"{self.name}: not waiting for its trigger "
                                      f"{self.command_timeout_s:g} s after INIT "
                                      f"({text} = {cond})", command=w.initiate.text())
-                time.sleep(0.005)
+                sleep(ARM_POLL_S)
         self._armed_real_s = time.monotonic()
+        self._armed_at_s = self.clock.now()
 
     def fetch(self) -> np.ndarray:
-        """Wait for the record (bounded by its length over the clock's speed) and read it."""
+        """Wait for the record (bounded by its length: in clock time on a stepped clock, else
+        in real time at the clock's speed) and read it."""
         if self.setup is None or self._armed_real_s is None:
             raise DmmError(f"{self.name}: fetch() without arm()")
-        setup, armed = self.setup, self._armed_real_s
+        setup, armed, armed_at_s = self.setup, self._armed_real_s, self._armed_at_s
         self._armed_real_s = None
-        span_real = setup.duration_s * (1.0 + SPAN_SLACK_REL) / self.clock.speed
-        deadline = armed + real_budget_s(self.clock, setup.duration_s * (1.0 + SPAN_SLACK_REL)) \
-            + self.timeout_margin_s
-        poll_s = min(max(span_real / 50.0, 0.005), 0.5)
+        span_s = setup.duration_s * (1.0 + SPAN_SLACK_REL)
+        now, sleep = poll_time(self.clock)
+        if stepped(self.clock):
+            # co-simulation: the first look, the polls and the limit are in clock time
+            # (a stepped clock runs no slower than real time: the same margin holds)
+            start, unit, span = armed_at_s, "stand time", span_s
+            limit_s = span_s + self.timeout_margin_s
+        else:
+            start, unit, span = armed, "real", span_s / self.clock.speed
+            limit_s = real_budget_s(self.clock, span_s) + self.timeout_margin_s
+        first_s, poll_s = 0.5 * span, min(max(span / 50.0, 0.005), 0.5)
         with self.recovering():
-            time.sleep(max(armed + 0.5 * span_real - time.monotonic(), 0.0))
+            sleep(max(start + first_s - now(), 0.0))
             while True:
                 esr = self._int_reply(ESR_Q.text(), self.query(ESR_Q.text()))
                 if esr & 0x3C:
                     self.check_errors(f"the record (ESR {esr})")
                 if esr & ESR_OPC:
                     break
-                if time.monotonic() > deadline:
+                if now() - start > limit_s:
                     raise DmmTimeout(
                         f"{self.name}: {setup.count} samples not complete within "
-                        f"{deadline - armed:.3g} s (real): did the trigger reach the DMM's "
+                        f"{limit_s:.3g} s ({unit}): did the trigger reach the DMM's "
                         f"Ext Trig input?", command=self.words.initiate.text())
-                time.sleep(poll_s)
+                sleep(poll_s)
             text = self.words.fetch.text()
             reply = self.query(text, timeout_s=self.command_timeout_s + setup.count * 20 / 1e5)
             try:

@@ -17,7 +17,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from drivers.clock import Clock
+from drivers.clock import Clock, stepped
 
 #: the shortest real-time margin any wait gets beyond its scaled clock time (seconds)
 MIN_REAL_MARGIN_S = 5.0
@@ -56,3 +56,11 @@ def wait_on_clock(clock: Clock, ready: Callable[[], bool], timeout_s: float,
                 return bool(ready())
             time.sleep(_PAUSED_POLL_REAL_S)
     return True
+
+
+def poll_time(clock: Clock) -> tuple[Callable[[], float], Callable[[float], None]]:
+    """(now, sleep) for a driver's polls: on a stepped clock the clock's own, so polling
+    lets clock time pass and a poll's time is fixed by the data; else real seconds."""
+    if stepped(clock):
+        return clock.now, clock.sleep
+    return time.monotonic, time.sleep

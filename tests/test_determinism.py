@@ -29,6 +29,7 @@ _VOLATILE = [
     (re.compile(r"\d{4}-\d\d-\d\d([ T]\d\d:\d\d(:\d\d(\.\d+)?)?( UTC|[+-]\d\d:\d\d)?)?"),
      "<date>"),
     (re.compile(r"\d{8}-\d{6}-demo"), "<run>"),
+    (re.compile(r"\d{8}-\d{6}-drift-demo"), "<run>"),
     (re.compile(r"/dev/pts/\d+"), "<pty>"),
     (re.compile(r"127\.0\.0\.1::\d+"), "127.0.0.1::<port>"),
     # the files that journal the session's wall-clock dates: their size and digest
@@ -124,3 +125,34 @@ def test_a_resumed_session_draws_its_own_noise_from_the_seed() -> None:
     s2, s3 = session_seed({"seed": 7, SESSION_KEY: 2}), session_seed({"seed": 7, SESSION_KEY: 3})
     assert len({7, s2, s3}) == 3
     assert s2 == session_seed({"seed": 7, SESSION_KEY: 2})     # deterministic
+
+
+def _example(out: Path, name: str) -> Path:
+    """`bench run --example NAME` into `out`; the run directory."""
+    proc = subprocess.run([sys.executable, "-m", "bench", "run", "--example", name, "--yes",
+                           "--quiet", "--out", str(out)],
+                          capture_output=True, text=True, timeout=600, check=False)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return Path(proc.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.timeout(900)
+def test_the_drift_demo_gives_the_same_numbers_quiet_and_beside_two_busy_processes(
+        tmp_path: Path) -> None:
+    """The drift-pulse kind (docs/method.md B) on the co-simulation: the DMMs' and the
+    generator's waits are on stand time (drivers/dmm.py), so the pulse triggers, the
+    records' sample times and every reading are the same under any load."""
+    quiet = _example(tmp_path / "quiet", "drift-demo")
+    with _busy(2):
+        loaded = _example(tmp_path / "loaded", "drift-demo")
+    a = _strip(json.loads((quiet / "result.json").read_text()))
+    b = _strip(json.loads((loaded / "result.json").read_text()))
+    diffs = list(_differences(a, b))
+    assert not diffs, "\n".join(diffs[:30])
+    # a check that can fail: both gyros carry their cycles, and the raw records are equal
+    for g in ("x", "y"):
+        assert len(a["drift"]["axes"][g]["cycles"]) == 20, a["drift"]["axes"][g]
+    assert {f["path"] for f in a["raw_files"]} >= {"raw/s1/x-dmm.jsonl", "raw/s1/awg.jsonl"}
+    ca, cb = _certificate_text(quiet), _certificate_text(loaded)
+    assert ca == cb, [(x, y) for x, y in zip(ca.splitlines(), cb.splitlines(), strict=False)
+                      if x != y][:10]

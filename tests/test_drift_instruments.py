@@ -1,5 +1,7 @@
 """The pulse generator and the digitizing DMM against their twins over real SCPI sockets,
-checked against the platform twin's truth (docs/method.md B)."""
+checked against the platform twin's truth (docs/method.md B), on both simulated clocks:
+the co-simulation (sims/clock.py SteppedClock, where the drivers' waits pass stand time)
+and the paced clock of rehearsals (VirtualClock, where they are real seconds)."""
 
 from __future__ import annotations
 
@@ -11,8 +13,8 @@ import pytest
 
 from bench.analysis import drift_pulse as dp
 from drivers.awg import AwgError, WaveformGenerator
-from drivers.dmm import Digitizer, DmmError, DmmOverload, DmmTimeout
-from sims.clock import VirtualClock
+from drivers.dmm import SPAN_SLACK_REL, Digitizer, DmmError, DmmOverload, DmmTimeout
+from sims.clock import SteppedClock, VirtualClock
 from sims.gyro_rig import start_gyro_rig
 from sims.platform import GyroTruth, PlatformTruth
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
@@ -34,8 +36,11 @@ def truth(**errors: float) -> PlatformTruth:
                          table_axis="turntable", seed=5)
 
 
-def rig_for(t: PlatformTruth, **options):
-    clock = VirtualClock(SPEED, running=False)
+CLOCKS = ("stepped", "paced")
+
+
+def rig_for(t: PlatformTruth, kind: str = "stepped", **options):
+    clock = SteppedClock(running=False) if kind == "stepped" else VirtualClock(SPEED, running=False)
     stand = SimulatedStand(StandTruth(t.seed, {"turntable": AxisTruth()}),
                            {"turntable": 100.0}, clock)
     rig = start_gyro_rig(stand, t, {"x": 1, "y": 2}, **options)
@@ -77,9 +82,10 @@ def cycle(awg, dmms, loaded, setups, clock, table_deg=0.0):
                               t0, table_deg) for g in dmms}
 
 
-def test_identity_and_a_noise_free_cycle_gives_the_true_drift() -> None:
+@pytest.mark.parametrize("kind", CLOCKS)
+def test_identity_and_a_noise_free_cycle_gives_the_true_drift(kind: str) -> None:
     t = truth()
-    rig, awg, dmms, clock = rig_for(t)
+    rig, awg, dmms, clock = rig_for(t, kind)
     try:
         assert "33522B" in awg.identify()
         assert "34465A" in dmms["x"].identify()
@@ -100,12 +106,13 @@ def test_identity_and_a_noise_free_cycle_gives_the_true_drift() -> None:
         close(rig, awg, dmms)
 
 
-def test_trigger_latency_is_seen_as_a_start_offset() -> None:
+@pytest.mark.parametrize("kind", CLOCKS)
+def test_trigger_latency_is_seen_as_a_start_offset(kind: str) -> None:
     """The DMM's trigger latency and the trigger output's skew move the samples later
     against the pulses: the fit finds minus their sum (twin truth)."""
     t = truth(angle_noise_arcsec=0.2)
     rig, awg, dmms, clock = rig_for(
-        t, awg_options={"trigger_out_skew_s": 1e-6}, dmm_options={"trigger_latency_s": 60e-6})
+        t, kind, awg_options={"trigger_out_skew_s": 1e-6}, dmm_options={"trigger_latency_s": 60e-6})
     try:
         loaded, setups = load(awg, dmms, amplitude_v=5.0)
         recs = [cycle(awg, dmms, loaded, setups, clock) for _ in range(2)]
@@ -118,9 +125,10 @@ def test_trigger_latency_is_seen_as_a_start_offset() -> None:
         close(rig, awg, dmms)
 
 
-def test_triangular_pair_through_the_instruments() -> None:
+@pytest.mark.parametrize("kind", CLOCKS)
+def test_triangular_pair_through_the_instruments(kind: str) -> None:
     t = truth()
-    rig, awg, dmms, clock = rig_for(t)
+    rig, awg, dmms, clock = rig_for(t, kind)
     try:
         loaded, setups = load(awg, dmms, shape="triangular")
         recs = cycle(awg, dmms, loaded, setups, clock)
@@ -152,10 +160,11 @@ def test_refusals_name_the_problem_before_anything_is_sent() -> None:
         close(rig, awg, dmms)
 
 
-def test_overload_and_a_missing_trigger_are_errors_by_name() -> None:
+@pytest.mark.parametrize("kind", CLOCKS)
+def test_overload_and_a_missing_trigger_are_errors_by_name(kind: str) -> None:
     t = replace(truth(), gyros={g: replace(v, angle_offset_deg=6.0)
                                 for g, v in truth().gyros.items()})   # 12 V > 1.2 x 10 V
-    rig, awg, dmms, clock = rig_for(t)
+    rig, awg, dmms, clock = rig_for(t, kind)
     try:
         loaded, setups = load(awg, dmms)
         with pytest.raises(DmmOverload, match="beyond the 10 V range"):
@@ -166,5 +175,27 @@ def test_overload_and_a_missing_trigger_are_errors_by_name() -> None:
         awg.trigger()
         with pytest.raises(DmmTimeout, match="Ext Trig"):
             dmms["y"].fetch()
+    finally:
+        close(rig, awg, dmms)
+
+
+def test_on_the_co_simulation_the_record_ends_in_stand_time_fixed_by_the_data() -> None:
+    """On a stepped clock the DMM's waits (armed, then the record) let stand time pass and
+    nothing else: the bench learns that the record is complete at the first poll at or
+    after its end (polls 1/50 of the record's length plus slack apart, drivers/dmm.py),
+    the same stand time on every host and at any load; a second cycle starts there."""
+    rig, awg, dmms, clock = rig_for(truth(), "stepped")
+    try:
+        loaded, setups = load(awg, dmms)
+        setup = setups["x"]
+        poll_s = setup.duration_s * (1.0 + SPAN_SLACK_REL) / 50.0
+        assert clock.now() == 0.0                 # configuring took no stand time
+        cycle(awg, dmms, loaded, setups, clock)
+        t_end = clock.now()
+        assert setup.duration_s - 1e-9 <= t_end < setup.duration_s + poll_s
+        assert [t for _, t in rig.awg.bursts] == [0.0, 0.0]   # *TRG at the armed instant
+        cycle(awg, dmms, loaded, setups, clock)
+        assert [t for _, t in rig.awg.bursts][2:] == [t_end, t_end]
+        assert setup.duration_s - 1e-9 <= clock.now() - t_end < setup.duration_s + poll_s
     finally:
         close(rig, awg, dmms)

@@ -9,9 +9,9 @@ so the own drift is compared with its true mean over the measurement.
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
-import threading
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +25,7 @@ from bench.core.journal import RunDir
 from bench.core.loader import load_config
 from drivers.cia402 import FOLLOWING_ERROR
 from sims.platform import GyroPlatform, PlatformTruth
-from tests.conftest import CONFIGS, ROOT, when_step_starts
+from tests.conftest import CONFIGS, ROOT
 
 DEMO = CONFIGS / "procedures" / "drift-demo.yaml"
 STAND = CONFIGS / "stands" / "sim-gyro-platform.yaml"
@@ -130,10 +130,26 @@ def test_the_papers_case_70_80_end_to_end(tmp_path: Path) -> None:
     assert again["azimuth_deg"] == drift["azimuth_deg"]
 
 
-def _when_turning_to(run: RunDir, deg: float, action: Any) -> threading.Thread:
-    # ~1 s of stand time into the turn
-    return when_step_starts(run, lambda e: e.get("action") == "turn"
-                            and f"to {deg:g} deg" in e.get("describe", ""), action)
+class _PastAngle:
+    """Calls `action` at the first step of the co-simulation's clock (sims/clock.py
+    SteppedClock) at which the turntable is past `deg`: mid-turn at a stand time fixed by
+    the data, whatever the host's load (a wall-clock delay after the step's start may
+    find the turn already over). A participant that only watches: no events of its own,
+    always settled."""
+
+    def __init__(self, table: Any, deg: float, action: Any) -> None:
+        self.table, self.deg, self.action, self.at_s = table, deg, action, None
+
+    def next_event_s(self, t_s: float) -> float:
+        return math.inf
+
+    def advance(self, t_s: float) -> None:
+        if self.at_s is None and self.table.angle_deg > self.deg:
+            self.at_s = t_s
+            self.action()
+
+    def settled(self, t_s: float, final: bool) -> bool:
+        return True
 
 
 @pytest.mark.timeout(120)
@@ -144,9 +160,13 @@ def test_a_fault_during_the_turn_stops_the_axis_exits_3_and_resumes(tmp_path: Pa
 
     def hook(sim: Any) -> None:
         seen["sim"] = sim
-        _when_turning_to(run, 180, lambda: sim.twins["turntable.drive"].inject(FOLLOWING_ERROR))
+        assert getattr(sim.clock, "stepped", False), "the gyro stand runs on the co-simulation"
+        seen["watch"] = _PastAngle(sim.stand.axes["turntable"], 20.0,
+                                   lambda: sim.twins["turntable.drive"].inject(FOLLOWING_ERROR))
+        sim.clock.join(seen["watch"])
 
     assert run_session(cfg, run, yes=True, on_sim_started=hook) == EXIT_ABORTED
+    assert seen["watch"].at_s is not None
     events = run.events()
     abort = next(e for e in events if e["event"] == "abort")
     assert "0x8611" in abort["reason"] and "following error" in abort["reason"]
