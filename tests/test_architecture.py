@@ -94,10 +94,10 @@ def test_the_contract_fails_when_a_driver_imports_the_engine(tmp_path: Path) -> 
 def test_the_contract_fails_when_a_twin_imports_the_analysis(tmp_path: Path) -> None:
     _copy_tree(tmp_path)
     with open(tmp_path / "sims" / "platform.py", "a") as f:
-        f.write("\nfrom bench.analysis import drift_pulse  # noqa: E402,F401 - the bad import\n")
+        f.write("\nfrom bench.analysis import allan  # noqa: E402,F401 - the bad import\n")
     r = lint_imports(tmp_path)
     assert r.returncode != 0
-    assert "sims.platform -> bench.analysis.drift_pulse" in r.stdout
+    assert "sims.platform -> bench.analysis.allan" in r.stdout
 
 
 def test_the_cycle_count_sees_a_cycle(tmp_path: Path, monkeypatch) -> None:

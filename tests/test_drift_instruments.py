@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bench.analysis import drift_pulse as dp
+from procedures.drift_pulse import analysis as dp
 from drivers.awg import AwgError, WaveformGenerator
 from drivers.dmm import Digitizer, DmmError, DmmOverload, DmmTimeout
 from sims.clock import VirtualClock

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.analysis import drift_pulse as dp
+from procedures.drift_pulse import analysis as dp
 from bench.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
 from bench.conformity import judge
 from bench.engine import Abort, RunContext
