@@ -144,7 +144,7 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
 def _summary(result: dict[str, Any], doc: Document | None) -> Summary:
     """The certificate's figures; without a certificate, only the verdict."""
     if doc is not None:
-        return summarize(doc)
+        return summarize(doc, result)
     return Summary((), (), "", str(result.get("verdict", "incomplete")).upper())
 
 

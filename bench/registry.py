@@ -18,7 +18,7 @@ import pkgutil
 from collections.abc import Mapping, Sequence
 from functools import cache
 from importlib.metadata import entry_points
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 from bench.config import Config
 from bench.engine import RunContext
@@ -31,8 +31,9 @@ from bench.yamlfile import Problem
 from drivers.clock import Clock
 
 if TYPE_CHECKING:   # the certificate's package imports this module when it is loaded
-    from bench.certificate.model import Section
+    from bench.certificate.model import Document, Section
     from bench.certificate.parts import Sources
+    from bench.figures import FigureSpec, FigureValue, InstrumentCheck, SummaryCut
 
 GROUP = "ratebench.procedures"
 #: where an install whose metadata predates the entry points finds the kinds (an old
@@ -81,6 +82,47 @@ class ProcedureKind(Protocol):
         annexes, statements) and their neutral answers: inherit `CertificateParts`."""
 
 
+# -- what a kind may add: small capabilities, each asked for by isinstance ------------------
+
+@runtime_checkable
+class ReportsFigures(Protocol):
+    """Its figures, declared (bench/figures.py), and read from a result.json: what the
+    records keep, `bench history` lists, the trend plot draws and the station shows.
+    `bench.figures.DeclaredFigures` reads them at their declared paths."""
+
+    figures: tuple[FigureSpec, ...]
+
+    def figure_values(self, result: Mapping[str, Any]) -> list[FigureValue]:
+        """Every figure of this result, with U (k = 2) where it has one."""
+
+
+@runtime_checkable
+class SummarisesRun(Protocol):
+    """Which cells of its certificate the console summary shows (otherwise the summary
+    lists the declared figures)."""
+
+    def summary_cut(self, doc: Document) -> SummaryCut:
+        """The certificate's tables and fields the console prints at the end of a run."""
+
+
+@runtime_checkable
+class ChecksInstruments(Protocol):
+    """Check values of the instruments only the kind knows (measurement assurance,
+    docs/method.md C1), from the result and the stand file the run used."""
+
+    def instrument_checks(self, result: Mapping[str, Any], stand: Mapping[str, Any]
+                          ) -> list[InstrumentCheck]:
+        """The kind's own instruments' check values in this run."""
+
+
+@runtime_checkable
+class ShapesResult(Protocol):
+    """The containers of its part of result.json, checked before the certificate reads
+    them (bench/certificate/shape.py's spec language)."""
+
+    result_shape: Mapping[str, Any]
+
+
 @cache
 def _registered() -> dict[str, str]:
     """procedure name -> "module:attribute" of its kind."""
@@ -107,3 +149,27 @@ def procedure_kind(name: str) -> ProcedureKind:
     """The kind registered under `name` (KeyError if none is)."""
     module, _, attr = _registered()[name].partition(":")
     return getattr(importlib.import_module(module), attr or "KIND")
+
+
+def installed_kind(name: str | None) -> ProcedureKind | None:
+    """The kind of that name if it is installed here, else None (a run recorded by a kind
+    this installation lacks is still listed, its figures by their stored names)."""
+    try:
+        return procedure_kind(str(name)) if name else None
+    except (KeyError, ImportError, AttributeError):
+        return None
+
+
+def declared_figures(names: Sequence[str] | None = None) -> tuple[FigureSpec, ...]:
+    """The figures the named kinds declare (every installed kind's when None), in the
+    kinds' order, a quantity declared twice taken from the first kind."""
+    out: list[FigureSpec] = []
+    seen: set[str] = set()
+    for name in dict.fromkeys(procedure_names() if names is None else names):
+        kind = installed_kind(name)
+        if isinstance(kind, ReportsFigures):
+            for spec in kind.figures:
+                if spec.quantity not in seen:
+                    seen.add(spec.quantity)
+                    out.append(spec)
+    return tuple(out)

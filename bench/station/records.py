@@ -18,6 +18,7 @@ from bench.records import Records, RecordsError, target
 from bench.records.control import OUT_OF_CONTROL, all_statuses, instrument_status
 from bench.records.control_plot import control_png
 from bench.records.trend import trend_png
+from bench.registry import declared_figures
 from bench.station.live import DOWNLOADS
 
 
@@ -115,7 +116,8 @@ class RecordsView:
         with self._open() as rec:
             if rec is None or rec.table(serial) is None:
                 return None
-            return trend_png(rec.trend(serial), f"table {serial}")
+            figures = declared_figures([r.kind for r in rec.runs(serial)])
+            return trend_png(rec.trend(serial), f"table {serial}", figures)
 
     # -- measurement assurance (bench control's statuses and charts) -------------------------
     def instruments(self) -> list[dict[str, Any]]:

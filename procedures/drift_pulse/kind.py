@@ -27,7 +27,6 @@ from typing import Any
 
 import numpy as np
 
-from procedures.drift_pulse import analysis as dp
 from bench.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
 from bench.conformity import judge
 from bench.engine import Abort, RunContext
@@ -45,7 +44,9 @@ from drivers.dmm import PROFILES as DMM_PROFILES
 from drivers.dmm import Digitizer
 from drivers.scpi import parse_numbers
 from procedures.base import StepDispatch, result_document
+from procedures.drift_pulse import analysis as dp
 from procedures.drift_pulse.certificate import DriftCertificate
+from procedures.drift_pulse.records import DriftRecords
 
 NAME = "drift-pulse"
 GYRO_NAMES = ("x", "y", "z")
@@ -189,7 +190,7 @@ def _near_int(x: float) -> bool:
     return abs(x - round(x)) < 1e-6 * max(1.0, abs(x))
 
 
-class DriftPulse(StepDispatch, DriftCertificate):
+class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
     name = NAME
 
     def procedure_schema(self) -> Map:
