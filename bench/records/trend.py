@@ -30,7 +30,7 @@ def _series_name(p: TrendPoint, spec: FigureSpec) -> str:
     rate = "" if f.set_rate_dps is None else (
         f" ±{abs(f.set_rate_dps):g} deg/s" if spec.rate_is_magnitude
         else f" {f.set_rate_dps:+g} deg/s")
-    return f"{f.axis}{rate}"
+    return f"{f.axis}{rate}".strip() or spec.name
 
 
 #: the series' colours (a qualitative map of 20) and, past 20 series, their markers
