@@ -92,11 +92,12 @@ def build_parser() -> argparse.ArgumentParser:
                          description="The configuration reference, generated from the "
                          "schema bench validate checks with: key, type, unit, default, "
                          "meaning, whether required. Examples: bench schema stand; "
-                         "bench schema procedure rate-ladder --json; bench schema lab")
+                         "bench schema procedure KIND --json; bench schema lab")
     sch.add_argument("target", nargs="?", choices=("stand", "procedure", "lab"),
                      default="stand", help="which file (stand)")
     sch.add_argument("kind", nargs="?", metavar="KIND",
-                     help="the procedure kind (rate-ladder, drift-pulse), for procedure")
+                     help="the procedure kind, for procedure (without it: the kinds "
+                          "installed)")
     sch.add_argument("--json", action="store_true", help="print a JSON Schema instead")
     sch.add_argument("--markdown", action="store_true",
                      help="print docs/configuration.md (every file)")

@@ -123,6 +123,14 @@ class ShapesResult(Protocol):
     result_shape: Mapping[str, Any]
 
 
+@runtime_checkable
+class HasSampleResult(Protocol):
+    """A hand-made result.json of the kind, for previews of its certificate."""
+
+    def sample_result(self) -> dict[str, Any]:
+        """A result whose printed figures are worked out by hand."""
+
+
 @cache
 def _registered() -> dict[str, str]:
     """procedure name -> "module:attribute" of its kind."""

@@ -24,8 +24,8 @@ from bench.certificate import render_files, write_certificate
 from bench.certificate.build import build_document
 from bench.certificate.html import render_html
 from bench.certificate.register import REGISTER_NAME, issues, next_issue, record
-from bench.certificate.sample import drift_pulse_result
 from bench.journal import RunDir
+from procedures.drift_pulse.sample import drift_pulse_result
 
 ROOT = Path(__file__).resolve().parents[1]
 ISSUED = dt.date(2026, 11, 22)

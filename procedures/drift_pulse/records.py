@@ -4,7 +4,8 @@ its gyros' own drift as check values of the gyros (measurement assurance), and t
 cells of its certificate the console summary shows.
 
 Mixed into the kind beside its certificate (certificate.py); bench/registry.py's
-`ReportsFigures`, `ChecksInstruments` and `SummarisesRun` are the questions these answer.
+`ReportsFigures`, `ChecksInstruments`, `SummarisesRun` and `HasSampleResult` are the
+questions these answer.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from bench.figures import (
     fields_of,
     tables_of,
 )
+from procedures.drift_pulse.sample import drift_pulse_result
 
 #: CONTRACT §3's binding keys of a drift-pulse result, per gyro and for the platform
 FIGURES = (
@@ -74,6 +76,10 @@ class DriftRecords(DeclaredFigures):
                                            _opt(conf.get("model")), g, "own_drift_dph", None,
                                            v, _num(d.get("own_u_dph")), "deg/h"))
         return out
+
+    def sample_result(self) -> dict[str, Any]:
+        """A hand-made result for previews of the certificate (sample.py)."""
+        return drift_pulse_result()
 
     def summary_cut(self, doc: Document) -> SummaryCut:
         """Own and apparent drift per gyro, and the platform azimuth."""

@@ -3,7 +3,7 @@ records, `bench history`, the trend plot, the station view read these), read fro
 result.json, and the cells of its certificate the console summary shows.
 
 Mixed into the kind beside its certificate (certificate.py); bench/registry.py's
-`ReportsFigures` and `SummarisesRun` are the questions these answer.
+`ReportsFigures`, `SummarisesRun` and `HasSampleResult` are the questions these answer.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from typing import Any
 from bench.analysis.finite import finite_number as _num
 from bench.certificate.model import Document, Table
 from bench.figures import FigureSpec, FigureValue, SummaryCut, Trend, joined, tables_of
+from procedures.rate_ladder.sample import rate_ladder_result
 
 _RATES = "axes.<axis>.rates[]."
 _PAIRS = "axes.<axis>.pairs[]."
@@ -140,6 +141,10 @@ class LadderRecords:
                 out.append(_value(axis, "w0_dps", rate, p.get("w0_dps"), p.get("w0_u_dps"),
                                   "deg/s"))
         return [f for f in out if f is not None]
+
+    def sample_result(self) -> dict[str, Any]:
+        """A hand-made result for previews of the certificate (sample.py)."""
+        return rate_ladder_result()
 
     def summary_cut(self, doc: Document) -> SummaryCut:
         """Per axis: the per-turn and intra-turn tables joined on the rate, and the FOG's
