@@ -3,12 +3,17 @@
 A procedure package registers itself in its distribution's metadata:
 
     [project.entry-points."ratebench.procedures"]
-    rate-ladder = "procedures.rate_ladder:KIND"
+    my-kind = "my_package.my_kind:KIND"
 
-so the engine, the CLI and the certificate find it without naming it: adding a
-procedure touches no file outside its own package and its entry point. The kind's
-interface (what the engine and the certificate ask of it) is `ProcedureKind` below; its
-certificate hooks, with neutral answers, come from `bench.certificate.parts.CertificateParts`.
+so the engine, the CLI, the certificate, the records and the console find it without
+naming it: adding a procedure touches no file outside its own package and its entry
+point. What is asked of a kind: `ProcedureKind` below (the engine: files, plan, steps,
+analysis); `bench.certificate.parts.CertificateParts` and `bench.dcc.parts.DccParts`
+(its certificate and DCC, with neutral answers to inherit); and the small capabilities
+below, each asked for by isinstance, each optional: its figures (`ReportsFigures`: the
+records, `bench history`, the trend plot, the station view, the summary), its summary
+cells, its own instruments' check values, the shape of its part of result.json and a
+sample result for previews.
 """
 
 from __future__ import annotations
@@ -31,8 +36,7 @@ from bench.yamlfile import Problem
 from drivers.clock import Clock
 
 if TYPE_CHECKING:   # the certificate's package imports this module when it is loaded
-    from bench.certificate.model import Document, Section
-    from bench.certificate.parts import Sources
+    from bench.certificate.model import Document
     from bench.figures import FigureSpec, FigureValue, InstrumentCheck, SummaryCut
 
 GROUP = "ratebench.procedures"
@@ -74,12 +78,6 @@ class ProcedureKind(Protocol):
 
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
         """result.json from the run directory's raw data alone."""
-
-    def certificate_sections(self, src: Sources, number: str,
-                             checks: Sequence[Mapping[str, Any]]) -> list[Section]:
-        """The certificate's results section `number` (and its subsections) from
-        result.json. The other questions the certificate asks (item, method, deviations,
-        annexes, statements) and their neutral answers: inherit `CertificateParts`."""
 
 
 # -- what a kind may add: small capabilities, each asked for by isinstance ------------------

@@ -42,6 +42,11 @@ FIGURES = (
                "drift.azimuth_deg", "azimuth_u_deg", axis="platform"),
 )
 
+#: the containers of the kind's part of result.json (bench/certificate/shape.py)
+RESULT_SHAPE = {"drift": {"axes": {"*": {
+    "cycles": [dict], "positions": [dict], "start_offset": dict, "example_cycle": dict,
+    "budget": {"own_u_dph": dict, "apparent_u_dph": dict}}}}}
+
 DRIFT_CAPTION = "Own and apparent drift per axis"
 DRIFT_HEADERS = ("Axis", "Own drift", "Apparent drift")
 AZIMUTH_FIELD = "Platform azimuth"
@@ -56,6 +61,7 @@ class DriftRecords(DeclaredFigures):
     `SummarisesRun`."""
 
     figures = FIGURES
+    result_shape = RESULT_SHAPE
 
     def instrument_checks(self, result: Mapping[str, Any], stand: Mapping[str, Any]
                           ) -> list[InstrumentCheck]:

@@ -61,6 +61,13 @@ FIGURES = (
                rate_key=_PAIR, rate_is_magnitude=True),
 )
 
+#: the containers of the ladder's part of result.json (bench/certificate/shape.py): a rate
+#: without its set rate, a pair without its rate, a harmonic without its order are dropped
+_RATE_SHAPE = {"systematic": {"harmonics": [dict, "order"], "mains": dict, "binned": dict},
+               "intra_turn": {"averaged": [dict]}, "counter_rate_dps": list}
+RESULT_SHAPE = {"axes": {"*": {"rates": [_RATE_SHAPE, "set_rate_dps"],
+                               "pairs": [dict, "rate_dps"], "noise_floor": dict}}}
+
 # the console summary: (caption after "Axis <name>: ", header prefix, header shown)
 LADDER_COLUMNS = (
     ("per-turn rate error", "Set rate", None),
@@ -99,6 +106,7 @@ class LadderRecords:
     """The ladder's answers to `ReportsFigures` and `SummarisesRun`."""
 
     figures = FIGURES
+    result_shape = RESULT_SHAPE
 
     def figure_values(self, result: Mapping[str, Any]) -> list[FigureValue]:
         out: list[FigureValue | None] = []
