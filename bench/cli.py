@@ -108,6 +108,9 @@ def build_parser() -> argparse.ArgumentParser:
     ini.add_argument("dir", nargs="?", default=".", help="folder to write into (.)")
     ini.add_argument("--real", action="store_true",
                      help="a real bench: no sim: block, the keys hardware needs")
+    ini.add_argument("--kind", metavar="KIND",
+                     help="the procedure kind whose files to write (default: the first "
+                          "installed kind that offers starter files)")
     ana = sub.add_parser("analyze", help="recompute result.json and certificate from raw data")
     ana.add_argument("run_dir")
     ana.add_argument("--records", metavar="URL",
@@ -158,7 +161,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "schema":
         return schema_command(args.target, args.kind, args.json, args.markdown)
     if args.command == "init":
-        return init_command(args.dir, args.real)
+        return init_command(args.dir, args.real, args.kind)
     if args.command == "sim":
         from bench.simserve import serve
         return serve(args.stand)

@@ -12,8 +12,8 @@ analysis); `bench.certificate.parts.CertificateParts` and `bench.dcc.parts.DccPa
 (its certificate and DCC, with neutral answers to inherit); and the small capabilities
 below, each asked for by isinstance, each optional: its figures (`ReportsFigures`: the
 records, `bench history`, the trend plot, the station view, the summary), its summary
-cells, its own instruments' check values, the shape of its part of result.json and a
-sample result for previews.
+cells, its own instruments' check values, the shape of its part of result.json, a
+sample result for previews and starter files for `bench init`.
 """
 
 from __future__ import annotations
@@ -127,6 +127,14 @@ class HasSampleResult(Protocol):
 
     def sample_result(self) -> dict[str, Any]:
         """A result whose printed figures are worked out by hand."""
+
+
+@runtime_checkable
+class HasStarterFiles(Protocol):
+    """Commented stand and procedure files that validate, for `bench init`."""
+
+    def starter_files(self, real: bool) -> dict[str, str]:
+        """File name -> text (stand.yaml, procedure.yaml); `real`: no `sim:` block."""
 
 
 @cache

@@ -3,7 +3,8 @@ records, `bench history`, the trend plot, the station view read these), read fro
 result.json, and the cells of its certificate the console summary shows.
 
 Mixed into the kind beside its certificate (certificate.py); bench/registry.py's
-`ReportsFigures`, `SummarisesRun` and `HasSampleResult` are the questions these answer.
+`ReportsFigures`, `SummarisesRun`, `HasSampleResult` and `HasStarterFiles` are the
+questions these answer.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from typing import Any
 from bench.analysis.finite import finite_number as _num
 from bench.certificate.model import Document, Table
 from bench.figures import FigureSpec, FigureValue, SummaryCut, Trend, joined, tables_of
+from procedures.rate_ladder import starter
 from procedures.rate_ladder.sample import rate_ladder_result
 
 _RATES = "axes.<axis>.rates[]."
@@ -149,6 +151,10 @@ class LadderRecords:
                 out.append(_value(axis, "w0_dps", rate, p.get("w0_dps"), p.get("w0_u_dps"),
                                   "deg/s"))
         return [f for f in out if f is not None]
+
+    def starter_files(self, real: bool) -> dict[str, str]:
+        """`bench init`'s stand and procedure (starter.py)."""
+        return starter.starter_files(real)
 
     def sample_result(self) -> dict[str, Any]:
         """A hand-made result for previews of the certificate (sample.py)."""
