@@ -106,7 +106,10 @@ class SummarisesRun(Protocol):
 @runtime_checkable
 class ChecksInstruments(Protocol):
     """Check values of the instruments only the kind knows (measurement assurance,
-    docs/method.md C1), from the result and the stand file the run used."""
+    docs/method.md C1), from the result and the stand file the run used; their
+    quantities: key -> (unit, what the control chart calls it)."""
+
+    check_quantities: Mapping[str, tuple[str, str]]
 
     def instrument_checks(self, result: Mapping[str, Any], stand: Mapping[str, Any]
                           ) -> list[InstrumentCheck]:

@@ -29,9 +29,10 @@ from typing import Any
 from bench.analysis.finite import finite_number as _num
 from bench.figures import InstrumentCheck
 from bench.journal import read_jsonl
-from bench.registry import ChecksInstruments, installed_kind
+from bench.registry import ChecksInstruments, installed_kind, procedure_names
 
-#: the check quantities, their unit and what the chart calls them (one place)
+#: the stand instruments' check quantities, their unit and what the chart calls them (one
+#: place); a kind adds those of its own instruments (`ChecksInstruments.check_quantities`)
 QUANTITIES: dict[str, tuple[str, str]] = {
     "k": ("1", "FOG scale k (eq. 5)"),
     "w0_dps": ("deg/s", "FOG bias w0 (eq. 6)"),
@@ -41,10 +42,19 @@ QUANTITIES: dict[str, tuple[str, str]] = {
     "reference_external": ("1", "counter reference read back (1 external, 0 internal)"),
     "settle_time_s": ("s", "drive settle time beyond the ramp"),
     "ripple_rel": ("1", "drive-reported rate ripple while timed, rms / |rate|"),
-    "own_drift_dph": ("deg/h", "drift platform's own drift"),
 }
 #: quantities that are attributes (a change from the baseline is the signal, not a spread)
 ATTRIBUTES = ("reference_external",)
+
+
+def quantities() -> dict[str, tuple[str, str]]:
+    """Every check quantity: the stand instruments', then each installed kind's own."""
+    out = dict(QUANTITIES)
+    for name in procedure_names():
+        kind = installed_kind(name)
+        if isinstance(kind, ChecksInstruments):
+            out.update({q: v for q, v in kind.check_quantities.items() if q not in out})
+    return out
 
 
 #: one check value of one instrument in one run (the type a kind's own checks come in)

@@ -61,6 +61,7 @@ class DriftRecords(DeclaredFigures):
     `SummarisesRun`."""
 
     figures = FIGURES
+    check_quantities = {"own_drift_dph": ("deg/h", "drift platform's own drift")}
     result_shape = RESULT_SHAPE
 
     def instrument_checks(self, result: Mapping[str, Any], stand: Mapping[str, Any]
