@@ -116,13 +116,14 @@ def _sim_run(tmp_path: Path, dwell_s: float, capsys: pytest.CaptureFixture[str]
     return run, out
 
 
-def test_a_plugin_kinds_figures_reach_history_the_trend_plot_and_the_run_summary(
+def test_a_plugin_kinds_figures_reach_history_the_trend_plot_the_summary_and_station(
         tmp_path: Path, register: Callable[[str], None],
         capsys: pytest.CaptureFixture[str]) -> None:
     """Two dwells (1 s, then 2.5 s of simulated bench time) of one bench clock: the
     figures the kind declares (tests/plugin_kind.py FIGURES) are in the records, in
     `bench history`'s listing and CSV, in the points the trend plot draws (read back from
-    the plotted lines) and in the summary `bench run` prints at its end."""
+    the plotted lines), in the summary `bench run` prints at its end and in the station
+    view's run figures and trend plot."""
     from bench.records import Records, target
     from bench.records.trend import trend_figure
     from bench.registry import declared_figures
@@ -187,3 +188,34 @@ def test_a_plugin_kinds_figures_reach_history_the_trend_plot_and_the_run_summary
     # the error's check tolerance (0.5 s) is drawn as its band, in the panel's unit
     assert any(ln.get_ydata()[0] == pytest.approx(500.0)
                for ln in panels["dwell error, ms"].get_lines() if ln.get_linestyle() == "--")
+
+    # the station view, served over HTTP on this host (in this process, where the kind is
+    # registered): each run's figures as the kind declares them, and the table's trend plot
+    import threading
+    import urllib.request
+
+    from werkzeug.serving import make_server
+
+    from bench.station.app import StationSettings, create_app
+
+    app = create_app(StationSettings(runs=tmp_path / "runs", token="not-used-on-loopback"))
+    http = make_server("127.0.0.1", 0, app, threaded=True)
+    thread = threading.Thread(target=http.serve_forever, daemon=True)
+    thread.start()
+    try:
+        base = f"http://127.0.0.1:{http.server_port}"
+        for (run, _), w, e in zip(runs, waited, errors, strict=True):
+            with urllib.request.urlopen(f"{base}/api/runs/{run.name}/figures") as r:
+                shown = json.load(r)
+            assert shown["procedure"] == "dwell"
+            rows = {f["quantity"]: f for f in shown["figures"]}
+            assert (rows["dwell_waited_s"]["value"], rows["dwell_waited_s"]["name"],
+                    rows["dwell_waited_s"]["unit"]) == (w, "time waited", "s")
+            assert (rows["dwell_error_s"]["value"], rows["dwell_error_s"]["verdict"]) == (
+                e, "pass")
+        with urllib.request.urlopen(f"{base}/api/records/{SERIAL}/trend.png") as r:
+            assert r.status == 200 and r.read()[:4] == b"\x89PNG"
+    finally:
+        http.shutdown()
+        thread.join(timeout=10)
+

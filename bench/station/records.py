@@ -14,9 +14,12 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from bench.certificate.parts import read_json_object
+from bench.figures import spec_for
 from bench.records import Records, RecordsError, target
 from bench.records.control import OUT_OF_CONTROL, all_statuses, instrument_status
 from bench.records.control_plot import control_png
+from bench.records.extract import figures_of, kind_name
 from bench.records.trend import trend_png
 from bench.registry import declared_figures
 from bench.station.live import DOWNLOADS
@@ -24,6 +27,25 @@ from bench.station.live import DOWNLOADS
 
 def _iso(t: dt.datetime | dt.date | None) -> str | None:
     return None if t is None else t.isoformat()
+
+
+def run_figures(run_path: Path) -> dict[str, Any]:
+    """A finished run's figures, read by its procedure kind from result.json (the rows
+    the records keep) with the words and units the kind declares; none before the end."""
+    result = read_json_object(run_path / "result.json")
+    kind = kind_name(result, run_path) if result else ""
+    specs = declared_figures([kind]) if kind else ()
+    rows = []
+    for f in figures_of(result, kind) if result else []:
+        spec = spec_for(f.quantity, specs)
+        rows.append({"axis": f.axis, "quantity": f.quantity, "set_rate_dps": f.set_rate_dps,
+                     "value": f.value, "U": f.u, "unit": f.unit,
+                     "name": spec.name if spec else f.quantity,
+                     "description": spec.description if spec else "",
+                     "tolerance": f.tolerance, "verdict": f.verdict,
+                     "upper_limit": f.is_limit})
+    return {"run": run_path.name, "procedure": kind or None,
+            "verdict": result.get("verdict") if result else None, "figures": rows}
 
 
 class RecordsView:
