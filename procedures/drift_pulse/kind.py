@@ -35,7 +35,7 @@ from bench.journal import RunDir, read_jsonl
 from bench.plan import Plan, Step
 from bench.progress import Figure
 from bench.schema import Key, ListOf, Map, MapOf, Num, Str
-from bench.simbench import SIM_GYRO_KEYS, SimBench, gyro_rig_factory
+from bench.simbench import SimBench
 from bench.yamlfile import Problem
 from drivers.awg import PROFILES as AWG_PROFILES
 from drivers.awg import WaveformGenerator
@@ -47,6 +47,7 @@ from procedures.base import StepDispatch, result_document
 from procedures.drift_pulse import analysis as dp
 from procedures.drift_pulse.certificate import DriftCertificate
 from procedures.drift_pulse.records import DriftRecords
+from procedures.drift_pulse.twins import SIM_GYRO_KEYS, gyro_rig_factory
 
 NAME = "drift-pulse"
 GYRO_NAMES = ("x", "y", "z")
