@@ -9,9 +9,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from procedures.drift_pulse import analysis as dp
 from drivers.awg import AwgError, WaveformGenerator
 from drivers.dmm import Digitizer, DmmError, DmmOverload, DmmTimeout
+from procedures.drift_pulse import analysis as dp
 from sims.clock import VirtualClock
 from sims.gyro_rig import start_gyro_rig
 from sims.platform import GyroTruth, PlatformTruth
