@@ -23,7 +23,7 @@ from pathlib import Path  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bench.analysis import drift_pulse as dp  # noqa: E402
+from procedures.drift_pulse import analysis as dp  # noqa: E402
 from tests import drift_cycles  # noqa: E402
 
 

@@ -13,7 +13,7 @@ external trigger input, starts the angle-sensor record in step with it. Sequence
 
 Why these settings. STEP filter: the output holds each point (zero-order hold), so a
 rectangular pulse has square edges and a midpoint-sampled staircase stays symmetric in
-time (bench/analysis/drift_pulse.py, `PulseShape.pair_points`); the default smoothing
+time (procedures/drift_pulse/analysis.py, `PulseShape.pair_points`); the default smoothing
 filter would round the edges and delay them. LOAD INF: the torque-sensor current
 amplifier's input is high-impedance; with the default 50 ohm setting the generator would
 put out twice the voltage asked. The waveform starts and ends with zeros, so the output

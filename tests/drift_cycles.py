@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from bench.analysis.drift_pulse import CycleRecord, PulseShape
+from procedures.drift_pulse.analysis import CycleRecord, PulseShape
 from sims.clock import VirtualClock
 from sims.platform import GyroPlatform, GyroTruth, PlatformTruth
 from sims.stand import AxisTruth, SimulatedStand, StandTruth

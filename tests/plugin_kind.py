@@ -2,8 +2,13 @@
 it imports only what a procedure may (the engine's interfaces, the certificate's and the
 DCC's vocabulary, procedures.base) and is registered by name, as an entry point would
 register it (tests/test_procedure_plugin.py). Its plan is one step that waits on the bench
-clock; no instrument is opened. Its analysis reads the journal back and states one
-figure, the time waited, checked against a tolerance.
+clock; no instrument is opened. On twins (a stand file with a `sim:` block, or `--sim`)
+that clock is the simulated bench's, which has no twin to start. Its analysis reads the
+journal back and states two figures, the time waited and its error against the dwell
+asked for, the error checked against a tolerance.
+
+Its figures reach the records, `bench history`, the trend plot and the console summary
+through their declaration alone (`figures`, read by `bench.report.figures.DeclaredFigures`).
 
 `KIND` also answers the DCC (`bench.report.dcc.parts.DccParts`); `QUIET` is the same kind
 without a DCC part of its own, which still gets a valid DCC from the neutral answers.
@@ -31,6 +36,7 @@ from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import Checks, judge
 from bench.report.dcc.parts import DccParts
 from bench.report.dcc.xml import el, name, quantity
+from bench.report.figures import DeclaredFigures, FigureSpec, Trend
 from drivers.clock import Clock
 from procedures.base import StepDispatch, result_document
 
@@ -39,10 +45,24 @@ TITLE = "Dwell on the bench clock"
 WAITED = V.RB + "dwellTime"      # the kind's own refType
 
 
-class Dwell(StepDispatch, CertificateParts):
+#: what the dwell reports: the time waited (trended, no tolerance) and its error against
+#: the dwell asked for (the check's quantity, drawn inside its tolerance band)
+FIGURES = (
+    FigureSpec("dwell_waited_s", "time waited", "s",
+               "bench time between the start and the end of the dwell step",
+               "dwell.waited_s", trend=Trend(), listed=True),
+    FigureSpec("dwell_error_s", "dwell error", "s", "time waited - dwell_s",
+               "dwell.error_s", check="dwell_time", shown_unit="ms",
+               scale=1e3, trend=Trend("sym"), listed=True),
+)
+SIM = Map({"seed": Key(Num(min=0, integer=True), False, "the simulated bench's seed")})
+
+
+class Dwell(StepDispatch, DeclaredFigures, CertificateParts):
     """Waits `dwell_s` of bench time and reports how long it waited."""
 
     name = NAME
+    figures = FIGURES
     certificate_procedure_name = "dwell (a test plug-in)"
     certificate_quantities = {"dwell_time": "time waited"}
 
@@ -52,7 +72,9 @@ class Dwell(StepDispatch, CertificateParts):
                     "tolerance_s": Key(Num(min=0, exclusive_min=True, unit="s"), True)})
 
     def stand_schema(self) -> Map:
-        return Map({"stand": Key(IDENTITY, True), "axes": Key(Map({}))})
+        return Map({"stand": Key(IDENTITY, True), "axes": Key(Map({})),
+                    "sim": Key(SIM, False, "present: the dwell runs on the simulated "
+                                           "bench's clock")})
 
     def cross_check(self, cfg: Config) -> list[Problem]:
         return []
@@ -64,7 +86,9 @@ class Dwell(StepDispatch, CertificateParts):
                           {"duration_s": dwell}),))
 
     def start_sim(self, cfg: Config) -> tuple[SimBench, dict[str, Any]]:
-        raise NotImplementedError("the dwell needs no twins")
+        """The simulated bench with no twin: its clock alone."""
+        sim = SimBench(cfg.stand, axes=[])
+        return sim, sim.start()
 
     def open_bench(self, cfg: Config, stand: dict[str, Any], clock: Clock,
                    run: RunDir | None) -> Bench:
@@ -80,6 +104,7 @@ class Dwell(StepDispatch, CertificateParts):
         waited = [e["waited_s"] for e in events if e.get("event") == "dwelt"]
         dwell, tol = float(cfg.procedure["dwell_s"]), float(cfg.procedure["tolerance_s"])
         checks = []
+        error = None
         if waited:
             error = waited[-1] - dwell
             ok = abs(error) <= tol
@@ -89,7 +114,8 @@ class Dwell(StepDispatch, CertificateParts):
                            "reason": f"|{error:.3g}| s {'<=' if ok else '>'} {tol:g} s"})
         return result_document(run, cfg, events, complete=bool(waited), checks=checks,
                                rule="simple", method={"dwell_s": dwell},
-                               dwell={"waited_s": waited[-1] if waited else None})
+                               dwell={"waited_s": waited[-1] if waited else None,
+                                      "error_s": error})
 
     def certificate_sections(self, src: Sources, number: str,
                              checks: Sequence[Mapping[str, Any]]) -> list[Section]:

@@ -7,7 +7,9 @@ added), the way CI does.
 
 from __future__ import annotations
 
+import ast
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -94,10 +96,10 @@ def test_the_contract_fails_when_a_driver_imports_the_engine(tmp_path: Path) -> 
 def test_the_contract_fails_when_a_twin_imports_the_analysis(tmp_path: Path) -> None:
     _copy_tree(tmp_path)
     with open(tmp_path / "sims" / "platform.py", "a") as f:
-        f.write("\nfrom bench.analysis import drift_pulse  # noqa: E402,F401 - the bad import\n")
+        f.write("\nfrom bench.analysis import allan  # noqa: E402,F401 - the bad import\n")
     r = lint_imports(tmp_path)
     assert r.returncode != 0
-    assert "sims.platform -> bench.analysis.drift_pulse" in r.stdout
+    assert "sims.platform -> bench.analysis.allan" in r.stdout
 
 
 def test_the_cycle_count_sees_a_cycle(tmp_path: Path, monkeypatch) -> None:
@@ -125,3 +127,69 @@ def test_the_layers_contract_names_packages_in_a_few_lines() -> None:
     flat = [p.name for p in (ROOT / "bench").glob("*.py")
             if p.name not in {"__init__.py", "__main__.py"}]
     assert flat == [], f"modules outside the layer packages: {flat}"
+
+
+# -- issue 25: bench/ names no procedure kind ------------------------------------------------
+
+#: a kind's name as code would write it: the two shipped kinds' names (either spelling),
+#: their procedure IDs, and "ladder" standing alone in a name or text
+KIND_NAMES = re.compile(r"rate[-_ ]?ladder|drift[-_ ]?pulse|(?<![a-z])ladder(?![a-z])|"
+                        r"RB-RL|RB-DP", re.IGNORECASE)
+
+
+def kind_names_in(source: str, filename: str = "<source>") -> list[tuple[int, str]]:
+    """(line, text) of every identifier, import and string in `source` that names a kind.
+    Docstrings and comments may say what the code serves; code may not name it."""
+    tree = ast.parse(source, filename)
+    docstrings = {id(node.body[0].value) for node in ast.walk(tree)
+                  if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef
+                                | ast.AsyncFunctionDef)
+                  and node.body and isinstance(node.body[0], ast.Expr)
+                  and isinstance(node.body[0].value, ast.Constant)}
+    found = []
+    for node in ast.walk(tree):
+        texts: list[str] = []
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) \
+                and id(node) not in docstrings:
+            texts.append(node.value)
+        elif isinstance(node, ast.Name):
+            texts.append(node.id)
+        elif isinstance(node, ast.Attribute):
+            texts.append(node.attr)
+        elif isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            texts.append(node.name)
+        elif isinstance(node, ast.arg):
+            texts.append(node.arg)
+        elif isinstance(node, ast.keyword) and node.arg:
+            texts.append(node.arg)
+        elif isinstance(node, ast.alias):
+            texts += [node.name, node.asname or ""]
+        elif isinstance(node, ast.ImportFrom):
+            texts.append(node.module or "")
+        found += [(getattr(node, "lineno", 0), t) for t in texts if KIND_NAMES.search(t)]
+    return found
+
+
+def test_the_scan_sees_a_kind_named_in_code() -> None:
+    source = ('"""Serves the rate ladder (a docstring may say so)."""\n'
+              'from procedures.rate_ladder import KIND\n'
+              'LADDER_COLUMNS = 1\n'
+              'def f(drift_pulse=None):\n    """Nor here: drift-pulse."""\n'
+              '    return {"procedure": "drift-pulse"}.get("x", RB_XY)\n'
+              'x = g(ladder=1)\n')
+    assert sorted(line for line, _ in kind_names_in(source)) == [2, 3, 4, 6, 7]
+    assert {t for _, t in kind_names_in(source)} >= {"procedures.rate_ladder", "LADDER_COLUMNS",
+                                                    "drift_pulse", "drift-pulse", "ladder"}
+
+
+def test_no_module_under_bench_names_a_procedure_kind() -> None:
+    """Every kind feeds every consumer through its interface (bench/core/registry.py): nothing
+    in bench/ names a kind or guesses one, so a third kind is served like the first two."""
+    found = []
+    for path in sorted((ROOT / "bench").rglob("*.py")):
+        rel = path.relative_to(ROOT)
+        if KIND_NAMES.search(str(rel)):
+            found.append(f"{rel}: the module's own name")
+        found += [f"{rel}:{line}: {text[:70]!r}"
+                  for line, text in kind_names_in(path.read_text(encoding="utf-8"), str(rel))]
+    assert found == [], "\n".join(found)

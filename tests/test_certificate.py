@@ -1,6 +1,6 @@
 """The certificate: rounding rules, and the PDF/HTML against hand-derived printed values.
 
-Expected strings are worked out by hand from the numbers in bench/app/certificate/sample.py
+Expected strings are worked out by hand from the numbers in procedures/*/sample.py
 (e.g. rate error 3.04e-7 with U 1.23e-7 is 0.304 ± 0.123 ppm -> U to two digits 0.12,
 the value to the same decimal 0.30 -> "+0.30 ± 0.12"), never by calling the formatter.
 """
@@ -21,9 +21,10 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from bench.app.certificate import write_certificate
-from bench.app.certificate.sample import drift_pulse_result, rate_ladder_result
 from bench.core.journal import RunDir
 from bench.report.certificate.rounding import format_limit, format_value_u, rel_unit, round_u
+from procedures.drift_pulse.sample import drift_pulse_result
+from procedures.rate_ladder.sample import rate_ladder_result
 
 ISSUED = dt.date(2025, 3, 6)
 

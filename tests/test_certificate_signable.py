@@ -24,8 +24,8 @@ from bench.app.certificate import render_files, write_certificate
 from bench.app.certificate.build import build_document
 from bench.app.certificate.html import render_html
 from bench.app.certificate.register import REGISTER_NAME, issues, next_issue, record
-from bench.app.certificate.sample import drift_pulse_result
 from bench.core.journal import RunDir
+from procedures.drift_pulse.sample import drift_pulse_result
 
 ROOT = Path(__file__).resolve().parents[1]
 ISSUED = dt.date(2026, 11, 22)

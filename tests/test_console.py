@@ -121,7 +121,7 @@ def _doc() -> Document:
 
 
 def test_summary_is_the_certificates_cells_aligned_under_their_headers() -> None:
-    s = summarize(_doc())
+    s = summarize(_doc(), {"procedure": "rate-ladder"})
     ladder, pair = s.tables
     assert ladder.header == ("Set rate, °/s", "Turns", "Rate error δ ± U, ppm",
                              "Instability σ ± U, ppm", "Intra-turn raw ± U, %",
@@ -144,13 +144,13 @@ def test_summary_is_the_certificates_cells_aligned_under_their_headers() -> None
 
 def test_plain_summary_is_uncoloured_and_quiet_prints_only_the_verdict() -> None:
     err, out = io.StringIO(), io.StringIO()
-    PlainConsole(err, out=out).summary(summarize(_doc()))
+    PlainConsole(err, out=out).summary(summarize(_doc(), {"procedure": "rate-ladder"}))
     assert "\x1b[" not in out.getvalue() and out.getvalue().splitlines()[-1] == "verdict: FAIL"
     out = io.StringIO()
     quiet = QuietConsole(err, out=out)
     quiet.line("wrote x")
     quiet.warn("WARNING lost samples")
-    quiet.summary(summarize(_doc()))
+    quiet.summary(summarize(_doc(), {"procedure": "rate-ladder"}))
     assert out.getvalue() == "verdict: FAIL\n" and err.getvalue() == "WARNING lost samples\n"
 
 
@@ -164,7 +164,7 @@ def test_json_log_is_one_object_per_line() -> None:
     con.reading("FOG mean", "outer at rest", Figure("", 0.0019987, unit="°/s", signed=True))
     con.warn("  WARNING x")
     con.result("outer ±10 deg/s", Figure("k", 1.00029253, 3.8e-6))
-    con.summary(summarize(_doc()))
+    con.summary(summarize(_doc(), {"procedure": "rate-ladder"}))
     recs = [json.loads(line) for line in stream.getvalue().splitlines()]
     assert [r["event"] for r in recs] == ["plan", "step", "reading", "warning", "result",
                                           "summary"]

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from bench.analysis import drift_pulse as dp
+from procedures.drift_pulse import analysis as dp
 from tests.drift_cycles import FS_HZ, TC_S, paper_truth, record_cycles
 
 K_AS = {"x": 2.0, "y": 2.0, "z": 2.0}

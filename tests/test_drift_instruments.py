@@ -11,9 +11,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from bench.analysis import drift_pulse as dp
 from drivers.awg import AwgError, WaveformGenerator
 from drivers.dmm import SPAN_SLACK_REL, Digitizer, DmmError, DmmOverload, DmmTimeout
+from procedures.drift_pulse import analysis as dp
 from sims.clock import SteppedClock, VirtualClock
 from sims.gyro_rig import start_gyro_rig
 from sims.platform import GyroTruth, PlatformTruth

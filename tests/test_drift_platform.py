@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from bench.analysis.drift_pulse import EARTH_RATE_DPH
+from procedures.drift_pulse.analysis import EARTH_RATE_DPH
 from sims.clock import VirtualClock
 from sims.platform import GyroPlatform, GyroTruth, PlatformTruth
 from sims.stand import AxisTruth, SimulatedStand, StandTruth

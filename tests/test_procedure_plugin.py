@@ -6,6 +6,7 @@ procedure needs no change outside its own code (README "How to add a procedure")
 
 from __future__ import annotations
 
+import csv
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -89,3 +90,132 @@ def test_a_plugin_kind_without_a_dcc_part_still_gets_a_valid_dcc(
     check = root.find(".//dcc:statements/dcc:statement[@id='check_1']", NS)
     assert check is not None and check.findtext("dcc:conformity", None, NS) == "pass"
     assert root.find(".//dcc:usedMethod[@id='methodDocument']", NS) is not None
+
+
+# -- issue 25: a kind's figures reach every consumer through its declaration ---------------
+
+SERIAL = "BC-0001"
+
+
+def _sim_run(tmp_path: Path, dwell_s: float, capsys: pytest.CaptureFixture[str]
+             ) -> tuple[Path, str]:
+    """One dwell on the simulated bench's clock (the stand's `sim:` block), through the
+    CLI; (its run directory, what `bench run` printed on standard output)."""
+    (tmp_path / "stand.yaml").write_text(
+        f"stand: {{maker: Example Clocks, model: Bench Clock 1, serial: '{SERIAL}'}}\n"
+        "axes: {}\nsim: {seed: 3}\n")
+    proc = tmp_path / f"dwell-{dwell_s:g}.yaml"
+    proc.write_text(f"procedure: dwell\nstand: stand.yaml\ndwell_s: {dwell_s}\n"
+                    "tolerance_s: 0.5\nprompts: false\n")
+    capsys.readouterr()
+    rc = main(["run", str(proc), "--yes", "--out", str(tmp_path / "runs")])
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    run = Path(out.strip().splitlines()[-1])          # the run directory is printed last
+    assert json.loads((run / "result.json").read_text())["stand"]["simulated"] is True
+    return run, out
+
+
+def test_a_plugin_kinds_figures_reach_history_the_trend_plot_the_summary_and_station(
+        tmp_path: Path, register: Callable[[str], None],
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Two dwells (1 s, then 2.5 s of simulated bench time) of one bench clock: the
+    figures the kind declares (tests/plugin_kind.py FIGURES) are in the records, in
+    `bench history`'s listing and CSV, in the points the trend plot draws (read back from
+    the plotted lines), in the summary `bench run` prints at its end and in the station
+    view's run figures and trend plot."""
+    from bench.app.records import Records, target
+    from bench.app.records.trend import trend_figure
+    from bench.core.registry import declared_figures
+    from tests.plugin_kind import FIGURES
+
+    register("KIND")
+    runs = [_sim_run(tmp_path, d, capsys) for d in (1.0, 2.5)]
+    waited = [json.loads((r / "result.json").read_text())["dwell"]["waited_s"]
+              for r, _ in runs]
+    errors = [json.loads((r / "result.json").read_text())["dwell"]["error_s"]
+              for r, _ in runs]
+    # the twins' clock is exact: each dwell waited what it was asked, to rounding
+    assert waited == pytest.approx([1.0, 2.5], abs=1e-9)
+
+    # the run summary: the declared figures, printed by the certificate's rounding rule
+    for (_, out), w in zip(runs, waited, strict=True):
+        summary = out[out.index("\nResults\n"):]
+        assert "Quantity" in summary and "Value ± U" in summary
+        line = next(x for x in summary.splitlines() if "time waited, s" in x)
+        assert f"+{w:.3f}" in line, line
+        line = next(x for x in summary.splitlines() if "dwell error, ms" in x)
+        assert line.rstrip().endswith("PASS"), line
+        assert out.splitlines()[-2] == "verdict: PASS"
+
+    # bench history: both runs, each figure listed with its value, every figure in its CSV
+    csv_path, png = tmp_path / "h.csv", tmp_path / "h.png"
+    rc = main(["history", SERIAL, "--runs", str(tmp_path / "runs"), "--csv", str(csv_path),
+               "--plot", str(png)])
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    assert "2 run(s)" in out
+    assert [ln.split()[3] for ln in out.splitlines() if ln.endswith(("-dwell-1", "-dwell-2.5"))
+            ] == ["dwell", "dwell"]
+    listed = out[out.index("time waited, s:"):].splitlines()[1:3]
+    assert [float(x.split()[1]) for x in listed] == pytest.approx(waited, abs=5e-4)
+    assert "dwell error, ms:" in out
+    rows = list(csv.DictReader(csv_path.open()))
+    assert [float(r["value"]) for r in rows if r["quantity"] == "dwell_waited_s"] == waited
+    got = [(float(r["value"]), r["verdict"], float(r["tolerance"]))
+           for r in rows if r["quantity"] == "dwell_error_s"]
+    assert got == [(e, "pass", 0.5) for e in errors]
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+    # the trend plot: one panel per trended figure; the plotted points are the runs' figures
+    with Records.open(target(tmp_path / "runs").url) as rec:
+        kinds = [r.kind for r in rec.runs(SERIAL)]
+        points = rec.trend(SERIAL)
+    assert kinds == ["dwell", "dwell"]
+    assert declared_figures(kinds) == FIGURES
+    fig = trend_figure(points, figures=declared_figures(kinds))
+    assert fig is not None
+    panels = {ax.get_ylabel(): ax for ax in fig.axes if ax.get_visible()}
+    assert set(panels) == {"time waited, s", "dwell error, ms"}
+
+    def plotted(label: str) -> list[float]:
+        (line,) = [ln for ln in panels[label].get_lines() if ln.get_linestyle() == "-"
+                   and len(ln.get_ydata()) == 2]
+        return [float(y) for y in line.get_ydata()]
+
+    assert plotted("time waited, s") == waited
+    assert plotted("dwell error, ms") == pytest.approx([1e3 * e for e in errors], abs=1e-12)
+    # the error's check tolerance (0.5 s) is drawn as its band, in the panel's unit
+    assert any(ln.get_ydata()[0] == pytest.approx(500.0)
+               for ln in panels["dwell error, ms"].get_lines() if ln.get_linestyle() == "--")
+
+    # the station view, served over HTTP on this host (in this process, where the kind is
+    # registered): each run's figures as the kind declares them, and the table's trend plot
+    import threading
+    import urllib.request
+
+    from werkzeug.serving import make_server
+
+    from bench.app.station.app import StationSettings, create_app
+
+    app = create_app(StationSettings(runs=tmp_path / "runs", token="not-used-on-loopback"))
+    http = make_server("127.0.0.1", 0, app, threaded=True)
+    thread = threading.Thread(target=http.serve_forever, daemon=True)
+    thread.start()
+    try:
+        base = f"http://127.0.0.1:{http.server_port}"
+        for (run, _), w, e in zip(runs, waited, errors, strict=True):
+            with urllib.request.urlopen(f"{base}/api/runs/{run.name}/figures") as r:
+                shown = json.load(r)
+            assert shown["procedure"] == "dwell"
+            rows = {f["quantity"]: f for f in shown["figures"]}
+            assert (rows["dwell_waited_s"]["value"], rows["dwell_waited_s"]["name"],
+                    rows["dwell_waited_s"]["unit"]) == (w, "time waited", "s")
+            assert (rows["dwell_error_s"]["value"], rows["dwell_error_s"]["verdict"]) == (
+                e, "pass")
+        with urllib.request.urlopen(f"{base}/api/records/{SERIAL}/trend.png") as r:
+            assert r.status == 200 and r.read()[:4] == b"\x89PNG"
+    finally:
+        http.shutdown()
+        thread.join(timeout=10)
+

@@ -92,11 +92,12 @@ def build_parser() -> argparse.ArgumentParser:
                          description="The configuration reference, generated from the "
                          "schema bench validate checks with: key, type, unit, default, "
                          "meaning, whether required. Examples: bench schema stand; "
-                         "bench schema procedure rate-ladder --json; bench schema lab")
+                         "bench schema procedure KIND --json; bench schema lab")
     sch.add_argument("target", nargs="?", choices=("stand", "procedure", "lab"),
                      default="stand", help="which file (stand)")
     sch.add_argument("kind", nargs="?", metavar="KIND",
-                     help="the procedure kind (rate-ladder, drift-pulse), for procedure")
+                     help="the procedure kind, for procedure (without it: the kinds "
+                          "installed)")
     sch.add_argument("--json", action="store_true", help="print a JSON Schema instead")
     sch.add_argument("--markdown", action="store_true",
                      help="print docs/configuration.md (every file)")
@@ -107,6 +108,9 @@ def build_parser() -> argparse.ArgumentParser:
     ini.add_argument("dir", nargs="?", default=".", help="folder to write into (.)")
     ini.add_argument("--real", action="store_true",
                      help="a real bench: no sim: block, the keys hardware needs")
+    ini.add_argument("--kind", metavar="KIND",
+                     help="the procedure kind whose files to write (default: the first "
+                          "installed kind that offers starter files)")
     ana = sub.add_parser("analyze", help="recompute result.json and certificate from raw data")
     ana.add_argument("run_dir")
     ana.add_argument("--records", metavar="URL",
@@ -157,7 +161,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "schema":
         return schema_command(args.target, args.kind, args.json, args.markdown)
     if args.command == "init":
-        return init_command(args.dir, args.real)
+        return init_command(args.dir, args.real, args.kind)
     if args.command == "sim":
         from bench.app.simserve import serve
         return serve(args.stand)

@@ -98,7 +98,7 @@ def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
 def summary_of(result: dict[str, Any], doc: Document | None) -> Summary:
     """The certificate's figures; without a certificate, only the verdict."""
     if doc is not None:
-        return summarize(doc)
+        return summarize(doc, result)
     return Summary((), (), "", str(result.get("verdict", "incomplete")).upper())
 
 

@@ -1,9 +1,12 @@
-"""`bench init [DIR] [--real]`: commented stand, procedure and lab files to start from.
+"""`bench init [DIR] [--real] [--kind KIND]`: commented stand, procedure and lab files to
+start from.
 
 A new lab starts from files that validate and say what each key means, rather than
-from copies of configs/ learned key by key from the validator. Without --real the stand
-runs on the twins (a `sim:` block), so `bench run DIR/procedure.yaml --yes` works at
-once; --real leaves out `sim:` and writes the keys a real bench must state.
+from copies of configs/ learned key by key from the validator. The stand and procedure
+files are the procedure kind's (`bench.core.registry.HasStarterFiles`; by default the first
+installed kind that offers them); the lab file is the same for every kind. Without
+--real the stand runs on the twins (a `sim:` block), so `bench run DIR/procedure.yaml
+--yes` works at once; --real leaves out `sim:` and writes the keys a real bench must state.
 """
 
 from __future__ import annotations
@@ -13,93 +16,9 @@ from pathlib import Path
 
 from bench.core.config import ConfigError
 from bench.core.loader import load_config
+from bench.core.registry import HasStarterFiles, installed_kind, procedure_names
 
 EXIT_OK, EXIT_INVALID = 0, 2
-
-STAND_HEAD = """\
-# The stand: the rate table, its instruments and their limits (docs/configuration.md,
-# `bench schema stand`). One file per bench; procedures name it with `stand:`.
-stand:
-  maker: Example Tables Ltd          # the table under test: maker, model, serial
-  model: ET-1 single-axis rate table
-  serial: "0001"                     # quoted: a serial is text, even when it is digits
-  location: calibration room 1
-axes:
-  main:                              # your name for the axis; procedures use it
-    drive:                           # the servo drive, CANopen CiA 402
-      interface: {interface}               # python-can interface (socketcan, pcan, kvaser...)
-      channel: {channel}                   # python-can channel
-      node_id: 2
-      max_rate_dps: 400              # the table's rate limit: no command exceeds it
-      max_accel_dps2: 200            # its acceleration limit
-      counts_per_rev: 1048576        # encoder counts per revolution
-{drive_extra}\
-    counter:                         # times the zero-mark pulses, one per turn
-      resource: "{resource}"
-      model: keysight-53230a         # counter profile: keysight-53230a, keysight-53220a...
-      level_v: 2.5                   # absolute trigger level of the zero-mark pulse, V
-      slope: POS
-      trigger_jitter_s: 27.0e-9      # the zero-mark sensor's edge jitter, std
-      reference: external            # timebase: set at connect and read back
-      timebase_limit_rel: 1.0e-9     # the external 10 MHz reference's limit (its certificate)
-      time_tie:                      # how the counter's start is placed on the FOG's time
-        source: fog-sync             # FOG sync output -> counter EXT trigger
-        sync_period_s: 5.0           # FOG time between sync pulses
-        latency_s: 2.0e-6            # calibrated sync-to-trigger latency
-        latency_u_s: 2.0e-7          # its standard uncertainty
-    fog:                             # the reference gyro mounted on the table
-      port: {port}
-      baudrate: 921600
-      format: kvh-a                  # KVH "format A" frames
-      axis: z                        # the FOG axis along the table axis
-      rate_hz: 1000                  # output rate
-      range_dps: 490
-      units: deg/s                   # what its rate fields carry (required)
-      configure: set                 # set the units at connect and read them back
-"""
-
-SIM_BLOCK = """\
-sim:                                 # the twins' truth; delete this block on a real bench
-  seed: 1
-  clock_speed: max                   # as fast as the twins keep up
-  axes:
-    main:
-      rate_bias_rel: 3.0e-7          # mean table rate = set x (1 + this)
-      harmonics:                     # once-per-rev rate ripple
-        - {order: 1, amplitude_rel: 8.6e-4, phase_deg: 40}
-      mains: {frequency_hz: 50, amplitude_dps: 2.0e-4, phase_deg: 0}
-      rate_noise_dps: 1.0e-4
-      turn_jitter_s: 27.0e-9
-      fog: {scale: 1.0003, bias_dps: 0.002, misalignment_deg: 0.2,
-            noise_dps: 0.01, bias_drift_dps_per_h: 0.001}
-"""
-
-PROCEDURE = """\
-# A procedure: what to measure (docs/configuration.md, `bench schema procedure
-# rate-ladder`). Check it with `bench validate`, see its bench time with `bench plan`.
-procedure: rate-ladder
-title: Periodic recertification, main axis
-stand: stand.yaml                    # relative to this file
-turns: 4                             # whole turns timed per rate and direction (even: +-+
-                                     # splits the + turns in two equal halves)
-sequence: "+-+"                      # + half, - half, + half: a linear FOG drift cancels
-static_record_s: 30                  # FOG at rest first: its noise floor
-harmonics: 3                         # once-per-rev harmonics fitted, orders 1..3
-axes:
-  main:
-    rates_dps: [10, 50, 200]         # magnitudes; each runs +w then -w
-tolerance:                           # what the table's maker claims, relative
-  rate_error:
-    - {below_dps: 10, rel: 1.0e-5}   # 0.001 % below 10 deg/s
-    - {rel: 1.0e-6}                  # 0.0001 % from 10 deg/s
-  rate_instability:
-    - {rel: 1.0e-5}
-decision_rule: simple                # or guard-band
-conditions: {temperature_c: "20 +/- 2"}
-certificate:
-  lab: lab.yaml                      # the laboratory's settings (below)
-  customer: Example customer
-"""
 
 LAB = """\
 # The laboratory's settings (docs/configuration.md, `bench schema lab`): printed on every
@@ -113,37 +32,32 @@ signatories:                         # who signs; one of them authorises the iss
   - {name: B. Manager, function: Technical manager, authorises: true}
 """
 
-REAL_DRIVE = """\
-      unit_factors: read             # read the drive's factor group at connect
-      heartbeat_ms: 200              # the controller's heartbeat; the drive watches it
-      watchdog_ms: 1500              # and stops the axis when it is silent this long
-"""
-SIM_DRIVE = """\
-      heartbeat_ms: 200
-      watchdog_ms: 1500
-"""
+
+def starter_kind(name: str | None) -> HasStarterFiles | None:
+    """The kind named, or the first installed one that offers starter files."""
+    for n in [name] if name else procedure_names():
+        kind = installed_kind(n)
+        if isinstance(kind, HasStarterFiles):
+            return kind
+    return None
 
 
-def starter_files(real: bool) -> dict[str, str]:
-    """File name -> text of the three starter files."""
-    if real:
-        stand = STAND_HEAD.format(interface="socketcan", channel="can0",
-                                  resource="TCPIP0::192.168.1.50::5025::SOCKET",
-                                  port="/dev/ttyUSB0", drive_extra=REAL_DRIVE)
-        stand = "# A real bench (no sim: block): check every address and limit.\n" + stand
-    else:
-        stand = STAND_HEAD.format(interface="virtual", channel="bench",
-                                  resource="TCPIP0::127.0.0.1::5025::SOCKET",
-                                  port="/dev/ttyUSB0", drive_extra=SIM_DRIVE) + SIM_BLOCK
-        stand = ("# Runs on the simulated twins (the sim: block); for a real bench, "
-                 "`bench init --real`.\n" + stand)
-    return {"stand.yaml": stand, "procedure.yaml": PROCEDURE, "lab.yaml": LAB}
+def starter_files(real: bool, kind: str | None = None) -> dict[str, str]:
+    """File name -> text of the three starter files ({} when no kind offers them)."""
+    maker = starter_kind(kind)
+    return {**maker.starter_files(real), "lab.yaml": LAB} if maker is not None else {}
 
 
-def init_command(folder: str, real: bool) -> int:
+def init_command(folder: str, real: bool, kind: str | None = None) -> int:
     """Write the starter files into `folder`; never overwrite one (exit 2)."""
     where = Path(folder)
-    files = starter_files(real)
+    files = starter_files(real, kind)
+    if not files:
+        offer = [n for n in procedure_names() if starter_kind(n) is not None]
+        print(f"bench init: {'procedure kind ' + repr(kind) if kind else 'no kind'} offers "
+              f"no starter files; kinds that do: {', '.join(offer) or 'none installed'}",
+              file=sys.stderr)
+        return EXIT_INVALID
     existing = [where / n for n in files if (where / n).exists()]
     if existing:
         print(f"bench init: not overwriting {', '.join(map(str, existing))}; choose "

@@ -1,108 +1,58 @@
 """The summary `bench run` and `bench analyze` print at the end: the certificate's own cells.
 
-The summary is cut from the certificate's document model (the tables the certificate
-prints), never formatted a second time, so every number on the console is the
-certificate's text for the same quantity: U to two significant digits, the value to
-match, unresolved figures as "< limit", the unit in the column header.
+The run's procedure kind says which cells of its certificate the console shows
+(`bench.core.registry.SummarisesRun`), so every number on the console is the certificate's
+text for the same quantity: U to two significant digits, the value to match,
+unresolved figures as "< limit", the unit in the column header. A kind that says
+nothing gets its declared figures (`bench.core.registry.ReportsFigures`), each printed by
+the certificate's rounding rule (docs/certificate.md) with its check's verdict.
 """
 
 from __future__ import annotations
 
-import re
-from collections.abc import Sequence
+from collections.abc import Mapping
+from typing import Any
 
 from bench.app.console.report import STATEMENT_FIELD, Summary, SummaryTable
-from bench.report.certificate.model import Document, Fields, Table
-
-# (caption after "Axis <name>: ", header prefix in the certificate, header on the console)
-LADDER_COLUMNS = (
-    ("per-turn rate error", "Set rate", None),
-    ("per-turn rate error", "Turns", None),
-    ("per-turn rate error", "Rate error", None),
-    ("per-turn rate error", "Instability", None),
-    ("intra-turn instability", "Raw ± U", "Intra-turn raw ± U"),
-    ("intra-turn instability", "Floor-corrected", None),
-    ("per-turn rate error", "Verdict", None),
-)
-PAIR_COLUMNS = (
-    ("FOG cross-calibration", "Pair", None),
-    ("FOG cross-calibration", "k ± U", None),
-    ("FOG cross-calibration", "ω0 ± U, °/s", None),
-)
-DRIFT_CAPTION = "Own and apparent drift per axis"
-DRIFT_HEADERS = ("Axis", "Own drift", "Apparent drift")
-AZIMUTH_FIELD = "Platform azimuth"
+from bench.app.records.extract import figures_of, kind_name
+from bench.core.registry import ReportsFigures, SummarisesRun, installed_kind
+from bench.report.certificate.model import Document, Table
+from bench.report.certificate.parts import verdict_label
+from bench.report.certificate.rounding import format_value_u
+from bench.report.figures import SummaryCut, fields_of, spec_for
 
 
-def _tables(doc: Document) -> list[Table]:
-    return [b for s in doc.sections for b in s.blocks if isinstance(b, Table)]
-
-
-def _fields(doc: Document) -> dict[str, str]:
-    return {k: v for s in doc.sections for b in s.blocks if isinstance(b, Fields)
-            for k, v in b.rows}
-
-
-def _column(table: Table, prefix: str) -> int | None:
-    return next((i for i, h in enumerate(table.header) if h.startswith(prefix)), None)
-
-
-def _axis_tables(doc: Document) -> dict[str, dict[str, Table]]:
-    """Per axis, its tables keyed by caption (the text after 'Axis <name>: ')."""
-    out: dict[str, dict[str, Table]] = {}
-    for t in _tables(doc):
-        m = re.match(r"Axis (\S+): (.*)", t.caption)
-        if m:
-            out.setdefault(m.group(1), {})[m.group(2)] = t
-    return out
-
-
-def _find(tables: dict[str, Table], caption: str) -> Table | None:
-    return next((t for c, t in tables.items() if c.startswith(caption)), None)
-
-
-def _joined(title: str, tables: dict[str, Table],
-            columns: Sequence[tuple[str, str, str | None]]) -> SummaryTable | None:
-    """Columns of several tables of one axis, rows joined on the first column (the rate)."""
-    picked: list[tuple[Table, int, str]] = []
-    for caption, prefix, shown in columns:
-        t = _find(tables, caption)
-        i = _column(t, prefix) if t is not None else None
-        if t is not None and i is not None:
-            name = t.header[i]
-            picked.append((t, i, shown + name[len(prefix):] if shown else name))
-    if not picked:
-        return None
-    base = picked[0][0]
-    keyed = {id(t): {row[0]: row for row in t.rows} for t, _, _ in picked}
+def _declared(result: Mapping[str, Any], name: str) -> SummaryCut:
+    """The kind's declared figures as one table: where, quantity, value ± U, verdict."""
+    kind = installed_kind(name)
+    if not isinstance(kind, ReportsFigures):
+        return SummaryCut()
     rows = []
-    for key in (row[0] for row in base.rows):
-        cells = []
-        for t, i, _ in picked:
-            row = keyed[id(t)].get(key)
-            cells.append(row[i] if row is not None else "—")
-        rows.append(tuple(cells))
-    align = "".join((t.align[i] if i < len(t.align) else "r") for t, i, _ in picked)
-    return SummaryTable(title, tuple(name for _, _, name in picked), tuple(rows), align)
+    for f in figures_of(dict(result), name):
+        spec = spec_for(f.quantity, kind.figures)
+        scale, unit = (spec.scale, spec.shown) if spec is not None else (1.0, f.unit)
+        shown = format_value_u(f.value, f.u, scale, signed=True)
+        text = (f"< {shown.value}" if f.is_limit else
+                shown.value if shown.u is None else f"{shown.value} ± {shown.u}")
+        rate = "" if f.set_rate_dps is None else f"{f.set_rate_dps:+g} °/s"
+        words = spec.name if spec is not None else f.quantity
+        rows.append((" ".join(x for x in (f.axis, rate) if x) or "—",
+                     f"{words}, {unit}" if unit not in ("", "1") else words, text,
+                     verdict_label(f.verdict) if f.verdict else "—"))
+    if not rows:
+        return SummaryCut()
+    return SummaryCut((Table(("Where", "Quantity", "Value ± U", "Verdict"), tuple(rows),
+                             align="llrc", caption="Results"),))
 
 
-def summarize(doc: Document) -> Summary:
+def summarize(doc: Document, result: Mapping[str, Any] | None = None) -> Summary:
     """The figures the console shows, as the certificate prints them."""
-    tables: list[SummaryTable] = []
-    for axis, by_caption in _axis_tables(doc).items():
-        for title, columns in ((f"Axis {axis}", LADDER_COLUMNS),
-                               (f"Axis {axis}, FOG cross-calibration per ± pair", PAIR_COLUMNS)):
-            t = _joined(title, by_caption, columns)
-            if t is not None and t.rows:
-                tables.append(t)
-    drift = next((t for t in _tables(doc) if t.caption.startswith(DRIFT_CAPTION)), None)
-    if drift is not None:
-        idx = [i for p in DRIFT_HEADERS for i in (_column(drift, p),) if i is not None]
-        tables.append(SummaryTable("Drift", tuple(drift.header[i] for i in idx),
-                                   tuple(tuple(r[i] for i in idx) for r in drift.rows),
-                                   "".join(drift.align[i] if i < len(drift.align) else "r"
-                                           for i in idx)))
-    fields = _fields(doc)
-    picked = tuple((k, v) for k, v in fields.items() if k.startswith(AZIMUTH_FIELD))
+    name = kind_name(dict(result or {}))
+    kind = installed_kind(name)
+    cut = (kind.summary_cut(doc) if isinstance(kind, SummarisesRun)
+           else _declared(result or {}, name))
+    tables = tuple(SummaryTable(t.caption, t.header, t.rows, t.align or "r" * len(t.header))
+                   for t in cut.tables)
+    fields = fields_of(doc)
     verdict = str(doc.verdict or "incomplete").upper()
-    return Summary(tuple(tables), picked, fields.get(STATEMENT_FIELD, ""), verdict)
+    return Summary(tables, cut.fields, fields.get(STATEMENT_FIELD, ""), verdict)

@@ -3,12 +3,17 @@
 A procedure package registers itself in its distribution's metadata:
 
     [project.entry-points."ratebench.procedures"]
-    rate-ladder = "procedures.rate_ladder:KIND"
+    my-kind = "my_package.my_kind:KIND"
 
-so the engine, the CLI and the certificate find it without naming it: adding a
-procedure touches no file outside its own package and its entry point. The kind's
-interface (what the engine and the certificate ask of it) is `ProcedureKind` below; its
-certificate hooks, with neutral answers, come from `bench.report.certificate.parts.CertificateParts`.
+so the engine, the CLI, the certificate, the records and the console find it without
+naming it: adding a procedure touches no file outside its own package and its entry
+point. What is asked of a kind: `ProcedureKind` below (the engine: files, plan, steps,
+analysis); `bench.report.certificate.parts.CertificateParts` and `bench.report.dcc.parts.DccParts`
+(its certificate and DCC, with neutral answers to inherit); and the small capabilities
+below, each asked for by isinstance, each optional: its figures (`ReportsFigures`: the
+records, `bench history`, the trend plot, the station view, the summary), its summary
+cells, its own instruments' check values, the shape of its part of result.json, a
+sample result for previews and starter files for `bench init`.
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ import pkgutil
 from collections.abc import Mapping, Sequence
 from functools import cache
 from importlib.metadata import entry_points
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 from bench.core.config import Config
 from bench.core.engine import RunContext
@@ -31,8 +36,8 @@ from bench.core.yamlfile import Problem
 from drivers.clock import Clock
 
 if TYPE_CHECKING:   # the certificate's package imports this module when it is loaded
-    from bench.report.certificate.model import Section
-    from bench.report.certificate.parts import Sources
+    from bench.report.certificate.model import Document
+    from bench.report.figures import FigureSpec, FigureValue, InstrumentCheck, SummaryCut
 
 GROUP = "ratebench.procedures"
 #: where an install whose metadata predates the entry points finds the kinds (an old
@@ -74,11 +79,65 @@ class ProcedureKind(Protocol):
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
         """result.json from the run directory's raw data alone."""
 
-    def certificate_sections(self, src: Sources, number: str,
-                             checks: Sequence[Mapping[str, Any]]) -> list[Section]:
-        """The certificate's results section `number` (and its subsections) from
-        result.json. The other questions the certificate asks (item, method, deviations,
-        annexes, statements) and their neutral answers: inherit `CertificateParts`."""
+
+# -- what a kind may add: small capabilities, each asked for by isinstance ------------------
+
+@runtime_checkable
+class ReportsFigures(Protocol):
+    """Its figures, declared (bench/report/figures.py), and read from a result.json: what the
+    records keep, `bench history` lists, the trend plot draws and the station shows.
+    `bench.report.figures.DeclaredFigures` reads them at their declared paths."""
+
+    figures: tuple[FigureSpec, ...]
+
+    def figure_values(self, result: Mapping[str, Any]) -> list[FigureValue]:
+        """Every figure of this result, with U (k = 2) where it has one."""
+
+
+@runtime_checkable
+class SummarisesRun(Protocol):
+    """Which cells of its certificate the console summary shows (otherwise the summary
+    lists the declared figures)."""
+
+    def summary_cut(self, doc: Document) -> SummaryCut:
+        """The certificate's tables and fields the console prints at the end of a run."""
+
+
+@runtime_checkable
+class ChecksInstruments(Protocol):
+    """Check values of the instruments only the kind knows (measurement assurance,
+    docs/method.md C1), from the result and the stand file the run used; their
+    quantities: key -> (unit, what the control chart calls it)."""
+
+    check_quantities: Mapping[str, tuple[str, str]]
+
+    def instrument_checks(self, result: Mapping[str, Any], stand: Mapping[str, Any]
+                          ) -> list[InstrumentCheck]:
+        """The kind's own instruments' check values in this run."""
+
+
+@runtime_checkable
+class ShapesResult(Protocol):
+    """The containers of its part of result.json, checked before the certificate reads
+    them (bench/report/certificate/shape.py's spec language)."""
+
+    result_shape: Mapping[str, Any]
+
+
+@runtime_checkable
+class HasSampleResult(Protocol):
+    """A hand-made result.json of the kind, for previews of its certificate."""
+
+    def sample_result(self) -> dict[str, Any]:
+        """A result whose printed figures are worked out by hand."""
+
+
+@runtime_checkable
+class HasStarterFiles(Protocol):
+    """Commented stand and procedure files that validate, for `bench init`."""
+
+    def starter_files(self, real: bool) -> dict[str, str]:
+        """File name -> text (stand.yaml, procedure.yaml); `real`: no `sim:` block."""
 
 
 @cache
@@ -107,3 +166,27 @@ def procedure_kind(name: str) -> ProcedureKind:
     """The kind registered under `name` (KeyError if none is)."""
     module, _, attr = _registered()[name].partition(":")
     return getattr(importlib.import_module(module), attr or "KIND")
+
+
+def installed_kind(name: str | None) -> ProcedureKind | None:
+    """The kind of that name if it is installed here, else None (a run recorded by a kind
+    this installation lacks is still listed, its figures by their stored names)."""
+    try:
+        return procedure_kind(str(name)) if name else None
+    except (KeyError, ImportError, AttributeError):
+        return None
+
+
+def declared_figures(names: Sequence[str] | None = None) -> tuple[FigureSpec, ...]:
+    """The figures the named kinds declare (every installed kind's when None), in the
+    kinds' order, a quantity declared twice taken from the first kind."""
+    out: list[FigureSpec] = []
+    seen: set[str] = set()
+    for name in dict.fromkeys(procedure_names() if names is None else names):
+        kind = installed_kind(name)
+        if isinstance(kind, ReportsFigures):
+            for spec in kind.figures:
+                if spec.quantity not in seen:
+                    seen.add(spec.quantity)
+                    out.append(spec)
+    return tuple(out)

@@ -32,8 +32,6 @@ from sims.clock import GIL_SWITCH_S, MAX, SteppedClock, make_clock, parse_speed
 from sims.counter_twin import CounterTwin
 from sims.drive_twin import DriveTwin
 from sims.fog_twin import FogTwin
-from sims.gyro_rig import start_gyro_rig
-from sims.platform import GyroTruth, PlatformTruth
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
 
 #: the stand's sample rate for an axis that carries no FOG (the twins' time grid)
@@ -220,7 +218,8 @@ class SimBench:
         return f"{self.channel}-{n}"
 
     def add(self, name: str, twin: Any, stop: Callable[[], Any]) -> None:
-        """For procedure kinds with instruments of their own (e.g. a gyro platform's)."""
+        """For procedure kinds with instruments of their own (their `TwinFactory`, given
+        to `start`, e.g. procedures/drift_pulse/twins.py)."""
         self.twins[name] = twin
         self._stack.callback(stop)
 
@@ -239,42 +238,3 @@ class SimBench:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
-
-
-#: the keys of a stand file's `sim.platform.gyros.<gyro>` truth (the gyro twin's fields)
-SIM_GYRO_KEYS: tuple[str, ...] = tuple(GyroTruth.__dataclass_fields__)
-
-
-def gyro_rig_factory(gyros: list[str]) -> TwinFactory:
-    """The twins of a gyro platform on the stand's turntable (the stand file's `platform:`
-    and `sim.platform` blocks): the platform, its waveform generator and one DMM per gyro
-    in `gyros`, each address rewritten to its twin's."""
-
-    def add_platform(sb: SimBench) -> None:
-        plat = sb.stand_cfg["platform"]
-        sim_cfg = sb.stand_cfg.get("sim") or {}
-        sp = sim_cfg["platform"]
-        truth = PlatformTruth.from_mapping(
-            {**sp, "gyros": {g: sp["gyros"][g] for g in gyros},
-             "table_axis": plat["table_axis"]},
-            seed=int(sim_cfg.get("seed", 0)))  # the platform's drift walk is its truth
-        awg_options = dict(sim_cfg.get("awg") or {})
-        dmm_options = dict(sim_cfg.get("dmm") or {})
-        awg_serial, dmm_serials = awg_options.pop("serial", None), dmm_options.pop("serials", {})
-        rig = start_gyro_rig(sb.stand, truth,
-                             {g: plat["gyros"][g]["awg_channel"] for g in gyros},
-                             awg_model=plat["awg"]["model"],
-                             dmm_model=plat["gyros"][gyros[0]]["dmm"]["model"],
-                             awg_options=awg_options, dmm_options=dmm_options)
-        sb.add("gyro-rig", rig, rig.stop)
-        # the stand's serials in *IDN? field 3 (each twin reads its idn at every query)
-        for twin, serial in ((rig.awg, awg_serial),
-                             *((rig.dmms[g], dmm_serials.get(g)) for g in gyros)):
-            if serial:
-                idn = twin.idn.split(",")
-                twin.idn = ",".join([*idn[:2], str(serial), *idn[3:]])
-        plat["awg"]["resource"] = rig.awg.resource
-        for g in gyros:
-            plat["gyros"][g]["dmm"]["resource"] = rig.dmms[g].resource
-
-    return add_platform

@@ -3,7 +3,7 @@ the analysis results in result.json and added to it (`budgets` lists; additions 
 own and apparent drift per axis (docs/method.md B: w_own = (w_0 + w_180)/2, w_app =
 (w_0 - w_180)/2), and the platform azimuth A = atan2(-app_y, app_x) (method B).
 
-The analysis (bench/analysis/drift_pulse.py) gives each source's standard uncertainty in
+The analysis (procedures/drift_pulse/analysis.py) gives each source's standard uncertainty in
 deg/h (`budget.*_ustd_dph`); this module states their distribution, sensitivity and
 degrees of freedom and combines them, so the reader sees where each U comes from.
 """

@@ -58,6 +58,7 @@ class DriftCertificate(DriftDcc, CertificateParts):
     drift_pulse/dcc.py), mixed into the kind."""
 
     certificate_procedure_name = "drift by alternating-sign pulses (docs/method.md part B)"
+    certificate_procedure_id = ("RB-DP", "B", methods.PAPER_B)
     certificate_measured = (("own_drift", "own drift"), ("apparent_drift", "apparent drift"),
                             ("azimuth", "platform azimuth"))
     certificate_quantities = {

@@ -27,7 +27,6 @@ from typing import Any
 
 import numpy as np
 
-from bench.analysis import drift_pulse as dp
 from bench.core.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
 from bench.core.engine import Abort, RunContext
 from bench.core.instruments import Bench, manual_note, open_axis, raw_text_logger, with_readback
@@ -35,7 +34,7 @@ from bench.core.journal import RunDir, read_jsonl
 from bench.core.plan import Plan, Step
 from bench.core.progress import Figure
 from bench.core.schema import Key, ListOf, Map, MapOf, Num, Str
-from bench.core.simbench import SIM_GYRO_KEYS, SimBench, gyro_rig_factory
+from bench.core.simbench import SimBench
 from bench.core.yamlfile import Problem
 from bench.report.conformity import judge
 from drivers.awg import PROFILES as AWG_PROFILES
@@ -45,7 +44,10 @@ from drivers.dmm import PROFILES as DMM_PROFILES
 from drivers.dmm import Digitizer
 from drivers.scpi import parse_numbers
 from procedures.base import StepDispatch, result_document
+from procedures.drift_pulse import analysis as dp
 from procedures.drift_pulse.certificate import DriftCertificate
+from procedures.drift_pulse.records import DriftRecords
+from procedures.drift_pulse.twins import SIM_GYRO_KEYS, gyro_rig_factory
 
 NAME = "drift-pulse"
 GYRO_NAMES = ("x", "y", "z")
@@ -189,7 +191,7 @@ def _near_int(x: float) -> bool:
     return abs(x - round(x)) < 1e-6 * max(1.0, abs(x))
 
 
-class DriftPulse(StepDispatch, DriftCertificate):
+class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
     name = NAME
 
     def procedure_schema(self) -> Map:

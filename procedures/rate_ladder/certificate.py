@@ -124,6 +124,7 @@ class LadderCertificate(LadderDcc, CertificateParts):
     dcc.py), mixed into the kind."""
 
     certificate_procedure_name = "rate ladder (docs/method.md part A)"
+    certificate_procedure_id = ("RB-RL", "A", methods.PAPER_A)
     certificate_stand_label = "Rate table"
     certificate_measured = (
         ("rate_error", "per-turn rate error"),

@@ -33,6 +33,7 @@ from procedures.rate_ladder.analysis import (
 )
 from procedures.rate_ladder.certificate import LadderCertificate
 from procedures.rate_ladder.events import HalfAcquired, StaticRecorded
+from procedures.rate_ladder.records import LadderRecords
 from procedures.rate_ladder.settings import (
     NAME,
     PROCEDURE,
@@ -55,7 +56,7 @@ def _fog_losses(fog: Any) -> int:
     return int(st.lost_frames + st.crc_errors)
 
 
-class RateLadder(StepDispatch, LadderCertificate):
+class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
     name = NAME
 
     # -- files -----------------------------------------------------------------------

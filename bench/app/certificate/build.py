@@ -574,7 +574,7 @@ def _method(src: Sources, proc: Procedure) -> tuple[Any, ...]:
     rows += [(label_of(k), text_of(v)) for k, v in method.items()
              if k not in ("decision_rule", "tolerance", "turns_per_axis")]
     rows.append(("Decision rule", _rule_name(src.get("decision_rule"))))
-    ident = methods.PROCEDURES.get(proc.name)
+    ident = proc.parts.certificate_procedure_id
     if ident is not None:
         code, part, paper = ident
         version = str(src.meta.get("bench_version") or bench.__version__)

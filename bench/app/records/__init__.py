@@ -35,8 +35,8 @@ Read API (for tools such as the web station view; every call opens no run direct
         rec.due(today=None, within_days=30, intervals=None, everything=False) -> [DueItem]
                                              table, due_date, days_left (< 0: overdue),
                                              status text
-    trend_png(points, title) -> PNG bytes | None   (rate error and instability with U bars
-                                             and tolerance band; FOG k and w0)
+    trend_png(points, title, figures) -> PNG bytes | None   (each figure the runs' kinds
+                                             declare as trended, U bars, tolerance band)
 
 Measurement assurance (ISO/IEC 17025 7.7; checks.py, control.py, assurance.py):
 
@@ -48,11 +48,11 @@ Measurement assurance (ISO/IEC 17025 7.7; checks.py, control.py, assurance.py):
     control.instrument_status(rec, serial) -> InstrumentStatus  (state, line, series, signals)
     assurance.assurance_refusals(run_dir, records_url) -> [str]  (bench authorise)
 
-Quantities (`FigureRecord.quantity`, unit in the name as in result.json):
-rate_error_rel, rate_instability_rel, intra_turn_instability_rel,
-intra_turn_instability_corrected_rel, harmonic<N>_amplitude_rel, mains_amplitude_dps
-(per signed set rate); k, w0_dps (per pair, set_rate_dps = the magnitude);
-own_drift_dph, apparent_drift_dph (per gyro), azimuth_deg (axis "platform").
+Quantities (`FigureRecord.quantity`, unit in the name as in result.json): what the run's
+procedure kind declares (`bench.report.figures.FigureSpec`, `bench.core.registry.ReportsFigures`;
+`bench.core.registry.declared_figures(kinds)` lists them with words, units and result.json
+paths). The records store the rows the kind reads from result.json, with its checks'
+tolerance and verdict; no kind is guessed from the keys of a result.
 Times are UTC-aware datetimes. All dataclasses are frozen.
 """
 

@@ -11,7 +11,8 @@ figures, per instrument serial, with their U (k = 2), so the control charts
     counter  zero-mark timing jitter (second differences of the edges of each half);
              the reference read back (1 = external reference, 0 = internal)
     drive    settle time beyond the ramp, and the rate ripple it reports while timed
-    gyro     the drift platform's own drift per gyro (drift-pulse runs)
+    others   what the run's procedure kind says of the instruments only it knows
+             (`bench.core.registry.ChecksInstruments`; a gyro platform's own drift per gyro)
 
 Everything is read from the run directory's own files, so `bench records import` keeps
 the same values as the end of the run did.
@@ -22,14 +23,16 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from bench.analysis.finite import finite_number as _num
 from bench.core.journal import read_jsonl
+from bench.core.registry import ChecksInstruments, installed_kind, procedure_names
+from bench.report.figures import InstrumentCheck
 
-#: the check quantities, their unit and what the chart calls them (one place)
+#: the stand instruments' check quantities, their unit and what the chart calls them (one
+#: place); a kind adds those of its own instruments (`ChecksInstruments.check_quantities`)
 QUANTITIES: dict[str, tuple[str, str]] = {
     "k": ("1", "FOG scale k (eq. 5)"),
     "w0_dps": ("deg/s", "FOG bias w0 (eq. 6)"),
@@ -39,25 +42,23 @@ QUANTITIES: dict[str, tuple[str, str]] = {
     "reference_external": ("1", "counter reference read back (1 external, 0 internal)"),
     "settle_time_s": ("s", "drive settle time beyond the ramp"),
     "ripple_rel": ("1", "drive-reported rate ripple while timed, rms / |rate|"),
-    "own_drift_dph": ("deg/h", "drift platform's own drift"),
 }
 #: quantities that are attributes (a change from the baseline is the signal, not a spread)
 ATTRIBUTES = ("reference_external",)
 
 
-@dataclass(frozen=True)
-class CheckRecord:
-    """One check value of one instrument in one run, with U (k = 2) where it has one."""
+def quantities() -> dict[str, tuple[str, str]]:
+    """Every check quantity: the stand instruments', then each installed kind's own."""
+    out = dict(QUANTITIES)
+    for name in procedure_names():
+        kind = installed_kind(name)
+        if isinstance(kind, ChecksInstruments):
+            out.update({q: v for q, v in kind.check_quantities.items() if q not in out})
+    return out
 
-    serial: str
-    role: str                 # fog | counter | drive | gyro
-    model: str | None
-    axis: str
-    quantity: str
-    set_rate_dps: float | None   # |rate| for per-rate values, else None
-    value: float
-    u: float | None
-    unit: str
+
+#: one check value of one instrument in one run (the type a kind's own checks come in)
+CheckRecord = InstrumentCheck
 
 
 def _serial_of(stated: Any, reported: str | None, unique: bool, fallback: str) -> str:
@@ -205,8 +206,8 @@ def _drive(axis: str, raw: Path, events: Sequence[Mapping[str, Any]], serial: st
     return out
 
 
-def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any]
-              ) -> list[CheckRecord]:
+def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any],
+              kind_name: str | None = None) -> list[CheckRecord]:
     """Every check value of one run, per instrument serial."""
     events = list(read_jsonl(run_path / "events.jsonl")) \
         if (run_path / "events.jsonl").is_file() else []
@@ -252,17 +253,10 @@ def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any
         if isinstance(drive, Mapping) and events:
             out += _drive(axis, run_path / "raw", events, serial(axis, "drive", drive),
                           _opt(drive.get("model")))
-    drift = (result.get("drift") or {}).get("axes") or {}
-    gyros = ((stand.get("platform") or {}).get("gyros") or {})
-    plat = ((stand.get("platform") or {}).get("identity") or {}).get("serial") or stand_serial
-    for g, d in drift.items() if isinstance(drift, Mapping) else ():
-        conf = gyro if isinstance(gyro := gyros.get(g), Mapping) else {}
-        v = _num(d.get("own_dph")) if isinstance(d, Mapping) else None
-        if v is not None:
-            out.append(CheckRecord(_serial_of(conf.get("serial"), None, False,
-                                              f"{plat}/{g}"), "gyro",
-                                   _opt(conf.get("model")), g, "own_drift_dph", None, v,
-                                   _num(d.get("own_u_dph")), "deg/h"))
+    # the instruments only the run's procedure kind knows (a gyro platform's gyros)
+    kind = installed_kind(kind_name or str(result.get("procedure") or ""))
+    if isinstance(kind, ChecksInstruments):
+        out += kind.instrument_checks(result, stand)
     return out
 
 

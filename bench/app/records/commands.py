@@ -14,16 +14,13 @@ from bench.app.records.extract import NotARun, find_runs, record_of
 from bench.app.records.hooks import target
 from bench.app.records.settings import DEFAULT_RUNS, SettingsError
 from bench.app.records.store import Records, RecordsError, TrendPoint, redact
+from bench.core.registry import declared_figures
+from bench.report.figures import FigureSpec, spec_for
 
 EXIT_OK, EXIT_FAIL, EXIT_INVALID = 0, 1, 2
 CSV_COLUMNS = ("serial", "axis", "quantity", "set_rate_dps", "date_utc", "value", "u",
                "unit", "tolerance", "verdict", "certificate_number", "calibration_state",
                "run_uid")
-#: what `bench history` prints per run (the CSV has every figure)
-SHOWN = {"rate_error_rel": ("rate error", 1e6, "ppm"),
-         "rate_instability_rel": ("instability", 1e6, "ppm"),
-         "own_drift_dph": ("own drift", 1.0, "deg/h"),
-         "apparent_drift_dph": ("apparent drift", 1.0, "deg/h")}
 
 
 def _err(text: str) -> None:
@@ -133,17 +130,24 @@ def cmd_history(args: argparse.Namespace) -> int:
               f"{r.verdict.upper():<10}{state}  {r.run_dir}")
         if r.adjustment_note:
             print(f"      adjustment: {r.adjustment_note}")
+    # what each run's procedure kind declares it reports (bench/report/figures.py)
+    figures = declared_figures([r.kind for r in runs])
     print("figures with U (k = 2), per axis and rate:")
     groups: dict[tuple[str, float | None, str], list[TrendPoint]] = {}
+    listed: dict[str, FigureSpec] = {}
     for p in points:
-        if p.figure.quantity in SHOWN:
+        spec = spec_for(p.figure.quantity, figures)
+        if spec is not None and spec.listed:
+            listed[p.figure.quantity] = spec
             groups.setdefault((p.figure.axis, p.figure.set_rate_dps, p.figure.quantity),
                               []).append(p)
     for (axis, rate, quantity), pts in sorted(
             groups.items(), key=lambda kv: (kv[0][0], kv[0][2], kv[0][1] or 0.0)):
-        name, scale, unit = SHOWN[quantity]
-        where_txt = f"{axis} {rate:+g} deg/s" if rate is not None else axis
-        print(f"  {where_txt} {name}, {unit}:")
+        spec = listed[quantity]
+        name, scale, unit = spec.name, spec.scale, spec.shown
+        where_txt = " ".join(x for x in (axis, f"{rate:+g} deg/s" if rate is not None
+                                         else "") if x)
+        print(f"  {where_txt + ' ' if where_txt else ''}{name}, {unit}:")
         for p in pts:
             f = p.figure
             u = f"± {f.u * scale:.3g}" if f.u is not None else ""
@@ -165,7 +169,7 @@ def cmd_history(args: argparse.Namespace) -> int:
         print(f"csv: {args.csv}")
     from bench.app.records.trend import trend_png
 
-    png = trend_png(points, f"Table {args.serial}: trend across recertifications")
+    png = trend_png(points, f"Table {args.serial}: trend across recertifications", figures)
     if png is not None:
         plot = Path(args.plot) if args.plot else (
             _records_folder(where.url, args.runs or DEFAULT_RUNS)

@@ -27,7 +27,7 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from bench.app.records.checks import ATTRIBUTES, QUANTITIES
+from bench.app.records.checks import ATTRIBUTES, quantities
 from bench.app.records.store import CheckPoint, Records, ReviewInfo
 
 BASELINE_RUNS = 8          # points that set a series' limits
@@ -85,7 +85,7 @@ class Series:
 
     @property
     def label(self) -> str:
-        unit, text = QUANTITIES.get(self.quantity, ("", self.quantity))
+        unit, text = quantities().get(self.quantity, ("", self.quantity))
         rate = f" at ±{self.set_rate_dps:g} deg/s" if self.set_rate_dps is not None else ""
         return f"{text}{rate}, {unit}"
 
@@ -172,11 +172,11 @@ def _signal(rule: str, series: str, p: CheckPoint, text: str) -> Signal:
 
 
 def charts(points: Sequence[CheckPoint]) -> list[Series]:
-    """One chart per quantity and rate, in the order of QUANTITIES."""
+    """One chart per quantity and rate, in the order of `checks.quantities()`."""
     groups: dict[tuple[str, float | None], list[CheckPoint]] = {}
     for p in points:
         groups.setdefault((p.check.quantity, p.check.set_rate_dps), []).append(p)
-    order = list(QUANTITIES)
+    order = list(quantities())
     keys = sorted(groups, key=lambda k: (order.index(k[0]) if k[0] in order else 99,
                                          k[1] if k[1] is not None else -1.0))
     return [_chart(q, r, groups[(q, r)]) for q, r in keys]

@@ -11,6 +11,7 @@ import datetime as dt
 import hashlib
 import json
 import socket
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,7 +21,9 @@ import yaml
 from bench.analysis.finite import finite_number as _num
 from bench.app.records.checks import CheckRecord, checks_of
 from bench.core.journal import sha256_file
+from bench.core.registry import ReportsFigures, installed_kind
 from bench.report.certificate.parts import read_json_object
+from bench.report.figures import FigureValue
 
 #: files of a run directory that make up its certificate (hashed into the records)
 CERTIFICATE_FILES = ("certificate.pdf", "certificate.html", "certificate.dcc.xml")
@@ -42,7 +45,7 @@ class FigureRecord:
     """One reported figure with its expanded uncertainty (k = 2) and check verdict."""
 
     axis: str
-    quantity: str            # rate_error_rel, rate_instability_rel, k, w0_dps, own_drift_dph...
+    quantity: str            # the kind's declared key (bench/report/figures.py), unit in the name
     set_rate_dps: float | None
     value: float
     u: float | None
@@ -129,81 +132,56 @@ def _checks_index(result: dict[str, Any]) -> dict[tuple[str, str, float | None],
         if not isinstance(c, dict):
             continue
         rate = _num(c.get("set_rate_dps"))
-        out[(str(c.get("axis")), str(c.get("quantity")), rate)] = c
+        axis = c.get("axis")
+        out[("" if axis is None else str(axis), str(c.get("quantity")), rate)] = c
     return out
 
 
-def _fig(axis: str, quantity: str, rate: float | None, value: Any, u: Any, unit: str,
-         checks: dict[tuple[str, str, float | None], dict[str, Any]],
-         check_name: str | None = None, upper_limit: bool = False) -> FigureRecord | None:
-    v = _num(value)
-    if v is None:
-        return None
-    c = checks.get((axis, check_name, rate)) if check_name else None
-    if c is None and check_name:
-        c = checks.get((axis, check_name, None)) or checks.get((axis, check_name, 0.0))
-    tol = None
-    if c is not None:
-        tol = _num(c.get("tolerance_rel", c.get("tolerance_dph")))
-    return FigureRecord(axis, quantity, rate, v, _num(u), unit, tol,
+def _tolerance(check: Mapping[str, Any]) -> float | None:
+    """The check's tolerance, in the unit its key names (tolerance_rel, tolerance_dph...)."""
+    for key in ("tolerance_rel", "tolerance_dph",
+                *sorted(k for k in check if str(k).startswith("tolerance"))):
+        if key in check:
+            return _num(check.get(key))
+    return None
+
+
+def _record(f: FigureValue, checks: dict[tuple[str, str, float | None], dict[str, Any]]
+            ) -> FigureRecord:
+    """The row the records keep: the kind's figure with its check's tolerance and verdict."""
+    c = checks.get((f.axis, f.check, f.set_rate_dps)) if f.check else None
+    if c is None and f.check:
+        c = checks.get((f.axis, f.check, None)) or checks.get((f.axis, f.check, 0.0))
+    return FigureRecord(f.axis, f.quantity, f.set_rate_dps, f.value, f.u, f.unit,
+                        _tolerance(c) if c is not None else None,
                         str(c["verdict"]) if c and c.get("verdict") else None,
-                        UPPER_LIMIT if upper_limit else (
+                        UPPER_LIMIT if f.upper_limit else (
                             str(c["rule"]) if c and c.get("rule") else None))
 
 
-def figures_of(result: dict[str, Any]) -> list[FigureRecord]:
-    """Every reported figure of result.json with U (k = 2) and its check's verdict."""
+def kind_name(result: dict[str, Any], run_path: Path | None = None) -> str:
+    """The procedure kind of a result: the one it names, else (an older result) the one
+    the certificate takes it for (`bench.app.certificate.build.procedure_of`: the procedure
+    file's, or the installed kind that recognises its keys); "" if none does."""
+    from bench.app.certificate.build import Sources, procedure_of
+
+    named = result.get("procedure")
+    if named:
+        return str(named)
+    try:
+        return procedure_of(Sources.load(result, run_path)).name
+    except Exception:  # noqa: BLE001 - a malformed result is registered under no kind
+        return ""
+
+
+def figures_of(result: dict[str, Any], kind: str | None = None) -> list[FigureRecord]:
+    """Every figure the kind reports of result.json (its `ReportsFigures` answer), with U
+    (k = 2) and its check's verdict; none when the kind is not installed here."""
+    reporter = installed_kind(kind if kind is not None else kind_name(result))
+    if not isinstance(reporter, ReportsFigures):
+        return []
     checks = _checks_index(result)
-    out: list[FigureRecord | None] = []
-    for axis, ax in (result.get("axes") or {}).items():
-        if not isinstance(ax, dict):
-            continue
-        for r in ax.get("rates") or []:
-            rate = _num(r.get("set_rate_dps"))
-            out.append(_fig(axis, "rate_error_rel", rate, r.get("rate_error_rel"),
-                            r.get("rate_error_u_rel"), "1", checks, "rate_error"))
-            if r.get("rate_instability_resolved") is False:
-                # not resolved above the counter's timing floor: the records keep what the
-                # certificate prints, the one-sided upper limit, with no U (the one rule
-                # for unresolved figures, docs/certificate.md); the trend draws it as a limit
-                out.append(_fig(axis, "rate_instability_rel", rate,
-                                r.get("rate_instability_upper_rel"), None, "1", checks,
-                                "rate_instability", upper_limit=True))
-            else:
-                out.append(_fig(axis, "rate_instability_rel", rate,
-                                r.get("rate_instability_rel"), r.get("rate_instability_u_rel"),
-                                "1", checks, "rate_instability"))
-            out.append(_fig(axis, "intra_turn_instability_rel", rate,
-                            r.get("intra_turn_instability_rel"),
-                            r.get("intra_turn_instability_u_rel"), "1", checks,
-                            "intra_turn_instability"))
-            out.append(_fig(axis, "intra_turn_instability_corrected_rel", rate,
-                            r.get("intra_turn_instability_corrected_rel"), None, "1", checks,
-                            "intra_turn_instability_corrected"))
-            sysc = r.get("systematic") or {}
-            for h in sysc.get("harmonics") or []:
-                out.append(_fig(axis, f"harmonic{h.get('order')}_amplitude_rel", rate,
-                                h.get("amplitude_rel"), h.get("amplitude_u_rel"), "1", checks))
-            mains = sysc.get("mains") or {}
-            out.append(_fig(axis, "mains_amplitude_dps", rate, mains.get("amplitude_dps"),
-                            mains.get("amplitude_u_dps"), "deg/s", checks))
-        for p in ax.get("pairs") or []:
-            rate = _num(p.get("rate_dps"))
-            out.append(_fig(axis, "k", rate, p.get("k"), p.get("k_u"), "1", checks))
-            out.append(_fig(axis, "w0_dps", rate, p.get("w0_dps"), p.get("w0_u_dps"), "deg/s",
-                            checks))
-    drift = result.get("drift") or {}
-    for axis, d in (drift.get("axes") or {}).items():
-        if not isinstance(d, dict):
-            continue
-        out.append(_fig(axis, "own_drift_dph", None, d.get("own_dph"), d.get("own_u_dph"),
-                        "deg/h", checks, "own_drift"))
-        out.append(_fig(axis, "apparent_drift_dph", None, d.get("apparent_dph"),
-                        d.get("apparent_u_dph"), "deg/h", checks, "apparent_drift"))
-    if drift:
-        out.append(_fig("platform", "azimuth_deg", None, drift.get("azimuth_deg"),
-                        drift.get("azimuth_u_deg"), "deg", checks))
-    return [f for f in out if f is not None]
+    return [_record(f, checks) for f in reporter.figure_values(result)]
 
 
 def certificate_number(result: dict[str, Any], run_path: Path) -> str | None:
@@ -242,14 +220,14 @@ def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> Run
     cert_files = tuple((name, sha256_file(path / name), (path / name).stat().st_size)
                        for name in CERTIFICATE_FILES if (path / name).is_file())
     blob = json.dumps(result, sort_keys=True, default=str).encode()
+    kind = kind_name(result, path)
     return RunRecord(
         uid=run_uid(meta, path.name),
         serial=serial,
         maker=_opt(ident.get("maker")), model=_opt(ident.get("model")),
         location=_opt(ident.get("location")),
         interval_days=int(iv) if (iv := _num(interval)) else None,
-        kind=str(result.get("procedure") or ("drift-pulse" if result.get("drift")
-                                             else "rate-ladder")),
+        kind=kind,
         title=_opt(result.get("title")),
         run_dir=path.name, run_path=str(path), host=socket.gethostname(),
         procedure_name=_opt(meta.get("procedure_name")),
@@ -268,10 +246,10 @@ def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> Run
         sessions=int(result["sessions"]) if _num(result.get("sessions")) else None,
         aborted=bool(result.get("aborted")),
         bench_version=_opt(meta.get("bench_version")),
-        figures=tuple(figures_of(result)),
+        figures=tuple(figures_of(result, kind)),
         cert_files=cert_files,
         checks=tuple(checks_of(path, result, stand_file if isinstance(stand_file, dict)
-                               else {})),
+                               else {}, kind)),
     )
 
 

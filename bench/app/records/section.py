@@ -8,18 +8,18 @@ as-found and as-left results side by side).
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Sequence
 from typing import Any
 
 from bench.app.records.extract import FigureRecord, RunRecord
 from bench.app.records.store import Records, RunInfo, TrendPoint
 from bench.app.records.trend import trend_png
+from bench.core.registry import declared_figures
 from bench.report.certificate.model import Fields, Figure, Para, Table
 from bench.report.certificate.rounding import format_value_u
+from bench.report.figures import FigureSpec, spec_for
 
 TITLE = "History of this table"
-COMPARED = {"rate_error_rel": ("rate error δ", 1e6, "ppm"),
-            "rate_instability_rel": ("per-turn instability σ", 1e6, "ppm"),
-            "own_drift_dph": ("own drift", 1.0, "deg/h")}
 
 
 def _vu(f: FigureRecord | None, scale: float) -> str:
@@ -46,13 +46,16 @@ def _as_found(earlier: list[RunInfo]) -> RunInfo | None:
     return last if last is not None and last.calibration_state == "as-found" else None
 
 
-def _comparison(rec: Records, found: RunInfo, current: RunRecord) -> Table:
+def _comparison(rec: Records, found: RunInfo, current: RunRecord,
+                figures: Sequence[FigureSpec]) -> Table:
+    """The figures the kind compares (`FigureSpec.compared`), as found and as left."""
     before = {(f.axis, f.quantity, f.set_rate_dps): f for f in rec.figures(found.uid)}
     rows = []
     for f in current.figures:
-        if f.quantity not in COMPARED:
+        spec = spec_for(f.quantity, figures)
+        if spec is None or not spec.compared:
             continue
-        name, scale, unit = COMPARED[f.quantity]
+        name, scale, unit = spec.compared, spec.scale, spec.shown
         rate = "" if f.set_rate_dps is None else f"{f.set_rate_dps:+g}"
         rows.append((f.axis, rate, f"{name}, {unit}",
                      _vu(before.get((f.axis, f.quantity, f.set_rate_dps)), scale),
@@ -86,14 +89,15 @@ def history_section(rec: Records, current: RunRecord, where: str) -> list[tuple[
     rows += [(f"SHA-256 of its {name}", digest) for name, digest in sorted(
         prev.cert_files.items())]
     blocks.append(Fields(tuple(rows)))
+    figures = declared_figures([current.kind, *(r.kind for r in earlier)])
     found = _as_found(earlier) if current.calibration_state == "as-left" else None
     if found is not None:
-        blocks.append(_comparison(rec, found, current))
+        blocks.append(_comparison(rec, found, current, figures))
     shown = {r.uid for r in earlier}
     points = [p for p in rec.trend(current.serial) if p.run_uid in shown] + [
         TrendPoint(current.uid, _aware(current), current.certificate_number,
                    current.calibration_state, f) for f in current.figures]
-    png = trend_png(points, f"Table {current.serial}: trend across recertifications")
+    png = trend_png(points, f"Table {current.serial}: trend across recertifications", figures)
     if png is not None:
         blocks.append(Figure(png, "Trend across recertifications: each recorded run of this "
                                   "table (this one last), with U (k = 2) bars and the "

@@ -26,7 +26,7 @@ from flask import Flask, Response, abort, jsonify, render_template, request, sen
 
 import bench
 from bench.app.station.live import DOWNLOADS, list_runs, live_state, pid_alive
-from bench.app.station.records import RecordsView
+from bench.app.station.records import RecordsView, run_figures
 
 TOKEN_HEADER = "X-Bench-Token"
 TOKEN_COOKIE = "bench_token"
@@ -141,6 +141,12 @@ def create_app(settings: StationSettings,
                 time.sleep(STREAM_PERIOD_S)
         return Response(events(), mimetype="text/event-stream",
                         headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
+
+    @app.get("/api/runs/<name>/figures")
+    def api_figures(name: str) -> Response:
+        """The run's figures as its procedure kind declares them (bench/report/figures.py):
+        the same rows the records keep, with the kind's words and units."""
+        return jsonify(run_figures(run_dir(name)))
 
     @app.post("/api/runs/<name>/stop")
     def api_stop(name: str) -> tuple[Response, int]:

@@ -17,12 +17,35 @@ from typing import Any
 from bench.app.records import Records, RecordsError, target
 from bench.app.records.control import OUT_OF_CONTROL, all_statuses, instrument_status
 from bench.app.records.control_plot import control_png
+from bench.app.records.extract import figures_of, kind_name
 from bench.app.records.trend import trend_png
 from bench.app.station.live import DOWNLOADS
+from bench.core.registry import declared_figures
+from bench.report.certificate.parts import read_json_object
+from bench.report.figures import spec_for
 
 
 def _iso(t: dt.datetime | dt.date | None) -> str | None:
     return None if t is None else t.isoformat()
+
+
+def run_figures(run_path: Path) -> dict[str, Any]:
+    """A finished run's figures, read by its procedure kind from result.json (the rows
+    the records keep) with the words and units the kind declares; none before the end."""
+    result = read_json_object(run_path / "result.json")
+    kind = kind_name(result, run_path) if result else ""
+    specs = declared_figures([kind]) if kind else ()
+    rows = []
+    for f in figures_of(result, kind) if result else []:
+        spec = spec_for(f.quantity, specs)
+        rows.append({"axis": f.axis, "quantity": f.quantity, "set_rate_dps": f.set_rate_dps,
+                     "value": f.value, "U": f.u, "unit": f.unit,
+                     "name": spec.name if spec else f.quantity,
+                     "description": spec.description if spec else "",
+                     "tolerance": f.tolerance, "verdict": f.verdict,
+                     "upper_limit": f.is_limit})
+    return {"run": run_path.name, "procedure": kind or None,
+            "verdict": result.get("verdict") if result else None, "figures": rows}
 
 
 class RecordsView:
@@ -115,7 +138,8 @@ class RecordsView:
         with self._open() as rec:
             if rec is None or rec.table(serial) is None:
                 return None
-            return trend_png(rec.trend(serial), f"table {serial}")
+            figures = declared_figures([r.kind for r in rec.runs(serial)])
+            return trend_png(rec.trend(serial), f"table {serial}", figures)
 
     # -- measurement assurance (bench control's statuses and charts) -------------------------
     def instruments(self) -> list[dict[str, Any]]:

@@ -25,9 +25,6 @@ B_REFERENCE = ("Own and apparent drift of a gyro-stabilised platform by alternat
                "controlled precession, and the platform azimuth from two horizontal axes "
                "(docs/method.md part B, after [B]).")
 
-#: procedure IDs: (kind) -> (ID, the method part, the paper it follows)
-PROCEDURES = {"rate-ladder": ("RB-RL", "A", PAPER_A), "drift-pulse": ("RB-DP", "B", PAPER_B)}
-
 VALIDATION = ("Non-standard method (ISO/IEC 17025 7.2.2). Its implementation in this "
               "software release is checked against known truth: the simulated stand's twins "
               "(every reported interval against the twin's truth over many seeds), the "

@@ -182,6 +182,9 @@ class CertificateParts:
 
     #: the Identification's 'Procedure' row (empty: the kind's registered name)
     certificate_procedure_name: str = ""
+    #: (procedure ID, the part of docs/method.md it follows, the reference that part
+    #: follows; bench/report/certificate/methods.py): the Method's ID, revision and validation rows
+    certificate_procedure_id: tuple[str, str, str] | None = None
     #: the Instruments' row that identifies the laboratory's stand
     certificate_stand_label: str = "Test stand used (the laboratory's)"
     #: what the procedure measures that a datasheet may specify: (quantity key, words);

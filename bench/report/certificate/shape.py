@@ -4,7 +4,8 @@ A certificate must not crash on a result that lacks a field or carries one of th
 type: that would leave the operator with raw data and no report. Every container the
 builder walks is checked here once; one of the wrong type is dropped and named, and the
 certificate lists what it ignored (section Deviations). Leaf values (numbers, text) are
-checked where they are printed.
+checked where they are printed. The containers every result has are here; those of the
+kind's own part, the kind declares (`bench.core.registry.ShapesResult.result_shape`).
 """
 
 from __future__ import annotations
@@ -14,21 +15,15 @@ from collections.abc import Mapping
 from typing import Any
 
 # dict: a mapping (its keys free); {"*": x}: a mapping whose every value is x;
-# {"key": x}: a mapping whose `key` is x when present; [x]: a list of x.
+# {"key": x}: a mapping whose `key` is x when present; [x]: a list of x; [x, "key"]: a
+# list of x whose entries without a numeric `key` are dropped (and named): they mean
+# nothing without that number.
 Spec = Any
-_RATE: Spec = {"systematic": {"harmonics": [dict], "mains": dict, "binned": dict},
-               "intra_turn": {"averaged": [dict]}, "counter_rate_dps": list}
 RESULT: Spec = {
     "stand": dict, "instruments": {"*": dict}, "dates": dict, "conditions": dict,
     "certificate": dict, "method": dict, "procedure_file": dict, "raw_files": [dict],
     "checks": [dict],
-    "axes": {"*": {"rates": [_RATE], "pairs": [dict], "noise_floor": dict}},
-    "drift": {"axes": {"*": {"cycles": [dict], "positions": [dict], "start_offset": dict,
-                             "example_cycle": dict,
-                             "budget": {"own_u_dph": dict, "apparent_u_dph": dict}}}},
 }
-# entries meaningless without these numbers are dropped, and named
-REQUIRED = {"rates": "set_rate_dps", "pairs": "rate_dps", "harmonics": "order"}
 
 
 def _is_number(x: Any) -> bool:
@@ -76,7 +71,7 @@ def conform(value: Any, spec: Spec, path: tuple[str | int, ...],
         if spec is list:
             return value
         out_list = []
-        required = REQUIRED.get(str(path[-1])) if path else None
+        required = spec[1] if isinstance(spec, list) and len(spec) > 1 else None
         for i, item in enumerate(value):
             fixed = conform(item, spec[0], (*path, i), dropped)
             if fixed is None:
@@ -89,10 +84,24 @@ def conform(value: Any, spec: Spec, path: tuple[str | int, ...],
     return value
 
 
+def kind_shape(result: Any) -> dict[str, Spec]:
+    """The containers of the kind's part: the kind the result names, else (an older
+    result) every installed kind's (their parts have keys of their own)."""
+    from bench.core.registry import ShapesResult, installed_kind, procedure_names
+
+    named = result.get("procedure") if isinstance(result, Mapping) else None
+    shape: dict[str, Spec] = {}
+    for name in [str(named)] if named else procedure_names():
+        kind = installed_kind(name)
+        if isinstance(kind, ShapesResult):
+            shape.update(kind.result_shape)
+    return shape
+
+
 def conform_result(result: Any) -> tuple[dict[str, Any], list[str]]:
     """The result with malformed containers dropped, and the list of what was dropped."""
     dropped: list[str] = []
-    fixed = conform(result, RESULT, (), dropped)
+    fixed = conform(result, {**kind_shape(result), **RESULT}, (), dropped)
     if fixed is None:
         return {}, ["result.json (expected a mapping)"]
     return fixed, dropped

@@ -1,0 +1,104 @@
+"""What the drift-pulse kind reports outside its certificate: its figures, declared (the
+records, `bench history`, the trend plot, the station view read them at these paths),
+its gyros' own drift as check values of the gyros (measurement assurance), and the
+cells of its certificate the console summary shows.
+
+Mixed into the kind beside its certificate (certificate.py); bench/core/registry.py's
+`ReportsFigures`, `ChecksInstruments`, `SummarisesRun` and `HasSampleResult` are the
+questions these answer.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from bench.analysis.finite import finite_number as _num
+from bench.report.certificate.model import Document, Table
+from bench.report.figures import (
+    DeclaredFigures,
+    FigureSpec,
+    InstrumentCheck,
+    SummaryCut,
+    Trend,
+    column,
+    fields_of,
+    tables_of,
+)
+from procedures.drift_pulse.sample import drift_pulse_result
+
+#: CONTRACT §3's binding keys of a drift-pulse result, per gyro and for the platform
+FIGURES = (
+    FigureSpec("own_drift_dph", "own drift", "deg/h",
+               "the gyro's own drift, from the positions' mean (docs/method.md B)",
+               "drift.axes.<axis>.own_dph", "own_u_dph", check="own_drift",
+               trend=Trend("sym"), listed=True, compared="own drift"),
+    FigureSpec("apparent_drift_dph", "apparent drift", "deg/h",
+               "the apparent drift at position 0 (the Earth's rate on the input axis, B)",
+               "drift.axes.<axis>.apparent_dph", "apparent_u_dph", check="apparent_drift",
+               trend=Trend(""), listed=True),
+    FigureSpec("azimuth_deg", "platform azimuth", "deg",
+               "the X input axis's azimuth from two horizontal axes (B)",
+               "drift.azimuth_deg", "azimuth_u_deg", axis="platform"),
+)
+
+#: the containers of the kind's part of result.json (bench/report/certificate/shape.py)
+RESULT_SHAPE = {"drift": {"axes": {"*": {
+    "cycles": [dict], "positions": [dict], "start_offset": dict, "example_cycle": dict,
+    "budget": {"own_u_dph": dict, "apparent_u_dph": dict}}}}}
+
+DRIFT_CAPTION = "Own and apparent drift per axis"
+DRIFT_HEADERS = ("Axis", "Own drift", "Apparent drift")
+AZIMUTH_FIELD = "Platform azimuth"
+
+
+def _opt(x: Any) -> str | None:
+    return None if x in (None, "") else str(x)
+
+
+class DriftRecords(DeclaredFigures):
+    """The drift-pulse kind's answers to `ReportsFigures`, `ChecksInstruments` and
+    `SummarisesRun`."""
+
+    figures = FIGURES
+    check_quantities = {"own_drift_dph": ("deg/h", "drift platform's own drift")}
+    result_shape = RESULT_SHAPE
+
+    def instrument_checks(self, result: Mapping[str, Any], stand: Mapping[str, Any]
+                          ) -> list[InstrumentCheck]:
+        """Each gyro's own drift, by the gyro's serial (the stand file's
+        `platform.gyros.<gyro>.serial`, else PLATFORM-SERIAL/gyro)."""
+        drift = (result.get("drift") or {}).get("axes") or {}
+        platform = stand.get("platform") or {}
+        gyros = platform.get("gyros") or {}
+        ident = dict(stand.get("stand") or {})
+        ident.update({k: v for k, v in (result.get("stand") or {}).items() if v is not None})
+        plat = (platform.get("identity") or {}).get("serial") or ident.get("serial") or "stand"
+        out = []
+        for g, d in drift.items() if isinstance(drift, Mapping) else ():
+            conf = gyro if isinstance(gyro := gyros.get(g), Mapping) else {}
+            v = _num(d.get("own_dph")) if isinstance(d, Mapping) else None
+            if v is not None:
+                out.append(InstrumentCheck(_opt(conf.get("serial")) or f"{plat}/{g}", "gyro",
+                                           _opt(conf.get("model")), g, "own_drift_dph", None,
+                                           v, _num(d.get("own_u_dph")), "deg/h"))
+        return out
+
+    def sample_result(self) -> dict[str, Any]:
+        """A hand-made result for previews of the certificate (sample.py)."""
+        return drift_pulse_result()
+
+    def summary_cut(self, doc: Document) -> SummaryCut:
+        """Own and apparent drift per gyro, and the platform azimuth."""
+        tables: list[Table] = []
+        drift = next((t for t in tables_of(doc) if t.caption.startswith(DRIFT_CAPTION)),
+                     None)
+        if drift is not None:
+            idx = [i for p in DRIFT_HEADERS for i in (column(drift, p),) if i is not None]
+            tables.append(Table(tuple(drift.header[i] for i in idx),
+                                tuple(tuple(r[i] for i in idx) for r in drift.rows),
+                                align="".join(drift.align[i] if i < len(drift.align)
+                                              else "r" for i in idx), caption="Drift"))
+        fields = tuple((k, v) for k, v in fields_of(doc).items()
+                       if k.startswith(AZIMUTH_FIELD))
+        return SummaryCut(tuple(tables), fields)
