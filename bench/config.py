@@ -6,15 +6,36 @@ The schemas of the keys every procedure kind shares, and `Config`, what the load
 
 from __future__ import annotations
 
+import datetime as dt
+import functools
 import os
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 from bench.canbus import bus_problems
-from bench.schema import Any_, Bool, Check, Date, Key, ListOf, Map, MapOf, Num, OneOf, Str
+from bench.schema import (
+    Any_,
+    Bool,
+    Check,
+    Date,
+    Key,
+    ListOf,
+    Map,
+    MapOf,
+    Num,
+    OneOf,
+    Str,
+    parse_date,
+)
 from bench.yamlfile import Problem, YamlDoc
+from drivers.axis import DEFAULT_HEARTBEAT_MS, DEFAULT_PDO
+from drivers.cia402 import DEFAULT_COUNTS_PER_REV
 from drivers.counter_profiles import get_profile
+from drivers.time_tie import TimeTie
+from sims.stand import AxisTruth, FogTruth, Harmonic, Mains
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
 #: a rate table's fastest axes turn some 10 000 deg/s; its slowest useful rate is around
@@ -58,13 +79,13 @@ DRIVE = Map({
                               unit="deg/s^2"), True, "the axis's acceleration limit (and the "
                           "ramps' default)"),
     "counts_per_rev": Key(Num(min=1, integer=True), False, "encoder counts per revolution "
-                          "(position and velocity units of the drive)"),
+                          "(position and velocity units of the drive)",
+                          DEFAULT_COUNTS_PER_REV),
     "heartbeat_ms": Key(Num(min=10, max=10_000, integer=True), False,
-                        "controller heartbeat period; the drive watches it"),
+                        "controller heartbeat period; the drive watches it",
+                        DEFAULT_HEARTBEAT_MS),
     "watchdog_ms": Key(Num(min=20, max=65_535, integer=True), False,
                        "drive stops the axis when the controller is silent this long"),
-    "settle_tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), False,
-                                "the drive's own velocity window (CiA 402 0x606D)"),
     "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg"), False,
                                   "how close a position move must land (profile position)"),
     "eds": Key(Str(), False, "the drive's EDS file, for canopen's object dictionary"),
@@ -77,7 +98,7 @@ DRIVE = Map({
                         "acceleration: rpm/s|inc/s2|...} written at connect and read back; "
                         "a stand without a sim: block must state it"),
     "pdo": Key(Str(("set", "verify")), False,
-               "TPDO transmission type / event timer: verify (default) or set at connect"),
+               "TPDO transmission type / event timer: verify or set at connect", DEFAULT_PDO),
 })
 COUNTER = Map({
     "resource": Key(Str(), True, "VISA resource string"),
@@ -106,17 +127,29 @@ COUNTER = Map({
                       "how the counter's start event is placed on the FOG's time axis: "
                       "fog-sync (external trigger from the FOG's sync output) or host-clock"),
         "sync_period_s": Key(Num(min=0, exclusive_min=True, unit="s"), False,
-                             "FOG time between sync pulses (pulse k at k * period)"),
+                             "FOG time between sync pulses (pulse k at k * period)",
+                             TimeTie.sync_period_s),
         "latency_s": Key(Num(min=0, unit="s"), False, "sync pulse to counter trigger, "
-                         "calibrated"),
+                         "calibrated", TimeTie.latency_s),
         "latency_u_s": Key(Num(min=0, unit="s"), False, "its standard uncertainty (with "
-                           "jitter)"),
+                           "jitter)", TimeTie.latency_u_s),
         "host_window_s": Key(Num(min=0, unit="s"), False, "how well the host knows the "
-                             "FOG's time axis"),
+                             "FOG's time axis", TimeTie.host_window_s),
     }), False, "how the counter's start is tied to the FOG's time axis (docs/"
                "configuration.md); a stand without a sim: block must state it"),
 })
 #: the FOG keys' defaults, used by the schema's reference and by `FogSettings` (one place)
+def _upright_only(value: Any) -> str | None:
+    """`fog.sign: -1` was once accepted and never read: the analysis took an inverted FOG
+    as upright (issue 25). Until the sign is carried through the twin, the capture and
+    the cross-calibration, an inverted mounting is refused, not silently mis-signed."""
+    if value != 1:
+        return ("only +1 is supported: mount the FOG with its sensitive axis along the "
+                "table's positive sense (an inverted FOG would give figures of the wrong "
+                "sign)")
+    return None
+
+
 FOG_DEFAULTS: dict[str, Any] = {"baudrate": 921600, "format": "kvh-a", "axis": "z",
                                 "configure": "declare"}
 FOG = Map({
@@ -139,8 +172,9 @@ FOG = Map({
                   "so the certificate prints it as the stand file states it; the key of its "
                   "check values, bench control)"),
     "model": Key(Str(), False, "maker and model, for the certificate"),
-    "sign": Key(Num(min=-1, max=1, integer=True), False, "-1 when the FOG is mounted with "
-                "its sensitive axis against the table's positive sense"),
+    "sign": Key(Check(Num(min=-1, max=1, integer=True), _upright_only), False,
+                "+1: the FOG's sensitive axis along the table's positive sense (the only "
+                "mounting the analysis supports; a FOG mounted inverted is refused)", 1),
     "calibration": Key(CALIBRATION, False, "the FOG's calibration certificate, if any"),
 })
 STAND_AXIS_KEYS: dict[str, Key] = {
@@ -294,11 +328,110 @@ COMMON_PROCEDURE_KEYS: dict[str, Key] = {
 }
 
 
+def _opt(spec: dict[str, Any], key: str, cast: Any) -> Any:
+    """A validated optional key, cast, or None when the file leaves it out."""
+    return cast(spec[key]) if spec.get(key) is not None else None
+
+
+def _default(node: Map, key: str) -> Any:
+    """The schema key's default: each default is written once, in its Key."""
+    return node.keys[key].default
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """An instrument's or reference's calibration certificate, as the stand states it."""
+
+    certificate: str
+    issuer: str
+    due: dt.date | None
+    traces: str | None = None
+
+    @classmethod
+    def of(cls, d: dict[str, Any] | None) -> Calibration | None:
+        if not isinstance(d, dict):
+            return None
+        return cls(str(d.get("certificate", "")), str(d.get("issuer", "")),
+                   parse_date(d.get("due")), _opt(d, "traces", str))
+
+
+@dataclass(frozen=True)
+class Traceable:
+    """An entry of the stand's `traceability:` list: a reference the bench does not drive."""
+
+    item: str
+    serial: str | None
+    calibration: Calibration
+
+
+@dataclass(frozen=True)
+class Identity:
+    """The table under test (the stand's `stand:` block)."""
+
+    maker: str
+    model: str
+    serial: str
+    location: str | None = None
+    recertification_interval_days: int | None = None
+
+
+@dataclass(frozen=True)
+class DriveSpec:
+    """A stand axis's `drive:` block, parsed once (defaults from DRIVE's keys)."""
+
+    interface: str
+    channel: str
+    node_id: int
+    controller_node_id: int          # resolved: stated, or the highest free on the bus
+    max_rate_dps: float
+    max_accel_dps2: float
+    counts_per_rev: int = _default(DRIVE, "counts_per_rev")
+    heartbeat_ms: int = _default(DRIVE, "heartbeat_ms")
+    watchdog_ms: int | None = None
+    bitrate: int | None = None
+    position_tolerance_deg: float | None = None
+    eds: str | None = None
+    serial: str | None = None
+    calibration: Calibration | None = None
+    unit_factors: str | dict[str, str] | None = None
+    pdo: str = _default(DRIVE, "pdo")
+
+    @property
+    def bus(self) -> str:
+        """The CAN bus this drive is on (axes with the same one share it)."""
+        return f"{self.interface}:{self.channel}"
+
+
+@dataclass(frozen=True)
+class CounterSpec:
+    """A stand axis's `counter:` block, parsed once."""
+
+    resource: str
+    model: str
+    serial: str | None = None
+    channel: int | None = None
+    level_v: float | None = None
+    slope: str | None = None
+    coupling: str | None = None
+    impedance_ohm: float | None = None
+    trigger_jitter_s: float | None = None
+    timebase_limit_rel: float | None = None
+    reference: str | None = None
+    timeout_margin_s: float | None = None
+    calibration: Calibration | None = None
+    time_tie: TimeTie | None = None    # None: the stand states none (twins: host clock)
+
+    def input_settings(self) -> dict[str, Any]:
+        """The input's settings the stand states (the driver's `configure` keywords)."""
+        return {k: v for k in ("channel", "level_v", "slope", "coupling", "impedance_ohm")
+                if (v := getattr(self, k)) is not None}
+
+
 @dataclass(frozen=True)
 class FogSettings:
-    """A stand's `fog:` block, parsed once, every default here (the schema above says
-    which keys are required): the live driver, the twin, the analysis reading the raw
-    capture, the disk-space estimate and the station view all take it from here."""
+    """A stand's `fog:` block, parsed once, every default from FOG's keys (the schema
+    says which keys are required): the live driver, the twin, the analysis reading the
+    raw capture, the disk-space estimate and the station view all take it from here."""
 
     port: str
     rate_hz: float
@@ -308,22 +441,187 @@ class FogSettings:
     axis: str = FOG_DEFAULTS["axis"]
     configure: str = FOG_DEFAULTS["configure"]
     model: str | None = None
+    serial: str | None = None
+    range_dps: float | None = None
+    sign: int = _default(FOG, "sign")
+    calibration: Calibration | None = None
 
     @classmethod
     def of(cls, fog: dict[str, Any]) -> FogSettings:
-        fields = {k: fog[k] for k in ("baudrate", "format", "axis", "configure", "model")
-                  if k in fog}
+        fields = {k: fog[k] for k in ("baudrate", "format", "axis", "configure", "model",
+                                      "serial", "range_dps", "sign") if k in fog}
         return cls(port=str(fog["port"]), rate_hz=float(fog["rate_hz"]),
-                   units=str(fog["units"]), **fields)
+                   units=str(fog["units"]), calibration=Calibration.of(fog.get("calibration")),
+                   **fields)
 
     @classmethod
     def of_axis(cls, stand: dict[str, Any], axis: str) -> FogSettings | None:
-        """The FOG of `axis`, or None when the axis has none (or the stand is damaged:
-        the station view reads run directories it did not write)."""
+        """The FOG of `axis` in a stand mapping read back from a run directory, or None
+        when the axis has none (or the file is damaged: the station view reads run
+        directories it did not write)."""
         f = ((stand.get("axes") or {}).get(axis) or {}).get("fog")
         if not isinstance(f, dict) or not all(k in f for k in ("port", "rate_hz", "units")):
             return None
         return cls.of(f)
+
+
+@dataclass(frozen=True)
+class StandAxis:
+    """One axis of the stand: its drive, and the counter and FOG that watch it."""
+
+    name: str
+    drive: DriveSpec
+    counter: CounterSpec | None = None
+    fog: FogSettings | None = None
+
+
+@dataclass(frozen=True)
+class SimAxis:
+    """The twins' truth for one axis (the stand's `sim.axes.<axis>`)."""
+
+    truth: AxisTruth
+    fog_units: str | None = None            # what the FOG twin carries before set-up
+    scale_step: tuple[int, float] | None = None      # (from_run, rel)
+    scale_ramp: tuple[int, float] | None = None      # (from_run, rel_per_run)
+    counter_external_reference: bool = True
+    counter_first_value: str = "from-start"
+    tie_latency_s: float | None = None      # None: exactly the latency the stand declares
+    tie_jitter_s: float = 0.0
+    counter_serial: str | None = None
+    drive_serial: int | None = None
+    drive_twin: Mapping[str, Any] = field(default_factory=dict)   # DriveTwin's keywords
+
+
+#: truth used by `--sim` for an axis the stand file's `sim:` block does not describe
+DEFAULT_SIM_AXIS = SimAxis(AxisTruth(fog=FogTruth(noise_dps=0.01), turn_jitter_s=27e-9))
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """The stand's `sim:` block: the twins' truth (absent on a real bench)."""
+
+    seed: int = _default(Map(SIM_KEYS), "seed")
+    clock_speed: float | str | None = None
+    run_number: int | None = None
+    axes: Mapping[str, SimAxis] = field(default_factory=dict)
+    can_bus: str = "virtual"          # set by `bench sim` (udp_multicast: other processes)
+    session: int = 1                  # set for a --resume: the session these twins serve
+
+    def axis(self, name: str) -> SimAxis:
+        return self.axes.get(name, DEFAULT_SIM_AXIS)
+
+    @property
+    def has_drift(self) -> bool:
+        return any(a.scale_step or a.scale_ramp for a in self.axes.values())
+
+
+@dataclass(frozen=True)
+class DccRefs:
+    """The stand's `dcc:` block: paths only (the lab file, the signing key)."""
+
+    lab: str | None = None
+    signing_key: str | None = None
+    signing_certificate: str | None = None
+    password_env: str | None = None
+
+
+@dataclass(frozen=True)
+class StandSettings:
+    """The validated stand file, parsed once: what every reader below the loader uses."""
+
+    identity: Identity
+    axes: Mapping[str, StandAxis]
+    sim: SimSettings | None = None
+    traceability: tuple[Traceable, ...] = ()
+    dcc: DccRefs = DccRefs()
+    mains_hz: float | None = None
+
+    @property
+    def simulated(self) -> bool:
+        return self.sim is not None
+
+
+def _sim_axis(d: dict[str, Any]) -> SimAxis:
+    fog = dict(d.get("fog") or {})
+    mains = d.get("mains")
+    truth = AxisTruth(
+        rate_bias_rel=float(d.get("rate_bias_rel", 0.0)),
+        harmonics=tuple(Harmonic(**h) for h in d.get("harmonics", ())),
+        mains=Mains(**mains) if mains else None,
+        rate_noise_dps=float(d.get("rate_noise_dps", 0.0)),
+        turn_jitter_s=float(d.get("turn_jitter_s", 0.0)),
+        fog=FogTruth(**{k: float(fog[k]) for k in FogTruth.__dataclass_fields__ if k in fog}))
+    step, ramp = fog.get("scale_step"), fog.get("scale_ramp")
+    tie = d.get("time_tie") or {}
+    serials = d.get("serials") or {}
+    return SimAxis(
+        truth, fog_units=_opt(fog, "units", str),
+        scale_step=(int(step["from_run"]), float(step["rel"])) if step else None,
+        scale_ramp=(int(ramp["from_run"]), float(ramp["rel_per_run"])) if ramp else None,
+        counter_external_reference=bool(d.get("counter_external_reference", True)),
+        counter_first_value=str(d.get("counter_first_value", "from-start")),
+        tie_latency_s=_opt(tie, "latency_s", float), tie_jitter_s=float(tie.get("jitter_s", 0.0)),
+        counter_serial=_opt(serials, "counter", str), drive_serial=_opt(serials, "drive", int),
+        drive_twin=MappingProxyType(dict(d.get("drive") or {})))
+
+
+def parse_stand(stand: dict[str, Any]) -> StandSettings:
+    """A validated stand mapping as frozen settings (the kinds' own stand blocks, such as
+    a gyro platform's, are parsed by the kind)."""
+    from bench.canbus import controller_node_ids
+
+    ident = stand["stand"]
+    controllers = controller_node_ids(stand["axes"])
+    axes: dict[str, StandAxis] = {}
+    for name, a in stand["axes"].items():
+        d = a["drive"]
+        drive = DriveSpec(
+            interface=str(d["interface"]), channel=str(d["channel"]), node_id=int(d["node_id"]),
+            controller_node_id=controllers[name], max_rate_dps=float(d["max_rate_dps"]),
+            max_accel_dps2=float(d["max_accel_dps2"]),
+            counts_per_rev=int(d.get("counts_per_rev", _default(DRIVE, "counts_per_rev"))),
+            heartbeat_ms=int(d.get("heartbeat_ms", _default(DRIVE, "heartbeat_ms"))),
+            watchdog_ms=_opt(d, "watchdog_ms", int), bitrate=_opt(d, "bitrate", int),
+            position_tolerance_deg=_opt(d, "position_tolerance_deg", float),
+            eds=_opt(d, "eds", str), serial=_opt(d, "serial", str),
+            calibration=Calibration.of(d.get("calibration")),
+            unit_factors=d.get("unit_factors"), pdo=str(d.get("pdo", _default(DRIVE, "pdo"))))
+        c = a.get("counter")
+        counter = None if not c else CounterSpec(
+            resource=str(c["resource"]), model=str(c["model"]), serial=_opt(c, "serial", str),
+            channel=_opt(c, "channel", int), level_v=_opt(c, "level_v", float),
+            slope=_opt(c, "slope", str), coupling=_opt(c, "coupling", str),
+            impedance_ohm=_opt(c, "impedance_ohm", float),
+            trigger_jitter_s=_opt(c, "trigger_jitter_s", float),
+            timebase_limit_rel=_opt(c, "timebase_limit_rel", float),
+            reference=_opt(c, "reference", str),
+            timeout_margin_s=_opt(c, "timeout_margin_s", float),
+            calibration=Calibration.of(c.get("calibration")),
+            time_tie=TimeTie(**c["time_tie"]) if c.get("time_tie") else None)
+        axes[name] = StandAxis(name, drive, counter, FogSettings.of(a["fog"]) if a.get("fog")
+                               else None)
+    sim = None
+    if "sim" in stand:
+        s = stand["sim"] or {}
+        sim = SimSettings(
+            seed=int(s.get("seed", _default(Map(SIM_KEYS), "seed"))),
+            clock_speed=s.get("clock_speed"), run_number=_opt(s, "run_number", int),
+            axes=MappingProxyType({n: _sim_axis(v or {}) for n, v in
+                                   (s.get("axes") or {}).items()}),
+            can_bus=str(s.get("can_bus", "virtual")), session=int(s.get("session", 1)))
+    trace = tuple(Traceable(str(t.get("item", "")), _opt(t, "serial", str),
+                            Calibration.of(t) or Calibration("", "", None))
+                  for t in stand.get("traceability") or [])
+    dcc = stand.get("dcc") or {}
+    signing = dcc.get("signing") or {}
+    return StandSettings(
+        identity=Identity(str(ident["maker"]), str(ident["model"]), str(ident["serial"]),
+                          _opt(ident, "location", str),
+                          _opt(ident, "recertification_interval_days", int)),
+        axes=MappingProxyType(axes), sim=sim, traceability=trace,
+        dcc=DccRefs(_opt(dcc, "lab", str), _opt(signing, "key", str),
+                    _opt(signing, "certificate", str), _opt(signing, "password_env", str)),
+        mains_hz=_opt(stand, "mains_hz", float))
 
 
 @dataclass(frozen=True)
@@ -336,6 +634,13 @@ class Config:
     stand: dict[str, Any]
     procedure_doc: YamlDoc
     stand_doc: YamlDoc
+    #: the procedure as its kind parsed it (`ProcedureKind.parse`; set by the loader)
+    settings: object = None
+
+    @functools.cached_property
+    def stand_settings(self) -> StandSettings:
+        """The stand, parsed once: what the engine, the kinds and the twins read."""
+        return parse_stand(self.stand)
 
     @property
     def kind(self) -> str:
@@ -345,12 +650,15 @@ class Config:
     def has_sim(self) -> bool:
         return "sim" in self.stand
 
-    def stand_axis(self, name: str) -> dict[str, Any]:
-        return self.stand["axes"][name]
+    def stand_axis(self, name: str) -> StandAxis:
+        return self.stand_settings.axes[name]
 
     def fog(self, axis: str) -> FogSettings:
         """The axis's FOG settings (validated: a procedure that needs a FOG has one)."""
-        return FogSettings.of(self.stand["axes"][axis]["fog"])
+        fog = self.stand_settings.axes[axis].fog
+        if fog is None:
+            raise KeyError(f"axis {axis} has no fog")
+        return fog
 
 
 class ConfigError(Exception):
