@@ -97,19 +97,19 @@ def cmd_plan(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     plan = procedure_kind(cfg.kind).build_plan(cfg)
     print("\n".join(plan.lines()))
-    print("\n".join(data_volume_lines(cfg.stand, _plan_axes(cfg, plan), plan.total_s,
+    print("\n".join(data_volume_lines(cfg.stand_settings, _plan_axes(cfg, plan), plan.total_s,
                                       Path(args.out))))
     return EXIT_PASS
 
 
 def _plan_axes(cfg: Config, plan: Any) -> list[str]:
     """The stand axes the plan's steps use (their instruments record while it runs)."""
-    return sorted({st.axis for st in plan.steps if st.axis and st.axis in cfg.stand["axes"]})
+    return sorted({st.axis for st in plan.steps if st.axis and st.axis in cfg.stand_settings.axes})
 
 
 def _room_for(cfg: Config, plan: Any, folder: Path) -> str | None:
     """Why the runs folder cannot hold the plan's raw data, or None."""
-    return space_problem(folder, expected_raw_bytes(cfg.stand, _plan_axes(cfg, plan),
+    return space_problem(folder, expected_raw_bytes(cfg.stand_settings, _plan_axes(cfg, plan),
                                                     plan.total_s))
 
 
@@ -136,7 +136,7 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
         progress.warn(f"the certificate could not be written: {e!r}; result.json is in "
                       f"{run.path}; once fixed, `bench analyze {run.path}` writes it")
         return result, None
-    if not write_run_dcc(run.path, result, cfg.stand, progress.line, warn=progress.warn):
+    if not write_run_dcc(run.path, result, cfg.stand_settings.dcc, progress.line, warn=progress.warn):
         return result, None
     return result, doc
 
@@ -180,8 +180,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             _err(f"Not started: {short}")
             return EXIT_INVALID
         run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path,
-                            lab_path(cfg.procedure_path, cfg.procedure.get("certificate")))
-        mark_run(run.path, cfg.procedure, args.calibration_state, args.adjustment,
+                            lab_path(cfg.procedure_path, dict(cfg.common.certificate)))
+        mark_run(run.path, cfg.common, args.calibration_state, args.adjustment,
                  args.operator)
     console = open_console(quiet=args.quiet, log_json=args.log_json)
     status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),
@@ -205,8 +205,8 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
     """
     progress = progress or open_console()
     where = target(run.path.parent, records, progress.warn)
-    table_overdue = warn_if_overdue(cfg.stand, where, progress.warn)
-    out_of_control = warn_at_start(cfg.stand, where, progress.warn)
+    table_overdue = warn_if_overdue(cfg.stand_settings.identity, where, progress.warn)
+    out_of_control = warn_at_start(cfg.stand_settings, where, progress.warn)
     kind = procedure_kind(cfg.kind)
     plan = kind.build_plan(cfg)
     done = run.completed_units()
@@ -219,7 +219,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
         print(f"Free some space, then: bench run --resume {run.path}")
         return EXIT_INVALID
     simbench = None
-    stand = cfg.stand
+    stand = cfg.stand_settings
     status = EXIT_ABORTED
     # one rule for the whole session: the first cause is what the operator reads; what
     # goes wrong later, while stopping, is added beneath it and never replaces it
@@ -243,7 +243,7 @@ def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = Fals
                       done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
                       version=__version__, prompts="--yes" if yes else "operator",
                       pid=os.getpid())
-            for t in overdue(cfg.stand, dt.datetime.now(dt.UTC).date()):
+            for t in overdue(cfg.stand_settings, dt.datetime.now(dt.UTC).date()):
                 progress.line(overdue_warning(t))
                 run.event("calibration_overdue", where=t.where, item=t.item,
                           certificate=t.certificate, due=t.due.isoformat() if t.due else None)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import datetime as dt
 import functools
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -31,8 +31,9 @@ from bench.schema import (
     parse_date,
 )
 from bench.yamlfile import Problem, YamlDoc
-from drivers.axis import DEFAULT_HEARTBEAT_MS, DEFAULT_PDO
+from drivers.axis import DEFAULT_HEARTBEAT_MS, DEFAULT_PDO, DEFAULT_UNIT_FACTORS
 from drivers.cia402 import DEFAULT_COUNTS_PER_REV
+from drivers.counter import DEFAULT_TIMEOUT_MARGIN_S
 from drivers.counter_profiles import get_profile
 from drivers.time_tie import TimeTie
 from sims.stand import AxisTruth, FogTruth, Harmonic, Mains
@@ -96,7 +97,7 @@ DRIVE = Map({
                         "'read' (the drive's factor group 0x608F/0x6091/0x60A9/0x60AA is "
                         "read at connect) or {velocity: rpm|inc/s|0.001 inc/s|..., "
                         "acceleration: rpm/s|inc/s2|...} written at connect and read back; "
-                        "a stand without a sim: block must state it"),
+                        "a stand without a sim: block must state it", DEFAULT_UNIT_FACTORS),
     "pdo": Key(Str(("set", "verify")), False,
                "TPDO transmission type / event timer: verify or set at connect", DEFAULT_PDO),
 })
@@ -120,7 +121,7 @@ COUNTER = Map({
                      "timebase_limit_rel below the model's needs 'external'"),
     "timeout_margin_s": Key(Num(min=0, exclusive_min=True, max=3600, unit="s"), False,
                             "extra time allowed beyond a half's expected turns before "
-                            "the counter counts as silent"),
+                            "the counter counts as silent", DEFAULT_TIMEOUT_MARGIN_S),
     "calibration": Key(CALIBRATION, False, "the counter's calibration certificate"),
     "time_tie": Key(Map({
         "source": Key(Str(("fog-sync", "host-clock")), True,
@@ -151,7 +152,8 @@ def _upright_only(value: Any) -> str | None:
 
 
 FOG_DEFAULTS: dict[str, Any] = {"baudrate": 921600, "format": "kvh-a", "axis": "z",
-                                "configure": "declare"}
+                                "configure": "declare",
+                                "range_dps": 490.0}   # KVH DSP-1760's range
 FOG = Map({
     "port": Key(Str(), True, "serial port, e.g. /dev/ttyUSB0"),
     "baudrate": Key(Num(min=1200, max=16_000_000, integer=True), False, "serial line rate",
@@ -161,7 +163,8 @@ FOG = Map({
                  FOG_DEFAULTS["axis"]),
     "rate_hz": Key(Num(min=1, max=100_000, unit="Hz"), True, "the FOG's output (frame) rate"),
     "range_dps": Key(Num(min=0, exclusive_min=True, max=100_000, unit="deg/s"), False,
-                     "the FOG's measuring range: a rate above it is refused"),
+                     "the FOG's measuring range: a rate above it is refused",
+                     FOG_DEFAULTS["range_dps"]),
     "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), True,
                   "what the rotational fields carry; KVH's power-on default is delta "
                   "radians, 'rad' (1775 IMU Technical Manual, Table 5-10)"),
@@ -356,6 +359,71 @@ class Calibration:
 
 
 @dataclass(frozen=True)
+class Traced:
+    """One calibrated item of the stand (bench/traceability.py)."""
+
+    where: str                 # key path in the stand file, e.g. axes.outer.counter
+    item: str
+    certificate: str | None
+    issuer: str | None
+    due: dt.date | None
+    traces: str | None
+
+    def overdue(self, on: dt.date) -> bool:
+        return self.due is not None and on > self.due
+
+    @property
+    def stated(self) -> bool:
+        return self.certificate is not None
+
+
+def _traced_name(path: tuple[str, ...], spec: Mapping[str, Any]) -> str:
+    role = path[-1]
+    where = " ".join(p for p in path[1:-1] if p not in ("axes", "gyros"))
+    model = spec.get("model")
+    return f"{role}{' ' + str(model) if model else ''}{f' ({where})' if where else ''}"
+
+
+def _instruments(node: Any, path: tuple[str, ...]
+                 ) -> Iterator[tuple[tuple[str, ...], Mapping[str, Any]]]:
+    """Every block of the stand that is an instrument (it has an address or a
+    calibration), whichever kind's block holds it (a gyro platform's DMMs too)."""
+    if not isinstance(node, Mapping):
+        return
+    for key, value in node.items():
+        if key == "sim" and not path:
+            continue  # the twins' truth, not the bench
+        if isinstance(value, Mapping):
+            sub = (*path, str(key))
+            if "resource" in value or "port" in value or "interface" in value \
+                    or "calibration" in value:
+                yield sub, value
+            yield from _instruments(value, sub)
+
+
+def stated_traceability(stand: Mapping[str, Any]) -> tuple[Traced, ...]:
+    """Every instrument of a stand mapping (with or without a stated calibration) and
+    every entry of its `traceability:` list."""
+    out = []
+    for path, spec in _instruments(stand, ()):
+        cal = spec.get("calibration")
+        cal = cal if isinstance(cal, Mapping) else {}
+        out.append(Traced(".".join(path), _traced_name(path, spec),
+                          str(cal["certificate"]) if cal.get("certificate") else None,
+                          str(cal["issuer"]) if cal.get("issuer") else None,
+                          parse_date(cal.get("due")), cal.get("traces")))
+    for i, t in enumerate(stand.get("traceability") or []):
+        if isinstance(t, Mapping):
+            item = str(t.get("item", ""))
+            if t.get("serial"):
+                item += f", serial {t['serial']}"
+            out.append(Traced(f"traceability[{i}]", item, str(t.get("certificate")),
+                              str(t.get("issuer")), parse_date(t.get("due")),
+                              t.get("traces")))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
 class Traceable:
     """An entry of the stand's `traceability:` list: a reference the bench does not drive."""
 
@@ -393,7 +461,7 @@ class DriveSpec:
     eds: str | None = None
     serial: str | None = None
     calibration: Calibration | None = None
-    unit_factors: str | dict[str, str] | None = None
+    unit_factors: str | Mapping[str, str] = _default(DRIVE, "unit_factors")
     pdo: str = _default(DRIVE, "pdo")
 
     @property
@@ -417,7 +485,7 @@ class CounterSpec:
     trigger_jitter_s: float | None = None
     timebase_limit_rel: float | None = None
     reference: str | None = None
-    timeout_margin_s: float | None = None
+    timeout_margin_s: float = _default(COUNTER, "timeout_margin_s")
     calibration: Calibration | None = None
     time_tie: TimeTie | None = None    # None: the stand states none (twins: host clock)
 
@@ -442,7 +510,7 @@ class FogSettings:
     configure: str = FOG_DEFAULTS["configure"]
     model: str | None = None
     serial: str | None = None
-    range_dps: float | None = None
+    range_dps: float = FOG_DEFAULTS["range_dps"]
     sign: int = _default(FOG, "sign")
     calibration: Calibration | None = None
 
@@ -535,10 +603,19 @@ class StandSettings:
     traceability: tuple[Traceable, ...] = ()
     dcc: DccRefs = DccRefs()
     mains_hz: float | None = None
+    #: every instrument and reference with its calibration as stated (traceability)
+    traced: tuple[Traced, ...] = ()
+    #: addresses of a kind's own instruments rewritten to their twins' (SimBench), by
+    #: the key path of the address in the stand file ("platform.awg.resource")
+    addresses: Mapping[str, str] = field(default_factory=dict)
 
     @property
     def simulated(self) -> bool:
         return self.sim is not None
+
+    def address(self, where: str, stated: str) -> str:
+        """The address of a kind's instrument: its twin's on a simulated bench."""
+        return self.addresses.get(where, stated)
 
 
 def _sim_axis(d: dict[str, Any]) -> SimAxis:
@@ -565,6 +642,14 @@ def _sim_axis(d: dict[str, Any]) -> SimAxis:
         drive_twin=MappingProxyType(dict(d.get("drive") or {})))
 
 
+def dcc_refs(stand: Mapping[str, Any] | None) -> DccRefs:
+    """The `dcc:` block of a stand mapping (also a run directory's copy, read back)."""
+    dcc = (stand or {}).get("dcc") or {}
+    signing = dcc.get("signing") or {}
+    return DccRefs(_opt(dcc, "lab", str), _opt(signing, "key", str),
+                   _opt(signing, "certificate", str), _opt(signing, "password_env", str))
+
+
 def parse_stand(stand: dict[str, Any]) -> StandSettings:
     """A validated stand mapping as frozen settings (the kinds' own stand blocks, such as
     a gyro platform's, are parsed by the kind)."""
@@ -585,7 +670,7 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
             position_tolerance_deg=_opt(d, "position_tolerance_deg", float),
             eds=_opt(d, "eds", str), serial=_opt(d, "serial", str),
             calibration=Calibration.of(d.get("calibration")),
-            unit_factors=d.get("unit_factors"), pdo=str(d.get("pdo", _default(DRIVE, "pdo"))))
+            unit_factors=d.get("unit_factors", _default(DRIVE, "unit_factors")), pdo=str(d.get("pdo", _default(DRIVE, "pdo"))))
         c = a.get("counter")
         counter = None if not c else CounterSpec(
             resource=str(c["resource"]), model=str(c["model"]), serial=_opt(c, "serial", str),
@@ -595,7 +680,8 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
             trigger_jitter_s=_opt(c, "trigger_jitter_s", float),
             timebase_limit_rel=_opt(c, "timebase_limit_rel", float),
             reference=_opt(c, "reference", str),
-            timeout_margin_s=_opt(c, "timeout_margin_s", float),
+            timeout_margin_s=float(c.get("timeout_margin_s",
+                                         _default(COUNTER, "timeout_margin_s"))),
             calibration=Calibration.of(c.get("calibration")),
             time_tie=TimeTie(**c["time_tie"]) if c.get("time_tie") else None)
         axes[name] = StandAxis(name, drive, counter, FogSettings.of(a["fog"]) if a.get("fog")
@@ -612,16 +698,42 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
     trace = tuple(Traceable(str(t.get("item", "")), _opt(t, "serial", str),
                             Calibration.of(t) or Calibration("", "", None))
                   for t in stand.get("traceability") or [])
-    dcc = stand.get("dcc") or {}
-    signing = dcc.get("signing") or {}
     return StandSettings(
         identity=Identity(str(ident["maker"]), str(ident["model"]), str(ident["serial"]),
                           _opt(ident, "location", str),
                           _opt(ident, "recertification_interval_days", int)),
         axes=MappingProxyType(axes), sim=sim, traceability=trace,
-        dcc=DccRefs(_opt(dcc, "lab", str), _opt(signing, "key", str),
-                    _opt(signing, "certificate", str), _opt(signing, "password_env", str)),
+        dcc=dcc_refs(stand), traced=stated_traceability(stand),
         mains_hz=_opt(stand, "mains_hz", float))
+
+
+@dataclass(frozen=True)
+class CommonSettings:
+    """The procedure keys every kind shares (COMMON_PROCEDURE_KEYS), parsed once."""
+
+    title: str
+    conditions: Mapping[str, Any]
+    certificate: Mapping[str, Any]
+    decision_rule: str | None
+    prompts: bool
+    calibration_state: str | None
+    adjustment_note: str | None
+    operator: str | None
+    specification: Mapping[str, Any] | None
+
+
+def parse_common(procedure: dict[str, Any], path: Path) -> CommonSettings:
+    spec = procedure.get("specification")
+    return CommonSettings(
+        title=str(procedure.get("title", path.stem)),
+        conditions=MappingProxyType(dict(procedure.get("conditions") or {})),
+        certificate=MappingProxyType(dict(procedure.get("certificate") or {})),
+        decision_rule=_opt(procedure, "decision_rule", str),
+        prompts=bool(procedure.get("prompts", True)),
+        calibration_state=_opt(procedure, "calibration_state", str),
+        adjustment_note=_opt(procedure, "adjustment_note", str),
+        operator=_opt(procedure, "operator", str),
+        specification=MappingProxyType(dict(spec)) if isinstance(spec, dict) else None)
 
 
 @dataclass(frozen=True)
@@ -636,6 +748,11 @@ class Config:
     stand_doc: YamlDoc
     #: the procedure as its kind parsed it (`ProcedureKind.parse`; set by the loader)
     settings: object = None
+
+    @functools.cached_property
+    def common(self) -> CommonSettings:
+        """The procedure keys every kind shares, parsed once."""
+        return parse_common(self.procedure, self.procedure_path)
 
     @functools.cached_property
     def stand_settings(self) -> StandSettings:

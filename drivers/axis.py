@@ -106,6 +106,8 @@ STANDSTILL_DPS = 1e-3
 DEFAULT_HEARTBEAT_MS = 50
 #: the TPDO settings: verified at connect, not written, unless the stand says `set`
 DEFAULT_PDO = "verify"
+#: the drive's units: its factor group read at connect, unless the stand says what to set
+DEFAULT_UNIT_FACTORS = "read"
 
 class AxisError(RuntimeError):
     """Something went wrong with an axis drive (names the axis and what)."""
@@ -201,7 +203,7 @@ class Axis:
                  watchdog_ms: int | None = None, controller_node_id: int = CONTROLLER_NODE_ID,
                  accel_dps2: float | None = None, bitrate: int | None = None,
                  feedback_journal_s: float = 0.1, position_tolerance_deg: float = 0.01,
-                 raw: RawSink | None = None, unit_factors: str | Mapping[str, str] = "read",
+                 raw: RawSink | None = None, unit_factors: str | Mapping[str, str] = DEFAULT_UNIT_FACTORS,
                  pdo: str = DEFAULT_PDO) -> None:
         self.name = name
         self.interface = interface

@@ -214,6 +214,8 @@ class _RawFlow:
         self.methods: dict[tuple[str, str], list[ast.FunctionDef | ast.AsyncFunctionDef]] = {}
         by_name: dict[str, list[ast.FunctionDef | ast.AsyncFunctionDef]] = {}
         self.owner: dict[int, str] = {}
+        self.module_of: dict[int, int] = {}    # function -> its module
+        self.module: int | None = None          # the module of the function walked
         for tree in modules.values():
             for node in ast.walk(tree):
                 if isinstance(node, ast.ClassDef):
@@ -227,6 +229,8 @@ class _RawFlow:
             for f in tree.body:
                 if isinstance(f, ast.FunctionDef | ast.AsyncFunctionDef):
                     self.functions.setdefault(f.name, []).append(f)
+            for f in _functions(tree):
+                self.module_of[id(f)] = id(tree)
         # a method called on an object of unknown class: the one class defining it, or
         # every procedure kind for the plug-in interface's methods (bench/registry.py)
         protocol = {f.name for c, f in self._class_methods("bench/registry.py")
@@ -245,8 +249,10 @@ class _RawFlow:
     def callees(self, call: ast.Call, cls: str | None) -> list[ast.FunctionDef
                                                               | ast.AsyncFunctionDef]:
         f = call.func
-        if isinstance(f, ast.Name):
-            return self.functions.get(f.id, [])
+        if isinstance(f, ast.Name):   # this module's own function of that name, if any
+            found = self.functions.get(f.id, [])
+            own = [fn for fn in found if self.module_of.get(id(fn)) == self.module]
+            return own or found
         if not isinstance(f, ast.Attribute):
             return []
         base = _name_of(f.value)
@@ -324,6 +330,7 @@ class _RawFlow:
         """The names in `fn` bound to raw mappings; and whether anything global changed."""
         args = [*fn.args.posonlyargs, *fn.args.args, *fn.args.kwonlyargs]
         self.cls = self.owner.get(id(fn))
+        self.module = self.module_of.get(id(fn))
         self.types = {t.id: n.value.func.id for n in ast.walk(fn) if isinstance(n, ast.Assign)
                       and isinstance(n.value, ast.Call) and isinstance(n.value.func, ast.Name)
                       and n.value.func.id in self.classes

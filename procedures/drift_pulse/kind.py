@@ -28,7 +28,14 @@ from typing import Any
 import numpy as np
 
 from bench.analysis import drift_pulse as dp
-from bench.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
+from bench.config import (
+    CALIBRATION,
+    COMMON_PROCEDURE_KEYS,
+    IDENTITY,
+    Config,
+    StandSettings,
+    stand_schema,
+)
 from bench.conformity import judge
 from bench.engine import Abort, RunContext
 from bench.instruments import Bench, manual_note, open_axis, raw_text_logger, with_readback
@@ -375,29 +382,32 @@ class DriftPulse(StepDispatch, DriftCertificate):
         return Plan(cfg.procedure.get("title", cfg.procedure_path.stem), tuple(steps))
 
     # -- bench ----------------------------------------------------------------------------
-    def start_sim(self, cfg: Config) -> tuple[SimBench, dict[str, Any]]:
-        sim = SimBench(cfg.stand, [self.table(cfg)])
-        return sim, sim.start(extra=[gyro_rig_factory(self.gyros(cfg))])
+    def start_sim(self, cfg: Config) -> tuple[SimBench, StandSettings]:
+        sim = SimBench(cfg.stand_settings, [self.table(cfg)])
+        return sim, sim.start(extra=[gyro_rig_factory(cfg.stand, self.gyros(cfg))])
 
-    def open_bench(self, cfg: Config, stand: dict[str, Any], clock: Clock,
+    def open_bench(self, cfg: Config, stand: StandSettings, clock: Clock,
                    run: RunDir | None) -> Bench:
         bench = Bench()
-        plat = stand["platform"]
+        plat = cfg.stand["platform"]
 
         def raw(name: str) -> Any:
             return raw_text_logger(bench.log(run.raw_path(name)), clock) if run else None
 
         try:
             table = plat["table_axis"]
-            open_axis(bench, table, stand["axes"], clock, run, counter=False, fog=False)
-            awg = WaveformGenerator.open(plat["awg"]["resource"], plat["awg"]["model"], clock,
-                                         raw=raw("awg.jsonl"))
+            open_axis(bench, stand.axes[table], clock, run, counter=False, fog=False)
+            awg = WaveformGenerator.open(
+                stand.address("platform.awg.resource", plat["awg"]["resource"]),
+                plat["awg"]["model"], clock, raw=raw("awg.jsonl"))
             bench.enter(awg)
             bench.extra["awg"] = awg
             bench.extra["dmms"] = {}
             for g in self.gyros(cfg):
                 d = plat["gyros"][g]["dmm"]
-                dmm = Digitizer.open(d["resource"], d["model"], clock, raw=raw(f"{g}-dmm.jsonl"))
+                dmm = Digitizer.open(
+                    stand.address(f"platform.gyros.{g}.dmm.resource", d["resource"]),
+                    d["model"], clock, raw=raw(f"{g}-dmm.jsonl"))
                 bench.enter(dmm)
                 bench.extra["dmms"][g] = dmm
             bench.axes[table].identities["awg"] = with_readback(
