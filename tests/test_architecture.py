@@ -399,11 +399,11 @@ class _RawFlow:
                 for fn in _functions(tree):
                     changed |= self.local_raw(fn)[1]
 
-    def accesses(self, path: str) -> list[str]:
+    def accesses(self, path: str, root: Path = ROOT) -> list[str]:
         """Each key access on a raw mapping in module `path`: 'path:line: source'."""
         out: set[tuple[int, str]] = set()
         tree = self.modules[path]
-        src = (ROOT / path).read_text().splitlines()
+        src = (root / path).read_text().splitlines()
         for fn in _functions(tree):
             local = self.local_raw(fn)[0]
             for node in ast.walk(fn):
@@ -430,7 +430,7 @@ def raw_mapping_accesses(root: Path = ROOT) -> list[str]:
     flow = _RawFlow(modules)
     flow.solve()
     skip = _parsers()
-    return [hit for path in modules if path not in skip for hit in flow.accesses(path)]
+    return [hit for path in modules if path not in skip for hit in flow.accesses(path, root)]
 
 
 def test_nothing_below_the_loader_reads_a_raw_stand_or_procedure_mapping() -> None:
