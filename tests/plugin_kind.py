@@ -18,7 +18,7 @@ from lxml import etree
 
 from bench.certificate.model import Para, Section, Table
 from bench.certificate.parts import CertificateParts, Sources, num
-from bench.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config
+from bench.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config, StandSettings
 from bench.dcc import units as U
 from bench.dcc import vocab as V
 from bench.dcc.conformity import Checks, judge
@@ -63,10 +63,14 @@ class Dwell(StepDispatch, CertificateParts):
                     (Step("dwell", None, f"wait {dwell:g} s", dwell, "dwell",
                           {"duration_s": dwell}),))
 
-    def start_sim(self, cfg: Config) -> tuple[SimBench, dict[str, Any]]:
+    def parse(self, cfg: Config) -> float:
+        """The dwell's one setting (bench/registry.py ProcedureKind.parse)."""
+        return float(cfg.procedure["dwell_s"])
+
+    def start_sim(self, cfg: Config) -> tuple[SimBench, StandSettings]:
         raise NotImplementedError("the dwell needs no twins")
 
-    def open_bench(self, cfg: Config, stand: dict[str, Any], clock: Clock,
+    def open_bench(self, cfg: Config, stand: StandSettings, clock: Clock,
                    run: RunDir | None) -> Bench:
         return Bench()
 
