@@ -12,7 +12,6 @@ import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import MappingProxyType
 from typing import Any
 
 from bench.canbus import bus_problems
@@ -639,7 +638,7 @@ def _sim_axis(d: dict[str, Any]) -> SimAxis:
         counter_first_value=str(d.get("counter_first_value", "from-start")),
         tie_latency_s=_opt(tie, "latency_s", float), tie_jitter_s=float(tie.get("jitter_s", 0.0)),
         counter_serial=_opt(serials, "counter", str), drive_serial=_opt(serials, "drive", int),
-        drive_twin=MappingProxyType(dict(d.get("drive") or {})))
+        drive_twin=dict(d.get("drive") or {}))
 
 
 def dcc_refs(stand: Mapping[str, Any] | None) -> DccRefs:
@@ -692,8 +691,8 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
         sim = SimSettings(
             seed=int(s.get("seed", _default(Map(SIM_KEYS), "seed"))),
             clock_speed=s.get("clock_speed"), run_number=_opt(s, "run_number", int),
-            axes=MappingProxyType({n: _sim_axis(v or {}) for n, v in
-                                   (s.get("axes") or {}).items()}),
+            axes={n: _sim_axis(v or {}) for n, v in
+                                   (s.get("axes") or {}).items()},
             can_bus=str(s.get("can_bus", "virtual")), session=int(s.get("session", 1)))
     trace = tuple(Traceable(str(t.get("item", "")), _opt(t, "serial", str),
                             Calibration.of(t) or Calibration("", "", None))
@@ -702,7 +701,7 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
         identity=Identity(str(ident["maker"]), str(ident["model"]), str(ident["serial"]),
                           _opt(ident, "location", str),
                           _opt(ident, "recertification_interval_days", int)),
-        axes=MappingProxyType(axes), sim=sim, traceability=trace,
+        axes=axes, sim=sim, traceability=trace,
         dcc=dcc_refs(stand), traced=stated_traceability(stand),
         mains_hz=_opt(stand, "mains_hz", float))
 
@@ -726,14 +725,14 @@ def parse_common(procedure: dict[str, Any], path: Path) -> CommonSettings:
     spec = procedure.get("specification")
     return CommonSettings(
         title=str(procedure.get("title", path.stem)),
-        conditions=MappingProxyType(dict(procedure.get("conditions") or {})),
-        certificate=MappingProxyType(dict(procedure.get("certificate") or {})),
+        conditions=dict(procedure.get("conditions") or {}),
+        certificate=dict(procedure.get("certificate") or {}),
         decision_rule=_opt(procedure, "decision_rule", str),
         prompts=bool(procedure.get("prompts", True)),
         calibration_state=_opt(procedure, "calibration_state", str),
         adjustment_note=_opt(procedure, "adjustment_note", str),
         operator=_opt(procedure, "operator", str),
-        specification=MappingProxyType(dict(spec)) if isinstance(spec, dict) else None)
+        specification=dict(spec) if isinstance(spec, dict) else None)
 
 
 @dataclass(frozen=True)

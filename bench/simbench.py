@@ -20,7 +20,6 @@ import socket
 import sys
 import uuid
 from collections.abc import Callable
-from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -193,8 +192,8 @@ class SimBench:
         except BaseException:
             self.stop()
             raise
-        return dataclasses.replace(self.settings, axes=MappingProxyType(axes),
-                                   addresses=MappingProxyType(dict(self.addresses)))
+        return dataclasses.replace(self.settings, axes=axes,
+                                   addresses=dict(self.addresses))
 
     def _bus_channel(self, n: int) -> str:
         if self.can_interface == "udp_multicast":

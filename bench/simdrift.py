@@ -19,7 +19,6 @@ run, before any twin sees the stand, and says what it applied.
 from __future__ import annotations
 
 import dataclasses
-from types import MappingProxyType
 
 from bench.config import SimSettings, StandSettings
 
@@ -52,4 +51,4 @@ def drifted(sim: SimSettings, run_number: int) -> tuple[SimSettings, list[str]]:
         axes[axis] = dataclasses.replace(a, truth=dataclasses.replace(a.truth, fog=fog),
                                          scale_step=None, scale_ramp=None)
         notes.append(f"sim: axis {axis} FOG scale x (1 {rel:+.3g}) in run {run_number}")
-    return dataclasses.replace(sim, axes=MappingProxyType(axes)), notes
+    return dataclasses.replace(sim, axes=axes), notes

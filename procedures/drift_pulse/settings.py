@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -382,7 +381,7 @@ class DriftSettings:
         return cls(
             title=cfg.common.title, gyros=tuple(gyros_of(cfg)), table_axis=table,
             awg_resource=str(plat["awg"]["resource"]), awg_model=str(plat["awg"]["model"]),
-            platform=MappingProxyType(gyros), pulse_shape=str(p["pulse"]["shape"]),
+            platform=gyros, pulse_shape=str(p["pulse"]["shape"]),
             amplitude_v=float(p["pulse"]["amplitude_v"]),
             timing_amplitude_v=timing_amplitude(cfg),
             latitude_deg=float(p["site"]["latitude_deg"]),
@@ -397,10 +396,10 @@ class DriftSettings:
             decision_rule=str(setting(cfg, "decision_rule")),
             prompts=bool(setting(cfg, "prompts")),
             own_drift_tolerance_dph=float(tol) if tol is not None else None,
-            sim_platform=truth, awg_twin=MappingProxyType(awg_twin),
+            sim_platform=truth, awg_twin=awg_twin,
             awg_serial=str(awg_serial) if awg_serial else None,
-            dmm_twin=MappingProxyType(dmm_twin),
-            dmm_serials=MappingProxyType({str(k): str(v) for k, v in dmm_serials.items()}),
-            timing=Timing.of(cfg), pulse_doc=MappingProxyType(dict(p["pulse"])),
-            site_doc=MappingProxyType(dict(p["site"])),
-            tolerance_doc=MappingProxyType(dict(p.get("tolerance") or {})))
+            dmm_twin=dmm_twin,
+            dmm_serials={str(k): str(v) for k, v in dmm_serials.items()},
+            timing=Timing.of(cfg), pulse_doc=dict(p["pulse"]),
+            site_doc=dict(p["site"]),
+            tolerance_doc=dict(p.get("tolerance") or {}))

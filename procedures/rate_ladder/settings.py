@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from types import MappingProxyType
 from typing import Any
 
 from bench.config import (
@@ -175,11 +174,11 @@ class LadderSettings:
                    harmonics=int(setting(cfg, "harmonics")),
                    mains_hz=mains_hz, mains_source=mains_source,
                    decision_rule=str(setting(cfg, "decision_rule")),
-                   prompts=bool(setting(cfg, "prompts")), axes=MappingProxyType(axes),
+                   prompts=bool(setting(cfg, "prompts")), axes=axes,
                    title=cfg.common.title,
                    settle=Settle(**{k: float(v) for k, v in
                                     (cfg.procedure.get("settle") or {}).items()}),
-                   tolerance=MappingProxyType(bands))
+                   tolerance=bands)
 
     def tolerance_doc(self) -> dict[str, list[dict[str, float]]]:
         """The tolerance as the procedure file states it (result.json's `method`)."""
