@@ -54,6 +54,7 @@ from procedures.drift_pulse.settings import (  # noqa: F401 - the kind's names
     SIM_DMM,
     SIM_PLATFORM,
     DriftSettings,
+    PlatformSettings,
     Timing,
     drift_problems,
 )
@@ -73,7 +74,7 @@ class DriftPulse(StepDispatch, DriftCertificate):
 
     # -- checks that need both files --------------------------------------------------
     def gyros(self, cfg: Config) -> list[str]:
-        return list(DriftSettings.from_config(cfg).gyros)
+        return list(PlatformSettings.of(cfg).gyros)
 
     def cross_check(self, cfg: Config) -> list[Problem]:
         return drift_problems(cfg)
@@ -87,7 +88,7 @@ class DriftPulse(StepDispatch, DriftCertificate):
 
     # -- plan -----------------------------------------------------------------------------
     def table(self, cfg: Config) -> str:
-        return DriftSettings.from_config(cfg).table_axis
+        return PlatformSettings.of(cfg).table_axis
 
     def turn(self, cfg: Config) -> tuple[float, float]:
         d = DriftSettings.from_config(cfg)
@@ -141,12 +142,12 @@ class DriftPulse(StepDispatch, DriftCertificate):
     # -- bench ----------------------------------------------------------------------------
     def start_sim(self, cfg: Config) -> tuple[SimBench, StandSettings]:
         sim = SimBench(cfg.stand_settings, [self.table(cfg)])
-        return sim, sim.start(extra=[gyro_rig_factory(DriftSettings.from_config(cfg))])
+        return sim, sim.start(extra=[gyro_rig_factory(PlatformSettings.of(cfg))])
 
     def open_bench(self, cfg: Config, stand: StandSettings, clock: Clock,
                    run: RunDir | None) -> Bench:
         bench = Bench()
-        d = DriftSettings.from_config(cfg)
+        d = PlatformSettings.of(cfg)
 
         def raw(name: str) -> Any:
             return raw_text_logger(bench.log(run.raw_path(name)), clock) if run else None
@@ -289,7 +290,7 @@ class DriftPulse(StepDispatch, DriftCertificate):
 KIND = DriftPulse()
 
 
-def gyro_rig_factory(d: DriftSettings) -> TwinFactory:
+def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
     """The twins of a gyro platform on the stand's turntable (the stand file's `platform:`
     and `sim.platform` blocks): the platform, its waveform generator and one DMM per gyro
     of the procedure, each address rewritten to its twin's (`SimBench.addresses`)."""

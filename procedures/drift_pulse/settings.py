@@ -311,15 +311,66 @@ class GyroSpec:
 
 
 @dataclass(frozen=True)
-class DriftSettings:
-    """The validated procedure and the stand's platform, parsed once."""
+class PlatformSettings:
+    """The stand's gyro platform and the gyros the procedure uses (all, on a stand
+    alone: `bench devices`), with the twins' truth; parsed once."""
 
-    title: str
     gyros: tuple[str, ...]
     table_axis: str
     awg_resource: str
     awg_model: str
     platform: Mapping[str, GyroSpec]     # every gyro of the platform, by name
+    #: the twins' truth (the stand's `sim.platform`, `sim.awg`, `sim.dmm`); None on hardware
+    sim_platform: PlatformTruth | None
+    awg_twin: Mapping[str, Any]
+    awg_serial: str | None
+    dmm_twin: Mapping[str, Any]
+    dmm_serials: Mapping[str, str]
+
+    @classmethod
+    def of(cls, cfg: Config) -> PlatformSettings:
+        parsed = cfg.settings
+        return parsed if isinstance(parsed, PlatformSettings) else cls.parse_platform(cfg)
+
+    @classmethod
+    def parse_platform(cls, cfg: Config) -> PlatformSettings:
+        return PlatformSettings(**_platform_fields(cfg))
+
+
+def _platform_fields(cfg: Config) -> dict[str, Any]:
+    plat = cfg.stand["platform"]
+    table = str(plat["table_axis"])
+    gyros = {g: GyroSpec(int(s["awg_channel"]), str(s["dmm"]["resource"]),
+                         str(s["dmm"]["model"]), float(s["k_as_v_per_deg"]),
+                         float(s["precession_dps_per_v"]),
+                         float(s.get("k_as_u_rel", 0.0)),
+                         float(s.get("pulse_mismatch_max_rel", 0.0)),
+                         float(s.get("drift_random_walk_dph_per_rth", 0.0)))
+             for g, s in plat["gyros"].items()}
+    sim = cfg.stand.get("sim") or {}
+    sp = sim.get("platform")
+    sim_settings = cfg.stand_settings.sim
+    truth = None if sp is None else PlatformTruth(
+        latitude_deg=float(sp["latitude_deg"]), azimuth_deg=float(sp["azimuth_deg"]),
+        gyros={g: GyroTruth(**{k: float(v) for k, v in (sp["gyros"].get(g) or {}).items()})
+               for g in gyros_of(cfg) if g in sp["gyros"]},
+        table_axis=table,   # the platform's drift walk is its truth, seeded as the stand
+        seed=sim_settings.seed if sim_settings else 0)
+    awg_twin = dict(sim.get("awg") or {})
+    dmm_twin = dict(sim.get("dmm") or {})
+    awg_serial, dmm_serials = awg_twin.pop("serial", None), dmm_twin.pop("serials", {})
+    return dict(gyros=tuple(gyros_of(cfg)), table_axis=table,
+                awg_resource=str(plat["awg"]["resource"]), awg_model=str(plat["awg"]["model"]),
+                platform=gyros, sim_platform=truth, awg_twin=awg_twin,
+                awg_serial=str(awg_serial) if awg_serial else None, dmm_twin=dmm_twin,
+                dmm_serials={str(k): str(v) for k, v in dmm_serials.items()})
+
+
+@dataclass(frozen=True)
+class DriftSettings(PlatformSettings):
+    """The validated procedure and the stand's platform, parsed once."""
+
+    title: str
     pulse_shape: str
     amplitude_v: float
     timing_amplitude_v: float
@@ -336,12 +387,6 @@ class DriftSettings:
     prompts: bool
     own_drift_tolerance_dph: float | None
     timing: Timing
-    #: the twins' truth (the stand's `sim.platform`, `sim.awg`, `sim.dmm`); None on hardware
-    sim_platform: PlatformTruth | None
-    awg_twin: Mapping[str, Any]
-    awg_serial: str | None
-    dmm_twin: Mapping[str, Any]
-    dmm_serials: Mapping[str, str]
     #: as the procedure file states them (result.json's `method`)
     pulse_doc: Mapping[str, Any]
     site_doc: Mapping[str, Any]
@@ -355,33 +400,12 @@ class DriftSettings:
     @classmethod
     def parse(cls, cfg: Config) -> DriftSettings:
         p = cfg.procedure
-        plat = cfg.stand["platform"]
-        table = str(plat["table_axis"])
-        drive = cfg.stand_settings.axes[table].drive
+        fields = _platform_fields(cfg)
+        drive = cfg.stand_settings.axes[fields["table_axis"]].drive
         turn = p.get("turn") or {}
-        gyros = {g: GyroSpec(int(s["awg_channel"]), str(s["dmm"]["resource"]),
-                             str(s["dmm"]["model"]), float(s["k_as_v_per_deg"]),
-                             float(s["precession_dps_per_v"]),
-                             float(s.get("k_as_u_rel", 0.0)),
-                             float(s.get("pulse_mismatch_max_rel", 0.0)),
-                             float(s.get("drift_random_walk_dph_per_rth", 0.0)))
-                 for g, s in plat["gyros"].items()}
         tol = (p.get("tolerance") or {}).get("own_drift_dph")
-        sim = cfg.stand.get("sim") or {}
-        sp = sim.get("platform")
-        truth = None if sp is None else PlatformTruth(
-            latitude_deg=float(sp["latitude_deg"]), azimuth_deg=float(sp["azimuth_deg"]),
-            gyros={g: GyroTruth(**{k: float(v) for k, v in (sp["gyros"].get(g) or {}).items()})
-                   for g in gyros_of(cfg) if g in sp["gyros"]},
-            table_axis=table, seed=cfg.stand_settings.sim.seed
-            if cfg.stand_settings.sim else 0)   # the platform's drift walk is its truth
-        awg_twin = dict(sim.get("awg") or {})
-        dmm_twin = dict(sim.get("dmm") or {})
-        awg_serial, dmm_serials = awg_twin.pop("serial", None), dmm_twin.pop("serials", {})
         return cls(
-            title=cfg.common.title, gyros=tuple(gyros_of(cfg)), table_axis=table,
-            awg_resource=str(plat["awg"]["resource"]), awg_model=str(plat["awg"]["model"]),
-            platform=gyros, pulse_shape=str(p["pulse"]["shape"]),
+            **fields, title=cfg.common.title, pulse_shape=str(p["pulse"]["shape"]),
             amplitude_v=float(p["pulse"]["amplitude_v"]),
             timing_amplitude_v=timing_amplitude(cfg),
             latitude_deg=float(p["site"]["latitude_deg"]),
@@ -396,10 +420,5 @@ class DriftSettings:
             decision_rule=str(setting(cfg, "decision_rule")),
             prompts=bool(setting(cfg, "prompts")),
             own_drift_tolerance_dph=float(tol) if tol is not None else None,
-            sim_platform=truth, awg_twin=awg_twin,
-            awg_serial=str(awg_serial) if awg_serial else None,
-            dmm_twin=dmm_twin,
-            dmm_serials={str(k): str(v) for k, v in dmm_serials.items()},
-            timing=Timing.of(cfg), pulse_doc=dict(p["pulse"]),
-            site_doc=dict(p["site"]),
+            timing=Timing.of(cfg), pulse_doc=dict(p["pulse"]), site_doc=dict(p["site"]),
             tolerance_doc=dict(p.get("tolerance") or {}))
