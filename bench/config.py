@@ -654,10 +654,12 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
     a gyro platform's, are parsed by the kind)."""
     from bench.canbus import controller_node_ids
 
-    ident = stand["stand"]
-    controllers = controller_node_ids(stand["axes"])
+    # a kind's stand schema may leave out the axes (a plug-in kind without a table)
+    ident = stand.get("stand") or {}
+    stand_axes = stand.get("axes") or {}
+    controllers = controller_node_ids(stand_axes)
     axes: dict[str, StandAxis] = {}
-    for name, a in stand["axes"].items():
+    for name, a in stand_axes.items():
         d = a["drive"]
         drive = DriveSpec(
             interface=str(d["interface"]), channel=str(d["channel"]), node_id=int(d["node_id"]),
@@ -698,7 +700,8 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
                             Calibration.of(t) or Calibration("", "", None))
                   for t in stand.get("traceability") or [])
     return StandSettings(
-        identity=Identity(str(ident["maker"]), str(ident["model"]), str(ident["serial"]),
+        identity=Identity(str(ident.get("maker", "")), str(ident.get("model", "")),
+                          str(ident.get("serial", "")),
                           _opt(ident, "location", str),
                           _opt(ident, "recertification_interval_days", int)),
         axes=axes, sim=sim, traceability=trace,
