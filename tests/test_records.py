@@ -391,7 +391,7 @@ def test_due_dates_and_the_overdue_warning_at_a_run_start(
     assert warn_if_overdue(parse_stand(stand).identity, target(tmp_path), said.append) is None
     (tmp_path / "lab.yaml").write_text("recertification: {tables: {X: -1}}\n")
     bad = cli("due", "--runs", str(tmp_path))
-    assert bad.returncode == 2 and "lab.yaml: recertification.tables.X" in bad.stderr
+    assert bad.returncode == 2 and "lab.yaml:1: recertification.tables.X" in bad.stderr
 
 
 @pytest.fixture
