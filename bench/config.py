@@ -243,7 +243,7 @@ SIM_AXIS = Map({
 })
 SIM_KEYS: dict[str, Key] = {
     "seed": Key(Num(min=0, integer=True), False, "the twins' random seed: a run's numbers "
-                "depend on it and the files alone"),
+                "depend on it and the files alone", 0),
     "clock_speed": Key(OneOf(Num(min=0, exclusive_min=True), Str(("max",))), False,
                        "virtual seconds per real one, or max: as fast as every twin keeps up"),
     "axes": Key(MapOf(SIM_AXIS), False, "each axis's truth, by stand axis name"),
