@@ -207,3 +207,32 @@ def test_the_stand_parses_into_frozen_settings_with_one_default_each() -> None:
     tie = COUNTER.keys["time_tie"].node.keys       # type: ignore[attr-defined]
     assert tie["sync_period_s"].default == TimeTie.sync_period_s
     assert FOG.keys["sign"].default == 1
+
+
+@pytest.mark.timeout(120)
+def test_the_twins_point_a_copy_of_the_parsed_stand_at_themselves() -> None:
+    """One stand in flight: the twins' addresses go into a new StandSettings; the run's
+    Config (its parsed stand and the stand file's mapping, copied into the run
+    directory) stays as written."""
+    import copy
+
+    from bench.loader import load_config
+    from bench.registry import procedure_kind
+
+    cfg = load_config(CONFIGS / "procedures" / "demo.yaml")
+    written, parsed = copy.deepcopy(cfg.stand), cfg.stand_settings
+    simbench, served = procedure_kind(cfg.kind).start_sim(cfg)
+    try:
+        assert cfg.stand == written and cfg.stand_settings is parsed
+        for name, axis in served.axes.items():
+            stated = parsed.axes[name]
+            assert axis.fog is not None and stated.fog is not None
+            assert axis.fog.port != stated.fog.port and axis.fog.port.startswith("/dev/")
+            assert axis.counter is not None and stated.counter is not None
+            assert "127.0.0.1" in axis.counter.resource
+            assert axis.drive.channel != stated.drive.channel
+            assert axis.drive.node_id == stated.drive.node_id
+            assert (axis.fog.rate_hz, axis.counter.model) == (stated.fog.rate_hz,
+                                                              stated.counter.model)
+    finally:
+        simbench.stop()
