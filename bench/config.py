@@ -30,7 +30,12 @@ from bench.schema import (
     parse_date,
 )
 from bench.yamlfile import Problem, YamlDoc
-from drivers.axis import DEFAULT_HEARTBEAT_MS, DEFAULT_PDO, DEFAULT_UNIT_FACTORS
+from drivers.axis import (
+    DEFAULT_HEARTBEAT_MS,
+    DEFAULT_PDO,
+    DEFAULT_POSITION_TOLERANCE_DEG,
+    DEFAULT_UNIT_FACTORS,
+)
 from drivers.cia402 import DEFAULT_COUNTS_PER_REV
 from drivers.counter import DEFAULT_TIMEOUT_MARGIN_S
 from drivers.counter_profiles import get_profile
@@ -87,7 +92,8 @@ DRIVE = Map({
     "watchdog_ms": Key(Num(min=20, max=65_535, integer=True), False,
                        "drive stops the axis when the controller is silent this long"),
     "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg"), False,
-                                  "how close a position move must land (profile position)"),
+                                  "how close a position move must land (profile position)",
+                                  DEFAULT_POSITION_TOLERANCE_DEG),
     "eds": Key(Str(), False, "the drive's EDS file, for canopen's object dictionary"),
     "serial": Key(Str(), False, "the instrument's serial number: the key of its "
                                 "check values (bench control)"),
@@ -456,7 +462,7 @@ class DriveSpec:
     heartbeat_ms: int = _default(DRIVE, "heartbeat_ms")
     watchdog_ms: int | None = None
     bitrate: int | None = None
-    position_tolerance_deg: float | None = None
+    position_tolerance_deg: float = _default(DRIVE, "position_tolerance_deg")
     eds: str | None = None
     serial: str | None = None
     calibration: Calibration | None = None
@@ -668,7 +674,8 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
             counts_per_rev=int(d.get("counts_per_rev", _default(DRIVE, "counts_per_rev"))),
             heartbeat_ms=int(d.get("heartbeat_ms", _default(DRIVE, "heartbeat_ms"))),
             watchdog_ms=_opt(d, "watchdog_ms", int), bitrate=_opt(d, "bitrate", int),
-            position_tolerance_deg=_opt(d, "position_tolerance_deg", float),
+            position_tolerance_deg=float(d.get("position_tolerance_deg",
+                                               _default(DRIVE, "position_tolerance_deg"))),
             eds=_opt(d, "eds", str), serial=_opt(d, "serial", str),
             calibration=Calibration.of(d.get("calibration")),
             unit_factors=d.get("unit_factors", _default(DRIVE, "unit_factors")), pdo=str(d.get("pdo", _default(DRIVE, "pdo"))))

@@ -108,6 +108,8 @@ DEFAULT_HEARTBEAT_MS = 50
 DEFAULT_PDO = "verify"
 #: the drive's units: its factor group read at connect, unless the stand says what to set
 DEFAULT_UNIT_FACTORS = "read"
+#: how close a position move must land, deg, where the stand file does not say
+DEFAULT_POSITION_TOLERANCE_DEG = 0.01
 
 class AxisError(RuntimeError):
     """Something went wrong with an axis drive (names the axis and what)."""
@@ -202,7 +204,8 @@ class Axis:
                  eds_path: str | Path = DEFAULT_EDS_PATH, heartbeat_ms: int = DEFAULT_HEARTBEAT_MS,
                  watchdog_ms: int | None = None, controller_node_id: int = CONTROLLER_NODE_ID,
                  accel_dps2: float | None = None, bitrate: int | None = None,
-                 feedback_journal_s: float = 0.1, position_tolerance_deg: float = 0.01,
+                 feedback_journal_s: float = 0.1,
+                 position_tolerance_deg: float = DEFAULT_POSITION_TOLERANCE_DEG,
                  raw: RawSink | None = None, unit_factors: str | Mapping[str, str] = DEFAULT_UNIT_FACTORS,
                  pdo: str = DEFAULT_PDO) -> None:
         self.name = name

@@ -201,7 +201,7 @@ def test_the_stand_parses_into_frozen_settings_with_one_default_each() -> None:
     assert stand.identity.serial == "SIM-0001" and stand.sim is not None
     assert stand.sim.axis("outer").truth.fog.scale == 1.0003
     axis_defaults = inspect.signature(Axis).parameters
-    for key in ("heartbeat_ms", "counts_per_rev", "pdo", "unit_factors"):
+    for key in ("heartbeat_ms", "counts_per_rev", "pdo", "unit_factors", "position_tolerance_deg"):
         assert DRIVE.keys[key].default == axis_defaults[key].default, key
     assert COUNTER.keys["timeout_margin_s"].default is not None
     tie = COUNTER.keys["time_tie"].node.keys       # type: ignore[attr-defined]

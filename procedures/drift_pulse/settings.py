@@ -36,8 +36,6 @@ DEFAULT_POINTS = 1000
 TIMING_GAIN = 8.0
 #: real-bench seconds a cycle costs beyond its record: arming, transfer, SCPI checks
 CYCLE_OVERHEAD_S = 0.5
-#: how far the turn may land from its angle when the stand file does not say
-DEFAULT_POSITION_TOLERANCE_DEG = 0.01
 
 
 
@@ -411,9 +409,7 @@ class DriftSettings(PlatformSettings):
             latitude_deg=float(p["site"]["latitude_deg"]),
             turn_rate_dps=float(turn.get("rate_dps", drive.max_rate_dps)),
             turn_accel_dps2=float(turn.get("accel_dps2", drive.max_accel_dps2)),
-            position_tolerance_deg=(drive.position_tolerance_deg
-                                    if drive.position_tolerance_deg is not None
-                                    else DEFAULT_POSITION_TOLERANCE_DEG),
+            position_tolerance_deg=drive.position_tolerance_deg,
             cycles=int(setting(cfg, "cycles")), timing_cycles=int(setting(cfg, "timing_cycles")),
             positions_deg=tuple(float(x) for x in setting(cfg, "positions_deg")),
             gap_s=float(setting(cfg, "gap_s")), settle_s=float(setting(cfg, "settle_s")),
