@@ -624,27 +624,34 @@ class StandSettings:
 
 
 def _sim_axis(d: dict[str, Any]) -> SimAxis:
+    """A `sim.axes.<axis>` block; a key left out takes the truth's own default (each
+    default once: the dataclasses' fields)."""
     fog = dict(d.get("fog") or {})
-    mains = d.get("mains")
-    truth = AxisTruth(
-        rate_bias_rel=float(d.get("rate_bias_rel", 0.0)),
-        harmonics=tuple(Harmonic(**h) for h in d.get("harmonics", ())),
-        mains=Mains(**mains) if mains else None,
-        rate_noise_dps=float(d.get("rate_noise_dps", 0.0)),
-        turn_jitter_s=float(d.get("turn_jitter_s", 0.0)),
-        fog=FogTruth(**{k: float(fog[k]) for k in FogTruth.__dataclass_fields__ if k in fog}))
+    truth: dict[str, Any] = {k: float(d[k]) for k in ("rate_bias_rel", "rate_noise_dps",
+                                                      "turn_jitter_s") if k in d}
+    if d.get("harmonics"):
+        truth["harmonics"] = tuple(Harmonic(**h) for h in d["harmonics"])
+    if d.get("mains"):
+        truth["mains"] = Mains(**d["mains"])
+    truth["fog"] = FogTruth(**{k: float(fog[k]) for k in FogTruth.__dataclass_fields__
+                               if k in fog})
     step, ramp = fog.get("scale_step"), fog.get("scale_ramp")
     tie = d.get("time_tie") or {}
     serials = d.get("serials") or {}
+    extra: dict[str, Any] = {}
+    if "counter_external_reference" in d:
+        extra["counter_external_reference"] = bool(d["counter_external_reference"])
+    if "counter_first_value" in d:
+        extra["counter_first_value"] = str(d["counter_first_value"])
+    if "jitter_s" in tie:
+        extra["tie_jitter_s"] = float(tie["jitter_s"])
     return SimAxis(
-        truth, fog_units=_opt(fog, "units", str),
+        AxisTruth(**truth), fog_units=_opt(fog, "units", str),
         scale_step=(int(step["from_run"]), float(step["rel"])) if step else None,
         scale_ramp=(int(ramp["from_run"]), float(ramp["rel_per_run"])) if ramp else None,
-        counter_external_reference=bool(d.get("counter_external_reference", True)),
-        counter_first_value=str(d.get("counter_first_value", "from-start")),
-        tie_latency_s=_opt(tie, "latency_s", float), tie_jitter_s=float(tie.get("jitter_s", 0.0)),
+        tie_latency_s=_opt(tie, "latency_s", float),
         counter_serial=_opt(serials, "counter", str), drive_serial=_opt(serials, "drive", int),
-        drive_twin=dict(d.get("drive") or {}))
+        drive_twin=dict(d.get("drive") or {}), **extra)
 
 
 def dcc_refs(stand: Mapping[str, Any] | None) -> DccRefs:
@@ -701,8 +708,7 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
             seed=int(s.get("seed", _default(Map(SIM_KEYS), "seed"))),
             clock_speed=s.get("clock_speed"), run_number=_opt(s, "run_number", int),
             axes={n: _sim_axis(v or {}) for n, v in
-                                   (s.get("axes") or {}).items()},
-            can_bus=str(s.get("can_bus", "virtual")), session=int(s.get("session", 1)))
+                                   (s.get("axes") or {}).items()})
     trace = tuple(Traceable(str(t.get("item", "")), _opt(t, "serial", str),
                             Calibration.of(t) or Calibration("", "", None))
                   for t in stand.get("traceability") or [])
