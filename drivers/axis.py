@@ -47,6 +47,7 @@ from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
 from drivers.cia402 import (
     COB_HEARTBEAT,
     CONTROLLER_NODE_ID,
+    DEFAULT_COUNTS_PER_REV,
     DEFAULT_EDS_PATH,
     HEARTBEAT_LOST,
     NAMED_SI_UNITS,
@@ -99,6 +100,16 @@ SDO_TIMEOUT_S = 1.0
 #: |velocity actual| below which a drive in a mode without a speed-zero bit is at rest
 STANDSTILL_DPS = 1e-3
 
+
+#: the controller's heartbeat period, ms, where the stand file states none (the schema's
+#: default: bench/core/config.py DRIVE)
+DEFAULT_HEARTBEAT_MS = 50
+#: the TPDO settings: verified at connect, not written, unless the stand says `set`
+DEFAULT_PDO = "verify"
+#: the drive's units: its factor group read at connect, unless the stand says what to set
+DEFAULT_UNIT_FACTORS = "read"
+#: how close a position move must land, deg, where the stand file does not say
+DEFAULT_POSITION_TOLERANCE_DEG = 0.01
 
 class AxisError(RuntimeError):
     """Something went wrong with an axis drive (names the axis and what)."""
@@ -188,14 +199,15 @@ class Axis:
 
     def __init__(self, name: str, *, interface: str, channel: str, node_id: int,
                  max_rate_dps: float, max_accel_dps2: float, clock: Clock,
-                 counts_per_rev: int = 1 << 20, velocity_unit_counts_per_s: float = 1.0e-3,
+                 counts_per_rev: int = DEFAULT_COUNTS_PER_REV, velocity_unit_counts_per_s: float = 1.0e-3,
                  accel_unit_counts_per_s2: float = 1.0,
-                 eds_path: str | Path = DEFAULT_EDS_PATH, heartbeat_ms: int = 50,
+                 eds_path: str | Path = DEFAULT_EDS_PATH, heartbeat_ms: int = DEFAULT_HEARTBEAT_MS,
                  watchdog_ms: int | None = None, controller_node_id: int = CONTROLLER_NODE_ID,
                  accel_dps2: float | None = None, bitrate: int | None = None,
-                 feedback_journal_s: float = 0.1, position_tolerance_deg: float = 0.01,
-                 raw: RawSink | None = None, unit_factors: str | Mapping[str, str] = "read",
-                 pdo: str = "verify") -> None:
+                 feedback_journal_s: float = 0.1,
+                 position_tolerance_deg: float = DEFAULT_POSITION_TOLERANCE_DEG,
+                 raw: RawSink | None = None, unit_factors: str | Mapping[str, str] = DEFAULT_UNIT_FACTORS,
+                 pdo: str = DEFAULT_PDO) -> None:
         self.name = name
         self.interface = interface
         self.channel = channel

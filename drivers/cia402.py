@@ -23,6 +23,8 @@ from drivers.profiles import EDS_NAME, profile_path
 
 #: this project's EDS: a CiA 402 servo drive with profile velocity mode
 DEFAULT_EDS_PATH = profile_path(EDS_NAME)
+#: encoder increments per revolution where the stand file states none (a 20-bit encoder)
+DEFAULT_COUNTS_PER_REV = 1 << 20
 
 #: CiA 301 0x1000: profile 402 (low word), servo drive (0x0002 in the high word)
 DEVICE_TYPE_SERVO_402 = 0x0002_0192
@@ -456,7 +458,7 @@ class DriveUnits:
     rounded value it sent.
     """
 
-    counts_per_rev: int = 1 << 20
+    counts_per_rev: int = DEFAULT_COUNTS_PER_REV
     velocity_unit_counts_per_s: float = 1.0e-3
     accel_unit_counts_per_s2: float = 1.0
 

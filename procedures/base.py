@@ -6,6 +6,7 @@ The plug-in interface itself (what the engine asks of a kind) is
 
 from __future__ import annotations
 
+import dataclasses
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -68,6 +69,7 @@ def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]],
                raw_hashes: RawHashes | None = None) -> dict[str, Any]:
     """What every procedure kind's result.json says about the run (certificate header)."""
     meta = run.meta
+    stand = cfg.stand_settings
     identities: dict[str, dict[str, str]] = {}
     for e in events_of(events, "identity"):
         identities[e["axis"]] = {k: v for k, v in e.items()
@@ -76,19 +78,21 @@ def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]],
     ends = events_of(events, "completed") + events_of(events, "abort")
     raw_files = (raw_hashes or RawHashes(run)).result()
     return {
-        "title": cfg.procedure.get("title", cfg.procedure_path.stem),
+        "title": cfg.common.title,
         "run_dir": run.path.name,
         "procedure_file": {"name": meta["procedure_name"], "sha256": meta["procedure_sha256"]},
-        "stand": {**cfg.stand["stand"], "file": Path(meta["stand_file"]).name,
-                  "sha256": meta["stand_sha256"], "simulated": "sim" in cfg.stand},
+        "stand": {**{k: v for k, v in dataclasses.asdict(stand.identity).items()
+                     if v is not None},
+                  "file": Path(meta["stand_file"]).name,
+                  "sha256": meta["stand_sha256"], "simulated": stand.simulated},
         "instruments": identities,
         "dates": {"created_utc": meta["created_utc"],
                   "started_utc": starts[0]["utc"] if starts else None,
                   "completed_utc": ends[-1]["utc"] if ends else None},
-        "conditions": cfg.procedure.get("conditions", {}),
-        "specification": cfg.procedure.get("specification"),
-        "certificate": certificate_settings(cfg.procedure_path,
-                                            cfg.procedure.get("certificate", {})),
+        "conditions": dict(cfg.common.conditions),
+        "specification": (dict(cfg.common.specification)
+                          if cfg.common.specification is not None else None),
+        "certificate": certificate_settings(cfg.procedure_path, dict(cfg.common.certificate)),
         "sessions": len(starts),
         "aborted": bool(events_of(events, "abort")),
         "raw_files": raw_files,

@@ -21,7 +21,14 @@ from typing import Any
 
 from lxml import etree
 
-from bench.core.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config
+from bench.report.certificate.model import Para, Section, Table
+from bench.report.certificate.parts import CertificateParts, Sources, num
+from bench.core.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config, StandSettings
+from bench.report.dcc import units as U
+from bench.report.dcc import vocab as V
+from bench.report.dcc.conformity import Checks, judge
+from bench.report.dcc.parts import DccParts
+from bench.report.dcc.xml import el, name, quantity
 from bench.core.engine import RunContext
 from bench.core.instruments import Bench
 from bench.core.journal import RunDir
@@ -29,13 +36,6 @@ from bench.core.plan import Plan, Step
 from bench.core.schema import Key, Map, Num
 from bench.core.simbench import SimBench
 from bench.core.yamlfile import Problem
-from bench.report.certificate.model import Para, Section, Table
-from bench.report.certificate.parts import CertificateParts, Sources, num
-from bench.report.dcc import units as U
-from bench.report.dcc import vocab as V
-from bench.report.dcc.conformity import Checks, judge
-from bench.report.dcc.parts import DccParts
-from bench.report.dcc.xml import el, name, quantity
 from bench.report.figures import DeclaredFigures, FigureSpec, Trend
 from drivers.clock import Clock
 from procedures.base import StepDispatch, result_document
@@ -85,12 +85,16 @@ class Dwell(StepDispatch, DeclaredFigures, CertificateParts):
                     (Step("dwell", None, f"wait {dwell:g} s", dwell, "dwell",
                           {"duration_s": dwell}),))
 
-    def start_sim(self, cfg: Config) -> tuple[SimBench, dict[str, Any]]:
+    def parse(self, cfg: Config) -> float:
+        """The dwell's one setting (bench/core/registry.py ProcedureKind.parse)."""
+        return float(cfg.procedure["dwell_s"])
+
+    def start_sim(self, cfg: Config) -> tuple[SimBench, StandSettings]:
         """The simulated bench with no twin: its clock alone."""
-        sim = SimBench(cfg.stand, axes=[])
+        sim = SimBench(cfg.stand_settings, axes=[])
         return sim, sim.start()
 
-    def open_bench(self, cfg: Config, stand: dict[str, Any], clock: Clock,
+    def open_bench(self, cfg: Config, stand: StandSettings, clock: Clock,
                    run: RunDir | None) -> Bench:
         return Bench()
 

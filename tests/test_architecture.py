@@ -193,3 +193,351 @@ def test_no_module_under_bench_names_a_procedure_kind() -> None:
         found += [f"{rel}:{line}: {text[:70]!r}"
                   for line, text in kind_names_in(path.read_text(encoding="utf-8"), str(rel))]
     assert found == [], "\n".join(found)
+
+
+# -- raw settings mappings (issue 25) ---------------------------------------------------
+#
+# The procedure and stand files are validated, then parsed once into frozen objects
+# (bench/core/config.py's StandSettings, each kind's `parse`). Below the loader nothing reads
+# the raw mappings by key: a key read there is a default written twice or a key the
+# schema never validated. This walks the source and follows the raw mappings: from
+# where they enter (a Config's `stand`/`procedure`, `Config.stand_axis`, the YAML
+# documents' `.data`, SimBench's stand copy) through every name, attribute, argument and
+# return value they are bound to, and reports each key access on one (`m[k]`, `m.get`,
+# `k in m`, `m.pop`/`setdefault`/`update`) outside the files that parse them.
+
+#: the files that turn the raw mappings into settings (the loader, the schema and the
+#: kinds' own settings parsers)
+PARSERS = ("bench/core/config.py", "bench/core/schema.py", "bench/core/loader.py", "bench/core/yamlfile.py")
+PARSER_GLOB = "procedures/*/settings.py"
+RAW_ATTRS = {"stand", "procedure"}            # Config's raw mappings...
+RAW_OWNERS = ("cfg", "config")                # ...on a name ending thus (cfg, self.cfg)
+RAW_CALLS = {"stand_axis"}                    # methods returning a raw stand mapping
+KEY_METHODS = {"get", "pop", "setdefault", "update", "__getitem__", "__contains__"}
+PASS_METHODS = {"get", "copy", "pop", "setdefault"}      # a part of a raw mapping is raw
+ITER_METHODS = {"items", "values"}
+COPIES = {"deepcopy", "copy", "dict", "MappingProxyType"}
+#: list, set and dict methods: a call of one is never taken for our class's namesake
+CONTAINER_METHODS = {"append", "extend", "add", "insert", "update", "remove", "discard",
+                     "clear", "keys", "items", "values", "index", "count", "sort"}
+
+
+def _mapping_keys() -> frozenset[str]:
+    """The keys whose values are mappings or lists in some stand or procedure file (from
+    the schemas): `stand["axes"]` is a raw mapping, `drive["node_id"]` a number."""
+    from bench.core.loader import any_stand_schema
+    from bench.core.registry import procedure_kind, procedure_names
+    from bench.core.schema import Any_, Check, ListOf, Map, MapOf, Node, OneOf
+
+    out: set[str] = set()
+
+    def nested(node: Node) -> bool:
+        if isinstance(node, Check):
+            return nested(node.inner)
+        if isinstance(node, OneOf):
+            return any(nested(o) for o in node.options)
+        return isinstance(node, Map | MapOf | ListOf | Any_)
+
+    def walk(node: Node) -> None:
+        if isinstance(node, Check):
+            walk(node.inner)
+        elif isinstance(node, OneOf):
+            for o in node.options:
+                walk(o)
+        elif isinstance(node, MapOf | ListOf):
+            walk(node.value if isinstance(node, MapOf) else node.item)
+        elif isinstance(node, Map):
+            for k, key in node.keys.items():
+                if nested(key.node):
+                    out.add(k)
+                walk(key.node)
+
+    walk(any_stand_schema())
+    for name in procedure_names():
+        walk(procedure_kind(name).procedure_schema())
+    return frozenset(out)
+
+
+MAPPING_KEYS = _mapping_keys()
+
+
+def _holds_mapping(key: ast.AST) -> bool:
+    """A subscript of a raw mapping by `key` is raw too unless the key names a scalar."""
+    if isinstance(key, ast.Constant):
+        return not isinstance(key.value, str) or key.value in MAPPING_KEYS
+    return not isinstance(key, ast.Slice)
+
+
+def _name_of(node: ast.AST) -> str:
+    if isinstance(node, ast.Name):
+        return node.id
+    if isinstance(node, ast.Attribute):
+        return node.attr
+    return ""
+
+
+def _functions(tree: ast.AST) -> list[ast.FunctionDef | ast.AsyncFunctionDef]:
+    return [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef)]
+
+
+class _RawFlow:
+    """Where the raw mappings go, found by iterating to a fixed point over every function:
+    its tainted locals, the parameters callers pass raw mappings to, the functions that
+    return one and the attributes one is stored in."""
+
+    def __init__(self, modules: dict[str, ast.Module]) -> None:
+        self.modules = modules
+        self.params: set[tuple[int, str]] = set()     # (function's id, parameter name)
+        self.returns: set[int] = set()                # functions returning a raw mapping
+        self.cls: str | None = None                   # the class of the function walked
+        self.attrs: set[str] = set()                  # attributes holding one (self.x = raw)
+        # callees by name: module functions, each class's methods (its __init__ under
+        # the class's name), and methods by name where only one class defines that name
+        self.functions: dict[str, list[ast.FunctionDef | ast.AsyncFunctionDef]] = {}
+        self.methods: dict[tuple[str, str], list[ast.FunctionDef | ast.AsyncFunctionDef]] = {}
+        by_name: dict[str, list[ast.FunctionDef | ast.AsyncFunctionDef]] = {}
+        self.owner: dict[int, str] = {}
+        self.module_of: dict[int, int] = {}    # function -> its module
+        self.module: int | None = None          # the module of the function walked
+        for tree in modules.values():
+            for node in ast.walk(tree):
+                if isinstance(node, ast.ClassDef):
+                    for f in node.body:
+                        if isinstance(f, ast.FunctionDef | ast.AsyncFunctionDef):
+                            self.methods.setdefault((node.name, f.name), []).append(f)
+                            by_name.setdefault(f.name, []).append(f)
+                            self.owner[id(f)] = node.name
+                            if f.name == "__init__":
+                                self.functions.setdefault(node.name, []).append(f)
+            for f in tree.body:
+                if isinstance(f, ast.FunctionDef | ast.AsyncFunctionDef):
+                    self.functions.setdefault(f.name, []).append(f)
+            for f in _functions(tree):
+                self.module_of[id(f)] = id(tree)
+        # a method called on an object of unknown class: the one class defining it, or
+        # every procedure kind for the plug-in interface's methods (bench/core/registry.py)
+        protocol = {f.name for c, f in self._class_methods("bench/core/registry.py")
+                    if c == "ProcedureKind"}
+        self.by_name = {k: v for k, v in by_name.items()
+                        if (len(v) == 1 and k not in CONTAINER_METHODS) or k in protocol}
+        self.classes = {c for c, _ in self.methods}
+        self.types: dict[str, str] = {}   # locals made by a class's constructor
+
+    def _class_methods(self, path: str) -> list[tuple[str, ast.FunctionDef
+                                                      | ast.AsyncFunctionDef]]:
+        tree = self.modules.get(path)
+        return [(c.name, f) for c in (tree.body if tree else []) if isinstance(c, ast.ClassDef)
+                for f in c.body if isinstance(f, ast.FunctionDef | ast.AsyncFunctionDef)]
+
+    def callees(self, call: ast.Call, cls: str | None) -> list[ast.FunctionDef
+                                                              | ast.AsyncFunctionDef]:
+        f = call.func
+        if isinstance(f, ast.Name):   # this module's own function of that name, if any
+            found = self.functions.get(f.id, [])
+            own = [fn for fn in found if self.module_of.get(id(fn)) == self.module]
+            return own or found
+        if not isinstance(f, ast.Attribute):
+            return []
+        base = _name_of(f.value)
+        if base in ("self", "cls") and cls is not None:
+            return self.methods.get((cls, f.attr), [])
+        base = self.types.get(base, base)
+        if base in self.classes:
+            return self.methods.get((base, f.attr), [])
+        return [*self.functions.get(f.attr, []), *self.by_name.get(f.attr, [])]
+
+    def raw(self, node: ast.AST | None, local: set[str]) -> bool:
+        if node is None:
+            return False
+        if isinstance(node, ast.Name):
+            return node.id in local
+        if isinstance(node, ast.Attribute):
+            if node.attr in RAW_ATTRS and _name_of(node.value).lower().endswith(RAW_OWNERS):
+                return True
+            if node.attr == "data" and _name_of(node.value).endswith(("stand_doc",
+                                                                       "procedure_doc")):
+                return True
+            return node.attr in self.attrs
+        if isinstance(node, ast.Subscript):
+            return self.raw(node.value, local) and _holds_mapping(node.slice)
+        if isinstance(node, ast.BoolOp):
+            return any(self.raw(v, local) for v in node.values)
+        if isinstance(node, ast.IfExp):
+            return self.raw(node.body, local) or self.raw(node.orelse, local)
+        if isinstance(node, ast.NamedExpr):
+            return self.raw(node.value, local)
+        if isinstance(node, ast.Tuple | ast.List):
+            return any(self.raw(e, local) for e in node.elts)
+        if isinstance(node, ast.Dict):
+            return any(k is None and self.raw(v, local) for k, v in zip(node.keys, node.values,
+                                                                          strict=True))
+        if isinstance(node, ast.Call):
+            f = node.func
+            if isinstance(f, ast.Attribute) and f.attr in PASS_METHODS \
+                    and self.raw(f.value, local) and (f.attr == "copy" or not node.args
+                                                      or _holds_mapping(node.args[0])):
+                return True
+            if _name_of(f) in RAW_CALLS:
+                return True
+            if _name_of(f) in COPIES and node.args and self.raw(node.args[0], local):
+                return True
+            return any(id(fn) in self.returns for fn in self.callees(node, self.cls))
+        return False
+
+    def _bind(self, target: ast.AST, local: set[str]) -> bool:
+        """Mark what `target` names as raw; True when something new was marked."""
+        if isinstance(target, ast.Name) and target.id not in local:
+            local.add(target.id)
+            return True
+        if isinstance(target, ast.Attribute) and target.attr not in self.attrs \
+                and target.attr not in RAW_ATTRS:
+            self.attrs.add(target.attr)
+            return True
+        if isinstance(target, ast.Tuple | ast.List):
+            return any([self._bind(e, local) for e in target.elts])
+        if isinstance(target, ast.Starred):
+            return self._bind(target.value, local)
+        return False
+
+    def _iterated_raw(self, it: ast.AST, local: set[str]) -> bool:
+        """`for v in raw.values()` / `for k, v in raw.items()`: v is raw (a list in a raw
+        mapping iterates into raw items too)."""
+        if isinstance(it, ast.Call) and isinstance(it.func, ast.Attribute) \
+                and it.func.attr in ITER_METHODS:
+            return self.raw(it.func.value, local)
+        if isinstance(it, ast.Call) and _name_of(it.func) == "enumerate" and it.args:
+            return self.raw(it.args[0], local)
+        return self.raw(it, local) and not isinstance(it, ast.Name | ast.Attribute)
+
+    def local_raw(self, fn: ast.FunctionDef | ast.AsyncFunctionDef) -> tuple[set[str], bool]:
+        """The names in `fn` bound to raw mappings; and whether anything global changed."""
+        args = [*fn.args.posonlyargs, *fn.args.args, *fn.args.kwonlyargs]
+        self.cls = self.owner.get(id(fn))
+        self.module = self.module_of.get(id(fn))
+        self.types = {t.id: n.value.func.id for n in ast.walk(fn) if isinstance(n, ast.Assign)
+                      and isinstance(n.value, ast.Call) and isinstance(n.value.func, ast.Name)
+                      and n.value.func.id in self.classes
+                      for t in n.targets if isinstance(t, ast.Name)}
+        local = {a.arg for a in args if (id(fn), a.arg) in self.params}
+        attrs_before = len(self.attrs)
+        changed = True
+        while changed:
+            changed = False
+            for node in ast.walk(fn):
+                if isinstance(node, ast.Assign) and self.raw(node.value, local):
+                    for t in node.targets:
+                        changed |= self._bind(t, local)
+                elif isinstance(node, ast.AnnAssign | ast.AugAssign | ast.NamedExpr) \
+                        and self.raw(node.value, local):
+                    changed |= self._bind(node.target, local)
+                elif isinstance(node, ast.For | ast.comprehension) \
+                        and self._iterated_raw(node.iter, local):
+                    t = node.target
+                    # items(): the key is a name, the value raw
+                    if isinstance(t, ast.Tuple) and isinstance(node.iter, ast.Call) \
+                            and _name_of(node.iter.func) in ("items", "enumerate") \
+                            and len(t.elts) == 2:
+                        t = t.elts[1]
+                    changed |= self._bind(t, local)
+                elif isinstance(node, ast.With):
+                    for item in node.items:
+                        if item.optional_vars is not None and self.raw(item.context_expr,
+                                                                       local):
+                            changed |= self._bind(item.optional_vars, local)
+        changed_global = len(self.attrs) != attrs_before
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Return) and self.raw(node.value, local) \
+                    and id(fn) not in self.returns:
+                self.returns.add(id(fn))
+                changed_global = True
+            if isinstance(node, ast.Call):
+                changed_global |= self._pass(node, local)
+        return local, changed_global
+
+    def _pass(self, call: ast.Call, local: set[str]) -> bool:
+        """A raw mapping passed as an argument makes the callee's parameter raw."""
+        if _name_of(call.func) in KEY_METHODS | PASS_METHODS | COPIES:
+            return False
+        changed = False
+        for fn in self.callees(call, self.cls):
+            params = [a.arg for a in [*fn.args.posonlyargs, *fn.args.args]]
+            if params and params[0] in ("self", "cls"):
+                params = params[1:]
+            for i, arg in enumerate(call.args):
+                if i < len(params) and self.raw(arg, local) \
+                        and (id(fn), params[i]) not in self.params:
+                    self.params.add((id(fn), params[i]))
+                    changed = True
+            for kw in call.keywords:
+                if kw.arg and self.raw(kw.value, local) and (id(fn), kw.arg) not in self.params:
+                    self.params.add((id(fn), kw.arg))
+                    changed = True
+        return changed
+
+    def solve(self) -> None:
+        changed = True
+        while changed:
+            changed = False
+            for tree in self.modules.values():
+                for fn in _functions(tree):
+                    changed |= self.local_raw(fn)[1]
+
+    def accesses(self, path: str, root: Path = ROOT) -> list[str]:
+        """Each key access on a raw mapping in module `path`: 'path:line: source'."""
+        out: set[tuple[int, str]] = set()
+        tree = self.modules[path]
+        src = (root / path).read_text().splitlines()
+        for fn in _functions(tree):
+            local = self.local_raw(fn)[0]
+            for node in ast.walk(fn):
+                hit = (isinstance(node, ast.Subscript) and self.raw(node.value, local)) or (
+                    isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                    and node.func.attr in KEY_METHODS and self.raw(node.func.value, local)) or (
+                    isinstance(node, ast.Compare) and any(
+                        isinstance(op, ast.In | ast.NotIn) and self.raw(c, local)
+                        for op, c in zip(node.ops, node.comparators, strict=True)))
+                if hit:
+                    line = getattr(node, "lineno", 0)
+                    out.add((line, f"{path}:{line}: {src[line - 1].strip()}"))
+        return [text for _, text in sorted(out)]
+
+
+def _parsers() -> set[str]:
+    return {*PARSERS, *(str(p.relative_to(ROOT)) for p in ROOT.glob(PARSER_GLOB))}
+
+
+def raw_mapping_accesses(root: Path = ROOT) -> list[str]:
+    """Every key access on a raw stand or procedure mapping outside the parsers."""
+    modules = {str(p.relative_to(root)): ast.parse(p.read_text(), str(p))
+               for pkg in PACKAGES for p in sorted((root / pkg).rglob("*.py"))}
+    flow = _RawFlow(modules)
+    flow.solve()
+    skip = _parsers()
+    return [hit for path in modules if path not in skip for hit in flow.accesses(path, root)]
+
+
+def test_nothing_below_the_loader_reads_a_raw_stand_or_procedure_mapping() -> None:
+    found = raw_mapping_accesses()
+    assert found == [], f"{len(found)} key accesses on raw mappings:\n" + "\n".join(found)
+
+
+def test_the_raw_mapping_walk_sees_an_access(tmp_path: Path) -> None:
+    """The walk above finds accesses through a name, a call's parameter and a return."""
+    for pkg in PACKAGES:
+        (tmp_path / pkg).mkdir()
+    (tmp_path / "bench" / "x.py").write_text(
+        "def outer(cfg):\n"
+        "    s = cfg.stand\n"
+        "    inner(s['axes'])\n"
+        "    return fogs(cfg)\n"
+        "def inner(axes):\n"
+        "    for name, spec in axes.items():\n"
+        "        print(spec.get('drive'))\n"
+        "def fogs(cfg):\n"
+        "    return cfg.stand_axis('outer')\n"
+        "def user(cfg):\n"
+        "    f = fogs(cfg)\n"
+        "    ok = cfg.stand_settings.axes['outer']\n"
+        "    return 'fog' in f, ok.fog\n")
+    found = raw_mapping_accesses(tmp_path)
+    assert [h.split(":")[1] for h in found] == ["3", "7", "13"], found

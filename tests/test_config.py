@@ -158,3 +158,81 @@ def test_every_shipped_stand_file_fits_a_procedure_kind() -> None:
         doc = load_yaml(stand)
         fits = [validate(doc, procedure_kind(n).stand_schema()) for n in procedure_names()]
         assert any(not problems for problems in fits), (stand, fits)
+
+
+def test_a_fog_declared_inverted_is_refused(files: tuple[Path, Path],
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """`fog.sign: -1` was validated and never read: the analysis took an inverted FOG as
+    upright, every k and w0 of the wrong sign. Until the sign is carried end to end it is
+    refused by `bench validate`, at its line; +1 (upright, the default) is valid."""
+    proc, stand = files
+    line = _replace(stand, "units: deg/s, configure: set}   # from",
+                    "units: deg/s, configure: set, sign: -1}   # from")
+    rc, err = _validate(proc, capsys)
+    assert rc == 2
+    assert f"{stand}:{line}: axes.outer.fog.sign: only +1 is supported" in err, err
+    assert "inverted FOG would give figures of the wrong sign" in err
+    _replace(stand, "sign: -1}", "sign: 1}")
+    assert _validate(proc, capsys)[0] == 0
+
+
+def test_the_stand_parses_into_frozen_settings_with_one_default_each() -> None:
+    """What the loader returns below the raw files: frozen settings whose defaults are
+    the schema keys' (the reference prints them), which are the drivers' own."""
+    import dataclasses
+    import inspect
+
+    from bench.core.config import COUNTER, DRIVE, FOG
+    from bench.core.loader import load_config
+    from drivers.axis import Axis
+    from drivers.time_tie import TimeTie
+    from procedures.rate_ladder.settings import LadderSettings
+
+    cfg = load_config(CONFIGS / "procedures" / "demo.yaml")
+    stand = cfg.stand_settings
+    assert isinstance(cfg.settings, LadderSettings)           # the kind's `parse`, once
+    outer = stand.axes["outer"]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        outer.drive.node_id = 9  # type: ignore[misc]
+    assert (outer.drive.node_id, outer.drive.controller_node_id) == (2, 127)
+    assert outer.counter is not None and outer.counter.time_tie is not None
+    assert outer.counter.time_tie.source == "fog-sync"
+    assert outer.fog is not None and outer.fog.sign == 1
+    assert stand.identity.serial == "SIM-0001" and stand.sim is not None
+    assert stand.sim.axis("outer").truth.fog.scale == 1.0003
+    axis_defaults = inspect.signature(Axis).parameters
+    for key in ("heartbeat_ms", "counts_per_rev", "pdo", "unit_factors", "position_tolerance_deg"):
+        assert DRIVE.keys[key].default == axis_defaults[key].default, key
+    assert COUNTER.keys["timeout_margin_s"].default is not None
+    tie = COUNTER.keys["time_tie"].node.keys       # type: ignore[attr-defined]
+    assert tie["sync_period_s"].default == TimeTie.sync_period_s
+    assert FOG.keys["sign"].default == 1
+
+
+@pytest.mark.timeout(120)
+def test_the_twins_point_a_copy_of_the_parsed_stand_at_themselves() -> None:
+    """One stand in flight: the twins' addresses go into a new StandSettings; the run's
+    Config (its parsed stand and the stand file's mapping, copied into the run
+    directory) stays as written."""
+    import copy
+
+    from bench.core.loader import load_config
+    from bench.core.registry import procedure_kind
+
+    cfg = load_config(CONFIGS / "procedures" / "demo.yaml")
+    written, parsed = copy.deepcopy(cfg.stand), cfg.stand_settings
+    simbench, served = procedure_kind(cfg.kind).start_sim(cfg)
+    try:
+        assert cfg.stand == written and cfg.stand_settings is parsed
+        for name, axis in served.axes.items():
+            stated = parsed.axes[name]
+            assert axis.fog is not None and stated.fog is not None
+            assert axis.fog.port != stated.fog.port and axis.fog.port.startswith("/dev/")
+            assert axis.counter is not None and stated.counter is not None
+            assert "127.0.0.1" in axis.counter.resource
+            assert axis.drive.channel != stated.drive.channel
+            assert axis.drive.node_id == stated.drive.node_id
+            assert (axis.fog.rate_hz, axis.counter.model) == (stated.fog.rate_hz,
+                                                              stated.counter.model)
+    finally:
+        simbench.stop()

@@ -23,6 +23,7 @@ from typing import Any
 import pytest
 import yaml
 
+from bench.core.config import parse_stand
 from bench.app.records.assurance import assurance_refusals, warn_at_start
 from bench.app.records.checks import CheckRecord
 from bench.app.records.control import (
@@ -132,7 +133,7 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     assert f"fog {FOG} (KVH DSP-1760): OUT OF CONTROL, WE1" in _html_text(shifted)
     stand = yaml.safe_load((shifted / "stand.yaml").read_text())
     warned: list[str] = []
-    assert warn_at_start(stand, target(runs), warned.append) == warned
+    assert warn_at_start(parse_stand(stand), target(runs), warned.append) == warned
     assert any(FOG in w and "OUT OF CONTROL" in w and "WE1" in w for w in warned), warned
     refusals = assurance_refusals(shifted)
     assert len(refusals) == 1 and FOG in refusals[0] and "WE1" in refusals[0], refusals
@@ -224,15 +225,19 @@ def test_status_counts_reviews_and_history() -> None:
 
 
 def test_the_drift_keys_change_only_the_runs_they_name() -> None:
-    stand = {"sim": {"axes": {"outer": {"fog": {
-        "scale": 1.0003, "scale_step": {"from_run": 9, "rel": 2e-5},
-        "scale_ramp": {"from_run": 3, "rel_per_run": 1e-7}}}}}}
-    assert drifted(stand, 1)[0]["sim"]["axes"]["outer"]["fog"] == {"scale": 1.0003}
-    assert drifted(stand, 4)[0]["sim"]["axes"]["outer"]["fog"]["scale"] == \
-        pytest.approx(1.0003 * (1 + 2e-7))
-    assert drifted(stand, 9)[0]["sim"]["axes"]["outer"]["fog"]["scale"] == \
-        pytest.approx(1.0003 * (1 + 2e-5 + 7e-7))
-    assert "scale_step" in stand["sim"]["axes"]["outer"]["fog"]     # input untouched
+    stand = parse_stand({"stand": {"maker": "M", "model": "T", "serial": "S"},
+                         "axes": {}, "sim": {"axes": {"outer": {"fog": {
+                             "scale": 1.0003, "scale_step": {"from_run": 9, "rel": 2e-5},
+                             "scale_ramp": {"from_run": 3, "rel_per_run": 1e-7}}}}}})
+    assert stand.sim is not None
+
+    def scale(run: int) -> float:
+        return drifted(stand.sim, run)[0].axis("outer").truth.fog.scale  # type: ignore[arg-type]
+
+    assert scale(1) == 1.0003
+    assert scale(4) == pytest.approx(1.0003 * (1 + 2e-7))
+    assert scale(9) == pytest.approx(1.0003 * (1 + 2e-5 + 7e-7))
+    assert stand.sim.axis("outer").scale_step == (9, 2e-5)      # input untouched
 
 
 @pytest.mark.timeout(300)

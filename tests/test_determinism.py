@@ -119,12 +119,14 @@ def test_a_resumed_session_draws_its_own_noise_from_the_seed() -> None:
     """Each session's clock starts at stand time 0: with the stand's seed a --resume would
     replay session 1's noise sample for sample. Session 1 keeps the stand's seed; a later
     one gets a seed derived from (seed, session), the same on every machine."""
-    from bench.core.simbench import SESSION_KEY, session_seed
+    from bench.core.config import SimSettings
+    from bench.core.simbench import session_seed
 
-    assert session_seed({"seed": 7}) == 7 == session_seed({"seed": 7, SESSION_KEY: 1})
-    s2, s3 = session_seed({"seed": 7, SESSION_KEY: 2}), session_seed({"seed": 7, SESSION_KEY: 3})
+    assert session_seed(SimSettings(seed=7)) == 7 == session_seed(SimSettings(seed=7, session=1))
+    s2 = session_seed(SimSettings(seed=7, session=2))
+    s3 = session_seed(SimSettings(seed=7, session=3))
     assert len({7, s2, s3}) == 3
-    assert s2 == session_seed({"seed": 7, SESSION_KEY: 2})     # deterministic
+    assert s2 == session_seed(SimSettings(seed=7, session=2))     # deterministic
 
 
 def _example(out: Path, name: str) -> Path:

@@ -30,13 +30,14 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 
 from bench.app.cli import main
+from bench.core.config import parse_stand
+from bench.core.journal import sha256_file
 from bench.app.records import Records, record_of
 from bench.app.records.extract import figures_of
 from bench.app.records.hooks import target, warn_if_overdue
 from bench.app.records.schema import metadata
 from bench.app.records.store import TrendPoint
 from bench.app.records.trend import trend_png
-from bench.core.journal import sha256_file
 from sims.stand import AxisTruth
 from tests.conftest import CONFIGS, ROOT, unavailable
 from tests.conftest import OUTER_SERIALS as OUTER
@@ -382,15 +383,15 @@ def test_due_dates_and_the_overdue_warning_at_a_run_start(
     stand = yaml.safe_load((old / "stand.yaml").read_text())
     said: list[str] = []
     where = target(tmp_path, db.url)
-    assert warn_if_overdue(stand, where, said.append) is not None
+    assert warn_if_overdue(parse_stand(stand).identity, where, said.append) is not None
     assert "overdue" in said[0] and SERIAL in said[0]
     # a lab settings file overrides the stand's interval
     (tmp_path / "lab.yaml").write_text(yaml.safe_dump(
         {"records": db.url, "recertification": {"tables": {SERIAL: 10000}}}))
-    assert warn_if_overdue(stand, target(tmp_path), said.append) is None
+    assert warn_if_overdue(parse_stand(stand).identity, target(tmp_path), said.append) is None
     (tmp_path / "lab.yaml").write_text("recertification: {tables: {X: -1}}\n")
     bad = cli("due", "--runs", str(tmp_path))
-    assert bad.returncode == 2 and "lab.yaml: recertification.tables.X" in bad.stderr
+    assert bad.returncode == 2 and "lab.yaml:1: recertification.tables.X" in bad.stderr
 
 
 @pytest.fixture

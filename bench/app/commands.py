@@ -79,7 +79,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     plan = procedure_kind(cfg.kind).build_plan(cfg)
     print("\n".join(plan.lines()))
-    print("\n".join(data_volume_lines(cfg.stand, plan_axes(cfg, plan), plan.total_s,
+    print("\n".join(data_volume_lines(cfg.stand_settings, plan_axes(cfg, plan), plan.total_s,
                                       Path(args.out))))
     return EXIT_PASS
 
@@ -116,8 +116,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             err(f"Not started: {short}")
             return EXIT_INVALID
         run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path,
-                            lab_path(cfg.procedure_path, cfg.procedure.get("certificate")))
-        mark_run(run.path, cfg.procedure, args.calibration_state, args.adjustment,
+                            lab_path(cfg.procedure_path, dict(cfg.common.certificate)))
+        mark_run(run.path, cfg.common, args.calibration_state, args.adjustment,
                  args.operator)
     console = open_console(quiet=args.quiet, log_json=args.log_json)
     status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),

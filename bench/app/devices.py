@@ -42,9 +42,8 @@ def list_devices(stand_path: str, sim: bool = False) -> int:
     if cfg is None:
         return 2
     kind = procedure_kind(cfg.kind)
-    doc = cfg.stand_doc
     simbench = None
-    stand: dict[str, Any] = doc.data
+    stand = cfg.stand_settings
     clock: Any = MonotonicClock()
     bench = None
     try:

@@ -58,12 +58,12 @@ def err(text: str) -> None:
 
 def plan_axes(cfg: Config, plan: Plan) -> list[str]:
     """The stand axes the plan's steps use (their instruments record while it runs)."""
-    return sorted({st.axis for st in plan.steps if st.axis and st.axis in cfg.stand["axes"]})
+    return sorted({st.axis for st in plan.steps if st.axis and st.axis in cfg.stand_settings.axes})
 
 
 def room_for(cfg: Config, plan: Plan, folder: Path) -> str | None:
     """Why the runs folder cannot hold the plan's raw data, or None."""
-    return space_problem(folder, expected_raw_bytes(cfg.stand, plan_axes(cfg, plan),
+    return space_problem(folder, expected_raw_bytes(cfg.stand_settings, plan_axes(cfg, plan),
                                                     plan.total_s))
 
 
@@ -90,7 +90,7 @@ def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
         progress.warn(f"the certificate could not be written: {e!r}; result.json is in "
                       f"{run.path}; once fixed, `bench analyze {run.path}` writes it")
         return result, None
-    if not write_run_dcc(run.path, result, cfg.stand, progress.line, warn=progress.warn):
+    if not write_run_dcc(run.path, result, cfg.stand_settings.dcc, progress.line, warn=progress.warn):
         return result, None
     return result, doc
 
@@ -130,8 +130,8 @@ class RunSession:
 
     # -- the session, start to end -------------------------------------------------
     def run(self) -> int:
-        table_overdue = warn_if_overdue(self.cfg.stand, self.where, self.progress.warn)
-        out_of_control = warn_at_start(self.cfg.stand, self.where, self.progress.warn)
+        table_overdue = warn_if_overdue(self.cfg.stand_settings.identity, self.where, self.progress.warn)
+        out_of_control = warn_at_start(self.cfg.stand_settings, self.where, self.progress.warn)
         plan = self.kind.build_plan(self.cfg)
         done = self.run_dir.completed_units()
         todo = plan.remaining(done)
@@ -170,7 +170,7 @@ class RunSession:
     def _measure(self, guard: SignalGuard, todo: Plan, done: list[str],
                  table_overdue: str | None, out_of_control: list[str]) -> None:
         cfg, run, progress = self.cfg, self.run_dir, self.progress
-        stand = cfg.stand
+        stand = cfg.stand_settings
         if self.sim or cfg.has_sim:
             progress.line("Starting the simulated bench (twins on real channels)...")
             sim_cfg = drifting_config(cfg, run.path, self.where, progress.line)
@@ -187,7 +187,7 @@ class RunSession:
                   done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
                   version=__version__, prompts="--yes" if self.yes else "operator",
                   pid=os.getpid())
-        for t in overdue(cfg.stand, dt.datetime.now(dt.UTC).date()):
+        for t in overdue(cfg.stand_settings, dt.datetime.now(dt.UTC).date()):
             progress.line(overdue_warning(t))
             run.event("calibration_overdue", where=t.where, item=t.item,
                       certificate=t.certificate, due=t.due.isoformat() if t.due else None)

@@ -18,41 +18,39 @@ twin.
 
 from __future__ import annotations
 
-import copy
-import dataclasses
 import signal
 import sys
 import threading
 from collections.abc import Iterator
 from typing import Any
 
+from bench.core.config import SimSettings, StandSettings
 from bench.app.devices import stand_config
 from bench.core.registry import procedure_kind
-from bench.core.simbench import CAN_BUS_KEY, SimBench
+from bench.core.simbench import SimBench, with_sim
 from bench.core.simdrift import drifted, stated_run_number
 
 #: where `bench sim` puts its drives: a bus another process can join
 SIM_CAN_INTERFACE = "udp_multicast"
 
 
-def address_lines(sim: SimBench, stand: dict[str, Any]) -> Iterator[str]:
+def address_lines(sim: SimBench, stand: StandSettings) -> Iterator[str]:
     """`AXIS KIND ADDRESS` for every instrument the twins serve (CONTRACT §1)."""
     for axis in sim.axes:
-        ac = stand["axes"][axis]
-        if ac.get("counter"):
-            yield f"{axis} counter {ac['counter']['resource']}"
-        if ac.get("fog"):
-            yield f"{axis} fog {ac['fog']['port']}"
-        d = ac["drive"]
+        ac = stand.axes[axis]
+        if ac.counter:
+            yield f"{axis} counter {ac.counter.resource}"
+        if ac.fog:
+            yield f"{axis} fog {ac.fog.port}"
+        d = ac.drive
         port = f" port={sim.can_port}" if sim.can_port is not None else ""
-        yield (f"{axis} drive interface={d['interface']} channel={d['channel']} "
-               f"node={d['node_id']}{port}")
-    platform = stand.get("platform") or {}
-    if platform.get("awg", {}).get("resource"):
-        yield f"platform awg {platform['awg']['resource']}"
-    for gyro, g in (platform.get("gyros") or {}).items():
-        if (g.get("dmm") or {}).get("resource"):
-            yield f"{gyro} dmm {g['dmm']['resource']}"
+        yield f"{axis} drive interface={d.interface} channel={d.channel} node={d.node_id}{port}"
+    for where, address in stand.addresses.items():   # a kind's own instruments
+        parts = where.split(".")
+        if parts[:2] == ["platform", "awg"]:
+            yield f"platform awg {address}"
+        elif parts[:2] == ["platform", "gyros"] and len(parts) > 3:
+            yield f"{parts[2]} {parts[3]} {address}"
 
 
 def serve(stand_path: str, stop: threading.Event | None = None) -> int:
@@ -63,17 +61,14 @@ def serve(stand_path: str, stop: threading.Event | None = None) -> int:
     if not cfg.has_sim:
         print(f"{stand_path}: no `sim:` block; the twins run on built-in defaults",
               file=sys.stderr)
-    stand = copy.deepcopy(cfg.stand)
-    sim_block = dict(stand.get("sim") or {})
-    sim_block["clock_speed"] = 1
-    sim_block[CAN_BUS_KEY] = SIM_CAN_INTERFACE
-    stand["sim"] = sim_block
+    cfg = with_sim(cfg, clock_speed=1, can_bus=SIM_CAN_INTERFACE)
     # a drifting twin (bench control's demonstrations) takes its run's truth; no records
     # here, so the run is the one the stand states, else the first
-    stand, notes = drifted(stand, stated_run_number(stand) or 1)
+    sim, notes = drifted(cfg.stand_settings.sim or SimSettings(),
+                         stated_run_number(cfg.stand_settings) or 1)
     for note in notes:
         print(note, file=sys.stderr)
-    cfg = dataclasses.replace(cfg, stand=stand)
+    cfg = with_sim(cfg, axes=sim.axes)
     stop = stop or threading.Event()
     previous: dict[signal.Signals, Any] = {}
     simbench = None

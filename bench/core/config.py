@@ -6,15 +6,41 @@ The schemas of the keys every procedure kind shares, and `Config`, what the load
 
 from __future__ import annotations
 
+import datetime as dt
+import functools
 import os
-from dataclasses import dataclass
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from bench.core.canbus import bus_problems
-from bench.core.schema import Any_, Bool, Check, Date, Key, ListOf, Map, MapOf, Num, OneOf, Str
+from bench.core.schema import (
+    Any_,
+    Bool,
+    Check,
+    Date,
+    Key,
+    ListOf,
+    Map,
+    MapOf,
+    Num,
+    OneOf,
+    Str,
+    parse_date,
+)
 from bench.core.yamlfile import Problem, YamlDoc
+from drivers.axis import (
+    DEFAULT_HEARTBEAT_MS,
+    DEFAULT_PDO,
+    DEFAULT_POSITION_TOLERANCE_DEG,
+    DEFAULT_UNIT_FACTORS,
+)
+from drivers.cia402 import DEFAULT_COUNTS_PER_REV
+from drivers.counter import DEFAULT_TIMEOUT_MARGIN_S
 from drivers.counter_profiles import get_profile
+from drivers.time_tie import TimeTie
+from sims.stand import AxisTruth, FogTruth, Harmonic, Mains
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
 #: a rate table's fastest axes turn some 10 000 deg/s; its slowest useful rate is around
@@ -58,15 +84,16 @@ DRIVE = Map({
                               unit="deg/s^2"), True, "the axis's acceleration limit (and the "
                           "ramps' default)"),
     "counts_per_rev": Key(Num(min=1, integer=True), False, "encoder counts per revolution "
-                          "(position and velocity units of the drive)"),
+                          "(position and velocity units of the drive)",
+                          DEFAULT_COUNTS_PER_REV),
     "heartbeat_ms": Key(Num(min=10, max=10_000, integer=True), False,
-                        "controller heartbeat period; the drive watches it"),
+                        "controller heartbeat period; the drive watches it",
+                        DEFAULT_HEARTBEAT_MS),
     "watchdog_ms": Key(Num(min=20, max=65_535, integer=True), False,
                        "drive stops the axis when the controller is silent this long"),
-    "settle_tolerance_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), False,
-                                "the drive's own velocity window (CiA 402 0x606D)"),
     "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg"), False,
-                                  "how close a position move must land (profile position)"),
+                                  "how close a position move must land (profile position)",
+                                  DEFAULT_POSITION_TOLERANCE_DEG),
     "eds": Key(Str(), False, "the drive's EDS file, for canopen's object dictionary"),
     "serial": Key(Str(), False, "the instrument's serial number: the key of its "
                                 "check values (bench control)"),
@@ -75,9 +102,9 @@ DRIVE = Map({
                         "'read' (the drive's factor group 0x608F/0x6091/0x60A9/0x60AA is "
                         "read at connect) or {velocity: rpm|inc/s|0.001 inc/s|..., "
                         "acceleration: rpm/s|inc/s2|...} written at connect and read back; "
-                        "a stand without a sim: block must state it"),
+                        "a stand without a sim: block must state it", DEFAULT_UNIT_FACTORS),
     "pdo": Key(Str(("set", "verify")), False,
-               "TPDO transmission type / event timer: verify (default) or set at connect"),
+               "TPDO transmission type / event timer: verify or set at connect", DEFAULT_PDO),
 })
 COUNTER = Map({
     "resource": Key(Str(), True, "VISA resource string"),
@@ -99,26 +126,39 @@ COUNTER = Map({
                      "timebase_limit_rel below the model's needs 'external'"),
     "timeout_margin_s": Key(Num(min=0, exclusive_min=True, max=3600, unit="s"), False,
                             "extra time allowed beyond a half's expected turns before "
-                            "the counter counts as silent"),
+                            "the counter counts as silent", DEFAULT_TIMEOUT_MARGIN_S),
     "calibration": Key(CALIBRATION, False, "the counter's calibration certificate"),
     "time_tie": Key(Map({
         "source": Key(Str(("fog-sync", "host-clock")), True,
                       "how the counter's start event is placed on the FOG's time axis: "
                       "fog-sync (external trigger from the FOG's sync output) or host-clock"),
         "sync_period_s": Key(Num(min=0, exclusive_min=True, unit="s"), False,
-                             "FOG time between sync pulses (pulse k at k * period)"),
+                             "FOG time between sync pulses (pulse k at k * period)",
+                             TimeTie.sync_period_s),
         "latency_s": Key(Num(min=0, unit="s"), False, "sync pulse to counter trigger, "
-                         "calibrated"),
+                         "calibrated", TimeTie.latency_s),
         "latency_u_s": Key(Num(min=0, unit="s"), False, "its standard uncertainty (with "
-                           "jitter)"),
+                           "jitter)", TimeTie.latency_u_s),
         "host_window_s": Key(Num(min=0, unit="s"), False, "how well the host knows the "
-                             "FOG's time axis"),
+                             "FOG's time axis", TimeTie.host_window_s),
     }), False, "how the counter's start is tied to the FOG's time axis (docs/"
                "configuration.md); a stand without a sim: block must state it"),
 })
 #: the FOG keys' defaults, used by the schema's reference and by `FogSettings` (one place)
+def _upright_only(value: Any) -> str | None:
+    """`fog.sign: -1` was once accepted and never read: the analysis took an inverted FOG
+    as upright (issue 25). Until the sign is carried through the twin, the capture and
+    the cross-calibration, an inverted mounting is refused, not silently mis-signed."""
+    if value != 1:
+        return ("only +1 is supported: mount the FOG with its sensitive axis along the "
+                "table's positive sense (an inverted FOG would give figures of the wrong "
+                "sign)")
+    return None
+
+
 FOG_DEFAULTS: dict[str, Any] = {"baudrate": 921600, "format": "kvh-a", "axis": "z",
-                                "configure": "declare"}
+                                "configure": "declare",
+                                "range_dps": 490.0}   # KVH DSP-1760's range
 FOG = Map({
     "port": Key(Str(), True, "serial port, e.g. /dev/ttyUSB0"),
     "baudrate": Key(Num(min=1200, max=16_000_000, integer=True), False, "serial line rate",
@@ -128,7 +168,8 @@ FOG = Map({
                  FOG_DEFAULTS["axis"]),
     "rate_hz": Key(Num(min=1, max=100_000, unit="Hz"), True, "the FOG's output (frame) rate"),
     "range_dps": Key(Num(min=0, exclusive_min=True, max=100_000, unit="deg/s"), False,
-                     "the FOG's measuring range: a rate above it is refused"),
+                     "the FOG's measuring range: a rate above it is refused",
+                     FOG_DEFAULTS["range_dps"]),
     "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), True,
                   "what the rotational fields carry; KVH's power-on default is delta "
                   "radians, 'rad' (1775 IMU Technical Manual, Table 5-10)"),
@@ -139,8 +180,9 @@ FOG = Map({
                   "so the certificate prints it as the stand file states it; the key of its "
                   "check values, bench control)"),
     "model": Key(Str(), False, "maker and model, for the certificate"),
-    "sign": Key(Num(min=-1, max=1, integer=True), False, "-1 when the FOG is mounted with "
-                "its sensitive axis against the table's positive sense"),
+    "sign": Key(Check(Num(min=-1, max=1, integer=True), _upright_only), False,
+                "+1: the FOG's sensitive axis along the table's positive sense (the only "
+                "mounting the analysis supports; a FOG mounted inverted is refused)", 1),
     "calibration": Key(CALIBRATION, False, "the FOG's calibration certificate, if any"),
 })
 STAND_AXIS_KEYS: dict[str, Key] = {
@@ -207,7 +249,7 @@ SIM_AXIS = Map({
 })
 SIM_KEYS: dict[str, Key] = {
     "seed": Key(Num(min=0, integer=True), False, "the twins' random seed: a run's numbers "
-                "depend on it and the files alone"),
+                "depend on it and the files alone", 0),
     "clock_speed": Key(OneOf(Num(min=0, exclusive_min=True), Str(("max",))), False,
                        "virtual seconds per real one, or max: as fast as every twin keeps up"),
     "axes": Key(MapOf(SIM_AXIS), False, "each axis's truth, by stand axis name"),
@@ -294,11 +336,175 @@ COMMON_PROCEDURE_KEYS: dict[str, Key] = {
 }
 
 
+def _opt(spec: dict[str, Any], key: str, cast: Any) -> Any:
+    """A validated optional key, cast, or None when the file leaves it out."""
+    return cast(spec[key]) if spec.get(key) is not None else None
+
+
+def _default(node: Map, key: str) -> Any:
+    """The schema key's default: each default is written once, in its Key."""
+    return node.keys[key].default
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """An instrument's or reference's calibration certificate, as the stand states it."""
+
+    certificate: str
+    issuer: str
+    due: dt.date | None
+    traces: str | None = None
+
+    @classmethod
+    def of(cls, d: dict[str, Any] | None) -> Calibration | None:
+        if not isinstance(d, dict):
+            return None
+        return cls(str(d.get("certificate", "")), str(d.get("issuer", "")),
+                   parse_date(d.get("due")), _opt(d, "traces", str))
+
+
+@dataclass(frozen=True)
+class Traced:
+    """One calibrated item of the stand (bench/core/traceability.py)."""
+
+    where: str                 # key path in the stand file, e.g. axes.outer.counter
+    item: str
+    certificate: str | None
+    issuer: str | None
+    due: dt.date | None
+    traces: str | None
+
+    def overdue(self, on: dt.date) -> bool:
+        return self.due is not None and on > self.due
+
+    @property
+    def stated(self) -> bool:
+        return self.certificate is not None
+
+
+def _traced_name(path: tuple[str, ...], spec: Mapping[str, Any]) -> str:
+    role = path[-1]
+    where = " ".join(p for p in path[1:-1] if p not in ("axes", "gyros"))
+    model = spec.get("model")
+    return f"{role}{' ' + str(model) if model else ''}{f' ({where})' if where else ''}"
+
+
+def _instruments(node: Any, path: tuple[str, ...]
+                 ) -> Iterator[tuple[tuple[str, ...], Mapping[str, Any]]]:
+    """Every block of the stand that is an instrument (it has an address or a
+    calibration), whichever kind's block holds it (a gyro platform's DMMs too)."""
+    if not isinstance(node, Mapping):
+        return
+    for key, value in node.items():
+        if key == "sim" and not path:
+            continue  # the twins' truth, not the bench
+        if isinstance(value, Mapping):
+            sub = (*path, str(key))
+            if "resource" in value or "port" in value or "interface" in value \
+                    or "calibration" in value:
+                yield sub, value
+            yield from _instruments(value, sub)
+
+
+def stated_traceability(stand: Mapping[str, Any]) -> tuple[Traced, ...]:
+    """Every instrument of a stand mapping (with or without a stated calibration) and
+    every entry of its `traceability:` list."""
+    out = []
+    for path, spec in _instruments(stand, ()):
+        cal = spec.get("calibration")
+        cal = cal if isinstance(cal, Mapping) else {}
+        out.append(Traced(".".join(path), _traced_name(path, spec),
+                          str(cal["certificate"]) if cal.get("certificate") else None,
+                          str(cal["issuer"]) if cal.get("issuer") else None,
+                          parse_date(cal.get("due")), cal.get("traces")))
+    for i, t in enumerate(stand.get("traceability") or []):
+        if isinstance(t, Mapping):
+            item = str(t.get("item", ""))
+            if t.get("serial"):
+                item += f", serial {t['serial']}"
+            out.append(Traced(f"traceability[{i}]", item, str(t.get("certificate")),
+                              str(t.get("issuer")), parse_date(t.get("due")),
+                              t.get("traces")))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class Traceable:
+    """An entry of the stand's `traceability:` list: a reference the bench does not drive."""
+
+    item: str
+    serial: str | None
+    calibration: Calibration
+
+
+@dataclass(frozen=True)
+class Identity:
+    """The table under test (the stand's `stand:` block)."""
+
+    maker: str
+    model: str
+    serial: str
+    location: str | None = None
+    recertification_interval_days: int | None = None
+
+
+@dataclass(frozen=True)
+class DriveSpec:
+    """A stand axis's `drive:` block, parsed once (defaults from DRIVE's keys)."""
+
+    interface: str
+    channel: str
+    node_id: int
+    controller_node_id: int          # resolved: stated, or the highest free on the bus
+    max_rate_dps: float
+    max_accel_dps2: float
+    counts_per_rev: int = _default(DRIVE, "counts_per_rev")
+    heartbeat_ms: int = _default(DRIVE, "heartbeat_ms")
+    watchdog_ms: int | None = None
+    bitrate: int | None = None
+    position_tolerance_deg: float = _default(DRIVE, "position_tolerance_deg")
+    eds: str | None = None
+    serial: str | None = None
+    calibration: Calibration | None = None
+    unit_factors: str | Mapping[str, str] = _default(DRIVE, "unit_factors")
+    pdo: str = _default(DRIVE, "pdo")
+
+    @property
+    def bus(self) -> str:
+        """The CAN bus this drive is on (axes with the same one share it)."""
+        return f"{self.interface}:{self.channel}"
+
+
+@dataclass(frozen=True)
+class CounterSpec:
+    """A stand axis's `counter:` block, parsed once."""
+
+    resource: str
+    model: str
+    serial: str | None = None
+    channel: int | None = None
+    level_v: float | None = None
+    slope: str | None = None
+    coupling: str | None = None
+    impedance_ohm: float | None = None
+    trigger_jitter_s: float | None = None
+    timebase_limit_rel: float | None = None
+    reference: str | None = None
+    timeout_margin_s: float = _default(COUNTER, "timeout_margin_s")
+    calibration: Calibration | None = None
+    time_tie: TimeTie | None = None    # None: the stand states none (twins: host clock)
+
+    def input_settings(self) -> dict[str, Any]:
+        """The input's settings the stand states (the driver's `configure` keywords)."""
+        return {k: v for k in ("channel", "level_v", "slope", "coupling", "impedance_ohm")
+                if (v := getattr(self, k)) is not None}
+
+
 @dataclass(frozen=True)
 class FogSettings:
-    """A stand's `fog:` block, parsed once, every default here (the schema above says
-    which keys are required): the live driver, the twin, the analysis reading the raw
-    capture, the disk-space estimate and the station view all take it from here."""
+    """A stand's `fog:` block, parsed once, every default from FOG's keys (the schema
+    says which keys are required): the live driver, the twin, the analysis reading the
+    raw capture, the disk-space estimate and the station view all take it from here."""
 
     port: str
     rate_hz: float
@@ -308,22 +514,241 @@ class FogSettings:
     axis: str = FOG_DEFAULTS["axis"]
     configure: str = FOG_DEFAULTS["configure"]
     model: str | None = None
+    serial: str | None = None
+    range_dps: float = FOG_DEFAULTS["range_dps"]
+    sign: int = _default(FOG, "sign")
+    calibration: Calibration | None = None
 
     @classmethod
     def of(cls, fog: dict[str, Any]) -> FogSettings:
-        fields = {k: fog[k] for k in ("baudrate", "format", "axis", "configure", "model")
-                  if k in fog}
+        fields = {k: fog[k] for k in ("baudrate", "format", "axis", "configure", "model",
+                                      "serial", "range_dps", "sign") if k in fog}
         return cls(port=str(fog["port"]), rate_hz=float(fog["rate_hz"]),
-                   units=str(fog["units"]), **fields)
+                   units=str(fog["units"]), calibration=Calibration.of(fog.get("calibration")),
+                   **fields)
 
     @classmethod
     def of_axis(cls, stand: dict[str, Any], axis: str) -> FogSettings | None:
-        """The FOG of `axis`, or None when the axis has none (or the stand is damaged:
-        the station view reads run directories it did not write)."""
+        """The FOG of `axis` in a stand mapping read back from a run directory, or None
+        when the axis has none (or the file is damaged: the station view reads run
+        directories it did not write)."""
         f = ((stand.get("axes") or {}).get(axis) or {}).get("fog")
         if not isinstance(f, dict) or not all(k in f for k in ("port", "rate_hz", "units")):
             return None
         return cls.of(f)
+
+
+@dataclass(frozen=True)
+class StandAxis:
+    """One axis of the stand: its drive, and the counter and FOG that watch it."""
+
+    name: str
+    drive: DriveSpec
+    counter: CounterSpec | None = None
+    fog: FogSettings | None = None
+
+
+@dataclass(frozen=True)
+class SimAxis:
+    """The twins' truth for one axis (the stand's `sim.axes.<axis>`)."""
+
+    truth: AxisTruth
+    fog_units: str | None = None            # what the FOG twin carries before set-up
+    scale_step: tuple[int, float] | None = None      # (from_run, rel)
+    scale_ramp: tuple[int, float] | None = None      # (from_run, rel_per_run)
+    counter_external_reference: bool = True
+    counter_first_value: str = "from-start"
+    tie_latency_s: float | None = None      # None: exactly the latency the stand declares
+    tie_jitter_s: float = 0.0
+    counter_serial: str | None = None
+    drive_serial: int | None = None
+    drive_twin: Mapping[str, Any] = field(default_factory=dict)   # DriveTwin's keywords
+
+
+#: truth used by `--sim` for an axis the stand file's `sim:` block does not describe
+DEFAULT_SIM_AXIS = SimAxis(AxisTruth(fog=FogTruth(noise_dps=0.01), turn_jitter_s=27e-9))
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """The stand's `sim:` block: the twins' truth (absent on a real bench)."""
+
+    seed: int = _default(Map(SIM_KEYS), "seed")
+    clock_speed: float | str | None = None
+    run_number: int | None = None
+    axes: Mapping[str, SimAxis] = field(default_factory=dict)
+    can_bus: str = "virtual"          # set by `bench sim` (udp_multicast: other processes)
+    session: int = 1                  # set for a --resume: the session these twins serve
+
+    def axis(self, name: str) -> SimAxis:
+        return self.axes.get(name, DEFAULT_SIM_AXIS)
+
+    @property
+    def has_drift(self) -> bool:
+        return any(a.scale_step or a.scale_ramp for a in self.axes.values())
+
+
+@dataclass(frozen=True)
+class DccRefs:
+    """The stand's `dcc:` block: paths only (the lab file, the signing key)."""
+
+    lab: str | None = None
+    signing_key: str | None = None
+    signing_certificate: str | None = None
+    password_env: str | None = None
+
+
+@dataclass(frozen=True)
+class StandSettings:
+    """The validated stand file, parsed once: what every reader below the loader uses."""
+
+    identity: Identity
+    axes: Mapping[str, StandAxis]
+    sim: SimSettings | None = None
+    traceability: tuple[Traceable, ...] = ()
+    dcc: DccRefs = DccRefs()
+    mains_hz: float | None = None
+    #: every instrument and reference with its calibration as stated (traceability)
+    traced: tuple[Traced, ...] = ()
+    #: addresses of a kind's own instruments rewritten to their twins' (SimBench), by
+    #: the key path of the address in the stand file ("platform.awg.resource")
+    addresses: Mapping[str, str] = field(default_factory=dict)
+
+    @property
+    def simulated(self) -> bool:
+        return self.sim is not None
+
+    def address(self, where: str, stated: str) -> str:
+        """The address of a kind's instrument: its twin's on a simulated bench."""
+        return self.addresses.get(where, stated)
+
+
+def _sim_axis(d: dict[str, Any]) -> SimAxis:
+    """A `sim.axes.<axis>` block; a key left out takes the truth's own default (each
+    default once: the dataclasses' fields)."""
+    fog = dict(d.get("fog") or {})
+    truth: dict[str, Any] = {k: float(d[k]) for k in ("rate_bias_rel", "rate_noise_dps",
+                                                      "turn_jitter_s") if k in d}
+    if d.get("harmonics"):
+        truth["harmonics"] = tuple(Harmonic(**h) for h in d["harmonics"])
+    if d.get("mains"):
+        truth["mains"] = Mains(**d["mains"])
+    truth["fog"] = FogTruth(**{k: float(fog[k]) for k in FogTruth.__dataclass_fields__
+                               if k in fog})
+    step, ramp = fog.get("scale_step"), fog.get("scale_ramp")
+    tie = d.get("time_tie") or {}
+    serials = d.get("serials") or {}
+    extra: dict[str, Any] = {}
+    if "counter_external_reference" in d:
+        extra["counter_external_reference"] = bool(d["counter_external_reference"])
+    if "counter_first_value" in d:
+        extra["counter_first_value"] = str(d["counter_first_value"])
+    if "jitter_s" in tie:
+        extra["tie_jitter_s"] = float(tie["jitter_s"])
+    return SimAxis(
+        AxisTruth(**truth), fog_units=_opt(fog, "units", str),
+        scale_step=(int(step["from_run"]), float(step["rel"])) if step else None,
+        scale_ramp=(int(ramp["from_run"]), float(ramp["rel_per_run"])) if ramp else None,
+        tie_latency_s=_opt(tie, "latency_s", float),
+        counter_serial=_opt(serials, "counter", str), drive_serial=_opt(serials, "drive", int),
+        drive_twin=dict(d.get("drive") or {}), **extra)
+
+
+def dcc_refs(stand: Mapping[str, Any] | None) -> DccRefs:
+    """The `dcc:` block of a stand mapping (also a run directory's copy, read back)."""
+    dcc = (stand or {}).get("dcc") or {}
+    signing = dcc.get("signing") or {}
+    return DccRefs(_opt(dcc, "lab", str), _opt(signing, "key", str),
+                   _opt(signing, "certificate", str), _opt(signing, "password_env", str))
+
+
+def parse_stand(stand: dict[str, Any]) -> StandSettings:
+    """A validated stand mapping as frozen settings (the kinds' own stand blocks, such as
+    a gyro platform's, are parsed by the kind)."""
+    from bench.core.canbus import controller_node_ids
+
+    # a kind's stand schema may leave out the axes (a plug-in kind without a table)
+    ident = stand.get("stand") or {}
+    stand_axes = stand.get("axes") or {}
+    controllers = controller_node_ids(stand_axes)
+    axes: dict[str, StandAxis] = {}
+    for name, a in stand_axes.items():
+        d = a["drive"]
+        drive = DriveSpec(
+            interface=str(d["interface"]), channel=str(d["channel"]), node_id=int(d["node_id"]),
+            controller_node_id=controllers[name], max_rate_dps=float(d["max_rate_dps"]),
+            max_accel_dps2=float(d["max_accel_dps2"]),
+            counts_per_rev=int(d.get("counts_per_rev", _default(DRIVE, "counts_per_rev"))),
+            heartbeat_ms=int(d.get("heartbeat_ms", _default(DRIVE, "heartbeat_ms"))),
+            watchdog_ms=_opt(d, "watchdog_ms", int), bitrate=_opt(d, "bitrate", int),
+            position_tolerance_deg=float(d.get("position_tolerance_deg",
+                                               _default(DRIVE, "position_tolerance_deg"))),
+            eds=_opt(d, "eds", str), serial=_opt(d, "serial", str),
+            calibration=Calibration.of(d.get("calibration")),
+            unit_factors=d.get("unit_factors", _default(DRIVE, "unit_factors")), pdo=str(d.get("pdo", _default(DRIVE, "pdo"))))
+        c = a.get("counter")
+        counter = None if not c else CounterSpec(
+            resource=str(c["resource"]), model=str(c["model"]), serial=_opt(c, "serial", str),
+            channel=_opt(c, "channel", int), level_v=_opt(c, "level_v", float),
+            slope=_opt(c, "slope", str), coupling=_opt(c, "coupling", str),
+            impedance_ohm=_opt(c, "impedance_ohm", float),
+            trigger_jitter_s=_opt(c, "trigger_jitter_s", float),
+            timebase_limit_rel=_opt(c, "timebase_limit_rel", float),
+            reference=_opt(c, "reference", str),
+            timeout_margin_s=float(c.get("timeout_margin_s",
+                                         _default(COUNTER, "timeout_margin_s"))),
+            calibration=Calibration.of(c.get("calibration")),
+            time_tie=TimeTie(**c["time_tie"]) if c.get("time_tie") else None)
+        axes[name] = StandAxis(name, drive, counter, FogSettings.of(a["fog"]) if a.get("fog")
+                               else None)
+    sim = None
+    if "sim" in stand:
+        s = stand["sim"] or {}
+        sim = SimSettings(
+            seed=int(s.get("seed", _default(Map(SIM_KEYS), "seed"))),
+            clock_speed=s.get("clock_speed"), run_number=_opt(s, "run_number", int),
+            axes={n: _sim_axis(v or {}) for n, v in
+                                   (s.get("axes") or {}).items()})
+    trace = tuple(Traceable(str(t.get("item", "")), _opt(t, "serial", str),
+                            Calibration.of(t) or Calibration("", "", None))
+                  for t in stand.get("traceability") or [])
+    return StandSettings(
+        identity=Identity(str(ident.get("maker", "")), str(ident.get("model", "")),
+                          str(ident.get("serial", "")),
+                          _opt(ident, "location", str),
+                          _opt(ident, "recertification_interval_days", int)),
+        axes=axes, sim=sim, traceability=trace,
+        dcc=dcc_refs(stand), traced=stated_traceability(stand),
+        mains_hz=_opt(stand, "mains_hz", float))
+
+
+@dataclass(frozen=True)
+class CommonSettings:
+    """The procedure keys every kind shares (COMMON_PROCEDURE_KEYS), parsed once."""
+
+    title: str
+    conditions: Mapping[str, Any]
+    certificate: Mapping[str, Any]
+    decision_rule: str | None
+    prompts: bool
+    calibration_state: str | None
+    adjustment_note: str | None
+    operator: str | None
+    specification: Mapping[str, Any] | None
+
+
+def parse_common(procedure: dict[str, Any], path: Path) -> CommonSettings:
+    spec = procedure.get("specification")
+    return CommonSettings(
+        title=str(procedure.get("title", path.stem)),
+        conditions=dict(procedure.get("conditions") or {}),
+        certificate=dict(procedure.get("certificate") or {}),
+        decision_rule=_opt(procedure, "decision_rule", str),
+        prompts=bool(procedure.get("prompts", True)),
+        calibration_state=_opt(procedure, "calibration_state", str),
+        adjustment_note=_opt(procedure, "adjustment_note", str),
+        operator=_opt(procedure, "operator", str),
+        specification=dict(spec) if isinstance(spec, dict) else None)
 
 
 @dataclass(frozen=True)
@@ -336,6 +761,18 @@ class Config:
     stand: dict[str, Any]
     procedure_doc: YamlDoc
     stand_doc: YamlDoc
+    #: the procedure as its kind parsed it (`ProcedureKind.parse`; set by the loader)
+    settings: object = None
+
+    @functools.cached_property
+    def common(self) -> CommonSettings:
+        """The procedure keys every kind shares, parsed once."""
+        return parse_common(self.procedure, self.procedure_path)
+
+    @functools.cached_property
+    def stand_settings(self) -> StandSettings:
+        """The stand, parsed once: what the engine, the kinds and the twins read."""
+        return parse_stand(self.stand)
 
     @property
     def kind(self) -> str:
@@ -345,12 +782,15 @@ class Config:
     def has_sim(self) -> bool:
         return "sim" in self.stand
 
-    def stand_axis(self, name: str) -> dict[str, Any]:
-        return self.stand["axes"][name]
+    def stand_axis(self, name: str) -> StandAxis:
+        return self.stand_settings.axes[name]
 
     def fog(self, axis: str) -> FogSettings:
         """The axis's FOG settings (validated: a procedure that needs a FOG has one)."""
-        return FogSettings.of(self.stand["axes"][axis]["fog"])
+        fog = self.stand_settings.axes[axis].fog
+        if fog is None:
+            raise KeyError(f"axis {axis} has no fog")
+        return fog
 
 
 class ConfigError(Exception):

@@ -8,9 +8,8 @@ from __future__ import annotations
 
 import shutil
 from pathlib import Path
-from typing import Any
 
-from bench.core.config import FogSettings
+from bench.core.config import FogSettings, StandSettings
 from drivers.fog_formats import get_format
 
 #: drive, counter and event logs per axis and bench second (the demo writes ~0.2 kB/s)
@@ -23,11 +22,11 @@ SAFETY = 1.25
 UNKNOWN_FRAME_BYTES = 64
 
 
-def expected_raw_bytes(stand: dict[str, Any], axes: list[str], bench_s: float) -> float:
+def expected_raw_bytes(stand: StandSettings, axes: list[str], bench_s: float) -> float:
     """Bytes the raw files of `axes` take for `bench_s` seconds of bench time."""
     total = 0.0
     for name in axes:
-        fog = FogSettings.of_axis(stand, name)
+        fog = stand.axes[name].fog
         per_s = LOG_BYTES_PER_AXIS_S
         if fog:
             per_s += fog.rate_hz * _frame_bytes(fog)
@@ -43,13 +42,13 @@ def format_bytes(n: float) -> str:
     return f"{n:.0f} B"
 
 
-def data_volume_lines(stand: dict[str, Any], axes: list[str], bench_s: float,
+def data_volume_lines(stand: StandSettings, axes: list[str], bench_s: float,
                       folder: Path) -> list[str]:
     """What `bench plan` says about the raw data: per axis and in total, against the
     free space of the runs folder (the same figures `bench run` checks before starting)."""
     out = []
     for name in axes:
-        fog = FogSettings.of_axis(stand, name)
+        fog = stand.axes[name].fog
         what = (f"FOG {fog.rate_hz:g} Hz x {_frame_bytes(fog)} B frames + logs" if fog
                 else "logs")
         out.append(f"  {name}: {format_bytes(expected_raw_bytes(stand, [name], bench_s))} "

@@ -14,13 +14,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
-from bench.core.canbus import controller_node_ids
-from bench.core.config import FogSettings
+from bench.core.config import StandAxis
 from bench.core.journal import JsonLines, RunDir
 from bench.core.protocols import Counter as CounterLike
 from bench.core.protocols import Drive
 from bench.core.protocols import Fog as FogLike
 from drivers.axis import Axis
+from drivers.cia402 import DEFAULT_EDS_PATH
 from drivers.clock import Clock
 from drivers.counter import Counter, CounterError
 from drivers.fog import Fog
@@ -28,7 +28,6 @@ from drivers.time_tie import TimeTie
 
 T = TypeVar("T")
 
-DEFAULT_FOG_RANGE_DPS = 490.0  # KVH DSP-1760's range; a stand file may say otherwise
 #: seconds of FOG samples the live driver keeps: the run's memory must not grow with its
 #: length; the analysis reads every sample from the raw capture (drivers.fog.CaptureCursor)
 LIVE_FOG_KEEP_S = 60.0
@@ -176,23 +175,21 @@ def _raw_record_logger(log: JsonLines, clock: Clock) -> Callable[[str, dict], No
     return raw
 
 
-def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
-              run: RunDir | None, *, counter: bool = True, fog: bool = True) -> AxisInstruments:
+def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *,
+              counter: bool = True, fog: bool = True) -> AxisInstruments:
     """Open one axis's instruments (drive first, so a failure later still stops it).
 
-    `stand_axes` is the stand's whole `axes:` mapping: the axes sharing a CAN bus decide
-    together which controller node id each one uses (bench/core/canbus.py).
-    """
-    axis_cfg = stand_axes[name]
-    d = axis_cfg["drive"]
+    The drive's controller node id was settled when the stand was parsed: the axes
+    sharing a CAN bus decide it together (bench/core/canbus.py)."""
+    name, d = spec.name, spec.drive
     drive_log = bench.log(run.raw_path(f"{name}-drive.jsonl")) if run else None
-    drive = Axis(name, interface=d["interface"], channel=d["channel"], node_id=d["node_id"],
-                 max_rate_dps=d["max_rate_dps"], max_accel_dps2=d["max_accel_dps2"],
-                 clock=clock, controller_node_id=controller_node_ids(stand_axes)[name],
-                 **{k: d[k] for k in ("counts_per_rev", "heartbeat_ms", "watchdog_ms", "bitrate",
-                                      "unit_factors", "pdo")
-                    if k in d},
-                 **({"eds_path": d["eds"]} if "eds" in d else {}),
+    drive = Axis(name, interface=d.interface, channel=d.channel, node_id=d.node_id,
+                 max_rate_dps=d.max_rate_dps, max_accel_dps2=d.max_accel_dps2,
+                 clock=clock, controller_node_id=d.controller_node_id,
+                 counts_per_rev=d.counts_per_rev, heartbeat_ms=d.heartbeat_ms,
+                 watchdog_ms=d.watchdog_ms, bitrate=d.bitrate, pdo=d.pdo,
+                 position_tolerance_deg=d.position_tolerance_deg,
+                 unit_factors=d.unit_factors, eds_path=d.eds or DEFAULT_EDS_PATH,
                  raw=_raw_record_logger(drive_log, clock) if drive_log else None)
     bench.enter(drive)
     ax = AxisInstruments(name, drive)
@@ -200,21 +197,19 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
         ax.logs["drive"] = drive_log
     bench.axes[name] = ax
     ax.identities["drive"] = with_readback(drive.identity(), drive.readback)
-    c = axis_cfg.get("counter")
+    c = spec.counter
     if counter and c:
         clog = bench.log(run.raw_path(f"{name}-counter.jsonl")) if run else None
-        cnt = Counter.open(c["resource"], c["model"], clock,
+        cnt = Counter.open(c.resource, c.model, clock,
                            raw=raw_text_logger(clog, clock) if clog else None,
-                           time_tie=TimeTie.from_stand(c.get("time_tie")),
-                           **({"timeout_margin_s": c["timeout_margin_s"]}
-                              if "timeout_margin_s" in c else {}))
+                           time_tie=c.time_tie or TimeTie(),
+                           timeout_margin_s=c.timeout_margin_s)
         bench.enter(cnt)
         if clog:
             ax.logs["counter"] = clog
-        cnt.configure(**{k: c[k] for k in ("channel", "level_v", "slope", "coupling",
-                                           "impedance_ohm") if k in c})
+        cnt.configure(**c.input_settings())
         try:
-            cnt.verify_reference(c.get("reference"), c.get("timebase_limit_rel"))
+            cnt.verify_reference(c.reference, c.timebase_limit_rel)
         except CounterError as e:
             # refused by check_references once the bench can stop safely, before any move
             ax.refusal = StandClaimError(f"axes.{name}.counter.reference: {e}")
@@ -229,8 +224,8 @@ def open_axis(bench: Bench, name: str, stand_axes: dict[str, Any], clock: Clock,
         ax.identities["counter"] = with_readback(
             cnt.identify(), {**cnt.readback, "time tie": cnt.time_tie.source},
             manual_note(cnt.profile.manual))
-    if fog and axis_cfg.get("fog"):
-        f = FogSettings.of(axis_cfg["fog"])
+    f = spec.fog
+    if fog and f:
         fg = Fog(f.port, baudrate=f.baudrate, fmt=f.format, axis=f.axis, rate_hz=f.rate_hz,
                  units=f.units, configure=f.configure,
                  raw_path=run.raw_path(f"{name}-fog.bin") if run else None, clock=clock,

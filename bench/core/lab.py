@@ -81,7 +81,7 @@ RUN_COPY = "lab.yaml"  # the lab file as used, copied into the run directory
 DEFAULT_PREFIX = "RT"
 
 
-class LabError(Exception):
+class LabError(ValueError):
     """A lab settings file or a signing key is unusable; the message names file and key."""
 
 
@@ -154,6 +154,11 @@ class Lab:
 
     def authorisers(self) -> tuple[Signatory, ...]:
         return tuple(s for s in self.signatories if s.authorises)
+
+    def interval_for(self, serial: str, stand_days: int | None) -> int | None:
+        """A table's recertification interval: the lab's per-serial setting, else the
+        stand file's, else the lab's default."""
+        return self.interval_days.get(serial) or stand_days or self.default_interval_days
 
 
 def _signatory(d: Mapping[str, Any]) -> Signatory:

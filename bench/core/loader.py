@@ -12,6 +12,7 @@ once, where it was written, and hides nothing else.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import os
 from functools import reduce
 from pathlib import Path
@@ -150,7 +151,8 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
         problems += kind.cross_check(cfg)
         if problems:
             raise ConfigError(problems)
-        return cfg
+        # parsed once, here: the kind's settings (the stand's parse on first use)
+        return dataclasses.replace(cfg, settings=kind.parse(cfg))
     # some parts were refused: cross-check the rest, so one pass reports everything
     stand = _without(sdoc.data, _bad_paths(refused, sdoc))
     procedure = _without(pdoc.data, _bad_paths(refused, pdoc))

@@ -25,7 +25,7 @@ from functools import cache
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
-from bench.core.config import Config
+from bench.core.config import Config, StandSettings
 from bench.core.engine import RunContext
 from bench.core.instruments import Bench
 from bench.core.journal import RunDir
@@ -62,10 +62,14 @@ class ProcedureKind(Protocol):
     def build_plan(self, cfg: Config) -> Plan:
         """The steps, with bench-time estimates; no hardware touched."""
 
-    def start_sim(self, cfg: Config) -> tuple[SimBench, dict[str, Any]]:
-        """Start the twins; return the bench and the stand mapping pointing at them."""
+    def parse(self, cfg: Config) -> object:
+        """The validated procedure as this kind's frozen settings (the loader keeps them
+        in `Config.settings`; nothing below the loader reads the procedure mapping)."""
 
-    def open_bench(self, cfg: Config, stand: dict[str, Any], clock: Clock,
+    def start_sim(self, cfg: Config) -> tuple[SimBench, StandSettings]:
+        """Start the twins; return the bench and the stand settings pointing at them."""
+
+    def open_bench(self, cfg: Config, stand: StandSettings, clock: Clock,
                    run: RunDir | None) -> Bench:
         """Open the instruments the plan needs."""
 

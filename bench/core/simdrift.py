@@ -18,39 +18,37 @@ run, before any twin sees the stand, and says what it applied.
 
 from __future__ import annotations
 
-import copy
-from collections.abc import Mapping
-from typing import Any
+import dataclasses
+
+from bench.core.config import SimSettings, StandSettings
 
 DRIFT_KEYS = ("scale_step", "scale_ramp")
 
 
-def has_drift(stand: Mapping[str, Any]) -> bool:
-    axes = ((stand.get("sim") or {}).get("axes") or {})
-    return any(k in ((a or {}).get("fog") or {}) for a in axes.values()
-               if isinstance(a, Mapping) for k in DRIFT_KEYS)
+def has_drift(stand: StandSettings) -> bool:
+    return stand.sim is not None and stand.sim.has_drift
 
 
-def stated_run_number(stand: Mapping[str, Any]) -> int | None:
-    n = (stand.get("sim") or {}).get("run_number")
-    return int(n) if n is not None else None
+def stated_run_number(stand: StandSettings) -> int | None:
+    return stand.sim.run_number if stand.sim is not None else None
 
 
-def drifted(stand: Mapping[str, Any], run_number: int) -> tuple[dict[str, Any], list[str]]:
-    """The stand with each drifting FOG's scale for run `run_number`; what was applied."""
-    out = copy.deepcopy(dict(stand))
+def drifted(sim: SimSettings, run_number: int) -> tuple[SimSettings, list[str]]:
+    """The twins' truth with each drifting FOG's scale for run `run_number`; what was
+    applied."""
+    axes = dict(sim.axes)
     notes = []
-    for axis, a in ((out.get("sim") or {}).get("axes") or {}).items():
-        fog = (a or {}).get("fog")
-        if not isinstance(fog, dict):
+    for axis, a in sim.axes.items():
+        step, ramp = a.scale_step, a.scale_ramp
+        if not (step or ramp):
             continue
-        step, ramp = fog.pop("scale_step", None), fog.pop("scale_ramp", None)
         rel = 0.0
-        if step and run_number >= int(step["from_run"]):
-            rel += float(step["rel"])
-        if ramp and run_number >= int(ramp["from_run"]):
-            rel += float(ramp["rel_per_run"]) * (run_number - int(ramp["from_run"]) + 1)
-        if step or ramp:
-            fog["scale"] = float(fog.get("scale", 1.0)) * (1.0 + rel)
-            notes.append(f"sim: axis {axis} FOG scale x (1 {rel:+.3g}) in run {run_number}")
-    return out, notes
+        if step and run_number >= step[0]:
+            rel += step[1]
+        if ramp and run_number >= ramp[0]:
+            rel += ramp[1] * (run_number - ramp[0] + 1)
+        fog = dataclasses.replace(a.truth.fog, scale=a.truth.fog.scale * (1.0 + rel))
+        axes[axis] = dataclasses.replace(a, truth=dataclasses.replace(a.truth, fog=fog),
+                                         scale_step=None, scale_ramp=None)
+        notes.append(f"sim: axis {axis} FOG scale x (1 {rel:+.3g}) in run {run_number}")
+    return dataclasses.replace(sim, axes=axes), notes

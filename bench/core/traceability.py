@@ -11,79 +11,27 @@ from __future__ import annotations
 
 import datetime as dt
 import re
-from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping
 from typing import Any
 
-from bench.core.schema import parse_date
+from bench.core.config import StandSettings, Traced, stated_traceability
+
+__all__ = ["Traced", "overdue", "overdue_warning", "traced_items"]
 
 #: instruments whose absence of a calibration breaks the chain to the SI (by stand role)
 MEASURING_ROLES = ("counter", "dmm")
 
 
-@dataclass(frozen=True)
-class Traced:
-    """One calibrated item of the stand."""
-
-    where: str                 # key path in the stand file, e.g. axes.outer.counter
-    item: str
-    certificate: str | None
-    issuer: str | None
-    due: dt.date | None
-    traces: str | None
-
-    def overdue(self, on: dt.date) -> bool:
-        return self.due is not None and on > self.due
-
-    @property
-    def stated(self) -> bool:
-        return self.certificate is not None
-
-
-def _name(path: tuple[str, ...], spec: Mapping[str, Any]) -> str:
-    role = path[-1]
-    where = " ".join(p for p in path[1:-1] if p not in ("axes", "gyros"))
-    model = spec.get("model")
-    return f"{role}{' ' + str(model) if model else ''}{f' ({where})' if where else ''}"
-
-
-def _walk(node: Any, path: tuple[str, ...]) -> Iterator[tuple[tuple[str, ...], Mapping]]:
-    if not isinstance(node, Mapping):
-        return
-    for key, value in node.items():
-        if key == "sim" and not path:
-            continue  # the twins' truth, not the bench
-        if isinstance(value, Mapping):
-            sub = (*path, str(key))
-            if "resource" in value or "port" in value or "interface" in value \
-                    or "calibration" in value:
-                yield sub, value
-            yield from _walk(value, sub)
-
-
-def traced_items(stand: Mapping[str, Any]) -> list[Traced]:
+def traced_items(stand: StandSettings | Mapping[str, Any]) -> list[Traced]:
     """Every instrument of the stand (with or without a stated calibration) and every
-    entry of its `traceability:` list."""
-    out = []
-    for path, spec in _walk(stand, ()):
-        cal = spec.get("calibration")
-        cal = cal if isinstance(cal, Mapping) else {}
-        out.append(Traced(".".join(path), _name(path, spec),
-                          str(cal["certificate"]) if cal.get("certificate") else None,
-                          str(cal["issuer"]) if cal.get("issuer") else None,
-                          parse_date(cal.get("due")), cal.get("traces")))
-    for i, t in enumerate(stand.get("traceability") or []):
-        if isinstance(t, Mapping):
-            item = str(t.get("item", ""))
-            if t.get("serial"):
-                item += f", serial {t['serial']}"
-            out.append(Traced(f"traceability[{i}]", item, str(t.get("certificate")),
-                              str(t.get("issuer")), parse_date(t.get("due")),
-                              t.get("traces")))
-    return out
+    entry of its `traceability:` list: of the parsed stand, or of a run directory's copy
+    of the stand file read back (the certificate's)."""
+    if isinstance(stand, StandSettings):
+        return list(stand.traced)
+    return list(stated_traceability(stand))
 
 
-def overdue(stand: Mapping[str, Any], on: dt.date) -> list[Traced]:
+def overdue(stand: StandSettings | Mapping[str, Any], on: dt.date) -> list[Traced]:
     return [t for t in traced_items(stand) if t.overdue(on)]
 
 

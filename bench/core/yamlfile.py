@@ -286,3 +286,14 @@ def load_yaml(path: str | Path) -> YamlDoc:
         if loader is not None:
             loader.dispose()
     return YamlDoc(p, data, lines)
+
+
+def read_mapping(path: str | Path) -> dict[str, Any]:
+    """A YAML file's top-level mapping through the one reader (its number fix included),
+    or {} when the file is missing, damaged or not a mapping: for readers of run
+    directories they did not write (certificate, station), which show what they can."""
+    try:
+        data = load_yaml(path).data
+    except YamlError:
+        return {}
+    return data if isinstance(data, dict) else {}

@@ -21,23 +21,22 @@ directory (`bench analyze` recomputes everything from them).
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
-from bench.core.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config, stand_schema
+from bench.core.config import (
+    Config,
+    StandSettings,
+    stand_schema,
+)
+from bench.report.conformity import judge
 from bench.core.engine import Abort, RunContext
 from bench.core.instruments import Bench, manual_note, open_axis, raw_text_logger, with_readback
 from bench.core.journal import RunDir, read_jsonl
 from bench.core.plan import Plan, Step
 from bench.core.progress import Figure
-from bench.core.schema import Key, ListOf, Map, MapOf, Num, Str
-from bench.core.simbench import SimBench
+from bench.core.schema import Key, Map
+from bench.core.simbench import SimBench, TwinFactory
 from bench.core.yamlfile import Problem
-from bench.report.conformity import judge
-from drivers.awg import PROFILES as AWG_PROFILES
 from drivers.awg import WaveformGenerator
 from drivers.clock import Clock
 from drivers.dmm import PROFILES as DMM_PROFILES
@@ -47,148 +46,20 @@ from procedures.base import StepDispatch, result_document
 from procedures.drift_pulse import analysis as dp
 from procedures.drift_pulse.certificate import DriftCertificate
 from procedures.drift_pulse.records import DriftRecords
-from procedures.drift_pulse.twins import SIM_GYRO_KEYS, gyro_rig_factory
-
-NAME = "drift-pulse"
-GYRO_NAMES = ("x", "y", "z")
-
-# -- files ------------------------------------------------------------------------------
-
-PULSE = Map({
-    "shape": Key(Str(tuple(dp.SHAPES)), True, "rectangular, triangular (or sawtooth)"),
-    "duration_s": Key(Num(min=0, exclusive_min=True, unit="s"), True, "Tc, each pulse"),
-    "amplitude_v": Key(Num(min=0, exclusive_min=True, unit="V"), True,
-                       "peak voltage into the torque-sensor current amplifier"),
-    "points": Key(Num(min=4, max=500_000, integer=True), False,
-                  "waveform points per pulse (default 1000)"),
-})
-DIGITIZER = Map({
-    "sample_rate_hz": Key(Num(min=0, exclusive_min=True, unit="Hz"), False, "default 2000"),
-    "aperture_s": Key(Num(min=0, exclusive_min=True, unit="s"), False,
-                      "default 0.8 of the interval"),
-    "range_v": Key(Num(min=0, exclusive_min=True, unit="V"), False, "default 10"),
-    "margin_s": Key(Num(min=0, unit="s"), False, "recorded after the pair (default 0.05)"),
-})
-TURN = Map({
-    "rate_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), True),
-    "accel_dps2": Key(Num(min=0, exclusive_min=True, unit="deg/s^2"), True),
-})
-PROCEDURE = Map({
-    **COMMON_PROCEDURE_KEYS,
-    "site": Key(Map({"latitude_deg": Key(Num(min=-90, max=90, unit="deg"), True),
-                     "name": Key(Str())}), True),
-    "pulse": Key(PULSE, True),
-    "cycles": Key(Num(min=4, max=10_000, integer=True), False,
-                  "measuring cycles per position (default 10; 4 at least for the scatter)"),
-    "timing_cycles": Key(Num(min=0, max=1000, integer=True), False,
-                         "large-amplitude cycles that locate the pulses (default 4)"),
-    "timing_amplitude_v": Key(Num(min=0, exclusive_min=True, unit="V"), False,
-                              "default 8 x the pulse amplitude, within the DMM range"),
-    "positions_deg": Key(ListOf(Num(min=-360, max=360, unit="deg"), min_len=2), False,
-                         "turntable positions (default [0, 180])"),
-    "gap_s": Key(Num(min=0, unit="s"), False, "pause between cycles (default 0.5)"),
-    "settle_s": Key(Num(min=0, unit="s"), False, "pause after a turn (default 5)"),
-    "turn": Key(TURN, False, "default: the drive's max rate and acceleration"),
-    "digitizer": Key(DIGITIZER),
-    "gyros": Key(ListOf(Str(GYRO_NAMES), min_len=1), False,
-                 "which of the platform's gyros (default: all)"),
-    "tolerance": Key(Map({"own_drift_dph": Key(Num(min=0, exclusive_min=True, unit="deg/h"))})),
-})
-
-GYRO = Map({
-    "model": Key(Str(), False, "the gyro's model (printed as part of the item calibrated)"),
-    "serial": Key(Str(), False, "the gyro's serial number (printed as part of the item)"),
-    "awg_channel": Key(Num(min=1, max=4, integer=True), True),
-    "dmm": Key(Map({"resource": Key(Str(), True, "VISA resource string"),
-                    "model": Key(Str(tuple(DMM_PROFILES)), True),
-                    "calibration": Key(CALIBRATION, False, "the DMM's certificate")}), True),
-    "k_as_v_per_deg": Key(Num(min=0, exclusive_min=True, unit="V/deg"), True,
-                          "the command angle sensor's transfer coefficient"),
-    "k_as_u_rel": Key(Num(min=0), False, "its standard uncertainty, relative"),
-    "precession_dps_per_v": Key(Num(min=0, exclusive_min=True, unit="deg/s per V"), True,
-                                "nominal k_ts * gain / H (range checks only)"),
-    "pulse_mismatch_max_rel": Key(Num(min=0), False, "bound of the +/- amplitude mismatch"),
-    "drift_random_walk_dph_per_rth": Key(Num(min=0), False, "the gyro's spec"),
-})
-PLATFORM = Map({
-    "identity": Key(IDENTITY, False, "the platform under test"),
-    "table_axis": Key(Str(), True, "the stand axis the platform sits on"),
-    "awg": Key(Map({"resource": Key(Str(), True),
-                    "model": Key(Str(tuple(AWG_PROFILES)), True),
-                    "calibration": Key(CALIBRATION, False, "the generator's certificate")}),
-               True),
-    "gyros": Key(MapOf(GYRO, min_len=1), True),
-})
-SIM_PLATFORM = Map({
-    "latitude_deg": Key(Num(min=-90, max=90), True),
-    "azimuth_deg": Key(Num(), True, "the X input axis at turntable 0, from north"),
-    "gyros": Key(MapOf(Map({k: Key(Num()) for k in SIM_GYRO_KEYS})), True),
-})
-SIM_AWG = Map({"output_latency_s": Key(Num(min=0)), "trigger_out_skew_s": Key(Num()),
-               "trigger_out_width_s": Key(Num(min=0)), "load_ohm": Key(Num(min=1)),
-               "serial": Key(Str(), False, "the serial the twin reports (*IDN? field 3)")})
-SIM_DMM = Map({"trigger_latency_s": Key(Num(min=0)),
-               "serials": Key(MapOf(Str()), False, "gyro: the serial its DMM twin reports")})
-
-DEFAULTS: dict[str, Any] = {"cycles": 10, "timing_cycles": 4, "positions_deg": [0.0, 180.0],
-                            "gap_s": 0.5, "settle_s": 5.0, "decision_rule": "simple",
-                            "prompts": True}
-DIGITIZER_DEFAULTS = {"sample_rate_hz": 2000.0, "range_v": 10.0, "margin_s": 0.05}
-DEFAULT_POINTS = 1000
-TIMING_GAIN = 8.0
-#: real-bench seconds a cycle costs beyond its record: arming, transfer, SCPI checks
-CYCLE_OVERHEAD_S = 0.5
-#: how far the turn may land from its angle when the stand file does not say
-DEFAULT_POSITION_TOLERANCE_DEG = 0.01
-
-
-def setting(cfg: Config, key: str) -> Any:
-    return cfg.procedure.get(key, DEFAULTS.get(key))
-
-
-@dataclass(frozen=True)
-class Timing:
-    """Where the samples are against the pulses, from the procedure's settings."""
-
-    tc_s: float
-    points: int                  # generator points per pulse
-    awg_rate_hz: float
-    interval_s: float
-    aperture_s: float
-    range_v: float
-    count: int                   # DMM samples per cycle
-    trigger_delay_s: float
-    lead_points: int = 1
-
-    @property
-    def lead_s(self) -> float:
-        return self.lead_points / self.awg_rate_hz
-
-    @property
-    def first_sample_s(self) -> float:
-        """Sample 0's middle, from the first pulse edge (on the grid of the edges)."""
-        return self.trigger_delay_s + 0.5 * self.aperture_s - self.lead_s
-
-    @property
-    def record_s(self) -> float:
-        return self.trigger_delay_s + self.count * self.interval_s
-
-    @classmethod
-    def of(cls, cfg: Config) -> Timing:
-        p = cfg.procedure["pulse"]
-        d = {**DIGITIZER_DEFAULTS, **cfg.procedure.get("digitizer", {})}
-        tc = float(p["duration_s"])
-        points = int(p.get("points", DEFAULT_POINTS))
-        interval = 1.0 / float(d["sample_rate_hz"])
-        aperture = float(d.get("aperture_s", 0.8 * interval))
-        lead_s = 1.0 / (points / tc)
-        count = int(math.ceil((2 * tc + lead_s + float(d["margin_s"])) / interval)) + 1
-        return cls(tc, points, points / tc, interval, aperture, float(d["range_v"]), count,
-                   max(interval - 0.5 * aperture, 0.0))
-
-
-def _near_int(x: float) -> bool:
-    return abs(x - round(x)) < 1e-6 * max(1.0, abs(x))
+from procedures.drift_pulse.settings import (  # noqa: F401 - the kind's names
+    CYCLE_OVERHEAD_S,
+    NAME,
+    PLATFORM,
+    PROCEDURE,
+    SIM_AWG,
+    SIM_DMM,
+    SIM_PLATFORM,
+    DriftSettings,
+    PlatformSettings,
+    Timing,
+    drift_problems,
+)
+from sims.gyro_rig import start_gyro_rig
 
 
 class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
@@ -204,144 +75,37 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
 
     # -- checks that need both files --------------------------------------------------
     def gyros(self, cfg: Config) -> list[str]:
-        return list(cfg.procedure.get("gyros") or cfg.stand["platform"]["gyros"])
+        return list(PlatformSettings.of(cfg).gyros)
 
     def cross_check(self, cfg: Config) -> list[Problem]:
-        pdoc, sdoc = cfg.procedure_doc, cfg.stand_doc
-        plat = cfg.stand["platform"]
-        out: list[Problem] = []
-        table = plat["table_axis"]
-        if table not in cfg.stand["axes"]:
-            out.append(sdoc.problem(("platform", "table_axis"), f"the stand has no axis "
-                                    f"{table!r} (it has {', '.join(cfg.stand['axes'])})"))
-        for g in plat["gyros"]:
-            if g not in GYRO_NAMES:
-                out.append(sdoc.problem(("platform", "gyros", g), "a gyro is x, y "
-                                        "(horizontal) or z (vertical)"))
-        for i, g in enumerate(cfg.procedure.get("gyros") or []):
-            if g not in plat["gyros"]:
-                out.append(pdoc.problem(("gyros", i), f"the stand's platform has no gyro {g!r}"))
-        awg = AWG_PROFILES[plat["awg"]["model"]]
-        channels: dict[int, str] = {}
-        for g, spec in plat["gyros"].items():
-            ch = spec["awg_channel"]
-            if ch not in awg.channels:
-                out.append(sdoc.problem(("platform", "gyros", g, "awg_channel"),
-                                        f"the {awg.model} has channels {awg.channels}"))
-            if ch in channels:
-                out.append(sdoc.problem(("platform", "gyros", g, "awg_channel"),
-                                        f"channel {ch} already drives gyro {channels[ch]}"))
-            channels[ch] = g
-        out += self._check_timing(cfg)
-        out += self._check_positions(cfg)
-        lat = cfg.procedure["site"]["latitude_deg"]
-        if abs(lat) > 84.0:
-            out.append(pdoc.problem(("site", "latitude_deg"), "within 6 deg of a pole the "
-                                    "Earth's horizontal rate is too small for an azimuth"))
-        if table in cfg.stand["axes"]:
-            drive = cfg.stand["axes"][table]["drive"]
-            turn = cfg.procedure.get("turn", {})
-            for key, limit in (("rate_dps", "max_rate_dps"), ("accel_dps2", "max_accel_dps2")):
-                if key in turn and turn[key] > drive[limit]:
-                    out.append(pdoc.problem(("turn", key), f"{turn[key]:g} exceeds the drive's "
-                                            f"{limit} {drive[limit]:g}"))
-        sim = cfg.stand.get("sim")
-        if sim is not None:
-            sp = sim.get("platform")
-            if sp is None:
-                out.append(sdoc.problem(("sim",), "a simulated drift-pulse bench needs "
-                                        "sim.platform (the platform's truth)"))
-            else:
-                for g in self.gyros(cfg):
-                    if g not in sp["gyros"]:
-                        out.append(sdoc.problem(("sim", "platform", "gyros"),
-                                                f"no truth for gyro {g!r}"))
-        return out
+        return drift_problems(cfg)
 
-    def _check_timing(self, cfg: Config) -> list[Problem]:
-        pdoc, sdoc = cfg.procedure_doc, cfg.stand_doc
-        plat = cfg.stand["platform"]
-        t = Timing.of(cfg)
-        out = []
-        where = ("digitizer",)
-        if not _near_int(t.tc_s / t.interval_s):
-            out.append(pdoc.problem(("pulse", "duration_s"), f"Tc = {t.tc_s:g} s is not a whole "
-                                    f"number of DMM intervals ({t.interval_s:g} s): the pulse "
-                                    f"edges must fall on samples (docs/method.md B)"))
-        if not _near_int(t.tc_s / t.interval_s / t.points):
-            out.append(pdoc.problem(("pulse", "points"), f"{t.points} points per pulse: the "
-                                    f"generator's step ({1 / t.awg_rate_hz:g} s) must be a whole "
-                                    f"number of DMM intervals ({t.interval_s:g} s)"))
-        awg = AWG_PROFILES[plat["awg"]["model"]]
-        lo, hi = awg.sample_rate_range_hz
-        if not lo <= t.awg_rate_hz <= hi or 2 * t.points + 2 > awg.max_points:
-            out.append(pdoc.problem(("pulse", "points"), f"{t.points} points in {t.tc_s:g} s do "
-                                    f"not fit the {awg.model} ({awg.max_points} points, "
-                                    f"{lo:g} .. {hi:g} Sa/s)"))
-        amps = {"amplitude_v": cfg.procedure["pulse"]["amplitude_v"]}
-        if setting(cfg, "timing_cycles"):
-            amps["timing_amplitude_v"] = self.timing_amplitude(cfg)
-        shape = dp.pulse_shape(cfg.procedure["pulse"]["shape"])
-        for g in self.gyros(cfg):
-            spec = plat["gyros"].get(g)
-            if spec is None:
-                continue
-            dmm = DMM_PROFILES[spec["dmm"]["model"]]
-            if not any(math.isclose(t.range_v, r) for r in dmm.ranges_v):
-                out.append(pdoc.problem(where + ("range_v",), f"the {dmm.model} has ranges "
-                                        f"{', '.join(f'{r:g}' for r in dmm.ranges_v)} V"))
-            if t.interval_s < max(dmm.min_interval_s, t.aperture_s + dmm.interval_overhead_s):
-                out.append(pdoc.problem(where, f"the aperture {t.aperture_s:g} s does not fit "
-                                        f"the interval {t.interval_s:g} s on the {dmm.model}"))
-            if t.count > dmm.max_readings:
-                out.append(pdoc.problem(("pulse", "duration_s"), f"{t.count} samples a cycle "
-                                        f"exceed the {dmm.model}'s {dmm.max_readings} readings"))
-            for key, amp in amps.items():
-                excursion = (spec["k_as_v_per_deg"] * spec["precession_dps_per_v"] * amp
-                             * t.tc_s * shape.angle_end)
-                if excursion > 0.8 * t.range_v:
-                    out.append(pdoc.problem(("pulse", key) if key == "amplitude_v" else (key,),
-                               f"gyro {g}: the pulse pair swings the angle sensor by "
-                               f"{excursion:.3g} V (k_as x precession x amplitude x Tc), over "
-                               f"0.8 of the DMM's {t.range_v:g} V range "
-                               f"({sdoc.path}:{sdoc.line(('platform', 'gyros', g))})"))
-        return out
-
-    def _check_positions(self, cfg: Config) -> list[Problem]:
-        pos = [float(p) for p in setting(cfg, "positions_deg")]
-        theta = np.radians(pos)
-        a = np.column_stack([np.ones_like(theta), np.cos(theta)]
-                            + ([-np.sin(theta)] if np.any(np.abs(np.sin(theta)) > 1e-9) else []))
-        if np.linalg.matrix_rank(a) < a.shape[1] or len({round(p % 360, 6) for p in pos}) < 2:
-            return [cfg.procedure_doc.problem(("positions_deg",), "the positions must separate "
-                                              "own and apparent drift: include two 180 deg "
-                                              "apart (e.g. [0, 180])")]
-        return []
+    def parse(self, cfg: Config) -> DriftSettings:
+        """The validated files as the kind's frozen settings (bench/core/registry.py)."""
+        return DriftSettings.parse(cfg)
 
     def timing_amplitude(self, cfg: Config) -> float:
-        return float(cfg.procedure.get("timing_amplitude_v",
-                                        TIMING_GAIN * cfg.procedure["pulse"]["amplitude_v"]))
+        return DriftSettings.from_config(cfg).timing_amplitude_v
 
     # -- plan -----------------------------------------------------------------------------
     def table(self, cfg: Config) -> str:
-        return cfg.stand["platform"]["table_axis"]
+        return PlatformSettings.of(cfg).table_axis
 
     def turn(self, cfg: Config) -> tuple[float, float]:
-        drive = cfg.stand["axes"][self.table(cfg)]["drive"]
-        t = cfg.procedure.get("turn", {})
-        return (float(t.get("rate_dps", drive["max_rate_dps"])),
-                float(t.get("accel_dps2", drive["max_accel_dps2"])))
+        d = DriftSettings.from_config(cfg)
+        return d.turn_rate_dps, d.turn_accel_dps2
 
     def build_plan(self, cfg: Config) -> Plan:
-        t = Timing.of(cfg)
-        table = self.table(cfg)
-        gyros = self.gyros(cfg)
-        gap = float(setting(cfg, "gap_s"))
+        d = DriftSettings.from_config(cfg)
+        t = d.timing
+        table = d.table_axis
+        gyros = d.gyros
+        gap = d.gap_s
         cycle_s = t.record_s + gap + CYCLE_OVERHEAD_S
-        rate, accel = self.turn(cfg)
-        shape = cfg.procedure["pulse"]["shape"]
+        rate, accel = d.turn_rate_dps, d.turn_accel_dps2
+        shape = d.pulse_shape
         steps: list[Step] = []
-        if setting(cfg, "prompts"):
+        if d.prompts:
             steps.append(Step("prompt", None, "Level the platform; switch the gyros' torque "
                               "sensors to the pulse generator (correction loops open); connect "
                               "each angle sensor to its DMM and the generator's trigger output "
@@ -351,55 +115,58 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
                           f"{1 / t.interval_s:g} Sa/s, aperture {t.aperture_s * 1e3:g} ms",
                           2.0, None, {}))
         at = None
-        for k, pos in enumerate(float(p) for p in setting(cfg, "positions_deg")):
+        for k, pos in enumerate(d.positions_deg):
             turn_s = (abs(pos - at) / rate + rate / accel) if at is not None else \
                 abs(pos) / rate + rate / accel
             steps.append(Step("turn", table, f"platform to {pos:g} deg (profile position)",
                               turn_s, None, {"position_deg": pos, "rate_dps": rate,
                                              "accel_dps2": accel}))
-            settle = float(setting(cfg, "settle_s"))
+            settle = d.settle_s
             if settle:
                 steps.append(Step("settle", table, f"{settle:g} s for the platform to settle",
                                   settle, None, {"duration_s": settle}))
             at = pos
-            timing = int(setting(cfg, "timing_cycles")) if k == 0 else 0
+            timing = d.timing_cycles if k == 0 else 0
             for i in range(timing):
                 steps.append(Step("cycle", table, f"timing cycle {i + 1}/{timing} at {pos:g} "
-                                  f"deg ({self.timing_amplitude(cfg):g} V)", cycle_s,
+                                  f"deg ({d.timing_amplitude_v:g} V)", cycle_s,
                                   f"timing/{i + 1}",
                                   {"position_deg": pos, "timing": True, "index": i + 1}))
-            n = int(setting(cfg, "cycles"))
+            n = d.cycles
             for i in range(n):
                 steps.append(Step("cycle", table, f"cycle {i + 1}/{n} at {pos:g} deg", cycle_s,
                                   f"{pos:g}deg/{i + 1}",
                                   {"position_deg": pos, "timing": False, "index": i + 1}))
         steps.append(Step("stop", table, "pulse outputs off; turntable to rest, disabled", 2.0))
-        return Plan(cfg.procedure.get("title", cfg.procedure_path.stem), tuple(steps))
+        return Plan(d.title, tuple(steps))
 
     # -- bench ----------------------------------------------------------------------------
-    def start_sim(self, cfg: Config) -> tuple[SimBench, dict[str, Any]]:
-        sim = SimBench(cfg.stand, [self.table(cfg)])
-        return sim, sim.start(extra=[gyro_rig_factory(self.gyros(cfg))])
+    def start_sim(self, cfg: Config) -> tuple[SimBench, StandSettings]:
+        sim = SimBench(cfg.stand_settings, [self.table(cfg)])
+        return sim, sim.start(extra=[gyro_rig_factory(PlatformSettings.of(cfg))])
 
-    def open_bench(self, cfg: Config, stand: dict[str, Any], clock: Clock,
+    def open_bench(self, cfg: Config, stand: StandSettings, clock: Clock,
                    run: RunDir | None) -> Bench:
         bench = Bench()
-        plat = stand["platform"]
+        d = PlatformSettings.of(cfg)
 
         def raw(name: str) -> Any:
             return raw_text_logger(bench.log(run.raw_path(name)), clock) if run else None
 
         try:
-            table = plat["table_axis"]
-            open_axis(bench, table, stand["axes"], clock, run, counter=False, fog=False)
-            awg = WaveformGenerator.open(plat["awg"]["resource"], plat["awg"]["model"], clock,
-                                         raw=raw("awg.jsonl"))
+            table = d.table_axis
+            open_axis(bench, stand.axes[table], clock, run, counter=False, fog=False)
+            awg = WaveformGenerator.open(
+                stand.address("platform.awg.resource", d.awg_resource),
+                d.awg_model, clock, raw=raw("awg.jsonl"))
             bench.enter(awg)
             bench.extra["awg"] = awg
             bench.extra["dmms"] = {}
-            for g in self.gyros(cfg):
-                d = plat["gyros"][g]["dmm"]
-                dmm = Digitizer.open(d["resource"], d["model"], clock, raw=raw(f"{g}-dmm.jsonl"))
+            for g in d.gyros:
+                spec = d.platform[g]
+                dmm = Digitizer.open(
+                    stand.address(f"platform.gyros.{g}.dmm.resource", spec.dmm_resource),
+                    spec.dmm_model, clock, raw=raw(f"{g}-dmm.jsonl"))
                 bench.enter(dmm)
                 bench.extra["dmms"][g] = dmm
             bench.axes[table].identities["awg"] = with_readback(
@@ -414,7 +181,7 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
 
     # -- steps (each action is a `_do_<action>` method) -----------------------------------
     def _do_setup(self, step: Step, ctx: RunContext) -> None:
-        t = Timing.of(ctx.cfg)
+        t = DriftSettings.from_config(ctx.cfg).timing
         for g, dmm in ctx.bench.extra["dmms"].items():
             setup = dmm.configure(t.range_v, t.aperture_s, t.interval_s, t.count,
                                   trigger_delay_s=t.trigger_delay_s)
@@ -426,13 +193,13 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
         """(Re)load the pair on every gyro's channel at this amplitude."""
         if ctx.state.get("loaded_v") == amplitude_v:
             return
-        cfg = ctx.cfg
-        t = Timing.of(cfg)
-        pair = dp.pulse_shape(cfg.procedure["pulse"]["shape"]).pair_points(t.points)
+        d = DriftSettings.from_config(ctx.cfg)
+        t = d.timing
+        pair = dp.pulse_shape(d.pulse_shape).pair_points(t.points)
         awg = ctx.bench.extra["awg"]
         first = True
         for g in ctx.bench.extra["dmms"]:
-            ch = cfg.stand["platform"]["gyros"][g]["awg_channel"]
+            ch = d.platform[g].awg_channel
             loaded = awg.load_pair(ch, pair, t.awg_rate_hz, amplitude_v,
                                    lead_points=t.lead_points, trigger_out=first)
             first = False
@@ -444,8 +211,7 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
     def _do_turn(self, step: Step, ctx: RunContext) -> None:
         drive = ctx.bench.axes[step.axis].drive
         p = step.params
-        tol = ctx.cfg.stand["axes"][step.axis]["drive"].get("position_tolerance_deg",
-                                                           DEFAULT_POSITION_TOLERANCE_DEG)
+        tol = DriftSettings.from_config(ctx.cfg).position_tolerance_deg
         final = drive.move_to(p["position_deg"], p["rate_dps"], p["accel_dps2"],
                               tolerance_deg=tol)
         ctx.run.event("turned", axis=step.axis, position_deg=p["position_deg"],
@@ -466,10 +232,10 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
         drive.check()
 
     def _do_cycle(self, step: Step, ctx: RunContext) -> None:
-        cfg, p = ctx.cfg, step.params
-        t = Timing.of(cfg)
-        amplitude = self.timing_amplitude(cfg) if p["timing"] else \
-            float(cfg.procedure["pulse"]["amplitude_v"])
+        p = step.params
+        d = DriftSettings.from_config(ctx.cfg)
+        t = d.timing
+        amplitude = d.timing_amplitude_v if p["timing"] else d.amplitude_v
         self._load(ctx, amplitude)
         drive = ctx.bench.axes[step.axis].drive
         dmms = ctx.bench.extra["dmms"]
@@ -486,20 +252,20 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
                       actual_deg=drive.position_deg, timing=p["timing"], amplitude_v=amplitude,
                       t_trigger_s=t0, fetch=dict(ctx.state["fetches"]), samples=t.count,
                       interval_s=t.interval_s, first_sample_s=t.first_sample_s, tc_s=t.tc_s)
-        shape = dp.pulse_shape(cfg.procedure["pulse"]["shape"])
+        shape = dp.pulse_shape(d.pulse_shape)
         quick = []
         for g, u in data.items():
-            spec = cfg.stand["platform"]["gyros"][g]
-            k_as = spec["k_as_v_per_deg"]
+            spec = d.platform[g]
+            k_as = spec.k_as_v_per_deg
             rec = dp.CycleRecord(u, t.interval_s, t.first_sample_s, t.tc_s)
             a = dp.fit_offset(rec, shape).amplitude_v_per_dps / k_as
-            nominal = spec["precession_dps_per_v"] * amplitude
+            nominal = spec.precession_dps_per_v * amplitude
             if not dp.MIN_AMPLITUDE_REL * nominal <= abs(a) <= nominal / dp.MIN_AMPLITUDE_REL:
                 raise Abort(f"gyro {g}: the angle sensor shows a precession of {a:.3g} deg/s "
                             f"where the pulse should give {nominal:.3g} deg/s "
                             f"(precession_dps_per_v x {amplitude:g} V): check the torque "
                             f"sensor's current path from generator channel "
-                            f"{spec['awg_channel']} and the angle sensor's wiring to its DMM")
+                            f"{spec.awg_channel} and the angle sensor's wiring to its DMM")
             w, _ = dp.cycle_drift_dph(rec, shape, k_as, 0.0, a)
             # 5 significant digits, as the certificate prints the drift of each cycle
             quick.append(Figure(g, w, unit="°/h", signed=True, digits=5))
@@ -507,7 +273,7 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
         where = f"{kind} {p['index']} at {p['position_deg']:g}°"
         ctx.progress.reading("drift", where, *quick)
         ctx.progress.result(f"{where}, drift at nominal edges", *quick)
-        self._wait(ctx, step.on_axis, float(setting(cfg, "gap_s")))
+        self._wait(ctx, step.on_axis, d.gap_s)
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
         ctx.bench.extra["awg"].outputs_off()
@@ -523,6 +289,33 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
 
 
 KIND = DriftPulse()
+
+
+def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
+    """The twins of a gyro platform on the stand's turntable (the stand file's `platform:`
+    and `sim.platform` blocks): the platform, its waveform generator and one DMM per gyro
+    of the procedure, each address rewritten to its twin's (`SimBench.addresses`)."""
+
+    def add_platform(sb: SimBench) -> None:
+        if d.sim_platform is None:
+            raise ValueError("a simulated drift-pulse bench needs sim.platform")
+        gyros = list(d.gyros)
+        rig = start_gyro_rig(sb.stand, d.sim_platform,
+                             {g: d.platform[g].awg_channel for g in gyros},
+                             awg_model=d.awg_model, dmm_model=d.platform[gyros[0]].dmm_model,
+                             awg_options=d.awg_twin, dmm_options=d.dmm_twin)
+        sb.add("gyro-rig", rig, rig.stop)
+        # the stand's serials in *IDN? field 3 (each twin reads its idn at every query)
+        for twin, serial in ((rig.awg, d.awg_serial),
+                             *((rig.dmms[g], d.dmm_serials.get(g)) for g in gyros)):
+            if serial:
+                idn = twin.idn.split(",")
+                twin.idn = ",".join([*idn[:2], serial, *idn[3:]])
+        sb.addresses["platform.awg.resource"] = rig.awg.resource
+        for g in gyros:
+            sb.addresses[f"platform.gyros.{g}.dmm.resource"] = rig.dmms[g].resource
+
+    return add_platform
 
 
 def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
@@ -545,15 +338,16 @@ def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, 
     done = {e["unit"]: e["session"] for e in events if e.get("event") == "unit_done"}
     cycles = [e for e in events if e.get("event") == "cycle" and done.get(e["unit"]) ==
               e["session"]]
-    gyros = kind.gyros(cfg)
-    plat = cfg.stand["platform"]["gyros"]
+    d = DriftSettings.from_config(cfg)
+    gyros = list(d.gyros)
+    plat = d.platform
     replies: dict[tuple[int, str], list[str]] = {}
     records: dict[str, list[dp.CycleRecord]] = {g: [] for g in gyros}
     for e in cycles:
         for g in gyros:
             key = (e["session"], g)
             if key not in replies:
-                replies[key] = dmm_replies(run, *key, plat[g]["dmm"]["model"])
+                replies[key] = dmm_replies(run, *key, plat[g].dmm_model)
             n = e["fetch"][g]
             u = parse_numbers(replies[key][n - 1])
             if u.size != e["samples"]:
@@ -562,41 +356,37 @@ def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, 
             records[g].append(dp.CycleRecord(u, e["interval_s"], e["first_sample_s"],
                                              e["tc_s"], e["t_trigger_s"], e["position_deg"],
                                              timing_only=e["timing"]))
-    shape = dp.pulse_shape(cfg.procedure["pulse"]["shape"])
-    turn_tol = cfg.stand["axes"][kind.table(cfg)]["drive"].get("position_tolerance_deg",
-                                                               DEFAULT_POSITION_TOLERANCE_DEG)
-    stated = {g: dp.StatedErrors(k_as_u_rel=plat[g].get("k_as_u_rel", 0.0),
-                                 pulse_mismatch_max_rel=plat[g].get("pulse_mismatch_max_rel", 0.0),
-                                 drift_random_walk_dph_per_rth=plat[g].get(
-                                     "drift_random_walk_dph_per_rth", 0.0),
-                                 turn_tolerance_deg=turn_tol) for g in gyros}
-    rule = setting(cfg, "decision_rule")
+    shape = dp.pulse_shape(d.pulse_shape)
+    stated = {g: dp.StatedErrors(k_as_u_rel=plat[g].k_as_u_rel,
+                                 pulse_mismatch_max_rel=plat[g].pulse_mismatch_max_rel,
+                                 drift_random_walk_dph_per_rth=plat[g].drift_random_walk_dph_per_rth,
+                                 turn_tolerance_deg=d.position_tolerance_deg) for g in gyros}
+    rule = d.decision_rule
     complete = plan_units <= set(done)
     drift: dict[str, Any]
     checks: list[dict[str, Any]] = []
     try:
-        result = dp.analyze(records, shape, {g: plat[g]["k_as_v_per_deg"] for g in gyros},
-                            cfg.procedure["site"]["latitude_deg"], stated)
+        result = dp.analyze(records, shape, {g: plat[g].k_as_v_per_deg for g in gyros},
+                            d.latitude_deg, stated)
         drift = result.to_dict()["drift"]
-        checks = _checks(cfg, result, rule)
+        checks = _checks(d.own_drift_tolerance_dph, result, rule)
     except ValueError as e:
         drift = {"axes": {}, "not_computed": str(e)}
         complete = False
-    t = Timing.of(cfg)
+    t = d.timing
     method = {"method": "docs/method.md B: alternating-sign controlled precession",
-              "pulse": cfg.procedure["pulse"], "timing_cycles": setting(cfg, "timing_cycles"),
-              "cycles_per_position": setting(cfg, "cycles"),
-              "positions_deg": setting(cfg, "positions_deg"),
+              "pulse": dict(d.pulse_doc), "timing_cycles": d.timing_cycles,
+              "cycles_per_position": d.cycles,
+              "positions_deg": list(d.positions_deg),
               "sample_rate_hz": 1.0 / t.interval_s, "aperture_s": t.aperture_s,
-              "site": cfg.procedure["site"], "tolerance": cfg.procedure.get("tolerance", {})}
+              "site": dict(d.site_doc), "tolerance": dict(d.tolerance_doc)}
     return result_document(run, cfg, events, complete=complete, checks=checks, rule=rule,
                            method=method, drift=drift)
 
 
-def _checks(cfg: Config, result: dp.DriftResult, rule: str) -> list[dict[str, Any]]:
+def _checks(tol: float | None, result: dp.DriftResult, rule: str) -> list[dict[str, Any]]:
     """Own drift against the tolerance; the Earth-rate consistency (k_as, levelling)."""
     out = []
-    tol = cfg.procedure.get("tolerance", {}).get("own_drift_dph")
     for g, ax in result.axes.items():
         if tol is None:
             continue

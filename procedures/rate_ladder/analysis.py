@@ -23,9 +23,9 @@ from bench.analysis.pair import analyze_pair_mains
 from bench.analysis.random_part import std_interval_u_rel
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
-from bench.core.config import Config
-from bench.core.journal import RunDir, read_jsonl
+from bench.core.config import Config, CounterSpec
 from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
+from bench.core.journal import RunDir, read_jsonl
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor
 from drivers.scpi import parse_numbers
@@ -39,16 +39,15 @@ from procedures.rate_ladder.settings import (
 )
 
 
-def counter_budget(stand_axis: dict[str, Any]) -> CounterBudget:
+def counter_budget(c: CounterSpec) -> CounterBudget:
     """docs/method.md A1: dT = sqrt(d_counter^2 + d_trigger^2), plus the timebase."""
-    c = stand_axis["counter"]
-    profile = get_profile(c["model"])
-    tie = c.get("time_tie") or {}
-    return CounterBudget(time_tie_u_s=float(tie.get("latency_u_s", 0.0)),
+    profile = get_profile(c.model)
+    return CounterBudget(time_tie_u_s=c.time_tie.latency_u_s if c.time_tie else 0.0,
                          timestamp_u_s=profile.single_shot_s,
-                         trigger_jitter_s=float(c.get("trigger_jitter_s", 0.0)),
-                         timebase_limit_rel=float(c.get("timebase_limit_rel",
-                                                        profile.timebase_limit_rel)))
+                         trigger_jitter_s=c.trigger_jitter_s or 0.0,
+                         timebase_limit_rel=(c.timebase_limit_rel
+                                             if c.timebase_limit_rel is not None
+                                             else profile.timebase_limit_rel))
 
 
 def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int,
@@ -178,7 +177,7 @@ class RawData:
             return np.asarray(h.edges_s, dtype=float)
         log = self.counter_log(h.session, h.axis)
         i0, i1 = h.counter_records
-        model = self.cfg.stand_axis(h.axis)["counter"]["model"]
+        model = _counter(self.cfg, h.axis).model
         return edges_from_replies(log[i0:i1], model, h.turns + 1, counter_start_s(h))
 
     def half(self, h: HalfAcquired) -> HalfRecord:
@@ -241,7 +240,7 @@ def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
             halves, rate_dps, fog_rate_hz=fog_hz,
             candidates_hz=[stated] if stated is not None else list(MAINS_CANDIDATES_HZ),
             source=s["mains_source"] if stated is not None else MAINS_FOUND,
-            counter_budget=counter_budget(cfg.stand_axis(axis)),
+            counter_budget=counter_budget(_counter(cfg, axis)),
             harmonics=int(s["harmonics"]), static_fog_dps=static_dps)
     finally:
         raw.drop_windows()
@@ -295,8 +294,16 @@ def sigma_resolved(lower: float, floor: float) -> bool:
     return lower > floor
 
 
+def _counter(cfg: Config, axis: str) -> CounterSpec:
+    """The axis's counter (validated: the ladder needs one on each of its axes)."""
+    c = cfg.stand_settings.axes[axis].counter
+    if c is None:
+        raise ValueError(f"axis {axis} has no counter")
+    return c
+
+
 def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[dict[str, Any]]:
-    tol = cfg.procedure.get("tolerance", {})
+    tol = LadderSettings.from_config(cfg).tolerance
     out = []
     rate = entry["set_rate_dps"]
     for quantity, value, u in (
@@ -358,11 +365,11 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
     result_axes: dict[str, Any] = {}
     checks: list[dict[str, Any]] = []
     complete = True
-    for axis, spec in cfg.procedure["axes"].items():
+    for axis, spec in LadderSettings.from_config(cfg).axes.items():
         static = static_record(events, axis)
         rates: list[dict[str, Any]] = []
         pairs: list[dict[str, Any]] = []
-        for rate in spec["rates_dps"]:
+        for rate in spec.rates_dps:
             unit = f"{axis}/{rate:g}dps"
             if unit not in done_in:
                 complete = False
@@ -396,7 +403,7 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
     return result_document(run, cfg, events, complete=complete, checks=checks, rule=rule,
                            raw_hashes=hashes,
                            method={**_settings(cfg),
-                                   "tolerance": cfg.procedure.get("tolerance", {})},
+                                   "tolerance": LadderSettings.from_config(cfg).tolerance_doc()},
                            axes=result_axes)
 
 

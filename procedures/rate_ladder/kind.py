@@ -13,9 +13,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from bench.core.config import STEP_MAX_S, Config, check_axis_names, stand_schema
+from bench.core.config import Config, StandSettings, stand_schema
 from bench.core.engine import Abort, RunContext
-from bench.core.instruments import DEFAULT_FOG_RANGE_DPS, Bench, StandClaimError, open_axis
+from bench.core.instruments import Bench, StandClaimError, open_axis
 from bench.core.journal import RunDir
 from bench.core.plan import Plan, Step, format_duration
 from bench.core.progress import RELATIVE, Figure
@@ -37,10 +37,9 @@ from procedures.rate_ladder.records import LadderRecords
 from procedures.rate_ladder.settings import (
     NAME,
     PROCEDURE,
-    SETTLE_DEFAULTS,
     LadderSettings,
     halves,
-    mains_of,
+    ladder_problems,
     tolerance_for,
     validation_notes,
 )
@@ -67,84 +66,25 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         return stand_schema()
 
     def cross_check(self, cfg: Config) -> list[Problem]:
-        out = check_axis_names(cfg)
-        pdoc, sdoc = cfg.procedure_doc, cfg.stand_doc
-        accel = cfg.procedure.get("accel_dps2")
-        ladder = LadderSettings.from_config(cfg)
-        for axis, spec in cfg.procedure["axes"].items():
-            if axis not in cfg.stand["axes"]:
-                continue
-            stand_axis = cfg.stand["axes"][axis]
-            drive = stand_axis["drive"]
-            fog = stand_axis.get("fog")
-            for what in ("counter", "fog"):
-                if not stand_axis.get(what):
-                    out.append(sdoc.problem(("axes", axis), f"the rate ladder needs a {what} "
-                                                            f"on axis {axis!r}"))
-            counter = stand_axis.get("counter")
-            if counter and "level_v" not in counter and not cfg.has_sim:
-                # the counter refuses to arm without it; say so before anything moves
-                out.append(sdoc.problem(("axes", axis, "counter"), "missing level_v: a real "
-                                        "stand needs an absolute trigger level in volts (a "
-                                        "once-per-rev pulse is too slow for auto-level)"))
-            fog_range = (fog or {}).get("range_dps", DEFAULT_FOG_RANGE_DPS)
-            turns = ladder.axes[axis].turns
-            for i, rate in enumerate(spec["rates_dps"]):
-                where = ("axes", axis, "rates_dps", i)
-                if (turns + 1) * 360.0 / rate > STEP_MAX_S:
-                    out.append(pdoc.problem(where, f"{turns} turns at {rate:g} deg/s take "
-                               f"{format_duration(turns * 360.0 / rate)} of bench time per "
-                               f"direction (more than {format_duration(STEP_MAX_S)})"))
-                if rate > drive["max_rate_dps"]:
-                    out.append(pdoc.problem(where, f"{rate:g} deg/s exceeds axis {axis!r}'s "
-                               f"max_rate_dps {drive['max_rate_dps']:g} "
-                               f"({sdoc.path}:{sdoc.line(('axes', axis, 'drive'))})"))
-                if fog and rate > fog_range:
-                    out.append(pdoc.problem(where, f"{rate:g} deg/s exceeds the FOG's range "
-                                                   f"{fog_range:g} deg/s on axis {axis!r}"))
-            if accel is not None and accel > drive["max_accel_dps2"]:
-                out.append(pdoc.problem(("accel_dps2",), f"{accel:g} deg/s^2 exceeds axis "
-                           f"{axis!r}'s max_accel_dps2 {drive['max_accel_dps2']:g}"))
-            if fog:
-                mains = cfg.stand.get("sim", {}).get("axes", {}).get(axis, {}).get("mains")
-                if mains and 2 * mains.get("frequency_hz", 50) >= fog["rate_hz"]:
-                    out.append(sdoc.problem(("axes", axis, "fog", "rate_hz"),
-                                            "the FOG rate must exceed twice the mains frequency"))
-                stated, source = mains_of(cfg)
-                if mains and stated is not None and mains.get("frequency_hz") != stated:
-                    doc = pdoc if source.startswith("procedure") else sdoc
-                    out.append(doc.problem(("mains_hz",), f"mains_hz {stated:g} Hz, but the "
-                               f"stand's sim truth of axis {axis!r} has its mains tone at "
-                               f"{mains.get('frequency_hz'):g} Hz: set mains_hz to the "
-                               "lab's grid"))
-        for name in ("rate_error", "rate_instability", "intra_turn_instability"):
-            bands = cfg.procedure.get("tolerance", {}).get(name)
-            if bands and "below_dps" in bands[-1]:
-                out.append(pdoc.problem(("tolerance", name, len(bands) - 1),
-                                        "the last band must have no below_dps (it covers "
-                                        "every rate above the others)"))
-        return out
+        return ladder_problems(cfg)
+
+    def parse(self, cfg: Config) -> LadderSettings:
+        """The validated procedure as the ladder's frozen settings (bench/core/registry.py)."""
+        return LadderSettings.parse(cfg)
 
     def notes(self, cfg: Config) -> list[str]:
         """Advice `bench validate` prints beside 'valid' (nothing wrong, something unstated)."""
         return validation_notes(cfg)
 
     # -- plan ------------------------------------------------------------------------
-    def accel(self, cfg: Config, axis: str) -> float:
-        limit = cfg.stand["axes"][axis]["drive"]["max_accel_dps2"]
-        return min(cfg.procedure.get("accel_dps2", limit), limit)
-
-    def settle(self, cfg: Config) -> dict[str, float]:
-        return {**SETTLE_DEFAULTS, **cfg.procedure.get("settle", {})}
-
     def build_plan(self, cfg: Config) -> Plan:
         steps: list[Step] = []
-        settle = self.settle(cfg)
         ladder = LadderSettings.from_config(cfg)
+        settle = ladder.settle
         static_s = ladder.static_record_s
         for axis, spec in ladder.axes.items():
             turns = spec.turns
-            accel = self.accel(cfg, axis)
+            accel = spec.accel_dps2
             if ladder.prompts:
                 text = spec.prompt or (
                     f"Mount the FOG on the {axis} axis (sensitive axis along the table axis), "
@@ -165,11 +105,11 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
                     steps.append(Step("set_rate", axis, f"{target:+g} deg/s",
                                       abs(target - rate_now) / accel, unit,
                                       {"rate_dps": target, "accel_dps2": accel}))
-                    tol = max(settle["tolerance_dps"], settle["tolerance_rel"] * rate)
+                    tol = settle.tolerance_at(rate)
                     steps.append(Step("settle", axis, f"within {tol:.3g} deg/s for "
-                                      f"{settle['hold_s']:g} s", settle["hold_s"] + 0.5, unit,
-                                      {"tolerance_dps": tol, "hold_s": settle["hold_s"],
-                                       "timeout_s": settle["timeout_s"]}))
+                                      f"{settle.hold_s:g} s", settle.hold_s + 0.5, unit,
+                                      {"tolerance_dps": tol, "hold_s": settle.hold_s,
+                                       "timeout_s": settle.timeout_s}))
                     period = 360.0 / rate
                     steps.append(Step("acquire", axis, f"{_turns(n)} at {target:+g} deg/s "
                                       f"(half {j + 1}/{len(parts)}, "
@@ -183,7 +123,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
                                   f"+/-{rate:g} deg/s pair", 0.0, unit, {"rate_dps": rate}))
             steps.append(Step("stop", axis, "ramp to zero, disable", abs(rate_now) / accel,
                               None, {"accel_dps2": accel}))
-        title = cfg.procedure.get("title", cfg.procedure_path.stem)
+        title = ladder.title
         warnings = tuple(
             f"axis {axis}: {spec.turns} turns with sequence +-+ split the + direction "
             f"{halves(spec.turns, '+-+')[0][1]}/{halves(spec.turns, '+-+')[2][1]} around the "
@@ -196,18 +136,18 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
     # -- bench -----------------------------------------------------------------------
     def axes(self, cfg: Config) -> list[str]:
         """The procedure's axes (every axis of the stand for `bench devices`)."""
-        return list(cfg.procedure.get("axes") or cfg.stand["axes"])
+        return list(LadderSettings.from_config(cfg).axes or cfg.stand_settings.axes)
 
-    def start_sim(self, cfg: Config) -> tuple[SimBench, dict[str, Any]]:
-        sim = SimBench(cfg.stand, self.axes(cfg))
+    def start_sim(self, cfg: Config) -> tuple[SimBench, StandSettings]:
+        sim = SimBench(cfg.stand_settings, self.axes(cfg))
         return sim, sim.start()
 
-    def open_bench(self, cfg: Config, stand: dict[str, Any], clock: Clock,
+    def open_bench(self, cfg: Config, stand: StandSettings, clock: Clock,
                    run: RunDir | None) -> Bench:
         bench = Bench()
         try:
             for axis in self.axes(cfg):
-                open_axis(bench, axis, stand["axes"], clock, run)
+                open_axis(bench, stand.axes[axis], clock, run)
             refused = uncommandable_rates(cfg, bench)
         except BaseException as e:
             bench.abandon(e)
@@ -456,11 +396,10 @@ def uncommandable_rates(cfg: Config, bench: Bench) -> list[str]:
     command rounded to a coarse unit (1 rpm = 6 deg/s: 100 deg/s is sent as 102) would be
     certified as a table error. Refused before anything moves when the rounding exceeds a
     tenth of the rate-error tolerance at that rate, or COMMAND_RESOLUTION_REL_MAX."""
-    if not cfg.procedure.get("axes"):    # `bench devices`: a stand with no procedure
-        return []
-    bands = (cfg.procedure.get("tolerance") or {}).get("rate_error")
+    ladder = LadderSettings.from_config(cfg)   # no axes: `bench devices`, a stand alone
+    bands = ladder.tolerance.get("rate_error")
     out: list[str] = []
-    for axis, spec in LadderSettings.from_config(cfg).axes.items():
+    for axis, spec in ladder.axes.items():
         if axis not in bench.axes:
             continue
         drive = bench.axes[axis].drive

@@ -3,19 +3,22 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
-from types import MappingProxyType
+from dataclasses import dataclass, field
 from typing import Any
 
 from bench.core.config import (
     ACCEL_MAX_DPS2,
     COMMON_PROCEDURE_KEYS,
+    FOG_DEFAULTS,
     RATE_MAX_DPS,
     RATE_MIN_DPS,
     STEP_MAX_S,
     Config,
+    check_axis_names,
 )
+from bench.core.plan import format_duration
 from bench.core.schema import Key, ListOf, Map, MapOf, Num, Str
+from bench.core.yamlfile import Problem
 
 NAME = "rate-ladder"
 
@@ -88,13 +91,39 @@ def setting(cfg: Config, key: str) -> Any:
 
 
 @dataclass(frozen=True)
+class Band:
+    """One tolerance band: `rel` applies to rates below `below_dps` (None: the rest)."""
+
+    rel: float
+    below_dps: float | None = None
+
+
+@dataclass(frozen=True)
+class Settle:
+    """When a rate counts as reached (the procedure's `settle:`, defaults SETTLE_DEFAULTS)."""
+
+    tolerance_dps: float = SETTLE_DEFAULTS["tolerance_dps"]
+    tolerance_rel: float = SETTLE_DEFAULTS["tolerance_rel"]
+    hold_s: float = SETTLE_DEFAULTS["hold_s"]
+    timeout_s: float = SETTLE_DEFAULTS["timeout_s"]
+
+    def tolerance_at(self, rate_dps: float) -> float:
+        return max(self.tolerance_dps, self.tolerance_rel * abs(rate_dps))
+
+
+@dataclass(frozen=True)
 class AxisSettings:
-    """One axis of the ladder as it runs: its own `turns` where it gives one."""
+    """One axis of the ladder as it runs: its own `turns` where it gives one, its ramp
+    acceleration (the procedure's `accel_dps2`, never above the drive's limit)."""
 
     name: str
     rates_dps: tuple[float, ...]
     turns: int
     prompt: str | None
+    accel_dps2: float = 0.0
+
+
+TOLERANCE_KEYS = ("rate_error", "rate_instability", "intra_turn_instability")
 
 
 @dataclass(frozen=True)
@@ -113,20 +142,47 @@ class LadderSettings:
     decision_rule: str
     prompts: bool
     axes: Mapping[str, AxisSettings]
+    title: str = ""
+    settle: Settle = Settle()
+    #: bands by tolerance key (rate_error, ...); a key absent: reported, not judged
+    tolerance: Mapping[str, tuple[Band, ...]] = field(default_factory=dict)
 
     @classmethod
     def from_config(cls, cfg: Config) -> LadderSettings:
+        parsed = cfg.settings
+        return parsed if isinstance(parsed, LadderSettings) else cls.parse(cfg)
+
+    @classmethod
+    def parse(cls, cfg: Config) -> LadderSettings:
         turns = int(setting(cfg, "turns"))
         mains_hz, mains_source = mains_of(cfg)
-        axes = {name: AxisSettings(name, tuple(float(r) for r in spec["rates_dps"]),
-                                   int(spec.get("turns", turns)), spec.get("prompt"))
-                for name, spec in cfg.procedure["axes"].items()}
+        stand = cfg.stand_settings
+        accel = cfg.procedure.get("accel_dps2")
+        axes = {}
+        for name, spec in (cfg.procedure.get("axes") or {}).items():
+            limit = stand.axes[name].drive.max_accel_dps2 if name in stand.axes else 0.0
+            axes[name] = AxisSettings(name, tuple(float(r) for r in spec["rates_dps"]),
+                                      int(spec.get("turns", turns)), spec.get("prompt"),
+                                      min(float(accel), limit) if accel is not None
+                                      else limit)
+        tol = cfg.procedure.get("tolerance") or {}
+        bands = {k: tuple(Band(float(b["rel"]), _below(b)) for b in tol[k])
+                 for k in TOLERANCE_KEYS if tol.get(k)}
         return cls(turns=turns, sequence=str(setting(cfg, "sequence")),
                    static_record_s=float(setting(cfg, "static_record_s")),
                    harmonics=int(setting(cfg, "harmonics")),
                    mains_hz=mains_hz, mains_source=mains_source,
                    decision_rule=str(setting(cfg, "decision_rule")),
-                   prompts=bool(setting(cfg, "prompts")), axes=MappingProxyType(axes))
+                   prompts=bool(setting(cfg, "prompts")), axes=axes,
+                   title=cfg.common.title,
+                   settle=Settle(**{k: float(v) for k, v in
+                                    (cfg.procedure.get("settle") or {}).items()}),
+                   tolerance=bands)
+
+    def tolerance_doc(self) -> dict[str, list[dict[str, float]]]:
+        """The tolerance as the procedure file states it (result.json's `method`)."""
+        return {k: [{**({"below_dps": b.below_dps} if b.below_dps is not None else {}),
+                     "rel": b.rel} for b in bands] for k, bands in self.tolerance.items()}
 
     def method(self) -> dict[str, Any]:
         """The settings result.json records under `method` (the certificate's Method
@@ -138,6 +194,10 @@ class LadderSettings:
                 "static_record_s": self.static_record_s, "harmonics": self.harmonics,
                 "mains_hz": self.mains_hz, "mains_source": self.mains_source,
                 "decision_rule": self.decision_rule}
+
+
+def _below(band: dict[str, Any]) -> float | None:
+    return float(band["below_dps"]) if band.get("below_dps") is not None else None
 
 
 #: the grids a mains tone is looked for at when neither file states the lab's
@@ -166,16 +226,16 @@ def validation_notes(cfg: Config) -> list[str]:
     return []
 
 
-def tolerance_for(bands: list[dict[str, float]] | None, rate_dps: float) -> float | None:
+def tolerance_for(bands: tuple[Band, ...] | None, rate_dps: float) -> float | None:
     """The first band whose `below_dps` exceeds |rate|, else the band without one."""
     if not bands:
         return None
     for band in bands:
-        if "below_dps" in band and abs(rate_dps) < band["below_dps"]:
-            return float(band["rel"])
+        if band.below_dps is not None and abs(rate_dps) < band.below_dps:
+            return band.rel
     for band in bands:
-        if "below_dps" not in band:
-            return float(band["rel"])
+        if band.below_dps is None:
+            return band.rel
     return None
 
 
@@ -184,3 +244,65 @@ def halves(turns: int, sequence: str) -> list[tuple[int, int]]:
     if sequence == "+-+" and turns >= 2:
         return [(+1, (turns + 1) // 2), (-1, turns), (+1, turns // 2)]
     return [(+1, turns), (-1, turns)]
+
+
+def ladder_problems(cfg: Config) -> list[Problem]:
+    """The ladder's checks that need both files: axes exist, rates within the drive's
+    limits and the FOG's range, the last tolerance band open."""
+    out = check_axis_names(cfg)
+    pdoc, sdoc = cfg.procedure_doc, cfg.stand_doc
+    accel = cfg.procedure.get("accel_dps2")
+    for axis, spec in cfg.procedure["axes"].items():
+        if axis not in cfg.stand["axes"]:
+            continue
+        stand_axis = cfg.stand["axes"][axis]
+        drive = stand_axis["drive"]
+        fog = stand_axis.get("fog")
+        for what in ("counter", "fog"):
+            if not stand_axis.get(what):
+                out.append(sdoc.problem(("axes", axis), f"the rate ladder needs a {what} "
+                                                        f"on axis {axis!r}"))
+        counter = stand_axis.get("counter")
+        if counter and "level_v" not in counter and not cfg.has_sim:
+            # the counter refuses to arm without it; say so before anything moves
+            out.append(sdoc.problem(("axes", axis, "counter"), "missing level_v: a real "
+                                    "stand needs an absolute trigger level in volts (a "
+                                    "once-per-rev pulse is too slow for auto-level)"))
+        fog_range = (fog or {}).get("range_dps", FOG_DEFAULTS["range_dps"])
+        # from the files alone: one broken stand key must not hide the other checks
+        turns = int(spec.get("turns", setting(cfg, "turns")))
+        for i, rate in enumerate(spec["rates_dps"]):
+            where = ("axes", axis, "rates_dps", i)
+            if (turns + 1) * 360.0 / rate > STEP_MAX_S:
+                out.append(pdoc.problem(where, f"{turns} turns at {rate:g} deg/s take "
+                           f"{format_duration(turns * 360.0 / rate)} of bench time per "
+                           f"direction (more than {format_duration(STEP_MAX_S)})"))
+            if rate > drive["max_rate_dps"]:
+                out.append(pdoc.problem(where, f"{rate:g} deg/s exceeds axis {axis!r}'s "
+                           f"max_rate_dps {drive['max_rate_dps']:g} "
+                           f"({sdoc.path}:{sdoc.line(('axes', axis, 'drive'))})"))
+            if fog and rate > fog_range:
+                out.append(pdoc.problem(where, f"{rate:g} deg/s exceeds the FOG's range "
+                                               f"{fog_range:g} deg/s on axis {axis!r}"))
+        if accel is not None and accel > drive["max_accel_dps2"]:
+            out.append(pdoc.problem(("accel_dps2",), f"{accel:g} deg/s^2 exceeds axis "
+                       f"{axis!r}'s max_accel_dps2 {drive['max_accel_dps2']:g}"))
+        if fog:
+            mains = cfg.stand.get("sim", {}).get("axes", {}).get(axis, {}).get("mains")
+            if mains and 2 * mains.get("frequency_hz", 50) >= fog["rate_hz"]:
+                out.append(sdoc.problem(("axes", axis, "fog", "rate_hz"),
+                                        "the FOG rate must exceed twice the mains frequency"))
+            stated, source = mains_of(cfg)
+            if mains and stated is not None and mains.get("frequency_hz") != stated:
+                doc = pdoc if source.startswith("procedure") else sdoc
+                out.append(doc.problem(("mains_hz",), f"mains_hz {stated:g} Hz, but the "
+                           f"stand's sim truth of axis {axis!r} has its mains tone at "
+                           f"{mains.get('frequency_hz'):g} Hz: set mains_hz to the "
+                           "lab's grid"))
+    for name in ("rate_error", "rate_instability", "intra_turn_instability"):
+        bands = cfg.procedure.get("tolerance", {}).get(name)
+        if bands and "below_dps" in bands[-1]:
+            out.append(pdoc.problem(("tolerance", name, len(bands) - 1),
+                                    "the last band must have no below_dps (it covers "
+                                    "every rate above the others)"))
+    return out

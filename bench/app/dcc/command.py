@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 import traceback
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +20,7 @@ def _err(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
-def write_run_dcc(run_path: Path, result: dict[str, Any], stand: Mapping[str, Any] | None,
+def write_run_dcc(run_path: Path, result: dict[str, Any], stand: Any,
                   line: Callable[[str], None] = print, lab_file: str | Path | None = None,
                   warn: Callable[[str], None] = _err) -> bool:
     """Write RUN_DIR/certificate.dcc.xml after the PDF; False when the run has no valid DCC
@@ -30,7 +30,7 @@ def write_run_dcc(run_path: Path, result: dict[str, Any], stand: Mapping[str, An
     from bench.app.dcc.settings import SettingsError
 
     try:
-        outcome = write_dcc(run_path, result, dict(stand or {}), lab_file)
+        outcome = write_dcc(run_path, result, stand, lab_file)
     except SettingsError as e:
         warn(f"the DCC could not be written: {e}; result.json and the PDF are in {run_path}; "
              f"once fixed, `bench dcc {run_path}` writes it")

@@ -58,7 +58,7 @@ def _write_atomic(path: Path, data: bytes) -> None:
     os.replace(tmp, path)
 
 
-def write_dcc(run_path: Path, result: dict[str, Any], stand: dict[str, Any] | None = None,
+def write_dcc(run_path: Path, result: dict[str, Any], stand: Any = None,
               lab_file: str | Path | None = None, issued: dt.date | None = None,
               lab: Lab | None = None, issue: Issue | None = None,
               out_dir: Path | None = None) -> DccOutcome:

@@ -18,8 +18,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from bench.core.config import STAND_DCC
-from bench.core.lab import LAB, Lab, LabError, Signing, _signing, load_lab
+from bench.core.config import STAND_DCC, DccRefs, dcc_refs
+from bench.core.lab import LAB, Lab, LabError, Signing, load_lab
 
 __all__ = ["ENV_LAB", "LAB_FILE", "STAND_DCC", "LabSettings", "SettingsError", "Signing",
            "check_key_outside", "load_lab_file", "resolve_settings"]
@@ -31,17 +31,21 @@ SettingsError = LabError
 load_lab_file = load_lab
 
 
-def resolve_settings(stand: Mapping[str, Any] | None, lab_file: str | Path | None = None,
+def resolve_settings(stand: DccRefs | Mapping[str, Any] | None,
+                     lab_file: str | Path | None = None,
                      stand_origin: str = "stand file", base: Lab | None = None) -> Lab:
     """The lab settings in force: `--lab` first, then the stand's `dcc.lab`, then the
     environment's BENCH_LAB_SETTINGS, else `base` (the run's own); the stand's own
-    `dcc.signing` overrides the key."""
-    dcc = (stand or {}).get("dcc") or {}
-    chosen = lab_file or dcc.get("lab") or os.environ.get(ENV_LAB)
+    `dcc.signing` overrides the key. `stand`: the parsed stand's DCC references, or a
+    run directory's stand file as read back."""
+    refs = stand if isinstance(stand, DccRefs) else dcc_refs(stand)
+    chosen = lab_file or refs.lab or os.environ.get(ENV_LAB)
     settings = load_lab(os.path.expanduser(str(chosen))) if chosen else (base or Lab())
-    stand_signing = _signing(dcc.get("signing"), f"{stand_origin}: dcc.signing")
-    if stand_signing is None:
+    if not (refs.signing_key and refs.signing_certificate):
         return settings
+    stand_signing = Signing(Path(os.path.expanduser(refs.signing_key)),
+                            Path(os.path.expanduser(refs.signing_certificate)),
+                            refs.password_env, f"{stand_origin}: dcc.signing")
     return replace(settings, signing=stand_signing, require_signed_dcc=True)
 
 

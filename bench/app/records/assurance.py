@@ -17,13 +17,14 @@ nobody could read is no status).
 
 from __future__ import annotations
 
-import dataclasses
 import datetime as dt
 import json
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from bench.report.certificate.parts import read_json_object
+from bench.core.config import SimSettings, StandSettings
 from bench.app.records.assurance_notes import ASSURANCE_FILE, CLAUSE
 from bench.app.records.control import (
     OUT_OF_CONTROL,
@@ -33,8 +34,8 @@ from bench.app.records.control import (
 from bench.app.records.extract import NotARun, record_of
 from bench.app.records.hooks import RecordsTarget, target
 from bench.app.records.store import CheckPoint, Records, RecordsError, redact
+from bench.core.simbench import with_sim
 from bench.core.simdrift import drifted, has_drift, stated_run_number
-from bench.report.certificate.parts import read_json_object
 
 Warn = Callable[[str], None]
 
@@ -124,14 +125,13 @@ def assurance_refusals(run_dir: str | Path, records_url: str | None = None) -> l
     return refusals_of(statuses)
 
 
-def warn_at_start(stand: Mapping[str, Any], where: RecordsTarget, warn: Warn
+def warn_at_start(stand: StandSettings, where: RecordsTarget, warn: Warn
                   ) -> list[str]:
     """At a run's start: warn about each instrument of this stand that is out of control
     (its checks came from runs of this table, or the stand states its serial)."""
-    serial = str((stand.get("stand") or {}).get("serial") or "")
-    stated = {str(c["serial"]) for a in (stand.get("axes") or {}).values()
-              if isinstance(a, Mapping) for c in a.values()
-              if isinstance(c, Mapping) and c.get("serial")}
+    serial = stand.identity.serial
+    stated = {i.serial for a in stand.axes.values() for i in (a.drive, a.counter, a.fog)
+              if i is not None and i.serial}
     if where.url.startswith("sqlite:///") and \
             not Path(where.url.removeprefix("sqlite:///")).exists():
         return []       # no records yet: nothing to warn about, nothing to create
@@ -162,13 +162,14 @@ def drifting_config(cfg: Any, run_path: Path, where: RecordsTarget, say: Warn) -
 
     The run number is `sim.run_number`, else 1 + the runs of this table in the records;
     it is kept in meta.json, so a --resume drifts the same way as the first session."""
-    if not has_drift(cfg.stand):
+    stand_settings = cfg.stand_settings
+    if not has_drift(stand_settings):
         return cfg
     meta_path = run_path / "meta.json"
     meta = read_json_object(meta_path)
-    number = meta.get("sim_run_number") or stated_run_number(cfg.stand)
+    number = meta.get("sim_run_number") or stated_run_number(stand_settings)
     if number is None:
-        serial = str((cfg.stand.get("stand") or {}).get("serial") or "")
+        serial = stand_settings.identity.serial
         try:
             with Records.open(where.url) as rec:
                 number = 1 + len([r for r in rec.runs(serial) if r.run_dir != run_path.name])
@@ -178,7 +179,7 @@ def drifting_config(cfg: Any, run_path: Path, where: RecordsTarget, say: Warn) -
     if meta and "sim_run_number" not in meta:
         meta["sim_run_number"] = int(number)
         meta_path.write_text(json.dumps(meta, indent=2) + "\n")
-    stand, notes = drifted(cfg.stand, int(number))
+    sim, notes = drifted(stand_settings.sim or SimSettings(), int(number))
     for n in notes:
         say(n)
-    return dataclasses.replace(cfg, stand=stand)
+    return with_sim(cfg, axes=sim.axes)

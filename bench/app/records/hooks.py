@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from bench.core.config import CommonSettings, Identity
 from bench.app.records.extract import STATES, NotARun, record_of
 from bench.app.records.settings import LabSettings, SettingsError, load_lab_settings, records_url
 from bench.app.records.store import Records, RecordsError, redact
@@ -51,7 +52,7 @@ def target(runs_dir: str | Path, url: str | None = None, warn: Warn | None = Non
     return RecordsTarget(records_url(runs_dir, url, settings), settings, Path(runs_dir))
 
 
-def mark_run(run_path: Path, procedure: dict[str, Any], state: str | None = None,
+def mark_run(run_path: Path, procedure: CommonSettings, state: str | None = None,
              note: str | None = None, operator: str | None = None) -> None:
     """Write as-found/as-left, the adjustment note and the operator into meta.json.
 
@@ -59,8 +60,8 @@ def mark_run(run_path: Path, procedure: dict[str, Any], state: str | None = None
     import years later reads what the operator said at the time."""
     meta_path = run_path / "meta.json"
     meta = json.loads(meta_path.read_text())
-    state = state or procedure.get("calibration_state")
-    note = note or procedure.get("adjustment_note")
+    state = state or procedure.calibration_state
+    note = note or procedure.adjustment_note
     if state is not None and state not in STATES:
         raise ValueError(f"calibration state {state!r}: expected one of {', '.join(STATES)}")
     meta["calibration_state"] = state
@@ -69,22 +70,21 @@ def mark_run(run_path: Path, procedure: dict[str, Any], state: str | None = None
         login = getpass.getuser()
     except (KeyError, OSError):
         login = None
-    meta["operator"] = operator or procedure.get("operator") or login
+    meta["operator"] = operator or procedure.operator or login
     meta_path.write_text(json.dumps(meta, indent=2) + "\n")
 
 
-def warn_if_overdue(stand: dict[str, Any], where: RecordsTarget, warn: Warn,
+def warn_if_overdue(ident: Identity, where: RecordsTarget, warn: Warn,
                     today: dt.date | None = None) -> str | None:
     """At a run's start: say so when this table is overdue; returns the warning text."""
-    ident = stand.get("stand") or {}
-    serial = str(ident.get("serial") or "")
+    serial = ident.serial
     if not serial:
         return None
     try:
         with Records.open(where.url) as rec:
             items = rec.due(today=today, within_days=0, everything=True,
                             intervals=lambda s, d: where.interval_for(
-                                s, d or ident.get("recertification_interval_days")))
+                                s, d or ident.recertification_interval_days))
     except RecordsError as e:
         warn(f"records: cannot check the due date: {e}; the run goes on and is registered "
              f"when the database is back")

@@ -21,9 +21,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from bench.core.config import FogSettings
+from bench.core.yamlfile import read_mapping
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, DecodeState, decode, get_format
 
@@ -320,10 +320,7 @@ def live_state(run_path: Path) -> dict[str, Any]:
         status = "stopped (the bench process is gone; resume it)"
     else:
         status = "running"
-    try:
-        stand = yaml.safe_load((run_path / "stand.yaml").read_text(encoding="utf-8")) or {}
-    except (OSError, yaml.YAMLError):
-        stand = {}
+    stand = read_mapping(run_path / "stand.yaml")
     prog = progress_of(session)
     axis = (prog["step"] or {}).get("axis")
     raw = run_path / "raw" / f"s{session_no}" if session_no else None
@@ -381,11 +378,8 @@ DOWNLOADS = ("certificate.pdf", "certificate.html", "certificate.dcc.xml", "resu
 
 
 def _title(run_path: Path) -> str:
-    try:
-        proc = yaml.safe_load((run_path / "procedure.yaml").read_text(encoding="utf-8")) or {}
-        return str(proc.get("title") or run_path.name) if isinstance(proc, dict) else run_path.name
-    except (OSError, yaml.YAMLError):
-        return run_path.name
+    proc = read_mapping(run_path / "procedure.yaml")
+    return str(proc.get("title") or run_path.name)
 
 
 def list_runs(runs: Path) -> list[dict[str, Any]]:

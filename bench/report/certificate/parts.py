@@ -16,13 +16,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from bench.analysis.finite import finite_number as num
-from bench.core.journal import read_jsonl
 from bench.report.certificate.model import Block, Figure, Para, Section
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u
 from bench.report.certificate.shape import conform_result
+from bench.core.journal import read_jsonl
+from bench.core.yamlfile import read_mapping
 
 NOT_RECORDED = "not recorded"
 
@@ -70,11 +69,7 @@ def read_json_object(path: Path) -> dict[str, Any]:
 
 
 def _read_yaml(path: Path) -> dict[str, Any]:
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError):
-        return {}
-    return data if isinstance(data, dict) else {}
+    return read_mapping(path)
 
 
 def stand_of(src: Sources) -> dict[str, Any]:

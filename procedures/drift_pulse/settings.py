@@ -1,0 +1,420 @@
+"""The drift-pulse procedure's files: their keys, defaults (each in its key), the rules
+that need both files, and the settings the kind runs on, parsed once (`DriftSettings`).
+
+The procedure, the stand's `platform:` block and its `sim.platform` truth are read here
+and nowhere else (tests/test_architecture.py).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from bench.analysis import drift_pulse as dp
+from bench.core.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config
+from bench.core.schema import Key, ListOf, Map, MapOf, Num, Str
+from bench.core.yamlfile import Problem
+from drivers.awg import PROFILES as AWG_PROFILES
+from drivers.dmm import PROFILES as DMM_PROFILES
+from sims.platform import GyroTruth, PlatformTruth
+
+#: the keys of a stand file's `sim.platform.gyros.<gyro>` truth (the gyro twin's fields)
+SIM_GYRO_KEYS: tuple[str, ...] = tuple(GyroTruth.__dataclass_fields__)
+
+NAME = "drift-pulse"
+GYRO_NAMES = ("x", "y", "z")
+
+DEFAULTS: dict[str, Any] = {"cycles": 10, "timing_cycles": 4, "positions_deg": [0.0, 180.0],
+                            "gap_s": 0.5, "settle_s": 5.0, "decision_rule": "simple",
+                            "prompts": True}
+DIGITIZER_DEFAULTS = {"sample_rate_hz": 2000.0, "range_v": 10.0, "margin_s": 0.05}
+DEFAULT_POINTS = 1000
+TIMING_GAIN = 8.0
+#: real-bench seconds a cycle costs beyond its record: arming, transfer, SCPI checks
+CYCLE_OVERHEAD_S = 0.5
+
+
+
+# -- files ------------------------------------------------------------------------------
+
+PULSE = Map({
+    "shape": Key(Str(tuple(dp.SHAPES)), True, "rectangular, triangular (or sawtooth)"),
+    "duration_s": Key(Num(min=0, exclusive_min=True, unit="s"), True, "Tc, each pulse"),
+    "amplitude_v": Key(Num(min=0, exclusive_min=True, unit="V"), True,
+                       "peak voltage into the torque-sensor current amplifier"),
+    "points": Key(Num(min=4, max=500_000, integer=True), False,
+                  "waveform points per pulse", DEFAULT_POINTS),
+})
+DIGITIZER = Map({
+    "sample_rate_hz": Key(Num(min=0, exclusive_min=True, unit="Hz"), False,
+                          "the DMMs' sample rate", DIGITIZER_DEFAULTS["sample_rate_hz"]),
+    "aperture_s": Key(Num(min=0, exclusive_min=True, unit="s"), False,
+                      "default 0.8 of the interval"),
+    "range_v": Key(Num(min=0, exclusive_min=True, unit="V"), False, "the DMMs' range",
+                   DIGITIZER_DEFAULTS["range_v"]),
+    "margin_s": Key(Num(min=0, unit="s"), False, "recorded after the pair",
+                    DIGITIZER_DEFAULTS["margin_s"]),
+})
+TURN = Map({
+    "rate_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), True),
+    "accel_dps2": Key(Num(min=0, exclusive_min=True, unit="deg/s^2"), True),
+})
+PROCEDURE = Map({
+    **COMMON_PROCEDURE_KEYS,
+    "site": Key(Map({"latitude_deg": Key(Num(min=-90, max=90, unit="deg"), True),
+                     "name": Key(Str())}), True),
+    "pulse": Key(PULSE, True),
+    "cycles": Key(Num(min=4, max=10_000, integer=True), False,
+                  "measuring cycles per position (4 at least for the scatter)",
+                  DEFAULTS["cycles"]),
+    "timing_cycles": Key(Num(min=0, max=1000, integer=True), False,
+                         "large-amplitude cycles that locate the pulses",
+                         DEFAULTS["timing_cycles"]),
+    "timing_amplitude_v": Key(Num(min=0, exclusive_min=True, unit="V"), False,
+                              "default 8 x the pulse amplitude, within the DMM range"),
+    "positions_deg": Key(ListOf(Num(min=-360, max=360, unit="deg"), min_len=2), False,
+                         "turntable positions", DEFAULTS["positions_deg"]),
+    "gap_s": Key(Num(min=0, unit="s"), False, "pause between cycles", DEFAULTS["gap_s"]),
+    "settle_s": Key(Num(min=0, unit="s"), False, "pause after a turn", DEFAULTS["settle_s"]),
+    "turn": Key(TURN, False, "default: the drive's max rate and acceleration"),
+    "digitizer": Key(DIGITIZER),
+    "gyros": Key(ListOf(Str(GYRO_NAMES), min_len=1), False,
+                 "which of the platform's gyros (default: all)"),
+    "tolerance": Key(Map({"own_drift_dph": Key(Num(min=0, exclusive_min=True, unit="deg/h"))})),
+})
+
+GYRO = Map({
+    "model": Key(Str(), False, "the gyro's model (printed as part of the item calibrated)"),
+    "serial": Key(Str(), False, "the gyro's serial number (printed as part of the item)"),
+    "awg_channel": Key(Num(min=1, max=4, integer=True), True),
+    "dmm": Key(Map({"resource": Key(Str(), True, "VISA resource string"),
+                    "model": Key(Str(tuple(DMM_PROFILES)), True),
+                    "calibration": Key(CALIBRATION, False, "the DMM's certificate")}), True),
+    "k_as_v_per_deg": Key(Num(min=0, exclusive_min=True, unit="V/deg"), True,
+                          "the command angle sensor's transfer coefficient"),
+    "k_as_u_rel": Key(Num(min=0), False, "its standard uncertainty, relative"),
+    "precession_dps_per_v": Key(Num(min=0, exclusive_min=True, unit="deg/s per V"), True,
+                                "nominal k_ts * gain / H (range checks only)"),
+    "pulse_mismatch_max_rel": Key(Num(min=0), False, "bound of the +/- amplitude mismatch"),
+    "drift_random_walk_dph_per_rth": Key(Num(min=0), False, "the gyro's spec"),
+})
+PLATFORM = Map({
+    "identity": Key(IDENTITY, False, "the platform under test"),
+    "table_axis": Key(Str(), True, "the stand axis the platform sits on"),
+    "awg": Key(Map({"resource": Key(Str(), True),
+                    "model": Key(Str(tuple(AWG_PROFILES)), True),
+                    "calibration": Key(CALIBRATION, False, "the generator's certificate")}),
+               True),
+    "gyros": Key(MapOf(GYRO, min_len=1), True),
+})
+SIM_PLATFORM = Map({
+    "latitude_deg": Key(Num(min=-90, max=90), True),
+    "azimuth_deg": Key(Num(), True, "the X input axis at turntable 0, from north"),
+    "gyros": Key(MapOf(Map({k: Key(Num()) for k in SIM_GYRO_KEYS})), True),
+})
+SIM_AWG = Map({"output_latency_s": Key(Num(min=0)), "trigger_out_skew_s": Key(Num()),
+               "trigger_out_width_s": Key(Num(min=0)), "load_ohm": Key(Num(min=1)),
+               "serial": Key(Str(), False, "the serial the twin reports (*IDN? field 3)")})
+SIM_DMM = Map({"trigger_latency_s": Key(Num(min=0)),
+               "serials": Key(MapOf(Str()), False, "gyro: the serial its DMM twin reports")})
+
+def setting(cfg: Config, key: str) -> Any:
+    return cfg.procedure.get(key, DEFAULTS.get(key))
+
+
+@dataclass(frozen=True)
+class Timing:
+    """Where the samples are against the pulses, from the procedure's settings."""
+
+    tc_s: float
+    points: int                  # generator points per pulse
+    awg_rate_hz: float
+    interval_s: float
+    aperture_s: float
+    range_v: float
+    count: int                   # DMM samples per cycle
+    trigger_delay_s: float
+    lead_points: int = 1
+
+    @property
+    def lead_s(self) -> float:
+        return self.lead_points / self.awg_rate_hz
+
+    @property
+    def first_sample_s(self) -> float:
+        """Sample 0's middle, from the first pulse edge (on the grid of the edges)."""
+        return self.trigger_delay_s + 0.5 * self.aperture_s - self.lead_s
+
+    @property
+    def record_s(self) -> float:
+        return self.trigger_delay_s + self.count * self.interval_s
+
+    @classmethod
+    def of(cls, cfg: Config) -> Timing:
+        p = cfg.procedure["pulse"]
+        d = {**DIGITIZER_DEFAULTS, **cfg.procedure.get("digitizer", {})}
+        tc = float(p["duration_s"])
+        points = int(p.get("points", DEFAULT_POINTS))
+        interval = 1.0 / float(d["sample_rate_hz"])
+        aperture = float(d.get("aperture_s", 0.8 * interval))
+        lead_s = 1.0 / (points / tc)
+        count = int(math.ceil((2 * tc + lead_s + float(d["margin_s"])) / interval)) + 1
+        return cls(tc, points, points / tc, interval, aperture, float(d["range_v"]), count,
+                   max(interval - 0.5 * aperture, 0.0))
+
+
+def _near_int(x: float) -> bool:
+    return abs(x - round(x)) < 1e-6 * max(1.0, abs(x))
+
+
+def drift_problems(cfg: Config) -> list[Problem]:
+    """The checks that need both files: the platform's wiring, the pulse timing
+    against the instruments, the positions, the turn against the drive."""
+    pdoc, sdoc = cfg.procedure_doc, cfg.stand_doc
+    plat = cfg.stand["platform"]
+    out: list[Problem] = []
+    table = plat["table_axis"]
+    if table not in cfg.stand["axes"]:
+        out.append(sdoc.problem(("platform", "table_axis"), f"the stand has no axis "
+                                f"{table!r} (it has {', '.join(cfg.stand['axes'])})"))
+    for g in plat["gyros"]:
+        if g not in GYRO_NAMES:
+            out.append(sdoc.problem(("platform", "gyros", g), "a gyro is x, y "
+                                    "(horizontal) or z (vertical)"))
+    for i, g in enumerate(cfg.procedure.get("gyros") or []):
+        if g not in plat["gyros"]:
+            out.append(pdoc.problem(("gyros", i), f"the stand's platform has no gyro {g!r}"))
+    awg = AWG_PROFILES[plat["awg"]["model"]]
+    channels: dict[int, str] = {}
+    for g, spec in plat["gyros"].items():
+        ch = spec["awg_channel"]
+        if ch not in awg.channels:
+            out.append(sdoc.problem(("platform", "gyros", g, "awg_channel"),
+                                    f"the {awg.model} has channels {awg.channels}"))
+        if ch in channels:
+            out.append(sdoc.problem(("platform", "gyros", g, "awg_channel"),
+                                    f"channel {ch} already drives gyro {channels[ch]}"))
+        channels[ch] = g
+    out += _check_timing(cfg)
+    out += _check_positions(cfg)
+    lat = cfg.procedure["site"]["latitude_deg"]
+    if abs(lat) > 84.0:
+        out.append(pdoc.problem(("site", "latitude_deg"), "within 6 deg of a pole the "
+                                "Earth's horizontal rate is too small for an azimuth"))
+    if table in cfg.stand["axes"]:
+        drive = cfg.stand["axes"][table]["drive"]
+        turn = cfg.procedure.get("turn", {})
+        for key, limit in (("rate_dps", "max_rate_dps"), ("accel_dps2", "max_accel_dps2")):
+            if key in turn and turn[key] > drive[limit]:
+                out.append(pdoc.problem(("turn", key), f"{turn[key]:g} exceeds the drive's "
+                                        f"{limit} {drive[limit]:g}"))
+    sim = cfg.stand.get("sim")
+    if sim is not None:
+        sp = sim.get("platform")
+        if sp is None:
+            out.append(sdoc.problem(("sim",), "a simulated drift-pulse bench needs "
+                                    "sim.platform (the platform's truth)"))
+        else:
+            for g in gyros_of(cfg):
+                if g not in sp["gyros"]:
+                    out.append(sdoc.problem(("sim", "platform", "gyros"),
+                                            f"no truth for gyro {g!r}"))
+    return out
+
+def _check_timing(cfg: Config) -> list[Problem]:
+    pdoc, sdoc = cfg.procedure_doc, cfg.stand_doc
+    plat = cfg.stand["platform"]
+    t = Timing.of(cfg)
+    out = []
+    where = ("digitizer",)
+    if not _near_int(t.tc_s / t.interval_s):
+        out.append(pdoc.problem(("pulse", "duration_s"), f"Tc = {t.tc_s:g} s is not a whole "
+                                f"number of DMM intervals ({t.interval_s:g} s): the pulse "
+                                f"edges must fall on samples (docs/method.md B)"))
+    if not _near_int(t.tc_s / t.interval_s / t.points):
+        out.append(pdoc.problem(("pulse", "points"), f"{t.points} points per pulse: the "
+                                f"generator's step ({1 / t.awg_rate_hz:g} s) must be a whole "
+                                f"number of DMM intervals ({t.interval_s:g} s)"))
+    awg = AWG_PROFILES[plat["awg"]["model"]]
+    lo, hi = awg.sample_rate_range_hz
+    if not lo <= t.awg_rate_hz <= hi or 2 * t.points + 2 > awg.max_points:
+        out.append(pdoc.problem(("pulse", "points"), f"{t.points} points in {t.tc_s:g} s do "
+                                f"not fit the {awg.model} ({awg.max_points} points, "
+                                f"{lo:g} .. {hi:g} Sa/s)"))
+    amps = {"amplitude_v": cfg.procedure["pulse"]["amplitude_v"]}
+    if setting(cfg, "timing_cycles"):
+        amps["timing_amplitude_v"] = timing_amplitude(cfg)
+    shape = dp.pulse_shape(cfg.procedure["pulse"]["shape"])
+    for g in gyros_of(cfg):
+        spec = plat["gyros"].get(g)
+        if spec is None:
+            continue
+        dmm = DMM_PROFILES[spec["dmm"]["model"]]
+        if not any(math.isclose(t.range_v, r) for r in dmm.ranges_v):
+            out.append(pdoc.problem(where + ("range_v",), f"the {dmm.model} has ranges "
+                                    f"{', '.join(f'{r:g}' for r in dmm.ranges_v)} V"))
+        if t.interval_s < max(dmm.min_interval_s, t.aperture_s + dmm.interval_overhead_s):
+            out.append(pdoc.problem(where, f"the aperture {t.aperture_s:g} s does not fit "
+                                    f"the interval {t.interval_s:g} s on the {dmm.model}"))
+        if t.count > dmm.max_readings:
+            out.append(pdoc.problem(("pulse", "duration_s"), f"{t.count} samples a cycle "
+                                    f"exceed the {dmm.model}'s {dmm.max_readings} readings"))
+        for key, amp in amps.items():
+            excursion = (spec["k_as_v_per_deg"] * spec["precession_dps_per_v"] * amp
+                         * t.tc_s * shape.angle_end)
+            if excursion > 0.8 * t.range_v:
+                out.append(pdoc.problem(("pulse", key) if key == "amplitude_v" else (key,),
+                           f"gyro {g}: the pulse pair swings the angle sensor by "
+                           f"{excursion:.3g} V (k_as x precession x amplitude x Tc), over "
+                           f"0.8 of the DMM's {t.range_v:g} V range "
+                           f"({sdoc.path}:{sdoc.line(('platform', 'gyros', g))})"))
+    return out
+
+def _check_positions(cfg: Config) -> list[Problem]:
+    pos = [float(p) for p in setting(cfg, "positions_deg")]
+    theta = np.radians(pos)
+    a = np.column_stack([np.ones_like(theta), np.cos(theta)]
+                        + ([-np.sin(theta)] if np.any(np.abs(np.sin(theta)) > 1e-9) else []))
+    if np.linalg.matrix_rank(a) < a.shape[1] or len({round(p % 360, 6) for p in pos}) < 2:
+        return [cfg.procedure_doc.problem(("positions_deg",), "the positions must separate "
+                                          "own and apparent drift: include two 180 deg "
+                                          "apart (e.g. [0, 180])")]
+    return []
+
+def timing_amplitude(cfg: Config) -> float:
+    return float(cfg.procedure.get("timing_amplitude_v",
+                                    TIMING_GAIN * cfg.procedure["pulse"]["amplitude_v"]))
+
+
+def gyros_of(cfg: Config) -> list[str]:
+    return list(cfg.procedure.get("gyros") or cfg.stand["platform"]["gyros"])
+
+
+@dataclass(frozen=True)
+class GyroSpec:
+    """One gyro of the platform as the stand states it."""
+
+    awg_channel: int
+    dmm_resource: str
+    dmm_model: str
+    k_as_v_per_deg: float
+    precession_dps_per_v: float
+    k_as_u_rel: float = 0.0
+    pulse_mismatch_max_rel: float = 0.0
+    drift_random_walk_dph_per_rth: float = 0.0
+
+
+@dataclass(frozen=True)
+class PlatformSettings:
+    """The stand's gyro platform and the gyros the procedure uses (all, on a stand
+    alone: `bench devices`), with the twins' truth; parsed once."""
+
+    gyros: tuple[str, ...]
+    table_axis: str
+    awg_resource: str
+    awg_model: str
+    platform: Mapping[str, GyroSpec]     # every gyro of the platform, by name
+    #: the twins' truth (the stand's `sim.platform`, `sim.awg`, `sim.dmm`); None on hardware
+    sim_platform: PlatformTruth | None
+    awg_twin: Mapping[str, Any]
+    awg_serial: str | None
+    dmm_twin: Mapping[str, Any]
+    dmm_serials: Mapping[str, str]
+
+    @classmethod
+    def of(cls, cfg: Config) -> PlatformSettings:
+        parsed = cfg.settings
+        return parsed if isinstance(parsed, PlatformSettings) else cls.parse_platform(cfg)
+
+    @classmethod
+    def parse_platform(cls, cfg: Config) -> PlatformSettings:
+        return PlatformSettings(**_platform_fields(cfg))
+
+
+def _platform_fields(cfg: Config) -> dict[str, Any]:
+    plat = cfg.stand["platform"]
+    table = str(plat["table_axis"])
+    gyros = {g: GyroSpec(int(s["awg_channel"]), str(s["dmm"]["resource"]),
+                         str(s["dmm"]["model"]), float(s["k_as_v_per_deg"]),
+                         float(s["precession_dps_per_v"]),
+                         float(s.get("k_as_u_rel", 0.0)),
+                         float(s.get("pulse_mismatch_max_rel", 0.0)),
+                         float(s.get("drift_random_walk_dph_per_rth", 0.0)))
+             for g, s in plat["gyros"].items()}
+    sim = cfg.stand.get("sim") or {}
+    sp = sim.get("platform")
+    sim_settings = cfg.stand_settings.sim
+    truth = None if sp is None else PlatformTruth(
+        latitude_deg=float(sp["latitude_deg"]), azimuth_deg=float(sp["azimuth_deg"]),
+        gyros={g: GyroTruth(**{k: float(v) for k, v in (sp["gyros"].get(g) or {}).items()})
+               for g in gyros_of(cfg) if g in sp["gyros"]},
+        table_axis=table,   # the platform's drift walk is its truth, seeded as the stand
+        seed=sim_settings.seed if sim_settings else 0)
+    awg_twin = dict(sim.get("awg") or {})
+    dmm_twin = dict(sim.get("dmm") or {})
+    awg_serial, dmm_serials = awg_twin.pop("serial", None), dmm_twin.pop("serials", {})
+    return dict(gyros=tuple(gyros_of(cfg)), table_axis=table,
+                awg_resource=str(plat["awg"]["resource"]), awg_model=str(plat["awg"]["model"]),
+                platform=gyros, sim_platform=truth, awg_twin=awg_twin,
+                awg_serial=str(awg_serial) if awg_serial else None, dmm_twin=dmm_twin,
+                dmm_serials={str(k): str(v) for k, v in dmm_serials.items()})
+
+
+@dataclass(frozen=True)
+class DriftSettings(PlatformSettings):
+    """The validated procedure and the stand's platform, parsed once."""
+
+    title: str
+    pulse_shape: str
+    amplitude_v: float
+    timing_amplitude_v: float
+    latitude_deg: float
+    turn_rate_dps: float
+    turn_accel_dps2: float
+    position_tolerance_deg: float
+    cycles: int
+    timing_cycles: int
+    positions_deg: tuple[float, ...]
+    gap_s: float
+    settle_s: float
+    decision_rule: str
+    prompts: bool
+    own_drift_tolerance_dph: float | None
+    timing: Timing
+    #: as the procedure file states them (result.json's `method`)
+    pulse_doc: Mapping[str, Any]
+    site_doc: Mapping[str, Any]
+    tolerance_doc: Mapping[str, Any]
+
+    @classmethod
+    def from_config(cls, cfg: Config) -> DriftSettings:
+        parsed = cfg.settings
+        return parsed if isinstance(parsed, DriftSettings) else cls.parse(cfg)
+
+    @classmethod
+    def parse(cls, cfg: Config) -> DriftSettings:
+        p = cfg.procedure
+        fields = _platform_fields(cfg)
+        drive = cfg.stand_settings.axes[fields["table_axis"]].drive
+        turn = p.get("turn") or {}
+        tol = (p.get("tolerance") or {}).get("own_drift_dph")
+        return cls(
+            **fields, title=cfg.common.title, pulse_shape=str(p["pulse"]["shape"]),
+            amplitude_v=float(p["pulse"]["amplitude_v"]),
+            timing_amplitude_v=timing_amplitude(cfg),
+            latitude_deg=float(p["site"]["latitude_deg"]),
+            turn_rate_dps=float(turn.get("rate_dps", drive.max_rate_dps)),
+            turn_accel_dps2=float(turn.get("accel_dps2", drive.max_accel_dps2)),
+            position_tolerance_deg=drive.position_tolerance_deg,
+            cycles=int(setting(cfg, "cycles")), timing_cycles=int(setting(cfg, "timing_cycles")),
+            positions_deg=tuple(float(x) for x in setting(cfg, "positions_deg")),
+            gap_s=float(setting(cfg, "gap_s")), settle_s=float(setting(cfg, "settle_s")),
+            decision_rule=str(setting(cfg, "decision_rule")),
+            prompts=bool(setting(cfg, "prompts")),
+            own_drift_tolerance_dph=float(tol) if tol is not None else None,
+            timing=Timing.of(cfg), pulse_doc=dict(p["pulse"]), site_doc=dict(p["site"]),
+            tolerance_doc=dict(p.get("tolerance") or {}))
