@@ -21,14 +21,7 @@ from typing import Any
 
 from lxml import etree
 
-from bench.report.certificate.model import Para, Section, Table
-from bench.report.certificate.parts import CertificateParts, Sources, num
 from bench.core.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config, StandSettings
-from bench.report.dcc import units as U
-from bench.report.dcc import vocab as V
-from bench.report.dcc.conformity import Checks, judge
-from bench.report.dcc.parts import DccParts
-from bench.report.dcc.xml import el, name, quantity
 from bench.core.engine import RunContext
 from bench.core.instruments import Bench
 from bench.core.journal import RunDir
@@ -36,6 +29,13 @@ from bench.core.plan import Plan, Step
 from bench.core.schema import Key, Map, Num
 from bench.core.simbench import SimBench
 from bench.core.yamlfile import Problem
+from bench.report.certificate.model import Para, Section, Table
+from bench.report.certificate.parts import CertificateParts, Sources, num
+from bench.report.dcc import units as U
+from bench.report.dcc import vocab as V
+from bench.report.dcc.conformity import Checks, judge
+from bench.report.dcc.parts import DccParts
+from bench.report.dcc.xml import el, name, quantity
 from bench.report.figures import DeclaredFigures, FigureSpec, Trend
 from drivers.clock import Clock
 from procedures.base import StepDispatch, result_document

@@ -23,7 +23,6 @@ from typing import Any
 import pytest
 import yaml
 
-from bench.core.config import parse_stand
 from bench.app.records.assurance import assurance_refusals, warn_at_start
 from bench.app.records.checks import CheckRecord
 from bench.app.records.control import (
@@ -36,6 +35,7 @@ from bench.app.records.control import (
 )
 from bench.app.records.hooks import target
 from bench.app.records.store import CheckPoint, ReviewInfo
+from bench.core.config import parse_stand
 from bench.core.simdrift import drifted
 from tests.conftest import CONFIGS, ROOT
 from tests.conftest import OUTER_SERIALS as OUTER

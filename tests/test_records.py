@@ -30,14 +30,14 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 
 from bench.app.cli import main
-from bench.core.config import parse_stand
-from bench.core.journal import sha256_file
 from bench.app.records import Records, record_of
 from bench.app.records.extract import figures_of
 from bench.app.records.hooks import target, warn_if_overdue
 from bench.app.records.schema import metadata
 from bench.app.records.store import TrendPoint
 from bench.app.records.trend import trend_png
+from bench.core.config import parse_stand
+from bench.core.journal import sha256_file
 from sims.stand import AxisTruth
 from tests.conftest import CONFIGS, ROOT, unavailable
 from tests.conftest import OUTER_SERIALS as OUTER

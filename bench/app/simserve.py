@@ -24,8 +24,8 @@ import threading
 from collections.abc import Iterator
 from typing import Any
 
-from bench.core.config import SimSettings, StandSettings
 from bench.app.devices import stand_config
+from bench.core.config import SimSettings, StandSettings
 from bench.core.registry import procedure_kind
 from bench.core.simbench import SimBench, with_sim
 from bench.core.simdrift import drifted, stated_run_number

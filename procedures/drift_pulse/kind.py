@@ -28,7 +28,6 @@ from bench.core.config import (
     StandSettings,
     stand_schema,
 )
-from bench.report.conformity import judge
 from bench.core.engine import Abort, RunContext
 from bench.core.instruments import Bench, manual_note, open_axis, raw_text_logger, with_readback
 from bench.core.journal import RunDir, read_jsonl
@@ -37,6 +36,7 @@ from bench.core.progress import Figure
 from bench.core.schema import Key, Map
 from bench.core.simbench import SimBench, TwinFactory
 from bench.core.yamlfile import Problem
+from bench.report.conformity import judge
 from drivers.awg import WaveformGenerator
 from drivers.clock import Clock
 from drivers.dmm import PROFILES as DMM_PROFILES

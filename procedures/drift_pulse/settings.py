@@ -14,12 +14,12 @@ from typing import Any
 
 import numpy as np
 
-from bench.analysis import drift_pulse as dp
 from bench.core.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config
 from bench.core.schema import Key, ListOf, Map, MapOf, Num, Str
 from bench.core.yamlfile import Problem
 from drivers.awg import PROFILES as AWG_PROFILES
 from drivers.dmm import PROFILES as DMM_PROFILES
+from procedures.drift_pulse import analysis as dp
 from sims.platform import GyroTruth, PlatformTruth
 
 #: the keys of a stand file's `sim.platform.gyros.<gyro>` truth (the gyro twin's fields)

@@ -24,8 +24,8 @@ from bench.analysis.random_part import std_interval_u_rel
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.core.config import Config, CounterSpec
-from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from bench.core.journal import RunDir, read_jsonl
+from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor
 from drivers.scpi import parse_numbers

@@ -23,8 +23,6 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from bench.report.certificate.parts import read_json_object
-from bench.core.config import SimSettings, StandSettings
 from bench.app.records.assurance_notes import ASSURANCE_FILE, CLAUSE
 from bench.app.records.control import (
     OUT_OF_CONTROL,
@@ -34,8 +32,10 @@ from bench.app.records.control import (
 from bench.app.records.extract import NotARun, record_of
 from bench.app.records.hooks import RecordsTarget, target
 from bench.app.records.store import CheckPoint, Records, RecordsError, redact
+from bench.core.config import SimSettings, StandSettings
 from bench.core.simbench import with_sim
 from bench.core.simdrift import drifted, has_drift, stated_run_number
+from bench.report.certificate.parts import read_json_object
 
 Warn = Callable[[str], None]
 

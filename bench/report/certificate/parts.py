@@ -17,11 +17,11 @@ from pathlib import Path
 from typing import Any
 
 from bench.analysis.finite import finite_number as num
+from bench.core.journal import read_jsonl
+from bench.core.yamlfile import read_mapping
 from bench.report.certificate.model import Block, Figure, Para, Section
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u
 from bench.report.certificate.shape import conform_result
-from bench.core.journal import read_jsonl
-from bench.core.yamlfile import read_mapping
 
 NOT_RECORDED = "not recorded"
 
