@@ -70,7 +70,10 @@ class Crc32:
         if n == 0:
             return acc
         even = length - (length % 2)
-        w = np.ascontiguousarray(rows[:, :even]).view(">u2")
+        try:  # the words in place (each row's bytes contiguous): no copy of the rows
+            w = rows[:, :even].view(">u2")
+        except ValueError:
+            w = np.ascontiguousarray(rows[:, :even]).view(">u2")
         for k in range(even // 2):
             acc ^= words[k].take(w[:, k])
         if tail is not None:
@@ -279,27 +282,35 @@ def decode(buf: bytes | bytearray | memoryview | np.ndarray, fmt: str | FrameFor
         else np.ascontiguousarray(buf, dtype=np.uint8).reshape(-1)
     n, size, hlen = b.size, f.size, len(f.header)
 
-    # every header position, then the ones complete enough to judge
-    if n >= hlen:
-        cand = np.flatnonzero(b[:n - hlen + 1] == f.header[0])
-        for k in range(1, hlen):
-            cand = cand[b[cand + k] == f.header[k]]
-    else:
-        cand = np.empty(0, dtype=np.intp)
-    complete = cand[cand + size <= n]
-    if complete.size:
-        rows = sliding_window_view(b, size)[complete]
-        crc_sent = rows[:, f.crc_span:f.crc_span + 4].copy().view(">u4").reshape(-1)
-        crc_ok = f.crc.compute_rows(rows[:, :f.crc_span]) == crc_sent
-    else:
-        rows = np.empty((0, size), dtype=np.uint8)
+    rows = _aligned_frames(b, f)
+    if rows is not None:
+        # the common case, frames back to back from the first byte, each with its header
+        # and a good CRC: what the search below finds then, without the search (a header
+        # pattern inside an accepted frame counts for nothing; one after the last frame
+        # is in the tail)
+        last_end = rows.shape[0] * size
+        good = np.arange(0, last_end, size, dtype=np.intp)
+        good_rows = rows
+        cand = last_end + _headers(b[last_end:], f.header)
+        complete = cand[:0]
         crc_ok = np.empty(0, dtype=bool)
-    good = complete[crc_ok]
-    good_rows = rows if crc_ok.all() else rows[crc_ok]
-    keep = _non_overlapping(good, size)
-    if not keep.all():
-        good, good_rows = good[keep], good_rows[keep]
-    last_end = int(good[-1]) + size if good.size else 0
+    else:
+        # every header position, then the ones complete enough to judge
+        cand = _headers(b, f.header)
+        complete = cand[cand + size <= n]
+        if complete.size:
+            rows = sliding_window_view(b, size)[complete]
+            crc_sent = rows[:, f.crc_span:f.crc_span + 4].copy().view(">u4").reshape(-1)
+            crc_ok = f.crc.compute_rows(rows[:, :f.crc_span]) == crc_sent
+        else:
+            rows = np.empty((0, size), dtype=np.uint8)
+            crc_ok = np.empty(0, dtype=bool)
+        good = complete[crc_ok]
+        good_rows = rows if crc_ok.all() else rows[crc_ok]
+        keep = _non_overlapping(good, size)
+        if not keep.all():
+            good, good_rows = good[keep], good_rows[keep]
+        last_end = int(good[-1]) + size if good.size else 0
 
     # what this call cannot judge yet goes back as leftover
     undecided = cand[(cand + size > n) & (cand >= last_end)]
@@ -342,6 +353,34 @@ def decode(buf: bytes | bytearray | memoryview | np.ndarray, fmt: str | FrameFor
         crc_error_index=bad_index.astype(np.int64), gap_index=gap_at, gap_count=gap_n,
         state=new_state)
     return frames, leftover, stats
+
+
+def _headers(b: np.ndarray, header: bytes) -> np.ndarray:
+    """Every position in `b` where the whole header starts."""
+    hlen = len(header)
+    if b.size < hlen:
+        return np.empty(0, dtype=np.intp)
+    cand = np.flatnonzero(b[:b.size - hlen + 1] == header[0])
+    for k in range(1, hlen):
+        cand = cand[b[cand + k] == header[k]]
+    return cand
+
+
+def _aligned_frames(b: np.ndarray, f: FrameFormat) -> np.ndarray | None:
+    """(N, size) rows of `b` when it holds N whole frames back to back from its first
+    byte (then a tail shorter than a frame), every one with its header and a good CRC;
+    else None. A view of `b`, no copy."""
+    size, hlen = f.size, len(f.header)
+    k = b.size // size
+    if k == 0:
+        return None
+    rows = b[:k * size].reshape(k, size)
+    if not (rows[:, :hlen] == np.frombuffer(f.header, dtype=np.uint8)).all():
+        return None
+    crc_sent = rows[:, f.crc_span:f.crc_span + 4].view(">u4").reshape(-1)
+    if not (f.crc.compute_rows(rows[:, :f.crc_span]) == crc_sent).all():
+        return None
+    return rows
 
 
 def _broken_frame_index(bad: np.ndarray, good: np.ndarray, index: np.ndarray,
@@ -424,7 +463,8 @@ class StreamDecoder:
         self._gap_events: list[tuple[int, int]] = []   # (first lost index, count)
 
     def feed(self, data: bytes | bytearray | memoryview) -> Frames:
-        buf = self.leftover + bytes(data) if self.leftover else data
+        # the leftover and the new bytes in one copy (none without a leftover)
+        buf = b"".join((self.leftover, data)) if self.leftover else data
         frames, self.leftover, s = decode(buf, self.format, self.state)
         self.state = s.state
         self.frames += s.frames
