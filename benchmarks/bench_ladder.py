@@ -1,7 +1,7 @@
 """Benchmark: a whole ladder on the twins, wall time and peak memory (run on demand).
 
     /work/venv/bin/python benchmarks/bench_ladder.py [--procedure configs/procedures/paper-ladder.yaml]
-        [--fog-hz 5000] [--axes outer] [--rates 0.1] [--turns-scale 2] [--out DIR]
+        [--fog-hz 5000] [--axes outer] [--rates 0.1] [--turns-scale 2] [--seed N] [--out DIR]
 
 Runs `bench run PROCEDURE --yes` as a new user would (the shipped stand, `clock_speed:
 max`), and samples the resident memory of the whole process tree (the bench, its
@@ -55,6 +55,8 @@ def prepare(args: argparse.Namespace, tmp: Path) -> Path:
     proc = yaml.safe_load(proc_path.read_text())
     stand_path = (proc_path.parent / proc["stand"]).resolve()
     stand = yaml.safe_load(stand_path.read_text())
+    if args.seed is not None:
+        stand.setdefault("sim", {})["seed"] = args.seed
     if args.fog_hz:
         for ax in stand["axes"].values():
             if ax.get("fog"):
@@ -165,6 +167,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--procedure", default="configs/procedures/paper-ladder.yaml")
     ap.add_argument("--fog-hz", type=float, default=None, help="every FOG's rate_hz")
+    ap.add_argument("--seed", type=int, default=None,
+                    help="the stand's sim seed (default: the stand file's)")
     ap.add_argument("--axes", nargs="*", default=None)
     ap.add_argument("--rates", nargs="*", type=float, default=None)
     ap.add_argument("--turns-scale", type=float, default=1.0, help="2: a ladder twice as long")
