@@ -66,6 +66,9 @@ RATE_UNITS = ("deg/s", "rad/s", "deg", "rad")
 
 _READ_TIMEOUT_S = 0.05     # real seconds a read waits for the first byte
 _BATCH_BYTES = 1 << 17     # decode in batches of up to this many bytes
+#: a raw capture is decoded offline in pieces of this many bytes (the decoder's fastest:
+#: larger pieces spill the CPU's caches)
+_CAPTURE_CHUNK_BYTES = 1 << 18
 _BATCH_GAP_S = 0.001       # real seconds a batch waits for the next piece of a fast stream
 _BATCH_REAL_S = 0.005      # ... and at most this long in all (a slow stream's latency)
 _STEPPED_GAP_S = 0.0002    # on a stepped clock: a step's frames come in one burst
@@ -659,7 +662,7 @@ class _SerialLines:
 
 
 def read_capture(raw_path: Path | str, *, fmt: str = "kvh-a", axis: str = "z",
-                 rate_hz: float, units: str = "deg/s", chunk_bytes: int = 1 << 20
+                 rate_hz: float, units: str = "deg/s", chunk_bytes: int = _CAPTURE_CHUNK_BYTES
                  ) -> tuple[FogSamples, StreamDecoder]:
     """Every sample of a raw capture, exactly as the live driver produced them.
 
@@ -692,7 +695,7 @@ class CaptureCursor:
     """
 
     def __init__(self, raw_path: Path | str, *, fmt: str = "kvh-a", axis: str = "z",
-                 rate_hz: float, units: str = "deg/s", chunk_bytes: int = 1 << 20,
+                 rate_hz: float, units: str = "deg/s", chunk_bytes: int = _CAPTURE_CHUNK_BYTES,
                  start: dict[str, Any] | None = None) -> None:
         f = get_format(fmt)
         if axis not in f.valid_bits:

@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 
 from drivers.fog import dps_per_unit
-from drivers.fog_formats import AXES, get_format
+from drivers.fog_formats import AXES, FixedFieldsEncoder, get_format
 from drivers.kvh_config import (
     BAUD_RATES,
     DATA_RATES_HZ,
@@ -165,6 +165,7 @@ class FogTwin:
         self.lin_format, self.lin_units, self.temp_units = "ACCEL", "METERS", "C"
         self.filter_enabled = {"A": True, "G": True}
         self._carry: list[tuple[np.ndarray, np.ndarray]] = []  # samples of a partial frame
+        self._encoder: tuple[tuple[object, ...], FixedFieldsEncoder] | None = None
         self._inbuf = bytearray()
         self.commands: list[str] = []  # every line received (tests)
         self.temperature = int(temperature)
@@ -228,13 +229,13 @@ class FogTwin:
             self.temperature * 9 / 5 + 32)
 
     def _encode_rows(self, seq: np.ndarray, value: np.ndarray) -> np.ndarray:
-        n = len(seq)
-        rates = np.zeros((n, 3), dtype=np.float32)
-        rates[:, self._col] = value
         lin = self._linear()
-        extra = {name: lin[k] for k, name in enumerate(("ax", "ay", "az"))}
-        return self.format.encode(seq, rates, temperature=self._frame_temperature(),
-                                  extra=extra)  # a new array of its own: no copy
+        key = (self.format.name, self._col, self._frame_temperature(), lin.tobytes())
+        if self._encoder is None or self._encoder[0] != key:  # built again after a setting
+            extra = {name: float(lin[k]) for k, name in enumerate(("ax", "ay", "az"))}
+            self._encoder = (key, self.format.fixed_encoder(
+                self._col, temperature=self._frame_temperature(), extra=extra))
+        return self._encoder[1].encode(seq, value)  # a new array of its own
 
     def _decimation(self) -> int:
         return max(int(round(self.rate_hz)) // self.data_rate_hz, 1)
