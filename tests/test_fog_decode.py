@@ -331,3 +331,16 @@ def test_the_twins_fixed_field_encoder_writes_the_bytes_encode_writes(fmt: str,
     assert got.tobytes() == expected.tobytes()
     frames, _, stats = decode(got.tobytes(), f)
     assert stats.crc_errors == 0 and np.array_equal(frames.rates[:, axis], value)
+
+
+def test_crc_rows_equal_the_bytewise_crc_when_a_repeated_word_changes_late() -> None:
+    """compute_rows folds words that repeat in every row into one constant; a word equal
+    over the first rows but different in a later one must still be gathered row by row."""
+    rng = np.random.default_rng(5)
+    rows = np.tile(rng.integers(0, 256, 32, dtype=np.uint8), (3000, 1))
+    rows[:, 12:16] = rng.integers(0, 256, (3000, 4), dtype=np.uint8)  # a varying field
+    rows[2500, 3] ^= 0x10        # the header word differs in one late row only
+    rows[2999, 31] ^= 0x01       # and the last word in the last row
+    got = CRC32_MPEG2.compute_rows(rows)
+    for i in (0, 1, 2499, 2500, 2501, 2999):
+        assert int(got[i]) == CRC32_MPEG2.compute(rows[i].tobytes())
