@@ -63,19 +63,46 @@ class Crc32:
         return c ^ self.xorout
 
     def compute_rows(self, rows: np.ndarray) -> np.ndarray:
-        """CRC of every row of an (N, L) uint8 array, as uint32."""
+        """CRC of every row of an (N, L) uint8 array, as uint32.
+
+        A word that holds the same value in every row adds the same term to every CRC:
+        it is folded into the constant once instead of gathered N times (a FOG stream's
+        frames differ in a few words: header, status, temperature and idle axes repeat).
+        Candidates are the words equal over the first rows; only those are checked in
+        full, so rows that differ everywhere cost one small look more.
+        """
         n, length = rows.shape
         words, c0, tail = _affine_tables(self.poly, self.init, length)
         acc = np.full(n, c0 ^ self.xorout, dtype=np.uint32)
         if n == 0:
             return acc
         even = length - (length % 2)
-        w = np.ascontiguousarray(rows[:, :even]).view(">u2")
+        try:  # the words in place (each row's bytes contiguous): no copy of the rows
+            w = rows[:, :even].view(">u2")
+        except ValueError:
+            w = np.ascontiguousarray(rows[:, :even]).view(">u2")
+        head = w[:_CRC_LOOK_ROWS]
+        maybe = np.flatnonzero((head == head[0]).all(axis=0))
+        same: set[int] = set()
+        if maybe.size and n > head.shape[0]:
+            cols = np.ascontiguousarray(w[:, maybe].T)   # the candidates, word by word
+            same = set(maybe[(cols == cols[:, :1]).all(axis=1)].tolist())
+        elif maybe.size:
+            same = set(maybe.tolist())
+        const = np.uint32(0)
         for k in range(even // 2):
-            acc ^= words[k].take(w[:, k])
+            if k in same:
+                const ^= words[k][w[0, k]]
+            else:
+                acc ^= words[k].take(w[:, k])
+        acc ^= const
         if tail is not None:
             acc ^= tail.take(rows[:, -1])
         return acc
+
+
+#: rows a CRC computation looks at first to find the words that may be the same in all
+_CRC_LOOK_ROWS = 64
 
 
 @functools.lru_cache(maxsize=8)
@@ -167,6 +194,61 @@ class FrameFormat:
             rec[name] = value
         rows = rec.view(np.uint8).reshape(n, self.size)
         rec[self.crc_field] = self.crc.compute_rows(rows[:, :self.crc_span])
+        return rows
+
+
+    def fixed_encoder(self, axis: int, *, status: int | None = None, temperature: int = 0,
+                      extra: Mapping[str, float] | None = None) -> FixedFieldsEncoder:
+        """An encoder for frames whose fields are all fixed but one rate and the counter:
+        the same bytes as `encode`, built from one template frame (the twin's case)."""
+        return FixedFieldsEncoder(self, axis, status, temperature, dict(extra or {}))
+
+
+class FixedFieldsEncoder:
+    """`FrameFormat.encode` for frames that differ only in one rate field and the
+    sequence counter: every row starts as a copy of one template frame, and its CRC is
+    the template's corrected for the words that differ (the CRC is affine in the message,
+    see `Crc32`), three table gathers a frame instead of one per word."""
+
+    def __init__(self, fmt: FrameFormat, axis: int, status: int | None, temperature: int,
+                 extra: Mapping[str, float]) -> None:
+        self.format = fmt
+        rates = np.zeros((1, 3), dtype=np.float32)
+        self.template = fmt.encode(np.zeros(1, dtype=np.int64), rates, status=status,
+                                   temperature=temperature, extra=extra)[0].copy()
+        fields = fmt.dtype.fields
+        assert fields is not None  # a structured frame dtype
+        self._rate_at = int(fields[fmt.rate_fields[axis]][1])
+        self._seq_at = int(fields[fmt.sequence_field][1])
+        self._crc_at = int(fields[fmt.crc_field][1])
+        span = fmt.crc_span
+        if span % 2 or self._rate_at + 4 > span or self._seq_at >= span:
+            raise ValueError(f"{fmt.name}: the varying fields must lie in the CRC's words")
+        words, c0, _tail = _affine_tables(fmt.crc.poly, fmt.crc.init, span)
+        self._words = words
+        self._vary = sorted({(self._rate_at + j) // 2 for j in range(4)} | {self._seq_at // 2})
+        t = self.template[:span].view(">u2")
+        const = np.uint32(c0 ^ fmt.crc.xorout)
+        for k in range(span // 2):
+            if k not in self._vary:
+                const ^= words[k][t[k]]
+        self._const = const
+
+    def encode(self, sequence: np.ndarray, value: np.ndarray) -> np.ndarray:
+        """N frames, (N, size) uint8: `value` (float32) in the rate field, the counter
+        from `sequence`, everything else as the template."""
+        f = self.format
+        n = len(sequence)
+        rows = np.empty((n, f.size), dtype=np.uint8)
+        rows[:] = self.template
+        rows[:, self._rate_at:self._rate_at + 4] = \
+            np.asarray(value, dtype=np.float32).astype(">f4").view(np.uint8).reshape(n, 4)
+        rows[:, self._seq_at] = np.asarray(sequence) % f.sequence_modulus
+        w = rows[:, :f.crc_span].view(">u2")
+        acc = np.full(n, self._const, dtype=np.uint32)
+        for k in self._vary:
+            acc ^= self._words[k].take(w[:, k])
+        rows[:, self._crc_at:self._crc_at + 4] = acc.astype(">u4").view(np.uint8).reshape(n, 4)
         return rows
 
 
@@ -279,27 +361,35 @@ def decode(buf: bytes | bytearray | memoryview | np.ndarray, fmt: str | FrameFor
         else np.ascontiguousarray(buf, dtype=np.uint8).reshape(-1)
     n, size, hlen = b.size, f.size, len(f.header)
 
-    # every header position, then the ones complete enough to judge
-    if n >= hlen:
-        cand = np.flatnonzero(b[:n - hlen + 1] == f.header[0])
-        for k in range(1, hlen):
-            cand = cand[b[cand + k] == f.header[k]]
-    else:
-        cand = np.empty(0, dtype=np.intp)
-    complete = cand[cand + size <= n]
-    if complete.size:
-        rows = sliding_window_view(b, size)[complete]
-        crc_sent = rows[:, f.crc_span:f.crc_span + 4].copy().view(">u4").reshape(-1)
-        crc_ok = f.crc.compute_rows(rows[:, :f.crc_span]) == crc_sent
-    else:
-        rows = np.empty((0, size), dtype=np.uint8)
+    rows = _aligned_frames(b, f)
+    if rows is not None:
+        # the common case, frames back to back from the first byte, each with its header
+        # and a good CRC: what the search below finds then, without the search (a header
+        # pattern inside an accepted frame counts for nothing; one after the last frame
+        # is in the tail)
+        last_end = rows.shape[0] * size
+        good = np.arange(0, last_end, size, dtype=np.intp)
+        good_rows = rows
+        cand = last_end + _headers(b[last_end:], f.header)
+        complete = cand[:0]
         crc_ok = np.empty(0, dtype=bool)
-    good = complete[crc_ok]
-    good_rows = rows if crc_ok.all() else rows[crc_ok]
-    keep = _non_overlapping(good, size)
-    if not keep.all():
-        good, good_rows = good[keep], good_rows[keep]
-    last_end = int(good[-1]) + size if good.size else 0
+    else:
+        # every header position, then the ones complete enough to judge
+        cand = _headers(b, f.header)
+        complete = cand[cand + size <= n]
+        if complete.size:
+            rows = sliding_window_view(b, size)[complete]
+            crc_sent = rows[:, f.crc_span:f.crc_span + 4].copy().view(">u4").reshape(-1)
+            crc_ok = f.crc.compute_rows(rows[:, :f.crc_span]) == crc_sent
+        else:
+            rows = np.empty((0, size), dtype=np.uint8)
+            crc_ok = np.empty(0, dtype=bool)
+        good = complete[crc_ok]
+        good_rows = rows if crc_ok.all() else rows[crc_ok]
+        keep = _non_overlapping(good, size)
+        if not keep.all():
+            good, good_rows = good[keep], good_rows[keep]
+        last_end = int(good[-1]) + size if good.size else 0
 
     # what this call cannot judge yet goes back as leftover
     undecided = cand[(cand + size > n) & (cand >= last_end)]
@@ -342,6 +432,37 @@ def decode(buf: bytes | bytearray | memoryview | np.ndarray, fmt: str | FrameFor
         crc_error_index=bad_index.astype(np.int64), gap_index=gap_at, gap_count=gap_n,
         state=new_state)
     return frames, leftover, stats
+
+
+def _headers(b: np.ndarray, header: bytes) -> np.ndarray:
+    """Every position in `b` where the whole header starts."""
+    hlen = len(header)
+    if b.size < hlen:
+        return np.empty(0, dtype=np.intp)
+    cand = np.flatnonzero(b[:b.size - hlen + 1] == header[0])
+    for k in range(1, hlen):
+        cand = cand[b[cand + k] == header[k]]
+    return cand
+
+
+def _aligned_frames(b: np.ndarray, f: FrameFormat) -> np.ndarray | None:
+    """(N, size) rows of `b` when it holds N whole frames back to back from its first
+    byte (then a tail shorter than a frame), every one with its header and a good CRC;
+    else None. A view of `b`, no copy."""
+    size, hlen = f.size, len(f.header)
+    k = b.size // size
+    if k == 0:
+        return None
+    rows = b[:k * size].reshape(k, size)
+    if hlen == 4:  # one compare a frame
+        if not (rows[:, :4].view(">u4") == int.from_bytes(f.header, "big")).all():
+            return None
+    elif not (rows[:, :hlen] == np.frombuffer(f.header, dtype=np.uint8)).all():
+        return None
+    crc_sent = rows[:, f.crc_span:f.crc_span + 4].view(">u4").reshape(-1)
+    if not (f.crc.compute_rows(rows[:, :f.crc_span]) == crc_sent).all():
+        return None
+    return rows
 
 
 def _broken_frame_index(bad: np.ndarray, good: np.ndarray, index: np.ndarray,
@@ -424,7 +545,8 @@ class StreamDecoder:
         self._gap_events: list[tuple[int, int]] = []   # (first lost index, count)
 
     def feed(self, data: bytes | bytearray | memoryview) -> Frames:
-        buf = self.leftover + bytes(data) if self.leftover else data
+        # the leftover and the new bytes in one copy (none without a leftover)
+        buf = b"".join((self.leftover, data)) if self.leftover else data
         frames, self.leftover, s = decode(buf, self.format, self.state)
         self.state = s.state
         self.frames += s.frames

@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 
 from drivers.fog import dps_per_unit
-from drivers.fog_formats import AXES, get_format
+from drivers.fog_formats import AXES, FixedFieldsEncoder, get_format
 from drivers.kvh_config import (
     BAUD_RATES,
     DATA_RATES_HZ,
@@ -165,12 +165,13 @@ class FogTwin:
         self.lin_format, self.lin_units, self.temp_units = "ACCEL", "METERS", "C"
         self.filter_enabled = {"A": True, "G": True}
         self._carry: list[tuple[np.ndarray, np.ndarray]] = []  # samples of a partial frame
+        self._encoder: tuple[tuple[object, ...], FixedFieldsEncoder] | None = None
         self._inbuf = bytearray()
         self.commands: list[str] = []  # every line received (tests)
         self.temperature = int(temperature)
         self.keep_truth = keep_truth
         self._faults: list[Fault] = []
-        self._queue: deque[tuple[bytes, int] | _Hold] = deque()
+        self._queue: deque[tuple[bytes | memoryview, int] | _Hold] = deque()
         self._sent_n = 0          # frames up to this stand sample are out on the port
         self._reading = False     # a reader has the port open
         self._slow: tuple[float, float, int] | None = None  # (frames/real s, since, sent)
@@ -228,13 +229,13 @@ class FogTwin:
             self.temperature * 9 / 5 + 32)
 
     def _encode_rows(self, seq: np.ndarray, value: np.ndarray) -> np.ndarray:
-        n = len(seq)
-        rates = np.zeros((n, 3), dtype=np.float32)
-        rates[:, self._col] = value
         lin = self._linear()
-        extra = {name: lin[k] for k, name in enumerate(("ax", "ay", "az"))}
-        return self.format.encode(seq, rates, temperature=self._frame_temperature(),
-                                  extra=extra).copy()
+        key = (self.format.name, self._col, self._frame_temperature(), lin.tobytes())
+        if self._encoder is None or self._encoder[0] != key:  # built again after a setting
+            extra = {name: float(lin[k]) for k, name in enumerate(("ax", "ay", "az"))}
+            self._encoder = (key, self.format.fixed_encoder(
+                self._col, temperature=self._frame_temperature(), extra=extra))
+        return self._encoder[1].encode(seq, value)  # a new array of its own
 
     def _decimation(self) -> int:
         return max(int(round(self.rate_hz)) // self.data_rate_hz, 1)
@@ -276,7 +277,7 @@ class FogTwin:
         rows = self._encode_rows(idx, value)
         keep = np.ones(n, dtype=bool)
         intact = np.ones(n, dtype=bool)
-        cuts: dict[int, list[_Hold | tuple[bytes, int]]] = {}
+        cuts: dict[int, list[_Hold | tuple[bytes | memoryview, int]]] = {}
         for f in self._faults:
             if isinstance(f, Corrupt | Drop):
                 lo, hi = max(f.sample, n0), min(f.sample + f.count, n0 + n)
@@ -297,12 +298,15 @@ class FogTwin:
                 elif isinstance(f, Stall):
                     cuts.setdefault(f.sample, []).append(
                         _Hold(f.sample / self.rate_hz + f.duration_s))
-        items: list[tuple[bytes, int] | _Hold] = []
+        items: list[tuple[bytes | memoryview, int] | _Hold] = []
         at = n0
+        whole = bool(keep.all())
         for s in sorted(cuts) + [n0 + n]:
             seg = slice(at - n0, s - n0)
             if s > at:
-                items.append((rows[seg][keep[seg]].tobytes(), s))
+                # the frames as they are (a view the queue keeps alive), or those not dropped
+                out = rows[seg] if whole else rows[seg][keep[seg]]
+                items.append((memoryview(out.reshape(-1)), s))
             items.extend(cuts.get(s, []))
             at = s
         with self._qlock:
@@ -598,7 +602,7 @@ class FogTwin:
             wrote = True
         return wrote
 
-    def _write_all(self, data: bytes, poller: select.poll) -> None:
+    def _write_all(self, data: bytes | memoryview, poller: select.poll) -> None:
         view = memoryview(data)
         while view and not self._stop.is_set():
             try:

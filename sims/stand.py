@@ -180,6 +180,8 @@ class RateProfile:
         t_s = np.asarray(t_s, dtype=float)
         starts = np.array([s.t0_s for s in self.segments])
         which = np.searchsorted(starts, t_s, side="right") - 1
+        if which.size and (which == which.flat[0]).all():  # one segment (most blocks)
+            return np.asarray(self.segments[int(which.flat[0])].rate(t_s), dtype=float)
         out = np.empty_like(t_s)
         for i in np.unique(which):
             mask = which == i
@@ -345,14 +347,21 @@ class AxisModel:
                                     spawn_key=(*self._ss.spawn_key, _STREAMS[stream], k))
         return np.random.default_rng(ss)
 
-    def _rate(self, t_s: np.ndarray, w_cmd: np.ndarray, phi_deg: np.ndarray,
-              noise_dps: np.ndarray) -> np.ndarray:
-        w = w_cmd * (1.0 + self.truth.shape_rel(phi_deg))
+    def _tone(self, t_s: np.ndarray, w_cmd: np.ndarray) -> np.ndarray | None:
+        """The mains tone in time while the axis turns (None: no tone): the same for every
+        pass of the fixed point, so computed once a block."""
         m = self.truth.mains
         if m and m.amplitude_dps:
             tone = m.amplitude_dps * np.cos(2 * np.pi * m.frequency_hz * t_s
                                             + math.radians(m.phase_deg))
-            w += np.where(w_cmd != 0.0, tone, 0.0)
+            return np.where(w_cmd != 0.0, tone, 0.0)
+        return None
+
+    def _rate(self, tone: np.ndarray | None, w_cmd: np.ndarray, phi_deg: np.ndarray,
+              noise_dps: np.ndarray) -> np.ndarray:
+        w = w_cmd * (1.0 + self.truth.shape_rel(phi_deg))
+        if tone is not None:
+            w += tone
         return w + noise_dps
 
     def _generate(self, k: int, phi_last: float, w_last: float) -> _Block:
@@ -376,8 +385,9 @@ class AxisModel:
             # fixed point of phi = phi_last + cumtrapz(w(phi, t)); the first guess
             # ignores harmonics
             phi = phi_last + np.cumsum(w_cmd) * dt
+            tone = self._tone(t, w_cmd)
             for _ in range(_FIXED_POINT_PASSES):
-                w = self._rate(t, w_cmd, phi, noise)
+                w = self._rate(tone, w_cmd, phi, noise)
                 prev = np.concatenate(([w_last], w[:-1]))
                 phi = phi_last + np.cumsum(0.5 * (prev + w)) * dt
             if n0 == 0:  # the first sample is the origin, not a step from it

@@ -311,3 +311,36 @@ def test_decode_command_exits_1_when_nothing_decodes(
     err = capsys.readouterr().err
     assert "decode as kvh-a: 50 frame(s)" in err, err
     assert main(["decode", str(capture), "--format", "kvh-a"]) == 0
+
+
+@pytest.mark.parametrize("fmt", sorted(FORMATS))
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_the_twins_fixed_field_encoder_writes_the_bytes_encode_writes(fmt: str,
+                                                                      axis: int) -> None:
+    """The twin's encoder (one template frame, the CRC corrected for the words that
+    differ) must give byte for byte the frames of the general `encode`, CRC included."""
+    f = FORMATS[fmt]
+    rng = np.random.default_rng(axis)
+    seq = np.arange(300, 300 + 2000)
+    value = rng.standard_normal(seq.size).astype(np.float32) * 100
+    extra = {"ax": 0.25, "ay": -1.0, "az": 9.80665}
+    rates = np.zeros((seq.size, 3), dtype=np.float32)
+    rates[:, axis] = value
+    expected = f.encode(seq, rates, temperature=-7, extra=extra)
+    got = f.fixed_encoder(axis, temperature=-7, extra=extra).encode(seq, value)
+    assert got.tobytes() == expected.tobytes()
+    frames, _, stats = decode(got.tobytes(), f)
+    assert stats.crc_errors == 0 and np.array_equal(frames.rates[:, axis], value)
+
+
+def test_crc_rows_equal_the_bytewise_crc_when_a_repeated_word_changes_late() -> None:
+    """compute_rows folds words that repeat in every row into one constant; a word equal
+    over the first rows but different in a later one must still be gathered row by row."""
+    rng = np.random.default_rng(5)
+    rows = np.tile(rng.integers(0, 256, 32, dtype=np.uint8), (3000, 1))
+    rows[:, 12:16] = rng.integers(0, 256, (3000, 4), dtype=np.uint8)  # a varying field
+    rows[2500, 3] ^= 0x10        # the header word differs in one late row only
+    rows[2999, 31] ^= 0x01       # and the last word in the last row
+    got = CRC32_MPEG2.compute_rows(rows)
+    for i in (0, 1, 2499, 2500, 2501, 2999):
+        assert int(got[i]) == CRC32_MPEG2.compute(rows[i].tobytes())
