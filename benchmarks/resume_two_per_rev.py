@@ -15,7 +15,9 @@ Run once at the end of the 2026-11-24 session (CI machine, fresh clone) it FAILE
 
 from __future__ import annotations
 
+import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -36,13 +38,13 @@ from tests.test_resume_truth import (  # noqa: E402
 from tests.test_run_e2e import allowed_outside, comparisons  # noqa: E402
 
 
-def _two_per_rev(tmp_path: Path) -> Path:
+def _two_per_rev(tmp_path: Path, clock_speed: float | str = 40) -> Path:
     """Issue 22's stand: one axis, 6 turns at 2, 20 and 90 deg/s, a 1/rev and a 2/rev
     harmonic (at 90 deg/s an 85 ms offset between FOG and counter moved the 2/rev phase
     by 15 deg before the FOG's flush at connect was fixed, issue 27)."""
     stand = yaml.safe_load(STAND.read_text())
     del stand["axes"]["inner"], stand["sim"]["axes"]["inner"]
-    stand["sim"]["clock_speed"] = 40
+    stand["sim"]["clock_speed"] = clock_speed
     stand["sim"]["axes"]["outer"]["harmonics"] = [
         {"order": 1, "amplitude_rel": 5.0e-4, "phase_deg": 40},
         {"order": 2, "amplitude_rel": 3.0e-4, "phase_deg": -70}]
@@ -54,22 +56,42 @@ def _two_per_rev(tmp_path: Path) -> Path:
     return tmp_path / "two-per-rev.yaml"
 
 
-def check(tmp_path: Path) -> list[str]:
-    """Cut in the 90 deg/s pair's second half and resumed, with two processes spinning on
-    the two cores: every figure against the truth, the harmonic phases included."""
-    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+def _nice_zero() -> None:
+    """A busy process at the default priority, even when the benchmark runs under nice
+    (as the guide asks): the load an operator's other programs put beside a run."""
+    try:
+        os.setpriority(os.PRIO_PROCESS, 0, 0)
+    except PermissionError:      # not root: as nice as the benchmark
+        pass
+
+
+def check(tmp_path: Path, clock_speed: float | str = 40, busy_n: int = 2) -> list[str]:
+    """Cut in the 90 deg/s pair's second half and resumed, with `busy_n` processes spinning
+    beside it: every figure against the truth, the harmonic phases included."""
+    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"],
+                             preexec_fn=_nice_zero) for _ in range(busy_n)]
     try:
         run_dir = _interrupted_then_resumed(
-            _two_per_rev(tmp_path), tmp_path / "runs",
+            _two_per_rev(tmp_path, clock_speed), tmp_path / "runs",
             lambda ev: any(e["event"] == "step_start" and e.get("action") == "acquire"
                            and e.get("unit") == "outer/90dps"
                            and "half 2/" in e.get("describe", "") for e in ev))
     finally:
         for b in busy:
             b.kill()
+        for b in busy:
+            b.wait()
+    return score(run_dir)
+
+
+def score(run_dir: Path) -> list[str]:
+    """Every figure of a finished two-session run against its stand's truth: the
+    misses beyond the hard limit, or the ones outside U when more than the binomial
+    bound allows (empty: the run passes)."""
     result = json.loads((run_dir / "result.json").read_text())
     assert result["sessions"] == 2
-    rows = [(what, abs(v - truth) / u) for what, v, u, truth in comparisons(result)]
+    rows = [(what, abs(v - truth) / u) for what, v, u, truth
+            in comparisons(result, _truths(run_dir))]
     phases = [w for w, _ in rows if "phase" in w and "90" in w]
     assert phases, [w for w, _ in rows]            # the 90 deg/s phases are compared
     rows += statements(result, _truths(run_dir), 1000.0)
@@ -79,13 +101,38 @@ def check(tmp_path: Path) -> list[str]:
           f"{allowed_outside(len(rows))}), {len(beyond)} beyond {HARD_LIMIT_U} U")
     for line in outside:
         print("  outside:", line)
+    for kind, (worst, what) in sorted(_worst_by_type(rows).items()):
+        print(f"  worst {kind}: {worst:.2f} U ({what})")
     return beyond if beyond else ([] if len(outside) <= allowed_outside(len(rows))
                                   else outside)
 
 
 
+def _worst_by_type(rows: list[tuple[str, float]]) -> dict[str, tuple[float, str]]:
+    """Per figure type (the label less its axis and rate), the worst |value - truth| / U."""
+    out: dict[str, tuple[float, str]] = {}
+    for what, r in rows:
+        kind = " ".join(what.split()[2:])
+        if r >= out.get(kind, (-1.0, ""))[0]:
+            out[kind] = (r, what)
+    return out
+
+
 if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--clock", default="40", help="sim clock_speed: a number or 'max'")
+    ap.add_argument("--busy", type=int, default=2, help="busy processes beside the run")
+    ap.add_argument("--keep", help="keep the run in this folder")
+    ap.add_argument("--score", help="only score this finished run directory")
+    args = ap.parse_args()
+    if args.score:
+        bad = score(Path(args.score))
+        print("FAIL" if bad else "PASS", *bad, sep="\n  ")
+        sys.exit(1 if bad else 0)
+    speed: float | str = args.clock if args.clock == "max" else float(args.clock)
     with tempfile.TemporaryDirectory() as d:
-        bad = check(Path(d))
+        where = Path(args.keep) if args.keep else Path(d)
+        where.mkdir(parents=True, exist_ok=True)
+        bad = check(where, speed, args.busy)
     print("FAIL" if bad else "PASS", *bad, sep="\n  ")
     sys.exit(1 if bad else 0)

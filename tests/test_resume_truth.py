@@ -186,7 +186,8 @@ def test_resumed_demo_recovers_every_truth(phase: str, tmp_path: Path) -> None:
     assert result["verdict"] == "pass" and result["sessions"] == 2
     sessions = {e["session"] for e in _events(run_dir) if e["event"] == "acquire"}
     assert sessions == {1, 2}, sessions                # both sessions measured
-    rows = [(what, abs(v - truth) / u) for what, v, u, truth in comparisons(result)]
+    rows = [(what, abs(v - truth) / u) for what, v, u, truth
+            in comparisons(result, _truths(run_dir))]
     rows += statements(result, _truths(run_dir), 1000.0)
     beyond = [f"{w} ({r:.2f} U)" for w, r in rows if r > HARD_LIMIT_U]
     assert not beyond, beyond
