@@ -75,12 +75,16 @@ def _second_axis_started(ev: list[dict[str, Any]]) -> bool:
 
 
 def _interrupted_then_resumed(proc: Path, out: Path,
-                              when: Callable[[list[dict[str, Any]]], bool]) -> Path:
+                              when: Callable[[list[dict[str, Any]]], bool],
+                              cut_within_s: float = 240) -> Path:
+    """`bench run`, SIGINT once `when(events)` holds (the run must get there within
+    `cut_within_s` of real time: on a loaded machine the co-simulation runs slower), then
+    `bench run --resume`: the run directory."""
     p = subprocess.Popen([sys.executable, "-m", "bench", "run", str(proc), "--yes",
                           "--out", str(out)], cwd=ROOT, text=True,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     run_dir = None
-    deadline = time.monotonic() + 240
+    deadline = time.monotonic() + cut_within_s
     while time.monotonic() < deadline and p.poll() is None:
         logs = list(out.glob("*/events.jsonl")) if out.exists() else []
         if logs:
@@ -89,8 +93,9 @@ def _interrupted_then_resumed(proc: Path, out: Path,
                 break
         time.sleep(0.01)
     assert run_dir is not None and p.poll() is None, "the run ended before the cut"
+    assert when(_events(run_dir)), f"the cut's moment not reached within {cut_within_s} s"
     p.send_signal(signal.SIGINT)
-    o, e = p.communicate(timeout=120)
+    o, e = p.communicate(timeout=max(120, cut_within_s / 2))
     assert p.returncode == 3, o + e
     r = subprocess.run([sys.executable, "-m", "bench", "run", "--resume", str(run_dir),
                         "--yes"], cwd=ROOT, text=True, capture_output=True, timeout=600)
