@@ -23,37 +23,17 @@ import sys
 import tempfile
 from pathlib import Path
 
-import yaml
-
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from tests.test_resume_truth import (  # noqa: E402
-    DEMO,
     HARD_LIMIT_U,
-    STAND,
     _interrupted_then_resumed,
     _truths,
+    in_90dps_second_half,
     statements,
+    two_per_rev,
 )
 from tests.test_run_e2e import allowed_outside, comparisons  # noqa: E402
-
-
-def _two_per_rev(tmp_path: Path, clock_speed: float | str = 40) -> Path:
-    """Issue 22's stand: one axis, 6 turns at 2, 20 and 90 deg/s, a 1/rev and a 2/rev
-    harmonic (at 90 deg/s an 85 ms offset between FOG and counter moved the 2/rev phase
-    by 15 deg before the FOG's flush at connect was fixed, issue 27)."""
-    stand = yaml.safe_load(STAND.read_text())
-    del stand["axes"]["inner"], stand["sim"]["axes"]["inner"]
-    stand["sim"]["clock_speed"] = clock_speed
-    stand["sim"]["axes"]["outer"]["harmonics"] = [
-        {"order": 1, "amplitude_rel": 5.0e-4, "phase_deg": 40},
-        {"order": 2, "amplitude_rel": 3.0e-4, "phase_deg": -70}]
-    (tmp_path / "stand.yaml").write_text(yaml.safe_dump(stand))
-    proc = yaml.safe_load(DEMO.read_text())
-    proc.update(stand=str(tmp_path / "stand.yaml"), turns=6, static_record_s=10,
-                harmonics=2, axes={"outer": {"rates_dps": [2, 20, 90]}})
-    (tmp_path / "two-per-rev.yaml").write_text(yaml.safe_dump(proc))
-    return tmp_path / "two-per-rev.yaml"
 
 
 def _busy(n: int, nice: int | None) -> list[subprocess.Popen[bytes]]:
@@ -75,11 +55,8 @@ def check(tmp_path: Path, clock_speed: float | str = 40, busy_n: int = 2,
     busy = _busy(busy_n, busy_nice)
     try:
         run_dir = _interrupted_then_resumed(
-            _two_per_rev(tmp_path, clock_speed), tmp_path / "runs",
-            lambda ev: any(e["event"] == "step_start" and e.get("action") == "acquire"
-                           and e.get("unit") == "outer/90dps"
-                           and "half 2/" in e.get("describe", "") for e in ev),
-            cut_within_s=1800)
+            two_per_rev(tmp_path, clock_speed), tmp_path / "runs",
+            in_90dps_second_half, cut_within_s=1800)
     finally:
         for b in busy:
             b.kill()

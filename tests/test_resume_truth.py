@@ -48,6 +48,31 @@ def _demo(tmp_path: Path) -> Path:
     return tmp_path / "demo.yaml"
 
 
+def two_per_rev(tmp_path: Path, clock_speed: float | str = "max") -> Path:
+    """Issue 22's stand: one axis, 6 turns at 2, 20 and 90 deg/s, a 1/rev and a 2/rev
+    harmonic (at 90 deg/s an 85 ms offset between FOG and counter moved the 2/rev phase
+    by 15 deg before the FOG's flush at connect was fixed, issue 27)."""
+    stand = yaml.safe_load(STAND.read_text())
+    del stand["axes"]["inner"], stand["sim"]["axes"]["inner"]
+    stand["sim"]["clock_speed"] = clock_speed
+    stand["sim"]["axes"]["outer"]["harmonics"] = [
+        {"order": 1, "amplitude_rel": 5.0e-4, "phase_deg": 40},
+        {"order": 2, "amplitude_rel": 3.0e-4, "phase_deg": -70}]
+    (tmp_path / "stand.yaml").write_text(yaml.safe_dump(stand))
+    proc = yaml.safe_load(DEMO.read_text())
+    proc.update(stand=str(tmp_path / "stand.yaml"), turns=6, static_record_s=10,
+                harmonics=2, axes={"outer": {"rates_dps": [2, 20, 90]}})
+    (tmp_path / "two-per-rev.yaml").write_text(yaml.safe_dump(proc))
+    return tmp_path / "two-per-rev.yaml"
+
+
+def in_90dps_second_half(ev: list[dict[str, Any]]) -> bool:
+    """The cut of issue 22's 2/rev case: the 90 deg/s pair's second half has started."""
+    return any(e["event"] == "step_start" and e.get("action") == "acquire"
+               and e.get("unit") == "outer/90dps" and "half 2/" in e.get("describe", "")
+               for e in ev)
+
+
 def _events(run_dir: Path) -> list[dict[str, Any]]:
     out = []
     for line in (run_dir / "events.jsonl").read_text().splitlines():
@@ -202,3 +227,30 @@ def test_resumed_demo_recovers_every_truth(phase: str, tmp_path: Path) -> None:
     sig = [c for c in result["checks"] if c["quantity"] == "rate_instability"]
     assert sig and all(c["verdict"] == "pass" for c in sig), sig
 
+
+@pytest.mark.timeout(900)
+def test_resumed_two_per_rev_stand_recovers_every_truth(tmp_path: Path) -> None:
+    """Issue 22's second acceptance item: its stand (one axis, 6 turns at 2, 20 and
+    90 deg/s, 1/rev and 2/rev harmonics), cut in the 90 deg/s pair's second half and
+    resumed: every figure, the 90 deg/s phases included, against the run's own truth.
+
+    On the co-simulation clock (`clock_speed: max`), whose results do not depend on
+    machine load: tests/test_determinism.py proves that by running the demo beside two
+    busy processes and finding every figure the same, so this test spends no CPU on
+    busy processes. benchmarks/resume_two_per_rev.py runs the case beside them (co-sim
+    or the paced clock) on demand; seen on 2026-11-25: the same result.json figures
+    quiet and beside two busy processes, 3 of 96 outside U, none beyond 1.5 U.
+    """
+    run_dir = _interrupted_then_resumed(two_per_rev(tmp_path), tmp_path / "runs",
+                                        in_90dps_second_half)
+    result = json.loads((run_dir / "result.json").read_text())
+    assert result["verdict"] == "pass" and result["sessions"] == 2
+    truths = _truths(run_dir)
+    rows = [(what, abs(v - truth) / u) for what, v, u, truth
+            in comparisons(result, truths)]
+    assert {"outer +90 harmonic 2 phase", "outer -90 harmonic 2 phase"} <= {w for w, _ in rows}
+    rows += statements(result, truths, 1000.0)
+    beyond = [f"{w} ({r:.2f} U)" for w, r in rows if r > HARD_LIMIT_U]
+    assert not beyond, beyond
+    outside = [f"{w} ({r:.2f} U)" for w, r in rows if r > 1.0]
+    assert len(outside) <= allowed_outside(len(rows)), (len(rows), outside)
