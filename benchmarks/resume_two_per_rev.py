@@ -49,13 +49,14 @@ def _busy(n: int, nice: int | None) -> list[subprocess.Popen[bytes]]:
 
 
 def check(tmp_path: Path, clock_speed: float | str = 40, busy_n: int = 2,
-          busy_nice: int | None = None) -> list[str]:
+          busy_nice: int | None = None, rates_dps: tuple[float, ...] = (2, 20, 90)
+          ) -> list[str]:
     """Cut in the 90 deg/s pair's second half and resumed, with `busy_n` processes spinning
     beside it: every figure against the truth, the harmonic phases included."""
     busy = _busy(busy_n, busy_nice)
     try:
         run_dir = _interrupted_then_resumed(
-            two_per_rev(tmp_path, clock_speed), tmp_path / "runs",
+            two_per_rev(tmp_path, clock_speed, rates_dps), tmp_path / "runs",
             in_90dps_second_half, cut_within_s=1800)
     finally:
         for b in busy:
@@ -105,6 +106,8 @@ if __name__ == "__main__":
     ap.add_argument("--busy", type=int, default=2, help="busy processes beside the run")
     ap.add_argument("--busy-nice", type=int, default=None,
                     help="the busy processes' nice value (default: the benchmark's)")
+    ap.add_argument("--rates", default="2,20,90",
+                    help="the ladder's rates, deg/s (the issue's: 2,20,90; 20,90 is shorter)")
     ap.add_argument("--keep", help="keep the run in this folder")
     ap.add_argument("--score", help="only score this finished run directory")
     args = ap.parse_args()
@@ -116,6 +119,7 @@ if __name__ == "__main__":
     with tempfile.TemporaryDirectory() as d:
         where = Path(args.keep) if args.keep else Path(d)
         where.mkdir(parents=True, exist_ok=True)
-        bad = check(where, speed, args.busy, args.busy_nice)
+        bad = check(where, speed, args.busy, args.busy_nice,
+                    tuple(float(r) for r in args.rates.split(",")))
     print("FAIL" if bad else "PASS", *bad, sep="\n  ")
     sys.exit(1 if bad else 0)

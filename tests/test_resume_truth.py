@@ -48,7 +48,8 @@ def _demo(tmp_path: Path) -> Path:
     return tmp_path / "demo.yaml"
 
 
-def two_per_rev(tmp_path: Path, clock_speed: float | str = "max") -> Path:
+def two_per_rev(tmp_path: Path, clock_speed: float | str = "max",
+                rates_dps: tuple[float, ...] = (2, 20, 90)) -> Path:
     """Issue 22's stand: one axis, 6 turns at 2, 20 and 90 deg/s, a 1/rev and a 2/rev
     harmonic (at 90 deg/s an 85 ms offset between FOG and counter moved the 2/rev phase
     by 15 deg before the FOG's flush at connect was fixed, issue 27)."""
@@ -61,7 +62,7 @@ def two_per_rev(tmp_path: Path, clock_speed: float | str = "max") -> Path:
     (tmp_path / "stand.yaml").write_text(yaml.safe_dump(stand))
     proc = yaml.safe_load(DEMO.read_text())
     proc.update(stand=str(tmp_path / "stand.yaml"), turns=6, static_record_s=10,
-                harmonics=2, axes={"outer": {"rates_dps": [2, 20, 90]}})
+                harmonics=2, axes={"outer": {"rates_dps": list(rates_dps)}})
     (tmp_path / "two-per-rev.yaml").write_text(yaml.safe_dump(proc))
     return tmp_path / "two-per-rev.yaml"
 
