@@ -231,8 +231,9 @@ def test_resumed_demo_recovers_every_truth(phase: str, tmp_path: Path) -> None:
 
 @pytest.mark.timeout(900)
 def test_resumed_two_per_rev_stand_recovers_every_truth(tmp_path: Path) -> None:
-    """Issue 22's second acceptance item: its stand (one axis, 6 turns at 2, 20 and
-    90 deg/s, 1/rev and 2/rev harmonics), cut in the 90 deg/s pair's second half and
+    """Issue 22's second acceptance item: its stand (one axis, 6 turns, 1/rev and 2/rev
+    harmonics; here at 20 and 90 deg/s, the benchmark adds the issue's 2 deg/s, whose
+    12-minute halves double this test's cost), cut in the 90 deg/s pair's second half and
     resumed: every figure, the 90 deg/s phases included, against the run's own truth.
 
     On the co-simulation clock (`clock_speed: max`), whose results do not depend on
@@ -242,8 +243,8 @@ def test_resumed_two_per_rev_stand_recovers_every_truth(tmp_path: Path) -> None:
     or the paced clock) on demand; seen on 2026-11-25: the same result.json figures
     quiet and beside two busy processes, 3 of 96 outside U, none beyond 1.5 U.
     """
-    run_dir = _interrupted_then_resumed(two_per_rev(tmp_path), tmp_path / "runs",
-                                        in_90dps_second_half)
+    run_dir = _interrupted_then_resumed(two_per_rev(tmp_path, rates_dps=(20, 90)),
+                                        tmp_path / "runs", in_90dps_second_half)
     result = json.loads((run_dir / "result.json").read_text())
     assert result["verdict"] == "pass" and result["sessions"] == 2
     truths = _truths(run_dir)
