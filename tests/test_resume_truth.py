@@ -256,3 +256,27 @@ def test_resumed_two_per_rev_stand_recovers_every_truth(tmp_path: Path) -> None:
     assert not beyond, beyond
     outside = [f"{w} ({r:.2f} U)" for w, r in rows if r > 1.0]
     assert len(outside) <= allowed_outside(len(rows)), (len(rows), outside)
+
+
+def test_a_record_on_uncertain_fog_indices_is_refused() -> None:
+    """Frames lost in whole counter wraps (drivers/fog.py flags `index_uncertain_from`
+    from the clock, as tests/test_fog_driver.py shows on a paced twin) put every later
+    sample on the wrong time: the half is refused with the driver's cause, not analysed.
+
+    The driver here is a real, unopened `Fog` with the flag set as its own clock watch
+    sets it: the paced rig that makes the loss happens in real time, and the guide keeps
+    new wall-clock dependent tests out of the suite."""
+    from bench.engine import Abort
+    from drivers.fog import Fog
+    from procedures.rate_ladder.kind import _check_fog_indices
+    from sims.clock import VirtualClock
+
+    fog = Fog("/dev/null", fmt="kvh-a", axis="z", rate_hz=1000.0, units="deg/s",
+              raw_path=None, clock=VirtualClock(1.0, running=False))
+    _check_fog_indices(fog, 5000, "outer +90 deg/s half 2")          # nothing flagged
+    fog._index_uncertain_from = 4000
+    fog.last_error = "FOG on /dev/null: frames were lost in whole counter wraps (128)"
+    _check_fog_indices(fog, 4000, "outer +90 deg/s half 1")          # ends before it
+    with pytest.raises(Abort, match=r"half 2: the FOG's sample indices from 4000 on are "
+                                    r"uncertain \(FOG on /dev/null: frames were lost"):
+        _check_fog_indices(fog, 5000, "outer +90 deg/s half 2")
