@@ -48,6 +48,32 @@ def _demo(tmp_path: Path) -> Path:
     return tmp_path / "demo.yaml"
 
 
+def two_per_rev(tmp_path: Path, clock_speed: float | str = "max",
+                rates_dps: tuple[float, ...] = (2, 20, 90)) -> Path:
+    """Issue 22's stand: one axis, 6 turns at 2, 20 and 90 deg/s, a 1/rev and a 2/rev
+    harmonic (at 90 deg/s an 85 ms offset between FOG and counter moved the 2/rev phase
+    by 15 deg before the FOG's flush at connect was fixed, issue 27)."""
+    stand = yaml.safe_load(STAND.read_text())
+    del stand["axes"]["inner"], stand["sim"]["axes"]["inner"]
+    stand["sim"]["clock_speed"] = clock_speed
+    stand["sim"]["axes"]["outer"]["harmonics"] = [
+        {"order": 1, "amplitude_rel": 5.0e-4, "phase_deg": 40},
+        {"order": 2, "amplitude_rel": 3.0e-4, "phase_deg": -70}]
+    (tmp_path / "stand.yaml").write_text(yaml.safe_dump(stand))
+    proc = yaml.safe_load(DEMO.read_text())
+    proc.update(stand=str(tmp_path / "stand.yaml"), turns=6, static_record_s=10,
+                harmonics=2, axes={"outer": {"rates_dps": list(rates_dps)}})
+    (tmp_path / "two-per-rev.yaml").write_text(yaml.safe_dump(proc))
+    return tmp_path / "two-per-rev.yaml"
+
+
+def in_90dps_second_half(ev: list[dict[str, Any]]) -> bool:
+    """The cut of issue 22's 2/rev case: the 90 deg/s pair's second half has started."""
+    return any(e["event"] == "step_start" and e.get("action") == "acquire"
+               and e.get("unit") == "outer/90dps" and "half 2/" in e.get("describe", "")
+               for e in ev)
+
+
 def _events(run_dir: Path) -> list[dict[str, Any]]:
     out = []
     for line in (run_dir / "events.jsonl").read_text().splitlines():
@@ -75,12 +101,16 @@ def _second_axis_started(ev: list[dict[str, Any]]) -> bool:
 
 
 def _interrupted_then_resumed(proc: Path, out: Path,
-                              when: Callable[[list[dict[str, Any]]], bool]) -> Path:
+                              when: Callable[[list[dict[str, Any]]], bool],
+                              cut_within_s: float = 240) -> Path:
+    """`bench run`, SIGINT once `when(events)` holds (the run must get there within
+    `cut_within_s` of real time: on a loaded machine the co-simulation runs slower), then
+    `bench run --resume`: the run directory."""
     p = subprocess.Popen([sys.executable, "-m", "bench", "run", str(proc), "--yes",
                           "--out", str(out)], cwd=ROOT, text=True,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     run_dir = None
-    deadline = time.monotonic() + 240
+    deadline = time.monotonic() + cut_within_s
     while time.monotonic() < deadline and p.poll() is None:
         logs = list(out.glob("*/events.jsonl")) if out.exists() else []
         if logs:
@@ -89,8 +119,9 @@ def _interrupted_then_resumed(proc: Path, out: Path,
                 break
         time.sleep(0.01)
     assert run_dir is not None and p.poll() is None, "the run ended before the cut"
+    assert when(_events(run_dir)), f"the cut's moment not reached within {cut_within_s} s"
     p.send_signal(signal.SIGINT)
-    o, e = p.communicate(timeout=120)
+    o, e = p.communicate(timeout=max(120, cut_within_s / 2))
     assert p.returncode == 3, o + e
     r = subprocess.run([sys.executable, "-m", "bench", "run", "--resume", str(run_dir),
                         "--yes"], cwd=ROOT, text=True, capture_output=True, timeout=600)
@@ -186,7 +217,8 @@ def test_resumed_demo_recovers_every_truth(phase: str, tmp_path: Path) -> None:
     assert result["verdict"] == "pass" and result["sessions"] == 2
     sessions = {e["session"] for e in _events(run_dir) if e["event"] == "acquire"}
     assert sessions == {1, 2}, sessions                # both sessions measured
-    rows = [(what, abs(v - truth) / u) for what, v, u, truth in comparisons(result)]
+    rows = [(what, abs(v - truth) / u) for what, v, u, truth
+            in comparisons(result, _truths(run_dir))]
     rows += statements(result, _truths(run_dir), 1000.0)
     beyond = [f"{w} ({r:.2f} U)" for w, r in rows if r > HARD_LIMIT_U]
     assert not beyond, beyond
@@ -196,3 +228,55 @@ def test_resumed_demo_recovers_every_truth(phase: str, tmp_path: Path) -> None:
     sig = [c for c in result["checks"] if c["quantity"] == "rate_instability"]
     assert sig and all(c["verdict"] == "pass" for c in sig), sig
 
+
+@pytest.mark.timeout(900)
+def test_resumed_two_per_rev_stand_recovers_every_truth(tmp_path: Path) -> None:
+    """Issue 22's second acceptance item: its stand (one axis, 6 turns, 1/rev and 2/rev
+    harmonics; here at 20 and 90 deg/s, the benchmark adds the issue's 2 deg/s, whose
+    12-minute halves double this test's cost), cut in the 90 deg/s pair's second half and
+    resumed: every figure, the 90 deg/s phases included, against the run's own truth.
+
+    On the co-simulation clock (`clock_speed: max`), whose results do not depend on
+    machine load: tests/test_determinism.py proves that by running the demo beside two
+    busy processes and finding every figure the same, so this test spends no CPU on
+    busy processes. benchmarks/resume_two_per_rev.py runs the case beside them (co-sim
+    or the paced clock) on demand; seen on 2026-11-25: the same result.json figures
+    quiet and beside two busy processes, 3 of 96 outside U, none beyond 1.5 U.
+    """
+    run_dir = _interrupted_then_resumed(two_per_rev(tmp_path, rates_dps=(20, 90)),
+                                        tmp_path / "runs", in_90dps_second_half)
+    result = json.loads((run_dir / "result.json").read_text())
+    assert result["verdict"] == "pass" and result["sessions"] == 2
+    truths = _truths(run_dir)
+    rows = [(what, abs(v - truth) / u) for what, v, u, truth
+            in comparisons(result, truths)]
+    assert {"outer +90 harmonic 2 phase", "outer -90 harmonic 2 phase"} <= {w for w, _ in rows}
+    rows += statements(result, truths, 1000.0)
+    beyond = [f"{w} ({r:.2f} U)" for w, r in rows if r > HARD_LIMIT_U]
+    assert not beyond, beyond
+    outside = [f"{w} ({r:.2f} U)" for w, r in rows if r > 1.0]
+    assert len(outside) <= allowed_outside(len(rows)), (len(rows), outside)
+
+
+def test_a_record_on_uncertain_fog_indices_is_refused() -> None:
+    """Frames lost in whole counter wraps (drivers/fog.py flags `index_uncertain_from`
+    from the clock, as tests/test_fog_driver.py shows on a paced twin) put every later
+    sample on the wrong time: the half is refused with the driver's cause, not analysed.
+
+    The driver here is a real, unopened `Fog` with the flag set as its own clock watch
+    sets it: the paced rig that makes the loss happens in real time, and the guide keeps
+    new wall-clock dependent tests out of the suite."""
+    from bench.core.engine import Abort
+    from drivers.fog import Fog
+    from procedures.rate_ladder.kind import _check_fog_indices
+    from sims.clock import VirtualClock
+
+    fog = Fog("/dev/null", fmt="kvh-a", axis="z", rate_hz=1000.0, units="deg/s",
+              raw_path=None, clock=VirtualClock(1.0, running=False))
+    _check_fog_indices(fog, 5000, "outer +90 deg/s half 2")          # nothing flagged
+    fog._index_uncertain_from = 4000
+    fog.last_error = "FOG on /dev/null: frames were lost in whole counter wraps (128)"
+    _check_fog_indices(fog, 4000, "outer +90 deg/s half 1")          # ends before it
+    with pytest.raises(Abort, match=r"half 2: the FOG's sample indices from 4000 on are "
+                                    r"uncertain \(FOG on /dev/null: frames were lost"):
+        _check_fog_indices(fog, 5000, "outer +90 deg/s half 2")

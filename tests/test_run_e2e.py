@@ -38,11 +38,14 @@ def truths() -> dict[str, AxisTruth]:
     return {a: AxisTruth.from_mapping(t) for a, t in sim["axes"].items()}
 
 
-def comparisons(result: dict[str, Any]) -> list[tuple[str, float, float, float]]:
-    """(what, value, U, truth) for every figure of result.json the stand's truth fixes."""
+def comparisons(result: dict[str, Any], stand_truths: dict[str, AxisTruth] | None = None
+                ) -> list[tuple[str, float, float, float]]:
+    """(what, value, U, truth) for every figure of result.json the stand's truth fixes
+    (`stand_truths`: the run's own stand, when it is not the shipped one)."""
     out = []
+    by_axis = truths() if stand_truths is None else stand_truths
     for axis, ax in result["axes"].items():
-        truth = truths()[axis]
+        truth = by_axis[axis]
         fog = truth.fog
         assert ax["pairs"], axis
         for p in ax["pairs"]:

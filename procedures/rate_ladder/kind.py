@@ -55,6 +55,23 @@ def _fog_losses(fog: Any) -> int:
     return int(st.lost_frames + st.crc_errors)
 
 
+def _check_fog_indices(fog: Any, upto: int, what: str) -> None:
+    """Abort before a record whose FOG sample indices the driver no longer trusts.
+
+    Frames lost in whole wraps of the sequence counter (a stalled, overrun link: what a
+    loaded host or a USB adapter can do) leave no mark in the bytes, so every later
+    sample would sit on the wrong time (docs/method.md A3-A4: shifted turns, harmonic
+    phases off by w dt) while the analysis saw a clean record. The driver spots it from
+    the clock (drivers/fog.py `index_uncertain_from`); such a half is not journaled, and
+    `bench run --resume` measures it again on a new FOG session."""
+    doubt = fog.stats.index_uncertain_from
+    if doubt is not None and doubt < upto:
+        cause = getattr(fog, "last_error", None) or "frames lost in whole counter wraps"
+        raise Abort(f"{what}: the FOG's sample indices from {doubt} on are uncertain "
+                    f"({cause}); this record is not used: `bench run --resume` measures "
+                    "it again")
+
+
 class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
     name = NAME
 
@@ -171,6 +188,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         lost0 = _fog_losses(fog)
         mark = fog.checkpoint()  # where the record starts in the raw capture (or before)
         self._wait_fog(ctx, fog, i0 + n, duration, f"{step.axis}: FOG at rest")
+        _check_fog_indices(fog, i0 + n, f"{step.axis}: FOG at rest")
         StaticRecorded(step.on_axis, step.in_unit, fog_from=i0, fog_to=i0 + n, rate_hz=fog.rate_hz,
                        lost=_fog_losses(fog) - lost0, fog_capture=mark
                        ).write(ctx.run)   # the samples stay in the raw capture
@@ -235,6 +253,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         i_to = math.floor(edges[-1] * fog.rate_hz) + 2
         rec1 = ax.logs["counter"].count if "counter" in ax.logs else 0
         fog.wait_for_index(i_to, timeout_s=max(10.0, period))
+        _check_fog_indices(fog, i_to, f"{step.axis} {p['rate_dps']:+g} deg/s half {p['half']}")
         lost = _fog_losses(fog) - lost0
         # the FOG samples stay in the raw capture: the pair's analysis reads them there;
         # this event completes the half (a --resume keeps it, docs/resume.md)
