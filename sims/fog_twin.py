@@ -306,7 +306,7 @@ class FogTwin:
             if s > at:
                 # the frames as they are (a view the queue keeps alive), or those not dropped
                 out = rows[seg] if whole else rows[seg][keep[seg]]
-                items.append((memoryview(out.reshape(-1)), s))
+                items.append((out.reshape(-1).data, s))
             items.extend(cuts.get(s, []))
             at = s
         with self._qlock:
