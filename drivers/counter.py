@@ -35,7 +35,7 @@ import numpy as np
 from drivers.clock import Clock, real_budget_s, stepped
 from drivers.counter_profiles import (
     CounterProfile,
-    first_interval_is_a_turn,
+    first_value_is_a_turn,
     get_profile,
     is_scpi_nan,
 )
@@ -128,6 +128,9 @@ class Counter(ScpiInstrument):
         self.time_tie = time_tie or TimeTie()
         #: every setting the measurement depends on, as the counter reads it back
         self.readback: dict[str, str] = {}
+        #: a first timestamp value seen clearly shorter than a turn: this counter stamps
+        #: from its trigger (counter_profiles.first_value_is_a_turn)
+        self._seen_from_start = False
         #: SYST:TIM as found at open (non-volatile on a 53230A): restored at close
         self._saved_timeout: str | None = None
         self.words = profile.words
@@ -590,8 +593,9 @@ class Counter(ScpiInstrument):
         FOG's axis; a first value as long as a turn cannot be told from the second
         reading, so edges are refused rather than placed up to a turn wrong. Periods
         need no tie: every full-turn interval is one."""
-        full = first_interval_is_a_turn(intervals_s, acq.expected_period_s,
-                                        self.profile.resolution_s)
+        full = first_value_is_a_turn(intervals_s, acq.expected_period_s,
+                                     self.profile.resolution_s, self._seen_from_start)
+        self._seen_from_start = self._seen_from_start or not full
         self.readback["counter.first timestamp value"] = (
             "a full turn (edge to edge)" if full else "trigger to first edge")
         if full and acq.what == "edges":

@@ -170,6 +170,24 @@ def first_interval_is_a_turn(intervals_s: np.ndarray, expected_period_s: float,
     return abs(float(v[0]) - expected_period_s) <= 1e-3 * expected_period_s
 
 
+def first_value_is_a_turn(intervals_s: np.ndarray, expected_period_s: float,
+                          resolution_s: float, seen_from_start: bool) -> bool:
+    """`first_interval_is_a_turn`, with what this counter has already shown.
+
+    A counter that stamps edge to edge gives a first value as long as a turn every time;
+    one first value clearly shorter than a turn therefore proves the counter stamps from
+    its trigger (`seen_from_start`), and that is firmware behaviour, not chance. With
+    three or more turns the turns' own scatter decides (a contradiction is refused by the
+    caller); with fewer, a first value near a turn is only the trigger falling just after
+    a zero mark (the slow rates of the paper's ladder, armed right after the reversal
+    carried the table over the mark: 3598.2 s against a 3600 s turn), and it is read as
+    trigger to first edge when the counter has shown that reading before."""
+    full = first_interval_is_a_turn(intervals_s, expected_period_s, resolution_s)
+    v = np.asarray(intervals_s, float)
+    few_turns = int(np.count_nonzero(v[1:] < 0.999 * SCPI_NAN)) < 3
+    return full and not (few_turns and seen_from_start)
+
+
 class PendulumStst(TimestampFormat):
     """CNT-91 `CONF:ARR:STST` with `FORM:TINF ON`: pairs (X, TS) per stamp.
 

@@ -18,6 +18,7 @@ from drivers.counter_profiles import (
     FIRST_VALUE_READINGS,
     MANUAL_FIRST_VALUE,
     first_interval_is_a_turn,
+    first_value_is_a_turn,
 )
 from drivers.time_tie import TimeTie
 from sims.counter_twin import CounterTwin, SyncLink
@@ -38,6 +39,22 @@ def test_the_manuals_example_reads_as_edge_to_edge() -> None:
     # a trigger mid-turn: the first value is a part of a turn
     assert not first_interval_is_a_turn(np.array([0.4, 1.0, 1.0000001, 0.9999999, 1.0]),
                                         1.0, 20e-12)
+
+
+def test_a_first_value_near_a_turn_with_few_turns_reads_as_the_counter_has_shown() -> None:
+    """The paper ladder at 0.1 deg/s (benchmarks/bench_ladder.py): a half armed 1.8 s after
+    the reversal carried the table over its zero mark times one turn of 3600 s; its first
+    value, 3598.2 s, is within 1e-3 of a turn. Alone it cannot be told from an edge-to-edge
+    first value (refused); after this counter gave a first value clearly shorter than a
+    turn (an edge-to-edge counter never does), it is trigger to first edge."""
+    few = np.array([3598.2, 3600.0004])
+    assert first_value_is_a_turn(few, 3600.0, 20e-12, seen_from_start=False)
+    assert not first_value_is_a_turn(few, 3600.0, 20e-12, seen_from_start=True)
+    # with three turns or more the turns' scatter decides, whatever was seen before
+    many = np.array([1.0000001, 1.0, 1.0000002, 0.9999999, 1.0])
+    assert first_value_is_a_turn(many, 1.0, 20e-12, seen_from_start=True)
+    partial = np.array([0.4, 1.0, 1.0000001, 0.9999999, 1.0])
+    assert not first_value_is_a_turn(partial, 1.0, 20e-12, seen_from_start=False)
 
 
 @pytest.fixture(params=FIRST_VALUE_READINGS)
