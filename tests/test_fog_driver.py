@@ -178,7 +178,11 @@ def test_lossless_stall_times_out_then_catches_up(tmp_path: Path) -> None:
     assert len(stats.stalls) == 1
     stall = stats.stalls[0]
     assert stall.after_index == 499
-    assert 20.0 <= stall.duration_s <= 30.5
+    # the silence starts at sample 500 (0.5 s) and the twin sends again at 30.5 s; the
+    # driver notices the silence when its reader next runs (late on a loaded machine: CI
+    # saw 13.8 s), so the start may be late, never early, and the end is the resumption
+    assert 0.5 <= stall.t_from_s < 30.5
+    assert 30.5 - 1e-6 <= stall.t_from_s + stall.duration_s <= 30.5 + 15.0  # 0.3 s real
     assert fog.last_error is None
 
 
