@@ -10,12 +10,13 @@ stand: the FOG's rate, a subset of axes or rates, more turns (a longer ladder). 
 one line: bench time, wall time, peak RSS of the tree, frames lost, exit status.
 Goals (issue 27, this 2-core machine): paper ladder <= 120 s wall, <= 500 MB peak RSS of
 the process tree; memory flat in duration (a ladder twice as long); 0 frames lost.
-Known (Nov 2026): the shipped paper ladder aborts (exit 3) at bench time 47408 s, outer,
-0.1 deg/s, half 3, with any seed: the half is armed just after the reversal has carried
-the table back over its zero mark, the first value (3598.2 s) lies within 1e-3 of a turn,
-and with fewer than 3 timed turns drivers/counter_profiles.py first_interval_is_a_turn
-calls it a full turn. Measured: 253 s wall, 188 CPU s, 403 MB at load 10 (with that
-check narrowed locally, not committed); most CPU is the pty channel's kernel time.
+Measured (25 Nov 2026, main): the shipped paper ladder completes, bench time 105531 s,
+316 s wall, 379 MB, 0 frames lost, exit 0, at load average ~10 on 2 cores (the helper's
+branch: 253 s wall, 188 CPU s, 403 MB at load 10). It used to abort at 0.1 deg/s, outer,
+half 3: the half was armed 1.8 s after the reversal carried the table over its zero
+mark, so the first value (3598.2 s) looked like a whole turn; the counter driver now reads
+such a value as this counter has already shown (counter_profiles.first_value_is_a_turn).
+Most CPU is the pty channel's kernel time (4 kB per read).
 
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
