@@ -50,6 +50,7 @@ SLOW_CLOCK = 30
 
 
 def _procedure(folder: Path, clock_speed: float | None = None) -> Path:
+    folder.mkdir(exist_ok=True)
     stand = STAND
     if clock_speed is not None:
         doc = yaml.safe_load(STAND.read_text())
@@ -147,7 +148,9 @@ def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str, tmp_path
         return
     before = _raw_hashes(run, 1)
     again = RunDir(run.path)
-    status2, _ = _session(cfg, again, resume=True)
+    # the resume's subject is not a real-time silence: on the co-simulation clock
+    status2, _ = _session(load_config(_procedure(tmp_path / "resume")) if slow else cfg,
+                          again, resume=True)
     assert status2 == EXIT_PASS, [e for e in again.events() if e["event"] == "abort"]
     assert _raw_hashes(again, 1) == before          # the first session's bytes untouched
     result = json.loads((run.path / "result.json").read_text())
