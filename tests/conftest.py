@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
+import io
+import json
 import os
+import shutil
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -48,3 +55,84 @@ def when_step_starts(run: Any, match: Callable[[dict[str, Any]], bool],
     t = threading.Thread(target=watch, daemon=True)
     t.start()
     return t
+
+
+# -- the CLI ---------------------------------------------------------------------------------
+
+def _env_without_lab() -> dict[str, str]:
+    """A lab settings file named in the developer's environment must not sign test runs."""
+    from bench.dcc.settings import ENV_LAB
+    return {k: v for k, v in os.environ.items() if k != ENV_LAB}
+
+
+def bench(*args: str, timeout: float = 240) -> subprocess.CompletedProcess[str]:
+    """`bench ARGS` in a subprocess, as an operator starts it (its own interpreter, signal
+    handlers and twins), from the checkout, without the developer's lab file."""
+    return subprocess.run([sys.executable, "-m", "bench", *args], cwd=ROOT, text=True,
+                          capture_output=True, timeout=timeout, env=_env_without_lab())
+
+
+def bench_bg(*args: str) -> subprocess.Popen[str]:
+    """`bench ARGS` started in the background (to be interrupted or raced)."""
+    return subprocess.Popen([sys.executable, "-m", "bench", *args], cwd=ROOT, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            env=_env_without_lab())
+
+
+def cli(*args: str) -> subprocess.CompletedProcess[str]:
+    """`bench ARGS` in this process (the console script's own `main`): for commands that
+    start no run, so no interpreter start-up per call."""
+    from bench.cli import main
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(list(args))
+    return subprocess.CompletedProcess(["bench", *args], code, out.getvalue(), err.getvalue())
+
+
+def run_dir_of(out: subprocess.CompletedProcess[str]) -> Path:
+    """The run directory `bench run` prints last on stdout."""
+    lines = out.stdout.strip().splitlines()
+    assert lines, f"bench printed no run directory (exit {out.returncode}): {out.stderr[-3000:]}"
+    return Path(lines[-1])
+
+
+# -- shared demo runs ------------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class DemoRun:
+    """One `bench run` of a shipped example, done once per test session and read by many
+    tests: never change its folder (copy it with `copy_to`)."""
+
+    out: Path     # the --out folder the run was started with
+    status: int
+    stdout: str
+    stderr: str
+    dir: Path
+    result: dict[str, Any]
+
+    def copy_to(self, dest: Path) -> Path:
+        """The whole runs folder (the run and its records beside it) copied under `dest`;
+        the copy's run directory."""
+        shutil.copytree(self.dir.parent, dest)
+        return dest / self.dir.name
+
+
+def _demo_run(procedure: str, out: Path) -> DemoRun:
+    done = bench("run", str(CONFIGS / "procedures" / procedure), "--yes", "--out", str(out),
+                 timeout=300)
+    run_dir = run_dir_of(done)
+    result_file = run_dir / "result.json"
+    result = json.loads(result_file.read_text()) if result_file.exists() else {}
+    return DemoRun(out, done.returncode, done.stdout, done.stderr, run_dir, result)
+
+
+@pytest.fixture(scope="session")
+def demo_run(tmp_path_factory: pytest.TempPathFactory) -> DemoRun:
+    """configs/procedures/demo.yaml (the two-axis rate ladder), run once for the session."""
+    return _demo_run("demo.yaml", tmp_path_factory.mktemp("demo-run"))
+
+
+@pytest.fixture(scope="session")
+def drift_demo_run(tmp_path_factory: pytest.TempPathFactory) -> DemoRun:
+    """configs/procedures/drift-demo.yaml (the paper's case 70/80), run once."""
+    return _demo_run("drift-demo.yaml", tmp_path_factory.mktemp("drift-demo-run"))

@@ -21,16 +21,11 @@ import yaml
 from scipy.stats import binom
 
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, ROOT
+from tests.conftest import CONFIGS, ROOT, DemoRun, bench
 from tests.conftest import OUTER_SERIALS as OUTER
 
 DEMO = CONFIGS / "procedures" / "demo.yaml"
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
-
-
-def bench(*args: str, timeout: float = 240) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "bench", *args], cwd=ROOT, text=True,
-                          capture_output=True, timeout=timeout)
 
 
 def truths() -> dict[str, AxisTruth]:
@@ -107,11 +102,11 @@ def check_against_truth(result: dict[str, Any]) -> None:
 
 
 @pytest.mark.timeout(300)
-def test_demo_attestation_recovers_the_stand_truth(tmp_path: Path) -> None:
-    out = bench("run", str(DEMO), "--yes", "--out", str(tmp_path))
-    assert out.returncode == 0, out.stdout + out.stderr
-    run_dir = Path(out.stdout.strip().splitlines()[-1])
-    assert run_dir.parent == tmp_path
+def test_demo_attestation_recovers_the_stand_truth(demo_run: DemoRun, tmp_path: Path) -> None:
+    out = demo_run        # `bench run DEMO --yes --out DIR`, once for the session
+    assert out.status == 0, out.stdout + out.stderr
+    run_dir = out.dir
+    assert run_dir.parent == out.out
     result = json.loads((run_dir / "result.json").read_text())
     assert result["schema"] == "bench.result/1"
     assert result["verdict"] == "pass"
@@ -136,7 +131,9 @@ def test_demo_attestation_recovers_the_stand_truth(tmp_path: Path) -> None:
                              rf"{serials[axis][role]}[^.]*: not enough history \(1 of 8 runs",
                              html), (axis, role)
 
-    # bench analyze rebuilds result.json from the raw data alone, identically
+    # bench analyze rebuilds result.json from the raw data alone, identically (on a copy:
+    # the session's demo run is read by other tests)
+    run_dir = demo_run.copy_to(tmp_path / "copy")
     before = (run_dir / "result.json").read_bytes()
     (run_dir / "result.json").unlink()
     again = bench("analyze", str(run_dir))
