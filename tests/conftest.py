@@ -136,3 +136,62 @@ def demo_run(tmp_path_factory: pytest.TempPathFactory) -> DemoRun:
 def drift_demo_run(tmp_path_factory: pytest.TempPathFactory) -> DemoRun:
     """configs/procedures/drift-demo.yaml (the paper's case 70/80), run once."""
     return _demo_run("drift-demo.yaml", tmp_path_factory.mktemp("drift-demo-run"))
+
+
+# -- twins -----------------------------------------------------------------------------------
+
+def one_axis_stand(clock: Any, axis: str = "outer", *, seed: int = 3,
+                   truth: Any = None, max_rate_dps: float = 1000.0) -> Any:
+    """A simulated stand of one axis (its truth `AxisTruth()` unless given) on `clock`."""
+    from sims.stand import AxisTruth, SimulatedStand, StandTruth
+    return SimulatedStand(StandTruth(seed=seed, axes={axis: truth or AxisTruth()}),
+                          {axis: max_rate_dps}, clock)
+
+
+class Twins:
+    """Twins started for one test, each on its real channel (a CAN bus, a pty, TCP), and
+    each stopped when the test ends, however it ends (the `twins` fixture)."""
+
+    def __init__(self, stack: contextlib.ExitStack) -> None:
+        self._stack = stack
+
+    def drive(self, stand: Any, axis: str = "outer", *, node_id: int = 2,
+              channel: str | None = None, **kw: Any) -> Any:
+        """A CiA 402 drive twin on a virtual CAN bus of its own (unless `channel` names one:
+        `twin.channel` says which)."""
+        import uuid
+
+        from sims.drive_twin import DriveTwin
+        twin = DriveTwin(stand, axis, channel=channel or f"test-{uuid.uuid4().hex[:10]}",
+                         node_id=node_id, **kw)
+        twin.start()
+        self._stack.callback(twin.stop)
+        return twin
+
+    def counter(self, stand: Any, axis: str = "outer", *, model: str = "keysight-53230a",
+                **kw: Any) -> Any:
+        """A counter twin serving SCPI on TCP 127.0.0.1 (`twin.resource` to open it)."""
+        from sims.counter_twin import CounterTwin
+        twin = CounterTwin(stand, axis, model=model, **kw)
+        twin.start()
+        self._stack.callback(twin.stop)
+        return twin
+
+    def fog(self, stand: Any, axis: str = "outer", **kw: Any) -> Any:
+        """A KVH FOG twin on a pseudo-terminal (`twin.path` to open it)."""
+        from sims.fog_twin import FogTwin
+        twin = FogTwin(stand, axis, **kw)
+        twin.start()
+        self._stack.callback(twin.stop)
+        return twin
+
+    def close_later(self, thing: Any, close: str = "close") -> Any:
+        """A client of a twin, closed at the test's end before the twins stop."""
+        self._stack.callback(getattr(thing, close))
+        return thing
+
+
+@pytest.fixture
+def twins() -> Any:
+    with contextlib.ExitStack() as stack:
+        yield Twins(stack)

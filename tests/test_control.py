@@ -16,7 +16,6 @@ import json
 import re
 import statistics
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -36,17 +35,11 @@ from bench.records.control import (
 from bench.records.hooks import target
 from bench.records.store import CheckPoint, ReviewInfo
 from bench.simdrift import drifted
-from tests.conftest import CONFIGS, ROOT
+from tests.conftest import CONFIGS, cli, run_dir_of
 from tests.conftest import OUTER_SERIALS as OUTER
-from tests.test_records import cli
 
 FOG = OUTER["fog"]
 STABLE_RUNS = 8
-
-
-def _bench(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "bench", *args], cwd=ROOT, text=True,
-                          capture_output=True, timeout=240)
 
 
 def _procedure(folder: Path, seed: int, step_rel: float | None) -> Path:
@@ -68,9 +61,11 @@ def _procedure(folder: Path, seed: int, step_rel: float | None) -> Path:
 
 
 def _run(proc: Path, runs: Path) -> tuple[Path, subprocess.CompletedProcess[str]]:
-    out = _bench("run", str(proc), "--yes", "--quiet", "--out", str(runs))
+    """`bench run` in this process (the console script's `main`): nine runs share one
+    interpreter's start-up and imports; the twins still talk over their real channels."""
+    out = cli("run", str(proc), "--yes", "--quiet", "--out", str(runs))
     assert out.returncode in (0, 1), out.stdout[-2000:] + out.stderr[-3000:]
-    return Path(out.stdout.strip().splitlines()[-1]), out
+    return run_dir_of(out), out
 
 
 @pytest.fixture(scope="module")
@@ -151,7 +146,7 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     assert rev.returncode == 0, rev.stdout + rev.stderr
     assert "review recorded: Q. Manager" in rev.stdout
     assert assurance_refusals(shifted) == []
-    redo = _bench("analyze", str(shifted), "--quiet")
+    redo = cli("analyze", str(shifted), "--quiet")
     assert redo.returncode in (0, 1), redo.stderr[-2000:]
     text = _html_text(shifted)
     assert "reviewed by Q. Manager" in text and why in text
