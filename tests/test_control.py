@@ -115,8 +115,9 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     fog_line = next(ln for ln in listing.stdout.splitlines() if FOG in ln)
     assert "OUT OF CONTROL, WE1 (Western Electric rule 1: one point beyond 3 sigma): " \
            "k at 50 deg/s" in fog_line
-    assert all("OUT OF CONTROL" not in ln for ln in listing.stdout.splitlines()
-               if "/outer/counter" in ln)
+    counter_lines = [ln for ln in listing.stdout.splitlines() if OUTER["counter"] in ln]
+    assert counter_lines, listing.stdout
+    assert all("OUT OF CONTROL" not in ln for ln in counter_lines), counter_lines
     chart = cli("control", FOG, "--runs", str(runs))
     assert chart.returncode == 1
     assert "baseline: the first 8 runs" in chart.stdout and "WE1" in chart.stdout

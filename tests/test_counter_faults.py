@@ -67,6 +67,7 @@ def test_fault_gives_a_clear_error_then_the_counter_works(fault, model, twins: T
         t_from = stand.clock.now()
         periods = counter.acquire_periods(2, PERIOD_S)
         truth = np.diff(truth_edges(stand, t_from, np.inf))
+        assert len(periods) == 2, periods
         assert all(np.min(np.abs(truth - p)) <= PROFILES[model].resolution_s * 1.001
                    for p in periods)
 
