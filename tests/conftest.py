@@ -37,6 +37,22 @@ def unavailable(reason: str) -> None:
 
 
 @pytest.fixture
+def small_disk(tmp_path: Path) -> Any:
+    """A small file system of its own (tmpfs), to be filled: needs root and mount(2)."""
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=48m", "tmpfs", str(mnt)],
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        unavailable(f"cannot mount a tmpfs here ({done.stderr.strip()}): the full-disk cell "
+                    "needs root and mount(2)")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], check=False)
+
+
+@pytest.fixture
 def configs() -> Path:
     return CONFIGS
 

@@ -31,7 +31,7 @@ from bench.loader import load_config
 from drivers.cia402 import OVER_TEMPERATURE
 from sims.fog_twin import Corrupt, Drop, Garbage, Stall
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, unavailable, when_step_starts
+from tests.conftest import CONFIGS, when_step_starts
 
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
 TRUTH_REL = AxisTruth.from_mapping(
@@ -319,22 +319,6 @@ def test_ctrl_c_while_the_outputs_are_written_is_honoured(
     assert "being stopped first" not in err
     last = run.events()[-1]
     assert last["event"] == "exit" and last["status"] == EXIT_ABORTED
-
-
-@pytest.fixture
-def small_disk(tmp_path: Path) -> Any:
-    """A small file system of its own (tmpfs), to be filled: needs root and mount(2)."""
-    mnt = tmp_path / "small"
-    mnt.mkdir()
-    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=48m", "tmpfs", str(mnt)],
-                          capture_output=True, text=True)
-    if done.returncode != 0:
-        unavailable(f"cannot mount a tmpfs here ({done.stderr.strip()}): the full-disk cell "
-                    "needs root and mount(2)")
-    try:
-        yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], check=False)
 
 
 def _fill(folder: Path) -> None:
