@@ -14,8 +14,6 @@ import hashlib
 import json
 import os
 import signal
-import subprocess
-import sys
 import threading
 import time
 from collections.abc import Callable
@@ -31,7 +29,7 @@ from bench.loader import load_config
 from drivers.cia402 import OVER_TEMPERATURE
 from sims.fog_twin import Corrupt, Drop, Garbage, Stall
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, when_step_starts
+from tests.conftest import CONFIGS, bench_bg, when_step_starts
 
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
 TRUTH_REL = AxisTruth.from_mapping(
@@ -39,7 +37,6 @@ TRUTH_REL = AxisTruth.from_mapping(
 #: one figure against its truth: a k = 2 interval misses 5 % of the time, so a single
 #: figure is held to the e2e suite's hard limit (tests/test_run_e2e.py), 2.5 U
 HARD_LIMIT_U = 2.5
-ROOT = Path(__file__).resolve().parents[1]
 
 
 #: a top clock speed for the cells whose fault is noticed only after a real-time silence
@@ -264,10 +261,7 @@ def test_sigkill_mid_acquire_then_resume(tmp_path: Path) -> None:
     """kill -9 (nothing of ours runs): the drive's watchdog stops the table; the run
     directory stays readable and --resume finishes it to the stand's truth within U."""
     proc = _procedure(tmp_path)
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    child = subprocess.Popen([sys.executable, "-m", "bench", "run", str(proc), "--yes",
-                              "--out", str(tmp_path / "runs")], cwd=ROOT, env=env,
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    child = bench_bg("run", str(proc), "--yes", "--out", str(tmp_path / "runs"))
     try:
         deadline = time.monotonic() + 120
         run_dir = None

@@ -10,8 +10,6 @@ import json
 import math
 import re
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -21,7 +19,7 @@ import yaml
 from scipy.stats import binom
 
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, ROOT, DemoRun, bench
+from tests.conftest import CONFIGS, DemoRun, bench, bench_bg
 from tests.conftest import OUTER_SERIALS as OUTER
 
 DEMO = CONFIGS / "procedures" / "demo.yaml"
@@ -166,9 +164,7 @@ def _events(run_dir: Path) -> list[dict[str, Any]]:
 def test_sigint_mid_acquisition_stops_the_axes_and_resume_completes(tmp_path: Path) -> None:
     proc = _small_procedure(tmp_path)
     runs = tmp_path / "runs"
-    p = subprocess.Popen([sys.executable, "-m", "bench", "run", str(proc), "--yes",
-                          "--out", str(runs)], cwd=ROOT, text=True,
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p = bench_bg("run", str(proc), "--yes", "--out", str(runs))
     # wait until the second half of the second pair is being acquired, then Ctrl-C
     deadline = time.monotonic() + 120
     run_dir = None
