@@ -1,4 +1,9 @@
-"""Shared test helpers."""
+"""Shared test helpers: the CLI (`bench`, `bench_bg` in a subprocess as an operator starts
+it; `cli` in this process for commands that start no run), the session's demo runs read
+by many files (`demo_run`, `drift_demo_run`: copy before writing), the twins (`twins`
+starts drive, counter and FOG twins on their real channels and stops them at the test's
+end; `one_axis_stand`), a small tmpfs (`small_disk`) and `unavailable` for a missing
+server (a failure in CI)."""
 
 from __future__ import annotations
 
