@@ -423,6 +423,9 @@ class Fog:
         except Exception as e:  # noqa: BLE001 (the reader must report, not vanish)
             if not self._stop.is_set():
                 self.last_error = f"FOG reader on {self.port} stopped: {e}"
+                # nothing reads the port any more: a stepped clock must not wait for it
+                # (it would hold every step for its real-time guard until the abort)
+                channel_closed(self.clock, self.port)
         finally:
             with self._cond:
                 self._cond.notify_all()

@@ -1,8 +1,20 @@
-"""Shared test helpers."""
+"""Shared test helpers: the CLI (`bench`, `bench_bg` in a subprocess as an operator starts
+it; `cli` in this process for commands that start no run), the session's demo runs read
+by many files (`demo_run`, `drift_demo_run`: copy before writing), the twins (`twins`
+starts drive, counter and FOG twins on their real channels and stops them at the test's
+end; `one_axis_stand`), a small tmpfs (`small_disk`) and `unavailable` for a missing
+server (a failure in CI)."""
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
+import io
+import json
 import os
+import shutil
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -30,6 +42,22 @@ def unavailable(reason: str) -> None:
 
 
 @pytest.fixture
+def small_disk(tmp_path: Path) -> Any:
+    """A small file system of its own (tmpfs), to be filled: needs root and mount(2)."""
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=48m", "tmpfs", str(mnt)],
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        unavailable(f"cannot mount a tmpfs here ({done.stderr.strip()}): the full-disk cell "
+                    "needs root and mount(2)")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], check=False)
+
+
+@pytest.fixture
 def configs() -> Path:
     return CONFIGS
 
@@ -48,3 +76,143 @@ def when_step_starts(run: Any, match: Callable[[dict[str, Any]], bool],
     t = threading.Thread(target=watch, daemon=True)
     t.start()
     return t
+
+
+# -- the CLI ---------------------------------------------------------------------------------
+
+def _env_without_lab() -> dict[str, str]:
+    """A lab settings file named in the developer's environment must not sign test runs."""
+    from bench.app.dcc.settings import ENV_LAB
+    return {k: v for k, v in os.environ.items() if k != ENV_LAB}
+
+
+def bench(*args: str, timeout: float = 240) -> subprocess.CompletedProcess[str]:
+    """`bench ARGS` in a subprocess, as an operator starts it (its own interpreter, signal
+    handlers and twins), from the checkout, without the developer's lab file."""
+    return subprocess.run([sys.executable, "-m", "bench", *args], cwd=ROOT, text=True,
+                          capture_output=True, timeout=timeout, env=_env_without_lab())
+
+
+def bench_bg(*args: str) -> subprocess.Popen[str]:
+    """`bench ARGS` started in the background (to be interrupted or raced)."""
+    return subprocess.Popen([sys.executable, "-m", "bench", *args], cwd=ROOT, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            env=_env_without_lab())
+
+
+def cli(*args: str) -> subprocess.CompletedProcess[str]:
+    """`bench ARGS` in this process (the console script's own `main`): for commands that
+    start no run, so no interpreter start-up per call."""
+    from bench.app.cli import main
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(list(args))
+    return subprocess.CompletedProcess(["bench", *args], code, out.getvalue(), err.getvalue())
+
+
+def run_dir_of(out: subprocess.CompletedProcess[str]) -> Path:
+    """The run directory `bench run` prints last on stdout."""
+    lines = out.stdout.strip().splitlines()
+    assert lines, f"bench printed no run directory (exit {out.returncode}): {out.stderr[-3000:]}"
+    return Path(lines[-1])
+
+
+# -- shared demo runs ------------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class DemoRun:
+    """One `bench run` of a shipped example, done once per test session and read by many
+    tests: never change its folder (copy it with `copy_to`)."""
+
+    out: Path     # the --out folder the run was started with
+    status: int
+    stdout: str
+    stderr: str
+    dir: Path
+    result: dict[str, Any]
+
+    def copy_to(self, dest: Path) -> Path:
+        """The whole runs folder (the run and its records beside it) copied under `dest`;
+        the copy's run directory."""
+        shutil.copytree(self.dir.parent, dest)
+        return dest / self.dir.name
+
+
+def _demo_run(procedure: str, out: Path) -> DemoRun:
+    done = bench("run", str(CONFIGS / "procedures" / procedure), "--yes", "--out", str(out),
+                 timeout=300)
+    run_dir = run_dir_of(done)
+    result_file = run_dir / "result.json"
+    result = json.loads(result_file.read_text()) if result_file.exists() else {}
+    return DemoRun(out, done.returncode, done.stdout, done.stderr, run_dir, result)
+
+
+@pytest.fixture(scope="session")
+def demo_run(tmp_path_factory: pytest.TempPathFactory) -> DemoRun:
+    """configs/procedures/demo.yaml (the two-axis rate ladder), run once for the session."""
+    return _demo_run("demo.yaml", tmp_path_factory.mktemp("demo-run"))
+
+
+@pytest.fixture(scope="session")
+def drift_demo_run(tmp_path_factory: pytest.TempPathFactory) -> DemoRun:
+    """configs/procedures/drift-demo.yaml (the paper's case 70/80), run once."""
+    return _demo_run("drift-demo.yaml", tmp_path_factory.mktemp("drift-demo-run"))
+
+
+# -- twins -----------------------------------------------------------------------------------
+
+def one_axis_stand(clock: Any, axis: str = "outer", *, seed: int = 3,
+                   truth: Any = None, max_rate_dps: float = 1000.0) -> Any:
+    """A simulated stand of one axis (its truth `AxisTruth()` unless given) on `clock`."""
+    from sims.stand import AxisTruth, SimulatedStand, StandTruth
+    return SimulatedStand(StandTruth(seed=seed, axes={axis: truth or AxisTruth()}),
+                          {axis: max_rate_dps}, clock)
+
+
+class Twins:
+    """Twins started for one test, each on its real channel (a CAN bus, a pty, TCP), and
+    each stopped when the test ends, however it ends (the `twins` fixture)."""
+
+    def __init__(self, stack: contextlib.ExitStack) -> None:
+        self._stack = stack
+
+    def drive(self, stand: Any, axis: str = "outer", *, node_id: int = 2,
+              channel: str | None = None, **kw: Any) -> Any:
+        """A CiA 402 drive twin on a virtual CAN bus of its own (unless `channel` names one:
+        `twin.channel` says which)."""
+        import uuid
+
+        from sims.drive_twin import DriveTwin
+        twin = DriveTwin(stand, axis, channel=channel or f"test-{uuid.uuid4().hex[:10]}",
+                         node_id=node_id, **kw)
+        twin.start()
+        self._stack.callback(twin.stop)
+        return twin
+
+    def counter(self, stand: Any, axis: str = "outer", *, model: str = "keysight-53230a",
+                **kw: Any) -> Any:
+        """A counter twin serving SCPI on TCP 127.0.0.1 (`twin.resource` to open it)."""
+        from sims.counter_twin import CounterTwin
+        twin = CounterTwin(stand, axis, model=model, **kw)
+        twin.start()
+        self._stack.callback(twin.stop)
+        return twin
+
+    def fog(self, stand: Any, axis: str = "outer", **kw: Any) -> Any:
+        """A KVH FOG twin on a pseudo-terminal (`twin.path` to open it)."""
+        from sims.fog_twin import FogTwin
+        twin = FogTwin(stand, axis, **kw)
+        twin.start()
+        self._stack.callback(twin.stop)
+        return twin
+
+    def close_later(self, thing: Any, close: str = "close") -> Any:
+        """A client of a twin, closed at the test's end before the twins stop."""
+        self._stack.callback(getattr(thing, close))
+        return thing
+
+
+@pytest.fixture
+def twins() -> Any:
+    with contextlib.ExitStack() as stack:
+        yield Twins(stack)

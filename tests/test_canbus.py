@@ -16,8 +16,8 @@ from bench.core.canbus import bus_problems, controller_node_ids
 from drivers.axis import Axis
 from drivers.cia402 import State
 from sims.clock import VirtualClock
-from sims.drive_twin import DriveTwin
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
+from tests.conftest import Twins
 
 
 def _axes(*drives: dict) -> dict[str, dict]:
@@ -49,7 +49,7 @@ def test_an_id_used_twice_on_a_bus_is_named_at_its_key() -> None:
 
 
 @pytest.mark.timeout(30)
-def test_one_dead_controller_stops_its_own_axis_on_a_shared_bus() -> None:
+def test_one_dead_controller_stops_its_own_axis_on_a_shared_bus(twins: Twins) -> None:
     clock = VirtualClock(50.0)
     stand = SimulatedStand(StandTruth(seed=3, axes={"outer": AxisTruth(), "inner": AxisTruth()}),
                            {"outer": 200.0, "inner": 200.0}, clock)
@@ -58,15 +58,13 @@ def test_one_dead_controller_stops_its_own_axis_on_a_shared_bus() -> None:
             "inner": {"drive": {"interface": "virtual", "channel": channel, "node_id": 3}}}
     ids = controller_node_ids(axes)
     assert ids == {"outer": 127, "inner": 126}
-    twins = {a: DriveTwin(stand, a, channel=channel, node_id=axes[a]["drive"]["node_id"])
-             for a in axes}
+    drives = {a: twins.drive(stand, a, channel=channel, node_id=axes[a]["drive"]["node_id"])
+              for a in axes}
     drivers = {a: Axis(a, interface="virtual", channel=channel,
                        node_id=axes[a]["drive"]["node_id"], controller_node_id=ids[a],
                        max_rate_dps=100.0, max_accel_dps2=500.0, clock=clock,
                        heartbeat_ms=50, watchdog_ms=200, feedback_journal_s=0.0)
                for a in axes}
-    for t in twins.values():
-        t.start()
     try:
         for ax in drivers.values():
             ax.open()
@@ -77,16 +75,14 @@ def test_one_dead_controller_stops_its_own_axis_on_a_shared_bus() -> None:
         assert network is not None
         network.disconnect()                 # the outer axis's controller dies
         deadline = time.monotonic() + 3.0
-        while time.monotonic() < deadline and not twins["outer"].watchdog_trips:
+        while time.monotonic() < deadline and not drives["outer"].watchdog_trips:
             time.sleep(0.01)
-        assert twins["outer"].watchdog_trips, "the outer drive's watchdog is fed by another node"
-        trip = twins["outer"].watchdog_trips[0]
+        assert drives["outer"].watchdog_trips, "the outer drive's watchdog is fed by another node"
+        trip = drives["outer"].watchdog_trips[0]
         assert 0.2 <= trip.silence_s <= 0.3          # its own 200 ms, not fed by the other
         time.sleep(0.5)                              # the other axis runs on, untouched
-        assert twins["inner"].watchdog_trips == []
-        assert twins["inner"].state is State.OPERATION_ENABLED
+        assert drives["inner"].watchdog_trips == []
+        assert drives["inner"].state is State.OPERATION_ENABLED
         assert abs(drivers["inner"].rate_dps - 30.0) < 0.02
     finally:
         drivers["inner"].close()
-        for t in twins.values():
-            t.stop()

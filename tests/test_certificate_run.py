@@ -12,8 +12,6 @@ from __future__ import annotations
 import json
 import math
 import re
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +19,8 @@ import pypdfium2 as pdfium
 import pypdfium2.raw as pdfium_c
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+from tests.conftest import ROOT, bench, run_dir_of
+
 MINUS = "\u2212"
 
 
@@ -39,10 +38,8 @@ def _ref(value: float, u: float, scale: float = 1.0, signed: bool = False) -> st
 
 def _bench_run(proc: Path) -> dict[str, Any]:
     """`bench run PROC --yes` in a subprocess; its certificate rendered and read back."""
-    out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--out",
-                          str(proc.parent / "runs")], capture_output=True, text=True,
-                         timeout=120, cwd=ROOT)
-    run_dir = Path(out.stdout.strip().splitlines()[-1])
+    out = bench("run", str(proc), "--yes", "--out", str(proc.parent / "runs"), timeout=120)
+    run_dir = run_dir_of(out)
     pdf = pdfium.PdfDocument(run_dir / "certificate.pdf")
     texts, images = [], 0
     for page in pdf:

@@ -3,20 +3,17 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from bench.app.cli import main
 from bench.examples import example_names, example_path
-from tests.conftest import CONFIGS, ROOT
+from tests.conftest import CONFIGS, bench, run_dir_of
 
 
 def test_help_lists_every_contract_command() -> None:
-    out = subprocess.run([sys.executable, "-m", "bench", "--help"], cwd=ROOT, text=True,
-                         capture_output=True, timeout=60)
+    out = bench("--help", timeout=60)
     assert out.returncode == 0
     for cmd in ("run", "validate", "plan", "analyze", "devices", "decode"):
         assert cmd in out.stdout
@@ -100,11 +97,10 @@ def _one_pair(tmp_path: Path) -> Path:
 def test_quiet_and_json_log_modes_through_the_cli(mode: str, tmp_path: Path) -> None:
     """--quiet: stdout holds the verdict and the run directory, stderr nothing; --log-json:
     every stderr line is one JSON object (a log collector reads it), stdout as usual."""
-    out = subprocess.run([sys.executable, "-m", "bench", "run", str(_one_pair(tmp_path)),
-                          "--yes", "--out", str(tmp_path / "runs"), mode], cwd=ROOT,
-                         text=True, capture_output=True, timeout=200)
+    out = bench("run", str(_one_pair(tmp_path)), "--yes", "--out", str(tmp_path / "runs"), mode,
+                timeout=200)
     assert out.returncode == 0, out.stderr
-    run_dir = Path(out.stdout.strip().splitlines()[-1])
+    run_dir = run_dir_of(out)
     assert (run_dir / "certificate.pdf").stat().st_size > 0
     if mode == "--quiet":
         assert out.stdout.strip().splitlines() == ["verdict: PASS", str(run_dir)], out.stdout

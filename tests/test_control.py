@@ -16,7 +16,6 @@ import json
 import re
 import statistics
 import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -37,17 +36,11 @@ from bench.app.records.hooks import target
 from bench.app.records.store import CheckPoint, ReviewInfo
 from bench.core.config import parse_stand
 from bench.core.simdrift import drifted
-from tests.conftest import CONFIGS, ROOT
+from tests.conftest import CONFIGS, cli, run_dir_of
 from tests.conftest import OUTER_SERIALS as OUTER
-from tests.test_records import cli
 
 FOG = OUTER["fog"]
 STABLE_RUNS = 8
-
-
-def _bench(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "bench", *args], cwd=ROOT, text=True,
-                          capture_output=True, timeout=240)
 
 
 def _procedure(folder: Path, seed: int, step_rel: float | None) -> Path:
@@ -69,9 +62,11 @@ def _procedure(folder: Path, seed: int, step_rel: float | None) -> Path:
 
 
 def _run(proc: Path, runs: Path) -> tuple[Path, subprocess.CompletedProcess[str]]:
-    out = _bench("run", str(proc), "--yes", "--quiet", "--out", str(runs))
+    """`bench run` in this process (the console script's `main`): nine runs share one
+    interpreter's start-up and imports; the twins still talk over their real channels."""
+    out = cli("run", str(proc), "--yes", "--quiet", "--out", str(runs))
     assert out.returncode in (0, 1), out.stdout[-2000:] + out.stderr[-3000:]
-    return Path(out.stdout.strip().splitlines()[-1]), out
+    return run_dir_of(out), out
 
 
 @pytest.fixture(scope="module")
@@ -121,8 +116,9 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     fog_line = next(ln for ln in listing.stdout.splitlines() if FOG in ln)
     assert "OUT OF CONTROL, WE1 (Western Electric rule 1: one point beyond 3 sigma): " \
            "k at 50 deg/s" in fog_line
-    assert all("OUT OF CONTROL" not in ln for ln in listing.stdout.splitlines()
-               if "/outer/counter" in ln)
+    counter_lines = [ln for ln in listing.stdout.splitlines() if OUTER["counter"] in ln]
+    assert counter_lines, listing.stdout
+    assert all("OUT OF CONTROL" not in ln for ln in counter_lines), counter_lines
     chart = cli("control", FOG, "--runs", str(runs))
     assert chart.returncode == 1
     assert "baseline: the first 8 runs" in chart.stdout and "WE1" in chart.stdout
@@ -152,7 +148,7 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     assert rev.returncode == 0, rev.stdout + rev.stderr
     assert "review recorded: Q. Manager" in rev.stdout
     assert assurance_refusals(shifted) == []
-    redo = _bench("analyze", str(shifted), "--quiet")
+    redo = cli("analyze", str(shifted), "--quiet")
     assert redo.returncode in (0, 1), redo.stderr[-2000:]
     text = _html_text(shifted)
     assert "reviewed by Q. Manager" in text and why in text

@@ -24,6 +24,7 @@ from drivers.counter_profiles import PROFILES
 from drivers.scpi import Command
 from drivers.time_tie import TimeTie
 from sims.counter_twin import CounterTwin, SyncLink
+from tests.conftest import Twins
 from tests.counter_rig import AXIS, PERIOD_S, SPEED, truth_edges, turning_stand
 
 TIMESTAMP_MODELS = [m for m, p in PROFILES.items() if p.supports_timestamps]
@@ -132,6 +133,7 @@ def test_generic_counter_reads_one_true_period_per_read(stand):
         truth = np.diff(truth_edges(stand, t0, np.inf))
         # each reading is some true turn (1 ns resolution), the turns in order
         k = [int(np.argmin(np.abs(truth - p))) for p in periods]
+        assert len(periods) == 3, periods
         assert all(abs(truth[i] - p) <= 1e-9 for i, p in zip(k, periods, strict=True))
         assert k == sorted(set(k))
         assert twin.received.count("READ?") == 3
@@ -175,22 +177,22 @@ def test_timeouts_scale_with_the_expected_period_and_the_clock(stand):
     assert twin.timeout_s is None   # non-volatile: restored to what it was (disabled)
 
 
-def test_wrong_model_is_refused_by_identity(stand):
-    with CounterTwin(stand, AXIS, model="pendulum-cnt-91") as twin:
-        with pytest.raises(CounterError, match=r"\*IDN\?.*not a keysight-53230a"):
-            Counter.open(twin.resource, "keysight-53230a", stand.clock)
+def test_wrong_model_is_refused_by_identity(stand, twins: Twins):
+    twin = twins.counter(stand, AXIS, model="pendulum-cnt-91")
+    with pytest.raises(CounterError, match=r"\*IDN\?.*not a keysight-53230a"):
+        Counter.open(twin.resource, "keysight-53230a", stand.clock)
 
 
-def test_misspelt_profile_word_names_the_command_and_minus_113(stand):
+def test_misspelt_profile_word_names_the_command_and_minus_113(stand, twins: Twins):
     base = PROFILES["keysight-53230a"]
     typo = dataclasses.replace(base, words=dataclasses.replace(
         base.words, input_level=Command("INPut{channel}:LVL", "{level_v}")))
-    with CounterTwin(stand, AXIS, model="keysight-53230a") as twin:
-        counter = Counter.open(twin.resource, typo, stand.clock)
-        with counter:
-            with pytest.raises(CounterCommandError, match=r"'INP1:LVL 2\.5'.*-113.*Undefined"):
-                counter.configure(level_v=2.5)
-            assert not twin.errors                      # drained and reported, not left
+    twin = twins.counter(stand, AXIS, model="keysight-53230a")
+    counter = Counter.open(twin.resource, typo, stand.clock)
+    with counter:
+        with pytest.raises(CounterCommandError, match=r"'INP1:LVL 2\.5'.*-113.*Undefined"):
+            counter.configure(level_v=2.5)
+        assert not twin.errors                      # drained and reported, not left
 
 
 def test_unknown_command_and_unknown_query_name_themselves(stand):

@@ -21,7 +21,8 @@ from drivers.counter_profiles import (
     first_value_is_a_turn,
 )
 from drivers.time_tie import TimeTie
-from sims.counter_twin import CounterTwin, SyncLink
+from sims.counter_twin import SyncLink
+from tests.conftest import Twins
 from tests.counter_rig import AXIS, PERIOD_S, truth_edges, turning_stand
 
 pytestmark = pytest.mark.timeout(30)
@@ -58,12 +59,12 @@ def test_a_first_value_near_a_turn_with_few_turns_reads_as_the_counter_has_shown
 
 
 @pytest.fixture(params=FIRST_VALUE_READINGS)
-def pair(request):
+def pair(request, twins: Twins):
     stand = turning_stand()
-    twin = CounterTwin(stand, AXIS, model=MODEL, sync=SYNC, first_value=request.param)
-    resource = twin.start()
-    counter = Counter.open(resource, MODEL, stand.clock, time_tie=TIE, timeout_margin_s=1.0)
-    with twin, counter:
+    twin = twins.counter(stand, AXIS, model=MODEL, sync=SYNC, first_value=request.param)
+    counter = Counter.open(twin.resource, MODEL, stand.clock, time_tie=TIE,
+                           timeout_margin_s=1.0)
+    with counter:
         counter.configure(channel=1, level_v=2.5)
         yield request.param, stand, twin, counter
 

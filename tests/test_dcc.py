@@ -1,7 +1,7 @@
 """The DCC (PTB DCC 3.3.0 XML) of real demo runs, read back without our writer.
 
-One `bench run` of the demo and one of the drift demo per module (their run directories
-are shared by the tests below). Values are read back with lxml and compared with
+The session's `bench run` of the demo and of the drift demo (tests/conftest.py), copied
+once for this module and shared by the tests below. Values are read back with lxml and compared with
 result.json by keys this file names itself; validity is checked by our validator (libxml2)
 and, independently, by xmlschema on the shipped schema files, fetching nothing. The
 invalid public example must be refused, and a signed file whose content was changed must
@@ -10,13 +10,10 @@ fail `bench verify`.
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import datetime as dt
 import hashlib
-import io
 import json
-import os
 import re
 import shutil
 import subprocess
@@ -32,17 +29,16 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import NameOID
 from lxml import etree
 
-from bench.app.cli import main
 from bench.app.dcc.settings import ENV_LAB
 from bench.app.dcc.validate import validate_dcc
 from bench.report.dcc.units import unit_problem
-from tests.conftest import CONFIGS, ROOT, unavailable
+from tests.conftest import CONFIGS, ROOT, DemoRun, unavailable
+from tests.conftest import cli as _cli
 
 SCHEMAS = ROOT / "bench" / "app" / "dcc" / "schemas"
 EXAMPLES = ROOT / "tests" / "data" / "dcc"
 NS = {"dcc": "https://ptb.de/dcc", "si": "https://ptb.de/si",
       "ds": "http://www.w3.org/2000/09/xmldsig#"}
-TIMING_FAULTS = ("did not arrive within", "heartbeat", "watchdog")
 
 
 @pytest.fixture(autouse=True)
@@ -51,41 +47,23 @@ def _no_lab_of_the_developer(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv(ENV_LAB, raising=False)
 
 
-def _bench(*args: str, timeout: float = 180) -> subprocess.CompletedProcess[str]:
-    env = {k: v for k, v in os.environ.items() if k != ENV_LAB}
-    return subprocess.run([sys.executable, "-m", "bench", *args], cwd=ROOT, text=True,
-                          capture_output=True, timeout=timeout, env=env)
-
-
-def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    """`bench dcc` / `bench verify` in this process (the console script's own `main`), so
-    the certificate modules are imported once for the whole file."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = main(list(args))
-    return subprocess.CompletedProcess(list(args), rc, out.getvalue(), err.getvalue())
-
-
-def _run(procedure: str, out: Path) -> dict[str, Any]:
-    """`bench run PROCEDURE --yes`; a run aborted by a timing fault (a loaded machine, not
-    this code) is run again, at most twice (the project rule: rerun a load fault)."""
-    for _attempt in range(3):
-        done = _bench("run", str(CONFIGS / "procedures" / procedure), "--yes", "--out", str(out))
-        if done.returncode != 3 or not any(f in done.stderr for f in TIMING_FAULTS):
-            break
-    run_dir = Path(done.stdout.strip().splitlines()[-1])
-    return {"status": done.returncode, "stdout": done.stdout, "stderr": done.stderr,
-            "dir": run_dir, "result": json.loads((run_dir / "result.json").read_text())}
+def _shared(done: DemoRun, dest: Path) -> dict[str, Any]:
+    """The session's run of a shipped example (conftest), its runs folder copied here: the
+    module rewrites its DCC in place. No rerun on a timing fault: the co-simulation clock
+    leaves none to chance, so one would be a finding."""
+    run_dir = done.copy_to(dest)
+    return {"status": done.status, "stdout": done.stdout, "stderr": done.stderr,
+            "dir": run_dir, "result": done.result}
 
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    return _run("demo.yaml", tmp_path_factory.mktemp("dcc-demo"))
+def demo(demo_run: DemoRun, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    return _shared(demo_run, tmp_path_factory.mktemp("dcc-demo") / "runs")
 
 
 @pytest.fixture(scope="module")
-def drift(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    return _run("drift-demo.yaml", tmp_path_factory.mktemp("dcc-drift"))
+def drift(drift_demo_run: DemoRun, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    return _shared(drift_demo_run, tmp_path_factory.mktemp("dcc-drift") / "runs")
 
 
 # -- reading back, independent of bench.app.dcc ------------------------------------------------
@@ -451,8 +429,10 @@ def test_signed_dcc_verifies_and_keeps_the_key_out_of_the_run(signed: dict[str, 
     assert validate_dcc(signed["file"]).valid
     lab = root.find("dcc:administrativeData/dcc:calibrationLaboratory", NS)
     assert lab.findtext("dcc:calibrationLaboratoryCode", None, NS) == "D-K-00000-01"
-    for f in signed["run"].rglob("*"):
-        assert not f.is_file() or b"PRIVATE KEY" not in f.read_bytes(), f
+    files = [f for f in signed["run"].rglob("*") if f.is_file()]
+    assert signed["file"] in files, files
+    for f in files:
+        assert b"PRIVATE KEY" not in f.read_bytes(), f
     done = _cli("verify", str(signed["file"]), "--cert", str(signed["cert"]))
     assert done.returncode == 0, done.stdout + done.stderr
     assert "signature: XAdES verifies; signer CN=Test Rate Lab DCC signing" in done.stdout

@@ -10,7 +10,6 @@ import pytest
 
 from bench.app.cli import main
 from tests.conftest import CONFIGS
-from tests.test_fault_matrix import small_disk  # noqa: F401 - the real small tmpfs fixture
 
 DEMO = CONFIGS / "procedures" / "demo.yaml"
 
@@ -28,7 +27,7 @@ def test_plan_states_the_raw_data_volume(capsys: pytest.CaptureFixture[str]) -> 
 
 
 def test_a_run_without_room_refuses_before_anything_moves(
-        small_disk: Path, capsys: pytest.CaptureFixture[str]) -> None:  # noqa: F811
+        small_disk: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A real 48 MB file system; the demo's raw data need about 62 MB (99 MB with the
     margin)."""
     runs = small_disk / "runs"

@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +23,7 @@ from bench.core.journal import RunDir
 from bench.core.loader import load_config
 from drivers.cia402 import FOLLOWING_ERROR
 from sims.platform import GyroPlatform, PlatformTruth
-from tests.conftest import CONFIGS, ROOT
+from tests.conftest import CONFIGS, DemoRun, bench
 
 DEMO = CONFIGS / "procedures" / "drift-demo.yaml"
 STAND = CONFIGS / "stands" / "sim-gyro-platform.yaml"
@@ -93,14 +91,12 @@ def _truth_over(run_dir: Path) -> tuple[PlatformTruth, GyroPlatform, float, floa
 
 
 @pytest.mark.timeout(120)
-def test_the_papers_case_70_80_end_to_end(tmp_path: Path) -> None:
+def test_the_papers_case_70_80_end_to_end(drift_demo_run: DemoRun, tmp_path: Path) -> None:
     """`bench run` on the demo: own drift within U on each axis, mean relative drift error
     below 0.34 % and azimuth error below 2 arcmin (the paper's simulated figures, docs/method.md
     B), the azimuth within its U of the truth; `bench analyze` gives the same figures."""
-    p = subprocess.run([sys.executable, "-m", "bench", "run", str(DEMO), "--yes", "--out",
-                        str(tmp_path)], cwd=ROOT, text=True, capture_output=True, timeout=110)
-    assert p.returncode == EXIT_PASS, p.stderr[-2000:]
-    run_dir = Path(p.stdout.strip().splitlines()[-1])
+    assert drift_demo_run.status == EXIT_PASS, drift_demo_run.stderr[-2000:]
+    run_dir = drift_demo_run.copy_to(tmp_path / "runs")   # the session's run (conftest)
     result = json.loads((run_dir / "result.json").read_text())
     assert result["schema"] == "bench.result/1" and result["verdict"] == "pass"
     drift = result["drift"]
@@ -120,8 +116,7 @@ def test_the_papers_case_70_80_end_to_end(tmp_path: Path) -> None:
     assert drift["earth_horizontal_consistent"] is True
     assert (run_dir / "certificate.pdf").exists()
     # the raw data alone give the same result
-    a = subprocess.run([sys.executable, "-m", "bench", "analyze", str(run_dir)], cwd=ROOT,
-                       text=True, capture_output=True, timeout=60)
+    a = bench("analyze", str(run_dir), timeout=60)
     assert a.returncode == EXIT_PASS, a.stderr[-2000:]
     again = json.loads((run_dir / "result.json").read_text())["drift"]
     for g in ("x", "y"):

@@ -16,7 +16,6 @@ CiA 402/301 drive does not). Sources for what a drive does:
 from __future__ import annotations
 
 import time
-import uuid
 from collections.abc import Iterator
 
 import canopen
@@ -27,7 +26,7 @@ from canopen.sdo import SdoAbortedError, SdoCommunicationError
 from drivers.cia402 import DEFAULT_EDS_PATH, Od, State
 from sims.clock import VirtualClock
 from sims.drive_twin import DriveTwin
-from sims.stand import AxisTruth, SimulatedStand, StandTruth
+from tests.conftest import Twins, one_axis_stand
 from tests.test_axis import wait_until as wait_for
 
 pytestmark = pytest.mark.timeout(60)
@@ -58,16 +57,8 @@ class Client:
 
 
 @pytest.fixture
-def twin() -> Iterator[DriveTwin]:
-    clock = VirtualClock(20.0)
-    truth = StandTruth(seed=3, axes={"outer": AxisTruth()})
-    stand = SimulatedStand(truth, {"outer": 1000.0}, clock)
-    t = DriveTwin(stand, "outer", channel=f"p402-{uuid.uuid4().hex[:8]}", node_id=NODE)
-    t.start()
-    try:
-        yield t
-    finally:
-        t.stop()
+def twin(twins: Twins) -> DriveTwin:
+    return twins.drive(one_axis_stand(VirtualClock(20.0)), node_id=NODE)
 
 
 @pytest.fixture

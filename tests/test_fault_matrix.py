@@ -14,8 +14,6 @@ import hashlib
 import json
 import os
 import signal
-import subprocess
-import sys
 import threading
 import time
 from collections.abc import Callable
@@ -31,7 +29,7 @@ from bench.core.loader import load_config
 from drivers.cia402 import OVER_TEMPERATURE
 from sims.fog_twin import Corrupt, Drop, Garbage, Stall
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, unavailable, when_step_starts
+from tests.conftest import CONFIGS, bench_bg, when_step_starts
 
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
 TRUTH_REL = AxisTruth.from_mapping(
@@ -39,7 +37,6 @@ TRUTH_REL = AxisTruth.from_mapping(
 #: one figure against its truth: a k = 2 interval misses 5 % of the time, so a single
 #: figure is held to the e2e suite's hard limit (tests/test_run_e2e.py), 2.5 U
 HARD_LIMIT_U = 2.5
-ROOT = Path(__file__).resolve().parents[1]
 
 
 #: a top clock speed for the cells whose fault is noticed only after a real-time silence
@@ -50,6 +47,7 @@ SLOW_CLOCK = 30
 
 
 def _procedure(folder: Path, clock_speed: float | None = None) -> Path:
+    folder.mkdir(exist_ok=True)
     stand = STAND
     if clock_speed is not None:
         doc = yaml.safe_load(STAND.read_text())
@@ -147,7 +145,9 @@ def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str, tmp_path
         return
     before = _raw_hashes(run, 1)
     again = RunDir(run.path)
-    status2, _ = _session(cfg, again, resume=True)
+    # the resume's subject is not a real-time silence: on the co-simulation clock
+    status2, _ = _session(load_config(_procedure(tmp_path / "resume")) if slow else cfg,
+                          again, resume=True)
     assert status2 == EXIT_PASS, [e for e in again.events() if e["event"] == "abort"]
     assert _raw_hashes(again, 1) == before          # the first session's bytes untouched
     result = json.loads((run.path / "result.json").read_text())
@@ -261,10 +261,7 @@ def test_sigkill_mid_acquire_then_resume(tmp_path: Path) -> None:
     """kill -9 (nothing of ours runs): the drive's watchdog stops the table; the run
     directory stays readable and --resume finishes it to the stand's truth within U."""
     proc = _procedure(tmp_path)
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    child = subprocess.Popen([sys.executable, "-m", "bench", "run", str(proc), "--yes",
-                              "--out", str(tmp_path / "runs")], cwd=ROOT, env=env,
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    child = bench_bg("run", str(proc), "--yes", "--out", str(tmp_path / "runs"))
     try:
         deadline = time.monotonic() + 120
         run_dir = None
@@ -316,22 +313,6 @@ def test_ctrl_c_while_the_outputs_are_written_is_honoured(
     assert "being stopped first" not in err
     last = run.events()[-1]
     assert last["event"] == "exit" and last["status"] == EXIT_ABORTED
-
-
-@pytest.fixture
-def small_disk(tmp_path: Path) -> Any:
-    """A small file system of its own (tmpfs), to be filled: needs root and mount(2)."""
-    mnt = tmp_path / "small"
-    mnt.mkdir()
-    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=48m", "tmpfs", str(mnt)],
-                          capture_output=True, text=True)
-    if done.returncode != 0:
-        unavailable(f"cannot mount a tmpfs here ({done.stderr.strip()}): the full-disk cell "
-                    "needs root and mount(2)")
-    try:
-        yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], check=False)
 
 
 def _fill(folder: Path) -> None:

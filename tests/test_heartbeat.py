@@ -16,7 +16,6 @@ import subprocess
 import sys
 import threading
 import time
-import uuid
 
 import can
 import pytest
@@ -27,7 +26,7 @@ from drivers.heartbeat import HeartbeatProducer
 from sims.clock import VirtualClock
 from sims.drive_twin import DriveTwin
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
-from tests.conftest import ROOT, unavailable
+from tests.conftest import ROOT, Twins, one_axis_stand, unavailable
 
 CONTROLLER = """
 import sys, time
@@ -73,7 +72,8 @@ def test_period_is_kept_and_a_stall_is_not_made_up_by_a_burst() -> None:
 
 
 @pytest.mark.timeout(20)
-def test_heartbeat_does_not_use_the_bus_periodic_task(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_heartbeat_does_not_use_the_bus_periodic_task(monkeypatch: pytest.MonkeyPatch,
+                                                      twins: Twins) -> None:
     """Stand-in for SocketCAN's kernel task (see the module docstring): with the bus's
     `send_periodic` taken away, the axis still heartbeats and its drive hears it."""
     real = can.BusABC.send_periodic
@@ -84,16 +84,13 @@ def test_heartbeat_does_not_use_the_bus_periodic_task(monkeypatch: pytest.Monkey
         return real(bus, msgs, *args, **kw)       # the drive twin's own heartbeat (0x702)
 
     clock = VirtualClock(20.0)
-    stand = SimulatedStand(StandTruth(seed=2, axes={"outer": AxisTruth()}), {"outer": 100.0},
-                           clock)
-    channel = f"test-hb-{uuid.uuid4().hex[:10]}"
-    with DriveTwin(stand, "outer", channel=channel, node_id=2) as twin:
-        monkeypatch.setattr(can.BusABC, "send_periodic", refuse_ours)
-        with Axis("outer", interface="virtual", channel=channel, node_id=2, max_rate_dps=100.0,
-                  max_accel_dps2=500.0, clock=clock, heartbeat_ms=50, watchdog_ms=200) as ax:
-            ax.set_rate(10.0)
-            time.sleep(0.6)                              # three watchdog times
-            assert twin.watchdog_trips == [] and twin.state is State.OPERATION_ENABLED
+    twin = twins.drive(one_axis_stand(clock, seed=2, max_rate_dps=100.0), node_id=2)
+    monkeypatch.setattr(can.BusABC, "send_periodic", refuse_ours)
+    with Axis("outer", interface="virtual", channel=twin.channel, node_id=2, max_rate_dps=100.0,
+              max_accel_dps2=500.0, clock=clock, heartbeat_ms=50, watchdog_ms=200) as ax:
+        ax.set_rate(10.0)
+        time.sleep(0.6)                              # three watchdog times
+        assert twin.watchdog_trips == [] and twin.state is State.OPERATION_ENABLED
 
 
 def _multicast_group() -> str:

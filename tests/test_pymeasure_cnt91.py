@@ -12,29 +12,24 @@ read_buffer() failed.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import numpy as np
 import pytest
 from pymeasure.instruments.pendulum.cnt91 import CNT91
 
 from sims.counter_twin import CounterTwin
+from tests.conftest import Twins
 from tests.counter_rig import AXIS, truth_edges, turning_stand
 
 pytestmark = pytest.mark.timeout(30)
 
 
 @pytest.fixture
-def rig() -> Iterator[tuple[object, CounterTwin, CNT91]]:
+def rig(twins: Twins) -> tuple[object, CounterTwin, CNT91]:
     stand = turning_stand()
-    twin = CounterTwin(stand, AXIS, model="pendulum-cnt-91")
-    twin.start()
+    twin = twins.counter(stand, AXIS, model="pendulum-cnt-91")
     cnt = CNT91(twin.resource, visa_library="@py", timeout=10000)
-    try:
-        yield stand, twin, cnt
-    finally:
-        cnt.adapter.close()
-        twin.stop()
+    twins.close_later(cnt.adapter)
+    return stand, twin, cnt
 
 
 def test_identity_reset_status_options_and_settings(rig) -> None:

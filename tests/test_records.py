@@ -14,7 +14,6 @@ import datetime as dt
 import json
 import shutil
 import subprocess
-import sys
 import threading
 import time
 import uuid
@@ -29,7 +28,6 @@ import yaml
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 
-from bench.app.cli import main
 from bench.app.records import Records, record_of
 from bench.app.records.extract import figures_of
 from bench.app.records.hooks import target, warn_if_overdue
@@ -39,7 +37,7 @@ from bench.app.records.trend import trend_png
 from bench.core.config import parse_stand
 from bench.core.journal import sha256_file
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, ROOT, unavailable
+from tests.conftest import CONFIGS, bench, bench_bg, cli, unavailable
 from tests.conftest import OUTER_SERIALS as OUTER
 from tests.pg_server import PgServer, PgUnavailable
 from tests.test_run_e2e import assert_within_u
@@ -52,35 +50,12 @@ STATES: tuple[tuple[str, ...], ...] = ((), ("--as-found",),
                                        ("--as-left", "--adjustment", "rate loop gain trimmed"))
 
 
-def bench(*args: str, timeout: float = 240) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "bench", *args], cwd=ROOT, text=True,
-                          capture_output=True, timeout=timeout)
-
-
-def cli(*args: str) -> subprocess.CompletedProcess[str]:
-    """A records command in-process (the same `main` as the console script; no run is
-    started, so no interpreter start-up per call)."""
-    import contextlib
-    import io
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(list(args))
-    return subprocess.CompletedProcess(["bench", *args], code, out.getvalue(), err.getvalue())
-
-
-def bench_bg(*args: str) -> subprocess.Popen[str]:
-    return subprocess.Popen([sys.executable, "-m", "bench", *args], cwd=ROOT, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-
-
 def _procedure(folder: Path, bias_rel: float, seed: int) -> tuple[Path, float]:
     """A one-rate procedure on the two-axis twin with the given truth; (file, truth)."""
     stand = yaml.safe_load((CONFIGS / "stands" / "sim-two-axis.yaml").read_text())
     stand["stand"]["serial"] = SERIAL
     stand["stand"]["recertification_interval_days"] = 365
     stand["sim"]["seed"] = seed
-    stand["sim"]["clock_speed"] = 40      # gentler on a loaded machine than the demo's 100
     stand["sim"]["axes"]["outer"]["rate_bias_rel"] = bias_rel
     sfile = folder / f"stand-{seed}.yaml"
     sfile.write_text(yaml.safe_dump(stand))

@@ -40,7 +40,7 @@ from bench.app.station.live import (
 from bench.app.station.serve import settings_from_args
 from bench.core.config import FogSettings
 from drivers.fog_formats import get_format
-from tests.conftest import CONFIGS, ROOT, unavailable
+from tests.conftest import CONFIGS, ROOT, bench, bench_bg, unavailable
 
 TOKEN = "s3cret-token"
 ARTIFACTS = Path(os.environ.get("BENCH_TEST_ARTIFACTS", ROOT / "test-artifacts")) / "station"
@@ -273,9 +273,7 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
     runs = tmp_path / "runs"
     runs.mkdir()
     procedure = _slow_demo(tmp_path)
-    run_proc = subprocess.Popen([sys.executable, "-m", "bench", "run", str(procedure), "--yes",
-                                 "--out", str(runs)], cwd=ROOT, text=True,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    run_proc = bench_bg("run", str(procedure), "--yes", "--out", str(runs))
     server_proc, port = _start_server(runs)
     driver = _browser(found, height=1400)
     try:
@@ -323,9 +321,7 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
         _wait(lambda: state("window.station?.state?.status") == "aborted", 30,
               "the page to show the abort")
 
-        resumed = subprocess.run([sys.executable, "-m", "bench", "run", "--resume",
-                                  str(run_dir), "--yes"], cwd=ROOT, text=True,
-                                 capture_output=True, timeout=300)
+        resumed = bench("run", "--resume", str(run_dir), "--yes", timeout=300)
         assert resumed.returncode == 0, resumed.stderr[-2000:]
         _wait(lambda: state("window.station?.state?.status") == "passed", 30,
               "the page to show the resumed run passed")

@@ -13,15 +13,13 @@ from __future__ import annotations
 import datetime as dt
 import json
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from bench.core.traceability import overdue, traced_items
 from drivers.counter import Counter, CounterError
-from sims.counter_twin import CounterTwin
+from tests.conftest import Twins, bench
 from tests.counter_rig import AXIS, turning_stand
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -29,22 +27,19 @@ STAND = ROOT / "configs" / "stands" / "sim-two-axis.yaml"
 
 
 @pytest.mark.parametrize("wired", [True, False])
-def test_counter_reference_set_checked_and_read_back(wired: bool) -> None:
+def test_counter_reference_set_checked_and_read_back(wired: bool, twins: Twins) -> None:
     """The stand's claim is set (SENS:ROSC:SOUR EXT), the signal checked (EXT:CHEC ONCE)
     and read back; without a signal at Ext Ref In the counter refuses it (User's Guide)."""
     stand = turning_stand()
-    with CounterTwin(stand, AXIS, model="keysight-53230a", external_reference=wired) as twin:
-        counter = Counter.open(twin.resource, "keysight-53230a", stand.clock)
-        try:
-            if wired:
-                assert counter.verify_reference("external", 1e-9) == "EXT"
-                assert counter.readback["counter.reference"] == "EXT"
-            else:
-                with pytest.raises(CounterError):
-                    counter.verify_reference("external", 1e-9)
-            assert counter.verify_reference("internal", None) == "INT"
-        finally:
-            counter.close()
+    twin = twins.counter(stand, AXIS, model="keysight-53230a", external_reference=wired)
+    counter = twins.close_later(Counter.open(twin.resource, "keysight-53230a", stand.clock))
+    if wired:
+        assert counter.verify_reference("external", 1e-9) == "EXT"
+        assert counter.readback["counter.reference"] == "EXT"
+    else:
+        with pytest.raises(CounterError):
+            counter.verify_reference("external", 1e-9)
+    assert counter.verify_reference("internal", None) == "INT"
 
 
 def _mini(tmp: Path, stand_text: str) -> Path:
@@ -71,9 +66,7 @@ def test_claimed_external_reference_that_is_not_there_is_refused(tmp_path: Path)
     first = text.index("counter_external_reference: true")
     text = text[:first] + "counter_external_reference: false" + text[first + 33:]
     proc = _mini(tmp_path, text)
-    out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--out",
-                          str(tmp_path / "runs")], capture_output=True, text=True,
-                         timeout=120, cwd=ROOT)
+    out = bench("run", str(proc), "--yes", "--out", str(tmp_path / "runs"), timeout=120)
     assert out.returncode == 2, out.stderr
     assert "Refused:" in out.stderr and "axes.outer.counter.reference:" in out.stderr
     run_dir = Path(out.stdout.strip().splitlines()[-1])
@@ -103,9 +96,7 @@ def test_calibrations_and_due_dates_from_the_stand_file() -> None:
 def test_past_due_warns_at_start_and_on_the_certificate(tmp_path: Path) -> None:
     text = STAND.read_text().replace("due: 2027-01-31", "due: 2020-01-31")
     proc = _mini(tmp_path, text)
-    out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--out",
-                          str(tmp_path / "runs")], capture_output=True, text=True,
-                         timeout=120, cwd=ROOT)
+    out = bench("run", str(proc), "--yes", "--out", str(tmp_path / "runs"), timeout=120)
     assert "WARNING: zero-mark slot sensors" in out.stdout + out.stderr
     assert "was due on 2020-01-31" in out.stdout + out.stderr
     run_dir = Path(out.stdout.strip().splitlines()[-1])

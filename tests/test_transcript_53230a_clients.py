@@ -15,13 +15,13 @@ from __future__ import annotations
 import re
 import socket
 import struct
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
 import pyvisa
 
 from sims.counter_twin import CounterTwin
+from tests.conftest import Twins
 from tests.counter_rig import AXIS, truth_edges, turning_stand
 
 pytestmark = pytest.mark.timeout(30)
@@ -59,16 +59,10 @@ class Session:
 
 
 @pytest.fixture
-def rig() -> Iterator[tuple[object, CounterTwin, Session]]:
+def rig(twins: Twins) -> tuple[object, CounterTwin, Session]:
     stand = turning_stand()
-    twin = CounterTwin(stand, AXIS, model="keysight-53230a")
-    twin.start()
-    s = Session(twin)
-    try:
-        yield stand, twin, s
-    finally:
-        s.close()
-        twin.stop()
+    twin = twins.counter(stand, AXIS, model="keysight-53230a")
+    return stand, twin, twins.close_later(Session(twin))
 
 
 def no_error(s: Session) -> None:
