@@ -21,6 +21,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 from flask import Flask, Response, abort, jsonify, render_template, request, send_from_directory
 
@@ -32,6 +33,8 @@ TOKEN_HEADER = "X-Bench-Token"
 TOKEN_COOKIE = "bench_token"
 STREAM_PERIOD_S = 1.0           # how often a live page gets the run's state
 STREAM_LIFETIME_S = 300.0       # a stream ends then; the browser reconnects by itself
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -179,32 +182,30 @@ def create_app(settings: StationSettings,
 
     @app.get("/instrument/<path:serial>")
     def instrument_page(serial: str) -> str:
-        control = records.control(serial)
-        if control is None:
-            abort(404)
-        return render_template("instrument.html.j2", serial=serial, control=control,
+        return render_template("instrument.html.j2", serial=serial,
+                               control=_found(records.control(serial)),
                                version=bench.__version__)
 
     @app.get("/api/instrument/<path:serial>/control.png")
     def control_png(serial: str) -> Response:
-        png = records.control_png(serial)
-        if png is None:
-            abort(404)
-        return Response(png, mimetype="image/png")
+        return Response(_found(records.control_png(serial)), mimetype="image/png")
 
     @app.get("/records/<serial>")
     def table_page(serial: str) -> str:
-        history = records.history(serial)
-        if history is None:
-            abort(404)
-        return render_template("table.html.j2", serial=serial, history=history,
+        return render_template("table.html.j2", serial=serial,
+                               history=_found(records.history(serial)),
                                version=bench.__version__)
 
     @app.get("/api/records/<serial>/trend.png")
     def trend_png(serial: str) -> Response:
-        png = records.trend_png(serial)
-        if png is None:
-            abort(404)
-        return Response(png, mimetype="image/png")
+        return Response(_found(records.trend_png(serial)), mimetype="image/png")
 
     return app
+
+
+def _found(value: T | None) -> T:
+    """What a records route shows, or 404 when the records hold nothing under that serial
+    (flask's abort raises)."""
+    if value is None:
+        abort(404)
+    return value
