@@ -166,6 +166,10 @@ class RunDir:
         self._events: JsonLines | None = None
         self.session = 0
         self._clock_now = lambda: None
+        #: what this process computed from the run's raw data while it ran (a kind's first
+        #: look at a pair), for the final analysis to take instead of computing it again;
+        #: never written: a resumed or re-analysed run starts without it
+        self.memo: dict[str, Any] = {}
 
     @classmethod
     def create(cls, out_dir: str | Path, procedure_path: Path, stand_path: Path,

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import tempfile
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -30,6 +31,7 @@ from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, events_of, result_document
+from procedures.rate_ladder.conditions import TemperatureSpan, memo_key
 from procedures.rate_ladder.events import HalfAcquired, StaticRecorded
 from procedures.rate_ladder.settings import (
     MAINS_CANDIDATES_HZ,
@@ -86,15 +88,18 @@ def counter_start_s(h: HalfAcquired) -> float:
     return t0
 
 
-def window_on_disk(cursor: CaptureCursor, i_from: int, i_to: int, stem: Path
-                   ) -> tuple[DiskArray, DiskArray]:
+def window_on_disk(cursor: CaptureCursor, i_from: int, i_to: int, stem: Path,
+                   span: TemperatureSpan | None = None) -> tuple[DiskArray, DiskArray]:
     """FOG samples i_from .. i_to - 1 that are valid, as (times, rates) files at `stem`:
-    what a HalfRecord holds, written chunk by chunk, read back the same way."""
+    what a HalfRecord holds, written chunk by chunk, read back the same way; `span` takes
+    the frames' temperatures on the way (the conditions, without a second decode)."""
     t_path, f_path = stem.with_suffix(".t.f64"), stem.with_suffix(".f.f64")
     with open(t_path, "wb") as ft, open(f_path, "wb") as ff:
         for s in cursor.window(i_from, i_to):
             ft.write(s.t_s[s.valid].tobytes())
             ff.write(s.rate_dps[s.valid].tobytes())
+            if span is not None:
+                span.add(s)
     return DiskArray(t_path), DiskArray(f_path)
 
 
@@ -119,6 +124,8 @@ class RawData:
         self._scratch = tempfile.TemporaryDirectory(prefix="ratebench-windows-")
         self._windows: list[DiskArray] = []
         self._statics: dict[tuple[int, str, int, int], np.ndarray] = {}
+        #: each window's FOG temperatures, as decoded (conditions.memo_key: span)
+        self.temperatures: dict[str, TemperatureSpan] = {}
 
     def close(self) -> None:
         self.drop_windows()
@@ -168,7 +175,9 @@ class RawData:
         """The valid samples i_from .. i_to - 1 (times, rates), on disk."""
         cursor = self._cursor(session, axis, i_from, mark)
         stem = Path(self._scratch.name) / f"s{session}-{axis}-{i_from}-{i_to}"
-        t, f = window_on_disk(cursor, i_from, i_to, stem)
+        span = TemperatureSpan()
+        t, f = window_on_disk(cursor, i_from, i_to, stem, span)
+        self.temperatures[memo_key(session, axis, i_from, i_to)] = span
         self._windows += [t, f]
         return t, f
 
@@ -354,7 +363,9 @@ def sigma_check(axis: str, rate: float, entry: dict[str, Any], tolerance: float,
 def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
     hashes = RawHashes(run)  # in threads, while the pairs are decoded and analysed
     with RawData(run, cfg) as raw:
-        return _analyze_run(run, cfg, raw, hashes)
+        result = _analyze_run(run, cfg, raw, hashes)
+        run.memo.update(raw.temperatures)   # for the conditions: decoded once
+        return result
 
 
 def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
@@ -375,7 +386,11 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
                 complete = False
                 continue
             acqs = unit_halves(events, unit, done_in[unit])
-            pa = analyze_unit(raw, cfg, axis, rate, acqs, static)
+            # the worker's first look at this pair in this process, when it had the same
+            # halves and static record: the same analysis of the same bytes (a resumed or
+            # re-analysed run decodes the raw files again)
+            pa = run.memo.pop(first_look_key(unit, acqs, static), None) \
+                or analyze_unit(raw, cfg, axis, rate, acqs, static)
             for r in pa.rates:
                 d = with_sigma_terms(r.to_dict())
                 d["session"] = done_in[unit]
@@ -410,9 +425,28 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
 _WORKER_READERS: dict[str, RawData] = {}  # in the analysis worker: one per run directory
 
 
+def first_look_key(unit: str, acquisitions: list[HalfAcquired],
+                   static: StaticRecorded | None) -> str:
+    """What a pair's analysis rests on (its halves, the static record): a first look made
+    on the same is the final analysis (RunDir.memo)."""
+    halves = sorted(acquisitions, key=lambda h: h.half)
+    return f"rate-ladder first look {unit} {halves!r} {static!r}"
+
+
+@dataclass(frozen=True)
+class FirstLook:
+    """The worker's answer: the summary journaled as the `pair` event, and the whole
+    analysis, which the final result.json reuses instead of decoding the halves again."""
+
+    summary: dict[str, Any]
+    analysis: Any
+    key: str
+    temperatures: dict[str, TemperatureSpan]
+
+
 def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
                  acquisitions: list[HalfAcquired], static: StaticRecorded | None
-                 ) -> dict[str, Any]:
+                 ) -> FirstLook:
     """A first look at the pair just measured (the same analysis the final result.json
     makes), from the raw capture as it is being written; runs in the analysis worker
     (bench.core.engine.AnalysisWorker), whose reader moves on from pair to pair."""
@@ -438,4 +472,6 @@ def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
             "verdict": ("fail" if any(c["verdict"] == "fail" for c in checks)
                         else "pass" if checks else "not-assessed")})
     out["directions"] = directions
-    return out
+    spans, raw.temperatures = raw.temperatures, {}
+    return FirstLook(out, pa, first_look_key(f"{axis}/{rate_dps:g}dps", acquisitions, static),
+                     spans)

@@ -17,27 +17,48 @@ import numpy as np
 
 from bench.core.config import Config
 from bench.core.journal import RunDir
-from drivers.fog import CaptureCursor
+from drivers.fog import CaptureCursor, FogSamples
 from procedures.rate_ladder.events import HalfAcquired
 
 
+class TemperatureSpan:
+    """min / mean / max of the FOG's temperature over a window, fed chunk by chunk (the
+    same chunks, in the same order, wherever it is fed: the sums come out bit for bit)."""
+
+    def __init__(self) -> None:
+        self.lo, self.hi, self.total, self.n = math.inf, -math.inf, 0.0, 0
+
+    def add(self, s: FogSamples) -> None:
+        t = s.temperature[s.received & np.isfinite(s.temperature)]
+        if t.size:
+            self.lo, self.hi = min(self.lo, float(t.min())), max(self.hi, float(t.max()))
+            self.total, self.n = self.total + float(t.sum()), self.n + int(t.size)
+
+    def of_half(self, h: HalfAcquired) -> dict[str, Any] | None:
+        if self.n == 0:
+            return None
+        return {"set_rate_dps": h.set_rate_dps, "half": h.half, "session": h.session,
+                "samples": self.n, "min_c": self.lo, "mean_c": self.total / self.n,
+                "max_c": self.hi}
+
+
+def memo_key(session: int, axis: str, i_from: int, i_to: int) -> str:
+    """RunDir.memo's key of a window's temperature span (the analysis decodes the window
+    and keeps its span: this module need not decode it again)."""
+    return f"rate-ladder temperature s{session} {axis} {i_from}..{i_to}"
+
+
 def _half_temperature(path: Path, f: Any, h: HalfAcquired) -> dict[str, Any] | None:
-    lo, hi, total, n = math.inf, -math.inf, 0.0, 0
+    span = TemperatureSpan()
     cursor = CaptureCursor(path, fmt=f.format, axis=f.axis, rate_hz=f.rate_hz, units=f.units,
                            start=h.fog_capture if h.fog_capture and
                            h.fog_capture.get("last_index", h.fog_from) < h.fog_from else None)
     try:
         for s in cursor.window(h.fog_from, h.fog_to):
-            t = s.temperature[s.received & np.isfinite(s.temperature)]
-            if t.size:
-                lo, hi = min(lo, float(t.min())), max(hi, float(t.max()))
-                total, n = total + float(t.sum()), n + int(t.size)
+            span.add(s)
     finally:
         cursor.close()
-    if n == 0:
-        return None
-    return {"set_rate_dps": h.set_rate_dps, "half": h.half, "session": h.session,
-            "samples": n, "min_c": lo, "mean_c": total / n, "max_c": hi}
+    return span.of_half(h)
 
 
 def fog_temperatures(run: RunDir, cfg: Config) -> dict[str, Any]:
@@ -48,7 +69,9 @@ def fog_temperatures(run: RunDir, cfg: Config) -> dict[str, Any]:
         if not path.is_file():
             continue
         try:
-            found = _half_temperature(path, cfg.fog(h.axis), h)
+            span = run.memo.pop(memo_key(h.session, h.axis, h.fog_from, h.fog_to), None)
+            found = span.of_half(h) if span is not None \
+                else _half_temperature(path, cfg.fog(h.axis), h)
         except (OSError, ValueError):
             found = None          # a damaged capture: the analysis reports it; not measured
         if found is not None:

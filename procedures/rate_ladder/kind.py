@@ -25,6 +25,7 @@ from bench.core.yamlfile import Problem
 from drivers.clock import Clock
 from procedures.base import StepDispatch
 from procedures.rate_ladder.analysis import (
+    FirstLook,
     analyze_run,
     pair_summary,
     static_record,
@@ -296,13 +297,16 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         axis, unit, rate = step.on_axis, step.in_unit, step.params["rate_dps"]
         events = ctx.run.events()  # the halves may come from earlier sessions (--resume)
 
-        def done(summary: dict[str, Any] | None, error: BaseException | None) -> None:
+        def done(look: FirstLook | None, error: BaseException | None) -> None:
             if error is not None:
                 ctx.run.event("pair_failed", axis=axis, unit=unit, error=repr(error))
                 ctx.progress.warn(f"  WARNING {axis} +/-{rate:g} deg/s: the first look at the "
                                   f"pair failed ({error}); the final analysis will say more")
                 return
-            assert summary is not None
+            assert look is not None
+            summary = look.summary
+            ctx.run.memo[look.key] = look.analysis   # the final analysis reuses them
+            ctx.run.memo.update(look.temperatures)
             ctx.run.event("pair", axis=axis, unit=unit, **summary)
             ctx.progress.result(f"{axis} ±{rate:g} deg/s", *pair_figures(summary))
 
