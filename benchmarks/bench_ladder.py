@@ -138,6 +138,8 @@ def profile(procedure: Path, out: Path) -> None:
     wall = time.monotonic() - t0
     stop.set()
     sampler.join()
+    if os.environ.get("BENCH_LADDER_PSTATS"):   # for snakeviz or pstats: the bench thread
+        prof.dump_stats(os.environ["BENCH_LADDER_PSTATS"])
     stats = pstats.Stats(prof, stream=io.StringIO())
     cum: dict[str, float] = {}
     for (file, _line, func), (_cc, _nc, _tt, ct, _callers) in stats.stats.items():

@@ -22,6 +22,7 @@ flags the indices after that point as uncertain (health "error").
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
 import select
@@ -291,6 +292,10 @@ class Fog:
         self._valid_mask = 1 << self.format.valid_bits[axis]
         self._ser: serial.Serial | None = None
         self._raw: IO[bytes] | None = None
+        # the raw capture's SHA-256 and length, taken from the bytes as they are written
+        # (None once a write failed: the file is then hashed from disk, if at all)
+        self._raw_sha256: Any = None
+        self._raw_bytes = 0
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._cond = threading.Condition()
@@ -332,6 +337,7 @@ class Fog:
             try:
                 self.raw_path.parent.mkdir(parents=True, exist_ok=True)
                 self._raw = open(self.raw_path, "wb")  # noqa: SIM115 (closed in close())
+                self._raw_sha256, self._raw_bytes = hashlib.sha256(), 0
             except OSError as e:
                 self._ser.close()
                 self._ser = None
@@ -362,6 +368,7 @@ class Fog:
             try:
                 raw.close()
             except OSError as e:
+                self._raw_sha256 = None
                 raise FogError(f"FOG on {self.port}: cannot write the raw capture "
                                f"{self.raw_path}: {e.strerror}") from e
             finally:
@@ -369,6 +376,15 @@ class Fog:
                     self._cond.notify_all()
         with self._cond:
             self._cond.notify_all()
+
+    @property
+    def raw_digest(self) -> tuple[str, int] | None:
+        """(SHA-256 hex, bytes) of the raw capture as written, once closed: hashed on the
+        way to the file, so a day's capture need not be read back to be hashed (None while
+        open, without a capture, or after a failed write)."""
+        if self._raw is not None or self._raw_sha256 is None:
+            return None
+        return self._raw_sha256.hexdigest(), self._raw_bytes
 
     def __enter__(self) -> Fog:
         return self.open()
@@ -405,7 +421,11 @@ class Fog:
                         try:
                             self._raw.write(data)
                             self._raw.flush()
+                            if self._raw_sha256 is not None:  # releases the GIL
+                                self._raw_sha256.update(data)
+                                self._raw_bytes += len(data)
                         except OSError as e:
+                            self._raw_sha256 = None
                             raise OSError(e.errno, f"cannot write the raw capture "
                                           f"{self.raw_path}: {e.strerror}") from e
                     now = self.clock.now()

@@ -13,7 +13,7 @@ from typing import Any
 
 from bench.core.config import Config
 from bench.core.engine import RunContext
-from bench.core.journal import RunDir, sha256_file
+from bench.core.journal import RunDir, digest_key, sha256_file
 from bench.core.lab import certificate_settings
 from bench.core.plan import Plan, Step
 from bench.report.conformity import RULES
@@ -54,7 +54,15 @@ class RawHashes:
         self._run = run
         self._files = [p for p in sorted((run.path / "raw").rglob("*")) if p.is_file()]
         self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="sha256")
-        self._hashes = [self._pool.submit(sha256_file, p) for p in self._files]
+        self._hashes = [self._pool.submit(self._hash, p) for p in self._files]
+
+    def _hash(self, path: Path) -> str:
+        """The digest taken as the file was written by this process, when the file still
+        has that length (bench.core.instruments.remember_digest); else from the disk."""
+        known = self._run.memo.get(digest_key(path))
+        if known is not None and known[1] == path.stat().st_size:
+            return str(known[0])
+        return sha256_file(path)
 
     def result(self) -> list[dict[str, Any]]:
         try:

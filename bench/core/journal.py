@@ -30,6 +30,11 @@ from typing import IO, Any
 import bench
 
 
+def digest_key(path: Path) -> str:
+    """RunDir.memo's key of a raw file's (SHA-256, bytes) taken while it was written."""
+    return f"sha256 {Path(path).resolve()}"
+
+
 def sha256_file(path: Path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:
