@@ -17,6 +17,12 @@ half 3: the half was armed 1.8 s after the reversal carried the table over its z
 mark, so the first value (3598.2 s) looked like a whole turn; the counter driver now reads
 such a value as this counter has already shown (counter_profiles.first_value_is_a_turn).
 Most CPU is the pty channel's kernel time (4 kB per read).
+On a quiet machine (25 Nov 2026): 146-153 s wall (120 s measuring, 23 s writing the
+result and certificate), then 127 s (118 s measuring, 7 s writing) once the final analysis
+took the worker's first look at each pair and the temperatures decoded with it, and the raw
+captures were hashed as written; user 84 s + system 87 s of CPU. A pty moves about 75 MB/s
+with one core (1 GB: 7.2 s of system time in the reader, plus the kernel's flush work), so
+the ladder's 7.6 GB of FOG frames alone need about 100 s of channel time.
 
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
