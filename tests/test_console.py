@@ -225,3 +225,28 @@ def test_software_note_names_every_version_involved() -> None:
     note = software_note({"bench_version": "0.1.0"}, events, "0.2.0", "run-1").text
     assert note == ("Software: run with ratebench 0.1.0 (session 1), 0.2.0 (session 2); "
                     "certificate issued by ratebench 0.2.0. Run directory: run-1.")
+
+
+def test_a_warning_logged_by_a_twin_is_a_json_line_too() -> None:
+    """--log-json: every stderr line is one JSON object. A twin's logged warning (the drive
+    twin's lost heartbeat, seen in CI on a starved machine) used to reach stderr through
+    Python's last-resort handler as plain text, and broke the log collector's parse."""
+    import logging
+
+    first, stream = io.StringIO(), io.StringIO()
+    root = logging.getLogger()
+    before = list(root.handlers)
+    try:
+        JsonConsole(first, out=io.StringIO())
+        JsonConsole(stream, out=io.StringIO())        # the newest console takes the logs
+        assert [type(h).__name__ for h in root.handlers].count("_LogLines") == 1
+        logging.getLogger("sims.drive_twin").warning(
+            "drive twin %s: no heartbeat from node %d for %.3f s: %s", "outer", 2, 0.512,
+            "QUICK_STOP")
+    finally:
+        root.handlers[:] = before
+    assert first.getvalue() == ""
+    (rec,) = [json.loads(line) for line in stream.getvalue().splitlines()]
+    assert rec["event"] == "log" and rec["level"] == "WARNING"
+    assert rec["logger"] == "sims.drive_twin"
+    assert rec["text"] == "drive twin outer: no heartbeat from node 2 for 0.512 s: QUICK_STOP"

@@ -2,12 +2,14 @@
 
 One object per line: {"utc", "event", ...}. Events: plan, step (with bench_left_s,
 wall_left_s, speed), progress (throttled), reading, message, warning, prompt, summary,
-end. Numbers are plain floats in SI-like units named in the key, as in result.json.
+end, and log (a library's or a twin's logged warning: Python would print it as plain text,
+and a log collector would choke on that one line). Numbers are plain floats in SI-like units named in the key, as in result.json.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -20,7 +22,30 @@ from bench.core.plan import Step
 from bench.core.progress import Figure
 
 
+class _LogLines(logging.Handler):
+    """Warnings logged anywhere in the process, as the console's `log` objects."""
+
+    def __init__(self, console: JsonConsole) -> None:
+        super().__init__(logging.WARNING)
+        self.console = console
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            self.console.emit("log", level=record.levelname, logger=record.name,
+                              text=record.getMessage())
+        except Exception:  # noqa: BLE001 - logging's own rule: a handler never raises
+            self.handleError(record)
+
+
 class JsonConsole(PlainConsole):
+    def __init__(self, stream: Any = None, min_interval_s: float = 2.0, out: Any = None
+                 ) -> None:
+        super().__init__(stream, min_interval_s, out)
+        root = logging.getLogger()
+        for h in [h for h in root.handlers if isinstance(h, _LogLines)]:
+            root.removeHandler(h)       # one console of the process at a time: the newest
+        root.addHandler(_LogLines(self))
+
     def emit(self, event: str, **fields: Any) -> None:
         rec = {"utc": utc_now(), "event": event, **fields}
         self.stream.write(json.dumps(rec, ensure_ascii=False, allow_nan=False, default=str)
