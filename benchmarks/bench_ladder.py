@@ -20,9 +20,12 @@ Most CPU is the pty channel's kernel time (4 kB per read).
 On a quiet machine (25 Nov 2026): 146-153 s wall (120 s measuring, 23 s writing the
 result and certificate), then 127 s (118 s measuring, 7 s writing) once the final analysis
 took the worker's first look at each pair and the temperatures decoded with it, and the raw
-captures were hashed as written; user 84 s + system 87 s of CPU. A pty moves about 75 MB/s
-with one core (1 GB: 7.2 s of system time in the reader, plus the kernel's flush work), so
-the ladder's 7.6 GB of FOG frames alone need about 100 s of channel time.
+captures were hashed as written; user 84 s + system 87 s of CPU. With the FOG reader's
+batches at 512 kB instead of 128 kB: 104, 106 and 110 s wall (128 kB the same hour: 117 s),
+384 MB peak, 0 frames lost, exit 0. A pty moves about 75 MB/s with one core (1 GB: 7.2 s of
+system time in the reader, plus the kernel's flush work), and the ladder's 7.6 GB of FOG
+frames are most of what is left. Keep 8 GB free in the --out folder's file system: `bench
+run` refuses to start without room for the plan's raw data.
 
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,

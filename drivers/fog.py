@@ -66,7 +66,11 @@ __all__ = ["FORMATS", "CaptureCursor", "DecodeState", "DecodeStats", "Fog", "Fog
 RATE_UNITS = ("deg/s", "rad/s", "deg", "rad")
 
 _READ_TIMEOUT_S = 0.05     # real seconds a read waits for the first byte
-_BATCH_BYTES = 1 << 17     # decode in batches of up to this many bytes
+#: decode in batches of up to this many bytes. Only a stream faster than _BATCH_REAL_S
+#: lets through fills one (a co-simulated stand: a step's frames in one burst); there
+#: 512 kB took the paper ladder from 117 to 104-110 s wall against 128 kB (fewer raw-file
+#: writes, CRC calls and clock wake-ups per frame; 1 MB no better)
+_BATCH_BYTES = 1 << 19
 #: a raw capture is decoded offline in pieces of this many bytes (the decoder's fastest:
 #: larger pieces spill the CPU's caches)
 _CAPTURE_CHUNK_BYTES = 1 << 18
