@@ -13,7 +13,7 @@ import json
 import re
 import subprocess
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -78,6 +78,19 @@ def _busy(n: int) -> Iterator[None]:
             p.wait()
 
 
+def _quiet_and_loaded(run: Callable[[Path], Path], tmp_path: Path) -> tuple[Path, Path, Any]:
+    """`run` once quiet and once beside two busy processes; both run directories, and the
+    quiet result.json stripped of when and where, once the loaded one is shown equal."""
+    quiet = run(tmp_path / "quiet")
+    with _busy(2):
+        loaded = run(tmp_path / "loaded")
+    a = _strip(json.loads((quiet / "result.json").read_text()))
+    b = _strip(json.loads((loaded / "result.json").read_text()))
+    diffs = list(_differences(a, b))
+    assert not diffs, "\n".join(diffs[:30])
+    return quiet, loaded, a
+
+
 def _demo(out: Path) -> Path:
     proc = subprocess.run([sys.executable, "-m", "bench", "run", "--example", "demo", "--yes",
                            "--quiet", "--out", str(out)],
@@ -96,13 +109,7 @@ def _certificate_text(run: Path) -> str:
 @pytest.mark.timeout(1200)
 def test_the_demo_gives_the_same_numbers_quiet_and_beside_two_busy_processes(
         tmp_path: Path) -> None:
-    quiet = _demo(tmp_path / "quiet")
-    with _busy(2):
-        loaded = _demo(tmp_path / "loaded")
-    a = _strip(json.loads((quiet / "result.json").read_text()))
-    b = _strip(json.loads((loaded / "result.json").read_text()))
-    diffs = list(_differences(a, b))
-    assert not diffs, "\n".join(diffs[:30])
+    quiet, loaded, a = _quiet_and_loaded(_demo, tmp_path)
     # a check that can fail: the results carry figures, and the raw records are equal
     assert a["axes"]["outer"]["rates"], a["axes"]
     assert any(f["sha256"] for f in a["raw_files"])
@@ -144,13 +151,7 @@ def test_the_drift_demo_gives_the_same_numbers_quiet_and_beside_two_busy_process
     """The drift-pulse kind (docs/method.md B) on the co-simulation: the DMMs' and the
     generator's waits are on stand time (drivers/dmm.py), so the pulse triggers, the
     records' sample times and every reading are the same under any load."""
-    quiet = _example(tmp_path / "quiet", "drift-demo")
-    with _busy(2):
-        loaded = _example(tmp_path / "loaded", "drift-demo")
-    a = _strip(json.loads((quiet / "result.json").read_text()))
-    b = _strip(json.loads((loaded / "result.json").read_text()))
-    diffs = list(_differences(a, b))
-    assert not diffs, "\n".join(diffs[:30])
+    quiet, loaded, a = _quiet_and_loaded(lambda out: _example(out, "drift-demo"), tmp_path)
     # a check that can fail: both gyros carry their cycles, and the raw records are equal
     for g in ("x", "y"):
         assert len(a["drift"]["axes"][g]["cycles"]) == 20, a["drift"]["axes"][g]
@@ -158,3 +159,47 @@ def test_the_drift_demo_gives_the_same_numbers_quiet_and_beside_two_busy_process
     ca, cb = _certificate_text(quiet), _certificate_text(loaded)
     assert ca == cb, [(x, y) for x, y in zip(ca.splitlines(), cb.splitlines(), strict=False)
                       if x != y][:10]
+
+
+def _static_first(folder: Path) -> Path:
+    """A one-rate check whose first step is the FOG's static record, started the instant
+    the instruments are open (the assurance check runs of tests/test_control.py); the
+    stand and procedure files are the same bytes for every call (result.json hashes them)."""
+    import yaml
+
+    from tests.conftest import CONFIGS
+
+    folder.mkdir()
+    stand = yaml.safe_load((CONFIGS / "stands" / "sim-two-axis.yaml").read_text())
+    stand["sim"]["seed"] = 1
+    sfile = folder.parent / "stand.yaml"
+    sfile.write_text(yaml.safe_dump(stand))
+    proc = folder.parent / "check.yaml"
+    proc.write_text(yaml.safe_dump({
+        "procedure": "rate-ladder", "title": "Static record first", "turns": 2,
+        "stand": str(sfile), "static_record_s": 5, "prompts": False,
+        "axes": {"outer": {"rates_dps": [50]}}}))
+    out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--quiet",
+                          "--out", str(folder / "runs")],
+                         capture_output=True, text=True, timeout=600, check=False)
+    assert out.returncode in (0, 1), out.stdout + out.stderr
+    return Path(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.timeout(900)
+def test_a_static_record_at_the_start_begins_on_the_same_sample_under_load(
+        tmp_path: Path) -> None:
+    """The static record began at the newest FOG sample the reader held: the one due at
+    that very instant was there on a quiet machine and not yet on a loaded one, so every
+    later step moved by 1 ms (the control charts' drive settle time moved with it, and
+    tests/test_control.py saw a false WE4 beside two busy processes). Now the clock alone
+    places it (procedures/rate_ladder/kind.py `_do_static`)."""
+    quiet, loaded, _ = _quiet_and_loaded(_static_first, tmp_path)
+    drive = [(q.read_text(), lo.read_text()) for q, lo in
+             zip(sorted(quiet.glob("raw/s*/outer-drive.jsonl")),
+                 sorted(loaded.glob("raw/s*/outer-drive.jsonl")), strict=True)]
+    assert drive and all(x == y for x, y in drive)   # commands and settles, to the ms
+    static = [json.loads(ln) for ln in (quiet / "events.jsonl").read_text().splitlines()
+              if '"event":"static"' in ln.replace(" ", "")]
+    # it starts at the clock's 0.05 s (the drive's identity read), on sample 0.05 s x 1 kHz
+    assert [(round(e["t_s"] - 5.0, 9), e["fog_from"]) for e in static] == [(0.05, 50)], static

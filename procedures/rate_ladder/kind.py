@@ -22,7 +22,7 @@ from bench.core.progress import RELATIVE, Figure
 from bench.core.schema import Map
 from bench.core.simbench import SimBench
 from bench.core.yamlfile import Problem
-from drivers.clock import Clock
+from drivers.clock import Clock, stepped
 from procedures.base import StepDispatch
 from procedures.rate_ladder.analysis import (
     FirstLook,
@@ -184,7 +184,12 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         ax = ctx.bench.axes[step.axis]
         fog = ax.fog
         duration = step.params["duration_s"]
-        i0 = max(fog.end_index, math.ceil(ctx.clock.now() * fog.rate_hz))
+        due = math.ceil(ctx.clock.now() * fog.rate_hz)   # the first sample at or after now
+        # co-simulation: the stand's sample n is at n / rate, and whether the sample due at
+        # this instant has reached the reader yet is thread scheduling: the clock alone says
+        # where the record starts, or a loaded machine moves it by one sample. Hardware:
+        # the FOG's oscillator and the host's differ, so never before what has arrived.
+        i0 = due if stepped(ctx.clock) else max(fog.end_index, due)
         n = int(round(duration * fog.rate_hz))
         lost0 = _fog_losses(fog)
         mark = fog.checkpoint()  # where the record starts in the raw capture (or before)
