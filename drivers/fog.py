@@ -31,7 +31,7 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 import serial
@@ -57,6 +57,9 @@ from drivers.fog_formats import (
 )
 from drivers.kvh_config import MODES, FogSettings, KvhConfigError, KvhConfigurator
 from drivers.waits import MAX_LATE_REAL_S, MIN_REAL_MARGIN_S, wait_on_clock
+
+if TYPE_CHECKING:
+    from hashlib import _Hash  # typeshed's name for a hash object
 
 __all__ = ["FORMATS", "CaptureCursor", "DecodeState", "DecodeStats", "Fog", "FogError",
            "FogSamples", "FogStats", "FogTimeout", "Frames", "StreamDecoder", "decode", "dps_per_unit",
@@ -298,7 +301,7 @@ class Fog:
         self._raw: IO[bytes] | None = None
         # the raw capture's SHA-256 and length, taken from the bytes as they are written
         # (None once a write failed: the file is then hashed from disk, if at all)
-        self._raw_sha256: Any = None
+        self._raw_sha256: _Hash | None = None
         self._raw_bytes = 0
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()

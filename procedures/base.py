@@ -13,7 +13,7 @@ from typing import Any
 
 from bench.core.config import Config
 from bench.core.engine import RunContext
-from bench.core.journal import RunDir, digest_key, sha256_file
+from bench.core.journal import RunDir, sha256_file
 from bench.core.lab import certificate_settings
 from bench.core.plan import Plan, Step
 from bench.report.conformity import RULES
@@ -58,11 +58,8 @@ class RawHashes:
 
     def _hash(self, path: Path) -> str:
         """The digest taken as the file was written by this process, when the file still
-        has that length (bench.core.instruments.remember_digest); else from the disk."""
-        known = self._run.memo.get(digest_key(path))
-        if known is not None and known[1] == path.stat().st_size:
-            return str(known[0])
-        return sha256_file(path)
+        has that length (RunDir.written_digest); else from the disk."""
+        return self._run.written_digest(path) or sha256_file(path)
 
     def result(self) -> list[dict[str, Any]]:
         try:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from bench.core.config import StandAxis
-from bench.core.journal import JsonLines, RunDir, digest_key
+from bench.core.journal import JsonLines, RunDir
 from bench.core.protocols import Counter as CounterLike
 from bench.core.protocols import Drive
 from bench.core.protocols import Fog as FogLike
@@ -232,14 +232,8 @@ def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *
                  model=f.model,
                  keep_samples=int(LIVE_FOG_KEEP_S * f.rate_hz) if run else None)
         if run is not None:   # runs after the FOG has closed (the stack is last-in-first-out)
-            bench.callback(lambda: remember_digest(run, fg.raw_path, fg.raw_digest))
+            bench.callback(lambda: run.remember_digest(fg.raw_path, fg.raw_digest))
         bench.enter(fg)
         ax.fog = fg
         ax.identities["fog"] = with_readback(fg.identity(), fg.readback)
     return ax
-
-
-def remember_digest(run: RunDir, path: Path | None, digest: tuple[str, int] | None) -> None:
-    """A raw file's SHA-256 as it was written (journal.digest_key), for result.json."""
-    if path is not None and digest is not None:
-        run.memo[digest_key(path)] = digest

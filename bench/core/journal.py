@@ -30,11 +30,6 @@ from typing import IO, Any
 import bench
 
 
-def digest_key(path: Path) -> str:
-    """RunDir.memo's key of a raw file's (SHA-256, bytes) taken while it was written."""
-    return f"sha256 {Path(path).resolve()}"
-
-
 def sha256_file(path: Path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:
@@ -175,6 +170,20 @@ class RunDir:
         #: look at a pair), for the final analysis to take instead of computing it again;
         #: never written: a resumed or re-analysed run starts without it
         self.memo: dict[str, Any] = {}
+        #: each raw file's (SHA-256 hex, bytes) as this process wrote it (a FOG capture
+        #: hashed on its way to the file), so result.json need not read gigabytes back
+        self._written: dict[Path, tuple[str, int]] = {}
+
+    def remember_digest(self, path: Path | None, digest: tuple[str, int] | None) -> None:
+        """A raw file's (SHA-256 hex, bytes) taken while it was written (nothing if None)."""
+        if path is not None and digest is not None:
+            self._written[Path(path).resolve()] = digest
+
+    def written_digest(self, path: Path) -> str | None:
+        """The SHA-256 remembered for `path`, while the file still has the length it was
+        hashed at (a later session may have appended to it); else None: hash the disk."""
+        known = self._written.get(Path(path).resolve())
+        return known[0] if known is not None and known[1] == path.stat().st_size else None
 
     @classmethod
     def create(cls, out_dir: str | Path, procedure_path: Path, stand_path: Path,
