@@ -305,6 +305,14 @@ class SteppedClock:
     def now(self) -> float:
         return self._t_s
 
+    def drain(self) -> None:
+        """Return once every participant has delivered what [0, now] holds, as at the end
+        of any wait. An instrument opened since the last wait (a FOG whose twin sends the
+        frames due so far as soon as it is read) is otherwise drained by thread
+        scheduling, and the bench's first look at it would depend on the machine's load."""
+        if self._running:
+            self._settle(self._t_s, final=True)
+
     def real_seconds(self, virtual_s: float) -> float:
         return virtual_s / self.min_speed
 

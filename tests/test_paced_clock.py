@@ -164,3 +164,26 @@ def test_a_stepped_clock_passes_time_only_in_waits_and_stops_at_every_event() ->
     clock.channel_closed("pty")
     clock.sent("pty", 5)                         # nobody reads: nothing to wait for
     assert clock.backlog("pty") == 0
+
+
+def test_drain_hands_an_instrument_opened_between_waits_what_is_due_so_far() -> None:
+    """A FOG opened at stand time 0.05 s (after the drive's identity waits): its twin sends
+    samples 0..50 as soon as the port is read, and without a wait nothing says when the
+    reader has them. `drain` (SimBench.start_clock) returns once it has, so the bench's
+    first look at the FOG is the same on any machine load."""
+    from drivers.fog import Fog
+    from sims.fog_twin import FogTwin
+    from sims.stand import AxisTruth, SimulatedStand, StandTruth
+
+    seen = []
+    for _ in range(5):
+        clock = SteppedClock()
+        stand = SimulatedStand(StandTruth(seed=1, axes={"outer": AxisTruth()}),
+                               {"outer": 1000.0}, clock)
+        with FogTwin(stand, "outer") as twin:
+            clock.sleep(0.05)            # the drive's opening waits; the FOG is not read yet
+            with Fog(twin.path, rate_hz=1000.0, raw_path=None, clock=clock,
+                     units="rad") as fog:
+                clock.drain()
+                seen.append(fog.end_index)
+    assert seen == [51] * 5       # samples 0 .. 50: t = 0 .. 0.05 s, the instant included

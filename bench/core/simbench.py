@@ -206,7 +206,11 @@ class SimBench:
         self._stack.callback(stop)
 
     def start_clock(self) -> None:
+        """The instruments are open: time may pass; on the co-simulation, what the stand
+        holds up to now is with the drivers before the first step looks at it."""
         self.clock.start()
+        if isinstance(self.clock, SteppedClock):
+            self.clock.drain()
 
     def stop(self) -> None:
         for twin in self.twins.values():
