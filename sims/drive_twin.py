@@ -263,7 +263,10 @@ class DriveTwin:
         self._pp_target_deg: float | None = None
         self._pp_corrections = 0
         self._in_position_since: float | None = None
-        # heartbeat consumer (0x1016:1): producer id, time, last reception (monotonic)
+        # heartbeat consumer (0x1016:1): producer id, time, last reception (monotonic). A
+        # real drive receives on its CAN controller whatever its motion task is doing, so
+        # the reception takes a lock of its own, never the motion lock a tick holds
+        self._hb_lock = threading.Lock()
         self._hb_producer = 0
         self._hb_time_s = 0.0
         self._hb_last: float | None = None
@@ -914,19 +917,17 @@ class DriveTwin:
     def _run(self) -> None:
         next_t = time.monotonic()
         while not self._stop.is_set():
-            late = time.monotonic() - next_t
-            if late > STARVED_TICKS * self._tick_s:
-                self._was_starved(late)
+            started = time.monotonic()
             try:
+                with self._lock:  # late: a late wake-up, the last tick's or this lock's wait
+                    self._forgive_lateness(next_t)
+                    self._check_watchdog(self.clock.now())
                 self._tick()
             except Exception:  # noqa: BLE001 - a twin must not die silently mid-test
                 log.exception("drive twin %s: tick failed", self.axis)
-            next_t += self._tick_s
-            delay = next_t - time.monotonic()
-            if delay < 0:
-                next_t = time.monotonic()
-                delay = 0.0
-            self._stop.wait(delay)
+            # the grid, but no burst of ticks to catch up after a late one
+            next_t = max(next_t + self._tick_s, started)
+            self._stop.wait(max(0.0, next_t - time.monotonic()))
 
     # -- the co-simulation (sims/clock.py SteppedClock) ----------------------------------
     @property
@@ -961,14 +962,18 @@ class DriveTwin:
         """Stepped clock: the thread keeps only the heartbeat watchdog (real time), and
         ticks in real time while the clock is paused (the bench opening or closing: the
         stand stands still, but the controller still hears the drive's TPDOs)."""
-        while not self._stop.wait(self._tick_s):
+        next_t = time.monotonic() + self._tick_s
+        while not self._stop.wait(max(0.0, next_t - time.monotonic())):
+            started = time.monotonic()
+            with self._lock:  # late: a late wake-up, the last tick's or this lock's wait
+                self._forgive_lateness(next_t)
+                self._check_watchdog(self.clock.now())
             if not self.clock.running:
                 try:
                     self._tick(self.clock.now(), gate_s=time.monotonic())
                 except Exception:  # noqa: BLE001 - a twin must not die silently mid-test
                     log.exception("drive twin %s: tick failed", self.axis)
-            with self._lock:
-                self._check_watchdog(self.clock.now())
+            next_t = max(next_t + self._tick_s, started)
 
     def _tick(self, t_stepped: float | None = None, gate_s: float | None = None) -> None:
         node = self._node
@@ -985,8 +990,6 @@ class DriveTwin:
             self._update_motion_bits(t, w)
             if self._after_standstill is not None and self._standing_still():
                 self._state, self._after_standstill = self._after_standstill, None
-            if t_stepped is None:
-                self._check_watchdog(t)
             if node.nmt.state != "OPERATIONAL":
                 return
             now = gate_s if gate_s is not None else \
@@ -1065,37 +1068,50 @@ class DriveTwin:
         producer, time_ms = (entry >> 16) & 0xFF, entry & 0xFFFF
         if network is not None and old and old != producer:
             network.unsubscribe(COB_HEARTBEAT + old, self._on_controller_heartbeat)
-        self._hb_producer = producer if time_ms else 0
-        self._hb_time_s = time_ms / 1000.0
-        self._hb_last = None  # CiA 301: monitoring starts with the next heartbeat received
+        with self._hb_lock:
+            self._hb_producer = producer if time_ms else 0
+            self._hb_time_s = time_ms / 1000.0
+            self._hb_last = None  # CiA 301: monitoring starts with the next heartbeat received
         if self._hb_producer and network is not None:
             network.subscribe(COB_HEARTBEAT + producer, self._on_controller_heartbeat)
 
     def _on_controller_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        with self._lock:
+        with self._hb_lock:
             self._hb_last = time.monotonic()
+
+    def _forgive_lateness(self, due_real_s: float) -> None:
+        """This thread looks at the watchdog `STARVED_TICKS` periods or more after it was
+        due: the host did not run it, or it (or its previous tick) waited that long for a
+        lock another thread of this process held (the twin's, the stand's; a loaded
+        machine). Either is the twin's own starvation, not the controller's silence: a
+        real drive's heartbeat consumer has a timer and a processor of its own."""
+        late = time.monotonic() - due_real_s
+        if late > STARVED_TICKS * self._tick_s:
+            self._was_starved(late)
 
     def _was_starved(self, late_s: float) -> None:
         """A real drive has a processor of its own; the twin shares the host's with the
         controller. The time the twin itself was not run (a loaded host) is not counted
         as the controller's silence: the controller's heartbeats of that while may still
         sit in the bus queue."""
-        with self._lock:
+        with self._hb_lock:
             if self._hb_last is not None:
                 self._hb_last = min(self._hb_last + late_s, time.monotonic())
 
     def _check_watchdog(self, t: float) -> None:
-        if not self._hb_producer or self._hb_last is None:
-            return
-        now = time.monotonic()
-        if now - self._hb_last <= self._hb_time_s:
-            return
+        """Called with the motion lock held, right after `_was_starved` has forgiven the
+        twin's own lateness (the thread's wake-up and the previous tick's wait for a lock
+        alike), so only the controller's silence trips it."""
+        with self._hb_lock:
+            last = self._hb_last
+            now = time.monotonic()
+            if not self._hb_producer or last is None or now - last <= self._hb_time_s:
+                return
+            self._hb_last = None  # re-armed by the next heartbeat
         reaction = AbortReaction(self._get(Od.ABORT_CONNECTION_OPTION))
-        self.watchdog_trips.append(WatchdogTrip(self._hb_last, now, t, self._hb_time_s,
-                                                reaction))
+        self.watchdog_trips.append(WatchdogTrip(last, now, t, self._hb_time_s, reaction))
         log.warning("drive twin %s: no heartbeat from node %d for %.3f s: %s", self.axis,
-                    self._hb_producer, now - self._hb_last, reaction.name)
-        self._hb_last = None  # re-armed by the next heartbeat
+                    self._hb_producer, now - last, reaction.name)
         self._abort_connection("heartbeat lost")
 
     def _abort_connection(self, why: str, emcy: bool = True) -> None:

@@ -143,3 +143,41 @@ def test_a_suspended_controller_has_its_table_stopped() -> None:
         os.kill(proc.pid, signal.SIGCONT)
         proc.wait(10)
         twin.stop()
+
+
+@pytest.mark.timeout(60)
+def test_a_twin_held_up_inside_its_own_process_does_not_take_that_for_silence(
+        twins: Twins) -> None:
+    """The stand's lock held for 1.2 s (another twin generating samples on a loaded host)
+    holds the drive twin's tick, while the controller's heartbeats flow on the bus. A real
+    drive receives on a CAN controller of its own, so it must not trip; the twin did (CI
+    beside two busy processes: "no heartbeat from node 126 for 7.563 s" in a run whose
+    controller was sending). The same twin still trips on a real silence, in its time."""
+    clock = VirtualClock(50.0)
+    stand = SimulatedStand(StandTruth(seed=5, axes={"outer": AxisTruth()}), {"outer": 200.0},
+                           clock)
+    twin = twins.drive(stand)
+    ax = Axis("outer", interface="virtual", channel=twin.channel, node_id=2,
+              max_rate_dps=100.0, max_accel_dps2=500.0, clock=clock,
+              heartbeat_ms=50, watchdog_ms=200, feedback_journal_s=0.0)
+    silent = False
+    try:
+        ax.open()
+        ax.set_rate(30.0)
+        ax.wait_settled(0.02, 0.5, 30.0)
+        with stand.axes["outer"].lock:       # six watchdog times
+            time.sleep(1.2)
+        time.sleep(0.3)
+        assert twin.watchdog_trips == [], "the twin's own hold taken for the controller's"
+        assert twin.state is State.OPERATION_ENABLED
+        assert ax.network is not None
+        silent = True
+        ax.network.disconnect()              # the controller goes silent
+        deadline = time.monotonic() + 3.0
+        while not twin.watchdog_trips and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert twin.watchdog_trips, "a silent controller not noticed"
+        assert 0.2 <= twin.watchdog_trips[0].silence_s <= 0.4   # its own 200 ms
+    finally:
+        if not silent:  # a disconnected controller has nothing left to stop with
+            ax.close()
