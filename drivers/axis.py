@@ -82,7 +82,7 @@ from drivers.clock import (
     stepped,
 )
 from drivers.heartbeat import HeartbeatProducer
-from drivers.waits import MIN_REAL_MARGIN_S
+from drivers.waits import MIN_REAL_MARGIN_S, Deadline
 
 log = logging.getLogger(__name__)
 
@@ -640,7 +640,7 @@ class Axis:
         return decode_state(sw)
 
     def _wait_state(self, target: State) -> State:
-        deadline = time.monotonic() + STATE_TIMEOUT_S
+        deadline = Deadline(STATE_TIMEOUT_S)
         t_end = self.clock.now() + STATE_TIMEOUT_S
         while True:
             state = self._read_state()
@@ -652,7 +652,7 @@ class Axis:
                                       f"(it shows {state.label})")
                 self.clock.sleep(max(self._tpdo_period_s, STEPPED_POLL_S))
                 continue
-            if time.monotonic() > deadline:
+            if deadline.expired():
                 raise AxisTimeout(f"axis {self.name}: drive did not reach {target.label} "
                                   f"(it shows {state.label})")
             time.sleep(0.002)
@@ -878,8 +878,9 @@ class Axis:
         if not tolerance_dps > 0 or hold_s < 0 or not timeout_s > 0:
             raise ValueError(f"axis {self.name}: wait_settled needs tolerance_dps > 0, "
                              f"hold_s >= 0 and timeout_s > 0")
-        deadline = time.monotonic() + real_budget_s(self.clock, timeout_s) + REAL_MARGIN_S
+        deadline = Deadline(real_budget_s(self.clock, timeout_s) + REAL_MARGIN_S)
         t_end = self.clock.now() + timeout_s
+        timed_out = False  # co-simulation: on stand time
         with self._lock:
             seq = self._seq
         run: list[Feedback] = []
@@ -907,14 +908,14 @@ class Axis:
                 self._journal("settled", target_dps=target, mean_dps=mean, samples=len(run),
                               hold_s=run[-1].t_s - run[0].t_s, tolerance_dps=tolerance_dps)
                 return mean
-            if time.monotonic() > deadline:
+            if timed_out or deadline.expired():
                 raise AxisTimeout(f"axis {self.name}: the rate did not settle within "
                                   f"{tolerance_dps:g} deg/s of {target:g} deg/s for {hold_s:g} s "
                                   f"in {timeout_s:g} s (last velocity actual: "
                                   f"{'none' if last_v is None else f'{last_v:.6g} deg/s'})")
             if stepped(self.clock):  # co-simulation: the next readings are stand time away
                 if self.clock.now() > t_end:
-                    deadline = 0.0
+                    timed_out = True
                     continue
                 self.clock.sleep(max(self._tpdo_period_s, STEPPED_POLL_S))
                 continue
@@ -1135,14 +1136,14 @@ class Axis:
                 if self.clock.now() <= before:  # paused: nothing moves on stand time
                     with self._lock:
                         self._lock.wait(timeout=0.02)
-        deadline = time.monotonic() + timeout_real_s
+        deadline = Deadline(timeout_real_s)
         while True:
             if check:
                 self.check()
             with self._lock:
                 if done():
                     return
-                if time.monotonic() > deadline:
+                if deadline.expired():
                     raise AxisTimeout(f"axis {self.name}: timed out after {timeout_real_s:.2f} "
                                       f"s (real) waiting for {what}")
                 self._lock.wait(timeout=0.02)

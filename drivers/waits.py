@@ -26,6 +26,40 @@ MIN_REAL_MARGIN_S = 5.0
 MAX_LATE_REAL_S = 60.0
 
 
+#: a poll that comes back this much (real s) after the one before means the host did not
+#: run this thread meanwhile (a loaded machine, a stopped process, a paused VM)
+HOST_STALL_S = 1.0
+
+
+class Deadline:
+    """A real-time limit for a polling wait that does not count time the host did not run
+    the waiting thread.
+
+    While the host does not run this process, nor do the threads that deliver what the
+    wait is for (a CAN notifier, a serial reader, a twin), so the limit moves out by every
+    gap between two polls longer than `HOST_STALL_S`: a starved host slows a wait and
+    does not fail it (CI beside two busy processes: a drive's standstill "timed out after
+    6.55 s" across a 7 s stall of the whole process). On hardware the same holds: the
+    instrument kept its time; we were the ones away. Poll at least every few ms.
+    """
+
+    def __init__(self, seconds: float) -> None:
+        now = time.monotonic()
+        self._end = now + seconds
+        self._last = now
+        #: real seconds of host stalls forgiven so far
+        self.stalled_s = 0.0
+
+    def expired(self) -> bool:
+        now = time.monotonic()
+        gap = now - self._last
+        self._last = now
+        if gap > HOST_STALL_S:
+            self._end += gap
+            self.stalled_s += gap
+        return now > self._end
+
+
 def real_limit_s(clock_s: float, speed: float, margin_s: float = MIN_REAL_MARGIN_S) -> float:
     """Real seconds allowed for a wait of `clock_s` on a clock running `speed` x real time."""
     return max(clock_s, 0.0) / speed + max(margin_s, MIN_REAL_MARGIN_S)
