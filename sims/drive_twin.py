@@ -919,9 +919,7 @@ class DriveTwin:
         while not self._stop.is_set():
             started = time.monotonic()
             try:
-                with self._lock:  # late: a late wake-up, the last tick's or this lock's wait
-                    self._forgive_lateness(next_t)
-                    self._check_watchdog(self.clock.now())
+                self._watch(next_t)
                 self._tick()
             except Exception:  # noqa: BLE001 - a twin must not die silently mid-test
                 log.exception("drive twin %s: tick failed", self.axis)
@@ -965,9 +963,7 @@ class DriveTwin:
         next_t = time.monotonic() + self._tick_s
         while not self._stop.wait(max(0.0, next_t - time.monotonic())):
             started = time.monotonic()
-            with self._lock:  # late: a late wake-up, the last tick's or this lock's wait
-                self._forgive_lateness(next_t)
-                self._check_watchdog(self.clock.now())
+            self._watch(next_t)
             if not self.clock.running:
                 try:
                     self._tick(self.clock.now(), gate_s=time.monotonic())
@@ -1078,6 +1074,14 @@ class DriveTwin:
     def _on_controller_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self._hb_lock:
             self._hb_last = time.monotonic()
+
+    def _watch(self, due_real_s: float) -> None:
+        """One look of the heartbeat watchdog, due at `due_real_s` (monotonic): lateness
+        is measured once the motion lock is held, so a late wake-up, the last tick's and
+        this lock's wait are all forgiven before the controller's silence is judged."""
+        with self._lock:
+            self._forgive_lateness(due_real_s)
+            self._check_watchdog(self.clock.now())
 
     def _forgive_lateness(self, due_real_s: float) -> None:
         """This thread looks at the watchdog `STARVED_TICKS` periods or more after it was
