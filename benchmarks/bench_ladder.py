@@ -27,6 +27,13 @@ system time in the reader, plus the kernel's flush work), and the ladder's 7.6 G
 frames are most of what is left. Keep 8 GB free in the --out folder's file system: `bench
 run` refuses to start without room for the plan's raw data.
 
+On a slower 2-core machine (26 Nov 2026, 2.1 GHz Xeon; the quiet suite 1100-1200 s there
+against 699 s): 187 s wall, user 187 s + system 83 s (144 % of one core), 10 M voluntary
+context switches, 0 frames lost. The stand computed in 16384-sample blocks (its random
+numbers still on the 4096 grid): 164 s, user 168 s + system 69 s. In the bench process the
+interpreter lock is held about half the time (py-spy --gil); the rest is the pty's 4 kB
+reads and writes handing the lock and the cores back and forth, and the analysis worker.
+
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
 the FOG twins' encoding, the drive twins' ticks: split by cProfile), the FOG twins'
