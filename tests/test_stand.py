@@ -7,7 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from sims.stand import AxisChunk, AxisModel, AxisTruth, FogTruth, Harmonic, Mains
+from sims.stand import (
+    RNG_BLOCK_SAMPLES,
+    AxisChunk,
+    AxisModel,
+    AxisTruth,
+    FogTruth,
+    Harmonic,
+    Mains,
+)
 
 
 def _record(ax: AxisModel) -> list[AxisChunk]:
@@ -106,7 +114,7 @@ def test_a_command_mid_block_leaves_what_was_released_and_the_rest_reproducible(
         reversed_ = False
         for t in steps:
             if t >= 7.3 and not reversed_:
-                ax.command_rate(7.3, -50.0, 50.0)   # inside block 1 (4.096 .. 8.192 s)
+                ax.command_rate(7.3, -50.0, 50.0)   # inside block 0 (0 .. 16.384 s)
                 reversed_ = True
             ax.advance_to(float(t))
         ax.advance_to(30.0)
@@ -119,6 +127,35 @@ def test_a_command_mid_block_leaves_what_was_released_and_the_rest_reproducible(
     assert np.array_equal(fine[0], coarse[0])
     assert np.array_equal(fine[1], coarse[1])
     assert fine[2] == coarse[2]
+
+
+def test_the_seeded_numbers_follow_the_random_number_grid_not_the_computation_blocks() -> None:
+    """The stand computes in BLOCK_SAMPLES blocks for speed; its random numbers come from
+    the fixed RNG_BLOCK_SAMPLES grid, so a block size that is a multiple of the grid
+    changes no draw: the same FOG noise bit for bit at rest, and turning the same
+    record up to the fixed point's rounding (hand bound: 1e-9 deg/s, 1e-9 s)."""
+    truth = AxisTruth(harmonics=(Harmonic(1, 8.6e-4, 40.0), Harmonic(2, 1.5e-4, -70.0)),
+                      mains=Mains(50.0, 2e-4), rate_noise_dps=1e-4, turn_jitter_s=27e-9,
+                      fog=FogTruth(scale=1.0003, bias_dps=0.002, noise_dps=0.01))
+
+    def record(block: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        ax = AxisModel(truth, 1000.0, 7, block_samples=block)
+        out = _record(ax)
+        ax.advance_to(20.0)                      # at rest: bias and noise alone
+        ax.command_rate(20.0, 90.0, 45.0)
+        ax.advance_to(70.0)
+        m = ax.zero_marks()
+        return np.concatenate([c.fog_dps for c in out]), m.t_edge_s, m.t_edge_s - m.t_true_s
+
+    small, large = record(RNG_BLOCK_SAMPLES), record(4 * RNG_BLOCK_SAMPLES)
+    rest = slice(0, 20_001)
+    assert np.array_equal(small[0][rest], large[0][rest])
+    np.testing.assert_allclose(large[0], small[0], rtol=0, atol=1e-9)
+    assert small[1].size == large[1].size >= 10
+    np.testing.assert_allclose(large[1], small[1], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(large[2], small[2], rtol=0, atol=1e-15)  # the same jitter draws
+    with pytest.raises(ValueError, match="multiple of 4096"):
+        AxisModel(truth, 1000.0, 7, block_samples=5000)
 
 
 def test_edge_jitter_has_the_stated_spread() -> None:
