@@ -131,11 +131,18 @@ def test_generic_counter_reads_one_true_period_per_read(stand):
         t0 = stand.clock.now()
         periods = counter.acquire_periods(3, PERIOD_S)
         truth = np.diff(truth_edges(stand, t0, np.inf))
-        # each reading is some true turn (1 ns resolution), the turns in order
-        k = [int(np.argmin(np.abs(truth - p))) for p in periods]
+        # each reading is some true turn (1 ns resolution), the turns in order. Periods
+        # differ by the edges' 27 ns jitter only, so two turns can lie within 1 ns of
+        # each other: a reading is matched to the first turn after the previous match
+        # that agrees within the resolution (nearest of all turns picked an earlier
+        # twin of the right one now and then, on a quiet machine too)
         assert len(periods) == 3, periods
-        assert all(abs(truth[i] - p) <= 1e-9 for i, p in zip(k, periods, strict=True))
-        assert k == sorted(set(k))
+        k: list[int] = []
+        for p in periods:
+            later = np.flatnonzero(np.abs(truth - p) <= 1e-9)
+            later = later[later > (k[-1] if k else -1)]
+            assert later.size, (p, truth, k)
+            k.append(int(later[0]))
         assert twin.received.count("READ?") == 3
         with pytest.raises(CounterError, match="cannot timestamp"):
             counter.acquire_edges(3, PERIOD_S)
