@@ -252,8 +252,8 @@ class AxisModel:
     Reproducible whatever asks for samples when: samples are computed in fixed blocks of
     `BLOCK_SAMPLES` on the grid, each from the state at the block's start, with random
     numbers drawn from generators keyed by (seed, axis, stream, index of the
-    `RNG_BLOCK_SAMPLES` block) (a counter-based scheme, numpy SeedSequence spawn keys). Samples are released up to
-    each `advance_to(t)`; a command changes only samples after the last released one,
+    `RNG_BLOCK_SAMPLES` block) (a counter-based scheme, numpy SeedSequence spawn keys).
+    Samples are released up to each `advance_to(t)`; a command changes only samples after the last released one,
     and a block computed before the command is computed again: its released prefix comes
     out bit for bit the same (every step of the computation is causal: cumulative sums
     and pointwise terms), so where the chunk boundaries fall (which twin asked, at which
