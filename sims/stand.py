@@ -388,7 +388,7 @@ class AxisModel:
         w_cmd = self.profile.rate(t)
         turning = w_cmd != 0.0
         noise = np.zeros(n)
-        if self.truth.rate_noise_dps:
+        if self.truth.rate_noise_dps and turning.any():  # at rest no draw is used (grid-keyed)
             noise = self._normals("table", k) * self.truth.rate_noise_dps
             noise[~turning] = 0.0
         dt = 1.0 / self.rate_hz
