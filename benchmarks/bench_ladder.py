@@ -33,6 +33,13 @@ context switches, 0 frames lost. The stand computed in 16384-sample blocks (its 
 numbers still on the 4096 grid): 164 s, user 168 s + system 69 s. In the bench process the
 interpreter lock is held about half the time (py-spy --gil); the rest is the pty's 4 kB
 reads and writes handing the lock and the cores back and forth, and the analysis worker.
+The same machine the next day: 160-177 s (four runs; the interpreter's switch interval
+5 ms instead of 0.5 ms: 164 and 160 s, no change). By thread (CPU s): bench thread 78,
+each FOG reader 51 (user 185 + system 110 ns a frame with one FOG), each FOG twin writer
+15, analysis worker 33, CAN 6; 145 s measuring, 4 s for the last pairs, 12 s writing the
+result and certificate. Half of the 212 M frames are the FOG of the axis not under test,
+recorded at rest and analysed nowhere: the outer axis alone (`--axes outer`) takes 49 s,
+the inner alone 44 s, 93 s together against 160 s for both in one run.
 
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
