@@ -241,6 +241,45 @@ def test_a_failure_while_stopping_is_added_beneath_the_first_cause(
     assert any("COULD NOT BE TOLD TO STOP" in x for x in exit_event["later"])
 
 
+@pytest.mark.timeout(120)
+def test_a_ctrl_c_landing_inside_a_twins_clock_step_still_stops_the_run(
+        tmp_path: Path) -> None:
+    """On the co-simulation clock the twins act in the thread that waits on the clock:
+    the bench's main thread, where the SIGINT handler raises. A Ctrl-C that lands while
+    the drive twin ticks must still end the run (exit 3, the cause "interrupted by
+    SIGINT"), not be taken for a failed tick by the twin's catch-all and logged away
+    (seen in a loaded suite run: the run completed with exit 0, and a second Ctrl-C only
+    heard "the axes are being stopped first"). The signal is sent from inside the tick,
+    so it lands there on every run, whatever the machine's load."""
+    cfg = load_config(_procedure(tmp_path))
+    run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
+    armed, fired = threading.Event(), threading.Event()
+
+    def hook(sim: Any) -> None:
+        twin = sim.twins["outer.drive"]
+        tick = twin._tick
+
+        def tick_then_ctrl_c(t_s: float) -> None:
+            tick(t_s)
+            if armed.is_set() and not fired.is_set() \
+                    and threading.current_thread() is threading.main_thread():
+                fired.set()
+                os.kill(os.getpid(), signal.SIGINT)
+                for _ in range(1000):  # the handler runs here, inside the twin's step
+                    pass
+
+        twin._tick = tick_then_ctrl_c
+        when_step_starts(run, lambda e: e.get("action") == "settle", armed.set, delay_s=0.0)
+
+    status = run_session(cfg, run, yes=True, on_sim_started=hook)
+    assert fired.is_set(), "no drive tick ran in the main thread after the settle began"
+    exit_event = [e for e in run.events() if e["event"] == "exit"][-1]
+    assert status == EXIT_ABORTED, exit_event
+    assert "interrupted by SIGINT" in (exit_event["cause"] or ""), exit_event
+    result = json.loads((run.path / "result.json").read_text())
+    assert result["verdict"] == "incomplete"
+
+
 def test_torn_journal_tail_resume_starts_on_a_fresh_line(tmp_path: Path) -> None:
     """A crash mid-write leaves half a line: the resume's session_start is not lost."""
     cfg = load_config(_procedure(tmp_path))

@@ -36,7 +36,7 @@ from bench.app.records.hooks import (
 from bench.app.summary import Summary, summarize
 from bench.core.config import Config
 from bench.core.diskspace import expected_raw_bytes, space_problem
-from bench.core.engine import Abort, Engine, RunContext, SignalGuard
+from bench.core.engine import Abort, Engine, Interrupted, RunContext, SignalGuard
 from bench.core.instruments import Bench, StandClaimError, StopErrors, check_references
 from bench.core.journal import RunDir
 from bench.core.plan import Plan, format_duration
@@ -155,7 +155,7 @@ class RunSession:
             except BaseException as e:  # noqa: BLE001 - whatever it is, the stop follows
                 guard.stopping = True
                 self._failed(e)
-                if not isinstance(e, Exception | KeyboardInterrupt):
+                if not isinstance(e, Exception | KeyboardInterrupt | Interrupted):
                     raise  # SystemExit and the like: the finally below still stops
             finally:
                 guard.stopping = True

@@ -34,7 +34,15 @@ class Abort(Exception):
     """The operator (Ctrl-C, SIGTERM) or a fault ended the run."""
 
 
-class Interrupted(Abort):
+class Interrupted(BaseException):
+    """The operator's Ctrl-C or a SIGTERM, raised in the main thread wherever it is.
+
+    A BaseException, as KeyboardInterrupt is, so that no `except Exception` the main
+    thread runs through swallows it: on the co-simulation clock that includes the twins'
+    steps (a drive twin's tick logs and survives its own failures), where a Ctrl-C was
+    once logged as a failed tick and the run went on to exit 0. The engine turns it into
+    an Abort with the same message once the axes are stopped."""
+
     def __init__(self, signame: str) -> None:
         super().__init__(f"interrupted by {signame}")
         self.signame = signame
