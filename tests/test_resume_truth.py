@@ -39,12 +39,18 @@ HARD_LEVEL = 1.0 - 2.0 * norm.sf(2.0 * HARD_LIMIT_U)
 
 
 def _demo(tmp_path: Path) -> Path:
-    """The demo at a fixed clock speed, so that a step lasts long enough to be cut."""
-    stand = yaml.safe_load(STAND.read_text())
-    stand["sim"]["clock_speed"] = 40
-    (tmp_path / "stand.yaml").write_text(yaml.safe_dump(stand))
+    """The demo on its own stand, the co-simulation clock (`clock_speed: max`).
+
+    It ran on the paced clock at 40x until issue 27, so that a step lasted long enough
+    to be cut. Beside two busy processes that clock slowed itself to the twins' pace, the
+    FOG driver's real-time wrap check (drivers/fog.py `_watch_clock`, armed only when
+    half a counter wrap lasts 20 ms of real time) armed, and the starved reader's jitter
+    set it off: the resumed run aborted on 'indices uncertain'. That is real-time
+    behaviour, tests/test_fog_driver.py's subject, not this test's. On the co-simulation
+    the cut still lands in the phase's step or the one after (the demo's co-simulation
+    runs about as fast as 40x), and every figure depends on the cut's moment alone."""
     proc = yaml.safe_load(DEMO.read_text())
-    proc["stand"] = str(tmp_path / "stand.yaml")
+    proc["stand"] = str(STAND)
     proc["static_record_s"] = 10
     (tmp_path / "demo.yaml").write_text(yaml.safe_dump(proc))
     return tmp_path / "demo.yaml"
@@ -111,19 +117,24 @@ def _interrupted_then_resumed(proc: Path, out: Path,
     p = subprocess.Popen([sys.executable, "-m", "bench", "run", str(proc), "--yes",
                           "--out", str(out)], cwd=ROOT, text=True,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    run_dir = None
-    deadline = time.monotonic() + cut_within_s
-    while time.monotonic() < deadline and p.poll() is None:
-        logs = list(out.glob("*/events.jsonl")) if out.exists() else []
-        if logs:
-            run_dir = logs[0].parent
-            if when(_events(run_dir)):
-                break
-        time.sleep(0.01)
-    assert run_dir is not None and p.poll() is None, "the run ended before the cut"
-    assert when(_events(run_dir)), f"the cut's moment not reached within {cut_within_s} s"
-    p.send_signal(signal.SIGINT)
-    o, e = p.communicate(timeout=max(120, cut_within_s / 2))
+    try:
+        run_dir = None
+        deadline = time.monotonic() + cut_within_s
+        while time.monotonic() < deadline and p.poll() is None:
+            logs = list(out.glob("*/events.jsonl")) if out.exists() else []
+            if logs:
+                run_dir = logs[0].parent
+                if when(_events(run_dir)):
+                    break
+            time.sleep(0.01)
+        assert run_dir is not None and p.poll() is None, "the run ended before the cut"
+        assert when(_events(run_dir)), f"the cut's moment not reached within {cut_within_s} s"
+        p.send_signal(signal.SIGINT)
+        o, e = p.communicate(timeout=max(120, cut_within_s / 2))
+    except BaseException:
+        p.kill()                          # a failed test leaves no run behind
+        o, e = p.communicate()
+        raise
     assert p.returncode == 3, o + e
     r = subprocess.run([sys.executable, "-m", "bench", "run", "--resume", str(run_dir),
                         "--yes"], cwd=ROOT, text=True, capture_output=True, timeout=600)
