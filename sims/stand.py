@@ -221,6 +221,13 @@ class ZeroMarks:
 ChunkListener = Callable[[AxisChunk], None]
 
 _FIXED_POINT_PASSES = 3
+#: a fixed-point pass after the first moves phi by a small angle delta (the harmonics'
+#: and the bias's integral, ~ amplitude_rel rad): its cos and sin come from the first
+#: pass's by rotation, with delta's series to delta^5 (error < delta^6 / 720, 1.4e-15 at
+#: this bound; times amplitude_rel in the rate). A larger move is evaluated afresh.
+_ROTATE_MAX_RAD = 1.0e-2
+#: grid tables of cos/sin(j * step) kept per axis (one per rate the axis turned at lately)
+_GRID_TABLES = 4
 #: the stand's random-number grid: the draws for samples g*RNG_BLOCK_SAMPLES onward come
 #: from a generator keyed by (seed, axis, stream, g). Changing it changes every seeded number.
 RNG_BLOCK_SAMPLES = 4096
@@ -286,6 +293,12 @@ class AxisModel:
         self._marks_edge: list[np.ndarray] = []
         self._marks_sense: list[np.ndarray] = []
         self.lock = threading.RLock()
+        # the harmonics as (order, amplitude_rel, cos phase, sin phase), and the highest
+        # order: every order's cos/sin of phi comes from phi's by the complex recurrence
+        self._harm = [(h.order, h.amplitude_rel, math.cos(math.radians(h.phase_deg)),
+                       math.sin(math.radians(h.phase_deg))) for h in truth.harmonics
+                      if h.amplitude_rel]
+        self._grid_tables: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
     # -- time and state -------------------------------------------------------------
     @property
@@ -363,22 +376,64 @@ class AxisModel:
         return np.concatenate([self._rng(stream, g0 + j).standard_normal(per)
                                for j in range(self.block_samples // per)])
 
-    def _tone(self, t_s: np.ndarray, w_cmd: np.ndarray) -> np.ndarray | None:
-        """The mains tone in time while the axis turns (None: no tone): the same for every
-        pass of the fixed point, so computed once a block."""
-        m = self.truth.mains
-        if m and m.amplitude_dps:
-            tone = m.amplitude_dps * np.cos(2 * np.pi * m.frequency_hz * t_s
-                                            + math.radians(m.phase_deg))
-            return np.where(w_cmd != 0.0, tone, 0.0)
-        return None
+    def _grid_table(self, step_rad: float) -> tuple[np.ndarray, np.ndarray]:
+        """cos and sin of j * step_rad for j in [0, block_samples): an angle growing by a
+        fixed step on the sample grid (a tone in time, a constant rate) is then
+        cos(a0 + j step) = cos a0 cos(j step) - sin a0 sin(j step), two of numpy's
+        transcendental calls (19 ns a sample each here) a block instead of a sample."""
+        table = self._grid_tables.get(step_rad)
+        if table is None:
+            j_step = np.arange(self.block_samples) * step_rad
+            table = (np.cos(j_step), np.sin(j_step))
+            if len(self._grid_tables) >= _GRID_TABLES:
+                self._grid_tables.pop(next(iter(self._grid_tables)))
+            self._grid_tables[step_rad] = table
+        return table
 
-    def _rate(self, tone: np.ndarray | None, w_cmd: np.ndarray, phi_deg: np.ndarray,
-              noise_dps: np.ndarray) -> np.ndarray:
-        w = w_cmd * (1.0 + self.truth.shape_rel(phi_deg))
-        if tone is not None:
-            w += tone
-        return w + noise_dps
+    def _tone(self, n0: int, w_cmd: np.ndarray) -> np.ndarray | None:
+        """The mains tone in time while the axis turns (None: no tone), CONTRACT §2:
+        amplitude * cos(2 pi f t + phase) at t = n / rate_hz. The same for every pass of
+        the fixed point, so computed once a block. The block's phase is taken from the
+        integer sample index (2 pi f t itself loses 1e-9 rad to rounding after a day)."""
+        m = self.truth.mains
+        if not (m and m.amplitude_dps):
+            return None
+        cycles = m.frequency_hz / self.rate_hz              # tone cycles per sample
+        a0 = 2 * math.pi * math.fmod(n0 * cycles, 1.0) + math.radians(m.phase_deg)
+        c, s = self._grid_table(2 * math.pi * cycles)
+        tone = m.amplitude_dps * (math.cos(a0) * c - math.sin(a0) * s)
+        return np.where(w_cmd != 0.0, tone, 0.0)
+
+    def _shape(self, cos_phi: np.ndarray, sin_phi: np.ndarray) -> np.ndarray:
+        """`AxisTruth.shape_rel` from cos and sin of phi (CONTRACT §2: rate bias plus
+        sum a_n cos(n phi + p_n)); cos/sin(n phi) by (c + i s)^n, a multiply a term."""
+        out = np.full(cos_phi.shape, self.truth.rate_bias_rel)
+        if not self._harm:
+            return out
+        top = max(order for order, *_ in self._harm)
+        cn, sn = cos_phi, sin_phi
+        for n in range(1, top + 1):
+            for order, a, cp, sp in self._harm:
+                if order == n:
+                    out += a * (cn * cp - sn * sp)     # a cos(n phi + p)
+            if n < top:
+                cn, sn = cn * cos_phi - sn * sin_phi, sn * cos_phi + cn * sin_phi
+        return out
+
+    def _first_angle(self, phi_last: float, w_cmd: np.ndarray, dt: float
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The fixed point's first guess (harmonics ignored), radians, with its cos and
+        sin: at a constant rate (most blocks) from the grid table of its step."""
+        w0 = float(w_cmd[0])
+        if (w_cmd == w0).all():
+            step = math.radians(w0 * dt)
+            a0 = math.radians(phi_last) + step
+            theta = a0 + np.arange(w_cmd.size) * step
+            c, s = self._grid_table(step)
+            return theta, math.cos(a0) * c - math.sin(a0) * s, \
+                math.sin(a0) * c + math.cos(a0) * s
+        theta = np.radians(phi_last + np.cumsum(w_cmd) * dt)
+        return theta, np.cos(theta), np.sin(theta)
 
     def _generate(self, k: int, phi_last: float, w_last: float) -> _Block:
         n = self.block_samples
@@ -398,12 +453,29 @@ class AxisModel:
             w = np.zeros(n)
             phi = np.full(n, phi_last)
         else:
-            # fixed point of phi = phi_last + cumtrapz(w(phi, t)); the first guess
-            # ignores harmonics
-            phi = phi_last + np.cumsum(w_cmd) * dt
-            tone = self._tone(t, w_cmd)
-            for _ in range(_FIXED_POINT_PASSES):
-                w = self._rate(tone, w_cmd, phi, noise)
+            # fixed point of phi = phi_last + cumtrapz(w(phi, t)), w = w_cmd (1 + shape)
+            # + tone + noise (CONTRACT §2); the first guess ignores harmonics. Each pass
+            # after the first moves phi by a small delta: cos/sin of phi by rotating the
+            # first pass's through delta (series to delta^5), unless delta is large
+            theta, cos_phi, sin_phi = self._first_angle(phi_last, w_cmd, dt)
+            tone = self._tone(n0, w_cmd)
+            for p in range(_FIXED_POINT_PASSES):
+                if p:
+                    moved = np.radians(phi)
+                    delta = moved - theta
+                    if np.abs(delta).max() <= _ROTATE_MAX_RAD:
+                        d2 = delta * delta
+                        cos_d = 1.0 - d2 * (0.5 - d2 / 24.0)
+                        sin_d = delta * (1.0 - d2 * (1.0 / 6.0 - d2 / 120.0))
+                        cos_phi, sin_phi = (cos_phi * cos_d - sin_phi * sin_d,
+                                            sin_phi * cos_d + cos_phi * sin_d)
+                    else:
+                        cos_phi, sin_phi = np.cos(moved), np.sin(moved)
+                    theta = moved
+                w = w_cmd * (1.0 + self._shape(cos_phi, sin_phi))
+                if tone is not None:
+                    w += tone
+                w += noise
                 prev = np.concatenate(([w_last], w[:-1]))
                 phi = phi_last + np.cumsum(0.5 * (prev + w)) * dt
             if n0 == 0:  # the first sample is the origin, not a step from it
