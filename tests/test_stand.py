@@ -180,3 +180,53 @@ def test_a_reversal_slows_with_the_deceleration_then_speeds_up_with_the_accelera
     assert w[2500] == pytest.approx(0.0, abs=1e-9)
     assert w[3500] == pytest.approx(-50.0)
     assert w[4500] == pytest.approx(-100.0)
+
+
+def _fixed_point_directly(truth: AxisTruth, t_s: np.ndarray, w_cmd: np.ndarray,
+                          block: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """The stand's solve of phi = phi_last + cumtrapz(w(phi, t)), block by block, with
+    every cos taken directly (numpy's cos of the angle and of 2 pi f t): 3 passes from
+    the first guess that ignores harmonics, as sims/stand.py documents."""
+    m = truth.mains
+    assert m is not None
+    tone_all = np.where(w_cmd != 0.0, m.amplitude_dps * np.cos(
+        2 * np.pi * m.frequency_hz * t_s + math.radians(m.phase_deg)), 0.0)
+    w_out, phi_out = np.empty_like(t_s), np.empty_like(t_s)
+    phi_last = w_last = 0.0
+    for b0 in range(0, t_s.size, block):
+        sl = slice(b0, b0 + block)
+        wc, tone = w_cmd[sl], tone_all[sl]
+        phi = phi_last + np.cumsum(wc) * dt
+        for _ in range(3):
+            w = wc * (1.0 + truth.shape_rel(phi)) + tone
+            phi = phi_last + np.cumsum(0.5 * (np.concatenate(([w_last], w[:-1])) + w)) * dt
+        if b0 == 0:
+            phi -= 0.5 * (w_last + w[0]) * dt
+        w_out[sl], phi_out[sl] = w, phi
+        phi_last, w_last = float(phi[-1]), float(w[-1])
+    return w_out, phi_out
+
+
+@pytest.mark.parametrize("amplitude_rel", [8.6e-4, 2.0e-2])
+def test_the_rate_is_the_truths_at_the_angle_the_stand_reports(amplitude_rel: float) -> None:
+    """w = w_cmd (1 + shape_rel(phi)) + tone(t) (CONTRACT §2), solved for phi on the
+    grid: the stand's shortcuts (cos/sin of n phi by recurrence, later passes by
+    rotation through the small angle they moved, the tone and a constant rate's first
+    guess from grid tables; issue 27) give the direct evaluation's numbers. 8.6e-4
+    moves phi ~1e-3 rad a pass (rotated); 2e-2 more than 1e-2 rad (evaluated afresh).
+    Ramps and a reversal included."""
+    mains = Mains(50.0, 2.0e-3, 30.0)
+    truth = AxisTruth(rate_bias_rel=3e-7, mains=mains, harmonics=(
+        Harmonic(1, amplitude_rel, 40.0), Harmonic(2, amplitude_rel / 5, -70.0),
+        Harmonic(5, amplitude_rel / 10, 10.0)))
+    ax = AxisModel(truth, rate_hz=1000.0, seed=3)
+    chunks = _record(ax)
+    ax.command_rate(1.0, 400.0, 100.0)
+    ax.command_rate(60.0, -90.0, 50.0)
+    ax.advance_to(100.0)
+    c = {f: np.concatenate([getattr(x, f) for x in chunks])
+         for f in ("t_s", "rate_cmd_dps", "w_true_dps", "phi_deg")}
+    w, phi = _fixed_point_directly(truth, c["t_s"], c["rate_cmd_dps"], ax.block_samples,
+                                   1.0 / ax.rate_hz)
+    np.testing.assert_allclose(c["w_true_dps"], w, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(c["phi_deg"], phi, rtol=1e-14, atol=1e-9)
