@@ -241,18 +241,28 @@ def test_a_failure_while_stopping_is_added_beneath_the_first_cause(
     assert any("COULD NOT BE TOLD TO STOP" in x for x in exit_event["later"])
 
 
-@pytest.mark.timeout(120)
-def test_a_ctrl_c_landing_inside_a_twins_clock_step_still_stops_the_run(
-        tmp_path: Path) -> None:
-    """On the co-simulation clock the twins act in the thread that waits on the clock:
-    the bench's main thread, where the SIGINT handler raises. A Ctrl-C that lands while
-    the drive twin ticks must still end the run (exit 3, the cause "interrupted by
-    SIGINT"), not be taken for a failed tick by the twin's catch-all and logged away
-    (seen in a loaded suite run: the run completed with exit 0, and a second Ctrl-C only
-    heard "the axes are being stopped first"). The signal is sent from inside the tick,
-    so it lands there on every run, whatever the machine's load."""
-    cfg = load_config(_procedure(tmp_path))
-    run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
+class _CtrlCOnCollect:
+    """Sends SIGINT from its finaliser: the handler runs, and raises, inside `__del__`,
+    where Python reports the exception as unraisable and goes on. Where a real Ctrl-C
+    lands is chance; this makes it land in such a place on every run (a loaded suite run
+    saw one land in SQLAlchemy's weakref callback while the certificate was written)."""
+
+    def __del__(self) -> None:
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(1000):  # the handler runs here
+            pass
+
+
+def _lose_a_ctrl_c() -> None:
+    _CtrlCOnCollect()          # collected at once: its finaliser runs in this thread
+
+
+def _in_a_drive_tick_once_settling(run: RunDir, act: Callable[[], None]
+                                   ) -> tuple[Callable[[Any], None], threading.Event,
+                                              dict[str, Any]]:
+    """A session hook that runs `act` once, inside the drive twin's tick in the main
+    thread (the co-simulation steps the twins there), once the settle step has begun;
+    and the event set when it ran, and what the hook saw (the simulated bench)."""
     armed, fired = threading.Event(), threading.Event()
     seen: dict[str, Any] = {}
 
@@ -261,18 +271,46 @@ def test_a_ctrl_c_landing_inside_a_twins_clock_step_still_stops_the_run(
         twin = sim.twins["outer.drive"]
         tick = twin._tick
 
-        def tick_then_ctrl_c(t_s: float) -> None:
+        def tick_then_act(t_s: float) -> None:
             tick(t_s)
             if armed.is_set() and not fired.is_set() \
                     and threading.current_thread() is threading.main_thread():
                 fired.set()
-                os.kill(os.getpid(), signal.SIGINT)
-                for _ in range(1000):  # the handler runs here, inside the twin's step
-                    pass
+                act()
 
-        twin._tick = tick_then_ctrl_c
+        twin._tick = tick_then_act
         when_step_starts(run, lambda e: e.get("action") == "settle", armed.set, delay_s=0.0)
 
+    return hook, fired, seen
+
+
+def _ctrl_c() -> None:
+    os.kill(os.getpid(), signal.SIGINT)
+    for _ in range(1000):  # the handler runs here, inside the twin's step
+        pass
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+@pytest.mark.parametrize("lost", [False, True], ids=["raised", "lost-in-a-finaliser"])
+def test_a_ctrl_c_landing_inside_a_twins_clock_step_still_stops_the_run(
+        lost: bool, tmp_path: Path) -> None:
+    """On the co-simulation clock the twins act in the thread that waits on the clock:
+    the bench's main thread, where the SIGINT handler raises. A Ctrl-C that lands while
+    the drive twin ticks must still end the run (exit 3, the cause "interrupted by
+    SIGINT"), not be taken for a failed tick by the twin's catch-all and logged away
+    (seen in a loaded suite run: the run completed with exit 0, and a second Ctrl-C only
+    heard "the axes are being stopped first"). The signal is sent from inside the tick,
+    so it lands there on every run, whatever the machine's load.
+
+    `lost`: the handler's exception lost where it landed (a finaliser run by the tick,
+    see `_CtrlCOnCollect`) is raised again at the next step boundary (SignalGuard.check):
+    the run stops there, the same way, instead of exiting 0."""
+    cfg = load_config(_procedure(tmp_path))
+    run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
+
+    hook, fired, seen = _in_a_drive_tick_once_settling(run, _lose_a_ctrl_c if lost
+                                                       else _ctrl_c)
     status = run_session(cfg, run, yes=True, on_sim_started=hook)
     assert fired.is_set(), "no drive tick ran in the main thread after the settle began"
     exit_event = [e for e in run.events() if e["event"] == "exit"][-1]
@@ -352,6 +390,36 @@ def test_ctrl_c_while_the_outputs_are_written_is_honoured(
     assert "being stopped first" not in err
     last = run.events()[-1]
     assert last["event"] == "exit" and last["status"] == EXIT_ABORTED
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_a_ctrl_c_lost_in_a_finaliser_while_writing_still_ends_the_run(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The writing's Ctrl-C lost where it landed is raised again once the outputs are
+    written (SignalGuard.check): exit 3 and the way back, not exit 0."""
+    from bench.app import session
+
+    cfg = load_config(_procedure(tmp_path))
+    run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
+    write_dcc = session.write_run_dcc
+    lost = threading.Event()
+
+    def lose_then_write(*args: Any, **kwargs: Any) -> bool:
+        lost.set()
+        _lose_a_ctrl_c()
+        return write_dcc(*args, **kwargs)
+
+    monkeypatch.setattr(session, "write_run_dcc", lose_then_write)
+    status = run_session(cfg, run, yes=True)
+    assert lost.is_set()
+    err = capsys.readouterr().err
+    assert status == EXIT_ABORTED, err
+    assert f"bench analyze {run.path}" in err, err
+    last = run.events()[-1]
+    assert last["event"] == "exit" and last["status"] == EXIT_ABORTED, last
+    assert last["cause"] == "interrupted while writing the outputs", last
 
 
 def _fill(folder: Path) -> None:

@@ -146,14 +146,17 @@ class RunSession:
         with SignalGuard(self.progress.line) as guard:
             try:
                 self._measure(guard, todo, done, table_overdue, out_of_control)
+                guard.check()             # a signal lost where it landed (SignalGuard)
                 self.status = EXIT_PASS
             except StandClaimError as e:  # raised while opening: no axis commanded yet
                 guard.stopping = True
+                guard.received()
                 err(f"Refused: {self.cfg.stand_path}: {e}")
                 self.later += self._journal("refused", reason=str(e))
                 self.status = EXIT_INVALID
             except BaseException as e:  # noqa: BLE001 - whatever it is, the stop follows
                 guard.stopping = True
+                guard.received()
                 self._failed(e)
                 if not isinstance(e, Exception | KeyboardInterrupt | Interrupted):
                     raise  # SystemExit and the like: the finally below still stops
@@ -288,7 +291,9 @@ class RunSession:
         try:
             if self.status != EXIT_INVALID:
                 result, doc = write_outputs(run, self.cfg, progress, self.where)
-        except KeyboardInterrupt as e:
+            guard.check()                 # a Ctrl-C lost where it landed (SignalGuard)
+        except (KeyboardInterrupt, Interrupted) as e:  # the latter: a second signal
+            guard.received()
             progress.warn(f"{e or 'interrupted'}: the axes were already stopped; result.json "
                           f"and the certificate may be missing or from an earlier session: "
                           f"`bench analyze {run.path}` writes them from the raw data")

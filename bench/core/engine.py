@@ -57,7 +57,17 @@ class StoppableBench(Protocol):
 
 
 class SignalGuard:
-    """SIGINT/SIGTERM become `Interrupted` in the main thread, except while stopping."""
+    """SIGINT/SIGTERM become `Interrupted` in the main thread, except while stopping.
+
+    A handler's exception is raised wherever the main thread happens to be, and where that
+    is a garbage-collection callback or a `__del__`, Python prints "Exception ignored" and
+    goes on: a loaded suite run saw a Ctrl-C during the certificate's writing land in
+    SQLAlchemy's weakref callback, and the run exited 0 with every output written. So the
+    exception is also kept as `pending` until the run receives it (`received`), and
+    `check` raises it again where the run can take it: the engine's step boundaries, the
+    end of the measurement, the end of the writing. A signal that comes while one is still
+    pending raises again, instead of "the axes are being stopped first".
+    """
 
     def __init__(self, log: Callable[[str], None]) -> None:
         self.stopping = False
@@ -65,6 +75,8 @@ class SignalGuard:
         #: writing (KeyboardInterrupt), since nothing is left to protect but derived files
         self.writing = False
         self.count = 0
+        #: the exception of a signal the run has not yet received (see the class's note)
+        self.pending: Interrupted | KeyboardInterrupt | None = None
         self._log = log
         self._old: dict[int, Any] = {}
 
@@ -73,12 +85,26 @@ class SignalGuard:
         name = signal.Signals(signum).name
         if self.writing:
             self.writing = False
+            self.pending = KeyboardInterrupt(name)
             raise KeyboardInterrupt(name)
-        if self.stopping:
+        if self.stopping and self.pending is None:
             self._log(f"{name} received: the axes are being stopped first; please wait")
             return
         self.stopping = True
+        self.pending = Interrupted(name)
         raise Interrupted(name)
+
+    def received(self) -> None:
+        """The run has taken the signal's exception (or is stopping for another cause)."""
+        self.pending = None
+
+    def check(self) -> None:
+        """Raise a signal's exception again if it was lost where it landed."""
+        lost, self.pending = self.pending, None
+        if isinstance(lost, Interrupted):
+            raise Interrupted(lost.signame)
+        if lost is not None:
+            raise KeyboardInterrupt(*lost.args)
 
     def __enter__(self) -> SignalGuard:
         if threading.current_thread() is threading.main_thread():
@@ -253,6 +279,7 @@ class Engine:
         ctx.progress.begin(steps, ctx.clock.now, ctx.worker.backlog_s)
         try:
             for i, step in enumerate(steps):
+                guard.check()
                 ctx.eta_s = functools.partial(remaining.__getitem__, i)
                 ctx.progress.step(i)
                 ctx.run.event("step_start", index=i, action=step.action, axis=step.axis,
@@ -265,9 +292,11 @@ class Engine:
             # the last pair's first look, before "completed"
             for problem in ctx.worker.close(wait=True):
                 ctx.progress.warn(f"WARNING: {problem}")
+            guard.check()
             ctx.progress.end()
         except BaseException as exc:  # noqa: BLE001 - every failure must stop the table
             guard.stopping = True
+            guard.received()
             ctx.progress.end()
             reason = str(exc) or type(exc).__name__
             ctx.progress.warn(f"ABORT: {reason}")
