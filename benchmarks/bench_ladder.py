@@ -40,6 +40,13 @@ each FOG reader 51 (user 185 + system 110 ns a frame with one FOG), each FOG twi
 result and certificate. Half of the 212 M frames are the FOG of the axis not under test,
 recorded at rest and analysed nowhere: the outer axis alone (`--axes outer`) takes 49 s,
 the inner alone 44 s, 93 s together against 160 s for both in one run.
+With the stand's cos calls cut (recurrence and rotation, d824d01): 170 s, 387 MB, 0 lost;
+system-wide (/proc/stat) user 147 + nice 26 (the worker) + system 80 core-s, idle 73 of
+340 (22 %); the outer 0.1 deg/s pair alone 53 s with 32 % idle and the interpreter lock
+held ~40 % of the time (py-spy --gil): bound by the hand-offs between threads, not by
+one resource. The serial tail is ~16 s: the last pair's first look (~4 s) and the
+certificate (its matplotlib PNGs ~0.5 s a figure, 40 % of that constrained layout;
+fpdf's table cells ~2 s).
 
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
