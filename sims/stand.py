@@ -298,6 +298,7 @@ class AxisModel:
         self._harm = [(h.order, h.amplitude_rel, math.cos(math.radians(h.phase_deg)),
                        math.sin(math.radians(h.phase_deg))) for h in truth.harmonics
                       if h.amplitude_rel]
+        self._harm_top = max((order for order, *_ in self._harm), default=0)
         self._grid_tables: dict[float, tuple[np.ndarray, np.ndarray]] = {}
 
     # -- time and state -------------------------------------------------------------
@@ -390,6 +391,12 @@ class AxisModel:
             self._grid_tables[step_rad] = table
         return table
 
+    def _on_grid(self, a0_rad: float, step_rad: float) -> tuple[np.ndarray, np.ndarray]:
+        """cos and sin of a0 + j * step over the block, by rotating the grid table."""
+        c, s = self._grid_table(step_rad)
+        ca, sa = math.cos(a0_rad), math.sin(a0_rad)
+        return ca * c - sa * s, sa * c + ca * s
+
     def _tone(self, n0: int, w_cmd: np.ndarray) -> np.ndarray | None:
         """The mains tone in time while the axis turns (None: no tone), CONTRACT §2:
         amplitude * cos(2 pi f t + phase) at t = n / rate_hz. The same for every pass of
@@ -400,17 +407,14 @@ class AxisModel:
             return None
         cycles = m.frequency_hz / self.rate_hz              # tone cycles per sample
         a0 = 2 * math.pi * math.fmod(n0 * cycles, 1.0) + math.radians(m.phase_deg)
-        c, s = self._grid_table(2 * math.pi * cycles)
-        tone = m.amplitude_dps * (math.cos(a0) * c - math.sin(a0) * s)
+        tone = m.amplitude_dps * self._on_grid(a0, 2 * math.pi * cycles)[0]
         return np.where(w_cmd != 0.0, tone, 0.0)
 
     def _shape(self, cos_phi: np.ndarray, sin_phi: np.ndarray) -> np.ndarray:
         """`AxisTruth.shape_rel` from cos and sin of phi (CONTRACT §2: rate bias plus
         sum a_n cos(n phi + p_n)); cos/sin(n phi) by (c + i s)^n, a multiply a term."""
         out = np.full(cos_phi.shape, self.truth.rate_bias_rel)
-        if not self._harm:
-            return out
-        top = max(order for order, *_ in self._harm)
+        top = self._harm_top
         cn, sn = cos_phi, sin_phi
         for n in range(1, top + 1):
             for order, a, cp, sp in self._harm:
@@ -428,10 +432,7 @@ class AxisModel:
         if (w_cmd == w0).all():
             step = math.radians(w0 * dt)
             a0 = math.radians(phi_last) + step
-            theta = a0 + np.arange(w_cmd.size) * step
-            c, s = self._grid_table(step)
-            return theta, math.cos(a0) * c - math.sin(a0) * s, \
-                math.sin(a0) * c + math.cos(a0) * s
+            return (a0 + np.arange(w_cmd.size) * step, *self._on_grid(a0, step))
         theta = np.radians(phi_last + np.cumsum(w_cmd) * dt)
         return theta, np.cos(theta), np.sin(theta)
 
