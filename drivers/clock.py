@@ -84,6 +84,14 @@ def consumed(clock: Clock, name: str, n: int) -> None:
         hook(name, n)
 
 
+def in_flight(clock: Clock, name: str) -> int:
+    """Units a stepped clock's twin has sent on channel `name` that its driver has not
+    reported consumed yet (0 on any other clock: a real instrument announces nothing).
+    A driver may wait for them (they are on their way), never count on them."""
+    hook = getattr(clock, "backlog", None)
+    return int(hook(name)) if hook is not None else 0
+
+
 def channel_closed(clock: Clock, name: str) -> None:
     hook = getattr(clock, "channel_closed", None)
     if hook is not None:

@@ -8,13 +8,18 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
+import threading
 import time
+import tty
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
+import serial
 
+import drivers.fog as fog_module
 from bench.app.decode import decode_command
 from drivers.fog import Fog, FogError, FogTimeout, read_capture
 from drivers.fog_formats import StreamDecoder
@@ -268,3 +273,57 @@ def test_kvh_b_over_the_pty(tmp_path: Path) -> None:
         s = fog.samples(0, 500)
     assert np.array_equal(s.rate_dps, twin.truth(0, 500).rate_dps)
     assert not math.isnan(s.rate_dps.sum())
+
+
+@contextlib.contextmanager
+def _pty_port() -> Iterator[tuple[int, serial.Serial]]:
+    """A pty's master (what a twin writes) and its slave as the driver opens it."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    port = serial.Serial(os.ttyname(slave), 921600, timeout=0.05)
+    os.close(slave)
+    try:
+        yield master, port
+    finally:
+        port.close()
+        os.close(master)
+
+
+def _write_later(master: int, data: bytes, after_s: float) -> threading.Thread:
+    def write() -> None:
+        time.sleep(after_s)
+        os.write(master, data)
+    t = threading.Thread(target=write, daemon=True)
+    t.start()
+    return t
+
+
+def test_a_batch_waits_for_the_bytes_a_stepped_twin_has_sent(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a stepped clock the batch holds the whole burst the twin has sent (`coming`),
+    even where the pty runs empty in between; elsewhere it ends at the first empty
+    moment, and a twin that counted bytes it never wrote holds it only for the cap."""
+    piece = bytes(range(256)) * 16                          # 4 kB, one read's worth
+    monkeypatch.setattr(fog_module, "_IN_FLIGHT_REAL_S", 10.0)  # ample on a loaded machine
+    with _pty_port() as (master, port):
+        os.write(master, piece)
+        late = _write_later(master, piece[::-1], after_s=0.2)
+        first = port.read(len(piece))
+        got = Fog._batch(port, first, buf=bytearray(1 << 16), coming=lambda: 2 * len(piece))
+        assert bytes(got) == piece + piece[::-1]            # waited for the late piece
+        late.join()
+
+        os.write(master, piece)
+        late = _write_later(master, piece[::-1], after_s=0.2)
+        alone = Fog._batch(port, port.read(len(piece)), buf=bytearray(1 << 16))
+        assert bytes(alone) == piece                        # no twin says more is coming
+        late.join()
+        assert port.read(len(piece)) == piece[::-1]
+
+        monkeypatch.setattr(fog_module, "_IN_FLIGHT_REAL_S", 0.3)
+        os.write(master, piece)
+        t0 = time.monotonic()
+        short = Fog._batch(port, port.read(len(piece)), buf=bytearray(1 << 16),
+                           coming=lambda: 3 * len(piece))   # more than will ever come
+        assert bytes(short) == piece
+        assert 0.3 <= time.monotonic() - t0 < 5.0
