@@ -14,11 +14,22 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import procedures.rate_ladder.analysis as ladder_analysis
 from bench.analysis import CounterBudget, HalfRecord, analyze_pair
 from bench.analysis.disk import DiskArray
+from bench.core.journal import RunDir
+from bench.core.loader import load_config
 from drivers.fog import CaptureCursor, read_capture
 from drivers.fog_formats import StreamDecoder, get_format
-from procedures.rate_ladder.analysis import window_on_disk
+from procedures.rate_ladder.analysis import (
+    pair_summary,
+    read_half_ahead,
+    static_record,
+    unit_halves,
+    window_on_disk,
+)
+from procedures.rate_ladder.events import HalfAcquired
+from tests.conftest import DemoRun
 from tests.test_analysis_sim import paper_axis, simulate_pair
 
 RATE_HZ = 1000.0
@@ -89,3 +100,38 @@ def test_a_pair_from_the_capture_in_chunks_equals_the_in_memory_analysis(
         next(late.window(0, 10))
     with pytest.raises(TypeError, match="chunks"):
         np.asarray(f)
+
+
+def test_a_half_read_ahead_gives_the_first_look_made_without_it(
+        demo_run: DemoRun, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The worker reads each half's FOG window as the half completes (read_half_ahead);
+    the pair's first look then reads no window again and says exactly what it says
+    when it reads them all itself. Two copies of the demo run: two worker readers."""
+    plain_dir = demo_run.copy_to(tmp_path / "plain")
+    ahead_dir = demo_run.copy_to(tmp_path / "ahead")
+    cfg = load_config(plain_dir / "procedure.yaml", plain_dir / "stand.yaml")
+    events = RunDir(plain_dir).events()
+    first = HalfAcquired.all_in(events)[0]
+    halves = unit_halves(events, first.unit, first.session)
+    static = static_record(events, first.axis)
+    rate = abs(first.set_rate_dps)
+    try:
+        plain = pair_summary(str(plain_dir), cfg, first.axis, rate, halves, static)
+        for h in halves:
+            read_half_ahead(str(ahead_dir), cfg, h, static)
+        reads: list[Path] = []
+
+        def counted(cursor: CaptureCursor, i_from: int, i_to: int, stem: Path,
+                    span: object = None) -> tuple[DiskArray, DiskArray]:
+            reads.append(stem)
+            return window_on_disk(cursor, i_from, i_to, stem, span)  # type: ignore[arg-type]
+        monkeypatch.setattr(ladder_analysis, "window_on_disk", counted)
+        ahead = pair_summary(str(ahead_dir), cfg, first.axis, rate, halves, static)
+    finally:
+        for d in (plain_dir, ahead_dir):
+            raw = ladder_analysis._WORKER_READERS.pop(str(d), None)
+            if raw is not None:
+                raw.close()
+    assert len(halves) >= 2 and reads == []          # every window was read ahead
+    assert ahead.summary == plain.summary
+    assert ahead.key == plain.key and ahead.temperatures.keys() == plain.temperatures.keys()

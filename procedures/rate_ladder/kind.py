@@ -28,6 +28,7 @@ from procedures.rate_ladder.analysis import (
     FirstLook,
     analyze_run,
     pair_summary,
+    read_half_ahead,
     static_record,
     unit_acquisitions,
     unit_halves,
@@ -263,13 +264,20 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         lost = _fog_losses(fog) - lost0
         # the FOG samples stay in the raw capture: the pair's analysis reads them there;
         # this event completes the half (a --resume keeps it, docs/resume.md)
-        HalfAcquired(step.on_axis, step.in_unit, half=p["half"], set_rate_dps=p["rate_dps"], turns=n,
-                     edges_s=[float(e) for e in edges], counter_records=[rec0, rec1],
-                     fog_from=i_from, fog_to=i_to, rate_hz=fog.rate_hz,
-                     counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
-                     counter_readback=dict(counter.readback), fog_lost=lost,
-                     fog_capture=mark, time_tie=time_tie_record(counter, acq, fog)
-                     ).write(ctx.run)
+        half = HalfAcquired(
+            step.on_axis, step.in_unit, half=p["half"], set_rate_dps=p["rate_dps"], turns=n,
+            edges_s=[float(e) for e in edges], counter_records=[rec0, rec1],
+            fog_from=i_from, fog_to=i_to, rate_hz=fog.rate_hz,
+            counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
+            counter_readback=dict(counter.readback), fog_lost=lost,
+            fog_capture=mark, time_tie=time_tie_record(counter, acq, fog),
+            session=ctx.run.session)
+        half.write(ctx.run)
+        # the worker reads the half's FOG window now, the pair's first look later; a
+        # failure here shows again, and is reported, when the first look reads it
+        ctx.worker.submit(read_half_ahead, str(ctx.run.path), ctx.cfg, half,
+                          static_record(ctx.run.events(), step.on_axis),
+                          on_done=lambda _result, _error: None)
         if lost:
             ctx.progress.warn(f"  WARNING {step.axis}: {lost} FOG frames lost or broken "
                               "during this half (CRC or sequence gaps); the analysis uses "
