@@ -48,6 +48,18 @@ one resource. The serial tail is ~16 s: the last pair's first look (~4 s) and th
 certificate (its matplotlib PNGs ~0.5 s a figure, 40 % of that constrained layout;
 fpdf's table cells ~2 s).
 
+27 Nov 2026, same VM (its speed drifts ~20 % within an hour: compare only runs
+interleaved the same hour). The FOG reader's batches had ended at the pty's first empty
+moment (pyserial's ttys return 0 bytes, not EAGAIN, so the gap wait never ran): mostly
+16-64 kB. On a stepped clock a batch now waits for the bytes the twin has sent
+(drivers.clock.in_flight): 131 s against 167 s, CPU 194 against 247 core-s. With each
+half's FOG window read in the worker as the half completes (the last first look's wait
+~6 s -> 0.5 s) and the twin's encoder 2x faster: 155 and 134 s against 182 and 169.5 s
+for the session's start (ff6f0d9), interleaved; 383-385 MB, 0 lost. Still above 120 s
+here: the stepping thread (the stand's samples, taking the interpreter lock back after
+each numpy operation, and the encoding) sets the pace while measuring, and ~14 s of
+result and certificate writing follow the last pair.
+
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
 the FOG twins' encoding, the drive twins' ticks: split by cProfile), the FOG twins'
