@@ -100,6 +100,30 @@ def bench_bg(*args: str) -> subprocess.Popen[str]:
                             env=_env_without_lab())
 
 
+def wait_for_cut(p: subprocess.Popen[str], out: Path,
+                 when: Callable[[list[dict[str, Any]]], bool], within_s: float) -> Path:
+    """The run directory of `bench run ... --out OUT` (process `p`) once `when(events)`
+    holds, polled every 10 ms; fails if the run ends first or does not get there within
+    `within_s` of real time (the caller kills `p` on failure)."""
+    run_dir = None
+    deadline = time.monotonic() + within_s
+    while time.monotonic() < deadline and p.poll() is None:
+        # the run directory, not records.sqlite beside it (glob order is the disk's)
+        logs = list(out.glob("*/events.jsonl")) if out.exists() else []
+        if logs:
+            run_dir = logs[0].parent
+            if when(_journal(run_dir)):
+                break
+        time.sleep(0.01)
+    assert run_dir is not None and p.poll() is None, "the run ended before the cut"
+    assert when(_journal(run_dir)), f"the cut's moment not reached within {within_s} s"
+    return run_dir
+
+
+def _journal(run_dir: Path) -> list[dict[str, Any]]:
+    return [json.loads(line) for line in (run_dir / "events.jsonl").read_text().splitlines()]
+
+
 def cli(*args: str) -> subprocess.CompletedProcess[str]:
     """`bench ARGS` in this process (the console script's own `main`): for commands that
     start no run, so no interpreter start-up per call."""

@@ -18,7 +18,6 @@ import math
 import signal
 import subprocess
 import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -28,7 +27,7 @@ import yaml
 from scipy.stats import chi2, norm
 
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, ROOT
+from tests.conftest import CONFIGS, ROOT, wait_for_cut
 from tests.test_run_e2e import allowed_outside, comparisons
 
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
@@ -118,17 +117,7 @@ def _interrupted_then_resumed(proc: Path, out: Path,
                           "--out", str(out)], cwd=ROOT, text=True,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
-        run_dir = None
-        deadline = time.monotonic() + cut_within_s
-        while time.monotonic() < deadline and p.poll() is None:
-            logs = list(out.glob("*/events.jsonl")) if out.exists() else []
-            if logs:
-                run_dir = logs[0].parent
-                if when(_events(run_dir)):
-                    break
-            time.sleep(0.01)
-        assert run_dir is not None and p.poll() is None, "the run ended before the cut"
-        assert when(_events(run_dir)), f"the cut's moment not reached within {cut_within_s} s"
+        run_dir = wait_for_cut(p, out, when, cut_within_s)
         p.send_signal(signal.SIGINT)
         o, e = p.communicate(timeout=max(120, cut_within_s / 2))
     except BaseException:

@@ -19,7 +19,7 @@ import yaml
 from scipy.stats import binom
 
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, DemoRun, bench, bench_bg
+from tests.conftest import CONFIGS, DemoRun, bench, bench_bg, wait_for_cut
 from tests.conftest import OUTER_SERIALS as OUTER
 
 DEMO = CONFIGS / "procedures" / "demo.yaml"
@@ -175,18 +175,8 @@ def test_sigint_mid_acquisition_stops_the_axes_and_resume_completes(tmp_path: Pa
                 and "half 2/" in e.get("describe", "") for e in ev)
 
     try:
-        deadline = time.monotonic() + 240   # a loaded machine slows the co-simulation
-        run_dir = None
-        while time.monotonic() < deadline and p.poll() is None:
-            # the run directory, not records.sqlite beside it (glob order is the disk's)
-            logs = list(runs.glob("*/events.jsonl")) if runs.exists() else []
-            if logs:
-                run_dir = logs[0].parent
-                if cut_here(_events(run_dir)):
-                    break
-            time.sleep(0.01)
-        assert run_dir is not None and p.poll() is None, "the run ended before the cut"
-        assert cut_here(_events(run_dir)), "the cut's moment not reached within 240 s"
+        # a loaded machine slows the co-simulation: 240 s of real time to get there
+        run_dir = wait_for_cut(p, runs, cut_here, 240)
         p.send_signal(signal.SIGINT)
         time.sleep(0.05)
         p.send_signal(signal.SIGINT)  # an impatient second Ctrl-C must not skip the stop
