@@ -69,6 +69,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
+from drivers import interrupts
+
 log = logging.getLogger(__name__)
 
 #: `sim: clock_speed: max`
@@ -311,7 +313,9 @@ class SteppedClock:
         frames due so far as soon as it is read) is otherwise drained by thread
         scheduling, and the bench's first look at it would depend on the machine's load."""
         if self._running:
-            self._settle(self._t_s, final=True)
+            with interrupts.shelter():
+                self._settle(self._t_s, final=True)
+            interrupts.safe_point()
 
     def real_seconds(self, virtual_s: float) -> float:
         return virtual_s / self.min_speed
@@ -386,8 +390,14 @@ class SteppedClock:
             # a paused clock: nothing runs (before the bench starts, after it stops);
             # a wait on it returns at once, time standing still, as on a paused stand
             return
+        with interrupts.shelter():  # a Ctrl-C is raised between steps, never in a lock
+            self._sleep_until(me, t_s)
+        interrupts.safe_point()
+
+    def _sleep_until(self, me: int, t_s: float) -> None:
         try:
             while True:
+                interrupts.safe_point()  # here this thread holds no lock
                 with self._cond:
                     if self._t_s >= t_s or not self._running:
                         break
@@ -429,8 +439,8 @@ class SteppedClock:
         for p in parts:
             while True:
                 gen = self._generation
-                if p.settled(t, final):
-                    break
+                if interrupts.deferred() or p.settled(t, final):
+                    break  # (a Ctrl-C: the stop needs the clock more than the settle)
                 if time.monotonic() - m0 > GUARD_REAL_S:
                     if id(p) not in self._passed_over:
                         self._passed_over.add(id(p))

@@ -27,6 +27,7 @@ from bench.core.config import Config
 from bench.core.journal import RunDir, utc_now
 from bench.core.plan import Plan, Step
 from bench.core.progress import Progress
+from drivers import interrupts
 from drivers.clock import Clock
 
 
@@ -67,6 +68,11 @@ class SignalGuard:
     `check` raises it again where the run can take it: the engine's step boundaries, the
     end of the measurement, the end of the writing. A signal that comes while one is still
     pending raises again, instead of "the axes are being stopped first".
+
+    Inside a co-simulation step (drivers/interrupts.py `shelter`) the main thread may hold
+    a twin's lock, and an exception landing between its acquire and its `with` block
+    would leave it held for the stop sequence to wait on for ever: there the signal is
+    only noted, and the clock raises it at its next safe point, within one step.
     """
 
     def __init__(self, log: Callable[[str], None]) -> None:
@@ -86,21 +92,29 @@ class SignalGuard:
         if self.writing:
             self.writing = False
             self.pending = KeyboardInterrupt(name)
-            raise KeyboardInterrupt(name)
-        if self.stopping and self.pending is None:
+        elif self.stopping and self.pending is None:
             self._log(f"{name} received: the axes are being stopped first; please wait")
             return
-        self.stopping = True
-        self.pending = Interrupted(name)
-        raise Interrupted(name)
+        else:
+            self.stopping = True
+            self.pending = Interrupted(name)
+        if interrupts.sheltered():
+            # the main thread may be inside a lock (a co-simulation step): raised at the
+            # clock's next safe point instead, within one step (drivers/interrupts.py)
+            interrupts.defer()
+            return
+        raise KeyboardInterrupt(name) if isinstance(self.pending, KeyboardInterrupt) \
+            else Interrupted(name)
 
     def received(self) -> None:
         """The run has taken the signal's exception (or is stopping for another cause)."""
         self.pending = None
+        interrupts.taken()
 
     def check(self) -> None:
         """Raise a signal's exception again if it was lost where it landed."""
         lost, self.pending = self.pending, None
+        interrupts.taken()
         if isinstance(lost, Interrupted):
             raise Interrupted(lost.signame)
         if lost is not None:
@@ -110,12 +124,15 @@ class SignalGuard:
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 self._old[sig] = signal.signal(sig, self._handler)
+            interrupts.set_delivery(self.check)
         return self
 
     def __exit__(self, *exc: object) -> None:
         for sig, old in self._old.items():
             # once interrupted, more signals only cut short the last lines of output
             signal.signal(sig, signal.SIG_IGN if self.count else old)
+        if self._old:
+            interrupts.set_delivery(None)
 
 
 #: how much lower the analysis worker's CPU priority is than the bench's (nice steps)
