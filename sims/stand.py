@@ -28,6 +28,7 @@ import numpy as np
 
 from drivers.units import SECONDS_PER_HOUR
 from sims.clock import MAX, SteppedClock, VirtualClock, parse_speed
+from sims.rng_grid import RngGrid
 
 
 @dataclass(frozen=True)
@@ -277,6 +278,7 @@ class AxisModel:
                              f"{truth.mains.frequency_hz} Hz mains tone (Nyquist)")
         self._ss = seed if isinstance(seed, np.random.SeedSequence) \
             else np.random.SeedSequence(seed)
+        self._grid = RngGrid(self._ss)
         if block_samples <= 0 or block_samples % RNG_BLOCK_SAMPLES:
             raise ValueError(f"{name}: block_samples must be a positive multiple of "
                              f"{RNG_BLOCK_SAMPLES}, got {block_samples}")
@@ -364,17 +366,17 @@ class AxisModel:
         self._block = self._generate(k, phi0, w0)
         return self._block
 
-    def _rng(self, stream: str, g: int) -> np.random.Generator:
-        """The generator of RNG_BLOCK_SAMPLES-block g of one stream."""
-        ss = np.random.SeedSequence(self._ss.entropy,
-                                    spawn_key=(*self._ss.spawn_key, _STREAMS[stream], g))
-        return np.random.default_rng(ss)
+    def _rng_normals(self, stream: str, g: int, n: int) -> np.ndarray:
+        """The first n normals of the generator of RNG_BLOCK_SAMPLES-block g of one stream:
+        numpy's `default_rng(SeedSequence(entropy, spawn_key=(*axis key, stream, g)))`,
+        made without a SeedSequence per block (sims/rng_grid.py)."""
+        return self._grid.normals(_STREAMS[stream], g, n)
 
     def _normals(self, stream: str, k: int) -> np.ndarray:
         """Standard normals for every sample of block k, from the random-number grid."""
         per = RNG_BLOCK_SAMPLES
         g0 = k * self.block_samples // per
-        return np.concatenate([self._rng(stream, g0 + j).standard_normal(per)
+        return np.concatenate([self._rng_normals(stream, g0 + j, per)
                                for j in range(self.block_samples // per)])
 
     def _grid_table(self, step_rad: float) -> tuple[np.ndarray, np.ndarray]:
@@ -516,7 +518,7 @@ class AxisModel:
         out = np.empty(sample.size)
         for gi in np.unique(g).tolist():
             at = g == gi
-            out[at] = self._rng("edge", gi).standard_normal(int(at.sum()))
+            out[at] = self._rng_normals("edge", gi, int(at.sum()))
         return out
 
     def _release_marks(self, block: _Block, n_from: int, n_to: int) -> None:
