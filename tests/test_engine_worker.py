@@ -1,8 +1,7 @@
 """bench/core/engine.py AnalysisWorker: every thread of the worker process below the bench.
 
-A real spawned worker process; the job reads its own threads' priorities from /proc and
-its BLAS thread pools from threadpoolctl (the library the worker sets them with, so the
-check does not share the code under test's reading of /proc).
+A real spawned worker process; the job wakes its BLAS threads (a matrix product) and
+reads every thread's priority from the kernel.
 """
 
 from __future__ import annotations
@@ -23,16 +22,12 @@ def _report() -> dict[str, Any]:
     there and at which priority."""
     a = np.ones((64, 4096))
     _ = a @ a.T
-    from threadpoolctl import threadpool_info
-
     tids = [int(t) for t in os.listdir("/proc/self/task")]
-    return {"nice": {tid: os.getpriority(os.PRIO_PROCESS, tid) for tid in tids},
-            "blas_threads": [p["num_threads"] for p in threadpool_info()
-                             if p["user_api"] == "blas"]}
+    return {"nice": {tid: os.getpriority(os.PRIO_PROCESS, tid) for tid in tids}}
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="per-thread nice: Linux")
-def test_every_worker_thread_runs_below_the_bench_and_blas_on_one_thread() -> None:
+def test_every_worker_thread_runs_below_the_bench() -> None:
     bench_nice = os.getpriority(os.PRIO_PROCESS, 0)
     got: dict[str, Any] = {}
     done = threading.Event()
@@ -52,4 +47,3 @@ def test_every_worker_thread_runs_below_the_bench_and_blas_on_one_thread() -> No
     assert len(report["nice"]) >= 2            # the job's thread and the parent watch
     low = min(bench_nice + WORKER_NICE, 19)
     assert all(n >= low for n in report["nice"].values()), report["nice"]
-    assert report["blas_threads"] and all(n == 1 for n in report["blas_threads"])

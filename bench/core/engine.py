@@ -154,14 +154,13 @@ def _worker_init(parent_pid: int) -> None:
     """
     import os
 
-    from threadpoolctl import threadpool_limits
-
     lowered = os.nice(WORKER_NICE)
     # os.nice lowers only this thread; the BLAS threads numpy started at its import ran
     # on at the bench's priority, one of them spinning between the pair analyses' matrix
-    # products (py-spy/perf on the paper ladder, 27 Nov 2026: 1.4 % of both cores at
-    # nice 0). One BLAS thread: the worker is one job at a time on the spare core anyway
-    threadpool_limits(limits=1, user_api="blas")
+    # products (perf on the paper ladder, 27 Nov 2026: 1.4 % of both cores at nice 0).
+    # Their number stays numpy's default: a Gram product's last bits depend on it, and
+    # `bench analyze` (in the bench's own process) must rebuild the run's result.json
+    # byte for byte (tests/test_run_e2e.py)
     _lower_every_thread(lowered)
 
     def watch() -> None:
