@@ -60,10 +60,12 @@ here: the stepping thread (the stand's samples, taking the interpreter lock back
 each numpy operation, and the encoding) sets the pace while measuring, and ~14 s of
 result and certificate writing follow the last pair.
 
-27 Nov 2026, later (HEAD 2ebddd0): 115 s at 02:17, then 130, 134, 141 and 144 s the same
+27 Nov 2026, later (HEAD bb8bbff): 115 s at 02:17, then 130, 134, 141 and 144 s the same
 night (385-388 MB, 0 lost). The session's start (1eef433) interleaved with HEAD: 134 and
-142.5 s against 141 and 144 s: this session's changes (the worker's BLAS on one thread,
-the stand's generators without a SeedSequence per block) are inside the VM's drift.
+142.5 s against 141 and 144 s: this session's changes (the worker's threads all at its
+nice, the stand's generators without a SeedSequence per block) are inside the VM's drift.
+(The worker's BLAS on one thread was tried and dropped: a Gram product's last bits
+depend on BLAS's thread count, and `bench analyze` must rebuild result.json exactly.)
 `perf record -a` in the middle of the ladder, by thread: the FOG readers 28 % of both
 cores, the stepping thread 22 %, the analysis worker 19 %, the twins' writers 11 %,
 kernel workers 3 %, idle 9 % (20 % over the run, 50 % in the certificate tail). Kernel
