@@ -174,8 +174,6 @@ def _worker_init(parent_pid: int) -> None:
 def _lower_every_thread(nice: int) -> None:
     """Every thread of this process at least `nice` (Linux's priorities are per thread;
     elsewhere os.nice already covers the process)."""
-    import os
-
     tasks = "/proc/self/task"
     if not os.path.isdir(tasks):
         return
