@@ -73,6 +73,27 @@ time is a quarter of the CPU: context switches 6 %, wake-ups 5 %, the pty's flus
 queued per write 2.4 %, copies ~4 %: n_tty hands over 4 kB a read, each needing a kernel
 worker run and a reader wake-up (the slave is in n_tty's real-raw mode already).
 
+27 Nov 2026, the next session (HEAD 54eb1d9, then 37cb62e; this VM): 138 s at 05:01
+(starting 3.6 s, measuring 117.8 s, the stop and the last analyses 3.0 s, writing the
+outputs 13.1 s; 386 MB, 0 lost) and 146 s at 06:11 (2.9 / 128.3 / 2.3 / 11.6 s).
+Measuring, by part: each 0.1 deg/s unit ~43-47 s, the high-rate units 16 s (outer) and
+11 s (inner). The outer 0.1 deg/s unit alone (`--axes outer --rates 0.1`, one FOG
+streaming) measures in 22-27 s: the FOG of the axis not under test, streaming at rest
+through the other axis's units, costs about 40 s of the ladder. Writing the outputs:
+the document 3.4-3.7 s (8 figures), HTML 0.04 s, PDF 5.1-5.4 s (300 tables), the DCC
+~1.5 s; the DCC embeds the PDF, so these run one after another. Tried on the outer
+0.1 deg/s unit (interleaved with HEAD, compared on the measuring phase) and left out:
+stand blocks of 65536 samples; a 16 MB FOG lead and 60 s steps; a helper process
+pumping each pty into a 1 MB pipe (reader, and the twin's writer too: the driver and
+the twin then make one call a MB instead of one per 4 kB); the stand's next block
+computed ahead in a thread (bit for bit the same blocks). None moved the measuring
+phase beyond the VM's noise (<= 5 %). The stand's generation cut by ~2/3 (wrong
+numbers, as a measurement only) made it ~12 % faster: the stand is partly on the
+critical path, and only a process of its own would take it off the interpreter lock.
+The raw pty on this VM moves 180-240 MB/s on one core (dd into the master, Python
+reading the slave), against ~50 MB/s a FOG in the ladder: the channel is not at its
+bandwidth; the bench process's threads and the interpreter lock set the pace.
+
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
 the FOG twins' encoding, the drive twins' ticks: split by cProfile), the FOG twins'
