@@ -270,7 +270,7 @@ def phases(events: list[dict[str, Any]], wall_s: float) -> str:
     done = [e for e in events if e["event"] == "completed"]
     end = [e for e in events if e["event"] == "exit"]
     if not (events and first and stops and done and end):
-        return "phases: the run did not complete"
+        return "phases: not known (the run did not complete, or its plan has no stop step)"
     start_s = wall_s - (at(end[-1]) - at(events[0]))      # process start to session start
     measuring_s = at(stops[-1]) - at(first)               # first step to the last stop step
     analyses_s = at(done[-1]) - at(stops[-1])             # the stop and the last first looks

@@ -152,8 +152,6 @@ def _worker_init(parent_pid: int) -> None:
     reparented to PID 1, holding the raw files and the bench's stdout/stderr open (so a
     `bench run ... | tee log` never ends). The worker watches its parent instead.
     """
-    import os
-
     lowered = os.nice(WORKER_NICE)
     # os.nice lowers only this thread; the BLAS threads numpy started at its import ran
     # on at the bench's priority, one of them spinning between the pair analyses' matrix
