@@ -7,11 +7,17 @@ is open, appends every byte as received to the raw capture file (flushed after e
 read), and decodes with the same `StreamDecoder` that `bench decode` runs on the file
 afterwards, so the capture re-decodes to exactly the samples the engine used.
 
-Sample index: the first frame received is index 0; each later frame's index follows
-from the sequence counter, so lost frames keep their place (as invalid samples) and
-index n is the FOG's n-th sample since the first one, at t = n / rate_hz on the
-stand's time axis. On the simulated stand the twin emits stand sample n as frame n;
-on a real bench the FOG's first sample and the counter's timebase must be tied.
+Sample index: index n is the sample at t = n / rate_hz on the stand's time axis. A FOG
+streams from power-on whether or not a host reads it, so the first frame received is
+placed by the clock: opened with the clock at t, the capture starts at the first
+sample after t (`first_index`, `first_sample_after`), and the first frame takes the index nearest it that
+its sequence counter allows (exact while the frame came within half a counter wrap of
+t: 64 ms at 1 kHz for KVH). Each later frame's index follows from the sequence counter,
+so lost frames keep their place (as invalid samples). On the simulated stand the twin
+emits stand sample n as frame n, and sends nothing while no reader has the port, so
+the first frame after opening at t is the first stand sample after t, indexed exactly
+(the rate ladder opens an axis's FOG for that axis's units only). On a real bench the
+FOG's time axis and the counter's timebase must still be tied (drivers/time_tie.py).
 
 A loss of a whole multiple of the sequence modulus (128 frames for KVH) leaves no mark
 in the bytes. The reader therefore also watches the clock: when the data resume after
@@ -91,6 +97,13 @@ _STALL_REAL_S = 0.1        # ... and at least this many real seconds (OS, USB la
 _ALIAS_MIN_REAL_S = 0.02   # the wrap check needs half a wrap to last this long in real time
 _LATE_STEP_S = 0.05        # stepped clock: clock s between looks for samples overdue
 _ALIAS_WINDOW_S = 0.5      # real seconds over which the lag after a silence is watched
+
+
+def first_sample_after(t_s: float, rate_hz: float) -> int:
+    """The index of the first sample after clock time t_s: a FOG opened then sees that
+    one first (the simulated stand has released every sample at or before t_s, its
+    `advance_to`), or sample 0 on a clock not started yet (t_s = 0)."""
+    return 0 if t_s <= 0 else math.floor(t_s * rate_hz + 1e-9) + 1
 
 
 def dps_per_unit(units: str, rate_hz: float) -> float:
@@ -204,6 +217,11 @@ class _SampleStore:
 
     def append(self, index: np.ndarray, rate: np.ndarray, status_ok: np.ndarray,
                temp: np.ndarray) -> None:
+        if index.size and index[0] < self.base:
+            # a capture's first frames, from before its first_index (a host clock a
+            # little behind the FOG's): not part of the record the clock placed
+            keep = index >= self.base
+            index, rate, status_ok, temp = index[keep], rate[keep], status_ok[keep], temp[keep]
         if index.size == 0:
             return
         new_end = int(index[-1]) + 1
@@ -323,9 +341,12 @@ class Fog:
         self._alias_check: tuple[float, float, int, float] | None = None
         self.last_error: str | None = None
         self._index_uncertain_from: int | None = None
+        #: the index the capture starts from (DecodeState.first_index); set by open()
+        self.first_index: int | None = None
 
     # -- lifecycle ------------------------------------------------------------------------
     def open(self) -> Fog:
+        """Open the port, configure (fog.configure), capture from the clock's now on."""
         if self._ser is not None:
             raise FogError(f"FOG on {self.port} is already open")
         try:
@@ -355,6 +376,12 @@ class Fog:
                 self._ser.close()
                 self._ser = None
                 raise FogError(f"cannot create the FOG raw capture {self.raw_path}: {e}") from e
+        self.first_index = first_sample_after(self.clock.now(), self.rate_hz)
+        with self._cond:
+            self._decoder = StreamDecoder(self.format)
+            self._decoder.state = DecodeState.starting_at(self.first_index)
+            self._store = _SampleStore()
+            self._store.base = self.first_index
         self._stop.clear()
         channel_opened(self.clock, self.port)  # a stepped clock counts what we consume
         self._thread = threading.Thread(target=self._read_loop, name=f"fog-{self.port}",
@@ -389,6 +416,10 @@ class Fog:
                     self._cond.notify_all()
         with self._cond:
             self._cond.notify_all()
+
+    @property
+    def is_open(self) -> bool:
+        return self._ser is not None
 
     @property
     def raw_digest(self) -> tuple[str, int] | None:
@@ -657,7 +688,8 @@ class Fog:
         with self._cond:
             s = self._decoder.state
         return {"offset": s.offset, "last_index": s.last_index,
-                "last_sequence": s.last_sequence, "last_end": s.last_end}
+                "last_sequence": s.last_sequence, "last_end": s.last_end,
+                "first_index": s.first_index}
 
     def samples(self, i_from: int, i_to: int) -> FogSamples:
         """Samples i_from .. i_to - 1; they must have arrived and not been discarded."""
@@ -717,25 +749,28 @@ class _SerialLines:
 
 
 def read_capture(raw_path: Path | str, *, fmt: str = "kvh-a", axis: str = "z",
-                 rate_hz: float, units: str = "deg/s", chunk_bytes: int = _CAPTURE_CHUNK_BYTES
-                 ) -> tuple[FogSamples, StreamDecoder]:
+                 rate_hz: float, units: str = "deg/s", chunk_bytes: int = _CAPTURE_CHUNK_BYTES,
+                 first_index: int | None = None) -> tuple[FogSamples, StreamDecoder]:
     """Every sample of a raw capture, exactly as the live driver produced them.
 
     For `bench analyze`: the same decoder and the same frame-to-sample conversion as
     `Fog`, so the result is bit-identical to what `Fog.samples` returned during the run.
-    Returns the samples from index 0 to the last frame, and the decoder with the counts
-    and events (CRC failures, gaps) of the whole capture.
+    Returns the samples from the first (index 0, or `first_index` for a FOG opened
+    while the clock ran: its `fog_capture` event says) to the last frame, and the
+    decoder with the counts and events (CRC failures, gaps) of the whole capture.
     """
     f = get_format(fmt)
     if axis not in f.valid_bits:
         raise ValueError(f"FOG axis {axis!r} unknown for format {f.name!r}")
     dec = StreamDecoder(f)
+    dec.state = DecodeState.starting_at(first_index)
     store = _SampleStore()
+    store.base = first_index or 0
     col, scale, mask = AXES.index(axis), dps_per_unit(units, rate_hz), 1 << f.valid_bits[axis]
     with open(raw_path, "rb") as fh:
         while chunk := fh.read(chunk_bytes):
             store.add(dec.feed(chunk), col, scale, mask)
-    return store.samples(0, store.end, float(rate_hz)), dec
+    return store.samples(store.base, store.end, float(rate_hz)), dec
 
 
 class CaptureCursor:
@@ -751,7 +786,8 @@ class CaptureCursor:
 
     def __init__(self, raw_path: Path | str, *, fmt: str = "kvh-a", axis: str = "z",
                  rate_hz: float, units: str = "deg/s", chunk_bytes: int = _CAPTURE_CHUNK_BYTES,
-                 start: dict[str, Any] | None = None) -> None:
+                 start: dict[str, Any] | None = None, first_index: int | None = None
+                 ) -> None:
         f = get_format(fmt)
         if axis not in f.valid_bits:
             raise ValueError(f"FOG axis {axis!r} unknown for format {f.name!r}")
@@ -764,10 +800,15 @@ class CaptureCursor:
         self._chunk_bytes = int(chunk_bytes)
         self._fh: IO[bytes] = open(self.raw_path, "rb")  # noqa: SIM115 (closed in close())
         if start is not None:  # a Fog.checkpoint(): continue the decoder from there
+            first = start.get("first_index")
             self.decoder.state = DecodeState(int(start["offset"]), int(start["last_index"]),
-                                             start["last_sequence"], int(start["last_end"]))
+                                             start["last_sequence"], int(start["last_end"]),
+                                             None if first is None else int(first))
             self._fh.seek(int(start["offset"]))
             self._store.base = int(start["last_index"]) + 1
+        else:  # the file's start: index 0, or the capture's first_index (a late open)
+            self.decoder.state = DecodeState.starting_at(first_index)
+            self._store.base = first_index or 0
 
     @property
     def position(self) -> int:

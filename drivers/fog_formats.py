@@ -341,6 +341,17 @@ class DecodeState:
     last_index: int = -1          # cumulative index of the last accepted frame
     last_sequence: int | None = None
     last_end: int = 0             # stream offset just past the last accepted frame
+    #: a capture opened while the FOG had long been running (the axis's FOG opened for
+    #: its own units): the first frame is the sample nearest this index whose number
+    #: matches its sequence counter (None: the first frame is index 0)
+    first_index: int | None = None
+
+    @classmethod
+    def starting_at(cls, first_index: int | None) -> DecodeState:
+        """The state before a capture's first byte; `first_index` as the field says."""
+        if first_index is None:
+            return cls()
+        return cls(last_index=int(first_index) - 1, first_index=int(first_index))
 
 
 @dataclass(frozen=True)
@@ -460,7 +471,8 @@ def decode(buf: bytes | bytearray | memoryview | np.ndarray, fmt: str | FrameFor
         offset=st.offset + start,
         last_index=int(index[-1]) if index.size else st.last_index,
         last_sequence=int(seq[-1]) if seq.size else st.last_sequence,
-        last_end=st.offset + last_end if good.size else st.last_end)
+        last_end=st.offset + last_end if good.size else st.last_end,
+        first_index=st.first_index)
     stats = DecodeStats(
         frames=int(good.size), crc_errors=int(bad.size), gaps=int(gap_at.size),
         lost_frames=int(gap_n.sum()), skipped_bytes=start - int(good.size) * size,
@@ -548,13 +560,22 @@ def _unwrap(seq: np.ndarray, st: DecodeState, modulus: int
     prev = np.empty_like(seq)
     prev[1:] = seq[:-1]
     step = (seq - prev) % modulus
-    if st.last_sequence is None:
-        step[0] = 1                       # the first frame received is index 0
-    else:
+    first = st.last_sequence is None
+    if not first:
         step[0] = (seq[0] - st.last_sequence) % modulus
     step[step == 0] = modulus             # a counter never repeats: a whole wrap was lost
+    if first and st.first_index is not None:
+        # the sample nearest first_index whose number the counter shows (seq = n mod M):
+        # exact while the capture began within half a wrap of first_index
+        half = modulus // 2
+        n = st.first_index + (int(seq[0]) - st.first_index + half) % modulus - half
+        step[0] = n + modulus * (n < 0) - st.last_index
+    elif first:
+        step[0] = 1                       # the first frame received is index 0
     index = st.last_index + np.cumsum(step)
     where = np.flatnonzero(step > 1)
+    if first:
+        where = where[where > 0]          # the first frame follows no frame: no gap
     return index, index[where] - step[where] + 1, step[where] - 1
 
 

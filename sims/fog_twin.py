@@ -3,8 +3,13 @@
 The driver opens the pty's slave path with pyserial exactly as it opens /dev/ttyUSB0,
 so the test exercises the real byte path: termios, partial reads, the kernel's buffers.
 The twin listens to the stand's axis from sample 0 and writes stand sample n as frame n
-(sequence n mod 128) when the stand's clock reaches it. It never drops a frame by
-itself: writes block while the reader is behind, and the frames go out late, not never.
+(sequence n mod 128) when the stand's clock reaches it. It never drops a frame a reader
+waits for: writes block while the reader is behind, and the frames go out late, not
+never. Frames due while no reader has the port are not sent, as a FOG streams into a
+cable nobody listens to (on the co-simulation: no driver counts the channel, see
+drivers/clock.py channel_opened; paced: the pty's master sees POLLHUP): the rate ladder
+opens an axis's FOG for that axis's units only, and the frames of the hours between
+are nobody's (the driver indexes its first frame from the clock, drivers/fog.py).
 Faults are injected on purpose, by stand sample, and recorded in the twin's truth.
 
 Configuration (drivers/kvh_config.py, 1775 IMU ICD sections 3.3, 7 and 8): the twin
@@ -186,6 +191,7 @@ class FogTwin:
         self._queued_bytes = 0
         self._stepped = bool(getattr(self.clock, "stepped", False))
         self._leave: Any = None
+        self._presence: select.poll | None = None  # the master, polled for a reader
         self.path: str | None = None
         self.bytes_written = 0
         self.frames_encoded = 0
@@ -265,7 +271,29 @@ class FogTwin:
         self._carry = [(idx[rest:], val[rest:])] if rest < len(idx) else []
         self._next_sample = n0 + n
 
+    def _nobody_reads(self) -> bool:
+        """No reader has the port: the chunk's frames would go nowhere (module docstring)."""
+        if self._stop.is_set():
+            return False
+        if self._stepped:   # set by the driver between clock steps: the same on every run
+            return self.path is None or not self._stepped_clock.has_consumer(self.path)
+        return self._presence is not None and not self._reader_present(self._presence)
+
     def _on_chunk(self, chunk: AxisChunk) -> None:
+        if self._nobody_reads():
+            self._carry = []
+            if self._stepped:   # what waited for a reader is gone with these
+                with self._qlock:
+                    self._queue.clear()
+                    self._queued_bytes = 0
+            self._next_sample = chunk.n0 + len(chunk.t_s)
+            if self.keep_truth:   # truth stays one row a stand sample: these were not sent
+                n0, n = chunk.n0, len(chunk.t_s)
+                off = np.zeros(n, dtype=bool)
+                self._truth.append((np.arange(n0, n0 + n, dtype=np.int64), chunk.fog_dps.copy(),
+                                    (chunk.fog_dps / self._dps_per_unit).astype(np.float32),
+                                    off, off))
+            return
         k = self._decimation()
         if k > 1:
             self._on_decimated_chunk(chunk, k)
@@ -359,6 +387,8 @@ class FogTwin:
         os.close(slave)  # a reader opening the path is then seen as POLLHUP clearing
         os.set_blocking(master, False)
         self._master = master
+        self._presence = select.poll()
+        self._presence.register(master, select.POLLOUT)
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name=f"fog-twin-{self.axis.name}",
                                         daemon=True)

@@ -201,5 +201,6 @@ def test_a_static_record_at_the_start_begins_on_the_same_sample_under_load(
     assert drive and all(x == y for x, y in drive)   # commands and settles, to the ms
     static = [json.loads(ln) for ln in (quiet / "events.jsonl").read_text().splitlines()
               if '"event":"static"' in ln.replace(" ", "")]
-    # it starts at the clock's 0.05 s (the drive's identity read), on sample 0.05 s x 1 kHz
-    assert [(round(e["t_s"] - 5.0, 9), e["fog_from"]) for e in static] == [(0.05, 50)], static
+    # the FOG opens at the clock's 0.05 s (after the drive's identity read) and the record
+    # starts with its first sample, the first after 0.05 s: sample 51, 5 s long
+    assert [(round(e["t_s"] - 5.0, 9), e["fog_from"]) for e in static] == [(0.051, 51)], static

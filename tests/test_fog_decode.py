@@ -293,6 +293,38 @@ def test_sync_is_never_lost_for_good(segments: list[tuple], cuts: list[int]) -> 
 
 def test_decode_state_default_is_stream_start() -> None:
     assert DecodeState() == DecodeState(offset=0, last_index=-1, last_sequence=None)
+    assert DecodeState.starting_at(None) == DecodeState()
+
+
+@pytest.mark.parametrize("first_index", [1_000_003 - 63, 1_000_002, 1_000_003, 1_000_003 + 64])
+def test_a_capture_placed_by_the_clock_takes_the_index_its_counter_allows(
+        first_index: int) -> None:
+    """A FOG opened at clock t (drivers/fog.py): the first frame is the sample nearest
+    first_index = ceil(t * rate) whose number the counter shows (n mod 128 = seq), by
+    hand: sample 1 000 003 has seq 1 000 003 mod 128 = 67. Within half a wrap (64) of
+    it the index is exact, the jump from first_index is no gap, later frames follow."""
+    n0 = 1_000_003
+    seqs = [n0, n0 + 1, n0 + 2, n0 + 5, n0 + 6]            # n0+3, n0+4 lost
+    frames, _, stats = decode(stream(seqs), "kvh-a", DecodeState.starting_at(first_index))
+    assert frames.sequence[0] == 67
+    assert frames.index.tolist() == seqs
+    assert stats.gap_index.tolist() == [n0 + 3] and stats.gap_count.tolist() == [2]
+    assert stats.lost_frames == 2 and stats.state.first_index == first_index
+    # fed in pieces, the stream decoder gives the same (the state carries on)
+    dec = StreamDecoder("kvh-a")
+    dec.state = DecodeState.starting_at(first_index)
+    data = stream(seqs)
+    got = np.concatenate([dec.feed(data[i:i + 50]).index for i in range(0, len(data), 50)])
+    assert got.tolist() == seqs and dec.lost_frames == 2
+
+
+def test_a_capture_placed_more_than_half_a_wrap_off_is_a_wrap_off() -> None:
+    """The counter cannot tell more: 65 samples after first_index, the frame is taken
+    for the one 128 earlier (what the 64 ms bound in drivers/fog.py says)."""
+    frames, _, _ = decode(stream([1000]), "kvh-a", DecodeState.starting_at(1000 - 65))
+    assert frames.index.tolist() == [1000 - 128]
+    near_zero, _, _ = decode(stream([100]), "kvh-a", DecodeState.starting_at(0))
+    assert near_zero.index.tolist() == [100]    # never before 0: a wrap later instead
 
 
 def test_decode_command_exits_1_when_nothing_decodes(

@@ -327,3 +327,40 @@ def test_a_batch_waits_for_the_bytes_a_stepped_twin_has_sent(
                            coming=lambda: 3 * len(piece))   # more than will ever come
         assert bytes(short) == piece
         assert 0.3 <= time.monotonic() - t0 < 5.0
+
+
+def test_a_fog_opened_while_the_clock_ran_starts_at_the_clock(tmp_path: Path) -> None:
+    """The rate ladder opens an axis's FOG for that axis's units only. Its twin sends
+    nothing while no reader has the port (a FOG streaming into a cable nobody listens
+    to), and the driver places the first frame by the clock: opened at t = 12.3456 s,
+    the capture starts at stand sample floor(12345.6) + 1 = 12346, by hand, and equals the
+    twin's truth from there, live and decoded again from the raw file."""
+    from sims.clock import SteppedClock
+
+    clock = SteppedClock()
+    stand = SimulatedStand(StandTruth(seed=7, axes={"outer": AxisTruth(fog=FOG_TRUTH)}),
+                           {"outer": 1000.0}, clock)
+    twin = FogTwin(stand, "outer", units="deg/s", keep_truth=True)
+    stand.axes["outer"].command_rate(0.0, 10.0, 50.0)
+    n = 3000
+    with twin:
+        clock.sleep(12.3456)      # 12 346 samples, 96 wraps of the counter, nobody reads
+        assert twin.bytes_written == 0 and twin.frames_encoded == 0
+        raw = tmp_path / "fog.raw"
+        with Fog(twin.path, rate_hz=1000.0, units="deg/s", raw_path=raw, clock=clock) as fog:
+            first = fog.first_index
+            assert first == 12346 and fog.end_index == 12346
+            fog.wait_for_index(first + n, timeout_s=10.0)
+            s = fog.samples(first, first + n)
+            stats = fog.stats
+        clock.sleep(5.0)          # closed again: the frames go nowhere, the queue stays empty
+        assert twin.frames_encoded == fog.stats.frames
+    truth = twin.truth(first, first + n)
+    assert not twin.truth(0, first).sent.any()
+    assert np.array_equal(s.index, truth.index) and s.valid.all()
+    assert np.array_equal(s.rate_dps, truth.fog_dps.astype(np.float32).astype(np.float64))
+    assert stats.gaps == 0 and stats.lost_frames == 0 and stats.crc_errors == 0
+    again, dec = read_capture(raw, rate_hz=1000.0, units="deg/s", first_index=first)
+    assert again.index[0] == first and dec.lost_frames == 0
+    assert np.array_equal(again.rate_dps[:n], s.rate_dps)
+    assert np.array_equal(again.index[:n], s.index)

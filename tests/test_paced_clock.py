@@ -166,11 +166,12 @@ def test_a_stepped_clock_passes_time_only_in_waits_and_stops_at_every_event() ->
     assert clock.backlog("pty") == 0
 
 
-def test_drain_hands_an_instrument_opened_between_waits_what_is_due_so_far() -> None:
-    """A FOG opened at stand time 0.05 s (after the drive's identity waits): its twin sends
-    samples 0..50 as soon as the port is read, and without a wait nothing says when the
-    reader has them. `drain` (SimBench.start_clock) returns once it has, so the bench's
-    first look at the FOG is the same on any machine load."""
+def test_a_fog_opened_between_waits_starts_at_the_first_sample_after_it() -> None:
+    """A FOG opened at stand time 0.05 s (after the drive's identity waits). Its twin
+    sent nothing while no reader had the port (samples 0 .. 50, t <= 0.05 s, went
+    nowhere, as a real FOG's do), so the capture starts at sample 51 by hand, the
+    first after 0.05 s, on every run: the first look at the FOG (after `drain`,
+    SimBench.start_clock) is the same on any machine load."""
     from drivers.fog import Fog
     from sims.fog_twin import FogTwin
     from sims.stand import AxisTruth, SimulatedStand, StandTruth
@@ -185,5 +186,8 @@ def test_drain_hands_an_instrument_opened_between_waits_what_is_due_so_far() -> 
             with Fog(twin.path, rate_hz=1000.0, raw_path=None, clock=clock,
                      units="rad") as fog:
                 clock.drain()
-                seen.append(fog.end_index)
-    assert seen == [51] * 5       # samples 0 .. 50: t = 0 .. 0.05 s, the instant included
+                first, end = fog.first_index, fog.end_index
+                fog.wait_for_index(60, timeout_s=1.0)
+                s = fog.samples(51, 61)
+                seen.append((first, end, int(s.index[0]), bool(s.received.all())))
+    assert seen == [(51, 51, 51, True)] * 5

@@ -229,3 +229,33 @@ def test_sigint_mid_acquisition_stops_the_axes_and_resume_completes(tmp_path: Pa
     # errors compared, not values: w0's truth moves with the time it refers to
     assert_within_u([(what, abs((a - ta) - (b - tb)), math.hypot(ua, ub))
                      for (what, a, ua, ta), (_, b, ub, tb) in zip(mine, theirs, strict=True)])
+
+
+def test_each_axis_fog_streams_for_its_own_steps_only(demo_run: DemoRun, tmp_path: Path) -> None:
+    """The ladder opens an axis's FOG after that axis's prompt and closes it when the next
+    axis begins (issue 27: a FOG recorded while the other axis is measured cost ~40 s of
+    the paper ladder). Each capture holds its own axis's time only, starts at the sample
+    the clock says (the first after t_open), and its frames carry the stand
+    sample's number (the twin sends sample n with sequence n mod 128)."""
+    events = _events(demo_run.dir)
+    caps = {e["axis"]: e for e in events if e["event"] == "fog_capture"}
+    assert set(caps) == {"outer", "inner"}
+    for e in caps.values():
+        assert e["first_index"] == math.floor(e["t_s"] * e["rate_hz"] + 1e-9) + 1
+    last_outer = max(e["t_s"] for e in events if e.get("axis") == "outer"
+                     and e["event"] in ("acquire", "static"))
+    assert caps["outer"]["t_s"] < 1.0 < last_outer < caps["inner"]["t_s"]
+    raw = demo_run.dir / "raw" / "s1"
+    outer_frames = (raw / "outer-fog.bin").stat().st_size // 36
+    inner_frames = (raw / "inner-fog.bin").stat().st_size // 36
+    assert outer_frames <= caps["inner"]["first_index"] - caps["outer"]["first_index"] + 1000
+    end_s = max(e["t_s"] for e in events)
+    assert inner_frames <= (end_s - caps["inner"]["t_s"]) * 1000 + 1
+    # `bench decode` finds where the capture starts in the run's events
+    csv = tmp_path / "inner.csv"
+    out = bench("decode", str(raw / "inner-fog.bin"), "--format", "kvh-a", "--csv", str(csv))
+    assert out.returncode == 0, out.stderr
+    first = caps["inner"]["first_index"]
+    assert f"first index: {first}" in out.stdout
+    index, seq = (int(v) for v in csv.read_text().splitlines()[1].split(",")[:2])
+    assert (index, seq) == (first, first % 128)

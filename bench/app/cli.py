@@ -123,6 +123,9 @@ def build_parser() -> argparse.ArgumentParser:
     dec.add_argument("raw_file")
     dec.add_argument("--format", required=True, dest="fmt", help="frame format, e.g. kvh-a")
     dec.add_argument("--csv", help="write the samples to this CSV file")
+    dec.add_argument("--first-index", type=int, default=None, metavar="N",
+                     help="the capture's first sample index (default: from the run's "
+                          "events for a file in a run directory, else 0)")
     srv = sub.add_parser("serve", help="local web station view: live runs and records")
     srv.add_argument("--runs", default="runs", help="the runs folder to show (runs/)")
     srv.add_argument("--records", metavar="URL", help="records database URL")
@@ -155,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.getLogger("canopen").addHandler(logging.NullHandler())
     args = build_parser().parse_args(argv)
     if args.command == "decode":
-        return decode_command(args.raw_file, args.fmt, args.csv)
+        return decode_command(args.raw_file, args.fmt, args.csv, args.first_index)
     if args.command == "serve":
         return cmd_serve(args)
     if args.command == "schema":

@@ -3,7 +3,11 @@
 Decodes a raw FOG capture offline with the same stream decoder the live driver runs,
 in the same kind of pieces, so what it prints is what the run saw: frames, CRC
 failures, sequence gaps (each with its first lost index and count), bytes that were
-no frame, and a cut-off frame at the end. Exit status: 0 a clean capture, 1 decoded
+no frame, and a cut-off frame at the end. Sample indices start where the capture did:
+`--first-index N`, or, for a file in a run directory (raw/s<k>/<axis>-fog.bin), its
+session's `fog_capture` event (the ladder opens an axis's FOG for its own steps, at
+clock t, and the capture starts at sample ceil(t * rate), drivers/fog.py); else 0.
+Exit status: 0 a clean capture, 1 decoded
 but with CRC failures or lost frames, or no frame at all (then every known format is
 tried and named), 2 the file or the format is invalid.
 """
@@ -16,13 +20,32 @@ from typing import TextIO
 
 import numpy as np
 
-from drivers.fog_formats import FORMATS, Frames, StreamDecoder
+from bench.core.journal import read_jsonl
+from drivers.fog_formats import FORMATS, DecodeState, Frames, StreamDecoder
 
 _CHUNK_BYTES = 1 << 22
 _EVENTS_SHOWN = 20
 
 
-def decode_command(raw_file: str, fmt: str, csv_path: str | None) -> int:
+def run_capture_start(path: Path) -> int | None:
+    """The first index of a capture inside a run directory, from its events (or None)."""
+    session, axis = path.parent.name, path.name.removesuffix("-fog.bin")
+    events = path.parent.parent.parent / "events.jsonl"
+    if path.parent.parent.name != "raw" or not session.startswith("s") \
+            or axis == path.name or not events.is_file():
+        return None
+    try:
+        for e in read_jsonl(events):
+            if e.get("event") == "fog_capture" and e.get("axis") == axis \
+                    and f"s{e.get('session')}" == session and e.get("first_index") is not None:
+                return int(e["first_index"])
+    except (OSError, ValueError):
+        return None
+    return None
+
+
+def decode_command(raw_file: str, fmt: str, csv_path: str | None,
+                   first_index: int | None = None) -> int:
     if fmt not in FORMATS:
         print(f"bench decode: unknown format {fmt!r} (known: {', '.join(sorted(FORMATS))})",
               file=sys.stderr)
@@ -31,7 +54,12 @@ def decode_command(raw_file: str, fmt: str, csv_path: str | None) -> int:
     if not path.is_file():
         print(f"bench decode: {raw_file}: no such file", file=sys.stderr)
         return 2
+    if first_index is None:
+        first_index = run_capture_start(path)
+        if first_index is not None:
+            print(f"first index: {first_index} (the run's fog_capture event)")
     dec = StreamDecoder(fmt)
+    dec.state = DecodeState.starting_at(first_index)
     out: TextIO | None = None
     try:
         if csv_path is not None:
@@ -104,8 +132,8 @@ def print_summary(dec: StreamDecoder, path: Path) -> None:
     print(f"lost_frames: {dec.lost_frames}")
     print(f"skipped_bytes: {dec.skipped_bytes}")
     print(f"trailing_bytes: {len(dec.leftover)}")
-    if dec.frames:
-        print(f"index_range: 0 .. {dec.state.last_index}")
+    if dec.frames:   # from where the capture starts (its first_index) to the last frame
+        print(f"index_range: {dec.state.first_index or 0} .. {dec.state.last_index}")
     for i, n in dec.gap_events[:_EVENTS_SHOWN]:
         print(f"gap: index {i}, {n} frame{'s' if n != 1 else ''} lost")
     for i, off in dec.crc_events[:_EVENTS_SHOWN]:

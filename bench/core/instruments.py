@@ -45,6 +45,10 @@ class AxisInstruments:
     logs: dict[str, JsonLines] = field(default_factory=dict)
     reference_text: str | None = None  # the counter's timebase as read back (journal)
     refusal: Exception | None = None   # a stand claim the instruments denied at opening
+    #: the FOG is opened only for this axis's own steps (open_axis fog_when_used) ...
+    fog_later: bool = False
+    #: ... and is not open yet
+    fog_waiting: bool = False
 
 
 class Bench:
@@ -67,8 +71,9 @@ class Bench:
         self._stack.callback(self._closing, str(name), lambda: cm.__exit__(None, None, None))
         return obj
 
-    def callback(self, fn: Callable[[], Any]) -> None:
-        self._stack.callback(self._closing, getattr(fn, "__qualname__", "cleanup"), fn)
+    def callback(self, fn: Callable[[], Any], name: str | None = None) -> None:
+        self._stack.callback(self._closing, name or str(getattr(fn, "__qualname__", "cleanup")),
+                             fn)
 
     def log(self, path: Path) -> JsonLines:
         j = JsonLines(path)
@@ -176,8 +181,13 @@ def _raw_record_logger(log: JsonLines, clock: Clock) -> Callable[[str, dict], No
 
 
 def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *,
-              counter: bool = True, fog: bool = True) -> AxisInstruments:
+              counter: bool = True, fog: bool = True,
+              fog_when_used: bool = False) -> AxisInstruments:
     """Open one axis's instruments (drive first, so a failure later still stops it).
+
+    `fog_when_used`: the FOG is made (its declared identity known) but opened only by
+    `fog_for_axis`, for the axis's own steps; a FOG streaming while another axis is
+    measured is recorded for nothing (on the paper ladder it cost ~40 s of 130).
 
     The drive's controller node id was settled when the stand was parsed: the axes
     sharing a CAN bus decide it together (bench/core/canbus.py)."""
@@ -231,9 +241,43 @@ def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *
                  raw_path=run.raw_path(f"{name}-fog.bin") if run else None, clock=clock,
                  model=f.model,
                  keep_samples=int(LIVE_FOG_KEEP_S * f.rate_hz) if run else None)
-        if run is not None:   # runs after the FOG has closed (the stack is last-in-first-out)
-            bench.callback(lambda: run.remember_digest(fg.raw_path, fg.raw_digest))
-        bench.enter(fg)
         ax.fog = fg
-        ax.identities["fog"] = with_readback(fg.identity(), fg.readback)
+        ax.identities["fog"] = fg.identity()
+        ax.fog_waiting = True
+        ax.fog_later = fog_when_used
+        if not fog_when_used:
+            _open_fog(bench, ax, run)
     return ax
+
+
+def _open_fog(bench: Bench, ax: AxisInstruments, run: RunDir | None) -> Fog:
+    fg = ax.fog
+    assert isinstance(fg, Fog) and ax.fog_waiting
+    ax.fog_waiting = False
+    if run is not None:   # runs after the FOG has closed (the stack is last-in-first-out)
+        bench.callback(lambda: run.remember_digest(fg.raw_path, fg.raw_digest),
+                       f"{fg.port} digest")
+    fg.open()
+    bench.callback(fg.close, fg.port)
+    ax.identities["fog"] = with_readback(fg.identity(), fg.readback)
+    return fg
+
+
+def fog_for_axis(bench: Bench, axis: str, run: RunDir | None, *, opening: bool = True
+                 ) -> Fog | None:
+    """Before a step on `axis`: every other axis's FOG opened for its steps is closed
+    (its units are done: the plan measures one axis after another), and, if `opening`,
+    this axis's FOG is opened if it waits (open_axis fog_when_used). Returns the FOG
+    opened now (its capture starts at `first_index`, drivers/fog.py), else None."""
+    for other in bench.axes.values():
+        if other.name != axis and other.fog_later and isinstance(other.fog, Fog) \
+                and other.fog.is_open:
+            other.fog.close()
+    ax = bench.axes[axis]
+    if ax.fog_later and isinstance(ax.fog, Fog) and not ax.fog_waiting \
+            and not ax.fog.is_open:
+        raise RuntimeError(f"{axis}: a step on this axis after its FOG was closed for the "
+                           "next axis (the plan must measure one axis after another)")
+    if opening and ax.fog is not None and ax.fog_waiting:
+        return _open_fog(bench, ax, run)
+    return None

@@ -86,6 +86,9 @@ class Fog(Protocol):
     rate_hz: float
     units: str
     axis: str
+    #: the capture's first sample index (placed by the clock at opening; None before)
+    first_index: int | None
+
     @property
     def readback(self) -> Mapping[str, Any]:
         """Settings read back at connect (journaled, shown on the certificate)."""

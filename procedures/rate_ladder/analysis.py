@@ -32,7 +32,7 @@ from drivers.fog import CaptureCursor
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, events_of, result_document
 from procedures.rate_ladder.conditions import TemperatureSpan, memo_key
-from procedures.rate_ladder.events import HalfAcquired, StaticRecorded
+from procedures.rate_ladder.events import HalfAcquired, StaticRecorded, capture_first_indices
 from procedures.rate_ladder.settings import (
     MAINS_CANDIDATES_HZ,
     MAINS_FOUND,
@@ -125,6 +125,7 @@ class RawData:
         self._windows: list[DiskArray] = []
         self._read: dict[tuple[int, str, int, int], tuple[DiskArray, DiskArray]] = {}
         self._statics: dict[tuple[int, str, int, int], np.ndarray] = {}
+        self._first_index: dict[tuple[int, str], int] | None = None
         #: each window's FOG temperatures, as decoded (conditions.memo_key: span)
         self.temperatures: dict[str, TemperatureSpan] = {}
 
@@ -166,9 +167,12 @@ class RawData:
             if c is not None:
                 c.close()
             f = self.cfg.fog(axis)
+            if self._first_index is None:
+                self._first_index = capture_first_indices(self.run.events())
             c = CaptureCursor(self.run.path / "raw" / f"s{session}" / f"{axis}-fog.bin",
                               fmt=f.format, axis=f.axis, rate_hz=f.rate_hz, units=f.units,
-                              chunk_bytes=self.chunk_bytes, start=start)
+                              chunk_bytes=self.chunk_bytes, start=start,
+                              first_index=self._first_index.get(key))
             self._cursors[key] = c
         return c
 

@@ -18,7 +18,7 @@ import numpy as np
 from bench.core.config import Config
 from bench.core.journal import RunDir
 from drivers.fog import CaptureCursor, FogSamples
-from procedures.rate_ladder.events import HalfAcquired
+from procedures.rate_ladder.events import HalfAcquired, capture_first_indices
 
 
 class TemperatureSpan:
@@ -48,11 +48,13 @@ def memo_key(session: int, axis: str, i_from: int, i_to: int) -> str:
     return f"rate-ladder temperature s{session} {axis} {i_from}..{i_to}"
 
 
-def _half_temperature(path: Path, f: Any, h: HalfAcquired) -> dict[str, Any] | None:
+def _half_temperature(path: Path, f: Any, h: HalfAcquired, first_index: int | None
+                      ) -> dict[str, Any] | None:
     span = TemperatureSpan()
     cursor = CaptureCursor(path, fmt=f.format, axis=f.axis, rate_hz=f.rate_hz, units=f.units,
                            start=h.fog_capture if h.fog_capture and
-                           h.fog_capture.get("last_index", h.fog_from) < h.fog_from else None)
+                           h.fog_capture.get("last_index", h.fog_from) < h.fog_from else None,
+                           first_index=first_index)
     try:
         for s in cursor.window(h.fog_from, h.fog_to):
             span.add(s)
@@ -64,14 +66,16 @@ def _half_temperature(path: Path, f: Any, h: HalfAcquired) -> dict[str, Any] | N
 def fog_temperatures(run: RunDir, cfg: Config) -> dict[str, Any]:
     """{axis: {halves: [...], min_c, mean_c, max_c}} from every half recorded."""
     out: dict[str, Any] = {}
-    for h in HalfAcquired.all_in(run.events()):
+    events = run.events()
+    first = capture_first_indices(events)
+    for h in HalfAcquired.all_in(events):
         path = run.path / "raw" / f"s{h.session}" / f"{h.axis}-fog.bin"
         if not path.is_file():
             continue
         try:
             span = run.memo.pop(memo_key(h.session, h.axis, h.fog_from, h.fog_to), None)
             found = span.of_half(h) if span is not None \
-                else _half_temperature(path, cfg.fog(h.axis), h)
+                else _half_temperature(path, cfg.fog(h.axis), h, first.get((h.session, h.axis)))
         except (OSError, ValueError):
             found = None          # a damaged capture: the analysis reports it; not measured
         if found is not None:

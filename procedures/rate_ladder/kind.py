@@ -15,7 +15,7 @@ from typing import Any
 
 from bench.core.config import Config, StandSettings, stand_schema
 from bench.core.engine import Abort, RunContext
-from bench.core.instruments import Bench, StandClaimError, open_axis
+from bench.core.instruments import Bench, StandClaimError, fog_for_axis, open_axis
 from bench.core.journal import RunDir
 from bench.core.plan import Plan, Step, format_duration
 from bench.core.progress import RELATIVE, Figure
@@ -72,6 +72,18 @@ def _check_fog_indices(fog: Any, upto: int, what: str) -> None:
         raise Abort(f"{what}: the FOG's sample indices from {doubt} on are uncertain "
                     f"({cause}); this record is not used: `bench run --resume` measures "
                     "it again")
+
+
+def fogs_opened_when_used(clock: Clock) -> bool:
+    """Whether each axis's FOG is opened for its own steps only (`execute`).
+
+    A FOG opened late places its first frame by the clock, exactly only within half a
+    wrap of its sequence counter (drivers/fog.py: 64 ms at 1 kHz). That holds on
+    hardware and on a clock at most real time (a port opens in milliseconds), and on
+    the co-simulation, whose clock stands still while the port opens. A paced twin at
+    N x real time would stretch those milliseconds N-fold (at 300x: 128 samples, a
+    whole wrap), so there every FOG opens at the start, before the clock runs."""
+    return stepped(clock) or float(getattr(clock, "speed", 1.0)) <= 1.0
 
 
 class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
@@ -165,8 +177,9 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
                    run: RunDir | None) -> Bench:
         bench = Bench()
         try:
+            later = fogs_opened_when_used(clock)
             for axis in self.axes(cfg):
-                open_axis(bench, stand.axes[axis], clock, run)
+                open_axis(bench, stand.axes[axis], clock, run, fog_when_used=later)
             refused = uncommandable_rates(cfg, bench)
         except BaseException as e:
             bench.abandon(e)
@@ -178,6 +191,22 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         return bench
 
     # -- steps (each action is a `_do_<action>` method) --------------------------------
+    def execute(self, step: Step, ctx: RunContext) -> None:
+        """An axis's FOG streams for that axis's steps only: opened after the axis's
+        prompt (the operator mounts it then), closed when the next axis begins
+        (bench.core.instruments.fog_for_axis). Its first frame's index comes from the
+        clock; the `fog_capture` event keeps it for the analysis of the raw file."""
+        ax = ctx.bench.axes.get(step.axis) if step.axis else None
+        if ax is not None:
+            fog = fog_for_axis(ctx.bench, ax.name, ctx.run, opening=step.action != "prompt")
+            if fog is not None:
+                ctx.run.event("fog_capture", axis=ax.name, first_index=fog.first_index,
+                              rate_hz=fog.rate_hz)
+                ctx.run.event("identity", axis=ax.name, **ax.identities,
+                              **({"counter_reference": ax.reference_text}
+                                 if ax.reference_text else {}))
+        super().execute(step, ctx)
+
     def _do_enable(self, step: Step, ctx: RunContext) -> None:
         ctx.bench.axes[step.axis].drive.enable()
 
@@ -185,7 +214,9 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         ax = ctx.bench.axes[step.axis]
         fog = ax.fog
         duration = step.params["duration_s"]
-        due = math.ceil(ctx.clock.now() * fog.rate_hz)   # the first sample at or after now
+        # the first sample at or after now, and not before the capture's first (a FOG
+        # opened at this instant, execute(): its first frame is the first sample after it)
+        due = max(math.ceil(ctx.clock.now() * fog.rate_hz), fog.first_index or 0)
         # co-simulation: the stand's sample n is at n / rate, and whether the sample due at
         # this instant has reached the reader yet is thread scheduling: the clock alone says
         # where the record starts, or a loaded machine moves it by one sample. Hardware:

@@ -90,12 +90,14 @@ def decimate(t: np.ndarray, y: np.ndarray, points: int = TRACE_POINTS
     return [round(float(v), 4) for v in tb], [float(v) for v in yb]
 
 
-def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S
-              ) -> dict[str, Any]:
+def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S,
+              first_index: int = 0) -> dict[str, Any]:
     """The last `tail_s` of a FOG capture, decoded and decimated (bench time, deg/s).
 
-    Time is the frame's position in the capture over the output rate: exact while no
-    bytes were lost, a few frames off after a corrupt stretch, which a live plot can bear.
+    Time is the frame's position in the capture over the output rate, from the
+    capture's `first_index` (its `fog_capture` event: the ladder opens an axis's FOG
+    for its own steps): exact while no bytes were lost, a few frames off after a
+    corrupt stretch, which a live plot can bear.
     """
     try:
         f = get_format(fog.format)
@@ -113,7 +115,7 @@ def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S
     if not len(frames) or fog.axis not in AXES:
         return {"t_s": [], "rate_dps": [], **seen}
     scale = dps_per_unit(fog.units, fog.rate_hz)
-    t = frames.offset.astype(np.float64) / f.size / fog.rate_hz
+    t = (first_index + frames.offset.astype(np.float64) / f.size) / fog.rate_hz
     y = frames.rates[:, AXES.index(fog.axis)].astype(np.float64) * scale
     ts, ys = decimate(t, y)
     return {"t_s": ts, "rate_dps": ys, **seen}
@@ -329,7 +331,10 @@ def live_state(run_path: Path) -> dict[str, Any]:
     if raw is not None and axis:
         settings = FogSettings.of_axis(stand, axis) if isinstance(stand, dict) else None
         if settings is not None:
-            fog = fog_trace(raw / f"{axis}-fog.bin", settings)
+            first = next((int(e["first_index"]) for e in session
+                          if e.get("event") == "fog_capture" and e.get("axis") == axis
+                          and e.get("first_index") is not None), 0)
+            fog = fog_trace(raw / f"{axis}-fog.bin", settings, first_index=first)
         drive = drive_trace(raw / f"{axis}-drive.jsonl")
     acquires = [e for e in events if e.get("event") == "acquire"]
     # the per-turn panel shows the axis now running, never the previous axis's last half
