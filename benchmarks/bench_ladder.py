@@ -96,6 +96,15 @@ The raw pty on this VM moves 180-240 MB/s on one core (dd into the master, Pytho
 reading the slave), against ~50 MB/s a FOG in the ladder: the channel is not at its
 bandwidth; the bench process's threads and the interpreter lock set the pace.
 
+27 Nov 2026, 9514c80: each axis's FOG streams for that axis's steps only (the ladder
+opens it after the axis's prompt, closes it when the next axis begins; the twin sends
+nothing while no reader has the port). Interleaved on this VM, 08:20-08:26: 100 s and
+110 s (measuring 74.1 and 84.6 s, writing the outputs 18 s) against 161 s for 55607bc
+between them (measuring 135.2 s); 381-383 MB against 387 MB, 0 lost, exit 0; CPU over
+the run user 92-101 + nice 28-31 (the worker) + system 30-36 core-s against 138 + 31 +
+75. First run at 07:40: 107 s (measuring 81.7 s), 378 MB. The raw FOG captures: 3.6 GB
+instead of 7.6 GB.
+
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
 the FOG twins' encoding, the drive twins' ticks: split by cProfile), the FOG twins'
