@@ -103,7 +103,12 @@ nothing while no reader has the port). Interleaved on this VM, 08:20-08:26: 100 
 between them (measuring 135.2 s); 381-383 MB against 387 MB, 0 lost, exit 0; CPU over
 the run user 92-101 + nice 28-31 (the worker) + system 30-36 core-s against 138 + 31 +
 75. First run at 07:40: 107 s (measuring 81.7 s), 378 MB. The raw FOG captures: 3.6 GB
-instead of 7.6 GB.
+instead of 7.6 GB. `--profile` at 1bd2298 (09:25, 130 s with cProfile's overhead), CPU s
+by thread: bench thread 96.2 (the stand's samples 42.5, the drive twins' ticks 20.3, the
+FOG twins' encoding 11.1; 15.5 s of real time waiting for participants), both FOG readers
+31.6 (26 Nov: ~51 each), both twin writers 13.4 (26 Nov: ~15 each), analysis worker 30.5,
+CAN 9.4. The stand still computes the idle axis's samples (at rest) for its drive and
+counter twins: part of the 42.5 s.
 
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
