@@ -273,6 +273,17 @@ class _SampleStore:
         self.n = keep
 
 
+def _capture_start(fmt: FrameFormat, first_index: int | None
+                   ) -> tuple[StreamDecoder, _SampleStore]:
+    """A decoder and a sample store before a capture's first byte: the one start shared by
+    the live driver, `read_capture` and `CaptureCursor`, so all three index alike."""
+    dec = StreamDecoder(fmt)
+    dec.state = DecodeState.starting_at(first_index)
+    store = _SampleStore()
+    store.base = first_index or 0
+    return dec, store
+
+
 class Fog:
     """A FOG on a serial port, read continuously in the background.
 
@@ -378,10 +389,7 @@ class Fog:
                 raise FogError(f"cannot create the FOG raw capture {self.raw_path}: {e}") from e
         self.first_index = first_sample_after(self.clock.now(), self.rate_hz)
         with self._cond:
-            self._decoder = StreamDecoder(self.format)
-            self._decoder.state = DecodeState.starting_at(self.first_index)
-            self._store = _SampleStore()
-            self._store.base = self.first_index
+            self._decoder, self._store = _capture_start(self.format, self.first_index)
         self._stop.clear()
         channel_opened(self.clock, self.port)  # a stepped clock counts what we consume
         self._thread = threading.Thread(target=self._read_loop, name=f"fog-{self.port}",
@@ -762,10 +770,7 @@ def read_capture(raw_path: Path | str, *, fmt: str = "kvh-a", axis: str = "z",
     f = get_format(fmt)
     if axis not in f.valid_bits:
         raise ValueError(f"FOG axis {axis!r} unknown for format {f.name!r}")
-    dec = StreamDecoder(f)
-    dec.state = DecodeState.starting_at(first_index)
-    store = _SampleStore()
-    store.base = first_index or 0
+    dec, store = _capture_start(f, first_index)
     col, scale, mask = AXES.index(axis), dps_per_unit(units, rate_hz), 1 << f.valid_bits[axis]
     with open(raw_path, "rb") as fh:
         while chunk := fh.read(chunk_bytes):
@@ -793,8 +798,8 @@ class CaptureCursor:
             raise ValueError(f"FOG axis {axis!r} unknown for format {f.name!r}")
         self.raw_path = Path(raw_path)
         self.rate_hz = float(rate_hz)
-        self.decoder = StreamDecoder(f)
-        self._store = _SampleStore()
+        # the file's start: index 0, or the capture's first_index (a late open)
+        self.decoder, self._store = _capture_start(f, first_index)
         self._col, self._scale = AXES.index(axis), dps_per_unit(units, rate_hz)
         self._mask = 1 << f.valid_bits[axis]
         self._chunk_bytes = int(chunk_bytes)
@@ -806,9 +811,6 @@ class CaptureCursor:
                                              None if first is None else int(first))
             self._fh.seek(int(start["offset"]))
             self._store.base = int(start["last_index"]) + 1
-        else:  # the file's start: index 0, or the capture's first_index (a late open)
-            self.decoder.state = DecodeState.starting_at(first_index)
-            self._store.base = first_index or 0
 
     @property
     def position(self) -> int:

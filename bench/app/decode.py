@@ -20,7 +20,7 @@ from typing import TextIO
 
 import numpy as np
 
-from bench.core.journal import read_jsonl
+from bench.core.journal import fog_capture_starts, read_jsonl
 from drivers.fog_formats import FORMATS, DecodeState, Frames, StreamDecoder
 
 _CHUNK_BYTES = 1 << 22
@@ -31,17 +31,13 @@ def run_capture_start(path: Path) -> int | None:
     """The first index of a capture inside a run directory, from its events (or None)."""
     session, axis = path.parent.name, path.name.removesuffix("-fog.bin")
     events = path.parent.parent.parent / "events.jsonl"
-    if path.parent.parent.name != "raw" or not session.startswith("s") \
+    if path.parent.parent.name != "raw" or not session[1:].isdigit() \
             or axis == path.name or not events.is_file():
         return None
     try:
-        for e in read_jsonl(events):
-            if e.get("event") == "fog_capture" and e.get("axis") == axis \
-                    and f"s{e.get('session')}" == session and e.get("first_index") is not None:
-                return int(e["first_index"])
-    except (OSError, ValueError):
+        return fog_capture_starts(read_jsonl(events)).get((int(session[1:]), axis))
+    except (OSError, ValueError, KeyError):
         return None
-    return None
 
 
 def decode_command(raw_file: str, fmt: str, csv_path: str | None,

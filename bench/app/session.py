@@ -37,7 +37,13 @@ from bench.app.summary import Summary, summarize
 from bench.core.config import Config
 from bench.core.diskspace import expected_raw_bytes, space_problem
 from bench.core.engine import Abort, Engine, Interrupted, RunContext, SignalGuard
-from bench.core.instruments import Bench, StandClaimError, StopErrors, check_references
+from bench.core.instruments import (
+    Bench,
+    StandClaimError,
+    StopErrors,
+    check_references,
+    identity_record,
+)
 from bench.core.journal import RunDir
 from bench.core.plan import Plan, format_duration
 from bench.core.registry import procedure_kind
@@ -201,9 +207,7 @@ class RunSession:
         self.bench = bench = self.kind.open_bench(cfg, stand, clock, run)
         self._stack.callback(self._close_bench, bench)
         for ax in bench.axes.values():
-            run.event("identity", axis=ax.name, **ax.identities,
-                      **({"counter_reference": ax.reference_text}
-                         if ax.reference_text else {}))
+            run.event("identity", **identity_record(ax))
         if self.simbench is not None:
             self.simbench.start_clock()
             if self.on_sim_started is not None:

@@ -45,10 +45,13 @@ class AxisInstruments:
     logs: dict[str, JsonLines] = field(default_factory=dict)
     reference_text: str | None = None  # the counter's timebase as read back (journal)
     refusal: Exception | None = None   # a stand claim the instruments denied at opening
-    #: the FOG is opened only for this axis's own steps (open_axis fog_when_used) ...
+    #: the FOG is opened only for this axis's own steps (open_axis fog_when_used)
     fog_later: bool = False
-    #: ... and is not open yet
-    fog_waiting: bool = False
+
+    @property
+    def fog_waiting(self) -> bool:
+        """The FOG is made and not opened yet (opening places its first index)."""
+        return self.fog is not None and self.fog.first_index is None
 
 
 class Bench:
@@ -144,6 +147,15 @@ def with_readback(identity: str, readback: dict[str, Any], manual: str | None = 
     if manual:
         out += f"; driver checked against: {manual}"
     return out
+
+
+def identity_record(ax: AxisInstruments) -> dict[str, str]:
+    """The `identity` event's fields of one axis: each instrument's identity with its
+    read-back, and the counter's reference as read back."""
+    return {"axis": ax.name, **ax.identities,
+            **({"counter_reference": ax.reference_text} if ax.reference_text else {})}
+
+
 def manual_note(manual: str) -> str:
     """What `bench devices` and the certificate say of a driver profile's source: the
     manual it was checked against, or UNVERIFIED where no manual was found."""
@@ -243,7 +255,6 @@ def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *
                  keep_samples=int(LIVE_FOG_KEEP_S * f.rate_hz) if run else None)
         ax.fog = fg
         ax.identities["fog"] = fg.identity()
-        ax.fog_waiting = True
         ax.fog_later = fog_when_used
         if not fog_when_used:
             _open_fog(bench, ax, run)
@@ -253,7 +264,6 @@ def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *
 def _open_fog(bench: Bench, ax: AxisInstruments, run: RunDir | None) -> Fog:
     fg = ax.fog
     assert isinstance(fg, Fog) and ax.fog_waiting
-    ax.fog_waiting = False
     if run is not None:   # runs after the FOG has closed (the stack is last-in-first-out)
         bench.callback(lambda: run.remember_digest(fg.raw_path, fg.raw_digest),
                        f"{fg.port} digest")

@@ -23,7 +23,7 @@ import json
 import os
 import shutil
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import IO, Any
 
@@ -139,6 +139,18 @@ def scan_jsonl(path: Path) -> tuple[list[dict[str, Any]], list[int]]:
 def read_jsonl(path: Path) -> Iterator[dict[str, Any]]:
     """Records of a JSON-lines file; a torn line (a crash mid-write) is skipped."""
     yield from scan_jsonl(path)[0]
+
+
+#: the event a run writes when it opens a FOG while its clock runs: where the raw
+#: capture raw/s<session>/<axis>-fog.bin starts (drivers/fog.py `first_index`)
+FOG_CAPTURE_EVENT = "fog_capture"
+
+
+def fog_capture_starts(events: Iterable[dict[str, Any]]) -> dict[tuple[int, str], int]:
+    """{(session, axis): the first sample index of that session's FOG capture}. A capture
+    without the event starts at index 0 (a run from before the event existed)."""
+    return {(int(e["session"]), str(e["axis"])): int(e["first_index"]) for e in events
+            if e.get("event") == FOG_CAPTURE_EVENT and e.get("first_index") is not None}
 
 
 def torn_tail_bytes(path: Path) -> int:

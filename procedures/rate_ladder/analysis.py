@@ -25,14 +25,14 @@ from bench.analysis.random_part import std_interval_u_rel
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.core.config import Config, CounterSpec
-from bench.core.journal import RunDir, read_jsonl
+from bench.core.journal import RunDir, fog_capture_starts, read_jsonl
 from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, events_of, result_document
 from procedures.rate_ladder.conditions import TemperatureSpan, memo_key
-from procedures.rate_ladder.events import HalfAcquired, StaticRecorded, capture_first_indices
+from procedures.rate_ladder.events import HalfAcquired, StaticRecorded
 from procedures.rate_ladder.settings import (
     MAINS_CANDIDATES_HZ,
     MAINS_FOUND,
@@ -168,7 +168,7 @@ class RawData:
                 c.close()
             f = self.cfg.fog(axis)
             if self._first_index is None:
-                self._first_index = capture_first_indices(self.run.events())
+                self._first_index = fog_capture_starts(self.run.events())
             c = CaptureCursor(self.run.path / "raw" / f"s{session}" / f"{axis}-fog.bin",
                               fmt=f.format, axis=f.axis, rate_hz=f.rate_hz, units=f.units,
                               chunk_bytes=self.chunk_bytes, start=start,

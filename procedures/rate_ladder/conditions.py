@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 
 from bench.core.config import Config
-from bench.core.journal import RunDir
+from bench.core.journal import RunDir, fog_capture_starts
 from drivers.fog import CaptureCursor, FogSamples
-from procedures.rate_ladder.events import HalfAcquired, capture_first_indices
+from procedures.rate_ladder.events import HalfAcquired
 
 
 class TemperatureSpan:
@@ -67,7 +67,7 @@ def fog_temperatures(run: RunDir, cfg: Config) -> dict[str, Any]:
     """{axis: {halves: [...], min_c, mean_c, max_c}} from every half recorded."""
     out: dict[str, Any] = {}
     events = run.events()
-    first = capture_first_indices(events)
+    first = fog_capture_starts(events)
     for h in HalfAcquired.all_in(events):
         path = run.path / "raw" / f"s{h.session}" / f"{h.axis}-fog.bin"
         if not path.is_file():

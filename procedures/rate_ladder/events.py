@@ -84,11 +84,3 @@ class HalfAcquired(LadderEvent):
     def sign(self) -> int:
         return 1 if self.set_rate_dps > 0 else -1
 
-
-def capture_first_indices(events: list[dict[str, Any]]) -> dict[tuple[int, str], int]:
-    """{(session, axis): the first sample index of that session's FOG capture}, for the
-    captures opened while the clock ran (the `fog_capture` event the ladder writes when
-    it opens an axis's FOG for its steps). A capture without one starts at index 0 (a
-    run from before: every FOG opened before the clock started)."""
-    return {(int(e["session"]), str(e["axis"])): int(e["first_index"]) for e in events
-            if e.get("event") == "fog_capture" and e.get("first_index") is not None}

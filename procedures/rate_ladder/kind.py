@@ -15,8 +15,14 @@ from typing import Any
 
 from bench.core.config import Config, StandSettings, stand_schema
 from bench.core.engine import Abort, RunContext
-from bench.core.instruments import Bench, StandClaimError, fog_for_axis, open_axis
-from bench.core.journal import RunDir
+from bench.core.instruments import (
+    Bench,
+    StandClaimError,
+    fog_for_axis,
+    identity_record,
+    open_axis,
+)
+from bench.core.journal import FOG_CAPTURE_EVENT, RunDir
 from bench.core.plan import Plan, Step, format_duration
 from bench.core.progress import RELATIVE, Figure
 from bench.core.schema import Map
@@ -200,11 +206,9 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         if ax is not None:
             fog = fog_for_axis(ctx.bench, ax.name, ctx.run, opening=step.action != "prompt")
             if fog is not None:
-                ctx.run.event("fog_capture", axis=ax.name, first_index=fog.first_index,
+                ctx.run.event(FOG_CAPTURE_EVENT, axis=ax.name, first_index=fog.first_index,
                               rate_hz=fog.rate_hz)
-                ctx.run.event("identity", axis=ax.name, **ax.identities,
-                              **({"counter_reference": ax.reference_text}
-                                 if ax.reference_text else {}))
+                ctx.run.event("identity", **identity_record(ax))
         super().execute(step, ctx)
 
     def _do_enable(self, step: Step, ctx: RunContext) -> None:

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from bench.core.config import FogSettings
+from bench.core.journal import fog_capture_starts
 from bench.core.yamlfile import read_mapping
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, DecodeState, decode, get_format
@@ -331,9 +332,7 @@ def live_state(run_path: Path) -> dict[str, Any]:
     if raw is not None and axis:
         settings = FogSettings.of_axis(stand, axis) if isinstance(stand, dict) else None
         if settings is not None:
-            first = next((int(e["first_index"]) for e in session
-                          if e.get("event") == "fog_capture" and e.get("axis") == axis
-                          and e.get("first_index") is not None), 0)
+            first = fog_capture_starts(session).get((int(session_no or 0), axis), 0)
             fog = fog_trace(raw / f"{axis}-fog.bin", settings, first_index=first)
         drive = drive_trace(raw / f"{axis}-drive.jsonl")
     acquires = [e for e in events if e.get("event") == "acquire"]
