@@ -287,7 +287,10 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
 
         first = _wait(lambda: state("window.station?.state?.progress?.step?.number"), 60,
                       "a step on the page")
-        _wait(lambda: (state("window.station?.state?.progress?.step?.number") or 0) > first,
+        # and bench time to pass in it: a step that has just begun after a step of no
+        # estimated time (the prompt) leaves the fraction at exactly 0 (CI saw it once)
+        _wait(lambda: (state("window.station?.state?.progress?.step?.number") or 0) > first
+              and (state("window.station?.state?.progress?.fraction") or 0) > 0,
               120, "the step to advance")
         # the live figures while the run is surely going on (a step just advanced; on a
         # loaded machine the 5x run may have ended by the time the plot fills, CI saw it)
