@@ -207,10 +207,12 @@ class Axis:
                  feedback_journal_s: float = 0.1,
                  position_tolerance_deg: float = DEFAULT_POSITION_TOLERANCE_DEG,
                  raw: RawSink | None = None, unit_factors: str | Mapping[str, str] = DEFAULT_UNIT_FACTORS,
-                 pdo: str = DEFAULT_PDO) -> None:
+                 pdo: str = DEFAULT_PDO, bus_options: Mapping[str, Any] | None = None) -> None:
         self.name = name
         self.interface = interface
         self.channel = channel
+        #: more `can.Bus` arguments: a socketcand server's host and port
+        self.bus_options = dict(bus_options or {})
         self.node_id = int(node_id)
         self.clock = clock
         self.eds_path = Path(eds_path)
@@ -328,14 +330,16 @@ class Axis:
         network.add_node(node)
         node.nmt.add_heartbeat_callback(self._on_heartbeat)
         node.emcy.add_callback(self._on_emcy)
-        kwargs: dict[str, Any] = {"interface": self.interface, "channel": self.channel}
+        kwargs: dict[str, Any] = {"interface": self.interface, "channel": self.channel,
+                                  **self.bus_options}
         if self.bitrate:
             kwargs["bitrate"] = self.bitrate
         try:
             network.connect(**kwargs)
         except Exception as e:
+            where = "".join(f" {k}={v}" for k, v in self.bus_options.items())
             raise AxisError(f"axis {self.name}: cannot open CAN bus {self.interface}:"
-                            f"{self.channel}: {e}") from e
+                            f"{self.channel}{where}: {e}") from e
         self.network, self.node = network, node
         self._started = False
         try:

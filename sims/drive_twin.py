@@ -189,7 +189,7 @@ class DriveTwin:
         self.clock = stand.clock
         self.interface = interface
         self.channel = channel
-        #: more python-can bus arguments (e.g. udp_multicast's port)
+        #: more python-can bus arguments (a real bus interface's own)
         self.bus_options = dict(bus_options or {})
         self.node_id = node_id
         self._stepped = bool(getattr(self.clock, "stepped", False))

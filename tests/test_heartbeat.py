@@ -1,8 +1,8 @@
 """The controller's heartbeat stops when the controller stops, so the drive stops the table.
 
 The suspended-controller test runs the controller in a second process and the drive twin
-here, on python-can's udp_multicast bus (a real channel between processes: the virtual
-bus is per process). SocketCAN, where the bus's own periodic task would be a kernel task
+here, on the twin's virtual bus served by a socketcand server on 127.0.0.1 (a real
+channel between processes: the virtual bus is per process; sims/socketcand_server.py). SocketCAN, where the bus's own periodic task would be a kernel task
 that outlives a suspended process, is out of a twin's reach (it needs the vcan module and
 root), so one test stands in for it by taking `send_periodic` away from the bus.
 """
@@ -25,14 +25,16 @@ from drivers.cia402 import State
 from drivers.heartbeat import HeartbeatProducer
 from sims.clock import VirtualClock
 from sims.drive_twin import DriveTwin
+from sims.socketcand_server import SocketcandServer
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
-from tests.conftest import ROOT, Twins, one_axis_stand, unavailable
+from tests.conftest import ROOT, Twins, one_axis_stand
 
 CONTROLLER = """
 import sys, time
 from drivers.clock import MonotonicClock
 from drivers.axis import Axis
-ax = Axis("outer", interface="udp_multicast", channel=sys.argv[1], node_id=2,
+ax = Axis("outer", interface="socketcand", channel="bench",
+          bus_options={"host": "127.0.0.1", "port": int(sys.argv[1])}, node_id=2,
           max_rate_dps=100.0, max_accel_dps2=500.0, clock=MonotonicClock(),
           heartbeat_ms=50, watchdog_ms=300)
 ax.open()
@@ -93,30 +95,18 @@ def test_heartbeat_does_not_use_the_bus_periodic_task(monkeypatch: pytest.Monkey
         assert twin.watchdog_trips == [] and twin.state is State.OPERATION_ENABLED
 
 
-def _multicast_group() -> str:
-    """A group of our own on 239.x (site-local); skip where loopback multicast is off."""
-    group = f"239.74.{random.randint(0, 255)}.{random.randint(1, 254)}"
-    try:
-        with can.Bus(interface="udp_multicast", channel=group) as a, \
-                can.Bus(interface="udp_multicast", channel=group) as b:
-            a.send(can.Message(arbitration_id=0x123, data=b"ok", is_extended_id=False))
-            if b.recv(1.0) is None:
-                unavailable("this machine does not loop multicast back")
-    except (OSError, can.CanError) as e:
-        unavailable(f"udp_multicast bus unavailable here: {e}")
-    return group
-
-
 @pytest.mark.timeout(60)
 def test_a_suspended_controller_has_its_table_stopped() -> None:
     """Ctrl-Z (SIGSTOP here) on the controller: the drive's watchdog trips after its time."""
-    group = _multicast_group()
     clock = VirtualClock(1.0)
     stand = SimulatedStand(StandTruth(seed=4, axes={"outer": AxisTruth()}), {"outer": 100.0},
                            clock)
-    twin = DriveTwin(stand, "outer", interface="udp_multicast", channel=group, node_id=2)
+    channel = f"hb-{random.getrandbits(40):010x}"
+    twin = DriveTwin(stand, "outer", channel=channel, node_id=2)
     twin.start()
-    proc = subprocess.Popen([sys.executable, "-c", CONTROLLER, group], cwd=ROOT, text=True,
+    server = SocketcandServer({"bench": channel})
+    port = server.start()
+    proc = subprocess.Popen([sys.executable, "-c", CONTROLLER, str(port)], cwd=ROOT, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         line: list[str] = []
@@ -142,6 +132,7 @@ def test_a_suspended_controller_has_its_table_stopped() -> None:
         os.kill(proc.pid, signal.SIGKILL)
         os.kill(proc.pid, signal.SIGCONT)
         proc.wait(10)
+        server.stop()
         twin.stop()
 
 

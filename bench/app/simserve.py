@@ -2,18 +2,19 @@
 
 A user develops a script against the digital twin of the bench before the bench exists:
 the counters answer SCPI on 127.0.0.1 (pyvisa), the FOGs stream on pseudo-terminals
-(pyserial), the drives sit on a python-can `udp_multicast` bus that another process
-joins (canopen). One line per instrument says where (CONTRACT §1):
+(pyserial), the drives' CAN buses are served by a socketcand server on 127.0.0.1
+(sims/socketcand_server.py), which python-can's `socketcand` interface opens from any
+process (canopen). One line per instrument says where (CONTRACT §1):
 
     outer counter TCPIP0::127.0.0.1::40113::SOCKET
     outer fog /dev/pts/7
-    outer drive interface=udp_multicast channel=239.74.163.2 node=2 port=40987
+    outer drive interface=socketcand host=127.0.0.1 port=40987 channel=bench node=2
 
-`port=` is udp_multicast's port (`can.Bus(..., port=N)`): each `bench sim` takes a
-free one, so two of them never hear each other's frames. The stand's clock runs in
-real time (clock_speed 1), whatever the stand file's `sim.clock_speed` says: a script
-on the other side lives in real time. Runs until Ctrl-C or SIGTERM, then stops every
-twin.
+A drive line's words before `node=` are exactly `can.Bus`'s arguments (numbers as
+integers). Each `bench sim` takes a free port, so two of them never share a bus, and
+nothing is sent beyond this machine. The stand's clock runs in real time (clock_speed
+1), whatever the stand file's `sim.clock_speed` says: a script on the other side lives
+in real time. Runs until Ctrl-C or SIGTERM, then stops every twin.
 """
 
 from __future__ import annotations
@@ -30,8 +31,8 @@ from bench.core.registry import procedure_kind
 from bench.core.simbench import SimBench, with_sim
 from bench.core.simdrift import drifted, stated_run_number
 
-#: where `bench sim` puts its drives: a bus another process can join
-SIM_CAN_INTERFACE = "udp_multicast"
+#: how `bench sim` serves its drives' buses: a bus another process can open
+SIM_CAN_INTERFACE = "socketcand"
 
 
 def address_lines(sim: SimBench, stand: StandSettings) -> Iterator[str]:
@@ -43,8 +44,8 @@ def address_lines(sim: SimBench, stand: StandSettings) -> Iterator[str]:
         if ac.fog:
             yield f"{axis} fog {ac.fog.port}"
         d = ac.drive
-        port = f" port={sim.can_port}" if sim.can_port is not None else ""
-        yield f"{axis} drive interface={d.interface} channel={d.channel} node={d.node_id}{port}"
+        bus = "".join(f" {k}={v}" for k, v in d.bus_options.items())
+        yield f"{axis} drive interface={d.interface}{bus} channel={d.channel} node={d.node_id}"
     for where, address in stand.addresses.items():   # a kind's own instruments
         parts = where.split(".")
         if parts[:2] == ["platform", "awg"]:

@@ -18,7 +18,12 @@ from drivers.cia402 import CONTROLLER_NODE_ID  # further axes on a bus take 0x7E
 
 
 def bus_name(drive: Mapping[str, Any]) -> str:
-    return f"{drive['interface']}:{drive['channel']}"
+    """A bus's identity: interface and channel, and for a bus behind a server
+    (socketcand) the server's host and port, so two servers' `can0` are two buses."""
+    where = ""
+    if drive.get("host") is not None or drive.get("port") is not None:
+        where = f"@{drive.get('host', '')}:{drive.get('port', '')}"
+    return f"{drive['interface']}:{drive['channel']}{where}"
 
 
 def controller_node_ids(axes: Mapping[str, Mapping[str, Any]]) -> dict[str, int]:
@@ -44,9 +49,23 @@ def controller_node_ids(axes: Mapping[str, Mapping[str, Any]]) -> dict[str, int]
     return out
 
 
+#: interfaces whose bus sits behind a server the stand must name (python-can's arguments)
+SERVER_KEYS = {"socketcand": ("host", "port")}
+
+
 def bus_problems(axes: Mapping[str, Mapping[str, Any]]) -> list[tuple[KeyPath, str]]:
-    """Node ids used twice on one bus, each named at the key that repeats it."""
+    """Node ids used twice on one bus, each named at the key that repeats it; a bus
+    behind a server (socketcand) without the server's address."""
     out: list[tuple[KeyPath, str]] = []
+    for name, ax in axes.items():
+        d = ax.get("drive") if isinstance(ax, Mapping) else None
+        if not isinstance(d, Mapping):
+            continue
+        for key in SERVER_KEYS.get(str(d.get("interface")), ()):
+            if key not in d:
+                out.append(((name, "drive", "interface"),
+                            f"interface {d.get('interface')} needs drive.{key} (the server's "
+                            f"{'address, e.g. 127.0.0.1' if key == 'host' else 'TCP port'})"))
     seen: dict[tuple[str, int], str] = {}      # (bus, node id) -> what holds it
     keys = [("node_id", "drive"), ("controller_node_id", "controller")]
     for key, role in keys:

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from bench.core.canbus import bus_problems
+from bench.core.canbus import bus_name, bus_problems
 from bench.core.schema import (
     Any_,
     Bool,
@@ -70,8 +70,14 @@ TRACEABLE = Map({   # a reference the bench does not drive (a 10 MHz source, a s
     "traces": Key(Str(), False, "the quantity it traces to SI"),
 })
 DRIVE = Map({
-    "interface": Key(Str(), True, "python-can interface: socketcan, pcan, kvaser, virtual..."),
-    "channel": Key(Str(), True, "python-can channel, e.g. can0"),
+    "interface": Key(Str(), True, "python-can interface: socketcan, pcan, kvaser, socketcand, "
+                                  "virtual..."),
+    "channel": Key(Str(), True, "python-can channel, e.g. can0 (socketcand: the bus name the "
+                                "server announces)"),
+    "host": Key(Str(), False, "socketcand: the server's address, e.g. 127.0.0.1 for "
+                              "`bench sim` (required with interface socketcand)"),
+    "port": Key(Num(min=1, max=65535, integer=True), False,
+                "socketcand: the server's TCP port (required with interface socketcand)"),
     "node_id": Key(Num(min=1, max=127, integer=True), True, "the drive's CANopen node id"),
     "controller_node_id": Key(Num(min=1, max=127, integer=True), False,
                               "this axis's controller node on the bus, whose heartbeat "
@@ -468,11 +474,19 @@ class DriveSpec:
     calibration: Calibration | None = None
     unit_factors: str | Mapping[str, str] = _default(DRIVE, "unit_factors")
     pdo: str = _default(DRIVE, "pdo")
+    host: str | None = None          # socketcand's server
+    port: int | None = None
 
     @property
     def bus(self) -> str:
         """The CAN bus this drive is on (axes with the same one share it)."""
-        return f"{self.interface}:{self.channel}"
+        return bus_name({"interface": self.interface, "channel": self.channel,
+                         "host": self.host, "port": self.port})
+
+    @property
+    def bus_options(self) -> dict[str, Any]:
+        """The `can.Bus` arguments besides interface and channel the stand states."""
+        return {k: v for k in ("host", "port", "bitrate") if (v := getattr(self, k))}
 
 
 @dataclass(frozen=True)
@@ -577,7 +591,7 @@ class SimSettings:
     clock_speed: float | str | None = None
     run_number: int | None = None
     axes: Mapping[str, SimAxis] = field(default_factory=dict)
-    can_bus: str = "virtual"          # set by `bench sim` (udp_multicast: other processes)
+    can_bus: str = "virtual"          # `bench sim`: "socketcand", served to other processes
     session: int = 1                  # set for a --resume: the session these twins serve
 
     def axis(self, name: str) -> SimAxis:
@@ -685,7 +699,9 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
                                                _default(DRIVE, "position_tolerance_deg"))),
             eds=_opt(d, "eds", str), serial=_opt(d, "serial", str),
             calibration=Calibration.of(d.get("calibration")),
-            unit_factors=d.get("unit_factors", _default(DRIVE, "unit_factors")), pdo=str(d.get("pdo", _default(DRIVE, "pdo"))))
+            unit_factors=d.get("unit_factors", _default(DRIVE, "unit_factors")),
+            pdo=str(d.get("pdo", _default(DRIVE, "pdo"))), host=_opt(d, "host", str),
+            port=_opt(d, "port", int))
         c = a.get("counter")
         counter = None if not c else CounterSpec(
             resource=str(c["resource"]), model=str(c["model"]), serial=_opt(c, "serial", str),

@@ -210,6 +210,7 @@ def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *
                  clock=clock, controller_node_id=d.controller_node_id,
                  counts_per_rev=d.counts_per_rev, heartbeat_ms=d.heartbeat_ms,
                  watchdog_ms=d.watchdog_ms, bitrate=d.bitrate, pdo=d.pdo,
+                 bus_options={k: v for k, v in d.bus_options.items() if k != "bitrate"},
                  position_tolerance_deg=d.position_tolerance_deg,
                  unit_factors=d.unit_factors, eds_path=d.eds or DEFAULT_EDS_PATH,
                  raw=_raw_record_logger(drive_log, clock) if drive_log else None)

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import socket
 import sys
 import uuid
 from collections.abc import Callable
@@ -24,12 +23,21 @@ from typing import Any
 
 import numpy as np
 
-from bench.core.config import Config, CounterSpec, FogSettings, SimAxis, SimSettings, StandSettings
+from bench.core.config import (
+    Config,
+    CounterSpec,
+    FogSettings,
+    SimAxis,
+    SimSettings,
+    StandAxis,
+    StandSettings,
+)
 from drivers.waits import MIN_REAL_MARGIN_S
 from sims.clock import GIL_SWITCH_S, MAX, SteppedClock, make_clock, parse_speed
 from sims.counter_twin import CounterTwin
 from sims.drive_twin import DriveTwin
 from sims.fog_twin import FogTwin
+from sims.socketcand_server import MAX_BUS_NAME, SocketcandServer
 from sims.stand import SimulatedStand, StandTruth
 
 #: the stand's sample rate for an axis that carries no FOG (the twins' time grid)
@@ -62,18 +70,6 @@ def session_seed(sim: SimSettings) -> int:
     if sim.session <= 1:
         return sim.seed
     return int(np.random.SeedSequence([sim.seed, sim.session]).generate_state(1)[0])
-#: the multicast group of the first CAN bus of a stand on udp_multicast (one more a bus)
-UDP_MULTICAST_GROUP = "239.74.163.{n}"
-
-
-def _free_udp_port() -> int:
-    """A UDP port no one on this host uses now: one `bench sim` a port, so two of them
-    (or a test beside one) never hear each other's frames."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("", 0))
-        return int(s.getsockname()[1])
-
-
 def sync_link(counter: CounterSpec, sim_axis: SimAxis) -> Any:
     """The FOG-sync-to-counter link the twins model for a `fog-sync` time tie: pulses
     every `sync_period_s`, the sim truth's latency and jitter (default: exactly the
@@ -121,8 +117,10 @@ class SimBench:
         self.stand = SimulatedStand(truth, fog_hz, self.clock)
         self.axes = axes
         self.channel = f"sim-{uuid.uuid4().hex[:8]}"
-        self.can_interface = self.sim.can_bus
-        self.can_port = _free_udp_port() if self.can_interface == "udp_multicast" else None
+        #: the twins' bus in this process; `sim.can_bus: socketcand` (`bench sim`) also
+        #: serves each bus to other processes on 127.0.0.1 (sims/socketcand_server.py)
+        self.can_interface = "virtual"
+        self.can_server: SocketcandServer | None = None
         self.twins: dict[str, Any] = {}
         #: a kind's own instruments' addresses, rewritten to their twins' (`address`)
         self.addresses: dict[str, str] = {}
@@ -153,12 +151,11 @@ class SimBench:
             for a in self.axes:
                 d = axes[a].drive
                 truth = self.sim.axis(a)
-                channel = buses.setdefault(d.bus, self._bus_channel(len(buses)))
-                bus_options = {"port": self.can_port} if self.can_port is not None else {}
+                channel = buses.setdefault(d.bus, f"{self.channel}-{len(buses)}")
                 serial_kw: dict[str, Any] = ({"serial_number": truth.drive_serial}
                                              if truth.drive_serial is not None else {})
                 twin = DriveTwin(self.stand, a, interface=self.can_interface, channel=channel,
-                                 bus_options=bus_options, node_id=d.node_id,
+                                 node_id=d.node_id,
                                  controller_node_id=d.controller_node_id,
                                  counts_per_rev=d.counts_per_rev, **dict(truth.drive_twin),
                                  **serial_kw)
@@ -187,6 +184,8 @@ class SimBench:
                     level = c.level_v if c.level_v is not None else sum(ct.signal_v) / 2
                     axes[a] = dataclasses.replace(axes[a], counter=dataclasses.replace(
                         c, resource=resource, level_v=level))
+            if self.sim.can_bus == "socketcand":
+                axes = self._serve_buses(axes, buses)
             for factory in extra or []:
                 factory(self)
         except BaseException:
@@ -195,10 +194,29 @@ class SimBench:
         return dataclasses.replace(self.settings, axes=axes,
                                    addresses=dict(self.addresses))
 
-    def _bus_channel(self, n: int) -> str:
-        if self.can_interface == "udp_multicast":
-            return UDP_MULTICAST_GROUP.format(n=2 + n)
-        return f"{self.channel}-{n}"
+    def _serve_buses(self, axes: dict[str, StandAxis],
+                     buses: dict[str, str]) -> dict[str, StandAxis]:
+        """Serve each of the stand's buses on one socketcand server on 127.0.0.1, and
+        point the drives at it: what another process opens with `can.Bus`. A bus keeps
+        the stand's channel name where socketcand allows it (16 characters)."""
+        names: dict[str, str] = {}          # the stand's bus -> its socketcand bus name
+        for n, bus in enumerate(buses):
+            stated = bus.split(":", 1)[1]
+            ok = (0 < len(stated) <= MAX_BUS_NAME and not set(stated) & set(" <>")
+                  and stated not in names.values())
+            names[bus] = stated if ok else f"can{n}"
+        server = SocketcandServer({names[b]: ch for b, ch in buses.items()})
+        port = server.start()
+        self._stack.callback(server.stop)
+        self.can_server = server
+        out = dict(axes)
+        for a in self.axes:
+            d = axes[a].drive
+            original = self.settings.axes[a].drive
+            out[a] = dataclasses.replace(axes[a], drive=dataclasses.replace(
+                d, interface="socketcand", channel=names[original.bus],
+                host=server.host, port=port))
+        return out
 
     def add(self, name: str, twin: Any, stop: Callable[[], Any]) -> None:
         """For procedure kinds with instruments of their own (e.g. a gyro platform's)."""
