@@ -23,6 +23,8 @@ from typing import Any
 
 import pytest
 
+pytest_plugins = ["tests.netguard"]
+
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
 #: the serials the outer axis's twins of configs/stands/sim-two-axis.yaml report (the FOG's
@@ -32,7 +34,7 @@ OUTER_SERIALS = {"fog": "1760-20231", "counter": "MY62000117", "drive": "41001"}
 
 
 def unavailable(reason: str) -> None:
-    """A test's server or facility (PostgreSQL, a browser, a multicast bus, a tmpfs) is
+    """A test's server or facility (PostgreSQL, a browser, a tmpfs) is
     missing: in CI (`CI` set, as .ci/run's caller does) that is a failure, since .ci/run
     installs them and a skip would hide the gap; on a developer's machine, a skip saying so.
     """

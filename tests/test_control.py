@@ -36,7 +36,7 @@ from bench.app.records.hooks import target
 from bench.app.records.store import CheckPoint, ReviewInfo
 from bench.core.config import parse_stand
 from bench.core.simdrift import drifted
-from tests.conftest import CONFIGS, cli, run_dir_of
+from tests.conftest import CONFIGS, cli, run_dir_of, unavailable
 from tests.conftest import OUTER_SERIALS as OUTER
 
 FOG = OUTER["fog"]
@@ -239,23 +239,18 @@ def test_the_drift_keys_change_only_the_runs_they_name() -> None:
 @pytest.mark.timeout(300)
 def test_the_station_shows_the_status_and_the_charts_in_a_real_browser(
         history: dict[str, Any]) -> None:
-    from tests.test_station import _chromium, _start_server, _stop
+    from tests.test_station import _browser, _chromium, _start_server, _stop
 
     found = _chromium()
     if found is None:
-        pytest.skip("chromium and chromium-driver are not installed (Debian packages "
-                    "`chromium chromium-driver`; .ci/run installs them)")
-    from selenium import webdriver
-    from selenium.webdriver.chrome.options import Options
-    from selenium.webdriver.chrome.service import Service
+        unavailable("chromium and chromium-driver are not installed (Debian packages "
+                    "`chromium chromium-driver`)")
+        return
     from selenium.webdriver.common.by import By
 
     server, port = _start_server(history["runs"])
-    opts = Options()
-    opts.binary_location = found[0]
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage"):
-        opts.add_argument(a)
-    driver = webdriver.Chrome(service=Service(found[1]), options=opts)
+    # the station test's browser: headless, offline but for 127.0.0.1 (CHROMIUM_OFFLINE)
+    driver = _browser(found, 1000)
     try:
         base = f"http://127.0.0.1:{port}"
         driver.get(f"{base}/records")

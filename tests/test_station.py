@@ -224,8 +224,22 @@ def _chromium() -> tuple[str, str] | None:
     return (browser, driver) if browser and driver else None
 
 
+#: chromium kept off the network (issue 40; the test guard sees only Python's sockets):
+#: none of its own background traffic (component and safe-browsing updates, sync, field
+#: trials, QUIC probes), every host name but the loopback ones unresolvable, and an
+#: address literal sent to a dead proxy on loopback (loopback itself is always direct)
+CHROMIUM_OFFLINE = (
+    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+    "--no-first-run", "--no-default-browser-check", "--disable-default-apps",
+    "--disable-extensions", "--disable-quic", "--disable-domain-reliability",
+    "--metrics-recording-only",
+    "--host-resolver-rules=MAP * ~NOTFOUND , EXCLUDE localhost, EXCLUDE 127.0.0.1",
+    "--proxy-server=http://127.0.0.1:9",
+)
+
+
 def _browser(found: tuple[str, str], height: int):  # noqa: ANN202
-    """Headless chromium through Debian's chromedriver."""
+    """Headless chromium through Debian's chromedriver, offline but for 127.0.0.1."""
     from selenium import webdriver
     from selenium.webdriver.chrome.options import Options
     from selenium.webdriver.chrome.service import Service
@@ -233,7 +247,7 @@ def _browser(found: tuple[str, str], height: int):  # noqa: ANN202
     opts = Options()
     opts.binary_location = found[0]
     for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-              f"--window-size=1280,{height}"):
+              f"--window-size=1280,{height}", *CHROMIUM_OFFLINE):
         opts.add_argument(a)
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     return webdriver.Chrome(service=Service(found[1]), options=opts)
