@@ -130,6 +130,53 @@ def test_help_gives_examples_and_exit_codes(capsys) -> None:  # noqa: ANN001
         assert "stand" in text and "Exit" in text, text
 
 
+def test_help_names_only_what_an_installed_package_has(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 46: every command `bench --help` names exists, every file it names is made
+    by the example before it (bench init), nothing points into a checkout (README.md,
+    docs/), and the method text it points at is installed."""
+    import re
+
+    from bench.app.cli import build_parser
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    text = capsys.readouterr().out
+    assert "README" not in text and "docs/" not in text, text
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    commands = set(sub.choices)    # type: ignore[arg-type]
+    # every `bench WORD` but the plan's quantity "bench time" (prose, not a command)
+    named = [w for w in re.findall(r"\bbench ([a-z][a-z-]*)", text) if w != "time"]
+    assert {"schema", "init", "method"} <= set(named), named
+    assert set(named) <= commands, set(named) - commands
+    monkeypatch.chdir(tmp_path)
+    examples = [line.split("   ")[0].strip() for line in text.splitlines()
+                if line.startswith("  bench ")]
+    for example in examples:         # in order: `bench init mylab` makes what follows
+        for word in example.split()[2:]:
+            if "/" in word and not re.search(r"[A-Z]", word) and "://" not in word:
+                assert (tmp_path / word).exists(), f"{example}: {word} does not exist"
+        if example.startswith("bench init "):
+            assert main(example.split()[1:]) == 0
+            capsys.readouterr()
+    assert main(["method", "--path"]) == 0
+    path = Path(capsys.readouterr().out.strip())
+    assert path.is_file() and path.name == "method.md"
+    assert main(["method"]) == 0
+    assert capsys.readouterr().out.startswith("# The measurement methods of ratebench")
+
+
+def test_a_closed_pipe_ends_a_command_quietly() -> None:
+    """`bench schema stand | head`: no BrokenPipeError traceback, exit 0."""
+    import subprocess
+    import sys
+
+    from tests.conftest import ROOT
+    p = subprocess.run(f"{sys.executable} -m bench schema --markdown | head -1",
+                       shell=True, cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert p.stdout.startswith("#") and p.stderr == "", p.stderr
+
+
 def _demo_with(tmp_path, axis: str, turns: int):  # noqa: ANN001, ANN202
     import yaml
 

@@ -30,8 +30,9 @@ from tests.conftest import CONFIGS, ROOT
 
 DEMO = CONFIGS / "procedures" / "demo.yaml"
 ANSI = re.compile(r"\x1b\[[0-9;?]*[ -/]*[@-~]|\x1b[()][0-9A-Za-z]|\x1b[=>]")
-FRAME = re.compile(r"step (\d+)/(\d+)\s+(\d+) %\s+bench time left (.+?)\s+wall "
-                   r"(measuring|about (< 0\.1 s|[\d.]+ s|\d+ min \d+ s))")
+FRAME = re.compile(r"step (\d+)/(\d+)\s+(\d+) %\s+bench time left (.+?)\s+"
+                   r"(time to go not yet measured|about (< 0\.1 s|[\d.]+ s|\d+ min \d+ s) "
+                   r"to go)")
 # The certificate's header for a summary column whose console header differs
 CERT_HEADER = {"Intra-turn raw ± U": "Raw ± U"}
 

@@ -118,6 +118,16 @@ def test_demo_attestation_recovers_the_stand_truth(demo_run: DemoRun, tmp_path: 
     step_lines = [int(m.group(1)) for m in re.finditer(r"^\[(\d+)/58\] ", out.stderr, re.M)]
     assert step_lines == list(range(1, 59)), step_lines
     assert "\x1b[" not in out.stderr + out.stdout
+    # issue 46: each pair's result right after its analyze step, before the next step
+    # (a co-simulation waits for the worker; stand time does not pass meanwhile)
+    lines = out.stderr.splitlines()
+    for axis, rate in [("outer", 10), ("outer", 50), ("outer", 200), ("inner", 20),
+                       ("inner", 100)]:
+        at = next(i for i, line in enumerate(lines)
+                  if re.match(rf"^\[\d+/58\] {axis} +analyze .*\+/-{rate} deg/s", line))
+        assert re.match(rf"^  {axis} ±{rate} deg/s: k = ", lines[at + 1]), lines[at:at + 3]
+    assert re.search(r"\(\d+ min \d+ s of bench time left; (about .+ to go|time to go not "
+                     r"yet measured)", out.stderr), out.stderr[:2000]
     for name in ("certificate.pdf", "certificate.html"):
         assert (run_dir / name).stat().st_size > 10_000, name
     check_against_truth(result)

@@ -86,6 +86,7 @@ def test_calibrations_and_due_dates_from_the_stand_file() -> None:
     assert counter.due == dt.date(2027, 6, 30)
     assert "SI second" in counter.traces
     assert items["traceability[0]"].item.startswith("GPS-disciplined 10 MHz reference")
+    assert items["traceability[0]"].stated_serial == "SIM-GPSDO-01"
     assert not items["axes.outer.fog"].stated
     assert overdue(stand, dt.date(2027, 1, 31)) == []
     late = overdue(stand, dt.date(2027, 2, 1))
@@ -104,6 +105,14 @@ def test_past_due_warns_at_start_and_on_the_certificate(tmp_path: Path) -> None:
     flat = re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html))
     assert "PAST DUE on the date of the work" in flat
     assert "SIM-CAL-53230A-0117" in flat
+    # issue 46: a reference's stated serial in the serial column, said to be stated only
+    from lxml import html as lxml_html
+    table = next(t for t in lxml_html.fromstring(html).iter("table")
+                 if "Serial (read back)" in t.text_content())
+    rows = {" ".join(r[0].text_content().split()): " ".join(r[1].text_content().split())
+            for r in table.iter("tr") if len(r) > 1 and r[0].tag == "td"}
+    gps = next(v for k, v in rows.items() if k.startswith("GPS-disciplined 10 MHz reference"))
+    assert gps == "SIM-GPSDO-01 (stated, not read back)", rows
     assert ("read back from the counter: external reference at Ext Ref In "
             "(SENS:ROSC:SOUR? EXT" in flat)
 

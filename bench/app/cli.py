@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 
 import bench
@@ -15,7 +16,7 @@ from bench.app.dcc.command import add_parsers as add_dcc_parsers
 from bench.app.decode import decode_command
 from bench.app.records.commands import RECORDS_COMMANDS
 from bench.app.records.commands import add_parsers as add_records_parsers
-from bench.app.reference import schema_command
+from bench.app.reference import method_command, schema_command
 from bench.app.starter import init_command
 from bench.app.station.serve import cmd_serve
 
@@ -25,10 +26,9 @@ examples:
   bench validate mylab/procedure.yaml    every problem of both files, file:line: key
   bench plan mylab/procedure.yaml        steps, bench time, raw data volume
   bench run mylab/procedure.yaml --yes   run; prints the run directory last
-  bench run --example demo --sim --yes   the shipped demo on simulated twins
+  bench run --example demo --yes         the shipped demo on its simulated twins
   bench run --resume runs/RUN_DIR        continue an interrupted run
   bench serve --runs runs                the station page at http://127.0.0.1:8765/
-  bench schema stand                     every stand key (also: procedure KIND, lab)
 
 exit status:
   0  completed and every check passed
@@ -37,7 +37,12 @@ exit status:
      was moved)
   3  aborted by a fault or by the operator (axes stopped, data kept; --resume works)
 
-documentation: README.md and docs/ (configuration.md: every key of every file)
+reference (all installed with the package):
+  bench schema stand                     every key of a file: type, unit, default, meaning
+                                         (also: bench schema procedure KIND, bench schema lab)
+  bench init DIR                         commented files that validate, to start from
+  bench method                           the measurement method every certificate cites
+                                         (bench method --path: where it is installed)
 """
 
 
@@ -136,6 +141,11 @@ def build_parser() -> argparse.ArgumentParser:
                                      "(default: $BENCH_STATION_TOKEN, else one is made up)")
     sim = sub.add_parser("sim", help="start the stand's twins alone; print their addresses")
     sim.add_argument("stand", help="stand YAML file")
+    met = sub.add_parser("method", help="print the measurement method the certificates cite",
+                         description="Print the method text this installation ships "
+                         "(bench/method.md, the project's docs/method.md), which every "
+                         "certificate cites by its SHA-256.")
+    met.add_argument("--path", action="store_true", help="print where the file is instead")
     add_dcc_parsers(sub)
     add_authorise_parser(sub)
     add_records_parsers(sub)
@@ -152,6 +162,17 @@ def _console_options(cmd: argparse.ArgumentParser) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    try:
+        return _main(argv)
+    except BrokenPipeError:
+        # `bench schema stand | head`: the reader left; say nothing more (Python's
+        # documented recipe: point stdout at devnull so the exit flush cannot fail)
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
+
+
+def _main(argv: list[str] | None) -> int:
     # canopen logs an SDO abort it sends as a warning; without a handler Python prints it
     # to stderr above our own message, and the first line the operator reads would be a
     # library's echo of the cause, not the cause (the session reports every fault itself)
@@ -165,6 +186,8 @@ def main(argv: list[str] | None = None) -> int:
         return schema_command(args.target, args.kind, args.json, args.markdown)
     if args.command == "init":
         return init_command(args.dir, args.real, args.kind)
+    if args.command == "method":
+        return method_command(args.path)
     if args.command == "sim":
         from bench.app.simserve import serve
         return serve(args.stand)

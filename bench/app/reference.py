@@ -199,3 +199,16 @@ def schema_command(target: str, kind: str | None, as_json: bool, markdown: bool)
     else:
         print(text_reference(node))
     return 0
+
+
+def method_command(path_only: bool) -> int:
+    """`bench method`: the method text an installed package ships, so `bench --help` can
+    point at it (a wheel carries no docs/ folder)."""
+    from importlib.resources import as_file, files
+
+    with as_file(files("bench") / "method.md") as path:
+        if path_only:
+            print(path)
+        else:
+            sys.stdout.write(path.read_text(encoding="utf-8"))
+    return 0

@@ -379,6 +379,8 @@ class Traced:
     issuer: str | None
     due: dt.date | None
     traces: str | None
+    #: the serial the stand file states for an item the bench does not read (a reference)
+    stated_serial: str | None = None
 
     def overdue(self, on: dt.date) -> bool:
         return self.due is not None and on > self.due
@@ -425,12 +427,10 @@ def stated_traceability(stand: Mapping[str, Any]) -> tuple[Traced, ...]:
                           parse_date(cal.get("due")), cal.get("traces")))
     for i, t in enumerate(stand.get("traceability") or []):
         if isinstance(t, Mapping):
-            item = str(t.get("item", ""))
-            if t.get("serial"):
-                item += f", serial {t['serial']}"
-            out.append(Traced(f"traceability[{i}]", item, str(t.get("certificate")),
-                              str(t.get("issuer")), parse_date(t.get("due")),
-                              t.get("traces")))
+            out.append(Traced(f"traceability[{i}]", str(t.get("item", "")),
+                              str(t.get("certificate")), str(t.get("issuer")),
+                              parse_date(t.get("due")), t.get("traces"),
+                              str(t["serial"]) if t.get("serial") else None))
     return tuple(out)
 
 

@@ -203,6 +203,9 @@ class AnalysisWorker:
         self._took_s: list[float] = []                  # wall time of each finished job
         self._lock = threading.Lock()
         self._failed: list[str] = []  # what an on_done raised: reported by close()
+        #: jobs whose on_done has not yet returned (wait_reported waits for 0)
+        self._unreported = 0
+        self._reported = threading.Condition(self._lock)
 
     def submit(self, fn: Callable[..., Any], *args: Any,
                on_done: Callable[[Any, BaseException | None], None]) -> None:
@@ -214,8 +217,17 @@ class AnalysisWorker:
         fut = self._pool.submit(fn, *args)
         with self._lock:
             self._submitted[fut] = time.monotonic()
+            self._unreported += 1
 
         def done(f: Future[Any]) -> None:
+            try:
+                report(f)
+            finally:
+                with self._lock:
+                    self._unreported -= 1
+                    self._reported.notify_all()
+
+        def report(f: Future[Any]) -> None:
             with self._lock:
                 t0 = self._submitted.pop(f, None)
                 if t0 is not None and not f.cancelled():
@@ -232,6 +244,15 @@ class AnalysisWorker:
                     self._failed.append(f"a pair's first look could not be reported: {e}")
         fut.add_done_callback(done)
         self._pending.append(fut)
+
+    def wait_reported(self) -> None:
+        """Until every job submitted so far is done and its on_done has returned (its
+        result printed and journaled). A co-simulation waits here after each step:
+        stand time passes only while the bench waits on the clock, so this costs wall
+        time alone, and each pair's result is shown when its pair ends, not steps later
+        behind a worker the acquisition outran."""
+        with self._lock:
+            self._reported.wait_for(lambda: self._unreported <= 0)
 
     def backlog_s(self) -> float:
         """Wall seconds the jobs not yet done should still take (one at a time, each as
@@ -321,6 +342,8 @@ class Engine:
                 ctx.run.event("step_start", index=i, action=step.action, axis=step.axis,
                               unit=step.unit, describe=step.describe)
                 self.execute(step, ctx)
+                if getattr(ctx.clock, "stepped", False):   # sims/clock.py: co-simulation
+                    ctx.worker.wait_reported()
                 ctx.progress.step_done(i)
                 ctx.run.event("step_done", index=i, action=step.action, unit=step.unit)
                 if step.unit and last_of_unit[step.unit] == i:

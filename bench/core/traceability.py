@@ -36,7 +36,8 @@ def overdue(stand: StandSettings | Mapping[str, Any], on: dt.date) -> list[Trace
 
 
 def overdue_warning(t: Traced) -> str:
-    return (f"WARNING: {t.item} ({t.where}.calibration): calibration certificate "
+    serial = f", serial {t.stated_serial}" if t.stated_serial else ""
+    return (f"WARNING: {t.item}{serial} ({t.where}.calibration): calibration certificate "
             f"{t.certificate} was due on {t.due.isoformat() if t.due else '?'}; the "
             "certificate of this run will say so")
 

@@ -485,8 +485,8 @@ def _serial_read_back(ids: Mapping[str, Any], t: Any) -> str:
     An instrument at `axes.<axis>.<role>` reported under ids[axis][role]; one elsewhere
     (a platform's `gyros.x.dmm`) under its role, or `<gyro>-<role>`, on the table axis."""
     parts = t.where.split(".")
-    if parts[0].startswith("traceability"):
-        return "—"
+    if parts[0].startswith("traceability"):   # a reference the bench does not read
+        return f"{t.stated_serial} (stated, not read back)" if t.stated_serial else "—"
     names = [parts[-1]] + ([f"{parts[-2]}-{parts[-1]}"] if len(parts) > 1 else [])
     axes = [parts[1]] if parts[0] == "axes" and len(parts) > 2 else list(ids)
     for axis in axes:

@@ -1,7 +1,7 @@
 """The live display on a terminal (rich): where the run is, how long it has left, what it
 measured last; messages, faults and prompts printed above it, never overwritten.
 
-    ━━━━━━━━╸━━━━━━━━━━━  step 23/58   41 %  bench time left 9 min 41 s  wall about 6.3 s at 92× measured
+    ━━━━━━━━╸━━━━━━━━━━━  step 23/58   41 %  bench time left 9 min 41 s  about 6.3 s to go, running 92× real time
                           outer acquire: 4 turns at -10 deg/s (half 2/3, 2 min 24 s)
     ━━━━━━━━━╸━━━━━━━━━━  2 of 4 turns timed at -10 deg/s, 1 min 12 s left
     latest per-turn rate deviation: outer +10 deg/s turn 2: −0.0792 ppm
@@ -56,7 +56,7 @@ class _View:
                      Text.assemble((f"step {eta.index + 1}/{eta.steps}", "bold"),
                                    f"  {eta.done_fraction * 100:3.0f} %"
                                    f"  bench time left {eta.bench_text()}  ",
-                                   (f"wall {eta_wall(eta)}", "cyan"), no_wrap=True,
+                                   (eta_wall(eta), "cyan"), no_wrap=True,
                                    overflow="ellipsis"))
         grid.add_row(Text(""), Text.assemble((f"{step.axis or ''} {step.action}: ", "bold"),
                                              step.describe, no_wrap=True,

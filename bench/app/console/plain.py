@@ -146,12 +146,16 @@ class PlainConsole:
                 f"{step.action:<9} {step.describe}")
         if eta is None:
             return head
-        return f"{head}   (bench time left {eta.bench_text()}, wall {eta_wall(eta)})"
+        return f"{head}   ({eta.bench_text()} of bench time left; {eta_wall(eta)})"
 
 
 def eta_wall(eta: Eta) -> str:
-    """The wall-time estimate with what it rests on."""
+    """How long the operator still waits, in words: "about 1 min 12 s to go", with the
+    measured pace where it is not real time (a simulated stand runs faster), and
+    "time to go not yet measured" until a step with table time has been timed."""
     if eta.wall_left_s is None:
-        return "measuring"
-    speed = f" at {eta.speed:.3g}× measured" if eta.speed is not None else ""
-    return f"about {eta.wall_text()}{speed}"
+        return "time to go not yet measured"
+    pace = ""
+    if eta.speed is not None and abs(eta.speed - 1.0) > 0.05:
+        pace = f", running {eta.speed:.3g}× real time"
+    return f"about {eta.wall_text()} to go{pace}"
