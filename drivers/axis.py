@@ -82,6 +82,7 @@ from drivers.clock import (
     stepped,
 )
 from drivers.heartbeat import HeartbeatProducer
+from drivers.settle import RippleJudgement, hold_spans_turns, judge_with_ripple
 from drivers.waits import MIN_REAL_MARGIN_S, Deadline
 
 log = logging.getLogger(__name__)
@@ -265,6 +266,8 @@ class Axis:
         self._drive_nmt: int | None = None
         self._feedback: Feedback | None = None
         self._samples: deque[Feedback] = deque(maxlen=4096)
+        #: the last settle's ripple judgement (None: judged reading by reading)
+        self.last_settle: RippleJudgement | None = None
         self._seq = 0  # feedback frames received
         self._pos_raw: int | None = None
         self._pos_counts = 0
@@ -872,12 +875,15 @@ class Axis:
 
     def wait_settled(self, tolerance_dps: float, hold_s: float, timeout_s: float,
                      on_hold: Callable[[float], None] | None = None) -> float:
-        """Wait until every velocity reading for `hold_s` (clock s) is within tolerance.
+        """Wait until the rate has stayed within tolerance for `hold_s` (clock s).
 
-        Returns the mean velocity actual over that hold. Raises `AxisTimeout` when it does
-        not settle within `timeout_s` (clock s), `DriveFault` on a drive fault. `on_hold`
-        hears how long the readings have stayed within tolerance so far (clock s), for an
-        operator watching the settle.
+        Where the hold spans two whole turns or more, the turn's steady periodic ripple
+        is set aside and the rest held to the tolerance (drivers/settle.py says why);
+        otherwise every velocity reading of the hold must be within it. Returns the mean
+        velocity actual over the hold (over whole turns: the fitted mean). Raises
+        `AxisTimeout` when it does not settle within `timeout_s` (clock s), `DriveFault`
+        on a drive fault. `on_hold` hears how long the readings have stayed within
+        tolerance so far (clock s), for an operator watching the settle.
         """
         if not tolerance_dps > 0 or hold_s < 0 or not timeout_s > 0:
             raise ValueError(f"axis {self.name}: wait_settled needs tolerance_dps > 0, "
@@ -887,8 +893,11 @@ class Axis:
         timed_out = False  # co-simulation: on stand time
         with self._lock:
             seq = self._seq
-        run: list[Feedback] = []
+        run: list[Feedback] = []          # sample by sample: the trailing run within
+        window: deque[Feedback] = deque()  # ripple set aside: the last hold_s of readings
+        judged: RippleJudgement | None = None
         last_v: float | None = None
+        last_target: float | None = None
         while True:
             self.check()
             with self._lock:
@@ -899,24 +908,61 @@ class Axis:
             if state is not State.OPERATION_ENABLED:
                 raise AxisError(f"axis {self.name}: the drive left operation enabled while "
                                 f"settling (it shows {state.label if state else '?'})")
+            if target != last_target:      # a new command: what was held no longer counts
+                run.clear()
+                window.clear()
+                last_target = target
+            ripple_rule = hold_spans_turns(hold_s, target)
+            held_s = 0.0
             for f in new:
                 last_v = f.velocity_dps
                 if abs(f.velocity_dps - target) <= tolerance_dps:
                     run.append(f)
                 else:
                     run.clear()
+            if ripple_rule and new:
+                window.extend(new)
+                while len(window) >= 2 and window[-1].t_s - window[1].t_s >= hold_s:
+                    window.popleft()
+                judged = None
+                if len(window) >= 2 and window[-1].t_s - window[0].t_s >= hold_s:
+                    judged = judge_with_ripple([f.t_s for f in window],
+                                               [f.velocity_dps for f in window],
+                                               [f.position_deg for f in window],
+                                               target, tolerance_dps)
+                if judged is not None and judged.settled:
+                    self._journal("settled", target_dps=target, mean_dps=judged.mean_dps,
+                                  samples=len(window), hold_s=window[-1].t_s - window[0].t_s,
+                                  tolerance_dps=tolerance_dps, rule="ripple set aside",
+                                  ripple_peak_dps=judged.ripple_peak_dps,
+                                  ripple_orders=judged.orders, turns=judged.turns,
+                                  worst_residual_dps=judged.worst_residual_dps)
+                    self.last_settle = judged
+                    return judged.mean_dps
+                if judged is not None and judged.last_out is not None:
+                    held_s = window[-1].t_s - list(window)[judged.last_out].t_s
+                elif window:
+                    held_s = window[-1].t_s - window[0].t_s
+            elif len(run) >= 2:
+                held_s = run[-1].t_s - run[0].t_s
             if on_hold is not None and new:
-                on_hold(run[-1].t_s - run[0].t_s if len(run) >= 2 else 0.0)
-            if len(run) >= 2 and run[-1].t_s - run[0].t_s >= hold_s:
+                on_hold(held_s)
+            if not ripple_rule and len(run) >= 2 and run[-1].t_s - run[0].t_s >= hold_s:
                 mean = math.fsum(f.velocity_dps for f in run) / len(run)
                 self._journal("settled", target_dps=target, mean_dps=mean, samples=len(run),
-                              hold_s=run[-1].t_s - run[0].t_s, tolerance_dps=tolerance_dps)
+                              hold_s=run[-1].t_s - run[0].t_s, tolerance_dps=tolerance_dps,
+                              rule="every reading")
+                self.last_settle = None
                 return mean
             if timed_out or deadline.expired():
+                ripple = (f"; with the turn's ripple ({judged.ripple_peak_dps:.3g} deg/s peak) "
+                          f"set aside the rest still reached {judged.worst_residual_dps:.3g} "
+                          "deg/s" if judged is not None else "")
                 raise AxisTimeout(f"axis {self.name}: the rate did not settle within "
                                   f"{tolerance_dps:g} deg/s of {target:g} deg/s for {hold_s:g} s "
                                   f"in {timeout_s:g} s (last velocity actual: "
-                                  f"{'none' if last_v is None else f'{last_v:.6g} deg/s'})")
+                                  f"{'none' if last_v is None else f'{last_v:.6g} deg/s'}"
+                                  f"{ripple})")
             if stepped(self.clock):  # co-simulation: the next readings are stand time away
                 if self.clock.now() > t_end:
                     timed_out = True

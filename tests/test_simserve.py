@@ -10,6 +10,7 @@ The drive line is opened exactly as issue 40 gives it: every word but `node=` is
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -212,32 +213,36 @@ def test_bench_sim_stops_promptly(sig: signal.Signals) -> None:
     print(f"bench sim stopped {took_s:.2f} s after {sig.name}")
 
 
-def test_a_real_stand_pointing_at_bench_sim(sim: SimProcess, tmp_path: Path) -> None:
-    """A stand file without a `sim:` block whose addresses are `bench sim`'s is a real
-    stand to the bench: the real-stand rules apply (a time tie, a trigger level, the drive's
-    factor group read), and `bench devices` opens all three instruments over their channels
-    and reads their identities (the twins' serials)."""
+def _real_stand(sim: SimProcess, path: Path, counter_extra: str = "") -> Path:
+    """A stand file without a `sim:` block whose outer axis is `bench sim`'s."""
     kw = bus_kwargs(sim.lines[("outer", "drive")])
     counter = sim.lines[("outer", "counter")].split()[2]
     fog = sim.lines[("outer", "fog")].split()[2]
-    stand = tmp_path / "pointed-at-bench-sim.yaml"
-    stand.write_text(
+    path.write_text(
         "stand: {maker: Simulated Tables Ltd, model: ST-2A, serial: SIM-0001}\n"
         "axes:\n"
         "  table:\n"
         f"    drive: {{interface: {kw['interface']}, host: '{kw['host']}', port: {kw['port']},\n"
         f"             channel: {kw['channel']}, node_id: 2, max_rate_dps: 400,\n"
         "             max_accel_dps2: 200, counts_per_rev: 1048576, unit_factors: read}\n"
-        f"    counter: {{resource: '{counter}', model: keysight-53230a,\n"
+        f"    counter: {{resource: '{counter}', model: keysight-53230a,{counter_extra}\n"
         "               reference: internal, time_tie: {source: host-clock}}\n"
         f"    fog: {{port: '{fog}', baudrate: 921600, format: kvh-a, axis: z,\n"
         "           rate_hz: 1000, units: deg/s, configure: set}\n")
+    return path
+
+
+def test_a_real_stand_pointing_at_bench_sim(sim: SimProcess, tmp_path: Path) -> None:
+    """A stand file without a `sim:` block whose addresses are `bench sim`'s is a real
+    stand to the bench: the real-stand rules apply (a time tie, a trigger level, the drive's
+    factor group read), and `bench devices` opens all three instruments over their channels
+    and reads their identities (the twins' serials)."""
+    stand = _real_stand(sim, tmp_path / "pointed-at-bench-sim.yaml")
     bench = [sys.executable, "-m", "bench"]
     refused = subprocess.run([*bench, "devices", str(stand)], cwd=ROOT, capture_output=True,
                              text=True, timeout=60)
     assert refused.returncode == 3 and "level_v" in refused.stderr, refused.stderr
-    stand.write_text(stand.read_text().replace("reference: internal,",
-                                               "reference: internal, level_v: 2.5,"))
+    stand = _real_stand(sim, stand, " level_v: 2.5,")
     valid = subprocess.run([*bench, "validate", str(stand)], cwd=ROOT, capture_output=True,
                            text=True, timeout=60)
     assert valid.returncode == 0, valid.stdout + valid.stderr
@@ -249,3 +254,25 @@ def test_a_real_stand_pointing_at_bench_sim(sim: SimProcess, tmp_path: Path) -> 
     assert "serial 41001" in rows["drive"]              # the twin's 0x1018:4
     assert "MY62000117" in rows["counter"]              # its *IDN? serial
     assert "format kvh-a" in rows["fog"]
+
+
+def test_a_real_stand_naming_another_counter_is_refused_before_anything_moves(
+        sim: SimProcess, tmp_path: Path) -> None:
+    """Issue 41: the stand states counter MY59001234, *IDN? answers MY62000117 (a swapped
+    counter): exit 2 naming both, and no step ran."""
+    stand = _real_stand(sim, tmp_path / "stand.yaml",
+                        " level_v: 2.5, serial: MY59001234,")
+    proc = tmp_path / "ladder.yaml"
+    proc.write_text(f"procedure: rate-ladder\ntitle: swapped counter\nstand: {stand}\n"
+                    "turns: 2\nstatic_record_s: 2\nprompts: false\nmains_hz: 50\n"
+                    "axes:\n  table:\n    rates_dps: [50]\n")
+    out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--out",
+                          str(tmp_path / "runs")], cwd=ROOT, capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert ("axes.table.counter.serial: the stand file states serial MY59001234, the "
+            "instrument reports MY62000117 (*IDN?)") in out.stderr, out.stderr
+    events = [json.loads(line) for run in (tmp_path / "runs").iterdir() if run.is_dir()
+              for line in (run / "events.jsonl").read_text().splitlines()]
+    kinds = [e["event"] for e in events]
+    assert "refused" in kinds and "step_start" not in kinds, kinds

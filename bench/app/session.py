@@ -34,7 +34,7 @@ from bench.app.records.hooks import (
     warn_if_overdue,
 )
 from bench.app.summary import Summary, summarize
-from bench.core.config import Config
+from bench.core.config import Config, StandSettings
 from bench.core.diskspace import expected_raw_bytes, space_problem
 from bench.core.engine import Abort, Engine, Interrupted, RunContext, SignalGuard
 from bench.core.instruments import (
@@ -48,7 +48,7 @@ from bench.core.journal import RunDir
 from bench.core.plan import Plan, format_duration
 from bench.core.registry import procedure_kind
 from bench.core.simbench import SimBench, for_session
-from bench.core.traceability import overdue, overdue_warning
+from bench.core.traceability import identity_mismatches, overdue, overdue_warning
 from bench.report.certificate.model import Document
 from drivers.axis import NOT_STOPPED
 from drivers.clock import MonotonicClock
@@ -213,6 +213,7 @@ class RunSession:
             if self.on_sim_started is not None:
                 self.on_sim_started(self.simbench)
         check_references(bench)
+        self._check_identities(stand, bench, run, progress)
         progress.line(f"Run directory: {run.path}")
         if done:
             progress.line(f"Resuming: {len(done)} unit(s) already done: {', '.join(done)}")
@@ -225,6 +226,27 @@ class RunSession:
         self.engine_ran = True
         Engine(ctx, self.kind.execute).run(todo, guard)
         run.event("completed", wall_s=time.monotonic() - t0)
+
+    def _check_identities(self, stand: StandSettings, bench: Any, run: RunDir,
+                          progress: PlainConsole) -> None:
+        """The serials the stand states against those the instruments report, before
+        anything moves. On a real stand a mismatch refuses the run (exit 2): another
+        instrument than the stand file's is connected, and its check values would land
+        on the stated one's control chart. On twins it is a finding, stated on the
+        console and the certificate, and changes neither verdict nor exit status."""
+        found = identity_mismatches(stand, {a: ax.identities for a, ax in bench.axes.items()})
+        if not found:
+            return
+        if self.simbench is None:
+            raise StandClaimError(
+                "; ".join(m.text for m in found) + ": another instrument than the stand "
+                "file names is connected (correct the serial in the stand file, or connect "
+                "the instrument it names)")
+        for m in found:
+            run.event("identity_mismatch", where=m.where, stated=m.stated,
+                      reported=m.reported, query=m.query)
+            progress.warn(f"FINDING: {m.text}; on twins the run goes on (a real stand "
+                          "would be refused)")
 
     # -- the one stop path ---------------------------------------------------------
     def _failed(self, e: BaseException) -> None:

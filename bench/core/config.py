@@ -38,7 +38,9 @@ from drivers.axis import (
 )
 from drivers.cia402 import DEFAULT_COUNTS_PER_REV
 from drivers.counter import DEFAULT_TIMEOUT_MARGIN_S
+from drivers.counter_profiles import PROFILES as COUNTER_PROFILES
 from drivers.counter_profiles import get_profile
+from drivers.fog_formats import FORMATS as FOG_FORMATS
 from drivers.time_tie import TimeTie
 from sims.stand import AxisTruth, FogTruth, Harmonic, Mains
 
@@ -114,7 +116,9 @@ DRIVE = Map({
 })
 COUNTER = Map({
     "resource": Key(Str(), True, "VISA resource string"),
-    "model": Key(Str(), True, "counter profile"),
+    "model": Key(Str(tuple(sorted(COUNTER_PROFILES))), True,
+                 "the counter's model: its driver profile (SCPI words, capabilities, "
+                 "metrology; drivers/counter_profiles.py)"),
     "serial": Key(Str(), False, "the instrument's serial number: the key of its "
                                 "check values (bench control)"),
     "channel": Key(Num(min=1, max=4, integer=True), False, "input channel of the zero-mark "
@@ -169,7 +173,8 @@ FOG = Map({
     "port": Key(Str(), True, "serial port, e.g. /dev/ttyUSB0"),
     "baudrate": Key(Num(min=1200, max=16_000_000, integer=True), False, "serial line rate",
                      FOG_DEFAULTS["baudrate"]),
-    "format": Key(Str(), False, "frame format, e.g. kvh-a", FOG_DEFAULTS["format"]),
+    "format": Key(Str(tuple(FOG_FORMATS)), False, "frame format (drivers/fog_formats.py)",
+                  FOG_DEFAULTS["format"]),
     "axis": Key(Str(("x", "y", "z")), False, "the FOG axis along the table axis",
                  FOG_DEFAULTS["axis"]),
     "rate_hz": Key(Num(min=1, max=100_000, unit="Hz"), True, "the FOG's output (frame) rate"),

@@ -12,6 +12,7 @@ from __future__ import annotations
 import datetime as dt
 import re
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from bench.core.config import StandSettings, Traced, stated_traceability
@@ -110,4 +111,59 @@ def with_declared_serials(instruments: Mapping[str, Any],
                 head, sep, tail = str(roles[role]).partition("; read back:")
                 out[axis][role] = (f"{head}; serial {spec['serial']} (as the stand file "
                                    f"states; it answers no identity query){sep}{tail}")
+    return out
+
+
+# -- the identity the stand states against the one the instrument reports ----------------
+
+def same_serial(stated: str, reported: str) -> bool:
+    """One serial written two ways: a drive's 0x1018:4 is a number (UNSIGNED32) that a
+    stand states as text ("41001", "0xA029"); an *IDN? serial compares as text, case
+    aside."""
+    a, b = stated.strip(), reported.strip()
+    if a.casefold() == b.casefold():
+        return True
+    try:
+        return int(a, 0) == int(b, 0)
+    except ValueError:
+        return False
+
+
+@dataclass(frozen=True)
+class IdentityMismatch:
+    """The stand file names one instrument, another answered (ISO/IEC 17025 6.4.13 a)."""
+
+    where: str          # the stand key, e.g. axes.outer.counter.serial
+    stated: str
+    reported: str
+    query: str          # how the instrument was asked
+
+    @property
+    def text(self) -> str:
+        return (f"{self.where}: the stand file states serial {self.stated}, the instrument "
+                f"reports {self.reported} ({self.query})")
+
+
+#: how each role reports its serial (what the certificate and the refusal name)
+IDENTITY_QUERIES = {"counter": "*IDN?", "drive": "identity object 0x1018:4",
+                    "fog": "?IS"}
+
+
+def identity_mismatches(stand: StandSettings,
+                        identities: Mapping[str, Mapping[str, Any]]) -> list[IdentityMismatch]:
+    """Every instrument whose reported serial differs from the serial its stand block
+    states. An instrument that reports none is not a mismatch (identity_problems says
+    so); a FOG that answers no identity query keeps the stand's serial, stated."""
+    out: list[IdentityMismatch] = []
+    for axis, spec in stand.axes.items():
+        got = identities.get(axis) or {}
+        stated_by_role = {"counter": spec.counter.serial if spec.counter else None,
+                          "drive": spec.drive.serial,
+                          "fog": spec.fog.serial if spec.fog else None}
+        for role, stated in stated_by_role.items():
+            reported = serial_of(got.get(role)) if got.get(role) else None
+            if stated and reported and "as the stand file states" not in str(got.get(role)) \
+                    and not same_serial(str(stated), reported):
+                out.append(IdentityMismatch(f"axes.{axis}.{role}.serial", str(stated),
+                                            reported, IDENTITY_QUERIES[role]))
     return out

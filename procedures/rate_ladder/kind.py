@@ -265,7 +265,20 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
 
         rate = drive.wait_settled(p["tolerance_dps"], p["hold_s"], p["timeout_s"],
                                   on_hold=held)
-        ctx.run.event("settled", axis=step.axis, unit=step.unit, rate_dps=rate)
+        ripple = getattr(drive, "last_settle", None)
+        if ripple is None:
+            ctx.run.event("settled", axis=step.axis, unit=step.unit, rate_dps=rate)
+            return
+        # drivers/settle.py: the turn's steady ripple set aside, and stated
+        ctx.run.event("settled", axis=step.axis, unit=step.unit, rate_dps=rate,
+                      rule="ripple set aside", ripple_peak_dps=ripple.ripple_peak_dps,
+                      ripple_orders=ripple.orders, turns=ripple.turns,
+                      worst_residual_dps=ripple.worst_residual_dps)
+        if ripple.ripple_peak_dps > 0.5 * p["tolerance_dps"]:
+            ctx.progress.line(f"  {step.axis}: settled at {rate:+.6g} deg/s; a steady "
+                              f"ripple of the turn, {ripple.ripple_peak_dps:.3g} deg/s peak "
+                              f"(orders 1-{ripple.orders}), set aside: the rest stayed "
+                              f"within ±{p['tolerance_dps']:g} deg/s for {p['hold_s']:g} s")
 
     def _do_acquire(self, step: Step, ctx: RunContext) -> None:
         ax = ctx.bench.axes[step.axis]

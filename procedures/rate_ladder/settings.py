@@ -18,7 +18,8 @@ from bench.core.config import (
 )
 from bench.core.plan import format_duration
 from bench.core.schema import Key, ListOf, Map, MapOf, Num, Str
-from bench.core.yamlfile import Problem
+from bench.core.yamlfile import Problem, YamlDoc
+from drivers.counter_profiles import PROFILES as COUNTER_PROFILES
 
 NAME = "rate-ladder"
 
@@ -246,6 +247,37 @@ def halves(turns: int, sequence: str) -> list[tuple[int, int]]:
     return [(+1, turns), (-1, turns)]
 
 
+def counter_capability_problems(sdoc: YamlDoc, axis: str, counter: Any) -> list[Problem]:
+    """What the ladder needs of an axis's counter, from its model's profile, before
+    anything starts: time stamps of the zero mark (consecutive turns, docs/method.md
+    A1), and a reference-source command where the stand states `reference`."""
+    if not isinstance(counter, Mapping) or counter.get("model") not in COUNTER_PROFILES:
+        return []    # an unknown model: the schema names the choices at its line
+    profile = COUNTER_PROFILES[counter["model"]]
+    out: list[Problem] = []
+    if not profile.supports_timestamps:
+        has = {"read": "it measures single periods, one READ? each",
+               "init-fetch": "it measures periods only (SAMP:COUN N; INIT; FETC?)"
+               }.get(str(profile.periods), "it measures no periods either")
+        out.append(sdoc.problem(("axes", axis, "counter", "model"),
+                                f"the rate ladder needs time stamps of the zero-mark edges "
+                                f"(consecutive turns, docs/method.md A1); the "
+                                f"{profile.model} has no time-stamp mode ({has}); models "
+                                f"that have one: {', '.join(_timestamping_models())}"))
+    if "reference" in counter and profile.words.reference_source is None:
+        out.append(sdoc.problem(("axes", axis, "counter", "reference"),
+                                f"the {profile.model} has no reference-source command in "
+                                f"its profile, so the bench cannot set or read back its "
+                                f"timebase: leave `reference` out (the budget then takes "
+                                f"the model's own timebase limit) or use a model that has "
+                                f"one"))
+    return out
+
+
+def _timestamping_models() -> list[str]:
+    return sorted(m for m, p in COUNTER_PROFILES.items() if p.supports_timestamps)
+
+
 def ladder_problems(cfg: Config) -> list[Problem]:
     """The ladder's checks that need both files: axes exist, rates within the drive's
     limits and the FOG's range, the last tolerance band open."""
@@ -263,6 +295,7 @@ def ladder_problems(cfg: Config) -> list[Problem]:
                 out.append(sdoc.problem(("axes", axis), f"the rate ladder needs a {what} "
                                                         f"on axis {axis!r}"))
         counter = stand_axis.get("counter")
+        out += counter_capability_problems(sdoc, axis, counter)
         if counter and "level_v" not in counter and not cfg.has_sim:
             # the counter refuses to arm without it; say so before anything moves
             out.append(sdoc.problem(("axes", axis, "counter"), "missing level_v: a real "

@@ -610,6 +610,13 @@ def _deviations(src: Sources, proc: Procedure) -> tuple[Any, ...]:
                    "missing points.")
     for d in src.get("deviations", []) or []:
         run.append(text_of(d))
+    for e in src.events:
+        if e.get("event") == "identity_mismatch":    # twins only: a real stand is refused
+            run.append(f"Identity: {text_of(e.get('where'))}: the stand file states serial "
+                       f"{text_of(e.get('stated'))}, the instrument reported "
+                       f"{text_of(e.get('reported'))} ({text_of(e.get('query'))}); its check "
+                       "values are filed under the reported serial. A finding of a run on "
+                       "simulated twins: a real stand with this mismatch is refused.")
     for where in src.dropped:
         run.append(f"result.json: {where} was malformed and is not reported here.")
     run += proc.parts.certificate_run_deviations(src)

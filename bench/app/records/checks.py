@@ -62,13 +62,14 @@ CheckRecord = InstrumentCheck
 
 
 def _serial_of(stated: Any, reported: str | None, unique: bool, fallback: str) -> str:
-    """The stand file's `serial:` wins (a FOG answers no identity query), then the serial
-    the instrument reported if no other instrument of the run reports the same, then the
-    instrument's place on the stand (STAND-SERIAL/axis/role)."""
-    if stated not in (None, ""):
-        return str(stated)
+    """The serial the instrument reported, if no other instrument of the run reports the
+    same: the instrument actually connected (issue 41: a swapped counter must not land on
+    the stated one's control chart); else the stand file's `serial:` (a FOG answers no
+    identity query); else the instrument's place on the stand (STAND-SERIAL/axis/role)."""
     if reported and unique and not re.fullmatch(r"[A-Za-z]*0*", reported):
         return reported       # (all zeros: a twin's or an unset serial, no identity)
+    if stated not in (None, ""):
+        return str(stated)
     return fallback
 
 
