@@ -338,8 +338,9 @@ class Counter(ScpiInstrument):
         53220A/53230A User's Guide, "Time base" (p. 69 Agilent edition, p. 81 Keysight):
         `SENS:ROSC:SOUR EXT` (which also ends automatic selection), then
         `SENS:ROSC:EXT:CHEC ONCE` and `SYST:ERR?`: an error if no valid signal is at Ext
-        Ref In. `reference` is the stand's counter.reference ("external", "internal" or
-        None: only read). A stand that claims a timebase limit below the model's own
+        Ref In. A model without a check word (the CNT-91: `ROSC:SOUR EXT`, see its
+        profile's notes) relies on the selection's own error. `reference` is the stand's
+        counter.reference ("external", "internal" or None: only read). A stand that claims a timebase limit below the model's own
         (counter.timebase_limit_rel) must run on an external reference.
         """
         w = self.words
@@ -427,7 +428,7 @@ class Counter(ScpiInstrument):
             self.send(self._need(w.sample_count, "sample_count"), count=n_read)
         if w.trigger_source is not None and method != "read":
             external = method == "timestamps" and tie.uses_external_trigger
-            source = "EXT" if external else "IMM"
+            source = p.external_trigger if external else "IMM"
             self.send(w.trigger_source, source=source)
             self._verify("counter.time_tie.source", w.trigger_source, source)
         span = self._span_s(method, n_read, period_s)
@@ -577,6 +578,8 @@ class Counter(ScpiInstrument):
             self._refuse_nan(text, since_start, n_read, acq)
             if fmt.name == "keysight-tst":
                 self._check_first_value(text, values[1:], acq)
+            elif fmt.name == "pendulum-stst":
+                self._check_ts_origin(text, since_start, acq)
             if np.any(np.diff(since_start) <= 0):
                 raise CounterReplyError(
                     f"{self.name}: the timestamps in the reply to {text!r} do not increase "
@@ -611,6 +614,29 @@ class Counter(ScpiInstrument):
                 "to the FOG's time axis (misplaced by up to a turn, harmonic phases "
                 "wrong); refused. Periods (the rate) do not need the tie",
                 command=text)
+
+    def _check_ts_origin(self, text: str, since_start_s: np.ndarray,
+                         acq: Acquisition) -> None:
+        """The CNT-91's TS counts "since a certain start event that is not available for
+        external control" (CNT-90 series Programmer's Handbook p. 8-72). The tie takes
+        that event as the measurement's start (INIT, or the arming pulse of ARM:SOUR
+        EXT4), after which the first stamped crossing comes within a turn; a first TS
+        outside (0, a turn] counts from something else, and placing the edges by it would
+        put them anywhere on the FOG's axis: refused for edges. Periods (differences of
+        TS) do not need the tie."""
+        first = float(since_start_s[0])
+        turn = acq.expected_period_s * (1.0 + SPAN_SLACK_REL)
+        ok = 0.0 < first <= turn
+        self.readback["counter.first TS"] = f"{first:.12g} s"
+        if ok or acq.what != "edges":
+            return
+        raise CounterError(
+            f"{self.name}: the first time stamp of the reply to {text!r} is {first:.12g} s, "
+            f"not within the first turn ({turn:.6g} s) after the measurement's start: the "
+            "counter's TS does not count from the start this bench ties to the FOG's time "
+            "axis (Programmer's Handbook p. 8-72: 'since a certain start event'), so the "
+            "edges cannot be placed; refused. Periods (the rate) do not need the tie",
+            command=text)
 
     def _fetch_numbers(self, n_read: int, per_result: int, fmt: Any
                        ) -> tuple[str, str, np.ndarray]:

@@ -250,7 +250,12 @@ class Keysight53230aScriptWords:
     keysight_53230A counter.py `TRIG:SOUR IMM; COUN MAX`, `SENS:FREQ:MODE REC`, `R?`;
     francescobenfenati/Agilent-53230A-remote-control `READ?`; TimingKeepers/
     measuring_instr driver/ks53230.py `CONF:PER DEF,DEF,(@1)`, `TRIGger:...`). Parameter
-    lists are parsed by the twin itself (raw routes)."""
+    lists are parsed by the twin itself (raw routes). Issue 41, from the reference's own
+    command pages (page numbers not at hand): TRIGger:SOURce BUS with IEEE 488.2 *TRG;
+    FORMat[:DATA] REAL (FETC?/READ? `#0` block); CONFigure:TINTerval [(@1),(@2)],
+    CONFigure:TOTalize:TIMed [<gate>,][(@ch)], CONFigure:TSTamp [{<count>}][,(@ch)]
+    (example `CONF:TST (5000)`); SAMPle:COUNt and TRIGger:COUNt 1 to 1,000,000 with
+    MIN/MAX/DEF queries."""
 
     read_remove: Command = Command("R?", doc="[<max>]: readings removed, definite-length block")
     data_remove: Command = Command("DATA:REMove?", doc="<n>[,WAIT]: n readings removed")
@@ -274,9 +279,18 @@ class Keysight53230aScriptWords:
     frequency_mode: Command = Command("[SENSe:]FREQuency:MODE",
                                       doc="AUTO, CONTinuous, RCONtinuous, RECiprocal")
     format_data: Command = Command("FORMat[:DATA]", doc="ASCii[,<1..15>] or REAL[,64]")
+    sample_count: Command = Command("SAMPle:COUNt", doc="1..1e6, MIN, MAX, DEF; the query "
+                                    "takes MIN, MAX or DEF too (SAMPle:COUNt page)")
+    configure_time_interval: Command = Command(
+        "CONFigure:TINTerval", doc="[(@1),(@2)]: start on one channel, stop on the other")
+    configure_totalize_timed: Command = Command(
+        "CONFigure:TOTalize:TIMed", doc="[<gate>,][(@<ch>)]: edges counted in a gate")
 
 
 KEYSIGHT_53230A_SCRIPT_WORDS = Keysight53230aScriptWords()
+#: the 53230A's TRIGger:COUNt and SAMPle:COUNt upper limit (Programmer's Reference,
+#: TRIGger:COUNt and SAMPle:COUNt: 1 to 1,000,000)
+KEYSIGHT_53230A_COUNT_MAX = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -306,6 +320,12 @@ class Cnt91ScriptWords:
     fetch: Command = Command("FETCh?", doc="the last result")
     status_byte: Command = Command("*STB?")
     options: Command = Command("*OPT?")
+    # time stamps as scripts ask for them (CNT-90 series Programmer's Handbook,
+    # :MEASure:ARRay:STSTamp? p. 8-72 and its sibling :MEASure:ARRay:TSTAmp?)
+    measure_single_timestamps: Command = Command("MEASure:ARRay:STSTamp?",
+                                                 doc="(<n>)[,(@<ch>)]")
+    measure_timestamps: Command = Command("MEASure:ARRay:TSTAmp?", doc="(<n>)[,(@<ch>)]")
+    configure_timestamps: Command = Command("CONFigure:ARRay:TSTAmp", doc="(<n>)[,(@<ch>)]")
 
 
 CNT91_SCRIPT_WORDS = Cnt91ScriptWords()
@@ -344,6 +364,10 @@ class CounterProfile:
     timestamp_rate_hz: float | None = None
     #: most results one FETC:ARR? may ask for (None: the model fetches all at once)
     fetch_max_results: int | None = None
+    #: the `trigger_source` value that starts a measurement from the external input the
+    #: FOG's sync pulse is wired to (53230A: EXT, the rear Trig In; CNT-91: EXT4, the
+    #: rear arming input E of ARM:SOURce)
+    external_trigger: str = "EXT"
     #: where the words, limits and reply formats were checked: manual and section, or
     #: "unverified" when no manual was found
     manual: str = "unverified"
@@ -360,7 +384,51 @@ class CounterProfile:
 
     @property
     def supports_timestamps(self) -> bool:
+        """Edge timestamps: what the rate ladder needs (N+1 consecutive zero marks)."""
         return self.timestamps is not None
+
+    @property
+    def has_reference_source(self) -> bool:
+        """A word that selects the timebase (stand key counter.reference)."""
+        return self.words.reference_source is not None
+
+    @property
+    def has_reference_check(self) -> bool:
+        """A word that checks the external reference signal (else only the selection's
+        own error, if the model gives one, tells that nothing is wired)."""
+        return self.words.reference_check is not None
+
+    @property
+    def has_external_trigger(self) -> bool:
+        """A word that starts a measurement from an external input: what a fog-sync time
+        tie needs (stand key counter.time_tie.source: fog-sync)."""
+        return self.words.trigger_source is not None
+
+    @property
+    def has_measurement_timeout(self) -> bool:
+        """The instrument's own measurement timeout (9.91E37 for a silent input)."""
+        return (self.words.measurement_timeout is not None
+                and self.measurement_timeout_range_s is not None)
+
+    def missing_capabilities(self, *, timestamps: bool = False, reference: str | None = None,
+                             time_tie: str | None = None) -> list[tuple[str, str]]:
+        """What a stand or procedure asks of this model that it cannot do, as (stand key,
+        sentence) pairs, for validation before anything is opened: `timestamps` (the rate
+        ladder), `reference` (counter.reference), `time_tie` (counter.time_tie.source)."""
+        out = []
+        if timestamps and not self.supports_timestamps:
+            out.append(("model", f"the {self.model} cannot timestamp edges "
+                                 "(supports_timestamps): the rate ladder needs N+1 "
+                                 "consecutive zero-mark timestamps"))
+        if reference is not None and not self.has_reference_source:
+            out.append(("reference", f"the {self.model} profile has no reference-source "
+                                     "word (has_reference_source): remove "
+                                     "counter.reference or choose another model"))
+        if time_tie == "fog-sync" and not self.has_external_trigger:
+            out.append(("time_tie", f"the {self.model} profile has no trigger-source word "
+                                    "(has_external_trigger): a fog-sync time tie needs "
+                                    "an external start; use host-clock"))
+        return out
 
     @property
     def timestamp_format(self) -> TimestampFormat:
@@ -455,6 +523,14 @@ PENDULUM_CNT91 = CounterProfile(
                                doc="ON: each result is (X count, timestamp)"),
         fetch_array=Command("FETCh:ARRay?", "{count}",
                             doc="the next <count> results (at most 10 000 a call)"),
+        # start arming (PyMeasure's cnt91: external_start_arming_source, A/B/E = EXT1/
+        # EXT2/EXT4): the FOG's sync pulse on the rear arming input E starts the stamps
+        trigger_source=Command("ARM[:STARt][:LAYer2]:SOURce", "{source}",
+                               doc="IMMediate or EXTernal4 (rear arming input E): what "
+                                   "starts the measurement; EXT4 for the time tie"),
+        reference_source=Command("[SENSe:]ROSCillator:SOURce", "{source}",
+                                 doc="INTernal, EXTernal or AUTO timebase (syntax "
+                                     "unverified, see notes)"),
     ),
     timestamps="pendulum-stst",
     periods=None,
@@ -462,10 +538,15 @@ PENDULUM_CNT91 = CounterProfile(
     level_range_v=(-5.0, 5.0),
     max_count=1_000_000,
     fetch_max_results=10_000,
+    external_trigger="EXT4",
     manual=("Pendulum CNT-90 series Programmer's Handbook: :FETCh:ARRay? p. 8-35 (the next "
             "<size> results, 'maximum limit is 10000'), :FORMat:SMAX p. 8-39, "
             ":MEASure:ARRay:STSTamp? p. 8-72 (X counter = trigger-level crossings; TS since "
-            "an unknown start event). Unverified: the largest STST array size"),
+            "an unknown start event), :ACQuisition:APERture p. 8-92, :FORMat[:DATA] "
+            "{ASCii|REAL} (REAL: IEEE 754 8-byte big-endian, definite-length block); "
+            ":ARM:SOURce as "
+            "PyMeasure's cnt91 sends it. Unverified: the largest STST array size, "
+            ":SENSe:ROSCillator:SOURce"),
     resolution_s=50e-12,
     single_shot_s=50e-12,
     timebase_limit_rel=2.0e-6,
@@ -475,7 +556,17 @@ PENDULUM_CNT91 = CounterProfile(
            "it, which does not depend on that). No measurement-timeout word is used: the "
            "VISA timeout, scaled to the expected period, bounds the wait. Timebase: "
            "standard crystal, +/-2e-6 assumed; options 19/30/40 (OCXO) and CNT-91R "
-           "(rubidium) far better."),
+           "(rubidium) far better. UNVERIFIED, no handbook page at hand: the timebase word "
+           "[:SENSe]:ROSCillator:SOURce {INTernal|EXTernal|AUTO} (the twin answers exactly "
+           "this, INT/EXT/AUTO; with EXTernal selected and no valid signal at the "
+           "reference input it queues -241 'Hardware missing', our assumption: the "
+           "handbook has no check word like the 53230A's ROSC:EXT:CHEC); the time tie "
+           "takes TS as counted from the measurement's start (INIT, or with ARM:SOUR EXT4 "
+           "the first arming pulse after it), which p. 8-72 ('a certain start event that "
+           "is not available for external control') does not promise, so the driver "
+           "refuses edges whose first TS is longer than a turn (TS from another origin); "
+           "the reply layout of :MEAS:ARR:TSTAmp? (TS values; X,TS pairs with FORM:TINF "
+           "ON) is modelled on STSTamp's."),
     idn="Pendulum Instruments AB,CNT-91,608500,V1.28 26 Jan 2011 08:57",
 )
 

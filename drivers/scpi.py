@@ -184,7 +184,9 @@ class Command:
         """Parameters of a received command as strings, by placeholder name.
 
         Raises `ParameterError` with the SCPI code a server should queue: -109 missing,
-        -108 not allowed, -102 syntax.
+        -108 not allowed (no parameter expected, or more than the command takes:
+        SCPI-99 vol. 2, 21.8.9, "more parameters were received than expected for the
+        header"), -102 syntax.
         """
         text = re.sub(r"\s+", "", text)
         if not self.params:
@@ -195,8 +197,30 @@ class Command:
             raise ParameterError(-109, "Missing parameter")
         m = self._params_regex.match(text)
         if m is None:
+            if count_params(text) > count_params(self.params):
+                raise ParameterError(-108, "Parameter not allowed")
             raise ParameterError(-102, "Syntax error")
         return dict(m.groupdict())
+
+
+def count_params(text: str) -> int:
+    """How many parameters a parameter text holds: its commas outside parentheses
+    (a channel list `(@1,2)` is one parameter) and quotes, plus one; 0 if empty."""
+    if not text.strip():
+        return 0
+    depth, quote, n = 0, "", 1
+    for ch in text:
+        if quote:
+            quote = "" if ch == quote else quote
+        elif ch in "\"'":
+            quote = ch
+        elif ch == "(":
+            depth += 1
+        elif ch == ")":
+            depth = max(depth - 1, 0)
+        elif ch == "," and depth == 0:
+            n += 1
+    return n
 
 
 def _punctuation_regex(text: str) -> str:
@@ -223,6 +247,8 @@ ESR_Q = Command("*ESR?", doc="read and clear the standard event status register"
 WAI = Command("*WAI", doc="wait for pending operations before the next command")
 SYST_ERR = Command("SYSTem:ERRor[:NEXT]?", doc="next entry of the error queue")
 ABORT = Command("ABORt", doc="abort a measurement in progress; trigger system to idle")
+TRG = Command("*TRG", doc="bus trigger (IEEE 488.2 10.37): a measurement waiting for a BUS "
+                          "trigger starts")
 INIT = Command("INITiate[:IMMediate]", doc="start a measurement (overlapped)")
 
 #: ESR bit 0: Operation Complete (IEEE 488.2 §11.5.1)

@@ -18,7 +18,27 @@ Measurement modes, as the manuals describe them:
   `SyncLink` (its latency and jitter: the physical time tie, drivers/time_tie.py);
 - period readings (53230A CONF:PER with SAMP:COUN n): each reading times one turn from
   the first edge after the previous reading ended, so readings are every other turn;
-- READ? (generic counter): one period, from the first edge after the READ? arrived.
+- READ? (generic counter): one period, from the first edge after the READ? arrived;
+- totalize, timed (53230A CONF:TOT:TIM): the zero marks counted in each gate, gates back
+  to back from the start event. CONF:TINT configures (CONF? reports it) but measuring a
+  time interval is not modelled: INIT and READ? are -221 "Settings conflict;..." rather
+  than a wrong number.
+
+The start event: INIT with TRIG:SOUR IMM; with TRIG:SOUR EXT (53230A) or ARM:SOUR EXT4
+(CNT-91 start arming on the rear input E) the FOG's sync pulse, through the `SyncLink`;
+with TRIG:SOUR BUS (53230A) INIT waits for *TRG (IEEE 488.2 10.37), each *TRG starting
+SAMP:COUN readings of TRIG:COUN, from the later of the trigger and the end of the last
+trigger's readings; *TRG with nothing waiting is -211, READ? with BUS -214 "Trigger
+deadlock". CNT-91 arming on input A or B (EXT1, EXT2) is not modelled (-221 at INIT).
+
+FORMat REAL: the 53230A answers FETC? and READ? with an indefinite-length block, `#0`,
+the doubles (FORM:BORD order), then the terminator (Programmer's Reference, FORMat:DATA),
+R? and DATA:REM? with a definite-length block; the CNT-91 answers big-endian doubles in a
+definite-length block (CNT-90 series Programmer's Handbook, :FORMat).
+
+The timebase: the 53230A's SENS:ROSC:SOUR INT|EXT, with SENS:ROSC:EXT:CHEC ONCE an error
+(-241) when `external_reference` is False; the CNT-91's ROSC:SOUR INT|EXT|AUTO (syntax
+unverified, see its profile's notes), EXT itself the error (-241) when nothing is wired.
 
 SYSTem:TIMeout is per reading and non-volatile (Programmer's Reference p. 459): *RST
 leaves it, and it starts disabled (as shipped) unless the twin is built with another.
@@ -50,6 +70,7 @@ import numpy as np
 from drivers.counter_profiles import (
     CNT91_SCRIPT_WORDS,
     FIRST_VALUE_READINGS,
+    KEYSIGHT_53230A_COUNT_MAX,
     KEYSIGHT_53230A_MEMORY,
     KEYSIGHT_53230A_SCRIPT_WORDS,
     TIMESTAMP_FORMATS,
@@ -58,7 +79,7 @@ from drivers.counter_profiles import (
     get_profile,
 )
 from drivers.counter_profiles import nr3 as profile_nr3
-from drivers.scpi import SCPI_NAN, parse_numbers
+from drivers.scpi import SCPI_NAN, TRG, count_params, parse_numbers
 from sims.scpi_server import (
     ExecError,
     ScpiServer,
@@ -101,11 +122,14 @@ class SyncLink:
         return k * self.period_s + self.latency_s + self.jitter_s * float(rng.standard_normal())
 
 
+Kind = Literal["timestamps", "periods", "totals"]
+
+
 @dataclass
 class TwinAcquisition:
     """A measurement in progress (or done) on the twin."""
 
-    kind: Literal["timestamps", "periods"]
+    kind: Kind
     n: int                      # readings
     channel: int
     t_arm_s: float              # stand time of INIT / READ?
@@ -126,12 +150,25 @@ class TwinAcquisition:
     walk: bool = False
     gate_s: float = 0.0
     back_to_back: bool = False
+    #: TRIG:SOUR BUS (53230A): each of `blocks` triggers (*TRG) starts `n / blocks`
+    #: readings; `triggers` holds their stand times, the first is the start event
+    bus: bool = False
+    blocks: int = 1
+    triggers: list[float] = field(default_factory=list)
+    #: every trigger received so far has been served: the next reading waits for *TRG
+    waiting_trigger: bool = False
 
     @property
     def edges_needed(self) -> int:
         if self.kind == "timestamps":
             return self.n + (1 if self.edge_to_edge else 0)
+        if self.kind == "totals":
+            return 0
         return 2 * self.n
+
+    @property
+    def edges_per_reading(self) -> int:
+        return 1 if self.kind == "timestamps" else 2
 
 
 class CounterTwin(ScpiServer):
@@ -167,7 +204,8 @@ class CounterTwin(ScpiServer):
         #: a valid 10 MHz at Ext Ref In (the stand's GPS-disciplined reference)
         self.external_reference = external_reference
         #: the timebase in use; SENS:ROSC:SOUR is not reset by *RST here (simplification:
-        #: the manual's *RST value of the auto selection is not modelled)
+        #: the manual's *RST value of the auto selection is not modelled; the CNT-91 starts
+        #: the same way, its power-on selection not being known to us)
         self.reference = "EXT" if external_reference else "INT"
         self.rng = np.random.default_rng(seed)
         #: SYST:TIM, non-volatile: not touched by *RST (None: disabled, as shipped)
@@ -200,6 +238,9 @@ class CounterTwin(ScpiServer):
         self.byte_order = "NORM"
         self.frequency_mode = "AUTO"
         self.invert = False
+        self.tint_channels = (1, 2)      # CONF:TINT: start and stop channels
+        self.totalize_gate_s = 0.1       # CONF:TOT:TIM gate (DEF 0.1 s)
+        self.ts_layout = "stst"          # CNT-91: STSTamp or TSTAmp replies
         if self.profile.model == "keysight-53230a":  # *RST function: FREQ 1
             self.function, self.invert = "periods", True
         # CNT-91 (Programmer's Handbook): gate 10 ms, single measurements, arming IMM
@@ -225,64 +266,150 @@ class CounterTwin(ScpiServer):
         return min(self.sample_count * self.trigger_count, KEYSIGHT_53230A_MEMORY
                    if self.profile.model == "keysight-53230a" else self.profile.max_count)
 
-    def _arm(self, kind: Literal["timestamps", "periods"], n: int) -> TwinAcquisition:
+    def _start_source(self) -> str:
+        """What starts a measurement after INIT: 'imm', 'sync' (the FOG's sync pulse at
+        the external input it is wired to) or 'bus' (*TRG)."""
+        if self.profile.model == "pendulum-cnt-91":
+            # start arming (CNT-90 series Programmer's Handbook, :ARM:SOURce): the sync
+            # is wired to the rear arming input E (EXT4); A and B carry the signals
+            if self.arm_source in ("EXT1", "EXT2"):
+                raise ExecError(-221, "Settings conflict;start arming on input A or B is "
+                                      "not modelled by this twin")
+            return "sync" if self.arm_source == "EXT4" else "imm"
+        return {"EXT": "sync", "BUS": "bus"}.get(self.trigger_source, "imm")
+
+    def _arm(self, kind: Kind, n: int) -> TwinAcquisition:
         ch = self.function_channel
+        source = self._start_source()
         blind = self.take_fault("no-trigger") or not self._sees_edges(ch)
         t_arm = self.clock.now()
         t_start = t_arm
-        if self.trigger_source == "EXT":
+        if source == "sync":
             if self.sync is None:
                 blind = True  # nothing is wired to the external trigger input
             else:
                 t_start = self.sync.next_pulse_s(t_arm, self.rng)
+        elif source == "bus":
+            t_start = math.inf  # the first *TRG (53220A/53230A Prog. Ref. TRIG:SOUR BUS)
+        bus = source == "bus"
         self.acquisition = TwinAcquisition(
             kind, n, ch, t_arm, self.timeout_s, blind, t_start,
             edge_to_edge=(kind == "timestamps" and self.first_value == "edge-to-edge"
                           and self.profile.timestamps == "keysight-tst"),
             invert=kind == "periods" and self.invert,
-            walk=kind == "periods" and self.walk, gate_s=self.aperture_s,
-            back_to_back=self.back_to_back)
+            walk=kind == "periods" and self.walk,
+            gate_s=self.totalize_gate_s if kind == "totals" else self.aperture_s,
+            back_to_back=self.back_to_back, bus=bus,
+            blocks=max(1, n // max(self.sample_count, 1)) if bus else 1,
+            waiting_trigger=bus)
         self.last_acquisition = self.acquisition  # kept after the client leaves (tests)
         return self.acquisition
+
+    def _bus_trigger(self, a: Mapping[str, str]) -> None:
+        """*TRG (IEEE 488.2 10.37): with TRIG:SOUR BUS, starts the readings of one trigger
+        of a measurement INIT left waiting for it; anything else is -211 "Trigger
+        ignored" (SCPI-99 vol. 2, 21.8.10), as is a trigger while a block is measured."""
+        acq = self.acquisition
+        if acq is None or not acq.bus or self.trigger_source != "BUS" \
+                or self._progress(acq) or not acq.waiting_trigger:
+            raise ExecError(-211, "Trigger ignored")
+        now = self.clock.now()
+        if not acq.triggers:
+            acq.t_start_s = now
+        acq.triggers.append(now)
+        acq.waiting_trigger = False
+
+    def _select(self, acq: TwinAcquisition
+                ) -> tuple[np.ndarray, np.ndarray, float, bool]:
+        """The edges the readings use so far; for each, the stand time it began to be
+        waited for (the previous edge, or its block's start); that time for the next
+        edge; and whether the next reading waits for a trigger (*TRG), not an edge.
+
+        One block (IMM, EXT): the first edges after the start event. With TRIG:SOUR BUS
+        each trigger's readings take the first edges after the later of that trigger
+        and the end of the previous trigger's readings."""
+        edges = acq.edges_s
+        start0 = max(acq.t_start_s, acq.t_arm_s)
+        if not acq.bus:
+            chosen = edges[:acq.edges_needed]
+            refs = np.concatenate([[start0], chosen[:-1]])[:chosen.size]
+            return chosen, refs, float(chosen[-1]) if chosen.size else start0, False
+        per = (acq.n // acq.blocks) * acq.edges_per_reading
+        parts: list[np.ndarray] = []
+        refs_parts: list[np.ndarray] = []
+        prev_end, next_ref = -math.inf, start0
+        for k in range(acq.blocks):
+            if k >= len(acq.triggers):
+                return _cat(parts), _cat(refs_parts), next_ref, True
+            start = max(acq.triggers[k], prev_end)
+            extra = acq.edges_needed - acq.n * acq.edges_per_reading if k == 0 else 0
+            i = int(np.searchsorted(edges, start, side="right"))
+            block = edges[i:i + per + extra]
+            parts.append(block)
+            refs_parts.append(np.concatenate([[start], block[:-1]])[:block.size])
+            next_ref = float(block[-1]) if block.size else start
+            if block.size < per + extra:
+                break
+            prev_end = next_ref
+        return _cat(parts), _cat(refs_parts), next_ref, False
 
     def _progress(self, acq: TwinAcquisition) -> bool:
         """Bring the acquisition up to the clock's now; True once its readings exist."""
         if acq.values is not None:
             return True
+        if acq.bus and not acq.triggers:
+            return False  # INIT waits for *TRG
         now = self.clock.now()
         if not acq.blind and now > acq.t_start_s:
             self.axis.advance_to(now)
             acq.edges_s = self.axis.zero_marks(acq.t_start_s, now).t_edge_s
+        if acq.kind == "totals":
+            if now < acq.t_start_s + acq.n * acq.gate_s:
+                return False
+            acq.values = self._totals(acq, acq.n)
+            return True
         if acq.walk:
             readings = self._walk(acq)
             if readings.size < acq.n:
                 return False
             acq.values = readings[:acq.n]
             return True
-        need = acq.edges_needed
+        chosen, refs, next_ref, waiting = self._select(acq)
+        acq.waiting_trigger = waiting
         # per reading (p. 459): the next stamp must come within the timeout of the last
-        stamps = np.concatenate([[max(acq.t_start_s, acq.t_arm_s)], acq.edges_s[:need]])
-        late = (np.flatnonzero(np.diff(stamps) > acq.timeout_s) if acq.timeout_s is not None
+        late = (np.flatnonzero(chosen - refs > acq.timeout_s) if acq.timeout_s is not None
                 else np.empty(0, int))
         if late.size:
-            acq.edges_s = acq.edges_s[:int(late[0])]
-        timed_out = acq.timeout_s is not None and (
-            late.size > 0 or now >= stamps[-1] + acq.timeout_s)
-        if acq.edges_s.size < need and not timed_out:
+            chosen = chosen[:int(late[0])]
+        timed_out = acq.timeout_s is not None and not waiting and (
+            late.size > 0 or now >= next_ref + acq.timeout_s)
+        if chosen.size < acq.edges_needed and not timed_out:
             return False
-        edges = self.profile.quantise(acq.edges_s[:need])
-        if acq.kind == "timestamps" and acq.edge_to_edge:
-            acq.stamp0_s = float(edges[0]) if edges.size else acq.t_start_s
-            values = edges[1:]
-        elif acq.kind == "timestamps":
-            values = edges
-        else:
-            pairs = edges.size // 2
-            values = edges[1:2 * pairs:2] - edges[0:2 * pairs:2]
-            if acq.invert:
-                values = 1.0 / values
+        values = self._values(acq, chosen)
         acq.values = np.concatenate([values, np.full(acq.n - values.size, SCPI_NAN)])
         return True
+
+    def _values(self, acq: TwinAcquisition, chosen: np.ndarray) -> np.ndarray:
+        """The readings the chosen edges make, as the instrument resolves them."""
+        edges = self.profile.quantise(chosen)
+        if acq.kind == "timestamps":
+            if acq.edge_to_edge:
+                if edges.size:
+                    acq.stamp0_s = float(edges[0])
+                elif acq.stamp0_s is None:
+                    acq.stamp0_s = acq.t_start_s
+                return edges[1:]
+            return edges
+        pairs = edges.size // 2
+        values = edges[1:2 * pairs:2] - edges[0:2 * pairs:2]
+        return 1.0 / values if acq.invert else values
+
+    def _totals(self, acq: TwinAcquisition, n: int) -> np.ndarray:
+        """Totalize, timed (53220A/53230A CONFigure:TOTalize:TIMed): the edges counted in
+        each of n gates, back to back from the start event (gate dead time not
+        modelled)."""
+        bounds = acq.t_start_s + acq.gate_s * np.arange(n + 1)
+        return np.diff(np.searchsorted(acq.edges_s, bounds, side="left")).astype(float)
 
     def _walk(self, acq: TwinAcquisition) -> np.ndarray:
         """Gated readings from the edges so far: each from an edge to the first edge at
@@ -307,18 +434,15 @@ class CounterTwin(ScpiServer):
         if self._progress(acq):
             assert acq.values is not None
             return acq.values
+        if acq.bus and not acq.triggers:
+            return np.empty(0)
+        if acq.kind == "totals":
+            done = int((self.clock.now() - acq.t_start_s) // acq.gate_s)
+            return self._totals(acq, max(0, min(done, acq.n)))
         if acq.walk:
             return self._walk(acq)
-        edges = self.profile.quantise(acq.edges_s[:acq.edges_needed])
-        if acq.kind == "timestamps":
-            if acq.edge_to_edge:
-                if edges.size:
-                    acq.stamp0_s = float(edges[0])
-                return edges[1:]
-            return edges
-        pairs = edges.size // 2
-        values = edges[1:2 * pairs:2] - edges[0:2 * pairs:2]
-        return 1.0 / values if acq.invert else values
+        chosen, _, _, _ = self._select(acq)
+        return self._values(acq, chosen)
 
     def _readings(self, acq: TwinAcquisition | None) -> np.ndarray:
         if acq is None:
@@ -331,28 +455,45 @@ class CounterTwin(ScpiServer):
         p = self.profile
         if acq.kind == "timestamps":
             fmt = TIMESTAMP_FORMATS[p.timestamps or ""]
-            if fmt.name == "pendulum-stst" and not self.timestamp_info:
+            if fmt.name == "pendulum-stst" and not self.timestamp_info \
+                    and self.ts_layout == "stst":
                 return ",".join(str(i + 1) for i in range(values.size))
             nan = values >= 0.999 * SCPI_NAN
             stamp0 = acq.t_start_s if acq.stamp0_s is None else acq.stamp0_s
             digits = (self.ascii_digits - 1 if fmt.name == "keysight-tst"  # intervals
                       else self._time_digits(values[~nan] - stamp0))
-            text = fmt.encode(np.where(nan, stamp0, values), stamp0, digits,
-                              p.reply_exp_digits, first)
+            if fmt.name == "pendulum-stst" and not self.timestamp_info:
+                # CNT-91 TSTAmp without FORM:TINF: the time stamps alone (unverified
+                # layout, see the profile's notes)
+                text = ",".join(profile_nr3(t - stamp0, digits, p.reply_exp_digits)
+                                for t in np.where(nan, stamp0, values))
+            else:
+                text = fmt.encode(np.where(nan, stamp0, values), stamp0, digits,
+                                  p.reply_exp_digits, first)
             return _nan_tail(text, int(nan.sum()))
         digits = self.ascii_digits - 1 if p.model == "keysight-53230a" else p.reply_digits
         return encode_values(values, digits, p.reply_exp_digits)
 
-    def _reply(self, acq: TwinAcquisition, values: np.ndarray, first: int = 0) -> str | bytes:
-        """ASCII (FORM ASC), or FORM REAL,64: a definite-length block of doubles, byte
-        order FORM:BORD (NORMal: big-endian), Programmer's Reference FORMat subsystem."""
-        return self._formatted(self._encode(acq, values, first))
+    def _reply(self, acq: TwinAcquisition, values: np.ndarray, first: int = 0, *,
+               fetch: bool = False) -> str | bytes:
+        """ASCII (FORM ASC), or FORM REAL: 8-byte doubles in a block (`_formatted`);
+        `fetch`: the reply of FETC? or READ?."""
+        return self._formatted(self._encode(acq, values, first), fetch=fetch)
 
-    def _formatted(self, text: str) -> str | bytes:
+    def _formatted(self, text: str, *, fetch: bool = False) -> str | bytes:
+        """The readings as FORMat[:DATA] says. REAL on the 53230A (Programmer's
+        Reference, FORMat[:DATA]): IEEE 754 doubles, byte order FORM:BORD (NORMal:
+        big-endian); FETC? and READ? answer an indefinite-length block, `#0<bytes>`
+        then the terminator, as the FORMat:DATA page shows; R? (and DATA:REM?) a
+        definite-length one. REAL on the CNT-91 (CNT-90 series Programmer's Handbook,
+        :FORMat[:DATA]): big-endian doubles in a definite-length block."""
         if self.data_format != "REAL":
             return text
         numbers = parse_numbers(text)
-        return _block(numbers.astype(">f8" if self.byte_order == "NORM" else "<f8").tobytes())
+        keysight = self.profile.model == "keysight-53230a"
+        big = not keysight or self.byte_order == "NORM"
+        data = numbers.astype(">f8" if big else "<f8").tobytes()
+        return b"#0" + data if keysight and fetch else _block(data)
 
     def _time_digits(self, t_s: np.ndarray) -> int:
         """Digits after the point that carry the resolution (up to 17 significant):
@@ -380,8 +521,10 @@ class CounterTwin(ScpiServer):
             "gate_time": (self._set_gate, None),
             "measurement_timeout": (self._set_timeout, lambda a: self._nr3(
                 9.9e37 if self.timeout_s is None else self.timeout_s)),  # p. 459: 9.9E37
-            "format_data": (self._set_format, lambda a: "ASC"),
-            "trigger_source": (self._set_trigger_source, lambda a: self.trigger_source),
+            "format_data": (self._set_format, lambda a: self.data_format),
+            "trigger_source": (self._set_trigger_source, lambda a: (
+                self.arm_source if self.profile.model == "pendulum-cnt-91"
+                else self.trigger_source)),
             "reference_source": (self._set_reference, lambda a: self.reference),
             "reference_check": (self._check_reference, None),
             "abort": (self._abort, None),
@@ -436,6 +579,7 @@ class CounterTwin(ScpiServer):
         self.function, self.function_channel = "timestamps", self._channel_list(a)
         self.sample_count = count
         self.timestamp_info = True  # CONF turns the timestamp information on (CNT-91)
+        self.ts_layout = "stst"
         self.acquisition = None
 
     def _conf_period(self, a: Mapping[str, str]) -> None:
@@ -468,7 +612,16 @@ class CounterTwin(ScpiServer):
         self.timeout_s = ranged_param(value, lo, hi, default=1.0)
 
     def _set_reference(self, a: Mapping[str, str]) -> None:
-        self.reference = enum_param(a["source"], ("INTernal", "EXTernal"))
+        if self.profile.model != "pendulum-cnt-91":
+            self.reference = enum_param(a["source"], ("INTernal", "EXTernal"))
+            return
+        # CNT-91 [:SENSe]:ROSCillator:SOURce {INTernal|EXTernal|AUTO} (unverified, see
+        # the profile's notes): EXTernal with no valid signal at the reference input is
+        # an error here (the model has no check word), and the source stays as it was
+        source = enum_param(a["source"], ("INTernal", "EXTernal", "AUTO"))
+        if source == "EXT" and not self.external_reference:
+            raise ExecError(-241, "Hardware missing;no valid external reference signal")
+        self.reference = source
 
     def _check_reference(self, a: Mapping[str, str]) -> None:
         """SENS:ROSC:EXT:CHEC ONCE: an error when no valid signal is at Ext Ref In."""
@@ -476,28 +629,43 @@ class CounterTwin(ScpiServer):
             raise ExecError(-241, "Hardware missing; no valid external timebase")
 
     def _set_trigger_source(self, a: Mapping[str, str]) -> None:
+        if self.profile.model == "pendulum-cnt-91":   # the start arming source
+            self._set_arm_source({"raw": a["source"]})
+            return
         self.trigger_source = enum_param(a["source"], ("IMMediate", "EXTernal", "BUS"))
 
     def _set_format(self, a: Mapping[str, str]) -> None:
-        if enum_param(a["format"], ("ASCii", "REAL", "PACKed")) != "ASC":
-            raise ExecError(-224, "Illegal parameter value")  # the twin speaks ASCII only
+        """FORMat[:DATA] {ASCii|REAL} (CNT-90 series Programmer's Handbook); PACKed is
+        not modelled (-224)."""
+        fmt = enum_param(a["format"], ("ASCii", "REAL", "PACKed"))
+        if fmt == "PACK":
+            raise ExecError(-224, "Illegal parameter value")
+        self.data_format = fmt
 
     def _abort(self, a: Mapping[str, str]) -> None:
         self.acquisition = None
 
-    def _initiate(self, a: Mapping[str, str]) -> None:
+    def _kind(self) -> Kind:
+        """What INIT / READ? measure; -221 for a function set but not modelled (a clear
+        error, not a wrong number)."""
         if self.function is None:
             raise ExecError(-221, "Settings conflict")
+        if self.function == "tint":
+            raise ExecError(-221, "Settings conflict;time interval (CONF:TINT) is not "
+                                  "modelled by this twin")
+        return self.function  # type: ignore[return-value]
+
+    def _initiate(self, a: Mapping[str, str]) -> None:
+        kind = self._kind()
         if self.pending():
             raise ExecError(-213, "Init ignored")
-        kind = "timestamps" if self.function == "timestamps" else "periods"
-        self._arm(kind, self._per_init())  # type: ignore[arg-type]
+        self._arm(kind, self._per_init())
 
     def _fetch(self, a: Mapping[str, str]) -> str | bytes:
         acq = self.acquisition
         values = self._readings(acq)
         assert acq is not None
-        return self._reply(acq, values)
+        return self._reply(acq, values, fetch=True)
 
     def _fetch_array(self, a: Mapping[str, str]) -> str | bytes:
         acq = self.acquisition
@@ -514,11 +682,13 @@ class CounterTwin(ScpiServer):
         return self._reply(acq, values[first:first + n], first)
 
     def _read(self, a: Mapping[str, str]) -> str | bytes:
-        if self.function is None:
-            raise ExecError(-221, "Settings conflict")
-        kind = "timestamps" if self.function == "timestamps" else "periods"
-        acq = self._arm(kind, self._per_init())  # type: ignore[arg-type]
-        return self._reply(acq, self._readings(acq))
+        kind = self._kind()
+        if self._start_source() == "bus":
+            # READ? (ABORt, INIT, FETCh?) cannot be followed by the *TRG it would wait
+            # for: SCPI-99 vol. 2, 21.8.10, -214 "Trigger deadlock"
+            raise ExecError(-214, "Trigger deadlock")
+        acq = self._arm(kind, self._per_init())
+        return self._reply(acq, self._readings(acq), fetch=True)
 
     # -- 53230A words users' own scripts send (counter_profiles.Keysight53230aScriptWords)
     def _route_script_words(self) -> None:
@@ -546,10 +716,20 @@ class CounterTwin(ScpiServer):
         self.route(w.learn, on_query=self._learn)
         self.route(w.status_byte, on_query=lambda a: f"+{4 if self.errors else 0}")
         self.route(w.scpi_version, on_query=lambda a: "1994.0")
+        # TRIG:COUN? / SAMP:COUN? [MIN|MAX|DEF] (Programmer's Reference, TRIGger:COUNt
+        # and SAMPle:COUNt: 1 to 1,000,000, default 1)
         self.route(w.trigger_count, on_set=self._set_trigger_count, on_query=lambda a: (
-            f"+{self.trigger_count}"), raw=True)
+            _count_query(a["raw"], self.trigger_count, KEYSIGHT_53230A_COUNT_MAX)),
+            raw=True)
+        self.route(w.sample_count, on_set=self._set_sample_count_raw, on_query=lambda a: (
+            _count_query(a["raw"], self.sample_count, KEYSIGHT_53230A_COUNT_MAX)),
+            first=True, raw=True)
         self.route(w.trigger_delay, on_set=self._set_trigger_delay,
-                   on_query=lambda a: self._nr3_15(self.trigger_delay_s), raw=True)
+                   on_query=self._trigger_delay_query, raw=True)
+        # IEEE 488.2 *TRG: the bus trigger TRIG:SOUR BUS waits for (TRIGger:SOURce page)
+        self.route(TRG, on_set=self._bus_trigger)
+        self.route(w.configure_time_interval, on_set=self._conf_tint, raw=True)
+        self.route(w.configure_totalize_timed, on_set=self._conf_totalize, raw=True)
         self.route(w.trigger_slope, on_set=lambda a: setattr(
             self, "trigger_slope", enum_param(a["raw"], ("POSitive", "NEGative"))),
             on_query=lambda a: self.trigger_slope, raw=True)
@@ -603,9 +783,54 @@ class CounterTwin(ScpiServer):
         return self._read({})
 
     def _conf_tst(self, a: Mapping[str, str]) -> None:
-        text = a["raw"].replace(" ", "")
-        chan = self._channel_list({"channel": text.strip("(@)")}) if text else 1
+        """CONFigure:TSTamp [{<count>|MIN|MAX|DEF}][,(@<ch>)] (the reference's example:
+        `CONF:TST (5000)`); a count sets the readings (SAMP:COUN), none leaves them."""
+        count, chan = self._count_and_channel(a["raw"], KEYSIGHT_53230A_MEMORY)
         self.function, self.function_channel = "timestamps", chan
+        if count is not None:
+            self.sample_count = count
+        self.acquisition = None
+
+    def _count_and_channel(self, raw: str, high: int, default: int = 1
+                           ) -> tuple[int | None, int]:
+        """`[(<count>) | <count>][,(@<ch>)]`: the count (None if absent) and channel (1)."""
+        items = _split_params(raw)
+        chan = 1
+        if items and items[-1].startswith("(@"):
+            chan = self._channel_list({"channel": items.pop().strip("(@)")})
+        if len(items) > 1:
+            raise ExecError(-108, "Parameter not allowed")
+        count = count_param(items[0].strip("()"), high, default) if items else None
+        return count, chan
+
+    def _conf_tint(self, a: Mapping[str, str]) -> None:
+        """CONFigure:TINTerval [(@<start>),(@<stop>)] (53220A/53230A Programmer's
+        Reference; default (@1),(@2)). Configured and reported by CONF?; measuring it is
+        not modelled (INIT, READ? give -221)."""
+        items = _split_params(a["raw"])
+        if len(items) > 2:
+            raise ExecError(-108, "Parameter not allowed")
+        if any(not i.startswith("(@") for i in items):
+            raise ExecError(-224, "Illegal parameter value")
+        chans = [self._channel_list({"channel": i.strip("(@)")}) for i in items] or [1, 2]
+        self.tint_channels = (chans[0], chans[-1])   # one list: start and stop on it
+        self.function, self.function_channel = "tint", self.tint_channels[0]
+        self.sample_count = self.trigger_count = 1
+        self.acquisition = None
+
+    def _conf_totalize(self, a: Mapping[str, str]) -> None:
+        """CONFigure:TOTalize:TIMed [<gate>,][(@<ch>)] (53220A/53230A Programmer's
+        Reference): edges counted in a gate; DEF 0.1 s (gate range assumed 1e-5 to
+        1000 s, unverified). Each reading is the zero marks in one gate."""
+        items = _split_params(a["raw"])
+        chan = 1
+        if items and items[-1].startswith("(@"):
+            chan = self._channel_list({"channel": items.pop().strip("(@)")})
+        if len(items) > 1:
+            raise ExecError(-108, "Parameter not allowed")
+        gate = ranged_param(items[0], 1e-5, 1000.0, 0.1) if items else 0.1
+        self.function, self.function_channel, self.totalize_gate_s = "totals", chan, gate
+        self.sample_count = self.trigger_count = 1
         self.acquisition = None
 
     def _measure_tst(self, a: Mapping[str, str]) -> str | bytes:
@@ -661,15 +886,36 @@ class CounterTwin(ScpiServer):
 
     def _conf_query(self, a: Mapping[str, str]) -> str:
         """CONFigure?: the function and channel, quoted (unverified layout)."""
+        if self.function == "tint":
+            start, stop = self.tint_channels
+            return f'"TINT (@{start}),(@{stop})"'
+        if self.function == "totals":
+            return (f'"TOT:TIM {self._nr3_15(self.totalize_gate_s)},'
+                    f'(@{self.function_channel})"')
         name = {"timestamps": "TST", "periods": "FREQ" if self.invert else "PER"}.get(
             self.function or "", "FREQ")
         return f'"{name} (@{self.function_channel})"'
 
     def _set_trigger_count(self, a: Mapping[str, str]) -> None:
-        self.trigger_count = count_param(a["raw"], KEYSIGHT_53230A_MEMORY)
+        self.trigger_count = _count_set(a["raw"], KEYSIGHT_53230A_COUNT_MAX)
+
+    def _set_sample_count_raw(self, a: Mapping[str, str]) -> None:
+        self.sample_count = _count_set(a["raw"], KEYSIGHT_53230A_COUNT_MAX)
 
     def _set_trigger_delay(self, a: Mapping[str, str]) -> None:
+        if count_params(a["raw"]) > 1:
+            raise ExecError(-108, "Parameter not allowed")
         self.trigger_delay_s = ranged_param(a["raw"], 0.0, 3600.0, 0.0)
+
+    def _trigger_delay_query(self, a: Mapping[str, str]) -> str:
+        """TRIG:DEL? [MIN|MAX|DEF]: 0 to 3600 s, default 0."""
+        raw = a["raw"].strip()
+        if not raw:
+            return self._nr3_15(self.trigger_delay_s)
+        if count_params(raw) > 1:
+            raise ExecError(-108, "Parameter not allowed")
+        which = enum_param(raw, ("MINimum", "MAXimum", "DEFault"))
+        return self._nr3_15({"MIN": 0.0, "MAX": 3600.0, "DEF": 0.0}[which])
 
     def _learn(self, a: Mapping[str, str]) -> str:
         """*LRN?: the settings as the commands that restore them, `;`-separated, as
@@ -730,6 +976,31 @@ class CounterTwin(ScpiServer):
         self.route(w.fetch, on_query=self._fetch, data=True)
         self.route(w.status_byte, on_query=lambda a: str(4 if self.errors else 0))
         self.route(w.options, on_query=lambda a: "0")  # IEEE 488.2 10.20: none
+        # :MEASure:ARRay:STSTamp? (p. 8-72) and :MEASure:ARRay:TSTAmp?, :CONF:ARR:TSTAmp
+        self.route(w.measure_single_timestamps, on_query=lambda a: self._measure_ts(
+            a, "stst"), data=True, raw=True)
+        self.route(w.measure_timestamps, on_query=lambda a: self._measure_ts(a, "tsta"),
+                   data=True, raw=True)
+        self.route(w.configure_timestamps, on_set=lambda a: self._conf_ts(a, "tsta"),
+                   raw=True)
+
+    def _conf_ts(self, a: Mapping[str, str], layout: str) -> None:
+        """:CONF:ARR:STSTamp / :CONF:ARR:TSTAmp (<n>)[,(@<ch>)]: n time stamps. STST turns
+        FORM:TINF on (X,TS pairs, p. 8-72); TSTA leaves it (TS alone while it is off)."""
+        count, chan = self._count_and_channel(a["raw"], self.profile.max_count, 100)
+        if count is None:
+            raise ExecError(-109, "Missing parameter")
+        self._conf_timestamps({"count": str(count), "channel": str(chan)})
+        self.ts_layout = layout
+        if layout == "tsta":
+            self.timestamp_info = False
+
+    def _measure_ts(self, a: Mapping[str, str], layout: str) -> str | bytes:
+        info = self.timestamp_info
+        self._conf_ts(a, layout)
+        if layout == "tsta":
+            self.timestamp_info = info
+        return self._read({})
 
     def _set_arm_source(self, a: Mapping[str, str]) -> None:
         src = a["raw"].strip().upper()
@@ -738,7 +1009,6 @@ class CounterTwin(ScpiServer):
         if src not in names:
             raise ExecError(-224, "Illegal parameter value")
         self.arm_source = names[src]
-        self.trigger_source = "IMM" if self.arm_source == "IMM" else "EXT"
 
     def _conf_gated(self, a: Mapping[str, str], *, invert: bool, array: bool,
                     btb: bool) -> None:
@@ -756,6 +1026,48 @@ class CounterTwin(ScpiServer):
     def _measure_gated(self, a: Mapping[str, str], invert: bool) -> str | bytes:
         self._conf_gated(a, invert=invert, array=False, btb=False)
         return self._read({})
+
+
+def _split_params(raw: str) -> list[str]:
+    """A parameter text's parameters (commas outside parentheses), blanks removed."""
+    text = raw.replace(" ", "")
+    if not text:
+        return []
+    out, depth, cur = [], 0, ""
+    for ch in text:
+        depth += (ch == "(") - (ch == ")")
+        if ch == "," and depth == 0:
+            out.append(cur)
+            cur = ""
+        else:
+            cur += ch
+    return [*out, cur]
+
+
+def _count_set(raw: str, high: int) -> int:
+    """A count setting: one of 1..high, MIN, MAX, DEF; more than one parameter is -108
+    (SCPI-99 vol. 2, 21.8.9), none -109."""
+    n = count_params(raw)
+    if n == 0:
+        raise ExecError(-109, "Missing parameter")
+    if n > 1:
+        raise ExecError(-108, "Parameter not allowed")
+    return count_param(raw, high)
+
+
+def _count_query(raw: str, current: int, high: int, default: int = 1) -> str:
+    """A count's query, `?` alone (the setting) or `? MIN|MAX|DEF` (its limits)."""
+    n = count_params(raw)
+    if n == 0:
+        return f"+{current}"
+    if n > 1:
+        raise ExecError(-108, "Parameter not allowed")
+    which = enum_param(raw, ("MINimum", "MAXimum", "DEFault"))
+    return f"+{ {'MIN': 1, 'MAX': high, 'DEF': default}[which] }"
+
+
+def _cat(parts: list[np.ndarray]) -> np.ndarray:
+    return np.concatenate(parts) if parts else np.empty(0)
 
 
 def _nan_tail(text: str, n_nan: int) -> str:

@@ -93,7 +93,7 @@ def test_edges_are_the_stands_next_edges_after_the_arm(ts_pair, stand):
     assert truth[0] >= t_start                # the first edge after the start event
     if counter.time_tie.uses_external_trigger:  # the tie places them on the stand's axis
         np.testing.assert_array_less(np.abs(edges - truth), 0.5 * res + 1e-15 * truth)
-    else:  # CNT-91: TS from a start event the host only brackets (p. 8-72)
+    else:  # a host-clock tie: the start is INIT, which the host only brackets
         # INIT took effect inside the bracket the driver timed: within its stated u
         assert abs(edges[0] - truth[0]) <= counter.last_acquisition.t_start_u_s + 1e-9
         edges = edges - edges[0] + truth[0]

@@ -78,3 +78,24 @@ def test_pyvisa_sim_static_counters_open_and_identify(model, resource):
         assert counter.drain_errors() == []
         with pytest.raises(CounterCommandError, match=r"'CONF:PERX'.*-113"):
             counter.write("CONF:PERX")
+
+
+def test_capabilities_name_what_a_model_cannot_do():
+    """What `bench validate` needs to name a missing capability (issue 41)."""
+    k, c, g = (PROFILES[m] for m in ("keysight-53230a", "pendulum-cnt-91",
+                                     "generic-scpi-period"))
+    assert (k.supports_timestamps, k.has_reference_source, k.has_reference_check,
+            k.has_external_trigger, k.has_measurement_timeout) == (True,) * 5
+    assert (c.supports_timestamps, c.has_reference_source, c.has_reference_check,
+            c.has_external_trigger, c.has_measurement_timeout) == (True, True, False,
+                                                                   True, False)
+    assert c.external_trigger == "EXT4" and k.external_trigger == "EXT"
+    assert not (g.supports_timestamps or g.has_reference_source or g.has_external_trigger)
+    for p in (k, c):
+        assert p.missing_capabilities(timestamps=True, reference="external",
+                                      time_tie="fog-sync") == []
+    missing = g.missing_capabilities(timestamps=True, reference="internal",
+                                     time_tie="fog-sync")
+    assert [key for key, _ in missing] == ["model", "reference", "time_tie"]
+    assert "supports_timestamps" in missing[0][1] and "has_external_trigger" in missing[2][1]
+    assert g.missing_capabilities(time_tie="host-clock") == []

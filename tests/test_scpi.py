@@ -88,12 +88,17 @@ def test_any_mix_of_short_long_and_case_matches(forms, colon):
 
 def test_parse_params_and_their_error_codes():
     assert CONF_TST.parse_params("( 5 ), (@1)") == {"count": "5", "channel": "1"}
-    for text, code in [("", -109), ("5,1", -102)]:
+    # SCPI-99 vol. 2, 21.8.9: more parameters than the header takes is -108
+    for text, code in [("", -109), ("5,1", -102), ("(5),(@1),3", -108),
+                       ("(5),(@1,2)x", -102)]:
         with pytest.raises(ParameterError) as e:
             CONF_TST.parse_params(text)
         assert e.value.code == code
     with pytest.raises(ParameterError) as e:
         ABORT.parse_params("NOW")
+    assert e.value.code == -108
+    with pytest.raises(ParameterError) as e:
+        RATE.parse_params("1E4,2")
     assert e.value.code == -108
 
 

@@ -53,6 +53,14 @@ class Session:
         assert self.file.read(1) == b"\n"
         return data
 
+    def read_indefinite(self, n_bytes: int) -> bytes:
+        """An IEEE 488.2 indefinite-length block, `#0<bytes>` then the terminator (FETC?,
+        READ? in FORM REAL): the reader knows how many bytes its readings make."""
+        assert self.file.read(2) == b"#0"
+        data = self.file.read(n_bytes)
+        assert self.file.read(1) == b"\n"
+        return data
+
     def close(self) -> None:
         self.file.close()
         self.sock.close()
@@ -128,7 +136,9 @@ def test_opronningen_r_cs_removes_readings_with_wait(rig) -> None:
 def test_opronningen_learn_and_real64_readings(rig) -> None:
     """Ag53230A.cs: `Abort;*WAI;*LRN?` split at `;` into `KEY VALUE` settings (FORM
     `ASC,15` or `REAL,64`, FORM:BORD NORM/SWAP, :TRIG:COUN, :TRIG:DEL, :TRIG:SLOP,
-    :SAMP:COUN); ReadReals reads `#<n><len>` then 8-byte doubles (SWAP: little-endian)."""
+    :SAMP:COUN); 8-byte doubles (SWAP: little-endian). READ? answers them in the
+    indefinite-length block `#0...` the Programmer's Reference's FORMat:DATA page shows
+    (issue 41; the definite `#<n><len>` block ReadReals parses is R?'s)."""
     stand, twin, s = rig
     s.write(LEVEL)
     s.write(":TRIG:SLOP POS;:TRIG:DEL 0.25;:SAMP:COUN 2")
@@ -143,7 +153,7 @@ def test_opronningen_learn_and_real64_readings(rig) -> None:
     s.write(":SAMP:COUN 2")
     no_error(s)
     s.write("READ?")
-    data = s.read_block()
+    data = s.read_indefinite(16)
     t0 = twin.last_acquisition.t_start_s
     periods = struct.unpack("<2d", data)
     edges = truth_edges(stand, t0, np.inf)

@@ -12,6 +12,11 @@ Sources: Pendulum CNT-90 series Programmer's Handbook (also CNT-91R), Command Re
   not available for external control".
 The old driver asked for all results in one FETC:ARR? (refused by a real CNT-91 beyond
 10 000) and required X to step by exactly 1.
+
+The start arming (:ARM:SOURce, as PyMeasure's cnt91 driver sends it: IMM, or EXT4 for
+the rear arming input E that the FOG's sync pulse drives) is set and read back before
+INIT; the driver takes TS as counted from that start and refuses edges whose first TS
+is longer than a turn (a TS counted from another start event, which p. 8-72 allows).
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from drivers.counter import Counter
+from drivers.counter import Counter, CounterError
 from drivers.counter_profiles import PENDULUM_CNT91, nr3
 from drivers.transport import Like, expected_protocol
 from sims.clock import VirtualClock
@@ -30,13 +35,14 @@ from tests.transcripts import NO_ERROR_PENDULUM, checked, replay_on_twin
 N = 12_000
 IDN = "Pendulum Instruments AB,CNT-91,608500,V1.28 26 Jan 2011 08:57"
 #: the stamps: X counts every crossing (here 2 a turn: both slopes of the mark pass the
-#: level), TS on the counter's own axis, a turn of ~1 s
+#: level), TS from the measurement's start, a turn of ~1 s
 X = 7 + 2 * np.arange(N)
-TS = 12.5 + 1.000001 * np.arange(N)
+TS = 0.5 + 1.000001 * np.arange(N)
 
 
-def pairs(lo: int, hi: int) -> str:
-    return ",".join(f"{x},{nr3(t, 14, 2)}" for x, t in zip(X[lo:hi], TS[lo:hi], strict=True))
+def pairs(lo: int, hi: int, offset_s: float = 0.0) -> str:
+    return ",".join(f"{x},{nr3(t + offset_s, 14, 2)}"
+                    for x, t in zip(X[lo:hi], TS[lo:hi], strict=True))
 
 
 def chk(cmd: str) -> list:
@@ -52,7 +58,8 @@ def transcript() -> list:
         *inputs, ("INP1:COUP?", "DC"), ("INP1:IMP?", "1.000000E+06"),
         ("INP1:LEV:AUTO?", "0"), ("INP1:LEV?", "2.500000E+00"), ("INP1:SLOP?", "POS"),
         *chk("ABOR"), *chk(f"CONF:ARR:STST ({N}),(@1)"), *inputs, *chk("FORM ASCii"),
-        *chk("FORM:TINF ON"), *chk("INIT"), ("*OPC", None), ("*ESR?", "1"),
+        *chk("FORM:TINF ON"), *chk("ARM:SOUR IMM"), ("ARM:SOUR?", "IMM"),
+        *chk("INIT"), ("*OPC", None), ("*ESR?", "1"),
         ("FETC:ARR? 10000", pairs(0, 10_000)),       # at most 10 000 a call (p. 8-35)
         ("FETC:ARR? 2000", pairs(10_000, N)),        # then the next ones
         ("SYST:ERR?", NO_ERROR_PENDULUM),
@@ -72,8 +79,33 @@ def test_twelve_thousand_stamps_come_in_two_fetches():
         edges = counter.acquire_edges(N, 1.0)
         counter.close()
     assert edges.size == N
-    # TS is on the counter's own axis: only differences mean anything (p. 8-72)
-    np.testing.assert_allclose(np.diff(edges), np.diff(TS), rtol=0, atol=1e-9)
+    # TS from the start: the edges are INIT's time (the paused host clock) plus TS
+    np.testing.assert_allclose(edges, 50.0 + TS, rtol=0, atol=1e-9)
+    assert counter.readback["counter.first TS"] == "0.5 s"
+
+
+def test_a_ts_from_another_start_event_is_refused_for_edges_not_for_periods():
+    """p. 8-72: TS is 'since a certain start event that is not available for external
+    control'. A first TS of 12.5 s on ~1 s turns cannot be the first crossing after the
+    start: placed by it, the edges would sit 12 turns off on the FOG's axis."""
+    late = [(s, r.replace(pairs(0, 10_000), pairs(0, 10_000, 12.0))
+             .replace(pairs(10_000, N), pairs(10_000, N, 12.0)) if r else r)
+            for s, r in transcript()]
+    refused = late[:late.index(("SYST:ERR?", NO_ERROR_PENDULUM), len(late) - 2)]
+    refused += [("ABOR", None), ("*CLS", None), ("*OPC?", "1")]
+    with expected_protocol(make, refused) as counter:
+        counter.configure(channel=1, level_v=2.5, slope="POS", coupling="DC",
+                          impedance_ohm=1e6)
+        with pytest.raises(CounterError, match=r"first time stamp .* is 12\.5 s, not "
+                                               r"within the first turn"):
+            counter.acquire_edges(N, 1.0)
+        counter.close()
+    with expected_protocol(make, late) as counter:    # N stamps: N - 1 periods
+        counter.configure(channel=1, level_v=2.5, slope="POS", coupling="DC",
+                          impedance_ohm=1e6)
+        got = counter.acquire_periods(N - 1, 1.0)
+        counter.close()
+    np.testing.assert_allclose(got, np.diff(TS), rtol=0, atol=1e-9)
 
 
 @pytest.mark.timeout(60)
