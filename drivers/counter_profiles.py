@@ -17,6 +17,7 @@ unsure word is one that a real instrument would reject with -113 at `configure()
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -510,6 +511,31 @@ KEYSIGHT_53230A = CounterProfile(
     idn="Keysight Technologies,53230A,MY00000000,03.02-1519.2432-3.15-4.16-127-155-35",
 )
 
+#: the 53230A's sibling: the same SCPI words, but no time stamps ("Time stamp measurements
+#: are available with the 53230A only", 53220A/53230A User's Guide, "Time stamp", p. 99
+#: Keysight edition / p. 87 Agilent edition) and 100 ps single-shot (datasheet). The rate
+#: ladder needs time stamps, so `bench validate` refuses it for the ladder, by name.
+KEYSIGHT_53220A = dataclasses.replace(
+    KEYSIGHT_53230A,
+    model="keysight-53220a",
+    description="53220A 350 MHz universal counter: periods only (no time stamps)",
+    idn_pattern=r"53220A",
+    words=dataclasses.replace(KEYSIGHT_53230A.words, configure_timestamps=None,
+                              timestamp_rate=None),
+    timestamps=None,
+    timestamp_rate_hz=None,
+    resolution_s=100e-12,
+    single_shot_s=100e-12,
+    manual=("Keysight 53220A/53230A Programmer's Reference (the 53230A's words, less "
+            "CONF:ARR:TST and SENS:TST:RATE); User's Guide 'Time stamp' (p. 99: time stamps "
+            "on the 53230A only)"),
+    notes=("The 53230A profile without time stamps: periods by CONF:PER; SAMP:COUN N; "
+           "INIT; FETC? (with dead time between readings). 100 ps single-shot time interval "
+           "resolution per the 53220A/53230A datasheet; timebase as the 53230A's standard "
+           "TCXO until the calibration certificate's figure is entered."),
+    idn="Keysight Technologies,53220A,MY00000000,03.02-1519.2432-3.15-4.16-127-155-35",
+)
+
 PENDULUM_CNT91 = CounterProfile(
     model="pendulum-cnt-91",
     maker="Pendulum Instruments",
@@ -605,7 +631,8 @@ GENERIC_SCPI_PERIOD = CounterProfile(
 )
 
 PROFILES: dict[str, CounterProfile] = {
-    p.model: p for p in (KEYSIGHT_53230A, PENDULUM_CNT91, GENERIC_SCPI_PERIOD)}
+    p.model: p for p in (KEYSIGHT_53230A, KEYSIGHT_53220A, PENDULUM_CNT91,
+                         GENERIC_SCPI_PERIOD)}
 
 
 def get_profile(model: str) -> CounterProfile:

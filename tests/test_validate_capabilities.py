@@ -60,16 +60,32 @@ def test_a_counter_without_time_stamps_is_refused_naming_the_capability(
     said = out.stdout + out.stderr
     stand = tmp_path / "stand.yaml"
     assert (f"{stand}:{_line(text, 'generic-scpi-period')}: axes.inner.counter.model: the "
-            "rate ladder needs time stamps of the zero-mark edges") in said, said
-    assert "models that have one: keysight-53230a" in said
-    # and its `reference: external` names the missing reference-source command
-    assert "axes.inner.counter.reference: the generic-scpi-period has no reference-source " \
-           "command" in said, said
+            "generic-scpi-period cannot timestamp edges (supports_timestamps): the rate "
+            "ladder needs N+1 consecutive zero-mark timestamps; models that have time "
+            "stamps: keysight-53230a, pendulum-cnt-91") in said, said
+    # and its `reference: external` and fog-sync time tie name what it lacks
+    assert "axes.inner.counter.reference: the generic-scpi-period profile has no " \
+           "reference-source word" in said, said
+    assert "axes.inner.counter.time_tie.source: the generic-scpi-period profile has no " \
+           "trigger-source word" in said, said
+
+
+def test_the_53220a_has_no_time_stamps_by_its_users_guide(tmp_path: Path) -> None:
+    """"Time stamp measurements are available with the 53230A only" (53220A/53230A User's
+    Guide, p. 99): the 53220A is a model the bench knows, refused for the ladder."""
+    proc, text = _files(tmp_path, (OUTER_MODEL[0], OUTER_MODEL[1].format("keysight-53220a")))
+    out = cli("validate", str(proc))
+    assert out.returncode == 2
+    said = out.stdout + out.stderr
+    assert (f"{tmp_path / 'stand.yaml'}:{_line(text, 'keysight-53220a')}: "
+            "axes.outer.counter.model: the keysight-53220a cannot timestamp edges") in said
+    assert "reference" not in said.split("keysight-53220a cannot")[1].split("\n")[0]
 
 
 def test_the_schema_names_the_counter_models_and_fog_formats() -> None:
     out = cli("schema", "stand")
     assert out.returncode == 0
     assert re.search(r"counter\.model  \(required\)\n    one of generic-scpi-period, "
-                     r"keysight-53230a", out.stdout), out.stdout
+                     r"keysight-53220a, keysight-53230a, pendulum-cnt-91", out.stdout), \
+        out.stdout
     assert "one of kvh-a, kvh-b" in out.stdout

@@ -237,9 +237,12 @@ def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *
             # refused by check_references once the bench can stop safely, before any move
             ax.refusal = StandClaimError(f"axes.{name}.counter.reference: {e}")
         got = str(cnt.readback.get("counter.reference", "")).upper()
+        checked = ("signal checked with SENS:ROSC:EXT:CHEC ONCE"
+                   if cnt.profile.has_reference_check else
+                   "this model has no check command: its error queue is read after")
         ax.reference_text = (
-            "external reference at Ext Ref In (SENS:ROSC:SOUR? EXT, signal checked with "
-            "SENS:ROSC:EXT:CHEC ONCE)" if got.startswith("EXT") else
+            f"external reference at Ext Ref In (SENS:ROSC:SOUR? EXT, {checked})"
+            if got.startswith("EXT") else
             "internal oscillator (SENS:ROSC:SOUR? INT)" if got.startswith("INT") else
             "not confirmed: the counter refused the stand's reference (see the run's "
             "refusal)" if ax.refusal else "not reported by this model")

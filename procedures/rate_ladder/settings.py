@@ -250,27 +250,23 @@ def halves(turns: int, sequence: str) -> list[tuple[int, int]]:
 def counter_capability_problems(sdoc: YamlDoc, axis: str, counter: Any) -> list[Problem]:
     """What the ladder needs of an axis's counter, from its model's profile, before
     anything starts: time stamps of the zero mark (consecutive turns, docs/method.md
-    A1), and a reference-source command where the stand states `reference`."""
+    A1), a reference-source command where the stand states `reference`, an external
+    start where its time tie is `fog-sync` (drivers/counter_profiles.py
+    `missing_capabilities`)."""
     if not isinstance(counter, Mapping) or counter.get("model") not in COUNTER_PROFILES:
         return []    # an unknown model: the schema names the choices at its line
     profile = COUNTER_PROFILES[counter["model"]]
+    tie = counter.get("time_tie")
+    missing = profile.missing_capabilities(
+        timestamps=True, reference=counter.get("reference"),
+        time_tie=tie.get("source") if isinstance(tie, Mapping) else None)
     out: list[Problem] = []
-    if not profile.supports_timestamps:
-        has = {"read": "it measures single periods, one READ? each",
-               "init-fetch": "it measures periods only (SAMP:COUN N; INIT; FETC?)"
-               }.get(str(profile.periods), "it measures no periods either")
-        out.append(sdoc.problem(("axes", axis, "counter", "model"),
-                                f"the rate ladder needs time stamps of the zero-mark edges "
-                                f"(consecutive turns, docs/method.md A1); the "
-                                f"{profile.model} has no time-stamp mode ({has}); models "
-                                f"that have one: {', '.join(_timestamping_models())}"))
-    if "reference" in counter and profile.words.reference_source is None:
-        out.append(sdoc.problem(("axes", axis, "counter", "reference"),
-                                f"the {profile.model} has no reference-source command in "
-                                f"its profile, so the bench cannot set or read back its "
-                                f"timebase: leave `reference` out (the budget then takes "
-                                f"the model's own timebase limit) or use a model that has "
-                                f"one"))
+    for key, sentence in missing:
+        path = ("axes", axis, "counter", key) + (("source",) if key == "time_tie" else ())
+        if key == "model":
+            sentence += (f"; models that have time stamps: "
+                         f"{', '.join(_timestamping_models())}")
+        out.append(sdoc.problem(path, sentence))
     return out
 
 
