@@ -266,6 +266,40 @@ def _slow_demo(tmp: Path) -> Path:
     return tmp / "station-demo.yaml"
 
 
+def assert_printed(words: list[str], value: float, u: float) -> None:
+    """`words` are "value ± U" as the page prints them (the certificate's rule: U to two
+    significant digits, the value to the same decimal); they must be `value` and `u`
+    rounded to that decimal (U may be rounded up: EA-4/02)."""
+    v_text, pm, u_text = words[:3]
+    assert pm == "±", words
+    decimals = len(v_text.split(".")[1]) if "." in v_text else 0
+    assert (len(u_text.split(".")[1]) if "." in u_text else 0) == decimals, words
+    step = 10.0 ** -decimals
+    printed = float(v_text.replace("\u2212", "-"))
+    assert abs(printed - value) <= step / 2 * (1 + 1e-9), (words, value)
+    assert -step / 2 <= float(u_text) - u <= step * (1 + 1e-9), (words, u)
+
+
+def assert_finished_page(driver, how: str) -> None:  # noqa: ANN001
+    """A finished run's page shows its end: the bar full for a completed plan (or where
+    it stopped), the step line saying how it ended, and the instruments' last state as
+    wall times, not a live "last update N s ago" that only grows."""
+    from selenium.webdriver.common.by import By
+
+    bar = driver.find_element(By.ID, "progress")
+    step = driver.find_element(By.ID, "step").text
+    if how in ("passed", "failed"):
+        assert float(bar.get_attribute("value")) == 1.0, bar.get_attribute("value")
+        assert step.startswith("Completed: all ") and step.endswith(f"the run {how}"), step
+    else:
+        assert step.lower().startswith(how), step
+    assert driver.find_element(By.ID, "status").text == how
+    health = driver.find_element(By.ID, "health").text
+    assert "Instruments at the end of the run" in health, health
+    assert " s ago" not in driver.find_element(By.TAG_NAME, "main").text
+    assert "STALE" not in health
+
+
 def _wait(cond, timeout_s: float, what: str, poll_s: float = 0.2):  # noqa: ANN001, ANN202
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
@@ -291,8 +325,14 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
     server_proc, port = _start_server(runs)
     driver = _browser(found, height=1400)
     try:
-        run_dir = _wait(lambda: next(iter(p for p in runs.iterdir() if p.is_dir()), None),
-                        60, "the run directory")
+        def made() -> Path | None:
+            found = next(iter(p for p in runs.iterdir() if p.is_dir()), None)
+            if found is None and run_proc.poll() is not None:   # say why, not a timeout
+                pytest.fail(f"bench run exited {run_proc.returncode} before making its run "
+                            f"directory: {run_proc.communicate()[1][-3000:]}")
+            return found
+
+        run_dir = _wait(made, 60, "the run directory")
         base = f"http://127.0.0.1:{port}"
         driver.get(f"{base}/run/{run_dir.name}")
 
@@ -451,19 +491,22 @@ def test_page_warns_of_a_silent_fog_and_shows_the_final_results(tmp_path: Path) 
         _wait(lambda: driver.execute_script("return window.station?.state?.status")
               == "passed", 30, "the page to show the run passed")
         _wait(lambda: len(driver.find_elements(
-            By.CSS_SELECTOR, "#results-table.final tbody tr")) == 2, 30,
+            By.CSS_SELECTOR, "#rates-outer.final tbody tr")) == 2, 30,
             "the final results table (+30 and -30 deg/s)")
-        rows = driver.find_element(By.ID, "results-table").text
         result = json.loads((run.path / "result.json").read_text())
-        delta = result["axes"]["outer"]["rates"][0]["rate_error_rel"] * 1e6
-        assert f"{delta:.3f}" in rows, rows
-        assert "pass" in rows
+        rate = result["axes"]["outer"]["rates"][0]
+        row = driver.find_element(By.CSS_SELECTOR, "#rates-outer tbody tr").text
+        assert_printed(row.split()[2:5], rate["rate_error_rel"] * 1e6,
+                       rate["rate_error_U_rel"] * 1e6)         # "δ ± U" in ppm
+        assert "PASS" in row
         assert not driver.find_elements(By.ID, "stop")      # the live page dropped it
+        assert_finished_page(driver, "passed")              # the live page, ended
         driver.refresh()
         _wait(lambda: driver.execute_script("return window.station?.state?.status")
               == "passed", 30, "the reloaded page")
         assert not driver.find_elements(By.ID, "stop")      # and a fresh page has none
-        assert driver.find_elements(By.CSS_SELECTOR, "#results-table.final tbody tr")
+        assert driver.find_elements(By.CSS_SELECTOR, "#rates-outer.final tbody tr")
+        assert_finished_page(driver, "passed")
         log = driver.find_element(By.ID, "log").text
         assert "settled: outer at +30 deg/s" in log, log
         driver.save_screenshot(str(ARTIFACTS / "finished-run.png"))

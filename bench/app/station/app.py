@@ -67,6 +67,9 @@ def _bench_process(pid: int) -> bool:
 def create_app(settings: StationSettings,
                send_signal: Callable[[int, int], None] = os.kill) -> Flask:
     app = Flask(__name__)
+    # Flask escapes only templates named *.html; ours are *.html.j2, and what they print
+    # comes from files and instruments (a title, a refusal's message), never trusted HTML
+    app.jinja_env.autoescape = True
     app.config["station"] = settings
     runs = settings.runs.resolve()
     records = RecordsView(runs, settings.records_url)

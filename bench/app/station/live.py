@@ -17,11 +17,13 @@ import json
 import math
 import os
 import time
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from bench.app.station.view import page_view
 from bench.core.config import FogSettings
 from bench.core.journal import fog_capture_starts
 from bench.core.yamlfile import read_mapping
@@ -33,7 +35,7 @@ TRACE_POINTS = 600                # a plot of a half never needs more points tha
 FOG_TAIL_S = 30.0                 # bench seconds of FOG record shown
 DRIVE_TAIL_BYTES = 96 * 1024      # about 600 feedback readings
 EVENT_KINDS_SHOWN = ("abort", "safe_stop", "prompt", "completed", "exit", "session_start",
-                     "pair", "pair_failed", "settled")
+                     "pair", "pair_failed", "settled", "refused")
 
 
 def tail_jsonl(path: Path, max_bytes: int) -> list[dict[str, Any]]:
@@ -144,7 +146,6 @@ def turn_rates(acquire: dict[str, Any]) -> dict[str, Any]:
 
 
 def _utc_s(stamp: str) -> float:
-    from datetime import datetime
     return datetime.fromisoformat(stamp).timestamp()
 
 
@@ -215,6 +216,14 @@ def _age_s(path: Path, now: float) -> float | None:
         return None
 
 
+def _utc_of(age_s: float | None, now: float) -> str | None:
+    """The wall time (UTC, ISO) of a last write `age_s` before `now`: a finished run's page
+    says when each instrument was last heard, not how long ago, which grows forever."""
+    if age_s is None:
+        return None
+    return datetime.fromtimestamp(now - age_s, UTC).isoformat(timespec="seconds")
+
+
 def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
            fog_tail: dict[str, Any], axis: str | None,
            acquires: list[dict[str, Any]], now: float | None = None) -> dict[str, Any]:
@@ -236,6 +245,7 @@ def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
                              ("counter", "counter.jsonl")):
             age = _age_s(raw / f"{name}-{suffix}", now) if raw is not None else None
             row[f"{inst}_age_s"] = age
+            row[f"{inst}_utc"] = _utc_of(age, now)
             if age is not None:
                 ages.append(age)
         if name == axis:
@@ -260,8 +270,8 @@ def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
     stale = running and last is not None and last > STALE_S
     if stale:
         warnings.insert(0, f"no update for {last:.0f} s: the bench may be hung")
-    return {"axes": per_axis, "last_update_s": last, "stale": stale,
-            "stale_after_s": STALE_S, "warnings": warnings}
+    return {"axes": per_axis, "last_update_s": last, "last_update_utc": _utc_of(last, now),
+            "stale": stale, "stale_after_s": STALE_S, "warnings": warnings}
 
 
 def pair_rows(events: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -304,27 +314,95 @@ def final_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
     return rows
 
 
+#: a session's exit status (bench/app/session.py EXIT_*, CONTRACT section 1) as the page
+#: names how it ended; 3 without a cause is refined by `ending` (incomplete)
+ENDINGS = {0: "passed", 1: "failed", 2: "refused", 3: "aborted"}
+#: the statuses of a run that has ended (the page shows its end state, not a live view)
+ENDED = ("passed", "failed", "refused", "aborted", "incomplete", "ended")
+
+
+def _read_result(run_path: Path) -> dict[str, Any] | None:
+    try:
+        doc = json.loads((run_path / "result.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def ending(session: list[dict[str, Any]], run_path: Path) -> dict[str, Any] | None:
+    """How the session ended and its first cause, as the operator at the bench read it
+    (bench/app/session.py: the exit event's cause; a refusal's own event; what failed
+    later, while stopping, beneath it); None while the session has no exit event.
+
+    Exit status 3 without a cause is a run that stopped short of a signed certificate with
+    nothing having gone wrong at the bench: the outputs say which (no result.json, a run
+    the analysis found incomplete, or no certificate), and `bench analyze` or `--resume`
+    is what continues it, so the page names it incomplete, not aborted.
+    """
+    exit_ev = next((e for e in reversed(session) if e.get("event") == "exit"), None)
+    if exit_ev is None:
+        return None
+    code = exit_ev.get("status")
+    status = ENDINGS.get(code, "ended") if isinstance(code, int) else "ended"
+    cause = exit_ev.get("cause") or None
+    if status == "refused":
+        refusal = next((e for e in session if e.get("event") == "refused"), {})
+        cause = refusal.get("reason") or cause or "the input was refused (exit status 2)"
+    elif status == "aborted" and not cause:
+        status = "incomplete"
+        verdict = (_read_result(run_path) or {}).get("verdict")
+        if verdict is None:
+            cause = (f"no result.json was written; `bench analyze {run_path}` writes it from "
+                     "the raw data")
+        elif verdict == "incomplete":
+            cause = (f"not every step was measured (result.json: verdict incomplete); "
+                     f"`bench run --resume {run_path}` continues")
+        else:
+            cause = (f"measured (result.json: verdict {verdict}), but no certificate was "
+                     f"written; `bench analyze {run_path}` writes it")
+    elif status == "ended":
+        cause = cause or f"exit status {code}"
+    return {"status": status, "cause": str(cause) if cause else None,
+            "later": [str(x) for x in exit_ev.get("later") or []],
+            "exit_status": code, "utc": exit_ev.get("utc")}
+
+
+def run_status(events: list[dict[str, Any]], run_path: Path) -> dict[str, Any]:
+    """The run's status from its last session, one rule for the runs list and the run's
+    page: how it ended (`ending`), else running while the bench process journaled at the
+    session's start lives, else stopped (the process went without an exit: killed or
+    crashed), or created when no session has started yet."""
+    starts = [e for e in events if e.get("event") == "session_start"]
+    if not starts:
+        return {"status": "created", "cause": None, "later": [], "session": None,
+                "events": [], "pid": None}
+    start = starts[-1]
+    session_no = start.get("session")
+    session = [e for e in events if e.get("session") == session_no]
+    pid = start.get("pid")
+    end = ending(session, run_path)
+    if end is not None:
+        out = dict(end)
+    elif pid is not None and not pid_alive(pid):
+        out = {"status": "stopped", "later": [],
+               "cause": ("the bench process is gone without journaling an exit (killed or "
+                         f"crashed); `bench run --resume {run_path}` continues")}
+    else:
+        out = {"status": "running", "cause": None, "later": []}
+    return {**out, "session": session_no, "events": session, "pid": pid}
+
+
 def live_state(run_path: Path) -> dict[str, Any]:
-    """The station's view of one run directory (JSON-ready)."""
+    """The station's view of one run directory (JSON-ready), with `view`: the same state
+    worded and rounded for the page (bench/app/station/view.py)."""
     run_path = Path(run_path)
     events = read_events(run_path)
     starts = [e for e in events if e.get("event") == "session_start"]
-    session_no = starts[-1].get("session") if starts else None
-    session = [e for e in events if e.get("session") == session_no] if starts else []
-    start = starts[-1] if starts else {}
-    exit_ev = next((e for e in reversed(session) if e.get("event") == "exit"), None)
-    pid = start.get("pid")
-    if exit_ev is not None:
-        status = {0: "passed", 1: "failed", 2: "invalid", 3: "aborted"}.get(
-            exit_ev.get("status"), "ended")
-    elif not starts:
-        status = "created"
-    elif pid is not None and not pid_alive(pid):
-        status = "stopped (the bench process is gone; resume it)"
-    else:
-        status = "running"
+    st = run_status(events, run_path)
+    session_no, session, pid, status = st["session"], st["events"], st["pid"], st["status"]
     stand = read_mapping(run_path / "stand.yaml")
     prog = progress_of(session)
+    prog["completed"] = any(e.get("event") == "completed" for e in session)
     axis = (prog["step"] or {}).get("axis")
     raw = run_path / "raw" / f"s{session_no}" if session_no else None
     fog: dict[str, Any] = {"t_s": [], "rate_dps": []}
@@ -340,25 +418,26 @@ def live_state(run_path: Path) -> dict[str, Any]:
     shown_acquires = [e for e in acquires if not axis or e.get("axis") == axis]
     result = None
     final: list[dict[str, Any]] = []
-    if (run_path / "result.json").exists() and status != "running":
-        try:
-            doc = json.loads((run_path / "result.json").read_text())
-            result = doc.get("verdict") if isinstance(doc, dict) else None
-            final = final_rows(doc) if isinstance(doc, dict) else []
-        except (OSError, json.JSONDecodeError):
-            result = None
+    doc = _read_result(run_path) if status != "running" else None
+    if doc is not None:
+        result = doc.get("verdict")
+        final = final_rows(doc)
     axes_now = [str(a) for a in ((stand.get("axes") or {}) if isinstance(stand, dict)
                                  else {})]
     used = [a for a in axes_now if any(e.get("axis") == a for e in session)] or axes_now
     shown = [{k: v for k, v in e.items() if k not in ("traceback",)}
              for e in events if e.get("event") in EVENT_KINDS_SHOWN][-40:]
     ident = (stand.get("stand") or {}) if isinstance(stand, dict) else {}
-    return {
+    state = {
         "run": run_path.name,
         "title": _title(run_path),
         "stand": {k: ident.get(k) for k in ("maker", "model", "serial")},
         "simulated": isinstance(stand, dict) and "sim" in stand,
         "status": status,
+        "ended": status in ENDED,
+        "cause": st["cause"],
+        "later": st["later"],
+        "ended_utc": st.get("utc"),
         "session": session_no,
         "sessions": len(starts),
         "pid": pid,
@@ -376,6 +455,8 @@ def live_state(run_path: Path) -> dict[str, Any]:
         "verdict": result,
         "files": [n for n in DOWNLOADS if (run_path / n).exists()],
     }
+    state["view"] = page_view(state, run_path)
+    return state
 
 
 DOWNLOADS = ("certificate.pdf", "certificate.html", "certificate.dcc.xml", "result.json")
@@ -387,7 +468,8 @@ def _title(run_path: Path) -> str:
 
 
 def list_runs(runs: Path) -> list[dict[str, Any]]:
-    """Every run directory in the runs folder, newest first, with its status."""
+    """Every run directory in the runs folder, newest first, with its status and, for a
+    run that did not pass, its first cause."""
     out = []
     try:
         dirs = [p for p in runs.iterdir() if (p / "events.jsonl").is_file()]
@@ -396,16 +478,8 @@ def list_runs(runs: Path) -> list[dict[str, Any]]:
     for p in sorted(dirs, key=lambda p: p.name, reverse=True):
         events = read_events(p)
         starts = [e for e in events if e.get("event") == "session_start"]
-        last = starts[-1].get("session") if starts else None
-        exit_ev = next((e for e in reversed(events) if e.get("event") == "exit"
-                        and e.get("session") == last), None)
-        if exit_ev is not None:
-            status = {0: "passed", 1: "failed", 3: "aborted"}.get(exit_ev.get("status"), "ended")
-        elif starts and pid_alive(starts[-1].get("pid")):
-            status = "running"
-        else:
-            status = "stopped" if starts else "created"
-        out.append({"run": p.name, "title": _title(p), "status": status,
-                    "sessions": len(starts),
+        st = run_status(events, p)
+        out.append({"run": p.name, "title": _title(p), "status": st["status"],
+                    "cause": st["cause"], "sessions": len(starts),
                     "started_utc": starts[0].get("utc") if starts else None})
     return out

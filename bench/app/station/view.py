@@ -1,0 +1,400 @@
+"""What a run's page says, worded and rounded once, here.
+
+The server writes this text into the HTML and the live page's script only puts the same
+text in place as the state changes. So a page read without JavaScript (curl, a text
+browser, a page saved with the run) says what the browser shows, and every figure is
+printed by the certificate's rounding rule (U to two significant digits, the value to the
+same decimal, unresolved magnitudes as "< limit": docs/certificate.md), never by a second
+formatter in the script that would drift from it.
+
+A finished run's page shows its end state: how it ended and why (the first cause, as the
+bench's console said it), the progress it reached, and when each instrument was last
+heard, as wall times; a live view's "N s ago" would only grow on a finished run.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Mapping, Sequence
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+from bench.app.records.extract import figures_of, kind_name
+from bench.core.plan import format_duration
+from bench.core.registry import declared_figures
+from bench.report.certificate.parts import read_json_object, verdict_label
+from bench.report.certificate.rounding import (
+    MINUS,
+    RelUnit,
+    format_sig,
+    format_value_u,
+    present,
+    rel_unit,
+)
+from bench.report.figures import spec_for
+
+#: how each status reads on the page, for a run that has ended or stopped
+ENDED_WORDS = {"passed": "Passed", "failed": "Failed", "refused": "Refused",
+               "aborted": "Aborted", "incomplete": "Incomplete", "stopped": "Stopped",
+               "ended": "Ended"}
+U_NOTE = "U: expanded uncertainty, coverage factor 2."
+LIVE_CAPTION = ("Results as they come (first look per pair; the certificate is computed "
+                "again from the raw data)")
+
+
+# -- small words ----------------------------------------------------------------------------
+
+def _utc_text(stamp: str | None) -> str:
+    """An ISO UTC stamp as the page prints it: date and time to the second, no offset."""
+    if not stamp:
+        return "-"
+    try:
+        return datetime.fromisoformat(stamp).strftime("%Y-%m-%d %H:%M:%S")
+    except ValueError:
+        return str(stamp)[:19].replace("T", " ")
+
+
+def _age(s: float | None) -> str:
+    if s is None or not math.isfinite(s):
+        return "-"
+    return f"{s:.1f} s ago" if s < 10 else f"{s:.0f} s ago"
+
+
+def _duration(s: float | None) -> str:
+    return "-" if s is None or not math.isfinite(s) else format_duration(max(0.0, s))
+
+
+def _rate(v: Any) -> str:
+    """A set rate, signed, with the typographic minus the certificate prints."""
+    try:
+        return f"{float(v):+g}".replace("-", MINUS)
+    except (TypeError, ValueError):
+        return "-"
+
+
+def _num(v: Any) -> float | None:
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
+def _value_u(value: Any, u: Any, scale: float = 1.0, signed: bool = False) -> str:
+    """'value ± U' by the certificate's rule; a value without a usable U keeps four
+    significant digits and says so."""
+    r = format_value_u(_num(value), _num(u), scale, signed=signed)
+    if r.u is None:
+        return "-" if r.value == "n/a" else f"{r.value} (no U)"
+    return r.joined()
+
+
+def _column_unit(*values: Any) -> RelUnit:
+    """One unit per column (ppm below 0.01 %, else %), as the certificate chooses it."""
+    return rel_unit(*[_num(v) for v in values])
+
+
+def _step_words(step: Mapping[str, Any]) -> str:
+    words = " ".join(str(x) for x in (step.get("axis"), step.get("action")) if x)
+    describe = step.get("describe")
+    return f"{words} - {describe}" if describe else words
+
+
+# -- progress -------------------------------------------------------------------------------
+
+def progress_view(state: Mapping[str, Any]) -> dict[str, Any]:
+    """The step line, the line beneath it and the bar (0 to 1); for a finished run how it
+    ended, with the first cause, and the bar where the run got to (full once the plan
+    completed: the engine journals `completed` only then)."""
+    p = state.get("progress") or {}
+    status = str(state.get("status"))
+    steps, done = int(p.get("steps") or 0), int(p.get("steps_done") or 0)
+    step = p.get("step")
+    cause = state.get("cause")
+    if status in ("running", "created"):
+        if step:
+            line = f"Step {step.get('number')} of {steps}: {_step_words(step)}"
+        else:
+            line = "not started" if status == "created" else "starting: no step yet"
+        speed = p.get("speed")
+        speed_text = (f" (measured speed {speed:.1f} bench s per wall s)" if speed else "")
+        detail = (f"{done} of {steps} steps done; bench time left "
+                  f"{_duration(p.get('bench_left_s'))}, wall time left "
+                  f"{_duration(p.get('wall_left_s'))}{speed_text}")
+        return {"value": float(p.get("fraction") or 0.0), "line": line, "detail": detail,
+                "complete": False, "later": []}
+    completed = bool(p.get("completed"))
+    where = (f"{'after' if step.get('done') else 'at'} step {step.get('number')} of {steps} "
+             f"({_step_words(step)})" if step else "before the first step")
+    word = ENDED_WORDS.get(status, status.capitalize())
+    if status in ("passed", "failed"):
+        line = (f"Completed: all {steps} steps done; the run {status}" if steps
+                else f"Completed: nothing was left to do; the run {status}")
+    elif status == "refused":
+        line = f"Refused before anything moved: {cause}"
+    elif status == "incomplete" and completed:
+        line = f"Incomplete after all {steps} steps: {cause}"
+    else:
+        line = f"{word} {where}: {cause}" if cause else f"{word} {where}"
+    parts = ([f"{done} of {steps} steps done"] if steps else ["no step was run"])
+    if state.get("sessions", 0) and int(state.get("sessions") or 0) > 1:
+        parts[0] += f" in session {state.get('session')} of {state.get('sessions')}"
+    if state.get("ended_utc"):
+        parts.append(f"ended {_utc_text(state.get('ended_utc'))} UTC")
+    if steps and p.get("bench_time_s"):
+        parts.append(f"bench time {_duration(p.get('bench_time_s'))}")
+    value = 1.0 if completed else (done / steps if steps else 0.0)
+    return {"value": value, "line": line, "detail": "; ".join(parts),
+            "complete": completed,
+            "later": [f"also, while stopping: {x}" for x in state.get("later") or []]}
+
+
+# -- health -----------------------------------------------------------------------------------
+
+def health_view(h: Mapping[str, Any], status: str) -> dict[str, Any]:
+    """While running: how long since each instrument was heard, with warnings. Otherwise
+    the instruments' last state: the counts as they were and the wall time (UTC) each
+    was last heard; no warning, since a finished run's files are quiet by design."""
+    running = status == "running"
+    rows = []
+    for a in h.get("axes") or []:
+        tail = ("-" if a.get("fog_tail_crc_errors") is None
+                else f"{a.get('fog_tail_crc_errors')} / {a.get('fog_tail_lost_frames')}")
+        if running:
+            heard = [_age(a.get(f"{i}_age_s")) for i in ("fog", "drive", "counter")]
+        else:
+            heard = [_utc_text(a.get(f"{i}_utc")) for i in ("fog", "drive", "counter")]
+        rows.append([str(a.get("axis")), heard[0], str(a.get("fog_lost_in_halves", "-")),
+                     tail, heard[1], heard[2]])
+    when = "" if running else " (UTC)"
+    header = ["axis", f"FOG last data{when}", "FOG frames lost (timed halves)",
+              f"FOG CRC errors / frames lost, last {h.get('fog_tail_s') or 30:g} s of record",
+              "drive last heard (heartbeat, feedback)" if running
+              else "drive last heard (UTC; heartbeat, feedback)", f"counter last reading{when}"]
+    if running:
+        last = h.get("last_update_s")
+        note = ("" if last is None else
+                f"- last update {_age(last)}{' (STALE)' if h.get('stale') else ''}")
+        title = "Health"
+    else:
+        title = ("Instruments when last heard" if status in ("stopped", "created")
+                 else "Instruments at the end of the run")
+        note = (f"- files last written {_utc_text(h.get('last_update_utc'))} UTC"
+                if h.get("last_update_utc") else "")
+    return {"title": title, "note": note, "header": header, "rows": rows,
+            "warnings": list(h.get("warnings") or []) if running else [],
+            "stale": bool(h.get("stale")) and running}
+
+
+# -- results ----------------------------------------------------------------------------------
+
+def _table(tid: str, caption: str, header: Sequence[str],
+           rows: Sequence[tuple[Sequence[str], str]]) -> dict[str, Any]:
+    return {"id": tid, "caption": caption, "header": list(header),
+            "rows": [{"cells": list(cells), "class": cls} for cells, cls in rows]}
+
+
+def live_table(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """The first look per pair, from the `pair` events (bench/app/station/live.py
+    pair_rows): k and w0 with their U, each direction's rate error with its U."""
+    unit = _column_unit(*[r.get("rate_error_rel") for r in rows],
+                        *[r.get("rate_error_U_rel") for r in rows])
+    sunit = _column_unit(*[r.get("rate_instability_rel") for r in rows])
+    out = []
+    for r in rows:
+        sigma = _num(r.get("rate_instability_rel"))
+        out.append(([str(r.get("axis") or "-"), _rate(r.get("set_rate_dps")),
+                     _value_u(r.get("k"), r.get("k_U")),
+                     _value_u(r.get("w0_dps"), r.get("w0_U_dps"), signed=True),
+                     _value_u(r.get("rate_error_rel"), r.get("rate_error_U_rel"),
+                              unit.scale, signed=True),
+                     "-" if sigma is None else format_sig(sigma * sunit.scale, 2),
+                     "-" if r.get("turns") is None else str(r.get("turns")),
+                     verdict_label(r.get("verdict")) if r.get("verdict") else "-"],
+                    str(r.get("verdict") or "")))
+    return _table("results-live", LIVE_CAPTION,
+                  ("axis", "set rate, deg/s", "k ± U", "ω0 ± U, deg/s",
+                   f"rate error δ ± U, {unit.name}",
+                   f"instability σ, {sunit.name} (first look; U in the final results)",
+                   "turns", "verdict"), out)
+
+
+def _ladder_tables(doc: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Per axis of a rate ladder's result.json: each rate's error and instability with U
+    and verdict, then each ± pair's FOG scale factor k and bias ω0 with U."""
+    tables = []
+    for axis, body in (doc.get("axes") or {}).items():
+        if not isinstance(body, Mapping):
+            continue
+        rates = [r for r in body.get("rates") or [] if isinstance(r, Mapping)]
+        pairs = [p for p in body.get("pairs") or [] if isinstance(p, Mapping)]
+        if rates:
+            err = _column_unit(*[r.get("rate_error_rel") for r in rates],
+                               *[r.get("rate_error_U_rel", r.get("rate_error_u_rel"))
+                                 for r in rates])
+            sig = _column_unit(*[r.get("rate_instability_rel") for r in rates],
+                               *[r.get("rate_instability_upper_rel") for r in rates])
+            rows = []
+            for r in rates:
+                u_err = r.get("rate_error_U_rel", r.get("rate_error_u_rel"))
+                u_sig = _num(r.get("rate_instability_U_rel", r.get("rate_instability_u_rel")))
+                resolved = r.get("rate_instability_resolved")
+                sigma = present(_num(r.get("rate_instability_rel")), u_sig, sig.scale,
+                                upper=_num(r.get("rate_instability_upper_rel")),
+                                resolved=None if resolved is None else bool(resolved))
+                rows.append(([_rate(r.get("set_rate_dps")),
+                              "-" if r.get("turns") is None else str(r.get("turns")),
+                              _value_u(r.get("rate_error_rel"), u_err, err.scale, signed=True),
+                              sigma.text, verdict_label(r.get("verdict"))
+                              if r.get("verdict") else "-"], str(r.get("verdict") or "")))
+            tables.append(_table(
+                f"rates-{axis}", f"Axis {axis}: rate error and instability per set rate",
+                ("set rate, deg/s", "turns", f"rate error δ ± U, {err.name}",
+                 f"instability σ ± U, {sig.name}", "verdict"), rows))
+        if pairs:
+            rows = [([f"±{_num(p.get('rate_dps')) or 0:g}",
+                      _value_u(p.get("k"), p.get("k_U", p.get("k_u"))),
+                      _value_u(p.get("w0_dps"), p.get("w0_U_dps", p.get("w0_u_dps")),
+                               signed=True)], "") for p in pairs]
+            tables.append(_table(
+                f"pairs-{axis}",
+                f"Axis {axis}: FOG cross-calibration per ± pair (scale factor k, bias ω0)",
+                ("pair, deg/s", "k ± U", "ω0 ± U, deg/s"), rows))
+    return tables
+
+
+def _declared_table(doc: dict[str, Any], run_path: Path) -> list[dict[str, Any]]:
+    """Any other kind: the figures it declares (bench.report.figures), each with its U and
+    its check's verdict, in the words and units the kind gives them."""
+    kind = kind_name(doc, run_path)
+    specs = declared_figures([kind]) if kind else ()
+    rows = []
+    for f in figures_of(doc, kind) if kind else []:
+        spec = spec_for(f.quantity, specs)
+        scale, unit = (spec.scale, spec.shown) if spec is not None else (1.0, f.unit)
+        words = spec.name if spec is not None else f.quantity
+        shown = format_value_u(f.value, f.u, scale, signed=True)
+        text = (f"< {shown.value}" if f.is_limit else
+                f"{shown.value} (no U)" if shown.u is None else shown.joined())
+        where = " ".join(x for x in (f.axis, "" if f.set_rate_dps is None
+                                     else f"{_rate(f.set_rate_dps)} deg/s") if x)
+        rows.append(([where or "-", f"{words}, {unit}" if unit not in ("", "1") else words,
+                      text, verdict_label(f.verdict) if f.verdict else "-"],
+                     str(f.verdict or "")))
+    if not rows:
+        return []
+    return [_table("figures", "Results", ("where", "quantity, unit", "value ± U", "verdict"),
+                   rows)]
+
+
+@functools.lru_cache(maxsize=64)
+def _final(path: str, _mtime_ns: int, _size: int) -> tuple[str | None, tuple[Any, ...]]:
+    """result.json's verdict and tables, once per version of the file (the live stream
+    asks every second; the file changes only when an analysis writes it again)."""
+    doc = read_json_object(Path(path) / "result.json")
+    if not doc:
+        return None, ()
+    tables = _ladder_tables(doc) or _declared_table(doc, Path(path))
+    verdict = doc.get("verdict")
+    return (None if verdict is None else str(verdict)), tuple(tables)
+
+
+def final_view(run_path: Path) -> tuple[str | None, list[dict[str, Any]]] | None:
+    """result.json's verdict and tables, or None when there is none."""
+    try:
+        st = (run_path / "result.json").stat()
+    except OSError:
+        return None
+    verdict, tables = _final(str(run_path), st.st_mtime_ns, st.st_size)
+    return verdict, list(tables)
+
+
+def results_view(state: Mapping[str, Any], run_path: Path) -> dict[str, Any]:
+    """The results section: while running, the first look per pair; once the run has
+    ended, result.json's verdict and tables (the certificate prints these figures)."""
+    live = list(state.get("results") or [])
+    # result.json is this session's only once it has ended (a session stopped or refused
+    # under it leaves an earlier session's analysis there)
+    final = final_view(run_path) if state.get("ended") and state.get("status") != "refused" \
+        else None
+    if final is not None and final[1]:
+        verdict, tables = final
+        return {"title": "Final results (result.json; the certificate prints these figures)",
+                "verdict": verdict_label(verdict) if verdict else None, "final": True,
+                "tables": tables, "note": U_NOTE}
+    if state.get("status") == "refused":
+        none = "nothing was measured: the run was refused before anything moved"
+    elif final is not None:
+        none = "result.json holds no figures this page can show"
+    else:
+        none = "no pair analysed yet"
+    return {"title": "Results", "final": False,
+            "verdict": (verdict_label(final[0]) if final is not None and final[0] else None),
+            "tables": [live_table(live)] if live else [],
+            "note": U_NOTE if live else none}
+
+
+# -- the log ----------------------------------------------------------------------------------
+
+def _magnitude(e: Mapping[str, Any]) -> str:
+    """The rate of a unit name ('outer/30dps' -> '30 deg/s')."""
+    unit = str(e.get("unit") or "")
+    return unit.split("/", 1)[1].replace("dps", " deg/s") if "/" in unit else ""
+
+
+def log_line(e: Mapping[str, Any]) -> str:
+    """One milestone, fault or prompt as the page lists it."""
+    kind = str(e.get("event"))
+    mag = _magnitude(e)
+    rate = _num(e.get("rate_dps"))
+    if kind == "settled":
+        sign = MINUS if rate is not None and rate < 0 else "+"
+        said = (f"settled: {e.get('axis') or ''} at {sign}{mag}" if mag
+                else f"settled: {e.get('axis') or ''} at {_rate(rate)} deg/s")
+        if mag and rate is not None:
+            said += f" (drive reads {rate:.7g} deg/s)".replace("-", MINUS)
+    elif kind == "pair":
+        said = (f"pair analysed: {e.get('axis') or ''} ±{mag}: k = "
+                f"{_value_u(e.get('k'), e.get('k_u'))}, ω0 = "
+                f"{_value_u(e.get('w0_dps'), e.get('w0_u_dps'), signed=True)} deg/s")
+    elif kind == "pair_failed":
+        said = f"pair first look failed: {e.get('axis') or ''} ±{mag} ({e.get('error') or ''})"
+    else:
+        said = kind
+        if e.get("reason"):
+            said += f" - {e.get('reason')}"
+        if e.get("text"):
+            said += f" - {e.get('text')} ({e.get('answered') or ''})"
+        if kind == "exit":
+            code = e.get("status")
+            said += f" with status {code}"
+            # 3 without a cause is not an abort at the bench (live.py `ending`)
+            how = {0: "passed", 1: "failed", 2: "refused",
+                   3: "aborted" if e.get("cause") else None}.get(code) \
+                if isinstance(code, int) else None
+            said += f" ({how})" if how else ""
+            if e.get("cause"):
+                said += f" - {e.get('cause')}"
+        if e.get("error"):
+            said += f" ({e.get('error')})"
+    return f"{str(e.get('utc') or '')[11:19]} UTC, session {e.get('session')}: {said}"
+
+
+# -- the page ---------------------------------------------------------------------------------
+
+def page_view(state: Mapping[str, Any], run_path: Path) -> dict[str, Any]:
+    """Everything the run's page prints, from the state `live_state` reads."""
+    status = str(state.get("status"))
+    prog = state.get("progress") or {}
+    return {
+        "progress": progress_view(state),
+        "health": health_view(state.get("health") or {}, status),
+        "results": results_view(state, run_path),
+        "log": [{"event": str(e.get("event")), "text": log_line(e)}
+                for e in state.get("log") or []],
+        # the charts show what a step recorded: none for a run refused before its first
+        "charts": status in ("running", "created") or bool(prog.get("step")),
+        "live": status in ("running", "created"),
+    }
