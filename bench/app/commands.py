@@ -30,6 +30,7 @@ from bench.core.diskspace import data_volume_lines
 from bench.core.journal import RunDir
 from bench.core.lab import lab_path
 from bench.core.loader import is_stand_file, load_config, load_stand
+from bench.core.placeholders import left_to_fill, placeholder_notes
 from bench.core.registry import procedure_kind
 from bench.core.yamlfile import YamlError, load_yaml
 from bench.examples import example_path
@@ -63,12 +64,15 @@ def cmd_validate(args: argparse.Namespace) -> int:
             return EXIT_INVALID
         print(f"stand {args.procedure}: valid (procedures naming it are checked against "
               "it by bench validate PROCEDURE.yaml)")
+        for note in placeholder_notes(args.procedure):
+            print(f"note: {note}")
         return EXIT_PASS
     cfg = _load(args.procedure)
     if cfg is None:
         return EXIT_INVALID
     print(f"{cfg.procedure_path}: valid {cfg.kind} procedure; stand {cfg.stand_path}: valid")
-    for note in getattr(procedure_kind(cfg.kind), "notes", lambda _c: [])(cfg):
+    for note in [*placeholder_notes(cfg.procedure_path, cfg.stand_path),
+                 *getattr(procedure_kind(cfg.kind), "notes", lambda _c: [])(cfg)]:
         print(f"note: {note}")
     return EXIT_PASS
 
@@ -114,6 +118,14 @@ def cmd_run(args: argparse.Namespace) -> int:
         short = room_for(cfg, procedure_kind(cfg.kind).build_plan(cfg), Path(args.out))
         if short:   # before the run directory exists: nothing written, nothing moved
             err(f"Not started: {short}")
+            return EXIT_INVALID
+        left = [] if cfg.has_sim or args.sim else left_to_fill(cfg.procedure_path,
+                                                                cfg.stand_path)
+        if left:    # only twins run on values left out (bench/core/placeholders.py)
+            err(f"Not started: a real stand runs once nothing is left to fill in; "
+                f"{len(left)} key(s) are:")
+            for line in left:
+                err(f"  {line}")
             return EXIT_INVALID
         run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path,
                             lab_path(cfg.procedure_path, dict(cfg.common.certificate)))

@@ -7,6 +7,11 @@ files are the procedure kind's (`bench.core.registry.HasStarterFiles`; by defaul
 installed kind that offers them); the lab file is the same for every kind. Without
 --real the stand runs on the twins (a `sim:` block), so `bench run DIR/procedure.yaml
 --yes` works at once; --real leaves out `sim:` and writes the keys a real bench must state.
+
+What only the laboratory knows (serials, calibrations, the specification's source) is
+written as a placeholder, `"TO FILL IN: ..."` (bench/core/placeholders.py): the files
+validate and the twins run at once, `bench validate` lists each placeholder by file,
+line and key, and the certificate flags each left unfilled instead of printing it.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ from pathlib import Path
 
 from bench.core.config import ConfigError
 from bench.core.loader import load_config
+from bench.core.placeholders import left_to_fill
 from bench.core.registry import HasStarterFiles, installed_kind, procedure_names
 
 EXIT_OK, EXIT_INVALID = 0, 2
@@ -74,6 +80,12 @@ def init_command(folder: str, real: bool, kind: str | None = None) -> int:
         return EXIT_INVALID
     proc = where / "procedure.yaml"
     print(f"wrote {where / 'stand.yaml'}, {proc}, {where / 'lab.yaml'}")
+    left = len(left_to_fill(proc, where / "stand.yaml"))
+    if left:
+        print(f"{left} values are yours to fill in (TO FILL IN: ...; bench validate lists "
+              "each by file, line and key); "
+              + ("a real stand runs once none is left" if real else
+                 "the twins run meanwhile, the certificate flagging each"))
     print(f"next: bench validate {proc}; bench plan {proc}; "
           + (f"bench devices {where / 'stand.yaml'}" if real else f"bench run {proc} --yes"))
     return EXIT_OK

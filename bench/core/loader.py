@@ -7,6 +7,9 @@ Everything is reported in one pass: both files' schema problems, the lab file's,
 cross-checks (axes the stand lacks, rates over its limits) of every part that parsed. A
 value the schema refused is left out of the cross-checks, so one mistake is reported
 once, where it was written, and hides nothing else.
+
+A placeholder (`TO FILL IN: ...`, bench/core/placeholders.py) is read as its key left
+out; `bench validate` lists each as a note.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from typing import Any
 
 from bench.core.config import Config, ConfigError, real_stand_problems
 from bench.core.lab import lab_problems
+from bench.core.placeholders import without_placeholders
 from bench.core.registry import procedure_kind, procedure_names
 from bench.core.schema import Map, Node, merge, validate
 from bench.core.yamlfile import KeyPath, Problem, YamlDoc, YamlError, keypath_str, load_yaml
@@ -103,8 +107,11 @@ def _mapping_file(path: str | Path, shape: str) -> YamlDoc:
 
 def load_stand(stand_path: str | Path) -> YamlDoc:
     """A stand file validated alone (`bench validate STAND.yaml`); ConfigError lists all."""
-    sdoc = _mapping_file(stand_path, "stand: ..., axes: ...")
-    problems = validate(sdoc, any_stand_schema()) + real_stand_problems(sdoc)
+    written = _mapping_file(stand_path, "stand: ..., axes: ...")
+    schema = any_stand_schema()
+    sdoc = without_placeholders(written, schema)
+    # a placeholder is there to be filled in: the real-stand rules count it as stated
+    problems = validate(sdoc, schema) + real_stand_problems(written)
     if problems:
         raise ConfigError(problems)
     return sdoc
@@ -121,6 +128,7 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
         problems.append(pdoc.problem(("procedure",), f"expected one of "
                                      f"{', '.join(procedure_names())}, got {name!r}"))
     else:
+        pdoc = without_placeholders(pdoc, kind.procedure_schema())
         refused = validate(pdoc, kind.procedure_schema())
         problems += refused
     problems += lab_problems(Path(procedure_path), pdoc, pdoc.data.get("certificate"))
@@ -131,7 +139,7 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
         if stand_path is None and not spath.is_absolute():
             spath = Path(os.path.normpath(Path(procedure_path).parent / spath))
         try:
-            sdoc = load_yaml(spath)
+            written = load_yaml(spath)
         except YamlError as e:
             if e.problem.key == "(file)":
                 problems.append(pdoc.problem(("stand",), f"stand file {spath}: "
@@ -140,10 +148,11 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
                 problems.append(e.problem)
         else:
             schema = kind.stand_schema() if kind is not None else any_stand_schema()
+            sdoc = without_placeholders(written, schema)
             stand_refused = validate(sdoc, schema)
             refused += stand_refused
             problems += stand_refused
-            problems += real_stand_problems(sdoc)
+            problems += real_stand_problems(written)   # as load_stand
     if kind is None or sdoc is None or not isinstance(sdoc.data, dict):
         raise ConfigError(problems)
     if not problems:

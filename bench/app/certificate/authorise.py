@@ -167,13 +167,10 @@ def _refuse(reasons: list[str], run_path: Path) -> int:
 
 
 def _stand(run_path: Path) -> dict[str, Any]:
-    from bench.core.yamlfile import YamlError, load_yaml
+    """The run's stand file as the run read it (a serial still to fill in is none)."""
+    from bench.core.placeholders import run_copy
 
-    try:
-        data = load_yaml(run_path / "stand.yaml").data
-    except YamlError:
-        return {}
-    return data if isinstance(data, dict) else {}
+    return run_copy(run_path, "stand.yaml")
 
 
 def issue_dir(run_path: Path, number: str) -> Path:

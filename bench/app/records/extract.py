@@ -16,11 +16,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from bench.analysis.finite import finite_number as _num
 from bench.app.records.checks import CheckRecord, checks_of
 from bench.core.journal import sha256_file
+from bench.core.placeholders import run_copy
 from bench.core.registry import ReportsFigures, installed_kind
 from bench.report.certificate.parts import read_json_object
 from bench.report.figures import FigureValue
@@ -204,10 +203,7 @@ def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> Run
     if not result:
         raise NotARun(f"{path}/result.json: not a readable result")
     meta = read_json_object(path / "meta.json")
-    try:
-        stand_file = yaml.safe_load((path / "stand.yaml").read_text(encoding="utf-8")) or {}
-    except (OSError, yaml.YAMLError):
-        stand_file = {}
+    stand_file = run_copy(path, "stand.yaml")   # a serial still to fill in is none
     ident = dict((stand_file.get("stand") or {}) if isinstance(stand_file, dict) else {})
     ident.update({k: v for k, v in (result.get("stand") or {}).items() if v is not None})
     serial = str(ident.get("serial") or "").strip()

@@ -18,7 +18,7 @@ from typing import Any
 
 from bench.analysis.finite import finite_number as num
 from bench.core.journal import read_jsonl
-from bench.core.yamlfile import read_mapping
+from bench.core.placeholders import run_copy
 from bench.report.certificate.model import Block, Figure, Para, Section
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u
 from bench.report.certificate.shape import conform_result
@@ -47,8 +47,9 @@ class Sources:
         if run_path is None:
             return src
         src.meta = read_json_object(run_path / "meta.json")
-        src.stand_file = _read_yaml(run_path / "stand.yaml")
-        src.procedure_file = _read_yaml(run_path / "procedure.yaml")
+        # as the run read them: a placeholder left to fill in is no value to print
+        src.stand_file = run_copy(run_path, "stand.yaml")
+        src.procedure_file = run_copy(run_path, "procedure.yaml")
         events = run_path / "events.jsonl"
         if events.exists():
             src.events = list(read_jsonl(events))
@@ -66,10 +67,6 @@ def read_json_object(path: Path) -> dict[str, Any]:
     except (OSError, ValueError):
         return {}
     return data if isinstance(data, dict) else {}
-
-
-def _read_yaml(path: Path) -> dict[str, Any]:
-    return read_mapping(path)
 
 
 def stand_of(src: Sources) -> dict[str, Any]:
