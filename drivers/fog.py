@@ -445,12 +445,16 @@ class Fog:
         self.close()
 
     def identity(self) -> str:
-        """FOGs answer no *IDN?: the identity is what the stand file says."""
+        """FOGs answer no *IDN?: the model is what the stand file says; the serial is the
+        unit's own answer to ?IS where it was asked at connect (configure set or
+        verify), so a swapped FOG is found as a swapped counter is."""
         model = self.model or self.format.title
         how = {"set": "set and read back", "verify": "read back",
                "declare": "declared, not read back"}[self.configure]
-        return f"{model}; format {self.format.name}; axis {self.axis}; {self.rate_hz:g} Hz; " \
-               f"{self.units} ({how}); {self.port} at {self.baudrate} Bd"
+        serial = self.readback.get("fog.serial")
+        said = f", serial {serial} (?IS)" if serial else ""
+        return f"{model}{said}; format {self.format.name}; axis {self.axis}; " \
+               f"{self.rate_hz:g} Hz; {self.units} ({how}); {self.port} at {self.baudrate} Bd"
 
     # -- reader -----------------------------------------------------------------------------
     def _read_loop(self) -> None:

@@ -63,6 +63,8 @@ class KvhWords:
     filter_enable: str = "FILTEN"  # =FILTEN,<A|G>,<0|1> / ?FILTEN,<A|G> (unverified)
     reset_config: str = "RSTCFG"  # factory configuration; the baud rate stays (Table 9-x
     #                               note 1, p. 56 of the ICD)
+    serial_number: str = "IS"     # 8.20 (p. 44): ?IS -> IS,<serial number> ("a text
+    #                               string, typically with a numeric value")
 
 
 #: the accepted baud rates (ICD 8.3)
@@ -165,6 +167,14 @@ class KvhConfigurator:
             got = {"fog.format": self.query(w.output_format),
                    "fog.units": units_of(self.query(w.rot_format), self.query(w.rot_units)),
                    "fog.rate_hz": self.query(w.data_rate)}
+            # its identity (8.20, p. 44: ?IS -> IS,<serial number>): compared with the
+            # stand's fog.serial; a unit that does not know the word keeps the stated one
+            try:
+                serial = self.query(w.serial_number)
+            except KvhConfigError:
+                serial = ""
+            if serial and serial.strip("0 "):
+                got["fog.serial"] = serial
         finally:
             self.command(w.config, 0)
         problems = []

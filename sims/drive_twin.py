@@ -23,12 +23,14 @@ with canopen's own BaseNode402, tests/test_drive_p402_client.py):
   of the OD and ends in a boot-up message and pre-operational; no SDO in Stopped; PDOs
   only in Operational.
 - PDOs (CiA 301 7.5.2.35-38): COB-ID bit 31, transmission type (254/255 on event, 1-240
-  every n-th SYNC), mapping (changed only while the PDO is not valid; mappable objects,
-  64 bits at most) in effect as written; RPDOs write their objects as an SDO would.
+  every n-th SYNC), mapping (changed only while the PDO is not valid, sub-index 0 to 0
+  before the entries; mappable objects at their own length, 64 bits at most) in effect as
+  written; RPDOs write their objects as an SDO would, a synchronous one (0-240) at the
+  next SYNC (CiA 301 7.2.2.3).
 - CiA 402: transition 16 only for quick-stop codes 5-8; the halt bit with 0x605D;
   every quick-stop, shutdown, disable-operation and fault-reaction code; reserved option
   codes refused (abort 0x06090030); the factor group (0x608F, 0x6091, 0x6096, 0x6097,
-  0x60A9, 0x60AA) applied when written.
+  0x60A9, 0x60AA) applied when written, whole or not at all.
 
 On the co-simulation clock (sims/clock.py SteppedClock) the ticks are the clock's events
 instead, on a grid of stand time: every event timer while anything moves or changes
@@ -280,15 +282,26 @@ class DriveTwin:
         self._tpdo_last: dict[int, float] = {}
         self._tpdo_last_paused: dict[int, float] = {}  # stepped clock paused: real time
         self._tpdo_values: dict[int, list[int]] = {}
+        #: synchronous RPDOs received, by communication parameter index: (index, sub,
+        #: data) written at the next SYNC (_on_rpdo)
+        self._rpdo_pending: dict[int, list[tuple[int, int, bytes]]] = {}
         #: mode code -> what entering Operation enabled or a new set-point does in it
         self._mode_handlers = {PROFILE_VELOCITY.code: self._pv_follow_target,
                                PROFILE_POSITION.code: self._pp_hold}
         self._initial[(Od.SUPPORTED_DRIVE_MODES, 0)] = sum(
             MODES[code].supported_bit for code in self._mode_handlers)
 
-    def _unit_objects(self) -> dict[tuple[int, int], int]:
-        """Every velocity and acceleration object in the present units."""
-        convert = {"velocity": self.units.dps_to_velocity, "accel": self.units.dps2_to_accel}
+    def _unit_objects(self, units: DriveUnits | None = None,
+                      saturate: bool = False) -> dict[tuple[int, int], int]:
+        """Every velocity and acceleration object in `units` (default: the present ones).
+        `saturate`: a value its object cannot hold takes the object's nearest (a change of
+        the factor group, see _change_units); otherwise it is the twin's own error."""
+        u = self.units if units is None else units
+        convert = {"velocity": u.dps_to_velocity, "accel": u.dps2_to_accel}
+        if saturate:
+            return {key: min(max(convert[kind](value), 0), limit)
+                    for kind, table in self._deg_values.items()
+                    for key, (name, value, limit) in table.items()}
         return {key: self._fit(name, value, convert[kind], limit)
                 for kind, table in self._deg_values.items()
                 for key, (name, value, limit) in table.items()}
@@ -307,7 +320,18 @@ class DriveTwin:
     def _change_units(self, index: int, sub: int, code: int) -> None:
         """A factor-group object written (0x608F, 0x6091, 0x6096, 0x6097, 0x60A9,
         0x60AA): new units, applied as a drive applies them; the limits keep their meaning
-        in deg/s. Refused while the power stage is on (abort 0x08000022)."""
+        in deg/s. Refused while the power stage is on (abort 0x08000022), or with a value
+        that gives no whole positive number of increments a turn (0x06090030).
+
+        Issue 41: the factor group is consistent at every step. A write is checked whole
+        before anything changes (a refused one leaves the twin's units and the OD as they
+        were: it used to take the new factors but leave the OD behind, so a gear ratio
+        answered with a general error 0x08000000 made the next write of 0x6091, back to
+        1:1, fail too, until Reset Node), and a limit its UNSIGNED16/32 object cannot hold
+        in the new units (0x606D's 0.02 deg/s at twice the increments) takes the object's
+        nearest value: the ratio itself is valid (0x6091: motor revolutions per shaft
+        revolutions), and keeping the limits in deg/s is the twin's own rule, not the
+        profile's, so it must not refuse a ratio for it."""
         if self._state.power_stage_on:
             raise SdoAbortedError(ABORT_DEVICE_STATE)
         field = self._FACTOR_FIELDS[(index, sub)]
@@ -321,10 +345,11 @@ class DriveTwin:
             units = new.drive_units(apply_factors=True)
             if units.counts_per_rev <= 0:
                 raise ValueError("no increments")
-        except (ValueError, ZeroDivisionError) as e:
+            values = self._unit_objects(units, saturate=True)
+        except (ValueError, ZeroDivisionError, OverflowError) as e:
             raise SdoAbortedError(ABORT_VALUE_RANGE) from e
-        self.factors, self.units = new, units
-        for (i, s), v in self._unit_objects().items():
+        self.factors, self.units = new, units      # all at once, once nothing can fail
+        for (i, s), v in values.items():
             self._put(i, s, v)
 
     # -- NMT (CiA 301 7.3.2) and the PDOs (CiA 301 7.2.2) --------------------------------
@@ -395,6 +420,8 @@ class DriveTwin:
         if node is None:
             return
         with self._lock:
+            if cmd != NMT_START:   # out of Operational: no SYNC actuates what waited
+                self._rpdo_pending.clear()
             if cmd in (NMT_STOP, NMT_RESET_NODE, NMT_RESET_COMM) \
                     and node.nmt._state != NMT_STOPPED:
                 self._abort_connection(f"NMT command {cmd}", emcy=cmd == NMT_STOP)
@@ -439,7 +466,21 @@ class DriveTwin:
 
     def _pdo_parameter(self, index: int, sub: int, value: int, data: bytes) -> None:
         """A PDO communication (0x1400/0x1800) or mapping (0x1600/0x1A00) parameter
-        written: checked as CiA 301 7.5.2.35-38 says, then in effect at once."""
+        written: checked as CiA 301 7.5.2.35-38 says, then in effect at once.
+
+        The mapping (7.5.2.36 RPDO / 7.5.2.38 TPDO mapping parameter) is changed by the
+        procedure those sections give: the PDO made not valid (COB-ID bit 31), sub-index 0
+        set to 0, the entries written, sub-index 0 set to their count, the PDO made valid
+        again. Any sub-index written while the PDO is valid, and an entry written while
+        sub-index 0 is not 0, is refused with 0x08000022 ("data cannot be transferred or
+        stored to the application because of the present device state"; CiA 301's own
+        text was not at hand, and the open stacks differ: CANopenNode answers 0x06010000,
+        Lely 0x06090030, so no client can rely on one code; the twin keeps the one it gave
+        for the entries already). An entry naming an object that does not exist, is not
+        mappable, or with a length other than the object's (0x6041, 16 bits, as 32) is
+        refused with 0x06040041 "object cannot be mapped to the PDO" (7.5.2.36 step 3;
+        CANopenNode's PDOconfigMap alike); a count whose entries exceed the PDO's 64 bits
+        or the entries there are with 0x06040042 (step 4)."""
         node = self._node
         assert node is not None
         tx = index >= 0x1800
@@ -454,21 +495,22 @@ class DriveTwin:
                 raise SdoAbortedError(ABORT_VALUE_RANGE)  # a valid PDO's COB-ID stays
         elif not mapping and sub == 2 and 241 <= value <= 251:
             raise SdoAbortedError(ABORT_VALUE_RANGE)  # reserved transmission types
+        elif mapping and pdo.enabled:
+            raise SdoAbortedError(ABORT_DEVICE_STATE)  # remap only a disabled PDO
         elif mapping and sub == 0:
             bits = 0
             for n in range(1, value + 1):
-                entry = self._get(index, n)
                 try:
-                    var = self._odvar(entry >> 16, (entry >> 8) & 0xFF)
-                except KeyError as e:
-                    raise SdoAbortedError(ABORT_NOT_MAPPABLE) from e
-                if not var.pdo_mappable:
-                    raise SdoAbortedError(ABORT_NOT_MAPPABLE)
-                bits += entry & 0xFF
+                    entry = self._get(index, n)
+                except KeyError as e:        # more entries than the PDO has
+                    raise SdoAbortedError(ABORT_PDO_LENGTH) from e
+                bits += self._mapped_bits(entry)
             if bits > 64:
                 raise SdoAbortedError(ABORT_PDO_LENGTH)
-        elif mapping and pdo.enabled:
-            raise SdoAbortedError(ABORT_DEVICE_STATE)  # remap only a disabled PDO
+        elif mapping and self._get(index, 0) != 0:
+            raise SdoAbortedError(ABORT_DEVICE_STATE)  # sub-index 0 to 0 first
+        elif mapping and value:
+            self._mapped_bits(value)
         node.data_store.setdefault(index, {})[sub] = data  # stored now, read back below
         if tx:
             pdo.read(from_od=False)
@@ -476,8 +518,26 @@ class DriveTwin:
         else:
             self._reload_rpdo(pdo)
 
+    def _mapped_bits(self, entry: int) -> int:
+        """A mapping entry's length, once its object is found mappable with that length
+        (abort 0x06040041 otherwise; see _pdo_parameter)."""
+        index, sub, bits = entry >> 16, (entry >> 8) & 0xFF, entry & 0xFF
+        node = self._node
+        assert node is not None
+        try:
+            obj = node.object_dictionary[index]
+            var = obj if isinstance(obj, ODVariable) else obj[sub]
+        except KeyError as e:
+            raise SdoAbortedError(ABORT_NOT_MAPPABLE) from e
+        if (isinstance(obj, ODVariable) and sub != 0) or not var.pdo_mappable \
+                or bits != len(var):
+            raise SdoAbortedError(ABORT_NOT_MAPPABLE)
+        return bits
+
     def _reload_rpdo(self, pdo: PdoMap) -> None:
-        """Read an RPDO's parameters and listen on its (new) COB-ID, if valid."""
+        """Read an RPDO's parameters and listen on its (new) COB-ID, if valid (data it
+        received for the next SYNC are dropped: its parameters changed)."""
+        self._rpdo_pending.pop(pdo.com_record.od.index, None)
         network = self._network
         if network is not None and pdo.cob_id is not None:
             with contextlib.suppress(KeyError, ValueError):
@@ -487,21 +547,41 @@ class DriveTwin:
             pdo.subscribe()
 
     def _on_rpdo(self, pdo: PdoMap) -> None:
-        """An RPDO received: its objects written as an SDO write would (only when
-        operational; synchronous RPDOs would wait for the SYNC: the twin applies at once)."""
+        """An RPDO received (only when operational): its objects written as an SDO write
+        would. Asynchronous (transmission type 254/255) at once; synchronous (0-240) at
+        the next SYNC: CiA 301 7.2.2.3 (PDO transmission types) and 0x1400 sub 2, a
+        synchronous RPDO's data are actuated with the next SYNC received; the newest
+        received before it wins (Lely's rpdo.c keeps the frame "to be processed after the
+        next SYNC object" the same way). Issue 41: the twin applied every RPDO at once."""
         node = self._node
         if node is None or node.nmt._state != NMT_OPERATIONAL:
             return
-        for var in pdo.map:
+        writes = [(var.index, var.subindex, bytes(var.get_data())) for var in pdo.map]
+        tt = pdo.trans_type
+        if tt is not None and tt <= 240:
+            with self._lock:
+                self._rpdo_pending[pdo.com_record.od.index] = writes
+            return
+        self._apply_rpdo(writes)
+
+    def _apply_rpdo(self, writes: list[tuple[int, int, bytes]]) -> None:
+        node = self._node
+        assert node is not None
+        for index, sub, data in writes:
             with contextlib.suppress(SdoAbortedError):
-                node.set_data(var.index, var.subindex, var.get_data())
+                node.set_data(index, sub, data)
 
     def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        """SYNC: synchronous TPDOs (type 0: acyclic, 1-240: every n-th SYNC)."""
+        """SYNC: the synchronous RPDOs received since the last one actuated, then the
+        synchronous TPDOs (type 0: acyclic, 1-240: every n-th SYNC) sent (CANopenNode's
+        order: CO_process_SYNC, CO_process_RPDO, CO_process_TPDO)."""
         node = self._node
         if node is None or node.nmt._state != NMT_OPERATIONAL:
             return
         with self._lock:
+            pending = [self._rpdo_pending.pop(i) for i in sorted(self._rpdo_pending)]
+            for writes in pending:
+                self._apply_rpdo(writes)
             self._sync_count += 1
             for pdo in _maps(node.tpdo).values():
                 tt = pdo.trans_type

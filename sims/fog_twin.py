@@ -16,16 +16,22 @@ Configuration (drivers/kvh_config.py, 1775 IMU ICD sections 3.3, 7 and 8): the t
 answers `=CONFIG,1|0`, `=OUTPUTFMT,`, `=ROTFMT,`, `=ROTUNITS,`, `=DR,` and their `?`
 queries as the ICD's conventions say (a command echoes without '=', a query answers
 `NAME,value`, an unknown word in Configuration Mode `INVALID,...`; in Normal Mode input
-is ignored). Its rotational fields start at the KVH power-on default, delta radians
-(Table 5-10), unless built with `units` (a FOG configured earlier, kept in its
-non-volatile memory). `=DR` sets the frame rate: a rate that divides the stand's sample
+is ignored), and `?IS` with its serial (`IS,<serial>`, ICD 8.20). In Configuration Mode
+it sends no frame, and on leaving it resumes at its rate: the frames that fell due
+meanwhile are never sent (no backlog), so the sequence counter jumps by the session's
+length (ICD 3.3, Table 3-1). Its rotational fields start at the KVH power-on default,
+delta radians (Table 5-10), unless built with `units` (a FOG configured earlier, kept in
+its non-volatile memory). `=DR` sets the frame rate: a rate that divides the stand's sample
 rate sends one frame per that many samples (delta angles summed, rates averaged, the
 sequence counting frames); a faster one, or one that does not divide it, is refused with
 INVALID (a twin limit: the stand samples no faster). It also answers `=BAUD`, `=LINFMT`,
 `=LINUNITS`, `=TEMPUNITS`, `=FILTEN,<A|G>,<0|1>`, `=RSTCFG` and their queries (the 1775
-ICD section 8; drivers/kvh_config.py says which spellings are unverified). Its
-accelerometers read +1 g on the sensitive axis at rest and while turning (mounted along
-the table axis, vertical; the ICD's polarity: +1 g with the positive axis up).
+ICD section 8; drivers/kvh_config.py says which spellings are unverified). The
+other channels are the stand's too (AxisModel.imu_levels, a random stream of their own):
+the cross-axis gyros read white noise at the FOG's noise level, the accelerometers +1 g
+along the table axis (vertical; the ICD's polarity: +1 g with the positive axis up) and 0 g
+across it with a little noise, and the temperature warms slowly from the ambient with a
+small noise, sent in whole degrees (FogTwin._side).
 
 Time. On the co-simulation clock (sims/clock.py SteppedClock) the twin is a participant:
 the clock's steps release the stand's samples (`advance`), the frames go out on the pty,
@@ -55,7 +61,7 @@ from typing import Any
 
 import numpy as np
 
-from drivers.fog import dps_per_unit
+from drivers.fog import dps_per_unit, first_sample_after
 from drivers.fog_formats import AXES, FixedFieldsEncoder, get_format
 from drivers.kvh_config import (
     BAUD_RATES,
@@ -71,7 +77,15 @@ from drivers.kvh_config import (
     units_of,
 )
 from sims.clock import SteppedClock
-from sims.stand import AxisChunk, SimulatedStand
+from sims.stand import (
+    IMU_CHANNELS,
+    IMU_LEVEL_MEAN,
+    IMU_LEVEL_STD,
+    IMU_LEVELS,
+    TEMPERATURE_HOLD_SAMPLES,
+    AxisChunk,
+    SimulatedStand,
+)
 
 _TICK_S = 0.002            # real seconds between looks at the clock when idle
 _OPEN_SETTLE_S = 0.05      # real seconds for pyserial to configure and flush after open
@@ -79,6 +93,18 @@ _WRITE_POLL_MS = 50
 #: on a stepped clock, bytes the channel may hold between the steps of one wait (queued
 #: in the twin, in the pty, not yet decoded): the twin encodes while the driver decodes
 _LEAD_BYTES = 4 << 20
+#: what `?IS` answers when the twin is given no serial (ICD 8.20: "a text string,
+#: typically with a numeric value")
+DEFAULT_SERIAL = "0"
+#: the accelerometers' noise, g rms a sample. An assumption of the twin: the stand file
+#: says nothing of the accelerometers and the ICD pages we read give no figure
+ACCEL_NOISE_G = 5e-4
+#: the temperature sensor (deg C): the unit warms from the ambient by WARM_UP_C with the
+#: time constant WARM_UP_TAU_S from power-on (stand time 0), read with this noise. The
+#: frame carries whole degrees (ICD Table 5-2), so a short record reads the ambient
+WARM_UP_C = 1.0
+WARM_UP_TAU_S = 1200.0
+TEMPERATURE_NOISE_C = 0.05
 
 
 @dataclass(frozen=True)
@@ -147,21 +173,40 @@ class _Hold:
     until_s: float
 
 
+@dataclass(frozen=True)
+class _Tables:
+    """FogTwin._tables: what encoding a frame needs for one set of the unit's settings."""
+
+    key: tuple[object, ...]
+    encoder: FixedFieldsEncoder    # the measured field and the counter; the rest 0
+    fields: list[str]              # the other channels' fields (FogTwin._side_fields)
+    values: np.ndarray             # (IMU_CHANNELS, IMU_LEVELS) float32, frame units
+    terms: np.ndarray              # (IMU_CHANNELS, IMU_LEVELS) uint32: their CRC terms
+    temperature: np.ndarray        # (65536,) uint32: the temperature field's, by its bits
+
+
 class FogTwin:
     """Frames of one stand axis's FOG on a pty. Create it before the stand clock starts."""
 
     def __init__(self, stand: SimulatedStand, axis: str, *, fmt: str = "kvh-a",
-                 axis_letter: str = "z", units: str = POWER_ON_UNITS, temperature: int = 25,
-                 keep_truth: bool = False) -> None:
+                 axis_letter: str = "z", units: str = POWER_ON_UNITS, temperature: float = 25.0,
+                 keep_truth: bool = False, serial: str = DEFAULT_SERIAL) -> None:
         self.format = get_format(fmt)
         if axis_letter not in AXES:
             raise ValueError(f"FOG twin axis letter {axis_letter!r} not one of x, y, z")
+        if not serial or not serial.isascii() or not serial.isprintable():
+            raise ValueError(f"FOG twin serial {serial!r}: printable ASCII (the text of "
+                             "its ?IS answer line, ICD 8.20)")
+        #: the unit's serial number, answered to ?IS (ICD 56-0298 Rev. B 8.20, p. 44)
+        self.serial = serial
         self.stand = stand
         self.axis = stand.axis(axis)
         self.clock = stand.clock
         self.rate_hz = self.axis.rate_hz
         self.units = units
         self._col = AXES.index(axis_letter)
+        #: the frame's other two rotational (and linear) fields: the cross axes
+        self._cross = [k for k in range(3) if k != self._col]
         self._dps_per_unit = dps_per_unit(units, self.rate_hz)
         self.config_mode = False
         self.data_rate_hz = int(round(self.rate_hz))
@@ -169,11 +214,18 @@ class FogTwin:
         self.baud = 921600
         self.lin_format, self.lin_units, self.temp_units = "ACCEL", "METERS", "C"
         self.filter_enabled = {"A": True, "G": True}
-        self._carry: list[tuple[np.ndarray, np.ndarray]] = []  # samples of a partial frame
-        self._encoder: tuple[tuple[object, ...], FixedFieldsEncoder] | None = None
+        # samples of a partial frame (=DR below the stand's rate): index, value, and the
+        # other channels (cross-axis rates, accelerations, temperature; _side)
+        self._carry: list[tuple[np.ndarray, ...]] = []
+        #: stand samples [start, end) while in Configuration Mode: never sent (end None:
+        #: still in it)
+        self._quiet: list[tuple[int, int | None]] = []
+        self._tables_now: _Tables | None = None
+        self._temperature_terms: dict[str, np.ndarray] = {}
         self._inbuf = bytearray()
         self.commands: list[str] = []  # every line received (tests)
-        self.temperature = int(temperature)
+        #: the ambient the unit's temperature starts from, deg C (it warms up: _side)
+        self.temperature = float(temperature)
         self.keep_truth = keep_truth
         self._faults: list[Fault] = []
         self._queue: deque[tuple[bytes | memoryview, int] | _Hold] = deque()
@@ -221,54 +273,171 @@ class FogTwin:
                 self._faults.append(f)
 
     # -- encoding (runs in whichever thread advances the axis) -------------------------------
-    def _linear(self) -> np.ndarray:
-        """The three linear fields of one frame at rest on a vertical axis: +1 g up,
-        or its delta velocity over the frame (LINFMT DELTA, m/s or ft/s)."""
-        out = np.zeros(3, dtype=np.float32)
-        g = 1.0 if self.lin_format == "ACCEL" else G0_MPS2 / self.data_rate_hz * (
-            FEET_PER_METER if self.lin_units == "FEET" else 1.0)
-        out[self._col] = g
+    def _side(self, n0: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The unit's channels other than the measured one at stand samples n0..n0+n-1:
+        their draws, (n, IMU_CHANNELS) levels (AxisModel.imu_levels: the two cross-axis
+        rates, the accelerations along the table axis and across it; `_side_values` makes
+        them deg/s and g), and the temperature (n,) deg C.
+
+        The FOG's sensitive axis is along the table axis, vertical: the cross-axis gyros
+        read white noise at the FOG's own noise level (the earth rate's horizontal part,
+        ~0.004 deg/s times the cosine of the latitude, is left out: the stand states no
+        latitude), the accelerometers +1 g along the axis (ICD Table 9 note 4: +1 g with
+        the positive axis up) and 0 g across it, with ACCEL_NOISE_G, and the temperature
+        sensor the ambient, warming by WARM_UP_C with WARM_UP_TAU_S from power-on. The
+        draws are the stand's own stream, so the z channel and every other number of the
+        stand stay bit for bit what they were.
+        """
+        levels, temp_levels = self.axis.imu_levels(n0, n)
+        hold = TEMPERATURE_HOLD_SAMPLES           # a reading holds, taken at its start
+        h = np.arange(n0, n0 + n) // hold
+        t_s = np.arange(h[0], h[-1] + 1) * (hold / self.rate_hz)
+        warm = self.temperature - WARM_UP_C * np.expm1(-t_s / WARM_UP_TAU_S)
+        temp = warm[h - h[0]] \
+            + TEMPERATURE_NOISE_C / IMU_LEVEL_STD * (temp_levels - IMU_LEVEL_MEAN)
+        return levels, temp
+
+    def _side_values(self, levels: np.ndarray) -> np.ndarray:
+        """(m, IMU_CHANNELS) levels as deg/s (the cross-axis rates) and g (the rest)."""
+        step = np.array([self.axis.truth.fog.noise_dps] * 2 + [ACCEL_NOISE_G] * 3) \
+            / IMU_LEVEL_STD
+        values: np.ndarray = (levels - IMU_LEVEL_MEAN) * step
+        values[:, 2] += 1.0                       # +1 g along the (vertical) table axis
+        return values
+
+    def _in_frame_units(self, values: np.ndarray) -> np.ndarray:
+        """`_side_values` (deg/s, g; a frame's sum or mean) in the frame's units: the
+        rotational ones (ROTFMT/ROTUNITS) and the linear ones (LINFMT: g, or the delta
+        velocity over the frame in m/s or ft/s)."""
+        out = values.astype(np.float64)
+        out[:, :2] /= self._dps_per_unit
+        if self.lin_format != "ACCEL":
+            out[:, 2:] *= G0_MPS2 / self.data_rate_hz * (
+                FEET_PER_METER if self.lin_units == "FEET" else 1.0)
         return out
 
-    def _frame_temperature(self) -> int:
-        return self.temperature if self.temp_units == "C" else round(
-            self.temperature * 9 / 5 + 32)
+    def _side_fields(self) -> list[str]:
+        """The frame fields of the IMU_CHANNELS channels, in their order."""
+        lin = ("ax", "ay", "az")
+        a, b = self._cross
+        return [self.format.rate_fields[a], self.format.rate_fields[b],
+                lin[self._col], lin[a], lin[b]]
 
-    def _encode_rows(self, seq: np.ndarray, value: np.ndarray) -> np.ndarray:
-        lin = self._linear()
-        key = (self.format.name, self._col, self._frame_temperature(), lin.tobytes())
-        if self._encoder is None or self._encoder[0] != key:  # built again after a setting
-            extra = {name: float(lin[k]) for k, name in enumerate(("ax", "ay", "az"))}
-            self._encoder = (key, self.format.fixed_encoder(
-                self._col, temperature=self._frame_temperature(), extra=extra))
-        return self._encoder[1].encode(seq, value)  # a new array of its own
+    def _temperature_field(self, temp_c: np.ndarray) -> np.ndarray:
+        """Whole degrees C or F (TEMPUNITS; Table 5-2: INT16)."""
+        return np.rint(temp_c if self.temp_units == "C" else temp_c * 9 / 5 + 32
+                       ).astype(np.int16)
+
+    def _tables(self) -> _Tables:
+        """For the settings now: the encoder of the measured field and the counter (its
+        template's other fields 0), every level's frame value of each other channel and
+        its term of the CRC (the CRC is affine: a field put into a frame whose field was 0
+        adds its own term, drivers/fog_formats.py Crc32), and the temperature's terms."""
+        f = self.format
+        key = (f.name, self._col, self.units, self.lin_format, self.lin_units,
+               self.data_rate_hz, self.axis.truth.fog.noise_dps)
+        if self._tables_now is None or self._tables_now.key != key:
+            n = IMU_LEVELS
+            values = self._in_frame_units(self._side_values(
+                np.repeat(np.arange(n)[:, None], IMU_CHANNELS, axis=1))).astype(np.float32)
+            names = self._side_fields()
+            rec = np.zeros(IMU_CHANNELS * n + 1, dtype=f.dtype)  # the last one: all zero
+            for c, name in enumerate(names):
+                rec[name][c * n:(c + 1) * n] = values[:, c]
+            crc = f.crc.compute_rows(rec.view(np.uint8).reshape(-1, f.size)[:, :f.crc_span])
+            temp = self._temperature_terms.get(f.name)
+            if temp is None:
+                t = np.zeros(65536 + 1, dtype=f.dtype)
+                t[f.temperature_field][:65536] = np.arange(65536, dtype=np.uint16
+                                                           ).view(np.int16)
+                tc = f.crc.compute_rows(t.view(np.uint8).reshape(-1, f.size)[:, :f.crc_span])
+                temp = self._temperature_terms[f.name] = tc[:-1] ^ tc[-1]
+            self._tables_now = _Tables(
+                key, f.fixed_encoder(self._col), names, values.T.copy(),
+                (crc[:-1] ^ crc[-1]).reshape(IMU_CHANNELS, n), temp)
+        return self._tables_now
+
+    def _encode_rows(self, seq: np.ndarray, value: np.ndarray, levels: np.ndarray,
+                     temp_c: np.ndarray) -> np.ndarray:
+        """Frames (N, size) uint8 of stand samples: `value` (float32, the frame's units) in
+        the measured axis's field, the other channels from their levels (`_side`) through
+        the tables of `_tables`: two small gathers a field instead of a CRC of each."""
+        t = self._tables()
+        rows = t.encoder.encode(seq, value)
+        frame = rows.view(self.format.dtype)[:, 0]
+        crc = np.zeros(len(seq), dtype=np.uint32)
+        for c, name in enumerate(t.fields):
+            lv = levels[:, c]
+            frame[name] = t.values[c].take(lv)
+            crc ^= t.terms[c].take(lv)
+        temperature = self._temperature_field(temp_c)
+        frame[self.format.temperature_field] = temperature
+        crc ^= t.temperature.take(temperature.view(np.uint16))
+        crc_field = self.format.crc_field
+        frame[crc_field] = frame[crc_field] ^ crc
+        return rows
+
+    def _encode_frames(self, seq: np.ndarray, value: np.ndarray, values: np.ndarray,
+                       temp_c: np.ndarray) -> np.ndarray:
+        """Frames of k > 1 stand samples each (=DR below the stand's rate): `values` are
+        the frames' sums or means of `_side_values`, encoded field by field."""
+        side = self._in_frame_units(values).astype(np.float32)
+        rates = np.empty((len(seq), 3), dtype=np.float32)
+        rates[:, self._col] = value
+        fields = self._side_fields()
+        rates[:, self._cross] = side[:, :2]
+        return self.format.encode(seq, rates, temperature=self._temperature_field(temp_c),
+                                  extra={name: side[:, c] for c, name in enumerate(fields)
+                                         if c >= 2})
 
     def _decimation(self) -> int:
         return max(int(round(self.rate_hz)) // self.data_rate_hz, 1)
 
+    def _quiet_mask(self, first: int, stop: int, at: np.ndarray | None = None) -> np.ndarray:
+        """True for the stand samples `at` (default first .. stop - 1) that fell due in
+        Configuration Mode: the unit sent nothing then (ICD 3.3, Table 3-1)."""
+        at = np.arange(first, stop) if at is None else at
+        quiet = np.zeros(len(at), dtype=bool)
+        for lo, hi in self._quiet:
+            if (hi is None or hi > first) and lo < stop:
+                quiet |= (at >= lo) & (at < (stop if hi is None else hi))
+        # sessions that ended before these samples are done with
+        self._quiet = [(lo, hi) for lo, hi in self._quiet if hi is None or hi > first]
+        return quiet
+
     def _on_decimated_chunk(self, chunk: AxisChunk, k: int) -> None:
         """=DR below the stand's rate: one frame per k stand samples (frame g covers
-        samples g*k .. g*k+k-1): delta angles summed, rates averaged. Faults are by
-        stand sample and act at the stand's own rate only (not modelled here)."""
+        samples g*k .. g*k+k-1): delta angles summed, rates averaged (the other channels
+        alike: accelerations and temperature averaged). Faults are by stand sample and act
+        at the stand's own rate only (not modelled here); a frame whose last sample fell
+        due in Configuration Mode is not sent."""
         n0, n = chunk.n0, len(chunk.t_s)
         value = (chunk.fog_dps / self._dps_per_unit).astype(np.float64)
-        self._carry.append((np.arange(n0, n0 + n, dtype=np.int64), value))
-        idx = np.concatenate([c[0] for c in self._carry])
-        val = np.concatenate([c[1] for c in self._carry])
+        levels, temp = self._side(n0, n)
+        self._carry.append((np.arange(n0, n0 + n, dtype=np.int64), value,
+                            self._side_values(levels), temp))
+        idx, val, side, temps = (np.concatenate(c) for c in zip(*self._carry, strict=True))
         first = int(-(-idx[0] // k) * k)      # the first whole frame's first sample
         keep_from = first - int(idx[0])
         whole = (len(idx) - keep_from) // k
         if whole > 0:
-            groups = val[keep_from:keep_from + whole * k].reshape(whole, k)
-            frame_value = groups.sum(axis=1) if self.units in ("deg", "rad") \
-                else groups.mean(axis=1)
+            span = slice(keep_from, keep_from + whole * k)
+            delta = self.units in ("deg", "rad")
+            groups = val[span].reshape(whole, k)
+            frame_value = groups.sum(axis=1) if delta else groups.mean(axis=1)
+            frame_side = side[span].reshape(whole, k, IMU_CHANNELS).mean(axis=1)
+            if delta:                         # angles over the frame: the rates summed
+                frame_side[:, :2] *= k
             seq = np.arange(first // k, first // k + whole, dtype=np.int64)
-            rows = self._encode_rows(seq, frame_value.astype(np.float32))
+            rows = self._encode_frames(seq, frame_value.astype(np.float32), frame_side,
+                                       temps[span].reshape(whole, k).mean(axis=1))
+            sent = ~self._quiet_mask(first, first + whole * k, seq * k + k - 1)
             with self._qlock:
-                self._queue.append((rows.tobytes(), first + whole * k))
-            self.frames_encoded += whole
+                self._queue.append((rows[sent].tobytes(), first + whole * k))
+            self.frames_encoded += int(sent.sum())
         rest = keep_from + whole * k
-        self._carry = [(idx[rest:], val[rest:])] if rest < len(idx) else []
+        self._carry = [(idx[rest:], val[rest:], side[rest:], temps[rest:])] \
+            if rest < len(idx) else []
         self._next_sample = n0 + n
 
     def _nobody_reads(self) -> bool:
@@ -302,8 +471,10 @@ class FogTwin:
         n0, n = chunk.n0, len(chunk.t_s)
         idx = np.arange(n0, n0 + n, dtype=np.int64)
         value = (chunk.fog_dps / self._dps_per_unit).astype(np.float32)
-        rows = self._encode_rows(idx, value)
-        keep = np.ones(n, dtype=bool)
+        # frames due in Configuration Mode are never sent (ICD 3.3); the counter runs on
+        keep = ~self._quiet_mask(n0, n0 + n) if self._quiet else np.ones(n, dtype=bool)
+        rows = self._encode_rows(idx, value, *self._side(n0, n)) \
+            if keep.any() else np.zeros((n, self.format.size), dtype=np.uint8)
         intact = np.ones(n, dtype=bool)
         cuts: dict[int, list[_Hold | tuple[bytes | memoryview, int]]] = {}
         for f in self._faults:
@@ -432,8 +603,8 @@ class FogTwin:
         A twin nobody reads (no reader yet, or the reader gone) paces nothing (inf), and a
         stall injected on purpose holds the frames, not the clock.
         """
-        if not self._reading or self._stop.is_set():
-            return math.inf
+        if not self._reading or self._stop.is_set() or self.config_mode:
+            return math.inf   # (Configuration Mode: the unit sends nothing to keep up with)
         with self._qlock:
             head = self._queue[0] if self._queue else None
         sent_s = (self._sent_n - 1) / self.rate_hz
@@ -490,7 +661,7 @@ class FogTwin:
         if self._stepped:
             self._stepped_clock.poke()
         while not self._stop.is_set():
-            self._serve_commands()
+            self._serve_commands(None if self._stepped else poller)
             if self.config_mode:  # no binary output in Configuration Mode (ICD 3.3)
                 time.sleep(_TICK_S)
                 continue
@@ -501,7 +672,10 @@ class FogTwin:
                 self._wake.clear()
 
     # -- configuration (ICD section 7) -------------------------------------------------------
-    def _serve_commands(self) -> None:
+    def _serve_commands(self, poller: select.poll | None = None) -> None:
+        """Answer the lines received. With `poller` (the stream running on a paced clock)
+        the frames due up to `=CONFIG,1` go out before its answer: the unit streamed
+        until then (on a stepped clock the clock's steps release the samples)."""
         assert self._master is not None
         try:
             data = os.read(self._master, 4096)
@@ -517,7 +691,13 @@ class FogTwin:
             del self._inbuf[:i + 1]
             if line:
                 self.commands.append(line)
-                reply = self._answer(line)
+                now_s = None
+                if poller is not None and not self.config_mode \
+                        and line.upper().replace(" ", "") == f"={WORDS.config},1":
+                    now_s = self.clock.now()
+                    self.axis.advance_to(now_s)
+                    self._drain(poller)
+                reply = self._answer(line, now_s)
                 if reply is not None:  # after the frames already queued in the port
                     self._write_reply((reply + "\r\n").encode("ascii"))
 
@@ -535,12 +715,12 @@ class FogTwin:
             except OSError:
                 return  # no reader: the reply is lost, as on a cable nobody listens to
 
-    def _answer(self, line: str) -> str | None:
+    def _answer(self, line: str, now_s: float | None = None) -> str | None:
         w = WORDS
         body = line[1:].upper()
         name, _, arg = body.partition(",")
         if line.startswith("=") and name == w.config and arg in ("0", "1"):
-            self.config_mode = arg == "1"
+            self._configuration(arg == "1", now_s)
             return body
         if not self.config_mode:
             return None  # Normal Mode ignores input (ICD section 7)
@@ -551,11 +731,31 @@ class FogTwin:
                   w.temp_units: self.temp_units}
         if line.startswith("?") and name in values and not arg:
             return f"{name},{values[name]}"
+        if line.startswith("?") and name == w.serial_number and not arg:
+            return f"{name},{self.serial}"   # ICD 8.20 (p. 44): "IS,[Serial Number]"
         if line.startswith("?") and name == w.filter_enable and arg in ("A", "G"):
             return f"{name},{arg},{int(self.filter_enabled[arg])}"
         if line.startswith("=") and self._setting(name, arg, fmt, units):
             return body
         return "INVALID," + line
+
+    def _configuration(self, on: bool, now_s: float | None = None) -> None:
+        """=CONFIG,1|0. In Configuration Mode "the unit will stop output of binary data"
+        and it resumes at its configured rate on leaving (ICD 56-0298 Rev. B 3.3, Table
+        3-1): the frames that fell due meanwhile are not sent then, as no backlog, and the
+        sequence counter of the first frame after it follows the time (stand sample n is
+        frame n: a gap of the session's length, as drivers/fog.py and `bench decode`
+        count one). The bench's driver configures before it records (drivers/fog.py
+        Fog.open), on a clock not started yet: no sample falls due in that session."""
+        t_s = self.clock.now() if now_s is None else now_s  # (before the axis's lock)
+        at = first_sample_after(t_s, self.rate_hz)
+        with self.axis.lock:
+            if on and not self.config_mode:
+                self._quiet.append((at, None))
+            elif not on and self.config_mode and self._quiet:
+                start, _ = self._quiet[-1]
+                self._quiet[-1] = (start, max(at, start))
+            self.config_mode = on
 
     def _setting(self, name: str, arg: str, fmt: str, units: str) -> bool:
         """Apply one `=NAME,arg` (Configuration Mode); False: the unit refuses it."""

@@ -28,7 +28,7 @@ import numpy as np
 
 from drivers.units import SECONDS_PER_HOUR
 from sims.clock import MAX, SteppedClock, VirtualClock, parse_speed
-from sims.rng_grid import RngGrid
+from sims.rng_grid import RngGrid, pcg64_state, seed_states
 
 
 @dataclass(frozen=True)
@@ -237,7 +237,28 @@ RNG_BLOCK_SAMPLES = 4096
 #: calls per sample (each call holds the interpreter lock the FOG readers also need):
 #: 16384 instead of 4096 took the paper ladder's outer 0.1 deg/s pair from 43 to 36 s.
 BLOCK_SAMPLES = 16384
-_STREAMS = {"table": 0, "fog": 1, "edge": 2}
+#: the grid's streams. "imu" feeds the FOG's channels other than the table axis's (its
+#: cross-axis gyros, accelerometers and temperature sensor): a stream of its own, so
+#: those draws never move a number of the table, the measured FOG channel or the marks
+_STREAMS = {"table": 0, "fog": 1, "edge": 2, "imu": 3}
+#: the "imu" stream's channels a sample: the two cross-axis rates, then the accelerometers
+#: along the table axis and along the two cross axes
+IMU_CHANNELS = 5
+#: samples one temperature reading holds: a FOG's temperature sensor is read far more
+#: slowly than its frames go out (one draw of the "imu" stream per this many samples)
+TEMPERATURE_HOLD_SAMPLES = 64
+#: an "imu" draw is a level 0 .. IMU_LEVELS - 1, the sum of four uniform random bytes of
+#: the block's generator (Irwin-Hall: a normal's shape within a few per cent, bounded at
+#: 3.45 sigma): (level - IMU_LEVEL_MEAN) / IMU_LEVEL_STD is a standard deviate. Levels,
+#: not floats: the FOG twin encodes a channel through a table of IMU_LEVELS frame values
+#: and their CRC terms, ~0.5 ms a 16384-frame block where normals and a CRC of every
+#: field took ~3.5 ms (the paper ladder streams 212 M frames)
+IMU_LEVELS = 4 * 255 + 1
+IMU_LEVEL_MEAN = 4 * 255 / 2
+IMU_LEVEL_STD = math.sqrt(4 * (256**2 - 1) / 12)
+#: RNG blocks of the "imu" stream an axis keeps drawn (a reader asks in small chunks)
+_IMU_BLOCKS_KEPT = 4
+_SEED_CHUNK = 1024        # blocks whose generator seeds are hashed at once (rng_grid.py)
 
 
 @dataclass
@@ -302,6 +323,9 @@ class AxisModel:
                       if h.amplitude_rel]
         self._harm_top = max((order for order, *_ in self._harm), default=0)
         self._grid_tables: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._imu_blocks: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._imu_seeds: tuple[int, np.ndarray] | None = None
+        self._imu_bits = np.random.PCG64(0)
 
     # -- time and state -------------------------------------------------------------
     @property
@@ -371,6 +395,55 @@ class AxisModel:
         numpy's `default_rng(SeedSequence(entropy, spawn_key=(*axis key, stream, g)))`,
         made without a SeedSequence per block (sims/rng_grid.py)."""
         return self._grid.normals(_STREAMS[stream], g, n)
+
+    def imu_levels(self, n0: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The draws of the FOG's other channels at samples n0 .. n0+n-1 (see IMU_LEVELS):
+        an (n, IMU_CHANNELS) uint16 array, one row a sample, and the temperature sensor's
+        (n,), one draw held for TEMPERATURE_HOLD_SAMPLES samples. From the grid's "imu"
+        stream, block by block as every other draw of the stand (where a chunk starts never
+        changes a number), and only when asked: a stand whose FOG nobody reads draws none.
+        """
+        per = RNG_BLOCK_SAMPLES
+        rows = np.empty((n, IMU_CHANNELS), dtype=np.uint16)
+        temp = np.empty(n, dtype=np.uint16)
+        with self.lock:
+            at = 0
+            while at < n:
+                g, lo = divmod(n0 + at, per)
+                hi = min(per, lo + n - at)
+                block, held = self._imu_block(g)
+                rows[at:at + hi - lo] = block[lo:hi]
+                temp[at:at + hi - lo] = held[np.arange(lo, hi) // TEMPERATURE_HOLD_SAMPLES]
+                at += hi - lo
+        return rows, temp
+
+    def _imu_block(self, g: int) -> tuple[np.ndarray, np.ndarray]:
+        """RNG block g of the "imu" stream: the raw 64-bit output of the generator numpy
+        makes of SeedSequence(entropy, spawn_key=(*axis key, stream, g)) (the grid's
+        keying, sims/rng_grid.py), four bytes a draw."""
+        got = self._imu_blocks.get(g)
+        if got is None:
+            per, hold = RNG_BLOCK_SAMPLES, TEMPERATURE_HOLD_SAMPLES
+            c = g // _SEED_CHUNK
+            if self._imu_seeds is None or self._imu_seeds[0] != c:
+                assert self._ss.entropy is not None
+                self._imu_seeds = (c, seed_states(
+                    self._ss.entropy, (*self._ss.spawn_key, _STREAMS["imu"]),
+                    np.arange(c * _SEED_CHUNK, (c + 1) * _SEED_CHUNK)))
+            # (numpy types the setter as a private TypedDict; the dict is its shape)
+            self._imu_bits.state = pcg64_state(  # type: ignore[assignment]
+                self._imu_seeds[1][g - c * _SEED_CHUNK])
+            raw = self._imu_bits.random_raw((per * IMU_CHANNELS + per // hold) // 2)
+            word = raw.view(np.uint32)   # a draw's four bytes summed in place (SWAR)
+            pairs = (word & np.uint32(0x00FF00FF)) + ((word >> np.uint32(8))
+                                                      & np.uint32(0x00FF00FF))
+            draws = ((pairs & np.uint32(0xFFFF)) + (pairs >> np.uint32(16))).astype(np.uint16)
+            got = (draws[:per * IMU_CHANNELS].reshape(per, IMU_CHANNELS),
+                   draws[per * IMU_CHANNELS:])
+            if len(self._imu_blocks) >= _IMU_BLOCKS_KEPT:
+                self._imu_blocks.pop(next(iter(self._imu_blocks)))
+            self._imu_blocks[g] = got
+        return got
 
     def _normals(self, stream: str, k: int) -> np.ndarray:
         """Standard normals for every sample of block k, from the random-number grid."""

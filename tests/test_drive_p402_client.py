@@ -11,12 +11,27 @@ CiA 402/301 drive does not). Sources for what a drive does:
 - CiA 301 7.3.2 (NMT): a reset ends in a boot-up message and pre-operational; no SDO
   in Stopped; 7.5.2.35-38 PDO parameters: COB-ID bit 31 "not valid", transmission types
   1-240 on SYNC, a mapping changed only while the PDO is not valid.
+
+Issue 41 (the same sources):
+- CiA 301 7.2.2.3 / 0x1400 sub 2: the data of a synchronous RPDO (types 0-240) are
+  actuated at the next SYNC, of an asynchronous one (254/255) at once (canopen's own
+  PdoMap.is_periodic says "RPDOs need a SYNC to apply"; Lely's rpdo.c keeps the frame
+  "to be processed after the next SYNC object"). The twin applied them at once.
+- CiA 301 7.5.2.36/38, the mapping procedure: bit 31 set, sub-index 0 to 0, the entries,
+  sub-index 0 to their count, bit 31 cleared. Sub-index 0 written while the PDO was
+  valid was accepted; now 0x08000022 as for the entries (CiA 301's text was not at
+  hand; CANopenNode answers 0x06010000, Lely 0x06090030: see sims/drive_twin.py).
+- An entry must map its object at the object's length (0x6041, 16 bits, as 32 was
+  accepted): abort 0x06040041 "object cannot be mapped to the PDO" (7.5.2.36 step 3).
+- CiA 402 0x6091: after a ratio the twin refused with a general error 0x08000000, 1:1
+  was refused too until Reset Node; every step is now consistent.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Iterator
+from typing import Any
 
 import canopen
 import pytest
@@ -279,3 +294,137 @@ def test_an_independent_eds_checker_reads_the_eds_cleanly() -> None:
     assert errors == ["AUTO-FIXED: Section [ManufacturerObjects] was missing"]
     od = canopen.import_od(str(DEFAULT_EDS_PATH), NODE)
     assert {0x1400, 0x1401, 0x1600, 0x1601, 0x605D, 0x1005} <= set(od.indices)
+
+
+def _rpdo_controlword(pdo: Any) -> Any:
+    return next(v for v in pdo.map if v.index == 0x6040)
+
+
+def test_a_synchronous_rpdo_is_actuated_at_the_next_sync(client: Client) -> None:
+    n, net, twin = client.node, client.network, client.twin
+    rpdo1 = n.rpdo[1]                      # controlword and mode, as the EDS maps them
+    n.nmt.state = "PRE-OPERATIONAL"        # canopen's own PDO save: type 1 (every SYNC)
+    rpdo1.trans_type = 1
+    rpdo1.save()
+    assert n.sdo[0x1400][2].raw == 1
+    n.nmt.state = "OPERATIONAL"
+    assert wait_for(lambda: twin._node.nmt.state == "OPERATIONAL", 2.0)
+    cw = _rpdo_controlword(rpdo1)
+    cw.raw = 0x06                          # shutdown: transition 2
+    rpdo1.transmit()
+    time.sleep(0.3)
+    assert twin.state is State.SWITCH_ON_DISABLED    # received, not actuated: no SYNC
+    net.sync.transmit()
+    assert wait_for(lambda: twin.state is State.READY_TO_SWITCH_ON, 2.0)
+    # canopen's way with a synchronous RPDO: sent cyclically, a SYNC producer beside it,
+    # and BaseNode402 drives the state machine through them
+    rpdo1.start(0.02)
+    net.sync.start(0.02)
+    try:
+        n.state = "OPERATION ENABLED"
+        assert twin.state is State.OPERATION_ENABLED
+        net.sync.stop()
+        cw.raw = 0x07                      # disable operation: waits for the next SYNC
+        time.sleep(0.3)
+        assert twin.state is State.OPERATION_ENABLED
+        net.sync.transmit()
+        assert wait_for(lambda: twin.state is State.SWITCHED_ON, 2.0)
+    finally:
+        net.sync.stop()
+        rpdo1.stop()
+    # asynchronous again (255): actuated at once, no SYNC
+    n.nmt.state = "PRE-OPERATIONAL"
+    rpdo1.trans_type = 255
+    rpdo1.save()
+    n.nmt.state = "OPERATIONAL"
+    assert wait_for(lambda: twin._node.nmt.state == "OPERATIONAL", 2.0)
+    cw.raw = 0x06
+    rpdo1.transmit()
+    assert wait_for(lambda: twin.state is State.READY_TO_SWITCH_ON, 2.0)
+
+
+@pytest.mark.parametrize("index", [0x1600, 0x1A00])
+def test_a_valid_pdos_mapping_is_not_changed_not_even_its_count(client: Client,
+                                                               index: int) -> None:
+    n = client.node
+    comm = index - 0x200
+    count, first = n.sdo[index][0].raw, n.sdo[index][1].raw
+    assert not n.sdo[comm][1].raw & (1 << 31)            # valid
+    for sub, value in ((0, 0), (0, count), (1, first)):
+        with pytest.raises(SdoAbortedError) as e:
+            n.sdo[index][sub].raw = value
+        assert e.value.code == 0x08000022
+    assert (n.sdo[index][0].raw, n.sdo[index][1].raw) == (count, first)
+    # not valid: the entries only once sub-index 0 is 0 (CiA 301's procedure)
+    n.sdo[comm][1].raw = n.sdo[comm][1].raw | (1 << 31)
+    with pytest.raises(SdoAbortedError) as e:
+        n.sdo[index][1].raw = first
+    assert e.value.code == 0x08000022
+    n.sdo[index][0].raw = 0
+    n.sdo[index][1].raw = first
+    n.sdo[index][0].raw = count
+    n.sdo[comm][1].raw = n.sdo[comm][1].raw & ~(1 << 31)
+    # the public client's whole procedure goes through
+    pdos = n.rpdo if index == 0x1600 else n.tpdo
+    pdos[1].read()
+    pdos[1].save()
+    assert (n.sdo[index][0].raw, n.sdo[index][1].raw) == (count, first)
+
+
+def test_a_mapping_entry_must_map_its_object_at_its_own_length(client: Client) -> None:
+    n = client.node
+    tpdo1 = n.tpdo[1]                      # canopen's API: 0x6041 (16 bits) as 32
+    tpdo1.clear()
+    tpdo1.add_variable(0x6041, length=32)
+    tpdo1.enabled = True
+    with pytest.raises(SdoAbortedError) as e:
+        tpdo1.save()
+    assert e.value.code == 0x06040041
+    for entry in (0x60410020, 0x60410008, 0x606C0010, 0x60FF0040, 0x12340010, 0x10000020):
+        with pytest.raises(SdoAbortedError) as e:  # wrong lengths; not mappable; absent
+            n.sdo[0x1A00][1].raw = entry
+        assert e.value.code == 0x06040041, hex(entry)
+    n.sdo[0x1A00][1].raw = 0x60410010      # its own 16 bits
+    n.sdo[0x1A00][2].raw = 0x606C0020      # 0x606C, INTEGER32
+    n.sdo[0x1A00][0].raw = 2
+    with pytest.raises(SdoAbortedError) as e:  # more entries than the PDO has
+        n.sdo[0x1A00][0].raw = 0x40
+    assert e.value.code == 0x06040042
+
+
+@pytest.mark.parametrize("one_to_two, back", [
+    ([(2, 2)], [(2, 1)]),                   # 0x6091 motor:shaft = 1:2, then 1:1
+    ([(1, 2)], [(1, 1)]),                   # 2:1 (a "1:2" gear, shaft:motor)
+    ([(2, 1), (1, 2)], [(2, 1), (1, 1)]),   # 2:1 written sub 2 first; back likewise
+    ([(1, 1), (2, 2)], [(1, 1), (2, 1)]),
+])
+def test_gear_ratio_back_to_one_to_one_is_accepted(client: Client,
+                                                   one_to_two: list[tuple[int, int]],
+                                                   back: list[tuple[int, int]]) -> None:
+    n, twin = client.node, client.twin
+    window = n.sdo[0x606D].raw
+    for sub, value in one_to_two + back:
+        n.sdo[0x6091][sub].raw = value       # every step answered, none refused
+        f = twin.factors                     # and the twin's units are the OD's
+        assert (f.gear_motor_revs, f.gear_shaft_revs) == (n.sdo[0x6091][1].raw,
+                                                          n.sdo[0x6091][2].raw)
+    assert (n.sdo[0x6091][1].raw, n.sdo[0x6091][2].raw) == (1, 1)
+    assert n.sdo[0x606D].raw == window       # its deg/s as at the start
+    # and the drive turns in its units as before: 36 deg/s
+    n.op_mode = "PROFILED VELOCITY"
+    n.sdo[0x60FF].raw = 0
+    n.state = "OPERATION ENABLED"
+    n.sdo[0x60FF].raw = round(36.0 * VEL_UNITS_PER_DPS)
+    assert wait_for(lambda: abs(twin.model.rate_dps - 36.0) < 0.05, 10.0)
+
+
+def test_a_gear_ratio_the_limits_cannot_follow_saturates_them(client: Client) -> None:
+    """At 2:1 the velocity window's 0.02 deg/s is 116 508 units of 0.001 inc/s, more than
+    0x606D (UNSIGNED16) holds: the ratio is taken (it was a general error 0x08000000),
+    the window holds its largest value, and 1:1 gives it back."""
+    n = client.node
+    window = n.sdo[0x606D].raw
+    n.sdo[0x6091][1].raw = 2
+    assert n.sdo[0x606D].raw == 0xFFFF
+    n.sdo[0x6091][1].raw = 1
+    assert n.sdo[0x606D].raw == window

@@ -149,7 +149,10 @@ def test_bench_decode_prints_counts_and_writes_csv(tmp_path: Path,
     assert np.array_equal(table[:, 1], idx % 128)
     assert np.all(table[:, 2] == 0x77)
     assert np.array_equal(table[:, 5].astype(np.float32), truth.value[idx])
-    assert np.all(table[:, 3] == 0) and np.all(table[:, 6] == 25)
+    # the cross-axis channel carries the FOG's noise (about 0.01 deg/s), not exactly 0;
+    # the temperature warms from 25 degC slowly (whole degrees)
+    assert np.all(np.abs(table[:, 3]) < 0.1) and np.any(table[:, 3] != 0)
+    assert np.all(table[:, 6] == 25)
 
 
 def test_bench_decode_invalid_input(tmp_path: Path) -> None:

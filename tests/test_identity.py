@@ -52,3 +52,20 @@ def test_a_twin_reporting_another_serial_is_a_stated_finding(tmp_path: Path) -> 
     stand = yaml.safe_load((tmp_path / "stand.yaml").read_text())
     counters = {c.serial for c in checks_of(run_dir, result, stand) if c.role == "counter"}
     assert counters == {"MY62000117"}, counters
+
+
+def test_a_fog_answering_another_serial_to_its_is_query_is_a_mismatch() -> None:
+    """The FOG's ?IS answer (KVH 1775 ICD 8.20) against the stand's fog.serial; a FOG not
+    asked (configure: declare) keeps the stated serial and is no mismatch."""
+    from bench.core.loader import load_config
+    from bench.core.traceability import identity_mismatches
+    from tests.conftest import CONFIGS
+
+    stand = load_config(CONFIGS / "procedures" / "demo.yaml").stand_settings
+    asked = {"outer": {"fog": "KVH DSP-1760, serial 170912345 (?IS); format kvh-a"}}
+    [m] = identity_mismatches(stand, asked)
+    assert m.text == ("axes.outer.fog.serial: the stand file states serial 1760-20231, the "
+                      "instrument reports 170912345 (?IS)")
+    same = {"outer": {"fog": "KVH DSP-1760, serial 1760-20231 (?IS); format kvh-a"}}
+    assert identity_mismatches(stand, same) == []
+    assert identity_mismatches(stand, {"outer": {"fog": "KVH DSP-1760; format kvh-a"}}) == []

@@ -9,6 +9,8 @@ Sources: KVH 1775 IMU Technical Manual 54-0938 with ICD 56-0298 Rev. B.
 - Section 7 (p. 24-25): a command `=NAME,args` answers `NAME,args`; a query `?NAME`
   answers `NAME,value`; an unknown word in Configuration Mode answers `INVALID,...`.
 - 8.8/8.9 (p. 33): `=DR,<rate>` answers `DR,<rate>`; `?DR` answers `DR,<rate>`.
+- 8.20 (p. 44): `?IS` "returns the main serial number of the unit": `IS,[Serial Number]`,
+  "a text string, typically with a numeric value" (issue 41: the twin answered INVALID).
 The words CONFIG, ROTFMT, ROTUNITS and OUTPUTFMT are not in the pages we could read
 (drivers/kvh_config.py says so); the dialogue below follows section 7's conventions.
 """
@@ -26,7 +28,7 @@ import serial
 
 from drivers.fog import Fog, FogError, dps_per_unit, read_capture
 from drivers.fog_formats import decode
-from drivers.kvh_config import FogSettings, KvhConfigError, KvhConfigurator
+from drivers.kvh_config import WORDS, FogSettings, KvhConfigError, KvhConfigurator
 from drivers.transport import TranscriptTransport
 from sims.clock import VirtualClock
 from sims.fog_twin import FogTwin
@@ -44,13 +46,17 @@ SET_DEG_S = [
     ("=ROTUNITS,DEG", "ROTUNITS,DEG"), ("=DR,1000", "DR,1000"),
     ("?OUTPUTFMT", "OUTPUTFMT,A"), ("?ROTFMT", "ROTFMT,RATE"),
     ("?ROTUNITS", "ROTUNITS,DEG"), ("?DR", "DR,1000"),
+    ("?IS", "IS,0"),           # 8.20: its serial (a unit with none set answers 0)
     ("=CONFIG,0", "CONFIG,0"),
 ]
+#: 8.20: the serial number query, in Configuration Mode
+IDENTIFY = [("=CONFIG,1", "CONFIG,1"), ("?IS", "IS,0"), ("=CONFIG,0", "CONFIG,0")]
 #: a unit at its power-on default, only read back
 VERIFY_AT_POWER_ON = [
     ("=CONFIG,1", "CONFIG,1"),
     ("?OUTPUTFMT", "OUTPUTFMT,A"), ("?ROTFMT", "ROTFMT,DELTA"),
     ("?ROTUNITS", "ROTUNITS,RAD"), ("?DR", "DR,1000"),
+    ("?IS", "IS,0"),
     ("=CONFIG,0", "CONFIG,0"),
 ]
 
@@ -74,12 +80,29 @@ def test_driver_sets_units_and_reads_them_back_as_the_icd_says():
     assert got == {"fog.format": "A", "fog.units": "deg/s", "fog.rate_hz": "1000"}
 
 
+def test_the_driver_reads_the_serial_with_its_settings():
+    """8.20: the serial read in the same Configuration Mode session; the bench compares it
+    with the stand's fog.serial (bench/core/traceability.py identity_mismatches)."""
+    dialogue = [(sent, "IS,170912345" if sent == "?IS" else want)
+                for sent, want in SET_DEG_S]
+    link = TranscriptTransport(dialogue, termination="\r\n")
+    got = KvhConfigurator(link, port="ttyTEST").apply(FogSettings("deg/s", 1000.0, "A", "set"))
+    link.assert_done()
+    assert got["fog.serial"] == "170912345"
+
+
 def test_verify_at_power_on_default_refuses_naming_the_stand_key():
     link = TranscriptTransport(VERIFY_AT_POWER_ON, termination="\r\n")
     with pytest.raises(KvhConfigError, match="fog.units: the stand says deg/s, the FOG "
                                              "outputs rad"):
         KvhConfigurator(link, port="ttyTEST").apply(FogSettings("deg/s", 1000.0, "A",
                                                                 "verify"))
+    link.assert_done()
+
+
+def test_the_serial_query_reads_the_icds_answer():
+    link = TranscriptTransport([("?IS", "IS,170912345")], termination="\r\n")
+    assert KvhConfigurator(link).query(WORDS.serial_number) == "170912345"
     link.assert_done()
 
 
@@ -106,7 +129,7 @@ def test_the_twin_answers_the_same_dialogues_on_its_pty():
     with twin_at_power_on() as (twin, _, _):
         assert twin.units == "rad"                   # Table 5-10: default delta radians
         with serial.Serial(twin.path, 921600, timeout=0.05) as ser:
-            for sent, want in VERIFY_AT_POWER_ON + SET_DEG_S:
+            for sent, want in VERIFY_AT_POWER_ON + IDENTIFY + SET_DEG_S:
                 ser.write((sent + "\r\n").encode())
                 deadline = time.monotonic() + 2.0
                 line = b""

@@ -187,9 +187,9 @@ FOG = Map({
     "configure": Key(Str(("set", "verify", "declare")), False,
                      "set: configure the FOG at connect and read back; verify: read back "
                      "only; declare: trust fog.units", FOG_DEFAULTS["configure"]),
-    "serial": Key(Str(), False, "the FOG's serial number (it answers no identity query, "
-                  "so the certificate prints it as the stand file states it; the key of its "
-                  "check values, bench control)"),
+    "serial": Key(Str(), False, "the FOG's serial number: compared with its answer to ?IS "
+                  "at connect (configure set or verify; KVH 1775 ICD 8.20), else printed as "
+                  "the stand file states it; the key of its check values (bench control)"),
     "model": Key(Str(), False, "maker and model, for the certificate"),
     "sign": Key(Check(Num(min=-1, max=1, integer=True), _upright_only), False,
                 "+1: the FOG's sensitive axis along the table's positive sense (the only "

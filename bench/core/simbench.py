@@ -36,6 +36,7 @@ from drivers.waits import MIN_REAL_MARGIN_S
 from sims.clock import GIL_SWITCH_S, MAX, SteppedClock, make_clock, parse_speed
 from sims.counter_twin import CounterTwin
 from sims.drive_twin import DriveTwin
+from sims.fog_twin import DEFAULT_SERIAL as DEFAULT_FOG_SERIAL
 from sims.fog_twin import FogTwin
 from sims.socketcand_server import MAX_BUS_NAME, SocketcandServer
 from sims.stand import SimulatedStand, StandTruth
@@ -138,7 +139,8 @@ class SimBench:
                 fs = axes[a].fog
                 if fs:
                     ft = FogTwin(self.stand, a, fmt=fs.format, axis_letter=fs.axis,
-                                 units=twin_fog_units(fs, self.sim.axis(a)))
+                                 units=twin_fog_units(fs, self.sim.axis(a)),
+                                 serial=fs.serial or DEFAULT_FOG_SERIAL)
                     axes[a] = dataclasses.replace(
                         axes[a], fog=dataclasses.replace(fs, port=ft.start()))
                     self._stack.callback(ft.stop)

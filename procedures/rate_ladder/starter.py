@@ -74,7 +74,7 @@ axes:
       units: deg/s                   # what its rate fields carry (required)
       configure: set                 # set the units at connect and read them back
       model: "TO FILL IN: the FOG's maker and model, as on its label{fog_hint}"
-      serial: "TO FILL IN: the FOG's serial, from its label (it answers no identity query)"
+      serial: "TO FILL IN: the FOG's serial, from its label (compared with its ?IS answer)"
 traceability:                        # references the bench uses but does not drive
   - item: 10 MHz reference at the counter's Ref In (its limit is timebase_limit_rel)
     serial: "TO FILL IN: the reference's serial"

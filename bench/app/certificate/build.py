@@ -433,9 +433,9 @@ def _instruments(src: Sources, proc: Procedure) -> tuple[Any, ...]:
                 if isinstance(conf, Mapping) else conf
             setting = text_of(conf) if conf else ""
             text = text_of(ident) if ident else "identity not recorded"
-            if role == "fog" and ident:
-                text = ("as configured in the stand file (a FOG answers no identity query): "
-                        + text)
+            if role == "fog" and ident and "(?IS)" not in str(ident):
+                text = ("as configured in the stand file (this FOG was not asked its serial, "
+                        "?IS): " + text)
             rows.append((axis, role, text, setting or "—"))
     if rows and all(r[3] == "—" for r in rows):
         blocks.append(Table(("Axis", "Instrument", "Identity (as reported)"),

@@ -87,6 +87,12 @@ def _drive_serial(text: str | None) -> str | None:
     return m.group(1) if m else None
 
 
+def _fog_serial(text: str | None) -> str | None:
+    """A FOG's answer to ?IS as its identity carries it ('..., serial N (?IS); ...')."""
+    m = re.search(r"serial (\S+) \(\?IS\)", text or "")
+    return m.group(1) if m else None
+
+
 def _std_u(std: float, dof: int) -> float | None:
     """U (k = 2) of a standard deviation from `dof` degrees of freedom (chi-square, normal
     data: ustd(s) = s / sqrt(2 dof)), docs/method.md C1."""
@@ -218,16 +224,18 @@ def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any
     ids = result.get("instruments") or {}
     ids = ids if isinstance(ids, Mapping) else {}
     stand_axes = stand.get("axes") or {}
-    reported: dict[str, list[str | None]] = {"counter": [], "drive": []}
+    reported: dict[str, list[str | None]] = {"counter": [], "drive": [], "fog": []}
     for a in stand_axes:
         got = entry if isinstance(entry := ids.get(a), Mapping) else {}
         reported["counter"].append(_idn_serial(got.get("counter")))
         reported["drive"].append(_drive_serial(got.get("drive")))
+        reported["fog"].append(_fog_serial(got.get("fog")))
 
     def serial(axis: str, role: str, conf: Mapping[str, Any]) -> str:
         got = entry if isinstance(entry := ids.get(axis), Mapping) else {}
         rep = (_idn_serial(got.get("counter")) if role == "counter" else
-               _drive_serial(got.get("drive")) if role == "drive" else None)
+               _drive_serial(got.get("drive")) if role == "drive" else
+               _fog_serial(got.get("fog")) if role == "fog" else None)
         unique = rep is not None and reported.get(role, []).count(rep) == 1
         return _serial_of(conf.get("serial"), rep, unique, f"{stand_serial}/{axis}/{role}")
 
