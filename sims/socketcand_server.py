@@ -217,6 +217,12 @@ class SocketcandServer:
         with self._clients_lock:
             return len(self._clients)
 
+    @property
+    def raw_clients(self) -> int:
+        """Clients in raw mode (frames go to them)."""
+        with self._clients_lock:
+            return sum(c.raw for c in self._clients)
+
     # -- the bus side ----------------------------------------------------------------------
     def _pump(self, name: str) -> None:
         """Frames from the twins (this process's virtual bus) to the bus's raw clients."""

@@ -155,6 +155,10 @@ def test_rawmode_reply_travels_alone_then_held_frames_follow(
     try:
         c.open_bus()
         c.send("< rawmode >")
+        deadline = time.monotonic() + 5.0        # the server has switched it to raw (a
+        while server.raw_clients < 1 and time.monotonic() < deadline:  # frame before
+            time.sleep(0.001)                    # that is not for it, as on a real bus)
+        assert server.raw_clients == 1
         for i in range(20):                      # the bus is busy right after the reply
             twin.send(can.Message(arbitration_id=0x700 + 2, data=bytes([i])))
         time.sleep(0.05)

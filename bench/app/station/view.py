@@ -221,9 +221,10 @@ def live_table(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
                    "turns", "verdict"), out)
 
 
-def _ladder_tables(doc: Mapping[str, Any]) -> list[dict[str, Any]]:
-    """Per axis of a rate ladder's result.json: each rate's error and instability with U
-    and verdict, then each ± pair's FOG scale factor k and bias ω0 with U."""
+def _axis_tables(doc: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Per axis of a result.json with CONTRACT §3's `axes.<axis>.rates[]` and `pairs[]`:
+    each rate's error and instability with U and verdict, then each ± pair's FOG scale
+    factor k and bias ω0 with U (any other result: its declared figures)."""
     tables = []
     for axis, body in (doc.get("axes") or {}).items():
         if not isinstance(body, Mapping):
@@ -296,7 +297,7 @@ def _final(path: str, _mtime_ns: int, _size: int) -> tuple[str | None, tuple[Any
     doc = read_json_object(Path(path) / "result.json")
     if not doc:
         return None, ()
-    tables = _ladder_tables(doc) or _declared_table(doc, Path(path))
+    tables = _axis_tables(doc) or _declared_table(doc, Path(path))
     verdict = doc.get("verdict")
     return (None if verdict is None else str(verdict)), tuple(tables)
 
