@@ -367,3 +367,28 @@ def test_a_fog_opened_while_the_clock_ran_starts_at_the_clock(tmp_path: Path) ->
     assert again.index[0] == first and dec.lost_frames == 0
     assert np.array_equal(again.rate_dps[:n], s.rate_dps)
     assert np.array_equal(again.index[:n], s.index)
+
+
+def test_a_reply_cut_by_the_read_deadline_is_read_whole_next_time() -> None:
+    """A loaded machine delivered '=ROTFMT,RATE's answer across a read's deadline: the two
+    halves matched neither and the run aborted ("no answer starting 'ROTFMT,RATE'")."""
+    import os
+    import threading
+
+    import serial as pyserial
+
+    from drivers.fog import _SerialLines
+
+    master, slave = os.openpty()
+    try:
+        with pyserial.Serial(os.ttyname(slave), 921600, timeout=0.01) as ser:
+            link = _SerialLines(ser)
+            os.write(master, b"ROTF")
+            later = threading.Timer(0.3, lambda: os.write(master, b"MT,RATE\r\n"))
+            later.start()
+            assert link.read(0.1) == b""            # the deadline falls inside the line
+            later.join()
+            assert link.read(1.0) == b"ROTFMT,RATE"
+    finally:
+        os.close(master)
+        os.close(slave)
