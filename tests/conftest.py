@@ -43,6 +43,21 @@ def unavailable(reason: str) -> None:
     pytest.skip(reason)
 
 
+@pytest.fixture(scope="session")
+def pg() -> Any:
+    """One PostgreSQL server per test process (tests/pg_server.py), started on first use."""
+    from tests.pg_server import PgServer, PgUnavailable
+
+    try:
+        server = PgServer().start()
+    except PgUnavailable as e:
+        unavailable(f"no PostgreSQL server for the records and register tests: {e}")
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
 @pytest.fixture
 def small_disk(tmp_path: Path) -> Any:
     """A small file system of its own (tmpfs), to be filled: needs root and mount(2)."""

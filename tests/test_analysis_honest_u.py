@@ -38,20 +38,20 @@ def most_misses(n: int, p: float = 0.05) -> int:
 def test_type_a_never_rests_on_a_sigma_below_the_timing_floor() -> None:
     """4 turns at 360 deg/s (T = 1 s) with 1 us of edge jitter: floor sqrt(2) ppm per turn.
     Edges built with 0.01 ppm of scatter: the sample sigma is far below the floor, so the
-    Type A term is the floor's, floor / sqrt(4) * sqrt(3 / 1) (scaled t, 3 dof)."""
+    Type A term is the floor's, floor / sqrt(4), with 3 dof (k from them, method D1)."""
     budget = CounterBudget(trigger_jitter_s=1e-6)
     edges = 10.0 + np.arange(5) * 1.0 + np.array([0, 1e-8, -1e-8, 1e-8, 0])
     tr = analyze_turns([edges], 360.0, budget)
     floor = math.sqrt(2) * 1e-6
     assert tr.rate_instability_floor_rel == pytest.approx(floor)
     assert tr.rate_instability_rel < floor / 10
-    assert tr.repeatability_u_rel == pytest.approx(floor / 2 * math.sqrt(3), rel=1e-9)
+    assert tr.repeatability_u_rel == pytest.approx(floor / 2, rel=1e-9)
+    assert tr.repeatability_dof == 3
     assert "timing floor" in tr.to_dict()["rate_error_budget"]["repeatability_basis"]
     # a sample sigma above the floor is used as it is
     loud = 10.0 + np.arange(5) * 1.0 + np.array([0, 2e-5, -2e-5, 2e-5, 0])
     tl = analyze_turns([loud], 360.0, budget)
-    assert tl.repeatability_u_rel == pytest.approx(
-        tl.rate_instability_rel / 2 * math.sqrt(3), rel=1e-9)
+    assert tl.repeatability_u_rel == pytest.approx(tl.rate_instability_rel / 2, rel=1e-9)
     assert tl.to_dict()["rate_error_budget"]["repeatability_basis"].startswith("sample")
 
 
@@ -182,7 +182,10 @@ def test_type_a_is_pooled_over_the_pair_s_two_directions() -> None:
     rel = [np.asarray(r.counter_rate_dps) / 360.0 for r in (plus, minus)]
     pooled = math.sqrt(sum(float(np.sum((x - x.mean()) ** 2)) for x in rel) / 6)
     for r in (plus, minus):
-        assert r.repeatability_u_rel == pytest.approx(pooled / 2 * math.sqrt(6 / 4), rel=1e-9)
+        assert r.repeatability_u_rel == pytest.approx(pooled / 2, rel=1e-9)
         assert "pooled" in r.repeatability_basis and "6 dof" in r.repeatability_basis
-        assert r.rate_error_u_rel == pytest.approx(2 * math.sqrt(
+        assert r.repeatability_dof == 6
+        # the Type A term dominates: nu_eff ~ 6, k = t_95.45(6) = 2.52 (EA-4/02 table E.1)
+        assert r.coverage_factor == 2.52
+        assert r.rate_error_u_rel == pytest.approx(2.52 * math.sqrt(
             r.timing_u_rel ** 2 + r.timebase_u_rel ** 2 + r.repeatability_u_rel ** 2))

@@ -55,11 +55,18 @@ def test_rate_error_instability_and_u_by_hand():
     assert r.rate_instability_rel == pytest.approx(
         np.sqrt(np.sum((rates - rates.mean()) ** 2) / 4) / abs(rates.mean()), rel=1e-9)
     # U: each window's two end edges, the timebase (rectangular) and the turn-to-turn
-    # repeatability (eq. 2 / sqrt(N), times GUM-S1's sqrt((N-1)/(N-3)) for few turns), k = 2
+    # repeatability (eq. 2 / sqrt(N), N - 1 = 4 dof); k = t_95.45(nu_eff) by
+    # Welch-Satterthwaite (docs/method.md D1), by hand with scipy's t
+    from scipy.stats import norm, t
+
     timing = math.sqrt(2 * 2) * 27e-9 / periods.sum()
-    repeat = r.rate_instability_rel / math.sqrt(5) * math.sqrt(4 / 2)
+    repeat = r.rate_instability_rel / math.sqrt(5)
     u = math.sqrt(timing ** 2 + (2e-8 / math.sqrt(3)) ** 2 + repeat ** 2)
-    assert r.rate_error_u_rel == pytest.approx(2 * u, rel=1e-9)
+    nu_eff = u ** 4 / (repeat ** 4 / 4)
+    k = round(float(t.ppf(norm.cdf(2), math.floor(nu_eff))), 2)
+    assert r.dof_eff == pytest.approx(nu_eff, rel=1e-9)
+    assert r.coverage_factor == k
+    assert r.rate_error_u_rel == pytest.approx(k * u, rel=1e-9)
     d = r.to_dict()
     assert d["set_rate_dps"] == -50.0 and d["turns"] == 5
     assert len(d["counter_rate_dps"]) == 5 and all(x < 0 for x in d["counter_rate_dps"])

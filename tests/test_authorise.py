@@ -7,6 +7,7 @@ with pypdfium2 (an independent reader), the DCCs with lxml.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 import shutil
@@ -20,8 +21,11 @@ from lxml import etree
 from bench.app.certificate import authorise as auth
 from bench.app.certificate import register
 from bench.app.dcc.settings import ENV_LAB
+from bench.core.lab import load_lab
 from tests.conftest import DemoRun
 from tests.conftest import cli as _cli
+from tests.registers import authorise as reg_authorise
+from tests.registers import lab_file, password, sqlite_register
 from tests.test_dcc import _lab_file, _throwaway_key
 
 NS = {"dcc": "https://ptb.de/dcc", "ds": "http://www.w3.org/2000/09/xmldsig#"}
@@ -31,6 +35,12 @@ DRAFT = "DRAFT, NOT AUTHORISED"
 @pytest.fixture(autouse=True)
 def _no_lab_of_the_developer(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv(ENV_LAB, raising=False)
+
+
+@pytest.fixture
+def lab(tmp_path: Path) -> Path:
+    """A lab file naming a fresh SQLite register with the lab's accounts (tests/registers.py)."""
+    return lab_file(tmp_path / "lab", sqlite_register(tmp_path / "lab"))
 
 
 @pytest.fixture
@@ -64,7 +74,7 @@ def _bytes(folder: Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
 
 
-def test_draft_authorise_reissue(run: Path) -> None:
+def test_draft_authorise_reissue(run: Path, lab: Path) -> None:
     # the draft: marked on every page, no date of issue, no authorisation claimed
     pages = _pages(run / "certificate.pdf")
     assert len(pages) > 3
@@ -77,15 +87,15 @@ def test_draft_authorise_reissue(run: Path) -> None:
     assert _main_signers(draft_dcc) == []
     assert not (run / register.REGISTER_NAME).exists()
 
-    # a signatory the lab does not authorise (she performed the work): refused, nothing kept
-    done = _cli("authorise", str(run), "--signatory", "A. Ivanova")
+    # an account without the signatory role (she performs calibrations): refused, nothing
+    # kept, though the procedure file lists her among its signatories
+    done = reg_authorise(run, "A. Ivanova", lab)
     assert done.returncode == 2, done.stdout
-    assert "'A. Ivanova' is not a signatory the lab settings authorise" in done.stderr
-    assert "P. Petrov" in done.stderr
+    assert "'A. Ivanova' does not hold the signatory role" in done.stderr
     assert not (run / register.REGISTER_NAME).exists() and not (run / "issued").exists()
 
     # the issue: names the authoriser in the PDF and as the DCC's main signer
-    done = _cli("authorise", str(run), "--signatory", "P. Petrov")
+    done = reg_authorise(run, "P. Petrov", lab)
     assert done.returncode == 0, done.stderr
     first = register.issues(run)
     assert [(i.revision, i.signatory) for i in first] == [(1, "P. Petrov")]
@@ -103,7 +113,7 @@ def test_draft_authorise_reissue(run: Path) -> None:
     kept = _bytes(rev1)
 
     # a re-issue without a reason: refused
-    done = _cli("authorise", str(run), "--signatory", "P. Petrov")
+    done = reg_authorise(run, "P. Petrov", lab)
     assert done.returncode == 2
     assert "must say why (--reason TEXT" in done.stderr
     assert len(register.issues(run)) == 1
@@ -112,10 +122,12 @@ def test_draft_authorise_reissue(run: Path) -> None:
     assert _cli("analyze", str(run), "--quiet").returncode == 0
     pages = _pages(run / "certificate.pdf")
     assert len(pages) > 3 and all(DRAFT in p for p in pages)
-    assert f"{first[0].number}-R2 (DRAFT)" in pages[0]
+    # a draft carries a draft identifier, never the number the register allocated
+    assert "Draft DRAFT-" in pages[0] and "-R2" in pages[0]
+    assert first[0].number not in pages[0].split("Revision")[0]
     assert _bytes(rev1) == kept
     reason = "customer contact corrected on the customer's request"
-    done = _cli("authorise", str(run), "--signatory", "P. Petrov", "--reason", reason)
+    done = reg_authorise(run, "P. Petrov", lab, "--reason", reason)
     assert done.returncode == 0, done.stderr
     second = register.issues(run)[-1]
     assert (second.revision, second.replaces, second.reason) == (2, first[0].number, reason)
@@ -151,16 +163,24 @@ def test_signed_issue_and_unsigned_draft_under_a_lab_that_signs(
         run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     key, cert = _throwaway_key(tmp_path / "keys", "Test Rate Lab DCC signing")
     lab = _lab_file(tmp_path, key, cert)
+    url = sqlite_register(tmp_path / "register")
+    with lab.open("a") as f:
+        f.write(f"register: {url}\n")
     monkeypatch.setenv("TEST_DCC_KEY_PASSWORD", "s3cret")
     # the draft is not signed: a lab that signs its DCCs does not accept it
     done = _cli("verify", str(run / "certificate.dcc.xml"), "--lab", str(lab))
     assert done.returncode == 1
     assert "FAIL  signature: the file is not signed, and the laboratory signs" in done.stdout
     assert "DRAFT" in done.stdout
-    # issued by the lab's main signer (responsible_persons, main_signer: true): signed
-    done = _cli("authorise", str(run), "--signatory", "P. Petrov", "--lab", str(lab))
-    assert done.returncode == 2 and "A. Tester" in done.stderr
-    done = _cli("authorise", str(run), "--signatory", "A. Tester", "--lab", str(lab))
+    # the key the lab file names signs only once the register designates its certificate
+    # (issue 42: the key is the register's decision, not a file's)
+    from bench.app.register import Register
+    with Register.open(url) as reg:
+        assert auth.designated_signing(load_lab(lab), reg)[0].signing is None
+        reg.set_setting(reg.authenticate("admin", password("admin")), auth.SIGNING_SETTING,
+                        hashlib.sha256(cert.read_bytes()).hexdigest())
+    # issued by a signatory of the register (the lab file's main_signer decides nothing)
+    done = reg_authorise(run, "A. Tester", lab)
     assert done.returncode == 0, done.stderr
     assert "DCC signed (XAdES)" in done.stdout
     issued = run / "issued" / register.issues(run)[-1].number / "certificate.dcc.xml"
@@ -172,7 +192,7 @@ def test_signed_issue_and_unsigned_draft_under_a_lab_that_signs(
     assert "signer CN=Test Rate Lab DCC signing" in done.stdout
 
 
-def test_a_pre_issue_check_refuses(run: Path) -> None:
+def test_a_pre_issue_check_refuses(run: Path, lab: Path) -> None:
     """The hook measurement assurance plugs into: any reason given refuses the issue."""
     seen: list[auth.IssueContext] = []
 
@@ -182,7 +202,7 @@ def test_a_pre_issue_check_refuses(run: Path) -> None:
 
     auth.add_pre_issue_check(out_of_control)
     try:
-        done = _cli("authorise", str(run), "--signatory", "P. Petrov")
+        done = reg_authorise(run, "P. Petrov", lab)
     finally:
         auth.PRE_ISSUE_CHECKS.remove(out_of_control)
     assert done.returncode == 2
@@ -191,23 +211,23 @@ def test_a_pre_issue_check_refuses(run: Path) -> None:
     assert not (run / "issued").exists()
 
 
-def test_a_real_stand_with_shared_or_missing_serials_is_not_issued(run: Path) -> None:
+def test_a_real_stand_with_shared_or_missing_serials_is_not_issued(run: Path, lab: Path) -> None:
     result = json.loads((run / "result.json").read_text())
     result["stand"]["simulated"] = False                  # as if the instruments were real
     result["instruments"]["inner"]["counter"] = result["instruments"]["outer"]["counter"]
     result["instruments"]["outer"]["drive"] = "Drive maker, model X, serial 0"
     (run / "result.json").write_text(json.dumps(result))
-    done = _cli("authorise", str(run), "--signatory", "P. Petrov")
+    done = reg_authorise(run, "P. Petrov", lab)
     assert done.returncode == 2
     assert "the drive of outer reported no serial number" in done.stderr
     assert "report one serial" in done.stderr
 
 
-def test_an_incomplete_run_is_not_issued(run: Path) -> None:
+def test_an_incomplete_run_is_not_issued(run: Path, lab: Path) -> None:
     result: dict[str, Any] = json.loads((run / "result.json").read_text())
     result["verdict"] = "incomplete"
     (run / "result.json").write_text(json.dumps(result))
-    done = _cli("authorise", str(run), "--signatory", "P. Petrov")
+    done = reg_authorise(run, "P. Petrov", lab)
     assert done.returncode == 2 and "incomplete run certifies nothing" in done.stderr
 
 
@@ -268,12 +288,12 @@ def _figures_missing(pdf_text: str, root: etree._Element, rates: set[float]
 
 @pytest.mark.parametrize("which", ["demo", "drift"])
 def test_the_dcc_states_what_the_pdf_states(which: str, request: pytest.FixtureRequest,
-                                            tmp_path: Path) -> None:
+                                            tmp_path: Path, lab: Path) -> None:
     done: DemoRun = request.getfixturevalue({"demo": "demo_run", "drift": "drift_demo_run"}[which])
     assert done.status == 0, done.stderr[-3000:]
     run = tmp_path / "run"
     shutil.copytree(done.dir, run)
-    assert _cli("authorise", str(run), "--signatory", "P. Petrov").returncode == 0
+    assert reg_authorise(run, "P. Petrov", lab).returncode == 0
     issued = run / "issued" / register.issues(run)[-1].number
     pages = _pages(issued / "certificate.pdf")
     text = "\n".join(pages)
@@ -309,8 +329,11 @@ def test_the_dcc_states_what_the_pdf_states(which: str, request: pytest.FixtureR
         assert s in " ".join(text.split())
     people = {rp.findtext(f"dcc:person/{c}", None, NS)
               for rp in adm.iterfind("dcc:respPersons/dcc:respPerson", NS)}
-    assert people == {s["name"] for s in cert["signatories"]}
+    # the performer no account authenticated is "not recorded" in both (issue 42: never a
+    # name from the procedure file), and the signatory the register authenticated
+    assert people == {"not recorded", "P. Petrov"}
     for name in people:
         assert name in text
+    assert "A. Ivanova" not in text         # the procedure file's "performer"
     assert _main_signers(root) == ["P. Petrov"]
     assert "SIMULATED" in adm.findtext(".//dcc:item/dcc:description/dcc:content", "", NS)

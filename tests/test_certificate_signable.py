@@ -104,11 +104,17 @@ def test_printed_formula_on_printed_inputs_gives_printed_delta() -> None:
         assert abs(delta_ppm - truth * 1e6) <= _number(delta_u)
 
 
-def test_per_edge_timing_and_small_sample_factor_are_printed() -> None:
+def test_per_edge_timing_and_the_coverage_rule_are_printed() -> None:
+    """The method section renders the Type A term and the coverage factor from the
+    constants the analysis computes with (docs/method.md A2, D1)."""
+    from bench.analysis.coverage import COVERAGE_FORMULA
+    from bench.analysis.turns import REPEATABILITY_FORMULA
+
     html = html_lib.unescape(render_html(build_document(
         _ladder_result({10.0: 1e-7}), None, ISSUED)))
     assert "Δ_edge = √(Δ_counter² + Δ_trigger²);   ΔT = √2 · Δ_edge" in html
-    assert "√((N − 1) / (N − 3))" in html
+    assert REPEATABILITY_FORMULA in html and COVERAGE_FORMULA in html
+    assert "(N − 3)" not in html
 
 
 # -- the item is what was calibrated -----------------------------------------------------
@@ -154,17 +160,17 @@ def test_drafts_are_not_issues_and_name_the_revision_they_would_become(
     result.update(run_dir=run.path.name, dates={"created_utc": "2026-11-22T10:00:00Z",
                                                 "completed_utc": "2026-11-22T11:00:00Z"})
     write_certificate(run, result, issued=ISSUED)
-    first = re.search(r"Certificate No\. (\S+)", _pdf_text(run.path / "certificate.pdf")[0])[1]
+    first = re.search(r"Draft (DRAFT-\S+)", _pdf_text(run.path / "certificate.pdf")[0])[1]
     write_certificate(run, result, issued=ISSUED + dt.timedelta(days=1))
     pages = _pdf_text(run.path / "certificate.pdf")
-    assert re.search(r"Certificate No\. (\S+)", pages[0])[1] == first
+    assert re.search(r"Draft (DRAFT-\S+)", pages[0])[1] == first
     assert len(pages) > 2 and all("DRAFT, NOT AUTHORISED" in p for p in pages)
     assert issues(run.path) == [] and not (run.path / REGISTER_NAME).exists()
     record(run.path, next_issue(run.path, first, dt.datetime(2026, 11, 23, 9, tzinfo=dt.UTC),
                                 signatory="P. Petrov"))
     write_certificate(run, result)
     text = re.sub(r"\s+", " ", " ".join(_pdf_text(run.path / "certificate.pdf")))
-    assert f"Certificate No. {first}-R2 (DRAFT)" in text
+    assert f"Draft {first}-R2" in text
     assert "which is withdrawn" not in text
     assert f"DRAFT of a re-issue; certificate {first} stands until it is issued" in text
 
@@ -192,7 +198,10 @@ def test_named_signatories_from_the_lab_settings(tmp_path: Path) -> None:
     result["certificate"] = lab
     write_certificate(run, result, issued=ISSUED)
     text = re.sub(r"\s+", " ", "".join(_pdf_text(run.path / "certificate.pdf")))
-    assert "A. Ivanova, Calibration engineer (performed the calibration)" in text
+    # names in a lab file sign nothing (issue 42): the performer is an authenticated
+    # account or "not recorded"
+    assert "A. Ivanova" not in text
+    assert "Calibration performed by: not recorded (no account authenticated" in text
     assert "Date of issue:" not in text and "authorised for issue by" not in text  # a draft
     issue = next_issue(run.path, "RT-TEST", dt.datetime(2026, 11, 22, 9, tzinfo=dt.UTC),
                        signatory="P. Petrov", function="Technical manager (authorised "

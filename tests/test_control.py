@@ -38,6 +38,7 @@ from bench.core.config import parse_stand
 from bench.core.simdrift import drifted
 from tests.conftest import CONFIGS, cli, run_dir_of, unavailable
 from tests.conftest import OUTER_SERIALS as OUTER
+from tests.registers import add_register, authorise, cli_in, password
 
 FOG = OUTER["fog"]
 STABLE_RUNS = 8
@@ -92,7 +93,7 @@ def _html_text(run_dir: Path) -> str:
 
 @pytest.mark.timeout(900)
 def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
-        history: dict[str, Any]) -> None:
+        history: dict[str, Any], tmp_path: Path) -> None:
     runs, shifted = history["runs"], history["shifted"]
     # the twin drifted in run 9 (its number from the records), by the step asked for
     assert json.loads((shifted / "meta.json").read_text())["sim_run_number"] == 9
@@ -134,8 +135,10 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     refusals = assurance_refusals(shifted)
     assert len(refusals) == 1 and FOG in refusals[0] and "WE1" in refusals[0], refusals
     assert assurance_refusals(history["dirs"][-1]) == []   # run 8 rests on no signal
-    lab = str(CONFIGS / "lab.yaml")   # P. Petrov authorises there
-    refused = cli("authorise", str(shifted), "--signatory", "P. Petrov", "--lab", lab)
+    lab = tmp_path / "lab.yaml"       # the shipped lab file, naming a register
+    lab.write_text((CONFIGS / "lab.yaml").read_text())
+    add_register(lab, tmp_path / "register")
+    refused = authorise(shifted, "P. Petrov", lab)
     assert refused.returncode == 2, refused.stdout + refused.stderr
     assert FOG in refused.stderr and "WE1" in refused.stderr, refused.stderr
     assert not list((shifted / "issued").glob("*/certificate.pdf"))
@@ -144,9 +147,16 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     why = f"FOG {FOG} re-checked against the reference table; scale confirmed"
     bad = cli("control", FOG, "--runs", str(runs), "--review", "  ")
     assert bad.returncode == 2
-    rev = cli("control", FOG, "--runs", str(runs), "--review", why, "--by", "Q. Manager")
+    # a name typed after --by is not a reviewer: the register authenticates one (issue 42)
+    for who, pw in (("Q. Manager", "not-her-password"), ("A. Ivanova", password("A. Ivanova"))):
+        bad = cli_in(pw + "\n", "control", FOG, "--runs", str(runs), "--review", why, "--by",
+                     who, "--lab", str(lab), "--password-stdin")
+        assert bad.returncode == 2, bad.stdout
+    assert assurance_refusals(shifted) != []
+    rev = cli_in(password("Q. Manager") + "\n", "control", FOG, "--runs", str(runs),
+                 "--review", why, "--by", "Q. Manager", "--lab", str(lab), "--password-stdin")
     assert rev.returncode == 0, rev.stdout + rev.stderr
-    assert "review recorded: Q. Manager" in rev.stdout
+    assert "review recorded: Q. Manager (account Q. Manager, authenticated)" in rev.stdout
     assert assurance_refusals(shifted) == []
     redo = cli("analyze", str(shifted), "--quiet")
     assert redo.returncode in (0, 1), redo.stderr[-2000:]
@@ -154,9 +164,10 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     assert "reviewed by Q. Manager" in text and why in text
     doc = json.loads((shifted / "assurance.json").read_text())
     fog = next(i for i in doc["instruments"] if i["serial"] == FOG)
-    assert fog["state"] == IN_CONTROL and fog["last_review"]["reviewer"] == "Q. Manager"
+    assert fog["state"] == IN_CONTROL and fog["last_review"]["reviewer"].startswith(
+        "Q. Manager (account Q. Manager, authenticated)")
     # with the review recorded, authorise issues; the issued certificate states the review
-    issued = cli("authorise", str(shifted), "--signatory", "P. Petrov", "--lab", lab)
+    issued = authorise(shifted, "P. Petrov", lab)
     assert issued.returncode == 0, issued.stdout + issued.stderr
     (html,) = (shifted / "issued").glob("*/certificate.html")
     text = re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html.read_text(encoding="utf-8")))

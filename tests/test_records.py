@@ -17,7 +17,7 @@ import subprocess
 import threading
 import time
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -37,9 +37,9 @@ from bench.app.records.trend import trend_png
 from bench.core.config import parse_stand
 from bench.core.journal import sha256_file
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, bench, bench_bg, cli, unavailable
+from tests.conftest import CONFIGS, bench, bench_bg, cli
 from tests.conftest import OUTER_SERIALS as OUTER
-from tests.pg_server import PgServer, PgUnavailable
+from tests.pg_server import PgServer
 from tests.test_run_e2e import assert_within_u
 
 SERIAL = "SIM-REC-1"
@@ -77,18 +77,6 @@ def _run_dir(out: subprocess.CompletedProcess[str]) -> Path:
 
 
 # -- the databases ---------------------------------------------------------------------------
-
-@pytest.fixture(scope="session")
-def pg() -> Iterator[PgServer]:
-    try:
-        server = PgServer().start()
-    except PgUnavailable as e:
-        unavailable(f"no PostgreSQL server for the records tests: {e}")
-    try:
-        yield server
-    finally:
-        server.stop()
-
 
 @dataclasses.dataclass
 class Db:

@@ -30,10 +30,11 @@ def test_every_u_key_gets_its_explicit_twin_with_the_same_value() -> None:
                                "checks": [{"u_rel": 1e-7}]})
     r = out["axes"]["outer"]["rates"][0]
     b = r["rate_error_budget"]
-    # U = 2 sqrt(sum of the budget's standard terms^2): the _U and _ustd names say which
+    # U = k sqrt(sum of the budget's standard terms^2), k = t_95.45(nu_eff) as the budget
+    # states it (docs/method.md D1): the _U and _ustd names say which
     total = math.sqrt(b["timing_ustd_rel"] ** 2 + b["timebase_ustd_rel"] ** 2
                       + b["repeatability_ustd_rel"] ** 2)
-    assert math.isclose(r["rate_error_U_rel"], 2 * total, rel_tol=1e-12)
+    assert math.isclose(r["rate_error_U_rel"], b["coverage_factor"] * total, rel_tol=1e-12)
     assert r["rate_error_U_rel"] == r["rate_error_u_rel"]      # CONTRACT key kept
     assert "timing_U_rel" not in b and "rate_error_ustd_rel" not in r
     assert out["checks"][0]["U_rel"] == 1e-7

@@ -17,9 +17,10 @@ per-turn periods share edges, so their errors are negatively correlated and aver
 periods does not beat the two-edge figure (docs/method.md A1; the paper's per-period error
 budget dT applies to each per-turn rate, not to the mean).
 
-U (k = 2) of the rate error combines: the timing of each window's two end edges, the
-counter's timebase (rectangular), and a Type A repeatability term, eq. 2's relative std
-over sqrt(N), widened for few turns as GUM Supplement 1 does (`small_sample_factor`): the
+U of the rate error combines: the timing of each window's two end edges, the counter's
+timebase (rectangular), and a Type A repeatability term, eq. 2's relative std over
+sqrt(N) with its degrees of freedom (`REPEATABILITY_FORMULA`); k is the t-factor of the
+effective degrees of freedom (bench/analysis/coverage.py, docs/method.md D1): the
 certificate states the table's rate error, of which these N turns are one sample, not
 only how well these N turns were timed.
 
@@ -35,7 +36,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.analysis.coverage import expanded
+
 FULL_TURN_DEG = 360.0
+#: docs/method.md A2, rendered by the certificate's method section from here: the Type A
+#: term of the rate error as `pool_type_a` and `analyze_turns` compute it
+REPEATABILITY_FORMULA = ("u_rep = σ_A / √N,   ν_rep = N₊ + N₋ − 2   (σ_A = √(Σ± Σ_i (ω_i/ω_set − "
+                         "mean)² / ν_rep), pooled over both directions of the pair, never "
+                         "below the timing floor ΔT / T)")
+#: docs/method.md A2: the rate error's combined and expanded uncertainty (k from D1)
+RATE_ERROR_U_FORMULA = "u_c = √(u_timing² + u_timebase² + u_rep²);   U = k(ν_eff) · u_c"
+
 # a per-turn rate this far from the command means a missed or doubled zero mark
 _TURN_RATE_SANITY_REL = 0.1
 
@@ -134,14 +145,17 @@ class TurnsResult:
     counter_rate_dps: tuple[float, ...]
     mean_rate_dps: float               # total angle / total time over all timed turns
     rate_error_rel: float              # (mean - set) / set, signed (eq. 1, signed)
-    rate_error_u_rel: float            # expanded, k = 2
+    rate_error_u_rel: float            # expanded, k = coverage_factor (docs/method.md D1)
     rate_instability_rel: float | None  # eq. 2 (None below 2 turns)
     rate_instability_floor_rel: float  # what edge timing alone adds to eq. 2
     timing_u_rel: float                # standard, from the windows' end edges
     timebase_u_rel: float              # standard, common to every rate
     budget: CounterBudget
-    repeatability_u_rel: float = 0.0   # standard, Type A: instability / sqrt(N), widened
+    repeatability_u_rel: float = 0.0   # standard, Type A: sigma_A / sqrt(N)
     repeatability_basis: str = ""      # which sigma the Type A term rests on, and why
+    repeatability_dof: float | None = None   # nu of the Type A term (None: no term)
+    dof_eff: float | None = None       # Welch-Satterthwaite over the three terms (None: inf)
+    coverage_factor: float = 2.0       # k = t_95.45(nu_eff) (docs/method.md D1)
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -157,31 +171,28 @@ class TurnsResult:
                                   "timebase_u_rel": self.timebase_u_rel,
                                   "repeatability_u_rel": self.repeatability_u_rel,
                                   "repeatability_basis": self.repeatability_basis,
-                                  "coverage_factor": 2.0, **self.budget.to_dict()},
+                                  "repeatability_dof": self.repeatability_dof,
+                                  "dof_eff": self.dof_eff,
+                                  "coverage_factor": self.coverage_factor,
+                                  **self.budget.to_dict()},
         }
 
 
-def small_sample_factor(n: int, dof: float | None = None) -> float:
-    """Scale s / sqrt(n) so that k = 2 still covers ~95 % when s rests on few turns.
-
-    GUM Supplement 1 (6.4.9): a mean of n readings of unknown variance has a scaled
-    t-distribution, standard deviation s / sqrt(n) * sqrt(nu / (nu - 2)) for nu = n - 1
-    > 2 degrees of freedom (or those of a pooled s); below that the variance is unbounded
-    and we use t_95(nu) / 2 instead.
-    """
-    nu = (n - 1) if dof is None else dof
-    if nu > 2:
-        return math.sqrt(nu / (nu - 2))
-    from scipy.stats import t
-
-    return float(t.ppf(0.975, max(nu, 1)) / 2.0)
+def rate_error_u(timing_u_rel: float, timebase_u_rel: float, repeat_u_rel: float,
+                 repeat_dof: float | None) -> tuple[float | None, float, float]:
+    """(nu_eff, k, U) of the rate error from its three standard uncertainties
+    (docs/method.md A2 `RATE_ERROR_U_FORMULA`, k by D1); timing and timebase are Type B."""
+    _, nu, k, big_u = expanded(((timing_u_rel, None), (timebase_u_rel, None),
+                                (repeat_u_rel, repeat_dof)))
+    return nu, k, big_u
 
 
 def pool_type_a(results: Sequence[TurnsResult]) -> list[TurnsResult]:
     """docs/method.md A2: the Type A term of each direction of one pair from the per-turn
     scatter pooled over both (the same table at the same |rate|: one sigma in the model),
     nu = sum (N_i - 1) degrees of freedom, still never below each direction's timing floor.
-    The rate error's U is recomputed with it; each budget names its basis."""
+    The rate error's U is recomputed with it (k from nu_eff, docs/method.md D1); each budget
+    names its basis."""
     ss, nu = 0.0, 0
     for r in results:
         rel = np.asarray(r.counter_rate_dps) / abs(r.set_rate_dps)
@@ -197,17 +208,20 @@ def pool_type_a(results: Sequence[TurnsResult]) -> list[TurnsResult]:
         what = ("timing floor" if pooled < r.rate_instability_floor_rel else
                 "sample sigma pooled over both directions")
         basis = (f"{what} {basis_sigma:.3g} (pooled sigma {pooled:.3g} from "
-                 f"{len(results)} directions, {nu} dof), scaled t with {nu} dof")
-        rep = basis_sigma / math.sqrt(r.turns) * small_sample_factor(r.turns, nu)
-        u = math.sqrt(r.timing_u_rel ** 2 + r.timebase_u_rel ** 2 + rep ** 2)
-        out.append(dataclasses.replace(r, rate_error_u_rel=2.0 * u, repeatability_u_rel=rep,
-                                       repeatability_basis=basis))
+                 f"{len(results)} directions, {nu} dof)")
+        rep = basis_sigma / math.sqrt(r.turns)      # docs/method.md A2: u_rep = sigma_A / sqrt(N)
+        dof_eff, k, big_u = rate_error_u(r.timing_u_rel, r.timebase_u_rel, rep, float(nu))
+        out.append(dataclasses.replace(r, rate_error_u_rel=big_u, repeatability_u_rel=rep,
+                                       repeatability_basis=basis,
+                                       repeatability_dof=float(nu), dof_eff=dof_eff,
+                                       coverage_factor=k))
     return out
 
 
 def analyze_turns(windows: Sequence[np.ndarray], set_rate_dps: float,
                   budget: CounterBudget) -> TurnsResult:
-    """Per-turn rates, eq. 1 (signed), eq. 2 and U(k=2) of the mean rate error."""
+    """Per-turn rates, eq. 1 (signed), eq. 2 and U (k from nu_eff, docs/method.md D1) of the
+    mean rate error."""
     if not windows:
         raise ValueError("analyze_turns: no windows")
     if set_rate_dps == 0 or not math.isfinite(set_rate_dps):
@@ -237,24 +251,27 @@ def analyze_turns(windows: Sequence[np.ndarray], set_rate_dps: float,
     # scatter at least by the timing floor, so a sample sigma below it (few turns, chance)
     # is raised to the floor: the Type A term never rests on less than is known
     basis_sigma, basis = type_a_sigma(instab, floor, n_turns)
-    repeat_u_rel = basis_sigma / math.sqrt(n_turns) * small_sample_factor(n_turns)
-    u = math.sqrt(timing_u_rel ** 2 + budget.timebase_u_rel ** 2 + repeat_u_rel ** 2)
+    repeat_u_rel = basis_sigma / math.sqrt(n_turns)   # docs/method.md A2: sigma_A / sqrt(N)
+    repeat_dof = float(n_turns - 1) if n_turns >= 2 else None
+    dof_eff, k, big_u = rate_error_u(timing_u_rel, budget.timebase_u_rel, repeat_u_rel,
+                                     repeat_dof)
     return TurnsResult(
         set_rate_dps=float(set_rate_dps), turns=n_turns,
         counter_rate_dps=tuple(float(r) for r in rates), mean_rate_dps=float(mean),
-        rate_error_rel=float(err), rate_error_u_rel=2.0 * u, rate_instability_rel=instab,
+        rate_error_rel=float(err), rate_error_u_rel=big_u, rate_instability_rel=instab,
         rate_instability_floor_rel=float(floor), timing_u_rel=float(timing_u_rel),
         timebase_u_rel=budget.timebase_u_rel, budget=budget,
-        repeatability_u_rel=float(repeat_u_rel), repeatability_basis=basis)
+        repeatability_u_rel=float(repeat_u_rel), repeatability_basis=basis,
+        repeatability_dof=repeat_dof, dof_eff=dof_eff, coverage_factor=k)
 
 
 def type_a_sigma(sample_rel: float | None, floor_rel: float, n: int) -> tuple[float, str]:
     """The sigma a Type A term of N turns rests on, and the budget's words for it
     (docs/method.md A2): the sample sigma, or the timing floor when the sample falls below
-    it; the scaled-t factor for n - 1 degrees of freedom is applied by the caller."""
+    it; its n - 1 degrees of freedom give k (docs/method.md D1)."""
     if sample_rel is None:
         return 0.0, "one turn: no Type A term"
     if sample_rel < floor_rel:
         return floor_rel, (f"timing floor {floor_rel:.3g} (sample sigma {sample_rel:.3g} "
-                           f"of {n} turns lies below it), scaled t with {n - 1} dof")
-    return sample_rel, f"sample sigma of {n} turns, scaled t with {n - 1} dof"
+                           f"of {n} turns lies below it), {n - 1} dof")
+    return sample_rel, f"sample sigma of {n} turns, {n - 1} dof"

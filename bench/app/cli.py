@@ -17,8 +17,9 @@ from bench.app.decode import decode_command
 from bench.app.records.commands import RECORDS_COMMANDS
 from bench.app.records.commands import add_parsers as add_records_parsers
 from bench.app.reference import method_command, schema_command
+from bench.app.register.commands import add_parser as add_register_parser
 from bench.app.starter import init_command
-from bench.app.station.serve import cmd_serve
+from bench.app.station.serve import add_serve_arguments, cmd_serve
 
 EPILOG = """\
 examples:
@@ -76,7 +77,12 @@ def build_parser() -> argparse.ArgumentParser:
     state.add_argument("--as-left", dest="calibration_state", action="store_const",
                        const="as-left", help="this run measures the table as left (adjusted)")
     run.add_argument("--adjustment", metavar="NOTE", help="what was adjusted since as-found")
-    run.add_argument("--operator", help="who runs it (default: the login name)")
+    run.add_argument("--operator", metavar="ACCOUNT",
+                     help="the performer's account in the lab register, authenticated "
+                          "with its password before anything moves (without it the "
+                          "certificate says the performer was not recorded)")
+    run.add_argument("--password-stdin", action="store_true",
+                     help="read the --operator account's password from standard input")
     _console_options(run)
     val = sub.add_parser("validate", help="check procedure and stand files; exit 2 on problems",
                          description="Check a procedure file and the stand file it names "
@@ -132,13 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="the capture's first sample index (default: from the run's "
                           "events for a file in a run directory, else 0)")
     srv = sub.add_parser("serve", help="local web station view: live runs and records")
-    srv.add_argument("--runs", default="runs", help="the runs folder to show (runs/)")
-    srv.add_argument("--records", metavar="URL", help="records database URL")
-    srv.add_argument("--port", type=int, default=8765, help="TCP port (8765; 0 picks one)")
-    srv.add_argument("--host", default="127.0.0.1",
-                     help="address to bind (127.0.0.1); another one needs --token")
-    srv.add_argument("--token", help="token for stop requests and remote viewers "
-                                     "(default: $BENCH_STATION_TOKEN, else one is made up)")
+    add_serve_arguments(srv)
     sim = sub.add_parser("sim", help="start the stand's twins alone; print their addresses")
     sim.add_argument("stand", help="stand YAML file")
     met = sub.add_parser("method", help="print the measurement method the certificates cite",
@@ -149,6 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_dcc_parsers(sub)
     add_authorise_parser(sub)
     add_records_parsers(sub)
+    add_register_parser(sub)
     return p
 
 
@@ -193,6 +194,9 @@ def _main(argv: list[str] | None) -> int:
         return serve(args.stand)
     if args.command in RECORDS_COMMANDS:
         return RECORDS_COMMANDS[args.command](args)
+    if args.command == "register":
+        from bench.app.register.commands import cmd_register
+        return cmd_register(args)
     if args.command == "authorise":
         return cmd_authorise(args)
     if args.command in DCC_COMMANDS:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 from bench.app.console import open_console
 from bench.app.devices import list_devices
@@ -127,15 +128,44 @@ def cmd_run(args: argparse.Namespace) -> int:
             for line in left:
                 err(f"  {line}")
             return EXIT_INVALID
-        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path,
-                            lab_path(cfg.procedure_path, dict(cfg.common.certificate)))
+        lab_file = lab_path(cfg.procedure_path, dict(cfg.common.certificate))
+        gate = _start_gate(lab_file, cfg, bool(cfg.has_sim or args.sim), args)
+        if gate.refusal:   # before the run directory exists: nothing written, nothing moved
+            err("Not started: the lab register refuses:")
+            for line in gate.refusal:
+                err(f"  {line}")
+            return EXIT_INVALID
+        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path, lab_file)
         mark_run(run.path, cfg.common, args.calibration_state, args.adjustment,
-                 args.operator)
+                 gate.meta())
     console = open_console(quiet=args.quiet, log_json=args.log_json)
     status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),
                          progress=console, records=args.records)
     print(run.path)
     return status
+
+
+def _start_gate(lab_file: Path | None, cfg: Any, simulated: bool,
+                args: argparse.Namespace) -> Any:
+    """The lab register's word before anything moves (bench/app/register/gate.py)."""
+    from bench.app.register import RegisterError
+    from bench.app.register.credentials import Passwords
+    from bench.app.register.gate import StartGate, start_gate
+    from bench.core.lab import LabError, load_lab
+    from bench.core.traceability import traced_items
+
+    try:
+        url = load_lab(lab_file).register_url if lab_file else None
+        pw = Passwords(bool(getattr(args, "password_stdin", False))) if args.operator \
+            else None
+        return start_gate(url, traced_items(cfg.stand_settings), simulated, args.operator,
+                          pw.next if pw else _no_password)
+    except (LabError, RegisterError) as e:
+        return StartGate([str(e)], None, [], None)
+
+
+def _no_password(prompt: str) -> str:
+    raise AssertionError(f"no performer to authenticate ({prompt})")
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:

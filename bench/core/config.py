@@ -386,6 +386,9 @@ class Traced:
     traces: str | None
     #: the serial the stand file states for an item the bench does not read (a reference)
     stated_serial: str | None = None
+    #: the serial the stand file states for the item, instrument or reference (the key the
+    #: lab register's inventory is looked up by)
+    serial: str | None = None
 
     def overdue(self, on: dt.date) -> bool:
         return self.due is not None and on > self.due
@@ -429,12 +432,14 @@ def stated_traceability(stand: Mapping[str, Any]) -> tuple[Traced, ...]:
         out.append(Traced(".".join(path), _traced_name(path, spec),
                           str(cal["certificate"]) if cal.get("certificate") else None,
                           str(cal["issuer"]) if cal.get("issuer") else None,
-                          parse_date(cal.get("due")), cal.get("traces")))
+                          parse_date(cal.get("due")), cal.get("traces"),
+                          serial=str(spec["serial"]) if spec.get("serial") else None))
     for i, t in enumerate(stand.get("traceability") or []):
         if isinstance(t, Mapping):
             out.append(Traced(f"traceability[{i}]", str(t.get("item", "")),
                               str(t.get("certificate")), str(t.get("issuer")),
                               parse_date(t.get("due")), t.get("traces"),
+                              str(t["serial"]) if t.get("serial") else None,
                               str(t["serial"]) if t.get("serial") else None))
     return tuple(out)
 

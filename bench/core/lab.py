@@ -70,6 +70,9 @@ LAB = Map({
     "require_signed_dcc": Key(Bool(), False, "bench verify fails an unsigned DCC (default: "
                               "true when signing is configured)"),
     "records": Key(Str(), False, "records database URL"),
+    "register": Key(Str(), False, "the lab register's URL (sqlite:///PATH or postgresql://...): "
+                    "accounts, equipment, certificate numbers, audit trail; bench authorise "
+                    "issues only through it (docs/register.md)"),
     "recertification": Key(Map({
         "default_interval_days": Key(Num(min=1, integer=True, unit="d")),
         "tables": Key(MapOf(Num(min=1, integer=True, unit="d")), False,
@@ -133,6 +136,7 @@ class Lab:
     signing: Signing | None = None
     require_signed_dcc: bool = False
     records_url: str | None = None
+    register_url: str | None = None
     default_interval_days: int | None = None
     interval_days: Mapping[str, int] = field(default_factory=dict)
     source: str = ""
@@ -206,8 +210,20 @@ def parse_lab(data: Mapping[str, Any], source: str = "") -> Lab:
         signing=signing,
         require_signed_dcc=bool(signing is not None if require is None else require),
         records_url=data.get("records"),
+        register_url=_register_url(data.get("register"), source),
         default_interval_days=rec.get("default_interval_days"),
         interval_days=dict(rec.get("tables") or {}), source=source)
+
+
+def _register_url(url: Any, source: str) -> str | None:
+    """A relative SQLite path is relative to the lab file, as every path in it is."""
+    if not isinstance(url, str) or not url:
+        return None
+    prefix = "sqlite:///"
+    if url.startswith(prefix) and not url[len(prefix):].startswith("/") and source \
+            and Path(source).is_file():
+        return prefix + str(Path(source).resolve().parent / url[len(prefix):])
+    return url
 
 
 def load_lab(path: str | Path) -> Lab:

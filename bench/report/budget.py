@@ -2,7 +2,8 @@
 input quantity its estimate, standard uncertainty, distribution, sensitivity coefficient,
 contribution to the standard uncertainty of the result and degrees of freedom; then the
 combined standard uncertainty, the effective degrees of freedom (Welch-Satterthwaite,
-EA-4/02 annex E) and the expanded uncertainty as the analysis states it.
+EA-4/02 annex E), the coverage factor k = t_95.45(nu_eff) and U = k u_c, by the one rule
+of bench/analysis/coverage.py (docs/method.md D1) that the analysis computes with.
 
 The procedure kinds build their budgets from the analysis results (procedures/*/budgets.py)
 and add them to result.json; the certificate and the DCC print what is there. A budget
@@ -16,6 +17,8 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
+
+from bench.analysis.coverage import COVERAGE_P, coverage_factor, welch_satterthwaite
 
 NORMAL = "normal"
 RECTANGULAR = "rectangular"
@@ -57,7 +60,6 @@ class Budget:
     unit: str
     estimate: float | None
     terms: tuple[Term, ...]
-    k: float = 2.0                       # the coverage factor the analysis used
     reported_U: float | None = None      # the U the analysis reports for it
     note: str = ""
 
@@ -68,13 +70,18 @@ class Budget:
 
     @property
     def dof_eff(self) -> float | None:
-        """nu_eff = u_c^4 / sum(u_i^4 / nu_i) (EA-4/02 eq. E.1); None for infinite."""
-        finite = [(t.contribution, t.dof) for t in self.terms if t.dof is not None]
-        denom = sum(c ** 4 / d for c, d in finite if d > 0 and c > 0)
-        return None if denom == 0 else self.ustd ** 4 / denom
+        """nu_eff = u_c^4 / sum(u_i^4 / nu_i) (EA-4/02 eq. E.1, docs/method.md D1); None for
+        infinite."""
+        return welch_satterthwaite((t.contribution, t.dof) for t in self.terms)
+
+    @property
+    def k(self) -> float:
+        """k = t_95.45(nu_eff) to two decimals (docs/method.md D1)."""
+        return coverage_factor(self.dof_eff)
 
     @property
     def U(self) -> float:  # noqa: N802 - the symbol of the expanded uncertainty
+        """U = k u_c (docs/method.md D1)."""
         return self.k * self.ustd
 
     @property
@@ -88,6 +95,7 @@ class Budget:
         return {"quantity": self.quantity, "key": self.key, "unit": self.unit,
                 "estimate": self.estimate, "terms": [t.to_dict() for t in self.terms],
                 "combined_ustd": self.ustd, "dof_eff": self.dof_eff, "coverage_factor": self.k,
+                "coverage_probability": COVERAGE_P,
                 "U_budget": self.U, "U_reported": self.reported_U,
                 "reproduces_reported_U": self.reproduces, "note": self.note}
 
@@ -106,8 +114,8 @@ def from_dict(d: Mapping[str, Any]) -> Budget | None:
                            num(t.get("dof")), str(t.get("unit") or ""))
                       for t in d["terms"])
         return Budget(str(d["quantity"]), str(d["key"]), str(d.get("unit") or ""),
-                      num(d.get("estimate")), terms, float(d.get("coverage_factor") or 2.0),
-                      num(d.get("U_reported")), str(d.get("note") or ""))
+                      num(d.get("estimate")), terms, num(d.get("U_reported")),
+                      str(d.get("note") or ""))
     except (KeyError, TypeError, ValueError):
         return None
 

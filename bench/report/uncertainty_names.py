@@ -1,6 +1,7 @@
 """One naming rule for uncertainties in result.json (docs/certificate.md, "result.json").
 
-- `<name>_U<_unit>`: the expanded uncertainty, k = 2 (e.g. `rate_error_U_rel`, `k_U`).
+- `<name>_U<_unit>`: the expanded uncertainty for about 95 %: k = 2, or t(nu_eff) where the
+  budget states it (docs/method.md D1) (e.g. `rate_error_U_rel`, `k_U`).
 - `<name>_ustd<_unit>`: the standard uncertainty, k = 1 (e.g. `timing_ustd_rel`).
 
 The keys CONTRACT §3 binds end in `_u` (`rate_error_u_rel`, `k_u`, `w0_u_dps`,
@@ -25,7 +26,9 @@ STANDARD_KEYS = frozenset({"timing_u_rel", "timebase_u_rel", "repeatability_u_re
 STANDARD_ITEMS = frozenset({"cycles"})
 
 #: stated in every result.json, so the file explains itself
-UNCERTAINTY_NAMING = ("_U: expanded uncertainty, k = 2; _ustd: standard uncertainty, k = 1; "
+UNCERTAINTY_NAMING = ("_U: expanded uncertainty for about 95 %, k = 2 or t(nu_eff) where the "
+                      "budget states it (coverage_factor, dof_eff); _ustd: standard "
+                      "uncertainty, k = 1; "
                       "_u (the names CONTRACT section 3 binds, kept): the same value as the "
                       "_U or _ustd key beside it")
 

@@ -45,11 +45,15 @@ def _drift_budget(d: Mapping[str, Any], which: str) -> Budget | None:
         if uu is None:
             continue
         label, dist, type_a = SOURCES.get(key, (key.replace("_", " "), NORMAL, False))
-        terms.append(Term(label, value if type_a else 0.0, uu, dist, 1.0,
-                          float(n - 1) if type_a and n and n > 1 else None, "deg/h"))
+        # the analysis takes the Type A term as GUM-S1's scaled t (s/sqrt(n) widened by
+        # sqrt((n-1)/(n-3)), n = cycles per position): its nu is then infinite and k = 2
+        # (docs/method.md D1 states this exception of part B)
+        terms.append(Term(label + (f" (scaled t, GUM-S1 6.4.9, {n} cycles)" if type_a and n
+                                   else ""), value if type_a else 0.0, uu, dist, 1.0, None,
+                          "deg/h"))
     if not terms:
         return None
-    return Budget(f"{which} drift", f"{which}_dph", "deg/h", value, tuple(terms), 2.0,
+    return Budget(f"{which} drift", f"{which}_dph", "deg/h", value, tuple(terms),
                   num(d.get(f"{which}_U_dph") or d.get(f"{which}_u_dph")))
 
 
@@ -72,7 +76,6 @@ def azimuth_budget(drift: Mapping[str, Any]) -> Budget | None:
              Term("apparent drift of Y, app_y (its budget above)", ay, uy / 2, NORMAL,
                   -deg * ax / r2, None, "deg/h"))
     return Budget("platform azimuth A", "azimuth_deg", "deg", az, terms,
-                  num(drift.get("coverage_k")) or 2.0,
                   num(drift.get("azimuth_U_deg") or drift.get("azimuth_u_deg")))
 
 

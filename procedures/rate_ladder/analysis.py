@@ -363,7 +363,8 @@ def sigma_check(axis: str, rate: float, entry: dict[str, Any], tolerance: float,
                         "limit is at or below it)")
         return c
     c = judge(axis, rate, "rate_instability", value, upper - value, tolerance, rule).to_dict()
-    c.update(u_rel=u, upper_rel=upper, floor_rel=floor, capability_ratio=u / tolerance,
+    c.update(u_rel=u, upper_rel=upper, lower_rel=entry["rate_instability_lower_rel"],
+             floor_rel=floor, capability_ratio=u / tolerance,
              capability_ok=u / tolerance <= CAPABILITY_LIMIT)
     if rule == "guard-band" and value <= tolerance:
         c["reason"] = (f"one-sided upper limit {upper:.3g} ({level}) "

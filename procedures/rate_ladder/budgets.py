@@ -35,13 +35,16 @@ def rate_error_budget(r: Mapping[str, Any]) -> Budget | None:
     if not isinstance(b, Mapping):
         return None
     turns = int(num(r.get("turns")) or 0)
-    k = num(b.get("coverage_factor")) or 2.0
     terms = []
     rep = num(b.get("repeatability_ustd_rel"))
+    # docs/method.md A2: nu of the Type A term as the analysis took it (pooled: N+ + N- - 2)
+    rep_dof = num(b.get("repeatability_dof"))
+    if rep_dof is None and turns > 1:
+        rep_dof = float(turns - 1)
     if rep is not None:
-        terms.append(Term("mean of the per-turn rate errors (repeatability, Type A)",
-                          num(r.get("rate_error_rel")), rep, STUDENT_T, 1.0,
-                          float(turns - 1) if turns > 1 else None, "1"))
+        terms.append(Term("mean of the per-turn rate errors (repeatability, Type A): "
+                          + str(b.get("repeatability_basis") or "sample sigma / √N"),
+                          num(r.get("rate_error_rel")), rep, STUDENT_T, 1.0, rep_dof, "1"))
     timing = num(b.get("timing_ustd_rel"))
     if timing is not None:
         terms.append(Term("turn period timing: zero-mark edges and time tie (Type B)", 0.0,
@@ -53,7 +56,7 @@ def rate_error_budget(r: Mapping[str, Any]) -> Budget | None:
     if not terms:
         return None
     return Budget("rate error δ (relative)", "rate_error_rel", "1",
-                  num(r.get("rate_error_rel")), tuple(terms), k,
+                  num(r.get("rate_error_rel")), tuple(terms),
                   num(r.get("rate_error_U_rel") or r.get("rate_error_u_rel")))
 
 
@@ -86,7 +89,7 @@ def harmonic_budgets(r: Mapping[str, Any], pair: Mapping[str, Any] | None) -> li
                 f"systematic.harmonics[{order - 1}].amplitude_rel", "1", a,
                 (Term("least-squares fit of the FOG record over whole turns (Type A)", a,
                       ua, STUDENT_T, 1.0, dof, "1"), *_scale_term(pair, a)),
-                2.0, 2 * ua))
+                2 * ua))
         p, up = num(h.get("phase_deg")), _half_u(h.get("phase_U_deg") or h.get("phase_u_deg"))
         if p is not None and up is not None:
             out.append(Budget(
@@ -97,7 +100,7 @@ def harmonic_budgets(r: Mapping[str, Any], pair: Mapping[str, Any] | None) -> li
                  *([Term("FOG scale k (a scale does not move a phase)",
                          num(pair.get("k")), _half_u(pair.get("k_U")) or 0.0, NORMAL, 0.0,
                          None, "1")] if pair and num(pair.get("k")) else [])),
-                2.0, 2 * up,
+                2 * up,
                 note="" if h.get("detected", True) else "harmonic not detected: its phase is "
                                                         "undetermined"))
     return out
@@ -117,7 +120,7 @@ def intra_turn_budgets(r: Mapping[str, Any], pair: Mapping[str, Any] | None,
                   "1", raw, (Term("standard deviation of the random part of the FOG rate "
                                   "(Type A)", raw, u_raw, CHI_SQUARE, 1.0,
                                   n - 1 if n else None, "1"), *_scale_term(pair, raw)),
-                  2.0, 2 * u_raw)]
+                  2 * u_raw)]
     fl, corrected = num(intra.get("floor_rel")), num(r.get("intra_turn_instability_corrected_rel"))
     n_floor = num((floor or {}).get("samples"))
     if fl is not None and corrected and corrected > 0 and n_floor and n_floor > 1:
@@ -129,7 +132,7 @@ def intra_turn_budgets(r: Mapping[str, Any], pair: Mapping[str, Any] | None,
                   n - 1 if n else None, "1"),
              Term("FOG noise floor σ_floor from the static record (Type A)", fl, u_floor,
                   CHI_SQUARE, -fl / corrected, n_floor - 1, "1")),
-            2.0, None,
+            None,
             note="" if intra.get("resolved") else
             "not resolved from the floor: the certificate states an upper limit, not this "
             "value with a U"))
@@ -177,7 +180,7 @@ def pair_budgets(pair: Mapping[str, Any]) -> list[Budget]:
             terms.append(Term(f"counter mean rate, half {i + 1} ({s}) (Type A)", c, uc,
                               STUDENT_T, float(-beta[0] * gain[idx, i]),
                               float(turns - 1) if turns > 1 else None, "deg/s"))
-        out.append(Budget(name, key, unit, num(pair.get(key)), tuple(terms), 2.0,
+        out.append(Budget(name, key, unit, num(pair.get(key)), tuple(terms),
                           num(reported),
                           note=str(pair.get("bias_model") or "") if drift else ""))
     return out

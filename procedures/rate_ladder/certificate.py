@@ -13,7 +13,9 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from bench.analysis.coverage import COVERAGE_FORMULA, COVERAGE_RULE, DOF_INFINITE
 from bench.analysis.random_part import std_u_rel
+from bench.analysis.turns import RATE_ERROR_U_FORMULA, REPEATABILITY_FORMULA
 from bench.report.certificate import methods, plots
 from bench.report.certificate.model import Block, Para, Section, Table
 from bench.report.certificate.parts import (
@@ -69,11 +71,12 @@ A_TEXT: tuple[Para, ...] = (
          "compare |δ| with the tolerance. mean(ω_i) is the mean over whole turns, N·360° / "
          "(t_N − t_0).", "note"),
     Para("σ = √( Σ (ω_i − mean(ω))² / (N − 1) ) / |mean(ω)|     (eq. 2)", "formula"),
-    Para("U of δ (k = 2) combines the timing of each window's two end edges, the counter's "
-         "timebase (rectangular) and the turn-to-turn repeatability, a Type A term widened "
-         "for few turns by the small-sample factor of GUM Supplement 1, 6.4.9:", "body"),
-    Para("u_rep = σ / √N · √((N − 1) / (N − 3))  for N > 3  (t₀.₉₇₅(N − 1) / 2 for N ≤ 3);   "
-         "U = 2·√(u_timing² + u_timebase² + u_rep²)", "formula"),
+    Para("U of δ combines the timing of each window's two end edges, the counter's "
+         "timebase (rectangular) and the turn-to-turn repeatability, a Type A term with its "
+         "degrees of freedom; k is the t-factor of the effective degrees of freedom "
+         "(docs/method.md A2, D1):", "body"),
+    Para(REPEATABILITY_FORMULA, "formula"),
+    Para(RATE_ERROR_U_FORMULA, "formula"),
     Para("Note on eq. 2: the source paper prints eq. 2 without the square root (a variance "
          "divided by the mean, which has units of °/s). This certificate uses the relative "
          "standard deviation above, which is what the paper's numbers and its text describe.",
@@ -96,6 +99,9 @@ A_TEXT: tuple[Para, ...] = (
          "removed in quadrature (floor-corrected), and for the random part averaged over "
          "1°, 10° and 360° of table angle, so it can be read against a rate-table "
          "datasheet.", "body"),
+    Para("D1 The coverage factor of every U (docs/method.md D1):", "strong"),
+    Para(COVERAGE_FORMULA, "formula"),
+    Para(COVERAGE_RULE, "note"),
 )
 
 A_IMPROVEMENTS: tuple[str, ...] = (
@@ -218,18 +224,23 @@ def _instability_u(r: Mapping[str, Any]) -> tuple[float | None, bool]:
     return u, u is not None
 
 
-def sigma_presented(r: Mapping[str, Any], u: float | None) -> Presented:
-    """Eq. 2's σ under the one rule, with the timing floor as its zero: resolved when
-    its lower limit > floor (the analysis's `rate_instability_resolved`), else '< L', L the
-    one-sided chi-square upper limit (`rate_instability_upper_rel`) or σ + U."""
+def sigma_presented(r: Mapping[str, Any], u: float | None, scale: float = 1.0
+                    ) -> Presented:
+    """Eq. 2's σ under the one rule (docs/method.md D2), with the timing floor as its zero:
+    resolved when its chi-square lower limit > floor (the analysis's
+    `rate_instability_resolved`), printed as its interval 'σ [lower, upper]'; else '< L',
+    L the one-sided chi-square upper limit (`rate_instability_upper_rel`), never below the
+    floor."""
     s = num(r.get("rate_instability_rel"))
     floor = num(r.get("rate_instability_floor_rel"))
+    lower, upper = num(r.get("rate_instability_lower_rel")), num(r.get("rate_instability_upper_rel"))
     resolved = r.get("rate_instability_resolved")
     if resolved is None:
         resolved = (s is not None and u is not None
                     and s - u > (floor if floor is not None else 0.0))
-    upper = num(r.get("rate_instability_upper_rel"))
-    return present(s, u, resolved=bool(resolved), upper=upper)
+    interval = (lower, upper) if lower is not None and upper is not None else None
+    return present(s, u, scale, resolved=bool(resolved), upper=upper, interval=interval,
+                   floor=floor)
 
 
 def _u_of_std(s: float | None, n: Any) -> float | None:
@@ -249,8 +260,9 @@ class Averaged:
     floor: float | None
     corrected: float | None
     blocks: int | None
-    upper: float | None = None        # k = 2 upper limit of the corrected figure
+    upper: float | None = None        # upper end of the corrected figure's interval
     resolved: bool | None = None
+    lower: float | None = None        # its lower end (JCGM 101, docs/method.md A5)
 
     @property
     def sensitivity(self) -> float | None:
@@ -290,7 +302,7 @@ def _averaged(r: Mapping[str, Any]) -> list[Averaged]:
         out.append(Averaged(float(d["angle_deg"]), raw, u, approx and u is not None,
                             num(d.get("floor_rel")), corrected,
                             int(d["blocks"]) if num(d.get("blocks")) is not None else None,
-                            upper, bool(resolved)))
+                            upper, bool(resolved), num(d.get("corrected_lower_rel"))))
     return sorted(out, key=lambda x: x.angle_deg)
 
 
@@ -299,8 +311,11 @@ def _ladder_results(src: Sources, number: str, checks: Sequence[Mapping[str, Any
     axes = src.get("axes", {}) or {}
     out = [Section(number, "Results", (Para(
         "Per axis, commanded rate and direction. Each value is followed by its expanded "
-        "uncertainty U (k = 2, about 95 %). Signed rates: + is the table's positive sense."),
-        Para("Quantities that may not be resolved. " + RESOLUTION_RULE, "note")),
+        "uncertainty U for about 95 % (k = 2, or k = t_95.45(ν_eff) where its budget in "
+        "the annex states finite ν_eff; docs/method.md D1), or by its coverage interval. "
+        "Signed rates: + is the table's positive sense."),
+        Para("Quantities that may not be resolved (docs/method.md D2). " + RESOLUTION_RULE,
+             "note")),
         )]
     sub = 0
     # one unit per quantity on the whole certificate, whatever the axis
@@ -348,14 +363,12 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
             mean = sum(cr) / len(cr)
         eu = num(r.get("rate_error_u_rel"))
         mean_u = eu * abs(set_rate) if eu is not None and set_rate else None
-        sigma = sigma_presented(r, iu)
+        sigma = sigma_presented(r, iu, inst_unit.scale)
         unresolved_sigma |= not sigma.resolved
         rows.append((rate_text(set_rate), text_of(r.get("turns")),
                      format_value_u(mean, mean_u, signed=True, sig_without_u=10).joined(),
                      vu_text(r.get("rate_error_rel"), eu, err_unit, signed=True),
-                     present(num(r.get("rate_instability_rel")), iu, inst_unit.scale,
-                             resolved=sigma.resolved, upper=sigma.limit).text
-                     + ("*" if approx and sigma.resolved else ""),
+                     sigma.text + ("*" if approx and sigma.resolved else ""),
                      format_sig(floor_rel * inst_unit.scale, 2)
                      if (floor_rel := num(r.get("rate_instability_floor_rel"))) is not None
                      else "—",
@@ -363,18 +376,21 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
     notes = ["Timing floor of σ = ΔT / T, with ΔT = √2 · Δ_edge the timing of one period "
              "(section 3, A1): the σ the counter's and the zero-mark sensor's timing errors "
              "alone would give."]
+    notes.append("σ [lower, upper]: its 95 % chi-square interval (N − 1 degrees of freedom, "
+                 "normal per-turn rates), printed so because it is not symmetric.")
     if unresolved_sigma:
         notes.append("'< L': σ is not resolved above the timing floor (its 2.5 % chi-square "
                      "lower limit ≤ floor): L is its one-sided 97.5 % upper limit for normal "
-                     "per-turn rates (chi-square, N − 1 degrees of freedom). In a conformity "
-                     "check such a σ conforms when L is within the tolerance, and is not "
-                     "assessed only when it is not (docs/method.md A2, the one rule for '< L').")
+                     "per-turn rates (chi-square, N − 1 degrees of freedom), never below the "
+                     "floor. In a conformity check such a σ conforms when L is within the "
+                     "tolerance, and is not assessed only when it is not (docs/method.md D2, "
+                     "the one rule for '< L').")
     if approximated:
         notes.append("* U of σ from the chi-square approximation U = 2σ/√(2(N−1)) for N turns "
                      "(normal per-turn rates); the result did not carry it.")
     blocks.append(Table(
         ("Set rate, °/s", "Turns", "Mean rate ± U, °/s",
-         f"Rate error δ ± U, {err_unit.name}", f"Instability σ ± U, {inst_unit.name}",
+         f"Rate error δ ± U, {err_unit.name}", f"Instability σ [interval], {inst_unit.name}",
          f"Timing floor of σ, {inst_unit.name}", "Verdict"),
         tuple(rows), widths=(0.9, 0.6, 2.8, 1.8, 1.8, 1.1, 0.9), align="rcrrrrc",
         caption=f"Axis {axis}: per-turn rate error and instability (docs/method.md A1-A2, eqs. 1-2)",
@@ -464,10 +480,11 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                             caption=f"Axis {axis}: systematic intra-turn component, fitted "
                                     "harmonics Δω_sys = ω_set·Σ a_h cos(hφ + p_h) "
                                     "(docs/method.md A4)",
-                            notes=("'< L': the amplitude is not resolved (a ≤ U, the one "
-                                   "rule of section 6); L = a + U is its one-sided upper "
-                                   "limit, and its phase, which then means nothing, is "
-                                   "printed '—'.",)))
+                            notes=("'< L': the amplitude is not detected (the joint "
+                                   "interval of its two coefficients reaches zero, A4; the "
+                                   "one rule of docs/method.md D2); L = a + U is its "
+                                   "one-sided upper limit, and its phase, which then means "
+                                   "nothing, is printed '—'.",)))
     if mains_rows:
         blocks.append(Table(("Set rate, °/s", "Frequency, Hz", "Amplitude ± U, °/s",
                              "Amplitude ± U, % of ω_set", "Phase ± U, °"), tuple(mains_rows),
@@ -488,17 +505,21 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
 
 
 def _corrected_cell(r: Mapping[str, Any], unit: RelUnit) -> str:
-    """Floor-corrected instability under the one rule: value ± U when resolved and a U is
-    given, else its k = 2 upper limit '< L' (never a bare value)."""
+    """Floor-corrected instability under the one rule (docs/method.md D2): its JCGM 101
+    interval 'value [lower, upper]' when resolved, else its upper limit '< L' (never a
+    bare value)."""
     intra = r.get("intra_turn") or {}
     value = num(r.get("intra_turn_instability_corrected_rel"))
     u = num(r.get("intra_turn_instability_corrected_u_rel"))
-    upper = num(intra.get("corrected_upper_rel"))
+    upper, lower = num(intra.get("corrected_upper_rel")), num(intra.get("corrected_lower_rel"))
     resolved = intra.get("resolved")
+    if resolved and value is not None and upper is not None and lower is not None:
+        return present(value, None, unit.scale, resolved=True,
+                       interval=(lower, upper)).text
     if u is not None and resolved is not False:
         return present(value, u, unit.scale, resolved=True).text
     if resolved and value is not None and upper is not None and upper > value:
-        # the limit's distance from the value is its k = 2 half-width (one-sided)
+        # an older result without the interval's lower end: the limit's distance
         return present(value, upper - value, unit.scale, resolved=True).text
     if upper is None and value == 0.0:
         return "0 (noiseless FOG)"   # a simulated FOG without noise: nothing to remove
@@ -528,7 +549,10 @@ def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
     for r, b in budgets:
         cells = [format_sig((num(b.get(k)) or math.nan) * unit.scale, 2) for k, _ in terms]
         u = num(r.get("rate_error_u_rel"))
+        nu = num(b.get("dof_eff"))
         rows.append((rate_text(r.get("set_rate_dps")), *cells,
+                     "∞" if nu is None or nu > DOF_INFINITE else f"{nu:.1f}",
+                     f"{num(b.get('coverage_factor')) or 2.0:.2f}",
                      format_sig(u * unit.scale, 2) if u is not None else "n/a"))
     first = budgets[0][1]
     parts = []
@@ -542,13 +566,15 @@ def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
         if v is not None:
             parts.append(f"{text} {format_sig(v * scale, 2)} {unit_name}")
     notes = ["Standard uncertainties (k = 1), relative to the set rate; U = k·√(Σu²), "
-             f"k = {num(first.get('coverage_factor')) or 2:g}."]
+             "k = t_95.45(ν_eff) to two decimals, ν_eff by Welch-Satterthwaite with the "
+             "repeatability's degrees of freedom (docs/method.md A2, D1; each rate's full "
+             "budget is in the annex)."]
     if parts:
         notes.append("Inputs: " + "; ".join(parts) + " (docs/method.md A1: ΔT = √(Δ_counter² + "
                      "Δ_trigger²)).")
     header = ("Set rate, °/s", *[f"u({name}), {unit.name}" for _, name in terms],
-              f"U (k = 2), {unit.name}")
-    return Table(header, tuple(rows), widths=(1.1, *([1.8] * len(terms)), 1.4),
+              "ν_eff", "k", f"U, {unit.name}")
+    return Table(header, tuple(rows), widths=(1.1, *([1.6] * len(terms)), 0.7, 0.6, 1.1),
                  align="r" * len(header),
                  caption=f"Axis {axis}: uncertainty budget of the per-turn rate error",
                  notes=tuple(notes))
@@ -629,9 +655,11 @@ def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
             if a.angle_deg >= 360.0:
                 continue   # one turn: the counter's σ below
             unit = PPM
-            own = (present(a.corrected, a.upper - a.corrected, unit.scale, resolved=True).text
+            # docs/method.md D2: resolved, its interval; else '< L'
+            own = (present(a.corrected, None, unit.scale, resolved=True,
+                           interval=(a.lower, a.upper)).text
                    if a.resolved and a.corrected is not None and a.upper is not None
-                   and a.upper > a.corrected else
+                   and a.lower is not None else
                    present(a.corrected, None, unit.scale, resolved=False, upper=a.upper).text)
             limited |= not a.resolved
             rows.append((rate_text(r.get("set_rate_dps")), f"{a.angle_deg:g}", "FOG",
@@ -642,15 +670,15 @@ def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
                          if a.sensitivity is not None else "—", text_of(a.blocks)))
         s, (iu, approx) = num(r.get("rate_instability_rel")), _instability_u(r)
         if s is not None:
-            sigma = sigma_presented(r, iu)
             unit = PPM
+            # docs/method.md D2: σ of the per-turn rates as its chi-square interval, or
+            # '< L' when it is not resolved above the timing floor (never below it)
+            sigma = sigma_presented(r, iu, unit.scale)
             floor = num(r.get("rate_instability_floor_rel"))
             rows.append((rate_text(r.get("set_rate_dps")), "360", "counter",
-                         present(s, iu, unit.scale, resolved=True).text
-                         + ("*" if approx else ""),
+                         sigma.text + ("*" if approx and sigma.resolved else ""),
                          format_sig(floor * unit.scale, 2) if floor is not None else "—",
-                         present(s, iu, unit.scale, resolved=sigma.resolved,
-                                 upper=sigma.limit).text,
+                         sigma.text,
                          format_sig(floor * unit.scale, 2) if floor is not None else "—",
                          text_of(r.get("turns"))))
     if not rows:
@@ -667,7 +695,7 @@ def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
              "counter's timing floor. A datasheet figure below it cannot be verified with "
              "this FOG or counter; '< L' states only that the table is within L.",
              *approx_note]
-    return [Table(("Set rate, °/s", "Window, °", "From", "Measured ± U, ppm", "Floor, ppm",
+    return [Table(("Set rate, °/s", "Window, °", "From", "Measured, ppm", "Floor, ppm",
                    "Table's own, ppm", "Smallest verifiable, ppm", "Windows"), tuple(rows),
                   widths=(1.0, 0.8, 0.8, 1.8, 0.9, 1.6, 1.2, 0.8),
                   align="rrlrrrrr",

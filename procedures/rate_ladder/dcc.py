@@ -18,7 +18,9 @@ from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import Checks, judge
 from bench.report.dcc.parts import DccParts
 from bench.report.dcc.xml import (
+    COVERAGE_PROBABILITY,
     NOT_RECORDED,
+    Interval,
     budget_list,
     el,
     ident,
@@ -55,7 +57,22 @@ FOG_BIAS = V.RB + "fogBias"
 FOG_BIAS_DRIFT = V.RB + "fogBiasDrift"
 
 #: the sections of docs/method.md the ladder follows
-METHOD_SECTIONS = ("A1", "A2", "A3", "A4", "A5", "A6")
+METHOD_SECTIONS = ("A1", "A2", "A3", "A4", "A5", "A6", "D1", "D2")
+#: docs/method.md D2: the one-sided level of a '< L' limit from a 95 % interval's upper end
+ONE_SIDED_P = 0.975
+
+
+def two_sided(value: float, lower: float, upper: float, distribution: str,
+              probability: float = 0.95) -> Interval:
+    """A resolved magnitude's asymmetric interval (docs/method.md D2); its standard
+    uncertainty beside it: half the interval over 2 (D-SI asks for one)."""
+    return Interval(lower, upper, probability, (upper - lower) / 4.0, distribution)
+
+
+def limit_interval(limit: float, distribution: str, probability: float = ONE_SIDED_P
+                   ) -> Interval:
+    """'< L' (docs/method.md D2) as the interval [0, L] at its one-sided level."""
+    return Interval(0.0, limit, probability, limit / 4.0, distribution)
 
 
 class LadderDcc(DccParts):
@@ -132,15 +149,16 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
 
     def q(key: str, title: str, ref: str, unit: str, u_key: str | None = None,
           u: float | None = None, note: str | None = None, check: str | None = None,
-          value: float | None = None, label: str | None = None) -> etree._Element | None:
+          value: float | None = None, label: str | None = None, k: float | None = None,
+          interval: Interval | None = None) -> etree._Element | None:
         v = value if value is not None else num(r.get(key))
         if v is None:
             return None
         uu = u if u is not None else (num(r.get(u_key)) if u_key else None)
-        if uu is None and u_key is not None:
+        if uu is None and u_key is not None and interval is None:
             note = (note + " " if note else "") + "U not stated in result.json."
         node = quantity(data, ident(rid, key), title, ref, v, unit, uu,
-                        label=label or f"{path}.{key}", note=note)
+                        label=label or f"{path}.{key}", note=note, k=k, interval=interval)
         if check:
             judge(node, checks.take(axis, w_set, check), unit)
         return node
@@ -152,15 +170,34 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
     if mean is None and cr:
         mean = sum(cr) / len(cr)
     eu = num(r.get("rate_error_u_rel"))
+    eb = r.get("rate_error_budget")
+    ek = num(eb.get("coverage_factor")) if isinstance(eb, Mapping) else None      # docs/method.md D1: k = t_95.45(nu_eff)
     if mean is not None:
         q("mean_rate_dps", "mean rate over the turns (counter, docs/method.md A2)", V.MEASURED,
           U.DEG_PER_S, value=mean, u=eu * abs(w_set) if eu is not None and w_set else None,
-          note="U = U(rate error) x |set rate|.")
+          note="U = U(rate error) x |set rate|.", k=ek)
     q("rate_error_rel", "per-turn rate error (mean - set) / set (docs/method.md A2 eq. 1, "
-      "signed)", f"{V.ERROR} {RATE_ERROR}", U.ONE, "rate_error_u_rel", check="rate_error")
+      "signed)", f"{V.ERROR} {RATE_ERROR}", U.ONE, "rate_error_u_rel", check="rate_error",
+      k=ek)
+    # docs/method.md D2: sigma as its chi-square interval when resolved above the timing
+    # floor, else as '< L' (L never below the floor): never a normal +/- U
+    s_val, s_lo, s_hi = (num(r.get(k)) for k in ("rate_instability_rel",
+                                                 "rate_instability_lower_rel",
+                                                 "rate_instability_upper_rel"))
+    s_floor = num(r.get("rate_instability_floor_rel"))
+    s_iv: Interval | None = None
+    if s_val is not None and s_lo is not None and s_hi is not None:
+        if r.get("rate_instability_resolved"):
+            s_iv = two_sided(s_val, s_lo, s_hi, "chi-square (N - 1 dof)")
+        else:
+            s_iv = limit_interval(max(s_hi, s_floor or 0.0), "chi-square (N - 1 dof), "
+                                  "one-sided upper limit")
     q("rate_instability_rel", "per-turn rate instability, relative std of the per-turn rates "
-      "(docs/method.md A2 eq. 2)", RATE_INSTABILITY, U.ONE, "rate_instability_u_rel",
-      check="rate_instability")
+      "(docs/method.md A2 eq. 2)", RATE_INSTABILITY, U.ONE,
+      None if s_iv is not None else "rate_instability_u_rel", check="rate_instability",
+      interval=s_iv, note=None if s_iv is None or r.get("rate_instability_resolved") else
+      "not resolved above the timing floor: stated as < L, L the interval's upper end "
+      "(docs/method.md D2)")
     q("rate_instability_floor_rel", "timing floor of the instability (counter and zero-mark "
       "timing alone, docs/method.md A1)", TIMING_FLOOR, U.ONE)
     if cr:
@@ -177,25 +214,25 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
         q("floor_rel", "FOG noise floor, relative to |set| (docs/method.md A5)", FOG_FLOOR, U.ONE,
           value=num(intra.get("floor_rel")), label=f"{path}.intra_turn.floor_rel")
     upper = num(intra.get("corrected_upper_rel")) if isinstance(intra, Mapping) else None
+    lower = num(intra.get("corrected_lower_rel")) if isinstance(intra, Mapping) else None
     resolved = intra.get("resolved") if isinstance(intra, Mapping) else None
     corrected = num(r.get("intra_turn_instability_corrected_rel"))
-    corrected_u = num(r.get("intra_turn_instability_corrected_u_rel"))
-    if corrected_u is None and resolved and upper is not None and corrected is not None \
-            and upper > corrected:
-        corrected_u = upper - corrected   # as the PDF: the k = 2 limit's distance (A5)
+    # as the PDF (docs/method.md A5, D2): resolved, its JCGM 101 interval; else [0, L]
+    c_iv = _mc_interval(corrected, lower, upper, resolved)
     q("intra_turn_instability_corrected_rel", "intra-turn instability with the FOG noise "
       "floor removed in quadrature (docs/method.md A5)", INTRA_TURN_CORRECTED, U.ONE,
       None if upper is not None else "intra_turn_instability_corrected_u_rel",
-      u=corrected_u if resolved is not False else None,
-      note=("not resolved above the FOG noise floor; read the upper limit" if resolved is False
-            else None), check="intra_turn_instability_corrected")
+      interval=c_iv,
+      note=("not resolved above the FOG noise floor: stated as < L, L the interval's upper "
+            "end" if resolved is False else None), check="intra_turn_instability_corrected")
     if upper is not None:
         q("corrected_upper_rel", "upper limit (k = 2) of the floor-corrected intra-turn "
           "instability", INTRA_TURN_UPPER, U.ONE, value=upper,
           label=f"{path}.intra_turn.corrected_upper_rel")
     budget_list(data, ident(rid, "budget"),
                 "uncertainty budget of the rate error: standard uncertainties (k = 1) relative "
-                "to |set|; U = 2 sqrt(sum u^2) (docs/method.md A1-A2)",
+                f"to |set|; U = k sqrt(sum u^2), k = {ek or 2.0:.2f} = t_95.45(nu_eff) "
+                "(docs/method.md A1-A2, D1)",
                 r.get("rate_error_budget"), f"{path}.rate_error_budget",
                 (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
                  ("repeatability_u_rel", "repeatability (Type A)")), U.ONE)
@@ -227,16 +264,38 @@ def _averaged(data: etree._Element, rid: str, path: str, intra: Any) -> None:
                      U.ONE, label=f"{p}.floor_rel")
         corrected, upper = num(a.get("corrected_rel")), num(a.get("corrected_upper_rel"))
         if corrected is not None:
-            # as the PDF: resolved, value ± (its k = 2 limit's distance); else the limit
-            cu = (upper - corrected if a.get("resolved") and upper is not None
-                  and upper > corrected else None)
-            quantity(lst, None, "floor-corrected", INTRA_TURN_CORRECTED, corrected, U.ONE, cu,
-                     label=f"{p}.corrected_rel",
-                     note=None if cu is not None else "not resolved above the FOG noise "
-                     "floor; read the upper limit")
+            # as the PDF (docs/method.md D2): resolved, its interval; else [0, L]
+            iv = _mc_interval(corrected, num(a.get("corrected_lower_rel")), upper,
+                              a.get("resolved"))
+            quantity(lst, ident(rid, "avg", f"{num(a['angle_deg']):g}", "corrected_rel"),
+                     "floor-corrected", INTRA_TURN_CORRECTED, corrected, U.ONE,
+                     label=f"{p}.corrected_rel", interval=iv,
+                     note=None if a.get("resolved") else "not resolved above the FOG noise "
+                     "floor: stated as < L, L the interval's upper end")
         if upper is not None:
             quantity(lst, None, "upper limit (k = 2) of the floor-corrected value",
                      INTRA_TURN_UPPER, upper, U.ONE, label=f"{p}.corrected_upper_rel")
+
+
+def _mc_interval(value: float | None, lower: float | None, upper: float | None,
+                 resolved: Any) -> Interval | None:
+    """A floor-corrected figure's JCGM 101 interval (docs/method.md A5, D2): [lower, upper]
+    when resolved, [0, L] at its one-sided level when not."""
+    if value is None or upper is None:
+        return None
+    dist = "JCGM 101 Monte Carlo of raw^2 - floor^2"
+    if resolved and lower is not None:
+        return two_sided(value, lower, upper, dist)
+    return limit_interval(upper, dist + ", one-sided upper limit")
+
+
+def _undetected(tone: Mapping[str, Any], a: float, big_u: float | None) -> Interval | None:
+    """An undetected tone's amplitude as the PDF prints it, '< a + U' (docs/method.md D2):
+    the interval [0, a + U], one-sided at the level of k = 2."""
+    if tone.get("detected") is not False or big_u is None:
+        return None
+    return limit_interval(abs(a) + big_u, "normal, one-sided upper limit a + U",
+                          (1.0 + float(COVERAGE_PROBABILITY)) / 2.0)
 
 
 def _systematic(data: etree._Element, rid: str, path: str, s: Any) -> None:
@@ -264,7 +323,8 @@ def _systematic(data: etree._Element, rid: str, path: str, s: Any) -> None:
             if v is not None:
                 uu = num(h.get(u_key))
                 quantity(lst, ident(hid, key), title, ref, v, unit, uu, label=f"{p}.{key}",
-                         note=None if uu is not None else "U not stated in result.json.")
+                         note=None if uu is not None else "U not stated in result.json.",
+                         interval=_undetected(h, v, uu) if key == "amplitude_rel" else None)
     m = s.get("mains")
     if isinstance(m, Mapping) and num(m.get("amplitude_dps")) is not None:
         mid = ident(rid, "mains")
@@ -282,7 +342,8 @@ def _systematic(data: etree._Element, rid: str, path: str, s: Any) -> None:
                 uu = num(m.get(u_key)) if u_key else None
                 quantity(lst, ident(mid, key), title, ref, v, unit, uu, label=f"{p}.{key}",
                          note=None if uu is not None or u_key is None
-                         else "U not stated in result.json.")
+                         else "U not stated in result.json.",
+                         interval=_undetected(m, v, uu) if key == "amplitude_dps" else None)
 
 
 def _pair_result(res: etree._Element, axis: str, i: int, p: Mapping[str, Any]) -> None:

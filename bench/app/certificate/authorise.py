@@ -23,18 +23,21 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import contextvars
 import datetime as dt
+import hashlib
 import json
 import os
 import shutil
 import sys
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from bench.app.certificate import HTML_NAME, PDF_NAME, register, render_files, result_digest
-from bench.app.certificate.build import Sources, certificate_id, stand_of
+from bench.app.certificate.build import Sources, stand_of
+from bench.app.register.store import MEANING_ISSUE
 from bench.core.lab import Lab, LabError, Signatory, run_lab
 from bench.core.traceability import identity_problems, with_declared_serials
 
@@ -57,6 +60,7 @@ class IssueContext:
     previous: tuple[register.Issue, ...]     # the issues recorded so far, oldest first
     simulated: bool                           # twins, not instruments
     records_url: str | None = None            # the records (None: the run's default)
+    lab_register: Any = None                  # the lab register (bench.app.register)
 
 
 PreIssueCheck = Callable[[IssueContext], list[str]]
@@ -159,7 +163,26 @@ def _err(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
+#: where `authorise_collecting` gathers the reasons of a refusal (per thread and task)
+_REASONS: contextvars.ContextVar[list[str] | None] = contextvars.ContextVar(
+    "authorise_reasons", default=None)
+
+
+def authorise_collecting(*args: Any, **kwargs: Any) -> tuple[int, list[str]]:
+    """`authorise`, with the reasons of a refusal returned as well as printed (the
+    station shows them on the page)."""
+    reasons: list[str] = []
+    token = _REASONS.set(reasons)
+    try:
+        return authorise(*args, **kwargs), reasons
+    finally:
+        _REASONS.reset(token)
+
+
 def _refuse(reasons: list[str], run_path: Path) -> int:
+    gathered = _REASONS.get()
+    if gathered is not None:
+        gathered += reasons
     _err(f"bench authorise: not issued ({run_path}):")
     for r in reasons:
         _err(f"  - {r}")
@@ -177,12 +200,30 @@ def issue_dir(run_path: Path, number: str) -> Path:
     return Path(run_path) / ISSUED_DIR / number
 
 
+def register_of(run_path: Path, lab_file: str | None) -> str | None:
+    """The register the lab file names: --lab FILE, else the lab file the run copied when
+    it started. Never the procedure's `certificate:` block, which the operator edits."""
+    from bench.core.lab import RUN_COPY, load_lab
+
+    path = Path(lab_file) if lab_file else Path(run_path) / RUN_COPY
+    return load_lab(path).register_url if path.is_file() else None
+
+
+def _files_sha256(folder: Path) -> dict[str, str]:
+    """The digests of the files as stored (what `bench verify --register` compares)."""
+    return {name: hashlib.sha256((folder / name).read_bytes()).hexdigest()
+            for name in (RESULT_NAME, PDF_NAME, DCC_NAME, HTML_NAME)}
+
+
 def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
               lab_file: str | None = None, line: Callable[[str], None] = print,
-              records_url: str | None = None) -> int:
-    """Issue the run's draft; returns the exit status (0 issued, 2 refused, 3 failed)."""
+              password: Callable[[str], str] | None = None) -> int:
+    """Issue the run's draft through the lab register; returns the exit status (0 issued,
+    2 refused, 3 failed). `password(prompt)` gives the signatory's password."""
     from bench.app.dcc.output import write_dcc
     from bench.app.dcc.settings import resolve_settings
+    from bench.app.records.extract import run_uid
+    from bench.app.register import Register, RegisterError, redact
 
     run_path = Path(run_path)
     result_file = run_path / RESULT_NAME
@@ -196,31 +237,78 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
         return _refuse([f"{result_file}: not JSON: {e}"], run_path)
     stand = _stand(run_path)
     try:
-        lab = resolve_settings(stand, lab_file, base=run_lab(run_path, result.get("certificate")))
+        own = run_lab(run_path, result.get("certificate"))
+        lab = resolve_settings(stand, lab_file, base=own)
+        if own.name and not lab.name:   # a lab file that names only the register and
+            lab = replace(own, signing=lab.signing,     # key: the run's laboratory, as the
+                          require_signed_dcc=lab.require_signed_dcc)   # PDF prints it
+        url = register_of(run_path, lab_file)
     except LabError as e:
         return _refuse([str(e)], run_path)
-    who = lab.authoriser(signatory_name)
-    if who is None:
-        allowed = ", ".join(s.name for s in lab.authorisers()) or "nobody"
-        return _refuse([f"{signatory_name!r} is not a signatory the lab settings authorise "
-                        f"to issue ({lab.source or 'lab settings'}: signatories with "
-                        f"authorises: true: {allowed})"], run_path)
-    previous = tuple(i for i in register.issues(run_path) if not i.draft)
-    src = Sources.load(result, run_path)
-    ctx = IssueContext(run_path, result, lab, who, reason, previous,
-                       bool(stand_of(src).get("simulated")), records_url)
-    refused = refusals(ctx)
-    if refused:
-        return _refuse(refused, run_path)
+    if not url:
+        return _refuse([f"the lab file ({lab_file or run_path / 'lab.yaml'}) names no register "
+                        "(register: URL): a certificate is issued only through the lab's "
+                        "register, which authenticates the signatory and allocates the number "
+                        "(docs/register.md); the draft stays a draft"], run_path)
+    try:
+        reg = Register.open(url, migrate=False)
+    except RegisterError as e:
+        return _refuse([f"the register cannot be reached: {e}"], run_path)
+    with reg:
+        try:
+            acct = reg.authenticate(signatory_name, (password or _ask)(
+                f"password of {signatory_name} (e-signature, register {redact(url)}): "),
+                "signatory")
+            uid = run_uid(json.loads((run_path / "meta.json").read_text(encoding="utf-8")),
+                          run_path.name)
+            number = reg.number_of_run(uid)
+            issued = reg.revisions(number) if number else []
+        except (RegisterError, OSError, ValueError) as e:
+            return _refuse([str(e)], run_path)
+        who = Signatory(acct.full_name, acct.function or "", True)
+        previous = tuple(register.Issue(r.shown_number, r.revision, r.issued_utc,
+                                        signatory=r.signatory_name) for r in issued)
+        src = Sources.load(result, run_path)
+        ctx = IssueContext(run_path, result, lab, who, reason, previous,
+                           bool(stand_of(src).get("simulated")), lab.records_url, reg)
+        refused = refusals(ctx)
+        if refused:
+            return _refuse(refused, run_path)
+        try:
+            number = number or reg.allocate(uid, lab.prefix, acct.name)
+        except RegisterError as e:
+            return _refuse([str(e)], run_path)
+        return _issue(run_path, result, result_bytes, stand, lab, reg, acct, who, number,
+                      previous, reason, line, write_dcc)
+
+
+def _ask(prompt: str) -> str:
+    from bench.app.register.credentials import Passwords
+
+    return Passwords(False).next(prompt)
+
+
+def _issue(run_path: Path, result: dict[str, Any], result_bytes: bytes, stand: Any, lab: Lab,
+           reg: Any, acct: Any, who: Signatory, number: str,
+           previous: tuple[register.Issue, ...], reason: str | None,
+           line: Callable[[str], None], write_dcc: Any) -> int:
+    """Render the issue, record it in the register (which may still refuse: a concurrent
+    issue of the same revision), then move it into place."""
+    from bench.app.register import RegisterError, redact
+
     old = None
     if previous:
         kept = issue_dir(run_path, previous[-1].number) / RESULT_NAME
         old = json.loads(kept.read_bytes()) if kept.is_file() else None
-    issue = register.next_issue(
-        run_path, certificate_id(src), dt.datetime.now(dt.UTC), result_digest(result),
+    revision = len(previous) + 1
+    issue = register.Issue(
+        register.numbered(number, revision), revision,
+        dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        previous[-1].number if previous else None, result_digest(result),
         signatory=who.name, function=who.function or None,
         reason=(reason or "").strip() or None,
-        changes=changes_between(old, result) if previous else ())
+        changes=changes_between(old, result) if previous else (),
+        meaning=MEANING_ISSUE, register=redact(reg.url))
     final = issue_dir(run_path, issue.number)
     if final.exists():
         return _refuse([f"{final} exists: an issued revision's files are never "
@@ -230,8 +318,10 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
     work.mkdir(parents=True)
     (work / RESULT_NAME).write_bytes(result_bytes)          # what this issue states
     render_files(result, work, run_path, issue=issue)
+    signing_lab, signing_note = designated_signing(lab, reg)
     try:
-        outcome = write_dcc(run_path, result, stand, lab=lab, issue=issue, out_dir=work)
+        outcome = write_dcc(run_path, result, stand, lab=signing_lab, issue=issue,
+                            out_dir=work)
     except LabError as e:
         _discard(work)
         return _refuse([f"the DCC could not be signed: {e}"], run_path)
@@ -240,9 +330,16 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
         _discard(work)
         _err(f"bench authorise: not issued: the DCC does not validate ({run_path})")
         return EXIT_FAILED
+    try:
+        rev = reg.issue(number, revision, acct, issue.issued_utc, _files_sha256(work),
+                        issue.reason, {"run_dir": run_path.name, "signatory": acct.name})
+    except RegisterError as e:
+        _discard(work)
+        return _refuse([f"the register refused the issue: {e}"], run_path)
+    issue = replace(issue, audit_digest=rev.audit_digest)
     register.record(run_path, issue)
     # the folder is self-contained: `bench verify issued/<n>/certificate.dcc.xml` reads
-    # result.json and the register beside it
+    # result.json and the register's copy beside it
     (work / register.REGISTER_NAME).write_bytes((run_path / register.REGISTER_NAME)
                                                 .read_bytes())
     os.replace(work, final)
@@ -252,16 +349,37 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
         tmp = run_path / f"{name}.tmp"
         shutil.copyfile(final / name, tmp)
         os.replace(tmp, run_path / name)
-    line(f"issued certificate {issue.number} (revision {issue.revision}), authorised by "
+    line(f"issued certificate {issue.number} (revision {issue.revision}), {MEANING_ISSUE} by "
          f"{who.name}" + (f", {who.function}" if who.function else "") +
-         f" at {issue.issued_utc}" + ("; DCC signed (XAdES)" if outcome.signed else
-                                      "; DCC not signed (the lab configured no key)"))
+         f" (account {acct.name}, authenticated by the register) at {issue.issued_utc}"
+         + ("; DCC signed (XAdES)" if outcome.signed else f"; DCC not signed ({signing_note})"))
     if issue.replaces:
         line(f"withdrawn: {issue.replaces} (its files kept unchanged under "
              f"{issue_dir(run_path, issue.replaces)})")
     for name in (PDF_NAME, HTML_NAME, DCC_NAME):
         line(f"wrote {final / name}")
     return EXIT_ISSUED
+
+
+#: the register's setting naming the DCC signing certificate (SHA-256 of its PEM file)
+SIGNING_SETTING = "dcc_signing_certificate_sha256"
+
+
+def designated_signing(lab: Lab, reg: Any) -> tuple[Lab, str]:
+    """The lab with the signing key only when the register designates its certificate:
+    the key that signs for the lab is the register's decision, not a file's."""
+    want = reg.setting(SIGNING_SETTING)
+    if lab.signing is None:
+        return lab, "the lab configured no key"
+    try:
+        have = hashlib.sha256(Path(lab.signing.certificate_file).read_bytes()).hexdigest()
+    except OSError as e:
+        raise LabError(f"{lab.source}: signing.certificate: {e}") from None
+    if want and have == want:
+        return lab, ""
+    why = ("the register designates no signing certificate" if not want else
+           "the lab file's signing certificate is not the one the register designates")
+    return replace(lab, signing=None, require_signed_dcc=False), why
 
 
 def _discard(work: Path) -> None:
@@ -284,12 +402,25 @@ def _mark_withdrawn(run_path: Path, old: register.Issue, new: register.Issue) ->
 
 
 def cmd_authorise(args: argparse.Namespace) -> int:
+    from bench.app.register import RegisterError
+    from bench.app.register.credentials import Passwords
+
     run_path = Path(args.run_dir)
     if not run_path.is_dir():
         _err(f"bench authorise: {run_path}: no such run directory")
         return EXIT_REFUSED
-    return authorise(run_path, args.signatory, args.reason, args.lab,
-                     records_url=args.records)
+    try:
+        pw = Passwords(args.password_stdin)
+    except RegisterError as e:
+        return _refuse([str(e)], run_path)
+
+    def password(prompt: str) -> str:
+        return pw.next(prompt)
+
+    try:
+        return authorise(run_path, args.signatory, args.reason, args.lab, password=password)
+    except RegisterError as e:
+        return _refuse([str(e)], run_path)
 
 
 def add_parser(sub: Any) -> None:
@@ -298,9 +429,10 @@ def add_parser(sub: Any) -> None:
                                          "authorised signatory; exit 2 when refused")
     p.add_argument("run_dir")
     p.add_argument("--signatory", required=True,
-                   help="who authorises the issue (a signatory the lab file authorises)")
+                   help="the signatory's account in the lab register (its password is "
+                        "asked: name and password are the e-signature)")
+    p.add_argument("--password-stdin", action="store_true",
+                   help="read the signatory's password from standard input")
     p.add_argument("--reason", help="why a revision is re-issued (required for a re-issue)")
-    p.add_argument("--lab", help="lab settings file (default: the run's own)")
-    p.add_argument("--records", metavar="URL",
-                   help="records database for the instruments' assurance status (default "
-                        "records.sqlite beside the run)")
+    p.add_argument("--lab", help="lab settings file naming the register (default: the "
+                                 "run's own copy)")

@@ -17,8 +17,10 @@ from pathlib import Path
 from typing import Any
 
 import bench
+from bench.analysis.coverage import COVERAGE_FORMULA, DOF_INFINITE
 from bench.app.certificate import register
 from bench.app.certificate.operator import prompt_blocks, software_note, utc_text
+from bench.app.certificate.people import PERFORMED_BY, equipment_lines, performer, performer_line
 from bench.app.certificate.register import Issue
 from bench.core.journal import sha256_file
 from bench.core.registry import procedure_kind, procedure_names
@@ -61,18 +63,17 @@ def _trim(x: float) -> str:
 
 # -- the certificate id ----------------------------------------------------------------
 
+DRAFT_PREFIX = "DRAFT"
+
+
 def certificate_id(src: Sources) -> str:
-    """The base number of the run's certificates: the laboratory's own if the procedure
-    gives one, else `<prefix>-<date of completion>-<8 hex digits>`.
+    """The draft identifier of the run: `DRAFT-<date of completion>-<8 hex digits>`. Not a
+    certificate number: only the lab register allocates those, at issue (issue 42), so a
+    procedure file cannot name one and a copied run directory cannot issue one twice.
 
     The digits identify the run (its directory and creation time), so two runs never share
-    a number; each issue of one run adds its revision (register.numbered). Without a run
-    (a specimen) the digits are a digest of the results.
+    an identifier. Without a run (a specimen) the digits are a digest of the results.
     """
-    cert = _cert(src)
-    for key in ("number", "id", "certificate_id"):
-        if cert.get(key):
-            return str(cert[key])
     run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else None)
     created = (src.get("dates", {}) or {}).get("created_utc") or src.meta.get("created_utc")
     identity = (f"{run_dir}|{created}" if run_dir else
@@ -85,8 +86,7 @@ def certificate_id(src: Sources) -> str:
             day = dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00")).strftime("%Y%m%d")
         except ValueError:
             day = ""
-    prefix = cert.get("prefix", "RT")
-    return "-".join(p for p in (str(prefix), day, digest.hexdigest()[:8].upper()) if p)
+    return "-".join(p for p in (DRAFT_PREFIX, day, digest.hexdigest()[:8].upper()) if p)
 
 
 def issued_number(src: Sources) -> str:
@@ -188,7 +188,7 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
     statements = proc.parts.certificate_statements(methods.STATEMENTS)
     statements.append(AUTHORITATIVE)
     sections.append(Section(n.next(), "Statements", tuple(Para(t) for t in statements)))
-    sections.append(Section(n.next(), "Authorisation", _signatures(cert, issue)))
+    sections.append(Section(n.next(), "Authorisation", _signatures(src, issue)))
     item, serial = proc.parts.certificate_item(src)
     subtitle = f"{item}, serial {serial}"
     simulated = bool(stand_of(src).get("simulated"))
@@ -197,7 +197,7 @@ def build_document(result: dict[str, Any], run_path: Path | None = None,
     marks = [m for m in (DRAFT_MARK if issue.draft else "",
                          SIMULATED_MARK if simulated else "") if m]
     return Document(
-        cert_id=issue.number + (" (DRAFT)" if issue.draft else ""),
+        cert_id=issue.number,
         title="Calibration certificate",
         subtitle=subtitle,
         laboratory=lab,
@@ -228,9 +228,10 @@ def budget_tables(result: Mapping[str, Any]) -> tuple[Any, ...]:
         "Each budget (EA-4/02 M:2022 section 4): input quantity X_i, estimate x_i, standard "
         "uncertainty u(x_i), distribution, sensitivity coefficient c_i, contribution "
         "u_i(y) = |c_i|·u(x_i) and degrees of freedom ν_i (∞: Type B or very many samples); "
-        "u_c(y) = √Σu_i(y)², ν_eff by Welch-Satterthwaite, U = k·u_c with the k the "
-        "analysis uses. Values are in the units named (1: a plain fraction, 1e-6 = 1 ppm). "
-        "Each budget is checked against the U reported with the result.", "note")]
+        "then, by the one rule of docs/method.md D1 that the analysis computes with: "
+        + COVERAGE_FORMULA + ". Values are in the units named (1: a plain fraction, "
+        "1e-6 = 1 ppm). Each budget is checked against the U reported with the result.",
+        "note")]
     for where, _owner, b in sites:
         un = "" if b.unit == "1" else f" {b.unit}"
         rows = tuple((t.quantity, _g(t.estimate, 6), _g(t.ustd), t.distribution,
@@ -240,8 +241,8 @@ def budget_tables(result: Mapping[str, Any]) -> tuple[Any, ...]:
         nu = b.dof_eff
         agree = b.reproduces
         notes = [f"u_c = {_g(b.ustd)}{un}; ν_eff = "
-                 f"{'∞' if nu is None or nu > 1e4 else f'{nu:.1f}'}; k = {b.k:g}; "
-                 f"U = {_g(b.U, 2)}{un}" +
+                 f"{'∞' if nu is None or nu > DOF_INFINITE else f'{nu:.1f}'}; "
+                 f"k = {b.k:.2f}; U = {_g(b.U, 2)}{un}" +
                  ("" if b.reported_U is None else
                   f"; U reported with the result {_g(b.reported_U, 2)}{un} "
                   + ("(reproduced)" if agree else "(NOT reproduced by this budget)"))]
@@ -280,7 +281,8 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
     completed = dates.get("completed_utc") or _last_event(src, "completed")
     item, serial = proc.parts.certificate_item(src)
     rows: list[tuple[str, str]] = [
-        ("Certificate number", issue.number),
+        (("Draft identifier (the lab register allocates the certificate number at issue)",
+          issue.number) if issue.draft else ("Certificate number", issue.number)),
         ("Revision", _revision_text(issue)),
         ("Title of the work", text_of(src.get("title") or src.procedure_file.get("title"))),
         ("Issued by", text_of(cert.get("laboratory"))),
@@ -617,6 +619,7 @@ def _deviations(src: Sources, proc: Procedure) -> tuple[Any, ...]:
                        f"{text_of(e.get('reported'))} ({text_of(e.get('query'))}); its check "
                        "values are filed under the reported serial. A finding of a run on "
                        "simulated twins: a real stand with this mismatch is refused.")
+    run += equipment_lines(src.meta, bool(stand_of(src).get("simulated")))
     for where in src.dropped:
         run.append(f"result.json: {where} was malformed and is not reported here.")
     run += proc.parts.certificate_run_deviations(src)
@@ -791,7 +794,13 @@ def _conformity(src: Sources, checks: list[dict[str, Any]], proc: Procedure
             cap = "—"
         elif (upper_rel := num(c.get("upper_rel"))) is not None and row.suffix == "rel":
             unit = rel_unit(row.value, row.u, row.tolerance)
-            vu += f"; 97.5 % limit {format_limit(upper_rel * unit.scale)[0]}"
+            lower_rel = num(c.get("lower_rel"))
+            if lower_rel is not None and row.value is not None:
+                # docs/method.md D2: an asymmetric interval is printed as its interval
+                vu = present(row.value, None, unit.scale, resolved=True,
+                             interval=(lower_rel, upper_rel)).with_unit(unit.name)
+            else:
+                vu += f"; 97.5 % limit {format_limit(upper_rel * unit.scale)[0]}"
         rate = num(c.get("set_rate_dps"))
         point = rate_text(rate) if with_rate else (f"{rate_text(rate)} °/s" if rate is not None else "—")
         rows.append((str(i), text_of(c.get("axis")), point, quantity, vu, tol_text, cap, label))
@@ -924,36 +933,33 @@ def _revision_text(issue: Issue) -> str:
     return text
 
 
-def _signatures(cert: Mapping[str, Any], issue: Issue) -> tuple[Any, ...]:
-    """Named signatories with their functions (the lab's settings). Only an issue that
-    `bench authorise` recorded names who authorised it and when; a draft claims neither."""
-    signers = cert.get("signatories") or cert.get("signers")
-    pairs: list[tuple[str, str]] = []
-    if isinstance(signers, list) and signers:
-        for sg in signers:
-            if not isinstance(sg, Mapping):
-                pairs.append((str(sg), ""))
-                continue
-            if sg.get("authorises") or sg.get("main_signer"):
-                continue          # the authoriser's line is the issue's own, below
-            pairs.append((str(sg.get("function") or sg.get("role") or ""),
-                          str(sg.get("name") or "")))
-    else:
-        pairs = [("Calibration performed by", "")]
+def _signatures(src: Sources, issue: Issue) -> tuple[Any, ...]:
+    """Who performed the calibration (the account the register authenticated at the run's
+    start, else "not recorded") and who authorised the issue (the account it authenticated
+    at issue: printed name, date and time, meaning). Names in a file sign nothing."""
+    name, how = performer(src.meta)
+    pairs: list[tuple[str, str]] = [(PERFORMED_BY, name)]
+    performed = Para(performer_line(src.meta), "note")
     if issue.draft:
         pairs.append(("Reviewed and authorised by", ""))
         return (Para("DRAFT, NOT AUTHORISED: this draft has not been authorised for issue "
-                     "and is not a certificate. An authorised signatory issues it with "
-                     "`bench authorise RUN_DIR --signatory NAME`.", "strong"),
+                     "and is not a certificate. A signatory of the lab register issues it "
+                     "(`bench authorise RUN_DIR --signatory ACCOUNT`, or the station view), "
+                     "authenticated by name and password.", "strong"), performed,
                 Signatures(tuple(pairs)))
     who = ", ".join(x for x in (issue.signatory, issue.function) if x)
-    pairs.append((f"{issue.function or 'Authorised signatory'}; authorised this issue",
-                  str(issue.signatory)))
+    meaning = issue.meaning or "authorised for issue"
+    pairs.append((f"{issue.function or 'Authorised signatory'}; {meaning} "
+                  f"({issue.issued_utc})", str(issue.signatory)))
     text = (f"Date of issue: {issue.issue_date}, the date on which this certificate was "
             f"authorised for issue by {who} ({issue.issued_utc}).")
+    if issue.register:
+        text += (f" Electronic signature: {issue.signatory}, {issue.issued_utc}, meaning "
+                 f"'{meaning}', authenticated by name and password by the lab register "
+                 f"{issue.register}.")
     if issue.replaces:
         text += (f" Revision {issue.revision}: it replaces certificate {issue.replaces}, "
                  "which is withdrawn.")
         if issue.reason:
             text += f" Reason for the re-issue: {issue.reason}."
-    return (Para(text), Signatures(tuple(pairs)))
+    return (Para(text), performed, Signatures(tuple(pairs)))

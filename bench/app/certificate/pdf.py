@@ -54,7 +54,8 @@ class _Pdf(FPDF):
         self.set_font(SANS, "", 8)
         self.set_text_color(60, 60, 60)
         self.cell(0, 4, self.doc.laboratory, new_x=XPos.LMARGIN, new_y=YPos.TOP)
-        self.cell(0, 4, f"Certificate No. {self.doc.cert_id}", align="R",
+        self.cell(0, 4, ("Certificate No. " if self.doc.issue_date else "Draft ")
+                  + self.doc.cert_id, align="R",
                   new_x=XPos.LMARGIN, new_y=YPos.NEXT)
         issued = (f"issued {self.doc.issue_date}" if self.doc.issue_date
                   else "DRAFT, NOT AUTHORISED, not issued")

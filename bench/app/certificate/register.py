@@ -38,6 +38,9 @@ class Issue:
     function: str | None = None       # their function in the laboratory
     reason: str | None = None         # why a revision was re-issued (7.8.8)
     changes: tuple[str, ...] = ()     # what differs from the revision it replaces
+    meaning: str | None = None        # the signature's meaning ("authorised for issue")
+    register: str | None = None       # the register that recorded the issue (URL)
+    audit_digest: str | None = None   # its audit entry: the receipt of the issue
 
     @property
     def issue_date(self) -> str:
@@ -58,7 +61,8 @@ class Issue:
         return cls(str(d["number"]), int(d["revision"]), str(d["issued_utc"]),
                    d.get("replaces"), d.get("result_sha256"), d.get("signatory"),
                    d.get("function"), d.get("reason"),
-                   tuple(str(c) for c in d.get("changes") or ()))
+                   tuple(str(c) for c in d.get("changes") or ()), d.get("meaning"),
+                   d.get("register"), d.get("audit_digest"))
 
 
 def numbered(base: str, revision: int) -> str:

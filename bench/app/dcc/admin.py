@@ -13,6 +13,7 @@ from lxml import etree
 
 import bench
 from bench.app.certificate.build import Sources, check_class, decision_rule_text
+from bench.app.certificate.people import PERFORMED_BY, equipment_lines, performer
 from bench.app.certificate.register import Issue
 from bench.core.lab import Lab
 from bench.report.certificate import methods
@@ -119,18 +120,20 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
     # the address as the PDF prints it, after its parts (where the lab file gives them)
     _location(contact, (*lab.location, *((("further", lab.address),) if lab.address else ())))
     persons = el(adm, "respPersons")
-    # a draft names the lab's signatories, none as main signer (nobody authorised it); an
-    # issue those who did not authorise, then the one who did, its main signer
-    people = [(s.name, s.function or None) for s in lab.signatories
-              if issue.draft or not s.authorises]
+    # as the PDF's authorisation section (bench/app/certificate/people.py): the performer
+    # the register authenticated (or "not recorded"), then, on an issue, its signatory
+    # as main signer; a draft names no one who would sign it
+    performed, how = performer(src.meta)
+    people = [(performed, f"{PERFORMED_BY} ({how})", False)]
     if not issue.draft:
-        people.append((str(issue.signatory), issue.function or "Authorised signatory"))
-    for person_name, role in people or [("", "Calibration performed by")]:
+        people.append((str(issue.signatory), f"{issue.function or 'Authorised signatory'}; "
+                       f"{issue.meaning or 'authorised for issue'} ({issue.issued_utc})",
+                       True))
+    for person_name, role, main in people:
         rp = el(persons, "respPerson")
-        name(el(rp, "person"), person_name or f"name {NOT_RECORDED}")
-        if role:
-            el(rp, "role", role)
-        if not issue.draft and person_name == issue.signatory:
+        name(el(rp, "person"), person_name)
+        el(rp, "role", role)
+        if main:
             el(rp, "mainSigner", "true")
     customer = el(adm, "customer")
     name(customer, str(cert.get("customer") or f"customer {NOT_RECORDED}"))
@@ -185,6 +188,10 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
     else:
         text = (f"Authorised for issue on {issue.issue_date} ({issue.issued_utc}) by "
                 f"{issue.signatory}" + (f", {issue.function}" if issue.function else "") + ".")
+        if issue.register:
+            text += (f" Electronic signature: {issue.signatory}, {issue.issued_utc}, meaning "
+                     f"'{issue.meaning or 'authorised for issue'}', authenticated by name "
+                     f"and password by the lab register {issue.register}.")
         if issue.replaces:
             text += (f" Revision {issue.revision}: it replaces certificate {issue.replaces}, "
                      "which is withdrawn." + (f" Reason: {issue.reason}." if issue.reason
@@ -225,6 +232,9 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
     if stand.get("simulated"):
         statement(sts, V.SIMULATED, "SIMULATED stand: every instrument was a simulated "
                   "twin on a real channel; the results describe no physical item.")
+    for i, line in enumerate(equipment_lines(src.meta, bool(stand.get("simulated")))):
+        statement(sts, V.EQUIPMENT, line, sid=f"equipment{i + 1}", title="Equipment",
+                  norms=("ISO/IEC 17025:2017",), references=("6.4.13",))
     if not country:
         statement(sts, V.COUNTRY_UNKNOWN, "The laboratory configured no country: the "
                   f"country code {UNKNOWN_COUNTRY} (ISO 3166-1 user-assigned) stands for "

@@ -109,6 +109,11 @@ def cmd_verify(args: argparse.Namespace) -> int:
     if not path.is_file():
         _err(f"{path}: not found")
         return EXIT_INVALID
+    if path.suffix.lower() != ".xml":          # a PDF or HTML: its standing only
+        if not args.register:
+            _err(f"{path}: not a DCC; give --register URL to look its issue up")
+            return EXIT_INVALID
+        return _standing(path, args.register)
     cert = Path(args.cert) if args.cert else None
     lab = _lab_of(args.lab, path.parent)
     if cert is None and not args.ca and lab is not None and lab.signing is not None:
@@ -119,7 +124,69 @@ def cmd_verify(args: argparse.Namespace) -> int:
     print(f"{path}:")
     print("\n".join(f"  {line}" for line in report.lines))
     print("verify: FAILED" if report.failed else "verify: OK")
+    if args.register:
+        standing = _standing(path, args.register)
+        return EXIT_FAIL if report.failed else standing
+    print(f"status: {_local_status(path)} (from the run directory's copy; `--register URL` "
+          "asks the lab's register)")
     return EXIT_FAIL if report.failed else EXIT_PASS
+
+
+def _local_status(path: Path) -> str:
+    """What the file itself and the run's copy of the register say, unconfirmed."""
+    from bench.app.certificate import register
+
+    data = path.read_bytes()
+    if b'id="draftStatus"' in data:
+        return "not issued (draft)"
+    folder = path.parent
+    # an issued revision's folder keeps the copy made when it was issued; the run
+    # directory's copy has every revision since
+    issues = register.issues(folder.parent.parent if folder.parent.name == "issued"
+                             else folder)
+
+    run_dir = folder.parent.parent if folder.parent.name == "issued" else folder
+    # the revision whose kept file is this one, byte for byte
+    mine = next((i for i in issues
+                 if (run_dir / "issued" / i.number / path.name).is_file()
+                 and (run_dir / "issued" / i.number / path.name).read_bytes() == data), None)
+    if mine is None:
+        return "issued according to the file; no register entry at hand"
+    later = [i for i in issues if i.revision > mine.revision]
+    return (f"withdrawn (replaced by {later[0].number})" if later else
+            f"issued (revision {mine.revision}, {mine.issued_utc})")
+
+
+def _standing(path: Path, url: str) -> int:
+    """`bench verify FILE --register URL`: issued, withdrawn or not issued, as the lab's
+    register holds the file's SHA-256 (issue 42). Exit 0 issued, 1 otherwise."""
+    import hashlib
+
+    from bench.app.register import Register, RegisterError, redact
+
+    sha = hashlib.sha256(path.read_bytes()).hexdigest()
+    try:
+        with Register.open(url, migrate=False) as reg:
+            rev = reg.find_revision(sha)
+            later = [r for r in reg.revisions(rev.number)
+                     if r.revision > rev.revision] if rev else []
+    except RegisterError as e:
+        print(f"register: cannot be asked: {e}")
+        return EXIT_FAIL
+    where = redact(url)
+    if rev is None:
+        draft = b'id="draftStatus"' in path.read_bytes()
+        print(f"register {where}: not issued" + (" (draft)" if draft else "") +
+              f": no revision in the register has this file's SHA-256 {sha[:16]}...")
+        return EXIT_FAIL
+    what = (f"certificate {rev.shown_number} (revision {rev.revision}), {rev.meaning} by "
+            f"{rev.signatory_name} at {rev.issued_utc}")
+    if rev.status == "withdrawn":
+        print(f"register {where}: withdrawn: {what}; withdrawn {rev.withdrawn_utc}"
+              + (f", replaced by {later[-1].shown_number}" if later else ""))
+        return EXIT_FAIL
+    print(f"register {where}: issued: {what}")
+    return EXIT_PASS
 
 
 def _lab_of(lab_file: str | None, folder: Path) -> Any:
@@ -160,6 +227,9 @@ def add_parsers(sub: Any) -> None:
     ver.add_argument("--lab", help="lab settings file whose signing certificate is trusted")
     ver.add_argument("--no-result", action="store_true",
                      help="check schema and signature only (no result.json at hand)")
+    ver.add_argument("--register", metavar="URL",
+                     help="the lab register: states issued, withdrawn or not issued (exit 0 "
+                          "only for issued); FILE may then be the PDF too")
 
 
 COMMANDS = {"dcc": cmd_dcc, "verify": cmd_verify}

@@ -58,7 +58,14 @@ def add_parsers(sub: Any) -> None:
     where.add_argument("--records", help="records database URL")
     con.add_argument("--review", metavar="TEXT",
                      help="record a review of SERIAL's status: why it may be used (journaled)")
-    con.add_argument("--by", metavar="NAME", help="who reviews (default: the login name)")
+    con.add_argument("--by", metavar="ACCOUNT",
+                     help="with --review: the reviewer's account in the lab register "
+                          "(reviewer or quality role), authenticated with its password")
+    con.add_argument("--register", metavar="URL",
+                     help="the lab register (default: the lab file's register:)")
+    con.add_argument("--lab", metavar="FILE", help="lab file naming the register")
+    con.add_argument("--password-stdin", action="store_true",
+                     help="read the reviewer's password from standard input")
     con.add_argument("--new-baseline", action="store_true",
                      help="with --review: the instrument changed for good (repaired, "
                           "adjusted): its charts restart at the last run, a new baseline")
@@ -224,9 +231,35 @@ def _plot_path(args: argparse.Namespace, url: str, serial: str) -> Path:
     return folder / f"control-{_safe(serial)}.png"
 
 
+def _authenticated_reviewer(args: argparse.Namespace) -> str | None:
+    """A review lifts the assurance gate (ISO/IEC 17025 7.7), so it is a decision of an
+    account the lab register authenticates (issue 42), never a name typed after --by."""
+    from bench.app.register import RegisterError
+    from bench.app.register.commands import register_url
+    from bench.app.register.credentials import Passwords
+    from bench.app.register.store import Register
+
+    if not args.by:
+        _err("bench control --review: --by ACCOUNT names the reviewer's account in the lab "
+             "register (its password is asked)")
+        return None
+    try:
+        with Register.open(register_url(args), migrate=False) as reg:
+            acct = reg.authenticate(args.by, Passwords(args.password_stdin).next(
+                f"password of {args.by} (review): "))
+            if not (acct.has("reviewer") or acct.has("quality")):
+                raise RegisterError(f"{args.by!r} holds neither the reviewer nor the quality "
+                                    "role")
+            reg.append(acct.name, "control review", str(args.serial),
+                       {"text": args.review.strip(), "new_baseline": args.new_baseline})
+    except RegisterError as e:
+        _err(f"bench control --review: {e}")
+        return None
+    return f"{acct.full_name} (account {acct.name}, authenticated)"
+
+
 def cmd_control(args: argparse.Namespace) -> int:
     """`bench control [SERIAL] [--review TEXT]` (docs/method.md C)."""
-    import getpass
     import socket
 
     from bench.app.records.control import OUT_OF_CONTROL, all_statuses, instrument_status
@@ -242,6 +275,11 @@ def cmd_control(args: argparse.Namespace) -> int:
     if args.review is not None and not args.review.strip():
         _err("bench control --review: say why the instrument may be used (TEXT is empty)")
         return EXIT_INVALID
+    reviewer = None
+    if args.review is not None:
+        reviewer = _authenticated_reviewer(args)
+        if reviewer is None:
+            return EXIT_INVALID
     with Records.open(where.url) as rec:
         if not args.serial:
             statuses = all_statuses(rec)
@@ -257,11 +295,8 @@ def cmd_control(args: argparse.Namespace) -> int:
             _err(f"no instrument {args.serial!r} in {redact(where.url)} (`bench control` "
                  f"lists them)")
             return EXIT_FAIL
-        if args.review is not None:
-            try:
-                who = args.by or getpass.getuser()
-            except (KeyError, OSError):
-                who = "unknown"
+        if args.review is not None and reviewer is not None:
+            who = reviewer
             last = max((p.date_utc for s in status.series for p in s.points if p.date_utc),
                        default=None)
             r = rec.add_review(args.serial, who, args.review.strip(), status.line, last,

@@ -11,7 +11,7 @@ from __future__ import annotations
 import datetime as dt
 import getpass
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -53,7 +53,7 @@ def target(runs_dir: str | Path, url: str | None = None, warn: Warn | None = Non
 
 
 def mark_run(run_path: Path, procedure: CommonSettings, state: str | None = None,
-             note: str | None = None, operator: str | None = None) -> None:
+             note: str | None = None, register: Mapping[str, Any] | None = None) -> None:
     """Write as-found/as-left, the adjustment note and the operator into meta.json.
 
     The CLI flag wins over the procedure key; written before the run starts so that an
@@ -70,7 +70,15 @@ def mark_run(run_path: Path, procedure: CommonSettings, state: str | None = None
         login = getpass.getuser()
     except (KeyError, OSError):
         login = None
-    meta["operator"] = operator or procedure.operator or login
+    # the performer is an account the register authenticated (`bench run --operator`),
+    # never a name from a file (issue 42); `operator` keeps who ran it for the records
+    register = dict(register or {})
+    performer = register.get("performer")
+    meta["os_user"] = login
+    meta["operator"] = performer["account"] if performer else login
+    if procedure.operator:
+        meta["operator_stated"] = procedure.operator      # the procedure file's word only
+    meta.update(register)
     meta_path.write_text(json.dumps(meta, indent=2) + "\n")
 
 

@@ -1,8 +1,11 @@
 """The station view's web application (Flask): live runs and the lab's records.
 
-Read-only but for one action, a stop request, which is exactly Ctrl-C: SIGINT to the bench
-process that journaled its pid in the run directory, so the engine's own safe stop runs
-(ramp to zero, disable, data kept, `--resume` continues). Nothing here can move a table.
+Read-only but for two actions: a stop request, which is exactly Ctrl-C: SIGINT to the
+bench process that journaled its pid in the run directory, so the engine's own safe stop
+runs (ramp to zero, disable, data kept, `--resume` continues); and, with a lab register,
+a signatory's e-signature that issues a run's draft (signing.py: log in, re-enter the
+password to sign; the server refuses and audits anyone else). Nothing here can move a
+table.
 
 Security, in this order: a request from another host than this one needs the operator's
 token; a stop request always needs it; the Host header must name this server (a web page
@@ -13,13 +16,11 @@ directories directly inside the runs folder are served.
 from __future__ import annotations
 
 import hmac
-import ipaddress
 import json
 import os
 import signal
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
 
@@ -28,6 +29,8 @@ from flask import Flask, Response, abort, jsonify, render_template, request, sen
 import bench
 from bench.app.station.live import DOWNLOADS, list_runs, live_state, pid_alive
 from bench.app.station.records import RecordsView, run_figures
+from bench.app.station.settings import StationSettings, is_loopback
+from bench.app.station.signing import install as install_signing
 
 TOKEN_HEADER = "X-Bench-Token"
 TOKEN_COOKIE = "bench_token"
@@ -35,22 +38,6 @@ STREAM_PERIOD_S = 1.0           # how often a live page gets the run's state
 STREAM_LIFETIME_S = 300.0       # a stream ends then; the browser reconnects by itself
 
 T = TypeVar("T")
-
-
-@dataclass(frozen=True)
-class StationSettings:
-    runs: Path
-    token: str
-    host: str = "127.0.0.1"
-    port: int = 8765
-    records_url: str | None = None
-
-
-def is_loopback(addr: str | None) -> bool:
-    try:
-        return ipaddress.ip_address((addr or "").split("%")[0]).is_loopback
-    except ValueError:
-        return False
 
 
 def _bench_process(pid: int) -> bool:
@@ -90,6 +77,7 @@ def create_app(settings: StationSettings,
         return hmac.compare_digest(given.encode(), settings.token.encode())
 
     allowed_hosts = {"127.0.0.1", "localhost", "[::1]", settings.host}
+    signing = install_signing(app, settings, run_dir)
 
     @app.before_request
     def guard() -> Response | None:
@@ -118,8 +106,9 @@ def create_app(settings: StationSettings,
     @app.get("/run/<name>")
     def run_page(name: str) -> str:
         p = run_dir(name)
-        return render_template("run.html.j2", run=p.name, state=live_state(p),
-                               version=bench.__version__)
+        state = live_state(p)
+        return render_template("run.html.j2", run=p.name, state=state,
+                               cert=signing.panel(p, state), version=bench.__version__)
 
     @app.get("/api/runs")
     def api_runs() -> Response:

@@ -35,9 +35,12 @@ VALIDATION = ("Non-standard method (ISO/IEC 17025 7.2.2). Its implementation in 
 STATEMENTS: tuple[str, ...] = (
     "The results relate only to the item calibrated, as identified in section 1, at the "
     "conditions stated.",
-    "The expanded uncertainties U are the standard uncertainties multiplied by the coverage "
-    "factor k = 2, which for a normal distribution gives a coverage probability of about 95 %. "
-    "U is printed with at most two significant digits and the value is rounded to the same "
+    "The expanded uncertainties U are the combined standard uncertainties multiplied by the "
+    "coverage factor k = t_95.45(ν_eff), the Student t factor of the effective degrees of "
+    "freedom (EA-4/02 M:2022 annex E): k = 2 where ν_eff is infinite or large, as stated in "
+    "each budget of the annex otherwise, for a coverage probability of about 95 %. A "
+    "quantity whose distribution is not symmetric is given with its coverage interval "
+    "[lower, upper], or as a one-sided limit '< L' (docs/method.md D1, D2). U is printed with at most two significant digits and the value is rounded to the same "
     "decimal place (GUM 7.2.6; EA-4/02).",
     "Relative values are fractions of the commanded rate, printed in % or in ppm "
     "(1 ppm = 0.0001 %) as the column header states.",

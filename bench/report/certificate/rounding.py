@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from decimal import ROUND_CEILING, ROUND_HALF_UP, Decimal
+from decimal import ROUND_CEILING, ROUND_FLOOR, ROUND_HALF_UP, Decimal
 
 MINUS = "\u2212"  # the typographic minus sign
 
@@ -136,59 +136,97 @@ def rel_unit(*magnitudes: float | None) -> RelUnit:
 # -- one rule for quantities that may not be resolved (certificate, console summary) --------
 
 RESOLUTION_K = 2.0
+#: docs/method.md D2 states this text verbatim (tests/test_budget_recompute.py checks it)
 RESOLUTION_RULE = (
     "One rule for every magnitude (an amplitude, a standard deviation, a floor-corrected "
-    "figure): it is resolved when it exceeds its expanded uncertainty U (k = 2), i.e. "
-    "value > 2u. A resolved magnitude is printed 'value ± U'. Otherwise it is printed "
-    "'< L', L being its one-sided upper limit at k = 2 (value + U, or the limit stated "
-    "beside it), rounded up; its phase, if any, is printed '—'. A measured result is "
-    "printed with its U or as such a limit; floors, settings, nominal values and the "
-    "budget's inputs are stated as what they are, without a U of their own.")
+    "figure): it is resolved when the lower end of its coverage interval (about 95 %) lies "
+    "above its floor, zero where it has none (the timing floor for the σ of the per-turn "
+    "rates; for a harmonic or the mains tone the joint interval of its two coefficients, "
+    "the detection test of A4). A resolved magnitude is printed 'value ± U' when its "
+    "interval is symmetric (then value − U > floor) and 'value [lower, upper]' when it is "
+    "not (a standard deviation from few values, a floor-corrected figure). Otherwise it is "
+    "printed '< L', L the upper end of its interval as a one-sided limit, rounded up and "
+    "never below the floor; its phase, if any, is printed '—'. No value or U is printed "
+    "below its floor. Floors, settings, nominal values and the budget's inputs are stated "
+    "as what they are, without a U of their own.")
 NOT_STATED = "—"
 
 
 @dataclass(frozen=True)
 class Presented:
-    """A magnitude as printed under the one rule: `text` is 'value ± U' or '< L'."""
+    """A magnitude as printed under the one rule: 'value ± U', 'value [lower, upper]' or
+    '< L'."""
 
     text: str
     resolved: bool
     limit: float | None = None  # the one-sided upper limit, unscaled, when not resolved
 
     def with_unit(self, unit: str) -> str:
-        return f"{self.text} {unit}" if unit and self.text != NOT_STATED else self.text
+        if not unit or self.text == NOT_STATED:
+            return self.text
+        if "[" in self.text:            # '0.05 [0.02, 0.20]' -> '0.05 ppm [0.02, 0.20]'
+            head, tail = self.text.split(" [", 1)
+            return f"{head} {unit} [{tail}"
+        return f"{self.text} {unit}"
 
 
 def is_resolved(value: float | None, u_expanded: float | None,
-                k: float = RESOLUTION_K) -> bool:
-    """The k = 2 test, stated once: |value| > U (= k u). Without a usable U nothing is
-    resolved, since nothing shows that the value stands out of its own scatter."""
+                k: float = RESOLUTION_K, floor: float | None = None) -> bool:
+    """The one rule (docs/method.md D2) for a symmetric interval: |value| - U > floor (0
+    without one). Without a usable U nothing is resolved, since nothing shows that the
+    value stands out of its own scatter."""
     if value is None or u_expanded is None:
         return False
     if not (math.isfinite(value) and math.isfinite(u_expanded)) or u_expanded <= 0:
         return False
-    return abs(value) > u_expanded * k / RESOLUTION_K
+    return abs(value) - u_expanded * k / RESOLUTION_K > (floor or 0.0)
+
+
+def format_interval(value: float, lower: float, upper: float, scale: float = 1.0
+                    ) -> str:
+    """'value [lower, upper]' (docs/method.md D2): the decimals of the wider side's
+    distance to two significant digits, the lower end rounded down and the upper end up
+    (an interval is never narrowed); more decimals while a lower end above zero would
+    print as 0."""
+    v, lo, hi = value * scale, lower * scale, upper * scale
+    _, decimals = round_u(max(hi - v, v - lo, abs(v) * 1e-12, 1e-300))
+    while lo > 0 and _quantize(lo, decimals, ROUND_FLOOR) <= 0 and decimals < 30:
+        decimals += 1
+    return (f"{_text(_quantize(v, decimals), decimals)} "
+            f"[{_text(_quantize(lo, decimals, ROUND_FLOOR), decimals)}, "
+            f"{_text(_quantize(hi, decimals, ROUND_CEILING), decimals)}]")
 
 
 def present(value: float | None, u_expanded: float | None, scale: float = 1.0, *,
             upper: float | None = None, resolved: bool | None = None,
-            signed: bool = False) -> Presented:
-    """A magnitude and its U (k = 2) as the certificate and the console print it.
+            signed: bool = False, interval: tuple[float, float] | None = None,
+            floor: float | None = None) -> Presented:
+    """A magnitude and its U as the certificate and the console print it (docs/method.md
+    D2).
 
-    `upper` is a one-sided upper limit computed elsewhere (e.g. a floor-corrected figure's);
-    without it the limit is |value| + U. `resolved` overrides the k = 2 test when the
-    caller has a stricter one (a sigma at or below the counter's timing floor). A value
-    with no usable U is never printed bare: it is printed as its limit when one is given,
-    else as '—'.
+    `interval` is its asymmetric coverage interval (lower, upper): a resolved value is then
+    printed 'value [lower, upper]'. `upper` is a one-sided upper limit computed elsewhere
+    (e.g. a floor-corrected figure's); without it the limit is |value| + U (or the
+    interval's upper end). `resolved` overrides the symmetric test when the caller has the
+    interval's (a sigma against the counter's timing floor). A limit is never printed below
+    `floor`. A value with no usable U is never printed bare: it is printed as its limit
+    when one is given, else as '—'.
     """
     if resolved is None:
-        resolved = is_resolved(value, u_expanded)
+        resolved = (interval[0] > (floor or 0.0) if interval is not None
+                    else is_resolved(value, u_expanded, floor=floor))
+    if resolved and value is not None and interval is not None:
+        return Presented(format_interval(value, interval[0], interval[1], scale), True)
     if resolved and value is not None and u_expanded is not None:
         return Presented(format_value_u(value, u_expanded, scale, signed).joined(), True)
     limit = upper
+    if limit is None and interval is not None:
+        limit = interval[1]
     if limit is None and value is not None and u_expanded is not None \
             and math.isfinite(value) and math.isfinite(u_expanded) and u_expanded > 0:
         limit = abs(value) + u_expanded
+    if limit is not None and floor is not None and math.isfinite(floor):
+        limit = max(limit, floor)       # D2: never below the floor
     if limit is None or not math.isfinite(limit) or limit <= 0:
         return Presented(NOT_STATED, False)
     return Presented(f"< {format_limit(limit * scale)[0]}", False, limit)

@@ -11,6 +11,7 @@ from typing import Any
 
 from lxml import etree
 
+from bench.analysis.coverage import DOF_INFINITE
 from bench.report.budget import budget_sites
 from bench.report.dcc import vocab as V
 from bench.report.dcc.units import DEG, DEG_PER_H, DEG_PER_S, ONE
@@ -59,10 +60,12 @@ def budget_results(results: etree._Element, result: Mapping[str, Any]) -> None:
         total = el(data, "list", id=ident(bid, "combined"))
         nu = b.dof_eff
         name(total, f"combined: effective degrees of freedom "
-                    f"{'infinite' if nu is None else f'{nu:.1f}'}; coverage factor {b.k:g}"
+                    f"{'infinite' if nu is None or nu > DOF_INFINITE else f'{nu:.1f}'}; coverage "
+                    f"factor {b.k:.2f} (t_95.45 of nu_eff, docs/method.md D1)"
                     + ("" if b.reported_U is None else
                        "; reproduces the U reported with the result" if b.reproduces else
                        "; does NOT reproduce the U reported with the result"))
         quantity(total, ident(bid, "uc"), "combined standard uncertainty u_c(y)", V.STANDARD_UNCERTAINTY,
                  b.ustd, unit)
-        quantity(total, ident(bid, "U"), "expanded uncertainty U = k u_c", V.UNCERTAINTY, b.U, unit)
+        quantity(total, ident(bid, "U"), "expanded uncertainty U = k u_c", V.UNCERTAINTY, b.U, unit,
+                 k=b.k)

@@ -41,6 +41,7 @@ CONDITION = RB + "condition"
 RUN_DIRECTORY = RB + "runDirectory"
 DRAFT = RB + "draftNotAuthorised"
 AUTHORISATION = RB + "authorisation"
+EQUIPMENT = RB + "equipmentStatus"    # the lab register's inventory on the run's date
 SENSITIVITY = RB + "sensitivityCoefficient"
 TOLERANCE_LOW = RB + "toleranceLimitLower"      # the maker's specification, not acceptance
 TOLERANCE_HIGH = RB + "toleranceLimitUpper"

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from lxml import etree
@@ -22,7 +23,8 @@ XSI_NS = "http://www.w3.org/2001/XMLSchema-instance"
 NSMAP = {"dcc": DCC_NS, "si": SI_NS, "xsi": XSI_NS}
 LANG = "en"
 COVERAGE_FACTOR = "2"
-COVERAGE_PROBABILITY = "0.95"
+#: docs/method.md D1: every U is for 95.45 % (k = 2 for infinite nu_eff, t_95.45 otherwise)
+COVERAGE_PROBABILITY = "0.9545"
 NOT_RECORDED = "not recorded"   # a required field nobody recorded: the gap shows
 
 
@@ -73,24 +75,55 @@ def name(parent: etree._Element, text: str) -> etree._Element:
     return text_el(parent, "name", text)
 
 
-def expanded_mu(parent: etree._Element, u: float) -> None:
-    """si:measurementUncertaintyUnivariate/si:expandedMU with k = 2, p = 0.95, normal."""
+def expanded_mu(parent: etree._Element, u: float, k: float | None = None) -> None:
+    """si:measurementUncertaintyUnivariate/si:expandedMU, p = 95.45 %: k = 2 (normal), or
+    the t-factor of the budget's nu_eff (docs/method.md D1; distribution Student t)."""
     mu = el(el(parent, "measurementUncertaintyUnivariate", ns=SI_NS), "expandedMU", ns=SI_NS)
     el(mu, "valueExpandedMU", dec(u), ns=SI_NS)
-    el(mu, "coverageFactor", COVERAGE_FACTOR, ns=SI_NS)
+    t_factor = k is not None and abs(k - 2.0) > 1e-12
+    el(mu, "coverageFactor", f"{k:.2f}" if t_factor and k is not None else COVERAGE_FACTOR,
+       ns=SI_NS)
     el(mu, "coverageProbability", COVERAGE_PROBABILITY, ns=SI_NS)
-    el(mu, "distribution", "normal", ns=SI_NS)
+    el(mu, "distribution", "t" if t_factor else "normal", ns=SI_NS)
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A coverage interval as the certificate prints it (docs/method.md D2): [lower, upper]
+    at `probability`; a one-sided limit '< L' is [0 or the floor, L] at its one-sided
+    level. `ustd` is the standard uncertainty D-SI asks beside it."""
+
+    lower: float
+    upper: float
+    probability: float
+    ustd: float
+    distribution: str
+
+
+def coverage_interval_mu(parent: etree._Element, iv: Interval) -> None:
+    """si:measurementUncertaintyUnivariate/si:coverageIntervalMU (D-SI 2.2: an asymmetric
+    interval, not a normal +/- U)."""
+    mu = el(el(parent, "measurementUncertaintyUnivariate", ns=SI_NS), "coverageIntervalMU",
+            ns=SI_NS)
+    el(mu, "valueStandardMU", dec(max(iv.ustd, 0.0)), ns=SI_NS)
+    el(mu, "intervalMin", dec(iv.lower), ns=SI_NS)
+    el(mu, "intervalMax", dec(iv.upper), ns=SI_NS)
+    el(mu, "coverageProbability", dec(iv.probability), ns=SI_NS)
+    el(mu, "distribution", iv.distribution, ns=SI_NS)
 
 
 def si_real(parent: etree._Element, value: float, unit: str, u: float | None = None,
-            label: str | None = None) -> etree._Element:
+            label: str | None = None, k: float | None = None,
+            interval: Interval | None = None) -> etree._Element:
     real = el(parent, "real", ns=SI_NS)
     if label:
         el(real, "label", label, ns=SI_NS)
     el(real, "value", dec(value), ns=SI_NS)
     el(real, "unit", unit, ns=SI_NS)
-    if u is not None:
-        expanded_mu(real, u)
+    if interval is not None:
+        coverage_interval_mu(real, interval)
+    elif u is not None:
+        expanded_mu(real, u, k)
     return real
 
 
@@ -112,13 +145,15 @@ def si_real_list(parent: etree._Element, values: Sequence[float], unit: str,
 
 def quantity(parent: etree._Element, qid: str | None, title: str, ref_type: str,
              value: float, unit: str, u: float | None = None, label: str | None = None,
-             note: str | None = None) -> etree._Element:
-    """A dcc:quantity with one D-SI real (value, unit, U with k = 2 when given)."""
+             note: str | None = None, k: float | None = None,
+             interval: Interval | None = None) -> etree._Element:
+    """A dcc:quantity with one D-SI real (value, unit, and U with its k, or a coverage
+    interval, when given)."""
     q = el(parent, "quantity", id=qid, ref_type=ref_type)
     name(q, title)
     if note:
         text_el(q, "description", note)
-    si_real(q, value, unit, u, label)
+    si_real(q, value, unit, u, label, k, interval)
     return q
 
 

@@ -1,0 +1,125 @@
+"""Before anything moves (ISO/IEC 17025 6.4.13, 6.2.5): who performs the run, and whether
+every item of the stand is in the lab's inventory and within its calibration, as the lab
+register says (docs/register.md).
+
+A real stand whose item is overdue, or not in the inventory, is not started unless a
+quality account recorded a deviation; on twins the same facts are findings the certificate
+states. The performer is the account that authenticated (`bench run --operator NAME`);
+without one, nobody is named: the certificate says "not recorded" and gives the OS user.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from bench.app.register.store import Equipment, Register, RegisterError, redact
+from bench.core.config import Traced
+
+
+@dataclass(frozen=True)
+class ItemStatus:
+    """One stand item against the inventory: `problem` is why it may not be used."""
+
+    where: str
+    item: str
+    serial: str | None
+    problem: str | None
+    deviation: str | None = None       # a recorded deviation that allows its use
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"where": self.where, "item": self.item, "serial": self.serial,
+                "problem": self.problem, "deviation": self.deviation}
+
+
+def item_status(t: Traced, found: dict[str, Equipment], on: dt.date) -> ItemStatus:
+    """Only items with a stated calibration or a serial are inventory items: a drive with
+    neither is driven, not a measuring standard."""
+    if t.serial is None:
+        if not t.stated:
+            return ItemStatus(t.where, t.item, None, None)
+        return ItemStatus(t.where, t.item, None, f"{t.item} ({t.where}): the stand file "
+                          "states no serial, so the inventory cannot identify it")
+    e = found.get(t.serial)
+    if e is None:
+        return ItemStatus(t.where, t.item, t.serial,
+                          f"{t.item} ({t.where}) serial {t.serial}: not in the lab's "
+                          "equipment inventory (bench register equipment add)")
+    dev = e.deviation_on(on)
+    if e.due < on:
+        if dev is not None:
+            return ItemStatus(t.where, t.item, t.serial, None,
+                              f"{t.item} serial {t.serial}: calibration due "
+                              f"{e.due.isoformat()}, used under a deviation recorded by "
+                              f"{dev.recorded_by} until {dev.expires.isoformat()}: "
+                              f"{dev.reason}")
+        return ItemStatus(t.where, t.item, t.serial, e.problem_on(on))
+    return ItemStatus(t.where, t.item, t.serial, None)
+
+
+def equipment_statuses(reg: Register, items: Sequence[Traced], on: dt.date
+                       ) -> list[ItemStatus]:
+    found = {e.serial: e for e in reg.equipment()}
+    return [item_status(t, found, on) for t in items]
+
+
+def authenticate_performer(reg: Register, name: str, password: Callable[[str], str]
+                           ) -> dict[str, Any]:
+    """The performer as meta.json keeps it: account, full name, register, time."""
+    acct = reg.authenticate(name, password(f"password of {name} (performer, register "
+                                           f"{redact(reg.url)}): "), "operator")
+    utc = dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+    reg.append(acct.name, "run started by", name, {"full_name": acct.full_name})
+    return {"account": acct.name, "full_name": acct.full_name, "function": acct.function,
+            "register": redact(reg.url), "authenticated_utc": utc}
+
+
+def open_register(url: str) -> Register:
+    try:
+        return Register.open(url, migrate=False)
+    except RegisterError as e:
+        raise RegisterError(f"the lab register cannot be reached: {e}") from None
+
+
+@dataclass(frozen=True)
+class StartGate:
+    """What the register says before a run starts: `refusal` (not started) or the facts
+    meta.json keeps for the certificate."""
+
+    refusal: list[str]
+    performer: dict[str, Any] | None
+    equipment: list[dict[str, Any]]
+    register: str | None
+
+    def meta(self) -> dict[str, Any]:
+        return {"performer": self.performer, "equipment_register": self.register,
+                "equipment_status": self.equipment}
+
+
+def start_gate(register_url: str | None, items: Sequence[Traced], simulated: bool,
+               operator: str | None, password: Callable[[str], str],
+               on: dt.date | None = None) -> StartGate:
+    """Authenticate the performer and check the stand's items, before anything moves."""
+    if register_url is None:
+        refusal = ([f"--operator {operator}: the lab file names no register to "
+                    "authenticate the performer with (register: URL); without --operator "
+                    "the certificate says the performer was not recorded"]
+                   if operator else [])
+        return StartGate(refusal, None, [], None)
+    on = on or dt.datetime.now(dt.UTC).date()
+    try:
+        with open_register(register_url) as reg:
+            performer = (authenticate_performer(reg, operator, password) if operator
+                         else None)
+            statuses = equipment_statuses(reg, items, on)
+    except RegisterError as e:
+        return StartGate([str(e)], None, [], redact(register_url))
+    problems = [s.problem for s in statuses if s.problem]
+    refusal = [*problems, "(ISO/IEC 17025 6.4.13: add the item to the inventory, or a "
+               "quality account records a deviation for an overdue one: bench register "
+               "equipment deviation SERIAL --reason TEXT --expires YYYY-MM-DD)"] \
+        if problems and not simulated else []
+    return StartGate(refusal, performer, [s.to_dict() for s in statuses],
+                     redact(register_url))

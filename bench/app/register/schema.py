@@ -1,0 +1,102 @@
+"""The lab register's tables (SQLAlchemy Core), named `reg_*` so that the register and the
+records may share one database. The migrations create them; this module lets the code read
+and write them with one definition."""
+
+from __future__ import annotations
+
+import sqlalchemy as sa
+
+metadata = sa.MetaData()
+
+#: ISO/IEC 17025 6.2.5 f, 6.2.6: who may do what is the lab's decision, recorded here
+ROLES = ("operator", "reviewer", "signatory", "quality", "admin")
+
+accounts = sa.Table(
+    "reg_accounts", metadata,
+    sa.Column("name", sa.String(120), primary_key=True),
+    sa.Column("full_name", sa.String(200), nullable=False),
+    sa.Column("roles", sa.String(200), nullable=False),          # comma-separated, sorted
+    sa.Column("function", sa.String(200)),                       # printed under a signature
+    sa.Column("password_hash", sa.Text, nullable=False),         # argon2id (argon2-cffi)
+    sa.Column("active", sa.Boolean, nullable=False, server_default=sa.true()),
+    sa.Column("created_utc", sa.String(40), nullable=False),
+    sa.Column("created_by", sa.String(120)),
+)
+
+equipment = sa.Table(
+    "reg_equipment", metadata,
+    sa.Column("serial", sa.String(120), primary_key=True),
+    sa.Column("model", sa.String(200), nullable=False),
+    sa.Column("certificate", sa.String(200), nullable=False),
+    sa.Column("issuer", sa.String(200), nullable=False),
+    sa.Column("due_date", sa.String(10), nullable=False),          # YYYY-MM-DD
+    sa.Column("added_utc", sa.String(40), nullable=False),
+    sa.Column("added_by", sa.String(120), nullable=False),
+)
+
+deviations = sa.Table(
+    "reg_deviations", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("serial", sa.String(120), sa.ForeignKey("reg_equipment.serial"),
+              nullable=False),
+    sa.Column("reason", sa.Text, nullable=False),
+    sa.Column("expires", sa.String(10), nullable=False),           # YYYY-MM-DD
+    sa.Column("recorded_by", sa.String(120), nullable=False),
+    sa.Column("recorded_utc", sa.String(40), nullable=False),
+)
+
+settings = sa.Table(
+    "reg_settings", metadata,
+    sa.Column("key", sa.String(80), primary_key=True),
+    sa.Column("value", sa.Text, nullable=False),
+)
+
+certificates = sa.Table(
+    "reg_certificates", metadata,
+    sa.Column("number", sa.String(80), primary_key=True),
+    sa.Column("seq", sa.Integer, nullable=False, unique=True),
+    sa.Column("run_uid", sa.String(64), nullable=False, unique=True),
+    sa.Column("allocated_utc", sa.String(40), nullable=False),
+)
+
+revisions = sa.Table(
+    "reg_revisions", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("number", sa.String(80), sa.ForeignKey("reg_certificates.number"),
+              nullable=False),
+    sa.Column("revision", sa.Integer, nullable=False),
+    sa.Column("issued_utc", sa.String(40), nullable=False),
+    sa.Column("signatory", sa.String(120), sa.ForeignKey("reg_accounts.name"),
+              nullable=False),
+    sa.Column("signatory_name", sa.String(200), nullable=False),
+    sa.Column("meaning", sa.String(200), nullable=False),
+    sa.Column("reason", sa.Text),
+    sa.Column("result_sha256", sa.String(64), nullable=False),
+    sa.Column("pdf_sha256", sa.String(64), nullable=False),
+    sa.Column("dcc_sha256", sa.String(64), nullable=False),
+    sa.Column("html_sha256", sa.String(64), nullable=False),
+    sa.Column("withdrawn_utc", sa.String(40)),
+    sa.Column("audit_digest", sa.String(64)),
+    sa.UniqueConstraint("number", "revision", name="reg_revisions_number_revision"),
+)
+
+audit = sa.Table(
+    "reg_audit", metadata,
+    sa.Column("seq", sa.Integer, primary_key=True, autoincrement=False),
+    sa.Column("utc", sa.String(40), nullable=False),
+    sa.Column("actor", sa.String(120), nullable=False),
+    sa.Column("action", sa.String(60), nullable=False),
+    sa.Column("object", sa.Text, nullable=False),
+    sa.Column("detail", sa.Text, nullable=False),
+    sa.Column("db_user", sa.String(120), nullable=False),
+    sa.Column("prev_digest", sa.String(64), nullable=False, unique=True),
+    sa.Column("digest", sa.String(64), nullable=False),
+)
+
+#: the chain's last entry, kept by the register's own append (one row, id = 1)
+audit_head = sa.Table(
+    "reg_audit_head", metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=False),
+    sa.Column("seq", sa.Integer, nullable=False),
+    sa.Column("digest", sa.String(64), nullable=False),
+)

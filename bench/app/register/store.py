@@ -1,0 +1,481 @@
+"""The lab register (docs/register.md): accounts, the equipment inventory, certificate
+numbers and issued revisions, and the audit trail, in one database the lab controls.
+
+One class for SQLite (a single bench; guards against mistakes) and PostgreSQL (a lab
+server; the server enforces who may change what: bench/app/register/pgsql.py). Every
+change is one transaction that also appends its audit entry, so an action and its record
+stand or fall together.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import getpass
+import json
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import sqlalchemy as sa
+from sqlalchemy.engine import Connection, Engine
+from sqlalchemy.exc import DBAPIError, IntegrityError
+
+from bench.app.register import chain
+from bench.app.register import schema as s
+
+MIGRATIONS = Path(__file__).resolve().parent / "migrations"
+MEANING_ISSUE = "authorised for issue"
+
+
+class RegisterError(RuntimeError):
+    """The register cannot be reached or used, or refused the action; the message says
+    which and why."""
+
+
+class AuthError(RegisterError):
+    """Name and password do not identify an active account holding the role."""
+
+
+def _now_utc() -> str:
+    return dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
+def _os_user() -> str:
+    try:
+        return getpass.getuser()
+    except (KeyError, OSError):
+        return "unknown"
+
+
+def _hasher() -> Any:
+    from argon2 import PasswordHasher  # argon2id with the library's RFC 9106 defaults
+
+    return PasswordHasher()
+
+
+def hash_password(password: str) -> str:
+    if len(password) < 8:
+        raise RegisterError("a password has at least 8 characters")
+    return str(_hasher().hash(password))
+
+
+def _verify(stored: str, password: str) -> bool:
+    from argon2.exceptions import InvalidHashError, VerificationError
+
+    try:
+        return bool(_hasher().verify(stored, password))
+    except (VerificationError, InvalidHashError):
+        return False
+
+
+@dataclass(frozen=True)
+class Account:
+    name: str
+    full_name: str
+    roles: tuple[str, ...]
+    function: str | None
+    active: bool
+
+    def has(self, role: str) -> bool:
+        return self.active and role in self.roles
+
+
+@dataclass(frozen=True)
+class Deviation:
+    reason: str
+    expires: dt.date
+    recorded_by: str
+    recorded_utc: str
+
+
+@dataclass(frozen=True)
+class Equipment:
+    serial: str
+    model: str
+    certificate: str
+    issuer: str
+    due: dt.date
+    deviations: tuple[Deviation, ...] = ()
+
+    def deviation_on(self, day: dt.date) -> Deviation | None:
+        return next((d for d in self.deviations if d.expires >= day), None)
+
+    def problem_on(self, day: dt.date) -> str | None:
+        """Why this item may not be used on `day` (None: it may, or a deviation allows)."""
+        if self.due >= day or self.deviation_on(day) is not None:
+            return None
+        return (f"{self.model} serial {self.serial}: calibration ({self.certificate}, "
+                f"{self.issuer}) was due {self.due.isoformat()}, before {day.isoformat()}")
+
+
+@dataclass(frozen=True)
+class Revision:
+    number: str
+    revision: int
+    issued_utc: str
+    signatory: str
+    signatory_name: str
+    meaning: str
+    reason: str | None
+    result_sha256: str
+    pdf_sha256: str
+    dcc_sha256: str
+    html_sha256: str
+    withdrawn_utc: str | None
+    audit_digest: str | None
+
+    @property
+    def status(self) -> str:
+        return "withdrawn" if self.withdrawn_utc else "issued"
+
+    @property
+    def shown_number(self) -> str:
+        """As printed: the number for revision 1, `<number>-R<n>` after it."""
+        return self.number if self.revision <= 1 else f"{self.number}-R{self.revision}"
+
+    def digests(self) -> dict[str, str]:
+        return {"result.json": self.result_sha256, "certificate.pdf": self.pdf_sha256,
+                "certificate.dcc.xml": self.dcc_sha256, "certificate.html": self.html_sha256}
+
+
+def _account(r: Any) -> Account:
+    return Account(r["name"], r["full_name"], tuple(x for x in r["roles"].split(",") if x),
+                   r["function"], bool(r["active"]))
+
+
+def _revision(r: Any) -> Revision:
+    return Revision(*(r[c.name] for c in s.revisions.columns if c.name != "id"))
+
+
+class Register:
+    """One connection pool to one register; `open` migrates it to the newest schema."""
+
+    def __init__(self, url: str, engine: Engine) -> None:
+        self.url = url
+        self.engine = engine
+        self.pg = engine.dialect.name == "postgresql"
+
+    @classmethod
+    def open(cls, url: str, migrate: bool = True) -> Register:
+        from bench.app.records.store import make_engine
+
+        try:
+            reg = cls(url, make_engine(url))
+            if migrate:
+                reg._migrate()
+            else:
+                with reg.engine.connect() as c:
+                    c.execute(sa.select(s.accounts.c.name).limit(1))
+        except DBAPIError as e:
+            raise RegisterError(f"register {redact(url)}: cannot be used: "
+                                f"{str(e.orig).strip().splitlines()[0]}") from e
+        return reg
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+    def __enter__(self) -> Register:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _migrate(self) -> None:
+        from alembic import command
+        from alembic.config import Config as AlembicConfig
+
+        from bench.app.records.store import _MIGRATE_LOCK
+
+        cfg = AlembicConfig()
+        cfg.set_main_option("script_location", str(MIGRATIONS))
+        with _MIGRATE_LOCK, self.engine.begin() as conn:
+            cfg.attributes["connection"] = conn
+            command.upgrade(cfg, "head")
+
+    @contextmanager
+    def _tx(self) -> Iterator[Connection]:
+        try:
+            with self.engine.begin() as conn:
+                if self.pg:
+                    from bench.app.register.pgsql import LOCK_KEY
+
+                    conn.execute(sa.text("SELECT pg_advisory_xact_lock(:k)"), {"k": LOCK_KEY})
+                yield conn
+        except DBAPIError as e:
+            raise RegisterError(_db_message(e)) from e
+
+    # -- the audit trail ------------------------------------------------------------------
+
+    def _append(self, conn: Connection, actor: str, action: str, obj: str,
+                detail: Mapping[str, Any] | str = "") -> str:
+        text = detail if isinstance(detail, str) else json.dumps(detail, sort_keys=True)
+        if self.pg:
+            return str(conn.execute(sa.text("SELECT reg_audit_append(:a, :b, :c, :d)"),
+                                    {"a": actor, "b": action, "c": obj, "d": text}).scalar())
+        head = conn.execute(sa.select(s.audit_head).where(s.audit_head.c.id == 1)).first()
+        seq = (head.seq if head else 0) + 1
+        prev = head.digest if head else chain.GENESIS
+        utc, user = _now_utc(), _os_user()
+        digest = chain.entry_digest(prev, seq, utc, actor, action, obj, text, user)
+        conn.execute(s.audit.insert().values(seq=seq, utc=utc, actor=actor, action=action,
+                                             object=obj, detail=text, db_user=user,
+                                             prev_digest=prev, digest=digest))
+        if head:
+            conn.execute(s.audit_head.update().where(s.audit_head.c.id == 1)
+                         .values(seq=seq, digest=digest))
+        else:
+            conn.execute(s.audit_head.insert().values(id=1, seq=seq, digest=digest))
+        return digest
+
+    def append(self, actor: str, action: str, obj: str,
+               detail: Mapping[str, Any] | str = "") -> str:
+        """One audit entry on its own (a run registered, a review, a refused login)."""
+        with self._tx() as conn:
+            return self._append(conn, actor, action, obj, detail)
+
+    def audit_rows(self) -> list[dict[str, Any]]:
+        with self.engine.connect() as c:
+            return [dict(r._mapping) for r in c.execute(
+                sa.select(s.audit).order_by(s.audit.c.seq))]
+
+    def audit_check(self) -> chain.ChainReport:
+        with self.engine.connect() as c:
+            rows = [dict(r._mapping) for r in c.execute(sa.select(s.audit)
+                                                         .order_by(s.audit.c.seq))]
+            head = c.execute(sa.select(s.audit_head).where(s.audit_head.c.id == 1)).first()
+        return chain.check_chain(rows, None if head is None else dict(head._mapping))
+
+    # -- accounts -------------------------------------------------------------------------
+
+    def accounts(self) -> list[Account]:
+        with self.engine.connect() as c:
+            return [_account(r._mapping) for r in c.execute(
+                sa.select(s.accounts).order_by(s.accounts.c.name))]
+
+    def account(self, name: str) -> Account | None:
+        with self.engine.connect() as c:
+            r = c.execute(sa.select(s.accounts).where(s.accounts.c.name == name)).first()
+        return None if r is None else _account(r._mapping)
+
+    def init(self, admin: str, full_name: str, password: str) -> bool:
+        """The first admin account (False: the register has accounts already)."""
+        pw = hash_password(password)
+        with self._tx() as conn:
+            if conn.execute(sa.select(sa.func.count()).select_from(s.accounts)).scalar():
+                return False
+            self._insert_account(conn, admin, admin, full_name, ("admin",), None, pw)
+        return True
+
+    def _insert_account(self, conn: Connection, actor: str, name: str, full_name: str,
+                        roles: Sequence[str], function: str | None, pw_hash: str) -> None:
+        bad = [r for r in roles if r not in s.ROLES]
+        if bad or not roles:
+            raise RegisterError(f"roles must be among {', '.join(s.ROLES)} (got "
+                                f"{', '.join(roles) or 'none'})")
+        try:
+            conn.execute(s.accounts.insert().values(
+                name=name, full_name=full_name, roles=",".join(sorted(set(roles))),
+                function=function, password_hash=pw_hash, active=True,
+                created_utc=_now_utc(), created_by=actor))
+        except IntegrityError as e:
+            raise RegisterError(f"account {name!r} exists") from e
+        self._append(conn, actor, "account added", name,
+                     {"roles": sorted(set(roles)), "full_name": full_name,
+                      "function": function})
+
+    def add_account(self, by: Account, name: str, full_name: str, roles: Sequence[str],
+                    password: str, function: str | None = None) -> Account:
+        if not by.has("admin"):
+            raise AuthError(f"{by.name} is not an admin: only an admin adds accounts")
+        pw = hash_password(password)
+        with self._tx() as conn:
+            self._insert_account(conn, by.name, name, full_name, roles, function, pw)
+        acct = self.account(name)
+        assert acct is not None
+        return acct
+
+    def authenticate(self, name: str, password: str, role: str | None = None) -> Account:
+        """The account, when the password is its own and it holds `role`; else AuthError
+        (the same words whether the name or the password was wrong), and a refused
+        attempt is written to the audit trail."""
+        with self.engine.connect() as c:
+            r = c.execute(sa.select(s.accounts).where(s.accounts.c.name == name)).first()
+        ok = r is not None and bool(r.active) and _verify(r.password_hash, password)
+        if not ok:
+            self.append(name, "authentication refused", name, {"role": role})
+            raise AuthError(f"{name!r}: unknown account, wrong password or account disabled "
+                            f"(register {redact(self.url)})")
+        assert r is not None
+        acct = _account(r._mapping)
+        if role is not None and not acct.has(role):
+            self.append(name, "authentication refused", name, {"role": role,
+                                                                "why": "role not held"})
+            raise AuthError(f"{name!r} does not hold the {role} role in register "
+                            f"{redact(self.url)} (roles: {', '.join(acct.roles)})")
+        return acct
+
+    # -- equipment ------------------------------------------------------------------------
+
+    def add_equipment(self, by: Account, serial: str, model: str, certificate: str,
+                      issuer: str, due: dt.date) -> None:
+        if not (by.has("quality") or by.has("admin")):
+            raise AuthError(f"{by.name} holds neither the quality nor the admin role")
+        with self._tx() as conn:
+            try:
+                conn.execute(s.equipment.insert().values(
+                    serial=serial, model=model, certificate=certificate, issuer=issuer,
+                    due_date=due.isoformat(), added_utc=_now_utc(), added_by=by.name))
+            except IntegrityError as e:
+                raise RegisterError(f"equipment {serial!r} is in the inventory") from e
+            self._append(conn, by.name, "equipment added", serial,
+                         {"model": model, "certificate": certificate, "issuer": issuer,
+                          "due": due.isoformat()})
+
+    def add_deviation(self, by: Account, serial: str, reason: str, expires: dt.date) -> None:
+        """A quality account's recorded decision to use an item past its due date."""
+        if not by.has("quality"):
+            raise AuthError(f"{by.name} does not hold the quality role: only quality "
+                            "records a deviation")
+        if not reason.strip():
+            raise RegisterError("a deviation states its reason")
+        with self._tx() as conn:
+            if conn.execute(sa.select(s.equipment.c.serial)
+                            .where(s.equipment.c.serial == serial)).first() is None:
+                raise RegisterError(f"equipment {serial!r} is not in the inventory")
+            conn.execute(s.deviations.insert().values(
+                serial=serial, reason=reason.strip(), expires=expires.isoformat(),
+                recorded_by=by.name, recorded_utc=_now_utc()))
+            self._append(conn, by.name, "deviation recorded", serial,
+                         {"reason": reason.strip(), "expires": expires.isoformat()})
+
+    def equipment(self, serial: str | None = None) -> list[Equipment]:
+        q = sa.select(s.equipment).order_by(s.equipment.c.serial)
+        if serial is not None:
+            q = q.where(s.equipment.c.serial == serial)
+        with self.engine.connect() as c:
+            rows = [r._mapping for r in c.execute(q)]
+            devs: dict[str, list[Deviation]] = {}
+            for d in c.execute(sa.select(s.deviations).order_by(s.deviations.c.id)):
+                devs.setdefault(d.serial, []).append(Deviation(
+                    d.reason, dt.date.fromisoformat(d.expires), d.recorded_by,
+                    d.recorded_utc))
+        return [Equipment(r["serial"], r["model"], r["certificate"], r["issuer"],
+                          dt.date.fromisoformat(r["due_date"]),
+                          tuple(devs.get(r["serial"], ()))) for r in rows]
+
+    # -- settings -------------------------------------------------------------------------
+
+    def setting(self, key: str) -> str | None:
+        with self.engine.connect() as c:
+            return c.execute(sa.select(s.settings.c.value)
+                             .where(s.settings.c.key == key)).scalar()
+
+    def set_setting(self, by: Account, key: str, value: str) -> None:
+        if not by.has("admin"):
+            raise AuthError(f"{by.name} is not an admin")
+        with self._tx() as conn:
+            conn.execute(s.settings.delete().where(s.settings.c.key == key))
+            conn.execute(s.settings.insert().values(key=key, value=value))
+            self._append(conn, by.name, "setting changed", key, {"value": value})
+
+    # -- certificate numbers and revisions ------------------------------------------------
+
+    def allocate(self, run_uid: str, prefix: str, actor: str) -> str:
+        """The run's certificate number: allocated once per run, by the register alone."""
+        with self._tx() as conn:
+            if self.pg:
+                return str(conn.execute(sa.text("SELECT reg_allocate(:u, :p, :a)"),
+                                        {"u": run_uid, "p": prefix, "a": actor}).scalar())
+            num = conn.execute(sa.select(s.certificates.c.number)
+                               .where(s.certificates.c.run_uid == run_uid)).scalar()
+            if num is not None:
+                return str(num)
+            seq = int(conn.execute(sa.select(sa.func.coalesce(sa.func.max(
+                s.certificates.c.seq), 0))).scalar() or 0) + 1
+            utc = _now_utc()
+            num = f"{prefix}-{utc[:4]}-{seq:05d}"
+            conn.execute(s.certificates.insert().values(number=num, seq=seq, run_uid=run_uid,
+                                                        allocated_utc=utc[:19] + "Z"))
+            self._append(conn, actor, "number allocated", num, f"run {run_uid}")
+            return num
+
+    def number_of_run(self, run_uid: str) -> str | None:
+        with self.engine.connect() as c:
+            return c.execute(sa.select(s.certificates.c.number)
+                             .where(s.certificates.c.run_uid == run_uid)).scalar()
+
+    def revisions(self, number: str) -> list[Revision]:
+        with self.engine.connect() as c:
+            return [_revision(r._mapping) for r in c.execute(
+                sa.select(s.revisions).where(s.revisions.c.number == number)
+                .order_by(s.revisions.c.revision))]
+
+    def find_revision(self, sha256: str) -> Revision | None:
+        """The revision whose PDF, DCC, HTML or result.json has this digest."""
+        rv = s.revisions.c
+        with self.engine.connect() as c:
+            r = c.execute(sa.select(s.revisions).where(sa.or_(
+                rv.pdf_sha256 == sha256, rv.dcc_sha256 == sha256, rv.html_sha256 == sha256,
+                rv.result_sha256 == sha256))).first()
+        return None if r is None else _revision(r._mapping)
+
+    def issue(self, number: str, revision: int, signatory: Account, issued_utc: str,
+              digests: Mapping[str, str], reason: str | None,
+              detail: Mapping[str, Any]) -> Revision:
+        """Record an issued revision (and the withdrawal of the one before), checked by the
+        register under its lock: the next revision, an active signatory, a reason for a
+        re-issue. Raises RegisterError when refused."""
+        args = {"n": number, "r": revision, "s": signatory.name, "m": MEANING_ISSUE,
+                "why": reason or "", "t": issued_utc, "res": digests["result.json"],
+                "pdf": digests["certificate.pdf"], "dcc": digests["certificate.dcc.xml"],
+                "html": digests["certificate.html"],
+                "d": json.dumps(dict(detail), sort_keys=True)}
+        with self._tx() as conn:
+            if self.pg:
+                conn.execute(sa.text("SELECT reg_issue(:n, :r, :s, :m, :why, :t, :res, :pdf, "
+                                     ":dcc, :html, :d)"), args)
+            else:
+                self._issue_sqlite(conn, args)
+        return next(r for r in self.revisions(number) if r.revision == revision)
+
+    def _issue_sqlite(self, conn: Connection, a: Mapping[str, Any]) -> None:
+        """pgsql.ISSUE, step for step, for a register in one SQLite file."""
+        r = conn.execute(sa.select(s.accounts).where(s.accounts.c.name == a["s"])).first()
+        if r is None or not _account(r._mapping).has("signatory"):
+            raise RegisterError(f"register: {a['s']} is not an active signatory account")
+        if conn.execute(sa.select(s.certificates.c.number)
+                        .where(s.certificates.c.number == a["n"])).first() is None:
+            raise RegisterError(f"register: certificate number {a['n']} was not allocated "
+                                "by this register")
+        last = int(conn.execute(sa.select(sa.func.coalesce(sa.func.max(s.revisions.c.revision),
+                                                           0))
+                                .where(s.revisions.c.number == a["n"])).scalar() or 0)
+        if a["r"] != last + 1:
+            raise RegisterError(f"register: {a['n']} revision {a['r']} is not the next "
+                                f"(revision {last} is the last issued)")
+        if last and not a["why"].strip():
+            raise RegisterError(f"register: a re-issue of {a['n']} needs a reason")
+        conn.execute(s.revisions.update().where(s.revisions.c.number == a["n"])
+                     .where(s.revisions.c.withdrawn_utc.is_(None)).values(withdrawn_utc=a["t"]))
+        d = self._append(conn, a["s"], "issue" if not last else "re-issue",
+                         f"{a['n']} revision {a['r']}", a["d"])
+        conn.execute(s.revisions.insert().values(
+            number=a["n"], revision=a["r"], issued_utc=a["t"], signatory=a["s"],
+            signatory_name=r.full_name, meaning=a["m"], reason=a["why"].strip() or None,
+            result_sha256=a["res"], pdf_sha256=a["pdf"], dcc_sha256=a["dcc"],
+            html_sha256=a["html"], audit_digest=d))
+
+
+def _db_message(e: DBAPIError) -> str:
+    text = str(e.orig).strip().splitlines()[0] if e.orig is not None else str(e)
+    return text if text.startswith("register:") else f"register: {text}"
+
+
+def redact(url: str) -> str:
+    """The URL without its password, for messages."""
+    try:
+        return sa.engine.make_url(url).render_as_string(hide_password=True)
+    except Exception:  # noqa: BLE001 - a message must not fail on a malformed URL
+        return url

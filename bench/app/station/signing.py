@@ -1,0 +1,544 @@
+"""Logging in and signing at the station (issue 42): accounts of the lab register, a
+session per login, and the e-signature that issues a run's draft.
+
+- Log in with an account's name and password, checked by the register (which audits a
+  refused attempt). The session lives in this process only: the cookie carries a random
+  session id signed with a secret made when the server starts (HMAC-SHA256), HttpOnly and
+  SameSite=Strict; a session ends at logout, after IDLE_S without a request, or MAX_S
+  after the login, and when the server stops.
+- Signing is a fresh e-signature, not the login: the signatory re-enters the password at
+  the moment of signing (name and password, 21 CFR 11.200(a)); the station checks it with
+  the register, then `bench authorise` (bench/app/certificate/authorise.py) issues through
+  the same register. STRIKES wrong passwords at signing end the session.
+- The server decides what each account may do: the sign form is shown only to an account
+  holding the signatory role, and a sign request from any other (or from no session, or
+  without the session's CSRF token, or from another origin) is refused with 403 and
+  written to the register's audit trail. The role is read again from the register at
+  each sign request, so an account disabled since its login cannot sign. The form carries
+  the digest of the result.json the page showed: a draft analysed again meanwhile is not
+  signed unseen.
+- Passwords are asked only from this machine (the loopback address): the station speaks
+  plain HTTP, and a password sent to it from another host would cross the network in
+  clear.
+- With no register configured the station stays read-only, as before, and says that
+  signing needs a register.
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import dataclasses
+import hashlib
+import hmac
+import io
+import secrets
+import threading
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+from urllib.parse import urlsplit
+
+from flask import Flask, abort, redirect, render_template, request
+from werkzeug.wrappers import Response
+
+import bench
+from bench.app.station.settings import StationSettings, is_loopback
+
+if TYPE_CHECKING:
+    from bench.app.register import Account, Register
+
+SESSION_COOKIE = "bench_session"
+IDLE_S = 15 * 60.0            # a session ends after this long without a request
+MAX_S = 8 * 3600.0            # and this long after its login, whatever happens
+LOGIN_FORM_S = 3600.0         # a login form is good for this long
+STRIKES = 3                   # wrong passwords at signing before the session ends
+SIGN_WAIT_S = 120.0           # how long a sign request waits for another to finish
+
+NO_REGISTER = ("Signing needs a lab register: start the station with `bench serve "
+               "--register URL` or `--lab FILE` (a lab file whose register: key names it); "
+               "see docs/register.md. Without one the station is read-only.")
+REMOTE_REFUSED = ("Passwords are entered only at the bench itself (http://127.0.0.1): this "
+                  "station speaks plain HTTP, which would carry a password across the "
+                  "network in clear.")
+
+
+def _now() -> float:
+    return time.monotonic()
+
+
+@dataclasses.dataclass
+class Session:
+    """One login: the account as the register gave it then, and the session's CSRF token."""
+
+    account: Account
+    csrf: str
+    started: float
+    seen: float
+    strikes: int = 0
+
+    def has(self, role: str) -> bool:
+        return self.account.has(role)
+
+
+class Sessions:
+    """The sessions of this process; a cookie is `<id>.<HMAC of id>` under a secret made
+    at start, so a cookie from an earlier server, or a made-up one, names no session."""
+
+    def __init__(self, idle_s: float = IDLE_S, max_s: float = MAX_S,
+                 clock: Callable[[], float] = _now) -> None:
+        self._secret = secrets.token_bytes(32)
+        self._by_id: dict[str, Session] = {}
+        self._lock = threading.Lock()
+        self.idle_s, self.max_s, self._clock = idle_s, max_s, clock
+
+    def _mac(self, text: str) -> str:
+        digest = hmac.new(self._secret, text.encode(), hashlib.sha256).digest()
+        return base64.urlsafe_b64encode(digest).decode().rstrip("=")
+
+    def start(self, account: Account) -> tuple[str, Session]:
+        """A new session for the account: its cookie value and the session."""
+        sid = secrets.token_urlsafe(32)
+        now = self._clock()
+        sess = Session(account, secrets.token_urlsafe(32), now, now)
+        with self._lock:
+            self._expire(now)
+            self._by_id[sid] = sess
+        return f"{sid}.{self._mac(sid)}", sess
+
+    def get(self, cookie: str | None) -> Session | None:
+        """The live session the cookie names (its last use now), or None."""
+        sid, _, mac = (cookie or "").partition(".")
+        if not sid or not hmac.compare_digest(mac.encode(), self._mac(sid).encode()):
+            return None
+        now = self._clock()
+        with self._lock:
+            self._expire(now)
+            sess = self._by_id.get(sid)
+            if sess is not None:
+                sess.seen = now
+            return sess
+
+    def end(self, cookie: str | None) -> Session | None:
+        sid, _, mac = (cookie or "").partition(".")
+        if not sid or not hmac.compare_digest(mac.encode(), self._mac(sid).encode()):
+            return None
+        with self._lock:
+            return self._by_id.pop(sid, None)
+
+    def _expire(self, now: float) -> None:
+        gone = [k for k, s in self._by_id.items()
+                if now - s.seen > self.idle_s or now - s.started > self.max_s]
+        for k in gone:
+            del self._by_id[k]
+
+    # a login form's token: no session yet, so a signed time stamp (login CSRF)
+    def login_token(self) -> str:
+        stamp = str(int(time.time()))
+        return f"{stamp}.{self._mac('login:' + stamp)}"
+
+    def login_token_ok(self, token: str | None) -> bool:
+        stamp, _, mac = (token or "").partition(".")
+        if not stamp.isdigit() or not hmac.compare_digest(
+                mac.encode(), self._mac("login:" + stamp).encode()):
+            return False
+        return 0 <= time.time() - int(stamp) <= LOGIN_FORM_S
+
+
+class RegisterLink:
+    """The register, opened when first needed and kept (a failure is retried next time)."""
+
+    def __init__(self, url: str | None) -> None:
+        self.url = url
+        self._reg: Register | None = None
+        self._lock = threading.Lock()
+        self.error: str | None = None
+
+    def get(self) -> Register | None:
+        if self.url is None:
+            return None
+        with self._lock:
+            if self._reg is None:
+                from bench.app.register import Register, RegisterError
+
+                try:
+                    self._reg = Register.open(self.url, migrate=False)
+                    self.error = None
+                except RegisterError as e:
+                    self.error = str(e)
+            return self._reg
+
+    def shown(self) -> str:
+        from bench.app.register import redact
+
+        return redact(self.url) if self.url else ""
+
+
+def same_register(a: str | None, b: str | None) -> bool:
+    """Two register URLs name one register (SQLite: the same file)."""
+    if not a or not b:
+        return False
+    prefix = "sqlite:///"
+    if a.startswith(prefix) and b.startswith(prefix):
+        return Path(a[len(prefix):]).resolve() == Path(b[len(prefix):]).resolve()
+    import sqlalchemy as sa
+
+    try:
+        return sa.engine.make_url(a) == sa.engine.make_url(b)
+    except Exception:  # noqa: BLE001 - a malformed URL names no register we know
+        return a == b
+
+
+def sha256_of(path: Path) -> str | None:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+@dataclasses.dataclass(frozen=True)
+class Outcome:
+    """What a sign request came to, as the result page shows it."""
+
+    status: int                 # the HTTP status
+    issued: bool
+    title: str
+    lines: tuple[str, ...] = ()     # what `bench authorise` printed
+    reasons: tuple[str, ...] = ()   # why it was not issued
+
+
+def refusal_reasons(stderr: str) -> tuple[str, ...]:
+    """The reasons in `bench authorise`'s refusal ("  - reason" lines), and any other line
+    it wrote to stderr but its heading."""
+    out = []
+    for raw in stderr.splitlines():
+        text = raw.strip()
+        if not text or text.startswith("bench authorise: not issued ("):
+            continue
+        out.append(text[2:] if text.startswith("- ") else text)
+    return tuple(out)
+
+
+class Signing:
+    """The station's accounts, sessions and sign requests (installed by `install`)."""
+
+    def __init__(self, settings: StationSettings) -> None:
+        self.settings = settings
+        self.sessions = Sessions(settings.session_idle_s, settings.session_max_s)
+        self.register = RegisterLink(settings.register_url)
+        self._sign_lock = threading.Lock()
+
+    @property
+    def enabled(self) -> bool:
+        return self.settings.register_url is not None
+
+    # -- the request's session ------------------------------------------------------------
+
+    def session(self) -> Session | None:
+        return self.sessions.get(request.cookies.get(SESSION_COOKIE))
+
+    def audit(self, actor: str, action: str, obj: str, detail: Mapping[str, Any]) -> None:
+        """An audit entry in the register; a register that cannot take it is logged, and
+        the request is refused all the same."""
+        from bench.app.register import RegisterError
+
+        reg = self.register.get()
+        if reg is None:
+            return
+        try:
+            reg.append(actor, action, obj, {**detail, "at": "station",
+                                            "remote": request.remote_addr or ""})
+        except RegisterError as e:
+            from flask import current_app
+
+            current_app.logger.error("audit entry not written (%s %s): %s", action, obj, e)
+
+    # -- the run page's certificate section -----------------------------------------------
+
+    def panel(self, run_path: Path, state: Mapping[str, Any]) -> dict[str, Any]:
+        """What the run's certificate section shows this request's account."""
+        sess = self.session()
+        result = run_path / "result.json"
+        ended = bool(state.get("ended")) and state.get("status") != "refused"
+        draft = sha256_of(result) if ended else None
+        out: dict[str, Any] = {
+            "enabled": self.enabled, "no_register": NO_REGISTER,
+            "account": sess.account if sess else None,
+            "csrf": sess.csrf if sess else "", "local": _local(),
+            "remote_refused": REMOTE_REFUSED, "draft": draft,
+            "status": None, "issued": [], "register_error": None,
+            "has_pdf": (run_path / "certificate.pdf").is_file(),
+        }
+        if not self.enabled:
+            out["status"] = ("The station has no register to ask; the run's own record "
+                             f"says: {_local_record(run_path)}")
+            return out
+        reg = self.register.get()
+        if reg is None:
+            out["register_error"] = self.register.error
+            return out
+        try:
+            out["issued"] = _register_revisions(reg, run_path)
+        except Exception as e:  # noqa: BLE001 - the page shows what failed, not a 500
+            out["register_error"] = f"{type(e).__name__}: {e}"
+        last = out["issued"][-1] if out["issued"] else None
+        out["status"] = (f"Issued: certificate {last['number']} ({last['status']}), "
+                         f"{last['meaning']} by {last['by']} at {last['utc']}"
+                         if last else "Draft, not authorised: the register holds no issue "
+                         "of this run")
+        out["reissue"] = last is not None
+        return out
+
+    # -- the sign request -----------------------------------------------------------------
+
+    def sign(self, name: str, run_dir: Callable[[str], Path]) -> tuple[Outcome, Session | None]:
+        """The sign request for run `name`: refused (403, audited) unless it comes from a
+        signatory's live session, with its CSRF token, from this origin; then the
+        password is checked and the draft issued through `bench authorise`."""
+        reg = self.register.get()
+        if not self.enabled or reg is None:
+            return Outcome(403, False, "Not issued: signing needs a register",
+                           reasons=(self.register.error or NO_REGISTER,)), None
+        sess = self.session()
+        actor = sess.account.name if sess else "(no session)"
+        why = None
+        if sess is None:
+            why = "no session: log in first"
+        elif not _same_origin():
+            why = "the request came from another origin"
+        elif not hmac.compare_digest((request.form.get("csrf") or "").encode(),
+                                     sess.csrf.encode()):
+            why = "the request did not carry this session's CSRF token"
+        elif not _local():
+            why = REMOTE_REFUSED
+        else:
+            now = reg.account(sess.account.name)
+            if now is None or not now.has("signatory"):
+                why = (f"account {sess.account.name} does not hold the signatory role "
+                       f"(roles: {', '.join(now.roles if now else ()) or 'none'}"
+                       f"{'' if now is None or now.active else ', disabled'})")
+        if why is not None:
+            self.audit(actor, "station sign refused", name, {"why": why})
+            return Outcome(403, False, "Refused: nothing was signed",
+                           reasons=(why,)), sess
+        assert sess is not None
+        return self._issue(reg, sess, run_dir(name)), sess
+
+    def _issue(self, reg: Register, sess: Session, run_path: Path) -> Outcome:
+        from bench.app.certificate.authorise import EXIT_ISSUED, authorise, register_of
+        from bench.app.register import AuthError, RegisterError
+        from bench.core.lab import LabError
+
+        lab_file = self.settings.lab_file
+        try:
+            run_reg = register_of(run_path, lab_file)
+        except LabError as e:
+            return Outcome(422, False, "Not issued", reasons=(str(e),))
+        if not same_register(run_reg, reg.url):
+            where = (f"the lab file {lab_file}" if lab_file else
+                     f"the run's own lab file ({run_path / 'lab.yaml'})")
+            said = f"names register {_shown_of(run_reg)}" if run_reg else "names no register"
+            return Outcome(422, False, "Not issued", reasons=(
+                f"{where} {said}, not this station's ({self.register.shown()}): a "
+                "certificate is issued through the register the station authenticates "
+                "against; start the station with --lab FILE naming it",))
+        draft = request.form.get("draft") or ""
+        if not draft or draft != sha256_of(run_path / "result.json"):
+            return Outcome(409, False, "Not issued: the draft changed", reasons=(
+                "result.json is not the one the page showed when it was opened (analysed "
+                "again, or issued meanwhile): open the run's page again and review it",))
+        password = request.form.get("password") or ""
+        reason = (request.form.get("reason") or "").strip() or None
+        try:
+            reg.authenticate(sess.account.name, password, "signatory")  # audits a refusal
+        except AuthError:
+            sess.strikes += 1
+            left = STRIKES - sess.strikes
+            if left <= 0:
+                self.sessions.end(request.cookies.get(SESSION_COOKIE))
+                self.audit(sess.account.name, "station session ended", sess.account.name,
+                           {"why": f"{STRIKES} wrong passwords at signing"})
+            return Outcome(422, False, "Not issued: the password was not accepted", reasons=(
+                f"the password is not {sess.account.name}'s: nothing was signed or issued"
+                + (f" ({left} more attempt{'s' if left != 1 else ''} before this "
+                   "session ends)" if left > 0 else "; the session has ended: log in again"),))
+        except RegisterError as e:
+            return Outcome(422, False, "Not issued", reasons=(str(e),))
+        if not self._sign_lock.acquire(timeout=SIGN_WAIT_S):
+            return Outcome(409, False, "Not issued: another signing is under way",
+                           reasons=("try again in a minute",))
+        lines: list[str] = []
+        err, out = io.StringIO(), io.StringIO()
+        try:
+            # authorise writes its refusal to stderr; the lock keeps this the only writer
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+                try:
+                    code = authorise(run_path, sess.account.name, reason, lab_file=lab_file,
+                                     line=lines.append, password=lambda _prompt: password)
+                except RegisterError as e:
+                    print(f"  - {e}", file=err)
+                    code = 2
+        finally:
+            self._sign_lock.release()
+        lines += [x for x in out.getvalue().splitlines() if x.strip()]
+        if code == EXIT_ISSUED:
+            return Outcome(200, True, "Issued", tuple(lines))
+        return Outcome(422 if code == 2 else 500, False,
+                       "Not issued" if code == 2 else "Not issued: the issue failed",
+                       tuple(lines), refusal_reasons(err.getvalue()))
+
+
+def _shown_of(url: str | None) -> str:
+    from bench.app.register import redact
+
+    return redact(url) if url else "none"
+
+
+def _local() -> bool:
+    return is_loopback(request.remote_addr)
+
+
+def _same_origin() -> bool:
+    """A POST's Origin (browsers send one) names this server; none given: not a browser's
+    cross-site request (SameSite=Strict keeps the cookie from those anyway)."""
+    origin = request.headers.get("Origin")
+    if origin is None:
+        return True
+    parts = urlsplit(origin)
+    return parts.scheme in ("http", "https") and parts.netloc == request.host
+
+
+def _safe_next(target: str | None) -> str:
+    """Where to go after logging in: a path on this server only."""
+    if not target or not target.startswith("/") or target.startswith("//") or "\\" in target:
+        return "/"
+    return target
+
+
+def _local_record(run_path: Path) -> str:
+    from bench.app.certificate import register as cert_register
+
+    try:
+        issues = cert_register.issues(run_path)
+    except (OSError, ValueError):
+        return "unreadable"
+    if not issues:
+        return "draft"
+    last = issues[-1]
+    return f"certificate {last.number}, authorised by {last.signatory or 'nobody'}"
+
+
+def _register_revisions(reg: Register, run_path: Path) -> list[dict[str, str]]:
+    """The run's issued revisions as the register holds them."""
+    import json
+
+    from bench.app.records.extract import run_uid
+
+    try:
+        meta = json.loads((run_path / "meta.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return []
+    number = reg.number_of_run(run_uid(meta, run_path.name))
+    if not number:
+        return []
+    return [{"number": r.shown_number, "revision": str(r.revision), "status": r.status,
+             "by": r.signatory_name, "meaning": r.meaning, "utc": r.issued_utc,
+             "reason": r.reason or ""} for r in reg.revisions(number)]
+
+
+# -- the routes -------------------------------------------------------------------------------
+
+def install(app: Flask, settings: StationSettings, run_dir: Callable[[str], Path]) -> Signing:
+    """Add login, logout, the sign request and the audit page to the station's app."""
+    signing = Signing(settings)
+
+    @app.context_processor
+    def who() -> dict[str, Any]:
+        sess = signing.session()
+        return {"account": sess.account if sess else None,
+                "session_csrf": sess.csrf if sess else "",
+                "signing_enabled": signing.enabled,
+                "sees_audit": bool(sess and (sess.has("quality") or sess.has("admin")))}
+
+    def set_cookie(resp: Response, value: str) -> None:
+        resp.set_cookie(SESSION_COOKIE, value, httponly=True, samesite="Strict", path="/")
+
+    def login_page(status: int = 200, error: str | None = None) -> tuple[str, int]:
+        return render_template(
+            "login.html.j2", version=bench.__version__, enabled=signing.enabled,
+            no_register=NO_REGISTER, register=signing.register.shown(),
+            register_error=signing.register.error, local=_local(),
+            remote_refused=REMOTE_REFUSED, token=signing.sessions.login_token(),
+            next=_safe_next(request.values.get("next")), error=error), status
+
+    @app.get("/login")
+    def login() -> tuple[str, int]:
+        if signing.enabled:
+            signing.register.get()          # so the page can say it cannot be reached
+        return login_page()
+
+    @app.post("/login")
+    def login_post() -> Response | tuple[str, int]:
+        from bench.app.register import AuthError, RegisterError
+
+        if not signing.enabled:
+            return login_page(403, NO_REGISTER)
+        if not _local():
+            return login_page(403, REMOTE_REFUSED)
+        if not _same_origin() or not signing.sessions.login_token_ok(request.form.get("token")):
+            return login_page(403, "The login form has expired or came from elsewhere: "
+                                   "log in again from this page.")
+        reg = signing.register.get()
+        if reg is None:
+            return login_page(503, f"The register cannot be reached: {signing.register.error}")
+        name = (request.form.get("name") or "").strip()
+        try:
+            acct = reg.authenticate(name, request.form.get("password") or "")  # audits refusal
+        except AuthError:
+            return login_page(401, "Name or password not accepted.")
+        except RegisterError as e:
+            return login_page(503, f"The register cannot be used: {e}")
+        signing.sessions.end(request.cookies.get(SESSION_COOKIE))   # never two at once
+        cookie, _ = signing.sessions.start(acct)
+        signing.audit(acct.name, "station login", acct.name, {"roles": list(acct.roles)})
+        resp = redirect(_safe_next(request.form.get("next")), code=303)
+        set_cookie(resp, cookie)
+        return resp
+
+    @app.post("/logout")
+    def logout() -> Response:
+        sess = signing.session()
+        if sess is not None and _same_origin() and hmac.compare_digest(
+                (request.form.get("csrf") or "").encode(), sess.csrf.encode()):
+            signing.sessions.end(request.cookies.get(SESSION_COOKIE))
+            signing.audit(sess.account.name, "station logout", sess.account.name, {})
+        elif sess is not None:
+            abort(403, "the logout request did not carry this session's token")
+        resp = redirect("/", code=303)
+        resp.delete_cookie(SESSION_COOKIE, path="/", httponly=True, samesite="Strict")
+        return resp
+
+    @app.post("/run/<name>/sign")
+    def sign(name: str) -> tuple[str, int]:
+        outcome, sess = signing.sign(name, run_dir)
+        still = signing.session() is not None
+        return render_template("signed.html.j2", run=name, outcome=outcome,
+                               version=bench.__version__, logged_out=sess is not None
+                               and not still), outcome.status
+
+    @app.get("/audit")
+    def audit_page() -> tuple[str, int]:
+        sess = signing.session()
+        if sess is None or not (sess.has("quality") or sess.has("admin")):
+            abort(403, "the audit trail is shown to quality and admin accounts")
+        reg = signing.register.get()
+        if reg is None:
+            abort(503, signing.register.error or NO_REGISTER)
+        rows = reg.audit_rows()[-200:][::-1]
+        check = reg.audit_check()
+        return render_template("audit.html.j2", rows=rows, check=check,
+                               register=signing.register.shown(),
+                               version=bench.__version__), 200
+
+    return signing

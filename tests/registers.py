@@ -1,0 +1,102 @@
+"""Lab registers for tests: a real SQLite register file with the lab's accounts, made once
+per test process (argon2id hashing is deliberately slow) and copied for each test, and the
+lab file that names it. `authorise` issues with the signatory's password on stdin, as a
+script would (`--password-stdin`)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from tests.conftest import cli
+
+#: account: (password, roles, full name, function)
+ACCOUNTS: dict[str, tuple[str, tuple[str, ...], str, str | None]] = {
+    "admin": ("admin-pass-1", ("admin",), "R. Admin", "Register administrator"),
+    "P. Petrov": ("petrov-pass-1", ("signatory", "reviewer"), "P. Petrov",
+                  "Technical manager (authorised signatory)"),
+    "A. Tester": ("tester-pass-1", ("signatory",), "A. Tester", "Head of calibration"),
+    "A. Ivanova": ("ivanova-pass-1", ("operator",), "A. Ivanova", "Calibration engineer"),
+    "Q. Manager": ("quality-pass-1", ("quality",), "Q. Manager", "Quality manager"),
+}
+_TEMPLATE: list[Path] = []
+
+
+def password(account: str) -> str:
+    return ACCOUNTS[account][0]
+
+
+def fill(url: str) -> None:
+    """Create the register at `url` with every account of ACCOUNTS."""
+    from bench.app.register import Register
+
+    with Register.open(url) as reg:
+        reg.init("admin", ACCOUNTS["admin"][2], password("admin"))
+        admin = reg.authenticate("admin", password("admin"), "admin")
+        for name, (pw, roles, full, function) in ACCOUNTS.items():
+            if name != "admin":
+                reg.add_account(admin, name, full, roles, pw, function)
+
+
+def sqlite_register(folder: Path) -> str:
+    """A fresh copy of the template register in `folder`; returns its URL."""
+    if not _TEMPLATE:
+        path = Path(tempfile.mkdtemp(prefix="ratebench-register-")) / "register.sqlite"
+        fill(f"sqlite:///{path}")
+        _TEMPLATE.append(path)
+    folder.mkdir(parents=True, exist_ok=True)
+    target = folder / "register.sqlite"
+    shutil.copyfile(_TEMPLATE[0], target)
+    return f"sqlite:///{target}"
+
+
+def lab_file(folder: Path, register_url: str, extra: str = "") -> Path:
+    """A lab file naming the register (and `extra` YAML lines)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    lab = folder / "lab.yaml"
+    lab.write_text(f"register: {register_url}\n{extra}")
+    return lab
+
+
+def cli_in(stdin: str, *args: str) -> subprocess.CompletedProcess[str]:
+    """`bench ARGS` in this process with `stdin` as standard input."""
+    old = sys.stdin
+    sys.stdin = io.StringIO(stdin)
+    try:
+        with contextlib.ExitStack():
+            return cli(*args)
+    finally:
+        sys.stdin = old
+
+
+def authorise(run: Path, account: str, lab: Path, *args: str,
+              password_text: str | None = None) -> subprocess.CompletedProcess[str]:
+    pw = password(account) if password_text is None and account in ACCOUNTS \
+        else (password_text or "")
+    return cli_in(pw + "\n", "authorise", str(run), "--signatory", account, "--lab",
+                  str(lab), "--password-stdin", *args)
+
+
+def add_register(lab: Path, folder: Path) -> str:
+    """Name a fresh register in an existing lab file; returns its URL."""
+    url = sqlite_register(folder)
+    with lab.open("a") as f:
+        f.write(f"register: {url}\n")
+    return url
+
+
+def designate(url: str, certificate: Path) -> None:
+    """The register's admin designates the DCC signing certificate (issue 42)."""
+    import hashlib
+
+    from bench.app.certificate.authorise import SIGNING_SETTING
+    from bench.app.register import Register
+
+    with Register.open(url) as reg:
+        reg.set_setting(reg.authenticate("admin", password("admin"), "admin"), SIGNING_SETTING,
+                        hashlib.sha256(certificate.read_bytes()).hexdigest())

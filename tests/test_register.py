@@ -1,0 +1,375 @@
+"""The lab register (issue 42): who may sign, which standards are valid, which certificate
+numbers exist, and the audit trail, in a database the lab controls.
+
+Each of the five findings of the quality manager's review, reproduced and now refused or
+stated correctly; the register's own guarantees on a real PostgreSQL server the tests start
+(tests/pg_server.py: grants tested with a second role, concurrent issuers, the audit chain)
+and on SQLite. Issues go through `bench authorise` with `--password-stdin`, as a script
+would; the demo run is conftest's, copied per test.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import datetime as dt
+import json
+import shutil
+import uuid
+from pathlib import Path
+from typing import Any
+
+import pytest
+import sqlalchemy as sa
+from lxml import etree
+
+from bench.app.certificate import register as run_register
+from bench.app.register import AuthError, Register, RegisterError
+from bench.app.register.gate import start_gate
+from bench.core.config import Traced
+from tests.conftest import cli
+from tests.registers import (
+    ACCOUNTS,
+    authorise,
+    cli_in,
+    fill,
+    lab_file,
+    password,
+    sqlite_register,
+)
+
+NS = {"dcc": "https://ptb.de/dcc"}
+DIGESTS = {"result.json": "a" * 64, "certificate.pdf": "b" * 64,
+           "certificate.dcc.xml": "c" * 64, "certificate.html": "d" * 64}
+
+
+from tests.test_authorise import lab, run  # noqa: E402,F401 - the same fixtures
+
+
+def _url(lab: Path) -> str:
+    return next(line.split(": ", 1)[1] for line in lab.read_text().splitlines()
+                if line.startswith("register:"))
+
+
+# -- 1. anyone could authorise ----------------------------------------------------------
+
+def test_unknown_wrong_password_and_file_named_signatories_are_refused(
+        run: Path, lab: Path) -> None:
+    # "Mallory" exists in no register; the demo procedure file names "A. Ivanova" among
+    # its signatories, but her account holds the operator role only
+    for who, pw, why in (("Mallory", "anything-1", "unknown account, wrong password"),
+                         ("P. Petrov", "not-his-password", "unknown account, wrong password"),
+                         ("A. Ivanova", password("A. Ivanova"),
+                          "does not hold the signatory role")):
+        done = authorise(run, who, lab, password_text=pw)
+        assert done.returncode == 2, done.stdout
+        assert why in done.stderr, done.stderr
+    assert not (run / "issued").exists()
+    assert not (run / run_register.REGISTER_NAME).exists()
+    with Register.open(_url(lab)) as reg:
+        refused = [r for r in reg.audit_rows() if r["action"] == "authentication refused"]
+        assert [r["actor"] for r in refused] == ["Mallory", "P. Petrov", "A. Ivanova"]
+        assert reg.audit_check().ok
+
+
+def test_no_register_no_issue(run: Path, tmp_path: Path) -> None:
+    """The demo runs without a register; its draft cannot be issued without one."""
+    bare = tmp_path / "bare.yaml"
+    bare.write_text("laboratory: Test Rate Lab\n")
+    done = cli_in("x\n", "authorise", str(run), "--signatory", "P. Petrov", "--lab",
+                  str(bare), "--password-stdin")
+    assert done.returncode == 2
+    assert "names no register" in done.stderr
+    # unreachable: refused, exit 2
+    gone = lab_file(tmp_path / "gone", f"sqlite:///{tmp_path}/no/such/dir/x.sqlite")
+    done = authorise(run, "P. Petrov", gone)
+    assert done.returncode == 2 and "cannot be reached" in done.stderr
+    text = (run / "certificate.html").read_text()
+    assert "no lab register was named" in text
+
+
+# -- 2. the assurance gate bypassed with --records ----------------------------------------
+
+def test_records_cannot_be_chosen_at_issue(run: Path, lab: Path, tmp_path: Path) -> None:
+    with pytest.raises(SystemExit) as e:
+        cli_in(password("P. Petrov") + "\n", "authorise", str(run), "--signatory",
+               "P. Petrov", "--lab", str(lab), "--password-stdin", "--records",
+               f"sqlite:///{tmp_path}/empty.sqlite")
+    assert e.value.code == 2          # argparse: the option does not exist
+
+
+def test_a_copied_run_directory_never_issues_a_second_revision_1(
+        run: Path, lab: Path, tmp_path: Path) -> None:
+    copy = tmp_path / "copy" / run.name
+    shutil.copytree(run, copy)
+    assert authorise(run, "P. Petrov", lab).returncode == 0
+    done = authorise(copy, "P. Petrov", lab)
+    assert done.returncode == 2 and "already issued" in done.stderr
+    done = authorise(copy, "P. Petrov", lab, "--reason", "issued again from a copy")
+    assert done.returncode == 0, done.stderr
+    with Register.open(_url(lab)) as reg:
+        number = reg.number_of_run(_uid(run))
+        assert [(r.revision, r.status) for r in reg.revisions(number)] == [
+            (1, "withdrawn"), (2, "issued")]
+
+
+def _uid(run: Path) -> str:
+    from bench.app.records.extract import run_uid
+
+    return run_uid(json.loads((run / "meta.json").read_text()), run.name)
+
+
+# -- 3. an overdue counter ---------------------------------------------------------------
+
+def _traced(serial: str | None, due: dt.date | None = None) -> Traced:
+    return Traced("axes.outer.counter", "counter keysight-53230a (outer)",
+                  "SIM-CAL-1" if due else None, "Cal Lab" if due else None, due, None,
+                  serial=serial)
+
+
+def test_overdue_or_unknown_equipment_refuses_a_real_stand(tmp_path: Path) -> None:
+    url = sqlite_register(tmp_path)
+    with Register.open(url) as reg:
+        q = reg.authenticate("Q. Manager", password("Q. Manager"), "quality")
+        reg.add_equipment(q, "MY62000117", "Keysight 53230A", "C-2024-117", "Cal Lab",
+                          dt.date(2025, 1, 31))
+        reg.add_equipment(q, "MY62000118", "Keysight 53230A", "C-2026-118", "Cal Lab",
+                          dt.date(2027, 6, 30))
+    on = dt.date(2026, 11, 27)
+    items = [_traced("MY62000117", dt.date(2027, 1, 1)), _traced("MY62000118", on),
+             _traced("NOT-IN-INVENTORY", on)]
+    gate = start_gate(url, items, simulated=False, operator=None, password=str, on=on)
+    assert len(gate.refusal) == 3 and "deviation" in gate.refusal[2]
+    assert "MY62000117" in gate.refusal[0] and "due 2025-01-31" in gate.refusal[0]
+    assert "NOT-IN-INVENTORY" in gate.refusal[1] and "not in the lab's" in gate.refusal[1]
+    # on twins the same facts are findings, and the run starts
+    twin = start_gate(url, items, simulated=True, operator=None, password=str, on=on)
+    assert twin.refusal == [] and sum(bool(s["problem"]) for s in twin.equipment) == 2
+    # a quality account's deviation (reason, expiry) lets the overdue counter be used
+    with Register.open(url) as reg:
+        with pytest.raises(AuthError):
+            reg.add_deviation(reg.authenticate("A. Ivanova", password("A. Ivanova")),
+                              "MY62000117", "re-calibration booked", dt.date(2026, 12, 31))
+        reg.add_deviation(reg.authenticate("Q. Manager", password("Q. Manager")),
+                          "MY62000117", "re-calibration booked; drift checked",
+                          dt.date(2026, 12, 31))
+    gate = start_gate(url, items[:2], simulated=False, operator=None, password=str, on=on)
+    assert gate.refusal == []
+    assert "re-calibration booked" in gate.equipment[0]["deviation"]
+
+
+def test_overdue_counter_on_twins_is_stated_in_the_pdf_and_the_dcc(
+        tmp_path: Path, demo_files: Path) -> None:
+    url = sqlite_register(tmp_path / "reg")
+    with Register.open(url) as reg:
+        q = reg.authenticate("Q. Manager", password("Q. Manager"), "quality")
+        reg.add_equipment(q, "1760-20231", "KVH DSP-1760", "C-2024-31", "Cal Lab",
+                          dt.date(2025, 1, 31))
+    procedure = demo_files / "procedures" / "demo.yaml"
+    lab_file(demo_files, url)
+    done = cli_in(password("A. Ivanova") + "\n", "run", str(procedure), "--out",
+                  str(tmp_path / "runs"), "--yes", "--quiet", "--operator", "A. Ivanova",
+                  "--password-stdin")
+    assert done.returncode == 0, done.stderr[-3000:]
+    run = Path(done.stdout.strip().splitlines()[-1])
+    html = (run / "certificate.html").read_text()
+    assert "1760-20231" in html and "was due 2025-01-31" in html
+    root = etree.parse(str(run / "certificate.dcc.xml")).getroot()
+    texts = [st.findtext("dcc:declaration/dcc:content", "", NS)
+             for st in root.iterfind(".//dcc:statement[@refType='ratebench_equipmentStatus']",
+                                     NS)]
+    assert any("1760-20231" in t and "2025-01-31" in t for t in texts), texts
+    # 5. the performer is the account that authenticated, not a name from a file
+    meta = json.loads((run / "meta.json").read_text())
+    assert meta["performer"]["account"] == "A. Ivanova"
+    assert "Calibration performed by: A. Ivanova (account A. Ivanova, authenticated" in html
+    # and a wrong password starts nothing
+    done = cli_in("wrong-password\n", "run", str(procedure), "--out", str(tmp_path / "r2"),
+                  "--yes", "--quiet", "--operator", "A. Ivanova", "--password-stdin")
+    assert done.returncode == 2 and "Not started" in done.stderr
+    assert not (tmp_path / "r2").exists() or not any((tmp_path / "r2").iterdir())
+
+
+def test_a_real_stand_with_an_overdue_fog_does_not_start(tmp_path: Path,
+                                                        demo_files: Path) -> None:
+    """The demo stand without its sim: block is a real stand: refused before anything
+    moves (no run directory), naming serial and due date."""
+    url = sqlite_register(tmp_path / "reg")
+    with Register.open(url) as reg:
+        q = reg.authenticate("Q. Manager", password("Q. Manager"), "quality")
+        reg.add_equipment(q, "1760-20231", "KVH DSP-1760", "C-2024-31", "Cal Lab",
+                          dt.date(2025, 1, 31))
+    lab_file(demo_files, url)
+    stand = demo_files / "stands" / "sim-two-axis.yaml"
+    text = stand.read_text()
+    text = text[:text.index("\nsim:")] + "\n"
+    stand.write_text(text.replace("drive:   {interface:", "drive:   {unit_factors: read, "
+                                                           "interface:"))
+    out = tmp_path / "runs"
+    done = cli("run", str(demo_files / "procedures" / "demo.yaml"), "--out", str(out),
+               "--yes", "--quiet")
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert "Not started: the lab register refuses" in done.stderr
+    assert "serial 1760-20231: calibration (C-2024-31, Cal Lab) was due 2025-01-31" \
+        in done.stderr
+    assert not out.exists() or not any(out.iterdir())
+
+
+@pytest.fixture
+def demo_files(tmp_path: Path) -> Path:
+    """The shipped demo procedure and stand, copied, the procedure naming ../lab.yaml."""
+    from bench.examples import example_path
+
+    src = example_path("demo")
+    root = tmp_path / "files"
+    (root / "procedures").mkdir(parents=True)
+    (root / "stands").mkdir()
+    for f in src.parent.parent.joinpath("stands").iterdir():
+        shutil.copyfile(f.resolve(), root / "stands" / f.name)
+    text = src.read_text().replace(
+        "certificate:                    #", "certificate:\n  lab: ../lab.yaml\n  #", 1)
+    assert "lab: ../lab.yaml" in text
+    (root / "procedures" / "demo.yaml").write_text(text)
+    return root
+
+
+# -- 4. the records and the register agree on what was issued -----------------------------
+
+def test_verify_against_the_register_and_a_swapped_lab_file(
+        run: Path, lab: Path, tmp_path: Path) -> None:
+    draft = run / "certificate.dcc.xml"
+    done = cli("verify", str(draft), "--register", _url(lab))
+    assert done.returncode == 1 and "not issued (draft)" in done.stdout
+    # issued through another lab file's register: not the lab's certificate
+    other = lab_file(tmp_path / "evil", sqlite_register(tmp_path / "evil"))
+    assert authorise(run, "P. Petrov", other).returncode == 0
+    issued = next((run / "issued").iterdir())
+    for name in ("certificate.dcc.xml", "certificate.pdf"):
+        done = cli("verify", str(issued / name), "--register", _url(lab))
+        assert done.returncode == 1 and "not issued" in done.stdout, done.stdout
+        done = cli("verify", str(issued / name), "--register", _url(other))
+        assert done.returncode == 0 and "issued: certificate" in done.stdout, done.stdout
+
+
+def test_issue_then_reissue_states_issued_and_withdrawn(run: Path, lab: Path) -> None:
+    assert authorise(run, "P. Petrov", lab).returncode == 0
+    assert authorise(run, "P. Petrov", lab, "--reason", "address corrected").returncode == 0
+    first, second = run_register.issues(run)
+    for issue, word in ((first, "withdrawn"), (second, "issued")):
+        for name in ("certificate.pdf", "certificate.dcc.xml"):
+            done = cli("verify", str(run / "issued" / issue.number / name), "--register",
+                       _url(lab))
+            assert f": {word}: certificate {issue.number}" in done.stdout, done.stdout
+    # the run's register file is a copy of what the register holds
+    with Register.open(_url(lab)) as reg:
+        held = reg.revisions(first.number)
+    assert [(i.number, i.audit_digest) for i in (first, second)] == [
+        (r.shown_number, r.audit_digest) for r in held]
+    assert second.signatory == "P. Petrov" and second.meaning == "authorised for issue"
+
+
+# -- the register itself: SQLite and PostgreSQL ---------------------------------------------
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
+    if request.param == "sqlite":
+        return sqlite_register(tmp_path)
+    server = request.getfixturevalue("pg")
+    u = server.create_database(f"register_{uuid.uuid4().hex[:10]}")
+    fill(u)
+    return str(u)
+
+
+def _issue_one(url: str, run_uid: str) -> str:
+    with Register.open(url, migrate=False) as reg:
+        signer = reg.authenticate("P. Petrov", password("P. Petrov"), "signatory")
+        number = reg.allocate(run_uid, "RT", signer.name)
+        reg.issue(number, 1, signer, "2026-11-27T12:00:00Z", DIGESTS, None, {})
+        return number
+
+
+def test_concurrent_issuers_never_share_a_number(url: str) -> None:
+    with concurrent.futures.ThreadPoolExecutor(4) as pool:
+        numbers = list(pool.map(lambda i: _issue_one(url, f"run-{i}"), range(12)))
+    assert len(set(numbers)) == 12
+    with Register.open(url, migrate=False) as reg:
+        assert reg.audit_check().ok
+        # the same revision twice: the register refuses the second
+        signer = reg.authenticate("P. Petrov", password("P. Petrov"))
+        with pytest.raises(RegisterError, match="not the next"):
+            reg.issue(numbers[0], 1, signer, "2026-11-27T12:00:00Z", DIGESTS, None, {})
+        with pytest.raises(RegisterError, match="needs a reason"):
+            reg.issue(numbers[0], 2, signer, "2026-11-27T12:00:00Z", DIGESTS, " ", {})
+
+
+def _tamper(url: str, *sql: str) -> None:
+    """As the database's owner (SQLite: the file's owner, who can drop the guards)."""
+    eng = sa.create_engine(url.replace("postgresql://", "postgresql+psycopg://"))
+    with eng.begin() as c:
+        if c.dialect.name == "sqlite":
+            c.exec_driver_sql("DROP TRIGGER IF EXISTS reg_audit_no_update")
+            c.exec_driver_sql("DROP TRIGGER IF EXISTS reg_audit_no_delete")
+        for q in sql:
+            c.exec_driver_sql(q)
+    eng.dispose()
+
+
+def test_the_audit_trail_finds_altered_and_removed_entries(url: str) -> None:
+    _issue_one(url, "run-a")
+    _issue_one(url, "run-b")
+    done = cli("register", "audit", "--register", url)
+    assert done.returncode == 0 and "chain whole" in done.stdout
+    _tamper(url, "UPDATE reg_audit SET actor = 'someone else' WHERE seq = 3")
+    done = cli("register", "audit", "--register", url)
+    assert done.returncode == 1 and "entry 3" in done.stdout and "altered" in done.stdout
+    with Register.open(url, migrate=False) as reg:
+        n = len(reg.audit_rows())
+    _tamper(url, f"DELETE FROM reg_audit WHERE seq >= {n - 1}")
+    done = cli("register", "audit", "--register", url)
+    assert done.returncode == 1 and "removed from its end" in done.stdout
+
+
+def test_sqlite_guards_against_mistakes(tmp_path: Path) -> None:
+    url = sqlite_register(tmp_path)
+    _issue_one(url, "run-x")
+    eng = sa.create_engine(url)
+    for q in ("DELETE FROM reg_audit", "UPDATE reg_audit SET actor = 'x'",
+              "DELETE FROM reg_revisions", "UPDATE reg_revisions SET signatory = 'admin'"):
+        with pytest.raises(sa.exc.DBAPIError), eng.begin() as c:
+            c.exec_driver_sql(q)
+    eng.dispose()
+
+
+def test_the_bench_role_cannot_change_what_it_may_not(pg: Any) -> None:
+    """Grants, checked by the server: a second role connects as a bench would."""
+    db = f"register_{uuid.uuid4().hex[:10]}"
+    owner_url = pg.create_database(db)
+    pg.admin("DROP ROLE IF EXISTS bench_station_1", "CREATE ROLE bench_station_1 LOGIN")
+    done = cli_in(password("admin") + "\n", "register", "init", owner_url, "--admin", "admin",
+                  "--bench-role", "bench_station_1", "--password-stdin")
+    assert done.returncode == 0, done.stderr
+    with Register.open(owner_url) as reg:
+        admin = reg.authenticate("admin", password("admin"))
+        for name, (pw, roles, full, function) in ACCOUNTS.items():
+            if name != "admin":
+                reg.add_account(admin, name, full, roles, pw, function)
+    bench_url = owner_url.replace(f"//{pg.user}@", "//bench_station_1@")
+    number = _issue_one(bench_url, "run-by-the-bench")      # through the functions: allowed
+    eng = sa.create_engine(bench_url.replace("postgresql://", "postgresql+psycopg://"))
+    for q in ("UPDATE reg_audit SET actor = 'x'", "DELETE FROM reg_audit",
+              "UPDATE reg_accounts SET roles = 'admin,signatory'", "DELETE FROM reg_accounts",
+              "INSERT INTO reg_accounts (name, full_name, roles, password_hash, created_utc) "
+              "VALUES ('m', 'Mallory', 'signatory', 'x', 'now')",
+              "UPDATE reg_revisions SET signatory = 'admin'", "DELETE FROM reg_revisions",
+              "UPDATE reg_audit_head SET seq = 1", "DELETE FROM reg_certificates",
+              "INSERT INTO reg_equipment VALUES ('S', 'm', 'c', 'i', '2099-01-01', 'n', 'x')"):
+        with pytest.raises(sa.exc.ProgrammingError, match="permission denied"), \
+                eng.begin() as c:
+            c.exec_driver_sql(q)
+    # a function call naming an account without the signatory role is refused by the server
+    with pytest.raises(sa.exc.DBAPIError, match="not an active signatory"), eng.begin() as c:
+        c.execute(sa.text("SELECT reg_issue(:n, 2, 'A. Ivanova', 'm', 'r', 't', 'a', 'b', "
+                          "'c', 'd', '{}')"), {"n": number})
+    eng.dispose()
+    with Register.open(bench_url, migrate=False) as reg:
+        assert reg.audit_check().ok
+        assert {r["db_user"] for r in reg.audit_rows()} >= {"bench_station_1"}
