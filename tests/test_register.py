@@ -26,6 +26,7 @@ from bench.app.certificate import register as run_register
 from bench.app.register import AuthError, Register, RegisterError
 from bench.app.register.gate import start_gate
 from bench.core.config import Traced
+from tests import test_authorise
 from tests.conftest import cli
 from tests.registers import (
     ACCOUNTS,
@@ -42,7 +43,8 @@ DIGESTS = {"result.json": "a" * 64, "certificate.pdf": "b" * 64,
            "certificate.dcc.xml": "c" * 64, "certificate.html": "d" * 64}
 
 
-from tests.test_authorise import lab, run  # noqa: E402,F401 - the same fixtures
+run = test_authorise.run        # the same fixtures: a copy of the demo run, a lab file
+lab = test_authorise.lab        # naming a fresh SQLite register
 
 
 def _url(lab: Path) -> str:
