@@ -45,7 +45,8 @@ SIGNATORY = Map({
     "name": Key(Str(), True, "the person's name, printed under the signature line"),
     "function": Key(Str(), False, "their function in the laboratory"),
     "role": Key(Str(), False, "the same as function (the DCC's word)"),
-    "authorises": Key(Bool(), False, "true for a signatory who may authorise an issue"),
+    "authorises": Key(Bool(), False, "read but not used: the lab register's signatory "
+                      "role decides who may authorise an issue"),
     "main_signer": Key(Bool(), False, "the same as authorises (the DCC's word)"),
 })
 LAB = Map({
@@ -62,8 +63,9 @@ LAB = Map({
     "country_code": Key(COUNTRY, False, "country where the calibration is performed"),
     "performance_location": Key(Str(PERFORMANCE_LOCATIONS)),
     "signatories": Key(ListOf(SIGNATORY, min_len=1), False,
-                       "named signatories with their functions; authorises: true for those "
-                       "who may authorise an issue (bench authorise --signatory)"),
+                       "named signatories with their functions, for the laboratory's own "
+                       "reference only: who may sign and who performed a calibration come "
+                       "from the lab register's authenticated accounts (docs/register.md)"),
     "responsible_persons": Key(ListOf(SIGNATORY), False, "the same as signatories"),
     "authoritative": Key(Str(("pdf",)), False, "the authoritative form (pdf)"),
     "signing": Key(SIGNING, False, "the key the issued DCC is signed with (paths only)"),
