@@ -166,16 +166,18 @@ def test_three_recertifications_show_the_drift_and_the_third_certificate_its_his
     rows = _history_csv(tmp_path, "--runs", str(runs_dir))
     _check_drift(rows, recerts)
 
-    # the first certificate has no history; the third has the trend plot and names the
-    # second certificate with the SHA-256 of its files as they are on disk
+    # the first certificate has no history; the third has the trend plot and states that
+    # the second run has no issued certificate: a draft is cited nowhere (issue 42;
+    # tests/test_register.py checks that an issued revision is cited with its digests)
     first = (dirs[0] / "certificate.html").read_text(encoding="utf-8")
     assert "History of this table" not in first
     third = (dirs[2] / "certificate.html").read_text(encoding="utf-8")
     assert "History of this table" in third
     assert 'alt="Trend across recertifications' in third
     second = record_of(dirs[1])
-    assert second.certificate_number and second.certificate_number in third
-    assert sha256_file(dirs[1] / "certificate.pdf") in third
+    assert second.certificate_number is None and second.cert_files == ()
+    assert "none issued (the previous run has a draft only" in third
+    assert sha256_file(dirs[1] / "certificate.pdf") not in third
     assert "As found ± U" in third and "rate loop gain trimmed" in third
     pdf = pdfium.PdfDocument(dirs[2] / "certificate.pdf")
     text = " ".join(p.get_textpage().get_text_range() for p in pdf)
@@ -186,8 +188,7 @@ def test_three_recertifications_show_the_drift_and_the_third_certificate_its_his
         runs = rec.runs(SERIAL)
         assert [r.calibration_state for r in runs] == [None, "as-found", "as-left"]
         assert runs[2].adjustment_note == "rate loop gain trimmed"
-        assert runs[2].cert_files["certificate.pdf"] == sha256_file(
-            dirs[2] / "certificate.pdf")
+        assert runs[2].cert_files == {}          # drafts: no certificate files recorded
         assert all(r.operator for r in runs)
         assert all(r.procedure_sha256 == json.loads((d / "meta.json").read_text())[
             "procedure_sha256"] for r, d in zip(runs, dirs, strict=True))
@@ -423,7 +424,7 @@ def test_a_database_lost_mid_run_warns_and_a_later_import_registers_the_run(
     with Records.open(db.url) as rec:
         (r,) = rec.runs(SERIAL)
         assert r.uid == record_of(run_dir).uid and r.verdict == "pass"
-        assert r.cert_files["certificate.pdf"] == sha256_file(run_dir / "certificate.pdf")
+        assert r.cert_files == {} and r.certificate_number is None    # a draft
 
 
 def test_drift_pulse_figures_are_recorded_with_u_and_verdict() -> None:

@@ -267,6 +267,22 @@ def test_issue_then_reissue_states_issued_and_withdrawn(run: Path, lab: Path) ->
     assert [(i.number, i.audit_digest) for i in (first, second)] == [
         (r.shown_number, r.audit_digest) for r in held]
     assert second.signatory == "P. Petrov" and second.meaning == "authorised for issue"
+    # the records cite the issued revision and the digests of its files as stored, never
+    # a draft's (finding 4)
+    from bench.app.records.store import Records
+
+    with Records.open(f"sqlite:///{run.parent / 'records.sqlite'}") as rec:
+        info = rec.run(_uid(run))
+    assert info is not None and info.certificate_number == second.number
+    for name, sha in info.cert_files.items():
+        assert sha == held[1].digests()[name], name
+
+
+def test_a_draft_is_cited_nowhere(run: Path) -> None:
+    from bench.app.records.extract import record_of
+
+    rec = record_of(run)
+    assert rec.certificate_number is None and rec.cert_files == ()
 
 
 # -- the register itself: SQLite and PostgreSQL ---------------------------------------------

@@ -1,4 +1,10 @@
-"""The `bench` command (CONTRACT §1). Each subcommand lives in its own module."""
+"""The `bench` command (CONTRACT §1). Each subcommand lives in its own module.
+
+The parser is built from light modules only (this one, bench/app/parsers.py,
+bench/app/dcc/command.py, bench/app/station/serve.py), and a command's module is imported
+when the command runs: `bench --help`, `bench --version` and a wrong option answer at once,
+without numpy, the certificate or the databases (tests/test_cli_imports.py).
+"""
 
 from __future__ import annotations
 
@@ -8,18 +14,15 @@ import os
 import sys
 
 import bench
-from bench.app import commands
-from bench.app.certificate.authorise import add_parser as add_authorise_parser
-from bench.app.certificate.authorise import cmd_authorise
 from bench.app.dcc.command import COMMANDS as DCC_COMMANDS
 from bench.app.dcc.command import add_parsers as add_dcc_parsers
-from bench.app.decode import decode_command
-from bench.app.records.commands import RECORDS_COMMANDS
-from bench.app.records.commands import add_parsers as add_records_parsers
-from bench.app.reference import method_command, schema_command
-from bench.app.register.commands import add_parser as add_register_parser
-from bench.app.starter import init_command
-from bench.app.station.serve import add_serve_arguments, cmd_serve
+from bench.app.parsers import (
+    RECORDS_COMMAND_NAMES,
+    add_authorise_parser,
+    add_records_parsers,
+    add_register_parser,
+)
+from bench.app.station.serve import add_serve_arguments
 
 EPILOG = """\
 examples:
@@ -179,29 +182,38 @@ def _main(argv: list[str] | None) -> int:
     # library's echo of the cause, not the cause (the session reports every fault itself)
     logging.getLogger("canopen").addHandler(logging.NullHandler())
     args = build_parser().parse_args(argv)
-    if args.command == "decode":
+    command = args.command
+    if command == "decode":
+        from bench.app.decode import decode_command
         return decode_command(args.raw_file, args.fmt, args.csv, args.first_index)
-    if args.command == "serve":
+    if command == "serve":
+        from bench.app.station.serve import cmd_serve
         return cmd_serve(args)
-    if args.command == "schema":
+    if command == "schema":
+        from bench.app.reference import schema_command
         return schema_command(args.target, args.kind, args.json, args.markdown)
-    if args.command == "init":
+    if command == "init":
+        from bench.app.starter import init_command
         return init_command(args.dir, args.real, args.kind)
-    if args.command == "method":
+    if command == "method":
+        from bench.app.reference import method_command
         return method_command(args.path)
-    if args.command == "sim":
+    if command == "sim":
         from bench.app.simserve import serve
         return serve(args.stand)
-    if args.command in RECORDS_COMMANDS:
-        return RECORDS_COMMANDS[args.command](args)
-    if args.command == "register":
+    if command in RECORDS_COMMAND_NAMES:
+        from bench.app.records.commands import RECORDS_COMMANDS
+        return RECORDS_COMMANDS[command](args)
+    if command == "register":
         from bench.app.register.commands import cmd_register
         return cmd_register(args)
-    if args.command == "authorise":
+    if command == "authorise":
+        from bench.app.certificate.authorise import cmd_authorise
         return cmd_authorise(args)
-    if args.command in DCC_COMMANDS:
-        return DCC_COMMANDS[args.command](args)
-    return commands.dispatch(args)
+    if command in DCC_COMMANDS:
+        return DCC_COMMANDS[command](args)
+    from bench.app.commands import dispatch
+    return dispatch(args)
 
 
 if __name__ == "__main__":

@@ -8,36 +8,38 @@ operator (the axes were stopped, the data kept, `--resume` works).
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from bench.app.console import open_console
-from bench.app.devices import list_devices
-from bench.app.records.hooks import mark_run, register_run, target
-from bench.app.session import (
-    EXIT_ABORTED,
-    EXIT_FAIL,
-    EXIT_INVALID,
-    EXIT_PASS,
-    err,
-    plan_axes,
-    room_for,
-    run_session,
-    summary_of,
-    write_outputs,
-)
 from bench.core.config import Config, ConfigError
-from bench.core.diskspace import data_volume_lines
-from bench.core.journal import RunDir
-from bench.core.lab import lab_path
 from bench.core.loader import is_stand_file, load_config, load_stand
 from bench.core.placeholders import left_to_fill, placeholder_notes
 from bench.core.registry import procedure_kind
 from bench.core.yamlfile import YamlError, load_yaml
-from bench.examples import example_path
+
+# `bench validate` imports the loader only: the session, the console, the records and the
+# certificate are imported by the commands that plan, run or analyze (bench/app/cli.py)
+if TYPE_CHECKING:
+    from bench.app.session import run_session
 
 __all__ = ["EXIT_ABORTED", "EXIT_FAIL", "EXIT_INVALID", "EXIT_PASS", "dispatch", "run_session"]
 
+#: bench.app.session's exit statuses (CONTRACT §1)
+EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
+
+
+def __getattr__(name: str) -> Any:
+    """`run_session`, for the tests and benchmarks that run a session in-process; loaded
+    on first use, with the session."""
+    if name == "run_session":
+        from bench.app.session import run_session
+        return run_session
+    raise AttributeError(f"module 'bench.app.commands' has no attribute {name!r}")
+
+
+def err(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
 
 
 def _load(procedure: str, stand: str | Path | None = None) -> Config | None:
@@ -79,6 +81,9 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
+    from bench.app.session import plan_axes
+    from bench.core.diskspace import data_volume_lines
+
     cfg = _load(args.procedure)
     if cfg is None:
         return EXIT_INVALID
@@ -90,6 +95,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from bench.app.console import open_console
+    from bench.app.records.hooks import mark_run
+    from bench.app.session import room_for, run_session
+    from bench.core.journal import RunDir
+    from bench.core.lab import lab_path
+    from bench.examples import example_path
+
     if args.resume:
         try:
             run = RunDir(args.resume)
@@ -169,6 +181,11 @@ def _no_password(prompt: str) -> str:
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:
+    from bench.app.console import open_console
+    from bench.app.records.hooks import register_run, target
+    from bench.app.session import summary_of, write_outputs
+    from bench.core.journal import RunDir
+
     try:
         run = RunDir(args.run_dir)
     except FileNotFoundError as e:
@@ -190,6 +207,8 @@ def cmd_analyze(args: argparse.Namespace) -> int:
 
 
 def cmd_devices(args: argparse.Namespace) -> int:
+    from bench.app.devices import list_devices
+
     return list_devices(args.stand, sim=args.sim)
 
 

@@ -65,9 +65,13 @@ def serial_of(identity: Any) -> str | None:
 
 
 def identity_problems(instruments: Mapping[str, Any]) -> list[str]:
-    """Instruments a value rests on whose identity does not single them out: no serial
-    reported, or one serial reported by two instruments of one model (ISO/IEC 17025
-    6.4.13 a: every item of equipment uniquely identified)."""
+    """Items a value rests on whose identity does not single them out (ISO/IEC 17025
+    6.4.13 a: every item of equipment uniquely identified): an instrument that reported no
+    serial, one serial reported by two instruments of one model (the FOG included, by the
+    serial it reported or the stand file states for it), and, when `instruments` came from
+    `with_declared_serials` (which keeps the stand it read), each entry of the stand's
+    `traceability:` list without a serial of its own, one naming several items, or one
+    sharing a serial with another item (`reference_problems`)."""
     problems: list[str] = []
     seen: dict[tuple[str, str], list[str]] = {}
     for axis, roles in instruments.items():
@@ -87,7 +91,57 @@ def identity_problems(instruments: Mapping[str, Any]) -> list[str]:
         if len(wheres) > 1:
             problems.append(f"the {', '.join(wheres)} report one serial ({serial}) of one "
                             "maker: two instruments cannot share it")
+    if isinstance(instruments, DeclaredIdentities):
+        problems += reference_problems(instruments.stand, instruments)
     return problems
+
+
+#: a serial that lists several items ("SIM-BS5-01/02", "A1, A2", "X and Y"): each item of
+#: equipment is listed on its own with its own serial
+_SEVERAL = re.compile(r"[/,;&+]|\band\b", re.IGNORECASE)
+
+
+def reference_problems(stand: Mapping[str, Any],
+                       instruments: Mapping[str, Any] | None = None) -> list[str]:
+    """The stand's `traceability:` entries (references and sensors the bench reads no
+    identity from) that do not identify one item: no serial, a serial naming several
+    items, or a serial another entry or a reporting instrument also carries."""
+    problems: list[str] = []
+    owners: dict[str, list[tuple[str, bool]]] = {}     # serial: (who, a list entry)
+    for axis, roles in (instruments or {}).items():
+        for role, ident in (roles.items() if isinstance(roles, Mapping) else ()):
+            serial = None if str(role).endswith("_reference") else serial_of(ident)
+            if serial:
+                owners.setdefault(serial.casefold(), []).append((f"the {role} of {axis}",
+                                                                 False))
+    for t in stated_traceability(stand):
+        if not t.where.startswith("traceability"):
+            continue
+        what = f"{t.item} ({t.where})"
+        serial = (t.stated_serial or "").strip()
+        if not serial or serial.casefold() in _NO_SERIAL:
+            problems.append(f"{what} states no serial number: the item cannot be told from "
+                            "another of its kind")
+        elif _SEVERAL.search(serial):
+            problems.append(f"{what} states one serial for several items ({serial}): list "
+                            "each item with its own serial and certificate")
+        else:
+            owners.setdefault(serial.casefold(), []).append((what, True))
+    for serial, found in owners.items():
+        if len(found) > 1 and any(listed for _, listed in found):
+            problems.append(f"{'; '.join(w for w, _ in found)} carry one serial ({serial}): "
+                            "two items cannot share it")
+    return problems
+
+
+class DeclaredIdentities(dict[str, dict[str, Any]]):
+    """The identities as reported, with the stand file they were completed from (so the
+    identity check also reads the stand's traceability list)."""
+
+    def __init__(self, identities: Mapping[str, dict[str, Any]],
+                 stand: Mapping[str, Any]) -> None:
+        super().__init__(identities)
+        self.stand: Mapping[str, Any] = stand
 
 
 #: roles that answer no identity query: their serial is the stand file's (and said so)
@@ -95,7 +149,7 @@ DECLARED_IDENTITY_ROLES = ("fog",)
 
 
 def with_declared_serials(instruments: Mapping[str, Any],
-                          stand: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+                          stand: Mapping[str, Any]) -> DeclaredIdentities:
     """The identities as reported, with the stand file's serial added for an instrument
     that answers no identity query (a FOG), marked as stated, not read back."""
     out: dict[str, dict[str, Any]] = {}
@@ -111,7 +165,7 @@ def with_declared_serials(instruments: Mapping[str, Any],
                 head, sep, tail = str(roles[role]).partition("; read back:")
                 out[axis][role] = (f"{head}; serial {spec['serial']} (as the stand file "
                                    f"states; it answers no identity query){sep}{tail}")
-    return out
+    return DeclaredIdentities(out, stand if isinstance(stand, Mapping) else {})
 
 
 # -- the identity the stand states against the one the instrument reports ----------------

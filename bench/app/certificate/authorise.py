@@ -358,7 +358,18 @@ def _issue(run_path: Path, result: dict[str, Any], result_bytes: bytes, stand: A
              f"{issue_dir(run_path, issue.replaces)})")
     for name in (PDF_NAME, HTML_NAME, DCC_NAME):
         line(f"wrote {final / name}")
+    _update_records(run_path, lab, result, line)
     return EXIT_ISSUED
+
+
+def _update_records(run_path: Path, lab: Lab, result: dict[str, Any],
+                    line: Callable[[str], None]) -> None:
+    """The records cite the issued revision (number and the digests of its files as
+    stored) from now on; a records database out of reach is said, not fatal: the issue
+    stands in the register, and `bench records import` catches up."""
+    from bench.app.records.hooks import register_run, target
+
+    register_run(run_path, target(run_path.parent, lab.records_url), line, result)
 
 
 #: the register's setting naming the DCC signing certificate (SHA-256 of its PEM file)
@@ -422,17 +433,3 @@ def cmd_authorise(args: argparse.Namespace) -> int:
     except RegisterError as e:
         return _refuse([str(e)], run_path)
 
-
-def add_parser(sub: Any) -> None:
-    """The `authorise` subcommand (called by bench/app/cli.py)."""
-    p = sub.add_parser("authorise", help="issue the run's draft certificate under an "
-                                         "authorised signatory; exit 2 when refused")
-    p.add_argument("run_dir")
-    p.add_argument("--signatory", required=True,
-                   help="the signatory's account in the lab register (its password is "
-                        "asked: name and password are the e-signature)")
-    p.add_argument("--password-stdin", action="store_true",
-                   help="read the signatory's password from standard input")
-    p.add_argument("--reason", help="why a revision is re-issued (required for a re-issue)")
-    p.add_argument("--lab", help="lab settings file naming the register (default: the "
-                                 "run's own copy)")

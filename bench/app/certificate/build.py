@@ -19,12 +19,14 @@ from typing import Any
 import bench
 from bench.analysis.coverage import COVERAGE_FORMULA, DOF_INFINITE
 from bench.app.certificate import register
+from bench.app.certificate.conditions import condition_rows
+from bench.app.certificate.equipment import equipment_list, identity_lines
 from bench.app.certificate.operator import prompt_blocks, software_note, utc_text
 from bench.app.certificate.people import PERFORMED_BY, equipment_lines, performer, performer_line
 from bench.app.certificate.register import Issue
 from bench.core.journal import sha256_file
 from bench.core.registry import procedure_kind, procedure_names
-from bench.core.traceability import serial_of, traced_items, with_declared_serials
+from bench.core.traceability import with_declared_serials
 from bench.report.budget import budget_sites
 from bench.report.certificate import methods
 from bench.report.certificate.model import Document, Fields, Para, Section, Signatures, Table
@@ -469,101 +471,20 @@ def _shared_identities(rows: list[tuple[str, str, str, str]]) -> list[Any]:
             for (role, ident), axes in seen.items() if len(axes) > 1]
 
 
-def _work_date(src: Sources) -> dt.date | None:
-    stamp = ((src.get("dates", {}) or {}).get("started_utc")
-             or _first_event(src, "session_start") or src.meta.get("created_utc"))
-    try:
-        return dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00")).date()
-    except (TypeError, ValueError):
-        return None
-
-
-#: stand roles that command the item and measure nothing a result rests on
-COMMANDING_ROLES = ("drive",)
-
-
-def _serial_read_back(ids: Mapping[str, Any], t: Any) -> str:
-    """The serial the instrument reported in this run (its identity), not the stand file's.
-    An instrument at `axes.<axis>.<role>` reported under ids[axis][role]; one elsewhere
-    (a platform's `gyros.x.dmm`) under its role, or `<gyro>-<role>`, on the table axis."""
-    parts = t.where.split(".")
-    if parts[0].startswith("traceability"):   # a reference the bench does not read
-        return f"{t.stated_serial} (stated, not read back)" if t.stated_serial else "—"
-    names = [parts[-1]] + ([f"{parts[-2]}-{parts[-1]}"] if len(parts) > 1 else [])
-    axes = [parts[1]] if parts[0] == "axes" and len(parts) > 2 else list(ids)
-    for axis in axes:
-        roles = ids.get(axis)
-        if not isinstance(roles, Mapping):
-            continue
-        for role in names:
-            if role in roles:
-                return serial_of(roles[role]) or "NONE REPORTED"
-    return "not recorded"
-
-
-def _trace_status(src: Sources, t: Any) -> str:
-    """Without a stated calibration: what a result of this run rests on it, truthfully."""
-    if t.stated:
-        return ""
-    role = t.where.rsplit(".", 1)[-1]
-    axis = t.where.split(".")[-2] if "." in t.where else ""
-    pairs = ((src.get("axes", {}) or {}).get(axis) or {}).get("pairs") if axis else None
-    if role in COMMANDING_ROLES and pairs is not None:
-        return ("none needed: it commands the rate; every reported rate is measured by "
-                "the counter and the FOG, none read from the drive")
-    if role in COMMANDING_ROLES:
-        return ("none stated: it commands the position; no reported value is read from it "
-                "(its stated position tolerance enters the budget as a bound)")
-    if role == "fog" and pairs:
-        return ("in-situ calibration: scale k and bias w0 cross-calibrated against the "
-                "counter for each +/- pair (docs/method.md A3, eq. 5-6), "
-                "so its rates are traceable through the counter's time base")
-    return "NOT TRACEABLE: no calibration certificate in the stand file, yet results rest on it"
-
-
 def _traceability(src: Sources) -> tuple[Any, ...]:
     """Where each measured quantity's traceability to the SI comes from (17025 7.8.4.1 c):
-    the stand file's calibration certificates, and the counter reference as read back."""
-    items = traced_items(src.stand_file)
-    if not items:
+    the rows of `equipment_list` (the DCC's measuringEquipments carry the same rows)."""
+    found = equipment_list(src)
+    if not found.stated:
         return (Para("Metrological traceability: the stand file states no calibration "
                      "certificates; NOT SHOWN for any instrument.", "strong"),)
-    on = _work_date(src)
-    rows = []
-    overdue_seen = False
-    ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
-    for t in items:
-        status = _trace_status(src, t)
-        if t.stated and on is not None and t.overdue(on):
-            overdue_seen = True
-            status = f"PAST DUE on the date of the work ({on.isoformat()})"
-        elif t.stated:
-            status = "valid on the work's date" if on else "validity not checked"
-        rows.append((t.item, _serial_read_back(ids, t),
-                     text_of(t.certificate) if t.stated else "—",
-                     text_of(t.issuer) if t.stated else "—",
-                     t.due.isoformat() if t.due else "—", text_of(t.traces) if t.traces else
-                     "—", status))
-    notes = ["From the stand file (its SHA-256 above). Due dates are compared with the date "
-             "the work started."]
-    if overdue_seen:
-        notes.append("An instrument past its calibration due date was used: the run warned "
-                     "at its start; results depending on it are not shown to be traceable.")
-    ids = src.get("instruments", {}) or {}
-    refs = [(a, v.get("counter_reference")) for a, v in ids.items()
-            if isinstance(v, Mapping) and v.get("counter_reference")]
-    stand_axes = src.stand_file.get("axes", {}) or {}
-    for axis, ref in refs:
-        claimed = ((stand_axes.get(axis) or {}).get("counter") or {}).get("reference")
-        notes.append(f"Counter reference, axis {axis}: read back from the counter: {ref}"
-                     + (f"; the stand file states {claimed}" if claimed else "") + ".")
-    from bench.app.records.assurance_notes import certificate_notes  # issue 28: 17025 7.7 status
-    notes += certificate_notes(src.run_path)
+    rows = tuple((r.item, r.serial, r.certificate, r.issuer, r.due, r.traces, r.status)
+                 for r in found.rows)
     return (Table(("Item", "Serial (read back)", "Certificate", "Issued by", "Due",
-                   "Quantity traced", "Status"), tuple(rows),
+                   "Quantity traced", "Status"), rows,
                   widths=(1.7, 1.3, 1.7, 1.4, 1.1, 1.9, 2.2),
                   align="lllllll", caption="Metrological traceability: calibration of the "
-                  "instruments and references used", notes=tuple(notes)),)
+                  "instruments and references used", notes=found.notes),)
 
 
 def _method(src: Sources, proc: Procedure) -> tuple[Any, ...]:
@@ -620,6 +541,7 @@ def _deviations(src: Sources, proc: Procedure) -> tuple[Any, ...]:
                        "values are filed under the reported serial. A finding of a run on "
                        "simulated twins: a real stand with this mismatch is refused.")
     run += equipment_lines(src.meta, bool(stand_of(src).get("simulated")))
+    run += identity_lines(equipment_list(src), bool(stand_of(src).get("simulated")))
     for where in src.dropped:
         run.append(f"result.json: {where} was malformed and is not reported here.")
     run += proc.parts.certificate_run_deviations(src)
@@ -650,24 +572,27 @@ def _measured_conditions(src: Sources) -> list[Any]:
                             caption="Measured: temperature of the FOG on the table top, per "
                                     "half, from its frames (integer °C resolution); the "
                                     "temperature of the item's table top, not of the room"))
-    if not measured.get("room"):
-        blocks.append(Para("Room temperature and humidity: not measured by the bench.",
-                           "note"))
     return blocks
 
 
 def _conditions(src: Sources) -> tuple[Any, ...]:
+    """Each condition as what it is (bench/app/certificate/conditions.py, which the DCC's
+    influenceConditions share): nominal from the procedure file, measured where the run
+    measured it, "not measured" where nothing did; one mains frequency for the run."""
+    rows = condition_rows(src)
     cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
-    measured = _measured_conditions(src)
-    if not cond:
-        return (*measured, Para("No nominal conditions were stated in the procedure file."),
-                *prompt_blocks(src.events))
-    return (*measured,
-            Para("As stated in the procedure file: the nominal conditions of the laboratory, "
-                 "NOT measured during this run.", "note"),
-            Fields(tuple((f"{label_of(k)} (nominal, not measured)", text_of(v))
-                         for k, v in cond.items())),
-            *prompt_blocks(src.events))
+    blocks: list[Any] = [Table(
+        ("Condition", "Nominal (procedure file)", "Measured in this run"),
+        tuple((r.condition, r.nominal, r.measured) for r in rows),
+        widths=(2.2, 2.4, 4.0), align="lll",
+        caption="Conditions: the nominal values stated, and what this run measured",
+        notes=("Nominal: the laboratory's conditions as the procedure file states them, "
+               "not measured during this run. Measured: by the bench's own instruments "
+               "during this run; 'not measured' where none of them measured it.",)
+        if cond else ("No nominal conditions were stated in the procedure file.",))]
+    blocks += _measured_conditions(src)
+    blocks += prompt_blocks(src.events)
+    return tuple(blocks)
 
 
 # -- conformity, records, signatures -------------------------------------------------------
@@ -891,8 +816,10 @@ def _records(src: Sources) -> tuple[Any, ...]:
     if src.run_path is not None:
         for name in ("procedure.yaml", "stand.yaml", "meta.json", "events.jsonl"):
             p = src.run_path / name
-            if p.is_file():
-                inputs.append({"path": name, "sha256": sha256_file(p), "bytes": p.stat().st_size})
+            if p.is_file():   # read once: digest and byte count of the same bytes
+                data = p.read_bytes()
+                inputs.append({"path": name, "sha256": hashlib.sha256(data).hexdigest(),
+                               "bytes": len(data)})
     blocks: list[Any] = [Para(
         "SHA-256 digests of the raw data as received from the instruments; anyone holding the "
         "run directory can check that the results above were computed from these bytes "
@@ -903,17 +830,26 @@ def _records(src: Sources) -> tuple[Any, ...]:
     else:
         blocks.append(Para("No raw data files were recorded.", "note"))
     if inputs:
-        blocks.append(_hash_table(inputs, "Run records (inputs as used and the event log; "
-                                          "the event log's digest is at the time of issue)"))
+        log = next((f for f in inputs if f["path"] == "events.jsonl"), None)
+        # the event log is append-only and grows after this certificate is written (the
+        # run's end, the certificate's own events): its digest is of the bytes counted here
+        blocks.append(_hash_table(inputs, "Run records (inputs as used and the event log)",
+                                  notes=(f"events.jsonl is append-only: its digest is of its "
+                                         f"first {log['bytes']} bytes, the log as it stood "
+                                         "when this certificate was written; events "
+                                         "appended later follow them (`head -c "
+                                         f"{log['bytes']} events.jsonl | sha256sum`).",)
+                                  if log else ()))
     return tuple(blocks)
 
 
-def _hash_table(files: Sequence[Mapping[str, Any]], caption: str) -> Table:
+def _hash_table(files: Sequence[Mapping[str, Any]], caption: str,
+                notes: tuple[str, ...] = ()) -> Table:
     rows = tuple((text_of(f.get("path")), f"{int(f['bytes']):,}".replace(",", " ")
                   if num(f.get("bytes")) is not None else "—", text_of(f.get("sha256")))
                  for f in files)
     return Table(("File", "Bytes", "SHA-256"), rows, widths=(2.6, 1.0, 5.0), align="lrl",
-                 caption=caption, mono=True)
+                 caption=caption, mono=True, notes=notes)
 
 
 def _revision_text(issue: Issue) -> str:

@@ -13,6 +13,7 @@ from lxml import etree
 
 import bench
 from bench.app.certificate.build import Sources, check_class, decision_rule_text
+from bench.app.certificate.equipment import equipment_list, identity_lines
 from bench.app.certificate.people import PERFORMED_BY, equipment_lines, performer
 from bench.app.certificate.register import Issue
 from bench.core.lab import Lab
@@ -53,9 +54,9 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
                    parts: CertificateParts, kind: DccParts, issue: Issue,
                    today: str) -> None:
     """`parts` answers as on the certificate (its closing statements), `kind` for the DCC
-    (the item). `issue` is the PDF's: a draft (no mainSigner, a DRAFT statement, the
-    date the draft was written as issueDate, which the schema requires) or the issue
-    `bench authorise` records (its authoriser the mainSigner)."""
+    (the item). `issue` is the PDF's: a draft (no mainSigner, a DRAFT statement and no
+    issueDate: the PDF says "none", and DCC 3.3.0 makes the element optional) or the
+    issue `bench authorise` records (its authoriser the mainSigner, its date of issue)."""
     cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
     soft = el(adm, "dccSoftware")
     versions = dict.fromkeys([bench.__version__, str(src.meta.get("bench_version") or
@@ -102,7 +103,8 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
     el(core, "beginPerformanceDate", begin)
     el(core, "endPerformanceDate", end)
     el(core, "performanceLocation", lab.performance_location)
-    el(core, "issueDate", today if issue.draft else issue.issue_date)
+    if not issue.draft:     # a draft has no date of issue (issue 43): nobody issued it
+        el(core, "issueDate", issue.issue_date)
     if issue.replaces and not issue.draft:      # a re-issue: say what it replaces
         change = el(core, "reportAmendedSubstituted")
         el(change, "typeOfChange", "substituted")
@@ -235,6 +237,11 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
     for i, line in enumerate(equipment_lines(src.meta, bool(stand.get("simulated")))):
         statement(sts, V.EQUIPMENT, line, sid=f"equipment{i + 1}", title="Equipment",
                   norms=("ISO/IEC 17025:2017",), references=("6.4.13",))
+    # as the PDF's deviations: items without an identity of their own (issue 43)
+    for i, line in enumerate(identity_lines(equipment_list(src), bool(stand.get("simulated")))):
+        statement(sts, V.EQUIPMENT_IDENTITY, line, sid=f"equipmentIdentity{i + 1}",
+                  title="Equipment identity", norms=("ISO/IEC 17025:2017",),
+                  references=("6.4.13 a",))
     if not country:
         statement(sts, V.COUNTRY_UNKNOWN, "The laboratory configured no country: the "
                   f"country code {UNKNOWN_COUNTRY} (ISO 3166-1 user-assigned) stands for "

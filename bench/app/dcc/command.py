@@ -95,10 +95,36 @@ def cmd_dcc(args: argparse.Namespace) -> int:
     if not (run_path / "certificate.pdf").is_file():
         _err(f"note: {run_path / 'certificate.pdf'} is missing, so the DCC carries no "
              f"human-readable document; `bench analyze {run_path}` writes both")
+    elif (copied := issued_copy(run_path)) is not None:
+        # the PDF beside it is an issued revision's copy (bench authorise put it there);
+        # the DCC written now is a draft and must not embed it: the draft's own PDF and
+        # HTML replace the copies, the issued files under issued/ stay as they are
+        from bench.app.certificate import render_files
+
+        render_files(result, run_path, run_path)
+        _err(f"note: {run_path / 'certificate.pdf'} was the copy of issued certificate "
+             f"{copied} (kept unchanged under {run_path / 'issued' / copied}); a DCC written "
+             "now is a DRAFT, so the draft's PDF and HTML were written beside it")
     if not write_run_dcc(run_path, result, stand, lab_file=args.lab):
         return EXIT_ABORTED
     verdict = str(result.get("verdict") or "").lower()
     return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(verdict, EXIT_ABORTED)
+
+
+def issued_copy(run_path: Path) -> str | None:
+    """The number of the issued revision whose PDF the run directory's certificate.pdf is,
+    byte for byte (`bench authorise` copies each issue there), or None (a draft)."""
+    from bench.app.certificate import register
+
+    pdf = run_path / "certificate.pdf"
+    if not pdf.is_file():
+        return None
+    data = pdf.read_bytes()
+    for issue in reversed(register.issues(run_path)):
+        kept = run_path / "issued" / issue.number / "certificate.pdf"
+        if kept.is_file() and kept.read_bytes() == data:
+            return issue.number
+    return None
 
 
 def cmd_verify(args: argparse.Namespace) -> int:

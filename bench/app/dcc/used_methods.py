@@ -15,11 +15,22 @@ from lxml import etree
 
 import bench
 from bench.app.certificate.build import Sources
-from bench.core.traceability import serial_of, with_declared_serials
+from bench.app.certificate.conditions import NOT_MEASURED, condition_rows
+from bench.app.certificate.equipment import NONE, equipment_list
 from bench.report.dcc import units as U
 from bench.report.dcc import vocab as V
 from bench.report.dcc.parts import DccParts
-from bench.report.dcc.xml import DCC_NS, NOT_RECORDED, el, ident, name, num, quantity, text_el
+from bench.report.dcc.xml import (
+    DCC_NS,
+    LANG,
+    NOT_RECORDED,
+    el,
+    ident,
+    name,
+    num,
+    quantity,
+    text_el,
+)
 
 # bench/method.md = docs/method.md; each procedure kind names the sections it follows
 METHOD_DOC = "docs/method.md"
@@ -84,12 +95,24 @@ def methods_and_conditions(results: etree._Element, src: Sources, kind: DccParts
         results.append(equipment)
     cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
     measured = _fog_temperatures(src)
-    if (isinstance(cond, Mapping) and cond) or measured:
+    # the PDF's conditions table, row by row (bench/app/certificate/conditions.py)
+    rows = {r.key: r for r in condition_rows(src)}
+    if rows:
         conds = el(results, "influenceConditions")
         for axis, ax in measured:
             _measured_temperature(conds, axis, ax)
         for key, value in (cond.items() if isinstance(cond, Mapping) else ()):
-            _condition(conds, str(key), value)
+            row = rows.get(str(key))
+            _condition(conds, str(key), value, row.measured if row else NOT_MEASURED)
+        for key in ("temperature", "mains_frequency"):
+            row = rows.get(key)
+            if row is not None and key not in cond:
+                c = el(conds, "influenceCondition", id=ident("cond", key),
+                       ref_type=V.CONDITION)
+                name(c, row.condition)
+                text_el(c, "description", f"Nominal: {row.nominal}. Measured in this run: "
+                        f"{row.measured}.")
+                text_el(el(c, "data"), "text", row.measured)
 
 
 def _fog_temperatures(src: Sources) -> list[tuple[str, Mapping[str, Any]]]:
@@ -121,23 +144,49 @@ def _flat(d: Mapping[str, Any]) -> str:
     return "; ".join(f"{k} = {v}" for k, v in d.items() if k != "tolerance") or NOT_RECORDED
 
 
+def _content(parent: etree._Element, text: str, ref_type: str | None = None) -> None:
+    el(parent, "content", text or "-", lang=LANG, ref_type=ref_type)
+
+
 def _equipment(src: Sources) -> etree._Element | None:
-    ids = src.get("instruments", {}) or {}
-    if not isinstance(ids, Mapping) or not ids:
+    """The PDF's traceability table, row by row (bench/app/certificate/equipment.py
+    computes the rows once for both): item, serial as printed (read back, or stated),
+    calibration certificate and issuer, due date, quantity traced, status, and the
+    identity the instrument reported; the table's notes (assurance status) as the list's
+    description."""
+    found = equipment_list(src)
+    if not found.rows:
         return None
-    ids = with_declared_serials(ids, src.stand_file)
     eq = etree.Element(f"{{{DCC_NS}}}measuringEquipments")
-    for axis, roles in ids.items():
-        for role, identity in (roles or {}).items():
-            me = el(eq, "measuringEquipment", id=ident("eq", axis, role),
-                    ref_type=V.NORMAL_USED if role == "counter" else None)
-            name(me, f"Axis {axis}: {role}")
-            serial = serial_of(identity)
-            text_el(me, "description", f"Identity as reported: {identity}. Serial "
-                    f"{serial or 'NOT REPORTED'}. Calibration: as the PDF's traceability "
-                    "table states (the stand file's certificate, or the in-situ "
-                    "cross-calibration for the FOG)")
-    return eq if len(eq) else None
+    name(eq, "Metrological traceability: calibration of the instruments and references "
+             "used (the PDF's traceability table)")
+    desc = el(eq, "description")
+    for note in found.notes:
+        _content(desc, note)
+    for row in found.rows:
+        stated = row.certificate != NONE
+        me = el(eq, "measuringEquipment", id=ident("eq", row.where),
+                ref_type=V.NORMAL_USED if stated else None)
+        name(me, row.item)
+        d = el(me, "description")
+        _content(d, f"Stand file key: {row.where}")
+        _content(d, row.issuer, V.CALIBRATION_ISSUER)
+        _content(d, row.due, V.CALIBRATION_DUE)
+        _content(d, row.traces, V.QUANTITY_TRACED)
+        _content(d, row.status, V.TRACEABILITY_STATUS)
+        if row.identity:
+            _content(d, row.identity, V.REPORTED_IDENTITY)
+        ids = el(me, "identifications")
+        idn = el(ids, "identification", ref_type=V.SERIAL_NUMBER)
+        el(idn, "issuer", "manufacturer")
+        el(idn, "value", row.serial)
+        name(idn, "Serial number (read back from the instrument, or as stated)")
+        if stated:
+            idn = el(ids, "identification", ref_type=V.CALIBRATION_CERTIFICATE)
+            el(idn, "issuer", "other")
+            el(idn, "value", row.certificate)
+            name(idn, f"Calibration certificate, issued by {row.issuer}")
+    return eq
 
 
 _NUMBER = r"[-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?"
@@ -146,9 +195,10 @@ _CONDITION_UNITS = {"c": (U.CELSIUS, V.TEMPERATURE, V.TEMPERATURE_MIN, V.TEMPERA
                     "hpa": (U.HECTOPASCAL, V.CONDITION, None, None)}
 
 
-def _condition(conds: etree._Element, key: str, value: Any) -> None:
-    """A recorded condition: '20 +/- 2' under `temperature_c` becomes 18 ... 22 degC; text
-    that is not a number with its unit stays text (it is never guessed)."""
+def _condition(conds: etree._Element, key: str, value: Any, measured: str) -> None:
+    """A stated condition: '20 +/- 2' under `temperature_c` becomes 18 ... 22 degC; text
+    that is not a number with its unit stays text (it is never guessed). `measured`: what
+    this run measured of it (the PDF's column), usually "not measured"."""
     suffix = key.rsplit("_", 1)[-1].lower() if "_" in key else ""
     text = str(value)
     if key.lower().startswith("humid") and text.strip().endswith("%"):
@@ -158,8 +208,8 @@ def _condition(conds: etree._Element, key: str, value: Any) -> None:
     c = el(conds, "influenceCondition", id=ident("cond", key),
            ref_type=spec[1] if spec else V.CONDITION)
     name(c, label.replace("_", " ").capitalize())
-    text_el(c, "description", f"As stated in the procedure file (nominal, NOT measured): "
-            f"{key}: {value}")
+    text_el(c, "description", f"As stated in the procedure file (nominal): {key}: "
+            f"{value}. Measured in this run: {measured}.")
     data = el(c, "data")
     m = re.fullmatch(rf"\s*({_NUMBER})\s*(?:(?:\+/-|±)\s*({_NUMBER}))?\s*", text)
     if spec is None or m is None:

@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import argparse
 import csv
-import datetime as dt
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from bench.app.records.extract import NotARun, find_runs, record_of
 from bench.app.records.hooks import target
@@ -25,52 +23,6 @@ CSV_COLUMNS = ("serial", "axis", "quantity", "set_rate_dps", "date_utc", "value"
 
 def _err(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
-
-
-def add_parsers(sub: Any) -> None:
-    """The records subcommands, added to the `bench` parser."""
-    his = sub.add_parser("history", help="every recorded run of one table, with a trend plot")
-    his.add_argument("serial", help="the table's serial number (stand.serial)")
-    where = his.add_mutually_exclusive_group()
-    where.add_argument("--runs", help="runs folder whose records.sqlite to read (runs/)")
-    where.add_argument("--records", help="records database URL")
-    his.add_argument("--csv", help="write every recorded figure of the table to this CSV")
-    his.add_argument("--plot", help="trend plot PNG (default history-SERIAL.png beside the "
-                                    "records database, or in the runs folder)")
-    rec = sub.add_parser("records", help="the records database")
-    rsub = rec.add_subparsers(dest="records_command", required=True, metavar="ACTION")
-    imp = rsub.add_parser("import", help="register existing run directories (idempotent)")
-    imp.add_argument("runs_dir")
-    imp.add_argument("--records", help="records database URL (default RUNS_DIR/records.sqlite)")
-    due = sub.add_parser("due", help="tables due or overdue for recertification")
-    due.add_argument("--records", help="records database URL")
-    due.add_argument("--runs", default=DEFAULT_RUNS, help="runs folder (records.sqlite, lab.yaml)")
-    due.add_argument("--within", type=int, default=30, metavar="DAYS",
-                     help="also list tables due within DAYS (30)")
-    due.add_argument("--all", action="store_true", help="list every table with an interval")
-    due.add_argument("--today", type=dt.date.fromisoformat, help=argparse.SUPPRESS)
-    con = sub.add_parser("control", help="measurement assurance: each instrument's control "
-                                         "status; with SERIAL its control charts")
-    con.add_argument("serial", nargs="?", help="an instrument's serial (bench control lists "
-                                               "them)")
-    where = con.add_mutually_exclusive_group()
-    where.add_argument("--runs", help="runs folder whose records.sqlite to read (runs/)")
-    where.add_argument("--records", help="records database URL")
-    con.add_argument("--review", metavar="TEXT",
-                     help="record a review of SERIAL's status: why it may be used (journaled)")
-    con.add_argument("--by", metavar="ACCOUNT",
-                     help="with --review: the reviewer's account in the lab register "
-                          "(reviewer or quality role), authenticated with its password")
-    con.add_argument("--register", metavar="URL",
-                     help="the lab register (default: the lab file's register:)")
-    con.add_argument("--lab", metavar="FILE", help="lab file naming the register")
-    con.add_argument("--password-stdin", action="store_true",
-                     help="read the reviewer's password from standard input")
-    con.add_argument("--new-baseline", action="store_true",
-                     help="with --review: the instrument changed for good (repaired, "
-                          "adjusted): its charts restart at the last run, a new baseline")
-    con.add_argument("--plot", help="control chart PNG (default control-SERIAL.png beside "
-                                    "the records)")
 
 
 def _guarded(cmd: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
@@ -340,7 +292,7 @@ def cmd_control(args: argparse.Namespace) -> int:
     return EXIT_FAIL if status.state == OUT_OF_CONTROL else EXIT_OK
 
 
-#: command name -> handler, for bench/app/cli.py
+#: command name -> handler, for bench/app/cli.py (their options: bench/app/parsers.py)
 RECORDS_COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "history": _guarded(cmd_history), "records": _guarded(cmd_import),
     "due": _guarded(cmd_due), "control": _guarded(cmd_control)}

@@ -184,13 +184,22 @@ def figures_of(result: dict[str, Any], kind: str | None = None) -> list[FigureRe
 
 
 def certificate_number(result: dict[str, Any], run_path: Path) -> str | None:
-    """The number printed on the certificate (the certificate's own rule decides it)."""
-    from bench.app.certificate.build import Sources, issued_number
+    """The number of the run's latest issued revision; None while it has only a draft (a
+    draft is no certificate: the records and a later run's history never cite one)."""
+    from bench.app.certificate import register
 
-    try:
-        return issued_number(Sources.load(result, run_path))
-    except Exception:  # noqa: BLE001 - a malformed result still gets registered
-        return None
+    done = [i for i in register.issues(run_path) if not i.draft]
+    return done[-1].number if done else None
+
+
+def _issued_files(path: Path, number: str | None) -> tuple[tuple[str, str, int], ...]:
+    """(name, SHA-256, bytes) of the issued revision's files as stored under
+    issued/<number>/; nothing for a draft."""
+    if number is None:
+        return ()
+    folder = path / "issued" / number
+    return tuple((name, sha256_file(folder / name), (folder / name).stat().st_size)
+                 for name in CERTIFICATE_FILES if (folder / name).is_file())
 
 
 def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> RunRecord:
@@ -213,8 +222,8 @@ def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> Run
     dates = result.get("dates") or {}
     state = meta.get("calibration_state") or (result.get("records") or {}).get(
         "calibration_state")
-    cert_files = tuple((name, sha256_file(path / name), (path / name).stat().st_size)
-                       for name in CERTIFICATE_FILES if (path / name).is_file())
+    number = certificate_number(result, path)
+    cert_files = _issued_files(path, number)
     blob = json.dumps(result, sort_keys=True, default=str).encode()
     kind = kind_name(result, path)
     return RunRecord(
@@ -237,7 +246,7 @@ def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> Run
         verdict=str(result.get("verdict") or "incomplete"),
         calibration_state=state if state in STATES else None,
         adjustment_note=_opt(meta.get("adjustment_note")),
-        certificate_number=certificate_number(result, path),
+        certificate_number=number,
         simulated=bool((result.get("stand") or {}).get("simulated")),
         sessions=int(result["sessions"]) if _num(result.get("sessions")) else None,
         aborted=bool(result.get("aborted")),

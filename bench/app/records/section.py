@@ -80,9 +80,10 @@ def history_section(rec: Records, current: RunRecord, where: str) -> list[tuple[
     prev = earlier[-1]
     blocks.append(Para(
         f"The laboratory's records ({where}) hold {len(earlier)} earlier run(s) of table "
-        f"serial {current.serial}. The previous certificate, and the digests by which its "
-        f"files can be checked:"))
-    rows = [("Previous certificate number", prev.certificate_number or "not recorded"),
+        f"serial {current.serial}. The previous run, its certificate if one was issued, and "
+        f"the digests by which the issued files can be checked:"))
+    rows = [("Previous certificate number", prev.certificate_number or
+             "none issued (the previous run has a draft only, which is cited nowhere)"),
             ("Its date", _date(prev)),
             ("Its verdict", prev.verdict.upper()),
             ("Its calibration state", prev.calibration_state or "not stated")]

@@ -8,7 +8,6 @@ import secrets
 import sys
 from pathlib import Path
 
-from bench.app.station.app import create_app
 from bench.app.station.settings import StationSettings, is_loopback
 
 TOKEN_ENV = "BENCH_STATION_TOKEN"
@@ -83,6 +82,8 @@ def settings_from_args(args: argparse.Namespace) -> tuple[StationSettings, bool]
 
 def cmd_serve(args: argparse.Namespace) -> int:
     from waitress import create_server
+
+    from bench.app.station.app import create_app
 
     try:
         settings, made = settings_from_args(args)

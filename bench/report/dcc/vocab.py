@@ -42,6 +42,15 @@ RUN_DIRECTORY = RB + "runDirectory"
 DRAFT = RB + "draftNotAuthorised"
 AUTHORISATION = RB + "authorisation"
 EQUIPMENT = RB + "equipmentStatus"    # the lab register's inventory on the run's date
+EQUIPMENT_IDENTITY = RB + "equipmentIdentity"   # an item without an identity of its own
+# the traceability table's columns, on each measuringEquipment (docs/dcc.md)
+SERIAL_NUMBER = RB + "serialNumber"
+CALIBRATION_CERTIFICATE = RB + "calibrationCertificate"
+CALIBRATION_ISSUER = RB + "calibrationIssuer"
+CALIBRATION_DUE = RB + "calibrationDue"
+QUANTITY_TRACED = RB + "quantityTraced"
+TRACEABILITY_STATUS = RB + "traceabilityStatus"
+REPORTED_IDENTITY = RB + "reportedIdentity"
 SENSITIVITY = RB + "sensitivityCoefficient"
 TOLERANCE_LOW = RB + "toleranceLimitLower"      # the maker's specification, not acceptance
 TOLERANCE_HIGH = RB + "toleranceLimitUpper"

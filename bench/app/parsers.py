@@ -1,0 +1,145 @@
+"""The options of `bench authorise`, `bench register` and the records commands (`history`,
+`records`, `due`, `control`), apart from the code that runs them.
+
+bench/app/cli.py builds the whole parser for every call, `bench --help` included, so what
+it imports to do so must be light: this module imports the standard library only (the
+packages bench.app.certificate and bench.app.register load the PDF renderer and the
+database at import; bench.app.records.settings loads the lab model). A command's module is
+imported when the command runs. tests/test_cli_imports.py holds `import bench.app.cli` to
+that; the constants copied here from those modules are checked equal there too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+from typing import Any
+
+#: bench.app.records.settings.DEFAULT_RUNS
+DEFAULT_RUNS = "runs"
+#: bench.app.register.schema.ROLES
+ROLES = ("operator", "reviewer", "signatory", "quality", "admin")
+
+#: the subcommands add_records_parsers adds (bench.app.records.commands.RECORDS_COMMANDS)
+RECORDS_COMMAND_NAMES = ("history", "records", "due", "control")
+
+
+def add_authorise_parser(sub: Any) -> None:
+    """The `authorise` subcommand (bench/app/certificate/authorise.py runs it)."""
+    p = sub.add_parser("authorise", help="issue the run's draft certificate under an "
+                                         "authorised signatory; exit 2 when refused")
+    p.add_argument("run_dir")
+    p.add_argument("--signatory", required=True,
+                   help="the signatory's account in the lab register (its password is "
+                        "asked: name and password are the e-signature)")
+    p.add_argument("--password-stdin", action="store_true",
+                   help="read the signatory's password from standard input")
+    p.add_argument("--reason", help="why a revision is re-issued (required for a re-issue)")
+    p.add_argument("--lab", help="lab settings file naming the register (default: the "
+                                 "run's own copy)")
+
+
+def add_records_parsers(sub: Any) -> None:
+    """The records subcommands (bench/app/records/commands.py runs them)."""
+    his = sub.add_parser("history", help="every recorded run of one table, with a trend plot")
+    his.add_argument("serial", help="the table's serial number (stand.serial)")
+    where = his.add_mutually_exclusive_group()
+    where.add_argument("--runs", help="runs folder whose records.sqlite to read (runs/)")
+    where.add_argument("--records", help="records database URL")
+    his.add_argument("--csv", help="write every recorded figure of the table to this CSV")
+    his.add_argument("--plot", help="trend plot PNG (default history-SERIAL.png beside the "
+                                    "records database, or in the runs folder)")
+    rec = sub.add_parser("records", help="the records database")
+    rsub = rec.add_subparsers(dest="records_command", required=True, metavar="ACTION")
+    imp = rsub.add_parser("import", help="register existing run directories (idempotent)")
+    imp.add_argument("runs_dir")
+    imp.add_argument("--records", help="records database URL (default RUNS_DIR/records.sqlite)")
+    due = sub.add_parser("due", help="tables due or overdue for recertification")
+    due.add_argument("--records", help="records database URL")
+    due.add_argument("--runs", default=DEFAULT_RUNS, help="runs folder (records.sqlite, lab.yaml)")
+    due.add_argument("--within", type=int, default=30, metavar="DAYS",
+                     help="also list tables due within DAYS (30)")
+    due.add_argument("--all", action="store_true", help="list every table with an interval")
+    due.add_argument("--today", type=dt.date.fromisoformat, help=argparse.SUPPRESS)
+    con = sub.add_parser("control", help="measurement assurance: each instrument's control "
+                                         "status; with SERIAL its control charts")
+    con.add_argument("serial", nargs="?", help="an instrument's serial (bench control lists "
+                                               "them)")
+    where = con.add_mutually_exclusive_group()
+    where.add_argument("--runs", help="runs folder whose records.sqlite to read (runs/)")
+    where.add_argument("--records", help="records database URL")
+    con.add_argument("--review", metavar="TEXT",
+                     help="record a review of SERIAL's status: why it may be used (journaled)")
+    con.add_argument("--by", metavar="ACCOUNT",
+                     help="with --review: the reviewer's account in the lab register "
+                          "(reviewer or quality role), authenticated with its password")
+    con.add_argument("--register", metavar="URL",
+                     help="the lab register (default: the lab file's register:)")
+    con.add_argument("--lab", metavar="FILE", help="lab file naming the register")
+    con.add_argument("--password-stdin", action="store_true",
+                     help="read the reviewer's password from standard input")
+    con.add_argument("--new-baseline", action="store_true",
+                     help="with --review: the instrument changed for good (repaired, "
+                          "adjusted): its charts restart at the last run, a new baseline")
+    con.add_argument("--plot", help="control chart PNG (default control-SERIAL.png beside "
+                                    "the records)")
+
+
+def _date(text: str) -> dt.date:
+    try:
+        return dt.date.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected YYYY-MM-DD, got {text!r}") from None
+
+
+def add_register_parser(sub: Any) -> None:
+    """The `register` subcommand (bench/app/register/commands.py runs it)."""
+    p = sub.add_parser("register", help="the lab register: accounts, equipment, audit trail",
+                       description="The lab register (docs/register.md): who may sign, the "
+                       "equipment inventory, certificate numbers and the audit trail. "
+                       "Exit 0 done, 1 the audit trail is broken, 2 refused.")
+    rs = p.add_subparsers(dest="register_command", required=True, metavar="WHAT")
+
+    def common(c: argparse.ArgumentParser, acting: bool = True) -> None:
+        c.add_argument("--register", metavar="URL", help="the register (default: the lab "
+                       "file's register:)")
+        c.add_argument("--lab", metavar="FILE", help="lab file naming the register")
+        c.add_argument("--password-stdin", action="store_true",
+                       help="read the password(s) from standard input, one per line")
+        if acting:
+            c.add_argument("--as", dest="as_account", required=True, metavar="ACCOUNT",
+                           help="the account acting (its password is asked)")
+
+    ini = rs.add_parser("init", help="create or migrate the register with its first admin")
+    ini.add_argument("url", help="sqlite:///PATH or postgresql://ROLE@HOST/DB (the owner)")
+    ini.add_argument("--admin", required=True, metavar="NAME", help="the first admin account")
+    ini.add_argument("--full-name", help="the admin's full name")
+    ini.add_argument("--bench-role", metavar="ROLE", help="PostgreSQL: the benches' database "
+                     "role, granted read, audit append and issue through functions only")
+    ini.add_argument("--password-stdin", action="store_true",
+                     help="read the admin's new password from standard input")
+    usr = rs.add_parser("user", help="accounts").add_subparsers(
+        dest="user_command", required=True, metavar="ACTION")
+    ua = usr.add_parser("add", help="add an account (an admin acts)")
+    ua.add_argument("name")
+    ua.add_argument("--role", action="append", required=True, choices=ROLES)
+    ua.add_argument("--full-name", help="printed under a signature (default: NAME)")
+    ua.add_argument("--function", help="the person's function in the laboratory")
+    common(ua)
+    eq = rs.add_parser("equipment", help="the equipment inventory").add_subparsers(
+        dest="equipment_command", required=True, metavar="ACTION")
+    ea = eq.add_parser("add", help="record a standard or instrument and its calibration")
+    ea.add_argument("serial")
+    for k in ("model", "certificate", "issuer"):
+        ea.add_argument(f"--{k}", required=True)
+    ea.add_argument("--due", required=True, type=_date, help="calibration due, YYYY-MM-DD")
+    common(ea)
+    el = eq.add_parser("list", help="the inventory with each item's status today")
+    common(el, acting=False)
+    ed = eq.add_parser("deviation", help="allow an item past its due date (quality acts)")
+    ed.add_argument("serial")
+    ed.add_argument("--reason", required=True)
+    ed.add_argument("--expires", required=True, type=_date, help="YYYY-MM-DD")
+    common(ed)
+    au = rs.add_parser("audit", help="check the audit trail's chain; exit 1 when broken")
+    common(au, acting=False)

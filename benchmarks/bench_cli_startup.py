@@ -1,0 +1,84 @@
+"""Start-up time of the `bench` command, each case a whole process (issue 45; run on demand).
+
+    python benchmarks/bench_cli_startup.py [--repeat 5] [--parse-only]
+
+Times `bench --help`, `bench --version`, `bench validate --help` and `bench run --help`
+(the parser alone: bench/app/cli.py imports a command's module only when it runs), then
+`bench validate configs/procedures/demo.yaml` and `bench schema stand` (a command that
+loads the configuration), each beside `python -c pass` in the same run. Each case runs
+once to warm the file cache, then --repeat times; wall and CPU seconds (the child's user
++ system time, steadier than wall on a busy machine) as min and median.
+Goal: the median wall time of each at most 0.4 s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+GOAL_S = 0.4
+
+
+def bench_exe() -> list[str]:
+    """The installed console script beside this interpreter, else `python -m bench`."""
+    script = Path(sys.executable).parent / "bench"
+    return [str(script)] if script.is_file() else [sys.executable, "-m", "bench"]
+
+
+def cases(parse_only: bool) -> list[tuple[str, list[str]]]:
+    bench = bench_exe()
+    out = [("python -c pass", [sys.executable, "-c", "pass"]),
+           ("bench --help", [*bench, "--help"]),
+           ("bench --version", [*bench, "--version"]),
+           ("bench validate --help", [*bench, "validate", "--help"]),
+           ("bench run --help", [*bench, "run", "--help"])]
+    if not parse_only:
+        out += [("bench validate configs/procedures/demo.yaml",
+                 [*bench, "validate", "configs/procedures/demo.yaml"]),
+                ("bench schema stand", [*bench, "schema", "stand"])]
+    return out
+
+
+def time_once(argv: list[str]) -> tuple[float, float]:
+    """Wall and CPU seconds of one run of argv (its output discarded)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    r = subprocess.run(argv, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                       env={**os.environ, "COLUMNS": "100"}, check=False)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if r.returncode != 0:
+        raise SystemExit(f"{' '.join(argv)}: exit {r.returncode}\n{r.stderr.decode()}")
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=5, help="timed runs of each case (5)")
+    ap.add_argument("--parse-only", action="store_true",
+                    help="only the cases that parse and print help or the version")
+    args = ap.parse_args(argv)
+    print(f"{'case':<46} {'wall min':>9} {'median':>8} {'cpu min':>8} {'median':>8}  "
+          f"goal (median wall <= {GOAL_S} s)")
+    for name, cmd in cases(args.parse_only):
+        time_once(cmd)                                  # warm the file cache
+        runs = [time_once(cmd) for _ in range(args.repeat)]
+        walls, cpus = [w for w, _ in runs], [c for _, c in runs]
+        wall_med = statistics.median(walls)
+        goal = "" if name.startswith("python") else ("met" if wall_med <= GOAL_S
+                                                       else "MISSED")
+        print(f"{name:<46} {min(walls):>9.3f} {wall_med:>8.3f} {min(cpus):>8.3f} "
+              f"{statistics.median(cpus):>8.3f}  {goal}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
