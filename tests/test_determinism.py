@@ -25,7 +25,9 @@ _WHEN_WHERE = {"dates", "run_dir"}
 #: what differs between two runs in text: a certificate's number (from the run's time),
 #: a date or time of day, the run directory's name, a twin's pty or TCP port
 _VOLATILE = [
-    (re.compile(r"RT-\d{8}-[0-9A-F]{8}"), "RT-<number>"),
+    (re.compile(r"DRAFT-\d{8}-[0-9A-F]{8}"), "DRAFT-<identifier>"),   # the run's own
+    # the event log's length when the certificate was written (its lines carry wall times)
+    (re.compile(r"(first|head -c) \d+"), r"\1 <bytes>"),
     (re.compile(r"\d{4}-\d\d-\d\d([ T]\d\d:\d\d(:\d\d(\.\d+)?)?( UTC|[+-]\d\d:\d\d)?)?"),
      "<date>"),
     (re.compile(r"\d{8}-\d{6}-demo"), "<run>"),
