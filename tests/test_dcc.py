@@ -34,7 +34,7 @@ from bench.app.dcc.validate import validate_dcc
 from bench.report.dcc.units import unit_problem
 from tests.conftest import CONFIGS, ROOT, DemoRun, unavailable
 from tests.conftest import cli as _cli
-from tests.registers import add_register, authorise, designate, lab_file, sqlite_register
+from tests.registers import add_register, authorise, designate
 
 SCHEMAS = ROOT / "bench" / "app" / "dcc" / "schemas"
 EXAMPLES = ROOT / "tests" / "data" / "dcc"
@@ -600,25 +600,3 @@ def test_which_lab_settings_and_key_are_in_force(tmp_path: Path,
     assert chosen.laboratory.name == "Test Rate Lab"
     assert chosen.signing.key_file == tmp_path / "stand.key.pem"
     assert resolve_settings({"dcc": {"lab": str(first)}}).signing.key_file == key
-
-
-def test_a_reissued_certificate_says_what_it_substitutes(demo: dict[str, Any],
-                                                        tmp_path: Path) -> None:
-    """A re-issue (bench authorise --reason) is a new revision of the certificate
-    (bench.app.certificate.register): the DCC carries the issue's number and names the one it
-    replaces."""
-    from bench.app.certificate import register
-
-    run = _copy_run(demo, tmp_path / "run")
-    lab = lab_file(tmp_path / "lab", sqlite_register(tmp_path / "lab"))
-    assert authorise(run, "P. Petrov", lab).returncode == 0
-    first = register.issues(run)[-1]
-    assert authorise(run, "P. Petrov", lab, "--reason", "test of a re-issue").returncode == 0
-    again = register.issues(run)[-1]
-    core = _tree(run / "certificate.dcc.xml").find("dcc:administrativeData/dcc:coreData", NS)
-    assert core.findtext("dcc:uniqueIdentifier", "", NS) == again.number != first.number
-    assert core.findtext("dcc:issueDate", "", NS) == again.issue_date
-    change = core.find("dcc:reportAmendedSubstituted", NS)
-    assert change.findtext("dcc:typeOfChange", "", NS) == "substituted"
-    assert change.findtext("dcc:replacedUniqueIdentifier", "", NS) == first.number
-    assert _cli("verify", str(run / "certificate.dcc.xml")).returncode == 0

@@ -17,6 +17,9 @@ import pytest
 from lxml import etree
 
 from bench.app.certificate import register
+from bench.app.records.extract import record_of
+from bench.app.records.store import Records
+from bench.app.register import Register
 from tests import test_authorise
 from tests.conftest import DemoRun, cli
 from tests.registers import authorise
@@ -83,6 +86,28 @@ def test_issue_reissue_then_dcc_and_analyze_write_only_drafts(run: Path, lab: Pa
     issued = _snapshot(run / "issued")
     # the run directory holds R2's copies until something rewrites them
     assert (run / "certificate.pdf").read_bytes() == issued[f"{numbers[1]}/certificate.pdf"]
+    # R2's DCC carries its number and date and names the one it substitutes
+    ns = {"dcc": "https://ptb.de/dcc"}
+    core = etree.parse(str(run / "certificate.dcc.xml")).getroot().find(
+        "dcc:administrativeData/dcc:coreData", ns)
+    assert core.findtext("dcc:uniqueIdentifier", "", ns) == numbers[1] != numbers[0]
+    assert core.findtext("dcc:issueDate", "", ns) == issues[1].issue_date
+    change = core.find("dcc:reportAmendedSubstituted", ns)
+    assert change.findtext("dcc:typeOfChange", "", ns) == "substituted"
+    assert change.findtext("dcc:replacedUniqueIdentifier", "", ns) == numbers[0]
+    assert cli("verify", str(run / "certificate.dcc.xml")).returncode == 0
+    # the run's register file is a copy of what the register holds, and the records cite
+    # the issued revision with the digests of its files as stored, never a draft's
+    with Register.open(url, migrate=False) as reg:
+        held = reg.revisions(issues[0].number)
+    assert [(i.number, i.audit_digest) for i in issues] == [
+        (r.shown_number, r.audit_digest) for r in held]
+    assert issues[1].signatory == "P. Petrov" and issues[1].meaning == "authorised for issue"
+    with Records.open(f"sqlite:///{run.parent / 'records.sqlite'}") as rec:
+        info = rec.run(record_of(run).uid)
+    assert info is not None and info.certificate_number == numbers[1]
+    assert info.cert_files and all(sha == held[1].digests()[name]
+                                   for name, sha in info.cert_files.items())
 
     done = cli("dcc", str(run))
     assert done.returncode == 0, done.stderr

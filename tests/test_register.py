@@ -252,32 +252,6 @@ def test_verify_against_the_register_and_a_swapped_lab_file(
         assert done.returncode == 0 and "issued: certificate" in done.stdout, done.stdout
 
 
-def test_issue_then_reissue_states_issued_and_withdrawn(run: Path, lab: Path) -> None:
-    assert authorise(run, "P. Petrov", lab).returncode == 0
-    assert authorise(run, "P. Petrov", lab, "--reason", "address corrected").returncode == 0
-    first, second = run_register.issues(run)
-    for issue, word in ((first, "withdrawn"), (second, "issued")):
-        for name in ("certificate.pdf", "certificate.dcc.xml"):
-            done = cli("verify", str(run / "issued" / issue.number / name), "--register",
-                       _url(lab))
-            assert f": {word}: certificate {issue.number}" in done.stdout, done.stdout
-    # the run's register file is a copy of what the register holds
-    with Register.open(_url(lab)) as reg:
-        held = reg.revisions(first.number)
-    assert [(i.number, i.audit_digest) for i in (first, second)] == [
-        (r.shown_number, r.audit_digest) for r in held]
-    assert second.signatory == "P. Petrov" and second.meaning == "authorised for issue"
-    # the records cite the issued revision and the digests of its files as stored, never
-    # a draft's (finding 4)
-    from bench.app.records.store import Records
-
-    with Records.open(f"sqlite:///{run.parent / 'records.sqlite'}") as rec:
-        info = rec.run(_uid(run))
-    assert info is not None and info.certificate_number == second.number
-    for name, sha in info.cert_files.items():
-        assert sha == held[1].digests()[name], name
-
-
 def test_a_draft_is_cited_nowhere(run: Path) -> None:
     from bench.app.records.extract import record_of
 
