@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import base64
 import json
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -108,6 +109,14 @@ def test_issue_reissue_then_dcc_and_analyze_write_only_drafts(run: Path, lab: Pa
     assert info is not None and info.certificate_number == numbers[1]
     assert info.cert_files and all(sha == held[1].digests()[name]
                                    for name, sha in info.cert_files.items())
+
+    # a copy of the run directory is the same run: never a second revision 1 of a number
+    # (the register allocates one number per run; issue 42, finding 2)
+    copy = run.parent / "copy" / run.name
+    shutil.copytree(run, copy)
+    done = authorise(copy, "P. Petrov", lab)
+    assert done.returncode == 2 and "already issued" in done.stderr
+    assert _snapshot(copy / "issued") == issued
 
     done = cli("dcc", str(run))
     assert done.returncode == 0, done.stderr

@@ -99,20 +99,7 @@ def test_records_cannot_be_chosen_at_issue(run: Path, lab: Path, tmp_path: Path)
     assert e.value.code == 2          # argparse: the option does not exist
 
 
-def test_a_copied_run_directory_never_issues_a_second_revision_1(
-        run: Path, lab: Path, tmp_path: Path) -> None:
-    copy = tmp_path / "copy" / run.name
-    shutil.copytree(run, copy)
-    assert authorise(run, "P. Petrov", lab).returncode == 0
-    done = authorise(copy, "P. Petrov", lab)
-    assert done.returncode == 2 and "already issued" in done.stderr
-    done = authorise(copy, "P. Petrov", lab, "--reason", "issued again from a copy")
-    assert done.returncode == 0, done.stderr
-    with Register.open(_url(lab)) as reg:
-        number = reg.number_of_run(_uid(run))
-        assert [(r.revision, r.status) for r in reg.revisions(number)] == [
-            (1, "withdrawn"), (2, "issued")]
-
+# a copied run directory: tests/test_document_control.py (the issue/re-issue walk)
 
 def _uid(run: Path) -> str:
     from bench.app.records.extract import run_uid
