@@ -1,8 +1,10 @@
 """Draft, authorise, re-issue (issue 23): what a quality manager checks before signing.
 
-One demo run on the twins (subprocess, as an operator starts it); then `bench authorise`
-and `bench verify` in this process on copies of its run directory. The PDFs are read back
-with pypdfium2 (an independent reader), the DCCs with lxml.
+The walk itself (draft, a refused non-signatory, R1, a refused re-issue without reason,
+a re-analysed draft, R2) is tests/test_document_control.py's one issue/re-issue walk, on
+a copy of the session's demo run: every step renders a certificate, so the suite walks
+it once. This module keeps the fixtures and readers that walk uses (PDFs read back with
+pypdfium2, an independent reader; DCCs with lxml) and the "what changed" statements.
 """
 
 from __future__ import annotations
@@ -73,83 +75,6 @@ def _main_signers(root: etree._Element) -> list[str]:
 
 def _bytes(folder: Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
-
-
-def test_draft_authorise_reissue(run: Path, lab: Path) -> None:
-    # the draft: marked on every page, no date of issue, no authorisation claimed
-    pages = _pages(run / "certificate.pdf")
-    assert len(pages) > 3
-    assert all(DRAFT in p for p in pages)
-    text = " ".join(pages)
-    assert "Date of issue:" not in text and "authorised for issue by" not in text
-    assert "Date of issue (authorisation) none: DRAFT, NOT AUTHORISED" in text
-    draft_dcc = _tree(run / "certificate.dcc.xml")
-    assert draft_dcc.find(".//dcc:statement[@id='draftStatus']", NS) is not None
-    assert _main_signers(draft_dcc) == []
-    assert not (run / register.REGISTER_NAME).exists()
-
-    # an account without the signatory role (she performs calibrations): refused, nothing
-    # kept, though the procedure file lists her among its signatories
-    done = reg_authorise(run, "A. Ivanova", lab)
-    assert done.returncode == 2, done.stdout
-    assert "'A. Ivanova' does not hold the signatory role" in done.stderr
-    assert not (run / register.REGISTER_NAME).exists() and not (run / "issued").exists()
-
-    # the issue: names the authoriser in the PDF and as the DCC's main signer
-    done = reg_authorise(run, "P. Petrov", lab)
-    assert done.returncode == 0, done.stderr
-    first = register.issues(run)
-    assert [(i.revision, i.signatory) for i in first] == [(1, "P. Petrov")]
-    rev1 = run / "issued" / first[0].number
-    pages = _pages(rev1 / "certificate.pdf")
-    assert not any("DRAFT" in p for p in pages)
-    text = " ".join(pages)
-    assert (f"Date of issue: {first[0].issue_date}, the date on which this certificate was "
-            "authorised for issue by P. Petrov, Technical manager") in text
-    dcc = _tree(rev1 / "certificate.dcc.xml")
-    assert _main_signers(dcc) == ["P. Petrov"]
-    assert dcc.find(".//dcc:statement[@id='draftStatus']", NS) is None
-    assert dcc.findtext(".//dcc:coreData/dcc:uniqueIdentifier", None, NS) == first[0].number
-    assert (run / "certificate.pdf").read_bytes() == (rev1 / "certificate.pdf").read_bytes()
-    kept = _bytes(rev1)
-
-    # a re-issue without a reason: refused
-    done = reg_authorise(run, "P. Petrov", lab)
-    assert done.returncode == 2
-    assert "must say why (--reason TEXT" in done.stderr
-    assert len(register.issues(run)) == 1
-
-    # re-analysed (a new draft of revision 2, revision 1 untouched), then re-issued
-    assert _cli("analyze", str(run), "--quiet").returncode == 0
-    pages = _pages(run / "certificate.pdf")
-    assert len(pages) > 3 and all(DRAFT in p for p in pages)
-    # a draft carries a draft identifier, never the number the register allocated
-    assert "Draft DRAFT-" in pages[0] and "-R2" in pages[0]
-    assert first[0].number not in pages[0].split("Revision")[0]
-    assert _bytes(rev1) == kept
-    reason = "customer contact corrected on the customer's request"
-    done = reg_authorise(run, "P. Petrov", lab, "--reason", reason)
-    assert done.returncode == 0, done.stderr
-    second = register.issues(run)[-1]
-    assert (second.revision, second.replaces, second.reason) == (2, first[0].number, reason)
-    now = _bytes(rev1)
-    assert {k: now[k] for k in kept} == kept                      # byte for byte
-    assert set(now) - set(kept) == {auth.WITHDRAWN_NAME}
-    assert "WITHDRAWN" in (rev1 / auth.WITHDRAWN_NAME).read_text()
-    text = " ".join(_pages(run / "issued" / second.number / "certificate.pdf"))
-    assert f"replaces certificate {first[0].number}, which is withdrawn" in text
-    assert f"Reason for the re-issue: {reason}" in text
-    assert "What changed: results unchanged" in text
-    dcc = _tree(run / "issued" / second.number / "certificate.dcc.xml")
-    assert dcc.findtext(".//dcc:reportAmendedSubstituted/dcc:replacedUniqueIdentifier",
-                        None, NS) == first[0].number
-    assert reason in dcc.findtext(".//dcc:statement[@id='authorisation']/dcc:declaration/"
-                                  "dcc:content", "", NS)
-
-    # every issued DCC verifies against the result.json it was issued with
-    for issue in register.issues(run):
-        done = _cli("verify", str(run / "issued" / issue.number / "certificate.dcc.xml"))
-        assert done.returncode == 0, done.stdout
 
 
 def test_changes_are_stated_as_facts() -> None:

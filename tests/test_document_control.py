@@ -17,6 +17,7 @@ from typing import Any
 import pytest
 from lxml import etree
 
+from bench.app.certificate import authorise as auth
 from bench.app.certificate import register
 from bench.app.records.extract import record_of
 from bench.app.records.store import Records
@@ -25,11 +26,14 @@ from tests import test_authorise
 from tests.conftest import DemoRun, cli
 from tests.registers import authorise
 
-NS = {"dcc": "https://ptb.de/dcc"}
+NS = test_authorise.NS
 
 run = test_authorise.run        # a copy of the demo run
 lab = test_authorise.lab        # a lab file naming a fresh SQLite register
 _pages = test_authorise._pages
+_main_signers = test_authorise._main_signers
+_bytes = test_authorise._bytes
+DRAFT = test_authorise.DRAFT
 
 
 def _url(lab: Path) -> str:
@@ -76,11 +80,75 @@ def _status(path: Path, url: str) -> str:
 
 @pytest.mark.timeout(600)   # two issues, `bench dcc`, `bench analyze`: minutes when loaded
 def test_issue_reissue_then_dcc_and_analyze_write_only_drafts(run: Path, lab: Path) -> None:
+    """The one walk (issue 23's draft/authorise/re-issue checks, then issue 43's document
+    control): each step costs a certificate rendering, so the suite walks it once."""
     url = _url(lab)
-    assert authorise(run, "P. Petrov", lab).returncode == 0
-    done = authorise(run, "P. Petrov", lab, "--reason", "re-issued for the document-control "
-                     "walk")
+    # the draft: marked on every page, no date of issue, no authorisation claimed
+    pages = _pages(run / "certificate.pdf")
+    assert len(pages) > 3
+    assert all(DRAFT in p for p in pages)
+    text = " ".join(pages)
+    assert "Date of issue:" not in text and "authorised for issue by" not in text
+    assert "Date of issue (authorisation) none: DRAFT, NOT AUTHORISED" in text
+    draft_dcc = _tree(run / "certificate.dcc.xml")
+    assert draft_dcc.find(".//dcc:statement[@id='draftStatus']", NS) is not None
+    assert _main_signers(draft_dcc) == []
+    assert not (run / register.REGISTER_NAME).exists()
+
+    # an account without the signatory role (she performs calibrations): refused, nothing
+    # kept, though the procedure file lists her among its signatories
+    done = authorise(run, "A. Ivanova", lab)
+    assert done.returncode == 2, done.stdout
+    assert "'A. Ivanova' does not hold the signatory role" in done.stderr
+    assert not (run / register.REGISTER_NAME).exists() and not (run / "issued").exists()
+
+    # the issue: names the authoriser in the PDF and as the DCC's main signer
+    done = authorise(run, "P. Petrov", lab)
     assert done.returncode == 0, done.stderr
+    first = register.issues(run)
+    assert [(i.revision, i.signatory) for i in first] == [(1, "P. Petrov")]
+    rev1 = run / "issued" / first[0].number
+    pages = _pages(rev1 / "certificate.pdf")
+    assert not any("DRAFT" in p for p in pages)
+    text = " ".join(pages)
+    assert (f"Date of issue: {first[0].issue_date}, the date on which this certificate was "
+            "authorised for issue by P. Petrov, Technical manager") in text
+    dcc = _tree(rev1 / "certificate.dcc.xml")
+    assert _main_signers(dcc) == ["P. Petrov"]
+    assert dcc.find(".//dcc:statement[@id='draftStatus']", NS) is None
+    assert dcc.findtext(".//dcc:coreData/dcc:uniqueIdentifier", None, NS) == first[0].number
+    assert (run / "certificate.pdf").read_bytes() == (rev1 / "certificate.pdf").read_bytes()
+    kept = _bytes(rev1)
+
+    # a re-issue without a reason: refused
+    done = authorise(run, "P. Petrov", lab)
+    assert done.returncode == 2
+    assert "must say why (--reason TEXT" in done.stderr
+    assert len(register.issues(run)) == 1
+
+    # re-analysed: a new draft of revision 2 (a draft identifier, never the number the
+    # register allocated), revision 1 untouched; then re-issued
+    assert cli("analyze", str(run), "--quiet").returncode == 0
+    _assert_draft(run, [first[0].number])
+    assert "-R2" in _pages(run / "certificate.pdf")[0]
+    assert _bytes(rev1) == kept
+    reason = "customer contact corrected on the customer's request"
+    done = authorise(run, "P. Petrov", lab, "--reason", reason)
+    assert done.returncode == 0, done.stderr
+    second = register.issues(run)[-1]
+    assert (second.revision, second.replaces, second.reason) == (2, first[0].number, reason)
+    now = _bytes(rev1)
+    assert {k: now[k] for k in kept} == kept                      # byte for byte
+    assert set(now) - set(kept) == {auth.WITHDRAWN_NAME}
+    assert "WITHDRAWN" in (rev1 / auth.WITHDRAWN_NAME).read_text()
+    text = " ".join(_pages(run / "issued" / second.number / "certificate.pdf"))
+    assert f"replaces certificate {first[0].number}, which is withdrawn" in text
+    assert f"Reason for the re-issue: {reason}" in text
+    assert "What changed: results unchanged" in text
+    dcc = _tree(run / "issued" / second.number / "certificate.dcc.xml")
+    assert reason in dcc.findtext(".//dcc:statement[@id='authorisation']/dcc:declaration/"
+                                  "dcc:content", "", NS)
+
     issues = register.issues(run)
     numbers = [i.number for i in issues]
     assert [i.revision for i in issues] == [1, 2]
@@ -96,7 +164,10 @@ def test_issue_reissue_then_dcc_and_analyze_write_only_drafts(run: Path, lab: Pa
     change = core.find("dcc:reportAmendedSubstituted", ns)
     assert change.findtext("dcc:typeOfChange", "", ns) == "substituted"
     assert change.findtext("dcc:replacedUniqueIdentifier", "", ns) == numbers[0]
-    assert cli("verify", str(run / "certificate.dcc.xml")).returncode == 0
+    # every issued DCC verifies against the result.json it was issued with
+    for issue in issues:
+        done = cli("verify", str(run / "issued" / issue.number / "certificate.dcc.xml"))
+        assert done.returncode == 0, done.stdout
     # the run's register file is a copy of what the register holds, and the records cite
     # the issued revision with the digests of its files as stored, never a draft's
     with Register.open(url, migrate=False) as reg:
