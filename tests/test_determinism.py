@@ -1,7 +1,8 @@
 """A run's numbers depend on its seed and files alone, never on machine load (issue 27).
 
-Two `bench run --example demo` on the twins' co-simulation clock (sims/clock.py
-SteppedClock), the second with two busy processes beside it on this (2-core) machine:
+Two runs of the demo on the twins' co-simulation clock (sims/clock.py SteppedClock): the
+session's `demo_run` (tests/conftest.py), and the same command beside two busy processes
+on this (2-core) machine:
 every value in result.json is the same (what names the run, its dates and the pty or
 port a twin happened to get aside), and so is every figure of the certificate. Before the
 co-simulation three runs of seed 1 gave 15/5, 14/6 and 12/8 checks met/not assessed.
@@ -19,6 +20,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
+from tests.conftest import CONFIGS, DemoRun
 
 #: result.json keys that say when or where, not what was measured
 _WHEN_WHERE = {"dates", "run_dir"}
@@ -80,10 +83,12 @@ def _busy(n: int) -> Iterator[None]:
             p.wait()
 
 
-def _quiet_and_loaded(run: Callable[[Path], Path], tmp_path: Path) -> tuple[Path, Path, Any]:
-    """`run` once quiet and once beside two busy processes; both run directories, and the
-    quiet result.json stripped of when and where, once the loaded one is shown equal."""
-    quiet = run(tmp_path / "quiet")
+def _quiet_and_loaded(run: Callable[[Path], Path], tmp_path: Path,
+                      quiet: Path | None = None) -> tuple[Path, Path, Any]:
+    """`run` once quiet (or `quiet`, the same command's run directory from a session
+    fixture) and once beside two busy processes; both run directories, and the quiet
+    result.json stripped of when and where, once the loaded one is shown equal."""
+    quiet = quiet or run(tmp_path / "quiet")
     with _busy(2):
         loaded = run(tmp_path / "loaded")
     a = _strip(json.loads((quiet / "result.json").read_text()))
@@ -93,8 +98,10 @@ def _quiet_and_loaded(run: Callable[[Path], Path], tmp_path: Path) -> tuple[Path
     return quiet, loaded, a
 
 
-def _demo(out: Path) -> Path:
-    proc = subprocess.run([sys.executable, "-m", "bench", "run", "--example", "demo", "--yes",
+def _demo(out: Path, procedure: str = "demo.yaml") -> Path:
+    """The command of conftest's `demo_run` fixture (whose run is the quiet one), quiet."""
+    proc = subprocess.run([sys.executable, "-m", "bench", "run",
+                           str(CONFIGS / "procedures" / procedure), "--yes",
                            "--quiet", "--out", str(out)],
                           capture_output=True, text=True, timeout=900, check=False)
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -110,8 +117,9 @@ def _certificate_text(run: Path) -> str:
 
 @pytest.mark.timeout(1200)
 def test_the_demo_gives_the_same_numbers_quiet_and_beside_two_busy_processes(
-        tmp_path: Path) -> None:
-    quiet, loaded, a = _quiet_and_loaded(_demo, tmp_path)
+        demo_run: DemoRun, tmp_path: Path) -> None:
+    assert demo_run.status == 0, demo_run.stderr[-3000:]
+    quiet, loaded, a = _quiet_and_loaded(_demo, tmp_path, demo_run.dir)
     # a check that can fail: the results carry figures, and the raw records are equal
     assert a["axes"]["outer"]["rates"], a["axes"]
     assert any(f["sha256"] for f in a["raw_files"])
@@ -138,22 +146,15 @@ def test_a_resumed_session_draws_its_own_noise_from_the_seed() -> None:
     assert s2 == session_seed(SimSettings(seed=7, session=2))     # deterministic
 
 
-def _example(out: Path, name: str) -> Path:
-    """`bench run --example NAME` into `out`; the run directory."""
-    proc = subprocess.run([sys.executable, "-m", "bench", "run", "--example", name, "--yes",
-                           "--quiet", "--out", str(out)],
-                          capture_output=True, text=True, timeout=600, check=False)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    return Path(proc.stdout.strip().splitlines()[-1])
-
-
 @pytest.mark.timeout(900)
 def test_the_drift_demo_gives_the_same_numbers_quiet_and_beside_two_busy_processes(
-        tmp_path: Path) -> None:
+        drift_demo_run: DemoRun, tmp_path: Path) -> None:
     """The drift-pulse kind (docs/method.md B) on the co-simulation: the DMMs' and the
     generator's waits are on stand time (drivers/dmm.py), so the pulse triggers, the
     records' sample times and every reading are the same under any load."""
-    quiet, loaded, a = _quiet_and_loaded(lambda out: _example(out, "drift-demo"), tmp_path)
+    assert drift_demo_run.status == 0, drift_demo_run.stderr[-3000:]
+    quiet, loaded, a = _quiet_and_loaded(lambda out: _demo(out, "drift-demo.yaml"), tmp_path,
+                                         drift_demo_run.dir)
     # a check that can fail: both gyros carry their cycles, and the raw records are equal
     for g in ("x", "y"):
         assert len(a["drift"]["axes"][g]["cycles"]) == 20, a["drift"]["axes"][g]
@@ -168,8 +169,6 @@ def _static_first(folder: Path) -> Path:
     the instruments are open (the assurance check runs of tests/test_control.py); the
     stand and procedure files are the same bytes for every call (result.json hashes them)."""
     import yaml
-
-    from tests.conftest import CONFIGS
 
     folder.mkdir()
     stand = yaml.safe_load((CONFIGS / "stands" / "sim-two-axis.yaml").read_text())
