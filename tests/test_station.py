@@ -112,18 +112,24 @@ def test_fog_trace_decodes_the_capture_tail(tmp_path: Path, units: str, scale: f
 
 # -- security: token, Host header, traversal -------------------------------------------
 
-@pytest.fixture(scope="module")
-def runs_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    tmp_path = tmp_path_factory.mktemp("station")
-    run = tmp_path / "runs" / "20260101-000000-demo"
+def hand_made_runs(tmp: Path) -> Path:
+    """A runs folder with one hand-made run (a session start, a verdict, a stand): what
+    the server's rules need, no bench run (tests/test_station_signing.py uses it too)."""
+    run = tmp / "runs" / "20260101-000000-demo"
     run.mkdir(parents=True)
     (run / "events.jsonl").write_text(json.dumps(
         {"utc": "2026-01-01T00:00:00+00:00", "t_s": 0.0, "session": 1,
          "event": "session_start", "pid": 1}) + "\n")
     (run / "result.json").write_text('{"verdict": "pass"}')
     (run / "stand.yaml").write_text("stand: {maker: m, model: x, serial: S1}\n")
+    return tmp / "runs"
+
+
+@pytest.fixture(scope="module")
+def runs_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    tmp_path = tmp_path_factory.mktemp("station")
     (tmp_path / "secret.txt").write_text("not for the web")
-    return tmp_path / "runs"
+    return hand_made_runs(tmp_path)
 
 
 def _client(runs: Path, host: str = "127.0.0.1"):

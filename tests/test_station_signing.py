@@ -37,7 +37,7 @@ from bench.app.station.app import StationSettings, create_app
 from bench.app.station.serve import add_serve_arguments, settings_from_args
 from bench.app.station.signing import SESSION_COOKIE, STRIKES, Sessions
 from tests.conftest import ROOT, DemoRun, unavailable
-from tests.test_station import ARTIFACTS, TOKEN, _browser, _chromium, _stop, _wait
+from tests.test_station import ARTIFACTS, TOKEN, _browser, _chromium, _stop, _wait, hand_made_runs
 
 NS = {"dcc": "https://ptb.de/dcc"}
 LAB_ENV = "BENCH_LAB_SETTINGS"
@@ -90,17 +90,6 @@ def _sha256(path: Path) -> str:
 
 # -- the server's rules, through the WSGI test client ------------------------------------------
 
-def _hand_made_runs(tmp: Path) -> Path:
-    run = tmp / "runs" / "20260101-000000-demo"
-    run.mkdir(parents=True)
-    (run / "events.jsonl").write_text(json.dumps(
-        {"utc": "2026-01-01T00:00:00+00:00", "t_s": 0.0, "session": 1,
-         "event": "session_start", "pid": 1}) + "\n")
-    (run / "result.json").write_text('{"verdict": "pass"}')
-    (run / "stand.yaml").write_text("stand: {maker: m, model: x, serial: S1}\n")
-    return tmp / "runs"
-
-
 def _login(client: Any, name: str, password: str, **env: Any) -> Any:
     page = client.get("/login", **env).get_data(as_text=True)
     token = re.search(r'name="token" value="([^"]+)"', page)
@@ -116,7 +105,7 @@ def _csrf(client: Any) -> str:
 
 
 def test_without_a_register_the_station_is_read_only(tmp_path: Path) -> None:
-    runs = _hand_made_runs(tmp_path)
+    runs = hand_made_runs(tmp_path)
     c = create_app(StationSettings(runs, TOKEN)).test_client()
     page = c.get("/run/20260101-000000-demo").get_data(as_text=True)
     assert "Signing needs a lab register" in page and 'id="sign-form"' not in page
@@ -129,7 +118,7 @@ def test_without_a_register_the_station_is_read_only(tmp_path: Path) -> None:
 
 def test_the_server_refuses_and_audits_whoever_may_not_sign(tmp_path: Path) -> None:
     lab = _lab(tmp_path)
-    runs = _hand_made_runs(tmp_path)
+    runs = hand_made_runs(tmp_path)
     app = create_app(StationSettings(runs, TOKEN, register_url=lab.url,
                                      lab_file=str(lab.file)))
     sign = "/run/20260101-000000-demo/sign"
