@@ -39,10 +39,10 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import canopen
-from canopen.sdo import SdoAbortedError, SdoCommunicationError, SdoVariable
+if TYPE_CHECKING:   # canopen is imported when an axis opens (`bench validate` reads constants)
+    import canopen
 
 from drivers.cia402 import (
     COB_HEARTBEAT,
@@ -87,7 +87,7 @@ from drivers.waits import MIN_REAL_MARGIN_S, Deadline
 
 log = logging.getLogger(__name__)
 
-RawSink = Callable[[str, dict], None]
+RawSink = Callable[[str, dict[str, Any]], None]
 
 #: real seconds added to every wait scaled from the clock (CAN latency, thread wake-ups,
 #: a loaded host): the bench's stated minimum (drivers/waits.py)
@@ -326,6 +326,7 @@ class Axis:
         """Connect, configure, NMT start, enable in profile velocity mode at zero rate."""
         if self.network is not None:
             return
+        import canopen
         network = canopen.Network()
         network.NOTIFIER_CYCLE = 0.1  # disconnect() waits up to one cycle
         node = canopen.RemoteNode(self.node_id, str(self.eds_path))
@@ -1121,6 +1122,7 @@ class Axis:
         return self.node
 
     def _sdo_var(self, index: int, sub: int) -> Any:
+        from canopen.sdo import SdoVariable
         obj = self._node().sdo[index]
         return obj if isinstance(obj, SdoVariable) else obj[sub]
 
@@ -1135,6 +1137,7 @@ class Axis:
         """One SDO read (value None) or write, with errors that name the axis and object."""
         what = self._describe(index, sub) + ("" if value is None else f" = {value}")
         verb = "reading" if value is None else "writing"
+        from canopen.sdo import SdoAbortedError, SdoCommunicationError
         try:
             var = self._sdo_var(index, sub)
             if value is None:

@@ -30,6 +30,7 @@ import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -124,7 +125,7 @@ def _affine_tables(poly: int, init: int, length: int
     table = _byte_table(poly)
 
     def zero_byte(c: np.ndarray) -> np.ndarray:
-        return ((c << np.uint32(8)) ^ table[c >> np.uint32(24)]).astype(np.uint32)
+        return cast(np.ndarray, ((c << np.uint32(8)) ^ table[c >> np.uint32(24)]).astype(np.uint32))
 
     per_byte = np.zeros((length, 256), dtype=np.uint32)
     per_byte[length - 1] = table  # a byte followed by no zeros: crc with init 0
@@ -530,7 +531,7 @@ def _broken_frame_index(bad: np.ndarray, good: np.ndarray, index: np.ndarray,
     prev_end = np.where(has_prev, good[np.maximum(j, 0)] + size if good.size else 0,
                         st.last_end - st.offset)
     est = prev_index + 1 + np.maximum(bad - prev_end, 0) // size
-    return est.astype(np.int64)
+    return cast(np.ndarray, est.astype(np.int64))
 
 
 def _non_overlapping(pos: np.ndarray, size: int) -> np.ndarray:

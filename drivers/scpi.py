@@ -564,7 +564,7 @@ class ScpiInstrument:
         if isinstance(command, Command):
             return command
         words = self.words
-        found = (words.get(command) if isinstance(words, Mapping)
+        found: Command | None = (words.get(command) if isinstance(words, Mapping)
                  else getattr(words, command, None))
         if found is None:
             raise self.error_kinds.command(

@@ -11,6 +11,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
+from bench.core import rundir_layout as layout
 from bench.core.config import Config
 from bench.core.engine import RunContext
 from bench.core.journal import RunDir, sha256_file
@@ -52,7 +53,7 @@ class RawHashes:
 
     def __init__(self, run: RunDir) -> None:
         self._run = run
-        self._files = [p for p in sorted((run.path / "raw").rglob("*")) if p.is_file()]
+        self._files = [p for p in sorted(layout.raw_root(run.path).rglob("*")) if p.is_file()]
         self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="sha256")
         self._hashes = [self._pool.submit(self._hash, p) for p in self._files]
 

@@ -237,7 +237,8 @@ def test_the_dcc_states_what_the_pdf_states(which: str, request: pytest.FixtureR
     rates = {abs(r["set_rate_dps"]) for a in (result.get("axes") or {}).values()
              for r in a.get("rates", [])}
     bad_pairs, bad_limits, n = _figures_missing(figures, root, rates)
-    assert n > (100 if which == "demo" else 10)
+    # drift: the position means are budget inputs, stated with u and nu, no U (issue 43)
+    assert n > (100 if which == "demo" else 8)
     assert not bad_pairs, bad_pairs
     assert not bad_limits, bad_limits
     # the same people, laboratory, addresses and customer

@@ -200,9 +200,12 @@ def test_every_interval_and_limit_printed_is_in_the_dcc(cert: dict[str, Any]) ->
 
 def test_no_value_or_u_below_its_floor_in_the_stability_table(cert: dict[str, Any]) -> None:
     """The counter's 360 deg rows print σ as its interval or '< L', never 'σ ± U' below the
-    timing floor (issue 43: '-200 | 360 | counter | 0.006 ± 0.017 | 0.021')."""
-    rows = [r for c, rr, _ in cert["tables"] if "rate stability over" in c for r in rr
-            if r[2] == "counter"]
+    timing floor (issue 43: '-200 | 360 | counter | 0.006 ± 0.017 | 0.021'); the FOG's 1 and
+    10 deg rows print the measured figure 'value ± U' only when value − U is above the FOG's
+    floor over the window, else '< L' (L = value + U, never below the floor), and the DCC
+    states the same limit as [0, L] (docs/method.md D2)."""
+    tables = [(c, rr) for c, rr, _ in cert["tables"] if "rate stability over" in c]
+    rows = [r for _, rr in tables for r in rr if r[2] == "counter"]
     assert rows
     for r in rows:
         floor = _number(r[4])
@@ -212,6 +215,29 @@ def test_no_value_or_u_below_its_floor_in_the_stability_table(cert: dict[str, An
                 assert _number(cell[2:]) >= floor, r
             else:
                 assert _number(re.search(r"\[(\S+),", cell).group(1)) > floor, r
+    limits = 0
+    for caption, rr in tables:
+        axis = caption.split()[1].rstrip(":")
+        for r in rr:
+            if r[2] != "FOG":
+                continue
+            floor, cell = _number(r[4]), r[3].rstrip("*")
+            rate = _number(r[0])
+            real = _dcc_real(cert["dcc"], f"r_{axis}_{'m' if rate < 0 else 'p'}{abs(rate):g}"
+                                          f"_avg_{r[1]}_instability_rel")
+            if "±" in cell:
+                v, u = (_number(x) for x in cell.split(" ± "))
+                assert v - u > floor, r
+                assert _interval_of(real) is None
+            else:
+                assert cell.startswith("< ") and _number(cell[2:]) >= floor, r
+                iv = _interval_of(real)
+                assert iv is not None and iv[0] == 0.0 and iv[2] == 0.97725, r
+                big_l, step = _number(cell[2:]), 10.0 ** (math.floor(math.log10(
+                    _number(cell[2:]))) - 1)           # L rounded up to two digits
+                assert 0 <= big_l - iv[1] * 1e6 < step + 1e-9, (r, iv)
+                limits += 1
+    assert limits > 0
 
 
 def test_undetected_tones_are_limits_in_the_dcc(cert: dict[str, Any]) -> None:
@@ -236,3 +262,113 @@ def test_the_dcc_states_the_budget_s_k(cert: dict[str, Any]) -> None:
     assert mu.findtext("si:coverageFactor", namespaces=NS) == "2.52"
     assert mu.findtext("si:coverageProbability", namespaces=NS) == "0.9545"
 
+
+
+# -- the drift-pulse certificate (docs/method.md B, D1) ---------------------------------------
+
+@pytest.fixture(scope="module")
+def drift_cert(drift_demo_run: DemoRun) -> dict[str, Any]:
+    html = (drift_demo_run.dir / "certificate.html").read_text(encoding="utf-8")
+    return {"html": html, "tables": _tables(html), "result": drift_demo_run.result,
+            "dcc": etree.parse(str(drift_demo_run.dir / "certificate.dcc.xml")).getroot()}
+
+
+def _annex(tables: list[tuple[str, list[list[str]], str]]
+           ) -> dict[str, tuple[list[list[str]], str, dict[str, str]]]:
+    """caption -> (rows, notes, printed u_c / nu_eff / k / U) of every annex budget."""
+    out = {}
+    for caption, rows, notes in tables:
+        m = re.search(r"u_c = (\S+?)(?: \S+)?; ν_eff = (\S+); k = (\S+); U = (\S+?)[ ;]", notes)
+        if m:
+            out[caption] = (rows, notes, dict(zip(("uc", "nu", "k", "U"), m.groups(),
+                                                  strict=True)))
+    return out
+
+
+def _signed(row: list[str]) -> float:
+    """c_i u(x_i) from the printed c_i and u(x_i) (three significant digits each)."""
+    return _number(row[4]) * _number(row[2])
+
+
+def test_each_printed_drift_u_recomputes_from_its_printed_budget(
+        drift_cert: dict[str, Any]) -> None:
+    """Every drift budget of the annex: u_c² = Σ (c_i u(x_i))² + 2 Σ r c_i u(x_i) c_j u(x_j)
+    (GUM 5.2.2, the correlations its note names), k = t_95.45 of the printed ν_eff, U = k u_c,
+    equal to the printed U within the rounding shown (docs/method.md D1: one rule, no k = 2
+    exception for part B)."""
+    annex = _annex(drift_cert["tables"])
+    kinds = {c.split(" (")[0].split(",")[0] for c in annex}
+    assert kinds >= {"own drift ω_own", "apparent drift ω_app at 0°", "platform azimuth A",
+                     "horizontal Earth rate W_h from the apparent drifts"}, kinds
+    for caption, (rows, notes, p) in annex.items():
+        s = [_signed(r) for r in rows]
+        var = sum(x * x for x in s)
+        for i, j, r in re.findall(r"r\(row (\d+), row (\d+)\) = (\S+?);", notes):
+            var += 2 * float(r) * s[int(i) - 1] * s[int(j) - 1]
+        uc = math.sqrt(var)
+        assert uc == pytest.approx(_number(p["uc"]), rel=5e-3), (caption, notes)
+        nu = None if p["nu"] == "∞" else float(p["nu"])
+        k = float(p["k"])
+        assert k in {coverage_factor(nu)} | ({coverage_factor(nu - 0.05)} if nu else set())
+        assert nu is not None and k > 2.0, caption       # Type A rows with finite dof
+        big_u = _number(p["U"])
+        half = 0.5 * 10.0 ** (math.floor(math.log10(big_u)) - 1)
+        assert abs(k * uc - big_u) <= half + 5e-3 * big_u, (caption, notes)
+
+
+def test_the_drift_budgets_list_the_quantities_themselves(drift_cert: dict[str, Any]) -> None:
+    """Inputs are quantities with their estimates and units, not effects (x_i = 0, c_i = 1):
+    the position means (Type A, ν = n − 1 = 9, c = ±1/2), k_as (2 V/deg, c = −w/k_as), and
+    in the azimuth the X and Y k_as with r = 1, whose contributions cancel (a common scale
+    does not turn A = atan2(−app_y, app_x)); hand-derived sensitivities from result.json."""
+    annex = _annex(drift_cert["tables"])
+    drift = drift_cert["result"]["drift"]
+    for caption, (rows, _notes, _p) in annex.items():
+        assert not all(_number(r[4]) == 1.0 for r in rows), caption
+        kas = [r for r in rows if "k_as" in r[0]]
+        assert kas and all(r[1] == "2.00000 V/deg" for r in kas), caption
+        means = [r for r in rows if "mean drift at" in r[0]]
+        assert means and all(r[3] == "Student t" and r[6] == "9" for r in means), caption
+        if caption.startswith(("own drift", "apparent drift")):
+            axis = re.search(r"\((\w)\)", caption).group(1)
+            w = drift["axes"][axis]["own_dph" if caption.startswith("own") else "apparent_dph"]
+            assert _number(kas[0][4]) == pytest.approx(-w / 2.0, rel=3e-3), caption
+            sign = -1 if caption.startswith("apparent") else 1
+            assert [_number(r[4]) for r in means] == [0.5, 0.5 * sign], caption
+    rows, notes, _ = next(v for c, v in annex.items() if c.startswith("platform azimuth A"))
+    x, y = (drift["axes"][g]["apparent_dph"] for g in "xy")
+    r2 = x * x + y * y
+    i, j = (int(n) - 1 for n in re.search(r"r\(row (\d+), row (\d+)\) = 1;", notes).groups())
+    assert "k_as (x)" in rows[i][0] and "k_as (y)" in rows[j][0]
+    assert _signed(rows[i]) + _signed(rows[j]) == pytest.approx(0.0, abs=1e-3 * abs(
+        _signed(rows[i])))
+    x0 = next(r for r in rows if r[0].startswith("X: mean drift at 0°"))
+    assert _number(x0[4]) == pytest.approx(0.5 * math.degrees(1.0) * y / r2, rel=3e-3)
+    turn = next(r for r in rows if "platform turn" in r[0])
+    assert _number(turn[4]) == 0.5                 # one turn rotates A by e / 2
+
+
+def test_every_printed_drift_u_is_its_budget_s(drift_cert: dict[str, Any]) -> None:
+    """The results table's, the azimuth's and the Earth-rate check's U are their annex
+    budget's U, and the DCC states each with the budget's k (si:coverageFactor)."""
+    annex = {c: p for c, (_, _, p) in _annex(drift_cert["tables"]).items()}
+
+    def budget_u(prefix: str) -> float:
+        return _number(next(p["U"] for c, p in annex.items() if c.startswith(prefix)))
+
+    rows = next(rr for c, rr, _ in drift_cert["tables"] if c.startswith("Own and apparent"))
+    for r in rows:
+        assert _number(r[1].split(" ± ")[1]) == budget_u(f"own drift ω_own ({r[0]})")
+        assert _number(r[3].split(" ± ")[1]) == budget_u(f"apparent drift ω_app at 0° ({r[0]})")
+    flat = _flat(html_lib.unescape(re.sub(r"<[^>]+>", " ", drift_cert["html"])))
+    az = re.search(r"Platform azimuth \(X input axis\) ± U (\S+) ± (\S+) °", flat)
+    assert _number(az.group(2)) == budget_u("platform azimuth A")
+    wh = re.search(r"Horizontal Earth rate from the apparent drifts (\S+) ± (\S+) °/h", flat)
+    assert _number(wh.group(2)) == budget_u("horizontal Earth rate W_h")
+    drift = drift_cert["result"]["drift"]
+    for qid, node, stem in (("drift_x_own_dph", drift["axes"]["x"], "own"),
+                            ("drift_azimuth_deg", drift, "azimuth")):
+        mu = _dcc_real(drift_cert["dcc"], qid).find(
+            "si:measurementUncertaintyUnivariate/si:expandedMU", NS)
+        k = node[f"{stem}_coverage_factor"]
+        assert k > 2.0 and mu.findtext("si:coverageFactor", namespaces=NS) == f"{k:.2f}"

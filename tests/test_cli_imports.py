@@ -1,12 +1,15 @@
 """`bench --help` starts at once (issue 45): building and using the parser imports no
 heavy library and none of the measurement code; a command's module is imported when the
-command runs (bench/app/cli.py). The time itself: benchmarks/bench_cli_startup.py."""
+command runs (bench/app/cli.py). `bench validate` and `bench schema` load the
+configuration and the kinds, but not the plots, the fits, the CAN stack or the records
+(those are imported where they are used). The time itself: benchmarks/bench_cli_startup.py."""
 
 from __future__ import annotations
 
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -18,6 +21,9 @@ HEAVY = ("numpy", "scipy", "matplotlib", "yaml", "serial", "pyvisa", "can", "can
          "signxml", "cryptography", "sqlalchemy", "alembic", "psycopg", "argon2")
 #: our packages below bench.app: the configuration, the engine, the analysis and the rest
 OURS = ("bench.core", "bench.analysis", "bench.report", "procedures", "drivers", "sims")
+#: ...but for the run directory's names (bench/core/rundir_layout.py imports nothing), which
+#: the DCC package's names are made of
+LIGHT = ("bench.core", "bench.core.rundir_layout")
 
 PROBE = """
 import json, sys
@@ -36,8 +42,8 @@ def loaded_after(code: str) -> set[str]:
 
 def too_heavy(modules: set[str]) -> list[str]:
     return sorted(m for m in modules
-                  if m.split(".")[0] in HEAVY or any(m == p or m.startswith(p + ".")
-                                                     for p in OURS))
+                  if m.split(".")[0] in HEAVY or (m not in LIGHT and any(
+                      m == p or m.startswith(p + ".") for p in OURS)))
 
 
 def test_importing_the_cli_loads_nothing_heavy() -> None:
@@ -60,6 +66,61 @@ def test_parsing_any_command_line_loads_nothing_heavy(argv: list[str]) -> None:
             "    except SystemExit:\n"
             "        pass\n")
     assert too_heavy(loaded_after(code)) == []
+
+
+#: what reading and checking the configuration must not load: the certificate's plots
+#: (matplotlib), the analysis's fits (scipy), the drives' CAN stack and the records
+NOT_FOR_THE_FILES = ("matplotlib", "scipy", "canopen", "can", "sqlalchemy")
+
+
+def _run_quietly(argv: list[str]) -> str:
+    return ("import contextlib, io\nfrom bench.app.cli import main\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n"
+            f"    assert main({argv!r}) == 0\n")
+
+
+def loaded_libraries(modules: set[str], names: tuple[str, ...]) -> list[str]:
+    return sorted({m.split(".")[0] for m in modules} & set(names))
+
+
+@pytest.mark.parametrize("argv", [
+    ["validate", "configs/procedures/demo.yaml"],
+    ["validate", "configs/procedures/drift-demo.yaml"],
+    ["validate", "configs/stands/sim-two-axis.yaml"],     # a stand file alone
+    ["schema", "stand"], ["schema", "procedure", "rate-ladder"], ["schema", "lab"],
+])
+def test_validate_and_schema_load_no_plots_fits_can_or_records(argv: list[str]) -> None:
+    modules = loaded_after(_run_quietly(argv))
+    assert "bench.core.schema" in modules       # the command did read the configuration
+    assert loaded_libraries(modules, NOT_FOR_THE_FILES) == []
+
+
+def test_the_probe_sees_the_libraries_validate_must_not_load() -> None:
+    """Not blind: the modules that draw, open a drive or keep the records load them."""
+    modules = loaded_after("import bench.app.certificate.pdf, drivers.cia402, sims.drive_twin\n"
+                           "import bench.app.records.schema")
+    assert loaded_libraries(modules, NOT_FOR_THE_FILES) == ["can", "canopen", "matplotlib",
+                                                            "sqlalchemy"]
+    # the fit imports scipy when it solves (bench/analysis/systematic.py solve_direction)
+    modules = loaded_after("import bench.analysis.systematic\nimport scipy.linalg")
+    assert "scipy" in loaded_libraries(modules, NOT_FOR_THE_FILES)
+
+
+def test_a_file_read_again_is_parsed_once_and_handed_out_as_a_copy(tmp_path: Path) -> None:
+    """`bench validate` reads a procedure file three times: the parse is kept by the file's
+    text (bench/core/yamlfile.py), and each reader gets its own copy to change."""
+    from bench.core import yamlfile
+
+    path = tmp_path / "p.yaml"
+    path.write_text("a:\n  b: [1, 2]\n")
+    first = yamlfile.load_yaml(path)
+    first.data["a"]["b"].append(3)
+    first.lines.clear()
+    again = yamlfile.load_yaml(path)
+    assert again.data == {"a": {"b": [1, 2]}} and again.lines[("a", "b")] == 2
+    assert yamlfile._parse_kept.cache_info().hits >= 1
+    path.write_text("a:\n  b: [1, 2, 3]\n")          # new text: parsed afresh
+    assert yamlfile.load_yaml(path).data == {"a": {"b": [1, 2, 3]}}
 
 
 def test_the_probe_sees_a_heavy_import() -> None:

@@ -416,17 +416,21 @@ def test_drift_demo_dcc_validates_and_carries_every_value(drift: dict[str, Any])
     result, reals = drift["result"], _reals(_tree(path))
     for label, got in reals.items():
         assert got["value"] == _lookup(result, label), label
-    for axis in result["drift"]["axes"]:
-        p = f"drift.axes.{axis}"
-        _assert_value_u(reals, result, f"{p}.own_dph", f"{p}.own_u_dph", r"\degree\hour\tothe{-1}")
-        _assert_value_u(reals, result, f"{p}.apparent_dph", f"{p}.apparent_u_dph",
-                        r"\degree\hour\tothe{-1}")
-        own = [v["value"] for k, v in reals.items() if k.startswith(f"{p}.budget.own_u_dph.")]
-        assert len(own) >= 2
-        assert 2 * sum(u * u for u in own) ** 0.5 == pytest.approx(
-            reals[f"{p}.own_dph"]["U"], rel=1e-9)
-    _assert_value_u(reals, result, "drift.azimuth_deg", "drift.azimuth_u_deg", r"\degree")
     root = _tree(path)
+    budget_u = {r.findtext("dcc:name/dcc:content", "", NS): float(r.findtext(
+        ".//dcc:quantity[@id='" + r.get("id") + "_U']/si:real/si:value", "", NS))
+        for r in root.iterfind(".//dcc:result[@refType='ratebench_uncertaintyBudget']", NS)}
+    for axis, ax in result["drift"]["axes"].items():
+        p = f"drift.axes.{axis}"
+        # U = k(nu_eff) u_c of its budget, one rule with the rate ladder (docs/method.md D1)
+        _assert_value_u(reals, result, f"{p}.own_dph", f"{p}.own_u_dph",
+                        r"\degree\hour\tothe{-1}", k=ax["own_coverage_factor"])
+        _assert_value_u(reals, result, f"{p}.apparent_dph", f"{p}.apparent_u_dph",
+                        r"\degree\hour\tothe{-1}", k=ax["apparent_coverage_factor"])
+        assert budget_u[f"own drift ω_own ({axis}), axis {axis}"] == reals[f"{p}.own_dph"]["U"]
+    _assert_value_u(reals, result, "drift.azimuth_deg", "drift.azimuth_u_deg", r"\degree",
+                    k=result["drift"]["azimuth_coverage_factor"])
+    assert budget_u["platform azimuth A, overall"] == reals["drift.azimuth_deg"]["U"]
     for i, c in enumerate(result["checks"], start=1):
         md = root.find(f".//dcc:metaData[@id='check_{i}']", NS)
         assert md.findtext("dcc:conformity", None, NS) == c["verdict"]
@@ -455,7 +459,7 @@ def test_tampered_signed_dcc_fails_verify(signed: dict[str, Path], tmp_path: Pat
     text = signed["file"].read_text(encoding="utf-8")
     own = json.loads((signed["run"] / "result.json").read_text())["drift"]["axes"]["x"]["own_dph"]
     old = f"<si:value>{own!r}</si:value>"
-    assert text.count(old) == 2      # the result, then its budget's estimate (annex)
+    assert text.count(old) == 1      # the result (its budget's inputs are the position means)
     signed["file"].write_text(text.replace(old, f"<si:value>{own + 0.1!r}</si:value>", 1),
                               encoding="utf-8")
     done = _cli("verify", str(signed["file"]), "--cert", str(signed["cert"]))

@@ -67,26 +67,36 @@ def test_the_control_term_is_what_a_sawtooth_needs() -> None:
     assert w_with - w_without == pytest.approx(0.1 * (-1 / 6) * 3600, rel=1e-9)
 
 
+@pytest.fixture(scope="module")
+def aligned() -> dp.DriftResult:
+    """The shifted cases' twin with the digitizer on the pulse edges (same seed, same noise)."""
+    recs, _ = record_cycles(paper_truth(**REALISTIC), dp.SHAPES["rectangular"], cycles=6,
+                            timing_cycles=4)
+    return dp.analyze(recs, dp.SHAPES["rectangular"], K_AS, 70.0, STATED)
+
+
 @pytest.mark.parametrize("shift_samples", [1.0, 0.5, -1.0])
-def test_a_shifted_digitizer_is_detected_and_corrected(shift_samples: float) -> None:
+def test_a_shifted_digitizer_is_detected_and_corrected(shift_samples: float,
+                                                       aligned: dp.DriftResult) -> None:
     """The half-sample pitfall (docs/method.md B): the digitizer starts late or early against
     the pulses and is not told. The nominal-edge integrator is biased by
     2 a shift / Tc (hand-derived: 0.072 deg/h per sample at 0.1 deg/s, 5 s, 2 kHz);
-    the analysis finds the shift and puts the edges where the pulses are."""
+    the analysis finds the shift and puts the edges where the pulses are: the corrected
+    figure is the aligned digitizer's (same noise) to 5 % of its standard uncertainty.
+    (Whether U covers the truth is the paper case's test, with 10 cycles a position: one
+    6-cycle realisation at 95 % is no such test.)"""
     shift_s = shift_samples / FS_HZ
     truth = paper_truth(**REALISTIC)
-    recs, plat = record_cycles(truth, dp.SHAPES["rectangular"], cycles=6, timing_cycles=4,
-                               shift_s=shift_s)
+    recs, _ = record_cycles(truth, dp.SHAPES["rectangular"], cycles=6, timing_cycles=4,
+                            shift_s=shift_s)
     res = dp.analyze(recs, dp.SHAPES["rectangular"], K_AS, 70.0, STATED)
-    t_end = recs["x"][-1].t_start_s + 2 * TC_S
     for g, ax in res.axes.items():
         so = ax.start_offset
         assert so.significant
         assert so.samples == pytest.approx(-shift_samples, abs=0.02)
         bias = ax.own_nominal_dph - ax.own_dph
         assert bias == pytest.approx(-2 * 0.1 * shift_s / TC_S * 3600, rel=0.03)
-        own_true = plat.own_drift_dph(g, 0.0, t_end)
-        assert abs(ax.own_dph - own_true) <= ax.own_u_dph
+        assert abs(ax.own_dph - aligned.axes[g].own_dph) <= 0.05 * ax.own_budget.ustd
         assert abs(bias) > 10 * ax.own_u_dph   # the nominal figure would be far out
     assert abs(res.azimuth_deg - 80.0) * 60 < 2.0
 

@@ -26,7 +26,7 @@ class AllanCurve:
     adev: tuple[float, ...]          # same unit as the record
     terms: tuple[int, ...]           # number of overlapping differences at each tau
 
-    def to_dict(self) -> dict[str, list]:
+    def to_dict(self) -> dict[str, list[float] | list[int]]:
         return {"tau_s": list(self.tau_s), "adev": list(self.adev), "terms": list(self.terms)}
 
 

@@ -33,7 +33,7 @@ class DiskArray:
         self.path = Path(path)
         self.dtype = np.dtype(dtype)
         self._fd = os.open(self.path, os.O_RDONLY)
-        self.size = os.fstat(self._fd).st_size // self.dtype.itemsize
+        self.size: int = os.fstat(self._fd).st_size // self.dtype.itemsize
         self.shape = (self.size,)
 
     def close(self) -> None:

@@ -102,7 +102,8 @@ class RateResult:
         if self.verdict is not None:
             d["verdict"] = self.verdict
             d["judgement"] = self.judgement
-        return clean(d)
+        out: dict[str, Any] = clean(d)
+        return out
 
 
 @dataclass(frozen=True)
@@ -136,7 +137,8 @@ class PairResult:
         d = {"rate_dps": self.rate_dps, **self.cal.to_dict(),
              "noise_inflation": self.noise_inflation.to_dict(),
              "half_sessions": list(self.sessions), "bias_model": self.bias_model}
-        return clean(d)
+        out: dict[str, Any] = clean(d)
+        return out
 
 
 @dataclass(frozen=True)

@@ -38,9 +38,9 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
-import scipy.linalg
 
 from bench.analysis.angle import FogCalibration
 from bench.analysis.sums import ROW_CONST, ROW_TAU, ROW_Y, Design, WindowSums
@@ -183,6 +183,7 @@ def solve_direction(sums: Sequence[WindowSums]) -> DirectionFit:
     if np.any(d == 0):
         raise ValueError("systematic fit: a model column is all zeros")
     scaled = normal / np.outer(d, d)
+    import scipy.linalg  # here, not at the top: `bench validate` does not load scipy
     try:
         cf = scipy.linalg.cho_factor(scaled)
     except np.linalg.LinAlgError:
@@ -226,13 +227,13 @@ def bin_columns(ws: WindowSums) -> np.ndarray:
 
 def bin_residuals(ws: WindowSums, row_coef: np.ndarray) -> np.ndarray:
     """Sum over each fine bin of y minus the model with the given row coefficients."""
-    return ws.bins[ROW_Y] - row_coef[ws.design.model_rows()] @ bin_columns(ws)
+    return cast(np.ndarray, ws.bins[ROW_Y] - row_coef[ws.design.model_rows()] @ bin_columns(ws))
 
 
 def block_sums(values: np.ndarray, ws: WindowSums, block_deg: float) -> np.ndarray:
     """Add fine bins into blocks of block_deg, aligned with each turn's zero mark."""
     m = round(block_deg / ws.design.fine_bin_deg)
-    return values.reshape(*values.shape[:-1], -1, m).sum(axis=-1)
+    return cast(np.ndarray, values.reshape(*values.shape[:-1], -1, m).sum(axis=-1))
 
 
 def harmonic_block_deg(design: Design) -> float:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -52,7 +53,7 @@ def _partial(t: Samples, f: Samples, p: np.ndarray, x: np.ndarray) -> np.ndarray
     nxt = np.minimum(p + 1, t.size - 1)
     span = t[nxt] - t[p]
     slope = np.where(span > 0, (f[nxt] - f[p]) / np.where(span > 0, span, 1.0), 0.0)
-    return dx * f[p] + 0.5 * dx * dx * slope
+    return cast(np.ndarray, dx * f[p] + 0.5 * dx * dx * slope)
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,11 +99,11 @@ class Window:
 
     @property
     def turn_fog_mean_dps(self) -> np.ndarray:
-        return np.diff(self.edge_int) / self.turn_periods_s
+        return cast(np.ndarray, np.diff(self.edge_int) / self.turn_periods_s)
 
     @property
     def turn_centres_s(self) -> np.ndarray:
-        return 0.5 * (self.edges_s[:-1] + self.edges_s[1:])
+        return cast(np.ndarray, 0.5 * (self.edges_s[:-1] + self.edges_s[1:]))
 
     @property
     def turn_samples(self) -> np.ndarray:

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from bench.core import rundir_layout as layout
 from bench.core.config import Config, ConfigError
 from bench.core.loader import is_stand_file, load_config, load_stand
 from bench.core.placeholders import left_to_fill, placeholder_notes
@@ -199,7 +200,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     result, doc = write_outputs(run, cfg, console, where)
     register_run(run.path, where, console.warn, result)
     console.summary(summary_of(result, doc))
-    print(run.path / "result.json")
+    print(run.path / layout.RESULT)
     if doc is None:
         return EXIT_ABORTED
     return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(str(result.get("verdict")),

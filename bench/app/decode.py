@@ -20,6 +20,7 @@ from typing import TextIO
 
 import numpy as np
 
+from bench.core import rundir_layout as layout
 from bench.core.journal import fog_capture_starts, read_jsonl
 from drivers.fog_formats import FORMATS, DecodeState, Frames, StreamDecoder
 
@@ -29,13 +30,15 @@ _EVENTS_SHOWN = 20
 
 def run_capture_start(path: Path) -> int | None:
     """The first index of a capture inside a run directory, from its events (or None)."""
-    session, axis = path.parent.name, path.name.removesuffix("-fog.bin")
-    events = path.parent.parent.parent / "events.jsonl"
-    if path.parent.parent.name != "raw" or not session[1:].isdigit() \
-            or axis == path.name or not events.is_file():
+    capture = layout.fog_capture_of(path)
+    if capture is None:
+        return None
+    run, session, axis = capture
+    events = run / layout.EVENTS
+    if not events.is_file():
         return None
     try:
-        return fog_capture_starts(read_jsonl(events)).get((int(session[1:]), axis))
+        return fog_capture_starts(read_jsonl(events)).get((session, axis))
     except (OSError, ValueError, KeyError):
         return None
 

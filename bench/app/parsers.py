@@ -54,6 +54,28 @@ def add_records_parsers(sub: Any) -> None:
     imp = rsub.add_parser("import", help="register existing run directories (idempotent)")
     imp.add_argument("runs_dir")
     imp.add_argument("--records", help="records database URL (default RUNS_DIR/records.sqlite)")
+    ini = rsub.add_parser("init", help="create or migrate the lab's records database on "
+                                       "PostgreSQL and grant the benches' and station's roles",
+                          description="Run as the lab database's owner: creates or migrates "
+                          "the schema, then grants --bench-role what a bench's delivery and "
+                          "registration need and --station-role read access "
+                          "(docs/station.md). Exit 0 done, 1 unreachable, 2 not PostgreSQL.")
+    ini.add_argument("url", help="postgresql://OWNER@HOST/DB")
+    ini.add_argument("--bench-role", metavar="ROLE", action="append", default=[],
+                     help="the benches' database role (repeatable)")
+    ini.add_argument("--station-role", metavar="ROLE", action="append", default=[],
+                     help="the station's database role (repeatable)")
+    syn = rsub.add_parser("sync", help="deliver this bench's runs (events, results, records) "
+                                       "to the lab's PostgreSQL database (idempotent)",
+                          description="Deliver every run directory of the runs folder to the "
+                          "lab database: the event lines it does not hold yet, the result, "
+                          "the run's records. Repeating it adds nothing. Exit 0 delivered, "
+                          "1 the lab database is unreachable, 2 not a PostgreSQL URL.")
+    syn.add_argument("--records", metavar="URL", help="the lab database (default: the lab "
+                                                      "file's records:)")
+    syn.add_argument("--runs", default=DEFAULT_RUNS, help="the runs folder (runs/)")
+    syn.add_argument("--batch", type=int, default=500, metavar="LINES",
+                     help="event lines per transaction (500)")
     due = sub.add_parser("due", help="tables due or overdue for recertification")
     due.add_argument("--records", help="records database URL")
     due.add_argument("--runs", default=DEFAULT_RUNS, help="runs folder (records.sqlite, lab.yaml)")

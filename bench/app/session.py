@@ -34,6 +34,7 @@ from bench.app.records.hooks import (
     warn_if_overdue,
 )
 from bench.app.summary import Summary, summarize
+from bench.core import rundir_layout as layout
 from bench.core.config import Config, StandSettings
 from bench.core.diskspace import expected_raw_bytes, space_problem
 from bench.core.engine import Abort, Engine, Interrupted, RunContext, SignalGuard
@@ -80,7 +81,7 @@ def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
     certificate's document (None when it could not be written: a run that leaves no
     certificate must not exit as if it had, nor one whose DCC does not validate)."""
     result = procedure_kind(cfg.kind).analyze(run, cfg)
-    run.write_json("result.json", result)
+    run.write_json(layout.RESULT, result)
     # the table's history from the records, when they hold any (never fails the run)
     history = history_sections(run.path, result, records, progress.warn) if records else []
     if records:   # each instrument's control status, for the traceability section
@@ -136,6 +137,15 @@ class RunSession:
 
     # -- the session, start to end -------------------------------------------------
     def run(self) -> int:
+        """The session, delivered to the lab's server as it goes when the records are one
+        (bench/app/fleet: in the background, never failing the run; once more at its end)."""
+        from bench.app.fleet.live_run import delivered
+
+        with delivered(self.run_dir, self.where, self.cfg.stand_settings.bench_name,
+                       self.progress.warn, err):
+            return self._run()
+
+    def _run(self) -> int:
         table_overdue = warn_if_overdue(self.cfg.stand_settings.identity, self.where, self.progress.warn)
         out_of_control = warn_at_start(self.cfg.stand_settings, self.where, self.progress.warn)
         plan = self.kind.build_plan(self.cfg)

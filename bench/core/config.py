@@ -299,6 +299,10 @@ IDENTITY = Map({"maker": Key(Str(), True, "the table's maker"),
                     "the table's recertification interval (lab settings may override)")})
 
 
+BENCH = Map({"name": Key(Str(), False, "the bench's name on the lab server, unique in the "
+                         "lab (default: this machine's host name)")})
+
+
 def stand_schema(extra_top: dict[str, Key] | None = None,
                  extra_axis: dict[str, Key] | None = None,
                  extra_sim: dict[str, Key] | None = None) -> Map:
@@ -313,6 +317,8 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
         "traceability": Key(ListOf(TRACEABLE), False, "references and sensors the bench "
                             "does not drive, with their calibration certificates"),
         "dcc": Key(STAND_DCC, False, "DCC: lab settings file, signing key (paths only)"),
+        "bench": Key(BENCH, False, "this bench among the lab's benches (the lab server's "
+                     "station shows each by its name; docs/station.md)"),
         "mains_hz": Key(Num(min=1, max=1000, unit="Hz"), False,
                         "the lab's mains frequency (50 or 60); without it the analysis "
                         "finds the mains tone from the data"),
@@ -337,6 +343,22 @@ COMMON_PROCEDURE_KEYS: dict[str, Key] = {
                              "as-found before an adjustment, as-left after (the records "
                              "pair them; --as-found/--as-left win)"),
     "adjustment_note": Key(Str(), False, "what was adjusted since the as-found run"),
+    "item": Key(Map({
+        "received": Key(Date(), False, "the date the item was received (ISO/IEC 17025 "
+                                       "7.8.2.1 g)"),
+        "condition": Key(Str(), False, "its condition on receipt (7.4.3)"),
+        "as_found_run": Key(Str(), False, "the as-found run this as-left run repeats after "
+                                          "an adjustment: its run id (run directory name)"),
+        "adjustments": Key(ListOf(Str()), False, "adjustments made to the item before this "
+                                                 "run (7.8.4.1 b)"),
+    }), False, "the item as received and as left; each part left out is printed 'not "
+               "stated' (docs/certificate.md)"),
+    "decision_rule_agreement": Key(Map({
+        "agreed_with": Key(Str(), True, "who agreed to the decision rule for the customer"),
+        "agreed_on": Key(Date(), True, "when, YYYY-MM-DD"),
+        "reference": Key(Str(), False, "where it is recorded (order, contract review)"),
+    }), False, "the customer's agreement to decision_rule (ISO/IEC 17025 7.1.3); without "
+               "it the certificate says 'not stated'"),
     "operator": Key(Str(), False, "who runs the procedure (default: the login name)"),
     "specification": Key(Map({
         "source": Key(Str(), True, "the document the tolerances come from: maker, title, "
@@ -632,6 +654,9 @@ class StandSettings:
     traceability: tuple[Traceable, ...] = ()
     dcc: DccRefs = DccRefs()
     mains_hz: float | None = None
+    #: the stand file's `bench.name`: how the lab server knows this bench (None: unnamed,
+    #: bench/app/fleet names it by the host)
+    bench_name: str | None = None
     #: every instrument and reference with its calibration as stated (traceability)
     traced: tuple[Traced, ...] = ()
     #: addresses of a kind's own instruments rewritten to their twins' (SimBench), by
@@ -745,7 +770,8 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
                           _opt(ident, "recertification_interval_days", int)),
         axes=axes, sim=sim, traceability=trace,
         dcc=dcc_refs(stand), traced=stated_traceability(stand),
-        mains_hz=_opt(stand, "mains_hz", float))
+        mains_hz=_opt(stand, "mains_hz", float),
+        bench_name=_opt(stand.get("bench") or {}, "name", str))
 
 
 @dataclass(frozen=True)
@@ -802,7 +828,8 @@ class Config:
 
     @property
     def kind(self) -> str:
-        return self.procedure["procedure"]
+        name: str = self.procedure["procedure"]
+        return name
 
     @property
     def has_sim(self) -> bool:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import functools
 import importlib
-import multiprocessing
 import os
 import signal
 import sys
@@ -18,11 +17,11 @@ import threading
 import time
 import traceback
 from collections.abc import Callable
-from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import Future
 from concurrent.futures import wait as futures_wait
 from dataclasses import dataclass, field
 from types import FrameType
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from bench.core.config import Config
 from bench.core.journal import RunDir, utc_now
@@ -30,6 +29,11 @@ from bench.core.plan import Plan, Step
 from bench.core.progress import Progress
 from drivers import interrupts
 from drivers.clock import Clock
+
+if TYPE_CHECKING:
+    # multiprocessing is imported when the worker starts: a kind imports this module,
+    # and `bench validate` loads the kind
+    from concurrent.futures import ProcessPoolExecutor
 
 
 class Abort(Exception):
@@ -144,10 +148,18 @@ WORKER_NICE = 10
 PARENT_WATCH_S = 0.5
 
 
+#: a kind's module may name, in this attribute, the modules its worker jobs need that it
+#: does not import itself (it imports its analysis where it uses it, so that `bench
+#: validate` loads none of it); the worker imports them at its start
+WORKER_PRELOAD = "WORKER_PRELOAD"
+
+
 def _preload(module: str | None) -> None:
     """In the worker: import what its jobs will need (AnalysisWorker.start)."""
     if module:
-        importlib.import_module(module)
+        loaded = importlib.import_module(module)
+        for name in getattr(loaded, WORKER_PRELOAD, ()):
+            importlib.import_module(name)
 
 
 def _worker_init(parent_pid: int) -> None:
@@ -219,6 +231,8 @@ class AnalysisWorker:
         the first pair's look does not pay for them; `preload` names a module to import
         there (the kind's). Safe to call twice."""
         if self._pool is None:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
             self._pool = ProcessPoolExecutor(max_workers=1,
                                              mp_context=multiprocessing.get_context("spawn"),
                                              initializer=_worker_init,

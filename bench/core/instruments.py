@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
+from bench.core import rundir_layout as layout
 from bench.core.config import StandAxis
 from bench.core.journal import JsonLines, RunDir
 from bench.core.protocols import Counter as CounterLike
@@ -185,9 +186,9 @@ def raw_text_logger(log: JsonLines, clock: Clock) -> Callable[[str, bytes], None
     return raw
 
 
-def _raw_record_logger(log: JsonLines, clock: Clock) -> Callable[[str, dict], None]:
+def _raw_record_logger(log: JsonLines, clock: Clock) -> Callable[[str, dict[str, Any]], None]:
     """A sink for the drive's readings and commands (called from the CAN thread)."""
-    def raw(kind: str, record: dict) -> None:
+    def raw(kind: str, record: dict[str, Any]) -> None:
         log.write({"t_s": clock.now(), "kind": kind, **record})
     return raw
 
@@ -204,7 +205,7 @@ def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *
     The drive's controller node id was settled when the stand was parsed: the axes
     sharing a CAN bus decide it together (bench/core/canbus.py)."""
     name, d = spec.name, spec.drive
-    drive_log = bench.log(run.raw_path(f"{name}-drive.jsonl")) if run else None
+    drive_log = bench.log(run.raw_path(layout.drive_log(name))) if run else None
     drive = Axis(name, interface=d.interface, channel=d.channel, node_id=d.node_id,
                  max_rate_dps=d.max_rate_dps, max_accel_dps2=d.max_accel_dps2,
                  clock=clock, controller_node_id=d.controller_node_id,
@@ -222,7 +223,7 @@ def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *
     ax.identities["drive"] = with_readback(drive.identity(), drive.readback)
     c = spec.counter
     if counter and c:
-        clog = bench.log(run.raw_path(f"{name}-counter.jsonl")) if run else None
+        clog = bench.log(run.raw_path(layout.counter_log(name))) if run else None
         cnt = Counter.open(c.resource, c.model, clock,
                            raw=raw_text_logger(clog, clock) if clog else None,
                            time_tie=c.time_tie or TimeTie(),
@@ -254,7 +255,7 @@ def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *
     if fog and f:
         fg = Fog(f.port, baudrate=f.baudrate, fmt=f.format, axis=f.axis, rate_hz=f.rate_hz,
                  units=f.units, configure=f.configure,
-                 raw_path=run.raw_path(f"{name}-fog.bin") if run else None, clock=clock,
+                 raw_path=run.raw_path(layout.fog_capture(name)) if run else None, clock=clock,
                  model=f.model,
                  keep_samples=int(LIVE_FOG_KEEP_S * f.rate_hz) if run else None)
         ax.fog = fg

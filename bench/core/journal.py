@@ -12,6 +12,8 @@ being written; raw instrument data goes to files of their own, as received.
       raw/s<session>/<axis>-counter.jsonl   every SCPI exchange, in order
       raw/s<session>/<axis>-drive.jsonl     drive readings (TPDO), commands, EMCY
       result.json, certificate.*      derived; `bench analyze` rebuilds them
+
+The names are spelled in bench/core/rundir_layout.py, for every reader and writer.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from pathlib import Path
 from typing import IO, Any
 
 import bench
+from bench.core import rundir_layout as layout
 
 
 def sha256_file(path: Path) -> str:
@@ -167,13 +170,13 @@ def torn_tail_bytes(path: Path) -> int:
 class RunDir:
     """One run's directory. Create with `RunDir.create`, reopen with `RunDir(path)`."""
 
-    PROCEDURE = "procedure.yaml"
-    STAND = "stand.yaml"
-    LAB = "lab.yaml"
+    PROCEDURE = layout.PROCEDURE
+    STAND = layout.STAND
+    LAB = layout.LAB
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        if not (self.path / "events.jsonl").exists():
+        if not (self.path / layout.EVENTS).exists():
             raise FileNotFoundError(f"{self.path} is not a run directory (no events.jsonl)")
         self._events: JsonLines | None = None
         self.session = 0
@@ -220,13 +223,14 @@ class RunDir:
             "created_utc": utc_now(),
             "bench_version": bench.__version__,
         }
-        (path / "meta.json").write_text(json.dumps(meta, indent=2) + "\n")
-        (path / "events.jsonl").touch()
+        (path / layout.META).write_text(json.dumps(meta, indent=2) + "\n")
+        (path / layout.EVENTS).touch()
         return cls(path)
 
     @property
     def meta(self) -> dict[str, Any]:
-        return json.loads((self.path / "meta.json").read_text())
+        meta: dict[str, Any] = json.loads((self.path / layout.META).read_text())
+        return meta
 
     @property
     def procedure_file(self) -> Path:
@@ -248,7 +252,7 @@ class RunDir:
             self.raw_dir.mkdir(parents=True, exist_ok=True)
         except OSError as e:
             raise _write_error(self.raw_dir, e) from e
-        log = self.path / "events.jsonl"
+        log = self.path / layout.EVENTS
         torn = torn_tail_bytes(log)
         self._events = JsonLines(log, fsync=True)
         if torn:  # a crash mid-write: this session starts on a fresh line, not on the torn one
@@ -256,14 +260,14 @@ class RunDir:
         if clock_now is not None:
             self._clock_now = clock_now
         if torn:
-            self.event("torn_tail", file="events.jsonl", bytes=torn,
+            self.event("torn_tail", file=layout.EVENTS, bytes=torn,
                        note="a line cut short by a crash or power loss; kept as written, "
                             "readers skip it")
         return self.session
 
     @property
     def raw_dir(self) -> Path:
-        return self.path / "raw" / f"s{self.session}"
+        return layout.raw_dir(self.path, self.session)
 
     def raw_path(self, name: str) -> Path:
         return self.raw_dir / name
@@ -276,7 +280,7 @@ class RunDir:
         self._events.write(rec)
 
     def events(self) -> list[dict[str, Any]]:
-        return list(read_jsonl(self.path / "events.jsonl"))
+        return list(read_jsonl(self.path / layout.EVENTS))
 
     def completed_units(self) -> list[str]:
         return [e["unit"] for e in self.events() if e.get("event") == "unit_done"]

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.core import rundir_layout as layout
 from bench.core.config import SIGNING
 from bench.core.schema import Bool, Check, Key, ListOf, Map, MapOf, Num, OneOf, Str, validate
 from bench.core.yamlfile import Problem, YamlDoc, YamlError, load_yaml
@@ -82,7 +83,7 @@ LAB = Map({
     })),
 })
 
-RUN_COPY = "lab.yaml"  # the lab file as used, copied into the run directory
+RUN_COPY = layout.LAB  # the lab file as used, copied into the run directory
 DEFAULT_PREFIX = "RT"
 
 
@@ -248,7 +249,7 @@ def lab_path(procedure_path: Path, certificate: Any) -> Path | None:
     if not isinstance(ref, str):
         return None
     here = procedure_path.parent
-    if (here / "meta.json").is_file():  # a run directory: its copy, if one was made
+    if (here / layout.META).is_file():  # a run directory: its copy, if one was made
         return here / RUN_COPY if (here / RUN_COPY).is_file() else None
     p = Path(ref)
     return p if p.is_absolute() else Path(os.path.normpath(procedure_path.parent / p))
@@ -289,6 +290,6 @@ def run_lab(run_path: Path, certificate: Mapping[str, Any] | None) -> Lab:
     """The lab as the run resolved it: result.json's `certificate` block (the lab file's
     keys under the procedure's own), else the lab file copied into the run directory."""
     if isinstance(certificate, Mapping) and certificate.get("laboratory"):
-        return parse_lab(certificate, f"{run_path / 'result.json'}: certificate")
+        return parse_lab(certificate, f"{run_path / layout.RESULT}: certificate")
     copy = Path(run_path) / RUN_COPY
     return load_lab(copy) if copy.is_file() else Lab()

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.core import rundir_layout as layout
 from bench.core.registry import procedure_kind, procedure_names
 from bench.core.schema import Any_, Check, ListOf, Map, MapOf, Node
 from bench.core.yamlfile import (
@@ -179,9 +180,9 @@ def run_copy(run_path: str | Path, name: str) -> dict[str, Any]:
     the readers of run directories (certificate, records)."""
     run = Path(run_path)
     data = read_mapping(run / name)
-    kind = read_mapping(run / "procedure.yaml").get("procedure")
+    kind = read_mapping(run / layout.PROCEDURE).get("procedure")
     if kind in procedure_names():
-        schema: Node = (procedure_kind(kind).procedure_schema() if name == "procedure.yaml"
+        schema: Node = (procedure_kind(kind).procedure_schema() if name == layout.PROCEDURE
                         else procedure_kind(kind).stand_schema())
     else:
         schema = Any_()

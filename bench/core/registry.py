@@ -25,19 +25,21 @@ from functools import cache
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
-from bench.core.config import Config, StandSettings
-from bench.core.engine import RunContext
-from bench.core.instruments import Bench
-from bench.core.journal import RunDir
-from bench.core.plan import Plan, Step
-from bench.core.schema import Map
-from bench.core.simbench import SimBench
-from bench.core.yamlfile import Problem
-from drivers.clock import Clock
-
-if TYPE_CHECKING:   # the certificate's package imports this module when it is loaded
+if TYPE_CHECKING:
+    # The interface's types, for its hints only: `bench validate` and `bench schema` find
+    # a kind through this module without loading the engine, the instruments or the
+    # twins; and the certificate's package imports this module when it is loaded.
+    from bench.core.config import Config, StandSettings
+    from bench.core.engine import RunContext
+    from bench.core.instruments import Bench
+    from bench.core.journal import RunDir
+    from bench.core.plan import Plan, Step
+    from bench.core.schema import Map
+    from bench.core.simbench import SimBench
+    from bench.core.yamlfile import Problem
     from bench.report.certificate.model import Document
     from bench.report.figures import FigureSpec, FigureValue, InstrumentCheck, SummaryCut
+    from drivers.clock import Clock
 
 GROUP = "ratebench.procedures"
 #: where an install whose metadata predates the entry points finds the kinds (an old
@@ -169,7 +171,8 @@ def procedure_names() -> list[str]:
 def procedure_kind(name: str) -> ProcedureKind:
     """The kind registered under `name` (KeyError if none is)."""
     module, _, attr = _registered()[name].partition(":")
-    return getattr(importlib.import_module(module), attr or "KIND")
+    kind: ProcedureKind = getattr(importlib.import_module(module), attr or "KIND")
+    return kind
 
 
 def installed_kind(name: str | None) -> ProcedureKind | None:

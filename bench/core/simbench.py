@@ -19,7 +19,7 @@ import dataclasses
 import sys
 import uuid
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -35,11 +35,14 @@ from bench.core.config import (
 from drivers.waits import MIN_REAL_MARGIN_S
 from sims.clock import GIL_SWITCH_S, MAX, SteppedClock, make_clock, parse_speed
 from sims.counter_twin import CounterTwin
-from sims.drive_twin import DriveTwin
 from sims.fog_twin import DEFAULT_SERIAL as DEFAULT_FOG_SERIAL
 from sims.fog_twin import FogTwin
-from sims.socketcand_server import MAX_BUS_NAME, SocketcandServer
 from sims.stand import SimulatedStand, StandTruth
+
+# the drive twin and the socketcand server (canopen, python-can) are imported when the
+# twins start: a kind's module imports this one, and `bench validate` loads the kind
+if TYPE_CHECKING:
+    from sims.socketcand_server import SocketcandServer
 
 #: the stand's sample rate for an axis that carries no FOG (the twins' time grid)
 SIM_GRID_HZ = 1000.0
@@ -133,6 +136,7 @@ class SimBench:
 
     def start(self, extra: list[TwinFactory] | None = None) -> StandSettings:
         """Start every twin; return the stand settings pointing at them."""
+        from sims.drive_twin import DriveTwin
         axes = dict(self.settings.axes)
         try:
             for a in self.axes:  # FOG twins first: they must see every sample from 0 on
@@ -201,6 +205,7 @@ class SimBench:
         """Serve each of the stand's buses on one socketcand server on 127.0.0.1, and
         point the drives at it: what another process opens with `can.Bus`. A bus keeps
         the stand's channel name where socketcand allows it (16 characters)."""
+        from sims.socketcand_server import MAX_BUS_NAME, SocketcandServer
         names: dict[str, str] = {}          # the stand's bus -> its socketcand bus name
         for n, bus in enumerate(buses):
             stated = bus.split(":", 1)[1]

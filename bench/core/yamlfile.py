@@ -6,6 +6,8 @@ so the loader keeps the line of every mapping key and sequence item it builds.
 
 from __future__ import annotations
 
+import copy
+import functools
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -246,13 +248,8 @@ def load_yaml(path: str | Path) -> YamlDoc:
         line: int | None = raw.count(b"\n", 0, e.start) + 1
         raise YamlError(Problem(str(p), line, "(file)", f"not UTF-8 text: byte "
                                 f"0x{raw[e.start]:02x} at offset {e.start}")) from None
-    loader: _Loader | None = None
     try:
-        loader = _Loader(text)
-        node = loader.get_single_node()
-        builder = _Builder(loader)
-        data = builder.build(node) if node is not None else None
-        lines = builder.lines or {(): 1}  # an empty file: its problems are on line 1
+        data, lines = _parsed(text)
     except yaml.reader.ReaderError as e:
         char = f"U+{e.character:04X}" if isinstance(e.character, int) else repr(e.character)
         raise YamlError(Problem(str(p), _line_of_offset(text, e.position), "(file)",
@@ -275,17 +272,54 @@ def load_yaml(path: str | Path) -> YamlDoc:
         raise YamlError(Problem(str(p), line, key, msg)) from None
     except yaml.YAMLError as e:
         raise YamlError(Problem(str(p), None, "(syntax)", f"YAML: {e}")) from None
-    except RecursionError:
-        line = getattr(loader, "line", None)
-        raise YamlError(Problem(str(p), line + 1 if isinstance(line, int) else None,
+    except _TooDeep as e:
+        raise YamlError(Problem(str(p), e.line + 1 if isinstance(e.line, int) else None,
                                 "(syntax)", f"nested too deeply (more than {MAX_DEPTH} "
                                 "levels)")) from None
     except YamlError as e:
         raise YamlError(Problem(str(p), e.problem.line, e.problem.key, e.problem.message)) from None
+    # a copy: the parse is kept for the next reader of the same text, who gets it as written
+    return YamlDoc(p, copy.deepcopy(data), dict(lines))
+
+
+class _TooDeep(Exception):
+    """The parser ran out of stack; `line`: where it was (0-based), if it knew."""
+
+    def __init__(self, line: int | None) -> None:
+        super().__init__(line)
+        self.line = line
+
+
+#: texts longer than this are parsed each time they are read, not kept
+PARSED_KEPT_MAX_CHARS = 1 << 18
+
+
+def _parsed(text: str) -> tuple[Any, dict[KeyPath, int]]:
+    """The data of a YAML text and the line of every key path (the parser's errors
+    raised as they are). The last few texts' parses are kept, by their text: `bench
+    validate` reads a procedure file three times and its stand file twice, and PyYAML
+    takes tens of milliseconds a file."""
+    if len(text) > PARSED_KEPT_MAX_CHARS:
+        return _parse(text)
+    return _parse_kept(text)
+
+
+def _parse(text: str) -> tuple[Any, dict[KeyPath, int]]:
+    loader: _Loader | None = None
+    try:
+        loader = _Loader(text)
+        node = loader.get_single_node()
+        builder = _Builder(loader)
+        data = builder.build(node) if node is not None else None
+        return data, builder.lines or {(): 1}  # an empty file: its problems are on line 1
+    except RecursionError:
+        raise _TooDeep(getattr(loader, "line", None)) from None
     finally:
         if loader is not None:
             loader.dispose()
-    return YamlDoc(p, data, lines)
+
+
+_parse_kept = functools.lru_cache(maxsize=16)(_parse)
 
 
 def read_mapping(path: str | Path) -> dict[str, Any]:

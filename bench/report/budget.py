@@ -44,6 +44,11 @@ class Term:
         """u_i(y) = |c_i| u(x_i), in the result's unit."""
         return abs(self.sensitivity) * self.ustd
 
+    @property
+    def signed_contribution(self) -> float:
+        """c_i u(x_i): the sign matters where two inputs are correlated (GUM 5.2.2)."""
+        return self.sensitivity * self.ustd
+
     def to_dict(self) -> dict[str, Any]:
         return {"quantity": self.quantity, "estimate": self.estimate, "unit": self.unit,
                 "ustd": self.ustd, "distribution": self.distribution,
@@ -62,11 +67,17 @@ class Budget:
     terms: tuple[Term, ...]
     reported_U: float | None = None      # the U the analysis reports for it
     note: str = ""
+    #: (i, j, r_ij): inputs i and j (indices into terms) correlated with coefficient r_ij
+    correlations: tuple[tuple[int, int, float], ...] = ()
 
     @property
     def ustd(self) -> float:
-        """u_c(y) = sqrt(sum u_i(y)^2) (EA-4/02 eq. 4.3; uncorrelated inputs)."""
-        return math.sqrt(sum(t.contribution ** 2 for t in self.terms))
+        """u_c(y)^2 = sum (c_i u(x_i))^2 + 2 sum_{i<j} c_i c_j u(x_i) u(x_j) r(x_i, x_j)
+        (GUM 5.2.2 eq. 16, docs/method.md D1; EA-4/02 eq. 4.3 where no r is stated)."""
+        s = [t.signed_contribution for t in self.terms]
+        var = sum(x * x for x in s) + 2.0 * sum(r * s[i] * s[j]
+                                                for i, j, r in self.correlations)
+        return math.sqrt(max(var, 0.0))
 
     @property
     def dof_eff(self) -> float | None:
@@ -97,7 +108,10 @@ class Budget:
                 "combined_ustd": self.ustd, "dof_eff": self.dof_eff, "coverage_factor": self.k,
                 "coverage_probability": COVERAGE_P,
                 "U_budget": self.U, "U_reported": self.reported_U,
-                "reproduces_reported_U": self.reproduces, "note": self.note}
+                "reproduces_reported_U": self.reproduces, "note": self.note,
+                **({"correlations": [{"terms": [i, j], "r": r}
+                                     for i, j, r in self.correlations]}
+                   if self.correlations else {})}
 
 
 def num(x: Any) -> float | None:
@@ -113,10 +127,14 @@ def from_dict(d: Mapping[str, Any]) -> Budget | None:
                            str(t["distribution"]), float(t["sensitivity"]),
                            num(t.get("dof")), str(t.get("unit") or ""))
                       for t in d["terms"])
+        corr = tuple((int(c["terms"][0]), int(c["terms"][1]), float(c["r"]))
+                     for c in d.get("correlations") or ())
+        if any(not (0 <= i < len(terms) and 0 <= j < len(terms)) for i, j, _ in corr):
+            return None
         return Budget(str(d["quantity"]), str(d["key"]), str(d.get("unit") or ""),
                       num(d.get("estimate")), terms, num(d.get("U_reported")),
-                      str(d.get("note") or ""))
-    except (KeyError, TypeError, ValueError):
+                      str(d.get("note") or ""), corr)
+    except (KeyError, TypeError, ValueError, IndexError):
         return None
 
 

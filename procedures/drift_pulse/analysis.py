@@ -35,9 +35,18 @@ from typing import Any
 
 import numpy as np
 
+from bench.analysis.coverage import coverage_factor
+from bench.report.budget import Budget
 from drivers.units import EARTH_RATE_DPH, SECONDS_PER_HOUR
+from procedures.drift_pulse.budgets import (
+    AxisInputs,
+    PositionInput,
+    apparent_budget,
+    azimuth_budget,
+    earth_budget,
+    own_budget,
+)
 
-COVERAGE_K = 2.0
 DETECTION_Z = 3.0
 #: a cycle whose fitted precession is off the median by this factor had no proper pulse
 MIN_AMPLITUDE_REL = 0.5
@@ -290,7 +299,9 @@ class StartOffset:
         return abs(self.offset_s) > DETECTION_Z * self.offset_u_s
 
     def to_dict(self) -> dict[str, Any]:
-        return {"offset_s": self.offset_s, "offset_u_s": COVERAGE_K * self.offset_u_s,
+        # U = t_95.45(cycles - 1) u (docs/method.md D1)
+        return {"offset_s": self.offset_s,
+                "offset_u_s": coverage_factor(max(self.cycles - 1, 1)) * self.offset_u_s,
                 "offset_samples": self.samples, "detected": self.significant,
                 "cycles": self.cycles}
 
@@ -335,28 +346,33 @@ class PositionMean:
 
     @property
     def u_dph(self) -> float:
-        """Type A standard uncertainty of the mean, for few cycles as GUM-S1 6.4.9.4 has it.
-
-        s / sqrt(n) * sqrt((n - 1) / (n - 3)): the std of the scaled-t distribution of the
-        mean, so that k = 2 still covers with 8 or 10 cycles; n >= 4 is needed.
-        """
-        if self.n < 4:
+        """Type A standard uncertainty of the mean, s / sqrt(n) with n - 1 degrees of
+        freedom, not widened: the t-factor of the budget's nu_eff carries the few cycles
+        (docs/method.md D1, one rule with the rate ladder); n >= 2 is needed."""
+        if self.n < 2:
             return math.inf
-        return self.std_dph / math.sqrt(self.n) * math.sqrt((self.n - 1) / (self.n - 3))
+        return self.std_dph / math.sqrt(self.n)
 
     def to_dict(self) -> dict[str, Any]:
+        """The position mean as a budget input: its standard uncertainty and dof, no U of its
+        own (docs/method.md D2)."""
         return {"table_deg": self.table_deg, "cycles": self.n, "mean_dph": self.mean_dph,
-                "std_dph": self.std_dph, "u_dph": COVERAGE_K * self.u_dph,
+                "std_dph": self.std_dph, "mean_ustd_dph": self.u_dph, "dof": self.n - 1,
                 "drifts_dph": list(self.drifts_dph)}
 
+    def as_input(self) -> PositionInput:
+        return PositionInput(self.table_deg, self.mean_dph, self.u_dph, self.n)
 
-def separate(positions: Sequence[PositionMean]) -> tuple[np.ndarray, np.ndarray]:
+
+def separate(positions: Sequence[PositionMean]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Own and apparent drift from the positions (docs/method.md B, as least squares).
 
     Model: w(theta) = own + c cos(theta) - s sin(theta), c the apparent drift at 0 deg.
     For 0 and 180 deg only this is own = (w0 + w180)/2, app = (w0 - w180)/2. With other
     angles s is fitted too (the turn's extra information, beyond the paper).
-    Returns (estimates [own, app0(, s)], covariance) from the type A uncertainties.
+    Returns (estimates [own, app0(, s)], covariance, gain G) from the type A
+    uncertainties: est = G w, so row i of G holds the sensitivities of estimate i to the
+    position means (1/2, 1/2 and 1/2, -1/2 for 0 and 180 deg), the budget's c_i.
     """
     theta = np.radians([p.table_deg for p in positions])
     w = np.array([p.mean_dph for p in positions])
@@ -370,12 +386,12 @@ def separate(positions: Sequence[PositionMean]) -> tuple[np.ndarray, np.ndarray]
         raise ValueError("the positions do not separate own and apparent drift: measure "
                          "at two positions 180 deg apart at least")
     if not np.all(np.isfinite(var)):
-        raise ValueError("each position needs at least four cycles (for its scatter)")
+        raise ValueError("each position needs at least two cycles (for its scatter)")
     var = np.maximum(var, 1e-30)  # noise-free cycles
     wt = 1.0 / var
     cov = np.linalg.inv(a.T @ (a * wt[:, None]))
-    est = cov @ (a.T @ (wt * w))
-    return est, cov
+    gain = cov @ (a.T * wt)
+    return gain @ w, cov, gain
 
 
 # -- the stated error sources and the result --------------------------------------------
@@ -391,7 +407,8 @@ class StatedErrors:
 
 @dataclass(frozen=True)
 class AxisDrift:
-    """One gyro's own and apparent drift, with U (k = 2) and the budget behind it."""
+    """One gyro's own and apparent drift, with U = k(nu_eff) u_c of the budget behind each
+    (docs/method.md D1)."""
 
     gyro: str
     own_dph: float
@@ -404,14 +421,11 @@ class AxisDrift:
     own_nominal_dph: float                    # at the nominal edges, for comparison
     apparent_nominal_dph: float
     amplitude_dps: float
-    budget_own_dph: dict[str, float] = field(default_factory=dict)   # standard u
-    budget_apparent_dph: dict[str, float] = field(default_factory=dict)
+    inputs: AxisInputs
+    own_budget: Budget
+    apparent_budget: Budget | None
     vertical: bool = False
-    example: dict[str, Any] | None = None       # one cycle for the certificate's plot
-
-    @property
-    def apparent_std_u_dph(self) -> float:
-        return self.apparent_u_dph / COVERAGE_K
+    example: dict[str, Any] | None = field(default=None)   # one cycle for the plot
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -422,17 +436,12 @@ class AxisDrift:
             "amplitude_dps": self.amplitude_dps,
             "vertical": self.vertical,
             "start_offset": self.start_offset.to_dict(),
-            "budget": {"own_u_dph": self.budget_own_dph,
-                       "apparent_u_dph": self.budget_apparent_dph,
-                       "note": "standard uncertainties (k = 1) per source"},
+            "budgets": [b.to_dict() for b in (self.own_budget, self.apparent_budget)
+                        if b is not None],
             "positions": [p.to_dict() for p in self.positions],
             "cycles": [c.to_dict() for c in self.cycles],
             **({"example_cycle": self.example} if self.example else {}),
         }
-
-
-def _rss(parts: Mapping[str, float]) -> float:
-    return math.sqrt(sum(v * v for v in parts.values()))
 
 
 def analyze_axis(gyro: str, records: Sequence[CycleRecord], shape: PulseShape,
@@ -484,43 +493,32 @@ def analyze_axis(gyro: str, records: Sequence[CycleRecord], shape: PulseShape,
         own, app = float(np.mean(all_w)) - w_v, w_v
         own_nom = float(np.mean([w for p in nominal for w in p.drifts_dph])) - w_v
         app_nom = w_v
-        u_a_own = PositionMean(0.0, tuple(all_w), 0.0).u_dph
-        u_a_app = 0.0
+        inputs_at: tuple[PositionInput, ...] = (PositionMean(0.0, tuple(all_w),
+                                                             0.0).as_input(),)
+        own_c: tuple[float, ...] = (1.0,)
+        app_c: tuple[float, ...] = (0.0,)
     else:
-        est, cov = separate(positions)
-        est_nom, _ = separate(nominal)
+        est, _, gain = separate(positions)
+        est_nom, _, _ = separate(nominal)
         own, app = float(est[0]), float(est[1])
         own_nom, app_nom = float(est_nom[0]), float(est_nom[1])
-        u_a_own, u_a_app = math.sqrt(cov[0, 0]), math.sqrt(cov[1, 1])
-    # type B (docs/method.md B): the mismatch and the start offset act alike at every position,
-    # so they sit in the own drift only; k_as scales everything
-    a = abs(amplitude)
+        inputs_at = tuple(p.as_input() for p in positions)
+        own_c, app_c = tuple(float(c) for c in gain[0]), tuple(float(c) for c in gain[1])
     span_h = (max(r.t_start_s for r in drift_records)
               - min(r.t_start_s for r in drift_records) + 2 * tc) / SECONDS_PER_HOUR
-    offset_sens = 2.0 * a * shape.angle_end / tc  # |dw/dtau|, deg/s per s
-    budget_own = {
-        "repeatability": u_a_own,
-        "angle_sensor_scale": abs(own) * stated.k_as_u_rel,
-        "pulse_mismatch": a * stated.pulse_mismatch_max_rel * shape.angle_mean
-        / math.sqrt(3.0) * SECONDS_PER_HOUR,
-        "start_offset": offset_sens * pooled.offset_u_s * SECONDS_PER_HOUR,
-    }
-    budget_app = {
-        "repeatability": u_a_app,
-        "angle_sensor_scale": abs(app) * stated.k_as_u_rel,
-        # the own drift wanders between the positions (conservative: the whole span)
-        "drift_random_walk": 0.0 if vertical else
-        stated.drift_random_walk_dph_per_rth * math.sqrt(span_h) / 2.0,
-    }
-    if latitude_deg is not None and not vertical:
-        # a turn e off 180 deg leaves (the other horizontal component) * e / 2 in the
-        # apparent drift; bounded by W_h e / 2, e uniform within the tolerance
-        w_h = EARTH_RATE_DPH * math.cos(math.radians(latitude_deg))
-        budget_app["turn_position"] = w_h * math.radians(stated.turn_tolerance_deg) / (
-            2.0 * math.sqrt(3.0))
-    return AxisDrift(gyro, own, COVERAGE_K * _rss(budget_own), app,
-                     COVERAGE_K * _rss(budget_app), tuple(positions), tuple(cycles), pooled,
-                     own_nom, app_nom, amplitude, budget_own, budget_app, vertical,
+    w_h = (EARTH_RATE_DPH * math.cos(math.radians(latitude_deg))
+           if latitude_deg is not None else None)
+    inputs = AxisInputs(gyro, inputs_at, own_c, app_c, own, app, k_as_v_per_deg,
+                        stated.k_as_u_rel, amplitude, stated.pulse_mismatch_max_rel,
+                        shape.angle_mean, shape.angle_end, tc, pooled.offset_s,
+                        pooled.offset_u_s, pooled.cycles,
+                        stated.drift_random_walk_dph_per_rth, span_h,
+                        stated.turn_tolerance_deg, w_h, vertical)
+    # every U is its budget's k(nu_eff) u_c (docs/method.md B, D1)
+    b_own, b_app = own_budget(inputs), apparent_budget(inputs)
+    return AxisDrift(gyro, own, b_own.U, app, b_app.U if b_app is not None else 0.0,
+                     tuple(positions), tuple(cycles), pooled, own_nom, app_nom, amplitude,
+                     inputs, b_own, b_app, vertical,
                      example_cycle(drift_records[0], pooled.offset_s))
 
 
@@ -534,6 +532,7 @@ class DriftResult:
     azimuth_u_deg: float | None
     earth_horizontal_dph: float | None         # |(app_x, app_y)|, measured
     earth_horizontal_u_dph: float | None
+    budgets: tuple[Budget, ...] = ()           # of the azimuth and W_h (docs/method.md B)
 
     @property
     def earth_horizontal_expected_dph(self) -> float:
@@ -554,22 +553,24 @@ class DriftResult:
             "axes": {g: ax.to_dict() for g, ax in self.axes.items()},
             "latitude_deg": self.latitude_deg,
             "earth_horizontal_expected_dph": self.earth_horizontal_expected_dph,
-            "coverage_k": COVERAGE_K,
         }
         if self.azimuth_deg is not None:
             out |= {"azimuth_deg": self.azimuth_deg, "azimuth_u_deg": self.azimuth_u_deg,
                     "earth_horizontal_dph": self.earth_horizontal_dph,
                     "earth_horizontal_u_dph": self.earth_horizontal_u_dph,
                     "earth_horizontal_consistent": self.earth_consistent}
+        out["budgets"] = [b.to_dict() for b in self.budgets]
         return {"drift": out}
 
 
 def azimuth_deg(app_x_dph: float, app_y_dph: float, u_x_dph: float, u_y_dph: float
                 ) -> tuple[float, float]:
-    """A = atan2(-app_y, app_x) and its standard uncertainty (docs/method.md B), deg."""
+    """A = atan2(-app_y, app_x) and its standard uncertainty for independent app_x, app_y
+    (docs/method.md B), deg. The reported U is the azimuth budget's (budgets.py), which
+    adds the two k_as' correlation and the one turn of the platform."""
     a = math.degrees(math.atan2(-app_y_dph, app_x_dph)) % 360.0
     r2 = app_x_dph ** 2 + app_y_dph ** 2
-    # dA/dx = y / r^2, dA/dy = -x / r^2 (rad per deg/h); the two axes are independent
+    # dA/dx = y / r^2, dA/dy = -x / r^2 (rad per deg/h)
     u = math.sqrt((app_y_dph * u_x_dph) ** 2 + (app_x_dph * u_y_dph) ** 2) / r2
     return a, math.degrees(u)
 
@@ -583,11 +584,12 @@ def analyze(records: Mapping[str, Sequence[CycleRecord]], shape: PulseShape,
                             stated.get(g, StatedErrors()), latitude_deg)
             for g, recs in records.items()}
     az = az_u = wh = wh_u = None
+    budgets: tuple[Budget, ...] = ()
     if "x" in axes and "y" in axes:
-        x, y = axes["x"], axes["y"]
-        ux, uy = x.apparent_std_u_dph, y.apparent_std_u_dph
-        az, u_az = azimuth_deg(x.apparent_dph, y.apparent_dph, ux, uy)
-        az_u = COVERAGE_K * u_az
-        wh = math.hypot(x.apparent_dph, y.apparent_dph)
-        wh_u = COVERAGE_K * math.hypot(x.apparent_dph * ux, y.apparent_dph * uy) / wh
-    return DriftResult(axes, latitude_deg, az, az_u, wh, wh_u)
+        x, y = axes["x"].inputs, axes["y"].inputs
+        az, _ = azimuth_deg(x.app_dph, y.app_dph, 0.0, 0.0)
+        wh = math.hypot(x.app_dph, y.app_dph)
+        # U = k(nu_eff) u_c of each budget, the k_as correlated (docs/method.md B, D1)
+        budgets = (azimuth_budget(x, y, az), earth_budget(x, y, wh))
+        az_u, wh_u = budgets[0].U, budgets[1].U
+    return DriftResult(axes, latitude_deg, az, az_u, wh, wh_u, budgets)

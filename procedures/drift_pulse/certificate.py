@@ -12,6 +12,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from bench.analysis.coverage import DOF_INFINITE
 from bench.report.certificate import methods, plots
 from bench.report.certificate.model import Block, Fields, Para, Section, Table
 from bench.report.certificate.parts import (
@@ -19,7 +20,6 @@ from bench.report.certificate.parts import (
     CertificateParts,
     Sources,
     figure_of,
-    label_of,
     num,
     stand_of,
     text_of,
@@ -128,32 +128,55 @@ def _position(c: Mapping[str, Any]) -> float:
     return num(c.get("position_deg", c.get("table_deg"))) or 0.0
 
 
+def _k_text(node: Mapping[str, Any], stem: str) -> str:
+    """'k = 2.09 (ν_eff = 29.8)' of a figure's budget (docs/method.md D1), as
+    procedures/drift_pulse/budgets.py states it beside the U; '—' when no budget says."""
+    k, nu = num(node.get(f"{stem}_coverage_factor")), num(node.get(f"{stem}_dof_eff"))
+    if k is None:
+        return "—"
+    return f"{k:.2f} ({'∞' if nu is None or nu > DOF_INFINITE else f'{nu:.1f}'})"
+
+
 def _drift_results(src: Sources, number: str) -> list[Section]:
     drift = src.get("drift", {}) or {}
     axes = {a: d for a, d in (drift.get("axes", {}) or {}).items() if isinstance(d, Mapping)}
-    blocks: list[Any] = [Para("Drift in °/h; each value followed by its expanded uncertainty "
-                              "U (k = 2, about 95 %).")]
+    budgeted = any(isinstance(d.get("budgets"), list) for d in axes.values())
+    blocks: list[Any] = [Para(
+        "Drift in °/h; each value followed by its expanded uncertainty U for about 95 %: "
+        "U = k·u_c of its budget in the annex, k = t_95.45(ν_eff) (docs/method.md D1, the one "
+        "rule of every U on this certificate)." if budgeted else
+        "Drift in °/h; each value followed by its expanded uncertainty U for about 95 %, as "
+        "result.json states it (it carries no budget).")]
     has_nominal = any(num(d.get("own_nominal_edges_dph")) is not None for d in axes.values())
     rows = []
     for axis, d in axes.items():
         row = [axis, vu_text(d.get("own_dph"), d.get("own_u_dph"), signed=True),
                vu_text(d.get("apparent_dph"), d.get("apparent_u_dph"), signed=True),
                text_of(len(d.get("cycles") or []) or None)]
+        if budgeted:
+            row.insert(2, _k_text(d, "own"))
+            row.insert(4, _k_text(d, "apparent"))
         if has_nominal:
-            row.insert(3, format_sig(num(d.get("own_nominal_edges_dph")) or math.nan, 4,
-                                     signed=True))
+            row.insert(len(row) - 1, format_sig(num(d.get("own_nominal_edges_dph"))
+                                                or math.nan, 4, signed=True))
         rows.append(tuple(row))
     if rows:
         header = ["Axis", "Own drift ± U, °/h", "Apparent drift at 0° ± U, °/h", "Cycles"]
+        widths = [0.6, 1.9, 2.1, 0.7]
+        if budgeted:
+            header.insert(2, "k (ν_eff)")
+            header.insert(4, "k (ν_eff)")
+            widths.insert(2, 1.0)
+            widths.insert(4, 1.0)
         notes = []
         if has_nominal:
-            header.insert(3, "Own drift at nominal edges, °/h")
+            header.insert(len(header) - 1, "Own drift at nominal edges, °/h")
+            widths.insert(len(widths) - 1, 1.6)
             notes.append("Own drift at nominal edges: the same cycles integrated with the "
                          "pulse edges at the digitizer's nominal sample times, as the paper's "
                          "integrator does; shown for comparison only.")
-        blocks.append(Table(tuple(header), tuple(rows),
-                            widths=(0.8, 2.2, 2.6, 2.0, 0.8)[:len(header)] if has_nominal
-                            else (0.8, 2.4, 2.8, 1.0), align="lrrrr"[:len(header)],
+        blocks.append(Table(tuple(header), tuple(rows), widths=tuple(widths),
+                            align="l" + "r" * (len(header) - 1),
                             caption="Own and apparent drift per axis (docs/method.md B)",
                             notes=tuple(notes)))
     fields = []
@@ -161,12 +184,16 @@ def _drift_results(src: Sources, number: str) -> list[Section]:
         fields.append(("Site latitude", f"{num(drift['latitude_deg']):g}°"))
     if num(drift.get("azimuth_deg")) is not None:
         az, azu = num(drift["azimuth_deg"]), num(drift.get("azimuth_u_deg"))
-        fields.append(("Platform azimuth (X input axis) ± U", vu_text(az, azu) + " °"))
+        k = _k_text(drift, "azimuth")
+        fields.append(("Platform azimuth (X input axis) ± U", vu_text(az, azu) + " °"
+                       + ("" if k == "—" else f"; k (ν_eff) = {k}")))
         if azu is not None:
             fields.append(("U of the azimuth", format_value_u(azu * 60, None, sig_without_u=2)
                            .joined("arcmin")))
     if num(drift.get("earth_horizontal_dph")) is not None:
         text = vu_text(drift["earth_horizontal_dph"], drift.get("earth_horizontal_u_dph")) + " °/h"
+        if (k := _k_text(drift, "earth_horizontal")) != "—":
+            text += f" (k (ν_eff) = {k})"
         exp = num(drift.get("earth_horizontal_expected_dph"))
         if exp is not None:
             ok = drift.get("earth_horizontal_consistent")
@@ -191,28 +218,28 @@ def _drift_results(src: Sources, number: str) -> list[Section]:
                                       "std_dph": std, "drifts_dph": w})
         for p in positions:
             w = [v for v in (num(x) for x in p.get("drifts_dph") or []) if v is not None]
-            prow.append((axis, f"{_position(p):g}", text_of(p.get("cycles", len(w))),
-                         vu_text(p.get("mean_dph"), p.get("u_dph"), signed=True),
-                         format_sig(num(p.get("std_dph")) or math.nan, 2),
+            n = int(num(p.get("cycles")) or len(w))
+            std = num(p.get("std_dph"))
+            # the mean's Type A standard uncertainty s/sqrt(n), nu = n - 1 (docs/method.md D1):
+            # a budget input, stated without a U of its own (D2)
+            u_mean = num(p.get("mean_ustd_dph"))
+            if u_mean is None and std is not None and n > 1:
+                u_mean = std / math.sqrt(n)
+            prow.append((axis, f"{_position(p):g}", str(n),
+                         format_sig(num(p.get("mean_dph")) or math.nan, 5, signed=True),
+                         format_sig(std or math.nan, 2), format_sig(u_mean or math.nan, 2),
+                         str(n - 1) if n > 1 else "—",
                          ", ".join(format_sig(x, 5, signed=True) for x in w)))
     if prow:
-        blocks.append(Table(("Axis", "Position, °", "Cycles", "Mean ± U, °/h", "Std, °/h",
-                             "Drift per cycle, °/h, in order"), tuple(prow),
-                            widths=(0.6, 0.8, 0.6, 1.8, 0.8, 4.0), align="lrrrrl",
-                            caption="Drift per platform position and per cycle"))
-    brow = []
-    for axis, d in axes.items():
-        budget = d.get("budget") or {}
-        own, app = budget.get("own_u_dph") or {}, budget.get("apparent_u_dph") or {}
-        for src_name in dict.fromkeys([*own, *app]):
-            brow.append((axis, label_of(src_name),
-                         format_sig(num(own.get(src_name)) or math.nan, 2),
-                         format_sig(num(app.get(src_name)) or math.nan, 2)))
-    if brow:
-        blocks.append(Table(("Axis", "Source", "u(own), °/h", "u(apparent), °/h"),
-                            tuple(brow), widths=(0.7, 3.5, 1.5, 1.5), align="llrr",
-                            caption="Uncertainty budget: standard uncertainties (k = 1) per "
-                                    "source; U above is 2 × their root sum of squares"))
+        blocks.append(Table(("Axis", "Position, °", "Cycles", "Mean w̄, °/h", "Std s, °/h",
+                             "u(w̄) = s/√n, °/h", "ν", "Drift per cycle, °/h, in order"),
+                            tuple(prow), widths=(0.5, 0.7, 0.5, 1.1, 0.8, 1.0, 0.4, 3.6),
+                            align="lrrrrrrl",
+                            caption="Drift per platform position and per cycle",
+                            notes=("The position means are inputs of the own and apparent "
+                                   "drifts' budgets (annex): each with its standard "
+                                   "uncertainty and degrees of freedom, no U of its own "
+                                   "(docs/method.md D1, D2).",)))
     blocks += figure_of("Drift estimate per cycle, by axis and platform position",
                       plots.drift_cycles,
                       {a: {**d, "cycles": [{**c, "position_deg": _position(c)}

@@ -16,7 +16,7 @@ from bench.report.dcc import units as U
 from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import Checks, judge
 from bench.report.dcc.parts import DccParts
-from bench.report.dcc.xml import budget_list, el, ident, list_quantity, name, num, quantity, text_el
+from bench.report.dcc.xml import el, ident, list_quantity, name, num, quantity, text_el
 
 # the drift procedure's refTypes, namespace "ratebench" (docs/dcc.md, section "refTypes")
 OWN_DRIFT = V.RB + "ownDrift"
@@ -45,6 +45,13 @@ class DriftDcc(DccParts):
 
     def dcc_results(self, results: etree._Element, src: Sources, checks: Checks) -> None:
         drift_results(results, src, checks)
+
+
+def _k(node: Mapping[str, object], key: str) -> float | None:
+    """The coverage factor of figure `key`'s budget, stated beside it in result.json
+    (procedures/drift_pulse/budgets.py add_budgets; docs/method.md D1); None: k = 2."""
+    stem = key.removesuffix("_dph").removesuffix("_deg")
+    return num(node.get(f"{stem}_coverage_factor"))
 
 
 def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None:
@@ -81,19 +88,9 @@ def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None
             uu = num(d.get(u_key)) if u_key else None
             node = quantity(data, ident(aid, key), title, ref, v, U.DEG_PER_H, uu,
                             label=f"{path}.{key}", note=None if uu is not None or not u_key
-                            else "U not stated in result.json.")
+                            else "U not stated in result.json.", k=_k(d, key))
             if check:
                 judge(node, checks.take(axis, None, check), U.DEG_PER_H)
-        budget = got if isinstance(got := d.get("budget"), Mapping) else {}
-        for key, what in (("own_u_dph", "own"), ("apparent_u_dph", "apparent")):
-            terms = budget.get(key)
-            if isinstance(terms, Mapping):
-                budget_list(data, ident(aid, "budget", what),
-                            f"uncertainty budget of the {what} drift: standard uncertainties "
-                            "(k = 1) per source; U = 2 sqrt(sum u^2) (docs/method.md B)",
-                            terms, f"{path}.budget.{key}",
-                            tuple((str(k), str(k).replace("_", " ")) for k in terms),
-                            U.DEG_PER_H)
         for j, pos in enumerate(d.get("positions") or []):
             if not isinstance(pos, Mapping):
                 continue
@@ -105,10 +102,16 @@ def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None
                      label=f"{pp}.table_deg")
             mean = num(pos.get("mean_dph"))
             if mean is not None:
-                uu = num(pos.get("u_dph"))
+                # a budget input: its standard uncertainty and dof, no U (docs/method.md D2)
                 quantity(lst, ident(aid, "pos", f"{table:g}", "mean_dph"), "mean drift",
-                         V.MEASURED, mean, U.DEG_PER_H, uu, label=f"{pp}.mean_dph",
-                         note=None if uu is not None else "U not stated in result.json.")
+                         V.MEASURED, mean, U.DEG_PER_H, label=f"{pp}.mean_dph",
+                         note="An input of the own and apparent drifts' budgets; its standard "
+                              "uncertainty s/sqrt(n) beside it (nu = n - 1).")
+                uu = num(pos.get("mean_ustd_dph"))
+                if uu is not None:
+                    quantity(lst, None, "standard uncertainty of the mean, s/sqrt(n)",
+                             V.STANDARD_UNCERTAINTY, uu, U.DEG_PER_H,
+                             label=f"{pp}.mean_ustd_dph")
             if num(pos.get("std_dph")) is not None:
                 quantity(lst, None, "standard deviation of the cycles", STD,
                          num(pos["std_dph"]) or 0.0, U.DEG_PER_H, label=f"{pp}.std_dph")
@@ -137,7 +140,7 @@ def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None
             uu = num(drift.get(u_key)) if u_key else None
             node = quantity(data, ident("drift", key), title, ref, v, unit, uu,
                             label=f"drift.{key}", note=None if uu is not None or not u_key
-                            else "U not stated in result.json.")
+                            else "U not stated in result.json.", k=_k(drift, key))
             if check:
                 judge(node, checks.take(None, None, check), unit)
     if not len(res):

@@ -21,20 +21,19 @@ directory (`bench analyze` recomputes everything from them).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from bench.core import rundir_layout as layout
 from bench.core.config import (
     Config,
     StandSettings,
     stand_schema,
 )
 from bench.core.engine import Abort, RunContext
-from bench.core.instruments import Bench, manual_note, open_axis, raw_text_logger, with_readback
 from bench.core.journal import RunDir, read_jsonl
 from bench.core.plan import Plan, Step
 from bench.core.progress import Figure
 from bench.core.schema import Key, Map
-from bench.core.simbench import SimBench, TwinFactory
 from bench.core.yamlfile import Problem
 from bench.report.conformity import judge
 from drivers.awg import WaveformGenerator
@@ -59,7 +58,12 @@ from procedures.drift_pulse.settings import (  # noqa: F401 - the kind's names
     Timing,
     drift_problems,
 )
-from sims.gyro_rig import start_gyro_rig
+
+# the instruments and the twins are imported where the kind opens them: `bench validate`
+# and `bench schema` load this module for its files alone
+if TYPE_CHECKING:
+    from bench.core.instruments import Bench
+    from bench.core.simbench import SimBench, TwinFactory
 
 
 class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
@@ -142,11 +146,19 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
 
     # -- bench ----------------------------------------------------------------------------
     def start_sim(self, cfg: Config) -> tuple[SimBench, StandSettings]:
+        from bench.core.simbench import SimBench
         sim = SimBench(cfg.stand_settings, [self.table(cfg)])
         return sim, sim.start(extra=[gyro_rig_factory(PlatformSettings.of(cfg))])
 
     def open_bench(self, cfg: Config, stand: StandSettings, clock: Clock,
                    run: RunDir | None) -> Bench:
+        from bench.core.instruments import (
+            Bench,
+            manual_note,
+            open_axis,
+            raw_text_logger,
+            with_readback,
+        )
         bench = Bench()
         d = PlatformSettings.of(cfg)
 
@@ -158,7 +170,7 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
             open_axis(bench, stand.axes[table], clock, run, counter=False, fog=False)
             awg = WaveformGenerator.open(
                 stand.address("platform.awg.resource", d.awg_resource),
-                d.awg_model, clock, raw=raw("awg.jsonl"))
+                d.awg_model, clock, raw=raw(layout.AWG_LOG))
             bench.enter(awg)
             bench.extra["awg"] = awg
             bench.extra["dmms"] = {}
@@ -166,7 +178,7 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
                 spec = d.platform[g]
                 dmm = Digitizer.open(
                     stand.address(f"platform.gyros.{g}.dmm.resource", spec.dmm_resource),
-                    spec.dmm_model, clock, raw=raw(f"{g}-dmm.jsonl"))
+                    spec.dmm_model, clock, raw=raw(layout.dmm_log(g)))
                 bench.enter(dmm)
                 bench.extra["dmms"][g] = dmm
             bench.axes[table].identities["awg"] = with_readback(
@@ -297,6 +309,7 @@ def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
     of the procedure, each address rewritten to its twin's (`SimBench.addresses`)."""
 
     def add_platform(sb: SimBench) -> None:
+        from sims.gyro_rig import start_gyro_rig
         if d.sim_platform is None:
             raise ValueError("a simulated drift-pulse bench needs sim.platform")
         gyros = list(d.gyros)
@@ -320,7 +333,7 @@ def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
 
 def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
     """The DMM's replies to FETC?, in order, from its raw SCPI journal of a session."""
-    path = run.path / "raw" / f"s{session}" / f"{gyro}-dmm.jsonl"
+    path = layout.raw_file(run.path, session, layout.dmm_log(gyro))
     out, waiting = [], False
     fetch = DMM_PROFILES[model].words.fetch.text().upper()
     for r in read_jsonl(path):

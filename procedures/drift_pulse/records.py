@@ -45,7 +45,7 @@ FIGURES = (
 #: the containers of the kind's part of result.json (bench/report/certificate/shape.py)
 RESULT_SHAPE = {"drift": {"axes": {"*": {
     "cycles": [dict], "positions": [dict], "start_offset": dict, "example_cycle": dict,
-    "budget": {"own_u_dph": dict, "apparent_u_dph": dict}}}}}
+    "budgets": [dict]}}, "budgets": [dict]}}
 
 DRIFT_CAPTION = "Own and apparent drift per axis"
 DRIFT_HEADERS = ("Axis", "Own drift", "Apparent drift")

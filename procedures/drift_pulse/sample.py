@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.core import rundir_layout as layout
+
 
 def drift_pulse_result() -> dict[str, Any]:
     """Two horizontal axes at latitude 70 deg, azimuth 80 deg (the paper's case)."""
@@ -26,17 +28,14 @@ def drift_pulse_result() -> dict[str, Any]:
             cycles += [{"drift_dph": x, "drift_nominal_dph": x + 0.0011, "table_deg": pos}
                        for x in w]
             positions.append({"table_deg": pos, "cycles": 4, "mean_dph": float(np.mean(w)),
-                              "std_dph": float(np.std(w, ddof=1)), "u_dph": 0.0046,
+                              "std_dph": float(np.std(w, ddof=1)),
+                              "mean_ustd_dph": float(np.std(w, ddof=1)) / 2.0, "dof": 3,
                               "drifts_dph": w})
         axes[name] = {"own_dph": own[name], "own_u_dph": 0.0031,
                       "apparent_dph": app[name], "apparent_u_dph": 0.0042,
                       "own_nominal_edges_dph": own[name] + 0.0011,
                       "start_offset": {"offset_s": 2.5e-4, "offset_u_s": 1.0e-5,
                                        "offset_samples": 0.5, "detected": True},
-                      "budget": {"own_u_dph": {"cycle_scatter": 0.0014, "k_as": 0.0002,
-                                               "pulse_mismatch": 0.0005},
-                                 "apparent_u_dph": {"cycle_scatter": 0.0016, "k_as": 0.0011,
-                                                    "pulse_mismatch": 0.0}},
                       "positions": positions, "cycles": cycles}
     t = np.linspace(0.0, 10.0, 201)
     tc = 5.0
@@ -64,7 +63,7 @@ def drift_pulse_result() -> dict[str, Any]:
         "decision_rule": "simple",
         "method": {"pulse_shape": "rectangular", "tc_s": 5.0, "amplitude_dps": 0.5,
                    "cycles": 4, "positions_deg": [0, 180], "sample_rate_hz": 2000},
-        "raw_files": [{"path": "raw/s1/x-digitizer.jsonl", "sha256": "34" * 32,
+        "raw_files": [{"path": layout.raw_relpath(1, "x-digitizer.jsonl"), "sha256": "34" * 32,
                        "bytes": 800_000}],
         "sessions": 1,
         "aborted": False,

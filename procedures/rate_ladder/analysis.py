@@ -24,6 +24,7 @@ from bench.analysis.pair import analyze_pair_mains
 from bench.analysis.random_part import std_interval_u_rel
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
+from bench.core import rundir_layout as layout
 from bench.core.config import Config, CounterSpec
 from bench.core.journal import RunDir, fog_capture_starts, read_jsonl
 from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
@@ -152,7 +153,7 @@ class RawData:
 
     @lru_cache(maxsize=8)  # noqa: B019
     def counter_log(self, session: int, axis: str) -> list[dict[str, Any]]:
-        path = self.run.path / "raw" / f"s{session}" / f"{axis}-counter.jsonl"
+        path = layout.raw_file(self.run.path, session, layout.counter_log(axis))
         return list(read_jsonl(path))
 
     def _cursor(self, session: int, axis: str, i_from: int,
@@ -169,7 +170,7 @@ class RawData:
             f = self.cfg.fog(axis)
             if self._first_index is None:
                 self._first_index = fog_capture_starts(self.run.events())
-            c = CaptureCursor(self.run.path / "raw" / f"s{session}" / f"{axis}-fog.bin",
+            c = CaptureCursor(layout.raw_file(self.run.path, session, layout.fog_capture(axis)),
                               fmt=f.format, axis=f.axis, rate_hz=f.rate_hz, units=f.units,
                               chunk_bytes=self.chunk_bytes, start=start,
                               first_index=self._first_index.get(key))

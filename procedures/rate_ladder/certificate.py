@@ -662,9 +662,12 @@ def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
                    and a.lower is not None else
                    present(a.corrected, None, unit.scale, resolved=False, upper=a.upper).text)
             limited |= not a.resolved
+            # docs/method.md D2: the measured figure against the FOG's floor over the same
+            # window: 'raw ± U' only when raw - U > floor, else '< L' (never below the floor)
+            measured = present(a.raw, a.u, unit.scale, floor=a.floor)
+            limited |= not measured.resolved
             rows.append((rate_text(r.get("set_rate_dps")), f"{a.angle_deg:g}", "FOG",
-                         present(a.raw, a.u, unit.scale, resolved=True).text
-                         + ("*" if a.u_approx else ""),
+                         measured.text + ("*" if a.u_approx and measured.resolved else ""),
                          format_sig(a.floor * unit.scale, 2) if a.floor is not None else "—",
                          own, format_sig(a.sensitivity * unit.scale, 2)
                          if a.sensitivity is not None else "—", text_of(a.blocks)))
@@ -690,6 +693,9 @@ def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
              "datasheet states it. Over 1° and 10° it comes from the FOG (floor: the FOG's own "
              "noise averaged over the window; table's own = √(measured² − floor²)); over 360° "
              "from the counter's per-turn rates (σ of eq. 2; floor: the timing floor).",
+             "Measured over 1° and 10° (FOG): 'value ± U' when value − U lies above the "
+             "FOG's floor over the same window, else '< L', L = value + U, never below the "
+             "floor (docs/method.md D2: no value or U is printed below its floor).",
              "Capability: 'smallest verifiable' is the smallest table figure this measurement "
              "could show as resolved, (8/(n − 1))^¼ × measured for n windows, or the "
              "counter's timing floor. A datasheet figure below it cannot be verified with "

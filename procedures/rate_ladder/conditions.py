@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.core import rundir_layout as layout
 from bench.core.config import Config
 from bench.core.journal import RunDir, fog_capture_starts
 from drivers.fog import CaptureCursor, FogSamples
@@ -69,7 +70,7 @@ def fog_temperatures(run: RunDir, cfg: Config) -> dict[str, Any]:
     events = run.events()
     first = fog_capture_starts(events)
     for h in HalfAcquired.all_in(events):
-        path = run.path / "raw" / f"s{h.session}" / f"{h.axis}-fog.bin"
+        path = layout.raw_file(run.path, h.session, layout.fog_capture(h.axis))
         if not path.is_file():
             continue
         try:

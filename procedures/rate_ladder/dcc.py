@@ -13,6 +13,7 @@ from lxml import etree
 
 from bench.report.certificate import methods
 from bench.report.certificate.parts import Sources
+from bench.report.certificate.rounding import is_resolved
 from bench.report.dcc import units as U
 from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import Checks, judge
@@ -255,10 +256,19 @@ def _averaged(data: etree._Element, rid: str, path: str, intra: Any) -> None:
         v = num(a.get("instability_rel"))
         if v is not None:
             uu = num(a.get("u_rel"))
+            # as the PDF (docs/method.md D2): +/- U only when v - U > the FOG's floor over
+            # the window; else '< L' as [0, L], L = v + U never below the floor
+            fl = num(a.get("floor_rel"))
+            iv = (None if uu is None or is_resolved(v, uu, floor=fl) else
+                  limit_interval(max(abs(v) + uu, fl or 0.0), "normal, one-sided upper limit "
+                                 "value + U", (1.0 + float(COVERAGE_PROBABILITY)) / 2.0))
             quantity(lst, ident(rid, "avg", f"{num(a['angle_deg']):g}", "instability_rel"),
-                     "instability, relative to |set|", INTRA_TURN, v, U.ONE, uu,
-                     label=f"{p}.instability_rel",
-                     note=None if uu is not None else "U not stated in result.json.")
+                     "instability, relative to |set|", INTRA_TURN, v, U.ONE,
+                     uu if iv is None else None, label=f"{p}.instability_rel",
+                     interval=iv,
+                     note="U not stated in result.json." if uu is None else
+                     None if iv is None else "not resolved above the FOG's floor over the "
+                     "window: stated as < L, L = value + U (docs/method.md D2)")
         if num(a.get("floor_rel")) is not None:
             quantity(lst, None, "FOG noise floor", FOG_FLOOR, num(a["floor_rel"]) or 0.0,
                      U.ONE, label=f"{p}.floor_rel")

@@ -11,36 +11,18 @@ analyze the pair.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bench.core.config import Config, StandSettings, stand_schema
 from bench.core.engine import Abort, RunContext
-from bench.core.instruments import (
-    Bench,
-    StandClaimError,
-    fog_for_axis,
-    identity_record,
-    open_axis,
-)
 from bench.core.journal import FOG_CAPTURE_EVENT, RunDir
 from bench.core.plan import Plan, Step, format_duration
 from bench.core.progress import RELATIVE, Figure
 from bench.core.schema import Map
-from bench.core.simbench import SimBench
 from bench.core.yamlfile import Problem
 from drivers.clock import Clock, stepped
 from procedures.base import StepDispatch
-from procedures.rate_ladder.analysis import (
-    FirstLook,
-    analyze_run,
-    pair_summary,
-    read_half_ahead,
-    static_record,
-    unit_acquisitions,
-    unit_halves,
-)
 from procedures.rate_ladder.certificate import LadderCertificate
-from procedures.rate_ladder.events import HalfAcquired, StaticRecorded
 from procedures.rate_ladder.records import LadderRecords
 from procedures.rate_ladder.settings import (
     NAME,
@@ -51,6 +33,17 @@ from procedures.rate_ladder.settings import (
     tolerance_for,
     validation_notes,
 )
+
+# the instruments, the twins and the analysis are imported where the kind uses them:
+# `bench validate` and `bench schema` load this module for its files alone
+if TYPE_CHECKING:
+    from bench.core.instruments import Bench
+    from bench.core.simbench import SimBench
+    from procedures.rate_ladder.analysis import FirstLook
+
+#: what the analysis worker imports when it starts, before the first pair's look (the
+#: look's modules and the fit's scipy; bench/core/engine.py `_preload`)
+WORKER_PRELOAD = ("procedures.rate_ladder.analysis", "scipy.linalg")
 
 
 def _turns(n: int) -> str:
@@ -176,11 +169,13 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         return list(LadderSettings.from_config(cfg).axes or cfg.stand_settings.axes)
 
     def start_sim(self, cfg: Config) -> tuple[SimBench, StandSettings]:
+        from bench.core.simbench import SimBench
         sim = SimBench(cfg.stand_settings, self.axes(cfg))
         return sim, sim.start()
 
     def open_bench(self, cfg: Config, stand: StandSettings, clock: Clock,
                    run: RunDir | None) -> Bench:
+        from bench.core.instruments import Bench, StandClaimError, open_axis
         bench = Bench()
         try:
             later = fogs_opened_when_used(clock)
@@ -202,6 +197,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         prompt (the operator mounts it then), closed when the next axis begins
         (bench.core.instruments.fog_for_axis). Its first frame's index comes from the
         clock; the `fog_capture` event keeps it for the analysis of the raw file."""
+        from bench.core.instruments import fog_for_axis, identity_record
         ax = ctx.bench.axes.get(step.axis) if step.axis else None
         if ax is not None:
             fog = fog_for_axis(ctx.bench, ax.name, ctx.run, opening=step.action != "prompt")
@@ -215,6 +211,8 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         ctx.bench.axes[step.axis].drive.enable()
 
     def _do_static(self, step: Step, ctx: RunContext) -> None:
+        from procedures.rate_ladder.events import StaticRecorded
+
         ax = ctx.bench.axes[step.axis]
         fog = ax.fog
         duration = step.params["duration_s"]
@@ -281,6 +279,9 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
                               f"within ±{p['tolerance_dps']:g} deg/s for {p['hold_s']:g} s")
 
     def _do_acquire(self, step: Step, ctx: RunContext) -> None:
+        from procedures.rate_ladder.analysis import read_half_ahead, static_record
+        from procedures.rate_ladder.events import HalfAcquired
+
         ax = ctx.bench.axes[step.axis]
         p = step.params
         n = p["turns"]
@@ -355,6 +356,8 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
     def _do_analyze(self, step: Step, ctx: RunContext) -> None:
         """A first look at the pair, in the analysis worker: acquisition goes on meanwhile
         (the result.json analysis is made again from the raw files at the end)."""
+        from procedures.rate_ladder.analysis import pair_summary, static_record, unit_halves
+
         axis, unit, rate = step.on_axis, step.in_unit, step.params["rate_dps"]
         events = ctx.run.events()  # the halves may come from earlier sessions (--resume)
 
@@ -384,6 +387,8 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         that holds both signs (its FOG calibration, bench/analysis/pair.py): when neither
         an earlier session nor what is left would hold both, the pair is acquired whole.
         """
+        from procedures.rate_ladder.analysis import unit_acquisitions
+
         events = run.events()
         kept: dict[str, dict[int, int]] = {}  # unit -> half -> (sign) of the kept halves
         sessions: dict[str, dict[int, set[int]]] = {}
@@ -421,6 +426,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
 
     # -- analysis --------------------------------------------------------------------
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
+        from procedures.rate_ladder.analysis import analyze_run
         from procedures.rate_ladder.budgets import add_budgets
         from procedures.rate_ladder.conditions import add_conditions
 

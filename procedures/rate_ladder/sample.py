@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.core import rundir_layout as layout
+
 
 def _rate(set_dps: float, turns: int, err: float, err_u: float, inst: float, inst_u: float,
           raw: float, corr: float, verdict: str, harmonics: list[dict[str, float]],
@@ -131,9 +133,10 @@ def rate_ladder_result() -> dict[str, Any]:
         check("inner", -20.0, -1.0e-7, 3.5e-7, "pass", "|δ| + U ≤ T"),
         check("outer", 10.0, 2.6e-8, 2.2e-8, "pass", "σ + U ≤ T", "rate_instability", 1e-5),
     ]
-    files = [("raw/s1/outer-fog.bin", 4_321_000), ("raw/s1/outer-counter.jsonl", 18_211),
-             ("raw/s1/outer-drive.jsonl", 120_554), ("raw/s1/inner-fog.bin", 2_160_000),
-             ("raw/s1/inner-counter.jsonl", 9_120), ("raw/s1/inner-drive.jsonl", 60_100)]
+    files = [(layout.raw_relpath(1, name), size) for name, size in (
+        (layout.fog_capture("outer"), 4_321_000), (layout.counter_log("outer"), 18_211),
+        (layout.drive_log("outer"), 120_554), (layout.fog_capture("inner"), 2_160_000),
+        (layout.counter_log("inner"), 9_120), (layout.drive_log("inner"), 60_100))]
     return {
         "schema": "bench.result/1",
         "procedure": "rate-ladder",

@@ -8,16 +8,16 @@ content follows ISO/IEC 17025 clause 7.8; how to read it: docs/certificate.md.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import hashlib
-import json
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
 from bench.app.certificate import register
-from bench.app.certificate.build import ExtraSection, build_document
+from bench.app.certificate.build import ExtraSection, build_document, restated
 from bench.app.certificate.html import render_html
 from bench.app.certificate.pdf import render_pdf
 from bench.report.certificate.model import Document
@@ -26,7 +26,7 @@ HTML_NAME = "certificate.html"
 PDF_NAME = "certificate.pdf"
 
 __all__ = ["Document", "build_document", "render_files", "render_html", "render_pdf",
-           "result_digest", "write_certificate"]
+           "render_issue", "result_digest", "write_certificate"]
 
 
 class _HasPath(Protocol):
@@ -62,9 +62,25 @@ def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | N
     return [html_path, pdf_path]
 
 
-def result_digest(result: dict[str, Any]) -> str:
-    """SHA-256 of the result as the certificate read it (the register states it)."""
-    return hashlib.sha256(json.dumps(result, sort_keys=True, default=str).encode()).hexdigest()
+def render_issue(result: dict[str, Any], out_dir: Path, run_path: Path,
+                 issue: register.Issue,
+                 changes: Callable[[str], tuple[str, ...]]) -> register.Issue:
+    """Render a re-issue: its document is built once, `changes(html)` compares its
+    statements (the HTML as rendered) with the replaced revision's, and the files state
+    them (bench/app/certificate/revisions.py). Returns the issue as stated."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    doc = build_document(result, run_path, None, issue)
+    issue = dataclasses.replace(issue, changes=changes(render_html(doc)))
+    doc = restated(doc, issue)
+    _write_atomic(out_dir / HTML_NAME, render_html(doc).encode("utf-8"))
+    _write_atomic(out_dir / PDF_NAME, render_pdf(doc))
+    return issue
+
+
+def result_digest(stored: bytes) -> str:
+    """SHA-256 of result.json as stored, its bytes (the register records the same digest of
+    the same file; never of a re-serialisation)."""
+    return hashlib.sha256(stored).hexdigest()
 
 
 def write_certificate(run: _HasPath, result: dict[str, Any],

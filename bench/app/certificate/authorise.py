@@ -35,8 +35,16 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from bench.app.certificate import HTML_NAME, PDF_NAME, register, render_files, result_digest
+from bench.app.certificate import (
+    HTML_NAME,
+    PDF_NAME,
+    register,
+    render_files,
+    render_issue,
+    result_digest,
+)
 from bench.app.certificate.build import Sources, stand_of
+from bench.app.certificate.revisions import statement_changes
 from bench.app.register.store import MEANING_ISSUE
 from bench.core.lab import Lab, LabError, Signatory, run_lab
 from bench.core.traceability import identity_problems, with_declared_serials
@@ -142,18 +150,32 @@ def _leaves(node: Any, path: str = "") -> Iterator[tuple[str, Any]]:
 
 
 def changes_between(old: Mapping[str, Any] | None, new: Mapping[str, Any],
+                    old_html: str | None = None, new_html: str | None = None,
                     limit: int = 12) -> tuple[str, ...]:
-    """What differs in result.json between the revision replaced and this one, as facts."""
+    """What differs between the revision replaced and this one, as facts: the values of
+    result.json, then every statement of the certificate (assurance, traceability,
+    conformity text, conditions...: bench/app/certificate/revisions.py) when both
+    revisions' HTML are given (issue 43: a changed assurance statement is a change)."""
     if old is None:
-        return ("the replaced revision's result.json is not kept; differences not stated",)
-    before, after = dict(_leaves(old)), dict(_leaves(new))
-    diff = [f"{k}: {before.get(k, 'absent')!r} -> {after.get(k, 'absent')!r}"
-            for k in dict.fromkeys([*before, *after]) if before.get(k) != after.get(k)]
-    if not diff:
-        return ("results unchanged (result.json equal to the replaced revision's)",)
-    shown = diff[:limit]
-    if len(diff) > limit:
-        shown.append(f"and {len(diff) - limit} more value(s) of result.json")
+        values = ["the replaced revision's result.json is not kept; differences not stated"]
+    else:
+        before, after = dict(_leaves(old)), dict(_leaves(new))
+        values = [f"{k}: {before.get(k, 'absent')!r} -> {after.get(k, 'absent')!r}"
+                  for k in dict.fromkeys([*before, *after]) if before.get(k) != after.get(k)]
+    said = None if new_html is None else statement_changes(old_html, new_html)
+    if new_html is not None and said is None:
+        said = ("the replaced revision's certificate.html is not kept; its statements are "
+                "not compared",)
+    if not values and not said:
+        return ("results unchanged (result.json equal to the replaced revision's)"
+                + ("" if said is None else "; every statement unchanged (the replaced "
+                   "revision's certificate.html compared)"),)
+    shown = [*values[:limit], *(said or ())[:max(limit - len(values), 0)]]
+    if len(values) > limit:
+        shown.append(f"and {len(values) - limit} more value(s) of result.json")
+    rest = len(said or ()) - max(limit - len(values), 0)
+    if rest > 0:
+        shown.append(f"and {rest} more statement(s) of the certificate")
     return tuple(shown)
 
 
@@ -300,15 +322,18 @@ def _issue(run_path: Path, result: dict[str, Any], result_bytes: bytes, stand: A
     if previous:
         kept = issue_dir(run_path, previous[-1].number) / RESULT_NAME
         old = json.loads(kept.read_bytes()) if kept.is_file() else None
+    old_html = None
+    if previous:
+        kept_html = issue_dir(run_path, previous[-1].number) / HTML_NAME
+        old_html = kept_html.read_text(encoding="utf-8") if kept_html.is_file() else None
     revision = len(previous) + 1
     issue = register.Issue(
         register.numbered(number, revision), revision,
         dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
-        previous[-1].number if previous else None, result_digest(result),
+        previous[-1].number if previous else None, result_digest(result_bytes),
         signatory=who.name, function=who.function or None,
-        reason=(reason or "").strip() or None,
-        changes=changes_between(old, result) if previous else (),
-        meaning=MEANING_ISSUE, register=redact(reg.url))
+        reason=(reason or "").strip() or None, meaning=MEANING_ISSUE,
+        register=redact(reg.url))
     final = issue_dir(run_path, issue.number)
     if final.exists():
         return _refuse([f"{final} exists: an issued revision's files are never "
@@ -317,7 +342,12 @@ def _issue(run_path: Path, result: dict[str, Any], result_bytes: bytes, stand: A
     shutil.rmtree(work, ignore_errors=True)
     work.mkdir(parents=True)
     (work / RESULT_NAME).write_bytes(result_bytes)          # what this issue states
-    render_files(result, work, run_path, issue=issue)
+    if previous:
+        # every statement compared with the replaced revision's as issued (its HTML)
+        issue = render_issue(result, work, run_path, issue, lambda html: changes_between(
+            old, result, old_html, html))
+    else:
+        render_files(result, work, run_path, issue=issue)
     signing_lab, signing_note = designated_signing(lab, reg)
     try:
         outcome = write_dcc(run_path, result, stand, lab=signing_lab, issue=issue,

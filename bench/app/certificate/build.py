@@ -8,6 +8,7 @@ log, the raw files themselves) and never invented. Anything neither has is print
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import hashlib
 import json
@@ -21,6 +22,8 @@ from bench.analysis.coverage import COVERAGE_FORMULA, DOF_INFINITE
 from bench.app.certificate import register
 from bench.app.certificate.conditions import condition_rows
 from bench.app.certificate.equipment import equipment_list, identity_lines
+from bench.app.certificate.item import ItemRecord, item_record
+from bench.app.certificate.item import decision_rule_text as agreed_rule_text
 from bench.app.certificate.operator import prompt_blocks, software_note, utc_text
 from bench.app.certificate.people import PERFORMED_BY, equipment_lines, performer, performer_line
 from bench.app.certificate.register import Issue
@@ -229,14 +232,18 @@ def budget_tables(result: Mapping[str, Any]) -> tuple[Any, ...]:
     blocks: list[Any] = [Para(
         "Each budget (EA-4/02 M:2022 section 4): input quantity X_i, estimate x_i, standard "
         "uncertainty u(x_i), distribution, sensitivity coefficient c_i, contribution "
-        "u_i(y) = |c_i|·u(x_i) and degrees of freedom ν_i (∞: Type B or very many samples); "
+        "u_i(y) = |c_i|·u(x_i) (u(x_i) in the estimate's unit) and degrees of freedom ν_i (∞: Type B or very many samples); "
+        "correlated inputs are named under their budget with r (GUM 5.2.2); "
         "then, by the one rule of docs/method.md D1 that the analysis computes with: "
         + COVERAGE_FORMULA + ". Values are in the units named (1: a plain fraction, "
         "1e-6 = 1 ppm). Each budget is checked against the U reported with the result.",
         "note")]
     for where, _owner, b in sites:
         un = "" if b.unit == "1" else f" {b.unit}"
-        rows = tuple((t.quantity, _g(t.estimate, 6), _g(t.ustd), t.distribution,
+        # the input's unit beside its estimate (u(x_i) is in the same unit)
+        rows = tuple((t.quantity, _g(t.estimate, 6) + ("" if t.unit in ("", "1")
+                                                       else f" {t.unit}"),
+                      _g(t.ustd), t.distribution,
                       _g(t.sensitivity), _g(t.contribution),
                       "∞" if t.dof is None or t.dof > 1e4 else f"{t.dof:.0f}")
                      for t in b.terms)
@@ -248,6 +255,10 @@ def budget_tables(result: Mapping[str, Any]) -> tuple[Any, ...]:
                  ("" if b.reported_U is None else
                   f"; U reported with the result {_g(b.reported_U, 2)}{un} "
                   + ("(reproduced)" if agree else "(NOT reproduced by this budget)"))]
+        for i, j, r in b.correlations:
+            # u_c^2 gains 2 c_i c_j u(x_i) u(x_j) r (GUM 5.2.2, docs/method.md D1)
+            notes.append(f"Correlated inputs: r(row {i + 1}, row {j + 1}) = {r:g}; u_c² = "
+                         "Σ (c_i·u(x_i))² + 2 Σ r·c_i·u(x_i)·c_j·u(x_j) (GUM 5.2.2).")
         if b.note:
             notes.append(b.note)
         blocks.append(Table(("Quantity X_i", "Estimate x_i", "u(x_i)", "Distribution",
@@ -453,9 +464,38 @@ def _instruments(src: Sources, proc: Procedure) -> tuple[Any, ...]:
                                     "(*IDN?, drive identity objects, FOG model)"))
     else:
         blocks.append(Para("Instrument identities: not recorded.", "note"))
+    record = item_record(src)
+    if record.readback:
+        # every setting that differs from its read-back, and on twins why, once
+        blocks.append(Para("Settings that differ from their read-back: "
+                           + "; ".join(x for x in record.readback if not x.startswith("On "))
+                           + ". " + " ".join(x for x in record.readback if x.startswith("On ")),
+                           "note"))
     blocks += _shared_identities(rows)
+    blocks += _item_blocks(record, proc)
     blocks += _traceability(src)
     return tuple(blocks)
+
+
+def _item_blocks(record: ItemRecord, proc: Procedure) -> list[Any]:
+    """The item as received and as left (ISO/IEC 17025 7.8.2.1 g, 7.8.4.1 b), and the
+    linked as-found run's checks (bench/app/certificate/item.py; the DCC states the same)."""
+    blocks: list[Any] = [Fields(record.rows)]
+    found = record.as_found
+    if found is not None and found.found and found.checks:
+        rows = []
+        for c in found.checks:
+            vu, tol = _check_texts(c, proc)
+            rate = num(c.get("set_rate_dps"))
+            rows.append((text_of(c.get("axis")), rate_text(rate) if rate is not None else "—",
+                         proc.quantity(c.get("quantity")), vu, tol,
+                         verdict_label(c.get("verdict"), str(c.get("rule") or ""))))
+        blocks.append(Table(("Axis", "Set rate, °/s", "Quantity", "Value ± U", "Tolerance T",
+                             "Verdict"), tuple(rows), widths=(0.8, 1.0, 2.2, 2.0, 1.3, 1.4),
+                            align="lrlrrc",
+                            caption=f"As found: the checks of run {found.run_id}, before the "
+                                    "adjustments"))
+    return blocks
 
 
 def _shared_identities(rows: list[tuple[str, str, str, str]]) -> list[Any]:
@@ -667,10 +707,36 @@ def _specification(src: Sources, proc: Procedure) -> list[Any]:
     return [Fields(tuple(rows))]
 
 
+def _check_texts(c: Mapping[str, Any], proc: Procedure) -> tuple[str, str]:
+    """(value as printed, tolerance) of one check under docs/method.md D2: '< L' for an
+    unresolved value, its interval for an asymmetric one, else 'value ± U' (the conformity
+    table and the as-found table print checks alike)."""
+    row = CheckRow.of(c)
+    vu, tol_text = row.texts(str(c.get("quantity")) not in proc.parts.certificate_unsigned)
+    if check_class(c) == "not-assessed" or c.get("one_sided"):
+        # an unresolved value is stated as '< L' and judged on L (bench.report.conformity)
+        unit = rel_unit(row.value, row.tolerance)
+        limit = num(c.get("upper_rel"))
+        vu = present(row.value, row.u, unit.scale, resolved=False,
+                     upper=limit).with_unit(unit.name) + " (timing floor)"
+    elif (upper_rel := num(c.get("upper_rel"))) is not None and row.suffix == "rel":
+        unit = rel_unit(row.value, row.u, row.tolerance)
+        lower_rel = num(c.get("lower_rel"))
+        if lower_rel is not None and row.value is not None:
+            # docs/method.md D2: an asymmetric interval is printed as its interval
+            vu = present(row.value, None, unit.scale, resolved=True,
+                         interval=(lower_rel, upper_rel)).with_unit(unit.name)
+        else:
+            vu += f"; 97.5 % limit {format_limit(upper_rel * unit.scale)[0]}"
+    return vu, tol_text
+
+
 def _conformity(src: Sources, checks: list[dict[str, Any]], proc: Procedure
                 ) -> tuple[Any, ...]:
     rule = str(src.get("decision_rule") or (checks[0].get("rule") if checks else "simple"))
-    blocks: list[Any] = [*_specification(src, proc), Para(decision_rule_text(rule))]
+    blocks: list[Any] = [*_specification(src, proc), Para(decision_rule_text(rule)),
+                         Para("Decision rule: " + agreed_rule_text(src) + " (ISO/IEC 17025 "
+                              "7.1.3).")]
     blocks.append(Para("Scope. " + _scope_line(src, checks, proc)))
     blocks.append(Para(
         "Measurement capability (RMG 63-2003): the expanded uncertainty of a check should not "
@@ -708,24 +774,9 @@ def _conformity(src: Sources, checks: list[dict[str, Any]], proc: Procedure
                   and abs(row.value) <= row.tolerance)
         label = verdict_label(c.get("verdict"), str(c.get("rule") or rule), inside)
         quantity = proc.quantity(c.get("quantity"))
-        signed = str(c.get("quantity")) not in proc.parts.certificate_unsigned
-        vu, tol_text = row.texts(signed)
+        vu, tol_text = _check_texts(c, proc)
         if check_class(c) == "not-assessed" or c.get("one_sided"):
-            # an unresolved value is stated as '< L' and judged on L (bench.report.conformity)
-            unit = rel_unit(row.value, row.tolerance)
-            limit = num(c.get("upper_rel"))
-            vu = present(row.value, row.u, unit.scale, resolved=False,
-                         upper=limit).with_unit(unit.name) + " (timing floor)"
             cap = "—"
-        elif (upper_rel := num(c.get("upper_rel"))) is not None and row.suffix == "rel":
-            unit = rel_unit(row.value, row.u, row.tolerance)
-            lower_rel = num(c.get("lower_rel"))
-            if lower_rel is not None and row.value is not None:
-                # docs/method.md D2: an asymmetric interval is printed as its interval
-                vu = present(row.value, None, unit.scale, resolved=True,
-                             interval=(lower_rel, upper_rel)).with_unit(unit.name)
-            else:
-                vu += f"; 97.5 % limit {format_limit(upper_rel * unit.scale)[0]}"
         rate = num(c.get("set_rate_dps"))
         point = rate_text(rate) if with_rate else (f"{rate_text(rate)} °/s" if rate is not None else "—")
         rows.append((str(i), text_of(c.get("axis")), point, quantity, vu, tol_text, cap, label))
@@ -850,6 +901,20 @@ def _hash_table(files: Sequence[Mapping[str, Any]], caption: str,
                  for f in files)
     return Table(("File", "Bytes", "SHA-256"), rows, widths=(2.6, 1.0, 5.0), align="lrl",
                  caption=caption, mono=True, notes=notes)
+
+
+def restated(doc: Document, issue: Issue) -> Document:
+    """`doc` with its Revision field restated for `issue` (what changed is known only once
+    the new revision's statements can be compared with the replaced one's; the rest of the
+    document is the same, so it is not built twice)."""
+    def fields(b: Any) -> Any:
+        if not isinstance(b, Fields):
+            return b
+        return Fields(tuple((k, _revision_text(issue) if k == "Revision" else v)
+                            for k, v in b.rows))
+    return dataclasses.replace(doc, sections=tuple(
+        dataclasses.replace(sec, blocks=tuple(fields(b) for b in sec.blocks))
+        if sec.title == "Identification" else sec for sec in doc.sections))
 
 
 def _revision_text(issue: Issue) -> str:

@@ -10,5 +10,7 @@ How to read it and how a laboratory sets up signing: docs/dcc.md. The package im
 nothing heavy here, so the stand schema can use `bench.app.dcc.settings` cheaply.
 """
 
-DCC_NAME = "certificate.dcc.xml"
-INVALID_NAME = "certificate.dcc.invalid.xml"
+from bench.core import rundir_layout as layout
+
+DCC_NAME = layout.CERTIFICATE_DCC
+INVALID_NAME = layout.CERTIFICATE_DCC_INVALID

@@ -14,8 +14,11 @@ from lxml import etree
 import bench
 from bench.app.certificate.build import Sources, check_class, decision_rule_text
 from bench.app.certificate.equipment import equipment_list, identity_lines
+from bench.app.certificate.item import item_record, setting_statements
+from bench.app.certificate.item import statements as item_statements
 from bench.app.certificate.people import PERFORMED_BY, equipment_lines, performer
 from bench.app.certificate.register import Issue
+from bench.core import rundir_layout as layout
 from bench.core.lab import Lab
 from bench.report.certificate import methods
 from bench.report.certificate.parts import CertificateParts
@@ -144,7 +147,7 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
     if cert.get("customer_contact"):
         fields.append(("further", f"Contact: {cert['customer_contact']}"))
     _location(customer, fields)
-    _statements(el(adm, "statements"), src, parts, country, issue)
+    _statements(el(adm, "statements"), src, parts, country, issue, lab)
 
 
 def _location(parent: etree._Element, fields: Sequence[tuple[str, str]]) -> None:
@@ -182,7 +185,7 @@ def _item(items: etree._Element, src: Sources, kind: DccParts) -> None:
 
 
 def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
-                country: Any, issue: Issue) -> None:
+                country: Any, issue: Issue, lab: Lab) -> None:
     if issue.draft:
         statement(sts, V.DRAFT, "DRAFT, NOT AUTHORISED: this draft has not been authorised "
                   "for issue and is not a certificate; `bench authorise RUN_DIR --signatory "
@@ -242,6 +245,19 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
         statement(sts, V.EQUIPMENT_IDENTITY, line, sid=f"equipmentIdentity{i + 1}",
                   title="Equipment identity", norms=("ISO/IEC 17025:2017",),
                   references=("6.4.13 a",))
+    # as the PDF: the item as received and as left, the rule's agreement, settings that
+    # differ from their read-back (bench/app/certificate/item.py, computed once)
+    record = item_record(src)
+    for i, line in enumerate(item_statements(record)):
+        statement(sts, V.ITEM_STATE, line, sid=f"itemState{i + 1}", title="Item as received "
+                  "and as left", norms=("ISO/IEC 17025:2017",),
+                  references=("7.8.2.1 g", "7.8.4.1 b", "7.1.3"))
+    for i, line in enumerate(setting_statements(record)):
+        statement(sts, V.READBACK, line, sid=f"readback{i + 1}", title="Settings and read-back")
+    # an accreditation statement only where the laboratory's settings state one
+    if lab.accreditation:
+        statement(sts, V.ACCREDITATION, f"Accreditation: {lab.accreditation}",
+                  title="Accreditation")
     if not country:
         statement(sts, V.COUNTRY_UNKNOWN, "The laboratory configured no country: the "
                   f"country code {UNKNOWN_COUNTRY} (ISO 3166-1 user-assigned) stands for "
@@ -251,12 +267,12 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
 
 def _digests(sts: etree._Element, src: Sources) -> None:
     files = [f for f in src.get("raw_files", []) or [] if isinstance(f, Mapping)]
-    if not files and src.run_path is not None and (src.run_path / "raw").is_dir():
+    if not files and src.run_path is not None and layout.raw_root(src.run_path).is_dir():
         from bench.core.journal import sha256_file
 
         files = [{"path": p.relative_to(src.run_path).as_posix(), "sha256": sha256_file(p),
                   "bytes": p.stat().st_size}
-                 for p in sorted((src.run_path / "raw").rglob("*")) if p.is_file()]
+                 for p in sorted(layout.raw_root(src.run_path).rglob("*")) if p.is_file()]
     if not files:
         statement(sts, V.RAW_DIGESTS, "No raw data files were recorded.")
         return

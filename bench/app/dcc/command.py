@@ -13,6 +13,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from bench.core import rundir_layout as layout
+
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
 
@@ -48,7 +50,7 @@ def write_run_dcc(run_path: Path, result: dict[str, Any], stand: Any,
              "`bench authorise` issues it")
         return True
     warn(outcome.message() + f"\nthe DCC does not validate and was kept as "
-         f"{run_path / 'certificate.dcc.invalid.xml'} for diagnosis; once fixed, "
+         f"{run_path / layout.CERTIFICATE_DCC_INVALID} for diagnosis; once fixed, "
          f"`bench dcc {run_path}` writes it")
     return False
 
@@ -58,7 +60,7 @@ def _stand_of_run(run_path: Path) -> dict[str, Any] | None:
     from bench.app.dcc.settings import STAND_DCC
     from bench.core.yamlfile import YamlError, load_yaml
 
-    path = run_path / "stand.yaml"
+    path = run_path / layout.STAND
     if not path.is_file():
         return {}
     try:
@@ -80,7 +82,7 @@ def cmd_dcc(args: argparse.Namespace) -> int:
     import json
 
     run_path = Path(args.run_dir)
-    result_file = run_path / "result.json"
+    result_file = run_path / layout.RESULT
     if not result_file.is_file():
         _err(f"{result_file}: not found; `bench analyze {run_path}` writes it from the raw data")
         return EXIT_INVALID
@@ -92,8 +94,8 @@ def cmd_dcc(args: argparse.Namespace) -> int:
     stand = _stand_of_run(run_path)
     if stand is None:
         return EXIT_INVALID
-    if not (run_path / "certificate.pdf").is_file():
-        _err(f"note: {run_path / 'certificate.pdf'} is missing, so the DCC carries no "
+    if not (run_path / layout.CERTIFICATE_PDF).is_file():
+        _err(f"note: {run_path / layout.CERTIFICATE_PDF} is missing, so the DCC carries no "
              f"human-readable document; `bench analyze {run_path}` writes both")
     elif (copied := issued_copy(run_path)) is not None:
         # the PDF beside it is an issued revision's copy (bench authorise put it there);
@@ -102,8 +104,8 @@ def cmd_dcc(args: argparse.Namespace) -> int:
         from bench.app.certificate import render_files
 
         render_files(result, run_path, run_path)
-        _err(f"note: {run_path / 'certificate.pdf'} was the copy of issued certificate "
-             f"{copied} (kept unchanged under {run_path / 'issued' / copied}); a DCC written "
+        _err(f"note: {run_path / layout.CERTIFICATE_PDF} was the copy of issued certificate "
+             f"{copied} (kept unchanged under {run_path / layout.ISSUED / copied}); a DCC written "
              "now is a DRAFT, so the draft's PDF and HTML were written beside it")
     if not write_run_dcc(run_path, result, stand, lab_file=args.lab):
         return EXIT_ABORTED
@@ -116,12 +118,12 @@ def issued_copy(run_path: Path) -> str | None:
     byte for byte (`bench authorise` copies each issue there), or None (a draft)."""
     from bench.app.certificate import register
 
-    pdf = run_path / "certificate.pdf"
+    pdf = run_path / layout.CERTIFICATE_PDF
     if not pdf.is_file():
         return None
     data = pdf.read_bytes()
     for issue in reversed(register.issues(run_path)):
-        kept = run_path / "issued" / issue.number / "certificate.pdf"
+        kept = run_path / layout.ISSUED / issue.number / layout.CERTIFICATE_PDF
         if kept.is_file() and kept.read_bytes() == data:
             return issue.number
     return None
@@ -168,14 +170,14 @@ def _local_status(path: Path) -> str:
     folder = path.parent
     # an issued revision's folder keeps the copy made when it was issued; the run
     # directory's copy has every revision since
-    issues = register.issues(folder.parent.parent if folder.parent.name == "issued"
+    issues = register.issues(folder.parent.parent if folder.parent.name == layout.ISSUED
                              else folder)
 
-    run_dir = folder.parent.parent if folder.parent.name == "issued" else folder
+    run_dir = folder.parent.parent if folder.parent.name == layout.ISSUED else folder
     # the revision whose kept file is this one, byte for byte
     mine = next((i for i in issues
-                 if (run_dir / "issued" / i.number / path.name).is_file()
-                 and (run_dir / "issued" / i.number / path.name).read_bytes() == data), None)
+                 if (run_dir / layout.ISSUED / i.number / path.name).is_file()
+                 and (run_dir / layout.ISSUED / i.number / path.name).read_bytes() == data), None)
     if mine is None:
         return "issued according to the file; no register entry at hand"
     later = [i for i in issues if i.revision > mine.revision]

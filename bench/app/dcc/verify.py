@@ -21,6 +21,7 @@ from typing import Any
 from lxml import etree
 
 from bench.app.dcc.validate import NS, validate_dcc
+from bench.core import rundir_layout as layout
 
 Values = dict[str, tuple[tuple[float, ...], tuple[float, ...] | None, str]]
 
@@ -167,7 +168,7 @@ def verify_file(path: Path, result_path: Path | None = None, cert: Path | None =
                     else ""))
     else:
         report.note("signature: the file is not signed")
-    result_path = result_path or path.parent / "result.json"
+    result_path = result_path or path.parent / layout.RESULT
     if content is None:
         report.note("values: not compared (the signed content cannot be trusted)")
     elif result_path.is_file():
@@ -183,7 +184,7 @@ def verify_file(path: Path, result_path: Path | None = None, cert: Path | None =
 
 
 def _compare_pdf(root: etree._Element, run_dir: Path, report: Report) -> None:
-    pdf = run_dir / "certificate.pdf"
+    pdf = run_dir / layout.CERTIFICATE_PDF
     doc = root.find("dcc:document", NS)
     if doc is None or not pdf.is_file():
         return

@@ -31,13 +31,14 @@ from bench.app.certificate.build import Sources, certificate_id, procedure_of
 from bench.app.dcc.admin import administrative
 from bench.app.dcc.used_methods import methods_and_conditions
 from bench.app.dcc.validate import SCHEMA_LOCATION
+from bench.core import rundir_layout as layout
 from bench.core.lab import Lab, run_lab
 from bench.report.dcc.budgets import budget_results
 from bench.report.dcc.conformity import Checks, checks_of, leftover_checks
 from bench.report.dcc.parts import DccParts
 from bench.report.dcc.xml import DCC_NS, XSI_NS, el, name, text_el
 
-PDF_NAME = "certificate.pdf"
+PDF_NAME = layout.CERTIFICATE_PDF
 #: what a procedure kind that says nothing of itself in the DCC (or none installed) answers
 NEUTRAL = DccParts()
 

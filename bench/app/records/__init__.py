@@ -32,6 +32,8 @@ Read API (for tools such as the web station view; every call opens no run direct
                                              unit, tolerance, verdict, rule
         rec.trend(serial, quantities=None) -> [TrendPoint]  (run_uid, date_utc,
                                              certificate_number, calibration_state, figure)
+        rec.drafts(limit=50) -> [(serial, run_dir, verdict, date_utc, operator)]
+                                             runs ended with a verdict, no certificate yet
         rec.due(today=None, within_days=30, intervals=None, everything=False) -> [DueItem]
                                              table, due_date, days_left (< 0: overdue),
                                              status text

@@ -1,4 +1,5 @@
-"""`bench history`, `bench records import`, `bench due` (CONTRACT §1)."""
+"""`bench history`, `bench records import`, `bench records sync`, `bench due`
+(CONTRACT §1)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from bench.app.records.extract import NotARun, find_runs, record_of
-from bench.app.records.hooks import target
+from bench.app.records.hooks import RecordsTarget, target
 from bench.app.records.settings import DEFAULT_RUNS, SettingsError
 from bench.app.records.store import Records, RecordsError, TrendPoint, redact
 from bench.core.registry import declared_figures
@@ -39,12 +40,20 @@ def _guarded(cmd: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Nam
     return run
 
 
-def cmd_import(args: argparse.Namespace) -> int:
-    runs_dir = Path(args.runs_dir)
+def _runs_target(folder: str, records: str | None) -> RecordsTarget | None:
+    """The records of a runs folder that must exist (None, said, when it does not)."""
+    runs_dir = Path(folder)
     if not runs_dir.is_dir():
         _err(f"{runs_dir}: no such folder")
+        return None
+    return target(runs_dir, records)
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    where = _runs_target(args.runs_dir, args.records)
+    if where is None:
         return EXIT_INVALID
-    where = target(runs_dir, args.records)
+    runs_dir = where.runs_dir
     counts = {"new": 0, "updated": 0, "unchanged": 0, "skipped": 0}
     with Records.open(where.url) as rec:
         for path in find_runs(runs_dir):
@@ -72,7 +81,7 @@ def cmd_history(args: argparse.Namespace) -> int:
     where = target(args.runs or DEFAULT_RUNS, args.records)
     with Records.open(where.url) as rec:
         runs = rec.runs(args.serial)
-        points = rec.trend(args.serial)
+        points = rec.trend(args.serial, runs_of_table=runs)
         table = rec.table(args.serial)
     if not runs:
         _err(f"no run of table {args.serial!r} in {redact(where.url)}"
@@ -292,7 +301,71 @@ def cmd_control(args: argparse.Namespace) -> int:
     return EXIT_FAIL if status.state == OUT_OF_CONTROL else EXIT_OK
 
 
+def cmd_sync(args: argparse.Namespace) -> int:
+    """`bench records sync`: this bench's runs to the lab database (bench/app/fleet)."""
+    from bench.app.fleet.sync import SyncError, is_lab_server, sync_folder
+
+    where = _runs_target(args.runs, args.records)
+    if where is None:
+        return EXIT_INVALID
+    if not is_lab_server(where.url):
+        _err(f"bench records sync: {redact(where.url)} is not a lab server: name its "
+             "PostgreSQL database (--records postgresql://ROLE@HOST/DB, or records: in the "
+             "lab file)")
+        return EXIT_INVALID
+    if args.batch < 1:
+        _err("bench records sync: --batch: expected at least 1 line")
+        return EXIT_INVALID
+    try:
+        done = sync_folder(where.runs_dir, where.url, batch_lines=args.batch,
+                           interval_for=where.interval_for)
+    except SyncError as e:
+        _err(f"{e}; nothing is lost: the run directories keep everything, sync again later")
+        return EXIT_FAIL
+    for d in done:
+        if d.events or d.result or d.registered not in (None, "unchanged"):
+            print(f"{d.run}: {d.events} new event(s)"
+                  + (", result" if d.result else "")
+                  + (f", records {d.registered}" if d.registered else ""))
+    print(f"lab database {redact(where.url)}: {len(done)} run(s), "
+          f"{sum(d.events for d in done)} new event(s), "
+          f"{sum(1 for d in done if d.result)} result(s), "
+          f"{sum(1 for d in done if d.registered in ('new', 'updated'))} registered")
+    return EXIT_OK
+
+
+def cmd_init(args: argparse.Namespace) -> int:
+    """`bench records init URL`: the lab database's schema and its roles' grants."""
+    import sqlalchemy as sa
+
+    from bench.app.fleet.roles import bench_grants, station_grants
+    from bench.app.fleet.sync import is_lab_server
+
+    if not is_lab_server(args.url):
+        _err(f"bench records init: {redact(args.url)}: the lab database is a PostgreSQL URL "
+             "(a bench's own SQLite records are created when first used)")
+        return EXIT_INVALID
+    with Records.open(args.url) as rec, rec.engine.begin() as conn:
+        for role in args.bench_role:
+            for q in bench_grants(role):
+                conn.execute(sa.text(q))
+        for role in args.station_role:
+            for q in station_grants(role):
+                conn.execute(sa.text(q))
+        revision = rec.revision()
+    print(f"lab records {redact(args.url)} at revision {revision}; benches' role(s): "
+          f"{', '.join(args.bench_role) or 'none granted'}; station's role(s): "
+          f"{', '.join(args.station_role) or 'none granted'}")
+    return EXIT_OK
+
+
+def cmd_records(args: argparse.Namespace) -> int:
+    """`bench records import` / `sync` / `init`."""
+    chosen = {"sync": cmd_sync, "init": cmd_init}.get(args.records_command, cmd_import)
+    return chosen(args)
+
+
 #: command name -> handler, for bench/app/cli.py (their options: bench/app/parsers.py)
 RECORDS_COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
-    "history": _guarded(cmd_history), "records": _guarded(cmd_import),
+    "history": _guarded(cmd_history), "records": _guarded(cmd_records),
     "due": _guarded(cmd_due), "control": _guarded(cmd_control)}

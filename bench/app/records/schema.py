@@ -121,3 +121,52 @@ reviews = sa.Table(                                   # append-only: the review 
     sa.Column("new_baseline", sa.Boolean),            # the chart restarts at that run
     sa.Column("host", sa.String(255)),
 )
+
+# -- the lab's benches and their live runs (issue 44; migration r0003) -----------------------
+# What each bench delivers from its run directories (bench/app/fleet/sync.py): the runs it
+# has, every line of their event logs under (run, sequence number) so a delivery repeated
+# after an outage or a kill adds nothing, the health it sampled, and the final result.
+
+benches = sa.Table(
+    "benches", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("name", sa.String(120), nullable=False, unique=True),   # stand file bench.name
+    sa.Column("host", sa.String(255)),
+    sa.Column("first_seen_utc", sa.DateTime),         # the lab server's clock
+    sa.Column("last_seen_utc", sa.DateTime),
+)
+
+bench_runs = sa.Table(
+    "bench_runs", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("bench_id", sa.Integer, sa.ForeignKey("benches.id"), nullable=False),
+    sa.Column("uid", sa.String(64), nullable=False),  # the records' run uid (extract.run_uid)
+    sa.Column("run_dir", sa.String(255), nullable=False),
+    sa.Column("title", sa.Text),
+    sa.Column("kind", sa.String(40)),
+    sa.Column("serial", sa.String(120)),
+    sa.Column("maker", sa.String(200)),
+    sa.Column("model", sa.String(200)),
+    sa.Column("simulated", sa.Boolean),
+    sa.Column("created_utc", sa.DateTime),
+    sa.Column("last_seq", sa.Integer, nullable=False, default=0),   # event lines delivered
+    sa.Column("last_event_utc", sa.DateTime),         # the bench's clock, its last event
+    sa.Column("health", sa.JSON),                     # sampled at the bench (fleet/health.py)
+    sa.Column("health_utc", sa.DateTime),             # the bench's clock, when sampled
+    sa.Column("received_utc", sa.DateTime),           # the lab server's clock, last delivery
+    sa.Column("result", sa.JSON),                     # result.json once written
+    sa.Column("result_sha256", sa.String(64)),
+    sa.Column("verdict", sa.String(20)),              # its verdict (the list reads this only)
+    sa.UniqueConstraint("bench_id", "uid", name="uq_bench_runs_bench_uid"),
+)
+sa.Index("ix_bench_runs_received", bench_runs.c.received_utc)
+
+bench_events = sa.Table(
+    "bench_events", metadata,
+    sa.Column("run_id", sa.Integer, sa.ForeignKey("bench_runs.id", ondelete="CASCADE"),
+              primary_key=True),
+    sa.Column("seq", sa.Integer, primary_key=True),   # its line number in events.jsonl
+    sa.Column("utc", sa.DateTime),
+    sa.Column("event", sa.String(60)),
+    sa.Column("body", sa.JSON, nullable=False),       # the event as journaled
+)

@@ -370,28 +370,43 @@ class Records:
     # -- the read API (issue 17's station view reads through these) -------------------------
     def tables(self) -> list[TableInfo]:
         """Every table recorded, by serial."""
-        t, r = s.tables.c, s.runs.c
-        with self.engine.connect() as conn:
-            rows = conn.execute(sa.select(s.tables).order_by(t.serial)).all()
-            out = []
-            for row in rows:
-                runs = conn.execute(
-                    sa.select(r.verdict, r.certificate_number, r.completed_utc, r.started_utc,
-                              r.created_utc).where(r.table_id == row.id)).all()
-                dates = [(x.completed_utc or x.started_utc or x.created_utc, x) for x in runs]
-                dates = [(d, x) for d, x in dates if d is not None]
-                last = max(dates, key=lambda p: p[0], default=None)
-                passed = [d for d, x in dates if x.verdict == "pass"]
-                out.append(TableInfo(
-                    serial=row.serial, maker=row.maker, model=row.model,
-                    location=row.location, interval_days=row.interval_days, runs=len(runs),
-                    last_run_utc=_utc(last[0]) if last else None,
-                    last_pass_utc=_utc(max(passed)) if passed else None,
-                    last_certificate=last[1].certificate_number if last else None))
-            return out
+        return self._tables(None)
 
     def table(self, serial: str) -> TableInfo | None:
-        return next((t for t in self.tables() if t.serial == serial), None)
+        return next(iter(self._tables(serial)), None)
+
+    def _tables(self, serial: str | None) -> list[TableInfo]:
+        """Tables with their run counts and last dates, aggregated by the database (a lab
+        holds years of runs: the due list must not read every run of every table)."""
+        t, r = s.tables.c, s.runs.c
+        date = sa.func.coalesce(r.completed_utc, r.started_utc, r.created_utc)
+        stats = (sa.select(r.table_id, sa.func.count().label("n"),
+                           sa.func.max(date).label("last"),
+                           sa.func.max(sa.case((r.verdict == "pass", date))).label("passed"))
+                 .group_by(r.table_id))
+        one = [t.serial == serial] if serial is not None else []
+        if serial is not None:
+            stats = stats.join(s.tables, t.id == r.table_id).where(*one)
+        stats_q = stats.subquery()
+        # the certificate of each table's last run (the newest id among runs of that date)
+        newest = (sa.select(sa.func.max(r.id)).join(
+            stats_q, sa.and_(stats_q.c.table_id == r.table_id, date == stats_q.c.last))
+            .group_by(r.table_id))
+        with self.engine.connect() as conn:
+            rows = conn.execute(sa.select(s.tables).where(*one).order_by(t.serial)).all()
+            agg = {x.table_id: x for x in conn.execute(sa.select(stats_q))}
+            certs = {x.table_id: x.certificate_number for x in conn.execute(
+                sa.select(r.table_id, r.certificate_number).where(r.id.in_(newest)))}
+        out = []
+        for row in rows:
+            a = agg.get(row.id)
+            out.append(TableInfo(
+                serial=row.serial, maker=row.maker, model=row.model, location=row.location,
+                interval_days=row.interval_days, runs=int(a.n) if a else 0,
+                last_run_utc=_utc(a.last) if a else None,
+                last_pass_utc=_utc(a.passed) if a else None,
+                last_certificate=certs.get(row.id)))
+        return out
 
     def runs(self, serial: str) -> list[RunInfo]:
         """Every run of one table, oldest first (by the date the measurement ended)."""
@@ -417,6 +432,21 @@ class Records:
         epoch = dt.datetime.min.replace(tzinfo=dt.UTC)
         return sorted(out, key=lambda x: (x.date_utc or epoch, x.id))
 
+    def drafts(self, limit: int = 50) -> list[tuple[str, str, str, dt.datetime | None,
+                                                    str | None]]:
+        """Runs that ended with a verdict (pass or fail) and hold no certificate number: drafts
+        waiting for a signatory, newest first, as (serial, run_dir, verdict, date, operator)."""
+        r, t = s.runs.c, s.tables.c
+        date = sa.func.coalesce(r.completed_utc, r.started_utc, r.created_utc)
+        with self.engine.connect() as conn:
+            rows = conn.execute(
+                sa.select(t.serial, r.run_dir, r.verdict, date.label("date"), r.operator)
+                .join(s.tables, r.table_id == t.id)
+                .where(r.certificate_number.is_(None), r.verdict.in_(("pass", "fail")),
+                       r.aborted.is_(False))
+                .order_by(date.desc(), r.id.desc()).limit(limit)).all()
+        return [(x.serial, x.run_dir, x.verdict, _utc(x.date), x.operator) for x in rows]
+
     def run(self, uid: str) -> RunInfo | None:
         with self.engine.connect() as conn:
             serial = conn.execute(sa.select(s.tables.c.serial).join(
@@ -435,22 +465,26 @@ class Records:
         return [_figure(x) for x in rows]
 
     def trend(self, serial: str, quantities: tuple[str, ...] | None = None,
-              ) -> list[TrendPoint]:
-        """Every figure of every run of one table, oldest run first."""
-        runs = {x.id: x for x in self.runs(serial)}
+              runs_of_table: list[RunInfo] | None = None) -> list[TrendPoint]:
+        """Every figure of every run of one table, oldest run first (`runs_of_table`: its
+        `runs(serial)` when the caller has them already)."""
+        runs = {x.id: x for x in (runs_of_table if runs_of_table is not None
+                                  else self.runs(serial))}
         if not runs:
             return []
         f = s.figures.c
-        q = sa.select(s.figures).where(f.run_id.in_(list(runs)))
+        # plain tuples in FigureRecord's field order: years of runs are tens of thousands
+        # of rows, and reading each field by name costs more than the query
+        q = sa.select(f.run_id, f.axis, f.quantity, f.set_rate_dps, f.value, f.u, f.unit,
+                      f.tolerance, f.verdict, f.rule).where(f.run_id.in_(list(runs)))
         if quantities:
             q = q.where(f.quantity.in_(quantities))
+        by_run: dict[int, list[FigureRecord]] = {}
         with self.engine.connect() as conn:
-            rows = conn.execute(q.order_by(f.id)).all()
-        order = {rid: i for i, rid in enumerate(runs)}
-        rows = sorted(rows, key=lambda x: (order[x.run_id], x.id))
-        return [TrendPoint(runs[x.run_id].uid, runs[x.run_id].date_utc,
-                           runs[x.run_id].certificate_number,
-                           runs[x.run_id].calibration_state, _figure(x)) for x in rows]
+            for run_id, *fields in conn.execute(q.order_by(f.id)).all():
+                by_run.setdefault(run_id, []).append(FigureRecord(*fields))
+        return [TrendPoint(r.uid, r.date_utc, r.certificate_number, r.calibration_state, fig)
+                for rid, r in runs.items() for fig in by_run.get(rid, ())]
 
     # -- measurement assurance (control.py reads through these) ----------------------------
     def instruments(self) -> list[InstrumentInfo]:

@@ -24,9 +24,21 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TypeVar
 
-from flask import Flask, Response, abort, jsonify, render_template, request, send_from_directory
+from flask import (
+    Flask,
+    Response,
+    abort,
+    jsonify,
+    render_template,
+    request,
+    send_from_directory,
+    stream_with_context,
+)
 
 import bench
+from bench.app.fleet.sync import is_lab_server
+from bench.app.records.store import redact
+from bench.app.station.fleet import FleetView, Notifications, fleet_json
 from bench.app.station.live import DOWNLOADS, list_runs, live_state, pid_alive
 from bench.app.station.records import RecordsView, run_figures
 from bench.app.station.settings import StationSettings, is_loopback
@@ -36,6 +48,7 @@ TOKEN_HEADER = "X-Bench-Token"
 TOKEN_COOKIE = "bench_token"
 STREAM_PERIOD_S = 1.0           # how often a live page gets the run's state
 STREAM_LIFETIME_S = 300.0       # a stream ends then; the browser reconnects by itself
+FLEET_REFRESH_S = 2.0           # the lab page's table is rendered again at least this often
 
 T = TypeVar("T")
 
@@ -60,6 +73,9 @@ def create_app(settings: StationSettings,
     app.config["station"] = settings
     runs = settings.runs.resolve()
     records = RecordsView(runs, settings.records_url)
+    # a lab server as the records (bench/app/fleet): every bench's runs, followed by LISTEN
+    fleet = FleetView(records.url, runs) if is_lab_server(records.url) else None
+    notifications = Notifications(records.url).start() if fleet is not None else None
 
     def run_dir(name: str) -> Path:
         """A run directory directly inside the runs folder, or 404 (no traversal)."""
@@ -100,8 +116,56 @@ def create_app(settings: StationSettings,
 
     @app.get("/")
     def index() -> str:
+        if fleet is not None:
+            return lab_page()
         return render_template("index.html.j2", runs=list_runs(runs), version=bench.__version__,
                                tables=records.tables(), records_error=records.error)
+
+    def lab_page() -> str:
+        """Every bench of the lab, the tables due, the drafts waiting for a signatory and
+        the instruments' status (a lab server as the records)."""
+        assert fleet is not None and notifications is not None
+        instruments, notes = records.lab_instruments(settings.register_url,
+                                                     fleet.instrument_serials())
+        return render_template("lab.html.j2", fleet=fleet.benches(),
+                               lab_url=redact(records.url), due=records.due_list(),
+                               drafts=records.drafts(), instruments=instruments,
+                               notes=notes, runs=list_runs(runs), version=bench.__version__)
+
+    @app.get("/bench/<bench_name>/<uid>")
+    def bench_run_page(bench_name: str, uid: str) -> str:
+        if fleet is None:
+            abort(404)
+        return render_template("bench_run.html.j2", r=_found(fleet.run(bench_name, uid)),
+                               version=bench.__version__)
+
+    @app.get("/api/fleet")
+    def api_fleet() -> Response:
+        if fleet is None or notifications is None:
+            abort(404)
+        return jsonify(fleet_json(fleet.benches()))
+
+    @app.get("/api/fleet/stream")
+    def api_fleet_stream() -> Response:
+        """The benches' table, rendered again whenever a bench delivers (NOTIFY), and at
+        least every FLEET_REFRESH_S (ages grow; a silent bench is noticed)."""
+        if fleet is None or notifications is None:
+            abort(404)
+
+        def events() -> Iterator[str]:
+            t_end = time.monotonic() + STREAM_LIFETIME_S
+            yield "retry: 2000\n\n"
+            seen = -1
+            while time.monotonic() < t_end:
+                version = notifications.wait(seen, FLEET_REFRESH_S)
+                seen = version
+                state = fleet.benches(version)
+                html = render_template("fleet_benches.html.j2", fleet=state)
+                text = json.dumps({"html": html, "benches": fleet_json(state)},
+                                  separators=(",", ":"), allow_nan=False)
+                yield f"event: fleet\ndata: {text}\n\n"
+        return Response(stream_with_context(events()), mimetype="text/event-stream",
+                        headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
 
     @app.get("/run/<name>")
     def run_page(name: str) -> str:

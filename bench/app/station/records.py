@@ -108,6 +108,72 @@ class RecordsView:
                             "overdue": bool(d and d.days_left is not None and d.days_left < 0)})
             return out
 
+    def due_list(self, within_days: int = 30) -> list[dict[str, Any]]:
+        """Tables due within `within_days` or overdue (bench due), for the lab page."""
+        with self._open() as rec:
+            if rec is None:
+                return []
+            items = rec.due(within_days=within_days, intervals=self.where.interval_for)
+        return [{"serial": d.table.serial,
+                 "table": " ".join(x for x in (d.table.maker, d.table.model) if x),
+                 "last_pass": d.table.last_pass_utc.date().isoformat()
+                 if d.table.last_pass_utc else None,
+                 "due": _iso(d.due_date), "status": d.status,
+                 "overdue": d.days_left is not None and d.days_left < 0} for d in items]
+
+    def drafts(self, limit: int = 50) -> list[dict[str, Any]]:
+        """Runs ended with a verdict and no certificate number yet, newest first."""
+        with self._open() as rec:
+            if rec is None:
+                return []
+            rows = rec.drafts(limit)
+        return [{"serial": serial, "run": run, "verdict": verdict,
+                 "date_utc": date.strftime("%Y-%m-%d %H:%M") if date else "-",
+                 "operator": operator} for serial, run, verdict, date, operator in rows]
+
+    def lab_instruments(self, register_url: str | None, serials: list[str]
+                        ) -> tuple[list[dict[str, Any]], list[str]]:
+        """The benches' instruments (`serials`) with their control status (the records'
+        charts), and every item of the lab register's inventory with its calibration (due
+        date, overdue without a deviation in force); with the notes of what could not be
+        read. Only the benches' own instruments are charted here: a lab's history holds
+        hundreds, and /records lists them all."""
+        notes: list[str] = []
+        rows: dict[str, dict[str, Any]] = {}
+        with self._open() as rec:
+            for serial in serials:
+                st = instrument_status(rec, serial) if rec is not None else None
+                if st is not None:
+                    rows[serial] = {"serial": serial, "model": st.model,
+                                    "control": st.line or st.state,
+                                    "out": st.state == OUT_OF_CONTROL,
+                                    "calibration": None, "cal_overdue": False}
+        if self.error:
+            notes.append(self.error)
+        if register_url:
+            from bench.app.register import RegisterError
+            from bench.app.register.store import Register
+
+            today = dt.datetime.now(dt.UTC).date()
+            try:
+                with Register.open(register_url, migrate=False) as reg:
+                    equipment = reg.equipment()
+            except RegisterError as e:
+                equipment = []
+                notes.append(f"register: {e}")
+            for q in equipment:
+                row = rows.setdefault(q.serial, {"serial": q.serial, "model": q.model,
+                                                 "control": None, "out": False})
+                problem = q.problem_on(today)
+                row["calibration"] = (f"{q.certificate} ({q.issuer}), due {q.due.isoformat()}"
+                                      + (f": {problem}" if problem else ""))
+                row["cal_overdue"] = bool(problem)
+                row["model"] = row.get("model") or q.model
+        else:
+            notes.append("no lab register named (--register or --lab): calibration status "
+                         "not shown")
+        return [rows[k] for k in sorted(rows)], notes
+
     def history(self, serial: str) -> dict[str, Any] | None:
         with self._open() as rec:
             if rec is None:

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.analysis.finite import finite_number as num
+from bench.core import rundir_layout as layout
 from bench.core.journal import read_jsonl
 from bench.core.placeholders import run_copy
 from bench.report.certificate.model import Block, Figure, Para, Section
@@ -46,11 +47,11 @@ class Sources:
         src = cls(conformed, run_path, dropped=dropped)
         if run_path is None:
             return src
-        src.meta = read_json_object(run_path / "meta.json")
+        src.meta = read_json_object(run_path / layout.META)
         # as the run read them: a placeholder left to fill in is no value to print
-        src.stand_file = run_copy(run_path, "stand.yaml")
-        src.procedure_file = run_copy(run_path, "procedure.yaml")
-        events = run_path / "events.jsonl"
+        src.stand_file = run_copy(run_path, layout.STAND)
+        src.procedure_file = run_copy(run_path, layout.PROCEDURE)
+        events = run_path / layout.EVENTS
         if events.exists():
             src.events = list(read_jsonl(events))
         return src

@@ -9,11 +9,12 @@ from __future__ import annotations
 import io
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
+
+if TYPE_CHECKING:   # matplotlib is imported when a plot is drawn (`bench validate` starts at once)
+    from matplotlib.figure import Figure
 
 DPI = 150
 WIDTH_IN = 7.0
@@ -21,6 +22,7 @@ DIRECTIONS = ((+1, "+ direction", "o", "C0"), (-1, "− direction", "s", "C3"))
 
 
 def _png(fig: Figure) -> bytes:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     FigureCanvasAgg(fig)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=DPI)
@@ -28,6 +30,7 @@ def _png(fig: Figure) -> bytes:
 
 
 def _fig(rows: int, cols: int = 1, height_in: float = 2.6) -> tuple[Figure, np.ndarray]:
+    from matplotlib.figure import Figure
     fig = Figure(figsize=(WIDTH_IN, height_in * rows), layout="constrained")
     axs = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
     for ax in axs:

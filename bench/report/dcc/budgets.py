@@ -17,11 +17,16 @@ from bench.report.dcc import vocab as V
 from bench.report.dcc.units import DEG, DEG_PER_H, DEG_PER_S, ONE
 from bench.report.dcc.xml import el, ident, name, quantity, text_el
 
-UNITS = {"1": ONE, "deg/s": DEG_PER_S, "deg/h": DEG_PER_H, "deg": DEG}
+UNITS = {"1": ONE, "deg/s": DEG_PER_S, "deg/h": DEG_PER_H, "deg": DEG, "s": r"\second",
+         "V/deg": r"\volt\degree\tothe{-1}"}
 #: D-SI unit of a sensitivity coefficient: (result unit, input unit) -> unit
 SENSITIVITY_UNITS = {("1", "1"): ONE, ("deg/s", "deg/s"): ONE, ("deg/h", "deg/h"): ONE,
                      ("deg", "deg"): ONE, ("deg", "1"): DEG,
-                     ("1", "deg/s"): r"\second\degree\tothe{-1}", ("deg", "deg/h"): r"\hour"}
+                     ("1", "deg/s"): r"\second\degree\tothe{-1}", ("deg", "deg/h"): r"\hour",
+                     ("deg/h", "1"): DEG_PER_H, ("deg/h", "deg"): r"\hour\tothe{-1}",
+                     ("deg/h", "s"): r"\degree\hour\tothe{-1}\second\tothe{-1}",
+                     ("deg/h", "V/deg"): r"\degree\tothe{2}\volt\tothe{-1}\hour\tothe{-1}",
+                     ("deg", "V/deg"): r"\degree\tothe{2}\volt\tothe{-1}"}
 
 
 def budget_results(results: etree._Element, result: Mapping[str, Any]) -> None:
@@ -57,6 +62,14 @@ def budget_results(results: etree._Element, result: Mapping[str, Any]) -> None:
                          t.sensitivity, cunit)
             quantity(lst, ident(bid, i, "ui"), "contribution u_i(y)", V.STANDARD_UNCERTAINTY,
                      t.contribution, unit)
+        for m, (i, j, r) in enumerate(b.correlations, start=1):
+            # r enters u_c (GUM 5.2.2, docs/method.md D1)
+            corr = el(data, "list", id=ident(bid, "corr", m))
+            name(corr, f"correlation of inputs {i + 1} and {j + 1} ({b.terms[i].quantity}; "
+                       f"{b.terms[j].quantity}): u_c^2 gains 2 r c_i u(x_i) c_j u(x_j) "
+                       "(GUM 5.2.2)")
+            quantity(corr, ident(bid, "corr", m, "r"), "correlation coefficient r",
+                     V.CORRELATION, r, ONE)
         total = el(data, "list", id=ident(bid, "combined"))
         nu = b.dof_eff
         name(total, f"combined: effective degrees of freedom "

@@ -52,6 +52,13 @@ QUANTITY_TRACED = RB + "quantityTraced"
 TRACEABILITY_STATUS = RB + "traceabilityStatus"
 REPORTED_IDENTITY = RB + "reportedIdentity"
 SENSITIVITY = RB + "sensitivityCoefficient"
+#: the item as received and as left, the decision rule's agreement (ISO/IEC 17025 7.8.2.1 g,
+#: 7.8.4.1 b, 7.1.3); a setting that differs from its read-back; the lab's accreditation
+ITEM_STATE = RB + "itemState"
+READBACK = RB + "settingReadBack"
+ACCREDITATION = RB + "accreditation"
+#: r of two correlated inputs of a budget (GUM 5.2.2)
+CORRELATION = RB + "correlationCoefficient"
 TOLERANCE_LOW = RB + "toleranceLimitLower"      # the maker's specification, not acceptance
 TOLERANCE_HIGH = RB + "toleranceLimitUpper"
 
