@@ -242,7 +242,8 @@ def test_a_database_of_r0001_is_upgraded_and_import_adds_the_check_values(
     from alembic import command
     from alembic.config import Config as AlembicConfig
 
-    from bench.app.records.store import MIGRATIONS, make_engine
+    from bench.app.db import make_engine
+    from bench.app.records.store import MIGRATIONS
 
     engine = make_engine(db.url)
     cfg = AlembicConfig()

@@ -17,7 +17,7 @@ import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from bench.app.records.store import redact
+from bench.app.db import redact
 
 OUTBOX_DIR = ".outbox"
 

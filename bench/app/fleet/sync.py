@@ -26,12 +26,13 @@ import sqlalchemy as sa
 from sqlalchemy.dialects.postgresql import insert as pg_insert
 from sqlalchemy.engine import Connection
 
+from bench.app.db import redact
 from bench.app.fleet import CHANNEL
 from bench.app.fleet.journal import Line, new_lines
 from bench.app.fleet.outbox import Outbox
 from bench.app.records import schema as s
 from bench.app.records.extract import NotARun, record_of, run_uid
-from bench.app.records.store import Records, RecordsError, redact
+from bench.app.records.store import Records, RecordsError
 from bench.core import rundir_layout as layout
 from bench.core.yamlfile import read_mapping
 

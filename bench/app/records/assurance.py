@@ -23,6 +23,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from bench.app.db import redact
 from bench.app.records.assurance_notes import ASSURANCE_FILE, CLAUSE
 from bench.app.records.control import (
     OUT_OF_CONTROL,
@@ -31,7 +32,7 @@ from bench.app.records.control import (
 )
 from bench.app.records.extract import NotARun, record_of
 from bench.app.records.hooks import RecordsTarget, target
-from bench.app.records.store import CheckPoint, Records, RecordsError, redact
+from bench.app.records.store import CheckPoint, Records, RecordsError
 from bench.core.config import SimSettings, StandSettings
 from bench.core.simbench import with_sim
 from bench.core.simdrift import drifted, has_drift, stated_run_number

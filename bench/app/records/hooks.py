@@ -16,9 +16,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from bench.app.db import redact
 from bench.app.records.extract import STATES, NotARun, record_of
 from bench.app.records.settings import LabSettings, SettingsError, load_lab_settings, records_url
-from bench.app.records.store import Records, RecordsError, redact
+from bench.app.records.store import Records, RecordsError
 from bench.core.config import CommonSettings, Identity
 
 Warn = Callable[[str], None]

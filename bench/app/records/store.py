@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import datetime as dt
 import random
-import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -20,61 +19,21 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import sqlalchemy as sa
-from sqlalchemy import event
 from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 
+from bench.app.db import make_engine, redact, upgrade_to_head
 from bench.app.records import schema as s
 from bench.app.records.checks import CheckRecord
 from bench.app.records.extract import FigureRecord, RunRecord
 
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"
-CONNECT_TIMEOUT_S = 5          # an unreachable lab server must not hold a run up
-SQLITE_BUSY_S = 30.0           # another bench holding the SQLite file: wait this long
 RETRIES = 8
-#: Alembic's command API keeps its context in module globals: one migration at a time
-#: per process (other processes are kept apart by the database's own transactions)
-_MIGRATE_LOCK = threading.Lock()
 T = TypeVar("T")
 
 
 class RecordsError(RuntimeError):
     """The records database cannot be reached or used; the message says which and why."""
-
-
-def engine_url(url: str) -> str:
-    """postgresql:// means psycopg (version 3), the driver this project installs."""
-    for prefix in ("postgresql://", "postgres://"):
-        if url.startswith(prefix):
-            return "postgresql+psycopg://" + url[len(prefix):]
-    return url
-
-
-def make_engine(url: str) -> Engine:
-    real = engine_url(url)
-    if real.startswith("sqlite"):
-        path = real.split("///", 1)[1] if "///" in real else ""
-        if path and path != ":memory:":
-            Path(path).parent.mkdir(parents=True, exist_ok=True)
-        eng = sa.create_engine(real, connect_args={"timeout": SQLITE_BUSY_S})
-
-        # pysqlite opens transactions lazily and cannot wait for a write lock once it
-        # holds a read lock; BEGIN IMMEDIATE takes the write lock up front, so a second
-        # writer waits (busy timeout) instead of failing (SQLAlchemy's documented recipe).
-        @event.listens_for(eng, "connect")
-        def _no_implicit_begin(dbapi_conn: Any, _rec: Any) -> None:
-            dbapi_conn.isolation_level = None
-            dbapi_conn.execute("PRAGMA foreign_keys=ON")
-
-        @event.listens_for(eng, "begin")
-        def _begin_immediate(conn: Connection) -> None:
-            conn.exec_driver_sql("BEGIN IMMEDIATE")
-
-        return eng
-    args: dict[str, Any] = {}
-    if real.startswith("postgresql"):
-        args["connect_timeout"] = CONNECT_TIMEOUT_S
-    return sa.create_engine(real, connect_args=args, pool_pre_ping=True)
 
 
 def _retrying(what: str, fn: Callable[[], T]) -> T:
@@ -244,14 +203,7 @@ class Records:
         self.close()
 
     def migrate(self) -> None:
-        from alembic import command
-        from alembic.config import Config as AlembicConfig
-
-        cfg = AlembicConfig()
-        cfg.set_main_option("script_location", str(MIGRATIONS))
-        with _MIGRATE_LOCK, self.engine.begin() as conn:
-            cfg.attributes["connection"] = conn
-            command.upgrade(cfg, "head")
+        upgrade_to_head(self.engine, MIGRATIONS)
 
     def revision(self) -> str | None:
         from alembic.runtime.migration import MigrationContext
@@ -575,14 +527,6 @@ def _figure(x: Any) -> FigureRecord:
     return FigureRecord(axis=x.axis, quantity=x.quantity, set_rate_dps=x.set_rate_dps,
                         value=x.value, u=x.u, unit=x.unit, tolerance=x.tolerance,
                         verdict=x.verdict, rule=x.rule)
-
-
-def redact(url: str) -> str:
-    """A URL without its password, for messages."""
-    try:
-        return sa.engine.make_url(url).render_as_string(hide_password=True)
-    except Exception:  # noqa: BLE001
-        return url
 
 
 def _short(e: BaseException) -> str:

@@ -22,6 +22,7 @@ import sqlalchemy as sa
 from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.exc import DBAPIError, IntegrityError
 
+from bench.app.db import make_engine, upgrade_to_head
 from bench.app.register import chain
 from bench.app.register import schema as s
 
@@ -159,7 +160,6 @@ class Register:
 
     @classmethod
     def open(cls, url: str, migrate: bool = True) -> Register:
-        from bench.app.records.store import make_engine
 
         try:
             reg = cls(url, make_engine(url))
@@ -183,16 +183,7 @@ class Register:
         self.close()
 
     def _migrate(self) -> None:
-        from alembic import command
-        from alembic.config import Config as AlembicConfig
-
-        from bench.app.records.store import _MIGRATE_LOCK
-
-        cfg = AlembicConfig()
-        cfg.set_main_option("script_location", str(MIGRATIONS))
-        with _MIGRATE_LOCK, self.engine.begin() as conn:
-            cfg.attributes["connection"] = conn
-            command.upgrade(cfg, "head")
+        upgrade_to_head(self.engine, MIGRATIONS)
 
     @contextmanager
     def _tx(self) -> Iterator[Connection]:

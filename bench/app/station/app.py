@@ -36,8 +36,8 @@ from flask import (
 )
 
 import bench
+from bench.app.db import redact
 from bench.app.fleet.sync import is_lab_server
-from bench.app.records.store import redact
 from bench.app.station.fleet import FleetView, Notifications, fleet_json
 from bench.app.station.live import DOWNLOADS, list_runs, live_state, pid_alive
 from bench.app.station.records import RecordsView, run_figures

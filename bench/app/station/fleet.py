@@ -22,10 +22,10 @@ from typing import Any
 import sqlalchemy as sa
 from sqlalchemy.engine import Engine
 
+from bench.app.db import engine_url, make_engine, redact
 from bench.app.fleet import CHANNEL
 from bench.app.records import schema as s
 from bench.app.records.extract import figures_of
-from bench.app.records.store import engine_url, make_engine, redact
 from bench.app.station.live import ENDINGS, pair_rows, progress_of
 from bench.app.station.view import (
     _age,
