@@ -6,7 +6,8 @@ it imports to do so must be light: this module imports the standard library only
 packages bench.app.certificate and bench.app.register load the PDF renderer and the
 database at import; bench.app.records.settings loads the lab model). A command's module is
 imported when the command runs. tests/test_cli_imports.py holds `import bench.app.cli` to
-that; the constants copied here from those modules are checked equal there too.
+that. The names shared with those modules are in bench/app/names.py; the records commands'
+names are checked equal to their handlers' there too.
 """
 
 from __future__ import annotations
@@ -15,10 +16,7 @@ import argparse
 import datetime as dt
 from typing import Any
 
-#: bench.app.records.settings.DEFAULT_RUNS
-DEFAULT_RUNS = "runs"
-#: bench.app.register.schema.ROLES
-ROLES = ("operator", "reviewer", "signatory", "quality", "admin")
+from bench.app.names import DEFAULT_RUNS, ROLES
 
 #: the subcommands add_records_parsers adds (bench.app.records.commands.RECORDS_COMMANDS)
 RECORDS_COMMAND_NAMES = ("history", "records", "due", "control")

@@ -10,9 +10,10 @@ from collections.abc import Callable
 from pathlib import Path
 
 from bench.app.db import redact
+from bench.app.names import DEFAULT_RUNS
 from bench.app.records.extract import NotARun, find_runs, record_of
 from bench.app.records.hooks import RecordsTarget, target
-from bench.app.records.settings import DEFAULT_RUNS, SettingsError
+from bench.app.records.settings import SettingsError
 from bench.app.records.store import Records, RecordsError, TrendPoint
 from bench.core.registry import declared_figures
 from bench.report.figures import FigureSpec, spec_for

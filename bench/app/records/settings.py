@@ -16,12 +16,12 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from bench.app.names import DEFAULT_RUNS
 from bench.core.lab import Lab, LabError, load_lab
 
 LAB_FILE = "lab.yaml"
 LAB_ENV = "BENCH_LAB_SETTINGS"          # the same lab file as the DCC's (bench/app/dcc/settings.py)
 RECORDS_FILE = "records.sqlite"
-DEFAULT_RUNS = "runs"
 
 
 #: the one lab settings model and its error (bench/core/lab.py): the records read the same

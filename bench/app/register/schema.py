@@ -9,7 +9,6 @@ import sqlalchemy as sa
 metadata = sa.MetaData()
 
 #: ISO/IEC 17025 6.2.5 f, 6.2.6: who may do what is the lab's decision, recorded here
-ROLES = ("operator", "reviewer", "signatory", "quality", "admin")
 
 accounts = sa.Table(
     "reg_accounts", metadata,

@@ -23,6 +23,7 @@ from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.exc import DBAPIError, IntegrityError
 
 from bench.app.db import make_engine, upgrade_to_head
+from bench.app.names import ROLES
 from bench.app.register import chain
 from bench.app.register import schema as s
 
@@ -261,9 +262,9 @@ class Register:
 
     def _insert_account(self, conn: Connection, actor: str, name: str, full_name: str,
                         roles: Sequence[str], function: str | None, pw_hash: str) -> None:
-        bad = [r for r in roles if r not in s.ROLES]
+        bad = [r for r in roles if r not in ROLES]
         if bad or not roles:
-            raise RegisterError(f"roles must be among {', '.join(s.ROLES)} (got "
+            raise RegisterError(f"roles must be among {', '.join(ROLES)} (got "
                                 f"{', '.join(roles) or 'none'})")
         try:
             conn.execute(s.accounts.insert().values(
