@@ -138,13 +138,19 @@ def _client(runs: Path, host: str = "127.0.0.1"):
     return app.test_client()
 
 
+#: a station configured for a non-loopback interface: an RFC 5737 documentation address,
+#: never reached (the WSGI test client and the settings parser open no socket)
+LAN_HOST = "192.0.2.1"
+
+
 def test_remote_address_needs_the_token(runs_folder: Path) -> None:
-    c = _client(runs_folder, host="0.0.0.0")
+    c = _client(runs_folder, host=LAN_HOST)
     remote = {"REMOTE_ADDR": "192.0.2.7"}
-    assert c.get("/", environ_base=remote, headers={"Host": "0.0.0.0:8765"}).status_code == 403
-    ok = c.get("/", environ_base=remote, headers={"Host": "0.0.0.0:8765", "X-Bench-Token": TOKEN})
+    host = {"Host": f"{LAN_HOST}:8765"}
+    assert c.get("/", environ_base=remote, headers=host).status_code == 403
+    ok = c.get("/", environ_base=remote, headers={**host, "X-Bench-Token": TOKEN})
     assert ok.status_code == 200
-    local = c.get("/", environ_base={"REMOTE_ADDR": "127.0.0.1"}, headers={"Host": "0.0.0.0:8765"})
+    local = c.get("/", environ_base={"REMOTE_ADDR": "127.0.0.1"}, headers=host)
     assert local.status_code == 200
 
 
@@ -163,7 +169,7 @@ def test_foreign_host_header_is_refused(runs_folder: Path) -> None:
 
 def test_serve_refuses_a_public_address_without_a_token(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("BENCH_STATION_TOKEN", raising=False)
-    args = argparse.Namespace(runs="runs", records=None, port=0, host="0.0.0.0", token=None)
+    args = argparse.Namespace(runs="runs", records=None, port=0, host=LAN_HOST, token=None)
     with pytest.raises(SystemExit, match="token"):
         settings_from_args(args)
     s, made = settings_from_args(argparse.Namespace(**{**vars(args), "host": "127.0.0.1"}))
