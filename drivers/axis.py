@@ -113,7 +113,12 @@ DEFAULT_UNIT_FACTORS = "read"
 DEFAULT_POSITION_TOLERANCE_DEG = 0.01
 
 class AxisError(RuntimeError):
-    """Something went wrong with an axis drive (names the axis and what)."""
+    """Something went wrong with an axis drive (names the axis and what).
+
+    `axis_moving`: after this error the axis may still be turning (the stop registry's
+    outcome carries it as a field: bench/core/stops.py)."""
+
+    axis_moving: bool = False
 
 
 class LimitError(AxisError, ValueError):
@@ -124,13 +129,15 @@ class ObjectRefused(AxisError):
     """The drive answered an SDO with an abort (no such object, value out of range...)."""
 
 
-#: the words that say, loudly, that an axis may still be turning (the CLI looks for them)
+#: the words that say, loudly, to the operator that an axis may still be turning
 NOT_STOPPED = "COULD NOT BE TOLD TO STOP"
 
 
 class DriveUnreachable(AxisError):
     """The drive cannot be told to stop (its heartbeat is silent): only its own heartbeat
     watchdog can stop the table now, once our heartbeat stops. Says so loudly."""
+
+    axis_moving = True
 
     def __init__(self, axis: str, silence_s: float, watchdog_ms: int | None,
                  abort_option: int | None) -> None:

@@ -9,13 +9,17 @@ stand schema and opened by the first kind it fits, through that kind's own code.
 from __future__ import annotations
 
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bench.core.config import Config
 from bench.core.registry import procedure_kind, procedure_names
 from bench.core.schema import validate
+from bench.core.stops import Stops
 from bench.core.yamlfile import Problem, YamlError, load_yaml
 from drivers.clock import MonotonicClock
+
+if TYPE_CHECKING:
+    from bench.core.simbench import SimBench
 
 
 def stand_config(stand_path: str) -> Config | None:
@@ -42,26 +46,27 @@ def list_devices(stand_path: str, sim: bool = False) -> int:
     if cfg is None:
         return 2
     kind = procedure_kind(cfg.kind)
-    simbench = None
     stand = cfg.stand_settings
-    clock: Any = MonotonicClock()
-    bench = None
+    stops = Stops()    # the twins and instruments register their stops as they open
+    status = 0
+    simbench: SimBench | None = None
     try:
-        if sim or cfg.has_sim:
-            simbench, stand = kind.start_sim(cfg)
-            clock = simbench.clock
-        bench = kind.open_bench(cfg, stand, clock, None)
-        if simbench is not None:
-            simbench.start_clock()
-        for axis, ax in bench.axes.items():
-            for what, ident in ax.identities.items():
-                print(f"{axis:<8} {what:<8} {ident}")
-        return 0
+        with stops.collecting():
+            if sim or cfg.has_sim:
+                simbench, stand = kind.start_sim(cfg)
+            # Any: the sims' clocks' `speed` is read-only, drivers.clock.Clock's is not
+            clock: Any = simbench.clock if simbench is not None else MonotonicClock()
+            bench = kind.open_bench(cfg, stand, clock, None)
+            if simbench is not None:
+                simbench.start_clock()
+            for axis, ax in bench.axes.items():
+                for what, ident in ax.identities.items():
+                    print(f"{axis:<8} {what:<8} {ident}")
     except Exception as e:  # noqa: BLE001 - say which instrument did not answer
         print(f"ERROR: {e}", file=sys.stderr)
-        return 3
+        status = 3
     finally:
-        if bench is not None:
-            bench.close()
-        if simbench is not None:
-            simbench.stop()
+        stops.run()
+    for outcome in stops.failures:   # beneath the first cause, never in its place
+        print(f"  also, while stopping: {outcome.text}", file=sys.stderr)
+    return 3 if stops.failures else status

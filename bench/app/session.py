@@ -1,17 +1,17 @@
 """One session of a run (the first, or a `--resume`): the object that owns it.
 
-Everything a session opens (the simulated bench, the instruments, the console) is entered
-on one ExitStack, and every path out, a completed run, a fault, Ctrl-C or a refusal,
-leaves through `_stop`: the one stop sequence (each axis ramped down, else quick stop,
-then disabled: drivers/axis.py safe_stop; then instruments and raw logs closed, last
-opened first; then the twins stopped). One rule for what the operator reads: the first
-cause; whatever goes wrong later, while stopping, is listed beneath it and never replaces
-it (python-can's `BusABC.shutdown` and Bluesky's `finalize_wrapper` are the models).
+Everything a session opens (the twins, the instruments, the analysis worker) registers
+its own stop with the session's registry as it is opened (bench/core/stops.py), and
+every path out, a completed run, a fault, Ctrl-C or a refusal, leaves through `_stop`:
+the registry run once, last opened first (the worker; each axis ramped down, else quick
+stop, then disabled: drivers/axis.py safe_stop; the instruments and raw logs closed; the
+twins stopped). One rule for what the operator reads: the first cause; the outcomes of
+the stops that failed are listed beneath it and never replace it (python-can's
+`BusABC.shutdown` and Bluesky's `finalize_wrapper` are the models).
 """
 
 from __future__ import annotations
 
-import contextlib
 import datetime as dt
 import os
 import sys
@@ -38,20 +38,14 @@ from bench.core import rundir_layout as layout
 from bench.core.config import Config, StandSettings
 from bench.core.diskspace import expected_raw_bytes, space_problem
 from bench.core.engine import Abort, Engine, Interrupted, RunContext, SignalGuard
-from bench.core.instruments import (
-    Bench,
-    StandClaimError,
-    StopErrors,
-    check_references,
-    identity_record,
-)
+from bench.core.instruments import Bench, StandClaimError, check_references, identity_record
 from bench.core.journal import RunDir
 from bench.core.plan import Plan, format_duration
 from bench.core.registry import procedure_kind
 from bench.core.simbench import SimBench, for_session
+from bench.core.stops import StopOutcome, Stops, attempt
 from bench.core.traceability import identity_mismatches, overdue, overdue_warning
 from bench.report.certificate.model import Document
-from drivers.axis import NOT_STOPPED
 from drivers.clock import MonotonicClock
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
@@ -128,12 +122,13 @@ class RunSession:
         self.kind = procedure_kind(cfg.kind)
         self.status = EXIT_ABORTED
         self.cause: str | None = None       # the first cause: what the operator reads
-        self.later: list[str] = []          # what failed afterwards, while stopping
+        #: every stop of the session, registered as its resource is opened; their
+        #: outcomes, typed, go beneath the first cause
+        self.stops = Stops()
         self.bench: Bench | None = None
         self.simbench: SimBench | None = None
         self.engine_ran = False
         self.unsigned = False
-        self._stack = contextlib.ExitStack()
 
     # -- the session, start to end -------------------------------------------------
     def run(self) -> int:
@@ -159,7 +154,7 @@ class RunSession:
             print(f"Free some space, then: bench run --resume {self.run_dir.path}")
             return EXIT_INVALID
         result: dict[str, Any] | None = None
-        with SignalGuard(self.progress.line) as guard:
+        with SignalGuard(self.progress.line) as guard, self.stops.collecting():
             try:
                 self._measure(guard, todo, done, table_overdue, out_of_control)
                 guard.check()             # a signal lost where it landed (SignalGuard)
@@ -168,7 +163,7 @@ class RunSession:
                 guard.stopping = True
                 guard.received()
                 err(f"Refused: {self.cfg.stand_path}: {e}")
-                self.later += self._journal("refused", reason=str(e))
+                self._journal("refused", reason=str(e))
                 self.status = EXIT_INVALID
             except BaseException as e:  # noqa: BLE001 - whatever it is, the stop follows
                 guard.stopping = True
@@ -195,12 +190,10 @@ class RunSession:
             sim_cfg = drifting_config(cfg, run.path, self.where, progress.line)
             if self.resume:  # the twins' noise of this session, not a replay of the first
                 sim_cfg = for_session(sim_cfg, run.next_session())
+            # its twins' stops are registered with the session's as they start
             self.simbench, stand = self.kind.start_sim(sim_cfg)
-            self._stack.callback(self._step_out, "stopping the simulated bench",
-                                 self.simbench.stop)
-            clock: Any = self.simbench.clock
-        else:
-            clock = MonotonicClock()
+        # Any: the sims' clocks' `speed` is read-only, drivers.clock.Clock's is not
+        clock: Any = self.simbench.clock if self.simbench is not None else MonotonicClock()
         run.begin_session(clock.now)
         run.event("session_start", resume=self.resume, sim=self.simbench is not None,
                   done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
@@ -214,8 +207,8 @@ class RunSession:
             run.event("records_overdue", text=table_overdue)
         for text in out_of_control:
             run.event("out_of_control", text=text)
+        # each instrument's stop registered with the session's as it is opened
         self.bench = bench = self.kind.open_bench(cfg, stand, clock, run)
-        self._stack.callback(self._close_bench, bench)
         for ax in bench.axes.values():
             run.event("identity", **identity_record(ax))
         if self.simbench is not None:
@@ -231,7 +224,7 @@ class RunSession:
                       f"{format_duration(todo.total_s)}")
         for w in todo.warnings:
             progress.warn(f"Warning: {w}")
-        ctx = RunContext(cfg, clock, bench, run, progress, yes=self.yes)
+        ctx = RunContext(cfg, clock, bench, run, progress, yes=self.yes, stops=self.stops)
         t0 = time.monotonic()
         self.engine_ran = True
         Engine(ctx, self.kind.execute).run(todo, guard)
@@ -263,58 +256,46 @@ class RunSession:
         """The first cause; a failure outside the engine also stops the axes here (the
         engine stops and journals its own)."""
         self.status = EXIT_ABORTED
-        self.later += list(getattr(e, "__notes__", []))
         if isinstance(e, Abort) and self.engine_ran:
             self.cause = str(e)
             return
         phase = "while running" if self.engine_ran else "while setting up the bench"
         self.cause = f"{phase}: {e or type(e).__name__}"
         if self.bench is not None:
-            self.later += self.bench.stop_and_close(self.progress.line)
-        self.later += self._journal("abort", reason=str(e) or type(e).__name__,
-                                    error=type(e).__name__)
+            self.stops.record(*self.bench.safe_stop(self.progress.line))
+        self._journal("abort", reason=str(e) or type(e).__name__, error=type(e).__name__)
 
     def _stop(self) -> None:
-        """The console first (its live display ends), then the stack, last opened first:
-        the instruments (safe twice: after a failure `stop_and_close` has closed them
-        already), then the twins."""
+        """The console first (its live display ends), then every registered stop, last
+        opened first: the worker, the instruments (each axis stopped, then closed), the
+        twins. Safe twice: an axis already stopped after a failure stops at once."""
         self.progress.close()
-        self._stack.close()
+        self.stops.run()
         if self.later:
             self.status = EXIT_ABORTED  # something may not have stopped: never clean
             self.cause = self.cause or "the run completed, but stopping the bench failed"
 
-    def _close_bench(self, bench: Bench) -> None:
-        try:
-            bench.close()
-        except StopErrors as e:
-            self.later += e.errors
-        except Exception as e:  # noqa: BLE001
-            self.later.append(f"closing the instruments: {e}")
-
-    def _step_out(self, what: str, fn: Callable[[], Any]) -> None:
-        try:
-            fn()
-        except Exception as e:  # noqa: BLE001 - the others must still be stopped
-            self.later.append(f"{what}: {e}")
+    @property
+    def later(self) -> list[str]:
+        """What failed while stopping, each once, in the order it happened."""
+        return list(dict.fromkeys(o.text for o in self.stops.failures))
 
     def _report_cause(self) -> None:
         if self.cause is None:
             return
         self.progress.warn(f"Aborted: {self.cause}")
-        for note in dict.fromkeys(n.removeprefix("also, while stopping: ") for n in self.later):
+        for note in self.later:
             self.progress.warn(f"  also, while stopping: {note}")
 
-    def _journal(self, kind: str, **fields: Any) -> list[str]:
-        """An event written on the stop path: a failure to write it is reported, not
-        raised."""
+    def _journal(self, kind: str, **fields: object) -> StopOutcome | None:
+        """An event written on the stop path: a failure to write it is an outcome among
+        the stops', not raised."""
         if not self.run_dir.session:
-            return []
-        try:
-            self.run_dir.event(kind, **fields)
-        except Exception as e:  # noqa: BLE001 - e.g. a full disk: say so, keep stopping
-            return [f"the {kind} event could not be journaled: {e}"]
-        return []
+            return None
+        outcome = attempt(f"journaling the {kind} event",
+                          lambda: self.run_dir.event(kind, **fields), "journal")
+        self.stops.record(outcome)
+        return outcome
 
     # -- after the stop: outputs and exit ------------------------------------------
     def _write(self, guard: SignalGuard) -> dict[str, Any] | None:
@@ -357,13 +338,14 @@ class RunSession:
         run = self.run_dir
         if self.status == EXIT_ABORTED and not self.unsigned:
             stopped = ("AN AXIS COULD NOT BE TOLD TO STOP (above): check the table first"
-                       if any(NOT_STOPPED in n for n in self.later) else "the axes were stopped")
+                       if self.stops.axis_moving else "the axes were stopped")
             print(f"The run was aborted; {stopped}. Continue with: "
                   f"bench run --resume {run.path}")
         if run.session:
-            for e in self._journal("exit", status=self.status, cause=self.cause,
-                                   later=self.later):
-                err(f"  also: {e}")
+            outcome = self._journal("exit", status=self.status, cause=self.cause,
+                                    later=self.later)
+            if outcome is not None and not outcome.ok:
+                err(f"  also: {outcome.text}")
         try:
             run.close()
         except Exception as e:  # noqa: BLE001

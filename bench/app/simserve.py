@@ -22,14 +22,18 @@ from __future__ import annotations
 import signal
 import sys
 import threading
-from collections.abc import Iterator
-from typing import Any
+from collections.abc import Callable, Iterator
+from types import FrameType
 
 from bench.app.devices import stand_config
 from bench.core.config import SimSettings, StandSettings
 from bench.core.registry import procedure_kind
 from bench.core.simbench import SimBench, with_sim
 from bench.core.simdrift import drifted, stated_run_number
+from bench.core.stops import Stops
+
+#: what `signal.signal` returns: the previous handler
+Handler = Callable[[int, FrameType | None], object] | int | signal.Handlers | None
 
 #: how `bench sim` serves its drives' buses: a bus another process can open
 SIM_CAN_INTERFACE = "socketcand"
@@ -71,26 +75,29 @@ def serve(stand_path: str, stop: threading.Event | None = None) -> int:
         print(note, file=sys.stderr)
     cfg = with_sim(cfg, axes=sim.axes)
     stop = stop or threading.Event()
-    previous: dict[signal.Signals, Any] = {}
-    simbench = None
+    previous: dict[signal.Signals, Handler] = {}
+    stops = Stops()    # the twins and the socketcand server register theirs as they start
+    status = 0
     try:
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGINT, signal.SIGTERM):
                 previous[sig] = signal.signal(sig, lambda *_: stop.set())
-        simbench, served = procedure_kind(cfg.kind).start_sim(cfg)
+        with stops.collecting():
+            simbench, served = procedure_kind(cfg.kind).start_sim(cfg)
         simbench.start_clock()
         for line in address_lines(simbench, served):
             print(line, flush=True)
         print("twins running (real time); Ctrl-C stops them", file=sys.stderr, flush=True)
         while not stop.wait(0.5):
             pass
-        return 0
     except Exception as e:  # noqa: BLE001 - say which twin did not start
         print(f"ERROR: {e}", file=sys.stderr)
-        return 3
+        status = 3
     finally:
-        if simbench is not None:
-            simbench.stop()
+        stops.run()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        print("twins stopped", file=sys.stderr, flush=True)
+    for outcome in stops.failures:   # beneath the first cause, never in its place
+        print(f"  also, while stopping: {outcome.text}", file=sys.stderr)
+    print("twins stopped", file=sys.stderr, flush=True)
+    return 3 if stops.failures else status

@@ -27,6 +27,7 @@ from bench.core.config import Config
 from bench.core.journal import RunDir, utc_now
 from bench.core.plan import Plan, Step
 from bench.core.progress import Progress
+from bench.core.stops import StopOutcome, Stops, attempt, failed
 from drivers import interrupts
 from drivers.clock import Clock
 
@@ -55,11 +56,10 @@ class Interrupted(BaseException):
 
 
 class StoppableBench(Protocol):
-    """What the engine needs of the instruments: a safe stop and a close."""
+    """What the engine needs of the instruments: a safe stop of every axis (one outcome
+    per axis, raises none: bench/core/instruments.py Bench)."""
 
-    def safe_stop(self, log: Callable[[str], None]) -> None: ...
-
-    def close(self) -> None: ...
+    def safe_stop(self, log: Callable[[str], None]) -> tuple[StopOutcome, ...]: ...
 
 
 class SignalGuard:
@@ -304,8 +304,15 @@ class AnalysisWorker:
             self._pool = None
         self._pending.clear()
         with self._lock:
-            failed, self._failed = self._failed, []
-        return failed
+            problems, self._failed = self._failed, []
+        return problems
+
+    def stop(self) -> None:
+        """The worker's stop (the session's registry): jobs not started are dropped;
+        raises what went wrong reporting the results. Safe to call twice."""
+        problems = self.close(wait=False)
+        if problems:
+            raise RuntimeError("; ".join(problems))
 
 
 @dataclass
@@ -321,6 +328,9 @@ class RunContext:
     state: dict[str, Any] = field(default_factory=dict)
     eta_s: Callable[[], float] = lambda: 0.0
     worker: AnalysisWorker = field(default_factory=AnalysisWorker)
+    #: the session's stop registry: the worker registers its stop there when started,
+    #: the engine records its safe stop's outcomes (bench/core/stops.py)
+    stops: Stops = field(default_factory=Stops)
 
     def prompt(self, text: str) -> None:
         """An operator prompt: a person answers it on a terminal, or --yes answers it for
@@ -369,6 +379,7 @@ class Engine:
         # look in a co-simulation cost the paper ladder 148 s against 120 s (one pair
         # outstanding: 151 s; two: 130 s), where the analysis outruns nothing.
         ctx.worker.start(preload=getattr(self.execute, "__module__", None))
+        ctx.stops.add("the analysis worker", ctx.worker.stop, "worker")
         try:
             for i, step in enumerate(steps):
                 guard.check()
@@ -392,35 +403,29 @@ class Engine:
             ctx.progress.end()
             reason = str(exc) or type(exc).__name__
             ctx.progress.warn(f"ABORT: {reason}")
-            later: list[str] = []
-            try:
-                ctx.run.event("abort", reason=reason, error=type(exc).__name__,
-                              traceback=traceback.format_exc(limit=8))
-            except Exception as e:  # noqa: BLE001 - the stop comes first, whatever the disk
-                later.append(f"the abort could not be journaled: {e}")
-            later += self.safe_stop()
-            later += ctx.worker.close(wait=False)
-            out = exc if isinstance(exc, Abort) else Abort(reason)
-            for note in later:
-                out.add_note(f"also, while stopping: {note}")
-            if out is exc:
+            error, trace = type(exc).__name__, traceback.format_exc(limit=8)
+            ctx.stops.record(attempt(
+                "journaling the abort event", lambda: ctx.run.event(
+                    "abort", reason=reason, error=error, traceback=trace), "journal"))
+            self.safe_stop()   # the worker and the rest: the session's registry, next
+            if isinstance(exc, Abort):
                 raise
-            raise out from exc
+            raise Abort(reason) from exc
 
-    def safe_stop(self) -> list[str]:
-        """Stop every axis; returns what went wrong (never raises: it runs after a fault)."""
+    def safe_stop(self) -> None:
+        """Stop every axis, first of all after a fault; its outcomes go to the session's
+        registry (never raises: it runs after a fault)."""
         ctx = self.ctx
         ctx.progress.line("Stopping every axis (ramp to zero, then disable)...")
-        errors: list[str] = []
         try:
-            ctx.bench.safe_stop(ctx.progress.line)
-            ok, error = True, None
-        except BaseException as e:  # noqa: BLE001
-            ok, error = False, repr(e)
-            errors.append(f"safe stop: {e}")
-            ctx.progress.warn(f"SAFE STOP FAILED: {e!r}: check the table by hand")
-        try:
-            ctx.run.event("safe_stop", ok=ok, **({"error": error} if error else {}))
-        except Exception as e:  # noqa: BLE001
-            errors.append(f"the safe stop could not be journaled: {e}")
-        return errors
+            outcomes = ctx.bench.safe_stop(ctx.progress.line)
+        except BaseException as e:  # noqa: BLE001 - a bench that is not ours to trust
+            outcomes = (failed("safe stop", "axis", e),)
+        ctx.stops.record(*outcomes)
+        errors = [o.text for o in outcomes if not o.ok]
+        if errors:
+            ctx.progress.warn(f"SAFE STOP FAILED: {'; '.join(errors)}: check the table by hand")
+        error = {"error": repr(RuntimeError("; ".join(errors)))} if errors else {}
+        ctx.stops.record(attempt("journaling the safe_stop event",
+                                 lambda: ctx.run.event("safe_stop", ok=not errors, **error),
+                                 "journal"))

@@ -7,7 +7,6 @@ serial port, the CAN channel) before this module opens them.
 
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Callable
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
@@ -20,6 +19,7 @@ from bench.core.journal import JsonLines, RunDir
 from bench.core.protocols import Counter as CounterLike
 from bench.core.protocols import Drive
 from bench.core.protocols import Fog as FogLike
+from bench.core.stops import Resource, StopOutcome, Stops, attempt
 from drivers.axis import Axis
 from drivers.cia402 import DEFAULT_EDS_PATH
 from drivers.clock import Clock
@@ -58,84 +58,72 @@ class AxisInstruments:
 class Bench:
     """All instruments of a run; `safe_stop` ramps every axis to zero and disables it.
 
-    What is opened is entered on one ExitStack, so it is closed last-opened-first, each
-    closer whatever the others raise; the errors come back together (`StopErrors`), never
-    one in place of another. Closing twice is harmless (the stack is empty then).
+    Each instrument and raw log registers its close on the bench's stop registry as it is
+    opened (bench/core/stops.py), which is itself registered with the command's registry
+    (a session's, `bench devices`') as the bench is made: closed last opened first, each
+    whatever the others do, every outcome typed. Closing twice is harmless.
     """
 
     def __init__(self) -> None:
         self.axes: dict[str, AxisInstruments] = {}
         self.extra: dict[str, Any] = {}
-        self._stack = contextlib.ExitStack()
-        self._errors: list[str] = []
+        self.stops = Stops.child("the instruments", "instrument")
 
-    def enter(self, cm: AbstractContextManager[T]) -> T:
+    def enter(self, cm: AbstractContextManager[T], resource: Resource = "instrument") -> T:
         obj = cm.__enter__()
         name = getattr(obj, "name", None) or getattr(obj, "port", None) or type(obj).__name__
-        self._stack.callback(self._closing, str(name), lambda: cm.__exit__(None, None, None))
+        self.stops.add(str(name), lambda: cm.__exit__(None, None, None), resource)
         return obj
 
-    def callback(self, fn: Callable[[], Any], name: str | None = None) -> None:
-        self._stack.callback(self._closing, name or str(getattr(fn, "__qualname__", "cleanup")),
-                             fn)
+    def callback(self, fn: Callable[[], object], name: str,
+                 resource: Resource = "instrument") -> None:
+        self.stops.add(name, fn, resource)
 
     def log(self, path: Path) -> JsonLines:
         j = JsonLines(path)
-        self._stack.callback(self._closing, f"raw log {j.path}", j.close)
+        self.stops.add(f"raw log {j.path}", j.close, "log")
         return j
 
-    def _closing(self, what: str, fn: Callable[[], Any]) -> None:
-        try:
-            fn()
-        except Exception as e:  # noqa: BLE001 - the others must still be closed
-            self._errors.append(f"{what}: {e}")
+    def safe_stop(self, log: Callable[[str], None]) -> tuple[StopOutcome, ...]:
+        """Every axis through the drive's one stop sequence (drivers/axis.py safe_stop),
+        the axes left open; one outcome per axis."""
+        return tuple(attempt(f"safe stop: {ax.name}", _stopping(ax.drive, log), "axis")
+                     for ax in self.axes.values())
 
-    def safe_stop(self, log: Callable[[str], None]) -> None:
-        """Every axis through the drive's one stop sequence (drivers/axis.py safe_stop)."""
-        errors = [f"{ax.name}: {e}" for ax in self.axes.values()
-                  for e in ax.drive.safe_stop(log)]
-        if errors:
-            raise RuntimeError("; ".join(errors))
+    def rest(self, axis: str) -> None:
+        """A plan's last step on `axis`: ramp to zero, wait for standstill, disable. Raises
+        what fails: a step's failure aborts the run, and the engine's safe stop follows."""
+        drive = self.axes[axis].drive
+        drive.stop()
+        drive.disable()
 
     def abandon(self, error: BaseException) -> None:
-        """Opening failed with `error`: stop what was opened, close all, keep `error` the
-        one reported (what fails meanwhile, e.g. a stop on a clock not yet started, is
-        noted on it, never raised in its place)."""
-        for err in self.stop_and_close(lambda s: None):
-            error.add_note(f"also, while stopping: {err}")
+        """Opening failed with `error`: stop what was opened and close all. `error` stays
+        the one reported; the outcomes reach the command's registry (and, for a reader
+        of the traceback, are noted on `error`)."""
+        for outcome in self.stop_and_close(lambda s: None):
+            if not outcome.ok:
+                error.add_note(f"also, while stopping: {outcome.text}")
 
-    def close(self) -> None:
-        """Close every instrument and raw log (last opened first). Every one is tried
-        whatever the others do; the errors are raised together (`StopErrors`)."""
-        self._stack.close()
-        errors, self._errors = self._errors, []
+    def close(self) -> tuple[StopOutcome, ...]:
+        """Close every instrument and raw log (last opened first), each whatever the others
+        do; their outcomes, raises none."""
+        return self.stops.run()
+
+    def stop_and_close(self, log: Callable[[str], None]) -> tuple[StopOutcome, ...]:
+        """After a failure: safe stop, then close. The outcomes, raises none: the first
+        cause stays what the operator reads, these go beneath it."""
+        self.stops.record(*self.safe_stop(log))
+        return self.close()
+
+
+def _stopping(drive: Drive, log: Callable[[str], None]) -> Callable[[], None]:
+    """The drive's safe stop as a stop that raises what it could not do."""
+    def stop() -> None:
+        errors = drive.safe_stop(log)
         if errors:
-            raise StopErrors(errors)
-
-    def stop_and_close(self, log: Callable[[str], None]) -> list[str]:
-        """After a failure: safe stop, then close. Returns the errors, raises none: the
-        first cause stays what the operator reads, these go beneath it."""
-        errors: list[str] = []
-        if self.axes:
-            try:
-                self.safe_stop(log)
-            except Exception as e:  # noqa: BLE001
-                errors.append(f"safe stop: {e}")
-        try:
-            self.close()
-        except StopErrors as e:
-            errors += e.errors
-        except Exception as e:  # noqa: BLE001
-            errors.append(f"closing the instruments: {e}")
-        return errors
-
-
-class StopErrors(RuntimeError):
-    """Errors met while stopping and closing (each names its instrument or file)."""
-
-    def __init__(self, errors: list[str]) -> None:
-        super().__init__("; ".join(errors))
-        self.errors = errors
+            raise RuntimeError("; ".join(errors))
+    return stop
 
 
 def with_readback(identity: str, readback: dict[str, Any], manual: str | None = None) -> str:
@@ -215,7 +203,7 @@ def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *
                  position_tolerance_deg=d.position_tolerance_deg,
                  unit_factors=d.unit_factors, eds_path=d.eds or DEFAULT_EDS_PATH,
                  raw=_raw_record_logger(drive_log, clock) if drive_log else None)
-    bench.enter(drive)
+    bench.enter(drive, "axis")
     ax = AxisInstruments(name, drive)
     if drive_log:
         ax.logs["drive"] = drive_log

@@ -14,8 +14,8 @@ the files, never on the machine's load.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
+import functools
 import sys
 import uuid
 from collections.abc import Callable
@@ -32,6 +32,7 @@ from bench.core.config import (
     StandAxis,
     StandSettings,
 )
+from bench.core.stops import StopOutcome, Stops
 from drivers.waits import MIN_REAL_MARGIN_S
 from sims.clock import GIL_SWITCH_S, MAX, SteppedClock, make_clock, parse_speed
 from sims.counter_twin import CounterTwin
@@ -128,11 +129,15 @@ class SimBench:
         self.twins: dict[str, Any] = {}
         #: a kind's own instruments' addresses, rewritten to their twins' (`address`)
         self.addresses: dict[str, str] = {}
-        self._stack = contextlib.ExitStack()
+        #: every twin's stop, registered as it starts (bench/core/stops.py); itself
+        #: registered with the command's registry as the simulated bench is made
+        self.stops = Stops.child("the simulated bench", "twin")
+        self.stops.add("the stand's clock", self.clock.pause, "clock")  # the last stop
         if isinstance(self.clock, SteppedClock):  # hand-offs every step (sims/clock.py)
             switch = sys.getswitchinterval()
             sys.setswitchinterval(GIL_SWITCH_S)
-            self._stack.callback(sys.setswitchinterval, switch)
+            self.stops.add("the interpreter's switch interval",
+                           functools.partial(sys.setswitchinterval, switch), "clock")
 
     def start(self, extra: list[TwinFactory] | None = None) -> StandSettings:
         """Start every twin; return the stand settings pointing at them."""
@@ -147,9 +152,10 @@ class SimBench:
                                  serial=fs.serial or DEFAULT_FOG_SERIAL)
                     axes[a] = dataclasses.replace(
                         axes[a], fog=dataclasses.replace(fs, port=ft.start()))
-                    self._stack.callback(ft.stop)
+                    self.stops.add(f"{a} FOG twin", ft.stop, "twin")
                     # the stand runs no faster than this FOG's frames go out (sims/clock.py)
-                    self._stack.callback(self.clock.pace(ft.delivered_s))
+                    self.stops.add(f"{a} FOG twin's pace", self.clock.pace(ft.delivered_s),
+                                   "clock")
                     self.twins[f"{a}.fog"] = ft
             # one virtual bus per CAN bus of the stand file: the same axes share one, so
             # the node ids (and each axis's controller id) are those of the real bench
@@ -165,7 +171,12 @@ class SimBench:
                                  controller_node_id=d.controller_node_id,
                                  counts_per_rev=d.counts_per_rev, **dict(truth.drive_twin),
                                  **serial_kw)
-                self._stack.enter_context(twin)
+                self.stops.enter(twin, f"{a} drive twin", "twin")
+                # a real drive outlives the controller that left it: before the twin
+                # stops, its watchdog acts on a power stage left on (after every
+                # controller's stop, which the command's registry ran first)
+                self.stops.add(f"{a} drive twin's watchdog", twin.settle_after_controller,
+                               "twin")
                 self.twins[f"{a}.drive"] = twin
                 # the twin shares this process with the controller: a starved host stalls
                 # both, so its watchdog allows the bench's stated real-time minimum
@@ -184,7 +195,7 @@ class SimBench:
                         idn = ct.idn.split(",")
                         ct.idn = ",".join([*idn[:2], truth.counter_serial, *idn[3:]])
                     resource = ct.start()
-                    self._stack.callback(ct.stop)
+                    self.stops.add(f"{a} counter twin", ct.stop, "twin")
                     self.twins[f"{a}.counter"] = ct
                     # the twin knows its zero-mark signal: mid-swing is a sound level
                     level = c.level_v if c.level_v is not None else sum(ct.signal_v) / 2
@@ -214,7 +225,7 @@ class SimBench:
             names[bus] = stated if ok else f"can{n}"
         server = SocketcandServer({names[b]: ch for b, ch in buses.items()})
         port = server.start()
-        self._stack.callback(server.stop)
+        self.stops.add("the socketcand server", server.stop, "server")
         self.can_server = server
         out = dict(axes)
         for a in self.axes:
@@ -225,10 +236,11 @@ class SimBench:
                 host=server.host, port=port))
         return out
 
-    def add(self, name: str, twin: Any, stop: Callable[[], Any]) -> None:
-        """For procedure kinds with instruments of their own (e.g. a gyro platform's)."""
+    def add(self, name: str, twin: object, stop: Callable[[], object]) -> None:
+        """For procedure kinds with instruments of their own (e.g. a gyro platform's):
+        the twin, started, and its stop."""
         self.twins[name] = twin
-        self._stack.callback(stop)
+        self.stops.add(name, stop, "twin")
 
     def start_clock(self) -> None:
         """The instruments are open: time may pass; on the co-simulation, what the stand
@@ -237,12 +249,10 @@ class SimBench:
         if isinstance(self.clock, SteppedClock):
             self.clock.drain()
 
-    def stop(self) -> None:
-        for twin in self.twins.values():
-            if hasattr(twin, "settle_after_controller"):
-                twin.settle_after_controller()
-        self._stack.close()
-        self.clock.pause()
+    def stop(self) -> tuple[StopOutcome, ...]:
+        """Stop every twin (each drive's watchdog let act first), last started first, then
+        the clock; safe twice. The outcomes, raises none."""
+        return self.stops.run()
 
     def __enter__(self) -> SimBench:
         return self

@@ -289,9 +289,7 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
         ctx.bench.extra["awg"].outputs_off()
-        drive = ctx.bench.axes[step.axis].drive
-        drive.stop()
-        drive.disable()
+        ctx.bench.rest(step.axis)
 
     # -- analysis -------------------------------------------------------------------------
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:

@@ -420,9 +420,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         return Plan(plan.title, tuple(steps + pending))
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
-        drive = ctx.bench.axes[step.axis].drive
-        drive.stop()
-        drive.disable()
+        ctx.bench.rest(step.axis)
 
     # -- analysis --------------------------------------------------------------------
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
