@@ -43,6 +43,9 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:   # canopen is imported when an axis opens (`bench validate` reads constants)
     import canopen
+    from canopen.emcy import EmcyError
+    from canopen.pdo.base import PdoMap
+    from canopen.sdo import SdoVariable
 
 from drivers.cia402 import (
     COB_HEARTBEAT,
@@ -264,7 +267,7 @@ class Axis:
         self.mode: Mode = PROFILE_VELOCITY
         self.network: canopen.Network | None = None
         self.node: canopen.RemoteNode | None = None
-        self._hb_task: Any = None
+        self._hb_task: HeartbeatProducer | None = None
         self._lock = threading.Condition()
         self._fault: _FaultInfo | None = None
         self._raw_error: BaseException | None = None
@@ -542,7 +545,7 @@ class Axis:
                             f"{si_unit_text(factors.velocity_si)}, "
                             f"{si_unit_text(factors.acceleration_si)})") from e
 
-    def _check_tpdo_timing(self, n: int, pdo: Any) -> None:
+    def _check_tpdo_timing(self, n: int, pdo: PdoMap) -> None:
         """CiA 301 TPDO communication (0x1800+n-1): sub 2 transmission type, sub 5 event
         timer (ms). Types 254/255 send on an event; with event timer 0 the event is only a
         change of the mapped data, so a table at rest would send nothing and the
@@ -1010,7 +1013,7 @@ class Axis:
                              fault.register, fault.t_s)
 
     # -- receive-thread callbacks ----------------------------------------------------------
-    def _on_tpdo(self, pdo: Any) -> None:
+    def _on_tpdo(self, pdo: PdoMap) -> None:
         t = self.clock.now()
         values = {var.index: var.raw for var in pdo.map}
         with self._lock:
@@ -1057,7 +1060,7 @@ class Axis:
             self._drive_nmt = nmt_state
             self._lock.notify_all()
 
-    def _on_emcy(self, entry: Any) -> None:
+    def _on_emcy(self, entry: EmcyError) -> None:
         code, register = int(entry.code), int(entry.register)
         with self._lock:
             if code & 0xFF00 == 0:
@@ -1128,7 +1131,7 @@ class Axis:
         assert self.node is not None
         return self.node
 
-    def _sdo_var(self, index: int, sub: int) -> Any:
+    def _sdo_var(self, index: int, sub: int) -> SdoVariable:
         from canopen.sdo import SdoVariable
         obj = self._node().sdo[index]
         return obj if isinstance(obj, SdoVariable) else obj[sub]

@@ -5,6 +5,7 @@ twins whose faulted axis ends at rest with outcomes that say so as fields."""
 from __future__ import annotations
 
 import ast
+import functools
 import re
 import threading
 from pathlib import Path
@@ -30,7 +31,7 @@ def test_stops_run_last_registered_first_and_once() -> None:
     ran: list[str] = []
     stops = Stops()
     for name in ("twin", "axis", "worker"):
-        stops.add(name, lambda n=name: ran.append(n), "twin")
+        stops.add(name, functools.partial(ran.append, name), "twin")
     first = stops.run()
     assert ran == ["worker", "axis", "twin"]
     assert [o.what for o in first] == ["worker", "axis", "twin"]
@@ -108,7 +109,7 @@ def test_stops_registered_from_threads_all_run_once() -> None:
 
     def register(base: int) -> None:
         for i in range(base, base + 200):
-            stops.add(f"stop {i}", lambda i=i: bump(i), "twin")
+            stops.add(f"stop {i}", functools.partial(bump, i), "twin")
 
     threads = [threading.Thread(target=register, args=(k * 200,)) for k in range(4)]
     for t in threads:

@@ -50,7 +50,7 @@ from drivers.clock import MonotonicClock
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
-SimHook = Callable[[Any], None]
+SimHook = Callable[[SimBench], None]
 
 
 def err(text: str) -> None:
@@ -230,7 +230,7 @@ class RunSession:
         Engine(ctx, self.kind.execute).run(todo, guard)
         run.event("completed", wall_s=time.monotonic() - t0)
 
-    def _check_identities(self, stand: StandSettings, bench: Any, run: RunDir,
+    def _check_identities(self, stand: StandSettings, bench: Bench, run: RunDir,
                           progress: PlainConsole) -> None:
         """The serials the stand states against those the instruments report, before
         anything moves. On a real stand a mismatch refuses the run (exit 2): another

@@ -22,18 +22,15 @@ from __future__ import annotations
 import signal
 import sys
 import threading
-from collections.abc import Callable, Iterator
-from types import FrameType
+from collections.abc import Iterator
 
 from bench.app.devices import stand_config
 from bench.core.config import SimSettings, StandSettings
+from bench.core.engine import SignalHandler
 from bench.core.registry import procedure_kind
 from bench.core.simbench import SimBench, with_sim
 from bench.core.simdrift import drifted, stated_run_number
 from bench.core.stops import Stops
-
-#: what `signal.signal` returns: the previous handler
-Handler = Callable[[int, FrameType | None], object] | int | signal.Handlers | None
 
 #: how `bench sim` serves its drives' buses: a bus another process can open
 SIM_CAN_INTERFACE = "socketcand"
@@ -75,7 +72,7 @@ def serve(stand_path: str, stop: threading.Event | None = None) -> int:
         print(note, file=sys.stderr)
     cfg = with_sim(cfg, axes=sim.axes)
     stop = stop or threading.Event()
-    previous: dict[signal.Signals, Handler] = {}
+    previous: dict[signal.Signals, SignalHandler] = {}
     stops = Stops()    # the twins and the socketcand server register theirs as they start
     status = 0
     try:

@@ -37,6 +37,10 @@ if TYPE_CHECKING:
     from concurrent.futures import ProcessPoolExecutor
 
 
+#: what `signal.signal` takes and returns: a handler, SIG_DFL/SIG_IGN, or None
+SignalHandler = Callable[[int, FrameType | None], object] | int | signal.Handlers | None
+
+
 class Abort(Exception):
     """The operator (Ctrl-C, SIGTERM) or a fault ended the run."""
 
@@ -89,7 +93,7 @@ class SignalGuard:
         #: the exception of a signal the run has not yet received (see the class's note)
         self.pending: Interrupted | KeyboardInterrupt | None = None
         self._log = log
-        self._old: dict[int, Any] = {}
+        self._old: dict[int, SignalHandler] = {}
 
     def _handler(self, signum: int, frame: FrameType | None) -> None:
         self.count += 1

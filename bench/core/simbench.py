@@ -35,7 +35,7 @@ from bench.core.config import (
 from bench.core.stops import StopOutcome, Stops
 from drivers.waits import MIN_REAL_MARGIN_S
 from sims.clock import GIL_SWITCH_S, MAX, SteppedClock, make_clock, parse_speed
-from sims.counter_twin import CounterTwin
+from sims.counter_twin import CounterTwin, SyncLink
 from sims.fog_twin import DEFAULT_SERIAL as DEFAULT_FOG_SERIAL
 from sims.fog_twin import FogTwin
 from sims.stand import SimulatedStand, StandTruth
@@ -75,12 +75,10 @@ def session_seed(sim: SimSettings) -> int:
     if sim.session <= 1:
         return sim.seed
     return int(np.random.SeedSequence([sim.seed, sim.session]).generate_state(1)[0])
-def sync_link(counter: CounterSpec, sim_axis: SimAxis) -> Any:
+def sync_link(counter: CounterSpec, sim_axis: SimAxis) -> SyncLink | None:
     """The FOG-sync-to-counter link the twins model for a `fog-sync` time tie: pulses
     every `sync_period_s`, the sim truth's latency and jitter (default: exactly the
     latency the stand declares). None when the stand ties otherwise (nothing wired)."""
-    from sims.counter_twin import SyncLink
-
     tie = counter.time_tie
     if tie is None or tie.source != "fog-sync":
         return None
@@ -126,7 +124,7 @@ class SimBench:
         #: serves each bus to other processes on 127.0.0.1 (sims/socketcand_server.py)
         self.can_interface = "virtual"
         self.can_server: SocketcandServer | None = None
-        self.twins: dict[str, Any] = {}
+        self.twins: dict[str, object] = {}
         #: a kind's own instruments' addresses, rewritten to their twins' (`address`)
         self.addresses: dict[str, str] = {}
         #: every twin's stop, registered as it starts (bench/core/stops.py); itself
