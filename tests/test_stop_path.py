@@ -20,7 +20,11 @@ from bench.core.stops import StopOutcome, Stops, attempt
 from drivers.axis import AxisError, DriveUnreachable
 from drivers.cia402 import OVER_TEMPERATURE
 from tests.conftest import when_step_starts
-from tests.test_fault_matrix import _procedure  # its short one-axis ladder
+from tests.test_fault_matrix import (  # its short one-axis ladder, its slow clock
+    SLOW_CLOCK,
+    _hear_silence_sooner,
+    _procedure,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -281,3 +285,29 @@ def test_a_faulted_drive_ends_at_rest_and_the_outcomes_say_so(tmp_path: Path) ->
     # recorded after the stops ran)
     assert [o.what for o in session.stops.run()] == ["journaling the exit event"]
     assert session.stops.outcomes == outcomes
+
+
+@pytest.mark.timeout(240)
+def test_a_silent_drive_is_an_outcome_whose_axis_may_be_moving(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The drive's heartbeat stops mid-run: the drive cannot be told to stop, and the
+    session knows it from the outcome's field, not from the words of its message."""
+    _hear_silence_sooner(monkeypatch)
+    cfg = load_config(_procedure(tmp_path, SLOW_CLOCK))
+    run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
+    seen: dict[str, Any] = {}
+
+    def hook(sim: Any) -> None:
+        seen["sim"] = sim
+        when_step_starts(run, lambda e: e.get("action") == "settle",
+                         sim.twins["outer.drive"].silence_heartbeat, delay_s=0.02)
+
+    session = RunSession(cfg, run, yes=True, on_sim_started=hook)
+    assert session.run() == EXIT_ABORTED
+    moving = [o for o in session.stops.outcomes if o.axis_moving]
+    assert [(o.resource, o.ok, o.error_type) for o in moving] == [
+        ("axis", False, "DriveUnreachable")], session.stops.outcomes
+    assert session.stops.axis_moving
+    sim = seen["sim"]     # the drive's own watchdog stopped the table
+    assert sim.twins["outer.drive"].watchdog_trips
+    assert sim.stand.axes["outer"].commanded_rate_at(sim.clock.now() + 3600.0) == 0.0
