@@ -38,7 +38,13 @@ from bench.core import rundir_layout as layout
 from bench.core.config import Config, StandSettings
 from bench.core.diskspace import expected_raw_bytes, space_problem
 from bench.core.engine import Abort, Engine, Interrupted, RunContext, SignalGuard
-from bench.core.instruments import Bench, StandClaimError, check_references, identity_record
+from bench.core.instruments import (
+    STOPPING_NOTE,
+    Bench,
+    StandClaimError,
+    check_references,
+    identity_record,
+)
 from bench.core.journal import RunDir
 from bench.core.plan import Plan, format_duration
 from bench.core.registry import procedure_kind
@@ -125,6 +131,9 @@ class RunSession:
         #: every stop of the session, registered as its resource is opened; their
         #: outcomes, typed, go beneath the first cause
         self.stops = Stops()
+        #: what the first cause's exception notes (e.g. an instrument's recovery), said
+        #: beneath it as before; the stops' own failures come from their outcomes
+        self._notes: list[str] = []
         self.bench: Bench | None = None
         self.simbench: SimBench | None = None
         self.engine_ran = False
@@ -256,6 +265,8 @@ class RunSession:
         """The first cause; a failure outside the engine also stops the axes here (the
         engine stops and journals its own)."""
         self.status = EXIT_ABORTED
+        self._notes = [n for n in getattr(e, "__notes__", [])
+                       if not n.startswith(STOPPING_NOTE)]   # those are outcomes
         if isinstance(e, Abort) and self.engine_ran:
             self.cause = str(e)
             return
@@ -277,8 +288,9 @@ class RunSession:
 
     @property
     def later(self) -> list[str]:
-        """What failed while stopping, each once, in the order it happened."""
-        return list(dict.fromkeys(o.text for o in self.stops.failures))
+        """Beneath the first cause: its own notes, then every stop that failed, each once,
+        in the order it happened (the exit event's `later`)."""
+        return list(dict.fromkeys([*self._notes, *(o.text for o in self.stops.failures)]))
 
     def _report_cause(self) -> None:
         if self.cause is None:

@@ -55,6 +55,10 @@ class AxisInstruments:
         return self.fog is not None and self.fog.first_index is None
 
 
+#: how `Bench.abandon` notes a stop's failure on the error that ended the opening
+STOPPING_NOTE = "also, while stopping: "
+
+
 class Bench:
     """All instruments of a run; `safe_stop` ramps every axis to zero and disables it.
 
@@ -103,7 +107,7 @@ class Bench:
         of the traceback, are noted on `error`)."""
         for outcome in self.stop_and_close(lambda s: None):
             if not outcome.ok:
-                error.add_note(f"also, while stopping: {outcome.text}")
+                error.add_note(f"{STOPPING_NOTE}{outcome.text}")
 
     def close(self) -> tuple[StopOutcome, ...]:
         """Close every instrument and raw log (last opened first), each whatever the others
