@@ -17,6 +17,7 @@ from bench.core.engine import RunContext
 from bench.core.journal import RunDir, sha256_file
 from bench.core.lab import certificate_settings
 from bench.core.plan import Plan, Step
+from bench.core.stops import register
 from bench.report.conformity import RULES
 from bench.report.uncertainty_names import UNCERTAINTY_NAMING, with_explicit_names
 
@@ -55,6 +56,8 @@ class RawHashes:
         self._run = run
         self._files = [p for p in sorted(layout.raw_root(run.path).rglob("*")) if p.is_file()]
         self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="sha256")
+        register("raw-file hashing", lambda: self._pool.shutdown(False, cancel_futures=True),
+                 "worker")
         self._hashes = [self._pool.submit(self._hash, p) for p in self._files]
 
     def _hash(self, path: Path) -> str:

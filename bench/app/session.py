@@ -79,7 +79,21 @@ def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
                   ) -> tuple[dict[str, Any], Document | None]:
     """result.json, then the certificate (PDF, HTML, DCC); returns the result and the
     certificate's document (None when it could not be written: a run that leaves no
-    certificate must not exit as if it had, nor one whose DCC does not validate)."""
+    certificate must not exit as if it had, nor one whose DCC does not validate).
+    What the analysis opens registers its stop here (`bench run` and `bench analyze`
+    alike), run once it ends, however it ends."""
+    stops = Stops()
+    try:
+        with stops.collecting():
+            return _write_outputs(run, cfg, progress, records)
+    finally:
+        for outcome in stops.run():
+            if not outcome.ok:
+                progress.warn(f"  also, while stopping: {outcome.text}")
+
+
+def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
+                   records: RecordsTarget | None) -> tuple[dict[str, Any], Document | None]:
     result = procedure_kind(cfg.kind).analyze(run, cfg)
     run.write_json(layout.RESULT, result)
     # the table's history from the records, when they hold any (never fails the run)

@@ -90,6 +90,15 @@ class _Entry:
 _collecting: ContextVar[Stops | None] = ContextVar("bench_stops", default=None)
 
 
+def register(what: str, stop: Callable[[], object], resource: Resource) -> None:
+    """Register `stop` with the registry collecting now (a command's), for a resource
+    made deep inside a kind's code (the analysis's hashing threads). With none collecting
+    (a test, a library use), the resource's owner's own cleanup is the only one."""
+    current = _collecting.get()
+    if current is not None:
+        current.add(what, stop, resource)
+
+
 class Stops:
     """A thread-safe registry of stops, run last registered first, each once."""
 
