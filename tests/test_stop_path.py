@@ -16,7 +16,7 @@ import pytest
 from bench.app.session import EXIT_ABORTED, RunSession
 from bench.core.journal import RunDir
 from bench.core.loader import load_config
-from bench.core.stops import StopOutcome, Stops, attempt
+from bench.core.stops import StopOutcome, Stops, attempt, register
 from drivers.axis import AxisError, DriveUnreachable
 from drivers.cia402 import OVER_TEMPERATURE
 from tests.conftest import when_step_starts
@@ -79,10 +79,15 @@ def test_a_base_exception_in_a_stop_is_raised_after_the_others_ran() -> None:
         raise SystemExit(9)
 
     stops.add("exits", leave, "worker")
+    with stops.collecting():                  # inside a child registry too
+        child = Stops.child("the instruments")
+    child.add("first", functools.partial(ran.append, "first"), "instrument")
+    child.add("child exits", leave, "instrument")
     with pytest.raises(SystemExit):
         stops.run()
-    assert ran == ["last"]
-    assert [o.ok for o in stops.outcomes] == [False, True]
+    assert ran == ["first", "last"]
+    assert [(o.what, o.ok) for o in stops.outcomes] == [
+        ("child exits", False), ("first", True), ("exits", False), ("last", True)]
 
 
 def test_a_registry_made_while_another_collects_runs_in_its_place() -> None:
@@ -100,6 +105,15 @@ def test_a_registry_made_while_another_collects_runs_in_its_place() -> None:
     assert ran == ["worker", "drive", "counter", "twins"]
     assert [o.what for o in session.outcomes] == [
         "worker", "early safe stop", "drive", "counter", "twins"]
+
+
+def test_a_resource_made_deep_in_a_kind_registers_with_the_command() -> None:
+    ran: list[str] = []
+    register("alone", functools.partial(ran.append, "alone"), "worker")  # none collecting
+    command = Stops()
+    with command.collecting():
+        register("hashing", functools.partial(ran.append, "hashing"), "worker")
+    assert [o.what for o in command.run()] == ["hashing"] and ran == ["hashing"]
 
 
 def test_stops_registered_from_threads_all_run_once() -> None:

@@ -158,25 +158,34 @@ class Stops:
         outcomes not yet returned (those recorded since, and of earlier runs). A stop
         that raises a BaseException (SystemExit) does not skip the others: it is raised
         once they have run."""
+        pending = self._run_entries()
+        out = self._drain()
+        if pending is not None:
+            raise pending
+        return out
+
+    def _run_entries(self) -> BaseException | None:
         pending: BaseException | None = None
         while True:
             with self._lock:
                 if not self._entries:
-                    break
+                    return pending
                 entry = self._entries.pop()
+            if entry.child is not None:       # its outcomes here, whatever it raised
+                raised = entry.child._run_entries()
+                self.record(*entry.child._drain())
+                pending = pending or raised
+                continue
+            assert entry.stop is not None
             try:
-                if entry.child is not None:
-                    self.record(*entry.child.run())
-                else:
-                    assert entry.stop is not None
-                    self.record(attempt(entry.what, entry.stop, entry.resource))
-            except BaseException as e:  # noqa: BLE001 - the rest still run; raised below
+                self.record(attempt(entry.what, entry.stop, entry.resource))
+            except BaseException as e:  # noqa: BLE001 - the rest still run; raised after
                 self.record(failed(entry.what, entry.resource, e))
                 pending = pending or e
+
+    def _drain(self) -> tuple[StopOutcome, ...]:
         with self._lock:
             out, self._unreported = tuple(self._unreported), []
-        if pending is not None:
-            raise pending
         return out
 
     @property
