@@ -411,7 +411,12 @@ class Engine:
             ctx.stops.record(attempt(
                 "journaling the abort event", lambda: ctx.run.event(
                     "abort", reason=reason, error=error, traceback=trace), "journal"))
-            self.safe_stop()   # the worker and the rest: the session's registry, next
+            self.safe_stop()
+            # jobs not started are dropped now (an Engine may run without a session);
+            # its registered stop, next, finds it closed
+            dropped = attempt("the analysis worker", ctx.worker.stop, "worker")
+            if not dropped.ok:
+                ctx.stops.record(dropped)
             if isinstance(exc, Abort):
                 raise
             raise Abort(reason) from exc
