@@ -377,7 +377,9 @@ class DriftFigures:
     @classmethod
     def of(cls, result: Mapping[str, object]) -> DriftFigures:
         """The drift body of a whole result.json."""
-        return cls.from_json(_field(result, ROOT, "result.json"))
+        if ROOT not in result:
+            raise MalformedResult(ROOT, "missing")
+        return cls.from_json(result[ROOT])
 
 
 # -- the checks -------------------------------------------------------------------------------
