@@ -44,7 +44,7 @@ from procedures.base import StepDispatch, result_document
 from procedures.drift_pulse import analysis as dp
 from procedures.drift_pulse.certificate import DriftCertificate
 from procedures.drift_pulse.records import DriftRecords
-from procedures.drift_pulse.result import DriftCheck, DriftFigures
+from procedures.drift_pulse.result import DriftCheck, DriftFigures, DriftMethod
 from procedures.drift_pulse.settings import (  # noqa: F401 - the kind's names
     CYCLE_OVERHEAD_S,
     NAME,
@@ -386,13 +386,9 @@ def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, 
         drift = DriftFigures.failed(str(e))
         complete = False
     t = d.timing
-    method = {"method": "docs/method.md B: alternating-sign controlled precession",
-              "pulse": dict(d.pulse_doc), "timing_cycles": d.timing_cycles,
-              "cycles_per_position": d.cycles,
-              "positions_deg": list(d.positions_deg),
-              "sample_rate_hz": 1.0 / t.interval_s, "aperture_s": t.aperture_s,
-              "site": dict(d.site_doc), "tolerance": dict(d.tolerance_doc)}
+    method = DriftMethod(d.pulse_doc, d.timing_cycles, d.cycles, d.positions_deg,
+                         1.0 / t.interval_s, t.aperture_s, d.site_doc, d.tolerance_doc)
     return result_document(run, cfg, events, complete=complete,
-                           checks=[c.to_json() for c in checks], rule=rule, method=method,
-                           drift=drift.to_json())
+                           checks=[c.to_json() for c in checks], rule=rule,
+                           method=method.to_json(), drift=drift.to_json())
 

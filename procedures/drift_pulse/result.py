@@ -382,6 +382,31 @@ class DriftFigures:
         return cls.from_json(result[ROOT])
 
 
+# -- the method as run --------------------------------------------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class DriftMethod:
+    """result.json's `method`: how this run measured (docs/method.md B), the pulse, site and
+    tolerance blocks as the procedure file states them."""
+
+    pulse: Mapping[str, object]
+    timing_cycles: int
+    cycles_per_position: int
+    positions_deg: tuple[float, ...]
+    sample_rate_hz: float
+    aperture_s: float
+    site: Mapping[str, object]
+    tolerance: Mapping[str, object]
+
+    def to_json(self) -> dict[str, object]:
+        return {"method": "docs/method.md B: alternating-sign controlled precession",
+                "pulse": dict(self.pulse), "timing_cycles": self.timing_cycles,
+                "cycles_per_position": self.cycles_per_position,
+                "positions_deg": list(self.positions_deg),
+                "sample_rate_hz": self.sample_rate_hz, "aperture_s": self.aperture_s,
+                "site": dict(self.site), "tolerance": dict(self.tolerance)}
+
+
 # -- the checks -------------------------------------------------------------------------------
 
 @dataclass(frozen=True, slots=True)
