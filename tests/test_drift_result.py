@@ -5,11 +5,15 @@ with the key path that is wrong."""
 from __future__ import annotations
 
 import copy
+import datetime as dt
 import json
 import math
+from pathlib import Path
 
 import pytest
 
+from bench.app.certificate import write_certificate
+from bench.core.journal import RunDir
 from bench.report.uncertainty_names import with_explicit_names
 from procedures.drift_pulse import analysis as dp
 from procedures.drift_pulse.result import DriftFigures, MalformedResult
@@ -108,3 +112,31 @@ def test_a_malformed_body_is_refused_with_its_key_path(analysed: dp.DriftResult,
     assert str(err.value).startswith(f"result.json {path}: ")
     with pytest.raises(MalformedResult, match=r"^result.json drift: missing$"):
         DriftFigures.of({"procedure": "drift-pulse"})
+
+
+def _certificate(tmp_path: Path, result: dict[str, object]) -> str:
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    (tmp_path / "events.jsonl").touch()
+    write_certificate(RunDir(tmp_path), result, issued=dt.date(2025, 3, 6))
+    return (tmp_path / "certificate.html").read_text(encoding="utf-8")
+
+
+@pytest.mark.timeout(120)
+def test_the_certificate_reads_the_typed_figures(tmp_path: Path) -> None:
+    html = _certificate(tmp_path, drift_pulse_result())
+    assert "+0.0523 ± 0.0031" in html and "80.020 ± 0.031 °" in html
+    # the digitizer's offset, U expanded, as a deviation of the run (docs/method.md B)
+    assert "Axis x: the digitizer&#39;s samples were +0.250 ± 0.010 ms off the pulse edges" \
+        in html
+
+
+@pytest.mark.timeout(120)
+def test_a_result_without_figures_and_a_malformed_one(tmp_path: Path) -> None:
+    failed = drift_pulse_result() | {"verdict": "incomplete", "drift": DriftFigures.failed(
+        "each position needs at least two cycles (for its scatter)").to_json()}
+    html = _certificate(tmp_path / "failed", failed)
+    assert "Own and apparent drift per axis" not in html and "Site latitude" not in html
+    broken = drift_pulse_result()
+    broken["drift"]["axes"]["x"].pop("own_dph")
+    with pytest.raises(MalformedResult, match=r"^result.json drift.axes.x.own_dph: missing$"):
+        _certificate(tmp_path / "broken", broken)
