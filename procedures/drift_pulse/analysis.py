@@ -30,13 +30,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
 from bench.analysis.coverage import coverage_factor
 from bench.report.budget import Budget
+from bench.report.conformity import judge
 from drivers.units import EARTH_RATE_DPH, SECONDS_PER_HOUR
 from procedures.drift_pulse.budgets import (
     AxisInputs,
@@ -45,6 +45,18 @@ from procedures.drift_pulse.budgets import (
     azimuth_budget,
     earth_budget,
     own_budget,
+)
+from procedures.drift_pulse.result import (
+    AxisFigures,
+    CycleFigures,
+    DriftCheck,
+    DriftFigures,
+    EarthRateCheck,
+    ExampleCycle,
+    OwnDriftCheck,
+    PlatformFigures,
+    PositionFigures,
+    StartOffsetFigures,
 )
 
 DETECTION_Z = 3.0
@@ -246,8 +258,10 @@ class CycleResult:
     t_start_s: float
     table_deg: float
 
-    def to_dict(self) -> dict[str, float]:
-        return {k: float(v) for k, v in self.__dict__.items()}
+    def figures(self) -> CycleFigures:
+        return CycleFigures(self.drift_dph, self.drift_nominal_dph, self.u_int_vs,
+                            self.amplitude_dps, self.offset_s, self.offset_u_s,
+                            self.residual_rms_v, self.t_start_s, self.table_deg)
 
 
 def cycle_drift_dph(record: CycleRecord, shape: PulseShape, k_as_v_per_deg: float,
@@ -260,7 +274,7 @@ def cycle_drift_dph(record: CycleRecord, shape: PulseShape, k_as_v_per_deg: floa
 
 
 def example_cycle(record: CycleRecord, start_s: float, max_points: int = 1000
-                  ) -> dict[str, Any]:
+                  ) -> ExampleCycle:
     """One cycle for a plot: U(t) and the running signed integral, from the first edge.
 
     The integrator adds U over the first pulse and subtracts it over the second
@@ -273,9 +287,9 @@ def example_cycle(record: CycleRecord, start_s: float, max_points: int = 1000
     su = sign * u
     integral = np.concatenate(([0.0], np.cumsum(0.5 * (su[1:] + su[:-1]) * np.diff(t))))
     step = max(1, int(math.ceil(t.size / max_points)))
-    return {"t_s": t[::step].tolist(), "u_v": u[::step].tolist(),
-            "integral_vs": integral[::step].tolist(), "tc_s": tc,
-            "note": "time from the first pulse edge (where the fit puts it)"}
+    return ExampleCycle(tuple(t[::step].tolist()), tuple(u[::step].tolist()),
+                        tuple(integral[::step].tolist()), tc,
+                        "time from the first pulse edge (where the fit puts it)")
 
 
 # -- statistics --------------------------------------------------------------------------
@@ -298,12 +312,11 @@ class StartOffset:
         a hundred or more); the integration is corrected by it either way."""
         return abs(self.offset_s) > DETECTION_Z * self.offset_u_s
 
-    def to_dict(self) -> dict[str, Any]:
+    def figures(self) -> StartOffsetFigures:
         # U = t_95.45(cycles - 1) u (docs/method.md D1)
-        return {"offset_s": self.offset_s,
-                "offset_u_s": coverage_factor(max(self.cycles - 1, 1)) * self.offset_u_s,
-                "offset_samples": self.samples, "detected": self.significant,
-                "cycles": self.cycles}
+        return StartOffsetFigures(self.offset_s,
+                                  coverage_factor(max(self.cycles - 1, 1)) * self.offset_u_s,
+                                  self.samples, self.significant, self.cycles)
 
 
 def pool_offsets(fits: Sequence[OffsetFit], sample_interval_s: float) -> StartOffset:
@@ -353,12 +366,11 @@ class PositionMean:
             return math.inf
         return self.std_dph / math.sqrt(self.n)
 
-    def to_dict(self) -> dict[str, Any]:
+    def figures(self) -> PositionFigures:
         """The position mean as a budget input: its standard uncertainty and dof, no U of its
         own (docs/method.md D2)."""
-        return {"table_deg": self.table_deg, "cycles": self.n, "mean_dph": self.mean_dph,
-                "std_dph": self.std_dph, "mean_ustd_dph": self.u_dph, "dof": self.n - 1,
-                "drifts_dph": list(self.drifts_dph)}
+        return PositionFigures(self.table_deg, self.n, self.mean_dph, self.std_dph, self.u_dph,
+                               self.n - 1, self.drifts_dph)
 
     def as_input(self) -> PositionInput:
         return PositionInput(self.table_deg, self.mean_dph, self.u_dph, self.n)
@@ -425,23 +437,16 @@ class AxisDrift:
     own_budget: Budget
     apparent_budget: Budget | None
     vertical: bool = False
-    example: dict[str, Any] | None = field(default=None)   # one cycle for the plot
+    example: ExampleCycle | None = None        # one cycle for the plot
 
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "own_dph": self.own_dph, "own_u_dph": self.own_u_dph,
-            "apparent_dph": self.apparent_dph, "apparent_u_dph": self.apparent_u_dph,
-            "own_nominal_edges_dph": self.own_nominal_dph,
-            "apparent_nominal_edges_dph": self.apparent_nominal_dph,
-            "amplitude_dps": self.amplitude_dps,
-            "vertical": self.vertical,
-            "start_offset": self.start_offset.to_dict(),
-            "budgets": [b.to_dict() for b in (self.own_budget, self.apparent_budget)
-                        if b is not None],
-            "positions": [p.to_dict() for p in self.positions],
-            "cycles": [c.to_dict() for c in self.cycles],
-            **({"example_cycle": self.example} if self.example else {}),
-        }
+    def figures(self) -> AxisFigures:
+        return AxisFigures(
+            self.own_dph, self.own_u_dph, self.apparent_dph, self.apparent_u_dph,
+            self.own_nominal_dph, self.apparent_nominal_dph, self.amplitude_dps, self.vertical,
+            self.start_offset.figures(),
+            tuple(b for b in (self.own_budget, self.apparent_budget) if b is not None),
+            tuple(p.figures() for p in self.positions),
+            tuple(c.figures() for c in self.cycles), self.example)
 
 
 def analyze_axis(gyro: str, records: Sequence[CycleRecord], shape: PulseShape,
@@ -547,20 +552,37 @@ class DriftResult:
         return (abs(self.earth_horizontal_dph - self.earth_horizontal_expected_dph)
                 <= self.earth_horizontal_u_dph)
 
-    def to_dict(self) -> dict[str, Any]:
-        """CONTRACT's drift keys; the azimuth and Earth-rate keys only with both x and y."""
-        out: dict[str, Any] = {
-            "axes": {g: ax.to_dict() for g, ax in self.axes.items()},
-            "latitude_deg": self.latitude_deg,
-            "earth_horizontal_expected_dph": self.earth_horizontal_expected_dph,
-        }
-        if self.azimuth_deg is not None:
-            out |= {"azimuth_deg": self.azimuth_deg, "azimuth_u_deg": self.azimuth_u_deg,
-                    "earth_horizontal_dph": self.earth_horizontal_dph,
-                    "earth_horizontal_u_dph": self.earth_horizontal_u_dph,
-                    "earth_horizontal_consistent": self.earth_consistent}
-        out["budgets"] = [b.to_dict() for b in self.budgets]
-        return {"drift": out}
+    def figures(self) -> DriftFigures:
+        """result.json's drift body (result.py); the platform's figures only with x and y."""
+        platform = None
+        if (self.azimuth_deg is not None and self.azimuth_u_deg is not None
+                and self.earth_horizontal_dph is not None
+                and self.earth_horizontal_u_dph is not None
+                and self.earth_consistent is not None):
+            platform = PlatformFigures(self.azimuth_deg, self.azimuth_u_deg,
+                                       self.earth_horizontal_dph, self.earth_horizontal_u_dph,
+                                       self.earth_consistent)
+        return DriftFigures({g: ax.figures() for g, ax in self.axes.items()},
+                            self.latitude_deg, self.earth_horizontal_expected_dph, platform,
+                            self.budgets)
+
+    def checks(self, tolerance_dph: float | None, rule: str) -> list[DriftCheck]:
+        """Own drift against the tolerance under the decision rule; the Earth-rate
+        consistency (k_as, levelling; docs/method.md B)."""
+        out: list[DriftCheck] = []
+        for g, ax in self.axes.items():
+            if tolerance_dph is None:
+                continue
+            tol = float(tolerance_dph)
+            c = judge(g, 0.0, "own_drift", ax.own_dph, ax.own_u_dph, tol, rule)
+            out.append(OwnDriftCheck(g, ax.own_dph, ax.own_u_dph, tol, c.rule, c.verdict,
+                                     c.reason, c.capability_ratio, c.capability_ok))
+        if self.earth_consistent is not None and self.earth_horizontal_dph is not None \
+                and self.earth_horizontal_u_dph is not None:
+            out.append(EarthRateCheck(self.earth_horizontal_dph, self.earth_horizontal_u_dph,
+                                      self.earth_horizontal_expected_dph,
+                                      self.earth_consistent))
+        return out
 
 
 def azimuth_deg(app_x_dph: float, app_y_dph: float, u_x_dph: float, u_y_dph: float

@@ -15,9 +15,8 @@ common scale error leaves the azimuth unchanged and moves the Earth rate in full
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from bench.report.budget import (
     NORMAL,
@@ -25,8 +24,6 @@ from bench.report.budget import (
     STUDENT_T,
     Budget,
     Term,
-    budgets_in,
-    from_dict,
 )
 from drivers.units import SECONDS_PER_HOUR
 
@@ -197,28 +194,9 @@ def earth_budget(x: AxisInputs, y: AxisInputs, w_h_dph: float) -> Budget:
                        "W_h unchanged to first order and is not an input here")
 
 
-def coverage_of(budgets: Sequence[Mapping[str, Any]], key: str) -> tuple[float, float | None
-                                                                           ] | None:
-    """(k, nu_eff) of the budget of result key `key` among `budgets` (docs/method.md D1)."""
-    for d in budgets:
-        b = from_dict(d)
-        if b is not None and b.key == key:
-            return b.k, b.dof_eff
-    return None
-
-
-def add_budgets(result: dict[str, Any]) -> dict[str, Any]:
-    """result.json with each drift figure's coverage factor and nu_eff stated beside its U
-    (`<figure>_coverage_factor`, `<figure>_dof_eff`), read from the budget the analysis
-    computed the U with, so the DCC's si:coverageFactor is the budget's (docs/method.md D1)."""
-    drift = result.get("drift")
-    if not isinstance(drift, dict):
-        return result
-    nodes = [d for d in (drift.get("axes") or {}).values() if isinstance(d, dict)] + [drift]
-    for node in nodes:
-        own = budgets_in({"budgets": node.get("budgets") or []})
-        for stem in ("own", "apparent", "azimuth", "earth_horizontal"):
-            got = coverage_of(own, f"{stem}_dph" if stem != "azimuth" else "azimuth_deg")
-            if got is not None:
-                node[f"{stem}_coverage_factor"], node[f"{stem}_dof_eff"] = got
+def add_budgets(result: dict[str, object]) -> dict[str, object]:
+    """result.json as the analysis wrote it: each drift figure's coverage factor and nu_eff
+    (`<figure>_coverage_factor`, `<figure>_dof_eff`) are already stated beside its U, from
+    the budget the U was computed with (result.py), so the DCC's si:coverageFactor is the
+    budget's (docs/method.md D1). Kept for the kind's `analyze`, which calls it."""
     return result

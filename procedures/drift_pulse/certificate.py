@@ -8,11 +8,10 @@ axis, the azimuth, the drift per position and cycle, the budget and the plots.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
-from typing import Any
 
 from bench.analysis.coverage import DOF_INFINITE
+from bench.report.budget import Budget
 from bench.report.certificate import methods, plots
 from bench.report.certificate.model import Block, Fields, Para, Section, Table
 from bench.report.certificate.parts import (
@@ -20,13 +19,13 @@ from bench.report.certificate.parts import (
     CertificateParts,
     Sources,
     figure_of,
-    num,
     stand_of,
     text_of,
     vu_text,
 )
 from bench.report.certificate.rounding import format_sig, format_value_u
 from procedures.drift_pulse.dcc import DriftDcc
+from procedures.drift_pulse.result import DriftFigures
 
 # -- the method statement (docs/method.md part B, restated) ---------------------------------
 
@@ -102,11 +101,11 @@ class DriftCertificate(DriftDcc, CertificateParts):
 
     def certificate_run_deviations(self, src: Sources) -> Sequence[str]:
         run = []
-        for axis, d in ((src.get("drift", {}) or {}).get("axes", {}) or {}).items():
-            off = d.get("start_offset") if isinstance(d, Mapping) else None
-            if isinstance(off, Mapping) and off.get("detected"):
-                shift = format_value_u(num(off.get("offset_s")), num(off.get("offset_u_s")),
-                                       1e3, signed=True).joined("ms")
+        for axis, ax in DriftFigures.of(src.result).axes.items():
+            off = ax.start_offset
+            if off.detected:
+                shift = format_value_u(off.offset_s, off.offset_U_s, 1e3,
+                                       signed=True).joined("ms")
                 run.append(f"Axis {axis}: the digitizer's samples were {shift} "
                            "off the pulse edges; the integration edges were placed where the "
                            "pulses are (docs/method.md B: a half-sample offset would bias the "
@@ -114,8 +113,8 @@ class DriftCertificate(DriftDcc, CertificateParts):
         return run
 
     def certificate_sections(self, src: Sources, number: str,
-                             checks: Sequence[Mapping[str, Any]]) -> list[Section]:
-        return _drift_results(src, number)
+                             checks: Sequence[Mapping[str, object]]) -> list[Section]:
+        return _drift_results(DriftFigures.of(src.result), number)
 
     def certificate_statements(self, statements: Sequence[str]) -> list[str]:
         """No relative values here: the drift is in °/h."""
@@ -124,41 +123,35 @@ class DriftCertificate(DriftDcc, CertificateParts):
 
 # -- the results -----------------------------------------------------------------------------
 
-def _position(c: Mapping[str, Any]) -> float:
-    return num(c.get("position_deg", c.get("table_deg"))) or 0.0
-
-
-def _k_text(node: Mapping[str, Any], stem: str) -> str:
-    """'k = 2.09 (ν_eff = 29.8)' of a figure's budget (docs/method.md D1), as
-    procedures/drift_pulse/budgets.py states it beside the U; '—' when no budget says."""
-    k, nu = num(node.get(f"{stem}_coverage_factor")), num(node.get(f"{stem}_dof_eff"))
-    if k is None:
+def _k_text(budget: Budget | None) -> str:
+    """'k = 2.09 (ν_eff = 29.8)' of a figure's budget (docs/method.md D1), the k and nu_eff its
+    U was computed with (procedures/drift_pulse/budgets.py); '—' when no budget says."""
+    if budget is None:
         return "—"
-    return f"{k:.2f} ({'∞' if nu is None or nu > DOF_INFINITE else f'{nu:.1f}'})"
+    nu = budget.dof_eff
+    return f"{budget.k:.2f} ({'∞' if nu is None or nu > DOF_INFINITE else f'{nu:.1f}'})"
 
 
-def _drift_results(src: Sources, number: str) -> list[Section]:
-    drift = src.get("drift", {}) or {}
-    axes = {a: d for a, d in (drift.get("axes", {}) or {}).items() if isinstance(d, Mapping)}
-    budgeted = any(isinstance(d.get("budgets"), list) for d in axes.values())
-    blocks: list[Any] = [Para(
+def _drift_results(drift: DriftFigures, number: str) -> list[Section]:
+    axes = drift.axes
+    budgeted = any(ax.budgets for ax in axes.values())
+    blocks: list[Block] = [Para(
         "Drift in °/h; each value followed by its expanded uncertainty U for about 95 %: "
         "U = k·u_c of its budget in the annex, k = t_95.45(ν_eff) (docs/method.md D1, the one "
         "rule of every U on this certificate)." if budgeted else
         "Drift in °/h; each value followed by its expanded uncertainty U for about 95 %, as "
         "result.json states it (it carries no budget).")]
-    has_nominal = any(num(d.get("own_nominal_edges_dph")) is not None for d in axes.values())
+    has_nominal = bool(axes)
     rows = []
-    for axis, d in axes.items():
-        row = [axis, vu_text(d.get("own_dph"), d.get("own_u_dph"), signed=True),
-               vu_text(d.get("apparent_dph"), d.get("apparent_u_dph"), signed=True),
-               text_of(len(d.get("cycles") or []) or None)]
+    for axis, ax in axes.items():
+        row = [axis, vu_text(ax.own_dph, ax.own_U_dph, signed=True),
+               vu_text(ax.apparent_dph, ax.apparent_U_dph, signed=True),
+               text_of(len(ax.cycles) or None)]
         if budgeted:
-            row.insert(2, _k_text(d, "own"))
-            row.insert(4, _k_text(d, "apparent"))
+            row.insert(2, _k_text(ax.own_budget))
+            row.insert(4, _k_text(ax.apparent_budget))
         if has_nominal:
-            row.insert(len(row) - 1, format_sig(num(d.get("own_nominal_edges_dph"))
-                                                or math.nan, 4, signed=True))
+            row.insert(len(row) - 1, format_sig(ax.own_nominal_edges_dph, 4, signed=True))
         rows.append(tuple(row))
     if rows:
         header = ["Axis", "Own drift ± U, °/h", "Apparent drift at 0° ± U, °/h", "Cycles"]
@@ -180,56 +173,37 @@ def _drift_results(src: Sources, number: str) -> list[Section]:
                             caption="Own and apparent drift per axis (docs/method.md B)",
                             notes=tuple(notes)))
     fields = []
-    if num(drift.get("latitude_deg")) is not None:
-        fields.append(("Site latitude", f"{num(drift['latitude_deg']):g}°"))
-    if num(drift.get("azimuth_deg")) is not None:
-        az, azu = num(drift["azimuth_deg"]), num(drift.get("azimuth_u_deg"))
-        k = _k_text(drift, "azimuth")
-        fields.append(("Platform azimuth (X input axis) ± U", vu_text(az, azu) + " °"
+    if drift.latitude_deg is not None:
+        fields.append(("Site latitude", f"{drift.latitude_deg:g}°"))
+    plat = drift.platform
+    if plat is not None:
+        k = _k_text(drift.azimuth_budget)
+        fields.append(("Platform azimuth (X input axis) ± U",
+                       vu_text(plat.azimuth_deg, plat.azimuth_U_deg) + " °"
                        + ("" if k == "—" else f"; k (ν_eff) = {k}")))
-        if azu is not None:
-            fields.append(("U of the azimuth", format_value_u(azu * 60, None, sig_without_u=2)
-                           .joined("arcmin")))
-    if num(drift.get("earth_horizontal_dph")) is not None:
-        text = vu_text(drift["earth_horizontal_dph"], drift.get("earth_horizontal_u_dph")) + " °/h"
-        if (k := _k_text(drift, "earth_horizontal")) != "—":
+        fields.append(("U of the azimuth", format_value_u(plat.azimuth_U_deg * 60, None,
+                                                          sig_without_u=2).joined("arcmin")))
+        text = vu_text(plat.earth_horizontal_dph, plat.earth_horizontal_U_dph) + " °/h"
+        if (k := _k_text(drift.earth_budget)) != "—":
             text += f" (k (ν_eff) = {k})"
-        exp = num(drift.get("earth_horizontal_expected_dph"))
-        if exp is not None:
-            ok = drift.get("earth_horizontal_consistent")
-            text += (f"; expected 15.041·cos(latitude) = {exp:.4f} °/h"
-                     + ("" if ok is None else (", consistent" if ok else ", NOT consistent")))
+        if drift.earth_horizontal_expected_dph is not None:
+            text += (f"; expected 15.041·cos(latitude) = "
+                     f"{drift.earth_horizontal_expected_dph:.4f} °/h"
+                     + (", consistent" if plat.earth_horizontal_consistent
+                        else ", NOT consistent"))
         fields.append(("Horizontal Earth rate from the apparent drifts", text))
     if fields:
         blocks.append(Fields(tuple(fields)))
     prow = []
-    for axis, d in axes.items():
-        positions = [p for p in d.get("positions") or [] if isinstance(p, Mapping)]
-        if not positions:  # group the cycles by position
-            cycles = [c for c in d.get("cycles") or [] if isinstance(c, Mapping)]
-            for pos in dict.fromkeys(_position(c) for c in cycles):
-                w = [v for c in cycles if _position(c) == pos
-                     for v in (num(c.get("drift_dph")),) if v is not None]
-                if w:
-                    mean = sum(w) / len(w)
-                    std = (math.sqrt(sum((x - mean) ** 2 for x in w) / (len(w) - 1))
-                           if len(w) > 1 else None)
-                    positions.append({"table_deg": pos, "cycles": len(w), "mean_dph": mean,
-                                      "std_dph": std, "drifts_dph": w})
-        for p in positions:
-            w = [v for v in (num(x) for x in p.get("drifts_dph") or []) if v is not None]
-            n = int(num(p.get("cycles")) or len(w))
-            std = num(p.get("std_dph"))
+    for axis, ax in axes.items():
+        for p in ax.positions:
+            n = p.cycles
             # the mean's Type A standard uncertainty s/sqrt(n), nu = n - 1 (docs/method.md D1):
             # a budget input, stated without a U of its own (D2)
-            u_mean = num(p.get("mean_ustd_dph"))
-            if u_mean is None and std is not None and n > 1:
-                u_mean = std / math.sqrt(n)
-            prow.append((axis, f"{_position(p):g}", str(n),
-                         format_sig(num(p.get("mean_dph")) or math.nan, 5, signed=True),
-                         format_sig(std or math.nan, 2), format_sig(u_mean or math.nan, 2),
-                         str(n - 1) if n > 1 else "—",
-                         ", ".join(format_sig(x, 5, signed=True) for x in w)))
+            prow.append((axis, f"{p.table_deg:g}", str(n),
+                         format_sig(p.mean_dph, 5, signed=True), format_sig(p.std_dph, 2),
+                         format_sig(p.mean_ustd_dph, 2), str(n - 1) if n > 1 else "—",
+                         ", ".join(format_sig(x, 5, signed=True) for x in p.drifts_dph)))
     if prow:
         blocks.append(Table(("Axis", "Position, °", "Cycles", "Mean w̄, °/h", "Std s, °/h",
                              "u(w̄) = s/√n, °/h", "ν", "Drift per cycle, °/h, in order"),
@@ -240,15 +214,15 @@ def _drift_results(src: Sources, number: str) -> list[Section]:
                                    "drifts' budgets (annex): each with its standard "
                                    "uncertainty and degrees of freedom, no U of its own "
                                    "(docs/method.md D1, D2).",)))
+    # the plots read the figures as result.json spells them, a cycle's position as position_deg
     blocks += figure_of("Drift estimate per cycle, by axis and platform position",
-                      plots.drift_cycles,
-                      {a: {**d, "cycles": [{**c, "position_deg": _position(c)}
-                                           for c in d.get("cycles") or []]}
-                       for a, d in axes.items()})
-    for axis, d in axes.items():
-        cyc = d.get("example_cycle")
-        if isinstance(cyc, Mapping):
+                        plots.drift_cycles,
+                        {a: {"own_dph": ax.own_dph,
+                             "cycles": [{"position_deg": c.table_deg, "drift_dph": c.drift_dph}
+                                        for c in ax.cycles]}
+                         for a, ax in axes.items()})
+    for axis, ax in axes.items():
+        if ax.example_cycle is not None:
             blocks += figure_of(f"Axis {axis}: U(t) and the integrator output over one cycle",
-                              plots.drift_cycle, axis, cyc)
+                                plots.drift_cycle, axis, ax.example_cycle.to_json())
     return [Section(number, "Results", tuple(blocks))]
-

@@ -6,10 +6,11 @@ questions (bench.report.dcc.parts.DccParts).
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 from lxml import etree
 
+from bench.report.budget import Budget
 from bench.report.certificate import methods
 from bench.report.certificate.parts import Sources
 from bench.report.dcc import units as U
@@ -17,6 +18,7 @@ from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import Checks, judge
 from bench.report.dcc.parts import DccParts
 from bench.report.dcc.xml import el, ident, list_quantity, name, num, quantity, text_el
+from procedures.drift_pulse.result import DriftFigures, budget_of
 
 # the drift procedure's refTypes, namespace "ratebench" (docs/dcc.md, section "refTypes")
 OWN_DRIFT = V.RB + "ownDrift"
@@ -37,28 +39,26 @@ class DriftDcc(DccParts):
     """The drift procedure's answers to the DCC (mixed into the kind)."""
 
     def dcc_item(self, src: Sources) -> tuple[str, Sequence[str]]:
-        axes = src.get("axes") or (src.get("drift") or {}).get("axes") or {}
-        return "gyro-platform test stand", [str(a) for a in axes]
+        return "gyro-platform test stand", list(DriftFigures.of(src.result).axes)
 
     def dcc_used_methods(self, src: Sources) -> tuple[str, Sequence[str]]:
         return methods.B_REFERENCE, METHOD_SECTIONS
 
     def dcc_results(self, results: etree._Element, src: Sources, checks: Checks) -> None:
-        drift_results(results, src, checks)
+        drift_results(results, DriftFigures.of(src.result), checks)
 
 
-def _k(node: Mapping[str, object], key: str) -> float | None:
+def _k(budgets: Sequence[Budget], key: str) -> float | None:
     """The coverage factor of figure `key`'s budget, stated beside it in result.json
-    (procedures/drift_pulse/budgets.py add_budgets; docs/method.md D1); None: k = 2."""
-    stem = key.removesuffix("_dph").removesuffix("_deg")
-    return num(node.get(f"{stem}_coverage_factor"))
+    (procedures/drift_pulse/result.py; docs/method.md D1); None: k = 2."""
+    budget = budget_of(budgets, key)
+    return None if budget is None else budget.k
 
 
-def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None:
-    drift = src.get("drift", {}) or {}
+def drift_results(results: etree._Element, drift: DriftFigures, checks: Checks) -> None:
     mr = el(results, "measurementResult", id="platform", ref_id="item")
     name(mr, "Gyro platform: own and apparent drift per axis, azimuth (docs/method.md B)")
-    lat = num(drift.get("latitude_deg"))
+    lat = num(drift.latitude_deg)
     if lat is not None:
         conds = el(mr, "influenceConditions")
         c = el(conds, "influenceCondition", id="siteLatitude", ref_type=LATITUDE)
@@ -66,85 +66,82 @@ def drift_results(results: etree._Element, src: Sources, checks: Checks) -> None
         quantity(el(c, "data"), None, "latitude", LATITUDE, lat, U.DEG,
                  label="drift.latitude_deg")
     res = el(mr, "results")
-    for axis, d in (drift.get("axes", {}) or {}).items():
-        if not isinstance(d, Mapping):
-            continue
+    for axis, ax in drift.axes.items():
         path = f"drift.axes.{axis}"
         aid = ident("drift", axis)
         r = el(res, "result", id=aid, ref_type=V.MEASURED)
         name(r, f"Axis {axis}: drift, deg/h")
         data = el(r, "data")
-        for key, u_key, title, ref, check in (
-                ("own_dph", "own_u_dph", "own drift (w_0 + w_180) / 2",
-                 f"{V.MEASURED} {OWN_DRIFT}", "own_drift"),
-                ("apparent_dph", "apparent_u_dph", "apparent drift at position 0, "
-                 "(w_0 - w_180) / 2", f"{V.MEASURED} {APPARENT_DRIFT}", "apparent_drift"),
-                ("own_nominal_edges_dph", None, "own drift with the pulse edges at the "
-                 "nominal sample times (the paper's integrator; for comparison)", OWN_DRIFT,
-                 None)):
-            v = num(d.get(key))
+        figures: tuple[tuple[str, float, float | None, str, str, str | None], ...] = (
+            ("own_dph", ax.own_dph, ax.own_U_dph, "own drift (w_0 + w_180) / 2",
+             f"{V.MEASURED} {OWN_DRIFT}", "own_drift"),
+            ("apparent_dph", ax.apparent_dph, ax.apparent_U_dph, "apparent drift at position "
+             "0, (w_0 - w_180) / 2", f"{V.MEASURED} {APPARENT_DRIFT}", "apparent_drift"),
+            ("own_nominal_edges_dph", ax.own_nominal_edges_dph, None, "own drift with the "
+             "pulse edges at the nominal sample times (the paper's integrator; for "
+             "comparison)", OWN_DRIFT, None))
+        for key, value, expanded, title, ref, check in figures:
+            v = num(value)
             if v is None:
                 continue
-            uu = num(d.get(u_key)) if u_key else None
-            node = quantity(data, ident(aid, key), title, ref, v, U.DEG_PER_H, uu,
-                            label=f"{path}.{key}", note=None if uu is not None or not u_key
-                            else "U not stated in result.json.", k=_k(d, key))
+            node = quantity(data, ident(aid, key), title, ref, v, U.DEG_PER_H, num(expanded),
+                            label=f"{path}.{key}", k=_k(ax.budgets, key))
             if check:
                 judge(node, checks.take(axis, None, check), U.DEG_PER_H)
-        for j, pos in enumerate(d.get("positions") or []):
-            if not isinstance(pos, Mapping):
-                continue
-            table = num(pos.get("table_deg", pos.get("position_deg"))) or 0.0
+        for j, pos in enumerate(ax.positions):
+            table = pos.table_deg
             pp = f"{path}.positions[{j}]"
             lst = el(data, "list", id=ident(aid, "pos", f"{table:g}"), ref_type=DRIFT_POSITION)
             name(lst, f"platform turned to {table:g} deg: drift per cycle and mean")
             quantity(lst, None, "platform position", TABLE_POSITION, table, U.DEG,
                      label=f"{pp}.table_deg")
-            mean = num(pos.get("mean_dph"))
+            mean = num(pos.mean_dph)
             if mean is not None:
                 # a budget input: its standard uncertainty and dof, no U (docs/method.md D2)
                 quantity(lst, ident(aid, "pos", f"{table:g}", "mean_dph"), "mean drift",
                          V.MEASURED, mean, U.DEG_PER_H, label=f"{pp}.mean_dph",
                          note="An input of the own and apparent drifts' budgets; its standard "
                               "uncertainty s/sqrt(n) beside it (nu = n - 1).")
-                uu = num(pos.get("mean_ustd_dph"))
+                uu = num(pos.mean_ustd_dph)
                 if uu is not None:
                     quantity(lst, None, "standard uncertainty of the mean, s/sqrt(n)",
                              V.STANDARD_UNCERTAINTY, uu, U.DEG_PER_H,
                              label=f"{pp}.mean_ustd_dph")
-            if num(pos.get("std_dph")) is not None:
-                quantity(lst, None, "standard deviation of the cycles", STD,
-                         num(pos["std_dph"]) or 0.0, U.DEG_PER_H, label=f"{pp}.std_dph")
-            w = [v for v in (num(x) for x in pos.get("drifts_dph") or []) if v is not None]
+            std = num(pos.std_dph)
+            if std is not None:
+                quantity(lst, None, "standard deviation of the cycles", STD, std, U.DEG_PER_H,
+                         label=f"{pp}.std_dph")
+            w = [v for v in (num(x) for x in pos.drifts_dph) if v is not None]
             if w:
                 list_quantity(lst, ident(aid, "pos", f"{table:g}", "drifts_dph"),
                               "drift of each cycle, in order", DRIFT_CYCLES, w,
                               U.DEG_PER_H, note="Single-cycle values; their scatter (the "
                               "standard deviation above) is their uncertainty.")
-    if num(drift.get("azimuth_deg")) is not None or num(drift.get("earth_horizontal_dph")) \
-            is not None:
+    plat = drift.platform
+    if plat is not None:
         r = el(res, "result", id="azimuth", ref_type=V.MEASURED)
         name(r, "Platform azimuth and horizontal Earth rate from the apparent drifts")
         data = el(r, "data")
-        for key, u_key, title, ref, unit, check in (
-                ("azimuth_deg", "azimuth_u_deg", "platform azimuth of the X input axis, "
-                 "A = atan2(-app_y, app_x)", f"{V.MEASURED} {AZIMUTH}", U.DEG, "azimuth"),
-                ("earth_horizontal_dph", "earth_horizontal_u_dph", "horizontal Earth rate "
-                 "from the apparent drifts", f"{V.MEASURED} {EARTH_RATE}", U.DEG_PER_H,
-                 "earth_horizontal_rate"),
-                ("earth_horizontal_expected_dph", None, "expected 15.041 deg/h x cos(latitude)",
-                 f"{V.REFERENCE} {EARTH_RATE}", U.DEG_PER_H, None)):
-            v = num(drift.get(key))
+        platform: tuple[tuple[str, float | None, float | None, str, str, str, str | None],
+                        ...] = (
+            ("azimuth_deg", plat.azimuth_deg, plat.azimuth_U_deg, "platform azimuth of the X "
+             "input axis, A = atan2(-app_y, app_x)", f"{V.MEASURED} {AZIMUTH}", U.DEG,
+             "azimuth"),
+            ("earth_horizontal_dph", plat.earth_horizontal_dph, plat.earth_horizontal_U_dph,
+             "horizontal Earth rate from the apparent drifts", f"{V.MEASURED} {EARTH_RATE}",
+             U.DEG_PER_H, "earth_horizontal_rate"),
+            ("earth_horizontal_expected_dph", drift.earth_horizontal_expected_dph, None,
+             "expected 15.041 deg/h x cos(latitude)", f"{V.REFERENCE} {EARTH_RATE}",
+             U.DEG_PER_H, None))
+        for key, given, expanded, title, ref, unit, check in platform:
+            v = num(given)
             if v is None:
                 continue
-            uu = num(drift.get(u_key)) if u_key else None
-            node = quantity(data, ident("drift", key), title, ref, v, unit, uu,
-                            label=f"drift.{key}", note=None if uu is not None or not u_key
-                            else "U not stated in result.json.", k=_k(drift, key))
+            node = quantity(data, ident("drift", key), title, ref, v, unit, num(expanded),
+                            label=f"drift.{key}", k=_k(drift.budgets, key))
             if check:
                 judge(node, checks.take(None, None, check), unit)
     if not len(res):
         r = el(res, "result")
         name(r, "No drift results")
         text_el(el(r, "data"), "text", "Nothing was measured to completion.")
-

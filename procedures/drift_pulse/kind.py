@@ -35,7 +35,6 @@ from bench.core.plan import Plan, Step
 from bench.core.progress import Figure
 from bench.core.schema import Key, Map
 from bench.core.yamlfile import Problem
-from bench.report.conformity import judge
 from drivers.awg import WaveformGenerator
 from drivers.clock import Clock
 from drivers.dmm import PROFILES as DMM_PROFILES
@@ -45,6 +44,7 @@ from procedures.base import StepDispatch, result_document
 from procedures.drift_pulse import analysis as dp
 from procedures.drift_pulse.certificate import DriftCertificate
 from procedures.drift_pulse.records import DriftRecords
+from procedures.drift_pulse.result import DriftCheck, DriftFigures, DriftMethod
 from procedures.drift_pulse.settings import (  # noqa: F401 - the kind's names
     CYCLE_OVERHEAD_S,
     NAME,
@@ -343,7 +343,7 @@ def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
     return out
 
 
-def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, Any]:
+def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, object]:
     events = run.events()
     plan_units = set(kind.build_plan(cfg).units())
     done = {e["unit"]: e["session"] for e in events if e.get("event") == "unit_done"}
@@ -374,46 +374,19 @@ def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, 
                                  turn_tolerance_deg=d.position_tolerance_deg) for g in gyros}
     rule = d.decision_rule
     complete = plan_units <= set(done)
-    drift: dict[str, Any]
-    checks: list[dict[str, Any]] = []
+    checks: list[DriftCheck] = []
     try:
         result = dp.analyze(records, shape, {g: plat[g].k_as_v_per_deg for g in gyros},
                             d.latitude_deg, stated)
-        drift = result.to_dict()["drift"]
-        checks = _checks(d.own_drift_tolerance_dph, result, rule)
+        drift = result.figures()
+        checks = result.checks(d.own_drift_tolerance_dph, rule)
     except ValueError as e:
-        drift = {"axes": {}, "not_computed": str(e)}
+        drift = DriftFigures.failed(str(e))
         complete = False
     t = d.timing
-    method = {"method": "docs/method.md B: alternating-sign controlled precession",
-              "pulse": dict(d.pulse_doc), "timing_cycles": d.timing_cycles,
-              "cycles_per_position": d.cycles,
-              "positions_deg": list(d.positions_deg),
-              "sample_rate_hz": 1.0 / t.interval_s, "aperture_s": t.aperture_s,
-              "site": dict(d.site_doc), "tolerance": dict(d.tolerance_doc)}
-    return result_document(run, cfg, events, complete=complete, checks=checks, rule=rule,
-                           method=method, drift=drift)
+    method = DriftMethod(d.pulse_doc, d.timing_cycles, d.cycles, d.positions_deg,
+                         1.0 / t.interval_s, t.aperture_s, d.site_doc, d.tolerance_doc)
+    return result_document(run, cfg, events, complete=complete,
+                           checks=[c.to_json() for c in checks], rule=rule,
+                           method=method.to_json(), drift=drift.to_json())
 
-
-def _checks(tol: float | None, result: dp.DriftResult, rule: str) -> list[dict[str, Any]]:
-    """Own drift against the tolerance; the Earth-rate consistency (k_as, levelling)."""
-    out = []
-    for g, ax in result.axes.items():
-        if tol is None:
-            continue
-        c = judge(g, 0.0, "own_drift", ax.own_dph, ax.own_u_dph, float(tol), rule).to_dict()
-        out.append({"axis": g, "quantity": "own_drift", "unit": "deg/h",
-                    "value_dph": ax.own_dph, "u_dph": ax.own_u_dph, "tolerance_dph": float(tol),
-                    **{k: c[k] for k in ("rule", "verdict", "reason", "capability_ratio",
-                                         "capability_ok")}})
-    if result.earth_consistent is not None and result.earth_horizontal_dph is not None:
-        diff = result.earth_horizontal_dph - result.earth_horizontal_expected_dph
-        out.append({"axis": "x,y", "quantity": "earth_horizontal_rate", "unit": "deg/h",
-                    "value_dph": result.earth_horizontal_dph,
-                    "u_dph": result.earth_horizontal_u_dph,
-                    "expected_dph": result.earth_horizontal_expected_dph, "rule": "consistency",
-                    "verdict": "pass" if result.earth_consistent else "fail",
-                    "reason": f"|measured - 15.041 cos(latitude)| = {abs(diff):.2g} deg/h "
-                              f"{'<=' if result.earth_consistent else '>'} U = "
-                              f"{result.earth_horizontal_u_dph:.2g} deg/h"})
-    return out

@@ -11,7 +11,6 @@ questions these answer.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 from bench.analysis.finite import finite_number as _num
 from bench.report.certificate.model import Document, Table
@@ -25,6 +24,7 @@ from bench.report.figures import (
     fields_of,
     tables_of,
 )
+from procedures.drift_pulse.result import DriftFigures, MalformedResult
 from procedures.drift_pulse.sample import drift_pulse_result
 
 #: CONTRACT §3's binding keys of a drift-pulse result, per gyro and for the platform
@@ -42,17 +42,17 @@ FIGURES = (
                "drift.azimuth_deg", "azimuth_u_deg", axis="platform"),
 )
 
-#: the containers of the kind's part of result.json (bench/report/certificate/shape.py)
-RESULT_SHAPE = {"drift": {"axes": {"*": {
-    "cycles": [dict], "positions": [dict], "start_offset": dict, "example_cycle": dict,
-    "budgets": [dict]}}, "budgets": [dict]}}
-
 DRIFT_CAPTION = "Own and apparent drift per axis"
 DRIFT_HEADERS = ("Axis", "Own drift", "Apparent drift")
 AZIMUTH_FIELD = "Platform azimuth"
 
 
-def _opt(x: Any) -> str | None:
+def _mapping(x: object) -> Mapping[str, object]:
+    """A block of the stand file or result.json, or nothing when it is not one."""
+    return x if isinstance(x, Mapping) else {}
+
+
+def _opt(x: object) -> str | None:
     return None if x in (None, "") else str(x)
 
 
@@ -62,29 +62,32 @@ class DriftRecords(DeclaredFigures):
 
     figures = FIGURES
     check_quantities = {"own_drift_dph": ("deg/h", "drift platform's own drift")}
-    result_shape = RESULT_SHAPE
 
-    def instrument_checks(self, result: Mapping[str, Any], stand: Mapping[str, Any]
+    def instrument_checks(self, result: Mapping[str, object], stand: Mapping[str, object]
                           ) -> list[InstrumentCheck]:
         """Each gyro's own drift, by the gyro's serial (the stand file's
         `platform.gyros.<gyro>.serial`, else PLATFORM-SERIAL/gyro)."""
-        drift = (result.get("drift") or {}).get("axes") or {}
-        platform = stand.get("platform") or {}
-        gyros = platform.get("gyros") or {}
-        ident = dict(stand.get("stand") or {})
-        ident.update({k: v for k, v in (result.get("stand") or {}).items() if v is not None})
-        plat = (platform.get("identity") or {}).get("serial") or ident.get("serial") or "stand"
+        try:
+            drift = DriftFigures.of(result)
+        except MalformedResult:
+            return []   # no figures to take check values from (its certificate refuses it)
+        platform = _mapping(stand.get("platform"))
+        gyros = _mapping(platform.get("gyros"))
+        ident = dict(_mapping(stand.get("stand")))
+        ident.update({k: v for k, v in _mapping(result.get("stand")).items() if v is not None})
+        plat = _mapping(platform.get("identity")).get("serial") or ident.get("serial") \
+            or "stand"
         out = []
-        for g, d in drift.items() if isinstance(drift, Mapping) else ():
+        for g, ax in drift.axes.items():
             conf = gyro if isinstance(gyro := gyros.get(g), Mapping) else {}
-            v = _num(d.get("own_dph")) if isinstance(d, Mapping) else None
+            v = _num(ax.own_dph)
             if v is not None:
                 out.append(InstrumentCheck(_opt(conf.get("serial")) or f"{plat}/{g}", "gyro",
                                            _opt(conf.get("model")), g, "own_drift_dph", None,
-                                           v, _num(d.get("own_u_dph")), "deg/h"))
+                                           v, _num(ax.own_U_dph), "deg/h"))
         return out
 
-    def sample_result(self) -> dict[str, Any]:
+    def sample_result(self) -> dict[str, object]:
         """A hand-made result for previews of the certificate (sample.py)."""
         return drift_pulse_result()
 

@@ -6,46 +6,69 @@ latitude 70 deg, azimuth 80 deg (the paper's case), for previews
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
 from bench.core import rundir_layout as layout
+from procedures.drift_pulse.result import (
+    AxisFigures,
+    CycleFigures,
+    DriftFigures,
+    ExampleCycle,
+    PlatformFigures,
+    PositionFigures,
+    StartOffsetFigures,
+)
+
+#: the sample's command angle sensor scale (V/deg), pulse duration Tc (s), precession (deg/s)
+K_AS_V_PER_DEG = 0.2
+TC_S = 5.0
+AMPLITUDE_DPS = 0.5
 
 
-def drift_pulse_result() -> dict[str, Any]:
-    """Two horizontal axes at latitude 70 deg, azimuth 80 deg (the paper's case)."""
+def _example() -> ExampleCycle:
+    """U(t) and the signed integral of one rectangular pulse pair (docs/method.md B)."""
+    t = np.linspace(0.0, 10.0, 201)
+    alpha = np.where(t <= TC_S, AMPLITUDE_DPS * t, AMPLITUDE_DPS * (2 * TC_S - t))  # deg
+    u_v = K_AS_V_PER_DEG * alpha
+    sign = np.where(t <= TC_S, 1.0, -1.0)
+    integ = np.concatenate([[0.0], np.cumsum(0.5 * (u_v[1:] * sign[1:] + u_v[:-1] * sign[:-1])
+                                             * np.diff(t))])
+    return ExampleCycle(tuple(t.tolist()), tuple(u_v.tolist()), tuple(integ.tolist()), TC_S,
+                        "time from the first pulse edge (where the fit puts it)")
+
+
+def drift_figures() -> DriftFigures:
+    """Two horizontal axes at latitude 70 deg, azimuth 80 deg (the paper's case), 4 cycles per
+    position, no budgets (the certificate then says U is as result.json states it)."""
     wh = 15.041 * math.cos(math.radians(70.0))
     app = {"x": wh * math.cos(math.radians(80.0)), "y": -wh * math.sin(math.radians(80.0))}
     own = {"x": 0.0523, "y": -0.0311}
-    axes: dict[str, Any] = {}
+    axes = {}
     for name in ("x", "y"):
-        cycles, positions = [], []
-        for pos in (0.0, 180.0):
+        cycles: list[CycleFigures] = []
+        positions = []
+        for k, pos in enumerate((0.0, 180.0)):
             w = [own[name] + (app[name] if pos == 0 else -app[name])
                  + 0.004 * math.sin(1.7 * i + (0 if name == "x" else 1) + pos / 90)
                  for i in range(4)]
-            cycles += [{"drift_dph": x, "drift_nominal_dph": x + 0.0011, "table_deg": pos}
-                       for x in w]
-            positions.append({"table_deg": pos, "cycles": 4, "mean_dph": float(np.mean(w)),
-                              "std_dph": float(np.std(w, ddof=1)),
-                              "mean_ustd_dph": float(np.std(w, ddof=1)) / 2.0, "dof": 3,
-                              "drifts_dph": w})
-        axes[name] = {"own_dph": own[name], "own_u_dph": 0.0031,
-                      "apparent_dph": app[name], "apparent_u_dph": 0.0042,
-                      "own_nominal_edges_dph": own[name] + 0.0011,
-                      "start_offset": {"offset_s": 2.5e-4, "offset_u_s": 1.0e-5,
-                                       "offset_samples": 0.5, "detected": True},
-                      "positions": positions, "cycles": cycles}
-    t = np.linspace(0.0, 10.0, 201)
-    tc = 5.0
-    alpha = np.where(t <= tc, 0.5 * t, 0.5 * (2 * tc - t))  # deg, rectangular pulses
-    u_v = 0.2 * alpha
-    sign = np.where(t <= tc, 1.0, -1.0)
-    integ = np.concatenate([[0.0], np.cumsum(0.5 * (u_v[1:] * sign[1:] + u_v[:-1] * sign[:-1])
-                                             * np.diff(t))])
-    axes["x"]["example_cycle"] = {"t_s": t.tolist(), "u_v": u_v.tolist(),
-                                  "integral_vs": integ.tolist(), "tc_s": tc}
+            # w = -U_int / (k_as Tc^2) (docs/method.md B), so U_int = -w k_as Tc^2
+            cycles += [CycleFigures(x, x + 0.0011, -x / 3600.0 * K_AS_V_PER_DEG * TC_S ** 2,
+                                    AMPLITUDE_DPS, 2.5e-4, 1.0e-5, 2.0e-5,
+                                    12.0 * (4 * k + i), pos) for i, x in enumerate(w)]
+            std = float(np.std(w, ddof=1))
+            positions.append(PositionFigures(pos, 4, float(np.mean(w)), std, std / 2.0, 3,
+                                             tuple(w)))
+        axes[name] = AxisFigures(own[name], 0.0031, app[name], 0.0042, own[name] + 0.0011,
+                                 app[name] + 0.0011, AMPLITUDE_DPS, False,
+                                 StartOffsetFigures(2.5e-4, 1.0e-5, 0.5, True, 8), (),
+                                 tuple(positions), tuple(cycles),
+                                 _example() if name == "x" else None)
+    return DriftFigures(axes, 70.0, wh, PlatformFigures(80.02, 0.031, wh + 0.002, 0.0045, True))
+
+
+def drift_pulse_result() -> dict[str, object]:
+    """A whole result.json around `drift_figures`, for previews of the certificate."""
     return {
         "schema": "bench.result/1",
         "procedure": "drift-pulse",
@@ -67,9 +90,6 @@ def drift_pulse_result() -> dict[str, Any]:
                        "bytes": 800_000}],
         "sessions": 1,
         "aborted": False,
-        "drift": {"latitude_deg": 70.0, "azimuth_deg": 80.02, "azimuth_u_deg": 0.031,
-                  "earth_horizontal_dph": wh + 0.002, "earth_horizontal_u_dph": 0.0045,
-                  "earth_horizontal_expected_dph": wh, "earth_horizontal_consistent": True,
-                  "axes": axes},
+        "drift": drift_figures().to_json(),
         "checks": [],
     }
