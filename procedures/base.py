@@ -1,7 +1,8 @@
-"""What the procedure kinds share: step dispatch and the result document's frame.
+"""What the procedure kinds share: the prompt step, a whole-unit resume and the result
+document's frame.
 
-The plug-in interface itself (what the engine asks of a kind) is
-`bench.core.registry.ProcedureKind`; kinds are found by entry point.
+The plug-in interface itself (a kind and its parts) is `bench.core.registry.ProcedureKind`;
+kinds are found by entry point.
 """
 
 from __future__ import annotations
@@ -21,19 +22,15 @@ from bench.report.conformity import RULES
 from bench.report.uncertainty_names import UNCERTAINTY_NAMING, with_explicit_names
 
 
-class StepDispatch:
-    """Runs step `action` as method `_do_<action>`; the prompt step is the same for all."""
+def prompt(step: Step, ctx: RunContext) -> None:
+    """The prompt step, the same for every kind: the operator reads it and answers."""
+    ctx.prompt(step.describe)
 
-    def execute(self, step: Step, ctx: RunContext) -> None:
-        getattr(self, f"_do_{step.action}")(step, ctx)
 
-    def _do_prompt(self, step: Step, ctx: RunContext) -> None:
-        ctx.prompt(step.describe)
-
-    def resume_plan(self, plan: Plan, run: RunDir) -> Plan:
-        """What a --resume runs of `plan` (the units not done): all of it, unless the kind
-        keeps finer parts of a unit (the rate ladder keeps each half already acquired)."""
-        return plan
+def resume_whole(plan: Plan, run: RunDir) -> Plan:
+    """What a --resume runs of `plan` (the units not done): all of it, for a kind that
+    keeps no finer part of a unit (the rate ladder keeps each half already acquired)."""
+    return plan
 
 
 SCHEMA = "bench.result/1"

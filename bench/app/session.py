@@ -80,7 +80,7 @@ def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
     """result.json, then the certificate (PDF, HTML, DCC); returns the result and the
     certificate's document (None when it could not be written: a run that leaves no
     certificate must not exit as if it had, nor one whose DCC does not validate)."""
-    result = procedure_kind(cfg.kind).analyze(run, cfg)
+    result = procedure_kind(cfg.kind).analysis.analyze(run, cfg)
     run.write_json(layout.RESULT, result)
     # the table's history from the records, when they hold any (never fails the run)
     history = history_sections(run.path, result, records, progress.warn) if records else []
@@ -148,11 +148,11 @@ class RunSession:
     def _run(self) -> int:
         table_overdue = warn_if_overdue(self.cfg.stand_settings.identity, self.where, self.progress.warn)
         out_of_control = warn_at_start(self.cfg.stand_settings, self.where, self.progress.warn)
-        plan = self.kind.build_plan(self.cfg)
+        plan = self.kind.plan.build_plan(self.cfg)
         done = self.run_dir.completed_units()
         todo = plan.remaining(done)
         if self.resume:  # finer than the unit where the kind keeps parts (a ladder's halves)
-            todo = self.kind.resume_plan(todo, self.run_dir)
+            todo = self.kind.plan.resume_plan(todo, self.run_dir)
         short = room_for(self.cfg, todo, self.run_dir.path)
         if short:
             err(f"Not started: {short}")
@@ -195,7 +195,7 @@ class RunSession:
             sim_cfg = drifting_config(cfg, run.path, self.where, progress.line)
             if self.resume:  # the twins' noise of this session, not a replay of the first
                 sim_cfg = for_session(sim_cfg, run.next_session())
-            self.simbench, stand = self.kind.start_sim(sim_cfg)
+            self.simbench, stand = self.kind.steps.start_sim(sim_cfg)
             self._stack.callback(self._step_out, "stopping the simulated bench",
                                  self.simbench.stop)
             clock: Any = self.simbench.clock
@@ -214,7 +214,7 @@ class RunSession:
             run.event("records_overdue", text=table_overdue)
         for text in out_of_control:
             run.event("out_of_control", text=text)
-        self.bench = bench = self.kind.open_bench(cfg, stand, clock, run)
+        self.bench = bench = self.kind.steps.open_bench(cfg, stand, clock, run)
         self._stack.callback(self._close_bench, bench)
         for ax in bench.axes.values():
             run.event("identity", **identity_record(ax))
@@ -234,7 +234,7 @@ class RunSession:
         ctx = RunContext(cfg, clock, bench, run, progress, yes=self.yes)
         t0 = time.monotonic()
         self.engine_ran = True
-        Engine(ctx, self.kind.execute).run(todo, guard)
+        Engine(ctx, self.kind.steps.execute).run(todo, guard)
         run.event("completed", wall_s=time.monotonic() - t0)
 
     def _check_identities(self, stand: StandSettings, bench: Any, run: RunDir,

@@ -6,7 +6,7 @@ a unit (a static record, a +/- rate pair); a unit is the grain of `--resume`.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Collection, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -99,3 +99,14 @@ class Plan:
         out += [f"Estimated bench time: {format_duration(self.total_s)} "
                 f"({self.total_s:.0f} s) for {len(self.steps)} steps"]
         return out
+
+
+def check_actions(plan: Plan, actions: Collection[str]) -> Plan:
+    """`plan`, once every step's action is one the kind has a handler for: a step no
+    handler takes is the kind's bug, found when the plan is built (`bench plan`,
+    `bench validate` of a run) rather than when the bench reaches it mid-run."""
+    missing = sorted({s.action for s in plan.steps} - set(actions))
+    if missing:
+        raise ValueError(f"plan {plan.title!r}: no step handler for action(s) "
+                         f"{', '.join(missing)} (the kind's steps.handlers)")
+    return plan

@@ -21,6 +21,8 @@ directory (`bench analyze` recomputes everything from them).
 
 from __future__ import annotations
 
+from collections.abc import Collection, Mapping
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 from bench.core import rundir_layout as layout
@@ -31,20 +33,13 @@ from bench.core.config import (
 )
 from bench.core.engine import Abort, RunContext
 from bench.core.journal import RunDir, read_jsonl
-from bench.core.plan import Plan, Step
+from bench.core.plan import Plan, Step, check_actions
 from bench.core.progress import Figure
 from bench.core.schema import Key, Map
 from bench.core.yamlfile import Problem
 from bench.report.conformity import judge
-from drivers.awg import WaveformGenerator
 from drivers.clock import Clock
-from drivers.dmm import PROFILES as DMM_PROFILES
-from drivers.dmm import Digitizer
-from drivers.scpi import parse_numbers
-from procedures.base import StepDispatch, result_document
-from procedures.drift_pulse import analysis as dp
-from procedures.drift_pulse.certificate import DriftCertificate
-from procedures.drift_pulse.records import DriftRecords
+from procedures.base import prompt, result_document, resume_whole
 from procedures.drift_pulse.settings import (  # noqa: F401 - the kind's names
     CYCLE_OVERHEAD_S,
     NAME,
@@ -59,15 +54,21 @@ from procedures.drift_pulse.settings import (  # noqa: F401 - the kind's names
     drift_problems,
 )
 
-# the instruments and the twins are imported where the kind opens them: `bench validate`
-# and `bench schema` load this module for its files alone
+# the instruments, the twins, the analysis (numpy), the certificate and the records are
+# imported where the kind uses them: `bench validate` and `bench schema` load this module
+# for its files alone
 if TYPE_CHECKING:
     from bench.core.instruments import Bench
+    from bench.core.registry import KindPlan, ProcedureKind, StepHandler
     from bench.core.simbench import SimBench, TwinFactory
+    from procedures.drift_pulse import analysis as dp
+    from procedures.drift_pulse.certificate import DriftCertificate
+    from procedures.drift_pulse.dcc import DriftDcc
+    from procedures.drift_pulse.records import DriftRecords
 
 
-class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
-    name = NAME
+class DriftFiles:
+    """The drift procedure's files (the kind's `settings` part)."""
 
     def procedure_schema(self) -> Map:
         return PROCEDURE
@@ -78,9 +79,6 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
                                        "dmm": Key(SIM_DMM)})
 
     # -- checks that need both files --------------------------------------------------
-    def gyros(self, cfg: Config) -> list[str]:
-        return list(PlatformSettings.of(cfg).gyros)
-
     def cross_check(self, cfg: Config) -> list[Problem]:
         return drift_problems(cfg)
 
@@ -88,16 +86,19 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
         """The validated files as the kind's frozen settings (bench/core/registry.py)."""
         return DriftSettings.parse(cfg)
 
-    def timing_amplitude(self, cfg: Config) -> float:
-        return DriftSettings.from_config(cfg).timing_amplitude_v
+    def notes(self, cfg: Config) -> list[str]:
+        """Nothing to advise beside 'valid' (bench/core/registry.py `KindSettings`)."""
+        return []
 
-    # -- plan -----------------------------------------------------------------------------
-    def table(self, cfg: Config) -> str:
-        return PlatformSettings.of(cfg).table_axis
 
-    def turn(self, cfg: Config) -> tuple[float, float]:
-        d = DriftSettings.from_config(cfg)
-        return d.turn_rate_dps, d.turn_accel_dps2
+class DriftPlan:
+    """The drift procedure's steps (the kind's `plan` part): every cycle a unit, resumed
+    whole; checked against the actions its steps handle."""
+
+    resume_plan = staticmethod(resume_whole)
+
+    def __init__(self, actions: Collection[str]) -> None:
+        self._actions = actions
 
     def build_plan(self, cfg: Config) -> Plan:
         d = DriftSettings.from_config(cfg)
@@ -142,12 +143,25 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
                                   f"{pos:g}deg/{i + 1}",
                                   {"position_deg": pos, "timing": False, "index": i + 1}))
         steps.append(Step("stop", table, "pulse outputs off; turntable to rest, disabled", 2.0))
-        return Plan(d.title, tuple(steps))
+        return check_actions(Plan(d.title, tuple(steps)), self._actions)
+
+
+class DriftSteps:
+    """The drift procedure on the bench (the kind's `steps` part): twins, instruments,
+    and one handler per action of its plan."""
+
+    def __init__(self) -> None:
+        self.handlers: Mapping[str, StepHandler] = {
+            "prompt": prompt, "setup": self._do_setup, "turn": self._do_turn,
+            "settle": self._do_settle, "cycle": self._do_cycle, "stop": self._do_stop}
+
+    def execute(self, step: Step, ctx: RunContext) -> None:
+        self.handlers[step.action](step, ctx)
 
     # -- bench ----------------------------------------------------------------------------
     def start_sim(self, cfg: Config) -> tuple[SimBench, StandSettings]:
         from bench.core.simbench import SimBench
-        sim = SimBench(cfg.stand_settings, [self.table(cfg)])
+        sim = SimBench(cfg.stand_settings, [PlatformSettings.of(cfg).table_axis])
         return sim, sim.start(extra=[gyro_rig_factory(PlatformSettings.of(cfg))])
 
     def open_bench(self, cfg: Config, stand: StandSettings, clock: Clock,
@@ -159,6 +173,8 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
             raw_text_logger,
             with_readback,
         )
+        from drivers.awg import WaveformGenerator
+        from drivers.dmm import Digitizer
         bench = Bench()
         d = PlatformSettings.of(cfg)
 
@@ -191,7 +207,7 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
             raise
         return bench
 
-    # -- steps (each action is a `_do_<action>` method) -----------------------------------
+    # -- steps (each action's handler: `handlers`) -----------------------------------------
     def _do_setup(self, step: Step, ctx: RunContext) -> None:
         t = DriftSettings.from_config(ctx.cfg).timing
         for g, dmm in ctx.bench.extra["dmms"].items():
@@ -203,6 +219,7 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
 
     def _load(self, ctx: RunContext, amplitude_v: float) -> None:
         """(Re)load the pair on every gyro's channel at this amplitude."""
+        from procedures.drift_pulse import analysis as dp
         if ctx.state.get("loaded_v") == amplitude_v:
             return
         d = DriftSettings.from_config(ctx.cfg)
@@ -244,6 +261,7 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
         drive.check()
 
     def _do_cycle(self, step: Step, ctx: RunContext) -> None:
+        from procedures.drift_pulse import analysis as dp
         p = step.params
         d = DriftSettings.from_config(ctx.cfg)
         t = d.timing
@@ -293,14 +311,45 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
         drive.stop()
         drive.disable()
 
-    # -- analysis -------------------------------------------------------------------------
+class DriftAnalysis:
+    """result.json of a drift run (the kind's `analysis` part)."""
+
+    def __init__(self, plan: DriftPlan) -> None:
+        self._plan = plan
+
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
         from procedures.drift_pulse.budgets import add_budgets
 
-        return add_budgets(analyze_run(run, cfg, self))
+        return add_budgets(analyze_run(run, cfg, self._plan))
 
 
-KIND = DriftPulse()
+class DriftPulse:
+    """The drift procedure as a kind (bench/core/registry.py `ProcedureKind`): its parts,
+    the heavy ones (numpy, the certificate, the records) imported when first used."""
+
+    name = NAME
+    settings = DriftFiles()
+    steps = DriftSteps()
+    plan = DriftPlan(steps.handlers)
+    analysis = DriftAnalysis(plan)
+
+    @cached_property
+    def certificate(self) -> DriftCertificate:
+        from procedures.drift_pulse.certificate import DriftCertificate
+        return DriftCertificate()
+
+    @cached_property
+    def dcc(self) -> DriftDcc:
+        from procedures.drift_pulse.dcc import DriftDcc
+        return DriftDcc()
+
+    @cached_property
+    def records(self) -> DriftRecords:
+        from procedures.drift_pulse.records import DriftRecords
+        return DriftRecords()
+
+
+KIND: ProcedureKind = DriftPulse()
 
 
 def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
@@ -333,6 +382,7 @@ def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
 
 def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
     """The DMM's replies to FETC?, in order, from its raw SCPI journal of a session."""
+    from drivers.dmm import PROFILES as DMM_PROFILES
     path = layout.raw_file(run.path, session, layout.dmm_log(gyro))
     out, waiting = [], False
     fetch = DMM_PROFILES[model].words.fetch.text().upper()
@@ -345,9 +395,12 @@ def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
     return out
 
 
-def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, Any]:
+def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan) -> dict[str, Any]:
+    from drivers.scpi import parse_numbers
+    from procedures.drift_pulse import analysis as dp
+
     events = run.events()
-    plan_units = set(kind.build_plan(cfg).units())
+    plan_units = set(plan.build_plan(cfg).units())
     done = {e["unit"]: e["session"] for e in events if e.get("event") == "unit_done"}
     cycles = [e for e in events if e.get("event") == "cycle" and done.get(e["unit"]) ==
               e["session"]]

@@ -11,19 +11,19 @@ analyze the pair.
 from __future__ import annotations
 
 import math
+from collections.abc import Collection, Mapping
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 from bench.core.config import Config, StandSettings, stand_schema
 from bench.core.engine import Abort, RunContext
 from bench.core.journal import FOG_CAPTURE_EVENT, RunDir
-from bench.core.plan import Plan, Step, format_duration
+from bench.core.plan import Plan, Step, check_actions, format_duration
 from bench.core.progress import RELATIVE, Figure
 from bench.core.schema import Map
 from bench.core.yamlfile import Problem
 from drivers.clock import Clock, stepped
-from procedures.base import StepDispatch
-from procedures.rate_ladder.certificate import LadderCertificate
-from procedures.rate_ladder.records import LadderRecords
+from procedures.base import prompt
 from procedures.rate_ladder.settings import (
     NAME,
     PROCEDURE,
@@ -34,12 +34,17 @@ from procedures.rate_ladder.settings import (
     validation_notes,
 )
 
-# the instruments, the twins and the analysis are imported where the kind uses them:
-# `bench validate` and `bench schema` load this module for its files alone
+# the instruments, the twins, the analysis, the certificate and the records are imported
+# where the kind uses them: `bench validate` and `bench schema` load this module for its
+# files alone
 if TYPE_CHECKING:
     from bench.core.instruments import Bench
+    from bench.core.registry import ProcedureKind, StepHandler
     from bench.core.simbench import SimBench
+    from bench.report.dcc.parts import DccParts
     from procedures.rate_ladder.analysis import FirstLook
+    from procedures.rate_ladder.certificate import LadderCertificate
+    from procedures.rate_ladder.records import LadderRecords
 
 #: what the analysis worker imports when it starts, before the first pair's look (the
 #: look's modules and the fit's scipy; bench/core/engine.py `_preload`)
@@ -85,10 +90,9 @@ def fogs_opened_when_used(clock: Clock) -> bool:
     return stepped(clock) or float(getattr(clock, "speed", 1.0)) <= 1.0
 
 
-class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
-    name = NAME
+class LadderFiles:
+    """The ladder's files (the kind's `settings` part): schemas, parse, checks, notes."""
 
-    # -- files -----------------------------------------------------------------------
     def procedure_schema(self) -> Map:
         return PROCEDURE
 
@@ -106,7 +110,13 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         """Advice `bench validate` prints beside 'valid' (nothing wrong, something unstated)."""
         return validation_notes(cfg)
 
-    # -- plan ------------------------------------------------------------------------
+class LadderPlan:
+    """The ladder's steps (the kind's `plan` part), checked against the actions its
+    steps handle."""
+
+    def __init__(self, actions: Collection[str]) -> None:
+        self._actions = actions
+
     def build_plan(self, cfg: Config) -> Plan:
         steps: list[Step] = []
         ladder = LadderSettings.from_config(cfg)
@@ -161,7 +171,59 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
             "exactly, docs/method.md A3)"
             for axis, spec in ladder.axes.items()
             if ladder.sequence == "+-+" and spec.turns >= 3 and spec.turns % 2)
-        return Plan(title, tuple(steps), warnings)
+        return check_actions(Plan(title, tuple(steps), warnings), self._actions)
+
+    # -- resume ----------------------------------------------------------------------
+    def resume_plan(self, plan: Plan, run: RunDir) -> Plan:
+        """What a --resume still runs: every half already acquired is kept (docs/resume.md).
+
+        `plan` holds the units not done; of each, the halves acquired in earlier sessions
+        are dropped with their set-rate and settle steps. A pair must keep one session
+        that holds both signs (its FOG calibration, bench/analysis/pair.py): when neither
+        an earlier session nor what is left would hold both, the pair is acquired whole.
+        """
+        from procedures.rate_ladder.analysis import unit_acquisitions
+
+        events = run.events()
+        kept: dict[str, dict[int, int]] = {}  # unit -> half -> (sign) of the kept halves
+        sessions: dict[str, dict[int, set[int]]] = {}
+        for h in unit_acquisitions(events):
+            kept.setdefault(h.unit, {})[h.half] = h.sign
+            sessions.setdefault(h.unit, {}).setdefault(h.session, set()).add(h.sign)
+        drop: dict[str, set[int]] = {}
+        for unit, halves_done in kept.items():
+            left = {(1 if s.params["rate_dps"] > 0 else -1) for s in plan.steps
+                    if s.unit == unit and s.action == "acquire"
+                    and s.params["half"] not in halves_done}
+            whole_session = any(signs == {1, -1} for signs in sessions[unit].values())
+            if whole_session or left == {1, -1}:
+                drop[unit] = set(halves_done)
+        steps: list[Step] = []
+        pending: list[Step] = []  # a half's set_rate and settle wait for its acquire
+        for s in plan.steps:
+            if s.unit in drop and s.action in ("set_rate", "settle"):
+                pending.append(s)
+                continue
+            if s.unit in drop and s.action == "acquire":
+                if s.params["half"] not in drop[s.unit]:
+                    steps += [*pending, s]
+                pending = []
+                continue
+            steps += pending
+            pending = []
+            steps.append(s)
+        return Plan(plan.title, tuple(steps + pending))
+
+
+class LadderSteps:
+    """The ladder on the bench (the kind's `steps` part): twins, instruments, and one
+    handler per action of its plan."""
+
+    def __init__(self) -> None:
+        self.handlers: Mapping[str, StepHandler] = {
+            "prompt": prompt, "static": self._do_static, "enable": self._do_enable,
+            "set_rate": self._do_set_rate, "settle": self._do_settle,
+            "acquire": self._do_acquire, "analyze": self._do_analyze, "stop": self._do_stop}
 
     # -- bench -----------------------------------------------------------------------
     def axes(self, cfg: Config) -> list[str]:
@@ -191,7 +253,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
             raise error
         return bench
 
-    # -- steps (each action is a `_do_<action>` method) --------------------------------
+    # -- steps (each action's handler: `handlers`) --------------------------------------
     def execute(self, step: Step, ctx: RunContext) -> None:
         """An axis's FOG streams for that axis's steps only: opened after the axis's
         prompt (the operator mounts it then), closed when the next axis begins
@@ -205,7 +267,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
                 ctx.run.event(FOG_CAPTURE_EVENT, axis=ax.name, first_index=fog.first_index,
                               rate_hz=fog.rate_hz)
                 ctx.run.event("identity", **identity_record(ax))
-        super().execute(step, ctx)
+        self.handlers[step.action](step, ctx)
 
     def _do_enable(self, step: Step, ctx: RunContext) -> None:
         ctx.bench.axes[step.axis].drive.enable()
@@ -378,53 +440,14 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
                           unit_halves(events, unit, ctx.run.session),
                           static_record(events, axis), on_done=done)
 
-    # -- resume ----------------------------------------------------------------------
-    def resume_plan(self, plan: Plan, run: RunDir) -> Plan:
-        """What a --resume still runs: every half already acquired is kept (docs/resume.md).
-
-        `plan` holds the units not done; of each, the halves acquired in earlier sessions
-        are dropped with their set-rate and settle steps. A pair must keep one session
-        that holds both signs (its FOG calibration, bench/analysis/pair.py): when neither
-        an earlier session nor what is left would hold both, the pair is acquired whole.
-        """
-        from procedures.rate_ladder.analysis import unit_acquisitions
-
-        events = run.events()
-        kept: dict[str, dict[int, int]] = {}  # unit -> half -> (sign) of the kept halves
-        sessions: dict[str, dict[int, set[int]]] = {}
-        for h in unit_acquisitions(events):
-            kept.setdefault(h.unit, {})[h.half] = h.sign
-            sessions.setdefault(h.unit, {}).setdefault(h.session, set()).add(h.sign)
-        drop: dict[str, set[int]] = {}
-        for unit, halves_done in kept.items():
-            left = {(1 if s.params["rate_dps"] > 0 else -1) for s in plan.steps
-                    if s.unit == unit and s.action == "acquire"
-                    and s.params["half"] not in halves_done}
-            whole_session = any(signs == {1, -1} for signs in sessions[unit].values())
-            if whole_session or left == {1, -1}:
-                drop[unit] = set(halves_done)
-        steps: list[Step] = []
-        pending: list[Step] = []  # a half's set_rate and settle wait for its acquire
-        for s in plan.steps:
-            if s.unit in drop and s.action in ("set_rate", "settle"):
-                pending.append(s)
-                continue
-            if s.unit in drop and s.action == "acquire":
-                if s.params["half"] not in drop[s.unit]:
-                    steps += [*pending, s]
-                pending = []
-                continue
-            steps += pending
-            pending = []
-            steps.append(s)
-        return Plan(plan.title, tuple(steps + pending))
-
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
         drive = ctx.bench.axes[step.axis].drive
         drive.stop()
         drive.disable()
 
-    # -- analysis --------------------------------------------------------------------
+class LadderAnalysis:
+    """result.json of a ladder run (the kind's `analysis` part)."""
+
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
         from procedures.rate_ladder.analysis import analyze_run
         from procedures.rate_ladder.budgets import add_budgets
@@ -433,7 +456,33 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         return add_conditions(add_budgets(analyze_run(run, cfg)), run, cfg)
 
 
-KIND = RateLadder()
+class RateLadder:
+    """The rate ladder as a kind (bench/core/registry.py `ProcedureKind`): its parts,
+    the heavy ones (numpy, the certificate, the records) imported when first used."""
+
+    name = NAME
+    settings = LadderFiles()
+    steps = LadderSteps()
+    plan = LadderPlan(steps.handlers)
+    analysis = LadderAnalysis()
+
+    @cached_property
+    def certificate(self) -> LadderCertificate:
+        from procedures.rate_ladder.certificate import LadderCertificate
+        return LadderCertificate()
+
+    @cached_property
+    def dcc(self) -> DccParts:
+        from procedures.rate_ladder.dcc import LadderDcc
+        return LadderDcc()
+
+    @cached_property
+    def records(self) -> LadderRecords:
+        from procedures.rate_ladder.records import LadderRecords
+        return LadderRecords()
+
+
+KIND: ProcedureKind = RateLadder()
 
 
 def time_tie_record(counter: Any, acq: Any, fog: Any) -> dict[str, Any]:
