@@ -31,7 +31,7 @@ from bench.core.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config, StandSett
 from bench.core.engine import RunContext
 from bench.core.instruments import Bench
 from bench.core.journal import RunDir
-from bench.core.plan import Plan, Step, check_actions
+from bench.core.plan import Duration, Plan, Step, check_actions
 from bench.core.registry import ProcedureKind, StepHandler
 from bench.core.schema import Key, Map, Num
 from bench.core.simbench import SimBench
@@ -110,7 +110,7 @@ class DwellSteps:
 
     def dwell(self, step: Step, ctx: RunContext) -> None:
         start = ctx.clock.now()
-        ctx.clock.sleep(step.params["duration_s"])
+        ctx.clock.sleep(step.params_as(Duration).duration_s)
         ctx.run.event("dwelt", waited_s=ctx.clock.now() - start)
 
 
@@ -123,7 +123,7 @@ class DwellPlan:
         dwell = float(cfg.procedure["dwell_s"])
         return check_actions(Plan(cfg.procedure.get("title", TITLE),
                                   (Step("dwell", None, f"wait {dwell:g} s", dwell, "dwell",
-                                        {"duration_s": dwell}),)),
+                                        Duration(dwell)),)),
                              DwellSteps().handlers)
 
 

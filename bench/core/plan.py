@@ -7,8 +7,23 @@ a unit (a static record, a +/- rate pair); a unit is the grain of `--resume`.
 from __future__ import annotations
 
 from collections.abc import Collection, Iterable
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
+from typing import TypeVar
+
+
+@dataclass(frozen=True, slots=True)
+class NoParams:
+    """The parameters of a step that needs nothing beyond its axis (prompt, enable, ...)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Duration:
+    """The parameters of a step that lasts a stated time (a record at rest, a wait)."""
+
+    duration_s: float
+
+
+P = TypeVar("P")
 
 
 @dataclass(frozen=True)
@@ -20,7 +35,9 @@ class Step:
     describe: str
     estimate_s: float = 0.0
     unit: str | None = None  # completing the unit's last step completes the unit
-    params: dict[str, Any] = field(default_factory=dict)
+    #: the action's typed parameters (a frozen dataclass per action, the kind's), made
+    #: once where the plan is built; its handler reads them with `params_as`
+    params: object = NoParams()
 
     @property
     def on_axis(self) -> str:
@@ -35,6 +52,13 @@ class Step:
         if self.unit is None:
             raise ValueError(f"step {self.action!r} ({self.describe}) belongs to no unit")
         return self.unit
+
+    def params_as(self, kind: type[P]) -> P:
+        """The parameters as the type its action's handler takes (else a plan bug)."""
+        if not isinstance(self.params, kind):
+            raise TypeError(f"step {self.action!r} ({self.describe}) carries "
+                            f"{type(self.params).__name__}, not {kind.__name__}")
+        return self.params
 
     @property
     def key(self) -> str:
