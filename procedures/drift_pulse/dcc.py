@@ -34,7 +34,7 @@ METHOD_SECTIONS = ("B",)
 
 
 class DriftDcc(DccParts):
-    """The drift procedure's answers to the DCC (mixed into the kind)."""
+    """The drift procedure's answers to the DCC (the kind's `dcc` part)."""
 
     def dcc_item(self, src: Sources) -> tuple[str, Sequence[str]]:
         axes = src.get("axes") or (src.get("drift") or {}).get("axes") or {}
