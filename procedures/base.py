@@ -8,18 +8,21 @@ kinds are found by entry point.
 from __future__ import annotations
 
 import dataclasses
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bench.core import rundir_layout as layout
 from bench.core.config import Config
-from bench.core.engine import RunContext
-from bench.core.journal import RunDir, sha256_file
 from bench.core.lab import certificate_settings
 from bench.core.plan import Plan, Step
 from bench.report.conformity import RULES
 from bench.report.uncertainty_names import UNCERTAINTY_NAMING, with_explicit_names
+
+# the engine and the journal for the hints only: `bench validate` loads the kinds (and this
+# module) for their files alone
+if TYPE_CHECKING:
+    from bench.core.engine import RunContext
+    from bench.core.journal import RunDir
 
 
 def prompt(step: Step, ctx: RunContext) -> None:
@@ -51,12 +54,14 @@ class RawHashes:
     def __init__(self, run: RunDir) -> None:
         self._run = run
         self._files = [p for p in sorted(layout.raw_root(run.path).rglob("*")) if p.is_file()]
+        from concurrent.futures import ThreadPoolExecutor
         self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="sha256")
         self._hashes = [self._pool.submit(self._hash, p) for p in self._files]
 
     def _hash(self, path: Path) -> str:
         """The digest taken as the file was written by this process, when the file still
         has that length (RunDir.written_digest); else from the disk."""
+        from bench.core.journal import sha256_file
         return self._run.written_digest(path) or sha256_file(path)
 
     def result(self) -> list[dict[str, Any]]:

@@ -32,8 +32,6 @@ from bench.core.config import (
     StandSettings,
     stand_schema,
 )
-from bench.core.engine import Abort, RunContext
-from bench.core.journal import RunDir, read_jsonl
 from bench.core.plan import Duration, Plan, Step, check_actions
 from bench.core.progress import Figure
 from bench.core.schema import Key, Map
@@ -59,7 +57,9 @@ from procedures.drift_pulse.settings import (  # noqa: F401 - the kind's names
 # imported where the kind uses them: `bench validate` and `bench schema` load this module
 # for its files alone
 if TYPE_CHECKING:
+    from bench.core.engine import RunContext
     from bench.core.instruments import Bench
+    from bench.core.journal import RunDir
     from bench.core.registry import KindPlan, ProcedureKind, StepHandler
     from bench.core.simbench import SimBench, TwinFactory
     from drivers.awg import WaveformGenerator
@@ -283,6 +283,7 @@ class DriftSteps:
         drive.check()
 
     def _do_cycle(self, step: Step, ctx: RunContext) -> None:
+        from bench.core.engine import Abort
         from procedures.drift_pulse import analysis as dp
         p = step.params_as(CycleParams)
         d = DriftSettings.from_config(ctx.cfg)
@@ -423,6 +424,7 @@ def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
 
 def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
     """The DMM's replies to FETC?, in order, from its raw SCPI journal of a session."""
+    from bench.core.journal import read_jsonl
     from drivers.dmm import PROFILES as DMM_PROFILES
     path = layout.raw_file(run.path, session, layout.dmm_log(gyro))
     out, waiting = [], False

@@ -17,8 +17,6 @@ from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 from bench.core.config import Config, StandSettings, stand_schema
-from bench.core.engine import Abort, RunContext
-from bench.core.journal import FOG_CAPTURE_EVENT, RunDir
 from bench.core.plan import Duration, Plan, Step, check_actions, format_duration
 from bench.core.progress import RELATIVE, Figure
 from bench.core.schema import Map
@@ -42,7 +40,9 @@ if TYPE_CHECKING:
     import numpy as np
     from numpy.typing import NDArray
 
+    from bench.core.engine import RunContext
     from bench.core.instruments import Bench
+    from bench.core.journal import RunDir
     from bench.core.registry import ProcedureKind, StepHandler
     from bench.core.simbench import SimBench
     from bench.report.dcc.parts import DccParts
@@ -76,6 +76,7 @@ def _check_fog_indices(fog: Fog, upto: int, what: str) -> None:
     phases off by w dt) while the analysis saw a clean record. The driver spots it from
     the clock (drivers/fog.py `index_uncertain_from`); such a half is not journaled, and
     `bench run --resume` measures it again on a new FOG session."""
+    from bench.core.engine import Abort
     doubt = fog.stats.index_uncertain_from
     if doubt is not None and doubt < upto:
         cause = getattr(fog, "last_error", None) or "frames lost in whole counter wraps"
@@ -303,6 +304,7 @@ class LadderSteps:
         (bench.core.instruments.fog_for_axis). Its first frame's index comes from the
         clock; the `fog_capture` event keeps it for the analysis of the raw file."""
         from bench.core.instruments import fog_for_axis, identity_record
+        from bench.core.journal import FOG_CAPTURE_EVENT
         ax = ctx.bench.axes.get(step.axis) if step.axis else None
         if ax is not None:
             fog = fog_for_axis(ctx.bench, ax.name, ctx.run, opening=step.action != "prompt")
@@ -385,6 +387,7 @@ class LadderSteps:
                               f"within ±{p.tolerance_dps:g} deg/s for {p.hold_s:g} s")
 
     def _do_acquire(self, step: Step, ctx: RunContext) -> None:
+        from bench.core.engine import Abort
         from procedures.rate_ladder.analysis import read_half_ahead, static_record
         from procedures.rate_ladder.events import HalfAcquired
 
