@@ -40,8 +40,6 @@ if TYPE_CHECKING:
     from bench.core.simbench import SimBench
     from bench.core.yamlfile import Problem
     from bench.report.certificate.model import Document
-    from bench.report.certificate.parts import CertificateParts
-    from bench.report.dcc.parts import DccParts
     from bench.report.figures import FigureSpec, FigureValue, InstrumentCheck, SummaryCut
     from drivers.clock import Clock
 
@@ -139,12 +137,15 @@ class ProcedureKind(Protocol):
         """The run's result.json."""
 
     @property
-    def certificate(self) -> CertificateParts:
-        """Its part of the certificate (`CertificateParts()`: nothing of its own)."""
+    def certificate(self) -> object:
+        """Its part of the certificate: a `bench.report.certificate.parts.CertificateParts`
+        (`CertificateParts()`: nothing of its own). Typed `object` here, as `records` is:
+        the report layer sits above this one, and the certificate asks by isinstance."""
 
     @property
-    def dcc(self) -> DccParts:
-        """Its part of the DCC (`DccParts()`: nothing of its own)."""
+    def dcc(self) -> object:
+        """Its part of the DCC: a `bench.report.dcc.parts.DccParts` (`DccParts()`:
+        nothing of its own), asked for by isinstance."""
 
     @property
     def records(self) -> object:

@@ -63,7 +63,8 @@ def build_dcc(inputs: DccInputs) -> etree._ElementTree:
     src = Sources.load(inputs.result, inputs.run_path)
     proc = procedure_of(src)        # the kind, found as the certificate finds it
     installed = installed_kind(proc.name)
-    kind = installed.dcc if installed is not None else NEUTRAL
+    part = installed.dcc if installed is not None else None
+    kind = part if isinstance(part, DccParts) else NEUTRAL
     checks = Checks(checks_of(src))
     root = el(None, "digitalCalibrationCertificate", schemaVersion="3.3.0")
     root.set(f"{{{XSI_NS}}}schemaLocation", SCHEMA_LOCATION)
