@@ -1,6 +1,7 @@
 """Start-up time of the `bench` command, each case a whole process (issue 45; run on demand).
 
     python benchmarks/bench_cli_startup.py [--repeat 5] [--parse-only] [--no-bytecode-cache]
+                                           [--imports N]
 
 Times `bench --help`, `bench --version`, `bench validate --help` and `bench run --help`
 (the parser alone: bench/app/cli.py imports a command's module only when it runs), then
@@ -14,8 +15,11 @@ The bench runs as an installed package does, from compiled bytecode: the childre
 and read theirs in a temporary folder (PYTHONPYCACHEPREFIX; the warm-up run compiles),
 even where the environment says PYTHONDONTWRITEBYTECODE. --no-bytecode-cache keeps the
 environment as it is (then, with PYTHONDONTWRITEBYTECODE, every run compiles every
-module it imports: a few hundred milliseconds more). The load average is printed first:
-on a shared machine, compare the cases of one run, not runs.
+module it imports: a few hundred milliseconds more). Whether this environment sets
+PYTHONDONTWRITEBYTECODE is printed first (CI does not), with the load average: on a shared
+machine, compare the cases of one run, not runs. --imports N: after each case, its N
+heaviest imports (cumulative, from one run under PYTHONPROFILEIMPORTTIME), to find what a
+command still loads.
 """
 
 from __future__ import annotations
@@ -84,18 +88,39 @@ def main(argv: list[str] | None = None) -> int:
                     help="only the cases that parse and print help or the version")
     ap.add_argument("--no-bytecode-cache", action="store_true",
                     help="run the children in this environment as it is (see above)")
+    ap.add_argument("--imports", type=int, default=0, metavar="N",
+                    help="list each case's N heaviest imports (cumulative microseconds)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="bench-pycache-") as tmp:
         env = child_env(None if args.no_bytecode_cache else tmp)
         load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
         cached = ("as they are" if args.no_bytecode_cache
                   else "from compiled bytecode (a temporary PYTHONPYCACHEPREFIX)")
-        print(f"load average {load} on {os.cpu_count()} CPUs; the modules {cached}")
+        print(f"load average {load} on {os.cpu_count()} CPUs; the modules {cached}; "
+              f"PYTHONDONTWRITEBYTECODE {'set' if os.environ.get('PYTHONDONTWRITEBYTECODE') else 'unset'}"
+              " here")
         print(f"{'case':<46} {'wall min':>9} {'median':>8} {'cpu min':>8} {'median':>8}  "
               f"goal (median wall <= {GOAL_S} s)")
         for name, cmd in cases(args.parse_only):
             report(name, cmd, env, args.repeat)
+            if args.imports and not name.startswith("python"):
+                for us, module in heaviest_imports(cmd, env, args.imports):
+                    print(f"    {us / 1e6:8.3f} s  {module}")
     return 0
+
+
+def heaviest_imports(argv: list[str], env: dict[str, str], n: int) -> list[tuple[int, str]]:
+    """The n imports of one run of argv with the largest cumulative time (top-level
+    modules and their children alike: a package's time includes what it imports)."""
+    r = subprocess.run(argv, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                       env={**env, "PYTHONPROFILEIMPORTTIME": "1"}, check=False, text=True)
+    rows = []
+    for line in r.stderr.splitlines():
+        if line.startswith("import time:") and "|" in line:
+            _, cumulative, module = line.split("|")
+            if cumulative.strip().isdigit():
+                rows.append((int(cumulative), module.strip()))
+    return sorted(rows, reverse=True)[:n]
 
 
 def report(name: str, cmd: list[str], env: dict[str, str], repeat: int) -> None:

@@ -1,40 +1,40 @@
-"""What the procedure kinds share: step dispatch and the result document's frame.
+"""What the procedure kinds share: the prompt step, a whole-unit resume and the result
+document's frame.
 
-The plug-in interface itself (what the engine asks of a kind) is
-`bench.core.registry.ProcedureKind`; kinds are found by entry point.
+The plug-in interface itself (a kind and its parts) is `bench.core.registry.ProcedureKind`;
+kinds are found by entry point.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bench.core import rundir_layout as layout
 from bench.core.config import Config
-from bench.core.engine import RunContext
-from bench.core.journal import RunDir, sha256_file
 from bench.core.lab import certificate_settings
 from bench.core.plan import Plan, Step
 from bench.core.stops import register
 from bench.report.conformity import RULES
 from bench.report.uncertainty_names import UNCERTAINTY_NAMING, with_explicit_names
 
+# the engine and the journal for the hints only: `bench validate` loads the kinds (and this
+# module) for their files alone
+if TYPE_CHECKING:
+    from bench.core.engine import RunContext
+    from bench.core.journal import RunDir
 
-class StepDispatch:
-    """Runs step `action` as method `_do_<action>`; the prompt step is the same for all."""
 
-    def execute(self, step: Step, ctx: RunContext) -> None:
-        getattr(self, f"_do_{step.action}")(step, ctx)
+def prompt(step: Step, ctx: RunContext) -> None:
+    """The prompt step, the same for every kind: the operator reads it and answers."""
+    ctx.prompt(step.describe)
 
-    def _do_prompt(self, step: Step, ctx: RunContext) -> None:
-        ctx.prompt(step.describe)
 
-    def resume_plan(self, plan: Plan, run: RunDir) -> Plan:
-        """What a --resume runs of `plan` (the units not done): all of it, unless the kind
-        keeps finer parts of a unit (the rate ladder keeps each half already acquired)."""
-        return plan
+def resume_whole(plan: Plan, run: RunDir) -> Plan:
+    """What a --resume runs of `plan` (the units not done): all of it, for a kind that
+    keeps no finer part of a unit (the rate ladder keeps each half already acquired)."""
+    return plan
 
 
 SCHEMA = "bench.result/1"
@@ -55,6 +55,7 @@ class RawHashes:
     def __init__(self, run: RunDir) -> None:
         self._run = run
         self._files = [p for p in sorted(layout.raw_root(run.path).rglob("*")) if p.is_file()]
+        from concurrent.futures import ThreadPoolExecutor
         self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="sha256")
         register("raw-file hashing", lambda: self._pool.shutdown(False, cancel_futures=True),
                  "worker")
@@ -63,6 +64,7 @@ class RawHashes:
     def _hash(self, path: Path) -> str:
         """The digest taken as the file was written by this process, when the file still
         has that length (RunDir.written_digest); else from the disk."""
+        from bench.core.journal import sha256_file
         return self._run.written_digest(path) or sha256_file(path)
 
     def result(self) -> list[dict[str, Any]]:

@@ -7,16 +7,22 @@ that clock is the simulated bench's, which has no twin to start. Its analysis re
 journal back and states two figures, the time waited and its error against the dwell
 asked for, the error checked against a tolerance.
 
-Its figures reach the records, `bench history`, the trend plot and the console summary
-through their declaration alone (`figures`, read by `bench.report.figures.DeclaredFigures`).
+A kind is a name and its parts, each an attribute with its own interface
+(bench/core/registry.py `ProcedureKind`): `settings` (its files), `plan`, `steps` (one
+handler per action; the plan is checked against them when built), `analysis`,
+`certificate`, `dcc` and `records`. Its figures reach the records, `bench history`, the
+trend plot and the console summary through their declaration alone (the `records` part, a
+`bench.report.figures.DeclaredFigures`).
 
-`KIND` also answers the DCC (`bench.report.dcc.parts.DccParts`); `QUIET` is the same kind
-without a DCC part of its own, which still gets a valid DCC from the neutral answers.
+`KIND` has a DCC part of its own (`bench.report.dcc.parts.DccParts`); `QUIET` is the same
+kind with the neutral `DccParts()`, which still gives a valid DCC.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from lxml import etree
@@ -25,7 +31,8 @@ from bench.core.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config, StandSett
 from bench.core.engine import RunContext
 from bench.core.instruments import Bench
 from bench.core.journal import RunDir
-from bench.core.plan import Plan, Step
+from bench.core.plan import Duration, Plan, Step, check_actions
+from bench.core.registry import ProcedureKind, StepHandler
 from bench.core.schema import Key, Map, Num
 from bench.core.simbench import SimBench
 from bench.core.yamlfile import Problem
@@ -38,7 +45,7 @@ from bench.report.dcc.parts import DccParts
 from bench.report.dcc.xml import el, name, quantity
 from bench.report.figures import DeclaredFigures, FigureSpec, Trend
 from drivers.clock import Clock
-from procedures.base import StepDispatch, result_document
+from procedures.base import result_document, resume_whole
 
 NAME = "dwell"
 TITLE = "Dwell on the bench clock"
@@ -58,13 +65,8 @@ FIGURES = (
 SIM = Map({"seed": Key(Num(min=0, integer=True), False, "the simulated bench's seed")})
 
 
-class Dwell(StepDispatch, DeclaredFigures, CertificateParts):
-    """Waits `dwell_s` of bench time and reports how long it waited."""
-
-    name = NAME
-    figures = FIGURES
-    certificate_procedure_name = "dwell (a test plug-in)"
-    certificate_quantities = {"dwell_time": "time waited"}
+class DwellFiles:
+    """Its files (the `settings` part): a dwell and a tolerance; no axis, no instrument."""
 
     def procedure_schema(self) -> Map:
         return Map({**COMMON_PROCEDURE_KEYS,
@@ -79,15 +81,20 @@ class Dwell(StepDispatch, DeclaredFigures, CertificateParts):
     def cross_check(self, cfg: Config) -> list[Problem]:
         return []
 
-    def build_plan(self, cfg: Config) -> Plan:
-        dwell = float(cfg.procedure["dwell_s"])
-        return Plan(cfg.procedure.get("title", TITLE),
-                    (Step("dwell", None, f"wait {dwell:g} s", dwell, "dwell",
-                          {"duration_s": dwell}),))
-
     def parse(self, cfg: Config) -> float:
-        """The dwell's one setting (bench/core/registry.py ProcedureKind.parse)."""
+        """The dwell's one setting (bench/core/registry.py KindSettings.parse)."""
         return float(cfg.procedure["dwell_s"])
+
+    def notes(self, cfg: Config) -> list[str]:
+        return []
+
+
+class DwellSteps:
+    """Its bench (the `steps` part): the simulated bench's clock, no instrument; one
+    action, `dwell`."""
+
+    def __init__(self) -> None:
+        self.handlers: Mapping[str, StepHandler] = {"dwell": self.dwell}
 
     def start_sim(self, cfg: Config) -> tuple[SimBench, StandSettings]:
         """The simulated bench with no twin: its clock alone."""
@@ -98,10 +105,30 @@ class Dwell(StepDispatch, DeclaredFigures, CertificateParts):
                    run: RunDir | None) -> Bench:
         return Bench()
 
-    def _do_dwell(self, step: Step, ctx: RunContext) -> None:
+    def execute(self, step: Step, ctx: RunContext) -> None:
+        self.handlers[step.action](step, ctx)
+
+    def dwell(self, step: Step, ctx: RunContext) -> None:
         start = ctx.clock.now()
-        ctx.clock.sleep(step.params["duration_s"])
+        ctx.clock.sleep(step.params_as(Duration).duration_s)
         ctx.run.event("dwelt", waited_s=ctx.clock.now() - start)
+
+
+class DwellPlan:
+    """Its plan (the `plan` part): one step, resumed whole."""
+
+    resume_plan = staticmethod(resume_whole)
+
+    def build_plan(self, cfg: Config) -> Plan:
+        dwell = float(cfg.procedure["dwell_s"])
+        return check_actions(Plan(cfg.procedure.get("title", TITLE),
+                                  (Step("dwell", None, f"wait {dwell:g} s", dwell, "dwell",
+                                        Duration(dwell)),)),
+                             DwellSteps().handlers)
+
+
+class DwellAnalysis:
+    """Its result.json (the `analysis` part): the time waited, its error checked."""
 
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
         events = run.events()
@@ -121,6 +148,13 @@ class Dwell(StepDispatch, DeclaredFigures, CertificateParts):
                                dwell={"waited_s": waited[-1] if waited else None,
                                       "error_s": error})
 
+
+class DwellCertificate(CertificateParts):
+    """Its part of the certificate: a name, its check's quantity, one section."""
+
+    certificate_procedure_name = "dwell (a test plug-in)"
+    certificate_quantities = {"dwell_time": "time waited"}
+
     def certificate_sections(self, src: Sources, number: str,
                              checks: Sequence[Mapping[str, Any]]) -> list[Section]:
         waited = num((src.get("dwell", {}) or {}).get("waited_s"))
@@ -130,8 +164,8 @@ class Dwell(StepDispatch, DeclaredFigures, CertificateParts):
             Para("Bench time between the start and the end of the dwell step."),))]
 
 
-class DwellWithDcc(DccParts, Dwell):
-    """The dwell, with its one figure in the DCC."""
+class DwellDcc(DccParts):
+    """Its part of the DCC: the item, and its one figure."""
 
     def dcc_item(self, src: Sources) -> tuple[str, Sequence[str]]:
         return "bench clock", ()
@@ -150,5 +184,26 @@ class DwellWithDcc(DccParts, Dwell):
         judge(node, checks.take(None, None, "dwell_time"), U.SECOND)
 
 
-KIND = DwellWithDcc()
-QUIET = Dwell()
+class DwellRecords(DeclaredFigures):
+    """Its figures for the records, `bench history`, the trend plot and the summary."""
+
+    figures = FIGURES
+
+
+@dataclass(frozen=True)
+class Dwell:
+    """Waits `dwell_s` of bench time and reports how long it waited: the parts above,
+    composed (a light kind: every part imported with it)."""
+
+    name: str = NAME
+    settings: DwellFiles = DwellFiles()
+    plan: DwellPlan = DwellPlan()
+    steps: DwellSteps = DwellSteps()
+    analysis: DwellAnalysis = DwellAnalysis()
+    certificate: CertificateParts = DwellCertificate()
+    dcc: DccParts = DwellDcc()
+    records: DwellRecords = DwellRecords()
+
+
+KIND: ProcedureKind = Dwell()
+QUIET: ProcedureKind = dataclasses.replace(Dwell(), dcc=DccParts())

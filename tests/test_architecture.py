@@ -255,7 +255,7 @@ def _mapping_keys() -> frozenset[str]:
 
     walk(any_stand_schema())
     for name in procedure_names():
-        walk(procedure_kind(name).procedure_schema())
+        walk(procedure_kind(name).settings.procedure_schema())
     return frozenset(out)
 
 

@@ -156,7 +156,7 @@ def test_every_shipped_stand_file_fits_a_procedure_kind() -> None:
     assert len(stands) >= 3, stands  # two sim stands and the real example at least
     for stand in stands:
         doc = load_yaml(stand)
-        fits = [validate(doc, procedure_kind(n).stand_schema()) for n in procedure_names()]
+        fits = [validate(doc, procedure_kind(n).settings.stand_schema()) for n in procedure_names()]
         assert any(not problems for problems in fits), (stand, fits)
 
 
@@ -221,7 +221,7 @@ def test_the_twins_point_a_copy_of_the_parsed_stand_at_themselves() -> None:
 
     cfg = load_config(CONFIGS / "procedures" / "demo.yaml")
     written, parsed = copy.deepcopy(cfg.stand), cfg.stand_settings
-    simbench, served = procedure_kind(cfg.kind).start_sim(cfg)
+    simbench, served = procedure_kind(cfg.kind).steps.start_sim(cfg)
     try:
         assert cfg.stand == written and cfg.stand_settings is parsed
         for name, axis in served.axes.items():

@@ -19,6 +19,7 @@ from bench.app.commands import EXIT_INVALID, EXIT_PASS, run_session
 from bench.core.journal import RunDir
 from bench.core.loader import load_config
 from bench.core.registry import procedure_kind
+from procedures.rate_ladder.kind import AcquireParams
 from procedures.rate_ladder.settings import LadderSettings
 from sims.stand import AxisTruth
 from tests.conftest import CONFIGS
@@ -42,9 +43,9 @@ def test_settings_take_the_axis_value_and_the_top_level_default(tmp_path: Path) 
     ladder = LadderSettings.from_config(cfg)
     assert {a: s.turns for a, s in ladder.axes.items()} == {"outer": 3, "inner": 2}
     assert ladder.method()["turns"] == "outer 3, inner 2"
-    plan = procedure_kind(cfg.kind).build_plan(cfg)
-    timed = {(st.axis, st.params["half"]): st.params["turns"]
-             for st in plan.steps if st.action == "acquire"}
+    plan = procedure_kind(cfg.kind).plan.build_plan(cfg)
+    timed = {(st.axis, st.params.half): st.params.turns for st in plan.steps
+             if isinstance(st.params, AcquireParams)}
     assert timed == {("outer", 0): 3, ("outer", 1): 3, ("inner", 0): 2, ("inner", 1): 2}
 
 

@@ -76,7 +76,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     print(f"{cfg.procedure_path}: valid {cfg.kind} procedure; stand {cfg.stand_path}: valid")
     for note in [*placeholder_notes(cfg.procedure_path, cfg.stand_path),
-                 *getattr(procedure_kind(cfg.kind), "notes", lambda _c: [])(cfg)]:
+                 *procedure_kind(cfg.kind).settings.notes(cfg)]:
         print(f"note: {note}")
     return EXIT_PASS
 
@@ -88,7 +88,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     cfg = _load(args.procedure)
     if cfg is None:
         return EXIT_INVALID
-    plan = procedure_kind(cfg.kind).build_plan(cfg)
+    plan = procedure_kind(cfg.kind).plan.build_plan(cfg)
     print("\n".join(plan.lines()))
     print("\n".join(data_volume_lines(cfg.stand_settings, plan_axes(cfg, plan), plan.total_s,
                                       Path(args.out))))
@@ -129,7 +129,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if cfg is None:
         return EXIT_INVALID
     if run is None:
-        short = room_for(cfg, procedure_kind(cfg.kind).build_plan(cfg), Path(args.out))
+        short = room_for(cfg, procedure_kind(cfg.kind).plan.build_plan(cfg), Path(args.out))
         if short:   # before the run directory exists: nothing written, nothing moved
             err(f"Not started: {short}")
             return EXIT_INVALID

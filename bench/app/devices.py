@@ -32,7 +32,7 @@ def stand_config(stand_path: str) -> Config | None:
         return None
     fits: list[tuple[list[Problem], str]] = []
     for name in procedure_names():
-        fits.append((validate(doc, procedure_kind(name).stand_schema()), name))
+        fits.append((validate(doc, procedure_kind(name).settings.stand_schema()), name))
     problems, name = min(fits, key=lambda f: len(f[0]))
     if problems:
         for p in problems:
@@ -53,10 +53,10 @@ def list_devices(stand_path: str, sim: bool = False) -> int:
     try:
         with stops.collecting():
             if sim or cfg.has_sim:
-                simbench, stand = kind.start_sim(cfg)
+                simbench, stand = kind.steps.start_sim(cfg)
             # Any: the sims' clocks' `speed` is read-only, drivers.clock.Clock's is not
             clock: Any = simbench.clock if simbench is not None else MonotonicClock()
-            bench = kind.open_bench(cfg, stand, clock, None)
+            bench = kind.steps.open_bench(cfg, stand, clock, None)
             if simbench is not None:
                 simbench.start_clock()
             for axis, ax in bench.axes.items():

@@ -31,7 +31,7 @@ def _note_kind_only(node: Map) -> Map:
     """Say which kind requires a top-level key that the union leaves optional."""
     keys = dict(node.keys)
     for name in procedure_names():
-        for k, spec in procedure_kind(name).stand_schema().keys.items():
+        for k, spec in procedure_kind(name).settings.stand_schema().keys.items():
             if spec.required and not keys[k].required:
                 old = keys[k]
                 doc = f"required by procedure {name}" + (f"; {old.doc}" if old.doc else "")
@@ -42,12 +42,12 @@ def _note_kind_only(node: Map) -> Map:
 def schema_node(target: str, kind: str | None = None) -> Map:
     """The schema of `stand`, `procedure` (of `kind`) or `lab`; KeyError names the choices."""
     if target == "stand":
-        return procedure_kind(kind).stand_schema() if kind else stand_node()
+        return procedure_kind(kind).settings.stand_schema() if kind else stand_node()
     if target == "procedure":
         if kind not in procedure_names():
             raise KeyError(f"procedure KIND: expected one of {', '.join(procedure_names())}"
                            f", got {kind!r}")
-        return procedure_kind(kind).procedure_schema()
+        return procedure_kind(kind).settings.procedure_schema()
     if target == "lab":
         return LAB
     raise KeyError(f"expected stand, procedure KIND or lab, got {target!r}")

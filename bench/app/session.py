@@ -94,7 +94,7 @@ def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
 
 def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
                    records: RecordsTarget | None) -> tuple[dict[str, Any], Document | None]:
-    result = procedure_kind(cfg.kind).analyze(run, cfg)
+    result = procedure_kind(cfg.kind).analysis.analyze(run, cfg)
     run.write_json(layout.RESULT, result)
     # the table's history from the records, when they hold any (never fails the run)
     history = history_sections(run.path, result, records, progress.warn) if records else []
@@ -166,11 +166,11 @@ class RunSession:
     def _run(self) -> int:
         table_overdue = warn_if_overdue(self.cfg.stand_settings.identity, self.where, self.progress.warn)
         out_of_control = warn_at_start(self.cfg.stand_settings, self.where, self.progress.warn)
-        plan = self.kind.build_plan(self.cfg)
+        plan = self.kind.plan.build_plan(self.cfg)
         done = self.run_dir.completed_units()
         todo = plan.remaining(done)
         if self.resume:  # finer than the unit where the kind keeps parts (a ladder's halves)
-            todo = self.kind.resume_plan(todo, self.run_dir)
+            todo = self.kind.plan.resume_plan(todo, self.run_dir)
         short = room_for(self.cfg, todo, self.run_dir.path)
         if short:
             err(f"Not started: {short}")
@@ -214,7 +214,7 @@ class RunSession:
             if self.resume:  # the twins' noise of this session, not a replay of the first
                 sim_cfg = for_session(sim_cfg, run.next_session())
             # its twins' stops are registered with the session's as they start
-            self.simbench, stand = self.kind.start_sim(sim_cfg)
+            self.simbench, stand = self.kind.steps.start_sim(sim_cfg)
         # Any: the sims' clocks' `speed` is read-only, drivers.clock.Clock's is not
         clock: Any = self.simbench.clock if self.simbench is not None else MonotonicClock()
         run.begin_session(clock.now)
@@ -231,7 +231,7 @@ class RunSession:
         for text in out_of_control:
             run.event("out_of_control", text=text)
         # each instrument's stop registered with the session's as it is opened
-        self.bench = bench = self.kind.open_bench(cfg, stand, clock, run)
+        self.bench = bench = self.kind.steps.open_bench(cfg, stand, clock, run)
         for ax in bench.axes.values():
             run.event("identity", **identity_record(ax))
         if self.simbench is not None:
@@ -250,7 +250,7 @@ class RunSession:
         ctx = RunContext(cfg, clock, bench, run, progress, yes=self.yes, stops=self.stops)
         t0 = time.monotonic()
         self.engine_ran = True
-        Engine(ctx, self.kind.execute).run(todo, guard)
+        Engine(ctx, self.kind.steps.execute).run(todo, guard)
         run.event("completed", wall_s=time.monotonic() - t0)
 
     def _check_identities(self, stand: StandSettings, bench: Bench, run: RunDir,

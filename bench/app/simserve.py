@@ -80,7 +80,7 @@ def serve(stand_path: str, stop: threading.Event | None = None) -> int:
             for sig in (signal.SIGINT, signal.SIGTERM):
                 previous[sig] = signal.signal(sig, lambda *_: stop.set())
         with stops.collecting():
-            simbench, served = procedure_kind(cfg.kind).start_sim(cfg)
+            simbench, served = procedure_kind(cfg.kind).steps.start_sim(cfg)
         simbench.start_clock()
         for line in address_lines(simbench, served):
             print(line, flush=True)

@@ -22,7 +22,7 @@ from pathlib import Path
 from bench.core.config import ConfigError
 from bench.core.loader import load_config
 from bench.core.placeholders import left_to_fill
-from bench.core.registry import HasStarterFiles, installed_kind, procedure_names
+from bench.core.registry import HasStarterFiles, installed_records, procedure_names
 
 EXIT_OK, EXIT_INVALID = 0, 2
 
@@ -42,7 +42,7 @@ signatories:                         # who signs; one of them authorises the iss
 def starter_kind(name: str | None) -> HasStarterFiles | None:
     """The kind named, or the first installed one that offers starter files."""
     for n in [name] if name else procedure_names():
-        kind = installed_kind(n)
+        kind = installed_records(n)
         if isinstance(kind, HasStarterFiles):
             return kind
     return None

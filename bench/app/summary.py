@@ -15,7 +15,7 @@ from typing import Any
 
 from bench.app.console.report import STATEMENT_FIELD, Summary, SummaryTable
 from bench.app.records.extract import figures_of, kind_name
-from bench.core.registry import ReportsFigures, SummarisesRun, installed_kind
+from bench.core.registry import ReportsFigures, SummarisesRun, installed_records
 from bench.report.certificate.model import Document, Table
 from bench.report.certificate.parts import verdict_label
 from bench.report.certificate.rounding import format_value_u
@@ -24,7 +24,7 @@ from bench.report.figures import SummaryCut, fields_of, spec_for
 
 def _declared(result: Mapping[str, Any], name: str) -> SummaryCut:
     """The kind's declared figures as one table: where, quantity, value ± U, verdict."""
-    kind = installed_kind(name)
+    kind = installed_records(name)
     if not isinstance(kind, ReportsFigures):
         return SummaryCut()
     rows = []
@@ -48,7 +48,7 @@ def _declared(result: Mapping[str, Any], name: str) -> SummaryCut:
 def summarize(doc: Document, result: Mapping[str, Any] | None = None) -> Summary:
     """The figures the console shows, as the certificate prints them."""
     name = kind_name(dict(result or {}))
-    kind = installed_kind(name)
+    kind = installed_records(name)
     cut = (kind.summary_cut(doc) if isinstance(kind, SummarisesRun)
            else _declared(result or {}, name))
     tables = tuple(SummaryTable(t.caption, t.header, t.rows, t.align or "r" * len(t.header))

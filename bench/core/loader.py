@@ -32,7 +32,7 @@ from bench.core.yamlfile import KeyPath, Problem, YamlDoc, YamlError, keypath_st
 def any_stand_schema() -> Map:
     """The stand file as some installed procedure kind reads it (the kinds' union): what
     a stand validated alone, or named by an unknown procedure, is checked against."""
-    schemas: list[Node] = [procedure_kind(n).stand_schema() for n in procedure_names()]
+    schemas: list[Node] = [procedure_kind(n).settings.stand_schema() for n in procedure_names()]
     node = reduce(merge, schemas)
     assert isinstance(node, Map)
     return node
@@ -76,7 +76,7 @@ def _cross_checks(kind: Any, cfg: Config) -> list[Problem]:
     """The kind's cross-checks; on data with refused parts left out, axis by axis, so
     an axis whose files are too broken to check does not hide the others."""
     try:
-        return list(kind.cross_check(cfg))
+        return list(kind.settings.cross_check(cfg))
     except (KeyError, TypeError, ValueError, AttributeError, IndexError, ArithmeticError):
         pass
     axes = cfg.procedure.get("axes")
@@ -88,7 +88,7 @@ def _cross_checks(kind: Any, cfg: Config) -> list[Problem]:
                      {**cfg.procedure, "axes": {name: spec}}, cfg.stand,
                      cfg.procedure_doc, cfg.stand_doc)
         try:
-            out += [p for p in kind.cross_check(one) if p not in out]
+            out += [p for p in kind.settings.cross_check(one) if p not in out]
         except (KeyError, TypeError, ValueError, AttributeError, IndexError, ArithmeticError):
             continue
     return out
@@ -128,8 +128,8 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
         problems.append(pdoc.problem(("procedure",), f"expected one of "
                                      f"{', '.join(procedure_names())}, got {name!r}"))
     else:
-        pdoc = without_placeholders(pdoc, kind.procedure_schema())
-        refused = validate(pdoc, kind.procedure_schema())
+        pdoc = without_placeholders(pdoc, kind.settings.procedure_schema())
+        refused = validate(pdoc, kind.settings.procedure_schema())
         problems += refused
     problems += lab_problems(Path(procedure_path), pdoc, pdoc.data.get("certificate"))
     sdoc: YamlDoc | None = None
@@ -147,7 +147,7 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
             else:
                 problems.append(e.problem)
         else:
-            schema = kind.stand_schema() if kind is not None else any_stand_schema()
+            schema = kind.settings.stand_schema() if kind is not None else any_stand_schema()
             sdoc = without_placeholders(written, schema)
             stand_refused = validate(sdoc, schema)
             refused += stand_refused
@@ -157,11 +157,11 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
         raise ConfigError(problems)
     if not problems:
         cfg = Config(Path(procedure_path), sdoc.path, pdoc.data, sdoc.data, pdoc, sdoc)
-        problems += kind.cross_check(cfg)
+        problems += kind.settings.cross_check(cfg)
         if problems:
             raise ConfigError(problems)
         # parsed once, here: the kind's settings (the stand's parse on first use)
-        return dataclasses.replace(cfg, settings=kind.parse(cfg))
+        return dataclasses.replace(cfg, settings=kind.settings.parse(cfg))
     # some parts were refused: cross-check the rest, so one pass reports everything
     stand = _without(sdoc.data, _bad_paths(refused, sdoc))
     procedure = _without(pdoc.data, _bad_paths(refused, pdoc))

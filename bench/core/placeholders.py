@@ -182,8 +182,8 @@ def run_copy(run_path: str | Path, name: str) -> dict[str, Any]:
     data = read_mapping(run / name)
     kind = read_mapping(run / layout.PROCEDURE).get("procedure")
     if kind in procedure_names():
-        schema: Node = (procedure_kind(kind).procedure_schema() if name == layout.PROCEDURE
-                        else procedure_kind(kind).stand_schema())
+        schema: Node = (procedure_kind(kind).settings.procedure_schema() if name == layout.PROCEDURE
+                        else procedure_kind(kind).settings.stand_schema())
     else:
         schema = Any_()
     got = without_placeholders(YamlDoc(run / name, data), schema).data

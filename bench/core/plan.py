@@ -6,9 +6,24 @@ a unit (a static record, a +/- rate pair); a unit is the grain of `--resume`.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Collection, Iterable
+from dataclasses import dataclass
+from typing import TypeVar
+
+
+@dataclass(frozen=True, slots=True)
+class NoParams:
+    """The parameters of a step that needs nothing beyond its axis (prompt, enable, ...)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Duration:
+    """The parameters of a step that lasts a stated time (a record at rest, a wait)."""
+
+    duration_s: float
+
+
+P = TypeVar("P")
 
 
 @dataclass(frozen=True)
@@ -20,7 +35,9 @@ class Step:
     describe: str
     estimate_s: float = 0.0
     unit: str | None = None  # completing the unit's last step completes the unit
-    params: dict[str, Any] = field(default_factory=dict)
+    #: the action's typed parameters (a frozen dataclass per action, the kind's), made
+    #: once where the plan is built; its handler reads them with `params_as`
+    params: object = NoParams()
 
     @property
     def on_axis(self) -> str:
@@ -35,6 +52,13 @@ class Step:
         if self.unit is None:
             raise ValueError(f"step {self.action!r} ({self.describe}) belongs to no unit")
         return self.unit
+
+    def params_as(self, kind: type[P]) -> P:
+        """The parameters as the type its action's handler takes (else a plan bug)."""
+        if not isinstance(self.params, kind):
+            raise TypeError(f"step {self.action!r} ({self.describe}) carries "
+                            f"{type(self.params).__name__}, not {kind.__name__}")
+        return self.params
 
     @property
     def key(self) -> str:
@@ -99,3 +123,14 @@ class Plan:
         out += [f"Estimated bench time: {format_duration(self.total_s)} "
                 f"({self.total_s:.0f} s) for {len(self.steps)} steps"]
         return out
+
+
+def check_actions(plan: Plan, actions: Collection[str]) -> Plan:
+    """`plan`, once every step's action is one the kind has a handler for: a step no
+    handler takes is the kind's bug, found when the plan is built (`bench plan`,
+    `bench validate` of a run) rather than when the bench reaches it mid-run."""
+    missing = sorted({s.action for s in plan.steps} - set(actions))
+    if missing:
+        raise ValueError(f"plan {plan.title!r}: no step handler for action(s) "
+                         f"{', '.join(missing)} (the kind's steps.handlers)")
+    return plan

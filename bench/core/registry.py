@@ -7,20 +7,22 @@ A procedure package registers itself in its distribution's metadata:
 
 so the engine, the CLI, the certificate, the records and the console find it without
 naming it: adding a procedure touches no file outside its own package and its entry
-point. What is asked of a kind: `ProcedureKind` below (the engine: files, plan, steps,
-analysis); `bench.report.certificate.parts.CertificateParts` and `bench.report.dcc.parts.DccParts`
-(its certificate and DCC, with neutral answers to inherit); and the small capabilities
-below, each asked for by isinstance, each optional: its figures (`ReportsFigures`: the
-records, `bench history`, the trend plot, the station view, the summary), its summary
-cells, its own instruments' check values, the shape of its part of result.json, a
-sample result for previews and starter files for `bench init`.
+point. A kind is a name and its parts, held as attributes (`ProcedureKind` below):
+`settings` (the files), `plan`, `steps` (twins, instruments, one handler per action),
+`analysis` (result.json), `certificate` and `dcc` (a
+`bench.report.certificate.parts.CertificateParts` and a `bench.report.dcc.parts.DccParts`,
+whose neutral answers a kind overrides) and `records`, which answers the small
+capabilities below, each asked for by isinstance, each optional: its figures
+(`ReportsFigures`: the records, `bench history`, the trend plot, the station view, the
+summary), its summary cells, its own instruments' check values, the shape of its part of
+result.json, a sample result for previews and starter files for `bench init`.
 """
 
 from __future__ import annotations
 
 import importlib
 import pkgutil
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from functools import cache
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
@@ -47,10 +49,13 @@ GROUP = "ratebench.procedures"
 FALLBACK_PACKAGE = "procedures"
 
 
-class ProcedureKind(Protocol):
-    """What a procedure kind provides to the engine (the plug-in interface)."""
+#: one step's handler: does the step on the bench (a kind's `steps.handlers[action]`)
+StepHandler = Callable[["Step", "RunContext"], None]
 
-    name: str
+
+class KindSettings(Protocol):
+    """The files a kind reads: loaded without numpy, the analysis, the certificate or the
+    records (`bench validate` and `bench schema` load this part alone)."""
 
     def procedure_schema(self) -> Map:
         """The procedure file's keys (unknown keys are refused)."""
@@ -61,12 +66,31 @@ class ProcedureKind(Protocol):
     def cross_check(self, cfg: Config) -> list[Problem]:
         """Checks that need both files: axes exist, rates within limits and ranges."""
 
-    def build_plan(self, cfg: Config) -> Plan:
-        """The steps, with bench-time estimates; no hardware touched."""
-
     def parse(self, cfg: Config) -> object:
         """The validated procedure as this kind's frozen settings (the loader keeps them
         in `Config.settings`; nothing below the loader reads the procedure mapping)."""
+
+    def notes(self, cfg: Config) -> list[str]:
+        """Advice `bench validate` prints beside 'valid' (nothing wrong, something unstated)."""
+
+
+class KindPlan(Protocol):
+    """The steps of a run and of its resumption; no hardware touched."""
+
+    def build_plan(self, cfg: Config) -> Plan:
+        """The steps, with bench-time estimates; every action one the kind's steps handle
+        (`bench.core.plan.check_actions`)."""
+
+    def resume_plan(self, plan: Plan, run: RunDir) -> Plan:
+        """What a --resume runs of `plan` (the units not done)."""
+
+
+class KindSteps(Protocol):
+    """The bench: its twins, its instruments, and one typed handler per action."""
+
+    @property
+    def handlers(self) -> Mapping[str, StepHandler]:
+        """action -> what does it; the plan is checked against these keys when built."""
 
     def start_sim(self, cfg: Config) -> tuple[SimBench, StandSettings]:
         """Start the twins; return the bench and the stand settings pointing at them."""
@@ -76,17 +100,59 @@ class ProcedureKind(Protocol):
         """Open the instruments the plan needs."""
 
     def execute(self, step: Step, ctx: RunContext) -> None:
-        """Do one step on the bench."""
+        """Do one step on the bench (its action's handler)."""
 
-    def resume_plan(self, plan: Plan, run: RunDir) -> Plan:
-        """What a --resume runs of `plan` (the units not done); `procedures.base.StepDispatch`
-        answers "all of it"."""
+
+class KindAnalysis(Protocol):
+    """result.json from the run directory's raw data alone."""
 
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
-        """result.json from the run directory's raw data alone."""
+        """The result document (bench analyze reproduces it byte for byte)."""
 
 
-# -- what a kind may add: small capabilities, each asked for by isinstance ------------------
+class ProcedureKind(Protocol):
+    """What a procedure kind is (the plug-in interface): a name and its parts, each an
+    attribute with its own interface. The light parts (`settings`, `plan`) are imported
+    with the kind; the heavy ones (numpy, the analysis, the certificate, the records)
+    when first used, so that `bench validate` and `bench schema` load none of them."""
+
+    @property
+    def name(self) -> str:
+        """The `procedure:` key of its procedure files."""
+
+    @property
+    def settings(self) -> KindSettings:
+        """Schemas, parse, cross-checks and notes."""
+
+    @property
+    def plan(self) -> KindPlan:
+        """build_plan, resume_plan."""
+
+    @property
+    def steps(self) -> KindSteps:
+        """Twins, instruments and the step handlers."""
+
+    @property
+    def analysis(self) -> KindAnalysis:
+        """The run's result.json."""
+
+    @property
+    def certificate(self) -> object:
+        """Its part of the certificate: a `bench.report.certificate.parts.CertificateParts`
+        (`CertificateParts()`: nothing of its own). Typed `object` here, as `records` is:
+        the report layer sits above this one, and the certificate asks by isinstance."""
+
+    @property
+    def dcc(self) -> object:
+        """Its part of the DCC: a `bench.report.dcc.parts.DccParts` (`DccParts()`:
+        nothing of its own), asked for by isinstance."""
+
+    @property
+    def records(self) -> object:
+        """Its answers to the capabilities below, each asked for by isinstance."""
+
+
+# -- what a kind's `records` part may answer: small capabilities, each asked for by isinstance
 
 @runtime_checkable
 class ReportsFigures(Protocol):
@@ -184,15 +250,22 @@ def installed_kind(name: str | None) -> ProcedureKind | None:
         return None
 
 
+def installed_records(name: str | None) -> object | None:
+    """The `records` part of the kind of that name if it is installed here, else None
+    (the capabilities above are asked of it by isinstance)."""
+    kind = installed_kind(name)
+    return kind.records if kind is not None else None
+
+
 def declared_figures(names: Sequence[str] | None = None) -> tuple[FigureSpec, ...]:
     """The figures the named kinds declare (every installed kind's when None), in the
     kinds' order, a quantity declared twice taken from the first kind."""
     out: list[FigureSpec] = []
     seen: set[str] = set()
     for name in dict.fromkeys(procedure_names() if names is None else names):
-        kind = installed_kind(name)
-        if isinstance(kind, ReportsFigures):
-            for spec in kind.figures:
+        records = installed_records(name)
+        if isinstance(records, ReportsFigures):
+            for spec in records.figures:
                 if spec.quantity not in seen:
                     seen.add(spec.quantity)
                     out.append(spec)

@@ -192,11 +192,3 @@ def earth_budget(x: AxisInputs, y: AxisInputs, w_h_dph: float) -> Budget:
                        "scale (GUM 5.2.2, docs/method.md B); a common scale error scales "
                        "W_h in full. The platform's turn rotates (app_x, app_y): it leaves "
                        "W_h unchanged to first order and is not an input here")
-
-
-def add_budgets(result: dict[str, object]) -> dict[str, object]:
-    """result.json as the analysis wrote it: each drift figure's coverage factor and nu_eff
-    (`<figure>_coverage_factor`, `<figure>_dof_eff`) are already stated beside its U, from
-    the budget the U was computed with (result.py), so the DCC's si:coverageFactor is the
-    budget's (docs/method.md D1). Kept for the kind's `analyze`, which calls it."""
-    return result

@@ -24,7 +24,6 @@ from bench.report.certificate.parts import (
     vu_text,
 )
 from bench.report.certificate.rounding import format_sig, format_value_u
-from procedures.drift_pulse.dcc import DriftDcc
 from procedures.drift_pulse.result import DriftFigures
 
 # -- the method statement (docs/method.md part B, restated) ---------------------------------
@@ -52,9 +51,9 @@ B_TEXT: tuple[Para, ...] = (
 
 # -- what the certificate asks ---------------------------------------------------------------
 
-class DriftCertificate(DriftDcc, CertificateParts):
-    """The drift procedure's answers to the certificate, and to its DCC (procedures/
-    drift_pulse/dcc.py), mixed into the kind."""
+class DriftCertificate(CertificateParts):
+    """The drift procedure's answers to the certificate (its DCC: procedures/
+    drift_pulse/dcc.py, the kind's `dcc` part)."""
 
     certificate_procedure_name = "drift by alternating-sign pulses (docs/method.md part B)"
     certificate_procedure_id = ("RB-DP", "B", methods.PAPER_B)

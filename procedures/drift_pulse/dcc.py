@@ -36,7 +36,7 @@ METHOD_SECTIONS = ("B",)
 
 
 class DriftDcc(DccParts):
-    """The drift procedure's answers to the DCC (mixed into the kind)."""
+    """The drift procedure's answers to the DCC (the kind's `dcc` part)."""
 
     def dcc_item(self, src: Sources) -> tuple[str, Sequence[str]]:
         return "gyro-platform test stand", list(DriftFigures.of(src.result).axes)

@@ -21,6 +21,9 @@ directory (`bench analyze` recomputes everything from them).
 
 from __future__ import annotations
 
+from collections.abc import Collection, Mapping
+from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 from bench.core import rundir_layout as layout
@@ -29,22 +32,12 @@ from bench.core.config import (
     StandSettings,
     stand_schema,
 )
-from bench.core.engine import Abort, RunContext
-from bench.core.journal import RunDir, read_jsonl
-from bench.core.plan import Plan, Step
+from bench.core.plan import Duration, Plan, Step, check_actions
 from bench.core.progress import Figure
 from bench.core.schema import Key, Map
 from bench.core.yamlfile import Problem
-from drivers.awg import WaveformGenerator
 from drivers.clock import Clock
-from drivers.dmm import PROFILES as DMM_PROFILES
-from drivers.dmm import Digitizer
-from drivers.scpi import parse_numbers
-from procedures.base import StepDispatch, result_document
-from procedures.drift_pulse import analysis as dp
-from procedures.drift_pulse.certificate import DriftCertificate
-from procedures.drift_pulse.records import DriftRecords
-from procedures.drift_pulse.result import DriftCheck, DriftFigures, DriftMethod
+from procedures.base import prompt, result_document, resume_whole
 from procedures.drift_pulse.settings import (  # noqa: F401 - the kind's names
     CYCLE_OVERHEAD_S,
     NAME,
@@ -59,15 +52,45 @@ from procedures.drift_pulse.settings import (  # noqa: F401 - the kind's names
     drift_problems,
 )
 
-# the instruments and the twins are imported where the kind opens them: `bench validate`
-# and `bench schema` load this module for its files alone
+# the instruments, the twins, the analysis (numpy), the certificate and the records are
+# imported where the kind uses them: `bench validate` and `bench schema` load this module
+# for its files alone
 if TYPE_CHECKING:
+    from bench.core.engine import RunContext
     from bench.core.instruments import Bench
+    from bench.core.journal import RunDir
+    from bench.core.registry import KindPlan, ProcedureKind, StepHandler
     from bench.core.simbench import SimBench, TwinFactory
+    from drivers.awg import WaveformGenerator
+    from drivers.dmm import Digitizer
+    from procedures.drift_pulse import analysis as dp
+    from procedures.drift_pulse.certificate import DriftCertificate
+    from procedures.drift_pulse.dcc import DriftDcc
+    from procedures.drift_pulse.records import DriftRecords
 
 
-class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
-    name = NAME
+# -- each action's parameters, made once where the plan is built (the settle's:
+# bench.core.plan.Duration) ---------------------------------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class TurnParams:
+    """The platform to an absolute position (profile position mode)."""
+    position_deg: float
+    rate_dps: float
+    accel_dps2: float
+
+
+@dataclass(frozen=True, slots=True)
+class CycleParams:
+    """One pulse cycle at a position: a timing cycle (locates the pulses) or a measuring
+    one; `index` counts from 1 within its kind and position."""
+    position_deg: float
+    timing: bool
+    index: int
+
+
+class DriftFiles:
+    """The drift procedure's files (the kind's `settings` part)."""
 
     def procedure_schema(self) -> Map:
         return PROCEDURE
@@ -78,9 +101,6 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
                                        "dmm": Key(SIM_DMM)})
 
     # -- checks that need both files --------------------------------------------------
-    def gyros(self, cfg: Config) -> list[str]:
-        return list(PlatformSettings.of(cfg).gyros)
-
     def cross_check(self, cfg: Config) -> list[Problem]:
         return drift_problems(cfg)
 
@@ -88,16 +108,19 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
         """The validated files as the kind's frozen settings (bench/core/registry.py)."""
         return DriftSettings.parse(cfg)
 
-    def timing_amplitude(self, cfg: Config) -> float:
-        return DriftSettings.from_config(cfg).timing_amplitude_v
+    def notes(self, cfg: Config) -> list[str]:
+        """Nothing to advise beside 'valid' (bench/core/registry.py `KindSettings`)."""
+        return []
 
-    # -- plan -----------------------------------------------------------------------------
-    def table(self, cfg: Config) -> str:
-        return PlatformSettings.of(cfg).table_axis
 
-    def turn(self, cfg: Config) -> tuple[float, float]:
-        d = DriftSettings.from_config(cfg)
-        return d.turn_rate_dps, d.turn_accel_dps2
+class DriftPlan:
+    """The drift procedure's steps (the kind's `plan` part): every cycle a unit, resumed
+    whole; checked against the actions its steps handle."""
+
+    resume_plan = staticmethod(resume_whole)
+
+    def __init__(self, actions: Collection[str]) -> None:
+        self._actions = actions
 
     def build_plan(self, cfg: Config) -> Plan:
         d = DriftSettings.from_config(cfg)
@@ -117,37 +140,49 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
         steps.append(Step("setup", None, f"{shape} pairs of 2 x {t.tc_s:g} s on gyros "
                           f"{', '.join(gyros)}; DMMs: {t.count} samples at "
                           f"{1 / t.interval_s:g} Sa/s, aperture {t.aperture_s * 1e3:g} ms",
-                          2.0, None, {}))
+                          2.0, None))
         at = None
         for k, pos in enumerate(d.positions_deg):
             turn_s = (abs(pos - at) / rate + rate / accel) if at is not None else \
                 abs(pos) / rate + rate / accel
             steps.append(Step("turn", table, f"platform to {pos:g} deg (profile position)",
-                              turn_s, None, {"position_deg": pos, "rate_dps": rate,
-                                             "accel_dps2": accel}))
+                              turn_s, None, TurnParams(pos, rate, accel)))
             settle = d.settle_s
             if settle:
                 steps.append(Step("settle", table, f"{settle:g} s for the platform to settle",
-                                  settle, None, {"duration_s": settle}))
+                                  settle, None, Duration(settle)))
             at = pos
             timing = d.timing_cycles if k == 0 else 0
             for i in range(timing):
                 steps.append(Step("cycle", table, f"timing cycle {i + 1}/{timing} at {pos:g} "
                                   f"deg ({d.timing_amplitude_v:g} V)", cycle_s,
                                   f"timing/{i + 1}",
-                                  {"position_deg": pos, "timing": True, "index": i + 1}))
+                                  CycleParams(pos, True, i + 1)))
             n = d.cycles
             for i in range(n):
                 steps.append(Step("cycle", table, f"cycle {i + 1}/{n} at {pos:g} deg", cycle_s,
                                   f"{pos:g}deg/{i + 1}",
-                                  {"position_deg": pos, "timing": False, "index": i + 1}))
+                                  CycleParams(pos, False, i + 1)))
         steps.append(Step("stop", table, "pulse outputs off; turntable to rest, disabled", 2.0))
-        return Plan(d.title, tuple(steps))
+        return check_actions(Plan(d.title, tuple(steps)), self._actions)
+
+
+class DriftSteps:
+    """The drift procedure on the bench (the kind's `steps` part): twins, instruments,
+    and one handler per action of its plan."""
+
+    def __init__(self) -> None:
+        self.handlers: Mapping[str, StepHandler] = {
+            "prompt": prompt, "setup": self._do_setup, "turn": self._do_turn,
+            "settle": self._do_settle, "cycle": self._do_cycle, "stop": self._do_stop}
+
+    def execute(self, step: Step, ctx: RunContext) -> None:
+        self.handlers[step.action](step, ctx)
 
     # -- bench ----------------------------------------------------------------------------
     def start_sim(self, cfg: Config) -> tuple[SimBench, StandSettings]:
         from bench.core.simbench import SimBench
-        sim = SimBench(cfg.stand_settings, [self.table(cfg)])
+        sim = SimBench(cfg.stand_settings, [PlatformSettings.of(cfg).table_axis])
         return sim, sim.start(extra=[gyro_rig_factory(PlatformSettings.of(cfg))])
 
     def open_bench(self, cfg: Config, stand: StandSettings, clock: Clock,
@@ -159,6 +194,8 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
             raw_text_logger,
             with_readback,
         )
+        from drivers.awg import WaveformGenerator
+        from drivers.dmm import Digitizer
         bench = Bench()
         d = PlatformSettings.of(cfg)
 
@@ -191,26 +228,27 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
             raise
         return bench
 
-    # -- steps (each action is a `_do_<action>` method) -----------------------------------
+    # -- steps (each action's handler: `handlers`) -----------------------------------------
     def _do_setup(self, step: Step, ctx: RunContext) -> None:
         t = DriftSettings.from_config(ctx.cfg).timing
-        for g, dmm in ctx.bench.extra["dmms"].items():
+        for g, dmm in dmms_of(ctx.bench).items():
             setup = dmm.configure(t.range_v, t.aperture_s, t.interval_s, t.count,
                                   trigger_delay_s=t.trigger_delay_s)
             ctx.run.event("dmm_setup", gyro=g, **setup.__dict__)
-        ctx.state["fetches"] = {g: 0 for g in ctx.bench.extra["dmms"]}
+        ctx.state["fetches"] = {g: 0 for g in dmms_of(ctx.bench)}
         ctx.state["loaded_v"] = None
 
     def _load(self, ctx: RunContext, amplitude_v: float) -> None:
         """(Re)load the pair on every gyro's channel at this amplitude."""
+        from procedures.drift_pulse import analysis as dp
         if ctx.state.get("loaded_v") == amplitude_v:
             return
         d = DriftSettings.from_config(ctx.cfg)
         t = d.timing
         pair = dp.pulse_shape(d.pulse_shape).pair_points(t.points)
-        awg = ctx.bench.extra["awg"]
+        awg = awg_of(ctx.bench)
         first = True
-        for g in ctx.bench.extra["dmms"]:
+        for g in dmms_of(ctx.bench):
             ch = d.platform[g].awg_channel
             loaded = awg.load_pair(ch, pair, t.awg_rate_hz, amplitude_v,
                                    lead_points=t.lead_points, trigger_out=first)
@@ -222,16 +260,16 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
 
     def _do_turn(self, step: Step, ctx: RunContext) -> None:
         drive = ctx.bench.axes[step.axis].drive
-        p = step.params
+        p = step.params_as(TurnParams)
         tol = DriftSettings.from_config(ctx.cfg).position_tolerance_deg
-        final = drive.move_to(p["position_deg"], p["rate_dps"], p["accel_dps2"],
+        final = drive.move_to(p.position_deg, p.rate_dps, p.accel_dps2,
                               tolerance_deg=tol)
-        ctx.run.event("turned", axis=step.axis, position_deg=p["position_deg"],
+        ctx.run.event("turned", axis=step.axis, position_deg=p.position_deg,
                       actual_deg=final)
-        ctx.progress.line(f"  platform at {final:.4f} deg (target {p['position_deg']:g})")
+        ctx.progress.line(f"  platform at {final:.4f} deg (target {p.position_deg:g})")
 
     def _do_settle(self, step: Step, ctx: RunContext) -> None:
-        self._wait(ctx, step.on_axis, step.params["duration_s"])
+        self._wait(ctx, step.on_axis, step.params_as(Duration).duration_s)
 
     def _wait(self, ctx: RunContext, axis: str, duration_s: float) -> None:
         drive = ctx.bench.axes[axis].drive
@@ -244,24 +282,26 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
         drive.check()
 
     def _do_cycle(self, step: Step, ctx: RunContext) -> None:
-        p = step.params
+        from bench.core.engine import Abort
+        from procedures.drift_pulse import analysis as dp
+        p = step.params_as(CycleParams)
         d = DriftSettings.from_config(ctx.cfg)
         t = d.timing
-        amplitude = d.timing_amplitude_v if p["timing"] else d.amplitude_v
+        amplitude = d.timing_amplitude_v if p.timing else d.amplitude_v
         self._load(ctx, amplitude)
         drive = ctx.bench.axes[step.axis].drive
-        dmms = ctx.bench.extra["dmms"]
+        dmms = dmms_of(ctx.bench)
         drive.check()
         for dmm in dmms.values():
             dmm.arm()
-        t0 = ctx.bench.extra["awg"].trigger()
+        t0 = awg_of(ctx.bench).trigger()
         data = {}
         for g, dmm in dmms.items():
             data[g] = dmm.fetch()
             ctx.state["fetches"][g] += 1
         drive.check()
-        ctx.run.event("cycle", unit=step.unit, position_deg=p["position_deg"],
-                      actual_deg=drive.position_deg, timing=p["timing"], amplitude_v=amplitude,
+        ctx.run.event("cycle", unit=step.unit, position_deg=p.position_deg,
+                      actual_deg=drive.position_deg, timing=p.timing, amplitude_v=amplitude,
                       t_trigger_s=t0, fetch=dict(ctx.state["fetches"]), samples=t.count,
                       interval_s=t.interval_s, first_sample_s=t.first_sample_s, tc_s=t.tc_s)
         shape = dp.pulse_shape(d.pulse_shape)
@@ -281,8 +321,8 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
             w, _ = dp.cycle_drift_dph(rec, shape, k_as, 0.0, a)
             # 5 significant digits, as the certificate prints the drift of each cycle
             quick.append(Figure(g, w, unit="°/h", signed=True, digits=5))
-        kind = "timing cycle" if p["timing"] else "cycle"
-        where = f"{kind} {p['index']} at {p['position_deg']:g}°"
+        kind = "timing cycle" if p.timing else "cycle"
+        where = f"{kind} {p.index} at {p.position_deg:g}°"
         ctx.progress.reading("drift", where, *quick)
         ctx.progress.result(f"{where}, drift at nominal edges", *quick)
         self._wait(ctx, step.on_axis, d.gap_s)
@@ -291,14 +331,63 @@ class DriftPulse(StepDispatch, DriftRecords, DriftCertificate):
         ctx.bench.extra["awg"].outputs_off()
         ctx.bench.rest(step.axis)
 
-    # -- analysis -------------------------------------------------------------------------
-    def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
-        from procedures.drift_pulse.budgets import add_budgets
 
-        return add_budgets(analyze_run(run, cfg, self))
+class DriftAnalysis:
+    """result.json of a drift run (the kind's `analysis` part)."""
+
+    def __init__(self, plan: DriftPlan) -> None:
+        self._plan = plan
+
+    def analyze(self, run: RunDir, cfg: Config) -> dict[str, object]:
+        return analyze_run(run, cfg, self._plan)
 
 
-KIND = DriftPulse()
+class DriftPulse:
+    """The drift procedure as a kind (bench/core/registry.py `ProcedureKind`): its parts,
+    the heavy ones (numpy, the certificate, the records) imported when first used."""
+
+    name = NAME
+    settings = DriftFiles()
+    steps = DriftSteps()
+    plan = DriftPlan(steps.handlers)
+    analysis = DriftAnalysis(plan)
+
+    @cached_property
+    def certificate(self) -> DriftCertificate:
+        from procedures.drift_pulse.certificate import DriftCertificate
+        return DriftCertificate()
+
+    @cached_property
+    def dcc(self) -> DriftDcc:
+        from procedures.drift_pulse.dcc import DriftDcc
+        return DriftDcc()
+
+    @cached_property
+    def records(self) -> DriftRecords:
+        from procedures.drift_pulse.records import DriftRecords
+        return DriftRecords()
+
+
+KIND: ProcedureKind = DriftPulse()
+
+
+def awg_of(bench: Bench) -> WaveformGenerator:
+    """The platform's waveform generator, as `DriftSteps.open_bench` keeps it."""
+    from drivers.awg import WaveformGenerator
+    awg = bench.extra["awg"]
+    if not isinstance(awg, WaveformGenerator):
+        raise TypeError(f"the bench's awg is a {type(awg).__name__}, not a WaveformGenerator")
+    return awg
+
+
+def dmms_of(bench: Bench) -> dict[str, Digitizer]:
+    """Gyro -> its digitizing DMM, as `DriftSteps.open_bench` keeps them."""
+    from drivers.dmm import Digitizer
+    dmms = bench.extra["dmms"]
+    if not (isinstance(dmms, dict)
+            and all(isinstance(d, Digitizer) for d in dmms.values())):
+        raise TypeError("the bench's dmms are not a gyro -> Digitizer mapping")
+    return dmms
 
 
 def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
@@ -331,6 +420,8 @@ def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
 
 def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
     """The DMM's replies to FETC?, in order, from its raw SCPI journal of a session."""
+    from bench.core.journal import read_jsonl
+    from drivers.dmm import PROFILES as DMM_PROFILES
     path = layout.raw_file(run.path, session, layout.dmm_log(gyro))
     out, waiting = [], False
     fetch = DMM_PROFILES[model].words.fetch.text().upper()
@@ -343,9 +434,13 @@ def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
     return out
 
 
-def analyze_run(run: RunDir, cfg: Config, kind: DriftPulse = KIND) -> dict[str, object]:
+def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan) -> dict[str, object]:
+    from drivers.scpi import parse_numbers
+    from procedures.drift_pulse import analysis as dp
+    from procedures.drift_pulse.result import DriftCheck, DriftFigures, DriftMethod
+
     events = run.events()
-    plan_units = set(kind.build_plan(cfg).units())
+    plan_units = set(plan.build_plan(cfg).units())
     done = {e["unit"]: e["session"] for e in events if e.get("event") == "unit_done"}
     cycles = [e for e in events if e.get("event") == "cycle" and done.get(e["unit"]) ==
               e["session"]]

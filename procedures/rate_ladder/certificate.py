@@ -42,7 +42,6 @@ from bench.report.certificate.rounding import (
     present_phase,
     rel_unit,
 )
-from procedures.rate_ladder.dcc import LadderDcc
 
 # -- the method statement (docs/method.md part A, restated) ---------------------------------
 
@@ -125,9 +124,9 @@ SEQUENCE_TEXT = {
 
 # -- what the certificate asks ---------------------------------------------------------------
 
-class LadderCertificate(LadderDcc, CertificateParts):
-    """The rate ladder's answers to the certificate, and to its DCC (procedures/rate_ladder/
-    dcc.py), mixed into the kind."""
+class LadderCertificate(CertificateParts):
+    """The rate ladder's answers to the certificate (its DCC: procedures/rate_ladder/
+    dcc.py, the kind's `dcc` part)."""
 
     certificate_procedure_name = "rate ladder (docs/method.md part A)"
     certificate_procedure_id = ("RB-RL", "A", methods.PAPER_A)

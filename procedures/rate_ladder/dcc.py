@@ -77,7 +77,7 @@ def limit_interval(limit: float, distribution: str, probability: float = ONE_SID
 
 
 class LadderDcc(DccParts):
-    """The rate ladder's answers to the DCC (mixed into the kind)."""
+    """The rate ladder's answers to the DCC (the kind's `dcc` part)."""
 
     def dcc_item(self, src: Sources) -> tuple[str, Sequence[str]]:
         return "rotary rate table", [str(a) for a in src.get("axes") or {}]

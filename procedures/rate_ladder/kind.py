@@ -11,19 +11,18 @@ analyze the pair.
 from __future__ import annotations
 
 import math
+from collections.abc import Collection, Mapping
+from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 from bench.core.config import Config, StandSettings, stand_schema
-from bench.core.engine import Abort, RunContext
-from bench.core.journal import FOG_CAPTURE_EVENT, RunDir
-from bench.core.plan import Plan, Step, format_duration
+from bench.core.plan import Duration, Plan, Step, check_actions, format_duration
 from bench.core.progress import RELATIVE, Figure
 from bench.core.schema import Map
 from bench.core.yamlfile import Problem
 from drivers.clock import Clock, stepped
-from procedures.base import StepDispatch
-from procedures.rate_ladder.certificate import LadderCertificate
-from procedures.rate_ladder.records import LadderRecords
+from procedures.base import prompt
 from procedures.rate_ladder.settings import (
     NAME,
     PROCEDURE,
@@ -34,12 +33,24 @@ from procedures.rate_ladder.settings import (
     validation_notes,
 )
 
-# the instruments, the twins and the analysis are imported where the kind uses them:
-# `bench validate` and `bench schema` load this module for its files alone
+# the instruments, the twins, the analysis, the certificate and the records are imported
+# where the kind uses them: `bench validate` and `bench schema` load this module for its
+# files alone
 if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
+    from bench.core.engine import RunContext
     from bench.core.instruments import Bench
+    from bench.core.journal import RunDir
+    from bench.core.registry import ProcedureKind, StepHandler
     from bench.core.simbench import SimBench
+    from bench.report.dcc.parts import DccParts
+    from drivers.counter import Acquisition, Counter
+    from drivers.fog import Fog
     from procedures.rate_ladder.analysis import FirstLook
+    from procedures.rate_ladder.certificate import LadderCertificate
+    from procedures.rate_ladder.records import LadderRecords
 
 #: what the analysis worker imports when it starts, before the first pair's look (the
 #: look's modules and the fit's scipy; bench/core/engine.py `_preload`)
@@ -50,13 +61,13 @@ def _turns(n: int) -> str:
     return f"{n} turn" if n == 1 else f"{n} turns"
 
 
-def _fog_losses(fog: Any) -> int:
+def _fog_losses(fog: Fog) -> int:
     """Frames the FOG's decoder found lost or broken so far (a half's count: the change)."""
     st = fog.stats
     return int(st.lost_frames + st.crc_errors)
 
 
-def _check_fog_indices(fog: Any, upto: int, what: str) -> None:
+def _check_fog_indices(fog: Fog, upto: int, what: str) -> None:
     """Abort before a record whose FOG sample indices the driver no longer trusts.
 
     Frames lost in whole wraps of the sequence counter (a stalled, overrun link: what a
@@ -65,6 +76,7 @@ def _check_fog_indices(fog: Any, upto: int, what: str) -> None:
     phases off by w dt) while the analysis saw a clean record. The driver spots it from
     the clock (drivers/fog.py `index_uncertain_from`); such a half is not journaled, and
     `bench run --resume` measures it again on a new FOG session."""
+    from bench.core.engine import Abort
     doubt = fog.stats.index_uncertain_from
     if doubt is not None and doubt < upto:
         cause = getattr(fog, "last_error", None) or "frames lost in whole counter wraps"
@@ -85,10 +97,48 @@ def fogs_opened_when_used(clock: Clock) -> bool:
     return stepped(clock) or float(getattr(clock, "speed", 1.0)) <= 1.0
 
 
-class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
-    name = NAME
+# -- each action's parameters, made once where the plan is built (the static record's:
+# bench.core.plan.Duration) ---------------------------------------------------------------
 
-    # -- files -----------------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class SetRateParams:
+    """A half's rate command: signed rate, and the ramp to it."""
+    rate_dps: float
+    accel_dps2: float
+
+
+@dataclass(frozen=True, slots=True)
+class SettleParams:
+    """Settled: within the tolerance at this rate for hold_s, or a fault after timeout_s."""
+    tolerance_dps: float
+    hold_s: float
+    timeout_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class AcquireParams:
+    """A half: N whole turns timed at the signed rate; `half` its index in the pair."""
+    rate_dps: float
+    turns: int
+    half: int
+    period_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class AnalyzeParams:
+    """The pair's first look: its rate magnitude."""
+    rate_dps: float
+
+
+@dataclass(frozen=True, slots=True)
+class StopParams:
+    """The ramp to rest."""
+    accel_dps2: float
+
+
+class LadderFiles:
+    """The ladder's files (the kind's `settings` part): schemas, parse, checks, notes."""
+
     def procedure_schema(self) -> Map:
         return PROCEDURE
 
@@ -106,7 +156,13 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         """Advice `bench validate` prints beside 'valid' (nothing wrong, something unstated)."""
         return validation_notes(cfg)
 
-    # -- plan ------------------------------------------------------------------------
+class LadderPlan:
+    """The ladder's steps (the kind's `plan` part), checked against the actions its
+    steps handle."""
+
+    def __init__(self, actions: Collection[str]) -> None:
+        self._actions = actions
+
     def build_plan(self, cfg: Config) -> Plan:
         steps: list[Step] = []
         ladder = LadderSettings.from_config(cfg)
@@ -123,7 +179,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
             if static_s > 0:
                 steps.append(Step("static", axis, f"FOG at rest for {static_s:g} s (noise floor, "
                                   "docs/method.md A5)", static_s, f"{axis}/static",
-                                  {"duration_s": static_s}))
+                                  Duration(static_s)))
             steps.append(Step("enable", axis, "drive to Operation Enabled, profile velocity",
                               1.0))
             rate_now = 0.0
@@ -134,25 +190,23 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
                     target = sign * rate
                     steps.append(Step("set_rate", axis, f"{target:+g} deg/s",
                                       abs(target - rate_now) / accel, unit,
-                                      {"rate_dps": target, "accel_dps2": accel}))
+                                      SetRateParams(target, accel)))
                     tol = settle.tolerance_at(rate)
                     steps.append(Step("settle", axis, f"within {tol:.3g} deg/s for "
                                       f"{settle.hold_s:g} s", settle.hold_s + 0.5, unit,
-                                      {"tolerance_dps": tol, "hold_s": settle.hold_s,
-                                       "timeout_s": settle.timeout_s}))
+                                      SettleParams(tol, settle.hold_s, settle.timeout_s)))
                     period = 360.0 / rate
                     steps.append(Step("acquire", axis, f"{_turns(n)} at {target:+g} deg/s "
                                       f"(half {j + 1}/{len(parts)}, "
                                       f"{format_duration((n + 1) * period)} with the "
                                       "lead-in turn)",
                                       (n + 1) * period, unit,
-                                      {"rate_dps": target, "turns": n, "half": j,
-                                       "period_s": period}))
+                                      AcquireParams(target, n, j, period)))
                     rate_now = target
                 steps.append(Step("analyze", axis, f"cross-calibrate and analyze the "
-                                  f"+/-{rate:g} deg/s pair", 0.0, unit, {"rate_dps": rate}))
+                                  f"+/-{rate:g} deg/s pair", 0.0, unit, AnalyzeParams(rate)))
             steps.append(Step("stop", axis, "ramp to zero, disable", abs(rate_now) / accel,
-                              None, {"accel_dps2": accel}))
+                              None, StopParams(accel)))
         title = ladder.title
         warnings = tuple(
             f"axis {axis}: {spec.turns} turns with sequence +-+ split the + direction "
@@ -161,7 +215,59 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
             "exactly, docs/method.md A3)"
             for axis, spec in ladder.axes.items()
             if ladder.sequence == "+-+" and spec.turns >= 3 and spec.turns % 2)
-        return Plan(title, tuple(steps), warnings)
+        return check_actions(Plan(title, tuple(steps), warnings), self._actions)
+
+    # -- resume ----------------------------------------------------------------------
+    def resume_plan(self, plan: Plan, run: RunDir) -> Plan:
+        """What a --resume still runs: every half already acquired is kept (docs/resume.md).
+
+        `plan` holds the units not done; of each, the halves acquired in earlier sessions
+        are dropped with their set-rate and settle steps. A pair must keep one session
+        that holds both signs (its FOG calibration, bench/analysis/pair.py): when neither
+        an earlier session nor what is left would hold both, the pair is acquired whole.
+        """
+        from procedures.rate_ladder.analysis import unit_acquisitions
+
+        events = run.events()
+        kept: dict[str, dict[int, int]] = {}  # unit -> half -> (sign) of the kept halves
+        sessions: dict[str, dict[int, set[int]]] = {}
+        for h in unit_acquisitions(events):
+            kept.setdefault(h.unit, {})[h.half] = h.sign
+            sessions.setdefault(h.unit, {}).setdefault(h.session, set()).add(h.sign)
+        drop: dict[str, set[int]] = {}
+        for unit, halves_done in kept.items():
+            left = {(1 if s.params_as(AcquireParams).rate_dps > 0 else -1) for s in plan.steps
+                    if s.unit == unit and s.action == "acquire"
+                    and s.params_as(AcquireParams).half not in halves_done}
+            whole_session = any(signs == {1, -1} for signs in sessions[unit].values())
+            if whole_session or left == {1, -1}:
+                drop[unit] = set(halves_done)
+        steps: list[Step] = []
+        pending: list[Step] = []  # a half's set_rate and settle wait for its acquire
+        for s in plan.steps:
+            if s.unit in drop and s.action in ("set_rate", "settle"):
+                pending.append(s)
+                continue
+            if s.unit in drop and s.action == "acquire":
+                if s.params_as(AcquireParams).half not in drop[s.unit]:
+                    steps += [*pending, s]
+                pending = []
+                continue
+            steps += pending
+            pending = []
+            steps.append(s)
+        return Plan(plan.title, tuple(steps + pending))
+
+
+class LadderSteps:
+    """The ladder on the bench (the kind's `steps` part): twins, instruments, and one
+    handler per action of its plan."""
+
+    def __init__(self) -> None:
+        self.handlers: Mapping[str, StepHandler] = {
+            "prompt": prompt, "static": self._do_static, "enable": self._do_enable,
+            "set_rate": self._do_set_rate, "settle": self._do_settle,
+            "acquire": self._do_acquire, "analyze": self._do_analyze, "stop": self._do_stop}
 
     # -- bench -----------------------------------------------------------------------
     def axes(self, cfg: Config) -> list[str]:
@@ -191,13 +297,14 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
             raise error
         return bench
 
-    # -- steps (each action is a `_do_<action>` method) --------------------------------
+    # -- steps (each action's handler: `handlers`) --------------------------------------
     def execute(self, step: Step, ctx: RunContext) -> None:
         """An axis's FOG streams for that axis's steps only: opened after the axis's
         prompt (the operator mounts it then), closed when the next axis begins
         (bench.core.instruments.fog_for_axis). Its first frame's index comes from the
         clock; the `fog_capture` event keeps it for the analysis of the raw file."""
         from bench.core.instruments import fog_for_axis, identity_record
+        from bench.core.journal import FOG_CAPTURE_EVENT
         ax = ctx.bench.axes.get(step.axis) if step.axis else None
         if ax is not None:
             fog = fog_for_axis(ctx.bench, ax.name, ctx.run, opening=step.action != "prompt")
@@ -205,7 +312,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
                 ctx.run.event(FOG_CAPTURE_EVENT, axis=ax.name, first_index=fog.first_index,
                               rate_hz=fog.rate_hz)
                 ctx.run.event("identity", **identity_record(ax))
-        super().execute(step, ctx)
+        self.handlers[step.action](step, ctx)
 
     def _do_enable(self, step: Step, ctx: RunContext) -> None:
         ctx.bench.axes[step.axis].drive.enable()
@@ -215,7 +322,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
 
         ax = ctx.bench.axes[step.axis]
         fog = ax.fog
-        duration = step.params["duration_s"]
+        duration = step.params_as(Duration).duration_s
         # the first sample at or after now, and not before the capture's first (a FOG
         # opened at this instant, execute(): its first frame is the first sample after it)
         due = max(math.ceil(ctx.clock.now() * fog.rate_hz), fog.first_index or 0)
@@ -237,7 +344,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
             ctx.progress.reading("FOG mean", f"{step.axis} at rest",
                                  Figure("", mean, unit="°/s", signed=True))
 
-    def _wait_fog(self, ctx: RunContext, fog: Any, index: int, span_s: float, label: str) -> None:
+    def _wait_fog(self, ctx: RunContext, fog: Fog, index: int, span_s: float, label: str) -> None:
         t_end = ctx.clock.now() + span_s
         while True:
             left = t_end - ctx.clock.now()
@@ -252,16 +359,17 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
 
     def _do_set_rate(self, step: Step, ctx: RunContext) -> None:
         drive = ctx.bench.axes[step.axis].drive
-        drive.set_rate(step.params["rate_dps"], step.params["accel_dps2"])
+        p = step.params_as(SetRateParams)
+        drive.set_rate(p.rate_dps, p.accel_dps2)
 
     def _do_settle(self, step: Step, ctx: RunContext) -> None:
         drive = ctx.bench.axes[step.axis].drive
-        p = step.params
+        p = step.params_as(SettleParams)
         def held(held_s: float) -> None:
-            ctx.progress.advance(held_s, p["hold_s"], f"within ±{p['tolerance_dps']:g} deg/s "
-                                 f"for {min(held_s, p['hold_s']):.1f} of {p['hold_s']:g} s")
+            ctx.progress.advance(held_s, p.hold_s, f"within ±{p.tolerance_dps:g} deg/s "
+                                 f"for {min(held_s, p.hold_s):.1f} of {p.hold_s:g} s")
 
-        rate = drive.wait_settled(p["tolerance_dps"], p["hold_s"], p["timeout_s"],
+        rate = drive.wait_settled(p.tolerance_dps, p.hold_s, p.timeout_s,
                                   on_hold=held)
         ripple = getattr(drive, "last_settle", None)
         if ripple is None:
@@ -272,20 +380,21 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
                       rule="ripple set aside", ripple_peak_dps=ripple.ripple_peak_dps,
                       ripple_orders=ripple.orders, turns=ripple.turns,
                       worst_residual_dps=ripple.worst_residual_dps)
-        if ripple.ripple_peak_dps > 0.5 * p["tolerance_dps"]:
+        if ripple.ripple_peak_dps > 0.5 * p.tolerance_dps:
             ctx.progress.line(f"  {step.axis}: settled at {rate:+.6g} deg/s; a steady "
                               f"ripple of the turn, {ripple.ripple_peak_dps:.3g} deg/s peak "
                               f"(orders 1-{ripple.orders}), set aside: the rest stayed "
-                              f"within ±{p['tolerance_dps']:g} deg/s for {p['hold_s']:g} s")
+                              f"within ±{p.tolerance_dps:g} deg/s for {p.hold_s:g} s")
 
     def _do_acquire(self, step: Step, ctx: RunContext) -> None:
+        from bench.core.engine import Abort
         from procedures.rate_ladder.analysis import read_half_ahead, static_record
         from procedures.rate_ladder.events import HalfAcquired
 
         ax = ctx.bench.axes[step.axis]
-        p = step.params
-        n = p["turns"]
-        period = p["period_s"]
+        p = step.params_as(AcquireParams)
+        n = p.turns
+        period = p.period_s
         counter, fog, drive = ax.counter, ax.fog, ax.drive
         rec0 = ax.logs["counter"].count if "counter" in ax.logs else 0
         lost0 = _fog_losses(fog)
@@ -296,7 +405,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         while (left := t_end - ctx.clock.now()) > 0:
             turn = min(n, max(int((ctx.clock.now() - t_arm) / period) - 1, 0))
             ctx.progress.advance(turn, n, f"{turn} of {_turns(n)} timed at "
-                                 f"{p['rate_dps']:+g} deg/s, {format_duration(left)} left")
+                                 f"{p.rate_dps:+g} deg/s, {format_duration(left)} left")
             ctx.clock.sleep(min(left, max(period / 4, 0.25)))
             drive.check()
         edges = counter.fetch()
@@ -309,12 +418,12 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         i_to = math.floor(edges[-1] * fog.rate_hz) + 2
         rec1 = ax.logs["counter"].count if "counter" in ax.logs else 0
         fog.wait_for_index(i_to, timeout_s=max(10.0, period))
-        _check_fog_indices(fog, i_to, f"{step.axis} {p['rate_dps']:+g} deg/s half {p['half']}")
+        _check_fog_indices(fog, i_to, f"{step.axis} {p.rate_dps:+g} deg/s half {p.half}")
         lost = _fog_losses(fog) - lost0
         # the FOG samples stay in the raw capture: the pair's analysis reads them there;
         # this event completes the half (a --resume keeps it, docs/resume.md)
         half = HalfAcquired(
-            step.on_axis, step.in_unit, half=p["half"], set_rate_dps=p["rate_dps"], turns=n,
+            step.on_axis, step.in_unit, half=p.half, set_rate_dps=p.rate_dps, turns=n,
             edges_s=[float(e) for e in edges], counter_records=[rec0, rec1],
             fog_from=i_from, fog_to=i_to, rate_hz=fog.rate_hz,
             counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
@@ -331,10 +440,10 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
             ctx.progress.warn(f"  WARNING {step.axis}: {lost} FOG frames lost or broken "
                               "during this half (CRC or sequence gaps); the analysis uses "
                               "the rest")
-        self._show_half(ctx, step.on_axis, p["rate_dps"], edges, _fog_mean_dps(fog))
+        self._show_half(ctx, step.on_axis, p.rate_dps, edges, _fog_mean_dps(fog))
 
     @staticmethod
-    def _show_half(ctx: RunContext, axis: str, set_dps: float, edges: Any,
+    def _show_half(ctx: RunContext, axis: str, set_dps: float, edges: NDArray[np.float64],
                    fog_mean_dps: float | None) -> None:
         """The half just timed: its per-turn rate deviations ω_i/ω_set − 1 (docs/method.md A1)
         to 3 significant digits, as the certificate's annex prints them; the FOG mean."""
@@ -358,7 +467,7 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         (the result.json analysis is made again from the raw files at the end)."""
         from procedures.rate_ladder.analysis import pair_summary, static_record, unit_halves
 
-        axis, unit, rate = step.on_axis, step.in_unit, step.params["rate_dps"]
+        axis, unit, rate = step.on_axis, step.in_unit, step.params_as(AnalyzeParams).rate_dps
         events = ctx.run.events()  # the halves may come from earlier sessions (--resume)
 
         def done(look: FirstLook | None, error: BaseException | None) -> None:
@@ -378,51 +487,12 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
                           unit_halves(events, unit, ctx.run.session),
                           static_record(events, axis), on_done=done)
 
-    # -- resume ----------------------------------------------------------------------
-    def resume_plan(self, plan: Plan, run: RunDir) -> Plan:
-        """What a --resume still runs: every half already acquired is kept (docs/resume.md).
-
-        `plan` holds the units not done; of each, the halves acquired in earlier sessions
-        are dropped with their set-rate and settle steps. A pair must keep one session
-        that holds both signs (its FOG calibration, bench/analysis/pair.py): when neither
-        an earlier session nor what is left would hold both, the pair is acquired whole.
-        """
-        from procedures.rate_ladder.analysis import unit_acquisitions
-
-        events = run.events()
-        kept: dict[str, dict[int, int]] = {}  # unit -> half -> (sign) of the kept halves
-        sessions: dict[str, dict[int, set[int]]] = {}
-        for h in unit_acquisitions(events):
-            kept.setdefault(h.unit, {})[h.half] = h.sign
-            sessions.setdefault(h.unit, {}).setdefault(h.session, set()).add(h.sign)
-        drop: dict[str, set[int]] = {}
-        for unit, halves_done in kept.items():
-            left = {(1 if s.params["rate_dps"] > 0 else -1) for s in plan.steps
-                    if s.unit == unit and s.action == "acquire"
-                    and s.params["half"] not in halves_done}
-            whole_session = any(signs == {1, -1} for signs in sessions[unit].values())
-            if whole_session or left == {1, -1}:
-                drop[unit] = set(halves_done)
-        steps: list[Step] = []
-        pending: list[Step] = []  # a half's set_rate and settle wait for its acquire
-        for s in plan.steps:
-            if s.unit in drop and s.action in ("set_rate", "settle"):
-                pending.append(s)
-                continue
-            if s.unit in drop and s.action == "acquire":
-                if s.params["half"] not in drop[s.unit]:
-                    steps += [*pending, s]
-                pending = []
-                continue
-            steps += pending
-            pending = []
-            steps.append(s)
-        return Plan(plan.title, tuple(steps + pending))
-
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
         ctx.bench.rest(step.axis)
 
-    # -- analysis --------------------------------------------------------------------
+class LadderAnalysis:
+    """result.json of a ladder run (the kind's `analysis` part)."""
+
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
         from procedures.rate_ladder.analysis import analyze_run
         from procedures.rate_ladder.budgets import add_budgets
@@ -431,10 +501,36 @@ class RateLadder(StepDispatch, LadderRecords, LadderCertificate):
         return add_conditions(add_budgets(analyze_run(run, cfg)), run, cfg)
 
 
-KIND = RateLadder()
+class RateLadder:
+    """The rate ladder as a kind (bench/core/registry.py `ProcedureKind`): its parts,
+    the heavy ones (numpy, the certificate, the records) imported when first used."""
+
+    name = NAME
+    settings = LadderFiles()
+    steps = LadderSteps()
+    plan = LadderPlan(steps.handlers)
+    analysis = LadderAnalysis()
+
+    @cached_property
+    def certificate(self) -> LadderCertificate:
+        from procedures.rate_ladder.certificate import LadderCertificate
+        return LadderCertificate()
+
+    @cached_property
+    def dcc(self) -> DccParts:
+        from procedures.rate_ladder.dcc import LadderDcc
+        return LadderDcc()
+
+    @cached_property
+    def records(self) -> LadderRecords:
+        from procedures.rate_ladder.records import LadderRecords
+        return LadderRecords()
 
 
-def time_tie_record(counter: Any, acq: Any, fog: Any) -> dict[str, Any]:
+KIND: ProcedureKind = RateLadder()
+
+
+def time_tie_record(counter: Counter, acq: Acquisition, fog: Fog) -> dict[str, Any]:
     """The half's time tie as journaled (HalfAcquired.time_tie): the tie's settings, the
     sync pulse number behind the start (fog-sync), the arming time, and the FOG index
     convention, so the start can be placed again on the session's FOG axis."""
@@ -450,7 +546,7 @@ def time_tie_record(counter: Any, acq: Any, fog: Any) -> dict[str, Any]:
     return rec
 
 
-def _fog_mean_dps(fog: Any, span_s: float = 1.0) -> float | None:
+def _fog_mean_dps(fog: Fog, span_s: float = 1.0) -> float | None:
     """The mean of the FOG's last `span_s` of valid samples (the live store keeps about a
     minute); None when there are none."""
     i_to = fog.end_index

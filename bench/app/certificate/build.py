@@ -155,7 +155,7 @@ def _parts(name: str) -> CertificateParts:
         kind = procedure_kind(name)
     except (KeyError, ImportError, AttributeError):   # not installed here
         return NEUTRAL
-    return kind if isinstance(kind, CertificateParts) else NEUTRAL
+    return kind.certificate if isinstance(kind.certificate, CertificateParts) else NEUTRAL
 
 
 def build_document(result: dict[str, Any], run_path: Path | None = None,

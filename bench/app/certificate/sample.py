@@ -9,12 +9,12 @@ import sys
 from pathlib import Path
 
 from bench.app.certificate import render_files
-from bench.core.registry import HasSampleResult, installed_kind, procedure_names
+from bench.core.registry import HasSampleResult, installed_records, procedure_names
 
 
 def main(out: Path) -> None:
     for name in procedure_names():
-        kind = installed_kind(name)
+        kind = installed_records(name)
         if isinstance(kind, HasSampleResult):
             for path in render_files(kind.sample_result(), out / name):
                 print(path)

@@ -28,7 +28,7 @@ from typing import Any
 
 from bench.analysis.finite import finite_number as _num
 from bench.core.journal import read_jsonl
-from bench.core.registry import ChecksInstruments, installed_kind, procedure_names
+from bench.core.registry import ChecksInstruments, installed_records, procedure_names
 from bench.report.figures import InstrumentCheck
 
 #: the stand instruments' check quantities, their unit and what the chart calls them (one
@@ -51,7 +51,7 @@ def quantities() -> dict[str, tuple[str, str]]:
     """Every check quantity: the stand instruments', then each installed kind's own."""
     out = dict(QUANTITIES)
     for name in procedure_names():
-        kind = installed_kind(name)
+        kind = installed_records(name)
         if isinstance(kind, ChecksInstruments):
             out.update({q: v for q, v in kind.check_quantities.items() if q not in out})
     return out
@@ -263,7 +263,7 @@ def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any
             out += _drive(axis, run_path / "raw", events, serial(axis, "drive", drive),
                           _opt(drive.get("model")))
     # the instruments only the run's procedure kind knows (a gyro platform's gyros)
-    kind = installed_kind(kind_name or str(result.get("procedure") or ""))
+    kind = installed_records(kind_name or str(result.get("procedure") or ""))
     if isinstance(kind, ChecksInstruments):
         out += kind.instrument_checks(result, stand)
     return out

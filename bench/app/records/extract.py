@@ -20,7 +20,7 @@ from bench.analysis.finite import finite_number as _num
 from bench.app.records.checks import CheckRecord, checks_of
 from bench.core.journal import sha256_file
 from bench.core.placeholders import run_copy
-from bench.core.registry import ReportsFigures, installed_kind
+from bench.core.registry import ReportsFigures, installed_records
 from bench.report.certificate.parts import read_json_object
 from bench.report.figures import FigureValue
 
@@ -176,7 +176,7 @@ def kind_name(result: dict[str, Any], run_path: Path | None = None) -> str:
 def figures_of(result: dict[str, Any], kind: str | None = None) -> list[FigureRecord]:
     """Every figure the kind reports of result.json (its `ReportsFigures` answer), with U
     (k = 2) and its check's verdict; none when the kind is not installed here."""
-    reporter = installed_kind(kind if kind is not None else kind_name(result))
+    reporter = installed_records(kind if kind is not None else kind_name(result))
     if not isinstance(reporter, ReportsFigures):
         return []
     checks = _checks_index(result)

@@ -167,8 +167,8 @@ TitledBlocks = tuple[str, tuple[Block, ...]]
 class CertificateParts:
     """The certificate's questions to a procedure kind, with neutral answers.
 
-    A kind inherits this (`class MyKind(StepDispatch, CertificateParts)`) and overrides
-    what it has to say; the certificate asks through these only and names no kind. A kind
+    A kind's `certificate` part is one of these (a subclass that overrides
+    what it has to say); the certificate asks through these only and names no kind. A kind
     that says nothing still gets a certificate: identification, instruments, conditions,
     conformity with its checks, records and signatures.
     """

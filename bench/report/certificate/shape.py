@@ -87,12 +87,12 @@ def conform(value: Any, spec: Spec, path: tuple[str | int, ...],
 def kind_shape(result: Any) -> dict[str, Spec]:
     """The containers of the kind's part: the kind the result names, else (an older
     result) every installed kind's (their parts have keys of their own)."""
-    from bench.core.registry import ShapesResult, installed_kind, procedure_names
+    from bench.core.registry import ShapesResult, installed_records, procedure_names
 
     named = result.get("procedure") if isinstance(result, Mapping) else None
     shape: dict[str, Spec] = {}
     for name in [str(named)] if named else procedure_names():
-        kind = installed_kind(name)
+        kind = installed_records(name)
         if isinstance(kind, ShapesResult):
             shape.update(kind.result_shape)
     return shape

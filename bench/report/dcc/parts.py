@@ -2,8 +2,8 @@
 
 The DCC writer (writer.py) writes what every DCC has (administrative data, the method
 document, the GUM statement, instruments, conditions, the checks left over) and asks the
-procedure kind for the rest through `DccParts`: a kind inherits it beside
-`bench.report.certificate.parts.CertificateParts` and overrides what it has to say. It builds its
+procedure kind for the rest through `DccParts`: a kind's `dcc` part is a subclass of it (its
+`certificate` part a `bench.report.certificate.parts.CertificateParts`) that overrides what it has to say. It builds its
 measurementResults from the DCC's vocabulary: `bench.report.dcc.xml` (elements, quantities,
 lists, budgets), `bench.report.dcc.units` (D-SI units), `bench.report.dcc.vocab` (refTypes; a kind's
 own terms are `vocab.RB + "name"`, defined in docs/dcc.md) and `bench.report.dcc.conformity`
