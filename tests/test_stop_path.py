@@ -158,7 +158,7 @@ NOT_RESOURCES = {
     r"\.start_clock$": "the clock is paused by the simulated bench's first registered stop",
     r"^self\.clock\.start$": "the same clock (SimBench.start_clock)",
     r"^open_console$": "the console is closed by the session before its stops run",
-    r"^(kind|self\.kind|procedure_kind\(cfg\.kind\))\.(start_sim|open_bench)$":
+    r"^(kind|self\.kind|procedure_kind\(cfg\.kind\))\.steps\.(start_sim|open_bench)$":
         "they make a SimBench / Bench whose registry joins the collecting one as it is "
         "made (Stops.child; checked by test_bench_and_simbench_join_the_collecting_registry)",
     r"^sim\.start$": "SimBench.start registers each twin as it starts it (checked here)",
