@@ -33,6 +33,7 @@ from bench.app.records.control import (
 from bench.app.records.extract import NotARun, record_of
 from bench.app.records.hooks import RecordsTarget, target
 from bench.app.records.store import CheckPoint, Records, RecordsError
+from bench.core import rundir_layout as layout
 from bench.core.config import SimSettings, StandSettings
 from bench.core.simbench import with_sim
 from bench.core.simdrift import drifted, has_drift, stated_run_number
@@ -166,7 +167,7 @@ def drifting_config(cfg: Any, run_path: Path, where: RecordsTarget, say: Warn) -
     stand_settings = cfg.stand_settings
     if not has_drift(stand_settings):
         return cfg
-    meta_path = run_path / "meta.json"
+    meta_path = run_path / layout.META
     meta = read_json_object(meta_path)
     number = meta.get("sim_run_number") or stated_run_number(stand_settings)
     if number is None:

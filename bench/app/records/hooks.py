@@ -20,6 +20,7 @@ from bench.app.db import redact
 from bench.app.records.extract import STATES, NotARun, record_of
 from bench.app.records.settings import LabSettings, SettingsError, load_lab_settings, records_url
 from bench.app.records.store import Records, RecordsError
+from bench.core import rundir_layout as layout
 from bench.core.config import CommonSettings, Identity
 
 Warn = Callable[[str], None]
@@ -59,7 +60,7 @@ def mark_run(run_path: Path, procedure: CommonSettings, state: str | None = None
 
     The CLI flag wins over the procedure key; written before the run starts so that an
     import years later reads what the operator said at the time."""
-    meta_path = run_path / "meta.json"
+    meta_path = run_path / layout.META
     meta = json.loads(meta_path.read_text())
     state = state or procedure.calibration_state
     note = note or procedure.adjustment_note

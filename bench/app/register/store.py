@@ -26,6 +26,7 @@ from bench.app.db import make_engine, upgrade_to_head
 from bench.app.names import ROLES
 from bench.app.register import chain
 from bench.app.register import schema as s
+from bench.core import rundir_layout as layout
 
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"
 MEANING_ISSUE = "authorised for issue"
@@ -138,8 +139,8 @@ class Revision:
         return self.number if self.revision <= 1 else f"{self.number}-R{self.revision}"
 
     def digests(self) -> dict[str, str]:
-        return {"result.json": self.result_sha256, "certificate.pdf": self.pdf_sha256,
-                "certificate.dcc.xml": self.dcc_sha256, "certificate.html": self.html_sha256}
+        return {layout.RESULT: self.result_sha256, layout.CERTIFICATE_PDF: self.pdf_sha256,
+                layout.CERTIFICATE_DCC: self.dcc_sha256, layout.CERTIFICATE_HTML: self.html_sha256}
 
 
 def _account(r: Any) -> Account:
@@ -420,9 +421,9 @@ class Register:
         register under its lock: the next revision, an active signatory, a reason for a
         re-issue. Raises RegisterError when refused."""
         args = {"n": number, "r": revision, "s": signatory.name, "m": MEANING_ISSUE,
-                "why": reason or "", "t": issued_utc, "res": digests["result.json"],
-                "pdf": digests["certificate.pdf"], "dcc": digests["certificate.dcc.xml"],
-                "html": digests["certificate.html"],
+                "why": reason or "", "t": issued_utc, "res": digests[layout.RESULT],
+                "pdf": digests[layout.CERTIFICATE_PDF], "dcc": digests[layout.CERTIFICATE_DCC],
+                "html": digests[layout.CERTIFICATE_HTML],
                 "d": json.dumps(dict(detail), sort_keys=True)}
         with self._tx() as conn:
             if self.pg:
