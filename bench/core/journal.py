@@ -25,7 +25,7 @@ import json
 import os
 import shutil
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import IO, Any
 
@@ -72,7 +72,7 @@ class JsonLines:
         self._lock = threading.Lock()
         self.count = 0  # records written by this writer
 
-    def write(self, record: dict[str, Any]) -> None:
+    def write(self, record: Mapping[str, object]) -> None:
         line = json.dumps(record, separators=(",", ":"), allow_nan=False) + "\n"
         with self._lock:
             if self._f.closed:
@@ -180,7 +180,7 @@ class RunDir:
             raise FileNotFoundError(f"{self.path} is not a run directory (no events.jsonl)")
         self._events: JsonLines | None = None
         self.session = 0
-        self._clock_now = lambda: None
+        self._clock_now: Callable[[], float | None] = lambda: None
         #: what this process computed from the run's raw data while it ran (a kind's first
         #: look at a pair), for the final analysis to take instead of computing it again;
         #: never written: a resumed or re-analysed run starts without it
@@ -245,7 +245,7 @@ class RunDir:
         """The number the next `begin_session` gives (1 for a new run)."""
         return max((e.get("session", 0) for e in self.events()), default=0) + 1
 
-    def begin_session(self, clock_now: Any = None) -> int:
+    def begin_session(self, clock_now: Callable[[], float] | None = None) -> int:
         """Each `bench run` or `--resume` is a session with its own raw folder."""
         self.session = self.next_session()
         try:
@@ -272,7 +272,7 @@ class RunDir:
     def raw_path(self, name: str) -> Path:
         return self.raw_dir / name
 
-    def event(self, kind: str, **fields: Any) -> None:
+    def event(self, kind: str, **fields: object) -> None:
         if self._events is None:
             raise RuntimeError("begin_session() first")
         rec = {"utc": utc_now(), "t_s": self._clock_now(), "session": self.session,
@@ -290,7 +290,7 @@ class RunDir:
             self._events.close()
 
     # -- derived files ----------------------------------------------------------------
-    def write_json(self, name: str, data: Any) -> Path:
+    def write_json(self, name: str, data: object) -> Path:
         """Write atomically: a reader never sees half a result.json."""
         target = self.path / name
         tmp = target.with_suffix(target.suffix + ".tmp")
