@@ -34,10 +34,11 @@ from bench.app.records.extract import NotARun, record_of
 from bench.app.records.hooks import RecordsTarget, target
 from bench.app.records.store import CheckPoint, Records, RecordsError
 from bench.core import rundir_layout as layout
-from bench.core.config import SimSettings, StandSettings
+from bench.core.config import Config, SimSettings, StandSettings
 from bench.core.simbench import with_sim
 from bench.core.simdrift import drifted, has_drift, stated_run_number
 from bench.report.certificate.parts import read_json_object
+from drivers.json_types import JsonObject
 
 Warn = Callable[[str], None]
 
@@ -64,7 +65,7 @@ def run_statuses(run_path: Path, url: str, result: Mapping[str, Any] | None = No
     return out
 
 
-def _as_json(s: InstrumentStatus) -> dict[str, Any]:
+def _as_json(s: InstrumentStatus) -> JsonObject:
     r = s.last_review
     return {"serial": s.serial, "role": s.role, "model": s.model, "state": s.state,
             "runs": s.runs, "rule": s.rule, "line": s.line,
@@ -80,7 +81,7 @@ def write_assurance(run_path: Path, where: RecordsTarget | str, warn: Warn,
     """RUN_DIR/assurance.json for the certificate; None (and a note in the file) when the
     records could not be read."""
     url = where.url if isinstance(where, RecordsTarget) else where
-    doc: dict[str, Any] = {"records": redact(url),
+    doc: JsonObject = {"records": redact(url),
                            "assessed_utc": dt.datetime.now(dt.UTC).isoformat()}
     statuses: list[InstrumentStatus] | None
     try:
@@ -159,7 +160,7 @@ def warn_at_start(stand: StandSettings, where: RecordsTarget, warn: Warn
     return texts
 
 
-def drifting_config(cfg: Any, run_path: Path, where: RecordsTarget, say: Warn) -> Any:
+def drifting_config(cfg: Config, run_path: Path, where: RecordsTarget, say: Warn) -> Config:
     """The run's config with a drifting twin's truth for this run (bench/core/simdrift.py).
 
     The run number is `sim.run_number`, else 1 + the runs of this table in the records;
