@@ -149,11 +149,18 @@ def read_jsonl(path: Path) -> Iterator[dict[str, Any]]:
 FOG_CAPTURE_EVENT = "fog_capture"
 
 
-def fog_capture_starts(events: Iterable[dict[str, Any]]) -> dict[tuple[int, str], int]:
+def fog_capture_starts(events: Iterable[Mapping[str, object]]) -> dict[tuple[int, str], int]:
     """{(session, axis): the first sample index of that session's FOG capture}. A capture
     without the event starts at index 0 (a run from before the event existed)."""
-    return {(int(e["session"]), str(e["axis"])): int(e["first_index"]) for e in events
+    return {(_count(e["session"]), str(e["axis"])): _count(e["first_index"]) for e in events
             if e.get("event") == FOG_CAPTURE_EVENT and e.get("first_index") is not None}
+
+
+def _count(value: object) -> int:
+    """A journal's whole number (a session, a sample index) as JSON gave it back."""
+    if isinstance(value, bool) or not isinstance(value, int | float | str):
+        raise ValueError(f"{value!r} is not a whole number")
+    return int(value)
 
 
 def torn_tail_bytes(path: Path) -> int:

@@ -20,7 +20,6 @@ import socket
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 import sqlalchemy as sa
 from sqlalchemy.dialects.postgresql import insert as pg_insert
@@ -99,7 +98,7 @@ class RunFacts:
         proc = read_mapping(run_path / layout.PROCEDURE)
         proc = proc if isinstance(proc, dict) else {}
         block = stand.get("stand")
-        ident: dict[str, Any] = block if isinstance(block, dict) else {}
+        ident: dict[str, object] = block if isinstance(block, dict) else {}
         return cls(uid=run_uid(meta, run_path.name), run_dir=run_path.name,
                    title=str(proc.get("title") or run_path.name),
                    kind=str(proc["procedure"]) if proc.get("procedure") else None,

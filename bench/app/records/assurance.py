@@ -21,7 +21,6 @@ import datetime as dt
 import json
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
 
 from bench.app.db import redact
 from bench.app.records.assurance_notes import ASSURANCE_FILE, CLAUSE
@@ -47,7 +46,7 @@ def _aware(t: dt.datetime | None) -> dt.datetime | None:
     return None if t is None else t.replace(tzinfo=dt.UTC)
 
 
-def run_statuses(run_path: Path, url: str, result: Mapping[str, Any] | None = None
+def run_statuses(run_path: Path, url: str, result: Mapping[str, object] | None = None
                  ) -> list[InstrumentStatus]:
     """The status of each instrument this run rests on, from the records and this run's
     own check values (registered or not), with no point later than this run."""
@@ -77,7 +76,7 @@ def _as_json(s: InstrumentStatus) -> JsonObject:
 
 
 def write_assurance(run_path: Path, where: RecordsTarget | str, warn: Warn,
-                    result: Mapping[str, Any] | None = None) -> list[InstrumentStatus] | None:
+                    result: Mapping[str, object] | None = None) -> list[InstrumentStatus] | None:
     """RUN_DIR/assurance.json for the certificate; None (and a note in the file) when the
     records could not be read."""
     url = where.url if isinstance(where, RecordsTarget) else where

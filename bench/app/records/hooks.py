@@ -14,7 +14,7 @@ import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bench.app.db import redact
 from bench.app.records.extract import STATES, NotARun, record_of
@@ -22,6 +22,9 @@ from bench.app.records.settings import LabSettings, SettingsError, load_lab_sett
 from bench.app.records.store import Records, RecordsError
 from bench.core import rundir_layout as layout
 from bench.core.config import CommonSettings, Identity
+
+if TYPE_CHECKING:
+    from bench.report.certificate.model import Block
 
 Warn = Callable[[str], None]
 IMPORT_HINT = "`bench records import {runs}` registers it once the database is back"
@@ -131,7 +134,7 @@ def register_run(run_path: Path, where: RecordsTarget, warn: Warn,
 
 
 def history_sections(run_path: Path, result: dict[str, Any], where: RecordsTarget,
-                     warn: Warn) -> list[Any]:
+                     warn: Warn) -> list[tuple[str, tuple[Block, ...]]]:
     """The certificate's history section, or nothing (no earlier run, no database)."""
     from bench.app.records.section import history_section
 

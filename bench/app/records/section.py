@@ -65,7 +65,8 @@ def _comparison(rec: Records, found: RunInfo, current: RunRecord,
                          f"and as left (this certificate); U with k = 2")
 
 
-def history_section(rec: Records, current: RunRecord, where: str) -> list[tuple[str, tuple]]:
+def history_section(rec: Records, current: RunRecord, where: str
+                    ) -> list[tuple[str, tuple[Block, ...]]]:
     """[(title, blocks)] for the certificate; [] when the records hold no earlier run."""
     earlier = _earlier(rec, current)
     blocks: list[Block] = []
