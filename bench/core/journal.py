@@ -27,7 +27,7 @@ import shutil
 import threading
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, TypedDict
 
 import bench
 from bench.core import rundir_layout as layout
@@ -144,6 +144,20 @@ def read_jsonl(path: Path) -> Iterator[dict[str, Any]]:
     yield from scan_jsonl(path)[0]
 
 
+class RunMeta(TypedDict):
+    """meta.json as `RunDir.create` writes it: where the inputs came from, their SHA-256,
+    the version (the run's later facts, as-found/as-left, the performer, are added by the
+    app and read where they are used)."""
+
+    procedure_file: str
+    procedure_name: str
+    procedure_sha256: str
+    stand_file: str
+    stand_sha256: str
+    created_utc: str
+    bench_version: str
+
+
 #: the event a run writes when it opens a FOG while its clock runs: where the raw
 #: capture raw/s<session>/<axis>-fog.bin starts (drivers/fog.py `first_index`)
 FOG_CAPTURE_EVENT = "fog_capture"
@@ -221,7 +235,7 @@ class RunDir:
         shutil.copyfile(stand_path, path / cls.STAND)
         if lab_path is not None:  # the laboratory's settings as used (bench.core.lab)
             shutil.copyfile(lab_path, path / cls.LAB)
-        meta = {
+        meta: RunMeta = {
             "procedure_file": str(procedure_path),
             "procedure_name": procedure_path.name,
             "procedure_sha256": sha256_file(procedure_path),
@@ -235,8 +249,8 @@ class RunDir:
         return cls(path)
 
     @property
-    def meta(self) -> dict[str, Any]:
-        meta: dict[str, Any] = json.loads((self.path / layout.META).read_text())
+    def meta(self) -> RunMeta:
+        meta: RunMeta = json.loads((self.path / layout.META).read_text())
         return meta
 
     @property

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 from typing import TypedDict
 
-from bench.core.rundir_layout import EVENTS, raw_root
+from bench.core.rundir_layout import EVENTS, SESSION_GLOB, raw_root
 
 
 class HealthSample(TypedDict):
@@ -31,7 +31,7 @@ def sample(run_path: Path, now: float | None = None) -> HealthSample:
     newest session's raw files (raw/s<N>/), ages in wall seconds at sampling."""
     now = time.time() if now is None else now
     files: dict[str, float] = {}
-    sessions = sorted((p for p in raw_root(run_path).glob("s*") if p.name[1:].isdigit()),
+    sessions = sorted((p for p in raw_root(run_path).glob(SESSION_GLOB) if p.name[1:].isdigit()),
                       key=lambda p: int(p.name[1:]))
     if sessions:
         for f in sorted(sessions[-1].iterdir()):

@@ -58,7 +58,7 @@ def target(runs_dir: str | Path, url: str | None = None, warn: Warn | None = Non
 
 
 def mark_run(run_path: Path, procedure: CommonSettings, state: str | None = None,
-             note: str | None = None, register: Mapping[str, Any] | None = None) -> None:
+             note: str | None = None, register: Mapping[str, object] | None = None) -> None:
     """Write as-found/as-left, the adjustment note and the operator into meta.json.
 
     The CLI flag wins over the procedure key; written before the run starts so that an
@@ -80,7 +80,8 @@ def mark_run(run_path: Path, procedure: CommonSettings, state: str | None = None
     register = dict(register or {})
     performer = register.get("performer")
     meta["os_user"] = login
-    meta["operator"] = performer["account"] if performer else login
+    meta["operator"] = (performer["account"] if isinstance(performer, Mapping) and performer
+                        else login)
     if procedure.operator:
         meta["operator_stated"] = procedure.operator      # the procedure file's word only
     meta.update(register)
