@@ -139,9 +139,9 @@ def from_dict(d: Mapping[str, Any]) -> Budget | None:
         return None
 
 
-def budgets_in(node: object) -> Sequence[Mapping[str, Any]]:
+def budgets_in(node: object) -> Sequence[Mapping[str, object]]:
     """Every budget dict under `node` (a `budgets` list anywhere), in document order."""
-    out: list[Mapping[str, Any]] = []
+    out: list[Mapping[str, object]] = []
     if isinstance(node, Mapping):
         for k, v in node.items():
             if k == "budgets" and isinstance(v, list):
