@@ -157,6 +157,7 @@ class WaveformGenerator(ProfiledInstrument[AwgProfile]):
     """A SCPI arbitrary waveform generator that plays a pulse pair per bus trigger."""
 
     error_kinds = AWG_ERRORS
+    words: AwgWords
     kind, stand_key, profiles = "waveform generator", "awg", PROFILES
 
     def __init__(self, resource: str, profile: AwgProfile, clock: Clock, *,

@@ -17,7 +17,6 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum, IntEnum
-from typing import Any
 
 from drivers.profiles import EDS_NAME, profile_path
 
@@ -602,7 +601,7 @@ class UnitFactors:
                           af * si_unit_deg(self.acceleration_si, cpr, accel=True)
                           / deg_per_count)
 
-    def as_record(self) -> dict[str, Any]:
+    def as_record(self) -> dict[str, str]:
         return {"0x608F": f"{self.encoder_increments}/{self.motor_revolutions}",
                 "0x6091": f"{self.gear_motor_revs}/{self.gear_shaft_revs}",
                 "0x6096": "/".join(map(str, self.velocity_factor)),

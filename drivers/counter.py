@@ -28,13 +28,15 @@ import math
 import re
 import time
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 
 from drivers.clock import Clock, real_budget_s, stepped
 from drivers.counter_profiles import (
     CounterProfile,
+    CounterWords,
+    TimestampFormat,
     first_value_is_a_turn,
     get_profile,
     is_scpi_nan,
@@ -117,6 +119,7 @@ class Counter(ScpiInstrument):
     """A SCPI frequency counter over pyvisa; see the module docstring for the sequence."""
 
     error_kinds = COUNTER_ERRORS
+    words: CounterWords
 
     def __init__(self, resource: str, profile: CounterProfile, clock: Clock, *,
                  raw: RawCallback | None = None,
@@ -191,9 +194,10 @@ class Counter(ScpiInstrument):
             except InstrumentError:
                 pass
         self._armed = None
-        if self._saved_timeout is not None and self.is_open:
+        timeout_word = self.words.measurement_timeout
+        if self._saved_timeout is not None and self.is_open and timeout_word is not None:
             try:
-                self.send(self.words.measurement_timeout,
+                self.send(timeout_word,
                           timeout_s=_timeout_param(self._saved_timeout))
             except InstrumentError:
                 pass
@@ -204,7 +208,7 @@ class Counter(ScpiInstrument):
     def supports_timestamps(self) -> bool:
         return self.profile.supports_timestamps
 
-    def template_values(self) -> dict[str, Any]:
+    def template_values(self) -> dict[str, object]:
         return {"channel": self.input.channel if self.input else 1}
 
     def identify(self) -> str:
@@ -380,7 +384,7 @@ class Counter(ScpiInstrument):
         self._verify("counter.level_v", w.input_level, c.level_v)
         self._verify("counter.slope", w.input_slope, c.slope)
 
-    def _verify(self, key: str, word: Command | None, expected: Any) -> str | None:
+    def _verify(self, key: str, word: Command | None, expected: object) -> str | None:
         """Ask `word` back and compare with what was set; record it in `readback`."""
         if word is None:
             return None
@@ -638,7 +642,7 @@ class Counter(ScpiInstrument):
             "edges cannot be placed; refused. Periods (the rate) do not need the tie",
             command=text)
 
-    def _fetch_numbers(self, n_read: int, per_result: int, fmt: Any
+    def _fetch_numbers(self, n_read: int, per_result: int, fmt: TimestampFormat | None
                        ) -> tuple[str, str, np.ndarray]:
         """All readings: one FETC?, or FETC:ARR? in chunks of the model's limit (the
         CNT-91 gives at most 10 000 results a call, Programmer's Handbook p. 8-35; each
@@ -703,7 +707,7 @@ def _timeout_param(reply: str) -> str:
     return "INFinity" if value >= 9.8e37 else reply.strip()
 
 
-def _same_setting(reply: str, expected: Any) -> bool:
+def _same_setting(reply: str, expected: object) -> bool:
     """A read-back reply against the value set: numbers to 1e-9, booleans as 0/1/ON/OFF,
     words by their short form (`POS` for POSitive, `EXT` for EXTernal)."""
     text = reply.strip().strip('"').upper()

@@ -167,6 +167,7 @@ class Digitizer(ProfiledInstrument[DmmProfile]):
     """A SCPI DMM recording one triggered burst of samples at a fixed interval."""
 
     error_kinds = DMM_ERRORS
+    words: DmmWords
     kind, stand_key, profiles = "DMM", "dmm", PROFILES
 
     def __init__(self, resource: str, profile: DmmProfile, clock: Clock, *,

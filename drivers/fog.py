@@ -34,10 +34,10 @@ import os
 import select
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, TypedDict
 
 import numpy as np
 import serial
@@ -130,6 +130,33 @@ def _nonblocking_fd(ser: serial.Serial) -> int | None:
         return None if os.get_blocking(fd) else fd
     except (OSError, ValueError, TypeError, serial.SerialException):
         return None
+
+
+class FogCheckpoint(TypedDict):
+    """Where a FOG's decoder stood in its raw capture (`Fog.checkpoint`), as the journal
+    keeps it; a CaptureCursor continues from it."""
+
+    offset: int
+    last_index: int
+    last_sequence: int | None
+    last_end: int
+    first_index: int | None
+
+
+def _decode_state(mark: Mapping[str, object]) -> DecodeState:
+    """A checkpoint (`Fog.checkpoint`) as the journal gives it back."""
+    def number(value: object, key: str) -> int:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ValueError(f"FOG capture checkpoint: {key} = {value!r} is not a number")
+        return int(value)
+
+    def optional(key: str) -> int | None:
+        value = mark.get(key)
+        return None if value is None else number(value, key)
+
+    return DecodeState(number(mark["offset"], "offset"),
+                       number(mark["last_index"], "last_index"), optional("last_sequence"),
+                       number(mark["last_end"], "last_end"), optional("first_index"))
 
 
 class FogError(RuntimeError):
@@ -296,7 +323,7 @@ class Fog:
     def __init__(self, port: str, *, baudrate: int = 921600, fmt: str = "kvh-a",
                  axis: str = "z", rate_hz: float, units: str | None,
                  raw_path: Path | str | None, clock: Clock, model: str | None = None,
-                 serial_kwargs: dict[str, Any] | None = None,
+                 serial_kwargs: Mapping[str, object] | None = None,
                  keep_samples: int | None = None,
                  configure: str = "declare",
                  wait_margin_s: float = MIN_REAL_MARGIN_S) -> None:
@@ -690,7 +717,7 @@ class Fog:
             f"within {timeout_s:g} s; newest sample {self._store.end - 1}, "
             f"{self._decoder.bytes} bytes received")
 
-    def checkpoint(self) -> dict[str, Any]:
+    def checkpoint(self) -> FogCheckpoint:
         """Where the decoder stands in the raw capture now (JSON-able).
 
         A CaptureCursor started from it decodes the rest of the capture exactly as from
@@ -802,7 +829,7 @@ class CaptureCursor:
 
     def __init__(self, raw_path: Path | str, *, fmt: str = "kvh-a", axis: str = "z",
                  rate_hz: float, units: str = "deg/s", chunk_bytes: int = _CAPTURE_CHUNK_BYTES,
-                 start: dict[str, Any] | None = None, first_index: int | None = None
+                 start: Mapping[str, object] | None = None, first_index: int | None = None
                  ) -> None:
         f = get_format(fmt)
         if axis not in f.valid_bits:
@@ -816,12 +843,9 @@ class CaptureCursor:
         self._chunk_bytes = int(chunk_bytes)
         self._fh: IO[bytes] = open(self.raw_path, "rb")  # noqa: SIM115 (closed in close())
         if start is not None:  # a Fog.checkpoint(): continue the decoder from there
-            first = start.get("first_index")
-            self.decoder.state = DecodeState(int(start["offset"]), int(start["last_index"]),
-                                             start["last_sequence"], int(start["last_end"]),
-                                             None if first is None else int(first))
-            self._fh.seek(int(start["offset"]))
-            self._store.base = int(start["last_index"]) + 1
+            self.decoder.state = state = _decode_state(start)
+            self._fh.seek(state.offset)
+            self._store.base = state.last_index + 1
 
     @property
     def position(self) -> int:

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Protocol
 
 #: the power-on default of the rotational fields (Table 5-10: "default: delta radians")
 POWER_ON_UNITS = "rad"
@@ -114,7 +114,7 @@ class KvhConfigurator:
     """Enter Configuration Mode, set and/or read back, leave it (module docstring)."""
 
     def __init__(self, link: LineLink, *, port: str = "", timeout_s: float = 1.0,
-                 log: Callable[[str, str], Any] | None = None) -> None:
+                 log: Callable[[str, str], object] | None = None) -> None:
         self.link = link
         self.port = port
         self.timeout_s = timeout_s
@@ -138,7 +138,7 @@ class KvhConfigurator:
         raise KvhConfigError(f"FOG on {self.port}: no answer starting {expect_prefix!r} "
                              f"to {line!r}")
 
-    def command(self, name: str, *args: Any) -> str:
+    def command(self, name: str, *args: object) -> str:
         body = ",".join([name, *map(str, args)])
         return self._exchange("=" + body, body)
 

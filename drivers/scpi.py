@@ -41,7 +41,7 @@ import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, fields, is_dataclass
 from functools import cached_property
-from typing import Any, ClassVar, Generic, Self, TypeVar
+from typing import ClassVar, Generic, NamedTuple, Self, TypeVar, cast, overload
 
 import numpy as np
 
@@ -69,7 +69,7 @@ def short_form(mnemonic: str) -> str:
     return m.group(0)
 
 
-def format_value(value: Any) -> str:
+def format_value(value: object) -> str:
     """A Python value as a SCPI parameter: bool -> ON/OFF, float -> NR3 with 12 digits."""
     if isinstance(value, bool):
         return "ON" if value else "OFF"
@@ -103,18 +103,18 @@ class Command:
         names += _PLACEHOLDER.findall(self.params)
         return tuple(dict.fromkeys(names))
 
-    def _short_header(self, values: Mapping[str, Any]) -> str:
+    def _short_header(self, values: Mapping[str, object]) -> str:
         def node(m: re.Match[str]) -> str:
             suffix = m.group(3)
             return short_form(m.group(1)) + (format_value(values[suffix]) if suffix else "")
         return _TOKEN.sub(node, _OPTIONAL.sub("", self.header))
 
-    def _check_values(self, values: Mapping[str, Any], names: tuple[str, ...]) -> None:
+    def _check_values(self, values: Mapping[str, object], names: tuple[str, ...]) -> None:
         missing = [n for n in names if n not in values]
         if missing:
             raise KeyError(f"SCPI command {self.header!r} needs {', '.join(missing)}")
 
-    def text(self, **values: Any) -> str:
+    def text(self, **values: object) -> str:
         """The short-form program message the driver sends: `INP1:LEV 1.5`."""
         self._check_values(values, self.placeholders)
         head = self._short_header(values)
@@ -123,7 +123,7 @@ class Command:
         formatted = {k: format_value(v) for k, v in values.items()}
         return f"{head} {self.params.format(**formatted)}"
 
-    def query_text(self, **values: Any) -> str:
+    def query_text(self, **values: object) -> str:
         """The query form: a query-only command as `text`, a setting with `?` appended."""
         if self.is_query:
             return self.text(**values)
@@ -324,16 +324,19 @@ class InstrumentConnectionError(InstrumentError):
     """The connection failed or was lost."""
 
 
-@dataclass(frozen=True)
-class ErrorKinds:
-    """Which exception classes a driver family raises for each kind of failure."""
+E = TypeVar("E", bound=InstrumentError)
 
+
+class ErrorKinds(NamedTuple):
+    """Which exception classes a driver family raises for each kind of failure (a named
+    tuple, so unpacking it keeps each class's type)."""
+
+    #: the family's own root, which every kind below also derives from
+    base: type[InstrumentError] = InstrumentError
     command: type[InstrumentCommandError] = InstrumentCommandError
     timeout: type[InstrumentTimeout] = InstrumentTimeout
     reply: type[InstrumentReplyError] = InstrumentReplyError
     connection: type[InstrumentConnectionError] = InstrumentConnectionError
-    #: the family's own root, which every kind above also derives from
-    base: type[InstrumentError] = InstrumentError
 
     @classmethod
     def family(cls, prefix: str, what: str, module: str) -> ErrorKinds:
@@ -345,9 +348,11 @@ class ErrorKinds:
         the names (tracebacks show them there). Iterating gives root, command, timeout,
         reply, connection: `(CounterError, ...) = COUNTER_ERRORS`.
         """
-        def declare(suffix: str, kind: type, doc: str) -> Any:
+        def declare(suffix: str, kind: type[E], doc: str) -> type[E]:
             bases = (kind,) if kind is InstrumentError else (base, kind)
-            return type(f"{prefix}{suffix}", bases, {"__doc__": doc, "__module__": module})
+            # type() makes a subclass of `kind`, which mypy cannot follow
+            return cast("type[E]", type(f"{prefix}{suffix}", bases,
+                                        {"__doc__": doc, "__module__": module}))
 
         the = what[:1].upper() + what[1:]
         base = declare("Error", InstrumentError, f"Anything {what}, or the way to it, did wrong.")
@@ -363,8 +368,6 @@ class ErrorKinds:
                                f"The link to {what} failed or was lost."),
             base=base)
 
-    def __iter__(self) -> Iterator[Any]:
-        return iter((self.base, self.command, self.timeout, self.reply, self.connection))
 
 
 # -- the instrument -------------------------------------------------------------------------
@@ -382,7 +385,9 @@ class ScpiInstrument:
     error_kinds: ClassVar[ErrorKinds] = ErrorKinds()
     #: sent by `recover()` before `*OPC?`: end any measurement, clear status
     recovery_commands: tuple[Command, ...] = (CLS,)
-    words: Any = None
+    #: the model's SCPI words by role (a dataclass or mapping of Commands); a driver
+    #: narrows the type
+    words: object = None
     #: the last `recover()` had to reopen the link
     reopened: bool = False
 
@@ -546,7 +551,7 @@ class ScpiInstrument:
         self._tx(text)
         return self._rx(text, self.command_timeout_s if timeout_s is None else timeout_s)
 
-    def send(self, command: Command | str, *, check: bool = True, **values: Any) -> str:
+    def send(self, command: Command | str, *, check: bool = True, **values: object) -> str:
         """Send a word (a Command, or a name in `self.words`); returns the text sent."""
         cmd = self.word(command)
         text = cmd.text(**{**self.template_values(), **values})
@@ -554,7 +559,7 @@ class ScpiInstrument:
         return text
 
     def ask(self, command: Command | str, *, timeout_s: float | None = None,
-            **values: Any) -> str:
+            **values: object) -> str:
         """Query a word: a query-only command as is, a setting in its `?` form."""
         cmd = self.word(command)
         return self.query(cmd.query_text(**{**self.template_values(), **values}),
@@ -571,7 +576,7 @@ class ScpiInstrument:
                 f"{self.name}: this instrument has no word {command!r}", command=command)
         return found
 
-    def template_values(self) -> dict[str, Any]:
+    def template_values(self) -> dict[str, object]:
         """Default placeholder values for words (e.g. the channel); drivers override."""
         return {}
 
@@ -712,6 +717,7 @@ def _show(data: bytes, limit: int = 60) -> str:
 # -- properties as data -------------------------------------------------------------------
 
 T = TypeVar("T")
+C = TypeVar("C")
 
 
 class _Descriptor(Generic[T]):
@@ -732,7 +738,12 @@ class Measurement(_Descriptor[T]):
         self.command = command
         self.cast = cast
 
-    def __get__(self, inst: ScpiInstrument | None, owner: type) -> Any:
+    @overload
+    def __get__(self, inst: None, owner: type) -> Self: ...
+    @overload
+    def __get__(self, inst: ScpiInstrument, owner: type) -> T: ...
+
+    def __get__(self, inst: ScpiInstrument | None, owner: type) -> Self | T:
         if inst is None:
             return self
         return self.cast(inst.ask(self.command))
@@ -744,13 +755,13 @@ class Setting(_Descriptor[T]):
     The value fills the command's one placeholder not given by `template_values()`.
     """
 
-    def __init__(self, command: Command | str, validator: Callable[[Any], Any] | None = None,
+    def __init__(self, command: Command | str, validator: Callable[[T], T] | None = None,
                  doc: str = "") -> None:
         super().__init__(doc or (command.doc if isinstance(command, Command) else ""))
         self.set_command = command
         self.validator = validator
 
-    def __set__(self, inst: ScpiInstrument, value: Any) -> None:
+    def __set__(self, inst: ScpiInstrument, value: T) -> None:
         if self.validator is not None:
             try:
                 value = self.validator(value)
@@ -762,28 +773,33 @@ class Setting(_Descriptor[T]):
         if len(free) != 1:
             raise TypeError(f"{cmd.header!r}: a Setting needs exactly one free placeholder, "
                             f"has {free}")
-        inst.send(cmd, **{free[0]: value})
+        inst.write(cmd.text(**{**given, free[0]: value}))
 
 
 class Control(Setting[T]):
     """A read-write property: the setting, and its query form (or a separate query)."""
 
     def __init__(self, command: Command | str, cast: Callable[[str], T] = str,  # type: ignore[assignment]
-                 validator: Callable[[Any], Any] | None = None,
+                 validator: Callable[[T], T] | None = None,
                  get_command: Command | str | None = None, doc: str = "") -> None:
         super().__init__(command, validator, doc)
         self.get_command = get_command or command
         self.cast = cast
 
-    def __get__(self, inst: ScpiInstrument | None, owner: type) -> Any:
+    @overload
+    def __get__(self, inst: None, owner: type) -> Self: ...
+    @overload
+    def __get__(self, inst: ScpiInstrument, owner: type) -> T: ...
+
+    def __get__(self, inst: ScpiInstrument | None, owner: type) -> Self | T:
         if inst is None:
             return self
         return self.cast(inst.ask(self.get_command))
 
 
-def in_range(low: float, high: float) -> Callable[[Any], float]:
+def in_range(low: float, high: float) -> Callable[[float], float]:
     """Validator: a number within [low, high]."""
-    def check(value: Any) -> float:
+    def check(value: float) -> float:
         v = float(value)
         if not low <= v <= high:
             raise ValueError(f"must be within [{low:g}, {high:g}]")
@@ -791,9 +807,9 @@ def in_range(low: float, high: float) -> Callable[[Any], float]:
     return check
 
 
-def one_of(*choices: Any) -> Callable[[Any], Any]:
+def one_of(*choices: C) -> Callable[[C], C]:
     """Validator: one of the given values (strings compared case-insensitively)."""
-    def check(value: Any) -> Any:
+    def check(value: C) -> C:
         for c in choices:
             if (isinstance(c, str) and isinstance(value, str) and c.upper() == value.upper()) \
                     or c == value:
@@ -802,7 +818,7 @@ def one_of(*choices: Any) -> Callable[[Any], Any]:
     return check
 
 
-def words_of(words: Any) -> dict[str, Command]:
+def words_of(words: object) -> dict[str, Command]:
     """The Commands of a words dataclass (or mapping), by name, skipping absent ones."""
     if isinstance(words, Mapping):
         return {k: v for k, v in words.items() if isinstance(v, Command)}

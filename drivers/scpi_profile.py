@@ -23,7 +23,7 @@ class InstrumentProfile:
     model: str                   # as stand files spell it: "keysight-34465a"
     maker: str
     description: str
-    words: Any                   # the model's SCPI words by role (a dataclass of Commands)
+    words: object                # the model's SCPI words by role (a dataclass of Commands)
     idn_pattern: str | None      # what *IDN? must match (None: not checked)
     notes: str = ""              # where the real syntax is unsure
     #: the manual and sections the words were checked against, or "unverified"

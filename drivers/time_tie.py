@@ -23,8 +23,8 @@ Sources (stand key `counter.time_tie.source`):
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 SOURCES = ("fog-sync", "host-clock")
 
@@ -50,7 +50,7 @@ class TimeTie:
             raise ValueError(f"time tie sync_period_s must be > 0, got {self.sync_period_s}")
 
     @classmethod
-    def from_stand(cls, cfg: dict[str, Any] | None) -> TimeTie:
+    def from_stand(cls, cfg: Mapping[str, str | float] | None) -> TimeTie:
         """The stand's `counter.time_tie` mapping (absent: host-clock)."""
         if not cfg:
             return cls()
@@ -83,7 +83,7 @@ class TimeTie:
                 f"{self.host_window_s:g} s)")
         return (k0 + 1) * p + self.latency_s, self.latency_u_s
 
-    def as_record(self) -> dict[str, Any]:
+    def as_record(self) -> dict[str, str | float]:
         return {"source": self.source, "sync_period_s": self.sync_period_s,
                 "latency_s": self.latency_s, "latency_u_s": self.latency_u_s,
                 "host_window_s": self.host_window_s}

@@ -24,7 +24,7 @@ import re
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Protocol, TypeVar, cast
+from typing import TYPE_CHECKING, Protocol, TypeVar, cast
 
 if TYPE_CHECKING:  # pyvisa is imported where a link is opened, not at import
     from pyvisa.resources import MessageBasedResource
@@ -110,7 +110,7 @@ def _ms(seconds: float) -> int:
     return max(1, int(round(seconds * 1000.0)))
 
 
-def _socket_options(inst: Any) -> None:
+def _socket_options(inst: MessageBasedResource) -> None:
     """TCP_NODELAY and keepalive on a raw SCPI socket.
 
     Without NODELAY a command and its SYST:ERR? wait for the instrument's delayed ACK
@@ -124,7 +124,7 @@ def _socket_options(inst: Any) -> None:
     import pyvisa
 
     with contextlib.suppress(Exception):
-        inst.set_visa_attribute(pyvisa.constants.VI_ATTR_TCPIP_KEEPALIVE, True)
+        inst.set_visa_attribute(pyvisa.constants.ResourceAttribute.tcpip_keepalive, True)
     sessions = getattr(inst.visalib, "sessions", None)  # pyvisa-py only
     sock = getattr(sessions.get(inst.session), "interface", None) if sessions else None
     if isinstance(sock, socket.socket):
@@ -132,7 +132,7 @@ def _socket_options(inst: Any) -> None:
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         return
     with contextlib.suppress(Exception):
-        inst.set_visa_attribute(pyvisa.constants.VI_ATTR_TCPIP_NODELAY, True)
+        inst.set_visa_attribute(pyvisa.constants.ResourceAttribute.tcpip_nodelay, True)
 
 
 # -- transcripts ----------------------------------------------------------------------

@@ -52,6 +52,7 @@ import math
 import struct
 import threading
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -182,7 +183,7 @@ class DriveTwin:
                  standstill_dps: float = 0.001, coast_decel_dps2: float = 20.0,
                  position_window_deg: float = 0.001, pp_velocity_dps: float = 10.0,
                  serial_number: int = 0,
-                 bus_options: dict[str, Any] | None = None) -> None:
+                 bus_options: Mapping[str, object] | None = None) -> None:
         if not 1 <= node_id <= 127:
             raise ValueError(f"drive twin node_id must be 1..127, got {node_id}")
         self.stand = stand
@@ -195,7 +196,7 @@ class DriveTwin:
         self.bus_options = dict(bus_options or {})
         self.node_id = node_id
         self._stepped = bool(getattr(self.clock, "stepped", False))
-        self._leave: Any = None
+        self._leave: Callable[[], None] | None = None
         self._busy_until_s = 0.0
         self._can_name = can_channel_name(channel, node_id)
         self.eds_path = Path(eds_path)
@@ -336,7 +337,7 @@ class DriveTwin:
             raise SdoAbortedError(ABORT_DEVICE_STATE)
         field = self._FACTOR_FIELDS[(index, sub)]
         f = self.factors
-        value: Any = code
+        value: Any = code   # a field of UnitFactors: its ratio or a code
         if field in ("velocity_factor", "acceleration_factor"):
             old = getattr(f, field)
             value = (code, old[1]) if sub == 1 else (old[0], code)
@@ -598,7 +599,7 @@ class DriveTwin:
         return values
 
     @staticmethod
-    def _fit(key: str, value: float, convert: Any, limit: int) -> int:
+    def _fit(key: str, value: float, convert: Callable[[float], int], limit: int) -> int:
         units = convert(value)
         if not 0 <= units <= limit:
             raise ValueError(f"drive twin {key} = {value} is {units} drive units, "
@@ -724,17 +725,16 @@ class DriveTwin:
         var = self._odvar(index, sub)
         self._node.data_store.setdefault(index, {})[sub] = var.encode_raw(value)
 
-    def _get(self, index: int, sub: int = 0) -> Any:
+    def _get(self, index: int, sub: int = 0) -> int:
         assert self._node is not None
-        var = self._odvar(index, sub)
-        return var.decode_raw(self._node.get_data(index, sub))
+        return _integer(self._odvar(index, sub), self._node.get_data(index, sub))
 
-    def _odvar(self, index: int, sub: int) -> Any:
+    def _odvar(self, index: int, sub: int) -> ODVariable:
         assert self._node is not None
         obj = self._node.object_dictionary[index]
         return obj if isinstance(obj, ODVariable) else obj[sub]
 
-    def _on_read(self, index: int, subindex: int, od: Any) -> int | None:
+    def _on_read(self, index: int, subindex: int, od: ODVariable) -> int | None:
         if index not in _LIVE:
             return None
         with self._lock:
@@ -769,9 +769,9 @@ class DriveTwin:
             sw |= Sw.SET_POINT_ACKNOWLEDGE
         return sw
 
-    def _on_write(self, index: int, subindex: int, od: Any, data: bytes) -> None:
+    def _on_write(self, index: int, subindex: int, od: ODVariable, data: bytes) -> None:
         """SDO writes from the controller (runs in the CAN receive thread)."""
-        value = od.decode_raw(data)
+        value = _integer(od, data)
         with self._lock:
             if index == Od.CONTROLWORD:
                 self._on_controlword(value)
@@ -1033,7 +1033,7 @@ class DriveTwin:
         """Every TPDO sent so far consumed by the controller (each stamped at its tick)."""
         return self._stepped_clock.backlog(self._can_name) == 0
 
-    def _note_write(self, index: int, subindex: int, od: Any, data: bytes) -> None:
+    def _note_write(self, index: int, subindex: int, od: ODVariable, data: bytes) -> None:
         self._busy_until_s = self.clock.now() + ACTIVE_S
 
     def _run_watchdog(self) -> None:
@@ -1227,3 +1227,13 @@ def _maps(pdos: PdoBase) -> PdoMaps:
 def _si(unit: str | int) -> int:
     """An SI unit object's value: a name of cia402.NAMED_SI_UNITS, or the code itself."""
     return unit if isinstance(unit, int) else NAMED_SI_UNITS[unit]
+
+
+def _integer(var: ODVariable, data: bytes) -> int:
+    """An object's value: every object of the twin's dictionary is an integer (its EDS,
+    drivers/profiles), so anything else is a dictionary the twin was not built for."""
+    value = var.decode_raw(data)
+    if not isinstance(value, int):
+        raise TypeError(f"drive twin: object 0x{var.index:04X}.{var.subindex} holds "
+                        f"{value!r}, not an integer")
+    return value

@@ -56,8 +56,8 @@ import threading
 import time
 import tty
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -242,7 +242,7 @@ class FogTwin:
         self._gate_open = False          # a reader settled on the port, the clock runs
         self._queued_bytes = 0
         self._stepped = bool(getattr(self.clock, "stepped", False))
-        self._leave: Any = None
+        self._leave: Callable[[], None] | None = None
         self._presence: select.poll | None = None  # the master, polled for a reader
         self.path: str | None = None
         self.bytes_written = 0

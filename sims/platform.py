@@ -96,7 +96,7 @@ class PlatformTruth:
     def earth_vertical_dph(self) -> float:
         return EARTH_RATE_DPH * math.sin(math.radians(self.latitude_deg))
 
-    def apparent_dph(self, gyro: str, table_deg: float | np.ndarray = 0.0) -> Any:
+    def apparent_dph(self, gyro: str, table_deg: float | np.ndarray = 0.0) -> np.ndarray:
         """Earth-rate projection on the gyro's input axis (docs/method.md B convention)."""
         if gyro in VERTICAL_GYROS:
             return self.earth_vertical_dph + 0.0 * np.asarray(table_deg)

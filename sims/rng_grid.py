@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterable, Sequence
-from typing import Any
 
 import numpy as np
 
@@ -112,7 +111,7 @@ def _hash(entropy: list[np.ndarray]) -> np.ndarray:
     return np.stack(words, axis=1).astype("<u4").view("<u8").reshape(m, 4)
 
 
-def pcg64_state(seed: np.ndarray) -> dict[str, Any]:
+def pcg64_state(seed: np.ndarray) -> dict[str, str | int | dict[str, int]]:
     """The `PCG64.state` that `PCG64(seed sequence)` sets from its 4 words."""
     initstate = (int(seed[0]) << 64) | int(seed[1])
     initseq = (int(seed[2]) << 64) | int(seed[3])

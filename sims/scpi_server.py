@@ -52,7 +52,7 @@ import socket
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, TypeVar
+from typing import ClassVar, TypeVar
 
 from drivers.scpi import (
     ABORT,
@@ -210,7 +210,7 @@ class ScpiServer:
         else:
             self.routes.append(r)
 
-    def route_words(self, words: Any, table: Mapping[str, WordHandlers]) -> None:
+    def route_words(self, words: object, table: Mapping[str, WordHandlers]) -> None:
         """Serve a words dataclass by role: `table[role]` is (on_set, on_query[, data]).
 
         A role the model has no word for (None) is skipped; a query-only word gets its

@@ -561,20 +561,6 @@ LAYOUT_SUFFIXES = ("-fog.bin", "-counter.jsonl", "-drive.jsonl", "-dmm.jsonl")
 #: "raw" is also a word of the SCPI twins, "issued" one of the register's states; the
 #: input copies' names (procedure.yaml, ...) also name `bench init`'s starter files
 LAYOUT_FOLDERS = frozenset({"raw", "issued", "procedure.yaml", "stand.yaml", "lab.yaml"})
-#: files whose layout names are still to route through the layout module: their owners
-#: were changing them when the module came (issue 45); a count may only go down
-LAYOUT_PENDING = {
-    "bench/app/certificate/__init__.py": 2, "bench/app/certificate/authorise.py": 4,
-    "bench/app/certificate/build.py": 5, "bench/app/certificate/item.py": 1,
-    "bench/app/certificate/revisions.py": 1,
-    "bench/app/fleet/health.py": 1, "bench/app/fleet/journal.py": 1,
-    "bench/app/fleet/sync.py": 6, "bench/app/records/assurance.py": 1,
-    "bench/app/records/checks.py": 4, "bench/app/records/extract.py": 11,
-    "bench/app/records/hooks.py": 1, "bench/app/register/store.py": 8,
-    "bench/app/station/app.py": 1, "bench/app/station/fleet.py": 1,
-    "bench/app/station/live.py": 13, "bench/app/station/records.py": 2,
-    "bench/app/station/signing.py": 5, "bench/app/station/view.py": 2,
-}
 #: `bench init` writes its starter files, named as a run directory's copies, into the
 #: user's folder: not a run directory
 LAYOUT_EXEMPT = frozenset({"bench/app/starter.py"})
@@ -624,12 +610,8 @@ def layout_spellings(root: Path = ROOT) -> dict[str, list[str]]:
 
 
 def test_the_run_directory_layout_is_spelled_in_one_module() -> None:
-    found = layout_spellings()
-    new = [hit for rel, hits in found.items() if rel not in LAYOUT_PENDING for hit in hits]
-    assert new == [], ("spelled outside bench/core/rundir_layout.py:\n" + "\n".join(new))
-    grown = {rel: len(found.get(rel, [])) for rel, n in LAYOUT_PENDING.items()
-             if len(found.get(rel, [])) > n}
-    assert grown == {}, f"more layout names than before in {grown}"
+    found = [hit for hits in layout_spellings().values() for hit in hits]
+    assert found == [], ("spelled outside bench/core/rundir_layout.py:\n" + "\n".join(found))
 
 
 def test_the_layout_scan_sees_a_planted_raw_path(tmp_path: Path) -> None:

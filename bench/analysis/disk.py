@@ -18,20 +18,25 @@ analysis on the in-memory array to the last digit.
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Literal, overload
 
 import numpy as np
+import numpy.typing as npt
+
+#: which end of a run of equal values np.searchsorted places a value at
+Side = Literal["left", "right"]
 
 
 class DiskArray:
-    """A read-only 1-D array in a binary file (native byte order, no header)."""
+    """A read-only 1-D array of float64 in a binary file (native byte order, no header)."""
 
     ndim = 1
 
-    def __init__(self, path: str | Path, dtype: Any = np.float64) -> None:
+    def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self.dtype = np.dtype(dtype)
+        self.dtype = np.dtype(np.float64)
         self._fd = os.open(self.path, os.O_RDONLY)
         self.size: int = os.fstat(self._fd).st_size // self.dtype.itemsize
         self.shape = (self.size,)
@@ -64,7 +69,13 @@ class DiskArray:
             raise IndexError(f"index {i} out of range for {self.size} values in {self.path}")
         return j
 
-    def __getitem__(self, key: Any) -> Any:
+    @overload
+    def __getitem__(self, key: int | np.integer) -> np.float64: ...
+    @overload
+    def __getitem__(self, key: slice | np.ndarray | Sequence[int]) -> np.ndarray: ...
+
+    def __getitem__(self, key: int | np.integer | slice | np.ndarray | Sequence[int]
+                    ) -> np.float64 | np.ndarray:
         if isinstance(key, slice):
             lo, hi, step = key.indices(self.size)
             if step != 1:
@@ -72,7 +83,7 @@ class DiskArray:
             return self.read(lo, hi)
         if isinstance(key, int | np.integer):
             j = self._index(int(key))
-            return self.read(j, j + 1)[0]
+            return np.float64(self.read(j, j + 1)[0])
         idx = np.asarray(key)
         if idx.dtype.kind not in "iu":
             raise IndexError(f"{self.path}: index with integers or slices, got {idx.dtype}")
@@ -81,11 +92,12 @@ class DiskArray:
             out[pos] = self.read(self._index(int(i)), self._index(int(i)) + 1)[0]
         return out
 
-    def __array__(self, dtype: Any = None, copy: Any = None) -> np.ndarray:
+    def __array__(self, dtype: npt.DTypeLike | None = None, copy: bool | None = None
+                  ) -> np.ndarray:
         raise TypeError(f"{self.path} is read in chunks, not as one array "
                         f"({self.size} values): slice it")
 
-    def searchsorted(self, v: Any, side: str = "left") -> np.ndarray:
+    def searchsorted(self, v: npt.ArrayLike, side: Side = "left") -> np.ndarray | np.intp:
         """np.searchsorted for sorted values, by binary search on the file."""
         values = np.atleast_1d(np.asarray(v, dtype=float))
         out = np.empty(values.shape, dtype=np.int64)
@@ -106,12 +118,20 @@ class DiskArray:
 Samples = np.ndarray | DiskArray
 
 
-def as_samples(x: Any) -> Samples:
+def as_samples(x: npt.ArrayLike | DiskArray) -> Samples:
     """A record's samples as the analysis reads them: on disk stays on disk."""
     return x if isinstance(x, DiskArray) else np.asarray(x, dtype=float)
 
 
-def searchsorted(a: np.ndarray | DiskArray, v: Any, side: str = "left") -> Any:
+@overload
+def searchsorted(a: np.ndarray | DiskArray, v: float, side: Side = "left") -> np.intp: ...
+@overload
+def searchsorted(a: np.ndarray | DiskArray, v: np.ndarray, side: Side = "left"
+                 ) -> np.ndarray: ...
+
+
+def searchsorted(a: np.ndarray | DiskArray, v: float | np.ndarray, side: Side = "left"
+                 ) -> np.ndarray | np.intp:
     if isinstance(a, DiskArray):
         return a.searchsorted(v, side)
-    return np.searchsorted(a, v, side)  # type: ignore[call-overload]
+    return np.searchsorted(a, v, side)

@@ -8,11 +8,16 @@ from __future__ import annotations
 
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import sqlalchemy as sa
 from sqlalchemy import event
 from sqlalchemy.engine import Connection, Engine
+
+if TYPE_CHECKING:
+    import sqlite3
+
+    from sqlalchemy.pool import ConnectionPoolEntry
 
 CONNECT_TIMEOUT_S = 5          # an unreachable lab server must not hold a run up
 SQLITE_BUSY_S = 30.0           # another bench holding the SQLite file: wait this long
@@ -41,7 +46,8 @@ def make_engine(url: str) -> Engine:
         # holds a read lock; BEGIN IMMEDIATE takes the write lock up front, so a second
         # writer waits (busy timeout) instead of failing (SQLAlchemy's documented recipe).
         @event.listens_for(eng, "connect")
-        def _no_implicit_begin(dbapi_conn: Any, _rec: Any) -> None:
+        def _no_implicit_begin(dbapi_conn: sqlite3.Connection, _rec: ConnectionPoolEntry
+                               ) -> None:
             dbapi_conn.isolation_level = None
             dbapi_conn.execute("PRAGMA foreign_keys=ON")
 
@@ -50,7 +56,7 @@ def make_engine(url: str) -> Engine:
             conn.exec_driver_sql("BEGIN IMMEDIATE")
 
         return eng
-    args: dict[str, Any] = {}
+    args: dict[str, object] = {}
     if real.startswith("postgresql"):
         args["connect_timeout"] = CONNECT_TIMEOUT_S
     return sa.create_engine(real, connect_args=args, pool_pre_ping=True)

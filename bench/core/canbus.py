@@ -17,7 +17,7 @@ from bench.core.yamlfile import KeyPath
 from drivers.cia402 import CONTROLLER_NODE_ID  # further axes on a bus take 0x7E, 0x7D, ...
 
 
-def bus_name(drive: Mapping[str, Any]) -> str:
+def bus_name(drive: Mapping[str, object]) -> str:
     """A bus's identity: interface and channel, and for a bus behind a server
     (socketcand) the server's host and port, so two servers' `can0` are two buses."""
     where = ""

@@ -25,9 +25,9 @@ import json
 import os
 import shutil
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, TypedDict
 
 import bench
 from bench.core import rundir_layout as layout
@@ -72,7 +72,7 @@ class JsonLines:
         self._lock = threading.Lock()
         self.count = 0  # records written by this writer
 
-    def write(self, record: dict[str, Any]) -> None:
+    def write(self, record: Mapping[str, object]) -> None:
         line = json.dumps(record, separators=(",", ":"), allow_nan=False) + "\n"
         with self._lock:
             if self._f.closed:
@@ -144,16 +144,37 @@ def read_jsonl(path: Path) -> Iterator[dict[str, Any]]:
     yield from scan_jsonl(path)[0]
 
 
+class RunMeta(TypedDict):
+    """meta.json as `RunDir.create` writes it: where the inputs came from, their SHA-256,
+    the version (the run's later facts, as-found/as-left, the performer, are added by the
+    app and read where they are used)."""
+
+    procedure_file: str
+    procedure_name: str
+    procedure_sha256: str
+    stand_file: str
+    stand_sha256: str
+    created_utc: str
+    bench_version: str
+
+
 #: the event a run writes when it opens a FOG while its clock runs: where the raw
 #: capture raw/s<session>/<axis>-fog.bin starts (drivers/fog.py `first_index`)
 FOG_CAPTURE_EVENT = "fog_capture"
 
 
-def fog_capture_starts(events: Iterable[dict[str, Any]]) -> dict[tuple[int, str], int]:
+def fog_capture_starts(events: Iterable[Mapping[str, object]]) -> dict[tuple[int, str], int]:
     """{(session, axis): the first sample index of that session's FOG capture}. A capture
     without the event starts at index 0 (a run from before the event existed)."""
-    return {(int(e["session"]), str(e["axis"])): int(e["first_index"]) for e in events
+    return {(_count(e["session"]), str(e["axis"])): _count(e["first_index"]) for e in events
             if e.get("event") == FOG_CAPTURE_EVENT and e.get("first_index") is not None}
+
+
+def _count(value: object) -> int:
+    """A journal's whole number (a session, a sample index) as JSON gave it back."""
+    if isinstance(value, bool) or not isinstance(value, int | float | str):
+        raise ValueError(f"{value!r} is not a whole number")
+    return int(value)
 
 
 def torn_tail_bytes(path: Path) -> int:
@@ -180,7 +201,7 @@ class RunDir:
             raise FileNotFoundError(f"{self.path} is not a run directory (no events.jsonl)")
         self._events: JsonLines | None = None
         self.session = 0
-        self._clock_now = lambda: None
+        self._clock_now: Callable[[], float | None] = lambda: None
         #: what this process computed from the run's raw data while it ran (a kind's first
         #: look at a pair), for the final analysis to take instead of computing it again;
         #: never written: a resumed or re-analysed run starts without it
@@ -214,7 +235,7 @@ class RunDir:
         shutil.copyfile(stand_path, path / cls.STAND)
         if lab_path is not None:  # the laboratory's settings as used (bench.core.lab)
             shutil.copyfile(lab_path, path / cls.LAB)
-        meta = {
+        meta: RunMeta = {
             "procedure_file": str(procedure_path),
             "procedure_name": procedure_path.name,
             "procedure_sha256": sha256_file(procedure_path),
@@ -228,8 +249,8 @@ class RunDir:
         return cls(path)
 
     @property
-    def meta(self) -> dict[str, Any]:
-        meta: dict[str, Any] = json.loads((self.path / layout.META).read_text())
+    def meta(self) -> RunMeta:
+        meta: RunMeta = json.loads((self.path / layout.META).read_text())
         return meta
 
     @property
@@ -245,7 +266,7 @@ class RunDir:
         """The number the next `begin_session` gives (1 for a new run)."""
         return max((e.get("session", 0) for e in self.events()), default=0) + 1
 
-    def begin_session(self, clock_now: Any = None) -> int:
+    def begin_session(self, clock_now: Callable[[], float] | None = None) -> int:
         """Each `bench run` or `--resume` is a session with its own raw folder."""
         self.session = self.next_session()
         try:
@@ -272,7 +293,7 @@ class RunDir:
     def raw_path(self, name: str) -> Path:
         return self.raw_dir / name
 
-    def event(self, kind: str, **fields: Any) -> None:
+    def event(self, kind: str, **fields: object) -> None:
         if self._events is None:
             raise RuntimeError("begin_session() first")
         rec = {"utc": utc_now(), "t_s": self._clock_now(), "session": self.session,
@@ -290,7 +311,7 @@ class RunDir:
             self._events.close()
 
     # -- derived files ----------------------------------------------------------------
-    def write_json(self, name: str, data: Any) -> Path:
+    def write_json(self, name: str, data: object) -> Path:
         """Write atomically: a reader never sees half a result.json."""
         target = self.path / name
         tmp = target.with_suffix(target.suffix + ".tmp")

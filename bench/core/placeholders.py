@@ -24,7 +24,7 @@ import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 
 from bench.core import rundir_layout as layout
 from bench.core.registry import procedure_kind, procedure_names
@@ -50,7 +50,7 @@ _PLACEHOLDER = re.compile(r"\s*" + re.escape(PREFIX), re.IGNORECASE)
 _ABSENT = object()
 
 
-def is_placeholder(value: Any) -> bool:
+def is_placeholder(value: object) -> TypeGuard[str]:
     """Whether a YAML value is a placeholder: the one test, so nothing reads one as data."""
     return isinstance(value, str) and _PLACEHOLDER.match(value) is not None
 
@@ -60,7 +60,7 @@ def what_goes_there(value: str) -> str:
     return value.strip()[len(PREFIX):].strip()
 
 
-def placeholders(data: Any, path: KeyPath = ()) -> Iterator[tuple[KeyPath, str]]:
+def placeholders(data: object, path: KeyPath = ()) -> Iterator[tuple[KeyPath, str]]:
     """Every placeholder in a file's data: its key path and what goes there, in file order."""
     if is_placeholder(data):
         yield path, what_goes_there(data)
@@ -72,8 +72,8 @@ def placeholders(data: Any, path: KeyPath = ()) -> Iterator[tuple[KeyPath, str]]
             yield from placeholders(value, (*path, i))
 
 
-def _strip(value: Any, node: Node, optional: bool, old: KeyPath, new: KeyPath,
-           renamed: dict[KeyPath, KeyPath]) -> Any:
+def _strip(value: object, node: Node, optional: bool, old: KeyPath, new: KeyPath,
+           renamed: dict[KeyPath, KeyPath]) -> object:
     """`value` without its placeholders, or _ABSENT. A list entry left out moves those
     after it: `renamed` keeps where each moved one was written (new path -> old path)."""
     if is_placeholder(value):
@@ -81,7 +81,7 @@ def _strip(value: Any, node: Node, optional: bool, old: KeyPath, new: KeyPath,
     while isinstance(node, Check):
         node = node.inner
     if isinstance(value, dict):
-        out: dict[Any, Any] = {}
+        out: dict[object, object] = {}
         for key, v in value.items():
             child, may_go = _child(node, key)
             if child is None:   # an unknown key: kept whole, for the schema to refuse
@@ -97,7 +97,7 @@ def _strip(value: Any, node: Node, optional: bool, old: KeyPath, new: KeyPath,
         return out
     if isinstance(value, list):
         item = node.item if isinstance(node, ListOf) else Any_()
-        kept: list[Any] = []
+        kept: list[object] = []
         for i, v in enumerate(value):
             at = (*new, len(kept))
             keep = _strip(v, item, True, (*old, i), at, renamed)
@@ -109,11 +109,11 @@ def _strip(value: Any, node: Node, optional: bool, old: KeyPath, new: KeyPath,
     return value
 
 
-def _child(node: Node, key: Any) -> tuple[Node | None, bool]:
+def _child(node: Node, key: object) -> tuple[Node | None, bool]:
     """The schema of a mapping's value at `key` (None: a key the schema does not know)
     and whether that value may be left out."""
     if isinstance(node, Map):
-        spec = node.keys.get(key)
+        spec = node.keys.get(key) if isinstance(key, str) else None
         return (spec.node, not spec.required) if spec is not None else (None, True)
     if isinstance(node, MapOf):
         return node.value, False     # a name the file chose (an axis): never dropped

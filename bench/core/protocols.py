@@ -11,13 +11,13 @@ call: a driver is free to offer more.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from drivers.cia402 import DriveUnits
 from drivers.counter import Acquisition, InputConfig, What
-from drivers.fog import FogSamples, FogStats
+from drivers.fog import FogCheckpoint, FogSamples, FogStats
 from drivers.time_tie import TimeTie
 
 
@@ -27,7 +27,7 @@ class Drive(Protocol):
     name: str
     max_rate_dps: float
     @property
-    def readback(self) -> Mapping[str, Any]:
+    def readback(self) -> Mapping[str, object]:
         """Settings read back at connect (journaled, shown on the certificate)."""
     units: DriveUnits   # the drive's velocity and acceleration units (factor group)
 
@@ -61,7 +61,7 @@ class Counter(Protocol):
     """A timestamping counter watching an axis's once-per-revolution zero mark."""
 
     @property
-    def readback(self) -> Mapping[str, Any]:
+    def readback(self) -> Mapping[str, object]:
         """Settings read back at connect (journaled, shown on the certificate)."""
     time_tie: TimeTie
     last_acquisition: Acquisition | None
@@ -90,7 +90,7 @@ class Fog(Protocol):
     first_index: int | None
 
     @property
-    def readback(self) -> Mapping[str, Any]:
+    def readback(self) -> Mapping[str, object]:
         """Settings read back at connect (journaled, shown on the certificate)."""
 
     @property
@@ -100,7 +100,7 @@ class Fog(Protocol):
 
     def wait_for_index(self, i: int, timeout_s: float) -> None: ...
 
-    def checkpoint(self) -> dict[str, Any]: ...
+    def checkpoint(self) -> FogCheckpoint: ...
 
     def samples(self, i_from: int, i_to: int) -> FogSamples: ...
 

@@ -50,6 +50,10 @@ DMM_SUFFIX = "-dmm.jsonl"
 AWG_LOG = "awg.jsonl"
 
 
+#: every session's raw folder, as a glob pattern under `raw_root` (`s1`, `s2`, ...)
+SESSION_GLOB = "s*"
+
+
 def session_folder(session: int) -> str:
     """A session's raw folder's name (`s1`, `s2`, ...)."""
     return f"s{session}"

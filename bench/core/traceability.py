@@ -13,7 +13,6 @@ import datetime as dt
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 from bench.core.config import StandSettings, Traced, stated_traceability
 
@@ -23,7 +22,7 @@ __all__ = ["Traced", "overdue", "overdue_warning", "traced_items"]
 MEASURING_ROLES = ("counter", "dmm")
 
 
-def traced_items(stand: StandSettings | Mapping[str, Any]) -> list[Traced]:
+def traced_items(stand: StandSettings | Mapping[str, object]) -> list[Traced]:
     """Every instrument of the stand (with or without a stated calibration) and every
     entry of its `traceability:` list: of the parsed stand, or of a run directory's copy
     of the stand file read back (the certificate's)."""
@@ -32,7 +31,7 @@ def traced_items(stand: StandSettings | Mapping[str, Any]) -> list[Traced]:
     return list(stated_traceability(stand))
 
 
-def overdue(stand: StandSettings | Mapping[str, Any], on: dt.date) -> list[Traced]:
+def overdue(stand: StandSettings | Mapping[str, object], on: dt.date) -> list[Traced]:
     return [t for t in traced_items(stand) if t.overdue(on)]
 
 
@@ -49,7 +48,7 @@ _SERIAL_WORD = re.compile(r"\bserial(?: number)?[ :=]+([^\s,;]+)", re.IGNORECASE
 _NO_SERIAL = {"", "0", "none", "unknown", "n/a", "na", "-"}
 
 
-def serial_of(identity: Any) -> str | None:
+def serial_of(identity: object) -> str | None:
     """The serial an instrument reported in its identity: `serial X` in the text (drive
     identity objects, a FOG's configured identity), else the third field of an IEEE 488.2
     `*IDN?` answer (maker,model,serial,firmware). None when it gave none (or 0, which the
@@ -64,7 +63,7 @@ def serial_of(identity: Any) -> str | None:
     return None if serial.casefold() in _NO_SERIAL else serial
 
 
-def identity_problems(instruments: Mapping[str, Any]) -> list[str]:
+def identity_problems(instruments: Mapping[str, object]) -> list[str]:
     """Items a value rests on whose identity does not single them out (ISO/IEC 17025
     6.4.13 a: every item of equipment uniquely identified): an instrument that reported no
     serial, one serial reported by two instruments of one model (the FOG included, by the
@@ -101,8 +100,8 @@ def identity_problems(instruments: Mapping[str, Any]) -> list[str]:
 _SEVERAL = re.compile(r"[/,;&+]|\band\b", re.IGNORECASE)
 
 
-def reference_problems(stand: Mapping[str, Any],
-                       instruments: Mapping[str, Any] | None = None) -> list[str]:
+def reference_problems(stand: Mapping[str, object],
+                       instruments: Mapping[str, object] | None = None) -> list[str]:
     """The stand's `traceability:` entries (references and sensors the bench reads no
     identity from) that do not identify one item: no serial, a serial naming several
     items, or a serial another entry or a reporting instrument also carries."""
@@ -134,25 +133,25 @@ def reference_problems(stand: Mapping[str, Any],
     return problems
 
 
-class DeclaredIdentities(dict[str, dict[str, Any]]):
+class DeclaredIdentities(dict[str, dict[str, object]]):
     """The identities as reported, with the stand file they were completed from (so the
     identity check also reads the stand's traceability list)."""
 
-    def __init__(self, identities: Mapping[str, dict[str, Any]],
-                 stand: Mapping[str, Any]) -> None:
+    def __init__(self, identities: Mapping[str, dict[str, object]],
+                 stand: Mapping[str, object]) -> None:
         super().__init__(identities)
-        self.stand: Mapping[str, Any] = stand
+        self.stand: Mapping[str, object] = stand
 
 
 #: roles that answer no identity query: their serial is the stand file's (and said so)
 DECLARED_IDENTITY_ROLES = ("fog",)
 
 
-def with_declared_serials(instruments: Mapping[str, Any],
-                          stand: Mapping[str, Any]) -> DeclaredIdentities:
+def with_declared_serials(instruments: Mapping[str, object],
+                          stand: Mapping[str, object]) -> DeclaredIdentities:
     """The identities as reported, with the stand file's serial added for an instrument
     that answers no identity query (a FOG), marked as stated, not read back."""
-    out: dict[str, dict[str, Any]] = {}
+    out: dict[str, dict[str, object]] = {}
     axes = stand.get("axes") or {}
     for axis, roles in instruments.items():
         if not isinstance(roles, Mapping):
@@ -204,7 +203,7 @@ IDENTITY_QUERIES = {"counter": "*IDN?", "drive": "identity object 0x1018:4",
 
 
 def identity_mismatches(stand: StandSettings,
-                        identities: Mapping[str, Mapping[str, Any]]) -> list[IdentityMismatch]:
+                        identities: Mapping[str, Mapping[str, object]]) -> list[IdentityMismatch]:
     """Every instrument whose reported serial differs from the serial its stand block
     states. An instrument that reports none is not a mismatch (identity_problems says
     so); a FOG that answers no identity query keeps the stand's serial, stated."""

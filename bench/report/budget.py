@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from bench.analysis.coverage import COVERAGE_P, coverage_factor, welch_satterthwaite
+from drivers.json_types import JsonObject
 
 NORMAL = "normal"
 RECTANGULAR = "rectangular"
@@ -49,7 +50,7 @@ class Term:
         """c_i u(x_i): the sign matters where two inputs are correlated (GUM 5.2.2)."""
         return self.sensitivity * self.ustd
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {"quantity": self.quantity, "estimate": self.estimate, "unit": self.unit,
                 "ustd": self.ustd, "distribution": self.distribution,
                 "sensitivity": self.sensitivity, "contribution_ustd": self.contribution,
@@ -102,7 +103,7 @@ class Budget:
             return None
         return abs(self.U - self.reported_U) <= AGREE_REL * self.reported_U
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         return {"quantity": self.quantity, "key": self.key, "unit": self.unit,
                 "estimate": self.estimate, "terms": [t.to_dict() for t in self.terms],
                 "combined_ustd": self.ustd, "dof_eff": self.dof_eff, "coverage_factor": self.k,
@@ -114,7 +115,7 @@ class Budget:
                    if self.correlations else {})}
 
 
-def num(x: Any) -> float | None:
+def num(x: object) -> float | None:
     if isinstance(x, bool) or not isinstance(x, int | float):
         return None
     return float(x) if math.isfinite(x) else None
@@ -138,9 +139,9 @@ def from_dict(d: Mapping[str, Any]) -> Budget | None:
         return None
 
 
-def budgets_in(node: Any) -> Sequence[Mapping[str, Any]]:
+def budgets_in(node: object) -> Sequence[Mapping[str, object]]:
     """Every budget dict under `node` (a `budgets` list anywhere), in document order."""
-    out: list[Mapping[str, Any]] = []
+    out: list[Mapping[str, object]] = []
     if isinstance(node, Mapping):
         for k, v in node.items():
             if k == "budgets" and isinstance(v, list):
@@ -153,7 +154,7 @@ def budgets_in(node: Any) -> Sequence[Mapping[str, Any]]:
     return out
 
 
-def _site(path: tuple[Any, ...], node: Mapping[str, Any]) -> str:
+def _site(path: tuple[object, ...], node: Mapping[str, object]) -> str:
     """Where a budget belongs, for a reader: 'axis outer, +10 deg/s', 'axis x', ..."""
     axis = next((str(path[i + 1]) for i in range(len(path) - 1)
                  if path[i] == "axes"), None)
@@ -165,7 +166,7 @@ def _site(path: tuple[Any, ...], node: Mapping[str, Any]) -> str:
     return ", ".join(where) or "overall"
 
 
-def budget_sites(node: Any, path: tuple[Any, ...] = ()) -> list[tuple[str, str, Budget]]:
+def budget_sites(node: object, path: tuple[object, ...] = ()) -> list[tuple[str, str, Budget]]:
     """(where, result.json path of the owner, budget) for every budget under `node`."""
     out: list[tuple[str, str, Budget]] = []
     if isinstance(node, Mapping):

@@ -23,7 +23,6 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from bench.analysis.finite import finite_number
 from bench.report.certificate.model import Document, Fields, Table
@@ -121,8 +120,8 @@ def spec_for(quantity: str, specs: Sequence[FigureSpec]) -> FigureSpec | None:
     return next((s for s in specs if s.matches(quantity)), None)
 
 
-def _walk(node: Any, parts: Sequence[str], axis: str, rate: float | None,
-          rate_key: str | None) -> Iterator[tuple[str, float | None, Mapping[str, Any]]]:
+def _walk(node: object, parts: Sequence[str], axis: str, rate: float | None,
+          rate_key: str | None) -> Iterator[tuple[str, float | None, Mapping[str, object]]]:
     """(axis, rate, the mapping holding the value) for every match of `parts`."""
     if not isinstance(node, Mapping):
         return
@@ -145,7 +144,7 @@ def _walk(node: Any, parts: Sequence[str], axis: str, rate: float | None,
     yield from _walk(node.get(head), rest, axis, rate, rate_key)
 
 
-def values_at(result: Mapping[str, Any], specs: Sequence[FigureSpec]) -> list[FigureValue]:
+def values_at(result: Mapping[str, object], specs: Sequence[FigureSpec]) -> list[FigureValue]:
     """Every declared figure result.json holds, read at its declared path."""
     out = []
     for spec in specs:
@@ -168,7 +167,7 @@ class DeclaredFigures:
 
     figures: tuple[FigureSpec, ...] = ()
 
-    def figure_values(self, result: Mapping[str, Any]) -> list[FigureValue]:
+    def figure_values(self, result: Mapping[str, object]) -> list[FigureValue]:
         return values_at(result, self.figures)
 
 

@@ -14,7 +14,7 @@ cycle's fitted offset). Which `_u` keys are standard is stated here, once.
 from __future__ import annotations
 
 import re
-from typing import Any
+from typing import overload
 
 #: mappings whose `_u` entries are standard uncertainties (k = 1): uncertainty budgets
 STANDARD_PARENTS = frozenset({"rate_error_budget", "budget", "own_u_dph", "apparent_u_dph"})
@@ -47,13 +47,20 @@ def explicit_name(key: str, standard: bool) -> str | None:
     return f"{m['stem']}_{mark}{m['unit'] or ''}"
 
 
-def with_explicit_names(doc: Any, parent: str = "", item_of: str = "") -> Any:
+@overload
+def with_explicit_names(doc: dict[str, object], parent: str = "", item_of: str = ""
+                        ) -> dict[str, object]: ...
+@overload
+def with_explicit_names(doc: object, parent: str = "", item_of: str = "") -> object: ...
+
+
+def with_explicit_names(doc: object, parent: str = "", item_of: str = "") -> object:
     """A copy of `doc` with the explicit twin beside every `_u` key (values unchanged)."""
     if isinstance(doc, list):
         return [with_explicit_names(x, parent, parent) for x in doc]
     if not isinstance(doc, dict):
         return doc
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for key, value in doc.items():
         out[key] = with_explicit_names(value, key)
         if isinstance(value, list) or (isinstance(value, dict) and parent != "budget"):

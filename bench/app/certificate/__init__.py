@@ -20,10 +20,11 @@ from bench.app.certificate import register
 from bench.app.certificate.build import ExtraSection, build_document, restated
 from bench.app.certificate.html import render_html
 from bench.app.certificate.pdf import render_pdf
+from bench.core import rundir_layout as layout
 from bench.report.certificate.model import Document
 
-HTML_NAME = "certificate.html"
-PDF_NAME = "certificate.pdf"
+HTML_NAME = layout.CERTIFICATE_HTML
+PDF_NAME = layout.CERTIFICATE_PDF
 
 __all__ = ["Document", "build_document", "render_files", "render_html", "render_pdf",
            "render_issue", "result_digest", "write_certificate"]

@@ -46,14 +46,15 @@ from bench.app.certificate import (
 from bench.app.certificate.build import Sources, stand_of
 from bench.app.certificate.revisions import statement_changes
 from bench.app.register.store import MEANING_ISSUE
+from bench.core import rundir_layout as layout
 from bench.core.lab import Lab, LabError, Signatory, run_lab
 from bench.core.traceability import identity_problems, with_declared_serials
 
 EXIT_ISSUED, EXIT_REFUSED, EXIT_FAILED = 0, 2, 3
-ISSUED_DIR = "issued"
+ISSUED_DIR = layout.ISSUED
 WITHDRAWN_NAME = "WITHDRAWN.txt"
-RESULT_NAME = "result.json"
-DCC_NAME = "certificate.dcc.xml"
+RESULT_NAME = layout.RESULT
+DCC_NAME = layout.CERTIFICATE_DCC
 
 
 @dataclass(frozen=True)
@@ -268,7 +269,7 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
     except LabError as e:
         return _refuse([str(e)], run_path)
     if not url:
-        return _refuse([f"the lab file ({lab_file or run_path / 'lab.yaml'}) names no register "
+        return _refuse([f"the lab file ({lab_file or run_path / layout.LAB}) names no register "
                         "(register: URL): a certificate is issued only through the lab's "
                         "register, which authenticates the signatory and allocates the number "
                         "(docs/register.md); the draft stays a draft"], run_path)
@@ -281,7 +282,7 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
             acct = reg.authenticate(signatory_name, (password or _ask)(
                 f"password of {signatory_name} (e-signature, register {redact(url)}): "),
                 "signatory")
-            uid = run_uid(json.loads((run_path / "meta.json").read_text(encoding="utf-8")),
+            uid = run_uid(json.loads((run_path / layout.META).read_text(encoding="utf-8")),
                           run_path.name)
             number = reg.number_of_run(uid)
             issued = reg.revisions(number) if number else []

@@ -27,6 +27,7 @@ from bench.app.certificate.item import decision_rule_text as agreed_rule_text
 from bench.app.certificate.operator import prompt_blocks, software_note, utc_text
 from bench.app.certificate.people import PERFORMED_BY, equipment_lines, performer, performer_line
 from bench.app.certificate.register import Issue
+from bench.core import rundir_layout as layout
 from bench.core.journal import sha256_file
 from bench.core.registry import procedure_kind, procedure_names
 from bench.core.traceability import with_declared_serials
@@ -857,15 +858,15 @@ def _tolerance_table(tol: Mapping[str, Any], proc: Procedure) -> Table:
 def _records(src: Sources) -> tuple[Any, ...]:
     files = [f for f in src.get("raw_files", []) or [] if isinstance(f, dict)]
     hashed_here = False
-    if not files and src.run_path is not None and (src.run_path / "raw").is_dir():
+    if not files and src.run_path is not None and layout.raw_root(src.run_path).is_dir():
         hashed_here = True
-        for p in sorted((src.run_path / "raw").rglob("*")):
+        for p in sorted(layout.raw_root(src.run_path).rglob("*")):
             if p.is_file():
                 files.append({"path": p.relative_to(src.run_path).as_posix(),
                               "sha256": sha256_file(p), "bytes": p.stat().st_size})
     inputs = []
     if src.run_path is not None:
-        for name in ("procedure.yaml", "stand.yaml", "meta.json", "events.jsonl"):
+        for name in (layout.PROCEDURE, layout.STAND, layout.META, layout.EVENTS):
             p = src.run_path / name
             if p.is_file():   # read once: digest and byte count of the same bytes
                 data = p.read_bytes()
@@ -881,7 +882,7 @@ def _records(src: Sources) -> tuple[Any, ...]:
     else:
         blocks.append(Para("No raw data files were recorded.", "note"))
     if inputs:
-        log = next((f for f in inputs if f["path"] == "events.jsonl"), None)
+        log = next((f for f in inputs if f["path"] == layout.EVENTS), None)
         # the event log is append-only and grows after this certificate is written (the
         # run's end, the certificate's own events): its digest is of the bytes counted here
         blocks.append(_hash_table(inputs, "Run records (inputs as used and the event log)",

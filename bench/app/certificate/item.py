@@ -20,6 +20,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from bench.core import rundir_layout as layout
 from bench.core.schema import parse_date
 from bench.core.traceability import with_declared_serials
 from bench.report.certificate.parts import Sources, stand_of
@@ -72,7 +73,7 @@ def _as_found(src: Sources, run_id: str) -> AsFound:
     """The as-found run beside this one (the runs folder), by its run directory name."""
     found = None
     if src.run_path is not None and "/" not in run_id and run_id not in ("", ".", ".."):
-        path = src.run_path.parent / run_id / "result.json"
+        path = src.run_path.parent / run_id / layout.RESULT
         try:
             found = json.loads(path.read_text(encoding="utf-8"))
         except (OSError, ValueError):

@@ -17,11 +17,13 @@ from collections.abc import Iterator
 
 from lxml import html as lxml_html
 
+from bench.core import rundir_layout as layout
+
 #: sections whose every line belongs to the revision itself
 OWN_SECTIONS = ("Authorisation",)
 #: field labels (and line starts) that name the revision itself, not what it states
 OWN_LINES = ("Certificate number", "Draft identifier", "Revision", "Date of issue",
-             "events.jsonl", "Page ")
+             layout.EVENTS, "Page ")
 
 
 def _text(node: lxml_html.HtmlElement) -> str:

@@ -12,7 +12,7 @@ import json
 import logging
 import time
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import IO
 
 from bench.app.console.figures import figure_text, figures_text
 from bench.app.console.plain import PlainConsole
@@ -38,15 +38,15 @@ class _LogLines(logging.Handler):
 
 
 class JsonConsole(PlainConsole):
-    def __init__(self, stream: Any = None, min_interval_s: float = 2.0, out: Any = None
-                 ) -> None:
+    def __init__(self, stream: IO[str] | None = None, min_interval_s: float = 2.0,
+                 out: IO[str] | None = None) -> None:
         super().__init__(stream, min_interval_s, out)
         root = logging.getLogger()
         for h in [h for h in root.handlers if isinstance(h, _LogLines)]:
             root.removeHandler(h)       # one console of the process at a time: the newest
         root.addHandler(_LogLines(self))
 
-    def emit(self, event: str, **fields: Any) -> None:
+    def emit(self, event: str, **fields: object) -> None:
         rec = {"utc": utc_now(), "event": event, **fields}
         self.stream.write(json.dumps(rec, ensure_ascii=False, allow_nan=False, default=str)
                           + "\n")
@@ -112,6 +112,6 @@ class JsonConsole(PlainConsole):
                   fields=dict(summary.fields))
 
 
-def _figure(f: Figure) -> dict[str, Any]:
+def _figure(f: Figure) -> dict[str, str | float | None]:
     """The number unrounded (as in result.json) and as the certificate would print it."""
     return {"name": f.name, "value": f.value, "u": f.u, "unit": f.unit, "text": figure_text(f)}

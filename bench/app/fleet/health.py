@@ -13,17 +13,25 @@ from __future__ import annotations
 import datetime as dt
 import time
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
-from bench.core.rundir_layout import EVENTS, raw_root
+from bench.core.rundir_layout import EVENTS, SESSION_GLOB, raw_root
 
 
-def sample(run_path: Path, now: float | None = None) -> dict[str, Any]:
+class HealthSample(TypedDict):
+    """What the bench says of a run's raw files between events (the station ages it)."""
+
+    files: dict[str, float]
+    events_age_s: float | None
+    sampled_utc: str
+
+
+def sample(run_path: Path, now: float | None = None) -> HealthSample:
     """{"files": {raw file name: age s}, "events_age_s": age s, "sampled_utc": ISO}: the
     newest session's raw files (raw/s<N>/), ages in wall seconds at sampling."""
     now = time.time() if now is None else now
     files: dict[str, float] = {}
-    sessions = sorted((p for p in raw_root(run_path).glob("s*") if p.name[1:].isdigit()),
+    sessions = sorted((p for p in raw_root(run_path).glob(SESSION_GLOB) if p.name[1:].isdigit()),
                       key=lambda p: int(p.name[1:]))
     if sessions:
         for f in sorted(sessions[-1].iterdir()):

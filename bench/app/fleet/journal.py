@@ -11,9 +11,9 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from bench.core.rundir_layout import EVENTS
+from drivers.json_types import JsonObject
 
 
 @dataclass(frozen=True)
@@ -21,7 +21,7 @@ class Line:
     """One line of the event log: its number (1 = first) and the event, if it is one."""
 
     seq: int
-    event: dict[str, Any] | None
+    event: JsonObject | None
 
 
 def new_lines(run_path: Path, offset_bytes: int, seq: int, max_lines: int

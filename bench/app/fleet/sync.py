@@ -20,14 +20,15 @@ import socket
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 import sqlalchemy as sa
 from sqlalchemy.dialects.postgresql import insert as pg_insert
 from sqlalchemy.engine import Connection
+from sqlalchemy.sql.elements import ColumnElement
 
 from bench.app.db import redact
 from bench.app.fleet import CHANNEL
+from bench.app.fleet.health import HealthSample
 from bench.app.fleet.journal import Line, new_lines
 from bench.app.fleet.outbox import Outbox
 from bench.app.records import schema as s
@@ -64,7 +65,7 @@ def bench_name(run_path: Path, stated: str | None = None) -> str:
     return str(name) if name else socket.gethostname()
 
 
-def _naive_utc(stamp: Any) -> dt.datetime | None:
+def _naive_utc(stamp: object) -> dt.datetime | None:
     if not isinstance(stamp, str):
         return None
     try:
@@ -97,7 +98,7 @@ class RunFacts:
         proc = read_mapping(run_path / layout.PROCEDURE)
         proc = proc if isinstance(proc, dict) else {}
         block = stand.get("stand")
-        ident: dict[str, Any] = block if isinstance(block, dict) else {}
+        ident: dict[str, object] = block if isinstance(block, dict) else {}
         return cls(uid=run_uid(meta, run_path.name), run_dir=run_path.name,
                    title=str(proc.get("title") or run_path.name),
                    kind=str(proc["procedure"]) if proc.get("procedure") else None,
@@ -162,7 +163,7 @@ class LabLink:
         self.close()
 
     def deliver(self, run_path: Path, outbox: Outbox, bench: str,
-                health: dict[str, Any] | None = None, register: bool = True,
+                health: HealthSample | None = None, register: bool = True,
                 batch_lines: int = BATCH_LINES) -> Delivery:
         """Bring the lab database up to date with one run directory; repeatable at will.
 
@@ -179,7 +180,7 @@ class LabLink:
                             f"{text[0] if text else type(e).__name__}") from e
 
     def _deliver(self, run_path: Path, outbox: Outbox, bench: str,
-                 health: dict[str, Any] | None, register: bool, batch_lines: int) -> Delivery:
+                 health: HealthSample | None, register: bool, batch_lines: int) -> Delivery:
         rec = self.records()
         facts = self._facts.get(run_path)
         if facts is None:
@@ -236,7 +237,7 @@ class LabLink:
 
     # -- one transaction ------------------------------------------------------------------
     @staticmethod
-    def _now() -> Any:
+    def _now() -> ColumnElement[dt.datetime]:
         """The lab server's clock, UTC: every age the station shows is on one clock."""
         return sa.func.timezone("UTC", sa.func.now())
 
@@ -261,7 +262,7 @@ class LabLink:
         return int(conn.execute(q.returning(r.c.id)).scalar_one())
 
     def _batch(self, conn: Connection, bench: str, facts: RunFacts, lines: list[Line],
-               health: dict[str, Any] | None) -> int:
+               health: HealthSample | None) -> int:
         run_id = self._run_id(conn, self._bench_id(conn, bench), facts)
         rows = [{"run_id": run_id, "seq": x.seq, "utc": _naive_utc(x.event.get("utc")),
                  "event": str(x.event.get("event", ""))[:60], "body": x.event}
@@ -273,7 +274,7 @@ class LabLink:
                                      .on_conflict_do_nothing()
                                      .returning(s.bench_events.c.seq)).all())
         r = s.bench_runs.c
-        values: dict[str, Any] = {}
+        values: dict[str, object] = {}
         if lines:
             values["last_seq"] = sa.func.greatest(r.last_seq, lines[-1].seq)
         stamps = [t for t in (_naive_utc(x.event.get("utc")) for x in lines

@@ -21,7 +21,6 @@ import datetime as dt
 import json
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
 
 from bench.app.db import redact
 from bench.app.records.assurance_notes import ASSURANCE_FILE, CLAUSE
@@ -33,10 +32,12 @@ from bench.app.records.control import (
 from bench.app.records.extract import NotARun, record_of
 from bench.app.records.hooks import RecordsTarget, target
 from bench.app.records.store import CheckPoint, Records, RecordsError
-from bench.core.config import SimSettings, StandSettings
+from bench.core import rundir_layout as layout
+from bench.core.config import Config, SimSettings, StandSettings
 from bench.core.simbench import with_sim
 from bench.core.simdrift import drifted, has_drift, stated_run_number
 from bench.report.certificate.parts import read_json_object
+from drivers.json_types import JsonObject
 
 Warn = Callable[[str], None]
 
@@ -45,7 +46,7 @@ def _aware(t: dt.datetime | None) -> dt.datetime | None:
     return None if t is None else t.replace(tzinfo=dt.UTC)
 
 
-def run_statuses(run_path: Path, url: str, result: Mapping[str, Any] | None = None
+def run_statuses(run_path: Path, url: str, result: Mapping[str, object] | None = None
                  ) -> list[InstrumentStatus]:
     """The status of each instrument this run rests on, from the records and this run's
     own check values (registered or not), with no point later than this run."""
@@ -63,7 +64,7 @@ def run_statuses(run_path: Path, url: str, result: Mapping[str, Any] | None = No
     return out
 
 
-def _as_json(s: InstrumentStatus) -> dict[str, Any]:
+def _as_json(s: InstrumentStatus) -> JsonObject:
     r = s.last_review
     return {"serial": s.serial, "role": s.role, "model": s.model, "state": s.state,
             "runs": s.runs, "rule": s.rule, "line": s.line,
@@ -75,11 +76,11 @@ def _as_json(s: InstrumentStatus) -> dict[str, Any]:
 
 
 def write_assurance(run_path: Path, where: RecordsTarget | str, warn: Warn,
-                    result: Mapping[str, Any] | None = None) -> list[InstrumentStatus] | None:
+                    result: Mapping[str, object] | None = None) -> list[InstrumentStatus] | None:
     """RUN_DIR/assurance.json for the certificate; None (and a note in the file) when the
     records could not be read."""
     url = where.url if isinstance(where, RecordsTarget) else where
-    doc: dict[str, Any] = {"records": redact(url),
+    doc: JsonObject = {"records": redact(url),
                            "assessed_utc": dt.datetime.now(dt.UTC).isoformat()}
     statuses: list[InstrumentStatus] | None
     try:
@@ -158,7 +159,7 @@ def warn_at_start(stand: StandSettings, where: RecordsTarget, warn: Warn
     return texts
 
 
-def drifting_config(cfg: Any, run_path: Path, where: RecordsTarget, say: Warn) -> Any:
+def drifting_config(cfg: Config, run_path: Path, where: RecordsTarget, say: Warn) -> Config:
     """The run's config with a drifting twin's truth for this run (bench/core/simdrift.py).
 
     The run number is `sim.run_number`, else 1 + the runs of this table in the records;
@@ -166,7 +167,7 @@ def drifting_config(cfg: Any, run_path: Path, where: RecordsTarget, say: Warn) -
     stand_settings = cfg.stand_settings
     if not has_drift(stand_settings):
         return cfg
-    meta_path = run_path / "meta.json"
+    meta_path = run_path / layout.META
     meta = read_json_object(meta_path)
     number = meta.get("sim_run_number") or stated_run_number(stand_settings)
     if number is None:

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.analysis.finite import finite_number as _num
+from bench.core import rundir_layout as layout
 from bench.core.journal import read_jsonl
 from bench.core.registry import ChecksInstruments, installed_records, procedure_names
 from bench.report.figures import InstrumentCheck
@@ -154,7 +155,7 @@ def _drive(axis: str, raw: Path, events: Sequence[Mapping[str, Any]], serial: st
            model: str | None) -> list[CheckRecord]:
     """Settle time beyond the commanded ramp, and the ripple the drive reports while the
     counter times turns (docs/method.md C1), from the drive's raw journal."""
-    files = sorted(raw.glob(f"s*/{axis}-drive.jsonl"))
+    files = sorted(raw.glob(f"{layout.SESSION_GLOB}/{layout.drive_log(axis)}"))
     if not files:
         return []
     settle: list[tuple[float, float]] = []      # (settle time, feedback interval)
@@ -216,8 +217,8 @@ def _drive(axis: str, raw: Path, events: Sequence[Mapping[str, Any]], serial: st
 def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any],
               kind_name: str | None = None) -> list[CheckRecord]:
     """Every check value of one run, per instrument serial."""
-    events = list(read_jsonl(run_path / "events.jsonl")) \
-        if (run_path / "events.jsonl").is_file() else []
+    events = list(read_jsonl(run_path / layout.EVENTS)) \
+        if (run_path / layout.EVENTS).is_file() else []
     ident = dict(stand.get("stand") or {})
     ident.update({k: v for k, v in (result.get("stand") or {}).items() if v is not None})
     stand_serial = str(ident.get("serial") or "stand")
@@ -260,7 +261,7 @@ def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any
                                        None, "1"))
         drive = conf.get("drive")
         if isinstance(drive, Mapping) and events:
-            out += _drive(axis, run_path / "raw", events, serial(axis, "drive", drive),
+            out += _drive(axis, layout.raw_root(run_path), events, serial(axis, "drive", drive),
                           _opt(drive.get("model")))
     # the instruments only the run's procedure kind knows (a gyro platform's gyros)
     kind = installed_records(kind_name or str(result.get("procedure") or ""))

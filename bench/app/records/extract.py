@@ -18,6 +18,7 @@ from typing import Any
 
 from bench.analysis.finite import finite_number as _num
 from bench.app.records.checks import CheckRecord, checks_of
+from bench.core import rundir_layout as layout
 from bench.core.journal import sha256_file
 from bench.core.placeholders import run_copy
 from bench.core.registry import ReportsFigures, installed_records
@@ -25,7 +26,7 @@ from bench.report.certificate.parts import read_json_object
 from bench.report.figures import FigureValue
 
 #: files of a run directory that make up its certificate (hashed into the records)
-CERTIFICATE_FILES = ("certificate.pdf", "certificate.html", "certificate.dcc.xml")
+CERTIFICATE_FILES = (layout.CERTIFICATE_PDF, layout.CERTIFICATE_HTML, layout.CERTIFICATE_DCC)
 #: meta.json keys written by `bench run` for the records (as-found/as-left, operator)
 STATES = ("as-found", "as-left")
 
@@ -197,7 +198,7 @@ def _issued_files(path: Path, number: str | None) -> tuple[tuple[str, str, int],
     issued/<number>/; nothing for a draft."""
     if number is None:
         return ()
-    folder = path / "issued" / number
+    folder = path / layout.ISSUED / number
     return tuple((name, sha256_file(folder / name), (folder / name).stat().st_size)
                  for name in CERTIFICATE_FILES if (folder / name).is_file())
 
@@ -206,13 +207,13 @@ def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> Run
     """The record of a finished run directory; NotARun if it has no result.json."""
     path = Path(run_path).resolve()
     if result is None:
-        if not (path / "result.json").is_file() or not (path / "events.jsonl").is_file():
+        if not (path / layout.RESULT).is_file() or not (path / layout.EVENTS).is_file():
             raise NotARun(f"{path}: no result.json and events.jsonl (not a finished run)")
-        result = read_json_object(path / "result.json")
+        result = read_json_object(path / layout.RESULT)
     if not result:
         raise NotARun(f"{path}/result.json: not a readable result")
-    meta = read_json_object(path / "meta.json")
-    stand_file = run_copy(path, "stand.yaml")   # a serial still to fill in is none
+    meta = read_json_object(path / layout.META)
+    stand_file = run_copy(path, layout.STAND)   # a serial still to fill in is none
     ident = dict((stand_file.get("stand") or {}) if isinstance(stand_file, dict) else {})
     ident.update({k: v for k, v in (result.get("stand") or {}).items() if v is not None})
     serial = str(ident.get("serial") or "").strip()
@@ -265,6 +266,6 @@ def _opt(x: Any) -> str | None:
 def find_runs(runs_dir: str | Path) -> list[Path]:
     """Run directories under `runs_dir` (itself, its children, or deeper), oldest first."""
     root = Path(runs_dir)
-    found = {p.parent for p in root.rglob("result.json") if (p.parent / "events.jsonl").is_file()}
-    return sorted(found, key=lambda p: (read_json_object(p / "meta.json").get("created_utc", ""),
+    found = {p.parent for p in root.rglob(layout.RESULT) if (p.parent / layout.EVENTS).is_file()}
+    return sorted(found, key=lambda p: (read_json_object(p / layout.META).get("created_utc", ""),
                                         p.name))

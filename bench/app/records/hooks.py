@@ -14,13 +14,17 @@ import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bench.app.db import redact
 from bench.app.records.extract import STATES, NotARun, record_of
 from bench.app.records.settings import LabSettings, SettingsError, load_lab_settings, records_url
 from bench.app.records.store import Records, RecordsError
+from bench.core import rundir_layout as layout
 from bench.core.config import CommonSettings, Identity
+
+if TYPE_CHECKING:
+    from bench.report.certificate.model import Block
 
 Warn = Callable[[str], None]
 IMPORT_HINT = "`bench records import {runs}` registers it once the database is back"
@@ -54,12 +58,12 @@ def target(runs_dir: str | Path, url: str | None = None, warn: Warn | None = Non
 
 
 def mark_run(run_path: Path, procedure: CommonSettings, state: str | None = None,
-             note: str | None = None, register: Mapping[str, Any] | None = None) -> None:
+             note: str | None = None, register: Mapping[str, object] | None = None) -> None:
     """Write as-found/as-left, the adjustment note and the operator into meta.json.
 
     The CLI flag wins over the procedure key; written before the run starts so that an
     import years later reads what the operator said at the time."""
-    meta_path = run_path / "meta.json"
+    meta_path = run_path / layout.META
     meta = json.loads(meta_path.read_text())
     state = state or procedure.calibration_state
     note = note or procedure.adjustment_note
@@ -76,7 +80,8 @@ def mark_run(run_path: Path, procedure: CommonSettings, state: str | None = None
     register = dict(register or {})
     performer = register.get("performer")
     meta["os_user"] = login
-    meta["operator"] = performer["account"] if performer else login
+    meta["operator"] = (performer["account"] if isinstance(performer, Mapping) and performer
+                        else login)
     if procedure.operator:
         meta["operator_stated"] = procedure.operator      # the procedure file's word only
     meta.update(register)
@@ -130,7 +135,7 @@ def register_run(run_path: Path, where: RecordsTarget, warn: Warn,
 
 
 def history_sections(run_path: Path, result: dict[str, Any], where: RecordsTarget,
-                     warn: Warn) -> list[Any]:
+                     warn: Warn) -> list[tuple[str, tuple[Block, ...]]]:
     """The certificate's history section, or nothing (no earlier run, no database)."""
     from bench.app.records.section import history_section
 

@@ -9,13 +9,12 @@ from __future__ import annotations
 
 import datetime as dt
 from collections.abc import Sequence
-from typing import Any
 
 from bench.app.records.extract import FigureRecord, RunRecord
 from bench.app.records.store import Records, RunInfo, TrendPoint
 from bench.app.records.trend import trend_png
 from bench.core.registry import declared_figures
-from bench.report.certificate.model import Fields, Figure, Para, Table
+from bench.report.certificate.model import Block, Fields, Figure, Para, Table
 from bench.report.certificate.rounding import format_value_u
 from bench.report.figures import FigureSpec, spec_for
 
@@ -66,10 +65,11 @@ def _comparison(rec: Records, found: RunInfo, current: RunRecord,
                          f"and as left (this certificate); U with k = 2")
 
 
-def history_section(rec: Records, current: RunRecord, where: str) -> list[tuple[str, tuple]]:
+def history_section(rec: Records, current: RunRecord, where: str
+                    ) -> list[tuple[str, tuple[Block, ...]]]:
     """[(title, blocks)] for the certificate; [] when the records hold no earlier run."""
     earlier = _earlier(rec, current)
-    blocks: list[Any] = []
+    blocks: list[Block] = []
     if current.calibration_state:
         state = [("Calibration state of this run", current.calibration_state)]
         if current.adjustment_note:

@@ -16,10 +16,10 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TypeVar
 
 import sqlalchemy as sa
-from sqlalchemy.engine import Connection, Engine
+from sqlalchemy.engine import Connection, Engine, RowMapping
 from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 
 from bench.app.db import make_engine, redact, upgrade_to_head
@@ -414,7 +414,7 @@ class Records:
         with self.engine.connect() as conn:
             rows = conn.execute(sa.select(s.figures).join(s.runs, f.run_id == r.id)
                                 .where(r.uid == run_uid).order_by(f.id)).all()
-        return [_figure(x) for x in rows]
+        return [_figure(x._mapping) for x in rows]
 
     def trend(self, serial: str, quantities: tuple[str, ...] | None = None,
               runs_of_table: list[RunInfo] | None = None) -> list[TrendPoint]:
@@ -523,10 +523,11 @@ class Records:
                                           d.table.serial))
 
 
-def _figure(x: Any) -> FigureRecord:
-    return FigureRecord(axis=x.axis, quantity=x.quantity, set_rate_dps=x.set_rate_dps,
-                        value=x.value, u=x.u, unit=x.unit, tolerance=x.tolerance,
-                        verdict=x.verdict, rule=x.rule)
+def _figure(x: RowMapping) -> FigureRecord:
+    return FigureRecord(axis=x["axis"], quantity=x["quantity"],
+                        set_rate_dps=x["set_rate_dps"], value=x["value"], u=x["u"],
+                        unit=x["unit"], tolerance=x["tolerance"], verdict=x["verdict"],
+                        rule=x["rule"])
 
 
 def _short(e: BaseException) -> str:

@@ -13,7 +13,6 @@ from __future__ import annotations
 import datetime as dt
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from bench.app.register.store import Equipment, Register, RegisterError, redact
 from bench.core.config import Traced
@@ -29,7 +28,7 @@ class ItemStatus:
     problem: str | None
     deviation: str | None = None       # a recorded deviation that allows its use
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> dict[str, str | None]:
         return {"where": self.where, "item": self.item, "serial": self.serial,
                 "problem": self.problem, "deviation": self.deviation}
 
@@ -66,7 +65,7 @@ def equipment_statuses(reg: Register, items: Sequence[Traced], on: dt.date
 
 
 def authenticate_performer(reg: Register, name: str, password: Callable[[str], str]
-                           ) -> dict[str, Any]:
+                           ) -> dict[str, str | None]:
     """The performer as meta.json keeps it: account, full name, register, time."""
     acct = reg.authenticate(name, password(f"password of {name} (performer, register "
                                            f"{redact(reg.url)}): "), "operator")
@@ -89,11 +88,11 @@ class StartGate:
     meta.json keeps for the certificate."""
 
     refusal: list[str]
-    performer: dict[str, Any] | None
-    equipment: list[dict[str, Any]]
+    performer: dict[str, str | None] | None
+    equipment: list[dict[str, str | None]]
     register: str | None
 
-    def meta(self) -> dict[str, Any]:
+    def meta(self) -> dict[str, object]:
         return {"performer": self.performer, "equipment_register": self.register,
                 "equipment_status": self.equipment}
 

@@ -16,19 +16,39 @@ from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, TypedDict
 
 import sqlalchemy as sa
-from sqlalchemy.engine import Connection, Engine
+from sqlalchemy.engine import Connection, Engine, RowMapping
 from sqlalchemy.exc import DBAPIError, IntegrityError
 
 from bench.app.db import make_engine, upgrade_to_head
 from bench.app.names import ROLES
 from bench.app.register import chain
 from bench.app.register import schema as s
+from bench.core import rundir_layout as layout
+
+if TYPE_CHECKING:   # argon2 is imported when a password is checked
+    from argon2 import PasswordHasher
 
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"
 MEANING_ISSUE = "authorised for issue"
+
+
+class IssueArgs(TypedDict):
+    """The parameters of pgsql.ISSUE (`reg_issue`), by their bind names."""
+
+    n: str          # certificate number
+    r: int          # revision
+    s: str          # signatory account
+    m: str          # meaning of the signature
+    why: str        # reason of a re-issue ("" for revision 1)
+    t: str          # issued, UTC
+    res: str        # SHA-256 of result.json, the PDF, the DCC, the HTML
+    pdf: str
+    dcc: str
+    html: str
+    d: str          # detail, JSON
 
 
 class RegisterError(RuntimeError):
@@ -51,7 +71,7 @@ def _os_user() -> str:
         return "unknown"
 
 
-def _hasher() -> Any:
+def _hasher() -> PasswordHasher:
     from argon2 import PasswordHasher  # argon2id with the library's RFC 9106 defaults
 
     return PasswordHasher()
@@ -138,16 +158,16 @@ class Revision:
         return self.number if self.revision <= 1 else f"{self.number}-R{self.revision}"
 
     def digests(self) -> dict[str, str]:
-        return {"result.json": self.result_sha256, "certificate.pdf": self.pdf_sha256,
-                "certificate.dcc.xml": self.dcc_sha256, "certificate.html": self.html_sha256}
+        return {layout.RESULT: self.result_sha256, layout.CERTIFICATE_PDF: self.pdf_sha256,
+                layout.CERTIFICATE_DCC: self.dcc_sha256, layout.CERTIFICATE_HTML: self.html_sha256}
 
 
-def _account(r: Any) -> Account:
+def _account(r: RowMapping) -> Account:
     return Account(r["name"], r["full_name"], tuple(x for x in r["roles"].split(",") if x),
                    r["function"], bool(r["active"]))
 
 
-def _revision(r: Any) -> Revision:
+def _revision(r: RowMapping) -> Revision:
     return Revision(*(r[c.name] for c in s.revisions.columns if c.name != "id"))
 
 
@@ -201,7 +221,7 @@ class Register:
     # -- the audit trail ------------------------------------------------------------------
 
     def _append(self, conn: Connection, actor: str, action: str, obj: str,
-                detail: Mapping[str, Any] | str = "") -> str:
+                detail: Mapping[str, object] | str = "") -> str:
         text = detail if isinstance(detail, str) else json.dumps(detail, sort_keys=True)
         if self.pg:
             return str(conn.execute(sa.text("SELECT reg_audit_append(:a, :b, :c, :d)"),
@@ -222,12 +242,12 @@ class Register:
         return digest
 
     def append(self, actor: str, action: str, obj: str,
-               detail: Mapping[str, Any] | str = "") -> str:
+               detail: Mapping[str, object] | str = "") -> str:
         """One audit entry on its own (a run registered, a review, a refused login)."""
         with self._tx() as conn:
             return self._append(conn, actor, action, obj, detail)
 
-    def audit_rows(self) -> list[dict[str, Any]]:
+    def audit_rows(self) -> list[dict[str, object]]:
         with self.engine.connect() as c:
             return [dict(r._mapping) for r in c.execute(
                 sa.select(s.audit).order_by(s.audit.c.seq))]
@@ -415,14 +435,14 @@ class Register:
 
     def issue(self, number: str, revision: int, signatory: Account, issued_utc: str,
               digests: Mapping[str, str], reason: str | None,
-              detail: Mapping[str, Any]) -> Revision:
+              detail: Mapping[str, object]) -> Revision:
         """Record an issued revision (and the withdrawal of the one before), checked by the
         register under its lock: the next revision, an active signatory, a reason for a
         re-issue. Raises RegisterError when refused."""
-        args = {"n": number, "r": revision, "s": signatory.name, "m": MEANING_ISSUE,
-                "why": reason or "", "t": issued_utc, "res": digests["result.json"],
-                "pdf": digests["certificate.pdf"], "dcc": digests["certificate.dcc.xml"],
-                "html": digests["certificate.html"],
+        args: IssueArgs = {"n": number, "r": revision, "s": signatory.name, "m": MEANING_ISSUE,
+                "why": reason or "", "t": issued_utc, "res": digests[layout.RESULT],
+                "pdf": digests[layout.CERTIFICATE_PDF], "dcc": digests[layout.CERTIFICATE_DCC],
+                "html": digests[layout.CERTIFICATE_HTML],
                 "d": json.dumps(dict(detail), sort_keys=True)}
         with self._tx() as conn:
             if self.pg:
@@ -432,7 +452,7 @@ class Register:
                 self._issue_sqlite(conn, args)
         return next(r for r in self.revisions(number) if r.revision == revision)
 
-    def _issue_sqlite(self, conn: Connection, a: Mapping[str, Any]) -> None:
+    def _issue_sqlite(self, conn: Connection, a: IssueArgs) -> None:
         """pgsql.ISSUE, step for step, for a register in one SQLite file."""
         r = conn.execute(sa.select(s.accounts).where(s.accounts.c.name == a["s"])).first()
         if r is None or not _account(r._mapping).has("signatory"):

@@ -43,6 +43,7 @@ from bench.app.station.live import DOWNLOADS, list_runs, live_state, pid_alive
 from bench.app.station.records import RecordsView, run_figures
 from bench.app.station.settings import StationSettings, is_loopback
 from bench.app.station.signing import install as install_signing
+from bench.core import rundir_layout as layout
 
 TOKEN_HEADER = "X-Bench-Token"
 TOKEN_COOKIE = "bench_token"
@@ -83,7 +84,7 @@ def create_app(settings: StationSettings,
                 or name.startswith("."):
             abort(404)
         p = (runs / name).resolve()
-        if p.parent != runs or not (p / "events.jsonl").is_file():
+        if p.parent != runs or not (p / layout.EVENTS).is_file():
             abort(404)
         return p
 

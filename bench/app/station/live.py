@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from bench.app.station.view import page_view
+from bench.core import rundir_layout as layout
 from bench.core.config import FogSettings
 from bench.core.journal import fog_capture_starts
 from bench.core.yamlfile import read_mapping
@@ -63,7 +64,7 @@ def tail_jsonl(path: Path, max_bytes: int) -> list[dict[str, Any]]:
 
 def read_events(run_path: Path) -> list[dict[str, Any]]:
     """Every event of the run (all sessions); a torn last line is skipped."""
-    return tail_jsonl(run_path / "events.jsonl", 1 << 62)
+    return tail_jsonl(run_path / layout.EVENTS, 1 << 62)
 
 
 def pid_alive(pid: int | None) -> bool:
@@ -237,7 +238,7 @@ def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
     now = time.time() if now is None else now
     per_axis = []
     warnings: list[str] = []
-    ages = [a for a in [_age_s(run_path / "events.jsonl", now)] if a is not None]
+    ages = [a for a in [_age_s(run_path / layout.EVENTS, now)] if a is not None]
     for name in axes:
         lost = sum(int(e.get("fog_lost", 0) or 0) for e in acquires if e.get("axis") == name)
         row: dict[str, Any] = {"axis": name, "fog_lost_in_halves": lost}
@@ -323,7 +324,7 @@ ENDED = ("passed", "failed", "refused", "aborted", "incomplete", "ended")
 
 def _read_result(run_path: Path) -> dict[str, Any] | None:
     try:
-        doc = json.loads((run_path / "result.json").read_text())
+        doc = json.loads((run_path / layout.RESULT).read_text())
     except (OSError, ValueError):
         return None
     return doc if isinstance(doc, dict) else None
@@ -400,19 +401,19 @@ def live_state(run_path: Path) -> dict[str, Any]:
     starts = [e for e in events if e.get("event") == "session_start"]
     st = run_status(events, run_path)
     session_no, session, pid, status = st["session"], st["events"], st["pid"], st["status"]
-    stand = read_mapping(run_path / "stand.yaml")
+    stand = read_mapping(run_path / layout.STAND)
     prog = progress_of(session)
     prog["completed"] = any(e.get("event") == "completed" for e in session)
     axis = (prog["step"] or {}).get("axis")
-    raw = run_path / "raw" / f"s{session_no}" if session_no else None
+    raw = layout.raw_dir(run_path, session_no) if session_no else None
     fog: dict[str, Any] = {"t_s": [], "rate_dps": []}
     drive: dict[str, list[float]] = {"t_s": [], "velocity_dps": []}
     if raw is not None and axis:
         settings = FogSettings.of_axis(stand, axis) if isinstance(stand, dict) else None
         if settings is not None:
             first = fog_capture_starts(session).get((int(session_no or 0), axis), 0)
-            fog = fog_trace(raw / f"{axis}-fog.bin", settings, first_index=first)
-        drive = drive_trace(raw / f"{axis}-drive.jsonl")
+            fog = fog_trace(raw / layout.fog_capture(axis), settings, first_index=first)
+        drive = drive_trace(raw / layout.drive_log(axis))
     acquires = [e for e in events if e.get("event") == "acquire"]
     # the per-turn panel shows the axis now running, never the previous axis's last half
     shown_acquires = [e for e in acquires if not axis or e.get("axis") == axis]
@@ -459,11 +460,12 @@ def live_state(run_path: Path) -> dict[str, Any]:
     return state
 
 
-DOWNLOADS = ("certificate.pdf", "certificate.html", "certificate.dcc.xml", "result.json")
+DOWNLOADS = (layout.CERTIFICATE_PDF, layout.CERTIFICATE_HTML, layout.CERTIFICATE_DCC,
+             layout.RESULT)
 
 
 def _title(run_path: Path) -> str:
-    proc = read_mapping(run_path / "procedure.yaml")
+    proc = read_mapping(run_path / layout.PROCEDURE)
     return str(proc.get("title") or run_path.name)
 
 
@@ -472,7 +474,7 @@ def list_runs(runs: Path) -> list[dict[str, Any]]:
     run that did not pass, its first cause."""
     out = []
     try:
-        dirs = [p for p in runs.iterdir() if (p / "events.jsonl").is_file()]
+        dirs = [p for p in runs.iterdir() if (p / layout.EVENTS).is_file()]
     except FileNotFoundError:
         return []
     for p in sorted(dirs, key=lambda p: p.name, reverse=True):

@@ -20,6 +20,7 @@ from bench.app.records.control_plot import control_png
 from bench.app.records.extract import figures_of, kind_name
 from bench.app.records.trend import trend_png
 from bench.app.station.live import DOWNLOADS
+from bench.core import rundir_layout as layout
 from bench.core.registry import declared_figures
 from bench.report.certificate.parts import read_json_object
 from bench.report.figures import spec_for
@@ -32,7 +33,7 @@ def _iso(t: dt.datetime | dt.date | None) -> str | None:
 def run_figures(run_path: Path) -> dict[str, Any]:
     """A finished run's figures, read by its procedure kind from result.json (the rows
     the records keep) with the words and units the kind declares; none before the end."""
-    result = read_json_object(run_path / "result.json")
+    result = read_json_object(run_path / layout.RESULT)
     kind = kind_name(result, run_path) if result else ""
     specs = declared_figures([kind]) if kind else ()
     rows = []
@@ -191,7 +192,7 @@ class RecordsView:
                              "found_left": r.calibration_state,
                              "adjustment_note": r.adjustment_note,
                              "simulated": r.simulated,
-                             "local": (local / "events.jsonl").is_file(),
+                             "local": (local / layout.EVENTS).is_file(),
                              "files": [n for n in DOWNLOADS if (local / n).is_file()]})
             return {"serial": serial, "maker": t.maker, "model": t.model,
                     "location": t.location, "interval_days": t.interval_days,

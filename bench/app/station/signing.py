@@ -45,6 +45,7 @@ from werkzeug.wrappers import Response
 
 import bench
 from bench.app.station.settings import StationSettings, is_loopback
+from bench.core import rundir_layout as layout
 
 if TYPE_CHECKING:
     from bench.app.register import Account, Register
@@ -259,7 +260,7 @@ class Signing:
     def panel(self, run_path: Path, state: Mapping[str, Any]) -> dict[str, Any]:
         """What the run's certificate section shows this request's account."""
         sess = self.session()
-        result = run_path / "result.json"
+        result = run_path / layout.RESULT
         ended = bool(state.get("ended")) and state.get("status") != "refused"
         draft = sha256_of(result) if ended else None
         out: dict[str, Any] = {
@@ -268,7 +269,7 @@ class Signing:
             "csrf": sess.csrf if sess else "", "local": _local(),
             "remote_refused": REMOTE_REFUSED, "draft": draft,
             "status": None, "issued": [], "register_error": None,
-            "has_pdf": (run_path / "certificate.pdf").is_file(),
+            "has_pdf": (run_path / layout.CERTIFICATE_PDF).is_file(),
         }
         if not self.enabled:
             out["status"] = ("The station has no register to ask; the run's own record "
@@ -337,14 +338,14 @@ class Signing:
             return Outcome(422, False, "Not issued", reasons=(str(e),))
         if not same_register(run_reg, reg.url):
             where = (f"the lab file {lab_file}" if lab_file else
-                     f"the run's own lab file ({run_path / 'lab.yaml'})")
+                     f"the run's own lab file ({run_path / layout.LAB})")
             said = f"names register {_shown_of(run_reg)}" if run_reg else "names no register"
             return Outcome(422, False, "Not issued", reasons=(
                 f"{where} {said}, not this station's ({self.register.shown()}): a "
                 "certificate is issued through the register the station authenticates "
                 "against; start the station with --lab FILE naming it",))
         draft = request.form.get("draft") or ""
-        if not draft or draft != sha256_of(run_path / "result.json"):
+        if not draft or draft != sha256_of(run_path / layout.RESULT):
             return Outcome(409, False, "Not issued: the draft changed", reasons=(
                 "result.json is not the one the page showed when it was opened (analysed "
                 "again, or issued meanwhile): open the run's page again and review it",))
@@ -436,7 +437,7 @@ def _register_revisions(reg: Register, run_path: Path) -> list[dict[str, str]]:
     from bench.app.records.extract import run_uid
 
     try:
-        meta = json.loads((run_path / "meta.json").read_text(encoding="utf-8"))
+        meta = json.loads((run_path / layout.META).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return []
     number = reg.number_of_run(run_uid(meta, run_path.name))

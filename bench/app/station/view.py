@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.app.records.extract import figures_of, kind_name
+from bench.core import rundir_layout as layout
 from bench.core.plan import format_duration
 from bench.core.registry import declared_figures
 from bench.report.certificate.parts import read_json_object, verdict_label
@@ -294,7 +295,7 @@ def _declared_table(doc: dict[str, Any], run_path: Path) -> list[dict[str, Any]]
 def _final(path: str, _mtime_ns: int, _size: int) -> tuple[str | None, tuple[Any, ...]]:
     """result.json's verdict and tables, once per version of the file (the live stream
     asks every second; the file changes only when an analysis writes it again)."""
-    doc = read_json_object(Path(path) / "result.json")
+    doc = read_json_object(Path(path) / layout.RESULT)
     if not doc:
         return None, ()
     tables = _axis_tables(doc) or _declared_table(doc, Path(path))
@@ -305,7 +306,7 @@ def _final(path: str, _mtime_ns: int, _size: int) -> tuple[str | None, tuple[Any
 def final_view(run_path: Path) -> tuple[str | None, list[dict[str, Any]]] | None:
     """result.json's verdict and tables, or None when there is none."""
     try:
-        st = (run_path / "result.json").stat()
+        st = (run_path / layout.RESULT).stat()
     except OSError:
         return None
     verdict, tables = _final(str(run_path), st.st_mtime_ns, st.st_size)

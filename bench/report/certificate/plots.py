@@ -9,11 +9,12 @@ from __future__ import annotations
 import io
 import math
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, SupportsFloat, SupportsIndex
 
 import numpy as np
 
 if TYPE_CHECKING:   # matplotlib is imported when a plot is drawn (`bench validate` starts at once)
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
 DPI = 150
@@ -39,7 +40,9 @@ def _fig(rows: int, cols: int = 1, height_in: float = 2.6) -> tuple[Figure, np.n
     return fig, axs
 
 
-def _num(x: Any) -> float:
+def _num(x: object) -> float:
+    if not isinstance(x, SupportsFloat | SupportsIndex | str | bytes):
+        return math.nan     # what float() refuses anyway
     try:
         v = float(x)
     except (TypeError, ValueError):
@@ -47,7 +50,7 @@ def _num(x: Any) -> float:
     return v
 
 
-def _rate_axis(ax: Any, rates: Sequence[float]) -> None:
+def _rate_axis(ax: Axes, rates: Sequence[float]) -> None:
     pos = [abs(r) for r in rates if r]
     if pos and max(pos) / min(pos) > 20:
         ax.set_xscale("log")

@@ -7,7 +7,6 @@ in its name), then the combined standard uncertainty, nu_eff and U.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 from lxml import etree
 
@@ -29,7 +28,7 @@ SENSITIVITY_UNITS = {("1", "1"): ONE, ("deg/s", "deg/s"): ONE, ("deg/h", "deg/h"
                      ("deg", "V/deg"): r"\degree\tothe{2}\volt\tothe{-1}"}
 
 
-def budget_results(results: etree._Element, result: Mapping[str, Any]) -> None:
+def budget_results(results: etree._Element, result: Mapping[str, object]) -> None:
     sites = budget_sites(result)
     if not sites:
         return

@@ -8,7 +8,6 @@ fail, and the acceptance limits -T/+T (or the expected value of a consistency ch
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 from lxml import etree
 
@@ -16,6 +15,7 @@ from bench.report.certificate.parts import Sources
 from bench.report.dcc import units as U
 from bench.report.dcc import vocab as V
 from bench.report.dcc.xml import DCC_NS, el, ident, name, num, quantity, statement, text_el
+from drivers.json_types import JsonObject
 
 ILAC_G8 = "ILAC-G8:09/2019"
 RULE_REFERENCE = {"simple": "4.2.1 simple acceptance (shared risk)",
@@ -26,11 +26,11 @@ RULE_REFERENCE = {"simple": "4.2.1 simple acceptance (shared risk)",
 class Checks:
     """The run's checks, each handed to the quantity it judges (or left for statements)."""
 
-    items: list[dict[str, Any]]
+    items: list[JsonObject]
     used: set[int] = field(default_factory=set)
 
     def take(self, axis: str | None, rate: float | None, quantity_key: str
-             ) -> list[tuple[int, dict[str, Any]]]:
+             ) -> list[tuple[int, JsonObject]]:
         found = []
         for i, c in enumerate(self.items):
             if i in self.used or str(c.get("quantity")) != quantity_key:
@@ -44,16 +44,16 @@ class Checks:
             found.append((i, c))
         return found
 
-    def rest(self) -> list[tuple[int, dict[str, Any]]]:
+    def rest(self) -> list[tuple[int, JsonObject]]:
         return [(i, c) for i, c in enumerate(self.items) if i not in self.used]
 
 
-def checks_of(src: Sources) -> list[dict[str, Any]]:
+def checks_of(src: Sources) -> list[JsonObject]:
     checks = src.result.get("checks")
     return [c for c in checks if isinstance(c, dict)] if isinstance(checks, list) else []
 
 
-def judge(q: etree._Element, found: list[tuple[int, dict[str, Any]]], unit: str) -> None:
+def judge(q: etree._Element, found: list[tuple[int, JsonObject]], unit: str) -> None:
     """Each check as measurementMetaData on the quantity it judges (good-practice layout)."""
     if not found:
         return
@@ -83,7 +83,7 @@ def judge(q: etree._Element, found: list[tuple[int, dict[str, Any]]], unit: str)
             md.remove(data)
 
 
-def _limits(data: etree._Element, cid: str, c: dict[str, Any], rule: str, suffix: str,
+def _limits(data: etree._Element, cid: str, c: JsonObject, rule: str, suffix: str,
             tol: float, unit: str) -> None:
     """The tolerance T (the maker's specification) and the acceptance limits the decision
     rule derives from it (ILAC-G8:09/2019 4.2): simple acceptance accepts within T;

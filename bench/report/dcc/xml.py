@@ -10,7 +10,6 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from lxml import etree
 
@@ -37,7 +36,7 @@ def dec(x: float) -> str:
     return repr(float(x))
 
 
-def ident(*parts: Any) -> str:
+def ident(*parts: object) -> str:
     """An xs:ID from parts: letters, digits, '.', '-', '_' only, starting with a letter."""
     text = "_".join(str(p) for p in parts if p is not None and str(p) != "")
     text = re.sub(r"[^A-Za-z0-9._-]", "-", text)
@@ -186,7 +185,7 @@ def statement(parent: etree._Element, ref_type: str | None, declaration: str, *,
     return st
 
 
-def budget_list(data: etree._Element, lid: str, title: str, budget: Any, path: str,
+def budget_list(data: etree._Element, lid: str, title: str, budget: object, path: str,
                 terms: Sequence[tuple[str, str]], unit: str) -> None:
     """The standard uncertainties behind a U, one quantity per source (no U of their own)."""
     if not isinstance(budget, Mapping):
