@@ -3,15 +3,27 @@
 A schema node checks one value and reports every problem it finds (not just the
 first) as a `Problem` naming file, line and key path. Unknown keys are refused: a
 misspelt `turnz: 50` must not silently fall back to a default on a day-long run.
+
+A setting is declared once, on the frozen dataclass that carries it: its type and
+default are the field's, its schema node (bounds, unit) and meaning a `Setting` in the
+field's `Annotated` type. `declared_map` derives the file's schema from the class (so
+`bench validate`, `bench schema` and the JSON Schema read the same declaration) and
+`parse_declared` builds the object from the validated mapping; no defaults dict and
+no hand copy of the keys. Our own nodes, not pydantic/msgspec/cattrs: they keep every
+problem at its file, line and key, and import in a few milliseconds (the CLI's start).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
+import functools
 import math
+import types
+import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 from bench.core.yamlfile import KeyPath, Problem, YamlDoc
 
@@ -230,7 +242,7 @@ class Key:
     node: Node
     required: bool = False
     doc: str = ""
-    default: Any = None
+    default: object = None
 
 
 @dataclass(frozen=True)
@@ -361,3 +373,138 @@ def merge(a: Node, b: Node) -> Node:
     if isinstance(a, Check) and isinstance(b, Check) and a.rule is b.rule:
         return Check(merge(a.inner, b.inner), a.rule)
     return OneOf(a, b)
+
+
+# -- settings declared once, on their dataclass ------------------------------------------
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class Setting:
+    """A dataclass field's YAML key: its schema node (None: from the field's type), what
+    it means, and whether it must be written (None: when the field has no default).
+
+    `required=False` on a field without a default: the file may leave the key out and
+    the parser is given the value (resolved from other keys, e.g. a controller node id).
+    """
+
+    node: Node | None = None
+    doc: str = ""
+    required: bool | None = None
+    #: the YAML key, where the field's name cannot be it
+    key: str | None = None
+
+
+def _declared(tp: object) -> type | None:
+    """The class when `tp` is a dataclass whose fields declare settings."""
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp) and _settings(tp):
+        return tp
+    return None
+
+
+_Declared = tuple[tuple[dataclasses.Field[object], object, Setting], ...]
+_DECLARED: dict[type, _Declared] = {}
+
+
+def _settings(cls: type) -> _Declared:
+    """(field, its type without the annotation, its Setting) of each declared field."""
+    if cls in _DECLARED:
+        return _DECLARED[cls]
+    hints = typing.get_type_hints(cls, include_extras=True)
+    out = []
+    for f in dataclasses.fields(cls):
+        hint = hints[f.name]
+        if typing.get_origin(hint) is typing.Annotated:
+            found = [m for m in hint.__metadata__ if isinstance(m, Setting)]
+            if found:
+                out.append((f, hint.__origin__, found[0]))
+    _DECLARED[cls] = tuple(out)
+    return _DECLARED[cls]
+
+
+def _without_none(tp: object) -> object:
+    if typing.get_origin(tp) in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if len(args) == 1:
+            return args[0]
+    return tp
+
+
+def _node_of(tp: object) -> Node:
+    """The schema node a field's type implies when its Setting names none."""
+    tp = _without_none(tp)
+    inner = _declared(tp)
+    if inner is not None:
+        return declared_map(inner)
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin in (Mapping, dict) and len(args) == 2:
+        return MapOf(_node_of(args[1]))
+    if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
+        return ListOf(_node_of(args[0]))
+    plain: dict[object, Node] = {str: Str(), bool: Bool(), int: Num(integer=True),
+                                 float: Num(), dt.date: Date()}
+    return plain.get(tp, Any_())
+
+
+def _shown(default: object) -> object:
+    """A default the reference prints (a nested object's are its own keys'; an empty
+    list is "none", not a value to write)."""
+    if isinstance(default, bool | int | float | str) or (isinstance(default, tuple | list)
+                                                         and default):
+        return default
+    return None
+
+
+@functools.cache
+def declared_map(cls: type) -> Map:
+    """The schema of a mapping whose keys are `cls`'s declared fields, in their order."""
+    keys: dict[str, Key] = {}
+    for f, tp, s in _settings(cls):
+        has_default = (f.default is not dataclasses.MISSING
+                       or f.default_factory is not dataclasses.MISSING)
+        default = (f.default if f.default is not dataclasses.MISSING
+                   else f.default_factory() if f.default_factory is not dataclasses.MISSING
+                   else None)
+        required = not has_default if s.required is None else s.required
+        keys[s.key or f.name] = Key(s.node or _node_of(tp), required, s.doc, _shown(default))
+    return Map(keys)
+
+
+def _convert(tp: object, value: object) -> object:
+    """A validated YAML value as the field's type (a float field gets a float, not the
+    YAML's int; a nested declared class its object)."""
+    tp = _without_none(tp)
+    inner = _declared(tp)
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if inner is not None and isinstance(value, Mapping):
+        return parse_declared(inner, value)
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp) and isinstance(value, Mapping):
+        return tp(**{str(k): v for k, v in value.items()})   # a driver's own (TimeTie)
+    if origin is tuple and len(args) == 2 and args[1] is Ellipsis \
+            and isinstance(value, list | tuple):
+        return tuple(_convert(args[0], v) for v in value)
+    if origin in (Mapping, dict) and len(args) == 2 and isinstance(value, Mapping):
+        return {str(k): _convert(args[1], v) for k, v in value.items()}
+    if tp is dt.date:
+        return parse_date(value)
+    if isinstance(value, int | float | str | bool):
+        if tp is float:
+            return float(value)
+        if tp is int:
+            return int(value)
+        if tp is str:
+            return str(value)
+    return value
+
+
+def parse_declared(cls: type[T], data: Mapping[str, object], **given: object) -> T:
+    """`cls` from a validated mapping: each declared key as written, else the field's
+    default; `given` values (resolved elsewhere) win. A key left out or null takes the
+    default."""
+    kwargs: dict[str, object] = dict(given)
+    for f, tp, s in _settings(cls):
+        value = data.get(s.key or f.name)
+        if f.name not in given and value is not None:
+            kwargs[f.name] = _convert(tp, value)
+    return cls(**kwargs)
