@@ -27,6 +27,9 @@ from typing import Any, TypeVar
 
 from bench.core.yamlfile import KeyPath, Problem, YamlDoc
 
+#: a JSON Schema document (or a part of one), as `json.dumps` writes it
+JsonSchema = dict[str, object]
+
 
 class Node:
     """A schema for one value.
@@ -39,15 +42,15 @@ class Node:
     description = "a value"
     unit_text = ""
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         raise NotImplementedError
 
-    def json_schema(self) -> dict[str, Any]:
+    def json_schema(self) -> JsonSchema:
         """This node as JSON Schema (draft 2020-12) of the file's data."""
         return {}
 
 
-def _type_name(value: Any) -> str:
+def _type_name(value: object) -> str:
     if value is None:
         return "nothing"
     return {bool: "true/false", int: "an integer", float: "a number", str: "text",
@@ -87,8 +90,8 @@ class Num(Node):
     def unit_text(self) -> str:  # type: ignore[override]
         return self.unit
 
-    def json_schema(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"type": "integer" if self.integer else "number"}
+    def json_schema(self) -> JsonSchema:
+        out: JsonSchema = {"type": "integer" if self.integer else "number"}
         if self.min is not None:
             out["exclusiveMinimum" if self.exclusive_min else "minimum"] = self.min
         if self.max is not None:
@@ -97,9 +100,9 @@ class Num(Node):
             out["x-unit"] = self.unit
         return out
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
-        ok_type = isinstance(value, int) if self.integer else isinstance(value, int | float)
-        if isinstance(value, bool) or not ok_type or not _finite(value):
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if isinstance(value, bool) or not isinstance(value, int | float) \
+                or (self.integer and not isinstance(value, int)) or not _finite(value):
             out.append(doc.problem(path, f"expected {self.description}, got {_type_name(value)}"
                                          f" {value!r}"))
             return
@@ -117,14 +120,14 @@ class Str(Node):
     def description(self) -> str:  # type: ignore[override]
         return f"one of {', '.join(self.choices)}" if self.choices else "text"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if not isinstance(value, str):
             out.append(doc.problem(path, f"expected {self.description}, got "
                                          f"{_type_name(value)} {value!r}"))
         elif self.choices and value not in self.choices:
             out.append(doc.problem(path, f"expected {self.description}, got {value!r}"))
 
-    def json_schema(self) -> dict[str, Any]:
+    def json_schema(self) -> JsonSchema:
         return {"type": "string", **({"enum": list(self.choices)} if self.choices else {})}
 
 
@@ -134,15 +137,15 @@ class Date(Node):
 
     description = "a date YYYY-MM-DD"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if parse_date(value) is None:
             out.append(doc.problem(path, f"expected {self.description}, got {value!r}"))
 
-    def json_schema(self) -> dict[str, Any]:
+    def json_schema(self) -> JsonSchema:
         return {"type": "string", "format": "date"}
 
 
-def parse_date(value: Any) -> dt.date | None:
+def parse_date(value: object) -> dt.date | None:
     """A date from YAML (a date, or text YYYY-MM-DD); None if it is not one."""
     if isinstance(value, dt.datetime):
         return value.date()
@@ -160,11 +163,11 @@ def parse_date(value: Any) -> dt.date | None:
 class Bool(Node):
     description = "true or false"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if not isinstance(value, bool):
             out.append(doc.problem(path, f"expected true or false, got {value!r}"))
 
-    def json_schema(self) -> dict[str, Any]:
+    def json_schema(self) -> JsonSchema:
         return {"type": "boolean"}
 
 
@@ -172,7 +175,7 @@ class Bool(Node):
 class Any_(Node):
     description = "anything"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         return
 
 
@@ -189,7 +192,7 @@ class OneOf(Node):
     def description(self) -> str:  # type: ignore[override]
         return " or ".join(o.description for o in self.options)
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         for o in self.options:
             found: list[Problem] = []
             o.check(value, path, doc, found)
@@ -202,7 +205,7 @@ class OneOf(Node):
     def unit_text(self) -> str:  # type: ignore[override]
         return next((o.unit_text for o in self.options if o.unit_text), "")
 
-    def json_schema(self) -> dict[str, Any]:
+    def json_schema(self) -> JsonSchema:
         return {"anyOf": [o.json_schema() for o in self.options]}
 
 
@@ -215,7 +218,7 @@ class ListOf(Node):
     def description(self) -> str:  # type: ignore[override]
         return f"a list of {self.item.description}"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if not isinstance(value, list):
             out.append(doc.problem(path, f"expected {self.description}, got "
                                          f"{_type_name(value)} {value!r}"))
@@ -229,8 +232,8 @@ class ListOf(Node):
     def unit_text(self) -> str:  # type: ignore[override]
         return self.item.unit_text
 
-    def json_schema(self) -> dict[str, Any]:
-        out = {"type": "array", "items": self.item.json_schema()}
+    def json_schema(self) -> JsonSchema:
+        out: JsonSchema = {"type": "array", "items": self.item.json_schema()}
         return {**out, "minItems": self.min_len} if self.min_len else out
 
 
@@ -252,7 +255,7 @@ class Map(Node):
     keys: Mapping[str, Key] = field(default_factory=dict)
     description = "a mapping"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if not isinstance(value, dict):
             out.append(doc.problem(path, f"expected a mapping with keys "
                                          f"{', '.join(self.keys)}, got {_type_name(value)}"))
@@ -269,8 +272,8 @@ class Map(Node):
                 out.append(doc.problem(path, f"missing required key {k!r} "
                                              f"({spec.node.description})"))
 
-    def json_schema(self) -> dict[str, Any]:
-        props: dict[str, Any] = {}
+    def json_schema(self) -> JsonSchema:
+        props: JsonSchema = {}
         for k, spec in self.keys.items():
             s = spec.node.json_schema()
             if spec.doc:
@@ -278,7 +281,7 @@ class Map(Node):
             if spec.default is not None:
                 s = {**s, "default": spec.default}
             props[k] = s
-        out: dict[str, Any] = {"type": "object", "properties": props,
+        out: JsonSchema = {"type": "object", "properties": props,
                                "additionalProperties": False}
         required = [k for k, spec in self.keys.items() if spec.required]
         return {**out, "required": required} if required else out
@@ -295,7 +298,7 @@ class MapOf(Node):
     def description(self) -> str:  # type: ignore[override]
         return f"a mapping of names to {self.value.description}"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if not isinstance(value, dict):
             out.append(doc.problem(path, f"expected {self.description}, got "
                                          f"{_type_name(value)}"))
@@ -305,8 +308,8 @@ class MapOf(Node):
         for k, v in value.items():
             self.value.check(v, (*path, str(k)), doc, out)
 
-    def json_schema(self) -> dict[str, Any]:
-        out = {"type": "object", "additionalProperties": self.value.json_schema()}
+    def json_schema(self) -> JsonSchema:
+        out: JsonSchema = {"type": "object", "additionalProperties": self.value.json_schema()}
         return {**out, "minProperties": self.min_len} if self.min_len else out
 
 
@@ -319,6 +322,7 @@ class Check(Node):
     """
 
     inner: Node
+    #: called with a value `inner` accepted (so of the type `inner` checks)
     rule: Callable[[Any], str | None | list[tuple[KeyPath, str]]]
 
     @property
@@ -329,11 +333,11 @@ class Check(Node):
     def unit_text(self) -> str:  # type: ignore[override]
         return self.inner.unit_text
 
-    def json_schema(self) -> dict[str, Any]:
+    def json_schema(self) -> JsonSchema:
         """The inner schema: the rule needs the whole value and stays `bench validate`'s."""
         return self.inner.json_schema()
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         before = len(out)
         self.inner.check(value, path, doc, out)
         if len(out) == before:
