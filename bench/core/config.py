@@ -422,22 +422,33 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
 
 # -- procedure file: the keys every procedure kind shares ------------------------------
 
-COMMON_PROCEDURE_KEYS: dict[str, Key] = {
-    "procedure": Key(Str(), True, "the procedure kind (bench schema procedure KIND)"),
-    "title": Key(Str(), False, "printed on the plan and the certificate (default: the file "
-                               "name)"),
-    "stand": Key(Str(), True, "stand file, relative to this file"),
-    "conditions": Key(MapOf(Any_()), False, "recorded conditions, printed on the certificate"),
-    "certificate": Key(MapOf(Any_()), False, "customer, laboratory, ... for the certificate"),
-    "decision_rule": Key(Str(("simple", "guard-band")), False, "how a verdict is decided "
-                         "against the tolerance (ILAC-G8); default simple acceptance"),
-    "prompts": Key(Bool(), False, "ask the operator before each axis (mount the FOG...); "
-                                  "default true, --yes answers"),
-    "calibration_state": Key(Str(("as-found", "as-left")), False,
-                             "as-found before an adjustment, as-left after (the records "
-                             "pair them; --as-found/--as-left win)"),
-    "adjustment_note": Key(Str(), False, "what was adjusted since the as-found run"),
-    "item": Key(Map({
+@dataclass(frozen=True, kw_only=True)
+class CommonSettings:
+    """The procedure keys every kind shares, declared once and parsed once."""
+
+    procedure: Annotated[str, Setting(Str(), "the procedure kind (bench schema procedure "
+                                             "KIND)")]
+    #: resolved by the parse: the file's, else the file name
+    title: Annotated[str, Setting(Str(), "printed on the plan and the certificate (default: "
+                                         "the file name)", required=False)]
+    stand: Annotated[str, Setting(Str(), "stand file, relative to this file")]
+    conditions: Annotated[Mapping[str, Any], Setting(
+        MapOf(Any_()), "recorded conditions, printed on the certificate")] \
+        = field(default_factory=dict)
+    certificate: Annotated[Mapping[str, Any], Setting(
+        MapOf(Any_()), "customer, laboratory, ... for the certificate")] \
+        = field(default_factory=dict)
+    decision_rule: Annotated[str, Setting(
+        Str(("simple", "guard-band")), "how a verdict is decided against the tolerance "
+        "(ILAC-G8): simple acceptance or a guard band")] = "simple"
+    prompts: Annotated[bool, Setting(Bool(), "ask the operator before each axis (mount the "
+                                             "FOG...); --yes answers")] = True
+    calibration_state: Annotated[str | None, Setting(
+        Str(("as-found", "as-left")), "as-found before an adjustment, as-left after (the "
+        "records pair them; --as-found/--as-left win)")] = None
+    adjustment_note: Annotated[str | None, Setting(
+        Str(), "what was adjusted since the as-found run")] = None
+    item: Annotated[Mapping[str, Any] | None, Setting(Map({
         "received": Key(Date(), False, "the date the item was received (ISO/IEC 17025 "
                                        "7.8.2.1 g)"),
         "condition": Key(Str(), False, "its condition on receipt (7.4.3)"),
@@ -445,22 +456,25 @@ COMMON_PROCEDURE_KEYS: dict[str, Key] = {
                                           "an adjustment: its run id (run directory name)"),
         "adjustments": Key(ListOf(Str()), False, "adjustments made to the item before this "
                                                  "run (7.8.4.1 b)"),
-    }), False, "the item as received and as left; each part left out is printed 'not "
-               "stated' (docs/certificate.md)"),
-    "decision_rule_agreement": Key(Map({
+    }), "the item as received and as left; each part left out is printed 'not stated' "
+        "(docs/certificate.md)")] = None
+    decision_rule_agreement: Annotated[Mapping[str, Any] | None, Setting(Map({
         "agreed_with": Key(Str(), True, "who agreed to the decision rule for the customer"),
         "agreed_on": Key(Date(), True, "when, YYYY-MM-DD"),
         "reference": Key(Str(), False, "where it is recorded (order, contract review)"),
-    }), False, "the customer's agreement to decision_rule (ISO/IEC 17025 7.1.3); without "
-               "it the certificate says 'not stated'"),
-    "operator": Key(Str(), False, "who runs the procedure (default: the login name)"),
-    "specification": Key(Map({
+    }), "the customer's agreement to decision_rule (ISO/IEC 17025 7.1.3); without it the "
+        "certificate says 'not stated'")] = None
+    operator: Annotated[str | None, Setting(
+        Str(), "who runs the procedure (default: the login name)")] = None
+    specification: Annotated[Mapping[str, Any] | None, Setting(Map({
         "source": Key(Str(), True, "the document the tolerances come from: maker, title, "
                                    "revision, date"),
         "definitions": Key(MapOf(Str()), False, "how the document defines each figure, by "
                                                 "tolerance key"),
-    }), False, "where the tolerances come from; printed with the statement of conformity"),
-}
+    }), "where the tolerances come from; printed with the statement of conformity")] = None
+
+
+COMMON_PROCEDURE_KEYS: dict[str, Key] = dict(declared_map(CommonSettings).keys)
 
 
 def _opt(spec: dict[str, Any], key: str, cast: Any) -> Any:
@@ -718,33 +732,9 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
         bench_name=_opt(stand.get("bench") or {}, "name", str))
 
 
-@dataclass(frozen=True)
-class CommonSettings:
-    """The procedure keys every kind shares (COMMON_PROCEDURE_KEYS), parsed once."""
-
-    title: str
-    conditions: Mapping[str, Any]
-    certificate: Mapping[str, Any]
-    decision_rule: str      # simple acceptance unless the file says guard-band
-    prompts: bool
-    calibration_state: str | None
-    adjustment_note: str | None
-    operator: str | None
-    specification: Mapping[str, Any] | None
-
-
 def parse_common(procedure: dict[str, Any], path: Path) -> CommonSettings:
-    spec = procedure.get("specification")
-    return CommonSettings(
-        title=str(procedure.get("title", path.stem)),
-        conditions=dict(procedure.get("conditions") or {}),
-        certificate=dict(procedure.get("certificate") or {}),
-        decision_rule=str(procedure.get("decision_rule") or "simple"),
-        prompts=bool(procedure.get("prompts", True)),
-        calibration_state=_opt(procedure, "calibration_state", str),
-        adjustment_note=_opt(procedure, "adjustment_note", str),
-        operator=_opt(procedure, "operator", str),
-        specification=dict(spec) if isinstance(spec, dict) else None)
+    return parse_declared(CommonSettings, procedure,
+                          title=str(procedure.get("title", path.stem)))
 
 
 @dataclass(frozen=True)
