@@ -282,7 +282,7 @@ class FogSettings:
         return parse_declared(cls, fog)
 
     @classmethod
-    def of_axis(cls, stand: dict[str, Any], axis: str) -> FogSettings | None:
+    def of_axis(cls, stand: Mapping[str, Any], axis: str) -> FogSettings | None:
         """The FOG of `axis` in a stand mapping read back from a run directory, or None
         when the axis has none (or the file is damaged: the station view reads run
         directories it did not write)."""
@@ -357,7 +357,7 @@ SIM_AXIS = Map({
 })
 
 
-def _absolute_path(value: Any) -> str | None:
+def _absolute_path(value: object) -> str | None:
     """A key or certificate is named by its path, never pasted in (the stand file is
     copied into every run directory); relative paths would depend on the cwd."""
     if isinstance(value, str) and "-----BEGIN" in value:
@@ -506,14 +506,14 @@ class Traced:
         return self.certificate is not None
 
 
-def _traced_name(path: tuple[str, ...], spec: Mapping[str, Any]) -> str:
+def _traced_name(path: tuple[str, ...], spec: Mapping[str, object]) -> str:
     role = path[-1]
     where = " ".join(p for p in path[1:-1] if p not in ("axes", "gyros"))
     model = spec.get("model")
     return f"{role}{' ' + str(model) if model else ''}{f' ({where})' if where else ''}"
 
 
-def _instruments(node: Any, path: tuple[str, ...]
+def _instruments(node: object, path: tuple[str, ...]
                  ) -> Iterator[tuple[tuple[str, ...], Mapping[str, Any]]]:
     """Every block of the stand that is an instrument (it has an address or a
     calibration), whichever kind's block holds it (a gyro platform's DMMs too)."""
@@ -732,7 +732,7 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
         bench_name=_opt(stand.get("bench") or {}, "name", str))
 
 
-def parse_common(procedure: dict[str, Any], path: Path) -> CommonSettings:
+def parse_common(procedure: Mapping[str, object], path: Path) -> CommonSettings:
     return parse_declared(CommonSettings, procedure,
                           title=str(procedure.get("title", path.stem)))
 
