@@ -289,7 +289,10 @@ class FogSettings:
         f = ((stand.get("axes") or {}).get(axis) or {}).get("fog")
         if not isinstance(f, dict) or not all(k in f for k in ("port", "rate_hz", "units")):
             return None
-        return cls.of(f)
+        try:
+            return cls.of(f)
+        except (TypeError, ValueError):   # a key of the wrong type or unknown
+            return None
 
 
 FOG = declared_map(FogSettings)
