@@ -429,12 +429,14 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
 class CommonSettings:
     """The procedure keys every kind shares, declared once and parsed once."""
 
+    #: required in a file; "" in the procedure a command makes up (`bench devices`)
     procedure: Annotated[str, Setting(Str(), "the procedure kind (bench schema procedure "
-                                             "KIND)")]
+                                             "KIND)", required=True)] = ""
     #: resolved by the parse: the file's, else the file name
     title: Annotated[str, Setting(Str(), "printed on the plan and the certificate (default: "
                                          "the file name)", required=False)]
-    stand: Annotated[str, Setting(Str(), "stand file, relative to this file")]
+    stand: Annotated[str, Setting(Str(), "stand file, relative to this file",
+                                  required=True)] = ""
     conditions: Annotated[Mapping[str, Any], Setting(
         MapOf(Any_()), "recorded conditions, printed on the certificate")] \
         = field(default_factory=dict)

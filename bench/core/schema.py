@@ -391,6 +391,8 @@ class Setting:
 
     `required=False` on a field without a default: the file may leave the key out and
     the parser is given the value (resolved from other keys, e.g. a controller node id).
+    `required=True` on a field with a default: a file must write it, an object made up
+    in code need not (a required key shows no default in the reference).
     """
 
     node: Node | None = None
@@ -471,7 +473,8 @@ def declared_map(cls: type) -> Map:
                    else f.default_factory() if f.default_factory is not dataclasses.MISSING
                    else None)
         required = not has_default if s.required is None else s.required
-        keys[s.key or f.name] = Key(s.node or _node_of(tp), required, s.doc, _shown(default))
+        keys[s.key or f.name] = Key(s.node or _node_of(tp), required, s.doc,
+                                    None if required else _shown(default))
     return Map(keys)
 
 
