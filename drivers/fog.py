@@ -62,7 +62,7 @@ from drivers.fog_formats import (
     decode,
     get_format,
 )
-from drivers.kvh_config import MODES, FogSettings, KvhConfigError, KvhConfigurator
+from drivers.kvh_config import MODES, KvhConfigError, KvhConfigurator, KvhTarget
 from drivers.waits import MAX_LATE_REAL_S, MIN_REAL_MARGIN_S, wait_on_clock
 
 if TYPE_CHECKING:
@@ -395,8 +395,8 @@ class Fog:
         if self.configure != "declare":
             try:
                 self.readback = KvhConfigurator(_SerialLines(self._ser), port=self.port).apply(
-                    FogSettings(self.units, self.rate_hz,
-                                self.format.name.rsplit("-", 1)[-1].upper(), self.configure))
+                    KvhTarget(self.units, self.rate_hz,
+                              self.format.name.rsplit("-", 1)[-1].upper(), self.configure))
                 # what is left of the dialogue is not the record: the capture starts at
                 # the first binary byte after Configuration Mode ends
                 time.sleep(0.05)

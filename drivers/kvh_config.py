@@ -101,7 +101,7 @@ class LineLink(Protocol):
 
 
 @dataclass(frozen=True)
-class FogSettings:
+class KvhTarget:
     """What the stand says the FOG must carry."""
 
     units: str
@@ -146,7 +146,7 @@ class KvhConfigurator:
         reply = self._exchange("?" + name, name + ",")
         return reply.split(",", 1)[1].strip()
 
-    def apply(self, want: FogSettings) -> dict[str, str]:
+    def apply(self, want: KvhTarget) -> dict[str, str]:
         """Set (mode 'set') and read back (set, verify); returns what the FOG reads back.
 
         Raises KvhConfigError naming the stand key that disagrees.

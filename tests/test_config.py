@@ -209,6 +209,60 @@ def test_the_stand_parses_into_frozen_settings_with_one_default_each() -> None:
     assert FOG.keys["sign"].default == 1
 
 
+def test_each_setting_is_declared_once_on_its_dataclass() -> None:
+    """The schema (`bench validate`, `bench schema`, JSON Schema) and the parse come from
+    one declaration per key: every declared field is a schema key with the field's own
+    default, every schema key a field, and the parse turns the YAML's numbers into the
+    field's type (a float field holds a float even when the file writes 490)."""
+    import dataclasses
+
+    from bench.core.config import (
+        CALIBRATION,
+        COUNTER,
+        DRIVE,
+        FOG,
+        IDENTITY,
+        SIM_KEYS,
+        Calibration,
+        CounterSpec,
+        DriveSpec,
+        FogSettings,
+        Identity,
+        SimSettings,
+    )
+    from bench.core.schema import Map, declared_map, parse_declared
+    from procedures.drift_pulse.settings import PROCEDURE as DRIFT
+    from procedures.drift_pulse.settings import DriftFile
+    from procedures.rate_ladder.settings import PROCEDURE as LADDER
+    from procedures.rate_ladder.settings import LadderSettings, Settle
+
+    for cls, node in ((Calibration, CALIBRATION), (DriveSpec, DRIVE), (CounterSpec, COUNTER),
+                      (FogSettings, FOG), (Identity, IDENTITY), (SimSettings, Map(SIM_KEYS))):
+        assert node == declared_map(cls), cls
+        fields = {f.name: f for f in dataclasses.fields(cls)}
+        for key, spec in node.keys.items():
+            f = fields[key]
+            if f.default is not dataclasses.MISSING and isinstance(f.default, int | float | str):
+                assert spec.default == f.default and not spec.required, (cls, key)
+    for kind, node in ((LadderSettings, LADDER), (DriftFile, DRIFT)):
+        for key, spec in declared_map(kind).keys.items():
+            assert node.keys[key] == spec, (kind, key)
+    assert LADDER.keys["settle"].node == declared_map(Settle)
+    assert DRIFT.keys["positions_deg"].default == (0.0, 180.0)
+    fog = parse_declared(FogSettings, {"port": "/dev/null", "rate_hz": 1000, "units": "deg/s",
+                                       "range_dps": 490, "calibration": {
+                                           "certificate": "C-1", "issuer": "L",
+                                           "due": "2027-01-31"}})
+    assert isinstance(fog.rate_hz, float) and isinstance(fog.range_dps, float)
+    assert (fog.baudrate, fog.format, fog.configure) == (921600, "kvh-a", "declare")
+    assert fog.calibration is not None and str(fog.calibration.due) == "2027-01-31"
+    drive = parse_declared(DriveSpec, {"interface": "virtual", "channel": "c", "node_id": 3,
+                                       "max_rate_dps": 400, "max_accel_dps2": 200},
+                           controller_node_id=127)
+    assert (drive.controller_node_id, drive.heartbeat_ms, drive.pdo) == (127, 50, "verify")
+    assert not DRIVE.keys["controller_node_id"].required and DRIVE.keys["node_id"].required
+
+
 @pytest.mark.timeout(120)
 def test_the_twins_point_a_copy_of_the_parsed_stand_at_themselves() -> None:
     """One stand in flight: the twins' addresses go into a new StandSettings; the run's

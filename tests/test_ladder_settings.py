@@ -52,7 +52,7 @@ def test_settings_take_the_axis_value_and_the_top_level_default(tmp_path: Path) 
 def test_a_file_without_turns_takes_the_one_default(tmp_path: Path) -> None:
     cfg = load_config(_procedure(tmp_path))
     ladder = LadderSettings.from_config(cfg)
-    assert ladder.turns == 5 and ladder.axes["inner"].turns == 5    # DEFAULTS["turns"]
+    assert ladder.turns == 5 and ladder.axes["inner"].turns == 5    # LadderSettings.turns
     assert ladder.axes["outer"].turns == 3
 
 

@@ -102,7 +102,8 @@ def test_fog_trace_decodes_the_capture_tail(tmp_path: Path, units: str, scale: f
     rates[:, 2] = truth_dps / scale
     raw = tmp_path / "outer-fog.bin"
     raw.write_bytes(fmt.encode(np.arange(n) % fmt.sequence_modulus, rates).tobytes())
-    tr = fog_trace(raw, FogSettings("/dev/null", 200.0, units), tail_s=5.0)  # last 1000
+    tr = fog_trace(raw, FogSettings(port="/dev/null", rate_hz=200.0, units=units),
+                   tail_s=5.0)  # last 1000
     assert len(tr["t_s"]) == len(tr["rate_dps"]) > 0
     assert tr["t_s"][0] == pytest.approx(1000 / 200 + (math.ceil(1000 / 600) - 1) / 2 / 200)
     k = math.ceil(1000 / 600)

@@ -28,7 +28,7 @@ import serial
 
 from drivers.fog import Fog, FogError, dps_per_unit, read_capture
 from drivers.fog_formats import decode
-from drivers.kvh_config import WORDS, FogSettings, KvhConfigError, KvhConfigurator
+from drivers.kvh_config import WORDS, KvhConfigError, KvhConfigurator, KvhTarget
 from drivers.transport import TranscriptTransport
 from sims.clock import VirtualClock
 from sims.fog_twin import FogTwin
@@ -75,7 +75,7 @@ def test_the_manuals_sample_frame_is_delta_radians():
 
 def test_driver_sets_units_and_reads_them_back_as_the_icd_says():
     link = TranscriptTransport(SET_DEG_S, termination="\r\n")
-    got = KvhConfigurator(link, port="ttyTEST").apply(FogSettings("deg/s", 1000.0, "A", "set"))
+    got = KvhConfigurator(link, port="ttyTEST").apply(KvhTarget("deg/s", 1000.0, "A", "set"))
     link.assert_done()
     assert got == {"fog.format": "A", "fog.units": "deg/s", "fog.rate_hz": "1000"}
 
@@ -86,7 +86,7 @@ def test_the_driver_reads_the_serial_with_its_settings():
     dialogue = [(sent, "IS,170912345" if sent == "?IS" else want)
                 for sent, want in SET_DEG_S]
     link = TranscriptTransport(dialogue, termination="\r\n")
-    got = KvhConfigurator(link, port="ttyTEST").apply(FogSettings("deg/s", 1000.0, "A", "set"))
+    got = KvhConfigurator(link, port="ttyTEST").apply(KvhTarget("deg/s", 1000.0, "A", "set"))
     link.assert_done()
     assert got["fog.serial"] == "170912345"
 
@@ -95,8 +95,8 @@ def test_verify_at_power_on_default_refuses_naming_the_stand_key():
     link = TranscriptTransport(VERIFY_AT_POWER_ON, termination="\r\n")
     with pytest.raises(KvhConfigError, match="fog.units: the stand says deg/s, the FOG "
                                              "outputs rad"):
-        KvhConfigurator(link, port="ttyTEST").apply(FogSettings("deg/s", 1000.0, "A",
-                                                                "verify"))
+        KvhConfigurator(link, port="ttyTEST").apply(KvhTarget("deg/s", 1000.0, "A",
+                                                              "verify"))
     link.assert_done()
 
 
@@ -111,7 +111,7 @@ def test_an_unknown_word_is_reported_by_name():
                                 "INVALID,=OUTPUTFMT,A"), ("=CONFIG,0", "CONFIG,0")],
                                termination="\r\n")
     with pytest.raises(KvhConfigError, match="'=OUTPUTFMT,A' answered 'INVALID"):
-        KvhConfigurator(link).apply(FogSettings("deg/s", 1000.0, "A", "set"))
+        KvhConfigurator(link).apply(KvhTarget("deg/s", 1000.0, "A", "set"))
 
 
 @contextlib.contextmanager

@@ -12,7 +12,7 @@ import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 from bench.core.canbus import bus_name, bus_problems
 from bench.core.schema import (
@@ -26,8 +26,11 @@ from bench.core.schema import (
     MapOf,
     Num,
     OneOf,
+    Setting,
     Str,
+    declared_map,
     parse_date,
+    parse_declared,
 )
 from bench.core.yamlfile import Problem, YamlDoc
 from drivers.axis import (
@@ -56,106 +59,7 @@ STEP_MAX_S = 7 * 86_400.0
 
 # -- stand file ---------------------------------------------------------------------
 
-CALIBRATION = Map({
-    "certificate": Key(Str(), True, "the calibration certificate's number"),
-    "issuer": Key(Str(), True, "the laboratory that issued it"),
-    "due": Key(Date(), True, "calibration due date, YYYY-MM-DD"),
-    "traces": Key(Str(), False, "the quantity it traces to SI, e.g. 'time interval to the "
-                                "SI second'"),
-})
-TRACEABLE = Map({   # a reference the bench does not drive (a 10 MHz source, a sensor)
-    "item": Key(Str(), True, "what it is, e.g. 'GPS-disciplined 10 MHz reference'"),
-    "serial": Key(Str(), False, "its serial number"),
-    "certificate": Key(Str(), True, "its calibration certificate's number"),
-    "issuer": Key(Str(), True, "the laboratory that issued it"),
-    "due": Key(Date(), True, "calibration due date, YYYY-MM-DD"),
-    "traces": Key(Str(), False, "the quantity it traces to SI"),
-})
-DRIVE = Map({
-    "interface": Key(Str(), True, "python-can interface: socketcan, pcan, kvaser, socketcand, "
-                                  "virtual..."),
-    "channel": Key(Str(), True, "python-can channel, e.g. can0 (socketcand: the bus name the "
-                                "server announces)"),
-    "host": Key(Str(), False, "socketcand: the server's address, e.g. 127.0.0.1 for "
-                              "`bench sim` (required with interface socketcand)"),
-    "port": Key(Num(min=1, max=65535, integer=True), False,
-                "socketcand: the server's TCP port (required with interface socketcand)"),
-    "node_id": Key(Num(min=1, max=127, integer=True), True, "the drive's CANopen node id"),
-    "controller_node_id": Key(Num(min=1, max=127, integer=True), False,
-                              "this axis's controller node on the bus, whose heartbeat "
-                              "the drive watches (default: highest id free on the bus)"),
-    "bitrate": Key(Num(min=10_000, max=1_000_000, integer=True, unit="bit/s"), False,
-                   "CAN bit rate, where the interface needs it (socketcan takes the link's)"),
-    "max_rate_dps": Key(Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"), True,
-                        "the axis's rate limit: a command above it is refused, never clipped"),
-    "max_accel_dps2": Key(Num(min=0, exclusive_min=True, max=ACCEL_MAX_DPS2,
-                              unit="deg/s^2"), True, "the axis's acceleration limit (and the "
-                          "ramps' default)"),
-    "counts_per_rev": Key(Num(min=1, integer=True), False, "encoder counts per revolution "
-                          "(position and velocity units of the drive)",
-                          DEFAULT_COUNTS_PER_REV),
-    "heartbeat_ms": Key(Num(min=10, max=10_000, integer=True), False,
-                        "controller heartbeat period; the drive watches it",
-                        DEFAULT_HEARTBEAT_MS),
-    "watchdog_ms": Key(Num(min=20, max=65_535, integer=True), False,
-                       "drive stops the axis when the controller is silent this long"),
-    "position_tolerance_deg": Key(Num(min=0, exclusive_min=True, unit="deg"), False,
-                                  "how close a position move must land (profile position)",
-                                  DEFAULT_POSITION_TOLERANCE_DEG),
-    "eds": Key(Str(), False, "the drive's EDS file, for canopen's object dictionary"),
-    "serial": Key(Str(), False, "the instrument's serial number: the key of its "
-                                "check values (bench control)"),
-    "calibration": Key(CALIBRATION, False, "the encoder's calibration certificate, if any"),
-    "unit_factors": Key(Any_(), False,
-                        "'read' (the drive's factor group 0x608F/0x6091/0x60A9/0x60AA is "
-                        "read at connect) or {velocity: rpm|inc/s|0.001 inc/s|..., "
-                        "acceleration: rpm/s|inc/s2|...} written at connect and read back; "
-                        "a stand without a sim: block must state it", DEFAULT_UNIT_FACTORS),
-    "pdo": Key(Str(("set", "verify")), False,
-               "TPDO transmission type / event timer: verify or set at connect", DEFAULT_PDO),
-})
-COUNTER = Map({
-    "resource": Key(Str(), True, "VISA resource string"),
-    "model": Key(Str(tuple(sorted(COUNTER_PROFILES))), True,
-                 "the counter's model: its driver profile (SCPI words, capabilities, "
-                 "metrology; drivers/counter_profiles.py)"),
-    "serial": Key(Str(), False, "the instrument's serial number: the key of its "
-                                "check values (bench control)"),
-    "channel": Key(Num(min=1, max=4, integer=True), False, "input channel of the zero-mark "
-                   "pulse"),
-    "level_v": Key(Num(min=-LEVEL_MAX_V, max=LEVEL_MAX_V, unit="V"), False,
-                   "absolute trigger level; required on a real stand (a twin defaults it)"),
-    "slope": Key(Str(("POS", "NEG")), False, "the pulse edge timed"),
-    "coupling": Key(Str(("DC", "AC")), False, "input coupling"),
-    "impedance_ohm": Key(Num(min=0, exclusive_min=True, unit="ohm"), False,
-                         "input impedance (50 or 1e6)"),
-    "trigger_jitter_s": Key(Num(min=0, unit="s"), False, "slot sensor edge jitter, std"),
-    "timebase_limit_rel": Key(Num(min=0), False, "timebase error limit (external reference)"),
-    "reference": Key(Str(("external", "internal")), False,
-                     "timebase: set at connect and read back (53230A SENS:ROSC:SOUR); a "
-                     "timebase_limit_rel below the model's needs 'external'"),
-    "timeout_margin_s": Key(Num(min=0, exclusive_min=True, max=3600, unit="s"), False,
-                            "extra time allowed beyond a half's expected turns before "
-                            "the counter counts as silent", DEFAULT_TIMEOUT_MARGIN_S),
-    "calibration": Key(CALIBRATION, False, "the counter's calibration certificate"),
-    "time_tie": Key(Map({
-        "source": Key(Str(("fog-sync", "host-clock")), True,
-                      "how the counter's start event is placed on the FOG's time axis: "
-                      "fog-sync (external trigger from the FOG's sync output) or host-clock"),
-        "sync_period_s": Key(Num(min=0, exclusive_min=True, unit="s"), False,
-                             "FOG time between sync pulses (pulse k at k * period)",
-                             TimeTie.sync_period_s),
-        "latency_s": Key(Num(min=0, unit="s"), False, "sync pulse to counter trigger, "
-                         "calibrated", TimeTie.latency_s),
-        "latency_u_s": Key(Num(min=0, unit="s"), False, "its standard uncertainty (with "
-                           "jitter)", TimeTie.latency_u_s),
-        "host_window_s": Key(Num(min=0, unit="s"), False, "how well the host knows the "
-                             "FOG's time axis", TimeTie.host_window_s),
-    }), False, "how the counter's start is tied to the FOG's time axis (docs/"
-               "configuration.md); a stand without a sim: block must state it"),
-})
-#: the FOG keys' defaults, used by the schema's reference and by `FogSettings` (one place)
-def _upright_only(value: Any) -> str | None:
+def _upright_only(value: object) -> str | None:
     """`fog.sign: -1` was once accepted and never read: the analysis took an inverted FOG
     as upright (issue 25). Until the sign is carried through the twin, the capture and
     the cross-calibration, an inverted mounting is refused, not silently mis-signed."""
@@ -166,36 +70,232 @@ def _upright_only(value: Any) -> str | None:
     return None
 
 
-FOG_DEFAULTS: dict[str, Any] = {"baudrate": 921600, "format": "kvh-a", "axis": "z",
-                                "configure": "declare",
-                                "range_dps": 490.0}   # KVH DSP-1760's range
-FOG = Map({
-    "port": Key(Str(), True, "serial port, e.g. /dev/ttyUSB0"),
-    "baudrate": Key(Num(min=1200, max=16_000_000, integer=True), False, "serial line rate",
-                     FOG_DEFAULTS["baudrate"]),
-    "format": Key(Str(tuple(FOG_FORMATS)), False, "frame format (drivers/fog_formats.py)",
-                  FOG_DEFAULTS["format"]),
-    "axis": Key(Str(("x", "y", "z")), False, "the FOG axis along the table axis",
-                 FOG_DEFAULTS["axis"]),
-    "rate_hz": Key(Num(min=1, max=100_000, unit="Hz"), True, "the FOG's output (frame) rate"),
-    "range_dps": Key(Num(min=0, exclusive_min=True, max=100_000, unit="deg/s"), False,
-                     "the FOG's measuring range: a rate above it is refused",
-                     FOG_DEFAULTS["range_dps"]),
-    "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), True,
-                  "what the rotational fields carry; KVH's power-on default is delta "
-                  "radians, 'rad' (1775 IMU Technical Manual, Table 5-10)"),
-    "configure": Key(Str(("set", "verify", "declare")), False,
-                     "set: configure the FOG at connect and read back; verify: read back "
-                     "only; declare: trust fog.units", FOG_DEFAULTS["configure"]),
-    "serial": Key(Str(), False, "the FOG's serial number: compared with its answer to ?IS "
-                  "at connect (configure set or verify; KVH 1775 ICD 8.20), else printed as "
-                  "the stand file states it; the key of its check values (bench control)"),
-    "model": Key(Str(), False, "maker and model, for the certificate"),
-    "sign": Key(Check(Num(min=-1, max=1, integer=True), _upright_only), False,
-                "+1: the FOG's sensitive axis along the table's positive sense (the only "
-                "mounting the analysis supports; a FOG mounted inverted is refused)", 1),
-    "calibration": Key(CALIBRATION, False, "the FOG's calibration certificate, if any"),
+# Each stand block below is declared once, on the frozen dataclass the bench reads: the
+# field's type and default, its Setting's node (bounds, unit) and meaning. The block's
+# schema (`bench validate`, `bench schema`, JSON Schema) is `declared_map` of the class,
+# its parse `parse_declared` (bench/core/schema.py).
+
+@dataclass(frozen=True)
+class Calibration:
+    """An instrument's or reference's calibration certificate, as the stand states it."""
+
+    certificate: Annotated[str, Setting(Str(), "the calibration certificate's number")]
+    issuer: Annotated[str, Setting(Str(), "the laboratory that issued it")]
+    due: Annotated[dt.date | None, Setting(Date(), "calibration due date, YYYY-MM-DD",
+                                           required=True)]
+    traces: Annotated[str | None, Setting(Str(), "the quantity it traces to SI, e.g. 'time "
+                                                 "interval to the SI second'")] = None
+
+    @classmethod
+    def of(cls, d: dict[str, Any] | None) -> Calibration | None:
+        """A calibration block read leniently (a traceability entry, a run's copy)."""
+        if not isinstance(d, dict):
+            return None
+        return cls(str(d.get("certificate", "")), str(d.get("issuer", "")),
+                   parse_date(d.get("due")), _opt(d, "traces", str))
+
+
+CALIBRATION = declared_map(Calibration)
+TRACEABLE = Map({   # a reference the bench does not drive (a 10 MHz source, a sensor)
+    "item": Key(Str(), True, "what it is, e.g. 'GPS-disciplined 10 MHz reference'"),
+    "serial": Key(Str(), False, "its serial number"),
+    "certificate": Key(Str(), True, "its calibration certificate's number"),
+    "issuer": Key(Str(), True, "the laboratory that issued it"),
+    "due": Key(Date(), True, "calibration due date, YYYY-MM-DD"),
+    "traces": Key(Str(), False, "the quantity it traces to SI"),
 })
+_NODE_ID = Num(min=1, max=127, integer=True)
+
+
+@dataclass(frozen=True, kw_only=True)
+class DriveSpec:
+    """A stand axis's `drive:` block, parsed once."""
+
+    interface: Annotated[str, Setting(Str(), "python-can interface: socketcan, pcan, "
+                                             "kvaser, socketcand, virtual...")]
+    channel: Annotated[str, Setting(Str(), "python-can channel, e.g. can0 (socketcand: the "
+                                           "bus name the server announces)")]
+    host: Annotated[str | None, Setting(
+        Str(), "socketcand: the server's address, e.g. 127.0.0.1 for `bench sim` (required "
+        "with interface socketcand)")] = None          # socketcand's server
+    port: Annotated[int | None, Setting(
+        Num(min=1, max=65535, integer=True),
+        "socketcand: the server's TCP port (required with interface socketcand)")] = None
+    node_id: Annotated[int, Setting(_NODE_ID, "the drive's CANopen node id")]
+    #: resolved by the parse: stated, or the highest id free on the bus
+    controller_node_id: Annotated[int, Setting(
+        _NODE_ID, "this axis's controller node on the bus, whose heartbeat the drive "
+        "watches (default: highest id free on the bus)", required=False)]
+    bitrate: Annotated[int | None, Setting(
+        Num(min=10_000, max=1_000_000, integer=True, unit="bit/s"),
+        "CAN bit rate, where the interface needs it (socketcan takes the link's)")] = None
+    max_rate_dps: Annotated[float, Setting(
+        Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"),
+        "the axis's rate limit: a command above it is refused, never clipped")]
+    max_accel_dps2: Annotated[float, Setting(
+        Num(min=0, exclusive_min=True, max=ACCEL_MAX_DPS2, unit="deg/s^2"),
+        "the axis's acceleration limit (and the ramps' default)")]
+    counts_per_rev: Annotated[int, Setting(
+        Num(min=1, integer=True), "encoder counts per revolution (position and velocity "
+        "units of the drive)")] = DEFAULT_COUNTS_PER_REV
+    heartbeat_ms: Annotated[int, Setting(
+        Num(min=10, max=10_000, integer=True),
+        "controller heartbeat period; the drive watches it")] = DEFAULT_HEARTBEAT_MS
+    watchdog_ms: Annotated[int | None, Setting(
+        Num(min=20, max=65_535, integer=True),
+        "drive stops the axis when the controller is silent this long")] = None
+    position_tolerance_deg: Annotated[float, Setting(
+        Num(min=0, exclusive_min=True, unit="deg"),
+        "how close a position move must land (profile position)")] \
+        = DEFAULT_POSITION_TOLERANCE_DEG
+    eds: Annotated[str | None, Setting(
+        Str(), "the drive's EDS file, for canopen's object dictionary")] = None
+    serial: Annotated[str | None, Setting(
+        Str(), "the instrument's serial number: the key of its check values (bench "
+        "control)")] = None
+    calibration: Annotated[Calibration | None, Setting(
+        doc="the encoder's calibration certificate, if any")] = None
+    unit_factors: Annotated[str | Mapping[str, str], Setting(
+        Any_(), "'read' (the drive's factor group 0x608F/0x6091/0x60A9/0x60AA is read at "
+        "connect) or {velocity: rpm|inc/s|0.001 inc/s|..., acceleration: rpm/s|inc/s2|...} "
+        "written at connect and read back; a stand without a sim: block must state "
+        "it")] = DEFAULT_UNIT_FACTORS
+    pdo: Annotated[str, Setting(
+        Str(("set", "verify")),
+        "TPDO transmission type / event timer: verify or set at connect")] = DEFAULT_PDO
+
+    @property
+    def bus(self) -> str:
+        """The CAN bus this drive is on (axes with the same one share it)."""
+        return bus_name({"interface": self.interface, "channel": self.channel,
+                         "host": self.host, "port": self.port})
+
+    @property
+    def bus_options(self) -> dict[str, Any]:
+        """The `can.Bus` arguments besides interface and channel the stand states."""
+        return {k: v for k in ("host", "port", "bitrate") if (v := getattr(self, k))}
+
+
+DRIVE = declared_map(DriveSpec)
+TIME_TIE = Map({
+    "source": Key(Str(("fog-sync", "host-clock")), True,
+                  "how the counter's start event is placed on the FOG's time axis: "
+                  "fog-sync (external trigger from the FOG's sync output) or host-clock"),
+    "sync_period_s": Key(Num(min=0, exclusive_min=True, unit="s"), False,
+                         "FOG time between sync pulses (pulse k at k * period)",
+                         TimeTie.sync_period_s),
+    "latency_s": Key(Num(min=0, unit="s"), False, "sync pulse to counter trigger, "
+                     "calibrated", TimeTie.latency_s),
+    "latency_u_s": Key(Num(min=0, unit="s"), False, "its standard uncertainty (with "
+                       "jitter)", TimeTie.latency_u_s),
+    "host_window_s": Key(Num(min=0, unit="s"), False, "how well the host knows the "
+                         "FOG's time axis", TimeTie.host_window_s),
+})
+
+
+@dataclass(frozen=True, kw_only=True)
+class CounterSpec:
+    """A stand axis's `counter:` block, parsed once."""
+
+    resource: Annotated[str, Setting(Str(), "VISA resource string")]
+    model: Annotated[str, Setting(
+        Str(tuple(sorted(COUNTER_PROFILES))), "the counter's model: its driver profile "
+        "(SCPI words, capabilities, metrology; drivers/counter_profiles.py)")]
+    serial: Annotated[str | None, Setting(
+        Str(), "the instrument's serial number: the key of its check values (bench "
+        "control)")] = None
+    channel: Annotated[int | None, Setting(
+        Num(min=1, max=4, integer=True), "input channel of the zero-mark pulse")] = None
+    level_v: Annotated[float | None, Setting(
+        Num(min=-LEVEL_MAX_V, max=LEVEL_MAX_V, unit="V"),
+        "absolute trigger level; required on a real stand (a twin defaults it)")] = None
+    slope: Annotated[str | None, Setting(Str(("POS", "NEG")), "the pulse edge timed")] = None
+    coupling: Annotated[str | None, Setting(Str(("DC", "AC")), "input coupling")] = None
+    impedance_ohm: Annotated[float | None, Setting(
+        Num(min=0, exclusive_min=True, unit="ohm"), "input impedance (50 or 1e6)")] = None
+    trigger_jitter_s: Annotated[float | None, Setting(
+        Num(min=0, unit="s"), "slot sensor edge jitter, std")] = None
+    timebase_limit_rel: Annotated[float | None, Setting(
+        Num(min=0), "timebase error limit (external reference)")] = None
+    reference: Annotated[str | None, Setting(
+        Str(("external", "internal")), "timebase: set at connect and read back (53230A "
+        "SENS:ROSC:SOUR); a timebase_limit_rel below the model's needs 'external'")] = None
+    timeout_margin_s: Annotated[float, Setting(
+        Num(min=0, exclusive_min=True, max=3600, unit="s"), "extra time allowed beyond a "
+        "half's expected turns before the counter counts as silent")] \
+        = DEFAULT_TIMEOUT_MARGIN_S
+    calibration: Annotated[Calibration | None, Setting(
+        doc="the counter's calibration certificate")] = None
+    #: None: the stand states none (twins: host clock)
+    time_tie: Annotated[TimeTie | None, Setting(
+        TIME_TIE, "how the counter's start is tied to the FOG's time axis (docs/"
+        "configuration.md); a stand without a sim: block must state it")] = None
+
+    def input_settings(self) -> dict[str, Any]:
+        """The input's settings the stand states (the driver's `configure` keywords)."""
+        return {k: v for k in ("channel", "level_v", "slope", "coupling", "impedance_ohm")
+                if (v := getattr(self, k)) is not None}
+
+
+COUNTER = declared_map(CounterSpec)
+
+
+@dataclass(frozen=True, kw_only=True)
+class FogSettings:
+    """A stand's `fog:` block, parsed once: the live driver, the twin, the analysis
+    reading the raw capture, the disk-space estimate and the station view all take it
+    from here."""
+
+    port: Annotated[str, Setting(Str(), "serial port, e.g. /dev/ttyUSB0")]
+    baudrate: Annotated[int, Setting(Num(min=1200, max=16_000_000, integer=True),
+                                     "serial line rate")] = 921600
+    format: Annotated[str, Setting(Str(tuple(FOG_FORMATS)),
+                                   "frame format (drivers/fog_formats.py)")] = "kvh-a"
+    axis: Annotated[str, Setting(Str(("x", "y", "z")),
+                                 "the FOG axis along the table axis")] = "z"
+    rate_hz: Annotated[float, Setting(Num(min=1, max=100_000, unit="Hz"),
+                                      "the FOG's output (frame) rate")]
+    range_dps: Annotated[float, Setting(
+        Num(min=0, exclusive_min=True, max=100_000, unit="deg/s"),
+        "the FOG's measuring range: a rate above it is refused")] = 490.0  # KVH DSP-1760's
+    units: Annotated[str, Setting(
+        Str(("deg/s", "rad/s", "deg", "rad")), "what the rotational fields carry; KVH's "
+        "power-on default is delta radians, 'rad' (1775 IMU Technical Manual, Table "
+        "5-10)")]
+    configure: Annotated[str, Setting(
+        Str(("set", "verify", "declare")), "set: configure the FOG at connect and read "
+        "back; verify: read back only; declare: trust fog.units")] = "declare"
+    serial: Annotated[str | None, Setting(
+        Str(), "the FOG's serial number: compared with its answer to ?IS at connect "
+        "(configure set or verify; KVH 1775 ICD 8.20), else printed as the stand file "
+        "states it; the key of its check values (bench control)")] = None
+    model: Annotated[str | None, Setting(Str(), "maker and model, for the certificate")] = None
+    sign: Annotated[int, Setting(
+        Check(Num(min=-1, max=1, integer=True), _upright_only), "+1: the FOG's sensitive "
+        "axis along the table's positive sense (the only mounting the analysis supports; "
+        "a FOG mounted inverted is refused)")] = 1
+    calibration: Annotated[Calibration | None, Setting(
+        doc="the FOG's calibration certificate, if any")] = None
+
+    @classmethod
+    def of(cls, fog: Mapping[str, object]) -> FogSettings:
+        return parse_declared(cls, fog)
+
+    @classmethod
+    def of_axis(cls, stand: Mapping[str, Any], axis: str) -> FogSettings | None:
+        """The FOG of `axis` in a stand mapping read back from a run directory, or None
+        when the axis has none (or the file is damaged: the station view reads run
+        directories it did not write)."""
+        f = ((stand.get("axes") or {}).get(axis) or {}).get("fog")
+        if not isinstance(f, dict) or not all(k in f for k in ("port", "rate_hz", "units")):
+            return None
+        try:
+            return cls.of(f)
+        except (TypeError, ValueError):   # a key of the wrong type or unknown
+            return None
+
+
+FOG = declared_map(FogSettings)
 STAND_AXIS_KEYS: dict[str, Key] = {
     "drive": Key(DRIVE, True, "the axis's servo drive (CANopen CiA 402)"),
     "counter": Key(COUNTER, False, "the counter timing the zero-mark pulse, once per turn"),
@@ -258,19 +358,9 @@ SIM_AXIS = Map({
                                                  "0: TPDOs on change only")}), False,
                  "the drive twin's factor group (e.g. rpm, rpm/s) and TPDO event timer"),
 })
-SIM_KEYS: dict[str, Key] = {
-    "seed": Key(Num(min=0, integer=True), False, "the twins' random seed: a run's numbers "
-                "depend on it and the files alone", 0),
-    "clock_speed": Key(OneOf(Num(min=0, exclusive_min=True), Str(("max",))), False,
-                       "virtual seconds per real one, or max: as fast as every twin keeps up"),
-    "axes": Key(MapOf(SIM_AXIS), False, "each axis's truth, by stand axis name"),
-    "run_number": Key(Num(min=1, integer=True), False,
-                      "this run's number for a drifting twin (default: 1 + the runs of "
-                      "this table in the records)"),
-}
 
 
-def _absolute_path(value: Any) -> str | None:
+def _absolute_path(value: object) -> str | None:
     """A key or certificate is named by its path, never pasted in (the stand file is
     copied into every run directory); relative paths would depend on the cwd."""
     if isinstance(value, str) and "-----BEGIN" in value:
@@ -290,13 +380,20 @@ STAND_DCC = Map({
     "lab": Key(ABSOLUTE_PATH, False, "lab settings file (YAML), absolute path"),
     "signing": Key(SIGNING, False, "the DCC's signing key and certificate (docs/dcc.md)"),
 })
-IDENTITY = Map({"maker": Key(Str(), True, "the table's maker"),
-                "model": Key(Str(), True, "its model"),
-                "serial": Key(Str(), True, "its serial number (text; the records key)"),
-                "location": Key(Str(), False, "where it stands"),
-                "recertification_interval_days": Key(
-                    Num(min=1, integer=True, unit="d"), False,
-                    "the table's recertification interval (lab settings may override)")})
+@dataclass(frozen=True)
+class Identity:
+    """The table under test (the stand's `stand:` block)."""
+
+    maker: Annotated[str, Setting(Str(), "the table's maker")]
+    model: Annotated[str, Setting(Str(), "its model")]
+    serial: Annotated[str, Setting(Str(), "its serial number (text; the records key)")]
+    location: Annotated[str | None, Setting(Str(), "where it stands")] = None
+    recertification_interval_days: Annotated[int | None, Setting(
+        Num(min=1, integer=True, unit="d"),
+        "the table's recertification interval (lab settings may override)")] = None
+
+
+IDENTITY = declared_map(Identity)
 
 
 BENCH = Map({"name": Key(Str(), False, "the bench's name on the lab server, unique in the "
@@ -328,22 +425,35 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
 
 # -- procedure file: the keys every procedure kind shares ------------------------------
 
-COMMON_PROCEDURE_KEYS: dict[str, Key] = {
-    "procedure": Key(Str(), True, "the procedure kind (bench schema procedure KIND)"),
-    "title": Key(Str(), False, "printed on the plan and the certificate (default: the file "
-                               "name)"),
-    "stand": Key(Str(), True, "stand file, relative to this file"),
-    "conditions": Key(MapOf(Any_()), False, "recorded conditions, printed on the certificate"),
-    "certificate": Key(MapOf(Any_()), False, "customer, laboratory, ... for the certificate"),
-    "decision_rule": Key(Str(("simple", "guard-band")), False, "how a verdict is decided "
-                         "against the tolerance (ILAC-G8); default simple acceptance"),
-    "prompts": Key(Bool(), False, "ask the operator before each axis (mount the FOG...); "
-                                  "default true, --yes answers"),
-    "calibration_state": Key(Str(("as-found", "as-left")), False,
-                             "as-found before an adjustment, as-left after (the records "
-                             "pair them; --as-found/--as-left win)"),
-    "adjustment_note": Key(Str(), False, "what was adjusted since the as-found run"),
-    "item": Key(Map({
+@dataclass(frozen=True, kw_only=True)
+class CommonSettings:
+    """The procedure keys every kind shares, declared once and parsed once."""
+
+    #: required in a file; "" in the procedure a command makes up (`bench devices`)
+    procedure: Annotated[str, Setting(Str(), "the procedure kind (bench schema procedure "
+                                             "KIND)", required=True)] = ""
+    #: resolved by the parse: the file's, else the file name
+    title: Annotated[str, Setting(Str(), "printed on the plan and the certificate (default: "
+                                         "the file name)", required=False)]
+    stand: Annotated[str, Setting(Str(), "stand file, relative to this file",
+                                  required=True)] = ""
+    conditions: Annotated[Mapping[str, Any], Setting(
+        MapOf(Any_()), "recorded conditions, printed on the certificate")] \
+        = field(default_factory=dict)
+    certificate: Annotated[Mapping[str, Any], Setting(
+        MapOf(Any_()), "customer, laboratory, ... for the certificate")] \
+        = field(default_factory=dict)
+    decision_rule: Annotated[str, Setting(
+        Str(("simple", "guard-band")), "how a verdict is decided against the tolerance "
+        "(ILAC-G8): simple acceptance or a guard band")] = "simple"
+    prompts: Annotated[bool, Setting(Bool(), "ask the operator before each axis (mount the "
+                                             "FOG...); --yes answers")] = True
+    calibration_state: Annotated[str | None, Setting(
+        Str(("as-found", "as-left")), "as-found before an adjustment, as-left after (the "
+        "records pair them; --as-found/--as-left win)")] = None
+    adjustment_note: Annotated[str | None, Setting(
+        Str(), "what was adjusted since the as-found run")] = None
+    item: Annotated[Mapping[str, Any] | None, Setting(Map({
         "received": Key(Date(), False, "the date the item was received (ISO/IEC 17025 "
                                        "7.8.2.1 g)"),
         "condition": Key(Str(), False, "its condition on receipt (7.4.3)"),
@@ -351,49 +461,30 @@ COMMON_PROCEDURE_KEYS: dict[str, Key] = {
                                           "an adjustment: its run id (run directory name)"),
         "adjustments": Key(ListOf(Str()), False, "adjustments made to the item before this "
                                                  "run (7.8.4.1 b)"),
-    }), False, "the item as received and as left; each part left out is printed 'not "
-               "stated' (docs/certificate.md)"),
-    "decision_rule_agreement": Key(Map({
+    }), "the item as received and as left; each part left out is printed 'not stated' "
+        "(docs/certificate.md)")] = None
+    decision_rule_agreement: Annotated[Mapping[str, Any] | None, Setting(Map({
         "agreed_with": Key(Str(), True, "who agreed to the decision rule for the customer"),
         "agreed_on": Key(Date(), True, "when, YYYY-MM-DD"),
         "reference": Key(Str(), False, "where it is recorded (order, contract review)"),
-    }), False, "the customer's agreement to decision_rule (ISO/IEC 17025 7.1.3); without "
-               "it the certificate says 'not stated'"),
-    "operator": Key(Str(), False, "who runs the procedure (default: the login name)"),
-    "specification": Key(Map({
+    }), "the customer's agreement to decision_rule (ISO/IEC 17025 7.1.3); without it the "
+        "certificate says 'not stated'")] = None
+    operator: Annotated[str | None, Setting(
+        Str(), "who runs the procedure (default: the login name)")] = None
+    specification: Annotated[Mapping[str, Any] | None, Setting(Map({
         "source": Key(Str(), True, "the document the tolerances come from: maker, title, "
                                    "revision, date"),
         "definitions": Key(MapOf(Str()), False, "how the document defines each figure, by "
                                                 "tolerance key"),
-    }), False, "where the tolerances come from; printed with the statement of conformity"),
-}
+    }), "where the tolerances come from; printed with the statement of conformity")] = None
+
+
+COMMON_PROCEDURE_KEYS: dict[str, Key] = dict(declared_map(CommonSettings).keys)
 
 
 def _opt(spec: dict[str, Any], key: str, cast: Any) -> Any:
     """A validated optional key, cast, or None when the file leaves it out."""
     return cast(spec[key]) if spec.get(key) is not None else None
-
-
-def _default(node: Map, key: str) -> Any:
-    """The schema key's default: each default is written once, in its Key."""
-    return node.keys[key].default
-
-
-@dataclass(frozen=True)
-class Calibration:
-    """An instrument's or reference's calibration certificate, as the stand states it."""
-
-    certificate: str
-    issuer: str
-    due: dt.date | None
-    traces: str | None = None
-
-    @classmethod
-    def of(cls, d: dict[str, Any] | None) -> Calibration | None:
-        if not isinstance(d, dict):
-            return None
-        return cls(str(d.get("certificate", "")), str(d.get("issuer", "")),
-                   parse_date(d.get("due")), _opt(d, "traces", str))
 
 
 @dataclass(frozen=True)
@@ -420,14 +511,14 @@ class Traced:
         return self.certificate is not None
 
 
-def _traced_name(path: tuple[str, ...], spec: Mapping[str, Any]) -> str:
+def _traced_name(path: tuple[str, ...], spec: Mapping[str, object]) -> str:
     role = path[-1]
     where = " ".join(p for p in path[1:-1] if p not in ("axes", "gyros"))
     model = spec.get("model")
     return f"{role}{' ' + str(model) if model else ''}{f' ({where})' if where else ''}"
 
 
-def _instruments(node: Any, path: tuple[str, ...]
+def _instruments(node: object, path: tuple[str, ...]
                  ) -> Iterator[tuple[tuple[str, ...], Mapping[str, Any]]]:
     """Every block of the stand that is an instrument (it has an address or a
     calibration), whichever kind's block holds it (a gyro platform's DMMs too)."""
@@ -476,115 +567,6 @@ class Traceable:
 
 
 @dataclass(frozen=True)
-class Identity:
-    """The table under test (the stand's `stand:` block)."""
-
-    maker: str
-    model: str
-    serial: str
-    location: str | None = None
-    recertification_interval_days: int | None = None
-
-
-@dataclass(frozen=True)
-class DriveSpec:
-    """A stand axis's `drive:` block, parsed once (defaults from DRIVE's keys)."""
-
-    interface: str
-    channel: str
-    node_id: int
-    controller_node_id: int          # resolved: stated, or the highest free on the bus
-    max_rate_dps: float
-    max_accel_dps2: float
-    counts_per_rev: int = _default(DRIVE, "counts_per_rev")
-    heartbeat_ms: int = _default(DRIVE, "heartbeat_ms")
-    watchdog_ms: int | None = None
-    bitrate: int | None = None
-    position_tolerance_deg: float = _default(DRIVE, "position_tolerance_deg")
-    eds: str | None = None
-    serial: str | None = None
-    calibration: Calibration | None = None
-    unit_factors: str | Mapping[str, str] = _default(DRIVE, "unit_factors")
-    pdo: str = _default(DRIVE, "pdo")
-    host: str | None = None          # socketcand's server
-    port: int | None = None
-
-    @property
-    def bus(self) -> str:
-        """The CAN bus this drive is on (axes with the same one share it)."""
-        return bus_name({"interface": self.interface, "channel": self.channel,
-                         "host": self.host, "port": self.port})
-
-    @property
-    def bus_options(self) -> dict[str, Any]:
-        """The `can.Bus` arguments besides interface and channel the stand states."""
-        return {k: v for k in ("host", "port", "bitrate") if (v := getattr(self, k))}
-
-
-@dataclass(frozen=True)
-class CounterSpec:
-    """A stand axis's `counter:` block, parsed once."""
-
-    resource: str
-    model: str
-    serial: str | None = None
-    channel: int | None = None
-    level_v: float | None = None
-    slope: str | None = None
-    coupling: str | None = None
-    impedance_ohm: float | None = None
-    trigger_jitter_s: float | None = None
-    timebase_limit_rel: float | None = None
-    reference: str | None = None
-    timeout_margin_s: float = _default(COUNTER, "timeout_margin_s")
-    calibration: Calibration | None = None
-    time_tie: TimeTie | None = None    # None: the stand states none (twins: host clock)
-
-    def input_settings(self) -> dict[str, Any]:
-        """The input's settings the stand states (the driver's `configure` keywords)."""
-        return {k: v for k in ("channel", "level_v", "slope", "coupling", "impedance_ohm")
-                if (v := getattr(self, k)) is not None}
-
-
-@dataclass(frozen=True)
-class FogSettings:
-    """A stand's `fog:` block, parsed once, every default from FOG's keys (the schema
-    says which keys are required): the live driver, the twin, the analysis reading the
-    raw capture, the disk-space estimate and the station view all take it from here."""
-
-    port: str
-    rate_hz: float
-    units: str
-    baudrate: int = FOG_DEFAULTS["baudrate"]
-    format: str = FOG_DEFAULTS["format"]
-    axis: str = FOG_DEFAULTS["axis"]
-    configure: str = FOG_DEFAULTS["configure"]
-    model: str | None = None
-    serial: str | None = None
-    range_dps: float = FOG_DEFAULTS["range_dps"]
-    sign: int = _default(FOG, "sign")
-    calibration: Calibration | None = None
-
-    @classmethod
-    def of(cls, fog: dict[str, Any]) -> FogSettings:
-        fields = {k: fog[k] for k in ("baudrate", "format", "axis", "configure", "model",
-                                      "serial", "range_dps", "sign") if k in fog}
-        return cls(port=str(fog["port"]), rate_hz=float(fog["rate_hz"]),
-                   units=str(fog["units"]), calibration=Calibration.of(fog.get("calibration")),
-                   **fields)
-
-    @classmethod
-    def of_axis(cls, stand: dict[str, Any], axis: str) -> FogSettings | None:
-        """The FOG of `axis` in a stand mapping read back from a run directory, or None
-        when the axis has none (or the file is damaged: the station view reads run
-        directories it did not write)."""
-        f = ((stand.get("axes") or {}).get(axis) or {}).get("fog")
-        if not isinstance(f, dict) or not all(k in f for k in ("port", "rate_hz", "units")):
-            return None
-        return cls.of(f)
-
-
-@dataclass(frozen=True)
 class StandAxis:
     """One axis of the stand: its drive, and the counter and FOG that watch it."""
 
@@ -615,14 +597,22 @@ class SimAxis:
 DEFAULT_SIM_AXIS = SimAxis(AxisTruth(fog=FogTruth(noise_dps=0.01), turn_jitter_s=27e-9))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SimSettings:
     """The stand's `sim:` block: the twins' truth (absent on a real bench)."""
 
-    seed: int = _default(Map(SIM_KEYS), "seed")
-    clock_speed: float | str | None = None
-    run_number: int | None = None
-    axes: Mapping[str, SimAxis] = field(default_factory=dict)
+    seed: Annotated[int, Setting(Num(min=0, integer=True), "the twins' random seed: a "
+                                 "run's numbers depend on it and the files alone")] = 0
+    clock_speed: Annotated[float | str | None, Setting(
+        OneOf(Num(min=0, exclusive_min=True), Str(("max",))),
+        "virtual seconds per real one, or max: as fast as every twin keeps up")] = None
+    #: parsed by `_sim_axis` (each truth's default is its dataclass field's)
+    axes: Annotated[Mapping[str, SimAxis], Setting(
+        MapOf(SIM_AXIS), "each axis's truth, by stand axis name")] \
+        = field(default_factory=dict)
+    run_number: Annotated[int | None, Setting(
+        Num(min=1, integer=True), "this run's number for a drifting twin (default: 1 + "
+        "the runs of this table in the records)")] = None
     can_bus: str = "virtual"          # `bench sim`: "socketcand", served to other processes
     session: int = 1                  # set for a --resume: the session these twins serve
 
@@ -632,6 +622,9 @@ class SimSettings:
     @property
     def has_drift(self) -> bool:
         return any(a.scale_step or a.scale_ramp for a in self.axes.values())
+
+
+SIM_KEYS: dict[str, Key] = dict(declared_map(SimSettings).keys)
 
 
 @dataclass(frozen=True)
@@ -722,85 +715,31 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
     controllers = controller_node_ids(stand_axes)
     axes: dict[str, StandAxis] = {}
     for name, a in stand_axes.items():
-        d = a["drive"]
-        drive = DriveSpec(
-            interface=str(d["interface"]), channel=str(d["channel"]), node_id=int(d["node_id"]),
-            controller_node_id=controllers[name], max_rate_dps=float(d["max_rate_dps"]),
-            max_accel_dps2=float(d["max_accel_dps2"]),
-            counts_per_rev=int(d.get("counts_per_rev", _default(DRIVE, "counts_per_rev"))),
-            heartbeat_ms=int(d.get("heartbeat_ms", _default(DRIVE, "heartbeat_ms"))),
-            watchdog_ms=_opt(d, "watchdog_ms", int), bitrate=_opt(d, "bitrate", int),
-            position_tolerance_deg=float(d.get("position_tolerance_deg",
-                                               _default(DRIVE, "position_tolerance_deg"))),
-            eds=_opt(d, "eds", str), serial=_opt(d, "serial", str),
-            calibration=Calibration.of(d.get("calibration")),
-            unit_factors=d.get("unit_factors", _default(DRIVE, "unit_factors")),
-            pdo=str(d.get("pdo", _default(DRIVE, "pdo"))), host=_opt(d, "host", str),
-            port=_opt(d, "port", int))
-        c = a.get("counter")
-        counter = None if not c else CounterSpec(
-            resource=str(c["resource"]), model=str(c["model"]), serial=_opt(c, "serial", str),
-            channel=_opt(c, "channel", int), level_v=_opt(c, "level_v", float),
-            slope=_opt(c, "slope", str), coupling=_opt(c, "coupling", str),
-            impedance_ohm=_opt(c, "impedance_ohm", float),
-            trigger_jitter_s=_opt(c, "trigger_jitter_s", float),
-            timebase_limit_rel=_opt(c, "timebase_limit_rel", float),
-            reference=_opt(c, "reference", str),
-            timeout_margin_s=float(c.get("timeout_margin_s",
-                                         _default(COUNTER, "timeout_margin_s"))),
-            calibration=Calibration.of(c.get("calibration")),
-            time_tie=TimeTie(**c["time_tie"]) if c.get("time_tie") else None)
-        axes[name] = StandAxis(name, drive, counter, FogSettings.of(a["fog"]) if a.get("fog")
-                               else None)
+        c, f = a.get("counter"), a.get("fog")
+        axes[name] = StandAxis(
+            name, parse_declared(DriveSpec, a["drive"], controller_node_id=controllers[name]),
+            parse_declared(CounterSpec, c) if c else None,
+            parse_declared(FogSettings, f) if f else None)
     sim = None
     if "sim" in stand:
         s = stand["sim"] or {}
-        sim = SimSettings(
-            seed=int(s.get("seed", _default(Map(SIM_KEYS), "seed"))),
-            clock_speed=s.get("clock_speed"), run_number=_opt(s, "run_number", int),
-            axes={n: _sim_axis(v or {}) for n, v in
-                                   (s.get("axes") or {}).items()})
+        sim = parse_declared(SimSettings, s, axes={n: _sim_axis(v or {}) for n, v in
+                                                   (s.get("axes") or {}).items()})
     trace = tuple(Traceable(str(t.get("item", "")), _opt(t, "serial", str),
                             Calibration.of(t) or Calibration("", "", None))
                   for t in stand.get("traceability") or [])
     return StandSettings(
-        identity=Identity(str(ident.get("maker", "")), str(ident.get("model", "")),
-                          str(ident.get("serial", "")),
-                          _opt(ident, "location", str),
-                          _opt(ident, "recertification_interval_days", int)),
+        identity=(parse_declared(Identity, ident) if ident
+                  else Identity(maker="", model="", serial="")),
         axes=axes, sim=sim, traceability=trace,
         dcc=dcc_refs(stand), traced=stated_traceability(stand),
         mains_hz=_opt(stand, "mains_hz", float),
         bench_name=_opt(stand.get("bench") or {}, "name", str))
 
 
-@dataclass(frozen=True)
-class CommonSettings:
-    """The procedure keys every kind shares (COMMON_PROCEDURE_KEYS), parsed once."""
-
-    title: str
-    conditions: Mapping[str, Any]
-    certificate: Mapping[str, Any]
-    decision_rule: str | None
-    prompts: bool
-    calibration_state: str | None
-    adjustment_note: str | None
-    operator: str | None
-    specification: Mapping[str, Any] | None
-
-
-def parse_common(procedure: dict[str, Any], path: Path) -> CommonSettings:
-    spec = procedure.get("specification")
-    return CommonSettings(
-        title=str(procedure.get("title", path.stem)),
-        conditions=dict(procedure.get("conditions") or {}),
-        certificate=dict(procedure.get("certificate") or {}),
-        decision_rule=_opt(procedure, "decision_rule", str),
-        prompts=bool(procedure.get("prompts", True)),
-        calibration_state=_opt(procedure, "calibration_state", str),
-        adjustment_note=_opt(procedure, "adjustment_note", str),
-        operator=_opt(procedure, "operator", str),
-        specification=dict(spec) if isinstance(spec, dict) else None)
+def parse_common(procedure: Mapping[str, object], path: Path) -> CommonSettings:
+    return parse_declared(CommonSettings, procedure,
+                          title=str(procedure.get("title", path.stem)))
 
 
 @dataclass(frozen=True)

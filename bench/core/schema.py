@@ -3,17 +3,32 @@
 A schema node checks one value and reports every problem it finds (not just the
 first) as a `Problem` naming file, line and key path. Unknown keys are refused: a
 misspelt `turnz: 50` must not silently fall back to a default on a day-long run.
+
+A setting is declared once, on the frozen dataclass that carries it: its type and
+default are the field's, its schema node (bounds, unit) and meaning a `Setting` in the
+field's `Annotated` type. `declared_map` derives the file's schema from the class (so
+`bench validate`, `bench schema` and the JSON Schema read the same declaration) and
+`parse_declared` builds the object from the validated mapping; no defaults dict and
+no hand copy of the keys. Our own nodes, not pydantic/msgspec/cattrs: they keep every
+problem at its file, line and key, and import in a few milliseconds (the CLI's start).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
+import functools
 import math
+import types
+import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 from bench.core.yamlfile import KeyPath, Problem, YamlDoc
+
+#: a JSON Schema document (or a part of one), as `json.dumps` writes it
+JsonSchema = dict[str, object]
 
 
 class Node:
@@ -27,15 +42,15 @@ class Node:
     description = "a value"
     unit_text = ""
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         raise NotImplementedError
 
-    def json_schema(self) -> dict[str, Any]:
+    def json_schema(self) -> JsonSchema:
         """This node as JSON Schema (draft 2020-12) of the file's data."""
         return {}
 
 
-def _type_name(value: Any) -> str:
+def _type_name(value: object) -> str:
     if value is None:
         return "nothing"
     return {bool: "true/false", int: "an integer", float: "a number", str: "text",
@@ -75,8 +90,8 @@ class Num(Node):
     def unit_text(self) -> str:  # type: ignore[override]
         return self.unit
 
-    def json_schema(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"type": "integer" if self.integer else "number"}
+    def json_schema(self) -> JsonSchema:
+        out: JsonSchema = {"type": "integer" if self.integer else "number"}
         if self.min is not None:
             out["exclusiveMinimum" if self.exclusive_min else "minimum"] = self.min
         if self.max is not None:
@@ -85,9 +100,9 @@ class Num(Node):
             out["x-unit"] = self.unit
         return out
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
-        ok_type = isinstance(value, int) if self.integer else isinstance(value, int | float)
-        if isinstance(value, bool) or not ok_type or not _finite(value):
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+        if isinstance(value, bool) or not isinstance(value, int | float) \
+                or (self.integer and not isinstance(value, int)) or not _finite(value):
             out.append(doc.problem(path, f"expected {self.description}, got {_type_name(value)}"
                                          f" {value!r}"))
             return
@@ -105,14 +120,14 @@ class Str(Node):
     def description(self) -> str:  # type: ignore[override]
         return f"one of {', '.join(self.choices)}" if self.choices else "text"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if not isinstance(value, str):
             out.append(doc.problem(path, f"expected {self.description}, got "
                                          f"{_type_name(value)} {value!r}"))
         elif self.choices and value not in self.choices:
             out.append(doc.problem(path, f"expected {self.description}, got {value!r}"))
 
-    def json_schema(self) -> dict[str, Any]:
+    def json_schema(self) -> JsonSchema:
         return {"type": "string", **({"enum": list(self.choices)} if self.choices else {})}
 
 
@@ -122,15 +137,15 @@ class Date(Node):
 
     description = "a date YYYY-MM-DD"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if parse_date(value) is None:
             out.append(doc.problem(path, f"expected {self.description}, got {value!r}"))
 
-    def json_schema(self) -> dict[str, Any]:
+    def json_schema(self) -> JsonSchema:
         return {"type": "string", "format": "date"}
 
 
-def parse_date(value: Any) -> dt.date | None:
+def parse_date(value: object) -> dt.date | None:
     """A date from YAML (a date, or text YYYY-MM-DD); None if it is not one."""
     if isinstance(value, dt.datetime):
         return value.date()
@@ -148,11 +163,11 @@ def parse_date(value: Any) -> dt.date | None:
 class Bool(Node):
     description = "true or false"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if not isinstance(value, bool):
             out.append(doc.problem(path, f"expected true or false, got {value!r}"))
 
-    def json_schema(self) -> dict[str, Any]:
+    def json_schema(self) -> JsonSchema:
         return {"type": "boolean"}
 
 
@@ -160,7 +175,7 @@ class Bool(Node):
 class Any_(Node):
     description = "anything"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         return
 
 
@@ -177,7 +192,7 @@ class OneOf(Node):
     def description(self) -> str:  # type: ignore[override]
         return " or ".join(o.description for o in self.options)
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         for o in self.options:
             found: list[Problem] = []
             o.check(value, path, doc, found)
@@ -190,7 +205,7 @@ class OneOf(Node):
     def unit_text(self) -> str:  # type: ignore[override]
         return next((o.unit_text for o in self.options if o.unit_text), "")
 
-    def json_schema(self) -> dict[str, Any]:
+    def json_schema(self) -> JsonSchema:
         return {"anyOf": [o.json_schema() for o in self.options]}
 
 
@@ -203,7 +218,7 @@ class ListOf(Node):
     def description(self) -> str:  # type: ignore[override]
         return f"a list of {self.item.description}"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if not isinstance(value, list):
             out.append(doc.problem(path, f"expected {self.description}, got "
                                          f"{_type_name(value)} {value!r}"))
@@ -217,8 +232,8 @@ class ListOf(Node):
     def unit_text(self) -> str:  # type: ignore[override]
         return self.item.unit_text
 
-    def json_schema(self) -> dict[str, Any]:
-        out = {"type": "array", "items": self.item.json_schema()}
+    def json_schema(self) -> JsonSchema:
+        out: JsonSchema = {"type": "array", "items": self.item.json_schema()}
         return {**out, "minItems": self.min_len} if self.min_len else out
 
 
@@ -230,7 +245,7 @@ class Key:
     node: Node
     required: bool = False
     doc: str = ""
-    default: Any = None
+    default: object = None
 
 
 @dataclass(frozen=True)
@@ -240,7 +255,7 @@ class Map(Node):
     keys: Mapping[str, Key] = field(default_factory=dict)
     description = "a mapping"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if not isinstance(value, dict):
             out.append(doc.problem(path, f"expected a mapping with keys "
                                          f"{', '.join(self.keys)}, got {_type_name(value)}"))
@@ -257,8 +272,8 @@ class Map(Node):
                 out.append(doc.problem(path, f"missing required key {k!r} "
                                              f"({spec.node.description})"))
 
-    def json_schema(self) -> dict[str, Any]:
-        props: dict[str, Any] = {}
+    def json_schema(self) -> JsonSchema:
+        props: JsonSchema = {}
         for k, spec in self.keys.items():
             s = spec.node.json_schema()
             if spec.doc:
@@ -266,7 +281,7 @@ class Map(Node):
             if spec.default is not None:
                 s = {**s, "default": spec.default}
             props[k] = s
-        out: dict[str, Any] = {"type": "object", "properties": props,
+        out: JsonSchema = {"type": "object", "properties": props,
                                "additionalProperties": False}
         required = [k for k, spec in self.keys.items() if spec.required]
         return {**out, "required": required} if required else out
@@ -283,7 +298,7 @@ class MapOf(Node):
     def description(self) -> str:  # type: ignore[override]
         return f"a mapping of names to {self.value.description}"
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         if not isinstance(value, dict):
             out.append(doc.problem(path, f"expected {self.description}, got "
                                          f"{_type_name(value)}"))
@@ -293,8 +308,8 @@ class MapOf(Node):
         for k, v in value.items():
             self.value.check(v, (*path, str(k)), doc, out)
 
-    def json_schema(self) -> dict[str, Any]:
-        out = {"type": "object", "additionalProperties": self.value.json_schema()}
+    def json_schema(self) -> JsonSchema:
+        out: JsonSchema = {"type": "object", "additionalProperties": self.value.json_schema()}
         return {**out, "minProperties": self.min_len} if self.min_len else out
 
 
@@ -307,6 +322,7 @@ class Check(Node):
     """
 
     inner: Node
+    #: called with a value `inner` accepted (so of the type `inner` checks)
     rule: Callable[[Any], str | None | list[tuple[KeyPath, str]]]
 
     @property
@@ -317,11 +333,11 @@ class Check(Node):
     def unit_text(self) -> str:  # type: ignore[override]
         return self.inner.unit_text
 
-    def json_schema(self) -> dict[str, Any]:
+    def json_schema(self) -> JsonSchema:
         """The inner schema: the rule needs the whole value and stays `bench validate`'s."""
         return self.inner.json_schema()
 
-    def check(self, value: Any, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
+    def check(self, value: object, path: KeyPath, doc: YamlDoc, out: list[Problem]) -> None:
         before = len(out)
         self.inner.check(value, path, doc, out)
         if len(out) == before:
@@ -361,3 +377,141 @@ def merge(a: Node, b: Node) -> Node:
     if isinstance(a, Check) and isinstance(b, Check) and a.rule is b.rule:
         return Check(merge(a.inner, b.inner), a.rule)
     return OneOf(a, b)
+
+
+# -- settings declared once, on their dataclass ------------------------------------------
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class Setting:
+    """A dataclass field's YAML key: its schema node (None: from the field's type), what
+    it means, and whether it must be written (None: when the field has no default).
+
+    `required=False` on a field without a default: the file may leave the key out and
+    the parser is given the value (resolved from other keys, e.g. a controller node id).
+    `required=True` on a field with a default: a file must write it, an object made up
+    in code need not (a required key shows no default in the reference).
+    """
+
+    node: Node | None = None
+    doc: str = ""
+    required: bool | None = None
+    #: the YAML key, where the field's name cannot be it
+    key: str | None = None
+
+
+def _declared(tp: object) -> type | None:
+    """The class when `tp` is a dataclass whose fields declare settings."""
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp) and _settings(tp):
+        return tp
+    return None
+
+
+_Declared = tuple[tuple[dataclasses.Field[object], object, Setting], ...]
+_DECLARED: dict[type, _Declared] = {}
+
+
+def _settings(cls: type) -> _Declared:
+    """(field, its type without the annotation, its Setting) of each declared field."""
+    if cls in _DECLARED:
+        return _DECLARED[cls]
+    hints = typing.get_type_hints(cls, include_extras=True)
+    out = []
+    for f in dataclasses.fields(cls):
+        hint = hints[f.name]
+        if typing.get_origin(hint) is typing.Annotated:
+            found = [m for m in hint.__metadata__ if isinstance(m, Setting)]
+            if found:
+                out.append((f, hint.__origin__, found[0]))
+    _DECLARED[cls] = tuple(out)
+    return _DECLARED[cls]
+
+
+def _without_none(tp: object) -> object:
+    if typing.get_origin(tp) in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if len(args) == 1:
+            return args[0]
+    return tp
+
+
+def _node_of(tp: object) -> Node:
+    """The schema node a field's type implies when its Setting names none."""
+    tp = _without_none(tp)
+    inner = _declared(tp)
+    if inner is not None:
+        return declared_map(inner)
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin in (Mapping, dict) and len(args) == 2:
+        return MapOf(_node_of(args[1]))
+    if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
+        return ListOf(_node_of(args[0]))
+    plain: dict[object, Node] = {str: Str(), bool: Bool(), int: Num(integer=True),
+                                 float: Num(), dt.date: Date()}
+    return plain.get(tp, Any_())
+
+
+def _shown(default: object) -> object:
+    """A default the reference prints (a nested object's are its own keys'; an empty
+    list is "none", not a value to write)."""
+    if isinstance(default, bool | int | float | str) or (isinstance(default, tuple | list)
+                                                         and default):
+        return default
+    return None
+
+
+@functools.cache
+def declared_map(cls: type) -> Map:
+    """The schema of a mapping whose keys are `cls`'s declared fields, in their order."""
+    keys: dict[str, Key] = {}
+    for f, tp, s in _settings(cls):
+        has_default = (f.default is not dataclasses.MISSING
+                       or f.default_factory is not dataclasses.MISSING)
+        default = (f.default if f.default is not dataclasses.MISSING
+                   else f.default_factory() if f.default_factory is not dataclasses.MISSING
+                   else None)
+        required = not has_default if s.required is None else s.required
+        keys[s.key or f.name] = Key(s.node or _node_of(tp), required, s.doc,
+                                    None if required else _shown(default))
+    return Map(keys)
+
+
+def _convert(tp: object, value: object) -> object:
+    """A validated YAML value as the field's type (a float field gets a float, not the
+    YAML's int; a nested declared class its object)."""
+    tp = _without_none(tp)
+    inner = _declared(tp)
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if inner is not None and isinstance(value, Mapping):
+        return parse_declared(inner, value)
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp) and isinstance(value, Mapping):
+        return tp(**{str(k): v for k, v in value.items()})   # a driver's own (TimeTie)
+    if origin is tuple and len(args) == 2 and args[1] is Ellipsis \
+            and isinstance(value, list | tuple):
+        return tuple(_convert(args[0], v) for v in value)
+    if origin in (Mapping, dict) and len(args) == 2 and isinstance(value, Mapping):
+        return {str(k): _convert(args[1], v) for k, v in value.items()}
+    if tp is dt.date:
+        return parse_date(value)
+    if isinstance(value, int | float | str | bool):
+        if tp is float:
+            return float(value)
+        if tp is int:
+            return int(value)
+        if tp is str:
+            return str(value)
+    return value
+
+
+def parse_declared(cls: type[T], data: Mapping[str, object], **given: object) -> T:
+    """`cls` from a validated mapping: each declared key as written, else the field's
+    default; `given` values (resolved elsewhere) win. A key left out or null takes the
+    default."""
+    kwargs: dict[str, object] = dict(given)
+    for f, tp, s in _settings(cls):
+        value = data.get(s.key or f.name)
+        if f.name not in given and value is not None:
+            kwargs[f.name] = _convert(tp, value)
+    return cls(**kwargs)

@@ -10,12 +10,22 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 
 from bench.core.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config
-from bench.core.schema import Key, ListOf, Map, MapOf, Num, Str
+from bench.core.schema import (
+    Key,
+    ListOf,
+    Map,
+    MapOf,
+    Num,
+    Setting,
+    Str,
+    declared_map,
+    parse_declared,
+)
 from bench.core.yamlfile import Problem
 from drivers.awg import PROFILES as AWG_PROFILES
 from drivers.dmm import PROFILES as DMM_PROFILES
@@ -28,11 +38,6 @@ SIM_GYRO_KEYS: tuple[str, ...] = tuple(GyroTruth.__dataclass_fields__)
 NAME = "drift-pulse"
 GYRO_NAMES = ("x", "y", "z")
 
-DEFAULTS: dict[str, Any] = {"cycles": 10, "timing_cycles": 4, "positions_deg": [0.0, 180.0],
-                            "gap_s": 0.5, "settle_s": 5.0, "decision_rule": "simple",
-                            "prompts": True}
-DIGITIZER_DEFAULTS = {"sample_rate_hz": 2000.0, "range_v": 10.0, "margin_s": 0.05}
-DEFAULT_POINTS = 1000
 TIMING_GAIN = 8.0
 #: real-bench seconds a cycle costs beyond its record: arming, transfer, SCPI checks
 CYCLE_OVERHEAD_S = 0.5
@@ -41,51 +46,83 @@ CYCLE_OVERHEAD_S = 0.5
 
 # -- files ------------------------------------------------------------------------------
 
-PULSE = Map({
-    "shape": Key(Str(tuple(dp.SHAPES)), True, "rectangular, triangular (or sawtooth)"),
-    "duration_s": Key(Num(min=0, exclusive_min=True, unit="s"), True, "Tc, each pulse"),
-    "amplitude_v": Key(Num(min=0, exclusive_min=True, unit="V"), True,
-                       "peak voltage into the torque-sensor current amplifier"),
-    "points": Key(Num(min=4, max=500_000, integer=True), False,
-                  "waveform points per pulse", DEFAULT_POINTS),
-})
-DIGITIZER = Map({
-    "sample_rate_hz": Key(Num(min=0, exclusive_min=True, unit="Hz"), False,
-                          "the DMMs' sample rate", DIGITIZER_DEFAULTS["sample_rate_hz"]),
-    "aperture_s": Key(Num(min=0, exclusive_min=True, unit="s"), False,
-                      "default 0.8 of the interval"),
-    "range_v": Key(Num(min=0, exclusive_min=True, unit="V"), False, "the DMMs' range",
-                   DIGITIZER_DEFAULTS["range_v"]),
-    "margin_s": Key(Num(min=0, unit="s"), False, "recorded after the pair",
-                    DIGITIZER_DEFAULTS["margin_s"]),
-})
-TURN = Map({
-    "rate_dps": Key(Num(min=0, exclusive_min=True, unit="deg/s"), True),
-    "accel_dps2": Key(Num(min=0, exclusive_min=True, unit="deg/s^2"), True),
-})
-PROCEDURE = Map({
-    **COMMON_PROCEDURE_KEYS,
-    "site": Key(Map({"latitude_deg": Key(Num(min=-90, max=90, unit="deg"), True),
-                     "name": Key(Str())}), True),
-    "pulse": Key(PULSE, True),
-    "cycles": Key(Num(min=4, max=10_000, integer=True), False,
-                  "measuring cycles per position (4 at least for the scatter)",
-                  DEFAULTS["cycles"]),
-    "timing_cycles": Key(Num(min=0, max=1000, integer=True), False,
-                         "large-amplitude cycles that locate the pulses",
-                         DEFAULTS["timing_cycles"]),
-    "timing_amplitude_v": Key(Num(min=0, exclusive_min=True, unit="V"), False,
-                              "default 8 x the pulse amplitude, within the DMM range"),
-    "positions_deg": Key(ListOf(Num(min=-360, max=360, unit="deg"), min_len=2), False,
-                         "turntable positions", DEFAULTS["positions_deg"]),
-    "gap_s": Key(Num(min=0, unit="s"), False, "pause between cycles", DEFAULTS["gap_s"]),
-    "settle_s": Key(Num(min=0, unit="s"), False, "pause after a turn", DEFAULTS["settle_s"]),
-    "turn": Key(TURN, False, "default: the drive's max rate and acceleration"),
-    "digitizer": Key(DIGITIZER),
-    "gyros": Key(ListOf(Str(GYRO_NAMES), min_len=1), False,
-                 "which of the platform's gyros (default: all)"),
-    "tolerance": Key(Map({"own_drift_dph": Key(Num(min=0, exclusive_min=True, unit="deg/h"))})),
-})
+# Each key of the procedure file is declared once, on the frozen dataclass that holds it
+# as the file states it (`DriftFile`): the field's type and default, its Setting's node
+# (bounds, unit) and meaning. PROCEDURE is derived from them (bench/core/schema.py).
+
+
+@dataclass(frozen=True, kw_only=True)
+class Site:
+    latitude_deg: Annotated[float, Setting(Num(min=-90, max=90, unit="deg"))]
+    name: Annotated[str | None, Setting(Str())] = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Pulse:
+    shape: Annotated[str, Setting(Str(tuple(dp.SHAPES)),
+                                  "rectangular, triangular (or sawtooth)")]
+    duration_s: Annotated[float, Setting(Num(min=0, exclusive_min=True, unit="s"),
+                                         "Tc, each pulse")]
+    amplitude_v: Annotated[float, Setting(
+        Num(min=0, exclusive_min=True, unit="V"),
+        "peak voltage into the torque-sensor current amplifier")]
+    points: Annotated[int, Setting(Num(min=4, max=500_000, integer=True),
+                                   "waveform points per pulse")] = 1000
+
+
+@dataclass(frozen=True, kw_only=True)
+class Turn:
+    rate_dps: Annotated[float, Setting(Num(min=0, exclusive_min=True, unit="deg/s"))]
+    accel_dps2: Annotated[float, Setting(Num(min=0, exclusive_min=True, unit="deg/s^2"))]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Digitizer:
+    sample_rate_hz: Annotated[float, Setting(Num(min=0, exclusive_min=True, unit="Hz"),
+                                             "the DMMs' sample rate")] = 2000.0
+    #: None: 0.8 of the interval
+    aperture_s: Annotated[float | None, Setting(Num(min=0, exclusive_min=True, unit="s"),
+                                                "default 0.8 of the interval")] = None
+    range_v: Annotated[float, Setting(Num(min=0, exclusive_min=True, unit="V"),
+                                      "the DMMs' range")] = 10.0
+    margin_s: Annotated[float, Setting(Num(min=0, unit="s"),
+                                       "recorded after the pair")] = 0.05
+
+
+@dataclass(frozen=True, kw_only=True)
+class DriftTolerance:
+    own_drift_dph: Annotated[float | None, Setting(
+        Num(min=0, exclusive_min=True, unit="deg/h"))] = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class DriftFile:
+    """The drift-pulse procedure file's own keys as it states them, defaults filled in."""
+
+    site: Annotated[Site, Setting()]
+    pulse: Annotated[Pulse, Setting()]
+    cycles: Annotated[int, Setting(Num(min=4, max=10_000, integer=True), "measuring cycles "
+                                   "per position (4 at least for the scatter)")] = 10
+    timing_cycles: Annotated[int, Setting(Num(min=0, max=1000, integer=True),
+                                          "large-amplitude cycles that locate the pulses")] = 4
+    timing_amplitude_v: Annotated[float | None, Setting(
+        Num(min=0, exclusive_min=True, unit="V"),
+        "default 8 x the pulse amplitude, within the DMM range")] = None
+    positions_deg: Annotated[tuple[float, ...], Setting(
+        ListOf(Num(min=-360, max=360, unit="deg"), min_len=2),
+        "turntable positions")] = (0.0, 180.0)
+    gap_s: Annotated[float, Setting(Num(min=0, unit="s"), "pause between cycles")] = 0.5
+    settle_s: Annotated[float, Setting(Num(min=0, unit="s"), "pause after a turn")] = 5.0
+    turn: Annotated[Turn | None, Setting(
+        doc="default: the drive's max rate and acceleration")] = None
+    digitizer: Annotated[Digitizer, Setting()] = Digitizer()
+    gyros: Annotated[tuple[str, ...] | None, Setting(
+        ListOf(Str(GYRO_NAMES), min_len=1),
+        "which of the platform's gyros (default: all)")] = None
+    tolerance: Annotated[DriftTolerance, Setting()] = DriftTolerance()
+
+
+PROCEDURE = Map({**COMMON_PROCEDURE_KEYS, **declared_map(DriftFile).keys})
 
 GYRO = Map({
     "model": Key(Str(), False, "the gyro's model (printed as part of the item calibrated)"),
@@ -122,8 +159,10 @@ SIM_AWG = Map({"output_latency_s": Key(Num(min=0)), "trigger_out_skew_s": Key(Nu
 SIM_DMM = Map({"trigger_latency_s": Key(Num(min=0)),
                "serials": Key(MapOf(Str()), False, "gyro: the serial its DMM twin reports")})
 
-def setting(cfg: Config, key: str) -> Any:
-    return cfg.procedure.get(key, DEFAULTS.get(key))
+def drift_file(cfg: Config) -> DriftFile:
+    """The procedure file's own keys, parsed (validated: the loader's cross-checks run
+    on files the schema passed)."""
+    return parse_declared(DriftFile, cfg.procedure)
 
 
 @dataclass(frozen=True)
@@ -156,14 +195,14 @@ class Timing:
     @classmethod
     def of(cls, cfg: Config) -> Timing:
         p = cfg.procedure["pulse"]
-        d = {**DIGITIZER_DEFAULTS, **cfg.procedure.get("digitizer", {})}
+        d = parse_declared(Digitizer, cfg.procedure.get("digitizer") or {})
         tc = float(p["duration_s"])
-        points = int(p.get("points", DEFAULT_POINTS))
-        interval = 1.0 / float(d["sample_rate_hz"])
-        aperture = float(d.get("aperture_s", 0.8 * interval))
+        points = int(p.get("points", Pulse.points))
+        interval = 1.0 / d.sample_rate_hz
+        aperture = d.aperture_s if d.aperture_s is not None else 0.8 * interval
         lead_s = 1.0 / (points / tc)
-        count = int(math.ceil((2 * tc + lead_s + float(d["margin_s"])) / interval)) + 1
-        return cls(tc, points, points / tc, interval, aperture, float(d["range_v"]), count,
+        count = int(math.ceil((2 * tc + lead_s + d.margin_s) / interval)) + 1
+        return cls(tc, points, points / tc, interval, aperture, d.range_v, count,
                    max(interval - 0.5 * aperture, 0.0))
 
 
@@ -246,7 +285,7 @@ def _check_timing(cfg: Config) -> list[Problem]:
                                 f"not fit the {awg.model} ({awg.max_points} points, "
                                 f"{lo:g} .. {hi:g} Sa/s)"))
     amps = {"amplitude_v": cfg.procedure["pulse"]["amplitude_v"]}
-    if setting(cfg, "timing_cycles"):
+    if cfg.procedure.get("timing_cycles", DriftFile.timing_cycles):
         amps["timing_amplitude_v"] = timing_amplitude(cfg)
     shape = dp.pulse_shape(cfg.procedure["pulse"]["shape"])
     for g in gyros_of(cfg):
@@ -275,7 +314,7 @@ def _check_timing(cfg: Config) -> list[Problem]:
     return out
 
 def _check_positions(cfg: Config) -> list[Problem]:
-    pos = [float(p) for p in setting(cfg, "positions_deg")]
+    pos = [float(p) for p in cfg.procedure.get("positions_deg", DriftFile.positions_deg)]
     theta = np.radians(pos)
     a = np.column_stack([np.ones_like(theta), np.cos(theta)]
                         + ([-np.sin(theta)] if np.any(np.abs(np.sin(theta)) > 1e-9) else []))
@@ -398,23 +437,19 @@ class DriftSettings(PlatformSettings):
     @classmethod
     def parse(cls, cfg: Config) -> DriftSettings:
         p = cfg.procedure
+        f = drift_file(cfg)
         fields = _platform_fields(cfg)
         drive = cfg.stand_settings.axes[fields["table_axis"]].drive
-        turn = p.get("turn") or {}
-        tol = (p.get("tolerance") or {}).get("own_drift_dph")
         return cls(
-            **fields, title=cfg.common.title, pulse_shape=str(p["pulse"]["shape"]),
-            amplitude_v=float(p["pulse"]["amplitude_v"]),
-            timing_amplitude_v=timing_amplitude(cfg),
-            latitude_deg=float(p["site"]["latitude_deg"]),
-            turn_rate_dps=float(turn.get("rate_dps", drive.max_rate_dps)),
-            turn_accel_dps2=float(turn.get("accel_dps2", drive.max_accel_dps2)),
+            **fields, title=cfg.common.title, pulse_shape=f.pulse.shape,
+            amplitude_v=f.pulse.amplitude_v, timing_amplitude_v=timing_amplitude(cfg),
+            latitude_deg=f.site.latitude_deg,
+            turn_rate_dps=f.turn.rate_dps if f.turn else drive.max_rate_dps,
+            turn_accel_dps2=f.turn.accel_dps2 if f.turn else drive.max_accel_dps2,
             position_tolerance_deg=drive.position_tolerance_deg,
-            cycles=int(setting(cfg, "cycles")), timing_cycles=int(setting(cfg, "timing_cycles")),
-            positions_deg=tuple(float(x) for x in setting(cfg, "positions_deg")),
-            gap_s=float(setting(cfg, "gap_s")), settle_s=float(setting(cfg, "settle_s")),
-            decision_rule=str(setting(cfg, "decision_rule")),
-            prompts=bool(setting(cfg, "prompts")),
-            own_drift_tolerance_dph=float(tol) if tol is not None else None,
+            cycles=f.cycles, timing_cycles=f.timing_cycles, positions_deg=f.positions_deg,
+            gap_s=f.gap_s, settle_s=f.settle_s, decision_rule=cfg.common.decision_rule,
+            prompts=cfg.common.prompts,
+            own_drift_tolerance_dph=f.tolerance.own_drift_dph,
             timing=Timing.of(cfg), pulse_doc=dict(p["pulse"]), site_doc=dict(p["site"]),
             tolerance_doc=dict(p.get("tolerance") or {}))

@@ -4,149 +4,138 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Annotated, Any
 
 from bench.core.config import (
     ACCEL_MAX_DPS2,
     COMMON_PROCEDURE_KEYS,
-    FOG_DEFAULTS,
     RATE_MAX_DPS,
     RATE_MIN_DPS,
     STEP_MAX_S,
     Config,
+    FogSettings,
     check_axis_names,
 )
 from bench.core.plan import format_duration
-from bench.core.schema import Key, ListOf, Map, MapOf, Num, Str
+from bench.core.schema import ListOf, Map, MapOf, Num, Setting, Str, declared_map, parse_declared
 from bench.core.yamlfile import Problem, YamlDoc
 from drivers.counter_profiles import PROFILES as COUNTER_PROFILES
 
 NAME = "rate-ladder"
 
-DEFAULTS: dict[str, Any] = {
-    "turns": 5,
-    "sequence": "+-+",
-    "static_record_s": 60.0,
-    "harmonics": 4,
-    "decision_rule": "simple",
-    "prompts": True,
-}
-SETTLE_DEFAULTS = {"tolerance_rel": 1e-3, "tolerance_dps": 0.005, "hold_s": 2.0,
-                   "timeout_s": 60.0}
+# Each key of the ladder's procedure file is declared once, on the frozen dataclass the
+# plan, the analysis and the certificate read: the field's type and default, its
+# Setting's node (bounds, unit) and meaning. PROCEDURE is derived from them
+# (bench/core/schema.py `declared_map`), the parse too (`parse_declared`).
 
 
-BAND = Map({
-    "below_dps": Key(Num(min=0, exclusive_min=True, max=RATE_MAX_DPS, unit="deg/s"), False,
-                     "the band applies to rates below this; omit on the last band"),
-    "rel": Key(Num(min=0, exclusive_min=True, max=1), True,
-               "tolerance, a fraction (1e-6 = 1 ppm)"),
-})
-SETTLE = Map({
-    "tolerance_dps": Key(Num(min=0, exclusive_min=True, max=100, unit="deg/s"), False,
-                         "settled when within the larger of this and tolerance_rel x rate",
-                         SETTLE_DEFAULTS["tolerance_dps"]),
-    "tolerance_rel": Key(Num(min=0, exclusive_min=True, max=1), False,
-                         "settling tolerance relative to the rate", SETTLE_DEFAULTS["tolerance_rel"]),
-    "hold_s": Key(Num(min=0, max=86_400, unit="s"), False,
-                  "how long the rate must stay within tolerance", SETTLE_DEFAULTS["hold_s"]),
-    "timeout_s": Key(Num(min=0, exclusive_min=True, max=STEP_MAX_S, unit="s"), False,
-                     "a rate that has not settled by then aborts the run",
-                     SETTLE_DEFAULTS["timeout_s"]),
-})
-AXIS = Map({
-    "rates_dps": Key(ListOf(Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"),
-                            min_len=1), True, "rate magnitudes; each runs +w then -w"),
-    "turns": Key(Num(min=1, max=10_000, integer=True), False,
-                 "turns per rate and direction on this axis (default: the file's turns)"),
-    "prompt": Key(Str(), False, "what the operator must do before this axis"),
-})
-PROCEDURE = Map({
-    **COMMON_PROCEDURE_KEYS,
-    "turns": Key(Num(min=1, max=10_000, integer=True), False, "turns per rate and direction; "
-                 "an odd count with sequence +-+ splits the + half unevenly", DEFAULTS["turns"]),
-    "sequence": Key(Str(("+-", "+-+")), False, "order of the halves of a pair (+-+ "
-                    "cancels a linear FOG bias drift)", DEFAULTS["sequence"]),
-    "accel_dps2": Key(Num(min=0, exclusive_min=True, max=ACCEL_MAX_DPS2, unit="deg/s^2"),
-                      False, "ramp acceleration (default and limit: the drive's max_accel_dps2)"),
-    "settle": Key(SETTLE, False, "when a rate counts as reached"),
-    "static_record_s": Key(Num(min=0, max=86_400, unit="s"), False,
-                           "FOG at rest per axis (noise floor)", DEFAULTS["static_record_s"]),
-    "harmonics": Key(Num(min=1, max=20, integer=True), False, "orders 1..H fitted in angle",
-                     DEFAULTS["harmonics"]),
-    "mains_hz": Key(Num(min=1, max=1000, unit="Hz"), False,
-                    "mains frequency of the lab's grid; overrides the stand's `mains_hz` "
-                    "(without either, found from the data: 50 and 60 Hz are tried)"),
-    "axes": Key(MapOf(AXIS, min_len=1), True, "the axes to certify, by their stand names"),
-    "tolerance": Key(Map({
-        "rate_error": Key(ListOf(BAND, min_len=1), False, "|mean - set| / |set| (eq. 1)"),
-        "rate_instability": Key(ListOf(BAND, min_len=1), False, "per-turn rate std / rate "
-                                "(eq. 2)"),
-        "intra_turn_instability": Key(ListOf(BAND, min_len=1), False, "std of the random "
-                                      "part within a turn / rate"),
-    }), False, "what the table's maker claims, by rate band; a figure without a band is "
-       "reported, not judged"),
-})
-
-def setting(cfg: Config, key: str) -> Any:
-    return cfg.procedure.get(key, DEFAULTS.get(key))
-
-
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Band:
     """One tolerance band: `rel` applies to rates below `below_dps` (None: the rest)."""
 
-    rel: float
-    below_dps: float | None = None
+    below_dps: Annotated[float | None, Setting(
+        Num(min=0, exclusive_min=True, max=RATE_MAX_DPS, unit="deg/s"),
+        "the band applies to rates below this; omit on the last band")] = None
+    rel: Annotated[float, Setting(Num(min=0, exclusive_min=True, max=1),
+                                  "tolerance, a fraction (1e-6 = 1 ppm)")]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Settle:
-    """When a rate counts as reached (the procedure's `settle:`, defaults SETTLE_DEFAULTS)."""
+    """When a rate counts as reached (the procedure's `settle:`)."""
 
-    tolerance_dps: float = SETTLE_DEFAULTS["tolerance_dps"]
-    tolerance_rel: float = SETTLE_DEFAULTS["tolerance_rel"]
-    hold_s: float = SETTLE_DEFAULTS["hold_s"]
-    timeout_s: float = SETTLE_DEFAULTS["timeout_s"]
+    tolerance_dps: Annotated[float, Setting(
+        Num(min=0, exclusive_min=True, max=100, unit="deg/s"),
+        "settled when within the larger of this and tolerance_rel x rate")] = 0.005
+    tolerance_rel: Annotated[float, Setting(
+        Num(min=0, exclusive_min=True, max=1),
+        "settling tolerance relative to the rate")] = 1e-3
+    hold_s: Annotated[float, Setting(
+        Num(min=0, max=86_400, unit="s"),
+        "how long the rate must stay within tolerance")] = 2.0
+    timeout_s: Annotated[float, Setting(
+        Num(min=0, exclusive_min=True, max=STEP_MAX_S, unit="s"),
+        "a rate that has not settled by then aborts the run")] = 60.0
 
     def tolerance_at(self, rate_dps: float) -> float:
         return max(self.tolerance_dps, self.tolerance_rel * abs(rate_dps))
 
 
-@dataclass(frozen=True)
+_TURNS = Num(min=1, max=10_000, integer=True)
+
+
+@dataclass(frozen=True, kw_only=True)
 class AxisSettings:
     """One axis of the ladder as it runs: its own `turns` where it gives one, its ramp
     acceleration (the procedure's `accel_dps2`, never above the drive's limit)."""
 
     name: str
-    rates_dps: tuple[float, ...]
-    turns: int
-    prompt: str | None
+    rates_dps: Annotated[tuple[float, ...], Setting(
+        ListOf(Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"), min_len=1),
+        "rate magnitudes; each runs +w then -w")]
+    #: resolved by the parse: the axis's own, else the file's
+    turns: Annotated[int, Setting(_TURNS, "turns per rate and direction on this axis "
+                                          "(default: the file's turns)", required=False)]
+    prompt: Annotated[str | None, Setting(
+        Str(), "what the operator must do before this axis")] = None
     accel_dps2: float = 0.0
+
+
+_BANDS = ListOf(declared_map(Band), min_len=1)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Tolerance:
+    """What the table's maker claims, by rate band (the procedure's `tolerance:`)."""
+
+    rate_error: Annotated[tuple[Band, ...], Setting(
+        _BANDS, "|mean - set| / |set| (eq. 1)")] = ()
+    rate_instability: Annotated[tuple[Band, ...], Setting(
+        _BANDS, "per-turn rate std / rate (eq. 2)")] = ()
+    intra_turn_instability: Annotated[tuple[Band, ...], Setting(
+        _BANDS, "std of the random part within a turn / rate")] = ()
 
 
 TOLERANCE_KEYS = ("rate_error", "rate_instability", "intra_turn_instability")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class LadderSettings:
-    """The validated procedure file, parsed once; every default comes from DEFAULTS.
+    """The validated procedure file, parsed once; each key declared here, once.
 
     The plan, the analysis and the certificate's Method table all read these, so a
     per-axis `turns` is what each of them says (issue 12)."""
 
-    turns: int                 # the file's top-level default, per rate and direction
-    sequence: str
-    static_record_s: float
-    harmonics: int
-    mains_hz: float | None      # None: found from the data (MAINS_CANDIDATES_HZ)
-    mains_source: str
-    decision_rule: str
-    prompts: bool
-    axes: Mapping[str, AxisSettings]
-    title: str = ""
-    settle: Settle = Settle()
+    #: the file's top-level default, per rate and direction
+    turns: Annotated[int, Setting(_TURNS, "turns per rate and direction; an odd count "
+                                          "with sequence +-+ splits the + half unevenly")] = 5
+    sequence: Annotated[str, Setting(Str(("+-", "+-+")), "order of the halves of a pair "
+                                     "(+-+ cancels a linear FOG bias drift)")] = "+-+"
+    accel_dps2: Annotated[float | None, Setting(
+        Num(min=0, exclusive_min=True, max=ACCEL_MAX_DPS2, unit="deg/s^2"),
+        "ramp acceleration (default and limit: the drive's max_accel_dps2)")] = None
+    settle: Annotated[Settle, Setting(doc="when a rate counts as reached")] = Settle()
+    static_record_s: Annotated[float, Setting(
+        Num(min=0, max=86_400, unit="s"), "FOG at rest per axis (noise floor)")] = 60.0
+    harmonics: Annotated[int, Setting(Num(min=1, max=20, integer=True),
+                                      "orders 1..H fitted in angle")] = 4
+    #: resolved by the parse (`mains_of`); None: found from the data (MAINS_CANDIDATES_HZ)
+    mains_hz: Annotated[float | None, Setting(
+        Num(min=1, max=1000, unit="Hz"), "mains frequency of the lab's grid; overrides the "
+        "stand's `mains_hz` (without either, found from the data: 50 and 60 Hz are "
+        "tried)")] = None
+    axes: Annotated[Mapping[str, AxisSettings], Setting(
+        MapOf(declared_map(AxisSettings), min_len=1),
+        "the axes to certify, by their stand names", required=True)] \
+        = field(default_factory=dict)
     #: bands by tolerance key (rate_error, ...); a key absent: reported, not judged
-    tolerance: Mapping[str, tuple[Band, ...]] = field(default_factory=dict)
+    tolerance: Annotated[Mapping[str, tuple[Band, ...]], Setting(
+        declared_map(Tolerance), "what the table's maker claims, by rate band; a figure "
+        "without a band is reported, not judged")] = field(default_factory=dict)
+    mains_source: str = ""
+    decision_rule: str = "simple"
+    prompts: bool = True
+    title: str = ""
 
     @classmethod
     def from_config(cls, cfg: Config) -> LadderSettings:
@@ -155,30 +144,23 @@ class LadderSettings:
 
     @classmethod
     def parse(cls, cfg: Config) -> LadderSettings:
-        turns = int(setting(cfg, "turns"))
+        p = cfg.procedure
+        turns = int(p.get("turns", cls.turns))
         mains_hz, mains_source = mains_of(cfg)
         stand = cfg.stand_settings
-        accel = cfg.procedure.get("accel_dps2")
+        accel = p.get("accel_dps2")
         axes = {}
-        for name, spec in (cfg.procedure.get("axes") or {}).items():
+        for name, spec in (p.get("axes") or {}).items():
             limit = stand.axes[name].drive.max_accel_dps2 if name in stand.axes else 0.0
-            axes[name] = AxisSettings(name, tuple(float(r) for r in spec["rates_dps"]),
-                                      int(spec.get("turns", turns)), spec.get("prompt"),
-                                      min(float(accel), limit) if accel is not None
-                                      else limit)
-        tol = cfg.procedure.get("tolerance") or {}
-        bands = {k: tuple(Band(float(b["rel"]), _below(b)) for b in tol[k])
-                 for k in TOLERANCE_KEYS if tol.get(k)}
-        return cls(turns=turns, sequence=str(setting(cfg, "sequence")),
-                   static_record_s=float(setting(cfg, "static_record_s")),
-                   harmonics=int(setting(cfg, "harmonics")),
-                   mains_hz=mains_hz, mains_source=mains_source,
-                   decision_rule=str(setting(cfg, "decision_rule")),
-                   prompts=bool(setting(cfg, "prompts")), axes=axes,
-                   title=cfg.common.title,
-                   settle=Settle(**{k: float(v) for k, v in
-                                    (cfg.procedure.get("settle") or {}).items()}),
-                   tolerance=bands)
+            axes[name] = parse_declared(
+                AxisSettings, spec, name=name, turns=int(spec.get("turns", turns)),
+                accel_dps2=min(float(accel), limit) if accel is not None else limit)
+        tol = parse_declared(Tolerance, p.get("tolerance") or {})
+        bands = {k: getattr(tol, k) for k in TOLERANCE_KEYS if getattr(tol, k)}
+        return parse_declared(cls, p, mains_hz=mains_hz, mains_source=mains_source,
+                              decision_rule=cfg.common.decision_rule,
+                              prompts=cfg.common.prompts, axes=axes,
+                              title=cfg.common.title, tolerance=bands)
 
     def tolerance_doc(self) -> dict[str, list[dict[str, float]]]:
         """The tolerance as the procedure file states it (result.json's `method`)."""
@@ -197,8 +179,7 @@ class LadderSettings:
                 "decision_rule": self.decision_rule}
 
 
-def _below(band: dict[str, Any]) -> float | None:
-    return float(band["below_dps"]) if band.get("below_dps") is not None else None
+PROCEDURE = Map({**COMMON_PROCEDURE_KEYS, **declared_map(LadderSettings).keys})
 
 
 #: the grids a mains tone is looked for at when neither file states the lab's
@@ -297,9 +278,9 @@ def ladder_problems(cfg: Config) -> list[Problem]:
             out.append(sdoc.problem(("axes", axis, "counter"), "missing level_v: a real "
                                     "stand needs an absolute trigger level in volts (a "
                                     "once-per-rev pulse is too slow for auto-level)"))
-        fog_range = (fog or {}).get("range_dps", FOG_DEFAULTS["range_dps"])
+        fog_range = (fog or {}).get("range_dps", FogSettings.range_dps)
         # from the files alone: one broken stand key must not hide the other checks
-        turns = int(spec.get("turns", setting(cfg, "turns")))
+        turns = int(spec.get("turns", cfg.procedure.get("turns", LadderSettings.turns)))
         for i, rate in enumerate(spec["rates_dps"]):
             where = ("axes", axis, "rates_dps", i)
             if (turns + 1) * 360.0 / rate > STEP_MAX_S:
