@@ -15,8 +15,7 @@ from dataclasses import dataclass
 from bench.core.lab import LAB
 from bench.core.loader import any_stand_schema
 from bench.core.registry import procedure_kind, procedure_names
-from bench.core.schema import Check, Key, ListOf, Map, MapOf, Node, Num, OneOf
-from drivers.json_types import JsonObject
+from bench.core.schema import Check, JsonSchema, Key, ListOf, Map, MapOf, Node, Num, OneOf
 
 JSON_SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
 DOCS_PATH = "docs/configuration.md"
@@ -53,7 +52,7 @@ def schema_node(target: str, kind: str | None = None) -> Map:
     raise KeyError(f"expected stand, procedure KIND or lab, got {target!r}")
 
 
-def json_schema(target: str, kind: str | None = None) -> JsonObject:
+def json_schema(target: str, kind: str | None = None) -> JsonSchema:
     """The file's JSON Schema (draft 2020-12): what a YAML editor or CI can check with."""
     title = {"stand": "ratebench stand file", "lab": "ratebench laboratory settings",
              "procedure": f"ratebench {kind} procedure file"}[target]
