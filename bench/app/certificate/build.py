@@ -281,7 +281,7 @@ class _Counter:
 def _checks(src: Sources, proc: Procedure) -> list[dict[str, Any]]:
     """The engine's checks[]; without it, what the kind reads from its own results."""
     if isinstance(src.result.get("checks"), list):
-        return [c for c in src.result["checks"] if isinstance(c, dict)]
+        return [c.to_json() for c in src.frame.checks]
     return proc.parts.certificate_checks(src)
 
 

@@ -14,7 +14,7 @@ import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 from bench.analysis.finite import finite_number as num
 from bench.core import rundir_layout as layout
@@ -22,7 +22,7 @@ from bench.core.journal import read_jsonl
 from bench.core.placeholders import run_copy
 from bench.report.certificate.model import Block, Figure, Para, Section
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u
-from bench.report.certificate.shape import conform_result
+from bench.report.result_frame import JsonObject, ResultFrame, as_object
 
 NOT_RECORDED = "not recorded"
 
@@ -33,7 +33,7 @@ NOT_RECORDED = "not recorded"
 class Sources:
     """result.json and whatever the run directory adds to it."""
 
-    result: dict[str, Any]
+    result: JsonObject
     run_path: Path | None = None
     meta: dict[str, Any] = field(default_factory=dict)
     stand_file: dict[str, Any] = field(default_factory=dict)
@@ -42,7 +42,7 @@ class Sources:
     dropped: list[str] = field(default_factory=list)  # malformed parts of result.json
 
     @classmethod
-    def load(cls, result: dict[str, Any], run_path: Path | None) -> Sources:
+    def load(cls, result: object, run_path: Path | None) -> Sources:
         conformed, dropped = conform_result(result)
         src = cls(conformed, run_path, dropped=dropped)
         if run_path is None:
@@ -59,6 +59,39 @@ class Sources:
     def get(self, key: str, default: Any = None) -> Any:
         value = self.result.get(key)
         return default if value is None else value
+
+    @property
+    def frame(self) -> ResultFrame:
+        """The run header, checks and verdict, typed (bench.report.result_frame)."""
+        return ResultFrame.of(self.result)
+
+
+def conform_result(result: object) -> tuple[JsonObject, list[str]]:
+    """The result with malformed containers dropped, and the list of what was dropped:
+    the kind's part by the kind's result module (`ConformsResult`), the frame's here. A
+    result that names no kind is read by every installed kind's."""
+    from bench.core.registry import installed_kind, procedure_names
+
+    doc = as_object(result)
+    if doc is None:
+        return {}, ["result.json (expected a mapping)"]
+    named = doc.get("procedure")
+    dropped: list[str] = []
+    for name in [str(named)] if named else procedure_names():
+        kind = installed_kind(name)
+        if isinstance(kind, ConformsResult):
+            doc, more = kind.conform_result(doc)
+            dropped += more
+    frame, more = ResultFrame.conform(doc)
+    return frame.to_json(), dropped + more
+
+
+@runtime_checkable
+class ConformsResult(Protocol):
+    """A kind whose result module checks its part of result.json (procedures/<kind>/
+    result.py): the document with its malformed containers dropped, and their names."""
+
+    def conform_result(self, result: JsonObject) -> tuple[JsonObject, list[str]]: ...
 
 
 def read_json_object(path: Path) -> dict[str, Any]:
