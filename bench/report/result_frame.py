@@ -188,12 +188,18 @@ class Check:
     quantity: str | None
     verdict: str | None
     set_rate_dps: float | None
+    rule: str | None
+    tolerance: float | None  # in the unit its key names (tolerance_rel, tolerance_dph...)
     doc: JsonObject          # every key, in result.json's order
 
     @classmethod
     def from_json(cls, doc: JsonObject) -> Check:
+        tolerance = next((number(doc, k) for k in ("tolerance_rel", "tolerance_dph",
+                                                     *sorted(k for k in doc
+                                                             if k.startswith("tolerance")))
+                          if k in doc), None)
         return cls(text(doc, "axis"), text(doc, "quantity"), text(doc, "verdict"),
-                   number(doc, "set_rate_dps"), doc)
+                   number(doc, "set_rate_dps"), text(doc, "rule"), tolerance, doc)
 
     def to_json(self) -> JsonObject:
         return dict(self.doc)
@@ -234,6 +240,7 @@ class ResultFrame:
     decision_rule: str | None
     method: JsonObject
     checks: tuple[Check, ...]
+    records: JsonObject      # what the run says for the records (calibration state)
     doc: JsonObject          # the whole document as read, in result.json's order
 
     @classmethod
@@ -268,7 +275,13 @@ class ResultFrame:
             sessions=integer(doc, "sessions"), aborted=bool(doc.get("aborted")),
             raw_files=objects(doc, "raw_files"), decision_rule=text(doc, "decision_rule"),
             method=obj(doc, "method"),
-            checks=tuple(Check.from_json(c) for c in objects(doc, "checks")), doc=doc)
+            checks=tuple(Check.from_json(c) for c in objects(doc, "checks")),
+            records=obj(doc, "records"), doc=doc)
+
+    @property
+    def simulated(self) -> bool:
+        """Whether the stand ran as its simulated twins."""
+        return bool(self.stand.get("simulated"))
 
     def get(self, key: str) -> JsonValue:
         """A top-level entry the frame does not type (a kind's part, a later addition)."""
