@@ -178,6 +178,8 @@ class PairEntry:
     w0_u_dps: float | None
     drift_dps_per_h: float | None
     drift_u_dps_per_h: float | None
+    method: str | None           # how k and w0 were found
+    drift_source: str | None     # where the bias drift during the pair comes from
     budgets: tuple[JsonObject, ...]
     doc: JsonObject
 
@@ -190,6 +192,7 @@ class PairEntry:
                    w0_dps=number(doc, "w0_dps"), w0_u_dps=number(doc, "w0_u_dps"),
                    drift_dps_per_h=number(doc, "drift_dps_per_h"),
                    drift_u_dps_per_h=number(doc, "drift_u_dps_per_h"),
+                   method=text(doc, "method"), drift_source=text(doc, "drift_source"),
                    budgets=objects(doc, "budgets"), doc=doc)
 
     def to_json(self) -> JsonObject:
