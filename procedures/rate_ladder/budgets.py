@@ -22,7 +22,7 @@ import numpy as np
 from bench.report.budget import CHI_SQUARE, NORMAL, RECTANGULAR, STUDENT_T, Budget, Term, num
 
 
-def _half_u(x: Any) -> float | None:
+def _half_u(x: object) -> float | None:
     """A standard uncertainty from an expanded one (k = 2, CONTRACT: _U_/_u_)."""
     v = num(x)
     return None if v is None else v / 2.0

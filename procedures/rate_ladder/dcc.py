@@ -237,7 +237,7 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
     _systematic(data, rid, path, r.get("systematic") or {})
 
 
-def _averaged(data: etree._Element, rid: str, path: str, intra: Any) -> None:
+def _averaged(data: etree._Element, rid: str, path: str, intra: object) -> None:
     rows = intra.get("averaged") if isinstance(intra, Mapping) else None
     for j, a in enumerate(rows or []):
         if not isinstance(a, Mapping) or num(a.get("angle_deg")) is None:
@@ -284,7 +284,7 @@ def _averaged(data: etree._Element, rid: str, path: str, intra: Any) -> None:
 
 
 def _mc_interval(value: float | None, lower: float | None, upper: float | None,
-                 resolved: Any) -> Interval | None:
+                 resolved: object) -> Interval | None:
     """A floor-corrected figure's JCGM 101 interval (docs/method.md A5, D2): [lower, upper]
     when resolved, [0, L] at its one-sided level when not."""
     if value is None or upper is None:
@@ -304,7 +304,7 @@ def _undetected(tone: Mapping[str, Any], a: float, big_u: float | None) -> Inter
                           (1.0 + float(COVERAGE_PROBABILITY)) / 2.0)
 
 
-def _systematic(data: etree._Element, rid: str, path: str, s: Any) -> None:
+def _systematic(data: etree._Element, rid: str, path: str, s: object) -> None:
     if not isinstance(s, Mapping):
         return
     u_key: str | None  # the loops below name a quantity's U key, the mains frequency none

@@ -82,7 +82,7 @@ PAIR_COLUMNS = (
 )
 
 
-def _value(axis: str, quantity: str, rate: float | None, value: Any, u: Any, unit: str,
+def _value(axis: str, quantity: str, rate: float | None, value: object, u: object, unit: str,
            check: str | None = None, upper_limit: bool = False) -> FigureValue | None:
     v = _num(value)
     return None if v is None else FigureValue(axis, quantity, rate, v, _num(u), unit, check,

@@ -68,7 +68,7 @@ class IssueContext:
     previous: tuple[register.Issue, ...]     # the issues recorded so far, oldest first
     simulated: bool                           # twins, not instruments
     records_url: str | None = None            # the records (None: the run's default)
-    lab_register: Any = None                  # the lab register (bench.app.register)
+    lab_register: object = None                  # the lab register (bench.app.register)
 
 
 PreIssueCheck = Callable[[IssueContext], list[str]]
@@ -138,7 +138,7 @@ def refusals(ctx: IssueContext, checks: list[PreIssueCheck] | None = None) -> li
 
 # -- what changed between two issued revisions -------------------------------------------
 
-def _leaves(node: Any, path: str = "") -> Iterator[tuple[str, Any]]:
+def _leaves(node: object, path: str = "") -> Iterator[tuple[str, Any]]:
     if isinstance(node, Mapping):
         for k, v in node.items():
             yield from _leaves(v, f"{path}.{k}" if path else str(k))
@@ -310,7 +310,7 @@ def _ask(prompt: str) -> str:
     return Passwords(False).next(prompt)
 
 
-def _issue(run_path: Path, result: dict[str, Any], result_bytes: bytes, stand: Any, lab: Lab,
+def _issue(run_path: Path, result: dict[str, Any], result_bytes: bytes, stand: object, lab: Lab,
            reg: Any, acct: Any, who: Signatory, number: str,
            previous: tuple[register.Issue, ...], reason: str | None,
            line: Callable[[str], None], write_dcc: Any) -> int:

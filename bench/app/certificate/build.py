@@ -133,7 +133,7 @@ class Procedure:
     def title(self) -> str:
         return self.parts.certificate_procedure_name or self.name
 
-    def quantity(self, key: Any, default: str | None = None) -> str:
+    def quantity(self, key: object, default: str | None = None) -> str:
         """A checked quantity in words."""
         key = str(key)
         return self.parts.certificate_quantities.get(
@@ -412,7 +412,7 @@ def _overall(src: Sources, checks: list[dict[str, Any]], proc: Procedure) -> str
     return f"{head} {scope}{cons_text}"
 
 
-def _rule_name(rule: Any) -> str:
+def _rule_name(rule: object) -> str:
     return {"guard-band": "guard-band (guarded acceptance, w = U)",
             "simple": "simple acceptance"}.get(str(rule or "simple"), str(rule))
 
@@ -907,7 +907,7 @@ def restated(doc: Document, issue: Issue) -> Document:
     """`doc` with its Revision field restated for `issue` (what changed is known only once
     the new revision's statements can be compared with the replaced one's; the rest of the
     document is the same, so it is not built twice)."""
-    def fields(b: Any) -> Any:
+    def fields(b: object) -> Any:
         if not isinstance(b, Fields):
             return b
         return Fields(tuple((k, _revision_text(issue) if k == "Revision" else v)

@@ -61,7 +61,7 @@ def quantities() -> dict[str, tuple[str, str]]:
 CheckRecord = InstrumentCheck
 
 
-def _serial_of(stated: Any, reported: str | None, unique: bool, fallback: str) -> str:
+def _serial_of(stated: object, reported: str | None, unique: bool, fallback: str) -> str:
     """The serial the instrument reported, if no other instrument of the run reports the
     same: the instrument actually connected (issue 41: a swapped counter must not land on
     the stated one's control chart); else the stand file's `serial:` (a FOG answers no
@@ -103,7 +103,7 @@ def _fog(axis: str, ax: Mapping[str, Any], serial: str, model: str | None
          ) -> list[CheckRecord]:
     out = []
 
-    def add(q: str, rate: float | None, v: Any, u: Any) -> None:
+    def add(q: str, rate: float | None, v: object, u: object) -> None:
         x = _num(v)
         if x is not None:
             out.append(CheckRecord(serial, "fog", model, axis, q, rate, x, _num(u),
@@ -269,5 +269,5 @@ def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any
     return out
 
 
-def _opt(x: Any) -> str | None:
+def _opt(x: object) -> str | None:
     return None if x in (None, "") else str(x)

@@ -111,7 +111,7 @@ def _first_line(e: BaseException) -> str:
     return text.splitlines()[0] if text else type(e).__name__
 
 
-def _naive(stamp: Any) -> dt.datetime | None:
+def _naive(stamp: object) -> dt.datetime | None:
     try:
         t = dt.datetime.fromisoformat(str(stamp))
     except ValueError:

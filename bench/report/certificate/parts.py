@@ -35,7 +35,7 @@ class Sources:
 
     result: JsonObject
     run_path: Path | None = None
-    meta: dict[str, Any] = field(default_factory=dict)
+    meta: JsonObject = field(default_factory=dict)
     stand_file: dict[str, Any] = field(default_factory=dict)
     procedure_file: dict[str, Any] = field(default_factory=dict)
     events: list[dict[str, Any]] = field(default_factory=list)
@@ -56,7 +56,7 @@ class Sources:
             src.events = list(read_jsonl(events))
         return src
 
-    def get(self, key: str, default: Any = None) -> Any:
+    def get(self, key: str, default: object = None) -> Any:
         value = self.result.get(key)
         return default if value is None else value
 
@@ -127,7 +127,7 @@ def label_of(key: str) -> str:
     return f"{text}, {unit}" if unit else text
 
 
-def text_of(value: Any) -> str:
+def text_of(value: object) -> str:
     """Any recorded value as text; nothing recorded says so."""
     if value is None or value == "":
         return NOT_RECORDED
@@ -140,7 +140,7 @@ def text_of(value: Any) -> str:
     return str(value).replace("+/-", "±")
 
 
-def _key_value(key: str, value: Any) -> str:
+def _key_value(key: str, value: object) -> str:
     """`max_rate_dps: 400` -> 'max rate: 400 °/s'."""
     words = str(key).split("_")
     unit = UNIT_SUFFIXES.get(words[-1].lower()) if len(words) > 1 else None
@@ -149,7 +149,7 @@ def _key_value(key: str, value: Any) -> str:
     return f"{' '.join(words)}: {text_of(value)}"
 
 
-def rate_text(x: Any) -> str:
+def rate_text(x: object) -> str:
     """A signed rate as written: '+10', '−10'."""
     v = num(x)
     if v is None:
@@ -157,13 +157,13 @@ def rate_text(x: Any) -> str:
     return f"{v:+g}".replace("-", MINUS)
 
 
-def vu_text(value: Any, u: Any, unit: RelUnit | None = None, signed: bool = False) -> str:
+def vu_text(value: object, u: object, unit: RelUnit | None = None, signed: bool = False) -> str:
     """'value ± U' under the rounding rules, in `unit` (relative) or as given."""
     scale = unit.scale if unit else 1.0
     return format_value_u(num(value), num(u), scale, signed).joined()
 
 
-def verdict_label(verdict: Any, rule: str | None = None, inside_tolerance: bool = False) -> str:
+def verdict_label(verdict: object, rule: str | None = None, inside_tolerance: bool = False) -> str:
     """How a verdict is printed; a guard-band refusal says so."""
     v = str(verdict or "").strip().lower()
     if v == "pass":
@@ -181,7 +181,7 @@ def verdict_label(verdict: Any, rule: str | None = None, inside_tolerance: bool 
     return v.upper() or "—"
 
 
-def figure_of(caption: str, draw: Callable[..., bytes | None], *args: Any,
+def figure_of(caption: str, draw: Callable[..., bytes | None], *args: object,
               width_frac: float = 1.0) -> list[Block]:
     """A plot as a figure block; data that cannot be drawn give a note, not a crash."""
     try:
