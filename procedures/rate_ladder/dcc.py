@@ -120,7 +120,7 @@ def ladder_results(results: etree._Element, src: Sources, checks: Checks) -> Non
             text_el(el(r, "data"), "text", "Nothing was measured to completion on this axis.")
 
 
-def _per_turn_u(r: Mapping[str, Any], rates: list[float]) -> list[float] | None:
+def _per_turn_u(r: Mapping[str, object], rates: list[float]) -> list[float] | None:
     """U (k = 2) of each per-turn rate, docs/method.md A1: dw/w = dT/T with T = 360/|w|, combined
     with the counter timebase: U = 2 |w| sqrt((u_T |w| / 360)^2 + u_tb^2)."""
     b = r.get("rate_error_budget")
@@ -295,7 +295,7 @@ def _mc_interval(value: float | None, lower: float | None, upper: float | None,
     return limit_interval(upper, dist + ", one-sided upper limit")
 
 
-def _undetected(tone: Mapping[str, Any], a: float, big_u: float | None) -> Interval | None:
+def _undetected(tone: Mapping[str, object], a: float, big_u: float | None) -> Interval | None:
     """An undetected tone's amplitude as the PDF prints it, '< a + U' (docs/method.md D2):
     the interval [0, a + U], one-sided at the level of k = 2."""
     if tone.get("detected") is not False or big_u is None:

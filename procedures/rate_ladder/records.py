@@ -110,7 +110,7 @@ class LadderRecords:
         issues = Issues(strict=False)
         return conform_ladder(dict(result), issues), issues.dropped
 
-    def figure_values(self, result: Mapping[str, Any]) -> list[FigureValue]:
+    def figure_values(self, result: Mapping[str, object]) -> list[FigureValue]:
         ladder, _ = LadderResult.conform(result)
         out: list[FigureValue | None] = []
         for axis, ax in ladder.axes.items():

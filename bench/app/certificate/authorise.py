@@ -61,7 +61,7 @@ class IssueContext:
     """What a pre-issue check may look at: the run, its result, the lab, who issues."""
 
     run_path: Path
-    result: Mapping[str, Any]
+    result: Mapping[str, object]
     lab: Lab
     signatory: Signatory
     reason: str | None
@@ -149,7 +149,7 @@ def _leaves(node: object, path: str = "") -> Iterator[tuple[str, Any]]:
         yield path, node
 
 
-def changes_between(old: Mapping[str, Any] | None, new: Mapping[str, Any],
+def changes_between(old: Mapping[str, object] | None, new: Mapping[str, object],
                     old_html: str | None = None, new_html: str | None = None,
                     limit: int = 12) -> tuple[str, ...]:
     """What differs between the revision replaced and this one, as facts: the values of

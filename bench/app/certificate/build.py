@@ -224,7 +224,7 @@ def _g(x: float | None, sig: int = 3) -> str:
     return format_sig(x, sig) if x != 0 else "0"
 
 
-def budget_tables(result: Mapping[str, Any]) -> tuple[Any, ...]:
+def budget_tables(result: Mapping[str, object]) -> tuple[Any, ...]:
     """One table per budget in result.json (bench.report.budget), in EA-4/02's columns."""
     sites = budget_sites(result)
     if not sites:
@@ -347,7 +347,7 @@ def _last_event(src: Sources, kind: str) -> str | None:
     return found[-1] if found else None
 
 
-def check_class(c: Mapping[str, Any]) -> str:
+def check_class(c: Mapping[str, object]) -> str:
     """'consistency' (physics cross-check, not conformity), 'not-assessed' (excluded from
     conformity, e.g. a σ at the timing floor), or 'conformity'."""
     if str(c.get("rule")) == "consistency":
@@ -670,7 +670,7 @@ class CheckRow:
     suffix: str            # rel, dph, dps, deg...
 
     @classmethod
-    def of(cls, c: Mapping[str, Any]) -> CheckRow:
+    def of(cls, c: Mapping[str, object]) -> CheckRow:
         for suffix in ("rel", *ABSOLUTE_UNITS):
             if f"value_{suffix}" in c:
                 return cls(num(c.get(f"value_{suffix}")), num(c.get(f"u_{suffix}")),
@@ -707,7 +707,7 @@ def _specification(src: Sources, proc: Procedure) -> list[Any]:
     return [Fields(tuple(rows))]
 
 
-def _check_texts(c: Mapping[str, Any], proc: Procedure) -> tuple[str, str]:
+def _check_texts(c: Mapping[str, object], proc: Procedure) -> tuple[str, str]:
     """(value as printed, tolerance) of one check under docs/method.md D2: '< L' for an
     unresolved value, its interval for an asymmetric one, else 'value ± U' (the conformity
     table and the as-found table print checks alike)."""
@@ -820,7 +820,7 @@ def _consistency_table(checks: list[dict[str, Any]], proc: Procedure) -> Table:
                         "k_as, levelling); it says nothing about the item's specification.",))
 
 
-def _tolerance_table(tol: Mapping[str, Any], proc: Procedure) -> Table:
+def _tolerance_table(tol: Mapping[str, object], proc: Procedure) -> Table:
     """The procedure's tolerances: rate bands (a band applies below its `below_dps`, in
     order) or one value per quantity with its unit in the key (`<quantity>_dph: 0.5`)."""
     rows = []

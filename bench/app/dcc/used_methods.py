@@ -140,7 +140,7 @@ def _measured_temperature(conds: etree._Element, axis: str, ax: Mapping[str, Any
                      float(ax[key]), U.CELSIUS)
 
 
-def _flat(d: Mapping[str, Any]) -> str:
+def _flat(d: Mapping[str, object]) -> str:
     return "; ".join(f"{k} = {v}" for k, v in d.items() if k != "tolerance") or NOT_RECORDED
 
 

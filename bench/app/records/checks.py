@@ -231,7 +231,7 @@ def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any
         reported["drive"].append(_drive_serial(got.get("drive")))
         reported["fog"].append(_fog_serial(got.get("fog")))
 
-    def serial(axis: str, role: str, conf: Mapping[str, Any]) -> str:
+    def serial(axis: str, role: str, conf: Mapping[str, object]) -> str:
         got = entry if isinstance(entry := ids.get(axis), Mapping) else {}
         rep = (_idn_serial(got.get("counter")) if role == "counter" else
                _drive_serial(got.get("drive")) if role == "drive" else

@@ -252,7 +252,7 @@ class CertificateParts:
         return []
 
     def certificate_sections(self, src: Sources, number: str,
-                             checks: Sequence[Mapping[str, Any]]) -> list[Section]:
+                             checks: Sequence[Mapping[str, object]]) -> list[Section]:
         """The results: the section numbered `number` and any subsections (`number`.n)."""
         return [Section(number, "Results", (Para(
             "The procedure kind states no results of its own on the certificate; they are "
