@@ -149,3 +149,26 @@ def test_the_result_modules_are_not_scanned() -> None:
     assert "procedures/rate_ladder/result.py" not in names
     assert "bench/report/result_frame.py" not in names
     assert "procedures/rate_ladder/certificate.py" in names
+
+
+def test_the_ladder_result_round_trips_and_refuses_by_key_path() -> None:
+    import json
+
+    import pytest
+
+    from procedures.rate_ladder.result import LadderResult, MalformedResult
+    from procedures.rate_ladder.sample import rate_ladder_result
+
+    doc = rate_ladder_result()
+    typed = LadderResult.from_json(doc)
+    assert json.dumps(typed.to_json()) == json.dumps(doc)     # keys in order, numbers as read
+    outer = typed.axes["outer"]
+    assert outer.rates[0].set_rate_dps == doc["axes"]["outer"]["rates"][0]["set_rate_dps"]
+    assert outer.pairs[0].k == doc["axes"]["outer"]["pairs"][0]["k"]
+    doc["axes"]["outer"]["rates"][0]["systematic"] = "garbage"
+    with pytest.raises(MalformedResult, match=r"axes\.outer\.rates\[0\]\.systematic "
+                                              "expected a mapping, found str"):
+        LadderResult.from_json(doc)
+    lenient, dropped = LadderResult.conform(doc)
+    assert dropped == ["axes.outer.rates[0].systematic (expected a mapping, found str)"]
+    assert lenient.axes["outer"].rates[0].systematic == {}
