@@ -158,7 +158,7 @@ def _parts(name: str) -> CertificateParts:
     return kind if isinstance(kind, CertificateParts) else NEUTRAL
 
 
-def build_document(result: dict[str, Any], run_path: Path | None = None,
+def build_document(result: Mapping[str, object], run_path: Path | None = None,
                    issued: dt.date | None = None, issue: Issue | None = None,
                    extra_sections: Sequence[ExtraSection] = ()) -> Document:
     """The certificate for one issue; without `issue` (or with an unauthorised one) the

@@ -172,7 +172,7 @@ def _drive(axis: str, raw: Path, events: Sequence[Mapping[str, Any]], serial: st
     ripple_sq, ripple_n = 0.0, 0
     for f in files:
         session = f.parent.name.removeprefix("s")
-        command: dict[str, Any] | None = None
+        command: Mapping[str, object] | None = None
         last_w = 0.0
         for r in read_jsonl(f):
             kind = r.get("kind")

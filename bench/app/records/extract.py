@@ -14,7 +14,6 @@ import socket
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from bench.analysis.finite import finite_number as _num
 from bench.app.records.checks import CheckRecord, checks_of
@@ -93,7 +92,7 @@ class RunRecord:
     figures: tuple[FigureRecord, ...] = ()
     cert_files: tuple[tuple[str, str, int], ...] = ()   # (name, sha256, bytes)
     checks: tuple[CheckRecord, ...] = ()    # the bench's own instruments (checks.py)
-    extra: dict[str, Any] = field(default_factory=dict)
+    extra: Mapping[str, object] = field(default_factory=dict)
 
     @property
     def date_utc(self) -> dt.datetime | None:

@@ -211,7 +211,7 @@ class FleetView:
         silent = status in ("running", "created") and heard_s is not None and heard_s > SILENT_S
         prog = progress_of(session)
         prog["completed"] = any(ev.get("event") == "completed" for ev in session)
-        view_state: dict[str, Any] = {"status": status, "progress": prog, "cause": cause,
+        view_state: Mapping[str, object] = {"status": status, "progress": prog, "cause": cause,
                       "sessions": len(starts), "session": session_no,
                       "ended_utc": exit_ev.get("utc") if exit_ev else None, "later": []}
         health = self._health(x, now, status == "running" and not silent)
