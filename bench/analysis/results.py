@@ -33,7 +33,7 @@ from bench.analysis.turns import TurnsResult
 CAPABILITY_MAX = 0.3
 
 
-def clean(x: Any) -> Any:
+def clean(x: object) -> Any:
     """Replace non-finite floats by None, recursively (JSON has no NaN)."""
     if isinstance(x, float):
         return x if math.isfinite(x) else None

@@ -11,7 +11,6 @@ the certificate's rounding rule (docs/certificate.md) with its check's verdict.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 from bench.app.console.report import STATEMENT_FIELD, Summary, SummaryTable
 from bench.app.records.extract import figures_of, kind_name
@@ -20,9 +19,10 @@ from bench.report.certificate.model import Document, Table
 from bench.report.certificate.parts import verdict_label
 from bench.report.certificate.rounding import format_value_u
 from bench.report.figures import SummaryCut, fields_of, spec_for
+from bench.report.result_frame import JsonValue
 
 
-def _declared(result: Mapping[str, Any], name: str) -> SummaryCut:
+def _declared(result: Mapping[str, JsonValue], name: str) -> SummaryCut:
     """The kind's declared figures as one table: where, quantity, value ± U, verdict."""
     kind = installed_records(name)
     if not isinstance(kind, ReportsFigures):
@@ -45,7 +45,7 @@ def _declared(result: Mapping[str, Any], name: str) -> SummaryCut:
                              align="llrc", caption="Results"),))
 
 
-def summarize(doc: Document, result: Mapping[str, Any] | None = None) -> Summary:
+def summarize(doc: Document, result: Mapping[str, JsonValue] | None = None) -> Summary:
     """The figures the console shows, as the certificate prints them."""
     name = kind_name(dict(result or {}))
     kind = installed_records(name)

@@ -189,14 +189,6 @@ class ChecksInstruments(Protocol):
 
 
 @runtime_checkable
-class ShapesResult(Protocol):
-    """The containers of its part of result.json, checked before the certificate reads
-    them (bench/report/certificate/shape.py's spec language)."""
-
-    result_shape: Mapping[str, Any]
-
-
-@runtime_checkable
 class HasSampleResult(Protocol):
     """A hand-made result.json of the kind, for previews of its certificate."""
 

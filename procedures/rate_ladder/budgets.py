@@ -22,13 +22,13 @@ import numpy as np
 from bench.report.budget import CHI_SQUARE, NORMAL, RECTANGULAR, STUDENT_T, Budget, Term, num
 
 
-def _half_u(x: Any) -> float | None:
+def _half_u(x: object) -> float | None:
     """A standard uncertainty from an expanded one (k = 2, CONTRACT: _U_/_u_)."""
     v = num(x)
     return None if v is None else v / 2.0
 
 
-def rate_error_budget(r: Mapping[str, Any]) -> Budget | None:
+def rate_error_budget(r: Mapping[str, object]) -> Budget | None:
     """delta = mean(per-turn rates)/set - 1 (eq. 1): repeatability of the turns (Type A),
     the counter's time-stamping and the time base (Type B)."""
     b = r.get("rate_error_budget")
@@ -60,7 +60,7 @@ def rate_error_budget(r: Mapping[str, Any]) -> Budget | None:
                   num(r.get("rate_error_U_rel") or r.get("rate_error_u_rel")))
 
 
-def _scale_term(pair: Mapping[str, Any] | None, value: float | None) -> list[Term]:
+def _scale_term(pair: Mapping[str, object] | None, value: float | None) -> list[Term]:
     """The FOG's scale k converts its rates to the table's: a relative value read through
     the FOG scales as 1/k (sensitivity -value/k)."""
     if pair is None or value is None:
@@ -72,7 +72,7 @@ def _scale_term(pair: Mapping[str, Any] | None, value: float | None) -> list[Ter
                  -value / k, None, "1")]
 
 
-def harmonic_budgets(r: Mapping[str, Any], pair: Mapping[str, Any] | None) -> list[Budget]:
+def harmonic_budgets(r: Mapping[str, object], pair: Mapping[str, object] | None) -> list[Budget]:
     sysm = got if isinstance(got := r.get("systematic"), Mapping) else {}
     intra = got if isinstance(got := r.get("intra_turn"), Mapping) else {}
     samples = num(intra.get("samples"))
@@ -106,8 +106,8 @@ def harmonic_budgets(r: Mapping[str, Any], pair: Mapping[str, Any] | None) -> li
     return out
 
 
-def intra_turn_budgets(r: Mapping[str, Any], pair: Mapping[str, Any] | None,
-                       floor: Mapping[str, Any] | None) -> list[Budget]:
+def intra_turn_budgets(r: Mapping[str, object], pair: Mapping[str, object] | None,
+                       floor: Mapping[str, object] | None) -> list[Budget]:
     """sigma_raw (A5) and sigma_c = sqrt(sigma_raw^2 - sigma_floor^2) (A5: the FOG's own
     noise removed), relative to |set|."""
     intra = got if isinstance(got := r.get("intra_turn"), Mapping) else {}
@@ -139,7 +139,7 @@ def intra_turn_budgets(r: Mapping[str, Any], pair: Mapping[str, Any] | None,
     return out
 
 
-def _half_row(h: Mapping[str, Any]
+def _half_row(h: Mapping[str, object]
               ) -> tuple[float, float, float, float, float, int, Any] | None:
     """A half's counter mean, FOG mean, their standard uncertainties (FOG's first), time
     centre, turns and sign; None when one of the five numbers is missing."""

@@ -242,7 +242,7 @@ def sigma_presented(r: Mapping[str, Any], u: float | None, scale: float = 1.0
                    floor=floor)
 
 
-def _u_of_std(s: float | None, n: Any) -> float | None:
+def _u_of_std(s: float | None, n: object) -> float | None:
     """U (k = 2) of a standard deviation from n values, when the result does not give it."""
     n = num(n)
     return None if n is None else std_u_rel(s, int(n))

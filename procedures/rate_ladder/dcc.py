@@ -32,6 +32,7 @@ from bench.report.dcc.xml import (
     rate_token,
     text_el,
 )
+from procedures.rate_ladder.result import LadderResult, PairEntry
 
 # the ladder's refTypes, namespace "ratebench" (docs/dcc.md, section "refTypes")
 SET_RATE = V.RB + "setRate"
@@ -80,7 +81,7 @@ class LadderDcc(DccParts):
     """The rate ladder's answers to the DCC (the kind's `dcc` part)."""
 
     def dcc_item(self, src: Sources) -> tuple[str, Sequence[str]]:
-        return "rotary rate table", [str(a) for a in src.get("axes") or {}]
+        return "rotary rate table", list(LadderResult.of(src.result).axes)
 
     def dcc_used_methods(self, src: Sources) -> tuple[str, Sequence[str]]:
         return methods.A_REFERENCE, METHOD_SECTIONS
@@ -90,10 +91,7 @@ class LadderDcc(DccParts):
 
 
 def ladder_results(results: etree._Element, src: Sources, checks: Checks) -> None:
-    axes = src.get("axes", {}) or {}
-    for axis, ax in axes.items():
-        if not isinstance(ax, Mapping):
-            continue
+    for axis, ax in LadderResult.of(src.result).axes.items():
         mr = el(results, "measurementResult", id=ident("axis", axis), ref_id="item")
         name(mr, f"Axis {axis}: per-turn rate, FOG cross-calibration and intra-turn "
                  "instability (rate ladder)")
@@ -101,20 +99,18 @@ def ladder_results(results: etree._Element, src: Sources, checks: Checks) -> Non
                 "table's positive sense). Relative values are plain fractions of the "
                 "commanded rate (unit \\one).")
         res = el(mr, "results")
-        for i, r in enumerate(ax.get("rates") or []):
-            if isinstance(r, Mapping):
-                _rate_result(res, axis, i, r, checks)
-        for i, p in enumerate(ax.get("pairs") or []):
-            if isinstance(p, Mapping):
-                _pair_result(res, axis, i, p)
-        floor = ax.get("noise_floor") or {}
-        sd = num(floor.get("sample_std_dps")) if isinstance(floor, Mapping) else None
-        if sd is not None:
+        for i, rate in enumerate(ax.rates):
+            _rate_result(res, axis, i, rate.doc, checks)
+        for i, pair in enumerate(ax.pairs):
+            _pair_result(res, axis, i, pair)
+        floor = ax.noise_floor
+        sd = num(floor.sample_std_dps) if floor is not None else None
+        if floor is not None and sd is not None:
             r = el(res, "result", id=ident("floor", axis), ref_type=FOG_FLOOR)
             name(r, f"Axis {axis}: FOG noise floor at rest (docs/method.md A5)")
-            text_el(r, "description", f"{floor.get('source', 'record at rest')}; "
-                    f"{floor.get('samples', NOT_RECORDED)} samples over "
-                    f"{floor.get('duration_s', NOT_RECORDED)} s.")
+            text_el(r, "description", f"{floor.source or 'record at rest'}; "
+                    f"{_or_not_recorded(floor.samples)} samples over "
+                    f"{_or_not_recorded(floor.duration_s)} s.")
             quantity(el(r, "data"), ident("q", axis, "floor_std"), "standard deviation of "
                      "one FOG sample at rest", FOG_FLOOR, sd, U.DEG_PER_S,
                      label=f"axes.{axis}.noise_floor.sample_std_dps")
@@ -124,7 +120,7 @@ def ladder_results(results: etree._Element, src: Sources, checks: Checks) -> Non
             text_el(el(r, "data"), "text", "Nothing was measured to completion on this axis.")
 
 
-def _per_turn_u(r: Mapping[str, Any], rates: list[float]) -> list[float] | None:
+def _per_turn_u(r: Mapping[str, object], rates: list[float]) -> list[float] | None:
     """U (k = 2) of each per-turn rate, docs/method.md A1: dw/w = dT/T with T = 360/|w|, combined
     with the counter timebase: U = 2 |w| sqrt((u_T |w| / 360)^2 + u_tb^2)."""
     b = r.get("rate_error_budget")
@@ -241,7 +237,7 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
     _systematic(data, rid, path, r.get("systematic") or {})
 
 
-def _averaged(data: etree._Element, rid: str, path: str, intra: Any) -> None:
+def _averaged(data: etree._Element, rid: str, path: str, intra: object) -> None:
     rows = intra.get("averaged") if isinstance(intra, Mapping) else None
     for j, a in enumerate(rows or []):
         if not isinstance(a, Mapping) or num(a.get("angle_deg")) is None:
@@ -288,7 +284,7 @@ def _averaged(data: etree._Element, rid: str, path: str, intra: Any) -> None:
 
 
 def _mc_interval(value: float | None, lower: float | None, upper: float | None,
-                 resolved: Any) -> Interval | None:
+                 resolved: object) -> Interval | None:
     """A floor-corrected figure's JCGM 101 interval (docs/method.md A5, D2): [lower, upper]
     when resolved, [0, L] at its one-sided level when not."""
     if value is None or upper is None:
@@ -299,7 +295,7 @@ def _mc_interval(value: float | None, lower: float | None, upper: float | None,
     return limit_interval(upper, dist + ", one-sided upper limit")
 
 
-def _undetected(tone: Mapping[str, Any], a: float, big_u: float | None) -> Interval | None:
+def _undetected(tone: Mapping[str, object], a: float, big_u: float | None) -> Interval | None:
     """An undetected tone's amplitude as the PDF prints it, '< a + U' (docs/method.md D2):
     the interval [0, a + U], one-sided at the level of k = 2."""
     if tone.get("detected") is not False or big_u is None:
@@ -308,7 +304,7 @@ def _undetected(tone: Mapping[str, Any], a: float, big_u: float | None) -> Inter
                           (1.0 + float(COVERAGE_PROBABILITY)) / 2.0)
 
 
-def _systematic(data: etree._Element, rid: str, path: str, s: Any) -> None:
+def _systematic(data: etree._Element, rid: str, path: str, s: object) -> None:
     if not isinstance(s, Mapping):
         return
     u_key: str | None  # the loops below name a quantity's U key, the mains frequency none
@@ -356,29 +352,33 @@ def _systematic(data: etree._Element, rid: str, path: str, s: Any) -> None:
                          interval=_undetected(m, v, uu) if key == "amplitude_dps" else None)
 
 
-def _pair_result(res: etree._Element, axis: str, i: int, p: Mapping[str, Any]) -> None:
-    rate = num(p.get("rate_dps"))
+def _or_not_recorded(value: float | None) -> str:
+    return NOT_RECORDED if value is None else str(value)
+
+
+def _pair_result(res: etree._Element, axis: str, i: int, p: PairEntry) -> None:
+    rate = num(p.rate_dps)
     pid = ident("pair", axis, f"{rate:g}" if rate is not None else i)
     path = f"axes.{axis}.pairs[{i}]"
     result = el(res, "result", id=pid, ref_type=PAIR)
     name(result, f"Axis {axis}, cross-calibration of the FOG at +/-{rate:g} deg/s (docs/method.md "
                  "A3 eqs. 5-6)" if rate is not None else f"Axis {axis}, pair {i + 1}")
-    if p.get("method"):
-        text_el(result, "description", f"method {p.get('method')}"
-                + (f"; bias drift {p.get('drift_source')}" if p.get("drift_source") else ""))
+    if p.method:
+        text_el(result, "description", f"method {p.method}"
+                + (f"; bias drift {p.drift_source}" if p.drift_source else ""))
     data = el(result, "data")
-    for key, u_key, title, ref, unit in (
-            ("rate_dps", None, "pair rate magnitude", V.NOMINAL, U.DEG_PER_S),
-            ("k", "k_u", "FOG scale k (eq. 5)", f"{V.MEASURED} {FOG_SCALE}", U.ONE),
-            ("w0_dps", "w0_u_dps", "FOG bias w0 (eq. 6)", f"{V.MEASURED} {FOG_BIAS}",
-             U.DEG_PER_S),
-            ("drift_dps_per_h", "drift_u_dps_per_h", "FOG bias drift during the pair, deg/s "
-             "per hour", f"{V.MEASURED} {FOG_BIAS_DRIFT}", r"\degree\second\tothe{-1}"
-             r"\hour\tothe{-1}")):
-        v = num(p.get(key))
+    for key, value, u, title, ref, unit in (
+            ("rate_dps", p.rate_dps, None, "pair rate magnitude", V.NOMINAL, U.DEG_PER_S),
+            ("k", p.k, p.k_u, "FOG scale k (eq. 5)", f"{V.MEASURED} {FOG_SCALE}", U.ONE),
+            ("w0_dps", p.w0_dps, p.w0_u_dps, "FOG bias w0 (eq. 6)",
+             f"{V.MEASURED} {FOG_BIAS}", U.DEG_PER_S),
+            ("drift_dps_per_h", p.drift_dps_per_h, p.drift_u_dps_per_h, "FOG bias drift "
+             "during the pair, deg/s per hour", f"{V.MEASURED} {FOG_BIAS_DRIFT}",
+             r"\degree\second\tothe{-1}\hour\tothe{-1}")):
+        v = num(value)
         if v is None:
             continue
-        uu = num(p.get(u_key)) if u_key else None
+        uu = num(u)
         quantity(data, ident(pid, key), title, ref, v, unit, uu, label=f"{path}.{key}",
-                 note=None if uu is not None or u_key is None else
+                 note=None if uu is not None or key == "rate_dps" else
                  "U not stated in result.json.")

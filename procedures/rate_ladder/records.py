@@ -16,7 +16,9 @@ from typing import Any
 from bench.analysis.finite import finite_number as _num
 from bench.report.certificate.model import Document, Table
 from bench.report.figures import FigureSpec, FigureValue, SummaryCut, Trend, joined, tables_of
+from bench.report.result_frame import Issues, JsonObject
 from procedures.rate_ladder import starter
+from procedures.rate_ladder.result import LadderResult, conform_ladder
 from procedures.rate_ladder.sample import rate_ladder_result
 
 _RATES = "axes.<axis>.rates[]."
@@ -63,13 +65,6 @@ FIGURES = (
                rate_key=_PAIR, rate_is_magnitude=True),
 )
 
-#: the containers of the ladder's part of result.json (bench/report/certificate/shape.py): a rate
-#: without its set rate, a pair without its rate, a harmonic without its order are dropped
-_RATE_SHAPE = {"systematic": {"harmonics": [dict, "order"], "mains": dict, "binned": dict},
-               "intra_turn": {"averaged": [dict]}, "counter_rate_dps": list}
-RESULT_SHAPE = {"axes": {"*": {"rates": [_RATE_SHAPE, "set_rate_dps"],
-                               "pairs": [dict, "rate_dps"], "noise_floor": dict}}}
-
 # the console summary: (caption after "Axis <name>: ", header prefix, header shown)
 LADDER_COLUMNS = (
     ("per-turn rate error", "Set rate", None),
@@ -87,7 +82,7 @@ PAIR_COLUMNS = (
 )
 
 
-def _value(axis: str, quantity: str, rate: float | None, value: Any, u: Any, unit: str,
+def _value(axis: str, quantity: str, rate: float | None, value: object, u: object, unit: str,
            check: str | None = None, upper_limit: bool = False) -> FigureValue | None:
     v = _num(value)
     return None if v is None else FigureValue(axis, quantity, rate, v, _num(u), unit, check,
@@ -108,48 +103,49 @@ class LadderRecords:
     """The ladder's answers to `ReportsFigures` and `SummarisesRun`."""
 
     figures = FIGURES
-    result_shape = RESULT_SHAPE
 
-    def figure_values(self, result: Mapping[str, Any]) -> list[FigureValue]:
+    def conform_result(self, result: JsonObject) -> tuple[JsonObject, list[str]]:
+        """The ladder's part checked by its result module (procedures/rate_ladder/result.py):
+        a malformed container dropped and named, the rest kept."""
+        issues = Issues(strict=False)
+        return conform_ladder(dict(result), issues), issues.dropped
+
+    def figure_values(self, result: Mapping[str, object]) -> list[FigureValue]:
+        ladder, _ = LadderResult.conform(result)
         out: list[FigureValue | None] = []
-        for axis, ax in (result.get("axes") or {}).items():
-            if not isinstance(ax, Mapping):
-                continue
-            for r in ax.get("rates") or []:
-                rate = _num(r.get("set_rate_dps"))
-                out.append(_value(axis, "rate_error_rel", rate, r.get("rate_error_rel"),
-                                  r.get("rate_error_u_rel"), "1", "rate_error"))
-                if r.get("rate_instability_resolved") is False:
+        for axis, ax in ladder.axes.items():
+            for r in ax.rates:
+                rate = _num(r.set_rate_dps)
+                out.append(_value(axis, "rate_error_rel", rate, r.rate_error_rel,
+                                  r.rate_error_u_rel, "1", "rate_error"))
+                if r.rate_instability_resolved is False:
                     # not resolved above the counter's timing floor: the records keep what
                     # the certificate prints, the one-sided upper limit, with no U (the one
                     # rule for unresolved figures, docs/certificate.md)
                     out.append(_value(axis, "rate_instability_rel", rate,
-                                      r.get("rate_instability_upper_rel"), None, "1",
+                                      r.rate_instability_upper_rel, None, "1",
                                       "rate_instability", upper_limit=True))
                 else:
                     out.append(_value(axis, "rate_instability_rel", rate,
-                                      r.get("rate_instability_rel"),
-                                      r.get("rate_instability_u_rel"), "1",
+                                      r.rate_instability_rel, r.rate_instability_u_rel, "1",
                                       "rate_instability"))
                 out.append(_value(axis, "intra_turn_instability_rel", rate,
-                                  r.get("intra_turn_instability_rel"),
-                                  r.get("intra_turn_instability_u_rel"), "1",
-                                  "intra_turn_instability"))
+                                  r.intra_turn_instability_rel, r.intra_turn_instability_u_rel,
+                                  "1", "intra_turn_instability"))
                 out.append(_value(axis, "intra_turn_instability_corrected_rel", rate,
-                                  r.get("intra_turn_instability_corrected_rel"), None, "1",
+                                  r.intra_turn_instability_corrected_rel, None, "1",
                                   "intra_turn_instability_corrected"))
-                sysc = r.get("systematic") or {}
-                for h in sysc.get("harmonics") or []:
-                    out.append(_value(axis, f"harmonic{h.get('order')}_amplitude_rel", rate,
-                                      h.get("amplitude_rel"), h.get("amplitude_u_rel"), "1"))
-                mains = sysc.get("mains") or {}
-                out.append(_value(axis, "mains_amplitude_dps", rate, mains.get("amplitude_dps"),
-                                  mains.get("amplitude_u_dps"), "deg/s"))
-            for p in ax.get("pairs") or []:
-                rate = _num(p.get("rate_dps"))
-                out.append(_value(axis, "k", rate, p.get("k"), p.get("k_u"), "1"))
-                out.append(_value(axis, "w0_dps", rate, p.get("w0_dps"), p.get("w0_u_dps"),
-                                  "deg/s"))
+                for h in r.harmonics:
+                    out.append(_value(axis, f"harmonic{h.order}_amplitude_rel", rate,
+                                      h.amplitude_rel, h.amplitude_u_rel, "1"))
+                mains = r.mains
+                out.append(_value(axis, "mains_amplitude_dps", rate,
+                                  mains.amplitude_dps if mains else None,
+                                  mains.amplitude_u_dps if mains else None, "deg/s"))
+            for p in ax.pairs:
+                rate = _num(p.rate_dps)
+                out.append(_value(axis, "k", rate, p.k, p.k_u, "1"))
+                out.append(_value(axis, "w0_dps", rate, p.w0_dps, p.w0_u_dps, "deg/s"))
         return [f for f in out if f is not None]
 
     def starter_files(self, real: bool) -> dict[str, str]:

@@ -62,14 +62,14 @@ class IssueContext:
     """What a pre-issue check may look at: the run, its result, the lab, who issues."""
 
     run_path: Path
-    result: Mapping[str, Any]
+    result: Mapping[str, object]
     lab: Lab
     signatory: Signatory
     reason: str | None
     previous: tuple[register.Issue, ...]     # the issues recorded so far, oldest first
     simulated: bool                           # twins, not instruments
     records_url: str | None = None            # the records (None: the run's default)
-    lab_register: Any = None                  # the lab register (bench.app.register)
+    lab_register: object = None                  # the lab register (bench.app.register)
 
 
 PreIssueCheck = Callable[[IssueContext], list[str]]
@@ -139,7 +139,7 @@ def refusals(ctx: IssueContext, checks: list[PreIssueCheck] | None = None) -> li
 
 # -- what changed between two issued revisions -------------------------------------------
 
-def _leaves(node: Any, path: str = "") -> Iterator[tuple[str, Any]]:
+def _leaves(node: object, path: str = "") -> Iterator[tuple[str, Any]]:
     if isinstance(node, Mapping):
         for k, v in node.items():
             yield from _leaves(v, f"{path}.{k}" if path else str(k))
@@ -150,7 +150,7 @@ def _leaves(node: Any, path: str = "") -> Iterator[tuple[str, Any]]:
         yield path, node
 
 
-def changes_between(old: Mapping[str, Any] | None, new: Mapping[str, Any],
+def changes_between(old: Mapping[str, object] | None, new: Mapping[str, object],
                     old_html: str | None = None, new_html: str | None = None,
                     limit: int = 12) -> tuple[str, ...]:
     """What differs between the revision replaced and this one, as facts: the values of
@@ -311,7 +311,7 @@ def _ask(prompt: str) -> str:
     return Passwords(False).next(prompt)
 
 
-def _issue(run_path: Path, result: dict[str, Any], result_bytes: bytes, stand: Any, lab: Lab,
+def _issue(run_path: Path, result: dict[str, Any], result_bytes: bytes, stand: object, lab: Lab,
            reg: Any, acct: Any, who: Signatory, number: str,
            previous: tuple[register.Issue, ...], reason: str | None,
            line: Callable[[str], None], write_dcc: Any) -> int:

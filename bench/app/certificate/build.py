@@ -134,7 +134,7 @@ class Procedure:
     def title(self) -> str:
         return self.parts.certificate_procedure_name or self.name
 
-    def quantity(self, key: Any, default: str | None = None) -> str:
+    def quantity(self, key: object, default: str | None = None) -> str:
         """A checked quantity in words."""
         key = str(key)
         return self.parts.certificate_quantities.get(
@@ -159,7 +159,7 @@ def _parts(name: str) -> CertificateParts:
     return kind.certificate if isinstance(kind.certificate, CertificateParts) else NEUTRAL
 
 
-def build_document(result: dict[str, Any], run_path: Path | None = None,
+def build_document(result: Mapping[str, object], run_path: Path | None = None,
                    issued: dt.date | None = None, issue: Issue | None = None,
                    extra_sections: Sequence[ExtraSection] = ()) -> Document:
     """The certificate for one issue; without `issue` (or with an unauthorised one) the
@@ -225,7 +225,7 @@ def _g(x: float | None, sig: int = 3) -> str:
     return format_sig(x, sig) if x != 0 else "0"
 
 
-def budget_tables(result: Mapping[str, Any]) -> tuple[Any, ...]:
+def budget_tables(result: Mapping[str, object]) -> tuple[Any, ...]:
     """One table per budget in result.json (bench.report.budget), in EA-4/02's columns."""
     sites = budget_sites(result)
     if not sites:
@@ -282,7 +282,7 @@ class _Counter:
 def _checks(src: Sources, proc: Procedure) -> list[dict[str, Any]]:
     """The engine's checks[]; without it, what the kind reads from its own results."""
     if isinstance(src.result.get("checks"), list):
-        return [c for c in src.result["checks"] if isinstance(c, dict)]
+        return [c.to_json() for c in src.frame.checks]
     return proc.parts.certificate_checks(src)
 
 
@@ -348,7 +348,7 @@ def _last_event(src: Sources, kind: str) -> str | None:
     return found[-1] if found else None
 
 
-def check_class(c: Mapping[str, Any]) -> str:
+def check_class(c: Mapping[str, object]) -> str:
     """'consistency' (physics cross-check, not conformity), 'not-assessed' (excluded from
     conformity, e.g. a σ at the timing floor), or 'conformity'."""
     if str(c.get("rule")) == "consistency":
@@ -413,7 +413,7 @@ def _overall(src: Sources, checks: list[dict[str, Any]], proc: Procedure) -> str
     return f"{head} {scope}{cons_text}"
 
 
-def _rule_name(rule: Any) -> str:
+def _rule_name(rule: object) -> str:
     return {"guard-band": "guard-band (guarded acceptance, w = U)",
             "simple": "simple acceptance"}.get(str(rule or "simple"), str(rule))
 
@@ -671,7 +671,7 @@ class CheckRow:
     suffix: str            # rel, dph, dps, deg...
 
     @classmethod
-    def of(cls, c: Mapping[str, Any]) -> CheckRow:
+    def of(cls, c: Mapping[str, object]) -> CheckRow:
         for suffix in ("rel", *ABSOLUTE_UNITS):
             if f"value_{suffix}" in c:
                 return cls(num(c.get(f"value_{suffix}")), num(c.get(f"u_{suffix}")),
@@ -708,7 +708,7 @@ def _specification(src: Sources, proc: Procedure) -> list[Any]:
     return [Fields(tuple(rows))]
 
 
-def _check_texts(c: Mapping[str, Any], proc: Procedure) -> tuple[str, str]:
+def _check_texts(c: Mapping[str, object], proc: Procedure) -> tuple[str, str]:
     """(value as printed, tolerance) of one check under docs/method.md D2: '< L' for an
     unresolved value, its interval for an asymmetric one, else 'value ± U' (the conformity
     table and the as-found table print checks alike)."""
@@ -821,7 +821,7 @@ def _consistency_table(checks: list[dict[str, Any]], proc: Procedure) -> Table:
                         "k_as, levelling); it says nothing about the item's specification.",))
 
 
-def _tolerance_table(tol: Mapping[str, Any], proc: Procedure) -> Table:
+def _tolerance_table(tol: Mapping[str, object], proc: Procedure) -> Table:
     """The procedure's tolerances: rate bands (a band applies below its `below_dps`, in
     order) or one value per quantity with its unit in the key (`<quantity>_dph: 0.5`)."""
     rows = []
@@ -908,7 +908,7 @@ def restated(doc: Document, issue: Issue) -> Document:
     """`doc` with its Revision field restated for `issue` (what changed is known only once
     the new revision's statements can be compared with the replaced one's; the rest of the
     document is the same, so it is not built twice)."""
-    def fields(b: Any) -> Any:
+    def fields(b: object) -> Any:
         if not isinstance(b, Fields):
             return b
         return Fields(tuple((k, _revision_text(issue) if k == "Revision" else v)

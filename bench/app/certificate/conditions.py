@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any
 
 from bench.analysis.finite import finite_number as num
 from bench.report.certificate.parts import Sources, label_of, text_of
@@ -30,7 +29,7 @@ class ConditionRow:
     measured: str         # NOT_MEASURED when nothing measured it in this run
 
 
-def _mains_tones(node: Any, axis: str) -> Iterator[tuple[str, float, str]]:
+def _mains_tones(node: object, axis: str) -> Iterator[tuple[str, float, str]]:
     """Every fitted mains tone under an axis's results: (axis, frequency in Hz, where the
     frequency came from)."""
     if isinstance(node, Mapping):

@@ -14,7 +14,6 @@ from __future__ import annotations
 import datetime as dt
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 from bench.core.config import Traced
 from bench.core.traceability import (
@@ -73,7 +72,7 @@ def work_date(src: Sources) -> dt.date | None:
         return None
 
 
-def _reported(ids: Mapping[str, Any], t: Traced) -> str | None:
+def _reported(ids: Mapping[str, object], t: Traced) -> str | None:
     """The identity the instrument at `t.where` reported in this run. An instrument at
     `axes.<axis>.<role>` reported under ids[axis][role]; one elsewhere (a platform's
     `gyros.x.dmm`) under its role, or `<gyro>-<role>`, on the table axis."""
@@ -92,7 +91,7 @@ def _reported(ids: Mapping[str, Any], t: Traced) -> str | None:
     return None
 
 
-def _serial(ids: Mapping[str, Any], t: Traced) -> str:
+def _serial(ids: Mapping[str, object], t: Traced) -> str:
     """The serial the instrument reported in this run (its identity), not the stand
     file's; a reference the bench does not read: the stand file's, said to be stated."""
     if t.where.startswith("traceability"):

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import base64
 from dataclasses import asdict
-from typing import Any
 
 import jinja2
 
@@ -19,7 +18,7 @@ def is_bad(cell: str) -> bool:
     return text.startswith(BAD_PREFIXES) or text.endswith("not met")
 
 
-def _kind(block: Any) -> str:
+def _kind(block: object) -> str:
     for cls, name in ((Para, "para"), (Fields, "fields"), (Table, "table"), (Figure, "figure"),
                       (Signatures, "signatures")):
         if isinstance(block, cls):
@@ -46,7 +45,7 @@ def render_html(doc: Document) -> str:
             kind = _kind(b)
             if kind == "figure":
                 figure_no += 1
-                view: Any = {**asdict(b), "number": figure_no}
+                view: object = {**asdict(b), "number": figure_no}
             else:
                 view = b
             blocks.append((kind, view))

@@ -60,11 +60,11 @@ class ItemRecord:
     readback: tuple[str, ...]
 
 
-def _text(x: Any) -> str:
+def _text(x: object) -> str:
     return NOT_STATED if x is None or str(x).strip() == "" else str(x).strip()
 
 
-def _date(x: Any) -> str:
+def _date(x: object) -> str:
     d = parse_date(x)
     return d.isoformat() if d is not None else _text(x)
 

@@ -12,7 +12,7 @@ from bench.report.certificate.model import Para, Table
 from bench.report.certificate.parts import NOT_RECORDED
 
 
-def utc_text(stamp: Any) -> str:
+def utc_text(stamp: object) -> str:
     """A journal stamp as the certificate prints it (UTC, to the second)."""
     if not stamp:
         return NOT_RECORDED
@@ -25,12 +25,12 @@ def utc_text(stamp: Any) -> str:
     return t.strftime("%Y-%m-%d %H:%M:%S UTC")
 
 
-def _answered_by(e: Mapping[str, Any]) -> str:
+def _answered_by(e: Mapping[str, object]) -> str:
     """'--yes' or 'operator' (older logs say only answered: yes | operator)."""
     return str(e.get("answered_by") or ("--yes" if e.get("answered") == "yes" else "operator"))
 
 
-def _answer(e: Mapping[str, Any]) -> str:
+def _answer(e: Mapping[str, object]) -> str:
     if _answered_by(e) == "--yes":
         return "confirmed by --yes (unattended run: nobody was asked)"
     typed = str(e.get("answer") or "").strip()
@@ -39,7 +39,7 @@ def _answer(e: Mapping[str, Any]) -> str:
     return "confirmed by the operator" + (f" ({typed!r})" if typed else " (Enter)")
 
 
-def prompt_blocks(events: Sequence[Mapping[str, Any]]) -> tuple[Any, ...]:
+def prompt_blocks(events: Sequence[Mapping[str, object]]) -> tuple[Any, ...]:
     """The set-up prompts of the run, in order, with who answered and when."""
     prompts = [e for e in events if e.get("event") == "prompt"]
     if not prompts:

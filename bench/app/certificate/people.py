@@ -14,7 +14,7 @@ from bench.report.certificate.parts import NOT_RECORDED
 PERFORMED_BY = "Calibration performed by"
 
 
-def performer(meta: Mapping[str, Any]) -> tuple[str, str]:
+def performer(meta: Mapping[str, object]) -> tuple[str, str]:
     """(name as printed, how it is known)."""
     p = meta.get("performer")
     if isinstance(p, Mapping) and p.get("full_name"):
@@ -27,7 +27,7 @@ def performer(meta: Mapping[str, Any]) -> tuple[str, str]:
             + (f"; started by the operating-system user {who}" if who else ""))
 
 
-def performer_line(meta: Mapping[str, Any]) -> str:
+def performer_line(meta: Mapping[str, object]) -> str:
     name, how = performer(meta)
     return f"{PERFORMED_BY}: {name} ({how})."
 

@@ -30,7 +30,7 @@ from bench.report.dcc.xml import NOT_RECORDED, el, name, num, statement, text_el
 UNKNOWN_COUNTRY = "ZZ"   # ISO 3166-1 user-assigned code: the laboratory did not configure one
 
 
-def _date(stamp: Any) -> str | None:
+def _date(stamp: object) -> str | None:
     if not stamp:
         return None
     try:
@@ -185,7 +185,7 @@ def _item(items: etree._Element, src: Sources, kind: DccParts) -> None:
 
 
 def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
-                country: Any, issue: Issue, lab: Lab) -> None:
+                country: object, issue: Issue, lab: Lab) -> None:
     if issue.draft:
         statement(sts, V.DRAFT, "DRAFT, NOT AUTHORISED: this draft has not been authorised "
                   "for issue and is not a certificate; `bench authorise RUN_DIR --signatory "

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.core import rundir_layout as layout
+from bench.report.result_frame import ResultFrame
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
@@ -22,7 +23,7 @@ def _err(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
-def write_run_dcc(run_path: Path, result: dict[str, Any], stand: Any,
+def write_run_dcc(run_path: Path, result: dict[str, Any], stand: object,
                   line: Callable[[str], None] = print, lab_file: str | Path | None = None,
                   warn: Callable[[str], None] = _err) -> bool:
     """Write RUN_DIR/certificate.dcc.xml after the PDF; False when the run has no valid DCC
@@ -109,7 +110,7 @@ def cmd_dcc(args: argparse.Namespace) -> int:
              "now is a DRAFT, so the draft's PDF and HTML were written beside it")
     if not write_run_dcc(run_path, result, stand, lab_file=args.lab):
         return EXIT_ABORTED
-    verdict = str(result.get("verdict") or "").lower()
+    verdict = (ResultFrame.of(result).verdict or "").lower()
     return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(verdict, EXIT_ABORTED)
 
 

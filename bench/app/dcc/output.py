@@ -21,6 +21,7 @@ from bench.app.dcc.settings import SettingsError, check_key_outside, resolve_set
 from bench.app.dcc.validate import Validation, describe, validate_dcc
 from bench.app.dcc.writer import DccInputs, build_dcc
 from bench.core.lab import Lab, run_lab
+from bench.report.result_frame import ResultFrame
 
 VERDICTS = ("pass", "fail")
 
@@ -71,13 +72,14 @@ def write_dcc(run_path: Path, result: dict[str, Any], stand: Any = None,
     """
     run_path = Path(run_path)
     out = Path(out_dir) if out_dir is not None else run_path
-    verdict = str(result.get("verdict") or "incomplete").lower()
+    frame = ResultFrame.of(result)
+    verdict = (frame.verdict or "incomplete").lower()
     if verdict not in VERDICTS:
         (out / DCC_NAME).unlink(missing_ok=True)   # it would stand for other results
         return DccOutcome(None, None, skipped=f"the run's verdict is {verdict!r}; a DCC is "
                                                 "written only for a completed run")
     settings = lab if lab is not None else resolve_settings(
-        stand, lab_file, base=run_lab(run_path, result.get("certificate")))
+        stand, lab_file, base=run_lab(run_path, frame.certificate))
     data = dcc_bytes(build_dcc(DccInputs(result, run_path, settings, issued, issue=issue,
                                          pdf_dir=out)))
     signed = False

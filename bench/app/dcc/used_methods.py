@@ -140,7 +140,7 @@ def _measured_temperature(conds: etree._Element, axis: str, ax: Mapping[str, Any
                      float(ax[key]), U.CELSIUS)
 
 
-def _flat(d: Mapping[str, Any]) -> str:
+def _flat(d: Mapping[str, object]) -> str:
     return "; ".join(f"{k} = {v}" for k, v in d.items() if k != "tolerance") or NOT_RECORDED
 
 
@@ -195,7 +195,7 @@ _CONDITION_UNITS = {"c": (U.CELSIUS, V.TEMPERATURE, V.TEMPERATURE_MIN, V.TEMPERA
                     "hpa": (U.HECTOPASCAL, V.CONDITION, None, None)}
 
 
-def _condition(conds: etree._Element, key: str, value: Any, measured: str) -> None:
+def _condition(conds: etree._Element, key: str, value: object, measured: str) -> None:
     """A stated condition: '20 +/- 2' under `temperature_c` becomes 18 ... 22 degC; text
     that is not a number with its unit stays text (it is never guessed). `measured`: what
     this run measured of it (the PDF's column), usually "not measured"."""

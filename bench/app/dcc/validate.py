@@ -41,7 +41,7 @@ MAX_ERRORS = 20
 class LocalSchemas(etree.Resolver):
     """libxml2's resolver: the schemas' import URLs -> the shipped files, nothing else."""
 
-    def resolve(self, system_url: str, public_id: str, context: Any) -> Any:
+    def resolve(self, system_url: str, public_id: str, context: object) -> Any:
         local = URI_MAP.get(system_url)
         return self.resolve_filename(str(local), context) if local else None
 
@@ -103,7 +103,7 @@ def validate_dcc(source: Path | bytes | etree._ElementTree | etree._Element) -> 
     return Validation(tuple(errors), tuple(unit_list_problems(units)))
 
 
-def describe(v: Validation, name: Any) -> str:
+def describe(v: Validation, name: object) -> str:
     if v.valid:
         return f"{name}: valid against DCC 3.3.0 / D-SI 2.2.1 (offline), D-SI units checked"
     return f"{name}: NOT valid ({len(v.lines())} problem(s)):\n" + "\n".join(

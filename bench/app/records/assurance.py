@@ -37,6 +37,7 @@ from bench.core.config import Config, SimSettings, StandSettings
 from bench.core.simbench import with_sim
 from bench.core.simdrift import drifted, has_drift, stated_run_number
 from bench.report.certificate.parts import read_json_object
+from bench.report.result_frame import as_object
 from drivers.json_types import JsonObject
 
 Warn = Callable[[str], None]
@@ -50,7 +51,7 @@ def run_statuses(run_path: Path, url: str, result: Mapping[str, object] | None =
                  ) -> list[InstrumentStatus]:
     """The status of each instrument this run rests on, from the records and this run's
     own check values (registered or not), with no point later than this run."""
-    record = record_of(run_path, dict(result) if result is not None else None)
+    record = record_of(run_path, as_object(result))
     when = _aware(record.date_utc)
     extra = [CheckPoint(record.uid, record.run_dir, record.serial, when, c)
              for c in record.checks]

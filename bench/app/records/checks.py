@@ -62,7 +62,7 @@ def quantities() -> dict[str, tuple[str, str]]:
 CheckRecord = InstrumentCheck
 
 
-def _serial_of(stated: Any, reported: str | None, unique: bool, fallback: str) -> str:
+def _serial_of(stated: object, reported: str | None, unique: bool, fallback: str) -> str:
     """The serial the instrument reported, if no other instrument of the run reports the
     same: the instrument actually connected (issue 41: a swapped counter must not land on
     the stated one's control chart); else the stand file's `serial:` (a FOG answers no
@@ -104,7 +104,7 @@ def _fog(axis: str, ax: Mapping[str, Any], serial: str, model: str | None
          ) -> list[CheckRecord]:
     out = []
 
-    def add(q: str, rate: float | None, v: Any, u: Any) -> None:
+    def add(q: str, rate: float | None, v: object, u: object) -> None:
         x = _num(v)
         if x is not None:
             out.append(CheckRecord(serial, "fog", model, axis, q, rate, x, _num(u),
@@ -173,7 +173,7 @@ def _drive(axis: str, raw: Path, events: Sequence[Mapping[str, Any]], serial: st
     ripple_sq, ripple_n = 0.0, 0
     for f in files:
         session = f.parent.name.removeprefix("s")
-        command: dict[str, Any] | None = None
+        command: Mapping[str, object] | None = None
         last_w = 0.0
         for r in read_jsonl(f):
             kind = r.get("kind")
@@ -232,7 +232,7 @@ def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any
         reported["drive"].append(_drive_serial(got.get("drive")))
         reported["fog"].append(_fog_serial(got.get("fog")))
 
-    def serial(axis: str, role: str, conf: Mapping[str, Any]) -> str:
+    def serial(axis: str, role: str, conf: Mapping[str, object]) -> str:
         got = entry if isinstance(entry := ids.get(axis), Mapping) else {}
         rep = (_idn_serial(got.get("counter")) if role == "counter" else
                _drive_serial(got.get("drive")) if role == "drive" else
@@ -270,5 +270,5 @@ def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any
     return out
 
 
-def _opt(x: Any) -> str | None:
+def _opt(x: object) -> str | None:
     return None if x in (None, "") else str(x)

@@ -14,7 +14,6 @@ import socket
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from bench.analysis.finite import finite_number as _num
 from bench.app.records.checks import CheckRecord, checks_of
@@ -24,6 +23,7 @@ from bench.core.placeholders import run_copy
 from bench.core.registry import ReportsFigures, installed_records
 from bench.report.certificate.parts import read_json_object
 from bench.report.figures import FigureValue
+from bench.report.result_frame import Check, JsonObject, ResultFrame
 
 #: files of a run directory that make up its certificate (hashed into the records)
 CERTIFICATE_FILES = (layout.CERTIFICATE_PDF, layout.CERTIFICATE_HTML, layout.CERTIFICATE_DCC)
@@ -93,7 +93,7 @@ class RunRecord:
     figures: tuple[FigureRecord, ...] = ()
     cert_files: tuple[tuple[str, str, int], ...] = ()   # (name, sha256, bytes)
     checks: tuple[CheckRecord, ...] = ()    # the bench's own instruments (checks.py)
-    extra: dict[str, Any] = field(default_factory=dict)
+    extra: Mapping[str, object] = field(default_factory=dict)
 
     @property
     def date_utc(self) -> dt.datetime | None:
@@ -101,7 +101,7 @@ class RunRecord:
         return self.completed_utc or self.started_utc or self.created_utc
 
 
-def parse_utc(stamp: Any) -> dt.datetime | None:
+def parse_utc(stamp: object) -> dt.datetime | None:
     """ISO text -> naive UTC datetime (what the database stores); None if unreadable."""
     if not stamp:
         return None
@@ -117,7 +117,7 @@ def parse_utc(stamp: Any) -> dt.datetime | None:
     return t
 
 
-def run_uid(meta: dict[str, Any], run_dir: str) -> str:
+def run_uid(meta: Mapping[str, object], run_dir: str) -> str:
     """Stable over re-analysis and re-import, distinct between benches: creation time to
     the millisecond, directory name and the input files' digests."""
     key = "|".join(str(meta.get(k, "")) for k in ("created_utc", "procedure_sha256",
@@ -125,66 +125,51 @@ def run_uid(meta: dict[str, Any], run_dir: str) -> str:
     return hashlib.sha256(key.encode()).hexdigest()[:32]
 
 
-def _checks_index(result: dict[str, Any]) -> dict[tuple[str, str, float | None], dict[str, Any]]:
+def _checks_index(frame: ResultFrame) -> dict[tuple[str, str, float | None], Check]:
     """checks[] by (axis, quantity, set rate): the verdict beside each figure."""
-    out: dict[tuple[str, str, float | None], dict[str, Any]] = {}
-    for c in result.get("checks") or []:
-        if not isinstance(c, dict):
-            continue
-        rate = _num(c.get("set_rate_dps"))
-        axis = c.get("axis")
-        out[("" if axis is None else str(axis), str(c.get("quantity")), rate)] = c
-    return out
+    return {("" if c.axis is None else c.axis, str(c.quantity), c.set_rate_dps): c
+            for c in frame.checks}
 
 
-def _tolerance(check: Mapping[str, Any]) -> float | None:
-    """The check's tolerance, in the unit its key names (tolerance_rel, tolerance_dph...)."""
-    for key in ("tolerance_rel", "tolerance_dph",
-                *sorted(k for k in check if str(k).startswith("tolerance"))):
-        if key in check:
-            return _num(check.get(key))
-    return None
-
-
-def _record(f: FigureValue, checks: dict[tuple[str, str, float | None], dict[str, Any]]
+def _record(f: FigureValue, checks: dict[tuple[str, str, float | None], Check]
             ) -> FigureRecord:
     """The row the records keep: the kind's figure with its check's tolerance and verdict."""
     c = checks.get((f.axis, f.check, f.set_rate_dps)) if f.check else None
     if c is None and f.check:
         c = checks.get((f.axis, f.check, None)) or checks.get((f.axis, f.check, 0.0))
     return FigureRecord(f.axis, f.quantity, f.set_rate_dps, f.value, f.u, f.unit,
-                        _tolerance(c) if c is not None else None,
-                        str(c["verdict"]) if c and c.get("verdict") else None,
+                        c.tolerance if c is not None else None,
+                        c.verdict if c is not None and c.verdict else None,
                         UPPER_LIMIT if f.upper_limit else (
-                            str(c["rule"]) if c and c.get("rule") else None))
+                            c.rule if c is not None and c.rule else None))
 
 
-def kind_name(result: dict[str, Any], run_path: Path | None = None) -> str:
+def kind_name(result: JsonObject, run_path: Path | None = None) -> str:
     """The procedure kind of a result: the one it names, else (an older result) the one
     the certificate takes it for (`bench.app.certificate.build.procedure_of`: the procedure
     file's, or the installed kind that recognises its keys); "" if none does."""
     from bench.app.certificate.build import Sources, procedure_of
 
-    named = result.get("procedure")
+    named = ResultFrame.of(result).procedure
     if named:
-        return str(named)
+        return named
     try:
         return procedure_of(Sources.load(result, run_path)).name
     except Exception:  # noqa: BLE001 - a malformed result is registered under no kind
         return ""
 
 
-def figures_of(result: dict[str, Any], kind: str | None = None) -> list[FigureRecord]:
+def figures_of(result: JsonObject, kind: str | None = None) -> list[FigureRecord]:
     """Every figure the kind reports of result.json (its `ReportsFigures` answer), with U
     (k = 2) and its check's verdict; none when the kind is not installed here."""
     reporter = installed_records(kind if kind is not None else kind_name(result))
     if not isinstance(reporter, ReportsFigures):
         return []
-    checks = _checks_index(result)
+    checks = _checks_index(ResultFrame.of(result))
     return [_record(f, checks) for f in reporter.figure_values(result)]
 
 
-def certificate_number(result: dict[str, Any], run_path: Path) -> str | None:
+def certificate_number(result: JsonObject, run_path: Path) -> str | None:
     """The number of the run's latest issued revision; None while it has only a draft (a
     draft is no certificate: the records and a later run's history never cite one)."""
     from bench.app.certificate import register
@@ -203,7 +188,7 @@ def _issued_files(path: Path, number: str | None) -> tuple[tuple[str, str, int],
                  for name in CERTIFICATE_FILES if (folder / name).is_file())
 
 
-def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> RunRecord:
+def record_of(run_path: str | Path, result: JsonObject | None = None) -> RunRecord:
     """The record of a finished run directory; NotARun if it has no result.json."""
     path = Path(run_path).resolve()
     if result is None:
@@ -215,14 +200,14 @@ def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> Run
     meta = read_json_object(path / layout.META)
     stand_file = run_copy(path, layout.STAND)   # a serial still to fill in is none
     ident = dict((stand_file.get("stand") or {}) if isinstance(stand_file, dict) else {})
-    ident.update({k: v for k, v in (result.get("stand") or {}).items() if v is not None})
+    frame = ResultFrame.of(result)
+    ident.update({k: v for k, v in frame.stand.items() if v is not None})
     serial = str(ident.get("serial") or "").strip()
     if not serial:
         raise NotARun(f"{path}: the stand has no serial number (stand.serial)")
     interval = ident.get("recertification_interval_days")
-    dates = result.get("dates") or {}
-    state = meta.get("calibration_state") or (result.get("records") or {}).get(
-        "calibration_state")
+    dates = frame.dates
+    state = meta.get("calibration_state") or frame.records.get("calibration_state")
     number = certificate_number(result, path)
     cert_files = _issued_files(path, number)
     blob = json.dumps(result, sort_keys=True, default=str).encode()
@@ -234,7 +219,7 @@ def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> Run
         location=_opt(ident.get("location")),
         interval_days=int(iv) if (iv := _num(interval)) else None,
         kind=kind,
-        title=_opt(result.get("title")),
+        title=_opt(frame.title),
         run_dir=path.name, run_path=str(path), host=socket.gethostname(),
         procedure_name=_opt(meta.get("procedure_name")),
         procedure_sha256=_opt(meta.get("procedure_sha256")),
@@ -244,13 +229,13 @@ def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> Run
         started_utc=parse_utc(dates.get("started_utc")),
         completed_utc=parse_utc(dates.get("completed_utc")),
         operator=_opt(meta.get("operator")),
-        verdict=str(result.get("verdict") or "incomplete"),
+        verdict=frame.verdict or "incomplete",
         calibration_state=state if state in STATES else None,
         adjustment_note=_opt(meta.get("adjustment_note")),
         certificate_number=number,
-        simulated=bool((result.get("stand") or {}).get("simulated")),
-        sessions=int(result["sessions"]) if _num(result.get("sessions")) else None,
-        aborted=bool(result.get("aborted")),
+        simulated=frame.simulated,
+        sessions=frame.sessions or None,
+        aborted=frame.aborted,
         bench_version=_opt(meta.get("bench_version")),
         figures=tuple(figures_of(result, kind)),
         cert_files=cert_files,
@@ -259,7 +244,7 @@ def record_of(run_path: str | Path, result: dict[str, Any] | None = None) -> Run
     )
 
 
-def _opt(x: Any) -> str | None:
+def _opt(x: object) -> str | None:
     return None if x is None or x == "" else str(x)
 
 

@@ -111,7 +111,7 @@ def _first_line(e: BaseException) -> str:
     return text.splitlines()[0] if text else type(e).__name__
 
 
-def _naive(stamp: Any) -> dt.datetime | None:
+def _naive(stamp: object) -> dt.datetime | None:
     try:
         t = dt.datetime.fromisoformat(str(stamp))
     except ValueError:
@@ -211,7 +211,7 @@ class FleetView:
         silent = status in ("running", "created") and heard_s is not None and heard_s > SILENT_S
         prog = progress_of(session)
         prog["completed"] = any(ev.get("event") == "completed" for ev in session)
-        view_state: dict[str, Any] = {"status": status, "progress": prog, "cause": cause,
+        view_state: Mapping[str, object] = {"status": status, "progress": prog, "cause": cause,
                       "sessions": len(starts), "session": session_no,
                       "ended_utc": exit_ev.get("utc") if exit_ev else None, "later": []}
         health = self._health(x, now, status == "running" and not silent)

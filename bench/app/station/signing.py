@@ -239,7 +239,7 @@ class Signing:
     def session(self) -> Session | None:
         return self.sessions.get(request.cookies.get(SESSION_COOKIE))
 
-    def audit(self, actor: str, action: str, obj: str, detail: Mapping[str, Any]) -> None:
+    def audit(self, actor: str, action: str, obj: str, detail: Mapping[str, object]) -> None:
         """An audit entry in the register; a register that cannot take it is logged, and
         the request is refused all the same."""
         from bench.app.register import RegisterError
@@ -257,7 +257,7 @@ class Signing:
 
     # -- the run page's certificate section -----------------------------------------------
 
-    def panel(self, run_path: Path, state: Mapping[str, Any]) -> dict[str, Any]:
+    def panel(self, run_path: Path, state: Mapping[str, object]) -> dict[str, Any]:
         """What the run's certificate section shows this request's account."""
         sess = self.session()
         result = run_path / layout.RESULT

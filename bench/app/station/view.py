@@ -83,7 +83,7 @@ def _num(v: Any) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def _value_u(value: Any, u: Any, scale: float = 1.0, signed: bool = False) -> str:
+def _value_u(value: object, u: object, scale: float = 1.0, signed: bool = False) -> str:
     """'value ± U' by the certificate's rule; a value without a usable U keeps four
     significant digits and says so."""
     r = format_value_u(_num(value), _num(u), scale, signed=signed)
@@ -92,7 +92,7 @@ def _value_u(value: Any, u: Any, scale: float = 1.0, signed: bool = False) -> st
     return r.joined()
 
 
-def _column_unit(*values: Any) -> RelUnit:
+def _column_unit(*values: object) -> RelUnit:
     """One unit per column (ppm below 0.01 %, else %), as the certificate chooses it."""
     return rel_unit(*[_num(v) for v in values])
 

@@ -14,7 +14,7 @@ import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 from bench.analysis.finite import finite_number as num
 from bench.core import rundir_layout as layout
@@ -22,7 +22,7 @@ from bench.core.journal import read_jsonl
 from bench.core.placeholders import run_copy
 from bench.report.certificate.model import Block, Figure, Para, Section
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u
-from bench.report.certificate.shape import conform_result
+from bench.report.result_frame import JsonObject, ResultFrame, as_object
 
 NOT_RECORDED = "not recorded"
 
@@ -33,16 +33,16 @@ NOT_RECORDED = "not recorded"
 class Sources:
     """result.json and whatever the run directory adds to it."""
 
-    result: dict[str, Any]
+    result: JsonObject
     run_path: Path | None = None
-    meta: dict[str, Any] = field(default_factory=dict)
+    meta: JsonObject = field(default_factory=dict)
     stand_file: dict[str, Any] = field(default_factory=dict)
     procedure_file: dict[str, Any] = field(default_factory=dict)
     events: list[dict[str, Any]] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)  # malformed parts of result.json
 
     @classmethod
-    def load(cls, result: dict[str, Any], run_path: Path | None) -> Sources:
+    def load(cls, result: object, run_path: Path | None) -> Sources:
         conformed, dropped = conform_result(result)
         src = cls(conformed, run_path, dropped=dropped)
         if run_path is None:
@@ -56,9 +56,42 @@ class Sources:
             src.events = list(read_jsonl(events))
         return src
 
-    def get(self, key: str, default: Any = None) -> Any:
+    def get(self, key: str, default: object = None) -> Any:
         value = self.result.get(key)
         return default if value is None else value
+
+    @property
+    def frame(self) -> ResultFrame:
+        """The run header, checks and verdict, typed (bench.report.result_frame)."""
+        return ResultFrame.of(self.result)
+
+
+def conform_result(result: object) -> tuple[JsonObject, list[str]]:
+    """The result with malformed containers dropped, and the list of what was dropped:
+    the kind's part by the kind's result module (`ConformsResult`), the frame's here. A
+    result that names no kind is read by every installed kind's."""
+    from bench.core.registry import installed_records, procedure_names
+
+    doc = as_object(result)
+    if doc is None:
+        return {}, ["result.json (expected a mapping)"]
+    named = doc.get("procedure")
+    dropped: list[str] = []
+    for name in [str(named)] if named else procedure_names():
+        kind = installed_records(name)
+        if isinstance(kind, ConformsResult):
+            doc, more = kind.conform_result(doc)
+            dropped += more
+    frame, more = ResultFrame.conform(doc)
+    return frame.to_json(), dropped + more
+
+
+@runtime_checkable
+class ConformsResult(Protocol):
+    """A kind whose result module checks its part of result.json (procedures/<kind>/
+    result.py): the document with its malformed containers dropped, and their names."""
+
+    def conform_result(self, result: JsonObject) -> tuple[JsonObject, list[str]]: ...
 
 
 def read_json_object(path: Path) -> dict[str, Any]:
@@ -94,7 +127,7 @@ def label_of(key: str) -> str:
     return f"{text}, {unit}" if unit else text
 
 
-def text_of(value: Any) -> str:
+def text_of(value: object) -> str:
     """Any recorded value as text; nothing recorded says so."""
     if value is None or value == "":
         return NOT_RECORDED
@@ -107,7 +140,7 @@ def text_of(value: Any) -> str:
     return str(value).replace("+/-", "±")
 
 
-def _key_value(key: str, value: Any) -> str:
+def _key_value(key: str, value: object) -> str:
     """`max_rate_dps: 400` -> 'max rate: 400 °/s'."""
     words = str(key).split("_")
     unit = UNIT_SUFFIXES.get(words[-1].lower()) if len(words) > 1 else None
@@ -116,7 +149,7 @@ def _key_value(key: str, value: Any) -> str:
     return f"{' '.join(words)}: {text_of(value)}"
 
 
-def rate_text(x: Any) -> str:
+def rate_text(x: object) -> str:
     """A signed rate as written: '+10', '−10'."""
     v = num(x)
     if v is None:
@@ -124,13 +157,13 @@ def rate_text(x: Any) -> str:
     return f"{v:+g}".replace("-", MINUS)
 
 
-def vu_text(value: Any, u: Any, unit: RelUnit | None = None, signed: bool = False) -> str:
+def vu_text(value: object, u: object, unit: RelUnit | None = None, signed: bool = False) -> str:
     """'value ± U' under the rounding rules, in `unit` (relative) or as given."""
     scale = unit.scale if unit else 1.0
     return format_value_u(num(value), num(u), scale, signed).joined()
 
 
-def verdict_label(verdict: Any, rule: str | None = None, inside_tolerance: bool = False) -> str:
+def verdict_label(verdict: object, rule: str | None = None, inside_tolerance: bool = False) -> str:
     """How a verdict is printed; a guard-band refusal says so."""
     v = str(verdict or "").strip().lower()
     if v == "pass":
@@ -148,7 +181,7 @@ def verdict_label(verdict: Any, rule: str | None = None, inside_tolerance: bool 
     return v.upper() or "—"
 
 
-def figure_of(caption: str, draw: Callable[..., bytes | None], *args: Any,
+def figure_of(caption: str, draw: Callable[..., bytes | None], *args: object,
               width_frac: float = 1.0) -> list[Block]:
     """A plot as a figure block; data that cannot be drawn give a note, not a crash."""
     try:
@@ -219,7 +252,7 @@ class CertificateParts:
         return []
 
     def certificate_sections(self, src: Sources, number: str,
-                             checks: Sequence[Mapping[str, Any]]) -> list[Section]:
+                             checks: Sequence[Mapping[str, object]]) -> list[Section]:
         """The results: the section numbered `number` and any subsections (`number`.n)."""
         return [Section(number, "Results", (Para(
             "The procedure kind states no results of its own on the certificate; they are "

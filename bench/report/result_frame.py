@@ -1,0 +1,294 @@
+"""The frame every kind's result.json shares: its run header, checks and verdict, typed.
+
+result.json is read back by the certificate, the DCC, the records and the station. A
+malformed part must not crash them (the operator would be left with raw data and no
+report), nor be read as if it were sound: the strict reader (`from_json`) refuses it
+naming the key path; the lenient one (`conform`) drops the malformed container, names it
+(the certificate's section Deviations lists it) and keeps the rest. Both walk the same
+typed parsers below, which a kind's result module (procedures/<kind>/result.py) uses for
+its own part, so one module per kind spells its keys and this one spells the frame's.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import TypeVar
+
+from drivers.json_types import JsonObject, JsonValue
+
+#: a key path inside result.json: `axes.outer.rates[0]`
+KeyPath = tuple[str | int, ...]
+
+T = TypeVar("T")
+
+
+class MalformedResult(ValueError):
+    """A part of result.json that is not what its reader needs; `path` names it."""
+
+    def __init__(self, path: str, problem: str) -> None:
+        super().__init__(f"result.json: {path} {problem}")
+        self.path = path
+        self.problem = problem
+
+
+def where(path: KeyPath) -> str:
+    """`('axes', 'outer', 'rates', 0)` -> `axes.outer.rates[0]`."""
+    out = ""
+    for p in path:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out
+
+
+class Issues:
+    """What a reader found malformed: raised at once (strict) or collected (lenient)."""
+
+    def __init__(self, *, strict: bool) -> None:
+        self.strict = strict
+        self.dropped: list[str] = []
+
+    def report(self, path: KeyPath, problem: str) -> None:
+        if self.strict:
+            raise MalformedResult(where(path) or "result.json", problem)
+        self.dropped.append(f"{where(path)} ({problem})")
+
+
+def is_number(x: object) -> bool:
+    """A finite number, or text that reads as one (as a hand-edited result may hold)."""
+    if isinstance(x, bool) or not isinstance(x, int | float | str):
+        return False
+    try:
+        return math.isfinite(float(x))
+    except ValueError:
+        return False
+
+
+def as_object(value: object) -> JsonObject | None:
+    """`value` as a JSON object (a copy), or None when it is not one."""
+    if not isinstance(value, Mapping):
+        return None
+    return {str(k): v for k, v in value.items()}
+
+
+def _found(value: object) -> str:
+    return type(value).__name__
+
+
+def _present(doc: JsonObject, key: str, path: KeyPath, issues: Issues,
+             expected: type[dict[str, JsonValue]] | type[list[JsonValue]]) -> JsonValue:
+    """`doc[key]` when it is there and of the `expected` container type; else None (null
+    means absent and goes, kept as read by a strict reader; another type is dropped and
+    named)."""
+    value = doc.get(key)
+    if value is None:
+        if key in doc and not issues.strict:
+            del doc[key]
+        return None
+    if not isinstance(value, Mapping if expected is dict else list):
+        shape = "a mapping" if expected is dict else "a list"
+        issues.report((*path, key), f"expected {shape}, found {_found(value)}")
+        del doc[key]
+        return None
+    return value
+
+
+def conform_object(doc: JsonObject, key: str, path: KeyPath, issues: Issues,
+                   inner: Callable[[JsonObject, KeyPath, Issues], JsonObject] | None = None
+                   ) -> None:
+    """`doc[key]` kept when it is a mapping (then conformed by `inner`)."""
+    found = as_object(_present(doc, key, path, issues, dict))
+    if found is not None:
+        doc[key] = inner(found, (*path, key), issues) if inner is not None else found
+
+
+def conform_list(doc: JsonObject, key: str, path: KeyPath, issues: Issues,
+                 item: Callable[[JsonObject, KeyPath, Issues], JsonObject] | None = None,
+                 numeric: str | None = None) -> None:
+    """`doc[key]` kept when it is a list of mappings (each conformed by `item`); an entry
+    that is no mapping, or lacks the number `numeric` it means nothing without, is
+    dropped and named."""
+    value = _present(doc, key, path, issues, list)
+    if not isinstance(value, list):
+        return
+    kept: list[JsonValue] = []
+    for i, entry in enumerate(value):
+        obj = as_object(entry)
+        if obj is None:
+            issues.report((*path, key, i), f"expected a mapping, found {_found(entry)}")
+            continue
+        if item is not None:
+            obj = item(obj, (*path, key, i), issues)
+        if numeric is not None and not is_number(obj.get(numeric)):
+            issues.report((*path, key, i), f"no numeric {numeric}")
+            continue
+        kept.append(obj)
+    doc[key] = kept
+
+
+def conform_plain_list(doc: JsonObject, key: str, path: KeyPath, issues: Issues) -> None:
+    """`doc[key]` kept when it is a list (its entries unchecked)."""
+    _present(doc, key, path, issues, list)
+
+
+def conform_each(doc: JsonObject, path: KeyPath, issues: Issues,
+                 inner: Callable[[JsonObject, KeyPath, Issues], JsonObject] | None = None
+                 ) -> JsonObject:
+    """Every value of `doc` a mapping (conformed by `inner`); the others dropped."""
+    for key in list(doc):
+        conform_object(doc, key, path, issues, inner)
+    return doc
+
+
+# -- typed leaves ----------------------------------------------------------------------------
+
+def text(doc: Mapping[str, JsonValue], key: str) -> str | None:
+    value = doc.get(key)
+    return value if isinstance(value, str) else None
+
+
+def number(doc: Mapping[str, JsonValue], key: str) -> float | None:
+    """A finite number as result.json holds it (an int stays an int), else None."""
+    value = doc.get(key)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    return value if math.isfinite(value) else None
+
+
+def integer(doc: Mapping[str, JsonValue], key: str) -> int | None:
+    value = doc.get(key)
+    return value if isinstance(value, int) and not isinstance(value, bool) else None
+
+
+def flag(doc: Mapping[str, JsonValue], key: str) -> bool | None:
+    value = doc.get(key)
+    return value if isinstance(value, bool) else None
+
+
+def obj(doc: Mapping[str, JsonValue], key: str) -> JsonObject:
+    """A mapping entry ({} when absent: conform dropped what was no mapping)."""
+    return as_object(doc.get(key)) or {}
+
+
+def objects(doc: Mapping[str, JsonValue], key: str) -> tuple[JsonObject, ...]:
+    value = doc.get(key)
+    if not isinstance(value, list):
+        return ()
+    return tuple(o for o in (as_object(v) for v in value) if o is not None)
+
+
+# -- the frame ---------------------------------------------------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class Check:
+    """One conformity check (bench.report.conformity): what was judged and the verdict."""
+
+    axis: str | None
+    quantity: str | None
+    verdict: str | None
+    set_rate_dps: float | None
+    rule: str | None
+    tolerance: float | None  # in the unit its key names (tolerance_rel, tolerance_dph...)
+    doc: JsonObject          # every key, in result.json's order
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> Check:
+        tolerance = next((number(doc, k) for k in ("tolerance_rel", "tolerance_dph",
+                                                     *sorted(k for k in doc
+                                                             if k.startswith("tolerance")))
+                          if k in doc), None)
+        return cls(text(doc, "axis"), text(doc, "quantity"), text(doc, "verdict"),
+                   number(doc, "set_rate_dps"), text(doc, "rule"), tolerance, doc)
+
+    def to_json(self) -> JsonObject:
+        return dict(self.doc)
+
+
+def conform_frame(doc: JsonObject, issues: Issues) -> JsonObject:
+    """The frame's containers checked, in place (the kind's part is its result module's)."""
+    conform_object(doc, "stand", (), issues)
+    conform_object(doc, "instruments", (), issues, conform_each)
+    for key in ("dates", "conditions", "certificate", "method", "procedure_file"):
+        conform_object(doc, key, (), issues)
+    conform_list(doc, "raw_files", (), issues)
+    conform_list(doc, "checks", (), issues)
+    return doc
+
+
+@dataclass(frozen=True, slots=True)
+class ResultFrame:
+    """What every kind's result.json says about the run (procedures.base.result_document):
+    the header, the decision rule, the method, the checks and the verdict. Every part is
+    optional: a hand-made or older result may lack it, and the certificate says so."""
+
+    schema: str | None
+    procedure: str | None
+    verdict: str | None
+    title: str | None
+    run_dir: str | None
+    procedure_file: JsonObject
+    stand: JsonObject
+    instruments: dict[str, JsonObject]
+    dates: JsonObject
+    conditions: JsonObject | None
+    specification: JsonValue
+    certificate: JsonObject
+    sessions: int | None
+    aborted: bool
+    raw_files: tuple[JsonObject, ...]
+    decision_rule: str | None
+    method: JsonObject
+    checks: tuple[Check, ...]
+    records: JsonObject      # what the run says for the records (calibration state)
+    doc: JsonObject          # the whole document as read, in result.json's order
+
+    @classmethod
+    def conform(cls, doc: object) -> tuple[ResultFrame, list[str]]:
+        """The frame with malformed containers dropped, and the list of what was dropped."""
+        issues = Issues(strict=False)
+        top = as_object(doc)
+        if top is None:
+            return cls.of({}), ["result.json (expected a mapping)"]
+        return cls.of(conform_frame(top, issues)), issues.dropped
+
+    @classmethod
+    def from_json(cls, doc: object) -> ResultFrame:
+        """The frame, or MalformedResult naming the first malformed key path."""
+        top = as_object(doc)
+        if top is None:
+            raise MalformedResult("result.json", "is not a JSON object")
+        return cls.of(conform_frame(top, Issues(strict=True)))
+
+    @classmethod
+    def of(cls, doc: JsonObject) -> ResultFrame:
+        """The frame of a conformed document."""
+        return cls(
+            schema=text(doc, "schema"), procedure=text(doc, "procedure"),
+            verdict=text(doc, "verdict"), title=text(doc, "title"),
+            run_dir=text(doc, "run_dir"), procedure_file=obj(doc, "procedure_file"),
+            stand=obj(doc, "stand"),
+            instruments={k: v for k, v in obj(doc, "instruments").items()
+                         if isinstance(v, dict)},
+            dates=obj(doc, "dates"), conditions=as_object(doc.get("conditions")),
+            specification=doc.get("specification"), certificate=obj(doc, "certificate"),
+            sessions=integer(doc, "sessions"), aborted=bool(doc.get("aborted")),
+            raw_files=objects(doc, "raw_files"), decision_rule=text(doc, "decision_rule"),
+            method=obj(doc, "method"),
+            checks=tuple(Check.from_json(c) for c in objects(doc, "checks")),
+            records=obj(doc, "records"), doc=doc)
+
+    @property
+    def simulated(self) -> bool:
+        """Whether the stand ran as its simulated twins."""
+        return bool(self.stand.get("simulated"))
+
+    def get(self, key: str) -> JsonValue:
+        """A top-level entry the frame does not type (a kind's part, a later addition)."""
+        return self.doc.get(key)
+
+    def to_json(self) -> JsonObject:
+        return dict(self.doc)
+
+
+def parse_each(items: tuple[JsonObject, ...], parse: Callable[[JsonObject], T]) -> tuple[T, ...]:
+    return tuple(parse(i) for i in items)

@@ -1,0 +1,294 @@
+"""The rate ladder's result.json, typed: the one module that spells its keys (CONTRACT §3).
+
+`LadderResult.from_json` reads a result.json (refusing a malformed one, naming the key
+path), `LadderResult.conform` reads it leniently for the certificate (a malformed
+container dropped and named, the rest kept), `to_json` gives the document back byte for
+byte as `bench analyze` writes it (keys in their order, numbers as they were). Readers
+(certificate, DCC, records, station, summary) take attributes from here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from bench.report.result_frame import (
+    Issues,
+    JsonObject,
+    JsonValue,
+    KeyPath,
+    MalformedResult,
+    ResultFrame,
+    as_object,
+    conform_each,
+    conform_frame,
+    conform_list,
+    conform_object,
+    conform_plain_list,
+    flag,
+    integer,
+    number,
+    obj,
+    objects,
+    text,
+)
+
+__all__ = ["Harmonic", "LadderAxis", "Mains", "LadderResult", "MalformedResult", "NoiseFloor", "PairEntry",
+           "RateEntry"]
+
+
+# -- the containers' checks (what the certificate may safely walk) ----------------------------
+
+def _conform_systematic(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    # a harmonic means nothing without its order
+    conform_list(doc, "harmonics", path, issues, numeric="order")
+    conform_object(doc, "mains", path, issues)
+    conform_object(doc, "binned", path, issues)
+    return doc
+
+
+def _conform_intra_turn(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    conform_list(doc, "averaged", path, issues)
+    return doc
+
+
+def _conform_rate(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    conform_object(doc, "systematic", path, issues, _conform_systematic)
+    conform_object(doc, "intra_turn", path, issues, _conform_intra_turn)
+    conform_plain_list(doc, "counter_rate_dps", path, issues)
+    return doc
+
+
+def _conform_axis(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    # a rate without its set rate, a pair without its rate mean nothing
+    conform_list(doc, "rates", path, issues, _conform_rate, numeric="set_rate_dps")
+    conform_list(doc, "pairs", path, issues, numeric="rate_dps")
+    conform_object(doc, "noise_floor", path, issues)
+    return doc
+
+
+def _conform_axes(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    return conform_each(doc, path, issues, _conform_axis)
+
+
+def conform_ladder(doc: JsonObject, issues: Issues) -> JsonObject:
+    """The ladder's part of a result.json checked, in place."""
+    conform_object(doc, "axes", (), issues, _conform_axes)
+    return doc
+
+
+# -- the typed result -----------------------------------------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class Harmonic:
+    """One harmonic of the rate along the turn (docs/method.md A2)."""
+
+    order: float | None
+    amplitude_rel: float | None
+    amplitude_u_rel: float | None
+    doc: JsonObject
+
+
+@dataclass(frozen=True, slots=True)
+class Mains:
+    """The rate's ripple at the mains frequency (docs/method.md A2)."""
+
+    frequency_hz: float | None
+    amplitude_dps: float | None
+    amplitude_u_dps: float | None
+    doc: JsonObject
+
+
+@dataclass(frozen=True, slots=True)
+class RateEntry:
+    """One commanded rate and direction (docs/method.md A1-A5): `axes.<axis>.rates[]`."""
+
+    set_rate_dps: float
+    turns: int | None
+    rate_error_rel: float | None
+    rate_error_u_rel: float | None
+    rate_instability_rel: float | None
+    rate_instability_u_rel: float | None
+    rate_instability_upper_rel: float | None
+    rate_instability_floor_rel: float | None
+    rate_instability_resolved: bool | None
+    intra_turn_instability_rel: float | None
+    intra_turn_instability_u_rel: float | None
+    intra_turn_instability_corrected_rel: float | None
+    intra_turn_instability_corrected_u_rel: float | None
+    session: int | None
+    fog_lost_frames: int | None
+    verdict: str | None
+    systematic: JsonObject
+    intra_turn: JsonObject
+    budgets: tuple[JsonObject, ...]
+    doc: JsonObject          # every key, in result.json's order
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> RateEntry:
+        rate = number(doc, "set_rate_dps")
+        if rate is None:
+            raise MalformedResult("rates[]", "has no numeric set_rate_dps")
+        return cls(
+            set_rate_dps=rate, turns=integer(doc, "turns"),
+            rate_error_rel=number(doc, "rate_error_rel"),
+            rate_error_u_rel=number(doc, "rate_error_u_rel"),
+            rate_instability_rel=number(doc, "rate_instability_rel"),
+            rate_instability_u_rel=number(doc, "rate_instability_u_rel"),
+            rate_instability_upper_rel=number(doc, "rate_instability_upper_rel"),
+            rate_instability_floor_rel=number(doc, "rate_instability_floor_rel"),
+            rate_instability_resolved=flag(doc, "rate_instability_resolved"),
+            intra_turn_instability_rel=number(doc, "intra_turn_instability_rel"),
+            intra_turn_instability_u_rel=number(doc, "intra_turn_instability_u_rel"),
+            intra_turn_instability_corrected_rel=number(
+                doc, "intra_turn_instability_corrected_rel"),
+            intra_turn_instability_corrected_u_rel=number(
+                doc, "intra_turn_instability_corrected_u_rel"),
+            session=integer(doc, "session"), fog_lost_frames=integer(doc, "fog_lost_frames"),
+            verdict=text(doc, "verdict"), systematic=obj(doc, "systematic"),
+            intra_turn=obj(doc, "intra_turn"), budgets=objects(doc, "budgets"), doc=doc)
+
+    @property
+    def mains(self) -> Mains | None:
+        """The mains-frequency ripple's fit (docs/method.md A2), None when none."""
+        m = as_object(self.systematic.get("mains"))
+        if m is None:
+            return None
+        return Mains(frequency_hz=number(m, "frequency_hz"),
+                     amplitude_dps=number(m, "amplitude_dps"),
+                     amplitude_u_dps=number(m, "amplitude_u_dps"), doc=m)
+
+    @property
+    def harmonics(self) -> tuple[Harmonic, ...]:
+        return tuple(Harmonic(order=number(h, "order"), amplitude_rel=number(h, "amplitude_rel"),
+                              amplitude_u_rel=number(h, "amplitude_u_rel"), doc=h)
+                     for h in objects(self.systematic, "harmonics"))
+
+    def to_json(self) -> JsonObject:
+        return dict(self.doc)
+
+
+@dataclass(frozen=True, slots=True)
+class PairEntry:
+    """One +/- pair's FOG cross-calibration (docs/method.md A3): `axes.<axis>.pairs[]`."""
+
+    rate_dps: float
+    k: float | None
+    k_u: float | None
+    w0_dps: float | None
+    w0_u_dps: float | None
+    drift_dps_per_h: float | None
+    drift_u_dps_per_h: float | None
+    method: str | None           # how k and w0 were found
+    drift_source: str | None     # where the bias drift during the pair comes from
+    budgets: tuple[JsonObject, ...]
+    doc: JsonObject
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> PairEntry:
+        rate = number(doc, "rate_dps")
+        if rate is None:
+            raise MalformedResult("pairs[]", "has no numeric rate_dps")
+        return cls(rate_dps=rate, k=number(doc, "k"), k_u=number(doc, "k_u"),
+                   w0_dps=number(doc, "w0_dps"), w0_u_dps=number(doc, "w0_u_dps"),
+                   drift_dps_per_h=number(doc, "drift_dps_per_h"),
+                   drift_u_dps_per_h=number(doc, "drift_u_dps_per_h"),
+                   method=text(doc, "method"), drift_source=text(doc, "drift_source"),
+                   budgets=objects(doc, "budgets"), doc=doc)
+
+    def to_json(self) -> JsonObject:
+        return dict(self.doc)
+
+
+@dataclass(frozen=True, slots=True)
+class NoiseFloor:
+    """The FOG at rest (docs/method.md A5): its Allan deviation and bias."""
+
+    source: str | None
+    samples: int | None
+    duration_s: float | None
+    sample_std_dps: float | None
+    mean_dps: float | None
+    allan_tau_s: tuple[float, ...]
+    allan_dev_dps: tuple[float, ...]
+    doc: JsonObject
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> NoiseFloor:
+        def floats(key: str) -> tuple[float, ...]:
+            v = doc.get(key)
+            return tuple(x for x in v if isinstance(x, int | float)
+                         and not isinstance(x, bool)) if isinstance(v, list) else ()
+        return cls(source=text(doc, "source"), samples=integer(doc, "samples"),
+                   duration_s=number(doc, "duration_s"),
+                   sample_std_dps=number(doc, "sample_std_dps"),
+                   mean_dps=number(doc, "mean_dps"), allan_tau_s=floats("allan_tau_s"),
+                   allan_dev_dps=floats("allan_dev_dps"), doc=doc)
+
+    def to_json(self) -> JsonObject:
+        return dict(self.doc)
+
+
+@dataclass(frozen=True, slots=True)
+class LadderAxis:
+    """One axis of the ladder: its rates, its pairs and its FOG's noise floor."""
+
+    rates: tuple[RateEntry, ...]
+    pairs: tuple[PairEntry, ...]
+    noise_floor: NoiseFloor | None
+    doc: JsonObject
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> LadderAxis:
+        floor = as_object(doc.get("noise_floor"))
+        return cls(rates=tuple(RateEntry.from_json(r) for r in objects(doc, "rates")),
+                   pairs=tuple(PairEntry.from_json(p) for p in objects(doc, "pairs")),
+                   noise_floor=NoiseFloor.from_json(floor) if floor is not None else None,
+                   doc=doc)
+
+    def to_json(self) -> JsonObject:
+        return dict(self.doc)
+
+
+@dataclass(frozen=True, slots=True)
+class LadderResult:
+    """A rate-ladder run's result.json: the shared frame and the axes."""
+
+    frame: ResultFrame
+    axes: dict[str, LadderAxis]
+    conditions_measured: JsonValue
+
+    @classmethod
+    def of(cls, doc: JsonObject) -> LadderResult:
+        """The typed view of a conformed document."""
+        return cls(frame=ResultFrame.of(doc),
+                   axes={name: LadderAxis.from_json(a) for name, a in obj(doc, "axes").items()
+                         if isinstance(a, dict)},
+                   conditions_measured=doc.get("conditions_measured"))
+
+    @classmethod
+    def from_json(cls, doc: object) -> LadderResult:
+        """The result, or MalformedResult naming the first malformed key path."""
+        top = as_object(doc)
+        if top is None:
+            raise MalformedResult("result.json", "is not a JSON object")
+        issues = Issues(strict=True)
+        return cls.of(conform_frame(conform_ladder(top, issues), issues))
+
+    @classmethod
+    def conform(cls, doc: object) -> tuple[LadderResult, list[str]]:
+        """The result with malformed containers dropped, and what was dropped (named)."""
+        top = as_object(doc)
+        if top is None:
+            return cls.of({}), ["result.json (expected a mapping)"]
+        issues = Issues(strict=False)
+        return cls.of(conform_frame(conform_ladder(top, issues), issues)), issues.dropped
+
+    def rates(self) -> list[tuple[str, RateEntry]]:
+        """Every (axis, rate entry), in the result's order."""
+        return [(name, r) for name, a in self.axes.items() for r in a.rates]
+
+    def pairs(self) -> list[tuple[str, PairEntry]]:
+        return [(name, p) for name, a in self.axes.items() for p in a.pairs]
+
+    def to_json(self) -> JsonObject:
+        return self.frame.to_json()
