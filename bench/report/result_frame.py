@@ -16,6 +16,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TypeVar
 
+from bench.core import rundir_layout as layout
 from drivers.json_types import JsonObject, JsonValue
 
 #: a key path inside result.json: `axes.outer.rates[0]`
@@ -50,7 +51,7 @@ class Issues:
 
     def report(self, path: KeyPath, problem: str) -> None:
         if self.strict:
-            raise MalformedResult(where(path) or "result.json", problem)
+            raise MalformedResult(where(path) or layout.RESULT, problem)
         self.dropped.append(f"{where(path)} ({problem})")
 
 
@@ -256,7 +257,7 @@ class ResultFrame:
         """The frame, or MalformedResult naming the first malformed key path."""
         top = as_object(doc)
         if top is None:
-            raise MalformedResult("result.json", "is not a JSON object")
+            raise MalformedResult(layout.RESULT, "is not a JSON object")
         return cls.of(conform_frame(top, Issues(strict=True)))
 
     @classmethod

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from bench.core import rundir_layout as layout
 from bench.report.result_frame import (
     Issues,
     JsonObject,
@@ -270,7 +271,7 @@ class LadderResult:
         """The result, or MalformedResult naming the first malformed key path."""
         top = as_object(doc)
         if top is None:
-            raise MalformedResult("result.json", "is not a JSON object")
+            raise MalformedResult(layout.RESULT, "is not a JSON object")
         issues = Issues(strict=True)
         return cls.of(conform_frame(conform_ladder(top, issues), issues))
 
