@@ -33,7 +33,7 @@ from bench.core.schema import (
     parse_declared,
 )
 from bench.core.yamlfile import Problem, YamlDoc
-from drivers.axis import (
+from drivers.axis_spec import (
     DEFAULT_HEARTBEAT_MS,
     DEFAULT_PDO,
     DEFAULT_POSITION_TOLERANCE_DEG,
