@@ -1,8 +1,9 @@
 """`bench --help` starts at once (issue 45): building and using the parser imports no
 heavy library and none of the measurement code; a command's module is imported when the
 command runs (bench/app/cli.py). `bench validate` and `bench schema` load the
-configuration and the kinds, but not the plots, the fits, the CAN stack or the records
-(those are imported where they are used). The time itself: benchmarks/bench_cli_startup.py."""
+configuration and the kinds, but not numpy, the analysis, the plots, the fits, the CAN
+stack or the records (those are imported where they are used). The time itself:
+benchmarks/bench_cli_startup.py."""
 
 from __future__ import annotations
 
