@@ -33,12 +33,14 @@ from __future__ import annotations
 import contextlib
 import re
 from dataclasses import dataclass
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from drivers.clock import Clock
 from drivers.scpi import Command, ErrorKinds, InstrumentError, ParameterError, RawCallback
 from drivers.scpi_profile import InstrumentProfile, ProfiledInstrument, lookup_profile
+
+if TYPE_CHECKING:
+    import numpy as np
 
 AWG_ERRORS = ErrorKinds.family("Awg", "the waveform generator", __name__)
 AwgError, AwgCommandError, AwgTimeout, AwgReplyError, AwgConnectionError = AWG_ERRORS
@@ -178,6 +180,7 @@ class WaveformGenerator(ProfiledInstrument[AwgProfile]):
 
         `amplitude_v` is the peak voltage of a point 1.0 into the high-impedance load.
         """
+        import numpy as np
         p = self.profile
         self._check_channel(channel)
         pair = np.asarray(pair, dtype=float)

@@ -47,6 +47,12 @@ if TYPE_CHECKING:   # canopen is imported when an axis opens (`bench validate` r
     from canopen.pdo.base import PdoMap
     from canopen.sdo import SdoVariable
 
+from drivers.axis_spec import (
+    DEFAULT_HEARTBEAT_MS,
+    DEFAULT_PDO,
+    DEFAULT_POSITION_TOLERANCE_DEG,
+    DEFAULT_UNIT_FACTORS,
+)
 from drivers.cia402 import (
     COB_HEARTBEAT,
     CONTROLLER_NODE_ID,
@@ -104,16 +110,6 @@ SDO_TIMEOUT_S = 1.0
 #: |velocity actual| below which a drive in a mode without a speed-zero bit is at rest
 STANDSTILL_DPS = 1e-3
 
-
-#: the controller's heartbeat period, ms, where the stand file states none (the schema's
-#: default: bench/core/config.py DRIVE)
-DEFAULT_HEARTBEAT_MS = 50
-#: the TPDO settings: verified at connect, not written, unless the stand says `set`
-DEFAULT_PDO = "verify"
-#: the drive's units: its factor group read at connect, unless the stand says what to set
-DEFAULT_UNIT_FACTORS = "read"
-#: how close a position move must land, deg, where the stand file does not say
-DEFAULT_POSITION_TOLERANCE_DEG = 0.01
 
 class AxisError(RuntimeError):
     """Something went wrong with an axis drive (names the axis and what).

@@ -34,6 +34,7 @@ import numpy as np
 
 from drivers.clock import Clock, real_budget_s, stepped
 from drivers.counter_profiles import (
+    DEFAULT_TIMEOUT_MARGIN_S,
     CounterProfile,
     CounterWords,
     TimestampFormat,
@@ -59,7 +60,6 @@ from drivers.scpi import (
 )
 from drivers.time_tie import TimeTie, TimeTieAmbiguous
 from drivers.transport import Transport
-from drivers.waits import MIN_REAL_MARGIN_S
 
 COUNTER_ERRORS = ErrorKinds.family("Counter", "the counter", __name__)
 (CounterError, CounterCommandError, CounterTimeout, CounterReplyError,
@@ -77,7 +77,6 @@ ESR_ERRORS = 0x3C
 #: the measured span may exceed its nominal n * T by this fraction before we give up
 SPAN_SLACK_REL = 0.25
 
-DEFAULT_TIMEOUT_MARGIN_S = MIN_REAL_MARGIN_S  # the bench's stated minimum (drivers/waits.py)
 DEFAULT_COMMAND_TIMEOUT_S = 2.0
 
 What = Literal["edges", "periods"]

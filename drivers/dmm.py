@@ -32,8 +32,7 @@ import contextlib
 import math
 import time
 from dataclasses import dataclass
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from drivers.clock import Clock, real_budget_s, stepped
 from drivers.scpi import (
@@ -52,6 +51,9 @@ from drivers.scpi import (
 from drivers.scpi_profile import InstrumentProfile, ProfiledInstrument, lookup_profile
 from drivers.transport import Transport
 from drivers.waits import poll_time
+
+if TYPE_CHECKING:
+    import numpy as np
 
 DMM_ERRORS = ErrorKinds.family("Dmm", "the digitizer", __name__)
 DmmError, DmmCommandError, DmmTimeout, DmmReplyError, DmmConnectionError = DMM_ERRORS
@@ -154,6 +156,7 @@ class DigitizerSetup:
 
     def sample_time_s(self, k: np.ndarray | int) -> np.ndarray:
         """Sample k's time after the trigger edge: the middle of its aperture."""
+        import numpy as np
         return self.trigger_delay_s + np.asarray(k) * self.interval_s + 0.5 * self.aperture_s
 
 
@@ -266,6 +269,7 @@ class Digitizer(ProfiledInstrument[DmmProfile]):
     def fetch(self) -> np.ndarray:
         """Wait for the record (bounded by its length: in clock time on a stepped clock, else
         in real time at the clock's speed) and read it."""
+        import numpy as np
         if self.setup is None or self._armed_real_s is None:
             raise DmmError(f"{self.name}: fetch() without arm()")
         setup, armed, armed_at_s = self.setup, self._armed_real_s, self._armed_at_s

@@ -35,6 +35,8 @@ from typing import cast
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
+from drivers import fog_format_names as names
+
 AXES = ("x", "y", "z")
 
 
@@ -304,7 +306,7 @@ def _kvh_dtype(with_timestamp: bool) -> np.dtype:
 _KVH_VALID = {"x": 0, "y": 1, "z": 2}
 
 KVH_A = FrameFormat(
-    name="kvh-a", title='KVH "format A" (DSP-1760, 1750/1775 IMU), 36 bytes',
+    name=names.KVH_A, title='KVH "format A" (DSP-1760, 1750/1775 IMU), 36 bytes',
     header=bytes.fromhex("FE81FF55"), dtype=_kvh_dtype(False),
     rate_fields=("x", "y", "z"), status_field="status", valid_bits=_KVH_VALID,
     sequence_field="sequence", sequence_modulus=128, temperature_field="temperature",
@@ -312,7 +314,7 @@ KVH_A = FrameFormat(
     status_ok=0x77)
 
 KVH_B = FrameFormat(
-    name="kvh-b", title='KVH "format B" (1750/1775 IMU, with timestamp), 40 bytes',
+    name=names.KVH_B, title='KVH "format B" (1750/1775 IMU, with timestamp), 40 bytes',
     header=bytes.fromhex("FE81FF56"), dtype=_kvh_dtype(True),
     rate_fields=("x", "y", "z"), status_field="status", valid_bits=_KVH_VALID,
     sequence_field="sequence", sequence_modulus=128, temperature_field="temperature",

@@ -35,15 +35,14 @@ and points `error_kinds` at them (see drivers/counter.py), so the base raises e.
 from __future__ import annotations
 
 import contextlib
+import numbers
 import re
 import threading
 import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, fields, is_dataclass
 from functools import cached_property
-from typing import ClassVar, Generic, NamedTuple, Self, TypeVar, cast, overload
-
-import numpy as np
+from typing import TYPE_CHECKING, ClassVar, Generic, NamedTuple, Self, TypeVar, cast, overload
 
 from drivers.transport import (
     TranscriptMismatch,
@@ -51,6 +50,9 @@ from drivers.transport import (
     TransportTimeout,
     VisaTransport,
 )
+
+if TYPE_CHECKING:
+    import numpy as np
 
 RawCallback = Callable[[str, bytes], None]
 
@@ -73,9 +75,9 @@ def format_value(value: object) -> str:
     """A Python value as a SCPI parameter: bool -> ON/OFF, float -> NR3 with 12 digits."""
     if isinstance(value, bool):
         return "ON" if value else "OFF"
-    if isinstance(value, (int, np.integer)):
+    if isinstance(value, numbers.Integral):       # numpy's integers too
         return str(int(value))
-    if isinstance(value, (float, np.floating)):
+    if isinstance(value, numbers.Real):           # numpy's floats too
         return f"{float(value):.12G}"
     return str(value)
 
@@ -286,6 +288,8 @@ def parse_numbers(text: str) -> np.ndarray:
     parts = text.strip().split(",")
     if any(not p.strip() for p in parts):
         raise ValueError(f"empty field in {text[:80]!r}")
+    import numpy as np  # here, not at load: the counter's models are read without numpy
+
     return np.asarray(parts, dtype=float)  # numpy parses the strings (and refuses junk)
 
 

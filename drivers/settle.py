@@ -23,8 +23,6 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import numpy as np
-
 #: whole turns a hold must span before the turn's periodic ripple is set aside
 MIN_TURNS = 2.0
 #: harmonics of the turn fitted (once per turn and its first multiples)
@@ -51,6 +49,8 @@ def judge_with_ripple(t_s: Sequence[float], velocity_dps: Sequence[float],
     """The hold's readings judged with the periodic ripple of the turn removed (module
     docstring); None when they span fewer than MIN_TURNS turns or too few readings to
     fit, and the caller judges sample by sample."""
+    import numpy as np  # here, not at load: the axis settings are read without numpy
+
     v = np.asarray(velocity_dps, dtype=float)
     phi_deg = np.asarray(position_deg, dtype=float)
     if v.size != phi_deg.size or v.size < 3:

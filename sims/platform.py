@@ -28,84 +28,16 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
-from drivers.units import ARCSEC_PER_DEG, EARTH_RATE_DPH, SECONDS_PER_HOUR
+from drivers.units import ARCSEC_PER_DEG, SECONDS_PER_HOUR
 from sims.stand import AxisChunk, AxisModel, SimulatedStand
-
-#: how the twin's gyros are mounted: each horizontal gyro's input axis from the X axis,
-#: and which gyros are vertical (the platform as built; the estimator has its own copy
-#: of this convention, so a mistake in either shows up as a test failure)
-HORIZONTAL_OFFSET_DEG = {"x": 0.0, "y": 90.0}
-VERTICAL_GYROS = ("z",)
-
-
-@dataclass(frozen=True)
-class GyroTruth:
-    """One gyro of the platform: its drift, torque sensor, angle sensor and error sources."""
-
-    own_drift_dph: float = 0.0
-    precession_dps_per_v: float = 0.1      # k_ts * amplifier gain / H
-    k_as_v_per_deg: float = 2.0            # command angle sensor's transfer coefficient
-    angle_offset_deg: float = 0.0          # alpha0: the sensor's zero is arbitrary
-    angle_noise_arcsec: float = 0.0        # per digitizer sample, sensor plus readout
-    pulse_mismatch_rel: float = 0.0        # - polarity gain = (1 + this) * + polarity gain
-    pulse_jitter_s: float = 0.0            # std of each pulse edge's time (switch, amplifier)
-    drift_random_walk_dph_per_rth: float = 0.0
-
-    @classmethod
-    def from_mapping(cls, d: Mapping[str, Any]) -> GyroTruth:
-        known = cls.__dataclass_fields__
-        unknown = set(d) - set(known)
-        if unknown:
-            raise ValueError(f"unknown gyro truth key(s) {', '.join(sorted(unknown))}; "
-                             f"known: {', '.join(known)}")
-        return cls(**{k: float(v) for k, v in d.items()})
-
-
-@dataclass(frozen=True)
-class PlatformTruth:
-    """The stand file's `sim.platform` block."""
-
-    latitude_deg: float
-    azimuth_deg: float                     # X input axis, from north, clockwise from above
-    gyros: dict[str, GyroTruth]
-    table_axis: str | None = None          # the stand axis the platform sits on
-    seed: int = 0
-
-    @classmethod
-    def from_mapping(cls, d: Mapping[str, Any], seed: int = 0) -> PlatformTruth:
-        gyros = {name: GyroTruth.from_mapping(g or {}) for name, g in d.get("gyros", {}).items()}
-        for name in gyros:
-            if name not in HORIZONTAL_OFFSET_DEG and name not in VERTICAL_GYROS:
-                raise ValueError(f"platform gyro {name!r}: expected x, y (horizontal) or z "
-                                 f"(vertical)")
-        return cls(latitude_deg=float(d["latitude_deg"]), azimuth_deg=float(d["azimuth_deg"]),
-                   gyros=gyros, table_axis=d.get("table_axis"), seed=int(seed))
-
-    @property
-    def earth_horizontal_dph(self) -> float:
-        """W_h = 15.041 cos(latitude) (docs/method.md B)."""
-        return EARTH_RATE_DPH * math.cos(math.radians(self.latitude_deg))
-
-    @property
-    def earth_vertical_dph(self) -> float:
-        return EARTH_RATE_DPH * math.sin(math.radians(self.latitude_deg))
-
-    def apparent_dph(self, gyro: str, table_deg: float | np.ndarray = 0.0) -> np.ndarray:
-        """Earth-rate projection on the gyro's input axis (docs/method.md B convention)."""
-        if gyro in VERTICAL_GYROS:
-            return self.earth_vertical_dph + 0.0 * np.asarray(table_deg)
-        heading = self.azimuth_deg + HORIZONTAL_OFFSET_DEG[gyro] + np.asarray(table_deg)
-        return self.earth_horizontal_dph * np.cos(np.radians(heading))
-
-    def total_drift_dph(self, gyro: str, table_deg: float = 0.0) -> float:
-        """Own plus apparent drift at a turntable angle (the nominal own drift)."""
-        return self.gyros[gyro].own_drift_dph + float(self.apparent_dph(gyro, table_deg))
+from sims.truth import HORIZONTAL_OFFSET_DEG as HORIZONTAL_OFFSET_DEG
+from sims.truth import VERTICAL_GYROS as VERTICAL_GYROS
+from sims.truth import GyroTruth as GyroTruth
+from sims.truth import PlatformTruth as PlatformTruth
 
 
 @dataclass

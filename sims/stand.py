@@ -21,99 +21,17 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from drivers.units import SECONDS_PER_HOUR
 from sims.clock import MAX, SteppedClock, VirtualClock, parse_speed
 from sims.rng_grid import RngGrid, pcg64_state, seed_states
-
-
-@dataclass(frozen=True)
-class Harmonic:
-    """w_true - w_set = w_set * amplitude_rel * cos(order * phi + phase) (CONTRACT §2)."""
-
-    order: int
-    amplitude_rel: float
-    phase_deg: float = 0.0
-
-
-@dataclass(frozen=True)
-class Mains:
-    """A tone in time: amplitude_dps * cos(2 pi f t + phase), while the axis turns."""
-
-    frequency_hz: float = 50.0
-    amplitude_dps: float = 0.0
-    phase_deg: float = 0.0
-
-
-@dataclass(frozen=True)
-class FogTruth:
-    """The FOG's true response: k * w_true + w0 + drift * t + white noise (CONTRACT §2)."""
-
-    scale: float = 1.0
-    bias_dps: float = 0.0
-    misalignment_deg: float = 0.0
-    noise_dps: float = 0.0
-    bias_drift_dps_per_h: float = 0.0
-
-    @property
-    def k(self) -> float:
-        """docs/method.md A3: k = M cos(g)."""
-        return self.scale * math.cos(math.radians(self.misalignment_deg))
-
-    @property
-    def w0_dps(self) -> float:
-        return self.bias_dps
-
-    def bias_at(self, t_s: np.ndarray | float) -> np.ndarray | float:
-        """Bias including its linear drift from the start of the run, deg/s."""
-        return self.bias_dps + self.bias_drift_dps_per_h * np.asarray(t_s) / SECONDS_PER_HOUR
-
-
-@dataclass(frozen=True)
-class AxisTruth:
-    """Everything the `sim:` block says about one axis."""
-
-    rate_bias_rel: float = 0.0
-    harmonics: tuple[Harmonic, ...] = ()
-    mains: Mains | None = None
-    rate_noise_dps: float = 0.0
-    turn_jitter_s: float = 0.0
-    fog: FogTruth = field(default_factory=FogTruth)
-
-    @classmethod
-    def from_mapping(cls, d: Mapping[str, Any]) -> AxisTruth:
-        """Build from a validated `sim.axes.<axis>` mapping of the stand file."""
-        mains = d.get("mains")
-        return cls(
-            rate_bias_rel=float(d.get("rate_bias_rel", 0.0)),
-            harmonics=tuple(Harmonic(**h) for h in d.get("harmonics", ())),
-            mains=Mains(**mains) if mains else None,
-            rate_noise_dps=float(d.get("rate_noise_dps", 0.0)),
-            turn_jitter_s=float(d.get("turn_jitter_s", 0.0)),
-            # `fog.units` is the FOG twin's (what it carries before configuration)
-            fog=FogTruth(**{k: v for k, v in d.get("fog", {}).items() if k != "units"}),
-        )
-
-    def mean_turn_rate_rel(self) -> float:
-        """The per-turn rate's relative deviation from w_set that this truth implies.
-
-        A counter averages over a turn in time: 360 / T with T = integral dphi / w(phi),
-        the harmonic mean of w over angle, so harmonics lower it by ~ sum(a^2) / 2.
-        """
-        phi = np.arange(0.0, 360.0, 360.0 / 4096)
-        return float(1.0 / np.mean(1.0 / (1.0 + self.shape_rel(phi))) - 1.0)
-
-    def shape_rel(self, phi_deg: np.ndarray) -> np.ndarray:
-        """Relative deviation of the rate from w_set at angle phi: bias + harmonics."""
-        out = np.full(np.shape(phi_deg), self.rate_bias_rel, dtype=float)
-        phi_rad = np.radians(phi_deg)
-        for h in self.harmonics:
-            out += h.amplitude_rel * np.cos(h.order * phi_rad + math.radians(h.phase_deg))
-        return out
+from sims.truth import AxisTruth as AxisTruth
+from sims.truth import FogTruth as FogTruth
+from sims.truth import Harmonic as Harmonic
+from sims.truth import Mains as Mains
 
 
 @dataclass(frozen=True)

@@ -33,19 +33,18 @@ from bench.core.schema import (
     parse_declared,
 )
 from bench.core.yamlfile import Problem, YamlDoc
-from drivers.axis import (
+from drivers.axis_spec import (
     DEFAULT_HEARTBEAT_MS,
     DEFAULT_PDO,
     DEFAULT_POSITION_TOLERANCE_DEG,
     DEFAULT_UNIT_FACTORS,
 )
 from drivers.cia402 import DEFAULT_COUNTS_PER_REV
-from drivers.counter import DEFAULT_TIMEOUT_MARGIN_S
+from drivers.counter_profiles import DEFAULT_TIMEOUT_MARGIN_S, get_profile
 from drivers.counter_profiles import PROFILES as COUNTER_PROFILES
-from drivers.counter_profiles import get_profile
-from drivers.fog_formats import FORMATS as FOG_FORMATS
+from drivers.fog_format_names import FORMAT_NAMES as FOG_FORMATS
 from drivers.time_tie import TimeTie
-from sims.stand import AxisTruth, FogTruth, Harmonic, Mains
+from sims.truth import AxisTruth, FogTruth, Harmonic, Mains
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
 #: a rate table's fastest axes turn some 10 000 deg/s; its slowest useful rate is around

@@ -58,6 +58,9 @@ from procedures.drift_pulse.result import (
     PositionFigures,
     StartOffsetFigures,
 )
+from procedures.drift_pulse.shapes import SHAPES as SHAPES
+from procedures.drift_pulse.shapes import PulseShape as PulseShape
+from procedures.drift_pulse.shapes import pulse_shape as pulse_shape
 
 DETECTION_Z = 3.0
 #: a cycle whose fitted precession is off the median by this factor had no proper pulse
@@ -66,82 +69,6 @@ MIN_AMPLITUDE_REL = 0.5
 #: input axis of each platform gyro relative to the X axis (docs/method.md B convention)
 HORIZONTAL_OFFSET_DEG = {"x": 0.0, "y": 90.0}
 VERTICAL_GYROS = ("z",)
-
-
-# -- pulse shapes ----------------------------------------------------------------------
-@dataclass(frozen=True)
-class PulseShape:
-    """A pulse's unit precession-rate shape g(u) on u = t / Tc in [0, 1], peak 1.
-
-    The pair is +g over [0, Tc] then -g over [Tc, 2 Tc]; G(u) = int_0^u g is its angle.
-    """
-
-    name: str
-    rate_fn: Callable[[np.ndarray], np.ndarray]
-    angle_fn: Callable[[np.ndarray], np.ndarray]
-    angle_end: float             # G(1)
-    angle_mean: float            # int_0^1 G du
-
-    @property
-    def control_coeff(self) -> float:
-        """c_shape = 2 int_0^1 G du - G(1): the control term per a Tc^2 (docs/method.md B)."""
-        return 2.0 * self.angle_mean - self.angle_end
-
-    @property
-    def symmetric(self) -> bool:
-        return abs(self.control_coeff) < 1e-12
-
-    def rate(self, u: np.ndarray) -> np.ndarray:
-        u = np.asarray(u, dtype=float)
-        return np.where((u >= 0) & (u < 1), self.rate_fn(np.clip(u, 0, 1)), 0.0)
-
-    def angle(self, u: np.ndarray) -> np.ndarray:
-        u = np.asarray(u, dtype=float)
-        return np.where(u <= 0, 0.0, np.where(u >= 1, self.angle_end,
-                                              self.angle_fn(np.clip(u, 0, 1))))
-
-    def pair_rate(self, t_s: np.ndarray, tc_s: float) -> np.ndarray:
-        """Precession rate of the unit pair (peak 1) at t from the first edge."""
-        u = np.asarray(t_s, dtype=float) / tc_s
-        return self.rate(u) - self.rate(u - 1.0)
-
-    def pair_angle(self, t_s: np.ndarray, tc_s: float) -> np.ndarray:
-        """Angle of the unit pair (deg per deg/s of amplitude) at t from the first edge."""
-        u = np.asarray(t_s, dtype=float) / tc_s
-        return tc_s * (self.angle(u) - self.angle(u - 1.0))
-
-    def pair_points(self, n_per_pulse: int) -> np.ndarray:
-        """The pair for an arbitrary waveform generator, in [-1, 1], 2 n points.
-
-        Sampled at the middle of each hold step: a zero-order hold of these points is
-        then as symmetric in time as the shape (sampling at the step's start would
-        delay it by half a step and leave a control residue).
-        """
-        if n_per_pulse < 1:
-            raise ValueError(f"n_per_pulse must be >= 1, got {n_per_pulse}")
-        g = self.rate((np.arange(n_per_pulse) + 0.5) / n_per_pulse)
-        return np.concatenate((g, -g))
-
-
-def _tri_angle(u: np.ndarray) -> np.ndarray:
-    return np.where(u <= 0.5, u * u, 2.0 * u - u * u - 0.5)
-
-
-SHAPES: dict[str, PulseShape] = {
-    "rectangular": PulseShape("rectangular", lambda u: np.ones_like(u), lambda u: u,
-                              1.0, 0.5),
-    "triangular": PulseShape("triangular", lambda u: 1.0 - np.abs(2.0 * u - 1.0), _tri_angle,
-                             0.5, 0.25),
-    # not symmetric in time: shows the control term at work (c_shape = -1/6)
-    "sawtooth": PulseShape("sawtooth", lambda u: u, lambda u: 0.5 * u * u, 0.5, 1.0 / 6.0),
-}
-
-
-def pulse_shape(name: str) -> PulseShape:
-    try:
-        return SHAPES[name]
-    except KeyError:
-        raise ValueError(f"unknown pulse shape {name!r}; known: {', '.join(SHAPES)}") from None
 
 
 # -- one cycle ---------------------------------------------------------------------------

@@ -12,8 +12,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Annotated, Any
 
-import numpy as np
-
 from bench.core.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config
 from bench.core.schema import (
     Key,
@@ -29,8 +27,8 @@ from bench.core.schema import (
 from bench.core.yamlfile import Problem
 from drivers.awg import PROFILES as AWG_PROFILES
 from drivers.dmm import PROFILES as DMM_PROFILES
-from procedures.drift_pulse import analysis as dp
-from sims.platform import GyroTruth, PlatformTruth
+from procedures.drift_pulse.shapes import SHAPES, pulse_shape
+from sims.truth import GyroTruth, PlatformTruth
 
 #: the keys of a stand file's `sim.platform.gyros.<gyro>` truth (the gyro twin's fields)
 SIM_GYRO_KEYS: tuple[str, ...] = tuple(GyroTruth.__dataclass_fields__)
@@ -59,7 +57,7 @@ class Site:
 
 @dataclass(frozen=True, kw_only=True)
 class Pulse:
-    shape: Annotated[str, Setting(Str(tuple(dp.SHAPES)),
+    shape: Annotated[str, Setting(Str(tuple(SHAPES)),
                                   "rectangular, triangular (or sawtooth)")]
     duration_s: Annotated[float, Setting(Num(min=0, exclusive_min=True, unit="s"),
                                          "Tc, each pulse")]
@@ -287,7 +285,7 @@ def _check_timing(cfg: Config) -> list[Problem]:
     amps = {"amplitude_v": cfg.procedure["pulse"]["amplitude_v"]}
     if cfg.procedure.get("timing_cycles", DriftFile.timing_cycles):
         amps["timing_amplitude_v"] = timing_amplitude(cfg)
-    shape = dp.pulse_shape(cfg.procedure["pulse"]["shape"])
+    shape = pulse_shape(cfg.procedure["pulse"]["shape"])
     for g in gyros_of(cfg):
         spec = plat["gyros"].get(g)
         if spec is None:
@@ -313,12 +311,33 @@ def _check_timing(cfg: Config) -> list[Problem]:
                            f"({sdoc.path}:{sdoc.line(('platform', 'gyros', g))})"))
     return out
 
+def _rank(columns: list[list[float]]) -> int:
+    """The number of independent columns (numpy's `matrix_rank` of the column stack, by
+    Gram-Schmidt with its tolerance: the largest column norm x rows x machine epsilon),
+    in plain Python: `bench validate` checks the positions without numpy."""
+    rows = len(columns[0]) if columns else 0
+    tol = max((math.hypot(*c) for c in columns), default=0.0) * max(rows, len(columns)) \
+        * 2.220446049250313e-16
+    basis: list[list[float]] = []
+    for c in columns:
+        r = list(c)
+        for b in basis:     # twice: classical Gram-Schmidt, re-orthogonalised
+            for _ in range(2):
+                dot = math.fsum(x * y for x, y in zip(r, b, strict=True))
+                r = [x - dot * y for x, y in zip(r, b, strict=True)]
+        norm = math.hypot(*r)
+        if norm > tol:
+            basis.append([x / norm for x in r])
+    return len(basis)
+
+
 def _check_positions(cfg: Config) -> list[Problem]:
     pos = [float(p) for p in cfg.procedure.get("positions_deg", DriftFile.positions_deg)]
-    theta = np.radians(pos)
-    a = np.column_stack([np.ones_like(theta), np.cos(theta)]
-                        + ([-np.sin(theta)] if np.any(np.abs(np.sin(theta)) > 1e-9) else []))
-    if np.linalg.matrix_rank(a) < a.shape[1] or len({round(p % 360, 6) for p in pos}) < 2:
+    theta = [math.radians(p) for p in pos]
+    columns = [[1.0] * len(theta), [math.cos(t) for t in theta]]
+    if any(abs(math.sin(t)) > 1e-9 for t in theta):
+        columns.append([-math.sin(t) for t in theta])
+    if _rank(columns) < len(columns) or len({round(p % 360, 6) for p in pos}) < 2:
         return [cfg.procedure_doc.problem(("positions_deg",), "the positions must separate "
                                           "own and apparent drift: include two 180 deg "
                                           "apart (e.g. [0, 180])")]
