@@ -42,7 +42,6 @@ ALLOWED: dict[str, int] = {
     "bench/app/dcc/output.py": 1,
     "bench/app/dcc/used_methods.py": 1,
     "bench/app/dcc/verify.py": 1,
-    "bench/app/records/checks.py": 23,
     "bench/app/records/hooks.py": 1,
     "bench/report/certificate/plots.py": 39,
     "procedures/drift_pulse/budgets.py": 2,
