@@ -22,6 +22,7 @@ from bench.app.dcc.validate import Validation, describe, validate_dcc
 from bench.app.dcc.writer import DccInputs, build_dcc
 from bench.core.lab import Lab, run_lab
 from bench.report.result_frame import ResultFrame
+from drivers.json_types import JsonObject
 
 VERDICTS = ("pass", "fail")
 
@@ -59,7 +60,7 @@ def _write_atomic(path: Path, data: bytes) -> None:
     os.replace(tmp, path)
 
 
-def write_dcc(run_path: Path, result: dict[str, Any], stand: Any = None,
+def write_dcc(run_path: Path, result: JsonObject, stand: Any = None,
               lab_file: str | Path | None = None, issued: dt.date | None = None,
               lab: Lab | None = None, issue: Issue | None = None,
               out_dir: Path | None = None) -> DccOutcome:
