@@ -15,11 +15,11 @@ from typing import TYPE_CHECKING
 
 from bench.core import rundir_layout as layout
 from bench.report.result_frame import ResultFrame
-from drivers.json_types import JsonObject
 
 if TYPE_CHECKING:
     from bench.core.lab import Lab
     from bench.core.yamlfile import Problem
+    from drivers.json_types import JsonObject
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
