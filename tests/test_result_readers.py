@@ -38,7 +38,6 @@ ALLOWED: dict[str, int] = {
     "bench/app/certificate/item.py": 5,
     "bench/app/certificate/people.py": 5,
     "bench/app/certificate/register.py": 1,
-    "bench/app/records/hooks.py": 1,
     "bench/report/certificate/plots.py": 39,
     "procedures/drift_pulse/budgets.py": 2,
     "procedures/drift_pulse/certificate.py": 9,
