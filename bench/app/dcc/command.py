@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -17,6 +17,7 @@ from bench.core import rundir_layout as layout
 from bench.report.result_frame import ResultFrame
 
 if TYPE_CHECKING:
+    from bench.core.config import DccRefs
     from bench.core.lab import Lab
     from bench.core.yamlfile import Problem
     from drivers.json_types import JsonObject
@@ -28,7 +29,8 @@ def _err(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
-def write_run_dcc(run_path: Path, result: JsonObject, stand: object,
+def write_run_dcc(run_path: Path, result: JsonObject,
+                  stand: DccRefs | Mapping[str, object] | None,
                   line: Callable[[str], None] = print, lab_file: str | Path | None = None,
                   warn: Callable[[str], None] = _err) -> bool:
     """Write RUN_DIR/certificate.dcc.xml after the PDF; False when the run has no valid DCC
