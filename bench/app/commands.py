@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from bench.core import rundir_layout as layout
 from bench.core.config import Config, ConfigError
@@ -22,7 +22,9 @@ from bench.core.yamlfile import YamlError, load_yaml
 # `bench validate` imports the loader only: the session, the console, the records and the
 # certificate are imported by the commands that plan, run or analyze (bench/app/cli.py)
 if TYPE_CHECKING:
+    from bench.app.register.gate import StartGate
     from bench.app.session import run_session
+    from bench.core.config import Config
 
 __all__ = ["EXIT_ABORTED", "EXIT_FAIL", "EXIT_INVALID", "EXIT_PASS", "dispatch", "run_session"]
 
@@ -30,7 +32,7 @@ __all__ = ["EXIT_ABORTED", "EXIT_FAIL", "EXIT_INVALID", "EXIT_PASS", "dispatch",
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     """`run_session`, for the tests and benchmarks that run a session in-process; loaded
     on first use, with the session."""
     if name == "run_session":
@@ -158,8 +160,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     return status
 
 
-def _start_gate(lab_file: Path | None, cfg: Any, simulated: bool,
-                args: argparse.Namespace) -> Any:
+def _start_gate(lab_file: Path | None, cfg: Config, simulated: bool,
+                args: argparse.Namespace) -> StartGate:
     """The lab register's word before anything moves (bench/app/register/gate.py)."""
     from bench.app.register import RegisterError
     from bench.app.register.credentials import Passwords

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
-from typing import Any
 
 from bench.app.names import DEFAULT_RUNS, ROLES
 
@@ -22,7 +21,7 @@ from bench.app.names import DEFAULT_RUNS, ROLES
 RECORDS_COMMAND_NAMES = ("history", "records", "due", "control")
 
 
-def add_authorise_parser(sub: Any) -> None:
+def add_authorise_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """The `authorise` subcommand (bench/app/certificate/authorise.py runs it)."""
     p = sub.add_parser("authorise", help="issue the run's draft certificate under an "
                                          "authorised signatory; exit 2 when refused")
@@ -37,7 +36,7 @@ def add_authorise_parser(sub: Any) -> None:
                                  "run's own copy)")
 
 
-def add_records_parsers(sub: Any) -> None:
+def add_records_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """The records subcommands (bench/app/records/commands.py runs them)."""
     his = sub.add_parser("history", help="every recorded run of one table, with a trend plot")
     his.add_argument("serial", help="the table's serial number (stand.serial)")
@@ -112,7 +111,7 @@ def _date(text: str) -> dt.date:
         raise argparse.ArgumentTypeError(f"expected YYYY-MM-DD, got {text!r}") from None
 
 
-def add_register_parser(sub: Any) -> None:
+def add_register_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """The `register` subcommand (bench/app/register/commands.py runs it)."""
     p = sub.add_parser("register", help="the lab register: accounts, equipment, audit trail",
                        description="The lab register (docs/register.md): who may sign, the "

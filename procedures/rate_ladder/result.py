@@ -167,6 +167,20 @@ class RateEntry:
     def to_json(self) -> JsonObject:
         return dict(self.doc)
 
+    @property
+    def rate_error_U_rel(self) -> float | None:
+        """The rate error's expanded uncertainty as result.json writes it
+        (`rate_error_U_rel`; an older result's `rate_error_u_rel`)."""
+        return (number(self.doc, "rate_error_U_rel") if "rate_error_U_rel" in self.doc
+                else number(self.doc, "rate_error_u_rel"))
+
+    @property
+    def rate_instability_U_rel(self) -> float | None:
+        """The instability's expanded uncertainty (`rate_instability_U_rel`; an older
+        result's `rate_instability_u_rel`)."""
+        return (number(self.doc, "rate_instability_U_rel") if "rate_instability_U_rel" in self.doc
+                else number(self.doc, "rate_instability_u_rel"))
+
 
 @dataclass(frozen=True, slots=True)
 class PairEntry:
@@ -198,6 +212,19 @@ class PairEntry:
 
     def to_json(self) -> JsonObject:
         return dict(self.doc)
+
+    @property
+    def k_U(self) -> float | None:
+        """k's expanded uncertainty as result.json writes it (`k_U`; an older result's
+        `k_u`)."""
+        return (number(self.doc, "k_U") if "k_U" in self.doc
+                else number(self.doc, "k_u"))
+
+    @property
+    def w0_U_dps(self) -> float | None:
+        """w0's expanded uncertainty (`w0_U_dps`; an older result's `w0_u_dps`)."""
+        return (number(self.doc, "w0_U_dps") if "w0_U_dps" in self.doc
+                else number(self.doc, "w0_u_dps"))
 
 
 @dataclass(frozen=True, slots=True)

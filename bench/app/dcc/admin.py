@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import datetime as dt
 from collections.abc import Mapping, Sequence
-from typing import Any
 
 from lxml import etree
 
@@ -47,7 +46,7 @@ def _event(src: Sources, kind: str, last: bool = False) -> str | None:
     return (found[-1] if last else found[0]) if found else None
 
 
-def stand_of(src: Sources) -> dict[str, Any]:
+def stand_of(src: Sources) -> dict[str, object]:
     stand = dict(src.stand_file.get("stand", {}) or {})
     stand.update({k: v for k, v in (src.get("stand", {}) or {}).items() if v is not None})
     return stand

@@ -9,12 +9,18 @@ from __future__ import annotations
 import argparse
 import sys
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from bench.core import rundir_layout as layout
 from bench.report.result_frame import ResultFrame
+
+if TYPE_CHECKING:
+    from bench.core.config import DccRefs
+    from bench.core.lab import Lab
+    from bench.core.yamlfile import Problem
+    from drivers.json_types import JsonObject
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
@@ -23,7 +29,8 @@ def _err(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
-def write_run_dcc(run_path: Path, result: dict[str, Any], stand: object,
+def write_run_dcc(run_path: Path, result: JsonObject,
+                  stand: DccRefs | Mapping[str, object] | None,
                   line: Callable[[str], None] = print, lab_file: str | Path | None = None,
                   warn: Callable[[str], None] = _err) -> bool:
     """Write RUN_DIR/certificate.dcc.xml after the PDF; False when the run has no valid DCC
@@ -56,7 +63,7 @@ def write_run_dcc(run_path: Path, result: dict[str, Any], stand: object,
     return False
 
 
-def _stand_of_run(run_path: Path) -> dict[str, Any] | None:
+def _stand_of_run(run_path: Path) -> dict[str, object] | None:
     """The run's stand file (its copy in the run directory), with its `dcc:` key checked."""
     from bench.app.dcc.settings import STAND_DCC
     from bench.core.yamlfile import YamlError, load_yaml
@@ -70,7 +77,7 @@ def _stand_of_run(run_path: Path) -> dict[str, Any] | None:
         _err(str(e.problem))
         return None
     data = doc.data if isinstance(doc.data, dict) else {}
-    problems: list[Any] = []
+    problems: list[Problem] = []
     if "dcc" in data:
         STAND_DCC.check(data["dcc"], ("dcc",), doc, problems)
     for p in problems:
@@ -218,7 +225,7 @@ def _standing(path: Path, url: str) -> int:
     return EXIT_PASS
 
 
-def _lab_of(lab_file: str | None, folder: Path) -> Any:
+def _lab_of(lab_file: str | None, folder: Path) -> Lab | None:
     """The lab whose DCC this is: `--lab`, else $BENCH_LAB_SETTINGS, else the lab file
     copied into the run directory the file lies in (or its parent, for an issued
     revision's folder); None when none is found or it is unusable (said on stderr)."""
@@ -240,7 +247,7 @@ def _lab_of(lab_file: str | None, folder: Path) -> Any:
         return None
 
 
-def add_parsers(sub: Any) -> None:
+def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """The `dcc` and `verify` subcommands (called by bench/app/cli.py)."""
     dcc = sub.add_parser("dcc", help="(re)write certificate.dcc.xml (PTB DCC 3.3.0) from "
                                      "result.json and validate it offline")

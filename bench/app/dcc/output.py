@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import datetime as dt
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from lxml import etree
 
@@ -20,8 +20,10 @@ from bench.app.dcc import DCC_NAME, INVALID_NAME
 from bench.app.dcc.settings import SettingsError, check_key_outside, resolve_settings
 from bench.app.dcc.validate import Validation, describe, validate_dcc
 from bench.app.dcc.writer import DccInputs, build_dcc
+from bench.core.config import DccRefs
 from bench.core.lab import Lab, run_lab
 from bench.report.result_frame import ResultFrame
+from drivers.json_types import JsonObject
 
 VERDICTS = ("pass", "fail")
 
@@ -59,7 +61,8 @@ def _write_atomic(path: Path, data: bytes) -> None:
     os.replace(tmp, path)
 
 
-def write_dcc(run_path: Path, result: dict[str, Any], stand: Any = None,
+def write_dcc(run_path: Path, result: JsonObject,
+              stand: DccRefs | Mapping[str, object] | None = None,
               lab_file: str | Path | None = None, issued: dt.date | None = None,
               lab: Lab | None = None, issue: Issue | None = None,
               out_dir: Path | None = None) -> DccOutcome:

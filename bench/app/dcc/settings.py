@@ -16,7 +16,6 @@ import os
 from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 from bench.core.config import STAND_DCC, DccRefs, dcc_refs
 from bench.core.lab import LAB, Lab, LabError, Signing, load_lab
@@ -31,7 +30,7 @@ SettingsError = LabError
 load_lab_file = load_lab
 
 
-def resolve_settings(stand: DccRefs | Mapping[str, Any] | None,
+def resolve_settings(stand: DccRefs | Mapping[str, object] | None,
                      lab_file: str | Path | None = None,
                      stand_origin: str = "stand file", base: Lab | None = None) -> Lab:
     """The lab settings in force: `--lab` first, then the stand's `dcc.lab`, then the

@@ -9,7 +9,6 @@ import base64
 import re
 from collections.abc import Mapping
 from importlib import resources
-from typing import Any
 
 from lxml import etree
 
@@ -115,7 +114,7 @@ def methods_and_conditions(results: etree._Element, src: Sources, kind: DccParts
                 text_el(el(c, "data"), "text", row.measured)
 
 
-def _fog_temperatures(src: Sources) -> list[tuple[str, Mapping[str, Any]]]:
+def _fog_temperatures(src: Sources) -> list[tuple[str, Mapping[str, object]]]:
     m = src.get("conditions_measured")
     fog = m.get("fog_temperature") if isinstance(m, Mapping) else None
     axes = fog.get("axes") if isinstance(fog, Mapping) else None
@@ -123,7 +122,8 @@ def _fog_temperatures(src: Sources) -> list[tuple[str, Mapping[str, Any]]]:
         if isinstance(axes, Mapping) else []
 
 
-def _measured_temperature(conds: etree._Element, axis: str, ax: Mapping[str, Any]) -> None:
+def _measured_temperature(conds: etree._Element, axis: str,
+                          temperatures: Mapping[str, object]) -> None:
     """The FOG's temperature over the axis's halves, as the bench measured it."""
     c = el(conds, "influenceCondition", id=ident("cond", "fog-temperature", axis),
            ref_type=V.TEMPERATURE)
@@ -135,9 +135,10 @@ def _measured_temperature(conds: etree._Element, axis: str, ax: Mapping[str, Any
     for key, title, ref in (("min_c", "minimum", V.TEMPERATURE_MIN),
                             ("mean_c", "mean", V.TEMPERATURE),
                             ("max_c", "maximum", V.TEMPERATURE_MAX)):
-        if num(ax.get(key)) is not None:
+        value = num(temperatures.get(key))
+        if value is not None:
             quantity(data, ident("cond", "fog-temperature", axis, key), title, ref,
-                     float(ax[key]), U.CELSIUS)
+                     float(value), U.CELSIUS)
 
 
 def _flat(d: Mapping[str, object]) -> str:

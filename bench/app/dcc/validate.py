@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
-from typing import Any
 
 from lxml import etree
 
@@ -41,7 +40,7 @@ MAX_ERRORS = 20
 class LocalSchemas(etree.Resolver):
     """libxml2's resolver: the schemas' import URLs -> the shipped files, nothing else."""
 
-    def resolve(self, system_url: str, public_id: str, context: object) -> Any:
+    def resolve(self, system_url: str, public_id: str, context: object) -> object:
         local = URI_MAP.get(system_url)
         return self.resolve_filename(str(local), context) if local else None
 

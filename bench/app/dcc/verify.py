@@ -16,12 +16,16 @@ import base64
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from lxml import etree
 
 from bench.app.dcc.validate import NS, validate_dcc
 from bench.core import rundir_layout as layout
+from drivers.json_types import JsonObject
+
+if TYPE_CHECKING:
+    from bench.app.certificate.register import Issue
 
 Values = dict[str, tuple[tuple[float, ...], tuple[float, ...] | None, str]]
 
@@ -76,7 +80,7 @@ class Report:
         self.lines.append(f"      {text}")
 
 
-def _issue_of(root: etree._Element, run_path: Path | None) -> Any:
+def _issue_of(root: etree._Element, run_path: Path | None) -> Issue | None:
     """The issue the file claims to be, as the run's register records it; None for a
     draft (which the writer rebuilds as the run's next revision) or an unknown number."""
     from bench.app.certificate import register
@@ -88,7 +92,7 @@ def _issue_of(root: etree._Element, run_path: Path | None) -> Any:
     return next((i for i in register.issues(run_path) if i.number == number), None)
 
 
-def compare_values(root: etree._Element, result: dict[str, Any], report: Report,
+def compare_values(root: etree._Element, result: JsonObject, report: Report,
                    run_path: Path | None = None) -> None:
     """Every quantity and conformity in `root` against the DCC result.json would give (the
     run directory's register supplies the certificate's issue number)."""

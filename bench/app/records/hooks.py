@@ -14,7 +14,7 @@ import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from bench.app.db import redact
 from bench.app.records.extract import STATES, NotARun, record_of
@@ -25,6 +25,7 @@ from bench.core.config import CommonSettings, Identity
 
 if TYPE_CHECKING:
     from bench.report.certificate.model import Block
+    from drivers.json_types import JsonObject
 
 Warn = Callable[[str], None]
 IMPORT_HINT = "`bench records import {runs}` registers it once the database is back"
@@ -115,7 +116,7 @@ def warn_if_overdue(ident: Identity, where: RecordsTarget, warn: Warn,
 
 
 def register_run(run_path: Path, where: RecordsTarget, warn: Warn,
-                 result: dict[str, Any] | None = None) -> str | None:
+                 result: JsonObject | None = None) -> str | None:
     """At a run's end (and after `bench analyze`): register it; None if that failed."""
     try:
         record = record_of(run_path, result)
@@ -134,7 +135,7 @@ def register_run(run_path: Path, where: RecordsTarget, warn: Warn,
     return outcome
 
 
-def history_sections(run_path: Path, result: dict[str, Any], where: RecordsTarget,
+def history_sections(run_path: Path, result: JsonObject, where: RecordsTarget,
                      warn: Warn) -> list[tuple[str, tuple[Block, ...]]]:
     """The certificate's history section, or nothing (no earlier run, no database)."""
     from bench.app.records.section import history_section

@@ -215,9 +215,10 @@ def create_app(settings: StationSettings,
         p = run_dir(name)
         state = live_state(p)
         pid = state.get("pid")
-        if state["status"] != "running" or not pid or not _bench_process(int(pid)):
+        if (state["status"] != "running" or not isinstance(pid, int) or not pid
+                or not _bench_process(pid)):
             return jsonify(ok=False, error=f"run {name} is not running ({state['status']})"), 409
-        send_signal(int(pid), signal.SIGINT)   # exactly Ctrl-C: the engine's safe stop
+        send_signal(pid, signal.SIGINT)   # exactly Ctrl-C: the engine's safe stop
         app.logger.warning("stop requested for %s (pid %s) from %s", name, pid,
                            request.remote_addr)
         return jsonify(ok=True, pid=pid, message="stop requested: the bench ramps every axis "

@@ -15,9 +15,9 @@ from __future__ import annotations
 import datetime as dt
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Protocol
 
 import sqlalchemy as sa
 from sqlalchemy.engine import Engine
@@ -39,6 +39,8 @@ from bench.app.station.view import (
 from bench.core import rundir_layout as layout
 from bench.core.registry import declared_figures
 from bench.report.figures import spec_for
+from bench.report.result_frame import ResultFrame
+from drivers.json_types import JsonLike, JsonObject, JsonValue
 
 #: a running bench delivers every 0.5 s (bench/app/fleet/courier.py); heard nothing for
 #: this long, it is shown silent, with its last event's age
@@ -124,6 +126,37 @@ def _iso(t: dt.datetime | None) -> str | None:
     return None if t is None else t.replace(tzinfo=dt.UTC).isoformat()
 
 
+class BenchRunRow(Protocol):
+    """What the pages read of a `bench_runs` row (bench/app/records/schema.py)."""
+
+    @property
+    def bench(self) -> str: ...
+    @property
+    def uid(self) -> str: ...
+    @property
+    def run_dir(self) -> str: ...
+    @property
+    def title(self) -> str | None: ...
+    @property
+    def serial(self) -> str | None: ...
+    @property
+    def kind(self) -> str | None: ...
+    @property
+    def simulated(self) -> bool | None: ...
+    @property
+    def last_seq(self) -> int: ...
+    @property
+    def last_event_utc(self) -> dt.datetime | None: ...
+    @property
+    def health(self) -> JsonValue: ...
+    @property
+    def health_utc(self) -> dt.datetime | None: ...
+    @property
+    def received_utc(self) -> dt.datetime | None: ...
+    @property
+    def verdict(self) -> str | None: ...
+
+
 def _seconds(a: dt.datetime | None, b: dt.datetime | None) -> float | None:
     return None if a is None or b is None else max(0.0, (a - b).total_seconds())
 
@@ -136,7 +169,7 @@ class FleetView:
         self.runs = runs
         self._engine: Engine | None = None
         self._lock = threading.Lock()
-        self._cache: tuple[tuple[int, int], dict[str, Any]] | None = None
+        self._cache: tuple[tuple[int, int], dict[str, JsonLike]] | None = None
         self.error: str | None = None
 
     @property
@@ -150,7 +183,7 @@ class FleetView:
         return self.runs is not None and (self.runs / run_dir / layout.EVENTS).is_file()
 
     # -- every bench --------------------------------------------------------------------
-    def benches(self, version: int | None = None) -> dict[str, Any]:
+    def benches(self, version: int | None = None) -> dict[str, JsonLike]:
         """Each bench with its newest run: status, progress and ETA, health, the last
         result. `version` (Notifications) lets the live pages that wake on one
         notification share one reading (within SHARED_S); without it, a fresh one."""
@@ -158,6 +191,7 @@ class FleetView:
             if version is not None and self._cache is not None \
                     and self._cache[0] == (version, int(time.monotonic() / SHARED_S)):
                 return self._cache[1]
+        state: dict[str, JsonLike]
         try:
             state = self._benches()
             self.error = None
@@ -169,7 +203,7 @@ class FleetView:
                 self._cache = ((version, int(time.monotonic() / SHARED_S)), state)
         return state
 
-    def _benches(self) -> dict[str, Any]:
+    def _benches(self) -> dict[str, JsonLike]:
         b, r, e = s.benches.c, s.bench_runs.c, s.bench_events.c
         newest = sa.select(sa.func.max(r.id)).group_by(r.bench_id).scalar_subquery()
         with self.engine.connect() as conn:
@@ -179,7 +213,7 @@ class FleetView:
             rows = conn.execute(sa.select(*listed, b.name.label("bench"))
                                 .join(s.benches, b.id == r.bench_id)
                                 .where(r.id.in_(newest)).order_by(b.name)).all()
-            events: dict[int, list[dict[str, Any]]] = {}
+            events: dict[int, list[JsonObject]] = {}
             if rows:
                 for x in conn.execute(sa.select(e.run_id, e.body)
                                       .where(e.run_id.in_([x.id for x in rows]),
@@ -189,8 +223,8 @@ class FleetView:
         return {"now_utc": _iso(now), "error": None,
                 "benches": [self._run_state(x, events.get(x.id, []), now) for x in rows]}
 
-    def _run_state(self, x: Any, events: list[dict[str, Any]], now: dt.datetime | None
-                   ) -> dict[str, Any]:
+    def _run_state(self, x: BenchRunRow, events: list[JsonObject], now: dt.datetime | None
+                   ) -> dict[str, JsonLike]:
         starts = [ev for ev in events if ev.get("event") == "session_start"]
         session_no = starts[-1].get("session") if starts else None
         session = [ev for ev in events if ev.get("session") == session_no]
@@ -241,13 +275,18 @@ class FleetView:
             "verdict": verdict, "local": self._local(x.run_dir),
         }
 
-    def _health(self, x: Any, now: dt.datetime | None, live: bool) -> dict[str, Any]:
+    def _health(self, x: BenchRunRow, now: dt.datetime | None, live: bool
+                ) -> dict[str, JsonLike]:
         """The bench's last health sample, aged to now on the server's clock."""
-        h = x.health if isinstance(x.health, dict) else {}
+        sample = x.health if isinstance(x.health, dict) else {}
         since = _seconds(now, x.health_utc) if live else 0.0
-        rows, warnings = [], []
-        sampled = _naive(h.get("sampled_utc"))
-        for name, age in sorted((h.get("files") or {}).items()):
+        rows: list[JsonLike] = []
+        warnings: list[JsonLike] = []
+        sampled = _naive(sample.get("sampled_utc"))
+        files = sample.get("files")
+        ages = sorted((name, age) for name, age in files.items()
+                      if isinstance(age, int | float)) if isinstance(files, dict) else []
+        for name, age in ages:
             age_now = float(age) + (since or 0.0)
             # a finished run's files are quiet by design: when each was last written
             text = (_age(age_now) if live or sampled is None else
@@ -259,7 +298,7 @@ class FleetView:
                     and age_now > INSTRUMENT_SILENT_S:
                 warnings.append(f"{instrument}: not heard for {age_now:.0f} s")
         return {"files": rows, "warnings": warnings,
-                "sampled_utc": h.get("sampled_utc")}
+                "sampled_utc": sample.get("sampled_utc")}
 
     def instrument_serials(self) -> list[str]:
         """The instruments of the lab's benches: those with check values in each bench's
@@ -280,7 +319,7 @@ class FleetView:
             return []
 
     # -- one run ------------------------------------------------------------------------
-    def run(self, bench: str, uid: str) -> dict[str, Any] | None:
+    def run(self, bench: str, uid: str) -> dict[str, JsonLike] | None:
         """One run's page: its state as in the list, the first look per pair, the final
         figures from its result, the milestones and faults; None if the database has no
         such run."""
@@ -299,9 +338,9 @@ class FleetView:
                                  .where(e.run_id == x.id)).scalar_one()
         state = self._run_state(x, events, now)
         result = x.result if isinstance(x.result, dict) else None
-        final = []
+        final: list[JsonLike] = []
         if result is not None and state["run_status"] != "running":
-            kind = x.kind or str(result.get("procedure") or "")
+            kind = x.kind or ResultFrame.conform(result)[0].procedure or ""
             specs = declared_figures([kind]) if kind else ()
             for f in figures_of(result, kind or None):
                 spec = spec_for(f.quantity, specs)
@@ -322,10 +361,16 @@ class FleetView:
         return state
 
 
-def fleet_json(state: Mapping[str, Any]) -> list[dict[str, Any]]:
+def fleet_json(state: Mapping[str, JsonLike]) -> list[dict[str, JsonLike]]:
     """The few fields a script (the browser test, the load generator) reads off the
     live stream: which run each bench shows, how far it is delivered, its status."""
+    benches = state.get("benches")
+    rows = [x for x in benches if isinstance(x, Mapping)] \
+        if isinstance(benches, Sequence) and not isinstance(benches, str) else []
     return [{"bench": x["bench"], "uid": x["uid"], "run": x["run"], "seq": x["seq"],
              "status": x["status"], "verdict": x["verdict"],
-             "fraction": x["progress"].get("fraction")}
-            for x in state.get("benches") or []]
+             "fraction": _fraction(x["progress"])} for x in rows]
+
+
+def _fraction(progress: JsonLike) -> JsonLike:
+    return progress.get("fraction") if isinstance(progress, Mapping) else None

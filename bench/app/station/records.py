@@ -12,31 +12,33 @@ import datetime as dt
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
 
 from bench.app.records import Records, RecordsError, target
 from bench.app.records.control import OUT_OF_CONTROL, all_statuses, instrument_status
 from bench.app.records.control_plot import control_png
 from bench.app.records.extract import figures_of, kind_name
+from bench.app.records.store import DueItem
 from bench.app.records.trend import trend_png
 from bench.app.station.live import DOWNLOADS
 from bench.core import rundir_layout as layout
 from bench.core.registry import declared_figures
 from bench.report.certificate.parts import read_json_object
 from bench.report.figures import spec_for
+from bench.report.result_frame import ResultFrame
+from drivers.json_types import JsonLike
 
 
 def _iso(t: dt.datetime | dt.date | None) -> str | None:
     return None if t is None else t.isoformat()
 
 
-def run_figures(run_path: Path) -> dict[str, Any]:
+def run_figures(run_path: Path) -> dict[str, JsonLike]:
     """A finished run's figures, read by its procedure kind from result.json (the rows
     the records keep) with the words and units the kind declares; none before the end."""
     result = read_json_object(run_path / layout.RESULT)
     kind = kind_name(result, run_path) if result else ""
     specs = declared_figures([kind]) if kind else ()
-    rows = []
+    rows: list[JsonLike] = []
     for f in figures_of(result, kind) if result else []:
         spec = spec_for(f.quantity, specs)
         rows.append({"axis": f.axis, "quantity": f.quantity, "set_rate_dps": f.set_rate_dps,
@@ -46,7 +48,8 @@ def run_figures(run_path: Path) -> dict[str, Any]:
                      "tolerance": f.tolerance, "verdict": f.verdict,
                      "upper_limit": f.is_limit})
     return {"run": run_path.name, "procedure": kind or None,
-            "verdict": result.get("verdict") if result else None, "figures": rows}
+            "verdict": ResultFrame.conform(result)[0].verdict if result else None,
+            "figures": rows}
 
 
 class RecordsView:
@@ -87,11 +90,11 @@ class RecordsView:
         finally:
             rec.close()
 
-    def _due(self, rec: Records) -> dict[str, Any]:
+    def _due(self, rec: Records) -> dict[str, DueItem]:
         return {d.table.serial: d for d in rec.due(intervals=self.where.interval_for,
                                                    everything=True)}
 
-    def tables(self) -> list[dict[str, Any]]:
+    def tables(self) -> list[dict[str, JsonLike]]:
         with self._open() as rec:
             if rec is None:
                 return []
@@ -109,7 +112,7 @@ class RecordsView:
                             "overdue": bool(d and d.days_left is not None and d.days_left < 0)})
             return out
 
-    def due_list(self, within_days: int = 30) -> list[dict[str, Any]]:
+    def due_list(self, within_days: int = 30) -> list[dict[str, JsonLike]]:
         """Tables due within `within_days` or overdue (bench due), for the lab page."""
         with self._open() as rec:
             if rec is None:
@@ -122,7 +125,7 @@ class RecordsView:
                  "due": _iso(d.due_date), "status": d.status,
                  "overdue": d.days_left is not None and d.days_left < 0} for d in items]
 
-    def drafts(self, limit: int = 50) -> list[dict[str, Any]]:
+    def drafts(self, limit: int = 50) -> list[dict[str, JsonLike]]:
         """Runs ended with a verdict and no certificate number yet, newest first."""
         with self._open() as rec:
             if rec is None:
@@ -133,14 +136,14 @@ class RecordsView:
                  "operator": operator} for serial, run, verdict, date, operator in rows]
 
     def lab_instruments(self, register_url: str | None, serials: list[str]
-                        ) -> tuple[list[dict[str, Any]], list[str]]:
+                        ) -> tuple[list[dict[str, JsonLike]], list[str]]:
         """The benches' instruments (`serials`) with their control status (the records'
         charts), and every item of the lab register's inventory with its calibration (due
         date, overdue without a deviation in force); with the notes of what could not be
         read. Only the benches' own instruments are charted here: a lab's history holds
         hundreds, and /records lists them all."""
         notes: list[str] = []
-        rows: dict[str, dict[str, Any]] = {}
+        rows: dict[str, dict[str, JsonLike]] = {}
         with self._open() as rec:
             for serial in serials:
                 st = instrument_status(rec, serial) if rec is not None else None
@@ -175,7 +178,7 @@ class RecordsView:
                          "not shown")
         return [rows[k] for k in sorted(rows)], notes
 
-    def history(self, serial: str) -> dict[str, Any] | None:
+    def history(self, serial: str) -> dict[str, JsonLike] | None:
         with self._open() as rec:
             if rec is None:
                 return None
@@ -209,7 +212,7 @@ class RecordsView:
             return trend_png(rec.trend(serial), f"table {serial}", figures)
 
     # -- measurement assurance (bench control's statuses and charts) -------------------------
-    def instruments(self) -> list[dict[str, Any]]:
+    def instruments(self) -> list[dict[str, JsonLike]]:
         with self._open() as rec:
             if rec is None:
                 return []
@@ -217,7 +220,7 @@ class RecordsView:
                      "runs": s.runs, "rule": s.rule, "line": s.line,
                      "out": s.state == OUT_OF_CONTROL} for s in all_statuses(rec)]
 
-    def control(self, serial: str) -> dict[str, Any] | None:
+    def control(self, serial: str) -> dict[str, JsonLike] | None:
         with self._open() as rec:
             if rec is None:
                 return None

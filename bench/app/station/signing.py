@@ -37,7 +37,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 from urllib.parse import urlsplit
 
 from flask import Flask, abort, redirect, render_template, request
@@ -257,13 +257,13 @@ class Signing:
 
     # -- the run page's certificate section -----------------------------------------------
 
-    def panel(self, run_path: Path, state: Mapping[str, object]) -> dict[str, Any]:
+    def panel(self, run_path: Path, state: Mapping[str, object]) -> dict[str, object]:
         """What the run's certificate section shows this request's account."""
         sess = self.session()
         result = run_path / layout.RESULT
         ended = bool(state.get("ended")) and state.get("status") != "refused"
         draft = sha256_of(result) if ended else None
-        out: dict[str, Any] = {
+        out: dict[str, object] = {
             "enabled": self.enabled, "no_register": NO_REGISTER,
             "account": sess.account if sess else None,
             "csrf": sess.csrf if sess else "", "local": _local(),
@@ -279,11 +279,13 @@ class Signing:
         if reg is None:
             out["register_error"] = self.register.error
             return out
+        issued: list[dict[str, str]] = []
         try:
-            out["issued"] = _register_revisions(reg, run_path)
+            issued = _register_revisions(reg, run_path)
         except Exception as e:  # noqa: BLE001 - the page shows what failed, not a 500
             out["register_error"] = f"{type(e).__name__}: {e}"
-        last = out["issued"][-1] if out["issued"] else None
+        out["issued"] = issued
+        last = issued[-1] if issued else None
         out["status"] = (f"Issued: certificate {last['number']} ({last['status']}), "
                          f"{last['meaning']} by {last['by']} at {last['utc']}"
                          if last else "Draft, not authorised: the register holds no issue "
@@ -455,7 +457,7 @@ def install(app: Flask, settings: StationSettings, run_dir: Callable[[str], Path
     signing = Signing(settings)
 
     @app.context_processor
-    def who() -> dict[str, Any]:
+    def who() -> dict[str, object]:
         sess = signing.session()
         return {"account": sess.account if sess else None,
                 "session_csrf": sess.csrf if sess else "",
