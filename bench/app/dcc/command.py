@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bench.core import rundir_layout as layout
-from bench.report.result_frame import ResultFrame
 
 if TYPE_CHECKING:
     from bench.core.config import DccRefs
@@ -117,6 +116,8 @@ def cmd_dcc(args: argparse.Namespace) -> int:
              "now is a DRAFT, so the draft's PDF and HTML were written beside it")
     if not write_run_dcc(run_path, result, stand, lab_file=args.lab):
         return EXIT_ABORTED
+    from bench.report.result_frame import ResultFrame  # not for the parser (test_cli_imports)
+
     verdict = (ResultFrame.of(result).verdict or "").lower()
     return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(verdict, EXIT_ABORTED)
 
