@@ -70,7 +70,6 @@ class Bench:
 
     def __init__(self) -> None:
         self.axes: dict[str, AxisInstruments] = {}
-        self.extra: dict[str, Any] = {}
         self.stops = Stops.child("the instruments", "instrument")
 
     def enter(self, cm: AbstractContextManager[T], resource: Resource = "instrument") -> T:

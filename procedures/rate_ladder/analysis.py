@@ -22,6 +22,7 @@ from bench.analysis.allan import allan_deviation
 from bench.analysis.disk import DiskArray
 from bench.analysis.pair import analyze_pair_mains
 from bench.analysis.random_part import std_interval_u_rel
+from bench.analysis.results import PairAnalysis
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.core import rundir_layout as layout
@@ -247,7 +248,7 @@ def static_record(events: list[dict[str, Any]], axis: str) -> StaticRecorded | N
 
 
 def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
-                 acquisitions: list[HalfAcquired], static: StaticRecorded | None) -> Any:
+                 acquisitions: list[HalfAcquired], static: StaticRecorded | None) -> PairAnalysis:
     """docs/method.md A1-A5 for one pair. Mains: the stated frequency (procedure, else the
     stand's grid), or, when neither states it, each candidate grid is fitted and the one
     whose tone is the more significant is kept (`systematic.mains.source` says which)."""
@@ -402,8 +403,9 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
             # the worker's first look at this pair in this process, when it had the same
             # halves and static record: the same analysis of the same bytes (a resumed or
             # re-analysed run decodes the raw files again)
-            pa = run.memo.pop(first_look_key(unit, acqs, static), None) \
-                or analyze_unit(raw, cfg, axis, rate, acqs, static)
+            looked = run.memo.pop(first_look_key(unit, acqs, static), None)
+            pa = looked if isinstance(looked, PairAnalysis) \
+                else analyze_unit(raw, cfg, axis, rate, acqs, static)
             for r in pa.rates:
                 d = with_sigma_terms(r.to_dict())
                 d["session"] = done_in[unit]
@@ -452,7 +454,7 @@ class FirstLook:
     analysis, which the final result.json reuses instead of decoding the halves again."""
 
     summary: dict[str, Any]
-    analysis: Any
+    analysis: PairAnalysis
     key: str
     temperatures: dict[str, TemperatureSpan]
 

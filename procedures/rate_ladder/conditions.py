@@ -75,7 +75,7 @@ def fog_temperatures(run: RunDir, cfg: Config) -> dict[str, Any]:
             continue
         try:
             span = run.memo.pop(memo_key(h.session, h.axis, h.fog_from, h.fog_to), None)
-            found = span.of_half(h) if span is not None \
+            found = span.of_half(h) if isinstance(span, TemperatureSpan) \
                 else _half_temperature(path, cfg.fog(h.axis), h, first.get((h.session, h.axis)))
         except (OSError, ValueError):
             found = None          # a damaged capture: the analysis reports it; not measured

@@ -48,7 +48,6 @@ if TYPE_CHECKING:
     from bench.report.dcc.parts import DccParts
     from drivers.counter import Acquisition, Counter
     from drivers.fog import Fog
-    from procedures.rate_ladder.analysis import FirstLook
     from procedures.rate_ladder.certificate import LadderCertificate
     from procedures.rate_ladder.records import LadderRecords
 
@@ -465,18 +464,24 @@ class LadderSteps:
     def _do_analyze(self, step: Step, ctx: RunContext) -> None:
         """A first look at the pair, in the analysis worker: acquisition goes on meanwhile
         (the result.json analysis is made again from the raw files at the end)."""
-        from procedures.rate_ladder.analysis import pair_summary, static_record, unit_halves
+        from procedures.rate_ladder.analysis import (
+            FirstLook,
+            pair_summary,
+            static_record,
+            unit_halves,
+        )
 
         axis, unit, rate = step.on_axis, step.in_unit, step.params_as(AnalyzeParams).rate_dps
         events = ctx.run.events()  # the halves may come from earlier sessions (--resume)
 
-        def done(look: FirstLook | None, error: BaseException | None) -> None:
+        def done(look: object, error: BaseException | None) -> None:
             if error is not None:
                 ctx.run.event("pair_failed", axis=axis, unit=unit, error=repr(error))
                 ctx.progress.warn(f"  WARNING {axis} +/-{rate:g} deg/s: the first look at the "
                                   f"pair failed ({error}); the final analysis will say more")
                 return
-            assert look is not None
+            if not isinstance(look, FirstLook):
+                raise TypeError(f"the first look answered a {type(look).__name__}")
             summary = look.summary
             ctx.run.memo[look.key] = look.analysis   # the final analysis reuses them
             ctx.run.memo.update(look.temperatures)
