@@ -21,7 +21,7 @@ from concurrent.futures import Future
 from concurrent.futures import wait as futures_wait
 from dataclasses import dataclass, field
 from types import FrameType
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from bench.core.config import Config
 from bench.core.journal import RunDir, utc_now
@@ -35,6 +35,8 @@ if TYPE_CHECKING:
     # multiprocessing is imported when the worker starts: a kind imports this module,
     # and `bench validate` loads the kind
     from concurrent.futures import ProcessPoolExecutor
+
+    from bench.core.instruments import Bench
 
 
 #: what `signal.signal` takes and returns: a handler, SIG_DFL/SIG_IGN, or None
@@ -325,7 +327,7 @@ class RunContext:
 
     cfg: Config
     clock: Clock
-    bench: Any   # typing it Bench awaits the ladder's typed axis instruments (issue 45)
+    bench: Bench
     run: RunDir
     progress: Progress
     yes: bool = False

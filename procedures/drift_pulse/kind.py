@@ -260,7 +260,7 @@ class DriftSteps:
         platform_of(ctx.bench).loaded_v = amplitude_v
 
     def _do_turn(self, step: Step, ctx: RunContext) -> None:
-        drive = ctx.bench.axes[step.axis].drive
+        drive = ctx.bench.axes[step.on_axis].drive
         p = step.params_as(TurnParams)
         tol = DriftSettings.from_config(ctx.cfg).position_tolerance_deg
         final = drive.move_to(p.position_deg, p.rate_dps, p.accel_dps2,
@@ -290,7 +290,7 @@ class DriftSteps:
         t = d.timing
         amplitude = d.timing_amplitude_v if p.timing else d.amplitude_v
         self._load(ctx, amplitude)
-        drive = ctx.bench.axes[step.axis].drive
+        drive = ctx.bench.axes[step.on_axis].drive
         dmms = dmms_of(ctx.bench)
         drive.check()
         for dmm in dmms.values():
@@ -330,7 +330,7 @@ class DriftSteps:
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
         awg_of(ctx.bench).outputs_off()
-        ctx.bench.rest(step.axis)
+        ctx.bench.rest(step.on_axis)
 
 
 class DriftAnalysis:

@@ -30,7 +30,7 @@ from bench.core.config import Config, CounterSpec
 from bench.core.journal import RunDir, fog_capture_starts, read_jsonl
 from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from drivers.counter_profiles import get_profile
-from drivers.fog import CaptureCursor
+from drivers.fog import CaptureCursor, FogCheckpoint
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, events_of, result_document
 from procedures.rate_ladder.conditions import TemperatureSpan, memo_key
@@ -158,7 +158,7 @@ class RawData:
         return list(read_jsonl(path))
 
     def _cursor(self, session: int, axis: str, i_from: int,
-                 mark: dict[str, Any] | None = None) -> CaptureCursor:
+                 mark: FogCheckpoint | None = None) -> CaptureCursor:
         """A cursor at or before sample i_from: the current one, or one started afresh at
         the event's capture checkpoint `mark` (or the file's start) when that is nearer."""
         key = (session, axis)
@@ -179,7 +179,7 @@ class RawData:
         return c
 
     def fog_window(self, session: int, axis: str, i_from: int, i_to: int,
-                   mark: dict[str, Any] | None = None) -> tuple[DiskArray, DiskArray]:
+                   mark: FogCheckpoint | None = None) -> tuple[DiskArray, DiskArray]:
         """The valid samples i_from .. i_to - 1 (times, rates), on disk; a window read
         before (read_half_ahead) is not read again."""
         key = (session, axis, i_from, i_to)

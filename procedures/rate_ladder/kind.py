@@ -60,6 +60,26 @@ def _turns(n: int) -> str:
     return f"{n} turn" if n == 1 else f"{n} turns"
 
 
+def _fog_of(ctx: RunContext, axis: str) -> Fog:
+    """The axis's FOG as the ladder reads it (its decoder's stats and sample indices)."""
+    from drivers.fog import Fog
+    fog = ctx.bench.axes[axis].fog
+    if not isinstance(fog, Fog):
+        raise TypeError(f"{axis}: the ladder needs the axis's FOG (drivers.fog.Fog), "
+                        f"the bench holds {fog!r}")
+    return fog
+
+
+def _counter_of(ctx: RunContext, axis: str) -> Counter:
+    """The axis's counter as the ladder reads it (its acquisition and time tie)."""
+    from drivers.counter import Counter
+    counter = ctx.bench.axes[axis].counter
+    if not isinstance(counter, Counter):
+        raise TypeError(f"{axis}: the ladder needs the axis's counter (drivers.counter."
+                        f"Counter), the bench holds {counter!r}")
+    return counter
+
+
 def _fog_losses(fog: Fog) -> int:
     """Frames the FOG's decoder found lost or broken so far (a half's count: the change)."""
     st = fog.stats
@@ -314,13 +334,12 @@ class LadderSteps:
         self.handlers[step.action](step, ctx)
 
     def _do_enable(self, step: Step, ctx: RunContext) -> None:
-        ctx.bench.axes[step.axis].drive.enable()
+        ctx.bench.axes[step.on_axis].drive.enable()
 
     def _do_static(self, step: Step, ctx: RunContext) -> None:
         from procedures.rate_ladder.events import StaticRecorded
 
-        ax = ctx.bench.axes[step.axis]
-        fog = ax.fog
+        fog = _fog_of(ctx, step.on_axis)
         duration = step.params_as(Duration).duration_s
         # the first sample at or after now, and not before the capture's first (a FOG
         # opened at this instant, execute(): its first frame is the first sample after it)
@@ -357,12 +376,12 @@ class LadderSteps:
         fog.wait_for_index(index, timeout_s=max(5.0, span_s * 0.2))
 
     def _do_set_rate(self, step: Step, ctx: RunContext) -> None:
-        drive = ctx.bench.axes[step.axis].drive
+        drive = ctx.bench.axes[step.on_axis].drive
         p = step.params_as(SetRateParams)
         drive.set_rate(p.rate_dps, p.accel_dps2)
 
     def _do_settle(self, step: Step, ctx: RunContext) -> None:
-        drive = ctx.bench.axes[step.axis].drive
+        drive = ctx.bench.axes[step.on_axis].drive
         p = step.params_as(SettleParams)
         def held(held_s: float) -> None:
             ctx.progress.advance(held_s, p.hold_s, f"within ±{p.tolerance_dps:g} deg/s "
@@ -390,11 +409,11 @@ class LadderSteps:
         from procedures.rate_ladder.analysis import read_half_ahead, static_record
         from procedures.rate_ladder.events import HalfAcquired
 
-        ax = ctx.bench.axes[step.axis]
+        ax = ctx.bench.axes[step.on_axis]
         p = step.params_as(AcquireParams)
         n = p.turns
         period = p.period_s
-        counter, fog, drive = ax.counter, ax.fog, ax.drive
+        counter, fog, drive = _counter_of(ctx, step.on_axis), _fog_of(ctx, step.on_axis), ax.drive
         rec0 = ax.logs["counter"].count if "counter" in ax.logs else 0
         lost0 = _fog_losses(fog)
         mark = fog.checkpoint()  # the raw capture up to here holds no sample of this half
@@ -409,6 +428,8 @@ class LadderSteps:
             drive.check()
         edges = counter.fetch()
         acq = counter.last_acquisition
+        if acq is None:
+            raise Abort(f"{step.axis}: the counter kept no acquisition of its fetch")
         if len(edges) != n + 1:
             raise Abort(f"{step.axis}: the counter returned {len(edges)} edges, expected {n + 1}")
         # the FOG samples that bracket the timed turns (the analysis integrates exactly
@@ -493,7 +514,7 @@ class LadderSteps:
                           static_record(events, axis), on_done=done)
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
-        ctx.bench.rest(step.axis)
+        ctx.bench.rest(step.on_axis)
 
 class LadderAnalysis:
     """result.json of a ladder run (the kind's `analysis` part)."""
