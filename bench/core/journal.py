@@ -184,6 +184,13 @@ def object_field(rec: Mapping[str, object], key: str) -> JsonObject:
     return _narrow(rec, key, dict, "an object")
 
 
+def units_done(events: Iterable[Mapping[str, object]]) -> dict[str, int]:
+    """Each unit done -> the session that completed it (the `unit_done` events; a unit
+    measured again in a later session counts there)."""
+    return {str_field(e, "unit"): int_field(e, "session") for e in events
+            if e.get("event") == "unit_done"}
+
+
 class RunMeta(TypedDict):
     """meta.json as `RunDir.create` writes it: where the inputs came from, their SHA-256,
     the version (the run's later facts, as-found/as-left, the performer, are added by the

@@ -438,15 +438,21 @@ def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
 
 
 def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan) -> dict[str, object]:
-    from bench.core.journal import bool_field, float_field, int_field, object_field, str_field
+    from bench.core.journal import (
+        bool_field,
+        float_field,
+        int_field,
+        object_field,
+        str_field,
+        units_done,
+    )
     from drivers.scpi import parse_numbers
     from procedures.drift_pulse import analysis as dp
     from procedures.drift_pulse.result import DriftCheck, DriftFigures, DriftMethod
 
     events = run.events()
     plan_units = set(plan.build_plan(cfg).units())
-    done = {str_field(e, "unit"): int_field(e, "session") for e in events
-            if e.get("event") == "unit_done"}
+    done = units_done(events)
     cycles = [e for e in events if e.get("event") == "cycle" and done.get(str_field(e, "unit"))
               == int_field(e, "session")]
     d = DriftSettings.from_config(cfg)

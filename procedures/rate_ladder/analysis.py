@@ -27,12 +27,12 @@ from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.core import rundir_layout as layout
 from bench.core.config import Config, CounterSpec
-from bench.core.journal import RunDir, fog_capture_starts, read_jsonl
+from bench.core.journal import RunDir, fog_capture_starts, read_jsonl, units_done
 from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor, FogCheckpoint
 from drivers.scpi import parse_numbers
-from procedures.base import RawHashes, events_of, result_document
+from procedures.base import RawHashes, result_document
 from procedures.rate_ladder.conditions import TemperatureSpan, memo_key
 from procedures.rate_ladder.events import HalfAcquired, StaticRecorded
 from procedures.rate_ladder.settings import (
@@ -236,13 +236,13 @@ def unit_halves(events: list[dict[str, Any]], unit: str, session: int
 
 def unit_acquisitions(events: list[dict[str, Any]]) -> list[HalfAcquired]:
     """Acquisitions of the units not yet done (what a --resume may keep)."""
-    done = {e["unit"] for e in events_of(events, "unit_done")}
+    done = units_done(events)
     return [h for h in HalfAcquired.all_in(events) if h.unit not in done]
 
 
 def static_record(events: list[dict[str, Any]], axis: str) -> StaticRecorded | None:
     """The axis's FOG-at-rest record that completed its unit (the last such)."""
-    done_in = {e["unit"]: e["session"] for e in events_of(events, "unit_done")}
+    done_in = units_done(events)
     return next((s for s in reversed(StaticRecorded.all_in(events)) if s.axis == axis
                  and done_in.get(s.unit) == s.session), None)
 
@@ -386,7 +386,7 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
                  ) -> dict[str, Any]:
     events = run.events()
     rule = _settings(cfg)["decision_rule"]
-    done_in: dict[str, int] = {e["unit"]: e["session"] for e in events_of(events, "unit_done")}
+    done_in = units_done(events)
     result_axes: dict[str, Any] = {}
     checks: list[dict[str, Any]] = []
     complete = True

@@ -14,7 +14,7 @@ import math
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from bench.core.config import Config, StandSettings, stand_schema
 from bench.core.plan import Duration, Plan, Step, check_actions, format_duration
@@ -60,24 +60,26 @@ def _turns(n: int) -> str:
     return f"{n} turn" if n == 1 else f"{n} turns"
 
 
+D = TypeVar("D")
+
+
+def _driver(value: object, kind: type[D], what: str) -> D:
+    """An axis's instrument as the ladder reads it: the driver's own class (the FOG's
+    decoder stats and sample indices, the counter's acquisition and time tie)."""
+    if not isinstance(value, kind):
+        raise TypeError(f"{what}: the ladder needs a {kind.__module__}.{kind.__name__}, "
+                        f"the bench holds {value!r}")
+    return value
+
+
 def _fog_of(ctx: RunContext, axis: str) -> Fog:
-    """The axis's FOG as the ladder reads it (its decoder's stats and sample indices)."""
     from drivers.fog import Fog
-    fog = ctx.bench.axes[axis].fog
-    if not isinstance(fog, Fog):
-        raise TypeError(f"{axis}: the ladder needs the axis's FOG (drivers.fog.Fog), "
-                        f"the bench holds {fog!r}")
-    return fog
+    return _driver(ctx.bench.axes[axis].fog, Fog, f"{axis}'s FOG")
 
 
 def _counter_of(ctx: RunContext, axis: str) -> Counter:
-    """The axis's counter as the ladder reads it (its acquisition and time tie)."""
     from drivers.counter import Counter
-    counter = ctx.bench.axes[axis].counter
-    if not isinstance(counter, Counter):
-        raise TypeError(f"{axis}: the ladder needs the axis's counter (drivers.counter."
-                        f"Counter), the bench holds {counter!r}")
-    return counter
+    return _driver(ctx.bench.axes[axis].counter, Counter, f"{axis}'s counter")
 
 
 def _fog_losses(fog: Fog) -> int:
