@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import tempfile
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -27,10 +28,11 @@ from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.core import rundir_layout as layout
 from bench.core.config import Config, CounterSpec
-from bench.core.journal import RunDir, fog_capture_starts, read_jsonl, units_done
+from bench.core.journal import RunDir, fog_capture_starts, read_jsonl, str_field, units_done
 from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor, FogCheckpoint
+from drivers.json_types import JsonObject
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, result_document
 from procedures.rate_ladder.conditions import TemperatureSpan, memo_key
@@ -54,7 +56,7 @@ def counter_budget(c: CounterSpec) -> CounterBudget:
                                              else profile.timebase_limit_rel))
 
 
-def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int,
+def edges_from_replies(records: Iterable[Mapping[str, object]], model: str, n_edges: int,
                        t_start_s: float = 0.0) -> np.ndarray:
     """The zero-mark edges in the counter's raw replies of one acquisition, placed on the
     FOG's axis by the start event the time tie gave during the run (journaled)."""
@@ -65,7 +67,7 @@ def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int,
         if r.get("dir") != "rx":
             continue
         try:
-            values = parse_numbers(r["data"])
+            values = parse_numbers(str_field(r, "data"))
         except ValueError:
             continue
         if values.size == n_values:
@@ -153,7 +155,7 @@ class RawData:
         self._read.clear()
 
     @lru_cache(maxsize=8)  # noqa: B019
-    def counter_log(self, session: int, axis: str) -> list[dict[str, Any]]:
+    def counter_log(self, session: int, axis: str) -> list[JsonObject]:
         path = layout.raw_file(self.run.path, session, layout.counter_log(axis))
         return list(read_jsonl(path))
 
@@ -220,7 +222,7 @@ def _settings(cfg: Config) -> dict[str, Any]:
     return LadderSettings.from_config(cfg).method()
 
 
-def unit_halves(events: list[dict[str, Any]], unit: str, session: int
+def unit_halves(events: list[JsonObject], unit: str, session: int
                 ) -> list[HalfAcquired]:
     """A unit's acquisitions as of `session`: for each half, the last one acquired up to it.
 
@@ -234,13 +236,13 @@ def unit_halves(events: list[dict[str, Any]], unit: str, session: int
     return [by_half[h] for h in sorted(by_half)]
 
 
-def unit_acquisitions(events: list[dict[str, Any]]) -> list[HalfAcquired]:
+def unit_acquisitions(events: list[JsonObject]) -> list[HalfAcquired]:
     """Acquisitions of the units not yet done (what a --resume may keep)."""
     done = units_done(events)
     return [h for h in HalfAcquired.all_in(events) if h.unit not in done]
 
 
-def static_record(events: list[dict[str, Any]], axis: str) -> StaticRecorded | None:
+def static_record(events: list[JsonObject], axis: str) -> StaticRecorded | None:
     """The axis's FOG-at-rest record that completed its unit (the last such)."""
     done_in = units_done(events)
     return next((s for s in reversed(StaticRecorded.all_in(events)) if s.axis == axis
