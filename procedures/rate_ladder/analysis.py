@@ -32,7 +32,7 @@ from bench.core.journal import RunDir, fog_capture_starts, read_jsonl, str_field
 from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor, FogCheckpoint
-from drivers.json_types import JsonObject
+from drivers.json_types import JsonLike, JsonObject
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, result_document
 from procedures.rate_ladder.conditions import TemperatureSpan, memo_key
@@ -455,7 +455,7 @@ class FirstLook:
     """The worker's answer: the summary journaled as the `pair` event, and the whole
     analysis, which the final result.json reuses instead of decoding the halves again."""
 
-    summary: dict[str, Any]
+    summary: dict[str, JsonLike]
     analysis: PairAnalysis
     key: str
     temperatures: dict[str, TemperatureSpan]
@@ -491,7 +491,7 @@ def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
     (bench.core.engine.AnalysisWorker), whose reader moves on from pair to pair."""
     raw = _worker_raw(run_path, cfg)
     pa = analyze_unit(raw, cfg, axis, rate_dps, acquisitions, static)
-    out: dict[str, Any] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps,
+    out: dict[str, JsonLike] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps,
                            "w0_u_dps": pa.pair.w0_u_dps}
     rule = _settings(cfg)["decision_rule"]
     directions = []

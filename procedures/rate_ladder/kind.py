@@ -14,7 +14,7 @@ import math
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 from bench.core.config import Config, StandSettings, stand_schema
 from bench.core.plan import Duration, Plan, Step, check_actions, format_duration
@@ -521,7 +521,7 @@ class LadderSteps:
 class LadderAnalysis:
     """result.json of a ladder run (the kind's `analysis` part)."""
 
-    def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
+    def analyze(self, run: RunDir, cfg: Config) -> dict[str, object]:
         from procedures.rate_ladder.analysis import analyze_run
         from procedures.rate_ladder.budgets import add_budgets
         from procedures.rate_ladder.conditions import add_conditions
@@ -558,12 +558,13 @@ class RateLadder:
 KIND: ProcedureKind = RateLadder()
 
 
-def time_tie_record(counter: Counter, acq: Acquisition, fog: Fog) -> dict[str, Any]:
+def time_tie_record(counter: Counter, acq: Acquisition, fog: Fog
+                    ) -> dict[str, str | float | None]:
     """The half's time tie as journaled (HalfAcquired.time_tie): the tie's settings, the
     sync pulse number behind the start (fog-sync), the arming time, and the FOG index
     convention, so the start can be placed again on the session's FOG axis."""
     tie = counter.time_tie
-    rec: dict[str, Any] = {**tie.as_record(), "t_start_s": acq.t_start_s,
+    rec: dict[str, str | float | None] = {**tie.as_record(), "t_start_s": acq.t_start_s,
                            "t_start_u_s": acq.t_start_u_s, "armed_at_s": acq.armed_at_s,
                            "fog_rate_hz": fog.rate_hz,
                            "fog_index_origin": "first frame received = index 0 = stand "
@@ -585,14 +586,18 @@ def _fog_mean_dps(fog: Fog, span_s: float = 1.0) -> float | None:
     return float(s.rate_dps[s.valid].mean()) if s.valid.any() else None
 
 
-def pair_figures(summary: dict[str, Any]) -> list[Figure]:
+def pair_figures(summary: Mapping[str, object]) -> list[Figure]:
     """A pair's first look (docs/method.md A3 k and ω0; eq. 1 δ per direction) with U (k = 2)."""
-    out = [Figure("k", summary.get("k"), summary.get("k_u")),
-           Figure("ω0", summary.get("w0_dps"), summary.get("w0_u_dps"), "°/s", signed=True)]
+    def num(key: str) -> float | None:
+        v = summary.get(key)
+        return v if isinstance(v, int | float) and not isinstance(v, bool) else None
+
+    out = [Figure("k", num("k"), num("k_u")),
+           Figure("ω0", num("w0_dps"), num("w0_u_dps"), "°/s", signed=True)]
     for sign, name in (("+", "δ(+)"), ("-", "δ(−)")):
         if f"rate_error_rel{sign}" in summary:
-            out.append(Figure(name, summary[f"rate_error_rel{sign}"],
-                              summary.get(f"rate_error_u_rel{sign}"), RELATIVE, signed=True))
+            out.append(Figure(name, num(f"rate_error_rel{sign}"),
+                              num(f"rate_error_u_rel{sign}"), RELATIVE, signed=True))
     return out
 
 
