@@ -28,7 +28,14 @@ from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.core import rundir_layout as layout
 from bench.core.config import Config, CounterSpec
-from bench.core.journal import RunDir, fog_capture_starts, read_jsonl, str_field, units_done
+from bench.core.journal import (
+    RunDir,
+    float_field,
+    fog_capture_starts,
+    read_jsonl,
+    str_field,
+    units_done,
+)
 from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor, FogCheckpoint
@@ -84,7 +91,8 @@ def counter_start_s(h: HalfAcquired) -> float:
     tie = h.time_tie or {}
     if "sync_pulse" not in tie:
         return float(h.counter_t0_s)
-    t0 = int(tie["sync_pulse"]) * float(tie["sync_period_s"]) + float(tie["latency_s"])
+    t0 = (int(float_field(tie, "sync_pulse")) * float(float_field(tie, "sync_period_s"))
+          + float(float_field(tie, "latency_s")))
     if abs(t0 - float(h.counter_t0_s)) > 1e-6:
         raise ValueError(f"{h.unit} half {h.half} (session {h.session}): the journaled time "
                          f"tie places the counter's start at {t0:.9f} s, the run used "
