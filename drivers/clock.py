@@ -25,7 +25,8 @@ from typing import Protocol
 class Clock(Protocol):
     """What the engine and the drivers need of a clock (seconds)."""
 
-    speed: float
+    @property
+    def speed(self) -> float: ...   # read only: a sim's clock measures its own
 
     def now(self) -> float: ...
 

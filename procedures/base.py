@@ -8,8 +8,9 @@ kinds are found by entry point.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypedDict, TypeVar
 
 from bench.core import rundir_layout as layout
 from bench.core.config import Config
@@ -24,6 +25,10 @@ from bench.report.uncertainty_names import UNCERTAINTY_NAMING, with_explicit_nam
 if TYPE_CHECKING:
     from bench.core.engine import RunContext
     from bench.core.journal import RunDir
+    from drivers.json_types import JsonObject
+
+#: a journal record as a reader holds it
+R = TypeVar("R", bound=Mapping[str, object])
 
 
 def prompt(step: Step, ctx: RunContext) -> None:
@@ -40,8 +45,16 @@ def resume_whole(plan: Plan, run: RunDir) -> Plan:
 SCHEMA = "bench.result/1"
 
 
-def events_of(events: list[dict[str, Any]], kind: str) -> list[dict[str, Any]]:
+def events_of(events: Iterable[R], kind: str) -> list[R]:
     return [e for e in events if e.get("event") == kind]
+
+
+class RawFile(TypedDict):
+    """result.json's `raw_files` entry: a raw file of the run, as hashed."""
+
+    path: str
+    sha256: str
+    bytes: int
 
 
 class RawHashes:
@@ -67,7 +80,7 @@ class RawHashes:
         from bench.core.journal import sha256_file
         return self._run.written_digest(path) or sha256_file(path)
 
-    def result(self) -> list[dict[str, Any]]:
+    def result(self) -> list[RawFile]:
         try:
             return [{"path": str(p.relative_to(self._run.path)), "sha256": h.result(),
                      "bytes": p.stat().st_size} for p, h in zip(self._files, self._hashes,
@@ -76,14 +89,15 @@ class RawHashes:
             self._pool.shutdown(wait=False, cancel_futures=True)
 
 
-def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]],
-               raw_hashes: RawHashes | None = None) -> dict[str, Any]:
+def run_header(run: RunDir, cfg: Config, events: list[JsonObject],
+               raw_hashes: RawHashes | None = None) -> dict[str, object]:
     """What every procedure kind's result.json says about the run (certificate header)."""
+    from bench.core.journal import str_field
     meta = run.meta
     stand = cfg.stand_settings
-    identities: dict[str, dict[str, str]] = {}
+    identities: dict[str, JsonObject] = {}
     for e in events_of(events, "identity"):
-        identities[e["axis"]] = {k: v for k, v in e.items()
+        identities[str_field(e, "axis")] = {k: v for k, v in e.items()
                                  if k not in ("utc", "t_s", "session", "event", "axis")}
     starts = events_of(events, "session_start")
     ends = events_of(events, "completed") + events_of(events, "abort")
@@ -110,10 +124,10 @@ def run_header(run: RunDir, cfg: Config, events: list[dict[str, Any]],
     }
 
 
-def result_document(run: RunDir, cfg: Config, events: list[dict[str, Any]], *,
-                    complete: bool, checks: list[dict[str, Any]], rule: str,
-                    method: dict[str, Any], raw_hashes: RawHashes | None = None,
-                    **body: Any) -> dict[str, Any]:
+def result_document(run: RunDir, cfg: Config, events: list[JsonObject], *,
+                    complete: bool, checks: Sequence[Mapping[str, object]], rule: str,
+                    method: Mapping[str, object], raw_hashes: RawHashes | None = None,
+                    **body: object) -> dict[str, object]:
     """result.json: the verdict from the checks, the run header, then the kind's results."""
     if not complete:
         verdict = "incomplete"

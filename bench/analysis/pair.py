@@ -38,7 +38,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import TypedDict, Unpack
 
 import numpy as np
 
@@ -227,9 +227,22 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
     return PairAnalysis(rates=tuple(rates), pair=pair)
 
 
+class PairOptions(TypedDict, total=False):
+    """`analyze_pair`'s options that `analyze_pair_mains` passes on as they are."""
+
+    counter_budget: CounterBudget | None
+    harmonics: int
+    static_fog_dps: np.ndarray | None
+    fine_bin_deg: float
+    binned_deg: float
+    averaging_deg: Sequence[float]
+    floor_samples: int
+    chunk: int
+
+
 def analyze_pair_mains(halves: Sequence[HalfRecord], set_rate_dps: float, *,
                        fog_rate_hz: float, candidates_hz: Sequence[float], source: str,
-                       **kwargs: Any) -> PairAnalysis:
+                       **kwargs: Unpack[PairOptions]) -> PairAnalysis:
     """analyze_pair with the mains frequency stated (one candidate) or found from the data
     (docs/method.md A4): every candidate below the FOG's Nyquist frequency is fitted and the
     one whose tone is the more significant over both directions is kept; its detection

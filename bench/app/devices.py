@@ -9,14 +9,14 @@ stand schema and opened by the first kind it fits, through that kind's own code.
 from __future__ import annotations
 
 import sys
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from bench.core.config import Config
 from bench.core.registry import procedure_kind, procedure_names
 from bench.core.schema import validate
 from bench.core.stops import Stops
 from bench.core.yamlfile import Problem, YamlError, load_yaml
-from drivers.clock import MonotonicClock
+from drivers.clock import Clock, MonotonicClock
 
 if TYPE_CHECKING:
     from bench.core.simbench import SimBench
@@ -54,8 +54,7 @@ def list_devices(stand_path: str, sim: bool = False) -> int:
         with stops.collecting():
             if sim or cfg.has_sim:
                 simbench, stand = kind.steps.start_sim(cfg)
-            # Any: the sims' clocks' `speed` is read-only, drivers.clock.Clock's is not
-            clock: Any = simbench.clock if simbench is not None else MonotonicClock()
+            clock: Clock = simbench.clock if simbench is not None else MonotonicClock()
             bench = kind.steps.open_bench(cfg, stand, clock, None)
             if simbench is not None:
                 simbench.start_clock()

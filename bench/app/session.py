@@ -19,7 +19,6 @@ import time
 import traceback
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from bench import __version__
 from bench.app import certificate as certificates
@@ -52,7 +51,8 @@ from bench.core.simbench import SimBench, for_session
 from bench.core.stops import StopOutcome, Stops, attempt
 from bench.core.traceability import identity_mismatches, overdue, overdue_warning
 from bench.report.certificate.model import Document
-from drivers.clock import MonotonicClock
+from bench.report.result_frame import as_object
+from drivers.clock import Clock, MonotonicClock
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
@@ -76,7 +76,7 @@ def room_for(cfg: Config, plan: Plan, folder: Path) -> str | None:
 
 def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
                   records: RecordsTarget | None = None
-                  ) -> tuple[dict[str, Any], Document | None]:
+                  ) -> tuple[dict[str, object], Document | None]:
     """result.json, then the certificate (PDF, HTML, DCC); returns the result and the
     certificate's document (None when it could not be written: a run that leaves no
     certificate must not exit as if it had, nor one whose DCC does not validate).
@@ -93,7 +93,7 @@ def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
 
 
 def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
-                   records: RecordsTarget | None) -> tuple[dict[str, Any], Document | None]:
+                   records: RecordsTarget | None) -> tuple[dict[str, object], Document | None]:
     result = procedure_kind(cfg.kind).analysis.analyze(run, cfg)
     run.write_json(layout.RESULT, result)
     # the table's history from the records, when they hold any (never fails the run)
@@ -116,10 +116,10 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
     return result, doc
 
 
-def summary_of(result: dict[str, Any], doc: Document | None) -> Summary:
+def summary_of(result: dict[str, object], doc: Document | None) -> Summary:
     """The certificate's figures; without a certificate, only the verdict."""
     if doc is not None:
-        return summarize(doc, result)
+        return summarize(doc, as_object(result))
     return Summary((), (), "", str(result.get("verdict", "incomplete")).upper())
 
 
@@ -176,7 +176,7 @@ class RunSession:
             err(f"Not started: {short}")
             print(f"Free some space, then: bench run --resume {self.run_dir.path}")
             return EXIT_INVALID
-        result: dict[str, Any] | None = None
+        result: dict[str, object] | None = None
         with SignalGuard(self.progress.line) as guard, self.stops.collecting():
             try:
                 self._measure(guard, todo, done, table_overdue, out_of_control)
@@ -215,8 +215,7 @@ class RunSession:
                 sim_cfg = for_session(sim_cfg, run.next_session())
             # its twins' stops are registered with the session's as they start
             self.simbench, stand = self.kind.steps.start_sim(sim_cfg)
-        # Any: the sims' clocks' `speed` is read-only, drivers.clock.Clock's is not
-        clock: Any = self.simbench.clock if self.simbench is not None else MonotonicClock()
+        clock: Clock = self.simbench.clock if self.simbench is not None else MonotonicClock()
         run.begin_session(clock.now)
         run.event("session_start", resume=self.resume, sim=self.simbench is not None,
                   done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
@@ -324,11 +323,11 @@ class RunSession:
         return outcome
 
     # -- after the stop: outputs and exit ------------------------------------------
-    def _write(self, guard: SignalGuard) -> dict[str, Any] | None:
+    def _write(self, guard: SignalGuard) -> dict[str, object] | None:
         """result.json and the certificate (never for a refused stand: nothing was
         measured). Ctrl-C now only ends the writing: the axes are already stopped."""
         run, progress = self.run_dir, self.progress
-        result: dict[str, Any] | None = None
+        result: dict[str, object] | None = None
         doc: Document | None = None
         guard.writing = True
         try:
@@ -360,7 +359,7 @@ class RunSession:
             self.unsigned = True        # (said above; a resume would not help)
         return result
 
-    def _finish(self, result: dict[str, Any] | None) -> None:
+    def _finish(self, result: dict[str, object] | None) -> None:
         run = self.run_dir
         if self.status == EXIT_ABORTED and not self.unsigned:
             stopped = ("AN AXIS COULD NOT BE TOLD TO STOP (above): check the table first"

@@ -11,7 +11,6 @@ producers of one heartbeat COB-ID on a bus break CiA 301.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 from bench.core.yamlfile import KeyPath
 from drivers.cia402 import CONTROLLER_NODE_ID  # further axes on a bus take 0x7E, 0x7D, ...
@@ -26,19 +25,29 @@ def bus_name(drive: Mapping[str, object]) -> str:
     return f"{drive['interface']}:{drive['channel']}{where}"
 
 
-def controller_node_ids(axes: Mapping[str, Mapping[str, Any]]) -> dict[str, int]:
+def _node_id(drive: Mapping[str, object], key: str) -> int:
+    """A validated node id (the schema says an integer)."""
+    v = drive[key]
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise ValueError(f"drive.{key} is {v!r}, not a node id")
+    return int(v)
+
+
+def controller_node_ids(axes: Mapping[str, Mapping[str, Mapping[str, object]]]
+                        ) -> dict[str, int]:
     """Per axis: its drive's `controller_node_id` if the stand gives one, or else the
     highest node id still free on its bus (0x7F, 0x7E, ... in the stand file's order)."""
     used: dict[str, set[int]] = {}
     for ax in axes.values():
         d = ax["drive"]
         used.setdefault(bus_name(d), set()).update(
-            {d["node_id"]} | ({d["controller_node_id"]} if "controller_node_id" in d else set()))
+            {_node_id(d, "node_id")} | ({_node_id(d, "controller_node_id")}
+                                        if "controller_node_id" in d else set()))
     out = {}
     for name, ax in axes.items():
         d = ax["drive"]
         if "controller_node_id" in d:
-            out[name] = int(d["controller_node_id"])
+            out[name] = _node_id(d, "controller_node_id")
             continue
         taken = used[bus_name(d)]
         node = CONTROLLER_NODE_ID
@@ -53,7 +62,7 @@ def controller_node_ids(axes: Mapping[str, Mapping[str, Any]]) -> dict[str, int]
 SERVER_KEYS = {"socketcand": ("host", "port")}
 
 
-def bus_problems(axes: Mapping[str, Mapping[str, Any]]) -> list[tuple[KeyPath, str]]:
+def bus_problems(axes: Mapping[str, object]) -> list[tuple[KeyPath, str]]:
     """Node ids used twice on one bus, each named at the key that repeats it; a bus
     behind a server (socketcand) without the server's address."""
     out: list[tuple[KeyPath, str]] = []

@@ -21,7 +21,7 @@ from concurrent.futures import Future
 from concurrent.futures import wait as futures_wait
 from dataclasses import dataclass, field
 from types import FrameType
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from bench.core.config import Config
 from bench.core.journal import RunDir, utc_now
@@ -35,6 +35,8 @@ if TYPE_CHECKING:
     # multiprocessing is imported when the worker starts: a kind imports this module,
     # and `bench validate` loads the kind
     from concurrent.futures import ProcessPoolExecutor
+
+    from bench.core.instruments import Bench
 
 
 #: what `signal.signal` takes and returns: a handler, SIG_DFL/SIG_IGN, or None
@@ -221,8 +223,8 @@ class AnalysisWorker:
 
     def __init__(self) -> None:
         self._pool: ProcessPoolExecutor | None = None
-        self._pending: list[Future[Any]] = []
-        self._submitted: dict[Future[Any], float] = {}  # monotonic time of each submit
+        self._pending: list[Future[object]] = []
+        self._submitted: dict[Future[object], float] = {}  # monotonic time of each submit
         self._took_s: list[float] = []                  # wall time of each finished job
         self._lock = threading.Lock()
         self._failed: list[str] = []  # what an on_done raised: reported by close()
@@ -243,8 +245,8 @@ class AnalysisWorker:
                                              initargs=(os.getpid(),))
             self._pool.submit(_preload, preload)   # spawns it; the initializer runs there
 
-    def submit(self, fn: Callable[..., Any], *args: Any,
-               on_done: Callable[[Any, BaseException | None], None]) -> None:
+    def submit(self, fn: Callable[..., object], *args: object,
+               on_done: Callable[[object, BaseException | None], None]) -> None:
         self.start()
         assert self._pool is not None
         fut = self._pool.submit(fn, *args)
@@ -252,7 +254,7 @@ class AnalysisWorker:
             self._submitted[fut] = time.monotonic()
             self._unreported += 1
 
-        def done(f: Future[Any]) -> None:
+        def done(f: Future[object]) -> None:
             try:
                 report(f)
             finally:
@@ -260,7 +262,7 @@ class AnalysisWorker:
                     self._unreported -= 1
                     self._reported.notify_all()
 
-        def report(f: Future[Any]) -> None:
+        def report(f: Future[object]) -> None:
             with self._lock:
                 t0 = self._submitted.pop(f, None)
                 if t0 is not None and not f.cancelled():
@@ -325,11 +327,10 @@ class RunContext:
 
     cfg: Config
     clock: Clock
-    bench: Any
+    bench: Bench
     run: RunDir
     progress: Progress
     yes: bool = False
-    state: dict[str, Any] = field(default_factory=dict)
     eta_s: Callable[[], float] = lambda: 0.0
     worker: AnalysisWorker = field(default_factory=AnalysisWorker)
     #: the session's stop registry: the worker registers its stop there when started,

@@ -7,11 +7,11 @@ serial port, the CAN channel) before this module opens them.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TypeVar
 
 from bench.core import rundir_layout as layout
 from bench.core.config import StandAxis
@@ -70,7 +70,6 @@ class Bench:
 
     def __init__(self) -> None:
         self.axes: dict[str, AxisInstruments] = {}
-        self.extra: dict[str, Any] = {}
         self.stops = Stops.child("the instruments", "instrument")
 
     def enter(self, cm: AbstractContextManager[T], resource: Resource = "instrument") -> T:
@@ -130,7 +129,8 @@ def _stopping(drive: Drive, log: Callable[[str], None]) -> Callable[[], None]:
     return stop
 
 
-def with_readback(identity: str, readback: dict[str, Any], manual: str | None = None) -> str:
+def with_readback(identity: str, readback: Mapping[str, object], manual: str | None = None
+                  ) -> str:
     """An instrument's identity with the settings it read back at connect (and the manual
     its driver follows): one string, so the run's `identity` event, `bench devices` and
     the certificate's instrument table all carry them."""
@@ -178,9 +178,10 @@ def raw_text_logger(log: JsonLines, clock: Clock) -> Callable[[str, bytes], None
     return raw
 
 
-def _raw_record_logger(log: JsonLines, clock: Clock) -> Callable[[str, dict[str, Any]], None]:
+def _raw_record_logger(log: JsonLines, clock: Clock
+                       ) -> Callable[[str, Mapping[str, object]], None]:
     """A sink for the drive's readings and commands (called from the CAN thread)."""
-    def raw(kind: str, record: dict[str, Any]) -> None:
+    def raw(kind: str, record: Mapping[str, object]) -> None:
         log.write({"t_s": clock.now(), "kind": kind, **record})
     return raw
 

@@ -27,10 +27,13 @@ import shutil
 import threading
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
-from typing import IO, Any, TypedDict
+from typing import IO, TypedDict, TypeVar
 
 import bench
 from bench.core import rundir_layout as layout
+from drivers.json_types import JsonObject
+
+T = TypeVar("T")
 
 
 def sha256_file(path: Path) -> str:
@@ -120,11 +123,11 @@ class JsonLines:
                     pass  # the flush above already failed and was reported
 
 
-def scan_jsonl(path: Path) -> tuple[list[dict[str, Any]], list[int]]:
+def scan_jsonl(path: Path) -> tuple[list[JsonObject], list[int]]:
     """Records of a JSON-lines file, and the numbers of the lines that are not records
     (a torn last line after a crash or power loss mid-write, or a line a resume once
     appended onto one). A reader tolerates them and reports them; it never crashes."""
-    records: list[dict[str, Any]] = []
+    records: list[JsonObject] = []
     bad: list[int] = []
     with open(path, encoding="utf-8", errors="replace") as f:
         for n, line in enumerate(f, 1):
@@ -139,9 +142,53 @@ def scan_jsonl(path: Path) -> tuple[list[dict[str, Any]], list[int]]:
     return records, bad
 
 
-def read_jsonl(path: Path) -> Iterator[dict[str, Any]]:
+def read_jsonl(path: Path) -> Iterator[JsonObject]:
     """Records of a JSON-lines file; a torn line (a crash mid-write) is skipped."""
     yield from scan_jsonl(path)[0]
+
+
+class MalformedRecord(ValueError):
+    """A journal record whose field is not of the type its writer gives it."""
+
+
+def _narrow(rec: Mapping[str, object], key: str, kind: type[T], what: str) -> T:
+    """`rec[key]` as the type its writer gives it (a bool is no number: JSON tells them
+    apart); the record's reader narrows each field once, here."""
+    v = rec[key]
+    if not isinstance(v, kind) or (isinstance(v, bool) and kind is not bool):
+        raise MalformedRecord(f"{key!r} is {v!r}, not {what}")
+    return v
+
+
+def str_field(rec: Mapping[str, object], key: str) -> str:
+    return _narrow(rec, key, str, "a string")
+
+
+def int_field(rec: Mapping[str, object], key: str) -> int:
+    return _narrow(rec, key, int, "an integer")
+
+
+def float_field(rec: Mapping[str, object], key: str) -> float:
+    """A number as written (JSON writes 1.0 as 1: an integer is one too)."""
+    v = rec[key]
+    if isinstance(v, int) and not isinstance(v, bool):
+        return v
+    return _narrow(rec, key, float, "a number")
+
+
+def bool_field(rec: Mapping[str, object], key: str) -> bool:
+    return _narrow(rec, key, bool, "true or false")
+
+
+def object_field(rec: Mapping[str, object], key: str) -> JsonObject:
+    return _narrow(rec, key, dict, "an object")
+
+
+def units_done(events: Iterable[Mapping[str, object]]) -> dict[str, int]:
+    """Each unit done -> the session that completed it (the `unit_done` events; a unit
+    measured again in a later session counts there)."""
+    return {str_field(e, "unit"): int_field(e, "session") for e in events
+            if e.get("event") == "unit_done"}
 
 
 class RunMeta(TypedDict):
@@ -205,7 +252,7 @@ class RunDir:
         #: what this process computed from the run's raw data while it ran (a kind's first
         #: look at a pair), for the final analysis to take instead of computing it again;
         #: never written: a resumed or re-analysed run starts without it
-        self.memo: dict[str, Any] = {}
+        self.memo: dict[str, object] = {}
         #: each raw file's (SHA-256 hex, bytes) as this process wrote it (a FOG capture
         #: hashed on its way to the file), so result.json need not read gigabytes back
         self._written: dict[Path, tuple[str, int]] = {}
@@ -264,7 +311,8 @@ class RunDir:
     # -- sessions and events ------------------------------------------------------------
     def next_session(self) -> int:
         """The number the next `begin_session` gives (1 for a new run)."""
-        return max((e.get("session", 0) for e in self.events()), default=0) + 1
+        return max((int_field(e, "session") for e in self.events() if "session" in e),
+                   default=0) + 1
 
     def begin_session(self, clock_now: Callable[[], float] | None = None) -> int:
         """Each `bench run` or `--resume` is a session with its own raw folder."""
@@ -300,11 +348,11 @@ class RunDir:
                "event": kind, **fields}
         self._events.write(rec)
 
-    def events(self) -> list[dict[str, Any]]:
+    def events(self) -> list[JsonObject]:
         return list(read_jsonl(self.path / layout.EVENTS))
 
     def completed_units(self) -> list[str]:
-        return [e["unit"] for e in self.events() if e.get("event") == "unit_done"]
+        return [str_field(e, "unit") for e in self.events() if e.get("event") == "unit_done"]
 
     def close(self) -> None:
         if self._events is not None:

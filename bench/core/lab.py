@@ -18,7 +18,6 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from bench.core import rundir_layout as layout
 from bench.core.config import SIGNING
@@ -28,7 +27,7 @@ from bench.core.yamlfile import Problem, YamlDoc, YamlError, load_yaml
 PERFORMANCE_LOCATIONS = ("laboratory", "customer", "laboratoryBranch", "customerBranch", "other")
 
 
-def _country_rule(value: Any) -> str | None:
+def _country_rule(value: object) -> str | None:
     if isinstance(value, str) and not (len(value) == 2 and value.isascii() and value.isupper()):
         return f"expected an ISO 3166-1 alpha-2 code such as DE or FR, got {value!r}"
     return None
@@ -168,57 +167,64 @@ class Lab:
         return self.interval_days.get(serial) or stand_days or self.default_interval_days
 
 
-def _signatory(d: Mapping[str, Any]) -> Signatory:
+def _text(value: object) -> str | None:
+    """A validated text key's value (the schema says Str), None when absent."""
+    return value if isinstance(value, str) else None
+
+
+def _signatory(d: Mapping[str, object]) -> Signatory:
     function = str(d.get("function") or d.get("role") or "")
     return Signatory(str(d.get("name") or ""), function,
                      bool(d.get("authorises") or d.get("main_signer")))
 
 
-def _signing(d: Any, origin: str) -> Signing | None:
+def _signing(d: object, origin: str) -> Signing | None:
     if not isinstance(d, Mapping) or not d.get("key") or not d.get("certificate"):
         return None
     return Signing(Path(os.path.expanduser(str(d["key"]))),
-                   Path(os.path.expanduser(str(d["certificate"]))), d.get("password_env"),
+                   Path(os.path.expanduser(str(d["certificate"]))), _text(d.get("password_env")),
                    origin)
 
 
-def _location(d: Any) -> tuple[tuple[str, str], ...]:
+def _location(d: object) -> tuple[tuple[str, str], ...]:
     if not isinstance(d, Mapping):
         return ()
     return tuple((_LOCATION_ELEMENTS[k], str(v)) for k, v in d.items()
                  if k in _LOCATION_ELEMENTS and str(v).strip())
 
 
-def parse_lab(data: Mapping[str, Any], source: str = "") -> Lab:
+def parse_lab(data: Mapping[str, object], source: str = "") -> Lab:
     """One Lab from validated lab keys (a lab file, or result.json's `certificate` block,
     whose other keys, the customer's, are not the lab's and are left alone)."""
     contact = data.get("laboratory")
     contact = contact if isinstance(contact, Mapping) else {"name": contact}
-    people = data.get("signatories") or data.get("responsible_persons") or []
-    rec = data.get("recertification") or {}
+    people = data.get("signatories") or data.get("responsible_persons")
+    rec = data.get("recertification")
+    rec = rec if isinstance(rec, Mapping) else {}
     signing = _signing(data.get("signing"), f"{source or 'lab settings'}: signing")
     require = data.get("require_signed_dcc")
     return Lab(
         name=str(contact["name"]) if contact.get("name") else None,
         address=str(data["address"]) if data.get("address") else None,
         location=_location(data.get("location") or contact.get("location")),
-        email=data.get("email") or contact.get("email"),
-        phone=data.get("phone") or contact.get("phone"),
-        code=data.get("code") or contact.get("code"),
-        accreditation=data.get("accreditation"), site=data.get("site"),
+        email=_text(data.get("email") or contact.get("email")),
+        phone=_text(data.get("phone") or contact.get("phone")),
+        code=_text(data.get("code") or contact.get("code")),
+        accreditation=_text(data.get("accreditation")), site=_text(data.get("site")),
         prefix=str(data.get("prefix") or DEFAULT_PREFIX),
-        country_code=data.get("country_code"),
+        country_code=_text(data.get("country_code")),
         performance_location=str(data.get("performance_location") or "laboratory"),
-        signatories=tuple(_signatory(p) for p in people if isinstance(p, Mapping)),
+        signatories=tuple(_signatory(p) for p in (people if isinstance(people, list) else [])
+                          if isinstance(p, Mapping)),
         signing=signing,
         require_signed_dcc=bool(signing is not None if require is None else require),
-        records_url=data.get("records"),
+        records_url=_text(data.get("records")),
         register_url=_register_url(data.get("register"), source),
         default_interval_days=rec.get("default_interval_days"),
         interval_days=dict(rec.get("tables") or {}), source=source)
 
 
-def _register_url(url: Any, source: str) -> str | None:
+def _register_url(url: object, source: str) -> str | None:
     """A relative SQLite path is relative to the lab file, as every path in it is."""
     if not isinstance(url, str) or not url:
         return None
@@ -243,7 +249,7 @@ def load_lab(path: str | Path) -> Lab:
     return parse_lab(data, str(path))
 
 
-def lab_path(procedure_path: Path, certificate: Any) -> Path | None:
+def lab_path(procedure_path: Path, certificate: object) -> Path | None:
     """The lab file a procedure names; in a run directory, the copy made when it started."""
     ref = certificate.get("lab") if isinstance(certificate, dict) else None
     if not isinstance(ref, str):
@@ -256,7 +262,7 @@ def lab_path(procedure_path: Path, certificate: Any) -> Path | None:
 
 
 def lab_problems(procedure_path: Path, procedure_doc: YamlDoc,
-                 certificate: Any) -> list[Problem]:
+                 certificate: object) -> list[Problem]:
     """The lab file named by `certificate.lab`: it exists and its keys are known."""
     path = lab_path(procedure_path, certificate)
     if path is None:
@@ -274,7 +280,7 @@ def lab_problems(procedure_path: Path, procedure_doc: YamlDoc,
     return validate(doc, LAB)
 
 
-def certificate_settings(procedure_path: Path, certificate: Any) -> dict[str, Any]:
+def certificate_settings(procedure_path: Path, certificate: object) -> dict[str, object]:
     """The lab file's keys under the procedure's own `certificate:` keys."""
     own = dict(certificate) if isinstance(certificate, dict) else {}
     path = lab_path(procedure_path, own)
@@ -286,7 +292,7 @@ def certificate_settings(procedure_path: Path, certificate: Any) -> dict[str, An
     return merged
 
 
-def run_lab(run_path: Path, certificate: Mapping[str, Any] | None) -> Lab:
+def run_lab(run_path: Path, certificate: Mapping[str, object] | None) -> Lab:
     """The lab as the run resolved it: result.json's `certificate` block (the lab file's
     keys under the procedure's own), else the lab file copied into the run directory."""
     if isinstance(certificate, Mapping) and certificate.get("laboratory"):

@@ -25,7 +25,7 @@ import pkgutil
 from collections.abc import Callable, Mapping, Sequence
 from functools import cache
 from importlib.metadata import entry_points
-from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 if TYPE_CHECKING:
     # The interface's types, for its hints only: `bench validate` and `bench schema` find
@@ -106,7 +106,7 @@ class KindSteps(Protocol):
 class KindAnalysis(Protocol):
     """result.json from the run directory's raw data alone."""
 
-    def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
+    def analyze(self, run: RunDir, cfg: Config) -> dict[str, object]:
         """The result document (bench analyze reproduces it byte for byte)."""
 
 
@@ -162,7 +162,7 @@ class ReportsFigures(Protocol):
 
     figures: tuple[FigureSpec, ...]
 
-    def figure_values(self, result: Mapping[str, Any]) -> list[FigureValue]:
+    def figure_values(self, result: Mapping[str, object]) -> list[FigureValue]:
         """Every figure of this result, with U (k = 2) where it has one."""
 
 
@@ -183,7 +183,7 @@ class ChecksInstruments(Protocol):
 
     check_quantities: Mapping[str, tuple[str, str]]
 
-    def instrument_checks(self, result: Mapping[str, Any], stand: Mapping[str, Any]
+    def instrument_checks(self, result: Mapping[str, object], stand: Mapping[str, object]
                           ) -> list[InstrumentCheck]:
         """The kind's own instruments' check values in this run."""
 
@@ -192,7 +192,7 @@ class ChecksInstruments(Protocol):
 class HasSampleResult(Protocol):
     """A hand-made result.json of the kind, for previews of its certificate."""
 
-    def sample_result(self) -> dict[str, Any]:
+    def sample_result(self) -> dict[str, object]:
         """A result whose printed figures are worked out by hand."""
 
 

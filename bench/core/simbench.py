@@ -18,8 +18,8 @@ import dataclasses
 import functools
 import sys
 import uuid
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any, TypedDict, Unpack
 
 import numpy as np
 
@@ -57,7 +57,16 @@ def for_session(cfg: Config, session: int) -> Config:
     return with_sim(cfg, session=int(session))
 
 
-def with_sim(cfg: Config, **changes: Any) -> Config:
+class SimChanges(TypedDict, total=False):
+    """What `with_sim` may change of a stand's `sim:` settings."""
+
+    session: int
+    clock_speed: float | str | None
+    can_bus: str
+    axes: Mapping[str, SimAxis]
+
+
+def with_sim(cfg: Config, **changes: Unpack[SimChanges]) -> Config:
     """`cfg` whose parsed stand has its `sim:` settings changed (a copy; the stand file's
     own mapping, copied into the run directory, stays as written)."""
     stand = cfg.stand_settings

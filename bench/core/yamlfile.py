@@ -106,7 +106,7 @@ class _Builder:
     def _refuse(self, node: yaml.Node, path: KeyPath, message: str) -> YamlError:
         return YamlError(Problem("", node.start_mark.line + 1, keypath_str(path), message))
 
-    def _scalar(self, node: yaml.Node, path: KeyPath) -> Any:
+    def _scalar(self, node: yaml.Node, path: KeyPath) -> object:
         try:
             return self.loader.construct_object(node, deep=True)
         except yaml.MarkedYAMLError as e:
@@ -115,7 +115,7 @@ class _Builder:
             raise self._refuse(node, path, f"cannot read the value {node.value!r}: "
                                            f"{e}") from None
 
-    def build(self, node: yaml.Node, path: KeyPath = ()) -> Any:
+    def build(self, node: yaml.Node, path: KeyPath = ()) -> object:
         self.lines.setdefault(path, node.start_mark.line + 1)
         self.count += 1
         if self.count > MAX_VALUES:
@@ -132,7 +132,7 @@ class _Builder:
         try:
             if isinstance(node, yaml.SequenceNode):
                 return [self.build(item, (*path, i)) for i, item in enumerate(node.value)]
-            out: dict[Any, Any] = {}
+            out: dict[str | int | float | bool | None, object] = {}
             for key_node, value_node in node.value:
                 if not isinstance(key_node, yaml.ScalarNode):
                     kind = "a list" if isinstance(key_node, yaml.SequenceNode) else "a mapping"
@@ -155,43 +155,54 @@ class _Builder:
             self._open.discard(id(node))
 
 
+@dataclass(slots=True)
+class _Frame:
+    """A collection open where `_syntax_path`'s scan stands."""
+
+    path: KeyPath
+    is_map: bool
+    line: int | None                 # where it was opened
+    expecting_key: bool = True       # a mapping's next scalar is a key
+    key: str | int = 0               # a mapping's last key, a list's next index
+
+
 def _syntax_path(text: str) -> tuple[KeyPath, int | None]:
     """The key path of the innermost collection open where the parser gave up, and the
     line it was opened on: "rates_dps: [10, 20" unclosed is reported at rates_dps, not
     at the next line where the parser noticed."""
-    frames: list[list[Any]] = []  # [path, is_map, expecting_key, key_or_index, line]
+    frames: list[_Frame] = []
 
     def child_path() -> KeyPath:
         if not frames:
             return ()
-        path, is_map, expecting_key, k, _ = frames[-1]
-        return (*path, "?") if is_map and expecting_key else (*path, k)
+        f = frames[-1]
+        return (*f.path, "?") if f.is_map and f.expecting_key else (*f.path, f.key)
 
     def advance() -> None:
         if frames:
             f = frames[-1]
-            if f[1]:
-                f[2] = not f[2]
-            else:
-                f[3] += 1
+            if f.is_map:
+                f.expecting_key = not f.expecting_key
+            elif isinstance(f.key, int):
+                f.key += 1
 
     try:
         for ev in yaml.parse(text, Loader=_Loader):
             if isinstance(ev, yaml.MappingStartEvent | yaml.SequenceStartEvent):
-                frames.append([child_path(), isinstance(ev, yaml.MappingStartEvent), True,
-                               0, ev.start_mark.line + 1 if ev.start_mark else None])
+                frames.append(_Frame(child_path(), isinstance(ev, yaml.MappingStartEvent),
+                                     ev.start_mark.line + 1 if ev.start_mark else None))
             elif isinstance(ev, yaml.MappingEndEvent | yaml.SequenceEndEvent):
                 frames.pop()
                 advance()
             elif isinstance(ev, yaml.ScalarEvent | yaml.AliasEvent):
-                if frames and frames[-1][1] and frames[-1][2]:
-                    frames[-1][3] = getattr(ev, "value", "?")
+                if frames and frames[-1].is_map and frames[-1].expecting_key:
+                    frames[-1].key = getattr(ev, "value", "?")
                 advance()
     except (yaml.YAMLError, RecursionError):
         pass
     if not frames:
         return (), None
-    return frames[-1][0], frames[-1][4]
+    return frames[-1].path, frames[-1].line
 
 
 #: PyYAML's phrases and what they mean in a bench file
@@ -294,7 +305,7 @@ class _TooDeep(Exception):
 PARSED_KEPT_MAX_CHARS = 1 << 18
 
 
-def _parsed(text: str) -> tuple[Any, dict[KeyPath, int]]:
+def _parsed(text: str) -> tuple[object, dict[KeyPath, int]]:
     """The data of a YAML text and the line of every key path (the parser's errors
     raised as they are). The last few texts' parses are kept, by their text: `bench
     validate` reads a procedure file three times and its stand file twice, and PyYAML
@@ -304,7 +315,7 @@ def _parsed(text: str) -> tuple[Any, dict[KeyPath, int]]:
     return _parse_kept(text)
 
 
-def _parse(text: str) -> tuple[Any, dict[KeyPath, int]]:
+def _parse(text: str) -> tuple[object, dict[KeyPath, int]]:
     loader: _Loader | None = None
     try:
         loader = _Loader(text)

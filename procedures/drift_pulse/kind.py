@@ -21,10 +21,10 @@ directory (`bench analyze` recomputes everything from them).
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from bench.core import rundir_layout as layout
 from bench.core.config import (
@@ -66,6 +66,7 @@ if TYPE_CHECKING:
     from procedures.drift_pulse import analysis as dp
     from procedures.drift_pulse.certificate import DriftCertificate
     from procedures.drift_pulse.dcc import DriftDcc
+    from procedures.drift_pulse.instruments import DriftBench
     from procedures.drift_pulse.records import DriftRecords
 
 
@@ -188,7 +189,6 @@ class DriftSteps:
     def open_bench(self, cfg: Config, stand: StandSettings, clock: Clock,
                    run: RunDir | None) -> Bench:
         from bench.core.instruments import (
-            Bench,
             manual_note,
             open_axis,
             raw_text_logger,
@@ -196,10 +196,11 @@ class DriftSteps:
         )
         from drivers.awg import WaveformGenerator
         from drivers.dmm import Digitizer
-        bench = Bench()
+        from procedures.drift_pulse.instruments import DriftBench
+        bench = DriftBench()
         d = PlatformSettings.of(cfg)
 
-        def raw(name: str) -> Any:
+        def raw(name: str) -> Callable[[str, bytes], None] | None:
             return raw_text_logger(bench.log(run.raw_path(name)), clock) if run else None
 
         try:
@@ -209,18 +210,17 @@ class DriftSteps:
                 stand.address("platform.awg.resource", d.awg_resource),
                 d.awg_model, clock, raw=raw(layout.AWG_LOG))
             bench.enter(awg)
-            bench.extra["awg"] = awg
-            bench.extra["dmms"] = {}
+            bench.awg = awg
             for g in d.gyros:
                 spec = d.platform[g]
                 dmm = Digitizer.open(
                     stand.address(f"platform.gyros.{g}.dmm.resource", spec.dmm_resource),
                     spec.dmm_model, clock, raw=raw(layout.dmm_log(g)))
                 bench.enter(dmm)
-                bench.extra["dmms"][g] = dmm
+                bench.dmms[g] = dmm
             bench.axes[table].identities["awg"] = with_readback(
                 awg.identify(), {}, manual_note(awg.profile.manual))
-            for g, dmm in bench.extra["dmms"].items():
+            for g, dmm in bench.dmms.items():
                 bench.axes[table].identities[f"{g}-dmm"] = with_readback(
                     dmm.identify(), {}, manual_note(dmm.profile.manual))
         except BaseException as e:
@@ -235,13 +235,14 @@ class DriftSteps:
             setup = dmm.configure(t.range_v, t.aperture_s, t.interval_s, t.count,
                                   trigger_delay_s=t.trigger_delay_s)
             ctx.run.event("dmm_setup", gyro=g, **setup.__dict__)
-        ctx.state["fetches"] = {g: 0 for g in dmms_of(ctx.bench)}
-        ctx.state["loaded_v"] = None
+        plat = platform_of(ctx.bench)
+        plat.fetches = {g: 0 for g in plat.dmms}
+        plat.loaded_v = None
 
     def _load(self, ctx: RunContext, amplitude_v: float) -> None:
         """(Re)load the pair on every gyro's channel at this amplitude."""
         from procedures.drift_pulse import analysis as dp
-        if ctx.state.get("loaded_v") == amplitude_v:
+        if platform_of(ctx.bench).loaded_v == amplitude_v:
             return
         d = DriftSettings.from_config(ctx.cfg)
         t = d.timing
@@ -256,10 +257,10 @@ class DriftSteps:
             ctx.run.event("awg_loaded", gyro=g, channel=ch, amplitude_v=amplitude_v,
                           sample_rate_hz=loaded.sample_rate_hz, points=loaded.points,
                           lead_s=loaded.lead_s)
-        ctx.state["loaded_v"] = amplitude_v
+        platform_of(ctx.bench).loaded_v = amplitude_v
 
     def _do_turn(self, step: Step, ctx: RunContext) -> None:
-        drive = ctx.bench.axes[step.axis].drive
+        drive = ctx.bench.axes[step.on_axis].drive
         p = step.params_as(TurnParams)
         tol = DriftSettings.from_config(ctx.cfg).position_tolerance_deg
         final = drive.move_to(p.position_deg, p.rate_dps, p.accel_dps2,
@@ -289,7 +290,7 @@ class DriftSteps:
         t = d.timing
         amplitude = d.timing_amplitude_v if p.timing else d.amplitude_v
         self._load(ctx, amplitude)
-        drive = ctx.bench.axes[step.axis].drive
+        drive = ctx.bench.axes[step.on_axis].drive
         dmms = dmms_of(ctx.bench)
         drive.check()
         for dmm in dmms.values():
@@ -298,11 +299,11 @@ class DriftSteps:
         data = {}
         for g, dmm in dmms.items():
             data[g] = dmm.fetch()
-            ctx.state["fetches"][g] += 1
+            platform_of(ctx.bench).fetches[g] += 1
         drive.check()
         ctx.run.event("cycle", unit=step.unit, position_deg=p.position_deg,
                       actual_deg=drive.position_deg, timing=p.timing, amplitude_v=amplitude,
-                      t_trigger_s=t0, fetch=dict(ctx.state["fetches"]), samples=t.count,
+                      t_trigger_s=t0, fetch=dict(platform_of(ctx.bench).fetches), samples=t.count,
                       interval_s=t.interval_s, first_sample_s=t.first_sample_s, tc_s=t.tc_s)
         shape = dp.pulse_shape(d.pulse_shape)
         quick = []
@@ -328,8 +329,8 @@ class DriftSteps:
         self._wait(ctx, step.on_axis, d.gap_s)
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
-        ctx.bench.extra["awg"].outputs_off()
-        ctx.bench.rest(step.axis)
+        awg_of(ctx.bench).outputs_off()
+        ctx.bench.rest(step.on_axis)
 
 
 class DriftAnalysis:
@@ -373,21 +374,23 @@ KIND: ProcedureKind = DriftPulse()
 
 def awg_of(bench: Bench) -> WaveformGenerator:
     """The platform's waveform generator, as `DriftSteps.open_bench` keeps it."""
-    from drivers.awg import WaveformGenerator
-    awg = bench.extra["awg"]
-    if not isinstance(awg, WaveformGenerator):
-        raise TypeError(f"the bench's awg is a {type(awg).__name__}, not a WaveformGenerator")
+    awg = platform_of(bench).awg
+    if awg is None:
+        raise TypeError("the bench's platform waveform generator is not open")
     return awg
 
 
 def dmms_of(bench: Bench) -> dict[str, Digitizer]:
     """Gyro -> its digitizing DMM, as `DriftSteps.open_bench` keeps them."""
-    from drivers.dmm import Digitizer
-    dmms = bench.extra["dmms"]
-    if not (isinstance(dmms, dict)
-            and all(isinstance(d, Digitizer) for d in dmms.values())):
-        raise TypeError("the bench's dmms are not a gyro -> Digitizer mapping")
-    return dmms
+    return platform_of(bench).dmms
+
+
+def platform_of(bench: Bench) -> DriftBench:
+    """The bench as `DriftSteps.open_bench` made it: with the platform's instruments."""
+    from procedures.drift_pulse.instruments import DriftBench
+    if not isinstance(bench, DriftBench):
+        raise TypeError(f"the bench is a {type(bench).__name__}, not a DriftBench")
+    return bench
 
 
 def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
@@ -420,48 +423,58 @@ def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
 
 def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
     """The DMM's replies to FETC?, in order, from its raw SCPI journal of a session."""
-    from bench.core.journal import read_jsonl
+    from bench.core.journal import read_jsonl, str_field
     from drivers.dmm import PROFILES as DMM_PROFILES
     path = layout.raw_file(run.path, session, layout.dmm_log(gyro))
     out, waiting = [], False
     fetch = DMM_PROFILES[model].words.fetch.text().upper()
     for r in read_jsonl(path):
         if r.get("dir") == "tx":
-            waiting = r["data"].strip().upper() == fetch
+            waiting = str_field(r, "data").strip().upper() == fetch
         elif r.get("dir") == "rx" and waiting:
-            out.append(r["data"])
+            out.append(str_field(r, "data"))
             waiting = False
     return out
 
 
 def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan) -> dict[str, object]:
+    from bench.core.journal import (
+        bool_field,
+        float_field,
+        int_field,
+        object_field,
+        str_field,
+        units_done,
+    )
     from drivers.scpi import parse_numbers
     from procedures.drift_pulse import analysis as dp
     from procedures.drift_pulse.result import DriftCheck, DriftFigures, DriftMethod
 
     events = run.events()
     plan_units = set(plan.build_plan(cfg).units())
-    done = {e["unit"]: e["session"] for e in events if e.get("event") == "unit_done"}
-    cycles = [e for e in events if e.get("event") == "cycle" and done.get(e["unit"]) ==
-              e["session"]]
+    done = units_done(events)
+    cycles = [e for e in events if e.get("event") == "cycle" and done.get(str_field(e, "unit"))
+              == int_field(e, "session")]
     d = DriftSettings.from_config(cfg)
     gyros = list(d.gyros)
     plat = d.platform
     replies: dict[tuple[int, str], list[str]] = {}
     records: dict[str, list[dp.CycleRecord]] = {g: [] for g in gyros}
     for e in cycles:
+        session, samples = int_field(e, "session"), int_field(e, "samples")
         for g in gyros:
-            key = (e["session"], g)
+            key = (session, g)
             if key not in replies:
                 replies[key] = dmm_replies(run, *key, plat[g].dmm_model)
-            n = e["fetch"][g]
+            n = int_field(object_field(e, "fetch"), g)
             u = parse_numbers(replies[key][n - 1])
-            if u.size != e["samples"]:
+            if u.size != samples:
                 raise ValueError(f"{run.path}: cycle {e['unit']}: the DMM of gyro {g} "
-                                 f"returned {u.size} readings, the event says {e['samples']}")
-            records[g].append(dp.CycleRecord(u, e["interval_s"], e["first_sample_s"],
-                                             e["tc_s"], e["t_trigger_s"], e["position_deg"],
-                                             timing_only=e["timing"]))
+                                 f"returned {u.size} readings, the event says {samples}")
+            records[g].append(dp.CycleRecord(
+                u, float_field(e, "interval_s"), float_field(e, "first_sample_s"),
+                float_field(e, "tc_s"), float_field(e, "t_trigger_s"),
+                float_field(e, "position_deg"), timing_only=bool_field(e, "timing")))
     shape = dp.pulse_shape(d.pulse_shape)
     stated = {g: dp.StatedErrors(k_as_u_rel=plat[g].k_as_u_rel,
                                  pulse_mismatch_max_rel=plat[g].pulse_mismatch_max_rel,

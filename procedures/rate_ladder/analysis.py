@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import tempfile
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -22,16 +23,25 @@ from bench.analysis.allan import allan_deviation
 from bench.analysis.disk import DiskArray
 from bench.analysis.pair import analyze_pair_mains
 from bench.analysis.random_part import std_interval_u_rel
+from bench.analysis.results import PairAnalysis
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.core import rundir_layout as layout
 from bench.core.config import Config, CounterSpec
-from bench.core.journal import RunDir, fog_capture_starts, read_jsonl
+from bench.core.journal import (
+    RunDir,
+    float_field,
+    fog_capture_starts,
+    read_jsonl,
+    str_field,
+    units_done,
+)
 from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from drivers.counter_profiles import get_profile
-from drivers.fog import CaptureCursor
+from drivers.fog import CaptureCursor, FogCheckpoint
+from drivers.json_types import JsonLike, JsonObject
 from drivers.scpi import parse_numbers
-from procedures.base import RawHashes, events_of, result_document
+from procedures.base import RawHashes, result_document
 from procedures.rate_ladder.conditions import TemperatureSpan, memo_key
 from procedures.rate_ladder.events import HalfAcquired, StaticRecorded
 from procedures.rate_ladder.settings import (
@@ -53,7 +63,7 @@ def counter_budget(c: CounterSpec) -> CounterBudget:
                                              else profile.timebase_limit_rel))
 
 
-def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int,
+def edges_from_replies(records: Iterable[Mapping[str, object]], model: str, n_edges: int,
                        t_start_s: float = 0.0) -> np.ndarray:
     """The zero-mark edges in the counter's raw replies of one acquisition, placed on the
     FOG's axis by the start event the time tie gave during the run (journaled)."""
@@ -64,7 +74,7 @@ def edges_from_replies(records: list[dict[str, Any]], model: str, n_edges: int,
         if r.get("dir") != "rx":
             continue
         try:
-            values = parse_numbers(r["data"])
+            values = parse_numbers(str_field(r, "data"))
         except ValueError:
             continue
         if values.size == n_values:
@@ -81,7 +91,8 @@ def counter_start_s(h: HalfAcquired) -> float:
     tie = h.time_tie or {}
     if "sync_pulse" not in tie:
         return float(h.counter_t0_s)
-    t0 = int(tie["sync_pulse"]) * float(tie["sync_period_s"]) + float(tie["latency_s"])
+    t0 = (int(float_field(tie, "sync_pulse")) * float(float_field(tie, "sync_period_s"))
+          + float(float_field(tie, "latency_s")))
     if abs(t0 - float(h.counter_t0_s)) > 1e-6:
         raise ValueError(f"{h.unit} half {h.half} (session {h.session}): the journaled time "
                          f"tie places the counter's start at {t0:.9f} s, the run used "
@@ -152,12 +163,12 @@ class RawData:
         self._read.clear()
 
     @lru_cache(maxsize=8)  # noqa: B019
-    def counter_log(self, session: int, axis: str) -> list[dict[str, Any]]:
+    def counter_log(self, session: int, axis: str) -> list[JsonObject]:
         path = layout.raw_file(self.run.path, session, layout.counter_log(axis))
         return list(read_jsonl(path))
 
     def _cursor(self, session: int, axis: str, i_from: int,
-                 mark: dict[str, Any] | None = None) -> CaptureCursor:
+                 mark: FogCheckpoint | None = None) -> CaptureCursor:
         """A cursor at or before sample i_from: the current one, or one started afresh at
         the event's capture checkpoint `mark` (or the file's start) when that is nearer."""
         key = (session, axis)
@@ -178,7 +189,7 @@ class RawData:
         return c
 
     def fog_window(self, session: int, axis: str, i_from: int, i_to: int,
-                   mark: dict[str, Any] | None = None) -> tuple[DiskArray, DiskArray]:
+                   mark: FogCheckpoint | None = None) -> tuple[DiskArray, DiskArray]:
         """The valid samples i_from .. i_to - 1 (times, rates), on disk; a window read
         before (read_half_ahead) is not read again."""
         key = (session, axis, i_from, i_to)
@@ -219,7 +230,7 @@ def _settings(cfg: Config) -> dict[str, Any]:
     return LadderSettings.from_config(cfg).method()
 
 
-def unit_halves(events: list[dict[str, Any]], unit: str, session: int
+def unit_halves(events: list[JsonObject], unit: str, session: int
                 ) -> list[HalfAcquired]:
     """A unit's acquisitions as of `session`: for each half, the last one acquired up to it.
 
@@ -233,21 +244,21 @@ def unit_halves(events: list[dict[str, Any]], unit: str, session: int
     return [by_half[h] for h in sorted(by_half)]
 
 
-def unit_acquisitions(events: list[dict[str, Any]]) -> list[HalfAcquired]:
+def unit_acquisitions(events: list[JsonObject]) -> list[HalfAcquired]:
     """Acquisitions of the units not yet done (what a --resume may keep)."""
-    done = {e["unit"] for e in events_of(events, "unit_done")}
+    done = units_done(events)
     return [h for h in HalfAcquired.all_in(events) if h.unit not in done]
 
 
-def static_record(events: list[dict[str, Any]], axis: str) -> StaticRecorded | None:
+def static_record(events: list[JsonObject], axis: str) -> StaticRecorded | None:
     """The axis's FOG-at-rest record that completed its unit (the last such)."""
-    done_in = {e["unit"]: e["session"] for e in events_of(events, "unit_done")}
+    done_in = units_done(events)
     return next((s for s in reversed(StaticRecorded.all_in(events)) if s.axis == axis
                  and done_in.get(s.unit) == s.session), None)
 
 
 def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
-                 acquisitions: list[HalfAcquired], static: StaticRecorded | None) -> Any:
+                 acquisitions: list[HalfAcquired], static: StaticRecorded | None) -> PairAnalysis:
     """docs/method.md A1-A5 for one pair. Mains: the stated frequency (procedure, else the
     stand's grid), or, when neither states it, each candidate grid is fitted and the one
     whose tone is the more significant is kept (`systematic.mains.source` says which)."""
@@ -385,7 +396,7 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
                  ) -> dict[str, Any]:
     events = run.events()
     rule = _settings(cfg)["decision_rule"]
-    done_in: dict[str, int] = {e["unit"]: e["session"] for e in events_of(events, "unit_done")}
+    done_in = units_done(events)
     result_axes: dict[str, Any] = {}
     checks: list[dict[str, Any]] = []
     complete = True
@@ -402,8 +413,9 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
             # the worker's first look at this pair in this process, when it had the same
             # halves and static record: the same analysis of the same bytes (a resumed or
             # re-analysed run decodes the raw files again)
-            pa = run.memo.pop(first_look_key(unit, acqs, static), None) \
-                or analyze_unit(raw, cfg, axis, rate, acqs, static)
+            looked = run.memo.pop(first_look_key(unit, acqs, static), None)
+            pa = looked if isinstance(looked, PairAnalysis) \
+                else analyze_unit(raw, cfg, axis, rate, acqs, static)
             for r in pa.rates:
                 d = with_sigma_terms(r.to_dict())
                 d["session"] = done_in[unit]
@@ -451,8 +463,8 @@ class FirstLook:
     """The worker's answer: the summary journaled as the `pair` event, and the whole
     analysis, which the final result.json reuses instead of decoding the halves again."""
 
-    summary: dict[str, Any]
-    analysis: Any
+    summary: dict[str, JsonLike]
+    analysis: PairAnalysis
     key: str
     temperatures: dict[str, TemperatureSpan]
 
@@ -487,7 +499,7 @@ def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
     (bench.core.engine.AnalysisWorker), whose reader moves on from pair to pair."""
     raw = _worker_raw(run_path, cfg)
     pa = analyze_unit(raw, cfg, axis, rate_dps, acquisitions, static)
-    out: dict[str, Any] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps,
+    out: dict[str, JsonLike] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps,
                            "w0_u_dps": pa.pair.w0_u_dps}
     rule = _settings(cfg)["decision_rule"]
     directions = []

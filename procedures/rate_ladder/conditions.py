@@ -11,15 +11,36 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
 from bench.core import rundir_layout as layout
-from bench.core.config import Config
+from bench.core.config import Config, FogSettings
 from bench.core.journal import RunDir, fog_capture_starts
 from drivers.fog import CaptureCursor, FogSamples
 from procedures.rate_ladder.events import HalfAcquired
+
+
+class HalfTemperature(TypedDict):
+    """A half's FOG temperature, as `conditions_measured` lists it."""
+
+    set_rate_dps: float
+    half: int
+    session: int
+    samples: int
+    min_c: float
+    mean_c: float
+    max_c: float
+
+
+class AxisTemperature(TypedDict):
+    """An axis's halves and their span (the mean weighted by each half's samples)."""
+
+    halves: list[HalfTemperature]
+    min_c: float
+    max_c: float
+    mean_c: float
 
 
 class TemperatureSpan:
@@ -35,7 +56,7 @@ class TemperatureSpan:
             self.lo, self.hi = min(self.lo, float(t.min())), max(self.hi, float(t.max()))
             self.total, self.n = self.total + float(t.sum()), self.n + int(t.size)
 
-    def of_half(self, h: HalfAcquired) -> dict[str, Any] | None:
+    def of_half(self, h: HalfAcquired) -> HalfTemperature | None:
         if self.n == 0:
             return None
         return {"set_rate_dps": h.set_rate_dps, "half": h.half, "session": h.session,
@@ -49,8 +70,8 @@ def memo_key(session: int, axis: str, i_from: int, i_to: int) -> str:
     return f"rate-ladder temperature s{session} {axis} {i_from}..{i_to}"
 
 
-def _half_temperature(path: Path, f: Any, h: HalfAcquired, first_index: int | None
-                      ) -> dict[str, Any] | None:
+def _half_temperature(path: Path, f: FogSettings, h: HalfAcquired, first_index: int | None
+                      ) -> HalfTemperature | None:
     span = TemperatureSpan()
     cursor = CaptureCursor(path, fmt=f.format, axis=f.axis, rate_hz=f.rate_hz, units=f.units,
                            start=h.fog_capture if h.fog_capture and
@@ -64,9 +85,9 @@ def _half_temperature(path: Path, f: Any, h: HalfAcquired, first_index: int | No
     return span.of_half(h)
 
 
-def fog_temperatures(run: RunDir, cfg: Config) -> dict[str, Any]:
+def fog_temperatures(run: RunDir, cfg: Config) -> dict[str, AxisTemperature]:
     """{axis: {halves: [...], min_c, mean_c, max_c}} from every half recorded."""
-    out: dict[str, Any] = {}
+    by_axis: dict[str, list[HalfTemperature]] = {}
     events = run.events()
     first = fog_capture_starts(events)
     for h in HalfAcquired.all_in(events):
@@ -75,21 +96,21 @@ def fog_temperatures(run: RunDir, cfg: Config) -> dict[str, Any]:
             continue
         try:
             span = run.memo.pop(memo_key(h.session, h.axis, h.fog_from, h.fog_to), None)
-            found = span.of_half(h) if span is not None \
+            found = span.of_half(h) if isinstance(span, TemperatureSpan) \
                 else _half_temperature(path, cfg.fog(h.axis), h, first.get((h.session, h.axis)))
         except (OSError, ValueError):
             found = None          # a damaged capture: the analysis reports it; not measured
         if found is not None:
-            out.setdefault(h.axis, {"halves": []})["halves"].append(found)
-    for ax in out.values():
-        halves = ax["halves"]
-        n = sum(x["samples"] for x in halves)
-        ax.update(min_c=min(x["min_c"] for x in halves), max_c=max(x["max_c"] for x in halves),
-                  mean_c=sum(x["mean_c"] * x["samples"] for x in halves) / n)
-    return out
+            by_axis.setdefault(h.axis, []).append(found)
+    return {axis: AxisTemperature(
+                halves=halves, min_c=min(x["min_c"] for x in halves),
+                max_c=max(x["max_c"] for x in halves),
+                mean_c=sum(x["mean_c"] * x["samples"] for x in halves)
+                / sum(x["samples"] for x in halves))
+            for axis, halves in by_axis.items()}
 
 
-def add_conditions(result: dict[str, Any], run: RunDir, cfg: Config) -> dict[str, Any]:
+def add_conditions(result: dict[str, object], run: RunDir, cfg: Config) -> dict[str, object]:
     temps = fog_temperatures(run, cfg)
     result["conditions_measured"] = {
         "fog_temperature": {"source": "FOG frames' temperature field (table top, at the "

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar, TypeVar
 
 from bench.core.journal import RunDir
+from drivers.fog import FogCheckpoint
 
 E = TypeVar("E", bound="LadderEvent")
 
@@ -50,7 +51,7 @@ class StaticRecorded(LadderEvent):
     fog_to: int
     rate_hz: float
     lost: int = 0
-    fog_capture: dict[str, Any] | None = None   # decoder checkpoint before fog_from
+    fog_capture: FogCheckpoint | None = None   # decoder checkpoint before fog_from
 
 
 @dataclass(frozen=True)
@@ -70,15 +71,15 @@ class HalfAcquired(LadderEvent):
     rate_hz: float
     counter_t0_s: float = 0.0          # the counter's start on the FOG's time axis
     counter_t0_u_s: float | None = None
-    counter_readback: dict[str, Any] = field(default_factory=dict)
+    counter_readback: dict[str, str] = field(default_factory=dict)
     fog_lost: int = 0
-    fog_capture: dict[str, Any] | None = None
+    fog_capture: FogCheckpoint | None = None
     # how counter_t0_s was placed on the FOG's time axis (drivers/time_tie.py): the tie's
     # source, sync period, latency and its u, the sync pulse that started the counter,
     # when it was armed, and the FOG's sample index convention (index n at n / rate_hz
     # from the session's stand-clock zero): all a later analysis needs to re-place the
     # half after a restart, each session on its own axis (docs/resume.md)
-    time_tie: dict[str, Any] = field(default_factory=dict)
+    time_tie: dict[str, str | float | None] = field(default_factory=dict)
 
     @property
     def sign(self) -> int:

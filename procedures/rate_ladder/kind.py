@@ -14,7 +14,7 @@ import math
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypeVar
 
 from bench.core.config import Config, StandSettings, stand_schema
 from bench.core.plan import Duration, Plan, Step, check_actions, format_duration
@@ -48,7 +48,6 @@ if TYPE_CHECKING:
     from bench.report.dcc.parts import DccParts
     from drivers.counter import Acquisition, Counter
     from drivers.fog import Fog
-    from procedures.rate_ladder.analysis import FirstLook
     from procedures.rate_ladder.certificate import LadderCertificate
     from procedures.rate_ladder.records import LadderRecords
 
@@ -59,6 +58,28 @@ WORKER_PRELOAD = ("procedures.rate_ladder.analysis", "scipy.linalg")
 
 def _turns(n: int) -> str:
     return f"{n} turn" if n == 1 else f"{n} turns"
+
+
+D = TypeVar("D")
+
+
+def _driver(value: object, kind: type[D], what: str) -> D:
+    """An axis's instrument as the ladder reads it: the driver's own class (the FOG's
+    decoder stats and sample indices, the counter's acquisition and time tie)."""
+    if not isinstance(value, kind):
+        raise TypeError(f"{what}: the ladder needs a {kind.__module__}.{kind.__name__}, "
+                        f"the bench holds {value!r}")
+    return value
+
+
+def _fog_of(ctx: RunContext, axis: str) -> Fog:
+    from drivers.fog import Fog
+    return _driver(ctx.bench.axes[axis].fog, Fog, f"{axis}'s FOG")
+
+
+def _counter_of(ctx: RunContext, axis: str) -> Counter:
+    from drivers.counter import Counter
+    return _driver(ctx.bench.axes[axis].counter, Counter, f"{axis}'s counter")
 
 
 def _fog_losses(fog: Fog) -> int:
@@ -315,13 +336,12 @@ class LadderSteps:
         self.handlers[step.action](step, ctx)
 
     def _do_enable(self, step: Step, ctx: RunContext) -> None:
-        ctx.bench.axes[step.axis].drive.enable()
+        ctx.bench.axes[step.on_axis].drive.enable()
 
     def _do_static(self, step: Step, ctx: RunContext) -> None:
         from procedures.rate_ladder.events import StaticRecorded
 
-        ax = ctx.bench.axes[step.axis]
-        fog = ax.fog
+        fog = _fog_of(ctx, step.on_axis)
         duration = step.params_as(Duration).duration_s
         # the first sample at or after now, and not before the capture's first (a FOG
         # opened at this instant, execute(): its first frame is the first sample after it)
@@ -358,12 +378,12 @@ class LadderSteps:
         fog.wait_for_index(index, timeout_s=max(5.0, span_s * 0.2))
 
     def _do_set_rate(self, step: Step, ctx: RunContext) -> None:
-        drive = ctx.bench.axes[step.axis].drive
+        drive = ctx.bench.axes[step.on_axis].drive
         p = step.params_as(SetRateParams)
         drive.set_rate(p.rate_dps, p.accel_dps2)
 
     def _do_settle(self, step: Step, ctx: RunContext) -> None:
-        drive = ctx.bench.axes[step.axis].drive
+        drive = ctx.bench.axes[step.on_axis].drive
         p = step.params_as(SettleParams)
         def held(held_s: float) -> None:
             ctx.progress.advance(held_s, p.hold_s, f"within ±{p.tolerance_dps:g} deg/s "
@@ -391,11 +411,11 @@ class LadderSteps:
         from procedures.rate_ladder.analysis import read_half_ahead, static_record
         from procedures.rate_ladder.events import HalfAcquired
 
-        ax = ctx.bench.axes[step.axis]
+        ax = ctx.bench.axes[step.on_axis]
         p = step.params_as(AcquireParams)
         n = p.turns
         period = p.period_s
-        counter, fog, drive = ax.counter, ax.fog, ax.drive
+        counter, fog, drive = _counter_of(ctx, step.on_axis), _fog_of(ctx, step.on_axis), ax.drive
         rec0 = ax.logs["counter"].count if "counter" in ax.logs else 0
         lost0 = _fog_losses(fog)
         mark = fog.checkpoint()  # the raw capture up to here holds no sample of this half
@@ -410,6 +430,8 @@ class LadderSteps:
             drive.check()
         edges = counter.fetch()
         acq = counter.last_acquisition
+        if acq is None:
+            raise Abort(f"{step.axis}: the counter kept no acquisition of its fetch")
         if len(edges) != n + 1:
             raise Abort(f"{step.axis}: the counter returned {len(edges)} edges, expected {n + 1}")
         # the FOG samples that bracket the timed turns (the analysis integrates exactly
@@ -465,18 +487,24 @@ class LadderSteps:
     def _do_analyze(self, step: Step, ctx: RunContext) -> None:
         """A first look at the pair, in the analysis worker: acquisition goes on meanwhile
         (the result.json analysis is made again from the raw files at the end)."""
-        from procedures.rate_ladder.analysis import pair_summary, static_record, unit_halves
+        from procedures.rate_ladder.analysis import (
+            FirstLook,
+            pair_summary,
+            static_record,
+            unit_halves,
+        )
 
         axis, unit, rate = step.on_axis, step.in_unit, step.params_as(AnalyzeParams).rate_dps
         events = ctx.run.events()  # the halves may come from earlier sessions (--resume)
 
-        def done(look: FirstLook | None, error: BaseException | None) -> None:
+        def done(look: object, error: BaseException | None) -> None:
             if error is not None:
                 ctx.run.event("pair_failed", axis=axis, unit=unit, error=repr(error))
                 ctx.progress.warn(f"  WARNING {axis} +/-{rate:g} deg/s: the first look at the "
                                   f"pair failed ({error}); the final analysis will say more")
                 return
-            assert look is not None
+            if not isinstance(look, FirstLook):
+                raise TypeError(f"the first look answered a {type(look).__name__}")
             summary = look.summary
             ctx.run.memo[look.key] = look.analysis   # the final analysis reuses them
             ctx.run.memo.update(look.temperatures)
@@ -488,12 +516,12 @@ class LadderSteps:
                           static_record(events, axis), on_done=done)
 
     def _do_stop(self, step: Step, ctx: RunContext) -> None:
-        ctx.bench.rest(step.axis)
+        ctx.bench.rest(step.on_axis)
 
 class LadderAnalysis:
     """result.json of a ladder run (the kind's `analysis` part)."""
 
-    def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
+    def analyze(self, run: RunDir, cfg: Config) -> dict[str, object]:
         from procedures.rate_ladder.analysis import analyze_run
         from procedures.rate_ladder.budgets import add_budgets
         from procedures.rate_ladder.conditions import add_conditions
@@ -530,12 +558,13 @@ class RateLadder:
 KIND: ProcedureKind = RateLadder()
 
 
-def time_tie_record(counter: Counter, acq: Acquisition, fog: Fog) -> dict[str, Any]:
+def time_tie_record(counter: Counter, acq: Acquisition, fog: Fog
+                    ) -> dict[str, str | float | None]:
     """The half's time tie as journaled (HalfAcquired.time_tie): the tie's settings, the
     sync pulse number behind the start (fog-sync), the arming time, and the FOG index
     convention, so the start can be placed again on the session's FOG axis."""
     tie = counter.time_tie
-    rec: dict[str, Any] = {**tie.as_record(), "t_start_s": acq.t_start_s,
+    rec: dict[str, str | float | None] = {**tie.as_record(), "t_start_s": acq.t_start_s,
                            "t_start_u_s": acq.t_start_u_s, "armed_at_s": acq.armed_at_s,
                            "fog_rate_hz": fog.rate_hz,
                            "fog_index_origin": "first frame received = index 0 = stand "
@@ -557,14 +586,18 @@ def _fog_mean_dps(fog: Fog, span_s: float = 1.0) -> float | None:
     return float(s.rate_dps[s.valid].mean()) if s.valid.any() else None
 
 
-def pair_figures(summary: dict[str, Any]) -> list[Figure]:
+def pair_figures(summary: Mapping[str, object]) -> list[Figure]:
     """A pair's first look (docs/method.md A3 k and ω0; eq. 1 δ per direction) with U (k = 2)."""
-    out = [Figure("k", summary.get("k"), summary.get("k_u")),
-           Figure("ω0", summary.get("w0_dps"), summary.get("w0_u_dps"), "°/s", signed=True)]
+    def num(key: str) -> float | None:
+        v = summary.get(key)
+        return v if isinstance(v, int | float) and not isinstance(v, bool) else None
+
+    out = [Figure("k", num("k"), num("k_u")),
+           Figure("ω0", num("w0_dps"), num("w0_u_dps"), "°/s", signed=True)]
     for sign, name in (("+", "δ(+)"), ("-", "δ(−)")):
         if f"rate_error_rel{sign}" in summary:
-            out.append(Figure(name, summary[f"rate_error_rel{sign}"],
-                              summary.get(f"rate_error_u_rel{sign}"), RELATIVE, signed=True))
+            out.append(Figure(name, num(f"rate_error_rel{sign}"),
+                              num(f"rate_error_u_rel{sign}"), RELATIVE, signed=True))
     return out
 
 
