@@ -17,7 +17,7 @@ import os
 import sys
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from bench import __version__
@@ -44,7 +44,7 @@ from bench.core.instruments import (
     check_references,
     identity_record,
 )
-from bench.core.journal import RunDir
+from bench.core.journal import RunDir, read_json_object
 from bench.core.plan import Plan, format_duration
 from bench.core.registry import procedure_kind
 from bench.core.simbench import SimBench, for_session
@@ -53,6 +53,7 @@ from bench.core.traceability import identity_mismatches, overdue, overdue_warnin
 from bench.report.certificate.model import Document
 from bench.report.result_frame import as_object
 from drivers.clock import Clock, MonotonicClock
+from drivers.json_types import JsonObject
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
@@ -76,7 +77,7 @@ def room_for(cfg: Config, plan: Plan, folder: Path) -> str | None:
 
 def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
                   records: RecordsTarget | None = None
-                  ) -> tuple[dict[str, object], Document | None]:
+                  ) -> tuple[JsonObject, Document | None]:
     """result.json, then the certificate (PDF, HTML, DCC); returns the result and the
     certificate's document (None when it could not be written: a run that leaves no
     certificate must not exit as if it had, nor one whose DCC does not validate).
@@ -93,9 +94,11 @@ def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
 
 
 def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
-                   records: RecordsTarget | None) -> tuple[dict[str, object], Document | None]:
-    result = procedure_kind(cfg.kind).analysis.analyze(run, cfg)
-    run.write_json(layout.RESULT, result)
+                   records: RecordsTarget | None) -> tuple[JsonObject, Document | None]:
+    analysed = procedure_kind(cfg.kind).analysis.analyze(run, cfg)
+    # read back: the certificate, the DCC and the records read what result.json holds
+    # (as `bench dcc` and the station do), not the analysis's objects
+    result = read_json_object(run.write_json(layout.RESULT, analysed))
     # the table's history from the records, when they hold any (never fails the run)
     history = history_sections(run.path, result, records, progress.warn) if records else []
     if records:   # each instrument's control status, for the traceability section
@@ -116,7 +119,7 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
     return result, doc
 
 
-def summary_of(result: dict[str, object], doc: Document | None) -> Summary:
+def summary_of(result: Mapping[str, object], doc: Document | None) -> Summary:
     """The certificate's figures; without a certificate, only the verdict."""
     if doc is not None:
         return summarize(doc, as_object(result))
@@ -176,7 +179,7 @@ class RunSession:
             err(f"Not started: {short}")
             print(f"Free some space, then: bench run --resume {self.run_dir.path}")
             return EXIT_INVALID
-        result: dict[str, object] | None = None
+        result: JsonObject | None = None
         with SignalGuard(self.progress.line) as guard, self.stops.collecting():
             try:
                 self._measure(guard, todo, done, table_overdue, out_of_control)
@@ -323,11 +326,11 @@ class RunSession:
         return outcome
 
     # -- after the stop: outputs and exit ------------------------------------------
-    def _write(self, guard: SignalGuard) -> dict[str, object] | None:
+    def _write(self, guard: SignalGuard) -> JsonObject | None:
         """result.json and the certificate (never for a refused stand: nothing was
         measured). Ctrl-C now only ends the writing: the axes are already stopped."""
         run, progress = self.run_dir, self.progress
-        result: dict[str, object] | None = None
+        result: JsonObject | None = None
         doc: Document | None = None
         guard.writing = True
         try:
@@ -359,7 +362,7 @@ class RunSession:
             self.unsigned = True        # (said above; a resume would not help)
         return result
 
-    def _finish(self, result: dict[str, object] | None) -> None:
+    def _finish(self, result: JsonObject | None) -> None:
         run = self.run_dir
         if self.status == EXIT_ABORTED and not self.unsigned:
             stopped = ("AN AXIS COULD NOT BE TOLD TO STOP (above): check the table first"

@@ -142,6 +142,14 @@ def scan_jsonl(path: Path) -> tuple[list[JsonObject], list[int]]:
     return records, bad
 
 
+def read_json_object(path: Path) -> JsonObject:
+    """A JSON object file this run wrote (result.json): a damaged one is an error."""
+    data = json.loads(path.read_text(encoding="utf-8"))
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a JSON object, found {type(data).__name__}")
+    return data
+
+
 def read_jsonl(path: Path) -> Iterator[JsonObject]:
     """Records of a JSON-lines file; a torn line (a crash mid-write) is skipped."""
     yield from scan_jsonl(path)[0]
