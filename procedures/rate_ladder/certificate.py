@@ -42,6 +42,7 @@ from bench.report.certificate.rounding import (
     present_phase,
     rel_unit,
 )
+from drivers.json_types import JsonObject
 
 # -- the method statement (docs/method.md part A, restated) ---------------------------------
 
@@ -168,7 +169,7 @@ class LadderCertificate(CertificateParts):
         return [Para("Where this procedure differs from the source paper's method "
                      "(docs/method.md A3-A5):", "strong"), *(Para(f"• {t}") for t in items)]
 
-    def certificate_checks(self, src: Sources) -> list[dict[str, Any]]:
+    def certificate_checks(self, src: Sources) -> list[JsonObject]:
         """The per-rate judgements of the analysis (a result without checks[])."""
         out = []
         for axis, ax in (src.get("axes", {}) or {}).items():
@@ -338,10 +339,10 @@ def _ladder_results(src: Sources, number: str, checks: Sequence[Mapping[str, Any
 
 def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, Any]],
                  ax: Mapping[str, Any], checks: Sequence[Mapping[str, Any]],
-                 every: list[dict[str, Any]]) -> tuple[Any, ...]:
+                 every: list[dict[str, Any]]) -> tuple[Block, ...]:
     """One axis's results; `every` is every axis's rates, so that one quantity has one
     unit on the whole certificate."""
-    blocks: list[Any] = []
+    blocks: list[Block] = []
     # A1/A2 per-turn
     err_unit = rel_unit(*[v for r in every for v in (num(r.get("rate_error_rel")),
                                                       num(r.get("rate_error_u_rel")))],
@@ -580,7 +581,7 @@ def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
 
 
 def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, Any],
-                  every: list[dict[str, Any]]) -> list[Any]:
+                  every: list[dict[str, Any]]) -> list[Block]:
     if not any(r.get("intra_turn_instability_rel") is not None for r in rates):
         return []
     raws = [num(r.get("intra_turn_instability_rel")) for r in rates]
@@ -636,14 +637,14 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
     if approx:
         notes.append("* U of the raw value from 2s/√(2(n−1)) over its n samples, assuming "
                      "independent samples; the result did not carry it.")
-    blocks: list[Any] = [Table(header, tuple(rows), widths=(1.1, 2.0, 1.4, 2.2),
+    blocks: list[Block] = [Table(header, tuple(rows), widths=(1.1, 2.0, 1.4, 2.2),
                                align="rrrr", caption=f"Axis {axis}: intra-turn instability "
                                "std(Δω_rand)/|ω_set| (docs/method.md A5)", notes=tuple(notes))]
     blocks += _stability_blocks(axis, rates)
     return blocks
 
 
-def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
+def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Block]:
     """Rate stability over an angle, as a datasheet states it (docs/method.md A5): over 1° and
     10° from the FOG (with what this FOG can verify), over 360° from the counter's
     per-turn rates, whose timing floor is far below the FOG's."""
@@ -708,9 +709,9 @@ def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
                   notes=tuple(notes))]
 
 
-def _across_axes(axes: Mapping[str, Any]) -> list[Any]:
+def _across_axes(axes: Mapping[str, Any]) -> list[Block]:
     rates = {a: [r for r in ax.get("rates", []) if isinstance(r, dict)] for a, ax in axes.items()}
-    blocks: list[Any] = []
+    blocks: list[Block] = []
     amp_unit = rel_unit(*[num(h.get("amplitude_rel")) for rr in rates.values() for r in rr
                           for h in (r.get("systematic") or {}).get("harmonics") or []])
     blocks += figure_of("Once-per-revolution amplitude vs rate, relative and absolute "
@@ -730,7 +731,7 @@ def _across_axes(axes: Mapping[str, Any]) -> list[Any]:
     return blocks
 
 
-def _per_turn_annex(src: Sources) -> tuple[Any, ...]:
+def _per_turn_annex(src: Sources) -> tuple[Block, ...]:
     rows = []
     for axis, ax in (src.get("axes", {}) or {}).items():
         for r in ax.get("rates", []):

@@ -247,7 +247,7 @@ class CertificateParts:
         """The kind's deviations in this run, one sentence each."""
         return ()
 
-    def certificate_checks(self, src: Sources) -> list[dict[str, Any]]:
+    def certificate_checks(self, src: Sources) -> list[JsonObject]:
         """The checks when result.json carries no checks[] (read from the kind's results)."""
         return []
 
