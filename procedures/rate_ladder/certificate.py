@@ -396,7 +396,7 @@ def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Mapping[str, object
         blocks.append(budget)
     blocks += figure_of(f"Axis {axis}: per-turn rate error and instability vs rate, both "
                       "directions (cf. paper figs. 4-5)",
-                      plots.per_turn, axis, [r.doc for r in rates], _tolerances(checks, axis),
+                      plots.per_turn, axis, rates, _tolerances(checks, axis),
                       (f"δ, {err_unit.name}", err_unit.scale),
                          (f"σ, {inst_unit.name}", inst_unit.scale))
     # A3 cross-calibration
@@ -487,8 +487,7 @@ def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Mapping[str, object
                                    "'< L' and '—' as for the harmonics.",)))
     blocks += figure_of(f"Axis {axis}: systematic component vs table angle with the fitted "
                       "harmonics (cf. paper figs. 8-9)",
-                      plots.systematic, axis, [r.doc for r in rates], amp_unit.scale,
-                      amp_unit.name)
+                      plots.systematic, axis, rates, amp_unit.scale, amp_unit.name)
     # A5 intra-turn
     blocks += _intra_blocks(axis, rates, ax.noise_floor, every)
     return tuple(blocks)
@@ -696,23 +695,22 @@ def _stability_blocks(axis: str, rates: Sequence[RateEntry]) -> list[Block]:
 
 
 def _across_axes(axes: Mapping[str, LadderAxis]) -> list[Block]:
-    typed = {a: ax.rates for a, ax in axes.items()}
-    rates = {a: [r.doc for r in ax.rates] for a, ax in axes.items()}
+    rates = {a: ax.rates for a, ax in axes.items()}
     blocks: list[Block] = []
-    amp_unit = rel_unit(*[num(h.amplitude_rel) for rr in typed.values() for r in rr
+    amp_unit = rel_unit(*[num(h.amplitude_rel) for rr in rates.values() for r in rr
                           for h in r.harmonics])
     blocks += figure_of("Once-per-revolution amplitude vs rate, relative and absolute "
                       "(cf. paper fig. 7)",
                       plots.one_rev, rates, amp_unit.scale, amp_unit.name)
-    unit = rel_unit(*[num(r.intra_turn_instability_rel) for rr in typed.values() for r in rr])
+    unit = rel_unit(*[num(r.intra_turn_instability_rel) for rr in rates.values() for r in rr])
     blocks += figure_of("Intra-turn instability vs rate, raw and floor-corrected "
                       "(cf. paper fig. 10)",
                       plots.intra_turn, rates, unit.scale, unit.name)
     blocks += figure_of("FOG scale k and bias ω0 per ± pair (docs/method.md A3)",
-                      plots.pairs, {a: [p.doc for p in ax.pairs] for a, ax in axes.items()})
+                      plots.pairs, {a: ax.pairs for a, ax in axes.items()})
     blocks += figure_of("Allan deviation of the FOG at rest: its noise floor (docs/method.md A5)",
-                      plots.allan, {a: ax.noise_floor.doc if ax.noise_floor is not None else {}
-                                    for a, ax in axes.items()},
+                      plots.allan, {a: ax.noise_floor for a, ax in axes.items()
+                                    if ax.noise_floor is not None and ax.noise_floor.doc},
                       width_frac=0.8)
     return blocks
 

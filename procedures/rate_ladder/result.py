@@ -224,6 +224,11 @@ class RateEntry:
         return tuple(v) if isinstance(v, list) else ()
 
     @property
+    def binned(self) -> JsonObject:
+        """The paper's binned average by angle (docs/method.md A4), {} when none."""
+        return obj(self.systematic, "binned")
+
+    @property
     def rate_error_budget(self) -> JsonObject | None:
         return as_object(self.doc.get("rate_error_budget"))
 
