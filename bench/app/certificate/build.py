@@ -291,8 +291,8 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
     stand = stand_of(src)
     cert = _cert(src)
     dates = src.get("dates", {}) or {}
-    started = dates.get("started_utc") or _first_event(src, "session_start")
-    completed = dates.get("completed_utc") or _last_event(src, "completed")
+    started = dates.get("started_utc") or src.event_utc("session_start")
+    completed = dates.get("completed_utc") or src.event_utc("completed", last=True)
     item, serial = proc.parts.certificate_item(src)
     rows: list[tuple[str, str]] = [
         (("Draft identifier (the lab register allocates the certificate number at issue)",
@@ -337,15 +337,6 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
     blocks.append(software_note(src.meta, src.events, bench.__version__, str(run_dir)))
     blocks.append(Para(AUTHORITATIVE, "note"))
     return tuple(blocks)
-
-
-def _first_event(src: Sources, kind: str) -> str | None:
-    return next((e.get("utc") for e in src.events if e.get("event") == kind), None)
-
-
-def _last_event(src: Sources, kind: str) -> str | None:
-    found = [e.get("utc") for e in src.events if e.get("event") == kind]
-    return found[-1] if found else None
 
 
 def check_class(c: Mapping[str, object]) -> str:
@@ -432,8 +423,8 @@ def _instruments(src: Sources, proc: Procedure) -> tuple[Block, ...]:
     ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
     if not ids:  # the event log records each axis's identities at the start of a session
         for e in src.events:
-            if e.get("event") == "identity" and e.get("axis"):
-                ids.setdefault(e["axis"], {}).update(
+            if e.get("event") == "identity" and (axis := e.get("axis")):
+                ids.setdefault(str(axis), {}).update(
                     {k: v for k, v in e.items()
                      if k not in ("utc", "t_s", "session", "event", "axis")})
     stand_axes = src.stand_file.get("axes", {}) or {}
