@@ -9,7 +9,7 @@ from __future__ import annotations
 import io
 import math
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any, Protocol, SupportsFloat, SupportsIndex
+from typing import TYPE_CHECKING, Protocol, SupportsFloat, SupportsIndex
 
 import numpy as np
 
@@ -99,6 +99,37 @@ class AllanCurve(Protocol):
     def allan_tau_s(self) -> Sequence[float]: ...
     @property
     def allan_dev_dps(self) -> Sequence[float]: ...
+
+
+class CycleTrace(Protocol):
+    """One drift cycle's recorded trace (docs/method.md part B)."""
+
+    @property
+    def t_s(self) -> Sequence[float]: ...
+    @property
+    def u_v(self) -> Sequence[float]: ...
+    @property
+    def integral_vs(self) -> Sequence[float]: ...
+    @property
+    def tc_s(self) -> float: ...
+
+
+class CycleDrift(Protocol):
+    """One drift cycle's estimate and where the platform stood."""
+
+    @property
+    def table_deg(self) -> float: ...
+    @property
+    def drift_dph(self) -> float: ...
+
+
+class AxisDrift(Protocol):
+    """An axis's own drift and its cycles' estimates."""
+
+    @property
+    def own_dph(self) -> float: ...
+    @property
+    def cycles(self) -> Sequence[CycleDrift]: ...
 
 
 DPI = 150
@@ -402,10 +433,10 @@ def allan(floors: Mapping[str, AllanCurve]) -> bytes | None:
     return _png(fig)
 
 
-def drift_cycle(axis: str, cycle: Mapping[str, Any]) -> bytes | None:
+def drift_cycle(axis: str, cycle: CycleTrace) -> bytes | None:
     """U(t) of the angle sensor and the signed integrator output over one cycle."""
-    t = np.asarray(cycle.get("t_s", []), dtype=float)
-    u = np.asarray(cycle.get("u_v", []), dtype=float)
+    t = np.asarray(cycle.t_s, dtype=float)
+    u = np.asarray(cycle.u_v, dtype=float)
     if t.size < 2 or u.size != t.size:
         return None
     fig, (a1, a2) = _fig(2, height_in=2.2)
@@ -413,36 +444,36 @@ def drift_cycle(axis: str, cycle: Mapping[str, Any]) -> bytes | None:
     a1.set_ylabel("U, V", fontsize=8)
     a1.set_title(f"Axis {axis}: angle-sensor output U(t) and signed integral over one cycle",
                  fontsize=9)
-    integ = np.asarray(cycle.get("integral_vs", []), dtype=float)
+    integ = np.asarray(cycle.integral_vs, dtype=float)
     if integ.size == t.size:
         a2.plot(t, integ, "C3", lw=1)
     a2.set_ylabel("∫±U dt, V·s", fontsize=8)
     a2.set_xlabel("time from the start of the first pulse, s", fontsize=8)
-    tc = _num(cycle.get("tc_s"))
+    tc = _num(cycle.tc_s)
     for ax in (a1, a2):
         if math.isfinite(tc):
             ax.axvline(tc, color="0.4", lw=0.8, ls="--")
     return _png(fig)
 
 
-def drift_cycles(axes: Mapping[str, Mapping[str, Any]]) -> bytes | None:
+def drift_cycles(axes: Mapping[str, AxisDrift]) -> bytes | None:
     """Drift estimate of every cycle, by axis and platform position."""
-    names = [a for a, d in axes.items() if d.get("cycles")]
+    names = [a for a, d in axes.items() if d.cycles]
     if not names:
         return None
     fig, axs = _fig(len(names), height_in=2.2)
     for ax, axis in zip(axs, names, strict=True):
-        cyc = axes[axis]["cycles"]
-        positions = sorted({_num(c.get("position_deg", 0)) for c in cyc})
+        cyc = axes[axis].cycles
+        positions = sorted({_num(c.table_deg) for c in cyc})
         n = 0
         for j, pos in enumerate(positions):
-            q = [c for c in cyc if _num(c.get("position_deg", 0)) == pos]
+            q = [c for c in cyc if _num(c.table_deg) == pos]
             x = np.arange(n + 1, n + len(q) + 1)
-            y = np.array([_num(c.get("drift_dph")) for c in q])
+            y = np.array([_num(c.drift_dph) for c in q])
             ax.plot(x, y, "o", color=f"C{j}", ms=4, label=f"position {pos:g}°")
             ax.hlines(np.mean(y), x[0] - 0.3, x[-1] + 0.3, color=f"C{j}", lw=0.8)
             n += len(q)
-        own = _num(axes[axis].get("own_dph"))
+        own = _num(axes[axis].own_dph)
         if math.isfinite(own):
             ax.axhline(own, color="k", lw=0.8, ls="--", label="own drift")
         ax.set_ylabel("drift, °/h", fontsize=8)
