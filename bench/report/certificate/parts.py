@@ -109,7 +109,7 @@ def read_json_object(path: Path) -> dict[str, Any]:
     return data if isinstance(data, dict) else {}
 
 
-def stand_of(src: Sources) -> dict[str, Any]:
+def stand_of(src: Sources) -> JsonObject:
     """The stand's identity: the stand file's, with what result.json says over it."""
     stand = dict(src.stand_file.get("stand", {}) or {})
     stand.update({k: v for k, v in (src.get("stand", {}) or {}).items() if v is not None})
