@@ -213,15 +213,10 @@ def _drift_results(drift: DriftFigures, number: str) -> list[Section]:
                                    "drifts' budgets (annex): each with its standard "
                                    "uncertainty and degrees of freedom, no U of its own "
                                    "(docs/method.md D1, D2).",)))
-    # the plots read the figures as result.json spells them, a cycle's position as position_deg
     blocks += figure_of("Drift estimate per cycle, by axis and platform position",
-                        plots.drift_cycles,
-                        {a: {"own_dph": ax.own_dph,
-                             "cycles": [{"position_deg": c.table_deg, "drift_dph": c.drift_dph}
-                                        for c in ax.cycles]}
-                         for a, ax in axes.items()})
+                        plots.drift_cycles, axes)
     for axis, ax in axes.items():
         if ax.example_cycle is not None:
             blocks += figure_of(f"Axis {axis}: U(t) and the integrator output over one cycle",
-                                plots.drift_cycle, axis, ax.example_cycle.to_json())
+                                plots.drift_cycle, axis, ax.example_cycle)
     return [Section(number, "Results", tuple(blocks))]

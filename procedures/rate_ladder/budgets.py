@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any
 
 import numpy as np
 
 from bench.report.budget import CHI_SQUARE, NORMAL, RECTANGULAR, STUDENT_T, Budget, Term, num
+from drivers.json_types import JsonObject, JsonValue
 
 
 def _half_u(x: object) -> float | None:
@@ -140,7 +140,7 @@ def intra_turn_budgets(r: Mapping[str, object], pair: Mapping[str, object] | Non
 
 
 def _half_row(h: Mapping[str, object]
-              ) -> tuple[float, float, float, float, float, int, Any] | None:
+              ) -> tuple[float, float, float, float, float, int, object] | None:
     """A half's counter mean, FOG mean, their standard uncertainties (FOG's first), time
     centre, turns and sign; None when one of the five numbers is missing."""
     c, f, uf, uc, t = (num(h.get(k)) for k in ("counter_mean_dps", "fog_mean_dps",
@@ -151,11 +151,11 @@ def _half_row(h: Mapping[str, object]
     return c, f, uf, uc, t, int(num(h.get("turns")) or 0), h.get("sign")
 
 
-def pair_budgets(pair: Mapping[str, Any]) -> list[Budget]:
+def pair_budgets(pair: Mapping[str, object]) -> list[Budget]:
     """k and w0 as the weighted least-squares fit of F_i = k C_i + w0 (+ d (t_i - t_ref))
     over the pair's halves (eq. 5-6); c_i = dk/dF_i from the fit's gain matrix, and
     dk/dC_i = -k dk/dF_i (a counter mean moves the fit as a FOG mean of -k times it)."""
-    halves = [h for h in pair.get("halves") or [] if isinstance(h, Mapping)]
+    halves = [h for h in _listed(pair, "halves") if isinstance(h, Mapping)]
     rows = [row for h in halves if (row := _half_row(h)) is not None]
     if len(rows) < 2 or len(rows) < len(halves):
         return []
@@ -186,27 +186,39 @@ def pair_budgets(pair: Mapping[str, Any]) -> list[Budget]:
     return out
 
 
-def _pair_of(axis: Mapping[str, Any], set_rate: float | None) -> Mapping[str, Any] | None:
+def _listed(doc: Mapping[str, object], key: str) -> list[object]:
+    """A list entry of result.json ([] when absent or not a list)."""
+    got = doc.get(key)
+    return got if isinstance(got, list) else []
+
+
+def _pair_of(axis: Mapping[str, object], set_rate: float | None
+             ) -> Mapping[str, object] | None:
     if set_rate is None:
         return None
-    return next((p for p in axis.get("pairs") or [] if isinstance(p, Mapping)
+    return next((p for p in _listed(axis, "pairs") if isinstance(p, Mapping)
                  and num(p.get("rate_dps")) == abs(set_rate)), None)
 
 
-def add_budgets(result: dict[str, Any]) -> dict[str, Any]:
+def add_budgets(result: JsonObject) -> JsonObject:
     """result.json with a `budgets` list on every rate and pair (additions only)."""
-    for axis in (result.get("axes") or {}).values():
+    axes = result.get("axes")
+    for axis in axes.values() if isinstance(axes, dict) else ():
         if not isinstance(axis, dict):
             continue
-        floor = axis.get("noise_floor") if isinstance(axis.get("noise_floor"), Mapping) else None
-        for r in axis.get("rates") or []:
+        floor = got if isinstance(got := axis.get("noise_floor"), Mapping) else None
+        for r in _listed(axis, "rates"):
             if not isinstance(r, dict):
                 continue
             pair = _pair_of(axis, num(r.get("set_rate_dps")))
             found = [b for b in (rate_error_budget(r),) if b is not None]
             found += intra_turn_budgets(r, pair, floor) + harmonic_budgets(r, pair)
-            r["budgets"] = [b.to_dict() for b in found]
-        for p in axis.get("pairs") or []:
+            r["budgets"] = _as_json(found)
+        for p in _listed(axis, "pairs"):
             if isinstance(p, dict):
-                p["budgets"] = [b.to_dict() for b in pair_budgets(p)]
+                p["budgets"] = _as_json(pair_budgets(p))
     return result
+
+
+def _as_json(budgets: list[Budget]) -> list[JsonValue]:
+    return [b.to_dict() for b in budgets]

@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from bench.analysis.coverage import COVERAGE_FORMULA, COVERAGE_RULE, DOF_INFINITE
 from bench.analysis.random_part import std_u_rel
@@ -42,6 +41,8 @@ from bench.report.certificate.rounding import (
     present_phase,
     rel_unit,
 )
+from drivers.json_types import JsonObject, JsonValue
+from procedures.rate_ladder.result import LadderAxis, LadderResult, NoiseFloor, RateEntry
 
 # -- the method statement (docs/method.md part A, restated) ---------------------------------
 
@@ -153,7 +154,7 @@ class LadderCertificate(CertificateParts):
 
     def certificate_identification(self, src: Sources) -> Sequence[tuple[str, str]]:
         return [("Item: what was calibrated",
-                 ", ".join(f"axis {a}" for a in (src.get("axes", {}) or {}))
+                 ", ".join(f"axis {a}" for a in _ladder(src).axes)
                  + "; rates are signed in each axis's positive sense (the drive's "
                    "positive count direction), angles from the zero mark")]
 
@@ -168,41 +169,41 @@ class LadderCertificate(CertificateParts):
         return [Para("Where this procedure differs from the source paper's method "
                      "(docs/method.md A3-A5):", "strong"), *(Para(f"• {t}") for t in items)]
 
-    def certificate_checks(self, src: Sources) -> list[dict[str, Any]]:
+    def certificate_checks(self, src: Sources) -> list[JsonObject]:
         """The per-rate judgements of the analysis (a result without checks[])."""
-        out = []
-        for axis, ax in (src.get("axes", {}) or {}).items():
-            for r in ax.get("rates", []):
-                j = r.get("judgement")
-                if not isinstance(j, dict) or r.get("verdict") is None:
-                    continue
-                rule = str(j.get("decision_rule", "simple"))
-                out.append({"axis": axis, "set_rate_dps": r.get("set_rate_dps"),
-                            "quantity": "rate_error", "value_rel": r.get("rate_error_rel"),
-                            "u_rel": r.get("rate_error_u_rel"),
-                            "tolerance_rel": j.get("tolerance_rel"), "verdict": r.get("verdict"),
-                            "rule": "simple" if rule.startswith("simple") else rule,
-                            "capability_ratio": j.get("capability_ratio"),
-                            "capability_ok": j.get("capable")})
+        out: list[JsonObject] = []
+        for axis, r in _ladder(src).rates():
+            j = r.judgement
+            if j is None or r.verdict is None:
+                continue
+            rule = str(j.get("decision_rule", "simple"))
+            out.append({"axis": axis, "set_rate_dps": r.set_rate_dps,
+                        "quantity": "rate_error", "value_rel": r.rate_error_rel,
+                        "u_rel": r.rate_error_u_rel,
+                        "tolerance_rel": j.get("tolerance_rel"), "verdict": r.verdict,
+                        "rule": "simple" if rule.startswith("simple") else rule,
+                        "capability_ratio": j.get("capability_ratio"),
+                        "capability_ok": j.get("capable")})
         return out
 
     def certificate_sections(self, src: Sources, number: str,
-                             checks: Sequence[Mapping[str, Any]]) -> list[Section]:
+                             checks: Sequence[Mapping[str, object]]) -> list[Section]:
         return _ladder_results(src, number, checks)
 
     def certificate_annexes(self, src: Sources) -> Sequence[TitledBlocks]:
-        if not any(r.get("counter_rate_dps") for r in _all_rates(src)):
+        if not any(r.counter_rate_dps for _, r in _ladder(src).rates()):
             return ()
         return (("Per-turn counter rates", _per_turn_annex(src)),)
 
 
-def _all_rates(src: Sources) -> list[dict[str, Any]]:
-    return [r for ax in (src.get("axes", {}) or {}).values() for r in ax.get("rates", [])]
+def _ladder(src: Sources) -> LadderResult:
+    """The typed view of the conformed result (procedures/rate_ladder/result.py)."""
+    return LadderResult.of(src.result)
 
 
 # -- the results -----------------------------------------------------------------------------
 
-def _tolerances(checks: Iterable[Mapping[str, Any]], axis: str
+def _tolerances(checks: Iterable[Mapping[str, object]], axis: str
                 ) -> dict[str, list[tuple[float, float]]]:
     out: dict[str, list[tuple[float, float]]] = {}
     for c in checks:
@@ -213,27 +214,26 @@ def _tolerances(checks: Iterable[Mapping[str, Any]], axis: str
 
 
 
-def _instability_u(r: Mapping[str, Any]) -> tuple[float | None, bool]:
+def _instability_u(r: RateEntry) -> tuple[float | None, bool]:
     """U of eq. 2's sigma: the result's, else the chi-square approximation (k = 2)."""
-    u = num(r.get("rate_instability_u_rel"))
+    u = num(r.rate_instability_u_rel)
     if u is not None:
         return u, False
-    s, n = num(r.get("rate_instability_rel")), len(r.get("counter_rate_dps") or [])
-    u = std_u_rel(s, n or int(r.get("turns") or 0))
+    s, n = num(r.rate_instability_rel), len(r.counter_rate_dps)
+    u = std_u_rel(s, n or int(r.turns or 0))
     return u, u is not None
 
 
-def sigma_presented(r: Mapping[str, Any], u: float | None, scale: float = 1.0
-                    ) -> Presented:
+def sigma_presented(r: RateEntry, u: float | None, scale: float = 1.0) -> Presented:
     """Eq. 2's σ under the one rule (docs/method.md D2), with the timing floor as its zero:
     resolved when its chi-square lower limit > floor (the analysis's
     `rate_instability_resolved`), printed as its interval 'σ [lower, upper]'; else '< L',
     L the one-sided chi-square upper limit (`rate_instability_upper_rel`), never below the
     floor."""
-    s = num(r.get("rate_instability_rel"))
-    floor = num(r.get("rate_instability_floor_rel"))
-    lower, upper = num(r.get("rate_instability_lower_rel")), num(r.get("rate_instability_upper_rel"))
-    resolved = r.get("rate_instability_resolved")
+    s = num(r.rate_instability_rel)
+    floor = num(r.rate_instability_floor_rel)
+    lower, upper = num(r.rate_instability_lower_rel), num(r.rate_instability_upper_rel)
+    resolved = r.rate_instability_resolved
     if resolved is None:
         resolved = (s is not None and u is not None
                     and s - u > (floor if floor is not None else 0.0))
@@ -272,18 +272,17 @@ class Averaged:
         return self.raw * (8.0 / (self.blocks - 1)) ** 0.25
 
 
-def _averaged(r: Mapping[str, Any]) -> list[Averaged]:
+def _averaged(r: RateEntry) -> list[Averaged]:
     """Averages over 1/10/360 deg, from `intra_turn.averaged` (the analysis library's shape)
     or a list/mapping under one of the older names."""
-    data: Any = (r.get("intra_turn") or {}).get("averaged")
-    for key in ("instability_over_angle", "intra_turn_instability_over", "averaged_instability"):
-        data = data if data is not None else r.get(key)
-    if isinstance(data, Mapping):
-        data = [{"angle_deg": a, **(v if isinstance(v, Mapping) else {"instability_rel": v})}
-                for a, v in data.items()]
+    data = r.averaged
+    items: list[JsonValue] = list(data) if isinstance(data, list) else []
+    if isinstance(data, dict):
+        items = [{"angle_deg": a, **(v if isinstance(v, dict) else {"instability_rel": v})}
+                 for a, v in data.items()]
     out = []
-    for d in data or []:
-        if not isinstance(d, Mapping) or num(d.get("angle_deg")) is None:
+    for d in items:
+        if not isinstance(d, dict) or (angle_deg := num(d.get("angle_deg"))) is None:
             continue
         raw = num(d.get("instability_rel", d.get("rel")))
         u = num(d.get("u_rel"))
@@ -298,16 +297,16 @@ def _averaged(r: Mapping[str, Any]) -> list[Averaged]:
         if upper is None and raw is not None and u is not None:
             fl = num(d.get("floor_rel")) or 0.0
             upper = math.sqrt(max(raw * raw - fl * fl, 0.0) + 2 * raw * u)
-        out.append(Averaged(float(d["angle_deg"]), raw, u, approx and u is not None,
+        out.append(Averaged(angle_deg, raw, u, approx and u is not None,
                             num(d.get("floor_rel")), corrected,
-                            int(d["blocks"]) if num(d.get("blocks")) is not None else None,
+                            int(n) if (n := num(d.get("blocks"))) is not None else None,
                             upper, bool(resolved), num(d.get("corrected_lower_rel"))))
     return sorted(out, key=lambda x: x.angle_deg)
 
 
-def _ladder_results(src: Sources, number: str, checks: Sequence[Mapping[str, Any]]
+def _ladder_results(src: Sources, number: str, checks: Sequence[Mapping[str, object]]
                     ) -> list[Section]:
-    axes = src.get("axes", {}) or {}
+    axes = _ladder(src).axes
     out = [Section(number, "Results", (Para(
         "Per axis, commanded rate and direction. Each value is followed by its expanded "
         "uncertainty U for about 95 % (k = 2, or k = t_95.45(ν_eff) where its budget in "
@@ -318,13 +317,11 @@ def _ladder_results(src: Sources, number: str, checks: Sequence[Mapping[str, Any
         )]
     sub = 0
     # one unit per quantity on the whole certificate, whatever the axis
-    every = [r for ax in axes.values() for r in ax.get("rates", []) if isinstance(r, dict)]
+    every = [r for ax in axes.values() for r in ax.rates]
     for axis, ax in axes.items():
-        rates = [r for r in ax.get("rates", []) if isinstance(r, dict)]
-        pairs = [p for p in ax.get("pairs", []) if isinstance(p, dict)]
         sub += 1
         out.append(Section(f"{number}.{sub}", f"Axis {axis}",
-                           _axis_blocks(axis, rates, pairs, ax, checks, every), level=2))
+                           _axis_blocks(axis, ax, checks, every), level=2))
     figs = _across_axes(axes)
     if figs:
         sub += 1
@@ -336,42 +333,42 @@ def _ladder_results(src: Sources, number: str, checks: Sequence[Mapping[str, Any
     return out
 
 
-def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, Any]],
-                 ax: Mapping[str, Any], checks: Sequence[Mapping[str, Any]],
-                 every: list[dict[str, Any]]) -> tuple[Any, ...]:
+def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Mapping[str, object]],
+                 every: list[RateEntry]) -> tuple[Block, ...]:
     """One axis's results; `every` is every axis's rates, so that one quantity has one
     unit on the whole certificate."""
-    blocks: list[Any] = []
+    rates, pairs = ax.rates, ax.pairs
+    blocks: list[Block] = []
     # A1/A2 per-turn
-    err_unit = rel_unit(*[v for r in every for v in (num(r.get("rate_error_rel")),
-                                                      num(r.get("rate_error_u_rel")))],
+    err_unit = rel_unit(*[v for r in every for v in (num(r.rate_error_rel),
+                                                      num(r.rate_error_u_rel))],
                         *[t for c in checks if c.get("quantity") == "rate_error"
                           for t in (num(c.get("tolerance_rel")),)])
     inst_us = [_instability_u(r) for r in rates]
-    inst_unit = rel_unit(*[num(r.get("rate_instability_rel")) for r in every],
+    inst_unit = rel_unit(*[num(r.rate_instability_rel) for r in every],
                          *[_instability_u(r)[0] for r in every])
     rows = []
     approximated = False
     unresolved_sigma = False
     for r, (iu, approx) in zip(rates, inst_us, strict=True):
         approximated |= approx
-        set_rate = num(r.get("set_rate_dps"))
-        mean = num(r.get("mean_rate_dps"))
-        cr = [v for v in (num(x) for x in r.get("counter_rate_dps") or []) if v is not None]
+        set_rate = num(r.set_rate_dps)
+        mean = num(r.mean_rate_dps)
+        cr = [v for v in (num(x) for x in r.counter_rate_dps) if v is not None]
         if mean is None and cr:
             mean = sum(cr) / len(cr)
-        eu = num(r.get("rate_error_u_rel"))
+        eu = num(r.rate_error_u_rel)
         mean_u = eu * abs(set_rate) if eu is not None and set_rate else None
         sigma = sigma_presented(r, iu, inst_unit.scale)
         unresolved_sigma |= not sigma.resolved
-        rows.append((rate_text(set_rate), text_of(r.get("turns")),
+        rows.append((rate_text(set_rate), text_of(r.turns),
                      format_value_u(mean, mean_u, signed=True, sig_without_u=10).joined(),
-                     vu_text(r.get("rate_error_rel"), eu, err_unit, signed=True),
+                     vu_text(r.rate_error_rel, eu, err_unit, signed=True),
                      sigma.text + ("*" if approx and sigma.resolved else ""),
                      format_sig(floor_rel * inst_unit.scale, 2)
-                     if (floor_rel := num(r.get("rate_instability_floor_rel"))) is not None
+                     if (floor_rel := num(r.rate_instability_floor_rel)) is not None
                      else "—",
-                     verdict_label(r.get("verdict"))))
+                     verdict_label(r.verdict)))
     notes = ["Timing floor of σ = ΔT / T, with ΔT = √2 · Δ_edge the timing of one period "
              "(section 3, A1): the σ the counter's and the zero-mark sensor's timing errors "
              "alone would give."]
@@ -405,37 +402,34 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
     # A3 cross-calibration
     if pairs:
         prow = []
-        has_drift = any(num(p.get("drift_dps_per_h")) is not None for p in pairs)
+        has_drift = any(num(p.drift_dps_per_h) is not None for p in pairs)
         for p in pairs:
-            w0, w0u = num(p.get("w0_dps")), num(p.get("w0_u_dps"))
-            row = [f"±{num(p.get('rate_dps')) or 0:g}", vu_text(p.get("k"), p.get("k_u")),
+            w0, w0u = num(p.w0_dps), num(p.w0_u_dps)
+            row = [f"±{num(p.rate_dps) or 0:g}", vu_text(p.k, p.k_u),
                    vu_text(w0, w0u, signed=True),
                    format_value_u(w0, w0u, 3600.0, signed=True).joined()]
             if has_drift:
-                row.append(vu_text(p.get("drift_dps_per_h"), p.get("drift_u_dps_per_h"),
-                               signed=True))
+                row.append(vu_text(p.drift_dps_per_h, p.drift_u_dps_per_h, signed=True))
             prow.append(tuple(row))
         header = ["Pair, °/s", "k ± U", "ω0 ± U, °/s", "ω0 ± U, °/h"]
         notes = []
         if has_drift:
             header.append("Bias drift ± U, °/s per h")
-            methods_used = sorted({CALIBRATION_METHODS.get(str(p.get("method")),
-                                                           str(p.get("method")))
-                                   for p in pairs if p.get("method")})
-            sources = sorted({str(p.get("drift_source")) for p in pairs
-                              if p.get("drift_source")})
+            methods_used = sorted({CALIBRATION_METHODS.get(p.method, p.method)
+                                   for p in pairs if p.method})
+            sources = sorted({p.drift_source for p in pairs if p.drift_source})
             notes.append("ω0 is the bias at the pair's reference time; the FOG's bias drift "
                          "during the pair is estimated and removed"
                          + (f" ({'; '.join(methods_used)}" if methods_used else "")
                          + (f"; drift from {', '.join(sources)})" if sources else
                             (")" if methods_used else "")) + ".")
         for p in pairs:  # a resumed pair: which half came from which session (docs/resume.md)
-            hs = [int(s) for s in p.get("half_sessions") or [] if isinstance(s, int | float)]
+            hs = p.half_sessions
             if len(set(hs)) > 1:
-                notes.append(f"Pair ±{num(p.get('rate_dps')) or 0:g} °/s was resumed: "
+                notes.append(f"Pair ±{num(p.rate_dps) or 0:g} °/s was resumed: "
                              + ", ".join(f"half {i + 1} from session {s}"
                                          for i, s in enumerate(hs))
-                             + f". FOG bias {p.get('bias_model', '')}.")
+                             + f". FOG bias {p.bias_model}.")
         blocks.append(Table(tuple(header), tuple(prow),
                             widths=(1.0, 2.4, 2.1, 1.9, 2.1)[:len(header)], align="rrrrr"[
                                 :len(header)],
@@ -443,35 +437,31 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                                     "(docs/method.md A3, eqs. 5-6)", notes=tuple(notes)))
     # A4 systematic
     sys_rows, mains_rows = [], []
-    amp_unit = rel_unit(*[num(h.get("amplitude_rel")) for r in every
-                          for h in (r.get("systematic") or {}).get("harmonics") or []])
+    amp_unit = rel_unit(*[num(h.amplitude_rel) for r in every for h in r.harmonics])
     for r in rates:
-        s = r.get("systematic") or {}
-        for h in s.get("harmonics") or []:
-            a, au = num(h.get("amplitude_rel")), num(h.get("amplitude_u_rel"))
-            w = abs(num(r.get("set_rate_dps")) or 0.0)
-            detected = h.get("detected")
+        for h in r.harmonics:
+            a, au = num(h.amplitude_rel), num(h.amplitude_u_rel)
+            w = abs(num(r.set_rate_dps) or 0.0)
+            detected = h.detected
             resolved = bool(detected) if detected is not None else is_resolved(a, au)
-            sys_rows.append((rate_text(r.get("set_rate_dps")), text_of(h.get("order")),
+            sys_rows.append((rate_text(r.set_rate_dps), text_of(h.order),
                              present(a, au, amp_unit.scale, resolved=resolved).text,
                              present(a * w if a is not None else None,
                                      au * w if au is not None else None,
                                      resolved=resolved).text,
-                             present_phase(num(h.get("phase_deg")), num(h.get("phase_u_deg")),
-                                           resolved)))
-        m = s.get("mains") or {}
-        if m:
-            w = abs(num(r.get("set_rate_dps")) or 0.0)
-            a, au = num(m.get("amplitude_dps")), num(m.get("amplitude_u_dps"))
-            detected = m.get("detected")
+                             present_phase(num(h.phase_deg), num(h.phase_u_deg), resolved)))
+        m = r.mains
+        if m is not None and m.doc:
+            w = abs(num(r.set_rate_dps) or 0.0)
+            a, au = num(m.amplitude_dps), num(m.amplitude_u_dps)
+            detected = m.detected
             resolved = bool(detected) if detected is not None else is_resolved(a, au)
-            mains_rows.append((rate_text(r.get("set_rate_dps")), text_of(m.get("frequency_hz")),
+            mains_rows.append((rate_text(r.set_rate_dps), text_of(m.frequency_hz),
                                present(a, au, resolved=resolved).text,
                                present(a / w if a is not None and w else None,
                                        au / w if au is not None and w else None,
                                        PERCENT.scale, resolved=resolved).text,
-                               present_phase(num(m.get("phase_deg")),
-                                             num(m.get("phase_u_deg")), resolved)))
+                               present_phase(num(m.phase_deg), num(m.phase_u_deg), resolved)))
     if sys_rows:
         blocks.append(Table(("Set rate, °/s", "Order h", f"Amplitude ± U, {amp_unit.name} "
                              "of ω_set", "Amplitude ± U, °/s", "Phase p_h ± U, °"),
@@ -499,19 +489,19 @@ def _axis_blocks(axis: str, rates: list[dict[str, Any]], pairs: list[dict[str, A
                       "harmonics (cf. paper figs. 8-9)",
                       plots.systematic, axis, rates, amp_unit.scale, amp_unit.name)
     # A5 intra-turn
-    blocks += _intra_blocks(axis, rates, ax.get("noise_floor") or {}, every)
+    blocks += _intra_blocks(axis, rates, ax.noise_floor, every)
     return tuple(blocks)
 
 
-def _corrected_cell(r: Mapping[str, Any], unit: RelUnit) -> str:
+def _corrected_cell(r: RateEntry, unit: RelUnit) -> str:
     """Floor-corrected instability under the one rule (docs/method.md D2): its JCGM 101
     interval 'value [lower, upper]' when resolved, else its upper limit '< L' (never a
     bare value)."""
-    intra = r.get("intra_turn") or {}
-    value = num(r.get("intra_turn_instability_corrected_rel"))
-    u = num(r.get("intra_turn_instability_corrected_u_rel"))
-    upper, lower = num(intra.get("corrected_upper_rel")), num(intra.get("corrected_lower_rel"))
-    resolved = intra.get("resolved")
+    intra = r.intra
+    value = num(r.intra_turn_instability_corrected_rel)
+    u = num(r.intra_turn_instability_corrected_u_rel)
+    upper, lower = num(intra.corrected_upper_rel), num(intra.corrected_lower_rel)
+    resolved = intra.resolved
     if resolved and value is not None and upper is not None and lower is not None:
         return present(value, None, unit.scale, resolved=True,
                        interval=(lower, upper)).text
@@ -536,20 +526,20 @@ BUDGET_TERMS = (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counte
                 ("repeatability_u_rel", "repeatability (Type A)"))
 
 
-def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
+def _rate_error_budget(axis: str, rates: Sequence[RateEntry]) -> Table | None:
     """The standard uncertainties behind U of the rate error (docs/method.md A1-A2)."""
-    budgets = [(r, b) for r in rates if isinstance(b := r.get("rate_error_budget"), Mapping)]
+    budgets = [(r, b) for r in rates if (b := r.rate_error_budget) is not None]
     if not budgets:
         return None
     terms = [(k, name) for k, name in BUDGET_TERMS if any(k in b for _, b in budgets)]
     unit = rel_unit(*[num(b.get(k)) for _, b in budgets for k, _ in terms],
-                    *[num(r.get("rate_error_u_rel")) for r, _ in budgets])
+                    *[num(r.rate_error_u_rel) for r, _ in budgets])
     rows = []
     for r, b in budgets:
         cells = [format_sig((num(b.get(k)) or math.nan) * unit.scale, 2) for k, _ in terms]
-        u = num(r.get("rate_error_u_rel"))
+        u = num(r.rate_error_u_rel)
         nu = num(b.get("dof_eff"))
-        rows.append((rate_text(r.get("set_rate_dps")), *cells,
+        rows.append((rate_text(r.set_rate_dps), *cells,
                      "∞" if nu is None or nu > DOF_INFINITE else f"{nu:.1f}",
                      f"{num(b.get('coverage_factor')) or 2.0:.2f}",
                      format_sig(u * unit.scale, 2) if u is not None else "n/a"))
@@ -579,29 +569,28 @@ def _rate_error_budget(axis: str, rates: list[dict[str, Any]]) -> Table | None:
                  notes=tuple(notes))
 
 
-def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, Any],
-                  every: list[dict[str, Any]]) -> list[Any]:
-    if not any(r.get("intra_turn_instability_rel") is not None for r in rates):
+def _intra_blocks(axis: str, rates: Sequence[RateEntry], floor: NoiseFloor | None,
+                  every: list[RateEntry]) -> list[Block]:
+    if not any(r.intra_turn_instability_rel is not None for r in rates):
         return []
-    raws = [num(r.get("intra_turn_instability_rel")) for r in rates]
+    raws = [num(r.intra_turn_instability_rel) for r in rates]
     raw_us: list[float | None] = []
     approx = False
     for r, raw in zip(rates, raws, strict=True):
-        u = num(r.get("intra_turn_instability_u_rel"))
+        u = num(r.intra_turn_instability_u_rel)
         if u is None:
-            u = _u_of_std(raw, (r.get("intra_turn") or {}).get("samples"))
+            u = _u_of_std(raw, r.intra.samples)
             approx |= u is not None
         raw_us.append(u)
-    floors = [num((r.get("intra_turn") or {}).get("floor_rel")) for r in rates]
-    raw_unit = rel_unit(*[num(r.get("intra_turn_instability_rel")) for r in every])
-    corr_unit = rel_unit(*[num(r.get("intra_turn_instability_corrected_rel")) for r in every],
-                         *[num((r.get("intra_turn") or {}).get("corrected_upper_rel"))
-                           for r in every])
+    floors = [num(r.intra.floor_rel) for r in rates]
+    raw_unit = rel_unit(*[num(r.intra_turn_instability_rel) for r in every])
+    corr_unit = rel_unit(*[num(r.intra_turn_instability_corrected_rel) for r in every],
+                         *[num(r.intra.corrected_upper_rel) for r in every])
     rows = []
     for r, raw, u, fl in zip(rates, raws, raw_us, floors, strict=True):
-        rows.append((rate_text(r.get("set_rate_dps")),
+        rows.append((rate_text(r.set_rate_dps),
                      vu_text(raw, u, raw_unit) + ("*" if u is not None and approx
-                                                and r.get("intra_turn_instability_u_rel") is None
+                                                and r.intra_turn_instability_u_rel is None
                                                 else ""),
                      format_value_u(fl, None, raw_unit.scale, sig_without_u=2).value
                      if fl is not None else "—",
@@ -609,25 +598,22 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
     header = ("Set rate, °/s", f"Raw ± U, {raw_unit.name}", f"FOG floor, {raw_unit.name}",
               f"Floor-corrected, {corr_unit.name}")
     notes = []
-    bw = {b for r in rates
-          if (b := num(r.get("bandwidth_hz", (r.get("intra_turn") or {}).get("bandwidth_hz"))))
-          is not None}
+    bw = {b for r in rates if (b := num(r.bandwidth_hz)) is not None}
     if bw:
         notes.append("At the FOG's output bandwidth: "
                      + ", ".join(f"{b:g} Hz" for b in sorted(bw)) + ".")
-    sources = {str((r.get("intra_turn") or {}).get("floor_source")) for r in rates
-               if (r.get("intra_turn") or {}).get("floor_source")}
-    if floor or sources:
-        noise = num(floor.get("noise_dps", floor.get("sigma_dps",
-                                                        floor.get("sample_std_dps"))))
+    sources = {src for r in rates if (src := r.intra.floor_source)}
+    if (floor is not None and floor.doc) or sources:
+        noise = num(floor.noise_dps) if floor is not None else None
         text = "FOG noise floor from " + (", ".join(sorted(sources)) if sources else
-                                          str(floor.get("source", "a record at rest")))
+                                          (floor.source if floor is not None and floor.source
+                                           is not None else "a record at rest"))
         if noise is not None:
             text += f"; {format_sig(noise, 3)} °/s per sample"
-        if num(floor.get("rate_hz")) is not None:
-            text += f" at {num(floor.get('rate_hz')):g} Hz"
-        if num(floor.get("duration_s")) is not None:
-            text += f", {num(floor.get('duration_s')):g} s record at rest"
+        if floor is not None and (rate_hz := num(floor.rate_hz)) is not None:
+            text += f" at {rate_hz:g} Hz"
+        if floor is not None and (duration_s := num(floor.duration_s)) is not None:
+            text += f", {duration_s:g} s record at rest"
         notes.append(text + ". Floor-corrected = √(raw² − floor²), its interval from a "
                             "JCGM 101 Monte Carlo of the two variances (docs/method.md A5): "
                             "± U when the interval's lower end (2.5 %) is above zero, "
@@ -636,14 +622,14 @@ def _intra_blocks(axis: str, rates: list[dict[str, Any]], floor: Mapping[str, An
     if approx:
         notes.append("* U of the raw value from 2s/√(2(n−1)) over its n samples, assuming "
                      "independent samples; the result did not carry it.")
-    blocks: list[Any] = [Table(header, tuple(rows), widths=(1.1, 2.0, 1.4, 2.2),
+    blocks: list[Block] = [Table(header, tuple(rows), widths=(1.1, 2.0, 1.4, 2.2),
                                align="rrrr", caption=f"Axis {axis}: intra-turn instability "
                                "std(Δω_rand)/|ω_set| (docs/method.md A5)", notes=tuple(notes))]
     blocks += _stability_blocks(axis, rates)
     return blocks
 
 
-def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
+def _stability_blocks(axis: str, rates: Sequence[RateEntry]) -> list[Block]:
     """Rate stability over an angle, as a datasheet states it (docs/method.md A5): over 1° and
     10° from the FOG (with what this FOG can verify), over 360° from the counter's
     per-turn rates, whose timing floor is far below the FOG's."""
@@ -665,24 +651,24 @@ def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
             # window: 'raw ± U' only when raw - U > floor, else '< L' (never below the floor)
             measured = present(a.raw, a.u, unit.scale, floor=a.floor)
             limited |= not measured.resolved
-            rows.append((rate_text(r.get("set_rate_dps")), f"{a.angle_deg:g}", "FOG",
+            rows.append((rate_text(r.set_rate_dps), f"{a.angle_deg:g}", "FOG",
                          measured.text + ("*" if a.u_approx and measured.resolved else ""),
                          format_sig(a.floor * unit.scale, 2) if a.floor is not None else "—",
                          own, format_sig(a.sensitivity * unit.scale, 2)
                          if a.sensitivity is not None else "—", text_of(a.blocks)))
-        s, (iu, approx) = num(r.get("rate_instability_rel")), _instability_u(r)
+        s, (iu, approx) = num(r.rate_instability_rel), _instability_u(r)
         if s is not None:
             unit = PPM
             # docs/method.md D2: σ of the per-turn rates as its chi-square interval, or
             # '< L' when it is not resolved above the timing floor (never below it)
             sigma = sigma_presented(r, iu, unit.scale)
-            floor = num(r.get("rate_instability_floor_rel"))
-            rows.append((rate_text(r.get("set_rate_dps")), "360", "counter",
+            floor = num(r.rate_instability_floor_rel)
+            rows.append((rate_text(r.set_rate_dps), "360", "counter",
                          sigma.text + ("*" if approx and sigma.resolved else ""),
                          format_sig(floor * unit.scale, 2) if floor is not None else "—",
                          sigma.text,
                          format_sig(floor * unit.scale, 2) if floor is not None else "—",
-                         text_of(r.get("turns"))))
+                         text_of(r.turns)))
     if not rows:
         return []
     approx_note = ["* U from 2s/√(2(n−1)) over the n windows (turns); the result did not "
@@ -708,39 +694,37 @@ def _stability_blocks(axis: str, rates: list[dict[str, Any]]) -> list[Any]:
                   notes=tuple(notes))]
 
 
-def _across_axes(axes: Mapping[str, Any]) -> list[Any]:
-    rates = {a: [r for r in ax.get("rates", []) if isinstance(r, dict)] for a, ax in axes.items()}
-    blocks: list[Any] = []
-    amp_unit = rel_unit(*[num(h.get("amplitude_rel")) for rr in rates.values() for r in rr
-                          for h in (r.get("systematic") or {}).get("harmonics") or []])
+def _across_axes(axes: Mapping[str, LadderAxis]) -> list[Block]:
+    rates = {a: ax.rates for a, ax in axes.items()}
+    blocks: list[Block] = []
+    amp_unit = rel_unit(*[num(h.amplitude_rel) for rr in rates.values() for r in rr
+                          for h in r.harmonics])
     blocks += figure_of("Once-per-revolution amplitude vs rate, relative and absolute "
                       "(cf. paper fig. 7)",
                       plots.one_rev, rates, amp_unit.scale, amp_unit.name)
-    unit = rel_unit(*[num(r.get("intra_turn_instability_rel")) for rr in rates.values()
-                      for r in rr])
+    unit = rel_unit(*[num(r.intra_turn_instability_rel) for rr in rates.values() for r in rr])
     blocks += figure_of("Intra-turn instability vs rate, raw and floor-corrected "
                       "(cf. paper fig. 10)",
                       plots.intra_turn, rates, unit.scale, unit.name)
     blocks += figure_of("FOG scale k and bias ω0 per ± pair (docs/method.md A3)",
-                      plots.pairs, {a: [p for p in ax.get("pairs", []) if isinstance(p, dict)]
-                                    for a, ax in axes.items()})
+                      plots.pairs, {a: ax.pairs for a, ax in axes.items()})
     blocks += figure_of("Allan deviation of the FOG at rest: its noise floor (docs/method.md A5)",
-                      plots.allan, {a: ax.get("noise_floor") or {} for a, ax in axes.items()},
+                      plots.allan, {a: ax.noise_floor for a, ax in axes.items()
+                                    if ax.noise_floor is not None and ax.noise_floor.doc},
                       width_frac=0.8)
     return blocks
 
 
-def _per_turn_annex(src: Sources) -> tuple[Any, ...]:
+def _per_turn_annex(src: Sources) -> tuple[Block, ...]:
     rows = []
-    for axis, ax in (src.get("axes", {}) or {}).items():
-        for r in ax.get("rates", []):
-            w_set = num(r.get("set_rate_dps"))
-            cr = [num(x) for x in r.get("counter_rate_dps") or []]
-            if not w_set or not cr:
-                continue
-            dev = ", ".join(format_sig(((x or math.nan) / w_set - 1) * 1e6, 3, signed=True)
-                            .replace("n/a", "—") for x in cr)
-            rows.append((axis, rate_text(w_set), dev))
+    for axis, r in _ladder(src).rates():
+        w_set = num(r.set_rate_dps)
+        cr = [num(x) for x in r.counter_rate_dps]
+        if not w_set or not cr:
+            continue
+        dev = ", ".join(format_sig(((x or math.nan) / w_set - 1) * 1e6, 3, signed=True)
+                        .replace("n/a", "—") for x in cr)
+        rows.append((axis, rate_text(w_set), dev))
     return (Table(("Axis", "Set rate, °/s", "Per-turn rate deviations (ω_i/ω_set − 1), ppm, "
                    "in turn order"), tuple(rows), widths=(0.9, 1.1, 6.0), align="lrl",
                   caption="Per-turn counter rates (docs/method.md A1), relative to the set rate"),)

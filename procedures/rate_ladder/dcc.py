@@ -7,7 +7,6 @@ instability, the fitted harmonics and mains ripple; per +/- pair the FOG's k and
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
 
 from lxml import etree
 
@@ -32,7 +31,7 @@ from bench.report.dcc.xml import (
     rate_token,
     text_el,
 )
-from procedures.rate_ladder.result import LadderResult, PairEntry
+from procedures.rate_ladder.result import LadderResult, PairEntry, RateEntry
 
 # the ladder's refTypes, namespace "ratebench" (docs/dcc.md, section "refTypes")
 SET_RATE = V.RB + "setRate"
@@ -100,7 +99,7 @@ def ladder_results(results: etree._Element, src: Sources, checks: Checks) -> Non
                 "commanded rate (unit \\one).")
         res = el(mr, "results")
         for i, rate in enumerate(ax.rates):
-            _rate_result(res, axis, i, rate.doc, checks)
+            _rate_result(res, axis, i, rate, checks)
         for i, pair in enumerate(ax.pairs):
             _pair_result(res, axis, i, pair)
         floor = ax.noise_floor
@@ -120,39 +119,39 @@ def ladder_results(results: etree._Element, src: Sources, checks: Checks) -> Non
             text_el(el(r, "data"), "text", "Nothing was measured to completion on this axis.")
 
 
-def _per_turn_u(r: Mapping[str, object], rates: list[float]) -> list[float] | None:
+def _per_turn_u(b: Mapping[str, object] | None, rates: list[float]) -> list[float] | None:
     """U (k = 2) of each per-turn rate, docs/method.md A1: dw/w = dT/T with T = 360/|w|, combined
     with the counter timebase: U = 2 |w| sqrt((u_T |w| / 360)^2 + u_tb^2)."""
-    b = r.get("rate_error_budget")
-    if not isinstance(b, Mapping) or num(b.get("period_u_s")) is None:
+    if b is None or num(b.get("period_u_s")) is None:
         return None
     u_t, u_tb = num(b.get("period_u_s")) or 0.0, num(b.get("timebase_u_rel")) or 0.0
     return [2 * abs(w) * ((u_t * abs(w) / 360.0) ** 2 + u_tb ** 2) ** 0.5 for w in rates]
 
 
-def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
+def _rate_result(res: etree._Element, axis: str, i: int, r: RateEntry,
                  checks: Checks) -> None:
-    w_set = num(r.get("set_rate_dps"))
+    w_set = num(r.set_rate_dps)
     tok = rate_token(w_set)
     path = f"axes.{axis}.rates[{i}]"
     rid = ident("r", axis, tok)
     result = el(res, "result", id=rid, ref_type=V.MEASURED)
     name(result, f"Axis {axis}, set rate {w_set:+g} deg/s" if w_set is not None
          else f"Axis {axis}, rate {i + 1}")
-    verdict = r.get("verdict")
+    verdict = r.verdict
     if verdict:
         text_el(result, "description", f"Verdict at this rate: {str(verdict).upper()}.")
     data = el(result, "data")
 
-    def q(key: str, title: str, ref: str, unit: str, u_key: str | None = None,
-          u: float | None = None, note: str | None = None, check: str | None = None,
-          value: float | None = None, label: str | None = None, k: float | None = None,
+    def q(key: str, title: str, ref: str, unit: str, value: float | None,
+          u: float | None = None, u_stated: bool = False, note: str | None = None,
+          check: str | None = None, label: str | None = None, k: float | None = None,
           interval: Interval | None = None) -> etree._Element | None:
-        v = value if value is not None else num(r.get(key))
+        """One quantity; `u_stated`: result.json should carry its U (say so when not)."""
+        v = value
         if v is None:
             return None
-        uu = u if u is not None else (num(r.get(u_key)) if u_key else None)
-        if uu is None and u_key is not None and interval is None:
+        uu = u
+        if uu is None and u_stated and interval is None:
             note = (note + " " if note else "") + "U not stated in result.json."
         node = quantity(data, ident(rid, key), title, ref, v, unit, uu,
                         label=label or f"{path}.{key}", note=note, k=k, interval=interval)
@@ -160,81 +159,81 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: Mapping[str, Any],
             judge(node, checks.take(axis, w_set, check), unit)
         return node
 
-    q("set_rate_dps", "commanded (set) rate", f"{V.NOMINAL} {SET_RATE}", U.DEG_PER_S)
-    q("turns", "whole turns timed", TURNS, U.ONE)
-    cr = [v for v in (num(x) for x in r.get("counter_rate_dps") or []) if v is not None]
-    mean = num(r.get("mean_rate_dps"))
+    q("set_rate_dps", "commanded (set) rate", f"{V.NOMINAL} {SET_RATE}", U.DEG_PER_S, w_set)
+    q("turns", "whole turns timed", TURNS, U.ONE, num(r.turns))
+    cr = [v for v in (num(x) for x in r.counter_rate_dps) if v is not None]
+    mean = num(r.mean_rate_dps)
     if mean is None and cr:
         mean = sum(cr) / len(cr)
-    eu = num(r.get("rate_error_u_rel"))
-    eb = r.get("rate_error_budget")
-    ek = num(eb.get("coverage_factor")) if isinstance(eb, Mapping) else None      # docs/method.md D1: k = t_95.45(nu_eff)
+    eu = num(r.rate_error_u_rel)
+    eb = r.rate_error_budget
+    ek = num(eb.get("coverage_factor")) if eb is not None else None      # docs/method.md D1: k = t_95.45(nu_eff)
     if mean is not None:
         q("mean_rate_dps", "mean rate over the turns (counter, docs/method.md A2)", V.MEASURED,
-          U.DEG_PER_S, value=mean, u=eu * abs(w_set) if eu is not None and w_set else None,
+          U.DEG_PER_S, mean, u=eu * abs(w_set) if eu is not None and w_set else None,
           note="U = U(rate error) x |set rate|.", k=ek)
     q("rate_error_rel", "per-turn rate error (mean - set) / set (docs/method.md A2 eq. 1, "
-      "signed)", f"{V.ERROR} {RATE_ERROR}", U.ONE, "rate_error_u_rel", check="rate_error",
-      k=ek)
+      "signed)", f"{V.ERROR} {RATE_ERROR}", U.ONE, num(r.rate_error_rel), eu, u_stated=True,
+      check="rate_error", k=ek)
     # docs/method.md D2: sigma as its chi-square interval when resolved above the timing
     # floor, else as '< L' (L never below the floor): never a normal +/- U
-    s_val, s_lo, s_hi = (num(r.get(k)) for k in ("rate_instability_rel",
-                                                 "rate_instability_lower_rel",
-                                                 "rate_instability_upper_rel"))
-    s_floor = num(r.get("rate_instability_floor_rel"))
+    s_val, s_lo, s_hi = (num(r.rate_instability_rel), num(r.rate_instability_lower_rel),
+                         num(r.rate_instability_upper_rel))
+    s_floor = num(r.rate_instability_floor_rel)
     s_iv: Interval | None = None
     if s_val is not None and s_lo is not None and s_hi is not None:
-        if r.get("rate_instability_resolved"):
+        if r.rate_instability_resolved:
             s_iv = two_sided(s_val, s_lo, s_hi, "chi-square (N - 1 dof)")
         else:
             s_iv = limit_interval(max(s_hi, s_floor or 0.0), "chi-square (N - 1 dof), "
                                   "one-sided upper limit")
     q("rate_instability_rel", "per-turn rate instability, relative std of the per-turn rates "
-      "(docs/method.md A2 eq. 2)", RATE_INSTABILITY, U.ONE,
-      None if s_iv is not None else "rate_instability_u_rel", check="rate_instability",
-      interval=s_iv, note=None if s_iv is None or r.get("rate_instability_resolved") else
+      "(docs/method.md A2 eq. 2)", RATE_INSTABILITY, U.ONE, s_val,
+      None if s_iv is not None else num(r.rate_instability_u_rel), u_stated=s_iv is None,
+      check="rate_instability",
+      interval=s_iv, note=None if s_iv is None or r.rate_instability_resolved else
       "not resolved above the timing floor: stated as < L, L the interval's upper end "
       "(docs/method.md D2)")
     q("rate_instability_floor_rel", "timing floor of the instability (counter and zero-mark "
-      "timing alone, docs/method.md A1)", TIMING_FLOOR, U.ONE)
+      "timing alone, docs/method.md A1)", TIMING_FLOOR, U.ONE, s_floor)
     if cr:
-        us = _per_turn_u(r, cr)
+        us = _per_turn_u(eb, cr)
         list_quantity(data, ident(rid, "counter_rate_dps"), "per-turn rates from the counter, "
                       "in turn order (docs/method.md A1)", f"{V.MEASURED} {PER_TURN}", cr,
                       U.DEG_PER_S, us, note=None if us is not None else
                       "U not stated: result.json carries no timing budget for this rate.")
-    intra = r.get("intra_turn") or {}
+    intra = r.intra
     q("intra_turn_instability_rel", "intra-turn instability std(random part) / |set| at the "
-      "FOG bandwidth (docs/method.md A5)", INTRA_TURN, U.ONE, "intra_turn_instability_u_rel",
+      "FOG bandwidth (docs/method.md A5)", INTRA_TURN, U.ONE,
+      num(r.intra_turn_instability_rel), num(r.intra_turn_instability_u_rel), u_stated=True,
       check="intra_turn_instability")
-    if isinstance(intra, Mapping) and num(intra.get("floor_rel")) is not None:
+    if (floor_rel := num(intra.floor_rel)) is not None:
         q("floor_rel", "FOG noise floor, relative to |set| (docs/method.md A5)", FOG_FLOOR, U.ONE,
-          value=num(intra.get("floor_rel")), label=f"{path}.intra_turn.floor_rel")
-    upper = num(intra.get("corrected_upper_rel")) if isinstance(intra, Mapping) else None
-    lower = num(intra.get("corrected_lower_rel")) if isinstance(intra, Mapping) else None
-    resolved = intra.get("resolved") if isinstance(intra, Mapping) else None
-    corrected = num(r.get("intra_turn_instability_corrected_rel"))
+          floor_rel, label=f"{path}.intra_turn.floor_rel")
+    upper, lower = num(intra.corrected_upper_rel), num(intra.corrected_lower_rel)
+    resolved = intra.resolved
+    corrected = num(r.intra_turn_instability_corrected_rel)
     # as the PDF (docs/method.md A5, D2): resolved, its JCGM 101 interval; else [0, L]
     c_iv = _mc_interval(corrected, lower, upper, resolved)
     q("intra_turn_instability_corrected_rel", "intra-turn instability with the FOG noise "
-      "floor removed in quadrature (docs/method.md A5)", INTRA_TURN_CORRECTED, U.ONE,
-      None if upper is not None else "intra_turn_instability_corrected_u_rel",
-      interval=c_iv,
+      "floor removed in quadrature (docs/method.md A5)", INTRA_TURN_CORRECTED, U.ONE, corrected,
+      None if upper is not None else num(r.intra_turn_instability_corrected_u_rel),
+      u_stated=upper is None, interval=c_iv,
       note=("not resolved above the FOG noise floor: stated as < L, L the interval's upper "
             "end" if resolved is False else None), check="intra_turn_instability_corrected")
     if upper is not None:
         q("corrected_upper_rel", "upper limit (k = 2) of the floor-corrected intra-turn "
-          "instability", INTRA_TURN_UPPER, U.ONE, value=upper,
+          "instability", INTRA_TURN_UPPER, U.ONE, upper,
           label=f"{path}.intra_turn.corrected_upper_rel")
     budget_list(data, ident(rid, "budget"),
                 "uncertainty budget of the rate error: standard uncertainties (k = 1) relative "
                 f"to |set|; U = k sqrt(sum u^2), k = {ek or 2.0:.2f} = t_95.45(nu_eff) "
                 "(docs/method.md A1-A2, D1)",
-                r.get("rate_error_budget"), f"{path}.rate_error_budget",
+                eb, f"{path}.rate_error_budget",
                 (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
                  ("repeatability_u_rel", "repeatability (Type A)")), U.ONE)
-    _averaged(data, rid, path, intra)
-    _systematic(data, rid, path, r.get("systematic") or {})
+    _averaged(data, rid, path, r.intra_turn)
+    _systematic(data, rid, path, r.systematic)
 
 
 def _averaged(data: etree._Element, rid: str, path: str, intra: object) -> None:

@@ -526,7 +526,8 @@ class LadderAnalysis:
         from procedures.rate_ladder.budgets import add_budgets
         from procedures.rate_ladder.conditions import add_conditions
 
-        return add_conditions(add_budgets(analyze_run(run, cfg)), run, cfg)
+        result: dict[str, object] = {**add_budgets(analyze_run(run, cfg))}
+        return add_conditions(result, run, cfg)
 
 
 class RateLadder:

@@ -10,6 +10,7 @@ byte as `bench analyze` writes it (keys in their order, numbers as they were). R
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TypedDict
 
 from bench.core import rundir_layout as layout
 from bench.report.result_frame import (
@@ -33,7 +34,7 @@ from bench.report.result_frame import (
     text,
 )
 
-__all__ = ["Harmonic", "LadderAxis", "Mains", "LadderResult", "MalformedResult", "NoiseFloor", "PairEntry",
+__all__ = ["Harmonic", "IntraTurn", "LadderAxis", "Mains", "LadderResult", "MalformedResult", "NoiseFloor", "PairEntry",
            "RateEntry"]
 
 
@@ -79,6 +80,19 @@ def conform_ladder(doc: JsonObject, issues: Issues) -> JsonObject:
 
 # -- the typed result -----------------------------------------------------------------------
 
+class _Phase(TypedDict):
+    """A fitted tone's phase and whether its amplitude was detected (docs/method.md A4)."""
+
+    phase_deg: float | None
+    phase_u_deg: float | None
+    detected: bool | None      # None: an older result, which did not say
+
+
+def _phase(doc: JsonObject) -> _Phase:
+    return {"phase_deg": number(doc, "phase_deg"), "phase_u_deg": number(doc, "phase_u_deg"),
+            "detected": flag(doc, "detected")}
+
+
 @dataclass(frozen=True, slots=True)
 class Harmonic:
     """One harmonic of the rate along the turn (docs/method.md A2)."""
@@ -86,6 +100,9 @@ class Harmonic:
     order: float | None
     amplitude_rel: float | None
     amplitude_u_rel: float | None
+    phase_deg: float | None
+    phase_u_deg: float | None
+    detected: bool | None
     doc: JsonObject
 
 
@@ -96,7 +113,39 @@ class Mains:
     frequency_hz: float | None
     amplitude_dps: float | None
     amplitude_u_dps: float | None
+    phase_deg: float | None
+    phase_u_deg: float | None
+    detected: bool | None
     doc: JsonObject
+
+
+@dataclass(frozen=True, slots=True)
+class IntraTurn:
+    """The intra-turn instability's details (docs/method.md A5): `rates[].intra_turn`."""
+
+    samples: float | None
+    floor_rel: float | None
+    floor_source: str | None
+    corrected_upper_rel: float | None
+    corrected_lower_rel: float | None
+    resolved: bool | None
+    bandwidth_hz: float | None
+    averaged: JsonValue          # over 1/10/360 deg (bench.analysis.random_part's shape)
+    doc: JsonObject
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> IntraTurn:
+        return cls(samples=number(doc, "samples"), floor_rel=number(doc, "floor_rel"),
+                   floor_source=text(doc, "floor_source"),
+                   corrected_upper_rel=number(doc, "corrected_upper_rel"),
+                   corrected_lower_rel=number(doc, "corrected_lower_rel"),
+                   resolved=flag(doc, "resolved"), bandwidth_hz=number(doc, "bandwidth_hz"),
+                   averaged=doc.get("averaged"), doc=doc)
+
+
+#: older results' names of `intra_turn.averaged` (read by the certificate)
+AVERAGED_OLD_KEYS = ("instability_over_angle", "intra_turn_instability_over",
+                     "averaged_instability")
 
 
 @dataclass(frozen=True, slots=True)
@@ -105,11 +154,13 @@ class RateEntry:
 
     set_rate_dps: float
     turns: int | None
+    mean_rate_dps: float | None
     rate_error_rel: float | None
     rate_error_u_rel: float | None
     rate_instability_rel: float | None
     rate_instability_u_rel: float | None
     rate_instability_upper_rel: float | None
+    rate_instability_lower_rel: float | None
     rate_instability_floor_rel: float | None
     rate_instability_resolved: bool | None
     intra_turn_instability_rel: float | None
@@ -131,11 +182,13 @@ class RateEntry:
             raise MalformedResult("rates[]", "has no numeric set_rate_dps")
         return cls(
             set_rate_dps=rate, turns=integer(doc, "turns"),
+            mean_rate_dps=number(doc, "mean_rate_dps"),
             rate_error_rel=number(doc, "rate_error_rel"),
             rate_error_u_rel=number(doc, "rate_error_u_rel"),
             rate_instability_rel=number(doc, "rate_instability_rel"),
             rate_instability_u_rel=number(doc, "rate_instability_u_rel"),
             rate_instability_upper_rel=number(doc, "rate_instability_upper_rel"),
+            rate_instability_lower_rel=number(doc, "rate_instability_lower_rel"),
             rate_instability_floor_rel=number(doc, "rate_instability_floor_rel"),
             rate_instability_resolved=flag(doc, "rate_instability_resolved"),
             intra_turn_instability_rel=number(doc, "intra_turn_instability_rel"),
@@ -156,13 +209,50 @@ class RateEntry:
             return None
         return Mains(frequency_hz=number(m, "frequency_hz"),
                      amplitude_dps=number(m, "amplitude_dps"),
-                     amplitude_u_dps=number(m, "amplitude_u_dps"), doc=m)
+                     amplitude_u_dps=number(m, "amplitude_u_dps"), **_phase(m), doc=m)
 
     @property
     def harmonics(self) -> tuple[Harmonic, ...]:
         return tuple(Harmonic(order=number(h, "order"), amplitude_rel=number(h, "amplitude_rel"),
-                              amplitude_u_rel=number(h, "amplitude_u_rel"), doc=h)
+                              amplitude_u_rel=number(h, "amplitude_u_rel"), **_phase(h), doc=h)
                      for h in objects(self.systematic, "harmonics"))
+
+    @property
+    def counter_rate_dps(self) -> tuple[JsonValue, ...]:
+        """The per-turn counter rates as recorded (docs/method.md A1), in turn order."""
+        v = self.doc.get("counter_rate_dps")
+        return tuple(v) if isinstance(v, list) else ()
+
+    @property
+    def binned(self) -> JsonObject:
+        """The paper's binned average by angle (docs/method.md A4), {} when none."""
+        return obj(self.systematic, "binned")
+
+    @property
+    def rate_error_budget(self) -> JsonObject | None:
+        return as_object(self.doc.get("rate_error_budget"))
+
+    @property
+    def judgement(self) -> JsonObject | None:
+        return as_object(self.doc.get("judgement"))
+
+    @property
+    def intra(self) -> IntraTurn:
+        return IntraTurn.from_json(self.intra_turn)
+
+    @property
+    def bandwidth_hz(self) -> float | None:
+        """The FOG's output bandwidth: the entry's own, else its intra-turn part's."""
+        return (number(self.doc, "bandwidth_hz") if "bandwidth_hz" in self.doc
+                else self.intra.bandwidth_hz)
+
+    @property
+    def averaged(self) -> JsonValue:
+        """Averages over angle: `intra_turn.averaged`, else an older result's name of it."""
+        data = self.intra.averaged
+        for key in AVERAGED_OLD_KEYS:
+            data = data if data is not None else self.doc.get(key)
+        return data
 
     def to_json(self) -> JsonObject:
         return dict(self.doc)
@@ -197,6 +287,17 @@ class PairEntry:
     drift_source: str | None     # where the bias drift during the pair comes from
     budgets: tuple[JsonObject, ...]
     doc: JsonObject
+
+    @property
+    def half_sessions(self) -> tuple[int, ...]:
+        """A resumed pair: the session each half came from (docs/resume.md)."""
+        v = self.doc.get("half_sessions")
+        return tuple(int(s) for s in v if isinstance(s, int | float)) \
+            if isinstance(v, list) else ()
+
+    @property
+    def bias_model(self) -> str:
+        return str(self.doc.get("bias_model", ""))
 
     @classmethod
     def from_json(cls, doc: JsonObject) -> PairEntry:
@@ -239,6 +340,18 @@ class NoiseFloor:
     allan_tau_s: tuple[float, ...]
     allan_dev_dps: tuple[float, ...]
     doc: JsonObject
+
+    @property
+    def noise_dps(self) -> float | None:
+        """The FOG's noise per sample, under any of the names results have used."""
+        for key in ("noise_dps", "sigma_dps", "sample_std_dps"):
+            if key in self.doc:
+                return number(self.doc, key)
+        return None
+
+    @property
+    def rate_hz(self) -> float | None:
+        return number(self.doc, "rate_hz")
 
     @classmethod
     def from_json(cls, doc: JsonObject) -> NoiseFloor:

@@ -12,9 +12,9 @@ import dataclasses
 import datetime as dt
 import hashlib
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Protocol
 
 from bench.app.certificate import register
 from bench.app.certificate.build import ExtraSection, build_document, restated
@@ -40,7 +40,7 @@ def _write_atomic(path: Path, data: bytes) -> None:
     os.replace(tmp, path)
 
 
-def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | None = None,
+def render_files(result: Mapping[str, object], out_dir: str | Path, run_path: Path | None = None,
                  issued: dt.date | None = None, *,
                  documents: list[Document] | None = None,
                  extra_sections: Sequence[ExtraSection] = (),
@@ -63,7 +63,7 @@ def render_files(result: dict[str, Any], out_dir: str | Path, run_path: Path | N
     return [html_path, pdf_path]
 
 
-def render_issue(result: dict[str, Any], out_dir: Path, run_path: Path,
+def render_issue(result: Mapping[str, object], out_dir: Path, run_path: Path,
                  issue: register.Issue,
                  changes: Callable[[str], tuple[str, ...]]) -> register.Issue:
     """Render a re-issue: its document is built once, `changes(html)` compares its
@@ -84,7 +84,7 @@ def result_digest(stored: bytes) -> str:
     return hashlib.sha256(stored).hexdigest()
 
 
-def write_certificate(run: _HasPath, result: dict[str, Any],
+def write_certificate(run: _HasPath, result: Mapping[str, object],
                       issued: dt.date | None = None, *,
                       documents: list[Document] | None = None,
                       extra_sections: Sequence[ExtraSection] = ()) -> list[Path]:

@@ -33,7 +33,6 @@ import sys
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 from bench.app.certificate import (
     HTML_NAME,
@@ -45,10 +44,11 @@ from bench.app.certificate import (
 )
 from bench.app.certificate.build import Sources, stand_of
 from bench.app.certificate.revisions import statement_changes
-from bench.app.register.store import MEANING_ISSUE
+from bench.app.register.store import MEANING_ISSUE, Account, Register
 from bench.core import rundir_layout as layout
 from bench.core.lab import Lab, LabError, Signatory, run_lab
 from bench.core.traceability import identity_problems, with_declared_serials
+from drivers.json_types import JsonObject
 
 EXIT_ISSUED, EXIT_REFUSED, EXIT_FAILED = 0, 2, 3
 ISSUED_DIR = layout.ISSUED
@@ -139,7 +139,7 @@ def refusals(ctx: IssueContext, checks: list[PreIssueCheck] | None = None) -> li
 
 # -- what changed between two issued revisions -------------------------------------------
 
-def _leaves(node: object, path: str = "") -> Iterator[tuple[str, Any]]:
+def _leaves(node: object, path: str = "") -> Iterator[tuple[str, object]]:
     if isinstance(node, Mapping):
         for k, v in node.items():
             yield from _leaves(v, f"{path}.{k}" if path else str(k))
@@ -191,13 +191,15 @@ _REASONS: contextvars.ContextVar[list[str] | None] = contextvars.ContextVar(
     "authorise_reasons", default=None)
 
 
-def authorise_collecting(*args: Any, **kwargs: Any) -> tuple[int, list[str]]:
+def authorise_collecting(run_path: Path, signatory_name: str, reason: str | None = None,
+                         lab_file: str | None = None, line: Callable[[str], None] = print,
+                         password: Callable[[str], str] | None = None) -> tuple[int, list[str]]:
     """`authorise`, with the reasons of a refusal returned as well as printed (the
     station shows them on the page)."""
     reasons: list[str] = []
     token = _REASONS.set(reasons)
     try:
-        return authorise(*args, **kwargs), reasons
+        return authorise(run_path, signatory_name, reason, lab_file, line, password), reasons
     finally:
         _REASONS.reset(token)
 
@@ -212,7 +214,7 @@ def _refuse(reasons: list[str], run_path: Path) -> int:
     return EXIT_REFUSED
 
 
-def _stand(run_path: Path) -> dict[str, Any]:
+def _stand(run_path: Path) -> JsonObject:
     """The run's stand file as the run read it (a serial still to fill in is none)."""
     from bench.core.placeholders import run_copy
 
@@ -243,7 +245,6 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
               password: Callable[[str], str] | None = None) -> int:
     """Issue the run's draft through the lab register; returns the exit status (0 issued,
     2 refused, 3 failed). `password(prompt)` gives the signatory's password."""
-    from bench.app.dcc.output import write_dcc
     from bench.app.dcc.settings import resolve_settings
     from bench.app.records.extract import run_uid
     from bench.app.register import Register, RegisterError, redact
@@ -302,7 +303,7 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
         except RegisterError as e:
             return _refuse([str(e)], run_path)
         return _issue(run_path, result, result_bytes, stand, lab, reg, acct, who, number,
-                      previous, reason, line, write_dcc)
+                      previous, reason, line)
 
 
 def _ask(prompt: str) -> str:
@@ -311,12 +312,13 @@ def _ask(prompt: str) -> str:
     return Passwords(False).next(prompt)
 
 
-def _issue(run_path: Path, result: dict[str, Any], result_bytes: bytes, stand: object, lab: Lab,
-           reg: Any, acct: Any, who: Signatory, number: str,
+def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonObject,
+           lab: Lab, reg: Register, acct: Account, who: Signatory, number: str,
            previous: tuple[register.Issue, ...], reason: str | None,
-           line: Callable[[str], None], write_dcc: Any) -> int:
+           line: Callable[[str], None]) -> int:
     """Render the issue, record it in the register (which may still refuse: a concurrent
     issue of the same revision), then move it into place."""
+    from bench.app.dcc.output import write_dcc
     from bench.app.register import RegisterError, redact
 
     old = None
@@ -393,7 +395,7 @@ def _issue(run_path: Path, result: dict[str, Any], result_bytes: bytes, stand: o
     return EXIT_ISSUED
 
 
-def _update_records(run_path: Path, lab: Lab, result: dict[str, Any],
+def _update_records(run_path: Path, lab: Lab, result: JsonObject,
                     line: Callable[[str], None]) -> None:
     """The records cite the issued revision (number and the digests of its files as
     stored) from now on; a records database out of reach is said, not fatal: the issue
@@ -407,7 +409,7 @@ def _update_records(run_path: Path, lab: Lab, result: dict[str, Any],
 SIGNING_SETTING = "dcc_signing_certificate_sha256"
 
 
-def designated_signing(lab: Lab, reg: Any) -> tuple[Lab, str]:
+def designated_signing(lab: Lab, reg: Register) -> tuple[Lab, str]:
     """The lab with the signing key only when the register designates its certificate:
     the key that signs for the lab is the register's decision, not a file's."""
     want = reg.setting(SIGNING_SETTING)

@@ -15,7 +15,6 @@ import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import bench
 from bench.analysis.coverage import COVERAGE_FORMULA, DOF_INFINITE
@@ -33,7 +32,7 @@ from bench.core.registry import procedure_kind, procedure_names
 from bench.core.traceability import with_declared_serials
 from bench.report.budget import budget_sites
 from bench.report.certificate import methods
-from bench.report.certificate.model import Document, Fields, Para, Section, Signatures, Table
+from bench.report.certificate.model import Block, Document, Fields, Para, Section, Signatures, Table
 from bench.report.certificate.parts import (
     NOT_RECORDED,
     CertificateParts,
@@ -54,6 +53,7 @@ from bench.report.certificate.rounding import (
     present,
     rel_unit,
 )
+from drivers.json_types import JsonObject
 
 __all__ = ["NOT_RECORDED", "Sources", "build_document", "certificate_id", "decision_rule_text",
            "issued_number", "verdict_label"]
@@ -102,7 +102,7 @@ def issued_number(src: Sources) -> str:
     return done[-1].number if done else certificate_id(src)
 
 
-def _cert(src: Sources) -> dict[str, Any]:
+def _cert(src: Sources) -> JsonObject:
     """The certificate settings: the procedure's `certificate:` block over the lab's file."""
     cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
     return dict(cert) if isinstance(cert, Mapping) else {}
@@ -117,7 +117,7 @@ DRAFT_MARK = "DRAFT, NOT AUTHORISED"
 
 
 #: a section from outside the run directory (the records' history): title and blocks
-ExtraSection = tuple[str, tuple[Any, ...]]
+ExtraSection = tuple[str, tuple[Block, ...]]
 
 #: what a procedure kind that says nothing of itself (or none installed) answers
 NEUTRAL = CertificateParts()
@@ -225,12 +225,12 @@ def _g(x: float | None, sig: int = 3) -> str:
     return format_sig(x, sig) if x != 0 else "0"
 
 
-def budget_tables(result: Mapping[str, object]) -> tuple[Any, ...]:
+def budget_tables(result: Mapping[str, object]) -> tuple[Block, ...]:
     """One table per budget in result.json (bench.report.budget), in EA-4/02's columns."""
     sites = budget_sites(result)
     if not sites:
         return ()
-    blocks: list[Any] = [Para(
+    blocks: list[Block] = [Para(
         "Each budget (EA-4/02 M:2022 section 4): input quantity X_i, estimate x_i, standard "
         "uncertainty u(x_i), distribution, sensitivity coefficient c_i, contribution "
         "u_i(y) = |c_i|·u(x_i) (u(x_i) in the estimate's unit) and degrees of freedom ν_i (∞: Type B or very many samples); "
@@ -279,7 +279,7 @@ class _Counter:
         return str(self.i)
 
 
-def _checks(src: Sources, proc: Procedure) -> list[dict[str, Any]]:
+def _checks(src: Sources, proc: Procedure) -> list[JsonObject]:
     """The engine's checks[]; without it, what the kind reads from its own results."""
     if isinstance(src.result.get("checks"), list):
         return [c.to_json() for c in src.frame.checks]
@@ -287,12 +287,12 @@ def _checks(src: Sources, proc: Procedure) -> list[dict[str, Any]]:
 
 
 def _identification(src: Sources, issue: Issue, proc: Procedure,
-                    checks: list[dict[str, Any]]) -> tuple[Any, ...]:
+                    checks: list[JsonObject]) -> tuple[Block, ...]:
     stand = stand_of(src)
     cert = _cert(src)
     dates = src.get("dates", {}) or {}
-    started = dates.get("started_utc") or _first_event(src, "session_start")
-    completed = dates.get("completed_utc") or _last_event(src, "completed")
+    started = dates.get("started_utc") or src.event_utc("session_start")
+    completed = dates.get("completed_utc") or src.event_utc("completed", last=True)
     item, serial = proc.parts.certificate_item(src)
     rows: list[tuple[str, str]] = [
         (("Draft identifier (the lab register allocates the certificate number at issue)",
@@ -332,20 +332,11 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
             "code", "country_code", "performance_location", "signing", "require_signed_dcc",
             "records", "recertification", "responsible_persons"}
     rows += [(label_of(k), text_of(v)) for k, v in cert.items() if k not in skip]
-    blocks: list[Any] = [Fields(tuple(rows))]
+    blocks: list[Block] = [Fields(tuple(rows))]
     run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else NOT_RECORDED)
     blocks.append(software_note(src.meta, src.events, bench.__version__, str(run_dir)))
     blocks.append(Para(AUTHORITATIVE, "note"))
     return tuple(blocks)
-
-
-def _first_event(src: Sources, kind: str) -> str | None:
-    return next((e.get("utc") for e in src.events if e.get("event") == kind), None)
-
-
-def _last_event(src: Sources, kind: str) -> str | None:
-    found = [e.get("utc") for e in src.events if e.get("event") == kind]
-    return found[-1] if found else None
 
 
 def check_class(c: Mapping[str, object]) -> str:
@@ -358,7 +349,7 @@ def check_class(c: Mapping[str, object]) -> str:
     return "conformity"
 
 
-def _coverage(checks: list[dict[str, Any]], proc: Procedure
+def _coverage(checks: list[JsonObject], proc: Procedure
               ) -> tuple[list[str], list[str], int]:
     """(quantities the verdict covers, quantities not assessed, checks excluded)."""
     conf = [c for c in checks if check_class(c) == "conformity"]
@@ -370,7 +361,7 @@ def _coverage(checks: list[dict[str, Any]], proc: Procedure
     return names, not_assessed, excluded
 
 
-def _scope_line(src: Sources, checks: list[dict[str, Any]], proc: Procedure) -> str:
+def _scope_line(src: Sources, checks: list[JsonObject], proc: Procedure) -> str:
     names, not_assessed, excluded = _coverage(checks, proc)
     if not names:
         return "No statement of conformity: the procedure states no tolerances."
@@ -382,7 +373,7 @@ def _scope_line(src: Sources, checks: list[dict[str, Any]], proc: Procedure) -> 
     return text
 
 
-def _overall(src: Sources, checks: list[dict[str, Any]], proc: Procedure) -> str:
+def _overall(src: Sources, checks: list[JsonObject], proc: Procedure) -> str:
     verdict = str(src.get("verdict", "incomplete")).lower()
     conf = [c for c in checks if check_class(c) == "conformity"]
     failed = [c for c in conf if str(c.get("verdict", "")).lower() != "pass"]
@@ -418,11 +409,11 @@ def _rule_name(rule: object) -> str:
             "simple": "simple acceptance"}.get(str(rule or "simple"), str(rule))
 
 
-def _instruments(src: Sources, proc: Procedure) -> tuple[Any, ...]:
+def _instruments(src: Sources, proc: Procedure) -> tuple[Block, ...]:
     stand = stand_of(src)
     item, serial = proc.parts.certificate_item(src)
     what = proc.parts.certificate_stand_label
-    blocks: list[Any] = [Fields((
+    blocks: list[Block] = [Fields((
         ("Item calibrated", f"{item}, serial {serial}"),
         (what, f"{text_of(stand.get('maker'))} {text_of(stand.get('model'))}, serial "
                f"{text_of(stand.get('serial'))}"),
@@ -432,8 +423,8 @@ def _instruments(src: Sources, proc: Procedure) -> tuple[Any, ...]:
     ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
     if not ids:  # the event log records each axis's identities at the start of a session
         for e in src.events:
-            if e.get("event") == "identity" and e.get("axis"):
-                ids.setdefault(e["axis"], {}).update(
+            if e.get("event") == "identity" and (axis := e.get("axis")):
+                ids.setdefault(str(axis), {}).update(
                     {k: v for k, v in e.items()
                      if k not in ("utc", "t_s", "session", "event", "axis")})
     stand_axes = src.stand_file.get("axes", {}) or {}
@@ -478,10 +469,10 @@ def _instruments(src: Sources, proc: Procedure) -> tuple[Any, ...]:
     return tuple(blocks)
 
 
-def _item_blocks(record: ItemRecord, proc: Procedure) -> list[Any]:
+def _item_blocks(record: ItemRecord, proc: Procedure) -> list[Block]:
     """The item as received and as left (ISO/IEC 17025 7.8.2.1 g, 7.8.4.1 b), and the
     linked as-found run's checks (bench/app/certificate/item.py; the DCC states the same)."""
-    blocks: list[Any] = [Fields(record.rows)]
+    blocks: list[Block] = [Fields(record.rows)]
     found = record.as_found
     if found is not None and found.found and found.checks:
         rows = []
@@ -499,7 +490,7 @@ def _item_blocks(record: ItemRecord, proc: Procedure) -> list[Any]:
     return blocks
 
 
-def _shared_identities(rows: list[tuple[str, str, str, str]]) -> list[Any]:
+def _shared_identities(rows: list[tuple[str, str, str, str]]) -> list[Block]:
     """Two instruments of one kind answering with one identity (maker, model, serial) are
     either one instrument or misreporting: the reader must be told."""
     seen: dict[tuple[str, str], list[str]] = {}
@@ -512,7 +503,7 @@ def _shared_identities(rows: list[tuple[str, str, str, str]]) -> list[Any]:
             for (role, ident), axes in seen.items() if len(axes) > 1]
 
 
-def _traceability(src: Sources) -> tuple[Any, ...]:
+def _traceability(src: Sources) -> tuple[Block, ...]:
     """Where each measured quantity's traceability to the SI comes from (17025 7.8.4.1 c):
     the rows of `equipment_list` (the DCC's measuringEquipments carry the same rows)."""
     found = equipment_list(src)
@@ -528,11 +519,11 @@ def _traceability(src: Sources) -> tuple[Any, ...]:
                   "instruments and references used", notes=found.notes),)
 
 
-def _method(src: Sources, proc: Procedure) -> tuple[Any, ...]:
+def _method(src: Sources, proc: Procedure) -> tuple[Block, ...]:
     pf = src.get("procedure_file", {}) or {}
     name = pf.get("name") or src.meta.get("procedure_name")
     sha = pf.get("sha256") or src.meta.get("procedure_sha256")
-    blocks: list[Any] = list(proc.parts.certificate_method(src))
+    blocks: list[Block] = list(proc.parts.certificate_method(src))
     method = src.get("method", {}) or {}
     rows = [("Procedure file", text_of(name)), ("Procedure file SHA-256", text_of(sha))]
     rows += [(label_of(k), text_of(v)) for k, v in method.items()
@@ -557,8 +548,8 @@ def _method_digest() -> str:
     return f", SHA-256 {sha256_file(path)[:16]}…" if path.is_file() else ""
 
 
-def _deviations(src: Sources, proc: Procedure) -> tuple[Any, ...]:
-    blocks: list[Any] = list(proc.parts.certificate_method_deviations(src))
+def _deviations(src: Sources, proc: Procedure) -> tuple[Block, ...]:
+    blocks: list[Block] = list(proc.parts.certificate_method_deviations(src))
     run: list[str] = []
     sessions = src.get("sessions")
     if isinstance(sessions, int) and sessions > 1:
@@ -591,13 +582,13 @@ def _deviations(src: Sources, proc: Procedure) -> tuple[Any, ...]:
     return tuple(blocks)
 
 
-def _measured_conditions(src: Sources) -> list[Any]:
+def _measured_conditions(src: Sources) -> list[Block]:
     """What the bench measured itself: the FOG's temperature per half (procedures that
     record it, `conditions_measured`); the room: not measured unless a sensor says so."""
     measured = src.get("conditions_measured")
     if not isinstance(measured, Mapping):
         return []
-    blocks: list[Any] = []
+    blocks: list[Block] = []
     fog = measured.get("fog_temperature")
     if isinstance(fog, Mapping) and isinstance(fog.get("axes"), Mapping):
         rows = []
@@ -616,13 +607,13 @@ def _measured_conditions(src: Sources) -> list[Any]:
     return blocks
 
 
-def _conditions(src: Sources) -> tuple[Any, ...]:
+def _conditions(src: Sources) -> tuple[Block, ...]:
     """Each condition as what it is (bench/app/certificate/conditions.py, which the DCC's
     influenceConditions share): nominal from the procedure file, measured where the run
     measured it, "not measured" where nothing did; one mains frequency for the run."""
     rows = condition_rows(src)
     cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
-    blocks: list[Any] = [Table(
+    blocks: list[Block] = [Table(
         ("Condition", "Nominal (procedure file)", "Measured in this run"),
         tuple((r.condition, r.nominal, r.measured) for r in rows),
         widths=(2.2, 2.4, 4.0), align="lll",
@@ -695,7 +686,7 @@ class CheckRow:
         return vu, "—"
 
 
-def _specification(src: Sources, proc: Procedure) -> list[Any]:
+def _specification(src: Sources, proc: Procedure) -> list[Block]:
     spec = src.get("specification") or src.procedure_file.get("specification")
     if not isinstance(spec, Mapping) or not spec.get("source"):
         return [Para("Specification: NOT IDENTIFIED. The procedure file names no source for "
@@ -732,10 +723,10 @@ def _check_texts(c: Mapping[str, object], proc: Procedure) -> tuple[str, str]:
     return vu, tol_text
 
 
-def _conformity(src: Sources, checks: list[dict[str, Any]], proc: Procedure
-                ) -> tuple[Any, ...]:
+def _conformity(src: Sources, checks: list[JsonObject], proc: Procedure
+                ) -> tuple[Block, ...]:
     rule = str(src.get("decision_rule") or (checks[0].get("rule") if checks else "simple"))
-    blocks: list[Any] = [*_specification(src, proc), Para(decision_rule_text(rule)),
+    blocks: list[Block] = [*_specification(src, proc), Para(decision_rule_text(rule)),
                          Para("Decision rule: " + agreed_rule_text(src) + " (ISO/IEC 17025 "
                               "7.1.3).")]
     blocks.append(Para("Scope. " + _scope_line(src, checks, proc)))
@@ -802,7 +793,7 @@ def _conformity(src: Sources, checks: list[dict[str, Any]], proc: Procedure
     return tuple(blocks)
 
 
-def _consistency_table(checks: list[dict[str, Any]], proc: Procedure) -> Table:
+def _consistency_table(checks: list[JsonObject], proc: Procedure) -> Table:
     """Physics cross-checks: they test the measurement, not the item, and are no part of
     the statement of conformity."""
     rows = []
@@ -855,7 +846,7 @@ def _tolerance_table(tol: Mapping[str, object], proc: Procedure) -> Table:
                  caption="Tolerances stated in the procedure file")
 
 
-def _records(src: Sources) -> tuple[Any, ...]:
+def _records(src: Sources) -> tuple[Block, ...]:
     files = [f for f in src.get("raw_files", []) or [] if isinstance(f, dict)]
     hashed_here = False
     if not files and src.run_path is not None and layout.raw_root(src.run_path).is_dir():
@@ -872,7 +863,7 @@ def _records(src: Sources) -> tuple[Any, ...]:
                 data = p.read_bytes()
                 inputs.append({"path": name, "sha256": hashlib.sha256(data).hexdigest(),
                                "bytes": len(data)})
-    blocks: list[Any] = [Para(
+    blocks: list[Block] = [Para(
         "SHA-256 digests of the raw data as received from the instruments; anyone holding the "
         "run directory can check that the results above were computed from these bytes "
         "(`bench analyze RUN_DIR` recomputes them).")]
@@ -895,11 +886,12 @@ def _records(src: Sources) -> tuple[Any, ...]:
     return tuple(blocks)
 
 
-def _hash_table(files: Sequence[Mapping[str, Any]], caption: str,
+def _hash_table(files: Sequence[Mapping[str, object]], caption: str,
                 notes: tuple[str, ...] = ()) -> Table:
-    rows = tuple((text_of(f.get("path")), f"{int(f['bytes']):,}".replace(",", " ")
-                  if num(f.get("bytes")) is not None else "—", text_of(f.get("sha256")))
-                 for f in files)
+    def size(f: Mapping[str, object]) -> str:
+        n = num(f.get("bytes"))
+        return "—" if n is None else f"{int(n):,}".replace(",", " ")
+    rows = tuple((text_of(f.get("path")), size(f), text_of(f.get("sha256"))) for f in files)
     return Table(("File", "Bytes", "SHA-256"), rows, widths=(2.6, 1.0, 5.0), align="lrl",
                  caption=caption, mono=True, notes=notes)
 
@@ -908,7 +900,7 @@ def restated(doc: Document, issue: Issue) -> Document:
     """`doc` with its Revision field restated for `issue` (what changed is known only once
     the new revision's statements can be compared with the replaced one's; the rest of the
     document is the same, so it is not built twice)."""
-    def fields(b: object) -> Any:
+    def fields(b: Block) -> Block:
         if not isinstance(b, Fields):
             return b
         return Fields(tuple((k, _revision_text(issue) if k == "Revision" else v)
@@ -935,7 +927,7 @@ def _revision_text(issue: Issue) -> str:
     return text
 
 
-def _signatures(src: Sources, issue: Issue) -> tuple[Any, ...]:
+def _signatures(src: Sources, issue: Issue) -> tuple[Block, ...]:
     """Who performed the calibration (the account the register authenticated at the run's
     start, else "not recorded") and who authorised the issue (the account it authenticated
     at issue: printed name, date and time, meaning). Names in a file sign nothing."""

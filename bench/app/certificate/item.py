@@ -18,7 +18,6 @@ import json
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from bench.core import rundir_layout as layout
 from bench.core.schema import parse_date
@@ -48,7 +47,7 @@ class AsFound:
     run_id: str
     found: bool
     verdict: str
-    checks: tuple[Mapping[str, Any], ...]
+    checks: tuple[Mapping[str, object], ...]
 
 
 @dataclass(frozen=True)

@@ -6,10 +6,9 @@ from __future__ import annotations
 
 import datetime as dt
 from collections.abc import Mapping, Sequence
-from typing import Any
 
-from bench.report.certificate.model import Para, Table
-from bench.report.certificate.parts import NOT_RECORDED
+from bench.report.certificate.model import Block, Para, Table
+from bench.report.certificate.parts import NOT_RECORDED, num
 
 
 def utc_text(stamp: object) -> str:
@@ -39,7 +38,7 @@ def _answer(e: Mapping[str, object]) -> str:
     return "confirmed by the operator" + (f" ({typed!r})" if typed else " (Enter)")
 
 
-def prompt_blocks(events: Sequence[Mapping[str, object]]) -> tuple[Any, ...]:
+def prompt_blocks(events: Sequence[Mapping[str, object]]) -> tuple[Block, ...]:
     """The set-up prompts of the run, in order, with who answered and when."""
     prompts = [e for e in events if e.get("event") == "prompt"]
     if not prompts:
@@ -56,10 +55,10 @@ def prompt_blocks(events: Sequence[Mapping[str, object]]) -> tuple[Any, ...]:
                   notes=notes),)
 
 
-def software_note(meta: Mapping[str, Any], events: Sequence[Mapping[str, Any]],
+def software_note(meta: Mapping[str, object], events: Sequence[Mapping[str, object]],
                   issuing_version: str, run_dir: str) -> Para:
     """The version that created the run, ran each session and issued this certificate."""
-    sessions = {int(e.get("session") or 0): str(e["version"]) for e in events
+    sessions = {int(num(e.get("session")) or 0): str(e["version"]) for e in events
                 if e.get("event") == "session_start" and e.get("version")}
     created = meta.get("bench_version")
     versions = sorted(set(sessions.values()) | ({str(created)} if created else set()))

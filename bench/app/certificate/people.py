@@ -7,7 +7,6 @@ when the run started."""
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 from bench.report.certificate.parts import NOT_RECORDED
 
@@ -32,11 +31,11 @@ def performer_line(meta: Mapping[str, object]) -> str:
     return f"{PERFORMED_BY}: {name} ({how})."
 
 
-def equipment_lines(meta: Mapping[str, Any], simulated: bool) -> list[str]:
+def equipment_lines(meta: Mapping[str, object], simulated: bool) -> list[str]:
     """Each item the register's inventory did not clear (a finding on twins; a real stand
     with one is not started) and each used under a recorded deviation."""
     where = meta.get("equipment_register")
-    statuses = meta.get("equipment_status") or []
+    statuses = got if isinstance(got := meta.get("equipment_status"), list) else []
     if not where:
         return ["Equipment: no lab register was named (lab file register:), so the "
                 "instruments were not checked against the lab's equipment inventory."]

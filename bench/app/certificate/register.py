@@ -22,6 +22,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from drivers.json_types import JsonObject
+
 REGISTER_NAME = "certificate-register.jsonl"
 
 
@@ -51,7 +53,7 @@ class Issue:
         """Not (yet) authorised: no date of issue, no authoriser."""
         return not self.issued_utc
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self) -> JsonObject:
         d = asdict(self)
         d["changes"] = list(self.changes)
         return d

@@ -42,8 +42,7 @@ def _date(stamp: object) -> str | None:
 
 
 def _event(src: Sources, kind: str, last: bool = False) -> str | None:
-    found = [e.get("utc") for e in src.events if e.get("event") == kind]
-    return (found[-1] if last else found[0]) if found else None
+    return src.event_utc(kind, last)
 
 
 def stand_of(src: Sources) -> dict[str, object]:

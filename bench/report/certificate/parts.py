@@ -38,7 +38,7 @@ class Sources:
     meta: JsonObject = field(default_factory=dict)
     stand_file: dict[str, Any] = field(default_factory=dict)
     procedure_file: dict[str, Any] = field(default_factory=dict)
-    events: list[dict[str, Any]] = field(default_factory=list)
+    events: list[JsonObject] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)  # malformed parts of result.json
 
     @classmethod
@@ -59,6 +59,12 @@ class Sources:
     def get(self, key: str, default: object = None) -> Any:
         value = self.result.get(key)
         return default if value is None else value
+
+    def event_utc(self, kind: str, last: bool = False) -> str | None:
+        """When the event log first (or last) recorded an event of `kind`, as it wrote it."""
+        found = [u if isinstance(u := e.get("utc"), str) else None
+                 for e in self.events if e.get("event") == kind]
+        return (found[-1] if last else found[0]) if found else None
 
     @property
     def frame(self) -> ResultFrame:
@@ -103,7 +109,7 @@ def read_json_object(path: Path) -> dict[str, Any]:
     return data if isinstance(data, dict) else {}
 
 
-def stand_of(src: Sources) -> dict[str, Any]:
+def stand_of(src: Sources) -> JsonObject:
     """The stand's identity: the stand file's, with what result.json says over it."""
     stand = dict(src.stand_file.get("stand", {}) or {})
     stand.update({k: v for k, v in (src.get("stand", {}) or {}).items() if v is not None})
@@ -247,7 +253,7 @@ class CertificateParts:
         """The kind's deviations in this run, one sentence each."""
         return ()
 
-    def certificate_checks(self, src: Sources) -> list[dict[str, Any]]:
+    def certificate_checks(self, src: Sources) -> list[JsonObject]:
         """The checks when result.json carries no checks[] (read from the kind's results)."""
         return []
 

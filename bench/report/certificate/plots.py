@@ -9,13 +9,128 @@ from __future__ import annotations
 import io
 import math
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any, SupportsFloat, SupportsIndex
+from typing import TYPE_CHECKING, Protocol, SupportsFloat, SupportsIndex
 
 import numpy as np
 
 if TYPE_CHECKING:   # matplotlib is imported when a plot is drawn (`bench validate` starts at once)
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+
+
+# -- what the ladder's plots read (procedures/rate_ladder/result.py's typed entries) ------------
+
+class HarmonicFit(Protocol):
+    """One fitted harmonic of the rate along the turn (docs/method.md A4)."""
+
+    @property
+    def order(self) -> float | None: ...
+    @property
+    def amplitude_rel(self) -> float | None: ...
+    @property
+    def amplitude_u_rel(self) -> float | None: ...
+    @property
+    def phase_deg(self) -> float | None: ...
+
+
+class IntraTurnFit(Protocol):
+    """The floor-corrected intra-turn instability's interval (docs/method.md A5)."""
+
+    @property
+    def resolved(self) -> bool | None: ...
+    @property
+    def corrected_upper_rel(self) -> float | None: ...
+
+
+class RatePoint(Protocol):
+    """One commanded rate and direction's results (docs/method.md A1-A5)."""
+
+    @property
+    def set_rate_dps(self) -> float: ...
+    @property
+    def turns(self) -> int | None: ...
+    @property
+    def rate_error_rel(self) -> float | None: ...
+    @property
+    def rate_error_u_rel(self) -> float | None: ...
+    @property
+    def rate_instability_rel(self) -> float | None: ...
+    @property
+    def rate_instability_u_rel(self) -> float | None: ...
+    @property
+    def rate_instability_upper_rel(self) -> float | None: ...
+    @property
+    def rate_instability_floor_rel(self) -> float | None: ...
+    @property
+    def rate_instability_resolved(self) -> bool | None: ...
+    @property
+    def intra_turn_instability_rel(self) -> float | None: ...
+    @property
+    def intra_turn_instability_u_rel(self) -> float | None: ...
+    @property
+    def intra_turn_instability_corrected_rel(self) -> float | None: ...
+    @property
+    def harmonics(self) -> Sequence[HarmonicFit]: ...
+    @property
+    def binned(self) -> Mapping[str, object]: ...
+    @property
+    def intra(self) -> IntraTurnFit: ...
+
+
+class PairPoint(Protocol):
+    """One +/- pair's FOG cross-calibration (docs/method.md A3)."""
+
+    @property
+    def rate_dps(self) -> float: ...
+    @property
+    def k(self) -> float | None: ...
+    @property
+    def k_u(self) -> float | None: ...
+    @property
+    def w0_dps(self) -> float | None: ...
+    @property
+    def w0_u_dps(self) -> float | None: ...
+
+
+class AllanCurve(Protocol):
+    """The FOG at rest: its Allan deviation (docs/method.md A5)."""
+
+    @property
+    def allan_tau_s(self) -> Sequence[float]: ...
+    @property
+    def allan_dev_dps(self) -> Sequence[float]: ...
+
+
+class CycleTrace(Protocol):
+    """One drift cycle's recorded trace (docs/method.md part B)."""
+
+    @property
+    def t_s(self) -> Sequence[float]: ...
+    @property
+    def u_v(self) -> Sequence[float]: ...
+    @property
+    def integral_vs(self) -> Sequence[float]: ...
+    @property
+    def tc_s(self) -> float: ...
+
+
+class CycleDrift(Protocol):
+    """One drift cycle's estimate and where the platform stood."""
+
+    @property
+    def table_deg(self) -> float: ...
+    @property
+    def drift_dph(self) -> float: ...
+
+
+class AxisDrift(Protocol):
+    """An axis's own drift and its cycles' estimates."""
+
+    @property
+    def own_dph(self) -> float: ...
+    @property
+    def cycles(self) -> Sequence[CycleDrift]: ...
+
 
 DPI = 150
 WIDTH_IN = 7.0
@@ -57,7 +172,7 @@ def _rate_axis(ax: Axes, rates: Sequence[float]) -> None:
     ax.set_xlabel("|commanded rate|, °/s", fontsize=8)
 
 
-def per_turn(axis: str, rates: Sequence[Mapping[str, Any]],
+def per_turn(axis: str, rates: Sequence[RatePoint],
              tolerances: Mapping[str, Sequence[tuple[float, float]]], unit: tuple[str, float],
              inst_unit: tuple[str, float]) -> bytes | None:
     """Per-turn rate error and instability vs rate, by direction (paper figs. 4-5)."""
@@ -65,19 +180,21 @@ def per_turn(axis: str, rates: Sequence[Mapping[str, Any]],
         return None
     fig, (a1, a2) = _fig(2)
     for sign, label, marker, color in DIRECTIONS:
-        rr = [r for r in rates if math.copysign(1, _num(r.get("set_rate_dps"))) == sign]
+        rr = [r for r in rates if math.copysign(1, _num(r.set_rate_dps)) == sign]
         if not rr:
             continue
-        x = np.array([abs(_num(r["set_rate_dps"])) for r in rr]) * (1 + 0.02 * sign)
-        for ax, key, (_uname, scale) in ((a1, "rate_error", unit),
-                                        (a2, "rate_instability", inst_unit)):
-            y = np.array([_num(r.get(f"{key}_rel")) for r in rr]) * scale
-            u = np.array([_num(r.get(f"{key}_u_rel")) for r in rr]) * scale
+        x = np.array([abs(_num(r.set_rate_dps)) for r in rr]) * (1 + 0.02 * sign)
+        for ax, key, (_uname, scale), values in (
+                (a1, "rate_error", unit, [(r.rate_error_rel, r.rate_error_u_rel) for r in rr]),
+                (a2, "rate_instability", inst_unit,
+                 [(r.rate_instability_rel, r.rate_instability_u_rel) for r in rr])):
+            y = np.array([_num(v) for v, _ in values]) * scale
+            u = np.array([_num(vu) for _, vu in values]) * scale
             u = np.where(np.isfinite(u), u, 0.0)
             ok = np.ones(len(rr), dtype=bool)
             if key == "rate_instability":   # a σ at the timing floor: its limit only
-                ok = np.array([r.get("rate_instability_resolved") is not False for r in rr])
-                up = np.array([_num(r.get("rate_instability_upper_rel")) for r in rr]) * scale
+                ok = np.array([r.rate_instability_resolved is not False for r in rr])
+                up = np.array([_num(r.rate_instability_upper_rel) for r in rr]) * scale
                 lim = ~ok & np.isfinite(up)
                 if np.any(lim):
                     ax.plot(x[lim], up[lim], "v", color=color, ms=5, mfc="none",
@@ -101,11 +218,11 @@ def per_turn(axis: str, rates: Sequence[Mapping[str, Any]],
                 ax.plot(xs, -ts, "k--", lw=0.8, drawstyle="steps-mid")
         ax.set_ylabel(f"{uname}", fontsize=8)
         ax.set_title(f"Axis {axis}: {title}, U (k = 2) as bars", fontsize=9)
-        _rate_axis(ax, [_num(r.get("set_rate_dps")) for r in rates])
+        _rate_axis(ax, [_num(r.set_rate_dps) for r in rates])
         ax.legend(fontsize=7)
-    floors = sorted({(abs(_num(r.get("set_rate_dps"))),
-                      _num(r.get("rate_instability_floor_rel")) * inst_unit[1])
-                     for r in rates if math.isfinite(_num(r.get("rate_instability_floor_rel")))})
+    floors = sorted({(abs(_num(r.set_rate_dps)),
+                      _num(r.rate_instability_floor_rel) * inst_unit[1])
+                     for r in rates if math.isfinite(_num(r.rate_instability_floor_rel))})
     if floors:
         a2.plot([f[0] for f in floors], [f[1] for f in floors], ":", color="0.4", lw=1,
                 label="timing floor of σ")
@@ -115,17 +232,18 @@ def per_turn(axis: str, rates: Sequence[Mapping[str, Any]],
     return _png(fig)
 
 
-def harmonic_model(harmonics: Sequence[Mapping[str, Any]], phi_deg: np.ndarray) -> np.ndarray:
+def harmonic_model(harmonics: Sequence[HarmonicFit], phi_deg: np.ndarray) -> np.ndarray:
     """Sum of a_h cos(h phi + p_h), relative (docs/method.md A4)."""
     out = np.zeros_like(phi_deg, dtype=float)
     r = np.radians(phi_deg)
     for h in harmonics:
-        out += _num(h.get("amplitude_rel")) * np.cos(
-            int(_num(h.get("order", 1))) * r + math.radians(_num(h.get("phase_deg", 0.0))))
+        out += _num(h.amplitude_rel) * np.cos(
+            int(_num(h.order if h.order is not None else 1)) * r
+            + math.radians(_num(h.phase_deg if h.phase_deg is not None else 0.0)))
     return out
 
 
-def systematic(axis: str, rates: Sequence[Mapping[str, Any]], scale: float,
+def systematic(axis: str, rates: Sequence[RatePoint], scale: float,
                uname: str) -> bytes | None:
     """Systematic component vs angle with the fitted harmonics (paper figs. 8-9).
 
@@ -133,8 +251,8 @@ def systematic(axis: str, rates: Sequence[Mapping[str, Any]], scale: float,
     the fitted curves of every rate are overlaid (relative units, so a component that
     grows in proportion to the rate gives one curve).
     """
-    with_bins = [r for r in rates if (r.get("systematic") or {}).get("binned")]
-    fitted = [r for r in rates if (r.get("systematic") or {}).get("harmonics")]
+    with_bins = [r for r in rates if r.binned]
+    fitted = [r for r in rates if r.harmonics]
     if not fitted and not with_bins:
         return None
     phi = np.linspace(0.0, 360.0, 721)
@@ -143,28 +261,28 @@ def systematic(axis: str, rates: Sequence[Mapping[str, Any]], scale: float,
     for ax, r in zip(axs, panels, strict=True):
         if r is None:
             for i, rr in enumerate(fitted):
-                ax.plot(phi, harmonic_model(rr["systematic"]["harmonics"], phi) * scale,
-                        lw=1, color=f"C{i % 10}", label=f"{_num(rr['set_rate_dps']):+g} °/s")
+                ax.plot(phi, harmonic_model(rr.harmonics, phi) * scale,
+                        lw=1, color=f"C{i % 10}", label=f"{_num(rr.set_rate_dps):+g} °/s")
             ax.set_title(f"Axis {axis}: fitted systematic component Δω_sys/ω_set vs angle",
                          fontsize=9)
         else:
-            b = r["systematic"]["binned"]
+            b = r.binned
             phi_b = np.asarray(b.get("centres_deg", b.get("phi_deg", [])), dtype=float)
             if "deviation_rel" in b or "dw_rel" in b:
                 y = np.asarray(b.get("deviation_rel", b.get("dw_rel")), dtype=float)
             else:
-                y = np.asarray(b.get("dw_dps", []), dtype=float) / abs(_num(r["set_rate_dps"]))
+                y = np.asarray(b.get("dw_dps", []), dtype=float) / abs(_num(r.set_rate_dps))
             u = np.asarray(b.get("u_rel") or np.zeros_like(y), dtype=float)
-            turns = b.get("turns", r.get("turns"))
+            turns = b.get("turns", r.turns)
             if y.size == phi_b.size and y.size:
                 ax.errorbar(phi_b, y * scale, yerr=np.nan_to_num(u) * scale if u.size == y.size
                             else None, fmt=".", ms=3, color="0.4", ecolor="0.75", lw=0.6,
                             label=f"binned mean over {turns} turns (paper's estimator)")
-            h = r["systematic"].get("harmonics") or []
+            h = r.harmonics
             if h:
                 ax.plot(phi, harmonic_model(h, phi) * scale, "C3", lw=1.2,
-                        label=f"fitted harmonics 1…{max(int(_num(x['order'])) for x in h)}")
-            ax.set_title(f"Axis {axis} at {_num(r['set_rate_dps']):+g} °/s: systematic "
+                        label=f"fitted harmonics 1…{max(int(_num(x.order)) for x in h)}")
+            ax.set_title(f"Axis {axis} at {_num(r.set_rate_dps):+g} °/s: systematic "
                          "component vs angle", fontsize=9)
         ax.set_xlim(0, 360)
         ax.set_xticks(range(0, 361, 45))
@@ -174,17 +292,17 @@ def systematic(axis: str, rates: Sequence[Mapping[str, Any]], scale: float,
     return _png(fig)
 
 
-def one_rev(axes: Mapping[str, Sequence[Mapping[str, Any]]], scale: float,
+def one_rev(axes: Mapping[str, Sequence[RatePoint]], scale: float,
             uname: str) -> bytes | None:
     """Once-per-revolution amplitude vs rate, relative and absolute (paper fig. 7)."""
     pts: dict[str, list[tuple[float, float, float]]] = {}
     for axis, rates in axes.items():
         for r in rates:
-            for h in (r.get("systematic") or {}).get("harmonics") or []:
-                if int(_num(h.get("order", 0))) == 1:
-                    pts.setdefault(axis, []).append((_num(r["set_rate_dps"]),
-                                                     _num(h.get("amplitude_rel")),
-                                                     _num(h.get("amplitude_u_rel"))))
+            for h in r.harmonics:
+                if int(_num(h.order if h.order is not None else 0)) == 1:
+                    pts.setdefault(axis, []).append((_num(r.set_rate_dps),
+                                                     _num(h.amplitude_rel),
+                                                     _num(h.amplitude_u_rel)))
     if not pts:
         return None
     fig, (a1, a2) = _fig(2, height_in=2.4)
@@ -217,33 +335,33 @@ def one_rev(axes: Mapping[str, Sequence[Mapping[str, Any]]], scale: float,
     return _png(fig)
 
 
-def intra_turn(axes: Mapping[str, Sequence[Mapping[str, Any]]], scale: float,
+def intra_turn(axes: Mapping[str, Sequence[RatePoint]], scale: float,
                uname: str) -> bytes | None:
     """Intra-turn instability vs rate, raw and floor-corrected, per axis (paper fig. 10)."""
     names = [a for a, rr in axes.items()
-             if any(r.get("intra_turn_instability_rel") is not None for r in rr)]
+             if any(r.intra_turn_instability_rel is not None for r in rr)]
     if not names:
         return None
     fig, axs = _fig(len(names), height_in=2.4)
     for ax, axis in zip(axs, names, strict=True):
         rr = axes[axis]
         for sign, label, marker, color in DIRECTIONS:
-            q = [r for r in rr if math.copysign(1, _num(r["set_rate_dps"])) == sign]
+            q = [r for r in rr if math.copysign(1, _num(r.set_rate_dps)) == sign]
             if not q:
                 continue
-            w = np.array([abs(_num(r["set_rate_dps"])) for r in q]) * (1 + 0.02 * sign)
-            y = np.array([_num(r.get("intra_turn_instability_rel")) for r in q]) * scale
-            u = np.nan_to_num(np.array([_num(r.get("intra_turn_instability_u_rel"))
+            w = np.array([abs(_num(r.set_rate_dps)) for r in q]) * (1 + 0.02 * sign)
+            y = np.array([_num(r.intra_turn_instability_rel) for r in q]) * scale
+            u = np.nan_to_num(np.array([_num(r.intra_turn_instability_u_rel)
                                         for r in q])) * scale
             if np.any(np.isfinite(y)):
                 ax.errorbar(w, y, yerr=u, fmt=marker + "-", color=color, ms=4, capsize=2,
                             lw=1, label=f"{label}, raw")
             # floor-corrected: a resolved value with its bars; an unresolved one only as
             # its upper limit (a downward triangle), never as a point estimate
-            intra = [r.get("intra_turn") or {} for r in q]
-            res = np.array([i.get("resolved") is not False for i in intra])
-            c = np.array([_num(r.get("intra_turn_instability_corrected_rel")) for r in q])
-            up = np.array([_num(i.get("corrected_upper_rel")) for i in intra])
+            intra = [r.intra for r in q]
+            res = np.array([i.resolved is not False for i in intra])
+            c = np.array([_num(r.intra_turn_instability_corrected_rel) for r in q])
+            up = np.array([_num(i.corrected_upper_rel) for i in intra])
             if np.any(res & np.isfinite(c)):
                 err = np.where(np.isfinite(up) & res, up - c, 0.0) * scale
                 ax.errorbar(w[res], c[res] * scale, yerr=[np.zeros(res.sum()), err[res]],
@@ -253,7 +371,7 @@ def intra_turn(axes: Mapping[str, Sequence[Mapping[str, Any]]], scale: float,
             if np.any(lim):
                 ax.plot(w[lim], up[lim] * scale, "v", color=color, ms=5, mfc="none",
                         label=f"{label}, floor-corrected: upper limit (not resolved)")
-        _rate_axis(ax, [_num(r["set_rate_dps"]) for r in rr])
+        _rate_axis(ax, [_num(r.set_rate_dps) for r in rr])
         ax.set_yscale("log")
         ax.set_ylabel(f"std(Δω_rand)/|ω_set|, {uname}", fontsize=8)
         ax.set_title(f"Axis {axis}: intra-turn instability vs rate", fontsize=9)
@@ -261,7 +379,7 @@ def intra_turn(axes: Mapping[str, Sequence[Mapping[str, Any]]], scale: float,
     return _png(fig)
 
 
-def pairs(axes: Mapping[str, Sequence[Mapping[str, Any]]]) -> bytes | None:
+def pairs(axes: Mapping[str, Sequence[PairPoint]]) -> bytes | None:
     """k and w0 of the FOG per +/- pair, with U (k = 2) (docs/method.md A3).
 
     k is drawn as its deviation from the axis's mean in ppm: two axes' FOGs differ by far
@@ -274,17 +392,17 @@ def pairs(axes: Mapping[str, Sequence[Mapping[str, Any]]]) -> bytes | None:
     for i, (axis, pp) in enumerate(axes.items()):
         if not pp:
             continue
-        w = np.array([_num(p.get("rate_dps")) for p in pp])
+        w = np.array([_num(p.rate_dps) for p in pp])
         allw += w.tolist()
-        k = np.array([_num(p.get("k")) for p in pp])
+        k = np.array([_num(p.k) for p in pp])
         if not np.any(np.isfinite(k)):
             continue
         k_mean = float(np.nanmean(k))
         kw = dict(fmt="o-", color=f"C{i}", ms=4, capsize=3, lw=1)
-        a1.errorbar(w, (k - k_mean) * 1e6, yerr=np.nan_to_num([_num(p.get("k_u")) for p in pp])
+        a1.errorbar(w, (k - k_mean) * 1e6, yerr=np.nan_to_num([_num(p.k_u) for p in pp])
                     * 1e6, label=f"axis {axis} (mean k = {k_mean:.7f})", **kw)
-        a2.errorbar(w, [_num(p.get("w0_dps")) for p in pp],
-                    yerr=np.nan_to_num([_num(p.get("w0_u_dps")) for p in pp]),
+        a2.errorbar(w, [_num(p.w0_dps) for p in pp],
+                    yerr=np.nan_to_num([_num(p.w0_u_dps) for p in pp]),
                     label=f"axis {axis}", **kw)
     a1.set_ylabel("k − mean k, ppm", fontsize=8)
     a2.set_ylabel("ω0, °/s", fontsize=8)
@@ -296,11 +414,10 @@ def pairs(axes: Mapping[str, Sequence[Mapping[str, Any]]]) -> bytes | None:
     return _png(fig)
 
 
-def allan(floors: Mapping[str, Mapping[str, Any]]) -> bytes | None:
+def allan(floors: Mapping[str, AllanCurve]) -> bytes | None:
     """Allan deviation of each axis's static FOG record, with a white-noise slope guide."""
-    curves = {a: (np.asarray(f.get("allan_tau_s") or [], dtype=float),
-                  np.asarray(f.get("allan_dev_dps") or [], dtype=float))
-              for a, f in floors.items() if f}
+    curves = {a: (np.asarray(f.allan_tau_s, dtype=float), np.asarray(f.allan_dev_dps, dtype=float))
+              for a, f in floors.items()}
     curves = {a: c for a, c in curves.items() if c[0].size > 1 and c[0].size == c[1].size}
     if not curves:
         return None
@@ -316,10 +433,10 @@ def allan(floors: Mapping[str, Mapping[str, Any]]) -> bytes | None:
     return _png(fig)
 
 
-def drift_cycle(axis: str, cycle: Mapping[str, Any]) -> bytes | None:
+def drift_cycle(axis: str, cycle: CycleTrace) -> bytes | None:
     """U(t) of the angle sensor and the signed integrator output over one cycle."""
-    t = np.asarray(cycle.get("t_s", []), dtype=float)
-    u = np.asarray(cycle.get("u_v", []), dtype=float)
+    t = np.asarray(cycle.t_s, dtype=float)
+    u = np.asarray(cycle.u_v, dtype=float)
     if t.size < 2 or u.size != t.size:
         return None
     fig, (a1, a2) = _fig(2, height_in=2.2)
@@ -327,36 +444,36 @@ def drift_cycle(axis: str, cycle: Mapping[str, Any]) -> bytes | None:
     a1.set_ylabel("U, V", fontsize=8)
     a1.set_title(f"Axis {axis}: angle-sensor output U(t) and signed integral over one cycle",
                  fontsize=9)
-    integ = np.asarray(cycle.get("integral_vs", []), dtype=float)
+    integ = np.asarray(cycle.integral_vs, dtype=float)
     if integ.size == t.size:
         a2.plot(t, integ, "C3", lw=1)
     a2.set_ylabel("∫±U dt, V·s", fontsize=8)
     a2.set_xlabel("time from the start of the first pulse, s", fontsize=8)
-    tc = _num(cycle.get("tc_s"))
+    tc = _num(cycle.tc_s)
     for ax in (a1, a2):
         if math.isfinite(tc):
             ax.axvline(tc, color="0.4", lw=0.8, ls="--")
     return _png(fig)
 
 
-def drift_cycles(axes: Mapping[str, Mapping[str, Any]]) -> bytes | None:
+def drift_cycles(axes: Mapping[str, AxisDrift]) -> bytes | None:
     """Drift estimate of every cycle, by axis and platform position."""
-    names = [a for a, d in axes.items() if d.get("cycles")]
+    names = [a for a, d in axes.items() if d.cycles]
     if not names:
         return None
     fig, axs = _fig(len(names), height_in=2.2)
     for ax, axis in zip(axs, names, strict=True):
-        cyc = axes[axis]["cycles"]
-        positions = sorted({_num(c.get("position_deg", 0)) for c in cyc})
+        cyc = axes[axis].cycles
+        positions = sorted({_num(c.table_deg) for c in cyc})
         n = 0
         for j, pos in enumerate(positions):
-            q = [c for c in cyc if _num(c.get("position_deg", 0)) == pos]
+            q = [c for c in cyc if _num(c.table_deg) == pos]
             x = np.arange(n + 1, n + len(q) + 1)
-            y = np.array([_num(c.get("drift_dph")) for c in q])
+            y = np.array([_num(c.drift_dph) for c in q])
             ax.plot(x, y, "o", color=f"C{j}", ms=4, label=f"position {pos:g}°")
             ax.hlines(np.mean(y), x[0] - 0.3, x[-1] + 0.3, color=f"C{j}", lw=0.8)
             n += len(q)
-        own = _num(axes[axis].get("own_dph"))
+        own = _num(axes[axis].own_dph)
         if math.isfinite(own):
             ax.axhline(own, color="k", lw=0.8, ls="--", label="own drift")
         ax.set_ylabel("drift, °/h", fontsize=8)
