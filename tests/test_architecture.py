@@ -705,9 +705,15 @@ def test_the_any_count_counts_annotations_only() -> None:
     assert any_in_annotations(source) == 8
 
 
-def test_report_the_any_count(capsys: pytest.CaptureFixture[str]) -> None:
-    """Issue 45 asks for fewer than 200; reported here until the typed results land."""
+#: issue 45 asks for fewer than 200; 740 at a057f73, 94 once the typed results landed. A
+#: ratchet: lower it when the count falls, never raise it
+ANY_CEILING = 94
+
+
+def test_any_in_annotations_stays_below_the_ceiling(capsys: pytest.CaptureFixture[str]
+                                                    ) -> None:
     counts = any_count()
+    total = sum(counts.values())
     with capsys.disabled():
-        print(f"\nAny in annotations: {sum(counts.values())} ({counts})")
-    assert sum(counts.values()) > 0
+        print(f"\nAny in annotations: {total} ({counts})")
+    assert 0 < total <= ANY_CEILING < 200, counts
