@@ -220,6 +220,34 @@ class Check:
         return dict(self.doc)
 
 
+@dataclass(frozen=True, slots=True)
+class MeasuredHalf:
+    """The FOG's temperature over one half, from its frames (`conditions_measured.
+    fog_temperature.axes.<axis>.halves[]`, procedures that record it)."""
+
+    half: float | None
+    set_rate_dps: float | None
+    min_c: float | None
+    mean_c: float | None
+    max_c: float | None
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> MeasuredHalf:
+        return cls(*(number(doc, k) for k in ("half", "set_rate_dps", "min_c", "mean_c",
+                                               "max_c")))
+
+
+def fog_temperature(doc: Mapping[str, JsonValue]
+                    ) -> dict[str, tuple[MeasuredHalf, ...]] | None:
+    """Per axis, the halves' FOG temperatures the run measured; None when it measured none."""
+    fog = obj(obj(doc, "conditions_measured"), "fog_temperature")
+    axes = as_object(fog.get("axes"))
+    if axes is None:
+        return None
+    return {axis: tuple(MeasuredHalf.from_json(h) for h in objects(found, "halves"))
+            for axis, ax in axes.items() if (found := as_object(ax)) is not None}
+
+
 def conform_frame(doc: JsonObject, issues: Issues) -> JsonObject:
     """The frame's containers checked, in place (the kind's part is its result module's)."""
     conform_object(doc, "stand", (), issues)

@@ -53,7 +53,7 @@ from bench.report.certificate.rounding import (
     present,
     rel_unit,
 )
-from bench.report.result_frame import Check
+from bench.report.result_frame import Check, fog_temperature
 from drivers.json_types import JsonObject
 
 __all__ = ["NOT_RECORDED", "Sources", "build_document", "certificate_id", "decision_rule_text",
@@ -586,20 +586,16 @@ def _deviations(src: Sources, proc: Procedure) -> tuple[Block, ...]:
 def _measured_conditions(src: Sources) -> list[Block]:
     """What the bench measured itself: the FOG's temperature per half (procedures that
     record it, `conditions_measured`); the room: not measured unless a sensor says so."""
-    measured = src.get("conditions_measured")
-    if not isinstance(measured, Mapping):
-        return []
     blocks: list[Block] = []
-    fog = measured.get("fog_temperature")
-    if isinstance(fog, Mapping) and isinstance(fog.get("axes"), Mapping):
+    fog = fog_temperature(src.frame.doc)
+    if fog is not None:
         rows = []
-        for axis, ax in fog["axes"].items():
-            for h in ax.get("halves") or []:
-                half = num(h.get("half"))
-                rows.append((axis, rate_text(h.get("set_rate_dps")),
+        for axis, halves in fog.items():
+            for h in halves:
+                half = num(h.half)
+                rows.append((axis, rate_text(h.set_rate_dps),
                              "—" if half is None else str(int(half) + 1),
-                             _g(h.get("min_c"), 4), _g(h.get("mean_c"), 4),
-                             _g(h.get("max_c"), 4)))
+                             _g(h.min_c, 4), _g(h.mean_c, 4), _g(h.max_c, 4)))
         blocks.append(Table(("Axis", "Set rate, °/s", "Half", "Min, °C", "Mean, °C",
                              "Max, °C"), tuple(rows), align="lrrrrr",
                             caption="Measured: temperature of the FOG on the table top, per "

@@ -53,7 +53,7 @@ class Issue:
         """Not (yet) authorised: no date of issue, no authoriser."""
         return not self.issued_utc
 
-    def to_dict(self) -> JsonObject:
+    def to_json(self) -> JsonObject:
         d = asdict(self)
         d["changes"] = list(self.changes)
         return d
@@ -108,6 +108,6 @@ def record(run_path: Path, issue: Issue) -> None:
     """Append the issue to the register (one line, flushed to disk before returning)."""
     path = Path(run_path) / REGISTER_NAME
     with path.open("a", encoding="utf-8") as f:
-        f.write(json.dumps(issue.to_dict(), sort_keys=True) + "\n")
+        f.write(json.dumps(issue.to_json(), sort_keys=True) + "\n")
         f.flush()
         os.fsync(f.fileno())
