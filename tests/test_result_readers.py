@@ -34,7 +34,6 @@ RESULT_NAMES = frozenset({"result", "results", "res", "r", "rate", "rates", "pai
 ALLOWED: dict[str, int] = {
     "procedures/rate_ladder/budgets.py": 1,
     "procedures/rate_ladder/conditions.py": 1,
-    "procedures/rate_ladder/dcc.py": 4,
 }
 
 
