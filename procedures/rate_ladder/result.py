@@ -9,7 +9,7 @@ byte as `bench analyze` writes it (keys in their order, numbers as they were). R
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TypedDict
 
@@ -36,7 +36,7 @@ from bench.report.result_frame import (
 )
 
 __all__ = ["Half", "Harmonic", "IntraTurn", "LadderAxis", "Mains", "LadderResult", "MalformedResult", "NoiseFloor", "PairEntry",
-           "RateEntry", "add_budgets"]
+           "RateEntry", "add_budgets", "with_conditions_measured"]
 
 
 # -- the containers' checks (what the certificate may safely walk) ----------------------------
@@ -513,3 +513,17 @@ def _dicts(doc: JsonObject, key: str) -> list[JsonObject]:
     """The entries of a list that are JSON objects (the same objects: budgets go into them)."""
     got = doc.get(key)
     return [v for v in got if isinstance(v, dict)] if isinstance(got, list) else []
+
+
+def with_conditions_measured(doc: dict[str, object], fog_axes: Mapping[str, object]
+                             ) -> dict[str, object]:
+    """The analysis' result with what the bench measured itself (`conditions_measured`):
+    the FOG's temperature per axis (procedures/rate_ladder/conditions.py), none when no
+    half recorded it; the room: no sensor on this stand, not measured."""
+    doc["conditions_measured"] = {
+        "fog_temperature": {"source": "FOG frames' temperature field (table top, at the "
+                                      "FOG), deg C, integer resolution", "axes": fog_axes}
+        if fog_axes else None,
+        "room": None,
+    }
+    return doc
