@@ -191,6 +191,12 @@ class Check:
     rule: str | None
     tolerance: float | None  # in the unit its key names (tolerance_rel, tolerance_dph...)
     doc: JsonObject          # every key, in result.json's order
+    one_sided: bool          # an unresolved value, judged on its upper limit
+    upper_rel: float | None  # the 97.5 % limit (or the interval's upper end)
+    lower_rel: float | None  # the interval's lower end of an asymmetric value
+    capability_ratio: float | None  # U/T (RMG 63-2003)
+    capability_ok: bool | None
+    reason: str | None       # why the verdict is not a pass
 
     @classmethod
     def from_json(cls, doc: JsonObject) -> Check:
@@ -199,10 +205,47 @@ class Check:
                                                              if k.startswith("tolerance")))
                           if k in doc), None)
         return cls(text(doc, "axis"), text(doc, "quantity"), text(doc, "verdict"),
-                   number(doc, "set_rate_dps"), text(doc, "rule"), tolerance, doc)
+                   number(doc, "set_rate_dps"), text(doc, "rule"), tolerance, doc,
+                   one_sided=bool(doc.get("one_sided")), upper_rel=number(doc, "upper_rel"),
+                   lower_rel=number(doc, "lower_rel"),
+                   capability_ratio=number(doc, "capability_ratio"),
+                   capability_ok=flag(doc, "capability_ok"), reason=text(doc, "reason"))
+
+    @property
+    def tolerance_rel(self) -> float | None:
+        """The tolerance of a relative quantity (None for one in °/h, °/s...)."""
+        return number(self.doc, "tolerance_rel")
 
     def to_json(self) -> JsonObject:
         return dict(self.doc)
+
+
+@dataclass(frozen=True, slots=True)
+class MeasuredHalf:
+    """The FOG's temperature over one half, from its frames (`conditions_measured.
+    fog_temperature.axes.<axis>.halves[]`, procedures that record it)."""
+
+    half: float | None
+    set_rate_dps: float | None
+    min_c: float | None
+    mean_c: float | None
+    max_c: float | None
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> MeasuredHalf:
+        return cls(*(number(doc, k) for k in ("half", "set_rate_dps", "min_c", "mean_c",
+                                               "max_c")))
+
+
+def fog_temperature(doc: Mapping[str, JsonValue]
+                    ) -> dict[str, tuple[MeasuredHalf, ...]] | None:
+    """Per axis, the halves' FOG temperatures the run measured; None when it measured none."""
+    fog = obj(obj(doc, "conditions_measured"), "fog_temperature")
+    axes = as_object(fog.get("axes"))
+    if axes is None:
+        return None
+    return {axis: tuple(MeasuredHalf.from_json(h) for h in objects(found, "halves"))
+            for axis, ax in axes.items() if (found := as_object(ax)) is not None}
 
 
 def conform_frame(doc: JsonObject, issues: Issues) -> JsonObject:

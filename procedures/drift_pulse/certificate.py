@@ -24,6 +24,7 @@ from bench.report.certificate.parts import (
     vu_text,
 )
 from bench.report.certificate.rounding import format_sig, format_value_u
+from bench.report.result_frame import Check
 from procedures.drift_pulse.result import DriftFigures
 
 # -- the method statement (docs/method.md part B, restated) ---------------------------------
@@ -112,7 +113,7 @@ class DriftCertificate(CertificateParts):
         return run
 
     def certificate_sections(self, src: Sources, number: str,
-                             checks: Sequence[Mapping[str, object]]) -> list[Section]:
+                             checks: Sequence[Check]) -> list[Section]:
         return _drift_results(DriftFigures.of(src.result), number)
 
     def certificate_statements(self, statements: Sequence[str]) -> list[str]:

@@ -24,6 +24,7 @@ from bench.report.figures import (
     fields_of,
     tables_of,
 )
+from bench.report.result_frame import ResultFrame
 from procedures.drift_pulse.result import DriftFigures, MalformedResult
 from procedures.drift_pulse.sample import drift_pulse_result
 
@@ -74,7 +75,8 @@ class DriftRecords(DeclaredFigures):
         platform = _mapping(stand.get("platform"))
         gyros = _mapping(platform.get("gyros"))
         ident = dict(_mapping(stand.get("stand")))
-        ident.update({k: v for k, v in _mapping(result.get("stand")).items() if v is not None})
+        ident.update({k: v for k, v in ResultFrame.conform(result)[0].stand.items()
+                      if v is not None})
         plat = _mapping(platform.get("identity")).get("serial") or ident.get("serial") \
             or "stand"
         out = []

@@ -14,12 +14,13 @@ their U; this module only lays out where each U comes from.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 
 import numpy as np
 
 from bench.report.budget import CHI_SQUARE, NORMAL, RECTANGULAR, STUDENT_T, Budget, Term, num
 from drivers.json_types import JsonObject, JsonValue
+from procedures.rate_ladder import result
+from procedures.rate_ladder.result import Half, NoiseFloor, PairEntry, RateEntry
 
 
 def _half_u(x: object) -> float | None:
@@ -28,13 +29,13 @@ def _half_u(x: object) -> float | None:
     return None if v is None else v / 2.0
 
 
-def rate_error_budget(r: Mapping[str, object]) -> Budget | None:
+def rate_error_budget(r: RateEntry) -> Budget | None:
     """delta = mean(per-turn rates)/set - 1 (eq. 1): repeatability of the turns (Type A),
     the counter's time-stamping and the time base (Type B)."""
-    b = r.get("rate_error_budget")
-    if not isinstance(b, Mapping):
+    b = r.rate_error_budget
+    if b is None:
         return None
-    turns = int(num(r.get("turns")) or 0)
+    turns = r.turns or 0
     terms = []
     rep = num(b.get("repeatability_ustd_rel"))
     # docs/method.md A2: nu of the Type A term as the analysis took it (pooled: N+ + N- - 2)
@@ -44,7 +45,7 @@ def rate_error_budget(r: Mapping[str, object]) -> Budget | None:
     if rep is not None:
         terms.append(Term("mean of the per-turn rate errors (repeatability, Type A): "
                           + str(b.get("repeatability_basis") or "sample sigma / √N"),
-                          num(r.get("rate_error_rel")), rep, STUDENT_T, 1.0, rep_dof, "1"))
+                          num(r.rate_error_rel), rep, STUDENT_T, 1.0, rep_dof, "1"))
     timing = num(b.get("timing_ustd_rel"))
     if timing is not None:
         terms.append(Term("turn period timing: zero-mark edges and time tie (Type B)", 0.0,
@@ -56,33 +57,29 @@ def rate_error_budget(r: Mapping[str, object]) -> Budget | None:
     if not terms:
         return None
     return Budget("rate error δ (relative)", "rate_error_rel", "1",
-                  num(r.get("rate_error_rel")), tuple(terms),
-                  num(r.get("rate_error_U_rel") or r.get("rate_error_u_rel")))
+                  num(r.rate_error_rel), tuple(terms), num(r.rate_error_U_rel))
 
 
-def _scale_term(pair: Mapping[str, object] | None, value: float | None) -> list[Term]:
+def _scale_term(pair: PairEntry | None, value: float | None) -> list[Term]:
     """The FOG's scale k converts its rates to the table's: a relative value read through
     the FOG scales as 1/k (sensitivity -value/k)."""
     if pair is None or value is None:
         return []
-    k, uk = num(pair.get("k")), _half_u(pair.get("k_U") or pair.get("k_u"))
+    k, uk = num(pair.k), _half_u(pair.k_U)
     if not k or uk is None:
         return []
     return [Term("FOG scale k from the cross-calibration (eq. 5)", k, uk, NORMAL,
                  -value / k, None, "1")]
 
 
-def harmonic_budgets(r: Mapping[str, object], pair: Mapping[str, object] | None) -> list[Budget]:
-    sysm = got if isinstance(got := r.get("systematic"), Mapping) else {}
-    intra = got if isinstance(got := r.get("intra_turn"), Mapping) else {}
-    samples = num(intra.get("samples"))
+def harmonic_budgets(r: RateEntry, pair: PairEntry | None) -> list[Budget]:
+    samples = num(r.intra.samples)
     out = []
-    harmonics = [h for h in sysm.get("harmonics") or [] if isinstance(h, Mapping)]
+    harmonics = r.harmonics
     dof = samples - (2 * len(harmonics) + 1) if samples else None
     for h in harmonics:
-        order = int(num(h.get("order")) or 0)
-        a, ua = num(h.get("amplitude_rel")), _half_u(h.get("amplitude_U_rel")
-                                                     or h.get("amplitude_u_rel"))
+        order = int(num(h.order) or 0)
+        a, ua = num(h.amplitude_rel), _half_u(h.amplitude_U_rel)
         if a is not None and ua is not None:
             out.append(Budget(
                 f"harmonic {order} amplitude a{order} (relative)",
@@ -90,7 +87,7 @@ def harmonic_budgets(r: Mapping[str, object], pair: Mapping[str, object] | None)
                 (Term("least-squares fit of the FOG record over whole turns (Type A)", a,
                       ua, STUDENT_T, 1.0, dof, "1"), *_scale_term(pair, a)),
                 2 * ua))
-        p, up = num(h.get("phase_deg")), _half_u(h.get("phase_U_deg") or h.get("phase_u_deg"))
+        p, up = num(h.phase_deg), _half_u(h.phase_U_deg)
         if p is not None and up is not None:
             out.append(Budget(
                 f"harmonic {order} phase p{order}", f"systematic.harmonics[{order - 1}].phase_deg",
@@ -98,22 +95,22 @@ def harmonic_budgets(r: Mapping[str, object], pair: Mapping[str, object] | None)
                 (Term("least-squares fit of the FOG record over whole turns (Type A)", p,
                       up, STUDENT_T, 1.0, dof, "deg"),
                  *([Term("FOG scale k (a scale does not move a phase)",
-                         num(pair.get("k")), _half_u(pair.get("k_U")) or 0.0, NORMAL, 0.0,
-                         None, "1")] if pair and num(pair.get("k")) else [])),
+                         num(pair.k), _half_u(pair.k_U) or 0.0, NORMAL, 0.0,
+                         None, "1")] if pair and num(pair.k) else [])),
                 2 * up,
-                note="" if h.get("detected", True) else "harmonic not detected: its phase is "
+                note="" if h.detected is not False else "harmonic not detected: its phase is "
                                                         "undetermined"))
     return out
 
 
-def intra_turn_budgets(r: Mapping[str, object], pair: Mapping[str, object] | None,
-                       floor: Mapping[str, object] | None) -> list[Budget]:
+def intra_turn_budgets(r: RateEntry, pair: PairEntry | None,
+                       floor: NoiseFloor | None) -> list[Budget]:
     """sigma_raw (A5) and sigma_c = sqrt(sigma_raw^2 - sigma_floor^2) (A5: the FOG's own
     noise removed), relative to |set|."""
-    intra = got if isinstance(got := r.get("intra_turn"), Mapping) else {}
-    raw = num(r.get("intra_turn_instability_rel"))
-    u_raw = _half_u(r.get("intra_turn_instability_U_rel") or r.get("intra_turn_instability_u_rel"))
-    n = num(intra.get("samples"))
+    intra = r.intra
+    raw = num(r.intra_turn_instability_rel)
+    u_raw = _half_u(r.intra_turn_instability_U_rel)
+    n = num(intra.samples)
     if raw is None or u_raw is None:
         return []
     out = [Budget("intra-turn instability σ, raw (relative)", "intra_turn_instability_rel",
@@ -121,8 +118,8 @@ def intra_turn_budgets(r: Mapping[str, object], pair: Mapping[str, object] | Non
                                   "(Type A)", raw, u_raw, CHI_SQUARE, 1.0,
                                   n - 1 if n else None, "1"), *_scale_term(pair, raw)),
                   2 * u_raw)]
-    fl, corrected = num(intra.get("floor_rel")), num(r.get("intra_turn_instability_corrected_rel"))
-    n_floor = num((floor or {}).get("samples"))
+    fl, corrected = num(intra.floor_rel), num(r.intra_turn_instability_corrected_rel)
+    n_floor = num(floor.samples) if floor is not None else None
     if fl is not None and corrected and corrected > 0 and n_floor and n_floor > 1:
         u_floor = fl / math.sqrt(2 * (n_floor - 1))   # sigma of a sigma from n samples
         out.append(Budget(
@@ -133,34 +130,33 @@ def intra_turn_budgets(r: Mapping[str, object], pair: Mapping[str, object] | Non
              Term("FOG noise floor σ_floor from the static record (Type A)", fl, u_floor,
                   CHI_SQUARE, -fl / corrected, n_floor - 1, "1")),
             None,
-            note="" if intra.get("resolved") else
+            note="" if intra.resolved else
             "not resolved from the floor: the certificate states an upper limit, not this "
             "value with a U"))
     return out
 
 
-def _half_row(h: Mapping[str, object]
-              ) -> tuple[float, float, float, float, float, int, object] | None:
+def _half_row(h: Half) -> tuple[float, float, float, float, float, int, float | None] | None:
     """A half's counter mean, FOG mean, their standard uncertainties (FOG's first), time
     centre, turns and sign; None when one of the five numbers is missing."""
-    c, f, uf, uc, t = (num(h.get(k)) for k in ("counter_mean_dps", "fog_mean_dps",
-                                                 "fog_mean_ustd_dps", "counter_mean_ustd_dps",
-                                                 "t_centre_s"))
+    c, f, uf, uc, t = (num(x) for x in (h.counter_mean_dps, h.fog_mean_dps,
+                                        h.fog_mean_ustd_dps, h.counter_mean_ustd_dps,
+                                        h.t_centre_s))
     if c is None or f is None or uf is None or uc is None or t is None:
         return None
-    return c, f, uf, uc, t, int(num(h.get("turns")) or 0), h.get("sign")
+    return c, f, uf, uc, t, int(num(h.turns) or 0), h.sign
 
 
-def pair_budgets(pair: Mapping[str, object]) -> list[Budget]:
+def pair_budgets(pair: PairEntry) -> list[Budget]:
     """k and w0 as the weighted least-squares fit of F_i = k C_i + w0 (+ d (t_i - t_ref))
     over the pair's halves (eq. 5-6); c_i = dk/dF_i from the fit's gain matrix, and
     dk/dC_i = -k dk/dF_i (a counter mean moves the fit as a FOG mean of -k times it)."""
-    halves = [h for h in _listed(pair, "halves") if isinstance(h, Mapping)]
+    halves = pair.halves
     rows = [row for h in halves if (row := _half_row(h)) is not None]
     if len(rows) < 2 or len(rows) < len(halves):
         return []
-    t_ref = num(pair.get("w0_t_ref_s")) or 0.0
-    drift = "drift" in str(pair.get("method") or "") and len(rows) >= 3
+    t_ref = num(pair.w0_t_ref_s) or 0.0
+    drift = "drift" in (pair.method or "") and len(rows) >= 3
     a = np.array([[c, 1.0, *(((t - t_ref) / 3600.0,) if drift else ())]
                   for c, _, _, _, t, _, _ in rows])
     # the halves' FOG means carry the noise inflation already (bench/analysis/pair.py)
@@ -168,10 +164,9 @@ def pair_budgets(pair: Mapping[str, object]) -> list[Budget]:
     gain = np.linalg.solve(a.T @ w @ a, a.T @ w)          # beta = gain @ F
     beta = gain @ np.array([f for _, f, _, _, _, _, _ in rows])
     out = []
-    for idx, (name, key, unit, reported) in enumerate((
-            ("FOG scale k (eq. 5)", "k", "1", pair.get("k_U") or pair.get("k_u")),
-            ("FOG bias ω0 (eq. 6)", "w0_dps", "deg/s",
-             pair.get("w0_U_dps") or pair.get("w0_u_dps")))):
+    for idx, (name, key, unit, value, reported) in enumerate((
+            ("FOG scale k (eq. 5)", "k", "1", pair.k, pair.k_U),
+            ("FOG bias ω0 (eq. 6)", "w0_dps", "deg/s", pair.w0_dps, pair.w0_U_dps))):
         terms = []
         for i, (c, f, uf, uc, _t, turns, sign) in enumerate(rows):
             s = "+" if (num(sign) or 0) > 0 else "−"
@@ -180,44 +175,19 @@ def pair_budgets(pair: Mapping[str, object]) -> list[Budget]:
             terms.append(Term(f"counter mean rate, half {i + 1} ({s}) (Type A)", c, uc,
                               STUDENT_T, float(-beta[0] * gain[idx, i]),
                               float(turns - 1) if turns > 1 else None, "deg/s"))
-        out.append(Budget(name, key, unit, num(pair.get(key)), tuple(terms),
-                          num(reported),
-                          note=str(pair.get("bias_model") or "") if drift else ""))
+        out.append(Budget(name, key, unit, num(value), tuple(terms), num(reported),
+                          note=pair.bias_model if drift else ""))
     return out
 
 
-def _listed(doc: Mapping[str, object], key: str) -> list[object]:
-    """A list entry of result.json ([] when absent or not a list)."""
-    got = doc.get(key)
-    return got if isinstance(got, list) else []
-
-
-def _pair_of(axis: Mapping[str, object], set_rate: float | None
-             ) -> Mapping[str, object] | None:
-    if set_rate is None:
-        return None
-    return next((p for p in _listed(axis, "pairs") if isinstance(p, Mapping)
-                 and num(p.get("rate_dps")) == abs(set_rate)), None)
-
-
-def add_budgets(result: JsonObject) -> JsonObject:
+def add_budgets(doc: JsonObject) -> JsonObject:
     """result.json with a `budgets` list on every rate and pair (additions only)."""
-    axes = result.get("axes")
-    for axis in axes.values() if isinstance(axes, dict) else ():
-        if not isinstance(axis, dict):
-            continue
-        floor = got if isinstance(got := axis.get("noise_floor"), Mapping) else None
-        for r in _listed(axis, "rates"):
-            if not isinstance(r, dict):
-                continue
-            pair = _pair_of(axis, num(r.get("set_rate_dps")))
-            found = [b for b in (rate_error_budget(r),) if b is not None]
-            found += intra_turn_budgets(r, pair, floor) + harmonic_budgets(r, pair)
-            r["budgets"] = _as_json(found)
-        for p in _listed(axis, "pairs"):
-            if isinstance(p, dict):
-                p["budgets"] = _as_json(pair_budgets(p))
-    return result
+    return result.add_budgets(
+        doc, lambda r, pair, floor: _as_json([b for b in (rate_error_budget(r),)
+                                               if b is not None]
+                                              + intra_turn_budgets(r, pair, floor)
+                                              + harmonic_budgets(r, pair)),
+        lambda p: _as_json(pair_budgets(p)))
 
 
 def _as_json(budgets: list[Budget]) -> list[JsonValue]:

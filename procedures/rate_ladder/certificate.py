@@ -41,6 +41,7 @@ from bench.report.certificate.rounding import (
     present_phase,
     rel_unit,
 )
+from bench.report.result_frame import Check
 from drivers.json_types import JsonObject, JsonValue
 from procedures.rate_ladder.result import LadderAxis, LadderResult, NoiseFloor, RateEntry
 
@@ -187,7 +188,7 @@ class LadderCertificate(CertificateParts):
         return out
 
     def certificate_sections(self, src: Sources, number: str,
-                             checks: Sequence[Mapping[str, object]]) -> list[Section]:
+                             checks: Sequence[Check]) -> list[Section]:
         return _ladder_results(src, number, checks)
 
     def certificate_annexes(self, src: Sources) -> Sequence[TitledBlocks]:
@@ -203,13 +204,13 @@ def _ladder(src: Sources) -> LadderResult:
 
 # -- the results -----------------------------------------------------------------------------
 
-def _tolerances(checks: Iterable[Mapping[str, object]], axis: str
+def _tolerances(checks: Iterable[Check], axis: str
                 ) -> dict[str, list[tuple[float, float]]]:
     out: dict[str, list[tuple[float, float]]] = {}
     for c in checks:
-        rate, tol = num(c.get("set_rate_dps")), num(c.get("tolerance_rel"))
-        if c.get("axis") == axis and rate is not None and tol is not None:
-            out.setdefault(str(c.get("quantity")), []).append((abs(rate), tol))
+        rate, tol = num(c.set_rate_dps), num(c.tolerance_rel)
+        if c.axis == axis and rate is not None and tol is not None:
+            out.setdefault(str(c.quantity), []).append((abs(rate), tol))
     return {k: sorted(set(v)) for k, v in out.items()}
 
 
@@ -304,7 +305,7 @@ def _averaged(r: RateEntry) -> list[Averaged]:
     return sorted(out, key=lambda x: x.angle_deg)
 
 
-def _ladder_results(src: Sources, number: str, checks: Sequence[Mapping[str, object]]
+def _ladder_results(src: Sources, number: str, checks: Sequence[Check]
                     ) -> list[Section]:
     axes = _ladder(src).axes
     out = [Section(number, "Results", (Para(
@@ -333,7 +334,7 @@ def _ladder_results(src: Sources, number: str, checks: Sequence[Mapping[str, obj
     return out
 
 
-def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Mapping[str, object]],
+def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Check],
                  every: list[RateEntry]) -> tuple[Block, ...]:
     """One axis's results; `every` is every axis's rates, so that one quantity has one
     unit on the whole certificate."""
@@ -342,8 +343,8 @@ def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Mapping[str, object
     # A1/A2 per-turn
     err_unit = rel_unit(*[v for r in every for v in (num(r.rate_error_rel),
                                                       num(r.rate_error_u_rel))],
-                        *[t for c in checks if c.get("quantity") == "rate_error"
-                          for t in (num(c.get("tolerance_rel")),)])
+                        *[t for c in checks if c.quantity == "rate_error"
+                          for t in (num(c.tolerance_rel),)])
     inst_us = [_instability_u(r) for r in rates]
     inst_unit = rel_unit(*[num(r.rate_instability_rel) for r in every],
                          *[_instability_u(r)[0] for r in every])

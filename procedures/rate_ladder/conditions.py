@@ -20,6 +20,7 @@ from bench.core.config import Config, FogSettings
 from bench.core.journal import RunDir, fog_capture_starts
 from drivers.fog import CaptureCursor, FogSamples
 from procedures.rate_ladder.events import HalfAcquired
+from procedures.rate_ladder.result import with_conditions_measured
 
 
 class HalfTemperature(TypedDict):
@@ -111,11 +112,4 @@ def fog_temperatures(run: RunDir, cfg: Config) -> dict[str, AxisTemperature]:
 
 
 def add_conditions(result: dict[str, object], run: RunDir, cfg: Config) -> dict[str, object]:
-    temps = fog_temperatures(run, cfg)
-    result["conditions_measured"] = {
-        "fog_temperature": {"source": "FOG frames' temperature field (table top, at the "
-                                      "FOG), deg C, integer resolution", "axes": temps}
-        if temps else None,
-        "room": None,      # no room sensor on this stand: not measured
-    }
-    return result
+    return with_conditions_measured(result, fog_temperatures(run, cfg))

@@ -31,6 +31,7 @@ from bench.report.dcc.xml import (
     rate_token,
     text_el,
 )
+from drivers.json_types import JsonValue
 from procedures.rate_ladder.result import LadderResult, PairEntry, RateEntry
 
 # the ladder's refTypes, namespace "ratebench" (docs/dcc.md, section "refTypes")
@@ -232,13 +233,12 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: RateEntry,
                 eb, f"{path}.rate_error_budget",
                 (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
                  ("repeatability_u_rel", "repeatability (Type A)")), U.ONE)
-    _averaged(data, rid, path, r.intra_turn)
-    _systematic(data, rid, path, r.systematic)
+    _averaged(data, rid, path, r.intra.averaged)
+    _systematic(data, rid, path, r)
 
 
-def _averaged(data: etree._Element, rid: str, path: str, intra: object) -> None:
-    rows = intra.get("averaged") if isinstance(intra, Mapping) else None
-    for j, a in enumerate(rows or []):
+def _averaged(data: etree._Element, rid: str, path: str, rows: JsonValue) -> None:
+    for j, a in enumerate(rows if isinstance(rows, list) else []):
         if not isinstance(a, Mapping) or num(a.get("angle_deg")) is None:
             continue
         lst = el(data, "list", id=ident(rid, "avg", f"{num(a['angle_deg']):g}"),
@@ -294,61 +294,62 @@ def _mc_interval(value: float | None, lower: float | None, upper: float | None,
     return limit_interval(upper, dist + ", one-sided upper limit")
 
 
-def _undetected(tone: Mapping[str, object], a: float, big_u: float | None) -> Interval | None:
+def _undetected(detected: bool | None, a: float, big_u: float | None) -> Interval | None:
     """An undetected tone's amplitude as the PDF prints it, '< a + U' (docs/method.md D2):
     the interval [0, a + U], one-sided at the level of k = 2."""
-    if tone.get("detected") is not False or big_u is None:
+    if detected is not False or big_u is None:
         return None
     return limit_interval(abs(a) + big_u, "normal, one-sided upper limit a + U",
                           (1.0 + float(COVERAGE_PROBABILITY)) / 2.0)
 
 
-def _systematic(data: etree._Element, rid: str, path: str, s: object) -> None:
-    if not isinstance(s, Mapping):
-        return
-    u_key: str | None  # the loops below name a quantity's U key, the mains frequency none
-    for j, h in enumerate(s.get("harmonics") or []):
-        if not isinstance(h, Mapping) or num(h.get("order")) is None:
+def _systematic(data: etree._Element, rid: str, path: str, r: RateEntry) -> None:
+    for j, h in enumerate(r.harmonics):
+        if num(h.order) is None:
             continue
-        order = int(num(h["order"]) or 0)
+        order = int(num(h.order) or 0)
         hid = ident(rid, "h", order)
         lst = el(data, "list", id=hid, ref_type=HARMONIC)
         name(lst, f"systematic intra-turn component, harmonic {order}: "
                   "w_set * a cos(h phi + p) (docs/method.md A4)")
-        if h.get("detected") is False:
+        if h.detected is False:
             text_el(lst, "description", "not significant: the amplitude is consistent with "
                     "zero and its phase is meaningless")
         p = f"{path}.systematic.harmonics[{j}]"
         quantity(lst, None, "order h", HARMONIC_ORDER, order, U.ONE, label=f"{p}.order")
-        for key, u_key, title, ref, unit in (
-                ("amplitude_rel", "amplitude_u_rel", "amplitude a, relative to |set|",
-                 AMPLITUDE, U.ONE),
-                ("phase_deg", "phase_u_deg", "phase p", PHASE, U.DEG)):
-            v = num(h.get(key))
+        for key, value, u, title, ref, unit in (
+                ("amplitude_rel", h.amplitude_rel, h.amplitude_u_rel,
+                 "amplitude a, relative to |set|", AMPLITUDE, U.ONE),
+                ("phase_deg", h.phase_deg, h.phase_u_deg, "phase p", PHASE, U.DEG)):
+            v = num(value)
             if v is not None:
-                uu = num(h.get(u_key))
+                uu = num(u)
                 quantity(lst, ident(hid, key), title, ref, v, unit, uu, label=f"{p}.{key}",
                          note=None if uu is not None else "U not stated in result.json.",
-                         interval=_undetected(h, v, uu) if key == "amplitude_rel" else None)
-    m = s.get("mains")
-    if isinstance(m, Mapping) and num(m.get("amplitude_dps")) is not None:
+                         interval=_undetected(h.detected, v, uu) if key == "amplitude_rel"
+                         else None)
+    m = r.mains
+    if m is not None and num(m.amplitude_dps) is not None:
         mid = ident(rid, "mains")
         lst = el(data, "list", id=mid, ref_type=MAINS)
         name(lst, "mains-frequency ripple, one tone fitted in time (docs/method.md A4)")
-        if m.get("detected") is False:
+        if m.detected is False:
             text_el(lst, "description", "not significant")
         p = f"{path}.systematic.mains"
-        for key, u_key, title, ref, unit in (
-                ("frequency_hz", None, "frequency", FREQUENCY, U.HERTZ),
-                ("amplitude_dps", "amplitude_u_dps", "amplitude", AMPLITUDE, U.DEG_PER_S),
-                ("phase_deg", "phase_u_deg", "phase", PHASE, U.DEG)):
-            v = num(m.get(key))
+        # the frequency has no U to state; the amplitude and phase have theirs
+        for key, value, u, states_u, title, ref, unit in (
+                ("frequency_hz", m.frequency_hz, None, False, "frequency", FREQUENCY, U.HERTZ),
+                ("amplitude_dps", m.amplitude_dps, m.amplitude_u_dps, True, "amplitude",
+                 AMPLITUDE, U.DEG_PER_S),
+                ("phase_deg", m.phase_deg, m.phase_u_deg, True, "phase", PHASE, U.DEG)):
+            v = num(value)
             if v is not None:
-                uu = num(m.get(u_key)) if u_key else None
+                uu = num(u) if states_u else None
                 quantity(lst, ident(mid, key), title, ref, v, unit, uu, label=f"{p}.{key}",
-                         note=None if uu is not None or u_key is None
+                         note=None if uu is not None or not states_u
                          else "U not stated in result.json.",
-                         interval=_undetected(m, v, uu) if key == "amplitude_dps" else None)
+                         interval=_undetected(m.detected, v, uu) if key == "amplitude_dps"
+                         else None)
 
 
 def _or_not_recorded(value: float | None) -> str:

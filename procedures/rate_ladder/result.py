@@ -9,6 +9,7 @@ byte as `bench analyze` writes it (keys in their order, numbers as they were). R
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TypedDict
 
@@ -34,8 +35,8 @@ from bench.report.result_frame import (
     text,
 )
 
-__all__ = ["Harmonic", "IntraTurn", "LadderAxis", "Mains", "LadderResult", "MalformedResult", "NoiseFloor", "PairEntry",
-           "RateEntry"]
+__all__ = ["Half", "Harmonic", "IntraTurn", "LadderAxis", "Mains", "LadderResult", "MalformedResult", "NoiseFloor", "PairEntry",
+           "RateEntry", "add_budgets", "with_conditions_measured"]
 
 
 # -- the containers' checks (what the certificate may safely walk) ----------------------------
@@ -88,6 +89,12 @@ class _Phase(TypedDict):
     detected: bool | None      # None: an older result, which did not say
 
 
+def _expanded(doc: JsonObject, key_U: str, key_u: str) -> float | None:
+    """An expanded uncertainty as result.json writes it (`_U_`), or an older result's
+    `_u_` spelling of it."""
+    return number(doc, key_U) if key_U in doc else number(doc, key_u)
+
+
 def _phase(doc: JsonObject) -> _Phase:
     return {"phase_deg": number(doc, "phase_deg"), "phase_u_deg": number(doc, "phase_u_deg"),
             "detected": flag(doc, "detected")}
@@ -104,6 +111,14 @@ class Harmonic:
     phase_u_deg: float | None
     detected: bool | None
     doc: JsonObject
+
+    @property
+    def amplitude_U_rel(self) -> float | None:
+        return _expanded(self.doc, "amplitude_U_rel", "amplitude_u_rel")
+
+    @property
+    def phase_U_deg(self) -> float | None:
+        return _expanded(self.doc, "phase_U_deg", "phase_u_deg")
 
 
 @dataclass(frozen=True, slots=True)
@@ -271,6 +286,30 @@ class RateEntry:
         return (number(self.doc, "rate_instability_U_rel") if "rate_instability_U_rel" in self.doc
                 else number(self.doc, "rate_instability_u_rel"))
 
+    @property
+    def intra_turn_instability_U_rel(self) -> float | None:
+        return _expanded(self.doc, "intra_turn_instability_U_rel",
+                         "intra_turn_instability_u_rel")
+
+
+@dataclass(frozen=True, slots=True)
+class Half:
+    """One half of a +/- pair (docs/method.md A3): the counter's and the FOG's mean rates."""
+
+    counter_mean_dps: float | None
+    counter_mean_ustd_dps: float | None
+    fog_mean_dps: float | None
+    fog_mean_ustd_dps: float | None
+    t_centre_s: float | None
+    turns: float | None
+    sign: float | None
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> Half:
+        return cls(*(number(doc, k) for k in (
+            "counter_mean_dps", "counter_mean_ustd_dps", "fog_mean_dps", "fog_mean_ustd_dps",
+            "t_centre_s", "turns", "sign")))
+
 
 @dataclass(frozen=True, slots=True)
 class PairEntry:
@@ -298,6 +337,15 @@ class PairEntry:
     @property
     def bias_model(self) -> str:
         return str(self.doc.get("bias_model", ""))
+
+    @property
+    def halves(self) -> tuple[Half, ...]:
+        return tuple(Half.from_json(h) for h in objects(self.doc, "halves"))
+
+    @property
+    def w0_t_ref_s(self) -> float | None:
+        """The time the bias w0 is referred to (a fit with a drift term)."""
+        return number(self.doc, "w0_t_ref_s")
 
     @classmethod
     def from_json(cls, doc: JsonObject) -> PairEntry:
@@ -433,3 +481,49 @@ class LadderResult:
 
     def to_json(self) -> JsonObject:
         return self.frame.to_json()
+
+
+def add_budgets(doc: JsonObject,
+                of_rate: Callable[[RateEntry, PairEntry | None, NoiseFloor | None],
+                                  list[JsonValue]],
+                of_pair: Callable[[PairEntry], list[JsonValue]]) -> JsonObject:
+    """The analysis' result with a `budgets` list on every rate and pair, added in place
+    (additions only): `of_rate` and `of_pair` lay them out from the typed entries; a rate
+    is given the pair at its rate."""
+    axes = doc.get("axes")
+    for axis in axes.values() if isinstance(axes, dict) else ():
+        if not isinstance(axis, dict):
+            continue
+        found = as_object(axis.get("noise_floor"))
+        floor = NoiseFloor.from_json(found) if found is not None else None
+        pairs = [p for p in _dicts(axis, "pairs") if number(p, "rate_dps") is not None]
+        typed = [PairEntry.from_json(p) for p in pairs]
+        for r in _dicts(axis, "rates"):
+            if number(r, "set_rate_dps") is None:
+                continue
+            rate = RateEntry.from_json(r)
+            pair = next((p for p in typed if p.rate_dps == abs(rate.set_rate_dps)), None)
+            r["budgets"] = of_rate(rate, pair, floor)
+        for p, entry in zip(pairs, typed, strict=True):
+            p["budgets"] = of_pair(entry)
+    return doc
+
+
+def _dicts(doc: JsonObject, key: str) -> list[JsonObject]:
+    """The entries of a list that are JSON objects (the same objects: budgets go into them)."""
+    got = doc.get(key)
+    return [v for v in got if isinstance(v, dict)] if isinstance(got, list) else []
+
+
+def with_conditions_measured(doc: dict[str, object], fog_axes: Mapping[str, object]
+                             ) -> dict[str, object]:
+    """The analysis' result with what the bench measured itself (`conditions_measured`):
+    the FOG's temperature per axis (procedures/rate_ladder/conditions.py), none when no
+    half recorded it; the room: no sensor on this stand, not measured."""
+    doc["conditions_measured"] = {
+        "fog_temperature": {"source": "FOG frames' temperature field (table top, at the "
+                                      "FOG), deg C, integer resolution", "axes": fog_axes}
+        if fog_axes else None,
+        "room": None,
+    }
+    return doc

@@ -48,6 +48,7 @@ from bench.app.register.store import MEANING_ISSUE, Account, Register
 from bench.core import rundir_layout as layout
 from bench.core.lab import Lab, LabError, Signatory, run_lab
 from bench.core.traceability import identity_problems, with_declared_serials
+from bench.report.result_frame import ResultFrame
 from drivers.json_types import JsonObject
 
 EXIT_ISSUED, EXIT_REFUSED, EXIT_FAILED = 0, 2, 3
@@ -71,12 +72,17 @@ class IssueContext:
     records_url: str | None = None            # the records (None: the run's default)
     lab_register: object = None                  # the lab register (bench.app.register)
 
+    @property
+    def frame(self) -> ResultFrame:
+        """The result's header, checks and verdict, typed (malformed parts dropped)."""
+        return ResultFrame.conform(self.result)[0]
+
 
 PreIssueCheck = Callable[[IssueContext], list[str]]
 
 
 def _complete(ctx: IssueContext) -> list[str]:
-    verdict = str(ctx.result.get("verdict") or "incomplete").lower()
+    verdict = str(ctx.frame.verdict or "incomplete").lower()
     if verdict not in ("pass", "fail"):
         return [f"the run's verdict is {verdict!r}: an incomplete run certifies nothing "
                 f"(`bench run --resume {ctx.run_path}` completes it)"]
@@ -95,8 +101,8 @@ def _identities(ctx: IssueContext) -> list[str]:
     twins the certificate prints what they reported and says it describes no item."""
     if ctx.simulated:
         return []
-    found = ctx.result.get("instruments")
-    if not isinstance(found, Mapping) or not found:
+    found = ctx.frame.instruments
+    if not found:
         return ["the run recorded no instrument identities (result.json instruments)"]
     stand = _stand(ctx.run_path)
     return [f"{p} (ISO/IEC 17025 6.4.13 a)"
@@ -261,7 +267,7 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
         return _refuse([f"{result_file}: not JSON: {e}"], run_path)
     stand = _stand(run_path)
     try:
-        own = run_lab(run_path, result.get("certificate"))
+        own = run_lab(run_path, ResultFrame.conform(result)[0].certificate)
         lab = resolve_settings(stand, lab_file, base=own)
         if own.name and not lab.name:   # a lab file that names only the register and
             lab = replace(own, signing=lab.signing,     # key: the run's laboratory, as the

@@ -53,6 +53,7 @@ from bench.report.certificate.rounding import (
     present,
     rel_unit,
 )
+from bench.report.result_frame import Check, fog_temperature
 from drivers.json_types import JsonObject
 
 __all__ = ["NOT_RECORDED", "Sources", "build_document", "certificate_id", "decision_rule_text",
@@ -279,15 +280,15 @@ class _Counter:
         return str(self.i)
 
 
-def _checks(src: Sources, proc: Procedure) -> list[JsonObject]:
+def _checks(src: Sources, proc: Procedure) -> list[Check]:
     """The engine's checks[]; without it, what the kind reads from its own results."""
-    if isinstance(src.result.get("checks"), list):
-        return [c.to_json() for c in src.frame.checks]
-    return proc.parts.certificate_checks(src)
+    if isinstance(src.frame.get("checks"), list):
+        return list(src.frame.checks)
+    return [Check.from_json(c) for c in proc.parts.certificate_checks(src)]
 
 
 def _identification(src: Sources, issue: Issue, proc: Procedure,
-                    checks: list[JsonObject]) -> tuple[Block, ...]:
+                    checks: list[Check]) -> tuple[Block, ...]:
     stand = stand_of(src)
     cert = _cert(src)
     dates = src.get("dates", {}) or {}
@@ -339,21 +340,21 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
     return tuple(blocks)
 
 
-def check_class(c: Mapping[str, object]) -> str:
+def check_class(c: Check) -> str:
     """'consistency' (physics cross-check, not conformity), 'not-assessed' (excluded from
     conformity, e.g. a σ at the timing floor), or 'conformity'."""
-    if str(c.get("rule")) == "consistency":
+    if c.rule == "consistency":
         return "consistency"
-    if str(c.get("verdict")) == "not-assessed":
+    if c.verdict == "not-assessed":
         return "not-assessed"
     return "conformity"
 
 
-def _coverage(checks: list[JsonObject], proc: Procedure
+def _coverage(checks: list[Check], proc: Procedure
               ) -> tuple[list[str], list[str], int]:
     """(quantities the verdict covers, quantities not assessed, checks excluded)."""
     conf = [c for c in checks if check_class(c) == "conformity"]
-    covered = list(dict.fromkeys(str(c.get("quantity")) for c in conf))
+    covered = list(dict.fromkeys(str(c.quantity) for c in conf))
     names = [proc.quantity(q) for q in covered]
     not_assessed = [text for key, text in proc.parts.certificate_measured
                     if key not in covered]
@@ -361,7 +362,7 @@ def _coverage(checks: list[JsonObject], proc: Procedure
     return names, not_assessed, excluded
 
 
-def _scope_line(src: Sources, checks: list[JsonObject], proc: Procedure) -> str:
+def _scope_line(src: Sources, checks: list[Check], proc: Procedure) -> str:
     names, not_assessed, excluded = _coverage(checks, proc)
     if not names:
         return "No statement of conformity: the procedure states no tolerances."
@@ -373,16 +374,16 @@ def _scope_line(src: Sources, checks: list[JsonObject], proc: Procedure) -> str:
     return text
 
 
-def _overall(src: Sources, checks: list[JsonObject], proc: Procedure) -> str:
+def _overall(src: Sources, checks: list[Check], proc: Procedure) -> str:
     verdict = str(src.get("verdict", "incomplete")).lower()
     conf = [c for c in checks if check_class(c) == "conformity"]
-    failed = [c for c in conf if str(c.get("verdict", "")).lower() != "pass"]
+    failed = [c for c in conf if (c.verdict or "").lower() != "pass"]
     cons = [c for c in checks if check_class(c) == "consistency"]
     rule = _rule_name(src.get("decision_rule"))
     scope = _scope_line(src, checks, proc)
     cons_text = ""
     if cons:
-        bad = sum(1 for c in cons if str(c.get("verdict")).lower() != "pass")
+        bad = sum(1 for c in cons if str(c.verdict).lower() != "pass")
         cons_text = (f" Consistency checks (not conformity): {len(cons) - bad} of {len(cons)} "
                      "consistent" + (", the measurement is in doubt" if bad else "") + ".")
     if verdict == "incomplete":
@@ -478,10 +479,10 @@ def _item_blocks(record: ItemRecord, proc: Procedure) -> list[Block]:
         rows = []
         for c in found.checks:
             vu, tol = _check_texts(c, proc)
-            rate = num(c.get("set_rate_dps"))
-            rows.append((text_of(c.get("axis")), rate_text(rate) if rate is not None else "—",
-                         proc.quantity(c.get("quantity")), vu, tol,
-                         verdict_label(c.get("verdict"), str(c.get("rule") or ""))))
+            rate = num(c.set_rate_dps)
+            rows.append((text_of(c.axis), rate_text(rate) if rate is not None else "—",
+                         proc.quantity(c.quantity), vu, tol,
+                         verdict_label(c.verdict, c.rule or "")))
         blocks.append(Table(("Axis", "Set rate, °/s", "Quantity", "Value ± U", "Tolerance T",
                              "Verdict"), tuple(rows), widths=(0.8, 1.0, 2.2, 2.0, 1.3, 1.4),
                             align="lrlrrc",
@@ -585,20 +586,16 @@ def _deviations(src: Sources, proc: Procedure) -> tuple[Block, ...]:
 def _measured_conditions(src: Sources) -> list[Block]:
     """What the bench measured itself: the FOG's temperature per half (procedures that
     record it, `conditions_measured`); the room: not measured unless a sensor says so."""
-    measured = src.get("conditions_measured")
-    if not isinstance(measured, Mapping):
-        return []
     blocks: list[Block] = []
-    fog = measured.get("fog_temperature")
-    if isinstance(fog, Mapping) and isinstance(fog.get("axes"), Mapping):
+    fog = fog_temperature(src.frame.doc)
+    if fog is not None:
         rows = []
-        for axis, ax in fog["axes"].items():
-            for h in ax.get("halves") or []:
-                half = num(h.get("half"))
-                rows.append((axis, rate_text(h.get("set_rate_dps")),
+        for axis, halves in fog.items():
+            for h in halves:
+                half = num(h.half)
+                rows.append((axis, rate_text(h.set_rate_dps),
                              "—" if half is None else str(int(half) + 1),
-                             _g(h.get("min_c"), 4), _g(h.get("mean_c"), 4),
-                             _g(h.get("max_c"), 4)))
+                             _g(h.min_c, 4), _g(h.mean_c, 4), _g(h.max_c, 4)))
         blocks.append(Table(("Axis", "Set rate, °/s", "Half", "Min, °C", "Mean, °C",
                              "Max, °C"), tuple(rows), align="lrrrrr",
                             caption="Measured: temperature of the FOG on the table top, per "
@@ -699,21 +696,21 @@ def _specification(src: Sources, proc: Procedure) -> list[Block]:
     return [Fields(tuple(rows))]
 
 
-def _check_texts(c: Mapping[str, object], proc: Procedure) -> tuple[str, str]:
+def _check_texts(c: Check, proc: Procedure) -> tuple[str, str]:
     """(value as printed, tolerance) of one check under docs/method.md D2: '< L' for an
     unresolved value, its interval for an asymmetric one, else 'value ± U' (the conformity
     table and the as-found table print checks alike)."""
-    row = CheckRow.of(c)
-    vu, tol_text = row.texts(str(c.get("quantity")) not in proc.parts.certificate_unsigned)
-    if check_class(c) == "not-assessed" or c.get("one_sided"):
+    row = CheckRow.of(c.doc)
+    vu, tol_text = row.texts(str(c.quantity) not in proc.parts.certificate_unsigned)
+    if check_class(c) == "not-assessed" or c.one_sided:
         # an unresolved value is stated as '< L' and judged on L (bench.report.conformity)
         unit = rel_unit(row.value, row.tolerance)
-        limit = num(c.get("upper_rel"))
+        limit = num(c.upper_rel)
         vu = present(row.value, row.u, unit.scale, resolved=False,
                      upper=limit).with_unit(unit.name) + " (timing floor)"
-    elif (upper_rel := num(c.get("upper_rel"))) is not None and row.suffix == "rel":
+    elif (upper_rel := num(c.upper_rel)) is not None and row.suffix == "rel":
         unit = rel_unit(row.value, row.u, row.tolerance)
-        lower_rel = num(c.get("lower_rel"))
+        lower_rel = num(c.lower_rel)
         if lower_rel is not None and row.value is not None:
             # docs/method.md D2: an asymmetric interval is printed as its interval
             vu = present(row.value, None, unit.scale, resolved=True,
@@ -723,9 +720,9 @@ def _check_texts(c: Mapping[str, object], proc: Procedure) -> tuple[str, str]:
     return vu, tol_text
 
 
-def _conformity(src: Sources, checks: list[JsonObject], proc: Procedure
+def _conformity(src: Sources, checks: list[Check], proc: Procedure
                 ) -> tuple[Block, ...]:
-    rule = str(src.get("decision_rule") or (checks[0].get("rule") if checks else "simple"))
+    rule = str(src.get("decision_rule") or (checks[0].rule if checks else "simple"))
     blocks: list[Block] = [*_specification(src, proc), Para(decision_rule_text(rule)),
                          Para("Decision rule: " + agreed_rule_text(src) + " (ISO/IEC 17025 "
                               "7.1.3).")]
@@ -745,15 +742,15 @@ def _conformity(src: Sources, checks: list[JsonObject], proc: Procedure
         return tuple(blocks)
     consistency = [c for c in checks if check_class(c) == "consistency"]
     checks = [c for c in checks if check_class(c) != "consistency"]
-    with_rate = all(num(c.get("set_rate_dps")) is not None for c in checks)
+    with_rate = all(num(c.set_rate_dps) is not None for c in checks)
     rows: list[tuple[str, ...]] = []
     notes: list[str] = []
     for i, c in enumerate(checks, start=1):
-        row = CheckRow.of(c)
-        ratio = num(c.get("capability_ratio"))
+        row = CheckRow.of(c.doc)
+        ratio = num(c.capability_ratio)
         if ratio is None and row.u is not None and row.tolerance:
             ratio = row.u / row.tolerance
-        ok = c.get("capability_ok")
+        ok = c.capability_ok
         if ok is None and ratio is not None:
             ok = ratio <= CAPABILITY_LIMIT
         if row.u is None or row.u <= 0:
@@ -764,16 +761,16 @@ def _conformity(src: Sources, checks: list[JsonObject], proc: Procedure
             cap = f"{format_sig(ratio, 2)} " + ("met" if ok else "not met")
         inside = (row.value is not None and row.tolerance is not None
                   and abs(row.value) <= row.tolerance)
-        label = verdict_label(c.get("verdict"), str(c.get("rule") or rule), inside)
-        quantity = proc.quantity(c.get("quantity"))
+        label = verdict_label(c.verdict, c.rule or rule, inside)
+        quantity = proc.quantity(c.quantity)
         vu, tol_text = _check_texts(c, proc)
-        if check_class(c) == "not-assessed" or c.get("one_sided"):
+        if check_class(c) == "not-assessed" or c.one_sided:
             cap = "—"
-        rate = num(c.get("set_rate_dps"))
+        rate = num(c.set_rate_dps)
         point = rate_text(rate) if with_rate else (f"{rate_text(rate)} °/s" if rate is not None else "—")
-        rows.append((str(i), text_of(c.get("axis")), point, quantity, vu, tol_text, cap, label))
-        if label != "PASS" and c.get("reason"):
-            notes.append(f"Check {i}: {label}: {c['reason']}")
+        rows.append((str(i), text_of(c.axis), point, quantity, vu, tol_text, cap, label))
+        if label != "PASS" and c.reason:
+            notes.append(f"Check {i}: {label}: {c.reason}")
         elif label != "PASS":
             notes.append(f"Check {i}: {label}.")
     header = ["#", "Axis", "Set rate, °/s" if with_rate else "Point", "Quantity", "Value ± U",
@@ -793,15 +790,15 @@ def _conformity(src: Sources, checks: list[JsonObject], proc: Procedure
     return tuple(blocks)
 
 
-def _consistency_table(checks: list[JsonObject], proc: Procedure) -> Table:
+def _consistency_table(checks: list[Check], proc: Procedure) -> Table:
     """Physics cross-checks: they test the measurement, not the item, and are no part of
     the statement of conformity."""
     rows = []
     for c in checks:
-        row = CheckRow.of(c)
+        row = CheckRow.of(c.doc)
         vu, expected = row.texts(signed=False)
-        rows.append((text_of(c.get("axis")), proc.quantity(c.get("quantity")),
-                     vu, expected, "consistent" if str(c.get("verdict")) == "pass"
+        rows.append((text_of(c.axis), proc.quantity(c.quantity),
+                     vu, expected, "consistent" if c.verdict == "pass"
                      else "NOT CONSISTENT"))
     return Table(("Axis", "Quantity", "Measured ± U", "Expected", "Result"), tuple(rows),
                  widths=(0.8, 2.2, 2.0, 2.0, 1.3), align="llrrc",

@@ -23,6 +23,7 @@ from bench.core import rundir_layout as layout
 from bench.core.schema import parse_date
 from bench.core.traceability import with_declared_serials
 from bench.report.certificate.parts import Sources, stand_of
+from bench.report.result_frame import Check, objects
 
 #: what the certificate and the DCC print for a part nobody stated (the one default)
 NOT_STATED = "not stated"
@@ -47,7 +48,7 @@ class AsFound:
     run_id: str
     found: bool
     verdict: str
-    checks: tuple[Mapping[str, object], ...]
+    checks: tuple[Check, ...]
 
 
 @dataclass(frozen=True)
@@ -79,7 +80,7 @@ def _as_found(src: Sources, run_id: str) -> AsFound:
             found = None
     if not isinstance(found, dict):
         return AsFound(run_id, False, "", ())
-    checks = tuple(c for c in found.get("checks") or [] if isinstance(c, Mapping))
+    checks = tuple(Check.from_json(c) for c in objects(found, "checks"))
     return AsFound(run_id, True, str(found.get("verdict") or "incomplete"), checks)
 
 
@@ -167,13 +168,13 @@ def statements(record: ItemRecord) -> Sequence[str]:
     lines = [f"{label}: {text}." for label, text in record.rows]
     if record.as_found is not None and record.as_found.found:
         for c in record.as_found.checks:
-            value = next((f"{c[k]!r} {k.removeprefix('value_')}" for k in c
-                          if str(k).startswith("value_")), NOT_STATED)
-            lines.append(f"As found (run {record.as_found.run_id}): axis {c.get('axis')}, "
-                         f"{c.get('quantity')}"
-                         + (f" at {c['set_rate_dps']!r} deg/s" if c.get("set_rate_dps")
+            value = next((f"{v!r} {k.removeprefix('value_')}" for k, v in c.doc.items()
+                          if k.startswith("value_")), NOT_STATED)
+            lines.append(f"As found (run {record.as_found.run_id}): axis {c.axis}, "
+                         f"{c.quantity}"
+                         + (f" at {c.set_rate_dps!r} deg/s" if c.set_rate_dps
                             is not None else "")
-                         + f": value {value}, verdict {c.get('verdict')}.")
+                         + f": value {value}, verdict {c.verdict}.")
     return lines
 
 

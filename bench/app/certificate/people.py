@@ -7,19 +7,39 @@ when the run started."""
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 from bench.report.certificate.parts import NOT_RECORDED
 
 PERFORMED_BY = "Calibration performed by"
 
 
+@dataclass(frozen=True, slots=True)
+class Performer:
+    """The account meta.json says the lab register authenticated at the run's start."""
+
+    full_name: object
+    account: object
+    register: object
+    authenticated_utc: object
+
+    @classmethod
+    def of(cls, meta: Mapping[str, object]) -> Performer | None:
+        """None when meta.json names nobody (no account, or one without a name)."""
+        found = meta.get("performer")
+        if not isinstance(found, Mapping) or not found.get("full_name"):
+            return None
+        return cls(found["full_name"], found.get("account"), found.get("register"),
+                   found.get("authenticated_utc"))
+
+
 def performer(meta: Mapping[str, object]) -> tuple[str, str]:
     """(name as printed, how it is known)."""
-    p = meta.get("performer")
-    if isinstance(p, Mapping) and p.get("full_name"):
-        how = (f"account {p.get('account')}, authenticated by the lab register "
-               f"{p.get('register')} at {p.get('authenticated_utc')}")
-        return str(p["full_name"]), how
+    account = Performer.of(meta)
+    if account is not None:
+        how = (f"account {account.account}, authenticated by the lab register "
+               f"{account.register} at {account.authenticated_utc}")
+        return str(account.full_name), how
     who = meta.get("os_user") or meta.get("operator")
     return (f"{NOT_RECORDED}",
             "no account authenticated at the run's start (bench run --operator ACCOUNT)"

@@ -18,13 +18,26 @@ from __future__ import annotations
 import datetime as dt
 import json
 import os
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TypedDict, Unpack
 
-from drivers.json_types import JsonObject
+from drivers.json_types import JsonObject, JsonValue
 
 REGISTER_NAME = "certificate-register.jsonl"
+
+
+class Authorised(TypedDict, total=False):
+    """Who authorised an issue and why: Issue's fields after the result's digest."""
+
+    signatory: str | None
+    function: str | None
+    reason: str | None
+    changes: tuple[str, ...]
+    meaning: str | None
+    register: str | None
+    audit_digest: str | None
 
 
 @dataclass(frozen=True)
@@ -53,18 +66,29 @@ class Issue:
         """Not (yet) authorised: no date of issue, no authoriser."""
         return not self.issued_utc
 
-    def to_dict(self) -> JsonObject:
+    def to_json(self) -> JsonObject:
         d = asdict(self)
         d["changes"] = list(self.changes)
         return d
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> Issue:
-        return cls(str(d["number"]), int(d["revision"]), str(d["issued_utc"]),
-                   d.get("replaces"), d.get("result_sha256"), d.get("signatory"),
-                   d.get("function"), d.get("reason"),
-                   tuple(str(c) for c in d.get("changes") or ()), d.get("meaning"),
-                   d.get("register"), d.get("audit_digest"))
+    def from_dict(cls, d: Mapping[str, JsonValue]) -> Issue:
+        """One line of the register (KeyError, TypeError or ValueError: not one)."""
+        revision = d["revision"]
+        if not isinstance(revision, int | float | str):
+            raise TypeError(f"revision {revision!r}")
+        changes = d.get("changes")
+        return cls(str(d["number"]), int(revision), str(d["issued_utc"]),
+                   _text(d, "replaces"), _text(d, "result_sha256"), _text(d, "signatory"),
+                   _text(d, "function"), _text(d, "reason"),
+                   tuple(str(c) for c in changes) if isinstance(changes, list) else (),
+                   _text(d, "meaning"), _text(d, "register"), _text(d, "audit_digest"))
+
+
+def _text(d: Mapping[str, JsonValue], key: str) -> str | None:
+    """A register entry's text (a non-text value as its text: as written, not dropped)."""
+    value = d.get(key)
+    return None if value is None else str(value)
 
 
 def numbered(base: str, revision: int) -> str:
@@ -89,7 +113,7 @@ def issues(run_path: Path | None) -> list[Issue]:
 
 
 def next_issue(run_path: Path | None, base: str, when: dt.datetime | None,
-               result_sha256: str | None = None, **authorised: Any) -> Issue:
+               result_sha256: str | None = None, **authorised: Unpack[Authorised]) -> Issue:
     """The next revision after the last recorded: a draft when `when` is None, else the
     issue authorised then (signatory, function, reason, changes as keywords)."""
     previous = issues(run_path)
@@ -108,6 +132,6 @@ def record(run_path: Path, issue: Issue) -> None:
     """Append the issue to the register (one line, flushed to disk before returning)."""
     path = Path(run_path) / REGISTER_NAME
     with path.open("a", encoding="utf-8") as f:
-        f.write(json.dumps(issue.to_dict(), sort_keys=True) + "\n")
+        f.write(json.dumps(issue.to_json(), sort_keys=True) + "\n")
         f.flush()
         os.fsync(f.fileno())

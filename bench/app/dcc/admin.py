@@ -25,6 +25,7 @@ from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import ILAC_G8, RULE_REFERENCE, checks_of
 from bench.report.dcc.parts import DccParts
 from bench.report.dcc.xml import NOT_RECORDED, el, name, num, statement, text_el
+from bench.report.result_frame import Check
 
 UNKNOWN_COUNTRY = "ZZ"   # ISO 3166-1 user-assigned code: the laboratory did not configure one
 
@@ -216,7 +217,7 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
     verdict = str(src.get("verdict") or "incomplete").lower()
     rule = str(src.get("decision_rule") or "simple")
     overall = {"pass": "pass", "fail": "fail"}.get(verdict)
-    classes = [check_class(c) for c in checks_of(src)]
+    classes = [check_class(Check.from_json(c)) for c in checks_of(src)]
     n, na = classes.count("conformity"), classes.count("not-assessed")
     cons = classes.count("consistency")
     text = (f"Overall statement of conformity: {verdict.upper()} ({n} check(s) of conformity, "

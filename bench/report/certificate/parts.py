@@ -22,7 +22,7 @@ from bench.core.journal import read_jsonl
 from bench.core.placeholders import run_copy
 from bench.report.certificate.model import Block, Figure, Para, Section
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u
-from bench.report.result_frame import JsonObject, ResultFrame, as_object
+from bench.report.result_frame import Check, JsonObject, ResultFrame, as_object
 
 NOT_RECORDED = "not recorded"
 
@@ -258,7 +258,7 @@ class CertificateParts:
         return []
 
     def certificate_sections(self, src: Sources, number: str,
-                             checks: Sequence[Mapping[str, object]]) -> list[Section]:
+                             checks: Sequence[Check]) -> list[Section]:
         """The results: the section numbered `number` and any subsections (`number`.n)."""
         return [Section(number, "Results", (Para(
             "The procedure kind states no results of its own on the certificate; they are "
