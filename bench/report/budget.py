@@ -50,7 +50,7 @@ class Term:
         """c_i u(x_i): the sign matters where two inputs are correlated (GUM 5.2.2)."""
         return self.sensitivity * self.ustd
 
-    def to_dict(self) -> JsonObject:
+    def to_json(self) -> JsonObject:
         return {"quantity": self.quantity, "estimate": self.estimate, "unit": self.unit,
                 "ustd": self.ustd, "distribution": self.distribution,
                 "sensitivity": self.sensitivity, "contribution_ustd": self.contribution,
@@ -103,9 +103,9 @@ class Budget:
             return None
         return abs(self.U - self.reported_U) <= AGREE_REL * self.reported_U
 
-    def to_dict(self) -> JsonObject:
+    def to_json(self) -> JsonObject:
         return {"quantity": self.quantity, "key": self.key, "unit": self.unit,
-                "estimate": self.estimate, "terms": [t.to_dict() for t in self.terms],
+                "estimate": self.estimate, "terms": [t.to_json() for t in self.terms],
                 "combined_ustd": self.ustd, "dof_eff": self.dof_eff, "coverage_factor": self.k,
                 "coverage_probability": COVERAGE_P,
                 "U_budget": self.U, "U_reported": self.reported_U,
@@ -121,7 +121,7 @@ def num(x: object) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-def from_dict(d: Mapping[str, Any]) -> Budget | None:
+def budget_from_json(d: Mapping[str, Any]) -> Budget | None:
     """A budget as result.json carries it (None when it is not one)."""
     try:
         terms = tuple(Term(str(t["quantity"]), num(t.get("estimate")), float(t["ustd"]),
@@ -175,7 +175,7 @@ def budget_sites(node: object, path: tuple[object, ...] = ()) -> list[tuple[str,
                 owner = ".".join(str(p) if not isinstance(p, int) else f"[{p}]"
                                  for p in path).replace(".[", "[")
                 for d in v:
-                    b = from_dict(d) if isinstance(d, Mapping) else None
+                    b = budget_from_json(d) if isinstance(d, Mapping) else None
                     if b is not None:
                         out.append((_site(path, node), owner, b))
             else:

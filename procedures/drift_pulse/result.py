@@ -22,7 +22,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TypeVar
 
-from bench.report.budget import Budget, from_dict
+from bench.report.budget import Budget, budget_from_json
 
 T = TypeVar("T")
 
@@ -101,7 +101,7 @@ def _numbers(node: Mapping[str, object], key: str, path: str) -> tuple[float, ..
 
 
 def _budget(node: object, path: str) -> Budget:
-    budget = from_dict(_object(node, path))
+    budget = budget_from_json(_object(node, path))
     if budget is None:
         raise MalformedResult(path, "not an uncertainty budget (quantity, key, terms)")
     return budget
@@ -268,7 +268,7 @@ class AxisFigures:
             "amplitude_dps": self.amplitude_dps,
             "vertical": self.vertical,
             "start_offset": self.start_offset.to_json(),
-            "budgets": [b.to_dict() for b in self.budgets],
+            "budgets": [b.to_json() for b in self.budgets],
             "positions": [p.to_json() for p in self.positions],
             "cycles": [c.to_json() for c in self.cycles],
             **({"example_cycle": self.example_cycle.to_json()} if self.example_cycle else {}),
@@ -356,7 +356,7 @@ class DriftFigures:
         }
         if self.platform is not None:
             out |= self.platform.to_json()
-        out["budgets"] = [b.to_dict() for b in self.budgets]
+        out["budgets"] = [b.to_json() for b in self.budgets]
         out |= _coverage(self.budgets, "azimuth_deg", "azimuth")
         out |= _coverage(self.budgets, "earth_horizontal_dph", "earth_horizontal")
         return out

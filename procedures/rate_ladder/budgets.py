@@ -191,4 +191,4 @@ def add_budgets(doc: JsonObject) -> JsonObject:
 
 
 def _as_json(budgets: list[Budget]) -> list[JsonValue]:
-    return [b.to_dict() for b in budgets]
+    return [b.to_json() for b in budgets]

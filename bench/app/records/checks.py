@@ -24,15 +24,13 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from bench.analysis.finite import finite_number as _num
 from bench.core import rundir_layout as layout
 from bench.core.journal import read_jsonl
 from bench.core.registry import ChecksInstruments, installed_records, procedure_names
 from bench.report.figures import InstrumentCheck
-from bench.report.result_frame import MalformedResult, ResultFrame, as_object
-from drivers.json_types import JsonObject, JsonValue
-from procedures.rate_ladder.result import LadderAxis, LadderResult
 
 #: the stand instruments' check quantities, their unit and what the chart calls them (one
 #: place); a kind adds those of its own instruments (`ChecksInstruments.check_quantities`)
@@ -76,23 +74,23 @@ def _serial_of(stated: object, reported: str | None, unique: bool, fallback: str
     return fallback
 
 
-def _idn_serial(text: object) -> str | None:
+def _idn_serial(text: str | None) -> str | None:
     """*IDN? -> its third field (IEEE 488.2: maker, model, serial, firmware)."""
-    if not isinstance(text, str) or not text:
+    if not text:
         return None
     parts = text.split(";", 1)[0].split(",")
     return parts[2].strip() or None if len(parts) >= 4 else None
 
 
-def _drive_serial(text: object) -> str | None:
+def _drive_serial(text: str | None) -> str | None:
     """The drive identity (0x1018 sub 4) as the bench prints it: '..., serial N'."""
-    m = re.search(r"serial (\S+?)(?:[;,]|$)", text if isinstance(text, str) else "")
+    m = re.search(r"serial (\S+?)(?:[;,]|$)", text or "")
     return m.group(1) if m else None
 
 
-def _fog_serial(text: object) -> str | None:
+def _fog_serial(text: str | None) -> str | None:
     """A FOG's answer to ?IS as its identity carries it ('..., serial N (?IS); ...')."""
-    m = re.search(r"serial (\S+) \(\?IS\)", text if isinstance(text, str) else "")
+    m = re.search(r"serial (\S+) \(\?IS\)", text or "")
     return m.group(1) if m else None
 
 
@@ -102,7 +100,7 @@ def _std_u(std: float, dof: int) -> float | None:
     return 2.0 * std / math.sqrt(2.0 * dof) if dof > 0 else None
 
 
-def _fog(axis: str, ladder_axis: LadderAxis, serial: str, model: str | None
+def _fog(axis: str, ax: Mapping[str, Any], serial: str, model: str | None
          ) -> list[CheckRecord]:
     out = []
 
@@ -112,32 +110,28 @@ def _fog(axis: str, ladder_axis: LadderAxis, serial: str, model: str | None
             out.append(CheckRecord(serial, "fog", model, axis, q, rate, x, _num(u),
                                    QUANTITIES[q][0]))
 
-    for pair_entry in ladder_axis.pairs:
-        rate = abs(pair_entry.rate_dps)
-        add("k", rate, pair_entry.k, pair_entry.k_U)
-        add("w0_dps", rate, pair_entry.w0_dps, pair_entry.w0_U_dps)
-    at_rest = ladder_axis.noise_floor
-    if at_rest is not None:
-        n = at_rest.samples or 0
-        std = _num(at_rest.sample_std_dps)
+    for p in ax.get("pairs") or []:
+        if isinstance(p, Mapping):
+            rate = _num(p.get("rate_dps"))
+            rate = abs(rate) if rate is not None else None
+            add("k", rate, p.get("k"), p.get("k_u"))
+            add("w0_dps", rate, p.get("w0_dps"), p.get("w0_u_dps"))
+    floor = ax.get("noise_floor")
+    if isinstance(floor, Mapping):
+        n = int(_num(floor.get("samples")) or 0)
+        std = _num(floor.get("sample_std_dps"))
         if std is not None:
             add("noise_floor_dps", None, std, _std_u(std, n - 1))
-        adev = [x for x in at_rest.allan_dev_dps if x]
+        adev = [x for x in (_num(a) for a in floor.get("allan_dev_dps") or []) if x]
         # the mean of the record: its standard uncertainty is no more than the Allan
         # deviation at the longest averaging time computed (white and flicker noise:
         # sigma_A(tau) falls or stays flat as tau grows), docs/method.md C1
-        add("bias_at_rest_dps", None, at_rest.mean_dps,
+        add("bias_at_rest_dps", None, floor.get("mean_dps"),
             2.0 * adev[-1] if adev else None)
     return out
 
 
-def _numbers(value: JsonValue) -> list[float]:
-    """The finite numbers of a JSON list ([] when it is none)."""
-    return [x for x in (_num(v) for v in value) if x is not None] \
-        if isinstance(value, list) else []
-
-
-def _jitter(axis: str, events: Sequence[JsonObject], serial: str,
+def _jitter(axis: str, events: Sequence[Mapping[str, Any]], serial: str,
             model: str | None) -> list[CheckRecord]:
     """Zero-mark edge jitter from the second differences of each half's edges: for white
     edge jitter s, d = e[i+1] - 2 e[i] + e[i-1] has variance 6 s^2 (docs/method.md C1)."""
@@ -145,7 +139,7 @@ def _jitter(axis: str, events: Sequence[JsonObject], serial: str,
     for e in events:
         if e.get("event") != "acquire" or e.get("axis") != axis:
             continue
-        edges = _numbers(e.get("edges_s"))
+        edges = [x for x in (_num(t) for t in e.get("edges_s") or []) if x is not None]
         for i in range(1, len(edges) - 1):
             d = edges[i + 1] - 2.0 * edges[i] + edges[i - 1]
             sq += d * d
@@ -157,7 +151,7 @@ def _jitter(axis: str, events: Sequence[JsonObject], serial: str,
                         _std_u(s, n), "s")]
 
 
-def _drive(axis: str, raw: Path, events: Sequence[JsonObject], serial: str,
+def _drive(axis: str, raw: Path, events: Sequence[Mapping[str, Any]], serial: str,
            model: str | None) -> list[CheckRecord]:
     """Settle time beyond the commanded ramp, and the ripple the drive reports while the
     counter times turns (docs/method.md C1), from the drive's raw journal."""
@@ -173,34 +167,34 @@ def _drive(axis: str, raw: Path, events: Sequence[JsonObject], serial: str,
             starts[(e.get("session"), e.get("unit"))] = _num(e.get("t_s"))
         if e.get("axis") == axis and e.get("event") == "acquire":
             t0 = starts.get((e.get("session"), e.get("unit")))
-            rate, t1 = _num(e.get("set_rate_dps")), _num(e.get("t_s"))
-            if t0 is not None and t1 is not None and rate:
-                windows.append((str(e.get("session")), t0, t1, rate))
+            rate = _num(e.get("set_rate_dps"))
+            if t0 is not None and _num(e.get("t_s")) is not None and rate:
+                windows.append((str(e.get("session")), t0, float(e["t_s"]), rate))
     ripple_sq, ripple_n = 0.0, 0
     for f in files:
         session = f.parent.name.removeprefix("s")
         command: Mapping[str, object] | None = None
         last_w = 0.0
-        for rec in read_jsonl(f):
-            kind = rec.get("kind")
-            t = _num(rec.get("t_s"))
+        for r in read_jsonl(f):
+            kind = r.get("kind")
+            t = _num(r.get("t_s"))
             if t is None:
                 continue
             if kind == "command":
                 if command is not None:
                     last_w = _num(command.get("sent_dps")) or last_w
-                command = rec
+                command = r
             elif kind == "settled" and command is not None:
                 accel = _num(command.get("accel_dps2")) or 0.0
-                target = _num(rec.get("target_dps")) or 0.0
+                target = _num(r.get("target_dps")) or 0.0
                 ramp = abs(target - last_w) / accel if accel > 0 else 0.0
-                hold = _num(rec.get("hold_s")) or 0.0
-                samples = int(_num(rec.get("samples")) or 1)
+                hold = _num(r.get("hold_s")) or 0.0
+                samples = int(_num(r.get("samples")) or 1)
                 value = t - hold - (_num(command.get("t_s")) or 0.0) - ramp
                 settle.append((max(value, 0.0), hold / max(samples - 1, 1)))
                 last_w = target
             elif kind == "feedback":
-                v = _num(rec.get("velocity_dps"))
+                v = _num(r.get("velocity_dps"))
                 for s, a, b, rate in windows:
                     if s == session and a <= t <= b and v is not None:
                         ripple_sq += ((v - rate) / rate) ** 2
@@ -220,21 +214,17 @@ def _drive(axis: str, raw: Path, events: Sequence[JsonObject], serial: str,
     return out
 
 
-def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[str, JsonValue],
+def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any],
               kind_name: str | None = None) -> list[CheckRecord]:
     """Every check value of one run, per instrument serial."""
     events = list(read_jsonl(run_path / layout.EVENTS)) \
         if (run_path / layout.EVENTS).is_file() else []
-    frame = ResultFrame.conform(result)[0]
-    try:
-        ladder: LadderResult | None = LadderResult.conform(result)[0]
-    except MalformedResult:
-        ladder = None
-    ident = as_object(stand.get("stand")) or {}
-    ident.update({k: v for k, v in frame.stand.items() if v is not None})
+    ident = dict(stand.get("stand") or {})
+    ident.update({k: v for k, v in (result.get("stand") or {}).items() if v is not None})
     stand_serial = str(ident.get("serial") or "stand")
-    ids: Mapping[str, JsonObject] = frame.instruments
-    stand_axes = as_object(stand.get("axes")) or {}
+    ids = result.get("instruments") or {}
+    ids = ids if isinstance(ids, Mapping) else {}
+    stand_axes = stand.get("axes") or {}
     reported: dict[str, list[str | None]] = {"counter": [], "drive": [], "fog": []}
     for a in stand_axes:
         got = entry if isinstance(entry := ids.get(a), Mapping) else {}
@@ -251,18 +241,20 @@ def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[st
         return _serial_of(conf.get("serial"), rep, unique, f"{stand_serial}/{axis}/{role}")
 
     out: list[CheckRecord] = []
+    axes = result.get("axes") or {}
     for axis, conf in stand_axes.items():
         if not isinstance(conf, Mapping):
             continue
-        ladder_axis = ladder.axes.get(axis) if ladder is not None else None
+        ax = axes.get(axis) if isinstance(axes, Mapping) else None
         fog = conf.get("fog")
-        if isinstance(fog, Mapping) and ladder_axis is not None:
-            out += _fog(axis, ladder_axis, serial(axis, "fog", fog), _opt(fog.get("model")))
+        if isinstance(fog, Mapping) and isinstance(ax, Mapping):
+            out += _fog(axis, ax, serial(axis, "fog", fog), _opt(fog.get("model")))
         counter = conf.get("counter")
-        if isinstance(counter, Mapping) and ladder_axis is not None:
+        if isinstance(counter, Mapping) and isinstance(ax, Mapping):
             sn, model = serial(axis, "counter", counter), _opt(counter.get("model"))
             out += _jitter(axis, events, sn, model)
-            ref = (as_object(ids.get(axis)) or {}).get("counter_reference")
+            ref = (ids.get(axis) or {}).get("counter_reference") \
+                if isinstance(ids.get(axis), Mapping) else None
             if ref:
                 out.append(CheckRecord(sn, "counter", model, axis, "reference_external",
                                        None, 1.0 if "external" in str(ref).lower() else 0.0,
@@ -272,7 +264,7 @@ def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[st
             out += _drive(axis, layout.raw_root(run_path), events, serial(axis, "drive", drive),
                           _opt(drive.get("model")))
     # the instruments only the run's procedure kind knows (a gyro platform's gyros)
-    kind = installed_records(kind_name or frame.procedure or "")
+    kind = installed_records(kind_name or str(result.get("procedure") or ""))
     if isinstance(kind, ChecksInstruments):
         out += kind.instrument_checks(result, stand)
     return out
