@@ -289,7 +289,10 @@ def test_three_benches_at_once_live_on_the_station_through_a_lost_lab_database(
         assert all(serial in instruments for serial in OUTER_SERIALS.values()), instruments
         drafts = text("drafts")
         assert all(f"SERIAL-{n.upper()}" in drafts for n in names), drafts
-        # a run's page from what its bench sent
+        # a run's page from what its bench sent (the page's first update comes by its
+        # stream after the load: window.fleet.benches is null until then)
+        _wait(lambda: any(x["bench"] == "bench-a" for x in fleet()), 60,
+              "the reloaded lab page's first update")
         b = next(x for x in fleet() if x["bench"] == "bench-a")
         driver.get(f"http://127.0.0.1:{port}/bench/bench-a/{b['uid']}")
         page = driver.find_element("tag name", "main").text
