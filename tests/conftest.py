@@ -138,7 +138,10 @@ def wait_for_cut(p: subprocess.Popen[str], out: Path,
 
 
 def _journal(run_dir: Path) -> list[dict[str, Any]]:
-    return [json.loads(line) for line in (run_dir / "events.jsonl").read_text().splitlines()]
+    """The journal's complete lines: the bench may be writing the last one as it is read
+    (a line is complete when its newline is written; CI saw a half line, 28 Nov)."""
+    text = (run_dir / "events.jsonl").read_text()
+    return [json.loads(line) for line in text.split("\n")[:-1] if line]
 
 
 def cli(*args: str) -> subprocess.CompletedProcess[str]:
