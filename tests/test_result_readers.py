@@ -31,14 +31,7 @@ RESULT_NAMES = frozenset({"result", "results", "res", "r", "rate", "rates", "pai
                           "intra_turn", "check", "c"})
 
 #: file -> result readers left (may only shrink)
-ALLOWED: dict[str, int] = {
-    # CONTRACT §3's `axes.<axis>.rates[]`/`pairs[]` read in bench/app, which may not import
-    # a kind's result module (test_no_module_under_bench_names_a_procedure_kind): they wait
-    # for a kind-neutral typed view of the axes, asked of the kind's records part
-    "bench/app/records/checks.py": 23,
-    "bench/app/station/live.py": 19,
-    "bench/app/station/view.py": 62,
-}
+ALLOWED: dict[str, int] = {}
 
 
 def reader_files() -> list[Path]:

@@ -15,7 +15,9 @@ whose neutral answers a kind overrides) and `records`, which answers the small
 capabilities below, each asked for by isinstance, each optional: its figures
 (`ReportsFigures`: the records, `bench history`, the trend plot, the station view, the
 summary), its summary cells, its own instruments' check values, the shape of its part of
-result.json, a sample result for previews and starter files for `bench init`.
+result.json, its per-axis rates and pairs
+(`bench.report.axes_view.ShowsAxes`), a sample result for previews and
+starter files for `bench init`.
 """
 
 from __future__ import annotations

@@ -14,9 +14,10 @@ from collections.abc import Mapping
 from typing import Any
 
 from bench.analysis.finite import finite_number as _num
+from bench.report.axes_view import AxisRows
 from bench.report.certificate.model import Document, Table
 from bench.report.figures import FigureSpec, FigureValue, SummaryCut, Trend, joined, tables_of
-from bench.report.result_frame import Issues, JsonObject
+from bench.report.result_frame import Issues, JsonObject, MalformedResult
 from procedures.rate_ladder import starter
 from procedures.rate_ladder.result import LadderResult, conform_ladder
 from procedures.rate_ladder.sample import rate_ladder_result
@@ -100,7 +101,7 @@ def _axis_tables(doc: Document) -> dict[str, dict[str, Table]]:
 
 
 class LadderRecords:
-    """The ladder's answers to `ReportsFigures` and `SummarisesRun`."""
+    """The ladder's answers to `ReportsFigures`, `SummarisesRun` and `ShowsAxes`."""
 
     figures = FIGURES
 
@@ -109,6 +110,14 @@ class LadderRecords:
         a malformed container dropped and named, the rest kept."""
         issues = Issues(strict=False)
         return conform_ladder(dict(result), issues), issues.dropped
+
+    def axes_view(self, result: Mapping[str, object]) -> Mapping[str, AxisRows]:
+        """The ladder's own typed axes (`ShowsAxes`: the station's tables, the FOG's
+        checks); {} for a result that is not a JSON object."""
+        try:
+            return LadderResult.conform(result)[0].axes
+        except MalformedResult:
+            return {}
 
     def figure_values(self, result: Mapping[str, object]) -> list[FigureValue]:
         ladder, _ = LadderResult.conform(result)

@@ -24,13 +24,15 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
 
 from bench.analysis.finite import finite_number as _num
 from bench.core import rundir_layout as layout
 from bench.core.journal import read_jsonl
 from bench.core.registry import ChecksInstruments, installed_records, procedure_names
+from bench.report.axes_view import AxisRows, axes_of
 from bench.report.figures import InstrumentCheck
+from bench.report.result_frame import ResultFrame, as_object
+from drivers.json_types import JsonObject, JsonValue
 
 #: the stand instruments' check quantities, their unit and what the chart calls them (one
 #: place); a kind adds those of its own instruments (`ChecksInstruments.check_quantities`)
@@ -74,23 +76,23 @@ def _serial_of(stated: object, reported: str | None, unique: bool, fallback: str
     return fallback
 
 
-def _idn_serial(text: str | None) -> str | None:
+def _idn_serial(text: object) -> str | None:
     """*IDN? -> its third field (IEEE 488.2: maker, model, serial, firmware)."""
-    if not text:
+    if not isinstance(text, str) or not text:
         return None
     parts = text.split(";", 1)[0].split(",")
     return parts[2].strip() or None if len(parts) >= 4 else None
 
 
-def _drive_serial(text: str | None) -> str | None:
+def _drive_serial(text: object) -> str | None:
     """The drive identity (0x1018 sub 4) as the bench prints it: '..., serial N'."""
-    m = re.search(r"serial (\S+?)(?:[;,]|$)", text or "")
+    m = re.search(r"serial (\S+?)(?:[;,]|$)", text if isinstance(text, str) else "")
     return m.group(1) if m else None
 
 
-def _fog_serial(text: str | None) -> str | None:
+def _fog_serial(text: object) -> str | None:
     """A FOG's answer to ?IS as its identity carries it ('..., serial N (?IS); ...')."""
-    m = re.search(r"serial (\S+) \(\?IS\)", text or "")
+    m = re.search(r"serial (\S+) \(\?IS\)", text if isinstance(text, str) else "")
     return m.group(1) if m else None
 
 
@@ -100,7 +102,7 @@ def _std_u(std: float, dof: int) -> float | None:
     return 2.0 * std / math.sqrt(2.0 * dof) if dof > 0 else None
 
 
-def _fog(axis: str, ax: Mapping[str, Any], serial: str, model: str | None
+def _fog(axis: str, axis_rows: AxisRows, serial: str, model: str | None
          ) -> list[CheckRecord]:
     out = []
 
@@ -110,28 +112,32 @@ def _fog(axis: str, ax: Mapping[str, Any], serial: str, model: str | None
             out.append(CheckRecord(serial, "fog", model, axis, q, rate, x, _num(u),
                                    QUANTITIES[q][0]))
 
-    for p in ax.get("pairs") or []:
-        if isinstance(p, Mapping):
-            rate = _num(p.get("rate_dps"))
-            rate = abs(rate) if rate is not None else None
-            add("k", rate, p.get("k"), p.get("k_u"))
-            add("w0_dps", rate, p.get("w0_dps"), p.get("w0_u_dps"))
-    floor = ax.get("noise_floor")
-    if isinstance(floor, Mapping):
-        n = int(_num(floor.get("samples")) or 0)
-        std = _num(floor.get("sample_std_dps"))
+    for pair_entry in axis_rows.pairs:
+        rate = abs(pair_entry.rate_dps)
+        add("k", rate, pair_entry.k, pair_entry.k_U)
+        add("w0_dps", rate, pair_entry.w0_dps, pair_entry.w0_U_dps)
+    at_rest = axis_rows.noise_floor
+    if at_rest is not None:
+        n = at_rest.samples or 0
+        std = _num(at_rest.sample_std_dps)
         if std is not None:
             add("noise_floor_dps", None, std, _std_u(std, n - 1))
-        adev = [x for x in (_num(a) for a in floor.get("allan_dev_dps") or []) if x]
+        adev = [x for x in at_rest.allan_dev_dps if x]
         # the mean of the record: its standard uncertainty is no more than the Allan
         # deviation at the longest averaging time computed (white and flicker noise:
         # sigma_A(tau) falls or stays flat as tau grows), docs/method.md C1
-        add("bias_at_rest_dps", None, floor.get("mean_dps"),
+        add("bias_at_rest_dps", None, at_rest.mean_dps,
             2.0 * adev[-1] if adev else None)
     return out
 
 
-def _jitter(axis: str, events: Sequence[Mapping[str, Any]], serial: str,
+def _numbers(value: JsonValue) -> list[float]:
+    """The finite numbers of a JSON list ([] when it is none)."""
+    return [x for x in (_num(v) for v in value) if x is not None] \
+        if isinstance(value, list) else []
+
+
+def _jitter(axis: str, events: Sequence[JsonObject], serial: str,
             model: str | None) -> list[CheckRecord]:
     """Zero-mark edge jitter from the second differences of each half's edges: for white
     edge jitter s, d = e[i+1] - 2 e[i] + e[i-1] has variance 6 s^2 (docs/method.md C1)."""
@@ -139,7 +145,7 @@ def _jitter(axis: str, events: Sequence[Mapping[str, Any]], serial: str,
     for e in events:
         if e.get("event") != "acquire" or e.get("axis") != axis:
             continue
-        edges = [x for x in (_num(t) for t in e.get("edges_s") or []) if x is not None]
+        edges = _numbers(e.get("edges_s"))
         for i in range(1, len(edges) - 1):
             d = edges[i + 1] - 2.0 * edges[i] + edges[i - 1]
             sq += d * d
@@ -151,7 +157,7 @@ def _jitter(axis: str, events: Sequence[Mapping[str, Any]], serial: str,
                         _std_u(s, n), "s")]
 
 
-def _drive(axis: str, raw: Path, events: Sequence[Mapping[str, Any]], serial: str,
+def _drive(axis: str, raw: Path, events: Sequence[JsonObject], serial: str,
            model: str | None) -> list[CheckRecord]:
     """Settle time beyond the commanded ramp, and the ripple the drive reports while the
     counter times turns (docs/method.md C1), from the drive's raw journal."""
@@ -167,34 +173,34 @@ def _drive(axis: str, raw: Path, events: Sequence[Mapping[str, Any]], serial: st
             starts[(e.get("session"), e.get("unit"))] = _num(e.get("t_s"))
         if e.get("axis") == axis and e.get("event") == "acquire":
             t0 = starts.get((e.get("session"), e.get("unit")))
-            rate = _num(e.get("set_rate_dps"))
-            if t0 is not None and _num(e.get("t_s")) is not None and rate:
-                windows.append((str(e.get("session")), t0, float(e["t_s"]), rate))
+            rate, t1 = _num(e.get("set_rate_dps")), _num(e.get("t_s"))
+            if t0 is not None and t1 is not None and rate:
+                windows.append((str(e.get("session")), t0, t1, rate))
     ripple_sq, ripple_n = 0.0, 0
     for f in files:
         session = f.parent.name.removeprefix("s")
         command: Mapping[str, object] | None = None
         last_w = 0.0
-        for r in read_jsonl(f):
-            kind = r.get("kind")
-            t = _num(r.get("t_s"))
+        for rec in read_jsonl(f):
+            kind = rec.get("kind")
+            t = _num(rec.get("t_s"))
             if t is None:
                 continue
             if kind == "command":
                 if command is not None:
                     last_w = _num(command.get("sent_dps")) or last_w
-                command = r
+                command = rec
             elif kind == "settled" and command is not None:
                 accel = _num(command.get("accel_dps2")) or 0.0
-                target = _num(r.get("target_dps")) or 0.0
+                target = _num(rec.get("target_dps")) or 0.0
                 ramp = abs(target - last_w) / accel if accel > 0 else 0.0
-                hold = _num(r.get("hold_s")) or 0.0
-                samples = int(_num(r.get("samples")) or 1)
+                hold = _num(rec.get("hold_s")) or 0.0
+                samples = int(_num(rec.get("samples")) or 1)
                 value = t - hold - (_num(command.get("t_s")) or 0.0) - ramp
                 settle.append((max(value, 0.0), hold / max(samples - 1, 1)))
                 last_w = target
             elif kind == "feedback":
-                v = _num(r.get("velocity_dps"))
+                v = _num(rec.get("velocity_dps"))
                 for s, a, b, rate in windows:
                     if s == session and a <= t <= b and v is not None:
                         ripple_sq += ((v - rate) / rate) ** 2
@@ -214,17 +220,19 @@ def _drive(axis: str, raw: Path, events: Sequence[Mapping[str, Any]], serial: st
     return out
 
 
-def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any],
+def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[str, JsonValue],
               kind_name: str | None = None) -> list[CheckRecord]:
     """Every check value of one run, per instrument serial."""
     events = list(read_jsonl(run_path / layout.EVENTS)) \
         if (run_path / layout.EVENTS).is_file() else []
-    ident = dict(stand.get("stand") or {})
-    ident.update({k: v for k, v in (result.get("stand") or {}).items() if v is not None})
+    frame = ResultFrame.conform(result)[0]
+    kind_of_run = kind_name or frame.procedure or ""
+    run_axes = axes_of(dict(result), kind_of_run)
+    ident = as_object(stand.get("stand")) or {}
+    ident.update({k: v for k, v in frame.stand.items() if v is not None})
     stand_serial = str(ident.get("serial") or "stand")
-    ids = result.get("instruments") or {}
-    ids = ids if isinstance(ids, Mapping) else {}
-    stand_axes = stand.get("axes") or {}
+    ids: Mapping[str, JsonObject] = frame.instruments
+    stand_axes = as_object(stand.get("axes")) or {}
     reported: dict[str, list[str | None]] = {"counter": [], "drive": [], "fog": []}
     for a in stand_axes:
         got = entry if isinstance(entry := ids.get(a), Mapping) else {}
@@ -241,20 +249,18 @@ def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any
         return _serial_of(conf.get("serial"), rep, unique, f"{stand_serial}/{axis}/{role}")
 
     out: list[CheckRecord] = []
-    axes = result.get("axes") or {}
     for axis, conf in stand_axes.items():
         if not isinstance(conf, Mapping):
             continue
-        ax = axes.get(axis) if isinstance(axes, Mapping) else None
+        axis_rows = run_axes.get(axis)
         fog = conf.get("fog")
-        if isinstance(fog, Mapping) and isinstance(ax, Mapping):
-            out += _fog(axis, ax, serial(axis, "fog", fog), _opt(fog.get("model")))
+        if isinstance(fog, Mapping) and axis_rows is not None:
+            out += _fog(axis, axis_rows, serial(axis, "fog", fog), _opt(fog.get("model")))
         counter = conf.get("counter")
-        if isinstance(counter, Mapping) and isinstance(ax, Mapping):
+        if isinstance(counter, Mapping) and axis_rows is not None:
             sn, model = serial(axis, "counter", counter), _opt(counter.get("model"))
             out += _jitter(axis, events, sn, model)
-            ref = (ids.get(axis) or {}).get("counter_reference") \
-                if isinstance(ids.get(axis), Mapping) else None
+            ref = (as_object(ids.get(axis)) or {}).get("counter_reference")
             if ref:
                 out.append(CheckRecord(sn, "counter", model, axis, "reference_external",
                                        None, 1.0 if "external" in str(ref).lower() else 0.0,
@@ -264,7 +270,7 @@ def checks_of(run_path: Path, result: Mapping[str, Any], stand: Mapping[str, Any
             out += _drive(axis, layout.raw_root(run_path), events, serial(axis, "drive", drive),
                           _opt(drive.get("model")))
     # the instruments only the run's procedure kind knows (a gyro platform's gyros)
-    kind = installed_records(kind_name or str(result.get("procedure") or ""))
+    kind = installed_records(kind_of_run)
     if isinstance(kind, ChecksInstruments):
         out += kind.instrument_checks(result, stand)
     return out

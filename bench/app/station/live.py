@@ -17,19 +17,24 @@ import json
 import math
 import os
 import time
+from collections.abc import Mapping
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import NotRequired, TypedDict
 
 import numpy as np
 
+from bench.app.records.extract import kind_name
 from bench.app.station.view import page_view
 from bench.core import rundir_layout as layout
 from bench.core.config import FogSettings
 from bench.core.journal import fog_capture_starts
 from bench.core.yamlfile import read_mapping
+from bench.report.axes_view import axes_of
+from bench.report.result_frame import integer, number, objects, text
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, DecodeState, decode, get_format
+from drivers.json_types import JsonLike, JsonObject, JsonValue
 
 FULL_TURN_DEG = 360.0             # one zero mark per turn (docs/method.md A1)
 TRACE_POINTS = 600                # a plot of a half never needs more points than pixels
@@ -39,7 +44,7 @@ EVENT_KINDS_SHOWN = ("abort", "safe_stop", "prompt", "completed", "exit", "sessi
                      "pair", "pair_failed", "settled", "refused")
 
 
-def tail_jsonl(path: Path, max_bytes: int) -> list[dict[str, Any]]:
+def tail_jsonl(path: Path, max_bytes: int) -> list[JsonObject]:
     """The whole records in the last `max_bytes` of a JSON-lines file (first and torn
     last lines skipped): a growing raw log is read in constant time."""
     try:
@@ -53,16 +58,18 @@ def tail_jsonl(path: Path, max_bytes: int) -> list[dict[str, Any]]:
     lines = data.split(b"\n")
     if start > 0:
         lines = lines[1:]
-    out = []
+    out: list[JsonObject] = []
     for line in lines:
         try:
-            out.append(json.loads(line))
+            record = json.loads(line)
         except (json.JSONDecodeError, UnicodeDecodeError):
             continue
+        if isinstance(record, dict):
+            out.append(record)
     return out
 
 
-def read_events(run_path: Path) -> list[dict[str, Any]]:
+def read_events(run_path: Path) -> list[JsonObject]:
     """Every event of the run (all sessions); a torn last line is skipped."""
     return tail_jsonl(run_path / layout.EVENTS, 1 << 62)
 
@@ -95,7 +102,7 @@ def decimate(t: np.ndarray, y: np.ndarray, points: int = TRACE_POINTS
 
 
 def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S,
-              first_index: int = 0) -> dict[str, Any]:
+              first_index: int = 0) -> dict[str, JsonLike]:
     """The last `tail_s` of a FOG capture, decoded and decimated (bench time, deg/s).
 
     Time is the frame's position in the capture over the output rate, from the
@@ -114,7 +121,7 @@ def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S,
         fh.seek(start)
         buf = fh.read(size - start)
     frames, _, stats = decode(buf, f, DecodeState(offset=start))
-    seen = {"tail_s": tail_s, "tail_crc_errors": int(stats.crc_errors),
+    seen: dict[str, JsonLike] = {"tail_s": tail_s, "tail_crc_errors": int(stats.crc_errors),
             "tail_lost_frames": int(stats.lost_frames)}
     if not len(frames) or fog.axis not in AXES:
         return {"t_s": [], "rate_dps": [], **seen}
@@ -127,16 +134,18 @@ def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S,
 
 def drive_trace(raw: Path) -> dict[str, list[float]]:
     """The drive's recent velocity feedback (TPDO), for the settling plot."""
-    recs = [r for r in tail_jsonl(raw, DRIVE_TAIL_BYTES) if r.get("kind") == "feedback"]
-    return {"t_s": [float(r["t_s"]) for r in recs if r.get("t_s") is not None],
-            "velocity_dps": [float(r["velocity_dps"]) for r in recs if r.get("t_s") is not None]}
+    feedback = [(number(rec, "t_s"), number(rec, "velocity_dps"))
+                for rec in tail_jsonl(raw, DRIVE_TAIL_BYTES) if rec.get("kind") == "feedback"]
+    readings = [(t, v) for t, v in feedback if t is not None and v is not None]
+    return {"t_s": [float(t) for t, _ in readings],
+            "velocity_dps": [float(v) for _, v in readings]}
 
 
-def turn_rates(acquire: dict[str, Any]) -> dict[str, Any]:
+def turn_rates(acquire: JsonObject) -> dict[str, JsonLike]:
     """Per-turn rates of one timed half from its zero-mark edges (docs/method.md A1: w = 360/T,
     signed as commanded) and their deviation from the set rate (eq. 1, per turn)."""
     edges = np.asarray(acquire.get("edges_s") or [], dtype=np.float64)
-    set_dps = float(acquire.get("set_rate_dps", 0.0))
+    set_dps = float(number(acquire, "set_rate_dps") or 0.0)
     if edges.size < 2 or set_dps == 0:
         return {"set_rate_dps": set_dps, "rate_dps": [], "deviation_ppm": []}
     rate_dps = math.copysign(1.0, set_dps) * FULL_TURN_DEG / np.diff(edges)
@@ -150,7 +159,7 @@ def _utc_s(stamp: str) -> float:
     return datetime.fromisoformat(stamp).timestamp()
 
 
-def progress_of(session: list[dict[str, Any]]) -> dict[str, Any]:
+def progress_of(session: list[JsonObject]) -> dict[str, JsonLike]:
     """Step, progress and ETA of one session, in bench time and in wall time.
 
     The wall ETA is the bench time left over the speed measured so far in this session
@@ -158,26 +167,29 @@ def progress_of(session: list[dict[str, Any]]) -> dict[str, Any]:
     speed configured: a loaded machine or a twin-paced clock changes the speed.
     """
     plan = next((e for e in reversed(session) if e.get("event") == "plan"), None)
-    steps = int(plan["steps"]) if plan else 0
-    estimates = list(plan.get("step_estimates_s") or []) if plan else []
-    total_s = float(plan["estimate_s"]) if plan else 0.0
+    steps = int(number(plan, "steps") or 0) if plan else 0
+    estimates = [float(x) for x in _floats(plan.get("step_estimates_s"))] if plan else []
+    total_s = float(number(plan, "estimate_s") or 0.0) if plan else 0.0
     starts = [e for e in session if e.get("event") == "step_start"]
     done = {e.get("index") for e in session if e.get("event") == "step_done"}
     cur = starts[-1] if starts else None
-    timed = [e for e in session if e.get("t_s") is not None and e.get("utc")]
-    now_bench = float(timed[-1]["t_s"]) if timed else 0.0
+    timed = [(t, stamp) for t, stamp in ((number(e, "t_s"), text(e, "utc")) for e in session)
+             if t is not None and stamp]
+    now_bench = float(timed[-1][0]) if timed else 0.0
     speed = None
     if len(timed) >= 2:
-        dt_wall = _utc_s(timed[-1]["utc"]) - _utc_s(timed[0]["utc"])
-        dt_bench = float(timed[-1]["t_s"]) - float(timed[0]["t_s"])
+        dt_wall = _utc_s(timed[-1][1]) - _utc_s(timed[0][1])
+        dt_bench = float(timed[-1][0]) - float(timed[0][0])
         if dt_wall > 0 and dt_bench > 0:
             speed = dt_bench / dt_wall
     left_s = None
-    if cur is not None and estimates and len(estimates) == steps:
-        i = int(cur["index"])
+    index = integer(cur, "index") if cur is not None else None
+    if cur is not None and index is not None and estimates and len(estimates) == steps:
+        i = index
         left_s = sum(estimates[i:]) if i not in done else sum(estimates[i + 1:])
-        if i not in done and cur.get("t_s") is not None:
-            left_s -= min(estimates[i], max(0.0, now_bench - float(cur["t_s"])))
+        started_s = number(cur, "t_s")
+        if i not in done and started_s is not None:
+            left_s -= min(estimates[i], max(0.0, now_bench - float(started_s)))
     elif total_s and cur is not None:
         left_s = total_s * (1 - len(done) / max(steps, 1))
     fraction = None
@@ -189,7 +201,7 @@ def progress_of(session: list[dict[str, Any]]) -> dict[str, Any]:
         "steps": steps,
         "steps_done": len(done),
         "step": None if cur is None else {
-            "index": cur.get("index"), "number": int(cur.get("index", 0)) + 1,
+            "index": cur.get("index"), "number": (index or 0) + 1,
             "action": cur.get("action"), "axis": cur.get("axis"), "unit": cur.get("unit"),
             "describe": cur.get("describe"), "done": cur.get("index") in done},
         "fraction": fraction,
@@ -198,6 +210,12 @@ def progress_of(session: list[dict[str, Any]]) -> dict[str, Any]:
         "speed": speed,
         "wall_left_s": (left_s / speed) if (left_s is not None and speed) else None,
     }
+
+
+def _floats(value: JsonValue) -> list[float]:
+    """The numbers of a JSON list ([] when it is none)."""
+    return [x for x in value if isinstance(x, int | float) and not isinstance(x, bool)] \
+        if isinstance(value, list) else []
 
 
 #: wall seconds without new data after which a running bench is flagged on the page: the
@@ -226,8 +244,8 @@ def _utc_of(age_s: float | None, now: float) -> str | None:
 
 
 def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
-           fog_tail: dict[str, Any], axis: str | None,
-           acquires: list[dict[str, Any]], now: float | None = None) -> dict[str, Any]:
+           fog_tail: Mapping[str, JsonLike], axis: str | None,
+           acquires: list[JsonObject], now: float | None = None) -> dict[str, JsonLike]:
     """The bench's health as its files show it: when each instrument was last heard, the
     FOG's lost and broken frames, and how long since anything was written.
 
@@ -236,35 +254,38 @@ def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
     files are quiet by design.
     """
     now = time.time() if now is None else now
-    per_axis = []
+    per_axis: list[JsonLike] = []
     warnings: list[str] = []
     ages = [a for a in [_age_s(run_path / layout.EVENTS, now)] if a is not None]
     for name in axes:
-        lost = sum(int(e.get("fog_lost", 0) or 0) for e in acquires if e.get("axis") == name)
-        row: dict[str, Any] = {"axis": name, "fog_lost_in_halves": lost}
+        lost = sum(int(number(e, "fog_lost") or 0) for e in acquires if e.get("axis") == name)
+        row: dict[str, JsonLike] = {"axis": name, "fog_lost_in_halves": lost}
+        heard: dict[str, float | None] = {}
         for inst, suffix in (("fog", "fog.bin"), ("drive", "drive.jsonl"),
                              ("counter", "counter.jsonl")):
             age = _age_s(raw / f"{name}-{suffix}", now) if raw is not None else None
-            row[f"{inst}_age_s"] = age
+            row[f"{inst}_age_s"] = heard[inst] = age
             row[f"{inst}_utc"] = _utc_of(age, now)
             if age is not None:
                 ages.append(age)
         if name == axis:
+            crc_errors, lost_frames = (fog_tail.get("tail_crc_errors"),
+                                       fog_tail.get("tail_lost_frames"))
             row["fog_tail_s"] = fog_tail.get("tail_s")
-            row["fog_tail_crc_errors"] = fog_tail.get("tail_crc_errors")
-            row["fog_tail_lost_frames"] = fog_tail.get("tail_lost_frames")
+            row["fog_tail_crc_errors"] = crc_errors
+            row["fog_tail_lost_frames"] = lost_frames
             if running:
-                fog_age, drive_age = row["fog_age_s"], row["drive_age_s"]
+                fog_age, drive_age = heard["fog"], heard["drive"]
                 if fog_age is not None and fog_age > FOG_SILENT_S:
                     warnings.append(f"FOG {name}: no data for {fog_age:.0f} s")
                 if drive_age is not None and drive_age > DRIVE_SILENT_S:
                     warnings.append(f"drive {name}: not heard for {drive_age:.0f} s "
                                     "(heartbeat/feedback)")
-                if row["fog_tail_crc_errors"]:
-                    warnings.append(f"FOG {name}: {row['fog_tail_crc_errors']} CRC errors in "
+                if crc_errors:
+                    warnings.append(f"FOG {name}: {crc_errors} CRC errors in "
                                     f"the last {FOG_TAIL_S:g} s")
-                if row["fog_tail_lost_frames"]:
-                    warnings.append(f"FOG {name}: {row['fog_tail_lost_frames']} frames lost "
+                if lost_frames:
+                    warnings.append(f"FOG {name}: {lost_frames} frames lost "
                                     f"in the last {FOG_TAIL_S:g} s")
         per_axis.append(row)
     last = min(ages) if ages else None
@@ -275,14 +296,14 @@ def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
             "stale": stale, "stale_after_s": STALE_S, "warnings": warnings}
 
 
-def pair_rows(events: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def pair_rows(events: list[JsonObject]) -> list[dict[str, JsonValue]]:
     """The results as they come: one row per axis, rate and direction from each pair's
     first look (the `pair` event; k and w0 per pair, delta +/- U, sigma, verdict)."""
-    rows = []
+    rows: list[dict[str, JsonValue]] = []
     for e in events:
         if e.get("event") != "pair":
             continue
-        for d in e.get("directions") or []:
+        for d in objects(e, "directions"):
             rows.append({"axis": e.get("axis"), "set_rate_dps": d.get("set_rate_dps"),
                          "k": e.get("k"), "k_U": e.get("k_u"), "w0_dps": e.get("w0_dps"),
                          "w0_U_dps": e.get("w0_u_dps"),
@@ -293,25 +314,24 @@ def pair_rows(events: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return rows
 
 
-def final_rows(result: dict[str, Any]) -> list[dict[str, Any]]:
-    """The final table from result.json: per axis and rate the figures the certificate
-    prints (rate error +/- U, instability, verdict) with the pair's k and w0."""
-    rows = []
-    for axis, body in (result.get("axes") or {}).items():
-        if not isinstance(body, dict):
-            continue
-        pairs = {p.get("rate_dps"): p for p in body.get("pairs") or [] if isinstance(p, dict)}
-        for r in body.get("rates") or []:
-            if not isinstance(r, dict):
-                continue
-            pair = pairs.get(abs(r.get("set_rate_dps") or 0), {})
-            rows.append({"axis": axis, "set_rate_dps": r.get("set_rate_dps"),
-                         "k": pair.get("k"), "k_U": pair.get("k_u"),
-                         "w0_dps": pair.get("w0_dps"), "w0_U_dps": pair.get("w0_u_dps"),
-                         "rate_error_rel": r.get("rate_error_rel"),
-                         "rate_error_U_rel": r.get("rate_error_u_rel"),
-                         "rate_instability_rel": r.get("rate_instability_rel"),
-                         "turns": r.get("turns"), "verdict": r.get("verdict")})
+def final_rows(doc: JsonObject, run_path: Path | None = None) -> list[dict[str, JsonValue]]:
+    """The final table from result.json (read through its kind's typed axes,
+    bench/report/axes_view.py): per axis and rate the figures the certificate prints (rate
+    error +/- U, instability, verdict) with the pair's k and w0."""
+    rows: list[dict[str, JsonValue]] = []
+    for axis, body in axes_of(doc, kind_name(doc, run_path)).items():
+        by_rate = {entry.rate_dps: entry for entry in body.pairs}
+        for rate_entry in body.rates:
+            pair_entry = by_rate.get(abs(rate_entry.set_rate_dps))
+            rows.append({"axis": axis, "set_rate_dps": rate_entry.set_rate_dps,
+                         "k": pair_entry.k if pair_entry else None,
+                         "k_U": pair_entry.k_U if pair_entry else None,
+                         "w0_dps": pair_entry.w0_dps if pair_entry else None,
+                         "w0_U_dps": pair_entry.w0_U_dps if pair_entry else None,
+                         "rate_error_rel": rate_entry.rate_error_rel,
+                         "rate_error_U_rel": rate_entry.rate_error_U_rel,
+                         "rate_instability_rel": rate_entry.rate_instability_rel,
+                         "turns": rate_entry.turns, "verdict": rate_entry.verdict})
     return rows
 
 
@@ -322,7 +342,30 @@ ENDINGS = {0: "passed", 1: "failed", 2: "refused", 3: "aborted"}
 ENDED = ("passed", "failed", "refused", "aborted", "incomplete", "ended")
 
 
-def _read_result(run_path: Path) -> dict[str, Any] | None:
+class Ending(TypedDict):
+    """How a session ended (`ending`)."""
+
+    status: str
+    cause: str | None
+    later: list[str]
+    exit_status: JsonValue
+    utc: JsonValue
+
+
+class RunStatus(TypedDict):
+    """A run's status from its last session (`run_status`)."""
+
+    status: str
+    cause: str | None
+    later: list[str]
+    session: int | None
+    events: list[JsonObject]
+    pid: int | None
+    exit_status: NotRequired[JsonValue]
+    utc: NotRequired[JsonValue]
+
+
+def _read_result(run_path: Path) -> JsonObject | None:
     try:
         doc = json.loads((run_path / layout.RESULT).read_text())
     except (OSError, ValueError):
@@ -330,7 +373,7 @@ def _read_result(run_path: Path) -> dict[str, Any] | None:
     return doc if isinstance(doc, dict) else None
 
 
-def ending(session: list[dict[str, Any]], run_path: Path) -> dict[str, Any] | None:
+def ending(session: list[JsonObject], run_path: Path) -> Ending | None:
     """How the session ended and its first cause, as the operator at the bench read it
     (bench/app/session.py: the exit event's cause; a refusal's own event; what failed
     later, while stopping, beneath it); None while the session has no exit event.
@@ -347,7 +390,7 @@ def ending(session: list[dict[str, Any]], run_path: Path) -> dict[str, Any] | No
     status = ENDINGS.get(code, "ended") if isinstance(code, int) else "ended"
     cause = exit_ev.get("cause") or None
     if status == "refused":
-        refusal = next((e for e in session if e.get("event") == "refused"), {})
+        refusal: JsonObject = next((e for e in session if e.get("event") == "refused"), {})
         cause = refusal.get("reason") or cause or "the input was refused (exit status 2)"
     elif status == "aborted" and not cause:
         status = "incomplete"
@@ -364,11 +407,15 @@ def ending(session: list[dict[str, Any]], run_path: Path) -> dict[str, Any] | No
     elif status == "ended":
         cause = cause or f"exit status {code}"
     return {"status": status, "cause": str(cause) if cause else None,
-            "later": [str(x) for x in exit_ev.get("later") or []],
+            "later": [str(x) for x in _items(exit_ev.get("later"))],
             "exit_status": code, "utc": exit_ev.get("utc")}
 
 
-def run_status(events: list[dict[str, Any]], run_path: Path) -> dict[str, Any]:
+def _items(value: JsonValue) -> list[JsonValue]:
+    return value if isinstance(value, list) else []
+
+
+def run_status(events: list[JsonObject], run_path: Path) -> RunStatus:
     """The run's status from its last session, one rule for the runs list and the run's
     page: how it ended (`ending`), else running while the bench process journaled at the
     session's start lives, else stopped (the process went without an exit: killed or
@@ -378,22 +425,22 @@ def run_status(events: list[dict[str, Any]], run_path: Path) -> dict[str, Any]:
         return {"status": "created", "cause": None, "later": [], "session": None,
                 "events": [], "pid": None}
     start = starts[-1]
-    session_no = start.get("session")
+    session_no = integer(start, "session")
     session = [e for e in events if e.get("session") == session_no]
-    pid = start.get("pid")
+    pid = integer(start, "pid")
     end = ending(session, run_path)
     if end is not None:
-        out = dict(end)
-    elif pid is not None and not pid_alive(pid):
-        out = {"status": "stopped", "later": [],
-               "cause": ("the bench process is gone without journaling an exit (killed or "
-                         f"crashed); `bench run --resume {run_path}` continues")}
-    else:
-        out = {"status": "running", "cause": None, "later": []}
-    return {**out, "session": session_no, "events": session, "pid": pid}
+        return {**end, "session": session_no, "events": session, "pid": pid}
+    if pid is not None and not pid_alive(pid):
+        return {"status": "stopped", "later": [],
+                "cause": ("the bench process is gone without journaling an exit (killed or "
+                          f"crashed); `bench run --resume {run_path}` continues"),
+                "session": session_no, "events": session, "pid": pid}
+    return {"status": "running", "cause": None, "later": [], "session": session_no,
+            "events": session, "pid": pid}
 
 
-def live_state(run_path: Path) -> dict[str, Any]:
+def live_state(run_path: Path) -> dict[str, JsonLike]:
     """The station's view of one run directory (JSON-ready), with `view`: the same state
     worded and rounded for the page (bench/app/station/view.py)."""
     run_path = Path(run_path)
@@ -404,9 +451,11 @@ def live_state(run_path: Path) -> dict[str, Any]:
     stand = read_mapping(run_path / layout.STAND)
     prog = progress_of(session)
     prog["completed"] = any(e.get("event") == "completed" for e in session)
-    axis = (prog["step"] or {}).get("axis")
+    step = prog["step"]
+    axis_named = step.get("axis") if isinstance(step, Mapping) else None
+    axis = axis_named if isinstance(axis_named, str) else None
     raw = layout.raw_dir(run_path, session_no) if session_no else None
-    fog: dict[str, Any] = {"t_s": [], "rate_dps": []}
+    fog: dict[str, JsonLike] = {"t_s": [], "rate_dps": []}
     drive: dict[str, list[float]] = {"t_s": [], "velocity_dps": []}
     if raw is not None and axis:
         settings = FogSettings.of_axis(stand, axis) if isinstance(stand, dict) else None
@@ -417,19 +466,19 @@ def live_state(run_path: Path) -> dict[str, Any]:
     acquires = [e for e in events if e.get("event") == "acquire"]
     # the per-turn panel shows the axis now running, never the previous axis's last half
     shown_acquires = [e for e in acquires if not axis or e.get("axis") == axis]
-    result = None
-    final: list[dict[str, Any]] = []
+    result: JsonValue = None
+    final: list[dict[str, JsonValue]] = []
     doc = _read_result(run_path) if status != "running" else None
     if doc is not None:
         result = doc.get("verdict")
-        final = final_rows(doc)
+        final = final_rows(doc, run_path)
     axes_now = [str(a) for a in ((stand.get("axes") or {}) if isinstance(stand, dict)
                                  else {})]
     used = [a for a in axes_now if any(e.get("axis") == a for e in session)] or axes_now
     shown = [{k: v for k, v in e.items() if k not in ("traceback",)}
              for e in events if e.get("event") in EVENT_KINDS_SHOWN][-40:]
     ident = (stand.get("stand") or {}) if isinstance(stand, dict) else {}
-    state = {
+    state: dict[str, JsonLike] = {
         "run": run_path.name,
         "title": _title(run_path),
         "stand": {k: ident.get(k) for k in ("maker", "model", "serial")},
@@ -469,10 +518,10 @@ def _title(run_path: Path) -> str:
     return str(proc.get("title") or run_path.name)
 
 
-def list_runs(runs: Path) -> list[dict[str, Any]]:
+def list_runs(runs: Path) -> list[dict[str, JsonLike]]:
     """Every run directory in the runs folder, newest first, with its status and, for a
     run that did not pass, its first cause."""
-    out = []
+    out: list[dict[str, JsonLike]] = []
     try:
         dirs = [p for p in runs.iterdir() if (p / layout.EVENTS).is_file()]
     except FileNotFoundError:

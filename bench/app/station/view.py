@@ -19,12 +19,12 @@ import math
 from collections.abc import Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
-from typing import Any
 
 from bench.app.records.extract import figures_of, kind_name
 from bench.core import rundir_layout as layout
 from bench.core.plan import format_duration
 from bench.core.registry import declared_figures
+from bench.report.axes_view import AxisRows, axes_of
 from bench.report.certificate.parts import read_json_object, verdict_label
 from bench.report.certificate.rounding import (
     MINUS,
@@ -35,6 +35,7 @@ from bench.report.certificate.rounding import (
     rel_unit,
 )
 from bench.report.figures import spec_for
+from drivers.json_types import JsonLike, JsonObject
 
 #: how each status reads on the page, for a run that has ended or stopped
 ENDED_WORDS = {"passed": "Passed", "failed": "Failed", "refused": "Refused",
@@ -67,20 +68,42 @@ def _duration(s: float | None) -> str:
     return "-" if s is None or not math.isfinite(s) else format_duration(max(0.0, s))
 
 
-def _rate(v: Any) -> str:
+def _rate(v: object) -> str:
     """A set rate, signed, with the typographic minus the certificate prints."""
+    if not isinstance(v, int | float | str):
+        return "-"
     try:
         return f"{float(v):+g}".replace("-", MINUS)
-    except (TypeError, ValueError):
+    except ValueError:
         return "-"
 
 
-def _num(v: Any) -> float | None:
+def _num(v: object) -> float | None:
+    if not isinstance(v, int | float | str):
+        return None
     try:
         x = float(v)
-    except (TypeError, ValueError):
+    except ValueError:
         return None
     return x if math.isfinite(x) else None
+
+
+def _count(v: object) -> int:
+    """A count from the state (0 when absent)."""
+    return int(v) if isinstance(v, int | float | str) and v else 0
+
+
+def _stamp(v: object) -> str | None:
+    return v if isinstance(v, str) else None
+
+
+def _part(v: object) -> Mapping[str, object]:
+    """A part of the state that is a mapping ({} when absent)."""
+    return v if isinstance(v, Mapping) else {}
+
+
+def _items(v: object) -> list[object]:
+    return list(v) if isinstance(v, list | tuple) else []
 
 
 def _value_u(value: object, u: object, scale: float = 1.0, signed: bool = False) -> str:
@@ -97,7 +120,7 @@ def _column_unit(*values: object) -> RelUnit:
     return rel_unit(*[_num(v) for v in values])
 
 
-def _step_words(step: Mapping[str, Any]) -> str:
+def _step_words(step: Mapping[str, object]) -> str:
     words = " ".join(str(x) for x in (step.get("axis"), step.get("action")) if x)
     describe = step.get("describe")
     return f"{words} - {describe}" if describe else words
@@ -105,28 +128,30 @@ def _step_words(step: Mapping[str, Any]) -> str:
 
 # -- progress -------------------------------------------------------------------------------
 
-def progress_view(state: Mapping[str, Any]) -> dict[str, Any]:
+def progress_view(state: Mapping[str, object]) -> dict[str, JsonLike]:
     """The step line, the line beneath it and the bar (0 to 1); for a finished run how it
     ended, with the first cause, and the bar where the run got to (full once the plan
     completed: the engine journals `completed` only then)."""
-    p = state.get("progress") or {}
+    prog = _part(state.get("progress"))
     status = str(state.get("status"))
-    steps, done = int(p.get("steps") or 0), int(p.get("steps_done") or 0)
-    step = p.get("step")
+    steps, done = _count(prog.get("steps")), _count(prog.get("steps_done"))
+    step = _part(prog.get("step"))
     cause = state.get("cause")
     if status in ("running", "created"):
         if step:
             line = f"Step {step.get('number')} of {steps}: {_step_words(step)}"
         else:
             line = "not started" if status == "created" else "starting: no step yet"
-        speed = p.get("speed")
+        speed = prog.get("speed")
         speed_text = (f" (measured speed {speed:.1f} bench s per wall s)" if speed else "")
         detail = (f"{done} of {steps} steps done; bench time left "
-                  f"{_duration(p.get('bench_left_s'))}, wall time left "
-                  f"{_duration(p.get('wall_left_s'))}{speed_text}")
-        return {"value": float(p.get("fraction") or 0.0), "line": line, "detail": detail,
+                  f"{_duration(_num(prog.get('bench_left_s')))}, wall time left "
+                  f"{_duration(_num(prog.get('wall_left_s')))}{speed_text}")
+        fraction = prog.get("fraction")
+        return {"value": float(fraction) if isinstance(fraction, int | float) and fraction
+                else 0.0, "line": line, "detail": detail,
                 "complete": False, "later": []}
-    completed = bool(p.get("completed"))
+    completed = bool(prog.get("completed"))
     where = (f"{'after' if step.get('done') else 'at'} step {step.get('number')} of {steps} "
              f"({_step_words(step)})" if step else "before the first step")
     word = ENDED_WORDS.get(status, status.capitalize())
@@ -140,81 +165,81 @@ def progress_view(state: Mapping[str, Any]) -> dict[str, Any]:
     else:
         line = f"{word} {where}: {cause}" if cause else f"{word} {where}"
     parts = ([f"{done} of {steps} steps done"] if steps else ["no step was run"])
-    if state.get("sessions", 0) and int(state.get("sessions") or 0) > 1:
+    if state.get("sessions", 0) and _count(state.get("sessions")) > 1:
         parts[0] += f" in session {state.get('session')} of {state.get('sessions')}"
     if state.get("ended_utc"):
-        parts.append(f"ended {_utc_text(state.get('ended_utc'))} UTC")
-    if steps and p.get("bench_time_s"):
-        parts.append(f"bench time {_duration(p.get('bench_time_s'))}")
+        parts.append(f"ended {_utc_text(_stamp(state.get('ended_utc')))} UTC")
+    if steps and prog.get("bench_time_s"):
+        parts.append(f"bench time {_duration(_num(prog.get('bench_time_s')))}")
     value = 1.0 if completed else (done / steps if steps else 0.0)
     return {"value": value, "line": line, "detail": "; ".join(parts),
             "complete": completed,
-            "later": [f"also, while stopping: {x}" for x in state.get("later") or []]}
+            "later": [f"also, while stopping: {x}" for x in _items(state.get("later"))]}
 
 
 # -- health -----------------------------------------------------------------------------------
 
-def health_view(h: Mapping[str, Any], status: str) -> dict[str, Any]:
+def health_view(health: Mapping[str, object], status: str) -> dict[str, JsonLike]:
     """While running: how long since each instrument was heard, with warnings. Otherwise
     the instruments' last state: the counts as they were and the wall time (UTC) each
     was last heard; no warning, since a finished run's files are quiet by design."""
     running = status == "running"
     rows = []
-    for a in h.get("axes") or []:
+    for a in map(_part, _items(health.get("axes"))):
         tail = ("-" if a.get("fog_tail_crc_errors") is None
                 else f"{a.get('fog_tail_crc_errors')} / {a.get('fog_tail_lost_frames')}")
         if running:
-            heard = [_age(a.get(f"{i}_age_s")) for i in ("fog", "drive", "counter")]
+            heard = [_age(_num(a.get(f"{i}_age_s"))) for i in ("fog", "drive", "counter")]
         else:
-            heard = [_utc_text(a.get(f"{i}_utc")) for i in ("fog", "drive", "counter")]
+            heard = [_utc_text(_stamp(a.get(f"{i}_utc"))) for i in ("fog", "drive", "counter")]
         rows.append([str(a.get("axis")), heard[0], str(a.get("fog_lost_in_halves", "-")),
                      tail, heard[1], heard[2]])
     when = "" if running else " (UTC)"
     header = ["axis", f"FOG last data{when}", "FOG frames lost (timed halves)",
-              f"FOG CRC errors / frames lost, last {h.get('fog_tail_s') or 30:g} s of record",
+              f"FOG CRC errors / frames lost, last {health.get('fog_tail_s') or 30:g} s of record",
               "drive last heard (heartbeat, feedback)" if running
               else "drive last heard (UTC; heartbeat, feedback)", f"counter last reading{when}"]
     if running:
-        last = h.get("last_update_s")
+        last = _num(health.get("last_update_s"))
         note = ("" if last is None else
-                f"- last update {_age(last)}{' (STALE)' if h.get('stale') else ''}")
+                f"- last update {_age(last)}{' (STALE)' if health.get('stale') else ''}")
         title = "Health"
     else:
         title = ("Instruments when last heard" if status in ("stopped", "created")
                  else "Instruments at the end of the run")
-        note = (f"- files last written {_utc_text(h.get('last_update_utc'))} UTC"
-                if h.get("last_update_utc") else "")
+        note = (f"- files last written {_utc_text(_stamp(health.get('last_update_utc')))} UTC"
+                if health.get("last_update_utc") else "")
     return {"title": title, "note": note, "header": header, "rows": rows,
-            "warnings": list(h.get("warnings") or []) if running else [],
-            "stale": bool(h.get("stale")) and running}
+            "warnings": [str(w) for w in _items(health.get("warnings"))] if running else [],
+            "stale": bool(health.get("stale")) and running}
 
 
 # -- results ----------------------------------------------------------------------------------
 
 def _table(tid: str, caption: str, header: Sequence[str],
-           rows: Sequence[tuple[Sequence[str], str]]) -> dict[str, Any]:
+           rows: Sequence[tuple[Sequence[str], str]]) -> dict[str, JsonLike]:
     return {"id": tid, "caption": caption, "header": list(header),
             "rows": [{"cells": list(cells), "class": cls} for cells, cls in rows]}
 
 
-def live_table(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+def live_table(rows: Sequence[Mapping[str, object]]) -> dict[str, JsonLike]:
     """The first look per pair, from the `pair` events (bench/app/station/live.py
     pair_rows): k and w0 with their U, each direction's rate error with its U."""
-    unit = _column_unit(*[r.get("rate_error_rel") for r in rows],
-                        *[r.get("rate_error_U_rel") for r in rows])
-    sunit = _column_unit(*[r.get("rate_instability_rel") for r in rows])
+    unit = _column_unit(*[row.get("rate_error_rel") for row in rows],
+                        *[row.get("rate_error_U_rel") for row in rows])
+    sunit = _column_unit(*[row.get("rate_instability_rel") for row in rows])
     out = []
-    for r in rows:
-        sigma = _num(r.get("rate_instability_rel"))
-        out.append(([str(r.get("axis") or "-"), _rate(r.get("set_rate_dps")),
-                     _value_u(r.get("k"), r.get("k_U")),
-                     _value_u(r.get("w0_dps"), r.get("w0_U_dps"), signed=True),
-                     _value_u(r.get("rate_error_rel"), r.get("rate_error_U_rel"),
+    for row in rows:
+        sigma = _num(row.get("rate_instability_rel"))
+        out.append(([str(row.get("axis") or "-"), _rate(row.get("set_rate_dps")),
+                     _value_u(row.get("k"), row.get("k_U")),
+                     _value_u(row.get("w0_dps"), row.get("w0_U_dps"), signed=True),
+                     _value_u(row.get("rate_error_rel"), row.get("rate_error_U_rel"),
                               unit.scale, signed=True),
                      "-" if sigma is None else format_sig(sigma * sunit.scale, 2),
-                     "-" if r.get("turns") is None else str(r.get("turns")),
-                     verdict_label(r.get("verdict")) if r.get("verdict") else "-"],
-                    str(r.get("verdict") or "")))
+                     "-" if row.get("turns") is None else str(row.get("turns")),
+                     verdict_label(row.get("verdict")) if row.get("verdict") else "-"],
+                    str(row.get("verdict") or "")))
     return _table("results-live", LIVE_CAPTION,
                   ("axis", "set rate, deg/s", "k ± U", "ω0 ± U, deg/s",
                    f"rate error δ ± U, {unit.name}",
@@ -222,44 +247,36 @@ def live_table(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
                    "turns", "verdict"), out)
 
 
-def _axis_tables(doc: Mapping[str, Any]) -> list[dict[str, Any]]:
-    """Per axis of a result.json with CONTRACT §3's `axes.<axis>.rates[]` and `pairs[]`:
+def _axis_tables(axes: Mapping[str, AxisRows]) -> list[dict[str, JsonLike]]:
+    """Per axis of a ladder's result (CONTRACT §3's `axes.<axis>.rates[]` and `pairs[]`):
     each rate's error and instability with U and verdict, then each ± pair's FOG scale
     factor k and bias ω0 with U (any other result: its declared figures)."""
-    tables = []
-    for axis, body in (doc.get("axes") or {}).items():
-        if not isinstance(body, Mapping):
-            continue
-        rates = [r for r in body.get("rates") or [] if isinstance(r, Mapping)]
-        pairs = [p for p in body.get("pairs") or [] if isinstance(p, Mapping)]
+    tables: list[dict[str, JsonLike]] = []
+    for axis, body in axes.items():
+        rates, pairs = body.rates, body.pairs
         if rates:
-            err = _column_unit(*[r.get("rate_error_rel") for r in rates],
-                               *[r.get("rate_error_U_rel", r.get("rate_error_u_rel"))
-                                 for r in rates])
-            sig = _column_unit(*[r.get("rate_instability_rel") for r in rates],
-                               *[r.get("rate_instability_upper_rel") for r in rates])
+            err = _column_unit(*[r.rate_error_rel for r in rates],
+                               *[r.rate_error_U_rel for r in rates])
+            sig = _column_unit(*[r.rate_instability_rel for r in rates],
+                               *[r.rate_instability_upper_rel for r in rates])
             rows = []
             for r in rates:
-                u_err = r.get("rate_error_U_rel", r.get("rate_error_u_rel"))
-                u_sig = _num(r.get("rate_instability_U_rel", r.get("rate_instability_u_rel")))
-                resolved = r.get("rate_instability_resolved")
-                sigma = present(_num(r.get("rate_instability_rel")), u_sig, sig.scale,
-                                upper=_num(r.get("rate_instability_upper_rel")),
-                                resolved=None if resolved is None else bool(resolved))
-                rows.append(([_rate(r.get("set_rate_dps")),
-                              "-" if r.get("turns") is None else str(r.get("turns")),
-                              _value_u(r.get("rate_error_rel"), u_err, err.scale, signed=True),
-                              sigma.text, verdict_label(r.get("verdict"))
-                              if r.get("verdict") else "-"], str(r.get("verdict") or "")))
+                sigma = present(_num(r.rate_instability_rel), _num(r.rate_instability_U_rel),
+                                sig.scale, upper=_num(r.rate_instability_upper_rel),
+                                resolved=r.rate_instability_resolved)
+                rows.append(([_rate(r.set_rate_dps),
+                              "-" if r.turns is None else str(r.turns),
+                              _value_u(r.rate_error_rel, r.rate_error_U_rel, err.scale,
+                                       signed=True),
+                              sigma.text, verdict_label(r.verdict)
+                              if r.verdict else "-"], str(r.verdict or "")))
             tables.append(_table(
                 f"rates-{axis}", f"Axis {axis}: rate error and instability per set rate",
                 ("set rate, deg/s", "turns", f"rate error δ ± U, {err.name}",
                  f"instability σ ± U, {sig.name}", "verdict"), rows))
         if pairs:
-            rows = [([f"±{_num(p.get('rate_dps')) or 0:g}",
-                      _value_u(p.get("k"), p.get("k_U", p.get("k_u"))),
-                      _value_u(p.get("w0_dps"), p.get("w0_U_dps", p.get("w0_u_dps")),
-                               signed=True)], "") for p in pairs]
+            rows = [([f"±{_num(p.rate_dps) or 0:g}", _value_u(p.k, p.k_U),
+                      _value_u(p.w0_dps, p.w0_U_dps, signed=True)], "") for p in pairs]
             tables.append(_table(
                 f"pairs-{axis}",
                 f"Axis {axis}: FOG cross-calibration per ± pair (scale factor k, bias ω0)",
@@ -267,7 +284,7 @@ def _axis_tables(doc: Mapping[str, Any]) -> list[dict[str, Any]]:
     return tables
 
 
-def _declared_table(doc: dict[str, Any], run_path: Path) -> list[dict[str, Any]]:
+def _declared_table(doc: JsonObject, run_path: Path) -> list[dict[str, JsonLike]]:
     """Any other kind: the figures it declares (bench.report.figures), each with its U and
     its check's verdict, in the words and units the kind gives them."""
     kind = kind_name(doc, run_path)
@@ -292,18 +309,20 @@ def _declared_table(doc: dict[str, Any], run_path: Path) -> list[dict[str, Any]]
 
 
 @functools.lru_cache(maxsize=64)
-def _final(path: str, _mtime_ns: int, _size: int) -> tuple[str | None, tuple[Any, ...]]:
+def _final(path: str, _mtime_ns: int, _size: int
+           ) -> tuple[str | None, tuple[dict[str, JsonLike], ...]]:
     """result.json's verdict and tables, once per version of the file (the live stream
     asks every second; the file changes only when an analysis writes it again)."""
     doc = read_json_object(Path(path) / layout.RESULT)
     if not doc:
         return None, ()
-    tables = _axis_tables(doc) or _declared_table(doc, Path(path))
+    tables = _axis_tables(axes_of(doc, kind_name(doc, Path(path)))) \
+        or _declared_table(doc, Path(path))
     verdict = doc.get("verdict")
     return (None if verdict is None else str(verdict)), tuple(tables)
 
 
-def final_view(run_path: Path) -> tuple[str | None, list[dict[str, Any]]] | None:
+def final_view(run_path: Path) -> tuple[str | None, list[dict[str, JsonLike]]] | None:
     """result.json's verdict and tables, or None when there is none."""
     try:
         st = (run_path / layout.RESULT).stat()
@@ -313,10 +332,10 @@ def final_view(run_path: Path) -> tuple[str | None, list[dict[str, Any]]] | None
     return verdict, list(tables)
 
 
-def results_view(state: Mapping[str, Any], run_path: Path) -> dict[str, Any]:
+def results_view(state: Mapping[str, object], run_path: Path) -> dict[str, JsonLike]:
     """The results section: while running, the first look per pair; once the run has
     ended, result.json's verdict and tables (the certificate prints these figures)."""
-    live = list(state.get("results") or [])
+    live = [r for r in _items(state.get("results")) if isinstance(r, Mapping)]
     # result.json is this session's only once it has ended (a session stopped or refused
     # under it leaves an earlier session's analysis there)
     final = final_view(run_path) if state.get("ended") and state.get("status") != "refused" \
@@ -340,13 +359,13 @@ def results_view(state: Mapping[str, Any], run_path: Path) -> dict[str, Any]:
 
 # -- the log ----------------------------------------------------------------------------------
 
-def _magnitude(e: Mapping[str, Any]) -> str:
+def _magnitude(e: Mapping[str, object]) -> str:
     """The rate of a unit name ('outer/30dps' -> '30 deg/s')."""
     unit = str(e.get("unit") or "")
     return unit.split("/", 1)[1].replace("dps", " deg/s") if "/" in unit else ""
 
 
-def log_line(e: Mapping[str, Any]) -> str:
+def log_line(e: Mapping[str, object]) -> str:
     """One milestone, fault or prompt as the page lists it."""
     kind = str(e.get("event"))
     mag = _magnitude(e)
@@ -386,16 +405,16 @@ def log_line(e: Mapping[str, Any]) -> str:
 
 # -- the page ---------------------------------------------------------------------------------
 
-def page_view(state: Mapping[str, Any], run_path: Path) -> dict[str, Any]:
+def page_view(state: Mapping[str, object], run_path: Path) -> dict[str, JsonLike]:
     """Everything the run's page prints, from the state `live_state` reads."""
     status = str(state.get("status"))
-    prog = state.get("progress") or {}
+    prog = _part(state.get("progress"))
     return {
         "progress": progress_view(state),
-        "health": health_view(state.get("health") or {}, status),
+        "health": health_view(_part(state.get("health")), status),
         "results": results_view(state, run_path),
         "log": [{"event": str(e.get("event")), "text": log_line(e)}
-                for e in state.get("log") or []],
+                for e in map(_part, _items(state.get("log")))],
         # the charts show what a step recorded: none for a run refused before its first
         "charts": status in ("running", "created") or bool(prog.get("step")),
         "live": status in ("running", "created"),
