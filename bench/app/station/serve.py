@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import argparse
 import os
-import secrets
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from bench.app.station.settings import StationSettings, is_loopback
+if TYPE_CHECKING:
+    # every `bench` command builds serve's parser; the settings (ipaddress, dataclasses)
+    # and `secrets` load only when `bench serve` runs (bench validate's start-up budget)
+    from bench.app.station.settings import StationSettings
 
 TOKEN_ENV = "BENCH_STATION_TOKEN"
 LAB_ENV = "BENCH_LAB_SETTINGS"      # the lab file, as bench authorise and the DCC read it
@@ -69,6 +72,10 @@ def register_settings(args: argparse.Namespace) -> tuple[str | None, str | None]
 
 def settings_from_args(args: argparse.Namespace) -> tuple[StationSettings, bool]:
     """The settings, and whether the token was made up here (then it is printed)."""
+    import secrets
+
+    from bench.app.station.settings import StationSettings, is_loopback
+
     token = args.token or os.environ.get(TOKEN_ENV) or ""
     if not is_loopback(args.host) and args.host != "localhost" and not token:
         raise SystemExit(f"bench serve: --host {args.host} is reachable from other machines; "
