@@ -45,6 +45,7 @@ sys.path.insert(0, str(ROOT))
 from bench.analysis import CounterBudget, HalfRecord  # noqa: E402
 from bench.analysis.pair import analyze_pair_mains  # noqa: E402
 from procedures.rate_ladder.analysis import with_sigma_terms  # noqa: E402
+from procedures.rate_ladder.result import rate_json  # noqa: E402
 from sims.stand import AxisModel, AxisTruth, Harmonic, Mains  # noqa: E402
 from tests.test_analysis_sim import paper_axis, simulate_pair  # noqa: E402
 
@@ -130,7 +131,7 @@ def figures(name: str, st: Stratum, seed: int, rate_dps: float, turns: int
     table_turn = truth.rate_noise_dps / math.sqrt(period * FOG_HZ) / w
     harm = {h.order: h for h in truth.harmonics}
     for r in pa.rates:
-        d = r.to_dict()
+        d = rate_json(r)
         yield "rate error", covers(d["rate_error_rel"], d["rate_error_u_rel"],
                                    truth.mean_turn_rate_rel())
         # eq. 2: value +/- U covers what it measures (table and timing), '< L' the table

@@ -29,6 +29,7 @@ from procedures.rate_ladder.analysis import (
     window_on_disk,
 )
 from procedures.rate_ladder.events import HalfAcquired
+from procedures.rate_ladder.result import pair_json, rate_json
 from tests.conftest import DemoRun
 from tests.test_analysis_sim import paper_axis, simulate_pair
 
@@ -49,7 +50,7 @@ def _capture(path: Path, fog_dps: np.ndarray, lost: int, broken: int) -> None:
 
 
 def _as_json(pa) -> str:
-    return json.dumps([r.to_dict() for r in pa.rates] + [pa.pair.to_dict()],
+    return json.dumps([rate_json(r) for r in pa.rates] + [pair_json(pa.pair)],
                       sort_keys=True, default=str)
 
 

@@ -705,10 +705,11 @@ def test_the_any_count_counts_annotations_only() -> None:
     assert any_in_annotations(source) == 8
 
 
-#: issue 45 asks for fewer than 200; 740 at a057f73, 92 now (the station's and the records'
-#: reads of CONTRACT §3's axes typed through bench/report/axes_view.py). A ratchet: lower it
-#: when the count falls, never raise it
-ANY_CEILING = 92
+#: issue 45 asks for fewer than 200; 740 at a057f73, 75 now (the station's and the records'
+#: reads of CONTRACT §3's axes typed through bench/report/axes_view.py; the ladder's analysis
+#: writing through its result module). A ratchet: lower it when the count falls, never raise
+#: it
+ANY_CEILING = 75
 
 
 def test_any_in_annotations_stays_below_the_ceiling(capsys: pytest.CaptureFixture[str]

@@ -147,3 +147,26 @@ def test_the_ladder_result_round_trips_and_refuses_by_key_path() -> None:
     lenient, dropped = LadderResult.conform(doc)
     assert dropped == ["axes.outer.rates[0].systematic (expected a mapping, found str)"]
     assert lenient.axes["outer"].rates[0].systematic == {}
+
+
+# -- the writer side: the analysis computes, the kind's result module spells ----------------
+
+def json_writers(source: str, filename: str = "<source>") -> list[str]:
+    """Every `to_dict`/`to_json` method in `source`, as `line: name`."""
+    return [f"{n.lineno}: {n.name}" for n in ast.walk(ast.parse(source, filename))
+            if isinstance(n, ast.FunctionDef) and n.name in ("to_dict", "to_json")]
+
+
+def test_the_analysis_spells_no_result_key() -> None:
+    """bench/analysis returns typed values; the ladder's result module lays them out as
+    result.json (procedures/rate_ladder/result.py `rate_json`, `pair_json`), so a key is
+    spelled where it is read back, once."""
+    found = [f"{p.relative_to(ROOT)}:{w}" for p in sorted((ROOT / "bench/analysis").rglob("*.py"))
+             for w in json_writers(p.read_text(encoding="utf-8"), str(p))]
+    assert found == [], found
+
+
+def test_a_planted_writer_in_the_analysis_is_found() -> None:
+    planted = ("from dataclasses import dataclass\n@dataclass\nclass R:\n    x: float\n"
+               "    def to_dict(self):\n        return {'x_rel': self.x}\n")
+    assert json_writers(planted) == ["5: to_dict"]

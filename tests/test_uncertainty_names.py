@@ -13,6 +13,7 @@ import numpy as np
 
 from bench.analysis.turns import CounterBudget, analyze_turns
 from bench.report.uncertainty_names import explicit_name, with_explicit_names
+from procedures.rate_ladder.result import turns_json
 
 
 def test_names() -> None:
@@ -25,7 +26,7 @@ def test_names() -> None:
 
 def test_every_u_key_gets_its_explicit_twin_with_the_same_value() -> None:
     edges = 5.0 + np.arange(6) * 36.0 + np.array([0, 2e-7, -1e-7, 3e-7, 0, 1e-7])
-    d = analyze_turns([edges], 10.0, CounterBudget(2e-11, 2.7e-8, 1e-9)).to_dict()
+    d = turns_json(analyze_turns([edges], 10.0, CounterBudget(2e-11, 2.7e-8, 1e-9)))
     out = with_explicit_names({"axes": {"outer": {"rates": [d]}},
                                "checks": [{"u_rel": 1e-7}]})
     r = out["axes"]["outer"]["rates"][0]

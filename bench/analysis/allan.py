@@ -26,9 +26,6 @@ class AllanCurve:
     adev: tuple[float, ...]          # same unit as the record
     terms: tuple[int, ...]           # number of overlapping differences at each tau
 
-    def to_dict(self) -> dict[str, list[float] | list[int]]:
-        return {"tau_s": list(self.tau_s), "adev": list(self.adev), "terms": list(self.terms)}
-
 
 def white_noise(rate: np.ndarray) -> tuple[float, int]:
     """sqrt(mean((y[i+1] - y[i])^2) / 2): ADEV at tau0; and the number of differences.

@@ -40,7 +40,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.analysis.angle import FogCalibration
-from drivers.units import SECONDS_PER_HOUR
 
 COVERAGE = 2.0
 
@@ -56,12 +55,6 @@ class HalfMean:
     counter_mean_u_dps: float
     t_centre_s: float
     turns: int
-
-    def to_dict(self) -> dict[str, float | int]:
-        return {"sign": self.sign, "turns": self.turns, "t_centre_s": self.t_centre_s,
-                "fog_mean_dps": self.fog_mean_dps, "fog_mean_u_dps": self.fog_mean_u_dps,
-                "counter_mean_dps": self.counter_mean_dps,
-                "counter_mean_u_dps": self.counter_mean_u_dps}
 
 
 @dataclass(frozen=True)
@@ -94,17 +87,6 @@ class CrossCalibration:
 
     def calibration(self) -> FogCalibration:
         return FogCalibration(self.k, self.w0_dps, self.drift_dps_per_s, self.t_ref_s)
-
-    def to_dict(self) -> dict[str, object]:
-        return {
-            "k": self.k, "k_u": self.k_u, "w0_dps": self.w0_dps, "w0_u_dps": self.w0_u_dps,
-            "w0_t_ref_s": self.t_ref_s,
-            "drift_dps_per_h": self.drift_dps_per_s * SECONDS_PER_HOUR,
-            "drift_u_dps_per_h": self.drift_u_dps_per_s * SECONDS_PER_HOUR,
-            "method": self.method, "drift_source": self.drift_source, "k_eq5": self.k_eq5,
-            "chi2": self.chi2, "dof": self.dof, "birge_ratio": self.birge_ratio,
-            "halves": [h.to_dict() for h in self.halves],
-        }
 
 
 def _wls(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:

@@ -18,7 +18,8 @@ for inputs that cannot give an honest result (FOG not covering the turns, a turn
 samples, non-finite samples, a missed zero mark, one sign only, mains above Nyquist).
 
 Result: `PairAnalysis.rates` = (the '+' RateResult, the '-' RateResult), `.pair` the
-PairResult; `.to_dict()` of each is its result.json entry (CONTRACT §3).
+PairResult (procedures/rate_ladder/result.py lays each out as its result.json entry,
+CONTRACT §3).
 
 Steps (each in its module):
  1. window.py   exact FOG integrals over each half's whole turns;

@@ -169,15 +169,6 @@ class AveragedInstability:
         d = self.difference
         return None if d is None else d.lower
 
-    def to_dict(self) -> dict[str, object]:
-        return {"angle_deg": self.angle_deg, "instability_rel": self.instability_rel,
-                "u_rel": self.u_rel,
-                "floor_rel": self.floor_rel, "corrected_rel": self.corrected_rel,
-                "corrected_upper_rel": self.corrected_upper_rel,
-                "corrected_lower_rel": self.corrected_lower_rel, "resolved": self.resolved,
-                "interval_level": LEVEL, "dof": self.dof,
-                "blocks": self.blocks, "samples_per_block": self.samples_per_block}
-
 
 def std_u_rel(std: float | None, n: int) -> float | None:
     """The normal approximation U = 2 s / sqrt(2 (n - 1)) of a standard deviation from n
@@ -222,18 +213,6 @@ class RandomPartResult:
     corrected_lower_rel: float = 0.0     # the (1 - LEVEL) / 2 end of the interval
     corrected_u_rel: float | None = None  # half-width covering [lower, upper], resolved only
     floor_dof: float = math.inf
-
-    def to_dict(self) -> dict[str, object]:
-        return {"instability_rel": self.instability_rel, "floor_rel": self.floor_rel,
-                "floor_source": self.floor_source, "corrected_rel": self.corrected_rel,
-                "corrected_upper_rel": self.corrected_upper_rel,
-                "corrected_lower_rel": self.corrected_lower_rel,
-                "corrected_u_rel": self.corrected_u_rel, "interval_level": LEVEL,
-                "interval_method": "JCGM 101 Monte Carlo of raw^2 - floor^2 (scaled "
-                                   "inverse chi-square per variance)",
-                "floor_dof": self.floor_dof, "resolved": self.resolved,
-                "bandwidth_hz": self.bandwidth_hz, "std_dps": self.std_dps,
-                "samples": self.samples, "averaged": [a.to_dict() for a in self.averaged]}
 
 
 def _a5_row_coefs(fit: DirectionFit, cal: FogCalibration, own_bias: frozenset[int]

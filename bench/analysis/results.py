@@ -1,26 +1,23 @@
-"""Result records: one per commanded rate and direction, one per +/- pair (CONTRACT §3).
+"""Result records: one per commanded rate and direction, one per +/- pair (docs/method.md
+A1-A5), as typed values.
 
 API
-    RateResult.to_dict()  -> the `axes.<axis>.rates[]` entry (binding keys plus extras)
-    PairResult.to_dict()  -> the `axes.<axis>.pairs[]` entry
-    PairAnalysis(rates=(plus, minus), pair)
+    RateResult, PairResult, SystematicResult, PairAnalysis(rates=(plus, minus), pair)
     judge_rate(result, tolerance_rel, capability_max=0.3) -> RateResult with a verdict
 
-Binding keys are produced exactly as CONTRACT §3 names them; extras sit beside them.
-Relative values are plain fractions. Non-finite numbers become None (JSON null) so that a
-result.json never carries NaN.
+They spell no result.json key: the rate ladder's result module
+(procedures/rate_ladder/result.py `rate_json`, `pair_json`) lays them out as CONTRACT §3's
+`axes.<axis>.rates[]` and `pairs[]`, and reads them back, in one place.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 from bench.analysis.crosscal import CrossCalibration
-from bench.analysis.random_part import RandomPartResult, std_interval_u_rel
+from bench.analysis.random_part import RandomPartResult
 from bench.analysis.systematic import (
     BinnedSystematic,
     HarmonicResult,
@@ -33,17 +30,6 @@ from bench.analysis.turns import TurnsResult
 CAPABILITY_MAX = 0.3
 
 
-def clean(x: object) -> Any:
-    """Replace non-finite floats by None, recursively (JSON has no NaN)."""
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {k: clean(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [clean(v) for v in x]
-    return x
-
-
 @dataclass(frozen=True)
 class SystematicResult:
     harmonics: tuple[HarmonicResult, ...]
@@ -52,14 +38,6 @@ class SystematicResult:
     residual_std_dps: float             # of the fit, deg/s of table rate
     inflation: NoiseInflation           # applied to the harmonic and mains uncertainties
     detection: Mapping[str, str | float] = dataclasses.field(default_factory=dict)  # the rule
-
-    def to_dict(self) -> dict[str, object]:
-        return {"harmonics": [h.to_dict() for h in self.harmonics],
-                "mains": self.mains.to_dict() if self.mains else None,
-                "binned": self.binned.to_dict(),
-                "residual_std_dps": self.residual_std_dps,
-                "noise_inflation": self.inflation.to_dict(),
-                "detection": dict(self.detection)}
 
 
 @dataclass(frozen=True)
@@ -84,26 +62,6 @@ class RateResult:
     @property
     def rate_error_u_rel(self) -> float:
         return self.turns_result.rate_error_u_rel
-
-    def to_dict(self) -> dict[str, Any]:
-        tr = self.turns_result
-        d: dict[str, Any] = tr.to_dict()
-        d["intra_turn_instability_rel"] = self.random.instability_rel
-        d["intra_turn_instability_corrected_rel"] = self.random.corrected_rel
-        # docs/method.md A5: U of a std from the record's samples (white random part assumed)
-        d["intra_turn_instability_u_rel"] = std_interval_u_rel(self.random.instability_rel,
-                                                      self.random.samples)
-        # docs/method.md A5: the corrected figure's U only when it is resolved (JCGM 101);
-        # otherwise it is stated as '< intra_turn.corrected_upper_rel'
-        d["intra_turn_instability_corrected_u_rel"] = self.random.corrected_u_rel
-        d["systematic"] = self.systematic.to_dict()
-        d["intra_turn"] = self.random.to_dict()
-        d["windows"] = [dict(w) for w in self.windows]
-        if self.verdict is not None:
-            d["verdict"] = self.verdict
-            d["judgement"] = self.judgement
-        out: dict[str, Any] = clean(d)
-        return out
 
 
 @dataclass(frozen=True)
@@ -133,21 +91,11 @@ class PairResult:
     def w0_u_dps(self) -> float:
         return self.cal.w0_u_dps
 
-    def to_dict(self) -> dict[str, Any]:
-        d = {"rate_dps": self.rate_dps, **self.cal.to_dict(),
-             "noise_inflation": self.noise_inflation.to_dict(),
-             "half_sessions": list(self.sessions), "bias_model": self.bias_model}
-        out: dict[str, Any] = clean(d)
-        return out
-
 
 @dataclass(frozen=True)
 class PairAnalysis:
     rates: tuple[RateResult, ...]       # the '+' direction, then the '-' direction
     pair: PairResult
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"rates": [r.to_dict() for r in self.rates], "pair": self.pair.to_dict()}
 
 
 def judge_rate(result: RateResult, tolerance_rel: float,

@@ -61,11 +61,6 @@ class HarmonicResult:
     phase_u_deg: float          # expanded, k = 2
     detected: bool              # amplitude > U (k = 2): the one rule for a magnitude
 
-    def to_dict(self) -> dict[str, object]:
-        return {"order": self.order, "amplitude_rel": self.amplitude_rel,
-                "amplitude_u_rel": self.amplitude_u_rel, "phase_deg": self.phase_deg,
-                "phase_u_deg": self.phase_u_deg, "detected": self.detected}
-
 
 @dataclass(frozen=True)
 class MainsResult:
@@ -78,12 +73,6 @@ class MainsResult:
     significance: float = 0.0   # chi2 (2 dof) of the tone's coefficients
     source: str = "given"       # where frequency_hz comes from (set by the procedure)
 
-    def to_dict(self) -> dict[str, object]:
-        return {"frequency_hz": self.frequency_hz, "amplitude_dps": self.amplitude_dps,
-                "amplitude_u_dps": self.amplitude_u_dps, "phase_deg": self.phase_deg,
-                "phase_u_deg": self.phase_u_deg, "detected": self.detected,
-                "significance_chi2": self.significance, "source": self.source}
-
 
 @dataclass(frozen=True)
 class BinnedSystematic:
@@ -95,11 +84,6 @@ class BinnedSystematic:
     deviation_rel: tuple[float, ...]
     u_rel: tuple[float, ...]     # expanded, k = 2, per bin
     peak_to_peak_rel: float
-
-    def to_dict(self) -> dict[str, object]:
-        return {"bin_deg": self.bin_deg, "centres_deg": list(self.centres_deg),
-                "deviation_rel": list(self.deviation_rel), "u_rel": list(self.u_rel),
-                "peak_to_peak_rel": self.peak_to_peak_rel}
 
 
 @dataclass(frozen=True)
@@ -114,10 +98,6 @@ class NoiseInflation:
     def factor(self) -> float:
         """The variance factor applied: never below 1."""
         return max(1.0, self.ratio)
-
-    def to_dict(self) -> dict[str, float | int]:
-        return {"block_deg": self.block_deg, "blocks": self.blocks, "ratio": self.ratio,
-                "applied": self.factor}
 
 
 @dataclass(frozen=True, eq=False)

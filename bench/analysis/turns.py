@@ -93,12 +93,6 @@ class CounterBudget:
     def timebase_u_rel(self) -> float:
         return self.timebase_limit_rel / math.sqrt(3.0)
 
-    def to_dict(self) -> dict[str, float]:
-        return {"timestamp_u_s": self.timestamp_u_s, "trigger_jitter_s": self.trigger_jitter_s,
-                "timebase_limit_rel": self.timebase_limit_rel, "edge_u_s": self.edge_u_s,
-                "time_tie_u_s": self.time_tie_u_s,
-                "period_u_s": self.period_u_s, "timebase_u_rel": self.timebase_u_rel}
-
 
 def period_rate_error(rate_dps: float, period_error_s: float, period_s: float) -> float:
     """Rate error caused by a period error dT: dw = w * dT / (T + dT) (docs/method.md A1)."""
@@ -156,26 +150,6 @@ class TurnsResult:
     repeatability_dof: float | None = None   # nu of the Type A term (None: no term)
     dof_eff: float | None = None       # Welch-Satterthwaite over the three terms (None: inf)
     coverage_factor: float = 2.0       # k = t_95.45(nu_eff) (docs/method.md D1)
-
-    def to_dict(self) -> dict[str, object]:
-        return {
-            "set_rate_dps": self.set_rate_dps,
-            "turns": self.turns,
-            "counter_rate_dps": list(self.counter_rate_dps),
-            "mean_rate_dps": self.mean_rate_dps,
-            "rate_error_rel": self.rate_error_rel,
-            "rate_error_u_rel": self.rate_error_u_rel,
-            "rate_instability_rel": self.rate_instability_rel,
-            "rate_instability_floor_rel": self.rate_instability_floor_rel,
-            "rate_error_budget": {"timing_u_rel": self.timing_u_rel,
-                                  "timebase_u_rel": self.timebase_u_rel,
-                                  "repeatability_u_rel": self.repeatability_u_rel,
-                                  "repeatability_basis": self.repeatability_basis,
-                                  "repeatability_dof": self.repeatability_dof,
-                                  "dof_eff": self.dof_eff,
-                                  "coverage_factor": self.coverage_factor,
-                                  **self.budget.to_dict()},
-        }
 
 
 def rate_error_u(timing_u_rel: float, timebase_u_rel: float, repeat_u_rel: float,

@@ -42,8 +42,10 @@ from drivers.fog import CaptureCursor, FogCheckpoint
 from drivers.json_types import JsonLike, JsonObject
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, result_document
+from procedures.rate_ladder import result as result_json
 from procedures.rate_ladder.conditions import TemperatureSpan, memo_key
 from procedures.rate_ladder.events import HalfAcquired, StaticRecorded
+from procedures.rate_ladder.result import RateEntry
 from procedures.rate_ladder.settings import (
     MAINS_CANDIDATES_HZ,
     MAINS_FOUND,
@@ -278,7 +280,7 @@ def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
         raw.drop_windows()
 
 
-def _instability_u(value: float, turns: int) -> float:
+def _instability_u(value: float | None, turns: int) -> float:
     """U (k = 2) of eq. 2's sigma from N turns (infinite from one turn)."""
     u = std_interval_u_rel(value, turns)
     return math.inf if u is None else u
@@ -308,16 +310,27 @@ def instability_lower(value: float, turns: int) -> float:
     return value * math.sqrt((turns - 1) / float(chi2.ppf(SIGMA_UPPER_P, turns - 1)))
 
 
-def with_sigma_terms(d: dict[str, Any]) -> dict[str, Any]:
+def with_sigma_terms(d: JsonObject) -> JsonObject:
     """A rate's entry with eq. 2's U, its chi-square limits and whether it is resolved
-    above the timing floor (what the certificate and the conformity check read)."""
-    s, n = d["rate_instability_rel"], d["turns"]
-    d["rate_instability_u_rel"] = _instability_u(s, n)
-    d["rate_instability_upper_rel"] = instability_upper(s, n)
-    d["rate_instability_lower_rel"] = instability_lower(s, n)
-    d["rate_instability_resolved"] = sigma_resolved(d["rate_instability_lower_rel"],
-                                                    d["rate_instability_floor_rel"])
-    return d
+    above the timing floor (what the certificate and the conformity check read),
+    docs/method.md A1-A2."""
+    entry = RateEntry.from_json(d)
+    s, n = entry.rate_instability_rel, entry.turns or 0
+    floor = _required(entry.rate_instability_floor_rel, "rate_instability_floor_rel")
+    # one turn: no sigma (None), an infinite U and upper limit, a lower limit of 0
+    lower = instability_lower(_required(s, "rate_instability_rel"), n) if n >= 2 else 0.0
+    upper = instability_upper(_required(s, "rate_instability_rel"), n) if n >= 2 \
+        else math.inf
+    return result_json.with_sigma_terms(d, _instability_u(s, n), upper, lower,
+                                        sigma_resolved(lower, floor))
+
+
+def _required(x: float | None, key: str) -> float:
+    """A figure the conformity check needs, from a rate's entry (None: the analysis gave no
+    finite value, which it does only for a degenerate record)."""
+    if x is None:
+        raise ValueError(f"axes.<axis>.rates[].{key}: no finite value to judge")
+    return x
 
 
 def sigma_resolved(lower: float, floor: float) -> bool:
@@ -334,15 +347,17 @@ def _counter(cfg: Config, axis: str) -> CounterSpec:
     return c
 
 
-def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[dict[str, Any]]:
+def _checks(cfg: Config, axis: str, entry: RateEntry, rule: str) -> list[JsonObject]:
+    """The conformity checks of one rate's entry against the tolerances (docs/method.md
+    A6), as the result's `checks[]` hold them."""
     tol = LadderSettings.from_config(cfg).tolerance
-    out = []
-    rate = entry["set_rate_dps"]
+    out: list[JsonObject] = []
+    rate = entry.set_rate_dps
     for quantity, value, u in (
-        ("rate_error", entry["rate_error_rel"], entry["rate_error_u_rel"]),
-        ("rate_instability", entry["rate_instability_rel"], entry["rate_instability_u_rel"]),
-        ("intra_turn_instability", entry["intra_turn_instability_rel"],
-         entry["intra_turn_instability_u_rel"]),
+        ("rate_error", entry.rate_error_rel, entry.rate_error_u_rel),
+        ("rate_instability", entry.rate_instability_rel, entry.rate_instability_u_rel),
+        ("intra_turn_instability", entry.intra_turn_instability_rel,
+         entry.intra_turn_instability_u_rel),
     ):
         t = tolerance_for(tol.get(quantity), rate)
         if t is None:
@@ -350,32 +365,35 @@ def _checks(cfg: Config, axis: str, entry: dict[str, Any], rule: str) -> list[di
         if quantity == "rate_instability":
             out.append(sigma_check(axis, rate, entry, t, rule))
             continue
-        out.append(judge(axis, rate, quantity, value, u, t, rule).to_dict())
+        out.append(judge(axis, rate, quantity, _required(value, f"{quantity}_rel"),
+                         _required(u, f"{quantity}_u_rel"), t, rule).to_dict())
     return out
 
 
-def sigma_check(axis: str, rate: float, entry: dict[str, Any], tolerance: float,
-                rule: str) -> dict[str, Any]:
+def sigma_check(axis: str, rate: float, entry: RateEntry, tolerance: float,
+                rule: str) -> JsonObject:
     """Conformity of eq. 2's sigma. Resolved above the counter chain's timing floor: judged
     with the one-sided chi-square upper limit as the guard (false-accept risk at most
     1 - SIGMA_UPPER_P for normal per-turn rates). Not resolved: stated as "< L" (L the same
     chi-square limit, which bounds the table's sigma whatever the floor's share) and judged
     by the one rule for limits (bench.report.conformity.judge_limit): pass when L is within the
     tolerance, not assessed only when it is not."""
-    value, u = entry["rate_instability_rel"], entry["rate_instability_u_rel"]
-    floor = entry["rate_instability_floor_rel"]
-    upper = entry["rate_instability_upper_rel"]
+    value = _required(entry.rate_instability_rel, "rate_instability_rel")
+    u = _required(entry.rate_instability_u_rel, "rate_instability_u_rel")
+    floor = _required(entry.rate_instability_floor_rel, "rate_instability_floor_rel")
+    upper = _required(entry.rate_instability_upper_rel, "rate_instability_upper_rel")
     level = f"{SIGMA_UPPER_P * 100:g} % chi-square"
-    if not entry["rate_instability_resolved"]:
+    if not entry.rate_instability_resolved:
         c = judge_limit(axis, rate, "rate_instability", value, u, upper, tolerance, rule,
                         level).to_dict()
         c.update(floor_rel=floor)
-        c["reason"] += (f" (sigma {value:.2g} is not resolved above the timing floor "
-                        f"{floor:.2g}: its {100 - SIGMA_UPPER_P * 100:g} % chi-square lower "
-                        "limit is at or below it)")
+        c["reason"] = str(c["reason"]) + (
+            f" (sigma {value:.2g} is not resolved above the timing floor "
+            f"{floor:.2g}: its {100 - SIGMA_UPPER_P * 100:g} % chi-square lower "
+            "limit is at or below it)")
         return c
     c = judge(axis, rate, "rate_instability", value, upper - value, tolerance, rule).to_dict()
-    c.update(u_rel=u, upper_rel=upper, lower_rel=entry["rate_instability_lower_rel"],
+    c.update(u_rel=u, upper_rel=upper, lower_rel=entry.rate_instability_lower_rel,
              floor_rel=floor, capability_ratio=u / tolerance,
              capability_ok=u / tolerance <= CAPABILITY_LIMIT)
     if rule == "guard-band" and value <= tolerance:
@@ -397,13 +415,13 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
     events = run.events()
     rule = _settings(cfg)["decision_rule"]
     done_in = units_done(events)
-    result_axes: dict[str, Any] = {}
-    checks: list[dict[str, Any]] = []
+    result_axes: dict[str, JsonObject] = {}
+    checks: list[JsonObject] = []
     complete = True
     for axis, spec in LadderSettings.from_config(cfg).axes.items():
         static = static_record(events, axis)
-        rates: list[dict[str, Any]] = []
-        pairs: list[dict[str, Any]] = []
+        rates: list[JsonObject] = []
+        pairs: list[JsonObject] = []
         for rate in spec.rates_dps:
             unit = f"{axis}/{rate:g}dps"
             if unit not in done_in:
@@ -417,29 +435,26 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
             pa = looked if isinstance(looked, PairAnalysis) \
                 else analyze_unit(raw, cfg, axis, rate, acqs, static)
             for r in pa.rates:
-                d = with_sigma_terms(r.to_dict())
-                d["session"] = done_in[unit]
+                d = with_sigma_terms(result_json.rate_json(r))
+                c = _checks(cfg, axis, RateEntry.from_json(d), rule)
                 # frames the FOG's decoder lost or found broken in this direction's halves
                 # (their samples are left out of the window; the integrals run on time)
-                d["fog_lost_frames"] = sum(h.fog_lost for h in acqs
-                                           if h.sign == (1 if r.set_rate_dps > 0 else -1))
-                c = _checks(cfg, axis, d, rule)
-                d["checks"] = c
-                d["verdict"] = "fail" if any(x["verdict"] == "fail" for x in c) else "pass"
+                lost = sum(h.fog_lost for h in acqs
+                           if h.sign == (1 if r.set_rate_dps > 0 else -1))
+                rates.append(result_json.with_outcome(
+                    d, session=done_in[unit], fog_lost_frames=lost, checks=c,
+                    verdict="fail" if any(x.get("verdict") == "fail" for x in c) else "pass"))
                 checks += c
-                rates.append(d)
-            pairs.append(pa.pair.to_dict())
+            pairs.append(result_json.pair_json(pa.pair))
         floor = None
         if static is not None:
             w = raw.static(static)
             hz = cfg.fog(axis).rate_hz
-            curve = allan_deviation(w, hz)
-            floor = {"source": "Allan deviation of a static FOG record",
-                     "samples": int(w.size), "duration_s": w.size / hz,
-                     "sample_std_dps": float(np.std(w, ddof=1)),
-                     "mean_dps": float(np.mean(w)),   # bias at rest (bench control)
-                     "allan_tau_s": list(curve.tau_s), "allan_dev_dps": list(curve.adev)}
-        result_axes[axis] = {"rates": rates, "pairs": pairs, "noise_floor": floor}
+            floor = result_json.noise_floor_json(
+                int(w.size), w.size / hz, float(np.std(w, ddof=1)),
+                float(np.mean(w)),   # bias at rest (bench control)
+                allan_deviation(w, hz))
+        result_axes[axis] = result_json.axis_json(rates, pairs, floor)
     return result_document(run, cfg, events, complete=complete, checks=checks, rule=rule,
                            raw_hashes=hashes,
                            method={**_settings(cfg),
@@ -508,13 +523,13 @@ def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
         out[f"rate_error_rel{sign}"] = r.rate_error_rel
         out[f"rate_error_u_rel{sign}"] = r.rate_error_u_rel
         # the station page's row: the same figures and checks result.json will hold
-        d = with_sigma_terms(r.to_dict())
-        checks = _checks(cfg, axis, d, rule)
+        entry = RateEntry.from_json(with_sigma_terms(result_json.rate_json(r)))
+        checks = _checks(cfg, axis, entry, rule)
         directions.append({
-            "set_rate_dps": r.set_rate_dps, "turns": d.get("turns"),
+            "set_rate_dps": r.set_rate_dps, "turns": entry.turns,
             "rate_error_rel": r.rate_error_rel, "rate_error_U_rel": r.rate_error_u_rel,
-            "rate_instability_rel": d.get("rate_instability_rel"),
-            "verdict": ("fail" if any(c["verdict"] == "fail" for c in checks)
+            "rate_instability_rel": entry.rate_instability_rel,
+            "verdict": ("fail" if any(c.get("verdict") == "fail" for c in checks)
                         else "pass" if checks else "not-assessed")})
     out["directions"] = directions
     spans, raw.temperatures = raw.temperatures, {}

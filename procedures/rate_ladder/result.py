@@ -4,14 +4,17 @@
 path), `LadderResult.conform` reads it leniently for the certificate (a malformed
 container dropped and named, the rest kept), `to_json` gives the document back byte for
 byte as `bench analyze` writes it (keys in their order, numbers as they were). Readers
-(certificate, DCC, records, station, summary) take attributes from here.
+(certificate, DCC, records, station, summary) take attributes from here; the writer at the
+end (`rate_json`, `pair_json`, `noise_floor_json`) lays the analysis's typed values out
+under the same keys, so a key is renamed here or nowhere.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TypedDict
+from typing import TYPE_CHECKING, TypedDict
 
 from bench.core import rundir_layout as layout
 from bench.report.result_frame import (
@@ -34,6 +37,22 @@ from bench.report.result_frame import (
     objects,
     text,
 )
+from drivers.units import SECONDS_PER_HOUR
+
+if TYPE_CHECKING:
+    # the writer's inputs, for its hints only: the readers (certificate, records, station)
+    # load this module without the analysis and numpy
+    from bench.analysis.allan import AllanCurve
+    from bench.analysis.crosscal import CrossCalibration, HalfMean
+    from bench.analysis.random_part import AveragedInstability, RandomPartResult
+    from bench.analysis.results import PairResult, RateResult, SystematicResult
+    from bench.analysis.systematic import (
+        BinnedSystematic,
+        HarmonicResult,
+        MainsResult,
+        NoiseInflation,
+    )
+    from bench.analysis.turns import CounterBudget, TurnsResult
 
 __all__ = ["Half", "Harmonic", "IntraTurn", "LadderAxis", "Mains", "LadderResult", "MalformedResult", "NoiseFloor", "PairEntry",
            "RateEntry", "add_budgets", "with_conditions_measured"]
@@ -527,3 +546,206 @@ def with_conditions_measured(doc: dict[str, object], fog_axes: Mapping[str, obje
         "room": None,
     }
     return doc
+
+
+# -- writing: the analysis's typed values as result.json spells them ---------------------------
+#
+# The analysis (bench/analysis, procedures/rate_ladder/analysis.py) computes typed values and
+# never spells a key; the functions below lay them out as CONTRACT §3's `axes.<axis>.rates[]`,
+# `pairs[]` and `noise_floor`, in the order result.json has always had them, and the readers
+# above take them back. Non-finite numbers become null (JSON has no NaN).
+
+def clean(x: object) -> JsonValue:
+    """Non-finite floats replaced by None, recursively; tuples as lists."""
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, Mapping):
+        return {str(k): clean(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [clean(v) for v in x]
+    if x is None or isinstance(x, str | int):
+        return x
+    raise TypeError(f"result.json cannot hold a {type(x).__name__}: {x!r}")
+
+
+def counter_budget_json(b: CounterBudget) -> JsonObject:
+    """The counter chain's timing terms (docs/method.md A1, D1)."""
+    return {"timestamp_u_s": b.timestamp_u_s, "trigger_jitter_s": b.trigger_jitter_s,
+            "timebase_limit_rel": b.timebase_limit_rel, "edge_u_s": b.edge_u_s,
+            "time_tie_u_s": b.time_tie_u_s,
+            "period_u_s": b.period_u_s, "timebase_u_rel": b.timebase_u_rel}
+
+
+def turns_json(tr: TurnsResult) -> JsonObject:
+    """Eq. 1-2 of one direction: the per-turn rates, the rate error and its budget, the
+    rate instability and its timing floor (docs/method.md A1-A2)."""
+    return {
+        "set_rate_dps": tr.set_rate_dps,
+        "turns": tr.turns,
+        "counter_rate_dps": list(tr.counter_rate_dps),
+        "mean_rate_dps": tr.mean_rate_dps,
+        "rate_error_rel": tr.rate_error_rel,
+        "rate_error_u_rel": tr.rate_error_u_rel,
+        "rate_instability_rel": tr.rate_instability_rel,
+        "rate_instability_floor_rel": tr.rate_instability_floor_rel,
+        "rate_error_budget": {"timing_u_rel": tr.timing_u_rel,
+                              "timebase_u_rel": tr.timebase_u_rel,
+                              "repeatability_u_rel": tr.repeatability_u_rel,
+                              "repeatability_basis": tr.repeatability_basis,
+                              "repeatability_dof": tr.repeatability_dof,
+                              "dof_eff": tr.dof_eff,
+                              "coverage_factor": tr.coverage_factor,
+                              **counter_budget_json(tr.budget)},
+    }
+
+
+def harmonic_json(h: HarmonicResult) -> JsonObject:
+    return {"order": h.order, "amplitude_rel": h.amplitude_rel,
+            "amplitude_u_rel": h.amplitude_u_rel, "phase_deg": h.phase_deg,
+            "phase_u_deg": h.phase_u_deg, "detected": h.detected}
+
+
+def mains_json(m: MainsResult) -> JsonObject:
+    return {"frequency_hz": m.frequency_hz, "amplitude_dps": m.amplitude_dps,
+            "amplitude_u_dps": m.amplitude_u_dps, "phase_deg": m.phase_deg,
+            "phase_u_deg": m.phase_u_deg, "detected": m.detected,
+            "significance_chi2": m.significance, "source": m.source}
+
+
+def binned_json(b: BinnedSystematic) -> JsonObject:
+    return {"bin_deg": b.bin_deg, "centres_deg": list(b.centres_deg),
+            "deviation_rel": list(b.deviation_rel), "u_rel": list(b.u_rel),
+            "peak_to_peak_rel": b.peak_to_peak_rel}
+
+
+def inflation_json(n: NoiseInflation) -> JsonObject:
+    return {"block_deg": n.block_deg, "blocks": n.blocks, "ratio": n.ratio,
+            "applied": n.factor}
+
+
+def systematic_json(s: SystematicResult) -> JsonObject:
+    """The systematic intra-turn rate (docs/method.md A4)."""
+    return {"harmonics": [harmonic_json(h) for h in s.harmonics],
+            "mains": mains_json(s.mains) if s.mains else None,
+            "binned": binned_json(s.binned),
+            "residual_std_dps": s.residual_std_dps,
+            "noise_inflation": inflation_json(s.inflation),
+            "detection": dict(s.detection)}
+
+
+def averaged_json(a: AveragedInstability) -> JsonObject:
+    """The random part averaged over an angle (docs/method.md A5)."""
+    from bench.analysis.random_part import LEVEL
+
+    return {"angle_deg": a.angle_deg, "instability_rel": a.instability_rel,
+            "u_rel": a.u_rel,
+            "floor_rel": a.floor_rel, "corrected_rel": a.corrected_rel,
+            "corrected_upper_rel": a.corrected_upper_rel,
+            "corrected_lower_rel": a.corrected_lower_rel, "resolved": a.resolved,
+            "interval_level": LEVEL, "dof": a.dof,
+            "blocks": a.blocks, "samples_per_block": a.samples_per_block}
+
+
+def random_json(r: RandomPartResult) -> JsonObject:
+    """The random intra-turn rate and its floor-corrected interval (docs/method.md A5)."""
+    from bench.analysis.random_part import LEVEL
+
+    return {"instability_rel": r.instability_rel, "floor_rel": r.floor_rel,
+            "floor_source": r.floor_source, "corrected_rel": r.corrected_rel,
+            "corrected_upper_rel": r.corrected_upper_rel,
+            "corrected_lower_rel": r.corrected_lower_rel,
+            "corrected_u_rel": r.corrected_u_rel, "interval_level": LEVEL,
+            "interval_method": "JCGM 101 Monte Carlo of raw^2 - floor^2 (scaled "
+                               "inverse chi-square per variance)",
+            "floor_dof": r.floor_dof, "resolved": r.resolved,
+            "bandwidth_hz": r.bandwidth_hz, "std_dps": r.std_dps,
+            "samples": r.samples, "averaged": [averaged_json(a) for a in r.averaged]}
+
+
+def rate_json(r: RateResult) -> JsonObject:
+    """One commanded rate and direction (docs/method.md A1-A5): `axes.<axis>.rates[]`
+    without what the ladder adds after judging it (`with_sigma_terms`, `with_outcome`)."""
+    from bench.analysis.random_part import std_interval_u_rel
+
+    d = turns_json(r.turns_result)
+    d["intra_turn_instability_rel"] = r.random.instability_rel
+    d["intra_turn_instability_corrected_rel"] = r.random.corrected_rel
+    # docs/method.md A5: U of a std from the record's samples (white random part assumed)
+    d["intra_turn_instability_u_rel"] = std_interval_u_rel(r.random.instability_rel,
+                                                          r.random.samples)
+    # docs/method.md A5: the corrected figure's U only when it is resolved (JCGM 101);
+    # otherwise it is stated as '< intra_turn.corrected_upper_rel'
+    d["intra_turn_instability_corrected_u_rel"] = r.random.corrected_u_rel
+    d["systematic"] = systematic_json(r.systematic)
+    d["intra_turn"] = random_json(r.random)
+    d["windows"] = [dict(w) for w in r.windows]
+    if r.verdict is not None:
+        d["verdict"] = r.verdict
+        d["judgement"] = clean(r.judgement)
+    return as_object(clean(d)) or {}
+
+
+def with_sigma_terms(d: JsonObject, u_rel: float, upper_rel: float, lower_rel: float,
+                     resolved: bool) -> JsonObject:
+    """A rate's entry with eq. 2's U, its chi-square limits and whether it is resolved above
+    the timing floor (docs/method.md A1-A2), added in place."""
+    d["rate_instability_u_rel"] = u_rel
+    d["rate_instability_upper_rel"] = upper_rel
+    d["rate_instability_lower_rel"] = lower_rel
+    d["rate_instability_resolved"] = resolved
+    return d
+
+
+def with_outcome(d: JsonObject, *, session: int, fog_lost_frames: int,
+                 checks: list[JsonObject], verdict: str) -> JsonObject:
+    """A rate's entry with the session that measured it, the FOG frames its halves lost,
+    its conformity checks and verdict, added in place."""
+    d["session"] = session
+    d["fog_lost_frames"] = fog_lost_frames
+    d["checks"] = list[JsonValue](checks)
+    d["verdict"] = verdict
+    return d
+
+
+def half_json(h: HalfMean) -> JsonObject:
+    return {"sign": h.sign, "turns": h.turns, "t_centre_s": h.t_centre_s,
+            "fog_mean_dps": h.fog_mean_dps, "fog_mean_u_dps": h.fog_mean_u_dps,
+            "counter_mean_dps": h.counter_mean_dps,
+            "counter_mean_u_dps": h.counter_mean_u_dps}
+
+
+def crosscal_json(c: CrossCalibration) -> JsonObject:
+    """k, w0 (at t_ref) and the bias drift with U (docs/method.md A3, eq. 5-6)."""
+    return {
+        "k": c.k, "k_u": c.k_u, "w0_dps": c.w0_dps, "w0_u_dps": c.w0_u_dps,
+        "w0_t_ref_s": c.t_ref_s,
+        "drift_dps_per_h": c.drift_dps_per_s * SECONDS_PER_HOUR,
+        "drift_u_dps_per_h": c.drift_u_dps_per_s * SECONDS_PER_HOUR,
+        "method": c.method, "drift_source": c.drift_source, "k_eq5": c.k_eq5,
+        "chi2": c.chi2, "dof": c.dof, "birge_ratio": c.birge_ratio,
+        "halves": [half_json(h) for h in c.halves],
+    }
+
+
+def pair_json(p: PairResult) -> JsonObject:
+    """One +/- pair's FOG cross-calibration (docs/method.md A3): `axes.<axis>.pairs[]`."""
+    d = {"rate_dps": p.rate_dps, **crosscal_json(p.cal),
+         "noise_inflation": inflation_json(p.noise_inflation),
+         "half_sessions": list(p.sessions), "bias_model": p.bias_model}
+    return as_object(clean(d)) or {}
+
+
+def noise_floor_json(samples: int, duration_s: float, sample_std_dps: float,
+                     mean_dps: float, curve: AllanCurve) -> JsonObject:
+    """The FOG at rest (docs/method.md A5): `axes.<axis>.noise_floor`."""
+    return {"source": "Allan deviation of a static FOG record",
+            "samples": samples, "duration_s": duration_s,
+            "sample_std_dps": sample_std_dps,
+            "mean_dps": mean_dps,   # bias at rest (bench control)
+            "allan_tau_s": list(curve.tau_s), "allan_dev_dps": list(curve.adev)}
+
+
+def axis_json(rates: list[JsonObject], pairs: list[JsonObject],
+              noise_floor: JsonObject | None) -> JsonObject:
+    return {"rates": list[JsonValue](rates), "pairs": list[JsonValue](pairs),
+            "noise_floor": noise_floor}
