@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING, Protocol, SupportsFloat, SupportsIndex
 
 import numpy as np
 
+from bench.report.axes_view import PairRow, RateRow
+
 if TYPE_CHECKING:   # matplotlib is imported when a plot is drawn (`bench validate` starts at once)
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
@@ -42,27 +44,16 @@ class IntraTurnFit(Protocol):
     def corrected_upper_rel(self) -> float | None: ...
 
 
-class RatePoint(Protocol):
-    """One commanded rate and direction's results (docs/method.md A1-A5)."""
+class RatePoint(RateRow, Protocol):
+    """One commanded rate and direction's results (docs/method.md A1-A5): what the station
+    reads (bench/report/axes_view.py), and the figures the plots draw besides."""
 
-    @property
-    def set_rate_dps(self) -> float: ...
-    @property
-    def turns(self) -> int | None: ...
-    @property
-    def rate_error_rel(self) -> float | None: ...
     @property
     def rate_error_u_rel(self) -> float | None: ...
     @property
-    def rate_instability_rel(self) -> float | None: ...
-    @property
     def rate_instability_u_rel(self) -> float | None: ...
     @property
-    def rate_instability_upper_rel(self) -> float | None: ...
-    @property
     def rate_instability_floor_rel(self) -> float | None: ...
-    @property
-    def rate_instability_resolved(self) -> bool | None: ...
     @property
     def intra_turn_instability_rel(self) -> float | None: ...
     @property
@@ -77,17 +68,12 @@ class RatePoint(Protocol):
     def intra(self) -> IntraTurnFit: ...
 
 
-class PairPoint(Protocol):
-    """One +/- pair's FOG cross-calibration (docs/method.md A3)."""
+class PairPoint(PairRow, Protocol):
+    """One +/- pair's FOG cross-calibration (docs/method.md A3), with the expanded
+    uncertainties as the analysis wrote them."""
 
     @property
-    def rate_dps(self) -> float: ...
-    @property
-    def k(self) -> float | None: ...
-    @property
     def k_u(self) -> float | None: ...
-    @property
-    def w0_dps(self) -> float | None: ...
     @property
     def w0_u_dps(self) -> float | None: ...
 
