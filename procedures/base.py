@@ -99,8 +99,11 @@ def run_header(run: RunDir, cfg: Config, events: list[JsonObject],
     for e in events_of(events, "identity"):
         identities[str_field(e, "axis")] = {k: v for k, v in e.items()
                                  if k not in ("utc", "t_s", "session", "event", "axis")}
+    from bench.core.journal import COMPLETED, session_endings
     starts = events_of(events, "session_start")
-    ends = events_of(events, "completed") + events_of(events, "abort")
+    # the run ends as its last session did (a resume is a session of the same run)
+    sessions = session_endings(events)
+    last = sessions[-1] if sessions else None
     raw_files = (raw_hashes or RawHashes(run)).result()
     return {
         "title": cfg.common.title,
@@ -113,13 +116,15 @@ def run_header(run: RunDir, cfg: Config, events: list[JsonObject],
         "instruments": identities,
         "dates": {"created_utc": meta["created_utc"],
                   "started_utc": starts[0]["utc"] if starts else None,
-                  "completed_utc": ends[-1]["utc"] if ends else None},
+                  "completed_utc": last.ended_utc if last else None},
         "conditions": dict(cfg.common.conditions),
         "specification": (dict(cfg.common.specification)
                           if cfg.common.specification is not None else None),
         "certificate": certificate_settings(cfg.procedure_path, dict(cfg.common.certificate)),
         "sessions": len(starts),
-        "aborted": bool(events_of(events, "abort")),
+        "aborted": last is not None and last.ended != COMPLETED,
+        "ended": last.ended if last else None,
+        "run_sessions": [x.to_json() for x in sessions],
         "raw_files": raw_files,
     }
 

@@ -112,6 +112,16 @@ def cmd_run(args: argparse.Namespace) -> int:
             err(str(e))
             return EXIT_INVALID
         cfg = _load(str(run.procedure_file), run.stand_file)
+        if cfg is not None:   # a resume is a session of the run: its performer too is
+            # authenticated by the run's register, before anything moves (and audited)
+            lab_copy = run.path / layout.LAB
+            gate = _start_gate(lab_copy if lab_copy.is_file() else None, cfg,
+                               bool(cfg.has_sim or args.sim), args)
+            if gate.refusal:
+                err("Not resumed: the lab register refuses:")
+                for line in gate.refusal:
+                    err(f"  {line}")
+                return EXIT_INVALID
     else:
         procedure = args.procedure
         if getattr(args, "example", None):
@@ -155,7 +165,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                  gate.meta())
     console = open_console(quiet=args.quiet, log_json=args.log_json)
     status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),
-                         progress=console, records=args.records)
+                         progress=console, records=args.records, performer=gate.performer)
     print(run.path)
     return status
 

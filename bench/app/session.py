@@ -137,8 +137,11 @@ class RunSession:
 
     def __init__(self, cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = False,
                  resume: bool = False, progress: PlainConsole | None = None,
-                 on_sim_started: SimHook | None = None, records: str | None = None) -> None:
+                 on_sim_started: SimHook | None = None, records: str | None = None,
+                 performer: Mapping[str, object] | None = None) -> None:
         self.cfg, self.run_dir, self.sim, self.yes, self.resume = cfg, run, sim, yes, resume
+        #: the account the register authenticated for this session (`--operator`), or None
+        self.performer = dict(performer) if performer else None
         self.progress = progress or open_console()
         self.on_sim_started = on_sim_started
         self.where = target(run.path.parent, records, self.progress.warn)
@@ -223,7 +226,7 @@ class RunSession:
         run.event("session_start", resume=self.resume, sim=self.simbench is not None,
                   done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
                   version=__version__, prompts="--yes" if self.yes else "operator",
-                  pid=os.getpid())
+                  pid=os.getpid(), performer=self.performer, os_user=_os_user())
         for t in overdue(cfg.stand_settings, dt.datetime.now(dt.UTC).date()):
             progress.line(overdue_warning(t))
             run.event("calibration_overdue", where=t.where, item=t.item,
@@ -368,7 +371,7 @@ class RunSession:
             stopped = ("AN AXIS COULD NOT BE TOLD TO STOP (above): check the table first"
                        if self.stops.axis_moving else "the axes were stopped")
             print(f"The run was aborted; {stopped}. Continue with: "
-                  f"bench run --resume {run.path}")
+                  f"{resume_command(run.path, self.yes)}")
         if run.session:
             outcome = self._journal("exit", status=self.status, cause=self.cause,
                                     later=self.later)
@@ -380,9 +383,25 @@ class RunSession:
             err(f"  also: closing the event log: {e}")
 
 
+def _os_user() -> str | None:
+    import getpass
+    try:
+        return getpass.getuser()
+    except (KeyError, OSError):
+        return None
+
+
+def resume_command(run_path: Path, yes: bool) -> str:
+    """The command that continues a run, as it works when typed: a run started unattended
+    (`--yes`) is resumed so too (without it, a prompt read off no terminal aborts)."""
+    return f"bench run --resume {run_path}" + (" --yes" if yes else "")
+
+
 def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = False,
                 resume: bool = False, progress: PlainConsole | None = None,
-                on_sim_started: SimHook | None = None, records: str | None = None) -> int:
+                on_sim_started: SimHook | None = None, records: str | None = None,
+                performer: Mapping[str, object] | None = None) -> int:
     """One session of a run (`bench run`, `bench run --resume`): its exit status."""
     return RunSession(cfg, run, sim=sim, yes=yes, resume=resume, progress=progress,
-                      on_sim_started=on_sim_started, records=records).run()
+                      on_sim_started=on_sim_started, records=records,
+                      performer=performer).run()

@@ -26,6 +26,7 @@ import os
 import shutil
 import threading
 from collections.abc import Callable, Iterable, Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TypedDict, TypeVar
 
@@ -197,6 +198,80 @@ def units_done(events: Iterable[Mapping[str, object]]) -> dict[str, int]:
     measured again in a later session counts there)."""
     return {str_field(e, "unit"): int_field(e, "session") for e in events
             if e.get("event") == "unit_done"}
+
+
+#: how a session ended, as the journal shows it (`session_endings`)
+COMPLETED, ABORTED, REFUSED = "completed", "aborted", "refused"
+#: a session whose process is gone without writing how it ended (kill -9, a power cut)
+KILLED = "killed or crashed"
+#: the event a later process writes for a session it found ended that way
+SESSION_LOST = "session_lost"
+
+
+@dataclass(frozen=True)
+class SessionEnding:
+    """One session of a run (the first, or a `--resume`), as its events tell it: when it
+    started and ended (UTC text), how it ended (None while it may still run), who
+    performed it (the authenticated account, else None) and its process id."""
+
+    session: int
+    started_utc: str
+    ended_utc: str | None
+    ended: str | None
+    performer: str | None
+    os_user: str | None
+    pid: int | None
+
+    def to_json(self) -> dict[str, object]:
+        return {"session": self.session, "started_utc": self.started_utc,
+                "ended_utc": self.ended_utc, "ended": self.ended,
+                "performer": self.performer, "os_user": self.os_user}
+
+
+def _text(value: object) -> str | None:
+    return value if isinstance(value, str) and value else None
+
+
+def session_endings(events: Iterable[Mapping[str, object]]) -> list[SessionEnding]:
+    """Every session of a run in order, with how it ended: `completed`, `aborted`
+    (a fault, the operator, an unanswered prompt), `refused` (before anything moved),
+    KILLED (a `session_lost` event a later process wrote, or a later session began
+    without one) or None (no word yet: the last session, maybe still running).
+    The run ends as its last session did."""
+    starts: dict[int, Mapping[str, object]] = {}
+    last_utc: dict[int, str] = {}
+    ends: dict[int, tuple[str, str]] = {}
+    for e in events:
+        s = e.get("session")
+        if not isinstance(s, int) or isinstance(s, bool):
+            continue
+        utc = _text(e.get("utc")) or ""
+        kind = e.get("event")
+        if kind == "session_start" and s not in starts:
+            starts[s] = e
+        if kind != SESSION_LOST:
+            last_utc[s] = utc
+        if kind == "completed":
+            ends[s] = (COMPLETED, utc)
+        elif kind in ("abort", "refused") and ends.get(s, ("",))[0] != COMPLETED:
+            ends[s] = (ABORTED if kind == "abort" else REFUSED, utc)
+        elif kind == SESSION_LOST and s not in ends:
+            ends[s] = (KILLED, _text(e.get("last_utc")) or last_utc.get(s, utc))
+    out: list[SessionEnding] = []
+    numbers = sorted(starts)
+    for i, s in enumerate(numbers):
+        st = starts[s]
+        ended: tuple[str | None, str | None] = ends.get(s, (None, None))
+        if ended[0] is None and i + 1 < len(numbers):   # a later session began: it is gone
+            ended = (KILLED, last_utc.get(s))
+        performer = st.get("performer")
+        pid = st.get("pid")
+        out.append(SessionEnding(
+            s, _text(st.get("utc")) or "", ended[1], ended[0],
+            _text(performer.get("account")) if isinstance(performer, Mapping)
+            else _text(performer), _text(st.get("os_user")),
+            pid if isinstance(pid, int) and not isinstance(pid, bool) else None))
+    return out
 
 
 class RunMeta(TypedDict):

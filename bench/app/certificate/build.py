@@ -321,8 +321,8 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
     rows += [
         ("Procedure", proc.title),
         ("Work started", utc_text(started)),
-        ("Work ended", (utc_text(completed) + (" (aborted)" if src.get("aborted") else ""))
-         if completed else "not completed"),
+        ("Work ended", (utc_text(completed) + _how_ended(src)) if completed
+         else "not completed"),
         ("Date of issue (authorisation)", "none: DRAFT, NOT AUTHORISED" if issue.draft
          else issue.issue_date),
         ("Statement of conformity", _overall(src, checks, proc)),
@@ -549,18 +549,54 @@ def _method_digest() -> str:
     return f", SHA-256 {sha256_file(path)[:16]}…" if path.is_file() else ""
 
 
+def _how_ended(src: Sources) -> str:
+    """How the run ended beside "Work ended": its last session's ending (a resume is a
+    session of the same run), nothing for a run that completed."""
+    ended = src.get("ended")
+    if isinstance(ended, str) and ended != "completed":
+        return f" ({ended})"
+    return " (aborted)" if src.get("aborted") and ended is None else ""
+
+
+def _ended_word(src: Sources) -> str:
+    ended = src.get("ended")
+    return {"killed or crashed": "was killed or crashed", "refused": "was refused"}.get(
+        ended if isinstance(ended, str) else "", "was aborted")
+
+
+def _session_lines(src: Sources) -> str:
+    """' Sessions: 1 from ... to ... UTC (aborted; performer ...); 2 ...' from result.json's
+    `run_sessions` (empty for a result written before it was kept)."""
+    listed = src.get("run_sessions")
+    if not isinstance(listed, list) or not listed:
+        return ""
+    parts = []
+    for x in listed:
+        if not isinstance(x, dict):
+            continue
+        who = x.get("performer")
+        by = (f"performer {who}" if who else
+              f"performer not recorded (OS user {x.get('os_user') or 'unknown'})")
+        end = utc_text(x.get("ended_utc")) if x.get("ended_utc") else "no end written"
+        parts.append(f"session {x.get('session')} from {utc_text(x.get('started_utc'))} to "
+                     f"{end} ({x.get('ended') or 'running'}; {by})")
+    return " Sessions: " + "; ".join(parts) + "." if parts else ""
+
+
 def _deviations(src: Sources, proc: Procedure) -> tuple[Block, ...]:
     blocks: list[Block] = list(proc.parts.certificate_method_deviations(src))
     run: list[str] = []
     sessions = src.get("sessions")
+    listed = _session_lines(src)
     if isinstance(sessions, int) and sessions > 1:
         run.append(f"The run was interrupted and resumed: it ran in {sessions} sessions. Each "
-                   "unit (a ± pair) was measured whole within one session.")
+                   "unit (a ± pair) was measured whole within one session." + listed)
     elif isinstance(sessions, list) and len(sessions) > 1:
-        run.append(f"The run was interrupted and resumed: it ran in {len(sessions)} sessions.")
+        run.append(f"The run was interrupted and resumed: it ran in {len(sessions)} sessions."
+                   + listed)
     if src.get("aborted"):
-        run.append("The run was aborted before every step was done; the points not measured "
-                   "are absent from the results.")
+        run.append(f"The run {_ended_word(src)} before every step was done; the points not "
+                   "measured are absent from the results.")
     if str(src.get("verdict")) == "incomplete":
         run.append("The result is incomplete: no statement of conformity is made for the "
                    "missing points.")
