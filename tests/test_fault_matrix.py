@@ -151,7 +151,9 @@ def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str, tmp_path
     assert status2 == EXIT_PASS, [e for e in again.events() if e["event"] == "abort"]
     assert _raw_hashes(again, 1) == before          # the first session's bytes untouched
     result = json.loads((run.path / "result.json").read_text())
-    assert result["sessions"] == 2 and result["aborted"] is True
+    # the run ends as its last session did (issue 57): the resume completed it
+    assert result["sessions"] == 2 and result["aborted"] is False
+    assert [s["ended"] for s in result["run_sessions"]] == ["aborted", "completed"]
     for r in result["axes"]["outer"]["rates"]:
         err, u = r["rate_error_rel"], r["rate_error_u_rel"]
         assert abs(err - TRUTH_REL) <= HARD_LIMIT_U * u, (r["set_rate_dps"], err, u)

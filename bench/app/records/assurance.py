@@ -53,8 +53,8 @@ def run_statuses(run_path: Path, url: str, result: Mapping[str, object] | None =
     own check values (registered or not), with no point later than this run."""
     record = record_of(run_path, as_object(result))
     when = _aware(record.date_utc)
-    extra = [CheckPoint(record.uid, record.run_dir, record.serial, when, c)
-             for c in record.checks]
+    extra = [CheckPoint(record.uid, record.run_dir, record.serial, when, c,
+                        simulated=record.simulated) for c in record.checks]
     out = []
     with Records.open(url) as rec:
         for serial in dict.fromkeys(c.serial for c in record.checks):
@@ -146,7 +146,7 @@ def warn_at_start(stand: StandSettings, where: RecordsTarget, warn: Warn
                 if inst.serial not in stated and not any(p.table_serial == serial
                                                          for p in pts):
                     continue
-                s = instrument_status(rec, inst.serial)
+                s = instrument_status(rec, inst.serial, simulated=stand.simulated)
                 if s is not None and s.state == OUT_OF_CONTROL:
                     texts.append(f"WARNING: {s.name} is OUT OF CONTROL: "
                                  f"{s.open_signals[0].line}; a certificate resting on it "

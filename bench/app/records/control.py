@@ -25,7 +25,7 @@ import datetime as dt
 import math
 import statistics
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from bench.app.records.checks import ATTRIBUTES, quantities
 from bench.app.records.store import CheckPoint, Records, ReviewInfo
@@ -195,6 +195,8 @@ class InstrumentStatus:
     open_signals: tuple[Signal, ...] = ()       # not covered by a review: refuse
     reviewed_signals: tuple[Signal, ...] = ()
     reviews: tuple[ReviewInfo, ...] = field(default=())
+    #: charted from runs on the twins (a real run's chart never holds them)
+    simulated: bool = False
 
     @property
     def rule(self) -> str | None:
@@ -230,6 +232,8 @@ class InstrumentStatus:
             text += (f"; signal(s) up to {r.through_utc:%Y-%m-%d %H:%M UTC} reviewed by "
                      f"{r.reviewer} on {r.utc:%Y-%m-%d %H:%M UTC}: {r.text}"
                      if r.through_utc else f"; reviewed by {r.reviewer}: {r.text}")
+        if self.simulated:
+            text += "; SIMULATED runs only (kept apart from real runs)"
         return f"{self.name}: {text}"
 
     @property
@@ -263,12 +267,18 @@ def status_of(serial: str, role: str, model: str | None, points: Sequence[CheckP
 
 
 def instrument_status(rec: Records, serial: str, extra: Sequence[CheckPoint] = (),
-                      through: dt.datetime | None = None) -> InstrumentStatus | None:
+                      through: dt.datetime | None = None, simulated: bool | None = None
+                      ) -> InstrumentStatus | None:
     """One instrument's status from the records, with `extra` points (a run not yet
-    registered) and only points up to `through` (the run a certificate is about)."""
+    registered) and only points up to `through` (the run a certificate is about).
+
+    Runs on the twins and real runs are charted apart (twins report the serials a stand
+    file states): `simulated` picks which; by default the kind of the `extra` run, else
+    the real runs, or the simulated ones for an instrument that has no real run."""
     known = {i.serial: i for i in rec.instruments()}
     pts = [p for p in rec.checks(serial) if p.run_uid not in {e.run_uid for e in extra}]
     pts += list(extra)
+    pts = same_kind(pts, extra[0].simulated if extra and simulated is None else simulated)
     if through is not None:
         pts = [p for p in pts if p.date_utc is None or p.date_utc <= through]
     epoch = dt.datetime.min.replace(tzinfo=dt.UTC)
@@ -278,7 +288,16 @@ def instrument_status(rec: Records, serial: str, extra: Sequence[CheckPoint] = (
     info = known.get(serial)
     role = info.role if info else (extra[0].check.role if extra else "instrument")
     model = info.model if info else (extra[0].check.model if extra else None)
-    return status_of(serial, role, model, pts, rec.reviews(serial) if info else [])
+    status = status_of(serial, role, model, pts, rec.reviews(serial) if info else [])
+    return replace(status, simulated=bool(pts) and pts[0].simulated)
+
+
+def same_kind(points: Sequence[CheckPoint], simulated: bool | None) -> list[CheckPoint]:
+    """The points of real runs, or of runs on the twins (`simulated`); None: the real ones
+    where there are any, else the simulated ones."""
+    if simulated is None:
+        simulated = not any(not p.simulated for p in points)
+    return [p for p in points if p.simulated == simulated]
 
 
 def all_statuses(rec: Records) -> list[InstrumentStatus]:

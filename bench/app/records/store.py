@@ -156,6 +156,8 @@ class CheckPoint:
     table_serial: str
     date_utc: dt.datetime | None
     check: CheckRecord
+    #: from a run on the twins: kept out of a real run's control-chart baseline
+    simulated: bool = False
 
 
 @dataclass(frozen=True)
@@ -384,10 +386,11 @@ class Records:
         epoch = dt.datetime.min.replace(tzinfo=dt.UTC)
         return sorted(out, key=lambda x: (x.date_utc or epoch, x.id))
 
-    def drafts(self, limit: int = 50) -> list[tuple[str, str, str, dt.datetime | None,
-                                                    str | None]]:
+    def drafts(self, limit: int = 50, simulated: bool = False
+               ) -> list[tuple[str, str, str, dt.datetime | None, str | None]]:
         """Runs that ended with a verdict (pass or fail) and hold no certificate number: drafts
-        waiting for a signatory, newest first, as (serial, run_dir, verdict, date, operator)."""
+        waiting for a signatory, newest first, as (serial, run_dir, verdict, date, operator).
+        Runs on the twins (`simulated=True`) are listed apart: they describe no item."""
         r, t = s.runs.c, s.tables.c
         date = sa.func.coalesce(r.completed_utc, r.started_utc, r.created_utc)
         with self.engine.connect() as conn:
@@ -395,7 +398,7 @@ class Records:
                 sa.select(t.serial, r.run_dir, r.verdict, date.label("date"), r.operator)
                 .join(s.tables, r.table_id == t.id)
                 .where(r.certificate_number.is_(None), r.verdict.in_(("pass", "fail")),
-                       r.aborted.is_(False))
+                       r.aborted.is_(False), r.simulated.is_(simulated))
                 .order_by(date.desc(), r.id.desc()).limit(limit)).all()
         return [(x.serial, x.run_dir, x.verdict, _utc(x.date), x.operator) for x in rows]
 
@@ -453,7 +456,7 @@ class Records:
         with self.engine.connect() as conn:
             rows = conn.execute(
                 sa.select(s.checks, r.uid, r.run_dir, r.completed_utc, r.started_utc,
-                          r.created_utc, t.serial.label("table_serial"))
+                          r.created_utc, r.simulated, t.serial.label("table_serial"))
                 .join(s.runs, c.run_id == r.id).join(s.instruments, c.instrument_id == i.id)
                 .join(s.tables, r.table_id == t.id)
                 .where(i.serial == serial)).all()
@@ -464,7 +467,7 @@ class Records:
             run_uid=x.uid, run_dir=x.run_dir, table_serial=x.table_serial,
             date_utc=_utc(x.completed_utc or x.started_utc or x.created_utc),
             check=CheckRecord(serial, "", None, x.axis, x.quantity, x.set_rate_dps, x.value,
-                              x.u, x.unit)) for x in rows]
+                              x.u, x.unit), simulated=bool(x.simulated)) for x in rows]
 
     def add_review(self, serial: str, reviewer: str, text: str, status: str | None,
                    through_utc: dt.datetime | None, host: str | None = None,

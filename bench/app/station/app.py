@@ -130,7 +130,9 @@ def create_app(settings: StationSettings,
                                                      fleet.instrument_serials())
         return render_template("lab.html.j2", fleet=fleet.benches(),
                                lab_url=redact(records.url), due=records.due_list(),
-                               drafts=records.drafts(), instruments=instruments,
+                               drafts=records.drafts(),
+                               sim_drafts=records.drafts(simulated=True),
+                               instruments=instruments,
                                notes=notes, runs=list_runs(runs), version=bench.__version__)
 
     @app.get("/bench/<bench_name>/<uid>")

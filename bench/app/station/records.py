@@ -13,6 +13,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from bench.app.db import away_text
 from bench.app.records import Records, RecordsError, target
 from bench.app.records.control import OUT_OF_CONTROL, all_statuses, instrument_status
 from bench.app.records.control_plot import control_png
@@ -125,12 +126,19 @@ class RecordsView:
                  "due": _iso(d.due_date), "status": d.status,
                  "overdue": d.days_left is not None and d.days_left < 0} for d in items]
 
-    def drafts(self, limit: int = 50) -> list[dict[str, JsonLike]]:
-        """Runs ended with a verdict and no certificate number yet, newest first."""
+    def drafts(self, limit: int = 50, simulated: bool = False
+               ) -> list[dict[str, JsonLike]] | None:
+        """Runs ended with a verdict and no certificate number yet, newest first (runs on
+        the twins apart, `simulated`); None when the records cannot be read now (the page
+        says it does not know, never "no draft")."""
         with self._open() as rec:
             if rec is None:
-                return []
-            rows = rec.drafts(limit)
+                return [] if self._absent() else None
+            try:
+                rows = rec.drafts(limit, simulated)
+            except Exception as e:  # noqa: BLE001 - the server away: the page says so
+                self.error = away_text(self.url, e)
+                return None
         return [{"serial": serial, "run": run, "verdict": verdict,
                  "date_utc": date.strftime("%Y-%m-%d %H:%M") if date else "-",
                  "operator": operator} for serial, run, verdict, date, operator in rows]
