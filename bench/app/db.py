@@ -81,3 +81,37 @@ def redact(url: str) -> str:
         return sa.engine.make_url(url).render_as_string(hide_password=True)
     except Exception:  # noqa: BLE001
         return url
+
+
+def reason_in_words(e: BaseException) -> str:
+    """Why a database could not be read, in words: the driver's own reason without its
+    class name or SQLAlchemy's wrapping (a psycopg `OperationalError: connection failed:
+    ... Connection refused` is "the server refuses connections (not running, or not
+    listening there)")."""
+    text = str(getattr(e, "orig", None) or e).strip()
+    low = text.lower()
+    known = (("connection refused", "the server refuses connections (not running, or not "
+                                    "listening there)"),
+             ("timeout expired", "no answer from the server (cut from the network?)"),
+             ("timed out", "no answer from the server (cut from the network?)"),
+             ("password authentication failed", "the server refuses the login (password "
+                                                "authentication failed)"),
+             ("no password supplied", "no password for the login (~/.pgpass)"),
+             ("the database system is shutting down", "the server is shutting down"),
+             ("the database system is starting up", "the server is starting up"),
+             ("terminating connection", "the server ended the connection (restarted?)"),
+             ("server closed the connection", "the server closed the connection "
+                                              "(restarted?)"),
+             ("could not translate host name", "the server's host name is unknown"),
+             ("no such host", "the server's host name is unknown"))
+    for marker, words in known:
+        if marker in low:
+            return words
+    first = text.splitlines()[0] if text else type(e).__name__
+    return first.split(": ", 1)[1] if first.startswith(("psycopg", "sqlalchemy")) and \
+        ": " in first else first
+
+
+def away_text(url: str, e: BaseException, what: str = "lab database") -> str:
+    """The words a page or a console shows while a database is away."""
+    return f"the {what} {redact(url)} is away: {reason_in_words(e)}"

@@ -60,11 +60,15 @@ class Courier:
                     self._journal("down", str(e))
                 return False
             except Exception as e:  # noqa: BLE001 - a bug here must not touch the run
-                self.warn(f"WARNING: delivering to the lab database failed: {e!r}")
+                self.warn(f"WARNING: delivering to the lab database failed "
+                          f"({type(e).__name__}, a fault of this bench's software: please "
+                          f"report it): {e}")
                 return False
             if self.down is not None:
                 self.down = None
                 self._journal("up", None)
+                self.warn("lab database: link back; what the outage held back is "
+                          "delivered")
             return True
 
     def _journal(self, state: str, reason: str | None) -> None:

@@ -26,7 +26,7 @@ from sqlalchemy.dialects.postgresql import insert as pg_insert
 from sqlalchemy.engine import Connection
 from sqlalchemy.sql.elements import ColumnElement
 
-from bench.app.db import redact
+from bench.app.db import away_text, redact
 from bench.app.fleet import CHANNEL
 from bench.app.fleet.health import HealthSample
 from bench.app.fleet.journal import Line, new_lines
@@ -175,9 +175,7 @@ class LabLink:
             raise
         except Exception as e:  # noqa: BLE001 - a lost server, a refused role: say which
             self.close()       # a fresh connection next time (a restarted server)
-            text = str(getattr(e, "orig", None) or e).strip().splitlines()
-            raise SyncError(f"lab database {redact(self.url)}: "
-                            f"{text[0] if text else type(e).__name__}") from e
+            raise SyncError(away_text(self.url, e)) from e
 
     def _deliver(self, run_path: Path, outbox: Outbox, bench: str,
                  health: HealthSample | None, register: bool, batch_lines: int) -> Delivery:

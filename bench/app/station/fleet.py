@@ -22,7 +22,7 @@ from typing import Protocol
 import sqlalchemy as sa
 from sqlalchemy.engine import Engine
 
-from bench.app.db import engine_url, make_engine, redact
+from bench.app.db import away_text, engine_url, make_engine
 from bench.app.fleet import CHANNEL
 from bench.app.records import schema as s
 from bench.app.records.extract import figures_of
@@ -103,14 +103,8 @@ class Notifications:
                         for _ in conn.notifies(timeout=1.0):
                             self._bump()
             except Exception as e:  # noqa: BLE001 - the server away: retry, say so
-                self.error = f"{redact(self.url)}: {_first_line(e)}"
+                self.error = away_text(self.url, e)
                 self._stop.wait(1.0)
-
-
-def _first_line(e: BaseException) -> str:
-    """The driver's own first line of an error (not SQLAlchemy's wrapping)."""
-    text = str(getattr(e, "orig", None) or e).strip()
-    return text.splitlines()[0] if text else type(e).__name__
 
 
 def _naive(stamp: object) -> dt.datetime | None:
@@ -196,7 +190,7 @@ class FleetView:
             state = self._benches()
             self.error = None
         except Exception as e:  # noqa: BLE001 - the server away: the page says so
-            self.error = f"lab database {redact(self.url)}: {_first_line(e)}"
+            self.error = away_text(self.url, e)
             state = {"benches": [], "now_utc": None, "error": self.error}
         if version is not None:
             with self._lock:
@@ -315,7 +309,7 @@ class FleetView:
                     .join(s.bench_runs, br.uid == r.uid)
                     .where(br.id.in_(newest)).order_by(i.serial)).scalars())
         except Exception as e:  # noqa: BLE001 - the page says why the list is empty
-            self.error = f"lab database {redact(self.url)}: {_first_line(e)}"
+            self.error = away_text(self.url, e)
             return []
 
     # -- one run ------------------------------------------------------------------------
