@@ -25,6 +25,7 @@ import json
 import os
 import shutil
 import threading
+import uuid
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -286,6 +287,9 @@ class RunMeta(TypedDict):
     stand_sha256: str
     created_utc: str
     bench_version: str
+    #: the run's own identity, random: distinct for two benches that start the same
+    #: procedure and stand in the same second (their folders may share a name)
+    run_uid: str
 
 
 #: the event a run writes when it opens a FOG while its clock runs: where the raw
@@ -373,6 +377,7 @@ class RunDir:
             "stand_sha256": sha256_file(stand_path),
             "created_utc": utc_now(),
             "bench_version": bench.__version__,
+            "run_uid": uuid.uuid4().hex,
         }
         (path / layout.META).write_text(json.dumps(meta, indent=2) + "\n")
         (path / layout.EVENTS).touch()

@@ -118,8 +118,12 @@ def parse_utc(stamp: object) -> dt.datetime | None:
 
 
 def run_uid(meta: Mapping[str, object], run_dir: str) -> str:
-    """Stable over re-analysis and re-import, distinct between benches: creation time to
-    the millisecond, directory name and the input files' digests."""
+    """Stable over re-analysis and re-import, distinct between benches: the random uid
+    meta.json was given when the run was created; for a run from before it, creation time
+    to the millisecond, directory name and the input files' digests."""
+    own = meta.get("run_uid")
+    if isinstance(own, str) and own:
+        return own
     key = "|".join(str(meta.get(k, "")) for k in ("created_utc", "procedure_sha256",
                                                   "stand_sha256")) + "|" + run_dir
     return hashlib.sha256(key.encode()).hexdigest()[:32]
