@@ -163,8 +163,10 @@ class RunSession:
     def run(self) -> int:
         """The session, delivered to the lab's server as it goes when the records are one
         (bench/app/fleet: in the background, never failing the run; once more at its end)."""
-        from bench.app.fleet.live_run import delivered
+        from bench.app.fleet.live_run import delivered, report_lost
 
+        report_lost(self.run_dir.path.parent, self.where, self.cfg.stand_settings.bench_name,
+                    self.progress.warn)
         with delivered(self.run_dir, self.where, self.cfg.stand_settings.bench_name,
                        self.progress.warn, err):
             return self._run()

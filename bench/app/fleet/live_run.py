@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 from bench.app.fleet.sync import bench_name, is_lab_server
 from bench.app.records.hooks import RecordsTarget
@@ -35,3 +36,27 @@ def delivered(run: RunDir, where: RecordsTarget, stated_name: str | None, warn: 
     finally:
         courier.warn = warn_after
         courier.finish()
+
+
+def report_lost(runs_dir: Path, where: RecordsTarget, stated_name: str | None, warn: Warn
+                ) -> None:
+    """At a run's start: journal every run of the runs folder whose bench process is gone
+    without an end (bench/app/fleet/lost.py), say so, and deliver those runs to the lab
+    database when the records are one (an unreachable one: the next sync does it)."""
+    from bench.app.fleet.lost import mark_lost_runs
+
+    lost = mark_lost_runs(runs_dir, "bench run")
+    for found in lost:
+        warn(f"found: {found.line}")
+    if not lost or not is_lab_server(where.url):
+        return
+    from bench.app.fleet.outbox import Outbox
+    from bench.app.fleet.sync import LabLink, SyncError
+
+    try:
+        with LabLink(where.url, where.interval_for) as link:
+            for found in lost:
+                link.deliver(found.run_path, Outbox(runs_dir, where.url),
+                             bench_name(found.run_path, stated_name), register=False)
+    except SyncError as e:
+        warn(f"WARNING: {e}; `bench records sync` tells the lab later")

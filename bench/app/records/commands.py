@@ -318,6 +318,10 @@ def cmd_sync(args: argparse.Namespace) -> int:
     if args.batch < 1:
         _err("bench records sync: --batch: expected at least 1 line")
         return EXIT_INVALID
+    from bench.app.fleet.lost import mark_lost_runs
+
+    for found in mark_lost_runs(where.runs_dir, "bench records sync"):
+        print(found.line)
     try:
         done = sync_folder(where.runs_dir, where.url, batch_lines=args.batch,
                            interval_for=where.interval_for)

@@ -37,6 +37,7 @@ from bench.app.station.view import (
     progress_view,
 )
 from bench.core import rundir_layout as layout
+from bench.core.journal import KILLED, SESSION_LOST
 from bench.core.registry import declared_figures
 from bench.report.figures import spec_for
 from bench.report.result_frame import ResultFrame
@@ -52,7 +53,8 @@ INSTRUMENT_SILENT_S = 2.0
 SHARED_S = 0.25
 #: the events a bench's row and page are built from (the rest stay in the database)
 KINDS = ("plan", "step_start", "step_done", "session_start", "exit", "pair", "pair_failed",
-         "abort", "safe_stop", "refused", "completed", "settled", "prompt", "lab_link")
+         "abort", "safe_stop", "refused", "completed", "settled", "prompt", "lab_link",
+         SESSION_LOST)
 LOG_KINDS = ("abort", "safe_stop", "prompt", "completed", "exit", "session_start", "pair",
              "pair_failed", "settled", "refused", "lab_link")
 
@@ -223,6 +225,7 @@ class FleetView:
         session_no = starts[-1].get("session") if starts else None
         session = [ev for ev in events if ev.get("session") == session_no]
         exit_ev = next((ev for ev in reversed(session) if ev.get("event") == "exit"), None)
+        lost = next((ev for ev in session if ev.get("event") == SESSION_LOST), None)
         heard_s = _seconds(now, x.received_utc)
         last_event_s = _seconds(now, x.last_event_utc)
         cause = None
@@ -234,6 +237,10 @@ class FleetView:
             cause = exit_ev.get("cause")
         elif not starts:
             status = "created"
+        elif lost is not None:     # its bench found its process gone (bench/app/fleet/lost.py)
+            status = "stopped"
+            cause = (f"ended: {KILLED} (the bench process is gone without an end; "
+                     f"found by `{lost.get('found_by') or 'the bench'}`)")
         else:
             status = "running"
         silent = status in ("running", "created") and heard_s is not None and heard_s > SILENT_S
@@ -241,7 +248,8 @@ class FleetView:
         prog["completed"] = any(ev.get("event") == "completed" for ev in session)
         view_state: Mapping[str, object] = {"status": status, "progress": prog, "cause": cause,
                       "sessions": len(starts), "session": session_no,
-                      "ended_utc": exit_ev.get("utc") if exit_ev else None, "later": []}
+                      "ended_utc": exit_ev.get("utc") if exit_ev else (
+                          lost.get("last_utc") if lost else None), "later": []}
         health = self._health(x, now, status == "running" and not silent)
         pairs = pair_rows(events)
         last = pairs[-1] if pairs else None
