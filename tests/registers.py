@@ -17,7 +17,7 @@ from tests.conftest import cli
 
 #: account: (password, roles, full name, function)
 ACCOUNTS: dict[str, tuple[str, tuple[str, ...], str, str | None]] = {
-    "admin": ("admin-pass-1", ("admin",), "R. Admin", "Register administrator"),
+    "admin": ("keeper-of-keys-1", ("admin",), "R. Admin", "Register administrator"),
     "P. Petrov": ("petrov-pass-1", ("signatory", "reviewer"), "P. Petrov",
                   "Technical manager (authorised signatory)"),
     "A. Tester": ("tester-pass-1", ("signatory",), "A. Tester", "Head of calibration"),
@@ -39,8 +39,9 @@ def fill(url: str) -> None:
         reg.init("admin", ACCOUNTS["admin"][2], password("admin"))
         admin = reg.authenticate("admin", password("admin"), "admin")
         for name, (pw, roles, full, function) in ACCOUNTS.items():
-            if name != "admin":
-                reg.add_account(admin, name, full, roles, pw, function)
+            if name != "admin":     # an admin-set password, changed by its holder (issue 53)
+                reg.add_account(admin, name, full, roles, pw + "-initial", function)
+                reg.change_password(name, pw + "-initial", pw)
 
 
 def sqlite_register(folder: Path) -> str:

@@ -73,6 +73,16 @@ def add_records_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     syn.add_argument("--runs", default=DEFAULT_RUNS, help="the runs folder (runs/)")
     syn.add_argument("--batch", type=int, default=500, metavar="LINES",
                      help="event lines per transaction (500)")
+    chk = rsub.add_parser("check", help="compare what the lab database holds of runs (events, "
+                                        "raw digests, result) with their run directories",
+                          description="For each RUN: every event line the lab database holds "
+                          "against events.jsonl (by line number), the result against "
+                          "result.json, and each raw file's SHA-256 the result lists against "
+                          "the file. Reads only. Exit 0 equal, 1 a difference (or not yet "
+                          "delivered), 2 not a run directory or not a lab server.")
+    chk.add_argument("runs", nargs="+", metavar="RUN", help="run directories")
+    chk.add_argument("--records", metavar="URL", help="the lab database (default: the run's "
+                                                      "lab file's records:)")
     due = sub.add_parser("due", help="tables due or overdue for recertification")
     due.add_argument("--records", help="records database URL")
     due.add_argument("--runs", default=DEFAULT_RUNS, help="runs folder (records.sqlite, lab.yaml)")
@@ -133,8 +143,14 @@ def add_register_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     ini.add_argument("url", help="sqlite:///PATH or postgresql://ROLE@HOST/DB (the owner)")
     ini.add_argument("--admin", required=True, metavar="NAME", help="the first admin account")
     ini.add_argument("--full-name", help="the admin's full name")
-    ini.add_argument("--bench-role", metavar="ROLE", help="PostgreSQL: the benches' database "
-                     "role, granted read, audit append and issue through functions only")
+    ini.add_argument("--service-role", metavar="ROLE", action="append", default=[],
+                     help="PostgreSQL: the register service's database role (bench register "
+                     "serve): checks passwords, changes accounts, allocates and issues")
+    ini.add_argument("--bench-role", metavar="ROLE", action="append", default=[],
+                     help="PostgreSQL: a bench's database role: reads the register (never a "
+                     "password hash) and issues nothing itself")
+    ini.add_argument("--station-role", metavar="ROLE", action="append", default=[],
+                     help="PostgreSQL: the station's database role: reads, like a bench's")
     ini.add_argument("--password-stdin", action="store_true",
                      help="read the admin's new password from standard input")
     usr = rs.add_parser("user", help="accounts").add_subparsers(
@@ -145,6 +161,38 @@ def add_register_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     ua.add_argument("--full-name", help="printed under a signature (default: NAME)")
     ua.add_argument("--function", help="the person's function in the laboratory")
     common(ua)
+    up = usr.add_parser("passwd", help="change a password: your own (--as NAME), or as an "
+                        "admin another's (its holder must change it at the next login)")
+    up.add_argument("name")
+    common(up)
+    for verb, what in (("disable", "an account can no longer log in, sign or run"),
+                       ("enable", "a disabled account again")):
+        uv = usr.add_parser(verb, help=what + " (an admin acts)")
+        uv.add_argument("name")
+        common(uv)
+    ur = usr.add_parser("role", help="grant or revoke a role (an admin acts)")
+    ur.add_argument("name")
+    g = ur.add_mutually_exclusive_group(required=True)
+    g.add_argument("--grant", choices=ROLES, metavar="ROLE")
+    g.add_argument("--revoke", choices=ROLES, metavar="ROLE")
+    common(ur)
+    ul = usr.add_parser("list", help="the accounts, their roles and password state")
+    common(ul, acting=False)
+    st = rs.add_parser("settings", help="the register's settings (lockout, password "
+                       "age, DCC signing certificate)").add_subparsers(
+        dest="settings_command", required=True, metavar="ACTION")
+    ss = st.add_parser("set", help="change a setting (an admin acts; audited)")
+    ss.add_argument("key")
+    ss.add_argument("value")
+    common(ss)
+    sl = st.add_parser("list", help="the settings in force")
+    common(sl, acting=False)
+    sv = rs.add_parser("serve", help="the lab's register service: the one process that "
+                       "checks passwords and issues (docs/register.md)")
+    sv.add_argument("--db", metavar="URL", help="the register database as the service's "
+                    "role (default: $BENCH_REGISTER_DB)")
+    sv.add_argument("--host", default="127.0.0.1", help="address to bind (127.0.0.1)")
+    sv.add_argument("--port", type=int, default=8741, help="TCP port (8741; 0 picks one)")
     eq = rs.add_parser("equipment", help="the equipment inventory").add_subparsers(
         dest="equipment_command", required=True, metavar="ACTION")
     ea = eq.add_parser("add", help="record a standard or instrument and its calibration")

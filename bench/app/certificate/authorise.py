@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import contextvars
-import datetime as dt
 import hashlib
 import json
 import os
@@ -336,9 +335,12 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
         kept_html = issue_dir(run_path, previous[-1].number) / HTML_NAME
         old_html = kept_html.read_text(encoding="utf-8") if kept_html.is_file() else None
     revision = len(previous) + 1
+    try:
+        issued_utc = reg.begin_issue(acct, number)    # the register's clock, not ours
+    except RegisterError as e:
+        return _refuse([f"the register refused the issue: {e}"], run_path)
     issue = register.Issue(
-        register.numbered(number, revision), revision,
-        dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        register.numbered(number, revision), revision, issued_utc,
         previous[-1].number if previous else None, result_digest(result_bytes),
         signatory=who.name, function=who.function or None,
         reason=(reason or "").strip() or None, meaning=MEANING_ISSUE,
@@ -370,7 +372,7 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
         _err(f"bench authorise: not issued: the DCC does not validate ({run_path})")
         return EXIT_FAILED
     try:
-        rev = reg.issue(number, revision, acct, issue.issued_utc, _files_sha256(work),
+        rev = reg.issue(number, revision, acct, _files_sha256(work),
                         issue.reason, {"run_dir": run_path.name, "signatory": acct.name})
     except RegisterError as e:
         _discard(work)

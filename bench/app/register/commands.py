@@ -55,21 +55,30 @@ def _run(args: argparse.Namespace) -> int:
             pw = Passwords(args.password_stdin)
             made = reg.init(args.admin, args.full_name or args.admin,
                             pw.next(f"new password for {args.admin}: "))
-            if args.bench_role:
-                if not reg.pg:
-                    raise RegisterError("--bench-role is for a PostgreSQL register")
-                from bench.app.register.pgsql import grant_bench_role
+            roles = [(k, r) for k in ("service", "bench", "station")
+                     for r in getattr(args, f"{k}_role")]
+            if roles and not reg.pg:
+                raise RegisterError("--service-role/--bench-role/--station-role are for a "
+                                    "PostgreSQL register")
+            from bench.app.register.pgsql import grants
 
+            for kind, role in roles:
                 with reg.engine.begin() as c:
-                    for q in grant_bench_role(args.bench_role):
+                    for q in grants(kind, role):
                         c.exec_driver_sql(q)
-                reg.append(args.admin, "bench role granted", args.bench_role)
-                print(f"granted the bench role {args.bench_role}: read, append to the audit "
-                      "trail, allocate numbers and issue through the register's functions")
+                reg.append(args.admin, f"{kind} role granted", role)
+                print(f"granted the {kind} role {role}: " + (
+                    "check passwords, change accounts, allocate, issue and append"
+                    if kind == "service" else "read the register (no password hashes); "
+                    "it issues nothing itself"))
         print(f"register {redact(args.url)}: " + (f"created, first admin {args.admin}" if made
                                                   else "up to date (it has accounts)"))
         return EXIT_OK
-    with Register.open(register_url(args)) as reg:
+    if what == "serve":
+        return _serve(args)
+    url = register_url(args)
+    with Register.open(url, migrate=not url.startswith(("http:", "https:")),
+                       create=False) as reg:
         pw = Passwords(args.password_stdin)
         if what == "audit":
             report = reg.audit_check()
@@ -79,15 +88,92 @@ def _run(args: argparse.Namespace) -> int:
                   + ("chain whole" if report.ok else f"{len(report.problems)} problem(s)"))
             return EXIT_OK if report.ok else EXIT_BROKEN
         if what == "user":
-            by = _acting(reg, args, pw, "admin")
-            acct = reg.add_account(by, args.name, args.full_name or args.name, args.role,
-                                   pw.next(f"initial password for {args.name}: "),
-                                   args.function)
-            print(f"account {acct.name} ({acct.full_name}): {', '.join(acct.roles)}")
-            return EXIT_OK
+            return _user(reg, args, pw)
+        if what == "settings":
+            return _settings(reg, args, pw)
         if what == "equipment":
             return _equipment(reg, args, pw)
     raise RegisterError(f"unknown register command {what!r}")
+
+
+def _user(reg: Register, args: argparse.Namespace, pw: Passwords) -> int:
+    what = args.user_command
+    if what == "list":
+        print(f"{'account':<20} {'full name':<24} {'roles':<28} {'state':<9} password")
+        for a in reg.accounts():
+            state = "active" if a.active else "DISABLED"
+            pwd = ("set by an admin: to change" if a.must_change
+                   else f"changed {str(a.password_changed_utc)[:10]}")
+            print(f"{a.name:<20} {a.full_name:<24} {', '.join(a.roles):<28} {state:<9} {pwd}")
+        return EXIT_OK
+    if what == "passwd" and args.as_account == args.name:
+        old = pw.next(f"current password of {args.name}: ")
+        reg.change_password(args.name, old, pw.next(f"new password for {args.name}: "))
+        print(f"password of {args.name} changed")
+        return EXIT_OK
+    by = _acting(reg, args, pw, "admin")
+    if what == "add":
+        acct = reg.add_account(by, args.name, args.full_name or args.name, args.role,
+                               pw.next(f"initial password for {args.name}: "), args.function)
+        print(f"account {acct.name} ({acct.full_name}): {', '.join(acct.roles)}; the "
+              "password must be changed before it signs or runs (bench register user passwd "
+              f"'{acct.name}' --as '{acct.name}')")
+    elif what == "passwd":
+        reg.reset_password(by, args.name, pw.next(f"new password for {args.name}: "))
+        print(f"password of {args.name} set by {by.name}: {args.name} must change it at "
+              "the next login")
+    elif what in ("disable", "enable"):
+        acct = reg.set_active(by, args.name, what == "enable")
+        print(f"account {acct.name}: {'active' if acct.active else 'disabled'}")
+    else:
+        acct = reg.set_role(by, args.name, args.grant or args.revoke, bool(args.grant))
+        print(f"account {acct.name}: {', '.join(acct.roles)}")
+    return EXIT_OK
+
+
+def _settings(reg: Register, args: argparse.Namespace, pw: Passwords) -> int:
+    from bench.app.register.store import SETTING_DEFAULTS
+
+    if args.settings_command == "list":
+        for key in SETTING_DEFAULTS:
+            print(f"{key} = {reg.int_setting(key)}")
+        return EXIT_OK
+    by = _acting(reg, args, pw, "admin")
+    reg.set_setting(by, args.key, args.value)
+    print(f"setting {args.key} = {args.value}")
+    return EXIT_OK
+
+
+def _serve(args: argparse.Namespace) -> int:
+    """The register service in the foreground, until SIGINT/SIGTERM."""
+    import os
+    import signal
+
+    from waitress import create_server
+
+    from bench.app.register.service import create_app
+
+    url = args.db or os.environ.get("BENCH_REGISTER_DB")
+    if not url:
+        raise RegisterError("which database? give --db URL or $BENCH_REGISTER_DB (the "
+                            "service role's URL)")
+    reg = Register.open(url, migrate=False)
+    server = create_server(create_app(reg), host=args.host, port=args.port, threads=8)
+    port = server.effective_port
+
+    def stop(_sig: int, _frame: object) -> None:
+        server.close()
+
+    signal.signal(signal.SIGTERM, stop)
+    print(f"register service on http://{args.host}:{port} (database {redact(url)})",
+          flush=True)
+    try:
+        server.run()
+    except (KeyboardInterrupt, OSError):
+        pass
+    finally:
+        reg.close()
+    return EXIT_OK
 
 
 def _equipment(reg: Register, args: argparse.Namespace, pw: Passwords) -> int:

@@ -103,17 +103,82 @@ REVOKE_PUBLIC = [
 ]
 
 
-def grant_bench_role(role: str) -> list[str]:
-    """The statements that give a bench's database role what it needs and no more: read the
-    register, append to the audit trail, allocate numbers and issue through the functions."""
-    q = '"' + role.replace('"', '""') + '"'
+FUNCTION_SIGNATURES = (
+    "reg_audit_append(text, text, text, text)",
+    "reg_allocate(text, text, text)",
+    "reg_issue(text, int, text, text, text, text, text, text, text, text, text)",
+)
+
+#: tables the register service writes (issue 53): accounts and their logins, equipment,
+#: deviations, settings; numbers, revisions and the trail only through the functions
+SERVICE_WRITES = ("reg_accounts", "reg_logins", "reg_equipment", "reg_deviations",
+                  "reg_settings")
+READ_TABLES = ("reg_equipment", "reg_deviations", "reg_settings", "reg_certificates",
+               "reg_revisions", "reg_audit", "reg_audit_head", "register_alembic_version")
+
+#: what `bench register init --X-role ROLE` grants (docs/register.md, trust model)
+ROLE_KINDS = ("service", "bench", "station")
+
+
+def quote(role: str) -> str:
+    return '"' + role.replace('"', '""') + '"'
+
+
+def read_grants(role: str) -> list[str]:
+    """A bench's or the station's role: read the register, but never a password hash, and
+    run none of its functions: allocating, issuing and the audit trail are the service's
+    (issue 53: the benches' role forged issues through reg_issue)."""
+    from bench.app.register.schema import ACCOUNT_PUBLIC
+
+    q = quote(role)
     return [
         f"GRANT USAGE ON SCHEMA public TO {q}",
-        f"GRANT SELECT ON reg_accounts, reg_equipment, reg_deviations, reg_settings, "
-        f"reg_certificates, reg_revisions, reg_audit, reg_audit_head, "
-        f"register_alembic_version TO {q}",
-        f"GRANT EXECUTE ON FUNCTION reg_audit_append(text, text, text, text) TO {q}",
-        f"GRANT EXECUTE ON FUNCTION reg_allocate(text, text, text) TO {q}",
-        f"GRANT EXECUTE ON FUNCTION reg_issue(text, int, text, text, text, text, text, text, "
-        f"text, text, text) TO {q}",
+        f"GRANT SELECT ({', '.join(ACCOUNT_PUBLIC)}) ON reg_accounts TO {q}",
+        f"GRANT SELECT ON {', '.join(READ_TABLES)} TO {q}",
     ]
+
+
+def service_grants(role: str) -> list[str]:
+    """The register service's role (`bench register serve`): the one role besides the owner
+    that checks passwords, changes accounts and equipment, allocates, issues and appends."""
+    q = quote(role)
+    return [
+        f"GRANT USAGE ON SCHEMA public TO {q}",
+        f"GRANT SELECT ON reg_accounts, {', '.join(READ_TABLES)} TO {q}",
+        f"GRANT SELECT, INSERT, UPDATE, DELETE ON {', '.join(SERVICE_WRITES)} TO {q}",
+        f"GRANT USAGE ON ALL SEQUENCES IN SCHEMA public TO {q}",
+        *(f"GRANT EXECUTE ON FUNCTION {f} TO {q}" for f in FUNCTION_SIGNATURES),
+    ]
+
+
+def grants(kind: str, role: str) -> list[str]:
+    if kind == "service":
+        return service_grants(role)
+    if kind in ("bench", "station"):
+        return read_grants(role)
+    raise ValueError(f"role kind {kind!r}: one of {', '.join(ROLE_KINDS)}")
+
+
+#: g0002: the roles an earlier register granted too much (EXECUTE on the functions, every
+#: column of the accounts) lose it; their owner grants the service role anew
+REVOKE_EARLIER = r"""
+DO $$
+DECLARE g record;
+BEGIN
+  FOR g IN SELECT DISTINCT grantee FROM information_schema.role_routine_grants
+            WHERE routine_name IN ('reg_audit_append', 'reg_allocate', 'reg_issue')
+              AND grantee <> current_user AND grantee <> 'PUBLIC' LOOP
+    EXECUTE format('REVOKE EXECUTE ON FUNCTION reg_audit_append(text, text, text, text), '
+                   'reg_allocate(text, text, text), reg_issue(text, int, text, text, text, '
+                   'text, text, text, text, text, text) FROM %I', g.grantee);
+  END LOOP;
+  FOR g IN SELECT DISTINCT grantee FROM information_schema.role_table_grants
+            WHERE table_name = 'reg_accounts' AND grantee <> current_user
+              AND grantee <> 'PUBLIC' LOOP
+    EXECUTE format('REVOKE ALL ON reg_accounts FROM %I', g.grantee);
+    EXECUTE format('GRANT SELECT (name, full_name, roles, function, active, created_utc, '
+                   'created_by, must_change, password_changed_utc) ON reg_accounts TO %I',
+                   g.grantee);
+  END LOOP;
+END $$;
+"""

@@ -20,6 +20,23 @@ accounts = sa.Table(
     sa.Column("active", sa.Boolean, nullable=False, server_default=sa.true()),
     sa.Column("created_utc", sa.String(40), nullable=False),
     sa.Column("created_by", sa.String(120)),
+    # issue 53 (migration g0002): an admin-set password is changed before the account signs
+    # or runs; a password older than the register's `password_max_age_days` is refused
+    sa.Column("must_change", sa.Boolean, nullable=False, server_default=sa.false()),
+    sa.Column("password_changed_utc", sa.String(40)),
+)
+
+#: the columns another role may read: everything but the password hash (pgsql.read_grants)
+ACCOUNT_PUBLIC = ("name", "full_name", "roles", "function", "active", "created_utc",
+                  "created_by", "must_change", "password_changed_utc")
+
+#: failed logins per account name (also for names no account has), and its lock
+logins = sa.Table(
+    "reg_logins", metadata,
+    sa.Column("name", sa.String(120), primary_key=True),
+    sa.Column("failures", sa.Integer, nullable=False),
+    sa.Column("first_failure_utc", sa.String(40)),
+    sa.Column("locked_until_utc", sa.String(40)),
 )
 
 equipment = sa.Table(

@@ -9,9 +9,11 @@ stand or fall together.
 
 from __future__ import annotations
 
+import contextvars
 import datetime as dt
 import getpass
 import json
+import os
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -33,6 +35,20 @@ if TYPE_CHECKING:   # argon2 is imported when a password is checked
 
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"
 MEANING_ISSUE = "authorised for issue"
+
+#: the register's settings an admin changes (`bench register settings set`, audited), with
+#: their defaults: guessing is limited where the password is checked (issue 53)
+SETTING_DEFAULTS: dict[str, int] = {
+    "lockout_attempts": 5,          # failed attempts on one account within the window ...
+    "lockout_window_s": 15 * 60,    # ... lock it
+    "lockout_s": 15 * 60,           # for this long, even against the right password
+    "password_max_age_days": 180,   # then the password must be changed
+}
+
+#: who the person acts through ("bench hall-1 at 127.0.0.1"): the register service sets
+#: it for the request it serves, and every audit entry written meanwhile names it
+ACTING_VIA: contextvars.ContextVar[str | None] = contextvars.ContextVar("acting_via",
+                                                                         default=None)
 
 
 class IssueArgs(TypedDict):
@@ -77,9 +93,38 @@ def _hasher() -> PasswordHasher:
     return PasswordHasher()
 
 
-def hash_password(password: str) -> str:
-    if len(password) < 8:
-        raise RegisterError("a password has at least 8 characters")
+#: issue 53's password rules (NIST SP 800-63B 5.1.1.2: length, and not a known password)
+MIN_PASSWORD_CHARS = 12
+
+
+def password_problem(name: str, password: str) -> str | None:
+    """Why `password` may not be the password of account `name` (None: it may)."""
+    if len(password) < MIN_PASSWORD_CHARS:
+        return f"a password has at least {MIN_PASSWORD_CHARS} characters"
+    low = password.casefold()
+    if name and name.casefold() in low:
+        return "a password does not contain the account's name"
+    if low in _common_passwords():
+        return ("a password is not one of the 30,000 most common passwords "
+                "(zxcvbn's list)")
+    return None
+
+
+def _common_passwords() -> frozenset[str]:
+    from zxcvbn.frequency_lists import FREQUENCY_LISTS  # a well-kept list (Dropbox's)
+
+    if not _COMMON:
+        _COMMON.append(frozenset(p.casefold() for p in FREQUENCY_LISTS["passwords"]))
+    return _COMMON[0]
+
+
+_COMMON: list[frozenset[str]] = []
+
+
+def hash_password(password: str, name: str = "") -> str:
+    why = password_problem(name, password)
+    if why:
+        raise RegisterError(why)
     return str(_hasher().hash(password))
 
 
@@ -99,6 +144,8 @@ class Account:
     roles: tuple[str, ...]
     function: str | None
     active: bool
+    must_change: bool = False
+    password_changed_utc: str | None = None
 
     def has(self, role: str) -> bool:
         return self.active and role in self.roles
@@ -164,7 +211,16 @@ class Revision:
 
 def _account(r: RowMapping) -> Account:
     return Account(r["name"], r["full_name"], tuple(x for x in r["roles"].split(",") if x),
-                   r["function"], bool(r["active"]))
+                   r["function"], bool(r["active"]), bool(r.get("must_change")),
+                   r.get("password_changed_utc") or r.get("created_utc"))
+
+
+def _utc(text: str) -> dt.datetime:
+    return dt.datetime.strptime(text[:19], "%Y-%m-%dT%H:%M:%S").replace(tzinfo=dt.UTC)
+
+
+def _stamp(t: dt.datetime) -> str:
+    return t.strftime("%Y-%m-%dT%H:%M:%S.%fZ")
 
 
 def _revision(r: RowMapping) -> Revision:
@@ -178,10 +234,19 @@ class Register:
         self.url = url
         self.engine = engine
         self.pg = engine.dialect.name == "postgresql"
+        self._pending: dict[tuple[str, str], str] = {}   # begin_issue's times
 
     @classmethod
-    def open(cls, url: str, migrate: bool = True) -> Register:
+    def open(cls, url: str, migrate: bool = True, create: bool | None = None) -> Register:
+        """The register at `url`: a database (sqlite:///, postgresql://) or the lab's
+        register service (http(s)://, bench/app/register/client.py). Only `migrate=True`
+        (init, an owner's command) may create an SQLite file: a command that reads a
+        register never makes an empty one (issue 56)."""
+        if url.startswith(("http://", "https://")):
+            from bench.app.register.client import ServiceRegister
 
+            return ServiceRegister.connect(url)
+        _sqlite_file(url, create=migrate if create is None else create)
         try:
             reg = cls(url, make_engine(url))
             if migrate:
@@ -222,7 +287,7 @@ class Register:
 
     def _append(self, conn: Connection, actor: str, action: str, obj: str,
                 detail: Mapping[str, object] | str = "") -> str:
-        text = detail if isinstance(detail, str) else json.dumps(detail, sort_keys=True)
+        text = _with_via(detail)
         if self.pg:
             return str(conn.execute(sa.text("SELECT reg_audit_append(:a, :b, :c, :d)"),
                                     {"a": actor, "b": action, "c": obj, "d": text}).scalar())
@@ -272,60 +337,226 @@ class Register:
         return None if r is None else _account(r._mapping)
 
     def init(self, admin: str, full_name: str, password: str) -> bool:
-        """The first admin account (False: the register has accounts already)."""
-        pw = hash_password(password)
+        """The first admin account (False: the register has accounts already). The admin
+        chooses this password, so it need not be changed at the first login."""
+        pw = hash_password(password, admin)
         with self._tx() as conn:
             if conn.execute(sa.select(sa.func.count()).select_from(s.accounts)).scalar():
                 return False
-            self._insert_account(conn, admin, admin, full_name, ("admin",), None, pw)
+            self._insert_account(conn, admin, admin, full_name, ("admin",), None, pw,
+                                 must_change=False)
         return True
 
     def _insert_account(self, conn: Connection, actor: str, name: str, full_name: str,
-                        roles: Sequence[str], function: str | None, pw_hash: str) -> None:
+                        roles: Sequence[str], function: str | None, pw_hash: str,
+                        must_change: bool = True) -> None:
         bad = [r for r in roles if r not in ROLES]
         if bad or not roles:
             raise RegisterError(f"roles must be among {', '.join(ROLES)} (got "
                                 f"{', '.join(roles) or 'none'})")
+        _check_roles(conn, name, full_name, set(roles))
+        now = _now_utc()
         try:
             conn.execute(s.accounts.insert().values(
                 name=name, full_name=full_name, roles=",".join(sorted(set(roles))),
                 function=function, password_hash=pw_hash, active=True,
-                created_utc=_now_utc(), created_by=actor))
+                created_utc=now, created_by=actor, must_change=must_change,
+                password_changed_utc=now))
         except IntegrityError as e:
             raise RegisterError(f"account {name!r} exists") from e
         self._append(conn, actor, "account added", name,
                      {"roles": sorted(set(roles)), "full_name": full_name,
-                      "function": function})
+                      "function": function, "password_to_change": must_change})
 
     def add_account(self, by: Account, name: str, full_name: str, roles: Sequence[str],
                     password: str, function: str | None = None) -> Account:
+        """A new account; the admin set its password, so its holder changes it before the
+        account signs or runs anything (issue 53)."""
         if not by.has("admin"):
             raise AuthError(f"{by.name} is not an admin: only an admin adds accounts")
-        pw = hash_password(password)
+        pw = hash_password(password, name)
         with self._tx() as conn:
             self._insert_account(conn, by.name, name, full_name, roles, function, pw)
         acct = self.account(name)
         assert acct is not None
         return acct
 
-    def authenticate(self, name: str, password: str, role: str | None = None) -> Account:
+    def int_setting(self, key: str) -> int:
+        value = self.setting(key)
+        try:
+            return int(value) if value is not None else SETTING_DEFAULTS[key]
+        except ValueError:
+            return SETTING_DEFAULTS[key]
+
+    def authenticate(self, name: str, password: str, role: str | None = None,
+                     changing_password: bool = False) -> Account:
         """The account, when the password is its own and it holds `role`; else AuthError
-        (the same words whether the name or the password was wrong), and a refused
-        attempt is written to the audit trail."""
+        (the same words whether the name or the password was wrong). Every attempt is in
+        the audit trail; `lockout_attempts` failures within `lockout_window_s` lock the
+        name for `lockout_s`, even against the right password. A password an admin set,
+        or one older than `password_max_age_days`, opens only its own change."""
+        attempts = self.int_setting("lockout_attempts")
+        window_s = self.int_setting("lockout_window_s")
+        lock_s = self.int_setting("lockout_s")
+        max_age_d = self.int_setting("password_max_age_days")
+        try:
+            locked = self._lock_state(name)
+        except (DBAPIError, RegisterError) as e:
+            raise RegisterError(
+                f"register {redact(self.url)}: this database role cannot check passwords "
+                f"({e}); a lab names its register service in the lab file "
+                "(register: https://...), docs/register.md") from e
+        if locked is not None:
+            self.append(name, "authentication refused", name,
+                        {"role": role, "why": f"locked until {locked}"})
+            raise AuthError(f"{name!r}: locked after {attempts} failed attempts, until "
+                            f"{locked} UTC (register {redact(self.url)})")
         with self.engine.connect() as c:
             r = c.execute(sa.select(s.accounts).where(s.accounts.c.name == name)).first()
         ok = r is not None and bool(r.active) and _verify(r.password_hash, password)
         if not ok:
-            self.append(name, "authentication refused", name, {"role": role})
+            until = self._failed(name, role, attempts, window_s, lock_s)
             raise AuthError(f"{name!r}: unknown account, wrong password or account disabled "
-                            f"(register {redact(self.url)})")
+                            f"(register {redact(self.url)})"
+                            + (f"; now locked until {until} UTC" if until else ""))
         assert r is not None
         acct = _account(r._mapping)
+        self._succeeded(name)
         if role is not None and not acct.has(role):
             self.append(name, "authentication refused", name, {"role": role,
                                                                 "why": "role not held"})
             raise AuthError(f"{name!r} does not hold the {role} role in register "
                             f"{redact(self.url)} (roles: {', '.join(acct.roles)})")
+        if not changing_password:
+            stale = ("was set by an admin" if acct.must_change else
+                     f"is older than {max_age_d} days" if acct.password_changed_utc and
+                     _utc(acct.password_changed_utc) + dt.timedelta(days=max_age_d)
+                     < dt.datetime.now(dt.UTC) else None)
+            if stale:
+                self.append(name, "authentication refused", name,
+                            {"role": role, "why": f"password {stale}"})
+                raise AuthError(f"{name!r}: the password {stale}; change it first: bench "
+                                f"register user passwd '{name}' --as '{name}'")
+        self.append(name, "authenticated", name, {"role": role})
+        return acct
+
+    def _lock_state(self, name: str) -> str | None:
+        """The time the name's lock ends, while it is locked; an ended lock is lifted
+        (and audited) here."""
+        with self.engine.connect() as c:
+            r = c.execute(sa.select(s.logins).where(s.logins.c.name == name)).first()
+        if r is None or not r.locked_until_utc:
+            return None
+        if _utc(r.locked_until_utc) > dt.datetime.now(dt.UTC):
+            return str(r.locked_until_utc)[:19]
+        with self._tx() as conn:
+            done = conn.execute(s.logins.update().where(s.logins.c.name == name)
+                                .where(s.logins.c.locked_until_utc == r.locked_until_utc)
+                                .values(failures=0, first_failure_utc=None,
+                                        locked_until_utc=None)).rowcount
+            if done:
+                self._append(conn, name, "account unlocked", name,
+                             {"lock_ended_utc": r.locked_until_utc})
+        return None
+
+    def _failed(self, name: str, role: str | None, attempts: int, window_s: int,
+                lock_s: int) -> str | None:
+        """Count a failed attempt under the register's lock; the lock's end when this one
+        locks the name."""
+        now = dt.datetime.now(dt.UTC)
+        with self._tx() as conn:
+            r = conn.execute(sa.select(s.logins).where(s.logins.c.name == name)).first()
+            fresh = (r is None or not r.first_failure_utc
+                     or _utc(r.first_failure_utc) + dt.timedelta(seconds=window_s) < now)
+            failures = 1 if fresh or r is None else int(r.failures) + 1
+            first = _stamp(now) if fresh or r is None else r.first_failure_utc
+            until = _stamp(now + dt.timedelta(seconds=lock_s)) if failures >= attempts \
+                else None
+            values = {"failures": failures, "first_failure_utc": first,
+                      "locked_until_utc": until}
+            if r is None:
+                conn.execute(s.logins.insert().values(name=name, **values))
+            else:
+                conn.execute(s.logins.update().where(s.logins.c.name == name).values(**values))
+            self._append(conn, name, "authentication refused", name,
+                         {"role": role, "failures_in_window": failures})
+            if until:
+                self._append(conn, name, "account locked", name,
+                             {"failures": failures, "window_s": window_s,
+                              "locked_until_utc": until})
+        return until[:19] if until else None
+
+    def _succeeded(self, name: str) -> None:
+        with self._tx() as conn:
+            conn.execute(s.logins.delete().where(s.logins.c.name == name))
+
+    # -- account lifecycle (issue 53): each change an audit entry naming old and new ------
+
+    def change_password(self, name: str, old: str, new: str) -> None:
+        """The holder changes their own password (an admin-set or expired one included)."""
+        acct = self.authenticate(name, old, changing_password=True)
+        if new == old:
+            raise RegisterError("the new password is the old one")
+        pw = hash_password(new, acct.name)
+        with self._tx() as conn:
+            conn.execute(s.accounts.update().where(s.accounts.c.name == name).values(
+                password_hash=pw, must_change=False, password_changed_utc=_now_utc()))
+            self._append(conn, name, "password changed", name,
+                         {"old": "password set by an admin" if acct.must_change
+                          else "own password", "new": "own password"})
+
+    def reset_password(self, by: Account, name: str, new: str) -> None:
+        """An admin sets another account's password; its holder must change it."""
+        if not by.has("admin"):
+            raise AuthError(f"{by.name} is not an admin: only an admin resets a password")
+        target = self._existing(name)
+        pw = hash_password(new, target.name)
+        with self._tx() as conn:
+            conn.execute(s.accounts.update().where(s.accounts.c.name == name).values(
+                password_hash=pw, must_change=True, password_changed_utc=_now_utc()))
+            conn.execute(s.logins.delete().where(s.logins.c.name == name))
+            self._append(conn, by.name, "password reset", name,
+                         {"old": "own password", "new": "password set by an admin, to be "
+                          "changed at the next login"})
+
+    def set_active(self, by: Account, name: str, active: bool) -> Account:
+        if not by.has("admin"):
+            raise AuthError(f"{by.name} is not an admin: only an admin disables or enables")
+        target = self._existing(name)
+        if by.name == name and not active:
+            raise RegisterError("an admin does not disable their own account")
+        with self._tx() as conn:
+            if active:
+                _check_roles(conn, name, target.full_name, set(target.roles))
+            conn.execute(s.accounts.update().where(s.accounts.c.name == name)
+                         .values(active=active))
+            self._append(conn, by.name, "account enabled" if active else "account disabled",
+                         name, {"old": "active" if target.active else "disabled",
+                                "new": "active" if active else "disabled"})
+        return self._existing(name)
+
+    def set_role(self, by: Account, name: str, role: str, grant: bool) -> Account:
+        if not by.has("admin"):
+            raise AuthError(f"{by.name} is not an admin: only an admin changes roles")
+        if role not in ROLES:
+            raise RegisterError(f"role {role!r}: one of {', '.join(ROLES)}")
+        target = self._existing(name)
+        roles = set(target.roles) | {role} if grant else set(target.roles) - {role}
+        if not roles:
+            raise RegisterError(f"{name} would hold no role: disable the account instead")
+        with self._tx() as conn:
+            if target.active:
+                _check_roles(conn, name, target.full_name, roles)
+            conn.execute(s.accounts.update().where(s.accounts.c.name == name)
+                         .values(roles=",".join(sorted(roles))))
+            self._append(conn, by.name, "role granted" if grant else "role revoked", name,
+                         {"role": role, "old": sorted(target.roles), "new": sorted(roles)})
+        return self._existing(name)
+
+    def _existing(self, name: str) -> Account:
+        acct = self.account(name)
+        if acct is None:
+            raise RegisterError(f"no account {name!r}")
         return acct
 
     # -- equipment ------------------------------------------------------------------------
@@ -387,10 +618,16 @@ class Register:
     def set_setting(self, by: Account, key: str, value: str) -> None:
         if not by.has("admin"):
             raise AuthError(f"{by.name} is not an admin")
+        if key in SETTING_DEFAULTS and not (value.isdigit() and int(value) > 0):
+            raise RegisterError(f"setting {key}: a whole number above 0 (got {value!r})")
+        old = self.setting(key)
         with self._tx() as conn:
             conn.execute(s.settings.delete().where(s.settings.c.key == key))
             conn.execute(s.settings.insert().values(key=key, value=value))
-            self._append(conn, by.name, "setting changed", key, {"value": value})
+            self._append(conn, by.name, "setting changed", key,
+                         {"old": old if old is not None else
+                          (f"{SETTING_DEFAULTS[key]} (default)" if key in SETTING_DEFAULTS
+                           else None), "new": value})
 
     # -- certificate numbers and revisions ------------------------------------------------
 
@@ -433,17 +670,27 @@ class Register:
                 rv.result_sha256 == sha256))).first()
         return None if r is None else _revision(r._mapping)
 
-    def issue(self, number: str, revision: int, signatory: Account, issued_utc: str,
+    def begin_issue(self, signatory: Account, number: str) -> str:
+        """The time of the issue, by the register's clock: printed on the certificate and
+        recorded by `issue` (the client's clock is never stored, issue 53)."""
+        utc = dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+        self._pending[(signatory.name, number)] = utc
+        return utc
+
+    def issue(self, number: str, revision: int, signatory: Account,
               digests: Mapping[str, str], reason: str | None,
               detail: Mapping[str, object]) -> Revision:
         """Record an issued revision (and the withdrawal of the one before), checked by the
         register under its lock: the next revision, an active signatory, a reason for a
-        re-issue. Raises RegisterError when refused."""
+        re-issue. The time is the one `begin_issue` gave (else now), the meaning the
+        register's own. Raises RegisterError when refused."""
+        issued_utc = self._pending.pop((signatory.name, number), None) or \
+            dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
         args: IssueArgs = {"n": number, "r": revision, "s": signatory.name, "m": MEANING_ISSUE,
                 "why": reason or "", "t": issued_utc, "res": digests[layout.RESULT],
                 "pdf": digests[layout.CERTIFICATE_PDF], "dcc": digests[layout.CERTIFICATE_DCC],
                 "html": digests[layout.CERTIFICATE_HTML],
-                "d": json.dumps(dict(detail), sort_keys=True)}
+                "d": _with_via(detail)}
         with self._tx() as conn:
             if self.pg:
                 conn.execute(sa.text("SELECT reg_issue(:n, :r, :s, :m, :why, :t, :res, :pdf, "
@@ -472,12 +719,60 @@ class Register:
         conn.execute(s.revisions.update().where(s.revisions.c.number == a["n"])
                      .where(s.revisions.c.withdrawn_utc.is_(None)).values(withdrawn_utc=a["t"]))
         d = self._append(conn, a["s"], "issue" if not last else "re-issue",
-                         f"{a['n']} revision {a['r']}", a["d"])
+                         f"{a['n']} revision {a['r']}", json.loads(a["d"]))
         conn.execute(s.revisions.insert().values(
             number=a["n"], revision=a["r"], issued_utc=a["t"], signatory=a["s"],
             signatory_name=r.full_name, meaning=a["m"], reason=a["why"].strip() or None,
             result_sha256=a["res"], pdf_sha256=a["pdf"], dcc_sha256=a["dcc"],
             html_sha256=a["html"], audit_digest=d))
+
+
+def _with_via(detail: Mapping[str, object] | str) -> str:
+    """An audit entry's detail as stored, naming the bench or station the person acted
+    through when the register service serves the request."""
+    via = ACTING_VIA.get()
+    if via:
+        base: dict[str, object] = ({"detail": detail} if isinstance(detail, str) and detail
+                                   else {} if isinstance(detail, str) else dict(detail))
+        detail = {**base, "via": via}
+    return detail if isinstance(detail, str) else json.dumps(detail, sort_keys=True)
+
+
+def _check_roles(conn: Connection, name: str, full_name: str, roles: set[str]) -> None:
+    """ISO/IEC 17025 6.2.5: who administers accounts does not sign, and a printed name
+    under a signature identifies one active signatory."""
+    if {"admin", "signatory"} <= roles:
+        raise RegisterError("the admin and signatory roles are never held by one account "
+                            "(the person who sets passwords does not also sign)")
+    if "signatory" not in roles:
+        return
+    for r in conn.execute(sa.select(s.accounts.c.name, s.accounts.c.roles)
+                          .where(s.accounts.c.full_name == full_name)
+                          .where(s.accounts.c.active.is_(True))
+                          .where(s.accounts.c.name != name)):
+        if "signatory" in r.roles.split(","):
+            raise RegisterError(f"the full name {full_name!r} is already printed under "
+                                f"signatures of the active signatory {r.name!r}")
+
+
+def _sqlite_file(url: str, create: bool) -> None:
+    """A register file is readable by its owner alone (mode 0600: the password hashes are
+    in it); a missing one is an error unless the command creates registers."""
+    try:
+        u = sa.engine.make_url(url)
+    except sa.exc.ArgumentError as e:
+        raise RegisterError(f"register {url!r}: not a database URL ({e})") from None
+    if u.get_backend_name() != "sqlite" or not u.database or u.database == ":memory:":
+        return
+    path = Path(u.database)
+    if not path.exists():
+        if not create:
+            raise RegisterError(f"register {url}: no such file (bench register init "
+                                "creates a register; nothing was created)")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        os.close(os.open(path, os.O_CREAT | os.O_WRONLY, 0o600))
+    elif create and path.stat().st_mode & 0o077 and path.stat().st_uid == os.geteuid():
+        path.chmod(0o600)
 
 
 def _db_message(e: DBAPIError) -> str:

@@ -1,0 +1,230 @@
+"""`bench register serve`: the lab's register service (issue 53, docs/register.md).
+
+Why a service: PostgreSQL cannot verify an argon2id password, lock an account after
+failed guesses or audit a failed login, so a database role that may issue can issue in
+anyone's name. This process is the one holder of that role: it checks each person's
+password where the lockout applies (store.Register.authenticate), hands the client a
+short-lived token bound to the authenticated account, and does each change in that
+account's name with its own clock. The benches' and the station's database roles only
+read (pgsql.read_grants); they reach the register's authority through here.
+
+The protocol is JSON over HTTP: `POST /v1/<operation>` with a JSON object, answered
+with `{"ok": value}` or `{"error": text, "kind": "auth"|"register"}`. A client says who
+it is with the header `X-Ratebench-Via` ("bench hall-1"); every audit entry the request
+writes records that and the client's address. Passwords are accepted over plain HTTP
+only from the loopback address; off this machine the service sits behind a TLS proxy.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import secrets
+import threading
+import time
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING
+
+from flask import Flask, jsonify, request
+from werkzeug.wrappers import Response
+
+from bench.app.register.store import (
+    ACTING_VIA,
+    SETTING_DEFAULTS,
+    Account,
+    AuthError,
+    Register,
+    RegisterError,
+)
+
+if TYPE_CHECKING:
+    from drivers.json_types import JsonValue
+
+TOKEN_S = 10 * 60.0         # a login is good for this long (an issue takes seconds)
+VIA_HEADER = "X-Ratebench-Via"
+#: audit entries a bench or station may add in an authenticated person's name
+CLIENT_ACTIONS = ("run started by", "control review")
+PASSWORD_OPS = ("authenticate", "change_password", "add_account", "reset_password")
+
+
+def jsonable(value: object) -> JsonValue:
+    """Dataclasses, dates and tuples as JSON (the client rebuilds them: client.py)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: jsonable(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, dt.date):
+        return value.isoformat()
+    if isinstance(value, list | tuple):
+        return [jsonable(v) for v in value]
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if value is None or isinstance(value, str | int | float | bool):
+        return value
+    raise TypeError(f"{type(value).__name__} is not part of the register's protocol")
+
+
+def _texts(value: object) -> list[str]:
+    return [str(v) for v in value] if isinstance(value, list) else []
+
+
+class Tokens:
+    """Logins of this process: token -> (account name, expiry). A token names an account;
+    its roles are read again from the register at each use."""
+
+    def __init__(self, lifetime_s: float = TOKEN_S) -> None:
+        self._by_token: dict[str, tuple[str, float]] = {}
+        self._lock = threading.Lock()
+        self.lifetime_s = lifetime_s
+
+    def start(self, name: str) -> str:
+        token = secrets.token_urlsafe(32)
+        now = time.monotonic()
+        with self._lock:
+            self._by_token = {t: v for t, v in self._by_token.items() if v[1] > now}
+            self._by_token[token] = (name, now + self.lifetime_s)
+        return token
+
+    def name(self, token: object) -> str:
+        with self._lock:
+            entry = self._by_token.get(token) if isinstance(token, str) else None
+        if entry is None or entry[1] < time.monotonic():
+            raise AuthError("not logged in to the register service (no token, or it "
+                            "expired): authenticate again")
+        return entry[0]
+
+    def end(self, token: object) -> None:
+        with self._lock:
+            if isinstance(token, str):
+                self._by_token.pop(token, None)
+
+
+def create_app(reg: Register, tokens: Tokens | None = None) -> Flask:
+    """The service's WSGI application over one register (opened with the service role)."""
+    app = Flask("ratebench-register")
+    tok = tokens or Tokens()
+
+    def actor(body: Mapping[str, object]) -> Account:
+        acct = reg.account(tok.name(body.get("token")))
+        if acct is None or not acct.active:
+            raise AuthError("the logged-in account is no longer active")
+        return acct
+
+    def text(body: Mapping[str, object], key: str, optional: bool = False) -> str:
+        value = body.get(key)
+        if value is None and optional:
+            return ""
+        if not isinstance(value, str):
+            raise RegisterError(f"{key}: text expected")
+        return value
+
+    def login(b: Mapping[str, object]) -> JsonValue:
+        role = b.get("role")
+        acct = reg.authenticate(text(b, "name"), text(b, "password"),
+                                role if isinstance(role, str) else None)
+        return {"account": jsonable(acct), "token": tok.start(acct.name)}
+
+    def allocate(b: Mapping[str, object]) -> JsonValue:
+        acct = actor(b)
+        if not acct.has("signatory"):
+            raise AuthError(f"{acct.name} is not a signatory: only a signatory's issue "
+                            "allocates a number")
+        return reg.allocate(text(b, "run_uid"), text(b, "prefix"), acct.name)
+
+    def begin_issue(b: Mapping[str, object]) -> JsonValue:
+        return reg.begin_issue(actor(b), text(b, "number"))
+
+    def issue(b: Mapping[str, object]) -> JsonValue:
+        digests, detail, revision = b.get("digests"), b.get("detail"), b.get("revision")
+        if not isinstance(digests, dict) or not isinstance(detail, dict) \
+                or not isinstance(revision, int):
+            raise RegisterError("issue: digests and detail objects, revision a number")
+        return jsonable(reg.issue(text(b, "number"), revision, actor(b),
+                                  {str(k): str(v) for k, v in digests.items()},
+                                  text(b, "reason", optional=True) or None, detail))
+
+    def append(b: Mapping[str, object]) -> JsonValue:
+        action = text(b, "action")
+        if action not in CLIENT_ACTIONS:
+            raise RegisterError(f"audit action {action!r}: a client adds only "
+                                f"{', '.join(CLIENT_ACTIONS)}; the register writes the rest")
+        detail = b.get("detail")
+        return reg.append(actor(b).name, action, text(b, "object"),
+                          detail if isinstance(detail, dict) else {})
+
+    def equipment(b: Mapping[str, object]) -> JsonValue:
+        serial = b.get("serial")
+        return jsonable(reg.equipment(serial if isinstance(serial, str) else None))
+
+    def date(b: Mapping[str, object], key: str) -> dt.date:
+        try:
+            return dt.date.fromisoformat(text(b, key))
+        except ValueError:
+            raise RegisterError(f"{key}: YYYY-MM-DD expected") from None
+
+    ops: dict[str, Callable[[Mapping[str, object]], JsonValue]] = {
+        "authenticate": login,
+        "logout": lambda b: tok.end(b.get("token")),
+        "change_password": lambda b: reg.change_password(
+            text(b, "name"), text(b, "old"), text(b, "new")),
+        "account": lambda b: jsonable(reg.account(text(b, "name"))),
+        "accounts": lambda b: jsonable(reg.accounts()),
+        "add_account": lambda b: jsonable(reg.add_account(
+            actor(b), text(b, "name"), text(b, "full_name"),
+            _texts(b.get("roles")), text(b, "password"),
+            text(b, "function", optional=True) or None)),
+        "reset_password": lambda b: reg.reset_password(actor(b), text(b, "name"),
+                                                       text(b, "password")),
+        "set_active": lambda b: jsonable(reg.set_active(actor(b), text(b, "name"),
+                                                        bool(b.get("active")))),
+        "set_role": lambda b: jsonable(reg.set_role(actor(b), text(b, "name"),
+                                                    text(b, "role"), bool(b.get("grant")))),
+        "setting": lambda b: reg.setting(text(b, "key")),
+        "settings": lambda b: {k: reg.int_setting(k) for k in SETTING_DEFAULTS},
+        "set_setting": lambda b: reg.set_setting(actor(b), text(b, "key"), text(b, "value")),
+        "equipment": equipment,
+        "add_equipment": lambda b: reg.add_equipment(
+            actor(b), text(b, "serial"), text(b, "model"), text(b, "certificate"),
+            text(b, "issuer"), date(b, "due")),
+        "add_deviation": lambda b: reg.add_deviation(actor(b), text(b, "serial"),
+                                                     text(b, "reason"), date(b, "expires")),
+        "allocate": allocate,
+        "number_of_run": lambda b: reg.number_of_run(text(b, "run_uid")),
+        "revisions": lambda b: jsonable(reg.revisions(text(b, "number"))),
+        "find_revision": lambda b: jsonable(reg.find_revision(text(b, "sha256"))),
+        "begin_issue": begin_issue,
+        "issue": issue,
+        "append": append,
+        "audit_rows": lambda b: jsonable(reg.audit_rows()),
+        "audit_check": lambda b: jsonable(reg.audit_check()),
+    }
+
+    @app.get("/v1/info")
+    def info() -> Response:
+        return jsonify({"ok": {"service": "ratebench register", "operations": sorted(ops)}})
+
+    @app.post("/v1/<op>")
+    def call(op: str) -> tuple[Response, int]:
+        fn = ops.get(op)
+        if fn is None:
+            return jsonify({"error": f"no operation {op!r}", "kind": "register"}), 404
+        from bench.app.station.settings import is_loopback
+
+        if op in PASSWORD_OPS and request.scheme != "https" \
+                and not is_loopback(request.remote_addr):
+            return jsonify({"error": "passwords are accepted over plain HTTP only from this "
+                            "machine; reach the service through its TLS proxy",
+                            "kind": "auth"}), 403
+        body = request.get_json(silent=True)
+        if not isinstance(body, dict):
+            return jsonify({"error": "a JSON object expected", "kind": "register"}), 400
+        via = (request.headers.get(VIA_HEADER) or "unnamed client")[:120]
+        reset = ACTING_VIA.set(f"{via} at {request.remote_addr}")
+        try:
+            return jsonify({"ok": fn(body)}), 200
+        except AuthError as e:
+            return jsonify({"error": str(e), "kind": "auth"}), 403
+        except RegisterError as e:
+            return jsonify({"error": str(e), "kind": "register"}), 409
+        finally:
+            ACTING_VIA.reset(reset)
+
+    return app
