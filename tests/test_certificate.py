@@ -195,8 +195,10 @@ def test_values_printed_with_u_rounded_as_by_hand(ladder: dict[str, Any]) -> Non
         "3 < 0.0014 < 0.00014 —",
         "0.000200 ± 0.000030",     # mains 2.0e-4 ± 3.0e-5 deg/s
         # raw intra-turn 1.06e-3, U from 144000 samples: 2 * 1.06e-3 / sqrt(2 * 143999)
-        # = 3.95e-6 -> 0.000395 % -> 0.00040, marked as computed by the certificate
-        "0.10600 ± 0.00040*",
+        # = 3.95e-6; its FOG floor sqrt(1.06e-3^2 - 1.2e-5^2) = 1.05993e-3 > raw - U, so
+        # docs/method.md D2 states it '< raw + U' = 1.0640e-3 -> 0.11 %, rounded up, beside
+        # the floor 0.11 %; never '0.10600 ± 0.00040' (issue 56: no value or U below its floor)
+        "+10 < 0.11 0.11 12.0 ± 3.0",
         # floor-corrected 1.2e-5, resolved, upper limit 1.5e-5: U = 3e-6 -> ppm
         "12.0 ± 3.0",
         # over 1 deg: 2.1e-4 over 1440 windows: U = 4.2e-4 / sqrt(2878) = 7.83e-6 -> ppm

@@ -222,8 +222,13 @@ def test_demo_every_value_and_u_equals_result_json(demo: dict[str, Any]) -> None
             # sigma: its chi-square interval or '< L', not +/- U (docs/method.md D2;
             # tests/test_budget_recompute.py checks the interval)
             assert reals[f"{p}.rate_instability_rel"]["U"] is None
-            _assert_value_u(reals, result, f"{p}.intra_turn_instability_rel",
-                            f"{p}.intra_turn_instability_u_rel", r"\one")
+            if r["intra_turn"].get("raw_resolved") is False:
+                # not above the FOG floor: [0, raw + U], not +/- U (docs/method.md D2;
+                # tests/test_budget_recompute.py checks the interval)
+                assert reals[f"{p}.intra_turn_instability_rel"]["U"] is None
+            else:
+                _assert_value_u(reals, result, f"{p}.intra_turn_instability_rel",
+                                f"{p}.intra_turn_instability_u_rel", r"\one")
             assert reals[f"{p}.set_rate_dps"]["unit"] == r"\degree\second\tothe{-1}"
             budget = [reals[f"{p}.rate_error_budget.{k}"]["value"]
                       for k in ("timing_u_rel", "timebase_u_rel", "repeatability_u_rel")]
@@ -232,7 +237,7 @@ def test_demo_every_value_and_u_equals_result_json(demo: dict[str, Any]) -> None
             for j in range(len(r["systematic"]["harmonics"])):
                 h_p = f"{p}.systematic.harmonics[{j}]"
                 if r["systematic"]["harmonics"][j].get("detected") is False:
-                    # not detected: the DCC states the interval [0, a + U], not a +/- U
+                    # not detected: the DCC states the interval [0, L], not a +/- U
                     # (docs/method.md D2), as the PDF prints '< L'
                     assert reals[f"{h_p}.amplitude_rel"]["U"] is None
                 else:

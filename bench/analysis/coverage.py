@@ -29,9 +29,9 @@ K_NORMAL = 2.0
 DOF_INFINITE = 1e4
 
 #: docs/method.md D1, rendered by the certificate's method section from here
-COVERAGE_FORMULA = ("u_c = √(Σ u_i²);   ν_eff = u_c⁴ / Σ (u_i⁴ / ν_i)  (Welch-Satterthwaite, "
-                    "ν_i = ∞ for Type B);   k = t_95.45 %(⌊ν_eff⌋) to two decimals;   "
-                    "U = k · u_c")
+COVERAGE_FORMULA = ("u_c = √(Σ u_i² + 2 Σ r_ij c_i u(x_i) c_j u(x_j));   ν_eff = u_c⁴ / "
+                    "Σ (u_i⁴ / ν_i)  (Welch-Satterthwaite with that u_c, ν_i = ∞ for Type B);   "
+                    "k = t_95.45 %(⌊ν_eff⌋) to two decimals;   U = k · u_c")
 COVERAGE_RULE = ("Every U is k · u_c of its budget, k the Student t factor for 95.45 % at the "
                  "budget's effective degrees of freedom ν_eff (Welch-Satterthwaite, truncated "
                  "to an integer, k to two decimals as EA-4/02 M:2022 table E.1): k = 2.00 "
@@ -41,11 +41,14 @@ COVERAGE_RULE = ("Every U is k · u_c of its budget, k the Student t factor for 
                  "t-factor carries the few values.")
 
 
-def welch_satterthwaite(terms: Iterable[tuple[float, float | None]]) -> float | None:
+def welch_satterthwaite(terms: Iterable[tuple[float, float | None]],
+                        uc: float | None = None) -> float | None:
     """nu_eff = u_c^4 / sum(u_i^4 / nu_i) over (u_i, nu_i) (EA-4/02 eq. E.1, docs/method.md
-    D1); nu_i None is infinite. None (infinite) when no term has finite dof."""
+    D1); nu_i None is infinite. `uc` is the combined standard uncertainty when it is not
+    sqrt(sum u_i^2): a budget with correlated inputs (GUM 5.2.2) gives its own, and the
+    numerator is that u_c. None (infinite) when no term has finite dof."""
     pairs = [(abs(u), nu) for u, nu in terms]
-    uc2 = sum(u * u for u, _ in pairs)
+    uc2 = sum(u * u for u, _ in pairs) if uc is None else uc * uc
     denom = sum(u ** 4 / nu for u, nu in pairs if nu is not None and nu > 0 and u > 0)
     if denom == 0 or uc2 == 0:
         return None

@@ -58,6 +58,7 @@ from bench.analysis.systematic import (
     mains_result,
     noise_inflation,
     solve_direction,
+    tone_interval,
 )
 from bench.analysis.turns import (
     FULL_TURN_DEG,
@@ -278,7 +279,10 @@ def _with_mains_source(pa: PairAnalysis, source: str, searched: int) -> PairAnal
         if m is not None:
             tests = int(r.systematic.detection.get("tones_tested", 1)) + searched - 1
             threshold = detection_threshold(tests)
-            m = dataclasses.replace(m, source=source, detected=m.significance > threshold)
+            # docs/method.md A4, D2: the interval a +/- c u(a) with c for `tests` tones
+            detected, upper, c = tone_interval(m.amplitude_dps, m.amplitude_u_dps / 2.0, tests)
+            m = dataclasses.replace(m, source=source, detected=detected,
+                                    amplitude_upper_dps=upper, interval_factor=c)
             r = dataclasses.replace(r, systematic=dataclasses.replace(
                 r.systematic, mains=m, detection={**r.systematic.detection,
                                                   "tones_tested": tests,

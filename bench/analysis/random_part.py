@@ -42,6 +42,7 @@ import numpy as np
 
 from bench.analysis.allan import white_noise
 from bench.analysis.angle import FogCalibration
+from bench.analysis.coverage import coverage_factor
 from bench.analysis.sums import ROW_CONST, ROW_TAU, ROW_Y, residual_differences
 from bench.analysis.systematic import DirectionFit, bin_residuals, block_sums
 
@@ -84,6 +85,7 @@ class VarianceDifference:
     lower: float            # sqrt of the difference's (1 - LEVEL) / 2 quantile (>= 0)
     upper: float            # sqrt of the (1 + LEVEL) / 2 quantile: the limit L
     resolved: bool          # the lower quantile is above zero
+    ustd: float = math.nan  # standard deviation of sqrt(max(draw, 0)): the figure's u
 
     @property
     def u(self) -> float | None:
@@ -98,18 +100,21 @@ class VarianceDifference:
         diff = raw * raw - floor * floor
         value = math.sqrt(max(diff, 0.0))
         if not (raw_dof > 0 and math.isfinite(floor)):
-            return cls(value, 0.0, math.inf, False)
+            return cls(value, 0.0, math.inf, False, math.inf)
         rng = np.random.default_rng(MC_SEED)
         x_raw = raw_dof / rng.chisquare(raw_dof, MC_DRAWS)
         v_floor = (floor * floor * floor_dof / rng.chisquare(floor_dof, MC_DRAWS)
                    if floor_dof > 0 and math.isfinite(floor_dof) else floor * floor)
-        lo = float(np.quantile(raw * raw * x_raw - v_floor, (1 - LEVEL) / 2))
+        draws = raw * raw * x_raw - v_floor
+        lo = float(np.quantile(draws, (1 - LEVEL) / 2))
+        # JCGM 101 7.6: the output's standard uncertainty is the draws' standard deviation
+        ustd = float(np.std(np.sqrt(np.maximum(draws, 0.0)), ddof=1))
         # the limit never below the sensitivity: a raw variance under the floor by chance
         # gives the limit an observed zero difference would, not a tighter one (or zero)
         top = max(raw, floor)
         hi = float(np.quantile(top * top * x_raw - v_floor, (1 + LEVEL) / 2))
         return cls(value, math.sqrt(max(float(lo), 0.0)), math.sqrt(max(float(hi), 0.0)),
-                   bool(lo > 0))
+                   bool(lo > 0), ustd)
 
 
 def floor_from_static(static_fog_dps: np.ndarray) -> NoiseFloor:
@@ -147,6 +152,16 @@ class AveragedInstability:
         return std_interval_u_rel(self.instability_rel, self.blocks, self.dof)
 
     @property
+    def measured_resolved(self) -> bool:
+        """The measured figure stands above the FOG's floor over the window (D2)."""
+        return above_floor(self.instability_rel, self.u_rel, self.floor_rel)[0]
+
+    @property
+    def measured_upper_rel(self) -> float | None:
+        """L = value + U, never below the floor: the measured figure's limit (D2)."""
+        return above_floor(self.instability_rel, self.u_rel, self.floor_rel)[1]
+
+    @property
     def difference(self) -> VarianceDifference | None:
         s, n = self.instability_rel, self.blocks
         if s is None or n < 2 or self.dof < 1 or not math.isfinite(self.floor_rel):
@@ -165,9 +180,32 @@ class AveragedInstability:
         return None if d is None else d.upper
 
     @property
+    def corrected_ustd_rel(self) -> float | None:
+        """The corrected figure's standard uncertainty (JCGM 101 7.6: the draws' std)."""
+        d = self.difference
+        return None if d is None else d.ustd
+
+    @property
+    def ustd_rel(self) -> float | None:
+        """The measured figure's standard uncertainty, U / k (docs/method.md D1, D2)."""
+        big_u = self.u_rel
+        return None if big_u is None else big_u / coverage_factor(self.dof)
+
+    @property
     def corrected_lower_rel(self) -> float | None:
         d = self.difference
         return None if d is None else d.lower
+
+
+def above_floor(value: float | None, big_u: float | None, floor: float | None
+                ) -> tuple[bool, float | None]:
+    """(resolved, L) of a measured standard deviation with a symmetric U against its floor
+    (docs/method.md D2, the one rule): resolved when value - U > floor; otherwise it is
+    stated '< L', L = value + U, never below the floor. L is None without a value and U."""
+    if value is None or big_u is None or not (math.isfinite(value) and math.isfinite(big_u)):
+        return False, None
+    fl = floor if floor is not None and math.isfinite(floor) else 0.0
+    return big_u > 0 and value - big_u > fl, max(value + big_u, fl)
 
 
 def std_u_rel(std: float | None, n: int) -> float | None:
@@ -213,6 +251,30 @@ class RandomPartResult:
     corrected_lower_rel: float = 0.0     # the (1 - LEVEL) / 2 end of the interval
     corrected_u_rel: float | None = None  # half-width covering [lower, upper], resolved only
     floor_dof: float = math.inf
+    raw_dof: float = 0.0                  # samples - fitted parameters (the MC's nu_raw)
+    corrected_ustd_rel: float | None = None   # the MC draws' std (JCGM 101 7.6)
+
+    @property
+    def raw_U_rel(self) -> float | None:
+        """U of the raw figure, a std from `samples` values (A5, `std_interval_u_rel`)."""
+        return std_interval_u_rel(self.instability_rel, self.samples)
+
+    @property
+    def raw_ustd_rel(self) -> float | None:
+        """The raw figure's standard uncertainty, U / k (its budget's u_c, D1)."""
+        big_u = self.raw_U_rel
+        return None if big_u is None else big_u / coverage_factor(self.samples - 1)
+
+    @property
+    def raw_resolved(self) -> bool:
+        """The raw figure stands above the FOG's floor: raw - U > floor (D2); otherwise it
+        is stated '< L' like the figures averaged over an angle."""
+        return above_floor(self.instability_rel, self.raw_U_rel, self.floor_rel)[0]
+
+    @property
+    def raw_upper_rel(self) -> float | None:
+        """L = raw + U, never below the floor (D2)."""
+        return above_floor(self.instability_rel, self.raw_U_rel, self.floor_rel)[1]
 
 
 def _a5_row_coefs(fit: DirectionFit, cal: FogCalibration, own_bias: frozenset[int]
@@ -268,7 +330,9 @@ def random_part(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,
         corrected_rel=diff.value, corrected_upper_rel=diff.upper, resolved=diff.resolved,
         bandwidth_hz=sample_rate_hz / 2.0,
         std_dps=math.sqrt(var_raw) / abs(cal.k), samples=fit.n, averaged=averaged,
-        corrected_lower_rel=diff.lower, corrected_u_rel=diff.u, floor_dof=floor.dof)
+        corrected_lower_rel=diff.lower, corrected_u_rel=diff.u, floor_dof=floor.dof,
+        raw_dof=float(fit.n - n_params),
+        corrected_ustd_rel=diff.ustd if math.isfinite(diff.ustd) else None)
 
 
 def _averaged(fit: DirectionFit, coefs: list[np.ndarray], scale: float, floor: NoiseFloor,

@@ -24,13 +24,15 @@ angle blocks of about a quarter of the highest harmonic's period are compared wi
 white noise gives; their ratio ("noise inflation", never below 1) scales the covariance.
 Amplitude and phase uncertainties are first-order (delta method): fine when the
 amplitude is well above its uncertainty. `detected` is the bench's one rule for a
-magnitude is a test with a stated false-alarm rate (docs/method.md A4): a tone (a
-harmonic order or the mains line) is `detected` when its two fitted coefficients are
-jointly significant, q = (a, b) C^-1 (a, b)^T > chi2_2 quantile at 1 - alpha_1, with
+magnitude (docs/method.md A4, D2) with a stated false-alarm rate: a tone (a harmonic order or
+the mains line) has the coverage interval a +/- c u(a), c = sqrt(-2 ln alpha_1) the radius of
+the chi-square (2 dof) joint test of its two coefficients at 1 - alpha_1, with
 alpha_1 = 1 - (1 - DETECTION_FALSE_ALARM)^(1/m) (Sidak) for the m tones fitted in one
-direction: the chance that any order whose truth is zero is called detected is then
-DETECTION_FALSE_ALARM (white or inflation-corrected noise). An undetected tone is reported
-as an upper limit.
+direction; it is `detected` when the interval's lower end a - c u(a) is above zero (for the
+fit's isotropic coefficient covariance the same as q = (a, b) C^-1 (a, b)^T > c^2): the
+chance that any order whose truth is zero is called detected is then DETECTION_FALSE_ALARM
+(white or inflation-corrected noise). An undetected tone is reported as the upper limit
+L = a + c u(a) (`amplitude_upper_*`), one-sided at 1 - alpha_1.
 """
 
 from __future__ import annotations
@@ -59,7 +61,9 @@ class HarmonicResult:
     amplitude_u_rel: float      # expanded, k = 2
     phase_deg: float            # in (-180, 180]
     phase_u_deg: float          # expanded, k = 2
-    detected: bool              # amplitude > U (k = 2): the one rule for a magnitude
+    detected: bool              # a - c u(a) > 0 (A4, D2: `tone_interval`)
+    amplitude_upper_rel: float = math.nan   # a + c u(a): the limit L when not detected
+    interval_factor: float = math.nan       # c = sqrt(-2 ln alpha_1)
 
 
 @dataclass(frozen=True)
@@ -69,9 +73,11 @@ class MainsResult:
     amplitude_u_dps: float      # expanded, k = 2
     phase_deg: float
     phase_u_deg: float
-    detected: bool
+    detected: bool              # a - c u(a) > 0 (A4, D2: `tone_interval`)
     significance: float = 0.0   # chi2 (2 dof) of the tone's coefficients
     source: str = "given"       # where frequency_hz comes from (set by the procedure)
+    amplitude_upper_dps: float = math.nan   # a + c u(a): the limit L when not detected
+    interval_factor: float = math.nan       # c = sqrt(-2 ln alpha_1)
 
 
 @dataclass(frozen=True)
@@ -289,6 +295,17 @@ def detection_threshold(tests: int, false_alarm: float = DETECTION_FALSE_ALARM) 
     return -2.0 * math.log(alpha_1)
 
 
+def tone_interval(amplitude: float, u_amplitude: float, tests: int
+                  ) -> tuple[bool, float, float]:
+    """(detected, L, c) of a tone (docs/method.md A4, D2): its amplitude's coverage interval
+    is a +/- c u(a), c = sqrt(-2 ln alpha_1) the radius of the joint 2-dof test of its two
+    coefficients for m = `tests` tones (Sidak, DETECTION_FALSE_ALARM family-wise); detected
+    when a - c u(a) > 0, else stated '< L', L = a + c u(a). u(a) is the amplitude's standard
+    uncertainty (its budget's u_c)."""
+    c = math.sqrt(detection_threshold(tests))
+    return amplitude - c * u_amplitude > 0.0, amplitude + c * u_amplitude, c
+
+
 def _significance(a: float, b: float, cov: np.ndarray) -> float:
     """q = v C^-1 v: chi2 with 2 dof when the tone's truth is zero."""
     v = np.array([a, b])
@@ -313,15 +330,16 @@ def harmonics_result(fit: DirectionFit, k: float, k_u_std: float, set_rate_dps: 
     design = fit.design
     out = []
     scale = 1.0 / (k * set_rate_dps)
-    threshold = detection_threshold(tones_tested(design))
     for h in range(1, design.harmonics + 1):
         a, b, cov_noise = _pair_cov(fit, design.row_harm + 2 * (h - 1), scale, inflation)
         v = np.array([a, b])
         cov = cov_noise + np.outer(v, v) * (k_u_std / k) ** 2   # k's share (relative)
         amp, u_amp, ph, u_ph = _amp_phase(a, b, cov)
+        detected, upper, c = tone_interval(amp, u_amp, tones_tested(design))   # A4, D2
         out.append(HarmonicResult(order=h, amplitude_rel=amp, amplitude_u_rel=COVERAGE * u_amp,
                                   phase_deg=ph, phase_u_deg=min(COVERAGE * u_ph, 180.0),
-                                  detected=_significance(a, b, cov_noise) > threshold))
+                                  detected=detected, amplitude_upper_rel=upper,
+                                  interval_factor=c))
     return tuple(out)
 
 
@@ -336,11 +354,12 @@ def mains_result(fit: DirectionFit, k: float, k_u_std: float, inflation: NoiseIn
     amp, u_amp, ph, u_ph = _amp_phase(a, b, cov)
     assert design.mains_hz is not None  # has_mains
     q = _significance(a, b, cov_noise)
+    detected, upper, c = tone_interval(amp, u_amp, tones_tested(design))   # A4, D2
     return MainsResult(frequency_hz=float(design.mains_hz), amplitude_dps=amp,
                        amplitude_u_dps=COVERAGE * u_amp, phase_deg=ph,
                        phase_u_deg=min(COVERAGE * u_ph, 180.0),
-                       detected=q > detection_threshold(tones_tested(design)),
-                       significance=q)
+                       detected=detected, significance=q, amplitude_upper_dps=upper,
+                       interval_factor=c)
 
 
 def binned_systematic(fit: DirectionFit, cal: FogCalibration, set_rate_dps: float,

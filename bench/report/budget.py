@@ -82,9 +82,9 @@ class Budget:
 
     @property
     def dof_eff(self) -> float | None:
-        """nu_eff = u_c^4 / sum(u_i^4 / nu_i) (EA-4/02 eq. E.1, docs/method.md D1); None for
-        infinite."""
-        return welch_satterthwaite((t.contribution, t.dof) for t in self.terms)
+        """nu_eff = u_c^4 / sum(u_i^4 / nu_i) (EA-4/02 eq. E.1, docs/method.md D1), u_c with
+        the correlations (GUM 5.2.2); None for infinite."""
+        return welch_satterthwaite(((t.contribution, t.dof) for t in self.terms), self.ustd)
 
     @property
     def k(self) -> float:

@@ -321,8 +321,11 @@ def with_sigma_terms(d: JsonObject) -> JsonObject:
     lower = instability_lower(_required(s, "rate_instability_rel"), n) if n >= 2 else 0.0
     upper = instability_upper(_required(s, "rate_instability_rel"), n) if n >= 2 \
         else math.inf
+    # its standard uncertainty s / sqrt(2 (N - 1)) (docs/method.md A2, C1): what the DCC
+    # states beside the chi-square interval
+    ustd = s / math.sqrt(2.0 * (n - 1)) if s is not None and n >= 2 else None
     return result_json.with_sigma_terms(d, _instability_u(s, n), upper, lower,
-                                        sigma_resolved(lower, floor))
+                                        sigma_resolved(lower, floor), ustd)
 
 
 def _required(x: float | None, key: str) -> float:

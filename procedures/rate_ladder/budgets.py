@@ -1,9 +1,9 @@
 """The rate ladder's uncertainty budgets (EA-4/02 form, bench.report.budget), built from the
 analysis results in result.json and added to it (`budgets` lists; additions only):
 
-- per rate: the rate error delta (eq. 1), the intra-turn instability (raw and floor
-  corrected, docs/method.md A5), each harmonic's amplitude and phase (A4);
-- per +/- pair: the FOG's scale k and bias w0 (A3, eq. 5-6), propagated through the
+- per rate: the rate error delta (eq. 1), the raw intra-turn instability (docs/method.md
+  A5), each harmonic's and the mains tone's amplitude and phase (A4);
+- per +/- pair: the FOG's scale k, bias w0 and bias drift (A3, eq. 5-6), propagated through the
   weighted least-squares fit of the halves' FOG means on the counter's means (the same
   model the analysis fits: a bias and, with three or more halves, a linear drift).
 
@@ -12,8 +12,6 @@ their U; this module only lays out where each U comes from.
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
@@ -103,10 +101,38 @@ def harmonic_budgets(r: RateEntry, pair: PairEntry | None) -> list[Budget]:
     return out
 
 
+def mains_budgets(r: RateEntry, pair: PairEntry | None) -> list[Budget]:
+    """The mains tone's amplitude (deg/s of table rate) and phase (docs/method.md A4): the
+    least-squares fit of the FOG record (Type A) and the FOG scale k it is divided by."""
+    m = r.mains
+    if m is None or not m.doc:
+        return []
+    samples = num(r.intra.samples)
+    dof = samples - (2 * len(r.harmonics) + 3) if samples else None
+    out = []
+    a, ua = num(m.amplitude_dps), _half_u(m.amplitude_u_dps)
+    if a is not None and ua is not None:
+        out.append(Budget(
+            "mains ripple amplitude (deg/s)", "systematic.mains.amplitude_dps", "deg/s", a,
+            (Term("least-squares fit of the FOG record over whole turns (Type A)", a, ua,
+                  STUDENT_T, 1.0, dof, "deg/s"), *_scale_term(pair, a)),
+            2 * ua))
+    p, up = num(m.phase_deg), _half_u(m.phase_u_deg)
+    if p is not None and up is not None:
+        out.append(Budget(
+            "mains ripple phase", "systematic.mains.phase_deg", "deg", p,
+            (Term("least-squares fit of the FOG record over whole turns (Type A)", p, up,
+                  STUDENT_T, 1.0, dof, "deg"),),
+            2 * up,
+            note="" if m.detected is not False else "mains tone not detected: its phase is "
+                                                    "undetermined"))
+    return out
+
+
 def intra_turn_budgets(r: RateEntry, pair: PairEntry | None,
                        floor: NoiseFloor | None) -> list[Budget]:
-    """sigma_raw (A5) and sigma_c = sqrt(sigma_raw^2 - sigma_floor^2) (A5: the FOG's own
-    noise removed), relative to |set|."""
+    """sigma_raw (A5), relative to |set|: the standard deviation of the random part (Type A,
+    chi-square) and the FOG scale it is read through."""
     intra = r.intra
     raw = num(r.intra_turn_instability_rel)
     u_raw = _half_u(r.intra_turn_instability_U_rel)
@@ -118,21 +144,9 @@ def intra_turn_budgets(r: RateEntry, pair: PairEntry | None,
                                   "(Type A)", raw, u_raw, CHI_SQUARE, 1.0,
                                   n - 1 if n else None, "1"), *_scale_term(pair, raw)),
                   2 * u_raw)]
-    fl, corrected = num(intra.floor_rel), num(r.intra_turn_instability_corrected_rel)
-    n_floor = num(floor.samples) if floor is not None else None
-    if fl is not None and corrected and corrected > 0 and n_floor and n_floor > 1:
-        u_floor = fl / math.sqrt(2 * (n_floor - 1))   # sigma of a sigma from n samples
-        out.append(Budget(
-            "intra-turn instability σ, FOG noise floor removed (relative)",
-            "intra_turn_instability_corrected_rel", "1", corrected,
-            (Term("σ raw (above)", raw, u_raw, CHI_SQUARE, raw / corrected,
-                  n - 1 if n else None, "1"),
-             Term("FOG noise floor σ_floor from the static record (Type A)", fl, u_floor,
-                  CHI_SQUARE, -fl / corrected, n_floor - 1, "1")),
-            None,
-            note="" if intra.resolved else
-            "not resolved from the floor: the certificate states an upper limit, not this "
-            "value with a U"))
+    # the floor-corrected figure has no linear budget: near zero the propagation fails, and
+    # its interval is the JCGM 101 Monte Carlo of A5 (inputs raw, nu_raw, floor, nu_floor in
+    # result.json's intra_turn and the certificate's note), not k u_c
     return out
 
 
@@ -164,9 +178,13 @@ def pair_budgets(pair: PairEntry) -> list[Budget]:
     gain = np.linalg.solve(a.T @ w @ a, a.T @ w)          # beta = gain @ F
     beta = gain @ np.array([f for _, f, _, _, _, _, _ in rows])
     out = []
-    for idx, (name, key, unit, value, reported) in enumerate((
-            ("FOG scale k (eq. 5)", "k", "1", pair.k, pair.k_U),
-            ("FOG bias ω0 (eq. 6)", "w0_dps", "deg/s", pair.w0_dps, pair.w0_U_dps))):
+    # docs/method.md A3: the fit's third parameter (the column (t - t_ref) / 3600 s) is
+    # the FOG's bias drift in deg/s per hour
+    fitted = (("FOG scale k (eq. 5)", "k", "1", pair.k, pair.k_U),
+              ("FOG bias ω0 (eq. 6)", "w0_dps", "deg/s", pair.w0_dps, pair.w0_U_dps),
+              *((("FOG bias drift during the pair (A3)", "drift_dps_per_h", "deg/s/h",
+                  pair.drift_dps_per_h, pair.drift_u_dps_per_h),) if drift else ()))
+    for idx, (name, key, unit, value, reported) in enumerate(fitted):
         terms = []
         for i, (c, f, uf, uc, _t, turns, sign) in enumerate(rows):
             s = "+" if (num(sign) or 0) > 0 else "−"
@@ -186,7 +204,8 @@ def add_budgets(doc: JsonObject) -> JsonObject:
         doc, lambda r, pair, floor: _as_json([b for b in (rate_error_budget(r),)
                                                if b is not None]
                                               + intra_turn_budgets(r, pair, floor)
-                                              + harmonic_budgets(r, pair)),
+                                              + harmonic_budgets(r, pair)
+                                              + mains_budgets(r, pair)),
         lambda p: _as_json(pair_budgets(p)))
 
 

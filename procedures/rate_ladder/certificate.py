@@ -39,6 +39,7 @@ from bench.report.certificate.rounding import (
     is_resolved,
     present,
     present_phase,
+    present_std,
     rel_unit,
 )
 from bench.report.result_frame import Check
@@ -230,17 +231,12 @@ def sigma_presented(r: RateEntry, u: float | None, scale: float = 1.0) -> Presen
     resolved when its chi-square lower limit > floor (the analysis's
     `rate_instability_resolved`), printed as its interval 'σ [lower, upper]'; else '< L',
     L the one-sided chi-square upper limit (`rate_instability_upper_rel`), never below the
-    floor."""
-    s = num(r.rate_instability_rel)
-    floor = num(r.rate_instability_floor_rel)
-    lower, upper = num(r.rate_instability_lower_rel), num(r.rate_instability_upper_rel)
-    resolved = r.rate_instability_resolved
-    if resolved is None:
-        resolved = (s is not None and u is not None
-                    and s - u > (floor if floor is not None else 0.0))
-    interval = (lower, upper) if lower is not None and upper is not None else None
-    return present(s, u, scale, resolved=bool(resolved), upper=upper, interval=interval,
-                   floor=floor)
+    floor (`present_std`, which the station prints with too)."""
+    return present_std(num(r.rate_instability_rel), u, scale,
+                       lower=num(r.rate_instability_lower_rel),
+                       upper=num(r.rate_instability_upper_rel),
+                       floor=num(r.rate_instability_floor_rel),
+                       resolved=r.rate_instability_resolved)
 
 
 def _u_of_std(s: float | None, n: object) -> float | None:
@@ -263,6 +259,8 @@ class Averaged:
     upper: float | None = None        # upper end of the corrected figure's interval
     resolved: bool | None = None
     lower: float | None = None        # its lower end (JCGM 101, docs/method.md A5)
+    measured_resolved: bool | None = None   # the analysis's D2 decision (None: older)
+    measured_upper: float | None = None     # its L = value + U, never below the floor
 
     @property
     def sensitivity(self) -> float | None:
@@ -301,7 +299,9 @@ def _averaged(r: RateEntry) -> list[Averaged]:
         out.append(Averaged(angle_deg, raw, u, approx and u is not None,
                             num(d.get("floor_rel")), corrected,
                             int(n) if (n := num(d.get("blocks"))) is not None else None,
-                            upper, bool(resolved), num(d.get("corrected_lower_rel"))))
+                            upper, bool(resolved), num(d.get("corrected_lower_rel")),
+                            m if isinstance(m := d.get("measured_resolved"), bool) else None,
+                            num(d.get("measured_upper_rel"))))
     return sorted(out, key=lambda x: x.angle_deg)
 
 
@@ -438,6 +438,7 @@ def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Check],
                                     "(docs/method.md A3, eqs. 5-6)", notes=tuple(notes)))
     # A4 systematic
     sys_rows, mains_rows = [], []
+    factors: set[float] = set()      # c of the tones' intervals a ± c·u(a) (A4)
     amp_unit = rel_unit(*[num(h.amplitude_rel) for r in every for h in r.harmonics])
     for r in rates:
         for h in r.harmonics:
@@ -445,11 +446,17 @@ def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Check],
             w = abs(num(r.set_rate_dps) or 0.0)
             detected = h.detected
             resolved = bool(detected) if detected is not None else is_resolved(a, au)
+            # docs/method.md A4, D2: an undetected tone is '< L', L = a + c·u(a) (analysis)
+            upper = num(h.amplitude_upper_rel)
+            if (c := num(h.interval_factor)) is not None:
+                factors.add(round(c, 2))
             sys_rows.append((rate_text(r.set_rate_dps), text_of(h.order),
-                             present(a, au, amp_unit.scale, resolved=resolved).text,
+                             present(a, au, amp_unit.scale, resolved=resolved,
+                                     upper=upper).text,
                              present(a * w if a is not None else None,
                                      au * w if au is not None else None,
-                                     resolved=resolved).text,
+                                     resolved=resolved,
+                                     upper=upper * w if upper is not None else None).text,
                              present_phase(num(h.phase_deg), num(h.phase_u_deg), resolved)))
         m = r.mains
         if m is not None and m.doc:
@@ -457,12 +464,19 @@ def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Check],
             a, au = num(m.amplitude_dps), num(m.amplitude_u_dps)
             detected = m.detected
             resolved = bool(detected) if detected is not None else is_resolved(a, au)
+            upper = num(m.amplitude_upper_dps)
+            if (c := num(m.interval_factor)) is not None:
+                factors.add(round(c, 2))
             mains_rows.append((rate_text(r.set_rate_dps), text_of(m.frequency_hz),
-                               present(a, au, resolved=resolved).text,
+                               present(a, au, resolved=resolved, upper=upper).text,
                                present(a / w if a is not None and w else None,
                                        au / w if au is not None and w else None,
-                                       PERCENT.scale, resolved=resolved).text,
+                                       PERCENT.scale, resolved=resolved,
+                                       upper=upper / w if upper is not None and w
+                                       else None).text,
                                present_phase(num(m.phase_deg), num(m.phase_u_deg), resolved)))
+    c_text = (" (c = " + ", ".join(f"{c:.2f}" for c in sorted(factors)) + " here)"
+              if factors else "")
     if sys_rows:
         blocks.append(Table(("Set rate, °/s", "Order h", f"Amplitude ± U, {amp_unit.name} "
                              "of ω_set", "Amplitude ± U, °/s", "Phase p_h ± U, °"),
@@ -470,9 +484,13 @@ def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Check],
                             caption=f"Axis {axis}: systematic intra-turn component, fitted "
                                     "harmonics Δω_sys = ω_set·Σ a_h cos(hφ + p_h) "
                                     "(docs/method.md A4)",
-                            notes=("'< L': the amplitude is not detected (the joint "
-                                   "interval of its two coefficients reaches zero, A4; the "
-                                   "one rule of docs/method.md D2); L = a + U is its "
+                            notes=("A tone's coverage interval is a ± c·u(a), u(a) = U/2 "
+                                   "its budget's standard uncertainty and c = √(−2 ln α₁) "
+                                   "the radius of the joint test of its two coefficients, "
+                                   "α₁ = 1 − 0.95^(1/m) for the m tones tested in the "
+                                   f"direction{c_text} (docs/method.md A4). '< L': the "
+                                   "interval reaches zero, the tone is not detected (the "
+                                   "one rule of docs/method.md D2); L = a + c·u(a) is its "
                                    "one-sided upper limit, and its phase, which then means "
                                    "nothing, is printed '—'.",)))
     if mains_rows:
@@ -589,16 +607,24 @@ def _intra_blocks(axis: str, rates: Sequence[RateEntry], floor: NoiseFloor | Non
                          *[num(r.intra.corrected_upper_rel) for r in every])
     rows = []
     for r, raw, u, fl in zip(rates, raws, raw_us, floors, strict=True):
+        # docs/method.md D2: raw ± U only when raw − U lies above the FOG floor (the
+        # analysis's `intra_turn.raw_resolved`), else '< L', L = raw + U, never below it
+        raw_resolved = r.intra.raw_resolved
+        raw_text = (present(raw, u, raw_unit.scale, floor=fl) if raw_resolved is None else
+                    present(raw, u, raw_unit.scale, resolved=raw_resolved,
+                            upper=r.intra.raw_upper_rel, floor=fl)).text
         rows.append((rate_text(r.set_rate_dps),
-                     vu_text(raw, u, raw_unit) + ("*" if u is not None and approx
-                                                and r.intra_turn_instability_u_rel is None
-                                                else ""),
+                     raw_text + ("*" if u is not None and approx
+                                 and r.intra_turn_instability_u_rel is None
+                                 and "±" in raw_text else ""),
                      format_value_u(fl, None, raw_unit.scale, sig_without_u=2).value
                      if fl is not None else "—",
                      _corrected_cell(r, corr_unit)))
     header = ("Set rate, °/s", f"Raw ± U, {raw_unit.name}", f"FOG floor, {raw_unit.name}",
               f"Floor-corrected, {corr_unit.name}")
-    notes = []
+    notes = ["Raw: 'value ± U' only when value − U lies above the FOG floor; otherwise "
+             "'< L', L = value + U, never below the floor (docs/method.md D2: no value or U "
+             "is printed below its floor)."]
     bw = {b for r in rates if (b := num(r.bandwidth_hz)) is not None}
     if bw:
         notes.append("At the FOG's output bandwidth: "
@@ -650,7 +676,10 @@ def _stability_blocks(axis: str, rates: Sequence[RateEntry]) -> list[Block]:
             limited |= not a.resolved
             # docs/method.md D2: the measured figure against the FOG's floor over the same
             # window: 'raw ± U' only when raw - U > floor, else '< L' (never below the floor)
-            measured = present(a.raw, a.u, unit.scale, floor=a.floor)
+            measured = (present(a.raw, a.u, unit.scale, floor=a.floor)
+                        if a.measured_resolved is None else
+                        present(a.raw, a.u, unit.scale, resolved=a.measured_resolved,
+                                upper=a.measured_upper, floor=a.floor))
             limited |= not measured.resolved
             rows.append((rate_text(r.set_rate_dps), f"{a.angle_deg:g}", "FOG",
                          measured.text + ("*" if a.u_approx and measured.resolved else ""),

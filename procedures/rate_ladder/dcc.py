@@ -6,6 +6,7 @@ instability, the fitted harmonics and mains ripple; per +/- pair the FOG's k and
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 from lxml import etree
@@ -64,17 +65,25 @@ METHOD_SECTIONS = ("A1", "A2", "A3", "A4", "A5", "A6", "D1", "D2")
 ONE_SIDED_P = 0.975
 
 
-def two_sided(value: float, lower: float, upper: float, distribution: str,
+def two_sided(value: float, lower: float, upper: float, distribution: str, ustd: float,
               probability: float = 0.95) -> Interval:
-    """A resolved magnitude's asymmetric interval (docs/method.md D2); its standard
-    uncertainty beside it: half the interval over 2 (D-SI asks for one)."""
-    return Interval(lower, upper, probability, (upper - lower) / 4.0, distribution)
+    """A resolved magnitude's asymmetric interval (docs/method.md D2), with the standard
+    uncertainty D-SI asks beside it: the figure's own (its budget's u_c, or the Monte
+    Carlo's standard deviation), never a width over 4."""
+    return Interval(lower, upper, probability, ustd, distribution)
 
 
-def limit_interval(limit: float, distribution: str, probability: float = ONE_SIDED_P
-                   ) -> Interval:
-    """'< L' (docs/method.md D2) as the interval [0, L] at its one-sided level."""
-    return Interval(0.0, limit, probability, limit / 4.0, distribution)
+def limit_interval(limit: float, distribution: str, ustd: float,
+                   probability: float = ONE_SIDED_P) -> Interval:
+    """'< L' (docs/method.md D2) as the interval [0, L] at its one-sided level, with the
+    figure's own standard uncertainty (its budget's u_c)."""
+    return Interval(0.0, limit, probability, ustd, distribution)
+
+
+def _stated_or(x: float | None, older: float) -> float:
+    """The standard uncertainty result.json states; an older result without it gets the
+    interval's width over 4, as such results were written."""
+    return older if x is None or not math.isfinite(x) else x
 
 
 class LadderDcc(DccParts):
@@ -182,12 +191,15 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: RateEntry,
                          num(r.rate_instability_upper_rel))
     s_floor = num(r.rate_instability_floor_rel)
     s_iv: Interval | None = None
+    s_ustd = num(r.doc.get("rate_instability_ustd_rel"))
     if s_val is not None and s_lo is not None and s_hi is not None:
         if r.rate_instability_resolved:
-            s_iv = two_sided(s_val, s_lo, s_hi, "chi-square (N - 1 dof)")
+            s_iv = two_sided(s_val, s_lo, s_hi, "chi-square (N - 1 dof)",
+                             _stated_or(s_ustd, (s_hi - s_lo) / 4.0))
         else:
-            s_iv = limit_interval(max(s_hi, s_floor or 0.0), "chi-square (N - 1 dof), "
-                                  "one-sided upper limit")
+            s_top = max(s_hi, s_floor or 0.0)
+            s_iv = limit_interval(s_top, "chi-square (N - 1 dof), one-sided upper limit",
+                                  _stated_or(s_ustd, s_top / 4.0))
     q("rate_instability_rel", "per-turn rate instability, relative std of the per-turn rates "
       "(docs/method.md A2 eq. 2)", RATE_INSTABILITY, U.ONE, s_val,
       None if s_iv is not None else num(r.rate_instability_u_rel), u_stated=s_iv is None,
@@ -204,10 +216,20 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: RateEntry,
                       U.DEG_PER_S, us, note=None if us is not None else
                       "U not stated: result.json carries no timing budget for this rate.")
     intra = r.intra
+    # as the PDF (docs/method.md D2): +/- U only when raw - U > the FOG floor (the
+    # analysis's raw_resolved); else '< L' as [0, L], L = raw + U never below the floor
+    raw_iv = (limit_interval(raw_upper, "normal, one-sided upper limit value + U",
+                             _stated_or(num(intra.doc.get("raw_ustd_rel")), raw_upper / 4.0),
+                             (1.0 + float(COVERAGE_PROBABILITY)) / 2.0)
+              if intra.raw_resolved is False and (raw_upper := num(intra.raw_upper_rel))
+              is not None else None)
     q("intra_turn_instability_rel", "intra-turn instability std(random part) / |set| at the "
       "FOG bandwidth (docs/method.md A5)", INTRA_TURN, U.ONE,
-      num(r.intra_turn_instability_rel), num(r.intra_turn_instability_u_rel), u_stated=True,
-      check="intra_turn_instability")
+      num(r.intra_turn_instability_rel),
+      num(r.intra_turn_instability_u_rel) if raw_iv is None else None, u_stated=True,
+      check="intra_turn_instability", interval=raw_iv,
+      note=None if raw_iv is None else "not resolved above the FOG noise floor: stated as "
+      "< L, L = value + U (docs/method.md D2)")
     if (floor_rel := num(intra.floor_rel)) is not None:
         q("floor_rel", "FOG noise floor, relative to |set| (docs/method.md A5)", FOG_FLOOR, U.ONE,
           floor_rel, label=f"{path}.intra_turn.floor_rel")
@@ -215,7 +237,8 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: RateEntry,
     resolved = intra.resolved
     corrected = num(r.intra_turn_instability_corrected_rel)
     # as the PDF (docs/method.md A5, D2): resolved, its JCGM 101 interval; else [0, L]
-    c_iv = _mc_interval(corrected, lower, upper, resolved)
+    c_iv = _mc_interval(corrected, lower, upper, resolved,
+                        num(intra.doc.get("corrected_ustd_rel")))
     q("intra_turn_instability_corrected_rel", "intra-turn instability with the FOG noise "
       "floor removed in quadrature (docs/method.md A5)", INTRA_TURN_CORRECTED, U.ONE, corrected,
       None if upper is not None else num(r.intra_turn_instability_corrected_u_rel),
@@ -254,9 +277,14 @@ def _averaged(data: etree._Element, rid: str, path: str, rows: JsonValue) -> Non
             # as the PDF (docs/method.md D2): +/- U only when v - U > the FOG's floor over
             # the window; else '< L' as [0, L], L = v + U never below the floor
             fl = num(a.get("floor_rel"))
-            iv = (None if uu is None or is_resolved(v, uu, floor=fl) else
-                  limit_interval(max(abs(v) + uu, fl or 0.0), "normal, one-sided upper limit "
-                                 "value + U", (1.0 + float(COVERAGE_PROBABILITY)) / 2.0))
+            m_res, m_upper = a.get("measured_resolved"), num(a.get("measured_upper_rel"))
+            if not isinstance(m_res, bool):      # an older result: the rule, here
+                m_res = uu is not None and is_resolved(v, uu, floor=fl)
+                m_upper = None if uu is None else max(abs(v) + uu, fl or 0.0)
+            iv = (None if m_res or m_upper is None else
+                  limit_interval(m_upper, "normal, one-sided upper limit value + U",
+                                 _stated_or(num(a.get("ustd_rel")), m_upper / 4.0),
+                                 (1.0 + float(COVERAGE_PROBABILITY)) / 2.0))
             quantity(lst, ident(rid, "avg", f"{num(a['angle_deg']):g}", "instability_rel"),
                      "instability, relative to |set|", INTRA_TURN, v, U.ONE,
                      uu if iv is None else None, label=f"{p}.instability_rel",
@@ -271,7 +299,7 @@ def _averaged(data: etree._Element, rid: str, path: str, rows: JsonValue) -> Non
         if corrected is not None:
             # as the PDF (docs/method.md D2): resolved, its interval; else [0, L]
             iv = _mc_interval(corrected, num(a.get("corrected_lower_rel")), upper,
-                              a.get("resolved"))
+                              a.get("resolved"), num(a.get("corrected_ustd_rel")))
             quantity(lst, ident(rid, "avg", f"{num(a['angle_deg']):g}", "corrected_rel"),
                      "floor-corrected", INTRA_TURN_CORRECTED, corrected, U.ONE,
                      label=f"{p}.corrected_rel", interval=iv,
@@ -283,24 +311,32 @@ def _averaged(data: etree._Element, rid: str, path: str, rows: JsonValue) -> Non
 
 
 def _mc_interval(value: float | None, lower: float | None, upper: float | None,
-                 resolved: object) -> Interval | None:
+                 resolved: object, ustd: float | None) -> Interval | None:
     """A floor-corrected figure's JCGM 101 interval (docs/method.md A5, D2): [lower, upper]
-    when resolved, [0, L] at its one-sided level when not."""
+    when resolved, [0, L] at its one-sided level when not; its standard uncertainty the
+    draws' standard deviation (JCGM 101 7.6)."""
     if value is None or upper is None:
         return None
     dist = "JCGM 101 Monte Carlo of raw^2 - floor^2"
     if resolved and lower is not None:
-        return two_sided(value, lower, upper, dist)
-    return limit_interval(upper, dist + ", one-sided upper limit")
+        return two_sided(value, lower, upper, dist, _stated_or(ustd, (upper - lower) / 4.0))
+    return limit_interval(upper, dist + ", one-sided upper limit", _stated_or(ustd, upper / 4.0))
 
 
-def _undetected(detected: bool | None, a: float, big_u: float | None) -> Interval | None:
-    """An undetected tone's amplitude as the PDF prints it, '< a + U' (docs/method.md D2):
-    the interval [0, a + U], one-sided at the level of k = 2."""
+def _undetected(detected: bool | None, a: float, big_u: float | None, upper: float | None,
+                factor: float | None) -> Interval | None:
+    """An undetected tone's amplitude as the PDF prints it, '< L' (docs/method.md A4, D2):
+    [0, L], L = a + c u(a), at 1 - alpha_1 = 1 - exp(-c^2 / 2), the level of the joint test
+    whose radius is c; its standard uncertainty u(a) = U / 2 (its budget's u_c). An older
+    result without L: a + U at the level of k = 2."""
     if detected is not False or big_u is None:
         return None
-    return limit_interval(abs(a) + big_u, "normal, one-sided upper limit a + U",
-                          (1.0 + float(COVERAGE_PROBABILITY)) / 2.0)
+    if upper is None or factor is None:
+        return limit_interval(abs(a) + big_u, "normal, one-sided upper limit a + U",
+                              big_u / 2.0, (1.0 + float(COVERAGE_PROBABILITY)) / 2.0)
+    return limit_interval(upper, "joint chi-square (2 dof) interval of the tone's two "
+                          "coefficients, upper limit a + c u(a)", big_u / 2.0,
+                          1.0 - math.exp(-factor * factor / 2.0))
 
 
 def _systematic(data: etree._Element, rid: str, path: str, r: RateEntry) -> None:
@@ -326,8 +362,9 @@ def _systematic(data: etree._Element, rid: str, path: str, r: RateEntry) -> None
                 uu = num(u)
                 quantity(lst, ident(hid, key), title, ref, v, unit, uu, label=f"{p}.{key}",
                          note=None if uu is not None else "U not stated in result.json.",
-                         interval=_undetected(h.detected, v, uu) if key == "amplitude_rel"
-                         else None)
+                         interval=_undetected(h.detected, v, uu, num(h.amplitude_upper_rel),
+                                              num(h.interval_factor))
+                         if key == "amplitude_rel" else None)
     m = r.mains
     if m is not None and num(m.amplitude_dps) is not None:
         mid = ident(rid, "mains")
@@ -348,8 +385,9 @@ def _systematic(data: etree._Element, rid: str, path: str, r: RateEntry) -> None
                 quantity(lst, ident(mid, key), title, ref, v, unit, uu, label=f"{p}.{key}",
                          note=None if uu is not None or not states_u
                          else "U not stated in result.json.",
-                         interval=_undetected(m.detected, v, uu) if key == "amplitude_dps"
-                         else None)
+                         interval=_undetected(m.detected, v, uu, num(m.amplitude_upper_dps),
+                                              num(m.interval_factor))
+                         if key == "amplitude_dps" else None)
 
 
 def _or_not_recorded(value: float | None) -> str:

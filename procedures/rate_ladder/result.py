@@ -139,6 +139,16 @@ class Harmonic:
     def phase_U_deg(self) -> float | None:
         return _expanded(self.doc, "phase_U_deg", "phase_u_deg")
 
+    @property
+    def amplitude_upper_rel(self) -> float | None:
+        """L = a + c u(a), the limit of an undetected harmonic (docs/method.md A4, D2)."""
+        return number(self.doc, "amplitude_upper_rel")
+
+    @property
+    def interval_factor(self) -> float | None:
+        """c = sqrt(-2 ln alpha_1) of the tone's interval a +/- c u(a) (A4)."""
+        return number(self.doc, "interval_factor")
+
 
 @dataclass(frozen=True, slots=True)
 class Mains:
@@ -151,6 +161,16 @@ class Mains:
     phase_u_deg: float | None
     detected: bool | None
     doc: JsonObject
+
+    @property
+    def amplitude_upper_dps(self) -> float | None:
+        """L = a + c u(a), the limit of an undetected tone (docs/method.md A4, D2)."""
+        return number(self.doc, "amplitude_upper_dps")
+
+    @property
+    def interval_factor(self) -> float | None:
+        """c = sqrt(-2 ln alpha_1) of the tone's interval a +/- c u(a) (A4)."""
+        return number(self.doc, "interval_factor")
 
 
 @dataclass(frozen=True, slots=True)
@@ -166,6 +186,16 @@ class IntraTurn:
     bandwidth_hz: float | None
     averaged: JsonValue          # over 1/10/360 deg (bench.analysis.random_part's shape)
     doc: JsonObject
+
+    @property
+    def raw_resolved(self) -> bool | None:
+        """The raw figure stands above the FOG floor (docs/method.md D2); None: older."""
+        return flag(self.doc, "raw_resolved")
+
+    @property
+    def raw_upper_rel(self) -> float | None:
+        """L of the raw figure when not resolved: raw + U, never below the floor (D2)."""
+        return number(self.doc, "raw_upper_rel")
 
     @classmethod
     def from_json(cls, doc: JsonObject) -> IntraTurn:
@@ -602,14 +632,16 @@ def turns_json(tr: TurnsResult) -> JsonObject:
 def harmonic_json(h: HarmonicResult) -> JsonObject:
     return {"order": h.order, "amplitude_rel": h.amplitude_rel,
             "amplitude_u_rel": h.amplitude_u_rel, "phase_deg": h.phase_deg,
-            "phase_u_deg": h.phase_u_deg, "detected": h.detected}
+            "phase_u_deg": h.phase_u_deg, "detected": h.detected,
+            "amplitude_upper_rel": h.amplitude_upper_rel, "interval_factor": h.interval_factor}
 
 
 def mains_json(m: MainsResult) -> JsonObject:
     return {"frequency_hz": m.frequency_hz, "amplitude_dps": m.amplitude_dps,
             "amplitude_u_dps": m.amplitude_u_dps, "phase_deg": m.phase_deg,
             "phase_u_deg": m.phase_u_deg, "detected": m.detected,
-            "significance_chi2": m.significance, "source": m.source}
+            "significance_chi2": m.significance, "source": m.source,
+            "amplitude_upper_dps": m.amplitude_upper_dps, "interval_factor": m.interval_factor}
 
 
 def binned_json(b: BinnedSystematic) -> JsonObject:
@@ -642,6 +674,9 @@ def averaged_json(a: AveragedInstability) -> JsonObject:
             "floor_rel": a.floor_rel, "corrected_rel": a.corrected_rel,
             "corrected_upper_rel": a.corrected_upper_rel,
             "corrected_lower_rel": a.corrected_lower_rel, "resolved": a.resolved,
+            "corrected_ustd_rel": a.corrected_ustd_rel, "ustd_rel": a.ustd_rel,
+            "measured_resolved": a.measured_resolved,
+            "measured_upper_rel": a.measured_upper_rel,
             "interval_level": LEVEL, "dof": a.dof,
             "blocks": a.blocks, "samples_per_block": a.samples_per_block}
 
@@ -658,6 +693,9 @@ def random_json(r: RandomPartResult) -> JsonObject:
             "interval_method": "JCGM 101 Monte Carlo of raw^2 - floor^2 (scaled "
                                "inverse chi-square per variance)",
             "floor_dof": r.floor_dof, "resolved": r.resolved,
+            "raw_resolved": r.raw_resolved, "raw_upper_rel": r.raw_upper_rel,
+            "raw_ustd_rel": r.raw_ustd_rel, "raw_dof": r.raw_dof,
+            "corrected_ustd_rel": r.corrected_ustd_rel,
             "bandwidth_hz": r.bandwidth_hz, "std_dps": r.std_dps,
             "samples": r.samples, "averaged": [averaged_json(a) for a in r.averaged]}
 
@@ -665,14 +703,11 @@ def random_json(r: RandomPartResult) -> JsonObject:
 def rate_json(r: RateResult) -> JsonObject:
     """One commanded rate and direction (docs/method.md A1-A5): `axes.<axis>.rates[]`
     without what the ladder adds after judging it (`with_sigma_terms`, `with_outcome`)."""
-    from bench.analysis.random_part import std_interval_u_rel
-
     d = turns_json(r.turns_result)
     d["intra_turn_instability_rel"] = r.random.instability_rel
     d["intra_turn_instability_corrected_rel"] = r.random.corrected_rel
     # docs/method.md A5: U of a std from the record's samples (white random part assumed)
-    d["intra_turn_instability_u_rel"] = std_interval_u_rel(r.random.instability_rel,
-                                                          r.random.samples)
+    d["intra_turn_instability_u_rel"] = r.random.raw_U_rel
     # docs/method.md A5: the corrected figure's U only when it is resolved (JCGM 101);
     # otherwise it is stated as '< intra_turn.corrected_upper_rel'
     d["intra_turn_instability_corrected_u_rel"] = r.random.corrected_u_rel
@@ -686,10 +721,11 @@ def rate_json(r: RateResult) -> JsonObject:
 
 
 def with_sigma_terms(d: JsonObject, u_rel: float, upper_rel: float, lower_rel: float,
-                     resolved: bool) -> JsonObject:
-    """A rate's entry with eq. 2's U, its chi-square limits and whether it is resolved above
-    the timing floor (docs/method.md A1-A2), added in place."""
+                     resolved: bool, ustd_rel: float | None = None) -> JsonObject:
+    """A rate's entry with eq. 2's U, its chi-square limits, whether it is resolved above
+    the timing floor and its standard uncertainty (docs/method.md A1-A2), added in place."""
     d["rate_instability_u_rel"] = u_rel
+    d["rate_instability_ustd_rel"] = ustd_rel
     d["rate_instability_upper_rel"] = upper_rel
     d["rate_instability_lower_rel"] = lower_rel
     d["rate_instability_resolved"] = resolved

@@ -31,7 +31,7 @@ from bench.report.certificate.rounding import (
     RelUnit,
     format_sig,
     format_value_u,
-    present,
+    present_std,
     rel_unit,
 )
 from bench.report.figures import spec_for
@@ -41,7 +41,11 @@ from drivers.json_types import JsonLike, JsonObject
 ENDED_WORDS = {"passed": "Passed", "failed": "Failed", "refused": "Refused",
                "aborted": "Aborted", "incomplete": "Incomplete", "stopped": "Stopped",
                "ended": "Ended"}
-U_NOTE = "U: expanded uncertainty, coverage factor 2."
+#: docs/method.md D1-D2, as the certificate states them
+U_NOTE = ("U: expanded uncertainty for about 95 %, k = t_95.45(ν_eff) of its budget "
+          "(2.00 for infinite ν_eff; docs/method.md D1). 'value [lower, upper]': an "
+          "asymmetric coverage interval; '< L': not resolved above its floor, L its "
+          "one-sided upper limit (D2).")
 LIVE_CAPTION = ("Results as they come (first look per pair; the certificate is computed "
                 "again from the raw data)")
 
@@ -261,9 +265,14 @@ def _axis_tables(axes: Mapping[str, AxisRows]) -> list[dict[str, JsonLike]]:
                                *[r.rate_instability_upper_rel for r in rates])
             rows = []
             for r in rates:
-                sigma = present(_num(r.rate_instability_rel), _num(r.rate_instability_U_rel),
-                                sig.scale, upper=_num(r.rate_instability_upper_rel),
-                                resolved=r.rate_instability_resolved)
+                # docs/method.md D2, as the certificate prints it: the chi-square interval
+                # when resolved above the timing floor, else '< L'
+                sigma = present_std(_num(r.rate_instability_rel),
+                                    _num(r.rate_instability_U_rel), sig.scale,
+                                    lower=_num(r.rate_instability_lower_rel),
+                                    upper=_num(r.rate_instability_upper_rel),
+                                    floor=_num(r.rate_instability_floor_rel),
+                                    resolved=r.rate_instability_resolved)
                 rows.append(([_rate(r.set_rate_dps),
                               "-" if r.turns is None else str(r.turns),
                               _value_u(r.rate_error_rel, r.rate_error_U_rel, err.scale,
@@ -273,7 +282,7 @@ def _axis_tables(axes: Mapping[str, AxisRows]) -> list[dict[str, JsonLike]]:
             tables.append(_table(
                 f"rates-{axis}", f"Axis {axis}: rate error and instability per set rate",
                 ("set rate, deg/s", "turns", f"rate error δ ± U, {err.name}",
-                 f"instability σ ± U, {sig.name}", "verdict"), rows))
+                 f"instability σ [interval] or < L, {sig.name}", "verdict"), rows))
         if pairs:
             rows = [([f"±{_num(p.rate_dps) or 0:g}", _value_u(p.k, p.k_U),
                       _value_u(p.w0_dps, p.w0_U_dps, signed=True)], "") for p in pairs]

@@ -141,8 +141,9 @@ RESOLUTION_RULE = (
     "One rule for every magnitude (an amplitude, a standard deviation, a floor-corrected "
     "figure): it is resolved when the lower end of its coverage interval (about 95 %) lies "
     "above its floor, zero where it has none (the timing floor for the σ of the per-turn "
-    "rates; for a harmonic or the mains tone the joint interval of its two coefficients, "
-    "the detection test of A4). A resolved magnitude is printed 'value ± U' when its "
+    "rates; the FOG's noise floor for the raw intra-turn instability and the FOG's figures "
+    "over 1° and 10°; for a harmonic or the mains tone its interval a ± c·u(a), c the "
+    "radius of the joint detection test of A4). A resolved magnitude is printed 'value ± U' when its "
     "interval is symmetric (then value − U > floor) and 'value [lower, upper]' when it is "
     "not (a standard deviation from few values, a floor-corrected figure). Otherwise it is "
     "printed '< L', L the upper end of its interval as a one-sided limit, rounded up and "
@@ -185,13 +186,13 @@ def is_resolved(value: float | None, u_expanded: float | None,
 def format_interval(value: float, lower: float, upper: float, scale: float = 1.0
                     ) -> str:
     """'value [lower, upper]' (docs/method.md D2): the decimals of the wider side's
-    distance to two significant digits, the lower end rounded down and the upper end up
-    (an interval is never narrowed); more decimals while a lower end above zero would
-    print as 0."""
+    distance to two significant digits, or more where a lower end above zero needs them for
+    two significant digits of its own (0.0299 is printed 0.029, not 0.02); the lower end
+    rounded down and the upper end up (an interval is never narrowed)."""
     v, lo, hi = value * scale, lower * scale, upper * scale
     _, decimals = round_u(max(hi - v, v - lo, abs(v) * 1e-12, 1e-300))
-    while lo > 0 and _quantize(lo, decimals, ROUND_FLOOR) <= 0 and decimals < 30:
-        decimals += 1
+    if lo > 0 and math.isfinite(lo):
+        decimals = max(decimals, 1 - math.floor(math.log10(lo)))
     return (f"{_text(_quantize(v, decimals), decimals)} "
             f"[{_text(_quantize(lo, decimals, ROUND_FLOOR), decimals)}, "
             f"{_text(_quantize(hi, decimals, ROUND_CEILING), decimals)}]")
@@ -239,3 +240,19 @@ def present_phase(phase: float | None, u_expanded: float | None, amplitude_resol
             or not math.isfinite(u_expanded) or u_expanded <= 0:
         return NOT_STATED
     return format_value_u(phase, u_expanded, signed=signed).joined()
+
+
+def present_std(value: float | None, u_expanded: float | None, scale: float = 1.0, *,
+                lower: float | None, upper: float | None, floor: float | None,
+                resolved: bool | None) -> Presented:
+    """A standard deviation from few values under the one rule (docs/method.md A2, D2), as
+    the certificate, the DCC and the station state it: resolved when its chi-square lower
+    limit lies above its floor (the analysis's `resolved`; without it, value - U > floor),
+    printed as its interval 'value [lower, upper]'; else '< L', L its one-sided upper limit,
+    never below the floor. Never a normal 'value ± U' when the interval is known."""
+    if resolved is None:
+        resolved = (value is not None and u_expanded is not None
+                    and value - u_expanded > (floor if floor is not None else 0.0))
+    interval = (lower, upper) if lower is not None and upper is not None else None
+    return present(value, u_expanded, scale, resolved=bool(resolved), upper=upper,
+                   interval=interval, floor=floor)

@@ -16,8 +16,9 @@ from bench.report.dcc import vocab as V
 from bench.report.dcc.units import DEG, DEG_PER_H, DEG_PER_S, ONE
 from bench.report.dcc.xml import el, ident, name, quantity, text_el
 
+DEG_PER_S_PER_H = r"\degree\second\tothe{-1}\hour\tothe{-1}"
 UNITS = {"1": ONE, "deg/s": DEG_PER_S, "deg/h": DEG_PER_H, "deg": DEG, "s": r"\second",
-         "V/deg": r"\volt\degree\tothe{-1}"}
+         "V/deg": r"\volt\degree\tothe{-1}", "deg/s/h": DEG_PER_S_PER_H}
 #: D-SI unit of a sensitivity coefficient: (result unit, input unit) -> unit
 SENSITIVITY_UNITS = {("1", "1"): ONE, ("deg/s", "deg/s"): ONE, ("deg/h", "deg/h"): ONE,
                      ("deg", "deg"): ONE, ("deg", "1"): DEG,
@@ -25,7 +26,8 @@ SENSITIVITY_UNITS = {("1", "1"): ONE, ("deg/s", "deg/s"): ONE, ("deg/h", "deg/h"
                      ("deg/h", "1"): DEG_PER_H, ("deg/h", "deg"): r"\hour\tothe{-1}",
                      ("deg/h", "s"): r"\degree\hour\tothe{-1}\second\tothe{-1}",
                      ("deg/h", "V/deg"): r"\degree\tothe{2}\volt\tothe{-1}\hour\tothe{-1}",
-                     ("deg", "V/deg"): r"\degree\tothe{2}\volt\tothe{-1}"}
+                     ("deg", "V/deg"): r"\degree\tothe{2}\volt\tothe{-1}",
+                     ("deg/s/h", "deg/s"): r"\hour\tothe{-1}"}
 
 
 def budget_results(results: etree._Element, result: Mapping[str, object]) -> None:
