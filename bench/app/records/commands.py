@@ -15,6 +15,7 @@ from bench.app.records.extract import NotARun, find_runs, record_of
 from bench.app.records.hooks import RecordsTarget, target
 from bench.app.records.settings import SettingsError
 from bench.app.records.store import Records, RecordsError, TrendPoint
+from bench.core import rundir_layout as layout
 from bench.core.registry import declared_figures
 from bench.report.figures import FigureSpec, spec_for
 
@@ -340,6 +341,51 @@ def cmd_sync(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_check(args: argparse.Namespace) -> int:
+    """`bench records check RUN...`: the lab database against the run directories."""
+    from bench.app.fleet.check import check_run
+    from bench.app.fleet.sync import LabLink, SyncError, is_lab_server
+
+    paths = [Path(r) for r in args.runs]
+    for p in paths:
+        if not (p / layout.EVENTS).is_file():
+            _err(f"bench records check: {p} is not a run directory (no events.jsonl)")
+            return EXIT_INVALID
+    urls = {p: _run_records(p, args.records) for p in paths}
+    for p, url in urls.items():
+        if not is_lab_server(url):
+            _err(f"bench records check: {p.name}: {redact(url)} is not a lab server: name "
+                 "its PostgreSQL database (--records postgresql://ROLE@HOST/DB, or records: "
+                 "in the lab file)")
+            return EXIT_INVALID
+    differ = False
+    try:
+        for url in dict.fromkeys(urls.values()):
+            with LabLink(url) as link:
+                for p in (p for p, u in urls.items() if u == url):
+                    found = check_run(link, p)
+                    differ = differ or not found.equal
+                    print("\n".join(found.lines()))
+    except SyncError as e:
+        _err(f"bench records check: {e}")
+        return EXIT_FAIL
+    return EXIT_FAIL if differ else EXIT_OK
+
+
+def _run_records(run_path: Path, records: str | None) -> str:
+    """A run's own lab database: --records, else the records: of the lab file the run
+    copied when it started, else the runs folder's (the lab file in force)."""
+    if records:
+        return records
+    copy = run_path / layout.LAB
+    if copy.is_file():
+        from bench.core.lab import load_lab
+        url = load_lab(copy).records_url
+        if url:
+            return url
+    return target(run_path.parent).url
+
+
 def cmd_init(args: argparse.Namespace) -> int:
     """`bench records init URL`: the lab database's schema and its roles' grants."""
     import sqlalchemy as sa
@@ -367,7 +413,8 @@ def cmd_init(args: argparse.Namespace) -> int:
 
 def cmd_records(args: argparse.Namespace) -> int:
     """`bench records import` / `sync` / `init`."""
-    chosen = {"sync": cmd_sync, "init": cmd_init}.get(args.records_command, cmd_import)
+    chosen = {"sync": cmd_sync, "init": cmd_init, "check": cmd_check}.get(
+        args.records_command, cmd_import)
     return chosen(args)
 
 
