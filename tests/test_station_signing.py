@@ -41,9 +41,10 @@ from tests.test_station import ARTIFACTS, TOKEN, _browser, _chromium, _stop, _wa
 
 NS = {"dcc": "https://ptb.de/dcc"}
 LAB_ENV = "BENCH_LAB_SETTINGS"
-SIGNATORY = ("kowalska", "M. Kowalska", "signpw-123")     # a name the demo's files lack
-OPERATOR = ("olga", "O. Operatorova", "operpw-123")
-QUALITY = ("quinn", "Q. Quality", "qualpw-123")
+SIGNATORY = ("kowalska", "M. Kowalska", "sign-phrase-123")    # a name the demo's files lack
+OPERATOR = ("olga", "O. Operatorova", "oper-phrase-123")
+QUALITY = ("quinn", "Q. Quality", "qual-phrase-123")
+ADMIN_PW = "root-phrase-123"
 
 
 @pytest.fixture(autouse=True)
@@ -62,12 +63,14 @@ def _lab(tmp: Path) -> Lab:
     with an admin, a signatory, an operator and a quality account."""
     url = f"sqlite:///{tmp / 'register.sqlite'}"
     with Register.open(url) as reg:
-        assert reg.init("admin", "The Admin", "adminpw-123")
-        admin = reg.authenticate("admin", "adminpw-123")
-        reg.add_account(admin, SIGNATORY[0], SIGNATORY[1], ["signatory"], SIGNATORY[2],
+        assert reg.init("admin", "The Admin", ADMIN_PW)
+        admin = reg.authenticate("admin", ADMIN_PW)
+        reg.add_account(admin, SIGNATORY[0], SIGNATORY[1], ["signatory"], "x" + SIGNATORY[2],
                         function="Technical manager")
-        reg.add_account(admin, OPERATOR[0], OPERATOR[1], ["operator"], OPERATOR[2])
-        reg.add_account(admin, QUALITY[0], QUALITY[1], ["quality"], QUALITY[2])
+        reg.add_account(admin, OPERATOR[0], OPERATOR[1], ["operator"], "x" + OPERATOR[2])
+        reg.add_account(admin, QUALITY[0], QUALITY[1], ["quality"], "x" + QUALITY[2])
+        for name, _, pw in (SIGNATORY, OPERATOR, QUALITY):   # each holder's own password
+            reg.change_password(name, "x" + pw, pw)
     lab = tmp / "lab.yaml"
     lab.write_text("laboratory: Test Lab\nregister: sqlite:///register.sqlite\n")
     return Lab(lab, url)

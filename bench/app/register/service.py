@@ -40,10 +40,11 @@ from bench.app.register.store import (
 if TYPE_CHECKING:
     from drivers.json_types import JsonValue
 
-TOKEN_S = 10 * 60.0         # a login is good for this long (an issue takes seconds)
+TOKEN_S = 15 * 60.0         # a login is good this long after its last use (a station's idle)
 VIA_HEADER = "X-Ratebench-Via"
 #: audit entries a bench or station may add in an authenticated person's name
-CLIENT_ACTIONS = ("run started by", "control review")
+CLIENT_ACTIONS = ("run started by", "control review", "station login", "station logout",
+                  "station session ended", "station sign refused")
 PASSWORD_OPS = ("authenticate", "change_password", "add_account", "reset_password")
 
 
@@ -86,9 +87,12 @@ class Tokens:
     def name(self, token: object) -> str:
         with self._lock:
             entry = self._by_token.get(token) if isinstance(token, str) else None
-        if entry is None or entry[1] < time.monotonic():
+        now = time.monotonic()
+        if entry is None or entry[1] < now:
             raise AuthError("not logged in to the register service (no token, or it "
                             "expired): authenticate again")
+        with self._lock:
+            self._by_token[str(token)] = (entry[0], now + self.lifetime_s)
         return entry[0]
 
     def end(self, token: object) -> None:

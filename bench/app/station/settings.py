@@ -19,6 +19,10 @@ class StationSettings:
     lab_file: str | None = None         # the lab file naming it, given to `bench authorise`
     session_idle_s: float = 15 * 60.0   # a login ends after this long unused
     session_max_s: float = 8 * 3600.0   # and this long after it began
+    #: the one proxy whose X-Forwarded-For names the client (None: the peer is the client)
+    trusted_proxy: str | None = None
+    login_failures_per_client: int = 10     # wrong logins from one client within ...
+    login_window_s: float = 15 * 60.0       # ... this long refuse its logins that long
 
 
 def is_loopback(addr: str | None) -> bool:

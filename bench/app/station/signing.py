@@ -91,6 +91,7 @@ class Sessions:
                  clock: Callable[[], float] = _now) -> None:
         self._secret = secrets.token_bytes(32)
         self._by_id: dict[str, Session] = {}
+        self._used_login_tokens: dict[str, float] = {}  # a login form's token works once
         self._lock = threading.Lock()
         self.idle_s, self.max_s, self._clock = idle_s, max_s, clock
 
@@ -136,15 +137,50 @@ class Sessions:
 
     # a login form's token: no session yet, so a signed time stamp (login CSRF)
     def login_token(self) -> str:
-        stamp = str(int(time.time()))
+        stamp = f"{int(time.time())}-{secrets.token_urlsafe(12)}"
         return f"{stamp}.{self._mac('login:' + stamp)}"
 
     def login_token_ok(self, token: str | None) -> bool:
+        """A token this server made within LOGIN_FORM_S, not used before (a replayed form
+        guesses nothing: issue 53); using it spends it."""
         stamp, _, mac = (token or "").partition(".")
-        if not stamp.isdigit() or not hmac.compare_digest(
+        made = stamp.split("-", 1)[0]
+        if not made.isdigit() or not hmac.compare_digest(
                 mac.encode(), self._mac("login:" + stamp).encode()):
             return False
-        return 0 <= time.time() - int(stamp) <= LOGIN_FORM_S
+        now = time.time()
+        with self._lock:
+            self._used_login_tokens = {t: at for t, at in self._used_login_tokens.items()
+                                       if now - at <= LOGIN_FORM_S}
+            if token in self._used_login_tokens:
+                return False
+            self._used_login_tokens[str(token)] = now
+        return 0 <= now - int(made) <= LOGIN_FORM_S
+
+
+class ClientLimit:
+    """Wrong logins per client: past `failures` within `window_s`, that client's logins are
+    refused until the window has passed (the register locks the account too)."""
+
+    def __init__(self, failures: int, window_s: float,
+                 clock: Callable[[], float] = _now) -> None:
+        self.failures, self.window_s, self._clock = failures, window_s, clock
+        self._by_client: dict[str, list[float]] = {}
+        self._lock = threading.Lock()
+
+    def _recent(self, client: str, now: float) -> list[float]:
+        kept = [t for t in self._by_client.get(client, []) if now - t <= self.window_s]
+        self._by_client[client] = kept
+        return kept
+
+    def blocked(self, client: str) -> bool:
+        with self._lock:
+            return len(self._recent(client, self._clock())) >= self.failures
+
+    def failed(self, client: str) -> None:
+        with self._lock:
+            now = self._clock()
+            self._recent(client, now).append(now)
 
 
 class RegisterLink:
@@ -229,6 +265,16 @@ class Signing:
         self.sessions = Sessions(settings.session_idle_s, settings.session_max_s)
         self.register = RegisterLink(settings.register_url)
         self._sign_lock = threading.Lock()
+        self.limit = ClientLimit(settings.login_failures_per_client, settings.login_window_s)
+
+    def client(self) -> str:
+        """Who sent the request: the peer, or behind the configured proxy (and only then)
+        the last address its X-Forwarded-For adds."""
+        peer = request.remote_addr or ""
+        forwarded = request.headers.get("X-Forwarded-For", "")
+        if self.settings.trusted_proxy and peer == self.settings.trusted_proxy and forwarded:
+            return forwarded.split(",")[-1].strip()
+        return peer
 
     @property
     def enabled(self) -> bool:
@@ -492,14 +538,21 @@ def install(app: Flask, settings: StationSettings, run_dir: Callable[[str], Path
         if not _same_origin() or not signing.sessions.login_token_ok(request.form.get("token")):
             return login_page(403, "The login form has expired or came from elsewhere: "
                                    "log in again from this page.")
+        client = signing.client()
+        if signing.limit.blocked(client):
+            return login_page(429, "Too many wrong logins from this address: try again in "
+                                   f"{signing.limit.window_s / 60:.0f} minutes.")
         reg = signing.register.get()
         if reg is None:
             return login_page(503, f"The register cannot be reached: {signing.register.error}")
         name = (request.form.get("name") or "").strip()
         try:
             acct = reg.authenticate(name, request.form.get("password") or "")  # audits refusal
-        except AuthError:
-            return login_page(401, "Name or password not accepted.")
+        except AuthError as e:
+            signing.limit.failed(client)
+            locked = "locked" in str(e) or "change it first" in str(e)
+            return login_page(401, str(e).split(" (register ")[0] if locked
+                              else "Name or password not accepted.")
         except RegisterError as e:
             return login_page(503, f"The register cannot be used: {e}")
         signing.sessions.end(request.cookies.get(SESSION_COOKIE))   # never two at once
