@@ -372,3 +372,249 @@ def test_every_printed_drift_u_is_its_budget_s(drift_cert: dict[str, Any]) -> No
             "si:measurementUncertaintyUnivariate/si:expandedMU", NS)
         k = node[f"{stem}_coverage_factor"]
         assert k > 2.0 and mu.findtext("si:coverageFactor", namespaces=NS) == f"{k:.2f}"
+
+
+# -- issue 56: every printed statement recomputable --------------------------------------------
+
+def _recomputed(rows: list[list[str]], notes: str) -> tuple[float, float | None]:
+    """(u_c, nu_eff) from a printed budget alone: u_c² = Σ (c_i u(x_i))² + 2 Σ r c_i u(x_i)
+    c_j u(x_j) over the correlations its note names (GUM 5.2.2), nu_eff = u_c⁴ / Σ
+    (u_i(y)⁴ / ν_i) with that u_c (docs/method.md D1); None for infinite."""
+    s = [_signed(r) for r in rows]
+    var = sum(x * x for x in s)
+    for i, j, r in re.findall(r"r\(row (\d+), row (\d+)\) = (\S+?);", notes):
+        var += 2 * float(r) * s[int(i) - 1] * s[int(j) - 1]
+    uc = math.sqrt(var)
+    denom = sum(_number(r[5]) ** 4 / float(r[6]) for r in rows if r[6] != "∞")
+    return uc, (uc ** 4 / denom if denom > 0 else None)
+
+
+def _check_recomputes(annex: dict[str, tuple[list[list[str]], str, dict[str, str]]]) -> int:
+    """Each budget's printed u_c, nu_eff, k and U from its printed rows (issue 56 item 1:
+    the correlation is in nu_eff's numerator too)."""
+    n = 0
+    for caption, (rows, notes, p) in annex.items():
+        uc, nu = _recomputed(rows, notes)
+        assert uc == pytest.approx(_number(p["uc"]), rel=6e-3, abs=1e-300), (caption, notes)
+        printed_nu = None if p["nu"] == "∞" else float(p["nu"])
+        if nu is None or nu > 1e4:
+            assert printed_nu is None or printed_nu > 1e4, (caption, nu)
+        else:
+            assert printed_nu == pytest.approx(nu, rel=0.03, abs=0.06), (caption, nu, notes)
+        k = float(p["k"])
+        allowed = {coverage_factor(nu)} | ({coverage_factor(nu * 0.97), coverage_factor(
+            nu * 1.03)} if nu else set())
+        assert k in allowed, (caption, nu, k)
+        big_u = _number(p["U"])
+        half = 0.5 * 10.0 ** (math.floor(math.log10(big_u)) - 1)
+        assert abs(k * uc - big_u) <= half + 6e-3 * big_u, (caption, notes)
+        n += 1
+    return n
+
+
+def test_every_printed_u_nu_and_k_recompute_with_correlations(
+        cert: dict[str, Any], drift_cert: dict[str, Any]) -> None:
+    """The demo's and the drift demo's annex budgets, mains ripple and FOG bias drift
+    included: u_c, nu_eff (Welch-Satterthwaite with the correlated u_c) and k = t_95.45 of
+    it, and U = k u_c, from what is printed (issue 56 items 1-2). The drift demo's azimuth
+    (k_as of X and Y, r = 1, cancelling): nu_eff 33.9 and k 2.08, as docs/method.md D1 says."""
+    demo, drift = _annex(cert["tables"]), _annex(drift_cert["tables"])
+    kinds = {c.split(",")[0] for c in demo}
+    assert {"mains ripple amplitude (deg/s)", "mains ripple phase",
+            "FOG bias drift during the pair (A3)"} <= kinds, kinds
+    assert _check_recomputes(demo) >= 100 and _check_recomputes(drift) >= 6
+    _, _, az = next(v for c, v in drift.items() if c.startswith("platform azimuth A"))
+    assert (az["nu"], az["k"]) == ("33.9", "2.08")
+    # the results print the mains' and the bias drift's U as their budgets'
+    mains = {c: p for c, (_, _, p) in demo.items() if c.startswith("mains ripple amplitude")}
+    table = next(rr for c, rr, _ in cert["tables"] if c.startswith("Axis outer: mains"))
+    for row in table:
+        if "±" in row[2]:
+            key = next(c for c in mains if c.endswith(f"outer, {_number(row[0]):+g} °/s: "
+                                                      f"estimate {c.split('estimate ')[1]}"))
+            assert _number(row[2].split(" ± ")[1]) == _number(mains[key]["U"]), row
+    drifts = {c: p for c, (_, _, p) in demo.items() if c.startswith("FOG bias drift")}
+    pairs = next(rr for c, rr, _ in cert["tables"] if c.startswith("Axis outer: FOG cross"))
+    for row in pairs:
+        key = next(c for c in drifts if f"axis outer, pair {row[0]} °/s" in c)
+        assert _number(row[4].split(" ± ")[1]) == _number(drifts[key]["U"]), (row, key)
+
+
+def _budget_of(entry: dict[str, Any], key: str) -> dict[str, Any] | None:
+    return next((b for b in entry.get("budgets", []) if b["key"] == key), None)
+
+
+def _tok(rate_text: str) -> str:
+    rate = _number(rate_text)
+    return f"{'m' if rate < 0 else 'p'}{abs(rate):g}"
+
+
+def _is_the_dcc_s_limit(root: Any, qid: str, cell: str, scale: float, limit: float,
+                        probability: float) -> None:
+    """The DCC states the certificate's '< L' as [0, L] at its one-sided level, L the
+    analysis's (to the double), and the printed L is it rounded up."""
+    iv = _interval_of(_dcc_real(root, qid))
+    assert iv is not None and iv[0] == 0.0, (qid, iv)
+    assert iv[1] == pytest.approx(limit, rel=1e-12) and iv[2] == pytest.approx(probability,
+                                                                                abs=1e-12)
+    assert _rounds_to(iv[1] * scale * (1 - 1e-9), cell[2:], down=False), (qid, cell, iv)
+
+
+def test_every_interval_and_limit_follows_the_one_rule(cert: dict[str, Any]) -> None:
+    """Issue 56 item 3, on the demo certificate: a tone is 'a ± U' only when a − c·u(a) > 0
+    (u(a) its budget's u_c, c the joint test's radius printed in the note) and '< L' with
+    L ≥ a + c·u(a) otherwise; the raw intra-turn instability is 'raw ± U' only when raw − U
+    lies above the FOG floor, '< L' (L ≥ raw + U, ≥ the floor) otherwise."""
+    result = cert["result"]
+    seen = {"tone ±": 0, "tone <": 0, "raw <": 0}
+    for caption, rows, notes in cert["tables"]:
+        m = re.match(r"Axis (\w+): (systematic intra-turn|mains-frequency|intra-turn "
+                     r"instability std)", caption)
+        if not m:
+            continue
+        entries = {e["set_rate_dps"]: e for e in result["axes"][m.group(1)]["rates"]}
+        what = m.group(2)
+        for row in rows:
+            e = entries[_number(row[0])]
+            if what == "intra-turn instability std":
+                raw, big_u = e["intra_turn_instability_rel"], e["intra_turn_instability_U_rel"]
+                floor = e["intra_turn"]["floor_rel"]
+                # the budget adds the FOG scale's share (1e-6 of it) to the printed U
+                assert big_u == pytest.approx(_budget_of(e, "intra_turn_instability_rel")[
+                    "U_budget"], rel=1e-5)
+                if row[1].startswith("< "):
+                    assert raw - big_u <= floor, row
+                    assert _number(row[1][2:]) / 100 >= max(raw + big_u, floor) * (1 - 1e-9)
+                    _is_the_dcc_s_limit(cert["dcc"], f"r_{m.group(1)}_{_tok(row[0])}_intra_"
+                                        "turn_instability_rel", row[1], 100.0,
+                                        e["intra_turn"]["raw_upper_rel"], 0.97725)
+                    seen["raw <"] += 1
+                else:
+                    assert raw - big_u > floor, row
+                continue
+            c = float(re.search(r"\(c = ([\d.]+)", notes).group(1)) if "systematic" in what \
+                else None
+            if what.startswith("systematic"):
+                h = e["systematic"]["harmonics"][int(row[1]) - 1]
+                b = _budget_of(e, f"systematic.harmonics[{int(row[1]) - 1}].amplitude_rel")
+                a, scale, cell = h["amplitude_rel"], 100.0, row[2]
+                c = h["interval_factor"]
+            else:
+                mains = e["systematic"]["mains"]
+                b = _budget_of(e, "systematic.mains.amplitude_dps")
+                a, scale, cell = mains["amplitude_dps"], 1.0, row[2]
+                c = mains["interval_factor"]
+            assert b is not None and c is not None and c > 2.0, row
+            lower, upper = a - c * b["combined_ustd"], a + c * b["combined_ustd"]
+            if cell.startswith("< "):
+                assert lower <= 0, (caption, row)
+                assert _number(cell[2:]) >= upper * scale * (1 - 1e-9), (caption, row)
+                assert row[-1] == "—"
+                qid = (f"r_{m.group(1)}_{_tok(row[0])}_h_{row[1]}_amplitude_rel"
+                       if what.startswith("systematic") else
+                       f"r_{m.group(1)}_{_tok(row[0])}_mains_amplitude_dps")
+                _is_the_dcc_s_limit(cert["dcc"], qid, cell, scale, upper,
+                                    1 - math.exp(-c * c / 2))
+                seen["tone <"] += 1
+            else:
+                assert lower > 0, (caption, row)
+                assert _number(cell.split(" ± ")[1]) == pytest.approx(
+                    b["U_budget"] * scale, rel=0.06), (caption, row)
+                seen["tone ±"] += 1
+    assert all(seen.values()), seen
+    # the printed c is the joint test's radius for the tones tested: sqrt(-2 ln alpha_1)
+    note = next(n for c_, _, n in cert["tables"] if "systematic intra-turn" in c_)
+    c_text = float(re.search(r"\(c = ([\d.]+)", note).group(1))
+    alpha_1 = 1 - 0.95 ** (1 / 4)
+    assert c_text == pytest.approx(math.sqrt(-2 * math.log(alpha_1)), abs=0.005)
+
+
+def _dcc_intervals(root: Any) -> list[tuple[str, tuple[float, float, float], float]]:
+    out = []
+    for real in root.iterfind(".//si:real", NS):
+        mu = real.find("si:measurementUncertaintyUnivariate/si:coverageIntervalMU", NS)
+        label = real.findtext("si:label", "", NS)
+        if mu is None or not label:
+            continue
+        out.append((label, _interval_of(real),
+                    float(mu.findtext("si:valueStandardMU", namespaces=NS))))
+    return out
+
+
+def test_the_dcc_s_standard_uncertainty_of_each_interval_is_its_budget_s(
+        cert: dict[str, Any]) -> None:
+    """Issue 56 item 4: beside each coverage interval the DCC states the figure's own
+    standard uncertainty: its budget's u_c (raw intra-turn, tones), s/√(2(N−1)) for σ of
+    the per-turn rates, U/k for the FOG's figures over an angle, the Monte Carlo's standard
+    deviation for a floor-corrected figure; never (max − min)/4. Its [0, L] intervals are
+    exactly the figures the analysis did not resolve."""
+    result = cert["result"]
+    kinds: dict[str, int] = {}
+    for label, (lo, hi, _p), ustd in _dcc_intervals(cert["dcc"]):
+        m = re.match(r"axes\.(\w+)\.rates\[(\d+)\]\.(.+)$", label)
+        assert m, label
+        e = result["axes"][m.group(1)]["rates"][int(m.group(2))]
+        key = m.group(3)
+        budget = _budget_of(e, key)
+        if budget is not None:
+            want, resolved = budget["combined_ustd"], None
+            if key == "intra_turn_instability_rel":
+                resolved = e["intra_turn"]["raw_resolved"]
+            elif key.endswith(("amplitude_rel", "amplitude_dps")):
+                tone = (e["systematic"]["mains"] if "mains" in key else
+                        e["systematic"]["harmonics"][int(re.search(r"\[(\d+)\]",
+                                                                   key).group(1))])
+                resolved = tone["detected"]
+        elif key == "rate_instability_rel":
+            want, resolved = e["rate_instability_ustd_rel"], e["rate_instability_resolved"]
+            assert want == pytest.approx(e["rate_instability_rel"] / math.sqrt(
+                2 * (e["turns"] - 1)), rel=1e-12)
+        elif key == "intra_turn_instability_corrected_rel":
+            want, resolved = e["intra_turn"]["corrected_ustd_rel"], e["intra_turn"]["resolved"]
+        else:
+            a = re.match(r"intra_turn\.averaged\[(\d+)\]\.(instability_rel|corrected_rel)$",
+                         key)
+            assert a, label
+            avg = e["intra_turn"]["averaged"][int(a.group(1))]
+            if a.group(2) == "instability_rel":
+                want, resolved = avg["ustd_rel"], avg["measured_resolved"]
+                assert want == pytest.approx(avg["u_rel"] / coverage_factor(avg["dof"]))
+            else:
+                want, resolved = avg["corrected_ustd_rel"], avg["resolved"]
+        assert want is not None and want > 0 and ustd == want, (label, ustd, want)
+        assert ustd != pytest.approx((hi - lo) / 4.0, rel=1e-3), label
+        assert resolved is not None and (lo == 0.0) == (not resolved), (label, lo, resolved)
+        kinds[key.split(".")[-1]] = kinds.get(key.split(".")[-1], 0) + 1
+    assert {"rate_instability_rel", "intra_turn_instability_rel", "amplitude_rel",
+            "amplitude_dps", "intra_turn_instability_corrected_rel", "instability_rel",
+            "corrected_rel"} <= set(kinds), kinds
+
+
+def test_the_station_page_states_what_the_certificate_states(
+        cert: dict[str, Any], demo_run: DemoRun) -> None:
+    """Issue 56 item 6: the station's run page prints σ of the per-turn rates by the same
+    rule as the certificate (its interval or '< L', never 'σ ± U'), and its note states
+    k from ν_eff, not 'coverage factor 2'."""
+    from bench.app.station.view import U_NOTE, final_view
+
+    view = final_view(demo_run.dir)
+    assert view is not None
+    assert "coverage factor 2" not in U_NOTE and "ν_eff" in U_NOTE
+    compared = 0
+    for table in view[1]:
+        if not str(table["id"]).startswith("rates-"):
+            continue
+        axis = str(table["id"])[len("rates-"):]
+        unit = str(table["header"][3]).rsplit(", ", 1)[1]
+        printed = next(rr for c, rr, _ in cert["tables"]
+                       if c.startswith(f"Axis {axis}: per-turn rate error"))
+        for row in table["rows"]:
+            cell = row["cells"][3]
+            assert "±" not in cell, cell
+            assert cell.startswith("< ") or re.fullmatch(r"\S+ \[\S+, \S+\]", cell), cell
+            if unit == "ppm":
+                cert_row = next(r for r in printed if r[0] == row["cells"][0]
+                                .replace("-", MINUS).replace("+", "+"))
+                assert cell == cert_row[4], (cell, cert_row)
+                compared += 1
+    assert compared >= 10

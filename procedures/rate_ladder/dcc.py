@@ -11,6 +11,7 @@ from collections.abc import Mapping, Sequence
 
 from lxml import etree
 
+from bench.report.budget import budget_from_json
 from bench.report.certificate import methods
 from bench.report.certificate.parts import Sources
 from bench.report.certificate.rounding import is_resolved
@@ -78,6 +79,16 @@ def limit_interval(limit: float, distribution: str, ustd: float,
     """'< L' (docs/method.md D2) as the interval [0, L] at its one-sided level, with the
     figure's own standard uncertainty (its budget's u_c)."""
     return Interval(0.0, limit, probability, ustd, distribution)
+
+
+def _budget_ustd(r: RateEntry, key: str) -> float | None:
+    """u_c of the budget of `key` on this rate (docs/method.md D1), None without one."""
+    budgets = r.doc.get("budgets")
+    for d in budgets if isinstance(budgets, list) else ():
+        b = budget_from_json(d) if isinstance(d, Mapping) else None
+        if b is not None and b.key == key:
+            return b.ustd
+    return None
 
 
 def _stated_or(x: float | None, older: float) -> float:
@@ -219,7 +230,9 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: RateEntry,
     # as the PDF (docs/method.md D2): +/- U only when raw - U > the FOG floor (the
     # analysis's raw_resolved); else '< L' as [0, L], L = raw + U never below the floor
     raw_iv = (limit_interval(raw_upper, "normal, one-sided upper limit value + U",
-                             _stated_or(num(intra.doc.get("raw_ustd_rel")), raw_upper / 4.0),
+                             _stated_or(_budget_ustd(r, "intra_turn_instability_rel")
+                                        or num(intra.doc.get("raw_ustd_rel")),
+                                        raw_upper / 4.0),
                              (1.0 + float(COVERAGE_PROBABILITY)) / 2.0)
               if intra.raw_resolved is False and (raw_upper := num(intra.raw_upper_rel))
               is not None else None)
@@ -324,10 +337,10 @@ def _mc_interval(value: float | None, lower: float | None, upper: float | None,
 
 
 def _undetected(detected: bool | None, a: float, big_u: float | None, upper: float | None,
-                factor: float | None) -> Interval | None:
+                factor: float | None, ustd: float | None) -> Interval | None:
     """An undetected tone's amplitude as the PDF prints it, '< L' (docs/method.md A4, D2):
     [0, L], L = a + c u(a), at 1 - alpha_1 = 1 - exp(-c^2 / 2), the level of the joint test
-    whose radius is c; its standard uncertainty u(a) = U / 2 (its budget's u_c). An older
+    whose radius is c; its standard uncertainty its budget's u_c (else U / 2). An older
     result without L: a + U at the level of k = 2."""
     if detected is not False or big_u is None:
         return None
@@ -335,7 +348,7 @@ def _undetected(detected: bool | None, a: float, big_u: float | None, upper: flo
         return limit_interval(abs(a) + big_u, "normal, one-sided upper limit a + U",
                               big_u / 2.0, (1.0 + float(COVERAGE_PROBABILITY)) / 2.0)
     return limit_interval(upper, "joint chi-square (2 dof) interval of the tone's two "
-                          "coefficients, upper limit a + c u(a)", big_u / 2.0,
+                          "coefficients, upper limit a + c u(a)", _stated_or(ustd, big_u / 2.0),
                           1.0 - math.exp(-factor * factor / 2.0))
 
 
@@ -363,7 +376,9 @@ def _systematic(data: etree._Element, rid: str, path: str, r: RateEntry) -> None
                 quantity(lst, ident(hid, key), title, ref, v, unit, uu, label=f"{p}.{key}",
                          note=None if uu is not None else "U not stated in result.json.",
                          interval=_undetected(h.detected, v, uu, num(h.amplitude_upper_rel),
-                                              num(h.interval_factor))
+                                              num(h.interval_factor),
+                                              _budget_ustd(r, f"systematic.harmonics[{j}]."
+                                                              "amplitude_rel"))
                          if key == "amplitude_rel" else None)
     m = r.mains
     if m is not None and num(m.amplitude_dps) is not None:
@@ -386,7 +401,8 @@ def _systematic(data: etree._Element, rid: str, path: str, r: RateEntry) -> None
                          note=None if uu is not None or not states_u
                          else "U not stated in result.json.",
                          interval=_undetected(m.detected, v, uu, num(m.amplitude_upper_dps),
-                                              num(m.interval_factor))
+                                              num(m.interval_factor),
+                                              _budget_ustd(r, "systematic.mains.amplitude_dps"))
                          if key == "amplitude_dps" else None)
 
 
