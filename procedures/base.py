@@ -120,7 +120,8 @@ def run_header(run: RunDir, cfg: Config, events: list[JsonObject],
         "conditions": dict(cfg.common.conditions),
         "specification": (dict(cfg.common.specification)
                           if cfg.common.specification is not None else None),
-        "certificate": certificate_settings(cfg.procedure_path, dict(cfg.common.certificate)),
+        # the lab file the run copied when it started (bench.app.labfile's rule)
+        "certificate": certificate_settings(run.procedure_file, dict(cfg.common.certificate)),
         "sessions": len(starts),
         "aborted": last is not None and last.ended != COMPLETED,
         "ended": last.ended if last else None,

@@ -352,11 +352,18 @@ def test_due_dates_and_the_overdue_warning_at_a_run_start(
     assert warn_if_overdue(parse_stand(stand).identity, where, said.append) is not None
     assert "overdue" in said[0] and SERIAL in said[0]
     # a lab settings file overrides the stand's interval
-    (tmp_path / "lab.yaml").write_text(yaml.safe_dump(
+    lab = tmp_path / "lab.yaml"
+    lab.write_text(yaml.safe_dump(
         {"records": db.url, "recertification": {"tables": {SERIAL: 10000}}}))
-    assert warn_if_overdue(parse_stand(stand).identity, target(tmp_path), said.append) is None
-    (tmp_path / "lab.yaml").write_text("recertification: {tables: {X: -1}}\n")
-    bad = cli("due", "--runs", str(tmp_path))
+    assert warn_if_overdue(parse_stand(stand).identity, target(tmp_path, lab_file=lab),
+                           said.append) is None
+    # one rule for the lab file (issue 57): a lab.yaml in the runs folder is not read; the
+    # command says so instead of ignoring it
+    ignored = cli("due", "--runs", str(tmp_path))
+    assert ignored.returncode == 2 and "a lab file in the runs folder is not read" in \
+        ignored.stderr and f"--lab {lab}" in ignored.stderr
+    lab.write_text("recertification: {tables: {X: -1}}\n")
+    bad = cli("due", "--runs", str(tmp_path), "--lab", str(lab))
     assert bad.returncode == 2 and "lab.yaml:1: recertification.tables.X" in bad.stderr
 
 

@@ -73,7 +73,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--example", metavar="NAME",
                      help="run a procedure shipped inside the package (demo, drift-demo)")
     run.add_argument("--records", metavar="URL",
-                     help="records database (default records.sqlite in the --out folder)")
+                     help="records database (default: the lab file's records:, else "
+                          "records.sqlite in the --out folder)")
+    run.add_argument("--lab", metavar="FILE",
+                     help="the lab file (register: and records:; default: the procedure's "
+                          "certificate: {lab: FILE}, else $BENCH_LAB_SETTINGS; a --resume "
+                          "uses the run's copy; two that differ refuse)")
     state = run.add_mutually_exclusive_group()
     state.add_argument("--as-found", dest="calibration_state", action="store_const",
                        const="as-found", help="this run measures the table as found")
@@ -128,7 +133,10 @@ def build_parser() -> argparse.ArgumentParser:
     ana = sub.add_parser("analyze", help="recompute result.json and certificate from raw data")
     ana.add_argument("run_dir")
     ana.add_argument("--records", metavar="URL",
-                     help="records database (default records.sqlite beside the run)")
+                     help="records database (default: the run's lab file's records:, else "
+                          "records.sqlite beside the run)")
+    ana.add_argument("--lab", metavar="FILE",
+                     help="the lab file (default: the run's copy; one that differs refuses)")
     _console_options(ana)
     dev = sub.add_parser("devices", help="open each instrument, print its identity")
     dev.add_argument("stand")

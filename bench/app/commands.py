@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from bench.app import labfile
 from bench.core import rundir_layout as layout
 from bench.core.config import Config, ConfigError
 from bench.core.loader import is_stand_file, load_config, load_stand
@@ -112,16 +114,14 @@ def cmd_run(args: argparse.Namespace) -> int:
             err(str(e))
             return EXIT_INVALID
         cfg = _load(str(run.procedure_file), run.stand_file)
-        if cfg is not None:   # a resume is a session of the run: its performer too is
-            # authenticated by the run's register, before anything moves (and audited)
-            lab_copy = run.path / layout.LAB
-            gate = _start_gate(lab_copy if lab_copy.is_file() else None, cfg,
-                               bool(cfg.has_sim or args.sim), args)
-            if gate.refusal:
-                err("Not resumed: the lab register refuses:")
-                for line in gate.refusal:
-                    err(f"  {line}")
-                return EXIT_INVALID
+        if cfg is None:
+            return EXIT_INVALID
+        # a resume is a session of the run: its performer too is authenticated by the
+        # run's register, before anything moves (and audited)
+        gate = _admitted("Not resumed", lambda: labfile.for_run(run.path, args.lab), cfg,
+                         args)
+        if gate is None:
+            return EXIT_INVALID
     else:
         procedure = args.procedure
         if getattr(args, "example", None):
@@ -153,21 +153,71 @@ def cmd_run(args: argparse.Namespace) -> int:
             for line in left:
                 err(f"  {line}")
             return EXIT_INVALID
-        lab_file = lab_path(cfg.procedure_path, dict(cfg.common.certificate))
-        gate = _start_gate(lab_file, cfg, bool(cfg.has_sim or args.sim), args)
-        if gate.refusal:   # before the run directory exists: nothing written, nothing moved
-            err("Not started: the lab register refuses:")
-            for line in gate.refusal:
-                err(f"  {line}")
+        named = lab_path(cfg.procedure_path, dict(cfg.common.certificate))
+        # before the run directory exists: nothing written, nothing moved
+        gate = _admitted("Not started", lambda: labfile.for_command(args.lab, named), cfg, args)
+        if gate is None:
             return EXIT_INVALID
-        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path, lab_file)
+        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path, gate.lab_file)
         mark_run(run.path, cfg.common, args.calibration_state, args.adjustment,
                  gate.meta())
     console = open_console(quiet=args.quiet, log_json=args.log_json)
     status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),
-                         progress=console, records=args.records, performer=gate.performer)
+                         progress=console, records=args.records,
+                         performer=gate.performer if gate is not None else None)
     print(run.path)
     return status
+
+
+class Admitted:
+    """A session admitted to start: the lab file it runs under and the register's word."""
+
+    def __init__(self, lab_file: Path | None, gate: StartGate) -> None:
+        self.lab_file, self.gate = lab_file, gate
+        self.performer = gate.performer
+
+    def meta(self) -> dict[str, object]:
+        return self.gate.meta()
+
+
+def _admitted(verb: str, lab_of: Callable[[], Path | None], cfg: Config,
+              args: argparse.Namespace) -> Admitted | None:
+    """Before anything moves: the lab file by the one rule (bench/app/labfile.py), the
+    records it names, and the register's word on the performer and the stand's items;
+    None (each reason said after `verb`) when the session may not start."""
+    try:
+        lab_file = lab_of()
+    except labfile.LabChoiceError as e:
+        err(f"{verb}: {e}")
+        return None
+    refusal = _records_refusal(lab_file, args.records)
+    if refusal:
+        err(f"{verb}: {refusal}")
+        return None
+    gate = _start_gate(lab_file, cfg, bool(cfg.has_sim or args.sim), args)
+    if gate.refusal:
+        err(f"{verb}: the lab register refuses:")
+        for line in gate.refusal:
+            err(f"  {line}")
+        return None
+    return Admitted(lab_file, gate)
+
+
+def _records_refusal(lab_file: Path | None, records: str | None) -> str | None:
+    """Why a run may not start: its lab file names the lab's PostgreSQL records and
+    --records would write elsewhere (its runs would be missing from the lab's page)."""
+    if lab_file is None or not records:
+        return None
+    from bench.app.db import redact
+    from bench.core.lab import LabError, load_lab
+    try:
+        named = load_lab(lab_file).records_url
+    except LabError as e:
+        return str(e)
+    if named and named.startswith("postgresql") and named != records:
+        return (f"the lab file {lab_file} names the records {redact(named)}; --records "
+                f"{redact(records)} would write this run elsewhere: leave --records out")
+    return None
 
 
 def _start_gate(lab_file: Path | None, cfg: Config, simulated: bool,
@@ -207,8 +257,13 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     cfg = _load(str(run.procedure_file), run.stand_file)
     if cfg is None:
         return EXIT_INVALID
+    try:
+        lab_file = labfile.for_run(run.path, getattr(args, "lab", None))
+    except labfile.LabChoiceError as e:
+        err(f"bench analyze: {e}")
+        return EXIT_INVALID
     console = open_console(quiet=args.quiet, log_json=args.log_json)
-    where = target(run.path.parent, args.records, console.warn)
+    where = target(run.path.parent, args.records, console.warn, lab_file=lab_file)
     result, doc = write_outputs(run, cfg, console, where)
     register_run(run.path, where, console.warn, result)
     console.summary(summary_of(result, doc))

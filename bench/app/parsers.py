@@ -43,6 +43,8 @@ def add_records_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     where = his.add_mutually_exclusive_group()
     where.add_argument("--runs", help="runs folder whose records.sqlite to read (runs/)")
     where.add_argument("--records", help="records database URL")
+    his.add_argument("--lab", metavar="FILE", help="the lab file (its records:; default "
+                                                   "$BENCH_LAB_SETTINGS; two that differ refuse)")
     his.add_argument("--csv", help="write every recorded figure of the table to this CSV")
     his.add_argument("--plot", help="trend plot PNG (default history-SERIAL.png beside the "
                                     "records database, or in the runs folder)")
@@ -50,7 +52,10 @@ def add_records_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     rsub = rec.add_subparsers(dest="records_command", required=True, metavar="ACTION")
     imp = rsub.add_parser("import", help="register existing run directories (idempotent)")
     imp.add_argument("runs_dir")
-    imp.add_argument("--records", help="records database URL (default RUNS_DIR/records.sqlite)")
+    imp.add_argument("--records", help="records database URL (default: the lab file's "
+                                       "records:, else RUNS_DIR/records.sqlite)")
+    imp.add_argument("--lab", metavar="FILE", help="the lab file (its records:; default "
+                                                   "$BENCH_LAB_SETTINGS; two that differ refuse)")
     ini = rsub.add_parser("init", help="create or migrate the lab's records database on "
                                        "PostgreSQL and grant the benches' and station's roles",
                           description="Run as the lab database's owner: creates or migrates "
@@ -71,6 +76,9 @@ def add_records_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     syn.add_argument("--records", metavar="URL", help="the lab database (default: the lab "
                                                       "file's records:)")
     syn.add_argument("--runs", default=DEFAULT_RUNS, help="the runs folder (runs/)")
+    syn.add_argument("--lab", metavar="FILE", help="the lab file for runs that copied none "
+                                                   "(each run is delivered to the records of "
+                                                   "the lab file it copied)")
     syn.add_argument("--batch", type=int, default=500, metavar="LINES",
                      help="event lines per transaction (500)")
     chk = rsub.add_parser("check", help="compare what the lab database holds of runs (events, "
@@ -83,9 +91,12 @@ def add_records_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     chk.add_argument("runs", nargs="+", metavar="RUN", help="run directories")
     chk.add_argument("--records", metavar="URL", help="the lab database (default: the run's "
                                                       "lab file's records:)")
+    chk.add_argument("--lab", metavar="FILE", help="the lab file for runs that copied none")
     due = sub.add_parser("due", help="tables due or overdue for recertification")
     due.add_argument("--records", help="records database URL")
-    due.add_argument("--runs", default=DEFAULT_RUNS, help="runs folder (records.sqlite, lab.yaml)")
+    due.add_argument("--runs", default=DEFAULT_RUNS, help="runs folder (records.sqlite)")
+    due.add_argument("--lab", metavar="FILE", help="the lab file (its records:; default "
+                                                   "$BENCH_LAB_SETTINGS; two that differ refuse)")
     due.add_argument("--within", type=int, default=30, metavar="DAYS",
                      help="also list tables due within DAYS (30)")
     due.add_argument("--all", action="store_true", help="list every table with an interval")
@@ -104,7 +115,8 @@ def add_records_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]
                           "(reviewer or quality role), authenticated with its password")
     con.add_argument("--register", metavar="URL",
                      help="the lab register (default: the lab file's register:)")
-    con.add_argument("--lab", metavar="FILE", help="lab file naming the register")
+    con.add_argument("--lab", metavar="FILE", help="the lab file naming the register and "
+                                                   "the records (default $BENCH_LAB_SETTINGS)")
     con.add_argument("--password-stdin", action="store_true",
                      help="read the reviewer's password from standard input")
     con.add_argument("--new-baseline", action="store_true",

@@ -144,7 +144,10 @@ class RunSession:
         self.performer = dict(performer) if performer else None
         self.progress = progress or open_console()
         self.on_sim_started = on_sim_started
-        self.where = target(run.path.parent, records, self.progress.warn)
+        # the run's own lab file: the copy it made when it started (bench/app/labfile.py)
+        copy = run.path / layout.LAB
+        self.where = target(run.path.parent, records, self.progress.warn,
+                            lab_file=copy if copy.is_file() else None)
         self.kind = procedure_kind(cfg.kind)
         self.status = EXIT_ABORTED
         self.cause: str | None = None       # the first cause: what the operator reads

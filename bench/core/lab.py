@@ -250,13 +250,14 @@ def load_lab(path: str | Path) -> Lab:
 
 
 def lab_path(procedure_path: Path, certificate: object) -> Path | None:
-    """The lab file a procedure names; in a run directory, the copy made when it started."""
-    ref = certificate.get("lab") if isinstance(certificate, dict) else None
-    if not isinstance(ref, str):
-        return None
+    """The lab file a procedure names; in a run directory, the copy made when it started
+    (whichever file it came from: `--lab`, the procedure's, $BENCH_LAB_SETTINGS)."""
     here = procedure_path.parent
     if (here / layout.META).is_file():  # a run directory: its copy, if one was made
         return here / RUN_COPY if (here / RUN_COPY).is_file() else None
+    ref = certificate.get("lab") if isinstance(certificate, dict) else None
+    if not isinstance(ref, str):
+        return None
     p = Path(ref)
     return p if p.is_absolute() else Path(os.path.normpath(procedure_path.parent / p))
 

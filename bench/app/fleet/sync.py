@@ -302,13 +302,14 @@ def run_dirs(runs_dir: Path) -> list[Path]:
 
 
 def sync_folder(runs_dir: Path, url: str, bench: str | None = None,
-                batch_lines: int = BATCH_LINES, interval_for: Intervals | None = None
-                ) -> list[Delivery]:
-    """`bench records sync`: deliver every run of a runs folder (idempotent)."""
+                batch_lines: int = BATCH_LINES, interval_for: Intervals | None = None,
+                only: list[Path] | None = None) -> list[Delivery]:
+    """`bench records sync`: deliver every run of a runs folder (or `only` those of
+    them) (idempotent)."""
     outbox = Outbox(runs_dir, url)
     out = []
     with LabLink(url, interval_for) as link:
-        for path in run_dirs(runs_dir):
+        for path in run_dirs(runs_dir) if only is None else only:
             out.append(link.deliver(path, outbox, bench_name(path, bench),
                                     batch_lines=batch_lines))
     return out

@@ -9,6 +9,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
+from bench.app import labfile
 from bench.app.db import redact
 from bench.app.names import DEFAULT_RUNS
 from bench.app.records.extract import NotARun, find_runs, record_of
@@ -34,7 +35,7 @@ def _guarded(cmd: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Nam
     def run(args: argparse.Namespace) -> int:
         try:
             return cmd(args)
-        except SettingsError as e:
+        except (SettingsError, labfile.LabChoiceError) as e:
             _err(str(e))
             return EXIT_INVALID
         except RecordsError as e:
@@ -43,17 +44,25 @@ def _guarded(cmd: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Nam
     return run
 
 
-def _runs_target(folder: str, records: str | None) -> RecordsTarget | None:
+def _target(runs: str | Path, records: str | None, lab: str | None) -> RecordsTarget:
+    """The records a command reads or writes: --records, else the records: of the lab file
+    the command chose (bench/app/labfile.py: --lab, else $BENCH_LAB_SETTINGS), else the
+    runs folder's records.sqlite."""
+    return target(runs, records, lab_file=labfile.for_command(lab))
+
+
+def _runs_target(folder: str, records: str | None, lab: str | None = None
+                 ) -> RecordsTarget | None:
     """The records of a runs folder that must exist (None, said, when it does not)."""
     runs_dir = Path(folder)
     if not runs_dir.is_dir():
         _err(f"{runs_dir}: no such folder")
         return None
-    return target(runs_dir, records)
+    return _target(runs_dir, records, lab)
 
 
 def cmd_import(args: argparse.Namespace) -> int:
-    where = _runs_target(args.runs_dir, args.records)
+    where = _runs_target(args.runs_dir, args.records, args.lab)
     if where is None:
         return EXIT_INVALID
     runs_dir = where.runs_dir
@@ -81,7 +90,7 @@ def _date(p: TrendPoint) -> str:
 
 
 def cmd_history(args: argparse.Namespace) -> int:
-    where = target(args.runs or DEFAULT_RUNS, args.records)
+    where = _target(args.runs or DEFAULT_RUNS, args.records, args.lab)
     with Records.open(where.url) as rec:
         runs = rec.runs(args.serial)
         points = rec.trend(args.serial, runs_of_table=runs)
@@ -169,7 +178,7 @@ def _safe(serial: str) -> str:
 
 
 def cmd_due(args: argparse.Namespace) -> int:
-    where = target(args.runs, args.records)
+    where = _target(args.runs, args.records, args.lab)
     with Records.open(where.url) as rec:
         items = rec.due(today=args.today, within_days=args.within,
                         intervals=where.interval_for, everything=args.all)
@@ -229,7 +238,7 @@ def cmd_control(args: argparse.Namespace) -> int:
     from bench.app.records.control import OUT_OF_CONTROL, all_statuses, instrument_status
     from bench.app.records.control_plot import control_png
 
-    where = target(args.runs or DEFAULT_RUNS, args.records)
+    where = _target(args.runs or DEFAULT_RUNS, args.records, args.lab)
     if args.new_baseline and args.review is None:
         _err("bench control --new-baseline: only with --review TEXT (who decided it, and why)")
         return EXIT_INVALID
@@ -306,16 +315,20 @@ def cmd_control(args: argparse.Namespace) -> int:
 
 def cmd_sync(args: argparse.Namespace) -> int:
     """`bench records sync`: this bench's runs to the lab database (bench/app/fleet)."""
-    from bench.app.fleet.sync import SyncError, is_lab_server, sync_folder
+    from bench.app.fleet.sync import SyncError, is_lab_server, run_dirs, sync_folder
 
-    where = _runs_target(args.runs, args.records)
+    where = _runs_target(args.runs, args.records, args.lab)
     if where is None:
         return EXIT_INVALID
-    if not is_lab_server(where.url):
-        _err(f"bench records sync: {redact(where.url)} is not a lab server: name its "
-             "PostgreSQL database (--records postgresql://ROLE@HOST/DB, or records: in the "
-             "lab file)")
-        return EXIT_INVALID
+    # a run's own command: each run to the records of the lab file it copied (else the
+    # command's: --records, --lab, $BENCH_LAB_SETTINGS)
+    urls = {p: _run_records(p, args.records, where.url) for p in run_dirs(where.runs_dir)}
+    for url in dict.fromkeys([where.url, *urls.values()]) if urls else [where.url]:
+        if not is_lab_server(url):
+            _err(f"bench records sync: {redact(url)} is not a lab server: name its "
+                 "PostgreSQL database (--records postgresql://ROLE@HOST/DB, or records: in "
+                 "the lab file)")
+            return EXIT_INVALID
     if args.batch < 1:
         _err("bench records sync: --batch: expected at least 1 line")
         return EXIT_INVALID
@@ -323,9 +336,12 @@ def cmd_sync(args: argparse.Namespace) -> int:
 
     for found in mark_lost_runs(where.runs_dir, "bench records sync"):
         print(found.line)
+    done = []
     try:
-        done = sync_folder(where.runs_dir, where.url, batch_lines=args.batch,
-                           interval_for=where.interval_for)
+        for url in dict.fromkeys(urls.values()):
+            done += sync_folder(where.runs_dir, url, batch_lines=args.batch,
+                                interval_for=where.interval_for,
+                                only=[p for p, u in urls.items() if u == url])
     except SyncError as e:
         _err(f"{e}; nothing is lost: the run directories keep everything, sync again later")
         return EXIT_FAIL
@@ -334,7 +350,8 @@ def cmd_sync(args: argparse.Namespace) -> int:
             print(f"{d.run}: {d.events} new event(s)"
                   + (", result" if d.result else "")
                   + (f", records {d.registered}" if d.registered else ""))
-    print(f"lab database {redact(where.url)}: {len(done)} run(s), "
+    shown = ", ".join(redact(u) for u in dict.fromkeys(urls.values())) or redact(where.url)
+    print(f"lab database {shown}: {len(done)} run(s), "
           f"{sum(d.events for d in done)} new event(s), "
           f"{sum(1 for d in done if d.result)} result(s), "
           f"{sum(1 for d in done if d.registered in ('new', 'updated'))} registered")
@@ -351,7 +368,8 @@ def cmd_check(args: argparse.Namespace) -> int:
         if not (p / layout.EVENTS).is_file():
             _err(f"bench records check: {p} is not a run directory (no events.jsonl)")
             return EXIT_INVALID
-    urls = {p: _run_records(p, args.records) for p in paths}
+    urls = {p: _run_records(p, args.records, _target(p.parent, None, args.lab).url)
+            for p in paths}
     for p, url in urls.items():
         if not is_lab_server(url):
             _err(f"bench records check: {p.name}: {redact(url)} is not a lab server: name "
@@ -372,9 +390,10 @@ def cmd_check(args: argparse.Namespace) -> int:
     return EXIT_FAIL if differ else EXIT_OK
 
 
-def _run_records(run_path: Path, records: str | None) -> str:
-    """A run's own lab database: --records, else the records: of the lab file the run
-    copied when it started, else the runs folder's (the lab file in force)."""
+def _run_records(run_path: Path, records: str | None, otherwise: str) -> str:
+    """A run's own records (a run's own command, bench/app/labfile.py): --records, else the
+    records: of the lab file the run copied when it started, else `otherwise` (the
+    command's)."""
     if records:
         return records
     copy = run_path / layout.LAB
@@ -383,7 +402,7 @@ def _run_records(run_path: Path, records: str | None) -> str:
         url = load_lab(copy).records_url
         if url:
             return url
-    return target(run_path.parent).url
+    return otherwise
 
 
 def cmd_init(args: argparse.Namespace) -> int:

@@ -1,7 +1,8 @@
 """Lab settings: where the records live and how often each table is recertified.
 
-Read once into a frozen `LabSettings`. The file is `lab.yaml` in the runs folder, or the
-file named by the environment variable BENCH_LAB_SETTINGS, the lab file the DCC reads its
+Read once into a frozen `LabSettings`. The file is the one the command chose
+(bench/app/labfile.py: `--lab FILE`, else the environment variable BENCH_LAB_SETTINGS, or
+for a run's own commands the run's copy), the lab file the DCC reads its
 laboratory and signing key from (a lab server's URL shared by every bench is written there
 once instead of on every command line); the records use these two keys of it:
 
@@ -32,14 +33,18 @@ SettingsError = LabError
 
 def load_lab_settings(runs_dir: str | Path | None = None,
                       path: str | Path | None = None) -> Lab:
-    """The lab settings in force: `path`, else $BENCH_LAB_SETTINGS, else RUNS_DIR/lab.yaml,
-    else none (every default then, bench/core/lab.py)."""
+    """The lab settings in force: `path` (the command's choice, bench/app/labfile.py),
+    else $BENCH_LAB_SETTINGS, else none (every default then, bench/core/lab.py). A lab.yaml
+    in the runs folder is no longer read: it is refused, named, rather than ignored."""
     chosen = path or os.environ.get(LAB_ENV) or None
     if chosen is None:
         candidate = Path(runs_dir or DEFAULT_RUNS) / LAB_FILE
-        if not candidate.is_file():
-            return Lab()
-        chosen = candidate
+        if candidate.is_file():
+            raise SettingsError(
+                f"{candidate}: a lab file in the runs folder is not read (one rule for the "
+                f"lab file, docs/station.md): name it with --lab {candidate} or "
+                f"{LAB_ENV}={candidate.resolve()}, or move it")
+        return Lab()
     return load_lab(chosen)
 
 

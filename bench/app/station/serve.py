@@ -30,6 +30,9 @@ def add_serve_arguments(srv: argparse.ArgumentParser) -> None:
     srv.add_argument("--register", metavar="URL",
                      help="the lab register whose accounts log in and sign (default: the "
                           "lab file's register:); without one the station is read-only")
+    srv.add_argument("--trusted-proxy", metavar="ADDR",
+                     help="the reverse proxy in front of the station: only its "
+                          "X-Forwarded-For names the client (login limits per client)")
     srv.add_argument("--lab", metavar="FILE",
                      help=f"the lab file naming the register, given to bench authorise "
                           f"when a draft is signed (default: ${LAB_ENV})")
@@ -48,11 +51,16 @@ def register_settings(args: argparse.Namespace) -> tuple[str | None, str | None]
     (--lab FILE, else $BENCH_LAB_SETTINGS). Both given must name one register: signing
     issues through the lab file's register, and logging in through another would let one
     register's accounts sign into the other."""
+    from bench.app import labfile
     from bench.app.station.signing import same_register
     from bench.core.lab import LabError, load_lab
 
     url = getattr(args, "register", None)
-    lab_file = getattr(args, "lab", None) or os.environ.get(LAB_ENV) or None
+    try:     # one rule for the lab file: --lab, else $BENCH_LAB_SETTINGS; two differ: refuse
+        chosen = labfile.for_command(getattr(args, "lab", None))
+    except labfile.LabChoiceError as e:
+        raise SystemExit(f"bench serve: {e}") from None
+    lab_file = str(chosen) if chosen else None
     lab_url = None
     if lab_file:
         if not Path(lab_file).is_file():
@@ -82,9 +90,17 @@ def settings_from_args(args: argparse.Namespace) -> tuple[StationSettings, bool]
                          f"set a token (--token or {TOKEN_ENV}) first")
     made = not token
     url, lab_file = register_settings(args)
+    records = args.records
+    if not records and lab_file:       # the lab file names the records too
+        from bench.core.lab import LabError, load_lab
+        try:
+            records = load_lab(lab_file).records_url
+        except LabError as e:
+            raise SystemExit(f"bench serve: {e}") from None
     return StationSettings(runs=Path(args.runs), token=token or secrets.token_urlsafe(16),
-                           host=args.host, port=args.port, records_url=args.records,
-                           register_url=url, lab_file=lab_file), made
+                           host=args.host, port=args.port, records_url=records,
+                           register_url=url, lab_file=lab_file,
+                           trusted_proxy=getattr(args, "trusted_proxy", None)), made
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
