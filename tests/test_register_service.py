@@ -341,3 +341,111 @@ def test_sqlite_register_locks_out_guessing(tmp_path: Path) -> None:
         assert reg.authenticate("P. Petrov", password("P. Petrov")).name == "P. Petrov"
         changed = next(r for r in reg.audit_rows() if r["action"] == "setting changed")
         assert json.loads(str(changed["detail"])) == {"old": "900 (default)", "new": "2"}
+
+
+# -- the station: sign through the service in a browser; guessing limited there too ---------
+
+def _login_form(base: str, name: str, pw: str, token: str | None = None) -> tuple[int, str,
+                                                                                  str]:
+    """GET /login, then POST it (a form's token once, unless `token` replays one)."""
+    import re
+    import urllib.parse
+
+    with urllib.request.urlopen(f"{base}/login", timeout=30) as r:
+        page = r.read().decode()
+    fresh = re.search(r'name="token" value="([^"]+)"', page)
+    assert fresh, page[-500:]
+    used = token or fresh.group(1)
+    req = urllib.request.Request(f"{base}/login", method="POST", data=urllib.parse.urlencode(
+        {"name": name, "password": pw, "token": used, "next": "/"}).encode())
+    try:
+        with urllib.request.urlopen(req, timeout=30) as r:
+            return r.status, r.read().decode(), used
+    except urllib.error.HTTPError as e:
+        return e.code, e.read().decode(), used
+
+
+@pytest.mark.timeout(300)
+def test_the_station_signs_through_the_service_and_cannot_issue_itself(
+        lab: Lab, demo_run: Any, tmp_path: Path) -> None:
+    from selenium.webdriver.common.by import By
+
+    from bench.app.records.extract import run_uid
+    from tests.conftest import unavailable
+    from tests.test_station import _browser, _chromium, _stop, _wait
+
+    found = _chromium()
+    if found is None:
+        unavailable("chromium and chromium-driver are not installed (Debian packages "
+                    "`chromium chromium-driver`; .ci/run installs them)")
+    assert demo_run.status == 0, demo_run.stderr[-3000:]
+    run = demo_run.copy_to(tmp_path / "runs")
+    lab_yaml = tmp_path / "lab.yaml"
+    lab_yaml.write_text(f"laboratory: Service Lab\nregister: {lab.url}\n")
+    env = {k: v for k, v in os.environ.items() if k != "BENCH_LAB_SETTINGS"}
+    proc = subprocess.Popen([sys.executable, "-m", "bench", "serve", "--runs",
+                             str(run.parent), "--port", "0", "--token", "t0ken-for-stop",
+                             "--lab", str(lab_yaml)], cwd=ROOT, text=True, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    driver = None
+    try:
+        assert proc.stdout is not None
+        first = proc.stdout.readline()
+        base = first.split(" on ")[-1].strip().rstrip("/")
+        assert base.startswith("http://127.0.0.1:"), first + proc.stdout.read()
+        # a replayed login form is refused; guessing at the station meets the register's lock
+        code, page, used = _login_form(base, "A. Ivanova", "wrong-at-the-station")
+        assert code == 401
+        code, page, _ = _login_form(base, "A. Ivanova", password("A. Ivanova"), token=used)
+        assert code == 403 and "expired" in page
+        for i in range(4):
+            code, page, _ = _login_form(base, "A. Ivanova", f"guess-{i}-at-the-station")
+        assert code == 401 and "locked" in page
+        code, page, _ = _login_form(base, "A. Ivanova", password("A. Ivanova"))
+        assert code == 401 and "locked after 5 failed attempts" in page
+        assert _actions(lab, "A. Ivanova").count("authentication refused") >= 6
+
+        run_url = f"{base}/run/{run.name}"
+        driver = _browser(found, height=1400)
+        driver.get(run_url)
+        driver.find_element(By.ID, "sign-login").click()
+        driver.find_element(By.ID, "login-name").send_keys("P. Petrov")
+        driver.find_element(By.ID, "login-password").send_keys(password("P. Petrov"))
+        driver.find_element(By.ID, "login-submit").click()
+        _wait(lambda: driver.current_url == run_url and driver.find_elements(By.ID, "who"),
+              20, "the signatory's login back to the run's page")
+        driver.find_element(By.ID, "sign-password").send_keys(password("P. Petrov"))
+        driver.find_element(By.ID, "sign").click()
+        title = _wait(lambda: next((e.text for e in driver.find_elements(By.ID, "sign-title")),
+                                   None), 120, "the sign request's answer")
+        assert title == "Issued", driver.find_element(By.TAG_NAME, "main").text
+    finally:
+        if driver is not None:
+            driver.quit()
+        _stop(proc)
+    uid = run_uid(json.loads((run / "meta.json").read_text()), run.name)
+    with Register.open(lab.owner, migrate=False) as reg:
+        number = reg.number_of_run(uid)
+        assert number is not None
+        [rev] = reg.revisions(number)
+        rows = reg.audit_rows()
+    assert rev.signatory == "P. Petrov"
+    issued = run / "issued" / number
+    import hashlib
+    assert rev.pdf_sha256 == hashlib.sha256((issued / "certificate.pdf").read_bytes()
+                                            ).hexdigest()
+    entry = next(r for r in rows if r["action"] == "issue" and str(r["object"])
+                 .startswith(number))
+    assert entry["db_user"] == lab.roles["svc"]
+    # the station's own database role: unable to issue, allocate or append by itself
+    eng = _engine(lab.station)
+    try:
+        for q in (f"SELECT reg_issue('{number}', 2, 'P. Petrov', 'authorised for issue', "
+                  "'again', 'now', 'a', 'b', 'c', 'd', '{}')",
+                  "SELECT reg_allocate('station-run', 'RT', 'P. Petrov')",
+                  "SELECT reg_audit_append('P. Petrov', 'issue', 'x', '')"):
+            with pytest.raises(sa.exc.ProgrammingError, match="permission denied"), \
+                    eng.begin() as c:
+                c.exec_driver_sql(q)
+    finally:
+        eng.dispose()

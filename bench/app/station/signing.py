@@ -32,6 +32,7 @@ import dataclasses
 import hashlib
 import hmac
 import io
+import re
 import secrets
 import threading
 import time
@@ -550,8 +551,8 @@ def install(app: Flask, settings: StationSettings, run_dir: Callable[[str], Path
             acct = reg.authenticate(name, request.form.get("password") or "")  # audits refusal
         except AuthError as e:
             signing.limit.failed(client)
-            locked = "locked" in str(e) or "change it first" in str(e)
-            return login_page(401, str(e).split(" (register ")[0] if locked
+            said = re.sub(r" \(register [^)]*\)", "", str(e))   # the URL is the station's
+            return login_page(401, said if "locked" in said or "change it first" in said
                               else "Name or password not accepted.")
         except RegisterError as e:
             return login_page(503, f"The register cannot be used: {e}")
