@@ -97,6 +97,8 @@ def reason_in_words(e: BaseException) -> str:
              ("password authentication failed", "the server refuses the login (password "
                                                 "authentication failed)"),
              ("no password supplied", "no password for the login (~/.pgpass)"),
+             ("is not currently accepting connections", "the server accepts no connections "
+                                                         "to this database now"),
              ("the database system is shutting down", "the server is shutting down"),
              ("the database system is starting up", "the server is starting up"),
              ("terminating connection", "the server ended the connection (restarted?)"),

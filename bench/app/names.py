@@ -10,3 +10,9 @@ from __future__ import annotations
 DEFAULT_RUNS = "runs"
 #: the lab register's roles (bench/app/register/schema.py; docs/register.md)
 ROLES = ("operator", "reviewer", "signatory", "quality", "admin")
+
+
+def resume_command(run_path: object, yes: bool) -> str:
+    """The command that continues a run, as it works when typed: a run started unattended
+    (`--yes`) is resumed so too (without it, a prompt read off no terminal aborts)."""
+    return f"bench run --resume {run_path}" + (" --yes" if yes else "")

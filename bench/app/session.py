@@ -24,6 +24,7 @@ from bench import __version__
 from bench.app import certificate as certificates
 from bench.app.console import PlainConsole, open_console
 from bench.app.dcc.command import write_run_dcc
+from bench.app.names import resume_command
 from bench.app.records.assurance import drifting_config, warn_at_start, write_assurance
 from bench.app.records.hooks import (
     RecordsTarget,
@@ -185,7 +186,7 @@ class RunSession:
         short = room_for(self.cfg, todo, self.run_dir.path)
         if short:
             err(f"Not started: {short}")
-            print(f"Free some space, then: bench run --resume {self.run_dir.path}")
+            print(f"Free some space, then: {resume_command(self.run_dir.path, self.yes)}")
             return EXIT_INVALID
         result: JsonObject | None = None
         with SignalGuard(self.progress.line) as guard, self.stops.collecting():
@@ -394,12 +395,6 @@ def _os_user() -> str | None:
         return getpass.getuser()
     except (KeyError, OSError):
         return None
-
-
-def resume_command(run_path: Path, yes: bool) -> str:
-    """The command that continues a run, as it works when typed: a run started unattended
-    (`--yes`) is resumed so too (without it, a prompt read off no terminal aborts)."""
-    return f"bench run --resume {run_path}" + (" --yes" if yes else "")
 
 
 def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = False,

@@ -14,6 +14,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from bench.app.names import resume_command
 from bench.core import rundir_layout as layout
 from bench.core.journal import (
     KILLED,
@@ -35,13 +36,14 @@ class LostRun:
     pid: int
     last_utc: str | None
     last_step: str | None
+    yes: bool = False          # the session answered its prompts with --yes
 
     @property
     def line(self) -> str:
         step = f"; last step: {self.last_step}" if self.last_step else ""
         return (f"{self.run_path.name}: ended: {KILLED} (session {self.session}: its bench "
                 f"process {self.pid} is gone and journaled no end{step}); "
-                f"`bench run --resume {self.run_path}` continues it")
+                f"`{resume_command(self.run_path, self.yes)}` continues it")
 
 
 def process_alive(pid: int) -> bool:
@@ -74,8 +76,9 @@ def lost_session(run_path: Path) -> LostRun | None:
     steps = [e for e in own if e.get("event") == "step_start"]
     described = steps[-1].get("describe") if steps else None
     utc = own[-1].get("utc") if own else None
+    yes = any(e.get("event") == "session_start" and e.get("prompts") == "--yes" for e in own)
     return LostRun(run_path, last.session, last.pid, utc if isinstance(utc, str) else None,
-                   described if isinstance(described, str) else None)
+                   described if isinstance(described, str) else None, yes)
 
 
 def journal_lost(found: LostRun, by: str) -> None:

@@ -148,7 +148,7 @@ class LabLink:
             try:
                 self._records = Records.open(self.url)
             except RecordsError as e:
-                raise SyncError(str(e)) from e
+                raise SyncError(away_text(self.url, e.__cause__ or e)) from e
         return self._records
 
     def close(self) -> None:

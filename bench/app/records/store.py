@@ -22,7 +22,7 @@ import sqlalchemy as sa
 from sqlalchemy.engine import Connection, Engine, RowMapping
 from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 
-from bench.app.db import make_engine, redact, upgrade_to_head
+from bench.app.db import make_engine, reason_in_words, redact, upgrade_to_head
 from bench.app.records import schema as s
 from bench.app.records.checks import CheckRecord
 from bench.app.records.extract import FigureRecord, RunRecord
@@ -534,5 +534,5 @@ def _figure(x: RowMapping) -> FigureRecord:
 
 
 def _short(e: BaseException) -> str:
-    text = str(getattr(e, "orig", None) or e).strip().splitlines()
-    return text[0] if text else type(e).__name__
+    """The reason in words (bench.app.db.reason_in_words), not the driver's exception."""
+    return reason_in_words(e)

@@ -36,7 +36,7 @@ from flask import (
 )
 
 import bench
-from bench.app.db import redact
+from bench.app.db import away_text, redact
 from bench.app.fleet.sync import is_lab_server
 from bench.app.station.fleet import FleetView, Notifications, fleet_json
 from bench.app.station.live import DOWNLOADS, list_runs, live_state, pid_alive
@@ -136,10 +136,16 @@ def create_app(settings: StationSettings,
                                notes=notes, runs=list_runs(runs), version=bench.__version__)
 
     @app.get("/bench/<bench_name>/<uid>")
-    def bench_run_page(bench_name: str, uid: str) -> str:
+    def bench_run_page(bench_name: str, uid: str) -> str | tuple[str, int]:
         if fleet is None:
             abort(404)
-        return render_template("bench_run.html.j2", r=_found(fleet.run(bench_name, uid)),
+        try:
+            found = fleet.run(bench_name, uid)
+        except Exception as e:  # noqa: BLE001 - the server away: the page says so in words
+            return render_template("away.html.j2", title=f"{bench_name}: run {uid}",
+                                   text=away_text(fleet.url, e),
+                                   version=bench.__version__), 503
+        return render_template("bench_run.html.j2", r=_found(found),
                                version=bench.__version__)
 
     @app.get("/api/fleet")

@@ -24,6 +24,7 @@ from typing import NotRequired, TypedDict
 
 import numpy as np
 
+from bench.app.names import resume_command
 from bench.app.records.extract import kind_name
 from bench.app.station.view import page_view
 from bench.core import rundir_layout as layout
@@ -400,7 +401,7 @@ def ending(session: list[JsonObject], run_path: Path) -> Ending | None:
                      "the raw data")
         elif verdict == "incomplete":
             cause = (f"not every step was measured (result.json: verdict incomplete); "
-                     f"`bench run --resume {run_path}` continues")
+                     f"`{_resume(session, run_path)}` continues")
         else:
             cause = (f"measured (result.json: verdict {verdict}), but no certificate was "
                      f"written; `bench analyze {run_path}` writes it")
@@ -409,6 +410,12 @@ def ending(session: list[JsonObject], run_path: Path) -> Ending | None:
     return {"status": status, "cause": str(cause) if cause else None,
             "later": [str(x) for x in _items(exit_ev.get("later"))],
             "exit_status": code, "utc": exit_ev.get("utc")}
+
+
+def _resume(session: list[JsonObject], run_path: Path) -> str:
+    """The resume command as it works for this run: with --yes when its session ran so."""
+    start = next((e for e in session if e.get("event") == "session_start"), {})
+    return resume_command(run_path, start.get("prompts") == "--yes")
 
 
 def _items(value: JsonValue) -> list[JsonValue]:
@@ -434,7 +441,7 @@ def run_status(events: list[JsonObject], run_path: Path) -> RunStatus:
     if pid is not None and not pid_alive(pid):
         return {"status": "stopped", "later": [],
                 "cause": ("the bench process is gone without journaling an exit (killed or "
-                          f"crashed); `bench run --resume {run_path}` continues"),
+                          f"crashed); `{_resume(session, run_path)}` continues"),
                 "session": session_no, "events": session, "pid": pid}
     return {"status": "running", "cause": None, "later": [], "session": session_no,
             "events": session, "pid": pid}
