@@ -259,8 +259,8 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: RateEntry,
       note=("not resolved above the FOG noise floor: stated as < L, L the interval's upper "
             "end" if resolved is False else None), check="intra_turn_instability_corrected")
     if upper is not None:
-        q("corrected_upper_rel", "upper limit (k = 2) of the floor-corrected intra-turn "
-          "instability", INTRA_TURN_UPPER, U.ONE, upper,
+        q("corrected_upper_rel", "upper limit L (JCGM 101, 97.5 % quantile) of the "
+          "floor-corrected intra-turn instability", INTRA_TURN_UPPER, U.ONE, upper,
           label=f"{path}.intra_turn.corrected_upper_rel")
     budget_list(data, ident(rid, "budget"),
                 "uncertainty budget of the rate error: standard uncertainties (k = 1) relative "
@@ -319,8 +319,8 @@ def _averaged(data: etree._Element, rid: str, path: str, rows: JsonValue) -> Non
                      note=None if a.get("resolved") else "not resolved above the FOG noise "
                      "floor: stated as < L, L the interval's upper end")
         if upper is not None:
-            quantity(lst, None, "upper limit (k = 2) of the floor-corrected value",
-                     INTRA_TURN_UPPER, upper, U.ONE, label=f"{p}.corrected_upper_rel")
+            quantity(lst, None, "upper limit L (JCGM 101, 97.5 % quantile) of the "
+                     "floor-corrected value", INTRA_TURN_UPPER, upper, U.ONE, label=f"{p}.corrected_upper_rel")
 
 
 def _mc_interval(value: float | None, lower: float | None, upper: float | None,

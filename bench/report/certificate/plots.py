@@ -42,6 +42,10 @@ class IntraTurnFit(Protocol):
     def resolved(self) -> bool | None: ...
     @property
     def corrected_upper_rel(self) -> float | None: ...
+    @property
+    def raw_resolved(self) -> bool | None: ...
+    @property
+    def raw_upper_rel(self) -> float | None: ...
 
 
 class RatePoint(RateRow, Protocol):
@@ -339,12 +343,20 @@ def intra_turn(axes: Mapping[str, Sequence[RatePoint]], scale: float,
             y = np.array([_num(r.intra_turn_instability_rel) for r in q]) * scale
             u = np.nan_to_num(np.array([_num(r.intra_turn_instability_u_rel)
                                         for r in q])) * scale
-            if np.any(np.isfinite(y)):
-                ax.errorbar(w, y, yerr=u, fmt=marker + "-", color=color, ms=4, capsize=2,
-                            lw=1, label=f"{label}, raw")
+            intra = [r.intra for r in q]
+            # raw: docs/method.md D2 against the FOG floor, as the table prints it: a point
+            # with its bars only when resolved (the analysis's raw_resolved), else its limit
+            raw_res = np.array([i.raw_resolved is not False for i in intra])
+            raw_up = np.array([_num(i.raw_upper_rel) for i in intra]) * scale
+            if np.any(raw_res & np.isfinite(y)):
+                ax.errorbar(w[raw_res], y[raw_res], yerr=u[raw_res], fmt=marker + "-",
+                            color=color, ms=4, capsize=2, lw=1, label=f"{label}, raw")
+            raw_lim = ~raw_res & np.isfinite(raw_up)
+            if np.any(raw_lim):
+                ax.plot(w[raw_lim], raw_up[raw_lim], "v", color=color, ms=5,
+                        label=f"{label}, raw: upper limit (not above the FOG floor)")
             # floor-corrected: a resolved value with its bars; an unresolved one only as
             # its upper limit (a downward triangle), never as a point estimate
-            intra = [r.intra for r in q]
             res = np.array([i.resolved is not False for i in intra])
             c = np.array([_num(r.intra_turn_instability_corrected_rel) for r in q])
             up = np.array([_num(i.corrected_upper_rel) for i in intra])
