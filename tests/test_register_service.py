@@ -449,3 +449,57 @@ def test_the_station_signs_through_the_service_and_cannot_issue_itself(
                 c.exec_driver_sql(q)
     finally:
         eng.dispose()
+
+
+# -- 4. one bench's role writes only its own rows in the lab database -----------------------
+
+def test_one_bench_role_cannot_write_another_benchs_rows(pg: Any) -> None:
+    from tests.conftest import cli
+
+    sfx = uuid.uuid4().hex[:8]
+    r1, r2, st = f"hall1r_{sfx}", f"hall2r_{sfx}", f"stationr_{sfx}"
+    owner = pg.create_database(f"records_{sfx}")
+    pg.admin(*(f'CREATE ROLE "{r}" LOGIN' for r in (r1, r2, st)))
+    done = cli("records", "init", owner, "--bench-role", r1, "--bench-role", r2,
+               "--station-role", st)
+    assert done.returncode == 0, done.stderr
+    for name, role in (("hall-1", r1), ("hall-2", r2)):
+        done = cli("records", "bench", "add", name, "--role", role, "--records", owner)
+        assert done.returncode == 0, done.stderr
+    as1, as2 = (_engine(owner.replace(f"//{pg.user}@", f"//{r}@")) for r in (r1, r2))
+    try:
+        with as1.begin() as c:      # hall-1 delivers its run and registers it
+            c.exec_driver_sql("UPDATE benches SET host = 'h1' WHERE name = 'hall-1'")
+            c.exec_driver_sql(
+                "INSERT INTO bench_runs (bench_id, uid, run_dir, last_seq, title) SELECT id, "
+                "'uid-1', 'run-1', 0, 'hall-1 run' FROM benches WHERE name = 'hall-1'")
+            c.exec_driver_sql("INSERT INTO tables (maker, model, serial) "
+                              "VALUES ('M', 'T', 'SER-RLS')")
+            c.exec_driver_sql(
+                "INSERT INTO runs (uid, table_id, kind, run_dir, registered_utc, verdict, "
+                "simulated, aborted) SELECT 'uid-1', id, 'rate-ladder', 'run-1', now(), "
+                "'PASS', false, false FROM tables WHERE serial = 'SER-RLS'")
+        with as2.begin() as c:      # hall-2's role: changes nothing of hall-1's
+            for q in ("UPDATE benches SET host = 'forged' WHERE name = 'hall-1'",
+                      "UPDATE bench_runs SET title = 'forged'",
+                      "UPDATE runs SET verdict = 'FAIL'", "DELETE FROM runs"):
+                assert c.exec_driver_sql(q).rowcount == 0, q
+        for q in ("INSERT INTO bench_events (run_id, seq, event, body) SELECT id, 99, "
+                  "'forged', '{}' FROM bench_runs WHERE uid = 'uid-1'",
+                  "INSERT INTO bench_runs (bench_id, uid, run_dir, last_seq) SELECT id, "
+                  "'uid-x', 'x', 0 FROM benches WHERE name = 'hall-1'",
+                  "INSERT INTO figures (run_id, axis, quantity, value, unit) SELECT id, 'a', "
+                  "'q', 1, 'u' FROM runs WHERE uid = 'uid-1'",
+                  "DELETE FROM bench_runs"):
+            with pytest.raises(sa.exc.DBAPIError,
+                               match="row-level security|violates|permission denied"), \
+                    as2.begin() as c:
+                c.exec_driver_sql(q)
+        with as1.connect() as c:
+            assert c.exec_driver_sql("SELECT title FROM bench_runs").scalar() == "hall-1 run"
+            assert c.exec_driver_sql("SELECT verdict FROM runs").scalar() == "PASS"
+            assert c.exec_driver_sql("SELECT host FROM benches WHERE name = 'hall-1'"
+                                     ).scalar() == "h1"
+    finally:
+        as1.dispose()
+        as2.dispose()

@@ -67,6 +67,14 @@ def add_records_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]
                      help="the benches' database role (repeatable)")
     ini.add_argument("--station-role", metavar="ROLE", action="append", default=[],
                      help="the station's database role (repeatable)")
+    bad = rsub.add_parser("bench", help="bind a bench's name to its database role (the "
+                          "owner acts): the role then writes only that bench's rows").add_subparsers(
+        dest="bench_command", required=True, metavar="ACTION")
+    bnd = bad.add_parser("add", help="NAME's rows are written by ROLE alone (row security)")
+    bnd.add_argument("name", help="the bench's name (its stand file's bench.name)")
+    bnd.add_argument("--role", required=True, help="its PostgreSQL role")
+    bnd.add_argument("--records", metavar="URL", required=True,
+                     help="the lab database as its owner (postgresql://OWNER@HOST/DB)")
     syn = rsub.add_parser("sync", help="deliver this bench's runs (events, results, records) "
                                        "to the lab's PostgreSQL database (idempotent)",
                           description="Deliver every run directory of the runs folder to the "

@@ -430,9 +430,26 @@ def cmd_init(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_bench(args: argparse.Namespace) -> int:
+    """`bench records bench add NAME --role ROLE`: the bench's rows become the role's."""
+    from bench.app.fleet.roles import bind_bench
+    from bench.app.fleet.sync import is_lab_server
+
+    if not is_lab_server(args.records):
+        _err(f"bench records bench: {redact(args.records)}: a bench's role is bound on the "
+             "lab's PostgreSQL database")
+        return EXIT_INVALID
+    with Records.open(args.records) as rec, rec.engine.begin() as conn:
+        bind_bench(conn, args.name, args.role)
+    print(f"bench {args.name}: its fleet rows and registered runs are written by the "
+          f"database role {args.role} alone")
+    return EXIT_OK
+
+
 def cmd_records(args: argparse.Namespace) -> int:
     """`bench records import` / `sync` / `init`."""
-    chosen = {"sync": cmd_sync, "init": cmd_init, "check": cmd_check}.get(
+    chosen = {"sync": cmd_sync, "init": cmd_init, "check": cmd_check,
+              "bench": cmd_bench}.get(
         args.records_command, cmd_import)
     return chosen(args)
 
