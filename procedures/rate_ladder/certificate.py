@@ -645,7 +645,7 @@ def _intra_blocks(axis: str, rates: Sequence[RateEntry], floor: NoiseFloor | Non
                             "JCGM 101 Monte Carlo of the two variances (docs/method.md A5): "
                             "± U when the interval's lower end (2.5 %) is above zero, "
                             "otherwise '< L', L the square root of the difference's 97.5 % "
-                            "quantile.")
+                            "quantile." + _mc_inputs(rates))
     if approx:
         notes.append("* U of the raw value from 2s/√(2(n−1)) over its n samples, assuming "
                      "independent samples; the result did not carry it.")
@@ -654,6 +654,24 @@ def _intra_blocks(axis: str, rates: Sequence[RateEntry], floor: NoiseFloor | Non
                                "std(Δω_rand)/|ω_set| (docs/method.md A5)", notes=tuple(notes))]
     blocks += _stability_blocks(axis, rates)
     return blocks
+
+
+def _mc_inputs(rates: Sequence[RateEntry]) -> str:
+    """The Monte Carlo's inputs besides the printed raw and floor (docs/method.md A5), so
+    the floor-corrected figure can be recomputed: each variance drawn as s² ν / χ²_ν."""
+    raw = [d for r in rates if (d := num(r.intra.doc.get("raw_dof"))) is not None]
+    floor = [d for r in rates if (d := num(r.intra.doc.get("floor_dof"))) is not None]
+    draws = {d for r in rates if (d := num(r.intra.doc.get("mc_draws"))) is not None}
+    if not raw or not floor or len(draws) != 1:
+        return ""
+
+    def span(xs: list[float]) -> str:
+        lo, hi = min(xs), max(xs)
+        return f"{lo:.0f}" if round(lo) == round(hi) else f"{lo:.0f} to {hi:.0f}"
+
+    return (f" Its inputs: ν_raw = samples − fitted parameters = {span(raw)}, ν_floor = "
+            f"2/3 of the floor's successive differences = {span(floor)}; each variance drawn "
+            f"as s²·ν/χ²_ν, {min(draws):.0f} draws.")
 
 
 def _stability_blocks(axis: str, rates: Sequence[RateEntry]) -> list[Block]:

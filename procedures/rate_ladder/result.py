@@ -683,7 +683,7 @@ def averaged_json(a: AveragedInstability) -> JsonObject:
 
 def random_json(r: RandomPartResult) -> JsonObject:
     """The random intra-turn rate and its floor-corrected interval (docs/method.md A5)."""
-    from bench.analysis.random_part import LEVEL
+    from bench.analysis.random_part import LEVEL, MC_DRAWS
 
     return {"instability_rel": r.instability_rel, "floor_rel": r.floor_rel,
             "floor_source": r.floor_source, "corrected_rel": r.corrected_rel,
@@ -694,7 +694,7 @@ def random_json(r: RandomPartResult) -> JsonObject:
                                "inverse chi-square per variance)",
             "floor_dof": r.floor_dof, "resolved": r.resolved,
             "raw_resolved": r.raw_resolved, "raw_upper_rel": r.raw_upper_rel,
-            "raw_ustd_rel": r.raw_ustd_rel, "raw_dof": r.raw_dof,
+            "raw_ustd_rel": r.raw_ustd_rel, "raw_dof": r.raw_dof, "mc_draws": MC_DRAWS,
             "corrected_ustd_rel": r.corrected_ustd_rel,
             "bandwidth_hz": r.bandwidth_hz, "std_dps": r.std_dps,
             "samples": r.samples, "averaged": [averaged_json(a) for a in r.averaged]}
