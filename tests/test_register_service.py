@@ -12,6 +12,7 @@ access, guessed passwords) and shown refused or recorded.
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import datetime as dt
 import json
 import os
@@ -75,16 +76,24 @@ def lab(pg: Any) -> Iterator[Lab]:
                 reg.change_password(name, pw + "-initial", pw)
         reg.set_setting(admin, "lockout_s", str(LOCK_S))
     as_role = {k: owner.replace(f"//{pg.user}@", f"//{r}@") for k, r in roles.items()}
-    proc = subprocess.Popen([sys.executable, "-m", "bench", "register", "serve", "--db",
-                             as_role["svc"], "--port", "0"], cwd=ROOT, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    with _service(as_role["svc"]) as url:
+        yield Lab(owner, as_role["svc"], as_role["hall1"], as_role["hall2"],
+                  as_role["station"], url, roles)
+
+
+@contextlib.contextmanager
+def _service(db: str, *args: str, env: dict[str, str] | None = None) -> Iterator[str]:
+    """`bench register serve` on a free port of 127.0.0.1; yields its URL."""
+    proc = subprocess.Popen([sys.executable, "-m", "bench", "register", "serve", "--db", db,
+                             "--port", "0", *args], cwd=ROOT, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            env={**os.environ, **(env or {})})
     try:
         assert proc.stdout is not None
         line = proc.stdout.readline()
         assert line.startswith("register service on http://127.0.0.1:"), \
             line + (proc.stderr.read() if proc.stderr else "")
-        yield Lab(owner, as_role["svc"], as_role["hall1"], as_role["hall2"],
-                  as_role["station"], line.split()[3], roles)
+        yield line.split()[3]
     finally:
         proc.terminate()
         proc.wait(timeout=30)
@@ -503,3 +512,40 @@ def test_one_bench_role_cannot_write_another_benchs_rows(pg: Any) -> None:
     finally:
         as1.dispose()
         as2.dispose()
+
+
+# -- the DCC signing key lives with the service, never on the bench -------------------------
+
+def test_the_service_alone_signs_the_issued_dcc(lab: Lab, demo_run: Any,
+                                                tmp_path: Path) -> None:
+    import hashlib
+
+    from tests.conftest import cli
+    from tests.test_dcc import _throwaway_key
+
+    key, cert = _throwaway_key(tmp_path / "server-keys", "Service Lab DCC signing")
+    with Register.open(lab.owner, migrate=False) as reg:
+        reg.set_setting(reg.authenticate("admin", password("admin"), "admin"),
+                        "dcc_signing_certificate_sha256",
+                        hashlib.sha256(cert.read_bytes()).hexdigest())
+    assert demo_run.status == 0, demo_run.stderr[-3000:]
+    run = demo_run.copy_to(tmp_path / "runs")
+    with _service(lab.service, "--signing-key", str(key), "--signing-certificate", str(cert),
+                  "--signing-password-env", "SERVICE_KEY_PASSWORD",
+                  env={"SERVICE_KEY_PASSWORD": "s3cret"}) as url:
+        lab_yaml = tmp_path / "lab.yaml"        # the bench's lab file: no key in it
+        lab_yaml.write_text(f"laboratory: Service Lab\nregister: {url}\n")
+        done = cli_in(password("P. Petrov") + "\n", "authorise", str(run), "--signatory",
+                      "P. Petrov", "--lab", str(lab_yaml), "--password-stdin")
+        assert done.returncode == 0, done.stdout + done.stderr
+        assert "DCC signed (XAdES)" in done.stdout
+    [issued] = (run / "issued").iterdir()
+    dcc = issued / "certificate.dcc.xml"
+    done = cli("verify", str(dcc), "--cert", str(cert))
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "signature: XAdES verifies; signer CN=Service Lab DCC signing" in done.stdout
+    for f in run.rglob("*"):
+        assert not f.is_file() or b"PRIVATE KEY" not in f.read_bytes(), f
+    with Register.open(lab.owner, migrate=False) as reg:
+        assert any(r["action"] == "DCC signed" and r["actor"] == "P. Petrov"
+                   for r in reg.audit_rows())

@@ -213,6 +213,11 @@ def add_register_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]
                     "role (default: $BENCH_REGISTER_DB)")
     sv.add_argument("--host", default="127.0.0.1", help="address to bind (127.0.0.1)")
     sv.add_argument("--port", type=int, default=8741, help="TCP port (8741; 0 picks one)")
+    sv.add_argument("--signing-key", metavar="PEM", help="the lab's DCC signing key: held by "
+                    "the service alone, used when the register designates its certificate")
+    sv.add_argument("--signing-certificate", metavar="PEM", help="its certificate (chain)")
+    sv.add_argument("--signing-password-env", metavar="VAR",
+                    help="the environment variable holding the key's password")
     eq = rs.add_parser("equipment", help="the equipment inventory").add_subparsers(
         dest="equipment_command", required=True, metavar="ACTION")
     ea = eq.add_parser("add", help="record a standard or instrument and its calibration")

@@ -43,7 +43,7 @@ from bench.app.certificate import (
 )
 from bench.app.certificate.build import Sources, stand_of
 from bench.app.certificate.revisions import statement_changes
-from bench.app.register.store import MEANING_ISSUE, Account, Register
+from bench.app.register.store import MEANING_ISSUE, SIGNING_SETTING, Account, Register
 from bench.core import rundir_layout as layout
 from bench.core.lab import Lab, LabError, Signatory, run_lab
 from bench.core.traceability import identity_problems, with_declared_serials
@@ -359,11 +359,17 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
             old, result, old_html, html))
     else:
         render_files(result, work, run_path, issue=issue)
-    signing_lab, signing_note = designated_signing(lab, reg)
+    signer = reg.dcc_signer(acct)
+    if reg.remote:      # a lab server: its register service alone holds the key (issue 53)
+        signing_lab = replace(lab, signing=None, require_signed_dcc=False)
+        signing_note = ("signed by the register service" if signer else
+                        "the register service holds no signing key")
+    else:
+        signing_lab, signing_note = designated_signing(lab, reg)
     try:
         outcome = write_dcc(run_path, result, stand, lab=signing_lab, issue=issue,
-                            out_dir=work)
-    except LabError as e:
+                            out_dir=work, signer=signer)
+    except (LabError, RegisterError) as e:
         _discard(work)
         return _refuse([f"the DCC could not be signed: {e}"], run_path)
     if not outcome.ok:
@@ -413,8 +419,6 @@ def _update_records(run_path: Path, lab: Lab, result: JsonObject,
     register_run(run_path, target(run_path.parent, lab.records_url), line, result)
 
 
-#: the register's setting naming the DCC signing certificate (SHA-256 of its PEM file)
-SIGNING_SETTING = "dcc_signing_certificate_sha256"
 
 
 def designated_signing(lab: Lab, reg: Register) -> tuple[Lab, str]:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import datetime as dt
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,7 +65,8 @@ def write_dcc(run_path: Path, result: JsonObject,
               stand: DccRefs | Mapping[str, object] | None = None,
               lab_file: str | Path | None = None, issued: dt.date | None = None,
               lab: Lab | None = None, issue: Issue | None = None,
-              out_dir: Path | None = None) -> DccOutcome:
+              out_dir: Path | None = None,
+              signer: Callable[[bytes], bytes] | None = None) -> DccOutcome:
     """Build, validate and write the DCC: the draft (never signed: nobody authorised
     it), or the `issue` being authorised, signed when the lab configured a key.
 
@@ -86,7 +87,10 @@ def write_dcc(run_path: Path, result: JsonObject,
     data = dcc_bytes(build_dcc(DccInputs(result, run_path, settings, issued, issue=issue,
                                          pdf_dir=out)))
     signed = False
-    if settings.signing is not None and issue is not None and not issue.draft:
+    if signer is not None and issue is not None and not issue.draft:
+        data = signer(data)         # the lab's register service holds the key (issue 53)
+        signed = True
+    elif settings.signing is not None and issue is not None and not issue.draft:
         from bench.app.dcc.signing import sign_tree
 
         check_key_outside(settings.signing, run_path)

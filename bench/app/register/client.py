@@ -8,13 +8,14 @@ reached refuses (RegisterError: exit 2 at the command line)."""
 
 from __future__ import annotations
 
+import base64
 import datetime as dt
 import json
 import os
 import socket
 import urllib.error
 import urllib.request
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from bench.app.register import chain
@@ -59,12 +60,28 @@ class ServiceRegister(Register):
         self.via = via or os.environ.get(VIA_ENV) or f"bench on {socket.gethostname()}"
         self._tokens: dict[str, str] = {}
         self._pending = {}
+        self._signs = False
+
+    remote = True
 
     @classmethod
     def connect(cls, url: str, via: str | None = None) -> ServiceRegister:
         reg = cls(url, via)
-        reg._get("info")
+        reg._signs = bool(reg._get("info").get("signs_dcc"))
         return reg
+
+    def dcc_signer(self, signatory: Account) -> Callable[[bytes], bytes] | None:
+        """The service signs the issued DCC with the lab's key (never on the bench)."""
+        if not self._signs:
+            return None
+        token = self._token(signatory.name)
+
+        def sign(data: bytes) -> bytes:
+            got = self._call("sign_dcc", token=token,
+                             xml=base64.b64encode(data).decode("ascii"))
+            return base64.b64decode(str(got))
+
+        return sign
 
     def _send(self, req: urllib.request.Request) -> Any:
         try:

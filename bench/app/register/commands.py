@@ -157,8 +157,22 @@ def _serve(args: argparse.Namespace) -> int:
     if not url:
         raise RegisterError("which database? give --db URL or $BENCH_REGISTER_DB (the "
                             "service role's URL)")
+    signing = None
+    if args.signing_key or args.signing_certificate:
+        from pathlib import Path
+
+        from bench.core.lab import Signing
+
+        if not (args.signing_key and args.signing_certificate):
+            raise RegisterError("--signing-key and --signing-certificate go together")
+        signing = Signing(Path(args.signing_key), Path(args.signing_certificate),
+                          args.signing_password_env, origin="bench register serve")
+        for f in (signing.key_file, signing.certificate_file):
+            if not f.is_file():
+                raise RegisterError(f"{f}: not found")
     reg = Register.open(url, migrate=False)
-    server = create_server(create_app(reg), host=args.host, port=args.port, threads=8)
+    server = create_server(create_app(reg, signing=signing), host=args.host, port=args.port,
+                           threads=8)
     port = server.effective_port
 
     def stop(_sig: int, _frame: object) -> None:

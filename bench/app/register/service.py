@@ -31,6 +31,7 @@ from werkzeug.wrappers import Response
 from bench.app.register.store import (
     ACTING_VIA,
     SETTING_DEFAULTS,
+    SIGNING_SETTING,
     Account,
     AuthError,
     Register,
@@ -38,6 +39,7 @@ from bench.app.register.store import (
 )
 
 if TYPE_CHECKING:
+    from bench.core.lab import Signing
     from drivers.json_types import JsonValue
 
 TOKEN_S = 15 * 60.0         # a login is good this long after its last use (a station's idle)
@@ -101,10 +103,40 @@ class Tokens:
                 self._by_token.pop(token, None)
 
 
-def create_app(reg: Register, tokens: Tokens | None = None) -> Flask:
-    """The service's WSGI application over one register (opened with the service role)."""
+def create_app(reg: Register, tokens: Tokens | None = None,
+               signing: Signing | None = None) -> Flask:
+    """The service's WSGI application over one register (opened with the service role);
+    with `signing`, the one holder of the lab's DCC signing key."""
     app = Flask("ratebench-register")
     tok = tokens or Tokens()
+
+    def sign_dcc(b: Mapping[str, object]) -> JsonValue:
+        """Sign an issued DCC (XAdES) for a signatory logged in here; the register must
+        designate this key's certificate (its setting, an admin's decision)."""
+        import base64
+        import hashlib
+
+        from lxml import etree
+
+        from bench.app.dcc.output import dcc_bytes
+        from bench.app.dcc.signing import sign_tree
+
+        acct = actor(b)
+        if not acct.has("signatory"):
+            raise AuthError(f"{acct.name} is not a signatory")
+        if signing is None:
+            raise RegisterError("this register service holds no signing key")
+        want = reg.setting(SIGNING_SETTING)
+        have = hashlib.sha256(signing.certificate_file.read_bytes()).hexdigest()
+        if want != have:
+            raise RegisterError("the register does not designate this service's signing "
+                                f"certificate ({SIGNING_SETTING})")
+        parser = etree.XMLParser(huge_tree=True, no_network=True, resolve_entities=False)
+        tree = etree.ElementTree(etree.fromstring(base64.b64decode(text(b, "xml")), parser))
+        data = dcc_bytes(sign_tree(tree, signing), pretty=False)   # as signed, not re-laid
+        reg.append(acct.name, "DCC signed", acct.name,
+                   {"sha256": hashlib.sha256(data).hexdigest()})
+        return base64.b64encode(data).decode("ascii")
 
     def actor(body: Mapping[str, object]) -> Account:
         acct = reg.account(tok.name(body.get("token")))
@@ -199,11 +231,13 @@ def create_app(reg: Register, tokens: Tokens | None = None) -> Flask:
         "append": append,
         "audit_rows": lambda b: jsonable(reg.audit_rows()),
         "audit_check": lambda b: jsonable(reg.audit_check()),
+        "sign_dcc": sign_dcc,
     }
 
     @app.get("/v1/info")
     def info() -> Response:
-        return jsonify({"ok": {"service": "ratebench register", "operations": sorted(ops)}})
+        return jsonify({"ok": {"service": "ratebench register", "operations": sorted(ops),
+                               "signs_dcc": signing is not None}})
 
     @app.post("/v1/<op>")
     def call(op: str) -> tuple[Response, int]:

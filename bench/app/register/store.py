@@ -14,7 +14,7 @@ import datetime as dt
 import getpass
 import json
 import os
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,6 +35,8 @@ if TYPE_CHECKING:   # argon2 is imported when a password is checked
 
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"
 MEANING_ISSUE = "authorised for issue"
+#: the register's setting naming the DCC signing certificate (SHA-256 of its PEM file)
+SIGNING_SETTING = "dcc_signing_certificate_sha256"
 
 #: the register's settings an admin changes (`bench register settings set`, audited), with
 #: their defaults: guessing is limited where the password is checked (issue 53)
@@ -669,6 +671,15 @@ class Register:
                 rv.pdf_sha256 == sha256, rv.dcc_sha256 == sha256, rv.html_sha256 == sha256,
                 rv.result_sha256 == sha256))).first()
         return None if r is None else _revision(r._mapping)
+
+    #: a register reached over the network (client.ServiceRegister), not a database here
+    remote = False
+
+    def dcc_signer(self, signatory: Account) -> Callable[[bytes], bytes] | None:
+        """Who signs an issued DCC for this register: on one bench the lab file's key,
+        when the register designates its certificate (authorise.designated_signing);
+        the register service signs with its own key (client.py)."""
+        return None
 
     def begin_issue(self, signatory: Account, number: str) -> str:
         """The time of the issue, by the register's clock: printed on the certificate and
