@@ -216,6 +216,12 @@ class Check:
         """The tolerance of a relative quantity (None for one in °/h, °/s...)."""
         return number(self.doc, "tolerance_rel")
 
+    @property
+    def floor_name(self) -> str | None:
+        """What an unresolved value was not resolved above ('timing floor', 'FOG floor':
+        docs/method.md D2), as the kind names it."""
+        return text(self.doc, "floor_name")
+
     def to_json(self) -> JsonObject:
         return dict(self.doc)
 

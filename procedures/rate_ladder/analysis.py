@@ -368,9 +368,30 @@ def _checks(cfg: Config, axis: str, entry: RateEntry, rule: str) -> list[JsonObj
         if quantity == "rate_instability":
             out.append(sigma_check(axis, rate, entry, t, rule))
             continue
+        if quantity == "intra_turn_instability" and entry.intra.raw_resolved is False:
+            out.append(raw_limit_check(axis, rate, entry, t, rule))
+            continue
         out.append(judge(axis, rate, quantity, _required(value, f"{quantity}_rel"),
                          _required(u, f"{quantity}_u_rel"), t, rule).to_dict())
     return out
+
+
+def raw_limit_check(axis: str, rate: float, entry: RateEntry, tolerance: float,
+                    rule: str) -> JsonObject:
+    """Conformity of the raw intra-turn instability when it is not resolved above the FOG
+    floor (docs/method.md D2: stated '< L', L = raw + U never below the floor): judged by
+    the one rule for limits, as sigma is (bench.report.conformity.judge_limit)."""
+    value = _required(entry.intra_turn_instability_rel, "intra_turn_instability_rel")
+    u = _required(entry.intra_turn_instability_u_rel, "intra_turn_instability_u_rel")
+    upper = _required(entry.intra.raw_upper_rel, "intra_turn.raw_upper_rel")
+    floor = _required(entry.intra.floor_rel, "intra_turn.floor_rel")
+    c = judge_limit(axis, rate, "intra_turn_instability", value, u, upper, tolerance, rule,
+                    "97.5 % normal (value + U)").to_dict()
+    c.update(floor_rel=floor, floor_name="FOG floor")
+    c["reason"] = str(c["reason"]) + (
+        f" (the raw figure {value:.3g} is not resolved above the FOG floor {floor:.3g}: "
+        "value - U is at or below it)")
+    return c
 
 
 def sigma_check(axis: str, rate: float, entry: RateEntry, tolerance: float,
@@ -389,7 +410,7 @@ def sigma_check(axis: str, rate: float, entry: RateEntry, tolerance: float,
     if not entry.rate_instability_resolved:
         c = judge_limit(axis, rate, "rate_instability", value, u, upper, tolerance, rule,
                         level).to_dict()
-        c.update(floor_rel=floor)
+        c.update(floor_rel=floor, floor_name="timing floor")
         c["reason"] = str(c["reason"]) + (
             f" (sigma {value:.2g} is not resolved above the timing floor "
             f"{floor:.2g}: its {100 - SIGMA_UPPER_P * 100:g} % chi-square lower "

@@ -743,7 +743,7 @@ def _check_texts(c: Check, proc: Procedure) -> tuple[str, str]:
         unit = rel_unit(row.value, row.tolerance)
         limit = num(c.upper_rel)
         vu = present(row.value, row.u, unit.scale, resolved=False,
-                     upper=limit).with_unit(unit.name) + " (timing floor)"
+                     upper=limit).with_unit(unit.name) + f" ({c.floor_name or 'timing floor'})"
     elif (upper_rel := num(c.upper_rel)) is not None and row.suffix == "rel":
         unit = rel_unit(row.value, row.u, row.tolerance)
         lower_rel = num(c.lower_rel)
