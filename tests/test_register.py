@@ -314,3 +314,35 @@ def test_sqlite_guards_against_mistakes(tmp_path: Path) -> None:
         with pytest.raises(sa.exc.DBAPIError), eng.begin() as c:
             c.exec_driver_sql(q)
     eng.dispose()
+
+
+# -- issue 56, item 5: a command that reads a register never makes one ----------------------
+
+def test_a_missing_register_is_an_error_and_nothing_is_created(run: Path, lab: Path,
+                                                               tmp_path: Path) -> None:
+    nowhere = tmp_path / "nowhere" / "register.sqlite"
+    bad = lab_file(tmp_path / "badlab", f"sqlite:///{nowhere}")
+    done = authorise(run, "P. Petrov", bad)
+    assert done.returncode == 2 and "no such file" in done.stderr, done.stderr
+    done = cli("verify", str(run / "certificate.dcc.xml"), "--register", f"sqlite:///{nowhere}")
+    assert done.returncode == 1 and "no such file" in done.stdout
+    # the run's own copy of a lab file whose relative path points into the run directory
+    (run / "lab.yaml").write_text("register: sqlite:///register.sqlite\n")
+    done = cli_in(password("P. Petrov") + "\n", "authorise", str(run), "--signatory",
+                  "P. Petrov", "--password-stdin")
+    assert done.returncode == 2 and "no such file" in done.stderr, done.stderr
+    assert not nowhere.exists() and not nowhere.parent.exists()
+    assert not (run / "register.sqlite").exists()
+
+
+def test_a_withdrawn_file_gets_no_ok_line(run: Path, lab: Path) -> None:
+    assert authorise(run, "P. Petrov", lab).returncode == 0
+    first = next((run / "issued").iterdir()) / "certificate.dcc.xml"
+    kept = first.read_bytes()
+    assert authorise(run, "P. Petrov", lab, "--reason", "customer's address corrected"
+                     ).returncode == 0
+    done = cli("verify", str(first), "--register", _url(lab), "--no-result")
+    assert first.read_bytes() == kept
+    assert done.returncode == 1 and "withdrawn" in done.stdout, done.stdout
+    assert "verify: OK" not in done.stdout
+    assert "the register does not hold it as issued" in done.stdout

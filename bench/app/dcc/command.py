@@ -160,10 +160,13 @@ def cmd_verify(args: argparse.Namespace) -> int:
                          require_signed=bool(lab and lab.require_signed_dcc))
     print(f"{path}:")
     print("\n".join(f"  {line}" for line in report.lines))
-    print("verify: FAILED" if report.failed else "verify: OK")
     if args.register:
+        # the register's word first: a withdrawn or unknown file gets no "OK" (issue 56)
         standing = _standing(path, args.register)
+        print("verify: FAILED" if report.failed else "verify: OK" if standing == EXIT_PASS
+              else "verify: the file is intact, but the register does not hold it as issued")
         return EXIT_FAIL if report.failed else standing
+    print("verify: FAILED" if report.failed else "verify: OK")
     print(f"status: {_local_status(path)} (from the run directory's copy; `--register URL` "
           "asks the lab's register)")
     return EXIT_FAIL if report.failed else EXIT_PASS
