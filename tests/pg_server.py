@@ -50,7 +50,10 @@ def _free_port() -> int:
 class PgServer:
     """One postgres process; `url(db)` names a database on it."""
 
-    def __init__(self) -> None:
+    def __init__(self, superuser: str = "bench", password: str | None = None) -> None:
+        """`password`: a cluster whose every login is by password (scram-sha-256, as a
+        lab's is, docs/station.md); the `superuser` has it. Default: trust."""
+        self.password = password
         self.bindir = _bindir()
         self.port = _free_port()
         self.tmp = Path(tempfile.mkdtemp(prefix="ratebench-pg-"))
@@ -71,7 +74,7 @@ class PgServer:
                            else [runuser, f"--reuid={user.pw_uid}", f"--regid={user.pw_gid}",
                                  "--init-groups"])
             os.chown(self.tmp, user.pw_uid, user.pw_gid)
-        self.user = "bench"
+        self.user = superuser
 
     def _run(self, *cmd: str) -> None:
         out = subprocess.run([*self.prefix, *cmd], capture_output=True, text=True, timeout=120)
@@ -79,8 +82,16 @@ class PgServer:
             raise PgUnavailable(f"{Path(cmd[0]).name} failed: {out.stderr.strip()[-400:]}")
 
     def start(self) -> PgServer:
+        auth = ["--auth=trust"]
+        if self.password is not None:
+            pwfile = self.tmp / "superuser.pw"
+            pwfile.write_text(self.password + "\n")
+            if self.prefix:
+                user = pwd.getpwnam("postgres")
+                os.chown(pwfile, user.pw_uid, user.pw_gid)
+            auth = ["--auth=scram-sha-256", f"--pwfile={pwfile}"]
         self._run(str(self.bindir / "initdb"), "-D", str(self.data), "-U", self.user,
-                  "--auth=trust", "--no-sync", "-E", "UTF8")
+                  *auth, "--no-sync", "-E", "UTF8")
         self.proc = subprocess.Popen(
             [*self.prefix, str(self.bindir / "postgres"), "-D", str(self.data),
              "-p", str(self.port), "-k", str(self.tmp), "-c", "listen_addresses=127.0.0.1",
@@ -92,7 +103,7 @@ class PgServer:
                 raise PgUnavailable("postgres exited: "
                                     + (self.tmp / "server.log").read_text()[-400:])
             try:
-                eng = sa.create_engine(self.url("postgres"))
+                eng = sa.create_engine(self._admin_url())
                 with eng.connect():
                     pass
                 eng.dispose()
@@ -104,11 +115,14 @@ class PgServer:
     def url(self, database: str) -> str:
         return f"postgresql://{self.user}@127.0.0.1:{self.port}/{database}"
 
+    def _admin_url(self) -> str:
+        """The superuser's URL, with its password where the cluster asks for one."""
+        login = self.user if self.password is None else f"{self.user}:{self.password}"
+        return f"postgresql+psycopg://{login}@127.0.0.1:{self.port}/postgres"
+
     def admin(self, *sql: str) -> None:
         """Statements run outside a transaction (CREATE/ALTER DATABASE)."""
-        eng = sa.create_engine(self.url("postgres").replace("postgresql://",
-                                                             "postgresql+psycopg://"),
-                               isolation_level="AUTOCOMMIT")
+        eng = sa.create_engine(self._admin_url(), isolation_level="AUTOCOMMIT")
         try:
             with eng.connect() as c:
                 for q in sql:

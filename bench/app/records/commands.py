@@ -323,7 +323,7 @@ def cmd_sync(args: argparse.Namespace) -> int:
     # a run's own command: each run to the records of the lab file it copied (else the
     # command's: --records, --lab, $BENCH_LAB_SETTINGS)
     urls = {p: _run_records(p, args.records, where.url) for p in run_dirs(where.runs_dir)}
-    for url in dict.fromkeys([where.url, *urls.values()]) if urls else [where.url]:
+    for url in dict.fromkeys(urls.values()) if urls else [where.url]:
         if not is_lab_server(url):
             _err(f"bench records sync: {redact(url)} is not a lab server: name its "
                  "PostgreSQL database (--records postgresql://ROLE@HOST/DB, or records: in "
