@@ -23,8 +23,9 @@ import pytest
 
 from tests.conftest import CONFIGS, DemoRun
 
-#: result.json keys that say when or where, not what was measured
-_WHEN_WHERE = {"dates", "run_dir"}
+#: result.json keys that say when or where, not what was measured (`run_sessions`: each
+#: session's start and end times and who ran it, issue 57)
+_WHEN_WHERE = {"dates", "run_dir", "run_sessions"}
 #: what differs between two runs in text: a certificate's number (from the run's time),
 #: a date or time of day, the run directory's name, a twin's pty or TCP port
 _VOLATILE = [

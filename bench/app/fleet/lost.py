@@ -46,15 +46,22 @@ class LostRun:
                 f"`{resume_command(self.run_path, self.yes)}` continues it")
 
 
-def process_alive(pid: int) -> bool:
-    """Whether `pid` is a live process of this machine that is a bench (a pid reused by
-    another program after a reboot is no bench)."""
+def pid_exists(pid: int) -> bool:
+    """Whether a process of this machine has the id `pid` (any program)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:
         return True
+    return True
+
+
+def process_alive(pid: int) -> bool:
+    """Whether `pid` is a live process of this machine that is a bench (a pid reused by
+    another program after a reboot is no bench)."""
+    if not pid_exists(pid):
+        return False
     try:
         cmdline = Path(f"/proc/{pid}/cmdline").read_bytes()
     except OSError:

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import time
 from collections.abc import Mapping
 from datetime import UTC, datetime
@@ -76,15 +75,10 @@ def read_events(run_path: Path) -> list[JsonObject]:
 
 
 def pid_alive(pid: int | None) -> bool:
-    if not pid:
-        return False
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+    """A process of this machine lives under `pid` (bench/app/fleet/lost.py)."""
+    from bench.app.fleet.lost import pid_exists
+
+    return pid is not None and pid > 0 and pid_exists(pid)
 
 
 def decimate(t: np.ndarray, y: np.ndarray, points: int = TRACE_POINTS
