@@ -10,6 +10,7 @@ run's evidence is untouched, and a `--resume` continues the run as before.
 
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -60,6 +61,8 @@ def pid_exists(pid: int) -> bool:
 def process_alive(pid: int) -> bool:
     """Whether `pid` is a live process of this machine that is a bench (a pid reused by
     another program after a reboot is no bench)."""
+    if pid == os.getpid():
+        return True               # this process (a session run in-process)
     if not pid_exists(pid):
         return False
     try:
@@ -72,6 +75,8 @@ def process_alive(pid: int) -> bool:
 def lost_session(run_path: Path) -> LostRun | None:
     """The run's last session when its process is gone without an end, else None (ended,
     still running, or from a bench that did not journal its pid)."""
+    if _ended_by_its_last_line(run_path / layout.EVENTS):
+        return None               # most runs of a folder: read 4 kB, not the whole log
     events = list(read_jsonl(run_path / layout.EVENTS))
     endings = session_endings(events)
     if not endings:
@@ -86,6 +91,24 @@ def lost_session(run_path: Path) -> LostRun | None:
     yes = any(e.get("event") == "session_start" and e.get("prompts") == "--yes" for e in own)
     return LostRun(run_path, last.session, last.pid, utc if isinstance(utc, str) else None,
                    described if isinstance(described, str) else None, yes)
+
+
+def _ended_by_its_last_line(log: Path) -> bool:
+    """The log's last whole line is a session's exit or a `session_lost`: nothing to find."""
+    try:
+        with open(log, "rb") as f:
+            f.seek(0, os.SEEK_END)
+            f.seek(max(0, f.tell() - 4096))
+            tail = f.read()
+    except OSError:
+        return False
+    lines = tail.split(b"\n")
+    last = lines[-2] if len(lines) >= 2 else b""   # the last line that ends in a newline
+    try:
+        rec = json.loads(last)
+    except ValueError:
+        return False
+    return isinstance(rec, dict) and rec.get("event") in ("exit", SESSION_LOST)
 
 
 def journal_lost(found: LostRun, by: str) -> None:
