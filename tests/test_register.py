@@ -133,12 +133,12 @@ def test_overdue_or_unknown_equipment_refuses_a_real_stand(tmp_path: Path) -> No
     assert twin.refusal == [] and sum(bool(s["problem"]) for s in twin.equipment) == 2
     # a quality account's deviation (reason, expiry) lets the overdue counter be used
     with Register.open(url) as reg:
+        soon = dt.datetime.now(dt.UTC).date() + dt.timedelta(days=20)   # within 30 days
         with pytest.raises(AuthError):
             reg.add_deviation(reg.authenticate("A. Ivanova", password("A. Ivanova")),
-                              "MY62000117", "re-calibration booked", dt.date(2026, 12, 31))
+                              "MY62000117", "re-calibration booked", soon)
         reg.add_deviation(reg.authenticate("Q. Manager", password("Q. Manager")),
-                          "MY62000117", "re-calibration booked; drift checked",
-                          dt.date(2026, 12, 31))
+                          "MY62000117", "re-calibration booked; drift checked", soon)
     gate = start_gate(url, items[:2], simulated=False, operator=None, password=str, on=on)
     assert gate.refusal == []
     assert "re-calibration booked" in gate.equipment[0]["deviation"]

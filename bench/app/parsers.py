@@ -220,18 +220,46 @@ def add_register_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]
                     help="the environment variable holding the key's password")
     eq = rs.add_parser("equipment", help="the equipment inventory").add_subparsers(
         dest="equipment_command", required=True, metavar="ACTION")
-    ea = eq.add_parser("add", help="record a standard or instrument and its calibration")
+    ea = eq.add_parser("add", help="record a standard or instrument and its calibration, "
+                       "or (--identity-only) an item without one")
     ea.add_argument("serial")
-    for k in ("model", "certificate", "issuer"):
-        ea.add_argument(f"--{k}", required=True)
-    ea.add_argument("--due", required=True, type=_date, help="calibration due, YYYY-MM-DD")
+    ea.add_argument("--model", required=True)
+    ea.add_argument("--certificate")
+    ea.add_argument("--issuer")
+    ea.add_argument("--due", type=_date, help="calibration due, YYYY-MM-DD")
+    ea.add_argument("--calibrated", type=_date, help="calibrated on, YYYY-MM-DD (today)")
+    ea.add_argument("--identity-only", action="store_true",
+                    help="a drive or fixture: identified by serial and model, never overdue")
     common(ea)
+    eu = eq.add_parser("update", help="record a new calibration of an item (quality or admin); "
+                       "the earlier records are kept")
+    eu.add_argument("serial")
+    for k in ("certificate", "issuer"):
+        eu.add_argument(f"--{k}", required=True)
+    eu.add_argument("--due", required=True, type=_date, help="calibration due, YYYY-MM-DD")
+    eu.add_argument("--calibrated", type=_date, help="calibrated on, YYYY-MM-DD (today)")
+    eu.add_argument("--found", choices=("in", "out"),
+                    help="as found before adjustment: in or out of tolerance")
+    eu.add_argument("--found-error", metavar="V[,U]",
+                    help="the as-found error in the item's own unit, and its expanded U")
+    common(eu)
     el = eq.add_parser("list", help="the inventory with each item's status today")
     common(el, acting=False)
-    ed = eq.add_parser("deviation", help="allow an item past its due date (quality acts)")
+    eh = eq.add_parser("history", help="one item's calibrations (with as-found) and deviations")
+    eh.add_argument("serial")
+    common(eh, acting=False)
+    ed = eq.add_parser("deviation", help="allow an overdue item until a date, or --revoke "
+                       "(quality acts)")
     ed.add_argument("serial")
-    ed.add_argument("--reason", required=True)
-    ed.add_argument("--expires", required=True, type=_date, help="YYYY-MM-DD")
+    ed.add_argument("--reason", help="why, in a sentence")
+    ed.add_argument("--expires", type=_date, help="YYYY-MM-DD, at most the register's "
+                    "deviation_max_days (30) ahead")
+    ed.add_argument("--revoke", action="store_true", help="end the deviation in force")
     common(ed)
+    wd = rs.add_parser("withdraw", help="withdraw an issued certificate (quality or "
+                       "signatory), without a replacement")
+    wd.add_argument("number")
+    wd.add_argument("--reason", required=True, help="why, in a sentence")
+    common(wd)
     au = rs.add_parser("audit", help="check the audit trail's chain; exit 1 when broken")
     common(au, acting=False)

@@ -72,6 +72,18 @@ def work_date(src: Sources) -> dt.date | None:
         return None
 
 
+def _inventory(meta: Mapping[str, object]) -> dict[str, dict[str, str]]:
+    """The calibration in force per stand key, as the register gave it at the run's start
+    (meta.json's equipment_status, bench/app/register/gate.py)."""
+    got = meta.get("equipment_status")
+    out: dict[str, dict[str, str]] = {}
+    for st in got if isinstance(got, list) else []:
+        if isinstance(st, Mapping) and all(isinstance(st.get(k), str) for k in
+                                           ("where", "certificate", "issuer", "due")):
+            out[str(st["where"])] = {k: str(st[k]) for k in ("certificate", "issuer", "due")}
+    return out
+
+
 def _reported(ids: Mapping[str, object], t: Traced) -> str | None:
     """The identity the instrument at `t.where` reported in this run. An instrument at
     `axes.<axis>.<role>` reported under ids[axis][role]; one elsewhere (a platform's
@@ -149,25 +161,49 @@ def equipment_list(src: Sources) -> EquipmentList:
     ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
     findings = tuple(identity_problems(ids)) if (ids or items) else ()
     on = work_date(src)
+    kept = _inventory(src.meta)
     rows: list[EquipmentRow] = []
+    differ: list[str] = []
     for t in items:
-        late = bool(t.stated and on is not None and t.overdue(on))
+        inv = kept.get(t.where)
+        cert: str | None
+        issuer: str | None
+        due: dt.date | None
+        if inv is not None:     # the lab register's calibration in force (issue 55)
+            cert, issuer, due_text = inv["certificate"], inv["issuer"], inv["due"]
+            due = dt.date.fromisoformat(due_text)
+            if t.stated and (t.certificate, t.due) != (cert, due):
+                differ.append(f"{t.item} ({t.where}): the stand file states "
+                              f"{t.certificate}, due {t.due}; the inventory's calibration "
+                              f"in force is {cert}, due {due_text}")
+        else:
+            cert, issuer, due = t.certificate, t.issuer, t.due
+        late = bool((inv is not None or t.stated) and on is not None and due is not None
+                    and on > due)
         if late:
             assert on is not None
             status = f"PAST DUE on the date of the work ({on.isoformat()})"
+        elif inv is not None:
+            status = ("valid on the work's date (lab inventory)" if on else
+                      "validity not checked")
         elif t.stated:
             status = "valid on the work's date" if on else "validity not checked"
         else:
             status = _unstated_status(src, t)
+        shown = inv is not None or t.stated
         rows.append(EquipmentRow(
             t.where, t.item, _serial(ids, t),
-            text_of(t.certificate) if t.stated else NONE,
-            text_of(t.issuer) if t.stated else NONE,
-            t.due.isoformat() if t.due else NONE,
+            text_of(cert) if shown else NONE, text_of(issuer) if shown else NONE,
+            due.isoformat() if due else NONE,
             text_of(t.traces) if t.traces else NONE, status, _reported(ids, t), late))
     rows += _reference_rows(src)
-    notes = ["From the stand file (its SHA-256 above). Due dates are compared with the date "
-             "the work started."]
+    notes = (["Calibrations of items in the lab's inventory are the register's record in "
+              f"force when the run started ({src.meta.get('equipment_register')}); the "
+              "others from the stand file (its SHA-256 above). Due dates are compared with "
+              "the date the work started."] if kept else
+             ["From the stand file (its SHA-256 above). Due dates are compared with the date "
+              "the work started."])
+    notes += [f"The stand file disagrees with the inventory: {d}." for d in differ]
     if any(r.past_due for r in rows):
         notes.append("An instrument past its calibration due date was used: the run warned "
                      "at its start; results depending on it are not shown to be traceable.")

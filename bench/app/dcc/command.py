@@ -223,6 +223,8 @@ def _standing(path: Path, url: str) -> int:
             f"{rev.signatory_name} at {rev.issued_utc}")
     if rev.status == "withdrawn":
         print(f"register {where}: withdrawn: {what}; withdrawn {rev.withdrawn_utc}"
+              + (f" by {rev.withdrawn_by}: {rev.withdrawn_reason}" if rev.withdrawn_reason
+                 else "")
               + (f", replaced by {later[-1].shown_number}" if later else ""))
         return EXIT_FAIL
     print(f"register {where}: issued: {what}")

@@ -14,7 +14,7 @@ from bench.app.db import redact
 from bench.app.names import DEFAULT_RUNS
 from bench.app.records.extract import NotARun, find_runs, record_of
 from bench.app.records.hooks import RecordsTarget, target
-from bench.app.records.settings import SettingsError
+from bench.app.records.settings import SettingsError, stray_lab_file
 from bench.app.records.store import Records, RecordsError, TrendPoint
 from bench.core import rundir_layout as layout
 from bench.core.registry import declared_figures
@@ -48,7 +48,11 @@ def _target(runs: str | Path, records: str | None, lab: str | None) -> RecordsTa
     """The records a command reads or writes: --records, else the records: of the lab file
     the command chose (bench/app/labfile.py: --lab, else $BENCH_LAB_SETTINGS), else the
     runs folder's records.sqlite."""
-    return target(runs, records, lab_file=labfile.for_command(lab))
+    chosen = labfile.for_command(lab)
+    stray = stray_lab_file(runs) if chosen is None and not records else None
+    if stray:
+        raise labfile.LabChoiceError(stray)
+    return target(runs, records, lab_file=chosen)
 
 
 def _runs_target(folder: str, records: str | None, lab: str | None = None
@@ -89,6 +93,41 @@ def _date(p: TrendPoint) -> str:
     return p.date_utc.isoformat(timespec="seconds") if p.date_utc else ""
 
 
+def _standing_of(lab: str | None) -> Callable[[str], str | None]:
+    """What the lab register says of a certificate number (issued, or withdrawn with its
+    reason: issue 55), when the lab file names a register; else nothing is said."""
+    import re
+
+    from bench.app.register import Register, RegisterError
+    from bench.core.lab import LabError, load_lab
+
+    try:
+        chosen = labfile.for_command(lab)
+        url = load_lab(chosen).register_url if chosen else None
+    except (LabError, labfile.LabChoiceError):
+        url = None
+    if not url:
+        return lambda number: None
+
+    def standing(number: str) -> str | None:
+        m = re.fullmatch(r"(.+?)(?:-R(\d+))?", number)
+        base, revision = (m.group(1), int(m.group(2) or 1)) if m else (number, 1)
+        try:
+            with Register.open(url, migrate=False) as reg:
+                rev = next((x for x in reg.revisions(base) if x.revision == revision), None)
+        except RegisterError as e:
+            return f"the register cannot be asked ({e})"
+        if rev is None:
+            return "not in the lab register"
+        if rev.withdrawn_reason:
+            return (f"WITHDRAWN {rev.withdrawn_utc} by {rev.withdrawn_by}: "
+                    f"{rev.withdrawn_reason}")
+        return f"{rev.status} (lab register)" if rev.status == "issued" else \
+            f"{rev.status.upper()} {rev.withdrawn_utc} (replaced by a later revision)"
+
+    return standing
+
+
 def cmd_history(args: argparse.Namespace) -> int:
     where = _target(args.runs or DEFAULT_RUNS, args.records, args.lab)
     with Records.open(where.url) as rec:
@@ -103,11 +142,15 @@ def cmd_history(args: argparse.Namespace) -> int:
     assert table is not None
     print(f"table {table.serial}: {table.maker or ''} {table.model or ''}".rstrip())
     print(f"{len(runs)} run(s) in {redact(where.url)}")
+    standing = _standing_of(args.lab)
     for r in runs:
         state = f" [{r.calibration_state}]" if r.calibration_state else ""
         when = r.date_utc.strftime("%Y-%m-%d %H:%M") if r.date_utc else "?"
         print(f"  {when}  {r.certificate_number or '-':<24} {r.kind:<11} "
               f"{r.verdict.upper():<10}{state}  {r.run_dir}")
+        said = standing(r.certificate_number) if r.certificate_number else None
+        if said:
+            print(f"      certificate: {said}")
         if r.adjustment_note:
             print(f"      adjustment: {r.adjustment_note}")
     # what each run's procedure kind declares it reports (bench/report/figures.py)

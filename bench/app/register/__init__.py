@@ -6,6 +6,7 @@ its command line; `bench authorise` (bench/app/certificate/authorise.py) issues 
 through it; PostgreSQL enforces the bench role's limits (pgsql.py); chain.py checks the
 audit trail."""
 
+from bench.app.register import client  # noqa: F401 - opens https:// registers (service)
 from bench.app.register.store import (
     MEANING_ISSUE,
     Account,

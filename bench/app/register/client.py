@@ -16,13 +16,13 @@ import socket
 import urllib.error
 import urllib.request
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
 
 from bench.app.register import chain
-from bench.app.register.service import VIA_HEADER
 from bench.app.register.store import (
+    REMOTE_OPENERS,
     Account,
     AuthError,
+    Calibration,
     Deviation,
     Equipment,
     Register,
@@ -32,23 +32,80 @@ from bench.app.register.store import (
 
 TIMEOUT_S = 30.0
 VIA_ENV = "BENCH_NAME"      # how a bench names itself to the service (else its host name)
+VIA_HEADER = "X-Ratebench-Via"      # who the person acts through (service.py records it)
 
 
-def _account(d: Any) -> Account:
-    return Account(str(d["name"]), str(d["full_name"]), tuple(d["roles"]), d["function"],
-                   bool(d["active"]), bool(d["must_change"]), d["password_changed_utc"])
+class Reply(dict[str, object]):
+    """One JSON object of the service's answer, read field by field with its type."""
+
+    def text(self, key: str) -> str:
+        return str(self[key])
+
+    def opt(self, key: str) -> str | None:
+        v = self.get(key)
+        return None if v is None else str(v)
+
+    def texts(self, key: str) -> tuple[str, ...]:
+        v = self.get(key)
+        return tuple(str(x) for x in v) if isinstance(v, list) else ()
+
+    def items_of(self, key: str) -> list[Reply]:
+        v = self.get(key)
+        return [Reply(x) for x in v if isinstance(x, dict)] if isinstance(v, list) else []
 
 
-def _equipment(d: Any) -> Equipment:
-    return Equipment(d["serial"], d["model"], d["certificate"], d["issuer"],
-                     dt.date.fromisoformat(d["due"]),
-                     tuple(Deviation(v["reason"], dt.date.fromisoformat(v["expires"]),
-                                     v["recorded_by"], v["recorded_utc"])
-                           for v in d["deviations"]))
+def _reply(v: object) -> Reply:
+    if not isinstance(v, dict):
+        raise RegisterError(f"the register service answered {type(v).__name__}, not an object")
+    return Reply(v)
 
 
-def _revision(d: Any) -> Revision:
-    return Revision(**d)
+def _replies(v: object) -> list[Reply]:
+    return [_reply(x) for x in v] if isinstance(v, list) else []
+
+
+def _account(d: Reply) -> Account:
+    return Account(d.text("name"), d.text("full_name"), d.texts("roles"), d.opt("function"),
+                   bool(d.get("active")), bool(d.get("must_change")),
+                   d.opt("password_changed_utc"))
+
+
+def _num(d: Reply, key: str) -> float | None:
+    v = d.get(key)
+    return float(v) if isinstance(v, int | float) else None
+
+
+def _date(d: Reply, key: str) -> dt.date | None:
+    v = d.opt(key)
+    return dt.date.fromisoformat(v) if v else None
+
+
+def _calibration(v: Reply) -> Calibration:
+    return Calibration(v.text("certificate"), v.text("issuer"), _date(v, "calibrated_on"),
+                       dt.date.fromisoformat(v.text("due")), v.opt("found"),
+                       _num(v, "found_error"), _num(v, "found_error_u"),
+                       v.text("recorded_utc"), v.text("recorded_by"))
+
+
+def _equipment(d: Reply) -> Equipment:
+    return Equipment(d.text("serial"), d.text("model"), d.opt("certificate"),
+                     d.opt("issuer"), _date(d, "due"),
+                     tuple(Deviation(v.text("reason"), dt.date.fromisoformat(v.text("expires")),
+                                     v.text("recorded_by"), v.text("recorded_utc"),
+                                     v.opt("revoked_utc"), v.opt("revoked_by"))
+                           for v in d.items_of("deviations")),
+                     bool(d.get("identity_only")),
+                     tuple(_calibration(v) for v in d.items_of("calibrations")))
+
+
+def _revision(d: Reply) -> Revision:
+    rev = d.get("revision")
+    return Revision(d.text("number"), int(rev) if isinstance(rev, int) else 0,
+                    d.text("issued_utc"), d.text("signatory"), d.text("signatory_name"),
+                    d.text("meaning"), d.opt("reason"), d.text("result_sha256"),
+                    d.text("pdf_sha256"), d.text("dcc_sha256"), d.text("html_sha256"),
+                    d.opt("withdrawn_utc"), d.opt("audit_digest"), d.opt("withdrawn_reason"),
+                    d.opt("withdrawn_by"))
 
 
 class ServiceRegister(Register):
@@ -67,7 +124,7 @@ class ServiceRegister(Register):
     @classmethod
     def connect(cls, url: str, via: str | None = None) -> ServiceRegister:
         reg = cls(url, via)
-        reg._signs = bool(reg._get("info").get("signs_dcc"))
+        reg._signs = bool(_reply(reg._get("info")).get("signs_dcc"))
         return reg
 
     def dcc_signer(self, signatory: Account) -> Callable[[bytes], bytes] | None:
@@ -83,10 +140,11 @@ class ServiceRegister(Register):
 
         return sign
 
-    def _send(self, req: urllib.request.Request) -> Any:
+    def _send(self, req: urllib.request.Request) -> object:
         try:
             with urllib.request.urlopen(req, timeout=TIMEOUT_S) as r:  # noqa: S310
-                return json.loads(r.read())["ok"]
+                answer: object = json.loads(r.read())
+                return _reply(answer)["ok"]
         except urllib.error.HTTPError as e:
             try:
                 body = json.loads(e.read())
@@ -99,11 +157,11 @@ class ServiceRegister(Register):
             raise RegisterError(f"register service {self.url} cannot be reached: {why}") \
                 from None
 
-    def _get(self, op: str) -> Any:
+    def _get(self, op: str) -> object:
         return self._send(urllib.request.Request(f"{self.url}/v1/{op}",
                                                  headers={VIA_HEADER: self.via}))
 
-    def _call(self, op: str, **body: object) -> Any:
+    def _call(self, op: str, **body: object) -> object:
         return self._send(urllib.request.Request(
             f"{self.url}/v1/{op}", data=json.dumps(body).encode(), method="POST",
             headers={"Content-Type": "application/json", VIA_HEADER: self.via}))
@@ -136,22 +194,22 @@ class ServiceRegister(Register):
         if changing_password:
             raise RegisterError("through the service a password changes with "
                                 "change_password")
-        got = self._call("authenticate", name=name, password=password, role=role)
-        self._tokens[name] = str(got["token"])
-        return _account(got["account"])
+        got = _reply(self._call("authenticate", name=name, password=password, role=role))
+        self._tokens[name] = got.text("token")
+        return _account(_reply(got.get("account")))
 
     def accounts(self) -> list[Account]:
-        return [_account(a) for a in self._call("accounts")]
+        return [_account(a) for a in _replies(self._call("accounts"))]
 
     def account(self, name: str) -> Account | None:
         got = self._call("account", name=name)
-        return None if got is None else _account(got)
+        return None if got is None else _account(_reply(got))
 
     def add_account(self, by: Account, name: str, full_name: str, roles: Sequence[str],
                     password: str, function: str | None = None) -> Account:
-        return _account(self._call("add_account", token=self._token(by.name), name=name,
-                                   full_name=full_name, roles=list(roles), password=password,
-                                   function=function))
+        return _account(_reply(self._call(
+            "add_account", token=self._token(by.name), name=name, full_name=full_name,
+            roles=list(roles), password=password, function=function)))
 
     def change_password(self, name: str, old: str, new: str) -> None:
         self._call("change_password", name=name, old=old, new=new)
@@ -160,12 +218,12 @@ class ServiceRegister(Register):
         self._call("reset_password", token=self._token(by.name), name=name, password=new)
 
     def set_active(self, by: Account, name: str, active: bool) -> Account:
-        return _account(self._call("set_active", token=self._token(by.name), name=name,
-                                   active=active))
+        return _account(_reply(self._call("set_active", token=self._token(by.name),
+                                          name=name, active=active)))
 
     def set_role(self, by: Account, name: str, role: str, grant: bool) -> Account:
-        return _account(self._call("set_role", token=self._token(by.name), name=name,
-                                   role=role, grant=grant))
+        return _account(_reply(self._call("set_role", token=self._token(by.name), name=name,
+                                          role=role, grant=grant)))
 
     # -- settings and equipment -----------------------------------------------------------
 
@@ -174,18 +232,40 @@ class ServiceRegister(Register):
         return None if got is None else str(got)
 
     def int_setting(self, key: str) -> int:
-        return int(self._call("settings")[key])
+        value = _reply(self._call("settings")).get(key)
+        return int(value) if isinstance(value, int) else 0
 
     def set_setting(self, by: Account, key: str, value: str) -> None:
         self._call("set_setting", token=self._token(by.name), key=key, value=value)
 
     def equipment(self, serial: str | None = None) -> list[Equipment]:
-        return [_equipment(e) for e in self._call("equipment", serial=serial)]
+        return [_equipment(e) for e in _replies(self._call("equipment", serial=serial))]
 
-    def add_equipment(self, by: Account, serial: str, model: str, certificate: str,
-                      issuer: str, due: dt.date) -> None:
+    def add_equipment(self, by: Account, serial: str, model: str, certificate: str | None,
+                      issuer: str | None, due: dt.date | None, identity_only: bool = False,
+                      calibrated_on: dt.date | None = None) -> None:
         self._call("add_equipment", token=self._token(by.name), serial=serial, model=model,
-                   certificate=certificate, issuer=issuer, due=due.isoformat())
+                   certificate=certificate, issuer=issuer,
+                   due=due.isoformat() if due else None, identity_only=identity_only,
+                   calibrated_on=calibrated_on.isoformat() if calibrated_on else None)
+
+    def update_equipment(self, by: Account, serial: str, certificate: str, issuer: str,
+                         due: dt.date, calibrated_on: dt.date | None = None,
+                         found: str | None = None, found_error: float | None = None,
+                         found_error_u: float | None = None) -> Calibration:
+        return _calibration(_reply(self._call(
+            "update_equipment", token=self._token(by.name), serial=serial,
+            certificate=certificate, issuer=issuer, due=due.isoformat(),
+            calibrated_on=calibrated_on.isoformat() if calibrated_on else None, found=found,
+            found_error=found_error, found_error_u=found_error_u)))
+
+    def revoke_deviation(self, by: Account, serial: str) -> int:
+        got = self._call("revoke_deviation", token=self._token(by.name), serial=serial)
+        return got if isinstance(got, int) else 0
+
+    def withdraw(self, by: Account, number: str, reason: str) -> Revision:
+        return _revision(_reply(self._call("withdraw", token=self._token(by.name),
+                                           number=number, reason=reason)))
 
     def add_deviation(self, by: Account, serial: str, reason: str, expires: dt.date) -> None:
         self._call("add_deviation", token=self._token(by.name), serial=serial, reason=reason,
@@ -202,11 +282,11 @@ class ServiceRegister(Register):
         return None if got is None else str(got)
 
     def revisions(self, number: str) -> list[Revision]:
-        return [_revision(r) for r in self._call("revisions", number=number)]
+        return [_revision(r) for r in _replies(self._call("revisions", number=number))]
 
     def find_revision(self, sha256: str) -> Revision | None:
         got = self._call("find_revision", sha256=sha256)
-        return None if got is None else _revision(got)
+        return None if got is None else _revision(_reply(got))
 
     def begin_issue(self, signatory: Account, number: str) -> str:
         return str(self._call("begin_issue", token=self._token(signatory.name), number=number))
@@ -214,9 +294,9 @@ class ServiceRegister(Register):
     def issue(self, number: str, revision: int, signatory: Account,
               digests: Mapping[str, str], reason: str | None,
               detail: Mapping[str, object]) -> Revision:
-        return _revision(self._call("issue", token=self._token(signatory.name), number=number,
-                                    revision=revision, digests=dict(digests), reason=reason,
-                                    detail=dict(detail)))
+        return _revision(_reply(self._call(
+            "issue", token=self._token(signatory.name), number=number, revision=revision,
+            digests=dict(digests), reason=reason, detail=dict(detail))))
 
     def append(self, actor: str, action: str, obj: str,
                detail: Mapping[str, object] | str = "") -> str:
@@ -225,8 +305,13 @@ class ServiceRegister(Register):
                               {"detail": detail}))
 
     def audit_rows(self) -> list[dict[str, object]]:
-        return list(self._call("audit_rows"))
+        return [dict(r) for r in _replies(self._call("audit_rows"))]
 
     def audit_check(self) -> chain.ChainReport:
-        got = self._call("audit_check")
-        return chain.ChainReport(int(got["entries"]), tuple(got["problems"]))
+        got = _reply(self._call("audit_check"))
+        entries = got.get("entries")
+        return chain.ChainReport(entries if isinstance(entries, int) else 0,
+                                 got.texts("problems"))
+
+
+REMOTE_OPENERS["http"] = REMOTE_OPENERS["https"] = ServiceRegister.connect

@@ -10,7 +10,7 @@ import datetime as dt
 import sys
 
 from bench.app.register.credentials import Passwords
-from bench.app.register.store import Account, Register, RegisterError, redact
+from bench.app.register.store import Account, Equipment, Register, RegisterError, redact
 
 EXIT_OK, EXIT_BROKEN, EXIT_REFUSED = 0, 1, 2
 
@@ -91,6 +91,8 @@ def _run(args: argparse.Namespace) -> int:
             return _user(reg, args, pw)
         if what == "settings":
             return _settings(reg, args, pw)
+        if what == "withdraw":
+            return _withdraw(reg, args, pw)
         if what == "equipment":
             return _equipment(reg, args, pw)
     raise RegisterError(f"unknown register command {what!r}")
@@ -190,27 +192,91 @@ def _serve(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _status(e: Equipment, today: dt.date) -> str:
+    if e.identity_only:
+        return "identity only (no calibration)"
+    cal = e.in_force(today)
+    dev = e.deviation_on(today)
+    if cal is None:
+        return "NO CALIBRATION in force"
+    if cal.due >= today:
+        return "valid"
+    return f"DEVIATION until {dev.expires} ({dev.reason})" if dev else "OVERDUE"
+
+
 def _equipment(reg: Register, args: argparse.Namespace, pw: Passwords) -> int:
-    if args.equipment_command == "list":
-        today = dt.date.today()
+    what = args.equipment_command
+    today = dt.datetime.now(dt.UTC).date()
+    if what == "list":
         items = reg.equipment()
         print(f"{'serial':<22} {'model':<26} {'certificate':<22} {'due':<10}  status")
         for e in items:
-            dev = e.deviation_on(today)
-            status = ("valid" if e.due >= today else
-                      f"DEVIATION until {dev.expires} ({dev.reason})" if dev else "OVERDUE")
-            print(f"{e.serial:<22} {e.model:<26} {e.certificate:<22} {e.due.isoformat():<10}"
-                  f"  {status}")
+            print(f"{e.serial:<22} {e.model:<26} {e.certificate or '-':<22} "
+                  f"{e.due.isoformat() if e.due else '-':<10}  {_status(e, today)}")
         print(f"{len(items)} item(s) in {redact(reg.url)}")
         return EXIT_OK
-    if args.equipment_command == "add":
+    if what == "history":
+        found = next(iter(reg.equipment(args.serial)), None)
+        if found is None:
+            raise RegisterError(f"equipment {args.serial!r} is not in the inventory")
+        e = found
+        print(f"{e.serial}: {e.model}; {_status(e, today)} on {today.isoformat()}")
+        if e.identity_only:
+            print("  identity only: looked up by serial and model, never calibrated")
+        for c in e.calibrations:
+            print(f"  calibrated {c.calibrated_on or 'not stated'}  {c.certificate:<22} {c.issuer:<20} due "
+                  f"{c.due}  {c.as_found()}  (recorded {c.recorded_utc[:19]} by "
+                  f"{c.recorded_by})")
+        for d in e.deviations:
+            print(f"  deviation until {d.expires} by {d.recorded_by} ({d.recorded_utc[:10]}): "
+                  f"{d.reason}" + (f"  REVOKED {d.revoked_utc[:19]} by {d.revoked_by}"
+                                   if d.revoked_utc else ""))
+        return EXIT_OK
+    if what == "add":
         by = _acting(reg, args, pw, None)
-        reg.add_equipment(by, args.serial, args.model, args.certificate, args.issuer, args.due)
-        print(f"equipment {args.serial}: {args.model}, {args.certificate} ({args.issuer}), "
-              f"due {args.due.isoformat()}")
+        reg.add_equipment(by, args.serial, args.model, args.certificate, args.issuer, args.due,
+                          args.identity_only, args.calibrated)
+        print(f"equipment {args.serial}: {args.model}, " + (
+            "identity only (no calibration)" if args.identity_only else
+            f"{args.certificate} ({args.issuer}), due {args.due.isoformat()}"))
+        return EXIT_OK
+    if what == "update":
+        by = _acting(reg, args, pw, None)
+        err, err_u = _found_error(args.found_error)
+        cal = reg.update_equipment(by, args.serial, args.certificate, args.issuer, args.due,
+                                   args.calibrated, args.found, err, err_u)
+        print(f"equipment {args.serial}: calibrated {cal.calibrated_on or 'not stated'} "
+              f"({cal.certificate}, "
+              f"{cal.issuer}), due {cal.due}; {cal.as_found()}; the earlier records kept")
         return EXIT_OK
     by = _acting(reg, args, pw, "quality")
+    if args.revoke:
+        n = reg.revoke_deviation(by, args.serial)
+        print(f"deviation for {args.serial}: {n} revoked; the item is overdue again")
+        return EXIT_OK
+    if not args.reason or not args.expires:
+        raise RegisterError("a deviation needs --reason and --expires (or --revoke)")
     reg.add_deviation(by, args.serial, args.reason, args.expires)
     print(f"deviation for {args.serial} until {args.expires.isoformat()}: {args.reason}")
     return EXIT_OK
 
+
+def _found_error(text: str | None) -> tuple[float | None, float | None]:
+    """--found-error V[,U]: the as-found error and its expanded uncertainty."""
+    if not text:
+        return None, None
+    try:
+        parts = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise RegisterError(f"--found-error {text}: a number, or two (V,U)") from None
+    if len(parts) > 2:
+        raise RegisterError(f"--found-error {text}: V or V,U")
+    return parts[0], (parts[1] if len(parts) == 2 else None)
+
+
+def _withdraw(reg: Register, args: argparse.Namespace, pw: Passwords) -> int:
+    by = _acting(reg, args, pw, None)
+    rev = reg.withdraw(by, args.number, args.reason)
+    print(f"certificate {rev.shown_number}: withdrawn {rev.withdrawn_utc} by {by.name}: "
+          f"{rev.withdrawn_reason}")
+    return EXIT_OK

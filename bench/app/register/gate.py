@@ -14,7 +14,13 @@ import datetime as dt
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from bench.app.register.store import Equipment, Register, RegisterError, redact
+from bench.app.register.store import (
+    Calibration,
+    Equipment,
+    Register,
+    RegisterError,
+    redact,
+)
 from bench.core.config import Traced
 
 
@@ -27,10 +33,22 @@ class ItemStatus:
     serial: str | None
     problem: str | None
     deviation: str | None = None       # a recorded deviation that allows its use
+    #: the inventory's calibration in force on the run's date (issue 55): what the
+    #: certificate's traceability table prints, not the stand file's statement
+    in_force: Calibration | None = None
+    identity_only: bool = False
 
     def to_dict(self) -> dict[str, str | None]:
-        return {"where": self.where, "item": self.item, "serial": self.serial,
-                "problem": self.problem, "deviation": self.deviation}
+        out = {"where": self.where, "item": self.item, "serial": self.serial,
+               "problem": self.problem, "deviation": self.deviation}
+        c = self.in_force
+        if c is not None:
+            out |= {"certificate": c.certificate, "issuer": c.issuer,
+                    "calibrated_on": c.calibrated_on.isoformat() if c.calibrated_on else None,
+                    "due": c.due.isoformat()}
+        if self.identity_only:
+            out["identity_only"] = "yes"
+        return out
 
 
 def item_status(t: Traced, found: dict[str, Equipment], on: dt.date) -> ItemStatus:
@@ -46,16 +64,17 @@ def item_status(t: Traced, found: dict[str, Equipment], on: dt.date) -> ItemStat
         return ItemStatus(t.where, t.item, t.serial,
                           f"{t.item} ({t.where}) serial {t.serial}: not in the lab's "
                           "equipment inventory (bench register equipment add)")
+    if e.identity_only:
+        return ItemStatus(t.where, t.item, t.serial, None, identity_only=True)
+    cal = e.in_force(on)
     dev = e.deviation_on(on)
-    if e.due < on:
-        if dev is not None:
-            return ItemStatus(t.where, t.item, t.serial, None,
-                              f"{t.item} serial {t.serial}: calibration due "
-                              f"{e.due.isoformat()}, used under a deviation recorded by "
-                              f"{dev.recorded_by} until {dev.expires.isoformat()}: "
-                              f"{dev.reason}")
-        return ItemStatus(t.where, t.item, t.serial, e.problem_on(on))
-    return ItemStatus(t.where, t.item, t.serial, None)
+    if cal is not None and cal.due < on and dev is not None:
+        return ItemStatus(t.where, t.item, t.serial, None,
+                          f"{t.item} serial {t.serial}: calibration due "
+                          f"{cal.due.isoformat()}, used under a deviation recorded by "
+                          f"{dev.recorded_by} until {dev.expires.isoformat()}: "
+                          f"{dev.reason}", cal)
+    return ItemStatus(t.where, t.item, t.serial, e.problem_on(on), in_force=cal)
 
 
 def equipment_statuses(reg: Register, items: Sequence[Traced], on: dt.date

@@ -112,9 +112,10 @@ FUNCTION_SIGNATURES = (
 #: tables the register service writes (issue 53): accounts and their logins, equipment,
 #: deviations, settings; numbers, revisions and the trail only through the functions
 SERVICE_WRITES = ("reg_accounts", "reg_logins", "reg_equipment", "reg_deviations",
-                  "reg_settings")
-READ_TABLES = ("reg_equipment", "reg_deviations", "reg_settings", "reg_certificates",
-               "reg_revisions", "reg_audit", "reg_audit_head", "register_alembic_version")
+                  "reg_settings", "reg_calibrations")
+READ_TABLES = ("reg_equipment", "reg_calibrations", "reg_deviations", "reg_settings",
+               "reg_certificates", "reg_revisions", "reg_audit", "reg_audit_head",
+               "register_alembic_version")
 
 #: what `bench register init --X-role ROLE` grants (docs/register.md, trust model)
 ROLE_KINDS = ("service", "bench", "station")
@@ -146,6 +147,9 @@ def service_grants(role: str) -> list[str]:
         f"GRANT USAGE ON SCHEMA public TO {q}",
         f"GRANT SELECT ON reg_accounts, {', '.join(READ_TABLES)} TO {q}",
         f"GRANT SELECT, INSERT, UPDATE, DELETE ON {', '.join(SERVICE_WRITES)} TO {q}",
+        # withdrawing marks a revision; nothing else of it changes (issue 55)
+        f"GRANT UPDATE (withdrawn_utc, withdrawn_reason, withdrawn_by) ON reg_revisions "
+        f"TO {q}",
         f"GRANT USAGE ON ALL SEQUENCES IN SCHEMA public TO {q}",
         *(f"GRANT EXECUTE ON FUNCTION {f} TO {q}" for f in FUNCTION_SIGNATURES),
     ]

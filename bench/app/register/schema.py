@@ -43,11 +43,33 @@ equipment = sa.Table(
     "reg_equipment", metadata,
     sa.Column("serial", sa.String(120), primary_key=True),
     sa.Column("model", sa.String(200), nullable=False),
-    sa.Column("certificate", sa.String(200), nullable=False),
-    sa.Column("issuer", sa.String(200), nullable=False),
-    sa.Column("due_date", sa.String(10), nullable=False),          # YYYY-MM-DD
+    # the calibration in force now (its history: reg_calibrations); None: identity only
+    sa.Column("certificate", sa.String(200)),
+    sa.Column("issuer", sa.String(200)),
+    sa.Column("due_date", sa.String(10)),                          # YYYY-MM-DD
     sa.Column("added_utc", sa.String(40), nullable=False),
     sa.Column("added_by", sa.String(120), nullable=False),
+    # issue 55 (g0003): a drive or fixture, identified but never calibrated (never overdue)
+    sa.Column("identity_only", sa.Boolean, nullable=False, server_default=sa.false()),
+)
+
+#: every calibration of an item, the earlier ones kept (issue 55; migration g0003): the
+#: record in force on a run's date is the latest calibrated on or before it
+calibrations = sa.Table(
+    "reg_calibrations", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("serial", sa.String(120), sa.ForeignKey("reg_equipment.serial"),
+              nullable=False),
+    sa.Column("certificate", sa.String(200), nullable=False),
+    sa.Column("issuer", sa.String(200), nullable=False),
+    sa.Column("calibrated_on", sa.String(10)),    # YYYY-MM-DD; None: not stated (earliest)
+    sa.Column("due_date", sa.String(10), nullable=False),          # YYYY-MM-DD
+    # as found before adjustment (17025 6.4.13, 7.10): in | out | None (not stated)
+    sa.Column("found", sa.String(3)),
+    sa.Column("found_error", sa.Float),       # the as-found error, in the item's own unit
+    sa.Column("found_error_u", sa.Float),     # its expanded uncertainty
+    sa.Column("recorded_utc", sa.String(40), nullable=False),
+    sa.Column("recorded_by", sa.String(120), nullable=False),
 )
 
 deviations = sa.Table(
@@ -59,6 +81,8 @@ deviations = sa.Table(
     sa.Column("expires", sa.String(10), nullable=False),           # YYYY-MM-DD
     sa.Column("recorded_by", sa.String(120), nullable=False),
     sa.Column("recorded_utc", sa.String(40), nullable=False),
+    sa.Column("revoked_utc", sa.String(40)),        # g0003: a revoked deviation covers nothing
+    sa.Column("revoked_by", sa.String(120)),
 )
 
 settings = sa.Table(
@@ -93,6 +117,8 @@ revisions = sa.Table(
     sa.Column("html_sha256", sa.String(64), nullable=False),
     sa.Column("withdrawn_utc", sa.String(40)),
     sa.Column("audit_digest", sa.String(64)),
+    sa.Column("withdrawn_reason", sa.Text),          # g0003: `bench register withdraw`
+    sa.Column("withdrawn_by", sa.String(120)),
     sa.UniqueConstraint("number", "revision", name="reg_revisions_number_revision"),
 )
 

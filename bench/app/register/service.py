@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 from flask import Flask, jsonify, request
 from werkzeug.wrappers import Response
 
+from bench.app.register.client import VIA_HEADER
 from bench.app.register.store import (
     ACTING_VIA,
     SETTING_DEFAULTS,
@@ -43,7 +44,6 @@ if TYPE_CHECKING:
     from drivers.json_types import JsonValue
 
 TOKEN_S = 15 * 60.0         # a login is good this long after its last use (a station's idle)
-VIA_HEADER = "X-Ratebench-Via"
 #: audit entries a bench or station may add in an authenticated person's name
 CLIENT_ACTIONS = ("run started by", "control review", "station login", "station logout",
                   "station session ended", "station sign refused")
@@ -196,6 +196,24 @@ def create_app(reg: Register, tokens: Tokens | None = None,
         except ValueError:
             raise RegisterError(f"{key}: YYYY-MM-DD expected") from None
 
+    def maybe_date(b: Mapping[str, object], key: str) -> dt.date | None:
+        return None if b.get(key) is None else date(b, key)
+
+    def maybe_text(b: Mapping[str, object], key: str) -> str | None:
+        return None if b.get(key) is None else text(b, key)
+
+    def number(b: Mapping[str, object], key: str) -> float | None:
+        v = b.get(key)
+        if v is not None and not isinstance(v, int | float):
+            raise RegisterError(f"{key}: a number expected")
+        return None if v is None else float(v)
+
+    def update_equipment(b: Mapping[str, object]) -> JsonValue:
+        return jsonable(reg.update_equipment(
+            actor(b), text(b, "serial"), text(b, "certificate"), text(b, "issuer"),
+            date(b, "due"), maybe_date(b, "calibrated_on"), maybe_text(b, "found"),
+            number(b, "found_error"), number(b, "found_error_u")))
+
     ops: dict[str, Callable[[Mapping[str, object]], JsonValue]] = {
         "authenticate": login,
         "logout": lambda b: tok.end(b.get("token")),
@@ -218,8 +236,13 @@ def create_app(reg: Register, tokens: Tokens | None = None,
         "set_setting": lambda b: reg.set_setting(actor(b), text(b, "key"), text(b, "value")),
         "equipment": equipment,
         "add_equipment": lambda b: reg.add_equipment(
-            actor(b), text(b, "serial"), text(b, "model"), text(b, "certificate"),
-            text(b, "issuer"), date(b, "due")),
+            actor(b), text(b, "serial"), text(b, "model"), maybe_text(b, "certificate"),
+            maybe_text(b, "issuer"), maybe_date(b, "due"), bool(b.get("identity_only")),
+            maybe_date(b, "calibrated_on")),
+        "update_equipment": update_equipment,
+        "revoke_deviation": lambda b: reg.revoke_deviation(actor(b), text(b, "serial")),
+        "withdraw": lambda b: jsonable(reg.withdraw(actor(b), text(b, "number"),
+                                                    text(b, "reason"))),
         "add_deviation": lambda b: reg.add_deviation(actor(b), text(b, "serial"),
                                                      text(b, "reason"), date(b, "expires")),
         "allocate": allocate,

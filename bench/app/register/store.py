@@ -45,6 +45,7 @@ SETTING_DEFAULTS: dict[str, int] = {
     "lockout_window_s": 15 * 60,    # ... lock it
     "lockout_s": 15 * 60,           # for this long, even against the right password
     "password_max_age_days": 180,   # then the password must be changed
+    "deviation_max_days": 30,       # a deviation expires at most this long after it is made
 }
 
 #: who the person acts through ("bench hall-1 at 127.0.0.1"): the register service sets
@@ -67,6 +68,11 @@ class IssueArgs(TypedDict):
     dcc: str
     html: str
     d: str          # detail, JSON
+
+
+#: how a register reached over the network opens, by URL scheme: client.py adds itself
+#: (the package imports it), so this module imports no client
+REMOTE_OPENERS: dict[str, Callable[[str], Register]] = {}
 
 
 class RegisterError(RuntimeError):
@@ -159,26 +165,69 @@ class Deviation:
     expires: dt.date
     recorded_by: str
     recorded_utc: str
+    revoked_utc: str | None = None
+    revoked_by: str | None = None
+
+    def covers(self, day: dt.date) -> bool:
+        return self.revoked_utc is None and self.expires >= day
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """One calibration of an item (ISO/IEC 17025 6.4.13 e): in force from `calibrated_on`
+    until the next one; `found` and `found_error` are how it was found before adjustment."""
+
+    certificate: str
+    issuer: str
+    calibrated_on: dt.date | None       # None: not stated (an item's first record, in force
+    due: dt.date                        # from before the inventory knew it)
+    found: str | None = None            # in | out (of tolerance) | None: not stated
+    found_error: float | None = None    # in the item's own unit (its model's spec)
+    found_error_u: float | None = None  # expanded uncertainty of the as-found error
+    recorded_utc: str = ""
+    recorded_by: str = ""
+
+    def as_found(self) -> str:
+        parts = {"in": ["found in tolerance"], "out": ["found OUT of tolerance"]}.get(
+            self.found or "", [])
+        if self.found_error is not None:
+            parts.append(f"as-found error {self.found_error:g}" + (
+                "" if self.found_error_u is None else f" +/- {self.found_error_u:g}"))
+        return ", ".join(parts) or "as found: not stated"
 
 
 @dataclass(frozen=True)
 class Equipment:
     serial: str
     model: str
-    certificate: str
-    issuer: str
-    due: dt.date
+    certificate: str | None     # the calibration recorded last (None: identity only)
+    issuer: str | None
+    due: dt.date | None
     deviations: tuple[Deviation, ...] = ()
+    identity_only: bool = False
+    calibrations: tuple[Calibration, ...] = ()     # oldest first
+
+    def in_force(self, day: dt.date) -> Calibration | None:
+        """The calibration in force on `day`: the latest calibrated on or before it."""
+        before = [c for c in self.calibrations
+                  if c.calibrated_on is None or c.calibrated_on <= day]
+        return before[-1] if before else None
 
     def deviation_on(self, day: dt.date) -> Deviation | None:
-        return next((d for d in self.deviations if d.expires >= day), None)
+        return next((d for d in self.deviations if d.covers(day)), None)
 
     def problem_on(self, day: dt.date) -> str | None:
         """Why this item may not be used on `day` (None: it may, or a deviation allows)."""
-        if self.due >= day or self.deviation_on(day) is not None:
+        if self.identity_only:
             return None
-        return (f"{self.model} serial {self.serial}: calibration ({self.certificate}, "
-                f"{self.issuer}) was due {self.due.isoformat()}, before {day.isoformat()}")
+        cal = self.in_force(day)
+        if cal is None:
+            return (f"{self.model} serial {self.serial}: no calibration recorded on or "
+                    f"before {day.isoformat()}")
+        if cal.due >= day or self.deviation_on(day) is not None:
+            return None
+        return (f"{self.model} serial {self.serial}: calibration ({cal.certificate}, "
+                f"{cal.issuer}) was due {cal.due.isoformat()}, before {day.isoformat()}")
 
 
 @dataclass(frozen=True)
@@ -196,6 +245,8 @@ class Revision:
     html_sha256: str
     withdrawn_utc: str | None
     audit_digest: str | None
+    withdrawn_reason: str | None = None
+    withdrawn_by: str | None = None
 
     @property
     def status(self) -> str:
@@ -244,10 +295,9 @@ class Register:
         register service (http(s)://, bench/app/register/client.py). Only `migrate=True`
         (init, an owner's command) may create an SQLite file: a command that reads a
         register never makes an empty one (issue 56)."""
-        if url.startswith(("http://", "https://")):
-            from bench.app.register.client import ServiceRegister
-
-            return ServiceRegister.connect(url)
+        scheme = url.split("://", 1)[0]
+        if scheme in ("http", "https"):
+            return REMOTE_OPENERS[scheme](url)
         _sqlite_file(url, create=migrate if create is None else create)
         try:
             reg = cls(url, make_engine(url))
@@ -563,37 +613,130 @@ class Register:
 
     # -- equipment ------------------------------------------------------------------------
 
-    def add_equipment(self, by: Account, serial: str, model: str, certificate: str,
-                      issuer: str, due: dt.date) -> None:
+    def add_equipment(self, by: Account, serial: str, model: str, certificate: str | None,
+                      issuer: str | None, due: dt.date | None, identity_only: bool = False,
+                      calibrated_on: dt.date | None = None) -> None:
+        """An item with its calibration, or (identity_only) one without any: a drive or a
+        fixture, looked up by serial and model, never overdue."""
         if not (by.has("quality") or by.has("admin")):
             raise AuthError(f"{by.name} holds neither the quality nor the admin role")
+        if identity_only and (certificate or issuer or due):
+            raise RegisterError("an identity-only item has no certificate, issuer or due date")
+        if not identity_only and not (certificate and issuer and due):
+            raise RegisterError("an item with a calibration states --certificate, --issuer "
+                                "and --due (or is --identity-only)")
+        now = _now_utc()
         with self._tx() as conn:
             try:
                 conn.execute(s.equipment.insert().values(
-                    serial=serial, model=model, certificate=certificate, issuer=issuer,
-                    due_date=due.isoformat(), added_utc=_now_utc(), added_by=by.name))
+                    serial=serial, model=model, certificate=certificate or _NONE(conn),
+                    issuer=issuer or _NONE(conn),
+                    due_date=due.isoformat() if due else _NONE(conn), added_utc=now,
+                    added_by=by.name, identity_only=identity_only))
             except IntegrityError as e:
                 raise RegisterError(f"equipment {serial!r} is in the inventory") from e
+            if not identity_only:
+                assert certificate and issuer and due
+                self._insert_calibration(conn, by, serial, Calibration(
+                    certificate, issuer, calibrated_on, due))
             self._append(conn, by.name, "equipment added", serial,
                          {"model": model, "certificate": certificate, "issuer": issuer,
-                          "due": due.isoformat()})
+                          "due": due.isoformat() if due else None,
+                          "identity_only": identity_only})
+
+    def _insert_calibration(self, conn: Connection, by: Account, serial: str,
+                            c: Calibration) -> None:
+        conn.execute(s.calibrations.insert().values(
+            serial=serial, certificate=c.certificate, issuer=c.issuer,
+            calibrated_on=c.calibrated_on.isoformat() if c.calibrated_on else None,
+            due_date=c.due.isoformat(),
+            found=c.found, found_error=c.found_error, found_error_u=c.found_error_u,
+            recorded_utc=_now_utc(), recorded_by=by.name))
+        conn.execute(s.equipment.update().where(s.equipment.c.serial == serial).values(
+            certificate=c.certificate, issuer=c.issuer, due_date=c.due.isoformat()))
+
+    def update_equipment(self, by: Account, serial: str, certificate: str, issuer: str,
+                         due: dt.date, calibrated_on: dt.date | None = None,
+                         found: str | None = None, found_error: float | None = None,
+                         found_error_u: float | None = None) -> Calibration:
+        """A new calibration of an item: recorded beside the earlier ones, with how the
+        item was found (in or out of tolerance, and by how much)."""
+        if not (by.has("quality") or by.has("admin")):
+            raise AuthError(f"{by.name} holds neither the quality nor the admin role")
+        if found not in (None, "in", "out"):
+            raise RegisterError(f"--found {found}: in or out (of tolerance)")
+        if found_error_u is not None and (found_error is None or found_error_u < 0):
+            raise RegisterError("an as-found uncertainty goes with an as-found error, >= 0")
+        item = next(iter(self.equipment(serial)), None)
+        if item is None:
+            raise RegisterError(f"equipment {serial!r} is not in the inventory")
+        if item.identity_only:
+            raise RegisterError(f"equipment {serial!r} is identity-only: it has no "
+                                "calibration to update")
+        on = calibrated_on or dt.datetime.now(dt.UTC).date()
+        if due <= on:
+            raise RegisterError(f"--due {due.isoformat()} is not after the calibration "
+                                f"({on.isoformat()})")
+        cal = Calibration(certificate, issuer, on, due, found, found_error, found_error_u)
+        with self._tx() as conn:
+            self._insert_calibration(conn, by, serial, cal)
+            self._append(conn, by.name, "equipment recalibrated", serial, {
+                "old": {"certificate": item.certificate, "issuer": item.issuer,
+                        "due": item.due.isoformat() if item.due else None},
+                "new": {"certificate": certificate, "issuer": issuer, "due": due.isoformat(),
+                        "calibrated_on": on.isoformat()},
+                "as_found": {"found": found, "error": found_error, "error_U": found_error_u}})
+        return cal
 
     def add_deviation(self, by: Account, serial: str, reason: str, expires: dt.date) -> None:
-        """A quality account's recorded decision to use an item past its due date."""
+        """A quality account's recorded decision to use an overdue item until `expires`:
+        only for an item that is overdue today, expiring in the future and at most
+        `deviation_max_days` ahead, with its reason in a sentence (ISO/IEC 17025 7.10)."""
         if not by.has("quality"):
             raise AuthError(f"{by.name} does not hold the quality role: only quality "
                             "records a deviation")
-        if not reason.strip():
-            raise RegisterError("a deviation states its reason")
+        why = reason.strip()
+        if len(why) < 20 or len(why.split()) < 4:
+            raise RegisterError("a deviation states its reason in a sentence (at least four "
+                                "words)")
+        today = dt.datetime.now(dt.UTC).date()
+        most = self.int_setting("deviation_max_days")
+        if expires <= today:
+            raise RegisterError(f"--expires {expires.isoformat()} is not in the future")
+        if (expires - today).days > most:
+            raise RegisterError(f"--expires {expires.isoformat()} is more than {most} days "
+                                "ahead (the register's deviation_max_days)")
+        item = next(iter(self.equipment(serial)), None)
+        if item is None:
+            raise RegisterError(f"equipment {serial!r} is not in the inventory")
+        if item.identity_only:
+            raise RegisterError(f"equipment {serial!r} is identity-only: never overdue")
+        cal = item.in_force(today)
+        if cal is not None and cal.due >= today:
+            raise RegisterError(f"equipment {serial!r} is in date (calibration "
+                                f"{cal.certificate} due {cal.due.isoformat()}): a deviation "
+                                "is for an overdue item")
         with self._tx() as conn:
-            if conn.execute(sa.select(s.equipment.c.serial)
-                            .where(s.equipment.c.serial == serial)).first() is None:
-                raise RegisterError(f"equipment {serial!r} is not in the inventory")
             conn.execute(s.deviations.insert().values(
-                serial=serial, reason=reason.strip(), expires=expires.isoformat(),
+                serial=serial, reason=why, expires=expires.isoformat(),
                 recorded_by=by.name, recorded_utc=_now_utc()))
             self._append(conn, by.name, "deviation recorded", serial,
-                         {"reason": reason.strip(), "expires": expires.isoformat()})
+                         {"reason": why, "expires": expires.isoformat()})
+
+    def revoke_deviation(self, by: Account, serial: str) -> int:
+        """End the deviations in force for an item (quality); returns how many."""
+        if not by.has("quality"):
+            raise AuthError(f"{by.name} does not hold the quality role")
+        today = dt.datetime.now(dt.UTC).date().isoformat()
+        d = s.deviations.c
+        with self._tx() as conn:
+            n = conn.execute(s.deviations.update().where(d.serial == serial)
+                             .where(d.revoked_utc.is_(None)).where(d.expires >= today)
+                             .values(revoked_utc=_now_utc(), revoked_by=by.name)).rowcount
+            if not n:
+                raise RegisterError(f"equipment {serial!r} has no deviation in force")
+            self._append(conn, by.name, "deviation revoked", serial, {"revoked": n})
+        return int(n)
 
     def equipment(self, serial: str | None = None) -> list[Equipment]:
         q = sa.select(s.equipment).order_by(s.equipment.c.serial)
@@ -605,10 +748,21 @@ class Register:
             for d in c.execute(sa.select(s.deviations).order_by(s.deviations.c.id)):
                 devs.setdefault(d.serial, []).append(Deviation(
                     d.reason, dt.date.fromisoformat(d.expires), d.recorded_by,
-                    d.recorded_utc))
-        return [Equipment(r["serial"], r["model"], r["certificate"], r["issuer"],
-                          dt.date.fromisoformat(r["due_date"]),
-                          tuple(devs.get(r["serial"], ()))) for r in rows]
+                    d.recorded_utc, d.revoked_utc, d.revoked_by))
+            cals: dict[str, list[Calibration]] = {}
+            for k in c.execute(sa.select(s.calibrations).order_by(
+                    s.calibrations.c.calibrated_on.is_not(None), s.calibrations.c.calibrated_on,
+                    s.calibrations.c.id)):
+                cals.setdefault(k.serial, []).append(Calibration(  # unstated dates first
+                    k.certificate, k.issuer,
+                    dt.date.fromisoformat(k.calibrated_on) if k.calibrated_on else None,
+                    dt.date.fromisoformat(k.due_date), k.found, k.found_error,
+                    k.found_error_u, k.recorded_utc, k.recorded_by))
+        return [Equipment(r["serial"], r["model"], r["certificate"] or None,
+                          r["issuer"] or None,
+                          dt.date.fromisoformat(r["due_date"]) if r["due_date"] else None,
+                          tuple(devs.get(r["serial"], ())), bool(r["identity_only"]),
+                          tuple(cals.get(r["serial"], ()))) for r in rows]
 
     # -- settings -------------------------------------------------------------------------
 
@@ -681,6 +835,32 @@ class Register:
         the register service signs with its own key (client.py)."""
         return None
 
+    def withdraw(self, by: Account, number: str, reason: str) -> Revision:
+        """Withdraw a certificate's current revision without a replacement (ISO/IEC 17025
+        7.8.8): a quality or signatory account, with the reason in a sentence."""
+        if not (by.has("quality") or by.has("signatory")):
+            raise AuthError(f"{by.name} holds neither the quality nor the signatory role")
+        why = reason.strip()
+        if len(why) < 20 or len(why.split()) < 4:
+            raise RegisterError("a withdrawal states its reason in a sentence (at least four "
+                                "words)")
+        rv = s.revisions.c
+        with self._tx() as conn:
+            current = conn.execute(sa.select(s.revisions).where(rv.number == number)
+                                   .where(rv.withdrawn_utc.is_(None))
+                                   .order_by(rv.revision.desc())).first()
+            if current is None:
+                known = conn.execute(sa.select(rv.revision).where(rv.number == number)).first()
+                raise RegisterError(f"certificate {number}: " + (
+                    "every revision is withdrawn already" if known else
+                    "no issued revision in this register"))
+            conn.execute(s.revisions.update().where(rv.id == current.id).values(
+                withdrawn_utc=_now_utc()[:19] + "Z", withdrawn_reason=why,
+                withdrawn_by=by.name))
+            self._append(conn, by.name, "withdrawn", f"{number} revision {current.revision}",
+                         {"reason": why})
+        return next(r for r in self.revisions(number) if r.revision == current.revision)
+
     def begin_issue(self, signatory: Account, number: str) -> str:
         """The time of the issue, by the register's clock: printed on the certificate and
         recorded by `issue` (the client's clock is never stored, issue 53)."""
@@ -736,6 +916,15 @@ class Register:
             signatory_name=r.full_name, meaning=a["m"], reason=a["why"].strip() or None,
             result_sha256=a["res"], pdf_sha256=a["pdf"], dcc_sha256=a["dcc"],
             html_sha256=a["html"], audit_digest=d))
+
+
+def _NONE(conn: Connection) -> str | None:  # noqa: N802 - reads as the value it stands for
+    """No value: NULL, or '' in an SQLite register made before g0003 (its columns stay NOT
+    NULL); read back as None either way."""
+    if conn.dialect.name != "sqlite":
+        return None
+    cols = conn.exec_driver_sql("PRAGMA table_info(reg_equipment)").all()
+    return "" if any(c[1] == "certificate" and c[3] for c in cols) else None
 
 
 def _with_via(detail: Mapping[str, object] | str) -> str:

@@ -177,8 +177,11 @@ class RecordsView:
                 row = rows.setdefault(q.serial, {"serial": q.serial, "model": q.model,
                                                  "control": None, "out": False})
                 problem = q.problem_on(today)
-                row["calibration"] = (f"{q.certificate} ({q.issuer}), due {q.due.isoformat()}"
-                                      + (f": {problem}" if problem else ""))
+                cal = q.in_force(today)
+                row["calibration"] = (
+                    "identity only (no calibration)" if q.identity_only else
+                    f"{cal.certificate} ({cal.issuer}), due {cal.due.isoformat()}"
+                    if cal else "no calibration in force") + (f": {problem}" if problem else "")
                 row["cal_overdue"] = bool(problem)
                 row["model"] = row.get("model") or q.model
         else:

@@ -333,7 +333,10 @@ class Signing:
             out["register_error"] = f"{type(e).__name__}: {e}"
         out["issued"] = issued
         last = issued[-1] if issued else None
-        out["status"] = (f"Issued: certificate {last['number']} ({last['status']}), "
+        out["status"] = (f"Withdrawn: certificate {last['number']}, {last['meaning']} by "
+                         f"{last['by']} at {last['utc']}, is {last['status']}"
+                         if last and last["status"].startswith("withdrawn ") else
+                         f"Issued: certificate {last['number']} ({last['status']}), "
                          f"{last['meaning']} by {last['by']} at {last['utc']}"
                          if last else "Draft, not authorised: the register holds no issue "
                          "of this run")
@@ -492,7 +495,9 @@ def _register_revisions(reg: Register, run_path: Path) -> list[dict[str, str]]:
     number = reg.number_of_run(run_uid(meta, run_path.name))
     if not number:
         return []
-    return [{"number": r.shown_number, "revision": str(r.revision), "status": r.status,
+    return [{"number": r.shown_number, "revision": str(r.revision),
+             "status": (f"withdrawn {r.withdrawn_utc} by {r.withdrawn_by}: "
+                        f"{r.withdrawn_reason}" if r.withdrawn_reason else r.status),
              "by": r.signatory_name, "meaning": r.meaning, "utc": r.issued_utc,
              "reason": r.reason or ""} for r in reg.revisions(number)]
 
