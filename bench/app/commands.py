@@ -155,7 +155,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             return EXIT_INVALID
         named = lab_path(cfg.procedure_path, dict(cfg.common.certificate))
         # before the run directory exists: nothing written, nothing moved
-        gate = _admitted("Not started", lambda: labfile.for_command(args.lab, named), cfg, args)
+        gate = _admitted("Not started", lambda: _new_run_lab(args, named), cfg, args)
         if gate is None:
             return EXIT_INVALID
         run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path, gate.lab_file)
@@ -167,6 +167,18 @@ def cmd_run(args: argparse.Namespace) -> int:
                          performer=gate.performer if gate is not None else None)
     print(run.path)
     return status
+
+
+def _new_run_lab(args: argparse.Namespace, named: Path | None) -> Path | None:
+    """A new run's lab file by the one rule; a lab.yaml left in the runs folder, which no
+    command reads any more, refuses rather than let the run's records go elsewhere."""
+    from bench.app.records.settings import stray_lab_file
+
+    chosen = labfile.for_command(args.lab, named)
+    stray = stray_lab_file(args.out) if chosen is None and not args.records else None
+    if stray:
+        raise labfile.LabChoiceError(stray)
+    return chosen
 
 
 class Admitted:

@@ -118,7 +118,8 @@ def assurance_refusals(run_dir: str | Path, records_url: str | None = None) -> l
     beside the run). Refreshes RUN_DIR/assurance.json, so the certificate rendered next
     states each instrument's status and any review recorded since the run."""
     path = Path(run_dir)
-    where = target(path.parent, records_url)
+    copy = path / layout.LAB          # a run's own command: the lab file it copied
+    where = target(path.parent, records_url, lab_file=copy if copy.is_file() else None)
     problems: list[str] = []
     statuses = write_assurance(path, where, problems.append)
     if statuses is None:

@@ -35,17 +35,21 @@ def load_lab_settings(runs_dir: str | Path | None = None,
                       path: str | Path | None = None) -> Lab:
     """The lab settings in force: `path` (the command's choice, bench/app/labfile.py),
     else $BENCH_LAB_SETTINGS, else none (every default then, bench/core/lab.py). A lab.yaml
-    in the runs folder is no longer read: it is refused, named, rather than ignored."""
+    in the runs folder is not read (`stray_lab_file`)."""
     chosen = path or os.environ.get(LAB_ENV) or None
-    if chosen is None:
-        candidate = Path(runs_dir or DEFAULT_RUNS) / LAB_FILE
-        if candidate.is_file():
-            raise SettingsError(
-                f"{candidate}: a lab file in the runs folder is not read (one rule for the "
-                f"lab file, docs/station.md): name it with --lab {candidate} or "
-                f"{LAB_ENV}={candidate.resolve()}, or move it")
-        return Lab()
-    return load_lab(chosen)
+    return load_lab(chosen) if chosen is not None else Lab()
+
+
+def stray_lab_file(runs_dir: str | Path | None) -> str | None:
+    """What to say of a lab.yaml in a runs folder when a command chose no lab file: it is
+    no longer read (docs/station.md, "The lab file: one rule"), and a command that would
+    have read it refuses, saying so, rather than write the lab's records elsewhere."""
+    candidate = Path(runs_dir or DEFAULT_RUNS) / LAB_FILE
+    if not candidate.is_file():
+        return None
+    return (f"{candidate}: a lab file in the runs folder is not read (one rule for the lab "
+            f"file, docs/station.md): name it with --lab {candidate} or "
+            f"{LAB_ENV}={candidate.resolve()}, or move it")
 
 
 def records_url(runs_dir: str | Path | None = None, url: str | None = None,
