@@ -113,6 +113,7 @@ class ServiceRegister(Register):
 
     def __init__(self, url: str, via: str | None = None) -> None:   # no engine: no database
         self.url = url.rstrip("/")
+        self.shown = self.url
         self.pg = False
         self.via = via or os.environ.get(VIA_ENV) or f"bench on {socket.gethostname()}"
         self._tokens: dict[str, str] = {}

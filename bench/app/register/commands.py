@@ -176,6 +176,7 @@ def _serve(args: argparse.Namespace) -> int:
     server = create_server(create_app(reg, signing=signing), host=args.host, port=args.port,
                            threads=8)
     port = server.effective_port
+    reg.shown = f"service http://{args.host}:{port}"
 
     def stop(_sig: int, _frame: object) -> None:
         server.close()

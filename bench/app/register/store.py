@@ -288,6 +288,8 @@ class Register:
         self.engine = engine
         self.pg = engine.dialect.name == "postgresql"
         self._pending: dict[tuple[str, str], str] = {}   # begin_issue's times
+        #: how messages name this register (the service names itself, not its database)
+        self.shown = redact(url)
 
     @classmethod
     def open(cls, url: str, migrate: bool = True, create: bool | None = None) -> Register:
@@ -462,14 +464,14 @@ class Register:
             self.append(name, "authentication refused", name,
                         {"role": role, "why": f"locked until {locked}"})
             raise AuthError(f"{name!r}: locked after {attempts} failed attempts, until "
-                            f"{locked} UTC (register {redact(self.url)})")
+                            f"{locked} UTC (register {self.shown})")
         with self.engine.connect() as c:
             r = c.execute(sa.select(s.accounts).where(s.accounts.c.name == name)).first()
         ok = r is not None and bool(r.active) and _verify(r.password_hash, password)
         if not ok:
             until = self._failed(name, role, attempts, window_s, lock_s)
             raise AuthError(f"{name!r}: unknown account, wrong password or account disabled "
-                            f"(register {redact(self.url)})"
+                            f"(register {self.shown})"
                             + (f"; now locked until {until} UTC" if until else ""))
         assert r is not None
         acct = _account(r._mapping)
@@ -478,7 +480,7 @@ class Register:
             self.append(name, "authentication refused", name, {"role": role,
                                                                 "why": "role not held"})
             raise AuthError(f"{name!r} does not hold the {role} role in register "
-                            f"{redact(self.url)} (roles: {', '.join(acct.roles)})")
+                            f"{self.shown} (roles: {', '.join(acct.roles)})")
         if not changing_password:
             stale = ("was set by an admin" if acct.must_change else
                      f"is older than {max_age_d} days" if acct.password_changed_utc and
