@@ -13,6 +13,7 @@ from __future__ import annotations
 import concurrent.futures
 import datetime as dt
 import json
+import re
 import shutil
 import uuid
 from pathlib import Path
@@ -346,3 +347,64 @@ def test_a_withdrawn_file_gets_no_ok_line(run: Path, lab: Path) -> None:
     assert done.returncode == 1 and "withdrawn" in done.stdout, done.stdout
     assert "verify: OK" not in done.stdout
     assert "the register does not hold it as issued" in done.stdout
+
+
+# -- issue 54, item 5: the trail anchored in what customers hold -----------------------------
+
+def _rewrite_without_issues(url: str) -> None:
+    """As the owner: the trail rebuilt without its issue entries, every digest and the
+    head recomputed, so the chain itself checks whole."""
+    from bench.app.register import chain
+
+    eng = sa.create_engine(url.replace("postgresql://", "postgresql+psycopg://"))
+    with eng.begin() as c:
+        if c.dialect.name == "sqlite":
+            c.exec_driver_sql("DROP TRIGGER IF EXISTS reg_audit_no_update")
+            c.exec_driver_sql("DROP TRIGGER IF EXISTS reg_audit_no_delete")
+        rows = [dict(r._mapping) for r in c.exec_driver_sql(
+            "SELECT * FROM reg_audit ORDER BY seq")]
+        kept = [r for r in rows if not str(r["action"]).startswith("issue")]
+        c.exec_driver_sql("DELETE FROM reg_audit")
+        prev = chain.GENESIS
+        for seq, r in enumerate(kept, 1):
+            d = chain.entry_digest(prev, seq, r["utc"], r["actor"], r["action"], r["object"],
+                                   r["detail"], r["db_user"])
+            c.execute(sa.text("INSERT INTO reg_audit (seq, utc, actor, action, object, "
+                              "detail, db_user, prev_digest, digest) VALUES (:s, :u, :a, "
+                              ":b, :o, :d, :w, :p, :g)"),
+                      {"s": seq, "u": r["utc"], "a": r["actor"], "b": r["action"],
+                       "o": r["object"], "d": r["detail"], "w": r["db_user"], "p": prev,
+                       "g": d})
+            prev = d
+        c.execute(sa.text("UPDATE reg_audit_head SET seq = :s, digest = :d"),
+                  {"s": len(kept), "d": prev})
+    eng.dispose()
+
+
+def test_issued_documents_anchor_the_trail(url: str, run: Path, tmp_path: Path) -> None:
+    lab = lab_file(tmp_path / "lab", url)
+    assert authorise(run, "P. Petrov", lab).returncode == 0
+    assert authorise(run, "P. Petrov", lab, "--reason", "the customer's address corrected"
+                     ).returncode == 0
+    html = (run / "certificate.html").read_text()
+    m = re.search(r"Lab register audit trail entry (\d+), SHA-256 ([0-9a-f]{64})", html)
+    assert m, "the issued certificate states no receipt"
+    with Register.open(url, migrate=False) as reg:
+        entry = next(r for r in reg.audit_rows() if r["seq"] == int(m.group(1)))
+    assert entry["digest"] == m.group(2) and entry["action"] == "issue begun"
+    assert m.group(0).encode() in (run / "certificate.dcc.xml").read_bytes()
+    whole = cli("register", "audit", "--register", url, "--receipts", str(run))
+    assert whole.returncode == 0 and "every one in the trail" in whole.stdout, whole.stdout
+    # a consistently rewritten trail (the issues erased): the chain checks, the receipts not
+    _rewrite_without_issues(url)
+    chain_only = cli("register", "audit", "--register", url)
+    assert chain_only.returncode == 0 and "chain whole" in chain_only.stdout
+    found = cli("register", "audit", "--register", url, "--receipts", str(run))
+    assert found.returncode == 1 and "RECEIPT NOT IN THE TRAIL" in found.stdout
+    assert "certificate.dcc.xml" in found.stdout and "rewritten" in found.stdout
+    # truncated, head and all
+    _tamper(url, "DELETE FROM reg_audit", "DELETE FROM reg_audit_head")
+    chain_only = cli("register", "audit", "--register", url)
+    assert chain_only.returncode == 0 and "0 entries, chain whole" in chain_only.stdout
+    found = cli("register", "audit", "--register", url, "--receipts", str(run))
+    assert found.returncode == 1 and "missing from the trail" in found.stdout

@@ -262,4 +262,8 @@ def add_register_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     wd.add_argument("--reason", required=True, help="why, in a sentence")
     common(wd)
     au = rs.add_parser("audit", help="check the audit trail's chain; exit 1 when broken")
+    au.add_argument("--receipts", nargs="+", metavar="DIR",
+                    help="also check every receipt in these folders (run directories' "
+                    "certificate-register.jsonl, issued HTML and DCC) against the chain: a "
+                    "truncated, forked or rewritten trail no longer holds them")
     common(au, acting=False)

@@ -335,16 +335,16 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
         kept_html = issue_dir(run_path, previous[-1].number) / HTML_NAME
         old_html = kept_html.read_text(encoding="utf-8") if kept_html.is_file() else None
     revision = len(previous) + 1
-    try:
-        issued_utc = reg.begin_issue(acct, number)    # the register's clock, not ours
+    try:    # the trail's entry first; its time is the register's clock, not ours
+        begun = reg.begin_issue(acct, number, revision, result_digest(result_bytes))
     except RegisterError as e:
         return _refuse([f"the register refused the issue: {e}"], run_path)
     issue = register.Issue(
-        register.numbered(number, revision), revision, issued_utc,
+        register.numbered(number, revision), revision, begun.issued_utc,
         previous[-1].number if previous else None, result_digest(result_bytes),
         signatory=who.name, function=who.function or None,
         reason=(reason or "").strip() or None, meaning=MEANING_ISSUE,
-        register=redact(reg.url))
+        register=redact(reg.url), audit_seq=begun.audit_seq, audit_entry=begun.audit_digest)
     final = issue_dir(run_path, issue.number)
     if final.exists():
         return _refuse([f"{final} exists: an issued revision's files are never "

@@ -984,6 +984,8 @@ def _signatures(src: Sources, issue: Issue) -> tuple[Block, ...]:
         text += (f" Electronic signature: {issue.signatory}, {issue.issued_utc}, meaning "
                  f"'{meaning}', authenticated by name and password by the lab register "
                  f"{issue.register}.")
+    if issue.receipt:
+        text += f" {issue.receipt}."
     if issue.replaces:
         text += (f" Revision {issue.revision}: it replaces certificate {issue.replaces}, "
                  "which is withdrawn.")

@@ -38,6 +38,8 @@ class Authorised(TypedDict, total=False):
     meaning: str | None
     register: str | None
     audit_digest: str | None
+    audit_seq: int | None
+    audit_entry: str | None
 
 
 @dataclass(frozen=True)
@@ -56,6 +58,17 @@ class Issue:
     meaning: str | None = None        # the signature's meaning ("authorised for issue")
     register: str | None = None       # the register that recorded the issue (URL)
     audit_digest: str | None = None   # its audit entry: the receipt of the issue
+    audit_seq: int | None = None      # the issue's first audit entry (issue 54), as the
+    audit_entry: str | None = None    # documents state it: sequence number and SHA-256
+
+    @property
+    def receipt(self) -> str | None:
+        """The sentence each issued document carries (`bench register audit --receipts`
+        finds it again)."""
+        if self.audit_seq is None or not self.audit_entry:
+            return None
+        return (f"Lab register audit trail entry {self.audit_seq}, SHA-256 "
+                f"{self.audit_entry}")
 
     @property
     def issue_date(self) -> str:
@@ -82,7 +95,13 @@ class Issue:
                    _text(d, "replaces"), _text(d, "result_sha256"), _text(d, "signatory"),
                    _text(d, "function"), _text(d, "reason"),
                    tuple(str(c) for c in changes) if isinstance(changes, list) else (),
-                   _text(d, "meaning"), _text(d, "register"), _text(d, "audit_digest"))
+                   _text(d, "meaning"), _text(d, "register"), _text(d, "audit_digest"),
+                   _int(d, "audit_seq"), _text(d, "audit_entry"))
+
+
+def _int(d: Mapping[str, JsonValue], key: str) -> int | None:
+    value = d.get(key)
+    return value if isinstance(value, int) and not isinstance(value, bool) else None
 
 
 def _text(d: Mapping[str, JsonValue], key: str) -> str | None:

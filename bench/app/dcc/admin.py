@@ -196,6 +196,8 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
             text += (f" Electronic signature: {issue.signatory}, {issue.issued_utc}, meaning "
                      f"'{issue.meaning or 'authorised for issue'}', authenticated by name "
                      f"and password by the lab register {issue.register}.")
+        if issue.receipt:
+            text += f" {issue.receipt}."
         if issue.replaces:
             text += (f" Revision {issue.revision}: it replaces certificate {issue.replaces}, "
                      "which is withdrawn." + (f" Reason: {issue.reason}." if issue.reason

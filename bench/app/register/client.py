@@ -25,6 +25,7 @@ from bench.app.register.store import (
     Calibration,
     Deviation,
     Equipment,
+    Receipt,
     Register,
     RegisterError,
     Revision,
@@ -289,8 +290,14 @@ class ServiceRegister(Register):
         got = self._call("find_revision", sha256=sha256)
         return None if got is None else _revision(_reply(got))
 
-    def begin_issue(self, signatory: Account, number: str) -> str:
-        return str(self._call("begin_issue", token=self._token(signatory.name), number=number))
+    def begin_issue(self, signatory: Account, number: str, revision: int = 0,
+                    result_sha256: str = "") -> Receipt:
+        got = _reply(self._call("begin_issue", token=self._token(signatory.name),
+                                number=number, revision=revision,
+                                result_sha256=result_sha256))
+        seq = got.get("audit_seq")
+        return Receipt(got.text("issued_utc"), seq if isinstance(seq, int) else 0,
+                       got.text("audit_digest"))
 
     def issue(self, number: str, revision: int, signatory: Account,
               digests: Mapping[str, str], reason: str | None,

@@ -86,7 +86,18 @@ def _run(args: argparse.Namespace) -> int:
                 print(f"AUDIT TRAIL BROKEN: {p}")
             print(f"audit trail of {redact(reg.url)}: {report.entries} entries, "
                   + ("chain whole" if report.ok else f"{len(report.problems)} problem(s)"))
-            return EXIT_OK if report.ok else EXIT_BROKEN
+            held = True
+            if args.receipts:
+                from bench.app.register.receipts import check_receipts
+
+                found = check_receipts(reg.audit_rows(), args.receipts)
+                for p in found.problems:
+                    print(f"RECEIPT NOT IN THE TRAIL: {p}")
+                print(f"receipts: {found.checked} checked in {found.files} file(s), "
+                      + ("every one in the trail" if found.ok
+                         else f"{len(found.problems)} not held by the trail"))
+                held = found.ok
+            return EXIT_OK if report.ok and held else EXIT_BROKEN
         if what == "user":
             return _user(reg, args, pw)
         if what == "settings":

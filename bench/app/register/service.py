@@ -166,7 +166,10 @@ def create_app(reg: Register, tokens: Tokens | None = None,
         return reg.allocate(text(b, "run_uid"), text(b, "prefix"), acct.name)
 
     def begin_issue(b: Mapping[str, object]) -> JsonValue:
-        return reg.begin_issue(actor(b), text(b, "number"))
+        revision = b.get("revision")
+        return jsonable(reg.begin_issue(actor(b), text(b, "number"),
+                                        revision if isinstance(revision, int) else 0,
+                                        text(b, "result_sha256", optional=True)))
 
     def issue(b: Mapping[str, object]) -> JsonValue:
         digests, detail, revision = b.get("digests"), b.get("detail"), b.get("revision")

@@ -54,6 +54,15 @@ ACTING_VIA: contextvars.ContextVar[str | None] = contextvars.ContextVar("acting_
                                                                          default=None)
 
 
+@dataclass(frozen=True)
+class Receipt:
+    """An issue's first audit entry as the issued documents state it."""
+
+    issued_utc: str
+    audit_seq: int
+    audit_digest: str
+
+
 class IssueArgs(TypedDict):
     """The parameters of pgsql.ISSUE (`reg_issue`), by their bind names."""
 
@@ -863,12 +872,25 @@ class Register:
                          {"reason": why})
         return next(r for r in self.revisions(number) if r.revision == current.revision)
 
-    def begin_issue(self, signatory: Account, number: str) -> str:
-        """The time of the issue, by the register's clock: printed on the certificate and
-        recorded by `issue` (the client's clock is never stored, issue 53)."""
+    def begin_issue(self, signatory: Account, number: str, revision: int = 0,
+                    result_sha256: str = "") -> Receipt:
+        """The issue's first audit entry, written before anything is rendered (number,
+        revision, signatory, the register's time, the result's digest): each issued
+        document states its sequence number and digest, so a trail truncated or rewritten
+        later no longer holds what customers hold (issue 54). Its time, by the register's
+        clock, is the issue's: printed and recorded (the client's clock is never stored)."""
+        if not signatory.has("signatory"):
+            raise AuthError(f"{signatory.name} is not an active signatory")
         utc = dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
+        with self._tx() as conn:
+            digest = self._append(conn, signatory.name, "issue begun",
+                                  f"{number} revision {revision}",
+                                  {"issued_utc": utc, "result_sha256": result_sha256})
+            seq = int(conn.execute(sa.select(s.audit.c.seq)
+                                   .where(s.audit.c.digest == digest)).scalar_one())
+        receipt = Receipt(utc, seq, digest)
         self._pending[(signatory.name, number)] = utc
-        return utc
+        return receipt
 
     def issue(self, number: str, revision: int, signatory: Account,
               digests: Mapping[str, str], reason: str | None,
