@@ -1,6 +1,8 @@
 """Shared test helpers: the CLI (`bench`, `bench_bg` in a subprocess as an operator starts
 it; `cli` in this process for commands that start no run), the session's demo runs read
-by many files (`demo_run`, `drift_demo_run`: copy before writing), the twins (`twins`
+by many files (`demo_run`, `drift_demo_run`: copy before writing; `control_baseline`,
+the control charts' baseline of short check runs, made run by run as tests ask), each
+made once for the whole session, however many worker processes share it; the twins (`twins`
 starts drive, counter and FOG twins on their real channels and stops them at the test's
 end; `one_axis_stand`), a small tmpfs (`small_disk`) and `unavailable` for a missing
 server (a failure in CI)."""
@@ -17,7 +19,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -161,7 +163,33 @@ def run_dir_of(out: subprocess.CompletedProcess[str]) -> Path:
     return Path(lines[-1])
 
 
-# -- shared demo runs ------------------------------------------------------------------------
+# -- shared runs ------------------------------------------------------------------------------
+# A run that tests only read is made once for the whole session: the suite's worker
+# processes (pytest-xdist, a file per worker) share one folder, and the first worker to ask
+# for a run makes it while any other waits for it on a lock (`_session_lock`).
+
+def _shared_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The folder every process of this test session sees: beside the workers' own
+    temporary folders under pytest-xdist, in this process's own otherwise."""
+    base = tmp_path_factory.getbasetemp()
+    root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "shared-runs"
+    root.mkdir(parents=True, exist_ok=True)
+    return root
+
+
+@contextlib.contextmanager
+def _session_lock(root: Path, name: str) -> Iterator[None]:
+    """One process of the session at a time holds `name` (an flock, released on exit or
+    when the holder dies)."""
+    import fcntl
+
+    with open(root / f"{name}.lock", "w") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
 
 @dataclasses.dataclass(frozen=True)
 class DemoRun:
@@ -191,16 +219,122 @@ def _demo_run(procedure: str, out: Path) -> DemoRun:
     return DemoRun(out, done.returncode, done.stdout, done.stderr, run_dir, result)
 
 
+def _shared_demo_run(tmp_path_factory: pytest.TempPathFactory, procedure: str,
+                     name: str) -> DemoRun:
+    """`_demo_run` once for the session: made by the first process to ask, read back from
+    its record (`NAME.json`: status, output and run directory) by every other."""
+    root = _shared_root(tmp_path_factory)
+    record = root / f"{name}.json"
+    with _session_lock(root, name):
+        if not record.exists():
+            run = _demo_run(procedure, root / name)
+            record.write_text(json.dumps({"out": str(run.out), "status": run.status,
+                                          "stdout": run.stdout, "stderr": run.stderr,
+                                          "dir": str(run.dir)}))
+    made = json.loads(record.read_text())
+    run_dir = Path(made["dir"])
+    result_file = run_dir / "result.json"
+    result = json.loads(result_file.read_text()) if result_file.exists() else {}
+    return DemoRun(Path(made["out"]), made["status"], made["stdout"], made["stderr"],
+                   run_dir, result)
+
+
 @pytest.fixture(scope="session")
 def demo_run(tmp_path_factory: pytest.TempPathFactory) -> DemoRun:
     """configs/procedures/demo.yaml (the two-axis rate ladder), run once for the session."""
-    return _demo_run("demo.yaml", tmp_path_factory.mktemp("demo-run"))
+    return _shared_demo_run(tmp_path_factory, "demo.yaml", "demo-run")
 
 
 @pytest.fixture(scope="session")
 def drift_demo_run(tmp_path_factory: pytest.TempPathFactory) -> DemoRun:
     """configs/procedures/drift-demo.yaml (the paper's case 70/80), run once."""
-    return _demo_run("drift-demo.yaml", tmp_path_factory.mktemp("drift-demo-run"))
+    return _shared_demo_run(tmp_path_factory, "drift-demo.yaml", "drift-demo-run")
+
+
+def check_procedure(folder: Path, seed: int, scale_step: tuple[int, float] | None = None
+                    ) -> Path:
+    """A short check run of the two-axis twin's outer axis (one rate, two turns, its FOG's
+    static record first), the stand's seed `seed`: the runs of the control charts'
+    baseline. `scale_step` (from_run, rel) steps the FOG's scale from that run of the
+    records on. The files, `stand-SEED.yaml` and `check-SEED.yaml` (naming the stand by
+    its relative path), are the same bytes in any folder: result.json names and hashes
+    them, so two folders' runs of one seed can be compared."""
+    import yaml
+
+    stand = yaml.safe_load((CONFIGS / "stands" / "sim-two-axis.yaml").read_text())
+    stand["sim"]["seed"] = seed
+    if scale_step is not None:    # no run_number: the records count the runs
+        stand["sim"]["axes"]["outer"]["fog"]["scale_step"] = {"from_run": scale_step[0],
+                                                             "rel": scale_step[1]}
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"stand-{seed}.yaml").write_text(yaml.safe_dump(stand))
+    proc = folder / f"check-{seed}.yaml"
+    proc.write_text(yaml.safe_dump({
+        "procedure": "rate-ladder", "title": "Assurance check run",
+        "stand": f"stand-{seed}.yaml", "turns": 2, "static_record_s": 5, "harmonics": 2,
+        "prompts": False, "axes": {"outer": {"rates_dps": [50]}},
+        "tolerance": {"rate_error": [{"rel": 1e-5}]},
+        "certificate": {"laboratory": "Assurance test lab"}}))
+    return proc
+
+
+def check_run(proc: Path, runs: Path) -> tuple[Path, subprocess.CompletedProcess[str]]:
+    """`bench run PROC --yes --quiet --out RUNS` in this process (the console script's
+    `main`: the runs of a baseline share one interpreter's start-up and imports; the twins
+    still talk over their real channels): the run directory and the command's output."""
+    out = cli("run", str(proc), "--yes", "--quiet", "--out", str(runs))
+    assert out.returncode in (0, 1), out.stdout[-2000:] + out.stderr[-3000:]
+    return run_dir_of(out), out
+
+
+@dataclasses.dataclass(frozen=True)
+class ControlBaseline:
+    """The control charts' baseline (bench/app/records/control.py): `size` check runs
+    (`check_procedure`, seeds 1 to `size`) made in order in one runs folder, `runs`, whose
+    records hold each run's check values. Made once for the session and run by run as
+    tests ask: `run(1)` makes the first alone. Never change its folder: `copy_to` copies
+    it. Its size is the baseline's: the records' `BASELINE_RUNS`, read where it is set."""
+
+    folder: Path      # the stand and procedure files, the runs folder, the locks
+    size: int
+
+    @property
+    def runs(self) -> Path:
+        return self.folder / "runs"
+
+    def run(self, n: int) -> Path:
+        """The n-th run's directory (1 <= n <= size), made, with each before it, by the
+        first process of the session to ask."""
+        assert 1 <= n <= self.size, (n, self.size)
+        for i in range(1, n + 1):
+            record = self.folder / f"run-{i}.dir"
+            with _session_lock(self.folder, f"run-{i}"):
+                if not record.exists():       # runs 1 to i - 1 are made: the order holds
+                    record.write_text(str(check_run(check_procedure(self.folder, i),
+                                                    self.runs)[0]))
+        return Path(record.read_text())
+
+    def dirs(self) -> list[Path]:
+        """Every run of the baseline, in order."""
+        self.run(self.size)
+        return [self.run(i) for i in range(1, self.size + 1)]
+
+    def copy_to(self, dest: Path) -> list[Path]:
+        """The runs folder (the runs and their records) copied to `dest`, every run made
+        first: the copies' run directories, in order."""
+        names = [d.name for d in self.dirs()]
+        shutil.copytree(self.runs, dest)
+        return [dest / name for name in names]
+
+
+@pytest.fixture(scope="session")
+def control_baseline(tmp_path_factory: pytest.TempPathFactory) -> ControlBaseline:
+    """The control charts' baseline, shared by the session (see `ControlBaseline`)."""
+    from bench.app.records.control import BASELINE_RUNS
+
+    folder = _shared_root(tmp_path_factory) / "control-baseline"
+    folder.mkdir(exist_ok=True)
+    return ControlBaseline(folder, BASELINE_RUNS)
 
 
 # -- twins -----------------------------------------------------------------------------------

@@ -1,9 +1,10 @@
 """Measurement assurance (issue 28): control charts of the bench's own instruments.
 
-The acceptance test runs nine short simulated runs of the two-axis twin (one axis, one
-rate, two turns): eight with a stable FOG, then one whose FOG scale is stepped by ten
-times the U of its k (the stand's `sim.axes.outer.fog.scale_step`, the run number taken
-from the records). `bench control` must flag that FOG with the rule, the refusal function
+The acceptance test reads nine short simulated runs of the two-axis twin (one axis, one
+rate, two turns): the eight of the session's `control_baseline` (tests/conftest.py, as
+many as the records' BASELINE_RUNS), with a stable FOG, copied with their records, then
+one of its own whose FOG scale is stepped by ten times the U of its k (the stand's
+`sim.axes.outer.fog.scale_step`, the run number taken from the records). `bench control` must flag that FOG with the rule, the refusal function
 `bench authorise` will call must name the rule, a recorded review must lift the refusal,
 and the certificate must state the review. The rules themselves are checked on series
 built by hand, each rule broken alone.
@@ -15,7 +16,6 @@ import datetime as dt
 import json
 import re
 import statistics
-import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -36,52 +36,38 @@ from bench.app.records.hooks import target
 from bench.app.records.store import CheckPoint, ReviewInfo
 from bench.core.config import parse_stand
 from bench.core.simdrift import drifted
-from tests.conftest import CONFIGS, cli, run_dir_of, unavailable
+from tests.conftest import (
+    CONFIGS,
+    ControlBaseline,
+    check_procedure,
+    check_run,
+    cli,
+    unavailable,
+)
 from tests.conftest import OUTER_SERIALS as OUTER
 from tests.registers import add_register, authorise, cli_in, password
 
 FOG = OUTER["fog"]
-STABLE_RUNS = 8
-
-
-def _procedure(folder: Path, seed: int, step_rel: float | None) -> Path:
-    stand = yaml.safe_load((CONFIGS / "stands" / "sim-two-axis.yaml").read_text())
-    stand["sim"]["seed"] = seed
-    if step_rel is not None:   # no run_number: the records count the runs (8 -> run 9)
-        stand["sim"]["axes"]["outer"]["fog"]["scale_step"] = {"from_run": STABLE_RUNS + 1,
-                                                             "rel": step_rel}
-    sfile = folder / f"stand-{seed}.yaml"
-    sfile.write_text(yaml.safe_dump(stand))
-    proc = folder / f"check-{seed}.yaml"
-    proc.write_text(yaml.safe_dump({
-        "procedure": "rate-ladder", "title": "Assurance check run", "stand": str(sfile),
-        "turns": 2, "static_record_s": 5, "harmonics": 2, "prompts": False,
-        "axes": {"outer": {"rates_dps": [50]}},
-        "tolerance": {"rate_error": [{"rel": 1e-5}]},
-        "certificate": {"laboratory": "Assurance test lab"}}))
-    return proc
-
-
-def _run(proc: Path, runs: Path) -> tuple[Path, subprocess.CompletedProcess[str]]:
-    """`bench run` in this process (the console script's `main`): nine runs share one
-    interpreter's start-up and imports; the twins still talk over their real channels."""
-    out = cli("run", str(proc), "--yes", "--quiet", "--out", str(runs))
-    assert out.returncode in (0, 1), out.stdout[-2000:] + out.stderr[-3000:]
-    return run_dir_of(out), out
+#: the runs of the baseline (the session's `control_baseline`, the records' BASELINE_RUNS)
+STABLE_RUNS = BASELINE_RUNS
 
 
 @pytest.fixture(scope="module")
-def history(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+def history(control_baseline: ControlBaseline,
+            tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """The session's baseline runs copied (with their records) into a runs folder of this
+    module's, then run 9 (one past the baseline): its FOG's scale stepped from that
+    run of the records on."""
+    assert control_baseline.size == STABLE_RUNS
     folder = tmp_path_factory.mktemp("assurance")
     runs = folder / "runs"
-    dirs = [_run(_procedure(folder, seed, None), runs)[0]
-            for seed in range(1, STABLE_RUNS + 1)]
+    dirs = control_baseline.copy_to(runs)
     pairs = [json.loads((d / "result.json").read_text())["axes"]["outer"]["pairs"][0]
              for d in dirs]
     k_u = statistics.median(p["k_u"] for p in pairs)
     k = statistics.fmean(p["k"] for p in pairs)
     step_rel = 10 * k_u / k                       # k = scale cos(g): ten times U of k
-    shifted, out = _run(_procedure(folder, 100, step_rel), runs)
+    shifted, out = check_run(check_procedure(folder, 100, (STABLE_RUNS + 1, step_rel)), runs)
     return {"folder": folder, "runs": runs, "dirs": dirs, "shifted": shifted, "k_u": k_u,
             "k": k, "step_rel": step_rel, "out9": out, "pairs": pairs}
 
@@ -96,7 +82,7 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
         history: dict[str, Any], tmp_path: Path) -> None:
     runs, shifted = history["runs"], history["shifted"]
     # the twin drifted in run 9 (its number from the records), by the step asked for
-    assert json.loads((shifted / "meta.json").read_text())["sim_run_number"] == 9
+    assert json.loads((shifted / "meta.json").read_text())["sim_run_number"] == STABLE_RUNS + 1
     assert "sim_run_number" not in json.loads((history["dirs"][0] / "meta.json").read_text())
     k9 = json.loads((shifted / "result.json").read_text())["axes"]["outer"]["pairs"][0]
     assert abs(k9["k"] - history["k"] * (1 + history["step_rel"])) < 3 * history["k_u"]
@@ -107,8 +93,9 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
         assert re.search(rf"Measurement assurance \(ISO/IEC 17025 7\.7\), {role} "
                          rf"{OUTER[role]}[^.]*: not enough history \(1 of "
                          rf"{BASELINE_RUNS} runs", first), role
-    # the eighth: the FOG has its baseline and is in control
-    assert f"fog {FOG} (KVH DSP-1760): in control (8 runs; baseline: the first 8 runs" \
+    # the last of the baseline: the FOG has its baseline and is in control
+    assert f"fog {FOG} (KVH DSP-1760): in control ({STABLE_RUNS} runs; baseline: the first " \
+           f"{STABLE_RUNS} runs" \
         in _html_text(history["dirs"][-1])
 
     # bench control: every instrument with its status, the FOG flagged with the rule
@@ -122,7 +109,7 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     assert all("OUT OF CONTROL" not in ln for ln in counter_lines), counter_lines
     chart = cli("control", FOG, "--runs", str(runs))
     assert chart.returncode == 1
-    assert "baseline: the first 8 runs" in chart.stdout and "WE1" in chart.stdout
+    assert f"baseline: the first {STABLE_RUNS} runs" in chart.stdout and "WE1" in chart.stdout
     png = runs / f"control-{FOG}.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -273,7 +260,8 @@ def test_the_station_shows_the_status_and_the_charts_in_a_real_browser(
         ok = driver.execute_script(
             "const i = document.getElementById('control'); return i.complete && i.naturalWidth")
         assert ok, "the control chart image did not load"
-        assert "baseline: the first 8 runs" in driver.find_element(By.TAG_NAME, "main").text
+        assert f"baseline: the first {STABLE_RUNS} runs" in driver.find_element(
+            By.TAG_NAME, "main").text
     finally:
         driver.quit()
         _stop(server)

@@ -21,7 +21,7 @@ from typing import Any
 
 import pytest
 
-from tests.conftest import CONFIGS, DemoRun
+from tests.conftest import CONFIGS, ControlBaseline, DemoRun, check_procedure
 
 #: result.json keys that say when or where, not what was measured (`run_sessions`: each
 #: session's start and end times and who ran it, issue 57)
@@ -166,21 +166,11 @@ def test_the_drift_demo_gives_the_same_numbers_quiet_and_beside_two_busy_process
 
 
 def _static_first(folder: Path) -> Path:
-    """A one-rate check whose first step is the FOG's static record, started the instant
-    the instruments are open (the assurance check runs of tests/test_control.py); the
-    stand and procedure files are the same bytes for every call (result.json hashes them)."""
-    import yaml
-
-    folder.mkdir()
-    stand = yaml.safe_load((CONFIGS / "stands" / "sim-two-axis.yaml").read_text())
-    stand["sim"]["seed"] = 1
-    sfile = folder.parent / "stand.yaml"
-    sfile.write_text(yaml.safe_dump(stand))
-    proc = folder.parent / "check.yaml"
-    proc.write_text(yaml.safe_dump({
-        "procedure": "rate-ladder", "title": "Static record first", "turns": 2,
-        "stand": str(sfile), "static_record_s": 5, "prompts": False,
-        "axes": {"outer": {"rates_dps": [50]}}}))
+    """A check run of the control charts' baseline (tests/conftest.py `check_procedure`,
+    seed 1: one rate, its first step the FOG's static record, started the instant the
+    instruments are open), the same files' bytes and names as the session's
+    `control_baseline` run 1, in a subprocess as an operator starts it."""
+    proc = check_procedure(folder, 1)
     out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--quiet",
                           "--out", str(folder / "runs")],
                          capture_output=True, text=True, timeout=600, check=False)
@@ -190,13 +180,15 @@ def _static_first(folder: Path) -> Path:
 
 @pytest.mark.timeout(900)
 def test_a_static_record_at_the_start_begins_on_the_same_sample_under_load(
-        tmp_path: Path) -> None:
+        control_baseline: ControlBaseline, tmp_path: Path) -> None:
     """The static record began at the newest FOG sample the reader held: the one due at
     that very instant was there on a quiet machine and not yet on a loaded one, so every
     later step moved by 1 ms (the control charts' drive settle time moved with it, and
     tests/test_control.py saw a false WE4 beside two busy processes). Now the clock alone
-    places it (procedures/rate_ladder/kind.py `_do_static`)."""
-    quiet, loaded, _ = _quiet_and_loaded(_static_first, tmp_path)
+    places it (procedures/rate_ladder/kind.py `_do_static`). The quiet run is the
+    session's first baseline run (made in the test process, by the console script's
+    `main`), the loaded one the same files run by `bench` beside two busy processes."""
+    quiet, loaded, _ = _quiet_and_loaded(_static_first, tmp_path, control_baseline.run(1))
     drive = [(q.read_text(), lo.read_text()) for q, lo in
              zip(sorted(quiet.glob("raw/s*/outer-drive.jsonl")),
                  sorted(loaded.glob("raw/s*/outer-drive.jsonl")), strict=True)]
