@@ -205,7 +205,7 @@ def test_import_is_idempotent_and_history_reads_the_database(
     rows = _history_csv(tmp_path, "--records", db.url)
     _check_drift(rows, recerts)
     with Records.open(db.url) as rec:
-        assert rec.revision() == "r0003"
+        assert rec.revision() == "r0004"
         (t,) = rec.tables()
         assert (t.serial, t.runs, t.interval_days) == (SERIAL, 3, 365)
         # every figure of result.json is kept, with its U and verdict
@@ -233,7 +233,7 @@ def test_the_migrations_build_exactly_the_schema(db: Db) -> None:
         assert {"tables", "runs", "figures", "cert_files", "instruments", "checks",
                 "reviews", "benches", "bench_runs", "bench_events",
                 "records_alembic_version"} <= names
-        assert rec.revision() == "r0003"
+        assert rec.revision() == "r0004"
 
 
 def test_a_database_of_r0001_is_upgraded_and_import_adds_the_check_values(
@@ -259,7 +259,7 @@ def test_a_database_of_r0001_is_upgraded_and_import_adds_the_check_values(
     out = cli("records", "import", str(recerts["runs"]), "--records", db.url)
     assert "0 new, 3 updated, 0 already recorded" in out.stdout, out.stdout + out.stderr
     with Records.open(db.url) as rec:
-        assert rec.revision() == "r0003"
+        assert rec.revision() == "r0004"
         assert len({p.run_uid for p in rec.checks(OUTER["fog"])}) == 3
 
 

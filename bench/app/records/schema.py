@@ -52,6 +52,9 @@ runs = sa.Table(
     sa.Column("sessions", sa.Integer),
     sa.Column("aborted", sa.Boolean, nullable=False, default=False),
     sa.Column("bench_version", sa.String(40)),
+    # r0004: the role that registered the run (PostgreSQL: its default, current_user); the
+    # only role that may change it (row-level security)
+    sa.Column("db_role", sa.Text),
 )
 
 figures = sa.Table(
@@ -134,6 +137,8 @@ benches = sa.Table(
     sa.Column("host", sa.String(255)),
     sa.Column("first_seen_utc", sa.DateTime),         # the lab server's clock
     sa.Column("last_seen_utc", sa.DateTime),
+    # r0004: the database role bound to this bench's name (PostgreSQL: row-level security)
+    sa.Column("db_role", sa.Text),
 )
 
 bench_runs = sa.Table(

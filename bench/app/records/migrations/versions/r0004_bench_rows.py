@@ -15,6 +15,7 @@ subject to the policies. SQLite, one bench, has nothing to keep apart: unchanged
 
 from __future__ import annotations
 
+import sqlalchemy as sa
 from alembic import op
 
 revision = "r0004"
@@ -40,6 +41,9 @@ OWN_ROWS = {
 
 def upgrade() -> None:
     if op.get_bind().dialect.name != "postgresql":
+        for table in ("benches", "runs"):       # the column, without the role behind it
+            with op.batch_alter_table(table) as b:
+                b.add_column(sa.Column("db_role", sa.Text))
         return
     op.execute("ALTER TABLE benches ADD COLUMN IF NOT EXISTS db_role text "
                "DEFAULT current_user")
