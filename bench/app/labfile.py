@@ -1,10 +1,10 @@
 """Which lab file a command uses: one rule, for every command (docs/station.md, "The lab
 file: one rule").
 
-- A run's own commands (`bench run --resume`, `bench analyze`, `bench authorise`,
-  `bench records sync`, `bench records check`) use the copy the run made when it started
-  (RUN/lab.yaml): the run is continued, analysed, issued and delivered under the lab it
-  was measured under.
+- A run's own commands (`bench run --resume`, `bench analyze`, `bench records sync`,
+  `bench records check`) use the copy the run made when it started (RUN/lab.yaml): the
+  run is continued, analysed and delivered under the lab it was measured under
+  (`bench authorise` resolves its register itself: its --lab, else the run's copy).
 - Every other command: `--lab FILE`, else `$BENCH_LAB_SETTINGS`; `bench run` also reads
   the procedure's `certificate: {lab: FILE}`.
 - Two of these that name different lab files (not the same file, not the same bytes)
