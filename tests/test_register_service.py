@@ -535,12 +535,18 @@ def test_the_service_alone_signs_the_issued_dcc(lab: Lab, demo_run: Any,
                   env={"SERVICE_KEY_PASSWORD": "s3cret"}) as url:
         lab_yaml = tmp_path / "lab.yaml"        # the bench's lab file: no key in it
         lab_yaml.write_text(f"laboratory: Service Lab\nregister: {url}\n")
+        from bench.app.records.extract import run_uid
+
+        with Register.open(lab.owner, migrate=False) as reg:    # the session's one demo run
+            again = reg.number_of_run(run_uid(json.loads((run / "meta.json").read_text()),
+                                              run.name)) is not None     # may be issued
         done = cli_in(password("P. Petrov") + "\n", "authorise", str(run), "--signatory",
-                      "P. Petrov", "--lab", str(lab_yaml), "--password-stdin")
+                      "P. Petrov", "--lab", str(lab_yaml), "--password-stdin",
+                      *(("--reason", "re-issued with the DCC signed by the service") if again
+                        else ()))
         assert done.returncode == 0, done.stdout + done.stderr
         assert "DCC signed (XAdES)" in done.stdout
-    [issued] = (run / "issued").iterdir()
-    dcc = issued / "certificate.dcc.xml"
+    dcc = run / "certificate.dcc.xml"          # the issued revision, in place
     done = cli("verify", str(dcc), "--cert", str(cert))
     assert done.returncode == 0, done.stdout + done.stderr
     assert "signature: XAdES verifies; signer CN=Service Lab DCC signing" in done.stdout
