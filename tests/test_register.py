@@ -169,6 +169,10 @@ def test_overdue_counter_on_twins_is_stated_in_the_pdf_and_the_dcc(
     # 5. the performer is the account that authenticated, not a name from a file
     meta = json.loads((run / "meta.json").read_text())
     assert meta["performer"]["account"] == "A. Ivanova"
+    with Register.open(url, migrate=False) as reg:   # the entry names the run and the bench
+        started = [json.loads(str(r["detail"])) for r in reg.audit_rows()
+                   if r["action"] == "run started by"]
+    assert [d["run_uid"] for d in started] == [meta["run_uid"]] and started[0]["bench"]
     assert "Calibration performed by: A. Ivanova (account A. Ivanova, authenticated" in html
     # and a wrong password starts nothing
     done = cli_in("wrong-password\n", "run", str(procedure), "--out", str(tmp_path / "r2"),

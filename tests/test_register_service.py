@@ -446,6 +446,8 @@ def test_the_station_signs_through_the_service_and_cannot_issue_itself(
     entry = next(r for r in rows if r["action"] == "issue" and str(r["object"])
                  .startswith(number))
     assert entry["db_user"] == lab.roles["svc"]
+    detail = json.loads(str(entry["detail"]))      # the run and the bench (issue 57)
+    assert detail["run_uid"] == uid and detail["bench"] and "station" not in detail["bench"]
     # the station's own database role: unable to issue, allocate or append by itself
     eng = _engine(lab.station)
     try:

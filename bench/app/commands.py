@@ -118,8 +118,10 @@ def cmd_run(args: argparse.Namespace) -> int:
             return EXIT_INVALID
         # a resume is a session of the run: its performer too is authenticated by the
         # run's register, before anything moves (and audited)
+        from bench.app.records.extract import run_uid
+
         gate = _admitted("Not resumed", lambda: labfile.for_run(run.path, args.lab), cfg,
-                         args)
+                         args, run_uid(dict(run.meta), run.path.name))
         if gate is None:
             return EXIT_INVALID
     else:
@@ -155,10 +157,14 @@ def cmd_run(args: argparse.Namespace) -> int:
             return EXIT_INVALID
         named = lab_path(cfg.procedure_path, dict(cfg.common.certificate))
         # before the run directory exists: nothing written, nothing moved
-        gate = _admitted("Not started", lambda: _new_run_lab(args, named), cfg, args)
+        import uuid
+
+        uid = uuid.uuid4().hex      # the run's, before its folder: the register names it
+        gate = _admitted("Not started", lambda: _new_run_lab(args, named), cfg, args, uid)
         if gate is None:
             return EXIT_INVALID
-        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path, gate.lab_file)
+        run = RunDir.create(args.out, cfg.procedure_path, cfg.stand_path, gate.lab_file,
+                            run_uid=uid)
         mark_run(run.path, cfg.common, args.calibration_state, args.adjustment,
                  gate.meta())
     console = open_console(quiet=args.quiet, log_json=args.log_json)
@@ -193,7 +199,7 @@ class Admitted:
 
 
 def _admitted(verb: str, lab_of: Callable[[], Path | None], cfg: Config,
-              args: argparse.Namespace) -> Admitted | None:
+              args: argparse.Namespace, uid: str | None = None) -> Admitted | None:
     """Before anything moves: the lab file by the one rule (bench/app/labfile.py), the
     records it names, and the register's word on the performer and the stand's items;
     None (each reason said after `verb`) when the session may not start."""
@@ -206,7 +212,7 @@ def _admitted(verb: str, lab_of: Callable[[], Path | None], cfg: Config,
     if refusal:
         err(f"{verb}: {refusal}")
         return None
-    gate = _start_gate(lab_file, cfg, bool(cfg.has_sim or args.sim), args)
+    gate = _start_gate(lab_file, cfg, bool(cfg.has_sim or args.sim), args, uid)
     if gate.refusal:
         err(f"{verb}: the lab register refuses:")
         for line in gate.refusal:
@@ -233,8 +239,10 @@ def _records_refusal(lab_file: Path | None, records: str | None) -> str | None:
 
 
 def _start_gate(lab_file: Path | None, cfg: Config, simulated: bool,
-                args: argparse.Namespace) -> StartGate:
+                args: argparse.Namespace, uid: str | None = None) -> StartGate:
     """The lab register's word before anything moves (bench/app/register/gate.py)."""
+    import socket
+
     from bench.app.register import RegisterError
     from bench.app.register.credentials import Passwords
     from bench.app.register.gate import StartGate, start_gate
@@ -246,7 +254,8 @@ def _start_gate(lab_file: Path | None, cfg: Config, simulated: bool,
         pw = Passwords(bool(getattr(args, "password_stdin", False))) if args.operator \
             else None
         return start_gate(url, traced_items(cfg.stand_settings), simulated, args.operator,
-                          pw.next if pw else _no_password)
+                          pw.next if pw else _no_password, run_uid=uid,
+                          bench=cfg.stand_settings.bench_name or socket.gethostname())
     except (LabError, RegisterError) as e:
         return StartGate([str(e)], None, [], None)
 

@@ -357,7 +357,9 @@ class RunDir:
 
     @classmethod
     def create(cls, out_dir: str | Path, procedure_path: Path, stand_path: Path,
-               lab_path: Path | None = None) -> RunDir:
+               lab_path: Path | None = None, run_uid: str | None = None) -> RunDir:
+        """A new run directory; `run_uid` made before it (the lab register names the run
+        by it when the performer is authenticated), else here."""
         stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
         base = Path(out_dir) / f"{stamp}-{procedure_path.stem}"
         path, n = base, 1
@@ -377,7 +379,7 @@ class RunDir:
             "stand_sha256": sha256_file(stand_path),
             "created_utc": utc_now(),
             "bench_version": bench.__version__,
-            "run_uid": uuid.uuid4().hex,
+            "run_uid": run_uid or uuid.uuid4().hex,
         }
         (path / layout.META).write_text(json.dumps(meta, indent=2) + "\n")
         (path / layout.EVENTS).touch()

@@ -231,12 +231,18 @@ def issue_dir(run_path: Path, number: str) -> Path:
 
 
 def register_of(run_path: Path, lab_file: str | None) -> str | None:
-    """The register the lab file names: --lab FILE, else the lab file the run copied when
-    it started. Never the procedure's `certificate:` block, which the operator edits."""
-    from bench.core.lab import RUN_COPY, load_lab
+    """The register the lab file names, by the one rule for a run's own command
+    (bench/app/labfile.py): the run's copy, a --lab that differs from it refused; a run
+    that copied none, --lab, else $BENCH_LAB_SETTINGS. Never the procedure's
+    `certificate:` block, which the operator edits."""
+    from bench.app import labfile
+    from bench.core.lab import load_lab
 
-    path = Path(lab_file) if lab_file else Path(run_path) / RUN_COPY
-    return load_lab(path).register_url if path.is_file() else None
+    try:
+        path = labfile.for_run(Path(run_path), lab_file)
+    except labfile.LabChoiceError as e:
+        raise LabError(str(e)) from None
+    return load_lab(path).register_url if path is not None and path.is_file() else None
 
 
 def _files_sha256(folder: Path) -> dict[str, str]:
@@ -311,6 +317,22 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
                       previous, reason, line)
 
 
+def uid_of(run_path: Path) -> str:
+    from bench.app.records.extract import run_uid
+
+    try:
+        meta = json.loads((run_path / layout.META).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        meta = {}
+    return run_uid(meta if isinstance(meta, dict) else {}, run_path.name)
+
+
+def bench_name(run_path: Path) -> str:
+    from bench.app.fleet.sync import bench_name as named
+
+    return named(run_path)
+
+
 def _ask(prompt: str) -> str:
     from bench.app.register.credentials import Passwords
 
@@ -378,8 +400,9 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
         _err(f"bench authorise: not issued: the DCC does not validate ({run_path})")
         return EXIT_FAILED
     try:
-        rev = reg.issue(number, revision, acct, _files_sha256(work),
-                        issue.reason, {"run_dir": run_path.name, "signatory": acct.name})
+        rev = reg.issue(number, revision, acct, _files_sha256(work), issue.reason,
+                        {"run_dir": run_path.name, "signatory": acct.name,
+                         "run_uid": uid_of(run_path), "bench": bench_name(run_path)})
     except RegisterError as e:
         _discard(work)
         return _refuse([f"the register refused the issue: {e}"], run_path)

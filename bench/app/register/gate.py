@@ -83,13 +83,16 @@ def equipment_statuses(reg: Register, items: Sequence[Traced], on: dt.date
     return [item_status(t, found, on) for t in items]
 
 
-def authenticate_performer(reg: Register, name: str, password: Callable[[str], str]
+def authenticate_performer(reg: Register, name: str, password: Callable[[str], str],
+                           run_uid: str | None = None, bench: str | None = None
                            ) -> dict[str, str | None]:
-    """The performer as meta.json keeps it: account, full name, register, time."""
+    """The performer as meta.json keeps it: account, full name, register, time; the audit
+    entry names the run (its uid) and the bench (issue 57)."""
     acct = reg.authenticate(name, password(f"password of {name} (performer, register "
                                            f"{redact(reg.url)}): "), "operator")
     utc = dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
-    reg.append(acct.name, "run started by", name, {"full_name": acct.full_name})
+    reg.append(acct.name, "run started by", name,
+               {"full_name": acct.full_name, "run_uid": run_uid, "bench": bench})
     return {"account": acct.name, "full_name": acct.full_name, "function": acct.function,
             "register": redact(reg.url), "authenticated_utc": utc}
 
@@ -118,7 +121,8 @@ class StartGate:
 
 def start_gate(register_url: str | None, items: Sequence[Traced], simulated: bool,
                operator: str | None, password: Callable[[str], str],
-               on: dt.date | None = None) -> StartGate:
+               on: dt.date | None = None, run_uid: str | None = None,
+               bench: str | None = None) -> StartGate:
     """Authenticate the performer and check the stand's items, before anything moves."""
     if register_url is None:
         refusal = ([f"--operator {operator}: the lab file names no register to "
@@ -129,8 +133,8 @@ def start_gate(register_url: str | None, items: Sequence[Traced], simulated: boo
     on = on or dt.datetime.now(dt.UTC).date()
     try:
         with open_register(register_url) as reg:
-            performer = (authenticate_performer(reg, operator, password) if operator
-                         else None)
+            performer = (authenticate_performer(reg, operator, password, run_uid, bench)
+                         if operator else None)
             statuses = equipment_statuses(reg, items, on)
     except RegisterError as e:
         return StartGate([str(e)], None, [], redact(register_url))

@@ -330,7 +330,9 @@ class Signing:
         try:
             issued = _register_revisions(reg, run_path)
         except Exception as e:  # noqa: BLE001 - the page shows what failed, not a 500
-            out["register_error"] = f"{type(e).__name__}: {e}"
+            from bench.app.db import away_text
+
+            out["register_error"] = away_text(self.register.url or "", e, "lab register")
         out["issued"] = issued
         last = issued[-1] if issued else None
         out["status"] = (f"Withdrawn: certificate {last['number']}, {last['meaning']} by "
