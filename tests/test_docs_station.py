@@ -102,6 +102,7 @@ def test_the_station_setup_of_docs_station_md_word_for_word(tmp_path: Path) -> N
     env = {**_env_without_lab(), "HOME": str(home)}
     env.pop("PGPASSFILE", None)
     station: subprocess.Popen[str] | None = None
+    register_service: subprocess.Popen[str] | None = None
 
     def sub(text: str) -> str:
         return (text.replace("@server/", f"@{server}/").replace("/etc/ratebench", str(etc))
@@ -117,7 +118,7 @@ def test_the_station_setup_of_docs_station_md_word_for_word(tmp_path: Path) -> N
 
     try:
         blocks = _blocks(_section())
-        sql, records_init, register_init, lab, stand_block, serve = blocks
+        sql, records_init, register_init, service, lab, stand_block, serve = blocks
         # 1. roles and databases, as the cluster's superuser; each '...' a password of its own
         passwords: dict[str, str] = {}
         statements = []
@@ -128,7 +129,7 @@ def test_the_station_setup_of_docs_station_md_word_for_word(tmp_path: Path) -> N
                 passwords[role.group(1)] = secrets.token_hex(12)
                 stmt = stmt.replace("'...'", f"'{passwords[role.group(1)]}'")
             statements.append(stmt)
-        assert set(passwords) == {"lab_owner", "bench", "station"}
+        assert set(passwords) == {"lab_owner", "register_service", "bench", "station"}
         pg.admin(*statements)
         pgpass = home / ".pgpass"
         pgpass.write_text("".join(f"127.0.0.1:{pg.port}:*:{r}:{p}\n"
@@ -142,10 +143,22 @@ def test_the_station_setup_of_docs_station_md_word_for_word(tmp_path: Path) -> N
         code, said = _typed([sys.executable, "-m", "bench", *sub(register_init).split()[1:]],
                             admin_pw, tmp_path, env)
         assert code == 0, said
-        # 4. the lab file, shared by every bench
-        assert lab.startswith("records: ") and "register: " in lab
-        (etc / "lab.yaml").write_text(sub(lab) + "\n")
-        # 5. the bench's stand file names the bench; a short procedure of this bench's
+        # 4. the register service, on this machine (its port: a free one)
+        assert service.startswith("bench register serve ") and "--port 8741" in service
+        svc_args = sub(service).replace("--port 8741", "--port 0").split()
+        register_service = subprocess.Popen([sys.executable, "-m", "bench", *svc_args[1:]],
+                                            cwd=tmp_path, text=True, stdout=subprocess.PIPE,
+                                            stderr=subprocess.STDOUT, env=env)
+        assert register_service.stdout is not None
+        listening = register_service.stdout.readline()
+        found = re.search(r"http://127\.0\.0\.1:\d+", listening)
+        assert found, listening + (register_service.stdout.read()
+                                   if register_service.poll() is not None else "")
+        # 5. the lab file, shared by every bench: the register is the service
+        assert lab.startswith("records: ") and "register: http://127.0.0.1:8741" in lab
+        (etc / "lab.yaml").write_text(sub(lab).replace("http://127.0.0.1:8741",
+                                                        found.group(0)) + "\n")
+        # 6. the bench's stand file names the bench; a short procedure of this bench's
         stand = yaml.safe_load((CONFIGS / "stands" / "sim-two-axis.yaml").read_text())
         stand.update(yaml.safe_load(stand_block))
         (etc / "stand.yaml").write_text(yaml.safe_dump(stand, sort_keys=False))
@@ -154,7 +167,7 @@ def test_the_station_setup_of_docs_station_md_word_for_word(tmp_path: Path) -> N
             "turns": 2, "static_record_s": 5, "harmonics": 1, "prompts": False,
             "axes": {"outer": {"rates_dps": [20]}},
             "tolerance": {"rate_error": [{"rel": 1e-3}]}}))
-        # 6. the station
+        # 7. the station
         args = sub(serve).split()
         station = subprocess.Popen([sys.executable, "-m", "bench", *args[1:], "--port", "0"],
                                    cwd=tmp_path, text=True, stdout=subprocess.PIPE,
@@ -190,7 +203,8 @@ def test_the_station_setup_of_docs_station_md_word_for_word(tmp_path: Path) -> N
             eng.dispose()
         print(f"\ndocs/station.md walk: bench run {took_s:.1f} s")
     finally:
-        if station is not None:
-            station.terminate()
-            station.wait(timeout=20)
+        for proc in (station, register_service):
+            if proc is not None:
+                proc.terminate()
+                proc.wait(timeout=20)
         pg.stop()
