@@ -208,3 +208,34 @@ def test_the_station_setup_of_docs_station_md_word_for_word(tmp_path: Path) -> N
                 proc.terminate()
                 proc.wait(timeout=20)
         pg.stop()
+
+
+def test_the_two_serve_lines_of_logging_in_word_for_word(tmp_path: Path) -> None:
+    """docs/station.md, "Logging in and signing a draft": both `bench serve` lines as
+    written (in a folder with runs/, lab.yaml and lab-register.sqlite; the port a free one,
+    the one substitution), each starting a station that logs in against the register."""
+    from tests.registers import sqlite_register
+
+    text = DOC.read_text()
+    part = text[text.index("## Logging in and signing a draft"):]
+    lines = [ln.split("#")[0].strip() for ln in part.splitlines()[:20]
+             if ln.startswith("    bench serve ")]
+    assert len(lines) == 2, lines
+    (tmp_path / "runs").mkdir()
+    made = Path(sqlite_register(tmp_path / "made").removeprefix("sqlite:///"))
+    made.rename(tmp_path / "lab-register.sqlite")
+    (tmp_path / "lab.yaml").write_text("register: sqlite:///lab-register.sqlite\n")
+    for line in lines:
+        p = subprocess.Popen([sys.executable, "-m", "bench", *line.split()[1:], "--port", "0",
+                              "--token", "t0ken"], cwd=tmp_path, text=True,
+                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                             env=_env_without_lab())
+        try:
+            assert p.stdout is not None
+            first, second = p.stdout.readline(), p.stdout.readline()
+            assert first.startswith("Station view of") and "http://127.0.0.1:" in first, first
+            assert second.startswith("Log in and sign at /login: accounts of register "), \
+                second
+        finally:
+            p.terminate()
+            p.wait(timeout=20)
