@@ -123,7 +123,9 @@ def test_overdue_or_unknown_equipment_refuses_a_real_stand(tmp_path: Path) -> No
         reg.add_equipment(q, "MY62000118", "Keysight 53230A", "C-2026-118", "Cal Lab",
                           dt.date(2027, 6, 30))
     on = dt.date(2026, 11, 27)
-    items = [_traced("MY62000117", dt.date(2027, 1, 1)), _traced("MY62000118", on),
+    as_held = Traced("axes.inner.counter", "counter (inner)", "C-2026-118", "Cal Lab",
+                     dt.date(2027, 6, 30), None, serial="MY62000118")
+    items = [_traced("MY62000117", dt.date(2027, 1, 1)), as_held,
              _traced("NOT-IN-INVENTORY", on)]
     gate = start_gate(url, items, simulated=False, operator=None, password=str, on=on)
     assert len(gate.refusal) == 3 and "deviation" in gate.refusal[2]
@@ -132,6 +134,14 @@ def test_overdue_or_unknown_equipment_refuses_a_real_stand(tmp_path: Path) -> No
     # on twins the same facts are findings, and the run starts
     twin = start_gate(url, items, simulated=True, operator=None, password=str, on=on)
     assert twin.refusal == [] and sum(bool(s["problem"]) for s in twin.equipment) == 2
+    # a stand file whose stated calibration contradicts the inventory (issue 54)
+    said = _traced("MY62000118", on)
+    gate = start_gate(url, [said], simulated=False, operator=None, password=str, on=on)
+    assert "the stand file states calibration SIM-CAL-1 due 2026-11-27, the inventory's " \
+        "record in force is C-2026-118 due 2027-06-30" in gate.refusal[0]
+    twin = start_gate(url, [said], simulated=True, operator=None, password=str, on=on)
+    assert twin.refusal == [] and "contradicts" not in str(twin.equipment[0]["problem"])
+    assert "the stand file states calibration SIM-CAL-1" in str(twin.equipment[0]["problem"])
     # a quality account's deviation (reason, expiry) lets the overdue counter be used
     with Register.open(url) as reg:
         soon = dt.datetime.now(dt.UTC).date() + dt.timedelta(days=20)   # within 30 days
@@ -141,7 +151,7 @@ def test_overdue_or_unknown_equipment_refuses_a_real_stand(tmp_path: Path) -> No
         reg.add_deviation(reg.authenticate("Q. Manager", password("Q. Manager")),
                           "MY62000117", "re-calibration booked; drift checked", soon)
     gate = start_gate(url, items[:2], simulated=False, operator=None, password=str, on=on)
-    assert gate.refusal == []
+    assert gate.refusal == [], gate.refusal
     assert "re-calibration booked" in gate.equipment[0]["deviation"]
 
 

@@ -74,7 +74,15 @@ def item_status(t: Traced, found: dict[str, Equipment], on: dt.date) -> ItemStat
                           f"{cal.due.isoformat()}, used under a deviation recorded by "
                           f"{dev.recorded_by} until {dev.expires.isoformat()}: "
                           f"{dev.reason}", cal)
-    return ItemStatus(t.where, t.item, t.serial, e.problem_on(on), in_force=cal)
+    problem = e.problem_on(on)
+    if problem is None and t.stated and cal is not None \
+            and (t.certificate, t.due) != (cal.certificate, cal.due):
+        # issue 54: the calibration printed is the inventory's; a stand file that says
+        # otherwise is a finding on twins and a refusal on a real stand
+        problem = (f"{t.item} serial {t.serial}: the stand file states calibration "
+                   f"{t.certificate} due {t.due}, the inventory's record in force is "
+                   f"{cal.certificate} due {cal.due.isoformat()}")
+    return ItemStatus(t.where, t.item, t.serial, problem, in_force=cal)
 
 
 def equipment_statuses(reg: Register, items: Sequence[Traced], on: dt.date
