@@ -24,6 +24,10 @@ ACCOUNTS: dict[str, tuple[str, tuple[str, ...], str, str | None]] = {
     "A. Ivanova": ("ivanova-pass-1", ("operator",), "A. Ivanova", "Calibration engineer"),
     "Q. Manager": ("quality-pass-1", ("quality",), "Q. Manager", "Quality manager"),
 }
+#: the issuer as the tests' register holds it (printed on every issued certificate)
+ISSUER = {"issuer.name": "Test Rate Lab", "issuer.address": "Example Street 1, Example City",
+          "issuer.code": "D-K-00000-01", "issuer.accreditation": "not accredited (test lab)",
+          "issuer.prefix": "RT"}
 _TEMPLATE: list[Path] = []
 
 
@@ -42,6 +46,8 @@ def fill(url: str) -> None:
             if name != "admin":     # an admin-set password, changed by its holder (issue 53)
                 reg.add_account(admin, name, full, roles, pw + "-initial", function)
                 reg.change_password(name, pw + "-initial", pw)
+        for key, value in ISSUER.items():   # the issuer's identity (issue 54)
+            reg.set_setting(admin, key, value)
 
 
 def sqlite_register(folder: Path) -> str:

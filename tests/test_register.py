@@ -422,3 +422,40 @@ def test_issued_documents_anchor_the_trail(url: str, run: Path, tmp_path: Path) 
     assert chain_only.returncode == 0 and "0 entries, chain whole" in chain_only.stdout
     found = cli("register", "audit", "--register", url, "--receipts", str(run))
     assert found.returncode == 1 and "missing from the trail" in found.stdout
+
+
+# -- issue 54, item 4: the issuer is the register's, not a file's ----------------------------
+
+def test_the_issuer_is_named_by_the_register_not_by_a_file(run: Path, tmp_path: Path) -> None:
+    from tests.registers import ISSUER
+
+    url = sqlite_register(tmp_path / "reg")
+    lab = lab_file(tmp_path / "lab", url, "laboratory: ACME Accredited Lab\n"
+                   "accreditation: ACME-ACCREDITED\ncode: ACME-1\nprefix: ACME\n")
+    procedure_says = json.loads((run / "result.json").read_text())["certificate"]["laboratory"]
+    assert procedure_says == "Rate Table Metrology Lab (demo)"
+    # a register that holds no issuer identity issues nothing
+    eng = sa.create_engine(url)
+    with eng.begin() as c:
+        kept = c.exec_driver_sql("SELECT key, value FROM reg_settings WHERE key LIKE "
+                                 "'issuer.%'").all()
+        c.exec_driver_sql("DELETE FROM reg_settings WHERE key LIKE 'issuer.%'")
+    refused = authorise(run, "P. Petrov", lab)
+    assert refused.returncode == 2 and "holds no issuer identity" in refused.stderr
+    with eng.begin() as c:
+        for key, value in kept:
+            c.execute(sa.text("INSERT INTO reg_settings VALUES (:k, :v)"), {"k": key, "v": value})
+    eng.dispose()
+    done = authorise(run, "P. Petrov", lab)
+    assert done.returncode == 0, done.stderr
+    html = (run / "certificate.html").read_text()
+    dcc = (run / "certificate.dcc.xml").read_text()
+    for said in (html, dcc):
+        assert ISSUER["issuer.name"] in said
+        assert "ACME" not in said and procedure_says not in said
+    assert ISSUER["issuer.accreditation"] in html and ISSUER["issuer.address"] in html
+    assert ISSUER["issuer.code"] in dcc
+    with Register.open(url, migrate=False) as reg:
+        number = reg.number_of_run(_uid(run))
+    assert number is not None and number.startswith("RT-")
+

@@ -35,7 +35,7 @@ from bench.app.register import AuthError, Register, RegisterError
 from bench.app.register.client import ServiceRegister
 from bench.app.register.store import MEANING_ISSUE
 from tests.conftest import ROOT
-from tests.registers import ACCOUNTS, cli_in, password, sqlite_register
+from tests.registers import ACCOUNTS, ISSUER, cli_in, password, sqlite_register
 
 DIGESTS = {"result.json": "a" * 64, "certificate.pdf": "b" * 64,
            "certificate.dcc.xml": "c" * 64, "certificate.html": "d" * 64}
@@ -75,6 +75,8 @@ def lab(pg: Any) -> Iterator[Lab]:
                 reg.add_account(admin, name, full, rl, pw + "-initial", function)
                 reg.change_password(name, pw + "-initial", pw)
         reg.set_setting(admin, "lockout_s", str(LOCK_S))
+        for key, value in ISSUER.items():
+            reg.set_setting(admin, key, value)
     as_role = {k: owner.replace(f"//{pg.user}@", f"//{r}@") for k, r in roles.items()}
     with _service(as_role["svc"]) as url:
         yield Lab(owner, as_role["svc"], as_role["hall1"], as_role["hall2"],
@@ -348,7 +350,8 @@ def test_sqlite_register_locks_out_guessing(tmp_path: Path) -> None:
             reg.authenticate("P. Petrov", password("P. Petrov"))
         time.sleep(2.5)
         assert reg.authenticate("P. Petrov", password("P. Petrov")).name == "P. Petrov"
-        changed = next(r for r in reg.audit_rows() if r["action"] == "setting changed")
+        changed = next(r for r in reg.audit_rows() if r["action"] == "setting changed"
+                       and r["object"] == "lockout_s")
         assert json.loads(str(changed["detail"])) == {"old": "900 (default)", "new": "2"}
 
 

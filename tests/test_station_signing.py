@@ -71,6 +71,7 @@ def _lab(tmp: Path) -> Lab:
         reg.add_account(admin, QUALITY[0], QUALITY[1], ["quality"], "x" + QUALITY[2])
         for name, _, pw in (SIGNATORY, OPERATOR, QUALITY):   # each holder's own password
             reg.change_password(name, "x" + pw, pw)
+        reg.set_setting(admin, "issuer.name", "Test Lab")     # the issuer, as registered
     lab = tmp / "lab.yaml"
     lab.write_text("laboratory: Test Lab\nregister: sqlite:///register.sqlite\n")
     return Lab(lab, url)

@@ -307,14 +307,30 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
         ctx = IssueContext(run_path, result, lab, who, reason, previous,
                            bool(stand_of(src).get("simulated")), lab.records_url, reg)
         refused = refusals(ctx)
+        held = reg.issuer()
+        if "issuer.name" not in held:
+            refused.append("the lab register holds no issuer identity: an admin sets it "
+                           "(bench register settings set issuer.name TEXT, and issuer."
+                           "address, issuer.code, issuer.accreditation, issuer.prefix); a "
+                           "certificate names its issuer from the register, not from a file")
         if refused:
             return _refuse(refused, run_path)
+        lab = issuer_lab(lab, held)
         try:
             number = number or reg.allocate(uid, lab.prefix, acct.name)
         except RegisterError as e:
             return _refuse([str(e)], run_path)
         return _issue(run_path, result, result_bytes, stand, lab, reg, acct, who, number,
                       previous, reason, line)
+
+
+def issuer_lab(lab: Lab, held: Mapping[str, str]) -> Lab:
+    """The lab as the register names the issuer (issue 54): its name, address, code,
+    accreditation and number prefix from the register's settings; what the register does
+    not hold is not printed, whatever a file says."""
+    return replace(lab, name=held.get("issuer.name"), address=held.get("issuer.address"),
+                   code=held.get("issuer.code"), accreditation=held.get("issuer.accreditation"),
+                   prefix=held.get("issuer.prefix") or lab.prefix)
 
 
 def uid_of(run_path: Path) -> str:
@@ -366,7 +382,10 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
         previous[-1].number if previous else None, result_digest(result_bytes),
         signatory=who.name, function=who.function or None,
         reason=(reason or "").strip() or None, meaning=MEANING_ISSUE,
-        register=redact(reg.url), audit_seq=begun.audit_seq, audit_entry=begun.audit_digest)
+        register=redact(reg.url), audit_seq=begun.audit_seq, audit_entry=begun.audit_digest,
+        issuer=tuple((k, v) for k, v in (("laboratory", lab.name), ("address", lab.address),
+                                         ("code", lab.code),
+                                         ("accreditation", lab.accreditation)) if v))
     final = issue_dir(run_path, issue.number)
     if final.exists():
         return _refuse([f"{final} exists: an issued revision's files are never "

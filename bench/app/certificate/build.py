@@ -103,10 +103,21 @@ def issued_number(src: Sources) -> str:
     return done[-1].number if done else certificate_id(src)
 
 
-def _cert(src: Sources) -> JsonObject:
-    """The certificate settings: the procedure's `certificate:` block over the lab's file."""
+def _cert(src: Sources, issue: Issue | None = None) -> JsonObject:
+    """The certificate settings: the procedure's `certificate:` block over the lab's file;
+    on an issued certificate the issuer's identity is the lab register's (issue 54): its
+    laboratory, address, code and accreditation, and nothing of the files' for them."""
     cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
-    return dict(cert) if isinstance(cert, Mapping) else {}
+    out: JsonObject = dict(cert) if isinstance(cert, Mapping) else {}
+    if issue is not None and issue.issuer:
+        for key in ISSUER_FIELDS:
+            out.pop(key, None)
+        out.update(dict(issue.issuer))
+    return out
+
+
+#: the certificate keys the register's issuer identity replaces
+ISSUER_FIELDS = ("laboratory", "address", "code", "accreditation")
 
 
 # -- the document --------------------------------------------------------------------------
@@ -171,7 +182,7 @@ def build_document(result: Mapping[str, object], run_path: Path | None = None,
     if issue is None:
         issue = register.draft(run_path, cid)
     proc = procedure_of(src)
-    cert = _cert(src)
+    cert = _cert(src, issue)
     lab = str(cert.get("laboratory") or "Calibration laboratory (name not given)")
     checks = _checks(src, proc)
     sections: list[Section] = []
@@ -290,7 +301,7 @@ def _checks(src: Sources, proc: Procedure) -> list[Check]:
 def _identification(src: Sources, issue: Issue, proc: Procedure,
                     checks: list[Check]) -> tuple[Block, ...]:
     stand = stand_of(src)
-    cert = _cert(src)
+    cert = _cert(src, issue)
     dates = src.get("dates", {}) or {}
     started = dates.get("started_utc") or src.event_utc("session_start")
     completed = dates.get("completed_utc") or src.event_utc("completed", last=True)

@@ -40,6 +40,7 @@ class Authorised(TypedDict, total=False):
     audit_digest: str | None
     audit_seq: int | None
     audit_entry: str | None
+    issuer: tuple[tuple[str, str], ...]
 
 
 @dataclass(frozen=True)
@@ -60,6 +61,9 @@ class Issue:
     audit_digest: str | None = None   # its audit entry: the receipt of the issue
     audit_seq: int | None = None      # the issue's first audit entry (issue 54), as the
     audit_entry: str | None = None    # documents state it: sequence number and SHA-256
+    #: the issuer's identity as the lab register holds it (issue 54): (certificate key,
+    #: text) for laboratory, address, code, accreditation, printed instead of the files'
+    issuer: tuple[tuple[str, str], ...] = ()
 
     @property
     def receipt(self) -> str | None:
@@ -82,6 +86,7 @@ class Issue:
     def to_json(self) -> JsonObject:
         d = asdict(self)
         d["changes"] = list(self.changes)
+        d["issuer"] = [list(pair) for pair in self.issuer]
         return d
 
     @classmethod
@@ -96,7 +101,13 @@ class Issue:
                    _text(d, "function"), _text(d, "reason"),
                    tuple(str(c) for c in changes) if isinstance(changes, list) else (),
                    _text(d, "meaning"), _text(d, "register"), _text(d, "audit_digest"),
-                   _int(d, "audit_seq"), _text(d, "audit_entry"))
+                   _int(d, "audit_seq"), _text(d, "audit_entry"), _pairs(d.get("issuer")))
+
+
+def _pairs(value: JsonValue) -> tuple[tuple[str, str], ...]:
+    if not isinstance(value, list):
+        return ()
+    return tuple((str(p[0]), str(p[1])) for p in value if isinstance(p, list) and len(p) == 2)
 
 
 def _int(d: Mapping[str, JsonValue], key: str) -> int | None:

@@ -14,6 +14,7 @@ import datetime as dt
 import getpass
 import json
 import os
+import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -47,6 +48,11 @@ SETTING_DEFAULTS: dict[str, int] = {
     "password_max_age_days": 180,   # then the password must be changed
     "deviation_max_days": 30,       # a deviation expires at most this long after it is made
 }
+
+#: the issuer's identity as the register holds it (issue 54): printed on every issued
+#: certificate and DCC from here, never from a file the operator edits
+ISSUER_KEYS = ("issuer.name", "issuer.address", "issuer.code", "issuer.accreditation",
+               "issuer.prefix")
 
 #: who the person acts through ("bench hall-1 at 127.0.0.1"): the register service sets
 #: it for the request it serves, and every audit entry written meanwhile names it
@@ -782,11 +788,21 @@ class Register:
             return c.execute(sa.select(s.settings.c.value)
                              .where(s.settings.c.key == key)).scalar()
 
+    def issuer(self) -> dict[str, str]:
+        """The issuer's identity the register holds (the keys of ISSUER_KEYS it has)."""
+        held = {k: self.setting(k) for k in ISSUER_KEYS}
+        return {k: v for k, v in held.items() if v}
+
     def set_setting(self, by: Account, key: str, value: str) -> None:
         if not by.has("admin"):
             raise AuthError(f"{by.name} is not an admin")
         if key in SETTING_DEFAULTS and not (value.isdigit() and int(value) > 0):
             raise RegisterError(f"setting {key}: a whole number above 0 (got {value!r})")
+        if key == "issuer.prefix" and not re.fullmatch(r"[A-Z][A-Z0-9]{0,11}", value):
+            raise RegisterError(f"setting issuer.prefix: 1 to 12 capital letters and digits "
+                                f"(got {value!r})")
+        if key.startswith("issuer.") and (key not in ISSUER_KEYS or not value.strip()):
+            raise RegisterError(f"setting {key}: one of {', '.join(ISSUER_KEYS)}, not empty")
         old = self.setting(key)
         with self._tx() as conn:
             conn.execute(s.settings.delete().where(s.settings.c.key == key))
