@@ -143,6 +143,16 @@ def cmd_verify(args: argparse.Namespace) -> int:
     from bench.app.dcc.verify import verify_file
 
     path = Path(args.file)
+    if getattr(args, "reanalyse", False):
+        if not path.is_dir():
+            _err(f"{path}: --reanalyse takes a run directory")
+            return EXIT_INVALID
+        from bench.app.reanalyse import reanalyse
+
+        status, lines = reanalyse(path)
+        for line in lines:
+            print(line)
+        return status
     if not path.is_file():
         _err(f"{path}: not found")
         return EXIT_INVALID
@@ -269,6 +279,10 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
     ver.add_argument("--lab", help="lab settings file whose signing certificate is trusted")
     ver.add_argument("--no-result", action="store_true",
                      help="check schema and signature only (no result.json at hand)")
+    ver.add_argument("--reanalyse", action="store_true",
+                     help="FILE is a run directory: analyse its raw captures again (its "
+                          "version, BLAS on one thread) and compare with its result.json "
+                          "byte for byte; exit 0 equal, 1 differs, 2 refused")
     ver.add_argument("--register", metavar="URL",
                      help="the lab register: states issued, withdrawn or not issued (exit 0 "
                           "only for issued); FILE may then be the PDF too")
