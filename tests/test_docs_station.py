@@ -86,6 +86,20 @@ def _typed(cmd: list[str], answer: str, cwd: Path, env: dict[str, str]) -> tuple
         os.close(master)
 
 
+def _end(proc: subprocess.Popen[str]) -> None:
+    """Ctrl-C, then SIGKILL after 10 s: a server that ignores a signal it inherited as
+    ignored (an xdist worker's) must not hold the test up."""
+    import signal
+
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=10)
+
+
 @pytest.mark.timeout(400)
 def test_the_station_setup_of_docs_station_md_word_for_word(tmp_path: Path) -> None:
     superuser = secrets.token_hex(8)
@@ -205,8 +219,7 @@ def test_the_station_setup_of_docs_station_md_word_for_word(tmp_path: Path) -> N
     finally:
         for proc in (station, register_service):
             if proc is not None:
-                proc.terminate()
-                proc.wait(timeout=20)
+                _end(proc)
         pg.stop()
 
 
@@ -237,5 +250,4 @@ def test_the_two_serve_lines_of_logging_in_word_for_word(tmp_path: Path) -> None
             assert second.startswith("Log in and sign at /login: accounts of register "), \
                 second
         finally:
-            p.terminate()
-            p.wait(timeout=20)
+            _end(p)

@@ -98,7 +98,11 @@ def _service(db: str, *args: str, env: dict[str, str] | None = None) -> Iterator
         yield line.split()[3]
     finally:
         proc.terminate()
-        proc.wait(timeout=30)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:     # a SIGTERM inherited as ignored
+            proc.kill()
+            proc.wait(timeout=10)
 
 
 def _post(url: str, op: str, **body: object) -> tuple[int, Any]:

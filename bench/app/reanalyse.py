@@ -1,6 +1,6 @@
 """`bench verify RUN --reanalyse` (issue 54): the raw captures analysed again, in a copy of
-the run directory and a process of its own with BLAS on one thread, and the result compared
-with the run's result.json byte for byte.
+the run directory and a process of its own, and the result compared with the run's
+result.json byte for byte.
 
 A run's numbers depend on its seed and files alone (README), so a result.json that a raw
 byte, an edit or another version of the analysis did not touch comes out the same to the
@@ -16,28 +16,12 @@ import shutil
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import bench
 from bench.core import rundir_layout as layout
 
-#: one thread for every BLAS a numpy may be built with: sums in one order
-ONE_THREAD = {k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-                               "BLIS_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")}
 EXIT_EQUAL, EXIT_DIFFERS, EXIT_REFUSED = 0, 1, 2
-
-
-@contextmanager
-def one_blas_thread() -> Iterator[None]:
-    """Every analysis on one BLAS thread: a threaded BLAS sums a dot product in blocks
-    whose number follows the machine's cores, so the last digits of a result would depend
-    on the machine (seen: floor_rel 0.0010030814599348667 on 2 threads, ...867 on 1)."""
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1, user_api="blas"):
-        yield
 
 
 def reanalyse(run_path: Path) -> tuple[int, list[str]]:
@@ -61,9 +45,12 @@ def reanalyse(run_path: Path) -> tuple[int, list[str]]:
         copy = Path(tmp) / run_path.name
         shutil.copytree(run_path, copy, ignore=shutil.ignore_patterns(
             layout.RESULT, "*.pdf", "*.html", "*.dcc.xml", layout.ISSUED))
+        # the run's own environment: its BLAS threads as `bench run` had them (a threaded
+        # BLAS sums in blocks that follow the thread count; forcing one thread in a run
+        # process changed the last digits by the order scipy's BLAS was loaded: not done)
         done = subprocess.run([sys.executable, "-m", "bench.app.reanalyse", str(copy)],
-                              capture_output=True, text=True,
-                              env={**os.environ, **ONE_THREAD}, timeout=3600)
+                              capture_output=True, text=True, env=dict(os.environ),
+                              timeout=3600)
         again = copy / layout.RESULT
         if done.returncode != 0 or not again.is_file():
             why = (done.stderr.strip().splitlines() or ["no result"])[-1]
@@ -71,7 +58,7 @@ def reanalyse(run_path: Path) -> tuple[int, list[str]]:
         old, new = stored.read_bytes(), again.read_bytes()
     if old == new:
         return EXIT_EQUAL, [f"{stored}: equal, byte for byte, to the raw captures analysed "
-                            f"again (ratebench {version}, BLAS on one thread; {len(new)} "
+                            f"again (ratebench {version}; {len(new)} "
                             f"bytes, SHA-256 {hashlib.sha256(new).hexdigest()})"]
     ulps = _last_digits_only(json.loads(old), json.loads(new))
     if ulps is not None:
@@ -125,16 +112,18 @@ def _first_differences(old: str, new: str, most: int = 6) -> list[str]:
 
 def _analyse_in_place(run_path: Path) -> None:
     """The child: the kind's analysis of the copy, result.json written as `bench run` does."""
-    from bench.app.commands import _load
+    from bench.core.config import ConfigError
     from bench.core.journal import RunDir
+    from bench.core.loader import load_config
     from bench.core.registry import procedure_kind
 
     run = RunDir(run_path)
-    cfg = _load(str(run.procedure_file), run.stand_file)
-    if cfg is None:
-        raise SystemExit(2)
-    with one_blas_thread():
-        run.write_json(layout.RESULT, procedure_kind(cfg.kind).analysis.analyze(run, cfg))
+    try:
+        cfg = load_config(str(run.procedure_file), run.stand_file)
+    except ConfigError as e:
+        raise SystemExit(f"the run's files do not load: {'; '.join(map(str, e.problems))}") \
+            from None
+    run.write_json(layout.RESULT, procedure_kind(cfg.kind).analysis.analyze(run, cfg))
 
 
 if __name__ == "__main__":

@@ -96,10 +96,7 @@ def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
 
 def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
                    records: RecordsTarget | None) -> tuple[JsonObject, Document | None]:
-    from bench.app.reanalyse import one_blas_thread
-
-    with one_blas_thread():     # the same numbers on any machine (bench verify --reanalyse)
-        analysed = procedure_kind(cfg.kind).analysis.analyze(run, cfg)
+    analysed = procedure_kind(cfg.kind).analysis.analyze(run, cfg)
     # read back: the certificate, the DCC and the records read what result.json holds
     # (as `bench dcc` and the station do), not the analysis's objects
     result = read_json_object(run.write_json(layout.RESULT, analysed))
