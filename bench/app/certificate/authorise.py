@@ -321,7 +321,7 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
         except RegisterError as e:
             return _refuse([str(e)], run_path)
         return _issue(run_path, result, result_bytes, stand, lab, reg, acct, who, number,
-                      previous, reason, line)
+                      previous, reason, line, uid)
 
 
 def issuer_lab(lab: Lab, held: Mapping[str, str]) -> Lab:
@@ -333,22 +333,6 @@ def issuer_lab(lab: Lab, held: Mapping[str, str]) -> Lab:
                    prefix=held.get("issuer.prefix") or lab.prefix)
 
 
-def uid_of(run_path: Path) -> str:
-    from bench.app.records.extract import run_uid
-
-    try:
-        meta = json.loads((run_path / layout.META).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        meta = {}
-    return run_uid(meta if isinstance(meta, dict) else {}, run_path.name)
-
-
-def bench_name(run_path: Path) -> str:
-    from bench.app.fleet.sync import bench_name as named
-
-    return named(run_path)
-
-
 def _ask(prompt: str) -> str:
     from bench.app.register.credentials import Passwords
 
@@ -358,10 +342,11 @@ def _ask(prompt: str) -> str:
 def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonObject,
            lab: Lab, reg: Register, acct: Account, who: Signatory, number: str,
            previous: tuple[register.Issue, ...], reason: str | None,
-           line: Callable[[str], None]) -> int:
+           line: Callable[[str], None], uid: str) -> int:
     """Render the issue, record it in the register (which may still refuse: a concurrent
     issue of the same revision), then move it into place."""
     from bench.app.dcc.output import write_dcc
+    from bench.app.fleet.sync import bench_name
     from bench.app.register import RegisterError, redact
 
     old = None
@@ -421,7 +406,7 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
     try:
         rev = reg.issue(number, revision, acct, _files_sha256(work), issue.reason,
                         {"run_dir": run_path.name, "signatory": acct.name,
-                         "run_uid": uid_of(run_path), "bench": bench_name(run_path)})
+                         "run_uid": uid, "bench": bench_name(run_path)})
     except RegisterError as e:
         _discard(work)
         return _refuse([f"the register refused the issue: {e}"], run_path)
