@@ -980,10 +980,16 @@ def _signatures(src: Sources, issue: Issue) -> tuple[Block, ...]:
     performed = Para(performer_line(src.meta), "note")
     if issue.draft:
         pairs.append(("Reviewed and authorised by", ""))
+        how_issued = ("A signatory of the lab register issues it (`bench authorise RUN_DIR "
+                      "--signatory ACCOUNT`, or the station view), authenticated by name and "
+                      "password." if src.meta.get("equipment_register") else
+                      # issue 54: no register, no issue
+                      "It can never be issued: no lab register was named when the run "
+                      "started, so no register holds the run's record from its start; an "
+                      "issue is made only from that record. Measure under the lab's "
+                      "register (register: URL in the lab file, docs/register.md).")
         return (Para("DRAFT, NOT AUTHORISED: this draft has not been authorised for issue "
-                     "and is not a certificate. A signatory of the lab register issues it "
-                     "(`bench authorise RUN_DIR --signatory ACCOUNT`, or the station view), "
-                     "authenticated by name and password.", "strong"), performed,
+                     f"and is not a certificate. {how_issued}", "strong"), performed,
                 Signatures(tuple(pairs)))
     who = ", ".join(x for x in (issue.signatory, issue.function) if x)
     meaning = issue.meaning or "authorised for issue"
