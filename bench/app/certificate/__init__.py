@@ -18,6 +18,7 @@ from typing import Protocol
 
 from bench.app.certificate import register
 from bench.app.certificate.build import ExtraSection, build_document, restated
+from bench.app.certificate.figures import NotAsDrawn, drawn_beside
 from bench.app.certificate.html import render_html
 from bench.app.certificate.pdf import render_pdf
 from bench.core import rundir_layout as layout
@@ -54,12 +55,29 @@ def render_files(result: Mapping[str, object], out_dir: str | Path, run_path: Pa
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    doc = build_document(result, run_path, issued, issue, extra_sections)
+
+    def build() -> Document:
+        return build_document(result, run_path, issued, issue, extra_sections)
+
+    with drawn_beside() as drawer:
+        if drawer is None:
+            doc = build()
+            pdf = render_pdf(doc)
+        else:    # the figures drawn by workers while the PDF's tables are laid out
+            with drawer.building():
+                doc = build()
+            try:
+                pdf = render_pdf(doc, drawer.png)
+                doc = drawer.resolved(doc)
+            except NotAsDrawn:  # a figure is a note or nothing: the blocks differ
+                with drawer.building(looking_up=True):
+                    doc = build()
+                pdf = render_pdf(doc)
     if documents is not None:
         documents.append(doc)
     html_path, pdf_path = out / HTML_NAME, out / PDF_NAME
     _write_atomic(html_path, render_html(doc).encode("utf-8"))
-    _write_atomic(pdf_path, render_pdf(doc))
+    _write_atomic(pdf_path, pdf)
     return [html_path, pdf_path]
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import struct
+from collections.abc import Callable
 from pathlib import Path
 
 import matplotlib
@@ -34,9 +35,10 @@ def _png_size(png: bytes) -> tuple[int, int]:
 
 
 class _Pdf(FPDF):
-    def __init__(self, doc: Document) -> None:
+    def __init__(self, doc: Document, png_of: Callable[[Figure], bytes]) -> None:
         super().__init__(orientation="P", unit="mm", format="A4")
         self.doc = doc
+        self.png_of = png_of
         self.add_font(SANS, "", FONT_DIR / "DejaVuSans.ttf")
         self.add_font(SANS, "B", FONT_DIR / "DejaVuSans-Bold.ttf")
         self.add_font(SANS, "I", FONT_DIR / "DejaVuSans-Oblique.ttf")
@@ -157,7 +159,8 @@ class _Pdf(FPDF):
         self.ln(2.5)
 
     def figure(self, fig: Figure, number: int) -> None:
-        w_px, h_px = _png_size(fig.png)
+        png = self.png_of(fig)
+        w_px, h_px = _png_size(png)
         w = self.text_w * fig.width_frac
         h = w * h_px / w_px
         room = self.h - self.b_margin - self.get_y()
@@ -170,7 +173,7 @@ class _Pdf(FPDF):
         if h + 9 > room:  # taller than a page: shrink to fit
             h = room - 9
             w = h * w_px / h_px
-        self.image(io.BytesIO(fig.png), x=self.l_margin + (self.text_w - w) / 2, w=w, h=h)
+        self.image(io.BytesIO(png), x=self.l_margin + (self.text_w - w) / 2, w=w, h=h)
         self.ln(1)
         self.set_font(SANS, "I", 8)
         self.multi_cell(0, 3.8, f"Figure {number}: {fig.caption}", align="C",
@@ -196,8 +199,14 @@ class _Pdf(FPDF):
         self.set_y(y + 12)
 
 
-def render_pdf(doc: Document) -> bytes:
-    pdf = _Pdf(doc)
+def _png(fig: Figure) -> bytes:
+    return fig.png
+
+
+def render_pdf(doc: Document, png_of: Callable[[Figure], bytes] = _png) -> bytes:
+    """The PDF of `doc`; `png_of(figure)` gives each figure's PNG as it is placed (the
+    figures drawn beside the tables: bench/app/certificate/figures.py)."""
+    pdf = _Pdf(doc, png_of)
     pdf.add_page()
     pdf.set_font(SANS, "B", 18)
     pdf.cell(0, 10, doc.title, new_x=XPos.LMARGIN, new_y=YPos.NEXT)

@@ -10,6 +10,7 @@ so that both print a value the same way. Nothing here names a procedure.
 
 from __future__ import annotations
 
+import contextvars
 import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -187,9 +188,27 @@ def verdict_label(verdict: object, rule: str | None = None, inside_tolerance: bo
     return v.upper() or "—"
 
 
+class FigureDrawer(Protocol):
+    """Draws a certificate's figures elsewhere while the certificate is built and laid out
+    (bench/app/certificate/figures.py: in worker processes, beside the PDF's tables)."""
+
+    def blocks(self, caption: str, draw: Callable[..., bytes | None], args: tuple[object, ...],
+               width_frac: float) -> list[Block] | None:
+        """What `figure_of` returns for this figure, or None: `figure_of` draws it here."""
+
+
+#: the drawer of the certificate being built, if it is not drawn figure by figure here
+FIGURE_DRAWER: contextvars.ContextVar[FigureDrawer | None] = contextvars.ContextVar(
+    "figure_drawer", default=None)
+
+
 def figure_of(caption: str, draw: Callable[..., bytes | None], *args: object,
               width_frac: float = 1.0) -> list[Block]:
-    """A plot as a figure block; data that cannot be drawn give a note, not a crash."""
+    """A plot as a figure block; data that cannot be drawn give a note, not a crash.
+    `draw(*args)` gives the PNG, here or, while a `FIGURE_DRAWER` is set, as it says."""
+    drawer = FIGURE_DRAWER.get()
+    if drawer is not None and (found := drawer.blocks(caption, draw, args, width_frac)) is not None:
+        return found
     try:
         png = draw(*args)
     except (ValueError, TypeError, KeyError, IndexError, ZeroDivisionError) as e:
