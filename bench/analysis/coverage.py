@@ -55,15 +55,32 @@ def welch_satterthwaite(terms: Iterable[tuple[float, float | None]],
     return uc2 * uc2 / denom
 
 
+def t_ppf(q: float, nu: float) -> float:
+    """Student's t quantile q at nu degrees of freedom: `scipy.stats.t.ppf(q, nu)` to the
+    last bit (that is `scipy.special.stdtrit(nu, q)`, times scale 1 plus loc 0), without
+    importing scipy.stats: ~0.6 s a process, paid at the end of every run, when the
+    result is written. tests/test_quantiles.py holds both to scipy.stats'."""
+    from scipy.special import stdtrit
+
+    return float(stdtrit(nu, q))
+
+
+def chi2_ppf(q: float, nu: float) -> float:
+    """The chi-square quantile q at nu degrees of freedom: `scipy.stats.chi2.ppf(q, nu)`
+    to the last bit (`2 * scipy.special.gammaincinv(nu / 2, q)`), without scipy.stats
+    (see `t_ppf`)."""
+    from scipy.special import gammaincinv
+
+    return float(2 * gammaincinv(nu / 2, q))
+
+
 def coverage_factor(nu_eff: float | None) -> float:
     """k = t_p(floor(nu_eff)), p = 95.45 %, rounded half-up to two decimals (EA-4/02 E.1,
     docs/method.md D1); 2.0 for infinite nu_eff."""
     if nu_eff is None or not math.isfinite(nu_eff) or nu_eff > DOF_INFINITE:
         return K_NORMAL
-    from scipy.stats import t
-
     nu = max(math.floor(nu_eff + 1e-9), 1)
-    k = float(t.ppf((1.0 + COVERAGE_P) / 2.0, nu))     # two-sided: the upper quantile
+    k = t_ppf((1.0 + COVERAGE_P) / 2.0, nu)     # two-sided: the upper quantile
     return float(Decimal(repr(k)).quantize(Decimal("0.01"), rounding=ROUND_HALF_UP))
 
 

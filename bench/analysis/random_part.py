@@ -43,7 +43,7 @@ import numpy as np
 
 from bench.analysis.allan import white_noise
 from bench.analysis.angle import FogCalibration
-from bench.analysis.coverage import coverage_factor
+from bench.analysis.coverage import chi2_ppf, coverage_factor
 from bench.analysis.sums import ROW_CONST, ROW_TAU, ROW_Y, residual_differences
 from bench.analysis.systematic import DirectionFit, bin_residuals, block_sums
 
@@ -235,10 +235,8 @@ def std_interval_u_rel(std: float | None, n: int, dof: float | None = None) -> f
         return None
     if nu > 1e4:
         return 2.0 * std / math.sqrt(2.0 * nu)
-    from scipy.stats import chi2
-
-    hi = std * math.sqrt(nu / float(chi2.ppf(0.025, nu)))
-    lo = std * math.sqrt(nu / float(chi2.ppf(0.975, nu)))
+    hi = std * math.sqrt(nu / chi2_ppf(0.025, nu))
+    lo = std * math.sqrt(nu / chi2_ppf(0.975, nu))
     return max(hi - std, std - lo)
 
 

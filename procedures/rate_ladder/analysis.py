@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from bench.analysis.allan import allan_deviation
+from bench.analysis.coverage import chi2_ppf
 from bench.analysis.disk import DiskArray
 from bench.analysis.pair import analyze_pair_mains
 from bench.analysis.random_part import std_interval_u_rel
@@ -296,18 +297,14 @@ def instability_upper(value: float, turns: int) -> float:
     sigma: the normal approximation 2 s / sqrt(2 (N - 1)) understates it badly."""
     if turns < 2:
         return math.inf
-    from scipy.stats import chi2
-
-    return value * math.sqrt((turns - 1) / float(chi2.ppf(1.0 - SIGMA_UPPER_P, turns - 1)))
+    return value * math.sqrt((turns - 1) / chi2_ppf(1.0 - SIGMA_UPPER_P, turns - 1))
 
 
 def instability_lower(value: float, turns: int) -> float:
     """The chi-square lower limit of eq. 2's sigma at 1 - SIGMA_UPPER_P (0 below 2 turns)."""
     if turns < 2:
         return 0.0
-    from scipy.stats import chi2
-
-    return value * math.sqrt((turns - 1) / float(chi2.ppf(SIGMA_UPPER_P, turns - 1)))
+    return value * math.sqrt((turns - 1) / chi2_ppf(SIGMA_UPPER_P, turns - 1))
 
 
 def with_sigma_terms(d: JsonObject) -> JsonObject:
