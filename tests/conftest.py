@@ -293,7 +293,8 @@ class ControlBaseline:
     (`check_procedure`, seeds 1 to `size`) made in order in one runs folder, `runs`, whose
     records hold each run's check values. Made once for the session and run by run as
     tests ask: `run(1)` makes the first alone. Never change its folder: `copy_to` copies
-    it. Its size is the baseline's: the records' `BASELINE_RUNS`, read where it is set."""
+    it. Its size is the pytest setting `control_baseline_runs` (pyproject.toml), at least
+    the records' `BASELINE_RUNS` for the tests that judge a run after the baseline."""
 
     folder: Path      # the stand and procedure files, the runs folder, the locks
     size: int
@@ -327,14 +328,40 @@ class ControlBaseline:
         return [dest / name for name in names]
 
 
-@pytest.fixture(scope="session")
-def control_baseline(tmp_path_factory: pytest.TempPathFactory) -> ControlBaseline:
-    """The control charts' baseline, shared by the session (see `ControlBaseline`)."""
-    from bench.app.records.control import BASELINE_RUNS
+#: the pytest setting (`[tool.pytest.ini_options]` in pyproject.toml, or `-o NAME=N`) that
+#: sets how many check runs `control_baseline` makes
+BASELINE_SETTING = "control_baseline_runs"
 
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addini(BASELINE_SETTING, "check runs in the session's control_baseline fixture "
+                  "(tests/conftest.py); the control charts' tests need at least the "
+                  "records' BASELINE_RUNS (default: that number)", default=None)
+
+
+def baseline_runs(config: pytest.Config) -> int:
+    """The setting's number of runs (the records' `BASELINE_RUNS` where it is not set)."""
+    value = config.getini(BASELINE_SETTING)
+    if value in (None, ""):
+        from bench.app.records.control import BASELINE_RUNS
+        return BASELINE_RUNS
+    try:
+        runs = int(str(value))
+    except ValueError:
+        runs = 0
+    if runs < 1:
+        raise pytest.UsageError(f"{BASELINE_SETTING} = {value!r}: a number of runs, 1 or more")
+    return runs
+
+
+@pytest.fixture(scope="session")
+def control_baseline(tmp_path_factory: pytest.TempPathFactory,
+                     pytestconfig: pytest.Config) -> ControlBaseline:
+    """The control charts' baseline, shared by the session (see `ControlBaseline`); its
+    size the setting `control_baseline_runs`."""
     folder = _shared_root(tmp_path_factory) / "control-baseline"
     folder.mkdir(exist_ok=True)
-    return ControlBaseline(folder, BASELINE_RUNS)
+    return ControlBaseline(folder, baseline_runs(pytestconfig))
 
 
 # -- twins -----------------------------------------------------------------------------------

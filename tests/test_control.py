@@ -1,9 +1,9 @@
 """Measurement assurance (issue 28): control charts of the bench's own instruments.
 
-The acceptance test reads nine short simulated runs of the two-axis twin (one axis, one
-rate, two turns): the eight of the session's `control_baseline` (tests/conftest.py, as
-many as the records' BASELINE_RUNS), with a stable FOG, copied with their records, then
-one of its own whose FOG scale is stepped by ten times the U of its k (the stand's
+The acceptance test reads short simulated runs of the two-axis twin (one axis, one
+rate, two turns): those of the session's `control_baseline` (tests/conftest.py; as many
+as the pytest setting control_baseline_runs, 8 in pyproject.toml, at least the records'
+BASELINE_RUNS), with a stable FOG, copied with their records, then one of its own whose FOG scale is stepped by ten times the U of its k (the stand's
 `sim.axes.outer.fog.scale_step`, the run number taken from the records). `bench control` must flag that FOG with the rule, the refusal function
 `bench authorise` will call must name the rule, a recorded review must lift the refusal,
 and the certificate must state the review. The rules themselves are checked on series
@@ -48,9 +48,6 @@ from tests.conftest import OUTER_SERIALS as OUTER
 from tests.registers import add_register, authorise, cli_in, password
 
 FOG = OUTER["fog"]
-#: the runs of the baseline (the session's `control_baseline`, the records' BASELINE_RUNS)
-STABLE_RUNS = BASELINE_RUNS
-
 
 @pytest.fixture(scope="module")
 def history(control_baseline: ControlBaseline,
@@ -58,7 +55,9 @@ def history(control_baseline: ControlBaseline,
     """The session's baseline runs copied (with their records) into a runs folder of this
     module's, then run 9 (one past the baseline): its FOG's scale stepped from that
     run of the records on."""
-    assert control_baseline.size == STABLE_RUNS
+    stable = control_baseline.size     # the pytest setting control_baseline_runs
+    assert stable >= BASELINE_RUNS, f"control_baseline_runs = {stable}: the charts judge a " \
+        f"run after a baseline of {BASELINE_RUNS} (bench/app/records/control.py)"
     folder = tmp_path_factory.mktemp("assurance")
     runs = folder / "runs"
     dirs = control_baseline.copy_to(runs)
@@ -67,9 +66,9 @@ def history(control_baseline: ControlBaseline,
     k_u = statistics.median(p["k_u"] for p in pairs)
     k = statistics.fmean(p["k"] for p in pairs)
     step_rel = 10 * k_u / k                       # k = scale cos(g): ten times U of k
-    shifted, out = check_run(check_procedure(folder, 100, (STABLE_RUNS + 1, step_rel)), runs)
+    shifted, out = check_run(check_procedure(folder, 100, (stable + 1, step_rel)), runs)
     return {"folder": folder, "runs": runs, "dirs": dirs, "shifted": shifted, "k_u": k_u,
-            "k": k, "step_rel": step_rel, "out9": out, "pairs": pairs}
+            "k": k, "step_rel": step_rel, "out9": out, "pairs": pairs, "stable": stable}
 
 
 def _html_text(run_dir: Path) -> str:
@@ -81,8 +80,10 @@ def _html_text(run_dir: Path) -> str:
 def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
         history: dict[str, Any], tmp_path: Path) -> None:
     runs, shifted = history["runs"], history["shifted"]
-    # the twin drifted in run 9 (its number from the records), by the step asked for
-    assert json.loads((shifted / "meta.json").read_text())["sim_run_number"] == STABLE_RUNS + 1
+    # the twin drifted in the run after the baseline (its number from the records), by the
+    # step asked for
+    run_number = json.loads((shifted / "meta.json").read_text())["sim_run_number"]
+    assert run_number == history["stable"] + 1
     assert "sim_run_number" not in json.loads((history["dirs"][0] / "meta.json").read_text())
     k9 = json.loads((shifted / "result.json").read_text())["axes"]["outer"]["pairs"][0]
     assert abs(k9["k"] - history["k"] * (1 + history["step_rel"])) < 3 * history["k_u"]
@@ -94,8 +95,8 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
                          rf"{OUTER[role]}[^.]*: not enough history \(1 of "
                          rf"{BASELINE_RUNS} runs", first), role
     # the last of the baseline: the FOG has its baseline and is in control
-    assert f"fog {FOG} (KVH DSP-1760): in control ({STABLE_RUNS} runs; baseline: the first " \
-           f"{STABLE_RUNS} runs" \
+    assert f"fog {FOG} (KVH DSP-1760): in control ({history['stable']} runs; baseline: the " \
+           f"first {BASELINE_RUNS} runs" \
         in _html_text(history["dirs"][-1])
 
     # bench control: every instrument with its status, the FOG flagged with the rule
@@ -109,7 +110,7 @@ def test_a_fog_scale_step_of_ten_u_is_flagged_refused_reviewed_and_certified(
     assert all("OUT OF CONTROL" not in ln for ln in counter_lines), counter_lines
     chart = cli("control", FOG, "--runs", str(runs))
     assert chart.returncode == 1
-    assert f"baseline: the first {STABLE_RUNS} runs" in chart.stdout and "WE1" in chart.stdout
+    assert f"baseline: the first {BASELINE_RUNS} runs" in chart.stdout and "WE1" in chart.stdout
     png = runs / f"control-{FOG}.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -260,7 +261,7 @@ def test_the_station_shows_the_status_and_the_charts_in_a_real_browser(
         ok = driver.execute_script(
             "const i = document.getElementById('control'); return i.complete && i.naturalWidth")
         assert ok, "the control chart image did not load"
-        assert f"baseline: the first {STABLE_RUNS} runs" in driver.find_element(
+        assert f"baseline: the first {BASELINE_RUNS} runs" in driver.find_element(
             By.TAG_NAME, "main").text
     finally:
         driver.quit()
