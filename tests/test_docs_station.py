@@ -3,9 +3,14 @@ every command line of that section is read from the document and run as written,
 the substitutions the document itself allows (its names are examples): `server` is this
 machine's PostgreSQL (127.0.0.1 and the port of a fresh cluster the test starts, every
 login by password, scram-sha-256), each `'...'` password a made-up one kept in `~/.pgpass`
-(mode 0600; HOME a temporary folder), and /etc/ratebench and /srv/runs temporary folders.
-Then the bench's `bench run procedure.yaml --lab lab.yaml` shows on the station's page, and
-`bench records sync` and `bench records check` agree with the run directory.
+(mode 0600; HOME a temporary folder), /etc/ratebench and /srv/runs temporary folders,
+/srv/benches/hall-1/runs the bench's own runs folder (the share the station reads), and
+the station's `--host server` 127.0.0.1 (its port a free one). The openssl line makes the
+station's self-signed certificate as written; the station serves over TLS with it.
+Then the bench's `bench run procedure.yaml --lab lab.yaml` shows on the station's page
+(read over HTTPS, the certificate verified as the desks' browsers would, for 127.0.0.1),
+its draft listed with its draft certificate and its page offering the Certificate
+section, and `bench records sync` and `bench records check` agree with the run directory.
 """
 
 from __future__ import annotations
@@ -16,9 +21,13 @@ import pty
 import re
 import secrets
 import select
+import shlex
+import shutil
+import ssl
 import subprocess
 import sys
 import time
+import urllib.error
 import urllib.request
 from pathlib import Path
 
@@ -120,7 +129,9 @@ def test_the_station_setup_of_docs_station_md_word_for_word(tmp_path: Path) -> N
 
     def sub(text: str) -> str:
         return (text.replace("@server/", f"@{server}/").replace("/etc/ratebench", str(etc))
-                .replace("/srv/runs", str(srv)))
+                .replace("/srv/runs", str(srv))
+                .replace("/srv/benches/hall-1/runs", str(etc / "runs"))
+                .replace("--host server", "--host 127.0.0.1"))
 
     def bench(line: str, cwd: Path = tmp_path, stdin: str = "", doc: bool = True
               ) -> subprocess.CompletedProcess[str]:
@@ -132,7 +143,7 @@ def test_the_station_setup_of_docs_station_md_word_for_word(tmp_path: Path) -> N
 
     try:
         blocks = _blocks(_section())
-        sql, records_init, register_init, service, lab, stand_block, serve = blocks
+        sql, records_init, register_init, service, lab, stand_block, openssl, serve = blocks
         # 1. roles and databases, as the cluster's superuser; each '...' a password of its own
         passwords: dict[str, str] = {}
         statements = []
@@ -181,15 +192,27 @@ def test_the_station_setup_of_docs_station_md_word_for_word(tmp_path: Path) -> N
             "turns": 2, "static_record_s": 5, "harmonics": 1, "prompts": False,
             "axes": {"outer": {"rates_dps": [20]}},
             "tolerance": {"rate_error": [{"rel": 1e-3}]}}))
-        # 7. the station
+        # 7. the station: its certificate and key as written, then over TLS with them
+        if shutil.which("openssl") is None:
+            unavailable("openssl is not installed (Debian package `openssl`)")
+        assert openssl.startswith("openssl req -x509 "), openssl
+        made = subprocess.run(shlex.split(sub(openssl)), cwd=tmp_path, text=True,
+                              capture_output=True, timeout=120, env=env)
+        assert made.returncode == 0, made.stdout + made.stderr
+        assert (etc / "station.key").stat().st_mode & 0o077 == 0     # its owner's only
+        (etc / "runs").mkdir()                 # the bench's runs folder, the station's share
+        assert "--tls-cert" in serve and "--host server" in serve
         args = sub(serve).split()
         station = subprocess.Popen([sys.executable, "-m", "bench", *args[1:], "--port", "0"],
                                    cwd=tmp_path, text=True, stdout=subprocess.PIPE,
-                                   stderr=subprocess.STDOUT, env=env)
+                                   stderr=subprocess.STDOUT,
+                                   env={**env, "BENCH_STATION_TOKEN": secrets.token_hex(8)})
         assert station.stdout is not None
-        started = re.search(r"http://127\.0\.0\.1:(\d+)/", station.stdout.readline())
-        assert started, "bench serve did not say where it listens"
-        page = f"http://127.0.0.1:{started.group(1)}"
+        first = station.stdout.readline()
+        started = re.search(r"https://127\.0\.0\.1:(\d+)/", first)
+        assert started, f"bench serve did not say where it listens: {first}"
+        page = f"https://127.0.0.1:{started.group(1)}"
+        tls = ssl.create_default_context(cafile=str(etc / "station.crt"))
         # then, on the bench: the sentence after the steps, as written
         then = re.search(r"Then `(bench run [^`]+)` on any bench", _section())
         assert then is not None and then.group(1) == "bench run procedure.yaml --lab lab.yaml"
@@ -198,10 +221,26 @@ def test_the_station_setup_of_docs_station_md_word_for_word(tmp_path: Path) -> N
         took_s = time.monotonic() - t0
         assert ran.returncode == 0, ran.stdout + ran.stderr
         run = etc / ran.stdout.strip().splitlines()[-1]
-        with urllib.request.urlopen(f"{page}/api/fleet", timeout=10) as resp:
+        with urllib.request.urlopen(f"{page}/api/fleet", timeout=10, context=tls) as resp:
             shown = json.loads(resp.read())
         assert [(b["bench"], b["run"], b["status"]) for b in shown] == [
             ("rate-table-hall-2", run.name, "passed")], shown
+        # its draft, listed with its draft certificate (the station reads that folder),
+        # and its page with the Certificate section
+        with urllib.request.urlopen(f"{page}/", timeout=30, context=tls) as resp:
+            lab_page = resp.read().decode()
+        row = re.search(r'<tr data-uid="(\w+)">.*?</tr>', lab_page, re.S)
+        assert row and run.name in row.group(0) and 'class="draft-pdf"' in row.group(0), \
+            lab_page
+        uid = row.group(1)
+        try:
+            with urllib.request.urlopen(f"{page}/bench/rate-table-hall-2/{uid}",
+                                        timeout=30, context=tls) as resp:
+                run_page = resp.read().decode()
+        except urllib.error.HTTPError as e:
+            _end(station)
+            pytest.fail(f"the run's page: {e}: {station.stdout.read()[-3000:]}")
+        assert "Draft, not authorised" in run_page and 'id="sign-login"' in run_page, run_page
         synced = bench("bench records sync", cwd=etc)
         assert synced.returncode == 0, synced.stdout + synced.stderr
         assert "0 new event(s)" in synced.stdout, synced.stdout

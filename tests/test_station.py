@@ -251,8 +251,9 @@ CHROMIUM_OFFLINE = (
 )
 
 
-def _browser(found: tuple[str, str], height: int):  # noqa: ANN202
-    """Headless chromium through Debian's chromedriver, offline but for 127.0.0.1."""
+def _browser(found: tuple[str, str], height: int, extra: tuple[str, ...] = ()):  # noqa: ANN202
+    """Headless chromium through Debian's chromedriver, offline but for 127.0.0.1
+    (`extra`: more of chromium's switches)."""
     from selenium import webdriver
     from selenium.webdriver.chrome.options import Options
     from selenium.webdriver.chrome.service import Service
@@ -260,7 +261,7 @@ def _browser(found: tuple[str, str], height: int):  # noqa: ANN202
     opts = Options()
     opts.binary_location = found[0]
     for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-              f"--window-size=1280,{height}", *CHROMIUM_OFFLINE):
+              f"--window-size=1280,{height}", *CHROMIUM_OFFLINE, *extra):
         opts.add_argument(a)
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     return webdriver.Chrome(service=Service(found[1]), options=opts)

@@ -8,9 +8,10 @@ password to sign; the server refuses and audits anyone else). Nothing here can m
 table.
 
 Security, in this order: a request from another host than this one needs the operator's
-token; a stop request always needs it; the Host header must name this server (a web page
-elsewhere cannot reach it through DNS rebinding); only the download files of run
-directories directly inside the runs folder are served.
+token, but for one over TLS from the lab's password networks (settings.py); a stop
+request always needs it; the Host header must name this server (a web page elsewhere
+cannot reach it through DNS rebinding); only the download files of run directories
+directly inside the runs folders are served. Over TLS every cookie is Secure.
 """
 
 from __future__ import annotations
@@ -33,15 +34,17 @@ from flask import (
     request,
     send_from_directory,
     stream_with_context,
+    url_for,
 )
 
 import bench
 from bench.app.db import away_text, redact
 from bench.app.fleet.sync import is_lab_server
+from bench.app.station.drafts import Draft, find_run
 from bench.app.station.fleet import FleetView, Notifications, fleet_json
 from bench.app.station.live import DOWNLOADS, list_runs, live_state, pid_alive
 from bench.app.station.records import RecordsView, run_figures
-from bench.app.station.settings import StationSettings, is_loopback
+from bench.app.station.settings import StationSettings, in_networks, is_loopback
 from bench.app.station.signing import install as install_signing
 from bench.core import rundir_layout as layout
 
@@ -93,16 +96,20 @@ def create_app(settings: StationSettings,
                  or request.args.get("token") or "")
         return hmac.compare_digest(given.encode(), settings.token.encode())
 
-    allowed_hosts = {"127.0.0.1", "localhost", "[::1]", settings.host}
+    allowed_hosts = {"127.0.0.1", "localhost", "[::1]", settings.host,
+                     *(n.lower() for n in settings.server_names)}
     signing = install_signing(app, settings, run_dir)
 
     @app.before_request
     def guard() -> Response | None:
         host = request.host.rsplit(":", 1)[0] if not request.host.endswith("]") \
             else request.host
-        if host not in allowed_hosts:
-            abort(403, "unknown Host header")
-        if not is_loopback(request.remote_addr) and not has_token():
+        if host.lower() not in allowed_hosts:
+            abort(403, f"unknown Host header {host!r}: this station answers to "
+                       f"{', '.join(sorted(allowed_hosts))} (bench serve --server-name)")
+        if not is_loopback(request.remote_addr) and not has_token() and not (
+                signing.over_tls() and in_networks(signing.client(),
+                                                   settings.password_networks)):
             abort(403, "a token is needed from another host")
         return None
 
@@ -110,7 +117,8 @@ def create_app(settings: StationSettings,
     def remember_token(resp: Response) -> Response:
         # a token given once in the URL (?token=) is kept for the page's own requests
         if request.args.get("token") and has_token():
-            resp.set_cookie(TOKEN_COOKIE, settings.token, httponly=True, samesite="Strict")
+            resp.set_cookie(TOKEN_COOKIE, settings.token, httponly=True, samesite="Strict",
+                            secure=signing.over_tls())
         resp.headers["X-Content-Type-Options"] = "nosniff"
         resp.headers["Content-Security-Policy"] = "default-src 'self'; img-src 'self' data:"
         return resp
@@ -130,10 +138,53 @@ def create_app(settings: StationSettings,
                                                      fleet.instrument_serials())
         return render_template("lab.html.j2", fleet=fleet.benches(),
                                lab_url=redact(records.url), due=records.due_list(),
-                               drafts=records.drafts(),
-                               sim_drafts=records.drafts(simulated=True),
+                               drafts=drafts_shown(False), sim_drafts=drafts_shown(True),
                                instruments=instruments,
                                notes=notes, runs=list_runs(runs), version=bench.__version__)
+
+    def drafts_shown(simulated: bool) -> list[dict[str, object]] | None:
+        """Every bench's drafts for the lab page: each with its page, and its draft
+        certificate when one of the station's runs folders holds the run; a run the
+        register has issued meanwhile (the records not told yet) is left out."""
+        found = records.lab_drafts(simulated=simulated)
+        if found is None:
+            return None
+        issued = signing.issued_of([d.uid for d in found])
+        out: list[dict[str, object]] = []
+        for d in found:
+            if d.uid in issued:
+                continue
+            folder = find_run(settings.runs_folders, d.run_dir, d.uid)
+            page = (url_for("bench_run_page", bench_name=d.bench, uid=d.uid) if d.bench
+                    else None)
+            has_pdf = folder is not None and (folder / layout.CERTIFICATE_PDF).is_file()
+            out.append({"bench": d.bench, "serial": d.serial, "run": d.run_dir,
+                        "uid": d.uid, "verdict": d.verdict, "operator": d.operator,
+                        "date_utc": d.date_utc.strftime("%Y-%m-%d %H:%M")
+                        if d.date_utc else "-", "page": page,
+                        "pdf": url_for("bench_run_file", bench_name=d.bench, uid=d.uid,
+                                       filename=layout.CERTIFICATE_PDF)
+                        if has_pdf and d.bench else None,
+                        "where": _where(d, folder, settings)})
+        return out
+
+    def bench_folder(bench_name: str, uid: str) -> Path:
+        """The folder of the run `uid` a bench delivered, from the station's runs folders,
+        or 404 (the lab database's run directory name, checked by the uid in its
+        meta.json)."""
+        if fleet is None:
+            abort(404)
+        try:
+            found = fleet.run(bench_name, uid)
+        except Exception as e:  # noqa: BLE001 - the server away: say so
+            abort(503, away_text(fleet.url, e))
+        if found is None:
+            abort(404)
+        folder = find_run(settings.runs_folders, str(found["run"]), uid)
+        if folder is None:
+            abort(404, f"run {uid} of bench {bench_name} is in none of this station's runs "
+                       "folders (bench serve --runs, --other-runs)")
+        return folder
 
     @app.get("/bench/<bench_name>/<uid>")
     def bench_run_page(bench_name: str, uid: str) -> str | tuple[str, int]:
@@ -145,8 +196,37 @@ def create_app(settings: StationSettings,
             return render_template("away.html.j2", title=f"{bench_name}: run {uid}",
                                    text=away_text(fleet.url, e),
                                    version=bench.__version__), 503
-        return render_template("bench_run.html.j2", r=_found(found),
+        r = _found(found)
+        folder = find_run(settings.runs_folders, str(r["run"]), uid)
+        cert = None
+        if folder is not None:
+            page = url_for("bench_run_page", bench_name=bench_name, uid=uid)
+            cert = signing.panel(
+                folder, live_state(folder), page=page,
+                sign_url=url_for("bench_run_sign", bench_name=bench_name, uid=uid),
+                pdf_url=url_for("bench_run_file", bench_name=bench_name, uid=uid,
+                                filename=layout.CERTIFICATE_PDF))
+        return render_template("bench_run.html.j2", r=r, cert=cert,
+                               folder=str(folder) if folder else None,
+                               folders=[str(f) for f in settings.runs_folders],
                                version=bench.__version__)
+
+    @app.post("/bench/<bench_name>/<uid>/sign")
+    def bench_run_sign(bench_name: str, uid: str) -> tuple[str, int]:
+        """Another bench's draft signed here: the same sign request as a run of the
+        station's own folder (signing.py), on the folder the uid names."""
+        folder = bench_folder(bench_name, uid)
+        return signing.sign_page(
+            f"{bench_name}/{folder.name}", lambda _name: folder,
+            url_for("bench_run_page", bench_name=bench_name, uid=uid),
+            lambda f: url_for("bench_run_file", bench_name=bench_name, uid=uid, filename=f))
+
+    @app.get("/bench/<bench_name>/<uid>/files/<path:filename>")
+    def bench_run_file(bench_name: str, uid: str, filename: str) -> Response:
+        if filename not in DOWNLOADS:
+            abort(404)
+        return send_from_directory(bench_folder(bench_name, uid), filename,
+                                   as_attachment=filename.endswith(".xml"))
 
     @app.get("/api/fleet")
     def api_fleet() -> Response:
@@ -180,8 +260,12 @@ def create_app(settings: StationSettings,
     def run_page(name: str) -> str:
         p = run_dir(name)
         state = live_state(p)
-        return render_template("run.html.j2", run=p.name, state=state,
-                               cert=signing.panel(p, state), version=bench.__version__)
+        cert = signing.panel(p, state, page=url_for("run_page", name=p.name),
+                             sign_url=url_for("sign", name=p.name),
+                             pdf_url=url_for("files", name=p.name,
+                                             filename=layout.CERTIFICATE_PDF))
+        return render_template("run.html.j2", run=p.name, state=state, cert=cert,
+                               version=bench.__version__)
 
     @app.get("/api/runs")
     def api_runs() -> Response:
@@ -267,6 +351,15 @@ def create_app(settings: StationSettings,
         return Response(_found(records.trend_png(serial)), mimetype="image/png")
 
     return app
+
+
+def _where(d: Draft, folder: Path | None, settings: StationSettings) -> str:
+    """Where a draft's files are, in words, for the drafts list."""
+    if folder is not None:
+        return f"runs folder {folder.parent}"
+    at = f" ({d.run_path})" if d.run_path else ""
+    return (f"at its bench{at}: in none of this station's runs folders "
+            f"({', '.join(str(f) for f in settings.runs_folders)}; bench serve --other-runs)")
 
 
 def _found(value: T | None) -> T:

@@ -20,6 +20,7 @@ from bench.app.records.control_plot import control_png
 from bench.app.records.extract import figures_of, kind_name
 from bench.app.records.store import DueItem
 from bench.app.records.trend import trend_png
+from bench.app.station.drafts import Draft, drafts
 from bench.app.station.live import DOWNLOADS
 from bench.core import rundir_layout as layout
 from bench.core.registry import declared_figures
@@ -126,22 +127,17 @@ class RecordsView:
                  "due": _iso(d.due_date), "status": d.status,
                  "overdue": d.days_left is not None and d.days_left < 0} for d in items]
 
-    def drafts(self, limit: int = 50, simulated: bool = False
-               ) -> list[dict[str, JsonLike]] | None:
-        """Runs ended with a verdict and no certificate number yet, newest first (runs on
-        the twins apart, `simulated`); None when the records cannot be read now (the page
-        says it does not know, never "no draft")."""
+    def lab_drafts(self, limit: int = 50, simulated: bool = False) -> list[Draft] | None:
+        """Every bench's drafts (drafts.py), newest first; None when the records cannot be
+        read now (the page says it does not know, never "no draft")."""
         with self._open() as rec:
             if rec is None:
                 return [] if self._absent() else None
             try:
-                rows = rec.drafts(limit, simulated)
+                return drafts(rec.engine, limit, simulated)
             except Exception as e:  # noqa: BLE001 - the server away: the page says so
                 self.error = away_text(self.url, e)
                 return None
-        return [{"serial": serial, "run": run, "verdict": verdict,
-                 "date_utc": date.strftime("%Y-%m-%d %H:%M") if date else "-",
-                 "operator": operator} for serial, run, verdict, date, operator in rows]
 
     def lab_instruments(self, register_url: str | None, serials: list[str]
                         ) -> tuple[list[dict[str, JsonLike]], list[str]]:

@@ -17,9 +17,13 @@ session per login, and the e-signature that issues a run's draft.
   each sign request, so an account disabled since its login cannot sign. The form carries
   the digest of the result.json the page showed: a draft analysed again meanwhile is not
   signed unseen.
-- Passwords are asked only from this machine (the loopback address): the station speaks
-  plain HTTP, and a password sent to it from another host would cross the network in
-  clear.
+- Where a password is taken (settings.password_refusal): over TLS (`bench serve
+  --tls-cert/--tls-key`, issue 59) from the lab's password networks (default: this machine
+  only); over plain HTTP from this machine alone (the loopback address, a loopback Host,
+  nothing forwarded from elsewhere), since a password sent from another host would cross
+  the network in clear. Over TLS the session cookie is Secure.
+- A draft in another bench's runs folder that the station can read (`--other-runs`) is
+  signed the same way, from its bench's run page (app.py): the same `bench authorise`.
 - With no register configured the station stays read-only, as before, and says that
   signing needs a register.
 """
@@ -41,11 +45,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import urlsplit
 
-from flask import Flask, abort, redirect, render_template, request
+from flask import Flask, abort, redirect, render_template, request, url_for
 from werkzeug.wrappers import Response
 
 import bench
-from bench.app.station.settings import StationSettings, is_loopback
+from bench.app.station.settings import StationSettings, password_refusal
 from bench.core import rundir_layout as layout
 
 if TYPE_CHECKING:
@@ -61,9 +65,6 @@ SIGN_WAIT_S = 120.0           # how long a sign request waits for another to fin
 NO_REGISTER = ("Signing needs a lab register: start the station with `bench serve "
                "--register URL` or `--lab FILE` (a lab file whose register: key names it); "
                "see docs/register.md. Without one the station is read-only.")
-REMOTE_REFUSED = ("Passwords are entered only at the bench itself (http://127.0.0.1): this "
-                  "station speaks plain HTTP, which would carry a password across the "
-                  "network in clear.")
 
 
 def _now() -> float:
@@ -273,13 +274,48 @@ class Signing:
         the last address its X-Forwarded-For adds."""
         peer = request.remote_addr or ""
         forwarded = request.headers.get("X-Forwarded-For", "")
-        if self.settings.trusted_proxy and peer == self.settings.trusted_proxy and forwarded:
+        if self._from_proxy() and forwarded:
             return forwarded.split(",")[-1].strip()
         return peer
+
+    def _from_proxy(self) -> bool:
+        return bool(self.settings.trusted_proxy) and \
+            request.remote_addr == self.settings.trusted_proxy
+
+    def over_tls(self) -> bool:
+        """The request reached the station over TLS: its own (`--tls-cert`), or the
+        trusted proxy's, which says so in X-Forwarded-Proto (from no one else)."""
+        return request.scheme == "https" or (
+            self._from_proxy() and request.headers.get("X-Forwarded-Proto", "") == "https")
+
+    def password_refusal(self) -> str | None:
+        """Why this request may not carry a password (None: it may)."""
+        forwarded = [a.strip() for a in request.headers.get("X-Forwarded-For", "").split(",")]
+        forwarded += [part.split("=", 1)[1].strip().strip('"')
+                      for part in request.headers.get("Forwarded", "").replace(",", ";")
+                      .split(";") if part.strip().lower().startswith("for=")]
+        return password_refusal(self.settings, tls=self.over_tls(), client=self.client(),
+                                peer=request.remote_addr or "", host=request.host,
+                                forwarded=forwarded)
+
+    def set_session_cookie(self, resp: Response, value: str) -> None:
+        resp.set_cookie(SESSION_COOKIE, value, httponly=True, samesite="Strict", path="/",
+                        secure=self.over_tls())
 
     @property
     def enabled(self) -> bool:
         return self.settings.register_url is not None
+
+    def issued_of(self, uids: list[str]) -> set[str]:
+        """Those of the runs `uids` the register holds a certificate number for (none
+        known without a register, or while it cannot be read)."""
+        reg = self.register.get()
+        if reg is None or not uids:
+            return set()
+        try:
+            return {u for u in uids if reg.number_of_run(u)}
+        except Exception:  # noqa: BLE001 - the list stays the records' word; pages say why
+            return set()
 
     # -- the request's session ------------------------------------------------------------
 
@@ -304,19 +340,24 @@ class Signing:
 
     # -- the run page's certificate section -----------------------------------------------
 
-    def panel(self, run_path: Path, state: Mapping[str, object]) -> dict[str, object]:
-        """What the run's certificate section shows this request's account."""
+    def panel(self, run_path: Path, state: Mapping[str, object], *, page: str,
+              sign_url: str, pdf_url: str) -> dict[str, object]:
+        """What the run's certificate section shows this request's account: `page` is the
+        page's own path (back there after logging in), `sign_url` where the form posts and
+        `pdf_url` the draft certificate."""
         sess = self.session()
         result = run_path / layout.RESULT
         ended = bool(state.get("ended")) and state.get("status") != "refused"
         draft = sha256_of(result) if ended else None
+        refusal = self.password_refusal()
         out: dict[str, object] = {
             "enabled": self.enabled, "no_register": NO_REGISTER,
             "account": sess.account if sess else None,
-            "csrf": sess.csrf if sess else "", "local": _local(),
-            "remote_refused": REMOTE_REFUSED, "draft": draft,
+            "csrf": sess.csrf if sess else "", "local": refusal is None,
+            "remote_refused": refusal, "draft": draft,
             "status": None, "issued": [], "register_error": None,
             "has_pdf": (run_path / layout.CERTIFICATE_PDF).is_file(),
+            "page": page, "sign_url": sign_url, "pdf_url": pdf_url,
         }
         if not self.enabled:
             out["status"] = ("The station has no register to ask; the run's own record "
@@ -365,8 +406,8 @@ class Signing:
         elif not hmac.compare_digest((request.form.get("csrf") or "").encode(),
                                      sess.csrf.encode()):
             why = "the request did not carry this session's CSRF token"
-        elif not _local():
-            why = REMOTE_REFUSED
+        elif (refusal := self.password_refusal()) is not None:
+            why = refusal
         else:
             now = reg.account(sess.account.name)
             if now is None or not now.has("signatory"):
@@ -379,6 +420,19 @@ class Signing:
                            reasons=(why,)), sess
         assert sess is not None
         return self._issue(reg, sess, run_dir(name)), sess
+
+    def sign_page(self, name: str, run_dir: Callable[[str], Path], back: str,
+                  file_url: Callable[[str], str]) -> tuple[str, int]:
+        """The sign request for run `name` (`run_dir(name)` its folder), answered with the
+        page saying what came of it; `back` is the run's page, `file_url(name)` a file of
+        the run's."""
+        outcome, sess = self.sign(name, run_dir)
+        still = self.session() is not None
+        return render_template("signed.html.j2", run=name, outcome=outcome,
+                               version=bench.__version__, back=back,
+                               pdf_url=file_url(layout.CERTIFICATE_PDF),
+                               dcc_url=file_url(layout.CERTIFICATE_DCC),
+                               logged_out=sess is not None and not still), outcome.status
 
     def _issue(self, reg: Register, sess: Session, run_path: Path) -> Outcome:
         from bench.app.certificate.authorise import EXIT_ISSUED, authorise, register_of
@@ -450,10 +504,6 @@ def _shown_of(url: str | None) -> str:
     return redact(url) if url else "none"
 
 
-def _local() -> bool:
-    return is_loopback(request.remote_addr)
-
-
 def _same_origin() -> bool:
     """A POST's Origin (browsers send one) names this server; none given: not a browser's
     cross-site request (SameSite=Strict keeps the cookie from those anyway)."""
@@ -518,15 +568,13 @@ def install(app: Flask, settings: StationSettings, run_dir: Callable[[str], Path
                 "signing_enabled": signing.enabled,
                 "sees_audit": bool(sess and (sess.has("quality") or sess.has("admin")))}
 
-    def set_cookie(resp: Response, value: str) -> None:
-        resp.set_cookie(SESSION_COOKIE, value, httponly=True, samesite="Strict", path="/")
-
     def login_page(status: int = 200, error: str | None = None) -> tuple[str, int]:
+        refusal = signing.password_refusal()
         return render_template(
             "login.html.j2", version=bench.__version__, enabled=signing.enabled,
             no_register=NO_REGISTER, register=signing.register.shown(),
-            register_error=signing.register.error, local=_local(),
-            remote_refused=REMOTE_REFUSED, token=signing.sessions.login_token(),
+            register_error=signing.register.error, local=refusal is None,
+            remote_refused=refusal, token=signing.sessions.login_token(),
             next=_safe_next(request.values.get("next")), error=error), status
 
     @app.get("/login")
@@ -541,8 +589,8 @@ def install(app: Flask, settings: StationSettings, run_dir: Callable[[str], Path
 
         if not signing.enabled:
             return login_page(403, NO_REGISTER)
-        if not _local():
-            return login_page(403, REMOTE_REFUSED)
+        if (refusal := signing.password_refusal()) is not None:
+            return login_page(403, refusal)
         if not _same_origin() or not signing.sessions.login_token_ok(request.form.get("token")):
             return login_page(403, "The login form has expired or came from elsewhere: "
                                    "log in again from this page.")
@@ -567,7 +615,7 @@ def install(app: Flask, settings: StationSettings, run_dir: Callable[[str], Path
         cookie, _ = signing.sessions.start(acct)
         signing.audit(acct.name, "station login", acct.name, {"roles": list(acct.roles)})
         resp = redirect(_safe_next(request.form.get("next")), code=303)
-        set_cookie(resp, cookie)
+        signing.set_session_cookie(resp, cookie)
         return resp
 
     @app.post("/logout")
@@ -580,16 +628,14 @@ def install(app: Flask, settings: StationSettings, run_dir: Callable[[str], Path
         elif sess is not None:
             abort(403, "the logout request did not carry this session's token")
         resp = redirect("/", code=303)
-        resp.delete_cookie(SESSION_COOKIE, path="/", httponly=True, samesite="Strict")
+        resp.delete_cookie(SESSION_COOKIE, path="/", httponly=True, samesite="Strict",
+                           secure=signing.over_tls())
         return resp
 
     @app.post("/run/<name>/sign")
     def sign(name: str) -> tuple[str, int]:
-        outcome, sess = signing.sign(name, run_dir)
-        still = signing.session() is not None
-        return render_template("signed.html.j2", run=name, outcome=outcome,
-                               version=bench.__version__, logged_out=sess is not None
-                               and not still), outcome.status
+        return signing.sign_page(name, run_dir, url_for("run_page", name=name),
+                                 lambda f: url_for("files", name=name, filename=f))
 
     @app.get("/audit")
     def audit_page() -> tuple[str, int]:
