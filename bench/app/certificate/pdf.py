@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import io
 import struct
+from collections import defaultdict
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 from fpdf import FPDF, FontFace
 from fpdf.enums import TableCellFillMode, XPos, YPos
+from fpdf.fonts import TTFFont
 
 from bench.app.certificate.html import is_bad
 from bench.report.certificate.model import Document, Fields, Figure, Para, Signatures, Table
@@ -34,6 +37,51 @@ def _png_size(png: bytes) -> tuple[int, int]:
     return w, h
 
 
+class _Widths(defaultdict[int, float]):
+    """A font's character widths (fpdf's `cw`), with the sum of the last text measured."""
+
+    last_text = ""
+    last_sum: float = 0
+
+
+class _Font(TTFFont):
+    """A TTF font that measures a text from the last it measured, when that is the text
+    less its last character: fpdf's line breaking measures the line so far after each
+    character (a cell of n characters costs n^2 additions). The same additions in the
+    same order (fpdf's left-to-right sum), so the same widths to the last bit."""
+
+    __slots__ = ()
+
+    def get_text_width(self, text: str, font_size_pt: float,
+                       text_shaping_params: dict[str, Any] | None) -> tuple[int, float]:
+        cw = self.cw
+        if (text_shaping_params or self.is_symbol or not isinstance(cw, _Widths)
+                or len(text) < 2):
+            return super().get_text_width(text, font_size_pt, text_shaping_params)
+        if font_size_pt > self.biggest_size_pt:
+            self.biggest_size_pt = font_size_pt
+        if text.startswith(cw.last_text) and len(text) == len(cw.last_text) + 1:
+            total = cw.last_sum + cw[ord(text[-1])]
+        else:
+            total = sum(cw[ord(c)] for c in text)
+        cw.last_text, cw.last_sum = text, total
+        return len(text), total * font_size_pt * 0.001
+
+
+def _measure_from_the_last(font: object) -> None:
+    """`font` becomes a `_Font` if it is fpdf's TTFFont and measures a text as fpdf does."""
+    widths = getattr(font, "cw", None)
+    if type(font) is not TTFFont or not isinstance(widths, defaultdict):
+        return
+    probe, biggest = "Mean rate ± U, °/s", font.biggest_size_pt
+    expected = [font.get_text_width(probe[:n], 7.5, None) for n in range(len(probe) + 1)]
+    font.__class__ = _Font
+    font.cw = _Widths(widths.default_factory, widths)
+    if [font.get_text_width(probe[:n], 7.5, None) for n in range(len(probe) + 1)] != expected:
+        font.__class__, font.cw = TTFFont, widths   # another fpdf: measured as it does
+    font.biggest_size_pt = biggest
+
+
 class _Pdf(FPDF):
     def __init__(self, doc: Document, png_of: Callable[[Figure], bytes]) -> None:
         super().__init__(orientation="P", unit="mm", format="A4")
@@ -44,6 +92,8 @@ class _Pdf(FPDF):
         self.add_font(SANS, "I", FONT_DIR / "DejaVuSans-Oblique.ttf")
         self.add_font(MONO, "", FONT_DIR / "DejaVuSansMono.ttf")
         self.add_font(MONO, "B", FONT_DIR / "DejaVuSansMono-Bold.ttf")
+        for font in self.fonts.values():  # the same objects, measuring as _Font does
+            _measure_from_the_last(font)
         self.set_margins(15, 22, 15)
         self.set_auto_page_break(True, margin=18)
         self.set_title(f"{doc.title} {doc.cert_id}")
