@@ -352,8 +352,10 @@ def test_a_desk_signs_another_benchs_draft_over_https(hall2: tuple[Path, str],
 
         # plain HTTP: a station on 127.0.0.1 named station.lab.example refuses a password
         # sent under that Host, or forwarded for another machine, and takes this machine's
+        # (and, not reading hall-2's folder, it shows hall-2's run without signing it)
         plain, plain_base, _ = serve(["--runs", str(own), "--lab", str(lab.file),
-                                       "--server-name", "station.lab.example"], env)
+                                      "--records", records,
+                                      "--server-name", "station.lab.example"], env)
         port = int(plain_base.rsplit(":", 1)[1])
         for headers, why in (({"Host": "station.lab.example"}, "the Host header names "
                               "station.lab.example"),
@@ -368,6 +370,13 @@ def test_a_desk_signs_another_benchs_draft_over_https(hall2: tuple[Path, str],
             assert status == 403 and why in page, page
         status, page = _raw(port, "GET", "/login", {"Host": f"127.0.0.1:{port}"})
         assert status == 200 and 'id="login-form"' in page
+        here = {"Host": f"127.0.0.1:{port}"}
+        status, page = _raw(port, "GET", f"/bench/{HALL2}/{_run_uid(run)}", here)
+        assert status == 200 and "in none of this station's runs folders" in page, page
+        assert 'id="sign-form"' not in page and 'id="cert-status"' not in page
+        status, page = _raw(port, "POST", f"/bench/{HALL2}/{_run_uid(run)}/sign", {
+            **here, "Content-Type": "application/x-www-form-urlencoded"}, "password=x")
+        assert status == 404 and "none of this station" in page, page
     finally:
         if driver is not None:
             driver.quit()
