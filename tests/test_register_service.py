@@ -35,7 +35,7 @@ from bench.app.register import AuthError, Register, RegisterError
 from bench.app.register.client import ServiceRegister
 from bench.app.register.store import MEANING_ISSUE
 from tests.conftest import ROOT
-from tests.registers import ACCOUNTS, ISSUER, cli_in, password, sqlite_register
+from tests.registers import ACCOUNTS, ISSUER, cli_in, enrol, password, sqlite_register
 
 DIGESTS = {"result.json": "a" * 64, "certificate.pdf": "b" * 64,
            "certificate.dcc.xml": "c" * 64, "certificate.html": "d" * 64}
@@ -140,6 +140,12 @@ FORGERIES = (
     "INSERT INTO reg_certificates VALUES ('X-1', 99, 'run-x', 'now')",
     "INSERT INTO reg_equipment VALUES ('S', 'm', 'c', 'i', '2099-01-01', 'n', 'x')",
     "INSERT INTO reg_settings VALUES ('lockout_attempts', '1000')",
+    # issue 54: a run's record is the register's, written through the service only
+    "INSERT INTO reg_runs (uid, bench, version, simulated, inputs, items, registered_utc, "
+    "via, raw) VALUES ('forged', 'b', '0', false, '{}', '[]', '2020-01-01', 'x', '{}')",
+    "UPDATE reg_runs SET result = '{}', result_sha256 = 'x'",
+    "DELETE FROM reg_runs",
+    "INSERT INTO reg_run_events (uid, utc, kind, detail) VALUES ('x', 'now', 'start', '{}')",
 )
 
 
@@ -398,6 +404,7 @@ def test_the_station_signs_through_the_service_and_cannot_issue_itself(
     run = demo_run.copy_to(tmp_path / "runs")
     lab_yaml = tmp_path / "lab.yaml"
     lab_yaml.write_text(f"laboratory: Service Lab\nregister: {lab.url}\n")
+    enrol(run, lab.url)     # registered through the service, as at the run's start
     env = {k: v for k, v in os.environ.items() if k != "BENCH_LAB_SETTINGS"}
     proc = subprocess.Popen([sys.executable, "-m", "bench", "serve", "--runs",
                              str(run.parent), "--port", "0", "--token", "t0ken-for-stop",
@@ -523,6 +530,51 @@ def test_one_bench_role_cannot_write_another_benchs_rows(pg: Any) -> None:
         as2.dispose()
 
 
+# -- issue 54: the register holds each run from its start, through the service -----------
+
+def test_a_run_is_registered_through_the_service_and_issued_only_from_its_record(
+        lab: Lab, demo_run: Any, tmp_path: Path) -> None:
+    """The start gate registers the run through the service (no person's token: the entry
+    names the bench and its address); its result and raw digests are delivered; a raw
+    capture the register saw never changes; a run it never saw start is not issued."""
+    from bench.app.register.gate import start_gate
+
+    uid = uuid.uuid4().hex
+    gate = start_gate(lab.url, [], True, None, lambda prompt: "", run_uid=uid,
+                      bench="hall-1", inputs={"procedure.yaml": "1" * 64,
+                                              "stand.yaml": "2" * 64})
+    assert gate.refusal == []
+    with Register.open(lab.url, migrate=False) as reg:
+        rec = reg.run_record(uid)
+        assert rec is not None and rec.bench == "hall-1"
+        assert rec.via.endswith("at 127.0.0.1")       # who delivered it, as the service saw
+        assert rec.inputs == {"procedure.yaml": "1" * 64, "stand.yaml": "2" * 64}
+        rec = reg.deliver_result(uid, "session", b'{"verdict": "pass"}\n',
+                                 {"raw/s1/outer-fog.bin": "3" * 64})
+        assert rec.result_bytes == b'{"verdict": "pass"}\n'
+        with pytest.raises(RegisterError, match="raw capture raw/s1/outer-fog.bin changed"):
+            reg.deliver_result(uid, "analysis", b"{}", {"raw/s1/outer-fog.bin": "4" * 64})
+        with pytest.raises(RegisterError, match="is registered already"):
+            reg.register_run(uid, "hall-2", None, "0", True, {}, [])
+    with Register.open(lab.owner, migrate=False) as reg:
+        entries = [r for r in reg.audit_rows() if r["object"] == uid]
+        assert [r["action"] for r in entries] == ["run registered", "run session result"]
+        assert all('"via"' in str(r["detail"]) for r in entries)
+    # the session's demo run, made without a register: never issued through the service
+    assert demo_run.status == 0, demo_run.stderr[-3000:]
+    run = demo_run.copy_to(tmp_path / "runs")
+    meta = json.loads((run / "meta.json").read_text())      # a run of its own (other tests
+    meta["run_uid"] = uuid.uuid4().hex                      # of this register issue copies
+    (run / "meta.json").write_text(json.dumps(meta))        # of the demo run's uid)
+    lab_yaml = tmp_path / "lab.yaml"
+    lab_yaml.write_text(f"laboratory: Service Lab\nregister: {lab.url}\n")
+    done = cli_in(password("P. Petrov") + "\n", "authorise", str(run), "--signatory",
+                  "P. Petrov", "--lab", str(lab_yaml), "--password-stdin")
+    assert done.returncode == 2 and "holds no record of this run" in done.stderr, \
+        done.stderr
+    assert not (run / "issued").exists()
+
+
 # -- the DCC signing key lives with the service, never on the bench -------------------------
 
 def test_the_service_alone_signs_the_issued_dcc(lab: Lab, demo_run: Any,
@@ -544,6 +596,7 @@ def test_the_service_alone_signs_the_issued_dcc(lab: Lab, demo_run: Any,
                   env={"SERVICE_KEY_PASSWORD": "s3cret"}) as url:
         lab_yaml = tmp_path / "lab.yaml"        # the bench's lab file: no key in it
         lab_yaml.write_text(f"laboratory: Service Lab\nregister: {url}\n")
+        enrol(run, url)         # registered through the service, as at the run's start
         from bench.app.records.extract import run_uid
 
         with Register.open(lab.owner, migrate=False) as reg:    # the session's one demo run

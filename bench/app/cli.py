@@ -137,6 +137,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "records.sqlite beside the run)")
     ana.add_argument("--lab", metavar="FILE",
                      help="the lab file (default: the run's copy; one that differs refuses)")
+    ana.add_argument("--reason", metavar="TEXT",
+                     help="why the run is analysed again (the lab register records it with "
+                          "the new result)")
     _console_options(ana)
     dev = sub.add_parser("devices", help="open each instrument, print its identity")
     dev.add_argument("stand")

@@ -121,7 +121,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         from bench.app.records.extract import run_uid
 
         gate = _admitted("Not resumed", lambda: labfile.for_run(run.path, args.lab), cfg,
-                         args, run_uid(dict(run.meta), run.path.name))
+                         args, run_uid(dict(run.meta), run.path.name), run.next_session())
         if gate is None:
             return EXIT_INVALID
     else:
@@ -171,6 +171,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     status = run_session(cfg, run, sim=args.sim, yes=args.yes, resume=bool(args.resume),
                          progress=console, records=args.records,
                          performer=gate.performer if gate is not None else None)
+    from bench.app.register.runs import deliver
+
+    deliver(run.path, "session", err)   # the register holds what was measured (issue 54)
     print(run.path)
     return status
 
@@ -199,7 +202,8 @@ class Admitted:
 
 
 def _admitted(verb: str, lab_of: Callable[[], Path | None], cfg: Config,
-              args: argparse.Namespace, uid: str | None = None) -> Admitted | None:
+              args: argparse.Namespace, uid: str | None = None,
+              session: int | None = None) -> Admitted | None:
     """Before anything moves: the lab file by the one rule (bench/app/labfile.py), the
     records it names, and the register's word on the performer and the stand's items;
     None (each reason said after `verb`) when the session may not start."""
@@ -212,7 +216,7 @@ def _admitted(verb: str, lab_of: Callable[[], Path | None], cfg: Config,
     if refusal:
         err(f"{verb}: {refusal}")
         return None
-    gate = _start_gate(lab_file, cfg, bool(cfg.has_sim or args.sim), args, uid)
+    gate = _start_gate(lab_file, cfg, bool(cfg.has_sim or args.sim), args, uid, session)
     if gate.refusal:
         err(f"{verb}: the lab register refuses:")
         for line in gate.refusal:
@@ -239,13 +243,16 @@ def _records_refusal(lab_file: Path | None, records: str | None) -> str | None:
 
 
 def _start_gate(lab_file: Path | None, cfg: Config, simulated: bool,
-                args: argparse.Namespace, uid: str | None = None) -> StartGate:
-    """The lab register's word before anything moves (bench/app/register/gate.py)."""
+                args: argparse.Namespace, uid: str | None = None,
+                session: int | None = None) -> StartGate:
+    """The lab register's word before anything moves (bench/app/register/gate.py); it
+    records the run's start (or a resume's session) in the register (issue 54)."""
     import socket
 
     from bench.app.register import RegisterError
     from bench.app.register.credentials import Passwords
     from bench.app.register.gate import StartGate, start_gate
+    from bench.app.register.runs import input_digests
     from bench.core.lab import LabError, load_lab
     from bench.core.traceability import traced_items
 
@@ -255,7 +262,9 @@ def _start_gate(lab_file: Path | None, cfg: Config, simulated: bool,
             else None
         return start_gate(url, traced_items(cfg.stand_settings), simulated, args.operator,
                           pw.next if pw else _no_password, run_uid=uid,
-                          bench=cfg.stand_settings.bench_name or socket.gethostname())
+                          bench=cfg.stand_settings.bench_name or socket.gethostname(),
+                          inputs=input_digests(cfg.procedure_path, cfg.stand_path, lab_file),
+                          session=session)
     except (LabError, RegisterError) as e:
         return StartGate([str(e)], None, [], None)
 
@@ -287,6 +296,10 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     where = target(run.path.parent, args.records, console.warn, lab_file=lab_file)
     result, doc = write_outputs(run, cfg, console, where)
     register_run(run.path, where, console.warn, result)
+    from bench.app.register.runs import deliver
+
+    deliver(run.path, "analysis", console.warn,      # a new registered analysis of the uid
+            getattr(args, "reason", None) or "bench analyze")
     console.summary(summary_of(result, doc))
     print(run.path / layout.RESULT)
     if doc is None:

@@ -43,7 +43,14 @@ from bench.app.certificate import (
 )
 from bench.app.certificate.build import Sources, stand_of
 from bench.app.certificate.revisions import statement_changes
-from bench.app.register.store import MEANING_ISSUE, SIGNING_SETTING, Account, Register
+from bench.app.register.runs import folder_problems
+from bench.app.register.store import (
+    MEANING_ISSUE,
+    SIGNING_SETTING,
+    Account,
+    Register,
+    RunRecord,
+)
 from bench.core import rundir_layout as layout
 from bench.core.lab import Lab, LabError, Signatory, run_lab
 from bench.core.traceability import identity_problems, with_declared_serials
@@ -296,10 +303,23 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
                 "signatory")
             uid = run_uid(json.loads((run_path / layout.META).read_text(encoding="utf-8")),
                           run_path.name)
+            record = reg.run_record(uid)
             number = reg.number_of_run(uid)
             issued = reg.revisions(number) if number else []
         except (RegisterError, OSError, ValueError) as e:
             return _refuse([str(e)], run_path)
+        if record is None:      # issue 54: no register, no issue
+            return _refuse([f"the lab register {redact(url)} holds no record of this run "
+                            f"(uid {uid}): it was not registered when it started (no "
+                            "register was named, or another one), and a run the register "
+                            "did not see start is never issued; the draft stays a draft "
+                            "(measure again under the lab's register)"], run_path)
+        changed = folder_problems(record, run_path)
+        if changed:
+            return _refuse(["the run folder no longer matches the lab register's record of "
+                            "the run (what is issued is what was measured):", *changed],
+                           run_path)
+        result_bytes = record.result_bytes or result_bytes     # the register's, checked equal
         who = Signatory(acct.full_name, acct.function or "", True)
         previous = tuple(register.Issue(r.shown_number, r.revision, r.issued_utc,
                                         signatory=r.signatory_name) for r in issued)
@@ -321,7 +341,7 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
         except RegisterError as e:
             return _refuse([str(e)], run_path)
         return _issue(run_path, result, result_bytes, stand, lab, reg, acct, who, number,
-                      previous, reason, line, uid)
+                      previous, reason, line, record)
 
 
 def issuer_lab(lab: Lab, held: Mapping[str, str]) -> Lab:
@@ -342,7 +362,7 @@ def _ask(prompt: str) -> str:
 def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonObject,
            lab: Lab, reg: Register, acct: Account, who: Signatory, number: str,
            previous: tuple[register.Issue, ...], reason: str | None,
-           line: Callable[[str], None], uid: str) -> int:
+           line: Callable[[str], None], record: RunRecord) -> int:
     """Render the issue, record it in the register (which may still refuse: a concurrent
     issue of the same revision), then move it into place."""
     from bench.app.dcc.output import write_dcc
@@ -370,7 +390,9 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
         register=redact(reg.url), audit_seq=begun.audit_seq, audit_entry=begun.audit_digest,
         issuer=tuple((k, v) for k, v in (("laboratory", lab.name), ("address", lab.address),
                                          ("code", lab.code),
-                                         ("accreditation", lab.accreditation)) if v))
+                                         ("accreditation", lab.accreditation)) if v),
+        run_uid=record.uid, run_registered_utc=record.registered_utc)
+    uid = record.uid
     final = issue_dir(run_path, issue.number)
     if final.exists():
         return _refuse([f"{final} exists: an issued revision's files are never "

@@ -64,15 +64,22 @@ class Issue:
     #: the issuer's identity as the lab register holds it (issue 54): (certificate key,
     #: text) for laboratory, address, code, accreditation, printed instead of the files'
     issuer: tuple[tuple[str, str], ...] = ()
+    #: the run as the register holds it (issue 54): its uid and when the register first
+    #: saw it, at the run's start; the issue is made from that record
+    run_uid: str | None = None
+    run_registered_utc: str | None = None
 
     @property
     def receipt(self) -> str | None:
         """The sentence each issued document carries (`bench register audit --receipts`
-        finds it again)."""
+        finds it again), and the register's record of the run it was made from."""
         if self.audit_seq is None or not self.audit_entry:
             return None
+        held = (f". Issued from the lab register's record of run {self.run_uid}, which the "
+                f"register holds from the run's start ({self.run_registered_utc}): inputs, "
+                "raw captures and result as measured" if self.run_uid else "")
         return (f"Lab register audit trail entry {self.audit_seq}, SHA-256 "
-                f"{self.audit_entry}")
+                f"{self.audit_entry}{held}")
 
     @property
     def issue_date(self) -> str:
@@ -101,7 +108,8 @@ class Issue:
                    _text(d, "function"), _text(d, "reason"),
                    tuple(str(c) for c in changes) if isinstance(changes, list) else (),
                    _text(d, "meaning"), _text(d, "register"), _text(d, "audit_digest"),
-                   _int(d, "audit_seq"), _text(d, "audit_entry"), _pairs(d.get("issuer")))
+                   _int(d, "audit_seq"), _text(d, "audit_entry"), _pairs(d.get("issuer")),
+                   _text(d, "run_uid"), _text(d, "run_registered_utc"))
 
 
 def _pairs(value: JsonValue) -> tuple[tuple[str, str], ...]:

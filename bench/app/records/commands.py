@@ -393,6 +393,14 @@ def cmd_sync(args: argparse.Namespace) -> int:
             print(f"{d.run}: {d.events} new event(s)"
                   + (", result" if d.result else "")
                   + (f", records {d.registered}" if d.registered else ""))
+    from bench.app.register.runs import deliver
+
+    for p in urls:      # a session's end the lab register did not receive (link down)
+        rec = deliver(p, "session", _err, "delivered by bench records sync after the "
+                      "session's end", only_if_missing=True)
+        if rec is not None:
+            print(f"{p.name}: result delivered to the lab register (it first saw the run "
+                  f"at {rec.registered_utc})")
     shown = ", ".join(redact(u) for u in dict.fromkeys(urls.values())) or redact(where.url)
     print(f"lab database {shown}: {len(done)} run(s), "
           f"{sum(d.events for d in done)} new event(s), "

@@ -29,6 +29,8 @@ from bench.app.register.store import (
     Register,
     RegisterError,
     Revision,
+    RunEvent,
+    RunRecord,
 )
 
 TIMEOUT_S = 30.0
@@ -107,6 +109,26 @@ def _revision(d: Reply) -> Revision:
                     d.text("pdf_sha256"), d.text("dcc_sha256"), d.text("html_sha256"),
                     d.opt("withdrawn_utc"), d.opt("audit_digest"), d.opt("withdrawn_reason"),
                     d.opt("withdrawn_by"))
+
+
+def _object(v: object) -> dict[str, object]:
+    return {str(k): x for k, x in v.items()} if isinstance(v, dict) else {}
+
+
+def _run_record(d: Reply) -> RunRecord:
+    def strings(key: str) -> dict[str, str]:
+        v = d.get(key)
+        return {str(k): str(x) for k, x in v.items()} if isinstance(v, dict) else {}
+
+    def events() -> tuple[RunEvent, ...]:
+        return tuple(RunEvent(e.text("utc"), e.text("kind"), _object(e.get("detail")))
+                     for e in d.items_of("events"))
+
+    return RunRecord(d.text("uid"), d.text("bench"), d.opt("performer"), d.text("version"),
+                     bool(d.get("simulated")), strings("inputs"),
+                     tuple(dict(i) for i in d.items_of("items")), d.text("registered_utc"),
+                     d.text("via"), d.opt("result_sha256"), d.opt("result"),
+                     d.opt("result_utc"), strings("raw"), events())
 
 
 class ServiceRegister(Register):
@@ -314,6 +336,28 @@ class ServiceRegister(Register):
 
     def audit_rows(self) -> list[dict[str, object]]:
         return [dict(r) for r in _replies(self._call("audit_rows"))]
+
+    # -- runs (no person's token: the service records the bench it came through) ----------
+
+    def register_run(self, uid: str, bench: str, performer: str | None, version: str,
+                     simulated: bool, inputs: Mapping[str, str],
+                     items: Sequence[Mapping[str, object]]) -> RunRecord:
+        return _run_record(_reply(self._call(
+            "register_run", uid=uid, bench=bench, performer=performer, version=version,
+            simulated=simulated, inputs=dict(inputs), items=[dict(i) for i in items])))
+
+    def run_session(self, uid: str, session: int, performer: str | None) -> None:
+        self._call("run_session", uid=uid, session=session, performer=performer)
+
+    def deliver_result(self, uid: str, kind: str, result: bytes, raw: Mapping[str, str],
+                       reason: str | None = None) -> RunRecord:
+        return _run_record(_reply(self._call(
+            "deliver_result", uid=uid, kind=kind, raw=dict(raw), reason=reason,
+            result=base64.b64encode(result).decode("ascii"))))
+
+    def run_record(self, uid: str) -> RunRecord | None:
+        got = self._call("run_record", uid=uid)
+        return None if got is None else _run_record(_reply(got))
 
     def audit_check(self) -> chain.ChainReport:
         got = _reply(self._call("audit_check"))

@@ -11,7 +11,7 @@ without one, nobody is named: the certificate says "not recorded" and gives the 
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 from bench.app.register.store import (
@@ -130,13 +130,20 @@ class StartGate:
 def start_gate(register_url: str | None, items: Sequence[Traced], simulated: bool,
                operator: str | None, password: Callable[[str], str],
                on: dt.date | None = None, run_uid: str | None = None,
-               bench: str | None = None) -> StartGate:
-    """Authenticate the performer and check the stand's items, before anything moves."""
+               bench: str | None = None, inputs: Mapping[str, str] | None = None,
+               session: int | None = None) -> StartGate:
+    """Authenticate the performer and check the stand's items, before anything moves;
+    then the register records the run's start (`inputs`: the files' digests), or with
+    `session` a resume of a run it holds (issue 54)."""
     if register_url is None:
         refusal = ([f"--operator {operator}: the lab file names no register to "
                     "authenticate the performer with (register: URL); without --operator "
                     "the certificate says the performer was not recorded"]
                    if operator else [])
+        if not simulated:   # issue 54: no register, no issue; a real stand runs for one
+            refusal.append("a real stand runs only under the lab's register (register: URL "
+                           "in the lab file, --lab FILE): a run the register did not see "
+                           "start can never be issued (docs/register.md)")
         return StartGate(refusal, None, [], None)
     on = on or dt.datetime.now(dt.UTC).date()
     try:
@@ -144,12 +151,30 @@ def start_gate(register_url: str | None, items: Sequence[Traced], simulated: boo
             performer = (authenticate_performer(reg, operator, password, run_uid, bench)
                          if operator else None)
             statuses = equipment_statuses(reg, items, on)
+            problems = [s.problem for s in statuses if s.problem]
+            refusal = [*problems, "(ISO/IEC 17025 6.4.13: add the item to the inventory, or "
+                       "a quality account records a deviation for an overdue one: bench "
+                       "register equipment deviation SERIAL --reason TEXT --expires "
+                       "YYYY-MM-DD)"] if problems and not simulated else []
+            found = [s.to_dict() for s in statuses]
+            if not refusal and run_uid is not None:
+                _record_start(reg, run_uid, bench or "unnamed bench", performer, simulated,
+                              inputs, found, session)
     except RegisterError as e:
         return StartGate([str(e)], None, [], redact(register_url))
-    problems = [s.problem for s in statuses if s.problem]
-    refusal = [*problems, "(ISO/IEC 17025 6.4.13: add the item to the inventory, or a "
-               "quality account records a deviation for an overdue one: bench register "
-               "equipment deviation SERIAL --reason TEXT --expires YYYY-MM-DD)"] \
-        if problems and not simulated else []
-    return StartGate(refusal, performer, [s.to_dict() for s in statuses],
-                     redact(register_url))
+    return StartGate(refusal, performer, found, redact(register_url))
+
+
+def _record_start(reg: Register, uid: str, bench: str,
+                  performer: Mapping[str, object] | None, simulated: bool,
+                  inputs: Mapping[str, str] | None, found: list[dict[str, str | None]],
+                  session: int | None) -> None:
+    """The register's record of the run from its start: a new run (its inputs' digests),
+    or a resume's session of a run it holds (a run it never saw start stays unheld)."""
+    from bench.app.register.runs import register_start
+
+    if session is None:
+        register_start(reg, uid, bench, performer, simulated, inputs or {}, found)
+    elif reg.run_record(uid) is not None:
+        account = performer.get("account") if performer else None
+        reg.run_session(uid, session, str(account) if account else None)

@@ -115,7 +115,7 @@ SERVICE_WRITES = ("reg_accounts", "reg_logins", "reg_equipment", "reg_deviations
                   "reg_settings", "reg_calibrations")
 READ_TABLES = ("reg_equipment", "reg_calibrations", "reg_deviations", "reg_settings",
                "reg_certificates", "reg_revisions", "reg_audit", "reg_audit_head",
-               "register_alembic_version")
+               "reg_runs", "reg_run_events", "register_alembic_version")
 
 #: what `bench register init --X-role ROLE` grants (docs/register.md, trust model)
 ROLE_KINDS = ("service", "bench", "station")
@@ -150,6 +150,9 @@ def service_grants(role: str) -> list[str]:
         # withdrawing marks a revision; nothing else of it changes (issue 55)
         f"GRANT UPDATE (withdrawn_utc, withdrawn_reason, withdrawn_by) ON reg_revisions "
         f"TO {q}",
+        # a run's record is added and completed, never deleted (issue 54)
+        f"GRANT INSERT, UPDATE ON reg_runs TO {q}",
+        f"GRANT INSERT ON reg_run_events TO {q}",
         f"GRANT USAGE ON ALL SEQUENCES IN SCHEMA public TO {q}",
         *(f"GRANT EXECUTE ON FUNCTION {f} TO {q}" for f in FUNCTION_SIGNATURES),
     ]
@@ -183,6 +186,31 @@ BEGIN
     EXECUTE format('GRANT SELECT (name, full_name, roles, function, active, created_utc, '
                    'created_by, must_change, password_changed_utc) ON reg_accounts TO %I',
                    g.grantee);
+  END LOOP;
+END $$;
+"""
+
+
+def grants_like_inventory(readers: str, writers: str) -> str:
+    """A migration's grants on new tables to the roles an earlier register made: those
+    that read the inventory run `readers`, the one that writes it (the service) runs
+    `writers`; each a semicolon-separated list of GRANT ... TO %I statements."""
+    def each(sqls: str) -> str:
+        return "\n".join(f"      EXECUTE format('{q.strip()}', g.grantee);"
+                         for q in sqls.split(";") if q.strip())
+
+    return f"""
+DO $$
+DECLARE g record;
+BEGIN
+  FOR g IN SELECT DISTINCT grantee, privilege_type FROM information_schema.role_table_grants
+            WHERE table_name = 'reg_equipment' AND grantee <> current_user
+              AND privilege_type IN ('SELECT', 'INSERT') LOOP
+    IF g.privilege_type = 'SELECT' THEN
+{each(readers)}
+    ELSE
+{each(writers)}
+    END IF;
   END LOOP;
 END $$;
 """

@@ -142,3 +142,34 @@ audit_head = sa.Table(
     sa.Column("seq", sa.Integer, nullable=False),
     sa.Column("digest", sa.String(64), nullable=False),
 )
+
+#: each run the register knows, from its start (issue 54): what was measured, by whom, on
+#: which items and with which inputs; the result and the raw captures' digests as the
+#: bench delivered them at each session's end or analysis (migration g0004)
+runs = sa.Table(
+    "reg_runs", metadata,
+    sa.Column("uid", sa.String(64), primary_key=True),
+    sa.Column("bench", sa.String(200), nullable=False),
+    sa.Column("performer", sa.String(120)),          # the account authenticated; None: none
+    sa.Column("version", sa.String(60), nullable=False),     # ratebench's, at the start
+    sa.Column("simulated", sa.Boolean, nullable=False),
+    sa.Column("inputs", sa.Text, nullable=False),    # JSON {file: SHA-256} as used
+    sa.Column("items", sa.Text, nullable=False),     # JSON: each stand item's status
+    sa.Column("registered_utc", sa.String(40), nullable=False),  # the register's clock
+    sa.Column("via", sa.String(200), nullable=False),
+    sa.Column("result_sha256", sa.String(64)),       # None: no result delivered yet
+    sa.Column("result", sa.Text),                    # result.json's bytes (UTF-8)
+    sa.Column("result_utc", sa.String(40)),
+    sa.Column("raw", sa.Text, nullable=False),       # JSON {raw capture: SHA-256}
+)
+
+#: a run's sessions (a resume) and analyses (`bench analyze`), each with the result's
+#: digest it delivered and its reason
+run_events = sa.Table(
+    "reg_run_events", metadata,
+    sa.Column("id", sa.Integer, primary_key=True),
+    sa.Column("uid", sa.String(64), sa.ForeignKey("reg_runs.uid"), nullable=False),
+    sa.Column("utc", sa.String(40), nullable=False),
+    sa.Column("kind", sa.String(20), nullable=False),      # start | session | analysis
+    sa.Column("detail", sa.Text, nullable=False),          # JSON
+)

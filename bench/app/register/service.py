@@ -217,6 +217,35 @@ def create_app(reg: Register, tokens: Tokens | None = None,
             date(b, "due"), maybe_date(b, "calibrated_on"), maybe_text(b, "found"),
             number(b, "found_error"), number(b, "found_error_u")))
 
+    def strings(b: Mapping[str, object], key: str) -> dict[str, str]:
+        v = b.get(key)
+        if not isinstance(v, dict):
+            raise RegisterError(f"{key}: an object expected")
+        return {str(k): str(x) for k, x in v.items()}
+
+    def register_run(b: Mapping[str, object]) -> JsonValue:
+        """A bench registers its run at the start; no person signs this (a run without
+        --operator has none): the entry records the bench and its address (via)."""
+        items = b.get("items")
+        return jsonable(reg.register_run(
+            text(b, "uid"), text(b, "bench"), maybe_text(b, "performer"),
+            text(b, "version"), bool(b.get("simulated")), strings(b, "inputs"),
+            [dict(i) for i in items if isinstance(i, dict)] if isinstance(items, list)
+            else []))
+
+    def deliver_result(b: Mapping[str, object]) -> JsonValue:
+        import base64
+
+        return jsonable(reg.deliver_result(
+            text(b, "uid"), text(b, "kind"), base64.b64decode(text(b, "result")),
+            strings(b, "raw"), maybe_text(b, "reason")))
+
+    def run_session(b: Mapping[str, object]) -> JsonValue:
+        session = b.get("session")
+        reg.run_session(text(b, "uid"), session if isinstance(session, int) else 0,
+                        maybe_text(b, "performer"))
+        return None
+
     ops: dict[str, Callable[[Mapping[str, object]], JsonValue]] = {
         "authenticate": login,
         "logout": lambda b: tok.end(b.get("token")),
@@ -258,6 +287,10 @@ def create_app(reg: Register, tokens: Tokens | None = None,
         "audit_rows": lambda b: jsonable(reg.audit_rows()),
         "audit_check": lambda b: jsonable(reg.audit_check()),
         "sign_dcc": sign_dcc,
+        "register_run": register_run,
+        "run_session": run_session,
+        "deliver_result": deliver_result,
+        "run_record": lambda b: jsonable(reg.run_record(text(b, "uid"))),
     }
 
     @app.get("/v1/info")

@@ -17,7 +17,7 @@ import os
 import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, TypedDict
 
@@ -275,6 +275,40 @@ class Revision:
     def digests(self) -> dict[str, str]:
         return {layout.RESULT: self.result_sha256, layout.CERTIFICATE_PDF: self.pdf_sha256,
                 layout.CERTIFICATE_DCC: self.dcc_sha256, layout.CERTIFICATE_HTML: self.html_sha256}
+
+
+@dataclass(frozen=True)
+class RunEvent:
+    """A session (a resume) or an analysis of a registered run, as the register saw it."""
+
+    utc: str
+    kind: str                       # start | session | analysis
+    detail: dict[str, object]
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """A run as the register holds it from its start (issue 54): the issue is made from
+    this, and refused when the run's folder no longer matches it (runs.py)."""
+
+    uid: str
+    bench: str
+    performer: str | None           # the account authenticated at the start (None: none)
+    version: str                    # ratebench's version at the start
+    simulated: bool
+    inputs: dict[str, str]          # procedure.yaml, stand.yaml, lab.yaml: SHA-256 as used
+    items: tuple[dict[str, object], ...]    # each stand item's status at the start
+    registered_utc: str             # the register's clock
+    via: str                        # the bench (and address) that registered it
+    result_sha256: str | None = None
+    result: str | None = None       # result.json as delivered (UTF-8 text)
+    result_utc: str | None = None
+    raw: dict[str, str] = field(default_factory=dict)   # raw capture: SHA-256
+    events: tuple[RunEvent, ...] = ()
+
+    @property
+    def result_bytes(self) -> bytes | None:
+        return None if self.result is None else self.result.encode("utf-8")
 
 
 def _account(r: RowMapping) -> Account:
@@ -852,6 +886,100 @@ class Register:
                 rv.pdf_sha256 == sha256, rv.dcc_sha256 == sha256, rv.html_sha256 == sha256,
                 rv.result_sha256 == sha256))).first()
         return None if r is None else _revision(r._mapping)
+
+    # -- runs, from their start (issue 54) -------------------------------------------------
+
+    def register_run(self, uid: str, bench: str, performer: str | None, version: str,
+                     simulated: bool, inputs: Mapping[str, str],
+                     items: Sequence[Mapping[str, object]]) -> RunRecord:
+        """A run at its start, before anything moves: its uid (never a folder name), the
+        bench, the authenticated performer, the version, the inputs' digests and the
+        stand's items. A uid is registered once; a resume is `run_session`."""
+        via = ACTING_VIA.get() or f"bench {bench}"
+        utc = _now_utc()
+        with self._tx() as conn:
+            if conn.execute(sa.select(s.runs.c.uid).where(s.runs.c.uid == uid)).first():
+                raise RegisterError(f"run {uid} is registered already (a resume registers a "
+                                    "session of it)")
+            conn.execute(s.runs.insert().values(
+                uid=uid, bench=bench, performer=performer, version=version,
+                simulated=simulated, inputs=json.dumps(dict(inputs), sort_keys=True),
+                items=json.dumps([dict(i) for i in items], sort_keys=True),
+                registered_utc=utc, via=via, raw="{}"))
+            conn.execute(s.run_events.insert().values(uid=uid, utc=utc, kind="start",
+                                                      detail=json.dumps({"via": via})))
+            self._append(conn, performer or f"bench {bench}", "run registered", uid,
+                         {"bench": bench, "performer": performer, "version": version,
+                          "simulated": simulated, "inputs": dict(inputs)})
+        return self._run_record(uid)
+
+    def run_session(self, uid: str, session: int, performer: str | None) -> None:
+        """A resume of a registered run: one more session of the same uid."""
+        with self._tx() as conn:
+            self._known_run(conn, uid)
+            detail = {"session": session, "performer": performer,
+                      "via": ACTING_VIA.get() or "this bench"}
+            conn.execute(s.run_events.insert().values(uid=uid, utc=_now_utc(), kind="session",
+                                                      detail=json.dumps(detail)))
+            self._append(conn, performer or "bench", "run session", uid, detail)
+
+    def deliver_result(self, uid: str, kind: str, result: bytes, raw: Mapping[str, str],
+                       reason: str | None = None) -> RunRecord:
+        """A session's end or an analysis: result.json's bytes and each raw capture's
+        digest. A raw capture the register has seen never changes (refused, named)."""
+        import hashlib
+
+        if kind not in ("session", "analysis"):
+            raise RegisterError(f"a run's result comes from a session or an analysis, not "
+                                f"{kind!r}")
+        digest = hashlib.sha256(result).hexdigest()
+        try:
+            text = result.decode("utf-8")
+        except UnicodeDecodeError:
+            raise RegisterError("result.json is not UTF-8 text") from None
+        utc = _now_utc()
+        with self._tx() as conn:
+            row = self._known_run(conn, uid)
+            seen: dict[str, str] = json.loads(row.raw)
+            changed = sorted(k for k, v in raw.items() if k in seen and seen[k] != v)
+            gone = sorted(k for k in seen if k not in raw)
+            if changed or gone:
+                raise RegisterError(f"run {uid}: " + "; ".join(
+                    [f"raw capture {k} changed since the register saw it" for k in changed]
+                    + [f"raw capture {k} is missing (the register saw it)" for k in gone]))
+            conn.execute(s.runs.update().where(s.runs.c.uid == uid).values(
+                result_sha256=digest, result=text, result_utc=utc,
+                raw=json.dumps({**seen, **raw}, sort_keys=True)))
+            detail = {"result_sha256": digest, "raw_captures": len(raw),
+                      "reason": reason, "via": ACTING_VIA.get() or "this bench"}
+            conn.execute(s.run_events.insert().values(uid=uid, utc=utc, kind=kind,
+                                                      detail=json.dumps(detail)))
+            self._append(conn, f"bench {row.bench}", f"run {kind} result", uid, detail)
+        return self._run_record(uid)
+
+    def run_record(self, uid: str) -> RunRecord | None:
+        with self.engine.connect() as c:
+            r = c.execute(sa.select(s.runs).where(s.runs.c.uid == uid)).first()
+            if r is None:
+                return None
+            events = tuple(RunEvent(e.utc, e.kind, json.loads(e.detail)) for e in c.execute(
+                sa.select(s.run_events).where(s.run_events.c.uid == uid)
+                .order_by(s.run_events.c.id)))
+        return RunRecord(r.uid, r.bench, r.performer, r.version, bool(r.simulated),
+                         json.loads(r.inputs), tuple(json.loads(r.items)), r.registered_utc,
+                         r.via, r.result_sha256, r.result, r.result_utc, json.loads(r.raw),
+                         events)
+
+    def _run_record(self, uid: str) -> RunRecord:
+        rec = self.run_record(uid)
+        assert rec is not None, uid     # written in this register a moment ago
+        return rec
+
+    def _known_run(self, conn: Connection, uid: str) -> sa.Row[tuple[object, ...]]:
+        row = conn.execute(sa.select(s.runs).where(s.runs.c.uid == uid)).first()
+        if row is None:
+            raise RegisterError(f"run {uid} was not registered at its start")
+        return row
 
     #: a register reached over the network (client.ServiceRegister), not a database here
     remote = False

@@ -11,6 +11,8 @@ from __future__ import annotations
 import sqlalchemy as sa
 from alembic import op
 
+from bench.app.register import pgsql
+
 revision = "g0003"
 down_revision = "g0002"
 branch_labels = None
@@ -62,24 +64,11 @@ def upgrade() -> None:
                    "added_utc, added_by FROM reg_equipment WHERE certificate IS NOT NULL")
     if bind.dialect.name == "postgresql":
         # the roles that read the inventory read its history; the service writes it
-        op.execute(r"""
-DO $$
-DECLARE g record;
-BEGIN
-  FOR g IN SELECT DISTINCT grantee, privilege_type FROM information_schema.role_table_grants
-            WHERE table_name = 'reg_equipment' AND grantee <> current_user
-              AND privilege_type IN ('SELECT', 'INSERT') LOOP
-    IF g.privilege_type = 'SELECT' THEN
-      EXECUTE format('GRANT SELECT ON reg_calibrations TO %I', g.grantee);
-    ELSE
-      EXECUTE format('GRANT INSERT ON reg_calibrations TO %I', g.grantee);
-      EXECUTE format('GRANT UPDATE (withdrawn_utc, withdrawn_reason, withdrawn_by) '
-                     'ON reg_revisions TO %I', g.grantee);
-      EXECUTE format('GRANT USAGE ON ALL SEQUENCES IN SCHEMA public TO %I', g.grantee);
-    END IF;
-  END LOOP;
-END $$;
-""")
+        op.execute(pgsql.grants_like_inventory(
+            "GRANT SELECT ON reg_calibrations TO %I",
+            "GRANT INSERT ON reg_calibrations TO %I; GRANT UPDATE (withdrawn_utc, "
+            "withdrawn_reason, withdrawn_by) ON reg_revisions TO %I; "
+            "GRANT USAGE ON ALL SEQUENCES IN SCHEMA public TO %I"))
 
 
 def downgrade() -> None:
