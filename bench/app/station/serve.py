@@ -225,8 +225,9 @@ def _tls_server(app: Flask, host: str, port: int, cert: Path, key: Path) -> wsgi
     from cheroot import wsgi
     from cheroot.ssl.builtin import BuiltinSSLAdapter
 
+    # at stop, an open live page's stream is cut after 1 s (the pages only read)
     server = wsgi.Server((host, port), app, numthreads=THREADS,
-                         server_name="ratebench-station")
+                         server_name="ratebench-station", shutdown_timeout=1)
     adapter = BuiltinSSLAdapter(str(cert), str(key))
     adapter.context = ssl_context(cert, key)
     server.ssl_adapter = adapter
