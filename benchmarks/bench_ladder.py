@@ -110,6 +110,20 @@ FOG twins' encoding 11.1; 15.5 s of real time waiting for participants), both FO
 CAN 9.4. The stand still computes the idle axis's samples (at rest) for its drive and
 counter twins: part of the 42.5 s.
 
+29 Nov 2026 (issue 62; this VM shared, load 5-14 throughout: walls not comparable with
+the above). `--profile --axes outer` (141.5 s with cProfile, load ~8), CPU s by thread:
+bench thread 48.7 (the stand's samples 16.5; the FOG twin's encoding 13.8, half of it the
+IMU side channels and their draws; the drive twins' ticks 3.9; the journal 0.9; the
+result 6.9, of which 4.8 importing scipy.stats and 1.0 the averaged figures' Monte Carlo,
+run four times each; the certificate ~13), FOG reader 20.6, analysis worker 14.8, FOG
+twin writer 7.0, CAN 3.5; the clock waited 45.1 s of real time for the reader to drain.
+The quantiles from scipy.special (no scipy.stats in the bench or the worker) and that
+Monte Carlo run once: the whole paper ladder's result.json and raw captures unchanged
+(digests of both equal, two runs each), peak RSS of the tree 284 MB against 320 MB, CPU
+170.6 against 188.0 core-s (medians of 2 interleaved, 0.91x), wall 227 against 236 s
+(load 8-14). Tried and dropped: the acquisition's clock sleeps a whole turn instead of a
+quarter (fewer drains of the FOG channel) changed result.json and the raw captures.
+
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
 the FOG twins' encoding, the drive twins' ticks: split by cProfile), the FOG twins'
