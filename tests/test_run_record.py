@@ -163,6 +163,10 @@ def test_a_run_under_a_register_is_recorded_from_its_start(tmp_path: Path) -> No
         assert [e.kind for e in rec.events] == ["start", "session", "analysis"]
         assert rec.events[-1].detail["reason"] == "re-analysed for the test"
         assert rec.result_bytes == (made / layout.RESULT).read_bytes()
+    verified = cli("verify", str(made), "--reanalyse")
+    assert verified.returncode == 0, verified.stdout + verified.stderr
+    assert "the lab register's record of the run" in verified.stdout
+    assert "equal, byte for byte" in verified.stdout.splitlines()[-1], verified.stdout
     issued = authorise(made, "P. Petrov", labf, enrolled=False)
     assert issued.returncode == 0, issued.stderr
     number = next((made / layout.ISSUED).iterdir())

@@ -56,6 +56,44 @@ def reanalyse(run_path: Path) -> tuple[int, list[str]]:
             why = (done.stderr.strip().splitlines() or ["no result"])[-1]
             return EXIT_DIFFERS, [f"{run_path}: the raw captures do not analyse again: {why}"]
         old, new = stored.read_bytes(), again.read_bytes()
+    held = _registered(run_path)
+    if held is not None and held[0] is not None and held[0] != new:
+        return EXIT_DIFFERS, [f"{run_path}: the lab register's record of the run ({held[1]}) "
+                              "DIFFERS from the raw captures analysed again:",
+                              *_first_differences(held[0].decode(errors="replace"),
+                                                  new.decode(errors="replace"))]
+    if held is not None and held[0] is not None:
+        note = [f"the lab register's record of the run ({held[1]}): equal, byte for byte"]
+    elif held is not None:
+        note = [f"the lab register {held[1]}: no registered result to compare with"]
+    else:
+        note = []
+    status, lines = _compare(stored, old, new, version)
+    return status, [*lines, *note]
+
+
+def _registered(run_path: Path) -> tuple[bytes | None, str] | None:
+    """The result the run's register holds (None: the run names no register, or it cannot
+    be asked: said by the caller's other lines)."""
+    from bench.app.register.runs import register_url_of, run_uid_of
+    from bench.app.register.store import Register, RegisterError, redact
+
+    url = register_url_of(run_path)
+    if url is None:
+        return None
+    try:
+        with Register.open(url, migrate=False) as reg:
+            rec = reg.run_record(run_uid_of(run_path))
+    except RegisterError as e:
+        return None if "no such file" in str(e) else (None, f"{redact(url)}: {e}")
+    if rec is None:
+        return (None, f"{redact(url)}, which never saw this run start")
+    return rec.result_bytes, f"{redact(url)}, result SHA-256 {rec.result_sha256}"
+
+
+def _compare(stored: Path, old: bytes, new: bytes, version: str) -> tuple[int, list[str]]:
+    import json
+
     if old == new:
         return EXIT_EQUAL, [f"{stored}: equal, byte for byte, to the raw captures analysed "
                             f"again (ratebench {version}; {len(new)} "
