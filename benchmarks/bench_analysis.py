@@ -8,6 +8,14 @@ core (BLAS limited to one thread) and reports samples/s and the analysis's peak 
 allocations) against the record's size (the FOG times and rates it is handed).
 Goal: >= 30 M samples/s, peak <= 3x the record; and (issue 62) >= 0.9x the minimal numpy
 pass over the same samples, timed in the same run (`numpy_pass`).
+Measured 29 Nov 2026 (this 2-core VM, load 5-8): the analysis 2.05-2.35 s (15-18 M/s),
+the numpy pass 0.66-0.71 s (51-55 M/s): 0.30-0.32x. By cProfile: the Gram products 0.70 s
+(OpenBLAS dsyrk of 13 rows x 65536 a chunk, 1.2 ms each, 582 chunks), the harmonic rows
+0.61 s, the bias integral 0.13, the running sums 0.13, the mains rows 0.11, the windows'
+integrals 0.13. The Gram products alone take as long as the whole numpy pass, and their
+last bits (the chunk, BLAS's kernel) are result.json's: 0.9x needs the rest in < 0.09 s,
+or a change of the numbers' last digits. Tried, the same numbers, no gain measured: the
+pointwise rows in cache-sized blocks of 8192; one read of a chunk on disk instead of two.
 """
 
 from __future__ import annotations
