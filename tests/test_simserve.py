@@ -256,6 +256,22 @@ def test_a_real_stand_pointing_at_bench_sim(sim: SimProcess, tmp_path: Path) -> 
     assert "format kvh-a" in rows["fog"]
 
 
+def _register_holding(tmp_path: Path, serial: str) -> Path:
+    """A lab file naming an SQLite register whose inventory holds the counter `serial`
+    in date (issue 54: a real stand starts only under the lab's register)."""
+    import datetime as dt
+
+    from bench.app.register import Register
+    from tests.registers import lab_file, password, sqlite_register
+
+    url = sqlite_register(tmp_path / "register")
+    with Register.open(url, migrate=False) as reg:
+        quality = reg.authenticate("Q. Manager", password("Q. Manager"), "quality")
+        reg.add_equipment(quality, serial, "Keysight 53230A", "C-2026-1234", "Cal Lab",
+                          dt.date.today() + dt.timedelta(days=200))
+    return lab_file(tmp_path / "lab", url)
+
+
 def test_a_real_stand_naming_another_counter_is_refused_before_anything_moves(
         sim: SimProcess, tmp_path: Path) -> None:
     """Issue 41: the stand states counter MY59001234, *IDN? answers MY62000117 (a swapped
@@ -266,9 +282,10 @@ def test_a_real_stand_naming_another_counter_is_refused_before_anything_moves(
     proc.write_text(f"procedure: rate-ladder\ntitle: swapped counter\nstand: {stand}\n"
                     "turns: 2\nstatic_record_s: 2\nprompts: false\nmains_hz: 50\n"
                     "axes:\n  table:\n    rates_dps: [50]\n")
+    lab = _register_holding(tmp_path, "MY59001234")    # a real stand runs under a register
     out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--out",
-                          str(tmp_path / "runs")], cwd=ROOT, capture_output=True, text=True,
-                         timeout=120)
+                          str(tmp_path / "runs"), "--lab", str(lab)], cwd=ROOT,
+                         capture_output=True, text=True, timeout=120)
     assert out.returncode == 2, out.stdout + out.stderr
     assert ("axes.table.counter.serial: the stand file states serial MY59001234, the "
             "instrument reports MY62000117 (*IDN?)") in out.stderr, out.stderr
