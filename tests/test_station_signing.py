@@ -80,11 +80,9 @@ def _lab(tmp: Path) -> Lab:
 def enrol_in_register(run: Path, url: str) -> None:
     """The register's record of a copy of the session's demo run (made without a
     register), as `bench run` under the register makes it at the start and end (issue 54:
-    tests/registers.py `enrol`); a tree from before issue 54 keeps no record."""
-    try:
-        from tests.registers import enrol
-    except ImportError:
-        return
+    no register, no issue; tests/registers.py `enrol`)."""
+    from tests.registers import enrol
+
     enrol(run, url)
 
 
