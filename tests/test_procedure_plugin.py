@@ -18,6 +18,7 @@ from bench.app.cli import main
 from bench.app.dcc.settings import ENV_LAB
 from bench.app.dcc.validate import validate_dcc
 from bench.core import registry
+from tests.registers import lab_file, sqlite_register
 
 NS = {"dcc": "https://ptb.de/dcc", "si": "https://ptb.de/si"}
 DWELL_S = 1.0
@@ -44,7 +45,9 @@ def _run(tmp_path: Path) -> tuple[int, Path]:
                     f"dwell_s: {DWELL_S}\ntolerance_s: 0.5\nprompts: false\n"
                     "conditions: {temperature_c: '20 +/- 1'}\n")
     out = tmp_path / "runs"
-    rc = main(["run", str(proc), "--yes", "--out", str(out)])
+    # a real stand (no `sim:` block) runs only under the lab's register (issue 54)
+    lab = lab_file(tmp_path / "lab", sqlite_register(tmp_path / "register"))
+    rc = main(["run", str(proc), "--yes", "--out", str(out), "--lab", str(lab)])
     runs = [p for p in out.iterdir() if p.is_dir()]
     assert len(runs) == 1, runs
     return rc, runs[0]
