@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import CONFIGS, ROOT
+from tests.registers import lab_file, sqlite_register
 
 NO_DRIVE_STAND = """\
 stand: {maker: Test, model: T1, serial: "S-1"}
@@ -50,9 +51,11 @@ def test_a_set_up_failure_exits_3_names_its_cause_and_prints_the_run_directory_l
         tmp_path: Path) -> None:
     (tmp_path / "stand.yaml").write_text(NO_DRIVE_STAND)
     (tmp_path / "p.yaml").write_text(ONE_RATE)
+    # a real stand runs only under the lab's register (issue 54)
+    lab = lab_file(tmp_path / "lab", sqlite_register(tmp_path / "register"))
     out = subprocess.run([sys.executable, "-m", "bench", "run", str(tmp_path / "p.yaml"),
-                          "--yes", "--out", str(tmp_path / "runs")], cwd=ROOT, text=True,
-                         capture_output=True, timeout=120)
+                          "--yes", "--out", str(tmp_path / "runs"), "--lab", str(lab)],
+                         cwd=ROOT, text=True, capture_output=True, timeout=120)
     assert out.returncode == 3, out.stdout + out.stderr
     assert "Traceback" not in out.stderr, out.stderr
     # the first line the operator reads is the cause, naming the axis and the drive
