@@ -170,6 +170,6 @@ run_events = sa.Table(
     sa.Column("id", sa.Integer, primary_key=True),
     sa.Column("uid", sa.String(64), sa.ForeignKey("reg_runs.uid"), nullable=False),
     sa.Column("utc", sa.String(40), nullable=False),
-    sa.Column("kind", sa.String(20), nullable=False),      # start | session | analysis
+    sa.Column("kind", sa.String(20), nullable=False),  # start|resume|session|analysis
     sa.Column("detail", sa.Text, nullable=False),          # JSON
 )

@@ -282,7 +282,7 @@ class RunEvent:
     """A session (a resume) or an analysis of a registered run, as the register saw it."""
 
     utc: str
-    kind: str                       # start | session | analysis
+    kind: str                       # start | resume | session (its result) | analysis
     detail: dict[str, object]
 
 
@@ -919,9 +919,9 @@ class Register:
             self._known_run(conn, uid)
             detail = {"session": session, "performer": performer,
                       "via": ACTING_VIA.get() or "this bench"}
-            conn.execute(s.run_events.insert().values(uid=uid, utc=_now_utc(), kind="session",
+            conn.execute(s.run_events.insert().values(uid=uid, utc=_now_utc(), kind="resume",
                                                       detail=json.dumps(detail)))
-            self._append(conn, performer or "bench", "run session", uid, detail)
+            self._append(conn, performer or "bench", "run resumed", uid, detail)
 
     def deliver_result(self, uid: str, kind: str, result: bytes, raw: Mapping[str, str],
                        reason: str | None = None) -> RunRecord:
@@ -969,6 +969,30 @@ class Register:
                          json.loads(r.inputs), tuple(json.loads(r.items)), r.registered_utc,
                          r.via, r.result_sha256, r.result, r.result_utc, json.loads(r.raw),
                          events)
+
+    def runs_using(self, serial: str) -> list[RunRecord]:
+        """Every run whose record of its start names the item `serial` among the stand's
+        items (issue 58: what a finding on the item touches), oldest first."""
+        with self.engine.connect() as c:
+            rows = c.execute(sa.select(s.runs).order_by(s.runs.c.registered_utc,
+                                                        s.runs.c.uid)).all()
+        uids = [r.uid for r in rows
+                if any(isinstance(i, dict) and i.get("serial") == serial
+                       for i in json.loads(r.items))]
+        return [self._run_record(u) for u in uids]
+
+    def impact_assessed(self, by: Account, serial: str,
+                        detail: Mapping[str, object]) -> str:
+        """The audit entry of an impact assessment (issue 58; ISO/IEC 17025 7.10,
+        nonconforming work): the item, the finding, the runs and certificates it touched.
+        A quality account's act; returns the entry's digest."""
+        if not by.has("quality"):
+            raise AuthError(f"{by.name} does not hold the quality role: only quality "
+                            "records an impact assessment")
+        if not next(iter(self.equipment(serial)), None):
+            raise RegisterError(f"equipment {serial!r} is not in the inventory")
+        with self._tx() as conn:
+            return self._append(conn, by.name, "impact assessed", serial, dict(detail))
 
     def _run_record(self, uid: str) -> RunRecord:
         rec = self.run_record(uid)
