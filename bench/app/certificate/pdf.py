@@ -12,7 +12,6 @@ import struct
 from collections import defaultdict
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import matplotlib
 from fpdf import FPDF, FontFace
@@ -53,7 +52,7 @@ class _Font(TTFFont):
     __slots__ = ()
 
     def get_text_width(self, text: str, font_size_pt: float,
-                       text_shaping_params: dict[str, Any] | None) -> tuple[int, float]:
+                       text_shaping_params: dict[str, object] | None) -> tuple[int, float]:
         cw = self.cw
         if (text_shaping_params or self.is_symbol or not isinstance(cw, _Widths)
                 or len(text) < 2):
