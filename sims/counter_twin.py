@@ -181,7 +181,7 @@ class CounterTwin(ScpiServer):
                  signal_low_v: float = 0.0, signal_high_v: float = 5.0,
                  sync: SyncLink | None = None, timeout_s: float | None = None,
                  seed: int = 0, external_reference: bool = True,
-                 first_value: str = "from-start") -> None:
+                 first_value: str = "from-start", timebase_offset_rel: float = 0.0) -> None:
         self.profile: CounterProfile = get_profile(model)
         super().__init__(idn=self.profile.idn, host=host, port=port)
         if self.profile.maker.startswith("Keysight"):  # `+0,"No error"` (Prog. Ref.)
@@ -207,6 +207,9 @@ class CounterTwin(ScpiServer):
         #: the manual's *RST value of the auto selection is not modelled; the CNT-91 starts
         #: the same way, its power-on selection not being known to us)
         self.reference = "EXT" if external_reference else "INT"
+        #: the time base's true offset e (issue 58): every interval the counter times from
+        #: its start event reads (1 + e) times the true one; 0, the stand's time exactly
+        self.timebase_offset_rel = float(timebase_offset_rel)
         self.rng = np.random.default_rng(seed)
         #: SYST:TIM, non-volatile: not touched by *RST (None: disabled, as shipped)
         self.timeout_s: float | None = timeout_s
@@ -391,7 +394,7 @@ class CounterTwin(ScpiServer):
 
     def _values(self, acq: TwinAcquisition, chosen: np.ndarray) -> np.ndarray:
         """The readings the chosen edges make, as the instrument resolves them."""
-        edges = self.profile.quantise(chosen)
+        edges = self.profile.quantise(self._counter_time(acq, chosen))
         if acq.kind == "timestamps":
             if acq.edge_to_edge:
                 if edges.size:
@@ -404,6 +407,15 @@ class CounterTwin(ScpiServer):
         values = edges[1:2 * pairs:2] - edges[0:2 * pairs:2]
         return 1.0 / values if acq.invert else values
 
+    def _counter_time(self, acq: TwinAcquisition, t_s: np.ndarray) -> np.ndarray:
+        """Stand times as this counter's time base reads them: every interval from the
+        start event scaled by 1 + e (docs/method.md A1, the timebase; issue 58). With
+        e = 0 the times are returned untouched, to the bit."""
+        if self.timebase_offset_rel == 0.0:
+            return t_s
+        t0 = acq.t_start_s if math.isfinite(acq.t_start_s) else 0.0
+        return t0 + (np.asarray(t_s, dtype=float) - t0) * (1.0 + self.timebase_offset_rel)
+
     def _totals(self, acq: TwinAcquisition, n: int) -> np.ndarray:
         """Totalize, timed (53220A/53230A CONFigure:TOTalize:TIMed): the edges counted in
         each of n gates, back to back from the start event (gate dead time not
@@ -415,7 +427,7 @@ class CounterTwin(ScpiServer):
         """Gated readings from the edges so far: each from an edge to the first edge at
         least the gate time later (a reciprocal counter's measurement, CNT-90 series
         Programmer's Handbook, :ACQuisition:APERture), frequency = turns / time."""
-        e = self.profile.quantise(acq.edges_s)
+        e = self.profile.quantise(self._counter_time(acq, acq.edges_s))
         out: list[float] = []
         i = 0
         while len(out) < acq.n and i < e.size:

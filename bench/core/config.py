@@ -339,6 +339,10 @@ SIM_AXIS = Map({
     "fog": Key(SIM_FOG, False, "the FOG's truth: k = scale cos(misalignment), w0 = bias"),
     "counter_external_reference": Key(Bool(), False, "a valid 10 MHz is wired to the "
                                       "counter's Ext Ref In (default true)"),
+    "counter": Key(Map({"timebase_offset_rel": Key(
+        Num(), False, "the counter's true time-base offset e, unknown to the lab: every "
+        "period the twin times is scaled by 1 + e (default 0; issue 58)")}), False,
+        "the counter twin's own errors"),
     "counter_first_value": Key(Str(("from-start", "edge-to-edge")), False,
                                "how the 53230A twin reads its first timestamp value: from "
                                "the trigger (default) or edge to edge (the Programmer's "
@@ -585,6 +589,8 @@ class SimAxis:
     scale_ramp: tuple[int, float] | None = None      # (from_run, rel_per_run)
     counter_external_reference: bool = True
     counter_first_value: str = "from-start"
+    #: the counter's true time-base offset e: every period it times is x (1 + e)
+    counter_timebase_offset_rel: float = 0.0
     tie_latency_s: float | None = None      # None: exactly the latency the stand declares
     tie_jitter_s: float = 0.0
     counter_serial: str | None = None
@@ -686,6 +692,9 @@ def _sim_axis(d: dict[str, Any]) -> SimAxis:
         extra["counter_first_value"] = str(d["counter_first_value"])
     if "jitter_s" in tie:
         extra["tie_jitter_s"] = float(tie["jitter_s"])
+    counter = d.get("counter") or {}
+    if "timebase_offset_rel" in counter:
+        extra["counter_timebase_offset_rel"] = float(counter["timebase_offset_rel"])
     return SimAxis(
         AxisTruth(**truth), fog_units=_opt(fog, "units", str),
         scale_step=(int(step["from_run"]), float(step["rel"])) if step else None,

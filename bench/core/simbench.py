@@ -197,7 +197,8 @@ class SimBench:
                     ct = CounterTwin(self.stand, a, model=c.model, sync=sync_link(c, truth),
                                      seed=session_seed(self.sim),
                                      external_reference=truth.counter_external_reference,
-                                     first_value=truth.counter_first_value)
+                                     first_value=truth.counter_first_value,
+                                     timebase_offset_rel=truth.counter_timebase_offset_rel)
                     if truth.counter_serial:    # the stand's serial in *IDN? field 3
                         idn = ct.idn.split(",")
                         ct.idn = ",".join([*idn[:2], truth.counter_serial, *idn[3:]])
