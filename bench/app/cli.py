@@ -160,6 +160,24 @@ def build_parser() -> argparse.ArgumentParser:
                          "(bench/method.md, the project's docs/method.md), which every "
                          "certificate cites by its SHA-256.")
     met.add_argument("--path", action="store_true", help="print where the file is instead")
+    imp = sub.add_parser(
+        "impact", help="what an item found out of tolerance did to the runs that used it",
+        description="Find every run the lab register holds that used the item since its "
+        "last calibration found in tolerance, analyse each one's raw captures again (from "
+        "the --runs folders) with the item's as-found error applied as a correction, and "
+        "report each figure's shift in its unit and over its U, and each conformity "
+        "outcome that changes; runs whose raw data is not found are listed. Records an "
+        "audit entry 'impact assessed' (a quality account). Exit 0 assessed, 2 refused.")
+    imp.add_argument("serial", metavar="SERIAL", help="the item's serial in the inventory")
+    imp.add_argument("--register", metavar="URL", help="the lab register")
+    imp.add_argument("--lab", metavar="FILE", help="the lab file naming the register")
+    imp.add_argument("--runs", metavar="DIR", nargs="+", action="extend",
+                     help="folders holding run folders (each searched two levels down)")
+    imp.add_argument("--json", metavar="FILE", help="write the report as JSON too")
+    imp.add_argument("--as", dest="as_account", required=True, metavar="ACCOUNT",
+                     help="the quality account assessing (its password is asked)")
+    imp.add_argument("--password-stdin", action="store_true",
+                     help="read the password from standard input")
     add_dcc_parsers(sub)
     add_authorise_parser(sub)
     add_records_parsers(sub)
@@ -218,6 +236,9 @@ def _main(argv: list[str] | None) -> int:
     if command == "register":
         from bench.app.register.commands import cmd_register
         return cmd_register(args)
+    if command == "impact":
+        from bench.app.impact import cmd_impact
+        return cmd_impact(args)
     if command == "authorise":
         from bench.app.certificate.authorise import cmd_authorise
         return cmd_authorise(args)

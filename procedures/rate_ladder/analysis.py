@@ -66,6 +66,41 @@ def counter_budget(c: CounterSpec) -> CounterBudget:
                                              else profile.timebase_limit_rel))
 
 
+#: the run folder's corrections file (issue 58): instrument corrections the analysis
+#: applies, as data; absent, nothing is corrected and every figure is as measured
+CORRECTIONS = "corrections.json"
+
+
+def counter_timebase_offsets(run_path: Path) -> dict[str, float]:
+    """The counters' time-base offsets e by axis that the run folder's corrections file
+    states (`where` axes.<axis>.counter, `quantity` timebase_offset_rel); {} without one."""
+    import json
+
+    path = Path(run_path) / CORRECTIONS
+    if not path.is_file():
+        return {}
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    out: dict[str, float] = {}
+    for c in doc.get("corrections") or []:
+        where = str(c.get("where") or "").split(".")
+        if c.get("quantity") == "timebase_offset_rel" and len(where) == 3 \
+                and where[0] == "axes" and where[2] == "counter":
+            out[where[1]] = float(c["value"])
+    return out
+
+
+def corrected_edges(edges_s: np.ndarray, offset_rel: float) -> np.ndarray:
+    """Edges read by a counter whose time base is off by e, corrected: every interval
+    from the first edge divided by 1 + e, so each period T = T_measured / (1 + e)
+    (docs/method.md A1, "A counter's time-base correction"). The first edge stays where
+    the run placed it (the FOG window the run chose begins there); the counter's start
+    to it, under a turn, would move by e times that: nanoseconds, beside the time tie's
+    U."""
+    if edges_s.size == 0:
+        return edges_s
+    return edges_s[0] + (edges_s - edges_s[0]) / (1.0 + offset_rel)
+
+
 def edges_from_replies(records: Iterable[Mapping[str, object]], model: str, n_edges: int,
                        t_start_s: float = 0.0) -> np.ndarray:
     """The zero-mark edges in the counter's raw replies of one acquisition, placed on the
@@ -143,6 +178,8 @@ class RawData:
         self._first_index: dict[tuple[int, str], int] | None = None
         #: each window's FOG temperatures, as decoded (conditions.memo_key: span)
         self.temperatures: dict[str, TemperatureSpan] = {}
+        #: the counters' time-base corrections the run folder states (issue 58), by axis
+        self.timebase_offsets = counter_timebase_offsets(run.path)
 
     def close(self) -> None:
         self.drop_windows()
@@ -208,12 +245,17 @@ class RawData:
         return t, f
 
     def edges(self, h: HalfAcquired) -> np.ndarray:
+        offset = self.timebase_offsets.get(h.axis)
         if self.live:
-            return np.asarray(h.edges_s, dtype=float)
-        log = self.counter_log(h.session, h.axis)
-        i0, i1 = h.counter_records
-        model = _counter(self.cfg, h.axis).model
-        return edges_from_replies(log[i0:i1], model, h.turns + 1, counter_start_s(h))
+            edges = np.asarray(h.edges_s, dtype=float)
+        else:
+            log = self.counter_log(h.session, h.axis)
+            i0, i1 = h.counter_records
+            model = _counter(self.cfg, h.axis).model
+            edges = edges_from_replies(log[i0:i1], model, h.turns + 1, counter_start_s(h))
+        if offset is None:
+            return edges
+        return corrected_edges(edges, offset)
 
     def half(self, h: HalfAcquired) -> HalfRecord:
         t, w = self.fog_window(h.session, h.axis, h.fog_from, h.fog_to, h.fog_capture)
@@ -428,6 +470,11 @@ def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
     with RawData(run, cfg) as raw:
         result = _analyze_run(run, cfg, raw, hashes)
         run.memo.update(raw.temperatures)   # for the conditions: decoded once
+        if raw.timebase_offsets:    # issue 58: the corrections applied, stated
+            import json
+
+            result["corrections"] = json.loads(
+                (run.path / CORRECTIONS).read_text(encoding="utf-8")).get("corrections")
         return result
 
 

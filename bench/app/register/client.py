@@ -359,6 +359,14 @@ class ServiceRegister(Register):
         got = self._call("run_record", uid=uid)
         return None if got is None else _run_record(_reply(got))
 
+    def runs_using(self, serial: str) -> list[RunRecord]:
+        return [_run_record(r) for r in _replies(self._call("runs_using", serial=serial))]
+
+    def impact_assessed(self, by: Account, serial: str,
+                        detail: Mapping[str, object]) -> str:
+        return str(self._call("impact_assessed", token=self._token(by.name), serial=serial,
+                              detail=dict(detail)))
+
     def audit_check(self) -> chain.ChainReport:
         got = _reply(self._call("audit_check"))
         entries = got.get("entries")

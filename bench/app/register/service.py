@@ -246,6 +246,12 @@ def create_app(reg: Register, tokens: Tokens | None = None,
                         maybe_text(b, "performer"))
         return None
 
+    def impact_assessed(b: Mapping[str, object]) -> JsonValue:
+        """A logged-in quality account's impact assessment (issue 58): its audit entry."""
+        detail = b.get("detail")
+        return reg.impact_assessed(actor(b), text(b, "serial"),
+                                   detail if isinstance(detail, dict) else {})
+
     ops: dict[str, Callable[[Mapping[str, object]], JsonValue]] = {
         "authenticate": login,
         "logout": lambda b: tok.end(b.get("token")),
@@ -291,6 +297,8 @@ def create_app(reg: Register, tokens: Tokens | None = None,
         "run_session": run_session,
         "deliver_result": deliver_result,
         "run_record": lambda b: jsonable(reg.run_record(text(b, "uid"))),
+        "runs_using": lambda b: jsonable(reg.runs_using(text(b, "serial"))),
+        "impact_assessed": impact_assessed,
     }
 
     @app.get("/v1/info")

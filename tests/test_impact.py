@@ -1,0 +1,244 @@
+"""`bench impact` (issue 58) end to end on the twins: a counter whose time base is off by
+e, which the lab does not know, times a short check run under the lab register; its
+calibration later finds it out with the as-found error e; `bench impact` finds the run,
+analyses its raw captures again with the correction, and each rate error moves by about
++e (the offset had moved it by -e, docs/method.md A1), back onto the twin's truth.
+A run the register holds whose raw data is nowhere in the runs folders is listed as
+"raw data not found", not re-analysed.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from bench.app.impact import finding_of, touched
+from bench.app.register import Register
+from bench.app.register.runs import run_uid_of
+from bench.app.register.store import (
+    AuthError,
+    Calibration,
+    Equipment,
+    RegisterError,
+    RunRecord,
+)
+from bench.core import rundir_layout as layout
+from sims.truth import AxisTruth
+from tests.conftest import check_procedure, cli, run_dir_of
+from tests.registers import authorise, cli_in, lab_file, password, sqlite_register
+
+SERIAL = "MY62000999"
+QUALITY = "Q. Manager"
+#: the counter's true time-base offset: about 3 x the rate error's U of this check run
+#: (U ~ 1.0e-7 at 50 deg/s from 2 turns a direction)
+E_REL = 3.0e-7
+E_U_REL = 1.0e-9
+TOLERANCE_REL = 2.4e-7
+
+
+def _stand_with_offset(proc: Path, seed: int, e_rel: float) -> dict[str, Any]:
+    """The check run's stand with the outer counter's serial stated (the inventory's item)
+    and its true time-base offset e in the twins' truth."""
+    stand_file = proc.parent / f"stand-{seed}.yaml"
+    stand = yaml.safe_load(stand_file.read_text())
+    stand["axes"]["outer"]["counter"]["serial"] = SERIAL
+    outer = stand["sim"]["axes"]["outer"]
+    outer["serials"]["counter"] = SERIAL
+    outer["counter"] = {"timebase_offset_rel": e_rel}
+    stand_file.write_text(yaml.safe_dump(stand))
+    return dict(stand)
+
+
+def test_impact_finds_the_run_and_the_correction_moves_the_rate_error_by_e(
+        tmp_path: Path) -> None:
+    url = sqlite_register(tmp_path / "register")
+    labf = lab_file(tmp_path / "lab", url)
+    with Register.open(url, migrate=False) as reg:
+        quality = reg.authenticate(QUALITY, password(QUALITY), "quality")
+        reg.add_equipment(quality, SERIAL, "Keysight 53230A", "C-2025-999", "Cal Lab",
+                          dt.date.today() + dt.timedelta(days=300))
+    proc = check_procedure(tmp_path / "files", seed=3)
+    # a rate-error tolerance the offset run fails (|delta| - U above it) and its corrected
+    # figures pass (|delta| + U within it): the conformity outcome the finding changes
+    procedure = yaml.safe_load(proc.read_text())
+    procedure["tolerance"] = {"rate_error": [{"rel": TOLERANCE_REL}]}
+    proc.write_text(yaml.safe_dump(procedure))
+    stand = _stand_with_offset(proc, 3, E_REL)
+    runs = tmp_path / "runs"
+    out = cli("run", str(proc), "--yes", "--quiet", "--out", str(runs), "--lab", str(labf))
+    assert out.returncode in (0, 1), out.stderr[-3000:]
+    made = run_dir_of(out)
+    uid = run_uid_of(made)
+    with Register.open(url, migrate=False) as reg:
+        rec = reg.run_record(uid)
+        assert rec is not None and rec.result is not None
+        assert any(i.get("serial") == SERIAL for i in rec.items)
+        # a second run of the same counter the register holds, whose raw data is in no
+        # runs folder: listed, never guessed
+        reg.register_run("run-without-raw-data", "test bench", None, rec.version, True,
+                         rec.inputs, rec.items)
+        reg.deliver_result("run-without-raw-data", "session", rec.result.encode(), rec.raw)
+    issued_out = authorise(made, "P. Petrov", labf, enrolled=False)
+    assert issued_out.returncode == 0, issued_out.stdout + issued_out.stderr
+    number = next((made / layout.ISSUED).iterdir()).name
+    found = cli_in(password(QUALITY) + "\n", "register", "equipment", "update", SERIAL,
+                   "--certificate", "C-2026-999", "--issuer", "Cal Lab",
+                   "--due", (dt.date.today() + dt.timedelta(days=400)).isoformat(),
+                   "--found", "out", "--found-error", f"{E_REL},{E_U_REL}",
+                   "--register", url, "--as", QUALITY, "--password-stdin")
+    assert found.returncode == 0, found.stderr
+
+    report = tmp_path / "impact.json"
+    got = cli_in(password(QUALITY) + "\n", "impact", SERIAL, "--lab", str(labf),
+                 "--runs", str(runs), "--json", str(report), "--as", QUALITY,
+                 "--password-stdin")
+    assert got.returncode == 0, got.stderr
+    lines = got.stdout.splitlines()
+    assert lines[0].startswith(f"Impact of Keysight 53230A serial {SERIAL}: as-found error "
+                               f"{E_REL:g}"), lines[0]
+    assert "runs that used it since the inventory's first record: 2; re-analysed with the " \
+           "correction: 1; raw data not found: 1" in lines[1], got.stdout
+    doc = json.loads(report.read_text())
+    by_uid = {r["uid"]: r for r in doc["runs"]}
+    assert set(by_uid) == {uid, "run-without-raw-data"}
+    assert by_uid["run-without-raw-data"]["status"] == "raw data not found"
+    assert by_uid["run-without-raw-data"]["figures"] == []
+    done = by_uid[uid]
+    assert done["status"] == "re-analysed" and done["where"] == "axes.outer.counter"
+    assert done["number"] == number and done["revisions"] == [number]
+    assert by_uid["run-without-raw-data"]["number"] is None
+
+    # the twin's truth: the per-turn rate's deviation from w_set (harmonic mean over angle)
+    truth_rel = AxisTruth.from_mapping(stand["sim"]["axes"]["outer"]).mean_turn_rate_rel()
+    issued = json.loads(rec.result)
+    for entry in issued["axes"]["outer"]["rates"]:
+        where = f"axes.outer.rates[{entry['set_rate_dps']:+g} deg/s]"
+        fig = next(f for f in done["figures"]
+                   if f["where"] == where and f["name"] == "rate_error_rel")
+        delta, big_u = entry["rate_error_rel"], entry["rate_error_U_rel"]
+        assert fig["issued"] == delta and fig["u_issued"] == big_u
+        # hand-derived: every rate x (1 + e), so delta' = (1 + delta)(1 + e) - 1
+        hand = E_REL * (1.0 + delta)
+        assert abs(fig["shift"] - hand) <= 0.01 * abs(hand), (fig, hand)
+        assert fig["marked"] and 2.0 < fig["shift_over_u"] < 4.0, fig
+        # the issued figure was off the truth by about -e, within its U; the corrected
+        # one's interval covers the truth
+        assert abs(delta - (truth_rel - E_REL)) <= big_u, (delta, truth_rel, big_u)
+        assert abs(fig["corrected"] - truth_rel) <= big_u, (fig, truth_rel)
+        print(f"{where}: e {E_REL:.3g}, issued {delta:.4g} +/- {big_u:.3g}, corrected "
+              f"{fig['corrected']:.4g}, shift {fig['shift']:.4g} ({fig['shift_over_u']:.3f} "
+              f"U), truth {truth_rel:.4g}")
+    changed = {(c["set_rate_dps"], c["quantity"], c["issued"], c["corrected"])
+               for c in done["checks_changed"]}
+    assert changed == {(50.0, "rate_error", "fail", "pass"),
+                       (-50.0, "rate_error", "fail", "pass")}, done["checks_changed"]
+    assert "conformity CHANGES: outer 50 deg/s rate_error: issued fail, corrected pass" \
+        in got.stdout
+    # the same seed without the offset (no register: a reference, never issued): each
+    # corrected figure equals it within 1 % of its U; the intra-turn figures within 5 %:
+    # they rest on the FOG samples the run's window took, which the offset counter's
+    # edges chose (seen: 1.5 % of U at -50 deg/s, the same before and after the correction)
+    ref_proc = check_procedure(tmp_path / "reference", seed=3)
+    _stand_with_offset(ref_proc, 3, 0.0)
+    ref = cli("run", str(ref_proc), "--yes", "--quiet", "--out", str(tmp_path / "ref-runs"))
+    assert ref.returncode in (0, 1), ref.stderr[-3000:]
+    plain = json.loads((run_dir_of(ref) / layout.RESULT).read_text())
+    for entry in plain["axes"]["outer"]["rates"]:
+        where = f"axes.outer.rates[{entry['set_rate_dps']:+g} deg/s]"
+        for fig in (f for f in done["figures"] if f["where"] == where):
+            same = entry[fig["name"]]
+            share = 0.05 if fig["name"].startswith("intra_turn") else 0.01
+            assert abs(fig["corrected"] - same) <= share * fig["u_issued"], (fig, same)
+    print(got.stdout)
+    assert f"{uid}" in got.stdout and " *" in got.stdout
+    # the copy was corrected, never the run folder
+    assert not (made / "corrections.json").exists()
+    assert (made / layout.RESULT).read_bytes() == rec.result_bytes
+    with Register.open(url, migrate=False) as reg:
+        entries = [r for r in reg.audit_rows() if r["action"] == "impact assessed"]
+        assert len(entries) == 1 and entries[0]["object"] == SERIAL
+        assert entries[0]["actor"] == QUALITY
+        assert uid in str(entries[0]["detail"]) and number in str(entries[0]["detail"])
+
+
+def _record(uid: str, day: str) -> RunRecord:
+    return RunRecord(uid, "bench", None, "v", True, {}, (), f"{day}T10:00:00Z", "bench")
+
+
+def test_the_runs_touched_are_those_since_the_last_calibration_found_in_tolerance(
+        tmp_path: Path) -> None:
+    """A finding touches the runs from the last calibration that found the item in
+    tolerance up to the calibration that found it out; runs of another item are not the
+    item's (the register's `runs_using`)."""
+    day = dt.date.fromisoformat
+    item = Equipment(SERIAL, "Keysight 53230A", "C-3", "Cal Lab", day("2027-01-01"),
+                     calibrations=(
+                         Calibration("C-1", "Cal Lab", None, day("2025-01-01")),
+                         Calibration("C-2", "Cal Lab", day("2025-01-01"), day("2026-01-01"),
+                                     found="in", found_error=1e-9),
+                         Calibration("C-3", "Cal Lab", day("2026-01-10"), day("2027-01-01"),
+                                     found="out", found_error=E_REL, found_error_u=E_U_REL)))
+    f = finding_of(item)
+    assert (f.certificate, f.error, f.error_u) == ("C-3", E_REL, E_U_REL)
+    assert (f.since, f.since_certificate) == (day("2025-01-01"), "C-2")
+    runs = [_record("before", "2024-12-31"), _record("first", "2025-01-01"),
+            _record("later", "2025-06-30"), _record("last", "2026-01-10"),
+            _record("after", "2026-01-11")]
+    assert [r.uid for r in touched(runs, f)] == ["first", "later", "last"]
+    with pytest.raises(RegisterError, match="no as-found error"):
+        finding_of(Equipment(SERIAL, "m", "C-1", "Cal Lab", day("2027-01-01"),
+                             calibrations=item.calibrations[:1]))
+
+    url = sqlite_register(tmp_path / "register")
+    item_of = {"where": "axes.outer.counter", "item": "counter", "serial": SERIAL}
+    other = {"where": "axes.inner.counter", "item": "counter", "serial": "MY-OTHER"}
+    with Register.open(url, migrate=False) as reg:
+        reg.register_run("uses-it", "b", None, "v", True, {}, [item_of, other])
+        reg.register_run("another-counter", "b", None, "v", True, {}, [other])
+        assert [r.uid for r in reg.runs_using(SERIAL)] == ["uses-it"]
+        assert {r.uid for r in reg.runs_using("MY-OTHER")} == {"uses-it", "another-counter"}
+        operator = reg.authenticate("A. Ivanova", password("A. Ivanova"), "operator")
+        with pytest.raises(AuthError, match="quality"):
+            reg.impact_assessed(operator, SERIAL, {})
+
+
+def test_the_service_records_an_impact_assessment_for_a_logged_in_quality_account(
+        tmp_path: Path) -> None:
+    """The register service's ops (over an SQLite register here; PostgreSQL behind it in
+    the lab): the runs that used an item, and the audit entry, which needs a logged-in
+    quality account."""
+    from bench.app.register.service import create_app
+
+    url = sqlite_register(tmp_path / "register")
+    item_of = {"where": "axes.outer.counter", "item": "counter", "serial": SERIAL}
+    with Register.open(url, migrate=False) as reg:
+        quality = reg.authenticate(QUALITY, password(QUALITY), "quality")
+        reg.add_equipment(quality, SERIAL, "Keysight 53230A", "C-1", "Cal Lab",
+                          dt.date.today() + dt.timedelta(days=30))
+        reg.register_run("uses-it", "b", None, "v", True, {}, [item_of])
+        client = create_app(reg).test_client()
+
+        def call(op: str, **body: object) -> tuple[int, Any]:
+            got = client.post(f"/v1/{op}", json=body)
+            return got.status_code, got.get_json()
+
+        code, runs = call("runs_using", serial=SERIAL)
+        assert code == 200 and [r["uid"] for r in runs["ok"]] == ["uses-it"]
+        assert call("impact_assessed", serial=SERIAL, detail={})[0] == 403   # no login
+        code, login = call("authenticate", name="A. Ivanova",
+                           password=password("A. Ivanova"), role=None)
+        assert code == 200
+        token = login["ok"]["token"]
+        assert call("impact_assessed", token=token, serial=SERIAL, detail={})[0] == 403
+        code, login = call("authenticate", name=QUALITY, password=password(QUALITY),
+                           role="quality")
+        code, digest = call("impact_assessed", token=login["ok"]["token"],
+                            serial=SERIAL, detail={"runs": ["uses-it"]})
+        assert code == 200 and isinstance(digest["ok"], str)
+        entry = [r for r in reg.audit_rows() if r["action"] == "impact assessed"]
+        assert len(entry) == 1 and entry[0]["actor"] == QUALITY
