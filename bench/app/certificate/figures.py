@@ -1,25 +1,27 @@
-"""The certificate's figures drawn in worker processes while its document is built and
+"""The certificate's figures drawn in a worker process while its document is built and
 its PDF is laid out (issue 62: a demo's 8 figures were half of its certificate's time).
 
 `drawn_beside()` gives a `BesideDrawer`, or None where one cannot be used (then
-`figure_of` draws each figure in its turn, here, as it always did). While the document
-is built, `figure_of` hands each figure to the drawer: its drawing function and
-arguments, pickled, go to a worker, and the document gets a Figure whose `png` is a
-ticket. The PDF renderer asks `png(figure)` for the bytes when it reaches that figure,
-waiting for that one alone, so the figures are drawn beside the PDF's tables.
+`figure_of` draws each figure in its turn, here, as it always did); its worker starts at
+once. While the document is built, `figure_of` hands each figure to the drawer: its
+drawing function and arguments, pickled, go to the worker, and the document gets a
+Figure whose `png` is a ticket. The PDF renderer asks `png(figure)` for the bytes when
+it reaches that figure: the worker's, waiting for it if the worker is drawing it, or
+drawn here and then if no worker has started it (each figure is claimed once, by a
+worker or here), so the figures are drawn beside the PDF's tables, and the PDF never
+waits for a worker still starting.
 
 A figure that does not come out as a PNG (nothing to plot, or malformed data: `figure_of`
 then gives nothing, or a note) changes the document's blocks. `png` raises
-`NotAsDrawn` then, and the document is built again `looking_up()`: each figure a worker
-drew is taken from it, and every other is drawn here, so the document is the one built
+`NotAsDrawn` then, and the document is built again `looking_up()`: each figure drawn is
+taken as it was, and every other is drawn here, so the document is the one built
 figure by figure.
 
-The bytes are those drawn here: a worker is a fork of this process (the same modules,
-matplotlib settings and fonts; "fork" is used only while this process runs a single
-thread, so nothing is forked in the middle of another thread's work), and each figure
-is drawn on a canvas of its own. `BENCH_FIGURE_WORKERS` sets the number of workers
-(default 1: the PDF, laid out here meanwhile, is the longer part; 0: every figure
-drawn here, in its turn).
+The bytes are the same wherever a figure is drawn: matplotlib's Agg canvas, the same
+settings and fonts (nothing here changes matplotlib's rcParams), a canvas per figure. The
+worker is a fresh interpreter ("spawn": its memory is its own, not a copy of this
+process's). `BENCH_FIGURE_WORKERS` sets the number of workers (default 1: the PDF, laid
+out here meanwhile, is the longer part; 0: every figure drawn here, in its turn).
 """
 
 from __future__ import annotations
@@ -29,10 +31,9 @@ import dataclasses
 import os
 import pickle
 import signal
-import sys
-import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
+from typing import Any
 
 from bench.report.certificate.model import Block, Document, Figure
 from bench.report.certificate.parts import FIGURE_DRAWER
@@ -40,6 +41,8 @@ from bench.report.certificate.parts import FIGURE_DRAWER
 #: the environment variable that sets the number of worker processes
 ENV_WORKERS = "BENCH_FIGURE_WORKERS"
 DEFAULT_WORKERS = 1
+#: figures that may be drawn here when the PDF gets to them first (later ones: by workers)
+MAX_CLAIMS = 256
 _TICKET = b"\x00certificate figure %d\x00"
 
 
@@ -47,9 +50,30 @@ class NotAsDrawn(Exception):
     """A figure drawn by a worker is not a PNG: the document is to be built again."""
 
 
+#: in a worker: the figures' claims, shared with the parent (`BesideDrawer._claims`)
+_CLAIMS: Any = None
+
+
+def _claim(claims: Any, index: int) -> bool:
+    """Take figure `index` to draw (False: the other side has it). Figures past the claims'
+    length are the workers'."""
+    if index >= len(claims):
+        return True
+    with claims.get_lock():
+        if claims[index]:
+            return False
+        claims[index] = 1
+        return True
+
+
+def _draw_claimed(key: bytes, index: int) -> bytes | None:
+    """In a worker: `_draw`, unless the parent has drawn that figure itself."""
+    return _draw(key) if _claim(_CLAIMS, index) else None
+
+
 def _draw(key: bytes) -> bytes | None:
-    """In a worker: the PNG of one pickled (draw, args), or None for anything else (no
-    figure, or an error, which `figure_of` reports when it draws it again here)."""
+    """The PNG of one pickled (draw, args), or None for anything else (no figure, or an
+    error, which `figure_of` reports when it draws it again here, in its turn)."""
     try:
         draw, args = pickle.loads(key)
         png = draw(*args)
@@ -58,18 +82,32 @@ def _draw(key: bytes) -> bytes | None:
     return png if isinstance(png, bytes) and png else None
 
 
-def _worker_started() -> None:
-    """A worker leaves an interrupt to its parent, and a termination ends it."""
+def _worker_started(claims: Any) -> None:
+    """A worker leaves an interrupt to its parent, and loads what every figure needs."""
+    global _CLAIMS
+    _CLAIMS = claims
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    import matplotlib.backends.backend_agg  # noqa: F401
+    import matplotlib.figure  # noqa: F401
+
+    import bench.report.certificate.plots  # noqa: F401
+
+
+def _started() -> None:
+    """The first job: the worker is up."""
 
 
 class BesideDrawer:
-    """The figures of one certificate, drawn by a pool of worker processes."""
+    """The figures of one certificate, drawn by a pool of worker processes, in order; a
+    figure the PDF reaches before any worker has started it is drawn here, then (each
+    figure is claimed once, by a worker or here: `claims`, shared with the workers)."""
 
-    def __init__(self, pool: ProcessPoolExecutor) -> None:
+    def __init__(self, pool: ProcessPoolExecutor, claims: Any) -> None:
         self._pool = pool
+        self._claims = claims
         self._drawn: dict[bytes, Future[bytes | None]] = {}  # by pickled (draw, args)
+        self._index: dict[bytes, int] = {}                   # its claim
+        self._here: dict[bytes, bytes | None] = {}           # drawn here, not by a worker
         self._tickets: dict[bytes, bytes] = {}               # ticket -> pickled (draw, args)
         self._looking_up = False
 
@@ -80,23 +118,29 @@ class BesideDrawer:
             key = pickle.dumps((draw, args), protocol=pickle.HIGHEST_PROTOCOL)
         except Exception:  # noqa: BLE001 - e.g. a local function: figure_of draws it here
             return None
-        future = self._drawn.get(key)
         if self._looking_up:
-            png = self._png_of(future) if future is not None else None
+            png = self._result(key) if key in self._drawn else None
             return [Figure(png, caption, width_frac)] if png else None
-        if future is None:
+        if key not in self._drawn:
+            index = len(self._index)
             try:
-                future = self._drawn[key] = self._pool.submit(_draw, key)
+                self._drawn[key] = self._pool.submit(_draw_claimed, key, index)
             except RuntimeError:  # the pool is broken or shut down: drawn here
                 return None
+            self._index[key] = index
         ticket = _TICKET % len(self._tickets)
         self._tickets[ticket] = key
         return [Figure(ticket, caption, width_frac)]
 
-    @staticmethod
-    def _png_of(future: Future[bytes | None]) -> bytes | None:
+    def _result(self, key: bytes) -> bytes | None:
+        """The PNG of a figure handed out: drawn here now if no worker has started it,
+        else its worker's (waiting for it)."""
+        if key not in self._here and _claim(self._claims, self._index[key]):
+            self._here[key] = _draw(key)
+        if key in self._here:
+            return self._here[key]
         try:
-            return future.result()
+            return self._drawn[key].result()
         except Exception:  # noqa: BLE001 - a worker lost (BrokenProcessPool): drawn here
             return None
 
@@ -106,7 +150,7 @@ class BesideDrawer:
         key = self._tickets.get(fig.png)
         if key is None:
             return fig.png
-        png = self._png_of(self._drawn[key])
+        png = self._result(key)
         if png is None:
             raise NotAsDrawn(fig.caption)
         return png
@@ -141,23 +185,25 @@ def _workers() -> int:
 
 @contextlib.contextmanager
 def drawn_beside() -> Iterator[BesideDrawer | None]:
-    """A drawer with its worker processes for one certificate (stopped at the end), or
-    None: no workers asked for, fewer than two processors, not Linux (fork), or more than
-    one thread running here."""
+    """A drawer with its worker processes for one certificate (started now, stopped at
+    the end), or None: no workers asked for, or fewer than two processors."""
     workers = _workers()
-    if (workers == 0 or (os.cpu_count() or 1) < 2 or not sys.platform.startswith("linux")
-            or threading.active_count() != 1):
+    if workers == 0 or (os.cpu_count() or 1) < 2:
         yield None
         return
     import multiprocessing
 
+    context = multiprocessing.get_context("spawn")
     try:
-        pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
-                                   initializer=_worker_started)
-    except (OSError, ValueError):
+        claims = context.Array("b", MAX_CLAIMS)
+        pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_worker_started,
+                                   initargs=(claims,))
+        for _ in range(workers):
+            pool.submit(_started)   # the interpreters start while the document is built
+    except (OSError, ValueError, RuntimeError):
         yield None
         return
     try:
-        yield BesideDrawer(pool)
+        yield BesideDrawer(pool, claims)
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
