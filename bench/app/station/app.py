@@ -196,8 +196,8 @@ def create_app(settings: StationSettings,
             return render_template("away.html.j2", title=f"{bench_name}: run {uid}",
                                    text=away_text(fleet.url, e),
                                    version=bench.__version__), 503
-        r = _found(found)
-        folder = find_run(settings.runs_folders, str(r["run"]), uid)
+        row = _found(found)         # the lab database's row of the run, not a result
+        folder = find_run(settings.runs_folders, str(row["run"]), uid)
         cert = None
         if folder is not None:
             page = url_for("bench_run_page", bench_name=bench_name, uid=uid)
@@ -206,7 +206,7 @@ def create_app(settings: StationSettings,
                 sign_url=url_for("bench_run_sign", bench_name=bench_name, uid=uid),
                 pdf_url=url_for("bench_run_file", bench_name=bench_name, uid=uid,
                                 filename=layout.CERTIFICATE_PDF))
-        return render_template("bench_run.html.j2", r=r, cert=cert,
+        return render_template("bench_run.html.j2", r=row, cert=cert,
                                folder=str(folder) if folder else None,
                                folders=[str(f) for f in settings.runs_folders],
                                version=bench.__version__)
