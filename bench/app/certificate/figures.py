@@ -33,7 +33,12 @@ import pickle
 import signal
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:   # the figures' claims shared by the PDF and its worker (a byte each)
+    from multiprocessing.sharedctypes import SynchronizedArray
+
+    Claims = SynchronizedArray[int]
 
 from bench.report.certificate.model import Block, Document, Figure
 from bench.report.certificate.parts import FIGURE_DRAWER
@@ -51,10 +56,10 @@ class NotAsDrawn(Exception):
 
 
 #: in a worker: the figures' claims, shared with the parent (`BesideDrawer._claims`)
-_CLAIMS: Any = None
+_CLAIMS: Claims | None = None  # noqa: F821
 
 
-def _claim(claims: Any, index: int) -> bool:
+def _claim(claims: Claims, index: int) -> bool:
     """Take figure `index` to draw (False: the other side has it). Figures past the claims'
     length are the workers'."""
     if index >= len(claims):
@@ -68,7 +73,7 @@ def _claim(claims: Any, index: int) -> bool:
 
 def _draw_claimed(key: bytes, index: int) -> bytes | None:
     """In a worker: `_draw`, unless the parent has drawn that figure itself."""
-    return _draw(key) if _claim(_CLAIMS, index) else None
+    return _draw(key) if _CLAIMS is not None and _claim(_CLAIMS, index) else None
 
 
 def _draw(key: bytes) -> bytes | None:
@@ -82,7 +87,7 @@ def _draw(key: bytes) -> bytes | None:
     return png if isinstance(png, bytes) and png else None
 
 
-def _worker_started(claims: Any) -> None:
+def _worker_started(claims: Claims) -> None:
     """A worker leaves an interrupt to its parent, and loads what every figure needs."""
     global _CLAIMS
     _CLAIMS = claims
@@ -102,7 +107,7 @@ class BesideDrawer:
     figure the PDF reaches before any worker has started it is drawn here, then (each
     figure is claimed once, by a worker or here: `claims`, shared with the workers)."""
 
-    def __init__(self, pool: ProcessPoolExecutor, claims: Any) -> None:
+    def __init__(self, pool: ProcessPoolExecutor, claims: Claims) -> None:
         self._pool = pool
         self._claims = claims
         self._drawn: dict[bytes, Future[bytes | None]] = {}  # by pickled (draw, args)
