@@ -66,7 +66,8 @@ class DmmTwin(ScpiServer):
 
     def __init__(self, platform: GyroPlatform, gyro: str, model: str = "keysight-34465a",
                  host: str = "127.0.0.1", port: int = 0, *,
-                 trigger_latency_s: float = 0.0) -> None:
+                 trigger_latency_s: float = 0.0, gain_error_rel: float = 0.0,
+                 offset_error_v: float = 0.0) -> None:
         self.profile: DmmProfile = get_profile(model)
         super().__init__(idn=self.profile.idn, host=host, port=port)
         if platform.clock is None:
@@ -77,6 +78,9 @@ class DmmTwin(ScpiServer):
         self.gyro = gyro
         self.clock = platform.clock
         self.trigger_latency_s = float(trigger_latency_s)
+        #: the DMM's own errors, unknown to the lab (issue 58): reading = (1 + g) U + o
+        self.gain_error_rel = float(gain_error_rel)
+        self.offset_error_v = float(offset_error_v)
         self.record: Record | None = None
         self.reset()
         self._route_words()
@@ -251,7 +255,15 @@ class DmmTwin(ScpiServer):
         if rec.values is None:
             assert rec.t_first_s is not None
             t = rec.t_first_s + np.arange(rec.count) * rec.interval_s
-            u = self.platform.sample_u(self.gyro, t, rec.aperture_s)
+            u = self._reading(self.platform.sample_u(self.gyro, t, rec.aperture_s))
             over = np.abs(u) > 1.2 * self.range_v
             rec.values = np.where(over, np.copysign(self.profile.overload_v, u), u)
         return ",".join(nr3(v) for v in rec.values)
+
+    def _reading(self, u_v: np.ndarray) -> np.ndarray:
+        """What this DMM reads for the true voltages: (1 + g) U + o (issue 58; docs/method.md
+        B, "The drift kind's instrument corrections"). With g = o = 0 the voltages are
+        returned untouched, to the bit."""
+        if self.gain_error_rel == 0.0 and self.offset_error_v == 0.0:
+            return u_v
+        return u_v * (1.0 + self.gain_error_rel) + self.offset_error_v

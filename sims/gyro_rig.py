@@ -31,8 +31,10 @@ class GyroRig:
 def start_gyro_rig(stand: SimulatedStand, truth: PlatformTruth, channels: Mapping[str, int],
                    *, awg_model: str = "keysight-33500b", dmm_model: str = "keysight-34465a",
                    awg_options: Mapping[str, Any] | None = None,
-                   dmm_options: Mapping[str, Any] | None = None) -> GyroRig:
-    """Start the twins; `channels` maps each gyro to its generator channel."""
+                   dmm_options: Mapping[str, Any] | None = None,
+                   dmm_errors: Mapping[str, Mapping[str, float]] | None = None) -> GyroRig:
+    """Start the twins; `channels` maps each gyro to its generator channel, `dmm_errors`
+    each gyro's DMM to its own errors (DmmTwin's gain_error_rel, offset_error_v)."""
     platform = GyroPlatform(truth, stand)
     awg = AwgTwin(platform, {ch: g for g, ch in channels.items()}, awg_model,
                   **(awg_options or {}))
@@ -40,7 +42,8 @@ def start_gyro_rig(stand: SimulatedStand, truth: PlatformTruth, channels: Mappin
     try:
         awg.start()
         for gyro in channels:
-            dmm = DmmTwin(platform, gyro, dmm_model, **(dmm_options or {}))
+            dmm = DmmTwin(platform, gyro, dmm_model, **(dmm_options or {}),
+                          **(dmm_errors or {}).get(gyro, {}))
             dmm.start()
             rig.dmms[gyro] = dmm
             awg.trigger_out.append(dmm.external_trigger)

@@ -406,7 +406,8 @@ def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
         rig = start_gyro_rig(sb.stand, d.sim_platform,
                              {g: d.platform[g].awg_channel for g in gyros},
                              awg_model=d.awg_model, dmm_model=d.platform[gyros[0]].dmm_model,
-                             awg_options=d.awg_twin, dmm_options=d.dmm_twin)
+                             awg_options=d.awg_twin, dmm_options=d.dmm_twin,
+                             dmm_errors=d.dmm_errors)
         sb.add("gyro-rig", rig, rig.stop)
         # the stand's serials in *IDN? field 3 (each twin reads its idn at every query)
         for twin, serial in ((rig.awg, d.awg_serial),

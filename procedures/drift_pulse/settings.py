@@ -153,9 +153,21 @@ SIM_PLATFORM = Map({
 })
 SIM_AWG = Map({"output_latency_s": Key(Num(min=0)), "trigger_out_skew_s": Key(Num()),
                "trigger_out_width_s": Key(Num(min=0)), "load_ohm": Key(Num(min=1)),
-               "serial": Key(Str(), False, "the serial the twin reports (*IDN? field 3)")})
+               "serial": Key(Str(), False, "the serial the twin reports (*IDN? field 3)"),
+               "amplitude_error_rel": Key(
+                   Num(min=-0.5, max=0.5), False, "the generator's true amplitude error a, "
+                   "unknown to the lab: every output voltage x (1 + a) (issue 58)", 0.0)})
 SIM_DMM = Map({"trigger_latency_s": Key(Num(min=0)),
-               "serials": Key(MapOf(Str()), False, "gyro: the serial its DMM twin reports")})
+               "serials": Key(MapOf(Str()), False, "gyro: the serial its DMM twin reports"),
+               "gain_error_rel": Key(
+                   MapOf(Num(min=-0.5, max=0.5)), False, "gyro: its DMM's true gain error g, "
+                   "unknown to the lab: every reading the twin returns x (1 + g) (default 0; "
+                   "issue 58)"),
+               "offset_error_v": Key(
+                   MapOf(Num(unit="V")), False, "gyro: its DMM's true offset o, unknown to "
+                   "the lab: every reading + o, after the gain (default 0; issue 58)")})
+#: the DMM twins' own errors, by gyro (`sim.dmm`; each a keyword of sims/dmm_twin.DmmTwin)
+DMM_ERROR_KEYS = ("gain_error_rel", "offset_error_v")
 
 def drift_file(cfg: Config) -> DriftFile:
     """The procedure file's own keys, parsed (validated: the loader's cross-checks run
@@ -382,6 +394,8 @@ class PlatformSettings:
     awg_serial: str | None
     dmm_twin: Mapping[str, Any]
     dmm_serials: Mapping[str, str]
+    #: gyro: its DMM twin's own errors (`sim.dmm.gain_error_rel`, `offset_error_v`; issue 58)
+    dmm_errors: Mapping[str, Mapping[str, float]]
 
     @classmethod
     def of(cls, cfg: Config) -> PlatformSettings:
@@ -415,11 +429,16 @@ def _platform_fields(cfg: Config) -> dict[str, Any]:
     awg_twin = dict(sim.get("awg") or {})
     dmm_twin = dict(sim.get("dmm") or {})
     awg_serial, dmm_serials = awg_twin.pop("serial", None), dmm_twin.pop("serials", {})
+    dmm_errors: dict[str, dict[str, float]] = {}
+    for key in DMM_ERROR_KEYS:
+        for g, v in (dmm_twin.pop(key, None) or {}).items():
+            dmm_errors.setdefault(str(g), {})[key] = float(v)
     return dict(gyros=tuple(gyros_of(cfg)), table_axis=table,
                 awg_resource=str(plat["awg"]["resource"]), awg_model=str(plat["awg"]["model"]),
                 platform=gyros, sim_platform=truth, awg_twin=awg_twin,
                 awg_serial=str(awg_serial) if awg_serial else None, dmm_twin=dmm_twin,
-                dmm_serials={str(k): str(v) for k, v in dmm_serials.items()})
+                dmm_serials={str(k): str(v) for k, v in dmm_serials.items()},
+                dmm_errors=dmm_errors)
 
 
 @dataclass(frozen=True)
