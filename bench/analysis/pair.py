@@ -188,7 +188,7 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
 
     cal_index = {w.index for w in cal_windows}
     halves_mean = _half_means(fits, infl_long.factor, budget, cal_index)
-    xcal = cross_calibrate(halves_mean, drift=drift, timebase_u_rel=budget.timebase_u_rel)
+    xcal = cross_calibrate(halves_mean, drift=drift, timebase_u_rel=budget.timebase_k_u_rel)
     final = xcal.calibration()
     k_u_std = xcal.k_u / 2.0
 

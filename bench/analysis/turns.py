@@ -65,19 +65,29 @@ class CounterBudget:
         time tie, drivers/time_tie.py), std, s. It shifts every edge alike against the
         FOG record, so it leaves the counter's rates alone; it moves the FOG window and
         the phase of the harmonics (360 * h * u / T deg), reported beside them.
+    timebase_correction_rel: a time-base offset e the analysis corrected the edges for (a
+        run folder's corrections file, issue 58; 0: none applied).
+    timebase_correction_u_rel: that correction's standard uncertainty (its U / 2), a Type
+        B term of the rate error and of k (docs/method.md A1, "A counter's time-base
+        correction"); 0 when none was applied, and then no term at all.
     """
 
     timestamp_u_s: float = 0.0
     trigger_jitter_s: float = 0.0
     timebase_limit_rel: float = 0.0
     time_tie_u_s: float = 0.0
+    timebase_correction_rel: float = 0.0
+    timebase_correction_u_rel: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("timestamp_u_s", "trigger_jitter_s", "timebase_limit_rel",
-                     "time_tie_u_s"):
+                     "time_tie_u_s", "timebase_correction_u_rel"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"counter budget: {name} must be finite and >= 0, got {v}")
+        if not math.isfinite(self.timebase_correction_rel):
+            raise ValueError("counter budget: timebase_correction_rel must be finite, got "
+                             f"{self.timebase_correction_rel}")
 
     @property
     def edge_u_s(self) -> float:
@@ -92,6 +102,15 @@ class CounterBudget:
     @property
     def timebase_u_rel(self) -> float:
         return self.timebase_limit_rel / math.sqrt(3.0)
+
+    @property
+    def timebase_k_u_rel(self) -> float:
+        """The time base's standard uncertainty as it enters k (eq. 5): the limit's, and
+        an applied correction's beside it (docs/method.md A1, a counter's time-base
+        correction: k moves by about -e k, so u(e) enters as k u(e))."""
+        if self.timebase_correction_u_rel == 0.0:
+            return self.timebase_u_rel          # to the bit as without the term
+        return math.hypot(self.timebase_u_rel, self.timebase_correction_u_rel)
 
 
 def period_rate_error(rate_dps: float, period_error_s: float, period_s: float) -> float:
@@ -153,11 +172,17 @@ class TurnsResult:
 
 
 def rate_error_u(timing_u_rel: float, timebase_u_rel: float, repeat_u_rel: float,
-                 repeat_dof: float | None) -> tuple[float | None, float, float]:
+                 repeat_dof: float | None, correction_u_rel: float = 0.0
+                 ) -> tuple[float | None, float, float]:
     """(nu_eff, k, U) of the rate error from its three standard uncertainties
-    (docs/method.md A2 `RATE_ERROR_U_FORMULA`, k by D1); timing and timebase are Type B."""
-    _, nu, k, big_u = expanded(((timing_u_rel, None), (timebase_u_rel, None),
-                                (repeat_u_rel, repeat_dof)))
+    (docs/method.md A2 `RATE_ERROR_U_FORMULA`, k by D1); timing and timebase are Type B.
+    An applied time-base correction's u(e) is a fourth Type B term, sensitivity 1 (docs/
+    method.md A1, a counter's time-base correction: delta moves by about +e); none (0)
+    leaves the sum as it was, to the bit."""
+    terms = [(timing_u_rel, None), (timebase_u_rel, None), (repeat_u_rel, repeat_dof)]
+    if correction_u_rel > 0.0:
+        terms.append((correction_u_rel, None))
+    _, nu, k, big_u = expanded(terms)
     return nu, k, big_u
 
 
@@ -184,7 +209,8 @@ def pool_type_a(results: Sequence[TurnsResult]) -> list[TurnsResult]:
         basis = (f"{what} {basis_sigma:.3g} (pooled sigma {pooled:.3g} from "
                  f"{len(results)} directions, {nu} dof)")
         rep = basis_sigma / math.sqrt(r.turns)      # docs/method.md A2: u_rep = sigma_A / sqrt(N)
-        dof_eff, k, big_u = rate_error_u(r.timing_u_rel, r.timebase_u_rel, rep, float(nu))
+        dof_eff, k, big_u = rate_error_u(r.timing_u_rel, r.timebase_u_rel, rep, float(nu),
+                                         r.budget.timebase_correction_u_rel)
         out.append(dataclasses.replace(r, rate_error_u_rel=big_u, repeatability_u_rel=rep,
                                        repeatability_basis=basis,
                                        repeatability_dof=float(nu), dof_eff=dof_eff,
@@ -228,7 +254,7 @@ def analyze_turns(windows: Sequence[np.ndarray], set_rate_dps: float,
     repeat_u_rel = basis_sigma / math.sqrt(n_turns)   # docs/method.md A2: sigma_A / sqrt(N)
     repeat_dof = float(n_turns - 1) if n_turns >= 2 else None
     dof_eff, k, big_u = rate_error_u(timing_u_rel, budget.timebase_u_rel, repeat_u_rel,
-                                     repeat_dof)
+                                     repeat_dof, budget.timebase_correction_u_rel)
     return TurnsResult(
         set_rate_dps=float(set_rate_dps), turns=n_turns,
         counter_rate_dps=tuple(float(r) for r in rates), mean_rate_dps=float(mean),

@@ -21,7 +21,7 @@ STANDARD_PARENTS = frozenset({"rate_error_budget", "budget", "own_u_dph", "appar
 #: `_u` keys that are standard wherever they appear (inputs and intermediate means)
 STANDARD_KEYS = frozenset({"timing_u_rel", "timebase_u_rel", "repeatability_u_rel",
                            "edge_u_s", "period_u_s", "timestamp_u_s", "fog_mean_u_dps",
-                           "counter_mean_u_dps"})
+                           "counter_mean_u_dps", "timebase_correction_u_rel"})
 #: lists whose items' `_u` entries are standard (one cycle's fit)
 STANDARD_ITEMS = frozenset({"cycles"})
 

@@ -9,6 +9,7 @@ event log says only which samples and which replies belong to which half.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import tempfile
 from collections.abc import Iterable, Mapping
@@ -71,21 +72,49 @@ def counter_budget(c: CounterSpec) -> CounterBudget:
 CORRECTIONS = "corrections.json"
 
 
-def counter_timebase_offsets(run_path: Path) -> dict[str, float]:
-    """The counters' time-base offsets e by axis that the run folder's corrections file
-    states (`where` axes.<axis>.counter, `quantity` timebase_offset_rel); {} without one."""
+#: the coverage factor a correction's stated U is taken at (a calibration certificate's
+#: U, about 95 %: k = 2, CONTRACT section 3), to give its standard uncertainty
+CORRECTION_U_COVERAGE = 2.0
+
+
+@dataclass(frozen=True)
+class TimebaseCorrection:
+    """A counter's time-base offset e the run folder's corrections file states, with its
+    standard uncertainty (the file's U / 2; 0 when it states no U)."""
+
+    value_rel: float
+    ustd_rel: float
+
+
+def counter_timebase_offsets(run_path: Path) -> dict[str, TimebaseCorrection]:
+    """The counters' time-base corrections by axis that the run folder's corrections file
+    states (`where` axes.<axis>.counter, `quantity` timebase_offset_rel, `value` e, `U` its
+    expanded uncertainty); {} without one. A malformed entry raises, naming the file and
+    the key: a correction is never half applied."""
     import json
 
     path = Path(run_path) / CORRECTIONS
     if not path.is_file():
         return {}
-    doc = json.loads(path.read_text(encoding="utf-8"))
-    out: dict[str, float] = {}
-    for c in doc.get("corrections") or []:
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except ValueError as e:
+        raise ValueError(f"{path}: not JSON: {e}") from None
+    out: dict[str, TimebaseCorrection] = {}
+    for i, c in enumerate(doc.get("corrections") or []):
         where = str(c.get("where") or "").split(".")
         if c.get("quantity") == "timebase_offset_rel" and len(where) == 3 \
                 and where[0] == "axes" and where[2] == "counter":
-            out[where[1]] = float(c["value"])
+            value, big_u = c.get("value"), c.get("U")
+            if not isinstance(value, int | float) or not math.isfinite(value):
+                raise ValueError(f"{path}: corrections[{i}].value: a finite number, got "
+                                 f"{value!r}")
+            if big_u is not None and (not isinstance(big_u, int | float)
+                                      or not math.isfinite(big_u) or big_u < 0):
+                raise ValueError(f"{path}: corrections[{i}].U: a finite number >= 0 or "
+                                 f"null, got {big_u!r}")
+            out[where[1]] = TimebaseCorrection(
+                float(value), 0.0 if big_u is None else float(big_u) / CORRECTION_U_COVERAGE)
     return out
 
 
@@ -245,7 +274,7 @@ class RawData:
         return t, f
 
     def edges(self, h: HalfAcquired) -> np.ndarray:
-        offset = self.timebase_offsets.get(h.axis)
+        corr = self.timebase_offsets.get(h.axis)
         if self.live:
             edges = np.asarray(h.edges_s, dtype=float)
         else:
@@ -253,9 +282,9 @@ class RawData:
             i0, i1 = h.counter_records
             model = _counter(self.cfg, h.axis).model
             edges = edges_from_replies(log[i0:i1], model, h.turns + 1, counter_start_s(h))
-        if offset is None:
+        if corr is None:
             return edges
-        return corrected_edges(edges, offset)
+        return corrected_edges(edges, corr.value_rel)
 
     def half(self, h: HalfAcquired) -> HalfRecord:
         t, w = self.fog_window(h.session, h.axis, h.fog_from, h.fog_to, h.fog_capture)
@@ -317,10 +346,21 @@ def analyze_unit(raw: RawData, cfg: Config, axis: str, rate_dps: float,
             halves, rate_dps, fog_rate_hz=fog_hz,
             candidates_hz=[stated] if stated is not None else list(MAINS_CANDIDATES_HZ),
             source=s["mains_source"] if stated is not None else MAINS_FOUND,
-            counter_budget=counter_budget(_counter(cfg, axis)),
+            counter_budget=corrected_budget(counter_budget(_counter(cfg, axis)),
+                                            raw.timebase_offsets.get(axis)),
             harmonics=int(s["harmonics"]), static_fog_dps=static_dps)
     finally:
         raw.drop_windows()
+
+
+def corrected_budget(b: CounterBudget, corr: TimebaseCorrection | None) -> CounterBudget:
+    """The counter budget with an applied time-base correction's e and u(e), which the
+    rate error's U and k's take as a Type B term of their own (docs/method.md A1, a
+    counter's time-base correction); none applied, the budget as it was."""
+    if corr is None:
+        return b
+    return dataclasses.replace(b, timebase_correction_rel=corr.value_rel,
+                               timebase_correction_u_rel=corr.ustd_rel)
 
 
 def _instability_u(value: float | None, turns: int) -> float:

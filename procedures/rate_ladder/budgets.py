@@ -52,6 +52,15 @@ def rate_error_budget(r: RateEntry) -> Budget | None:
     if base is not None:
         terms.append(Term(f"counter time base, limit {num(b.get('timebase_limit_rel'))} "
                           "(Type B)", 0.0, base, RECTANGULAR, 1.0, None, "1"))
+    corr_u = num(b.get("timebase_correction_ustd_rel"))
+    if corr_u is not None:
+        # docs/method.md A1, a counter's time-base correction: the edges divided by 1 + e
+        # move delta by e (1 + delta), about +e: sensitivity 1 to first order, as the
+        # analysis combines it (bench/analysis/turns.py rate_error_u)
+        terms.append(Term("counter time-base correction e applied, its as-found value "
+                          "(Type B, from its calibration's U, k = 2)",
+                          num(b.get("timebase_correction_rel")), corr_u, NORMAL, 1.0, None,
+                          "1"))
     if not terms:
         return None
     return Budget("rate error δ (relative)", "rate_error_rel", "1",

@@ -542,7 +542,8 @@ CALIBRATION_METHODS = {
 }
 
 BUDGET_TERMS = (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
-                ("repeatability_u_rel", "repeatability (Type A)"))
+                ("repeatability_u_rel", "repeatability (Type A)"),
+                ("timebase_correction_u_rel", "time-base correction applied"))
 
 
 def _rate_error_budget(axis: str, rates: Sequence[RateEntry]) -> Table | None:

@@ -268,7 +268,8 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: RateEntry,
                 "(docs/method.md A1-A2, D1)",
                 eb, f"{path}.rate_error_budget",
                 (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
-                 ("repeatability_u_rel", "repeatability (Type A)")), U.ONE)
+                 ("repeatability_u_rel", "repeatability (Type A)"),
+                 ("timebase_correction_u_rel", "time-base correction applied")), U.ONE)
     _averaged(data, rid, path, r.intra.averaged)
     _systematic(data, rid, path, r)
 

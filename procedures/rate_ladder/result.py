@@ -599,11 +599,17 @@ def clean(x: object) -> JsonValue:
 
 
 def counter_budget_json(b: CounterBudget) -> JsonObject:
-    """The counter chain's timing terms (docs/method.md A1, D1)."""
-    return {"timestamp_u_s": b.timestamp_u_s, "trigger_jitter_s": b.trigger_jitter_s,
-            "timebase_limit_rel": b.timebase_limit_rel, "edge_u_s": b.edge_u_s,
-            "time_tie_u_s": b.time_tie_u_s,
-            "period_u_s": b.period_u_s, "timebase_u_rel": b.timebase_u_rel}
+    """The counter chain's timing terms (docs/method.md A1, D1); an applied time-base
+    correction's e and u(e) only when one was applied (issue 58: without one, the bytes as
+    before)."""
+    out: JsonObject = {"timestamp_u_s": b.timestamp_u_s, "trigger_jitter_s": b.trigger_jitter_s,
+                       "timebase_limit_rel": b.timebase_limit_rel, "edge_u_s": b.edge_u_s,
+                       "time_tie_u_s": b.time_tie_u_s,
+                       "period_u_s": b.period_u_s, "timebase_u_rel": b.timebase_u_rel}
+    if b.timebase_correction_u_rel > 0.0 or b.timebase_correction_rel != 0.0:
+        out["timebase_correction_rel"] = b.timebase_correction_rel
+        out["timebase_correction_u_rel"] = b.timebase_correction_u_rel
+    return out
 
 
 def turns_json(tr: TurnsResult) -> JsonObject:
