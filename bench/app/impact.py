@@ -50,7 +50,13 @@ CORRECTIONS_FILE = "corrections.json"
 
 #: a figure's unit by the suffix its U key carries (`rate_error_U_rel`: rel)
 UNITS = {"rel": "1", "dps": "deg/s", "dps_per_h": "deg/s/h", "": "1", "deg": "deg",
-         "s": "s", "hz": "Hz"}
+         "s": "s", "hz": "Hz", "dph": "deg/h"}
+
+#: the as-found error's quantity by the item's place on the stand (the last parts of its
+#: `where`): a counter's time base (docs/method.md A1), a drift DMM's gain, the pulse
+#: generator's amplitude (docs/method.md B, "The drift kind's instrument corrections")
+FOUND_QUANTITY = {"counter": "timebase_offset_rel", "dmm": "gain_error_rel",
+                  "awg": "amplitude_error_rel"}
 
 
 @dataclass(frozen=True)
@@ -166,9 +172,11 @@ def correction_entry(f: Finding, where: str) -> dict[str, object] | None:
     """The correction the finding makes for the item at `where`, as the corrections file
     states it (None: no correction model for that item yet)."""
     parts = where.split(".")
-    if len(parts) == 3 and parts[0] == "axes" and parts[2] == "counter":
+    if len(parts) == 3 and parts[0] == "axes" and parts[2] == "counter" \
+            or len(parts) == 4 and parts[:2] == ["platform", "gyros"] and parts[3] == "dmm" \
+            or where == "platform.awg":
         return {"where": where, "serial": f.serial, "model": f.model,
-                "quantity": "timebase_offset_rel", "value": f.error, "U": f.error_u,
+                "quantity": FOUND_QUANTITY[parts[-1]], "value": f.error, "U": f.error_u,
                 "source": f"as-found error of calibration {f.certificate} ({f.issuer}"
                           + (f", {f.calibrated_on.isoformat()}" if f.calibrated_on else "")
                           + ")"}
@@ -230,6 +238,13 @@ def _entries(result: Mapping[str, object]) -> dict[str, Mapping[str, object]]:
         for p in a.get("pairs") or []:
             if isinstance(p, dict):
                 out[f"axes.{axis}.pairs[{p.get('rate_dps'):g} deg/s]"] = p
+    drift = result.get("drift")     # the drift kind: each gyro's figures, the platform's
+    if isinstance(drift, dict):
+        gyros = drift.get("axes")
+        for gyro, g in (gyros.items() if isinstance(gyros, dict) else ()):
+            if isinstance(g, dict):
+                out[f"drift.axes.{gyro}"] = g
+        out["drift"] = drift
     return out
 
 
@@ -365,7 +380,8 @@ def report_text(f: Finding, impacts: Sequence[RunImpact]) -> list[str]:
                          f"{s.corrected:>14.7g} {s.shift:>11.3g} {s.u_issued:>10.3g} "
                          f"{s.shift_over_u:>+9.3f}" + (" *" if s.marked else ""))
         for c in i.checks_changed:
-            lines.append(f"  conformity CHANGES: {c.axis} {c.set_rate_dps:g} deg/s "
+            at = "" if c.set_rate_dps is None else f" {c.set_rate_dps:g} deg/s"
+            lines.append(f"  conformity CHANGES: {c.axis}{at} "
                          f"{c.quantity}: issued {c.issued}, corrected {c.corrected}")
         if not i.checks_changed:
             lines.append("  conformity: no outcome changes")

@@ -40,6 +40,7 @@ from bench.report.conformity import judge
 from drivers.units import EARTH_RATE_DPH, SECONDS_PER_HOUR
 from procedures.drift_pulse.budgets import (
     AxisInputs,
+    CorrectionInput,
     PositionInput,
     apparent_budget,
     azimuth_budget,
@@ -342,6 +343,8 @@ class StatedErrors:
     pulse_mismatch_max_rel: float = 0.0       # |+/- amplitude mismatch| bound (rectangular)
     drift_random_walk_dph_per_rth: float = 0.0  # the gyro's own-drift random walk (its spec)
     turn_tolerance_deg: float = 0.0           # how far a turn may land from its angle
+    #: the instrument corrections applied to this gyro's readings (issue 58): budget rows
+    corrections: tuple[CorrectionInput, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -445,7 +448,7 @@ def analyze_axis(gyro: str, records: Sequence[CycleRecord], shape: PulseShape,
                         shape.angle_mean, shape.angle_end, tc, pooled.offset_s,
                         pooled.offset_u_s, pooled.cycles,
                         stated.drift_random_walk_dph_per_rth, span_h,
-                        stated.turn_tolerance_deg, w_h, vertical)
+                        stated.turn_tolerance_deg, w_h, vertical, stated.corrections)
     # every U is its budget's k(nu_eff) u_c (docs/method.md B, D1)
     b_own, b_app = own_budget(inputs), apparent_budget(inputs)
     return AxisDrift(gyro, own, b_own.U, app, b_app.U if b_app is not None else 0.0,

@@ -45,6 +45,18 @@ class PositionInput:
 
 
 @dataclass(frozen=True)
+class CorrectionInput:
+    """An instrument correction the analysis applied (issue 58; procedures/drift_pulse/
+    corrections.py): `quantity` gain_error_rel or offset_error_v of this gyro's DMM, or
+    amplitude_error_rel of the generator; its value and standard uncertainty."""
+
+    where: str
+    quantity: str
+    value: float
+    ustd: float
+
+
+@dataclass(frozen=True)
 class AxisInputs:
     """What one gyro's own and apparent drift are computed from (docs/method.md B):
     own = (k_as,cert / k_as) sum_theta c_theta mean_theta + corrections, with c_theta the
@@ -71,6 +83,7 @@ class AxisInputs:
     turn_tolerance_deg: float
     earth_horizontal_dph: float | None   # W_h = 15.041 cos(latitude); None: not given
     vertical: bool = False
+    corrections: tuple[CorrectionInput, ...] = ()   # applied (issue 58); none: no rows
 
 
 def _positions(inp: AxisInputs, coeffs: Sequence[float], prefix: str) -> list[Term]:
@@ -89,6 +102,35 @@ def _k_as(inp: AxisInputs, y_dph: float, prefix: str) -> Term:
     return Term(f"{prefix}command angle sensor scale k_as ({inp.gyro}), its calibration",
                 inp.k_as_v_per_deg, inp.k_as_v_per_deg * inp.k_as_u_rel, NORMAL,
                 -y_dph / inp.k_as_v_per_deg, None, "V/deg")
+
+
+#: each correction's row text and unit (docs/method.md B, "The drift kind's instrument
+#: corrections")
+_CORRECTION_ROWS = {
+    "gain_error_rel": ("DMM gain correction g applied ({where}), its as-found value "
+                       "(Type B, from its calibration's U, k = 2)", "1"),
+    "offset_error_v": ("DMM offset correction o applied ({where}), its as-found value "
+                       "(Type B, from its calibration's U, k = 2; c = 0: the halves cancel "
+                       "it)", "V"),
+    "amplitude_error_rel": ("pulse generator amplitude correction a applied ({where}), its "
+                            "as-found value (Type B, from its calibration's U, k = 2; c = 0: "
+                            "the amplitude drops out)", "1"),
+}
+
+
+def _corrections(inp: AxisInputs, y_dph: float, prefix: str) -> list[Term]:
+    """A row per applied correction (docs/method.md B, "The drift kind's instrument
+    corrections"): the readings divided by 1 + g give w = w_read / (1 + g), so
+    dw/dg = -w / (1 + g); an offset o cancels between the two equal halves of the signed
+    integral and the generator's amplitude drops out of w (c = 0: the row shows that the
+    correction's u was weighed, and what it weighs)."""
+    out = []
+    for c in inp.corrections:
+        text, unit = _CORRECTION_ROWS[c.quantity]
+        sens = -y_dph / (1.0 + c.value) if c.quantity == "gain_error_rel" else 0.0
+        out.append(Term(prefix + text.format(where=c.where), c.value, c.ustd, NORMAL, sens,
+                        None, unit))
+    return out
 
 
 def _random_walk(inp: AxisInputs, prefix: str) -> Term:
@@ -114,7 +156,8 @@ def own_budget(inp: AxisInputs) -> Budget:
              Term(f"digitizer start offset τ (pooled over {inp.offset_cycles} cycles; the "
                   "edges are placed there)", inp.offset_s, inp.offset_ustd_s, NORMAL,
                   2.0 * a * inp.angle_end / inp.tc_s * SECONDS_PER_HOUR,
-                  max(inp.offset_cycles - 1, 1), "s")]
+                  max(inp.offset_cycles - 1, 1), "s"),
+             *_corrections(inp, inp.own_dph, "")]
     return Budget(f"own drift ω_own ({inp.gyro})", "own_dph", DPH, inp.own_dph, tuple(terms),
                   note="ω_own = (k_as,cert / k_as) Σ c_θ w̄_θ + control and offset terms "
                        "(docs/method.md B); U = k(ν_eff) u_c (D1)")
@@ -140,6 +183,7 @@ def apparent_budget(inp: AxisInputs) -> Budget | None:
     turn = _turn(inp, "")
     if turn is not None:
         terms.append(turn)
+    terms += _corrections(inp, inp.app_dph, "")
     return Budget(f"apparent drift ω_app at 0° ({inp.gyro})", "apparent_dph", DPH,
                   inp.app_dph, tuple(terms),
                   note="ω_app = (k_as,cert / k_as) Σ c_θ w̄_θ (docs/method.md B); "
@@ -150,7 +194,8 @@ def _through_apparent(inp: AxisInputs, scale: float) -> list[Term]:
     """The axis's apparent-drift inputs (not its turn) with c_i times d(result)/d(app)."""
     terms = [*_positions(inp, inp.app_coeffs, f"{inp.gyro.upper()}: "),
              _k_as(inp, inp.app_dph, f"{inp.gyro.upper()}: "),
-             _random_walk(inp, f"{inp.gyro.upper()}: ")]
+             _random_walk(inp, f"{inp.gyro.upper()}: "),
+             *_corrections(inp, inp.app_dph, f"{inp.gyro.upper()}: ")]
     return [Term(t.quantity, t.estimate, t.ustd, t.distribution, t.sensitivity * scale,
                  t.dof, t.unit) for t in terms]
 

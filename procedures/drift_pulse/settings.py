@@ -128,6 +128,8 @@ GYRO = Map({
     "awg_channel": Key(Num(min=1, max=4, integer=True), True),
     "dmm": Key(Map({"resource": Key(Str(), True, "VISA resource string"),
                     "model": Key(Str(tuple(DMM_PROFILES)), True),
+                    "serial": Key(Str(), False, "the DMM's serial: the lab register's item "
+                                  "(its runs are found by it: bench impact)"),
                     "calibration": Key(CALIBRATION, False, "the DMM's certificate")}), True),
     "k_as_v_per_deg": Key(Num(min=0, exclusive_min=True, unit="V/deg"), True,
                           "the command angle sensor's transfer coefficient"),
@@ -142,6 +144,8 @@ PLATFORM = Map({
     "table_axis": Key(Str(), True, "the stand axis the platform sits on"),
     "awg": Key(Map({"resource": Key(Str(), True),
                     "model": Key(Str(tuple(AWG_PROFILES)), True),
+                    "serial": Key(Str(), False, "the generator's serial: the lab register's "
+                                  "item (its runs are found by it: bench impact)"),
                     "calibration": Key(CALIBRATION, False, "the generator's certificate")}),
                True),
     "gyros": Key(MapOf(GYRO, min_len=1), True),

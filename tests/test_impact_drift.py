@@ -1,0 +1,112 @@
+"""`bench impact` on the drift kind (issue 58, the second acceptance case): the X gyro's
+DMM reads every voltage (1 + g) times the true one, which the lab does not know; a short
+drift run under the lab register is issued with it; the DMM's calibration later finds the
+gain error g; `bench impact` analyses the run's raw captures again with the correction
+(every reading divided by 1 + g, docs/method.md B, "The drift kind's instrument
+corrections") and each figure moves by its hand-derived first-order effect: -g w for the
+X gyro's own and apparent drift, (app_y / r^2)(-g app_x) rad for the azimuth,
+(app_x / W_h)(-g app_x) for W_h, nothing for the Y gyro.
+
+One short run (4 cycles a position, 2 timing cycles) keeps the wall time small.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import math
+from pathlib import Path
+
+import yaml
+
+from bench.app.register import Register
+from bench.app.register.runs import run_uid_of
+from bench.core import rundir_layout as layout
+from tests.conftest import CONFIGS, cli, run_dir_of
+from tests.registers import authorise, cli_in, lab_file, password, sqlite_register
+
+DMM_SERIAL = "MY60000412"
+QUALITY = "Q. Manager"
+#: the X DMM's true gain error: its effect on the azimuth (about 9.8 g deg here) is about
+#: one U of the short run, on X's apparent drift about half a U (both over U/3: marked)
+G_REL = 2.0e-3
+G_U_REL = 1.0e-4
+
+
+def _drift_files(folder: Path) -> Path:
+    """The drift demo's procedure, short, and its stand with the X DMM's serial stated (the
+    inventory's item) and its true gain error g in the twins' truth."""
+    folder.mkdir(parents=True)
+    stand = yaml.safe_load((CONFIGS / "stands" / "sim-gyro-platform.yaml").read_text())
+    stand["platform"]["gyros"]["x"]["dmm"]["serial"] = DMM_SERIAL
+    stand["sim"]["dmm"]["gain_error_rel"] = {"x": G_REL}
+    (folder / "stand.yaml").write_text(yaml.safe_dump(stand))
+    proc = yaml.safe_load((CONFIGS / "procedures" / "drift-demo.yaml").read_text())
+    proc.update(stand="stand.yaml", cycles=4, timing_cycles=2, settle_s=1, gap_s=0.2)
+    (folder / "drift.yaml").write_text(yaml.safe_dump(proc))
+    return folder / "drift.yaml"
+
+
+def test_impact_of_a_dmm_gain_error_on_a_drift_run(tmp_path: Path) -> None:
+    url = sqlite_register(tmp_path / "register")
+    labf = lab_file(tmp_path / "lab", url)
+    with Register.open(url, migrate=False) as reg:
+        quality = reg.authenticate(QUALITY, password(QUALITY), "quality")
+        reg.add_equipment(quality, DMM_SERIAL, "Keysight 34465A", "SIM-CAL-34465A-0212",
+                          "Cal Lab", dt.date.today() + dt.timedelta(days=300))
+    runs = tmp_path / "runs"
+    out = cli("run", str(_drift_files(tmp_path / "files")), "--yes", "--quiet", "--out",
+              str(runs), "--lab", str(labf))
+    assert out.returncode in (0, 1), out.stderr[-3000:]
+    made = run_dir_of(out)
+    uid = run_uid_of(made)
+    with Register.open(url, migrate=False) as reg:
+        rec = reg.run_record(uid)
+        assert rec is not None and rec.result is not None
+        assert any(i.get("serial") == DMM_SERIAL and i.get("where") == "platform.gyros.x.dmm"
+                   for i in rec.items), rec.items
+    issued_out = authorise(made, "P. Petrov", labf, enrolled=False)
+    assert issued_out.returncode == 0, issued_out.stdout + issued_out.stderr
+    number = next((made / layout.ISSUED).iterdir()).name
+    found = cli_in(password(QUALITY) + "\n", "register", "equipment", "update", DMM_SERIAL,
+                   "--certificate", "SIM-CAL-34465A-0299", "--issuer", "Cal Lab",
+                   "--due", (dt.date.today() + dt.timedelta(days=400)).isoformat(),
+                   "--found", "out", "--found-error", f"{G_REL},{G_U_REL}",
+                   "--register", url, "--as", QUALITY, "--password-stdin")
+    assert found.returncode == 0, found.stderr
+
+    report = tmp_path / "impact.json"
+    got = cli_in(password(QUALITY) + "\n", "impact", DMM_SERIAL, "--lab", str(labf),
+                 "--runs", str(runs), "--json", str(report), "--as", QUALITY,
+                 "--password-stdin")
+    assert got.returncode == 0, got.stderr
+    print(got.stdout)
+    doc = json.loads(report.read_text())
+    [run] = doc["runs"]
+    assert (run["uid"], run["status"], run["where"], run["number"]) == \
+        (uid, "re-analysed", "platform.gyros.x.dmm", number)
+    shift = {(f["where"], f["name"]): f for f in run["figures"]}
+
+    issued = json.loads(rec.result)["drift"]
+    x, y = issued["axes"]["x"], issued["axes"]["y"]
+    app_x, app_y = x["apparent_dph"], y["apparent_dph"]
+    r2 = app_x ** 2 + app_y ** 2
+    # hand-derived first-order effects of dividing X's readings by 1 + g (docs/method.md B)
+    hand = {("drift.axes.x", "own_dph"): -G_REL * x["own_dph"],
+            ("drift.axes.x", "apparent_dph"): -G_REL * app_x,
+            ("drift", "azimuth_deg"): math.degrees(app_y / r2 * -G_REL * app_x),
+            ("drift", "earth_horizontal_dph"): app_x / math.sqrt(r2) * -G_REL * app_x}
+    for key, want in hand.items():
+        f = shift[key]
+        assert abs(f["shift"] - want) <= 0.01 * abs(want), (key, f, want)
+        print(f"{key}: shift {f['shift']:.6g}, hand-derived {want:.6g} "
+              f"({f['shift'] / want - 1:+.2%}), shift/U {f['shift_over_u']:+.3f}")
+    # the Y gyro's DMM was not corrected: its figures do not move at all
+    for name in ("own_dph", "apparent_dph"):
+        assert shift[("drift.axes.y", name)]["shift"] == 0.0
+    assert shift[("drift", "azimuth_deg")]["marked"]
+    assert shift[("drift.axes.x", "apparent_dph")]["marked"]
+    assert not shift[("drift.axes.y", "own_dph")]["marked"]
+    assert run["checks_changed"] == []      # 0.35 deg/h moves by 0.0007: still within 0.5
+    assert "conformity: no outcome changes" in got.stdout
+    assert not (made / "corrections.json").exists()
