@@ -15,7 +15,9 @@ from __future__ import annotations
 import datetime as dt
 import json
 import math
+import re
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -76,9 +78,10 @@ def test_impact_of_a_dmm_gain_error_on_a_drift_run(tmp_path: Path) -> None:
     assert found.returncode == 0, found.stderr
 
     report = tmp_path / "impact.json"
+    folder = tmp_path / "report"
     got = cli_in(password(QUALITY) + "\n", "impact", DMM_SERIAL, "--lab", str(labf),
-                 "--runs", str(runs), "--json", str(report), "--as", QUALITY,
-                 "--password-stdin")
+                 "--runs", str(runs), "--json", str(report), "--report", str(folder),
+                 "--as", QUALITY, "--password-stdin")
     assert got.returncode == 0, got.stderr
     print(got.stdout)
     doc = json.loads(report.read_text())
@@ -110,3 +113,56 @@ def test_impact_of_a_dmm_gain_error_on_a_drift_run(tmp_path: Path) -> None:
     assert run["checks_changed"] == []      # 0.35 deg/h moves by 0.0007: still within 0.5
     assert "conformity: no outcome changes" in got.stdout
     assert not (made / "corrections.json").exists()
+    _check_report(folder, doc, report.read_text(), number, url)
+
+
+def _squeezed(text: str) -> str:
+    """Text without whitespace: a table cell the PDF wraps reads as one word again."""
+    return "".join(text.split())
+
+
+def _check_report(folder: Path, doc: dict[str, Any], json_text: str, number: str,
+                  url: str) -> None:
+    """The PDF's and the HTML's text state the JSON's numbers: the summary row first, then
+    the certificate's page with every figure; the customer's draft names the certificate
+    and the marked figures; the audit entry holds each file's SHA-256."""
+    import hashlib
+
+    import pypdfium2
+
+    stem = f"impact-{DMM_SERIAL.lower()}"
+    assert (folder / f"{stem}.json").read_text() == json_text
+    [run] = doc["runs"]
+    big = max(run["figures"], key=lambda f: abs(f["shift_over_u"]))
+    row = (f"{run['uid']} {number} Demo customer {big['where']} {big['name']} "
+           f"{big['shift']:+.3g} {big['unit']} {big['shift_over_u']:+.3g} * none")
+    pdf = pypdfium2.PdfDocument(folder / f"{stem}.pdf")
+    pages = [pdf[i].get_textpage().get_text_range() for i in range(len(pdf))]
+    assert len(pages) >= 2, pages
+    print("--- the report's first page ---\n" + pages[0])
+    assert "Summary" in pages[0] and _squeezed(row) in _squeezed(pages[0]), (row, pages[0])
+    page = next(p for p in pages[1:] if f"Certificate {number}" in p)
+    html_text = (folder / f"{stem}.html").read_text()
+    for f in run["figures"]:
+        cells = (f"{f['where']} {f['name']} {f['unit']} {f['issued']:.7g} "
+                 f"{f['corrected']:.7g} {f['shift']:+.3g} {f['u_issued']:.3g} "
+                 f"{f['shift_over_u']:+.3g}" + (" *" if f["marked"] else ""))
+        assert _squeezed(cells) in _squeezed(page), (cells, page)
+        assert f"<td class=\"r\">{f['shift']:+.3g}</td>" in html_text, cells
+    assert _squeezed(row) in _squeezed(re.sub(r"<[^>]+>", " ", html_text))
+    draft = (folder / "notification-demo-customer.txt").read_text()
+    assert draft.startswith("DRAFT") and f"Certificate {number}" in draft
+    assert "To: Demo customer" in draft and "Attention: J. Smith" in draft
+    for f in (f for f in run["figures"] if f["marked"]):
+        assert (f"{f['where']} {f['name']}: issued {f['issued']:.7g}, corrected "
+                f"{f['corrected']:.7g} {f['unit']}, shift {f['shift']:+.3g} "
+                f"({f['shift_over_u']:+.3g} * U)") in draft, draft
+    assert "conformity statements: no outcome changes" in draft
+    assert (folder / "notification-demo-customer.html").read_text().count(number) == 1
+    with Register.open(url, migrate=False) as reg:
+        [entry] = [r for r in reg.audit_rows() if r["action"] == "impact assessed"]
+    detail = entry["detail"] if isinstance(entry["detail"], dict) else json.loads(
+        entry["detail"])
+    assert detail["certificates"] == [number] and detail["finding"]["error"] == G_REL
+    assert detail["report"][f"{stem}.pdf"] == \
+        hashlib.sha256((folder / f"{stem}.pdf").read_bytes()).hexdigest()

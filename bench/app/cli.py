@@ -174,6 +174,9 @@ def build_parser() -> argparse.ArgumentParser:
     imp.add_argument("--runs", metavar="DIR", nargs="+", action="extend",
                      help="folders holding run folders (each searched two levels down)")
     imp.add_argument("--json", metavar="FILE", help="write the report as JSON too")
+    imp.add_argument("--report", metavar="DIR",
+                     help="write the report as JSON, PDF and HTML in DIR, with a draft "
+                     "notification per customer (text and HTML)")
     imp.add_argument("--as", dest="as_account", required=True, metavar="ACCOUNT",
                      help="the quality account assessing (its password is asked)")
     imp.add_argument("--password-stdin", action="store_true",

@@ -48,6 +48,11 @@ MARK_FRACTION_OF_U = 1.0 / 3.0
 #: the run folder's corrections file, as the rate-ladder analysis reads it
 CORRECTIONS_FILE = "corrections.json"
 
+#: a run the register holds that was never issued (issue 58): no certificate to assess;
+#: `bench authorise` applies the correction when it issues it
+DRAFT_STATUS = ("draft, never issued: not assessed (bench authorise applies the correction "
+                "when it issues it)")
+
 #: a figure's unit by the suffix its U key carries (`rate_error_U_rel`: rel)
 UNITS = {"rel": "1", "dps": "deg/s", "dps_per_h": "deg/s/h", "": "1", "deg": "deg",
          "s": "s", "hz": "Hz", "dph": "deg/h"}
@@ -108,6 +113,8 @@ class RunImpact:
     status: str = ""               # re-analysed | raw data not found | not re-analysed: ...
     figures: list[FigureShift] = field(default_factory=list)
     checks_changed: list[CheckChange] = field(default_factory=list)
+    #: the customer the run's result names (customer, customer_address, customer_contact)
+    customer: dict[str, str] | None = None
 
     @property
     def reanalysed(self) -> bool:
@@ -299,11 +306,15 @@ def assess(reg: Register, serial: str, roots: Sequence[Path]
                         [r.shown_number + ("" if r.status == "issued" else f" ({r.status})")
                          for r in reg.revisions(number)] if number else [])
         impacts.append(imp)
+        imp.customer = _customer(rec.result)
         folder = folders.get(rec.uid)
         if folder is None:
             imp.status = "raw data not found"
             continue
         imp.folder = str(folder)
+        if number is None:      # nothing was stated to a customer; its issue corrects it
+            imp.status = DRAFT_STATUS
+            continue
         if raw_digests(folder) != rec.raw or not rec.raw:
             imp.status = ("raw data not found (the raw captures in the folder are not the "
                           "ones the register saw)")
@@ -330,6 +341,17 @@ def assess(reg: Register, serial: str, roots: Sequence[Path]
     return finding, impacts
 
 
+def _customer(result: str | None) -> dict[str, str] | None:
+    """The customer block of the result the register holds (the certificate's)."""
+    try:
+        cert = json.loads(result).get("certificate") if result else None
+    except ValueError:
+        return None
+    got = {k: str(cert[k]) for k in ("customer", "customer_address", "customer_contact")
+           if isinstance(cert, dict) and cert.get(k)}
+    return got or None
+
+
 def report_json(reg_url: str, f: Finding, impacts: Sequence[RunImpact]) -> dict[str, object]:
     def plain(x: object) -> object:
         if isinstance(x, dt.date):
@@ -351,6 +373,7 @@ def report_text(f: Finding, impacts: Sequence[RunImpact]) -> list[str]:
     """The summary table first, then each re-analysed run's figures; * marks |shift| > U/3."""
     done = [i for i in impacts if i.reanalysed]
     missing = [i for i in impacts if i.status.startswith("raw data not found")]
+    drafts = [i for i in impacts if i.status == DRAFT_STATUS]
     lines = [f"Impact of {f.model} serial {f.serial}: as-found error {f.error:g}"
              + ("" if f.error_u is None else f" (U {f.error_u:g})")
              + f", calibration {f.certificate} ({f.issuer}"
@@ -359,7 +382,7 @@ def report_text(f: Finding, impacts: Sequence[RunImpact]) -> list[str]:
              + (f"its last calibration found in tolerance ({f.since_certificate}, "
                 f"{f.since.isoformat()})" if f.since else "the inventory's first record")
              + f": {len(impacts)}; re-analysed with the correction: {len(done)}; raw data "
-             f"not found: {len(missing)}",
+             f"not found: {len(missing)}; drafts never issued: {len(drafts)}",
              "",
              f"{'run':<34} {'certificate':<16} {'largest shift/U':>15} {'checks changed':>14}"
              "  status"]
@@ -388,6 +411,22 @@ def report_text(f: Finding, impacts: Sequence[RunImpact]) -> list[str]:
     return lines
 
 
+def _write_report(args: argparse.Namespace, reg: Register, doc: dict[str, object]
+                  ) -> dict[str, str]:
+    """`--report DIR`: the report as JSON, PDF and HTML and the per-customer drafts
+    (bench/app/impact_report.py); each file's SHA-256 for the audit entry."""
+    if not getattr(args, "report", None):
+        return {}
+    from bench.app.impact_report import digests, write_report
+
+    paths = write_report(Path(args.report), doc, json.dumps(doc, indent=2) + "\n",
+                         reg.setting("issuer.name") or "the laboratory",
+                         dt.datetime.now(dt.UTC).date().isoformat())
+    for p in paths:
+        print(f"wrote {p}", file=sys.stderr)
+    return digests(paths)
+
+
 def cmd_impact(args: argparse.Namespace) -> int:
     from bench.app.register.commands import register_url
     from bench.app.register.credentials import Passwords
@@ -401,7 +440,10 @@ def cmd_impact(args: argparse.Namespace) -> int:
                     f"password of {args.as_account}: "), "quality")
             finding, impacts = assess(reg, args.serial, [Path(p) for p in args.runs or []])
             doc = report_json(url, finding, impacts)
+            written = _write_report(args, reg, doc)
             reg.impact_assessed(acting, args.serial, {
+                "nonconforming_work": "ISO/IEC 17025 7.10: the item found out of tolerance",
+                **({"report": written} if written else {}),
                 "finding": doc["finding"],
                 "runs": [{"uid": i.uid, "number": i.number, "status": i.status,
                           "largest_shift_over_U": (lg.shift_over_u if (lg := i.largest())

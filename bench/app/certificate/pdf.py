@@ -105,11 +105,14 @@ class _Pdf(FPDF):
         self.set_font(SANS, "", 8)
         self.set_text_color(60, 60, 60)
         self.cell(0, 4, self.doc.laboratory, new_x=XPos.LMARGIN, new_y=YPos.TOP)
-        self.cell(0, 4, ("Certificate No. " if self.doc.issue_date else "Draft ")
-                  + self.doc.cert_id, align="R",
+        label = self.doc.meta.get("header_label")     # a document not a certificate
+        self.cell(0, 4, label or (("Certificate No. " if self.doc.issue_date else "Draft ")
+                                  + self.doc.cert_id), align="R",
                   new_x=XPos.LMARGIN, new_y=YPos.NEXT)
         issued = (f"issued {self.doc.issue_date}" if self.doc.issue_date
                   else "DRAFT, NOT AUTHORISED, not issued")
+        if label:
+            issued = self.doc.issue_date
         self.cell(0, 4, f"{self.doc.title}, {issued}",
                   new_x=XPos.LMARGIN, new_y=YPos.TOP)
         self.cell(0, 4, f"Page {self.page_no()} of {{nb}}", align="R",
@@ -265,16 +268,18 @@ def render_pdf(doc: Document, png_of: Callable[[Figure], bytes] = _png) -> bytes
         pdf.set_font(SANS, "I", 9.5)
         pdf.multi_cell(0, 5, doc.meta["run_title"], new_x=XPos.LMARGIN, new_y=YPos.NEXT)
     pdf.ln(2)
-    colours = {"pass": ((216, 239, 216), (18, 77, 18)), "fail": ((246, 210, 210), (139, 0, 0))}
-    fill, ink = colours.get(doc.verdict, ((247, 236, 201), (107, 75, 0)))
-    pdf.set_fill_color(*fill)
-    pdf.set_text_color(*ink)
-    pdf.set_font(SANS, "B", 11)
-    pdf.cell(60, 7, f"Result: {doc.verdict.upper()}", fill=True, align="C",
-             new_x=XPos.LMARGIN, new_y=YPos.NEXT)
-    pdf.set_text_color(0, 0, 0)
-    pdf.set_fill_color(255, 255, 255)
-    pdf.ln(1)
+    if doc.verdict:     # a document without a verdict (an impact report) has no box
+        colours = {"pass": ((216, 239, 216), (18, 77, 18)),
+                   "fail": ((246, 210, 210), (139, 0, 0))}
+        fill, ink = colours.get(doc.verdict, ((247, 236, 201), (107, 75, 0)))
+        pdf.set_fill_color(*fill)
+        pdf.set_text_color(*ink)
+        pdf.set_font(SANS, "B", 11)
+        pdf.cell(60, 7, f"Result: {doc.verdict.upper()}", fill=True, align="C",
+                 new_x=XPos.LMARGIN, new_y=YPos.NEXT)
+        pdf.set_text_color(0, 0, 0)
+        pdf.set_fill_color(255, 255, 255)
+        pdf.ln(1)
     if doc.meta.get("scope"):
         pdf.set_font(SANS, "", 8.5)
         pdf.multi_cell(0, 4.2, doc.meta["scope"], new_x=XPos.LMARGIN, new_y=YPos.NEXT)
