@@ -42,8 +42,10 @@ def start_gyro_rig(stand: SimulatedStand, truth: PlatformTruth, channels: Mappin
     try:
         awg.start()
         for gyro in channels:
+            errors = (dmm_errors or {}).get(gyro, {})
             dmm = DmmTwin(platform, gyro, dmm_model, **(dmm_options or {}),
-                          **(dmm_errors or {}).get(gyro, {}))
+                          gain_error_rel=errors.get("gain_error_rel", 0.0),
+                          offset_error_v=errors.get("offset_error_v", 0.0))
             dmm.start()
             rig.dmms[gyro] = dmm
             awg.trigger_out.append(dmm.external_trigger)
