@@ -319,6 +319,12 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
             return _refuse(["the run folder no longer matches the lab register's record of "
                             "the run (what is issued is what was measured):", *changed],
                            run_path)
+        again = _corrected_record(reg, record, run_path, reason, bool(issued), line)
+        if isinstance(again, list):
+            return _refuse(again, run_path)
+        if again is not record:     # issue 58: issued from the corrected, registered result
+            record = again
+            result = json.loads(record.result_bytes or b"{}")
         result_bytes = record.result_bytes or result_bytes     # the register's, checked equal
         who = Signatory(acct.full_name, acct.function or "", True)
         previous = tuple(register.Issue(r.shown_number, r.revision, r.issued_utc,
@@ -342,6 +348,42 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
             return _refuse([str(e)], run_path)
         return _issue(run_path, result, result_bytes, stand, lab, reg, acct, who, number,
                       previous, reason, line, record)
+
+
+def _corrected_record(reg: Register, record: RunRecord, run_path: Path, reason: str | None,
+                      reissue: bool, line: Callable[[str], None]) -> RunRecord | list[str]:
+    """Issue 58: the record to issue from. When an item the run used carries an as-found
+    error whose span touches the run and the registered result does not apply it yet, the
+    run is analysed again with the correction (the run folder's corrections file, then a
+    registered analysis, bench/app/certificate/corrected.py) and the new record returned;
+    a list: the reasons to refuse."""
+    from bench.app.certificate import corrected
+
+    due, refused = corrected.corrections_due(reg, record)
+    if refused or not due:
+        return refused or record
+    if corrected.already_applied(json.loads(record.result or "{}"), due):
+        return record
+    serials = ", ".join(sorted({str(c.get("serial")) for c in due}))
+    if reissue and not (reason or "").strip():
+        return [f"the register holds an as-found error of {serials} that touches this run: a "
+                "corrected re-issue analyses it again with the correction and must say why "
+                "(--reason TEXT; ISO/IEC 17025 7.8.8)"]
+    path = corrected.write_corrections(run_path, due, reason)
+    said = (reason or "").strip()
+    why_again = f"corrected re-issue, as-found error of {serials}" + (f": {said}" if said
+                                                                      else "")
+    ok, why = corrected.analyse_corrected(run_path, why_again)
+    again = corrected.registered_again(reg, record.uid, run_path) if ok else None
+    if again is None:
+        path.unlink(missing_ok=True)        # the folder as the register holds it
+        why = why or "the lab register did not receive the new result"
+        return [f"the run could not be analysed again with the correction ({why}): not "
+                "issued"]
+    line(f"analysed again with the as-found error of {serials} as a correction ({path}); "
+         f"the lab register holds it as a new analysis of run {record.uid} (result SHA-256 "
+         f"{again.result_sha256})")
+    return again
 
 
 def issuer_lab(lab: Lab, held: Mapping[str, str]) -> Lab:

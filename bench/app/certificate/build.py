@@ -20,6 +20,7 @@ import bench
 from bench.analysis.coverage import COVERAGE_FORMULA, DOF_INFINITE
 from bench.app.certificate import register
 from bench.app.certificate.conditions import condition_rows
+from bench.app.certificate.corrected import statements as correction_statements
 from bench.app.certificate.equipment import equipment_list, identity_lines
 from bench.app.certificate.item import ItemRecord, item_record
 from bench.app.certificate.item import decision_rule_text as agreed_rule_text
@@ -193,6 +194,10 @@ def build_document(result: Mapping[str, object], run_path: Path | None = None,
                             _instruments(src, proc)))
     sections.append(Section(n.next(), "Method", _method(src, proc)))
     sections.append(Section(n.next(), "Deviations", _deviations(src, proc)))
+    fixes = correction_statements(src.result)    # issue 58: a corrected re-issue says so
+    if fixes:
+        sections.append(Section(n.next(), "Corrections applied",
+                                tuple(Para(t) for t in fixes)))
     sections.append(Section(n.next(), "Conditions", _conditions(src)))
     sections += proc.parts.certificate_sections(src, n.next(), checks)
     sections.append(Section(n.next(), "Conformity", _conformity(src, checks, proc)))

@@ -12,6 +12,7 @@ from lxml import etree
 
 import bench
 from bench.app.certificate.build import Sources, check_class, decision_rule_text
+from bench.app.certificate.corrected import statements as correction_statements
 from bench.app.certificate.equipment import equipment_list, identity_lines
 from bench.app.certificate.item import item_record, setting_statements
 from bench.app.certificate.item import statements as item_statements
@@ -205,6 +206,8 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
                      + (" What changed: " + "; ".join(issue.changes) + "."
                         if issue.changes else ""))
         statement(sts, V.AUTHORISATION, text, sid="authorisation", title="Authorisation")
+    for text in correction_statements(src.result):    # issue 58: as the PDF says it
+        statement(sts, None, text, title="Corrections applied")
     first = methods.STATEMENTS[0]
     for text in parts.certificate_statements(methods.STATEMENTS):   # those the PDF prints
         refs = ("7.8.2.1 l)",) if text == first else ("7.8",)

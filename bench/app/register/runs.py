@@ -111,6 +111,7 @@ def folder_problems(rec: RunRecord, run_path: Path) -> list[str]:
                        f"its digest ({want})")
     out += [f"{run_path / name}: a raw capture the register never received"
             for name in sorted(set(have) - set(rec.raw))]
+    out += _corrections_problems(rec, run_path)
     result = run_path / layout.RESULT
     if rec.result_sha256 is None:
         out.append("the register holds no result of this run (its session's end was not "
@@ -125,6 +126,31 @@ def folder_problems(rec: RunRecord, run_path: Path) -> list[str]:
                    f"simulated; the register recorded at the start that it was"
                    f"{'' if rec.simulated else ' not'}")
     return out
+
+
+#: the run folder's corrections file (issue 58), as the analysis reads it
+CORRECTIONS_FILE = "corrections.json"
+
+
+def _corrections_problems(rec: RunRecord, run_path: Path) -> list[str]:
+    """The corrections file must state exactly the corrections the registered result
+    applied (issue 58: the analysis reads the file, so a file the result does not state
+    would change what the raw captures give)."""
+    path = run_path / CORRECTIONS_FILE
+    try:
+        held = json.loads(rec.result or "{}").get("corrections")
+    except (ValueError, AttributeError):
+        held = None
+    if not path.is_file():
+        return [] if not held else [f"{path}: missing (the registered result applied "
+                                    "corrections it stated)"]
+    try:
+        have = json.loads(path.read_text(encoding="utf-8")).get("corrections")
+    except (OSError, ValueError, AttributeError) as e:
+        return [f"{path}: cannot be read ({e})"]
+    if have != held:
+        return [f"{path}: its corrections differ from those the registered result applied"]
+    return []
 
 
 def _simulated(rec: RunRecord) -> bool:
