@@ -12,8 +12,12 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tests.conftest import cli
+
+if TYPE_CHECKING:
+    from bench.app.register.store import RunRecord
 
 #: account: (password, roles, full name, function)
 ACCOUNTS: dict[str, tuple[str, tuple[str, ...], str, str | None]] = {
@@ -153,3 +157,42 @@ def designate(url: str, certificate: Path) -> None:
     with Register.open(url) as reg:
         reg.set_setting(reg.authenticate("admin", password("admin"), "admin"), SIGNING_SETTING,
                         hashlib.sha256(certificate.read_bytes()).hexdigest())
+
+
+def issue_then_find_out(run: Path, lab: Path, url: str, serial: str, certificate: str,
+                        error: float, error_u: float) -> str:
+    """Issue the run (P. Petrov signs; the run is in the register from its start), then the
+    item's recalibration finds it out of tolerance with the as-found error (Q. Manager,
+    `bench register equipment update ... --found out --found-error V,U`; issue 58);
+    returns the certificate number issued."""
+    import datetime as dt
+
+    from bench.core import rundir_layout as layout
+
+    issued = authorise(run, "P. Petrov", lab, enrolled=False)
+    assert issued.returncode == 0, issued.stdout + issued.stderr
+    number = next((run / layout.ISSUED).iterdir()).name
+    found = cli_in(password("Q. Manager") + "\n", "register", "equipment", "update", serial,
+                   "--certificate", certificate, "--issuer", "Cal Lab",
+                   "--due", (dt.date.today() + dt.timedelta(days=400)).isoformat(),
+                   "--found", "out", "--found-error", f"{error},{error_u}",
+                   "--register", url, "--as", "Q. Manager", "--password-stdin")
+    assert found.returncode == 0, found.stderr
+    return number
+
+
+def registered_run(procedure: Path, runs: Path, lab: Path, url: str
+                   ) -> tuple[Path, RunRecord]:
+    """`bench run PROCEDURE` under the lab file's register (it holds the run from its start,
+    issue 54): the run folder and the register's record of it, with its result."""
+    from bench.app.register import Register
+    from bench.app.register.runs import run_uid_of
+    from tests.conftest import run_dir_of
+
+    out = cli("run", str(procedure), "--yes", "--quiet", "--out", str(runs), "--lab", str(lab))
+    assert out.returncode in (0, 1), out.stderr[-3000:]
+    made = run_dir_of(out)
+    with Register.open(url, migrate=False) as reg:
+        rec = reg.run_record(run_uid_of(made))
+    assert rec is not None and rec.result is not None
+    return made, rec

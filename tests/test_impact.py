@@ -19,7 +19,6 @@ import yaml
 
 from bench.app.impact import finding_of, touched
 from bench.app.register import Register
-from bench.app.register.runs import run_uid_of
 from bench.app.register.store import (
     AuthError,
     Calibration,
@@ -30,7 +29,14 @@ from bench.app.register.store import (
 from bench.core import rundir_layout as layout
 from sims.truth import AxisTruth
 from tests.conftest import check_procedure, cli, run_dir_of
-from tests.registers import authorise, cli_in, lab_file, password, sqlite_register
+from tests.registers import (
+    cli_in,
+    issue_then_find_out,
+    lab_file,
+    password,
+    registered_run,
+    sqlite_register,
+)
 
 SERIAL = "MY62000999"
 QUALITY = "Q. Manager"
@@ -70,28 +76,17 @@ def test_impact_finds_the_run_and_the_correction_moves_the_rate_error_by_e(
     proc.write_text(yaml.safe_dump(procedure))
     stand = _stand_with_offset(proc, 3, E_REL)
     runs = tmp_path / "runs"
-    out = cli("run", str(proc), "--yes", "--quiet", "--out", str(runs), "--lab", str(labf))
-    assert out.returncode in (0, 1), out.stderr[-3000:]
-    made = run_dir_of(out)
-    uid = run_uid_of(made)
+    made, rec = registered_run(proc, runs, labf, url)
+    assert rec.result is not None
+    uid = rec.uid
+    assert any(i.get("serial") == SERIAL for i in rec.items)
     with Register.open(url, migrate=False) as reg:
-        rec = reg.run_record(uid)
-        assert rec is not None and rec.result is not None
-        assert any(i.get("serial") == SERIAL for i in rec.items)
         # a second run of the same counter the register holds, whose raw data is in no
         # runs folder: listed, never guessed
         reg.register_run("run-without-raw-data", "test bench", None, rec.version, True,
                          rec.inputs, rec.items)
         reg.deliver_result("run-without-raw-data", "session", rec.result.encode(), rec.raw)
-    issued_out = authorise(made, "P. Petrov", labf, enrolled=False)
-    assert issued_out.returncode == 0, issued_out.stdout + issued_out.stderr
-    number = next((made / layout.ISSUED).iterdir()).name
-    found = cli_in(password(QUALITY) + "\n", "register", "equipment", "update", SERIAL,
-                   "--certificate", "C-2026-999", "--issuer", "Cal Lab",
-                   "--due", (dt.date.today() + dt.timedelta(days=400)).isoformat(),
-                   "--found", "out", "--found-error", f"{E_REL},{E_U_REL}",
-                   "--register", url, "--as", QUALITY, "--password-stdin")
-    assert found.returncode == 0, found.stderr
+    number = issue_then_find_out(made, labf, url, SERIAL, "C-2026-999", E_REL, E_U_REL)
 
     report = tmp_path / "impact.json"
     got = cli_in(password(QUALITY) + "\n", "impact", SERIAL, "--lab", str(labf),

@@ -22,10 +22,8 @@ from typing import Any
 import yaml
 
 from bench.app.register import Register
-from bench.app.register.runs import run_uid_of
-from bench.core import rundir_layout as layout
-from tests.conftest import CONFIGS, cli, run_dir_of
-from tests.registers import authorise, cli_in, lab_file, password, sqlite_register
+from tests import registers as lab
+from tests.conftest import CONFIGS
 
 DMM_SERIAL = "MY60000412"
 QUALITY = "Q. Manager"
@@ -50,38 +48,26 @@ def _drift_files(folder: Path) -> Path:
 
 
 def test_impact_of_a_dmm_gain_error_on_a_drift_run(tmp_path: Path) -> None:
-    url = sqlite_register(tmp_path / "register")
-    labf = lab_file(tmp_path / "lab", url)
+    url = lab.sqlite_register(tmp_path / "register")
+    labf = lab.lab_file(tmp_path / "lab", url)
     with Register.open(url, migrate=False) as reg:
-        quality = reg.authenticate(QUALITY, password(QUALITY), "quality")
+        quality = reg.authenticate(QUALITY, lab.password(QUALITY), "quality")
         reg.add_equipment(quality, DMM_SERIAL, "Keysight 34465A", "SIM-CAL-34465A-0212",
                           "Cal Lab", dt.date.today() + dt.timedelta(days=300))
     runs = tmp_path / "runs"
-    out = cli("run", str(_drift_files(tmp_path / "files")), "--yes", "--quiet", "--out",
-              str(runs), "--lab", str(labf))
-    assert out.returncode in (0, 1), out.stderr[-3000:]
-    made = run_dir_of(out)
-    uid = run_uid_of(made)
-    with Register.open(url, migrate=False) as reg:
-        rec = reg.run_record(uid)
-        assert rec is not None and rec.result is not None
-        assert any(i.get("serial") == DMM_SERIAL and i.get("where") == "platform.gyros.x.dmm"
-                   for i in rec.items), rec.items
-    issued_out = authorise(made, "P. Petrov", labf, enrolled=False)
-    assert issued_out.returncode == 0, issued_out.stdout + issued_out.stderr
-    number = next((made / layout.ISSUED).iterdir()).name
-    found = cli_in(password(QUALITY) + "\n", "register", "equipment", "update", DMM_SERIAL,
-                   "--certificate", "SIM-CAL-34465A-0299", "--issuer", "Cal Lab",
-                   "--due", (dt.date.today() + dt.timedelta(days=400)).isoformat(),
-                   "--found", "out", "--found-error", f"{G_REL},{G_U_REL}",
-                   "--register", url, "--as", QUALITY, "--password-stdin")
-    assert found.returncode == 0, found.stderr
+    made, rec = lab.registered_run(_drift_files(tmp_path / "files"), runs, labf, url)
+    assert rec.result is not None
+    uid = rec.uid
+    assert any(i.get("serial") == DMM_SERIAL and i.get("where") == "platform.gyros.x.dmm"
+               for i in rec.items), rec.items
+    number = lab.issue_then_find_out(made, labf, url, DMM_SERIAL, "SIM-CAL-34465A-0299",
+                                     G_REL, G_U_REL)
 
     report = tmp_path / "impact.json"
     folder = tmp_path / "report"
-    got = cli_in(password(QUALITY) + "\n", "impact", DMM_SERIAL, "--lab", str(labf),
-                 "--runs", str(runs), "--json", str(report), "--report", str(folder),
-                 "--as", QUALITY, "--password-stdin")
+    got = lab.cli_in(lab.password(QUALITY) + "\n", "impact", DMM_SERIAL, "--lab", str(labf),
+                     "--runs", str(runs), "--json", str(report), "--report", str(folder),
+                     "--as", QUALITY, "--password-stdin")
     assert got.returncode == 0, got.stderr
     print(got.stdout)
     doc = json.loads(report.read_text())
@@ -162,7 +148,7 @@ def _check_report(folder: Path, doc: dict[str, Any], json_text: str, number: str
     with Register.open(url, migrate=False) as reg:
         [entry] = [r for r in reg.audit_rows() if r["action"] == "impact assessed"]
     detail = entry["detail"] if isinstance(entry["detail"], dict) else json.loads(
-        entry["detail"])
+        str(entry["detail"]))
     assert detail["certificates"] == [number] and detail["finding"]["error"] == G_REL
     assert detail["report"][f"{stem}.pdf"] == \
         hashlib.sha256((folder / f"{stem}.pdf").read_bytes()).hexdigest()
