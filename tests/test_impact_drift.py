@@ -19,6 +19,7 @@ import re
 from pathlib import Path
 from typing import Any
 
+import pytest
 import yaml
 
 from bench.app.register import Register
@@ -152,3 +153,61 @@ def _check_report(folder: Path, doc: dict[str, Any], json_text: str, number: str
     assert detail["certificates"] == [number] and detail["finding"]["error"] == G_REL
     assert detail["report"][f"{stem}.pdf"] == \
         hashlib.sha256((folder / f"{stem}.pdf").read_bytes()).hexdigest()
+
+
+def test_an_offset_and_an_amplitude_correction_move_no_figure_and_show_as_rows(
+        tmp_path: Path) -> None:
+    """A DMM offset o cancels between the signed integral's two equal halves and the
+    generator's amplitude drops out of w (docs/method.md B): corrected for them, every
+    figure is the uncorrected one to rounding, and each correction is a budget row with
+    its u = U / 2 and c = 0; a gain correction is a row with c = -w / (1 + g)."""
+    from dataclasses import replace
+
+    from procedures.drift_pulse import analysis as dp
+    from procedures.drift_pulse.budgets import CorrectionInput
+    from procedures.drift_pulse.corrections import read_corrections
+    from tests.drift_cycles import paper_truth, record_cycles
+
+    shape = dp.SHAPES["rectangular"]
+    recs, _ = record_cycles(paper_truth(angle_noise_arcsec=1.0), shape, cycles=4)
+    k_as = {"x": 2.0, "y": 2.0}
+    (tmp_path / "corrections.json").write_text(json.dumps({"corrections": [
+        {"where": "platform.gyros.x.dmm", "quantity": "offset_error_v", "value": 0.01,
+         "U": 0.002},
+        {"where": "platform.awg", "quantity": "amplitude_error_rel", "value": 0.01,
+         "U": 0.004},
+        {"where": "axes.outer.counter", "quantity": "timebase_offset_rel", "value": 1e-7}]}))
+    corr = read_corrections(tmp_path)
+    read = {g: [replace(r, u_v=r.u_v + (0.01 if g == "x" else 0.0)) for r in rs]
+            for g, rs in recs.items()}            # what a DMM off by o = 10 mV reads
+    again = {g: [replace(r, u_v=corr.readings(g, r.u_v)) for r in rs] for g, rs in read.items()}
+    assert max(abs(a.u_v - r.u_v).max() for a, r in zip(again["x"], recs["x"], strict=True)) \
+        < 1e-15 and again["y"][0].u_v is read["y"][0].u_v    # y's DMM: untouched
+    stated = {g: dp.StatedErrors(corrections=tuple(
+        CorrectionInput(c.where, c.quantity, c.value, c.ustd) for c in corr.of_gyro(g)))
+        for g in recs}
+    plain = dp.analyze(recs, shape, k_as, 70.0)
+    fixed = dp.analyze(again, shape, k_as, 70.0, stated)
+    for g in recs:
+        for name in ("own_dph", "apparent_dph", "own_u_dph"):
+            assert math.isclose(getattr(fixed.axes[g], name), getattr(plain.axes[g], name),
+                                rel_tol=1e-9), (g, name)
+    rows = {t.quantity.split(" (")[0]: t for t in fixed.axes["x"].own_budget.terms}
+    offset = rows["DMM offset correction o applied"]
+    amplitude = rows["pulse generator amplitude correction a applied"]
+    assert (offset.estimate, offset.ustd, offset.sensitivity) == (0.01, 0.001, 0.0)
+    assert (amplitude.estimate, amplitude.ustd, amplitude.sensitivity) == (0.01, 0.002, 0.0)
+    assert "pulse generator amplitude correction a applied" in \
+        {t.quantity.split(" (")[0] for t in fixed.axes["y"].own_budget.terms}
+    assert "DMM offset correction o applied" not in \
+        {t.quantity.split(" (")[0] for t in fixed.axes["y"].own_budget.terms}
+    gain = dp.analyze(recs, shape, k_as, 70.0, {"x": dp.StatedErrors(corrections=(
+        CorrectionInput("platform.gyros.x.dmm", "gain_error_rel", 2e-3, 5e-5),))})
+    [row] = [t for t in gain.axes["x"].own_budget.terms if t.quantity.startswith("DMM gain")]
+    assert row.sensitivity == -gain.axes["x"].own_dph / (1 + 2e-3) and row.ustd == 5e-5
+
+    (tmp_path / "corrections.json").write_text(json.dumps({"corrections": [
+        {"where": "platform.gyros.x.dmm", "quantity": "gain_error_rel", "value": "2e-3"}]}))
+    with pytest.raises(ValueError, match=r"corrections\.json: corrections\[0\]\.value: a "
+                                         r"finite number, got '2e-3'"):
+        read_corrections(tmp_path)
