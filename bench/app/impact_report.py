@@ -155,7 +155,7 @@ def build(doc: Mapping[str, object], laboratory: str, date: str) -> Document:
                  f"{sum(1 for r in runs if str(r.get('status')).startswith('raw data'))} "
                  "whose raw data was not found (listed, not re-analysed)."),
             Table(SUMMARY_HEADER, tuple(summary_rows(doc)),
-                  widths=(2.2, 1.6, 1.3, 2.2, 1.2, 0.9, 1.8), align="lllllrl",
+                  widths=(3.8, 1.5, 1.1, 2.0, 1.0, 0.9, 1.2), align="lllllrl",
                   caption="Each run's figure that moved most against its U (corrected "
                           "minus issued)",
                   notes=(f"{MARK} a shift over {mark:.2g} of the figure's expanded U "
