@@ -118,16 +118,24 @@ def counter_timebase_offsets(run_path: Path) -> dict[str, TimebaseCorrection]:
     return out
 
 
-def corrected_edges(edges_s: np.ndarray, offset_rel: float) -> np.ndarray:
-    """Edges read by a counter whose time base is off by e, corrected: every interval
-    from the first edge divided by 1 + e, so each period T = T_measured / (1 + e)
-    (docs/method.md A1, "A counter's time-base correction"). The first edge stays where
-    the run placed it (the FOG window the run chose begins there); the counter's start
-    to it, under a turn, would move by e times that: nanoseconds, beside the time tie's
-    U."""
+def corrected_edges(edges_s: np.ndarray, offset_rel: float, t0_s: float) -> np.ndarray:
+    """Edges read by a counter whose time base is off by e, corrected: every interval it
+    timed from its start t0 divided by 1 + e, T = T_measured / (1 + e) (docs/method.md
+    A1, "A counter's time-base correction"): the edges where the counter would have put
+    them with a true time base, the first one too (it sat e times the wait from the
+    counter's start late)."""
     if edges_s.size == 0:
         return edges_s
-    return edges_s[0] + (edges_s - edges_s[0]) / (1.0 + offset_rel)
+    return t0_s + (edges_s - t0_s) / (1.0 + offset_rel)
+
+
+def fog_bracket(edges_s: np.ndarray, rate_hz: float) -> tuple[int, int]:
+    """The FOG samples that bracket the timed turns, by the rule the run chose them with
+    (procedures/rate_ladder/kind.py, the half's acquisition): from the sample at or before
+    the first edge to the second after the last (the analysis integrates from the first
+    edge to the last, interpolating between samples)."""
+    return (math.floor(float(edges_s[0]) * rate_hz),
+            math.floor(float(edges_s[-1]) * rate_hz) + 2)
 
 
 def edges_from_replies(records: Iterable[Mapping[str, object]], model: str, n_edges: int,
@@ -284,11 +292,18 @@ class RawData:
             edges = edges_from_replies(log[i0:i1], model, h.turns + 1, counter_start_s(h))
         if corr is None:
             return edges
-        return corrected_edges(edges, corr.value_rel)
+        return corrected_edges(edges, corr.value_rel, counter_start_s(h))
 
     def half(self, h: HalfAcquired) -> HalfRecord:
-        t, w = self.fog_window(h.session, h.axis, h.fog_from, h.fog_to, h.fog_capture)
-        return HalfRecord(h.sign, self.edges(h), t, w, session=h.session)
+        edges = self.edges(h)
+        i_from, i_to = h.fog_from, h.fog_to
+        if h.axis in self.timebase_offsets and edges.size:
+            # docs/method.md A1, a counter's time-base correction: the FOG samples the
+            # corrected edges bracket, as the run would have chosen them with a true time
+            # base (the capture holds every sample from the half's checkpoint on)
+            i_from, i_to = fog_bracket(edges, h.rate_hz)
+        t, w = self.fog_window(h.session, h.axis, i_from, i_to, h.fog_capture)
+        return HalfRecord(h.sign, edges, t, w, session=h.session)
 
     def static(self, e: StaticRecorded) -> np.ndarray:
         """The FOG at rest, in memory (minutes of samples, for the floor and Allan)."""
