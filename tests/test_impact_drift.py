@@ -211,3 +211,24 @@ def test_an_offset_and_an_amplitude_correction_move_no_figure_and_show_as_rows(
     with pytest.raises(ValueError, match=r"corrections\.json: corrections\[0\]\.value: a "
                                          r"finite number, got '2e-3'"):
         read_corrections(tmp_path)
+
+
+def test_the_as_found_error_is_the_quantity_of_the_items_place() -> None:
+    """A counter's as-found error is its time-base offset, a drift DMM's its gain error,
+    the pulse generator's its amplitude error; an item without a correction model (a
+    drive) gets none, and `bench impact` lists its runs as not re-analysed."""
+    from bench.app.impact import Finding, correction_entry
+
+    f = Finding("S-1", "model", "C-2", "Cal Lab", dt.date(2026, 11, 1), "out", 3e-3, 2e-4,
+                None, None)
+    got = {w: (c or {}).get("quantity") for w in ("axes.outer.counter",
+                                                    "platform.gyros.y.dmm", "platform.awg",
+                                                    "axes.outer.drive", "platform.dmm")
+           for c in [correction_entry(f, w)]}
+    assert got == {"axes.outer.counter": "timebase_offset_rel",
+                   "platform.gyros.y.dmm": "gain_error_rel",
+                   "platform.awg": "amplitude_error_rel",
+                   "axes.outer.drive": None, "platform.dmm": None}
+    entry = correction_entry(f, "platform.gyros.y.dmm")
+    assert entry is not None and (entry["value"], entry["U"], entry["serial"]) == \
+        (3e-3, 2e-4, "S-1")
