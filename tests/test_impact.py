@@ -90,8 +90,8 @@ def test_impact_finds_the_run_and_the_correction_moves_the_rate_error_by_e(
 
     report = tmp_path / "impact.json"
     got = cli_in(password(QUALITY) + "\n", "impact", SERIAL, "--lab", str(labf),
-                 "--runs", str(runs), "--json", str(report), "--as", QUALITY,
-                 "--password-stdin")
+                 "--runs", str(runs), "--json", str(report), "--report",
+                 str(tmp_path / "report"), "--as", QUALITY, "--password-stdin")
     assert got.returncode == 0, got.stderr
     lines = got.stdout.splitlines()
     assert lines[0].startswith(f"Impact of Keysight 53230A serial {SERIAL}: as-found error "
@@ -159,6 +159,19 @@ def test_impact_finds_the_run_and_the_correction_moves_the_rate_error_by_e(
         assert len(entries) == 1 and entries[0]["object"] == SERIAL
         assert entries[0]["actor"] == QUALITY
         assert uid in str(entries[0]["detail"]) and number in str(entries[0]["detail"])
+    # the report (--report): its summary states the conformity outcomes that change and
+    # the run whose raw data is not found; the draft to the run's customer (none stated
+    # here) names the certificate and the changed statements, and no unissued run
+    import pypdfium2
+
+    pdf = pypdfium2.PdfDocument(tmp_path / "report" / f"impact-{SERIAL.lower()}.pdf")
+    first = "".join(pdf[0].get_textpage().get_text_range().split())
+    for rate in ("50", "-50"):
+        assert f"outer{rate}deg/srate_error:fail->pass" in first, first
+    assert "run-without-raw-data" in first and "rawdatanotfound" in first
+    draft = (tmp_path / "report" / "notification-customer-not-stated.txt").read_text()
+    assert f"Certificate {number} (run {uid})" in draft and "run-without-raw-data" not in draft
+    assert "conformity statement changes: outer 50 deg/s rate_error: fail -> pass" in draft
 
 
 def _record(uid: str, day: str) -> RunRecord:
