@@ -25,7 +25,7 @@ from typing import Any
 
 import pytest
 
-pytest_plugins = ["tests.netguard"]
+pytest_plugins = ["tests.netguard", "tests.schedule"]
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
