@@ -19,6 +19,7 @@ ladder figure; all five runs share one seed and are made once for the module.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import json
 import math
@@ -318,3 +319,50 @@ def test_the_reissued_certificate_states_the_correction_and_why_and_r1_is_withdr
     stated = json.loads((run / "corrections.json").read_text())["corrections"]
     assert stated == json.loads((folder / layout.RESULT).read_text())["corrections"]
     assert [c["reason"] for c in stated] == [REASON]
+
+
+def test_what_a_finding_asks_of_an_issue_without_a_run(tmp_path: Path) -> None:
+    """corrections_due on register records alone (no run made): the correction a counter's
+    recorded finding calls for, with its U; a finding without U, or an item found out
+    with no correction model, refuses; a run registered after the finding, or timed by
+    another counter, is not touched; a result that states the correction needs no second
+    analysis; the certificate's words name the item, e with its U and why."""
+    from bench.app.certificate.corrected import already_applied, corrections_due, statements
+
+    url = sqlite_register(tmp_path / "register")
+    today = dt.date.today()
+    counter = {"where": "axes.outer.counter", "item": "counter", "serial": SERIAL}
+    fixture = {"where": "axes.outer.fixture", "item": "fixture", "serial": "FX-1"}
+    with Register.open(url, migrate=False) as reg:
+        quality = reg.authenticate(QUALITY, password(QUALITY), "quality")
+        for serial in (SERIAL, OTHER, "FX-1"):
+            reg.add_equipment(quality, serial, MODEL, "C-1", "Cal Lab",
+                              today + dt.timedelta(days=300))
+        uses = reg.register_run("uses-it", "b", None, "v", True, {}, [counter])
+        other = reg.register_run("other", "b", None, "v", True, {},
+                                 [{**counter, "serial": OTHER}])
+        both = reg.register_run("with-fixture", "b", None, "v", True, {}, [counter, fixture])
+        assert corrections_due(reg, uses) == ([], [])        # nothing recorded yet
+        reg.update_equipment(quality, SERIAL, "C-2", "Cal Lab", today + dt.timedelta(400),
+                             today, "out", 3e-7, None)
+        due, refused = corrections_due(reg, uses)
+        assert due == [] and len(refused) == 1 and "has no U" in refused[0]
+        reg.update_equipment(quality, SERIAL, "C-3", "Cal Lab", today + dt.timedelta(400),
+                             today, "out", 3e-7, 3e-8)
+        due, refused = corrections_due(reg, uses)
+        assert refused == [] and [(c["where"], c["serial"], c["quantity"], c["value"],
+                                   c["U"]) for c in due] == \
+            [("axes.outer.counter", SERIAL, "timebase_offset_rel", 3e-7, 3e-8)]
+        assert corrections_due(reg, other) == ([], [])
+        reg.update_equipment(quality, "FX-1", "C-2", "Cal Lab", today + dt.timedelta(400),
+                             today, "out", 0.1, 0.01)
+        assert "no correction model" in " ".join(corrections_due(reg, both)[1])
+        later = dataclasses.replace(uses, registered_utc=(today + dt.timedelta(1))
+                                    .isoformat() + "T00:00:00Z")
+        assert corrections_due(reg, later) == ([], [])
+    applied = {"corrections": [{**due[0], "reason": REASON}]}
+    assert already_applied(applied, due) and not already_applied({}, due)
+    assert not already_applied({"corrections": [{**due[0], "value": 2e-7}]}, due)
+    said = statements(applied)
+    assert len(said) == 1 and f"serial {SERIAL}" in said[0] and "e = 3e-07" in said[0] \
+        and "U = 3e-08, k = 2" in said[0] and said[0].endswith(f"Why: {REASON}.")
