@@ -8,12 +8,14 @@ kinds are found by entry point.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, TypedDict, TypeVar
+from typing import TYPE_CHECKING, TypedDict
 
+from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.config import Config
+from bench.core.events import Event
 from bench.core.lab import certificate_settings
 from bench.core.plan import Plan, Step
 from bench.core.stops import register
@@ -25,10 +27,8 @@ from bench.report.uncertainty_names import UNCERTAINTY_NAMING, with_explicit_nam
 if TYPE_CHECKING:
     from bench.core.engine import RunContext
     from bench.core.journal import RunDir
-    from drivers.json_types import JsonObject
 
 #: a journal record as a reader holds it
-R = TypeVar("R", bound=Mapping[str, object])
 
 
 def prompt(step: Step, ctx: RunContext) -> None:
@@ -44,9 +44,6 @@ def resume_whole(plan: Plan, run: RunDir) -> Plan:
 
 SCHEMA = "bench.result/1"
 
-
-def events_of(events: Iterable[R], kind: str) -> list[R]:
-    return [e for e in events if e.get("event") == kind]
 
 
 class RawFile(TypedDict):
@@ -89,18 +86,16 @@ class RawHashes:
             self._pool.shutdown(wait=False, cancel_futures=True)
 
 
-def run_header(run: RunDir, cfg: Config, events: list[JsonObject],
+def run_header(run: RunDir, cfg: Config, events: Sequence[Event],
                raw_hashes: RawHashes | None = None) -> dict[str, object]:
     """What every procedure kind's result.json says about the run (certificate header)."""
-    from bench.core.journal import str_field
     meta = run.meta
     stand = cfg.stand_settings
-    identities: dict[str, JsonObject] = {}
-    for e in events_of(events, "identity"):
-        identities[str_field(e, "axis")] = {k: v for k, v in e.items()
-                                 if k not in ("utc", "t_s", "session", "event", "axis")}
+    identities: dict[str, dict[str, str]] = {}
+    for e in ev.of_kind(events, ev.Identity):
+        identities[e.axis] = dict(e.instruments)
     from bench.core.journal import COMPLETED, session_endings
-    starts = events_of(events, "session_start")
+    starts = ev.of_kind(events, ev.SessionStarted)
     # the run ends as its last session did (a resume is a session of the same run)
     sessions = session_endings(events)
     last = sessions[-1] if sessions else None
@@ -115,7 +110,7 @@ def run_header(run: RunDir, cfg: Config, events: list[JsonObject],
                   "sha256": meta["stand_sha256"], "simulated": stand.simulated},
         "instruments": identities,
         "dates": {"created_utc": meta["created_utc"],
-                  "started_utc": starts[0]["utc"] if starts else None,
+                  "started_utc": starts[0].utc if starts else None,
                   "completed_utc": last.ended_utc if last else None},
         "conditions": dict(cfg.common.conditions),
         "specification": (dict(cfg.common.specification)
@@ -130,7 +125,7 @@ def run_header(run: RunDir, cfg: Config, events: list[JsonObject],
     }
 
 
-def result_document(run: RunDir, cfg: Config, events: list[JsonObject], *,
+def result_document(run: RunDir, cfg: Config, events: Sequence[Event], *,
                     complete: bool, checks: Sequence[Mapping[str, object]], rule: str,
                     method: Mapping[str, object], raw_hashes: RawHashes | None = None,
                     **body: object) -> dict[str, object]:

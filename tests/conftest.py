@@ -87,7 +87,7 @@ def when_step_starts(run: Any, match: Callable[[dict[str, Any]], bool],
     def watch() -> None:
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:
-            if any(e.get("event") == "step_start" and match(e) for e in run.events()):
+            if any(e.get("event") == "step_start" and match(e) for e in run.lines()):
                 time.sleep(delay_s)
                 action()
                 return

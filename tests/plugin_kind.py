@@ -29,6 +29,7 @@ from lxml import etree
 
 from bench.core.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config, StandSettings
 from bench.core.engine import RunContext
+from bench.core.events import Event
 from bench.core.instruments import Bench
 from bench.core.journal import RunDir
 from bench.core.plan import Duration, Plan, Step, check_actions
@@ -89,6 +90,12 @@ class DwellFiles:
         return []
 
 
+class Dwelt(Event, tag="dwelt", frozen=True):
+    """The kind's own journal record, declared beside its steps (bench/core/events.py)."""
+
+    waited_s: float
+
+
 class DwellSteps:
     """Its bench (the `steps` part): the simulated bench's clock, no instrument; one
     action, `dwell`."""
@@ -111,7 +118,7 @@ class DwellSteps:
     def dwell(self, step: Step, ctx: RunContext) -> None:
         start = ctx.clock.now()
         ctx.clock.sleep(step.params_as(Duration).duration_s)
-        ctx.run.event("dwelt", waited_s=ctx.clock.now() - start)
+        ctx.run.write(Dwelt(waited_s=ctx.clock.now() - start))
 
 
 class DwellPlan:
@@ -132,7 +139,7 @@ class DwellAnalysis:
 
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
         events = run.events()
-        waited = [e["waited_s"] for e in events if e.get("event") == "dwelt"]
+        waited = [e.waited_s for e in events if isinstance(e, Dwelt)]
         dwell, tol = float(cfg.procedure["dwell_s"]), float(cfg.procedure["tolerance_s"])
         checks = []
         error = None

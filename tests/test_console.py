@@ -13,6 +13,7 @@ from bench.app.console import JsonConsole, PlainConsole, QuietConsole, Timeline,
 from bench.app.console.report import table_lines
 from bench.app.console.timeline import fit_step_cost
 from bench.app.summary import summarize
+from bench.core.events import decode_all
 from bench.core.plan import Step
 from bench.core.progress import RELATIVE, Figure
 from bench.report.certificate.model import Document, Fields, Section, Table
@@ -210,7 +211,7 @@ def test_prompts_on_the_certificate_say_who_answered() -> None:
                "answered": "yes", "answered_by": "operator", "answer": "",
                "answered_utc": "2026-11-22T15:00:00.000+00:00"},
               {"event": "prompt", "session": 2, "text": "Old log", "answered": "operator"}]
-    (table,) = prompt_blocks(events)
+    (table,) = prompt_blocks(decode_all(events))
     assert [r[3] for r in table.rows] == [
         "confirmed by --yes (unattended run: nobody was asked)",
         "confirmed by the operator (Enter)", "confirmed by the operator (Enter)"]
@@ -222,7 +223,8 @@ def test_prompts_on_the_certificate_say_who_answered() -> None:
 def test_software_note_names_every_version_involved() -> None:
     events = [{"event": "session_start", "session": 1, "version": "0.1.0"},
               {"event": "session_start", "session": 2, "version": "0.2.0"}]
-    note = software_note({"bench_version": "0.1.0"}, events, "0.2.0", "run-1").text
+    note = software_note({"bench_version": "0.1.0"}, decode_all(events), "0.2.0",
+                         "run-1").text
     assert note == ("Software: run with ratebench 0.1.0 (session 1), 0.2.0 (session 2); "
                     "certificate issued by ratebench 0.2.0. Run directory: run-1.")
 

@@ -45,7 +45,7 @@ def _drive_log(run: RunDir) -> list[dict[str, Any]]:
 
 
 def _assert_stopped(run: RunDir) -> None:
-    events = run.events()
+    events = run.lines()
     assert next(e for e in events if e["event"] == "safe_stop")["ok"] is True
     assert events[-1] == {**events[-1], "event": "exit", "status": EXIT_ABORTED}
     drive = _drive_log(run)
@@ -67,7 +67,7 @@ def test_a_drive_fault_mid_acquisition_stops_the_run(tmp_path: Path) -> None:
 
     status = run_session(cfg, run, yes=True, on_sim_started=hook)
     assert status == EXIT_ABORTED
-    abort = next(e for e in run.events() if e["event"] == "abort")
+    abort = next(e for e in run.lines() if e["event"] == "abort")
     assert "0x4310" in abort["reason"], abort["reason"]
     _assert_stopped(run)
     # the static record completed before the fault and is not lost
@@ -84,6 +84,6 @@ def test_a_silent_counter_aborts_with_a_clear_error(tmp_path: Path) -> None:
 
     status = run_session(cfg, run, yes=True, on_sim_started=hook)
     assert status == EXIT_ABORTED
-    abort = next(e for e in run.events() if e["event"] == "abort")
+    abort = next(e for e in run.lines() if e["event"] == "abort")
     assert "counter" in abort["reason"].lower(), abort["reason"]
     _assert_stopped(run)

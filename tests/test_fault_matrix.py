@@ -24,6 +24,7 @@ import pytest
 import yaml
 
 from bench.app.commands import EXIT_ABORTED, EXIT_PASS, run_session
+from bench.core.events import SessionStarted
 from bench.core.journal import RunDir, read_jsonl
 from bench.core.loader import load_config
 from drivers.cia402 import OVER_TEMPERATURE
@@ -113,7 +114,7 @@ def _session(cfg: Any, run: RunDir, inject: Callable[[Any], None] | None = None,
 
 def _assert_aborted_cleanly(run: RunDir, status: int, seen: dict[str, Any]) -> None:
     assert status == EXIT_ABORTED
-    events = run.events()
+    events = run.lines()
     mine = [e for e in events if e.get("session") == run.session]
     assert mine[-1]["event"] == "exit" and mine[-1]["status"] == EXIT_ABORTED, mine[-3:]
     assert any(e["event"] == "abort" for e in mine)
@@ -135,7 +136,7 @@ def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str, tmp_path
     run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
     status, seen = _session(cfg, run, FAULTS[fault], phase)
     _assert_aborted_cleanly(run, status, seen)
-    exit_event = [e for e in run.events() if e["event"] == "exit"][-1]
+    exit_event = [e for e in run.lines() if e["event"] == "exit"][-1]
     if fault == "drive-heartbeat-lost":
         text = " ".join([exit_event["cause"] or "", *exit_event["later"]])
         assert "heartbeat" in text, exit_event
@@ -148,7 +149,7 @@ def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str, tmp_path
     # the resume's subject is not a real-time silence: on the co-simulation clock
     status2, _ = _session(load_config(_procedure(tmp_path / "resume")) if slow else cfg,
                           again, resume=True)
-    assert status2 == EXIT_PASS, [e for e in again.events() if e["event"] == "abort"]
+    assert status2 == EXIT_PASS, [e for e in again.lines() if e["event"] == "abort"]
     assert _raw_hashes(again, 1) == before          # the first session's bytes untouched
     result = json.loads((run.path / "result.json").read_text())
     # the run ends as its last session did (issue 57): the resume completed it
@@ -213,7 +214,7 @@ def test_a_dead_fog_in_acquire_aborts_cleanly_and_resumes(tmp_path: Path) -> Non
     run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
     status, seen = _session(cfg, run, _fog_fault("dead"), "acquire")
     _assert_aborted_cleanly(run, status, seen)
-    abort = [e for e in run.events() if e["event"] == "abort"][-1]
+    abort = [e for e in run.lines() if e["event"] == "abort"][-1]
     assert abort["error"] == "FogTimeout" and "did not arrive" in abort["reason"], abort
     before = _raw_hashes(run, 1)
     again = RunDir(run.path)
@@ -238,7 +239,7 @@ def test_a_failure_while_stopping_is_added_beneath_the_first_cause(
     assert "no heartbeat from the drive" in lines[0], err
     loud = [ln for ln in lines[1:] if "COULD NOT BE TOLD TO STOP" in ln]
     assert loud and "watchdog (0x1016" in loud[0], err
-    exit_event = [e for e in run.events() if e["event"] == "exit"][-1]
+    exit_event = [e for e in run.lines() if e["event"] == "exit"][-1]
     assert "no heartbeat from the drive" in exit_event["cause"]
     assert any("COULD NOT BE TOLD TO STOP" in x for x in exit_event["later"])
 
@@ -315,7 +316,7 @@ def test_a_ctrl_c_landing_inside_a_twins_clock_step_still_stops_the_run(
                                                        else _ctrl_c)
     status = run_session(cfg, run, yes=True, on_sim_started=hook)
     assert fired.is_set(), "no drive tick ran in the main thread after the settle began"
-    exit_event = [e for e in run.events() if e["event"] == "exit"][-1]
+    exit_event = [e for e in run.lines() if e["event"] == "exit"][-1]
     assert "interrupted by SIGINT" in (exit_event["cause"] or ""), exit_event
     _assert_aborted_cleanly(run, status, seen)   # exit 3, "incomplete", the axis at rest
 
@@ -327,7 +328,7 @@ def test_torn_journal_tail_resume_starts_on_a_fresh_line(tmp_path: Path) -> None
     log = run.path / "events.jsonl"
     log.write_text('{"utc":"x","session":1,"event":"session_start"}\n{"utc":"2026-11-2')
     run.begin_session()
-    run.event("session_start", resume=True)
+    run.write(SessionStarted(resume=True))
     run.close()
     events = list(read_jsonl(log))
     assert [e["event"] for e in events] == ["session_start", "torn_tail", "session_start"]
@@ -390,7 +391,7 @@ def test_ctrl_c_while_the_outputs_are_written_is_honoured(
     err = capsys.readouterr().err
     assert f"bench analyze {run.path}" in err, err
     assert "being stopped first" not in err
-    last = run.events()[-1]
+    last = run.lines()[-1]
     assert last["event"] == "exit" and last["status"] == EXIT_ABORTED
 
 
@@ -419,7 +420,7 @@ def test_a_ctrl_c_lost_in_a_finaliser_while_writing_still_ends_the_run(
     err = capsys.readouterr().err
     assert status == EXIT_ABORTED, err
     assert f"bench analyze {run.path}" in err, err
-    last = run.events()[-1]
+    last = run.lines()[-1]
     assert last["event"] == "exit" and last["status"] == EXIT_ABORTED, last
     assert last["cause"] == "interrupted while writing the outputs", last
 
@@ -454,5 +455,5 @@ def test_full_disk_mid_acquire_names_the_file_and_resumes(
     status2, _ = _session(cfg, again, resume=True)
     assert status2 == EXIT_PASS, capsys.readouterr().err
     assert _raw_hashes(again, 1) == before
-    starts = [e for e in again.events() if e["event"] == "session_start"]
+    starts = [e for e in again.lines() if e["event"] == "session_start"]
     assert [e["session"] for e in starts] == [1, 2]     # the journal stayed readable

@@ -98,7 +98,7 @@ def test_a_rate_the_drive_unit_cannot_carry_is_refused_before_anything_moves(
     err = capsys.readouterr().err
     assert "100 deg/s cannot be commanded in the drive's velocity unit (6 deg/s" in err, err
     assert "sent as 102 deg/s" in err and "60 deg/s" not in err.split("Refused")[1], err
-    assert not any(e["event"] == "step_start" for e in run.events())
+    assert not any(e["event"] == "step_start" for e in run.lines())
 
 
 @pytest.mark.timeout(300)

@@ -88,7 +88,7 @@ def test_a_slowed_twin_slows_the_clock_and_the_run_completes(tmp_path: Path) -> 
 
     status = run_session(cfg, run, yes=True, on_sim_started=slow)
     real_s = time.monotonic() - started[0]
-    events = run.events()
+    events = run.lines()
     assert status == EXIT_PASS, [e for e in events if e["event"] == "abort"]
     done = next(e for e in events if e["event"] == "completed")
     lead_s = 20.0

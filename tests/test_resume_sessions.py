@@ -152,6 +152,7 @@ def test_session_endings_read_each_session_from_the_journal() -> None:
     without an end was killed; a `session_lost` line says so with the last event's time;
     an abort after the completion of the same session does not undo it; the last session
     without an end is not known yet (it may still run)."""
+    from bench.core.events import decode_all
     from bench.core.journal import session_endings
 
     def ev(s: int, kind: str, utc: str, **more: object) -> dict[str, object]:
@@ -164,12 +165,12 @@ def test_session_endings_read_each_session_from_the_journal() -> None:
               ev(3, "session_start", "20:00", pid=13),
               ev(3, "completed", "29:00"), ev(3, "abort", "29:10"), ev(3, "exit", "29:30"),
               ev(4, "session_start", "40:00", pid=14), ev(4, "step_start", "41:00")]
-    got = session_endings(events)
+    got = session_endings(decode_all(events))
     assert [(x.session, x.ended, x.ended_utc[14:19] if x.ended_utc else None)
             for x in got] == [(1, "killed or crashed", "01:00"), (2, "aborted", "11:00"),
                               (3, "completed", "29:00"), (4, None, None)]
     assert [x.performer for x in got] == ["A. Ivanova", None, None, None]
     assert got[1].os_user == "op" and [x.pid for x in got] == [11, 12, 13, 14]
     lost = ev(4, "session_lost", "50:00", last_utc="2026-01-01T00:41:00+00:00")
-    last = session_endings([*events, lost])[-1]
+    last = session_endings(decode_all([*events, lost]))[-1]
     assert (last.ended, last.ended_utc) == ("killed or crashed", "2026-01-01T00:41:00+00:00")

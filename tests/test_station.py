@@ -24,6 +24,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -39,7 +40,9 @@ from bench.app.station.live import (
 )
 from bench.app.station.serve import settings_from_args
 from bench.core.config import FogSettings
+from bench.core.events import decode_all
 from drivers.fog_formats import get_format
+from procedures.rate_ladder.events import HalfAcquired
 from tests.conftest import CONFIGS, ROOT, bench, bench_bg, unavailable
 
 TOKEN = "s3cret-token"
@@ -48,10 +51,18 @@ ARTIFACTS = Path(os.environ.get("BENCH_TEST_ARTIFACTS", ROOT / "test-artifacts")
 
 # -- the live state, from files, against hand-derived values ---------------------------
 
+def _half(**fields: Any) -> HalfAcquired:
+    """An `acquire` record as the ladder writes it, with the fields a test states."""
+    return HalfAcquired(**{"axis": "outer", "unit": "outer/10dps", "half": 0,
+                           "set_rate_dps": 10.0, "turns": 2, "edges_s": [0.0, 36.0, 72.0],
+                           "counter_records": [0, 3], "fog_from": 0, "fog_to": 100,
+                           "rate_hz": 1000.0, **fields})
+
+
 def test_turn_rates_from_edges_hand_derived() -> None:
     # docs/method.md A1: w = 360 / T. Turn 1: T = 36 s -> 10 deg/s exactly; turn 2:
     # T = 36.000036 s -> 10 / (1 + 1e-6) deg/s, a deviation of -1/(1 + 1e-6) ppm.
-    t = turn_rates({"edges_s": [5.0, 41.0, 77.000036], "set_rate_dps": -10.0, "axis": "outer"})
+    t = turn_rates(_half(axis="outer", edges_s=[5.0, 41.0, 77.000036], set_rate_dps=-10.0))
     assert t["rate_dps"][0] == pytest.approx(-10.0, rel=1e-15)
     assert t["rate_dps"][1] == pytest.approx(-10.0 / (1 + 1e-6), rel=1e-12)
     assert t["deviation_ppm"] == pytest.approx([0.0, -1 / (1 + 1e-6)], abs=1e-6)
@@ -72,12 +83,14 @@ def test_progress_eta_from_measured_speed() -> None:
          "t_s": 0.0, "utc": "2026-01-01T00:00:00+00:00"},
         {"event": "step_start", "index": 0, "action": "a", "t_s": 0.0,
          "utc": "2026-01-01T00:00:00+00:00"},
-        {"event": "step_done", "index": 0, "t_s": 100.0, "utc": "2026-01-01T00:00:10+00:00"},
+        {"event": "step_done", "index": 0, "action": "a", "t_s": 100.0,
+         "utc": "2026-01-01T00:00:10+00:00"},
         {"event": "step_start", "index": 1, "action": "b", "describe": "x", "t_s": 100.0,
          "utc": "2026-01-01T00:00:10+00:00"},
-        {"event": "settled", "t_s": 140.0, "utc": "2026-01-01T00:00:14+00:00"},
+        {"event": "settled", "axis": "outer", "unit": "outer/10dps", "rate_dps": 10.0,
+         "t_s": 140.0, "utc": "2026-01-01T00:00:14+00:00"},
     ]
-    p = progress_of(ev)
+    p = progress_of(decode_all(ev))
     assert p["step"]["number"] == 2 and p["steps_done"] == 1
     assert p["bench_left_s"] == pytest.approx(200 + 300 - 40)
     assert p["speed"] == pytest.approx(10.0)
@@ -434,7 +447,7 @@ def test_health_flags_a_silent_fog_only_while_running(tmp_path: Path) -> None:
     os.utime(raw / "outer-counter.jsonl", (now - 0.5, now - 0.5))
     os.utime(raw / "outer-fog.bin", (now - FOG_SILENT_S - 1, now - FOG_SILENT_S - 1))
     tail = {"tail_s": 30.0, "tail_crc_errors": 2, "tail_lost_frames": 0}
-    acq = [{"axis": "outer", "fog_lost": 3}, {"axis": "outer", "fog_lost": 1}]
+    acq = [_half(axis="outer", fog_lost=3), _half(axis="outer", fog_lost=1)]
     h = health(tmp_path, raw, ["outer"], True, tail, "outer", acq, now=now)
     assert h["axes"][0]["fog_lost_in_halves"] == 4
     assert h["axes"][0]["fog_age_s"] == pytest.approx(FOG_SILENT_S + 1)
@@ -532,7 +545,7 @@ def test_page_warns_of_a_silent_fog_and_shows_the_final_results(tmp_path: Path) 
 
 def test_results_rows_as_they_come_and_final() -> None:
     from bench.app.station.live import final_rows, pair_rows
-    events = [{"event": "settled", "axis": "outer"},
+    events = [{"event": "settled", "axis": "outer", "unit": "outer/10dps", "rate_dps": 10.0},
               {"event": "pair", "axis": "outer", "unit": "outer/10dps", "k": 1.0003,
                "k_u": 4e-6, "w0_dps": 0.002, "w0_u_dps": 4e-5,
                "directions": [{"set_rate_dps": 10.0, "turns": 4, "rate_error_rel": -1e-7,
@@ -541,7 +554,7 @@ def test_results_rows_as_they_come_and_final() -> None:
                               {"set_rate_dps": -10.0, "turns": 4, "rate_error_rel": 2e-5,
                                "rate_error_U_rel": 1e-7, "rate_instability_rel": 5e-8,
                                "verdict": "fail"}]}]
-    rows = pair_rows(events)
+    rows = pair_rows(decode_all(events))
     assert [(r["set_rate_dps"], r["verdict"], r["k"]) for r in rows] == [
         (10.0, "pass", 1.0003), (-10.0, "fail", 1.0003)]
     result = {"axes": {"outer": {

@@ -27,6 +27,7 @@ import pytest
 
 from bench.app.station.app import StationSettings, create_app
 from bench.app.station.live import ending, run_status
+from bench.core.events import decode_all
 from tests.conftest import CONFIGS, DemoRun, bench, unavailable
 from tests.test_station import (
     ARTIFACTS,
@@ -250,33 +251,34 @@ def _exit(status: int, cause: str | None = None, later: list[str] | None = None
 
 def test_each_ending_and_its_first_cause(tmp_path: Path) -> None:
     start = {"event": "session_start", "session": 1, "pid": 1}
-    assert ending([start], tmp_path) is None
-    assert ending([start, _exit(0)], tmp_path)["status"] == "passed"
-    assert ending([start, _exit(1)], tmp_path)["status"] == "failed"
-    end = ending([start, _exit(3, "interrupted by SIGINT", ["drive outer: no answer"])],
-                 tmp_path)
+    assert ending(decode_all([start]), tmp_path) is None
+    assert ending(decode_all([start, _exit(0)]), tmp_path)["status"] == "passed"
+    assert ending(decode_all([start, _exit(1)]), tmp_path)["status"] == "failed"
+    end = ending(decode_all([start, _exit(3, "interrupted by SIGINT",
+                                          ["drive outer: no answer"])]), tmp_path)
     assert end is not None
     assert (end["status"], end["cause"], end["later"]) == (
         "aborted", "interrupted by SIGINT", ["drive outer: no answer"])
     refused = {"event": "refused", "session": 1, "reason": "axes.outer.counter.reference: no"}
-    end = ending([start, refused, _exit(2)], tmp_path)
+    end = ending(decode_all([start, refused, _exit(2)]), tmp_path)
     assert end is not None and (end["status"], end["cause"]) == ("refused", refused["reason"])
     # exit 3 without a cause: nothing went wrong at the bench; the outputs say what is missing
-    end = ending([start, _exit(3)], tmp_path)
+    end = ending(decode_all([start, _exit(3)]), tmp_path)
     assert end is not None and end["status"] == "incomplete"
     assert "no result.json" in end["cause"] and "bench analyze" in end["cause"]
     (tmp_path / "result.json").write_text('{"verdict": "incomplete"}')
-    end = ending([start, _exit(3)], tmp_path)
+    end = ending(decode_all([start, _exit(3)]), tmp_path)
     assert end is not None and "not every step" in end["cause"] and "--resume" in end["cause"]
     (tmp_path / "result.json").write_text('{"verdict": "pass"}')
-    end = ending([start, _exit(3)], tmp_path)
+    end = ending(decode_all([start, _exit(3)]), tmp_path)
     assert end is not None and "no certificate" in end["cause"]
 
 
 def test_a_bench_gone_without_an_exit_is_stopped(tmp_path: Path) -> None:
     gone = subprocess.Popen([sys.executable, "-c", "pass"])
     gone.wait()
-    st = run_status([{"event": "session_start", "session": 1, "pid": gone.pid}], tmp_path)
+    st = run_status(decode_all([{"event": "session_start", "session": 1, "pid": gone.pid}]),
+                    tmp_path)
     assert st["status"] == "stopped" and "--resume" in st["cause"]
     assert run_status([], tmp_path)["status"] == "created"
 

@@ -292,7 +292,7 @@ def test_a_faulted_drive_ends_at_rest_and_the_outcomes_say_so(tmp_path: Path) ->
     assert order.index("safe stop: outer") < worker < drive < twin, order
     assert all(o.ok for o in outcomes), session.stops.failures
     assert not session.stops.axis_moving and session.later == []
-    exit_event = [e for e in run.events() if e["event"] == "exit"][-1]
+    exit_event = [e for e in run.lines() if e["event"] == "exit"][-1]
     assert exit_event["later"] == [] and "drive fault" in exit_event["cause"], exit_event
     assert order.count("the analysis worker") == order.count("outer") == 1
     # run again: no stop runs twice (what it returns is only the exit event's journaling,

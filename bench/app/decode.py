@@ -21,7 +21,7 @@ from typing import TextIO
 import numpy as np
 
 from bench.core import rundir_layout as layout
-from bench.core.journal import fog_capture_starts, read_jsonl
+from bench.core.journal import fog_capture_starts, read_events
 from drivers.fog_formats import FORMATS, DecodeState, Frames, StreamDecoder
 
 _CHUNK_BYTES = 1 << 22
@@ -38,7 +38,7 @@ def run_capture_start(path: Path) -> int | None:
     if not events.is_file():
         return None
     try:
-        return fog_capture_starts(read_jsonl(events)).get((session, axis))
+        return fog_capture_starts(read_events(events)).get((session, axis))
     except (OSError, ValueError, KeyError):
         return None
 

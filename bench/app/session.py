@@ -34,6 +34,7 @@ from bench.app.records.hooks import (
     warn_if_overdue,
 )
 from bench.app.summary import Summary, summarize
+from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.config import Config, StandSettings
 from bench.core.diskspace import expected_raw_bytes, space_problem
@@ -198,7 +199,7 @@ class RunSession:
                 guard.stopping = True
                 guard.received()
                 err(f"Refused: {self.cfg.stand_path}: {e}")
-                self._journal("refused", reason=str(e))
+                self._journal(ev.Refused(reason=str(e)))
                 self.status = EXIT_INVALID
             except BaseException as e:  # noqa: BLE001 - whatever it is, the stop follows
                 guard.stopping = True
@@ -229,22 +230,24 @@ class RunSession:
             self.simbench, stand = self.kind.steps.start_sim(sim_cfg)
         clock: Clock = self.simbench.clock if self.simbench is not None else MonotonicClock()
         run.begin_session(clock.now)
-        run.event("session_start", resume=self.resume, sim=self.simbench is not None,
-                  done_units=done, clock_speed=clock.speed, argv=sys.argv[1:],
-                  version=__version__, prompts="--yes" if self.yes else "operator",
-                  pid=os.getpid(), performer=self.performer, os_user=_os_user())
+        run.write(ev.SessionStarted(
+            resume=self.resume, sim=self.simbench is not None, done_units=done,
+            clock_speed=clock.speed, argv=sys.argv[1:], version=__version__,
+            prompts="--yes" if self.yes else "operator", pid=os.getpid(),
+            performer=self.performer, os_user=_os_user()))
         for t in overdue(cfg.stand_settings, dt.datetime.now(dt.UTC).date()):
             progress.line(overdue_warning(t))
-            run.event("calibration_overdue", where=t.where, item=t.item,
-                      certificate=t.certificate, due=t.due.isoformat() if t.due else None)
+            run.write(ev.CalibrationOverdue(where=t.where, item=t.item,
+                                            certificate=t.certificate,
+                                            due=t.due.isoformat() if t.due else None))
         if table_overdue:
-            run.event("records_overdue", text=table_overdue)
+            run.write(ev.RecordsOverdue(text=table_overdue))
         for text in out_of_control:
-            run.event("out_of_control", text=text)
+            run.write(ev.OutOfControl(text=text))
         # each instrument's stop registered with the session's as it is opened
         self.bench = bench = self.kind.steps.open_bench(cfg, stand, clock, run)
         for ax in bench.axes.values():
-            run.event("identity", **identity_record(ax))
+            run.write(identity_record(ax))
         if self.simbench is not None:
             self.simbench.start_clock()
             if self.on_sim_started is not None:
@@ -262,7 +265,7 @@ class RunSession:
         t0 = time.monotonic()
         self.engine_ran = True
         Engine(ctx, self.kind.steps.execute).run(todo, guard)
-        run.event("completed", wall_s=time.monotonic() - t0)
+        run.write(ev.Completed(wall_s=time.monotonic() - t0))
 
     def _check_identities(self, stand: StandSettings, bench: Bench, run: RunDir,
                           progress: PlainConsole) -> None:
@@ -280,8 +283,8 @@ class RunSession:
                 "file names is connected (correct the serial in the stand file, or connect "
                 "the instrument it names)")
         for m in found:
-            run.event("identity_mismatch", where=m.where, stated=m.stated,
-                      reported=m.reported, query=m.query)
+            run.write(ev.IdentityMismatch(where=m.where, stated=m.stated,
+                                          reported=m.reported, query=m.query))
             progress.warn(f"FINDING: {m.text}; on twins the run goes on (a real stand "
                           "would be refused)")
 
@@ -299,7 +302,7 @@ class RunSession:
         self.cause = f"{phase}: {e or type(e).__name__}"
         if self.bench is not None:
             self.stops.record(*self.bench.safe_stop(self.progress.line))
-        self._journal("abort", reason=str(e) or type(e).__name__, error=type(e).__name__)
+        self._journal(ev.Aborted(reason=str(e) or type(e).__name__, error=type(e).__name__))
 
     def _stop(self) -> None:
         """The console first (its live display ends), then every registered stop, last
@@ -324,13 +327,13 @@ class RunSession:
         for note in self.later:
             self.progress.warn(f"  also, while stopping: {note}")
 
-    def _journal(self, kind: str, **fields: object) -> StopOutcome | None:
+    def _journal(self, record: ev.Event) -> StopOutcome | None:
         """An event written on the stop path: a failure to write it is an outcome among
         the stops', not raised."""
         if not self.run_dir.session:
             return None
-        outcome = attempt(f"journaling the {kind} event",
-                          lambda: self.run_dir.event(kind, **fields), "journal")
+        outcome = attempt(f"journaling the {record.kind} event",
+                          lambda: self.run_dir.write(record), "journal")
         self.stops.record(outcome)
         return outcome
 
@@ -379,8 +382,8 @@ class RunSession:
             print(f"The run was aborted; {stopped}. Continue with: "
                   f"{resume_command(run.path, self.yes)}")
         if run.session:
-            outcome = self._journal("exit", status=self.status, cause=self.cause,
-                                    later=self.later)
+            outcome = self._journal(ev.Exited(status=self.status, cause=self.cause,
+                                              later=self.later))
             if outcome is not None and not outcome.ok:
                 err(f"  also: {outcome.text}")
         try:

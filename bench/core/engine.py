@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from types import FrameType
 from typing import TYPE_CHECKING, Protocol
 
+from bench.core import events as ev
 from bench.core.config import Config
 from bench.core.journal import RunDir, utc_now
 from bench.core.plan import Plan, Step
@@ -343,8 +344,8 @@ class RunContext:
         certificate lists them)."""
         asked = utc_now()
         if self.yes:
-            self.run.event("prompt", text=text, answered="yes", answered_by="--yes",
-                           answer="", asked_utc=asked, answered_utc=asked)
+            self.run.write(ev.Prompted(text=text, answered="yes", answered_by="--yes",
+                                       answer="", asked_utc=asked, answered_utc=asked))
             self.progress.warn(f"PROMPT  {text}  [answered by --yes]")
             return
         if not sys.stdin.isatty():
@@ -352,9 +353,9 @@ class RunContext:
                         f"(use --yes for unattended runs): {text}")
         answer = self.progress.ask(f"PROMPT  {text}").strip()
         aborted = answer.lower() in ("abort", "a", "no", "n")
-        self.run.event("prompt", text=text, answered="abort" if aborted else "yes",
-                       answered_by="operator", answer=answer, asked_utc=asked,
-                       answered_utc=utc_now())
+        self.run.write(ev.Prompted(text=text, answered="abort" if aborted else "yes",
+                                   answered_by="operator", answer=answer, asked_utc=asked,
+                                   answered_utc=utc_now()))
         if aborted:
             raise Abort("the operator aborted at a prompt")
 
@@ -375,8 +376,8 @@ class Engine:
         steps = plan.steps
         remaining = [sum(s.estimate_s for s in steps[i:]) for i in range(len(steps))]
         last_of_unit = {s.unit: i for i, s in enumerate(steps) if s.unit}
-        ctx.run.event("plan", steps=len(steps), estimate_s=plan.total_s,
-                      step_estimates_s=[s.estimate_s for s in steps])
+        ctx.run.write(ev.Planned(steps=len(steps), estimate_s=plan.total_s,
+                                 step_estimates_s=[s.estimate_s for s in steps]))
         ctx.progress.begin(steps, ctx.clock.now, ctx.worker.backlog_s)
         # the worker started, and the kind's modules imported there, while the first
         # steps run: the first pair's look does not wait seconds for an interpreter
@@ -390,13 +391,13 @@ class Engine:
                 guard.check()
                 ctx.eta_s = functools.partial(remaining.__getitem__, i)
                 ctx.progress.step(i)
-                ctx.run.event("step_start", index=i, action=step.action, axis=step.axis,
-                              unit=step.unit, describe=step.describe)
+                ctx.run.write(ev.StepStarted(index=i, action=step.action, axis=step.axis,
+                                             unit=step.unit, describe=step.describe))
                 self.execute(step, ctx)
                 ctx.progress.step_done(i)
-                ctx.run.event("step_done", index=i, action=step.action, unit=step.unit)
+                ctx.run.write(ev.StepDone(index=i, action=step.action, unit=step.unit))
                 if step.unit and last_of_unit[step.unit] == i:
-                    ctx.run.event("unit_done", unit=step.unit)
+                    ctx.run.write(ev.UnitDone(unit=step.unit))
             # the last pair's first look, before "completed"
             for problem in ctx.worker.close(wait=True):
                 ctx.progress.warn(f"WARNING: {problem}")
@@ -410,8 +411,8 @@ class Engine:
             ctx.progress.warn(f"ABORT: {reason}")
             error, trace = type(exc).__name__, traceback.format_exc(limit=8)
             ctx.stops.record(attempt(
-                "journaling the abort event", lambda: ctx.run.event(
-                    "abort", reason=reason, error=error, traceback=trace), "journal"))
+                "journaling the abort event", lambda: ctx.run.write(
+                    ev.Aborted(reason=reason, error=error, traceback=trace)), "journal"))
             self.safe_stop()
             # jobs not started are dropped now (an Engine may run without a session);
             # its registered stop, next, finds it closed
@@ -435,7 +436,8 @@ class Engine:
         errors = [o.text for o in outcomes if not o.ok]
         if errors:
             ctx.progress.warn(f"SAFE STOP FAILED: {'; '.join(errors)}: check the table by hand")
-        error = {"error": repr(RuntimeError("; ".join(errors)))} if errors else {}
+        error = repr(RuntimeError("; ".join(errors))) if errors else None
         ctx.stops.record(attempt("journaling the safe_stop event",
-                                 lambda: ctx.run.event("safe_stop", ok=not errors, **error),
+                                 lambda: ctx.run.write(ev.SafeStopped(ok=not errors,
+                                                                      error=error)),
                                  "journal"))

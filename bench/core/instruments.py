@@ -15,6 +15,7 @@ from typing import TypeVar
 
 from bench.core import rundir_layout as layout
 from bench.core.config import StandAxis
+from bench.core.events import Identity
 from bench.core.journal import JsonLines, RunDir
 from bench.core.protocols import Counter as CounterLike
 from bench.core.protocols import Drive
@@ -142,11 +143,12 @@ def with_readback(identity: str, readback: Mapping[str, object], manual: str | N
     return out
 
 
-def identity_record(ax: AxisInstruments) -> dict[str, str]:
-    """The `identity` event's fields of one axis: each instrument's identity with its
-    read-back, and the counter's reference as read back."""
-    return {"axis": ax.name, **ax.identities,
-            **({"counter_reference": ax.reference_text} if ax.reference_text else {})}
+def identity_record(ax: AxisInstruments) -> Identity:
+    """The `identity` event of one axis: each instrument's identity with its read-back,
+    and the counter's reference as read back."""
+    return Identity(axis=ax.name, instruments={
+        **ax.identities,
+        **({"counter_reference": ax.reference_text} if ax.reference_text else {})})
 
 
 def manual_note(manual: str) -> str:

@@ -31,8 +31,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TypedDict, TypeVar
 
+import msgspec
+
 import bench
+from bench.core import events as ev
 from bench.core import rundir_layout as layout
+from bench.core.events import Event
 from drivers.json_types import JsonObject
 
 T = TypeVar("T")
@@ -157,6 +161,11 @@ def read_jsonl(path: Path) -> Iterator[JsonObject]:
     yield from scan_jsonl(path)[0]
 
 
+def read_events(path: Path) -> list[Event]:
+    """A run's events.jsonl, each line as its kind's record (bench/core/events.py)."""
+    return ev.decode_all(read_jsonl(path))
+
+
 class MalformedRecord(ValueError):
     """A journal record whose field is not of the type its writer gives it."""
 
@@ -194,11 +203,10 @@ def object_field(rec: Mapping[str, object], key: str) -> JsonObject:
     return _narrow(rec, key, dict, "an object")
 
 
-def units_done(events: Iterable[Mapping[str, object]]) -> dict[str, int]:
+def units_done(events: Iterable[Event]) -> dict[str, int]:
     """Each unit done -> the session that completed it (the `unit_done` events; a unit
     measured again in a later session counts there)."""
-    return {str_field(e, "unit"): int_field(e, "session") for e in events
-            if e.get("event") == "unit_done"}
+    return {e.unit: e.session for e in events if isinstance(e, ev.UnitDone)}
 
 
 #: how a session ended, as the journal shows it (`session_endings`)
@@ -229,35 +237,29 @@ class SessionEnding:
                 "performer": self.performer, "os_user": self.os_user}
 
 
-def _text(value: object) -> str | None:
-    return value if isinstance(value, str) and value else None
-
-
-def session_endings(events: Iterable[Mapping[str, object]]) -> list[SessionEnding]:
+def session_endings(events: Iterable[Event]) -> list[SessionEnding]:
     """Every session of a run in order, with how it ended: `completed`, `aborted`
     (a fault, the operator, an unanswered prompt), `refused` (before anything moved),
     KILLED (a `session_lost` event a later process wrote, or a later session began
     without one) or None (no word yet: the last session, maybe still running).
     The run ends as its last session did."""
-    starts: dict[int, Mapping[str, object]] = {}
+    starts: dict[int, ev.SessionStarted] = {}
     last_utc: dict[int, str] = {}
     ends: dict[int, tuple[str, str]] = {}
     for e in events:
-        s = e.get("session")
-        if not isinstance(s, int) or isinstance(s, bool):
+        s, utc = e.session, e.utc
+        if not s:
             continue
-        utc = _text(e.get("utc")) or ""
-        kind = e.get("event")
-        if kind == "session_start" and s not in starts:
+        if isinstance(e, ev.SessionStarted) and s not in starts:
             starts[s] = e
-        if kind != SESSION_LOST:
+        if not isinstance(e, ev.SessionLost):
             last_utc[s] = utc
-        if kind == "completed":
+        if isinstance(e, ev.Completed):
             ends[s] = (COMPLETED, utc)
-        elif kind in ("abort", "refused") and ends.get(s, ("",))[0] != COMPLETED:
-            ends[s] = (ABORTED if kind == "abort" else REFUSED, utc)
-        elif kind == SESSION_LOST and s not in ends:
-            ends[s] = (KILLED, _text(e.get("last_utc")) or last_utc.get(s, utc))
+        elif isinstance(e, ev.Aborted | ev.Refused) and ends.get(s, ("",))[0] != COMPLETED:
+            ends[s] = (ABORTED if isinstance(e, ev.Aborted) else REFUSED, utc)
+        elif isinstance(e, ev.SessionLost) and s not in ends:
+            ends[s] = (KILLED, e.last_utc or last_utc.get(s, utc))
     out: list[SessionEnding] = []
     numbers = sorted(starts)
     for i, s in enumerate(numbers):
@@ -265,13 +267,8 @@ def session_endings(events: Iterable[Mapping[str, object]]) -> list[SessionEndin
         ended: tuple[str | None, str | None] = ends.get(s, (None, None))
         if ended[0] is None and i + 1 < len(numbers):   # a later session began: it is gone
             ended = (KILLED, last_utc.get(s))
-        performer = st.get("performer")
-        pid = st.get("pid")
-        out.append(SessionEnding(
-            s, _text(st.get("utc")) or "", ended[1], ended[0],
-            _text(performer.get("account")) if isinstance(performer, Mapping)
-            else _text(performer), _text(st.get("os_user")),
-            pid if isinstance(pid, int) and not isinstance(pid, bool) else None))
+        out.append(SessionEnding(s, st.utc, ended[1], ended[0], st.performer_account,
+                                 st.os_user or None, st.pid))
     return out
 
 
@@ -292,23 +289,11 @@ class RunMeta(TypedDict):
     run_uid: str
 
 
-#: the event a run writes when it opens a FOG while its clock runs: where the raw
-#: capture raw/s<session>/<axis>-fog.bin starts (drivers/fog.py `first_index`)
-FOG_CAPTURE_EVENT = "fog_capture"
-
-
-def fog_capture_starts(events: Iterable[Mapping[str, object]]) -> dict[tuple[int, str], int]:
+def fog_capture_starts(events: Iterable[Event]) -> dict[tuple[int, str], int]:
     """{(session, axis): the first sample index of that session's FOG capture}. A capture
     without the event starts at index 0 (a run from before the event existed)."""
-    return {(_count(e["session"]), str(e["axis"])): _count(e["first_index"]) for e in events
-            if e.get("event") == FOG_CAPTURE_EVENT and e.get("first_index") is not None}
-
-
-def _count(value: object) -> int:
-    """A journal's whole number (a session, a sample index) as JSON gave it back."""
-    if isinstance(value, bool) or not isinstance(value, int | float | str):
-        raise ValueError(f"{value!r} is not a whole number")
-    return int(value)
+    return {(e.session, e.axis): e.first_index for e in events
+            if isinstance(e, ev.FogCapture) and e.first_index is not None}
 
 
 def torn_tail_bytes(path: Path) -> int:
@@ -401,8 +386,7 @@ class RunDir:
     # -- sessions and events ------------------------------------------------------------
     def next_session(self) -> int:
         """The number the next `begin_session` gives (1 for a new run)."""
-        return max((int_field(e, "session") for e in self.events() if "session" in e),
-                   default=0) + 1
+        return max((e.session for e in self.events()), default=0) + 1
 
     def begin_session(self, clock_now: Callable[[], float] | None = None) -> int:
         """Each `bench run` or `--resume` is a session with its own raw folder."""
@@ -419,9 +403,9 @@ class RunDir:
         if clock_now is not None:
             self._clock_now = clock_now
         if torn:
-            self.event("torn_tail", file=layout.EVENTS, bytes=torn,
-                       note="a line cut short by a crash or power loss; kept as written, "
-                            "readers skip it")
+            self.write(ev.TornTail(file=layout.EVENTS, bytes=torn,
+                                   note="a line cut short by a crash or power loss; kept "
+                                        "as written, readers skip it"))
         return self.session
 
     @property
@@ -431,18 +415,25 @@ class RunDir:
     def raw_path(self, name: str) -> Path:
         return self.raw_dir / name
 
-    def event(self, kind: str, **fields: object) -> None:
+    def write(self, record: Event) -> None:
+        """Journal one event: the journal sets its frame (UTC, the stand clock, the
+        session) and writes the line, flushed and fsynced."""
         if self._events is None:
             raise RuntimeError("begin_session() first")
-        rec = {"utc": utc_now(), "t_s": self._clock_now(), "session": self.session,
-               "event": kind, **fields}
-        self._events.write(rec)
+        self._events.write(ev.encode(msgspec.structs.replace(
+            record, utc=utc_now(), t_s=self._clock_now(), session=self.session)))
 
-    def events(self) -> list[JsonObject]:
+    def events(self) -> list[Event]:
+        """Every event of every session, each as its kind's record (bench/core/events.py)."""
+        return read_events(self.path / layout.EVENTS)
+
+    def lines(self) -> list[JsonObject]:
+        """Every event as the JSON mapping written on its line (for tools and tests that
+        look at the journal's bytes; readers of the run take `events`)."""
         return list(read_jsonl(self.path / layout.EVENTS))
 
     def completed_units(self) -> list[str]:
-        return [str_field(e, "unit") for e in self.events() if e.get("event") == "unit_done"]
+        return [e.unit for e in self.events() if isinstance(e, ev.UnitDone)]
 
     def close(self) -> None:
         if self._events is not None:

@@ -38,6 +38,7 @@ from bench.core.schema import Key, Map
 from bench.core.yamlfile import Problem
 from drivers.clock import Clock
 from procedures.base import prompt, result_document, resume_whole
+from procedures.drift_pulse.events import AwgLoaded, Cycle, DmmSetup, Turned
 from procedures.drift_pulse.settings import (  # noqa: F401 - the kind's names
     CYCLE_OVERHEAD_S,
     NAME,
@@ -234,7 +235,7 @@ class DriftSteps:
         for g, dmm in dmms_of(ctx.bench).items():
             setup = dmm.configure(t.range_v, t.aperture_s, t.interval_s, t.count,
                                   trigger_delay_s=t.trigger_delay_s)
-            ctx.run.event("dmm_setup", gyro=g, **setup.__dict__)
+            ctx.run.write(DmmSetup(gyro=g, setup=setup))
         plat = platform_of(ctx.bench)
         plat.fetches = {g: 0 for g in plat.dmms}
         plat.loaded_v = None
@@ -254,9 +255,9 @@ class DriftSteps:
             loaded = awg.load_pair(ch, pair, t.awg_rate_hz, amplitude_v,
                                    lead_points=t.lead_points, trigger_out=first)
             first = False
-            ctx.run.event("awg_loaded", gyro=g, channel=ch, amplitude_v=amplitude_v,
-                          sample_rate_hz=loaded.sample_rate_hz, points=loaded.points,
-                          lead_s=loaded.lead_s)
+            ctx.run.write(AwgLoaded(gyro=g, channel=ch, amplitude_v=amplitude_v,
+                                    sample_rate_hz=loaded.sample_rate_hz, points=loaded.points,
+                                    lead_s=loaded.lead_s))
         platform_of(ctx.bench).loaded_v = amplitude_v
 
     def _do_turn(self, step: Step, ctx: RunContext) -> None:
@@ -265,8 +266,8 @@ class DriftSteps:
         tol = DriftSettings.from_config(ctx.cfg).position_tolerance_deg
         final = drive.move_to(p.position_deg, p.rate_dps, p.accel_dps2,
                               tolerance_deg=tol)
-        ctx.run.event("turned", axis=step.axis, position_deg=p.position_deg,
-                      actual_deg=final)
+        ctx.run.write(Turned(axis=step.on_axis, position_deg=p.position_deg,
+                             actual_deg=final))
         ctx.progress.line(f"  platform at {final:.4f} deg (target {p.position_deg:g})")
 
     def _do_settle(self, step: Step, ctx: RunContext) -> None:
@@ -301,10 +302,11 @@ class DriftSteps:
             data[g] = dmm.fetch()
             platform_of(ctx.bench).fetches[g] += 1
         drive.check()
-        ctx.run.event("cycle", unit=step.unit, position_deg=p.position_deg,
-                      actual_deg=drive.position_deg, timing=p.timing, amplitude_v=amplitude,
-                      t_trigger_s=t0, fetch=dict(platform_of(ctx.bench).fetches), samples=t.count,
-                      interval_s=t.interval_s, first_sample_s=t.first_sample_s, tc_s=t.tc_s)
+        ctx.run.write(Cycle(unit=step.in_unit, position_deg=p.position_deg,
+                            actual_deg=drive.position_deg, timing=p.timing, amplitude_v=amplitude,
+                            t_trigger_s=t0, fetch=dict(platform_of(ctx.bench).fetches),
+                            samples=t.count, interval_s=t.interval_s,
+                            first_sample_s=t.first_sample_s, tc_s=t.tc_s))
         shape = dp.pulse_shape(d.pulse_shape)
         quick = []
         for g, u in data.items():
@@ -439,14 +441,7 @@ def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
 
 
 def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan) -> dict[str, object]:
-    from bench.core.journal import (
-        bool_field,
-        float_field,
-        int_field,
-        object_field,
-        str_field,
-        units_done,
-    )
+    from bench.core.journal import units_done
     from drivers.scpi import parse_numbers
     from procedures.drift_pulse import analysis as dp
     from procedures.drift_pulse.budgets import CorrectionInput
@@ -456,8 +451,7 @@ def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan) -> dict[st
     events = run.events()
     plan_units = set(plan.build_plan(cfg).units())
     done = units_done(events)
-    cycles = [e for e in events if e.get("event") == "cycle" and done.get(str_field(e, "unit"))
-              == int_field(e, "session")]
+    cycles = [e for e in events if isinstance(e, Cycle) and done.get(e.unit) == e.session]
     d = DriftSettings.from_config(cfg)
     gyros = list(d.gyros)
     plat = d.platform
@@ -466,20 +460,19 @@ def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan) -> dict[st
     # the run folder's instrument corrections (issue 58): none, the readings as measured
     corr = read_corrections(run.path)
     for e in cycles:
-        session, samples = int_field(e, "session"), int_field(e, "samples")
+        session, samples = e.session, e.samples
         for g in gyros:
             key = (session, g)
             if key not in replies:
                 replies[key] = dmm_replies(run, *key, plat[g].dmm_model)
-            n = int_field(object_field(e, "fetch"), g)
+            n = e.fetch[g]
             u = corr.readings(g, parse_numbers(replies[key][n - 1]))
             if u.size != samples:
-                raise ValueError(f"{run.path}: cycle {e['unit']}: the DMM of gyro {g} "
+                raise ValueError(f"{run.path}: cycle {e.unit}: the DMM of gyro {g} "
                                  f"returned {u.size} readings, the event says {samples}")
             records[g].append(dp.CycleRecord(
-                u, float_field(e, "interval_s"), float_field(e, "first_sample_s"),
-                float_field(e, "tc_s"), float_field(e, "t_trigger_s"),
-                float_field(e, "position_deg"), timing_only=bool_field(e, "timing")))
+                u, e.interval_s, e.first_sample_s, e.tc_s, e.t_trigger_s, e.position_deg,
+                timing_only=e.timing))
     shape = dp.pulse_shape(d.pulse_shape)
     stated = {g: dp.StatedErrors(k_as_u_rel=plat[g].k_as_u_rel,
                                  pulse_mismatch_max_rel=plat[g].pulse_mismatch_max_rel,

@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import tempfile
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -30,6 +30,7 @@ from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.core import rundir_layout as layout
 from bench.core.config import Config, CounterSpec
+from bench.core.events import Event
 from bench.core.journal import (
     RunDir,
     float_field,
@@ -41,12 +42,17 @@ from bench.core.journal import (
 from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor, FogCheckpoint
-from drivers.json_types import JsonLike, JsonObject
+from drivers.json_types import JsonObject
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, result_document
 from procedures.rate_ladder import result as result_json
 from procedures.rate_ladder.conditions import TemperatureSpan, memo_key
-from procedures.rate_ladder.events import HalfAcquired, StaticRecorded
+from procedures.rate_ladder.events import (
+    HalfAcquired,
+    PairDirection,
+    PairLooked,
+    StaticRecorded,
+)
 from procedures.rate_ladder.result import RateEntry
 from procedures.rate_ladder.settings import (
     MAINS_CANDIDATES_HZ,
@@ -319,7 +325,7 @@ def _settings(cfg: Config) -> dict[str, Any]:
     return LadderSettings.from_config(cfg).method()
 
 
-def unit_halves(events: list[JsonObject], unit: str, session: int
+def unit_halves(events: Sequence[Event], unit: str, session: int
                 ) -> list[HalfAcquired]:
     """A unit's acquisitions as of `session`: for each half, the last one acquired up to it.
 
@@ -333,13 +339,13 @@ def unit_halves(events: list[JsonObject], unit: str, session: int
     return [by_half[h] for h in sorted(by_half)]
 
 
-def unit_acquisitions(events: list[JsonObject]) -> list[HalfAcquired]:
+def unit_acquisitions(events: Sequence[Event]) -> list[HalfAcquired]:
     """Acquisitions of the units not yet done (what a --resume may keep)."""
     done = units_done(events)
     return [h for h in HalfAcquired.all_in(events) if h.unit not in done]
 
 
-def static_record(events: list[JsonObject], axis: str) -> StaticRecorded | None:
+def static_record(events: Sequence[Event], axis: str) -> StaticRecorded | None:
     """The axis's FOG-at-rest record that completed its unit (the last such)."""
     done_in = units_done(events)
     return next((s for s in reversed(StaticRecorded.all_in(events)) if s.axis == axis
@@ -601,7 +607,7 @@ class FirstLook:
     """The worker's answer: the summary journaled as the `pair` event, and the whole
     analysis, which the final result.json reuses instead of decoding the halves again."""
 
-    summary: dict[str, JsonLike]
+    summary: PairLooked
     analysis: PairAnalysis
     key: str
     temperatures: dict[str, TemperatureSpan]
@@ -637,24 +643,26 @@ def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
     (bench.core.engine.AnalysisWorker), whose reader moves on from pair to pair."""
     raw = _worker_raw(run_path, cfg)
     pa = analyze_unit(raw, cfg, axis, rate_dps, acquisitions, static)
-    out: dict[str, JsonLike] = {"k": pa.pair.k, "k_u": pa.pair.k_u, "w0_dps": pa.pair.w0_dps,
-                           "w0_u_dps": pa.pair.w0_u_dps}
     rule = _settings(cfg)["decision_rule"]
+    figures: dict[int, tuple[float, float]] = {}    # by the direction's sign
     directions = []
     for r in pa.rates:
-        sign = "+" if r.set_rate_dps > 0 else "-"
-        out[f"rate_error_rel{sign}"] = r.rate_error_rel
-        out[f"rate_error_u_rel{sign}"] = r.rate_error_u_rel
+        figures[1 if r.set_rate_dps > 0 else -1] = (r.rate_error_rel, r.rate_error_u_rel)
         # the station page's row: the same figures and checks result.json will hold
         entry = RateEntry.from_json(with_sigma_terms(result_json.rate_json(r)))
         checks = _checks(cfg, axis, entry, rule)
-        directions.append({
-            "set_rate_dps": r.set_rate_dps, "turns": entry.turns,
-            "rate_error_rel": r.rate_error_rel, "rate_error_U_rel": r.rate_error_u_rel,
-            "rate_instability_rel": entry.rate_instability_rel,
-            "verdict": ("fail" if any(c.get("verdict") == "fail" for c in checks)
-                        else "pass" if checks else "not-assessed")})
-    out["directions"] = directions
+        directions.append(PairDirection(
+            set_rate_dps=r.set_rate_dps, turns=entry.turns,
+            rate_error_rel=r.rate_error_rel, rate_error_U_rel=r.rate_error_u_rel,
+            rate_instability_rel=entry.rate_instability_rel,
+            verdict=("fail" if any(c.get("verdict") == "fail" for c in checks)
+                     else "pass" if checks else "not-assessed")))
+    unit = f"{axis}/{rate_dps:g}dps"
+    plus, minus = figures.get(1, (None, None)), figures.get(-1, (None, None))
+    out = PairLooked(axis=axis, unit=unit, k=pa.pair.k, k_ustd=pa.pair.k_u,
+                     w0_dps=pa.pair.w0_dps, w0_ustd_dps=pa.pair.w0_u_dps,
+                     rate_error_plus_rel=plus[0], rate_error_plus_ustd_rel=plus[1],
+                     rate_error_minus_rel=minus[0], rate_error_minus_ustd_rel=minus[1],
+                     directions=directions)
     spans, raw.temperatures = raw.temperatures, {}
-    return FirstLook(out, pa, first_look_key(f"{axis}/{rate_dps:g}dps", acquisitions, static),
-                     spans)
+    return FirstLook(out, pa, first_look_key(unit, acquisitions, static), spans)

@@ -2,51 +2,40 @@
 
 A step writes one of these when its data are complete in the raw files; the analysis
 (and a --resume deciding what to keep) reads the same class back, so a field renamed or
-forgotten on one side fails on both (issue 12). The journal adds `utc`, `t_s` and
+forgotten on one side fails on both (issue 12). They are the kind's declarations among
+the journal's (bench/core/events.py, issue 61): the journal adds `utc`, `t_s` and
 `session`; unknown keys in an older run's events are ignored.
 """
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass, field
-from typing import Any, ClassVar, TypeVar
+from collections.abc import Iterable
+from typing import TypeVar
 
-from bench.core.journal import RunDir
+import msgspec
+
+from bench.core.events import Event
+from bench.report.certificate.rounding import MINUS, format_value_u
 from drivers.fog import FogCheckpoint
+from drivers.json_types import JsonObject
 
 E = TypeVar("E", bound="LadderEvent")
 
 
-@dataclass(frozen=True)
-class LadderEvent:
-    """Common to the ladder's records: where they belong and how they are (de)coded."""
+class LadderEvent(Event, frozen=True):
+    """Common to the ladder's records: the axis and the unit (one +/- pair) they belong to."""
 
-    KIND: ClassVar[str] = ""
     axis: str
     unit: str
-    session: int = field(default=0, kw_only=True)   # set by the journal when written
-
-    def write(self, run: RunDir) -> None:
-        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-                  if f.name != "session"}
-        run.event(self.KIND, **fields)
 
     @classmethod
-    def of(cls: type[E], e: dict[str, Any]) -> E:
-        names = {f.name for f in dataclasses.fields(cls)}
-        return cls(**{k: v for k, v in e.items() if k in names})
-
-    @classmethod
-    def all_in(cls: type[E], events: list[dict[str, Any]]) -> list[E]:
-        return [cls.of(e) for e in events if e.get("event") == cls.KIND]
+    def all_in(cls: type[E], events: Iterable[Event]) -> list[E]:
+        return [e for e in events if isinstance(e, cls)]
 
 
-@dataclass(frozen=True)
-class StaticRecorded(LadderEvent):
+class StaticRecorded(LadderEvent, tag="static", frozen=True):
     """The FOG at rest for the noise floor (docs/method.md A5): samples fog_from..fog_to."""
 
-    KIND: ClassVar[str] = "static"
     fog_from: int
     fog_to: int
     rate_hz: float
@@ -54,13 +43,11 @@ class StaticRecorded(LadderEvent):
     fog_capture: FogCheckpoint | None = None   # decoder checkpoint before fog_from
 
 
-@dataclass(frozen=True)
-class HalfAcquired(LadderEvent):
+class HalfAcquired(LadderEvent, tag="acquire", frozen=True):
     """One half of a +/- pair, complete: N turns timed by the counter (N + 1 zero-mark
     edges) and the FOG samples fog_from..fog_to that bracket them (docs/method.md A1-A3).
     Written last, so a --resume keeps every half that has one (docs/resume.md)."""
 
-    KIND: ClassVar[str] = "acquire"
     half: int
     set_rate_dps: float
     turns: int
@@ -71,7 +58,7 @@ class HalfAcquired(LadderEvent):
     rate_hz: float
     counter_t0_s: float = 0.0          # the counter's start on the FOG's time axis
     counter_t0_u_s: float | None = None
-    counter_readback: dict[str, str] = field(default_factory=dict)
+    counter_readback: dict[str, str] = {}
     fog_lost: int = 0
     fog_capture: FogCheckpoint | None = None
     # how counter_t0_s was placed on the FOG's time axis (drivers/time_tie.py): the tie's
@@ -79,9 +66,90 @@ class HalfAcquired(LadderEvent):
     # when it was armed, and the FOG's sample index convention (index n at n / rate_hz
     # from the session's stand-clock zero): all a later analysis needs to re-place the
     # half after a restart, each session on its own axis (docs/resume.md)
-    time_tie: dict[str, str | float | None] = field(default_factory=dict)
+    time_tie: dict[str, str | float | None] = {}
 
     @property
     def sign(self) -> int:
         return 1 if self.set_rate_dps > 0 else -1
 
+
+class Settled(LadderEvent, tag="settled", omit_defaults=True, frozen=True):
+    """The table held the pair's rate within the settle tolerance (drivers/settle.py);
+    with the turn's steady ripple set aside, the ripple is stated."""
+
+    rate_dps: float
+    rule: str | None = None
+    ripple_peak_dps: float | None = None
+    ripple_orders: int | None = None
+    turns: int | None = None
+    worst_residual_dps: float | None = None
+
+    def log_text(self) -> str:
+        mag, rate = _magnitude(self.unit), self.rate_dps
+        if not mag:
+            return f"settled: {self.axis} at {f'{rate:+g}'.replace('-', MINUS)} deg/s"
+        sign = MINUS if rate < 0 else "+"
+        return (f"settled: {self.axis} at {sign}{mag}"
+                + f" (drive reads {rate:.7g} deg/s)".replace("-", MINUS))
+
+
+class PairDirection(msgspec.Struct, frozen=True, kw_only=True):
+    """One direction of a pair's first look, as the station's results table shows it."""
+
+    set_rate_dps: float
+    turns: int | None
+    rate_error_rel: float
+    rate_error_U_rel: float
+    rate_instability_rel: float | None
+    verdict: str
+
+
+class PairLooked(LadderEvent, tag="pair", omit_defaults=True, frozen=True):
+    """The analysis worker's first look at a pair (docs/method.md A3: k and w0 with their
+    standard uncertainties; eq. 1 per direction). The line keeps its keys as written since
+    issue 12 (`rate_error_rel+`, `rate_error_u_rel-`): older runs read back the same."""
+
+    k: float
+    k_ustd: float = msgspec.field(name="k_u")
+    w0_dps: float
+    w0_ustd_dps: float = msgspec.field(name="w0_u_dps")
+    rate_error_plus_rel: float | None = msgspec.field(default=None, name="rate_error_rel+")
+    rate_error_plus_ustd_rel: float | None = msgspec.field(default=None,
+                                                           name="rate_error_u_rel+")
+    rate_error_minus_rel: float | None = msgspec.field(default=None, name="rate_error_rel-")
+    rate_error_minus_ustd_rel: float | None = msgspec.field(default=None,
+                                                            name="rate_error_u_rel-")
+    directions: list[PairDirection] = []
+
+    def log_text(self) -> str:
+        return (f"pair analysed: {self.axis} ±{_magnitude(self.unit)}: k = "
+                f"{_value_u(self.k, self.k_ustd)}, ω0 = "
+                f"{_value_u(self.w0_dps, self.w0_ustd_dps, signed=True)} deg/s")
+
+    def live_rows(self) -> list[JsonObject]:
+        """Per direction: k and w0 of the pair, the rate error with its U, sigma, the
+        verdict, as result.json will hold them. `k_U` and `w0_U_dps` carry the first
+        look's standard uncertainties under the names the page has always read."""
+        return [{"axis": self.axis, "set_rate_dps": d.set_rate_dps, "k": self.k,
+                 "k_U": self.k_ustd, "w0_dps": self.w0_dps, "w0_U_dps": self.w0_ustd_dps,
+                 "rate_error_rel": d.rate_error_rel, "rate_error_U_rel": d.rate_error_U_rel,
+                 "rate_instability_rel": d.rate_instability_rel, "turns": d.turns,
+                 "verdict": d.verdict} for d in self.directions]
+
+
+class PairFailed(LadderEvent, tag="pair_failed", frozen=True):
+    error: str
+
+    def log_text(self) -> str:
+        return f"pair first look failed: {self.axis} ±{_magnitude(self.unit)} ({self.error})"
+
+
+def _magnitude(unit: str) -> str:
+    """The rate of a unit name ('outer/30dps' -> '30 deg/s')."""
+    return unit.split("/", 1)[1].replace("dps", " deg/s") if "/" in unit else ""
+
+
+def _value_u(value: float, u: float | None, signed: bool = False) -> str:
+    """'value ± u' by the certificate's rounding rule (bench/report/certificate/rounding.py)."""
+    r = format_value_u(value, u, 1.0, signed=signed)
+    return r.joined() if r.u is not None else f"{r.value} (no U)"

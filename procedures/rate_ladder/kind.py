@@ -49,6 +49,7 @@ if TYPE_CHECKING:
     from drivers.counter import Acquisition, Counter
     from drivers.fog import Fog
     from procedures.rate_ladder.certificate import LadderCertificate
+    from procedures.rate_ladder.events import PairLooked
     from procedures.rate_ladder.records import LadderRecords
 
 #: what the analysis worker imports when it starts, before the first pair's look (the
@@ -324,15 +325,15 @@ class LadderSteps:
         prompt (the operator mounts it then), closed when the next axis begins
         (bench.core.instruments.fog_for_axis). Its first frame's index comes from the
         clock; the `fog_capture` event keeps it for the analysis of the raw file."""
+        from bench.core.events import FogCapture
         from bench.core.instruments import fog_for_axis, identity_record
-        from bench.core.journal import FOG_CAPTURE_EVENT
         ax = ctx.bench.axes.get(step.axis) if step.axis else None
         if ax is not None:
             fog = fog_for_axis(ctx.bench, ax.name, ctx.run, opening=step.action != "prompt")
             if fog is not None:
-                ctx.run.event(FOG_CAPTURE_EVENT, axis=ax.name, first_index=fog.first_index,
-                              rate_hz=fog.rate_hz)
-                ctx.run.event("identity", **identity_record(ax))
+                ctx.run.write(FogCapture(axis=ax.name, first_index=fog.first_index,
+                                         rate_hz=fog.rate_hz))
+                ctx.run.write(identity_record(ax))
         self.handlers[step.action](step, ctx)
 
     def _do_enable(self, step: Step, ctx: RunContext) -> None:
@@ -356,9 +357,9 @@ class LadderSteps:
         mark = fog.checkpoint()  # where the record starts in the raw capture (or before)
         self._wait_fog(ctx, fog, i0 + n, duration, f"{step.axis}: FOG at rest")
         _check_fog_indices(fog, i0 + n, f"{step.axis}: FOG at rest")
-        StaticRecorded(step.on_axis, step.in_unit, fog_from=i0, fog_to=i0 + n, rate_hz=fog.rate_hz,
-                       lost=_fog_losses(fog) - lost0, fog_capture=mark
-                       ).write(ctx.run)   # the samples stay in the raw capture
+        ctx.run.write(StaticRecorded(   # the samples stay in the raw capture
+            axis=step.on_axis, unit=step.in_unit, fog_from=i0, fog_to=i0 + n,
+            rate_hz=fog.rate_hz, lost=_fog_losses(fog) - lost0, fog_capture=mark))
         mean = _fog_mean_dps(fog)
         if mean is not None:
             ctx.progress.reading("FOG mean", f"{step.axis} at rest",
@@ -383,6 +384,7 @@ class LadderSteps:
         drive.set_rate(p.rate_dps, p.accel_dps2)
 
     def _do_settle(self, step: Step, ctx: RunContext) -> None:
+        from procedures.rate_ladder.events import Settled
         drive = ctx.bench.axes[step.on_axis].drive
         p = step.params_as(SettleParams)
         def held(held_s: float) -> None:
@@ -393,13 +395,13 @@ class LadderSteps:
                                   on_hold=held)
         ripple = getattr(drive, "last_settle", None)
         if ripple is None:
-            ctx.run.event("settled", axis=step.axis, unit=step.unit, rate_dps=rate)
+            ctx.run.write(Settled(axis=step.on_axis, unit=step.in_unit, rate_dps=rate))
             return
         # drivers/settle.py: the turn's steady ripple set aside, and stated
-        ctx.run.event("settled", axis=step.axis, unit=step.unit, rate_dps=rate,
-                      rule="ripple set aside", ripple_peak_dps=ripple.ripple_peak_dps,
-                      ripple_orders=ripple.orders, turns=ripple.turns,
-                      worst_residual_dps=ripple.worst_residual_dps)
+        ctx.run.write(Settled(axis=step.on_axis, unit=step.in_unit, rate_dps=rate,
+                              rule="ripple set aside", ripple_peak_dps=ripple.ripple_peak_dps,
+                              ripple_orders=ripple.orders, turns=ripple.turns,
+                              worst_residual_dps=ripple.worst_residual_dps))
         if ripple.ripple_peak_dps > 0.5 * p.tolerance_dps:
             ctx.progress.line(f"  {step.axis}: settled at {rate:+.6g} deg/s; a steady "
                               f"ripple of the turn, {ripple.ripple_peak_dps:.3g} deg/s peak "
@@ -445,14 +447,14 @@ class LadderSteps:
         # the FOG samples stay in the raw capture: the pair's analysis reads them there;
         # this event completes the half (a --resume keeps it, docs/resume.md)
         half = HalfAcquired(
-            step.on_axis, step.in_unit, half=p.half, set_rate_dps=p.rate_dps, turns=n,
+            axis=step.on_axis, unit=step.in_unit, half=p.half, set_rate_dps=p.rate_dps, turns=n,
             edges_s=[float(e) for e in edges], counter_records=[rec0, rec1],
             fog_from=i_from, fog_to=i_to, rate_hz=fog.rate_hz,
             counter_t0_s=acq.t_start_s, counter_t0_u_s=acq.t_start_u_s,
             counter_readback=dict(counter.readback), fog_lost=lost,
             fog_capture=mark, time_tie=time_tie_record(counter, acq, fog),
             session=ctx.run.session)
-        half.write(ctx.run)
+        ctx.run.write(half)
         # the worker reads the half's FOG window now, the pair's first look later; a
         # failure here shows again, and is reported, when the first look reads it
         ctx.worker.submit(read_half_ahead, str(ctx.run.path), ctx.cfg, half,
@@ -487,19 +489,22 @@ class LadderSteps:
     def _do_analyze(self, step: Step, ctx: RunContext) -> None:
         """A first look at the pair, in the analysis worker: acquisition goes on meanwhile
         (the result.json analysis is made again from the raw files at the end)."""
+        import msgspec
+
         from procedures.rate_ladder.analysis import (
             FirstLook,
             pair_summary,
             static_record,
             unit_halves,
         )
+        from procedures.rate_ladder.events import PairFailed
 
         axis, unit, rate = step.on_axis, step.in_unit, step.params_as(AnalyzeParams).rate_dps
         events = ctx.run.events()  # the halves may come from earlier sessions (--resume)
 
         def done(look: object, error: BaseException | None) -> None:
             if error is not None:
-                ctx.run.event("pair_failed", axis=axis, unit=unit, error=repr(error))
+                ctx.run.write(PairFailed(axis=axis, unit=unit, error=repr(error)))
                 ctx.progress.warn(f"  WARNING {axis} +/-{rate:g} deg/s: the first look at the "
                                   f"pair failed ({error}); the final analysis will say more")
                 return
@@ -508,7 +513,7 @@ class LadderSteps:
             summary = look.summary
             ctx.run.memo[look.key] = look.analysis   # the final analysis reuses them
             ctx.run.memo.update(look.temperatures)
-            ctx.run.event("pair", axis=axis, unit=unit, **summary)
+            ctx.run.write(msgspec.structs.replace(summary, axis=axis, unit=unit))
             ctx.progress.result(f"{axis} ±{rate:g} deg/s", *pair_figures(summary))
 
         ctx.worker.submit(pair_summary, str(ctx.run.path), ctx.cfg, axis, rate,
@@ -587,18 +592,16 @@ def _fog_mean_dps(fog: Fog, span_s: float = 1.0) -> float | None:
     return float(s.rate_dps[s.valid].mean()) if s.valid.any() else None
 
 
-def pair_figures(summary: Mapping[str, object]) -> list[Figure]:
+def pair_figures(summary: PairLooked) -> list[Figure]:
     """A pair's first look (docs/method.md A3 k and ω0; eq. 1 δ per direction) with U (k = 2)."""
-    def num(key: str) -> float | None:
-        v = summary.get(key)
-        return v if isinstance(v, int | float) and not isinstance(v, bool) else None
-
-    out = [Figure("k", num("k"), num("k_u")),
-           Figure("ω0", num("w0_dps"), num("w0_u_dps"), "°/s", signed=True)]
-    for sign, name in (("+", "δ(+)"), ("-", "δ(−)")):
-        if f"rate_error_rel{sign}" in summary:
-            out.append(Figure(name, num(f"rate_error_rel{sign}"),
-                              num(f"rate_error_u_rel{sign}"), RELATIVE, signed=True))
+    out = [Figure("k", summary.k, summary.k_ustd),
+           Figure("ω0", summary.w0_dps, summary.w0_ustd_dps, "°/s", signed=True)]
+    for value, ustd, name in ((summary.rate_error_plus_rel, summary.rate_error_plus_ustd_rel,
+                               "δ(+)"),
+                              (summary.rate_error_minus_rel, summary.rate_error_minus_ustd_rel,
+                               "δ(−)")):
+        if value is not None:
+            out.append(Figure(name, value, ustd, RELATIVE, signed=True))
     return out
 
 

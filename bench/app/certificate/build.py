@@ -27,6 +27,7 @@ from bench.app.certificate.item import decision_rule_text as agreed_rule_text
 from bench.app.certificate.operator import prompt_blocks, software_note, utc_text
 from bench.app.certificate.people import PERFORMED_BY, equipment_lines, performer, performer_line
 from bench.app.certificate.register import Issue
+from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.journal import sha256_file
 from bench.core.registry import procedure_kind, procedure_names
@@ -308,8 +309,8 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
     stand = stand_of(src)
     cert = _cert(src, issue)
     dates = src.get("dates", {}) or {}
-    started = dates.get("started_utc") or src.event_utc("session_start")
-    completed = dates.get("completed_utc") or src.event_utc("completed", last=True)
+    started = dates.get("started_utc") or src.event_utc(ev.SessionStarted)
+    completed = dates.get("completed_utc") or src.event_utc(ev.Completed, last=True)
     item, serial = proc.parts.certificate_item(src)
     rows: list[tuple[str, str]] = [
         (("Draft identifier (the lab register allocates the certificate number at issue)",
@@ -439,11 +440,8 @@ def _instruments(src: Sources, proc: Procedure) -> tuple[Block, ...]:
     ))]
     ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
     if not ids:  # the event log records each axis's identities at the start of a session
-        for e in src.events:
-            if e.get("event") == "identity" and (axis := e.get("axis")):
-                ids.setdefault(str(axis), {}).update(
-                    {k: v for k, v in e.items()
-                     if k not in ("utc", "t_s", "session", "event", "axis")})
+        for e in ev.of_kind(src.events, ev.Identity):
+            ids.setdefault(e.axis, {}).update(e.instruments)
     stand_axes = src.stand_file.get("axes", {}) or {}
     rows = []
     for axis in dict.fromkeys([*ids, *stand_axes]):
@@ -618,13 +616,12 @@ def _deviations(src: Sources, proc: Procedure) -> tuple[Block, ...]:
                    "missing points.")
     for d in src.get("deviations", []) or []:
         run.append(text_of(d))
-    for e in src.events:
-        if e.get("event") == "identity_mismatch":    # twins only: a real stand is refused
-            run.append(f"Identity: {text_of(e.get('where'))}: the stand file states serial "
-                       f"{text_of(e.get('stated'))}, the instrument reported "
-                       f"{text_of(e.get('reported'))} ({text_of(e.get('query'))}); its check "
-                       "values are filed under the reported serial. A finding of a run on "
-                       "simulated twins: a real stand with this mismatch is refused.")
+    for e in ev.of_kind(src.events, ev.IdentityMismatch):  # twins only: a real stand is refused
+        run.append(f"Identity: {text_of(e.where)}: the stand file states serial "
+                   f"{text_of(e.stated)}, the instrument reported "
+                   f"{text_of(e.reported)} ({text_of(e.query)}); its check "
+                   "values are filed under the reported serial. A finding of a run on "
+                   "simulated twins: a real stand with this mismatch is refused.")
     run += equipment_lines(src.meta, bool(stand_of(src).get("simulated")))
     run += identity_lines(equipment_list(src), bool(stand_of(src).get("simulated")))
     for where in src.dropped:

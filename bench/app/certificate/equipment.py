@@ -16,6 +16,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from bench.core.config import Traced
+from bench.core.events import SessionStarted
 from bench.core.traceability import (
     identity_problems,
     serial_of,
@@ -63,8 +64,7 @@ class EquipmentList:
 def work_date(src: Sources) -> dt.date | None:
     """The date the work started (what due dates are compared with)."""
     stamp = ((src.get("dates", {}) or {}).get("started_utc")
-             or next((e.get("utc") for e in src.events if e.get("event") == "session_start"),
-                     None)
+             or src.event_utc(SessionStarted)
              or src.meta.get("created_utc"))
     try:
         return dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00")).date()

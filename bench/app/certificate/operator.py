@@ -7,8 +7,9 @@ from __future__ import annotations
 import datetime as dt
 from collections.abc import Mapping, Sequence
 
+from bench.core.events import Event, Prompted, SessionStarted, of_kind
 from bench.report.certificate.model import Block, Para, Table
-from bench.report.certificate.parts import NOT_RECORDED, num
+from bench.report.certificate.parts import NOT_RECORDED
 
 
 def utc_text(stamp: object) -> str:
@@ -24,27 +25,27 @@ def utc_text(stamp: object) -> str:
     return t.strftime("%Y-%m-%d %H:%M:%S UTC")
 
 
-def _answered_by(e: Mapping[str, object]) -> str:
+def _answered_by(e: Prompted) -> str:
     """'--yes' or 'operator' (older logs say only answered: yes | operator)."""
-    return str(e.get("answered_by") or ("--yes" if e.get("answered") == "yes" else "operator"))
+    return e.answered_by or ("--yes" if e.answered == "yes" else "operator")
 
 
-def _answer(e: Mapping[str, object]) -> str:
+def _answer(e: Prompted) -> str:
     if _answered_by(e) == "--yes":
         return "confirmed by --yes (unattended run: nobody was asked)"
-    typed = str(e.get("answer") or "").strip()
-    if e.get("answered") == "abort":
+    typed = e.answer.strip()
+    if e.answered == "abort":
         return f"aborted by the operator ({typed!r})"
     return "confirmed by the operator" + (f" ({typed!r})" if typed else " (Enter)")
 
 
-def prompt_blocks(events: Sequence[Mapping[str, object]]) -> tuple[Block, ...]:
+def prompt_blocks(events: Sequence[Event]) -> tuple[Block, ...]:
     """The set-up prompts of the run, in order, with who answered and when."""
-    prompts = [e for e in events if e.get("event") == "prompt"]
+    prompts = of_kind(events, Prompted)
     if not prompts:
         return ()
-    rows = tuple((str(e.get("session", "")), str(e.get("text", "")),
-                  utc_text(e.get("answered_utc") or e.get("utc")), _answer(e)) for e in prompts)
+    rows = tuple((str(e.session), e.text, utc_text(e.answered_utc or e.utc), _answer(e))
+                 for e in prompts)
     notes: tuple[str, ...] = ()
     if any(_answered_by(e) == "--yes" for e in prompts):
         notes = ("--yes: the run was started unattended and the set-up steps were not "
@@ -55,11 +56,10 @@ def prompt_blocks(events: Sequence[Mapping[str, object]]) -> tuple[Block, ...]:
                   notes=notes),)
 
 
-def software_note(meta: Mapping[str, object], events: Sequence[Mapping[str, object]],
+def software_note(meta: Mapping[str, object], events: Sequence[Event],
                   issuing_version: str, run_dir: str) -> Para:
     """The version that created the run, ran each session and issued this certificate."""
-    sessions = {int(num(e.get("session")) or 0): str(e["version"]) for e in events
-                if e.get("event") == "session_start" and e.get("version")}
+    sessions = {e.session: e.version for e in of_kind(events, SessionStarted) if e.version}
     created = meta.get("bench_version")
     versions = sorted(set(sessions.values()) | ({str(created)} if created else set()))
     if not versions:

@@ -18,7 +18,9 @@ from bench.app.certificate.item import item_record, setting_statements
 from bench.app.certificate.item import statements as item_statements
 from bench.app.certificate.people import PERFORMED_BY, equipment_lines, performer
 from bench.app.certificate.register import Issue
+from bench.core import events as ev
 from bench.core import rundir_layout as layout
+from bench.core.events import Event
 from bench.core.lab import Lab
 from bench.report.certificate import methods
 from bench.report.certificate.parts import CertificateParts
@@ -43,7 +45,7 @@ def _date(stamp: object) -> str | None:
     return t.date().isoformat()
 
 
-def _event(src: Sources, kind: str, last: bool = False) -> str | None:
+def _event(src: Sources, kind: type[Event], last: bool = False) -> str | None:
     return src.event_utc(kind, last)
 
 
@@ -99,9 +101,9 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
     if not len(ids):
         core.remove(ids)
     dates = src.get("dates", {}) or {}
-    begin = (_date(dates.get("started_utc")) or _date(_event(src, "session_start"))
+    begin = (_date(dates.get("started_utc")) or _date(_event(src, ev.SessionStarted))
              or _date(dates.get("created_utc")) or _date(src.meta.get("created_utc")) or today)
-    end = (_date(dates.get("completed_utc")) or _date(_event(src, "completed", last=True))
+    end = (_date(dates.get("completed_utc")) or _date(_event(src, ev.Completed, last=True))
            or begin)
     el(core, "beginPerformanceDate", begin)
     el(core, "endPerformanceDate", end)

@@ -21,6 +21,7 @@ from bench.app.fleet.journal import new_lines
 from bench.app.fleet.sync import LabLink, RunFacts
 from bench.app.records import schema as s
 from bench.core import rundir_layout as layout
+from bench.core.events import name_of
 from bench.core.journal import sha256_file
 from drivers.json_types import JsonObject
 
@@ -125,7 +126,7 @@ def _text(event: JsonObject | None) -> str:
 
 
 def _kind(event: JsonObject | None) -> str:
-    return str(event.get("event")) if event is not None else "not an event"
+    return name_of(event) if event is not None else "not an event"
 
 
 def _compare_result(out: RunCheck, run_path: Path, lab: JsonObject | None) -> None:

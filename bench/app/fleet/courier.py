@@ -17,6 +17,7 @@ from pathlib import Path
 from bench.app.fleet.health import sample
 from bench.app.fleet.outbox import Outbox
 from bench.app.fleet.sync import Intervals, LabLink, SyncError
+from bench.core import events as ev
 from bench.core.journal import RunDir
 
 PERIOD_S = 0.5            # the station's update latency budget is 2 s (issue 44)
@@ -74,7 +75,7 @@ class Courier:
     def _journal(self, state: str, reason: str | None) -> None:
         try:
             if self.run.session:
-                self.run.event("lab_link", state=state, reason=reason)
+                self.run.write(ev.LabLink(state=state, reason=reason))
         except Exception:  # noqa: BLE001 - the log closed or full: the warning said it
             pass
 

@@ -16,12 +16,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.app.names import resume_command
+from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.journal import (
     KILLED,
-    SESSION_LOST,
     JsonLines,
-    read_jsonl,
+    read_events,
     session_endings,
     torn_tail_bytes,
     utc_now,
@@ -77,20 +77,18 @@ def lost_session(run_path: Path) -> LostRun | None:
     still running, or from a bench that did not journal its pid)."""
     if _ended_by_its_last_line(run_path / layout.EVENTS):
         return None               # most runs of a folder: read 4 kB, not the whole log
-    events = list(read_jsonl(run_path / layout.EVENTS))
+    events = read_events(run_path / layout.EVENTS)
     endings = session_endings(events)
     if not endings:
         return None
     last = endings[-1]
     if last.ended is not None or last.pid is None or process_alive(last.pid):
         return None
-    own = [e for e in events if e.get("session") == last.session]
-    steps = [e for e in own if e.get("event") == "step_start"]
-    described = steps[-1].get("describe") if steps else None
-    utc = own[-1].get("utc") if own else None
-    yes = any(e.get("event") == "session_start" and e.get("prompts") == "--yes" for e in own)
-    return LostRun(run_path, last.session, last.pid, utc if isinstance(utc, str) else None,
-                   described if isinstance(described, str) else None, yes)
+    own = [e for e in events if e.session == last.session]
+    step = ev.last(own, ev.StepStarted)
+    yes = any(isinstance(e, ev.SessionStarted) and e.prompts == "--yes" for e in own)
+    return LostRun(run_path, last.session, last.pid, own[-1].utc or None if own else None,
+                   step.describe or None if step else None, yes)
 
 
 def _ended_by_its_last_line(log: Path) -> bool:
@@ -108,7 +106,7 @@ def _ended_by_its_last_line(log: Path) -> bool:
         rec = json.loads(last)
     except ValueError:
         return False
-    return isinstance(rec, dict) and rec.get("event") in ("exit", SESSION_LOST)
+    return isinstance(rec, dict) and isinstance(ev.decode(rec), ev.Exited | ev.SessionLost)
 
 
 def journal_lost(found: LostRun, by: str) -> None:
@@ -120,10 +118,9 @@ def journal_lost(found: LostRun, by: str) -> None:
     try:
         if torn:
             lines.end_line()
-        lines.write({"utc": utc_now(), "t_s": None, "session": found.session,
-                     "event": SESSION_LOST, "ended": KILLED, "pid": found.pid,
-                     "last_utc": found.last_utc, "last_step": found.last_step,
-                     "found_by": by})
+        lines.write(ev.encode(ev.SessionLost(
+            utc=utc_now(), t_s=None, session=found.session, ended=KILLED, pid=found.pid,
+            last_utc=found.last_utc, last_step=found.last_step, found_by=by)))
     finally:
         lines.close()
 

@@ -35,6 +35,7 @@ from bench.app.records import schema as s
 from bench.app.records.extract import NotARun, record_of, run_uid
 from bench.app.records.store import Records, RecordsError
 from bench.core import rundir_layout as layout
+from bench.core.events import name_of
 from bench.core.yamlfile import read_mapping
 
 #: event lines per transaction: a long log after a long outage goes in bounded pieces,
@@ -263,7 +264,7 @@ class LabLink:
                health: HealthSample | None) -> int:
         run_id = self._run_id(conn, self._bench_id(conn, bench), facts)
         rows = [{"run_id": run_id, "seq": x.seq, "utc": _naive_utc(x.event.get("utc")),
-                 "event": str(x.event.get("event", ""))[:60], "body": x.event}
+                 "event": name_of(x.event)[:60], "body": x.event}
                 for x in lines if x.event is not None]
         added = 0
         if rows:

@@ -27,7 +27,8 @@ from pathlib import Path
 
 from bench.analysis.finite import finite_number as _num
 from bench.core import rundir_layout as layout
-from bench.core.journal import read_jsonl
+from bench.core.events import Event, StepStarted, TimedHalf
+from bench.core.journal import read_events, read_jsonl
 from bench.core.registry import ChecksInstruments, installed_records, procedure_names
 from bench.report.axes_view import AxisRows, axes_of
 from bench.report.figures import InstrumentCheck
@@ -131,21 +132,15 @@ def _fog(axis: str, axis_rows: AxisRows, serial: str, model: str | None
     return out
 
 
-def _numbers(value: JsonValue) -> list[float]:
-    """The finite numbers of a JSON list ([] when it is none)."""
-    return [x for x in (_num(v) for v in value) if x is not None] \
-        if isinstance(value, list) else []
-
-
-def _jitter(axis: str, events: Sequence[JsonObject], serial: str,
+def _jitter(axis: str, events: Sequence[Event], serial: str,
             model: str | None) -> list[CheckRecord]:
     """Zero-mark edge jitter from the second differences of each half's edges: for white
     edge jitter s, d = e[i+1] - 2 e[i] + e[i-1] has variance 6 s^2 (docs/method.md C1)."""
     sq, n = 0.0, 0
     for e in events:
-        if e.get("event") != "acquire" or e.get("axis") != axis:
+        if not isinstance(e, TimedHalf) or e.axis != axis:
             continue
-        edges = _numbers(e.get("edges_s"))
+        edges = e.edges_s
         for i in range(1, len(edges) - 1):
             d = edges[i + 1] - 2.0 * edges[i] + edges[i - 1]
             sq += d * d
@@ -157,7 +152,7 @@ def _jitter(axis: str, events: Sequence[JsonObject], serial: str,
                         _std_u(s, n), "s")]
 
 
-def _drive(axis: str, raw: Path, events: Sequence[JsonObject], serial: str,
+def _drive(axis: str, raw: Path, events: Sequence[Event], serial: str,
            model: str | None) -> list[CheckRecord]:
     """Settle time beyond the commanded ramp, and the ripple the drive reports while the
     counter times turns (docs/method.md C1), from the drive's raw journal."""
@@ -166,16 +161,15 @@ def _drive(axis: str, raw: Path, events: Sequence[JsonObject], serial: str,
         return []
     settle: list[tuple[float, float]] = []      # (settle time, feedback interval)
     windows = []
-    starts = {}
+    starts: dict[tuple[int, str | None], float | None] = {}
     for e in events:
-        if e.get("axis") == axis and e.get("event") == "step_start" \
-                and e.get("action") == "acquire":
-            starts[(e.get("session"), e.get("unit"))] = _num(e.get("t_s"))
-        if e.get("axis") == axis and e.get("event") == "acquire":
-            t0 = starts.get((e.get("session"), e.get("unit")))
-            rate, t1 = _num(e.get("set_rate_dps")), _num(e.get("t_s"))
+        if isinstance(e, StepStarted) and e.axis == axis and e.action == "acquire":
+            starts[(e.session, e.unit)] = e.t_s
+        if isinstance(e, TimedHalf) and e.axis == axis:
+            t0 = starts.get((e.session, e.unit))
+            rate, t1 = e.set_rate_dps, e.t_s
             if t0 is not None and t1 is not None and rate:
-                windows.append((str(e.get("session")), t0, t1, rate))
+                windows.append((str(e.session), t0, t1, rate))
     ripple_sq, ripple_n = 0.0, 0
     for f in files:
         session = f.parent.name.removeprefix("s")
@@ -223,7 +217,7 @@ def _drive(axis: str, raw: Path, events: Sequence[JsonObject], serial: str,
 def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[str, JsonValue],
               kind_name: str | None = None) -> list[CheckRecord]:
     """Every check value of one run, per instrument serial."""
-    events = list(read_jsonl(run_path / layout.EVENTS)) \
+    events = read_events(run_path / layout.EVENTS) \
         if (run_path / layout.EVENTS).is_file() else []
     frame = ResultFrame.conform(result)[0]
     kind_of_run = kind_name or frame.procedure or ""

@@ -36,12 +36,14 @@ from bench.app.station.view import (
     log_line,
     progress_view,
 )
+from bench.core import events as ev
 from bench.core import rundir_layout as layout
+from bench.core.events import Event
 from bench.core.journal import KILLED, SESSION_LOST
 from bench.core.registry import declared_figures
 from bench.report.figures import spec_for
 from bench.report.result_frame import ResultFrame
-from drivers.json_types import JsonLike, JsonObject, JsonValue
+from drivers.json_types import JsonLike, JsonValue
 
 #: a running bench delivers every 0.5 s (bench/app/fleet/courier.py); heard nothing for
 #: this long, it is shown silent, with its last event's age
@@ -209,47 +211,46 @@ class FleetView:
             rows = conn.execute(sa.select(*listed, b.name.label("bench"))
                                 .join(s.benches, b.id == r.bench_id)
                                 .where(r.id.in_(newest)).order_by(b.name)).all()
-            events: dict[int, list[JsonObject]] = {}
+            events: dict[int, list[Event]] = {}
             if rows:
                 for x in conn.execute(sa.select(e.run_id, e.body)
                                       .where(e.run_id.in_([x.id for x in rows]),
                                              e.event.in_(KINDS))
                                       .order_by(e.run_id, e.seq)):
-                    events.setdefault(x.run_id, []).append(x.body)
+                    events.setdefault(x.run_id, []).append(ev.decode(x.body))
         return {"now_utc": _iso(now), "error": None,
                 "benches": [self._run_state(x, events.get(x.id, []), now) for x in rows]}
 
-    def _run_state(self, x: BenchRunRow, events: list[JsonObject], now: dt.datetime | None
+    def _run_state(self, x: BenchRunRow, events: list[Event], now: dt.datetime | None
                    ) -> dict[str, JsonLike]:
-        starts = [ev for ev in events if ev.get("event") == "session_start"]
-        session_no = starts[-1].get("session") if starts else None
-        session = [ev for ev in events if ev.get("session") == session_no]
-        exit_ev = next((ev for ev in reversed(session) if ev.get("event") == "exit"), None)
-        lost = next((ev for ev in session if ev.get("event") == SESSION_LOST), None)
+        starts = ev.of_kind(events, ev.SessionStarted)
+        session_no = starts[-1].session if starts else None
+        session = [e for e in events if e.session == session_no]
+        exit_ev = ev.last(session, ev.Exited)
+        lost = ev.first(session, ev.SessionLost)
         heard_s = _seconds(now, x.received_utc)
         last_event_s = _seconds(now, x.last_event_utc)
         cause = None
         if exit_ev is not None:
-            code = exit_ev.get("status")
-            status = ENDINGS.get(code, "ended") if isinstance(code, int) else "ended"
-            if status == "aborted" and not exit_ev.get("cause"):
+            status = ENDINGS.get(exit_ev.status, "ended")
+            if status == "aborted" and not exit_ev.cause:
                 status = "incomplete"
-            cause = exit_ev.get("cause")
+            cause = exit_ev.cause
         elif not starts:
             status = "created"
         elif lost is not None:     # its bench found its process gone (bench/app/fleet/lost.py)
             status = "stopped"
             cause = (f"ended: {KILLED} (the bench process is gone without an end; "
-                     f"found by `{lost.get('found_by') or 'the bench'}`)")
+                     f"found by `{lost.found_by or 'the bench'}`)")
         else:
             status = "running"
         silent = status in ("running", "created") and heard_s is not None and heard_s > SILENT_S
         prog = progress_of(session)
-        prog["completed"] = any(ev.get("event") == "completed" for ev in session)
+        prog["completed"] = any(isinstance(e, ev.Completed) for e in session)
         view_state: Mapping[str, object] = {"status": status, "progress": prog, "cause": cause,
                       "sessions": len(starts), "session": session_no,
-                      "ended_utc": exit_ev.get("utc") if exit_ev else (
-                          lost.get("last_utc") if lost else None), "later": []}
+                      "ended_utc": exit_ev.utc if exit_ev else (
+                          lost.last_utc if lost else None), "later": []}
         health = self._health(x, now, status == "running" and not silent)
         pairs = pair_rows(events)
         last = pairs[-1] if pairs else None
@@ -333,7 +334,7 @@ class FleetView:
                              .where(b.name == bench, r.uid == uid)).first()
             if x is None:
                 return None
-            events = [y.body for y in conn.execute(
+            events = [ev.decode(y.body) for y in conn.execute(
                 sa.select(e.body).where(e.run_id == x.id, e.event.in_(KINDS))
                 .order_by(e.seq))]
             count = conn.execute(sa.select(sa.func.count()).select_from(s.bench_events)
@@ -357,7 +358,7 @@ class FleetView:
             "events_delivered": int(count),
             "live": live_table(pair_rows(events)),
             "final": final,
-            "log": [log_line(ev) for ev in events if ev.get("event") in LOG_KINDS][-40:],
+            "log": [log_line(e) for e in events if e.kind in LOG_KINDS][-40:],
             "received_utc": _utc_text(_iso(x.received_utc)),
         })
         return state

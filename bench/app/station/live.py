@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import NotRequired, TypedDict
@@ -26,12 +26,14 @@ import numpy as np
 from bench.app.names import resume_command
 from bench.app.records.extract import kind_name
 from bench.app.station.view import page_view
+from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.config import FogSettings
+from bench.core.events import Event, TimedHalf
 from bench.core.journal import fog_capture_starts
 from bench.core.yamlfile import read_mapping
 from bench.report.axes_view import axes_of
-from bench.report.result_frame import integer, number, objects, text
+from bench.report.result_frame import number
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, DecodeState, decode, get_format
 from drivers.json_types import JsonLike, JsonObject, JsonValue
@@ -69,9 +71,10 @@ def tail_jsonl(path: Path, max_bytes: int) -> list[JsonObject]:
     return out
 
 
-def read_events(run_path: Path) -> list[JsonObject]:
-    """Every event of the run (all sessions); a torn last line is skipped."""
-    return tail_jsonl(run_path / layout.EVENTS, 1 << 62)
+def read_events(run_path: Path) -> list[Event]:
+    """Every event of the run (all sessions), each as its kind's record; a torn last line
+    is skipped."""
+    return ev.decode_all(tail_jsonl(run_path / layout.EVENTS, 1 << 62))
 
 
 def pid_alive(pid: int | None) -> bool:
@@ -136,16 +139,16 @@ def drive_trace(raw: Path) -> dict[str, list[float]]:
             "velocity_dps": [float(v) for _, v in readings]}
 
 
-def turn_rates(acquire: JsonObject) -> dict[str, JsonLike]:
+def turn_rates(acquire: TimedHalf) -> dict[str, JsonLike]:
     """Per-turn rates of one timed half from its zero-mark edges (docs/method.md A1: w = 360/T,
     signed as commanded) and their deviation from the set rate (eq. 1, per turn)."""
-    edges = np.asarray(acquire.get("edges_s") or [], dtype=np.float64)
-    set_dps = float(number(acquire, "set_rate_dps") or 0.0)
+    edges = np.asarray(acquire.edges_s, dtype=np.float64)
+    set_dps = float(acquire.set_rate_dps)
     if edges.size < 2 or set_dps == 0:
         return {"set_rate_dps": set_dps, "rate_dps": [], "deviation_ppm": []}
     rate_dps = math.copysign(1.0, set_dps) * FULL_TURN_DEG / np.diff(edges)
     dev_ppm = (rate_dps - set_dps) / set_dps * 1e6
-    return {"set_rate_dps": set_dps, "axis": acquire.get("axis"), "unit": acquire.get("unit"),
+    return {"set_rate_dps": set_dps, "axis": acquire.axis, "unit": acquire.unit,
             "rate_dps": [float(v) for v in rate_dps],
             "deviation_ppm": [float(v) for v in dev_ppm]}
 
@@ -154,22 +157,20 @@ def _utc_s(stamp: str) -> float:
     return datetime.fromisoformat(stamp).timestamp()
 
 
-def progress_of(session: list[JsonObject]) -> dict[str, JsonLike]:
+def progress_of(session: list[Event]) -> dict[str, JsonLike]:
     """Step, progress and ETA of one session, in bench time and in wall time.
 
     The wall ETA is the bench time left over the speed measured so far in this session
     (bench seconds per wall second between its first and latest event), never the clock
     speed configured: a loaded machine or a twin-paced clock changes the speed.
     """
-    plan = next((e for e in reversed(session) if e.get("event") == "plan"), None)
-    steps = int(number(plan, "steps") or 0) if plan else 0
-    estimates = [float(x) for x in _floats(plan.get("step_estimates_s"))] if plan else []
-    total_s = float(number(plan, "estimate_s") or 0.0) if plan else 0.0
-    starts = [e for e in session if e.get("event") == "step_start"]
-    done = {e.get("index") for e in session if e.get("event") == "step_done"}
-    cur = starts[-1] if starts else None
-    timed = [(t, stamp) for t, stamp in ((number(e, "t_s"), text(e, "utc")) for e in session)
-             if t is not None and stamp]
+    plan = ev.last(session, ev.Planned)
+    steps = plan.steps if plan else 0
+    estimates = [float(x) for x in plan.step_estimates_s] if plan else []
+    total_s = float(plan.estimate_s) if plan else 0.0
+    done = {e.index for e in ev.of_kind(session, ev.StepDone)}
+    cur = ev.last(session, ev.StepStarted)
+    timed = [(e.t_s, e.utc) for e in session if e.t_s is not None and e.utc]
     now_bench = float(timed[-1][0]) if timed else 0.0
     speed = None
     if len(timed) >= 2:
@@ -178,11 +179,11 @@ def progress_of(session: list[JsonObject]) -> dict[str, JsonLike]:
         if dt_wall > 0 and dt_bench > 0:
             speed = dt_bench / dt_wall
     left_s = None
-    index = integer(cur, "index") if cur is not None else None
+    index = cur.index if cur is not None else None
     if cur is not None and index is not None and estimates and len(estimates) == steps:
         i = index
         left_s = sum(estimates[i:]) if i not in done else sum(estimates[i + 1:])
-        started_s = number(cur, "t_s")
+        started_s = cur.t_s
         if i not in done and started_s is not None:
             left_s -= min(estimates[i], max(0.0, now_bench - float(started_s)))
     elif total_s and cur is not None:
@@ -196,21 +197,15 @@ def progress_of(session: list[JsonObject]) -> dict[str, JsonLike]:
         "steps": steps,
         "steps_done": len(done),
         "step": None if cur is None else {
-            "index": cur.get("index"), "number": (index or 0) + 1,
-            "action": cur.get("action"), "axis": cur.get("axis"), "unit": cur.get("unit"),
-            "describe": cur.get("describe"), "done": cur.get("index") in done},
+            "index": cur.index, "number": (index or 0) + 1,
+            "action": cur.action, "axis": cur.axis, "unit": cur.unit,
+            "describe": cur.describe, "done": cur.index in done},
         "fraction": fraction,
         "bench_time_s": now_bench,
         "bench_left_s": left_s,
         "speed": speed,
         "wall_left_s": (left_s / speed) if (left_s is not None and speed) else None,
     }
-
-
-def _floats(value: JsonValue) -> list[float]:
-    """The numbers of a JSON list ([] when it is none)."""
-    return [x for x in value if isinstance(x, int | float) and not isinstance(x, bool)] \
-        if isinstance(value, list) else []
 
 
 #: wall seconds without new data after which a running bench is flagged on the page: the
@@ -240,7 +235,7 @@ def _utc_of(age_s: float | None, now: float) -> str | None:
 
 def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
            fog_tail: Mapping[str, JsonLike], axis: str | None,
-           acquires: list[JsonObject], now: float | None = None) -> dict[str, JsonLike]:
+           acquires: Sequence[TimedHalf], now: float | None = None) -> dict[str, JsonLike]:
     """The bench's health as its files show it: when each instrument was last heard, the
     FOG's lost and broken frames, and how long since anything was written.
 
@@ -253,7 +248,7 @@ def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
     warnings: list[str] = []
     ages = [a for a in [_age_s(run_path / layout.EVENTS, now)] if a is not None]
     for name in axes:
-        lost = sum(int(number(e, "fog_lost") or 0) for e in acquires if e.get("axis") == name)
+        lost = sum(e.fog_lost for e in acquires if e.axis == name)
         row: dict[str, JsonLike] = {"axis": name, "fog_lost_in_halves": lost}
         heard: dict[str, float | None] = {}
         for inst, suffix in (("fog", "fog.bin"), ("drive", "drive.jsonl"),
@@ -291,22 +286,10 @@ def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
             "stale": stale, "stale_after_s": STALE_S, "warnings": warnings}
 
 
-def pair_rows(events: list[JsonObject]) -> list[dict[str, JsonValue]]:
-    """The results as they come: one row per axis, rate and direction from each pair's
-    first look (the `pair` event; k and w0 per pair, delta +/- U, sigma, verdict)."""
-    rows: list[dict[str, JsonValue]] = []
-    for e in events:
-        if e.get("event") != "pair":
-            continue
-        for d in objects(e, "directions"):
-            rows.append({"axis": e.get("axis"), "set_rate_dps": d.get("set_rate_dps"),
-                         "k": e.get("k"), "k_U": e.get("k_u"), "w0_dps": e.get("w0_dps"),
-                         "w0_U_dps": e.get("w0_u_dps"),
-                         "rate_error_rel": d.get("rate_error_rel"),
-                         "rate_error_U_rel": d.get("rate_error_U_rel"),
-                         "rate_instability_rel": d.get("rate_instability_rel"),
-                         "turns": d.get("turns"), "verdict": d.get("verdict")})
-    return rows
+def pair_rows(events: list[Event]) -> list[JsonObject]:
+    """The results as they come: the rows each kind's first looks add (`Event.live_rows`;
+    the ladder's: per axis, rate and direction, k and w0, delta +/- U, sigma, verdict)."""
+    return [row for e in events for row in e.live_rows()]
 
 
 def final_rows(doc: JsonObject, run_path: Path | None = None) -> list[dict[str, JsonValue]]:
@@ -354,7 +337,7 @@ class RunStatus(TypedDict):
     cause: str | None
     later: list[str]
     session: int | None
-    events: list[JsonObject]
+    events: list[Event]
     pid: int | None
     exit_status: NotRequired[JsonValue]
     utc: NotRequired[JsonValue]
@@ -368,7 +351,7 @@ def _read_result(run_path: Path) -> JsonObject | None:
     return doc if isinstance(doc, dict) else None
 
 
-def ending(session: list[JsonObject], run_path: Path) -> Ending | None:
+def ending(session: list[Event], run_path: Path) -> Ending | None:
     """How the session ended and its first cause, as the operator at the bench read it
     (bench/app/session.py: the exit event's cause; a refusal's own event; what failed
     later, while stopping, beneath it); None while the session has no exit event.
@@ -378,15 +361,16 @@ def ending(session: list[JsonObject], run_path: Path) -> Ending | None:
     the analysis found incomplete, or no certificate), and `bench analyze` or `--resume`
     is what continues it, so the page names it incomplete, not aborted.
     """
-    exit_ev = next((e for e in reversed(session) if e.get("event") == "exit"), None)
+    exit_ev = ev.last(session, ev.Exited)
     if exit_ev is None:
         return None
-    code = exit_ev.get("status")
-    status = ENDINGS.get(code, "ended") if isinstance(code, int) else "ended"
-    cause = exit_ev.get("cause") or None
+    code = exit_ev.status
+    status = ENDINGS.get(code, "ended")
+    cause = exit_ev.cause or None
     if status == "refused":
-        refusal: JsonObject = next((e for e in session if e.get("event") == "refused"), {})
-        cause = refusal.get("reason") or cause or "the input was refused (exit status 2)"
+        refusal = ev.first(session, ev.Refused)
+        cause = (refusal.reason if refusal else None) or cause \
+            or "the input was refused (exit status 2)"
     elif status == "aborted" and not cause:
         status = "incomplete"
         verdict = (_read_result(run_path) or {}).get("verdict")
@@ -402,33 +386,27 @@ def ending(session: list[JsonObject], run_path: Path) -> Ending | None:
     elif status == "ended":
         cause = cause or f"exit status {code}"
     return {"status": status, "cause": str(cause) if cause else None,
-            "later": [str(x) for x in _items(exit_ev.get("later"))],
-            "exit_status": code, "utc": exit_ev.get("utc")}
+            "later": list(exit_ev.later), "exit_status": code, "utc": exit_ev.utc}
 
 
-def _resume(session: list[JsonObject], run_path: Path) -> str:
+def _resume(session: list[Event], run_path: Path) -> str:
     """The resume command as it works for this run: with --yes when its session ran so."""
-    start = next((e for e in session if e.get("event") == "session_start"), {})
-    return resume_command(run_path, start.get("prompts") == "--yes")
+    start = ev.first(session, ev.SessionStarted)
+    return resume_command(run_path, start is not None and start.prompts == "--yes")
 
 
-def _items(value: JsonValue) -> list[JsonValue]:
-    return value if isinstance(value, list) else []
-
-
-def run_status(events: list[JsonObject], run_path: Path) -> RunStatus:
+def run_status(events: list[Event], run_path: Path) -> RunStatus:
     """The run's status from its last session, one rule for the runs list and the run's
     page: how it ended (`ending`), else running while the bench process journaled at the
     session's start lives, else stopped (the process went without an exit: killed or
     crashed), or created when no session has started yet."""
-    starts = [e for e in events if e.get("event") == "session_start"]
-    if not starts:
+    start = ev.last(events, ev.SessionStarted)
+    if start is None:
         return {"status": "created", "cause": None, "later": [], "session": None,
                 "events": [], "pid": None}
-    start = starts[-1]
-    session_no = integer(start, "session")
-    session = [e for e in events if e.get("session") == session_no]
-    pid = integer(start, "pid")
+    session_no = start.session
+    session = [e for e in events if e.session == session_no]
+    pid = start.pid
     end = ending(session, run_path)
     if end is not None:
         return {**end, "session": session_no, "events": session, "pid": pid}
@@ -446,12 +424,12 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
     worded and rounded for the page (bench/app/station/view.py)."""
     run_path = Path(run_path)
     events = read_events(run_path)
-    starts = [e for e in events if e.get("event") == "session_start"]
+    starts = ev.of_kind(events, ev.SessionStarted)
     st = run_status(events, run_path)
     session_no, session, pid, status = st["session"], st["events"], st["pid"], st["status"]
     stand = read_mapping(run_path / layout.STAND)
     prog = progress_of(session)
-    prog["completed"] = any(e.get("event") == "completed" for e in session)
+    prog["completed"] = any(isinstance(e, ev.Completed) for e in session)
     step = prog["step"]
     axis_named = step.get("axis") if isinstance(step, Mapping) else None
     axis = axis_named if isinstance(axis_named, str) else None
@@ -464,9 +442,9 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
             first = fog_capture_starts(session).get((int(session_no or 0), axis), 0)
             fog = fog_trace(raw / layout.fog_capture(axis), settings, first_index=first)
         drive = drive_trace(raw / layout.drive_log(axis))
-    acquires = [e for e in events if e.get("event") == "acquire"]
+    acquires = [e for e in events if isinstance(e, TimedHalf)]
     # the per-turn panel shows the axis now running, never the previous axis's last half
-    shown_acquires = [e for e in acquires if not axis or e.get("axis") == axis]
+    shown_acquires = [e for e in acquires if not axis or e.axis == axis]
     result: JsonValue = None
     final: list[dict[str, JsonValue]] = []
     doc = _read_result(run_path) if status != "running" else None
@@ -475,9 +453,11 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
         final = final_rows(doc, run_path)
     axes_now = [str(a) for a in ((stand.get("axes") or {}) if isinstance(stand, dict)
                                  else {})]
-    used = [a for a in axes_now if any(e.get("axis") == a for e in session)] or axes_now
-    shown = [{k: v for k, v in e.items() if k not in ("traceback",)}
-             for e in events if e.get("event") in EVENT_KINDS_SHOWN][-40:]
+    used = [a for a in axes_now if any(getattr(e, "axis", None) == a for e in session)] \
+        or axes_now
+    shown_events = [e for e in events if e.kind in EVENT_KINDS_SHOWN][-40:]
+    shown = [{k: v for k, v in ev.plain(e).items() if k not in ("traceback",)}
+             for e in shown_events]
     ident = (stand.get("stand") or {}) if isinstance(stand, dict) else {}
     state: dict[str, JsonLike] = {
         "run": run_path.name,
@@ -499,14 +479,16 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
         "results": pair_rows(events),
         "final": final,
         "drive": {"axis": axis, **drive},
-        "faults": [e for e in shown if e.get("event") in ("abort", "safe_stop")
-                   and not e.get("ok", False)],
-        "prompts": [e for e in shown if e.get("event") == "prompt"],
+        "faults": [line for e, line in zip(shown_events, shown, strict=True)
+                   if isinstance(e, ev.Aborted)
+                   or (isinstance(e, ev.SafeStopped) and not e.ok)],
+        "prompts": [line for e, line in zip(shown_events, shown, strict=True)
+                    if isinstance(e, ev.Prompted)],
         "log": shown,
         "verdict": result,
         "files": [n for n in DOWNLOADS if (run_path / n).exists()],
     }
-    state["view"] = page_view(state, run_path)
+    state["view"] = page_view(state, run_path, shown_events)
     return state
 
 
@@ -529,9 +511,9 @@ def list_runs(runs: Path) -> list[dict[str, JsonLike]]:
         return []
     for p in sorted(dirs, key=lambda p: p.name, reverse=True):
         events = read_events(p)
-        starts = [e for e in events if e.get("event") == "session_start"]
+        starts = ev.of_kind(events, ev.SessionStarted)
         st = run_status(events, p)
         out.append({"run": p.name, "title": _title(p), "status": st["status"],
                     "cause": st["cause"], "sessions": len(starts),
-                    "started_utc": starts[0].get("utc") if starts else None})
+                    "started_utc": starts[0].utc if starts else None})
     return out

@@ -21,7 +21,9 @@ from datetime import datetime
 from pathlib import Path
 
 from bench.app.records.extract import figures_of, kind_name
+from bench.core import events as ev
 from bench.core import rundir_layout as layout
+from bench.core.events import Event
 from bench.core.plan import format_duration
 from bench.core.registry import declared_figures
 from bench.report.axes_view import AxisRows, axes_of
@@ -368,62 +370,46 @@ def results_view(state: Mapping[str, object], run_path: Path) -> dict[str, JsonL
 
 # -- the log ----------------------------------------------------------------------------------
 
-def _magnitude(e: Mapping[str, object]) -> str:
-    """The rate of a unit name ('outer/30dps' -> '30 deg/s')."""
-    unit = str(e.get("unit") or "")
-    return unit.split("/", 1)[1].replace("dps", " deg/s") if "/" in unit else ""
-
-
-def log_line(e: Mapping[str, object]) -> str:
-    """One milestone, fault or prompt as the page lists it."""
-    kind = str(e.get("event"))
-    mag = _magnitude(e)
-    rate = _num(e.get("rate_dps"))
-    if kind == "settled":
-        sign = MINUS if rate is not None and rate < 0 else "+"
-        said = (f"settled: {e.get('axis') or ''} at {sign}{mag}" if mag
-                else f"settled: {e.get('axis') or ''} at {_rate(rate)} deg/s")
-        if mag and rate is not None:
-            said += f" (drive reads {rate:.7g} deg/s)".replace("-", MINUS)
-    elif kind == "pair":
-        said = (f"pair analysed: {e.get('axis') or ''} ±{mag}: k = "
-                f"{_value_u(e.get('k'), e.get('k_u'))}, ω0 = "
-                f"{_value_u(e.get('w0_dps'), e.get('w0_u_dps'), signed=True)} deg/s")
-    elif kind == "pair_failed":
-        said = f"pair first look failed: {e.get('axis') or ''} ±{mag} ({e.get('error') or ''})"
-    else:
-        said = kind
-        if e.get("reason"):
-            said += f" - {e.get('reason')}"
-        if e.get("text"):
-            said += f" - {e.get('text')} ({e.get('answered') or ''})"
-        if kind == "exit":
-            code = e.get("status")
-            said += f" with status {code}"
+def log_line(e: Event) -> str:
+    """One milestone, fault or prompt as the page lists it (a kind's own events in its
+    own words, `Event.log_text`)."""
+    said = e.log_text()
+    if said is None:
+        said = e.kind
+        reason = getattr(e, "reason", None)
+        if reason:
+            said += f" - {reason}"
+        if isinstance(e, ev.Prompted) and e.text:
+            said += f" - {e.text} ({e.answered})"
+        elif isinstance(e, ev.RecordsOverdue | ev.OutOfControl) and e.text:
+            said += f" - {e.text} ()"
+        if isinstance(e, ev.Exited):
+            said += f" with status {e.status}"
             # 3 without a cause is not an abort at the bench (live.py `ending`)
             how = {0: "passed", 1: "failed", 2: "refused",
-                   3: "aborted" if e.get("cause") else None}.get(code) \
-                if isinstance(code, int) else None
+                   3: "aborted" if e.cause else None}.get(e.status)
             said += f" ({how})" if how else ""
-            if e.get("cause"):
-                said += f" - {e.get('cause')}"
-        if e.get("error"):
-            said += f" ({e.get('error')})"
-    return f"{str(e.get('utc') or '')[11:19]} UTC, session {e.get('session')}: {said}"
+            if e.cause:
+                said += f" - {e.cause}"
+        error = getattr(e, "error", None)
+        if error:
+            said += f" ({error})"
+    return f"{e.utc[11:19]} UTC, session {e.session}: {said}"
 
 
 # -- the page ---------------------------------------------------------------------------------
 
-def page_view(state: Mapping[str, object], run_path: Path) -> dict[str, JsonLike]:
-    """Everything the run's page prints, from the state `live_state` reads."""
+def page_view(state: Mapping[str, object], run_path: Path, log: Sequence[Event]
+              ) -> dict[str, JsonLike]:
+    """Everything the run's page prints, from the state `live_state` reads and the events
+    its log shows."""
     status = str(state.get("status"))
     prog = _part(state.get("progress"))
     return {
         "progress": progress_view(state),
         "health": health_view(_part(state.get("health")), status),
         "results": results_view(state, run_path),
-        "log": [{"event": str(e.get("event")), "text": log_line(e)}
-                for e in map(_part, _items(state.get("log")))],
+        "log": [{"event": e.kind, "text": log_line(e)} for e in log],
         # the charts show what a step recorded: none for a run refused before its first
         "charts": status in ("running", "created") or bool(prog.get("step")),
         "live": status in ("running", "created"),

@@ -18,8 +18,10 @@ from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 from bench.analysis.finite import finite_number as num
+from bench.core import events as ev
 from bench.core import rundir_layout as layout
-from bench.core.journal import read_jsonl
+from bench.core.events import Event
+from bench.core.journal import read_events
 from bench.core.placeholders import run_copy
 from bench.report.certificate.model import Block, Figure, Para, Section
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u
@@ -39,7 +41,7 @@ class Sources:
     meta: JsonObject = field(default_factory=dict)
     stand_file: dict[str, Any] = field(default_factory=dict)
     procedure_file: dict[str, Any] = field(default_factory=dict)
-    events: list[JsonObject] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)  # malformed parts of result.json
 
     @classmethod
@@ -54,18 +56,17 @@ class Sources:
         src.procedure_file = run_copy(run_path, layout.PROCEDURE)
         events = run_path / layout.EVENTS
         if events.exists():
-            src.events = list(read_jsonl(events))
+            src.events = read_events(events)
         return src
 
     def get(self, key: str, default: object = None) -> Any:
         value = self.result.get(key)
         return default if value is None else value
 
-    def event_utc(self, kind: str, last: bool = False) -> str | None:
+    def event_utc(self, kind: type[Event], last: bool = False) -> str | None:
         """When the event log first (or last) recorded an event of `kind`, as it wrote it."""
-        found = [u if isinstance(u := e.get("utc"), str) else None
-                 for e in self.events if e.get("event") == kind]
-        return (found[-1] if last else found[0]) if found else None
+        found = (ev.last if last else ev.first)(self.events, kind)
+        return found.utc or None if found is not None else None
 
     @property
     def frame(self) -> ResultFrame:
