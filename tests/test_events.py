@@ -55,7 +55,7 @@ def test_a_written_line_reads_as_its_record_and_writes_back_byte_for_byte(
 def test_fields_are_typed_as_declared() -> None:
     pair = ev.decode(json.loads(WRITTEN[3][0]))
     assert isinstance(pair, PairLooked)
-    assert (pair.k, pair.k_ustd, pair.rate_error_minus_rel) == (1.0003, 4e-06, 2e-07)
+    assert (pair.k, pair.k_U, pair.rate_error_minus_rel) == (1.0003, 4e-06, 2e-07)
     assert pair.directions[0].rate_error_U_rel == 6e-08 and pair.session == 1
     ident = ev.decode(json.loads(WRITTEN[1][0]))
     assert isinstance(ident, ev.Identity)

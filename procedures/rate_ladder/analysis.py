@@ -659,10 +659,10 @@ def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
                      else "pass" if checks else "not-assessed")))
     unit = f"{axis}/{rate_dps:g}dps"
     plus, minus = figures.get(1, (None, None)), figures.get(-1, (None, None))
-    out = PairLooked(axis=axis, unit=unit, k=pa.pair.k, k_ustd=pa.pair.k_u,
-                     w0_dps=pa.pair.w0_dps, w0_ustd_dps=pa.pair.w0_u_dps,
-                     rate_error_plus_rel=plus[0], rate_error_plus_ustd_rel=plus[1],
-                     rate_error_minus_rel=minus[0], rate_error_minus_ustd_rel=minus[1],
+    out = PairLooked(axis=axis, unit=unit, k=pa.pair.k, k_U=pa.pair.k_u,
+                     w0_dps=pa.pair.w0_dps, w0_U_dps=pa.pair.w0_u_dps,
+                     rate_error_plus_rel=plus[0], rate_error_plus_U_rel=plus[1],
+                     rate_error_minus_rel=minus[0], rate_error_minus_U_rel=minus[1],
                      directions=directions)
     spans, raw.temperatures = raw.temperatures, {}
     return FirstLook(out, pa, first_look_key(unit, acquisitions, static), spans)

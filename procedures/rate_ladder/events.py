@@ -106,32 +106,32 @@ class PairDirection(msgspec.Struct, frozen=True, kw_only=True):
 
 class PairLooked(LadderEvent, tag="pair", omit_defaults=True, frozen=True):
     """The analysis worker's first look at a pair (docs/method.md A3: k and w0 with their
-    standard uncertainties; eq. 1 per direction). The line keeps its keys as written since
-    issue 12 (`rate_error_rel+`, `rate_error_u_rel-`): older runs read back the same."""
+    expanded uncertainties, about 95 %; eq. 1 per direction). The line keeps its keys as
+    written since issue 12 (`k_u`, `rate_error_u_rel-`: CONTRACT's `_u`, the expanded U,
+    bench/report/uncertainty_names.py): older runs read back the same."""
 
     k: float
-    k_ustd: float = msgspec.field(name="k_u")
+    k_U: float = msgspec.field(name="k_u")
     w0_dps: float
-    w0_ustd_dps: float = msgspec.field(name="w0_u_dps")
+    w0_U_dps: float = msgspec.field(name="w0_u_dps")
     rate_error_plus_rel: float | None = msgspec.field(default=None, name="rate_error_rel+")
-    rate_error_plus_ustd_rel: float | None = msgspec.field(default=None,
+    rate_error_plus_U_rel: float | None = msgspec.field(default=None,
                                                            name="rate_error_u_rel+")
     rate_error_minus_rel: float | None = msgspec.field(default=None, name="rate_error_rel-")
-    rate_error_minus_ustd_rel: float | None = msgspec.field(default=None,
+    rate_error_minus_U_rel: float | None = msgspec.field(default=None,
                                                             name="rate_error_u_rel-")
     directions: list[PairDirection] = []
 
     def log_text(self) -> str:
         return (f"pair analysed: {self.axis} ±{_magnitude(self.unit)}: k = "
-                f"{_value_u(self.k, self.k_ustd)}, ω0 = "
-                f"{_value_u(self.w0_dps, self.w0_ustd_dps, signed=True)} deg/s")
+                f"{_value_u(self.k, self.k_U)}, ω0 = "
+                f"{_value_u(self.w0_dps, self.w0_U_dps, signed=True)} deg/s")
 
     def live_rows(self) -> list[JsonObject]:
         """Per direction: k and w0 of the pair, the rate error with its U, sigma, the
-        verdict, as result.json will hold them. `k_U` and `w0_U_dps` carry the first
-        look's standard uncertainties under the names the page has always read."""
+        verdict, as result.json will hold them."""
         return [{"axis": self.axis, "set_rate_dps": d.set_rate_dps, "k": self.k,
-                 "k_U": self.k_ustd, "w0_dps": self.w0_dps, "w0_U_dps": self.w0_ustd_dps,
+                 "k_U": self.k_U, "w0_dps": self.w0_dps, "w0_U_dps": self.w0_U_dps,
                  "rate_error_rel": d.rate_error_rel, "rate_error_U_rel": d.rate_error_U_rel,
                  "rate_instability_rel": d.rate_instability_rel, "turns": d.turns,
                  "verdict": d.verdict} for d in self.directions]

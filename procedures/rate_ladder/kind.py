@@ -594,14 +594,13 @@ def _fog_mean_dps(fog: Fog, span_s: float = 1.0) -> float | None:
 
 def pair_figures(summary: PairLooked) -> list[Figure]:
     """A pair's first look (docs/method.md A3 k and ω0; eq. 1 δ per direction) with U (k = 2)."""
-    out = [Figure("k", summary.k, summary.k_ustd),
-           Figure("ω0", summary.w0_dps, summary.w0_ustd_dps, "°/s", signed=True)]
-    for value, ustd, name in ((summary.rate_error_plus_rel, summary.rate_error_plus_ustd_rel,
-                               "δ(+)"),
-                              (summary.rate_error_minus_rel, summary.rate_error_minus_ustd_rel,
-                               "δ(−)")):
+    out = [Figure("k", summary.k, summary.k_U),
+           Figure("ω0", summary.w0_dps, summary.w0_U_dps, "°/s", signed=True)]
+    for value, u, name in ((summary.rate_error_plus_rel, summary.rate_error_plus_U_rel, "δ(+)"),
+                           (summary.rate_error_minus_rel, summary.rate_error_minus_U_rel,
+                            "δ(−)")):
         if value is not None:
-            out.append(Figure(name, value, ustd, RELATIVE, signed=True))
+            out.append(Figure(name, value, u, RELATIVE, signed=True))
     return out
 
 
