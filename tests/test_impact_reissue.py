@@ -327,7 +327,8 @@ def test_what_a_finding_asks_of_an_issue_without_a_run(tmp_path: Path) -> None:
     with no correction model, refuses; a run registered after the finding, or timed by
     another counter, is not touched; a result that states the correction needs no second
     analysis; the certificate's words name the item, e with its U and why."""
-    from bench.app.certificate.corrected import already_applied, corrections_due, statements
+    from bench.app.certificate.corrected import already_applied, corrections_due
+    from bench.report.corrections import statements
 
     url = sqlite_register(tmp_path / "register")
     today = dt.date.today()

@@ -364,7 +364,7 @@ def _corrected_record(reg: Register, record: RunRecord, run_path: Path, reason: 
         return refused or record
     if corrected.already_applied(json.loads(record.result or "{}"), due):
         return record
-    serials = ", ".join(sorted({str(c.get("serial")) for c in due}))
+    serials = ", ".join(sorted({str(corr.get("serial")) for corr in due}))
     if reissue and not (reason or "").strip():
         return [f"the register holds an as-found error of {serials} that touches this run: a "
                 "corrected re-issue analyses it again with the correction and must say why "

@@ -20,7 +20,6 @@ import bench
 from bench.analysis.coverage import COVERAGE_FORMULA, DOF_INFINITE
 from bench.app.certificate import register
 from bench.app.certificate.conditions import condition_rows
-from bench.app.certificate.corrected import statements as correction_statements
 from bench.app.certificate.equipment import equipment_list, identity_lines
 from bench.app.certificate.item import ItemRecord, item_record
 from bench.app.certificate.item import decision_rule_text as agreed_rule_text
@@ -55,6 +54,7 @@ from bench.report.certificate.rounding import (
     present,
     rel_unit,
 )
+from bench.report.corrections import statements as correction_statements
 from bench.report.result_frame import Check, fog_temperature
 from drivers.json_types import JsonObject
 

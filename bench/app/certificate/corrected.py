@@ -11,7 +11,7 @@ analyses the run again as `bench analyze RUN --reason` does (the register record
 result: op deliver_result, audit "run analysis result"), and issues from that registered
 result. The result states the corrections it applied (`corrections`: the item, its serial,
 e with its U, where it came from, why), and the certificate says so in every form (PDF,
-HTML and DCC read the same words from here).
+HTML and DCC read the same words: bench/report/corrections.py).
 
 The analysis reads the corrections file only, never the register (docs/method.md A1, "A
 counter's time-base correction").
@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import subprocess
 import sys
@@ -33,10 +32,6 @@ from bench.core import rundir_layout as layout
 
 if TYPE_CHECKING:
     from bench.app.register.store import Register, RunRecord
-
-#: the keys that say two corrections are the same (a re-run of a refused authorise finds
-#: the run already corrected and does not analyse it again)
-SAME_KEYS = ("where", "serial", "quantity", "value", "U")
 
 
 def corrections_due(reg: Register, record: RunRecord) -> tuple[list[dict[str, object]],
@@ -63,8 +58,8 @@ def corrections_due(reg: Register, record: RunRecord) -> tuple[list[dict[str, ob
             continue                      # no as-found error recorded: nothing to correct
         if not touched([record], finding):
             continue
-        entry = correction_entry(finding, where)
-        if entry is None:
+        corr = correction_entry(finding, where)
+        if corr is None:
             if finding.found == "out":
                 refused.append(f"item {serial} ({where}) was found out of tolerance "
                                f"(calibration {finding.certificate}) and this run used it; "
@@ -72,27 +67,25 @@ def corrections_due(reg: Register, record: RunRecord) -> tuple[list[dict[str, ob
                                "state figures the finding moves (docs/register.md, bench "
                                "impact)")
             continue
-        if entry.get("U") is None:
+        if corr.get("U") is None:
             refused.append(f"item {serial} ({where}): the as-found error {finding.error:g} "
                            "has no U: a correction without its uncertainty cannot enter the "
                            "budget (bench register equipment update SERIAL --found-error "
                            "V,U)")
             continue
-        due.append(entry)
+        due.append(corr)
     return due, refused
-
-
-def _key(c: Mapping[str, object]) -> tuple[object, ...]:
-    return tuple(c.get(k) for k in SAME_KEYS)
 
 
 def already_applied(result: Mapping[str, object], due: Sequence[Mapping[str, object]]
                     ) -> bool:
     """Whether the registered result states exactly these corrections."""
-    stated = result.get("corrections")
-    have = sorted((_key(c) for c in stated if isinstance(c, Mapping)), key=repr) \
-        if isinstance(stated, list) else []
-    return have == sorted((_key(c) for c in due), key=repr)
+    from bench.report.corrections import Correction, corrections_of
+
+    have = corrections_of(result)
+    want = [Correction.from_json(d) for d in due]
+    return len(have) == len(want) and all(any(h.same_as(w) for h in have) for w in want) \
+        and all(any(w.same_as(h) for w in want) for h in have)
 
 
 def write_corrections(run_path: Path, due: Sequence[Mapping[str, object]],
@@ -128,35 +121,3 @@ def registered_again(reg: Register, uid: str, run_path: Path) -> RunRecord | Non
         return None
     return rec if hashlib.sha256(result.read_bytes()).hexdigest() == rec.result_sha256 \
         else None
-
-
-def _g(x: object) -> str:
-    return f"{x:.3g}" if isinstance(x, int | float) and math.isfinite(x) else "not stated"
-
-
-def statements(result: Mapping[str, object]) -> list[str]:
-    """The certificate's words for each correction the result applied (PDF, HTML and DCC
-    alike): the item, e with its U, what was done with it and why."""
-    out = []
-    stated = result.get("corrections")
-    for c in stated if isinstance(stated, list) else []:
-        if not isinstance(c, Mapping):
-            continue
-        where = str(c.get("where") or "?")
-        what = (f"the counter at {where} ({c.get('model') or 'model not stated'}, serial "
-                f"{c.get('serial') or 'not stated'})")
-        if c.get("quantity") == "timebase_offset_rel":
-            done = ("every interval it timed was divided by 1 + e before the analysis, which "
-                    "moves each rate error by about +e and the FOG scale k by about -e k; "
-                    "u(e) = U/2 is a row of the rate error's uncertainty budget "
-                    "(docs/method.md A1, a counter's time-base correction)")
-            value = f"time-base offset e = {_g(c.get('value'))} (U = {_g(c.get('U'))}, k = 2)"
-        else:
-            done = "applied as the analysis states in result.json's corrections"
-            value = f"{c.get('quantity')} = {_g(c.get('value'))} (U = {_g(c.get('U'))})"
-        text = (f"Correction applied: {what} had a {value}"
-                + (f", the {c.get('source')}" if c.get("source") else "") + f"; {done}.")
-        if c.get("reason"):
-            text += f" Why: {c.get('reason')}."
-        out.append(text)
-    return out

@@ -12,7 +12,6 @@ from lxml import etree
 
 import bench
 from bench.app.certificate.build import Sources, check_class, decision_rule_text
-from bench.app.certificate.corrected import statements as correction_statements
 from bench.app.certificate.equipment import equipment_list, identity_lines
 from bench.app.certificate.item import item_record, setting_statements
 from bench.app.certificate.item import statements as item_statements
@@ -24,6 +23,7 @@ from bench.core.events import Event
 from bench.core.lab import Lab
 from bench.report.certificate import methods
 from bench.report.certificate.parts import CertificateParts
+from bench.report.corrections import statements as correction_statements
 from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import ILAC_G8, RULE_REFERENCE, checks_of
 from bench.report.dcc.parts import DccParts
