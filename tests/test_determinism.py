@@ -14,7 +14,7 @@ import json
 import re
 import subprocess
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -84,31 +84,80 @@ def _busy(n: int) -> Iterator[None]:
             p.wait()
 
 
-def _quiet_and_loaded(run: Callable[[Path], Path], tmp_path: Path,
-                      quiet: Path | None = None) -> tuple[Path, Path, Any]:
-    """`run` once quiet (or `quiet`, the same command's run directory from a session
-    fixture) and once beside two busy processes; both run directories, and the quiet
-    result.json stripped of when and where, once the loaded one is shown equal."""
-    quiet = quiet or run(tmp_path / "quiet")
-    with _busy(2):
-        loaded = run(tmp_path / "loaded")
+def _same(quiet: Path, loaded: Path) -> Any:
+    """The quiet run's result.json stripped of when and where, once the loaded run's is
+    shown equal to it."""
     a = _strip(json.loads((quiet / "result.json").read_text()))
     b = _strip(json.loads((loaded / "result.json").read_text()))
     diffs = list(_differences(a, b))
     assert not diffs, "\n".join(diffs[:30])
-    return quiet, loaded, a
+    return a
 
 
-def _demo(out: Path, procedure: str = "demo.yaml") -> Path:
-    """The command of conftest's `demo_run` fixture (whose run is the quiet one), quiet."""
-    proc = subprocess.run([sys.executable, "-m", "bench", "run",
-                           str(CONFIGS / "procedures" / procedure), "--yes",
-                           "--quiet", "--out", str(out)],
-                          capture_output=True, text=True, timeout=900, check=False)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    runs = [p for p in out.iterdir() if (p / "result.json").is_file()]
+class _Started:
+    """`bench run ARGS --yes --quiet` started in a subprocess, as an operator starts it, its
+    output in files beside `log` (no pipe to fill while another run is waited for)."""
+
+    def __init__(self, args: list[str], log: Path) -> None:
+        self.out, self.err = log.with_suffix(".out"), log.with_suffix(".err")
+        with open(self.out, "w") as out, open(self.err, "w") as err:
+            self.p = subprocess.Popen([sys.executable, "-m", "bench", "run", *args, "--yes",
+                                       "--quiet"], stdout=out, stderr=err, text=True)
+
+    def ended(self, timeout_s: float) -> tuple[int, str, str]:
+        """Its exit status, standard output and standard error, once it has ended."""
+        self.p.wait(timeout=timeout_s)
+        return self.p.returncode, self.out.read_text(), self.err.read_text()
+
+    def kill(self) -> None:
+        if self.p.poll() is None:
+            self.p.kill()
+            self.p.wait()
+
+
+def _demo_ended(run: _Started, out: Path) -> Path:
+    """The run directory of a demo (the command of conftest's `demo_run` fixture, whose run
+    is the quiet one), once it has passed."""
+    status, stdout, stderr = run.ended(900)
+    assert status == 0, stdout + stderr
+    runs = [d for d in out.iterdir() if (d / "result.json").is_file()]
     assert len(runs) == 1, list(out.iterdir())
     return runs[0]
+
+
+def _static_ended(run: _Started) -> Path:
+    """The run directory of the check run of `_static_first`, once it has ended."""
+    status, stdout, stderr = run.ended(600)
+    assert status in (0, 1), stdout + stderr
+    return Path(stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope="module")
+def loaded(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The loaded run of each test below, the three started at once beside two busy
+    processes (on 2 cores): the demo, the drift demo and the control baseline's first check
+    run (`_static_first`), each as an operator starts it. Each run meets the two busy
+    processes and the other two runs besides, more load than either alone; and the busy
+    processes spin once for the three (one run after the other, they spun two cores
+    through each, a minute or more of CPU each in CI). The run directories by test: demo,
+    drift, static."""
+    folder = tmp_path_factory.mktemp("loaded")
+    demo, drift = folder / "demo", folder / "drift"
+    started: list[_Started] = []
+    with _busy(2):
+        try:
+            for args, log in (([str(CONFIGS / "procedures" / "demo.yaml"), "--out", str(demo)],
+                               "demo"),
+                              ([str(CONFIGS / "procedures" / "drift-demo.yaml"), "--out",
+                                str(drift)], "drift"),
+                              (_static_first(folder / "static"), "static")):
+                started.append(_Started(args, folder / log))
+            return {"demo": _demo_ended(started[0], demo),
+                    "drift": _demo_ended(started[1], drift),
+                    "static": _static_ended(started[2])}
+        finally:
+            for run in started:      # a failed run leaves none of the others behind
+                run.kill()
 
 
 def _certificate_text(run: Path) -> str:
@@ -116,15 +165,16 @@ def _certificate_text(run: Path) -> str:
     return _normal(html)
 
 
-@pytest.mark.timeout(1200)
+@pytest.mark.timeout(1200)      # the module's loaded runs (`loaded`) are made in its setup
 def test_the_demo_gives_the_same_numbers_quiet_and_beside_two_busy_processes(
-        demo_run: DemoRun, tmp_path: Path) -> None:
+        demo_run: DemoRun, loaded: dict[str, Path]) -> None:
     assert demo_run.status == 0, demo_run.stderr[-3000:]
-    quiet, loaded, a = _quiet_and_loaded(_demo, tmp_path, demo_run.dir)
+    quiet = demo_run.dir
+    a = _same(quiet, loaded["demo"])
     # a check that can fail: the results carry figures, and the raw records are equal
     assert a["axes"]["outer"]["rates"], a["axes"]
     assert any(f["sha256"] for f in a["raw_files"])
-    ca, cb = _certificate_text(quiet), _certificate_text(loaded)
+    ca, cb = _certificate_text(quiet), _certificate_text(loaded["demo"])
     if ca != cb:
         la, lb = ca.splitlines(), cb.splitlines()
         lines = [f"line {i + 1}:\n  {x}\n  {y}"
@@ -149,38 +199,34 @@ def test_a_resumed_session_draws_its_own_noise_from_the_seed() -> None:
 
 @pytest.mark.timeout(900)
 def test_the_drift_demo_gives_the_same_numbers_quiet_and_beside_two_busy_processes(
-        drift_demo_run: DemoRun, tmp_path: Path) -> None:
+        drift_demo_run: DemoRun, loaded: dict[str, Path]) -> None:
     """The drift-pulse kind (docs/method.md B) on the co-simulation: the DMMs' and the
     generator's waits are on stand time (drivers/dmm.py), so the pulse triggers, the
     records' sample times and every reading are the same under any load."""
     assert drift_demo_run.status == 0, drift_demo_run.stderr[-3000:]
-    quiet, loaded, a = _quiet_and_loaded(lambda out: _demo(out, "drift-demo.yaml"), tmp_path,
-                                         drift_demo_run.dir)
+    quiet = drift_demo_run.dir
+    a = _same(quiet, loaded["drift"])
     # a check that can fail: both gyros carry their cycles, and the raw records are equal
     for g in ("x", "y"):
         assert len(a["drift"]["axes"][g]["cycles"]) == 20, a["drift"]["axes"][g]
     assert {f["path"] for f in a["raw_files"]} >= {"raw/s1/x-dmm.jsonl", "raw/s1/awg.jsonl"}
-    ca, cb = _certificate_text(quiet), _certificate_text(loaded)
+    ca, cb = _certificate_text(quiet), _certificate_text(loaded["drift"])
     assert ca == cb, [(x, y) for x, y in zip(ca.splitlines(), cb.splitlines(), strict=False)
                       if x != y][:10]
 
 
-def _static_first(folder: Path) -> Path:
+def _static_first(folder: Path) -> list[str]:
     """A check run of the control charts' baseline (tests/conftest.py `check_procedure`,
     seed 1: one rate, its first step the FOG's static record, started the instant the
     instruments are open), the same files' bytes and names as the session's
-    `control_baseline` run 1, in a subprocess as an operator starts it."""
+    `control_baseline` run 1: the arguments of its `bench run` (`_start`)."""
     proc = check_procedure(folder, 1)
-    out = subprocess.run([sys.executable, "-m", "bench", "run", str(proc), "--yes", "--quiet",
-                          "--out", str(folder / "runs")],
-                         capture_output=True, text=True, timeout=600, check=False)
-    assert out.returncode in (0, 1), out.stdout + out.stderr
-    return Path(out.stdout.strip().splitlines()[-1])
+    return [str(proc), "--out", str(folder / "runs")]
 
 
 @pytest.mark.timeout(900)
 def test_a_static_record_at_the_start_begins_on_the_same_sample_under_load(
-        control_baseline: ControlBaseline, tmp_path: Path) -> None:
+        control_baseline: ControlBaseline, loaded: dict[str, Path]) -> None:
     """The static record began at the newest FOG sample the reader held: the one due at
     that very instant was there on a quiet machine and not yet on a loaded one, so every
     later step moved by 1 ms (the control charts' drive settle time moved with it, and
@@ -188,10 +234,11 @@ def test_a_static_record_at_the_start_begins_on_the_same_sample_under_load(
     places it (procedures/rate_ladder/kind.py `_do_static`). The quiet run is the
     session's first baseline run (made in the test process, by the console script's
     `main`), the loaded one the same files run by `bench` beside two busy processes."""
-    quiet, loaded, _ = _quiet_and_loaded(_static_first, tmp_path, control_baseline.run(1))
+    quiet = control_baseline.run(1)
+    _same(quiet, loaded["static"])
     drive = [(q.read_text(), lo.read_text()) for q, lo in
              zip(sorted(quiet.glob("raw/s*/outer-drive.jsonl")),
-                 sorted(loaded.glob("raw/s*/outer-drive.jsonl")), strict=True)]
+                 sorted(loaded["static"].glob("raw/s*/outer-drive.jsonl")), strict=True)]
     assert drive and all(x == y for x, y in drive)   # commands and settles, to the ms
     static = [json.loads(ln) for ln in (quiet / "events.jsonl").read_text().splitlines()
               if '"event":"static"' in ln.replace(" ", "")]
