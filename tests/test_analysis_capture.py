@@ -111,7 +111,7 @@ def test_a_half_read_ahead_gives_the_first_look_made_without_it(
     plain_dir = demo_run.copy_to(tmp_path / "plain")
     ahead_dir = demo_run.copy_to(tmp_path / "ahead")
     cfg = load_config(plain_dir / "procedure.yaml", plain_dir / "stand.yaml")
-    events = RunDir(plain_dir).lines()
+    events = RunDir(plain_dir).events()
     first = HalfAcquired.all_in(events)[0]
     halves = unit_halves(events, first.unit, first.session)
     static = static_record(events, first.axis)
