@@ -12,10 +12,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TypedDict
 
-from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.config import Config
-from bench.core.events import Event
 from bench.core.lab import certificate_settings
 from bench.core.plan import Plan, Step
 from bench.core.stops import register
@@ -26,6 +24,7 @@ from bench.report.uncertainty_names import UNCERTAINTY_NAMING, with_explicit_nam
 # module) for their files alone
 if TYPE_CHECKING:
     from bench.core.engine import RunContext
+    from bench.core.events import Event
     from bench.core.journal import RunDir
 
 #: a journal record as a reader holds it
@@ -89,6 +88,7 @@ class RawHashes:
 def run_header(run: RunDir, cfg: Config, events: Sequence[Event],
                raw_hashes: RawHashes | None = None) -> dict[str, object]:
     """What every procedure kind's result.json says about the run (certificate header)."""
+    from bench.core import events as ev  # the journal's records: not for `bench validate`
     meta = run.meta
     stand = cfg.stand_settings
     identities: dict[str, dict[str, str]] = {}

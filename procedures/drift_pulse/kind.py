@@ -38,7 +38,6 @@ from bench.core.schema import Key, Map
 from bench.core.yamlfile import Problem
 from drivers.clock import Clock
 from procedures.base import prompt, result_document, resume_whole
-from procedures.drift_pulse.events import AwgLoaded, Cycle, DmmSetup, Turned
 from procedures.drift_pulse.settings import (  # noqa: F401 - the kind's names
     CYCLE_OVERHEAD_S,
     NAME,
@@ -231,6 +230,7 @@ class DriftSteps:
 
     # -- steps (each action's handler: `handlers`) -----------------------------------------
     def _do_setup(self, step: Step, ctx: RunContext) -> None:
+        from procedures.drift_pulse.events import DmmSetup
         t = DriftSettings.from_config(ctx.cfg).timing
         for g, dmm in dmms_of(ctx.bench).items():
             setup = dmm.configure(t.range_v, t.aperture_s, t.interval_s, t.count,
@@ -243,6 +243,7 @@ class DriftSteps:
     def _load(self, ctx: RunContext, amplitude_v: float) -> None:
         """(Re)load the pair on every gyro's channel at this amplitude."""
         from procedures.drift_pulse import analysis as dp
+        from procedures.drift_pulse.events import AwgLoaded
         if platform_of(ctx.bench).loaded_v == amplitude_v:
             return
         d = DriftSettings.from_config(ctx.cfg)
@@ -261,6 +262,7 @@ class DriftSteps:
         platform_of(ctx.bench).loaded_v = amplitude_v
 
     def _do_turn(self, step: Step, ctx: RunContext) -> None:
+        from procedures.drift_pulse.events import Turned
         drive = ctx.bench.axes[step.on_axis].drive
         p = step.params_as(TurnParams)
         tol = DriftSettings.from_config(ctx.cfg).position_tolerance_deg
@@ -286,6 +288,7 @@ class DriftSteps:
     def _do_cycle(self, step: Step, ctx: RunContext) -> None:
         from bench.core.engine import Abort
         from procedures.drift_pulse import analysis as dp
+        from procedures.drift_pulse.events import Cycle
         p = step.params_as(CycleParams)
         d = DriftSettings.from_config(ctx.cfg)
         t = d.timing
@@ -446,6 +449,7 @@ def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan) -> dict[st
     from procedures.drift_pulse import analysis as dp
     from procedures.drift_pulse.budgets import CorrectionInput
     from procedures.drift_pulse.corrections import read_corrections
+    from procedures.drift_pulse.events import Cycle
     from procedures.drift_pulse.result import DriftCheck, DriftFigures, DriftMethod
 
     events = run.events()
