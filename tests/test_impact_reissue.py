@@ -38,8 +38,16 @@ from bench.app.impact import DRAFT_STATUS, figures_of
 from bench.app.register import Register
 from bench.app.register.runs import run_uid_of
 from bench.core import rundir_layout as layout
-from tests.conftest import check_procedure, cli, run_dir_of
-from tests.registers import authorise, cli_in, lab_file, password, sqlite_register
+from tests.conftest import check_procedure, cli
+from tests.registers import (
+    authorise,
+    cli_in,
+    issue_then_find_out,
+    lab_file,
+    password,
+    registered_run,
+    sqlite_register,
+)
 from tests.test_authorise import NS, _pages
 
 SERIAL = "MY62000777"          # the counter with the offset
@@ -87,12 +95,6 @@ def _files(folder: Path, serial: str, e_rel: float) -> Path:
     return proc
 
 
-def _run(proc: Path, runs: Path, lab: Path) -> Path:
-    out = cli("run", str(proc), "--yes", "--quiet", "--out", str(runs), "--lab", str(lab))
-    assert out.returncode in (0, 1), out.stderr[-3000:]
-    return run_dir_of(out)
-
-
 def _issue(run: Path, lab: Path, *args: str) -> str:
     done = authorise(run, SIGNATORY, lab, *args, enrolled=False)
     assert done.returncode == 0, done.stdout + done.stderr
@@ -112,23 +114,17 @@ def case(tmp_path_factory: pytest.TempPathFactory) -> Case:
                               today + dt.timedelta(days=300))
     runs = root / "runs"
     # the fourth run: another counter, no offset; the same seed: the reference
-    ref_run = _run(_files(root / "files-other", OTHER, 0.0), runs, lab)
+    ref_run, _ = registered_run(_files(root / "files-other", OTHER, 0.0), runs, lab, url)
     reference = json.loads((ref_run / layout.RESULT).read_text())
     e_rel = 3.0 * max(r["rate_error_U_rel"] for r in reference["axes"]["outer"]["rates"])
     e_u_rel = U_OVER_E * e_rel
     proc = _files(root / "files-offset", SERIAL, e_rel)
-    made = tuple(_run(proc, runs, lab) for _ in range(3))
-    draft = _run(proc, runs, lab)                  # never issued
-    for run in (*made, ref_run):
+    made = tuple(registered_run(proc, runs, lab, url)[0] for _ in range(3))
+    draft, _ = registered_run(proc, runs, lab, url)         # never issued
+    for run in (ref_run, *made[:2]):
         _issue(run, lab)
+    issue_then_find_out(made[2], lab, url, SERIAL, "C-2026-777", e_rel, e_u_rel)
     issued = tuple(json.loads((r / layout.RESULT).read_text()) for r in made)
-
-    found = cli_in(password(QUALITY) + "\n", "register", "equipment", "update", SERIAL,
-                   "--certificate", "C-2026-777", "--issuer", "Cal Lab",
-                   "--due", (today + dt.timedelta(days=400)).isoformat(), "--found", "out",
-                   "--found-error", f"{e_rel!r},{e_u_rel!r}", "--register", url,
-                   "--as", QUALITY, "--password-stdin")
-    assert found.returncode == 0, found.stderr
     report = root / "impact.json"
     got = cli_in(password(QUALITY) + "\n", "impact", SERIAL, "--lab", str(lab), "--runs",
                  str(runs), "--json", str(report), "--as", QUALITY, "--password-stdin")
