@@ -39,6 +39,9 @@ SLOW_FIRST: tuple[tuple[str, int], ...] = (
     ("test_starter.py", 31),
     ("test_station_signing.py", 22),
     ("test_station_tls.py", 20),
+    ("test_impact_reissue.py", 110),   # five check runs, then three re-issues (issue 58)
+    ("test_impact.py", 45),
+    ("test_impact_drift.py", 25),
 )
 
 

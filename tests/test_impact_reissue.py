@@ -1,6 +1,6 @@
 """Issue 58's acceptance case on the twins, end to end: a counter whose time base is off by
-e (3 x the largest rate error U of the same-seed run without it), which the lab does not
-know, times three ladder runs that are issued, and a fourth run left a draft; a fifth run,
+e (3 x the largest rate error U of the demo, configs/procedures/demo.yaml: the session's
+shared demo run), which the lab does not know, times three ladder runs that are issued, and a fourth run left a draft; a fifth run,
 timed by another counter (another serial) and without the offset, is issued too and is the
 same-seed reference. The counter's calibration then finds it out with the as-found error e
 and its U; `bench impact` lists exactly the three issued runs (not the other counter's,
@@ -38,7 +38,7 @@ from bench.app.impact import DRAFT_STATUS, figures_of
 from bench.app.register import Register
 from bench.app.register.runs import run_uid_of
 from bench.core import rundir_layout as layout
-from tests.conftest import check_procedure, cli
+from tests.conftest import DemoRun, check_procedure, cli
 from tests.registers import (
     authorise,
     cli_in,
@@ -102,7 +102,7 @@ def _issue(run: Path, lab: Path, *args: str) -> str:
 
 
 @pytest.fixture(scope="module")
-def case(tmp_path_factory: pytest.TempPathFactory) -> Case:
+def case(tmp_path_factory: pytest.TempPathFactory, demo_run: DemoRun) -> Case:
     root = tmp_path_factory.mktemp("impact-reissue")
     url = sqlite_register(root / "register")
     lab = lab_file(root / "lab", url)
@@ -116,7 +116,9 @@ def case(tmp_path_factory: pytest.TempPathFactory) -> Case:
     # the fourth run: another counter, no offset; the same seed: the reference
     ref_run, _ = registered_run(_files(root / "files-other", OTHER, 0.0), runs, lab, url)
     reference = json.loads((ref_run / layout.RESULT).read_text())
-    e_rel = 3.0 * max(r["rate_error_U_rel"] for r in reference["axes"]["outer"]["rates"])
+    assert demo_run.status == 0, demo_run.stderr
+    e_rel = 3.0 * max(r["rate_error_U_rel"] for axis in demo_run.result["axes"].values()
+                      for r in axis["rates"])
     e_u_rel = U_OVER_E * e_rel
     proc = _files(root / "files-offset", SERIAL, e_rel)
     made = tuple(registered_run(proc, runs, lab, url)[0] for _ in range(3))
