@@ -16,6 +16,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TypeVar
 
+from bench.analysis.finite import finite_number
 from bench.core import rundir_layout as layout
 from drivers.json_types import JsonObject, JsonValue
 
@@ -254,6 +255,86 @@ def fog_temperature(doc: Mapping[str, JsonValue]
             for axis, ax in axes.items() if (found := as_object(ax)) is not None}
 
 
+@dataclass(frozen=True, slots=True)
+class FogAxisTemperature:
+    """The FOG's temperature over all of one axis's halves, and per half, from its frames
+    (`conditions_measured.fog_temperature.axes.<axis>`)."""
+
+    min_c: float | None
+    mean_c: float | None
+    max_c: float | None
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> FogAxisTemperature:
+        # finite_number's reading (numeric text too), as the certificate always read them
+        return cls(*(finite_number(doc.get(k)) for k in ("min_c", "mean_c", "max_c")))
+
+
+@dataclass(frozen=True, slots=True)
+class MeasuredConditions:
+    """What the bench measured of the conditions itself (`conditions_measured`): the room
+    where a sensor said so, the FOG's temperature per axis; empty when it measured none."""
+
+    room: JsonObject
+    fog_axes: dict[str, FogAxisTemperature]
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> MeasuredConditions:
+        axes = obj(obj(doc, "fog_temperature"), "axes")
+        return cls(room=obj(doc, "room"),
+                   fog_axes={str(axis): FogAxisTemperature.from_json(found)
+                             for axis, ax in axes.items()
+                             if (found := as_object(ax)) is not None})
+
+
+@dataclass(frozen=True, slots=True)
+class Specification:
+    """Where the procedure's tolerances come from (`specification`: a datasheet, a
+    standard) and what its quantities mean there; a certificate without one says so."""
+
+    source: JsonValue        # as written (text_of prints it); falsy: not identified
+    definitions: JsonObject  # quantity key -> its definition in the source
+
+    @classmethod
+    def of(cls, value: object) -> Specification | None:
+        """A result's (or a procedure file's) specification; None when it states none."""
+        doc = as_object(value)
+        if not doc:
+            return None
+        return cls(source=doc.get("source"), definitions=obj(doc, "definitions"))
+
+
+@dataclass(frozen=True, slots=True)
+class RunDates:
+    """When the run was created, first started and last ended (`dates`), as written."""
+
+    created_utc: str | None
+    started_utc: str | None
+    completed_utc: str | None
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> RunDates:
+        return cls(*(text(doc, k) for k in ("created_utc", "started_utc", "completed_utc")))
+
+
+@dataclass(frozen=True, slots=True)
+class RunSession:
+    """One session of the run and how it ended (`run_sessions[]`, bench.core.journal's
+    SessionEnding): a resume is a session of the same run."""
+
+    session: int | None
+    started_utc: str | None
+    ended_utc: str | None
+    ended: str | None       # completed, aborted, refused, killed or crashed; None: running
+    performer: str | None
+    os_user: str | None
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> RunSession:
+        return cls(integer(doc, "session"), text(doc, "started_utc"), text(doc, "ended_utc"),
+                   text(doc, "ended"), text(doc, "performer"), text(doc, "os_user"))
+
+
 def conform_frame(doc: JsonObject, issues: Issues) -> JsonObject:
     """The frame's containers checked, in place (the kind's part is its result module's)."""
     conform_object(doc, "stand", (), issues)
@@ -276,15 +357,19 @@ class ResultFrame:
     verdict: str | None
     title: str | None
     run_dir: str | None
-    procedure_file: JsonObject
+    procedure_file: JsonObject   # result.json's: the procedure file's name and SHA-256
     stand: JsonObject
     instruments: dict[str, JsonObject]
-    dates: JsonObject
+    dates: RunDates
     conditions: JsonObject | None
-    specification: JsonValue
-    certificate: JsonObject
+    conditions_measured: MeasuredConditions
+    specification: Specification | None
+    certificate: JsonObject      # the certificate settings (the lab file's under the run's)
     sessions: int | None
+    run_sessions: tuple[RunSession, ...]
     aborted: bool
+    ended: str | None        # how the last session ended (None: no word yet)
+    deviations: tuple[JsonValue, ...]  # a result's own deviations (hand-made or older ones)
     raw_files: tuple[JsonObject, ...]
     decision_rule: str | None
     method: JsonObject
@@ -319,9 +404,14 @@ class ResultFrame:
             stand=obj(doc, "stand"),
             instruments={k: v for k, v in obj(doc, "instruments").items()
                          if isinstance(v, dict)},
-            dates=obj(doc, "dates"), conditions=as_object(doc.get("conditions")),
-            specification=doc.get("specification"), certificate=obj(doc, "certificate"),
-            sessions=integer(doc, "sessions"), aborted=bool(doc.get("aborted")),
+            dates=RunDates.from_json(obj(doc, "dates")),
+            conditions=as_object(doc.get("conditions")),
+            conditions_measured=MeasuredConditions.from_json(obj(doc, "conditions_measured")),
+            specification=Specification.of(doc.get("specification")), certificate=obj(doc, "certificate"),
+            sessions=integer(doc, "sessions"),
+            run_sessions=tuple(RunSession.from_json(x) for x in objects(doc, "run_sessions")),
+            aborted=bool(doc.get("aborted")), ended=text(doc, "ended"),
+            deviations=tuple(found) if isinstance(found := doc.get("deviations"), list) else (),
             raw_files=objects(doc, "raw_files"), decision_rule=text(doc, "decision_rule"),
             method=obj(doc, "method"),
             checks=tuple(Check.from_json(c) for c in objects(doc, "checks")),

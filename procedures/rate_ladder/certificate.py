@@ -164,7 +164,7 @@ class LadderCertificate(CertificateParts):
         return A_TEXT
 
     def certificate_method_deviations(self, src: Sources) -> Sequence[Block]:
-        seq = (src.get("method", {}) or {}).get("sequence")
+        seq = src.frame.method.get("sequence")
         items = list(A_IMPROVEMENTS)
         if seq in SEQUENCE_TEXT:
             items.insert(0, SEQUENCE_TEXT[seq])

@@ -55,7 +55,7 @@ from bench.report.certificate.rounding import (
     rel_unit,
 )
 from bench.report.corrections import statements as correction_statements
-from bench.report.result_frame import Check, fog_temperature
+from bench.report.result_frame import Check, Specification, fog_temperature
 from drivers.json_types import JsonObject
 
 __all__ = ["NOT_RECORDED", "Sources", "build_document", "certificate_id", "decision_rule_text",
@@ -83,12 +83,13 @@ def certificate_id(src: Sources) -> str:
     The digits identify the run (its directory and creation time), so two runs never share
     an identifier. Without a run (a specimen) the digits are a digest of the results.
     """
-    run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else None)
-    created = (src.get("dates", {}) or {}).get("created_utc") or src.meta.get("created_utc")
+    frame = src.frame
+    run_dir = frame.run_dir or (src.run_path.name if src.run_path else None)
+    created = frame.dates.created_utc or src.meta.get("created_utc")
     identity = (f"{run_dir}|{created}" if run_dir else
                 json.dumps(src.result, sort_keys=True, default=str))
     digest = hashlib.sha256(identity.encode())
-    stamp = (src.get("dates", {}) or {}).get("completed_utc") or src.meta.get("created_utc")
+    stamp = frame.dates.completed_utc or src.meta.get("created_utc")
     day = ""
     if stamp:
         try:
@@ -109,7 +110,7 @@ def _cert(src: Sources, issue: Issue | None = None) -> JsonObject:
     """The certificate settings: the procedure's `certificate:` block over the lab's file;
     on an issued certificate the issuer's identity is the lab register's (issue 54): its
     laboratory, address, code and accreditation, and nothing of the files' for them."""
-    cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
+    cert = src.frame.certificate or src.procedure_file.get("certificate", {}) or {}
     out: JsonObject = dict(cert) if isinstance(cert, Mapping) else {}
     if issue is not None and issue.issuer:
         for key in ISSUER_FIELDS:
@@ -158,7 +159,7 @@ class Procedure:
 def procedure_of(src: Sources) -> Procedure:
     """The kind the result names; for an older result that names none, the installed
     kind that recognises its keys (bench/core/registry.py: kinds are found by entry point)."""
-    name = str(src.get("procedure") or src.procedure_file.get("procedure") or "")
+    name = str(src.frame.procedure or src.procedure_file.get("procedure") or "")
     if not name:
         name = next((n for n in procedure_names() if _parts(n).certificate_recognises(src)),
                     "")
@@ -226,11 +227,11 @@ def build_document(result: Mapping[str, object], run_path: Path | None = None,
         subtitle=subtitle,
         laboratory=lab,
         issue_date=issue.issue_date if not issue.draft else "",
-        verdict=str(src.get("verdict", "incomplete")),
+        verdict=_verdict(src),
         sections=tuple(sections),
         footer="This certificate shall not be reproduced except in full without the written "
                "approval of the issuing laboratory. " + AUTHORITATIVE.split(";")[0] + ".",
-        meta={"run_title": str(src.get("title") or src.procedure_file.get("title") or ""),
+        meta={"run_title": str(src.frame.title or src.procedure_file.get("title") or ""),
               "procedure": proc.name, "revision": str(issue.revision),
               "replaces": "" if issue.draft else issue.replaces or "", "scope": _scope_line(src, checks, proc)},
         watermark=" / ".join(marks),
@@ -308,15 +309,15 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
                     checks: list[Check]) -> tuple[Block, ...]:
     stand = stand_of(src)
     cert = _cert(src, issue)
-    dates = src.get("dates", {}) or {}
-    started = dates.get("started_utc") or src.event_utc(ev.SessionStarted)
-    completed = dates.get("completed_utc") or src.event_utc(ev.Completed, last=True)
+    dates = src.frame.dates
+    started = dates.started_utc or src.event_utc(ev.SessionStarted)
+    completed = dates.completed_utc or src.event_utc(ev.Completed, last=True)
     item, serial = proc.parts.certificate_item(src)
     rows: list[tuple[str, str]] = [
         (("Draft identifier (the lab register allocates the certificate number at issue)",
           issue.number) if issue.draft else ("Certificate number", issue.number)),
         ("Revision", _revision_text(issue)),
-        ("Title of the work", text_of(src.get("title") or src.procedure_file.get("title"))),
+        ("Title of the work", text_of(src.frame.title or src.procedure_file.get("title"))),
         ("Issued by", text_of(cert.get("laboratory"))),
         ("Laboratory address", text_of(cert.get("address"))),
     ]
@@ -351,7 +352,7 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
             "records", "recertification", "responsible_persons"}
     rows += [(label_of(k), text_of(v)) for k, v in cert.items() if k not in skip]
     blocks: list[Block] = [Fields(tuple(rows))]
-    run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else NOT_RECORDED)
+    run_dir = src.frame.run_dir or (src.run_path.name if src.run_path else NOT_RECORDED)
     blocks.append(software_note(src.meta, src.events, bench.__version__, str(run_dir)))
     blocks.append(Para(AUTHORITATIVE, "note"))
     return tuple(blocks)
@@ -392,11 +393,11 @@ def _scope_line(src: Sources, checks: list[Check], proc: Procedure) -> str:
 
 
 def _overall(src: Sources, checks: list[Check], proc: Procedure) -> str:
-    verdict = str(src.get("verdict", "incomplete")).lower()
+    verdict = _verdict(src).lower()
     conf = [c for c in checks if check_class(c) == "conformity"]
     failed = [c for c in conf if (c.verdict or "").lower() != "pass"]
     cons = [c for c in checks if check_class(c) == "consistency"]
-    rule = _rule_name(src.get("decision_rule"))
+    rule = _rule_name(src.frame.decision_rule)
     scope = _scope_line(src, checks, proc)
     cons_text = ""
     if cons:
@@ -422,6 +423,12 @@ def _overall(src: Sources, checks: list[Check], proc: Procedure) -> str:
     return f"{head} {scope}{cons_text}"
 
 
+def _verdict(src: Sources) -> str:
+    """The run's verdict as result.json states it; a result that states none is incomplete."""
+    verdict = src.frame.verdict
+    return "incomplete" if verdict is None else verdict
+
+
 def _rule_name(rule: object) -> str:
     return {"guard-band": "guard-band (guarded acceptance, w = U)",
             "simple": "simple acceptance"}.get(str(rule or "simple"), str(rule))
@@ -438,7 +445,7 @@ def _instruments(src: Sources, proc: Procedure) -> tuple[Block, ...]:
         ("Stand file", f"{text_of(stand.get('file') or src.meta.get('stand_file'))}"),
         ("Stand file SHA-256", text_of(stand.get("sha256") or src.meta.get("stand_sha256"))),
     ))]
-    ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
+    ids = with_declared_serials(src.frame.instruments, src.stand_file)
     if not ids:  # the event log records each axis's identities at the start of a session
         for e in ev.of_kind(src.events, ev.Identity):
             ids.setdefault(e.axis, {}).update(e.instruments)
@@ -535,15 +542,15 @@ def _traceability(src: Sources) -> tuple[Block, ...]:
 
 
 def _method(src: Sources, proc: Procedure) -> tuple[Block, ...]:
-    pf = src.get("procedure_file", {}) or {}
+    pf = src.frame.procedure_file
     name = pf.get("name") or src.meta.get("procedure_name")
     sha = pf.get("sha256") or src.meta.get("procedure_sha256")
     blocks: list[Block] = list(proc.parts.certificate_method(src))
-    method = src.get("method", {}) or {}
+    method = src.frame.method
     rows = [("Procedure file", text_of(name)), ("Procedure file SHA-256", text_of(sha))]
     rows += [(label_of(k), text_of(v)) for k, v in method.items()
              if k not in ("decision_rule", "tolerance", "turns_per_axis")]
-    rows.append(("Decision rule", _rule_name(src.get("decision_rule"))))
+    rows.append(("Decision rule", _rule_name(src.frame.decision_rule)))
     ident = proc.parts.certificate_procedure_id
     if ident is not None:
         code, part, paper = ident
@@ -566,55 +573,45 @@ def _method_digest() -> str:
 def _how_ended(src: Sources) -> str:
     """How the run ended beside "Work ended": its last session's ending (a resume is a
     session of the same run), nothing for a run that completed."""
-    ended = src.get("ended")
-    if isinstance(ended, str) and ended != "completed":
+    ended = src.frame.ended
+    if ended is not None and ended != "completed":
         return f" ({ended})"
-    return " (aborted)" if src.get("aborted") and ended is None else ""
+    return " (aborted)" if src.frame.aborted and ended is None else ""
 
 
 def _ended_word(src: Sources) -> str:
-    ended = src.get("ended")
     return {"killed or crashed": "was killed or crashed", "refused": "was refused"}.get(
-        ended if isinstance(ended, str) else "", "was aborted")
+        src.frame.ended or "", "was aborted")
 
 
 def _session_lines(src: Sources) -> str:
     """' Sessions: 1 from ... to ... UTC (aborted; performer ...); 2 ...' from result.json's
     `run_sessions` (empty for a result written before it was kept)."""
-    listed = src.get("run_sessions")
-    if not isinstance(listed, list) or not listed:
-        return ""
     parts = []
-    for x in listed:
-        if not isinstance(x, dict):
-            continue
-        who = x.get("performer")
-        by = (f"performer {who}" if who else
-              f"performer not recorded (OS user {x.get('os_user') or 'unknown'})")
-        end = utc_text(x.get("ended_utc")) if x.get("ended_utc") else "no end written"
-        parts.append(f"session {x.get('session')} from {utc_text(x.get('started_utc'))} to "
-                     f"{end} ({x.get('ended') or 'running'}; {by})")
+    for x in src.frame.run_sessions:
+        by = (f"performer {x.performer}" if x.performer else
+              f"performer not recorded (OS user {x.os_user or 'unknown'})")
+        end = utc_text(x.ended_utc) if x.ended_utc else "no end written"
+        parts.append(f"session {x.session} from {utc_text(x.started_utc)} to "
+                     f"{end} ({x.ended or 'running'}; {by})")
     return " Sessions: " + "; ".join(parts) + "." if parts else ""
 
 
 def _deviations(src: Sources, proc: Procedure) -> tuple[Block, ...]:
     blocks: list[Block] = list(proc.parts.certificate_method_deviations(src))
     run: list[str] = []
-    sessions = src.get("sessions")
-    listed = _session_lines(src)
-    if isinstance(sessions, int) and sessions > 1:
+    sessions = src.frame.sessions
+    if sessions is not None and sessions > 1:
         run.append(f"The run was interrupted and resumed: it ran in {sessions} sessions. Each "
-                   "unit (a ± pair) was measured whole within one session." + listed)
-    elif isinstance(sessions, list) and len(sessions) > 1:
-        run.append(f"The run was interrupted and resumed: it ran in {len(sessions)} sessions."
-                   + listed)
-    if src.get("aborted"):
+                   "unit (a ± pair) was measured whole within one session."
+                   + _session_lines(src))
+    if src.frame.aborted:
         run.append(f"The run {_ended_word(src)} before every step was done; the points not "
                    "measured are absent from the results.")
-    if str(src.get("verdict")) == "incomplete":
+    if src.frame.verdict == "incomplete":
         run.append("The result is incomplete: no statement of conformity is made for the "
                    "missing points.")
-    for d in src.get("deviations", []) or []:
+    for d in src.frame.deviations:
         run.append(text_of(d))
     for e in ev.of_kind(src.events, ev.IdentityMismatch):  # twins only: a real stand is refused
         run.append(f"Identity: {text_of(e.where)}: the stand file states serial "
@@ -658,7 +655,7 @@ def _conditions(src: Sources) -> tuple[Block, ...]:
     influenceConditions share): nominal from the procedure file, measured where the run
     measured it, "not measured" where nothing did; one mains frequency for the run."""
     rows = condition_rows(src)
-    cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
+    cond = src.frame.conditions or src.procedure_file.get("conditions") or {}
     blocks: list[Block] = [Table(
         ("Condition", "Nominal (procedure file)", "Measured in this run"),
         tuple((r.condition, r.nominal, r.measured) for r in rows),
@@ -733,13 +730,14 @@ class CheckRow:
 
 
 def _specification(src: Sources, proc: Procedure) -> list[Block]:
-    spec = src.get("specification") or src.procedure_file.get("specification")
-    if not isinstance(spec, Mapping) or not spec.get("source"):
+    spec = (src.frame.specification
+            or Specification.of(src.procedure_file.get("specification")))
+    if spec is None or not spec.source:
         return [Para("Specification: NOT IDENTIFIED. The procedure file names no source for "
                      "its tolerances (key specification.source); the checks below compare "
                      "with the procedure's numbers only.", "strong")]
-    rows = [("Specification", text_of(spec["source"]))]
-    for key, text in (spec.get("definitions") or {}).items():
+    rows = [("Specification", text_of(spec.source))]
+    for key, text in spec.definitions.items():
         name = proc.quantity(key, proc.quantity(str(key).rsplit("_", 1)[0], label_of(key)))
         rows.append((f"Definition: {name}", text_of(text)))
     return [Fields(tuple(rows))]
@@ -771,7 +769,7 @@ def _check_texts(c: Check, proc: Procedure) -> tuple[str, str]:
 
 def _conformity(src: Sources, checks: list[Check], proc: Procedure
                 ) -> tuple[Block, ...]:
-    rule = str(src.get("decision_rule") or (checks[0].rule if checks else "simple"))
+    rule = str(src.frame.decision_rule or (checks[0].rule if checks else "simple"))
     blocks: list[Block] = [*_specification(src, proc), Para(decision_rule_text(rule)),
                          Para("Decision rule: " + agreed_rule_text(src) + " (ISO/IEC 17025 "
                               "7.1.3).")]
@@ -779,7 +777,7 @@ def _conformity(src: Sources, checks: list[Check], proc: Procedure
     blocks.append(Para(
         "Measurement capability (RMG 63-2003): the expanded uncertainty of a check should not "
         f"exceed 0.2-0.3 of its tolerance; a ratio U/T ≤ {CAPABILITY_LIMIT:g} is marked met."))
-    tol = (src.get("method", {}) or {}).get("tolerance") or src.procedure_file.get("tolerance")
+    tol = src.frame.method.get("tolerance") or src.procedure_file.get("tolerance")
     if isinstance(tol, Mapping) and tol:
         table = _tolerance_table(tol, proc)
         if table.rows:
@@ -893,7 +891,7 @@ def _tolerance_table(tol: Mapping[str, object], proc: Procedure) -> Table:
 
 
 def _records(src: Sources) -> tuple[Block, ...]:
-    files = [f for f in src.get("raw_files", []) or [] if isinstance(f, dict)]
+    files = list(src.frame.raw_files)
     hashed_here = False
     if not files and src.run_path is not None and layout.raw_root(src.run_path).is_dir():
         hashed_here = True

@@ -48,7 +48,7 @@ def mains_row(src: Sources) -> ConditionRow | None:
     """The stand run's mains frequency: the one stated (procedure or stand file, the lab's
     grid), or the tones the fits found per axis, stated as found; None when no result
     fitted a mains tone."""
-    axes = src.get("axes") or {}
+    axes = src.frame.get("axes") or {}   # the kind's part: any kind's tones, walked
     tones = [t for axis, ax in (axes.items() if isinstance(axes, Mapping) else ())
              for t in _mains_tones(ax, str(axis))]
     if not tones:
@@ -80,15 +80,9 @@ def mains_row(src: Sources) -> ConditionRow | None:
 
 
 def _fog_temperature(src: Sources) -> ConditionRow | None:
-    measured = src.get("conditions_measured")
-    fog = measured.get("fog_temperature") if isinstance(measured, Mapping) else None
-    axes = fog.get("axes") if isinstance(fog, Mapping) else None
-    if not isinstance(axes, Mapping) or not axes:
-        return None
     parts = []
-    for axis, ax in axes.items():
-        lo, mean, hi = (num(ax.get(k)) for k in ("min_c", "mean_c", "max_c")) \
-            if isinstance(ax, Mapping) else (None, None, None)
+    for axis, ax in src.frame.conditions_measured.fog_axes.items():
+        lo, mean, hi = ax.min_c, ax.mean_c, ax.max_c
         if lo is not None and hi is not None:
             parts.append(f"axis {axis}: {lo:g} to {hi:g} °C" +
                          (f" (mean {mean:.2f} °C)" if mean is not None else ""))
@@ -112,10 +106,8 @@ def _quantity(key: str) -> bool:
 def condition_rows(src: Sources) -> list[ConditionRow]:
     """The procedure's conditions (nominal; measured only where the run measured them),
     then what the bench measured that the procedure does not state, then the mains."""
-    cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
-    measured = src.get("conditions_measured")
-    room = measured.get("room") if isinstance(measured, Mapping) else None
-    room = room if isinstance(room, Mapping) else {}
+    cond = src.frame.conditions or src.procedure_file.get("conditions") or {}
+    room = src.frame.conditions_measured.room
     rows = [ConditionRow(str(k), label_of(k), text_of(v),
                          text_of(room[k]) if room.get(k) is not None else
                          NOT_MEASURED if _quantity(str(k)) else NONE)

@@ -24,6 +24,7 @@ from bench.core.traceability import (
     with_declared_serials,
 )
 from bench.report.certificate.parts import Sources, text_of
+from bench.report.result_frame import obj
 
 NONE = "—"
 
@@ -63,7 +64,7 @@ class EquipmentList:
 
 def work_date(src: Sources) -> dt.date | None:
     """The date the work started (what due dates are compared with)."""
-    stamp = ((src.get("dates", {}) or {}).get("started_utc")
+    stamp = (src.frame.dates.started_utc
              or src.event_utc(SessionStarted)
              or src.meta.get("created_utc"))
     try:
@@ -118,7 +119,8 @@ def _unstated_status(src: Sources, t: Traced) -> str:
     """Without a stated calibration: what a result of this run rests on it, truthfully."""
     role = t.where.rsplit(".", 1)[-1]
     axis = t.where.split(".")[-2] if "." in t.where else ""
-    pairs = ((src.get("axes", {}) or {}).get(axis) or {}).get("pairs") if axis else None
+    # the kind's part (its pairs: a rate is measured by the counter and the FOG)
+    pairs = obj(obj(src.frame.doc, "axes"), axis).get("pairs") if axis else None
     if role in COMMANDING_ROLES and pairs is not None:
         return ("none needed: it commands the rate; every reported rate is measured by "
                 "the counter and the FOG, none read from the drive")
@@ -135,7 +137,7 @@ def _unstated_status(src: Sources, t: Traced) -> str:
 def _reference_rows(src: Sources) -> list[EquipmentRow]:
     """Each counter's reference input as the counter read it back (the timebase every
     counted period rests on), beside what the stand file claims."""
-    ids = src.get("instruments", {}) or {}
+    ids = src.frame.instruments
     stand_axes = src.stand_file.get("axes", {}) or {}
     rows = []
     for axis, roles in ids.items():
@@ -158,7 +160,7 @@ def equipment_list(src: Sources) -> EquipmentList:
     from bench.app.records.assurance_notes import certificate_notes  # 17025 7.7 status
 
     items = traced_items(src.stand_file)
-    ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
+    ids = with_declared_serials(src.frame.instruments, src.stand_file)
     findings = tuple(identity_problems(ids)) if (ids or items) else ()
     on = work_date(src)
     kept = _inventory(src.meta)

@@ -86,7 +86,7 @@ def _as_found(src: Sources, run_id: str) -> AsFound:
 
 def decision_rule_text(src: Sources) -> str:
     """The rule the verdicts use and the customer's agreement to it (7.1.3)."""
-    rule = str(src.get("decision_rule") or src.procedure_file.get("decision_rule")
+    rule = str(src.frame.decision_rule or src.procedure_file.get("decision_rule")
                or "simple")
     agreed = src.procedure_file.get("decision_rule_agreement")
     if isinstance(agreed, Mapping) and agreed.get("agreed_with"):
@@ -141,7 +141,7 @@ def item_record(src: Sources) -> ItemRecord:
 def readback_differences(src: Sources) -> tuple[str, ...]:
     """Every drive setting of the stand file that differs from what the drive read back
     (the 0x1016:1 watchdog, the 0x608F counts per revolution), and why, once, on twins."""
-    ids = with_declared_serials(src.get("instruments", {}) or {}, src.stand_file)
+    ids = with_declared_serials(src.frame.instruments, src.stand_file)
     axes = src.stand_file.get("axes", {}) or {}
     out: list[str] = []
     for axis, roles in ids.items():

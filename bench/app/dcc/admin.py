@@ -6,7 +6,7 @@ digests). What nobody recorded says "not recorded"; nothing is invented.
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 from lxml import etree
 
@@ -28,7 +28,7 @@ from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import ILAC_G8, RULE_REFERENCE, checks_of
 from bench.report.dcc.parts import DccParts
 from bench.report.dcc.xml import NOT_RECORDED, el, name, num, statement, text_el
-from bench.report.result_frame import Check
+from bench.report.result_frame import Check, JsonObject
 
 UNKNOWN_COUNTRY = "ZZ"   # ISO 3166-1 user-assigned code: the laboratory did not configure one
 
@@ -51,7 +51,7 @@ def _event(src: Sources, kind: type[Event], last: bool = False) -> str | None:
 
 def stand_of(src: Sources) -> dict[str, object]:
     stand = dict(src.stand_file.get("stand", {}) or {})
-    stand.update({k: v for k, v in (src.get("stand", {}) or {}).items() if v is not None})
+    stand.update({k: v for k, v in src.frame.stand.items() if v is not None})
     return stand
 
 
@@ -62,7 +62,7 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
     (the item). `issue` is the PDF's: a draft (no mainSigner, a DRAFT statement and no
     issueDate: the PDF says "none", and DCC 3.3.0 makes the element optional) or the
     issue `bench authorise` records (its authoriser the mainSigner, its date of issue)."""
-    cert = src.get("certificate", {}) or src.procedure_file.get("certificate", {}) or {}
+    cert = src.frame.certificate or src.procedure_file.get("certificate", {}) or {}
     soft = el(adm, "dccSoftware")
     versions = dict.fromkeys([bench.__version__, str(src.meta.get("bench_version") or
                                                      bench.__version__)])
@@ -86,13 +86,13 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
     el(core, "mandatoryLangCodeISO639_1", "en")
     el(core, "uniqueIdentifier", issue.number)   # the PDF's number, this issue
     ids = el(core, "identifications")
-    run_dir = src.get("run_dir") or (src.run_path.name if src.run_path else None)
+    run_dir = src.frame.run_dir or (src.run_path.name if src.run_path else None)
     if run_dir:
         idn = el(ids, "identification", ref_type=V.RUN_DIRECTORY)
         el(idn, "issuer", "calibrationLaboratory")
         el(idn, "value", str(run_dir))
         name(idn, "Run directory (raw data and result.json)")
-    title = src.get("title") or src.procedure_file.get("title")
+    title = src.frame.title or src.procedure_file.get("title")
     if title:
         idn = el(ids, "identification")
         el(idn, "issuer", "calibrationLaboratory")
@@ -100,10 +100,10 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
         name(idn, "Title of the work")
     if not len(ids):
         core.remove(ids)
-    dates = src.get("dates", {}) or {}
-    begin = (_date(dates.get("started_utc")) or _date(_event(src, ev.SessionStarted))
-             or _date(dates.get("created_utc")) or _date(src.meta.get("created_utc")) or today)
-    end = (_date(dates.get("completed_utc")) or _date(_event(src, ev.Completed, last=True))
+    dates = src.frame.dates
+    begin = (_date(dates.started_utc) or _date(_event(src, ev.SessionStarted))
+             or _date(dates.created_utc) or _date(src.meta.get("created_utc")) or today)
+    end = (_date(dates.completed_utc) or _date(_event(src, ev.Completed, last=True))
            or begin)
     el(core, "beginPerformanceDate", begin)
     el(core, "endPerformanceDate", end)
@@ -221,8 +221,8 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
     statement(sts, None, "The PDF embedded here (certificate.pdf, under document) is the "
               "authoritative form of this certificate; this XML carries the same results, "
               "unrounded, for machines to read.")
-    verdict = str(src.get("verdict") or "incomplete").lower()
-    rule = str(src.get("decision_rule") or "simple")
+    verdict = (src.frame.verdict or "incomplete").lower()
+    rule = src.frame.decision_rule or "simple"
     overall = {"pass": "pass", "fail": "fail"}.get(verdict)
     classes = [check_class(Check.from_json(c)) for c in checks_of(src)]
     n, na = classes.count("conformity"), classes.count("not-assessed")
@@ -272,7 +272,7 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
 
 
 def _digests(sts: etree._Element, src: Sources) -> None:
-    files = [f for f in src.get("raw_files", []) or [] if isinstance(f, Mapping)]
+    files: list[JsonObject] = list(src.frame.raw_files)
     if not files and src.run_path is not None and layout.raw_root(src.run_path).is_dir():
         from bench.core.journal import sha256_file
 

@@ -30,6 +30,7 @@ from bench.report.dcc.xml import (
     quantity,
     text_el,
 )
+from bench.report.result_frame import FogAxisTemperature
 
 # bench/method.md = docs/method.md; each procedure kind names the sections it follows
 METHOD_DOC = "docs/method.md"
@@ -69,14 +70,14 @@ def methods_and_conditions(results: etree._Element, src: Sources, kind: DccParts
         name(m, f"{METHOD_DOC} {sec}: {heading}")
         text_el(m, "description", text or f"see {METHOD_DOC}")
         el(m, "reference", f"{METHOD_DOC} section {sec} (embedded above)")
-    pf = src.get("procedure_file", {}) or {}
+    pf = src.frame.procedure_file
     proc_name = pf.get("name") or src.meta.get("procedure_name")
     if proc_name:
         m = el(used, "usedMethod", id="procedureFile")
         name(m, f"Procedure file {proc_name}")
         text_el(m, "description", f"The procedure as run, SHA-256 "
                 f"{pf.get('sha256') or src.meta.get('procedure_sha256') or NOT_RECORDED}; "
-                f"settings: {_flat(src.get('method', {}) or {})}.")
+                f"settings: {_flat(src.frame.method)}.")
     m = el(used, "usedMethod", id="uncertaintyMethod", ref_type=V.UNCERTAINTY)
     name(m, "Expanded measurement uncertainty")
     text_el(m, "description", "Every U is the standard uncertainty multiplied by the "
@@ -92,13 +93,12 @@ def methods_and_conditions(results: etree._Element, src: Sources, kind: DccParts
     equipment = _equipment(src)
     if equipment is not None:
         results.append(equipment)
-    cond = src.get("conditions") or src.procedure_file.get("conditions") or {}
-    measured = _fog_temperatures(src)
+    cond = src.frame.conditions or src.procedure_file.get("conditions") or {}
     # the PDF's conditions table, row by row (bench/app/certificate/conditions.py)
     rows = {r.key: r for r in condition_rows(src)}
     if rows:
         conds = el(results, "influenceConditions")
-        for axis, ax in measured:
+        for axis, ax in src.frame.conditions_measured.fog_axes.items():
             _measured_temperature(conds, axis, ax)
         for key, value in (cond.items() if isinstance(cond, Mapping) else ()):
             row = rows.get(str(key))
@@ -114,16 +114,8 @@ def methods_and_conditions(results: etree._Element, src: Sources, kind: DccParts
                 text_el(el(c, "data"), "text", row.measured)
 
 
-def _fog_temperatures(src: Sources) -> list[tuple[str, Mapping[str, object]]]:
-    m = src.get("conditions_measured")
-    fog = m.get("fog_temperature") if isinstance(m, Mapping) else None
-    axes = fog.get("axes") if isinstance(fog, Mapping) else None
-    return [(str(a), v) for a, v in axes.items() if isinstance(v, Mapping)] \
-        if isinstance(axes, Mapping) else []
-
-
 def _measured_temperature(conds: etree._Element, axis: str,
-                          temperatures: Mapping[str, object]) -> None:
+                          temperatures: FogAxisTemperature) -> None:
     """The FOG's temperature over the axis's halves, as the bench measured it."""
     c = el(conds, "influenceCondition", id=ident("cond", "fog-temperature", axis),
            ref_type=V.TEMPERATURE)
@@ -132,10 +124,10 @@ def _measured_temperature(conds: etree._Element, axis: str,
             "frame (integer deg C) over all halves of the axis; the table top at the FOG, "
             "not the room. Per half: the PDF's conditions table.")
     data = el(c, "data")
-    for key, title, ref in (("min_c", "minimum", V.TEMPERATURE_MIN),
-                            ("mean_c", "mean", V.TEMPERATURE),
-                            ("max_c", "maximum", V.TEMPERATURE_MAX)):
-        value = num(temperatures.get(key))
+    for key, title, ref, value in (
+            ("min_c", "minimum", V.TEMPERATURE_MIN, temperatures.min_c),
+            ("mean_c", "mean", V.TEMPERATURE, temperatures.mean_c),
+            ("max_c", "maximum", V.TEMPERATURE_MAX, temperatures.max_c)):
         if value is not None:
             quantity(data, ident("cond", "fog-temperature", axis, key), title, ref,
                      float(value), U.CELSIUS)

@@ -72,7 +72,7 @@ def build_dcc(inputs: DccInputs) -> etree._ElementTree:
     issue = inputs.issue or register.draft(inputs.run_path, certificate_id(src))
     lab = inputs.lab
     if lab is None:
-        lab = run_lab(inputs.run_path, src.get("certificate")) if inputs.run_path else Lab()
+        lab = run_lab(inputs.run_path, src.frame.certificate) if inputs.run_path else Lab()
     administrative(el(root, "administrativeData"), src, lab, proc.parts, kind, issue, today)
     results = el(root, "measurementResults")
     methods_and_conditions(results, src, kind)

@@ -14,6 +14,7 @@ import contextvars
 import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -59,18 +60,15 @@ class Sources:
             src.events = read_events(events)
         return src
 
-    def get(self, key: str, default: object = None) -> Any:
-        value = self.result.get(key)
-        return default if value is None else value
-
     def event_utc(self, kind: type[Event], last: bool = False) -> str | None:
         """When the event log first (or last) recorded an event of `kind`, as it wrote it."""
         found = (ev.last if last else ev.first)(self.events, kind)
         return found.utc or None if found is not None else None
 
-    @property
+    @cached_property
     def frame(self) -> ResultFrame:
-        """The run header, checks and verdict, typed (bench.report.result_frame)."""
+        """The run header, checks and verdict, typed (bench.report.result_frame): parsed
+        once, on first use, and read by every section of the certificate and the DCC."""
         return ResultFrame.of(self.result)
 
 
@@ -114,7 +112,7 @@ def read_json_object(path: Path) -> dict[str, Any]:
 def stand_of(src: Sources) -> JsonObject:
     """The stand's identity: the stand file's, with what result.json says over it."""
     stand = dict(src.stand_file.get("stand", {}) or {})
-    stand.update({k: v for k, v in (src.get("stand", {}) or {}).items() if v is not None})
+    stand.update({k: v for k, v in src.frame.stand.items() if v is not None})
     return stand
 
 
