@@ -22,13 +22,13 @@ from bench.core import rundir_layout as layout
 from bench.core.events import Event
 from bench.core.lab import Lab
 from bench.report.certificate import methods
-from bench.report.certificate.parts import CertificateParts
+from bench.report.certificate.parts import CertificateParts, stand_of
 from bench.report.corrections import statements as correction_statements
 from bench.report.dcc import vocab as V
-from bench.report.dcc.conformity import ILAC_G8, RULE_REFERENCE, checks_of
+from bench.report.dcc.conformity import ILAC_G8, RULE_REFERENCE
 from bench.report.dcc.parts import DccParts
 from bench.report.dcc.xml import NOT_RECORDED, el, name, num, statement, text_el
-from bench.report.result_frame import Check, JsonObject
+from bench.report.result_frame import JsonObject
 
 UNKNOWN_COUNTRY = "ZZ"   # ISO 3166-1 user-assigned code: the laboratory did not configure one
 
@@ -47,12 +47,6 @@ def _date(stamp: object) -> str | None:
 
 def _event(src: Sources, kind: type[Event], last: bool = False) -> str | None:
     return src.event_utc(kind, last)
-
-
-def stand_of(src: Sources) -> dict[str, object]:
-    stand = dict(src.stand_file.get("stand", {}) or {})
-    stand.update({k: v for k, v in src.frame.stand.items() if v is not None})
-    return stand
 
 
 def administrative(adm: etree._Element, src: Sources, lab: Lab,
@@ -224,7 +218,7 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
     verdict = (src.frame.verdict or "incomplete").lower()
     rule = src.frame.decision_rule or "simple"
     overall = {"pass": "pass", "fail": "fail"}.get(verdict)
-    classes = [check_class(Check.from_json(c)) for c in checks_of(src)]
+    classes = [check_class(c) for c in src.frame.checks]
     n, na = classes.count("conformity"), classes.count("not-assessed")
     cons = classes.count("consistency")
     text = (f"Overall statement of conformity: {verdict.upper()} ({n} check(s) of conformity, "

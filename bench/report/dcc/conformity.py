@@ -49,8 +49,8 @@ class Checks:
 
 
 def checks_of(src: Sources) -> list[JsonObject]:
-    checks = src.result.get("checks")
-    return [c for c in checks if isinstance(c, dict)] if isinstance(checks, list) else []
+    """The run's checks[] as written (every key, in order), from the typed frame."""
+    return [c.doc for c in src.frame.checks]
 
 
 def judge(q: etree._Element, found: list[tuple[int, JsonObject]], unit: str) -> None:
