@@ -164,7 +164,7 @@ class DwellCertificate(CertificateParts):
 
     def certificate_sections(self, src: Sources, number: str,
                              checks: Sequence[Mapping[str, Any]]) -> list[Section]:
-        waited = num((src.get("dwell", {}) or {}).get("waited_s"))
+        waited = num(src.frame.part("dwell").get("waited_s"))
         text = "not recorded" if waited is None else f"{waited:.3f}"
         return [Section(number, "Dwell results", (
             Table(("Quantity", "Value, s"), (("time waited", text),)),
@@ -178,7 +178,7 @@ class DwellDcc(DccParts):
         return "bench clock", ()
 
     def dcc_results(self, results: etree._Element, src: Sources, checks: Checks) -> None:
-        waited = num((src.get("dwell", {}) or {}).get("waited_s"))
+        waited = num(src.frame.part("dwell").get("waited_s"))
         if waited is None:
             return
         mr = el(results, "measurementResult", id="dwell", ref_id="item")

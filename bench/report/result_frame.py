@@ -426,6 +426,11 @@ class ResultFrame:
         """A top-level entry the frame does not type (a kind's part, a later addition)."""
         return self.doc.get(key)
 
+    def part(self, key: str) -> JsonObject:
+        """A kind's own top-level part as a mapping, {} when the result has none (or has
+        no mapping there): what a kind without a typed result module reads its keys from."""
+        return obj(self.doc, key)
+
     def to_json(self) -> JsonObject:
         return dict(self.doc)
 

@@ -68,7 +68,7 @@ class DriftCertificate(CertificateParts):
     }
 
     def certificate_recognises(self, src: Sources) -> bool:
-        return bool(src.frame.get("drift"))
+        return bool(src.frame.part("drift"))
 
     def certificate_item(self, src: Sources) -> tuple[str, str]:
         """The platform under test and its gyros (the stand is the laboratory's)."""

@@ -48,8 +48,7 @@ def mains_row(src: Sources) -> ConditionRow | None:
     """The stand run's mains frequency: the one stated (procedure or stand file, the lab's
     grid), or the tones the fits found per axis, stated as found; None when no result
     fitted a mains tone."""
-    axes = src.frame.get("axes") or {}   # the kind's part: any kind's tones, walked
-    tones = [t for axis, ax in (axes.items() if isinstance(axes, Mapping) else ())
+    tones = [t for axis, ax in src.frame.part("axes").items()   # any kind's, walked
              for t in _mains_tones(ax, str(axis))]
     if not tones:
         return None

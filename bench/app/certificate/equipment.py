@@ -120,7 +120,7 @@ def _unstated_status(src: Sources, t: Traced) -> str:
     role = t.where.rsplit(".", 1)[-1]
     axis = t.where.split(".")[-2] if "." in t.where else ""
     # the kind's part (its pairs: a rate is measured by the counter and the FOG)
-    pairs = obj(obj(src.frame.doc, "axes"), axis).get("pairs") if axis else None
+    pairs = obj(src.frame.part("axes"), axis).get("pairs") if axis else None
     if role in COMMANDING_ROLES and pairs is not None:
         return ("none needed: it commands the rate; every reported rate is measured by "
                 "the counter and the FOG, none read from the drive")
