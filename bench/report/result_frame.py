@@ -257,8 +257,8 @@ def fog_temperature(doc: Mapping[str, JsonValue]
 
 @dataclass(frozen=True, slots=True)
 class FogAxisTemperature:
-    """The FOG's temperature over all of one axis's halves, and per half, from its frames
-    (`conditions_measured.fog_temperature.axes.<axis>`)."""
+    """The FOG's temperature over all of one axis's halves, from its frames
+    (`conditions_measured.fog_temperature.axes.<axis>`; per half: `fog_temperature`)."""
 
     min_c: float | None
     mean_c: float | None
