@@ -379,7 +379,7 @@ class TornTail(Event, tag="torn_tail", frozen=True):
 class SessionLost(Event, tag="session_lost", frozen=True):
     """Written by a later process for a session it found gone without an exit."""
 
-    ended: str
+    ended: str = ""            # "killed or crashed" (bench/core/journal.py KILLED)
     pid: int | None = None
     last_utc: str | None = None
     last_step: str | None = None
