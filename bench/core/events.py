@@ -28,13 +28,12 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-import pkgutil
 from collections.abc import Iterable, Iterator, Mapping
-from importlib.metadata import entry_points
 from typing import ClassVar, Protocol, TypeVar, runtime_checkable
 
 import msgspec
 
+from bench.core.kind_index import registered
 from drivers.json_types import JsonObject, JsonValue
 
 #: the keys every line starts with, set by the journal when it writes the record
@@ -100,6 +99,7 @@ def kind_of(cls: type[Event]) -> str:
 
 _KINDS: dict[str, type[Event]] = {}
 _PLUGINS_LOADED = False
+_SCANNED = 0        # Event subclasses seen by the last scan
 
 
 def _subclasses(cls: type[Event]) -> Iterator[type[Event]]:
@@ -111,37 +111,29 @@ def _subclasses(cls: type[Event]) -> Iterator[type[Event]]:
 def declared(kind: str) -> type[Event] | None:
     """The record class declared for an event kind (looked up again when a plug-in's
     events module was imported after the last lookup)."""
-    global _PLUGINS_LOADED
+    global _PLUGINS_LOADED, _SCANNED
     cls = _KINDS.get(kind)
     if cls is None and not _PLUGINS_LOADED:
         _PLUGINS_LOADED = True
         _load_kind_declarations()
     if cls is None:
-        # a class whose tag is its own name is a base, not a declared kind
-        _KINDS.update({kind_of(c): c for c in _subclasses(Event)
-                       if kind_of(c) and kind_of(c) != c.__name__})
-        cls = _KINDS.get(kind)
+        # the table is rebuilt only when a class was declared since: a journal with many
+        # lines of an unknown kind counts the classes, not rebuilds the table, a line
+        found = list(_subclasses(Event))
+        if len(found) != _SCANNED:
+            _SCANNED = len(found)
+            # a class whose tag is its own name is a base, not a declared kind
+            _KINDS.update({kind_of(c): c for c in found
+                           if kind_of(c) and kind_of(c) != c.__name__})
+            cls = _KINDS.get(kind)
     return cls
-
-
-#: the entry-point group procedure kinds register under (bench/core/registry.py)
-KINDS_GROUP = "ratebench.procedures"
-#: where the kinds are found in a source checkout that was not installed
-KINDS_PACKAGE = "procedures"
 
 
 def _load_kind_declarations() -> None:
     """Import each installed kind's `events` module (where a kind declares its journal
     records): a reader of any run's journal, the station's or the lab's, reads every
     kind's events as their records without naming the kinds."""
-    modules = [ep.value.partition(":")[0] for ep in entry_points(group=KINDS_GROUP)]
-    if not modules:
-        try:
-            package = importlib.import_module(KINDS_PACKAGE)
-        except ImportError:
-            return
-        modules = [info.name for info in pkgutil.iter_modules(package.__path__,
-                                                                f"{KINDS_PACKAGE}.")]
+    modules = [value.partition(":")[0] for value in registered().values()]
     for module in modules:
         # the kind's package ("procedures.rate_ladder:KIND") or its module's package
         for package_name in dict.fromkeys((module, module.rpartition(".")[0])):

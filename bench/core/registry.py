@@ -23,11 +23,10 @@ starter files for `bench init`.
 from __future__ import annotations
 
 import importlib
-import pkgutil
 from collections.abc import Callable, Mapping, Sequence
-from functools import cache
-from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
+
+from bench.core.kind_index import registered
 
 if TYPE_CHECKING:
     # The interface's types, for its hints only: `bench validate` and `bench schema` find
@@ -45,10 +44,6 @@ if TYPE_CHECKING:
     from bench.report.figures import FigureSpec, FigureValue, InstrumentCheck, SummaryCut
     from drivers.clock import Clock
 
-GROUP = "ratebench.procedures"
-#: where an install whose metadata predates the entry points finds the kinds (an old
-#: editable install): every module of this package that defines `KIND`
-FALLBACK_PACKAGE = "procedures"
 
 
 #: one step's handler: does the step on the bench (a kind's `steps.handlers[action]`)
@@ -206,21 +201,9 @@ class HasStarterFiles(Protocol):
         """File name -> text (stand.yaml, procedure.yaml); `real`: no `sim:` block."""
 
 
-@cache
 def _registered() -> dict[str, str]:
-    """procedure name -> "module:attribute" of its kind."""
-    found = {ep.name: ep.value for ep in entry_points(group=GROUP)}
-    if found:
-        return found
-    try:
-        package = importlib.import_module(FALLBACK_PACKAGE)
-    except ImportError:
-        return {}
-    for info in pkgutil.iter_modules(package.__path__, f"{FALLBACK_PACKAGE}."):
-        kind = getattr(importlib.import_module(info.name), "KIND", None)
-        if kind is not None:
-            found[kind.name] = f"{info.name}:KIND"
-    return found
+    """procedure name -> "module:attribute" of its kind (bench/core/kind_index.py)."""
+    return registered()
 
 
 def procedure_names() -> list[str]:

@@ -136,8 +136,8 @@ def corrected_edges(edges_s: np.ndarray, offset_rel: float, t0_s: float) -> np.n
 
 
 def fog_bracket(edges_s: np.ndarray, rate_hz: float) -> tuple[int, int]:
-    """The FOG samples that bracket the timed turns, by the rule the run chose them with
-    (procedures/rate_ladder/kind.py, the half's acquisition): from the sample at or before
+    """The FOG samples that bracket the timed turns, the rule the run chooses them by (the
+    half's acquisition, procedures/rate_ladder/kind.py, calls this): from the sample at or before
     the first edge to the second after the last (the analysis integrates from the first
     edge to the last, interpolating between samples)."""
     return (math.floor(float(edges_s[0]) * rate_hz),

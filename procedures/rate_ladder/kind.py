@@ -410,7 +410,7 @@ class LadderSteps:
 
     def _do_acquire(self, step: Step, ctx: RunContext) -> None:
         from bench.core.engine import Abort
-        from procedures.rate_ladder.analysis import read_half_ahead, static_record
+        from procedures.rate_ladder.analysis import fog_bracket, read_half_ahead, static_record
         from procedures.rate_ladder.events import HalfAcquired
 
         ax = ctx.bench.axes[step.on_axis]
@@ -437,9 +437,9 @@ class LadderSteps:
         if len(edges) != n + 1:
             raise Abort(f"{step.axis}: the counter returned {len(edges)} edges, expected {n + 1}")
         # the FOG samples that bracket the timed turns (the analysis integrates exactly
-        # from the first edge to the last, interpolating between samples)
-        i_from = math.floor(edges[0] * fog.rate_hz)
-        i_to = math.floor(edges[-1] * fog.rate_hz) + 2
+        # from the first edge to the last, interpolating between samples); one rule, the
+        # analysis's, which a corrected re-analysis applies again
+        i_from, i_to = fog_bracket(edges, fog.rate_hz)
         rec1 = ax.logs["counter"].count if "counter" in ax.logs else 0
         fog.wait_for_index(i_to, timeout_s=max(10.0, period))
         _check_fog_indices(fog, i_to, f"{step.axis} {p.rate_dps:+g} deg/s half {p.half}")
