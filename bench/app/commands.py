@@ -294,7 +294,12 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         return EXIT_INVALID
     console = open_console(quiet=args.quiet, log_json=args.log_json)
     where = target(run.path.parent, args.records, console.warn, lab_file=lab_file)
-    result, doc = write_outputs(run, cfg, console, where)
+    try:
+        result, doc = write_outputs(run, cfg, console, where)
+    except ValueError as e:      # a run file the analysis refuses (a corrections file)
+        console.close()
+        err(f"bench analyze: not analysed: {e}")
+        return EXIT_INVALID
     register_run(run.path, where, console.warn, result)
     from bench.app.register.runs import deliver
 
