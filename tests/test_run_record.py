@@ -75,8 +75,18 @@ def _add_lab(run: Path, lab: Path) -> Path:
     return path
 
 
+def _plant_corrections(run: Path, lab: Path) -> Path:
+    """A corrections file put in the folder after the run (issue 58): the analysis would
+    read it and move every figure by e; the registered result applied none."""
+    path = run / "corrections.json"
+    path.write_text(json.dumps({"corrections": [{
+        "where": "axes.outer.counter", "quantity": "timebase_offset_rel", "value": 3e-7,
+        "U": 3e-8}]}))
+    return path
+
+
 @pytest.mark.parametrize("tamper", [_edit_result, _edit_stand, _edit_meta, _flip_raw_byte,
-                                    _add_lab])
+                                    _add_lab, _plant_corrections])
 def test_a_file_changed_after_the_run_is_refused_by_name(
         run: Path, lab: Path, tamper: Callable[[Path, Path], Path]) -> None:
     url = lab_register(lab)
