@@ -174,7 +174,8 @@ class CounterEngine(CounterSettings):
             return edges
         pairs = edges.size // 2
         values = edges[1:2 * pairs:2] - edges[0:2 * pairs:2]
-        return 1.0 / values if acq.invert else values
+        out: np.ndarray = 1.0 / values if acq.invert else values
+        return out
 
     def _counter_time(self, acq: TwinAcquisition, t_s: np.ndarray) -> np.ndarray:
         """Stand times as this counter's time base reads them: every interval from the

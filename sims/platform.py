@@ -139,7 +139,8 @@ class GyroPlatform:
             pb = np.concatenate([b[1] for b in self._heading_buf])
             keep = max(int(np.searchsorted(tb, t[-1], side="right")) - 1, 0)
             self._heading_buf = [(tb[keep:], pb[keep:])]  # the rest is history
-        return np.interp(t, tb, pb)
+        heading: np.ndarray = np.interp(t, tb, pb)
+        return heading
 
     @property
     def table_deg(self) -> float:
@@ -285,7 +286,7 @@ class GyroPlatform:
             else:
                 alpha = self._drift_angle(gyro, t)[0] + self._control_angle(gyro, t)[0]
             alpha = alpha + truth.angle_offset_deg
-            u = truth.k_as_v_per_deg * alpha
+            u: np.ndarray = truth.k_as_v_per_deg * alpha
             if truth.angle_noise_arcsec:
                 u += self._rng_noise[gyro].standard_normal(t.size) * (
                     truth.k_as_v_per_deg * truth.angle_noise_arcsec / ARCSEC_PER_DEG)

@@ -88,7 +88,8 @@ def _hash(entropy: list[np.ndarray]) -> np.ndarray:
 
     def mix(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         r: np.ndarray = u32(_MIX_MULT_L) * x - u32(_MIX_MULT_R) * y
-        return r ^ (r >> _XSHIFT)
+        mixed: np.ndarray = r ^ (r >> _XSHIFT)
+        return mixed
 
     m = entropy[0].size
     with np.errstate(over="ignore"):   # uint32 arithmetic wraps, as in C
@@ -143,7 +144,8 @@ class RngGrid:
             chunk = seed_states(self._entropy, (*self._key, stream),
                                 np.arange(c * _SEED_CHUNK, (c + 1) * _SEED_CHUNK))
             self._seeds[(stream, c)] = chunk
-        return chunk[g - c * _SEED_CHUNK]
+        state: np.ndarray = chunk[g - c * _SEED_CHUNK]
+        return state
 
     def normals(self, stream: int, g: int, n: int) -> np.ndarray:
         """The first `n` standard normals of block g's generator in `stream`."""

@@ -105,7 +105,8 @@ def _antiderivative(t: np.ndarray, u: np.ndarray, x: np.ndarray) -> np.ndarray:
     k = np.clip(np.searchsorted(t, x, side="right") - 1, 0, t.size - 2)
     f = x - t[k]
     ux = u[k] + (u[k + 1] - u[k]) * f / (t[k + 1] - t[k])
-    return cum[k] + 0.5 * f * (u[k] + ux)
+    integral: np.ndarray = cum[k] + 0.5 * f * (u[k] + ux)
+    return integral
 
 
 def signed_integral(t_s: np.ndarray, u_v: np.ndarray, start_s: float, pulse_s: float

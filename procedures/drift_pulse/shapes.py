@@ -56,14 +56,16 @@ class PulseShape:
         import numpy as np
 
         u = np.asarray(t_s, dtype=float) / tc_s
-        return self.rate(u) - self.rate(u - 1.0)
+        rate: np.ndarray = self.rate(u) - self.rate(u - 1.0)
+        return rate
 
     def pair_angle(self, t_s: np.ndarray, tc_s: float) -> np.ndarray:
         """Angle of the unit pair (deg per deg/s of amplitude) at t from the first edge."""
         import numpy as np
 
         u = np.asarray(t_s, dtype=float) / tc_s
-        return tc_s * (self.angle(u) - self.angle(u - 1.0))
+        angle: np.ndarray = tc_s * (self.angle(u) - self.angle(u - 1.0))
+        return angle
 
     def pair_points(self, n_per_pulse: int) -> np.ndarray:
         """The pair for an arbitrary waveform generator, in [-1, 1], 2 n points.
@@ -95,7 +97,8 @@ def _tri_rate(u: np.ndarray) -> np.ndarray:
 def _tri_angle(u: np.ndarray) -> np.ndarray:
     import numpy as np
 
-    return np.where(u <= 0.5, u * u, 2.0 * u - u * u - 0.5)
+    angle: np.ndarray = np.where(u <= 0.5, u * u, 2.0 * u - u * u - 0.5)
+    return angle
 
 
 SHAPES: dict[str, PulseShape] = {

@@ -268,7 +268,8 @@ class Averaged:
         variance equals 2 u of the measured variance, (8 / (n - 1))^(1/4) * measured."""
         if self.raw is None or not self.blocks or self.blocks < 2:
             return None
-        return self.raw * (8.0 / (self.blocks - 1)) ** 0.25
+        floor: float = self.raw * (8.0 / (self.blocks - 1)) ** 0.25
+        return floor
 
 
 def _averaged(r: RateEntry) -> list[Averaged]:

@@ -52,7 +52,9 @@ class DccOutcome:
 
 
 def dcc_bytes(tree: etree._ElementTree, pretty: bool = True) -> bytes:
-    return etree.tostring(tree, xml_declaration=True, encoding="UTF-8", pretty_print=pretty)
+    data: bytes = etree.tostring(tree, xml_declaration=True, encoding="UTF-8",
+                                 pretty_print=pretty)
+    return data
 
 
 def _write_atomic(path: Path, data: bytes) -> None:

@@ -296,9 +296,9 @@ class Records:
         i = s.instruments.c
         row = conn.execute(sa.select(i.id).where(i.serial == c.serial)).first()
         if row is None:   # a concurrent first registration: IntegrityError, retried whole
-            return conn.execute(sa.insert(s.instruments).values(
+            return int(conn.execute(sa.insert(s.instruments).values(
                 serial=c.serial, role=c.role, model=c.model, first_seen_utc=now,
-                last_seen_utc=now).returning(i.id)).scalar_one()
+                last_seen_utc=now).returning(i.id)).scalar_one())
         conn.execute(sa.update(s.instruments).where(i.id == row.id).values(
             last_seen_utc=now, **({"model": c.model} if c.model else {})))
         return int(row.id)
@@ -315,9 +315,9 @@ class Records:
         if row is None:
             # a concurrent first registration of the same table raises IntegrityError
             # here; the whole transaction is retried and then finds the row
-            return conn.execute(sa.insert(s.tables).values(
+            return int(conn.execute(sa.insert(s.tables).values(
                 serial=rec.serial, first_seen_utc=now, **values)
-                .returning(t.id)).scalar_one()
+                .returning(t.id)).scalar_one())
         conn.execute(sa.update(s.tables).where(t.id == row.id).values(**values))
         return int(row.id)
 

@@ -65,7 +65,8 @@ class RecordsView:
 
     @property
     def url(self) -> str:
-        return self.where.url
+        url: str = self.where.url
+        return url
 
     def _absent(self) -> bool:
         """A default SQLite file not made yet: nothing recorded, and nothing to create."""
