@@ -13,6 +13,15 @@ certificate, certificate.html and .pdf after it, certificate.dcc.xml last, so
   (the records' history and assurance, the document, its figures, PDF and HTML);
 - DCC: certificate.dcc.xml less that.
 
+Each run's wall time is also split into its phases, from events.jsonl's times and the
+files' (so a change can be put where it acts): start-up (the process's start to the
+plan event: interpreter, imports, the records' due check, the twins started and the
+instruments opened), measuring (plan to completed: the co-simulation, with the last
+pair's analysis), analysis (to result.json), records (to assurance.json: the history
+section and the control status), the certificate, the DCC, and exit (the DCC to the
+process's end: registration and the interpreter's teardown). The load average beside
+each run says how busy the machine was.
+
 Then the medians, against the goal of issue 62: the demo and its certificate within 10 s
 of wall time (on an idle machine: the load average is printed first). --figure-workers
 sets BENCH_FIGURE_WORKERS for the runs (0: every figure drawn in turn, in the bench's
@@ -22,6 +31,8 @@ process; bench/app/certificate/figures.py), to compare.
 from __future__ import annotations
 
 import argparse
+import datetime as dt
+import json
 import os
 import resource
 import statistics
@@ -52,6 +63,7 @@ def run_once(procedure: Path, workers: int | None) -> dict[str, float]:
         if workers is not None:
             env["BENCH_FIGURE_WORKERS"] = str(workers)
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        started = time.time()
         t0 = time.perf_counter()
         r = subprocess.run([*bench_exe(), "run", str(procedure), "--yes", "--out", str(out)],
                            cwd=ROOT, capture_output=True, text=True, env=env, check=False)
@@ -67,10 +79,37 @@ def run_once(procedure: Path, workers: int | None) -> dict[str, float]:
                              f"{r.stderr[-3000:]}")
         mtime = {n: p.stat().st_mtime for n, p in files.items()}
         rendered = max(mtime["certificate.html"], mtime["certificate.pdf"])
+        at = event_times(run_dir / "events.jsonl")
+        assured = run_dir / "assurance.json"
+        records = assured.stat().st_mtime if assured.is_file() else mtime["result.json"]
         return {"wall": wall,
                 "cpu": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
                 "certificate": rendered - mtime["result.json"],
-                "dcc": mtime["certificate.dcc.xml"] - rendered}
+                "dcc": mtime["certificate.dcc.xml"] - rendered,
+                "start-up": at["plan"] - started,
+                "measuring": at["completed"] - at["plan"],
+                "analysis": mtime["result.json"] - at["completed"],
+                "records": records - mtime["result.json"],
+                "exit": started + wall - mtime["certificate.dcc.xml"],
+                "load": os.getloadavg()[0]}
+
+
+PHASES = ("start-up", "measuring", "analysis", "records", "certificate", "dcc", "exit")
+
+
+def event_times(events: Path) -> dict[str, float]:
+    """The epoch time of the first plan and completed events of a run's journal."""
+    at: dict[str, float] = {}
+    for line in events.read_text(encoding="utf-8").splitlines():
+        rec = json.loads(line)
+        name = rec.get("event")
+        if name in ("plan", "completed") and name not in at:
+            at[name] = dt.datetime.fromisoformat(rec["utc"]).timestamp()
+    return at
+
+
+def phases(m: dict[str, float]) -> str:
+    return ", ".join(f"{k} {m[k]:.2f}" for k in PHASES)
 
 
 def main() -> None:
@@ -88,12 +127,14 @@ def main() -> None:
         runs.append(m)
         print(f"  run {i + 1}: wall {m['wall']:.2f} s, cpu {m['cpu']:.2f} s, certificate "
               f"{m['certificate']:.2f} s ({m['certificate'] / m['wall']:.0%} of wall), "
-              f"DCC {m['dcc']:.2f} s", flush=True)
+              f"DCC {m['dcc']:.2f} s; load {m['load']:.2f}\n"
+              f"         phases (s): {phases(m)}", flush=True)
     med = {k: statistics.median(m[k] for m in runs) for k in runs[0]}
     print(f"median: wall {med['wall']:.2f} s (goal <= {GOAL_S:g} s: "
           f"{'met' if med['wall'] <= GOAL_S else 'not met'}), cpu {med['cpu']:.2f} s, "
           f"certificate {med['certificate']:.2f} s ({med['certificate'] / med['wall']:.0%} "
-          f"of wall), DCC {med['dcc']:.2f} s")
+          f"of wall), DCC {med['dcc']:.2f} s\n"
+          f"        phases (s): {phases(med)}")
 
 
 if __name__ == "__main__":

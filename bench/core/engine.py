@@ -307,7 +307,10 @@ class AnalysisWorker:
             if wait:
                 futures_wait(self._pending)
                 self.wait_reported()   # and their results printed: before "completed"
-            self._pool.shutdown(wait=True, cancel_futures=not wait)
+            # every job done and reported: the worker's exit (its interpreter's teardown,
+            # 0.1 to 1 s at nice 10 on a busy machine) is not waited for; the executor's
+            # own thread reaps it, and Python joins that thread at exit
+            self._pool.shutdown(wait=not wait, cancel_futures=not wait)
             self._pool = None
         self._pending.clear()
         with self._lock:
