@@ -12,7 +12,7 @@ from collections.abc import Mapping, Sequence
 
 from bench.analysis.coverage import DOF_INFINITE
 from bench.report.budget import Budget
-from bench.report.certificate import methods, plots
+from bench.report.certificate import methods
 from bench.report.certificate.model import Block, Fields, Para, Section, Table
 from bench.report.certificate.parts import (
     NOT_RECORDED,
@@ -25,6 +25,7 @@ from bench.report.certificate.parts import (
 )
 from bench.report.certificate.rounding import format_sig, format_value_u
 from bench.report.result_frame import Check
+from procedures.drift_pulse import plots
 from procedures.drift_pulse.result import DriftFigures
 
 # -- the method statement (docs/method.md part B, restated) ---------------------------------

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from bench.analysis.coverage import COVERAGE_FORMULA, COVERAGE_RULE, DOF_INFINITE
 from bench.analysis.random_part import std_u_rel
 from bench.analysis.turns import RATE_ERROR_U_FORMULA, REPEATABILITY_FORMULA
-from bench.report.certificate import methods, plots
+from bench.report.certificate import methods
 from bench.report.certificate.model import Block, Para, Section, Table
 from bench.report.certificate.parts import (
     CertificateParts,
@@ -44,6 +44,7 @@ from bench.report.certificate.rounding import (
 )
 from bench.report.result_frame import Check
 from drivers.json_types import JsonObject, JsonValue
+from procedures.rate_ladder import plots
 from procedures.rate_ladder.result import LadderAxis, LadderResult, NoiseFloor, RateEntry
 
 # -- the method statement (docs/method.md part A, restated) ---------------------------------

@@ -21,12 +21,12 @@ from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.events import Event
 from bench.core.lab import Lab
+from bench.kind import CertificatePart, DccPart
 from bench.report.certificate import methods
-from bench.report.certificate.parts import CertificateParts, stand_of
+from bench.report.certificate.parts import stand_of
 from bench.report.corrections import statements as correction_statements
 from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import ILAC_G8, RULE_REFERENCE
-from bench.report.dcc.parts import DccParts
 from bench.report.dcc.xml import NOT_RECORDED, el, name, num, statement, text_el
 from bench.report.result_frame import JsonObject
 
@@ -50,7 +50,7 @@ def _event(src: Sources, kind: type[Event], last: bool = False) -> str | None:
 
 
 def administrative(adm: etree._Element, src: Sources, lab: Lab,
-                   parts: CertificateParts, kind: DccParts, issue: Issue,
+                   parts: CertificatePart, kind: DccPart, issue: Issue,
                    today: str) -> None:
     """`parts` answers as on the certificate (its closing statements), `kind` for the DCC
     (the item). `issue` is the PDF's: a draft (no mainSigner, a DRAFT statement and no
@@ -155,7 +155,7 @@ def _location(parent: etree._Element, fields: Sequence[tuple[str, str]]) -> None
             el(loc, tag, value)
 
 
-def _item(items: etree._Element, src: Sources, kind: DccParts) -> None:
+def _item(items: etree._Element, src: Sources, kind: DccPart) -> None:
     stand = stand_of(src)
     item = el(items, "item", id="item")
     what, named_axes = kind.dcc_item(src)
@@ -180,7 +180,7 @@ def _item(items: etree._Element, src: Sources, kind: DccParts) -> None:
     name(idn, "Serial number")
 
 
-def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
+def _statements(sts: etree._Element, src: Sources, parts: CertificatePart,
                 country: object, issue: Issue, lab: Lab) -> None:
     if issue.draft:
         statement(sts, V.DRAFT, "DRAFT, NOT AUTHORISED: this draft has not been authorised "
