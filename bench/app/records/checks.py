@@ -207,6 +207,11 @@ def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[st
         unique = rep is not None and reported.get(role, []).count(rep) == 1
         return _serial_of(conf.get("serial"), rep, unique, f"{stand_serial}/{axis}/{role}")
 
+    # the instruments the run's procedure kind measures (the FOGs' scale and bias, a gyro
+    # platform's gyros): listed with their axis, before the stand's instruments there
+    kind = installed_records(kind_of_run)
+    measured: list[CheckRecord] = kind.instrument_checks(result, stand, serial) \
+        if isinstance(kind, ChecksInstruments) else []
     # the counters that timed turns in this run (an axis the run did not time has no
     # check value of its counter)
     timed = {e.axis for e in events if isinstance(e, TimedHalf)}
@@ -214,6 +219,7 @@ def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[st
     for axis, conf in stand_axes.items():
         if not isinstance(conf, Mapping):
             continue
+        out += [c for c in measured if c.axis == axis]
         counter = conf.get("counter")
         if isinstance(counter, Mapping) and axis in timed:
             sn, model = serial(axis, "counter", counter), _opt(counter.get("model"))
@@ -227,12 +233,8 @@ def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[st
         if isinstance(drive, Mapping) and events:
             out += _drive(axis, layout.raw_root(run_path), events, serial(axis, "drive", drive),
                           _opt(drive.get("model")))
-    # the instruments the run's procedure kind measures (the FOGs' scale and bias, a gyro
-    # platform's gyros)
-    kind = installed_records(kind_of_run)
-    if isinstance(kind, ChecksInstruments):
-        out += kind.instrument_checks(result, stand, serial)
-    return out
+    placed = {a for a, conf in stand_axes.items() if isinstance(conf, Mapping)}
+    return out + [c for c in measured if c.axis not in placed]
 
 
 def _opt(x: object) -> str | None:
