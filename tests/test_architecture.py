@@ -801,8 +801,9 @@ def test_the_any_count_counts_annotations_only() -> None:
 
 
 #: issue 45 asks for fewer than 200; 740 at a057f73, 75 now (the station's and the records'
-#: reads of CONTRACT §3's axes typed through the ladder's axes view, now procedures/rate_ladder/axes_view.py; the ladder's analysis
-#: writing through its result module). A ratchet: lower it when the count falls, never raise
+#: reads of CONTRACT §3's axes typed through the ladder's axes view, now
+#: procedures/rate_ladder/axes_view.py; the ladder's analysis writing through its result
+#: module). A ratchet: lower it when the count falls, never raise
 #: it
 ANY_CEILING = 75
 
