@@ -46,6 +46,7 @@ from bench.report.result_frame import Check
 from drivers.json_types import JsonObject, JsonValue
 from procedures.rate_ladder import plots
 from procedures.rate_ladder.result import (
+    UNSIGNED,
     LadderAxis,
     LadderResult,
     NoiseFloor,
@@ -155,8 +156,7 @@ class LadderCertificate(CertificateParts):
         "intra_turn_instability": "intra-turn instability",
         "intra_turn_instability_corrected": "intra-turn instability, floor-corrected",
     }
-    certificate_unsigned = frozenset({"rate_instability", "intra_turn_instability",
-                                      "intra_turn_instability_corrected"})
+    certificate_unsigned = UNSIGNED
 
     def certificate_recognises(self, src: Sources) -> bool:
         return "axes" in src.result     # CONTRACT §3's binding keys: results per axis

@@ -35,7 +35,7 @@ from bench.report.dcc.xml import (
     text_el,
 )
 from drivers.json_types import JsonValue
-from procedures.rate_ladder.result import LadderResult, PairEntry, RateEntry
+from procedures.rate_ladder.result import UNSIGNED, LadderResult, PairEntry, RateEntry
 
 # the ladder's refTypes, namespace "ratebench" (docs/dcc.md, section "refTypes")
 SET_RATE = V.RB + "setRate"
@@ -176,7 +176,8 @@ class _Quantities:
         node = quantity(self.data, ident(self.rid, key), title, ref, v, unit, uu,
                         label=label or f"{self.path}.{key}", note=note, k=k, interval=interval)
         if check:
-            judge(node, self.checks.take(self.axis, self.w_set, check), unit)
+            judge(node, self.checks.take(self.axis, self.w_set, check), unit,
+                  magnitude=check in UNSIGNED)
         return node
 
 
