@@ -57,6 +57,11 @@ if TYPE_CHECKING:
 __all__ = ["Half", "Harmonic", "IntraTurn", "LadderAxis", "Mains", "LadderResult", "MalformedResult", "NoiseFloor", "PairEntry",
            "RateEntry", "add_budgets", "with_conditions_measured"]
 
+#: the checked quantities that are standard deviations (magnitudes: printed without a
+#: sign on the certificate; one-sided, with no lower limit, in the DCC)
+UNSIGNED = frozenset({"rate_instability", "intra_turn_instability",
+                      "intra_turn_instability_corrected"})
+
 
 # -- the containers' checks (what the certificate may safely walk) ----------------------------
 

@@ -53,8 +53,11 @@ def checks_of(src: Sources) -> list[JsonObject]:
     return [c.doc for c in src.frame.checks]
 
 
-def judge(q: etree._Element, found: list[tuple[int, JsonObject]], unit: str) -> None:
-    """Each check as measurementMetaData on the quantity it judges (good-practice layout)."""
+def judge(q: etree._Element, found: list[tuple[int, JsonObject]], unit: str,
+          magnitude: bool = False) -> None:
+    """Each check as measurementMetaData on the quantity it judges (good-practice layout);
+    `magnitude`: the quantity is a standard deviation (one-sided, never below 0), which
+    has no lower limit."""
     if not found:
         return
     meta = el(q, "measurementMetaData")
@@ -76,7 +79,7 @@ def judge(q: etree._Element, found: list[tuple[int, JsonObject]], unit: str) -> 
         data = el(md, "data")
         cid = ident("check", i + 1)
         if tol is not None:
-            _limits(data, cid, c, rule, suffix, tol, cunit)
+            _limits(data, cid, c, rule, suffix, tol, cunit, magnitude)
         if expected is not None:
             quantity(data, f"{cid}_expected", "expected value", V.REFERENCE, expected, cunit)
         if not len(data):
@@ -84,13 +87,12 @@ def judge(q: etree._Element, found: list[tuple[int, JsonObject]], unit: str) -> 
 
 
 def _limits(data: etree._Element, cid: str, c: JsonObject, rule: str, suffix: str,
-            tol: float, unit: str) -> None:
+            tol: float, unit: str, one_sided: bool) -> None:
     """The tolerance T (the maker's specification) and the acceptance limits the decision
     rule derives from it (ILAC-G8:09/2019 4.2): simple acceptance accepts within T;
     guarded acceptance within T - U for a two-sided value; a standard deviation (one-sided,
     never below 0) has no lower limit, and under guarded acceptance its one-sided upper
     limit, not the value, is held against T."""
-    one_sided = "instability" in str(c.get("quantity") or "")
     if not one_sided:
         quantity(data, f"{cid}_tol_low", "lower tolerance limit (-T)", V.TOLERANCE_LOW,
                  -tol, unit)
