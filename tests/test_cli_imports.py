@@ -99,8 +99,9 @@ def test_validate_and_schema_load_no_plots_fits_can_or_records(argv: list[str]) 
 #: a kind's heavy parts (bench/core/registry.py `ProcedureKind`: `certificate`, `dcc`,
 #: `records` and what they use), imported when first used, never to read the files
 KIND_PARTS = ("certificate", "dcc", "records", "starter", "sample", "conditions", "events",
-              "budgets")
-REPORT_PARTS = ("bench.report.certificate", "bench.report.dcc", "bench.report.figures")
+              "budgets", "station", "plots", "axes_view")
+REPORT_PARTS = ("bench.report.certificate", "bench.report.dcc", "bench.report.figures",
+                "bench.report.station")
 
 
 @pytest.mark.parametrize("argv", [

@@ -1,16 +1,21 @@
-"""A procedure kind the project does not ship (tests/plugin_kind.py, `dwell`), registered
-under its name as an entry point would register it, runs through the real CLI: validated,
-planned, executed, analyzed, certified (HTML, PDF) and written as a valid DCC. Adding a
-procedure needs no change outside its own code (README "How to add a procedure").
+"""A procedure kind the project does not ship (the package tests/plugin_kind, `dwell`),
+registered under its name as an entry point would register it, runs through the real CLI:
+validated, planned, executed, analyzed, certified (HTML, PDF) and written as a valid DCC.
+Adding a procedure needs no change outside its own package and its entry point (README
+"How to add a procedure"), and mypy checks every part of it against the kind interface
+(bench/kind.py): a part of the wrong type fails the type check.
 """
 
 from __future__ import annotations
 
 import csv
 import json
+import re
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 
+import mypy.api
 import pytest
 from lxml import etree
 
@@ -123,13 +128,13 @@ def test_a_plugin_kinds_figures_reach_history_the_trend_plot_the_summary_and_sta
         tmp_path: Path, register: Callable[[str], None],
         capsys: pytest.CaptureFixture[str]) -> None:
     """Two dwells (1 s, then 2.5 s of simulated bench time) of one bench clock: the
-    figures the kind declares (tests/plugin_kind.py FIGURES) are in the records, in
+    figures the kind declares (tests/plugin_kind FIGURES) are in the records, in
     `bench history`'s listing and CSV, in the points the trend plot draws (read back from
     the plotted lines), in the summary `bench run` prints at its end and in the station
     view's run figures and trend plot."""
     from bench.app.records import Records, target
     from bench.app.records.trend import trend_figure
-    from bench.core.registry import declared_figures
+    from bench.kind import declared_figures
     from tests.plugin_kind import FIGURES
 
     register("KIND")
@@ -222,3 +227,71 @@ def test_a_plugin_kinds_figures_reach_history_the_trend_plot_the_summary_and_sta
         http.shutdown()
         thread.join(timeout=10)
 
+
+
+# -- issue 61: mypy checks every part of a kind ------------------------------------------------
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "tests" / "plugin_kind"
+
+
+def _mypy(*targets: Path, monkeypatch: pytest.MonkeyPatch) -> tuple[int, str]:
+    """mypy with the project's configuration and cache on `targets` alone (the bench's
+    modules they import are read from the cache); (exit status, its report)."""
+    monkeypatch.setenv("MYPYPATH", str(ROOT))
+    out, err, status = mypy.api.run(
+        ["--config-file", str(ROOT / "pyproject.toml"),
+         "--cache-dir", str(ROOT / ".mypy_cache"), "--no-error-summary",
+         *[str(t) for t in targets]])
+    return status, out + err
+
+
+def test_the_plugin_kind_passes_mypy(monkeypatch: pytest.MonkeyPatch) -> None:
+    status, report = _mypy(PACKAGE, monkeypatch=monkeypatch)
+    assert status == 0, report
+
+
+#: (what is planted in a copy of the package's kind.py or report.py, what mypy must say)
+PLANTED = {
+    "a records part that is a certificate part": (
+        "kind.py", "    records: DwellRecords = DwellRecords()",
+        "    records: DwellCertificate = DwellCertificate()", "records: expected"),
+    "a station part that is a DCC part": (
+        "kind.py", "    station: StationParts = StationParts()",
+        "    station: DwellDcc = DwellDcc()", "station: expected"),
+    "a DCC part whose item is a string, not (words, axes)": (
+        "report.py", "    def dcc_item(self, src: Sources) -> tuple[str, Sequence[str]]:\n"
+                     '        return "bench clock", ()',
+        "    def dcc_item(self, src: Sources) -> str:\n"
+        '        return "bench clock"', "dcc_item"),
+}
+
+
+@pytest.mark.parametrize("plant", sorted(PLANTED))
+def test_a_part_of_the_wrong_type_fails_mypy(plant: str, tmp_path: Path,
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """A copy of the package with one part planted wrong: mypy fails where `KIND` is
+    declared (or where the part's method is), naming the part."""
+    module, right, wrong, said = PLANTED[plant]
+    copy = tmp_path / "plugin_kind"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    # the copy's modules import each other, not the package they were copied from
+    for path in copy.glob("*.py"):
+        path.write_text(path.read_text().replace("tests.plugin_kind", "plugin_kind"))
+    text = (copy / module).read_text()
+    assert text.count(right) == 1, right
+    (copy / module).write_text(text.replace(right, wrong))
+    status, report = _mypy(copy, monkeypatch=monkeypatch)
+    assert status == 1, report
+    assert said in report and f"plugin_kind/{module}" in report, report
+
+
+def test_the_kind_is_named_nowhere_outside_its_package_and_entry_point() -> None:
+    """Adding the kind touched its package and the one line that registers it: the bench,
+    the shipped kinds and the project's metadata do not name it."""
+    named = [str(p.relative_to(ROOT)) for pkg in ("bench", "procedures", "drivers", "sims")
+             for p in sorted((ROOT / pkg).rglob("*.py"))
+             if "plugin_kind" in p.read_text(encoding="utf-8")
+             or re.search(r"\bdwell", p.read_text(encoding="utf-8"))]
+    assert named == []
+    assert "dwell" not in (ROOT / "pyproject.toml").read_text()

@@ -3,7 +3,7 @@ start from.
 
 A new lab starts from files that validate and say what each key means, rather than
 from copies of configs/ learned key by key from the validator. The stand and procedure
-files are the procedure kind's (`bench.core.registry.HasStarterFiles`; by default the first
+files are the procedure kind's (`bench.kind.HasStarterFiles`; by default the first
 installed kind that offers them); the lab file is the same for every kind. Without
 --real the stand runs on the twins (a `sim:` block), so `bench run DIR/procedure.yaml
 --yes` works at once; --real leaves out `sim:` and writes the keys a real bench must state.
@@ -22,7 +22,8 @@ from pathlib import Path
 from bench.core.config import ConfigError
 from bench.core.loader import load_config
 from bench.core.placeholders import left_to_fill
-from bench.core.registry import HasStarterFiles, installed_records, procedure_names
+from bench.core.registry import procedure_names
+from bench.kind import HasStarterFiles, installed_records
 
 EXIT_OK, EXIT_INVALID = 0, 2
 

@@ -1,10 +1,10 @@
 """The summary `bench run` and `bench analyze` print at the end: the certificate's own cells.
 
 The run's procedure kind says which cells of its certificate the console shows
-(`bench.core.registry.SummarisesRun`), so every number on the console is the certificate's
+(`bench.kind.SummarisesRun`), so every number on the console is the certificate's
 text for the same quantity: U to two significant digits, the value to match,
 unresolved figures as "< limit", the unit in the column header. A kind that says
-nothing gets its declared figures (`bench.core.registry.ReportsFigures`), each printed by
+nothing gets its declared figures (`bench.kind.RecordsPart`), each printed by
 the certificate's rounding rule (docs/certificate.md) with its check's verdict.
 """
 
@@ -14,7 +14,7 @@ from collections.abc import Mapping
 
 from bench.app.console.report import STATEMENT_FIELD, Summary, SummaryTable
 from bench.app.records.extract import figures_of, kind_name
-from bench.core.registry import ReportsFigures, SummarisesRun, installed_records
+from bench.kind import SummarisesRun, installed_records
 from bench.report.certificate.model import Document, Table
 from bench.report.certificate.parts import verdict_label
 from bench.report.certificate.rounding import format_value_u
@@ -25,7 +25,7 @@ from bench.report.result_frame import JsonValue
 def _declared(result: Mapping[str, JsonValue], name: str) -> SummaryCut:
     """The kind's declared figures as one table: where, quantity, value ± U, verdict."""
     kind = installed_records(name)
-    if not isinstance(kind, ReportsFigures):
+    if kind is None:
         return SummaryCut()
     rows = []
     for f in figures_of(dict(result), name):

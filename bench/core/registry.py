@@ -7,24 +7,19 @@ A procedure package registers itself in its distribution's metadata:
 
 so the engine, the CLI, the certificate, the records and the console find it without
 naming it: adding a procedure touches no file outside its own package and its entry
-point. A kind is a name and its parts, held as attributes (`ProcedureKind` below):
-`settings` (the files), `plan`, `steps` (twins, instruments, one handler per action),
-`analysis` (result.json), `certificate` and `dcc` (a
-`bench.report.certificate.parts.CertificateParts` and a `bench.report.dcc.parts.DccParts`,
-whose neutral answers a kind overrides) and `records`, which answers the small
-capabilities below, each asked for by isinstance, each optional: its figures
-(`ReportsFigures`: the records, `bench history`, the trend plot, the station view, the
-summary), its summary cells, its own instruments' check values, the shape of its part of
-result.json, its per-axis rates and pairs
-(`bench.report.axes_view.ShowsAxes`), a sample result for previews and
-starter files for `bench init`.
+point. A kind is a name and its parts, held as attributes. Its light parts are stated
+here (`ProcedureKind`): `settings` (the files), `plan`, `steps` (twins, instruments, one
+handler per action) and `analysis` (result.json), which `bench validate`, the engine and
+`bench analyze` use. The parts that report on a run (`certificate`, `dcc`, `records`,
+`station`) are typed one layer up, over the report layer's types, in bench/kind.py
+(`Kind`), which also finds a kind with all of them.
 """
 
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable, Mapping, Sequence
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Protocol
 
 from bench.core.kind_index import registered
 
@@ -40,8 +35,6 @@ if TYPE_CHECKING:
     from bench.core.schema import Map
     from bench.core.simbench import SimBench
     from bench.core.yamlfile import Problem
-    from bench.report.certificate.model import Document
-    from bench.report.figures import FigureSpec, FigureValue, InstrumentCheck, SummaryCut
     from drivers.clock import Clock
 
 
@@ -133,73 +126,6 @@ class ProcedureKind(Protocol):
     def analysis(self) -> KindAnalysis:
         """The run's result.json."""
 
-    @property
-    def certificate(self) -> object:
-        """Its part of the certificate: a `bench.report.certificate.parts.CertificateParts`
-        (`CertificateParts()`: nothing of its own). Typed `object` here, as `records` is:
-        the report layer sits above this one, and the certificate asks by isinstance."""
-
-    @property
-    def dcc(self) -> object:
-        """Its part of the DCC: a `bench.report.dcc.parts.DccParts` (`DccParts()`:
-        nothing of its own), asked for by isinstance."""
-
-    @property
-    def records(self) -> object:
-        """Its answers to the capabilities below, each asked for by isinstance."""
-
-
-# -- what a kind's `records` part may answer: small capabilities, each asked for by isinstance
-
-@runtime_checkable
-class ReportsFigures(Protocol):
-    """Its figures, declared (bench/report/figures.py), and read from a result.json: what the
-    records keep, `bench history` lists, the trend plot draws and the station shows.
-    `bench.report.figures.DeclaredFigures` reads them at their declared paths."""
-
-    figures: tuple[FigureSpec, ...]
-
-    def figure_values(self, result: Mapping[str, object]) -> list[FigureValue]:
-        """Every figure of this result, with U (k = 2) where it has one."""
-
-
-@runtime_checkable
-class SummarisesRun(Protocol):
-    """Which cells of its certificate the console summary shows (otherwise the summary
-    lists the declared figures)."""
-
-    def summary_cut(self, doc: Document) -> SummaryCut:
-        """The certificate's tables and fields the console prints at the end of a run."""
-
-
-@runtime_checkable
-class ChecksInstruments(Protocol):
-    """Check values of the instruments only the kind knows (measurement assurance,
-    docs/method.md C1), from the result and the stand file the run used; their
-    quantities: key -> (unit, what the control chart calls it)."""
-
-    check_quantities: Mapping[str, tuple[str, str]]
-
-    def instrument_checks(self, result: Mapping[str, object], stand: Mapping[str, object]
-                          ) -> list[InstrumentCheck]:
-        """The kind's own instruments' check values in this run."""
-
-
-@runtime_checkable
-class HasSampleResult(Protocol):
-    """A hand-made result.json of the kind, for previews of its certificate."""
-
-    def sample_result(self) -> dict[str, object]:
-        """A result whose printed figures are worked out by hand."""
-
-
-@runtime_checkable
-class HasStarterFiles(Protocol):
-    """Commented stand and procedure files that validate, for `bench init`."""
-
-    def starter_files(self, real: bool) -> dict[str, str]:
-        """File name -> text (stand.yaml, procedure.yaml); `real`: no `sim:` block."""
-
 
 def _registered() -> dict[str, str]:
     """procedure name -> "module:attribute" of its kind (bench/core/kind_index.py)."""
@@ -213,37 +139,21 @@ def procedure_names() -> list[str]:
 
 def procedure_kind(name: str) -> ProcedureKind:
     """The kind registered under `name` (KeyError if none is)."""
-    module, _, attr = _registered()[name].partition(":")
+    module, _, attr = kind_location(name).partition(":")
     kind: ProcedureKind = getattr(importlib.import_module(module), attr or "KIND")
     return kind
 
 
-def installed_kind(name: str | None) -> ProcedureKind | None:
-    """The kind of that name if it is installed here, else None (a run recorded by a kind
-    this installation lacks is still listed, its figures by their stored names)."""
+def kind_location(name: str) -> str:
+    """"module:attribute" of the kind registered under `name` (KeyError if none is)."""
+    return _registered()[name]
+
+
+def records_part(name: str | None) -> object:
+    """The `records` part of the kind of that name (None if it is not installed here), for
+    the report layer, which sits below the typed interface (bench/kind.py) and asks it
+    by isinstance."""
     try:
-        return procedure_kind(str(name)) if name else None
+        return getattr(procedure_kind(str(name)), "records", None) if name else None
     except (KeyError, ImportError, AttributeError):
         return None
-
-
-def installed_records(name: str | None) -> object | None:
-    """The `records` part of the kind of that name if it is installed here, else None
-    (the capabilities above are asked of it by isinstance)."""
-    kind = installed_kind(name)
-    return kind.records if kind is not None else None
-
-
-def declared_figures(names: Sequence[str] | None = None) -> tuple[FigureSpec, ...]:
-    """The figures the named kinds declare (every installed kind's when None), in the
-    kinds' order, a quantity declared twice taken from the first kind."""
-    out: list[FigureSpec] = []
-    seen: set[str] = set()
-    for name in dict.fromkeys(procedure_names() if names is None else names):
-        records = installed_records(name)
-        if isinstance(records, ReportsFigures):
-            for spec in records.figures:
-                if spec.quantity not in seen:
-                    seen.add(spec.quantity)
-                    out.append(spec)
-    return tuple(out)

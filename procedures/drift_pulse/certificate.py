@@ -12,7 +12,7 @@ from collections.abc import Mapping, Sequence
 
 from bench.analysis.coverage import DOF_INFINITE
 from bench.report.budget import Budget
-from bench.report.certificate import methods, plots
+from bench.report.certificate import methods
 from bench.report.certificate.model import Block, Fields, Para, Section, Table
 from bench.report.certificate.parts import (
     NOT_RECORDED,
@@ -25,7 +25,8 @@ from bench.report.certificate.parts import (
 )
 from bench.report.certificate.rounding import format_sig, format_value_u
 from bench.report.result_frame import Check
-from procedures.drift_pulse.result import DriftFigures
+from procedures.drift_pulse import plots
+from procedures.drift_pulse.result import AxisFigures, DriftFigures
 
 # -- the method statement (docs/method.md part B, restated) ---------------------------------
 
@@ -133,6 +134,9 @@ def _k_text(budget: Budget | None) -> str:
 
 
 def _drift_results(drift: DriftFigures, number: str) -> list[Section]:
+    """The results section: how U is stated, the own and apparent drift per axis, the
+    site and the platform's azimuth and Earth rate, the drift per position and cycle, and
+    their plots (docs/method.md B)."""
     axes = drift.axes
     budgeted = any(ax.budgets for ax in axes.values())
     blocks: list[Block] = [Para(
@@ -141,6 +145,26 @@ def _drift_results(drift: DriftFigures, number: str) -> list[Section]:
         "rule of every U on this certificate)." if budgeted else
         "Drift in °/h; each value followed by its expanded uncertainty U for about 95 %, as "
         "result.json states it (it carries no budget).")]
+    if axes:
+        blocks.append(_drift_table(axes, budgeted))
+    fields = _platform_fields(drift)
+    if fields:
+        blocks.append(Fields(tuple(fields)))
+    positions = _positions_table(axes)
+    if positions is not None:
+        blocks.append(positions)
+    blocks += figure_of("Drift estimate per cycle, by axis and platform position",
+                        plots.drift_cycles, axes)
+    for axis, ax in axes.items():
+        if ax.example_cycle is not None:
+            blocks += figure_of(f"Axis {axis}: U(t) and the integrator output over one cycle",
+                                plots.drift_cycle, axis, ax.example_cycle)
+    return [Section(number, "Results", tuple(blocks))]
+
+
+def _drift_table(axes: Mapping[str, AxisFigures], budgeted: bool) -> Table:
+    """Own and apparent drift per axis with U (and k, ν_eff when budgeted), beside the own
+    drift at nominal edges, for comparison with the paper's integrator."""
     has_nominal = bool(axes)
     rows = []
     for axis, ax in axes.items():
@@ -153,26 +177,30 @@ def _drift_results(drift: DriftFigures, number: str) -> list[Section]:
         if has_nominal:
             row.insert(len(row) - 1, format_sig(ax.own_nominal_edges_dph, 4, signed=True))
         rows.append(tuple(row))
-    if rows:
-        header = ["Axis", "Own drift ± U, °/h", "Apparent drift at 0° ± U, °/h", "Cycles"]
-        widths = [0.6, 1.9, 2.1, 0.7]
-        if budgeted:
-            header.insert(2, "k (ν_eff)")
-            header.insert(4, "k (ν_eff)")
-            widths.insert(2, 1.0)
-            widths.insert(4, 1.0)
-        notes = []
-        if has_nominal:
-            header.insert(len(header) - 1, "Own drift at nominal edges, °/h")
-            widths.insert(len(widths) - 1, 1.6)
-            notes.append("Own drift at nominal edges: the same cycles integrated with the "
-                         "pulse edges at the digitizer's nominal sample times, as the paper's "
-                         "integrator does; shown for comparison only.")
-        blocks.append(Table(tuple(header), tuple(rows), widths=tuple(widths),
-                            align="l" + "r" * (len(header) - 1),
-                            caption="Own and apparent drift per axis (docs/method.md B)",
-                            notes=tuple(notes)))
-    fields = []
+    header = ["Axis", "Own drift ± U, °/h", "Apparent drift at 0° ± U, °/h", "Cycles"]
+    widths = [0.6, 1.9, 2.1, 0.7]
+    if budgeted:
+        header.insert(2, "k (ν_eff)")
+        header.insert(4, "k (ν_eff)")
+        widths.insert(2, 1.0)
+        widths.insert(4, 1.0)
+    notes = []
+    if has_nominal:
+        header.insert(len(header) - 1, "Own drift at nominal edges, °/h")
+        widths.insert(len(widths) - 1, 1.6)
+        notes.append("Own drift at nominal edges: the same cycles integrated with the "
+                     "pulse edges at the digitizer's nominal sample times, as the paper's "
+                     "integrator does; shown for comparison only.")
+    return Table(tuple(header), tuple(rows), widths=tuple(widths),
+                 align="l" + "r" * (len(header) - 1),
+                 caption="Own and apparent drift per axis (docs/method.md B)",
+                 notes=tuple(notes))
+
+
+def _platform_fields(drift: DriftFigures) -> list[tuple[str, str]]:
+    """The site latitude, and the platform's azimuth and horizontal Earth rate from the
+    apparent drifts, against the Earth rate expected there."""
+    fields: list[tuple[str, str]] = []
     if drift.latitude_deg is not None:
         fields.append(("Site latitude", f"{drift.latitude_deg:g}°"))
     plat = drift.platform
@@ -192,8 +220,11 @@ def _drift_results(drift: DriftFigures, number: str) -> list[Section]:
                      + (", consistent" if plat.earth_horizontal_consistent
                         else ", NOT consistent"))
         fields.append(("Horizontal Earth rate from the apparent drifts", text))
-    if fields:
-        blocks.append(Fields(tuple(fields)))
+    return fields
+
+
+def _positions_table(axes: Mapping[str, AxisFigures]) -> Table | None:
+    """The drift per platform position (mean, spread, u of the mean) and per cycle."""
     prow = []
     for axis, ax in axes.items():
         for p in ax.positions:
@@ -204,20 +235,14 @@ def _drift_results(drift: DriftFigures, number: str) -> list[Section]:
                          format_sig(p.mean_dph, 5, signed=True), format_sig(p.std_dph, 2),
                          format_sig(p.mean_ustd_dph, 2), str(n - 1) if n > 1 else "—",
                          ", ".join(format_sig(x, 5, signed=True) for x in p.drifts_dph)))
-    if prow:
-        blocks.append(Table(("Axis", "Position, °", "Cycles", "Mean w̄, °/h", "Std s, °/h",
-                             "u(w̄) = s/√n, °/h", "ν", "Drift per cycle, °/h, in order"),
-                            tuple(prow), widths=(0.5, 0.7, 0.5, 1.1, 0.8, 1.0, 0.4, 3.6),
-                            align="lrrrrrrl",
-                            caption="Drift per platform position and per cycle",
-                            notes=("The position means are inputs of the own and apparent "
-                                   "drifts' budgets (annex): each with its standard "
-                                   "uncertainty and degrees of freedom, no U of its own "
-                                   "(docs/method.md D1, D2).",)))
-    blocks += figure_of("Drift estimate per cycle, by axis and platform position",
-                        plots.drift_cycles, axes)
-    for axis, ax in axes.items():
-        if ax.example_cycle is not None:
-            blocks += figure_of(f"Axis {axis}: U(t) and the integrator output over one cycle",
-                                plots.drift_cycle, axis, ax.example_cycle)
-    return [Section(number, "Results", tuple(blocks))]
+    if not prow:
+        return None
+    return Table(("Axis", "Position, °", "Cycles", "Mean w̄, °/h", "Std s, °/h",
+                  "u(w̄) = s/√n, °/h", "ν", "Drift per cycle, °/h, in order"),
+                 tuple(prow), widths=(0.5, 0.7, 0.5, 1.1, 0.8, 1.0, 0.4, 3.6),
+                 align="lrrrrrrl",
+                 caption="Drift per platform position and per cycle",
+                 notes=("The position means are inputs of the own and apparent "
+                        "drifts' budgets (annex): each with its standard "
+                        "uncertainty and degrees of freedom, no U of its own "
+                        "(docs/method.md D1, D2).",))

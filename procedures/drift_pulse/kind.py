@@ -59,8 +59,10 @@ if TYPE_CHECKING:
     from bench.core.engine import RunContext
     from bench.core.instruments import Bench
     from bench.core.journal import RunDir
-    from bench.core.registry import KindPlan, ProcedureKind, StepHandler
+    from bench.core.registry import KindPlan, StepHandler
     from bench.core.simbench import SimBench, TwinFactory
+    from bench.kind import Kind
+    from bench.report.station import StationParts
     from drivers.awg import WaveformGenerator
     from drivers.dmm import Digitizer
     from procedures.drift_pulse import analysis as dp
@@ -349,8 +351,8 @@ class DriftAnalysis:
 
 
 class DriftPulse:
-    """The drift procedure as a kind (bench/core/registry.py `ProcedureKind`): its parts,
-    the heavy ones (numpy, the certificate, the records) imported when first used."""
+    """The drift procedure as a kind (bench/kind.py `Kind`): its parts, the heavy ones
+    (numpy, the certificate, the records) imported when first used."""
 
     name = NAME
     settings = DriftFiles()
@@ -373,8 +375,14 @@ class DriftPulse:
         from procedures.drift_pulse.records import DriftRecords
         return DriftRecords()
 
+    @cached_property
+    def station(self) -> StationParts:
+        """Nothing of its own on the station's pages: they list its declared figures."""
+        from bench.report.station import StationParts
+        return StationParts()
 
-KIND: ProcedureKind = DriftPulse()
+
+KIND: Kind = DriftPulse()
 
 
 def awg_of(bench: Bench) -> WaveformGenerator:

@@ -3,9 +3,8 @@ records, `bench history`, the trend plot, the station view read them at these pa
 its gyros' own drift as check values of the gyros (measurement assurance), and the
 cells of its certificate the console summary shows.
 
-Mixed into the kind beside its certificate (certificate.py); bench/core/registry.py's
-`ReportsFigures`, `ChecksInstruments`, `SummarisesRun` and `HasSampleResult` are the
-questions these answer.
+The kind's `records` part; bench/kind.py's `RecordsPart`, `ChecksInstruments`,
+`SummarisesRun` and `HasSampleResult` are the questions it answers.
 """
 
 from __future__ import annotations
@@ -13,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from bench.analysis.finite import finite_number as _num
+from bench.kind import SerialOf
 from bench.report.certificate.model import Document, Table
 from bench.report.figures import (
     DeclaredFigures,
@@ -58,16 +58,17 @@ def _opt(x: object) -> str | None:
 
 
 class DriftRecords(DeclaredFigures):
-    """The drift-pulse kind's answers to `ReportsFigures`, `ChecksInstruments` and
+    """The drift-pulse kind's answers to `RecordsPart`, `ChecksInstruments` and
     `SummarisesRun`."""
 
     figures = FIGURES
     check_quantities = {"own_drift_dph": ("deg/h", "drift platform's own drift")}
 
-    def instrument_checks(self, result: Mapping[str, object], stand: Mapping[str, object]
-                          ) -> list[InstrumentCheck]:
+    def instrument_checks(self, result: Mapping[str, object], stand: Mapping[str, object],
+                          serial_of: SerialOf) -> list[InstrumentCheck]:
         """Each gyro's own drift, by the gyro's serial (the stand file's
-        `platform.gyros.<gyro>.serial`, else PLATFORM-SERIAL/gyro)."""
+        `platform.gyros.<gyro>.serial`, else PLATFORM-SERIAL/gyro: a gyro is no axis
+        instrument, so `serial_of`, which places by axis and role, is not asked)."""
         try:
             drift = DriftFigures.of(result)
         except MalformedResult:

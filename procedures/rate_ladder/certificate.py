@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from bench.analysis.coverage import COVERAGE_FORMULA, COVERAGE_RULE, DOF_INFINITE
 from bench.analysis.random_part import std_u_rel
 from bench.analysis.turns import RATE_ERROR_U_FORMULA, REPEATABILITY_FORMULA
-from bench.report.certificate import methods, plots
+from bench.report.certificate import methods
 from bench.report.certificate.model import Block, Para, Section, Table
 from bench.report.certificate.parts import (
     CertificateParts,
@@ -44,7 +44,14 @@ from bench.report.certificate.rounding import (
 )
 from bench.report.result_frame import Check
 from drivers.json_types import JsonObject, JsonValue
-from procedures.rate_ladder.result import LadderAxis, LadderResult, NoiseFloor, RateEntry
+from procedures.rate_ladder import plots
+from procedures.rate_ladder.result import (
+    LadderAxis,
+    LadderResult,
+    NoiseFloor,
+    PairEntry,
+    RateEntry,
+)
 
 # -- the method statement (docs/method.md part A, restated) ---------------------------------
 
@@ -337,11 +344,22 @@ def _ladder_results(src: Sources, number: str, checks: Sequence[Check]
 
 def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Check],
                  every: list[RateEntry]) -> tuple[Block, ...]:
-    """One axis's results; `every` is every axis's rates, so that one quantity has one
-    unit on the whole certificate."""
-    rates, pairs = ax.rates, ax.pairs
+    """One axis's results, in the method's order (A1-A2 per turn, A3 the FOG's
+    cross-calibration, A4 the systematic component, A5 within the turn); `every` is every
+    axis's rates, so that one quantity has one unit on the whole certificate."""
+    blocks = _per_turn_blocks(axis, ax.rates, checks, every)
+    if ax.pairs:
+        blocks.append(_pairs_table(axis, ax.pairs))
+    blocks += _systematic_blocks(axis, ax.rates, every)
+    blocks += _intra_blocks(axis, ax.rates, ax.noise_floor, every)
+    return tuple(blocks)
+
+
+def _per_turn_blocks(axis: str, rates: Sequence[RateEntry], checks: Sequence[Check],
+                     every: list[RateEntry]) -> list[Block]:
+    """A1-A2: each rate's mean, rate error and per-turn instability with its timing floor,
+    the rate error's budget, and their plot against the rate."""
     blocks: list[Block] = []
-    # A1/A2 per-turn
     err_unit = rel_unit(*[v for r in every for v in (num(r.rate_error_rel),
                                                       num(r.rate_error_u_rel))],
                         *[t for c in checks if c.quantity == "rate_error"
@@ -401,46 +419,52 @@ def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Check],
                       plots.per_turn, axis, rates, _tolerances(checks, axis),
                       (f"δ, {err_unit.name}", err_unit.scale),
                          (f"σ, {inst_unit.name}", inst_unit.scale))
-    # A3 cross-calibration
-    if pairs:
-        prow = []
-        has_drift = any(num(p.drift_dps_per_h) is not None for p in pairs)
-        for p in pairs:
-            w0, w0u = num(p.w0_dps), num(p.w0_u_dps)
-            row = [f"±{num(p.rate_dps) or 0:g}", vu_text(p.k, p.k_u),
-                   vu_text(w0, w0u, signed=True),
-                   format_value_u(w0, w0u, 3600.0, signed=True).joined()]
-            if has_drift:
-                row.append(vu_text(p.drift_dps_per_h, p.drift_u_dps_per_h, signed=True))
-            prow.append(tuple(row))
-        header = ["Pair, °/s", "k ± U", "ω0 ± U, °/s", "ω0 ± U, °/h"]
-        notes = []
+    return blocks
+
+
+def _pairs_table(axis: str, pairs: Sequence[PairEntry]) -> Table:
+    """A3: the FOG's scale factor k and bias ω0 per ± pair (with its bias drift when the
+    analysis estimated one), and which half of a resumed pair came from which session."""
+    prow = []
+    has_drift = any(num(p.drift_dps_per_h) is not None for p in pairs)
+    for p in pairs:
+        w0, w0u = num(p.w0_dps), num(p.w0_u_dps)
+        row = [f"±{num(p.rate_dps) or 0:g}", vu_text(p.k, p.k_u),
+               vu_text(w0, w0u, signed=True),
+               format_value_u(w0, w0u, 3600.0, signed=True).joined()]
         if has_drift:
-            header.append("Bias drift ± U, °/s per h")
-            methods_used = sorted({CALIBRATION_METHODS.get(p.method, p.method)
-                                   for p in pairs if p.method})
-            sources = sorted({p.drift_source for p in pairs if p.drift_source})
-            notes.append("ω0 is the bias at the pair's reference time; the FOG's bias drift "
-                         "during the pair is estimated and removed"
-                         + (f" ({'; '.join(methods_used)}" if methods_used else "")
-                         + (f"; drift from {', '.join(sources)})" if sources else
-                            (")" if methods_used else "")) + ".")
-        for p in pairs:  # a resumed pair: which half came from which session (docs/resume.md)
-            hs = p.half_sessions
-            if len(set(hs)) > 1:
-                notes.append(f"Pair ±{num(p.rate_dps) or 0:g} °/s was resumed: "
-                             + ", ".join(f"half {i + 1} from session {s}"
-                                         for i, s in enumerate(hs))
-                             + f". FOG bias {p.bias_model}.")
-        blocks.append(Table(tuple(header), tuple(prow),
-                            widths=(1.0, 2.4, 2.1, 1.9, 2.1)[:len(header)], align="rrrrr"[
-                                :len(header)],
-                            caption=f"Axis {axis}: FOG cross-calibration per ± pair "
-                                    "(docs/method.md A3, eqs. 5-6)", notes=tuple(notes)))
-    # A4 systematic
-    sys_rows, mains_rows = [], []
-    factors: set[float] = set()      # c of the tones' intervals a ± c·u(a) (A4)
-    amp_unit = rel_unit(*[num(h.amplitude_rel) for r in every for h in r.harmonics])
+            row.append(vu_text(p.drift_dps_per_h, p.drift_u_dps_per_h, signed=True))
+        prow.append(tuple(row))
+    header = ["Pair, °/s", "k ± U", "ω0 ± U, °/s", "ω0 ± U, °/h"]
+    notes = []
+    if has_drift:
+        header.append("Bias drift ± U, °/s per h")
+        methods_used = sorted({CALIBRATION_METHODS.get(p.method, p.method)
+                               for p in pairs if p.method})
+        sources = sorted({p.drift_source for p in pairs if p.drift_source})
+        notes.append("ω0 is the bias at the pair's reference time; the FOG's bias drift "
+                     "during the pair is estimated and removed"
+                     + (f" ({'; '.join(methods_used)}" if methods_used else "")
+                     + (f"; drift from {', '.join(sources)})" if sources else
+                        (")" if methods_used else "")) + ".")
+    for p in pairs:  # a resumed pair: which half came from which session (docs/resume.md)
+        hs = p.half_sessions
+        if len(set(hs)) > 1:
+            notes.append(f"Pair ±{num(p.rate_dps) or 0:g} °/s was resumed: "
+                         + ", ".join(f"half {i + 1} from session {s}"
+                                     for i, s in enumerate(hs))
+                         + f". FOG bias {p.bias_model}.")
+    return Table(tuple(header), tuple(prow),
+                 widths=(1.0, 2.4, 2.1, 1.9, 2.1)[:len(header)], align="rrrrr"[:len(header)],
+                 caption=f"Axis {axis}: FOG cross-calibration per ± pair "
+                         "(docs/method.md A3, eqs. 5-6)", notes=tuple(notes))
+
+
+def _harmonic_rows(rates: Sequence[RateEntry], amp_unit: RelUnit, factors: set[float]
+                   ) -> list[tuple[str, ...]]:
+    """A4: each fitted harmonic per rate, relative and in °/s, with its phase; an
+    undetected tone as '< L' (D2). The tones' interval factors c are added to `factors`."""
+    sys_rows: list[tuple[str, ...]] = []
     for r in rates:
         for h in r.harmonics:
             a, au = num(h.amplitude_rel), num(h.amplitude_u_rel)
@@ -459,6 +483,13 @@ def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Check],
                                      resolved=resolved,
                                      upper=upper * w if upper is not None else None).text,
                              present_phase(num(h.phase_deg), num(h.phase_u_deg), resolved)))
+    return sys_rows
+
+
+def _mains_rows(rates: Sequence[RateEntry], factors: set[float]) -> list[tuple[str, ...]]:
+    """A4: the mains-frequency ripple per rate, in °/s and relative, with its phase."""
+    mains_rows: list[tuple[str, ...]] = []
+    for r in rates:
         m = r.mains
         if m is not None and m.doc:
             w = abs(num(r.set_rate_dps) or 0.0)
@@ -476,6 +507,18 @@ def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Check],
                                        upper=upper / w if upper is not None and w
                                        else None).text,
                                present_phase(num(m.phase_deg), num(m.phase_u_deg), resolved)))
+    return mains_rows
+
+
+def _systematic_blocks(axis: str, rates: Sequence[RateEntry], every: list[RateEntry]
+                       ) -> list[Block]:
+    """A4: the fitted harmonics and the mains ripple, and the systematic component plotted
+    against the table angle."""
+    blocks: list[Block] = []
+    factors: set[float] = set()      # c of the tones' intervals a ± c·u(a) (A4)
+    amp_unit = rel_unit(*[num(h.amplitude_rel) for r in every for h in r.harmonics])
+    sys_rows = _harmonic_rows(rates, amp_unit, factors)
+    mains_rows = _mains_rows(rates, factors)
     c_text = (" (c = " + ", ".join(f"{c:.2f}" for c in sorted(factors)) + " here)"
               if factors else "")
     if sys_rows:
@@ -508,9 +551,7 @@ def _axis_blocks(axis: str, ax: LadderAxis, checks: Sequence[Check],
     blocks += figure_of(f"Axis {axis}: systematic component vs table angle with the fitted "
                       "harmonics (cf. paper figs. 8-9)",
                       plots.systematic, axis, rates, amp_unit.scale, amp_unit.name)
-    # A5 intra-turn
-    blocks += _intra_blocks(axis, rates, ax.noise_floor, every)
-    return tuple(blocks)
+    return blocks
 
 
 def _corrected_cell(r: RateEntry, unit: RelUnit) -> str:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 from lxml import etree
 
@@ -149,8 +150,41 @@ def _per_turn_u(b: Mapping[str, object] | None, rates: list[float]) -> list[floa
     return [2 * abs(w) * ((u_t * abs(w) / 360.0) ** 2 + u_tb ** 2) ** 0.5 for w in rates]
 
 
+@dataclass(frozen=True)
+class _Quantities:
+    """Where one rate's quantities go: its result's data, their ids and result.json
+    labels, and the checks each is judged by."""
+
+    data: etree._Element
+    rid: str
+    path: str
+    axis: str
+    w_set: float | None
+    checks: Checks
+
+    def q(self, key: str, title: str, ref: str, unit: str, value: float | None,
+          u: float | None = None, u_stated: bool = False, note: str | None = None,
+          check: str | None = None, label: str | None = None, k: float | None = None,
+          interval: Interval | None = None) -> etree._Element | None:
+        """One quantity; `u_stated`: result.json should carry its U (say so when not)."""
+        v = value
+        if v is None:
+            return None
+        uu = u
+        if uu is None and u_stated and interval is None:
+            note = (note + " " if note else "") + "U not stated in result.json."
+        node = quantity(self.data, ident(self.rid, key), title, ref, v, unit, uu,
+                        label=label or f"{self.path}.{key}", note=note, k=k, interval=interval)
+        if check:
+            judge(node, self.checks.take(self.axis, self.w_set, check), unit)
+        return node
+
+
 def _rate_result(res: etree._Element, axis: str, i: int, r: RateEntry,
                  checks: Checks) -> None:
+    """One commanded rate and direction: its per-turn figures (A1-A2), its intra-turn
+    figures (A5), the rate error's budget, the averaged random part and the fitted
+    systematic component (A4)."""
     w_set = num(r.set_rate_dps)
     tok = rate_token(w_set)
     path = f"axes.{axis}.rates[{i}]"
@@ -162,42 +196,27 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: RateEntry,
     if verdict:
         text_el(result, "description", f"Verdict at this rate: {str(verdict).upper()}.")
     data = el(result, "data")
-
-    def q(key: str, title: str, ref: str, unit: str, value: float | None,
-          u: float | None = None, u_stated: bool = False, note: str | None = None,
-          check: str | None = None, label: str | None = None, k: float | None = None,
-          interval: Interval | None = None) -> etree._Element | None:
-        """One quantity; `u_stated`: result.json should carry its U (say so when not)."""
-        v = value
-        if v is None:
-            return None
-        uu = u
-        if uu is None and u_stated and interval is None:
-            note = (note + " " if note else "") + "U not stated in result.json."
-        node = quantity(data, ident(rid, key), title, ref, v, unit, uu,
-                        label=label or f"{path}.{key}", note=note, k=k, interval=interval)
-        if check:
-            judge(node, checks.take(axis, w_set, check), unit)
-        return node
-
-    q("set_rate_dps", "commanded (set) rate", f"{V.NOMINAL} {SET_RATE}", U.DEG_PER_S, w_set)
-    q("turns", "whole turns timed", TURNS, U.ONE, num(r.turns))
-    cr = [v for v in (num(x) for x in r.counter_rate_dps) if v is not None]
-    mean = num(r.mean_rate_dps)
-    if mean is None and cr:
-        mean = sum(cr) / len(cr)
-    eu = num(r.rate_error_u_rel)
+    qs = _Quantities(data, rid, path, axis, w_set, checks)
     eb = r.rate_error_budget
     ek = num(eb.get("coverage_factor")) if eb is not None else None      # docs/method.md D1: k = t_95.45(nu_eff)
-    if mean is not None:
-        q("mean_rate_dps", "mean rate over the turns (counter, docs/method.md A2)", V.MEASURED,
-          U.DEG_PER_S, mean, u=eu * abs(w_set) if eu is not None and w_set else None,
-          note="U = U(rate error) x |set rate|.", k=ek)
-    q("rate_error_rel", "per-turn rate error (mean - set) / set (docs/method.md A2 eq. 1, "
-      "signed)", f"{V.ERROR} {RATE_ERROR}", U.ONE, num(r.rate_error_rel), eu, u_stated=True,
-      check="rate_error", k=ek)
-    # docs/method.md D2: sigma as its chi-square interval when resolved above the timing
-    # floor, else as '< L' (L never below the floor): never a normal +/- U
+    _per_turn(qs, r, ek)
+    _intra_turn(qs, r)
+    budget_list(data, ident(rid, "budget"),
+                "uncertainty budget of the rate error: standard uncertainties (k = 1) relative "
+                f"to |set|; U = k sqrt(sum u^2), k = {ek or 2.0:.2f} = t_95.45(nu_eff) "
+                "(docs/method.md A1-A2, D1)",
+                eb, f"{path}.rate_error_budget",
+                (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
+                 ("repeatability_u_rel", "repeatability (Type A)"),
+                 ("timebase_correction_u_rel", "time-base correction applied")), U.ONE)
+    _averaged(data, rid, path, r.intra.averaged)
+    _systematic(data, rid, path, r)
+
+
+def _instability_interval(r: RateEntry) -> Interval | None:
+    """docs/method.md D2: sigma as its chi-square interval when resolved above the timing
+    floor, else as '< L' (L never below the floor): never a normal +/- U (None: the
+    result states no interval)."""
     s_val, s_lo, s_hi = (num(r.rate_instability_rel), num(r.rate_instability_lower_rel),
                          num(r.rate_instability_upper_rel))
     s_floor = num(r.rate_instability_floor_rel)
@@ -211,21 +230,50 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: RateEntry,
             s_top = max(s_hi, s_floor or 0.0)
             s_iv = limit_interval(s_top, "chi-square (N - 1 dof), one-sided upper limit",
                                   _stated_or(s_ustd, s_top / 4.0))
+    return s_iv
+
+
+def _per_turn(qs: _Quantities, r: RateEntry, ek: float | None) -> None:
+    """A1-A2: the set rate, the turns, the mean rate, the rate error, the instability with
+    its timing floor, and the per-turn rates."""
+    q, w_set = qs.q, qs.w_set
+    q("set_rate_dps", "commanded (set) rate", f"{V.NOMINAL} {SET_RATE}", U.DEG_PER_S, w_set)
+    q("turns", "whole turns timed", TURNS, U.ONE, num(r.turns))
+    cr = [v for v in (num(x) for x in r.counter_rate_dps) if v is not None]
+    mean = num(r.mean_rate_dps)
+    if mean is None and cr:
+        mean = sum(cr) / len(cr)
+    eu = num(r.rate_error_u_rel)
+    if mean is not None:
+        q("mean_rate_dps", "mean rate over the turns (counter, docs/method.md A2)", V.MEASURED,
+          U.DEG_PER_S, mean, u=eu * abs(w_set) if eu is not None and w_set else None,
+          note="U = U(rate error) x |set rate|.", k=ek)
+    q("rate_error_rel", "per-turn rate error (mean - set) / set (docs/method.md A2 eq. 1, "
+      "signed)", f"{V.ERROR} {RATE_ERROR}", U.ONE, num(r.rate_error_rel), eu, u_stated=True,
+      check="rate_error", k=ek)
+    s_iv = _instability_interval(r)
     q("rate_instability_rel", "per-turn rate instability, relative std of the per-turn rates "
-      "(docs/method.md A2 eq. 2)", RATE_INSTABILITY, U.ONE, s_val,
+      "(docs/method.md A2 eq. 2)", RATE_INSTABILITY, U.ONE, num(r.rate_instability_rel),
       None if s_iv is not None else num(r.rate_instability_u_rel), u_stated=s_iv is None,
       check="rate_instability",
       interval=s_iv, note=None if s_iv is None or r.rate_instability_resolved else
       "not resolved above the timing floor: stated as < L, L the interval's upper end "
       "(docs/method.md D2)")
     q("rate_instability_floor_rel", "timing floor of the instability (counter and zero-mark "
-      "timing alone, docs/method.md A1)", TIMING_FLOOR, U.ONE, s_floor)
+      "timing alone, docs/method.md A1)", TIMING_FLOOR, U.ONE,
+      num(r.rate_instability_floor_rel))
     if cr:
-        us = _per_turn_u(eb, cr)
-        list_quantity(data, ident(rid, "counter_rate_dps"), "per-turn rates from the counter, "
+        us = _per_turn_u(r.rate_error_budget, cr)
+        list_quantity(qs.data, ident(qs.rid, "counter_rate_dps"), "per-turn rates from the counter, "
                       "in turn order (docs/method.md A1)", f"{V.MEASURED} {PER_TURN}", cr,
                       U.DEG_PER_S, us, note=None if us is not None else
                       "U not stated: result.json carries no timing budget for this rate.")
+
+
+def _intra_turn(qs: _Quantities, r: RateEntry) -> None:
+    """A5: the intra-turn instability, raw and with the FOG's noise floor removed, with
+    the floor and the corrected value's upper limit."""
+    q, path = qs.q, qs.path
     intra = r.intra
     # as the PDF (docs/method.md D2): +/- U only when raw - U > the FOG floor (the
     # analysis's raw_resolved); else '< L' as [0, L], L = raw + U never below the floor
@@ -262,16 +310,6 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: RateEntry,
         q("corrected_upper_rel", "upper limit L (JCGM 101, 97.5 % quantile) of the "
           "floor-corrected intra-turn instability", INTRA_TURN_UPPER, U.ONE, upper,
           label=f"{path}.intra_turn.corrected_upper_rel")
-    budget_list(data, ident(rid, "budget"),
-                "uncertainty budget of the rate error: standard uncertainties (k = 1) relative "
-                f"to |set|; U = k sqrt(sum u^2), k = {ek or 2.0:.2f} = t_95.45(nu_eff) "
-                "(docs/method.md A1-A2, D1)",
-                eb, f"{path}.rate_error_budget",
-                (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counter timebase"),
-                 ("repeatability_u_rel", "repeatability (Type A)"),
-                 ("timebase_correction_u_rel", "time-base correction applied")), U.ONE)
-    _averaged(data, rid, path, r.intra.averaged)
-    _systematic(data, rid, path, r)
 
 
 def _averaged(data: etree._Element, rid: str, path: str, rows: JsonValue) -> None:

@@ -43,14 +43,16 @@ if TYPE_CHECKING:
     from bench.core.engine import RunContext
     from bench.core.instruments import Bench
     from bench.core.journal import RunDir
-    from bench.core.registry import ProcedureKind, StepHandler
+    from bench.core.registry import StepHandler
     from bench.core.simbench import SimBench
+    from bench.kind import Kind
     from bench.report.dcc.parts import DccParts
     from drivers.counter import Acquisition, Counter
     from drivers.fog import Fog
     from procedures.rate_ladder.certificate import LadderCertificate
     from procedures.rate_ladder.events import PairLooked
     from procedures.rate_ladder.records import LadderRecords
+    from procedures.rate_ladder.station import LadderStation
 
 #: what the analysis worker imports when it starts, before the first pair's look (the
 #: look's modules and the fit's scipy; bench/core/engine.py `_preload`)
@@ -536,8 +538,9 @@ class LadderAnalysis:
 
 
 class RateLadder:
-    """The rate ladder as a kind (bench/core/registry.py `ProcedureKind`): its parts,
-    the heavy ones (numpy, the certificate, the records) imported when first used."""
+    """The rate ladder as a kind (bench/kind.py `Kind`): its parts, the heavy ones
+    (numpy, the certificate, the records, the station's tables) imported when first
+    used."""
 
     name = NAME
     settings = LadderFiles()
@@ -560,8 +563,13 @@ class RateLadder:
         from procedures.rate_ladder.records import LadderRecords
         return LadderRecords()
 
+    @cached_property
+    def station(self) -> LadderStation:
+        from procedures.rate_ladder.station import LadderStation
+        return LadderStation()
 
-KIND: ProcedureKind = RateLadder()
+
+KIND: Kind = RateLadder()
 
 
 def time_tie_record(counter: Counter, acq: Acquisition, fog: Fog

@@ -2,9 +2,9 @@
 records, `bench history`, the trend plot, the station view read these), read from
 result.json, and the cells of its certificate the console summary shows.
 
-Mixed into the kind beside its certificate (certificate.py); bench/core/registry.py's
-`ReportsFigures`, `SummarisesRun`, `HasSampleResult` and `HasStarterFiles` are the
-questions these answer.
+The kind's `records` part; bench/kind.py's `RecordsPart`, `SummarisesRun`,
+`ChecksInstruments` (the FOG's check values), `HasSampleResult` and `HasStarterFiles` are
+the questions it answers.
 """
 
 from __future__ import annotations
@@ -14,11 +14,21 @@ from collections.abc import Mapping
 from typing import Any
 
 from bench.analysis.finite import finite_number as _num
-from bench.report.axes_view import AxisRows
+from bench.analysis.random_part import std_u_rel
+from bench.kind import SerialOf
 from bench.report.certificate.model import Document, Table
-from bench.report.figures import FigureSpec, FigureValue, SummaryCut, Trend, joined, tables_of
-from bench.report.result_frame import Issues, JsonObject, MalformedResult
+from bench.report.figures import (
+    FigureSpec,
+    FigureValue,
+    InstrumentCheck,
+    SummaryCut,
+    Trend,
+    joined,
+    tables_of,
+)
+from bench.report.result_frame import Issues, JsonObject
 from procedures.rate_ladder import starter
+from procedures.rate_ladder.axes_view import AxisRows, axes_of
 from procedures.rate_ladder.result import LadderResult, conform_ladder
 from procedures.rate_ladder.sample import rate_ladder_result
 
@@ -66,6 +76,15 @@ FIGURES = (
                rate_key=_PAIR, rate_is_magnitude=True),
 )
 
+#: the FOG's check values, their unit and what the control chart calls them
+#: (`ChecksInstruments.check_quantities`)
+CHECK_QUANTITIES: dict[str, tuple[str, str]] = {
+    "k": ("1", "FOG scale k (eq. 5)"),
+    "w0_dps": ("deg/s", "FOG bias w0 (eq. 6)"),
+    "noise_floor_dps": ("deg/s", "FOG noise floor at rest, std"),
+    "bias_at_rest_dps": ("deg/s", "FOG bias at rest, mean of the static record"),
+}
+
 # the console summary: (caption after "Axis <name>: ", header prefix, header shown)
 LADDER_COLUMNS = (
     ("per-turn rate error", "Set rate", None),
@@ -100,8 +119,38 @@ def _axis_tables(doc: Document) -> dict[str, dict[str, Table]]:
     return out
 
 
+def _fog_checks(axis: str, axis_rows: AxisRows, serial: str, model: str | None
+                ) -> list[InstrumentCheck]:
+    """One axis's FOG check values: k and w0 per pair's |rate|; the std of the static
+    record with the U of a std from its samples (chi-square, normal data), and its mean,
+    whose standard uncertainty is no more than the Allan deviation at the longest
+    averaging time computed (white and flicker noise: sigma_A(tau) falls or stays flat
+    as tau grows), docs/method.md C1."""
+    out = []
+
+    def add(q: str, rate: float | None, v: object, u: object) -> None:
+        x = _num(v)
+        if x is not None:
+            out.append(InstrumentCheck(serial, "fog", model, axis, q, rate, x, _num(u),
+                                       CHECK_QUANTITIES[q][0]))
+
+    for pair_entry in axis_rows.pairs:
+        rate = abs(pair_entry.rate_dps)
+        add("k", rate, pair_entry.k, pair_entry.k_U)
+        add("w0_dps", rate, pair_entry.w0_dps, pair_entry.w0_U_dps)
+    at_rest = axis_rows.noise_floor
+    if at_rest is not None:
+        std = _num(at_rest.sample_std_dps)
+        if std is not None:
+            add("noise_floor_dps", None, std, std_u_rel(std, at_rest.samples or 0))
+        adev = [x for x in at_rest.allan_dev_dps if x]
+        add("bias_at_rest_dps", None, at_rest.mean_dps, 2.0 * adev[-1] if adev else None)
+    return out
+
+
 class LadderRecords:
-    """The ladder's answers to `ReportsFigures`, `SummarisesRun` and `ShowsAxes`."""
+    """The ladder's answers to the records part (`RecordsPart`), `SummarisesRun`,
+    `ChecksInstruments`, `HasSampleResult` and `HasStarterFiles` (bench/kind.py)."""
 
     figures = FIGURES
 
@@ -111,13 +160,23 @@ class LadderRecords:
         issues = Issues(strict=False)
         return conform_ladder(dict(result), issues), issues.dropped
 
-    def axes_view(self, result: Mapping[str, object]) -> Mapping[str, AxisRows]:
-        """The ladder's own typed axes (`ShowsAxes`: the station's tables, the FOG's
-        checks); {} for a result that is not a JSON object."""
-        try:
-            return LadderResult.conform(result)[0].axes
-        except MalformedResult:
-            return {}
+    check_quantities = CHECK_QUANTITIES
+
+    def instrument_checks(self, result: Mapping[str, object], stand: Mapping[str, object],
+                          serial_of: SerialOf) -> list[InstrumentCheck]:
+        """Each axis's FOG, as the run measured it: k and w0 per |rate| (eq. 5-6), its
+        noise floor and bias at rest (docs/method.md C1), by the FOG's serial."""
+        axes = axes_of(result)
+        stand_axes = stand.get("axes")
+        out: list[InstrumentCheck] = []
+        for axis, conf in (stand_axes.items() if isinstance(stand_axes, Mapping) else ()):
+            fog = conf.get("fog") if isinstance(conf, Mapping) else None
+            rows = axes.get(axis)
+            if isinstance(fog, Mapping) and rows is not None:
+                model = fog.get("model")
+                out += _fog_checks(axis, rows, serial_of(axis, "fog", fog),
+                                   None if model in (None, "") else str(model))
+        return out
 
     def figure_values(self, result: Mapping[str, object]) -> list[FigureValue]:
         ladder, _ = LadderResult.conform(result)

@@ -82,8 +82,9 @@ def _binned(set_dps: float) -> dict[str, Any]:
             "peak_to_peak_rel": float(np.ptp(model + ripple))}
 
 
-def rate_ladder_result() -> dict[str, Any]:
-    """Two axes; outer 10 and 50 deg/s, inner 20 deg/s; guard-band decision rule."""
+def _rates() -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """(outer, inner): outer at +/-10 and +/-50 deg/s, failing its tolerance at 50 with
+    the paper's binned average there; inner at +/-20 deg/s with one harmonic."""
     h_in = [{"order": 1, "amplitude_rel": 2.0e-4, "amplitude_u_rel": 2.4e-5,
              "phase_deg": 120.0, "phase_u_deg": 7.0, "detected": True}]
     outer = [
@@ -103,6 +104,11 @@ def rate_ladder_result() -> dict[str, Any]:
         _rate(-20.0, 4, -1.0e-7, 3.5e-7, 2.2e-8, 1.9e-8, 5.2e-4, 6.1e-6, "pass",
               h_in, 1.1e-4, (1.0e-4, 1.5e-5, 5.1e-7)),
     ]
+    return outer, inner
+
+
+def _pairs() -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """(outer, inner): each pair's k and w0 with U, the bias drift fitted out."""
     drift = {"method": "lsq-drift", "drift_source": "the three halves (+, -, +)"}
     pairs_outer = [
         {"rate_dps": 10.0, "k": 1.000299, "k_u": 2.34e-6, "w0_dps": 0.002013,
@@ -115,7 +121,12 @@ def rate_ladder_result() -> dict[str, Any]:
     pairs_inner = [{"rate_dps": 20.0, "k": 0.9994985, "k_u": 1.2e-6, "w0_dps": -0.002994,
                     "w0_u_dps": 1.2e-4, "drift_dps_per_h": 0.00201,
                     "drift_u_dps_per_h": 0.00030, **drift}]
+    return pairs_outer, pairs_inner
 
+
+def _checks() -> list[dict[str, Any]]:
+    """The rate error per rate under the guard-band rule (each of its three outcomes),
+    and one instability check."""
     def check(axis: str, rate: float, value: float, u: float, verdict: str, reason: str,
               quantity: str = "rate_error", tol: float = 1.0e-6) -> dict[str, Any]:
         return {"axis": axis, "set_rate_dps": rate, "quantity": quantity,
@@ -133,10 +144,23 @@ def rate_ladder_result() -> dict[str, Any]:
         check("inner", -20.0, -1.0e-7, 3.5e-7, "pass", "|δ| + U ≤ T"),
         check("outer", 10.0, 2.6e-8, 2.2e-8, "pass", "σ + U ≤ T", "rate_instability", 1e-5),
     ]
+    return checks
+
+
+def _raw_files() -> list[dict[str, Any]]:
+    """The raw files of one session, each hashed."""
     files = [(layout.raw_relpath(1, name), size) for name, size in (
         (layout.fog_capture("outer"), 4_321_000), (layout.counter_log("outer"), 18_211),
         (layout.drive_log("outer"), 120_554), (layout.fog_capture("inner"), 2_160_000),
         (layout.counter_log("inner"), 9_120), (layout.drive_log("inner"), 60_100))]
+    return [{"path": p, "sha256": f"{i:02x}" * 32, "bytes": n}
+            for i, (p, n) in enumerate(files, start=1)]
+
+
+def rate_ladder_result() -> dict[str, Any]:
+    """Two axes; outer 10 and 50 deg/s, inner 20 deg/s; guard-band decision rule."""
+    outer, inner = _rates()
+    pairs_outer, pairs_inner = _pairs()
     return {
         "schema": "bench.result/1",
         "procedure": "rate-ladder",
@@ -166,8 +190,7 @@ def rate_ladder_result() -> dict[str, Any]:
                    "tolerance": {"rate_error": [{"below_dps": 10, "rel": 1.0e-5},
                                                 {"rel": 1.0e-6}],
                                  "rate_instability": [{"rel": 1.0e-5}]}},
-        "raw_files": [{"path": p, "sha256": f"{i:02x}" * 32, "bytes": n}
-                      for i, (p, n) in enumerate(files, start=1)],
+        "raw_files": _raw_files(),
         "sessions": 2,
         "aborted": False,
         "axes": {
@@ -178,5 +201,5 @@ def rate_ladder_result() -> dict[str, Any]:
                       "noise_floor": {"source": "static record", "noise_dps": 0.0101,
                                       "rate_hz": 1000.0, "duration_s": 30.0}},
         },
-        "checks": checks,
+        "checks": _checks(),
     }

@@ -29,8 +29,9 @@ from bench.app.certificate.register import Issue
 from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.journal import sha256_file
-from bench.core.registry import procedure_kind, procedure_names
+from bench.core.registry import procedure_names
 from bench.core.traceability import with_declared_serials
+from bench.kind import CertificatePart, installed
 from bench.report.budget import budget_sites
 from bench.report.certificate import methods
 from bench.report.certificate.model import Block, Document, Fields, Para, Section, Signatures, Table
@@ -143,7 +144,7 @@ class Procedure:
     """The run's procedure kind, as the certificate sees it: its name and its answers."""
 
     name: str
-    parts: CertificateParts
+    parts: CertificatePart
 
     @property
     def title(self) -> str:
@@ -166,12 +167,9 @@ def procedure_of(src: Sources) -> Procedure:
     return Procedure(name, _parts(name))
 
 
-def _parts(name: str) -> CertificateParts:
-    try:
-        kind = procedure_kind(name)
-    except (KeyError, ImportError, AttributeError):   # not installed here
-        return NEUTRAL
-    return kind.certificate if isinstance(kind.certificate, CertificateParts) else NEUTRAL
+def _parts(name: str) -> CertificatePart:
+    kind = installed(name)
+    return kind.certificate if kind is not None else NEUTRAL
 
 
 def build_document(result: Mapping[str, object], run_path: Path | None = None,

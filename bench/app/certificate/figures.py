@@ -88,14 +88,15 @@ def _draw(key: bytes) -> bytes | None:
 
 
 def _worker_started(claims: Claims) -> None:
-    """A worker leaves an interrupt to its parent, and loads what every figure needs."""
+    """A worker leaves an interrupt to its parent, and loads what every figure needs (a
+    kind's plots module is loaded with its first figure's drawing function)."""
     global _CLAIMS
     _CLAIMS = claims
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     import matplotlib.backends.backend_agg  # noqa: F401
     import matplotlib.figure  # noqa: F401
 
-    import bench.report.certificate.plots  # noqa: F401
+    import bench.report.certificate.plotting  # noqa: F401
 
 
 def _started() -> None:

@@ -9,7 +9,8 @@ import sys
 from pathlib import Path
 
 from bench.app.certificate import render_files
-from bench.core.registry import HasSampleResult, installed_records, procedure_names
+from bench.core.registry import procedure_names
+from bench.kind import HasSampleResult, installed_records
 
 
 def main(out: Path) -> None:

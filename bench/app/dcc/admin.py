@@ -6,7 +6,7 @@ digests). What nobody recorded says "not recorded"; nothing is invented.
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 from lxml import etree
 
@@ -21,12 +21,12 @@ from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.events import Event
 from bench.core.lab import Lab
+from bench.kind import CertificatePart, DccPart
 from bench.report.certificate import methods
-from bench.report.certificate.parts import CertificateParts, stand_of
+from bench.report.certificate.parts import stand_of
 from bench.report.corrections import statements as correction_statements
 from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import ILAC_G8, RULE_REFERENCE
-from bench.report.dcc.parts import DccParts
 from bench.report.dcc.xml import NOT_RECORDED, el, name, num, statement, text_el
 from bench.report.result_frame import JsonObject
 
@@ -50,14 +50,26 @@ def _event(src: Sources, kind: type[Event], last: bool = False) -> str | None:
 
 
 def administrative(adm: etree._Element, src: Sources, lab: Lab,
-                   parts: CertificateParts, kind: DccParts, issue: Issue,
+                   parts: CertificatePart, kind: DccPart, issue: Issue,
                    today: str) -> None:
     """`parts` answers as on the certificate (its closing statements), `kind` for the DCC
     (the item). `issue` is the PDF's: a draft (no mainSigner, a DRAFT statement and no
     issueDate: the PDF says "none", and DCC 3.3.0 makes the element optional) or the
     issue `bench authorise` records (its authoriser the mainSigner, its date of issue)."""
     cert = src.frame.certificate or src.procedure_file.get("certificate", {}) or {}
-    soft = el(adm, "dccSoftware")
+    _software(el(adm, "dccSoftware"), src)
+    _ref_types(el(adm, "refTypeDefinitions"))
+    country = lab.country or cert.get("country_code")
+    _core_data(el(adm, "coreData"), src, lab, country, issue, today)
+    _item(el(adm, "items"), src, kind)
+    _laboratory(el(adm, "calibrationLaboratory"), lab)
+    _people(el(adm, "respPersons"), src, issue)
+    _customer(el(adm, "customer"), cert)
+    _statements(el(adm, "statements"), src, parts, country, issue, lab)
+
+
+def _software(soft: etree._Element, src: Sources) -> None:
+    """This bench's release, which wrote the DCC, and the one that ran the measurement."""
     versions = dict.fromkeys([bench.__version__, str(src.meta.get("bench_version") or
                                                      bench.__version__)])
     for i, version in enumerate(versions):
@@ -66,15 +78,22 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
         el(sw, "release", version)
         el(sw, "type", "application")
         text_el(sw, "description", "wrote this DCC" if i == 0 else "ran the measurement")
-    defs = el(adm, "refTypeDefinitions")
+
+
+def _ref_types(defs: etree._Element) -> None:
+    """The namespaces of the refTypes used (docs/dcc.md)."""
     for ns in V.NAMESPACES:
         d = el(defs, "refTypeDefinition")
         name(d, ns.name)
         text_el(d, "description", ns.description)
         el(d, "namespace", ns.prefix)
         el(d, "link", ns.link)
-    core = el(adm, "coreData")
-    country = lab.country or cert.get("country_code")
+
+
+def _core_data(core: etree._Element, src: Sources, lab: Lab, country: object, issue: Issue,
+               today: str) -> None:
+    """Country, languages, the certificate's number, the run's identifications, when and
+    where the work was done, the date of issue and what a re-issue replaces."""
     el(core, "countryCodeISO3166_1", str(country or UNKNOWN_COUNTRY))
     el(core, "usedLangCodeISO639_1", "en")
     el(core, "mandatoryLangCodeISO639_1", "en")
@@ -108,8 +127,10 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
         change = el(core, "reportAmendedSubstituted")
         el(change, "typeOfChange", "substituted")
         el(change, "replacedUniqueIdentifier", issue.replaces)
-    _item(el(adm, "items"), src, kind)
-    labx = el(adm, "calibrationLaboratory")
+
+
+def _laboratory(labx: etree._Element, lab: Lab) -> None:
+    """The laboratory as its settings name it, its address as the PDF prints it."""
     if lab.code:
         el(labx, "calibrationLaboratoryCode", lab.code)
     contact = el(labx, "contact")
@@ -120,10 +141,12 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
         el(contact, "phone", lab.phone)
     # the address as the PDF prints it, after its parts (where the lab file gives them)
     _location(contact, (*lab.location, *((("further", lab.address),) if lab.address else ())))
-    persons = el(adm, "respPersons")
-    # as the PDF's authorisation section (bench/app/certificate/people.py): the performer
-    # the register authenticated (or "not recorded"), then, on an issue, its signatory
-    # as main signer; a draft names no one who would sign it
+
+
+def _people(persons: etree._Element, src: Sources, issue: Issue) -> None:
+    """As the PDF's authorisation section (bench/app/certificate/people.py): the performer
+    the register authenticated (or "not recorded"), then, on an issue, its signatory as
+    main signer; a draft names no one who would sign it."""
     performed, how = performer(src.meta)
     people = [(performed, f"{PERFORMED_BY} ({how})", False)]
     if not issue.draft:
@@ -136,14 +159,16 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
         el(rp, "role", role)
         if main:
             el(rp, "mainSigner", "true")
-    customer = el(adm, "customer")
+
+
+def _customer(customer: etree._Element, cert: Mapping[str, object]) -> None:
+    """The customer, with the address and contact the certificate settings give."""
     name(customer, str(cert.get("customer") or f"customer {NOT_RECORDED}"))
     where = cert.get("customer_address") or cert.get("customer_location")
     fields = [("further", str(where))] if where else []
     if cert.get("customer_contact"):
         fields.append(("further", f"Contact: {cert['customer_contact']}"))
     _location(customer, fields)
-    _statements(el(adm, "statements"), src, parts, country, issue, lab)
 
 
 def _location(parent: etree._Element, fields: Sequence[tuple[str, str]]) -> None:
@@ -155,7 +180,7 @@ def _location(parent: etree._Element, fields: Sequence[tuple[str, str]]) -> None
             el(loc, tag, value)
 
 
-def _item(items: etree._Element, src: Sources, kind: DccParts) -> None:
+def _item(items: etree._Element, src: Sources, kind: DccPart) -> None:
     stand = stand_of(src)
     item = el(items, "item", id="item")
     what, named_axes = kind.dcc_item(src)
@@ -180,8 +205,34 @@ def _item(items: etree._Element, src: Sources, kind: DccParts) -> None:
     name(idn, "Serial number")
 
 
-def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
+def _statements(sts: etree._Element, src: Sources, parts: CertificatePart,
                 country: object, issue: Issue, lab: Lab) -> None:
+    """The statements, in the PDF's order: the authorisation (or the draft's), the
+    corrections applied, the closing statements the kind's results take, the PDF's
+    authority, the overall conformity, what the PDF says of the stand and its equipment,
+    and the raw files' digests."""
+    _authorisation(sts, issue)
+    for text in correction_statements(src.result):    # issue 58: as the PDF says it
+        statement(sts, None, text, title="Corrections applied")
+    first = methods.STATEMENTS[0]
+    for text in parts.certificate_statements(methods.STATEMENTS):   # those the PDF prints
+        refs = ("7.8.2.1 l)",) if text == first else ("7.8",)
+        text = (text.replace("as identified in section 1", "identified under items")
+                .replace("printed in % or in ppm (1 ppm = 0.0001 %) as the column header "
+                         "states", "given here as plain fractions (unit \\one); the PDF "
+                         "prints them in % or ppm"))
+        statement(sts, None, text, norms=("ISO/IEC 17025:2017",), references=refs)
+    statement(sts, None, "The PDF embedded here (certificate.pdf, under document) is the "
+              "authoritative form of this certificate; this XML carries the same results, "
+              "unrounded, for machines to read.")
+    _conformity(sts, src)
+    _stand_statements(sts, src, lab, country)
+    _digests(sts, src)
+
+
+def _authorisation(sts: etree._Element, issue: Issue) -> None:
+    """A draft's DRAFT, NOT AUTHORISED; an issue's authoriser, with its electronic
+    signature, its receipt and what a re-issue replaces."""
     if issue.draft:
         statement(sts, V.DRAFT, "DRAFT, NOT AUTHORISED: this draft has not been authorised "
                   "for issue and is not a certificate; `bench authorise RUN_DIR --signatory "
@@ -202,19 +253,11 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
                      + (" What changed: " + "; ".join(issue.changes) + "."
                         if issue.changes else ""))
         statement(sts, V.AUTHORISATION, text, sid="authorisation", title="Authorisation")
-    for text in correction_statements(src.result):    # issue 58: as the PDF says it
-        statement(sts, None, text, title="Corrections applied")
-    first = methods.STATEMENTS[0]
-    for text in parts.certificate_statements(methods.STATEMENTS):   # those the PDF prints
-        refs = ("7.8.2.1 l)",) if text == first else ("7.8",)
-        text = (text.replace("as identified in section 1", "identified under items")
-                .replace("printed in % or in ppm (1 ppm = 0.0001 %) as the column header "
-                         "states", "given here as plain fractions (unit \\one); the PDF "
-                         "prints them in % or ppm"))
-        statement(sts, None, text, norms=("ISO/IEC 17025:2017",), references=refs)
-    statement(sts, None, "The PDF embedded here (certificate.pdf, under document) is the "
-              "authoritative form of this certificate; this XML carries the same results, "
-              "unrounded, for machines to read.")
+
+
+def _conformity(sts: etree._Element, src: Sources) -> None:
+    """The overall statement of conformity under the run's decision rule (ILAC-G8), with
+    the checks not assessed and the consistency checks counted apart."""
     verdict = (src.frame.verdict or "incomplete").lower()
     rule = src.frame.decision_rule or "simple"
     overall = {"pass": "pass", "fail": "fail"}.get(verdict)
@@ -229,6 +272,12 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
     statement(sts, V.CONFORMITY, text, sid="overallConformity", title="Conformity",
               norms=(ILAC_G8,), references=(RULE_REFERENCE.get(rule, rule),),
               conformity=overall)
+
+
+def _stand_statements(sts: etree._Element, src: Sources, lab: Lab, country: object) -> None:
+    """As the PDF: the item's location, a simulated stand, the equipment and its identity,
+    the item as received and as left, settings and their read-back, the accreditation,
+    and a country not configured."""
     stand = stand_of(src)
     if stand.get("location"):
         st = statement(sts, V.LOCATION, "Location of the item during the calibration.")
@@ -262,7 +311,6 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificateParts,
         statement(sts, V.COUNTRY_UNKNOWN, "The laboratory configured no country: the "
                   f"country code {UNKNOWN_COUNTRY} (ISO 3166-1 user-assigned) stands for "
                   "'not recorded'.")
-    _digests(sts, src)
 
 
 def _digests(sts: etree._Element, src: Sources) -> None:

@@ -16,9 +16,9 @@ import bench
 from bench.app.certificate.build import Sources
 from bench.app.certificate.conditions import NOT_MEASURED, condition_rows
 from bench.app.certificate.equipment import NONE, equipment_list
+from bench.kind import DccPart
 from bench.report.dcc import units as U
 from bench.report.dcc import vocab as V
-from bench.report.dcc.parts import DccParts
 from bench.report.dcc.xml import (
     DCC_NS,
     LANG,
@@ -53,7 +53,7 @@ def method_sections() -> tuple[bytes, dict[str, tuple[str, str]]]:
     return data, sections
 
 
-def methods_and_conditions(results: etree._Element, src: Sources, kind: DccParts) -> None:
+def methods_and_conditions(results: etree._Element, src: Sources, kind: DccPart) -> None:
     used = el(results, "usedMethods")
     document, sections = method_sections()
     reference, followed = kind.dcc_used_methods(src)

@@ -33,7 +33,7 @@ from bench.app.dcc.used_methods import methods_and_conditions
 from bench.app.dcc.validate import SCHEMA_LOCATION
 from bench.core import rundir_layout as layout
 from bench.core.lab import Lab, run_lab
-from bench.core.registry import installed_kind
+from bench.kind import installed
 from bench.report.dcc.budgets import budget_results
 from bench.report.dcc.conformity import Checks, checks_of, leftover_checks
 from bench.report.dcc.parts import DccParts
@@ -62,9 +62,8 @@ def build_dcc(inputs: DccInputs) -> etree._ElementTree:
     """The DCC as an lxml tree (unsigned); `bench.app.dcc.validate` checks it."""
     src = Sources.load(inputs.result, inputs.run_path)
     proc = procedure_of(src)        # the kind, found as the certificate finds it
-    installed = installed_kind(proc.name)
-    part = installed.dcc if installed is not None else None
-    kind = part if isinstance(part, DccParts) else NEUTRAL
+    found = installed(proc.name)
+    kind = found.dcc if found is not None else NEUTRAL
     checks = Checks(checks_of(src))
     root = el(None, "digitalCalibrationCertificate", schemaVersion="3.3.0")
     root.set(f"{{{XSI_NS}}}schemaLocation", SCHEMA_LOCATION)

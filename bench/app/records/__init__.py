@@ -51,8 +51,8 @@ Measurement assurance (ISO/IEC 17025 7.7; checks.py, control.py, assurance.py):
     assurance.assurance_refusals(run_dir, records_url) -> [str]  (bench authorise)
 
 Quantities (`FigureRecord.quantity`, unit in the name as in result.json): what the run's
-procedure kind declares (`bench.report.figures.FigureSpec`, `bench.core.registry.ReportsFigures`;
-`bench.core.registry.declared_figures(kinds)` lists them with words, units and result.json
+procedure kind declares (`bench.report.figures.FigureSpec`, `bench.kind.RecordsPart`;
+`bench.kind.declared_figures(kinds)` lists them with words, units and result.json
 paths). The records store the rows the kind reads from result.json, with its checks'
 tolerance and verdict; no kind is guessed from the keys of a result.
 Times are UTC-aware datetimes. All dataclasses are frozen.

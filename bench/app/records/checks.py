@@ -6,13 +6,12 @@ figures, per instrument serial, with their U (k = 2), so the control charts
 (`control.py`) can tell a FOG whose scale factor jumped from one that is stable
 (docs/method.md C1 says what each value is and where its U comes from):
 
-    fog      k and w0 per |rate| (eq. 5-6, result.json axes.<axis>.pairs[]); noise floor
-             (std of the static record) and bias at rest (its mean)
     counter  zero-mark timing jitter (second differences of the edges of each half);
              the reference read back (1 = external reference, 0 = internal)
     drive    settle time beyond the ramp, and the rate ripple it reports while timed
-    others   what the run's procedure kind says of the instruments only it knows
-             (`bench.core.registry.ChecksInstruments`; a gyro platform's own drift per gyro)
+    others   what the run's procedure kind says of the instruments it measures
+             (`bench.kind.ChecksInstruments`: the FOGs' scale and bias, a gyro
+             platform's own drift per gyro)
 
 Everything is read from the run directory's own files, so `bench records import` keeps
 the same values as the end of the run did.
@@ -29,8 +28,8 @@ from bench.analysis.finite import finite_number as _num
 from bench.core import rundir_layout as layout
 from bench.core.events import Event, StepStarted, TimedHalf
 from bench.core.journal import read_events, read_jsonl
-from bench.core.registry import ChecksInstruments, installed_records, procedure_names
-from bench.report.axes_view import AxisRows, axes_of
+from bench.core.registry import procedure_names
+from bench.kind import ChecksInstruments, installed_records
 from bench.report.figures import InstrumentCheck
 from bench.report.result_frame import ResultFrame, as_object
 from drivers.json_types import JsonObject, JsonValue
@@ -38,10 +37,6 @@ from drivers.json_types import JsonObject, JsonValue
 #: the stand instruments' check quantities, their unit and what the chart calls them (one
 #: place); a kind adds those of its own instruments (`ChecksInstruments.check_quantities`)
 QUANTITIES: dict[str, tuple[str, str]] = {
-    "k": ("1", "FOG scale k (eq. 5)"),
-    "w0_dps": ("deg/s", "FOG bias w0 (eq. 6)"),
-    "noise_floor_dps": ("deg/s", "FOG noise floor at rest, std"),
-    "bias_at_rest_dps": ("deg/s", "FOG bias at rest, mean of the static record"),
     "zero_mark_jitter_s": ("s", "zero-mark timing jitter, edge std"),
     "reference_external": ("1", "counter reference read back (1 external, 0 internal)"),
     "settle_time_s": ("s", "drive settle time beyond the ramp"),
@@ -101,35 +96,6 @@ def _std_u(std: float, dof: int) -> float | None:
     """U (k = 2) of a standard deviation from `dof` degrees of freedom (chi-square, normal
     data: ustd(s) = s / sqrt(2 dof)), docs/method.md C1."""
     return 2.0 * std / math.sqrt(2.0 * dof) if dof > 0 else None
-
-
-def _fog(axis: str, axis_rows: AxisRows, serial: str, model: str | None
-         ) -> list[CheckRecord]:
-    out = []
-
-    def add(q: str, rate: float | None, v: object, u: object) -> None:
-        x = _num(v)
-        if x is not None:
-            out.append(CheckRecord(serial, "fog", model, axis, q, rate, x, _num(u),
-                                   QUANTITIES[q][0]))
-
-    for pair_entry in axis_rows.pairs:
-        rate = abs(pair_entry.rate_dps)
-        add("k", rate, pair_entry.k, pair_entry.k_U)
-        add("w0_dps", rate, pair_entry.w0_dps, pair_entry.w0_U_dps)
-    at_rest = axis_rows.noise_floor
-    if at_rest is not None:
-        n = at_rest.samples or 0
-        std = _num(at_rest.sample_std_dps)
-        if std is not None:
-            add("noise_floor_dps", None, std, _std_u(std, n - 1))
-        adev = [x for x in at_rest.allan_dev_dps if x]
-        # the mean of the record: its standard uncertainty is no more than the Allan
-        # deviation at the longest averaging time computed (white and flicker noise:
-        # sigma_A(tau) falls or stays flat as tau grows), docs/method.md C1
-        add("bias_at_rest_dps", None, at_rest.mean_dps,
-            2.0 * adev[-1] if adev else None)
-    return out
 
 
 def _jitter(axis: str, events: Sequence[Event], serial: str,
@@ -221,7 +187,6 @@ def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[st
         if (run_path / layout.EVENTS).is_file() else []
     frame = ResultFrame.conform(result)[0]
     kind_of_run = kind_name or frame.procedure or ""
-    run_axes = axes_of(dict(result), kind_of_run)
     ident = as_object(stand.get("stand")) or {}
     ident.update({k: v for k, v in frame.stand.items() if v is not None})
     stand_serial = str(ident.get("serial") or "stand")
@@ -242,16 +207,21 @@ def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[st
         unique = rep is not None and reported.get(role, []).count(rep) == 1
         return _serial_of(conf.get("serial"), rep, unique, f"{stand_serial}/{axis}/{role}")
 
+    # the instruments the run's procedure kind measures (the FOGs' scale and bias, a gyro
+    # platform's gyros): listed with their axis, before the stand's instruments there
+    kind = installed_records(kind_of_run)
+    measured: list[CheckRecord] = kind.instrument_checks(result, stand, serial) \
+        if isinstance(kind, ChecksInstruments) else []
+    # the counters that timed turns in this run (an axis the run did not time has no
+    # check value of its counter)
+    timed = {e.axis for e in events if isinstance(e, TimedHalf)}
     out: list[CheckRecord] = []
     for axis, conf in stand_axes.items():
         if not isinstance(conf, Mapping):
             continue
-        axis_rows = run_axes.get(axis)
-        fog = conf.get("fog")
-        if isinstance(fog, Mapping) and axis_rows is not None:
-            out += _fog(axis, axis_rows, serial(axis, "fog", fog), _opt(fog.get("model")))
+        out += [c for c in measured if c.axis == axis]
         counter = conf.get("counter")
-        if isinstance(counter, Mapping) and axis_rows is not None:
+        if isinstance(counter, Mapping) and axis in timed:
             sn, model = serial(axis, "counter", counter), _opt(counter.get("model"))
             out += _jitter(axis, events, sn, model)
             ref = (as_object(ids.get(axis)) or {}).get("counter_reference")
@@ -263,11 +233,8 @@ def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[st
         if isinstance(drive, Mapping) and events:
             out += _drive(axis, layout.raw_root(run_path), events, serial(axis, "drive", drive),
                           _opt(drive.get("model")))
-    # the instruments only the run's procedure kind knows (a gyro platform's gyros)
-    kind = installed_records(kind_of_run)
-    if isinstance(kind, ChecksInstruments):
-        out += kind.instrument_checks(result, stand)
-    return out
+    placed = {a for a, conf in stand_axes.items() if isinstance(conf, Mapping)}
+    return out + [c for c in measured if c.axis not in placed]
 
 
 def _opt(x: object) -> str | None:

@@ -17,7 +17,7 @@ from bench.app.records.hooks import RecordsTarget, target
 from bench.app.records.settings import SettingsError, stray_lab_file
 from bench.app.records.store import Records, RecordsError, TrendPoint
 from bench.core import rundir_layout as layout
-from bench.core.registry import declared_figures
+from bench.kind import declared_figures
 from bench.report.figures import FigureSpec, spec_for
 
 EXIT_OK, EXIT_FAIL, EXIT_INVALID = 0, 1, 2

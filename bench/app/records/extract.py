@@ -20,7 +20,7 @@ from bench.app.records.checks import CheckRecord, checks_of
 from bench.core import rundir_layout as layout
 from bench.core.journal import sha256_file
 from bench.core.placeholders import run_copy
-from bench.core.registry import ReportsFigures, installed_records
+from bench.kind import installed_records
 from bench.report.certificate.parts import read_json_object
 from bench.report.figures import FigureValue
 from bench.report.result_frame import Check, JsonObject, ResultFrame
@@ -164,10 +164,11 @@ def kind_name(result: JsonObject, run_path: Path | None = None) -> str:
 
 
 def figures_of(result: JsonObject, kind: str | None = None) -> list[FigureRecord]:
-    """Every figure the kind reports of result.json (its `ReportsFigures` answer), with U
-    (k = 2) and its check's verdict; none when the kind is not installed here."""
+    """Every figure the kind reports of result.json (its `records` part,
+    bench.kind.RecordsPart), with U (k = 2) and its check's verdict; none when the kind
+    is not installed here."""
     reporter = installed_records(kind if kind is not None else kind_name(result))
-    if not isinstance(reporter, ReportsFigures):
+    if reporter is None:
         return []
     checks = _checks_index(ResultFrame.of(result))
     return [_record(f, checks) for f in reporter.figure_values(result)]

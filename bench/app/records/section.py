@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from bench.app.records.extract import FigureRecord, RunRecord
 from bench.app.records.store import Records, RunInfo, TrendPoint
 from bench.app.records.trend import trend_png
-from bench.core.registry import declared_figures
+from bench.kind import declared_figures
 from bench.report.certificate.model import Block, Fields, Figure, Para, Table
 from bench.report.certificate.rounding import format_value_u
 from bench.report.figures import FigureSpec, spec_for

@@ -19,7 +19,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from bench.app.records.store import TrendPoint
-from bench.core.registry import declared_figures
+from bench.kind import declared_figures
 from bench.report.figures import FigureSpec
 
 DPI = 130

@@ -29,20 +29,19 @@ from bench.app.records.extract import figures_of
 from bench.app.station.live import ENDINGS, pair_rows, progress_of
 from bench.app.station.view import (
     _age,
-    _rate,
     _utc_text,
-    _value_u,
-    live_table,
     log_line,
     progress_view,
+    station_of,
 )
 from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.events import Event
 from bench.core.journal import KILLED, SESSION_LOST
-from bench.core.registry import declared_figures
+from bench.kind import declared_figures
 from bench.report.figures import spec_for
 from bench.report.result_frame import ResultFrame
+from bench.report.station import rate_text, value_u
 from drivers.json_types import JsonLike, JsonValue
 
 #: a running bench delivers every 0.5 s (bench/app/fleet/courier.py); heard nothing for
@@ -255,11 +254,9 @@ class FleetView:
         pairs = pair_rows(events)
         last = pairs[-1] if pairs else None
         verdict = x.verdict if status != "running" else None
-        if last is not None:
-            error = _value_u(last.get("rate_error_rel"), last.get("rate_error_U_rel"), 1e6,
-                             signed=True)
-            last_text = (f"{last.get('axis')} {_rate(last.get('set_rate_dps'))} deg/s: rate "
-                         f"error {error} ppm")
+        looked = station_of(x.kind).last_look(last) if last is not None else None
+        if looked is not None:
+            last_text = looked
         elif verdict:
             last_text = f"verdict {verdict}"
         else:
@@ -349,14 +346,14 @@ class FleetView:
                 spec = spec_for(f.quantity, specs)
                 scale = spec.scale if spec else 1.0
                 final.append({"axis": f.axis, "name": spec.name if spec else f.quantity,
-                              "rate": "-" if f.set_rate_dps is None else _rate(f.set_rate_dps),
+                              "rate": "-" if f.set_rate_dps is None else rate_text(f.set_rate_dps),
                               "value": ("< " + f"{f.value * scale:.3g}" if f.is_limit
-                                        else _value_u(f.value, f.u, scale)),
+                                        else value_u(f.value, f.u, scale)),
                               "unit": spec.shown if spec else f.unit,
                               "verdict": f.verdict or "-"})
         state.update({
             "events_delivered": int(count),
-            "live": live_table(pair_rows(events)),
+            "live": station_of(x.kind).live_table(pair_rows(events)) or {},
             "final": final,
             "log": [log_line(e) for e in events if e.kind in LOG_KINDS][-40:],
             "received_utc": _utc_text(_iso(x.received_utc)),

@@ -25,14 +25,13 @@ import numpy as np
 
 from bench.app.names import resume_command
 from bench.app.records.extract import kind_name
-from bench.app.station.view import page_view
+from bench.app.station.view import page_view, station_of
 from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.config import FogSettings
 from bench.core.events import Event, TimedHalf
 from bench.core.journal import fog_capture_starts
 from bench.core.yamlfile import read_mapping
-from bench.report.axes_view import axes_of
 from bench.report.result_frame import number
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, DecodeState, decode, get_format
@@ -292,25 +291,11 @@ def pair_rows(events: list[Event]) -> list[JsonObject]:
     return [row for e in events for row in e.live_rows()]
 
 
-def final_rows(doc: JsonObject, run_path: Path | None = None) -> list[dict[str, JsonValue]]:
-    """The final table from result.json (read through its kind's typed axes,
-    bench/report/axes_view.py): per axis and rate the figures the certificate prints (rate
-    error +/- U, instability, verdict) with the pair's k and w0."""
-    rows: list[dict[str, JsonValue]] = []
-    for axis, body in axes_of(doc, kind_name(doc, run_path)).items():
-        by_rate = {entry.rate_dps: entry for entry in body.pairs}
-        for rate_entry in body.rates:
-            pair_entry = by_rate.get(abs(rate_entry.set_rate_dps))
-            rows.append({"axis": axis, "set_rate_dps": rate_entry.set_rate_dps,
-                         "k": pair_entry.k if pair_entry else None,
-                         "k_U": pair_entry.k_U if pair_entry else None,
-                         "w0_dps": pair_entry.w0_dps if pair_entry else None,
-                         "w0_U_dps": pair_entry.w0_U_dps if pair_entry else None,
-                         "rate_error_rel": rate_entry.rate_error_rel,
-                         "rate_error_U_rel": rate_entry.rate_error_U_rel,
-                         "rate_instability_rel": rate_entry.rate_instability_rel,
-                         "turns": rate_entry.turns, "verdict": rate_entry.verdict})
-    return rows
+def final_rows(doc: JsonObject, run_path: Path | None = None) -> list[JsonObject]:
+    """The final rows from result.json, as its kind's station part gives them (the
+    ladder's: per axis and rate the figures the certificate prints with the pair's k and
+    w0); none for a kind that gives none."""
+    return station_of(kind_name(doc, run_path)).result_rows(doc)
 
 
 #: a session's exit status (bench/app/session.py EXIT_*, CONTRACT section 1) as the page
@@ -446,7 +431,7 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
     # the per-turn panel shows the axis now running, never the previous axis's last half
     shown_acquires = [e for e in acquires if not axis or e.axis == axis]
     result: JsonValue = None
-    final: list[dict[str, JsonValue]] = []
+    final: list[JsonObject] = []
     doc = _read_result(run_path) if status != "running" else None
     if doc is not None:
         result = doc.get("verdict")

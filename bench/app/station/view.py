@@ -25,18 +25,14 @@ from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.events import Event
 from bench.core.plan import format_duration
-from bench.core.registry import declared_figures
-from bench.report.axes_view import AxisRows, axes_of
+from bench.core.yamlfile import read_mapping
+from bench.kind import StationPart, declared_figures, installed
 from bench.report.certificate.parts import read_json_object, verdict_label
 from bench.report.certificate.rounding import (
-    MINUS,
-    RelUnit,
-    format_sig,
     format_value_u,
-    present_std,
-    rel_unit,
 )
 from bench.report.figures import spec_for
+from bench.report.station import StationParts, number, page_table, rate_text
 from drivers.json_types import JsonLike, JsonObject
 
 #: how each status reads on the page, for a run that has ended or stopped
@@ -48,8 +44,6 @@ U_NOTE = ("U: expanded uncertainty for about 95 %, k = t_95.45(ν_eff) of its bu
           "(2.00 for infinite ν_eff; docs/method.md D1). 'value [lower, upper]': an "
           "asymmetric coverage interval; '< L': not resolved above its floor, L its "
           "one-sided upper limit (D2).")
-LIVE_CAPTION = ("Results as they come (first look per pair; the certificate is computed "
-                "again from the raw data)")
 
 
 # -- small words ----------------------------------------------------------------------------
@@ -74,26 +68,6 @@ def _duration(s: float | None) -> str:
     return "-" if s is None or not math.isfinite(s) else format_duration(max(0.0, s))
 
 
-def _rate(v: object) -> str:
-    """A set rate, signed, with the typographic minus the certificate prints."""
-    if not isinstance(v, int | float | str):
-        return "-"
-    try:
-        return f"{float(v):+g}".replace("-", MINUS)
-    except ValueError:
-        return "-"
-
-
-def _num(v: object) -> float | None:
-    if not isinstance(v, int | float | str):
-        return None
-    try:
-        x = float(v)
-    except ValueError:
-        return None
-    return x if math.isfinite(x) else None
-
-
 def _count(v: object) -> int:
     """A count from the state (0 when absent)."""
     return int(v) if isinstance(v, int | float | str) and v else 0
@@ -110,20 +84,6 @@ def _part(v: object) -> Mapping[str, object]:
 
 def _items(v: object) -> list[object]:
     return list(v) if isinstance(v, list | tuple) else []
-
-
-def _value_u(value: object, u: object, scale: float = 1.0, signed: bool = False) -> str:
-    """'value ± U' by the certificate's rule; a value without a usable U keeps four
-    significant digits and says so."""
-    r = format_value_u(_num(value), _num(u), scale, signed=signed)
-    if r.u is None:
-        return "-" if r.value == "n/a" else f"{r.value} (no U)"
-    return r.joined()
-
-
-def _column_unit(*values: object) -> RelUnit:
-    """One unit per column (ppm below 0.01 %, else %), as the certificate chooses it."""
-    return rel_unit(*[_num(v) for v in values])
 
 
 def _step_words(step: Mapping[str, object]) -> str:
@@ -151,8 +111,8 @@ def progress_view(state: Mapping[str, object]) -> dict[str, JsonLike]:
         speed = prog.get("speed")
         speed_text = (f" (measured speed {speed:.1f} bench s per wall s)" if speed else "")
         detail = (f"{done} of {steps} steps done; bench time left "
-                  f"{_duration(_num(prog.get('bench_left_s')))}, wall time left "
-                  f"{_duration(_num(prog.get('wall_left_s')))}{speed_text}")
+                  f"{_duration(number(prog.get('bench_left_s')))}, wall time left "
+                  f"{_duration(number(prog.get('wall_left_s')))}{speed_text}")
         fraction = prog.get("fraction")
         return {"value": float(fraction) if isinstance(fraction, int | float) and fraction
                 else 0.0, "line": line, "detail": detail,
@@ -176,7 +136,7 @@ def progress_view(state: Mapping[str, object]) -> dict[str, JsonLike]:
     if state.get("ended_utc"):
         parts.append(f"ended {_utc_text(_stamp(state.get('ended_utc')))} UTC")
     if steps and prog.get("bench_time_s"):
-        parts.append(f"bench time {_duration(_num(prog.get('bench_time_s')))}")
+        parts.append(f"bench time {_duration(number(prog.get('bench_time_s')))}")
     value = 1.0 if completed else (done / steps if steps else 0.0)
     return {"value": value, "line": line, "detail": "; ".join(parts),
             "complete": completed,
@@ -195,7 +155,7 @@ def health_view(health: Mapping[str, object], status: str) -> dict[str, JsonLike
         tail = ("-" if a.get("fog_tail_crc_errors") is None
                 else f"{a.get('fog_tail_crc_errors')} / {a.get('fog_tail_lost_frames')}")
         if running:
-            heard = [_age(_num(a.get(f"{i}_age_s"))) for i in ("fog", "drive", "counter")]
+            heard = [_age(number(a.get(f"{i}_age_s"))) for i in ("fog", "drive", "counter")]
         else:
             heard = [_utc_text(_stamp(a.get(f"{i}_utc"))) for i in ("fog", "drive", "counter")]
         rows.append([str(a.get("axis")), heard[0], str(a.get("fog_lost_in_halves", "-")),
@@ -206,7 +166,7 @@ def health_view(health: Mapping[str, object], status: str) -> dict[str, JsonLike
               "drive last heard (heartbeat, feedback)" if running
               else "drive last heard (UTC; heartbeat, feedback)", f"counter last reading{when}"]
     if running:
-        last = _num(health.get("last_update_s"))
+        last = number(health.get("last_update_s"))
         note = ("" if last is None else
                 f"- last update {_age(last)}{' (STALE)' if health.get('stale') else ''}")
         title = "Health"
@@ -222,77 +182,27 @@ def health_view(health: Mapping[str, object], status: str) -> dict[str, JsonLike
 
 # -- results ----------------------------------------------------------------------------------
 
-def _table(tid: str, caption: str, header: Sequence[str],
-           rows: Sequence[tuple[Sequence[str], str]]) -> dict[str, JsonLike]:
-    return {"id": tid, "caption": caption, "header": list(header),
-            "rows": [{"cells": list(cells), "class": cls} for cells, cls in rows]}
+NEUTRAL = StationParts()
 
 
-def live_table(rows: Sequence[Mapping[str, object]]) -> dict[str, JsonLike]:
-    """The first look per pair, from the `pair` events (bench/app/station/live.py
-    pair_rows): k and w0 with their U, each direction's rate error with its U."""
-    unit = _column_unit(*[row.get("rate_error_rel") for row in rows],
-                        *[row.get("rate_error_U_rel") for row in rows])
-    sunit = _column_unit(*[row.get("rate_instability_rel") for row in rows])
-    out = []
-    for row in rows:
-        sigma = _num(row.get("rate_instability_rel"))
-        out.append(([str(row.get("axis") or "-"), _rate(row.get("set_rate_dps")),
-                     _value_u(row.get("k"), row.get("k_U")),
-                     _value_u(row.get("w0_dps"), row.get("w0_U_dps"), signed=True),
-                     _value_u(row.get("rate_error_rel"), row.get("rate_error_U_rel"),
-                              unit.scale, signed=True),
-                     "-" if sigma is None else format_sig(sigma * sunit.scale, 2),
-                     "-" if row.get("turns") is None else str(row.get("turns")),
-                     verdict_label(row.get("verdict")) if row.get("verdict") else "-"],
-                    str(row.get("verdict") or "")))
-    return _table("results-live", LIVE_CAPTION,
-                  ("axis", "set rate, deg/s", "k ± U", "ω0 ± U, deg/s",
-                   f"rate error δ ± U, {unit.name}",
-                   f"instability σ, {sunit.name} (first look; U in the final results)",
-                   "turns", "verdict"), out)
+def station_of(kind: str | None) -> StationPart:
+    """The kind's station part (the neutral one for a kind not installed here)."""
+    found = installed(kind)
+    return found.station if found is not None else NEUTRAL
 
 
-def _axis_tables(axes: Mapping[str, AxisRows]) -> list[dict[str, JsonLike]]:
-    """Per axis of a ladder's result (CONTRACT §3's `axes.<axis>.rates[]` and `pairs[]`):
-    each rate's error and instability with U and verdict, then each ± pair's FOG scale
-    factor k and bias ω0 with U (any other result: its declared figures)."""
-    tables: list[dict[str, JsonLike]] = []
-    for axis, body in axes.items():
-        rates, pairs = body.rates, body.pairs
-        if rates:
-            err = _column_unit(*[r.rate_error_rel for r in rates],
-                               *[r.rate_error_U_rel for r in rates])
-            sig = _column_unit(*[r.rate_instability_rel for r in rates],
-                               *[r.rate_instability_upper_rel for r in rates])
-            rows = []
-            for r in rates:
-                # docs/method.md D2, as the certificate prints it: the chi-square interval
-                # when resolved above the timing floor, else '< L'
-                sigma = present_std(_num(r.rate_instability_rel),
-                                    _num(r.rate_instability_U_rel), sig.scale,
-                                    lower=_num(r.rate_instability_lower_rel),
-                                    upper=_num(r.rate_instability_upper_rel),
-                                    floor=_num(r.rate_instability_floor_rel),
-                                    resolved=r.rate_instability_resolved)
-                rows.append(([_rate(r.set_rate_dps),
-                              "-" if r.turns is None else str(r.turns),
-                              _value_u(r.rate_error_rel, r.rate_error_U_rel, err.scale,
-                                       signed=True),
-                              sigma.text, verdict_label(r.verdict)
-                              if r.verdict else "-"], str(r.verdict or "")))
-            tables.append(_table(
-                f"rates-{axis}", f"Axis {axis}: rate error and instability per set rate",
-                ("set rate, deg/s", "turns", f"rate error δ ± U, {err.name}",
-                 f"instability σ [interval] or < L, {sig.name}", "verdict"), rows))
-        if pairs:
-            rows = [([f"±{_num(p.rate_dps) or 0:g}", _value_u(p.k, p.k_U),
-                      _value_u(p.w0_dps, p.w0_U_dps, signed=True)], "") for p in pairs]
-            tables.append(_table(
-                f"pairs-{axis}",
-                f"Axis {axis}: FOG cross-calibration per ± pair (scale factor k, bias ω0)",
-                ("pair, deg/s", "k ± U", "ω0 ± U, deg/s"), rows))
-    return tables
+_NAMED: dict[Path, str] = {}
+
+
+def _procedure_named(run_path: Path) -> str | None:
+    """The kind the run's procedure file names (a running run has no result.json yet),
+    read once per run (the live stream asks every second)."""
+    if run_path not in _NAMED:
+        name = read_mapping(run_path / layout.PROCEDURE).get("procedure")
+        if not name:
+            return None
+        _NAMED[run_path] = str(name)
+    return _NAMED[run_path]
 
 
 def _declared_table(doc: JsonObject, run_path: Path) -> list[dict[str, JsonLike]]:
@@ -309,14 +219,14 @@ def _declared_table(doc: JsonObject, run_path: Path) -> list[dict[str, JsonLike]
         text = (f"< {shown.value}" if f.is_limit else
                 f"{shown.value} (no U)" if shown.u is None else shown.joined())
         where = " ".join(x for x in (f.axis, "" if f.set_rate_dps is None
-                                     else f"{_rate(f.set_rate_dps)} deg/s") if x)
+                                     else f"{rate_text(f.set_rate_dps)} deg/s") if x)
         rows.append(([where or "-", f"{words}, {unit}" if unit not in ("", "1") else words,
                       text, verdict_label(f.verdict) if f.verdict else "-"],
                      str(f.verdict or "")))
     if not rows:
         return []
-    return [_table("figures", "Results", ("where", "quantity, unit", "value ± U", "verdict"),
-                   rows)]
+    return [page_table("figures", "Results",
+                       ("where", "quantity, unit", "value ± U", "verdict"), rows)]
 
 
 @functools.lru_cache(maxsize=64)
@@ -327,7 +237,7 @@ def _final(path: str, _mtime_ns: int, _size: int
     doc = read_json_object(Path(path) / layout.RESULT)
     if not doc:
         return None, ()
-    tables = _axis_tables(axes_of(doc, kind_name(doc, Path(path)))) \
+    tables = station_of(kind_name(doc, Path(path))).result_tables(doc) \
         or _declared_table(doc, Path(path))
     verdict = doc.get("verdict")
     return (None if verdict is None else str(verdict)), tuple(tables)
@@ -364,7 +274,8 @@ def results_view(state: Mapping[str, object], run_path: Path) -> dict[str, JsonL
         none = "no pair analysed yet"
     return {"title": "Results", "final": False,
             "verdict": (verdict_label(final[0]) if final is not None and final[0] else None),
-            "tables": [live_table(live)] if live else [],
+            "tables": [table] if live and (table := station_of(
+                _procedure_named(run_path)).live_table(live)) is not None else [],
             "note": U_NOTE if live else none}
 
 

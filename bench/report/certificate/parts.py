@@ -76,7 +76,7 @@ def conform_result(result: object) -> tuple[JsonObject, list[str]]:
     """The result with malformed containers dropped, and the list of what was dropped:
     the kind's part by the kind's result module (`ConformsResult`), the frame's here. A
     result that names no kind is read by every installed kind's."""
-    from bench.core.registry import installed_records, procedure_names
+    from bench.core.registry import procedure_names, records_part
 
     doc = as_object(result)
     if doc is None:
@@ -84,7 +84,7 @@ def conform_result(result: object) -> tuple[JsonObject, list[str]]:
     named = doc.get("procedure")
     dropped: list[str] = []
     for name in [str(named)] if named else procedure_names():
-        kind = installed_records(name)
+        kind = records_part(name)
         if isinstance(kind, ConformsResult):
             doc, more = kind.conform_result(doc)
             dropped += more

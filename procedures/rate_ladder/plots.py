@@ -1,4 +1,4 @@
-"""The certificate's plots, as PNG bytes (matplotlib, Agg canvas, no pyplot state).
+"""The rate ladder's certificate plots, as PNG bytes (bench/report/certificate/plotting.py).
 
 Each function returns None when the result carries nothing to plot, so a partial run
 still gets a certificate. Figures follow the seed paper's (figs. 4-5, 7, 8-9, 10).
@@ -6,21 +6,20 @@ still gets a certificate. Figures follow the seed paper's (figs. 4-5, 7, 8-9, 10
 
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Protocol, SupportsFloat, SupportsIndex
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from bench.report.axes_view import PairRow, RateRow
+from bench.report.certificate.plotting import figure_grid, plot_number, png_of
+from procedures.rate_ladder.axes_view import PairRow, RateRow
 
 if TYPE_CHECKING:   # matplotlib is imported when a plot is drawn (`bench validate` starts at once)
     from matplotlib.axes import Axes
-    from matplotlib.figure import Figure
 
 
-# -- what the ladder's plots read (procedures/rate_ladder/result.py's typed entries) ------------
+# -- what the plots read (result.py's typed entries) -----------------------------------------
 
 class HarmonicFit(Protocol):
     """One fitted harmonic of the rate along the turn (docs/method.md A4)."""
@@ -50,7 +49,7 @@ class IntraTurnFit(Protocol):
 
 class RatePoint(RateRow, Protocol):
     """One commanded rate and direction's results (docs/method.md A1-A5): what the station
-    reads (bench/report/axes_view.py), and the figures the plots draw besides."""
+    reads (axes_view.py), and the figures the plots draw besides."""
 
     @property
     def rate_error_u_rel(self) -> float | None: ...
@@ -91,68 +90,7 @@ class AllanCurve(Protocol):
     def allan_dev_dps(self) -> Sequence[float]: ...
 
 
-class CycleTrace(Protocol):
-    """One drift cycle's recorded trace (docs/method.md part B)."""
-
-    @property
-    def t_s(self) -> Sequence[float]: ...
-    @property
-    def u_v(self) -> Sequence[float]: ...
-    @property
-    def integral_vs(self) -> Sequence[float]: ...
-    @property
-    def tc_s(self) -> float: ...
-
-
-class CycleDrift(Protocol):
-    """One drift cycle's estimate and where the platform stood."""
-
-    @property
-    def table_deg(self) -> float: ...
-    @property
-    def drift_dph(self) -> float: ...
-
-
-class AxisDrift(Protocol):
-    """An axis's own drift and its cycles' estimates."""
-
-    @property
-    def own_dph(self) -> float: ...
-    @property
-    def cycles(self) -> Sequence[CycleDrift]: ...
-
-
-DPI = 150
-WIDTH_IN = 7.0
 DIRECTIONS = ((+1, "+ direction", "o", "C0"), (-1, "− direction", "s", "C3"))
-
-
-def _png(fig: Figure) -> bytes:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    FigureCanvasAgg(fig)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI)
-    return buf.getvalue()
-
-
-def _fig(rows: int, cols: int = 1, height_in: float = 2.6) -> tuple[Figure, np.ndarray]:
-    from matplotlib.figure import Figure
-    fig = Figure(figsize=(WIDTH_IN, height_in * rows), layout="constrained")
-    axs = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
-    for ax in axs:
-        ax.grid(True, which="both", alpha=0.3, lw=0.5)
-        ax.tick_params(labelsize=8)
-    return fig, axs
-
-
-def _num(x: object) -> float:
-    if not isinstance(x, SupportsFloat | SupportsIndex | str | bytes):
-        return math.nan     # what float() refuses anyway
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return math.nan
-    return v
 
 
 def _rate_axis(ax: Axes, rates: Sequence[float]) -> None:
@@ -168,23 +106,23 @@ def per_turn(axis: str, rates: Sequence[RatePoint],
     """Per-turn rate error and instability vs rate, by direction (paper figs. 4-5)."""
     if not rates:
         return None
-    fig, (a1, a2) = _fig(2)
+    fig, (a1, a2) = figure_grid(2)
     for sign, label, marker, color in DIRECTIONS:
-        rr = [r for r in rates if math.copysign(1, _num(r.set_rate_dps)) == sign]
+        rr = [r for r in rates if math.copysign(1, plot_number(r.set_rate_dps)) == sign]
         if not rr:
             continue
-        x = np.array([abs(_num(r.set_rate_dps)) for r in rr]) * (1 + 0.02 * sign)
+        x = np.array([abs(plot_number(r.set_rate_dps)) for r in rr]) * (1 + 0.02 * sign)
         for ax, key, (_uname, scale), values in (
                 (a1, "rate_error", unit, [(r.rate_error_rel, r.rate_error_u_rel) for r in rr]),
                 (a2, "rate_instability", inst_unit,
                  [(r.rate_instability_rel, r.rate_instability_u_rel) for r in rr])):
-            y = np.array([_num(v) for v, _ in values]) * scale
-            u = np.array([_num(vu) for _, vu in values]) * scale
+            y = np.array([plot_number(v) for v, _ in values]) * scale
+            u = np.array([plot_number(vu) for _, vu in values]) * scale
             u = np.where(np.isfinite(u), u, 0.0)
             ok = np.ones(len(rr), dtype=bool)
             if key == "rate_instability":   # a σ at the timing floor: its limit only
                 ok = np.array([r.rate_instability_resolved is not False for r in rr])
-                up = np.array([_num(r.rate_instability_upper_rel) for r in rr]) * scale
+                up = np.array([plot_number(r.rate_instability_upper_rel) for r in rr]) * scale
                 lim = ~ok & np.isfinite(up)
                 if np.any(lim):
                     ax.plot(x[lim], up[lim], "v", color=color, ms=5, mfc="none",
@@ -208,18 +146,18 @@ def per_turn(axis: str, rates: Sequence[RatePoint],
                 ax.plot(xs, -ts, "k--", lw=0.8, drawstyle="steps-mid")
         ax.set_ylabel(f"{uname}", fontsize=8)
         ax.set_title(f"Axis {axis}: {title}, U (k = 2) as bars", fontsize=9)
-        _rate_axis(ax, [_num(r.set_rate_dps) for r in rates])
+        _rate_axis(ax, [plot_number(r.set_rate_dps) for r in rates])
         ax.legend(fontsize=7)
-    floors = sorted({(abs(_num(r.set_rate_dps)),
-                      _num(r.rate_instability_floor_rel) * inst_unit[1])
-                     for r in rates if math.isfinite(_num(r.rate_instability_floor_rel))})
+    floors = sorted({(abs(plot_number(r.set_rate_dps)),
+                      plot_number(r.rate_instability_floor_rel) * inst_unit[1])
+                     for r in rates if math.isfinite(plot_number(r.rate_instability_floor_rel))})
     if floors:
         a2.plot([f[0] for f in floors], [f[1] for f in floors], ":", color="0.4", lw=1,
                 label="timing floor of σ")
         a2.legend(fontsize=7)
     a1.axhline(0, color="0.5", lw=0.6)
     a2.set_yscale("log")  # a tolerance far above the values must not flatten them
-    return _png(fig)
+    return png_of(fig)
 
 
 def harmonic_model(harmonics: Sequence[HarmonicFit], phi_deg: np.ndarray) -> np.ndarray:
@@ -227,9 +165,9 @@ def harmonic_model(harmonics: Sequence[HarmonicFit], phi_deg: np.ndarray) -> np.
     out = np.zeros_like(phi_deg, dtype=float)
     r = np.radians(phi_deg)
     for h in harmonics:
-        out += _num(h.amplitude_rel) * np.cos(
-            int(_num(h.order if h.order is not None else 1)) * r
-            + math.radians(_num(h.phase_deg if h.phase_deg is not None else 0.0)))
+        out += plot_number(h.amplitude_rel) * np.cos(
+            int(plot_number(h.order if h.order is not None else 1)) * r
+            + math.radians(plot_number(h.phase_deg if h.phase_deg is not None else 0.0)))
     return out
 
 
@@ -247,12 +185,12 @@ def systematic(axis: str, rates: Sequence[RatePoint], scale: float,
         return None
     phi = np.linspace(0.0, 360.0, 721)
     panels = with_bins[:2] if with_bins else [None]
-    fig, axs = _fig(len(panels), height_in=2.6)
+    fig, axs = figure_grid(len(panels), height_in=2.6)
     for ax, r in zip(axs, panels, strict=True):
         if r is None:
             for i, rr in enumerate(fitted):
                 ax.plot(phi, harmonic_model(rr.harmonics, phi) * scale,
-                        lw=1, color=f"C{i % 10}", label=f"{_num(rr.set_rate_dps):+g} °/s")
+                        lw=1, color=f"C{i % 10}", label=f"{plot_number(rr.set_rate_dps):+g} °/s")
             ax.set_title(f"Axis {axis}: fitted systematic component Δω_sys/ω_set vs angle",
                          fontsize=9)
         else:
@@ -261,7 +199,7 @@ def systematic(axis: str, rates: Sequence[RatePoint], scale: float,
             if "deviation_rel" in b or "dw_rel" in b:
                 y = np.asarray(b.get("deviation_rel", b.get("dw_rel")), dtype=float)
             else:
-                y = np.asarray(b.get("dw_dps", []), dtype=float) / abs(_num(r.set_rate_dps))
+                y = np.asarray(b.get("dw_dps", []), dtype=float) / abs(plot_number(r.set_rate_dps))
             u = np.asarray(b.get("u_rel") or np.zeros_like(y), dtype=float)
             turns = b.get("turns", r.turns)
             if y.size == phi_b.size and y.size:
@@ -271,15 +209,15 @@ def systematic(axis: str, rates: Sequence[RatePoint], scale: float,
             h = r.harmonics
             if h:
                 ax.plot(phi, harmonic_model(h, phi) * scale, "C3", lw=1.2,
-                        label=f"fitted harmonics 1…{max(int(_num(x.order)) for x in h)}")
-            ax.set_title(f"Axis {axis} at {_num(r.set_rate_dps):+g} °/s: systematic "
+                        label=f"fitted harmonics 1…{max(int(plot_number(x.order)) for x in h)}")
+            ax.set_title(f"Axis {axis} at {plot_number(r.set_rate_dps):+g} °/s: systematic "
                          "component vs angle", fontsize=9)
         ax.set_xlim(0, 360)
         ax.set_xticks(range(0, 361, 45))
         ax.set_xlabel("table angle φ from the zero mark, °", fontsize=8)
         ax.set_ylabel(f"Δω_sys / ω_set, {uname}", fontsize=8)
         ax.legend(fontsize=7, ncol=2)
-    return _png(fig)
+    return png_of(fig)
 
 
 def one_rev(axes: Mapping[str, Sequence[RatePoint]], scale: float,
@@ -289,13 +227,13 @@ def one_rev(axes: Mapping[str, Sequence[RatePoint]], scale: float,
     for axis, rates in axes.items():
         for r in rates:
             for h in r.harmonics:
-                if int(_num(h.order if h.order is not None else 0)) == 1:
-                    pts.setdefault(axis, []).append((_num(r.set_rate_dps),
-                                                     _num(h.amplitude_rel),
-                                                     _num(h.amplitude_u_rel)))
+                if int(plot_number(h.order if h.order is not None else 0)) == 1:
+                    pts.setdefault(axis, []).append((plot_number(r.set_rate_dps),
+                                                     plot_number(h.amplitude_rel),
+                                                     plot_number(h.amplitude_u_rel)))
     if not pts:
         return None
-    fig, (a1, a2) = _fig(2, height_in=2.4)
+    fig, (a1, a2) = figure_grid(2, height_in=2.4)
     for i, (axis, p) in enumerate(pts.items()):
         for sign, label, marker, _ in DIRECTIONS:
             q = [t for t in p if math.copysign(1, t[0]) == sign]
@@ -322,7 +260,7 @@ def one_rev(axes: Mapping[str, Sequence[RatePoint]], scale: float,
     else:
         a2.set_ylim(bottom=0)
     a1.legend(fontsize=7, ncol=2)
-    return _png(fig)
+    return png_of(fig)
 
 
 def intra_turn(axes: Mapping[str, Sequence[RatePoint]], scale: float,
@@ -332,22 +270,22 @@ def intra_turn(axes: Mapping[str, Sequence[RatePoint]], scale: float,
              if any(r.intra_turn_instability_rel is not None for r in rr)]
     if not names:
         return None
-    fig, axs = _fig(len(names), height_in=2.4)
+    fig, axs = figure_grid(len(names), height_in=2.4)
     for ax, axis in zip(axs, names, strict=True):
         rr = axes[axis]
         for sign, label, marker, color in DIRECTIONS:
-            q = [r for r in rr if math.copysign(1, _num(r.set_rate_dps)) == sign]
+            q = [r for r in rr if math.copysign(1, plot_number(r.set_rate_dps)) == sign]
             if not q:
                 continue
-            w = np.array([abs(_num(r.set_rate_dps)) for r in q]) * (1 + 0.02 * sign)
-            y = np.array([_num(r.intra_turn_instability_rel) for r in q]) * scale
-            u = np.nan_to_num(np.array([_num(r.intra_turn_instability_u_rel)
+            w = np.array([abs(plot_number(r.set_rate_dps)) for r in q]) * (1 + 0.02 * sign)
+            y = np.array([plot_number(r.intra_turn_instability_rel) for r in q]) * scale
+            u = np.nan_to_num(np.array([plot_number(r.intra_turn_instability_u_rel)
                                         for r in q])) * scale
             intra = [r.intra for r in q]
             # raw: docs/method.md D2 against the FOG floor, as the table prints it: a point
             # with its bars only when resolved (the analysis's raw_resolved), else its limit
             raw_res = np.array([i.raw_resolved is not False for i in intra])
-            raw_up = np.array([_num(i.raw_upper_rel) for i in intra]) * scale
+            raw_up = np.array([plot_number(i.raw_upper_rel) for i in intra]) * scale
             if np.any(raw_res & np.isfinite(y)):
                 ax.errorbar(w[raw_res], y[raw_res], yerr=u[raw_res], fmt=marker + "-",
                             color=color, ms=4, capsize=2, lw=1, label=f"{label}, raw")
@@ -358,8 +296,8 @@ def intra_turn(axes: Mapping[str, Sequence[RatePoint]], scale: float,
             # floor-corrected: a resolved value with its bars; an unresolved one only as
             # its upper limit (a downward triangle), never as a point estimate
             res = np.array([i.resolved is not False for i in intra])
-            c = np.array([_num(r.intra_turn_instability_corrected_rel) for r in q])
-            up = np.array([_num(i.corrected_upper_rel) for i in intra])
+            c = np.array([plot_number(r.intra_turn_instability_corrected_rel) for r in q])
+            up = np.array([plot_number(i.corrected_upper_rel) for i in intra])
             if np.any(res & np.isfinite(c)):
                 err = np.where(np.isfinite(up) & res, up - c, 0.0) * scale
                 ax.errorbar(w[res], c[res] * scale, yerr=[np.zeros(res.sum()), err[res]],
@@ -369,12 +307,12 @@ def intra_turn(axes: Mapping[str, Sequence[RatePoint]], scale: float,
             if np.any(lim):
                 ax.plot(w[lim], up[lim] * scale, "v", color=color, ms=5, mfc="none",
                         label=f"{label}, floor-corrected: upper limit (not resolved)")
-        _rate_axis(ax, [_num(r.set_rate_dps) for r in rr])
+        _rate_axis(ax, [plot_number(r.set_rate_dps) for r in rr])
         ax.set_yscale("log")
         ax.set_ylabel(f"std(Δω_rand)/|ω_set|, {uname}", fontsize=8)
         ax.set_title(f"Axis {axis}: intra-turn instability vs rate", fontsize=9)
         ax.legend(fontsize=7, ncol=2)
-    return _png(fig)
+    return png_of(fig)
 
 
 def pairs(axes: Mapping[str, Sequence[PairPoint]]) -> bytes | None:
@@ -385,22 +323,22 @@ def pairs(axes: Mapping[str, Sequence[PairPoint]]) -> bytes | None:
     """
     if not any(axes.values()):
         return None
-    fig, (a1, a2) = _fig(2, height_in=2.3)
+    fig, (a1, a2) = figure_grid(2, height_in=2.3)
     allw: list[float] = []
     for i, (axis, pp) in enumerate(axes.items()):
         if not pp:
             continue
-        w = np.array([_num(p.rate_dps) for p in pp])
+        w = np.array([plot_number(p.rate_dps) for p in pp])
         allw += w.tolist()
-        k = np.array([_num(p.k) for p in pp])
+        k = np.array([plot_number(p.k) for p in pp])
         if not np.any(np.isfinite(k)):
             continue
         k_mean = float(np.nanmean(k))
         kw = dict(fmt="o-", color=f"C{i}", ms=4, capsize=3, lw=1)
-        a1.errorbar(w, (k - k_mean) * 1e6, yerr=np.nan_to_num([_num(p.k_u) for p in pp])
+        a1.errorbar(w, (k - k_mean) * 1e6, yerr=np.nan_to_num([plot_number(p.k_u) for p in pp])
                     * 1e6, label=f"axis {axis} (mean k = {k_mean:.7f})", **kw)
-        a2.errorbar(w, [_num(p.w0_dps) for p in pp],
-                    yerr=np.nan_to_num([_num(p.w0_u_dps) for p in pp]),
+        a2.errorbar(w, [plot_number(p.w0_dps) for p in pp],
+                    yerr=np.nan_to_num([plot_number(p.w0_u_dps) for p in pp]),
                     label=f"axis {axis}", **kw)
     a1.set_ylabel("k − mean k, ppm", fontsize=8)
     a2.set_ylabel("ω0, °/s", fontsize=8)
@@ -409,7 +347,7 @@ def pairs(axes: Mapping[str, Sequence[PairPoint]]) -> bytes | None:
     for ax in (a1, a2):
         _rate_axis(ax, allw)
         ax.legend(fontsize=7)
-    return _png(fig)
+    return png_of(fig)
 
 
 def allan(floors: Mapping[str, AllanCurve]) -> bytes | None:
@@ -419,7 +357,7 @@ def allan(floors: Mapping[str, AllanCurve]) -> bytes | None:
     curves = {a: c for a, c in curves.items() if c[0].size > 1 and c[0].size == c[1].size}
     if not curves:
         return None
-    fig, (ax,) = _fig(1, height_in=2.8)
+    fig, (ax,) = figure_grid(1, height_in=2.8)
     for i, (axis, (tau, adev)) in enumerate(curves.items()):
         ax.loglog(tau, adev, "o-", color=f"C{i}", ms=3, lw=1, label=f"axis {axis}")
         ax.loglog(tau, adev[0] * np.sqrt(tau[0] / tau), ":", color=f"C{i}", lw=0.8,
@@ -428,54 +366,4 @@ def allan(floors: Mapping[str, AllanCurve]) -> bytes | None:
     ax.set_ylabel("Allan deviation, °/s", fontsize=8)
     ax.set_title("FOG at rest: Allan deviation", fontsize=9)
     ax.legend(fontsize=7)
-    return _png(fig)
-
-
-def drift_cycle(axis: str, cycle: CycleTrace) -> bytes | None:
-    """U(t) of the angle sensor and the signed integrator output over one cycle."""
-    t = np.asarray(cycle.t_s, dtype=float)
-    u = np.asarray(cycle.u_v, dtype=float)
-    if t.size < 2 or u.size != t.size:
-        return None
-    fig, (a1, a2) = _fig(2, height_in=2.2)
-    a1.plot(t, u, "C0", lw=1)
-    a1.set_ylabel("U, V", fontsize=8)
-    a1.set_title(f"Axis {axis}: angle-sensor output U(t) and signed integral over one cycle",
-                 fontsize=9)
-    integ = np.asarray(cycle.integral_vs, dtype=float)
-    if integ.size == t.size:
-        a2.plot(t, integ, "C3", lw=1)
-    a2.set_ylabel("∫±U dt, V·s", fontsize=8)
-    a2.set_xlabel("time from the start of the first pulse, s", fontsize=8)
-    tc = _num(cycle.tc_s)
-    for ax in (a1, a2):
-        if math.isfinite(tc):
-            ax.axvline(tc, color="0.4", lw=0.8, ls="--")
-    return _png(fig)
-
-
-def drift_cycles(axes: Mapping[str, AxisDrift]) -> bytes | None:
-    """Drift estimate of every cycle, by axis and platform position."""
-    names = [a for a, d in axes.items() if d.cycles]
-    if not names:
-        return None
-    fig, axs = _fig(len(names), height_in=2.2)
-    for ax, axis in zip(axs, names, strict=True):
-        cyc = axes[axis].cycles
-        positions = sorted({_num(c.table_deg) for c in cyc})
-        n = 0
-        for j, pos in enumerate(positions):
-            q = [c for c in cyc if _num(c.table_deg) == pos]
-            x = np.arange(n + 1, n + len(q) + 1)
-            y = np.array([_num(c.drift_dph) for c in q])
-            ax.plot(x, y, "o", color=f"C{j}", ms=4, label=f"position {pos:g}°")
-            ax.hlines(np.mean(y), x[0] - 0.3, x[-1] + 0.3, color=f"C{j}", lw=0.8)
-            n += len(q)
-        own = _num(axes[axis].own_dph)
-        if math.isfinite(own):
-            ax.axhline(own, color="k", lw=0.8, ls="--", label="own drift")
-        ax.set_ylabel("drift, °/h", fontsize=8)
-        ax.set_xlabel("cycle", fontsize=8)
-        ax.set_title(f"Axis {axis}: drift per cycle", fontsize=9)
-        ax.legend(fontsize=7)
-    return _png(fig)
+    return png_of(fig)

@@ -1,22 +1,17 @@
-"""CONTRACT §3's per-axis results as the kind-neutral pages read them: the station's result
-tables and the records' FOG check values (`axes.<axis>.rates[]`, `pairs[]`, the FOG's
-noise floor).
-
-Those pages live under bench/, which names no procedure kind, yet must not read
-result.json key by key (issue 45). So the kind whose result has such axes hands out its
-own typed result (`ShowsAxes`, asked of its records part by isinstance, like the
-capabilities in bench/core/registry.py), and the
-protocols below are all the pages may ask of it: attributes, typed, read-only. A kind
-without such axes answers nothing, and the pages show its declared figures instead.
+"""CONTRACT §3's per-axis results as the ladder's views read them: the station's result
+tables (station.py), the FOG's check values for the records (records.py) and the
+certificate's plots (plots.py) read `axes.<axis>.rates[]`, `pairs[]` and the FOG's noise
+floor through these protocols: attributes, typed, read-only (issue 45: no view reads
+result.json key by key). The ladder's typed result (result.py `LadderResult`) has them.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Protocol, runtime_checkable
+from typing import Protocol
 
-from bench.core.registry import installed_records
-from drivers.json_types import JsonObject
+from bench.report.result_frame import MalformedResult
+from procedures.rate_ladder.result import LadderResult
 
 
 class RateRow(Protocol):
@@ -86,18 +81,10 @@ class AxisRows(Protocol):
     def noise_floor(self) -> FloorRow | None: ...
 
 
-@runtime_checkable
-class ShowsAxes(Protocol):
-    """A kind's records part that reads CONTRACT §3's per-axis rates and pairs, typed."""
-
-    def axes_view(self, result: Mapping[str, object]) -> Mapping[str, AxisRows]:
-        """Axis name -> its rates, pairs and noise floor ({} if the result has none or
-        they are malformed)."""
-        ...
-
-
-def axes_of(result: JsonObject, kind: str | None) -> Mapping[str, AxisRows]:
-    """The result's axes as its kind reads them ({} when the kind is not installed here,
-    has no such axes, or the result's are malformed)."""
-    records = installed_records(kind)
-    return records.axes_view(result) if isinstance(records, ShowsAxes) else {}
+def axes_of(result: Mapping[str, object]) -> Mapping[str, AxisRows]:
+    """The ladder's own typed axes; {} for a result that is not a JSON object or whose
+    axes are malformed."""
+    try:
+        return LadderResult.conform(result)[0].axes
+    except MalformedResult:
+        return {}
