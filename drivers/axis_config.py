@@ -255,18 +255,3 @@ class AxisConfiguration(AxisMotion):
             self._require_open()
             self._identity = self._read_identity()
         return self._identity
-
-
-def check_link_settings(name: str, unit_factors: str | Mapping[str, str], pdo: str) -> None:
-    """The stand's drive.unit_factors and drive.pdo, refused before anything opens."""
-    if not isinstance(unit_factors, str):
-        bad = [v for v in unit_factors.values() if v not in NAMED_SI_UNITS]
-        if bad or set(unit_factors) - {"velocity", "acceleration"}:
-            raise ValueError(f"axis {name} drive: unit_factors {dict(unit_factors)!r}: "
-                             f"keys velocity, acceleration; units one of "
-                             f"{', '.join(NAMED_SI_UNITS)}")
-    elif unit_factors != "read":
-        raise ValueError(f"axis {name} drive: unit_factors {unit_factors!r}: 'read' or "
-                         "a mapping {velocity: ..., acceleration: ...}")
-    if pdo not in ("set", "verify"):
-        raise ValueError(f"axis {name} drive: pdo {pdo!r}: 'set' or 'verify'")
