@@ -110,6 +110,12 @@ class DriveSettings(Struct, frozen=True, kw_only=True, forbid_unknown_fields=Tru
                     "at connect) or {velocity: rpm|inc/s|0.001 inc/s|..., acceleration: "
                     "rpm/s|inc/s2|...} written at connect and read back; a stand without "
                     "a sim: block must state it")] = DEFAULT_UNIT_FACTORS
+    quick_stop_decel_dps2: Annotated[float, Meta(
+        gt=0, le=ACCEL_MAX_DPS2, extra={"unit": "deg/s^2"},
+        description="the quick stop deceleration written to the drive at connect and read "
+                    "back (CiA 402 0x6085, in the drive's acceleration units): how hard a "
+                    "quick stop or a lost controller brakes the table (default: the drive's "
+                    "own)")] | None = None
     pdo: Annotated[Literal["set", "verify"], Meta(
         description="TPDO transmission type / event timer: verify or set at "
                     "connect")] = DEFAULT_PDO
