@@ -82,7 +82,7 @@ def _binned(set_dps: float) -> dict[str, Any]:
             "peak_to_peak_rel": float(np.ptp(model + ripple))}
 
 
-def _rates() -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+def _rates() -> tuple[list[dict[str, object]], list[dict[str, object]]]:
     """(outer, inner): outer at +/-10 and +/-50 deg/s, failing its tolerance at 50 with
     the paper's binned average there; inner at +/-20 deg/s with one harmonic."""
     h_in = [{"order": 1, "amplitude_rel": 2.0e-4, "amplitude_u_rel": 2.4e-5,
@@ -107,7 +107,7 @@ def _rates() -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     return outer, inner
 
 
-def _pairs() -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+def _pairs() -> tuple[list[dict[str, object]], list[dict[str, object]]]:
     """(outer, inner): each pair's k and w0 with U, the bias drift fitted out."""
     drift = {"method": "lsq-drift", "drift_source": "the three halves (+, -, +)"}
     pairs_outer = [
@@ -124,7 +124,7 @@ def _pairs() -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     return pairs_outer, pairs_inner
 
 
-def _checks() -> list[dict[str, Any]]:
+def _checks() -> list[dict[str, object]]:
     """The rate error per rate under the guard-band rule (each of its three outcomes),
     and one instability check."""
     def check(axis: str, rate: float, value: float, u: float, verdict: str, reason: str,
@@ -147,7 +147,7 @@ def _checks() -> list[dict[str, Any]]:
     return checks
 
 
-def _raw_files() -> list[dict[str, Any]]:
+def _raw_files() -> list[dict[str, object]]:
     """The raw files of one session, each hashed."""
     files = [(layout.raw_relpath(1, name), size) for name, size in (
         (layout.fog_capture("outer"), 4_321_000), (layout.counter_log("outer"), 18_211),
