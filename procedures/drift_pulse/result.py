@@ -312,9 +312,5 @@ class EarthRateCheck(msgspec.Struct, frozen=True, kw_only=True):
                    reason=f"|measured - 15.041 cos(latitude)| = {diff:.2g} deg/h "
                           f"{'<=' if consistent else '>'} U = {U_dph:.2g} deg/h")
 
-    @property
-    def consistent(self) -> bool:
-        return self.verdict == "pass"
-
 
 DriftCheck = OwnDriftCheck | EarthRateCheck
