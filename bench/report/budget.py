@@ -21,6 +21,7 @@ from typing import Any
 import msgspec
 
 from bench.analysis.coverage import COVERAGE_P, coverage_factor, welch_satterthwaite
+from bench.report.codec import encode
 from drivers.json_types import JsonObject
 
 NORMAL = "normal"
@@ -53,10 +54,7 @@ class Term:
         return self.sensitivity * self.ustd
 
     def to_json(self) -> JsonObject:
-        return {"quantity": self.quantity, "estimate": self.estimate, "unit": self.unit,
-                "ustd": self.ustd, "distribution": self.distribution,
-                "sensitivity": self.sensitivity, "contribution_ustd": self.contribution,
-                "dof": self.dof}
+        return encode(self.record())
 
     def record(self) -> TermRecord:
         """The term as result.json states it, typed (`TermRecord`)."""
@@ -113,15 +111,8 @@ class Budget:
         return abs(self.U - self.reported_U) <= AGREE_REL * self.reported_U
 
     def to_json(self) -> JsonObject:
-        return {"quantity": self.quantity, "key": self.key, "unit": self.unit,
-                "estimate": self.estimate, "terms": [t.to_json() for t in self.terms],
-                "combined_ustd": self.ustd, "dof_eff": self.dof_eff, "coverage_factor": self.k,
-                "coverage_probability": COVERAGE_P,
-                "U_budget": self.U, "U_reported": self.reported_U,
-                "reproduces_reported_U": self.reproduces, "note": self.note,
-                **({"correlations": [{"terms": [i, j], "r": r}
-                                     for i, j, r in self.correlations]}
-                   if self.correlations else {})}
+        """The budget as result.json states it (`BudgetRecord`, its keys spelled once)."""
+        return encode(self.record())
 
     def record(self) -> BudgetRecord:
         """The budget as result.json states it, its derived figures (u_c, nu_eff, k, U)

@@ -2,8 +2,8 @@
 
 Why a module of its own: it is the one place of the kind where a JSON value meets the model
 (tests/test_json_boundary.py keeps JSON maps out of every other module). Encoding gives
-the builtins `json.dumps` writes (the result writer's floats, so the file's bytes are those
-of before); decoding refuses a malformed body naming the key path in result.json's terms
+the builtins `json.dumps` writes (bench/report/codec.py: the result writer's floats, so the
+file's bytes are those of before); decoding refuses a malformed body naming the key path in result.json's terms
 (`drift.axes.x.positions[1].mean_dph: missing`), so a certificate is never built from half
 a result.
 """
@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
-from typing import TypeVar, cast
+from typing import TypeVar
 
 import msgspec
 
 from bench.core import rundir_layout as layout
 from bench.core.journal import RunDir
-from drivers.json_types import JsonObject
+from bench.report.codec import encode as encode
 from procedures.drift_pulse.result import AxisFigures, DriftFigures
 
 #: the body's key in result.json, and the root of every path a refusal names
@@ -40,30 +40,6 @@ class MalformedResult(ValueError):
     def __init__(self, path: str, problem: str) -> None:
         super().__init__(f"result.json {path}: {problem}")
         self.path = path
-
-
-def _builtin(value: object) -> object:
-    """A numpy scalar as the Python number it holds (json.dumps writes both alike)."""
-    item = getattr(value, "item", None)
-    if callable(item):
-        return item()
-    raise NotImplementedError(f"{type(value).__name__} is no JSON value")
-
-
-def _lists(value: object) -> object:
-    """msgspec's builtins keep a tuple a tuple; JSON's arrays are lists (as `json.load`
-    gives them back, so a reader of the document in memory sees what a reader of the file
-    does)."""
-    if isinstance(value, tuple | list):
-        return [_lists(v) for v in value]
-    if isinstance(value, dict):
-        return {k: _lists(v) for k, v in value.items()}
-    return value
-
-
-def encode(model: msgspec.Struct) -> JsonObject:
-    """A model part as result.json's writer takes it: builtins in the Structs' field order."""
-    return cast(JsonObject, _lists(msgspec.to_builtins(model, enc_hook=_builtin)))
 
 
 def _refusal(err: msgspec.ValidationError, node: object, root: str) -> MalformedResult:
