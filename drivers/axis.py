@@ -38,12 +38,12 @@ module adds the life cycle. The errors are drivers/axis_errors.py's.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from drivers.axis_config import AxisConfiguration, check_link_settings
+from drivers.axis_config import AxisConfiguration
 from drivers.axis_errors import (
     NOT_STOPPED,
     AxisError,
@@ -62,15 +62,7 @@ from drivers.axis_link import (
     RawSink,
 )
 from drivers.axis_readback import Feedback
-from drivers.axis_spec import (
-    DEFAULT_HEARTBEAT_MS,
-    DEFAULT_PDO,
-    DEFAULT_POSITION_TOLERANCE_DEG,
-    DEFAULT_UNIT_FACTORS,
-)
 from drivers.cia402 import (
-    CONTROLLER_NODE_ID,
-    DEFAULT_COUNTS_PER_REV,
     DEFAULT_EDS_PATH,
     PROFILE_VELOCITY,
     DriveUnits,
@@ -78,6 +70,7 @@ from drivers.cia402 import (
     UnitFactors,
 )
 from drivers.clock import Clock, can_channel_name, channel_closed
+from drivers.drive_settings import DriveSettings
 from drivers.waits import MIN_REAL_MARGIN_S
 
 __all__ = ["NOT_STOPPED", "REAL_MARGIN_S", "SDO_TIMEOUT_S", "STANDSTILL_DPS", "STATE_TIMEOUT_S",
@@ -94,50 +87,47 @@ SDO_TIMEOUT_S = 1.0
 class Axis(AxisConfiguration):
     """A table axis driven by a CiA 402 drive in profile velocity mode; a context manager."""
 
-    def __init__(self, name: str, *, interface: str, channel: str, node_id: int,
-                 max_rate_dps: float, max_accel_dps2: float, clock: Clock,
-                 counts_per_rev: int = DEFAULT_COUNTS_PER_REV, velocity_unit_counts_per_s: float = 1.0e-3,
-                 accel_unit_counts_per_s2: float = 1.0,
-                 eds_path: str | Path = DEFAULT_EDS_PATH, heartbeat_ms: int = DEFAULT_HEARTBEAT_MS,
-                 watchdog_ms: int | None = None, controller_node_id: int = CONTROLLER_NODE_ID,
-                 accel_dps2: float | None = None, bitrate: int | None = None,
-                 feedback_journal_s: float = 0.1,
-                 position_tolerance_deg: float = DEFAULT_POSITION_TOLERANCE_DEG,
-                 raw: RawSink | None = None, unit_factors: str | Mapping[str, str] = DEFAULT_UNIT_FACTORS,
-                 pdo: str = DEFAULT_PDO, bus_options: Mapping[str, Any] | None = None) -> None:
+    def __init__(self, name: str, settings: DriveSettings, *, clock: Clock,
+                 raw: RawSink | None = None, accel_dps2: float | None = None,
+                 feedback_journal_s: float = 0.1, velocity_unit_counts_per_s: float = 1.0e-3,
+                 accel_unit_counts_per_s2: float = 1.0) -> None:
+        """`settings`: the stand's drive block, whole (a setting is read where it is
+        used, from `self.settings`). `accel_dps2`: the ramps' acceleration (default the
+        axis's limit). The units per count are the drive's until its factor group is
+        read at connect (a drive without one keeps them)."""
         self.name = name
-        self.interface = interface
-        self.channel = channel
+        self.settings = settings
+        self.interface = settings.interface
+        self.channel = settings.channel
         #: more `can.Bus` arguments: a socketcand server's host and port
-        self.bus_options = dict(bus_options or {})
-        self.node_id = int(node_id)
+        self.bus_options = {k: v for k, v in settings.bus_options.items() if k != "bitrate"}
+        self.node_id = int(settings.node_id)
         self.clock = clock
-        self.eds_path = Path(eds_path)
-        self.bitrate = bitrate
+        self.eds_path = Path(settings.eds or DEFAULT_EDS_PATH)
+        self.bitrate = settings.bitrate
         self.raw = raw
         #: clock seconds between journaled feedback records (0: every TPDO; 100 Hz of
         #: TPDOs for a 10 h ladder would be millions of lines the analysis never reads)
         self.feedback_journal_s = float(feedback_journal_s)
         self._feedback_journaled_t: float | None = None
-        self.units = DriveUnits(int(counts_per_rev), float(velocity_unit_counts_per_s),
+        self.units = DriveUnits(int(settings.counts_per_rev), float(velocity_unit_counts_per_s),
                                 float(accel_unit_counts_per_s2))
         #: "read" (the drive's factor group is the truth) or {velocity, acceleration}:
         #: SI unit names (cia402.NAMED_SI_UNITS) written at connect and read back
-        self.unit_factors_setting = unit_factors
-        check_link_settings(name, unit_factors, pdo)
-        self.pdo_setting = pdo
+        self.unit_factors_setting = settings.unit_factors
+        self.pdo_setting = settings.pdo
         #: the factor group and PDO timing as read back at connect (bench devices, journal)
         self.factors: UnitFactors | None = None
         self.readback: dict[str, Any] = {}
-        self.max_rate_dps = float(max_rate_dps)
-        self.max_accel_dps2 = float(max_accel_dps2)
-        if not position_tolerance_deg > 0:
+        self.max_rate_dps = float(settings.max_rate_dps)
+        self.max_accel_dps2 = float(settings.max_accel_dps2)
+        if not settings.position_tolerance_deg > 0:
             raise ValueError(f"axis {name} drive: position_tolerance_deg must be > 0, "
-                             f"got {position_tolerance_deg}")
-        self.position_tolerance_deg = float(position_tolerance_deg)
-        self.heartbeat_ms = int(heartbeat_ms)
-        self.watchdog_ms = watchdog_ms
-        self.controller_node_id = int(controller_node_id)
+                             f"got {settings.position_tolerance_deg}")
+        self.position_tolerance_deg = float(settings.position_tolerance_deg)
+        self.heartbeat_ms = int(settings.heartbeat_ms)
+        self.watchdog_ms = settings.watchdog_ms
+        self.controller_node_id = int(settings.controller_node_id)
         self._check_config(accel_dps2)
         self.accel_dps2 = float(accel_dps2) if accel_dps2 is not None else self.max_accel_dps2
         self.mode: Mode = PROFILE_VELOCITY

@@ -25,12 +25,14 @@ from drivers.cia402 import (
     si_unit_text,
 )
 from drivers.clock import can_channel_name, channel_opened
+from drivers.drive_settings import DriveSettings
 from drivers.heartbeat import HeartbeatProducer
 
 
 class AxisConfiguration(AxisMotion):
     """The drive as found and set up when the axis opens."""
 
+    settings: DriveSettings
     unit_factors_setting: str | Mapping[str, str]
     pdo_setting: str
     factors: UnitFactors | None
@@ -115,7 +117,13 @@ class AxisConfiguration(AxisMotion):
             raise AxisError(f"axis {self.name}: the drive's TPDOs do not carry {names}")
         self._tpdo_period_s = max(periods, default=0.01)
         channel_opened(self.clock, can_channel_name(self.channel, self.node_id))
+        want = self.settings.quick_stop_decel_dps2
+        if want is not None:   # CiA 402 0x6085 (UNSIGNED32, acceleration units)
+            self._write(Od.QUICK_STOP_DECELERATION, self.units.dps2_to_accel(want))
         quick = self._read_optional(Od.QUICK_STOP_DECELERATION)
+        if want is not None and quick != self.units.dps2_to_accel(want):
+            raise AxisError(f"axis {self.name}: drive.quick_stop_decel_dps2: wrote {want:g} "
+                            f"deg/s^2, the drive's 0x6085 reads back {quick}")
         if quick:
             self._quick_stop_decel_dps2 = self.units.accel_to_dps2(quick)
         self.readback["drive.quick stop deceleration 0x6085"] = (
@@ -255,18 +263,3 @@ class AxisConfiguration(AxisMotion):
             self._require_open()
             self._identity = self._read_identity()
         return self._identity
-
-
-def check_link_settings(name: str, unit_factors: str | Mapping[str, str], pdo: str) -> None:
-    """The stand's drive.unit_factors and drive.pdo, refused before anything opens."""
-    if not isinstance(unit_factors, str):
-        bad = [v for v in unit_factors.values() if v not in NAMED_SI_UNITS]
-        if bad or set(unit_factors) - {"velocity", "acceleration"}:
-            raise ValueError(f"axis {name} drive: unit_factors {dict(unit_factors)!r}: "
-                             f"keys velocity, acceleration; units one of "
-                             f"{', '.join(NAMED_SI_UNITS)}")
-    elif unit_factors != "read":
-        raise ValueError(f"axis {name} drive: unit_factors {unit_factors!r}: 'read' or "
-                         "a mapping {velocity: ..., acceleration: ...}")
-    if pdo not in ("set", "verify"):
-        raise ValueError(f"axis {name} drive: pdo {pdo!r}: 'set' or 'verify'")

@@ -39,7 +39,7 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from pathlib import Path
 
 import canopen
@@ -47,8 +47,6 @@ from canopen.objectdictionary import ODArray, ODVariable
 
 from drivers.cia402 import (
     COB_SYNC,
-    CONTROLLER_NODE_ID,
-    DEFAULT_COUNTS_PER_REV,
     DEFAULT_EDS_PATH,
     INT32_MAX,
     MODES,
@@ -59,9 +57,11 @@ from drivers.cia402 import (
     wrap_int32,
 )
 from drivers.clock import can_channel_name
+from drivers.drive_settings import DriveSettings
 from sims.clock import SteppedClock
 from sims.drive_can import NMT_STOPPED, DriveCanNode, WatchdogTrip, _DriveNmt
 from sims.drive_objects import LIVE_OBJECTS, UINT16_MAX, pdo_maps, si_unit_code
+from sims.drive_truth import DriveTruth
 from sims.stand import SimulatedStand
 
 __all__ = ["DriveTwin", "WatchdogTrip"]
@@ -80,22 +80,20 @@ FINE_TICK_S = 0.05
 class DriveTwin(DriveCanNode):
     """The drive of `stand.axes[axis]` as CANopen node `node_id` on `interface:channel`."""
 
-    def __init__(self, stand: SimulatedStand, axis: str, *, interface: str = "virtual",
-                 channel: str, node_id: int, eds_path: str | Path = DEFAULT_EDS_PATH,
-                 servo_tolerance_dps: float = 0.02, watchdog_s: float = 0.25,
-                 controller_node_id: int = CONTROLLER_NODE_ID, counts_per_rev: int = DEFAULT_COUNTS_PER_REV,
-                 velocity_unit: str | int = "0.001 inc/s",
-                 acceleration_unit: str | int = "inc/s2",
-                 gear_ratio: tuple[int, int] = (1, 1), tpdo_event_timer_ms: int | None = None,
-                 max_rate_dps: float = 720.0,
-                 max_accel_dps2: float = 1000.0, max_decel_dps2: float = 2000.0,
-                 profile_accel_dps2: float = 200.0, quick_stop_decel_dps2: float = 1000.0,
-                 standstill_dps: float = 0.001, coast_decel_dps2: float = 20.0,
-                 position_window_deg: float = 0.001, pp_velocity_dps: float = 10.0,
-                 serial_number: int = 0,
-                 bus_options: Mapping[str, object] | None = None) -> None:
+    def __init__(self, stand: SimulatedStand, axis: str, settings: DriveSettings,
+                 truth: DriveTruth | None = None) -> None:
+        """`settings`: the stand's drive block (its bus, node ids, encoder), as the driver
+        takes it; `truth`: the drive's own power-on configuration."""
+        t = truth or DriveTruth()
+        node_id = settings.node_id
         if not 1 <= node_id <= 127:
             raise ValueError(f"drive twin node_id must be 1..127, got {node_id}")
+        self.settings = settings
+        self.truth = t
+        interface, channel = settings.interface, settings.channel
+        counts_per_rev, gear_ratio = settings.counts_per_rev, t.gear_ratio
+        servo_tolerance_dps, standstill_dps = t.servo_tolerance_dps, t.standstill_dps
+        max_rate_dps, pp_velocity_dps = t.max_rate_dps, t.pp_velocity_dps
         self.stand = stand
         self.axis = axis
         self.model = stand.axis(axis)
@@ -103,13 +101,13 @@ class DriveTwin(DriveCanNode):
         self.interface = interface
         self.channel = channel
         #: more python-can bus arguments (a real bus interface's own)
-        self.bus_options = dict(bus_options or {})
+        self.bus_options = dict(settings.bus_options)
         self.node_id = node_id
         self._stepped = bool(getattr(self.clock, "stepped", False))
         self._leave: Callable[[], None] | None = None
         self._busy_until_s = 0.0
         self._can_name = can_channel_name(channel, node_id)
-        self.eds_path = Path(eds_path)
+        self.eds_path = Path(settings.eds or DEFAULT_EDS_PATH)
         # the factor group (CiA 402 0x608F, 0x6091, 0x60A9, 0x60AA): the twin's units
         # follow from its own factor objects, as a real drive's do, and change when the
         # controller writes 0x60A9/0x60AA (outside Operation enabled)
@@ -117,13 +115,13 @@ class DriveTwin(DriveCanNode):
         self.factors = UnitFactors(counts_per_rev * gear_ratio[1] // gear_ratio[0]
                                    if counts_per_rev * gear_ratio[1] % gear_ratio[0] == 0
                                    else counts_per_rev, motor_revs, gear_ratio[0],
-                                   gear_ratio[1], si_unit_code(velocity_unit),
-                                   si_unit_code(acceleration_unit))
+                                   gear_ratio[1], si_unit_code(t.velocity_unit),
+                                   si_unit_code(t.acceleration_unit))
         self.units = self.factors.drive_units()
         self._factors0 = self.factors
         self._sync_count = 0
-        self.coast_decel_dps2 = float(coast_decel_dps2)
-        self._tpdo_event_timer_ms = tpdo_event_timer_ms
+        self.coast_decel_dps2 = float(t.coast_decel_dps2)
+        self._tpdo_event_timer_ms = t.tpdo_event_timer_ms
         #: unit-dependent objects as deg-based values, refitted when the units change
         self._deg_values = {
             "velocity": {(Od.VELOCITY_WINDOW, 0): ("servo_tolerance_dps", servo_tolerance_dps,
@@ -134,17 +132,20 @@ class DriveTwin(DriveCanNode):
                                                         UINT32_MAX),
                          (Od.PROFILE_VELOCITY_PP, 0): ("pp_velocity_dps", pp_velocity_dps,
                                                        UINT32_MAX)},
-            "accel": {(Od.MAX_ACCELERATION, 0): ("max_accel_dps2", max_accel_dps2, UINT32_MAX),
-                      (Od.MAX_DECELERATION, 0): ("max_decel_dps2", max_decel_dps2, UINT32_MAX),
-                      (Od.PROFILE_ACCELERATION, 0): ("profile_accel_dps2", profile_accel_dps2,
-                                                     UINT32_MAX),
-                      (Od.PROFILE_DECELERATION, 0): ("profile_accel_dps2", profile_accel_dps2,
-                                                     UINT32_MAX),
+            "accel": {(Od.MAX_ACCELERATION, 0): ("max_accel_dps2", t.max_accel_dps2,
+                                                   UINT32_MAX),
+                      (Od.MAX_DECELERATION, 0): ("max_decel_dps2", t.max_decel_dps2,
+                                                 UINT32_MAX),
+                      (Od.PROFILE_ACCELERATION, 0): ("profile_accel_dps2",
+                                                     t.profile_accel_dps2, UINT32_MAX),
+                      (Od.PROFILE_DECELERATION, 0): ("profile_accel_dps2",
+                                                     t.profile_accel_dps2, UINT32_MAX),
                       (Od.QUICK_STOP_DECELERATION, 0): ("quick_stop_decel_dps2",
-                                                        quick_stop_decel_dps2, UINT32_MAX)},
+                                                        t.quick_stop_decel_dps2, UINT32_MAX)},
         }
-        self._initial = self._power_on_values(position_window_deg, controller_node_id,
-                                              watchdog_s, serial_number)
+        self._initial = self._power_on_values(t.position_window_deg,
+                                              settings.controller_node_id, t.watchdog_s,
+                                              t.serial_number)
         if self._initial[(Od.MAX_PROFILE_VELOCITY, 0)] > INT32_MAX:
             raise ValueError(f"max_rate_dps = {max_rate_dps} deg/s does not fit 0x60FF "
                              f"(INTEGER32) in these velocity units")

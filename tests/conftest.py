@@ -374,6 +374,14 @@ def one_axis_stand(clock: Any, axis: str = "outer", *, seed: int = 3,
                           {axis: max_rate_dps}, clock)
 
 
+def drive_settings(channel: str, node_id: int = 2, **kw: Any) -> Any:
+    """A stand's drive block for a test's axis or twin on the virtual CAN bus `channel`
+    (the limits of tests/test_axis.py's stand, 400 deg/s and 200 deg/s^2, unless given)."""
+    from drivers.drive_settings import DriveSettings
+    return DriveSettings(**{"interface": "virtual", "channel": channel, "node_id": node_id,
+                            "max_rate_dps": 400.0, "max_accel_dps2": 200.0, **kw})
+
+
 class Twins:
     """Twins started for one test, each on its real channel (a CAN bus, a pty, TCP), and
     each stopped when the test ends, however it ends (the `twins` fixture)."""
@@ -387,9 +395,11 @@ class Twins:
         `twin.channel` says which)."""
         import uuid
 
+        from sims.drive_truth import DriveTruth
         from sims.drive_twin import DriveTwin
-        twin = DriveTwin(stand, axis, channel=channel or f"test-{uuid.uuid4().hex[:10]}",
-                         node_id=node_id, **kw)
+        given = {k: kw.pop(k) for k in ("counts_per_rev", "controller_node_id") if k in kw}
+        twin = DriveTwin(stand, axis, drive_settings(
+            channel or f"test-{uuid.uuid4().hex[:10]}", node_id, **given), DriveTruth(**kw))
         twin.start()
         self._stack.callback(twin.stop)
         return twin

@@ -21,8 +21,10 @@ from drivers.axis import Axis, AxisError, DriveFault, LimitError
 from drivers.cia402 import FOLLOWING_ERROR, OVER_TEMPERATURE, SI_UNIT_INCREMENT, State, si_unit
 from drivers.waits import MIN_REAL_MARGIN_S
 from sims.clock import SteppedClock, VirtualClock
+from sims.drive_truth import DriveTruth
 from sims.drive_twin import DriveTwin
 from sims.stand import AxisChunk, AxisTruth, SimulatedStand, StandTruth
+from tests.conftest import drive_settings
 
 SPEED = 50.0
 NODE = 2
@@ -41,12 +43,14 @@ class Rig:
     journal: list[tuple[str, dict]]
 
     def axis(self, **kw: object) -> Axis:
-        args: dict = dict(interface="virtual", channel=self.channel, node_id=NODE,
-                          max_rate_dps=MAX_RATE, max_accel_dps2=MAX_ACCEL, clock=self.clock,
-                          feedback_journal_s=0.0,
-                          raw=lambda kind, rec: self.journal.append((kind, rec)))
-        args.update(kw)
-        return Axis("outer", **args)
+        """The axis driver on the twin's bus; `kw`: drive settings, or Axis's own
+        keywords (the units per count before connect)."""
+        own = {k: kw.pop(k) for k in ("velocity_unit_counts_per_s", "accel_unit_counts_per_s2")
+               if k in kw}
+        settings = drive_settings(self.channel, NODE, **{"max_rate_dps": MAX_RATE,
+                                                          "max_accel_dps2": MAX_ACCEL, **kw})
+        return Axis("outer", settings, clock=self.clock, feedback_journal_s=0.0,
+                    raw=lambda kind, rec: self.journal.append((kind, rec)), **own)
 
     @property
     def model(self):  # noqa: ANN201
@@ -65,7 +69,9 @@ def make_rig(speed: float = SPEED, stepped: bool = False, **twin_kw: object) -> 
                                                         rate_noise_dps=1.0e-4)})
     stand = SimulatedStand(truth, {"outer": 1000.0}, clock)
     channel = f"test-axis-{uuid.uuid4().hex[:10]}"
-    twin = DriveTwin(stand, "outer", channel=channel, node_id=NODE, **twin_kw)
+    given = {k: twin_kw.pop(k) for k in ("counts_per_rev",) if k in twin_kw}
+    twin = DriveTwin(stand, "outer", drive_settings(channel, NODE, **given),
+                     DriveTruth(**twin_kw))
     return Rig(clock, stand, twin, channel, [])
 
 
@@ -307,8 +313,8 @@ def test_position_unwraps_across_int32(rig: Rig) -> None:
 def test_no_drive_on_the_bus_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(axis_mod, "SDO_TIMEOUT_S", 0.1)
     clock = VirtualClock(SPEED)
-    ax = Axis("outer", interface="virtual", channel=f"empty-{uuid.uuid4().hex}", node_id=5,
-              max_rate_dps=MAX_RATE, max_accel_dps2=MAX_ACCEL, clock=clock)
+    ax = Axis("outer", drive_settings(f"empty-{uuid.uuid4().hex}", 5, max_rate_dps=MAX_RATE,
+                                      max_accel_dps2=MAX_ACCEL), clock=clock)
     with pytest.raises(AxisError, match="no answer from drive node 5"):
         ax.open()
     assert ax.network is None
@@ -316,14 +322,12 @@ def test_no_drive_on_the_bus_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -
 
 def test_configuration_errors_name_the_key() -> None:
     clock = VirtualClock(SPEED)
-    base: dict = dict(interface="virtual", channel="x", node_id=2, max_rate_dps=400,
-                      max_accel_dps2=200, clock=clock)
-    with pytest.raises(ValueError, match="max_rate_dps"):
-        Axis("outer", **{**base, "max_rate_dps": 800})  # 0.001 counts/s units end at 737 dps
+    with pytest.raises(ValueError, match="max_rate_dps"):   # 0.001 counts/s units end at 737 dps
+        Axis("outer", drive_settings("x", max_rate_dps=800), clock=clock)
     with pytest.raises(ValueError, match="node_id"):
-        Axis("outer", **{**base, "node_id": 0})
+        Axis("outer", drive_settings("x", 0), clock=clock)
     with pytest.raises(ValueError, match="watchdog_ms"):
-        Axis("outer", **{**base, "heartbeat_ms": 100, "watchdog_ms": 150})
+        drive_settings("x", heartbeat_ms=100, watchdog_ms=150)
 
 
 @pytest.mark.timeout(20)

@@ -17,7 +17,7 @@ from drivers.axis import Axis
 from drivers.cia402 import State
 from sims.clock import VirtualClock
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
-from tests.conftest import Twins
+from tests.conftest import Twins, drive_settings
 
 
 def _axes(*drives: dict) -> dict[str, dict]:
@@ -60,10 +60,11 @@ def test_one_dead_controller_stops_its_own_axis_on_a_shared_bus(twins: Twins) ->
     assert ids == {"outer": 127, "inner": 126}
     drives = {a: twins.drive(stand, a, channel=channel, node_id=axes[a]["drive"]["node_id"])
               for a in axes}
-    drivers = {a: Axis(a, interface="virtual", channel=channel,
-                       node_id=axes[a]["drive"]["node_id"], controller_node_id=ids[a],
-                       max_rate_dps=100.0, max_accel_dps2=500.0, clock=clock,
-                       heartbeat_ms=50, watchdog_ms=200, feedback_journal_s=0.0)
+    drivers = {a: Axis(a, drive_settings(channel, axes[a]["drive"]["node_id"],
+                                         controller_node_id=ids[a], max_rate_dps=100.0,
+                                         max_accel_dps2=500.0, heartbeat_ms=50,
+                                         watchdog_ms=200),
+                       clock=clock, feedback_journal_s=0.0)
                for a in axes}
     try:
         for ax in drivers.values():

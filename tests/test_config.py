@@ -179,12 +179,14 @@ def test_a_fog_declared_inverted_is_refused(files: tuple[Path, Path],
 def test_the_stand_parses_into_frozen_settings_with_one_default_each() -> None:
     """What the loader returns below the raw files: frozen settings whose defaults are
     the schema keys' (the reference prints them), which are the drivers' own."""
-    import dataclasses
     import inspect
+
+    import msgspec
 
     from bench.core.config import COUNTER, DRIVE, FOG
     from bench.core.loader import load_config
     from drivers.axis import Axis
+    from drivers.drive_settings import DriveSettings
     from drivers.time_tie import TimeTie
     from procedures.rate_ladder.settings import LadderSettings
 
@@ -192,7 +194,7 @@ def test_the_stand_parses_into_frozen_settings_with_one_default_each() -> None:
     stand = cfg.stand_settings
     assert isinstance(cfg.settings, LadderSettings)           # the kind's `parse`, once
     outer = stand.axes["outer"]
-    with pytest.raises(dataclasses.FrozenInstanceError):
+    with pytest.raises(AttributeError):      # frozen
         outer.drive.node_id = 9  # type: ignore[misc]
     assert (outer.drive.node_id, outer.drive.controller_node_id) == (2, 127)
     assert outer.counter is not None and outer.counter.time_tie is not None
@@ -200,9 +202,11 @@ def test_the_stand_parses_into_frozen_settings_with_one_default_each() -> None:
     assert outer.fog is not None and outer.fog.sign == 1
     assert stand.identity.serial == "SIM-0001" and stand.sim is not None
     assert stand.sim.axis("outer").truth.fog.scale == 1.0003
-    axis_defaults = inspect.signature(Axis).parameters
+    # the driver takes the settings whole: its defaults are the declaration's
+    assert "settings" in inspect.signature(Axis).parameters
+    axis_defaults = {f.name: f.default for f in msgspec.structs.fields(DriveSettings)}
     for key in ("heartbeat_ms", "counts_per_rev", "pdo", "unit_factors", "position_tolerance_deg"):
-        assert DRIVE.keys[key].default == axis_defaults[key].default, key
+        assert DRIVE.keys[key].default == axis_defaults[key], key
     assert COUNTER.keys["timeout_margin_s"].default is not None
     tie = COUNTER.keys["time_tie"].node.keys       # type: ignore[attr-defined]
     assert tie["sync_period_s"].default == TimeTie.sync_period_s
@@ -216,6 +220,8 @@ def test_each_setting_is_declared_once_on_its_dataclass() -> None:
     field's type (a float field holds a float even when the file writes 490)."""
     import dataclasses
 
+    import msgspec
+
     from bench.core.config import (
         CALIBRATION,
         COUNTER,
@@ -225,19 +231,27 @@ def test_each_setting_is_declared_once_on_its_dataclass() -> None:
         SIM_KEYS,
         Calibration,
         CounterSpec,
-        DriveSpec,
         FogSettings,
         Identity,
         SimSettings,
     )
-    from bench.core.schema import Map, declared_map, parse_declared
+    from bench.core.schema import Map, declared_map, parse_declared, struct_at, struct_map
+    from drivers.drive_settings import DriveSettings
     from procedures.drift_pulse.settings import PROCEDURE as DRIFT
     from procedures.drift_pulse.settings import DriftFile
     from procedures.rate_ladder.settings import PROCEDURE as LADDER
     from procedures.rate_ladder.settings import LadderSettings, Settle
 
-    for cls, node in ((Calibration, CALIBRATION), (DriveSpec, DRIVE), (CounterSpec, COUNTER),
-                      (FogSettings, FOG), (Identity, IDENTITY), (SimSettings, Map(SIM_KEYS))):
+    for struct, node in ((Calibration, CALIBRATION), (DriveSettings, DRIVE)):
+        assert node == struct_map(struct), struct
+        struct_fields = {f.encode_name: f for f in msgspec.structs.fields(struct)}
+        assert list(node.keys) == list(struct_fields), struct
+        for key, spec in node.keys.items():
+            default = struct_fields[key].default
+            if isinstance(default, int | float | str) and key != "controller_node_id":
+                assert spec.default == default and not spec.required, (struct, key)
+    for cls, node in ((CounterSpec, COUNTER), (FogSettings, FOG), (Identity, IDENTITY),
+                      (SimSettings, Map(SIM_KEYS))):
         assert node == declared_map(cls), cls
         fields = {f.name: f for f in dataclasses.fields(cls)}
         for key, spec in node.keys.items():
@@ -256,9 +270,10 @@ def test_each_setting_is_declared_once_on_its_dataclass() -> None:
     assert isinstance(fog.rate_hz, float) and isinstance(fog.range_dps, float)
     assert (fog.baudrate, fog.format, fog.configure) == (921600, "kvh-a", "declare")
     assert fog.calibration is not None and str(fog.calibration.due) == "2027-01-31"
-    drive = parse_declared(DriveSpec, {"interface": "virtual", "channel": "c", "node_id": 3,
-                                       "max_rate_dps": 400, "max_accel_dps2": 200},
-                           controller_node_id=127)
+    drive = struct_at(DriveSettings, {"interface": "virtual", "channel": "c", "node_id": 3,
+                                      "max_rate_dps": 400, "max_accel_dps2": 200},
+                      controller_node_id=127)
+    assert isinstance(drive.max_rate_dps, float)
     assert (drive.controller_node_id, drive.heartbeat_ms, drive.pdo) == (127, 50, "verify")
     assert not DRIVE.keys["controller_node_id"].required and DRIVE.keys["node_id"].required
 

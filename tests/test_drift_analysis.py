@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from procedures.drift_pulse import analysis as dp
+from procedures.drift_pulse.codec import encode
 from tests.drift_cycles import FS_HZ, TC_S, paper_truth, record_cycles
 
 K_AS = {"x": 2.0, "y": 2.0, "z": 2.0}
@@ -132,7 +133,7 @@ def test_paper_case_latitude_70_azimuth_80_meets_the_papers_figures() -> None:
     assert err_arcmin < 2.0
     assert abs(res.azimuth_deg - 80.0) <= res.azimuth_u_deg
     assert res.earth_consistent
-    d = res.figures().to_json()
+    d = encode(res.figures())
     for g in "xy":
         assert set(d["axes"][g]) >= {"own_dph", "own_u_dph", "apparent_dph", "apparent_u_dph"}
     assert d["azimuth_deg"] == res.azimuth_deg and d["azimuth_u_deg"] == res.azimuth_u_deg

@@ -27,16 +27,17 @@ from sims.clock import VirtualClock
 from sims.drive_twin import DriveTwin
 from sims.socketcand_server import SocketcandServer
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
-from tests.conftest import ROOT, Twins, one_axis_stand
+from tests.conftest import ROOT, Twins, drive_settings, one_axis_stand
 
 CONTROLLER = """
 import sys, time
 from drivers.clock import MonotonicClock
 from drivers.axis import Axis
-ax = Axis("outer", interface="socketcand", channel="bench",
-          bus_options={"host": "127.0.0.1", "port": int(sys.argv[1])}, node_id=2,
-          max_rate_dps=100.0, max_accel_dps2=500.0, clock=MonotonicClock(),
-          heartbeat_ms=50, watchdog_ms=300)
+from drivers.drive_settings import DriveSettings
+ax = Axis("outer", DriveSettings(interface="socketcand", channel="bench", host="127.0.0.1",
+                                 port=int(sys.argv[1]), node_id=2, max_rate_dps=100.0,
+                                 max_accel_dps2=500.0, heartbeat_ms=50, watchdog_ms=300),
+          clock=MonotonicClock())
 ax.open()
 ax.set_rate(20.0)
 print("running", flush=True)
@@ -88,8 +89,8 @@ def test_heartbeat_does_not_use_the_bus_periodic_task(monkeypatch: pytest.Monkey
     clock = VirtualClock(20.0)
     twin = twins.drive(one_axis_stand(clock, seed=2, max_rate_dps=100.0), node_id=2)
     monkeypatch.setattr(can.BusABC, "send_periodic", refuse_ours)
-    with Axis("outer", interface="virtual", channel=twin.channel, node_id=2, max_rate_dps=100.0,
-              max_accel_dps2=500.0, clock=clock, heartbeat_ms=50, watchdog_ms=200) as ax:
+    with Axis("outer", drive_settings(twin.channel, max_rate_dps=100.0, max_accel_dps2=500.0,
+                                      heartbeat_ms=50, watchdog_ms=200), clock=clock) as ax:
         ax.set_rate(10.0)
         time.sleep(0.6)                              # three watchdog times
         assert twin.watchdog_trips == [] and twin.state is State.OPERATION_ENABLED
@@ -102,7 +103,7 @@ def test_a_suspended_controller_has_its_table_stopped() -> None:
     stand = SimulatedStand(StandTruth(seed=4, axes={"outer": AxisTruth()}), {"outer": 100.0},
                            clock)
     channel = f"hb-{random.getrandbits(40):010x}"
-    twin = DriveTwin(stand, "outer", channel=channel, node_id=2)
+    twin = DriveTwin(stand, "outer", drive_settings(channel))
     twin.start()
     server = SocketcandServer({"bench": channel})
     port = server.start()
@@ -148,9 +149,9 @@ def test_a_twin_held_up_inside_its_own_process_does_not_take_that_for_silence(
     stand = SimulatedStand(StandTruth(seed=5, axes={"outer": AxisTruth()}), {"outer": 200.0},
                            clock)
     twin = twins.drive(stand)
-    ax = Axis("outer", interface="virtual", channel=twin.channel, node_id=2,
-              max_rate_dps=100.0, max_accel_dps2=500.0, clock=clock,
-              heartbeat_ms=50, watchdog_ms=200, feedback_journal_s=0.0)
+    ax = Axis("outer", drive_settings(twin.channel, max_rate_dps=100.0, max_accel_dps2=500.0,
+                                      heartbeat_ms=50, watchdog_ms=200),
+              clock=clock, feedback_journal_s=0.0)
     silent = False
     try:
         ax.open()

@@ -30,6 +30,7 @@ from canopen.profiles.p402 import BaseNode402, State402
 from drivers.axis import Axis
 from drivers.cia402 import DEFAULT_EDS_PATH, State
 from drivers.clock import MonotonicClock
+from drivers.drive_settings import DriveSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 STAND = ROOT / "configs" / "stands" / "sim-two-axis.yaml"
@@ -187,9 +188,10 @@ def test_the_bench_axis_driver_drives_a_bench_sim_drive(sim: SimProcess) -> None
     enable, a velocity, its safe stop."""
     kw = bus_kwargs(sim.lines[("outer", "drive")])
     interface, channel = kw.pop("interface"), kw.pop("channel")
-    with Axis("outer", interface=interface, channel=channel, bus_options=kw, node_id=2,
-              max_rate_dps=400.0, max_accel_dps2=200.0, clock=MonotonicClock(),
-              heartbeat_ms=200, watchdog_ms=1500) as ax:
+    with Axis("outer", DriveSettings(interface=interface, channel=channel, **kw, node_id=2,
+                                     max_rate_dps=400.0, max_accel_dps2=200.0,
+                                     heartbeat_ms=200, watchdog_ms=1500),
+              clock=MonotonicClock()) as ax:
         assert ax.state is State.OPERATION_ENABLED
         ax.set_rate(20.0)
         assert wait_for(lambda: abs(ax.rate_dps - 20.0) < 0.2, 20.0), ax.rate_dps

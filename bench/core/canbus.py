@@ -14,15 +14,7 @@ from collections.abc import Mapping
 
 from bench.core.yamlfile import KeyPath
 from drivers.cia402 import CONTROLLER_NODE_ID  # further axes on a bus take 0x7E, 0x7D, ...
-
-
-def bus_name(drive: Mapping[str, object]) -> str:
-    """A bus's identity: interface and channel, and for a bus behind a server
-    (socketcand) the server's host and port, so two servers' `can0` are two buses."""
-    where = ""
-    if drive.get("host") is not None or drive.get("port") is not None:
-        where = f"@{drive.get('host', '')}:{drive.get('port', '')}"
-    return f"{drive['interface']}:{drive['channel']}{where}"
+from drivers.drive_settings import bus_name as bus_name  # a bus's identity, the drive's
 
 
 def _node_id(drive: Mapping[str, object], key: str) -> int:

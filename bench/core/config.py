@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any
 
-from bench.core.canbus import bus_name, bus_problems
+from bench.core.canbus import bus_problems
 from bench.core.schema import (
     Any_,
     Bool,
@@ -27,30 +27,28 @@ from bench.core.schema import (
     Num,
     OneOf,
     Setting,
+    SettingsRefused,
     Str,
     declared_map,
     parse_date,
     parse_declared,
+    struct_at,
+    struct_map,
 )
 from bench.core.yamlfile import Problem, YamlDoc
-from drivers.axis_spec import (
-    DEFAULT_HEARTBEAT_MS,
-    DEFAULT_PDO,
-    DEFAULT_POSITION_TOLERANCE_DEG,
-    DEFAULT_UNIT_FACTORS,
-)
-from drivers.cia402 import DEFAULT_COUNTS_PER_REV
+from drivers.calibration import Calibration
 from drivers.counter_profiles import DEFAULT_TIMEOUT_MARGIN_S, get_profile
 from drivers.counter_profiles import PROFILES as COUNTER_PROFILES
+from drivers.drive_settings import (
+    DriveSettings,
+)
 from drivers.fog_format_names import FORMAT_NAMES as FOG_FORMATS
 from drivers.time_tie import TimeTie
+from sims.drive_truth import DriveTruth
 from sims.truth import AxisTruth, FogTruth, Harmonic, Mains
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
-#: a rate table's fastest axes turn some 10 000 deg/s; its slowest useful rate is around
-#: 0.001 deg/s (one turn in 100 h): anything outside is a typing slip, not a bench
-RATE_MIN_DPS, RATE_MAX_DPS = 1e-3, 20_000.0
-ACCEL_MAX_DPS2 = 100_000.0
+#: the rate and acceleration bounds are the drive's (drivers/drive_settings.py)
 #: the counter's input range (a 10x probe on +/-5 V)
 LEVEL_MAX_V = 50.0
 #: one step of a plan longer than this (bench time) is refused: nobody runs it
@@ -74,27 +72,7 @@ def _upright_only(value: object) -> str | None:
 # schema (`bench validate`, `bench schema`, JSON Schema) is `declared_map` of the class,
 # its parse `parse_declared` (bench/core/schema.py).
 
-@dataclass(frozen=True)
-class Calibration:
-    """An instrument's or reference's calibration certificate, as the stand states it."""
-
-    certificate: Annotated[str, Setting(Str(), "the calibration certificate's number")]
-    issuer: Annotated[str, Setting(Str(), "the laboratory that issued it")]
-    due: Annotated[dt.date | None, Setting(Date(), "calibration due date, YYYY-MM-DD",
-                                           required=True)]
-    traces: Annotated[str | None, Setting(Str(), "the quantity it traces to SI, e.g. 'time "
-                                                 "interval to the SI second'")] = None
-
-    @classmethod
-    def of(cls, d: dict[str, Any] | None) -> Calibration | None:
-        """A calibration block read leniently (a traceability entry, a run's copy)."""
-        if not isinstance(d, dict):
-            return None
-        return cls(str(d.get("certificate", "")), str(d.get("issuer", "")),
-                   parse_date(d.get("due")), _opt(d, "traces", str))
-
-
-CALIBRATION = declared_map(Calibration)
+CALIBRATION = struct_map(Calibration)
 TRACEABLE = Map({   # a reference the bench does not drive (a 10 MHz source, a sensor)
     "item": Key(Str(), True, "what it is, e.g. 'GPS-disciplined 10 MHz reference'"),
     "serial": Key(Str(), False, "its serial number"),
@@ -103,79 +81,9 @@ TRACEABLE = Map({   # a reference the bench does not drive (a 10 MHz source, a s
     "due": Key(Date(), True, "calibration due date, YYYY-MM-DD"),
     "traces": Key(Str(), False, "the quantity it traces to SI"),
 })
-_NODE_ID = Num(min=1, max=127, integer=True)
 
 
-@dataclass(frozen=True, kw_only=True)
-class DriveSpec:
-    """A stand axis's `drive:` block, parsed once."""
-
-    interface: Annotated[str, Setting(Str(), "python-can interface: socketcan, pcan, "
-                                             "kvaser, socketcand, virtual...")]
-    channel: Annotated[str, Setting(Str(), "python-can channel, e.g. can0 (socketcand: the "
-                                           "bus name the server announces)")]
-    host: Annotated[str | None, Setting(
-        Str(), "socketcand: the server's address, e.g. 127.0.0.1 for `bench sim` (required "
-        "with interface socketcand)")] = None          # socketcand's server
-    port: Annotated[int | None, Setting(
-        Num(min=1, max=65535, integer=True),
-        "socketcand: the server's TCP port (required with interface socketcand)")] = None
-    node_id: Annotated[int, Setting(_NODE_ID, "the drive's CANopen node id")]
-    #: resolved by the parse: stated, or the highest id free on the bus
-    controller_node_id: Annotated[int, Setting(
-        _NODE_ID, "this axis's controller node on the bus, whose heartbeat the drive "
-        "watches (default: highest id free on the bus)", required=False)]
-    bitrate: Annotated[int | None, Setting(
-        Num(min=10_000, max=1_000_000, integer=True, unit="bit/s"),
-        "CAN bit rate, where the interface needs it (socketcan takes the link's)")] = None
-    max_rate_dps: Annotated[float, Setting(
-        Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"),
-        "the axis's rate limit: a command above it is refused, never clipped")]
-    max_accel_dps2: Annotated[float, Setting(
-        Num(min=0, exclusive_min=True, max=ACCEL_MAX_DPS2, unit="deg/s^2"),
-        "the axis's acceleration limit (and the ramps' default)")]
-    counts_per_rev: Annotated[int, Setting(
-        Num(min=1, integer=True), "encoder counts per revolution (position and velocity "
-        "units of the drive)")] = DEFAULT_COUNTS_PER_REV
-    heartbeat_ms: Annotated[int, Setting(
-        Num(min=10, max=10_000, integer=True),
-        "controller heartbeat period; the drive watches it")] = DEFAULT_HEARTBEAT_MS
-    watchdog_ms: Annotated[int | None, Setting(
-        Num(min=20, max=65_535, integer=True),
-        "drive stops the axis when the controller is silent this long")] = None
-    position_tolerance_deg: Annotated[float, Setting(
-        Num(min=0, exclusive_min=True, unit="deg"),
-        "how close a position move must land (profile position)")] \
-        = DEFAULT_POSITION_TOLERANCE_DEG
-    eds: Annotated[str | None, Setting(
-        Str(), "the drive's EDS file, for canopen's object dictionary")] = None
-    serial: Annotated[str | None, Setting(
-        Str(), "the instrument's serial number: the key of its check values (bench "
-        "control)")] = None
-    calibration: Annotated[Calibration | None, Setting(
-        doc="the encoder's calibration certificate, if any")] = None
-    unit_factors: Annotated[str | Mapping[str, str], Setting(
-        Any_(), "'read' (the drive's factor group 0x608F/0x6091/0x60A9/0x60AA is read at "
-        "connect) or {velocity: rpm|inc/s|0.001 inc/s|..., acceleration: rpm/s|inc/s2|...} "
-        "written at connect and read back; a stand without a sim: block must state "
-        "it")] = DEFAULT_UNIT_FACTORS
-    pdo: Annotated[str, Setting(
-        Str(("set", "verify")),
-        "TPDO transmission type / event timer: verify or set at connect")] = DEFAULT_PDO
-
-    @property
-    def bus(self) -> str:
-        """The CAN bus this drive is on (axes with the same one share it)."""
-        return bus_name({"interface": self.interface, "channel": self.channel,
-                         "host": self.host, "port": self.port})
-
-    @property
-    def bus_options(self) -> dict[str, Any]:
-        """The `can.Bus` arguments besides interface and channel the stand states."""
-        return {k: v for k in ("host", "port", "bitrate") if (v := getattr(self, k))}
-
-
-DRIVE = declared_map(DriveSpec)
+DRIVE = struct_map(DriveSettings)
 TIME_TIE = Map({
     "source": Key(Str(("fog-sync", "host-clock")), True,
                   "how the counter's start event is placed on the FOG's time axis: "
@@ -355,11 +263,10 @@ SIM_AXIS = Map({
                                      "the drive twin's serial number, 0x1018:4")}), False,
                    "the serial each twin reports: the counter's *IDN? serial field, the "
                    "drive's identity object 0x1018:4"),
-    "drive": Key(Map({"velocity_unit": Key(Str(), False, "e.g. rpm, inc/s"),
-                      "acceleration_unit": Key(Str(), False, "e.g. rpm/s, inc/s2"),
-                      "tpdo_event_timer_ms": Key(Num(min=0, integer=True, unit="ms"), False,
-                                                 "0: TPDOs on change only")}), False,
-                 "the drive twin's factor group (e.g. rpm, rpm/s) and TPDO event timer"),
+    "drive": Key(Map({k: v for k, v in struct_map(DriveTruth).keys.items()
+                      if k != "serial_number"}), False,   # stated in serials.drive
+                 "the drive twin's own configuration: its factor group (e.g. rpm, rpm/s), "
+                 "TPDO event timer, limits and windows (sims/drive_truth.py)"),
 })
 
 
@@ -574,7 +481,7 @@ class StandAxis:
     """One axis of the stand: its drive, and the counter and FOG that watch it."""
 
     name: str
-    drive: DriveSpec
+    drive: DriveSettings
     counter: CounterSpec | None = None
     fog: FogSettings | None = None
 
@@ -594,8 +501,8 @@ class SimAxis:
     tie_latency_s: float | None = None      # None: exactly the latency the stand declares
     tie_jitter_s: float = 0.0
     counter_serial: str | None = None
-    drive_serial: int | None = None
-    drive_twin: Mapping[str, Any] = field(default_factory=dict)   # DriveTwin's keywords
+    #: the drive twin's power-on configuration (its serial from `serials.drive`)
+    drive: DriveTruth = DriveTruth()
 
 
 #: truth used by `--sim` for an axis the stand file's `sim:` block does not describe
@@ -700,8 +607,10 @@ def _sim_axis(d: dict[str, Any]) -> SimAxis:
         scale_step=(int(step["from_run"]), float(step["rel"])) if step else None,
         scale_ramp=(int(ramp["from_run"]), float(ramp["rel_per_run"])) if ramp else None,
         tie_latency_s=_opt(tie, "latency_s", float),
-        counter_serial=_opt(serials, "counter", str), drive_serial=_opt(serials, "drive", int),
-        drive_twin=dict(d.get("drive") or {}), **extra)
+        counter_serial=_opt(serials, "counter", str),
+        drive=struct_at(DriveTruth, d.get("drive") or {},
+                        **({"serial_number": serials["drive"]} if "drive" in serials else {})),
+        **extra)
 
 
 def dcc_refs(stand: Mapping[str, Any] | None) -> DccRefs:
@@ -725,7 +634,8 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
     for name, a in stand_axes.items():
         c, f = a.get("counter"), a.get("fog")
         axes[name] = StandAxis(
-            name, parse_declared(DriveSpec, a["drive"], controller_node_id=controllers[name]),
+            name, struct_at(DriveSettings, a["drive"], ("axes", name, "drive"),
+                      controller_node_id=controllers[name]),
             parse_declared(CounterSpec, c) if c else None,
             parse_declared(FogSettings, f) if f else None)
     sim = None
@@ -843,6 +753,26 @@ def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
                     "(the link's calibrated latency and its standard uncertainty enter "
                     "the counter's budget); see docs/configuration.md, "
                     "axes.<name>.counter.time_tie"))
+    return out
+
+
+def struct_problems(sdoc: YamlDoc, refused: list[Problem]) -> list[Problem]:
+    """What the stand's Struct-declared blocks refuse beyond the schema's nodes (the rules
+    between keys, e.g. a drive's watchdog against its heartbeat), each at its file, line
+    and key: each block the nodes accepted is built as the run will build it."""
+    data = sdoc.data if isinstance(sdoc.data, dict) else {}
+    axes = got if isinstance(got := data.get("axes"), dict) else {}
+    out = []
+    for name, axis in axes.items():
+        drive = axis.get("drive") if isinstance(axis, dict) else None
+        where = ("axes", name, "drive")
+        if not isinstance(drive, dict) or any(
+                p.key.startswith(f"axes.{name}.drive") for p in refused):
+            continue
+        try:
+            struct_at(DriveSettings, drive, where)
+        except SettingsRefused as e:
+            out.append(sdoc.problem(e.path, e.message))
     return out
 
 

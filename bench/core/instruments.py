@@ -22,7 +22,6 @@ from bench.core.protocols import Drive
 from bench.core.protocols import Fog as FogLike
 from bench.core.stops import Resource, StopOutcome, Stops, attempt
 from drivers.axis import Axis
-from drivers.cia402 import DEFAULT_EDS_PATH
 from drivers.clock import Clock
 from drivers.counter import Counter, CounterError
 from drivers.fog import Fog
@@ -201,14 +200,7 @@ def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *
     sharing a CAN bus decide it together (bench/core/canbus.py)."""
     name, d = spec.name, spec.drive
     drive_log = bench.log(run.raw_path(layout.drive_log(name))) if run else None
-    drive = Axis(name, interface=d.interface, channel=d.channel, node_id=d.node_id,
-                 max_rate_dps=d.max_rate_dps, max_accel_dps2=d.max_accel_dps2,
-                 clock=clock, controller_node_id=d.controller_node_id,
-                 counts_per_rev=d.counts_per_rev, heartbeat_ms=d.heartbeat_ms,
-                 watchdog_ms=d.watchdog_ms, bitrate=d.bitrate, pdo=d.pdo,
-                 bus_options={k: v for k, v in d.bus_options.items() if k != "bitrate"},
-                 position_tolerance_deg=d.position_tolerance_deg,
-                 unit_factors=d.unit_factors, eds_path=d.eds or DEFAULT_EDS_PATH,
+    drive = Axis(name, d, clock=clock,
                  raw=_raw_record_logger(drive_log, clock) if drive_log else None)
     bench.enter(drive, "axis")
     ax = AxisInstruments(name, drive)

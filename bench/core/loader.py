@@ -21,7 +21,7 @@ from functools import reduce
 from pathlib import Path
 from typing import Any
 
-from bench.core.config import Config, ConfigError, real_stand_problems
+from bench.core.config import Config, ConfigError, real_stand_problems, struct_problems
 from bench.core.lab import lab_problems
 from bench.core.placeholders import without_placeholders
 from bench.core.registry import procedure_kind, procedure_names
@@ -111,7 +111,8 @@ def load_stand(stand_path: str | Path) -> YamlDoc:
     schema = any_stand_schema()
     sdoc = without_placeholders(written, schema)
     # a placeholder is there to be filled in: the real-stand rules count it as stated
-    problems = validate(sdoc, schema) + real_stand_problems(written)
+    refused = validate(sdoc, schema)
+    problems = refused + struct_problems(sdoc, refused) + real_stand_problems(written)
     if problems:
         raise ConfigError(problems)
     return sdoc
@@ -151,7 +152,7 @@ def load_config(procedure_path: str | Path, stand_path: str | Path | None = None
             sdoc = without_placeholders(written, schema)
             stand_refused = validate(sdoc, schema)
             refused += stand_refused
-            problems += stand_refused
+            problems += stand_refused + struct_problems(sdoc, stand_refused)
             problems += real_stand_problems(written)   # as load_stand
     if kind is None or sdoc is None or not isinstance(sdoc.data, dict):
         raise ConfigError(problems)

@@ -4,13 +4,16 @@ A schema node checks one value and reports every problem it finds (not just the
 first) as a `Problem` naming file, line and key path. Unknown keys are refused: a
 misspelt `turnz: 50` must not silently fall back to a default on a day-long run.
 
-A setting is declared once, on the frozen dataclass that carries it: its type and
-default are the field's, its schema node (bounds, unit) and meaning a `Setting` in the
-field's `Annotated` type. `declared_map` derives the file's schema from the class (so
-`bench validate`, `bench schema` and the JSON Schema read the same declaration) and
-`parse_declared` builds the object from the validated mapping; no defaults dict and
-no hand copy of the keys. Our own nodes, not pydantic/msgspec/cattrs: they keep every
-problem at its file, line and key, and import in a few milliseconds (the CLI's start).
+A setting is declared once. The stand's instruments (drivers/drive_settings.py,
+drivers/calibration.py) are msgspec Structs: each field's type, default, bounds
+(`Meta(ge=..)`), unit (`Meta(extra={"unit": ..})`) and meaning (`Meta(description=..)`).
+`struct_map` derives the file's schema from the Struct (so `bench validate`, `bench
+schema` and the JSON Schema read the same declaration) and `struct_at` builds the object
+with msgspec, placing what msgspec or a rule of the Struct refuses (its `$.a.b` path) at
+the file's line and key. The older declarations are frozen dataclasses whose fields carry
+a `Setting` in their `Annotated` type (`declared_map`, `parse_declared`). Either way the
+check is this module's nodes: they report every problem of a file (msgspec stops at the
+first) at its file, line and key, with the messages the tests and the operators know.
 """
 
 from __future__ import annotations
@@ -19,13 +22,17 @@ import dataclasses
 import datetime as dt
 import functools
 import math
+import re
 import types
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
+import msgspec
+
 from bench.core.yamlfile import KeyPath, Problem, YamlDoc
+from drivers.calibration import parse_date as parse_date
 
 #: a JSON Schema document (or a part of one), as `json.dumps` writes it
 JsonSchema = dict[str, object]
@@ -143,20 +150,6 @@ class Date(Node):
 
     def json_schema(self) -> JsonSchema:
         return {"type": "string", "format": "date"}
-
-
-def parse_date(value: object) -> dt.date | None:
-    """A date from YAML (a date, or text YYYY-MM-DD); None if it is not one."""
-    if isinstance(value, dt.datetime):
-        return value.date()
-    if isinstance(value, dt.date):
-        return value
-    if isinstance(value, str):
-        try:
-            return dt.date.fromisoformat(value.strip())
-        except ValueError:
-            return None
-    return None
 
 
 @dataclass(frozen=True)
@@ -382,6 +375,7 @@ def merge(a: Node, b: Node) -> Node:
 # -- settings declared once, on their dataclass ------------------------------------------
 
 T = TypeVar("T")
+S = TypeVar("S", bound=msgspec.Struct)
 
 
 @dataclass(frozen=True)
@@ -443,6 +437,8 @@ def _node_of(tp: object) -> Node:
     inner = _declared(tp)
     if inner is not None:
         return declared_map(inner)
+    if isinstance(tp, type) and issubclass(tp, msgspec.Struct):
+        return struct_map(tp)
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if origin in (Mapping, dict) and len(args) == 2:
         return MapOf(_node_of(args[1]))
@@ -486,6 +482,8 @@ def _convert(tp: object, value: object) -> object:
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if inner is not None and isinstance(value, Mapping):
         return parse_declared(inner, value)
+    if isinstance(tp, type) and issubclass(tp, msgspec.Struct) and isinstance(value, Mapping):
+        return msgspec.convert(value, tp)
     if isinstance(tp, type) and dataclasses.is_dataclass(tp) and isinstance(value, Mapping):
         return tp(**{str(k): v for k, v in value.items()})   # a driver's own (TimeTie)
     if origin is tuple and len(args) == 2 and args[1] is Ellipsis \
@@ -515,3 +513,119 @@ def parse_declared(cls: type[T], data: Mapping[str, object], **given: object) ->
         if f.name not in given and value is not None:
             kwargs[f.name] = _convert(tp, value)
     return cls(**kwargs)
+
+
+# -- settings declared once, as msgspec Structs --------------------------------------------
+
+def _metas(tp: object) -> tuple[object, list[msgspec.Meta]]:
+    """A type without its `Annotated` layers, and their msgspec.Meta (outermost last)."""
+    metas: list[msgspec.Meta] = []
+    while typing.get_origin(tp) is typing.Annotated:
+        metas[:0] = [m for m in tp.__metadata__ if isinstance(m, msgspec.Meta)]  # type: ignore[attr-defined]
+        tp = tp.__origin__  # type: ignore[attr-defined]
+    return tp, metas
+
+
+def _meta(metas: list[msgspec.Meta], name: str) -> Any:
+    """The last Meta's `name` that is set (a field's own Meta over its alias's)."""
+    found = None
+    for m in metas:
+        if getattr(m, name) is not None:
+            found = getattr(m, name)
+    return found
+
+
+def _struct_node(tp: object, metas: list[msgspec.Meta]) -> Node:
+    """The schema node of a Struct field's type, its bounds and unit from its Meta."""
+    tp, more = _metas(tp)
+    metas = [*more, *metas]
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin in (typing.Union, types.UnionType):
+        options = [a for a in args if a is not type(None)]
+        if len(options) == 1:
+            return _struct_node(options[0], metas)
+        return OneOf(*(_struct_node(a, metas) for a in options))
+    if origin is typing.Literal:
+        return Str(tuple(str(a) for a in args))
+    if tp is int or tp is float:
+        gt, ge = _meta(metas, "gt"), _meta(metas, "ge")
+        extra = _meta(metas, "extra") or {}
+        return Num(min=gt if gt is not None else ge, max=_meta(metas, "le"),
+                   exclusive_min=gt is not None, integer=tp is int,
+                   unit=str(extra.get("unit", "")))
+    if isinstance(tp, type) and issubclass(tp, msgspec.Struct):
+        return struct_map(tp)
+    if origin in (Mapping, dict) and len(args) == 2:
+        return MapOf(_struct_node(args[1], []))
+    if origin in (tuple, list) and args:
+        return ListOf(_struct_node(args[0], []))
+    return _node_of(tp)
+
+
+@functools.cache
+def struct_map(cls: type[msgspec.Struct]) -> Map:
+    """The schema of a mapping whose keys are `cls`'s fields, in their order: each key's
+    node, meaning (`Meta.description`), unit (`Meta.extra["unit"]`) and default read from
+    the one declaration, as `declared_map` reads a dataclass's."""
+    keys: dict[str, Key] = {}
+    hints = typing.get_type_hints(cls, include_extras=True)
+    for f in msgspec.structs.fields(cls):
+        tp = hints[f.name]
+        metas = _metas(tp)[1]
+        if typing.get_origin(tp) in (typing.Union, types.UnionType):
+            metas = [m for a in typing.get_args(tp) for m in _metas(a)[1]]
+        extra = _meta(metas, "extra") or {}
+        given = bool(extra.get("given"))
+        required = f.required and not given
+        default = f.default if f.default is not msgspec.NODEFAULT else None
+        keys[f.encode_name] = Key(_struct_node(tp, []), required,
+                                  _meta(metas, "description") or "",
+                                  None if required or given else _shown(default))
+    return Map(keys)
+
+
+class SettingsRefused(ValueError):
+    """A settings block msgspec refused, at the key path in its file of the key it names."""
+
+    def __init__(self, path: KeyPath, message: str) -> None:
+        super().__init__(message)
+        self.path = path
+        self.message = message
+
+
+_AT = re.compile(r"(?P<message>.*?)(?: - at `\$(?P<path>[^`]*)`)?$", re.S)
+_STEP = re.compile(r"\.([^.\[]+)|\[(\d+|\.\.\.)\]")
+
+
+def _refused(e: msgspec.ValidationError, at: KeyPath,
+             fields: tuple[str, ...]) -> SettingsRefused:
+    """msgspec's message as a Problem's: its `$.a.b[0]` path after `at`, and a rule's
+    message naming its key first ("watchdog_ms: ...") placed at that key."""
+    m = _AT.match(str(e))
+    assert m is not None   # the pattern matches any text
+    message, path = m.group("message"), list(at)
+    for name, index in _STEP.findall(m.group("path") or ""):
+        if name:
+            path.append(name)
+        elif index != "...":   # a mapping's value: the mapping's key is the nearest line
+            path.append(int(index))
+    key, sep, rest = message.partition(": ")
+    if sep and not m.group("path") and key in fields:
+        path.append(key)
+        message = rest
+    unknown = re.fullmatch(r"Object contains unknown field `(.+)`", message)
+    if unknown:   # the schema's nodes report this first; kept for a block checked alone
+        path.append(unknown.group(1))
+        message = "unknown key"
+    return SettingsRefused(tuple(path), message)
+
+
+def struct_at(cls: type[S], data: Mapping[str, object], at: KeyPath = (),
+              **given: object) -> S:
+    """`cls` from a validated YAML mapping (`given` values win); SettingsRefused names
+    the key path under `at` of what msgspec or a rule of `cls` refused."""
+    try:
+        return msgspec.convert({**data, **given}, cls)
+    except msgspec.ValidationError as e:
+        raise _refused(e, at, tuple(f.encode_name for f in msgspec.structs.fields(cls))) \
+            from None

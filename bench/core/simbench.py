@@ -19,8 +19,9 @@ import functools
 import sys
 import uuid
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Any, TypedDict, Unpack
+from typing import TYPE_CHECKING, TypedDict, Unpack
 
+import msgspec
 import numpy as np
 
 from bench.core.config import (
@@ -171,13 +172,9 @@ class SimBench:
                 d = axes[a].drive
                 truth = self.sim.axis(a)
                 channel = buses.setdefault(d.bus, f"{self.channel}-{len(buses)}")
-                serial_kw: dict[str, Any] = ({"serial_number": truth.drive_serial}
-                                             if truth.drive_serial is not None else {})
-                twin = DriveTwin(self.stand, a, interface=self.can_interface, channel=channel,
-                                 node_id=d.node_id,
-                                 controller_node_id=d.controller_node_id,
-                                 counts_per_rev=d.counts_per_rev, **dict(truth.drive_twin),
-                                 **serial_kw)
+                twin = DriveTwin(self.stand, a, msgspec.structs.replace(
+                    d, interface=self.can_interface, channel=channel, host=None, port=None,
+                    bitrate=None), truth.drive)
                 self.stops.enter(twin, f"{a} drive twin", "twin")
                 # a real drive outlives the controller that left it: before the twin
                 # stops, its watchdog acts on a power stage left on (after every
@@ -188,9 +185,9 @@ class SimBench:
                 # the twin shares this process with the controller: a starved host stalls
                 # both, so its watchdog allows the bench's stated real-time minimum
                 watchdog = d.watchdog_ms if d.watchdog_ms is not None else 5 * d.heartbeat_ms
-                drive = dataclasses.replace(d, interface=self.can_interface, channel=channel,
-                                            watchdog_ms=max(watchdog,
-                                                            int(MIN_REAL_MARGIN_S * 1000)))
+                drive = msgspec.structs.replace(
+                    d, interface=self.can_interface, channel=channel,
+                    watchdog_ms=max(watchdog, int(MIN_REAL_MARGIN_S * 1000)))
                 axes[a] = dataclasses.replace(axes[a], drive=drive)
                 c = axes[a].counter
                 if c:
@@ -239,7 +236,7 @@ class SimBench:
         for a in self.axes:
             d = axes[a].drive
             original = self.settings.axes[a].drive
-            out[a] = dataclasses.replace(axes[a], drive=dataclasses.replace(
+            out[a] = dataclasses.replace(axes[a], drive=msgspec.structs.replace(
                 d, interface="socketcand", channel=names[original.bus],
                 host=server.host, port=port))
         return out

@@ -18,7 +18,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import msgspec
+
 from bench.analysis.coverage import COVERAGE_P, coverage_factor, welch_satterthwaite
+from bench.report.codec import encode
 from drivers.json_types import JsonObject
 
 NORMAL = "normal"
@@ -51,10 +54,14 @@ class Term:
         return self.sensitivity * self.ustd
 
     def to_json(self) -> JsonObject:
-        return {"quantity": self.quantity, "estimate": self.estimate, "unit": self.unit,
-                "ustd": self.ustd, "distribution": self.distribution,
-                "sensitivity": self.sensitivity, "contribution_ustd": self.contribution,
-                "dof": self.dof}
+        return encode(self.record())
+
+    def record(self) -> TermRecord:
+        """The term as result.json states it, typed (`TermRecord`)."""
+        return TermRecord(quantity=self.quantity, estimate=self.estimate, unit=self.unit,
+                          ustd=self.ustd, distribution=self.distribution,
+                          sensitivity=self.sensitivity, contribution_ustd=self.contribution,
+                          dof=self.dof)
 
 
 @dataclass(frozen=True)
@@ -104,15 +111,78 @@ class Budget:
         return abs(self.U - self.reported_U) <= AGREE_REL * self.reported_U
 
     def to_json(self) -> JsonObject:
-        return {"quantity": self.quantity, "key": self.key, "unit": self.unit,
-                "estimate": self.estimate, "terms": [t.to_json() for t in self.terms],
-                "combined_ustd": self.ustd, "dof_eff": self.dof_eff, "coverage_factor": self.k,
-                "coverage_probability": COVERAGE_P,
-                "U_budget": self.U, "U_reported": self.reported_U,
-                "reproduces_reported_U": self.reproduces, "note": self.note,
-                **({"correlations": [{"terms": [i, j], "r": r}
-                                     for i, j, r in self.correlations]}
-                   if self.correlations else {})}
+        """The budget as result.json states it (`BudgetRecord`, its keys spelled once)."""
+        return encode(self.record())
+
+    def record(self) -> BudgetRecord:
+        """The budget as result.json states it, its derived figures (u_c, nu_eff, k, U)
+        computed once here and written out (`BudgetRecord`)."""
+        return BudgetRecord(
+            quantity=self.quantity, key=self.key, unit=self.unit, estimate=self.estimate,
+            terms=tuple(t.record() for t in self.terms), combined_ustd=self.ustd,
+            dof_eff=self.dof_eff, coverage_factor=self.k, coverage_probability=COVERAGE_P,
+            U_budget=self.U, U_reported=self.reported_U, reproduces_reported_U=self.reproduces,
+            note=self.note, correlations=tuple(Correlation(terms=(i, j), r=r)
+                                               for i, j, r in self.correlations))
+
+
+# -- the budget as result.json holds it, typed: a kind's result model (msgspec Structs, issue
+# 60) carries these, so msgspec decodes and encodes them with the rest of the model; the field
+# order is result.json's key order (the bytes the dict writers above give).
+
+class TermRecord(msgspec.Struct, frozen=True, kw_only=True):
+    """One input quantity of a budget, as result.json states it."""
+
+    quantity: str
+    estimate: float | None
+    unit: str
+    ustd: float
+    distribution: str
+    sensitivity: float
+    contribution_ustd: float
+    dof: int | float | None
+
+    def term(self) -> Term:
+        return Term(self.quantity, self.estimate, self.ustd, self.distribution,
+                    self.sensitivity, self.dof, self.unit)
+
+
+class Correlation(msgspec.Struct, frozen=True, kw_only=True):
+    """Inputs `terms` (two indices into the budget's terms) correlated with r."""
+
+    terms: tuple[int, int]
+    r: float
+
+
+class BudgetRecord(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
+    """A budget as result.json states it: inputs and the figures derived from them."""
+
+    quantity: str
+    key: str
+    unit: str
+    estimate: float | None
+    terms: tuple[TermRecord, ...]
+    combined_ustd: float
+    dof_eff: float | None
+    coverage_factor: float
+    coverage_probability: float
+    U_budget: float          # noqa: N815 - result.json's key
+    U_reported: float | None  # noqa: N815 - result.json's key
+    reproduces_reported_U: bool | None  # noqa: N815 - result.json's key
+    note: str
+    correlations: tuple[Correlation, ...] = ()
+
+    def __post_init__(self) -> None:
+        n = len(self.terms)
+        if any(not (0 <= i < n and 0 <= j < n) for c in self.correlations for i, j in
+               (c.terms,)):
+            raise ValueError(f"a correlation names a term outside the {n} terms")
+
+    def budget(self) -> Budget:
+        """The budget to compute with (its k, U, nu_eff from the stated inputs)."""
+        return Budget(self.quantity, self.key, self.unit, self.estimate,
+                      tuple(t.term() for t in self.terms), self.U_reported, self.note,
+                      tuple((c.terms[0], c.terms[1], c.r) for c in self.correlations))
 
 
 def num(x: object) -> float | None:

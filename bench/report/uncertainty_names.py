@@ -9,6 +9,12 @@ The keys CONTRACT §3 binds end in `_u` (`rate_error_u_rel`, `k_u`, `w0_u_dps`,
 result gets its explicit twin beside it, so a reader never has to guess: `_U` when the `_u`
 is expanded, `_ustd` when it is a standard uncertainty (the budgets, the half means, a
 cycle's fitted offset). Which `_u` keys are standard is stated here, once.
+
+A kind whose result is a typed model writes its twins as fields of their own (the drift
+kind, procedures/drift_pulse/result.py) and adds its body to the document after this rule
+has run, so no key of it is derived here (its checks carry their twins too, so the rule
+finds nothing to add to them); the rule serves the frame and the kinds not yet converted
+(issue 60).
 """
 
 from __future__ import annotations

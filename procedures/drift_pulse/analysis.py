@@ -33,6 +33,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from msgspec import UNSET
 
 from bench.analysis.coverage import coverage_factor
 from bench.report.budget import Budget
@@ -55,7 +56,6 @@ from procedures.drift_pulse.result import (
     EarthRateCheck,
     ExampleCycle,
     OwnDriftCheck,
-    PlatformFigures,
     PositionFigures,
     StartOffsetFigures,
 )
@@ -188,9 +188,14 @@ class CycleResult:
     table_deg: float
 
     def figures(self) -> CycleFigures:
-        return CycleFigures(self.drift_dph, self.drift_nominal_dph, self.u_int_vs,
-                            self.amplitude_dps, self.offset_s, self.offset_u_s,
-                            self.residual_rms_v, self.t_start_s, self.table_deg)
+        return CycleFigures(drift_dph=float(self.drift_dph),
+                            drift_nominal_dph=float(self.drift_nominal_dph),
+                            u_int_vs=float(self.u_int_vs), ustd_int_vs=float(self.u_int_vs),
+                            amplitude_dps=float(self.amplitude_dps),
+                            offset_s=float(self.offset_s), offset_u_s=float(self.offset_u_s),
+                            offset_ustd_s=float(self.offset_u_s),
+                            residual_rms_v=float(self.residual_rms_v),
+                            t_start_s=float(self.t_start_s), table_deg=float(self.table_deg))
 
 
 def cycle_drift_dph(record: CycleRecord, shape: PulseShape, k_as_v_per_deg: float,
@@ -216,9 +221,9 @@ def example_cycle(record: CycleRecord, start_s: float, max_points: int = 1000
     su = sign * u
     integral = np.concatenate(([0.0], np.cumsum(0.5 * (su[1:] + su[:-1]) * np.diff(t))))
     step = max(1, int(math.ceil(t.size / max_points)))
-    return ExampleCycle(tuple(t[::step].tolist()), tuple(u[::step].tolist()),
-                        tuple(integral[::step].tolist()), tc,
-                        "time from the first pulse edge (where the fit puts it)")
+    return ExampleCycle(t_s=tuple(t[::step].tolist()), u_v=tuple(u[::step].tolist()),
+                        integral_vs=tuple(integral[::step].tolist()), tc_s=tc,
+                        note="time from the first pulse edge (where the fit puts it)")
 
 
 # -- statistics --------------------------------------------------------------------------
@@ -243,9 +248,10 @@ class StartOffset:
 
     def figures(self) -> StartOffsetFigures:
         # U = t_95.45(cycles - 1) u (docs/method.md D1)
-        return StartOffsetFigures(self.offset_s,
-                                  coverage_factor(max(self.cycles - 1, 1)) * self.offset_u_s,
-                                  self.samples, self.significant, self.cycles)
+        expanded = coverage_factor(max(self.cycles - 1, 1)) * self.offset_u_s
+        return StartOffsetFigures(offset_s=self.offset_s, offset_u_s=expanded,
+                                  offset_U_s=expanded, offset_samples=self.samples,
+                                  detected=self.significant, cycles=self.cycles)
 
 
 def pool_offsets(fits: Sequence[OffsetFit], sample_interval_s: float) -> StartOffset:
@@ -298,8 +304,10 @@ class PositionMean:
     def figures(self) -> PositionFigures:
         """The position mean as a budget input: its standard uncertainty and dof, no U of its
         own (docs/method.md D2)."""
-        return PositionFigures(self.table_deg, self.n, self.mean_dph, self.std_dph, self.u_dph,
-                               self.n - 1, self.drifts_dph)
+        return PositionFigures(table_deg=self.table_deg, cycles=self.n,
+                               mean_dph=self.mean_dph, std_dph=self.std_dph,
+                               mean_ustd_dph=self.u_dph, dof=self.n - 1,
+                               drifts_dph=self.drifts_dph)
 
     def as_input(self) -> PositionInput:
         return PositionInput(self.table_deg, self.mean_dph, self.u_dph, self.n)
@@ -371,13 +379,21 @@ class AxisDrift:
     example: ExampleCycle | None = None        # one cycle for the plot
 
     def figures(self) -> AxisFigures:
+        """The axis's part of the model; each U's k and nu_eff from its budget (D1)."""
+        app = self.apparent_budget
         return AxisFigures(
-            self.own_dph, self.own_u_dph, self.apparent_dph, self.apparent_u_dph,
-            self.own_nominal_dph, self.apparent_nominal_dph, self.amplitude_dps, self.vertical,
-            self.start_offset.figures(),
-            tuple(b for b in (self.own_budget, self.apparent_budget) if b is not None),
-            tuple(p.figures() for p in self.positions),
-            tuple(c.figures() for c in self.cycles), self.example)
+            own_dph=self.own_dph, own_u_dph=self.own_u_dph, own_U_dph=self.own_u_dph,
+            apparent_dph=self.apparent_dph, apparent_u_dph=self.apparent_u_dph,
+            apparent_U_dph=self.apparent_u_dph, own_nominal_edges_dph=self.own_nominal_dph,
+            apparent_nominal_edges_dph=self.apparent_nominal_dph,
+            amplitude_dps=self.amplitude_dps, vertical=self.vertical,
+            start_offset=self.start_offset.figures(),
+            budgets=tuple(b.record() for b in (self.own_budget, app) if b is not None),
+            positions=tuple(p.figures() for p in self.positions),
+            cycles=tuple(c.figures() for c in self.cycles), example_cycle=self.example,
+            own_coverage_factor=self.own_budget.k, own_dof_eff=self.own_budget.dof_eff,
+            apparent_coverage_factor=None if app is None else app.k,
+            apparent_dof_eff=UNSET if app is None else app.dof_eff)
 
 
 def analyze_axis(gyro: str, records: Sequence[CycleRecord], shape: PulseShape,
@@ -485,17 +501,29 @@ class DriftResult:
 
     def figures(self) -> DriftFigures:
         """result.json's drift body (result.py); the platform's figures only with x and y."""
-        platform = None
-        if (self.azimuth_deg is not None and self.azimuth_u_deg is not None
-                and self.earth_horizontal_dph is not None
-                and self.earth_horizontal_u_dph is not None
-                and self.earth_consistent is not None):
-            platform = PlatformFigures(self.azimuth_deg, self.azimuth_u_deg,
-                                       self.earth_horizontal_dph, self.earth_horizontal_u_dph,
-                                       self.earth_consistent)
-        return DriftFigures({g: ax.figures() for g, ax in self.axes.items()},
-                            self.latitude_deg, self.earth_horizontal_expected_dph, platform,
-                            self.budgets)
+        az, wh = self.azimuth_budget, self.earth_budget
+        return DriftFigures(
+            axes={g: ax.figures() for g, ax in self.axes.items()},
+            latitude_deg=self.latitude_deg,
+            earth_horizontal_expected_dph=self.earth_horizontal_expected_dph,
+            azimuth_deg=self.azimuth_deg, azimuth_u_deg=self.azimuth_u_deg,
+            azimuth_U_deg=self.azimuth_u_deg, earth_horizontal_dph=self.earth_horizontal_dph,
+            earth_horizontal_u_dph=self.earth_horizontal_u_dph,
+            earth_horizontal_U_dph=self.earth_horizontal_u_dph,
+            earth_horizontal_consistent=self.earth_consistent,
+            budgets=tuple(b.record() for b in self.budgets),
+            azimuth_coverage_factor=None if az is None else az.k,
+            azimuth_dof_eff=UNSET if az is None else az.dof_eff,
+            earth_horizontal_coverage_factor=None if wh is None else wh.k,
+            earth_horizontal_dof_eff=UNSET if wh is None else wh.dof_eff)
+
+    @property
+    def azimuth_budget(self) -> Budget | None:
+        return next((b for b in self.budgets if b.key == "azimuth_deg"), None)
+
+    @property
+    def earth_budget(self) -> Budget | None:
+        return next((b for b in self.budgets if b.key == "earth_horizontal_dph"), None)
 
     def checks(self, tolerance_dph: float | None, rule: str) -> list[DriftCheck]:
         """Own drift against the tolerance under the decision rule; the Earth-rate
@@ -506,13 +534,17 @@ class DriftResult:
                 continue
             tol = float(tolerance_dph)
             c = judge(g, 0.0, "own_drift", ax.own_dph, ax.own_u_dph, tol, rule)
-            out.append(OwnDriftCheck(g, ax.own_dph, ax.own_u_dph, tol, c.rule, c.verdict,
-                                     c.reason, c.capability_ratio, c.capability_ok))
+            out.append(OwnDriftCheck(axis=g, value_dph=ax.own_dph, u_dph=ax.own_u_dph,
+                                     U_dph=ax.own_u_dph, tolerance_dph=tol, rule=c.rule,
+                                     verdict=c.verdict, reason=c.reason,
+                                     capability_ratio=c.capability_ratio,
+                                     capability_ok=c.capability_ok))
         if self.earth_consistent is not None and self.earth_horizontal_dph is not None \
                 and self.earth_horizontal_u_dph is not None:
-            out.append(EarthRateCheck(self.earth_horizontal_dph, self.earth_horizontal_u_dph,
-                                      self.earth_horizontal_expected_dph,
-                                      self.earth_consistent))
+            out.append(EarthRateCheck.of(self.earth_horizontal_dph,
+                                         self.earth_horizontal_u_dph,
+                                         self.earth_horizontal_expected_dph,
+                                         self.earth_consistent))
         return out
 
 

@@ -435,27 +435,12 @@ def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
     return add_platform
 
 
-def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
-    """The DMM's replies to FETC?, in order, from its raw SCPI journal of a session."""
-    from bench.core.journal import read_jsonl, str_field
-    from drivers.dmm import PROFILES as DMM_PROFILES
-    path = layout.raw_file(run.path, session, layout.dmm_log(gyro))
-    out, waiting = [], False
-    fetch = DMM_PROFILES[model].words.fetch.text().upper()
-    for r in read_jsonl(path):
-        if r.get("dir") == "tx":
-            waiting = str_field(r, "data").strip().upper() == fetch
-        elif r.get("dir") == "rx" and waiting:
-            out.append(str_field(r, "data"))
-            waiting = False
-    return out
-
-
 def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan) -> dict[str, object]:
     from bench.core.journal import units_done
     from drivers.scpi import parse_numbers
     from procedures.drift_pulse import analysis as dp
     from procedures.drift_pulse.budgets import CorrectionInput
+    from procedures.drift_pulse.codec import dmm_replies, encode
     from procedures.drift_pulse.corrections import read_corrections
     from procedures.drift_pulse.events import Cycle
     from procedures.drift_pulse.result import DriftCheck, DriftFigures, DriftMethod
@@ -506,11 +491,15 @@ def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan) -> dict[st
         drift = DriftFigures.failed(str(e))
         complete = False
     t = d.timing
-    method = DriftMethod(d.pulse_doc, d.timing_cycles, d.cycles, d.positions_deg,
-                         1.0 / t.interval_s, t.aperture_s, d.site_doc, d.tolerance_doc)
+    method = DriftMethod(pulse=dict(d.pulse_doc), timing_cycles=d.timing_cycles,
+                         cycles_per_position=d.cycles, positions_deg=d.positions_deg,
+                         sample_rate_hz=1.0 / t.interval_s, aperture_s=t.aperture_s,
+                         site=dict(d.site_doc), tolerance=dict(d.tolerance_doc))
     doc = result_document(run, cfg, events, complete=complete,
-                          checks=[c.to_json() for c in checks], rule=rule,
-                          method=method.to_json(), drift=drift.to_json())
+                          checks=[encode(c) for c in checks], rule=rule, method=encode(method))
+    # the body after the frame, as the model writes it: its uncertainty twins are fields
+    # (result.py), the frame's naming rule (bench/report/uncertainty_names.py) does not see it
+    doc["drift"] = encode(drift)
     if corr:    # issue 58: the corrections applied, stated (none: the document as before)
         doc["corrections"] = list(corr.stated)
     return doc

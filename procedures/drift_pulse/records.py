@@ -25,7 +25,7 @@ from bench.report.figures import (
     tables_of,
 )
 from bench.report.result_frame import ResultFrame
-from procedures.drift_pulse.result import DriftFigures, MalformedResult
+from procedures.drift_pulse.codec import MalformedResult, drift_of
 from procedures.drift_pulse.sample import drift_pulse_result
 
 #: CONTRACT §3's binding keys of a drift-pulse result, per gyro and for the platform
@@ -70,7 +70,7 @@ class DriftRecords(DeclaredFigures):
         `platform.gyros.<gyro>.serial`, else PLATFORM-SERIAL/gyro: a gyro is no axis
         instrument, so `serial_of`, which places by axis and role, is not asked)."""
         try:
-            drift = DriftFigures.of(result)
+            drift = drift_of(result)
         except MalformedResult:
             return []   # no figures to take check values from (its certificate refuses it)
         platform = _mapping(stand.get("platform"))

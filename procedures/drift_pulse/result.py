@@ -1,166 +1,83 @@
-"""The drift-pulse kind's result, typed: what result.json's `drift` body and the kind's
-checks hold (CONTRACT "The drift-pulse procedure", docs/method.md B), and the one place that
-spells their keys.
+"""The drift-pulse kind's result model: what result.json's `drift` body and the kind's checks
+hold (CONTRACT "The drift-pulse procedure", docs/method.md B), as msgspec Structs (issue 60).
 
-Why one module: the analysis (analysis.py) builds these values, `to_json` writes them into
-result.json, and the certificate, the DCC and the records call `from_json` once on the dict
-they are given and read attributes from then on, so a key is spelled here and nowhere else.
-`from_json` refuses a malformed body with the key path that is wrong
-(`drift.axes.x.positions[1].mean_dph: missing`): a certificate is never built from half a
-result.
+Why Structs: the analysis (analysis.py) returns this model, result.json's `drift` body is
+its encoding and the certificate, the DCC and the records decode it once (codec.py) and read
+attributes, so every key is a field spelled here and nowhere else, and msgspec, not code of
+ours, checks a body against it. Each Struct's field order is the body's key order in
+result.json, so the file's bytes do not change with the model.
 
 Uncertainty names (bench/report/uncertainty_names.py): the `_u` keys CONTRACT binds are
-expanded (`own_U_dph` here) except a cycle's fitted offset and a position mean's, which are
-standard (`_ustd_`). result.json also carries each `_u` key's explicit twin (added when the
-document is written) and each figure's coverage factor and nu_eff (derived here from its
-budget): `from_json` reads neither, both follow from what it reads.
+written out with their explicit twin as a field of its own, `own_u_dph` beside `own_U_dph`
+(expanded) and a cycle's `offset_u_s` beside `offset_ustd_s` (standard), so no key is derived
+by a rule over names; a body whose twins differ is refused. A figure's coverage factor and
+nu_eff are stated beside it, from its budget (docs/method.md D1); `Quantity` gathers value,
+U, k, nu_eff and unit for a reader.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
-from typing import TypeVar
+from collections.abc import Sequence
 
-from bench.report.budget import Budget, budget_from_json
+import msgspec
+from msgspec import UNSET, UnsetType
 
-T = TypeVar("T")
+from bench.report.budget import Budget, BudgetRecord
+from drivers.json_types import JsonValue
 
-#: the body's key in result.json, and the root of every path `from_json` names
-ROOT = "drift"
-
-
-class MalformedResult(ValueError):
-    """A result.json drift body that does not hold what the analysis writes."""
-
-    def __init__(self, path: str, problem: str) -> None:
-        super().__init__(f"result.json {path}: {problem}")
-        self.path = path
+DPH = "deg/h"
 
 
-# -- reading JSON with the key path at hand ---------------------------------------------------
-
-def _object(node: object, path: str) -> Mapping[str, object]:
-    if not isinstance(node, Mapping):
-        raise MalformedResult(path, f"expected an object, got {type(node).__name__}")
-    return node
+def _missing(key: str) -> ValueError:
+    """msgspec's own words for a missing key, so codec.py names it the same way."""
+    return ValueError(f"Object missing required field `{key}`")
 
 
-def _field(node: Mapping[str, object], key: str, path: str) -> object:
-    if key not in node:
-        raise MalformedResult(f"{path}.{key}", "missing")
-    return node[key]
+def _same(value: float, twin: float, key: str, twin_key: str) -> None:
+    """A `_u` key and its explicit twin hold one value (uncertainty_names.py)."""
+    if value != twin:
+        raise ValueError(f"`{twin_key}` {twin!r} differs from `{key}` {value!r}, its twin")
 
 
-def _as_number(value: object, path: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise MalformedResult(path, f"expected a number, got {value!r:.40}")
-    return value
+class Quantity(msgspec.Struct, frozen=True, kw_only=True):
+    """A reported figure: its value, expanded U, the coverage factor k and nu_eff U was
+    computed with (None: no budget states them; nu_eff None is infinite), its unit."""
+
+    value: float
+    U: float
+    k: float | None
+    dof: float | None
+    unit: str
 
 
-def _number(node: Mapping[str, object], key: str, path: str) -> float:
-    return _as_number(_field(node, key, path), f"{path}.{key}")
+def _dof(stated: float | None | UnsetType) -> float | None:
+    """nu_eff as stated (None: infinite), None where no budget states it (k None then)."""
+    return None if isinstance(stated, UnsetType) else stated
 
 
-def _optional_number(node: Mapping[str, object], key: str, path: str) -> float | None:
-    value = node.get(key)
-    return None if value is None else _as_number(value, f"{path}.{key}")
-
-
-def _int(node: Mapping[str, object], key: str, path: str) -> int:
-    value = _field(node, key, path)
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise MalformedResult(f"{path}.{key}", f"expected an integer, got {value!r:.40}")
-    return value
-
-
-def _bool(node: Mapping[str, object], key: str, path: str) -> bool:
-    value = _field(node, key, path)
-    if not isinstance(value, bool):
-        raise MalformedResult(f"{path}.{key}", f"expected true or false, got {value!r:.40}")
-    return value
-
-
-def _text(node: Mapping[str, object], key: str, path: str) -> str:
-    value = _field(node, key, path)
-    if not isinstance(value, str):
-        raise MalformedResult(f"{path}.{key}", f"expected text, got {value!r:.40}")
-    return value
-
-
-def _items(node: Mapping[str, object], key: str, path: str,
-           read: Callable[[object, str], T]) -> tuple[T, ...]:
-    value = _field(node, key, path)
-    if not isinstance(value, list):
-        raise MalformedResult(f"{path}.{key}", f"expected a list, got {type(value).__name__}")
-    return tuple(read(v, f"{path}.{key}[{i}]") for i, v in enumerate(value))
-
-
-def _numbers(node: Mapping[str, object], key: str, path: str) -> tuple[float, ...]:
-    return _items(node, key, path, _as_number)
-
-
-def _budget(node: object, path: str) -> Budget:
-    budget = budget_from_json(_object(node, path))
-    if budget is None:
-        raise MalformedResult(path, "not an uncertainty budget (quantity, key, terms)")
-    return budget
-
-
-def _budgets(node: Mapping[str, object], path: str) -> tuple[Budget, ...]:
-    return _items(node, "budgets", path, _budget)
-
-
-def _coverage(budgets: Sequence[Budget], key: str, stem: str) -> dict[str, object]:
-    """`<stem>_coverage_factor`, `<stem>_dof_eff` of the budget of figure `key`: the k and
-    nu_eff its U was computed with, stated beside it (docs/method.md D1)."""
-    budget = budget_of(budgets, key)
-    if budget is None:
-        return {}
-    return {f"{stem}_coverage_factor": budget.k, f"{stem}_dof_eff": budget.dof_eff}
-
-
-def budget_of(budgets: Sequence[Budget], key: str) -> Budget | None:
-    """The budget of result key `key` (`own_dph`, `azimuth_deg`...), None if none states it."""
-    return next((b for b in budgets if b.key == key), None)
-
-
-# -- the parts --------------------------------------------------------------------------------
-
-@dataclass(frozen=True, slots=True)
-class CycleFigures:
+class CycleFigures(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """One measuring cycle of one gyro (docs/method.md B)."""
 
     drift_dph: float               # edges at the pooled start offset (the estimate used)
     drift_nominal_dph: float       # edges at the nominal sample times (the paper's integrator)
     u_int_vs: float                # U_int, the signed integral at the corrected edges, V s
+    #: the same U_int under the name the naming rule gave it (it read `u_int` as an
+    #: uncertainty); kept, so result.json's keys do not change
+    ustd_int_vs: float
     amplitude_dps: float           # fitted precession amplitude a
     offset_s: float                # this cycle's own fitted start offset
-    offset_ustd_s: float           # its standard uncertainty (key `offset_u_s`)
+    offset_u_s: float              # its standard uncertainty (CONTRACT's key)
+    offset_ustd_s: float           # the same, its explicit name
     residual_rms_v: float
     t_start_s: float
     table_deg: float
 
-    def to_json(self) -> dict[str, object]:
-        return {"drift_dph": float(self.drift_dph),
-                "drift_nominal_dph": float(self.drift_nominal_dph),
-                "u_int_vs": float(self.u_int_vs), "amplitude_dps": float(self.amplitude_dps),
-                "offset_s": float(self.offset_s), "offset_u_s": float(self.offset_ustd_s),
-                "residual_rms_v": float(self.residual_rms_v),
-                "t_start_s": float(self.t_start_s), "table_deg": float(self.table_deg)}
-
-    @classmethod
-    def from_json(cls, node: object, path: str) -> CycleFigures:
-        d = _object(node, path)
-        return cls(_number(d, "drift_dph", path), _number(d, "drift_nominal_dph", path),
-                   _number(d, "u_int_vs", path), _number(d, "amplitude_dps", path),
-                   _number(d, "offset_s", path), _number(d, "offset_u_s", path),
-                   _number(d, "residual_rms_v", path), _number(d, "t_start_s", path),
-                   _number(d, "table_deg", path))
+    def __post_init__(self) -> None:
+        _same(self.u_int_vs, self.ustd_int_vs, "u_int_vs", "ustd_int_vs")
+        _same(self.offset_u_s, self.offset_ustd_s, "offset_u_s", "offset_ustd_s")
 
 
-@dataclass(frozen=True, slots=True)
-class PositionFigures:
+class PositionFigures(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """The cycles at one platform position: a budget input with its standard uncertainty
     s / sqrt(n) and n - 1 degrees of freedom, no U of its own (docs/method.md D1, D2)."""
 
@@ -172,45 +89,22 @@ class PositionFigures:
     dof: int
     drifts_dph: tuple[float, ...]
 
-    def to_json(self) -> dict[str, object]:
-        return {"table_deg": self.table_deg, "cycles": self.cycles, "mean_dph": self.mean_dph,
-                "std_dph": self.std_dph, "mean_ustd_dph": self.mean_ustd_dph, "dof": self.dof,
-                "drifts_dph": list(self.drifts_dph)}
 
-    @classmethod
-    def from_json(cls, node: object, path: str) -> PositionFigures:
-        d = _object(node, path)
-        return cls(_number(d, "table_deg", path), _int(d, "cycles", path),
-                   _number(d, "mean_dph", path), _number(d, "std_dph", path),
-                   _number(d, "mean_ustd_dph", path), _int(d, "dof", path),
-                   _numbers(d, "drifts_dph", path))
-
-
-@dataclass(frozen=True, slots=True)
-class StartOffsetFigures:
+class StartOffsetFigures(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """The digitizer's start offset against the pulses, pooled over an axis's cycles."""
 
     offset_s: float
-    offset_U_s: float              # expanded, t_95.45(cycles - 1) u (key `offset_u_s`, D1)
+    offset_u_s: float              # expanded, t_95.45(cycles - 1) u (docs/method.md D1)
+    offset_U_s: float              # the same, its explicit name  # noqa: N815
     offset_samples: float
     detected: bool                 # more than 3 standard uncertainties from zero
     cycles: int
 
-    def to_json(self) -> dict[str, object]:
-        return {"offset_s": self.offset_s, "offset_u_s": self.offset_U_s,
-                "offset_samples": self.offset_samples, "detected": self.detected,
-                "cycles": self.cycles}
-
-    @classmethod
-    def from_json(cls, node: object, path: str) -> StartOffsetFigures:
-        d = _object(node, path)
-        return cls(_number(d, "offset_s", path), _number(d, "offset_u_s", path),
-                   _number(d, "offset_samples", path), _bool(d, "detected", path),
-                   _int(d, "cycles", path))
+    def __post_init__(self) -> None:
+        _same(self.offset_u_s, self.offset_U_s, "offset_u_s", "offset_U_s")
 
 
-@dataclass(frozen=True, slots=True)
-class ExampleCycle:
+class ExampleCycle(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """One cycle for the certificate's plot: U(t) and the running signed integral, from the
     first pulse edge, decimated (docs/method.md B)."""
 
@@ -220,36 +114,40 @@ class ExampleCycle:
     tc_s: float
     note: str
 
-    def to_json(self) -> dict[str, object]:
-        return {"t_s": list(self.t_s), "u_v": list(self.u_v),
-                "integral_vs": list(self.integral_vs), "tc_s": self.tc_s, "note": self.note}
 
-    @classmethod
-    def from_json(cls, node: object, path: str) -> ExampleCycle:
-        d = _object(node, path)
-        return cls(_numbers(d, "t_s", path), _numbers(d, "u_v", path),
-                   _numbers(d, "integral_vs", path), _number(d, "tc_s", path),
-                   _text(d, "note", path))
+def budget_of(budgets: Sequence[BudgetRecord], key: str) -> Budget | None:
+    """The budget of result key `key` (`own_dph`, `azimuth_deg`...), None if none states it."""
+    return next((b.budget() for b in budgets if b.key == key), None)
 
 
-@dataclass(frozen=True, slots=True)
-class AxisFigures:
+class AxisFigures(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """One gyro's own and apparent drift, each U = k(nu_eff) u_c of its budget (docs/method.md
     B, D1); a vertical gyro's apparent drift is 15.041 sin(latitude), computed (U 0)."""
 
     own_dph: float
-    own_U_dph: float
+    own_u_dph: float
+    own_U_dph: float                   # noqa: N815 - the explicit twin of own_u_dph
     apparent_dph: float
-    apparent_U_dph: float
+    apparent_u_dph: float
+    apparent_U_dph: float              # noqa: N815
     own_nominal_edges_dph: float       # at the nominal edges, for comparison
     apparent_nominal_edges_dph: float
     amplitude_dps: float
     vertical: bool
     start_offset: StartOffsetFigures
-    budgets: tuple[Budget, ...]
+    budgets: tuple[BudgetRecord, ...]
     positions: tuple[PositionFigures, ...]
     cycles: tuple[CycleFigures, ...]
     example_cycle: ExampleCycle | None = None
+    # the k and nu_eff of each U, from its budget (docs/method.md D1); absent without one
+    own_coverage_factor: float | None = None
+    own_dof_eff: float | None | UnsetType = UNSET     # None: infinite
+    apparent_coverage_factor: float | None = None
+    apparent_dof_eff: float | None | UnsetType = UNSET     # None: infinite
+
+    def __post_init__(self) -> None:
+        _same(self.own_u_dph, self.own_U_dph, "own_u_dph", "own_U_dph")
+        _same(self.apparent_u_dph, self.apparent_U_dph, "apparent_u_dph", "apparent_U_dph")
 
     @property
     def own_budget(self) -> Budget | None:
@@ -259,83 +157,90 @@ class AxisFigures:
     def apparent_budget(self) -> Budget | None:
         return budget_of(self.budgets, "apparent_dph")
 
-    def to_json(self) -> dict[str, object]:
-        return {
-            "own_dph": self.own_dph, "own_u_dph": self.own_U_dph,
-            "apparent_dph": self.apparent_dph, "apparent_u_dph": self.apparent_U_dph,
-            "own_nominal_edges_dph": self.own_nominal_edges_dph,
-            "apparent_nominal_edges_dph": self.apparent_nominal_edges_dph,
-            "amplitude_dps": self.amplitude_dps,
-            "vertical": self.vertical,
-            "start_offset": self.start_offset.to_json(),
-            "budgets": [b.to_json() for b in self.budgets],
-            "positions": [p.to_json() for p in self.positions],
-            "cycles": [c.to_json() for c in self.cycles],
-            **({"example_cycle": self.example_cycle.to_json()} if self.example_cycle else {}),
-            **_coverage(self.budgets, "own_dph", "own"),
-            **_coverage(self.budgets, "apparent_dph", "apparent"),
-        }
+    @property
+    def own(self) -> Quantity:
+        return Quantity(value=self.own_dph, U=self.own_U_dph, k=self.own_coverage_factor,
+                        dof=_dof(self.own_dof_eff), unit=DPH)
 
-    @classmethod
-    def from_json(cls, node: object, path: str) -> AxisFigures:
-        d = _object(node, path)
-        example = d.get("example_cycle")
-        return cls(
-            _number(d, "own_dph", path), _number(d, "own_u_dph", path),
-            _number(d, "apparent_dph", path), _number(d, "apparent_u_dph", path),
-            _number(d, "own_nominal_edges_dph", path),
-            _number(d, "apparent_nominal_edges_dph", path), _number(d, "amplitude_dps", path),
-            _bool(d, "vertical", path),
-            StartOffsetFigures.from_json(_field(d, "start_offset", path),
-                                         f"{path}.start_offset"),
-            _budgets(d, path), _items(d, "positions", path, PositionFigures.from_json),
-            _items(d, "cycles", path, CycleFigures.from_json),
-            None if example is None else ExampleCycle.from_json(example,
-                                                                f"{path}.example_cycle"))
+    @property
+    def apparent(self) -> Quantity:
+        return Quantity(value=self.apparent_dph, U=self.apparent_U_dph,
+                        k=self.apparent_coverage_factor,
+                        dof=_dof(self.apparent_dof_eff), unit=DPH)
 
 
-@dataclass(frozen=True, slots=True)
-class PlatformFigures:
+class PlatformFigures(msgspec.Struct, frozen=True, kw_only=True):
     """The platform azimuth of the X input axis and the horizontal Earth rate, from the two
-    horizontal gyros' apparent drifts (docs/method.md B); present only with both x and y."""
+    horizontal gyros' apparent drifts (docs/method.md B): `DriftFigures.platform`, a view of
+    the body's keys for the readers."""
 
     azimuth_deg: float
-    azimuth_U_deg: float
+    azimuth_U_deg: float                   # noqa: N815
     earth_horizontal_dph: float            # |(app_x, app_y)|, measured
-    earth_horizontal_U_dph: float
+    earth_horizontal_U_dph: float          # noqa: N815
     earth_horizontal_consistent: bool      # within U of 15.041 cos(latitude)
 
-    def to_json(self) -> dict[str, object]:
-        return {"azimuth_deg": self.azimuth_deg, "azimuth_u_deg": self.azimuth_U_deg,
-                "earth_horizontal_dph": self.earth_horizontal_dph,
-                "earth_horizontal_u_dph": self.earth_horizontal_U_dph,
-                "earth_horizontal_consistent": self.earth_horizontal_consistent}
 
-    @classmethod
-    def from_json(cls, d: Mapping[str, object], path: str) -> PlatformFigures:
-        return cls(_number(d, "azimuth_deg", path), _number(d, "azimuth_u_deg", path),
-                   _number(d, "earth_horizontal_dph", path),
-                   _number(d, "earth_horizontal_u_dph", path),
-                   _bool(d, "earth_horizontal_consistent", path))
+#: the platform's keys, all present (with x and y) or none
+_PLATFORM_KEYS = ("azimuth_deg", "azimuth_u_deg", "azimuth_U_deg", "earth_horizontal_dph",
+                  "earth_horizontal_u_dph", "earth_horizontal_U_dph",
+                  "earth_horizontal_consistent")
 
 
-@dataclass(frozen=True, slots=True)
-class DriftFigures:
+class DriftFigures(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True):
     """result.json's `drift` body: every gyro's figures, the site latitude and the expected
-    horizontal Earth rate, the platform's azimuth (with x and y), their budgets; or, when
-    the analysis could not compute them, why (`not_computed`, no figures)."""
+    horizontal Earth rate, the platform's azimuth and Earth rate (with x and y), their
+    budgets; or, when the analysis could not compute them, why (`not_computed`, no
+    figures)."""
 
-    axes: Mapping[str, AxisFigures]
-    latitude_deg: float | None
-    earth_horizontal_expected_dph: float | None   # W_h = 15.041 cos(latitude) (B)
-    platform: PlatformFigures | None = None
-    budgets: tuple[Budget, ...] = ()              # of the azimuth and W_h (docs/method.md B)
+    axes: dict[str, AxisFigures]
+    latitude_deg: float | None = None
+    earth_horizontal_expected_dph: float | None = None     # W_h = 15.041 cos(latitude) (B)
+    azimuth_deg: float | None = None
+    azimuth_u_deg: float | None = None
+    azimuth_U_deg: float | None = None                     # noqa: N815
+    earth_horizontal_dph: float | None = None
+    earth_horizontal_u_dph: float | None = None
+    earth_horizontal_U_dph: float | None = None            # noqa: N815
+    earth_horizontal_consistent: bool | None = None
+    budgets: tuple[BudgetRecord, ...] = ()   # of the azimuth and W_h (docs/method.md B)
+    azimuth_coverage_factor: float | None = None
+    azimuth_dof_eff: float | None | UnsetType = UNSET     # None: infinite
+    earth_horizontal_coverage_factor: float | None = None
+    earth_horizontal_dof_eff: float | None | UnsetType = UNSET     # None: infinite
     not_computed: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.not_computed is not None:
+            return
+        for key in ("latitude_deg", "earth_horizontal_expected_dph"):
+            if getattr(self, key) is None:
+                raise _missing(key)
+        present = [getattr(self, k) is not None for k in _PLATFORM_KEYS]
+        if any(present) and not all(present):
+            raise _missing(_PLATFORM_KEYS[present.index(False)])
+        if self.azimuth_u_deg is not None and self.azimuth_U_deg is not None:
+            _same(self.azimuth_u_deg, self.azimuth_U_deg, "azimuth_u_deg", "azimuth_U_deg")
+        if self.earth_horizontal_u_dph is not None and self.earth_horizontal_U_dph is not None:
+            _same(self.earth_horizontal_u_dph, self.earth_horizontal_U_dph,
+                  "earth_horizontal_u_dph", "earth_horizontal_U_dph")
 
     @classmethod
     def failed(cls, reason: str) -> DriftFigures:
         """No figures: the analysis refused the records (the run is then incomplete)."""
-        return cls({}, None, None, not_computed=reason)
+        return cls(axes={}, not_computed=reason)
+
+    @property
+    def platform(self) -> PlatformFigures | None:
+        """The azimuth and horizontal Earth rate, present only with both x and y."""
+        if (self.azimuth_deg is None or self.azimuth_U_deg is None
+                or self.earth_horizontal_dph is None or self.earth_horizontal_U_dph is None
+                or self.earth_horizontal_consistent is None):
+            return None
+        return PlatformFigures(azimuth_deg=self.azimuth_deg, azimuth_U_deg=self.azimuth_U_deg,
+                               earth_horizontal_dph=self.earth_horizontal_dph,
+                               earth_horizontal_U_dph=self.earth_horizontal_U_dph,
+                               earth_horizontal_consistent=self.earth_horizontal_consistent)
 
     @property
     def azimuth_budget(self) -> Budget | None:
@@ -345,78 +250,36 @@ class DriftFigures:
     def earth_budget(self) -> Budget | None:
         return budget_of(self.budgets, "earth_horizontal_dph")
 
-    def to_json(self) -> dict[str, object]:
-        """CONTRACT's drift keys; the azimuth and Earth-rate keys only with both x and y."""
-        if self.not_computed is not None:
-            return {"axes": {}, "not_computed": self.not_computed}
-        out: dict[str, object] = {
-            "axes": {g: ax.to_json() for g, ax in self.axes.items()},
-            "latitude_deg": self.latitude_deg,
-            "earth_horizontal_expected_dph": self.earth_horizontal_expected_dph,
-        }
-        if self.platform is not None:
-            out |= self.platform.to_json()
-        out["budgets"] = [b.to_json() for b in self.budgets]
-        out |= _coverage(self.budgets, "azimuth_deg", "azimuth")
-        out |= _coverage(self.budgets, "earth_horizontal_dph", "earth_horizontal")
-        return out
-
-    @classmethod
-    def from_json(cls, node: object, path: str = ROOT) -> DriftFigures:
-        d = _object(node, path)
-        if "not_computed" in d:
-            return cls.failed(_text(d, "not_computed", path))
-        axes = _object(_field(d, "axes", path), f"{path}.axes")
-        return cls({str(g): AxisFigures.from_json(a, f"{path}.axes.{g}")
-                    for g, a in axes.items()},
-                   _number(d, "latitude_deg", path),
-                   _number(d, "earth_horizontal_expected_dph", path),
-                   PlatformFigures.from_json(d, path) if "azimuth_deg" in d else None,
-                   _budgets(d, path))
-
-    @classmethod
-    def of(cls, result: Mapping[str, object]) -> DriftFigures:
-        """The drift body of a whole result.json."""
-        if ROOT not in result:
-            raise MalformedResult(ROOT, "missing")
-        return cls.from_json(result[ROOT])
-
 
 # -- the method as run --------------------------------------------------------------------------
 
-@dataclass(frozen=True, slots=True)
-class DriftMethod:
+class DriftMethod(msgspec.Struct, frozen=True, kw_only=True):
     """result.json's `method`: how this run measured (docs/method.md B), the pulse, site and
     tolerance blocks as the procedure file states them."""
 
-    pulse: Mapping[str, object]
+    method: str = "docs/method.md B: alternating-sign controlled precession"
+    pulse: dict[str, JsonValue]
     timing_cycles: int
     cycles_per_position: int
     positions_deg: tuple[float, ...]
     sample_rate_hz: float
     aperture_s: float
-    site: Mapping[str, object]
-    tolerance: Mapping[str, object]
-
-    def to_json(self) -> dict[str, object]:
-        return {"method": "docs/method.md B: alternating-sign controlled precession",
-                "pulse": dict(self.pulse), "timing_cycles": self.timing_cycles,
-                "cycles_per_position": self.cycles_per_position,
-                "positions_deg": list(self.positions_deg),
-                "sample_rate_hz": self.sample_rate_hz, "aperture_s": self.aperture_s,
-                "site": dict(self.site), "tolerance": dict(self.tolerance)}
+    site: dict[str, JsonValue]
+    tolerance: dict[str, JsonValue]
 
 
 # -- the checks -------------------------------------------------------------------------------
 
-@dataclass(frozen=True, slots=True)
-class OwnDriftCheck:
+class OwnDriftCheck(msgspec.Struct, frozen=True, kw_only=True):
     """A gyro's own drift against the procedure's tolerance, judged under its decision rule
     (bench/report/conformity.py)."""
 
     axis: str
+    quantity: str = "own_drift"
+    unit: str = DPH
     value_dph: float
-    U_dph: float
+    u_dph: float
+    U_dph: float                   # noqa: N815 - the explicit twin of u_dph
     tolerance_dph: float
     rule: str
     verdict: str
@@ -424,32 +287,30 @@ class OwnDriftCheck:
     capability_ratio: float        # U / tolerance
     capability_ok: bool
 
-    def to_json(self) -> dict[str, object]:
-        return {"axis": self.axis, "quantity": "own_drift", "unit": "deg/h",
-                "value_dph": self.value_dph, "u_dph": self.U_dph,
-                "tolerance_dph": self.tolerance_dph, "rule": self.rule,
-                "verdict": self.verdict, "reason": self.reason,
-                "capability_ratio": self.capability_ratio, "capability_ok": self.capability_ok}
 
-
-@dataclass(frozen=True, slots=True)
-class EarthRateCheck:
+class EarthRateCheck(msgspec.Struct, frozen=True, kw_only=True):
     """The measured horizontal Earth rate against 15.041 cos(latitude), within its U: a
     consistency check of k_as and the levelling, not conformity (docs/method.md B)."""
 
+    axis: str = "x,y"
+    quantity: str = "earth_horizontal_rate"
+    unit: str = DPH
     value_dph: float
-    U_dph: float
+    u_dph: float
+    U_dph: float                   # noqa: N815
     expected_dph: float
-    consistent: bool
+    rule: str = "consistency"
+    verdict: str
+    reason: str
 
-    def to_json(self) -> dict[str, object]:
-        diff = abs(self.value_dph - self.expected_dph)
-        return {"axis": "x,y", "quantity": "earth_horizontal_rate", "unit": "deg/h",
-                "value_dph": self.value_dph, "u_dph": self.U_dph,
-                "expected_dph": self.expected_dph, "rule": "consistency",
-                "verdict": "pass" if self.consistent else "fail",
-                "reason": f"|measured - 15.041 cos(latitude)| = {diff:.2g} deg/h "
-                          f"{'<=' if self.consistent else '>'} U = {self.U_dph:.2g} deg/h"}
+    @classmethod
+    def of(cls, value_dph: float, U_dph: float, expected_dph: float,  # noqa: N803
+           consistent: bool) -> EarthRateCheck:
+        diff = abs(value_dph - expected_dph)
+        return cls(value_dph=value_dph, u_dph=U_dph, U_dph=U_dph, expected_dph=expected_dph,
+                   verdict="pass" if consistent else "fail",
+                   reason=f"|measured - 15.041 cos(latitude)| = {diff:.2g} deg/h "
+                          f"{'<=' if consistent else '>'} U = {U_dph:.2g} deg/h")
 
 
 DriftCheck = OwnDriftCheck | EarthRateCheck

@@ -10,12 +10,12 @@ import math
 import numpy as np
 
 from bench.core import rundir_layout as layout
+from procedures.drift_pulse.codec import encode
 from procedures.drift_pulse.result import (
     AxisFigures,
     CycleFigures,
     DriftFigures,
     ExampleCycle,
-    PlatformFigures,
     PositionFigures,
     StartOffsetFigures,
 )
@@ -34,8 +34,9 @@ def _example() -> ExampleCycle:
     sign = np.where(t <= TC_S, 1.0, -1.0)
     integ = np.concatenate([[0.0], np.cumsum(0.5 * (u_v[1:] * sign[1:] + u_v[:-1] * sign[:-1])
                                              * np.diff(t))])
-    return ExampleCycle(tuple(t.tolist()), tuple(u_v.tolist()), tuple(integ.tolist()), TC_S,
-                        "time from the first pulse edge (where the fit puts it)")
+    return ExampleCycle(t_s=tuple(t.tolist()), u_v=tuple(u_v.tolist()),
+                        integral_vs=tuple(integ.tolist()), tc_s=TC_S,
+                        note="time from the first pulse edge (where the fit puts it)")
 
 
 def drift_figures() -> DriftFigures:
@@ -53,18 +54,31 @@ def drift_figures() -> DriftFigures:
                  + 0.004 * math.sin(1.7 * i + (0 if name == "x" else 1) + pos / 90)
                  for i in range(4)]
             # w = -U_int / (k_as Tc^2) (docs/method.md B), so U_int = -w k_as Tc^2
-            cycles += [CycleFigures(x, x + 0.0011, -x / 3600.0 * K_AS_V_PER_DEG * TC_S ** 2,
-                                    AMPLITUDE_DPS, 2.5e-4, 1.0e-5, 2.0e-5,
-                                    12.0 * (4 * k + i), pos) for i, x in enumerate(w)]
+            cycles += [CycleFigures(drift_dph=x, drift_nominal_dph=x + 0.0011,
+                                    u_int_vs=(u_int := -x / 3600.0 * K_AS_V_PER_DEG * TC_S ** 2),
+                                    ustd_int_vs=u_int, amplitude_dps=AMPLITUDE_DPS,
+                                    offset_s=2.5e-4, offset_u_s=1.0e-5, offset_ustd_s=1.0e-5,
+                                    residual_rms_v=2.0e-5, t_start_s=12.0 * (4 * k + i),
+                                    table_deg=pos) for i, x in enumerate(w)]
             std = float(np.std(w, ddof=1))
-            positions.append(PositionFigures(pos, 4, float(np.mean(w)), std, std / 2.0, 3,
-                                             tuple(w)))
-        axes[name] = AxisFigures(own[name], 0.0031, app[name], 0.0042, own[name] + 0.0011,
-                                 app[name] + 0.0011, AMPLITUDE_DPS, False,
-                                 StartOffsetFigures(2.5e-4, 1.0e-5, 0.5, True, 8), (),
-                                 tuple(positions), tuple(cycles),
-                                 _example() if name == "x" else None)
-    return DriftFigures(axes, 70.0, wh, PlatformFigures(80.02, 0.031, wh + 0.002, 0.0045, True))
+            positions.append(PositionFigures(table_deg=pos, cycles=4, mean_dph=float(np.mean(w)),
+                                             std_dph=std, mean_ustd_dph=std / 2.0, dof=3,
+                                             drifts_dph=tuple(w)))
+        axes[name] = AxisFigures(
+            own_dph=own[name], own_u_dph=0.0031, own_U_dph=0.0031, apparent_dph=app[name],
+            apparent_u_dph=0.0042, apparent_U_dph=0.0042,
+            own_nominal_edges_dph=own[name] + 0.0011,
+            apparent_nominal_edges_dph=app[name] + 0.0011, amplitude_dps=AMPLITUDE_DPS,
+            vertical=False,
+            start_offset=StartOffsetFigures(offset_s=2.5e-4, offset_u_s=1.0e-5,
+                                            offset_U_s=1.0e-5, offset_samples=0.5,
+                                            detected=True, cycles=8),
+            budgets=(), positions=tuple(positions), cycles=tuple(cycles),
+            example_cycle=_example() if name == "x" else None)
+    return DriftFigures(axes=axes, latitude_deg=70.0, earth_horizontal_expected_dph=wh,
+                        azimuth_deg=80.02, azimuth_u_deg=0.031, azimuth_U_deg=0.031,
+                        earth_horizontal_dph=wh + 0.002, earth_horizontal_u_dph=0.0045,
+                        earth_horizontal_U_dph=0.0045, earth_horizontal_consistent=True)
 
 
 def drift_pulse_result() -> dict[str, object]:
@@ -90,6 +104,6 @@ def drift_pulse_result() -> dict[str, object]:
                        "bytes": 800_000}],
         "sessions": 1,
         "aborted": False,
-        "drift": drift_figures().to_json(),
+        "drift": encode(drift_figures()),
         "checks": [],
     }

@@ -7,10 +7,7 @@ from dataclasses import dataclass, field
 from typing import Annotated, Any
 
 from bench.core.config import (
-    ACCEL_MAX_DPS2,
     COMMON_PROCEDURE_KEYS,
-    RATE_MAX_DPS,
-    RATE_MIN_DPS,
     STEP_MAX_S,
     Config,
     FogSettings,
@@ -18,6 +15,7 @@ from bench.core.config import (
 )
 from bench.core.plan import format_duration
 from bench.core.schema import ListOf, Map, MapOf, Num, Setting, Str, declared_map, parse_declared
+from drivers.drive_settings import ACCEL_MAX_DPS2, RATE_MAX_DPS, RATE_MIN_DPS
 from bench.core.yamlfile import Problem, YamlDoc
 from drivers.counter_profiles import PROFILES as COUNTER_PROFILES
 

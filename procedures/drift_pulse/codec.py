@@ -1,0 +1,97 @@
+"""result.json's drift parts <-> the drift kind's result model (result.py), by msgspec.
+
+Why a module of its own: it is the one place of the kind where a JSON value meets the model
+(tests/test_json_boundary.py keeps JSON maps out of every other module). Encoding gives
+the builtins `json.dumps` writes (bench/report/codec.py: the result writer's floats, so the
+file's bytes are those of before); decoding refuses a malformed body naming the key path in result.json's terms
+(`drift.axes.x.positions[1].mean_dph: missing`), so a certificate is never built from half
+a result.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from typing import TypeVar
+
+import msgspec
+
+from bench.core import rundir_layout as layout
+from bench.core.journal import RunDir
+from bench.report.codec import encode as encode
+from procedures.drift_pulse.result import AxisFigures, DriftFigures
+
+#: the body's key in result.json, and the root of every path a refusal names
+ROOT = "drift"
+
+S = TypeVar("S", bound=msgspec.Struct)
+
+_MISSING = re.compile(r"^Object missing required field `(?P<key>[^`]+)`")
+_EXPECTED = re.compile(r"^Expected `(?P<want>[^`]+)`, got `(?P<got>[^`]+)`")
+_AT = re.compile(r" - at `\$(?P<path>[^`]*)`$")
+#: msgspec's type names, as a reader of result.json says them
+_TYPES = {"float": "a number", "int": "an integer", "bool": "true or false",
+          "object": "an object", "array": "a list", "str": "text", "null": "null"}
+
+
+class MalformedResult(ValueError):
+    """A result.json drift body that does not hold what the analysis writes."""
+
+    def __init__(self, path: str, problem: str) -> None:
+        super().__init__(f"result.json {path}: {problem}")
+        self.path = path
+
+
+def _refusal(err: msgspec.ValidationError, node: object, root: str) -> MalformedResult:
+    """msgspec's `Expected `float`, got `str` - at `$.axes[...].own_dph`` in result.json's
+    words, the axis named (msgspec does not name a mapping's keys)."""
+    text = str(err)
+    at = _AT.search(text)
+    path = at["path"] if at else ""
+    text = text[:at.start()] if at else text
+    if path.startswith(".axes[...]") and isinstance(node, dict) \
+            and isinstance(axes := node.get("axes"), dict):
+        for name, axis in axes.items():
+            try:
+                msgspec.convert(axis, AxisFigures, strict=True)
+            except msgspec.ValidationError:
+                path = f".axes.{name}" + path[len(".axes[...]"):]
+                break
+    if m := _MISSING.match(text):
+        return MalformedResult(f"{root}{path}.{m['key']}", "missing")
+    if m := _EXPECTED.match(text):
+        want = " or ".join(_TYPES.get(t, t) for t in m["want"].split(" | "))
+        return MalformedResult(f"{root}{path}", f"expected {want}, got {m['got']}")
+    return MalformedResult(f"{root}{path}", text)
+
+
+def decode(node: object, model: type[S], root: str = ROOT) -> S:
+    """`node` as `model`, or MalformedResult naming the first malformed key path."""
+    try:
+        return msgspec.convert(node, model, strict=True)
+    except msgspec.ValidationError as err:
+        raise _refusal(err, node, root) from None
+
+
+def drift_of(result: Mapping[str, object]) -> DriftFigures:
+    """The drift body of a whole result.json, decoded once for a reader."""
+    if ROOT not in result:
+        raise MalformedResult(ROOT, "missing")
+    return decode(result[ROOT], DriftFigures)
+
+
+def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
+    """The DMM's replies to FETC?, in order, from its raw SCPI journal of a session (JSON
+    lines, read here as the kind's other JSON is)."""
+    from bench.core.journal import read_jsonl, str_field
+    from drivers.dmm import PROFILES as DMM_PROFILES
+    path = layout.raw_file(run.path, session, layout.dmm_log(gyro))
+    out, waiting = [], False
+    fetch = DMM_PROFILES[model].words.fetch.text().upper()
+    for r in read_jsonl(path):
+        if r.get("dir") == "tx":
+            waiting = str_field(r, "data").strip().upper() == fetch
+        elif r.get("dir") == "rx" and waiting:
+            out.append(str_field(r, "data"))
+            waiting = False
+    return out
