@@ -37,35 +37,21 @@ from bench.core.schema import (
 )
 from bench.core.yamlfile import Problem, YamlDoc
 from drivers.calibration import Calibration
-from drivers.counter_profiles import DEFAULT_TIMEOUT_MARGIN_S, get_profile
-from drivers.counter_profiles import PROFILES as COUNTER_PROFILES
+from drivers.counter_profiles import get_profile
+from drivers.counter_settings import CounterSettings
 from drivers.drive_settings import (
     DriveSettings,
 )
-from drivers.fog_format_names import FORMAT_NAMES as FOG_FORMATS
-from drivers.time_tie import TimeTie
+from drivers.fog_settings import FogSettings
 from sims.drive_truth import DriveTruth
 from sims.truth import AxisTruth, FogTruth, Harmonic, Mains
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
 #: the rate and acceleration bounds are the drive's (drivers/drive_settings.py)
-#: the counter's input range (a 10x probe on +/-5 V)
-LEVEL_MAX_V = 50.0
 #: one step of a plan longer than this (bench time) is refused: nobody runs it
 STEP_MAX_S = 7 * 86_400.0
 
 # -- stand file ---------------------------------------------------------------------
-
-def _upright_only(value: object) -> str | None:
-    """`fog.sign: -1` was once accepted and never read: the analysis took an inverted FOG
-    as upright (issue 25). Until the sign is carried through the twin, the capture and
-    the cross-calibration, an inverted mounting is refused, not silently mis-signed."""
-    if value != 1:
-        return ("only +1 is supported: mount the FOG with its sensitive axis along the "
-                "table's positive sense (an inverted FOG would give figures of the wrong "
-                "sign)")
-    return None
-
 
 # Each stand block below is declared once, on the frozen dataclass the bench reads: the
 # field's type and default, its Setting's node (bounds, unit) and meaning. The block's
@@ -84,125 +70,10 @@ TRACEABLE = Map({   # a reference the bench does not drive (a 10 MHz source, a s
 
 
 DRIVE = struct_map(DriveSettings)
-TIME_TIE = Map({
-    "source": Key(Str(("fog-sync", "host-clock")), True,
-                  "how the counter's start event is placed on the FOG's time axis: "
-                  "fog-sync (external trigger from the FOG's sync output) or host-clock"),
-    "sync_period_s": Key(Num(min=0, exclusive_min=True, unit="s"), False,
-                         "FOG time between sync pulses (pulse k at k * period)",
-                         TimeTie.sync_period_s),
-    "latency_s": Key(Num(min=0, unit="s"), False, "sync pulse to counter trigger, "
-                     "calibrated", TimeTie.latency_s),
-    "latency_u_s": Key(Num(min=0, unit="s"), False, "its standard uncertainty (with "
-                       "jitter)", TimeTie.latency_u_s),
-    "host_window_s": Key(Num(min=0, unit="s"), False, "how well the host knows the "
-                         "FOG's time axis", TimeTie.host_window_s),
-})
+COUNTER = struct_map(CounterSettings)
 
 
-@dataclass(frozen=True, kw_only=True)
-class CounterSpec:
-    """A stand axis's `counter:` block, parsed once."""
-
-    resource: Annotated[str, Setting(Str(), "VISA resource string")]
-    model: Annotated[str, Setting(
-        Str(tuple(sorted(COUNTER_PROFILES))), "the counter's model: its driver profile "
-        "(SCPI words, capabilities, metrology; drivers/counter_profiles.py)")]
-    serial: Annotated[str | None, Setting(
-        Str(), "the instrument's serial number: the key of its check values (bench "
-        "control)")] = None
-    channel: Annotated[int | None, Setting(
-        Num(min=1, max=4, integer=True), "input channel of the zero-mark pulse")] = None
-    level_v: Annotated[float | None, Setting(
-        Num(min=-LEVEL_MAX_V, max=LEVEL_MAX_V, unit="V"),
-        "absolute trigger level; required on a real stand (a twin defaults it)")] = None
-    slope: Annotated[str | None, Setting(Str(("POS", "NEG")), "the pulse edge timed")] = None
-    coupling: Annotated[str | None, Setting(Str(("DC", "AC")), "input coupling")] = None
-    impedance_ohm: Annotated[float | None, Setting(
-        Num(min=0, exclusive_min=True, unit="ohm"), "input impedance (50 or 1e6)")] = None
-    trigger_jitter_s: Annotated[float | None, Setting(
-        Num(min=0, unit="s"), "slot sensor edge jitter, std")] = None
-    timebase_limit_rel: Annotated[float | None, Setting(
-        Num(min=0), "timebase error limit (external reference)")] = None
-    reference: Annotated[str | None, Setting(
-        Str(("external", "internal")), "timebase: set at connect and read back (53230A "
-        "SENS:ROSC:SOUR); a timebase_limit_rel below the model's needs 'external'")] = None
-    timeout_margin_s: Annotated[float, Setting(
-        Num(min=0, exclusive_min=True, max=3600, unit="s"), "extra time allowed beyond a "
-        "half's expected turns before the counter counts as silent")] \
-        = DEFAULT_TIMEOUT_MARGIN_S
-    calibration: Annotated[Calibration | None, Setting(
-        doc="the counter's calibration certificate")] = None
-    #: None: the stand states none (twins: host clock)
-    time_tie: Annotated[TimeTie | None, Setting(
-        TIME_TIE, "how the counter's start is tied to the FOG's time axis (docs/"
-        "configuration.md); a stand without a sim: block must state it")] = None
-
-    def input_settings(self) -> dict[str, Any]:
-        """The input's settings the stand states (the driver's `configure` keywords)."""
-        return {k: v for k in ("channel", "level_v", "slope", "coupling", "impedance_ohm")
-                if (v := getattr(self, k)) is not None}
-
-
-COUNTER = declared_map(CounterSpec)
-
-
-@dataclass(frozen=True, kw_only=True)
-class FogSettings:
-    """A stand's `fog:` block, parsed once: the live driver, the twin, the analysis
-    reading the raw capture, the disk-space estimate and the station view all take it
-    from here."""
-
-    port: Annotated[str, Setting(Str(), "serial port, e.g. /dev/ttyUSB0")]
-    baudrate: Annotated[int, Setting(Num(min=1200, max=16_000_000, integer=True),
-                                     "serial line rate")] = 921600
-    format: Annotated[str, Setting(Str(tuple(FOG_FORMATS)),
-                                   "frame format (drivers/fog_formats.py)")] = "kvh-a"
-    axis: Annotated[str, Setting(Str(("x", "y", "z")),
-                                 "the FOG axis along the table axis")] = "z"
-    rate_hz: Annotated[float, Setting(Num(min=1, max=100_000, unit="Hz"),
-                                      "the FOG's output (frame) rate")]
-    range_dps: Annotated[float, Setting(
-        Num(min=0, exclusive_min=True, max=100_000, unit="deg/s"),
-        "the FOG's measuring range: a rate above it is refused")] = 490.0  # KVH DSP-1760's
-    units: Annotated[str, Setting(
-        Str(("deg/s", "rad/s", "deg", "rad")), "what the rotational fields carry; KVH's "
-        "power-on default is delta radians, 'rad' (1775 IMU Technical Manual, Table "
-        "5-10)")]
-    configure: Annotated[str, Setting(
-        Str(("set", "verify", "declare")), "set: configure the FOG at connect and read "
-        "back; verify: read back only; declare: trust fog.units")] = "declare"
-    serial: Annotated[str | None, Setting(
-        Str(), "the FOG's serial number: compared with its answer to ?IS at connect "
-        "(configure set or verify; KVH 1775 ICD 8.20), else printed as the stand file "
-        "states it; the key of its check values (bench control)")] = None
-    model: Annotated[str | None, Setting(Str(), "maker and model, for the certificate")] = None
-    sign: Annotated[int, Setting(
-        Check(Num(min=-1, max=1, integer=True), _upright_only), "+1: the FOG's sensitive "
-        "axis along the table's positive sense (the only mounting the analysis supports; "
-        "a FOG mounted inverted is refused)")] = 1
-    calibration: Annotated[Calibration | None, Setting(
-        doc="the FOG's calibration certificate, if any")] = None
-
-    @classmethod
-    def of(cls, fog: Mapping[str, object]) -> FogSettings:
-        return parse_declared(cls, fog)
-
-    @classmethod
-    def of_axis(cls, stand: Mapping[str, Any], axis: str) -> FogSettings | None:
-        """The FOG of `axis` in a stand mapping read back from a run directory, or None
-        when the axis has none (or the file is damaged: the station view reads run
-        directories it did not write)."""
-        f = ((stand.get("axes") or {}).get(axis) or {}).get("fog")
-        if not isinstance(f, dict) or not all(k in f for k in ("port", "rate_hz", "units")):
-            return None
-        try:
-            return cls.of(f)
-        except (TypeError, ValueError):   # a key of the wrong type or unknown
-            return None
-
-
-FOG = declared_map(FogSettings)
+FOG = struct_map(FogSettings)
 STAND_AXIS_KEYS: dict[str, Key] = {
     "drive": Key(DRIVE, True, "the axis's servo drive (CANopen CiA 402)"),
     "counter": Key(COUNTER, False, "the counter timing the zero-mark pulse, once per turn"),
@@ -482,7 +353,7 @@ class StandAxis:
 
     name: str
     drive: DriveSettings
-    counter: CounterSpec | None = None
+    counter: CounterSettings | None = None
     fog: FogSettings | None = None
 
 
@@ -636,8 +507,8 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
         axes[name] = StandAxis(
             name, struct_at(DriveSettings, a["drive"], ("axes", name, "drive"),
                       controller_node_id=controllers[name]),
-            parse_declared(CounterSpec, c) if c else None,
-            parse_declared(FogSettings, f) if f else None)
+            struct_at(CounterSettings, c, ("axes", name, "counter")) if c else None,
+            struct_at(FogSettings, f, ("axes", name, "fog")) if f else None)
     sim = None
     if "sim" in stand:
         s = stand["sim"] or {}
@@ -758,21 +629,23 @@ def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
 
 def struct_problems(sdoc: YamlDoc, refused: list[Problem]) -> list[Problem]:
     """What the stand's Struct-declared blocks refuse beyond the schema's nodes (the rules
-    between keys, e.g. a drive's watchdog against its heartbeat), each at its file, line
-    and key: each block the nodes accepted is built as the run will build it."""
+    of a block, e.g. a drive's watchdog against its heartbeat, a FOG's sign), each at its
+    file, line and key: each block the nodes accepted is built as the run will build it."""
     data = sdoc.data if isinstance(sdoc.data, dict) else {}
     axes = got if isinstance(got := data.get("axes"), dict) else {}
     out = []
     for name, axis in axes.items():
-        drive = axis.get("drive") if isinstance(axis, dict) else None
-        where = ("axes", name, "drive")
-        if not isinstance(drive, dict) or any(
-                p.key.startswith(f"axes.{name}.drive") for p in refused):
-            continue
-        try:
-            struct_at(DriveSettings, drive, where)
-        except SettingsRefused as e:
-            out.append(sdoc.problem(e.path, e.message))
+        for key, cls in (("drive", DriveSettings), ("counter", CounterSettings),
+                         ("fog", FogSettings)):
+            block = axis.get(key) if isinstance(axis, dict) else None
+            if not isinstance(block, dict) or any(
+                    p.key == f"axes.{name}.{key}" or p.key.startswith(f"axes.{name}.{key}.")
+                    for p in refused):
+                continue
+            try:
+                struct_at(cls, block, ("axes", name, key))
+            except SettingsRefused as e:
+                out.append(sdoc.problem(e.path, e.message))
     return out
 
 

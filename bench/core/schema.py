@@ -547,6 +547,8 @@ def _struct_node(tp: object, metas: list[msgspec.Meta]) -> Node:
         return OneOf(*(_struct_node(a, metas) for a in options))
     if origin is typing.Literal:
         return Str(tuple(str(a) for a in args))
+    if tp is str:   # a choice among names the code holds (`Meta.extra["choices"]`)
+        return Str(tuple((_meta(metas, "extra") or {}).get("choices", ())))
     if tp is int or tp is float:
         gt, ge = _meta(metas, "gt"), _meta(metas, "ge")
         extra = _meta(metas, "extra") or {}
@@ -566,7 +568,9 @@ def _struct_node(tp: object, metas: list[msgspec.Meta]) -> Node:
 def struct_map(cls: type[msgspec.Struct]) -> Map:
     """The schema of a mapping whose keys are `cls`'s fields, in their order: each key's
     node, meaning (`Meta.description`), unit (`Meta.extra["unit"]`) and default read from
-    the one declaration, as `declared_map` reads a dataclass's."""
+    the one declaration, as `declared_map` reads a dataclass's. `Meta.extra["given"]`:
+    the loader gives the value when the file leaves the key out (no default shown);
+    `Meta.extra["required"]`: a file must write the key, an object made in code need not."""
     keys: dict[str, Key] = {}
     hints = typing.get_type_hints(cls, include_extras=True)
     for f in msgspec.structs.fields(cls):
@@ -576,7 +580,7 @@ def struct_map(cls: type[msgspec.Struct]) -> Map:
             metas = [m for a in typing.get_args(tp) for m in _metas(a)[1]]
         extra = _meta(metas, "extra") or {}
         given = bool(extra.get("given"))
-        required = f.required and not given
+        required = (f.required and not given) or bool(extra.get("required"))
         default = f.default if f.default is not msgspec.NODEFAULT else None
         keys[f.encode_name] = Key(_struct_node(tp, []), required,
                                   _meta(metas, "description") or "",
