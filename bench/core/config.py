@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any
 
+from msgspec import Meta, Struct
+
 from bench.core.canbus import bus_problems
 from bench.core.schema import (
     Any_,
@@ -59,14 +61,26 @@ STEP_MAX_S = 7 * 86_400.0
 # its parse `parse_declared` (bench/core/schema.py).
 
 CALIBRATION = struct_map(Calibration)
-TRACEABLE = Map({   # a reference the bench does not drive (a 10 MHz source, a sensor)
-    "item": Key(Str(), True, "what it is, e.g. 'GPS-disciplined 10 MHz reference'"),
-    "serial": Key(Str(), False, "its serial number"),
-    "certificate": Key(Str(), True, "its calibration certificate's number"),
-    "issuer": Key(Str(), True, "the laboratory that issued it"),
-    "due": Key(Date(), True, "calibration due date, YYYY-MM-DD"),
-    "traces": Key(Str(), False, "the quantity it traces to SI"),
-})
+
+
+class Traceable(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """An entry of the stand's `traceability:` list: a reference the bench does not drive
+    (a 10 MHz source, a sensor), with its calibration."""
+
+    item: Annotated[str, Meta(description="what it is, e.g. 'GPS-disciplined 10 MHz "
+                                          "reference'")]
+    serial: Annotated[str, Meta(description="its serial number")] | None = None
+    certificate: Annotated[str, Meta(description="its calibration certificate's number")]
+    issuer: Annotated[str, Meta(description="the laboratory that issued it")]
+    due: Annotated[dt.date, Meta(description="calibration due date, YYYY-MM-DD")]
+    traces: Annotated[str, Meta(description="the quantity it traces to SI")] | None = None
+
+    @property
+    def calibration(self) -> Calibration:
+        return Calibration(self.certificate, self.issuer, self.due, self.traces)
+
+
+TRACEABLE = struct_map(Traceable)
 
 
 DRIVE = struct_map(DriveSettings)
@@ -161,24 +175,31 @@ STAND_DCC = Map({
     "lab": Key(ABSOLUTE_PATH, False, "lab settings file (YAML), absolute path"),
     "signing": Key(SIGNING, False, "the DCC's signing key and certificate (docs/dcc.md)"),
 })
-@dataclass(frozen=True)
-class Identity:
+class Identity(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     """The table under test (the stand's `stand:` block)."""
 
-    maker: Annotated[str, Setting(Str(), "the table's maker")]
-    model: Annotated[str, Setting(Str(), "its model")]
-    serial: Annotated[str, Setting(Str(), "its serial number (text; the records key)")]
-    location: Annotated[str | None, Setting(Str(), "where it stands")] = None
-    recertification_interval_days: Annotated[int | None, Setting(
-        Num(min=1, integer=True, unit="d"),
-        "the table's recertification interval (lab settings may override)")] = None
+    maker: Annotated[str, Meta(description="the table's maker")]
+    model: Annotated[str, Meta(description="its model")]
+    serial: Annotated[str, Meta(description="its serial number (text; the records key)")]
+    location: Annotated[str, Meta(description="where it stands")] | None = None
+    recertification_interval_days: Annotated[int, Meta(
+        ge=1, extra={"unit": "d"},
+        description="the table's recertification interval (lab settings may "
+                    "override)")] | None = None
 
 
-IDENTITY = declared_map(Identity)
+IDENTITY = struct_map(Identity)
 
 
-BENCH = Map({"name": Key(Str(), False, "the bench's name on the lab server, unique in the "
-                         "lab (default: this machine's host name)")})
+class BenchName(Struct, frozen=True, forbid_unknown_fields=True):
+    """The stand's `bench:` block: this bench among the lab's."""
+
+    name: Annotated[str, Meta(description="the bench's name on the lab server, unique in "
+                                          "the lab (default: this machine's host "
+                                          "name)")] | None = None
+
+
+BENCH = struct_map(BenchName)
 
 
 def stand_schema(extra_top: dict[str, Key] | None = None,
@@ -336,15 +357,6 @@ def stated_traceability(stand: Mapping[str, Any]) -> tuple[Traced, ...]:
                               str(t["serial"]) if t.get("serial") else None,
                               str(t["serial"]) if t.get("serial") else None))
     return tuple(out)
-
-
-@dataclass(frozen=True)
-class Traceable:
-    """An entry of the stand's `traceability:` list: a reference the bench does not drive."""
-
-    item: str
-    serial: str | None
-    calibration: Calibration
 
 
 @dataclass(frozen=True)
@@ -514,16 +526,15 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
         s = stand["sim"] or {}
         sim = parse_declared(SimSettings, s, axes={n: _sim_axis(v or {}) for n, v in
                                                    (s.get("axes") or {}).items()})
-    trace = tuple(Traceable(str(t.get("item", "")), _opt(t, "serial", str),
-                            Calibration.of(t) or Calibration("", "", None))
-                  for t in stand.get("traceability") or [])
+    trace = tuple(struct_at(Traceable, t, ("traceability", i))
+                  for i, t in enumerate(stand.get("traceability") or []))
     return StandSettings(
-        identity=(parse_declared(Identity, ident) if ident
+        identity=(struct_at(Identity, ident, ("stand",)) if ident
                   else Identity(maker="", model="", serial="")),
         axes=axes, sim=sim, traceability=trace,
         dcc=dcc_refs(stand), traced=stated_traceability(stand),
         mains_hz=_opt(stand, "mains_hz", float),
-        bench_name=_opt(stand.get("bench") or {}, "name", str))
+        bench_name=struct_at(BenchName, stand.get("bench") or {}, ("bench",)).name)
 
 
 def parse_common(procedure: Mapping[str, object], path: Path) -> CommonSettings:
