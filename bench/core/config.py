@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any
 
+import msgspec
 from msgspec import Meta, Struct
 
 from bench.core.canbus import bus_problems
@@ -37,7 +38,8 @@ from bench.core.schema import (
     struct_at,
     struct_map,
 )
-from bench.core.yamlfile import Problem, YamlDoc
+from bench.core.stand_sim import SerialsFile, SimAxisFile, SimFogFile, TieTruthFile
+from bench.core.yamlfile import KeyPath, Problem, YamlDoc
 from drivers.calibration import Calibration
 from drivers.counter_profiles import get_profile
 from drivers.counter_settings import CounterSettings
@@ -93,66 +95,7 @@ STAND_AXIS_KEYS: dict[str, Key] = {
     "counter": Key(COUNTER, False, "the counter timing the zero-mark pulse, once per turn"),
     "fog": Key(FOG, False, "the reference gyro (FOG) mounted on the axis"),
 }
-HARMONIC = Map({
-    "order": Key(Num(min=1, integer=True), True, "h: cycles per turn"),
-    "amplitude_rel": Key(Num(min=0), True, "a, relative to the set rate"),
-    "phase_deg": Key(Num(unit="deg"), False, "p, at the zero mark"),
-})
-SIM_FOG = Map({**{k: Key(Num(unit=u), False, doc) for k, u, doc in (
-                   ("scale", "", "scale factor"), ("bias_dps", "deg/s", "bias w0"),
-                   ("misalignment_deg", "deg", "sensitive axis to table axis"),
-                   ("noise_dps", "deg/s", "white noise std per sample"),
-                   ("bias_drift_dps_per_h", "deg/s/h", "linear bias drift from the start"))},
-               # a FOG that drifts across runs (bench/core/simdrift.py, bench control)
-               "scale_step": Key(Map({"from_run": Key(Num(min=1, integer=True), True,
-                                                      "the first run with the step"),
-                                      "rel": Key(Num(), True, "the step, a fraction of the "
-                                                 "scale")}), False,
-                                 "scale x (1 + rel) from run from_run on"),
-               "scale_ramp": Key(Map({"from_run": Key(Num(min=1, integer=True), True,
-                                                      "the first run of the ramp"),
-                                      "rel_per_run": Key(Num(), True, "the change per run, "
-                                                         "a fraction of the scale")}), False,
-                                 "scale x (1 + rel_per_run per run) from run from_run on"),
-               "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), False,
-                            "what the twin carries before the bench configures it "
-                            "(default: delta radians, or the declared fog.units)")})
-SIM_AXIS = Map({
-    "rate_bias_rel": Key(Num(), False, "mean table rate = set x (1 + this)"),
-    "harmonics": Key(ListOf(HARMONIC), False, "w_true - w_set = w_set x sum a cos(h phi + p)"),
-    "mains": Key(Map({"frequency_hz": Key(Num(min=0, exclusive_min=True, unit="Hz"), False,
-                                          "the ripple's frequency"),
-                      "amplitude_dps": Key(Num(min=0, unit="deg/s"), False, "its amplitude"),
-                      "phase_deg": Key(Num(unit="deg"), False, "its phase at t = 0")}),
-                 False,
-                 "a mains-frequency rate ripple"),
-    "rate_noise_dps": Key(Num(min=0, unit="deg/s"), False, "white table rate noise while "
-                          "turning, std per FOG sample"),
-    "turn_jitter_s": Key(Num(min=0, unit="s"), False, "zero-mark edge timing std"),
-    "fog": Key(SIM_FOG, False, "the FOG's truth: k = scale cos(misalignment), w0 = bias"),
-    "counter_external_reference": Key(Bool(), False, "a valid 10 MHz is wired to the "
-                                      "counter's Ext Ref In (default true)"),
-    "counter": Key(Map({"timebase_offset_rel": Key(
-        Num(), False, "the counter's true time-base offset e, unknown to the lab: every "
-        "period the twin times is scaled by 1 + e (default 0; issue 58)")}), False,
-        "the counter twin's own errors"),
-    "counter_first_value": Key(Str(("from-start", "edge-to-edge")), False,
-                               "how the 53230A twin reads its first timestamp value: from "
-                               "the trigger (default) or edge to edge (the Programmer's "
-                               "Reference's SENSe:TSTamp:RATE example)"),
-    "time_tie": Key(Map({"latency_s": Key(Num(min=0, unit="s"), False, "true latency"),
-                         "jitter_s": Key(Num(min=0, unit="s"), False, "its jitter, std")}),
-                    False, "the FOG sync to counter trigger link: true latency and jitter"),
-    "serials": Key(Map({"counter": Key(Str(), False, "the counter twin's *IDN? serial"),
-                        "drive": Key(Num(min=0, max=2**32 - 1, integer=True), False,
-                                     "the drive twin's serial number, 0x1018:4")}), False,
-                   "the serial each twin reports: the counter's *IDN? serial field, the "
-                   "drive's identity object 0x1018:4"),
-    "drive": Key(Map({k: v for k, v in struct_map(DriveTruth).keys.items()
-                      if k != "serial_number"}), False,   # stated in serials.drive
-                 "the drive twin's own configuration: its factor group (e.g. rpm, rpm/s), "
-                 "TPDO event timer, limits and windows (sims/drive_truth.py)"),
-})
+SIM_AXIS = struct_map(SimAxisFile)
 
 
 def _absolute_path(value: object) -> str | None:
@@ -460,40 +403,45 @@ class StandSettings:
         return self.addresses.get(where, stated)
 
 
-def _sim_axis(d: dict[str, Any]) -> SimAxis:
-    """A `sim.axes.<axis>` block; a key left out takes the truth's own default (each
-    default once: the dataclasses' fields)."""
-    fog = dict(d.get("fog") or {})
-    truth: dict[str, Any] = {k: float(d[k]) for k in ("rate_bias_rel", "rate_noise_dps",
-                                                      "turn_jitter_s") if k in d}
-    if d.get("harmonics"):
-        truth["harmonics"] = tuple(Harmonic(**h) for h in d["harmonics"])
-    if d.get("mains"):
-        truth["mains"] = Mains(**d["mains"])
-    truth["fog"] = FogTruth(**{k: float(fog[k]) for k in FogTruth.__dataclass_fields__
-                               if k in fog})
-    step, ramp = fog.get("scale_step"), fog.get("scale_ramp")
-    tie = d.get("time_tie") or {}
-    serials = d.get("serials") or {}
+def _sim_axis(d: dict[str, Any], at: KeyPath) -> SimAxis:
+    """A `sim.axes.<axis>` block (bench/core/stand_sim.py); a key left out takes the
+    truth's own default (each default once: the dataclasses' fields)."""
+    f = struct_at(SimAxisFile, d, at)
+    fog = f.fog or SimFogFile()
+    tie, serials = f.time_tie or TieTruthFile(), f.serials or SerialsFile()
+
+    def stated(block: msgspec.Struct | None) -> dict[str, Any]:
+        """The keys a block states (None: left out, the truth's default)."""
+        return {k: v for k, v in msgspec.structs.asdict(block).items()
+                if v is not None} if block is not None else {}
+
+    truth: dict[str, Any] = {k: v for k in ("rate_bias_rel", "rate_noise_dps",
+                                            "turn_jitter_s")
+                             if (v := getattr(f, k)) is not None}
+    if f.harmonics:
+        truth["harmonics"] = tuple(Harmonic(**stated(h)) for h in f.harmonics)
+    if f.mains:
+        truth["mains"] = Mains(**stated(f.mains))
+    truth["fog"] = FogTruth(**{k: v for k, v in stated(fog).items()
+                               if k in FogTruth.__dataclass_fields__})
     extra: dict[str, Any] = {}
-    if "counter_external_reference" in d:
-        extra["counter_external_reference"] = bool(d["counter_external_reference"])
-    if "counter_first_value" in d:
-        extra["counter_first_value"] = str(d["counter_first_value"])
-    if "jitter_s" in tie:
-        extra["tie_jitter_s"] = float(tie["jitter_s"])
-    counter = d.get("counter") or {}
-    if "timebase_offset_rel" in counter:
-        extra["counter_timebase_offset_rel"] = float(counter["timebase_offset_rel"])
+    if f.counter_external_reference is not None:
+        extra["counter_external_reference"] = f.counter_external_reference
+    if f.counter_first_value is not None:
+        extra["counter_first_value"] = f.counter_first_value
+    if tie.jitter_s is not None:
+        extra["tie_jitter_s"] = tie.jitter_s
+    if f.counter is not None and f.counter.timebase_offset_rel is not None:
+        extra["counter_timebase_offset_rel"] = f.counter.timebase_offset_rel
+    drive = f.drive or DriveTruth()
+    if serials.drive is not None:
+        drive = msgspec.structs.replace(drive, serial_number=serials.drive)
+    step, ramp = fog.scale_step, fog.scale_ramp
     return SimAxis(
-        AxisTruth(**truth), fog_units=_opt(fog, "units", str),
-        scale_step=(int(step["from_run"]), float(step["rel"])) if step else None,
-        scale_ramp=(int(ramp["from_run"]), float(ramp["rel_per_run"])) if ramp else None,
-        tie_latency_s=_opt(tie, "latency_s", float),
-        counter_serial=_opt(serials, "counter", str),
-        drive=struct_at(DriveTruth, d.get("drive") or {},
-                        **({"serial_number": serials["drive"]} if "drive" in serials else {})),
-        **extra)
+        AxisTruth(**truth), fog_units=fog.units,
+        scale_step=(step.from_run, step.rel) if step else None,
+        scale_ramp=(ramp.from_run, ramp.rel_per_run) if ramp else None,
+        tie_latency_s=tie.latency_s, counter_serial=serials.counter, drive=drive, **extra)
 
 
 def dcc_refs(stand: Mapping[str, Any] | None) -> DccRefs:
@@ -524,8 +472,8 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
     sim = None
     if "sim" in stand:
         s = stand["sim"] or {}
-        sim = parse_declared(SimSettings, s, axes={n: _sim_axis(v or {}) for n, v in
-                                                   (s.get("axes") or {}).items()})
+        sim = parse_declared(SimSettings, s, axes={n: _sim_axis(v or {}, ("sim", "axes", n))
+                                                   for n, v in (s.get("axes") or {}).items()})
     trace = tuple(struct_at(Traceable, t, ("traceability", i))
                   for i, t in enumerate(stand.get("traceability") or []))
     return StandSettings(

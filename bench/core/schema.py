@@ -570,7 +570,8 @@ def struct_map(cls: type[msgspec.Struct]) -> Map:
     node, meaning (`Meta.description`), unit (`Meta.extra["unit"]`) and default read from
     the one declaration, as `declared_map` reads a dataclass's. `Meta.extra["given"]`:
     the loader gives the value when the file leaves the key out (no default shown);
-    `Meta.extra["required"]`: a file must write the key, an object made in code need not."""
+    `Meta.extra["required"]`: a file must write the key, an object made in code need not;
+    `Meta.extra["file"] = False`: not a key of this block (the file states it elsewhere)."""
     keys: dict[str, Key] = {}
     hints = typing.get_type_hints(cls, include_extras=True)
     for f in msgspec.structs.fields(cls):
@@ -579,6 +580,8 @@ def struct_map(cls: type[msgspec.Struct]) -> Map:
         if typing.get_origin(tp) in (typing.Union, types.UnionType):
             metas = [m for a in typing.get_args(tp) for m in _metas(a)[1]]
         extra = _meta(metas, "extra") or {}
+        if extra.get("file") is False:   # set in code, stated elsewhere in the file
+            continue
         given = bool(extra.get("given"))
         required = (f.required and not given) or bool(extra.get("required"))
         default = f.default if f.default is not msgspec.NODEFAULT else None
