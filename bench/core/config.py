@@ -109,15 +109,34 @@ def _absolute_path(value: object) -> str | None:
 
 
 ABSOLUTE_PATH = Check(Str(), _absolute_path)
-SIGNING = Map({    # the DCC's signing key (bench/app/dcc/settings.py, docs/dcc.md)
-    "key": Key(ABSOLUTE_PATH, True, "PEM private key (PKCS#8 or traditional), absolute path"),
-    "certificate": Key(ABSOLUTE_PATH, True, "PEM X.509 certificate of that key, chain after"),
-    "password_env": Key(Str(), False, "environment variable holding the key's password"),
-})
-STAND_DCC = Map({
-    "lab": Key(ABSOLUTE_PATH, False, "lab settings file (YAML), absolute path"),
-    "signing": Key(SIGNING, False, "the DCC's signing key and certificate (docs/dcc.md)"),
-})
+#: a path key: text, an absolute path (the rule `_absolute_path`)
+PathKey = Annotated[str, Meta(extra={"check": _absolute_path})]
+
+
+class SigningFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The DCC's signing key (bench/app/dcc/settings.py, docs/dcc.md): paths only."""
+
+    key: Annotated[PathKey, Meta(description="PEM private key (PKCS#8 or traditional), "
+                                             "absolute path")]
+    certificate: Annotated[PathKey, Meta(description="PEM X.509 certificate of that key, "
+                                                     "chain after")]
+    password_env: Annotated[str, Meta(description="environment variable holding the "
+                                                  "key's password")] | None = None
+
+
+class StandDccFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The stand's `dcc:` block."""
+
+    lab: Annotated[PathKey, Meta(description="lab settings file (YAML), absolute "
+                                             "path")] | None = None
+    signing: Annotated[SigningFile, Meta(description="the DCC's signing key and certificate "
+                                                     "(docs/dcc.md)")] | None = None
+
+
+SIGNING = struct_map(SigningFile)
+STAND_DCC = struct_map(StandDccFile)
+
+
 class Identity(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     """The table under test (the stand's `stand:` block)."""
 

@@ -536,9 +536,16 @@ def _meta(metas: list[msgspec.Meta], name: str) -> Any:
 
 
 def _struct_node(tp: object, metas: list[msgspec.Meta]) -> Node:
-    """The schema node of a Struct field's type, its bounds and unit from its Meta."""
+    """The schema node of a Struct field's type, its bounds and unit from its Meta, and
+    a rule that needs the whole value (`Meta.extra["check"]`, as `Check`'s: its problems
+    are reported with every other one, at their keys)."""
     tp, more = _metas(tp)
-    metas = [*more, *metas]
+    node = _bare_node(tp, [*more, *metas])
+    rule = (_meta(more, "extra") or {}).get("check")
+    return Check(node, rule) if rule is not None else node
+
+
+def _bare_node(tp: object, metas: list[msgspec.Meta]) -> Node:
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if origin in (typing.Union, types.UnionType):
         options = [a for a in args if a is not type(None)]
@@ -560,7 +567,7 @@ def _struct_node(tp: object, metas: list[msgspec.Meta]) -> Node:
     if origin in (Mapping, dict) and len(args) == 2:
         return MapOf(_struct_node(args[1], []))
     if origin in (tuple, list) and args:
-        return ListOf(_struct_node(args[0], []))
+        return ListOf(_struct_node(args[0], []), _meta(metas, "min_length") or 0)
     return _node_of(tp)
 
 
