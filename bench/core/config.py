@@ -57,10 +57,13 @@ STEP_MAX_S = 7 * 86_400.0
 
 # -- stand file ---------------------------------------------------------------------
 
-# Each stand block below is declared once, on the frozen dataclass the bench reads: the
-# field's type and default, its Setting's node (bounds, unit) and meaning. The block's
-# schema (`bench validate`, `bench schema`, JSON Schema) is `declared_map` of the class,
-# its parse `parse_declared` (bench/core/schema.py).
+# Each stand block is declared once, as the msgspec Struct the bench reads (the drive's,
+# counter's and FOG's in drivers/, the twins' truth in bench/core/stand_sim.py, the rest
+# here): each field's type, default, bounds and unit (msgspec.Meta) and meaning. The
+# block's schema (`bench validate`, `bench schema`, JSON Schema) is `struct_map` of the
+# Struct, its parse `struct_at` (bench/core/schema.py); what a Struct's own rules refuse
+# is placed at its file, line and key by `struct_problems`. The procedure keys below are
+# still frozen dataclasses declared with `Setting` (`declared_map`, `parse_declared`).
 
 CALIBRATION = struct_map(Calibration)
 
