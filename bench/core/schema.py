@@ -580,9 +580,8 @@ def struct_map(cls: type[msgspec.Struct]) -> Map:
     `Meta.extra["required"]`: a file must write the key, an object made in code need not;
     `Meta.extra["file"] = False`: not a key of this block (the file states it elsewhere)."""
     keys: dict[str, Key] = {}
-    hints = typing.get_type_hints(cls, include_extras=True)
-    for f in msgspec.structs.fields(cls):
-        tp = hints[f.name]
+    for f in msgspec.structs.fields(cls):   # its types resolved, with their Annotated
+        tp = f.type
         metas = _metas(tp)[1]
         if typing.get_origin(tp) in (typing.Union, types.UnionType):
             metas = [m for a in typing.get_args(tp) for m in _metas(a)[1]]
