@@ -23,8 +23,9 @@ Sources (stand key `counter.time_tie.source`):
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass
+from typing import Annotated, Literal
+
+from msgspec import Meta, Struct
 
 SOURCES = ("fog-sync", "host-clock")
 
@@ -33,32 +34,33 @@ class TimeTieAmbiguous(ValueError):
     """A sync pulse fell inside the window in which INIT was accepted."""
 
 
-@dataclass(frozen=True)
-class TimeTie:
-    """How the counter's start event sits on the FOG's time axis (module docstring)."""
+class TimeTie(Struct, frozen=True, forbid_unknown_fields=True):
+    """How the counter's start event sits on the FOG's time axis (module docstring);
+    declared once, as the stand's `counter.time_tie:` block (bench/core/schema.py reads
+    each key's meaning and unit here)."""
 
-    source: str = "host-clock"
-    sync_period_s: float = 1.0
-    latency_s: float = 0.0
-    latency_u_s: float = 0.0
-    host_window_s: float = 0.0
+    source: Annotated[Literal["fog-sync", "host-clock"], Meta(
+        description="how the counter's start event is placed on the FOG's time axis: "
+                    "fog-sync (external trigger from the FOG's sync output) or "
+                    "host-clock", extra={"required": True})] = "host-clock"
+    sync_period_s: Annotated[float, Meta(
+        gt=0, extra={"unit": "s"},
+        description="FOG time between sync pulses (pulse k at k * period)")] = 1.0
+    latency_s: Annotated[float, Meta(
+        ge=0, extra={"unit": "s"},
+        description="sync pulse to counter trigger, calibrated")] = 0.0
+    latency_u_s: Annotated[float, Meta(
+        ge=0, extra={"unit": "s"}, description="its standard uncertainty (with "
+                                                "jitter)")] = 0.0
+    host_window_s: Annotated[float, Meta(
+        ge=0, extra={"unit": "s"},
+        description="how well the host knows the FOG's time axis")] = 0.0
 
     def __post_init__(self) -> None:
         if self.source not in SOURCES:
             raise ValueError(f"time tie source {self.source!r}: one of {', '.join(SOURCES)}")
         if not self.sync_period_s > 0:
             raise ValueError(f"time tie sync_period_s must be > 0, got {self.sync_period_s}")
-
-    @classmethod
-    def from_stand(cls, cfg: Mapping[str, str | float] | None) -> TimeTie:
-        """The stand's `counter.time_tie` mapping (absent: host-clock)."""
-        if not cfg:
-            return cls()
-        return cls(source=str(cfg.get("source", "host-clock")),
-                   sync_period_s=float(cfg.get("sync_period_s", 1.0)),
-                   latency_s=float(cfg.get("latency_s", 0.0)),
-                   latency_u_s=float(cfg.get("latency_u_s", 0.0)),
-                   host_window_s=float(cfg.get("host_window_s", 0.0)))
 
     @property
     def uses_external_trigger(self) -> bool:

@@ -7,10 +7,11 @@ kinds are found by entry point.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TypedDict
+
+import msgspec
 
 from bench.core import rundir_layout as layout
 from bench.core.config import Config
@@ -104,7 +105,7 @@ def run_header(run: RunDir, cfg: Config, events: Sequence[Event],
         "title": cfg.common.title,
         "run_dir": run.path.name,
         "procedure_file": {"name": meta["procedure_name"], "sha256": meta["procedure_sha256"]},
-        "stand": {**{k: v for k, v in dataclasses.asdict(stand.identity).items()
+        "stand": {**{k: v for k, v in msgspec.structs.asdict(stand.identity).items()
                      if v is not None},
                   "file": Path(meta["stand_file"]).name,
                   "sha256": meta["stand_sha256"], "simulated": stand.simulated},

@@ -48,5 +48,7 @@ class DriveTruth(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
         "deceleration by friction alone, with the power stage off", "deg/s^2")] = 20.0
     position_window_deg: Annotated[float, _dps("position window 0x6067", "deg")] = 0.001
     pp_velocity_dps: Annotated[float, _dps("profile velocity 0x6081")] = 10.0
+    #: the stand file states it in `sim.axes.<axis>.serials.drive`, not in this block
     serial_number: Annotated[int, Meta(
-        ge=0, le=2**32 - 1, description="identity object 0x1018:4")] = 0
+        ge=0, le=2**32 - 1, description="identity object 0x1018:4",
+        extra={"file": False})] = 0

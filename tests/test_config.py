@@ -209,7 +209,8 @@ def test_the_stand_parses_into_frozen_settings_with_one_default_each() -> None:
         assert DRIVE.keys[key].default == axis_defaults[key], key
     assert COUNTER.keys["timeout_margin_s"].default is not None
     tie = COUNTER.keys["time_tie"].node.keys       # type: ignore[attr-defined]
-    assert tie["sync_period_s"].default == TimeTie.sync_period_s
+    assert tie["sync_period_s"].default == TimeTie().sync_period_s
+    assert tie["source"].required
     assert FOG.keys["sign"].default == 1
 
 
@@ -230,19 +231,21 @@ def test_each_setting_is_declared_once_on_its_dataclass() -> None:
         IDENTITY,
         SIM_KEYS,
         Calibration,
-        CounterSpec,
+        CounterSettings,
         FogSettings,
         Identity,
         SimSettings,
     )
-    from bench.core.schema import Map, declared_map, parse_declared, struct_at, struct_map
+    from bench.core.schema import Map, declared_map, struct_at, struct_map
     from drivers.drive_settings import DriveSettings
     from procedures.drift_pulse.settings import PROCEDURE as DRIFT
     from procedures.drift_pulse.settings import DriftFile
     from procedures.rate_ladder.settings import PROCEDURE as LADDER
     from procedures.rate_ladder.settings import LadderSettings, Settle
 
-    for struct, node in ((Calibration, CALIBRATION), (DriveSettings, DRIVE)):
+    for struct, node in ((Calibration, CALIBRATION), (DriveSettings, DRIVE),
+                         (CounterSettings, COUNTER), (FogSettings, FOG),
+                         (Identity, IDENTITY)):
         assert node == struct_map(struct), struct
         struct_fields = {f.encode_name: f for f in msgspec.structs.fields(struct)}
         assert list(node.keys) == list(struct_fields), struct
@@ -250,8 +253,7 @@ def test_each_setting_is_declared_once_on_its_dataclass() -> None:
             default = struct_fields[key].default
             if isinstance(default, int | float | str) and key != "controller_node_id":
                 assert spec.default == default and not spec.required, (struct, key)
-    for cls, node in ((CounterSpec, COUNTER), (FogSettings, FOG), (Identity, IDENTITY),
-                      (SimSettings, Map(SIM_KEYS))):
+    for cls, node in ((SimSettings, Map(SIM_KEYS)),):
         assert node == declared_map(cls), cls
         fields = {f.name: f for f in dataclasses.fields(cls)}
         for key, spec in node.keys.items():
@@ -263,7 +265,7 @@ def test_each_setting_is_declared_once_on_its_dataclass() -> None:
             assert node.keys[key] == spec, (kind, key)
     assert LADDER.keys["settle"].node == declared_map(Settle)
     assert DRIFT.keys["positions_deg"].default == (0.0, 180.0)
-    fog = parse_declared(FogSettings, {"port": "/dev/null", "rate_hz": 1000, "units": "deg/s",
+    fog = struct_at(FogSettings, {"port": "/dev/null", "rate_hz": 1000, "units": "deg/s",
                                        "range_dps": 490, "calibration": {
                                            "certificate": "C-1", "issuer": "L",
                                            "due": "2027-01-31"}})

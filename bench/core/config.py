@@ -14,6 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any
 
+import msgspec
+from msgspec import Meta, Struct
+
 from bench.core.canbus import bus_problems
 from bench.core.schema import (
     Any_,
@@ -35,239 +38,67 @@ from bench.core.schema import (
     struct_at,
     struct_map,
 )
-from bench.core.yamlfile import Problem, YamlDoc
+from bench.core.stand_sim import SerialsFile, SimAxisFile, SimFogFile, TieTruthFile
+from bench.core.yamlfile import KeyPath, Problem, YamlDoc
 from drivers.calibration import Calibration
-from drivers.counter_profiles import DEFAULT_TIMEOUT_MARGIN_S, get_profile
-from drivers.counter_profiles import PROFILES as COUNTER_PROFILES
+from drivers.counter_profiles import get_profile
+from drivers.counter_settings import CounterSettings
 from drivers.drive_settings import (
     DriveSettings,
 )
-from drivers.fog_format_names import FORMAT_NAMES as FOG_FORMATS
-from drivers.time_tie import TimeTie
+from drivers.fog_settings import FogSettings
 from sims.drive_truth import DriveTruth
 from sims.truth import AxisTruth, FogTruth, Harmonic, Mains
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
 #: the rate and acceleration bounds are the drive's (drivers/drive_settings.py)
-#: the counter's input range (a 10x probe on +/-5 V)
-LEVEL_MAX_V = 50.0
 #: one step of a plan longer than this (bench time) is refused: nobody runs it
 STEP_MAX_S = 7 * 86_400.0
 
 # -- stand file ---------------------------------------------------------------------
 
-def _upright_only(value: object) -> str | None:
-    """`fog.sign: -1` was once accepted and never read: the analysis took an inverted FOG
-    as upright (issue 25). Until the sign is carried through the twin, the capture and
-    the cross-calibration, an inverted mounting is refused, not silently mis-signed."""
-    if value != 1:
-        return ("only +1 is supported: mount the FOG with its sensitive axis along the "
-                "table's positive sense (an inverted FOG would give figures of the wrong "
-                "sign)")
-    return None
-
-
-# Each stand block below is declared once, on the frozen dataclass the bench reads: the
-# field's type and default, its Setting's node (bounds, unit) and meaning. The block's
-# schema (`bench validate`, `bench schema`, JSON Schema) is `declared_map` of the class,
-# its parse `parse_declared` (bench/core/schema.py).
+# Each stand block is declared once, as the msgspec Struct the bench reads (the drive's,
+# counter's and FOG's in drivers/, the twins' truth in bench/core/stand_sim.py, the rest
+# here): each field's type, default, bounds and unit (msgspec.Meta) and meaning. The
+# block's schema (`bench validate`, `bench schema`, JSON Schema) is `struct_map` of the
+# Struct, its parse `struct_at` (bench/core/schema.py); what a Struct's own rules refuse
+# is placed at its file, line and key by `struct_problems`. The procedure keys below are
+# still frozen dataclasses declared with `Setting` (`declared_map`, `parse_declared`).
 
 CALIBRATION = struct_map(Calibration)
-TRACEABLE = Map({   # a reference the bench does not drive (a 10 MHz source, a sensor)
-    "item": Key(Str(), True, "what it is, e.g. 'GPS-disciplined 10 MHz reference'"),
-    "serial": Key(Str(), False, "its serial number"),
-    "certificate": Key(Str(), True, "its calibration certificate's number"),
-    "issuer": Key(Str(), True, "the laboratory that issued it"),
-    "due": Key(Date(), True, "calibration due date, YYYY-MM-DD"),
-    "traces": Key(Str(), False, "the quantity it traces to SI"),
-})
+
+
+class Traceable(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """An entry of the stand's `traceability:` list: a reference the bench does not drive
+    (a 10 MHz source, a sensor), with its calibration."""
+
+    item: Annotated[str, Meta(description="what it is, e.g. 'GPS-disciplined 10 MHz "
+                                          "reference'")]
+    serial: Annotated[str, Meta(description="its serial number")] | None = None
+    certificate: Annotated[str, Meta(description="its calibration certificate's number")]
+    issuer: Annotated[str, Meta(description="the laboratory that issued it")]
+    due: Annotated[dt.date, Meta(description="calibration due date, YYYY-MM-DD")]
+    traces: Annotated[str, Meta(description="the quantity it traces to SI")] | None = None
+
+    @property
+    def calibration(self) -> Calibration:
+        return Calibration(self.certificate, self.issuer, self.due, self.traces)
+
+
+TRACEABLE = struct_map(Traceable)
 
 
 DRIVE = struct_map(DriveSettings)
-TIME_TIE = Map({
-    "source": Key(Str(("fog-sync", "host-clock")), True,
-                  "how the counter's start event is placed on the FOG's time axis: "
-                  "fog-sync (external trigger from the FOG's sync output) or host-clock"),
-    "sync_period_s": Key(Num(min=0, exclusive_min=True, unit="s"), False,
-                         "FOG time between sync pulses (pulse k at k * period)",
-                         TimeTie.sync_period_s),
-    "latency_s": Key(Num(min=0, unit="s"), False, "sync pulse to counter trigger, "
-                     "calibrated", TimeTie.latency_s),
-    "latency_u_s": Key(Num(min=0, unit="s"), False, "its standard uncertainty (with "
-                       "jitter)", TimeTie.latency_u_s),
-    "host_window_s": Key(Num(min=0, unit="s"), False, "how well the host knows the "
-                         "FOG's time axis", TimeTie.host_window_s),
-})
+COUNTER = struct_map(CounterSettings)
 
 
-@dataclass(frozen=True, kw_only=True)
-class CounterSpec:
-    """A stand axis's `counter:` block, parsed once."""
-
-    resource: Annotated[str, Setting(Str(), "VISA resource string")]
-    model: Annotated[str, Setting(
-        Str(tuple(sorted(COUNTER_PROFILES))), "the counter's model: its driver profile "
-        "(SCPI words, capabilities, metrology; drivers/counter_profiles.py)")]
-    serial: Annotated[str | None, Setting(
-        Str(), "the instrument's serial number: the key of its check values (bench "
-        "control)")] = None
-    channel: Annotated[int | None, Setting(
-        Num(min=1, max=4, integer=True), "input channel of the zero-mark pulse")] = None
-    level_v: Annotated[float | None, Setting(
-        Num(min=-LEVEL_MAX_V, max=LEVEL_MAX_V, unit="V"),
-        "absolute trigger level; required on a real stand (a twin defaults it)")] = None
-    slope: Annotated[str | None, Setting(Str(("POS", "NEG")), "the pulse edge timed")] = None
-    coupling: Annotated[str | None, Setting(Str(("DC", "AC")), "input coupling")] = None
-    impedance_ohm: Annotated[float | None, Setting(
-        Num(min=0, exclusive_min=True, unit="ohm"), "input impedance (50 or 1e6)")] = None
-    trigger_jitter_s: Annotated[float | None, Setting(
-        Num(min=0, unit="s"), "slot sensor edge jitter, std")] = None
-    timebase_limit_rel: Annotated[float | None, Setting(
-        Num(min=0), "timebase error limit (external reference)")] = None
-    reference: Annotated[str | None, Setting(
-        Str(("external", "internal")), "timebase: set at connect and read back (53230A "
-        "SENS:ROSC:SOUR); a timebase_limit_rel below the model's needs 'external'")] = None
-    timeout_margin_s: Annotated[float, Setting(
-        Num(min=0, exclusive_min=True, max=3600, unit="s"), "extra time allowed beyond a "
-        "half's expected turns before the counter counts as silent")] \
-        = DEFAULT_TIMEOUT_MARGIN_S
-    calibration: Annotated[Calibration | None, Setting(
-        doc="the counter's calibration certificate")] = None
-    #: None: the stand states none (twins: host clock)
-    time_tie: Annotated[TimeTie | None, Setting(
-        TIME_TIE, "how the counter's start is tied to the FOG's time axis (docs/"
-        "configuration.md); a stand without a sim: block must state it")] = None
-
-    def input_settings(self) -> dict[str, Any]:
-        """The input's settings the stand states (the driver's `configure` keywords)."""
-        return {k: v for k in ("channel", "level_v", "slope", "coupling", "impedance_ohm")
-                if (v := getattr(self, k)) is not None}
-
-
-COUNTER = declared_map(CounterSpec)
-
-
-@dataclass(frozen=True, kw_only=True)
-class FogSettings:
-    """A stand's `fog:` block, parsed once: the live driver, the twin, the analysis
-    reading the raw capture, the disk-space estimate and the station view all take it
-    from here."""
-
-    port: Annotated[str, Setting(Str(), "serial port, e.g. /dev/ttyUSB0")]
-    baudrate: Annotated[int, Setting(Num(min=1200, max=16_000_000, integer=True),
-                                     "serial line rate")] = 921600
-    format: Annotated[str, Setting(Str(tuple(FOG_FORMATS)),
-                                   "frame format (drivers/fog_formats.py)")] = "kvh-a"
-    axis: Annotated[str, Setting(Str(("x", "y", "z")),
-                                 "the FOG axis along the table axis")] = "z"
-    rate_hz: Annotated[float, Setting(Num(min=1, max=100_000, unit="Hz"),
-                                      "the FOG's output (frame) rate")]
-    range_dps: Annotated[float, Setting(
-        Num(min=0, exclusive_min=True, max=100_000, unit="deg/s"),
-        "the FOG's measuring range: a rate above it is refused")] = 490.0  # KVH DSP-1760's
-    units: Annotated[str, Setting(
-        Str(("deg/s", "rad/s", "deg", "rad")), "what the rotational fields carry; KVH's "
-        "power-on default is delta radians, 'rad' (1775 IMU Technical Manual, Table "
-        "5-10)")]
-    configure: Annotated[str, Setting(
-        Str(("set", "verify", "declare")), "set: configure the FOG at connect and read "
-        "back; verify: read back only; declare: trust fog.units")] = "declare"
-    serial: Annotated[str | None, Setting(
-        Str(), "the FOG's serial number: compared with its answer to ?IS at connect "
-        "(configure set or verify; KVH 1775 ICD 8.20), else printed as the stand file "
-        "states it; the key of its check values (bench control)")] = None
-    model: Annotated[str | None, Setting(Str(), "maker and model, for the certificate")] = None
-    sign: Annotated[int, Setting(
-        Check(Num(min=-1, max=1, integer=True), _upright_only), "+1: the FOG's sensitive "
-        "axis along the table's positive sense (the only mounting the analysis supports; "
-        "a FOG mounted inverted is refused)")] = 1
-    calibration: Annotated[Calibration | None, Setting(
-        doc="the FOG's calibration certificate, if any")] = None
-
-    @classmethod
-    def of(cls, fog: Mapping[str, object]) -> FogSettings:
-        return parse_declared(cls, fog)
-
-    @classmethod
-    def of_axis(cls, stand: Mapping[str, Any], axis: str) -> FogSettings | None:
-        """The FOG of `axis` in a stand mapping read back from a run directory, or None
-        when the axis has none (or the file is damaged: the station view reads run
-        directories it did not write)."""
-        f = ((stand.get("axes") or {}).get(axis) or {}).get("fog")
-        if not isinstance(f, dict) or not all(k in f for k in ("port", "rate_hz", "units")):
-            return None
-        try:
-            return cls.of(f)
-        except (TypeError, ValueError):   # a key of the wrong type or unknown
-            return None
-
-
-FOG = declared_map(FogSettings)
+FOG = struct_map(FogSettings)
 STAND_AXIS_KEYS: dict[str, Key] = {
     "drive": Key(DRIVE, True, "the axis's servo drive (CANopen CiA 402)"),
     "counter": Key(COUNTER, False, "the counter timing the zero-mark pulse, once per turn"),
     "fog": Key(FOG, False, "the reference gyro (FOG) mounted on the axis"),
 }
-HARMONIC = Map({
-    "order": Key(Num(min=1, integer=True), True, "h: cycles per turn"),
-    "amplitude_rel": Key(Num(min=0), True, "a, relative to the set rate"),
-    "phase_deg": Key(Num(unit="deg"), False, "p, at the zero mark"),
-})
-SIM_FOG = Map({**{k: Key(Num(unit=u), False, doc) for k, u, doc in (
-                   ("scale", "", "scale factor"), ("bias_dps", "deg/s", "bias w0"),
-                   ("misalignment_deg", "deg", "sensitive axis to table axis"),
-                   ("noise_dps", "deg/s", "white noise std per sample"),
-                   ("bias_drift_dps_per_h", "deg/s/h", "linear bias drift from the start"))},
-               # a FOG that drifts across runs (bench/core/simdrift.py, bench control)
-               "scale_step": Key(Map({"from_run": Key(Num(min=1, integer=True), True,
-                                                      "the first run with the step"),
-                                      "rel": Key(Num(), True, "the step, a fraction of the "
-                                                 "scale")}), False,
-                                 "scale x (1 + rel) from run from_run on"),
-               "scale_ramp": Key(Map({"from_run": Key(Num(min=1, integer=True), True,
-                                                      "the first run of the ramp"),
-                                      "rel_per_run": Key(Num(), True, "the change per run, "
-                                                         "a fraction of the scale")}), False,
-                                 "scale x (1 + rel_per_run per run) from run from_run on"),
-               "units": Key(Str(("deg/s", "rad/s", "deg", "rad")), False,
-                            "what the twin carries before the bench configures it "
-                            "(default: delta radians, or the declared fog.units)")})
-SIM_AXIS = Map({
-    "rate_bias_rel": Key(Num(), False, "mean table rate = set x (1 + this)"),
-    "harmonics": Key(ListOf(HARMONIC), False, "w_true - w_set = w_set x sum a cos(h phi + p)"),
-    "mains": Key(Map({"frequency_hz": Key(Num(min=0, exclusive_min=True, unit="Hz"), False,
-                                          "the ripple's frequency"),
-                      "amplitude_dps": Key(Num(min=0, unit="deg/s"), False, "its amplitude"),
-                      "phase_deg": Key(Num(unit="deg"), False, "its phase at t = 0")}),
-                 False,
-                 "a mains-frequency rate ripple"),
-    "rate_noise_dps": Key(Num(min=0, unit="deg/s"), False, "white table rate noise while "
-                          "turning, std per FOG sample"),
-    "turn_jitter_s": Key(Num(min=0, unit="s"), False, "zero-mark edge timing std"),
-    "fog": Key(SIM_FOG, False, "the FOG's truth: k = scale cos(misalignment), w0 = bias"),
-    "counter_external_reference": Key(Bool(), False, "a valid 10 MHz is wired to the "
-                                      "counter's Ext Ref In (default true)"),
-    "counter": Key(Map({"timebase_offset_rel": Key(
-        Num(), False, "the counter's true time-base offset e, unknown to the lab: every "
-        "period the twin times is scaled by 1 + e (default 0; issue 58)")}), False,
-        "the counter twin's own errors"),
-    "counter_first_value": Key(Str(("from-start", "edge-to-edge")), False,
-                               "how the 53230A twin reads its first timestamp value: from "
-                               "the trigger (default) or edge to edge (the Programmer's "
-                               "Reference's SENSe:TSTamp:RATE example)"),
-    "time_tie": Key(Map({"latency_s": Key(Num(min=0, unit="s"), False, "true latency"),
-                         "jitter_s": Key(Num(min=0, unit="s"), False, "its jitter, std")}),
-                    False, "the FOG sync to counter trigger link: true latency and jitter"),
-    "serials": Key(Map({"counter": Key(Str(), False, "the counter twin's *IDN? serial"),
-                        "drive": Key(Num(min=0, max=2**32 - 1, integer=True), False,
-                                     "the drive twin's serial number, 0x1018:4")}), False,
-                   "the serial each twin reports: the counter's *IDN? serial field, the "
-                   "drive's identity object 0x1018:4"),
-    "drive": Key(Map({k: v for k, v in struct_map(DriveTruth).keys.items()
-                      if k != "serial_number"}), False,   # stated in serials.drive
-                 "the drive twin's own configuration: its factor group (e.g. rpm, rpm/s), "
-                 "TPDO event timer, limits and windows (sims/drive_truth.py)"),
-})
+SIM_AXIS = struct_map(SimAxisFile)
 
 
 def _absolute_path(value: object) -> str | None:
@@ -281,33 +112,59 @@ def _absolute_path(value: object) -> str | None:
 
 
 ABSOLUTE_PATH = Check(Str(), _absolute_path)
-SIGNING = Map({    # the DCC's signing key (bench/app/dcc/settings.py, docs/dcc.md)
-    "key": Key(ABSOLUTE_PATH, True, "PEM private key (PKCS#8 or traditional), absolute path"),
-    "certificate": Key(ABSOLUTE_PATH, True, "PEM X.509 certificate of that key, chain after"),
-    "password_env": Key(Str(), False, "environment variable holding the key's password"),
-})
-STAND_DCC = Map({
-    "lab": Key(ABSOLUTE_PATH, False, "lab settings file (YAML), absolute path"),
-    "signing": Key(SIGNING, False, "the DCC's signing key and certificate (docs/dcc.md)"),
-})
-@dataclass(frozen=True)
-class Identity:
+#: a path key: text, an absolute path (the rule `_absolute_path`)
+PathKey = Annotated[str, Meta(extra={"check": _absolute_path})]
+
+
+class SigningFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The DCC's signing key (bench/app/dcc/settings.py, docs/dcc.md): paths only."""
+
+    key: Annotated[PathKey, Meta(description="PEM private key (PKCS#8 or traditional), "
+                                             "absolute path")]
+    certificate: Annotated[PathKey, Meta(description="PEM X.509 certificate of that key, "
+                                                     "chain after")]
+    password_env: Annotated[str, Meta(description="environment variable holding the "
+                                                  "key's password")] | None = None
+
+
+class StandDccFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The stand's `dcc:` block."""
+
+    lab: Annotated[PathKey, Meta(description="lab settings file (YAML), absolute "
+                                             "path")] | None = None
+    signing: Annotated[SigningFile, Meta(description="the DCC's signing key and certificate "
+                                                     "(docs/dcc.md)")] | None = None
+
+
+SIGNING = struct_map(SigningFile)
+STAND_DCC = struct_map(StandDccFile)
+
+
+class Identity(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     """The table under test (the stand's `stand:` block)."""
 
-    maker: Annotated[str, Setting(Str(), "the table's maker")]
-    model: Annotated[str, Setting(Str(), "its model")]
-    serial: Annotated[str, Setting(Str(), "its serial number (text; the records key)")]
-    location: Annotated[str | None, Setting(Str(), "where it stands")] = None
-    recertification_interval_days: Annotated[int | None, Setting(
-        Num(min=1, integer=True, unit="d"),
-        "the table's recertification interval (lab settings may override)")] = None
+    maker: Annotated[str, Meta(description="the table's maker")]
+    model: Annotated[str, Meta(description="its model")]
+    serial: Annotated[str, Meta(description="its serial number (text; the records key)")]
+    location: Annotated[str, Meta(description="where it stands")] | None = None
+    recertification_interval_days: Annotated[int, Meta(
+        ge=1, extra={"unit": "d"},
+        description="the table's recertification interval (lab settings may "
+                    "override)")] | None = None
 
 
-IDENTITY = declared_map(Identity)
+IDENTITY = struct_map(Identity)
 
 
-BENCH = Map({"name": Key(Str(), False, "the bench's name on the lab server, unique in the "
-                         "lab (default: this machine's host name)")})
+class BenchName(Struct, frozen=True, forbid_unknown_fields=True):
+    """The stand's `bench:` block: this bench among the lab's."""
+
+    name: Annotated[str, Meta(description="the bench's name on the lab server, unique in "
+                                          "the lab (default: this machine's host "
+                                          "name)")] | None = None
+
+
+BENCH = struct_map(BenchName)
 
 
 def stand_schema(extra_top: dict[str, Key] | None = None,
@@ -468,21 +325,12 @@ def stated_traceability(stand: Mapping[str, Any]) -> tuple[Traced, ...]:
 
 
 @dataclass(frozen=True)
-class Traceable:
-    """An entry of the stand's `traceability:` list: a reference the bench does not drive."""
-
-    item: str
-    serial: str | None
-    calibration: Calibration
-
-
-@dataclass(frozen=True)
 class StandAxis:
     """One axis of the stand: its drive, and the counter and FOG that watch it."""
 
     name: str
     drive: DriveSettings
-    counter: CounterSpec | None = None
+    counter: CounterSettings | None = None
     fog: FogSettings | None = None
 
 
@@ -577,40 +425,45 @@ class StandSettings:
         return self.addresses.get(where, stated)
 
 
-def _sim_axis(d: dict[str, Any]) -> SimAxis:
-    """A `sim.axes.<axis>` block; a key left out takes the truth's own default (each
-    default once: the dataclasses' fields)."""
-    fog = dict(d.get("fog") or {})
-    truth: dict[str, Any] = {k: float(d[k]) for k in ("rate_bias_rel", "rate_noise_dps",
-                                                      "turn_jitter_s") if k in d}
-    if d.get("harmonics"):
-        truth["harmonics"] = tuple(Harmonic(**h) for h in d["harmonics"])
-    if d.get("mains"):
-        truth["mains"] = Mains(**d["mains"])
-    truth["fog"] = FogTruth(**{k: float(fog[k]) for k in FogTruth.__dataclass_fields__
-                               if k in fog})
-    step, ramp = fog.get("scale_step"), fog.get("scale_ramp")
-    tie = d.get("time_tie") or {}
-    serials = d.get("serials") or {}
+def _sim_axis(d: dict[str, Any], at: KeyPath) -> SimAxis:
+    """A `sim.axes.<axis>` block (bench/core/stand_sim.py); a key left out takes the
+    truth's own default (each default once: the dataclasses' fields)."""
+    f = struct_at(SimAxisFile, d, at)
+    fog = f.fog or SimFogFile()
+    tie, serials = f.time_tie or TieTruthFile(), f.serials or SerialsFile()
+
+    def stated(block: msgspec.Struct | None) -> dict[str, Any]:
+        """The keys a block states (None: left out, the truth's default)."""
+        return {k: v for k, v in msgspec.structs.asdict(block).items()
+                if v is not None} if block is not None else {}
+
+    truth: dict[str, Any] = {k: v for k in ("rate_bias_rel", "rate_noise_dps",
+                                            "turn_jitter_s")
+                             if (v := getattr(f, k)) is not None}
+    if f.harmonics:
+        truth["harmonics"] = tuple(Harmonic(**stated(h)) for h in f.harmonics)
+    if f.mains:
+        truth["mains"] = Mains(**stated(f.mains))
+    truth["fog"] = FogTruth(**{k: v for k, v in stated(fog).items()
+                               if k in FogTruth.__dataclass_fields__})
     extra: dict[str, Any] = {}
-    if "counter_external_reference" in d:
-        extra["counter_external_reference"] = bool(d["counter_external_reference"])
-    if "counter_first_value" in d:
-        extra["counter_first_value"] = str(d["counter_first_value"])
-    if "jitter_s" in tie:
-        extra["tie_jitter_s"] = float(tie["jitter_s"])
-    counter = d.get("counter") or {}
-    if "timebase_offset_rel" in counter:
-        extra["counter_timebase_offset_rel"] = float(counter["timebase_offset_rel"])
+    if f.counter_external_reference is not None:
+        extra["counter_external_reference"] = f.counter_external_reference
+    if f.counter_first_value is not None:
+        extra["counter_first_value"] = f.counter_first_value
+    if tie.jitter_s is not None:
+        extra["tie_jitter_s"] = tie.jitter_s
+    if f.counter is not None and f.counter.timebase_offset_rel is not None:
+        extra["counter_timebase_offset_rel"] = f.counter.timebase_offset_rel
+    drive = f.drive or DriveTruth()
+    if serials.drive is not None:
+        drive = msgspec.structs.replace(drive, serial_number=serials.drive)
+    step, ramp = fog.scale_step, fog.scale_ramp
     return SimAxis(
-        AxisTruth(**truth), fog_units=_opt(fog, "units", str),
-        scale_step=(int(step["from_run"]), float(step["rel"])) if step else None,
-        scale_ramp=(int(ramp["from_run"]), float(ramp["rel_per_run"])) if ramp else None,
-        tie_latency_s=_opt(tie, "latency_s", float),
-        counter_serial=_opt(serials, "counter", str),
-        drive=struct_at(DriveTruth, d.get("drive") or {},
-                        **({"serial_number": serials["drive"]} if "drive" in serials else {})),
-        **extra)
+        AxisTruth(**truth), fog_units=fog.units,
+        scale_step=(step.from_run, step.rel) if step else None,
+        scale_ramp=(ramp.from_run, ramp.rel_per_run) if ramp else None,
+        tie_latency_s=tie.latency_s, counter_serial=serials.counter, drive=drive, **extra)
 
 
 def dcc_refs(stand: Mapping[str, Any] | None) -> DccRefs:
@@ -636,23 +489,22 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
         axes[name] = StandAxis(
             name, struct_at(DriveSettings, a["drive"], ("axes", name, "drive"),
                       controller_node_id=controllers[name]),
-            parse_declared(CounterSpec, c) if c else None,
-            parse_declared(FogSettings, f) if f else None)
+            struct_at(CounterSettings, c, ("axes", name, "counter")) if c else None,
+            struct_at(FogSettings, f, ("axes", name, "fog")) if f else None)
     sim = None
     if "sim" in stand:
         s = stand["sim"] or {}
-        sim = parse_declared(SimSettings, s, axes={n: _sim_axis(v or {}) for n, v in
-                                                   (s.get("axes") or {}).items()})
-    trace = tuple(Traceable(str(t.get("item", "")), _opt(t, "serial", str),
-                            Calibration.of(t) or Calibration("", "", None))
-                  for t in stand.get("traceability") or [])
+        sim = parse_declared(SimSettings, s, axes={n: _sim_axis(v or {}, ("sim", "axes", n))
+                                                   for n, v in (s.get("axes") or {}).items()})
+    trace = tuple(struct_at(Traceable, t, ("traceability", i))
+                  for i, t in enumerate(stand.get("traceability") or []))
     return StandSettings(
-        identity=(parse_declared(Identity, ident) if ident
+        identity=(struct_at(Identity, ident, ("stand",)) if ident
                   else Identity(maker="", model="", serial="")),
         axes=axes, sim=sim, traceability=trace,
         dcc=dcc_refs(stand), traced=stated_traceability(stand),
         mains_hz=_opt(stand, "mains_hz", float),
-        bench_name=_opt(stand.get("bench") or {}, "name", str))
+        bench_name=struct_at(BenchName, stand.get("bench") or {}, ("bench",)).name)
 
 
 def parse_common(procedure: Mapping[str, object], path: Path) -> CommonSettings:
@@ -758,21 +610,23 @@ def real_stand_problems(sdoc: YamlDoc) -> list[Problem]:
 
 def struct_problems(sdoc: YamlDoc, refused: list[Problem]) -> list[Problem]:
     """What the stand's Struct-declared blocks refuse beyond the schema's nodes (the rules
-    between keys, e.g. a drive's watchdog against its heartbeat), each at its file, line
-    and key: each block the nodes accepted is built as the run will build it."""
+    of a block, e.g. a drive's watchdog against its heartbeat, a FOG's sign), each at its
+    file, line and key: each block the nodes accepted is built as the run will build it."""
     data = sdoc.data if isinstance(sdoc.data, dict) else {}
     axes = got if isinstance(got := data.get("axes"), dict) else {}
     out = []
     for name, axis in axes.items():
-        drive = axis.get("drive") if isinstance(axis, dict) else None
-        where = ("axes", name, "drive")
-        if not isinstance(drive, dict) or any(
-                p.key.startswith(f"axes.{name}.drive") for p in refused):
-            continue
-        try:
-            struct_at(DriveSettings, drive, where)
-        except SettingsRefused as e:
-            out.append(sdoc.problem(e.path, e.message))
+        for key, cls in (("drive", DriveSettings), ("counter", CounterSettings),
+                         ("fog", FogSettings)):
+            block = axis.get(key) if isinstance(axis, dict) else None
+            if not isinstance(block, dict) or any(
+                    p.key == f"axes.{name}.{key}" or p.key.startswith(f"axes.{name}.{key}.")
+                    for p in refused):
+                continue
+            try:
+                struct_at(cls, block, ("axes", name, key))
+            except SettingsRefused as e:
+                out.append(sdoc.problem(e.path, e.message))
     return out
 
 

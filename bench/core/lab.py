@@ -18,13 +18,14 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated, Literal
+
+from msgspec import Meta, Struct
 
 from bench.core import rundir_layout as layout
-from bench.core.config import SIGNING
-from bench.core.schema import Bool, Check, Key, ListOf, Map, MapOf, Num, OneOf, Str, validate
+from bench.core.config import SigningFile
+from bench.core.schema import struct_map, validate
 from bench.core.yamlfile import Problem, YamlDoc, YamlError, load_yaml
-
-PERFORMANCE_LOCATIONS = ("laboratory", "customer", "laboratoryBranch", "customerBranch", "other")
 
 
 def _country_rule(value: object) -> str | None:
@@ -33,54 +34,98 @@ def _country_rule(value: object) -> str | None:
     return None
 
 
-COUNTRY = Check(Str(), _country_rule)
-LOCATION = Map({k: Key(COUNTRY if k == "country_code" else Str())
-                for k in ("street", "street_no", "post_code", "city", "state", "country_code",
-                          "further")})
-CONTACT = Map({
-    "name": Key(Str(), True), "email": Key(Str()), "phone": Key(Str()),
-    "location": Key(LOCATION), "code": Key(Str(), False, "accreditation or laboratory code"),
-})
-SIGNATORY = Map({
-    "name": Key(Str(), True, "the person's name, printed under the signature line"),
-    "function": Key(Str(), False, "their function in the laboratory"),
-    "role": Key(Str(), False, "the same as function (the DCC's word)"),
-    "authorises": Key(Bool(), False, "read but not used: the lab register's signatory "
-                      "role decides who may authorise an issue"),
-    "main_signer": Key(Bool(), False, "the same as authorises (the DCC's word)"),
-})
-LAB = Map({
-    "laboratory": Key(OneOf(Str(), CONTACT), False,
-                      "the laboratory's name (or name, code, email, phone, location); the "
-                      "certificate says 'name not given' without it"),
-    "address": Key(Str(), False, "the laboratory's address, printed (ISO/IEC 17025 7.8.2.1 b)"),
-    "location": Key(LOCATION, False, "the address in parts, for the DCC"),
-    "email": Key(Str()), "phone": Key(Str()),
-    "code": Key(Str(), False, "accreditation or laboratory code"),
-    "accreditation": Key(Str(), False, "accreditation body and number, or 'not accredited'"),
-    "site": Key(Str(), False, "where calibrations are performed, when not at the address"),
-    "prefix": Key(Str(), False, "prefix of generated certificate numbers (default RT)"),
-    "country_code": Key(COUNTRY, False, "country where the calibration is performed"),
-    "performance_location": Key(Str(PERFORMANCE_LOCATIONS)),
-    "signatories": Key(ListOf(SIGNATORY, min_len=1), False,
-                       "named signatories with their functions, for the laboratory's own "
-                       "reference only: who may sign and who performed a calibration come "
-                       "from the lab register's authenticated accounts (docs/register.md)"),
-    "responsible_persons": Key(ListOf(SIGNATORY), False, "the same as signatories"),
-    "authoritative": Key(Str(("pdf",)), False, "the authoritative form (pdf)"),
-    "signing": Key(SIGNING, False, "the key the issued DCC is signed with (paths only)"),
-    "require_signed_dcc": Key(Bool(), False, "bench verify fails an unsigned DCC (default: "
-                              "true when signing is configured)"),
-    "records": Key(Str(), False, "records database URL"),
-    "register": Key(Str(), False, "the lab register's URL (sqlite:///PATH or postgresql://...): "
-                    "accounts, equipment, certificate numbers, audit trail; bench authorise "
-                    "issues only through it (docs/register.md)"),
-    "recertification": Key(Map({
-        "default_interval_days": Key(Num(min=1, integer=True, unit="d")),
-        "tables": Key(MapOf(Num(min=1, integer=True, unit="d")), False,
-                      "serial: recertification interval, days"),
-    })),
-})
+#: a country: its ISO 3166-1 alpha-2 code (the rule `_country_rule`)
+Country = Annotated[str, Meta(extra={"check": _country_rule})]
+#: a recertification interval, days
+Days = Annotated[int, Meta(ge=1, extra={"unit": "d"})]
+
+
+def _d(description: str) -> Meta:
+    return Meta(description=description)
+
+
+class LocationFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """An address in parts, for the DCC."""
+
+    street: str | None = None
+    street_no: str | None = None
+    post_code: str | None = None
+    city: str | None = None
+    state: str | None = None
+    country_code: Country | None = None
+    further: str | None = None
+
+
+class ContactFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The laboratory as earlier DCC lab files wrote it: a mapping."""
+
+    name: str
+    email: str | None = None
+    phone: str | None = None
+    location: LocationFile | None = None
+    code: Annotated[str, _d("accreditation or laboratory code")] | None = None
+
+
+class SignatoryFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    name: Annotated[str, _d("the person's name, printed under the signature line")]
+    function: Annotated[str, _d("their function in the laboratory")] | None = None
+    role: Annotated[str, _d("the same as function (the DCC's word)")] | None = None
+    authorises: Annotated[bool, _d("read but not used: the lab register's signatory role "
+                                   "decides who may authorise an issue")] | None = None
+    main_signer: Annotated[bool, _d("the same as authorises (the DCC's word)")] | None = None
+
+
+class RecertificationFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    default_interval_days: Days | None = None
+    tables: Annotated[dict[str, Days], _d("serial: recertification interval, "
+                                          "days")] | None = None
+
+
+class LabFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The lab settings file's keys, declared once (`bench schema lab`); `parse_lab` reads
+    them, and result.json's `certificate` block that carries them, into one `Lab`."""
+
+    laboratory: Annotated[str | ContactFile, _d(
+        "the laboratory's name (or name, code, email, phone, location); the certificate "
+        "says 'name not given' without it")] | None = None
+    address: Annotated[str, _d("the laboratory's address, printed (ISO/IEC 17025 7.8.2.1 "
+                               "b)")] | None = None
+    location: Annotated[LocationFile, _d("the address in parts, for the DCC")] | None = None
+    email: str | None = None
+    phone: str | None = None
+    code: Annotated[str, _d("accreditation or laboratory code")] | None = None
+    accreditation: Annotated[str, _d("accreditation body and number, or 'not "
+                                     "accredited'")] | None = None
+    site: Annotated[str, _d("where calibrations are performed, when not at the "
+                            "address")] | None = None
+    prefix: Annotated[str, _d("prefix of generated certificate numbers (default "
+                              "RT)")] | None = None
+    country_code: Annotated[Country, _d("country where the calibration is "
+                                        "performed")] | None = None
+    performance_location: Literal["laboratory", "customer", "laboratoryBranch",
+                                  "customerBranch", "other"] | None = None
+    signatories: Annotated[tuple[SignatoryFile, ...], Meta(
+        min_length=1,
+        description="named signatories with their functions, for the laboratory's own "
+                    "reference only: who may sign and who performed a calibration come from "
+                    "the lab register's authenticated accounts (docs/register.md)")] | None \
+        = None
+    responsible_persons: Annotated[tuple[SignatoryFile, ...], _d(
+        "the same as signatories")] | None = None
+    authoritative: Annotated[Literal["pdf"], _d("the authoritative form (pdf)")] | None = None
+    signing: Annotated[SigningFile, _d("the key the issued DCC is signed with (paths "
+                                       "only)")] | None = None
+    require_signed_dcc: Annotated[bool, _d("bench verify fails an unsigned DCC (default: "
+                                           "true when signing is configured)")] | None = None
+    records: Annotated[str, _d("records database URL")] | None = None
+    register: Annotated[str, _d(
+        "the lab register's URL (sqlite:///PATH or postgresql://...): accounts, equipment, "
+        "certificate numbers, audit trail; bench authorise issues only through it "
+        "(docs/register.md)")] | None = None
+    recertification: RecertificationFile | None = None
+
+
+LAB = struct_map(LabFile)
 
 RUN_COPY = layout.LAB  # the lab file as used, copied into the run directory
 DEFAULT_PREFIX = "RT"

@@ -536,9 +536,16 @@ def _meta(metas: list[msgspec.Meta], name: str) -> Any:
 
 
 def _struct_node(tp: object, metas: list[msgspec.Meta]) -> Node:
-    """The schema node of a Struct field's type, its bounds and unit from its Meta."""
+    """The schema node of a Struct field's type, its bounds and unit from its Meta, and
+    a rule that needs the whole value (`Meta.extra["check"]`, as `Check`'s: its problems
+    are reported with every other one, at their keys)."""
     tp, more = _metas(tp)
-    metas = [*more, *metas]
+    node = _bare_node(tp, [*more, *metas])
+    rule = (_meta(more, "extra") or {}).get("check")
+    return Check(node, rule) if rule is not None else node
+
+
+def _bare_node(tp: object, metas: list[msgspec.Meta]) -> Node:
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if origin in (typing.Union, types.UnionType):
         options = [a for a in args if a is not type(None)]
@@ -547,6 +554,8 @@ def _struct_node(tp: object, metas: list[msgspec.Meta]) -> Node:
         return OneOf(*(_struct_node(a, metas) for a in options))
     if origin is typing.Literal:
         return Str(tuple(str(a) for a in args))
+    if tp is str:   # a choice among names the code holds (`Meta.extra["choices"]`)
+        return Str(tuple((_meta(metas, "extra") or {}).get("choices", ())))
     if tp is int or tp is float:
         gt, ge = _meta(metas, "gt"), _meta(metas, "ge")
         extra = _meta(metas, "extra") or {}
@@ -558,7 +567,7 @@ def _struct_node(tp: object, metas: list[msgspec.Meta]) -> Node:
     if origin in (Mapping, dict) and len(args) == 2:
         return MapOf(_struct_node(args[1], []))
     if origin in (tuple, list) and args:
-        return ListOf(_struct_node(args[0], []))
+        return ListOf(_struct_node(args[0], []), _meta(metas, "min_length") or 0)
     return _node_of(tp)
 
 
@@ -566,17 +575,21 @@ def _struct_node(tp: object, metas: list[msgspec.Meta]) -> Node:
 def struct_map(cls: type[msgspec.Struct]) -> Map:
     """The schema of a mapping whose keys are `cls`'s fields, in their order: each key's
     node, meaning (`Meta.description`), unit (`Meta.extra["unit"]`) and default read from
-    the one declaration, as `declared_map` reads a dataclass's."""
+    the one declaration, as `declared_map` reads a dataclass's. `Meta.extra["given"]`:
+    the loader gives the value when the file leaves the key out (no default shown);
+    `Meta.extra["required"]`: a file must write the key, an object made in code need not;
+    `Meta.extra["file"] = False`: not a key of this block (the file states it elsewhere)."""
     keys: dict[str, Key] = {}
-    hints = typing.get_type_hints(cls, include_extras=True)
-    for f in msgspec.structs.fields(cls):
-        tp = hints[f.name]
+    for f in msgspec.structs.fields(cls):   # its types resolved, with their Annotated
+        tp = f.type
         metas = _metas(tp)[1]
         if typing.get_origin(tp) in (typing.Union, types.UnionType):
             metas = [m for a in typing.get_args(tp) for m in _metas(a)[1]]
         extra = _meta(metas, "extra") or {}
+        if extra.get("file") is False:   # set in code, stated elsewhere in the file
+            continue
         given = bool(extra.get("given"))
-        required = f.required and not given
+        required = (f.required and not given) or bool(extra.get("required"))
         default = f.default if f.default is not msgspec.NODEFAULT else None
         keys[f.encode_name] = Key(_struct_node(tp, []), required,
                                   _meta(metas, "description") or "",

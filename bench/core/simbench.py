@@ -26,7 +26,7 @@ import numpy as np
 
 from bench.core.config import (
     Config,
-    CounterSpec,
+    CounterSettings,
     FogSettings,
     SimAxis,
     SimSettings,
@@ -85,7 +85,7 @@ def session_seed(sim: SimSettings) -> int:
     if sim.session <= 1:
         return sim.seed
     return int(np.random.SeedSequence([sim.seed, sim.session]).generate_state(1)[0])
-def sync_link(counter: CounterSpec, sim_axis: SimAxis) -> SyncLink | None:
+def sync_link(counter: CounterSettings, sim_axis: SimAxis) -> SyncLink | None:
     """The FOG-sync-to-counter link the twins model for a `fog-sync` time tie: pulses
     every `sync_period_s`, the sim truth's latency and jitter (default: exactly the
     latency the stand declares). None when the stand ties otherwise (nothing wired)."""
@@ -159,7 +159,7 @@ class SimBench:
                                  units=twin_fog_units(fs, self.sim.axis(a)),
                                  serial=fs.serial or DEFAULT_FOG_SERIAL)
                     axes[a] = dataclasses.replace(
-                        axes[a], fog=dataclasses.replace(fs, port=ft.start()))
+                        axes[a], fog=msgspec.structs.replace(fs, port=ft.start()))
                     self.stops.add(f"{a} FOG twin", ft.stop, "twin")
                     # the stand runs no faster than this FOG's frames go out (sims/clock.py)
                     self.stops.add(f"{a} FOG twin's pace", self.clock.pace(ft.delivered_s),
@@ -204,7 +204,7 @@ class SimBench:
                     self.twins[f"{a}.counter"] = ct
                     # the twin knows its zero-mark signal: mid-swing is a sound level
                     level = c.level_v if c.level_v is not None else sum(ct.signal_v) / 2
-                    axes[a] = dataclasses.replace(axes[a], counter=dataclasses.replace(
+                    axes[a] = dataclasses.replace(axes[a], counter=msgspec.structs.replace(
                         c, resource=resource, level_v=level))
             if self.sim.can_bus == "socketcand":
                 axes = self._serve_buses(axes, buses)

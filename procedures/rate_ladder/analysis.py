@@ -29,7 +29,7 @@ from bench.analysis.results import PairAnalysis
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.core import rundir_layout as layout
-from bench.core.config import Config, CounterSpec
+from bench.core.config import Config, CounterSettings
 from bench.core.events import Event
 from bench.core.journal import (
     RunDir,
@@ -62,7 +62,7 @@ from procedures.rate_ladder.settings import (
 )
 
 
-def counter_budget(c: CounterSpec) -> CounterBudget:
+def counter_budget(c: CounterSettings) -> CounterBudget:
     """docs/method.md A1: dT = sqrt(d_counter^2 + d_trigger^2), plus the timebase."""
     profile = get_profile(c.model)
     return CounterBudget(time_tie_u_s=c.time_tie.latency_u_s if c.time_tie else 0.0,
@@ -442,7 +442,7 @@ def sigma_resolved(lower: float, floor: float) -> bool:
     return lower > floor
 
 
-def _counter(cfg: Config, axis: str) -> CounterSpec:
+def _counter(cfg: Config, axis: str) -> CounterSettings:
     """The axis's counter (validated: the ladder needs one on each of its axes)."""
     c = cfg.stand_settings.axes[axis].counter
     if c is None:

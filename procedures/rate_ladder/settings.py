@@ -10,14 +10,14 @@ from bench.core.config import (
     COMMON_PROCEDURE_KEYS,
     STEP_MAX_S,
     Config,
-    FogSettings,
     check_axis_names,
 )
 from bench.core.plan import format_duration
 from bench.core.schema import ListOf, Map, MapOf, Num, Setting, Str, declared_map, parse_declared
-from drivers.drive_settings import ACCEL_MAX_DPS2, RATE_MAX_DPS, RATE_MIN_DPS
 from bench.core.yamlfile import Problem, YamlDoc
 from drivers.counter_profiles import PROFILES as COUNTER_PROFILES
+from drivers.drive_settings import ACCEL_MAX_DPS2, RATE_MAX_DPS, RATE_MIN_DPS
+from drivers.fog_settings import DEFAULT_RANGE_DPS
 
 NAME = "rate-ladder"
 
@@ -276,7 +276,7 @@ def ladder_problems(cfg: Config) -> list[Problem]:
             out.append(sdoc.problem(("axes", axis, "counter"), "missing level_v: a real "
                                     "stand needs an absolute trigger level in volts (a "
                                     "once-per-rev pulse is too slow for auto-level)"))
-        fog_range = (fog or {}).get("range_dps", FogSettings.range_dps)
+        fog_range = (fog or {}).get("range_dps", DEFAULT_RANGE_DPS)
         # from the files alone: one broken stand key must not hide the other checks
         turns = int(spec.get("turns", cfg.procedure.get("turns", LadderSettings.turns)))
         for i, rate in enumerate(spec["rates_dps"]):
