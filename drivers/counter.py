@@ -24,11 +24,8 @@ and ready for the next `arm()`.
 
 from __future__ import annotations
 
-import math
-import re
 import time
 from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 
@@ -36,34 +33,42 @@ from drivers.clock import Clock, real_budget_s, stepped
 from drivers.counter_profiles import (
     DEFAULT_TIMEOUT_MARGIN_S,
     CounterProfile,
-    CounterWords,
     TimestampFormat,
     first_value_is_a_turn,
     get_profile,
     is_scpi_nan,
 )
+from drivers.counter_setup import (
+    COUNTER_ERRORS,
+    CounterCommandError,
+    CounterConnectionError,
+    CounterError,
+    CounterReplyError,
+    CounterSetup,
+    CounterTimeout,
+    InputConfig,
+    What,
+)
 from drivers.scpi import (
     CLS,
     ESR_OPC,
     ESR_Q,
-    IDN,
     OPC,
     OPC_Q,
     RST,
     SCPI_NAN,
     Command,
-    ErrorKinds,
     InstrumentError,
     RawCallback,
-    ScpiInstrument,
     parse_numbers,
 )
 from drivers.time_tie import TimeTie, TimeTieAmbiguous
 from drivers.transport import Transport
 
-COUNTER_ERRORS = ErrorKinds.family("Counter", "the counter", __name__)
-(CounterError, CounterCommandError, CounterTimeout, CounterReplyError,
- CounterConnectionError) = COUNTER_ERRORS
+__all__ = ["COUNTER_ERRORS", "DEFAULT_COMMAND_TIMEOUT_S", "ESR_ERRORS", "SPAN_SLACK_REL",
+           "Acquisition", "Counter", "CounterCommandError", "CounterConnectionError",
+           "CounterError", "CounterMeasurementTimeout", "CounterReplyError", "CounterTimeout",
+           "InputConfig", "What"]
 
 
 # the family is declared at run time (ErrorKinds.family): mypy cannot see its classes
@@ -78,19 +83,6 @@ ESR_ERRORS = 0x3C
 SPAN_SLACK_REL = 0.25
 
 DEFAULT_COMMAND_TIMEOUT_S = 2.0
-
-What = Literal["edges", "periods"]
-
-
-@dataclass(frozen=True)
-class InputConfig:
-    """How the zero-mark pulse enters the counter."""
-
-    channel: int
-    level_v: float
-    slope: str
-    coupling: str
-    impedance_ohm: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,11 +106,8 @@ class Acquisition:
     values: np.ndarray | None = field(default=None)
 
 
-class Counter(ScpiInstrument):
+class Counter(CounterSetup):
     """A SCPI frequency counter over pyvisa; see the module docstring for the sequence."""
-
-    error_kinds = COUNTER_ERRORS
-    words: CounterWords
 
     def __init__(self, resource: str, profile: CounterProfile, clock: Clock, *,
                  raw: RawCallback | None = None,
@@ -172,14 +161,6 @@ class Counter(ScpiInstrument):
             raise
         return counter
 
-    def _check_identity(self) -> None:
-        pattern = self.profile.idn_pattern
-        idn = self.identify()
-        if pattern and not re.search(pattern, idn, re.IGNORECASE):
-            raise CounterError(f"{self.name}: *IDN? says {idn!r}, which is not a "
-                               f"{self.profile.model} (expected /{pattern}/): check the "
-                               f"stand file's counter model", command=IDN.text())
-
     def __enter__(self) -> Counter:
         return self
 
@@ -202,17 +183,6 @@ class Counter(ScpiInstrument):
                 pass
         super().close()
 
-    # -- what the engine calls ------------------------------------------------------------
-    @property
-    def supports_timestamps(self) -> bool:
-        return self.profile.supports_timestamps
-
-    def template_values(self) -> dict[str, object]:
-        return {"channel": self.input.channel if self.input else 1}
-
-    def identify(self) -> str:
-        return self.ask(IDN)
-
     def reset(self) -> None:
         """*RST, *CLS, wait for completion. The input set-up is re-sent by the next arm()."""
         self._armed = None
@@ -220,41 +190,6 @@ class Counter(ScpiInstrument):
             self.write(RST.text())
             self.write(CLS.text(), check=False)
             self.query(OPC_Q.text())
-
-    def configure(self, channel: int = 1, level_v: float | None = None, slope: str = "POS",
-                  coupling: str = "DC", impedance_ohm: float = 1.0e6) -> InputConfig:
-        """Set the input for the zero-mark pulse: an absolute trigger level, no auto-level.
-
-        A once-per-revolution pulse is far below the auto-level's lowest frequency, so the
-        level must be given (volts, e.g. half the sensor's output swing).
-        """
-        p = self.profile
-        if level_v is None:
-            raise CounterError(
-                f"{self.name}: configure() needs level_v, an absolute trigger level in volts "
-                "(a once-per-revolution pulse is too slow for the counter's auto-level)")
-        problems = []
-        if channel not in p.channels:
-            problems.append(f"channel {channel!r} (has {p.channels})")
-        if not p.level_range_v[0] <= float(level_v) <= p.level_range_v[1]:
-            problems.append(f"level_v {level_v!r} (range {p.level_range_v[0]:g} .. "
-                            f"{p.level_range_v[1]:g} V)")
-        slope_u, coupling_u = str(slope).upper()[:3], str(coupling).upper()
-        if slope_u not in p.slopes:
-            problems.append(f"slope {slope!r} (one of {', '.join(p.slopes)})")
-        if coupling_u not in p.couplings:
-            problems.append(f"coupling {coupling!r} (one of {', '.join(p.couplings)})")
-        if not any(math.isclose(float(impedance_ohm), z) for z in p.impedances_ohm):
-            problems.append(f"impedance_ohm {impedance_ohm!r} (one of "
-                            f"{', '.join(f'{z:g}' for z in p.impedances_ohm)})")
-        if problems:
-            raise CounterError(f"{self.name}: configure(): " + "; ".join(problems))
-        self.input = InputConfig(int(channel), float(level_v), slope_u, coupling_u,
-                                 float(impedance_ohm))
-        with self.recovering():
-            self._send_input()
-            self._verify_input()
-        return self.input
 
     def arm(self, n: int, expected_period_s: float, *, what: What = "edges",
             method: str | None = None) -> Acquisition:
@@ -304,97 +239,6 @@ class Counter(ScpiInstrument):
         """n turn periods, s: consecutive where the model timestamps (see `arm`)."""
         self.arm(n, expected_period_s, what="periods", method=method)
         return self.fetch()
-
-    # -- the sequence -----------------------------------------------------------------------
-    def _method(self, what: What, method: str | None) -> str:
-        p = self.profile
-        if what == "edges":
-            if not p.supports_timestamps:
-                raise CounterError(f"{self.name}: the {p.model} cannot timestamp edges; "
-                                   "use acquire_periods() / arm(what='periods')")
-            return "timestamps"
-        if what != "periods":
-            raise ValueError(f"what must be 'edges' or 'periods', not {what!r}")
-        available = (["timestamps"] if p.supports_timestamps else []) + \
-            ([p.periods] if p.periods else [])
-        if method is None:
-            return available[0]
-        if method not in available:
-            raise CounterError(f"{self.name}: the {p.model} measures periods by "
-                               f"{' or '.join(available)}, not {method!r}")
-        return method
-
-    def _send_input(self) -> None:
-        w, c = self.words, self.input
-        assert c is not None
-        self.send(w.input_coupling, coupling=c.coupling)
-        self.send(w.input_impedance, impedance_ohm=c.impedance_ohm)
-        if w.input_level_auto is not None:
-            self.send(w.input_level_auto, state=False)
-        self.send(w.input_level, level_v=c.level_v)
-        self.send(w.input_slope, slope=c.slope)
-
-    def verify_reference(self, reference: str | None, timebase_limit_rel: float | None
-                         ) -> str | None:
-        """The timebase the stand's budget assumes, set (or read) and checked at connect.
-
-        53220A/53230A User's Guide, "Time base" (p. 69 Agilent edition, p. 81 Keysight):
-        `SENS:ROSC:SOUR EXT` (which also ends automatic selection), then
-        `SENS:ROSC:EXT:CHEC ONCE` and `SYST:ERR?`: an error if no valid signal is at Ext
-        Ref In. A model without a check word (the CNT-91: `ROSC:SOUR EXT`, see its
-        profile's notes) relies on the selection's own error. `reference` is the stand's
-        counter.reference ("external", "internal" or None: only read). A stand that claims a timebase limit below the model's own
-        (counter.timebase_limit_rel) must run on an external reference.
-        """
-        w = self.words
-        if w.reference_source is None:
-            if reference is not None:
-                raise CounterError(f"{self.name}: counter.reference: the {self.profile.model} "
-                                   "profile has no reference-source word")
-            return None
-        with self.recovering():
-            if reference is not None:
-                source = "EXT" if reference == "external" else "INT"
-                self.send(w.reference_source, source=source)
-                if source == "EXT" and w.reference_check is not None:
-                    self.send(w.reference_check, when="ONCE")  # an error if no signal
-            got = self.query(w.reference_source.query_text()).strip()
-        self.readback["counter.reference"] = got
-        if reference is not None and not _same_setting(got, "EXT" if reference == "external"
-                                                       else "INT"):
-            raise CounterError(f"{self.name}: counter.reference: set {reference}, the counter "
-                               f"reads back {got!r}")
-        if (timebase_limit_rel is not None and timebase_limit_rel
-                < self.profile.timebase_limit_rel and not _same_setting(got, "EXT")):
-            raise CounterError(
-                f"{self.name}: counter.timebase_limit_rel = {timebase_limit_rel:g} assumes an "
-                f"external reference, but the counter runs on {got!r}; set "
-                "counter.reference: external (and connect Ext Ref In)")
-        return got
-
-    def _verify_input(self) -> None:
-        """Read every input setting back; a difference refuses the run by stand key."""
-        w, c = self.words, self.input
-        assert c is not None
-        self._verify("counter.coupling", w.input_coupling, c.coupling)
-        self._verify("counter.impedance_ohm", w.input_impedance, c.impedance_ohm)
-        if w.input_level_auto is not None:
-            self._verify("counter.level_auto", w.input_level_auto, False)
-        self._verify("counter.level_v", w.input_level, c.level_v)
-        self._verify("counter.slope", w.input_slope, c.slope)
-
-    def _verify(self, key: str, word: Command | None, expected: object) -> str | None:
-        """Ask `word` back and compare with what was set; record it in `readback`."""
-        if word is None:
-            return None
-        text = word.query_text(**self.template_values())
-        got = self.query(text).strip()
-        self.readback[key] = got
-        if not _same_setting(got, expected):
-            raise CounterError(f"{self.name}: {key}: set {expected!r}, the counter reads back "
-                               f"{got!r} ({text}): the stand file and the instrument disagree",
-                               command=text)
-        return got
 
     def _span_s(self, method: str, n_read: int, period_s: float) -> float:
         """Longest credible time for the readings, in instrument (virtual) seconds."""
@@ -696,7 +540,6 @@ class Counter(ScpiInstrument):
                 f"readings came before {limit}; {self._signal_hint()}", command=text)
 
 
-
 def _timeout_param(reply: str) -> str:
     """A SYST:TIM? reply as the value to send back (9.9E37 means disabled: INFinity)."""
     try:
@@ -704,18 +547,3 @@ def _timeout_param(reply: str) -> str:
     except ValueError:
         return reply.strip()
     return "INFinity" if value >= 9.8e37 else reply.strip()
-
-
-def _same_setting(reply: str, expected: object) -> bool:
-    """A read-back reply against the value set: numbers to 1e-9, booleans as 0/1/ON/OFF,
-    words by their short form (`POS` for POSitive, `EXT` for EXTernal)."""
-    text = reply.strip().strip('"').upper()
-    if isinstance(expected, bool):
-        return text in (("1", "ON") if expected else ("0", "OFF"))
-    if isinstance(expected, (int, float)):
-        try:
-            return math.isclose(float(text), float(expected), rel_tol=1e-9, abs_tol=1e-12)
-        except ValueError:
-            return False
-    want = str(expected).upper()
-    return text.startswith(want[:3]) and want.startswith(text[:3])

@@ -409,46 +409,11 @@ def decode(buf: bytes | bytearray | memoryview | np.ndarray, fmt: str | FrameFor
     st = state or DecodeState()
     b = np.frombuffer(buf, dtype=np.uint8) if not isinstance(buf, np.ndarray) \
         else np.ascontiguousarray(buf, dtype=np.uint8).reshape(-1)
-    n, size, hlen = b.size, f.size, len(f.header)
+    size = f.size
 
-    rows = _aligned_frames(b, f)
-    if rows is not None:
-        # the common case, frames back to back from the first byte, each with its header
-        # and a good CRC: what the search below finds then, without the search (a header
-        # pattern inside an accepted frame counts for nothing; one after the last frame
-        # is in the tail)
-        last_end = rows.shape[0] * size
-        good = np.arange(0, last_end, size, dtype=np.intp)
-        good_rows = rows
-        cand = last_end + _headers(b[last_end:], f.header)
-        complete = cand[:0]
-        crc_ok = np.empty(0, dtype=bool)
-    else:
-        # every header position, then the ones complete enough to judge
-        cand = _headers(b, f.header)
-        complete = cand[cand + size <= n]
-        if complete.size:
-            rows = sliding_window_view(b, size)[complete]
-            crc_sent = rows[:, f.crc_span:f.crc_span + 4].copy().view(">u4").reshape(-1)
-            crc_ok = f.crc.compute_rows(rows[:, :f.crc_span]) == crc_sent
-        else:
-            rows = np.empty((0, size), dtype=np.uint8)
-            crc_ok = np.empty(0, dtype=bool)
-        good = complete[crc_ok]
-        good_rows = rows if crc_ok.all() else rows[crc_ok]
-        keep = _non_overlapping(good, size)
-        if not keep.all():
-            good, good_rows = good[keep], good_rows[keep]
-        last_end = int(good[-1]) + size if good.size else 0
-
-    # what this call cannot judge yet goes back as leftover
-    undecided = cand[(cand + size > n) & (cand >= last_end)]
-    if undecided.size:
-        cut = int(undecided[0])
-    else:  # the longest tail that may still grow into a header
-        cut = n - next((k for k in range(min(hlen - 1, n), 0, -1)
-                        if b[n - k:].tobytes() == f.header[:k]), 0)
-    start = max(last_end, cut)
+    good, good_rows, cand, complete, crc_ok = _accepted_frames(b, f)
+    last_end = int(good[-1]) + size if good.size else 0
+    start = max(last_end, _undecided_from(b, cand, last_end, f))
     leftover = b[start:].tobytes()
 
     # failed headers that are not inside an accepted frame
@@ -483,6 +448,52 @@ def decode(buf: bytes | bytearray | memoryview | np.ndarray, fmt: str | FrameFor
         crc_error_index=bad_index.astype(np.int64), gap_index=gap_at, gap_count=gap_n,
         state=new_state)
     return frames, leftover, stats
+
+
+def _accepted_frames(b: np.ndarray, f: FrameFormat
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The frames `decode` accepts in `b`: their offsets and rows (whole, good CRC, not
+    overlapping an earlier one), every header position found, those complete enough to
+    judge, and whether each of those had a good CRC."""
+    n, size = b.size, f.size
+    rows = _aligned_frames(b, f)
+    if rows is not None:
+        # the common case, frames back to back from the first byte, each with its header
+        # and a good CRC: what the search below finds then, without the search (a header
+        # pattern inside an accepted frame counts for nothing; one after the last frame
+        # is in the tail)
+        last_end = rows.shape[0] * size
+        good = np.arange(0, last_end, size, dtype=np.intp)
+        cand = last_end + _headers(b[last_end:], f.header)
+        return good, rows, cand, cand[:0], np.empty(0, dtype=bool)
+    # every header position, then the ones complete enough to judge
+    cand = _headers(b, f.header)
+    complete = cand[cand + size <= n]
+    if complete.size:
+        rows = sliding_window_view(b, size)[complete]
+        crc_sent = rows[:, f.crc_span:f.crc_span + 4].copy().view(">u4").reshape(-1)
+        crc_ok = f.crc.compute_rows(rows[:, :f.crc_span]) == crc_sent
+    else:
+        rows = np.empty((0, size), dtype=np.uint8)
+        crc_ok = np.empty(0, dtype=bool)
+    good = complete[crc_ok]
+    good_rows = rows if crc_ok.all() else rows[crc_ok]
+    keep = _non_overlapping(good, size)
+    if not keep.all():
+        good, good_rows = good[keep], good_rows[keep]
+    return good, good_rows, cand, complete, crc_ok
+
+
+def _undecided_from(b: np.ndarray, cand: np.ndarray, last_end: int, f: FrameFormat) -> int:
+    """Where what `decode` cannot judge yet begins, to go back as leftover: the first
+    header after the last accepted frame too short to be whole, else the longest tail
+    that may still grow into a header."""
+    n, size, hlen = b.size, f.size, len(f.header)
+    undecided = cand[(cand + size > n) & (cand >= last_end)]
+    if undecided.size:
+        return int(undecided[0])
+    return n - next((k for k in range(min(hlen - 1, n), 0, -1)
+                     if b[n - k:].tobytes() == f.header[:k]), 0)
 
 
 def _headers(b: np.ndarray, header: bytes) -> np.ndarray:

@@ -43,12 +43,19 @@ from typing import TypedDict, Unpack
 
 import numpy as np
 
-from bench.analysis.crosscal import DriftEstimate, HalfMean, cross_calibrate, fit_turns
+from bench.analysis.crosscal import (
+    CrossCalibration,
+    DriftEstimate,
+    HalfMean,
+    cross_calibrate,
+    fit_turns,
+)
 from bench.analysis.random_part import floor_from_fit, floor_from_static, random_part
 from bench.analysis.results import PairAnalysis, PairResult, RateResult, SystematicResult
 from bench.analysis.sums import Design, accumulate
 from bench.analysis.systematic import (
     DirectionFit,
+    NoiseInflation,
     binned_systematic,
     detection_dict,
     detection_threshold,
@@ -175,16 +182,7 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
     infl_harm = noise_inflation(list(fits.values()), harmonic_block_deg(design))
     infl_long = noise_inflation(list(fits.values()), long_block_deg(design, total_turns))
 
-    # the within-half drift (per-turn means weighted by their honest variance)
-    sig2 = {s: fits[s].sigma_dps ** 2 * infl_long.factor for s in signs}
-    var_turn = np.concatenate([np.full(w.turns, sig2[w.sign]) / w.turn_samples
-                               for w in cal_windows])
-    var_turn += (c * budget.period_u_s / np.concatenate([w.turn_periods_s
-                                                           for w in cal_windows])) ** 2
-    tf = fit_turns(f, c, t, 1.0 / var_turn)
-    drift = (DriftEstimate(tf.drift_dps_per_s, tf.drift_u_dps_per_s,
-                           "slope of the per-turn FOG means within the halves")
-             if math.isfinite(tf.drift_u_dps_per_s) else None)
+    drift = _within_half_drift(fits, infl_long.factor, cal_windows, (f, c, t), budget)
 
     cal_index = {w.index for w in cal_windows}
     halves_mean = _half_means(fits, infl_long.factor, budget, cal_index)
@@ -206,27 +204,58 @@ def analyze_pair(halves: Sequence[HalfRecord], set_rate_dps: float, *, fog_rate_
         fl = floor if floor is not None else floor_from_fit(fit, floor_samples)
         rnd = random_part(fit, final, set_signed, fl, fog_rate_hz, averaging_deg,
                           own_bias=frozenset(range(len(windows))) - cal_index)
-        wins = tuple({"half": ws.win.index, "turns": ws.win.turns,
-                      "t_start_s": float(ws.win.edges_s[0]),
-                      "t_end_s": float(ws.win.edges_s[-1]), "samples": ws.n,
-                      "session": halves[ws.win.index].session}
-                     for ws in fit.sums)
         rates.append(RateResult(turns_result=turns[s], systematic=sysres, random=rnd,
-                                windows=wins))
+                                windows=_windows_result(fit, halves)))
+    return PairAnalysis(rates=tuple(rates),
+                        pair=_pair_result(halves, anchor, w_set, xcal, infl_long))
+
+
+def _within_half_drift(fits: dict[int, DirectionFit], inflation_factor: float,
+                       cal_windows: Sequence[Window],
+                       turn_table: tuple[np.ndarray, np.ndarray, np.ndarray],
+                       budget: CounterBudget) -> DriftEstimate | None:
+    """The FOG's drift within the halves (docs/method.md A3): the slope of the per-turn
+    means of the calibrating windows, each weighted by its honest variance (the fit's
+    sigma inflated for coloured noise over the turn's samples, plus the counter's period
+    uncertainty). None when the slope's uncertainty is not finite (too few turns)."""
+    f, c, t = turn_table
+    sig2 = {s: fit.sigma_dps ** 2 * inflation_factor for s, fit in fits.items()}
+    var_turn = np.concatenate([np.full(w.turns, sig2[w.sign]) / w.turn_samples
+                               for w in cal_windows])
+    var_turn += (c * budget.period_u_s / np.concatenate([w.turn_periods_s
+                                                           for w in cal_windows])) ** 2
+    tf = fit_turns(f, c, t, 1.0 / var_turn)
+    return (DriftEstimate(tf.drift_dps_per_s, tf.drift_u_dps_per_s,
+                          "slope of the per-turn FOG means within the halves")
+            if math.isfinite(tf.drift_u_dps_per_s) else None)
+
+
+def _windows_result(fit: DirectionFit, halves: Sequence[HalfRecord]
+                    ) -> tuple[dict[str, float | int], ...]:
+    """The halves one direction's fit used, as result.json lists them under the rate."""
+    return tuple({"half": ws.win.index, "turns": ws.win.turns,
+                  "t_start_s": float(ws.win.edges_s[0]),
+                  "t_end_s": float(ws.win.edges_s[-1]), "samples": ws.n,
+                  "session": halves[ws.win.index].session}
+                 for ws in fit.sums)
+
+
+def _pair_result(halves: Sequence[HalfRecord], anchor: int | None, w_set: float,
+                 xcal: CrossCalibration, infl_long: NoiseInflation) -> PairResult:
+    """The pair's calibration, with the bias model stated when its halves span sessions
+    (_anchor_session: k, w0 and the drift from the anchor session's halves only)."""
     sessions = tuple(h.session for h in halves)
     if anchor is None:
-        pair = PairResult(rate_dps=w_set, cal=xcal, noise_inflation=infl_long,
+        return PairResult(rate_dps=w_set, cal=xcal, noise_inflation=infl_long,
                           sessions=sessions)
-    else:
-        others = [str(i + 1) for i, h in enumerate(halves) if h.session != anchor]
-        pair = PairResult(
-            rate_dps=w_set, cal=xcal, noise_inflation=infl_long, sessions=sessions,
-            bias_model=(f"per session: the pair spans sessions {sorted(set(sessions))}; "
-                        f"k, w0 and the drift (and their U) from session {anchor}'s halves "
-                        f"only; half {', '.join(others)} from another session, with a FOG "
-                        "bias and drift of its own, enter the turns and the intra-turn fit "
-                        "but not k"))
-    return PairAnalysis(rates=tuple(rates), pair=pair)
+    others = [str(i + 1) for i, h in enumerate(halves) if h.session != anchor]
+    return PairResult(
+        rate_dps=w_set, cal=xcal, noise_inflation=infl_long, sessions=sessions,
+        bias_model=(f"per session: the pair spans sessions {sorted(set(sessions))}; "
+                    f"k, w0 and the drift (and their U) from session {anchor}'s halves "
+                    f"only; half {', '.join(others)} from another session, with a FOG "
+                    "bias and drift of its own, enter the turns and the intra-turn fit "
+                    "but not k"))
 
 
 class PairOptions(TypedDict, total=False):

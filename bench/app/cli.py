@@ -58,6 +58,19 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--version", action="version", version=f"bench (ratebench) {bench.__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_run_parser(sub)
+    _add_file_parsers(sub)
+    _add_tool_parsers(sub)
+    _add_impact_parser(sub)
+    add_dcc_parsers(sub)
+    add_authorise_parser(sub)
+    add_records_parsers(sub)
+    add_register_parser(sub)
+    return p
+
+
+def _add_run_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`bench run` (bench/app/commands.py runs it)."""
     run = sub.add_parser("run", help="run a procedure; prints the run directory last",
                          description="Run a procedure on its stand (twins if the stand has "
                          "a sim: block, or with --sim) and write a run directory; its path "
@@ -92,6 +105,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--password-stdin", action="store_true",
                      help="read the --operator account's password from standard input")
     _console_options(run)
+
+
+def _add_file_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """The commands on the configuration files: `validate`, `plan`, `schema`, `init`."""
     val = sub.add_parser("validate", help="check procedure and stand files; exit 2 on problems",
                          description="Check a procedure file and the stand file it names "
                          "(or a stand file alone) and print every problem at once, each "
@@ -130,6 +147,10 @@ def build_parser() -> argparse.ArgumentParser:
     ini.add_argument("--kind", metavar="KIND",
                      help="the procedure kind whose files to write (default: the first "
                           "installed kind that offers starter files)")
+
+
+def _add_tool_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """The commands around a run: `analyze`, `devices`, `decode`, `serve`, `sim`, `method`."""
     ana = sub.add_parser("analyze", help="recompute result.json and certificate from raw data")
     ana.add_argument("run_dir")
     ana.add_argument("--records", metavar="URL",
@@ -160,6 +181,10 @@ def build_parser() -> argparse.ArgumentParser:
                          "(bench/method.md, the project's docs/method.md), which every "
                          "certificate cites by its SHA-256.")
     met.add_argument("--path", action="store_true", help="print where the file is instead")
+
+
+def _add_impact_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`bench impact` (bench/app/impact.py runs it)."""
     imp = sub.add_parser(
         "impact", help="what an item found out of tolerance did to the runs that used it",
         description="Find every run the lab register holds that used the item since its "
@@ -181,11 +206,6 @@ def build_parser() -> argparse.ArgumentParser:
                      help="the quality account assessing (its password is asked)")
     imp.add_argument("--password-stdin", action="store_true",
                      help="read the password from standard input")
-    add_dcc_parsers(sub)
-    add_authorise_parser(sub)
-    add_records_parsers(sub)
-    add_register_parser(sub)
-    return p
 
 
 def _console_options(cmd: argparse.ArgumentParser) -> None:

@@ -38,6 +38,14 @@ def add_authorise_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser
 
 def add_records_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """The records subcommands (bench/app/records/commands.py runs them)."""
+    _add_history_parser(sub)
+    _add_records_parser(sub)
+    _add_due_parser(sub)
+    _add_control_parser(sub)
+
+
+def _add_history_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`bench history`: one table's recorded runs."""
     his = sub.add_parser("history", help="every recorded run of one table, with a trend plot")
     his.add_argument("serial", help="the table's serial number (stand.serial)")
     where = his.add_mutually_exclusive_group()
@@ -48,6 +56,10 @@ def add_records_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     his.add_argument("--csv", help="write every recorded figure of the table to this CSV")
     his.add_argument("--plot", help="trend plot PNG (default history-SERIAL.png beside the "
                                     "records database, or in the runs folder)")
+
+
+def _add_records_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`bench records`: the records database's import, set-up and benches."""
     rec = sub.add_parser("records", help="the records database")
     rsub = rec.add_subparsers(dest="records_command", required=True, metavar="ACTION")
     imp = rsub.add_parser("import", help="register existing run directories (idempotent)")
@@ -75,6 +87,12 @@ def add_records_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     bnd.add_argument("--role", required=True, help="its PostgreSQL role")
     bnd.add_argument("--records", metavar="URL", required=True,
                      help="the lab database as its owner (postgresql://OWNER@HOST/DB)")
+    _add_delivery_parsers(rsub)
+
+
+def _add_delivery_parsers(rsub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`bench records sync` and `check`: a bench's runs delivered to the lab database, and
+    compared with it."""
     syn = rsub.add_parser("sync", help="deliver this bench's runs (events, results, records) "
                                        "to the lab's PostgreSQL database (idempotent)",
                           description="Deliver every run directory of the runs folder to the "
@@ -100,6 +118,10 @@ def add_records_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     chk.add_argument("--records", metavar="URL", help="the lab database (default: the run's "
                                                       "lab file's records:)")
     chk.add_argument("--lab", metavar="FILE", help="the lab file for runs that copied none")
+
+
+def _add_due_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`bench due`: the tables due for recertification."""
     due = sub.add_parser("due", help="tables due or overdue for recertification")
     due.add_argument("--records", help="records database URL")
     due.add_argument("--runs", default=DEFAULT_RUNS, help="runs folder (records.sqlite)")
@@ -109,6 +131,10 @@ def add_records_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]
                      help="also list tables due within DAYS (30)")
     due.add_argument("--all", action="store_true", help="list every table with an interval")
     due.add_argument("--today", type=dt.date.fromisoformat, help=argparse.SUPPRESS)
+
+
+def _add_control_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`bench control`: measurement assurance, each instrument's control status."""
     con = sub.add_parser("control", help="measurement assurance: each instrument's control "
                                          "status; with SERIAL its control charts")
     con.add_argument("serial", nargs="?", help="an instrument's serial (bench control lists "
@@ -149,16 +175,29 @@ def add_register_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]
                        "Exit 0 done, 1 the audit trail is broken, 2 refused.")
     rs = p.add_subparsers(dest="register_command", required=True, metavar="WHAT")
 
-    def common(c: argparse.ArgumentParser, acting: bool = True) -> None:
-        c.add_argument("--register", metavar="URL", help="the register (default: the lab "
-                       "file's register:)")
-        c.add_argument("--lab", metavar="FILE", help="lab file naming the register")
-        c.add_argument("--password-stdin", action="store_true",
-                       help="read the password(s) from standard input, one per line")
-        if acting:
-            c.add_argument("--as", dest="as_account", required=True, metavar="ACCOUNT",
-                           help="the account acting (its password is asked)")
+    _add_register_init_parser(rs)
+    _add_user_parsers(rs)
+    _add_settings_parsers(rs)
+    _add_service_parser(rs)
+    _add_equipment_parsers(rs)
+    _add_trail_parsers(rs)
 
+
+def _register_common(c: argparse.ArgumentParser, acting: bool = True) -> None:
+    """The options every `bench register` action takes: where the register is, how
+    passwords are read, and (acting) the account acting."""
+    c.add_argument("--register", metavar="URL", help="the register (default: the lab "
+                   "file's register:)")
+    c.add_argument("--lab", metavar="FILE", help="lab file naming the register")
+    c.add_argument("--password-stdin", action="store_true",
+                   help="read the password(s) from standard input, one per line")
+    if acting:
+        c.add_argument("--as", dest="as_account", required=True, metavar="ACCOUNT",
+                       help="the account acting (its password is asked)")
+
+
+def _add_register_init_parser(rs: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`bench register init`: the register created or migrated, with its first admin."""
     ini = rs.add_parser("init", help="create or migrate the register with its first admin")
     ini.add_argument("url", help="sqlite:///PATH or postgresql://ROLE@HOST/DB (the owner)")
     ini.add_argument("--admin", required=True, metavar="NAME", help="the first admin account")
@@ -173,6 +212,10 @@ def add_register_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]
                      help="PostgreSQL: the station's database role: reads, like a bench's")
     ini.add_argument("--password-stdin", action="store_true",
                      help="read the admin's new password from standard input")
+
+
+def _add_user_parsers(rs: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`bench register user ...`: the accounts."""
     usr = rs.add_parser("user", help="accounts").add_subparsers(
         dest="user_command", required=True, metavar="ACTION")
     ua = usr.add_parser("add", help="add an account (an admin acts)")
@@ -180,33 +223,41 @@ def add_register_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     ua.add_argument("--role", action="append", required=True, choices=ROLES)
     ua.add_argument("--full-name", help="printed under a signature (default: NAME)")
     ua.add_argument("--function", help="the person's function in the laboratory")
-    common(ua)
+    _register_common(ua)
     up = usr.add_parser("passwd", help="change a password: your own (--as NAME), or as an "
                         "admin another's (its holder must change it at the next login)")
     up.add_argument("name")
-    common(up)
+    _register_common(up)
     for verb, what in (("disable", "an account can no longer log in, sign or run"),
                        ("enable", "a disabled account again")):
         uv = usr.add_parser(verb, help=what + " (an admin acts)")
         uv.add_argument("name")
-        common(uv)
+        _register_common(uv)
     ur = usr.add_parser("role", help="grant or revoke a role (an admin acts)")
     ur.add_argument("name")
     g = ur.add_mutually_exclusive_group(required=True)
     g.add_argument("--grant", choices=ROLES, metavar="ROLE")
     g.add_argument("--revoke", choices=ROLES, metavar="ROLE")
-    common(ur)
+    _register_common(ur)
     ul = usr.add_parser("list", help="the accounts, their roles and password state")
-    common(ul, acting=False)
+    _register_common(ul, acting=False)
+
+
+def _add_settings_parsers(rs: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`bench register settings ...`: the register's settings."""
     st = rs.add_parser("settings", help="the register's settings (lockout, password "
                        "age, DCC signing certificate)").add_subparsers(
         dest="settings_command", required=True, metavar="ACTION")
     ss = st.add_parser("set", help="change a setting (an admin acts; audited)")
     ss.add_argument("key")
     ss.add_argument("value")
-    common(ss)
+    _register_common(ss)
     sl = st.add_parser("list", help="the settings in force")
-    common(sl, acting=False)
+    _register_common(sl, acting=False)
+
+
+def _add_service_parser(rs: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`bench register serve`: the register service (bench/app/register/service.py)."""
     sv = rs.add_parser("serve", help="the lab's register service: the one process that "
                        "checks passwords and issues (docs/register.md)")
     sv.add_argument("--db", metavar="URL", help="the register database as the service's "
@@ -218,6 +269,10 @@ def add_register_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     sv.add_argument("--signing-certificate", metavar="PEM", help="its certificate (chain)")
     sv.add_argument("--signing-password-env", metavar="VAR",
                     help="the environment variable holding the key's password")
+
+
+def _add_equipment_parsers(rs: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`bench register equipment ...`: the equipment inventory."""
     eq = rs.add_parser("equipment", help="the equipment inventory").add_subparsers(
         dest="equipment_command", required=True, metavar="ACTION")
     ea = eq.add_parser("add", help="record a standard or instrument and its calibration, "
@@ -230,7 +285,7 @@ def add_register_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     ea.add_argument("--calibrated", type=_date, help="calibrated on, YYYY-MM-DD (today)")
     ea.add_argument("--identity-only", action="store_true",
                     help="a drive or fixture: identified by serial and model, never overdue")
-    common(ea)
+    _register_common(ea)
     eu = eq.add_parser("update", help="record a new calibration of an item (quality or admin); "
                        "the earlier records are kept")
     eu.add_argument("serial")
@@ -242,12 +297,12 @@ def add_register_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]
                     help="as found before adjustment: in or out of tolerance")
     eu.add_argument("--found-error", metavar="V[,U]",
                     help="the as-found error in the item's own unit, and its expanded U")
-    common(eu)
+    _register_common(eu)
     el = eq.add_parser("list", help="the inventory with each item's status today")
-    common(el, acting=False)
+    _register_common(el, acting=False)
     eh = eq.add_parser("history", help="one item's calibrations (with as-found) and deviations")
     eh.add_argument("serial")
-    common(eh, acting=False)
+    _register_common(eh, acting=False)
     ed = eq.add_parser("deviation", help="allow an overdue item until a date, or --revoke "
                        "(quality acts)")
     ed.add_argument("serial")
@@ -255,15 +310,19 @@ def add_register_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]
     ed.add_argument("--expires", type=_date, help="YYYY-MM-DD, at most the register's "
                     "deviation_max_days (30) ahead")
     ed.add_argument("--revoke", action="store_true", help="end the deviation in force")
-    common(ed)
+    _register_common(ed)
+
+
+def _add_trail_parsers(rs: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """`bench register withdraw` and `audit`: a certificate withdrawn, the trail checked."""
     wd = rs.add_parser("withdraw", help="withdraw an issued certificate (quality or "
                        "signatory), without a replacement")
     wd.add_argument("number")
     wd.add_argument("--reason", required=True, help="why, in a sentence")
-    common(wd)
+    _register_common(wd)
     au = rs.add_parser("audit", help="check the audit trail's chain; exit 1 when broken")
     au.add_argument("--receipts", nargs="+", metavar="DIR",
                     help="also check every receipt in these folders (run directories' "
                     "certificate-register.jsonl, issued HTML and DCC) against the chain: a "
                     "truncated, forked or rewritten trail no longer holds them")
-    common(au, acting=False)
+    _register_common(au, acting=False)

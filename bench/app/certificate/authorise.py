@@ -48,6 +48,7 @@ from bench.app.register.store import (
     MEANING_ISSUE,
     SIGNING_SETTING,
     Account,
+    Receipt,
     Register,
     RunRecord,
 )
@@ -263,35 +264,14 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
               password: Callable[[str], str] | None = None) -> int:
     """Issue the run's draft through the lab register; returns the exit status (0 issued,
     2 refused, 3 failed). `password(prompt)` gives the signatory's password."""
-    from bench.app.dcc.settings import resolve_settings
     from bench.app.records.extract import run_uid
     from bench.app.register import Register, RegisterError, redact
 
     run_path = Path(run_path)
-    result_file = run_path / RESULT_NAME
-    if not result_file.is_file():
-        return _refuse([f"{result_file}: not found (`bench analyze {run_path}` writes it)"],
-                       run_path)
-    result_bytes = result_file.read_bytes()
-    try:
-        result = json.loads(result_bytes)
-    except ValueError as e:
-        return _refuse([f"{result_file}: not JSON: {e}"], run_path)
-    stand = _stand(run_path)
-    try:
-        own = run_lab(run_path, ResultFrame.conform(result)[0].certificate)
-        lab = resolve_settings(stand, lab_file, base=own)
-        if own.name and not lab.name:   # a lab file that names only the register and
-            lab = replace(own, signing=lab.signing,     # key: the run's laboratory, as the
-                          require_signed_dcc=lab.require_signed_dcc)   # PDF prints it
-        url = register_of(run_path, lab_file)
-    except LabError as e:
-        return _refuse([str(e)], run_path)
-    if not url:
-        return _refuse([f"the lab file ({lab_file or run_path / layout.LAB}) names no register "
-                        "(register: URL): a certificate is issued only through the lab's "
-                        "register, which authenticates the signatory and allocates the number "
-                        "(docs/register.md); the draft stays a draft"], run_path)
+    inputs = _run_inputs(run_path, lab_file)
+    if isinstance(inputs, list):
+        return _refuse(inputs, run_path)
+    result_bytes, result, stand, lab, url = inputs
     try:
         reg = Register.open(url, migrate=False)
     except RegisterError as e:
@@ -348,6 +328,38 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
             return _refuse([str(e)], run_path)
         return _issue(run_path, result, result_bytes, stand, lab, reg, acct, who, number,
                       previous, reason, line, record)
+
+
+def _run_inputs(run_path: Path, lab_file: str | None
+                ) -> tuple[bytes, JsonObject, JsonObject, Lab, str] | list[str]:
+    """What an issue starts from: the run's result.json (as bytes and read), its stand,
+    the laboratory and the register's URL; a list: the reasons to refuse."""
+    from bench.app.dcc.settings import resolve_settings
+
+    result_file = run_path / RESULT_NAME
+    if not result_file.is_file():
+        return [f"{result_file}: not found (`bench analyze {run_path}` writes it)"]
+    result_bytes = result_file.read_bytes()
+    try:
+        result = json.loads(result_bytes)
+    except ValueError as e:
+        return [f"{result_file}: not JSON: {e}"]
+    stand = _stand(run_path)
+    try:
+        own = run_lab(run_path, ResultFrame.conform(result)[0].certificate)
+        lab = resolve_settings(stand, lab_file, base=own)
+        if own.name and not lab.name:   # a lab file that names only the register and
+            lab = replace(own, signing=lab.signing,     # key: the run's laboratory, as the
+                          require_signed_dcc=lab.require_signed_dcc)   # PDF prints it
+        url = register_of(run_path, lab_file)
+    except LabError as e:
+        return [str(e)]
+    if not url:
+        return [f"the lab file ({lab_file or run_path / layout.LAB}) names no register "
+                "(register: URL): a certificate is issued only through the lab's "
+                "register, which authenticates the signatory and allocates the number "
+                "(docs/register.md); the draft stays a draft"]
+    return result_bytes, result, stand, lab, url
 
 
 def _corrected_record(reg: Register, record: RunRecord, run_path: Path, reason: str | None,
@@ -411,29 +423,14 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
     from bench.app.fleet.sync import bench_name
     from bench.app.register import RegisterError, redact
 
-    old = None
-    if previous:
-        kept = issue_dir(run_path, previous[-1].number) / RESULT_NAME
-        old = json.loads(kept.read_bytes()) if kept.is_file() else None
-    old_html = None
-    if previous:
-        kept_html = issue_dir(run_path, previous[-1].number) / HTML_NAME
-        old_html = kept_html.read_text(encoding="utf-8") if kept_html.is_file() else None
+    old, old_html = _replaced_revision(run_path, previous)
     revision = len(previous) + 1
     try:    # the trail's entry first; its time is the register's clock, not ours
         begun = reg.begin_issue(acct, number, revision, result_digest(result_bytes))
     except RegisterError as e:
         return _refuse([f"the register refused the issue: {e}"], run_path)
-    issue = register.Issue(
-        register.numbered(number, revision), revision, begun.issued_utc,
-        previous[-1].number if previous else None, result_digest(result_bytes),
-        signatory=who.name, function=who.function or None,
-        reason=(reason or "").strip() or None, meaning=MEANING_ISSUE,
-        register=redact(reg.url), audit_seq=begun.audit_seq, audit_entry=begun.audit_digest,
-        issuer=tuple((k, v) for k, v in (("laboratory", lab.name), ("address", lab.address),
-                                         ("code", lab.code),
-                                         ("accreditation", lab.accreditation)) if v),
-        run_uid=record.uid, run_registered_utc=record.registered_utc)
+    issue = _new_issue(number, revision, begun, previous, result_bytes, who, reason,
+                       redact(reg.url), lab, record)
     uid = record.uid
     final = issue_dir(run_path, issue.number)
     if final.exists():
@@ -475,6 +472,58 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
         _discard(work)
         return _refuse([f"the register refused the issue: {e}"], run_path)
     issue = replace(issue, audit_digest=rev.audit_digest)
+    _publish(run_path, work, final, issue, previous)
+    line(f"issued certificate {issue.number} (revision {issue.revision}), {MEANING_ISSUE} by "
+         f"{who.name}" + (f", {who.function}" if who.function else "") +
+         f" (account {acct.name}, authenticated by the register) at {issue.issued_utc}"
+         + ("; DCC signed (XAdES)" if outcome.signed else f"; DCC not signed ({signing_note})"))
+    if issue.replaces:
+        line(f"withdrawn: {issue.replaces} (its files kept unchanged under "
+             f"{issue_dir(run_path, issue.replaces)})")
+    for name in (PDF_NAME, HTML_NAME, DCC_NAME):
+        line(f"wrote {final / name}")
+    _update_records(run_path, lab, result, line)
+    return EXIT_ISSUED
+
+
+def _replaced_revision(run_path: Path, previous: tuple[register.Issue, ...]
+                       ) -> tuple[JsonObject | None, str | None]:
+    """The revision a re-issue replaces, as issued (its result.json and HTML, kept under
+    issued/): what the new revision's statements are compared with."""
+    old = None
+    if previous:
+        kept = issue_dir(run_path, previous[-1].number) / RESULT_NAME
+        old = json.loads(kept.read_bytes()) if kept.is_file() else None
+    old_html = None
+    if previous:
+        kept_html = issue_dir(run_path, previous[-1].number) / HTML_NAME
+        old_html = kept_html.read_text(encoding="utf-8") if kept_html.is_file() else None
+    return old, old_html
+
+
+def _new_issue(number: str, revision: int, begun: Receipt,
+               previous: tuple[register.Issue, ...], result_bytes: bytes, who: Signatory,
+               reason: str | None, register_url: str, lab: Lab,
+               record: RunRecord) -> register.Issue:
+    """The issue as the certificate states it, its time and trail entry the register's
+    (`begun`), its issuer the register's (issuer_lab)."""
+    return register.Issue(
+        register.numbered(number, revision), revision, begun.issued_utc,
+        previous[-1].number if previous else None, result_digest(result_bytes),
+        signatory=who.name, function=who.function or None,
+        reason=(reason or "").strip() or None, meaning=MEANING_ISSUE,
+        register=register_url, audit_seq=begun.audit_seq, audit_entry=begun.audit_digest,
+        issuer=tuple((k, v) for k, v in (("laboratory", lab.name), ("address", lab.address),
+                                         ("code", lab.code),
+                                         ("accreditation", lab.accreditation)) if v),
+        run_uid=record.uid, run_registered_utc=record.registered_utc)
+
+
+def _publish(run_path: Path, work: Path, final: Path, issue: register.Issue,
+             previous: tuple[register.Issue, ...]) -> None:
+    """The issue recorded in the run folder and moved into place: its files under
+    issued/<number>/ (renamed whole), the replaced revision marked withdrawn, and the
+    run's own PDF, HTML and DCC replaced by the issued ones."""
     register.record(run_path, issue)
     # the folder is self-contained: `bench verify issued/<n>/certificate.dcc.xml` reads
     # result.json and the register's copy beside it
@@ -487,17 +536,6 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
         tmp = run_path / f"{name}.tmp"
         shutil.copyfile(final / name, tmp)
         os.replace(tmp, run_path / name)
-    line(f"issued certificate {issue.number} (revision {issue.revision}), {MEANING_ISSUE} by "
-         f"{who.name}" + (f", {who.function}" if who.function else "") +
-         f" (account {acct.name}, authenticated by the register) at {issue.issued_utc}"
-         + ("; DCC signed (XAdES)" if outcome.signed else f"; DCC not signed ({signing_note})"))
-    if issue.replaces:
-        line(f"withdrawn: {issue.replaces} (its files kept unchanged under "
-             f"{issue_dir(run_path, issue.replaces)})")
-    for name in (PDF_NAME, HTML_NAME, DCC_NAME):
-        line(f"wrote {final / name}")
-    _update_records(run_path, lab, result, line)
-    return EXIT_ISSUED
 
 
 def _update_records(run_path: Path, lab: Lab, result: JsonObject,

@@ -68,37 +68,64 @@ def _bench_process(pid: int) -> bool:
         any(argv[i] == b"-m" and argv[i + 1] == b"bench" for i in range(len(argv) - 1))
 
 
+class _Station:
+    """What the station's routes share, made once by create_app: its settings, the runs
+    folder, the records (with a lab server's benches, followed by LISTEN), the hosts it
+    answers to, and the signing (signing.py)."""
+
+    def __init__(self, app: Flask, settings: StationSettings) -> None:
+        self.settings = settings
+        self.runs = settings.runs.resolve()
+        self.records = RecordsView(self.runs, settings.records_url)
+        # a lab server as the records (bench/app/fleet): every bench's runs, followed by LISTEN
+        self.fleet = FleetView(self.records.url, self.runs) \
+            if is_lab_server(self.records.url) else None
+        self.notifications = Notifications(self.records.url).start() \
+            if self.fleet is not None else None
+        self.allowed_hosts = {"127.0.0.1", "localhost", "[::1]", settings.host,
+                              *(n.lower() for n in settings.server_names)}
+        self.signing = install_signing(app, settings, self.run_dir)
+
+    def run_dir(self, name: str) -> Path:
+        """A run directory directly inside the runs folder, or 404 (no traversal)."""
+        if not name or "/" in name or "\\" in name or name in (".", "..") \
+                or name.startswith("."):
+            abort(404)
+        p = (self.runs / name).resolve()
+        if p.parent != self.runs or not (p / layout.EVENTS).is_file():
+            abort(404)
+        return p
+
+    def has_token(self) -> bool:
+        given = (request.headers.get(TOKEN_HEADER) or request.cookies.get(TOKEN_COOKIE)
+                 or request.args.get("token") or "")
+        return hmac.compare_digest(given.encode(), self.settings.token.encode())
+
+
 def create_app(settings: StationSettings,
                send_signal: Callable[[int, int], None] = os.kill) -> Flask:
+    """The station's app; its routes are added page by page (Flask's application factory,
+    the routes registered by functions so each keeps its endpoint name for url_for)."""
     app = Flask(__name__)
     # Flask escapes only templates named *.html; ours are *.html.j2, and what they print
     # comes from files and instruments (a title, a refusal's message), never trusted HTML
     app.jinja_env.autoescape = True
     app.config["station"] = settings
-    runs = settings.runs.resolve()
-    records = RecordsView(runs, settings.records_url)
-    # a lab server as the records (bench/app/fleet): every bench's runs, followed by LISTEN
-    fleet = FleetView(records.url, runs) if is_lab_server(records.url) else None
-    notifications = Notifications(records.url).start() if fleet is not None else None
+    st = _Station(app, settings)
+    _add_guard(app, st)
+    _add_index(app, st)
+    _add_bench_runs(app, st)
+    _add_fleet_api(app, st)
+    _add_run_pages(app, st)
+    _add_stop(app, st, send_signal)
+    _add_records_pages(app, st)
+    return app
 
-    def run_dir(name: str) -> Path:
-        """A run directory directly inside the runs folder, or 404 (no traversal)."""
-        if not name or "/" in name or "\\" in name or name in (".", "..") \
-                or name.startswith("."):
-            abort(404)
-        p = (runs / name).resolve()
-        if p.parent != runs or not (p / layout.EVENTS).is_file():
-            abort(404)
-        return p
 
-    def has_token() -> bool:
-        given = (request.headers.get(TOKEN_HEADER) or request.cookies.get(TOKEN_COOKIE)
-                 or request.args.get("token") or "")
-        return hmac.compare_digest(given.encode(), settings.token.encode())
-
-    allowed_hosts = {"127.0.0.1", "localhost", "[::1]", settings.host,
-                     *(n.lower() for n in settings.server_names)}
-    signing = install_signing(app, settings, run_dir)
+def _add_guard(app: Flask, st: _Station) -> None:
+    """Who may ask (module docstring, "Security"), and the headers every answer carries."""
+    settings, signing, has_token = st.settings, st.signing, st.has_token
+    allowed_hosts = st.allowed_hosts
 
     @app.before_request
     def guard() -> Response | None:
@@ -122,6 +149,12 @@ def create_app(settings: StationSettings,
         resp.headers["X-Content-Type-Options"] = "nosniff"
         resp.headers["Content-Security-Policy"] = "default-src 'self'; img-src 'self' data:"
         return resp
+
+
+def _add_index(app: Flask, st: _Station) -> None:
+    """The first page: this station's runs and tables, or with a lab server the lab's."""
+    settings, runs, records, signing = st.settings, st.runs, st.records, st.signing
+    fleet, notifications = st.fleet, st.notifications
 
     @app.get("/")
     def index() -> str:
@@ -167,6 +200,12 @@ def create_app(settings: StationSettings,
                         if has_pdf and d.bench else None,
                         "where": _where(d, folder, settings)})
         return out
+
+
+def _add_bench_runs(app: Flask, st: _Station) -> None:
+    """Another bench's run (a lab server as the records): its page, its sign request and
+    its files, from the station's runs folders."""
+    settings, signing, fleet = st.settings, st.signing, st.fleet
 
     def bench_folder(bench_name: str, uid: str) -> Path:
         """The folder of the run `uid` a bench delivered, from the station's runs folders,
@@ -228,6 +267,11 @@ def create_app(settings: StationSettings,
         return send_from_directory(bench_folder(bench_name, uid), filename,
                                    as_attachment=filename.endswith(".xml"))
 
+
+def _add_fleet_api(app: Flask, st: _Station) -> None:
+    """The lab's benches as JSON, and as a stream the lab page follows."""
+    fleet, notifications = st.fleet, st.notifications
+
     @app.get("/api/fleet")
     def api_fleet() -> Response:
         if fleet is None or notifications is None:
@@ -255,6 +299,12 @@ def create_app(settings: StationSettings,
                 yield f"event: fleet\ndata: {text}\n\n"
         return Response(stream_with_context(events()), mimetype="text/event-stream",
                         headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
+
+
+def _add_run_pages(app: Flask, st: _Station) -> None:
+    """A run of the runs folder: its live page, its state (once and streamed), its
+    figures and its files."""
+    runs, signing, run_dir = st.runs, st.signing, st.run_dir
 
     @app.get("/run/<name>")
     def run_page(name: str) -> str:
@@ -300,6 +350,18 @@ def create_app(settings: StationSettings,
         the same rows the records keep, with the kind's words and units."""
         return jsonify(run_figures(run_dir(name)))
 
+    @app.get("/files/<name>/<path:filename>")
+    def files(name: str, filename: str) -> Response:
+        p = run_dir(name)
+        if filename not in DOWNLOADS:
+            abort(404)
+        return send_from_directory(p, filename, as_attachment=filename.endswith(".xml"))
+
+
+def _add_stop(app: Flask, st: _Station, send_signal: Callable[[int, int], None]) -> None:
+    """The stop request: exactly Ctrl-C to the run's bench process (module docstring)."""
+    run_dir, has_token = st.run_dir, st.has_token
+
     @app.post("/api/runs/<name>/stop")
     def api_stop(name: str) -> tuple[Response, int]:
         if not has_token():
@@ -316,12 +378,10 @@ def create_app(settings: StationSettings,
         return jsonify(ok=True, pid=pid, message="stop requested: the bench ramps every axis "
                        "to zero and disables it; `bench run --resume` continues"), 202
 
-    @app.get("/files/<name>/<path:filename>")
-    def files(name: str, filename: str) -> Response:
-        p = run_dir(name)
-        if filename not in DOWNLOADS:
-            abort(404)
-        return send_from_directory(p, filename, as_attachment=filename.endswith(".xml"))
+
+def _add_records_pages(app: Flask, st: _Station) -> None:
+    """The lab's records: the tables, an instrument's control charts, a table's history."""
+    records = st.records
 
     @app.get("/records")
     def records_page() -> str:
@@ -349,9 +409,6 @@ def create_app(settings: StationSettings,
     @app.get("/api/records/<serial>/trend.png")
     def trend_png(serial: str) -> Response:
         return Response(_found(records.trend_png(serial)), mimetype="image/png")
-
-    return app
-
 
 def _where(d: Draft, folder: Path | None, settings: StationSettings) -> str:
     """Where a draft's files are, in words, for the drafts list."""

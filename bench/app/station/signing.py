@@ -559,6 +559,33 @@ def _register_revisions(reg: Register, run_path: Path) -> list[dict[str, str]]:
 def install(app: Flask, settings: StationSettings, run_dir: Callable[[str], Path]) -> Signing:
     """Add login, logout, the sign request and the audit page to the station's app."""
     signing = Signing(settings)
+    _add_session_routes(app, signing)
+
+    @app.post("/run/<name>/sign")
+    def sign(name: str) -> tuple[str, int]:
+        return signing.sign_page(name, run_dir, url_for("run_page", name=name),
+                                 lambda f: url_for("files", name=name, filename=f))
+
+    @app.get("/audit")
+    def audit_page() -> tuple[str, int]:
+        sess = signing.session()
+        if sess is None or not (sess.has("quality") or sess.has("admin")):
+            abort(403, "the audit trail is shown to quality and admin accounts")
+        reg = signing.register.get()
+        if reg is None:
+            abort(503, signing.register.error or NO_REGISTER)
+        rows = reg.audit_rows()[-200:][::-1]
+        check = reg.audit_check()
+        return render_template("audit.html.j2", rows=rows, check=check,
+                               register=signing.register.shown(),
+                               version=bench.__version__), 200
+
+    return signing
+
+
+def _add_session_routes(app: Flask, signing: Signing) -> None:
+    """Log in (name and password, from this host or the lab's password networks), log
+    out, and what every page shows of the session."""
 
     @app.context_processor
     def who() -> dict[str, object]:
@@ -631,24 +658,3 @@ def install(app: Flask, settings: StationSettings, run_dir: Callable[[str], Path
         resp.delete_cookie(SESSION_COOKIE, path="/", httponly=True, samesite="Strict",
                            secure=signing.over_tls())
         return resp
-
-    @app.post("/run/<name>/sign")
-    def sign(name: str) -> tuple[str, int]:
-        return signing.sign_page(name, run_dir, url_for("run_page", name=name),
-                                 lambda f: url_for("files", name=name, filename=f))
-
-    @app.get("/audit")
-    def audit_page() -> tuple[str, int]:
-        sess = signing.session()
-        if sess is None or not (sess.has("quality") or sess.has("admin")):
-            abort(403, "the audit trail is shown to quality and admin accounts")
-        reg = signing.register.get()
-        if reg is None:
-            abort(503, signing.register.error or NO_REGISTER)
-        rows = reg.audit_rows()[-200:][::-1]
-        check = reg.audit_check()
-        return render_template("audit.html.j2", rows=rows, check=check,
-                               register=signing.register.shown(),
-                               version=bench.__version__), 200
-
-    return signing
