@@ -15,11 +15,15 @@ Entry point: `analyze_pair(halves, set_rate_dps, fog_rate_hz=..., ...) -> PairAn
 """
 
 from bench.analysis.angle import FogCalibration, sample_angles_deg
+from bench.analysis.blas import one_blas_thread
 from bench.analysis.crosscal import CrossCalibration, HalfMean, cross_calibrate
 from bench.analysis.pair import analyze_pair
 from bench.analysis.results import PairAnalysis, PairResult, RateResult, judge_rate
 from bench.analysis.turns import CounterBudget, analyze_turns, period_rate_error
 from bench.analysis.window import HalfRecord, Window
+
+# every product of the analysis on one BLAS thread, whatever the machine's cores (blas.py)
+one_blas_thread()
 
 __all__ = [
     "CounterBudget", "CrossCalibration", "FogCalibration", "HalfMean", "HalfRecord",

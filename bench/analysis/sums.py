@@ -33,7 +33,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.analysis.angle import FogCalibration, step_integral, turn_fraction
-from bench.analysis.blas import one_blas_thread
 from bench.analysis.window import DEFAULT_CHUNK, Window
 
 ROW_CONST, ROW_TAU, ROW_Y = 0, 1, 2
@@ -221,7 +220,6 @@ def _chunks(win: Window, chunk: int) -> Iterator[tuple[int, int]]:
 def accumulate(win: Window, cal: FogCalibration, design: Design,
                chunk: int = DEFAULT_CHUNK) -> WindowSums:
     """One pass over the window's samples."""
-    one_blas_thread()   # the Gram products' last digits must not follow the core count
     rows = design.rows
     gram = np.zeros((rows, rows))
     bins = np.zeros((design.bin_rows, win.turns * design.bins_per_turn))
