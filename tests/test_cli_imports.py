@@ -161,7 +161,7 @@ def test_the_light_names_are_the_heavy_modules_names() -> None:
 
 def test_the_probe_sees_the_libraries_validate_must_not_load() -> None:
     """Not blind: the modules that draw, open a drive or keep the records load them."""
-    modules = loaded_after("import bench.app.certificate.pdf, drivers.cia402, sims.drive_twin\n"
+    modules = loaded_after("import bench.app.records.control_plot, drivers.cia402, sims.drive_twin\n"
                            "import bench.app.records.schema")
     assert loaded_libraries(modules, NOT_FOR_THE_FILES) == ["can", "canopen", "matplotlib",
                                                             "sqlalchemy"]

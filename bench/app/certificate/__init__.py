@@ -14,21 +14,32 @@ import hashlib
 import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from bench.app.certificate import register
 from bench.app.certificate.build import ExtraSection, build_document, restated
 from bench.app.certificate.figures import NotAsDrawn, drawn_beside
 from bench.app.certificate.html import render_html
-from bench.app.certificate.pdf import render_pdf
 from bench.core import rundir_layout as layout
 from bench.report.certificate.model import Document
+
+if TYPE_CHECKING:   # fpdf is imported when a PDF is rendered, not when a run starts (issue 62)
+    from bench.app.certificate.pdf import render_pdf
 
 HTML_NAME = layout.CERTIFICATE_HTML
 PDF_NAME = layout.CERTIFICATE_PDF
 
 __all__ = ["Document", "build_document", "render_files", "render_html", "render_pdf",
            "render_issue", "result_digest", "write_certificate"]
+
+
+def __getattr__(name: str) -> object:
+    """`render_pdf`, imported when it is first asked for: fpdf's import is a second of a
+    run's start-up, spent before the certificate that needs it (issue 62)."""
+    if name == "render_pdf":
+        from bench.app.certificate.pdf import render_pdf
+        return render_pdf
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class _HasPath(Protocol):
@@ -59,6 +70,7 @@ def render_files(result: Mapping[str, object], out_dir: str | Path, run_path: Pa
     def build() -> Document:
         return build_document(result, run_path, issued, issue, extra_sections)
 
+    from bench.app.certificate.pdf import render_pdf
     with drawn_beside() as drawer:
         if drawer is None:
             doc = build()
@@ -87,6 +99,7 @@ def render_issue(result: Mapping[str, object], out_dir: Path, run_path: Path,
     """Render a re-issue: its document is built once, `changes(html)` compares its
     statements (the HTML as rendered) with the replaced revision's, and the files state
     them (bench/app/certificate/revisions.py). Returns the issue as stated."""
+    from bench.app.certificate.pdf import render_pdf
     out_dir.mkdir(parents=True, exist_ok=True)
     doc = build_document(result, run_path, None, issue)
     issue = dataclasses.replace(issue, changes=changes(render_html(doc)))

@@ -7,21 +7,35 @@ the certificate number and "Page i of n"; the last page ends with "End of certif
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import io
 import struct
 from collections import defaultdict
-from collections.abc import Callable
+from collections.abc import Callable, Hashable, Iterator, Sequence
+from importlib.util import find_spec
 from pathlib import Path
 
-import matplotlib
+import fpdf.fpdf
 from fpdf import FPDF, FontFace
 from fpdf.enums import TableCellFillMode, XPos, YPos
 from fpdf.fonts import TTFFont
+from fpdf.line_break import Fragment, MultiLineBreak, TextLine
 
 from bench.app.certificate.html import is_bad
 from bench.report.certificate.model import Document, Fields, Figure, Para, Signatures, Table
 
-FONT_DIR = Path(matplotlib.get_data_path()) / "fonts" / "ttf"
+
+def _matplotlib_fonts() -> Path:
+    """matplotlib's fonts folder (`matplotlib.get_data_path()`), found without importing
+    matplotlib (its import is most of a second, and the PDF needs only its fonts)."""
+    spec = find_spec("matplotlib")
+    if spec is None or spec.origin is None:
+        raise ModuleNotFoundError("matplotlib, whose DejaVu fonts the certificate's PDF uses")
+    return Path(spec.origin).parent / "mpl-data" / "fonts" / "ttf"
+
+
+FONT_DIR = _matplotlib_fonts()
 SANS, MONO = "DejaVu", "DejaVuMono"
 ALIGN = {"l": "LEFT", "r": "RIGHT", "c": "CENTER"}
 HEAD_FILL = (232, 236, 242)
@@ -79,6 +93,70 @@ def _measure_from_the_last(font: object) -> None:
     if [font.get_text_width(probe[:n], 7.5, None) for n in range(len(probe) + 1)] != expected:
         font.__class__, font.cw = TTFFont, widths   # another fpdf: measured as it does
     font.biggest_size_pt = biggest
+
+
+def _state_key(fragment: Fragment) -> Hashable:
+    """What fpdf's line breaking reads of a fragment: its characters, its graphics state
+    field by field (font, size, spacing, style, colours; a dict as its items), its scale
+    and link. TypeError for a state that cannot be a key (text shaping's settings)."""
+    gs = fragment.graphics_state
+    names = _STATE_FIELDS.get(type(gs))
+    if names is None:
+        names = _STATE_FIELDS[type(gs)] = tuple(f.name for f in dataclasses.fields(gs))
+    state = tuple(tuple(sorted(v.items())) if isinstance(v := getattr(gs, n), dict) else v
+                  for n in names)
+    if gs.text_shaping is not None:
+        raise TypeError("text shaping")
+    return "".join(fragment.characters), state, fragment.k, fragment.link
+
+
+_STATE_FIELDS: dict[type, tuple[str, ...]] = {}
+
+
+class _BrokenOnce:
+    """fpdf's MultiLineBreak, whose lines for a text already broken at the same width, in
+    the same fonts and state, are those of its first breaking (a table's cells are broken
+    into lines twice: for the rows' heights, then to draw them; issue 62). The same
+    TextLines, so the same PDF to the byte; a width given as a function (fpdf's `write`)
+    is broken every time."""
+
+    lines: dict[Hashable, list[TextLine]] = {}
+
+    def __init__(self, fragments: Sequence[Fragment], max_width: float | Callable[[float], float],
+                 margins: Sequence[float], **options: object) -> None:
+        key: Hashable = None
+        if not callable(max_width):
+            try:
+                key = (tuple(_state_key(f) for f in fragments), max_width,
+                       tuple(margins), tuple(sorted(options.items())))
+                hash(key)
+            except TypeError:   # a state that cannot be a key (text shaping's dict)
+                key = None
+        lines = self.lines.get(key) if key is not None else None
+        if lines is None:
+            breaker = MultiLineBreak(fragments, max_width, margins, **options)  # type: ignore[arg-type]
+            lines = list(iter(breaker.get_line, None))
+            if key is not None:
+                self.lines[key] = lines
+        self._next = iter(lines)
+
+    def get_line(self) -> TextLine | None:
+        return next(self._next, None)
+
+
+@contextlib.contextmanager
+def _lines_broken_once() -> Iterator[None]:
+    """While one PDF is rendered, fpdf breaks each text into lines once (`_BrokenOnce`);
+    fpdf as it was after (another fpdf, without that name: as it is)."""
+    if getattr(fpdf.fpdf, "MultiLineBreak", None) is not MultiLineBreak:
+        yield
+        return
+    fpdf.fpdf.MultiLineBreak = _BrokenOnce  # type: ignore[misc,assignment]
+    try:
+        yield
+    finally:
+        fpdf.fpdf.MultiLineBreak = MultiLineBreak  # type: ignore[misc]
+        _BrokenOnce.lines.clear()
 
 
 class _Pdf(FPDF):
@@ -258,6 +336,11 @@ def _png(fig: Figure) -> bytes:
 def render_pdf(doc: Document, png_of: Callable[[Figure], bytes] = _png) -> bytes:
     """The PDF of `doc`; `png_of(figure)` gives each figure's PNG as it is placed (the
     figures drawn beside the tables: bench/app/certificate/figures.py)."""
+    with _lines_broken_once():
+        return _rendered(doc, png_of)
+
+
+def _rendered(doc: Document, png_of: Callable[[Figure], bytes]) -> bytes:
     pdf = _Pdf(doc, png_of)
     pdf.add_page()
     pdf.set_font(SANS, "B", 18)
