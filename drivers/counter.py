@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -64,6 +65,9 @@ from drivers.scpi import (
 )
 from drivers.time_tie import TimeTie, TimeTieAmbiguous
 from drivers.transport import Transport
+
+if TYPE_CHECKING:
+    from drivers.counter_settings import CounterSettings
 
 __all__ = ["COUNTER_ERRORS", "DEFAULT_COMMAND_TIMEOUT_S", "ESR_ERRORS", "SPAN_SLACK_REL",
            "Acquisition", "Counter", "CounterCommandError", "CounterConnectionError",
@@ -134,6 +138,16 @@ class Counter(CounterSetup):
         super().__init__(resource, visa_library=visa_library, raw=raw,
                          command_timeout_s=command_timeout_s,
                          name=f"counter {profile.model} at {resource}", transport=transport)
+
+    @classmethod
+    def from_settings(cls, settings: CounterSettings, clock: Clock, *,
+                      raw: RawCallback | None = None) -> Counter:
+        """Open the counter a stand's `counter:` block declares (drivers/counter_settings.py),
+        the settings object whole, as python-can's `Bus(**config)`: a counter setting is
+        read here, not copied field by field by each caller."""
+        return cls.open(settings.resource, settings.model, clock, raw=raw,
+                        time_tie=settings.time_tie or TimeTie(),
+                        timeout_margin_s=settings.timeout_margin_s)
 
     @classmethod
     def open(cls, resource: str, model: str | CounterProfile, clock: Clock, *,

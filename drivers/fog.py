@@ -68,6 +68,8 @@ from drivers.waits import MAX_LATE_REAL_S, MIN_REAL_MARGIN_S, wait_on_clock
 if TYPE_CHECKING:
     from hashlib import _Hash  # typeshed's name for a hash object
 
+    from drivers.fog_settings import FogSettings
+
 __all__ = ["FORMATS", "CaptureCursor", "DecodeState", "DecodeStats", "Fog", "FogError",
            "FogSamples", "FogStats", "FogTimeout", "Frames", "StreamDecoder", "decode", "dps_per_unit",
            "read_capture"]
@@ -319,6 +321,17 @@ class Fog:
     Real-time waits are `timeout_s / min_speed(clock)` plus a margin (drivers/clock.py,
     drivers/waits.py).
     """
+
+    @classmethod
+    def from_settings(cls, settings: FogSettings, *, raw_path: Path | str | None,
+                      clock: Clock, keep_samples: int | None = None) -> Fog:
+        """The FOG a stand's `fog:` block declares (drivers/fog_settings.py), the settings
+        object whole, as python-can's `Bus(**config)`: a FOG setting is read here, not
+        copied field by field by each caller."""
+        return cls(settings.port, baudrate=settings.baudrate, fmt=settings.format,
+                   axis=settings.axis, rate_hz=settings.rate_hz, units=settings.units,
+                   configure=settings.configure, raw_path=raw_path, clock=clock,
+                   model=settings.model, keep_samples=keep_samples)
 
     def __init__(self, port: str, *, baudrate: int = 921600, fmt: str = "kvh-a",
                  axis: str = "z", rate_hz: float, units: str | None,

@@ -25,7 +25,6 @@ from drivers.axis import Axis
 from drivers.clock import Clock
 from drivers.counter import Counter, CounterError
 from drivers.fog import Fog
-from drivers.time_tie import TimeTie
 
 T = TypeVar("T")
 
@@ -211,10 +210,8 @@ def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *
     c = spec.counter
     if counter and c:
         clog = bench.log(run.raw_path(layout.counter_log(name))) if run else None
-        cnt = Counter.open(c.resource, c.model, clock,
-                           raw=raw_text_logger(clog, clock) if clog else None,
-                           time_tie=c.time_tie or TimeTie(),
-                           timeout_margin_s=c.timeout_margin_s)
+        cnt = Counter.from_settings(c, clock,
+                                    raw=raw_text_logger(clog, clock) if clog else None)
         bench.enter(cnt)
         if clog:
             ax.logs["counter"] = clog
@@ -240,11 +237,9 @@ def open_axis(bench: Bench, spec: StandAxis, clock: Clock, run: RunDir | None, *
             manual_note(cnt.profile.manual))
     f = spec.fog
     if fog and f:
-        fg = Fog(f.port, baudrate=f.baudrate, fmt=f.format, axis=f.axis, rate_hz=f.rate_hz,
-                 units=f.units, configure=f.configure,
-                 raw_path=run.raw_path(layout.fog_capture(name)) if run else None, clock=clock,
-                 model=f.model,
-                 keep_samples=int(LIVE_FOG_KEEP_S * f.rate_hz) if run else None)
+        fg = Fog.from_settings(f, raw_path=run.raw_path(layout.fog_capture(name)) if run else None,
+                               clock=clock,
+                               keep_samples=int(LIVE_FOG_KEEP_S * f.rate_hz) if run else None)
         ax.fog = fg
         ax.identities["fog"] = fg.identity()
         ax.fog_later = fog_when_used
