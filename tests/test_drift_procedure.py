@@ -194,3 +194,12 @@ def test_pulses_that_never_reach_the_torque_sensor_abort_by_name(tmp_path: Path)
     assert "gyro x: the angle sensor shows a precession of" in abort["reason"]
     assert "generator channel 1" in abort["reason"]
     assert next(e for e in run.lines() if e["event"] == "safe_stop")["ok"] is True
+
+
+def test_sim_gyro_keys_are_the_twins_truth() -> None:
+    """The stand file's `sim.platform.gyros.<gyro>` keys are the gyro twin's fields: a
+    field added to sims/truth.py GyroTruth and not to the declaration would be refused."""
+    import msgspec
+
+    from procedures.drift_pulse.settings import SIM_GYRO_KEYS, SimGyro
+    assert tuple(f.name for f in msgspec.structs.fields(SimGyro)) == SIM_GYRO_KEYS

@@ -22,7 +22,6 @@ from bench.core.schema import (
     Any_,
     Bool,
     Check,
-    Date,
     Key,
     ListOf,
     Map,
@@ -192,6 +191,44 @@ def stand_schema(extra_top: dict[str, Key] | None = None,
 
 # -- procedure file: the keys every procedure kind shares ------------------------------
 
+# The procedure's `item:`, `decision_rule_agreement:` and `specification:` blocks: the
+# certificate reads them as the file states them (bench/app/certificate/item.py), so
+# CommonSettings keeps them as mappings; their keys are declared here.
+
+class ItemFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The procedure's `item:` block: the item as received and as left."""
+
+    received: Annotated[dt.date, Meta(description="the date the item was received "
+                                                  "(ISO/IEC 17025 7.8.2.1 g)")] | None = None
+    condition: Annotated[str, Meta(description="its condition on receipt "
+                                               "(7.4.3)")] | None = None
+    as_found_run: Annotated[str, Meta(
+        description="the as-found run this as-left run repeats after an adjustment: its "
+                    "run id (run directory name)")] | None = None
+    adjustments: Annotated[tuple[str, ...], Meta(
+        description="adjustments made to the item before this run (7.8.4.1 b)")] \
+        | None = None
+
+
+class AgreementFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The procedure's `decision_rule_agreement:` block (ISO/IEC 17025 7.1.3)."""
+
+    agreed_with: Annotated[str, Meta(description="who agreed to the decision rule for the "
+                                                 "customer")]
+    agreed_on: Annotated[dt.date, Meta(description="when, YYYY-MM-DD")]
+    reference: Annotated[str, Meta(description="where it is recorded (order, contract "
+                                               "review)")] | None = None
+
+
+class SpecificationFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The procedure's `specification:` block: where the tolerances come from."""
+
+    source: Annotated[str, Meta(description="the document the tolerances come from: maker, "
+                                            "title, revision, date")]
+    definitions: Annotated[dict[str, str], Meta(
+        description="how the document defines each figure, by tolerance key")] | None = None
+
+
 @dataclass(frozen=True, kw_only=True)
 class CommonSettings:
     """The procedure keys every kind shares, declared once and parsed once."""
@@ -220,30 +257,17 @@ class CommonSettings:
         "records pair them; --as-found/--as-left win)")] = None
     adjustment_note: Annotated[str | None, Setting(
         Str(), "what was adjusted since the as-found run")] = None
-    item: Annotated[Mapping[str, Any] | None, Setting(Map({
-        "received": Key(Date(), False, "the date the item was received (ISO/IEC 17025 "
-                                       "7.8.2.1 g)"),
-        "condition": Key(Str(), False, "its condition on receipt (7.4.3)"),
-        "as_found_run": Key(Str(), False, "the as-found run this as-left run repeats after "
-                                          "an adjustment: its run id (run directory name)"),
-        "adjustments": Key(ListOf(Str()), False, "adjustments made to the item before this "
-                                                 "run (7.8.4.1 b)"),
-    }), "the item as received and as left; each part left out is printed 'not stated' "
-        "(docs/certificate.md)")] = None
-    decision_rule_agreement: Annotated[Mapping[str, Any] | None, Setting(Map({
-        "agreed_with": Key(Str(), True, "who agreed to the decision rule for the customer"),
-        "agreed_on": Key(Date(), True, "when, YYYY-MM-DD"),
-        "reference": Key(Str(), False, "where it is recorded (order, contract review)"),
-    }), "the customer's agreement to decision_rule (ISO/IEC 17025 7.1.3); without it the "
-        "certificate says 'not stated'")] = None
+    item: Annotated[Mapping[str, Any] | None, Setting(struct_map(ItemFile), (
+        "the item as received and as left; each part left out is printed 'not stated' "
+        "(docs/certificate.md)"))] = None
+    decision_rule_agreement: Annotated[Mapping[str, Any] | None, Setting(
+        struct_map(AgreementFile), "the customer's agreement to decision_rule (ISO/IEC "
+        "17025 7.1.3); without it the certificate says 'not stated'")] = None
     operator: Annotated[str | None, Setting(
         Str(), "who runs the procedure (default: the login name)")] = None
-    specification: Annotated[Mapping[str, Any] | None, Setting(Map({
-        "source": Key(Str(), True, "the document the tolerances come from: maker, title, "
-                                   "revision, date"),
-        "definitions": Key(MapOf(Str()), False, "how the document defines each figure, by "
-                                                "tolerance key"),
-    }), "where the tolerances come from; printed with the statement of conformity")] = None
+    specification: Annotated[Mapping[str, Any] | None, Setting(
+        struct_map(SpecificationFile), "where the tolerances come from; printed with the "
+        "statement of conformity")] = None
 
 
 COMMON_PROCEDURE_KEYS: dict[str, Key] = dict(declared_map(CommonSettings).keys)

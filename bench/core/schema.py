@@ -565,7 +565,7 @@ def _bare_node(tp: object, metas: list[msgspec.Meta]) -> Node:
     if isinstance(tp, type) and issubclass(tp, msgspec.Struct):
         return struct_map(tp)
     if origin in (Mapping, dict) and len(args) == 2:
-        return MapOf(_struct_node(args[1], []))
+        return MapOf(_struct_node(args[1], []), _meta(metas, "min_length") or 0)
     if origin in (tuple, list) and args:
         return ListOf(_struct_node(args[0], []), _meta(metas, "min_length") or 0)
     return _node_of(tp)

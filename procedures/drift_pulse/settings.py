@@ -12,20 +12,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Annotated, Any
 
-from bench.core.config import CALIBRATION, COMMON_PROCEDURE_KEYS, IDENTITY, Config
-from bench.core.schema import (
-    Key,
-    ListOf,
-    Map,
-    MapOf,
-    Num,
-    Setting,
-    Str,
-    declared_map,
-    parse_declared,
-)
+import msgspec
+from msgspec import Meta, Struct
+
+from bench.core.config import COMMON_PROCEDURE_KEYS, Config, Identity
+from bench.core.schema import Map, struct_at, struct_map
 from bench.core.yamlfile import Problem
 from drivers.awg import PROFILES as AWG_PROFILES
+from drivers.calibration import Calibration
 from drivers.dmm import PROFILES as DMM_PROFILES
 from procedures.drift_pulse.shapes import SHAPES, pulse_shape
 from sims.truth import GyroTruth, PlatformTruth
@@ -44,139 +38,201 @@ CYCLE_OVERHEAD_S = 0.5
 
 # -- files ------------------------------------------------------------------------------
 
-# Each key of the procedure file is declared once, on the frozen dataclass that holds it
-# as the file states it (`DriftFile`): the field's type and default, its Setting's node
-# (bounds, unit) and meaning. PROCEDURE is derived from them (bench/core/schema.py).
+# Each key of the drift kind's files is declared once, on the msgspec Struct that holds it
+# as the file states it: its type, default, bounds (`Meta(ge=..)`), unit
+# (`Meta.extra["unit"]`) and meaning (`Meta.description`). The schemas `bench validate`,
+# `bench schema` and docs/configuration.md read are `struct_map` of them, and the kind's
+# settings are built from them with `struct_at` (bench/core/schema.py).
+
+def _u(unit: str, description: str | None = None, *, gt: float | None = None,
+       ge: float | None = None, le: float | None = None) -> Meta:
+    """A number's Meta: its unit, meaning and bounds."""
+    bounds: dict[str, Any] = {k: v for k, v in (("gt", gt), ("ge", ge), ("le", le))
+                              if v is not None}
+    return Meta(description=description, extra={"unit": unit}, **bounds)
 
 
-@dataclass(frozen=True, kw_only=True)
-class Site:
-    latitude_deg: Annotated[float, Setting(Num(min=-90, max=90, unit="deg"))]
-    name: Annotated[str | None, Setting(Str())] = None
+class Site(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    latitude_deg: Annotated[float, _u("deg", ge=-90, le=90)]
+    name: str | None = None
 
 
-@dataclass(frozen=True, kw_only=True)
-class Pulse:
-    shape: Annotated[str, Setting(Str(tuple(SHAPES)),
-                                  "rectangular, triangular (or sawtooth)")]
-    duration_s: Annotated[float, Setting(Num(min=0, exclusive_min=True, unit="s"),
-                                         "Tc, each pulse")]
-    amplitude_v: Annotated[float, Setting(
-        Num(min=0, exclusive_min=True, unit="V"),
-        "peak voltage into the torque-sensor current amplifier")]
-    points: Annotated[int, Setting(Num(min=4, max=500_000, integer=True),
-                                   "waveform points per pulse")] = 1000
+class Pulse(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    shape: Annotated[str, Meta(extra={"choices": tuple(SHAPES)},
+                               description="rectangular, triangular (or sawtooth)")]
+    duration_s: Annotated[float, _u("s", "Tc, each pulse", gt=0)]
+    amplitude_v: Annotated[float, _u("V", "peak voltage into the torque-sensor current "
+                                          "amplifier", gt=0)]
+    points: Annotated[int, Meta(ge=4, le=500_000,
+                                description="waveform points per pulse")] = 1000
 
 
-@dataclass(frozen=True, kw_only=True)
-class Turn:
-    rate_dps: Annotated[float, Setting(Num(min=0, exclusive_min=True, unit="deg/s"))]
-    accel_dps2: Annotated[float, Setting(Num(min=0, exclusive_min=True, unit="deg/s^2"))]
+class Turn(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    rate_dps: Annotated[float, _u("deg/s", gt=0)]
+    accel_dps2: Annotated[float, _u("deg/s^2", gt=0)]
 
 
-@dataclass(frozen=True, kw_only=True)
-class Digitizer:
-    sample_rate_hz: Annotated[float, Setting(Num(min=0, exclusive_min=True, unit="Hz"),
-                                             "the DMMs' sample rate")] = 2000.0
+class Digitizer(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    sample_rate_hz: Annotated[float, _u("Hz", "the DMMs' sample rate", gt=0)] = 2000.0
     #: None: 0.8 of the interval
-    aperture_s: Annotated[float | None, Setting(Num(min=0, exclusive_min=True, unit="s"),
-                                                "default 0.8 of the interval")] = None
-    range_v: Annotated[float, Setting(Num(min=0, exclusive_min=True, unit="V"),
-                                      "the DMMs' range")] = 10.0
-    margin_s: Annotated[float, Setting(Num(min=0, unit="s"),
-                                       "recorded after the pair")] = 0.05
+    aperture_s: Annotated[float, _u("s", "default 0.8 of the interval", gt=0)] | None = None
+    range_v: Annotated[float, _u("V", "the DMMs' range", gt=0)] = 10.0
+    margin_s: Annotated[float, _u("s", "recorded after the pair", ge=0)] = 0.05
 
 
-@dataclass(frozen=True, kw_only=True)
-class DriftTolerance:
-    own_drift_dph: Annotated[float | None, Setting(
-        Num(min=0, exclusive_min=True, unit="deg/h"))] = None
+class DriftTolerance(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    own_drift_dph: Annotated[float, _u("deg/h", gt=0)] | None = None
 
 
-@dataclass(frozen=True, kw_only=True)
-class DriftFile:
+Position = Annotated[float, _u("deg", ge=-360, le=360)]
+GyroName = Annotated[str, Meta(extra={"choices": GYRO_NAMES})]
+
+
+class DriftFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     """The drift-pulse procedure file's own keys as it states them, defaults filled in."""
 
-    site: Annotated[Site, Setting()]
-    pulse: Annotated[Pulse, Setting()]
-    cycles: Annotated[int, Setting(Num(min=4, max=10_000, integer=True), "measuring cycles "
-                                   "per position (4 at least for the scatter)")] = 10
-    timing_cycles: Annotated[int, Setting(Num(min=0, max=1000, integer=True),
-                                          "large-amplitude cycles that locate the pulses")] = 4
-    timing_amplitude_v: Annotated[float | None, Setting(
-        Num(min=0, exclusive_min=True, unit="V"),
-        "default 8 x the pulse amplitude, within the DMM range")] = None
-    positions_deg: Annotated[tuple[float, ...], Setting(
-        ListOf(Num(min=-360, max=360, unit="deg"), min_len=2),
-        "turntable positions")] = (0.0, 180.0)
-    gap_s: Annotated[float, Setting(Num(min=0, unit="s"), "pause between cycles")] = 0.5
-    settle_s: Annotated[float, Setting(Num(min=0, unit="s"), "pause after a turn")] = 5.0
-    turn: Annotated[Turn | None, Setting(
-        doc="default: the drive's max rate and acceleration")] = None
-    digitizer: Annotated[Digitizer, Setting()] = Digitizer()
-    gyros: Annotated[tuple[str, ...] | None, Setting(
-        ListOf(Str(GYRO_NAMES), min_len=1),
-        "which of the platform's gyros (default: all)")] = None
-    tolerance: Annotated[DriftTolerance, Setting()] = DriftTolerance()
+    site: Site
+    pulse: Pulse
+    cycles: Annotated[int, Meta(ge=4, le=10_000, description="measuring cycles per "
+                                "position (4 at least for the scatter)")] = 10
+    timing_cycles: Annotated[int, Meta(ge=0, le=1000, description="large-amplitude cycles "
+                                       "that locate the pulses")] = 4
+    timing_amplitude_v: Annotated[float, _u(
+        "V", "default 8 x the pulse amplitude, within the DMM range", gt=0)] | None = None
+    positions_deg: Annotated[tuple[Position, ...], Meta(
+        min_length=2, description="turntable positions")] = (0.0, 180.0)
+    gap_s: Annotated[float, _u("s", "pause between cycles", ge=0)] = 0.5
+    settle_s: Annotated[float, _u("s", "pause after a turn", ge=0)] = 5.0
+    turn: Annotated[Turn, Meta(
+        description="default: the drive's max rate and acceleration")] | None = None
+    digitizer: Digitizer = Digitizer()
+    gyros: Annotated[tuple[GyroName, ...], Meta(
+        min_length=1, description="which of the platform's gyros (default: all)")] | None = None
+    tolerance: DriftTolerance = DriftTolerance()
 
 
-PROCEDURE = Map({**COMMON_PROCEDURE_KEYS, **declared_map(DriftFile).keys})
+PROCEDURE = Map({**COMMON_PROCEDURE_KEYS, **struct_map(DriftFile).keys})
+_DRIFT_KEYS = frozenset(f.encode_name for f in msgspec.structs.fields(DriftFile))
 
-GYRO = Map({
-    "model": Key(Str(), False, "the gyro's model (printed as part of the item calibrated)"),
-    "serial": Key(Str(), False, "the gyro's serial number (printed as part of the item)"),
-    "awg_channel": Key(Num(min=1, max=4, integer=True), True),
-    "dmm": Key(Map({"resource": Key(Str(), True, "VISA resource string"),
-                    "model": Key(Str(tuple(DMM_PROFILES)), True),
-                    "serial": Key(Str(), False, "the DMM's serial: the lab register's item "
-                                  "(its runs are found by it: bench impact)"),
-                    "calibration": Key(CALIBRATION, False, "the DMM's certificate")}), True),
-    "k_as_v_per_deg": Key(Num(min=0, exclusive_min=True, unit="V/deg"), True,
-                          "the command angle sensor's transfer coefficient"),
-    "k_as_u_rel": Key(Num(min=0), False, "its standard uncertainty, relative"),
-    "precession_dps_per_v": Key(Num(min=0, exclusive_min=True, unit="deg/s per V"), True,
-                                "nominal k_ts * gain / H (range checks only)"),
-    "pulse_mismatch_max_rel": Key(Num(min=0), False, "bound of the +/- amplitude mismatch"),
-    "drift_random_walk_dph_per_rth": Key(Num(min=0), False, "the gyro's spec"),
-})
-PLATFORM = Map({
-    "identity": Key(IDENTITY, False, "the platform under test"),
-    "table_axis": Key(Str(), True, "the stand axis the platform sits on"),
-    "awg": Key(Map({"resource": Key(Str(), True),
-                    "model": Key(Str(tuple(AWG_PROFILES)), True),
-                    "serial": Key(Str(), False, "the generator's serial: the lab register's "
-                                  "item (its runs are found by it: bench impact)"),
-                    "calibration": Key(CALIBRATION, False, "the generator's certificate")}),
-               True),
-    "gyros": Key(MapOf(GYRO, min_len=1), True),
-})
-SIM_PLATFORM = Map({
-    "latitude_deg": Key(Num(min=-90, max=90), True),
-    "azimuth_deg": Key(Num(), True, "the X input axis at turntable 0, from north"),
-    "gyros": Key(MapOf(Map({k: Key(Num()) for k in SIM_GYRO_KEYS})), True),
-})
-SIM_AWG = Map({"output_latency_s": Key(Num(min=0)), "trigger_out_skew_s": Key(Num()),
-               "trigger_out_width_s": Key(Num(min=0)), "load_ohm": Key(Num(min=1)),
-               "serial": Key(Str(), False, "the serial the twin reports (*IDN? field 3)"),
-               "amplitude_error_rel": Key(
-                   Num(min=-0.5, max=0.5), False, "the generator's true amplitude error a, "
-                   "unknown to the lab: every output voltage x (1 + a) (issue 58)", 0.0)})
-SIM_DMM = Map({"trigger_latency_s": Key(Num(min=0)),
-               "serials": Key(MapOf(Str()), False, "gyro: the serial its DMM twin reports"),
-               "gain_error_rel": Key(
-                   MapOf(Num(min=-0.5, max=0.5)), False, "gyro: its DMM's true gain error g, "
-                   "unknown to the lab: every reading the twin returns x (1 + g) (default 0; "
-                   "issue 58)"),
-               "offset_error_v": Key(
-                   MapOf(Num(unit="V")), False, "gyro: its DMM's true offset o, unknown to "
-                   "the lab: every reading + o, after the gain (default 0; issue 58)")})
-#: the DMM twins' own errors, by gyro (`sim.dmm`; each a keyword of sims/dmm_twin.DmmTwin)
-DMM_ERROR_KEYS = ("gain_error_rel", "offset_error_v")
+
+class GyroDmm(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    resource: Annotated[str, Meta(description="VISA resource string")]
+    model: Annotated[str, Meta(extra={"choices": tuple(DMM_PROFILES)})]
+    serial: Annotated[str, Meta(description="the DMM's serial: the lab register's item "
+                                            "(its runs are found by it: bench "
+                                            "impact)")] | None = None
+    calibration: Annotated[Calibration, Meta(
+        description="the DMM's certificate")] | None = None
+
+
+class GyroSpec(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """One gyro of the platform as the stand states it (`platform.gyros.<gyro>`)."""
+
+    model: Annotated[str, Meta(description="the gyro's model (printed as part of the item "
+                                           "calibrated)")] | None = None
+    serial: Annotated[str, Meta(description="the gyro's serial number (printed as part of "
+                                            "the item)")] | None = None
+    awg_channel: Annotated[int, Meta(ge=1, le=4)]
+    dmm: GyroDmm
+    k_as_v_per_deg: Annotated[float, _u("V/deg", "the command angle sensor's transfer "
+                                                 "coefficient", gt=0)]
+    k_as_u_rel: Annotated[float, Meta(ge=0, description="its standard uncertainty, "
+                                                        "relative")] = 0.0
+    precession_dps_per_v: Annotated[float, _u("deg/s per V", "nominal k_ts * gain / H "
+                                                             "(range checks only)", gt=0)]
+    pulse_mismatch_max_rel: Annotated[float, Meta(
+        ge=0, description="bound of the +/- amplitude mismatch")] = 0.0
+    drift_random_walk_dph_per_rth: Annotated[float, Meta(
+        ge=0, description="the gyro's spec")] = 0.0
+
+    @property
+    def dmm_resource(self) -> str:
+        return self.dmm.resource
+
+    @property
+    def dmm_model(self) -> str:
+        return self.dmm.model
+
+
+class PlatformAwg(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    resource: str
+    model: Annotated[str, Meta(extra={"choices": tuple(AWG_PROFILES)})]
+    serial: Annotated[str, Meta(description="the generator's serial: the lab register's "
+                                            "item (its runs are found by it: bench "
+                                            "impact)")] | None = None
+    calibration: Annotated[Calibration, Meta(
+        description="the generator's certificate")] | None = None
+
+
+class PlatformFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The stand's `platform:` block: the gyro platform under test and its wiring."""
+
+    identity: Annotated[Identity, Meta(description="the platform under test")] | None = None
+    table_axis: Annotated[str, Meta(description="the stand axis the platform sits on")]
+    awg: PlatformAwg
+    gyros: Annotated[dict[str, GyroSpec], Meta(min_length=1)]
+
+
+class SimGyro(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """A gyro's truth (`sim.platform.gyros.<gyro>`): sims/truth.py `GyroTruth`'s fields
+    (SIM_GYRO_KEYS, tests/test_drift_procedure.py), each left out taking its default."""
+
+    own_drift_dph: float | None = None
+    precession_dps_per_v: float | None = None
+    k_as_v_per_deg: float | None = None
+    angle_offset_deg: float | None = None
+    angle_noise_arcsec: float | None = None
+    pulse_mismatch_rel: float | None = None
+    pulse_jitter_s: float | None = None
+    drift_random_walk_dph_per_rth: float | None = None
+
+
+class SimPlatform(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    latitude_deg: Annotated[float, Meta(ge=-90, le=90)]
+    azimuth_deg: Annotated[float, Meta(description="the X input axis at turntable 0, "
+                                                   "from north")]
+    gyros: dict[str, SimGyro]
+
+
+class SimAwg(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The generator twin's truth (`sim.awg`; each a keyword of sims/awg_twin.AwgTwin)."""
+
+    output_latency_s: Annotated[float, Meta(ge=0)] | None = None
+    trigger_out_skew_s: float | None = None
+    trigger_out_width_s: Annotated[float, Meta(ge=0)] | None = None
+    load_ohm: Annotated[float, Meta(ge=1)] | None = None
+    serial: Annotated[str, Meta(description="the serial the twin reports (*IDN? field "
+                                            "3)")] | None = None
+    amplitude_error_rel: Annotated[float, Meta(
+        ge=-0.5, le=0.5, description="the generator's true amplitude error a, unknown to "
+        "the lab: every output voltage x (1 + a) (issue 58)")] = 0.0
+
+
+class SimDmm(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The DMM twins' truth (`sim.dmm`; each a keyword of sims/dmm_twin.DmmTwin)."""
+
+    trigger_latency_s: Annotated[float, Meta(ge=0)] | None = None
+    serials: Annotated[dict[str, str], Meta(
+        description="gyro: the serial its DMM twin reports")] | None = None
+    gain_error_rel: Annotated[dict[str, Annotated[float, Meta(ge=-0.5, le=0.5)]], Meta(
+        description="gyro: its DMM's true gain error g, unknown to the lab: every reading "
+        "the twin returns x (1 + g) (default 0; issue 58)")] | None = None
+    offset_error_v: Annotated[dict[str, Annotated[float, _u("V")]], Meta(
+        description="gyro: its DMM's true offset o, unknown to the lab: every reading + o, "
+        "after the gain (default 0; issue 58)")] | None = None
+
+
+PLATFORM = struct_map(PlatformFile)
+SIM_PLATFORM = struct_map(SimPlatform)
+SIM_AWG = struct_map(SimAwg)
+SIM_DMM = struct_map(SimDmm)
+
 
 def drift_file(cfg: Config) -> DriftFile:
     """The procedure file's own keys, parsed (validated: the loader's cross-checks run
-    on files the schema passed)."""
-    return parse_declared(DriftFile, cfg.procedure)
+    on files the schema passed; a key written null takes its default)."""
+    return struct_at(DriftFile, {k: v for k, v in cfg.procedure.items()
+                                 if k in _DRIFT_KEYS and v is not None})
 
 
 @dataclass(frozen=True)
@@ -207,11 +263,10 @@ class Timing:
         return self.trigger_delay_s + self.count * self.interval_s
 
     @classmethod
-    def of(cls, cfg: Config) -> Timing:
-        p = cfg.procedure["pulse"]
-        d = parse_declared(Digitizer, cfg.procedure.get("digitizer") or {})
-        tc = float(p["duration_s"])
-        points = int(p.get("points", Pulse.points))
+    def of(cls, f: DriftFile) -> Timing:
+        """The timing of the procedure's pulse and digitizer (docs/method.md B)."""
+        d = f.digitizer
+        tc, points = f.pulse.duration_s, f.pulse.points
         interval = 1.0 / d.sample_rate_hz
         aperture = d.aperture_s if d.aperture_s is not None else 0.8 * interval
         lead_s = 1.0 / (points / tc)
@@ -224,27 +279,33 @@ def _near_int(x: float) -> bool:
     return abs(x - round(x)) < 1e-6 * max(1.0, abs(x))
 
 
+def platform_file(cfg: Config) -> PlatformFile:
+    """The stand's `platform:` block, parsed (validated, as `drift_file`'s)."""
+    return struct_at(PlatformFile, cfg.stand["platform"], ("platform",))
+
+
 def drift_problems(cfg: Config) -> list[Problem]:
     """The checks that need both files: the platform's wiring, the pulse timing
     against the instruments, the positions, the turn against the drive."""
     pdoc, sdoc = cfg.procedure_doc, cfg.stand_doc
-    plat = cfg.stand["platform"]
+    f, plat = drift_file(cfg), platform_file(cfg)
+    axes = cfg.stand_settings.axes
     out: list[Problem] = []
-    table = plat["table_axis"]
-    if table not in cfg.stand["axes"]:
+    table = plat.table_axis
+    if table not in axes:
         out.append(sdoc.problem(("platform", "table_axis"), f"the stand has no axis "
-                                f"{table!r} (it has {', '.join(cfg.stand['axes'])})"))
-    for g in plat["gyros"]:
+                                f"{table!r} (it has {', '.join(axes)})"))
+    for g in plat.gyros:
         if g not in GYRO_NAMES:
             out.append(sdoc.problem(("platform", "gyros", g), "a gyro is x, y "
                                     "(horizontal) or z (vertical)"))
-    for i, g in enumerate(cfg.procedure.get("gyros") or []):
-        if g not in plat["gyros"]:
+    for i, g in enumerate(f.gyros or ()):
+        if g not in plat.gyros:
             out.append(pdoc.problem(("gyros", i), f"the stand's platform has no gyro {g!r}"))
-    awg = AWG_PROFILES[plat["awg"]["model"]]
+    awg = AWG_PROFILES[plat.awg.model]
     channels: dict[int, str] = {}
-    for g, spec in plat["gyros"].items():
-        ch = spec["awg_channel"]
+    for g, spec in plat.gyros.items():
+        ch = spec.awg_channel
         if ch not in awg.channels:
             out.append(sdoc.problem(("platform", "gyros", g, "awg_channel"),
                                     f"the {awg.model} has channels {awg.channels}"))
@@ -252,19 +313,20 @@ def drift_problems(cfg: Config) -> list[Problem]:
             out.append(sdoc.problem(("platform", "gyros", g, "awg_channel"),
                                     f"channel {ch} already drives gyro {channels[ch]}"))
         channels[ch] = g
-    out += _check_timing(cfg)
-    out += _check_positions(cfg)
-    lat = cfg.procedure["site"]["latitude_deg"]
-    if abs(lat) > 84.0:
+    gyros = _gyros(f, plat)
+    out += _check_timing(cfg, f, plat, gyros)
+    out += _check_positions(cfg, f)
+    if abs(f.site.latitude_deg) > 84.0:
         out.append(pdoc.problem(("site", "latitude_deg"), "within 6 deg of a pole the "
                                 "Earth's horizontal rate is too small for an azimuth"))
-    if table in cfg.stand["axes"]:
-        drive = cfg.stand["axes"][table]["drive"]
-        turn = cfg.procedure.get("turn", {})
-        for key, limit in (("rate_dps", "max_rate_dps"), ("accel_dps2", "max_accel_dps2")):
-            if key in turn and turn[key] > drive[limit]:
-                out.append(pdoc.problem(("turn", key), f"{turn[key]:g} exceeds the drive's "
-                                        f"{limit} {drive[limit]:g}"))
+    if table in axes and f.turn is not None:
+        drive = axes[table].drive
+        for key, value, limit, most in (
+                ("rate_dps", f.turn.rate_dps, "max_rate_dps", drive.max_rate_dps),
+                ("accel_dps2", f.turn.accel_dps2, "max_accel_dps2", drive.max_accel_dps2)):
+            if value > most:
+                out.append(pdoc.problem(("turn", key), f"{value:g} exceeds the drive's "
+                                        f"{limit} {most:g}"))
     sim = cfg.stand.get("sim")
     if sim is not None:
         sp = sim.get("platform")
@@ -272,16 +334,16 @@ def drift_problems(cfg: Config) -> list[Problem]:
             out.append(sdoc.problem(("sim",), "a simulated drift-pulse bench needs "
                                     "sim.platform (the platform's truth)"))
         else:
-            for g in gyros_of(cfg):
+            for g in gyros:
                 if g not in sp["gyros"]:
                     out.append(sdoc.problem(("sim", "platform", "gyros"),
                                             f"no truth for gyro {g!r}"))
     return out
 
-def _check_timing(cfg: Config) -> list[Problem]:
+def _check_timing(cfg: Config, f: DriftFile, plat: PlatformFile,
+                  gyros: list[str]) -> list[Problem]:
     pdoc, sdoc = cfg.procedure_doc, cfg.stand_doc
-    plat = cfg.stand["platform"]
-    t = Timing.of(cfg)
+    t = Timing.of(f)
     out = []
     where = ("digitizer",)
     if not _near_int(t.tc_s / t.interval_s):
@@ -292,21 +354,21 @@ def _check_timing(cfg: Config) -> list[Problem]:
         out.append(pdoc.problem(("pulse", "points"), f"{t.points} points per pulse: the "
                                 f"generator's step ({1 / t.awg_rate_hz:g} s) must be a whole "
                                 f"number of DMM intervals ({t.interval_s:g} s)"))
-    awg = AWG_PROFILES[plat["awg"]["model"]]
+    awg = AWG_PROFILES[plat.awg.model]
     lo, hi = awg.sample_rate_range_hz
     if not lo <= t.awg_rate_hz <= hi or 2 * t.points + 2 > awg.max_points:
         out.append(pdoc.problem(("pulse", "points"), f"{t.points} points in {t.tc_s:g} s do "
                                 f"not fit the {awg.model} ({awg.max_points} points, "
                                 f"{lo:g} .. {hi:g} Sa/s)"))
-    amps = {"amplitude_v": cfg.procedure["pulse"]["amplitude_v"]}
-    if cfg.procedure.get("timing_cycles", DriftFile.timing_cycles):
-        amps["timing_amplitude_v"] = timing_amplitude(cfg)
-    shape = pulse_shape(cfg.procedure["pulse"]["shape"])
-    for g in gyros_of(cfg):
-        spec = plat["gyros"].get(g)
+    amps = {"amplitude_v": f.pulse.amplitude_v}
+    if f.timing_cycles:
+        amps["timing_amplitude_v"] = _timing_amplitude(f)
+    shape = pulse_shape(f.pulse.shape)
+    for g in gyros:
+        spec = plat.gyros.get(g)
         if spec is None:
             continue
-        dmm = DMM_PROFILES[spec["dmm"]["model"]]
+        dmm = DMM_PROFILES[spec.dmm.model]
         if not any(math.isclose(t.range_v, r) for r in dmm.ranges_v):
             out.append(pdoc.problem(where + ("range_v",), f"the {dmm.model} has ranges "
                                     f"{', '.join(f'{r:g}' for r in dmm.ranges_v)} V"))
@@ -317,7 +379,7 @@ def _check_timing(cfg: Config) -> list[Problem]:
             out.append(pdoc.problem(("pulse", "duration_s"), f"{t.count} samples a cycle "
                                     f"exceed the {dmm.model}'s {dmm.max_readings} readings"))
         for key, amp in amps.items():
-            excursion = (spec["k_as_v_per_deg"] * spec["precession_dps_per_v"] * amp
+            excursion = (spec.k_as_v_per_deg * spec.precession_dps_per_v * amp
                          * t.tc_s * shape.angle_end)
             if excursion > 0.8 * t.range_v:
                 out.append(pdoc.problem(("pulse", key) if key == "amplitude_v" else (key,),
@@ -347,8 +409,8 @@ def _rank(columns: list[list[float]]) -> int:
     return len(basis)
 
 
-def _check_positions(cfg: Config) -> list[Problem]:
-    pos = [float(p) for p in cfg.procedure.get("positions_deg", DriftFile.positions_deg)]
+def _check_positions(cfg: Config, f: DriftFile) -> list[Problem]:
+    pos = list(f.positions_deg)
     theta = [math.radians(p) for p in pos]
     columns = [[1.0] * len(theta), [math.cos(t) for t in theta]]
     if any(abs(math.sin(t)) > 1e-9 for t in theta):
@@ -359,27 +421,15 @@ def _check_positions(cfg: Config) -> list[Problem]:
                                           "apart (e.g. [0, 180])")]
     return []
 
-def timing_amplitude(cfg: Config) -> float:
-    return float(cfg.procedure.get("timing_amplitude_v",
-                                    TIMING_GAIN * cfg.procedure["pulse"]["amplitude_v"]))
+def _timing_amplitude(f: DriftFile) -> float:
+    """The timing cycles' amplitude: as written, else TIMING_GAIN x the pulse's."""
+    return (f.timing_amplitude_v if f.timing_amplitude_v is not None
+            else TIMING_GAIN * f.pulse.amplitude_v)
 
 
-def gyros_of(cfg: Config) -> list[str]:
-    return list(cfg.procedure.get("gyros") or cfg.stand["platform"]["gyros"])
-
-
-@dataclass(frozen=True)
-class GyroSpec:
-    """One gyro of the platform as the stand states it."""
-
-    awg_channel: int
-    dmm_resource: str
-    dmm_model: str
-    k_as_v_per_deg: float
-    precession_dps_per_v: float
-    k_as_u_rel: float = 0.0
-    pulse_mismatch_max_rel: float = 0.0
-    drift_random_walk_dph_per_rth: float = 0.0
+def _gyros(f: DriftFile, plat: PlatformFile) -> list[str]:
+    """The gyros the procedure uses: as it names them, else all the platform's."""
+    return list(f.gyros or plat.gyros)
 
 
 @dataclass(frozen=True)
@@ -408,41 +458,44 @@ class PlatformSettings:
 
     @classmethod
     def parse_platform(cls, cfg: Config) -> PlatformSettings:
-        return PlatformSettings(**_platform_fields(cfg))
+        named = cfg.procedure.get("gyros")   # a stand alone (`bench devices`): all
+        return PlatformSettings(**_platform_fields(cfg, list(named) if named else None))
 
 
-def _platform_fields(cfg: Config) -> dict[str, Any]:
-    plat = cfg.stand["platform"]
-    table = str(plat["table_axis"])
-    gyros = {g: GyroSpec(int(s["awg_channel"]), str(s["dmm"]["resource"]),
-                         str(s["dmm"]["model"]), float(s["k_as_v_per_deg"]),
-                         float(s["precession_dps_per_v"]),
-                         float(s.get("k_as_u_rel", 0.0)),
-                         float(s.get("pulse_mismatch_max_rel", 0.0)),
-                         float(s.get("drift_random_walk_dph_per_rth", 0.0)))
-             for g, s in plat["gyros"].items()}
+def _platform_fields(cfg: Config, gyros: list[str] | None = None) -> dict[str, Any]:
+    """PlatformSettings' fields from the stand's typed `platform:` and `sim` blocks."""
+    plat = platform_file(cfg)
+    used = list(plat.gyros) if gyros is None else gyros
     sim = cfg.stand.get("sim") or {}
     sp = sim.get("platform")
     sim_settings = cfg.stand_settings.sim
-    truth = None if sp is None else PlatformTruth(
-        latitude_deg=float(sp["latitude_deg"]), azimuth_deg=float(sp["azimuth_deg"]),
-        gyros={g: GyroTruth(**{k: float(v) for k, v in (sp["gyros"].get(g) or {}).items()})
-               for g in gyros_of(cfg) if g in sp["gyros"]},
-        table_axis=table,   # the platform's drift walk is its truth, seeded as the stand
-        seed=sim_settings.seed if sim_settings else 0)
-    awg_twin = dict(sim.get("awg") or {})
-    dmm_twin = dict(sim.get("dmm") or {})
-    awg_serial, dmm_serials = awg_twin.pop("serial", None), dmm_twin.pop("serials", {})
+    truth = None
+    if sp is not None:
+        st = struct_at(SimPlatform, sp, ("sim", "platform"))
+        truth = PlatformTruth(
+            latitude_deg=st.latitude_deg, azimuth_deg=st.azimuth_deg,
+            gyros={g: GyroTruth(**{k: v for k, v in msgspec.structs.asdict(st.gyros[g]).items()
+                                   if v is not None})
+                   for g in used if g in st.gyros},
+            table_axis=plat.table_axis,   # the platform's drift walk is its truth, seeded
+            seed=sim_settings.seed if sim_settings else 0)   # as the stand
+    awg = struct_at(SimAwg, sim.get("awg") or {}, ("sim", "awg"))
+    dmm = struct_at(SimDmm, sim.get("dmm") or {}, ("sim", "dmm"))
+    written = set(sim.get("awg") or {})
+    awg_twin = {k: v for k, v in msgspec.structs.asdict(awg).items()
+                if k != "serial" and k in written}
+    dmm_twin = {} if dmm.trigger_latency_s is None \
+        else {"trigger_latency_s": dmm.trigger_latency_s}
     dmm_errors: dict[str, dict[str, float]] = {}
-    for key in DMM_ERROR_KEYS:
-        for g, v in (dmm_twin.pop(key, None) or {}).items():
-            dmm_errors.setdefault(str(g), {})[key] = float(v)
-    return dict(gyros=tuple(gyros_of(cfg)), table_axis=table,
-                awg_resource=str(plat["awg"]["resource"]), awg_model=str(plat["awg"]["model"]),
-                platform=gyros, sim_platform=truth, awg_twin=awg_twin,
-                awg_serial=str(awg_serial) if awg_serial else None, dmm_twin=dmm_twin,
-                dmm_serials={str(k): str(v) for k, v in dmm_serials.items()},
-                dmm_errors=dmm_errors)
+    for key, by_gyro in (("gain_error_rel", dmm.gain_error_rel),
+                         ("offset_error_v", dmm.offset_error_v)):
+        for g, v in (by_gyro or {}).items():
+            dmm_errors.setdefault(g, {})[key] = v
+    return dict(gyros=tuple(used), table_axis=plat.table_axis,
+                awg_resource=plat.awg.resource, awg_model=plat.awg.model,
+                platform=plat.gyros, sim_platform=truth, awg_twin=awg_twin,
+                awg_serial=awg.serial or None, dmm_twin=dmm_twin,
+                dmm_serials=dict(dmm.serials or {}), dmm_errors=dmm_errors)
 
 
 @dataclass(frozen=True)
@@ -480,11 +533,11 @@ class DriftSettings(PlatformSettings):
     def parse(cls, cfg: Config) -> DriftSettings:
         p = cfg.procedure
         f = drift_file(cfg)
-        fields = _platform_fields(cfg)
+        fields = _platform_fields(cfg, _gyros(f, platform_file(cfg)))
         drive = cfg.stand_settings.axes[fields["table_axis"]].drive
         return cls(
             **fields, title=cfg.common.title, pulse_shape=f.pulse.shape,
-            amplitude_v=f.pulse.amplitude_v, timing_amplitude_v=timing_amplitude(cfg),
+            amplitude_v=f.pulse.amplitude_v, timing_amplitude_v=_timing_amplitude(f),
             latitude_deg=f.site.latitude_deg,
             turn_rate_dps=f.turn.rate_dps if f.turn else drive.max_rate_dps,
             turn_accel_dps2=f.turn.accel_dps2 if f.turn else drive.max_accel_dps2,
@@ -493,5 +546,5 @@ class DriftSettings(PlatformSettings):
             gap_s=f.gap_s, settle_s=f.settle_s, decision_rule=cfg.common.decision_rule,
             prompts=cfg.common.prompts,
             own_drift_tolerance_dph=f.tolerance.own_drift_dph,
-            timing=Timing.of(cfg), pulse_doc=dict(p["pulse"]), site_doc=dict(p["site"]),
+            timing=Timing.of(f), pulse_doc=dict(p["pulse"]), site_doc=dict(p["site"]),
             tolerance_doc=dict(p.get("tolerance") or {}))

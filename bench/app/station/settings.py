@@ -1,16 +1,19 @@
 """The station's settings, parsed once by `bench serve` (serve.py), and the one test of
 where a request comes from: read by the pages (app.py) and the signing (signing.py).
 
-Each setting is declared once below, with its default and what it means; `bench serve`'s
-options (serve.py) set them.
+Each setting is declared once below, with its default, unit and meaning (a msgspec
+Struct, as the stand's and the procedures' settings); `bench serve`'s options (serve.py)
+set them.
 """
 
 from __future__ import annotations
 
 import ipaddress
 from collections.abc import Iterable
-from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
+
+from msgspec import Meta, Struct
 
 #: the networks whose clients may enter a password over TLS unless the lab says otherwise
 LOOPBACK_NETWORKS = ("127.0.0.0/8", "::1/128")
@@ -18,35 +21,50 @@ LOOPBACK_NETWORKS = ("127.0.0.0/8", "::1/128")
 LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "[::1]", "::1"})
 
 
-@dataclass(frozen=True)
-class StationSettings:
-    runs: Path
-    token: str
-    host: str = "127.0.0.1"
-    port: int = 8765
-    records_url: str | None = None
-    register_url: str | None = None     # the lab register (None: read-only, no login)
-    lab_file: str | None = None         # the lab file naming it, given to `bench authorise`
-    session_idle_s: float = 15 * 60.0   # a login ends after this long unused
-    session_max_s: float = 8 * 3600.0   # and this long after it began
-    #: the one proxy whose X-Forwarded-For names the client (None: the peer is the client)
-    trusted_proxy: str | None = None
-    login_failures_per_client: int = 10     # wrong logins from one client within ...
-    login_window_s: float = 15 * 60.0       # ... this long refuse its logins that long
-    #: the PEM certificate (with its chain) the station serves over TLS (None: plain HTTP)
-    tls_cert: Path | None = None
-    #: the PEM private key of that certificate (given with tls_cert, never alone)
-    tls_key: Path | None = None
-    #: the networks whose clients may log in and sign over TLS (default: this machine only;
-    #: `--passwords-from NET` adds the lab's); over plain HTTP a password is taken from
-    #: this machine alone, whatever this says
-    password_networks: tuple[str, ...] = LOOPBACK_NETWORKS
-    #: names the station is reached by besides its address (the Host header is checked,
-    #: and a browser on another machine names the server as its TLS certificate does)
-    server_names: tuple[str, ...] = ()
-    #: other benches' runs folders this station can read (a share, a mount): their drafts'
-    #: certificates are shown and signed here, as its own runs folder's are
-    other_runs: tuple[Path, ...] = ()
+def _d(description: str, unit: str | None = None) -> Meta:
+    """A setting's meaning (and unit), declared where the setting is."""
+    return Meta(description=description, extra={"unit": unit} if unit else None)
+
+
+class StationSettings(Struct, frozen=True):
+    """The station's settings: each declared once, with its default, unit and meaning
+    (msgspec Meta, as the stand's and the procedures'); `bench serve`'s options set them."""
+
+    runs: Annotated[Path, _d("the bench's runs folder the station serves")]
+    token: Annotated[str, _d("the token for stop requests and remote viewers")]
+    host: Annotated[str, _d("the address the station listens on")] = "127.0.0.1"
+    port: Annotated[int, Meta(ge=0, le=65535, description="its TCP port")] = 8765
+    records_url: Annotated[str, _d("the lab's records server")] | None = None
+    register_url: Annotated[str, _d("the lab register (None: read-only, no "
+                                    "login)")] | None = None
+    lab_file: Annotated[str, _d("the lab file naming it, given to `bench "
+                                "authorise`")] | None = None
+    session_idle_s: Annotated[float, _d("a login ends after this long unused",
+                                        "s")] = 15 * 60.0
+    session_max_s: Annotated[float, _d("and this long after it began", "s")] = 8 * 3600.0
+    trusted_proxy: Annotated[str, _d("the one proxy whose X-Forwarded-For names the client "
+                                     "(None: the peer is the client)")] | None = None
+    login_failures_per_client: Annotated[int, _d(
+        "wrong logins from one client within login_window_s refuse its logins that "
+        "long")] = 10
+    login_window_s: Annotated[float, _d("the window of login_failures_per_client",
+                                        "s")] = 15 * 60.0
+    tls_cert: Annotated[Path, _d("the PEM certificate (with its chain) the station serves "
+                                 "over TLS (None: plain HTTP)")] | None = None
+    tls_key: Annotated[Path, _d("the PEM private key of that certificate (given with "
+                                "tls_cert, never alone)")] | None = None
+    password_networks: Annotated[tuple[str, ...], _d(
+        "the networks whose clients may log in and sign over TLS (default: this machine "
+        "only; `--passwords-from NET` adds the lab's); over plain HTTP a password is taken "
+        "from this machine alone, whatever this says")] = LOOPBACK_NETWORKS
+    server_names: Annotated[tuple[str, ...], _d(
+        "names the station is reached by besides its address (the Host header is checked, "
+        "and a browser on another machine names the server as its TLS certificate "
+        "does)")] = ()
+    other_runs: Annotated[tuple[Path, ...], _d(
+        "other benches' runs folders this station can read (a share, a mount): their "
+        "drafts' certificates are shown and signed here, as its own runs folder's "
+        "are")] = ()
 
     @property
     def tls(self) -> bool:
