@@ -252,8 +252,8 @@ def test_the_quantity_scan_sees_a_quantity_in_code() -> None:
 #: block (the simulated table's ripple, a setting of the twins that shares the result's
 #: word), and the one naming rule of result.json's uncertainties, which lists the `_u`
 #: keys that are standard uncertainties (issue 61 left these)
-QUANTITY_NAMED = {("bench/core/config.py", "amplitude_rel"),
-                  ("bench/core/config.py", "amplitude_dps"),
+QUANTITY_NAMED = {("bench/core/stand_sim.py", "amplitude_rel"),
+                  ("bench/core/stand_sim.py", "amplitude_dps"),
                   ("bench/report/uncertainty_names.py", "own_u_dph"),
                   ("bench/report/uncertainty_names.py", "apparent_u_dph")}
 
