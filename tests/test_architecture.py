@@ -138,15 +138,21 @@ KIND_NAMES = re.compile(r"rate[-_ ]?ladder|drift[-_ ]?pulse|(?<![a-z])ladder(?![
                         r"RB-RL|RB-DP", re.IGNORECASE)
 
 
+def _docstring_ids(tree: ast.AST) -> set[int]:
+    """The ids of the docstring nodes of `tree` (module, classes, functions): the guards
+    below let prose name what code may not."""
+    return {id(node.body[0].value) for node in ast.walk(tree)
+            if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef
+                          | ast.AsyncFunctionDef)
+            and node.body and isinstance(node.body[0], ast.Expr)
+            and isinstance(node.body[0].value, ast.Constant)}
+
+
 def kind_names_in(source: str, filename: str = "<source>") -> list[tuple[int, str]]:
     """(line, text) of every identifier, import and string in `source` that names a kind.
     Docstrings and comments may say what the code serves; code may not name it."""
     tree = ast.parse(source, filename)
-    docstrings = {id(node.body[0].value) for node in ast.walk(tree)
-                  if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef
-                                | ast.AsyncFunctionDef)
-                  and node.body and isinstance(node.body[0], ast.Expr)
-                  and isinstance(node.body[0].value, ast.Constant)}
+    docstrings = _docstring_ids(tree)
     found = []
     for node in ast.walk(tree):
         texts: list[str] = []
@@ -223,11 +229,7 @@ def quantities_in(source: str, keys: frozenset[str], filename: str = "<source>"
     """(line, text) of every identifier and string in `source` (not its docstrings or
     comments) that is one of `keys`."""
     tree = ast.parse(source, filename)
-    docstrings = {id(node.body[0].value) for node in ast.walk(tree)
-                  if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef
-                                | ast.AsyncFunctionDef)
-                  and node.body and isinstance(node.body[0], ast.Expr)
-                  and isinstance(node.body[0].value, ast.Constant)}
+    docstrings = _docstring_ids(tree)
     found = []
     for node in ast.walk(tree):
         text = (node.value if isinstance(node, ast.Constant) and isinstance(node.value, str)
