@@ -260,11 +260,11 @@ def test_each_setting_is_declared_once_on_its_dataclass() -> None:
             f = fields[key]
             if f.default is not dataclasses.MISSING and isinstance(f.default, int | float | str):
                 assert spec.default == f.default and not spec.required, (cls, key)
-    for key, spec in declared_map(LadderSettings).keys.items():
+    for key, spec in struct_map(LadderSettings).keys.items():
         assert LADDER.keys[key] == spec, (LadderSettings, key)
     for key, spec in struct_map(DriftFile).keys.items():
         assert DRIFT.keys[key] == spec, (DriftFile, key)
-    assert LADDER.keys["settle"].node == declared_map(Settle)
+    assert LADDER.keys["settle"].node == struct_map(Settle)
     assert DRIFT.keys["positions_deg"].default == (0.0, 180.0)
     drift = struct_at(DriftFile, {"site": {"latitude_deg": 48}, "positions_deg": [0, 180],
                                   "pulse": {"shape": "rectangular", "duration_s": 1,

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
+
+import msgspec
+from msgspec import Meta, Struct
 
 from bench.core.config import (
     COMMON_PROCEDURE_KEYS,
@@ -13,7 +15,7 @@ from bench.core.config import (
     check_axis_names,
 )
 from bench.core.plan import format_duration
-from bench.core.schema import ListOf, Map, MapOf, Num, Setting, Str, declared_map, parse_declared
+from bench.core.schema import Map, struct_at, struct_map
 from bench.core.yamlfile import Problem, YamlDoc
 from drivers.counter_profiles import PROFILES as COUNTER_PROFILES
 from drivers.drive_settings import ACCEL_MAX_DPS2, RATE_MAX_DPS, RATE_MIN_DPS
@@ -21,119 +23,134 @@ from drivers.fog_settings import DEFAULT_RANGE_DPS
 
 NAME = "rate-ladder"
 
-# Each key of the ladder's procedure file is declared once, on the frozen dataclass the
-# plan, the analysis and the certificate read: the field's type and default, its
-# Setting's node (bounds, unit) and meaning. PROCEDURE is derived from them
-# (bench/core/schema.py `declared_map`), the parse too (`parse_declared`).
+# Each key of the ladder's procedure file is declared once, on the msgspec Struct the plan,
+# the analysis and the certificate read: its type, default, bounds (`Meta(ge=..)`), unit
+# (`Meta.extra["unit"]`) and meaning (`Meta.description`). PROCEDURE is `struct_map` of
+# them, the parse `struct_at` (bench/core/schema.py); a field the parse resolves from
+# other keys is `Meta.extra["given"]`, one the file never states `Meta.extra["file"]`.
+
+#: not a key of the file: set by the parse
+_SET = Meta(extra={"file": False})
 
 
-@dataclass(frozen=True, kw_only=True)
-class Band:
+class Band(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     """One tolerance band: `rel` applies to rates below `below_dps` (None: the rest)."""
 
-    below_dps: Annotated[float | None, Setting(
-        Num(min=0, exclusive_min=True, max=RATE_MAX_DPS, unit="deg/s"),
-        "the band applies to rates below this; omit on the last band")] = None
-    rel: Annotated[float, Setting(Num(min=0, exclusive_min=True, max=1),
-                                  "tolerance, a fraction (1e-6 = 1 ppm)")]
+    below_dps: Annotated[float, Meta(
+        gt=0, le=RATE_MAX_DPS, extra={"unit": "deg/s"},
+        description="the band applies to rates below this; omit on the last band")] \
+        | None = None
+    rel: Annotated[float, Meta(gt=0, le=1, description="tolerance, a fraction (1e-6 = "
+                                                       "1 ppm)")]
 
 
-@dataclass(frozen=True, kw_only=True)
-class Settle:
+class Settle(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     """When a rate counts as reached (the procedure's `settle:`)."""
 
-    tolerance_dps: Annotated[float, Setting(
-        Num(min=0, exclusive_min=True, max=100, unit="deg/s"),
-        "settled when within the larger of this and tolerance_rel x rate")] = 0.005
-    tolerance_rel: Annotated[float, Setting(
-        Num(min=0, exclusive_min=True, max=1),
-        "settling tolerance relative to the rate")] = 1e-3
-    hold_s: Annotated[float, Setting(
-        Num(min=0, max=86_400, unit="s"),
-        "how long the rate must stay within tolerance")] = 2.0
-    timeout_s: Annotated[float, Setting(
-        Num(min=0, exclusive_min=True, max=STEP_MAX_S, unit="s"),
-        "a rate that has not settled by then aborts the run")] = 60.0
+    tolerance_dps: Annotated[float, Meta(
+        gt=0, le=100, extra={"unit": "deg/s"},
+        description="settled when within the larger of this and tolerance_rel x "
+                    "rate")] = 0.005
+    tolerance_rel: Annotated[float, Meta(
+        gt=0, le=1, description="settling tolerance relative to the rate")] = 1e-3
+    hold_s: Annotated[float, Meta(
+        ge=0, le=86_400, extra={"unit": "s"},
+        description="how long the rate must stay within tolerance")] = 2.0
+    timeout_s: Annotated[float, Meta(
+        gt=0, le=STEP_MAX_S, extra={"unit": "s"},
+        description="a rate that has not settled by then aborts the run")] = 60.0
 
     def tolerance_at(self, rate_dps: float) -> float:
         return max(self.tolerance_dps, self.tolerance_rel * abs(rate_dps))
 
 
-_TURNS = Num(min=1, max=10_000, integer=True)
+#: turns per rate and direction when the file gives none
+DEFAULT_TURNS = 5
+Turns = Annotated[int, Meta(ge=1, le=10_000)]
+Rate = Annotated[float, Meta(ge=RATE_MIN_DPS, le=RATE_MAX_DPS, extra={"unit": "deg/s"})]
 
 
-@dataclass(frozen=True, kw_only=True)
-class AxisSettings:
+class AxisSettings(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     """One axis of the ladder as it runs: its own `turns` where it gives one, its ramp
     acceleration (the procedure's `accel_dps2`, never above the drive's limit)."""
 
-    name: str
-    rates_dps: Annotated[tuple[float, ...], Setting(
-        ListOf(Num(min=RATE_MIN_DPS, max=RATE_MAX_DPS, unit="deg/s"), min_len=1),
-        "rate magnitudes; each runs +w then -w")]
+    name: Annotated[str, _SET]
+    rates_dps: Annotated[tuple[Rate, ...], Meta(
+        min_length=1, description="rate magnitudes; each runs +w then -w")]
     #: resolved by the parse: the axis's own, else the file's
-    turns: Annotated[int, Setting(_TURNS, "turns per rate and direction on this axis "
-                                          "(default: the file's turns)", required=False)]
-    prompt: Annotated[str | None, Setting(
-        Str(), "what the operator must do before this axis")] = None
-    accel_dps2: float = 0.0
+    turns: Annotated[Turns, Meta(description="turns per rate and direction on this axis "
+                                             "(default: the file's turns)",
+                                 extra={"given": True})]
+    prompt: Annotated[str, Meta(description="what the operator must do before this "
+                                            "axis")] | None = None
+    accel_dps2: Annotated[float, _SET] = 0.0
 
 
-_BANDS = ListOf(declared_map(Band), min_len=1)
+Bands = Annotated[tuple[Band, ...], Meta(min_length=1)]
 
 
-@dataclass(frozen=True, kw_only=True)
-class Tolerance:
-    """What the table's maker claims, by rate band (the procedure's `tolerance:`)."""
+class Tolerance(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """What the table's maker claims, by rate band (the procedure's `tolerance:`); a key
+    left out: reported, not judged."""
 
-    rate_error: Annotated[tuple[Band, ...], Setting(
-        _BANDS, "|mean - set| / |set| (eq. 1)")] = ()
-    rate_instability: Annotated[tuple[Band, ...], Setting(
-        _BANDS, "per-turn rate std / rate (eq. 2)")] = ()
-    intra_turn_instability: Annotated[tuple[Band, ...], Setting(
-        _BANDS, "std of the random part within a turn / rate")] = ()
+    rate_error: Annotated[Bands, Meta(description="|mean - set| / |set| (eq. 1)")] = ()
+    rate_instability: Annotated[Bands, Meta(
+        description="per-turn rate std / rate (eq. 2)")] = ()
+    intra_turn_instability: Annotated[Bands, Meta(
+        description="std of the random part within a turn / rate")] = ()
+
+    def get(self, key: str) -> tuple[Band, ...] | None:
+        """The bands of tolerance key `key` (rate_error, ...); None: the file states none."""
+        bands: tuple[Band, ...] = getattr(self, key)
+        return bands or None
+
+    def items(self) -> list[tuple[str, tuple[Band, ...]]]:
+        """The keys the file states, with their bands, in TOLERANCE_KEYS' order."""
+        return [(k, b) for k in TOLERANCE_KEYS if (b := getattr(self, k))]
 
 
 TOLERANCE_KEYS = ("rate_error", "rate_instability", "intra_turn_instability")
 
 
-@dataclass(frozen=True, kw_only=True)
-class LadderSettings:
+class LadderSettings(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     """The validated procedure file, parsed once; each key declared here, once.
 
     The plan, the analysis and the certificate's Method table all read these, so a
     per-axis `turns` is what each of them says (issue 12)."""
 
     #: the file's top-level default, per rate and direction
-    turns: Annotated[int, Setting(_TURNS, "turns per rate and direction; an odd count "
-                                          "with sequence +-+ splits the + half unevenly")] = 5
-    sequence: Annotated[str, Setting(Str(("+-", "+-+")), "order of the halves of a pair "
-                                     "(+-+ cancels a linear FOG bias drift)")] = "+-+"
-    accel_dps2: Annotated[float | None, Setting(
-        Num(min=0, exclusive_min=True, max=ACCEL_MAX_DPS2, unit="deg/s^2"),
-        "ramp acceleration (default and limit: the drive's max_accel_dps2)")] = None
-    settle: Annotated[Settle, Setting(doc="when a rate counts as reached")] = Settle()
-    static_record_s: Annotated[float, Setting(
-        Num(min=0, max=86_400, unit="s"), "FOG at rest per axis (noise floor)")] = 60.0
-    harmonics: Annotated[int, Setting(Num(min=1, max=20, integer=True),
-                                      "orders 1..H fitted in angle")] = 4
+    turns: Annotated[Turns, Meta(description="turns per rate and direction; an odd count "
+                                             "with sequence +-+ splits the + half "
+                                             "unevenly")] = DEFAULT_TURNS
+    sequence: Annotated[Literal["+-", "+-+"], Meta(
+        description="order of the halves of a pair (+-+ cancels a linear FOG bias "
+                    "drift)")] = "+-+"
+    accel_dps2: Annotated[float, Meta(
+        gt=0, le=ACCEL_MAX_DPS2, extra={"unit": "deg/s^2"},
+        description="ramp acceleration (default and limit: the drive's "
+                    "max_accel_dps2)")] | None = None
+    settle: Annotated[Settle, Meta(description="when a rate counts as reached")] = Settle()
+    static_record_s: Annotated[float, Meta(
+        ge=0, le=86_400, extra={"unit": "s"},
+        description="FOG at rest per axis (noise floor)")] = 60.0
+    harmonics: Annotated[int, Meta(ge=1, le=20,
+                                   description="orders 1..H fitted in angle")] = 4
     #: resolved by the parse (`mains_of`); None: found from the data (MAINS_CANDIDATES_HZ)
-    mains_hz: Annotated[float | None, Setting(
-        Num(min=1, max=1000, unit="Hz"), "mains frequency of the lab's grid; overrides the "
-        "stand's `mains_hz` (without either, found from the data: 50 and 60 Hz are "
-        "tried)")] = None
-    axes: Annotated[Mapping[str, AxisSettings], Setting(
-        MapOf(declared_map(AxisSettings), min_len=1),
-        "the axes to certify, by their stand names", required=True)] \
-        = field(default_factory=dict)
-    #: bands by tolerance key (rate_error, ...); a key absent: reported, not judged
-    tolerance: Annotated[Mapping[str, tuple[Band, ...]], Setting(
-        declared_map(Tolerance), "what the table's maker claims, by rate band; a figure "
-        "without a band is reported, not judged")] = field(default_factory=dict)
-    mains_source: str = ""
-    decision_rule: str = "simple"
-    prompts: bool = True
-    title: str = ""
+    mains_hz: Annotated[float, Meta(
+        ge=1, le=1000, extra={"unit": "Hz"},
+        description="mains frequency of the lab's grid; overrides the stand's `mains_hz` "
+                    "(without either, found from the data: 50 and 60 Hz are "
+                    "tried)")] | None = None
+    axes: Annotated[dict[str, AxisSettings], Meta(
+        min_length=1, description="the axes to certify, by their stand names",
+        extra={"required": True})] = msgspec.field(default_factory=dict)
+    tolerance: Annotated[Tolerance, Meta(
+        description="what the table's maker claims, by rate band; a figure without a band "
+                    "is reported, not judged")] = Tolerance()
+    mains_source: Annotated[str, _SET] = ""
+    decision_rule: Annotated[str, _SET] = "simple"
+    prompts: Annotated[bool, _SET] = True
+    title: Annotated[str, _SET] = ""
 
     @classmethod
     def from_config(cls, cfg: Config) -> LadderSettings:
@@ -142,23 +159,24 @@ class LadderSettings:
 
     @classmethod
     def parse(cls, cfg: Config) -> LadderSettings:
+        """The validated file as the ladder runs it: each axis's turns (its own, else the
+        file's) and ramp acceleration (the file's, never above the drive's limit)."""
         p = cfg.procedure
-        turns = int(p.get("turns", cls.turns))
+        own = {k: v for k, v in p.items() if k in _LADDER_KEYS and v is not None}
+        turns = int(own.get("turns", DEFAULT_TURNS))
         mains_hz, mains_source = mains_of(cfg)
         stand = cfg.stand_settings
-        accel = p.get("accel_dps2")
+        accel = own.get("accel_dps2")
         axes = {}
-        for name, spec in (p.get("axes") or {}).items():
+        for name, spec in (own.pop("axes", None) or {}).items():
             limit = stand.axes[name].drive.max_accel_dps2 if name in stand.axes else 0.0
-            axes[name] = parse_declared(
-                AxisSettings, spec, name=name, turns=int(spec.get("turns", turns)),
+            axes[name] = struct_at(
+                AxisSettings, {k: v for k, v in spec.items() if v is not None},
+                ("axes", name), name=name, turns=int(spec.get("turns", turns)),
                 accel_dps2=min(float(accel), limit) if accel is not None else limit)
-        tol = parse_declared(Tolerance, p.get("tolerance") or {})
-        bands = {k: getattr(tol, k) for k in TOLERANCE_KEYS if getattr(tol, k)}
-        return parse_declared(cls, p, mains_hz=mains_hz, mains_source=mains_source,
-                              decision_rule=cfg.common.decision_rule,
-                              prompts=cfg.common.prompts, axes=axes,
-                              title=cfg.common.title, tolerance=bands)
+        return struct_at(cls, own, mains_hz=mains_hz, mains_source=mains_source,
+                         decision_rule=cfg.common.decision_rule,
+                         prompts=cfg.common.prompts, axes=axes, title=cfg.common.title)
 
     def tolerance_doc(self) -> dict[str, list[dict[str, float]]]:
         """The tolerance as the procedure file states it (result.json's `method`)."""
@@ -177,7 +195,9 @@ class LadderSettings:
                 "decision_rule": self.decision_rule}
 
 
-PROCEDURE = Map({**COMMON_PROCEDURE_KEYS, **declared_map(LadderSettings).keys})
+PROCEDURE = Map({**COMMON_PROCEDURE_KEYS, **struct_map(LadderSettings).keys})
+#: the procedure file's keys the ladder reads itself
+_LADDER_KEYS = frozenset(struct_map(LadderSettings).keys)
 
 
 #: the grids a mains tone is looked for at when neither file states the lab's
@@ -278,7 +298,7 @@ def ladder_problems(cfg: Config) -> list[Problem]:
                                     "once-per-rev pulse is too slow for auto-level)"))
         fog_range = (fog or {}).get("range_dps", DEFAULT_RANGE_DPS)
         # from the files alone: one broken stand key must not hide the other checks
-        turns = int(spec.get("turns", cfg.procedure.get("turns", LadderSettings.turns)))
+        turns = int(spec.get("turns", cfg.procedure.get("turns", DEFAULT_TURNS)))
         for i, rate in enumerate(spec["rates_dps"]):
             where = ("axes", axis, "rates_dps", i)
             if (turns + 1) * 360.0 / rate > STEP_MAX_S:
