@@ -219,7 +219,6 @@ def test_each_setting_is_declared_once_on_its_dataclass() -> None:
     one declaration per key: every declared field is a schema key with the field's own
     default, every schema key a field, and the parse turns the YAML's numbers into the
     field's type (a float field holds a float even when the file writes 490)."""
-    import dataclasses
 
     import msgspec
 
@@ -231,12 +230,16 @@ def test_each_setting_is_declared_once_on_its_dataclass() -> None:
         IDENTITY,
         SIM_KEYS,
         Calibration,
+        CommonSettings,
         CounterSettings,
         FogSettings,
         Identity,
         SimSettings,
     )
-    from bench.core.schema import Map, declared_map, struct_at, struct_map
+    from bench.core.config import (
+        COMMON_PROCEDURE_KEYS as COMMON,
+    )
+    from bench.core.schema import Map, struct_at, struct_map
     from drivers.drive_settings import DriveSettings
     from procedures.drift_pulse.settings import PROCEDURE as DRIFT
     from procedures.drift_pulse.settings import DriftFile
@@ -253,13 +256,16 @@ def test_each_setting_is_declared_once_on_its_dataclass() -> None:
             default = struct_fields[key].default
             if isinstance(default, int | float | str) and key != "controller_node_id":
                 assert spec.default == default and not spec.required, (struct, key)
-    for cls, node in ((SimSettings, Map(SIM_KEYS)),):
-        assert node == declared_map(cls), cls
-        fields = {f.name: f for f in dataclasses.fields(cls)}
+    for cls, node in ((SimSettings, Map(SIM_KEYS)), (CommonSettings, Map(COMMON))):
+        assert node == struct_map(cls), cls
+        fields = {f.encode_name: f for f in msgspec.structs.fields(cls)}
         for key, spec in node.keys.items():
             f = fields[key]
-            if f.default is not dataclasses.MISSING and isinstance(f.default, int | float | str):
+            if isinstance(f.default, int | float | str) and key not in ("procedure", "stand"):
                 assert spec.default == f.default and not spec.required, (cls, key)
+    assert "session" not in SIM_KEYS and "can_bus" not in SIM_KEYS   # set in code only
+    assert COMMON["procedure"].required and COMMON["stand"].required
+    assert not COMMON["title"].required and COMMON["title"].default is None   # given
     for key, spec in struct_map(LadderSettings).keys.items():
         assert LADDER.keys[key] == spec, (LadderSettings, key)
     for key, spec in struct_map(DriftFile).keys.items():

@@ -12,28 +12,17 @@ import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import msgspec
 from msgspec import Meta, Struct
 
 from bench.core.canbus import bus_problems
 from bench.core.schema import (
-    Any_,
-    Bool,
-    Check,
     Key,
-    ListOf,
     Map,
-    MapOf,
-    Num,
-    OneOf,
-    Setting,
     SettingsRefused,
-    Str,
-    declared_map,
     parse_date,
-    parse_declared,
     struct_at,
     struct_map,
 )
@@ -42,9 +31,7 @@ from bench.core.yamlfile import KeyPath, Problem, YamlDoc
 from drivers.calibration import Calibration
 from drivers.counter_profiles import get_profile
 from drivers.counter_settings import CounterSettings
-from drivers.drive_settings import (
-    DriveSettings,
-)
+from drivers.drive_settings import DriveSettings
 from drivers.fog_settings import FogSettings
 from sims.drive_truth import DriveTruth
 from sims.truth import AxisTruth, FogTruth, Harmonic, Mains
@@ -61,8 +48,8 @@ STEP_MAX_S = 7 * 86_400.0
 # here): each field's type, default, bounds and unit (msgspec.Meta) and meaning. The
 # block's schema (`bench validate`, `bench schema`, JSON Schema) is `struct_map` of the
 # Struct, its parse `struct_at` (bench/core/schema.py); what a Struct's own rules refuse
-# is placed at its file, line and key by `struct_problems`. The procedure keys below are
-# still frozen dataclasses declared with `Setting` (`declared_map`, `parse_declared`).
+# is placed at its file, line and key by `struct_problems`. The procedure keys every kind
+# shares (`CommonSettings`) are declared the same way.
 
 CALIBRATION = struct_map(Calibration)
 
@@ -92,12 +79,18 @@ COUNTER = struct_map(CounterSettings)
 
 
 FOG = struct_map(FogSettings)
-STAND_AXIS_KEYS: dict[str, Key] = {
-    "drive": Key(DRIVE, True, "the axis's servo drive (CANopen CiA 402)"),
-    "counter": Key(COUNTER, False, "the counter timing the zero-mark pulse, once per turn"),
-    "fog": Key(FOG, False, "the reference gyro (FOG) mounted on the axis"),
-}
-SIM_AXIS = struct_map(SimAxisFile)
+
+
+class StandAxisFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """One axis of the stand file (`axes.<axis>`), as `parse_stand` reads it into a
+    `StandAxis`."""
+
+    drive: Annotated[DriveSettings, Meta(description="the axis's servo drive (CANopen CiA "
+                                                     "402)")]
+    counter: Annotated[CounterSettings, Meta(description="the counter timing the zero-mark "
+                                                         "pulse, once per turn")] | None = None
+    fog: Annotated[FogSettings, Meta(description="the reference gyro (FOG) mounted on the "
+                                                 "axis")] | None = None
 
 
 def _absolute_path(value: object) -> str | None:
@@ -110,7 +103,6 @@ def _absolute_path(value: object) -> str | None:
     return None
 
 
-ABSOLUTE_PATH = Check(Str(), _absolute_path)
 #: a path key: text, an absolute path (the rule `_absolute_path`)
 PathKey = Annotated[str, Meta(extra={"check": _absolute_path})]
 
@@ -166,27 +158,39 @@ class BenchName(Struct, frozen=True, forbid_unknown_fields=True):
 BENCH = struct_map(BenchName)
 
 
+class StandFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The stand file's top-level keys (CONTRACT §2), each block its own Struct; a
+    procedure kind adds its own instruments (`stand_schema`)."""
+
+    stand: Annotated[Identity, Meta(description="the rate table under test")]
+    axes: Annotated[dict[str, StandAxisFile], Meta(
+        description="the table's axes, by the names procedures use",
+        extra={"check": bus_problems})]
+    sim: Annotated[SimSettings, Meta(
+        description="the twins' truth: present, the stand runs on simulated twins; absent, "
+                    "on hardware")] | None = None
+    traceability: Annotated[tuple[Traceable, ...], Meta(
+        description="references and sensors the bench does not drive, with their "
+                    "calibration certificates")] = ()
+    dcc: Annotated[StandDccFile, Meta(
+        description="DCC: lab settings file, signing key (paths only)")] | None = None
+    bench: Annotated[BenchName, Meta(
+        description="this bench among the lab's benches (the lab server's station shows "
+                    "each by its name; docs/station.md)")] | None = None
+    mains_hz: Annotated[float, Meta(
+        ge=1, le=1000, extra={"unit": "Hz"},
+        description="the lab's mains frequency (50 or 60); without it the analysis finds "
+                    "the mains tone from the data")] | None = None
+
+
 def stand_schema(extra_top: dict[str, Key] | None = None,
-                 extra_axis: dict[str, Key] | None = None,
                  extra_sim: dict[str, Key] | None = None) -> Map:
-    """The stand file's schema; a procedure kind may add instruments of its own."""
-    return Map({
-        "stand": Key(IDENTITY, True, "the rate table under test"),
-        "axes": Key(Check(MapOf(Map({**STAND_AXIS_KEYS, **(extra_axis or {})})),
-                          bus_problems), True, "the table's axes, by the names procedures "
-                    "use"),
-        "sim": Key(Map({**SIM_KEYS, **(extra_sim or {})}), False, "the twins' truth: "
-                   "present, the stand runs on simulated twins; absent, on hardware"),
-        "traceability": Key(ListOf(TRACEABLE), False, "references and sensors the bench "
-                            "does not drive, with their calibration certificates"),
-        "dcc": Key(STAND_DCC, False, "DCC: lab settings file, signing key (paths only)"),
-        "bench": Key(BENCH, False, "this bench among the lab's benches (the lab server's "
-                     "station shows each by its name; docs/station.md)"),
-        "mains_hz": Key(Num(min=1, max=1000, unit="Hz"), False,
-                        "the lab's mains frequency (50 or 60); without it the analysis "
-                        "finds the mains tone from the data"),
-        **(extra_top or {}),
-    })
+    """The stand file's schema; a procedure kind may add instruments of its own, at the
+    top and in the `sim:` block (their twins' truth)."""
+    keys = dict(struct_map(StandFile).keys)
+    sim = keys["sim"]
+    keys["sim"] = Key(Map({**SIM_KEYS, **(extra_sim or {})}), sim.required, sim.doc)
+    return Map({**keys, **(extra_top or {})})
 
 
 # -- procedure file: the keys every procedure kind shares ------------------------------
@@ -229,48 +233,51 @@ class SpecificationFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields
         description="how the document defines each figure, by tolerance key")] | None = None
 
 
-@dataclass(frozen=True, kw_only=True)
-class CommonSettings:
+class CommonSettings(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     """The procedure keys every kind shares, declared once and parsed once."""
 
     #: required in a file; "" in the procedure a command makes up (`bench devices`)
-    procedure: Annotated[str, Setting(Str(), "the procedure kind (bench schema procedure "
-                                             "KIND)", required=True)] = ""
+    procedure: Annotated[str, Meta(description="the procedure kind (bench schema procedure "
+                                               "KIND)", extra={"required": True})] = ""
     #: resolved by the parse: the file's, else the file name
-    title: Annotated[str, Setting(Str(), "printed on the plan and the certificate (default: "
-                                         "the file name)", required=False)]
-    stand: Annotated[str, Setting(Str(), "stand file, relative to this file",
-                                  required=True)] = ""
-    conditions: Annotated[Mapping[str, Any], Setting(
-        MapOf(Any_()), "recorded conditions, printed on the certificate")] \
-        = field(default_factory=dict)
-    certificate: Annotated[Mapping[str, Any], Setting(
-        MapOf(Any_()), "customer, laboratory, ... for the certificate")] \
-        = field(default_factory=dict)
-    decision_rule: Annotated[str, Setting(
-        Str(("simple", "guard-band")), "how a verdict is decided against the tolerance "
-        "(ILAC-G8): simple acceptance or a guard band")] = "simple"
-    prompts: Annotated[bool, Setting(Bool(), "ask the operator before each axis (mount the "
-                                             "FOG...); --yes answers")] = True
-    calibration_state: Annotated[str | None, Setting(
-        Str(("as-found", "as-left")), "as-found before an adjustment, as-left after (the "
-        "records pair them; --as-found/--as-left win)")] = None
-    adjustment_note: Annotated[str | None, Setting(
-        Str(), "what was adjusted since the as-found run")] = None
-    item: Annotated[Mapping[str, Any] | None, Setting(struct_map(ItemFile), (
-        "the item as received and as left; each part left out is printed 'not stated' "
-        "(docs/certificate.md)"))] = None
-    decision_rule_agreement: Annotated[Mapping[str, Any] | None, Setting(
-        struct_map(AgreementFile), "the customer's agreement to decision_rule (ISO/IEC "
-        "17025 7.1.3); without it the certificate says 'not stated'")] = None
-    operator: Annotated[str | None, Setting(
-        Str(), "who runs the procedure (default: the login name)")] = None
-    specification: Annotated[Mapping[str, Any] | None, Setting(
-        struct_map(SpecificationFile), "where the tolerances come from; printed with the "
-        "statement of conformity")] = None
+    title: Annotated[str, Meta(description="printed on the plan and the certificate "
+                                           "(default: the file name)",
+                               extra={"given": True})]
+    stand: Annotated[str, Meta(description="stand file, relative to this file",
+                               extra={"required": True})] = ""
+    conditions: Annotated[dict[str, Any], Meta(
+        description="recorded conditions, printed on the certificate")] \
+        = msgspec.field(default_factory=dict)
+    certificate: Annotated[dict[str, Any], Meta(
+        description="customer, laboratory, ... for the certificate")] \
+        = msgspec.field(default_factory=dict)
+    decision_rule: Annotated[Literal["simple", "guard-band"], Meta(
+        description="how a verdict is decided against the tolerance (ILAC-G8): simple "
+                    "acceptance or a guard band")] = "simple"
+    prompts: Annotated[bool, Meta(description="ask the operator before each axis (mount the "
+                                              "FOG...); --yes answers")] = True
+    calibration_state: Annotated[Literal["as-found", "as-left"], Meta(
+        description="as-found before an adjustment, as-left after (the records pair them; "
+                    "--as-found/--as-left win)")] | None = None
+    adjustment_note: Annotated[str, Meta(
+        description="what was adjusted since the as-found run")] | None = None
+    # the certificate reads these three as the file writes them: mappings, their keys
+    # declared by the blocks' Structs
+    item: Annotated[dict[str, Any], Meta(
+        description="the item as received and as left; each part left out is printed 'not "
+                    "stated' (docs/certificate.md)", extra={"written": ItemFile})] | None = None
+    decision_rule_agreement: Annotated[dict[str, Any], Meta(
+        description="the customer's agreement to decision_rule (ISO/IEC 17025 7.1.3); "
+                    "without it the certificate says 'not stated'",
+        extra={"written": AgreementFile})] | None = None
+    operator: Annotated[str, Meta(
+        description="who runs the procedure (default: the login name)")] | None = None
+    specification: Annotated[dict[str, Any], Meta(
+        description="where the tolerances come from; printed with the statement of "
+                    "conformity", extra={"written": SpecificationFile})] | None = None
 
 
-COMMON_PROCEDURE_KEYS: dict[str, Key] = dict(declared_map(CommonSettings).keys)
+COMMON_PROCEDURE_KEYS: dict[str, Key] = dict(struct_map(CommonSettings).keys)
 
 
 def _opt(spec: dict[str, Any], key: str, cast: Any) -> Any:
@@ -381,24 +388,26 @@ class SimAxis:
 DEFAULT_SIM_AXIS = SimAxis(AxisTruth(fog=FogTruth(noise_dps=0.01), turn_jitter_s=27e-9))
 
 
-@dataclass(frozen=True, kw_only=True)
-class SimSettings:
+class SimSettings(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     """The stand's `sim:` block: the twins' truth (absent on a real bench)."""
 
-    seed: Annotated[int, Setting(Num(min=0, integer=True), "the twins' random seed: a "
-                                 "run's numbers depend on it and the files alone")] = 0
-    clock_speed: Annotated[float | str | None, Setting(
-        OneOf(Num(min=0, exclusive_min=True), Str(("max",))),
-        "virtual seconds per real one, or max: as fast as every twin keeps up")] = None
-    #: parsed by `_sim_axis` (each truth's default is its dataclass field's)
-    axes: Annotated[Mapping[str, SimAxis], Setting(
-        MapOf(SIM_AXIS), "each axis's truth, by stand axis name")] \
-        = field(default_factory=dict)
-    run_number: Annotated[int | None, Setting(
-        Num(min=1, integer=True), "this run's number for a drifting twin (default: 1 + "
-        "the runs of this table in the records)")] = None
-    can_bus: str = "virtual"          # `bench sim`: "socketcand", served to other processes
-    session: int = 1                  # set for a --resume: the session these twins serve
+    seed: Annotated[int, Meta(ge=0, description="the twins' random seed: a run's numbers "
+                                                "depend on it and the files alone")] = 0
+    clock_speed: Annotated[float, Meta(gt=0, description=(
+        "virtual seconds per real one, or max: as fast as every twin keeps up"))] \
+        | Literal["max"] | None = None
+    #: written as SimAxisFile, parsed by `_sim_axis` (each truth's default is its
+    #: dataclass field's)
+    axes: Annotated[dict[str, SimAxis], Meta(
+        description="each axis's truth, by stand axis name",
+        extra={"written": dict[str, SimAxisFile]})] = msgspec.field(default_factory=dict)
+    run_number: Annotated[int, Meta(ge=1, description="this run's number for a drifting twin "
+                                    "(default: 1 + the runs of this table in the "
+                                    "records)")] | None = None
+    #: `bench sim`: "socketcand", served to other processes
+    can_bus: Annotated[str, Meta(extra={"file": False})] = "virtual"
+    #: set for a --resume: the session these twins serve
+    session: Annotated[int, Meta(extra={"file": False})] = 1
 
     def axis(self, name: str) -> SimAxis:
         return self.axes.get(name, DEFAULT_SIM_AXIS)
@@ -408,7 +417,7 @@ class SimSettings:
         return any(a.scale_step or a.scale_ramp for a in self.axes.values())
 
 
-SIM_KEYS: dict[str, Key] = dict(declared_map(SimSettings).keys)
+SIM_KEYS: dict[str, Key] = dict(struct_map(SimSettings).keys)
 
 
 @dataclass(frozen=True)
@@ -517,9 +526,11 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
             struct_at(FogSettings, f, ("axes", name, "fog")) if f else None)
     sim = None
     if "sim" in stand:
-        s = stand["sim"] or {}
-        sim = parse_declared(SimSettings, s, axes={n: _sim_axis(v or {}, ("sim", "axes", n))
-                                                   for n, v in (s.get("axes") or {}).items()})
+        s = stand["sim"] or {}   # a kind's own keys beside (a platform's truth): its parse
+        sim = struct_at(SimSettings, {k: v for k, v in s.items()
+                                      if k in SIM_KEYS and k != "axes" and v is not None},
+                        ("sim",), axes={n: _sim_axis(v or {}, ("sim", "axes", n))
+                                        for n, v in (s.get("axes") or {}).items()})
     trace = tuple(struct_at(Traceable, t, ("traceability", i))
                   for i, t in enumerate(stand.get("traceability") or []))
     return StandSettings(
@@ -532,8 +543,11 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
 
 
 def parse_common(procedure: Mapping[str, object], path: Path) -> CommonSettings:
-    return parse_declared(CommonSettings, procedure,
-                          title=str(procedure.get("title", path.stem)))
+    """The shared keys of a validated procedure (a kind's own keys are its parse's; a key
+    written null takes its default)."""
+    return struct_at(CommonSettings, {k: v for k, v in procedure.items()
+                                      if k in COMMON_PROCEDURE_KEYS and v is not None},
+                     title=str(procedure.get("title", path.stem)))
 
 
 @dataclass(frozen=True)

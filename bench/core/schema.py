@@ -578,7 +578,9 @@ def struct_map(cls: type[msgspec.Struct]) -> Map:
     the one declaration, as `declared_map` reads a dataclass's. `Meta.extra["given"]`:
     the loader gives the value when the file leaves the key out (no default shown);
     `Meta.extra["required"]`: a file must write the key, an object made in code need not;
-    `Meta.extra["file"] = False`: not a key of this block (the file states it elsewhere)."""
+    `Meta.extra["file"] = False`: not a key of this block (the file states it elsewhere);
+    `Meta.extra["written"]`: the type the file writes the key as, where the object holds
+    what the parse makes of it (the twins' truth from `sim.axes`, a block kept as written)."""
     keys: dict[str, Key] = {}
     for f in msgspec.structs.fields(cls):   # its types resolved, with their Annotated
         tp = f.type
@@ -591,7 +593,9 @@ def struct_map(cls: type[msgspec.Struct]) -> Map:
         given = bool(extra.get("given"))
         required = (f.required and not given) or bool(extra.get("required"))
         default = f.default if f.default is not msgspec.NODEFAULT else None
-        keys[f.encode_name] = Key(_struct_node(tp, []), required,
+        written = extra.get("written")
+        keys[f.encode_name] = Key(_struct_node(tp if written is None else written, []),
+                                  required,
                                   _meta(metas, "description") or "",
                                   None if required or given else _shown(default))
     return Map(keys)

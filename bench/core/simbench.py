@@ -71,7 +71,7 @@ def with_sim(cfg: Config, **changes: Unpack[SimChanges]) -> Config:
     """`cfg` whose parsed stand has its `sim:` settings changed (a copy; the stand file's
     own mapping, copied into the run directory, stays as written)."""
     stand = cfg.stand_settings
-    sim = dataclasses.replace(stand.sim or SimSettings(), **changes)
+    sim = msgspec.structs.replace(stand.sim or SimSettings(), **changes)
     out = dataclasses.replace(cfg)
     out.__dict__["stand_settings"] = dataclasses.replace(stand, sim=sim)
     return out

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import msgspec
+
 from bench.core.config import SimSettings, StandSettings
 
 DRIFT_KEYS = ("scale_step", "scale_ramp")
@@ -51,4 +53,4 @@ def drifted(sim: SimSettings, run_number: int) -> tuple[SimSettings, list[str]]:
         axes[axis] = dataclasses.replace(a, truth=dataclasses.replace(a.truth, fog=fog),
                                          scale_step=None, scale_ramp=None)
         notes.append(f"sim: axis {axis} FOG scale x (1 {rel:+.3g}) in run {run_number}")
-    return dataclasses.replace(sim, axes=axes), notes
+    return msgspec.structs.replace(sim, axes=axes), notes
