@@ -174,9 +174,11 @@ class LadderSettings(Struct, frozen=True, kw_only=True, forbid_unknown_fields=Tr
                 AxisSettings, {k: v for k, v in spec.items() if v is not None},
                 ("axes", name), name=name, turns=int(spec.get("turns", turns)),
                 accel_dps2=min(float(accel), limit) if accel is not None else limit)
-        return struct_at(cls, own, mains_hz=mains_hz, mains_source=mains_source,
-                         decision_rule=cfg.common.decision_rule,
-                         prompts=cfg.common.prompts, axes=axes, title=cfg.common.title)
+        parsed = struct_at(cls, own, mains_hz=mains_hz, mains_source=mains_source,
+                           decision_rule=cfg.common.decision_rule,
+                           prompts=cfg.common.prompts, title=cfg.common.title)
+        # the axes set after: a procedure a command makes up names none (`bench devices`)
+        return msgspec.structs.replace(parsed, axes=axes)
 
     def tolerance_doc(self) -> dict[str, list[dict[str, float]]]:
         """The tolerance as the procedure file states it (result.json's `method`)."""
