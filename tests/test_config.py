@@ -214,12 +214,11 @@ def test_the_stand_parses_into_frozen_settings_with_one_default_each() -> None:
     assert FOG.keys["sign"].default == 1
 
 
-def test_each_setting_is_declared_once_on_its_dataclass() -> None:
+def test_each_setting_is_declared_once_on_its_struct() -> None:
     """The schema (`bench validate`, `bench schema`, JSON Schema) and the parse come from
     one declaration per key: every declared field is a schema key with the field's own
     default, every schema key a field, and the parse turns the YAML's numbers into the
     field's type (a float field holds a float even when the file writes 490)."""
-
     import msgspec
 
     from bench.core.config import (

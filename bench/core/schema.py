@@ -4,21 +4,19 @@ A schema node checks one value and reports every problem it finds (not just the
 first) as a `Problem` naming file, line and key path. Unknown keys are refused: a
 misspelt `turnz: 50` must not silently fall back to a default on a day-long run.
 
-A setting is declared once. The stand's instruments (drivers/drive_settings.py,
-drivers/calibration.py) are msgspec Structs: each field's type, default, bounds
-(`Meta(ge=..)`), unit (`Meta(extra={"unit": ..})`) and meaning (`Meta(description=..)`).
-`struct_map` derives the file's schema from the Struct (so `bench validate`, `bench
-schema` and the JSON Schema read the same declaration) and `struct_at` builds the object
-with msgspec, placing what msgspec or a rule of the Struct refuses (its `$.a.b` path) at
-the file's line and key. The older declarations are frozen dataclasses whose fields carry
-a `Setting` in their `Annotated` type (`declared_map`, `parse_declared`). Either way the
-check is this module's nodes: they report every problem of a file (msgspec stops at the
-first) at its file, line and key, with the messages the tests and the operators know.
+A setting is declared once, as a field of a msgspec Struct (the stand's instruments in
+drivers/, the twins' truth in bench/core/stand_sim.py, the stand file, the lab file and
+each procedure kind's keys): the field's type, default, bounds (`Meta(ge=..)`), unit
+(`Meta(extra={"unit": ..})`) and meaning (`Meta(description=..)`). `struct_map` derives
+the file's schema from the Struct (so `bench validate`, `bench schema` and the JSON Schema
+read the same declaration) and `struct_at` builds the object with msgspec, placing what
+msgspec or a rule of the Struct refuses (its `$.a.b` path) at the file's line and key.
+The check is this module's nodes: they report every problem of a file (msgspec stops at
+the first) at its file, line and key, with the messages the tests and the operators know.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import datetime as dt
 import functools
 import math
@@ -372,81 +370,9 @@ def merge(a: Node, b: Node) -> Node:
     return OneOf(a, b)
 
 
-# -- settings declared once, on their dataclass ------------------------------------------
+# -- settings declared once, as msgspec Structs --------------------------------------------
 
-T = TypeVar("T")
 S = TypeVar("S", bound=msgspec.Struct)
-
-
-@dataclass(frozen=True)
-class Setting:
-    """A dataclass field's YAML key: its schema node (None: from the field's type), what
-    it means, and whether it must be written (None: when the field has no default).
-
-    `required=False` on a field without a default: the file may leave the key out and
-    the parser is given the value (resolved from other keys, e.g. a controller node id).
-    `required=True` on a field with a default: a file must write it, an object made up
-    in code need not (a required key shows no default in the reference).
-    """
-
-    node: Node | None = None
-    doc: str = ""
-    required: bool | None = None
-    #: the YAML key, where the field's name cannot be it
-    key: str | None = None
-
-
-def _declared(tp: object) -> type | None:
-    """The class when `tp` is a dataclass whose fields declare settings."""
-    if isinstance(tp, type) and dataclasses.is_dataclass(tp) and _settings(tp):
-        return tp
-    return None
-
-
-_Declared = tuple[tuple[dataclasses.Field[object], object, Setting], ...]
-_DECLARED: dict[type, _Declared] = {}
-
-
-def _settings(cls: type) -> _Declared:
-    """(field, its type without the annotation, its Setting) of each declared field."""
-    if cls in _DECLARED:
-        return _DECLARED[cls]
-    hints = typing.get_type_hints(cls, include_extras=True)
-    out = []
-    for f in dataclasses.fields(cls):
-        hint = hints[f.name]
-        if typing.get_origin(hint) is typing.Annotated:
-            found = [m for m in hint.__metadata__ if isinstance(m, Setting)]
-            if found:
-                out.append((f, hint.__origin__, found[0]))
-    _DECLARED[cls] = tuple(out)
-    return _DECLARED[cls]
-
-
-def _without_none(tp: object) -> object:
-    if typing.get_origin(tp) in (typing.Union, types.UnionType):
-        args = [a for a in typing.get_args(tp) if a is not type(None)]
-        if len(args) == 1:
-            return args[0]
-    return tp
-
-
-def _node_of(tp: object) -> Node:
-    """The schema node a field's type implies when its Setting names none."""
-    tp = _without_none(tp)
-    inner = _declared(tp)
-    if inner is not None:
-        return declared_map(inner)
-    if isinstance(tp, type) and issubclass(tp, msgspec.Struct):
-        return struct_map(tp)
-    origin, args = typing.get_origin(tp), typing.get_args(tp)
-    if origin in (Mapping, dict) and len(args) == 2:
-        return MapOf(_node_of(args[1]))
-    if origin is tuple and len(args) == 2 and args[1] is Ellipsis:
-        return ListOf(_node_of(args[0]))
-    plain: dict[object, Node] = {str: Str(), bool: Bool(), int: Num(integer=True),
-                                 float: Num(), dt.date: Date()}
-    return plain.get(tp, Any_())
 
 
 def _shown(default: object) -> object:
@@ -457,65 +383,6 @@ def _shown(default: object) -> object:
         return default
     return None
 
-
-@functools.cache
-def declared_map(cls: type) -> Map:
-    """The schema of a mapping whose keys are `cls`'s declared fields, in their order."""
-    keys: dict[str, Key] = {}
-    for f, tp, s in _settings(cls):
-        has_default = (f.default is not dataclasses.MISSING
-                       or f.default_factory is not dataclasses.MISSING)
-        default = (f.default if f.default is not dataclasses.MISSING
-                   else f.default_factory() if f.default_factory is not dataclasses.MISSING
-                   else None)
-        required = not has_default if s.required is None else s.required
-        keys[s.key or f.name] = Key(s.node or _node_of(tp), required, s.doc,
-                                    None if required else _shown(default))
-    return Map(keys)
-
-
-def _convert(tp: object, value: object) -> object:
-    """A validated YAML value as the field's type (a float field gets a float, not the
-    YAML's int; a nested declared class its object)."""
-    tp = _without_none(tp)
-    inner = _declared(tp)
-    origin, args = typing.get_origin(tp), typing.get_args(tp)
-    if inner is not None and isinstance(value, Mapping):
-        return parse_declared(inner, value)
-    if isinstance(tp, type) and issubclass(tp, msgspec.Struct) and isinstance(value, Mapping):
-        return msgspec.convert(value, tp)
-    if isinstance(tp, type) and dataclasses.is_dataclass(tp) and isinstance(value, Mapping):
-        return tp(**{str(k): v for k, v in value.items()})   # a driver's own (TimeTie)
-    if origin is tuple and len(args) == 2 and args[1] is Ellipsis \
-            and isinstance(value, list | tuple):
-        return tuple(_convert(args[0], v) for v in value)
-    if origin in (Mapping, dict) and len(args) == 2 and isinstance(value, Mapping):
-        return {str(k): _convert(args[1], v) for k, v in value.items()}
-    if tp is dt.date:
-        return parse_date(value)
-    if isinstance(value, int | float | str | bool):
-        if tp is float:
-            return float(value)
-        if tp is int:
-            return int(value)
-        if tp is str:
-            return str(value)
-    return value
-
-
-def parse_declared(cls: type[T], data: Mapping[str, object], **given: object) -> T:
-    """`cls` from a validated mapping: each declared key as written, else the field's
-    default; `given` values (resolved elsewhere) win. A key left out or null takes the
-    default."""
-    kwargs: dict[str, object] = dict(given)
-    for f, tp, s in _settings(cls):
-        value = data.get(s.key or f.name)
-        if f.name not in given and value is not None:
-            kwargs[f.name] = _convert(tp, value)
-    return cls(**kwargs)
-
-
-# -- settings declared once, as msgspec Structs --------------------------------------------
 
 def _metas(tp: object) -> tuple[object, list[msgspec.Meta]]:
     """A type without its `Annotated` layers, and their msgspec.Meta (outermost last)."""
@@ -568,14 +435,15 @@ def _bare_node(tp: object, metas: list[msgspec.Meta]) -> Node:
         return MapOf(_struct_node(args[1], []), _meta(metas, "min_length") or 0)
     if origin in (tuple, list) and args:
         return ListOf(_struct_node(args[0], []), _meta(metas, "min_length") or 0)
-    return _node_of(tp)
+    plain: dict[object, Node] = {bool: Bool(), dt.date: Date()}
+    return plain.get(tp, Any_())
 
 
 @functools.cache
 def struct_map(cls: type[msgspec.Struct]) -> Map:
     """The schema of a mapping whose keys are `cls`'s fields, in their order: each key's
     node, meaning (`Meta.description`), unit (`Meta.extra["unit"]`) and default read from
-    the one declaration, as `declared_map` reads a dataclass's. `Meta.extra["given"]`:
+    the one declaration. `Meta.extra["given"]`:
     the loader gives the value when the file leaves the key out (no default shown);
     `Meta.extra["required"]`: a file must write the key, an object made in code need not;
     `Meta.extra["file"] = False`: not a key of this block (the file states it elsewhere);
