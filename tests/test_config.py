@@ -318,3 +318,18 @@ def test_the_twins_point_a_copy_of_the_parsed_stand_at_themselves() -> None:
                                                               stated.counter.model)
     finally:
         simbench.stop()
+
+
+def test_a_number_written_as_a_key_is_the_key_as_text(tmp_path: Path) -> None:
+    """The schema accepts `20: C` under conditions and names its key "20"; the parse
+    (msgspec, whose dict[str, ...] refuses an int key) reads it as the same text."""
+    import yaml
+
+    from bench.core.loader import load_config
+
+    doc = yaml.safe_load((CONFIGS / "procedures" / "demo.yaml").read_text())
+    doc["stand"] = str((CONFIGS / "procedures" / doc["stand"]).resolve())
+    doc["conditions"] = {20: "C", "humidity": 40}
+    (tmp_path / "p.yaml").write_text(yaml.safe_dump(doc))
+    cfg = load_config(tmp_path / "p.yaml")
+    assert dict(cfg.common.conditions) == {"20": "C", "humidity": 40}

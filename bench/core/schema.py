@@ -505,12 +505,23 @@ def _refused(e: msgspec.ValidationError, at: KeyPath,
     return SettingsRefused(tuple(path), message)
 
 
+def _text_keys(value: object) -> object:
+    """A YAML value with its mappings' keys as text (`20: C` is the key "20"): the nodes
+    accept any key and name it as text, so the object does too."""
+    if isinstance(value, dict):
+        return {str(k): _text_keys(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_text_keys(v) for v in value]
+    return value
+
+
 def struct_at(cls: type[S], data: Mapping[str, object], at: KeyPath = (),
               **given: object) -> S:
     """`cls` from a validated YAML mapping (`given` values win); SettingsRefused names
     the key path under `at` of what msgspec or a rule of `cls` refused."""
     try:
-        return msgspec.convert({**data, **given}, cls)
+        return msgspec.convert({**{str(k): _text_keys(v) for k, v in data.items()},
+                                **given}, cls)
     except msgspec.ValidationError as e:
         raise _refused(e, at, tuple(f.encode_name for f in msgspec.structs.fields(cls))) \
             from None
