@@ -21,7 +21,10 @@ includes the busy thread's). Socket pair 1650-2300 MB/s, 0.1 CPU s per 400 MB; w
 580-1060 MB/s. At 65 MB/s the ladder's FOG bytes alone take 58 s of wall time (the issue's
 goal for the whole ladder is 60 s) and ~16 CPU s in the channel; through a socket pair
 2-7 s and < 1 CPU s. A pty's slave gives no more a call by other means: os.splice from it
-returns 4095 bytes, os.sendfile from it fails with EINVAL (kernel 6.18).
+returns 4095 bytes, os.sendfile from it fails with EINVAL (kernel 6.18). In the whole
+paper ladder a socket pair instead of the pty saved ~11 s of system time and no wall
+time at load 13-34 (benchmarks/bench_ladder.py, 29 Nov 2026): there the channel is
+not what sets the pace.
 """
 
 from __future__ import annotations

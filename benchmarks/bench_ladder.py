@@ -141,17 +141,19 @@ the ladder's 106 M frames, paid twice: the live reader and the worker's re-decod
 capture), a third of it the CRC's table gathers (33 ns a frame at best; a flat table, a
 transposed index, larger joined buffers and one-pass field extraction were tried on the
 decoder, bit for bit the same, none faster). SHA-256 of the captures ~1 GB/s (~4 CPU s).
-What sets the pace is the pty: benchmarks/bench_fog_channel.py moves 56-72 MB/s through
-a pty at this load (1.5-2 CPU s per 400 MB), and 6-20 MB/s while another thread holds the
-interpreter lock half the time (the stepping thread does), against 0.6-2.3 GB/s through a
-socket pair. The ladder's 3.8 GB of FOG frames at 65 MB/s are 58 s of wall time, about the
-issue's whole 60 s budget; at 25 MB/s they are the measuring phase's 150 s. The pty's
-slave is read through n_tty's 4 kB buffer, one kernel-worker round trip and one return
-of the interpreter lock a read: os.splice from the slave also returns 4095 bytes a call,
-and sendfile from it is refused (EINVAL), so no single call moves more. Meeting 60 s
-needs the co-simulation's FOG bytes off the pty (a socket pair or a pump process that
-needs no interpreter lock), or fewer bytes: a design decision (the instruments' port
-names are in result.json: /dev/pts/N today).
+The pty alone (benchmarks/bench_fog_channel.py): 56-72 MB/s at this load (1.5-2 CPU s per
+400 MB), 6-31 MB/s while another thread holds the interpreter lock half the time, against
+0.6-2.3 GB/s through a socket pair: its 4 kB n_tty reads (os.splice from the slave also
+returns 4095 bytes a call; os.sendfile from it: EINVAL) made it the suspect. Tried, not
+kept (19:32-19:45, interleaved, load 13-34): the FOG twin and driver on a Unix socket
+pair instead of the pty (an experiment, not committed): 370.6 s wall, 160.6 + 30.5 = 191.1
+CPU s, measuring 279.5 s, against the pty's 353.1 s, 157.7 + 42.0 = 199.7 CPU s,
+measuring 270.4 s. The socket pair saved ~11 s of system time and no wall time here:
+the channel is not what sets the pace under this load, the CPU work of every thread is
+(at load 13-34 a 2-core VM gives the run a fraction of a core). Both runs' result.json
+equal the reference's value for value but for the FOG port's name in
+instruments.*.fog (the raw captures' digests equal): that text carries /dev/pts/N, which
+follows the machine's other ptys, not the seed.
 
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
