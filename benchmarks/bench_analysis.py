@@ -16,6 +16,13 @@ integrals 0.13. The Gram products alone take as long as the whole numpy pass, an
 last bits (the chunk, BLAS's kernel) are result.json's: 0.9x needs the rest in < 0.09 s,
 or a change of the numbers' last digits. Tried, the same numbers, no gain measured: the
 pointwise rows in cache-sized blocks of 8192; one read of a chunk on disk instead of two.
+29 Nov 2026, 19:00 (helper-23, load 8.6-12.7, six other agents; `--repeat 3`): the
+analysis 29.5 s wall but 4.36 s CPU (best of 3: 8.3 M samples/s of CPU), the numpy pass
+6.66 s wall; the process had 16 % of a core over the run, so the printed 0.23x compares
+two waits for a core, not the code (a stray benchmark process of mine also held ~a
+quarter of a core then). Not worked on further: the paper ladder's analysis
+worker was 42.8 of ~250 CPU s in the profiled ladder, and most of that is decoding the
+captures again and writing the windows' scratch files, not this maths.
 """
 
 from __future__ import annotations

@@ -124,6 +124,37 @@ Monte Carlo run once: the whole paper ladder's result.json and raw captures unch
 (load 8-14). Tried and dropped: the acquisition's clock sleeps a whole turn instead of a
 quarter (fewer drains of the FOG channel) changed result.json and the raw captures.
 
+29 Nov 2026, 18:37-18:55 (helper-23, issue 62; main dd8a4c7; this VM shared with six
+agents, load 0.5 rising to 8-9 during the reference run, 12-22 during the profiles: CPU
+seconds are the figures to use). `bench run` of the paper ladder under /usr/bin/time -v:
+201.7 s wall, user 116.7 + system 37.0 = 153.7 CPU s, max RSS 257 MB (the largest
+process); phases: starting 4.8 s, measuring 165.0 s, the last analyses 0.2 s, writing the
+outputs 30.8 s. `--profile` (cProfile, load ~15; 429 s wall): CPU s by thread: bench
+thread 99.8 (cumulative: the stand's samples 49.9, the FOG twins' encoding 31.9, the
+drive twins' ticks 27.1, all inflated by cProfile), analysis worker 42.8, FOG readers
+41.8, FOG twin writers 20.1, CAN 18.0; the clock waited 131 s of real time for the
+participants (the FOG channel) to settle. Without a profiler (/tmp micro-benchmark of
+the same AxisModel and FogTwin code, no pty): the stand and the encoding cost 1.1 CPU s
+per 3600 s of bench time for both axes, ~32 CPU s for the ladder's 105,531 s (a resting
+axis 0.04 s per 1000 s, a turning one ~0.25 s). Decoding: ~14 M frames/s (~7.5 CPU s for
+the ladder's 106 M frames, paid twice: the live reader and the worker's re-decode of the
+capture), a third of it the CRC's table gathers (33 ns a frame at best; a flat table, a
+transposed index, larger joined buffers and one-pass field extraction were tried on the
+decoder, bit for bit the same, none faster). SHA-256 of the captures ~1 GB/s (~4 CPU s).
+The pty alone (benchmarks/bench_fog_channel.py): 56-72 MB/s at this load (1.5-2 CPU s per
+400 MB), 6-31 MB/s while another thread holds the interpreter lock half the time, against
+0.6-2.3 GB/s through a socket pair: its 4 kB n_tty reads (os.splice from the slave also
+returns 4095 bytes a call; os.sendfile from it: EINVAL) made it the suspect. Tried, not
+kept (19:32-19:45, interleaved, load 13-34): the FOG twin and driver on a Unix socket
+pair instead of the pty (an experiment, not committed): 370.6 s wall, 160.6 + 30.5 = 191.1
+CPU s, measuring 279.5 s, against the pty's 353.1 s, 157.7 + 42.0 = 199.7 CPU s,
+measuring 270.4 s. The socket pair saved ~11 s of system time and no wall time here:
+the channel is not what sets the pace under this load, the CPU work of every thread is
+(at load 13-34 a 2-core VM gives the run a fraction of a core). Both runs' result.json
+equal the reference's value for value but for the FOG port's name in
+instruments.*.fog (the raw captures' digests equal): that text carries /dev/pts/N, which
+follows the machine's other ptys, not the seed.
+
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
 the FOG twins' encoding, the drive twins' ticks: split by cProfile), the FOG twins'
