@@ -25,7 +25,7 @@ from typing import Any
 
 import pytest
 
-pytest_plugins = ["tests.netguard", "tests.schedule"]
+pytest_plugins = ["tests.netguard", "tests.schedule", "tests.filetimes"]
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
