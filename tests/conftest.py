@@ -25,7 +25,7 @@ from typing import Any
 
 import pytest
 
-pytest_plugins = ["tests.netguard", "tests.schedule"]
+pytest_plugins = ["tests.netguard", "tests.schedule", "tests.filetimes"]
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
@@ -105,11 +105,24 @@ def _env_without_lab() -> dict[str, str]:
     return {k: v for k, v in os.environ.items() if k != ENV_LAB}
 
 
-def bench(*args: str, timeout: float = 240) -> subprocess.CompletedProcess[str]:
+def env_as_shipped() -> dict[str, str]:
+    """`_env_without_lab` with the certificate's figure workers as the bench has them
+    outside the suite (`figure_workers` below): for the runs that stand for the shipped
+    commands (the session's demo runs, the determinism test's loaded runs)."""
+    env = _env_without_lab()
+    if env.pop(_FIGURE_WORKERS_MARK, None):
+        env.pop(ENV_FIGURE_WORKERS, None)
+    return env
+
+
+def bench(*args: str, timeout: float = 240, env: dict[str, str] | None = None
+          ) -> subprocess.CompletedProcess[str]:
     """`bench ARGS` in a subprocess, as an operator starts it (its own interpreter, signal
-    handlers and twins), from the checkout, without the developer's lab file."""
+    handlers and twins), from the checkout, without the developer's lab file (`env`, if
+    given, is the whole environment)."""
     return subprocess.run([sys.executable, "-m", "bench", *args], cwd=ROOT, text=True,
-                          capture_output=True, timeout=timeout, env=_env_without_lab())
+                          capture_output=True, timeout=timeout,
+                          env=_env_without_lab() if env is None else env)
 
 
 def bench_bg(*args: str) -> subprocess.Popen[str]:
@@ -211,8 +224,10 @@ class DemoRun:
 
 
 def _demo_run(procedure: str, out: Path) -> DemoRun:
+    """The shipped example as an operator runs it, its figures drawn beside the PDF as the
+    bench does by default (`env_as_shipped`)."""
     done = bench("run", str(CONFIGS / "procedures" / procedure), "--yes", "--out", str(out),
-                 timeout=300)
+                 timeout=300, env=env_as_shipped())
     run_dir = run_dir_of(done)
     result_file = run_dir / "result.json"
     result = json.loads(result_file.read_text()) if result_file.exists() else {}
@@ -337,6 +352,51 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addini(BASELINE_SETTING, "check runs in the session's control_baseline fixture "
                   "(tests/conftest.py); the control charts' tests need at least the "
                   "records' BASELINE_RUNS (default: that number)", default=None)
+    parser.addini(FIGURE_WORKERS_SETTING, "the certificate's figure workers "
+                  f"({ENV_FIGURE_WORKERS}) in the suite's runs but the shipped demos' "
+                  "(tests/conftest.py env_as_shipped); unset: the bench's default",
+                  default=None)
+
+
+#: the pytest setting (`[tool.pytest.ini_options]`, or `-o NAME=N`) that sets how many
+#: worker processes draw a certificate's figures in the suite's runs
+FIGURE_WORKERS_SETTING = "figure_workers"
+#: bench/app/certificate/figures.py's variable (not imported: this module loads first)
+ENV_FIGURE_WORKERS = "BENCH_FIGURE_WORKERS"
+#: set beside it when the suite set it (a developer's own value is left alone); the
+#: workers of pytest-xdist inherit both from the controller
+_FIGURE_WORKERS_MARK = "RATEBENCH_SUITE_SET_FIGURE_WORKERS"
+_SET_HERE: list[bool] = []     # this process set them (and unsets them at its end)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """The figure workers of `figure_workers` for every run the suite makes, in this
+    process and in each `bench` it starts: a spawned worker costs each certificate an
+    interpreter and matplotlib's import (a check run's CPU 16-18 s with one, 10-12 s
+    without, the same PNGs), and on a machine whose cores the suite's own workers already
+    keep busy it draws nothing sooner. The shipped demos keep the bench's default
+    (`env_as_shipped`), so the drawing beside the PDF is still run and compared
+    (tests/test_determinism.py)."""
+    value = config.getini(FIGURE_WORKERS_SETTING)
+    if value in (None, "") or ENV_FIGURE_WORKERS in os.environ:
+        return                # unset, or set by the developer or by the controller
+    try:
+        workers = int(str(value))
+    except ValueError:
+        workers = -1
+    if workers < 0:
+        raise pytest.UsageError(f"{FIGURE_WORKERS_SETTING} = {value!r}: a number of worker "
+                                "processes, 0 or more")
+    os.environ[ENV_FIGURE_WORKERS] = str(workers)
+    os.environ[_FIGURE_WORKERS_MARK] = "1"
+    _SET_HERE.append(True)
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    if _SET_HERE:
+        os.environ.pop(ENV_FIGURE_WORKERS, None)
+        os.environ.pop(_FIGURE_WORKERS_MARK, None)
+        _SET_HERE.clear()
 
 
 def baseline_runs(config: pytest.Config) -> int:

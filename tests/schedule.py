@@ -17,31 +17,39 @@ import pytest
 
 #: the files that take longest, about longest first, with the CPU seconds each took alone
 #: (`-n 0`, setup and calls, the session's shared runs it made itself left out; measured on
-#: a shared 2-core machine at load 2-10, 29 Nov 2026: CI's fresh clone, with the other
-#: worker beside it, takes 1.5-3 times as long): their order is what counts. The
+#: a shared 2-core machine at load 2-10, 29 Nov 2026, before the suite's certificates drew
+#: their figures in-process (pyproject.toml `figure_workers`): CI's fresh clone, with the
+#: other worker beside it, takes 1.5-3 times as long): their order is what counts. The
 #: determinism file comes second on purpose: it makes the session's demo and drift demo
 #: runs, which later files read, and its loaded runs (two busy processes) then meet the
 #: resume-truth runs on the other worker, which are on the co-simulation clock and so
-#: indifferent to load. A file not named here starts after these, in the collection's
-#: order; tests/test_schedule.py checks that each name is a test file of the suite.
+#: indifferent to load. The files after test_impact_drift.py were measured by
+#: tests/filetimes.py (CPU seconds, `-n 0`, load 11-15, 29 Nov): they come late in the
+#: collection's order, where one of them could keep a worker busy while the other had
+#: nothing left. A file not named here starts after these, in the collection's order;
+#: tests/test_schedule.py checks that each name is a test file of the suite.
 SLOW_FIRST: tuple[tuple[str, int], ...] = (
     ("test_resume_truth.py", 155),
     ("test_determinism.py", 105),
     ("test_fault_matrix.py", 200),
     ("test_control.py", 140),
     ("test_records.py", 127),
+    ("test_impact_reissue.py", 110),   # five check runs, then three re-issues (issue 58)
     ("test_run_e2e.py", 92),
     ("test_station.py", 72),        # and real-time waits: a 5x paced clock watched live
     ("test_fleet.py", 53),
     ("test_document_control.py", 52),
     ("test_register_service.py", 50),
+    ("test_impact.py", 45),
     ("test_lab_rule.py", 37),
     ("test_starter.py", 31),
+    ("test_impact_drift.py", 25),
     ("test_station_signing.py", 22),
     ("test_station_tls.py", 20),
-    ("test_impact_reissue.py", 110),   # five check runs, then three re-issues (issue 58)
-    ("test_impact.py", 45),
-    ("test_impact_drift.py", 25),
+    ("test_stop_path.py", 28),
+    ("test_validate_robust.py", 24),   # hypothesis's fuzzing of the YAML files
+    ("test_session_lifecycle.py", 14),
+    ("test_simserve.py", 10),
 )
 
 

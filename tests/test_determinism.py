@@ -21,7 +21,7 @@ from typing import Any
 
 import pytest
 
-from tests.conftest import CONFIGS, ControlBaseline, DemoRun, check_procedure
+from tests.conftest import CONFIGS, ControlBaseline, DemoRun, check_procedure, env_as_shipped
 
 #: result.json keys that say when or where, not what was measured (`run_sessions`: each
 #: session's start and end times and who ran it, issue 57)
@@ -102,7 +102,8 @@ class _Started:
         self.out, self.err = log.with_suffix(".out"), log.with_suffix(".err")
         with open(self.out, "w") as out, open(self.err, "w") as err:
             self.p = subprocess.Popen([sys.executable, "-m", "bench", "run", *args, "--yes",
-                                       "--quiet"], stdout=out, stderr=err, text=True)
+                                       "--quiet"], stdout=out, stderr=err, text=True,
+                                      env=env_as_shipped())   # as the quiet runs were made
 
     def ended(self, timeout_s: float) -> tuple[int, str, str]:
         """Its exit status, standard output and standard error, once it has ended."""
