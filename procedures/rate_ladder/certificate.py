@@ -47,7 +47,7 @@ from bench.report.certificate.rounding import (
 from bench.report.result_frame import Check
 from drivers.json_types import JsonObject
 from procedures.rate_ladder import plots
-from procedures.rate_ladder.codec import ladder_of
+from procedures.rate_ladder.codec import ladder_model
 from procedures.rate_ladder.result import (
     UNSIGNED,
     LadderAxis,
@@ -211,7 +211,7 @@ class LadderCertificate(CertificateParts):
 
 def _ladder(src: Sources) -> LadderResult:
     """The ladder's result model of the conformed result, decoded once (codec.py)."""
-    return src.model(ladder_of)
+    return src.model(ladder_model)
 
 
 # -- the results -----------------------------------------------------------------------------

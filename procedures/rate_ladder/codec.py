@@ -20,17 +20,24 @@ from typing import cast
 import msgspec
 
 from bench.core import rundir_layout as layout
+from bench.report.certificate.parts import Sources
 from bench.report.codec import encode
 from bench.report.result_frame import (
     Issues,
     JsonObject,
     JsonValue,
+    KeyPath,
     MalformedResult,
     ResultFrame,
     as_object,
+    conform_each,
     conform_frame,
+    conform_list,
+    conform_object,
+    conform_plain_list,
 )
-from procedures.rate_ladder.result import LadderAxis, LadderCheck, LadderResult, conform_ladder
+from procedures.rate_ladder.events import ResultRow
+from procedures.rate_ladder.result import LadderAxis, LadderCheck, LadderResult
 
 #: the body's key in result.json, and the root of every path a refusal names
 ROOT = "axes"
@@ -42,6 +49,60 @@ _EXPECTED = re.compile(r"^Expected `(?P<want>[^`]+)`, got `(?P<got>[^`]+)`")
 _TYPES = {"float": "a number", "int": "an integer", "bool": "true or false",
           "object": "an object", "array": "a list", "str": "text", "null": "null"}
 _STEP = re.compile(r"\.(?P<key>[A-Za-z_][A-Za-z0-9_]*)|\[(?P<index>\d+)\]")
+
+
+# -- the containers' checks (what the certificate may safely walk) ----------------------------
+
+def _conform_systematic(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    # a harmonic means nothing without its order
+    conform_list(doc, "harmonics", path, issues, numeric="order")
+    conform_object(doc, "mains", path, issues)
+    conform_object(doc, "binned", path, issues)
+    return doc
+
+
+def _conform_intra_turn(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    conform_list(doc, "averaged", path, issues)
+    return doc
+
+
+def _conform_rate(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    conform_object(doc, "systematic", path, issues, _conform_systematic)
+    conform_object(doc, "intra_turn", path, issues, _conform_intra_turn)
+    conform_plain_list(doc, "counter_rate_dps", path, issues)
+    return doc
+
+
+def _conform_axis(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    # a rate without its set rate, a pair without its rate mean nothing
+    conform_list(doc, "rates", path, issues, _conform_rate, numeric="set_rate_dps")
+    conform_list(doc, "pairs", path, issues, numeric="rate_dps")
+    conform_object(doc, "noise_floor", path, issues)
+    return doc
+
+
+def _conform_axes(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    return conform_each(doc, path, issues, _conform_axis)
+
+
+def conform_ladder(doc: JsonObject, issues: Issues) -> JsonObject:
+    """The ladder's part of a result.json checked, in place."""
+    conform_object(doc, "axes", (), issues, _conform_axes)
+    return doc
+
+
+def with_conditions_measured(doc: dict[str, object], fog_axes: Mapping[str, object]
+                             ) -> dict[str, object]:
+    """The analysis' result with what the bench measured itself (`conditions_measured`):
+    the FOG's temperature per axis (procedures/rate_ladder/conditions.py), none when no
+    half recorded it; the room: no sensor on this stand, not measured."""
+    doc["conditions_measured"] = {
+        "fog_temperature": {"source": "FOG frames' temperature field (table top, at the "
+                                      "FOG), deg C, integer resolution", "axes": fog_axes}
+        if fog_axes else None,
+        "room": None,
+    }
+    return doc
 
 
 def _finite(value: JsonValue) -> JsonValue:
@@ -170,3 +231,19 @@ def conform(doc: object) -> tuple[LadderResult, list[str]]:
     frame_issues = Issues(strict=False)
     body = conform_frame(body, frame_issues)
     return ladder_of(body), dropped + frame_issues.dropped
+
+
+def ladder_model(src: Sources) -> LadderResult:
+    """The certificate's and the DCC's model of the (conformed) result: `src.model(
+    ladder_model)` decodes it once for every section."""
+    return ladder_of(src.result)
+
+
+def row_json(row: ResultRow) -> JsonObject:
+    """A station row as the station's pages carry it (its fields, in order)."""
+    return cast(JsonObject, msgspec.to_builtins(row))
+
+
+def row_of(row: Mapping[str, object]) -> ResultRow:
+    """A station row as the station's event protocol carried it (`PairLooked.live_rows`)."""
+    return msgspec.convert(row, ResultRow)

@@ -33,7 +33,7 @@ from bench.report.dcc.xml import (
     rate_token,
     text_el,
 )
-from procedures.rate_ladder.codec import ladder_of
+from procedures.rate_ladder.codec import ladder_model
 from procedures.rate_ladder.result import UNSIGNED, PairEntry, RateEntry, RateErrorBudget
 from procedures.rate_ladder.result import Averaged as AveragedFigures
 
@@ -98,7 +98,7 @@ class LadderDcc(DccParts):
     """The rate ladder's answers to the DCC (the kind's `dcc` part)."""
 
     def dcc_item(self, src: Sources) -> tuple[str, Sequence[str]]:
-        return "rotary rate table", list(src.model(ladder_of).axes)
+        return "rotary rate table", list(src.model(ladder_model).axes)
 
     def dcc_used_methods(self, src: Sources) -> tuple[str, Sequence[str]]:
         return methods.A_REFERENCE, METHOD_SECTIONS
@@ -108,7 +108,7 @@ class LadderDcc(DccParts):
 
 
 def ladder_results(results: etree._Element, src: Sources, checks: Checks) -> None:
-    for axis, ax in src.model(ladder_of).axes.items():
+    for axis, ax in src.model(ladder_model).axes.items():
         mr = el(results, "measurementResult", id=ident("axis", axis), ref_id="item")
         name(mr, f"Axis {axis}: per-turn rate, FOG cross-calibration and intra-turn "
                  "instability (rate ladder)")

@@ -4,14 +4,11 @@ msgspec Structs (issue 60), the one module that spells its keys.
 Why a model: the analysis (analysis.py) builds it from its typed values, result.json's
 `axes` body is its encoding, and the certificate, the DCC, the records and the station
 decode it once (codec.py) and read attributes, so every key is a field spelled here and
-nowhere else, and msgspec, not code of ours, checks a body against it. The container
-checks below (`conform_ladder`) let the certificate drop a malformed part, name it, and
-keep the rest (codec.py `conform`).
+nowhere else, and msgspec, not code of ours, checks a body against it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar, cast
 
@@ -20,15 +17,8 @@ from msgspec import UNSET, UnsetType
 
 from bench.report.budget import Budget, BudgetRecord
 from bench.report.result_frame import (
-    Issues,
-    JsonObject,
-    KeyPath,
     MalformedResult,
     ResultFrame,
-    conform_each,
-    conform_list,
-    conform_object,
-    conform_plain_list,
 )
 from drivers.units import SECONDS_PER_HOUR
 
@@ -45,53 +35,12 @@ if TYPE_CHECKING:
     from bench.report.conformity import Check as Judged
 
 __all__ = ["Half", "Harmonic", "IntraTurn", "LadderAxis", "LadderCheck", "LadderResult",
-           "Mains", "MalformedResult", "NoiseFloor", "PairEntry", "RateEntry",
-           "with_conditions_measured"]
+           "Mains", "MalformedResult", "NoiseFloor", "PairEntry", "RateEntry"]
 
 #: the checked quantities that are standard deviations (magnitudes: printed without a
 #: sign on the certificate; one-sided, with no lower limit, in the DCC)
 UNSIGNED = frozenset({"rate_instability", "intra_turn_instability",
                       "intra_turn_instability_corrected"})
-
-
-# -- the containers' checks (what the certificate may safely walk) ----------------------------
-
-def _conform_systematic(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
-    # a harmonic means nothing without its order
-    conform_list(doc, "harmonics", path, issues, numeric="order")
-    conform_object(doc, "mains", path, issues)
-    conform_object(doc, "binned", path, issues)
-    return doc
-
-
-def _conform_intra_turn(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
-    conform_list(doc, "averaged", path, issues)
-    return doc
-
-
-def _conform_rate(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
-    conform_object(doc, "systematic", path, issues, _conform_systematic)
-    conform_object(doc, "intra_turn", path, issues, _conform_intra_turn)
-    conform_plain_list(doc, "counter_rate_dps", path, issues)
-    return doc
-
-
-def _conform_axis(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
-    # a rate without its set rate, a pair without its rate mean nothing
-    conform_list(doc, "rates", path, issues, _conform_rate, numeric="set_rate_dps")
-    conform_list(doc, "pairs", path, issues, numeric="rate_dps")
-    conform_object(doc, "noise_floor", path, issues)
-    return doc
-
-
-def _conform_axes(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
-    return conform_each(doc, path, issues, _conform_axis)
-
-
-def conform_ladder(doc: JsonObject, issues: Issues) -> JsonObject:
-    """The ladder's part of a result.json checked, in place."""
-    conform_object(doc, "axes", (), issues, _conform_axes)
-    return doc
 
 
 # -- the model ---------------------------------------------------------------------------------
@@ -483,20 +432,6 @@ class LadderResult:
         return [(name, p) for name, a in self.axes.items() for p in a.pairs]
 
 
-def with_conditions_measured(doc: dict[str, object], fog_axes: Mapping[str, object]
-                             ) -> dict[str, object]:
-    """The analysis' result with what the bench measured itself (`conditions_measured`):
-    the FOG's temperature per axis (procedures/rate_ladder/conditions.py), none when no
-    half recorded it; the room: no sensor on this stand, not measured."""
-    doc["conditions_measured"] = {
-        "fog_temperature": {"source": "FOG frames' temperature field (table top, at the "
-                                      "FOG), deg C, integer resolution", "axes": fog_axes}
-        if fog_axes else None,
-        "room": None,
-    }
-    return doc
-
-
 # -- building: the analysis's typed values as the model ----------------------------------------
 #
 # The analysis (bench/analysis, procedures/rate_ladder/analysis.py) computes typed values and
@@ -593,17 +528,23 @@ def intra_turn(r: RandomPartResult) -> IntraTurn:
         averaged=tuple(averaged(a) for a in r.averaged))
 
 
-def rate_entry(r: RateResult) -> RateEntry:
-    """One commanded rate and direction (docs/method.md A1-A5) as the analysis measured it,
-    without what the ladder adds after judging it (analysis.py `judged`)."""
-    tr = r.turns_result
-    entry = RateEntry(
+def turns_entry(tr: TurnsResult) -> RateEntry:
+    """Eq. 1-2 of one direction: the per-turn rates, the rate error and its budget, the
+    rate instability and its timing floor (docs/method.md A1-A2)."""
+    return RateEntry(
         set_rate_dps=tr.set_rate_dps, turns=tr.turns,
         counter_rate_dps=tuple(tr.counter_rate_dps), mean_rate_dps=tr.mean_rate_dps,
         rate_error_rel=tr.rate_error_rel, rate_error_u_rel=tr.rate_error_u_rel,
         rate_error_U_rel=tr.rate_error_u_rel, rate_instability_rel=tr.rate_instability_rel,
         rate_instability_floor_rel=tr.rate_instability_floor_rel,
-        rate_error_budget=rate_error_budget(tr),
+        rate_error_budget=rate_error_budget(tr))
+
+
+def rate_entry(r: RateResult) -> RateEntry:
+    """One commanded rate and direction (docs/method.md A1-A5) as the analysis measured it,
+    without what the ladder adds after judging it (analysis.py `judged`)."""
+    entry = msgspec.structs.replace(
+        turns_entry(r.turns_result),
         intra_turn_instability_rel=r.random.instability_rel,
         intra_turn_instability_corrected_rel=r.random.corrected_rel,
         # docs/method.md A5: U of a std from the record's samples (white random part assumed)

@@ -47,8 +47,8 @@ class Sources:
     events: list[Event] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)  # malformed parts of result.json
     #: the kind's result model, decoded once (`model`), by its decoder
-    _models: dict[Callable[[JsonObject], object], object] = field(default_factory=dict,
-                                                                  repr=False)
+    _models: dict[Callable[[Sources], object], object] = field(default_factory=dict,
+                                                               repr=False)
 
     @classmethod
     def load(cls, result: object, run_path: Path | None) -> Sources:
@@ -70,11 +70,11 @@ class Sources:
         found = (ev.last if last else ev.first)(self.events, kind)
         return found.utc or None if found is not None else None
 
-    def model(self, decode: Callable[[JsonObject], M]) -> M:
-        """The kind's result model (procedures/<kind>/codec.py's `decode`), decoded on
-        first use and read by every section of the certificate and the DCC."""
+    def model(self, decode: Callable[[Sources], M]) -> M:
+        """The kind's result model (its codec's `decode` of `result`), decoded on first
+        use and read by every section of the certificate and the DCC."""
         if decode not in self._models:
-            self._models[decode] = decode(self.result)
+            self._models[decode] = decode(self)
         return cast(M, self._models[decode])
 
     @cached_property
