@@ -19,7 +19,7 @@ from bench.core.lab import certificate_settings
 from bench.core.plan import Plan, Step
 from bench.core.stops import register
 from bench.report.conformity import RULES
-from bench.report.uncertainty_names import UNCERTAINTY_NAMING, with_explicit_names
+from bench.report.uncertainty_names import UNCERTAINTY_NAMING
 
 # the engine and the journal for the hints only: `bench validate` loads the kinds (and this
 # module) for their files alone
@@ -135,7 +135,7 @@ def result_document(run: RunDir, cfg: Config, events: Sequence[Event], *,
         verdict = "incomplete"
     else:
         verdict = "fail" if any(c["verdict"] == "fail" for c in checks) else "pass"
-    return with_explicit_names({
+    return {
         "schema": SCHEMA,
         "uncertainty_names": UNCERTAINTY_NAMING,
         "procedure": cfg.kind,
@@ -146,4 +146,4 @@ def result_document(run: RunDir, cfg: Config, events: Sequence[Event], *,
         "method": method,
         "checks": checks,
         **body,
-    })
+    }

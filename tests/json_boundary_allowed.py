@@ -7,6 +7,10 @@ moved here too (register/store.py's signatures to model.py and trail.py, counter
 counter_setup.py, config.py's to drivers/fog_settings.py); three numbers rose because a
 function that passed a JSON map was split in two, each half passing it on
 (certificate/authorise.py 4 -> 6 signatures and 5 -> 7 reads, register/service.py 19 -> 20).
+
+Lowered on branch h22 (issue 60, the rate ladder's model): the ladder's result, budgets,
+DCC and plots modules and bench/report/uncertainty_names.py left the list, its analysis
+went from 6 signatures to 2 (procedures/rate_ladder/codec.py is a codec).
 """
 
 from __future__ import annotations
@@ -74,7 +78,6 @@ ALLOWED: dict[str, dict[str, int]] = {
     "bench/report/figures.py": {"json_map_signatures": 3},
     "bench/report/result_frame.py": {"json_map_signatures": 20},
     "bench/report/station.py": {"json_map_signatures": 4},
-    "bench/report/uncertainty_names.py": {"json_map_signatures": 1},
     "drivers/counter_setup.py": {"json_map_signatures": 1},
     "drivers/drive_settings.py": {"json_map_signatures": 1},
     "drivers/fog.py": {"json_map_signatures": 3},
@@ -85,17 +88,13 @@ ALLOWED: dict[str, dict[str, int]] = {
     "procedures/drift_pulse/kind.py": {"json_map_signatures": 2},
     "procedures/drift_pulse/records.py": {"json_map_signatures": 3},
     "procedures/drift_pulse/sample.py": {"json_map_signatures": 1},
-    "procedures/rate_ladder/analysis.py": {"json_map_signatures": 6, "json_reads": 4},
+    "procedures/rate_ladder/analysis.py": {"json_map_signatures": 2, "json_reads": 4},
     "procedures/rate_ladder/axes_view.py": {"json_map_signatures": 1},
-    "procedures/rate_ladder/budgets.py": {"json_map_signatures": 1},
     "procedures/rate_ladder/certificate.py": {"json_map_signatures": 1},
     "procedures/rate_ladder/conditions.py": {"json_map_signatures": 1},
-    "procedures/rate_ladder/dcc.py": {"json_map_signatures": 1},
     "procedures/rate_ladder/events.py": {"json_map_signatures": 1},
     "procedures/rate_ladder/kind.py": {"json_map_signatures": 1},
-    "procedures/rate_ladder/plots.py": {"json_map_signatures": 1},
     "procedures/rate_ladder/records.py": {"json_map_signatures": 3},
-    "procedures/rate_ladder/result.py": {"json_map_signatures": 43},
     "procedures/rate_ladder/sample.py": {"json_map_signatures": 4},
     "procedures/rate_ladder/station.py": {"json_map_signatures": 4},
 }

@@ -19,6 +19,7 @@ from bench.analysis import CounterBudget, HalfRecord, analyze_pair
 from bench.analysis.disk import DiskArray
 from bench.core.journal import RunDir
 from bench.core.loader import load_config
+from bench.report.codec import encode
 from drivers.fog import CaptureCursor, read_capture
 from drivers.fog_formats import StreamDecoder, get_format
 from procedures.rate_ladder.analysis import (
@@ -29,7 +30,7 @@ from procedures.rate_ladder.analysis import (
     window_on_disk,
 )
 from procedures.rate_ladder.events import HalfAcquired
-from procedures.rate_ladder.result import pair_json, rate_json
+from procedures.rate_ladder.result import pair_entry, rate_entry
 from tests.conftest import DemoRun
 from tests.test_analysis_sim import paper_axis, simulate_pair
 
@@ -50,7 +51,7 @@ def _capture(path: Path, fog_dps: np.ndarray, lost: int, broken: int) -> None:
 
 
 def _as_json(pa) -> str:
-    return json.dumps([rate_json(r) for r in pa.rates] + [pair_json(pa.pair)],
+    return json.dumps([encode(rate_entry(r)) for r in pa.rates] + [encode(pair_entry(pa.pair))],
                       sort_keys=True, default=str)
 
 

@@ -23,7 +23,7 @@ from bench.analysis.turns import CounterBudget, analyze_turns
 from bench.app.cli import main
 from bench.report.conformity import judge_limit
 from procedures.rate_ladder.analysis import sigma_check, with_sigma_terms
-from procedures.rate_ladder.result import RateEntry, turns_json
+from procedures.rate_ladder.result import turns_entry
 from tests.conftest import CONFIGS
 
 FALSE_ALARM = 1e-3
@@ -48,12 +48,14 @@ def test_type_a_never_rests_on_a_sigma_below_the_timing_floor() -> None:
     assert tr.rate_instability_rel < floor / 10
     assert tr.repeatability_u_rel == pytest.approx(floor / 2, rel=1e-9)
     assert tr.repeatability_dof == 3
-    assert "timing floor" in turns_json(tr)["rate_error_budget"]["repeatability_basis"]
+    budget_t = turns_entry(tr).rate_error_budget
+    assert budget_t is not None and "timing floor" in (budget_t.repeatability_basis or "")
     # a sample sigma above the floor is used as it is
     loud = 10.0 + np.arange(5) * 1.0 + np.array([0, 2e-5, -2e-5, 2e-5, 0])
     tl = analyze_turns([loud], 360.0, budget)
     assert tl.repeatability_u_rel == pytest.approx(tl.rate_instability_rel / 2, rel=1e-9)
-    assert turns_json(tl)["rate_error_budget"]["repeatability_basis"].startswith("sample")
+    budget_l = turns_entry(tl).rate_error_budget
+    assert budget_l is not None and (budget_l.repeatability_basis or "").startswith("sample")
 
 
 def test_u_of_a_std_from_few_values_is_the_chi_square_interval() -> None:
@@ -76,16 +78,17 @@ def test_an_unresolved_sigma_within_tolerance_passes_under_either_rule() -> None
     its 97.5 % limit is far inside the 10 ppm tolerance: PASS, stated as '< L'."""
     budget = CounterBudget(trigger_jitter_s=1e-6)
     edges = 10.0 + np.arange(5) * 1.0 + np.array([0, 1e-8, -1e-8, 1e-8, 0])
-    d = with_sigma_terms(turns_json(analyze_turns([edges], 360.0, budget)))
-    assert d["rate_instability_resolved"] is False
-    entry = RateEntry.from_json(d)
+    entry = with_sigma_terms(turns_entry(analyze_turns([edges], 360.0, budget)))
+    assert entry.rate_instability_resolved is False
+    upper = entry.rate_instability_upper_rel
+    assert upper is not None
     for rule in ("simple", "guard-band"):
         c = sigma_check("inner", 360.0, entry, 1e-5, rule)
-        assert c["verdict"] == "pass" and c["one_sided"] is True, c
-        assert c["upper_rel"] == d["rate_instability_upper_rel"] < 1e-5
+        assert c.verdict == "pass" and c.one_sided is True, c
+        assert c.upper_rel == upper < 1e-5
         # the same limit beyond the tolerance: not assessed (neither shown nor refuted)
-        c = sigma_check("inner", 360.0, entry, d["rate_instability_upper_rel"] / 2, rule)
-        assert c["verdict"] == "not-assessed", c
+        c = sigma_check("inner", 360.0, entry, upper / 2, rule)
+        assert c.verdict == "not-assessed", c
 
 
 def test_judge_limit_is_the_one_rule() -> None:

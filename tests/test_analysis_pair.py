@@ -14,7 +14,9 @@ import numpy as np
 import pytest
 
 from bench.analysis import CounterBudget, analyze_pair, judge_rate
-from procedures.rate_ladder.result import pair_json, rate_json
+from bench.report.codec import encode
+from procedures.rate_ladder.codec import encode_axes
+from procedures.rate_ladder.result import LadderAxis, pair_entry, rate_entry
 from sims.stand import AxisModel
 from tests.test_analysis_sim import paper_axis, simulate_pair
 
@@ -84,7 +86,7 @@ def test_50dps_random_part_against_truth(at50):
         # table noise 1e-4 under a floor of 1e-2 deg/s cannot be resolved: say so
         assert not rnd.resolved
         assert rnd.corrected_upper_rel >= 1e-4 / 50.0
-        assert rate_json(r)["intra_turn_instability_corrected_rel"] == rnd.corrected_rel
+        assert rate_entry(r).intra_turn_instability_corrected_rel == rnd.corrected_rel
         # averaged over 1, 10, 360 deg: white noise falls as 1 / sqrt(samples per block)
         tol = {1.0: 0.05, 10.0: 0.1, 360.0: 0.4}
         for a in rnd.averaged:
@@ -107,7 +109,7 @@ def test_50dps_binned_estimator_against_truth(at50):
 
 def test_result_dict_has_the_contract_keys(at50):
     _, res = at50
-    d = rate_json(judge_rate(res.rates[0], 1e-6))
+    d = encode(rate_entry(judge_rate(res.rates[0], 1e-6)))
     for key in ("set_rate_dps", "turns", "counter_rate_dps", "rate_error_rel",
                 "rate_error_u_rel", "rate_instability_rel", "intra_turn_instability_rel",
                 "intra_turn_instability_corrected_rel", "systematic", "verdict"):
@@ -117,9 +119,11 @@ def test_result_dict_has_the_contract_keys(at50):
     assert set(d["systematic"]["mains"]) >= {"frequency_hz", "amplitude_dps"}
     assert d["verdict"] == "fail"                 # 2e-6 rate bias against a 1e-6 tolerance
     assert d["judgement"]["capable"] is True
-    pd = pair_json(res.pair)
+    pd = encode(pair_entry(res.pair))
     assert set(pd) >= {"rate_dps", "k", "k_u", "w0_dps", "w0_u_dps"}
-    json.dumps({"rates": [rate_json(r) for r in res.rates], "pair": pd}, allow_nan=False)
+    axis = LadderAxis(rates=tuple(rate_entry(r) for r in res.rates),
+                      pairs=(pair_entry(res.pair),))
+    json.dumps(encode_axes({"x": axis}), allow_nan=False)
 
 
 @pytest.mark.timeout(60)

@@ -252,12 +252,9 @@ def test_the_quantity_scan_sees_a_quantity_in_code() -> None:
 
 #: where bench/ may write a kind's key, and why: the twins' truth in a stand file's `sim:`
 #: block (the simulated table's ripple, a setting of the twins that shares the result's
-#: word), and the one naming rule of result.json's uncertainties, which lists the `_u`
-#: keys that are standard uncertainties (issue 61 left these)
+#: word; issue 61 left these)
 QUANTITY_NAMED = {("bench/core/stand_sim.py", "amplitude_rel"),
-                  ("bench/core/stand_sim.py", "amplitude_dps"),
-                  ("bench/report/uncertainty_names.py", "own_u_dph"),
-                  ("bench/report/uncertainty_names.py", "apparent_u_dph")}
+                  ("bench/core/stand_sim.py", "amplitude_dps")}
 
 
 def test_no_module_under_bench_names_a_kinds_quantity() -> None:

@@ -625,16 +625,16 @@ def test_an_unresolved_raw_figure_is_judged_on_its_limit(cert: dict[str, Any]) -
     stated '< L' in the results, so a tolerance judges L (docs/method.md D2, the rule for
     limits): pass when L is within it, not assessed when not; never 'value ± U'."""
     from procedures.rate_ladder.analysis import raw_limit_check
-    from procedures.rate_ladder.result import RateEntry
+    from procedures.rate_ladder.codec import ladder_of
 
     e = cert["result"]["axes"]["outer"]["rates"][0]
     assert e["intra_turn"]["raw_resolved"] is False
-    entry = RateEntry.from_json(e)
+    entry = ladder_of(cert["result"]).axes["outer"].rates[0]
     big_l = e["intra_turn"]["raw_upper_rel"]
     assert big_l == max(e["intra_turn_instability_rel"] + e["intra_turn_instability_U_rel"],
                         e["intra_turn"]["floor_rel"])
     ok = raw_limit_check("outer", 10.0, entry, big_l * 1.01, "guard-band")
-    assert (ok["verdict"], ok["one_sided"], ok["upper_rel"], ok["floor_name"]) == (
+    assert (ok.verdict, ok.one_sided, ok.upper_rel, ok.floor_name) == (
         "pass", True, big_l, "FOG floor")
     na = raw_limit_check("outer", 10.0, entry, big_l * 0.99, "simple")
-    assert na["verdict"] == "not-assessed" and "FOG floor" in na["reason"]
+    assert na.verdict == "not-assessed" and "FOG floor" in na.reason

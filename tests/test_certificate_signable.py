@@ -25,8 +25,9 @@ from bench.app.certificate.build import build_document
 from bench.app.certificate.html import render_html
 from bench.app.certificate.register import REGISTER_NAME, issues, next_issue, record
 from bench.core.journal import RunDir
+from bench.report.codec import encode
 from procedures.drift_pulse.sample import drift_pulse_result
-from procedures.rate_ladder.result import turns_json
+from procedures.rate_ladder.result import turns_entry
 
 ROOT = Path(__file__).resolve().parents[1]
 ISSUED = dt.date(2026, 11, 22)
@@ -62,7 +63,7 @@ def _ladder_result(truth_rel: dict[float, float]) -> dict[str, Any]:
         period = 360.0 / (abs(set_dps) * (1 + rel))
         wobble = np.array([0.0, 3e-7, -2e-7, 1e-7, 0.0]) * period
         edges = 100.0 + np.arange(5) * period + wobble
-        rates.append(turns_json(analyze_turns([edges], set_dps, budget)))
+        rates.append(encode(turns_entry(analyze_turns([edges], set_dps, budget))))
     return {"schema": "bench.result/1", "procedure": "rate-ladder", "verdict": "pass",
             "axes": {"outer": {"rates": rates, "pairs": []}}}
 
@@ -259,24 +260,28 @@ def test_a_lab_file_is_read_and_copied_into_the_run(tmp_path: Path) -> None:
 def test_sigma_below_the_timing_floor_is_flagged_and_left_out_of_conformity() -> None:
     """Edges with 1 us of jitter over 5 turns at 360 deg/s (T = 1 s): the timing floor is
     sqrt(2) * 1e-6 = 1.41 ppm; the turn-to-turn scatter built in is 0.1 ppm, far below it."""
+    import msgspec
+
     from procedures.rate_ladder.analysis import sigma_check, with_sigma_terms
-    from procedures.rate_ladder.result import RateEntry
 
     budget = CounterBudget(timestamp_u_s=0.0, trigger_jitter_s=1e-6, timebase_limit_rel=0.0)
     edges = 10.0 + np.arange(6) * 1.0 + np.array([0, 1e-7, -1e-7, 1e-7, -1e-7, 0])
-    d = with_sigma_terms(turns_json(analyze_turns([edges], 360.0, budget)))
-    assert abs(d["rate_instability_floor_rel"] - 2 ** 0.5 * 1e-6) < 1e-12
-    assert d["rate_instability_rel"] < d["rate_instability_floor_rel"]
-    assert d["rate_instability_resolved"] is False
-    check = sigma_check("outer", 360.0, RateEntry.from_json(d), 1e-7, "guard-band")   # a tolerance it exceeds
-    assert check["verdict"] == "not-assessed"                    # not a FAIL, not a PASS
-    assert "timing floor" in check["reason"]
+    d = with_sigma_terms(turns_entry(analyze_turns([edges], 360.0, budget)))
+    assert d.rate_instability_floor_rel is not None and d.rate_instability_rel is not None
+    assert abs(d.rate_instability_floor_rel - 2 ** 0.5 * 1e-6) < 1e-12
+    assert d.rate_instability_rel < d.rate_instability_floor_rel
+    assert d.rate_instability_resolved is False
+    check = sigma_check("outer", 360.0, d, 1e-7, "guard-band")   # a tolerance it exceeds
+    assert check.verdict == "not-assessed"                    # not a FAIL, not a PASS
+    assert "timing floor" in check.reason
     result = {"schema": "bench.result/1", "procedure": "rate-ladder", "verdict": "pass",
-              "decision_rule": "guard-band", "checks": [check],
-              "axes": {"outer": {"rates": [{**d, "verdict": "pass"}], "pairs": []}}}
+              "decision_rule": "guard-band", "checks": [encode(check)],
+              "axes": {"outer": {"rates": [encode(msgspec.structs.replace(d, verdict="pass"))],
+                                 "pairs": []}}}
     html = html_lib.unescape(render_html(build_document(result, None, ISSUED)))
     row = _cells(html, "Axis outer: per-turn rate error and instability")[0]
-    limit_ppm = d["rate_instability_upper_rel"] * 1e6
+    assert d.rate_instability_upper_rel is not None
+    limit_ppm = d.rate_instability_upper_rel * 1e6
     assert row[4].startswith("< ") and float(row[4][2:]) >= limit_ppm   # a limit, rounded up
     conf = _cells(html, "Conformity with the specification")[0]
     assert conf[-1] == "NOT ASSESSED" and "(timing floor)" in conf[4]

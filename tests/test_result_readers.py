@@ -131,22 +131,38 @@ def test_the_ladder_result_round_trips_and_refuses_by_key_path() -> None:
 
     import pytest
 
-    from procedures.rate_ladder.result import LadderResult, MalformedResult
+    from procedures.rate_ladder.codec import conform, encode_axes, ladder_of
+    from procedures.rate_ladder.result import MalformedResult, Systematic
     from procedures.rate_ladder.sample import rate_ladder_result
 
     doc = rate_ladder_result()
-    typed = LadderResult.from_json(doc)
-    assert json.dumps(typed.to_json()) == json.dumps(doc)     # keys in order, numbers as read
+    typed = ladder_of(doc)
     outer = typed.axes["outer"]
     assert outer.rates[0].set_rate_dps == doc["axes"]["outer"]["rates"][0]["set_rate_dps"]
     assert outer.pairs[0].k == doc["axes"]["outer"]["pairs"][0]["k"]
-    doc["axes"]["outer"]["rates"][0]["systematic"] = "garbage"
+    # the model's encoding is what it decodes from, key for key (result.json's bytes)
+    written = json.dumps(encode_axes(typed.axes))
+    again = ladder_of({**doc, "axes": json.loads(written)})
+    assert json.dumps(encode_axes(again.axes)) == written
+    bad = json.loads(json.dumps(doc))
+    bad["axes"]["outer"]["rates"][0]["systematic"] = "garbage"
     with pytest.raises(MalformedResult, match=r"axes\.outer\.rates\[0\]\.systematic "
                                               "expected a mapping, found str"):
-        LadderResult.from_json(doc)
-    lenient, dropped = LadderResult.conform(doc)
+        ladder_of(bad)
+    lenient, dropped = conform(bad)
     assert dropped == ["axes.outer.rates[0].systematic (expected a mapping, found str)"]
-    assert lenient.axes["outer"].rates[0].systematic == {}
+    assert lenient.axes["outer"].rates[0].systematic == Systematic()
+    # a leaf of the wrong type: refused by msgspec, named in result.json's terms; the
+    # certificate's lenient reading drops it (the rest of the entry kept)
+    bad = json.loads(json.dumps(doc))
+    bad["axes"]["outer"]["rates"][1]["turns"] = "four"
+    with pytest.raises(MalformedResult, match=r"axes\.outer\.rates\[1\]\.turns expected an "
+                                              "integer or null, got str"):
+        ladder_of(bad)
+    lenient, dropped = conform(bad)
+    assert dropped == ["axes.outer.rates[1].turns (expected an integer or null, got str)"]
+    assert lenient.axes["outer"].rates[1].turns is None
+    assert lenient.axes["outer"].rates[1].rate_error_rel == outer.rates[1].rate_error_rel
 
 
 # -- the writer side: the analysis computes, the kind's result module spells ----------------

@@ -18,6 +18,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import numpy as np
 
 from bench.analysis.allan import allan_deviation
@@ -25,7 +26,7 @@ from bench.analysis.coverage import chi2_ppf
 from bench.analysis.disk import DiskArray
 from bench.analysis.pair import analyze_pair_mains
 from bench.analysis.random_part import std_interval_u_rel
-from bench.analysis.results import PairAnalysis
+from bench.analysis.results import PairAnalysis, RateResult
 from bench.analysis.turns import CounterBudget
 from bench.analysis.window import HalfRecord
 from bench.core import rundir_layout as layout
@@ -45,7 +46,9 @@ from drivers.fog import CaptureCursor, FogCheckpoint
 from drivers.json_types import JsonObject
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, result_document
-from procedures.rate_ladder import result as result_json
+from procedures.rate_ladder import result as result_model
+from procedures.rate_ladder.budgets import with_budgets
+from procedures.rate_ladder.codec import ROOT, encode_axes, encode_checks
 from procedures.rate_ladder.conditions import TemperatureSpan, memo_key
 from procedures.rate_ladder.events import (
     HalfAcquired,
@@ -53,7 +56,7 @@ from procedures.rate_ladder.events import (
     PairLooked,
     StaticRecorded,
 )
-from procedures.rate_ladder.result import RateEntry
+from procedures.rate_ladder.result import LadderAxis, LadderCheck, PairEntry, RateEntry
 from procedures.rate_ladder.settings import (
     MAINS_CANDIDATES_HZ,
     MAINS_FOUND,
@@ -410,11 +413,10 @@ def instability_lower(value: float, turns: int) -> float:
     return value * math.sqrt((turns - 1) / chi2_ppf(SIGMA_UPPER_P, turns - 1))
 
 
-def with_sigma_terms(d: JsonObject) -> JsonObject:
-    """A rate's entry with eq. 2's U, its chi-square limits and whether it is resolved
-    above the timing floor (what the certificate and the conformity check read),
-    docs/method.md A1-A2."""
-    entry = RateEntry.from_json(d)
+def with_sigma_terms(entry: RateEntry) -> RateEntry:
+    """A rate's entry with eq. 2's U, its chi-square limits, whether it is resolved above
+    the timing floor (what the certificate and the conformity check read) and its standard
+    uncertainty, docs/method.md A1-A2."""
     s, n = entry.rate_instability_rel, entry.turns or 0
     floor = _required(entry.rate_instability_floor_rel, "rate_instability_floor_rel")
     # one turn: no sigma (None), an infinite U and upper limit, a lower limit of 0
@@ -424,14 +426,18 @@ def with_sigma_terms(d: JsonObject) -> JsonObject:
     # its standard uncertainty s / sqrt(2 (N - 1)) (docs/method.md A2, C1): what the DCC
     # states beside the chi-square interval
     ustd = s / math.sqrt(2.0 * (n - 1)) if s is not None and n >= 2 else None
-    return result_json.with_sigma_terms(d, _instability_u(s, n), upper, lower,
-                                        sigma_resolved(lower, floor), ustd)
+    u = _instability_u(s, n)
+    return msgspec.structs.replace(
+        entry, rate_instability_u_rel=u, rate_instability_U_rel=u,
+        rate_instability_ustd_rel=ustd, rate_instability_upper_rel=upper,
+        rate_instability_lower_rel=lower,
+        rate_instability_resolved=sigma_resolved(lower, floor))
 
 
 def _required(x: float | None, key: str) -> float:
-    """A figure the conformity check needs, from a rate's entry (None: the analysis gave no
-    finite value, which it does only for a degenerate record)."""
-    if x is None:
+    """A figure the conformity check needs, from a rate's entry (None or not finite: the
+    analysis gave no finite value, which it does only for a degenerate record)."""
+    if x is None or not math.isfinite(x):
         raise ValueError(f"axes.<axis>.rates[].{key}: no finite value to judge")
     return x
 
@@ -450,11 +456,11 @@ def _counter(cfg: Config, axis: str) -> CounterSettings:
     return c
 
 
-def _checks(cfg: Config, axis: str, entry: RateEntry, rule: str) -> list[JsonObject]:
+def _checks(cfg: Config, axis: str, entry: RateEntry, rule: str) -> list[LadderCheck]:
     """The conformity checks of one rate's entry against the tolerances (docs/method.md
     A6), as the result's `checks[]` hold them."""
     tol = LadderSettings.from_config(cfg).tolerance
-    out: list[JsonObject] = []
+    out: list[LadderCheck] = []
     rate = entry.set_rate_dps
     for quantity, value, u in (
         ("rate_error", entry.rate_error_rel, entry.rate_error_u_rel),
@@ -471,13 +477,13 @@ def _checks(cfg: Config, axis: str, entry: RateEntry, rule: str) -> list[JsonObj
         if quantity == "intra_turn_instability" and entry.intra.raw_resolved is False:
             out.append(raw_limit_check(axis, rate, entry, t, rule))
             continue
-        out.append(judge(axis, rate, quantity, _required(value, f"{quantity}_rel"),
-                         _required(u, f"{quantity}_u_rel"), t, rule).to_dict())
+        out.append(LadderCheck.of(judge(axis, rate, quantity, _required(value, f"{quantity}_rel"),
+                                        _required(u, f"{quantity}_u_rel"), t, rule)))
     return out
 
 
 def raw_limit_check(axis: str, rate: float, entry: RateEntry, tolerance: float,
-                    rule: str) -> JsonObject:
+                    rule: str) -> LadderCheck:
     """Conformity of the raw intra-turn instability when it is not resolved above the FOG
     floor (docs/method.md D2: stated '< L', L = raw + U never below the floor): judged by
     the one rule for limits, as sigma is (bench.report.conformity.judge_limit)."""
@@ -486,16 +492,15 @@ def raw_limit_check(axis: str, rate: float, entry: RateEntry, tolerance: float,
     upper = _required(entry.intra.raw_upper_rel, "intra_turn.raw_upper_rel")
     floor = _required(entry.intra.floor_rel, "intra_turn.floor_rel")
     c = judge_limit(axis, rate, "intra_turn_instability", value, u, upper, tolerance, rule,
-                    "97.5 % normal (value + U)").to_dict()
-    c.update(floor_rel=floor, floor_name="FOG floor")
-    c["reason"] = str(c["reason"]) + (
-        f" (the raw figure {value:.3g} is not resolved above the FOG floor {floor:.3g}: "
-        "value - U is at or below it)")
-    return c
+                    "97.5 % normal (value + U)")
+    return msgspec.structs.replace(
+        LadderCheck.of(c), floor_rel=floor, floor_name="FOG floor",
+        reason=c.reason + (f" (the raw figure {value:.3g} is not resolved above the FOG "
+                           f"floor {floor:.3g}: value - U is at or below it)"))
 
 
 def sigma_check(axis: str, rate: float, entry: RateEntry, tolerance: float,
-                rule: str) -> JsonObject:
+                rule: str) -> LadderCheck:
     """Conformity of eq. 2's sigma. Resolved above the counter chain's timing floor: judged
     with the one-sided chi-square upper limit as the guard (false-accept risk at most
     1 - SIGMA_UPPER_P for normal per-turn rates). Not resolved: stated as "< L" (L the same
@@ -509,21 +514,22 @@ def sigma_check(axis: str, rate: float, entry: RateEntry, tolerance: float,
     level = f"{SIGMA_UPPER_P * 100:g} % chi-square"
     if not entry.rate_instability_resolved:
         c = judge_limit(axis, rate, "rate_instability", value, u, upper, tolerance, rule,
-                        level).to_dict()
-        c.update(floor_rel=floor, floor_name="timing floor")
-        c["reason"] = str(c["reason"]) + (
-            f" (sigma {value:.2g} is not resolved above the timing floor "
-            f"{floor:.2g}: its {100 - SIGMA_UPPER_P * 100:g} % chi-square lower "
-            "limit is at or below it)")
-        return c
-    c = judge(axis, rate, "rate_instability", value, upper - value, tolerance, rule).to_dict()
-    c.update(u_rel=u, upper_rel=upper, lower_rel=entry.rate_instability_lower_rel,
-             floor_rel=floor, capability_ratio=u / tolerance,
-             capability_ok=u / tolerance <= CAPABILITY_LIMIT)
+                        level)
+        return msgspec.structs.replace(
+            LadderCheck.of(c), floor_rel=floor, floor_name="timing floor",
+            reason=c.reason + (f" (sigma {value:.2g} is not resolved above the timing floor "
+                               f"{floor:.2g}: its {100 - SIGMA_UPPER_P * 100:g} % chi-square "
+                               "lower limit is at or below it)"))
+    c = judge(axis, rate, "rate_instability", value, upper - value, tolerance, rule)
+    reason = c.reason
     if rule == "guard-band" and value <= tolerance:
-        c["reason"] = (f"one-sided upper limit {upper:.3g} ({level}) "
-                       f"{'<=' if upper <= tolerance else '>'} tolerance {tolerance:.3g}")
-    return c
+        reason = (f"one-sided upper limit {upper:.3g} ({level}) "
+                  f"{'<=' if upper <= tolerance else '>'} tolerance {tolerance:.3g}")
+    return msgspec.structs.replace(
+        LadderCheck.of(c), u_rel=u, U_rel=u, upper_rel=upper,
+        lower_rel=entry.rate_instability_lower_rel, floor_rel=floor,
+        capability_ratio=u / tolerance, capability_ok=u / tolerance <= CAPABILITY_LIMIT,
+        reason=reason)
 
 
 def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
@@ -544,13 +550,13 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
     events = run.events()
     rule = _settings(cfg)["decision_rule"]
     done_in = units_done(events)
-    result_axes: dict[str, JsonObject] = {}
-    checks: list[JsonObject] = []
+    axes: dict[str, LadderAxis] = {}
+    checks: list[LadderCheck] = []
     complete = True
     for axis, spec in LadderSettings.from_config(cfg).axes.items():
         static = static_record(events, axis)
-        rates: list[JsonObject] = []
-        pairs: list[JsonObject] = []
+        rates: list[RateEntry] = []
+        pairs: list[PairEntry] = []
         for rate in spec.rates_dps:
             unit = f"{axis}/{rate:g}dps"
             if unit not in done_in:
@@ -564,31 +570,41 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
             pa = looked if isinstance(looked, PairAnalysis) \
                 else analyze_unit(raw, cfg, axis, rate, acqs, static)
             for r in pa.rates:
-                d = with_sigma_terms(result_json.rate_json(r))
-                c = _checks(cfg, axis, RateEntry.from_json(d), rule)
+                entry, c = judged(cfg, axis, r, rule)
                 # frames the FOG's decoder lost or found broken in this direction's halves
                 # (their samples are left out of the window; the integrals run on time)
                 lost = sum(h.fog_lost for h in acqs
                            if h.sign == (1 if r.set_rate_dps > 0 else -1))
-                rates.append(result_json.with_outcome(
-                    d, session=done_in[unit], fog_lost_frames=lost, checks=c,
-                    verdict="fail" if any(x.get("verdict") == "fail" for x in c) else "pass"))
+                rates.append(msgspec.structs.replace(
+                    entry, session=done_in[unit], fog_lost_frames=lost, checks=tuple(c),
+                    verdict="fail" if any(x.verdict == "fail" for x in c) else "pass"))
                 checks += c
-            pairs.append(result_json.pair_json(pa.pair))
+            pairs.append(result_model.pair_entry(pa.pair))
         floor = None
         if static is not None:
             w = raw.static(static)
             hz = cfg.fog(axis).rate_hz
-            floor = result_json.noise_floor_json(
+            floor = result_model.noise_floor(
                 int(w.size), w.size / hz, float(np.std(w, ddof=1)),
                 float(np.mean(w)),   # bias at rest (bench control)
                 allan_deviation(w, hz))
-        result_axes[axis] = result_json.axis_json(rates, pairs, floor)
-    return result_document(run, cfg, events, complete=complete, checks=checks, rule=rule,
-                           raw_hashes=hashes,
-                           method={**_settings(cfg),
-                                   "tolerance": LadderSettings.from_config(cfg).tolerance_doc()},
-                           axes=result_axes)
+        axes[axis] = with_budgets(LadderAxis(rates=tuple(rates), pairs=tuple(pairs),
+                                             noise_floor=floor))
+    doc = result_document(run, cfg, events, complete=complete,
+                          checks=encode_checks(checks), rule=rule, raw_hashes=hashes,
+                          method={**_settings(cfg),
+                                  "tolerance": LadderSettings.from_config(cfg).tolerance_doc()})
+    # the body after the frame, as the model writes it: its uncertainty twins are fields
+    doc[ROOT] = encode_axes(axes)
+    return doc
+
+
+def judged(cfg: Config, axis: str, r: RateResult, rule: str
+           ) -> tuple[RateEntry, list[LadderCheck]]:
+    """One direction's entry with eq. 2's sigma terms, and its conformity checks
+    (docs/method.md A1-A2, A6)."""
+    entry = with_sigma_terms(result_model.rate_entry(r))
+    return entry, _checks(cfg, axis, entry, rule)
 
 
 _WORKER_READERS: dict[str, RawData] = {}  # in the analysis worker: one per run directory
@@ -649,13 +665,12 @@ def pair_summary(run_path: str, cfg: Config, axis: str, rate_dps: float,
     for r in pa.rates:
         figures[1 if r.set_rate_dps > 0 else -1] = (r.rate_error_rel, r.rate_error_u_rel)
         # the station page's row: the same figures and checks result.json will hold
-        entry = RateEntry.from_json(with_sigma_terms(result_json.rate_json(r)))
-        checks = _checks(cfg, axis, entry, rule)
+        entry, checks = judged(cfg, axis, r, rule)
         directions.append(PairDirection(
             set_rate_dps=r.set_rate_dps, turns=entry.turns,
             rate_error_rel=r.rate_error_rel, rate_error_U_rel=r.rate_error_u_rel,
             rate_instability_rel=entry.rate_instability_rel,
-            verdict=("fail" if any(c.get("verdict") == "fail" for c in checks)
+            verdict=("fail" if any(c.verdict == "fail" for c in checks)
                      else "pass" if checks else "not-assessed")))
     unit = f"{axis}/{rate_dps:g}dps"
     plus, minus = figures.get(1, (None, None)), figures.get(-1, (None, None))

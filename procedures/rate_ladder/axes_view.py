@@ -11,7 +11,7 @@ from collections.abc import Mapping, Sequence
 from typing import Protocol
 
 from bench.report.result_frame import MalformedResult
-from procedures.rate_ladder.result import LadderResult
+from procedures.rate_ladder.codec import conform
 
 
 class RateRow(Protocol):
@@ -85,6 +85,6 @@ def axes_of(result: Mapping[str, object]) -> Mapping[str, AxisRows]:
     """The ladder's own typed axes; {} for a result that is not a JSON object or whose
     axes are malformed."""
     try:
-        return LadderResult.conform(result)[0].axes
+        return conform(result)[0].axes
     except MalformedResult:
         return {}

@@ -13,12 +13,20 @@ their U; this module only lays out where each U comes from.
 
 from __future__ import annotations
 
+import msgspec
 import numpy as np
 
-from bench.report.budget import CHI_SQUARE, NORMAL, RECTANGULAR, STUDENT_T, Budget, Term, num
-from drivers.json_types import JsonObject, JsonValue
-from procedures.rate_ladder import result
-from procedures.rate_ladder.result import Half, NoiseFloor, PairEntry, RateEntry
+from bench.report.budget import (
+    CHI_SQUARE,
+    NORMAL,
+    RECTANGULAR,
+    STUDENT_T,
+    Budget,
+    BudgetRecord,
+    Term,
+    num,
+)
+from procedures.rate_ladder.result import Half, LadderAxis, NoiseFloor, PairEntry, RateEntry
 
 
 def _half_u(x: object) -> float | None:
@@ -35,31 +43,31 @@ def rate_error_budget(r: RateEntry) -> Budget | None:
         return None
     turns = r.turns or 0
     terms = []
-    rep = num(b.get("repeatability_ustd_rel"))
+    rep = num(b.repeatability_ustd_rel)
     # docs/method.md A2: nu of the Type A term as the analysis took it (pooled: N+ + N- - 2)
-    rep_dof = num(b.get("repeatability_dof"))
+    rep_dof = num(b.repeatability_dof)
     if rep_dof is None and turns > 1:
         rep_dof = float(turns - 1)
     if rep is not None:
         terms.append(Term("mean of the per-turn rate errors (repeatability, Type A): "
-                          + str(b.get("repeatability_basis") or "sample sigma / √N"),
+                          + str(b.repeatability_basis or "sample sigma / √N"),
                           num(r.rate_error_rel), rep, STUDENT_T, 1.0, rep_dof, "1"))
-    timing = num(b.get("timing_ustd_rel"))
+    timing = num(b.timing_ustd_rel)
     if timing is not None:
         terms.append(Term("turn period timing: zero-mark edges and time tie (Type B)", 0.0,
                           timing, NORMAL, 1.0, None, "1"))
-    base = num(b.get("timebase_ustd_rel"))
+    base = num(b.timebase_ustd_rel)
     if base is not None:
-        terms.append(Term(f"counter time base, limit {num(b.get('timebase_limit_rel'))} "
+        terms.append(Term(f"counter time base, limit {num(b.timebase_limit_rel)} "
                           "(Type B)", 0.0, base, RECTANGULAR, 1.0, None, "1"))
-    corr_u = num(b.get("timebase_correction_ustd_rel"))
+    corr_u = num(b.timebase_correction_ustd_rel)
     if corr_u is not None:
         # docs/method.md A1, a counter's time-base correction: the edges divided by 1 + e
         # move delta by e (1 + delta), about +e: sensitivity 1 to first order, as the
         # analysis combines it (bench/analysis/turns.py rate_error_u)
         terms.append(Term("counter time-base correction e applied, its as-found value "
                           "(Type B, from its calibration's U, k = 2)",
-                          num(b.get("timebase_correction_rel")), corr_u, NORMAL, 1.0, None,
+                          num(b.timebase_correction_rel), corr_u, NORMAL, 1.0, None,
                           "1"))
     if not terms:
         return None
@@ -114,7 +122,7 @@ def mains_budgets(r: RateEntry, pair: PairEntry | None) -> list[Budget]:
     """The mains tone's amplitude (deg/s of table rate) and phase (docs/method.md A4): the
     least-squares fit of the FOG record (Type A) and the FOG scale k it is divided by."""
     m = r.mains
-    if m is None or not m.doc:
+    if m is None:
         return []
     samples = num(r.intra.samples)
     dof = samples - (2 * len(r.harmonics) + 3) if samples else None
@@ -207,16 +215,20 @@ def pair_budgets(pair: PairEntry) -> list[Budget]:
     return out
 
 
-def add_budgets(doc: JsonObject) -> JsonObject:
-    """result.json with a `budgets` list on every rate and pair (additions only)."""
-    return result.add_budgets(
-        doc, lambda r, pair, floor: _as_json([b for b in (rate_error_budget(r),)
-                                               if b is not None]
-                                              + intra_turn_budgets(r, pair, floor)
-                                              + harmonic_budgets(r, pair)
-                                              + mains_budgets(r, pair)),
-        lambda p: _as_json(pair_budgets(p)))
+def with_budgets(axis: LadderAxis) -> LadderAxis:
+    """An axis with a `budgets` list on every rate and pair: a rate is given the pair at its
+    rate and the axis's noise floor."""
+    def of_rate(r: RateEntry) -> tuple[BudgetRecord, ...]:
+        pair = next((p for p in axis.pairs if p.rate_dps == abs(r.set_rate_dps)), None)
+        return _records([b for b in (rate_error_budget(r),) if b is not None]
+                        + intra_turn_budgets(r, pair, axis.noise_floor)
+                        + harmonic_budgets(r, pair) + mains_budgets(r, pair))
+
+    return msgspec.structs.replace(
+        axis, rates=tuple(msgspec.structs.replace(r, budgets=of_rate(r)) for r in axis.rates),
+        pairs=tuple(msgspec.structs.replace(p, budgets=_records(pair_budgets(p)))
+                    for p in axis.pairs))
 
 
-def _as_json(budgets: list[Budget]) -> list[JsonValue]:
-    return [b.to_json() for b in budgets]
+def _records(budgets: list[Budget]) -> tuple[BudgetRecord, ...]:
+    return tuple(b.record() for b in budgets)

@@ -12,6 +12,8 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
+from msgspec import UnsetType
+
 from bench.analysis.coverage import COVERAGE_FORMULA, COVERAGE_RULE, DOF_INFINITE
 from bench.analysis.random_part import std_u_rel
 from bench.analysis.turns import RATE_ERROR_U_FORMULA, REPEATABILITY_FORMULA
@@ -43,8 +45,9 @@ from bench.report.certificate.rounding import (
     rel_unit,
 )
 from bench.report.result_frame import Check
-from drivers.json_types import JsonObject, JsonValue
+from drivers.json_types import JsonObject
 from procedures.rate_ladder import plots
+from procedures.rate_ladder.codec import ladder_model
 from procedures.rate_ladder.result import (
     UNSIGNED,
     LadderAxis,
@@ -52,6 +55,7 @@ from procedures.rate_ladder.result import (
     NoiseFloor,
     PairEntry,
     RateEntry,
+    RateErrorBudget,
 )
 
 # -- the method statement (docs/method.md part A, restated) ---------------------------------
@@ -183,7 +187,7 @@ class LadderCertificate(CertificateParts):
         out: list[JsonObject] = []
         for axis, r in _ladder(src).rates():
             j = r.judgement
-            if j is None or r.verdict is None:
+            if isinstance(j, UnsetType) or r.verdict is None:
                 continue
             rule = str(j.get("decision_rule", "simple"))
             out.append({"axis": axis, "set_rate_dps": r.set_rate_dps,
@@ -206,8 +210,8 @@ class LadderCertificate(CertificateParts):
 
 
 def _ladder(src: Sources) -> LadderResult:
-    """The typed view of the conformed result (procedures/rate_ladder/result.py)."""
-    return LadderResult.of(src.result)
+    """The ladder's result model of the conformed result, decoded once (codec.py)."""
+    return src.model(ladder_model)
 
 
 # -- the results -----------------------------------------------------------------------------
@@ -280,36 +284,27 @@ class Averaged:
 
 
 def _averaged(r: RateEntry) -> list[Averaged]:
-    """Averages over 1/10/360 deg, from `intra_turn.averaged` (the analysis library's shape)
-    or a list/mapping under one of the older names."""
-    data = r.averaged
-    items: list[JsonValue] = list(data) if isinstance(data, list) else []
-    if isinstance(data, dict):
-        items = [{"angle_deg": a, **(v if isinstance(v, dict) else {"instability_rel": v})}
-                 for a, v in data.items()]
+    """Averages over 1/10/360 deg, from `intra_turn.averaged`."""
     out = []
-    for d in items:
-        if not isinstance(d, dict) or (angle_deg := num(d.get("angle_deg"))) is None:
+    for d in r.averaged:
+        if (angle_deg := num(d.angle_deg)) is None:
             continue
-        raw = num(d.get("instability_rel", d.get("rel")))
-        u = num(d.get("u_rel"))
+        raw, u = num(d.instability_rel), num(d.u_rel)
         approx = u is None
         if approx:
-            u = _u_of_std(raw, d.get("blocks"))
-        corrected, upper = num(d.get("corrected_rel")), num(d.get("corrected_upper_rel"))
-        resolved = d.get("resolved")
+            u = _u_of_std(raw, d.blocks)
+        corrected, upper = num(d.corrected_rel), num(d.corrected_upper_rel)
+        resolved = d.resolved
         if resolved is None:   # an older result: the k = 2 test on the excess variance
             resolved = corrected is not None and corrected != 0 and u is not None \
                 and raw is not None and corrected ** 2 > 2 * raw * u
         if upper is None and raw is not None and u is not None:
-            fl = num(d.get("floor_rel")) or 0.0
+            fl = num(d.floor_rel) or 0.0
             upper = math.sqrt(max(raw * raw - fl * fl, 0.0) + 2 * raw * u)
-        out.append(Averaged(angle_deg, raw, u, approx and u is not None,
-                            num(d.get("floor_rel")), corrected,
-                            int(n) if (n := num(d.get("blocks"))) is not None else None,
-                            upper, bool(resolved), num(d.get("corrected_lower_rel")),
-                            m if isinstance(m := d.get("measured_resolved"), bool) else None,
-                            num(d.get("measured_upper_rel"))))
+        out.append(Averaged(angle_deg, raw, u, approx and u is not None, num(d.floor_rel),
+                            corrected, d.blocks, upper, bool(resolved),
+                            num(d.corrected_lower_rel), d.measured_resolved,
+                            num(d.measured_upper_rel)))
     return sorted(out, key=lambda x: x.angle_deg)
 
 
@@ -491,7 +486,7 @@ def _mains_rows(rates: Sequence[RateEntry], factors: set[float]) -> list[tuple[s
     mains_rows: list[tuple[str, ...]] = []
     for r in rates:
         m = r.mains
-        if m is not None and m.doc:
+        if m is not None and m.stated:
             w = abs(num(r.set_rate_dps) or 0.0)
             a, au = num(m.amplitude_dps), num(m.amplitude_u_dps)
             detected = m.detected
@@ -588,22 +583,29 @@ BUDGET_TERMS = (("timing_u_rel", "zero-mark timing"), ("timebase_u_rel", "counte
                 ("timebase_correction_u_rel", "time-base correction applied"))
 
 
+def _stated(b: RateErrorBudget, key: str) -> float | None:
+    """A term of the rate error's budget by its result.json key (BUDGET_TERMS), None when
+    the budget does not state it."""
+    return num(getattr(b, key))
+
+
 def _rate_error_budget(axis: str, rates: Sequence[RateEntry]) -> Table | None:
     """The standard uncertainties behind U of the rate error (docs/method.md A1-A2)."""
     budgets = [(r, b) for r in rates if (b := r.rate_error_budget) is not None]
     if not budgets:
         return None
-    terms = [(k, name) for k, name in BUDGET_TERMS if any(k in b for _, b in budgets)]
-    unit = rel_unit(*[num(b.get(k)) for _, b in budgets for k, _ in terms],
+    terms = [(k, name) for k, name in BUDGET_TERMS
+             if any(_stated(b, k) is not None for _, b in budgets)]
+    unit = rel_unit(*[_stated(b, k) for _, b in budgets for k, _ in terms],
                     *[num(r.rate_error_u_rel) for r, _ in budgets])
     rows = []
     for r, b in budgets:
-        cells = [format_sig((num(b.get(k)) or math.nan) * unit.scale, 2) for k, _ in terms]
+        cells = [format_sig((_stated(b, k) or math.nan) * unit.scale, 2) for k, _ in terms]
         u = num(r.rate_error_u_rel)
-        nu = num(b.get("dof_eff"))
+        nu = num(b.dof_eff)
         rows.append((rate_text(r.set_rate_dps), *cells,
                      "∞" if nu is None or nu > DOF_INFINITE else f"{nu:.1f}",
-                     f"{num(b.get('coverage_factor')) or 2.0:.2f}",
+                     f"{num(b.coverage_factor) or 2.0:.2f}",
                      format_sig(u * unit.scale, 2) if u is not None else "n/a"))
     first = budgets[0][1]
     parts = []
@@ -613,7 +615,7 @@ def _rate_error_budget(axis: str, rates: Sequence[RateEntry]) -> Table | None:
                                         ("time_tie_u_s", "time tie to the FOG axis (moves "
                                          "the FOG window and the harmonics' phase, not the "
                                          "counter's rate)", 1e6, "µs")):
-        v = num(first.get(key))
+        v = _stated(first, key)
         if v is not None:
             parts.append(f"{text} {format_sig(v * scale, 2)} {unit_name}")
     notes = ["Standard uncertainties (k = 1), relative to the set rate; U = k·√(Σu²), "
@@ -673,15 +675,13 @@ def _intra_blocks(axis: str, rates: Sequence[RateEntry], floor: NoiseFloor | Non
         notes.append("At the FOG's output bandwidth: "
                      + ", ".join(f"{b:g} Hz" for b in sorted(bw)) + ".")
     sources = {src for r in rates if (src := r.intra.floor_source)}
-    if (floor is not None and floor.doc) or sources:
+    if (floor is not None and floor.stated) or sources:
         noise = num(floor.noise_dps) if floor is not None else None
         text = "FOG noise floor from " + (", ".join(sorted(sources)) if sources else
                                           (floor.source if floor is not None and floor.source
                                            is not None else "a record at rest"))
         if noise is not None:
             text += f"; {format_sig(noise, 3)} °/s per sample"
-        if floor is not None and (rate_hz := num(floor.rate_hz)) is not None:
-            text += f" at {rate_hz:g} Hz"
         if floor is not None and (duration_s := num(floor.duration_s)) is not None:
             text += f", {duration_s:g} s record at rest"
         notes.append(text + ". Floor-corrected = √(raw² − floor²), its interval from a "
@@ -702,9 +702,9 @@ def _intra_blocks(axis: str, rates: Sequence[RateEntry], floor: NoiseFloor | Non
 def _mc_inputs(rates: Sequence[RateEntry]) -> str:
     """The Monte Carlo's inputs besides the printed raw and floor (docs/method.md A5), so
     the floor-corrected figure can be recomputed: each variance drawn as s² ν / χ²_ν."""
-    raw = [d for r in rates if (d := num(r.intra.doc.get("raw_dof"))) is not None]
-    floor = [d for r in rates if (d := num(r.intra.doc.get("floor_dof"))) is not None]
-    draws = {d for r in rates if (d := num(r.intra.doc.get("mc_draws"))) is not None}
+    raw = [d for r in rates if (d := num(r.intra.raw_dof)) is not None]
+    floor = [d for r in rates if (d := num(r.intra.floor_dof)) is not None]
+    draws = {d for r in rates if (d := num(r.intra.mc_draws)) is not None}
     if not raw or not floor or len(draws) != 1:
         return ""
 
@@ -801,7 +801,7 @@ def _across_axes(axes: Mapping[str, LadderAxis]) -> list[Block]:
                       plots.pairs, {a: ax.pairs for a, ax in axes.items()})
     blocks += figure_of("Allan deviation of the FOG at rest: its noise floor (docs/method.md A5)",
                       plots.allan, {a: ax.noise_floor for a, ax in axes.items()
-                                    if ax.noise_floor is not None and ax.noise_floor.doc},
+                                    if ax.noise_floor is not None and ax.noise_floor.stated},
                       width_frac=0.8)
     return blocks
 

@@ -19,8 +19,8 @@ from bench.core import rundir_layout as layout
 from bench.core.config import Config, FogSettings
 from bench.core.journal import RunDir, fog_capture_starts
 from drivers.fog import CaptureCursor, FogSamples
+from procedures.rate_ladder.codec import with_conditions_measured
 from procedures.rate_ladder.events import HalfAcquired
-from procedures.rate_ladder.result import with_conditions_measured
 
 
 class HalfTemperature(TypedDict):

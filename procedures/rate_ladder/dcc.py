@@ -7,12 +7,11 @@ instability, the fitted harmonics and mains ripple; per +/- pair the FOG's k and
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from lxml import etree
 
-from bench.report.budget import budget_from_json
 from bench.report.certificate import methods
 from bench.report.certificate.parts import Sources
 from bench.report.certificate.rounding import is_resolved
@@ -34,8 +33,9 @@ from bench.report.dcc.xml import (
     rate_token,
     text_el,
 )
-from drivers.json_types import JsonValue
-from procedures.rate_ladder.result import UNSIGNED, LadderResult, PairEntry, RateEntry
+from procedures.rate_ladder.codec import ladder_model
+from procedures.rate_ladder.result import UNSIGNED, PairEntry, RateEntry, RateErrorBudget
+from procedures.rate_ladder.result import Averaged as AveragedFigures
 
 # the ladder's refTypes, namespace "ratebench" (docs/dcc.md, section "refTypes")
 SET_RATE = V.RB + "setRate"
@@ -84,12 +84,8 @@ def limit_interval(limit: float, distribution: str, ustd: float,
 
 def _budget_ustd(r: RateEntry, key: str) -> float | None:
     """u_c of the budget of `key` on this rate (docs/method.md D1), None without one."""
-    budgets = r.doc.get("budgets")
-    for d in budgets if isinstance(budgets, list) else ():
-        b = budget_from_json(d) if isinstance(d, Mapping) else None
-        if b is not None and b.key == key:
-            return b.ustd
-    return None
+    b = r.budget(key)
+    return None if b is None else b.ustd
 
 
 def _stated_or(x: float | None, older: float) -> float:
@@ -102,7 +98,7 @@ class LadderDcc(DccParts):
     """The rate ladder's answers to the DCC (the kind's `dcc` part)."""
 
     def dcc_item(self, src: Sources) -> tuple[str, Sequence[str]]:
-        return "rotary rate table", list(LadderResult.of(src.result).axes)
+        return "rotary rate table", list(src.model(ladder_model).axes)
 
     def dcc_used_methods(self, src: Sources) -> tuple[str, Sequence[str]]:
         return methods.A_REFERENCE, METHOD_SECTIONS
@@ -112,7 +108,7 @@ class LadderDcc(DccParts):
 
 
 def ladder_results(results: etree._Element, src: Sources, checks: Checks) -> None:
-    for axis, ax in LadderResult.of(src.result).axes.items():
+    for axis, ax in src.model(ladder_model).axes.items():
         mr = el(results, "measurementResult", id=ident("axis", axis), ref_id="item")
         name(mr, f"Axis {axis}: per-turn rate, FOG cross-calibration and intra-turn "
                  "instability (rate ladder)")
@@ -141,12 +137,12 @@ def ladder_results(results: etree._Element, src: Sources, checks: Checks) -> Non
             text_el(el(r, "data"), "text", "Nothing was measured to completion on this axis.")
 
 
-def _per_turn_u(b: Mapping[str, object] | None, rates: list[float]) -> list[float] | None:
+def _per_turn_u(b: RateErrorBudget | None, rates: list[float]) -> list[float] | None:
     """U (k = 2) of each per-turn rate, docs/method.md A1: dw/w = dT/T with T = 360/|w|, combined
     with the counter timebase: U = 2 |w| sqrt((u_T |w| / 360)^2 + u_tb^2)."""
-    if b is None or num(b.get("period_u_s")) is None:
+    if b is None or num(b.period_u_s) is None:
         return None
-    u_t, u_tb = num(b.get("period_u_s")) or 0.0, num(b.get("timebase_u_rel")) or 0.0
+    u_t, u_tb = num(b.period_u_s) or 0.0, num(b.timebase_u_rel) or 0.0
     return [2 * abs(w) * ((u_t * abs(w) / 360.0) ** 2 + u_tb ** 2) ** 0.5 for w in rates]
 
 
@@ -199,7 +195,7 @@ def _rate_result(res: etree._Element, axis: str, i: int, r: RateEntry,
     data = el(result, "data")
     qs = _Quantities(data, rid, path, axis, w_set, checks)
     eb = r.rate_error_budget
-    ek = num(eb.get("coverage_factor")) if eb is not None else None      # docs/method.md D1: k = t_95.45(nu_eff)
+    ek = num(eb.coverage_factor) if eb is not None else None      # docs/method.md D1: k = t_95.45(nu_eff)
     _per_turn(qs, r, ek)
     _intra_turn(qs, r)
     budget_list(data, ident(rid, "budget"),
@@ -222,7 +218,7 @@ def _instability_interval(r: RateEntry) -> Interval | None:
                          num(r.rate_instability_upper_rel))
     s_floor = num(r.rate_instability_floor_rel)
     s_iv: Interval | None = None
-    s_ustd = num(r.doc.get("rate_instability_ustd_rel"))
+    s_ustd = num(r.rate_instability_ustd_rel)
     if s_val is not None and s_lo is not None and s_hi is not None:
         if r.rate_instability_resolved:
             s_iv = two_sided(s_val, s_lo, s_hi, "chi-square (N - 1 dof)",
@@ -280,7 +276,7 @@ def _intra_turn(qs: _Quantities, r: RateEntry) -> None:
     # analysis's raw_resolved); else '< L' as [0, L], L = raw + U never below the floor
     raw_iv = (limit_interval(raw_upper, "normal, one-sided upper limit value + U",
                              _stated_or(_budget_ustd(r, "intra_turn_instability_rel")
-                                        or num(intra.doc.get("raw_ustd_rel")),
+                                        or num(intra.raw_ustd_rel),
                                         raw_upper / 4.0),
                              (1.0 + float(COVERAGE_PROBABILITY)) / 2.0)
               if intra.raw_resolved is False and (raw_upper := num(intra.raw_upper_rel))
@@ -300,7 +296,7 @@ def _intra_turn(qs: _Quantities, r: RateEntry) -> None:
     corrected = num(r.intra_turn_instability_corrected_rel)
     # as the PDF (docs/method.md A5, D2): resolved, its JCGM 101 interval; else [0, L]
     c_iv = _mc_interval(corrected, lower, upper, resolved,
-                        num(intra.doc.get("corrected_ustd_rel")))
+                        num(intra.corrected_ustd_rel))
     q("intra_turn_instability_corrected_rel", "intra-turn instability with the FOG noise "
       "floor removed in quadrature (docs/method.md A5)", INTRA_TURN_CORRECTED, U.ONE, corrected,
       None if upper is not None else num(r.intra_turn_instability_corrected_u_rel),
@@ -313,54 +309,53 @@ def _intra_turn(qs: _Quantities, r: RateEntry) -> None:
           label=f"{path}.intra_turn.corrected_upper_rel")
 
 
-def _averaged(data: etree._Element, rid: str, path: str, rows: JsonValue) -> None:
-    for j, a in enumerate(rows if isinstance(rows, list) else []):
-        if not isinstance(a, Mapping) or num(a.get("angle_deg")) is None:
+def _averaged(data: etree._Element, rid: str, path: str, rows: Sequence[AveragedFigures]
+              ) -> None:
+    for j, a in enumerate(rows):
+        if (angle := num(a.angle_deg)) is None:
             continue
-        lst = el(data, "list", id=ident(rid, "avg", f"{num(a['angle_deg']):g}"),
-                 ref_type=AVERAGED)
-        name(lst, f"random part averaged over {num(a['angle_deg']):g} deg of table angle "
+        lst = el(data, "list", id=ident(rid, "avg", f"{angle:g}"), ref_type=AVERAGED)
+        name(lst, f"random part averaged over {angle:g} deg of table angle "
                   "(docs/method.md A5)")
         p = f"{path}.intra_turn.averaged[{j}]"
-        quantity(lst, None, "window", WINDOW, num(a["angle_deg"]) or 0.0, U.DEG,
-                 label=f"{p}.angle_deg")
-        v = num(a.get("instability_rel"))
+        quantity(lst, None, "window", WINDOW, angle, U.DEG, label=f"{p}.angle_deg")
+        v = num(a.instability_rel)
+        fl = num(a.floor_rel)
         if v is not None:
-            uu = num(a.get("u_rel"))
+            uu = num(a.u_rel)
             # as the PDF (docs/method.md D2): +/- U only when v - U > the FOG's floor over
             # the window; else '< L' as [0, L], L = v + U never below the floor
-            fl = num(a.get("floor_rel"))
-            m_res, m_upper = a.get("measured_resolved"), num(a.get("measured_upper_rel"))
-            if not isinstance(m_res, bool):      # an older result: the rule, here
+            m_res, m_upper = a.measured_resolved, num(a.measured_upper_rel)
+            if m_res is None:      # an older result: the rule, here
                 m_res = uu is not None and is_resolved(v, uu, floor=fl)
                 m_upper = None if uu is None else max(abs(v) + uu, fl or 0.0)
             iv = (None if m_res or m_upper is None else
                   limit_interval(m_upper, "normal, one-sided upper limit value + U",
-                                 _stated_or(num(a.get("ustd_rel")), m_upper / 4.0),
+                                 _stated_or(num(a.ustd_rel), m_upper / 4.0),
                                  (1.0 + float(COVERAGE_PROBABILITY)) / 2.0))
-            quantity(lst, ident(rid, "avg", f"{num(a['angle_deg']):g}", "instability_rel"),
+            quantity(lst, ident(rid, "avg", f"{angle:g}", "instability_rel"),
                      "instability, relative to |set|", INTRA_TURN, v, U.ONE,
                      uu if iv is None else None, label=f"{p}.instability_rel",
                      interval=iv,
                      note="U not stated in result.json." if uu is None else
                      None if iv is None else "not resolved above the FOG's floor over the "
                      "window: stated as < L, L = value + U (docs/method.md D2)")
-        if num(a.get("floor_rel")) is not None:
-            quantity(lst, None, "FOG noise floor", FOG_FLOOR, num(a["floor_rel"]) or 0.0,
-                     U.ONE, label=f"{p}.floor_rel")
-        corrected, upper = num(a.get("corrected_rel")), num(a.get("corrected_upper_rel"))
+        if fl is not None:
+            quantity(lst, None, "FOG noise floor", FOG_FLOOR, fl, U.ONE, label=f"{p}.floor_rel")
+        corrected, upper = num(a.corrected_rel), num(a.corrected_upper_rel)
         if corrected is not None:
             # as the PDF (docs/method.md D2): resolved, its interval; else [0, L]
-            iv = _mc_interval(corrected, num(a.get("corrected_lower_rel")), upper,
-                              a.get("resolved"), num(a.get("corrected_ustd_rel")))
-            quantity(lst, ident(rid, "avg", f"{num(a['angle_deg']):g}", "corrected_rel"),
+            iv = _mc_interval(corrected, num(a.corrected_lower_rel), upper, a.resolved,
+                              num(a.corrected_ustd_rel))
+            quantity(lst, ident(rid, "avg", f"{angle:g}", "corrected_rel"),
                      "floor-corrected", INTRA_TURN_CORRECTED, corrected, U.ONE,
                      label=f"{p}.corrected_rel", interval=iv,
-                     note=None if a.get("resolved") else "not resolved above the FOG noise "
+                     note=None if a.resolved else "not resolved above the FOG noise "
                      "floor: stated as < L, L the interval's upper end")
         if upper is not None:
             quantity(lst, None, "upper limit L (JCGM 101, 97.5 % quantile) of the "
-                     "floor-corrected value", INTRA_TURN_UPPER, upper, U.ONE, label=f"{p}.corrected_upper_rel")
+                     "floor-corrected value", INTRA_TURN_UPPER, upper, U.ONE,
+                     label=f"{p}.corrected_upper_rel")
 
 
 def _mc_interval(value: float | None, lower: float | None, upper: float | None,

@@ -10,7 +10,7 @@ the journal's (bench/core/events.py, issue 61): the journal adds `utc`, `t_s` an
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import TypeVar
+from typing import TypeVar, cast
 
 import msgspec
 
@@ -104,6 +104,24 @@ class PairDirection(msgspec.Struct, frozen=True, kw_only=True):
     verdict: str
 
 
+class ResultRow(msgspec.Struct, frozen=True, kw_only=True):
+    """One direction's row on the station's pages, first look (`PairLooked.rows`) or final
+    (station.py `result_rows`): k and w0 of the pair, the rate error with its U, sigma,
+    the verdict, as result.json holds them; declared once for both."""
+
+    axis: str
+    set_rate_dps: float
+    k: float | None
+    k_U: float | None               # noqa: N815 - result.json's explicit name
+    w0_dps: float | None
+    w0_U_dps: float | None          # noqa: N815
+    rate_error_rel: float | None
+    rate_error_U_rel: float | None  # noqa: N815
+    rate_instability_rel: float | None
+    turns: int | None
+    verdict: str | None
+
+
 class PairLooked(LadderEvent, tag="pair", omit_defaults=True, frozen=True):
     """The analysis worker's first look at a pair (docs/method.md A3: k and w0 with their
     expanded uncertainties, about 95 %; eq. 1 per direction). The line keeps its keys as
@@ -127,14 +145,20 @@ class PairLooked(LadderEvent, tag="pair", omit_defaults=True, frozen=True):
                 f"{_value_u(self.k, self.k_U)}, ω0 = "
                 f"{_value_u(self.w0_dps, self.w0_U_dps, signed=True)} deg/s")
 
-    def live_rows(self) -> list[JsonObject]:
+    def rows(self) -> list[ResultRow]:
         """Per direction: k and w0 of the pair, the rate error with its U, sigma, the
         verdict, as result.json will hold them."""
-        return [{"axis": self.axis, "set_rate_dps": d.set_rate_dps, "k": self.k,
-                 "k_U": self.k_U, "w0_dps": self.w0_dps, "w0_U_dps": self.w0_U_dps,
-                 "rate_error_rel": d.rate_error_rel, "rate_error_U_rel": d.rate_error_U_rel,
-                 "rate_instability_rel": d.rate_instability_rel, "turns": d.turns,
-                 "verdict": d.verdict} for d in self.directions]
+        return [ResultRow(axis=self.axis, set_rate_dps=d.set_rate_dps, k=self.k,
+                          k_U=self.k_U, w0_dps=self.w0_dps, w0_U_dps=self.w0_U_dps,
+                          rate_error_rel=d.rate_error_rel,
+                          rate_error_U_rel=d.rate_error_U_rel,
+                          rate_instability_rel=d.rate_instability_rel, turns=d.turns,
+                          verdict=d.verdict) for d in self.directions]
+
+    def live_rows(self) -> list[JsonObject]:
+        """The rows as the station's event protocol carries them (bench/core/events.py);
+        station.py decodes them (codec.py `row_of`)."""
+        return [cast(JsonObject, msgspec.to_builtins(r)) for r in self.rows()]
 
 
 class PairFailed(LadderEvent, tag="pair_failed", frozen=True):

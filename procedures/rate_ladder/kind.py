@@ -530,10 +530,9 @@ class LadderAnalysis:
 
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, object]:
         from procedures.rate_ladder.analysis import analyze_run
-        from procedures.rate_ladder.budgets import add_budgets
         from procedures.rate_ladder.conditions import add_conditions
 
-        result: dict[str, object] = {**add_budgets(analyze_run(run, cfg))}
+        result: dict[str, object] = {**analyze_run(run, cfg)}
         return add_conditions(result, run, cfg)
 
 

@@ -47,6 +47,17 @@ class IntraTurnFit(Protocol):
     def raw_upper_rel(self) -> float | None: ...
 
 
+class BinnedCurve(Protocol):
+    """The paper's binned average by angle (docs/method.md A4)."""
+
+    @property
+    def centres_deg(self) -> Sequence[float | None]: ...
+    @property
+    def deviation_rel(self) -> Sequence[float | None]: ...
+    @property
+    def u_rel(self) -> Sequence[float | None]: ...
+
+
 class RatePoint(RateRow, Protocol):
     """One commanded rate and direction's results (docs/method.md A1-A5): what the station
     reads (axes_view.py), and the figures the plots draw besides."""
@@ -66,7 +77,7 @@ class RatePoint(RateRow, Protocol):
     @property
     def harmonics(self) -> Sequence[HarmonicFit]: ...
     @property
-    def binned(self) -> Mapping[str, object]: ...
+    def binned(self) -> BinnedCurve | None: ...
     @property
     def intra(self) -> IntraTurnFit: ...
 
@@ -179,7 +190,7 @@ def systematic(axis: str, rates: Sequence[RatePoint], scale: float,
     the fitted curves of every rate are overlaid (relative units, so a component that
     grows in proportion to the rate gives one curve).
     """
-    with_bins = [r for r in rates if r.binned]
+    with_bins = [r for r in rates if r.binned is not None and r.binned.centres_deg]
     fitted = [r for r in rates if r.harmonics]
     if not fitted and not with_bins:
         return None
@@ -195,13 +206,11 @@ def systematic(axis: str, rates: Sequence[RatePoint], scale: float,
                          fontsize=9)
         else:
             b = r.binned
-            phi_b = np.asarray(b.get("centres_deg", b.get("phi_deg", [])), dtype=float)
-            if "deviation_rel" in b or "dw_rel" in b:
-                y = np.asarray(b.get("deviation_rel", b.get("dw_rel")), dtype=float)
-            else:
-                y = np.asarray(b.get("dw_dps", []), dtype=float) / abs(plot_number(r.set_rate_dps))
-            u = np.asarray(b.get("u_rel") or np.zeros_like(y), dtype=float)
-            turns = b.get("turns", r.turns)
+            assert b is not None    # with_bins
+            phi_b = np.asarray(b.centres_deg, dtype=np.float64)
+            y = np.asarray(b.deviation_rel, dtype=np.float64)
+            u = np.asarray(b.u_rel or np.zeros_like(y), dtype=np.float64)
+            turns = r.turns
             if y.size == phi_b.size and y.size:
                 ax.errorbar(phi_b, y * scale, yerr=np.nan_to_num(u) * scale if u.size == y.size
                             else None, fmt=".", ms=3, color="0.4", ecolor="0.75", lw=0.6,

@@ -26,10 +26,10 @@ from bench.report.figures import (
     joined,
     tables_of,
 )
-from bench.report.result_frame import Issues, JsonObject
+from bench.report.result_frame import JsonObject
 from procedures.rate_ladder import starter
 from procedures.rate_ladder.axes_view import AxisRows, axes_of
-from procedures.rate_ladder.result import LadderResult, conform_ladder
+from procedures.rate_ladder.codec import conform, conform_body
 from procedures.rate_ladder.sample import rate_ladder_result
 
 _RATES = "axes.<axis>.rates[]."
@@ -157,8 +157,7 @@ class LadderRecords:
     def conform_result(self, result: JsonObject) -> tuple[JsonObject, list[str]]:
         """The ladder's part checked by its result module (procedures/rate_ladder/result.py):
         a malformed container dropped and named, the rest kept."""
-        issues = Issues(strict=False)
-        return conform_ladder(dict(result), issues), issues.dropped
+        return conform_body(result)
 
     check_quantities = CHECK_QUANTITIES
 
@@ -179,7 +178,7 @@ class LadderRecords:
         return out
 
     def figure_values(self, result: Mapping[str, object]) -> list[FigureValue]:
-        ladder, _ = LadderResult.conform(result)
+        ladder, _ = conform(result)
         out: list[FigureValue | None] = []
         for axis, ax in ladder.axes.items():
             for r in ax.rates:

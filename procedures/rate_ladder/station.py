@@ -18,8 +18,10 @@ from bench.report.station import (
     rate_text,
     value_u,
 )
-from drivers.json_types import JsonObject, JsonValue
+from drivers.json_types import JsonObject
 from procedures.rate_ladder.axes_view import PairRow, RateRow, axes_of
+from procedures.rate_ladder.codec import row_json, row_of
+from procedures.rate_ladder.events import ResultRow
 
 LIVE_CAPTION = ("Results as they come (first look per pair; the certificate is computed "
                 "again from the raw data)")
@@ -62,25 +64,25 @@ class LadderStation(StationParts):
     """The ladder's tables for the run pages and the lab's list of benches."""
 
     def live_table(self, rows: Sequence[Mapping[str, object]]) -> PageTable | None:
-        """The first look per pair, from the `pair` events (`PairLooked.live_rows`): k and
-        w0 with their U, each direction's rate error with its U."""
-        if not rows:
+        """The first look per pair, from the `pair` events (`PairLooked.rows`): k and w0
+        with their U, each direction's rate error with its U."""
+        looked = [row_of(row) for row in rows]
+        if not looked:
             return None
-        unit = column_unit(*[row.get("rate_error_rel") for row in rows],
-                           *[row.get("rate_error_U_rel") for row in rows])
-        sunit = column_unit(*[row.get("rate_instability_rel") for row in rows])
+        unit = column_unit(*[r.rate_error_rel for r in looked],
+                           *[r.rate_error_U_rel for r in looked])
+        sunit = column_unit(*[r.rate_instability_rel for r in looked])
         out = []
-        for row in rows:
-            sigma = number(row.get("rate_instability_rel"))
-            out.append(([str(row.get("axis") or "-"), rate_text(row.get("set_rate_dps")),
-                         value_u(row.get("k"), row.get("k_U")),
-                         value_u(row.get("w0_dps"), row.get("w0_U_dps"), signed=True),
-                         value_u(row.get("rate_error_rel"), row.get("rate_error_U_rel"),
-                                 unit.scale, signed=True),
+        for r in looked:
+            sigma = number(r.rate_instability_rel)
+            out.append(([r.axis or "-", rate_text(r.set_rate_dps), value_u(r.k, r.k_U),
+                         value_u(r.w0_dps, r.w0_U_dps, signed=True),
+                         value_u(r.rate_error_rel, r.rate_error_U_rel, unit.scale,
+                                 signed=True),
                          "-" if sigma is None else format_sig(sigma * sunit.scale, 2),
-                         "-" if row.get("turns") is None else str(row.get("turns")),
-                         verdict_label(row.get("verdict")) if row.get("verdict") else "-"],
-                        str(row.get("verdict") or "")))
+                         "-" if r.turns is None else str(r.turns),
+                         verdict_label(r.verdict) if r.verdict else "-"],
+                        r.verdict or ""))
         return page_table("results-live", LIVE_CAPTION,
                           ("axis", "set rate, deg/s", "k ± U", "ω0 ± U, deg/s",
                            f"rate error δ ± U, {unit.name}",
@@ -89,10 +91,9 @@ class LadderStation(StationParts):
 
     def last_look(self, row: Mapping[str, object]) -> str | None:
         """'<axis> <rate> deg/s: rate error δ ± U ppm' of the newest direction looked at."""
-        error = value_u(row.get("rate_error_rel"), row.get("rate_error_U_rel"), 1e6,
-                        signed=True)
-        return (f"{row.get('axis')} {rate_text(row.get('set_rate_dps'))} deg/s: rate "
-                f"error {error} ppm")
+        r = row_of(row)
+        error = value_u(r.rate_error_rel, r.rate_error_U_rel, 1e6, signed=True)
+        return f"{r.axis} {rate_text(r.set_rate_dps)} deg/s: rate error {error} ppm"
 
     def result_tables(self, result: Mapping[str, object]) -> list[PageTable]:
         """Per axis (CONTRACT §3's `axes.<axis>.rates[]` and `pairs[]`): each rate's error
@@ -112,17 +113,13 @@ class LadderStation(StationParts):
         rows: list[JsonObject] = []
         for axis, body in axes_of(result).items():
             by_rate = {entry.rate_dps: entry for entry in body.pairs}
-            for rate_entry in body.rates:
-                pair_entry = by_rate.get(abs(rate_entry.set_rate_dps))
-                row: dict[str, JsonValue] = {
-                    "axis": axis, "set_rate_dps": rate_entry.set_rate_dps,
-                    "k": pair_entry.k if pair_entry else None,
-                    "k_U": pair_entry.k_U if pair_entry else None,
-                    "w0_dps": pair_entry.w0_dps if pair_entry else None,
-                    "w0_U_dps": pair_entry.w0_U_dps if pair_entry else None,
-                    "rate_error_rel": rate_entry.rate_error_rel,
-                    "rate_error_U_rel": rate_entry.rate_error_U_rel,
-                    "rate_instability_rel": rate_entry.rate_instability_rel,
-                    "turns": rate_entry.turns, "verdict": rate_entry.verdict}
-                rows.append(row)
+            for r in body.rates:
+                p = by_rate.get(abs(r.set_rate_dps))
+                rows.append(row_json(ResultRow(
+                    axis=axis, set_rate_dps=r.set_rate_dps, k=p.k if p else None,
+                    k_U=p.k_U if p else None, w0_dps=p.w0_dps if p else None,
+                    w0_U_dps=p.w0_U_dps if p else None, rate_error_rel=r.rate_error_rel,
+                    rate_error_U_rel=r.rate_error_U_rel,
+                    rate_instability_rel=r.rate_instability_rel, turns=r.turns,
+                    verdict=r.verdict)))
         return rows

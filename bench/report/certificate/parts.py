@@ -16,7 +16,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol, TypeVar, cast, runtime_checkable
 
 from bench.analysis.finite import finite_number as num
 from bench.core import events as ev
@@ -29,6 +29,8 @@ from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u
 from bench.report.result_frame import Check, JsonObject, ResultFrame, as_object
 
 NOT_RECORDED = "not recorded"
+
+M = TypeVar("M")
 
 
 # -- the inputs ----------------------------------------------------------------------------
@@ -44,6 +46,9 @@ class Sources:
     procedure_file: dict[str, Any] = field(default_factory=dict)
     events: list[Event] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)  # malformed parts of result.json
+    #: the kind's result model, decoded once (`model`), by its decoder
+    _models: dict[Callable[[Sources], object], object] = field(default_factory=dict,
+                                                               repr=False)
 
     @classmethod
     def load(cls, result: object, run_path: Path | None) -> Sources:
@@ -64,6 +69,13 @@ class Sources:
         """When the event log first (or last) recorded an event of `kind`, as it wrote it."""
         found = (ev.last if last else ev.first)(self.events, kind)
         return found.utc or None if found is not None else None
+
+    def model(self, decode: Callable[[Sources], M]) -> M:
+        """The kind's result model (its codec's `decode` of `result`), decoded on first
+        use and read by every section of the certificate and the DCC."""
+        if decode not in self._models:
+            self._models[decode] = decode(self)
+        return cast(M, self._models[decode])
 
     @cached_property
     def frame(self) -> ResultFrame:

@@ -187,10 +187,13 @@ def statement(parent: etree._Element, ref_type: str | None, declaration: str, *,
 
 def budget_list(data: etree._Element, lid: str, title: str, budget: object, path: str,
                 terms: Sequence[tuple[str, str]], unit: str) -> None:
-    """The standard uncertainties behind a U, one quantity per source (no U of their own)."""
-    if not isinstance(budget, Mapping):
+    """The standard uncertainties behind a U, one quantity per source (no U of their own):
+    a kind's typed budget's fields (or an older mapping's keys) named by `terms`."""
+    if budget is None:
         return
-    found = [(k, label, v) for k, label in terms if (v := num(budget.get(k))) is not None]
+    found = [(k, label, v) for k, label in terms
+             if (v := num(budget.get(k) if isinstance(budget, Mapping)
+                          else getattr(budget, k, None))) is not None]
     if not found:
         return
     lst = el(data, "list", id=lid, ref_type=V.BUDGET)

@@ -1,0 +1,249 @@
+"""result.json's ladder body <-> the rate ladder's result model (result.py), by msgspec.
+
+Why a module of its own: it is the one place of the kind where a JSON value meets the model
+(tests/test_json_boundary.py keeps JSON maps out of every other module). Encoding gives the
+builtins `json.dumps` writes (bench/report/codec.py: the result writer's floats, so the
+file's bytes are those of before), non-finite numbers as null (JSON has no NaN); decoding
+refuses a malformed body naming the key path in result.json's terms
+(`axes.outer.rates[0].turns: expected an integer, got str`), or, for the certificate,
+drops the malformed part, names it and keeps the rest (`conform`).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import re
+from collections.abc import Mapping, Sequence
+from typing import cast
+
+import msgspec
+
+from bench.core import rundir_layout as layout
+from bench.report.certificate.parts import Sources
+from bench.report.codec import encode
+from bench.report.result_frame import (
+    Issues,
+    JsonObject,
+    JsonValue,
+    KeyPath,
+    MalformedResult,
+    ResultFrame,
+    as_object,
+    conform_each,
+    conform_frame,
+    conform_list,
+    conform_object,
+    conform_plain_list,
+)
+from procedures.rate_ladder.events import ResultRow
+from procedures.rate_ladder.result import LadderAxis, LadderCheck, LadderResult
+
+#: the body's key in result.json, and the root of every path a refusal names
+ROOT = "axes"
+
+_AT = re.compile(r" - at `\$(?P<path>[^`]*)`$")
+_MISSING = re.compile(r"^Object missing required field `(?P<key>[^`]+)`")
+_EXPECTED = re.compile(r"^Expected `(?P<want>[^`]+)`, got `(?P<got>[^`]+)`")
+#: msgspec's type names, as a reader of result.json says them
+_TYPES = {"float": "a number", "int": "an integer", "bool": "true or false",
+          "object": "an object", "array": "a list", "str": "text", "null": "null"}
+_STEP = re.compile(r"\.(?P<key>[A-Za-z_][A-Za-z0-9_]*)|\[(?P<index>\d+)\]")
+
+
+# -- the containers' checks (what the certificate may safely walk) ----------------------------
+
+def _conform_systematic(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    # a harmonic means nothing without its order
+    conform_list(doc, "harmonics", path, issues, numeric="order")
+    conform_object(doc, "mains", path, issues)
+    conform_object(doc, "binned", path, issues)
+    return doc
+
+
+def _conform_intra_turn(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    conform_list(doc, "averaged", path, issues)
+    return doc
+
+
+def _conform_rate(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    conform_object(doc, "systematic", path, issues, _conform_systematic)
+    conform_object(doc, "intra_turn", path, issues, _conform_intra_turn)
+    conform_plain_list(doc, "counter_rate_dps", path, issues)
+    return doc
+
+
+def _conform_axis(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    # a rate without its set rate, a pair without its rate mean nothing
+    conform_list(doc, "rates", path, issues, _conform_rate, numeric="set_rate_dps")
+    conform_list(doc, "pairs", path, issues, numeric="rate_dps")
+    conform_object(doc, "noise_floor", path, issues)
+    return doc
+
+
+def _conform_axes(doc: JsonObject, path: KeyPath, issues: Issues) -> JsonObject:
+    return conform_each(doc, path, issues, _conform_axis)
+
+
+def conform_ladder(doc: JsonObject, issues: Issues) -> JsonObject:
+    """The ladder's part of a result.json checked, in place."""
+    conform_object(doc, "axes", (), issues, _conform_axes)
+    return doc
+
+
+def with_conditions_measured(doc: dict[str, object], fog_axes: Mapping[str, object]
+                             ) -> dict[str, object]:
+    """The analysis' result with what the bench measured itself (`conditions_measured`):
+    the FOG's temperature per axis (procedures/rate_ladder/conditions.py), none when no
+    half recorded it; the room: no sensor on this stand, not measured."""
+    doc["conditions_measured"] = {
+        "fog_temperature": {"source": "FOG frames' temperature field (table top, at the "
+                                      "FOG), deg C, integer resolution", "axes": fog_axes}
+        if fog_axes else None,
+        "room": None,
+    }
+    return doc
+
+
+def _finite(value: JsonValue) -> JsonValue:
+    """Non-finite floats replaced by None, recursively."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, list):
+        return [_finite(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    return value
+
+
+def encode_axes(axes: Mapping[str, LadderAxis]) -> JsonValue:
+    """The `axes` body as result.json's writer takes it."""
+    return {name: _finite(encode(axis)) for name, axis in axes.items()}
+
+
+def encode_checks(checks: Sequence[LadderCheck]) -> list[JsonObject]:
+    """The frame's `checks[]`, the ladder's checks as the model writes them."""
+    return [cast(JsonObject, _finite(encode(c))) for c in checks]
+
+
+def _problem(err: msgspec.ValidationError) -> tuple[str, str]:
+    """msgspec's words as (key path below the axis, problem) in result.json's terms."""
+    text = str(err)
+    at = _AT.search(text)
+    path = at["path"] if at else ""
+    text = text[:at.start()] if at else text
+    if m := _MISSING.match(text):
+        return f"{path}.{m['key']}", "missing"
+    if m := _EXPECTED.match(text):
+        want = " or ".join(_TYPES.get(t, t) for t in m["want"].split(" | "))
+        return path, f"expected {want}, got {m['got']}"
+    return path, text
+
+
+def _axis(name: str, node: JsonValue) -> LadderAxis:
+    try:
+        return msgspec.convert(node, LadderAxis, strict=True)
+    except msgspec.ValidationError as err:
+        path, problem = _problem(err)
+        raise MalformedResult(f"{ROOT}.{name}{path}", problem) from None
+
+
+def _drop(node: JsonValue, path: str) -> bool:
+    """Remove the entry at `path` (msgspec's `.key[0].key` below an axis) from `node`: a
+    key of an object (its default then reads "not stated") or, for a missing key, the
+    object holding it from its list. False when there is nothing to remove."""
+    steps: list[str | int] = [m["key"] if m["key"] else int(m["index"])
+                              for m in _STEP.finditer(path)]
+    parents: list[JsonValue] = []
+    at = node
+    for step in steps[:-1]:
+        parents.append(at)
+        if isinstance(step, int) and isinstance(at, list) and step < len(at):
+            at = at[step]
+        elif isinstance(step, str) and isinstance(at, dict) and step in at:
+            at = at[step]
+        else:
+            return False
+    last = steps[-1] if steps else None
+    if isinstance(at, dict) and isinstance(last, str) and last in at:
+        del at[last]
+        return True
+    # a required key missing: the item holding it goes from its list
+    for parent, step in zip(reversed(parents), reversed(steps[:-1]), strict=False):
+        if isinstance(parent, list) and isinstance(step, int):
+            del parent[step]
+            return True
+    return False
+
+
+def _lenient_axis(name: str, node: JsonValue, dropped: list[str]) -> JsonValue:
+    """A copy of an axis with its malformed entries dropped (named in `dropped`), None if
+    nothing of it is readable."""
+    node = copy.deepcopy(node)     # the caller's document stays as read
+    for _ in range(1000):     # one entry dropped per round; a body has fewer
+        try:
+            msgspec.convert(node, LadderAxis, strict=True)
+            return node
+        except msgspec.ValidationError as err:
+            path, problem = _problem(err)
+            dropped.append(f"{ROOT}.{name}{path} ({problem})")
+            if not _drop(node, path):
+                return None
+    return None
+
+
+def _axes_node(doc: JsonObject) -> dict[str, JsonValue]:
+    found = as_object(doc.get(ROOT))
+    return {} if found is None else {k: v for k, v in found.items() if isinstance(v, dict)}
+
+
+def ladder_of(doc: object) -> LadderResult:
+    """A whole result.json decoded once, or MalformedResult naming the first malformed key
+    path."""
+    top = as_object(doc)
+    if top is None:
+        raise MalformedResult(layout.RESULT, "is not a JSON object")
+    issues = Issues(strict=True)
+    top = conform_frame(conform_ladder(top, issues), issues)
+    return LadderResult(frame=ResultFrame.of(top),
+                        axes={name: _axis(name, a) for name, a in _axes_node(top).items()})
+
+
+def conform_body(doc: JsonObject) -> tuple[JsonObject, list[str]]:
+    """result.json with the malformed parts of its ladder body dropped, and what was
+    dropped (named): what the certificate prints, and its section Deviations lists."""
+    issues = Issues(strict=False)
+    top = conform_ladder(dict(doc), issues)
+    dropped = issues.dropped
+    if ROOT in top:
+        top[ROOT] = {name: found for name, a in _axes_node(top).items()
+                     if (found := _lenient_axis(name, a, dropped)) is not None}
+    return top, dropped
+
+
+def conform(doc: object) -> tuple[LadderResult, list[str]]:
+    """A whole result.json with its malformed parts dropped, decoded, and what was dropped."""
+    top = as_object(doc)
+    if top is None:
+        return LadderResult(frame=ResultFrame.of({}), axes={}), [
+            "result.json (expected a mapping)"]
+    body, dropped = conform_body(top)
+    frame_issues = Issues(strict=False)
+    body = conform_frame(body, frame_issues)
+    return ladder_of(body), dropped + frame_issues.dropped
+
+
+def ladder_model(src: Sources) -> LadderResult:
+    """The certificate's and the DCC's model of the (conformed) result: `src.model(
+    ladder_model)` decodes it once for every section."""
+    return ladder_of(src.result)
+
+
+def row_json(row: ResultRow) -> JsonObject:
+    """A station row as the station's pages carry it (its fields, in order)."""
+    return cast(JsonObject, msgspec.to_builtins(row))
+
+
+def row_of(row: Mapping[str, object]) -> ResultRow:
+    """A station row as the station's event protocol carried it (`PairLooked.live_rows`)."""
+    return msgspec.convert(row, ResultRow)
