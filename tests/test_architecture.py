@@ -250,13 +250,10 @@ def test_the_quantity_scan_sees_a_quantity_in_code() -> None:
     assert quantities_in(source, keys) == [(2, "w0_dps"), (3, "rate_error_U_rel")]
 
 
-#: where bench/ may write a kind's key, and why: the twins' truth in a stand file's `sim:`
-#: block (the simulated table's ripple, a setting of the twins that shares the result's
-#: word), and the one naming rule of result.json's uncertainties, which lists the `_u`
-#: keys that are standard uncertainties (issue 61 left these)
-QUANTITY_NAMED = {("bench/core/stand_sim.py", "amplitude_rel"),
-                  ("bench/core/stand_sim.py", "amplitude_dps"),
-                  ("bench/report/uncertainty_names.py", "own_u_dph"),
+#: where bench/ may write a kind's key, and why: the one naming rule of result.json's
+#: uncertainties, which lists the `_u` keys that are standard uncertainties (the twins'
+#: truth, whose ripple shares the result's words, is declared in sims/truth.py)
+QUANTITY_NAMED = {("bench/report/uncertainty_names.py", "own_u_dph"),
                   ("bench/report/uncertainty_names.py", "apparent_u_dph")}
 
 

@@ -37,7 +37,6 @@ from bench.core.schema import (
     struct_at,
     struct_map,
 )
-from bench.core.stand_sim import SerialsFile, SimAxisFile, SimFogFile, TieTruthFile
 from bench.core.yamlfile import KeyPath, Problem, YamlDoc
 from drivers.calibration import Calibration
 from drivers.counter_profiles import get_profile
@@ -47,7 +46,7 @@ from drivers.drive_settings import (
 )
 from drivers.fog_settings import FogSettings
 from sims.drive_truth import DriveTruth
-from sims.truth import AxisTruth, FogTruth, Harmonic, Mains
+from sims.truth import AxisTruth, FogTruth
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
 #: the rate and acceleration bounds are the drive's (drivers/drive_settings.py)
@@ -57,7 +56,7 @@ STEP_MAX_S = 7 * 86_400.0
 # -- stand file ---------------------------------------------------------------------
 
 # Each stand block is declared once, as the msgspec Struct the bench reads (the drive's,
-# counter's and FOG's in drivers/, the twins' truth in bench/core/stand_sim.py, the rest
+# counter's and FOG's in drivers/, the twins' truth in sims/truth.py, the rest
 # here): each field's type, default, bounds and unit (msgspec.Meta) and meaning. The
 # block's schema (`bench validate`, `bench schema`, JSON Schema) is `struct_map` of the
 # Struct, its parse `struct_at` (bench/core/schema.py); what a Struct's own rules refuse
@@ -97,7 +96,7 @@ STAND_AXIS_KEYS: dict[str, Key] = {
     "counter": Key(COUNTER, False, "the counter timing the zero-mark pulse, once per turn"),
     "fog": Key(FOG, False, "the reference gyro (FOG) mounted on the axis"),
 }
-SIM_AXIS = struct_map(SimAxisFile)
+SIM_AXIS = struct_map(AxisTruth)
 
 
 def _absolute_path(value: object) -> str | None:
@@ -450,44 +449,21 @@ class StandSettings:
 
 
 def _sim_axis(d: dict[str, Any], at: KeyPath) -> SimAxis:
-    """A `sim.axes.<axis>` block (bench/core/stand_sim.py); a key left out takes the
-    truth's own default (each default once: the dataclasses' fields)."""
-    f = struct_at(SimAxisFile, d, at)
-    fog = f.fog or SimFogFile()
-    tie, serials = f.time_tie or TieTruthFile(), f.serials or SerialsFile()
-
-    def stated(block: msgspec.Struct | None) -> dict[str, Any]:
-        """The keys a block states (None: left out, the truth's default)."""
-        return {k: v for k, v in msgspec.structs.asdict(block).items()
-                if v is not None} if block is not None else {}
-
-    truth: dict[str, Any] = {k: v for k in ("rate_bias_rel", "rate_noise_dps",
-                                            "turn_jitter_s")
-                             if (v := getattr(f, k)) is not None}
-    if f.harmonics:
-        truth["harmonics"] = tuple(Harmonic(**stated(h)) for h in f.harmonics)
-    if f.mains:
-        truth["mains"] = Mains(**stated(f.mains))
-    truth["fog"] = FogTruth(**{k: v for k, v in stated(fog).items()
-                               if k in FogTruth.__dataclass_fields__})
-    extra: dict[str, Any] = {}
-    if f.counter_external_reference is not None:
-        extra["counter_external_reference"] = f.counter_external_reference
-    if f.counter_first_value is not None:
-        extra["counter_first_value"] = f.counter_first_value
-    if tie.jitter_s is not None:
-        extra["tie_jitter_s"] = tie.jitter_s
-    if f.counter is not None and f.counter.timebase_offset_rel is not None:
-        extra["counter_timebase_offset_rel"] = f.counter.timebase_offset_rel
-    drive = f.drive or DriveTruth()
-    if serials.drive is not None:
-        drive = msgspec.structs.replace(drive, serial_number=serials.drive)
-    step, ramp = fog.scale_step, fog.scale_ramp
+    """A `sim.axes.<axis>` block, read into its one declaration (sims/truth.py AxisTruth;
+    a key left out takes its default there)."""
+    t = struct_at(AxisTruth, d, at)
+    fog, tie, step, ramp = t.fog, t.time_tie, t.fog.scale_step, t.fog.scale_ramp
+    drive = (t.drive if t.serials.drive is None
+             else msgspec.structs.replace(t.drive, serial_number=t.serials.drive))
     return SimAxis(
-        AxisTruth(**truth), fog_units=fog.units,
+        t, fog_units=fog.units,
         scale_step=(step.from_run, step.rel) if step else None,
         scale_ramp=(ramp.from_run, ramp.rel_per_run) if ramp else None,
-        tie_latency_s=tie.latency_s, counter_serial=serials.counter, drive=drive, **extra)
+        counter_external_reference=t.counter_external_reference,
+        counter_first_value=t.counter_first_value,
+        counter_timebase_offset_rel=t.counter.timebase_offset_rel,
+        tie_latency_s=tie.latency_s, tie_jitter_s=tie.jitter_s,
+        counter_serial=t.serials.counter, drive=drive)
 
 
 def dcc_refs(stand: Mapping[str, Any] | None) -> DccRefs:
