@@ -361,17 +361,12 @@ class StandAxis:
 class SimAxis:
     """The twins' truth for one axis (the stand's `sim.axes.<axis>`)."""
 
+    #: read whole by the twins (the FOG's and the counter's their parts of it)
     truth: AxisTruth
-    fog_units: str | None = None            # what the FOG twin carries before set-up
     scale_step: tuple[int, float] | None = None      # (from_run, rel)
     scale_ramp: tuple[int, float] | None = None      # (from_run, rel_per_run)
-    counter_external_reference: bool = True
-    counter_first_value: str = "from-start"
-    #: the counter's true time-base offset e: every period it times is x (1 + e)
-    counter_timebase_offset_rel: float = 0.0
     tie_latency_s: float | None = None      # None: exactly the latency the stand declares
     tie_jitter_s: float = 0.0
-    counter_serial: str | None = None
     #: the drive twin's power-on configuration (its serial from `serials.drive`)
     drive: DriveTruth = DriveTruth()
 
@@ -452,18 +447,13 @@ def _sim_axis(d: dict[str, Any], at: KeyPath) -> SimAxis:
     """A `sim.axes.<axis>` block, read into its one declaration (sims/truth.py AxisTruth;
     a key left out takes its default there)."""
     t = struct_at(AxisTruth, d, at)
-    fog, tie, step, ramp = t.fog, t.time_tie, t.fog.scale_step, t.fog.scale_ramp
+    tie, step, ramp = t.time_tie, t.fog.scale_step, t.fog.scale_ramp
     drive = (t.drive if t.serials.drive is None
              else msgspec.structs.replace(t.drive, serial_number=t.serials.drive))
     return SimAxis(
-        t, fog_units=fog.units,
-        scale_step=(step.from_run, step.rel) if step else None,
+        t, scale_step=(step.from_run, step.rel) if step else None,
         scale_ramp=(ramp.from_run, ramp.rel_per_run) if ramp else None,
-        counter_external_reference=t.counter_external_reference,
-        counter_first_value=t.counter_first_value,
-        counter_timebase_offset_rel=t.counter.timebase_offset_rel,
-        tie_latency_s=tie.latency_s, tie_jitter_s=tie.jitter_s,
-        counter_serial=t.serials.counter, drive=drive)
+        tie_latency_s=tie.latency_s, tie_jitter_s=tie.jitter_s, drive=drive)
 
 
 def dcc_refs(stand: Mapping[str, Any] | None) -> DccRefs:
