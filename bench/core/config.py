@@ -361,7 +361,7 @@ class StandAxis:
 class SimAxis:
     """The twins' truth for one axis (the stand's `sim.axes.<axis>`)."""
 
-    #: read whole by the twins (the FOG's and the counter's their parts of it)
+    #: the axis's truth, which the twins read whole (each its own parts)
     truth: AxisTruth
     scale_step: tuple[int, float] | None = None      # (from_run, rel)
     scale_ramp: tuple[int, float] | None = None      # (from_run, rel_per_run)
