@@ -21,6 +21,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from drivers.counter import Counter  # noqa: E402
+from drivers.counter_settings import CounterSettings  # noqa: E402
 from sims.clock import VirtualClock  # noqa: E402
 from sims.counter_twin import CounterTwin  # noqa: E402
 from sims.stand import AxisTruth, SimulatedStand, StandTruth  # noqa: E402
@@ -39,7 +40,7 @@ def main() -> int:
         return s
 
     st = stand(200.0)
-    with CounterTwin(st, "a", model=args.model) as twin, \
+    with CounterTwin(st, "a", CounterSettings(resource="", model=args.model)) as twin, \
             Counter.open(twin.resource, args.model, st.clock, timeout_margin_s=1.0) as c:
         c.configure(level_v=2.5)
         n = 200
@@ -60,7 +61,7 @@ def main() -> int:
     if args.edges <= 0:
         return 0
     st = stand(2e4)  # 10 000 turns of 1 s in 0.5 s real
-    with CounterTwin(st, "a", model=args.model) as twin, \
+    with CounterTwin(st, "a", CounterSettings(resource="", model=args.model)) as twin, \
             Counter.open(twin.resource, args.model, st.clock, timeout_margin_s=2.0) as c:
         if not c.supports_timestamps:
             print("long record: skipped (no timestamps)")

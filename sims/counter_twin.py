@@ -68,35 +68,58 @@ Faults (`inject`): 'no-trigger' (the next measurement sees no edges), and the ba
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
 from drivers.counter_profiles import FIRST_VALUE_READINGS, get_profile
+from drivers.counter_settings import CounterSettings as StandCounter
 from sims.counter_53230a import Keysight53230aScript
 from sims.counter_cnt91 import Cnt91Script
 from sims.counter_models import twin_profile
 from sims.counter_state import InputState, Kind, SyncLink, TwinAcquisition
 from sims.scpi_server import ScpiServer
 from sims.stand import SimulatedStand
+from sims.truth import AxisTruth
 
-__all__ = ["CounterTwin", "InputState", "Kind", "SyncLink", "TwinAcquisition"]
+__all__ = ["CounterTwin", "InputState", "Kind", "SyncLink", "TwinAcquisition",
+           "ZeroMarkSignal"]
+
+
+@dataclass(frozen=True)
+class ZeroMarkSignal:
+    """How the zero mark reaches the counter: the input it is wired to and the levels it
+    swings between (a trigger level outside them, or another input, sees no edges)."""
+
+    channel: int = 1
+    low_v: float = 0.0
+    high_v: float = 5.0
 
 
 class CounterTwin(Cnt91Script, Keysight53230aScript):
-    """A counter of `model` watching the zero mark of `stand.axes[axis]`."""
+    """A counter of `settings.model` watching the zero mark of `stand.axes[axis]`."""
 
     fault_names = ScpiServer.fault_names | {"no-trigger"}
 
-    def __init__(self, stand: SimulatedStand, axis: str, model: str = "keysight-53230a",
-                 host: str = "127.0.0.1", port: int = 0, *, signal_channel: int = 1,
-                 signal_low_v: float = 0.0, signal_high_v: float = 5.0,
-                 sync: SyncLink | None = None, timeout_s: float | None = None,
-                 seed: int = 0, external_reference: bool = True,
-                 first_value: str = "from-start", timebase_offset_rel: float = 0.0) -> None:
-        self.profile = get_profile(model)
+    def __init__(self, stand: SimulatedStand, axis: str, settings: StandCounter,
+                 truth: AxisTruth | None = None, *, sync: SyncLink | None = None,
+                 seed: int = 0, timeout_s: float | None = None,
+                 signal: ZeroMarkSignal = ZeroMarkSignal(), host: str = "127.0.0.1",
+                 port: int = 0) -> None:
+        """`settings`: the stand's counter block, as the driver takes it (its model names
+        the profile the twin speaks); `truth`: the axis's truth (default: the stand's),
+        whose counter parts the twin reads whole (the reference wired to it, how its
+        first timestamp reads, its time base's offset, the serial it reports)."""
+        t = truth if truth is not None else stand.axis(axis).truth
+        self.profile = get_profile(settings.model)
         self.twin_profile = twin_profile(self.profile)
-        super().__init__(idn=self.profile.idn, host=host, port=port)
+        idn = self.profile.idn
+        if t.serials.counter:    # the stand's serial in *IDN? field 3
+            fields = idn.split(",")
+            idn = ",".join([*fields[:2], t.serials.counter, *fields[3:]])
+        super().__init__(idn=idn, host=host, port=port)
         self.error_code_format = self.twin_profile.error_code_format
+        first_value = t.counter_first_value
         if first_value not in FIRST_VALUE_READINGS:
             raise ValueError(f"counter twin first_value {first_value!r}: one of "
                              f"{', '.join(FIRST_VALUE_READINGS)}")
@@ -107,20 +130,20 @@ class CounterTwin(Cnt91Script, Keysight53230aScript):
         self.stand = stand
         self.axis = stand.axis(axis)
         self.clock = stand.clock
-        self.signal_channel = signal_channel
-        self.signal_v = (float(signal_low_v), float(signal_high_v))
+        self.signal_channel = signal.channel
+        self.signal_v = (float(signal.low_v), float(signal.high_v))
         self.inputs: dict[int, InputState] = {}
         self.acquisition: TwinAcquisition | None = None
         self.sync = sync
         #: a valid 10 MHz at Ext Ref In (the stand's GPS-disciplined reference)
-        self.external_reference = external_reference
+        self.external_reference = t.counter_external_reference
         #: the timebase in use; SENS:ROSC:SOUR is not reset by *RST here (simplification:
         #: the manual's *RST value of the auto selection is not modelled; the CNT-91 starts
         #: the same way, its power-on selection not being known to us)
-        self.reference = "EXT" if external_reference else "INT"
+        self.reference = "EXT" if self.external_reference else "INT"
         #: the time base's true offset e (issue 58): every interval the counter times from
         #: its start event reads (1 + e) times the true one; 0, the stand's time exactly
-        self.timebase_offset_rel = float(timebase_offset_rel)
+        self.timebase_offset_rel = float(t.counter.timebase_offset_rel)
         self.rng = np.random.default_rng(seed)
         #: SYST:TIM, non-volatile: not touched by *RST (None: disabled, as shipped)
         self.timeout_s: float | None = timeout_s

@@ -62,6 +62,7 @@ import numpy as np
 
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, get_format
+from drivers.fog_settings import FogSettings as StandFog
 from drivers.kvh_config import POWER_ON_UNITS
 from sims.fog_faults import Corrupt, Drop, Fault, Garbage, Stall
 from sims.fog_samples import (
@@ -72,14 +73,26 @@ from sims.fog_samples import (
     FogSamples,
 )
 from sims.stand import SimulatedStand
+from sims.truth import FogTruth
 
 __all__ = ["ACCEL_NOISE_G", "DEFAULT_SERIAL", "TEMPERATURE_NOISE_C", "WARM_UP_C",
            "WARM_UP_TAU_S", "Corrupt", "Drop", "Fault", "FogTwin", "Garbage", "Stall",
-           "TwinTruth"]
+           "TwinTruth", "power_on_units"]
 
 #: what `?IS` answers when the twin is given no serial (ICD 8.20: "a text string,
 #: typically with a numeric value")
 DEFAULT_SERIAL = "0"
+
+
+def power_on_units(settings: StandFog | None, truth: FogTruth) -> str:
+    """What the FOG twin carries before the bench talks to it: the truth's `fog.units`,
+    else a declared `fog.units` (a FOG configured earlier), else the KVH power-on
+    default, delta radians (drivers/kvh_config.py)."""
+    if truth.units:
+        return truth.units
+    if settings is not None and settings.configure == "declare":
+        return settings.units
+    return POWER_ON_UNITS
 
 
 @dataclass(frozen=True)
@@ -97,9 +110,16 @@ class TwinTruth:
 class FogTwin(FogSamples):
     """Frames of one stand axis's FOG on a pty. Create it before the stand clock starts."""
 
-    def __init__(self, stand: SimulatedStand, axis: str, *, fmt: str = "kvh-a",
-                 axis_letter: str = "z", units: str = POWER_ON_UNITS, temperature: float = 25.0,
-                 keep_truth: bool = False, serial: str = DEFAULT_SERIAL) -> None:
+    def __init__(self, stand: SimulatedStand, axis: str, settings: StandFog | None = None,
+                 *, temperature: float = 25.0, keep_truth: bool = False) -> None:
+        """`settings`: the stand's FOG block, as the driver takes it (its frame format,
+        axis letter, serial, and the units a FOG configured earlier holds; None: a KVH
+        A-format FOG on z at its power-on units); what it carries before the bench talks
+        to it is the axis's truth's (`fog.units`) when stated (`power_on_units`)."""
+        fmt = settings.format if settings is not None else "kvh-a"
+        axis_letter = settings.axis if settings is not None else "z"
+        serial = (settings.serial if settings is not None else None) or DEFAULT_SERIAL
+        units = power_on_units(settings, stand.axis(axis).truth.fog)
         self.format = get_format(fmt)
         if axis_letter not in AXES:
             raise ValueError(f"FOG twin axis letter {axis_letter!r} not one of x, y, z")

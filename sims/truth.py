@@ -10,42 +10,74 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Annotated, Any, Literal
+
+import msgspec
+from msgspec import Meta, Struct
 
 from drivers.units import EARTH_RATE_DPH, SECONDS_PER_HOUR
+from sims.drive_truth import DriveTruth
 
 if TYPE_CHECKING:
     import numpy as np
 
 
-@dataclass(frozen=True)
-class Harmonic:
+def _m(description: str, unit: str = "", **bounds: float) -> Meta:
+    """A key's meaning, unit and bounds (ge, gt, le), as the stand schema shows them."""
+    kw: dict[str, Any] = {"description": description, **bounds}
+    if unit:
+        kw["extra"] = {"unit": unit}
+    return Meta(**kw)
+
+
+class Harmonic(Struct, frozen=True, forbid_unknown_fields=True):
     """w_true - w_set = w_set * amplitude_rel * cos(order * phi + phase) (CONTRACT §2)."""
 
-    order: int
-    amplitude_rel: float
-    phase_deg: float = 0.0
+    order: Annotated[int, _m("h: cycles per turn", ge=1)]
+    amplitude_rel: Annotated[float, _m("a, relative to the set rate", ge=0)]
+    phase_deg: Annotated[float, _m("p, at the zero mark", "deg")] = 0.0
 
 
-@dataclass(frozen=True)
-class Mains:
+class Mains(Struct, frozen=True, forbid_unknown_fields=True):
     """A tone in time: amplitude_dps * cos(2 pi f t + phase), while the axis turns."""
 
-    frequency_hz: float = 50.0
-    amplitude_dps: float = 0.0
-    phase_deg: float = 0.0
+    frequency_hz: Annotated[float, _m("the ripple's frequency", "Hz", gt=0)] = 50.0
+    amplitude_dps: Annotated[float, _m("its amplitude", "deg/s", ge=0)] = 0.0
+    phase_deg: Annotated[float, _m("its phase at t = 0", "deg")] = 0.0
 
 
-@dataclass(frozen=True)
-class FogTruth:
+class ScaleStep(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """A FOG whose scale steps between runs (bench/core/simdrift.py, bench control)."""
+
+    from_run: Annotated[int, _m("the first run with the step", ge=1)]
+    rel: Annotated[float, _m("the step, a fraction of the scale")]
+
+
+class ScaleRamp(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """A FOG whose scale creeps from run to run (bench/core/simdrift.py)."""
+
+    from_run: Annotated[int, _m("the first run of the ramp", ge=1)]
+    rel_per_run: Annotated[float, _m("the change per run, a fraction of the scale")]
+
+
+class FogTruth(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     """The FOG's true response: k * w_true + w0 + drift * t + white noise (CONTRACT §2)."""
 
-    scale: float = 1.0
-    bias_dps: float = 0.0
-    misalignment_deg: float = 0.0
-    noise_dps: float = 0.0
-    bias_drift_dps_per_h: float = 0.0
+    scale: Annotated[float, _m("scale factor M")] = 1.0
+    bias_dps: Annotated[float, _m("bias w0", "deg/s")] = 0.0
+    misalignment_deg: Annotated[float, _m("sensitive axis to table axis, g", "deg")] = 0.0
+    noise_dps: Annotated[float, _m("white noise std per sample", "deg/s")] = 0.0
+    bias_drift_dps_per_h: Annotated[float, _m("linear bias drift from the start of the run",
+                                              "deg/s/h")] = 0.0
+    # a FOG that drifts across runs (bench/core/simdrift.py, bench control)
+    scale_step: Annotated[ScaleStep, _m("scale x (1 + rel) from run from_run "
+                                        "on")] | None = None
+    scale_ramp: Annotated[ScaleRamp, _m("scale x (1 + rel_per_run per run) from run "
+                                        "from_run on")] | None = None
+    units: Annotated[Literal["deg/s", "rad/s", "deg", "rad"], _m(
+        "what the twin carries before the bench configures it (default: delta radians, or "
+        "the declared fog.units)")] | None = None
 
     @property
     def k(self) -> float:
@@ -62,30 +94,66 @@ class FogTruth:
         return self.bias_dps + self.bias_drift_dps_per_h * np.asarray(t_s) / SECONDS_PER_HOUR
 
 
-@dataclass(frozen=True)
-class AxisTruth:
-    """Everything the `sim:` block says about one axis."""
+class CounterTruth(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The counter twin's own errors, unknown to the lab."""
 
-    rate_bias_rel: float = 0.0
-    harmonics: tuple[Harmonic, ...] = ()
-    mains: Mains | None = None
-    rate_noise_dps: float = 0.0
-    turn_jitter_s: float = 0.0
-    fog: FogTruth = field(default_factory=FogTruth)
+    timebase_offset_rel: Annotated[float, _m(
+        "the counter's true time-base offset e, unknown to the lab: every period the twin times is scaled by "
+        "1 + e (issue 58)")] = 0.0
+
+
+class TieTruth(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The FOG sync to counter trigger link as it truly is (drivers/time_tie.py)."""
+
+    latency_s: Annotated[float, _m("true latency (left out: exactly the latency the stand "
+                                   "declares)", "s", ge=0)] | None = None
+    jitter_s: Annotated[float, _m("its jitter, std", "s", ge=0)] = 0.0
+
+
+class Serials(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """The serial each twin reports (left out: the twin's own)."""
+
+    counter: Annotated[str, _m("the counter twin's *IDN? serial")] | None = None
+    drive: Annotated[int, _m("the drive twin's serial number, 0x1018:4",
+                             ge=0, le=2**32 - 1)] | None = None
+
+
+class AxisTruth(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
+    """Everything the stand file's `sim.axes.<axis>:` block says is true of one axis,
+    declared once: the stand schema reads its keys, units and defaults from here
+    (bench/core/config.py), and the twins take the parts whole."""
+
+    rate_bias_rel: Annotated[float, _m("mean table rate = set x (1 + this)")] = 0.0
+    harmonics: Annotated[tuple[Harmonic, ...], _m(
+        "w_true - w_set = w_set x sum a cos(h phi + p)")] = ()
+    mains: Annotated[Mains, _m("a mains-frequency rate ripple")] | None = None
+    rate_noise_dps: Annotated[float, _m("white table rate noise while turning, std per FOG "
+                                        "sample", "deg/s", ge=0)] = 0.0
+    turn_jitter_s: Annotated[float, _m("zero-mark edge timing std", "s", ge=0)] = 0.0
+    fog: Annotated[FogTruth, _m("the FOG's truth: k = scale cos(misalignment), w0 = "
+                                "bias")] = msgspec.field(default_factory=FogTruth)
+    counter_external_reference: Annotated[bool, _m(
+        "a valid 10 MHz is wired to the counter's Ext Ref In")] = True
+    counter: Annotated[CounterTruth, _m("the counter twin's own errors")] \
+        = msgspec.field(default_factory=CounterTruth)
+    counter_first_value: Annotated[Literal["from-start", "edge-to-edge"], _m(
+        "how the 53230A twin reads its first timestamp value: from the trigger or edge to "
+        "edge (the Programmer's Reference's SENSe:TSTamp:RATE example)")] = "from-start"
+    time_tie: Annotated[TieTruth, _m("the FOG sync to counter trigger link: true "
+                                     "latency and jitter")] \
+        = msgspec.field(default_factory=TieTruth)
+    serials: Annotated[Serials, _m(
+        "the serial each twin reports: the counter's *IDN? serial field, the drive's "
+        "identity object 0x1018:4")] = msgspec.field(default_factory=Serials)
+    drive: Annotated[DriveTruth, _m(
+        "the drive twin's own configuration: its factor group (e.g. rpm, rpm/s), TPDO event "
+        "timer, limits and windows (sims/drive_truth.py)")] \
+        = msgspec.field(default_factory=DriveTruth)
 
     @classmethod
     def from_mapping(cls, d: Mapping[str, Any]) -> AxisTruth:
         """Build from a validated `sim.axes.<axis>` mapping of the stand file."""
-        mains = d.get("mains")
-        return cls(
-            rate_bias_rel=float(d.get("rate_bias_rel", 0.0)),
-            harmonics=tuple(Harmonic(**h) for h in d.get("harmonics", ())),
-            mains=Mains(**mains) if mains else None,
-            rate_noise_dps=float(d.get("rate_noise_dps", 0.0)),
-            turn_jitter_s=float(d.get("turn_jitter_s", 0.0)),
-            # `fog.units` is the FOG twin's (what it carries before configuration)
-            fog=FogTruth(**{k: v for k, v in d.get("fog", {}).items() if k != "units"}),
-        )
+        return msgspec.convert(d, cls)
 
     def mean_turn_rate_rel(self) -> float:
         """The per-turn rate's relative deviation from w_set that this truth implies.

@@ -465,10 +465,12 @@ class Twins:
         return twin
 
     def counter(self, stand: Any, axis: str = "outer", *, model: str = "keysight-53230a",
-                **kw: Any) -> Any:
-        """A counter twin serving SCPI on TCP 127.0.0.1 (`twin.resource` to open it)."""
+                truth: Any = None, **kw: Any) -> Any:
+        """A counter twin serving SCPI on TCP 127.0.0.1 (`twin.resource` to open it);
+        `truth`: the axis's truth it reads (default: the stand's)."""
+        from drivers.counter_settings import CounterSettings
         from sims.counter_twin import CounterTwin
-        twin = CounterTwin(stand, axis, model=model, **kw)
+        twin = CounterTwin(stand, axis, CounterSettings(resource="", model=model), truth, **kw)
         twin.start()
         self._stack.callback(twin.stop)
         return twin

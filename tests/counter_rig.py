@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from drivers.counter_settings import CounterSettings
 from sims.clock import VirtualClock
 from sims.stand import AxisTruth, Harmonic, SimulatedStand, StandTruth
 
@@ -29,6 +30,12 @@ def turning_stand(seed: int = 7, rate_dps: float = RATE_DPS) -> SimulatedStand:
     stand = SimulatedStand(truth, {AXIS: 200.0}, VirtualClock(SPEED))
     stand.axes[AXIS].command_rate(0.0, rate_dps, 1e6)
     return stand
+
+
+def counter_block(model: str = "keysight-53230a") -> CounterSettings:
+    """A stand's `counter:` block for a twin of `model` (its resource is the twin's own,
+    given when it starts)."""
+    return CounterSettings(resource="", model=model)
 
 
 def truth_edges(stand: SimulatedStand, t_from_s: float, t_to_s: float) -> np.ndarray:

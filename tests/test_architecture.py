@@ -250,11 +250,10 @@ def test_the_quantity_scan_sees_a_quantity_in_code() -> None:
     assert quantities_in(source, keys) == [(2, "w0_dps"), (3, "rate_error_U_rel")]
 
 
-#: where bench/ may write a kind's key, and why: the twins' truth in a stand file's `sim:`
-#: block (the simulated table's ripple, a setting of the twins that shares the result's
-#: word; issue 61 left these)
-QUANTITY_NAMED = {("bench/core/stand_sim.py", "amplitude_rel"),
-                  ("bench/core/stand_sim.py", "amplitude_dps")}
+#: where bench/ may write a kind's key, and why: nowhere now (the twins' truth, whose
+#: ripple shares the result's words, is declared in sims/truth.py; result.json's `_U`/`_ustd`
+#: twins are the kinds' model fields, so the naming rule lists no kind's key)
+QUANTITY_NAMED: set[tuple[str, str]] = set()
 
 
 def test_no_module_under_bench_names_a_kinds_quantity() -> None:
@@ -270,6 +269,60 @@ def test_no_module_under_bench_names_a_kinds_quantity() -> None:
              for line, text in quantities_in(path.read_text(encoding="utf-8"), keys,
                                              str(path))
              if (str(rel), text) not in QUANTITY_NAMED]
+    assert found == [], "\n".join(found)
+
+
+def kind_event_tags() -> frozenset[str]:
+    """The tags of the journal records the installed kinds declare (each kind's `events`
+    module, loaded by the journal codec, bench/core/events.py)."""
+    from bench.core import events as ev
+
+    ev.declared("load every kind")
+    found: list[type[ev.Event]] = []
+    todo = [ev.Event]
+    while todo:
+        subs = todo.pop().__subclasses__()
+        found += subs
+        todo += subs
+    return frozenset(ev.kind_of(c) for c in found if c.__module__.startswith("procedures.")
+                     and ev.kind_of(c) and ev.kind_of(c) != c.__name__)
+
+
+def strings_in(source: str, keys: frozenset[str], filename: str = "<source>"
+               ) -> list[tuple[int, str]]:
+    """(line, text) of every string in `source` (not its docstrings) that is one of `keys`
+    (an event's tag is a string; a name such as `pair` or `acquire` is not one)."""
+    tree = ast.parse(source, filename)
+    docstrings = _docstring_ids(tree)
+    return sorted((node.lineno, node.value) for node in ast.walk(tree)
+                  if isinstance(node, ast.Constant) and isinstance(node.value, str)
+                  and id(node) not in docstrings and node.value in keys)
+
+
+def test_the_tag_scan_sees_a_tag_in_code() -> None:
+    source = ('"""Shows the pair events (a docstring may say so)."""\n'
+              'SHOWN = ("abort", "pair")\n'
+              'pair = e.pair\n')
+    assert strings_in(source, frozenset({"pair", "settled"})) == [(2, "pair")]
+
+
+#: where bench/ may write a string equal to a kind's event tag, and why: the drive's raw
+#: log's record kind (drivers/drive.py), a homonym of the ladder's `settled`; the
+#: ladder's step action `acquire`, by which the records time a half's settling
+TAG_NAMED = {("bench/app/records/checks.py", "settled"),
+             ("bench/app/records/checks.py", "acquire")}
+
+
+def test_no_module_under_bench_names_a_kinds_event() -> None:
+    """Which events the station shows, the fleet asks for and the log words is declared on
+    each kind's records (`Event.STATION_LOG`, `log_text`, `live_rows`): bench/ writes no
+    kind's event tag, so a plug-in kind's events are served like the shipped kinds'."""
+    tags = kind_event_tags()
+    assert {"pair", "pair_failed", "settled", "acquire", "cycle"} <= tags
+    found = [f"{rel}:{line}: {text!r}"
+             for path in sorted((ROOT / "bench").rglob("*.py"))
+             for line, text in strings_in(path.read_text(encoding="utf-8"), tags, str(path))
+             if (str(rel := path.relative_to(ROOT)), text) not in TAG_NAMED]
     assert found == [], "\n".join(found)
 
 

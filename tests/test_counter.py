@@ -25,7 +25,7 @@ from drivers.scpi import Command
 from drivers.time_tie import TimeTie
 from sims.counter_twin import CounterTwin, SyncLink
 from tests.conftest import Twins
-from tests.counter_rig import AXIS, PERIOD_S, SPEED, truth_edges, turning_stand
+from tests.counter_rig import AXIS, PERIOD_S, SPEED, counter_block, truth_edges, turning_stand
 
 TIMESTAMP_MODELS = [m for m, p in PROFILES.items() if p.supports_timestamps]
 
@@ -44,7 +44,7 @@ TIE = TimeTie("fog-sync", sync_period_s=2.0, latency_s=3e-6)
 
 
 def open_pair(stand, model, **kw):
-    twin = CounterTwin(stand, AXIS, model=model, sync=SYNC)
+    twin = CounterTwin(stand, AXIS, counter_block(model), sync=SYNC)
     resource = twin.start()
     tie = TIE if PROFILES[model].words.trigger_source is not None else None
     try:

@@ -18,7 +18,7 @@ from drivers.counter import (
 from drivers.counter_profiles import PROFILES
 from sims.counter_twin import CounterTwin
 from tests.conftest import Twins
-from tests.counter_rig import AXIS, PERIOD_S, truth_edges, turning_stand
+from tests.counter_rig import AXIS, PERIOD_S, counter_block, truth_edges, turning_stand
 
 COMMAND_TIMEOUT_S = 0.3
 MARGIN_S = 0.3
@@ -75,7 +75,7 @@ def test_fault_gives_a_clear_error_then_the_counter_works(fault, model, twins: T
 @pytest.mark.timeout(20)
 def test_faults_are_named_and_unknown_ones_refused():
     stand = turning_stand()
-    twin = CounterTwin(stand, AXIS)
+    twin = CounterTwin(stand, AXIS, counter_block())
     assert {"no-trigger", "garbage", "drop"} <= twin.fault_names
     with pytest.raises(ValueError, match="unknown fault 'smoke'.*drop"):
         twin.inject("smoke")

@@ -22,6 +22,7 @@ from drivers.counter_profiles import (
 )
 from drivers.time_tie import TimeTie
 from sims.counter_twin import SyncLink
+from sims.truth import AxisTruth
 from tests.conftest import Twins
 from tests.counter_rig import AXIS, PERIOD_S, truth_edges, turning_stand
 
@@ -61,7 +62,8 @@ def test_a_first_value_near_a_turn_with_few_turns_reads_as_the_counter_has_shown
 @pytest.fixture(params=FIRST_VALUE_READINGS)
 def pair(request, twins: Twins):
     stand = turning_stand()
-    twin = twins.counter(stand, AXIS, model=MODEL, sync=SYNC, first_value=request.param)
+    twin = twins.counter(stand, AXIS, model=MODEL, sync=SYNC,
+                         truth=AxisTruth(counter_first_value=request.param))
     counter = Counter.open(twin.resource, MODEL, stand.clock, time_tie=TIE,
                            timeout_margin_s=1.0)
     with counter:

@@ -25,6 +25,7 @@ from drivers.counter import Counter, CounterCommandError, CounterError
 from drivers.counter_profiles import PENDULUM_CNT91
 from drivers.time_tie import TimeTie
 from sims.counter_twin import SyncLink
+from sims.truth import AxisTruth
 from tests.conftest import Twins
 from tests.counter_rig import AXIS, PERIOD_S, truth_edges, turning_stand
 from tests.test_transcript_53230a_clients import Session
@@ -120,7 +121,8 @@ def test_measure_array_tstamp_and_stst(stand, twins: Twins) -> None:
 
 @pytest.mark.parametrize("wired", [True, False])
 def test_reference_source_words(stand, twins: Twins, wired: bool) -> None:
-    twin = twins.counter(stand, AXIS, model="pendulum-cnt-91", external_reference=wired)
+    twin = twins.counter(stand, AXIS, model="pendulum-cnt-91",
+                         truth=AxisTruth(counter_external_reference=wired))
     s = twins.close_later(Session(twin))
     s.write(":SENS:ROSC:SOUR INT")
     assert s.query("ROSC:SOUR?") == "INT"
@@ -136,7 +138,8 @@ def test_reference_source_words(stand, twins: Twins, wired: bool) -> None:
 
 @pytest.mark.parametrize("wired", [True, False])
 def test_driver_sets_and_checks_the_reference(stand, twins: Twins, wired: bool) -> None:
-    twin = twins.counter(stand, AXIS, model="pendulum-cnt-91", external_reference=wired)
+    twin = twins.counter(stand, AXIS, model="pendulum-cnt-91",
+                         truth=AxisTruth(counter_external_reference=wired))
     with Counter.open(twin.resource, "pendulum-cnt-91", stand.clock) as counter:
         if wired:
             assert counter.verify_reference("external", 1e-9) == "EXT"

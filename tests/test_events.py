@@ -116,3 +116,21 @@ def test_no_journal_reader_outside_the_codec_tests_a_kind_by_its_name() -> None:
              for n, text in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
              if pattern.search(text)]
     assert found == []
+
+
+def test_the_station_shows_the_events_each_kind_flags_a_plugin_kinds_too(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Which events the station's log shows is read off the declarations
+    (`Event.STATION_LOG`), not listed in bench/: tests/plugin_kind (a third kind, loaded as
+    an installed kind's events are) flags its `dwelt`, and the live page's filter and the
+    fleet's query take it in with no change to bench/."""
+    from bench.app.station import fleet
+    monkeypatch.setattr(ev, "registered", lambda: {"dwell": "tests.plugin_kind:KIND"})
+    monkeypatch.setattr(ev, "_PLUGINS_LOADED", False)
+    assert "dwelt" in ev.station_log_kinds()
+    assert "dwelt" in fleet.log_kinds() and "dwelt" in fleet.kinds_read()
+    assert ev.decode({"event": "dwelt", "waited_s": 1.0}).STATION_LOG
+    # the ladder's flagged and unflagged records, and the kind-neutral ones, as before
+    assert {"pair", "pair_failed", "settled", "exit", "abort"} <= set(fleet.log_kinds())
+    assert not {"acquire", "static", "cycle", "plan"} & set(fleet.log_kinds())
+    assert {"plan", "step_start", "step_done", "session_lost"} <= set(fleet.kinds_read())

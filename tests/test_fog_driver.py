@@ -26,6 +26,7 @@ from drivers.fog_formats import StreamDecoder
 from sims.clock import VirtualClock
 from sims.fog_twin import Corrupt, Drop, FogTwin, Garbage, Stall
 from sims.stand import AxisTruth, FogTruth, SimulatedStand, StandTruth
+from tests.test_transcript_kvh import fog_block
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -41,7 +42,7 @@ def rig(tmp_path: Path, *faults: object, rate_hz: float = 1000.0, speed: float =
     clock = VirtualClock(speed, running=False)
     stand = SimulatedStand(StandTruth(seed=7, axes={"outer": AxisTruth(fog=FOG_TRUTH)}),
                            {"outer": rate_hz}, clock)
-    twin = FogTwin(stand, "outer", fmt=fmt, axis_letter=axis_letter, units=units,
+    twin = FogTwin(stand, "outer", fog_block(units, format=fmt, axis=axis_letter),
                    keep_truth=True)
     twin.inject(*faults)  # type: ignore[arg-type]
     stand.axes["outer"].command_rate(0.0, rate_dps, 50.0)
@@ -343,7 +344,7 @@ def test_a_fog_opened_while_the_clock_ran_starts_at_the_clock(tmp_path: Path) ->
     clock = SteppedClock()
     stand = SimulatedStand(StandTruth(seed=7, axes={"outer": AxisTruth(fog=FOG_TRUTH)}),
                            {"outer": 1000.0}, clock)
-    twin = FogTwin(stand, "outer", units="deg/s", keep_truth=True)
+    twin = FogTwin(stand, "outer", fog_block("deg/s"), keep_truth=True)
     stand.axes["outer"].command_rate(0.0, 10.0, 50.0)
     n = 3000
     with twin:

@@ -43,7 +43,7 @@ from sims.stand import (
     SimulatedStand,
     StandTruth,
 )
-from tests.test_transcript_kvh import twin_at_power_on
+from tests.test_transcript_kvh import fog_block, twin_at_power_on
 
 pytestmark = pytest.mark.timeout(40)
 
@@ -227,8 +227,8 @@ def test_is_answers_the_serial_number(serial_number: str | None, answer: str) ->
     clock = VirtualClock(20.0, running=False)
     stand = SimulatedStand(StandTruth(seed=3, axes={"outer": AxisTruth()}), {"outer": 1000.0},
                            clock)
-    kw = {} if serial_number is None else {"serial": serial_number}
-    with FogTwin(stand, "outer", **kw) as twin, \
+    block = None if serial_number is None else fog_block("rad", serial=serial_number)
+    with FogTwin(stand, "outer", block) as twin, \
             serial.Serial(twin.path, 921600, timeout=0.05) as ser:
         ser.write(b"?IS\r\n")                  # Normal Mode: no answer
         time.sleep(0.2)
@@ -242,7 +242,7 @@ def test_is_answers_the_serial_number(serial_number: str | None, answer: str) ->
     with pytest.raises(ValueError, match="serial"):
         FogTwin(SimulatedStand(StandTruth(seed=3, axes={"outer": AxisTruth()}),
                                {"outer": 1000.0}, VirtualClock(1.0, running=False)),
-                "outer", serial="12\r\n34")
+                "outer", fog_block("rad", serial="12\r\n34"))
 
 
 def _stand(clock: VirtualClock, noise_dps: float = 0.01) -> SimulatedStand:
@@ -260,7 +260,7 @@ def test_other_channels_carry_the_stands_noise_and_leave_z_bit_for_bit() -> None
     stand that never drew them gives, bit for bit."""
     clock = VirtualClock(20.0, running=False)
     stand = _stand(clock)
-    twin = FogTwin(stand, "outer", units="deg/s")
+    twin = FogTwin(stand, "outer", fog_block("deg/s"))
     stand.axes["outer"].command_rate(0.0, 20.0, 50.0)
     with twin, serial.Serial(twin.path, 921600, timeout=0.05) as ser:
         time.sleep(0.1)
@@ -299,7 +299,7 @@ def test_the_temperature_warms_slowly_and_the_draws_do_not_depend_on_chunks() ->
     the seed, and are standard deviates once scaled."""
     clock = VirtualClock(20.0, start_s=3000.0, running=False)
     stand = _stand(clock)
-    twin = FogTwin(stand, "outer", units="deg/s")
+    twin = FogTwin(stand, "outer", fog_block("deg/s"))
     with twin:
         stand.advance()             # nobody reads yet: an hour of frames not sent
         with serial.Serial(twin.path, 921600, timeout=0.05) as ser:

@@ -19,6 +19,7 @@ import pytest
 
 from bench.core.traceability import overdue, traced_items
 from drivers.counter import Counter, CounterError
+from sims.truth import AxisTruth
 from tests.conftest import Twins, bench
 from tests.counter_rig import AXIS, turning_stand
 
@@ -31,7 +32,8 @@ def test_counter_reference_set_checked_and_read_back(wired: bool, twins: Twins) 
     """The stand's claim is set (SENS:ROSC:SOUR EXT), the signal checked (EXT:CHEC ONCE)
     and read back; without a signal at Ext Ref In the counter refuses it (User's Guide)."""
     stand = turning_stand()
-    twin = twins.counter(stand, AXIS, model="keysight-53230a", external_reference=wired)
+    twin = twins.counter(stand, AXIS, model="keysight-53230a",
+                         truth=AxisTruth(counter_external_reference=wired))
     counter = twins.close_later(Counter.open(twin.resource, "keysight-53230a", stand.clock))
     if wired:
         assert counter.verify_reference("external", 1e-9) == "EXT"

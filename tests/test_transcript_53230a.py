@@ -27,7 +27,8 @@ from drivers.time_tie import TimeTie
 from drivers.transport import Exchange, Like, expected_protocol
 from sims.clock import VirtualClock
 from sims.counter_twin import CounterTwin, SyncLink
-from tests.counter_rig import AXIS, truth_edges, turning_stand
+from sims.truth import AxisTruth
+from tests.counter_rig import AXIS, counter_block, truth_edges, turning_stand
 from tests.transcripts import NO_ERROR_KEYSIGHT, NR3_KEYSIGHT, checked, replay_on_twin
 
 IDN = "Keysight Technologies,53230A,MY50001234,02.05-1519.666-1.19-4.15-127-155-35"
@@ -135,7 +136,7 @@ def test_a_readback_that_differs_refuses_by_stand_key():
 def test_the_twin_answers_the_same_transcript():
     """The same lines over TCP to the twin: the manual's replies, the twin's numbers."""
     stand = turning_stand()
-    twin = CounterTwin(stand, AXIS, model="keysight-53230a",
+    twin = CounterTwin(stand, AXIS, counter_block("keysight-53230a"),
                        sync=SyncLink(period_s=2.0, latency_s=3e-6), timeout_s=1.0)
     data = Like("+1," + ",".join(INTERVALS), r"\+1(," + NR3_KEYSIGHT + "){4}")
     lines = [(s, Like(r, r".+") if s == "*IDN?" else (data if s == "FETC?" else r))
@@ -180,7 +181,8 @@ def test_a_timebase_claim_on_the_internal_reference_is_refused():
 
 def test_the_twin_refuses_the_check_without_a_reference_signal():
     stand = turning_stand()
-    twin = CounterTwin(stand, AXIS, model="keysight-53230a", external_reference=False)
+    twin = CounterTwin(stand, AXIS, counter_block("keysight-53230a"),
+                       AxisTruth(counter_external_reference=False))
     with twin:
         replay_on_twin(twin.start(), [
             ("ROSC:SOUR EXT", None), ("SYST:ERR?", NO_ERROR_KEYSIGHT),

@@ -29,7 +29,7 @@ from drivers.counter_profiles import PENDULUM_CNT91, nr3
 from drivers.transport import Like, expected_protocol
 from sims.clock import VirtualClock
 from sims.counter_twin import CounterTwin
-from tests.counter_rig import AXIS, turning_stand
+from tests.counter_rig import AXIS, counter_block, turning_stand
 from tests.transcripts import NO_ERROR_PENDULUM, checked, replay_on_twin
 
 N = 12_000
@@ -111,7 +111,7 @@ def test_a_ts_from_another_start_event_is_refused_for_edges_not_for_periods():
 @pytest.mark.timeout(60)
 def test_the_twin_serves_the_same_chunks():
     stand = turning_stand(rate_dps=36_000.0)   # 0.01 s a turn: 12 000 turns in 0.6 s real
-    twin = CounterTwin(stand, AXIS, model="pendulum-cnt-91")
+    twin = CounterTwin(stand, AXIS, counter_block("pendulum-cnt-91"))
     lines = [(s, Like(r, r".+") if s.startswith(("*IDN", "FETC")) or
               (s.endswith("?") and s.startswith("INP")) else r)
              for s, r in transcript() if s not in ("*ESR?", "*OPC")]

@@ -28,6 +28,7 @@ import serial
 
 from drivers.fog import Fog, FogError, dps_per_unit, read_capture
 from drivers.fog_formats import decode
+from drivers.fog_settings import FogSettings
 from drivers.kvh_config import WORDS, KvhConfigError, KvhConfigurator, KvhTarget
 from drivers.transport import TranscriptTransport
 from sims.clock import VirtualClock
@@ -112,6 +113,12 @@ def test_an_unknown_word_is_reported_by_name():
                                termination="\r\n")
     with pytest.raises(KvhConfigError, match="'=OUTPUTFMT,A' answered 'INVALID"):
         KvhConfigurator(link).apply(KvhTarget("deg/s", 1000.0, "A", "set"))
+
+
+def fog_block(units: str, **kw: str) -> FogSettings:
+    """A stand's `fog:` block for a twin (its port is the twin's own; the twin samples at
+    the stand axis's rate): a FOG configured earlier to `units` (configure: declare)."""
+    return FogSettings(port="", rate_hz=1000.0, units=units, **kw)  # type: ignore[arg-type]
 
 
 @contextlib.contextmanager

@@ -26,7 +26,6 @@ from bench.core.schema import (
     struct_at,
     struct_map,
 )
-from bench.core.stand_sim import SerialsFile, SimAxisFile, SimFogFile, TieTruthFile
 from bench.core.yamlfile import KeyPath, Problem, YamlDoc
 from drivers.calibration import Calibration
 from drivers.counter_profiles import get_profile
@@ -34,7 +33,7 @@ from drivers.counter_settings import CounterSettings
 from drivers.drive_settings import DriveSettings
 from drivers.fog_settings import FogSettings
 from sims.drive_truth import DriveTruth
-from sims.truth import AxisTruth, FogTruth, Harmonic, Mains
+from sims.truth import AxisTruth, FogTruth
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
 #: the rate and acceleration bounds are the drive's (drivers/drive_settings.py)
@@ -44,7 +43,7 @@ STEP_MAX_S = 7 * 86_400.0
 # -- stand file ---------------------------------------------------------------------
 
 # Each stand block is declared once, as the msgspec Struct the bench reads (the drive's,
-# counter's and FOG's in drivers/, the twins' truth in bench/core/stand_sim.py, the rest
+# counter's and FOG's in drivers/, the twins' truth in sims/truth.py, the rest
 # here): each field's type, default, bounds and unit (msgspec.Meta) and meaning. The
 # block's schema (`bench validate`, `bench schema`, JSON Schema) is `struct_map` of the
 # Struct, its parse `struct_at` (bench/core/schema.py); what a Struct's own rules refuse
@@ -369,17 +368,12 @@ class StandAxis:
 class SimAxis:
     """The twins' truth for one axis (the stand's `sim.axes.<axis>`)."""
 
+    #: the axis's truth, which the twins read whole (each its own parts)
     truth: AxisTruth
-    fog_units: str | None = None            # what the FOG twin carries before set-up
     scale_step: tuple[int, float] | None = None      # (from_run, rel)
     scale_ramp: tuple[int, float] | None = None      # (from_run, rel_per_run)
-    counter_external_reference: bool = True
-    counter_first_value: str = "from-start"
-    #: the counter's true time-base offset e: every period it times is x (1 + e)
-    counter_timebase_offset_rel: float = 0.0
     tie_latency_s: float | None = None      # None: exactly the latency the stand declares
     tie_jitter_s: float = 0.0
-    counter_serial: str | None = None
     #: the drive twin's power-on configuration (its serial from `serials.drive`)
     drive: DriveTruth = DriveTruth()
 
@@ -396,11 +390,11 @@ class SimSettings(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True)
     clock_speed: Annotated[float, Meta(gt=0, description=(
         "virtual seconds per real one, or max: as fast as every twin keeps up"))] \
         | Literal["max"] | None = None
-    #: written as SimAxisFile, parsed by `_sim_axis` (each truth's default is its
+    #: written as sims/truth.py AxisTruth, parsed by `_sim_axis` (each truth's default is its
     #: dataclass field's)
     axes: Annotated[dict[str, SimAxis], Meta(
         description="each axis's truth, by stand axis name",
-        extra={"written": dict[str, SimAxisFile]})] = msgspec.field(default_factory=dict)
+        extra={"written": dict[str, AxisTruth]})] = msgspec.field(default_factory=dict)
     run_number: Annotated[int, Meta(ge=1, description="this run's number for a drifting twin "
                                     "(default: 1 + the runs of this table in the "
                                     "records)")] | None = None
@@ -459,44 +453,16 @@ class StandSettings:
 
 
 def _sim_axis(d: dict[str, Any], at: KeyPath) -> SimAxis:
-    """A `sim.axes.<axis>` block (bench/core/stand_sim.py); a key left out takes the
-    truth's own default (each default once: the dataclasses' fields)."""
-    f = struct_at(SimAxisFile, d, at)
-    fog = f.fog or SimFogFile()
-    tie, serials = f.time_tie or TieTruthFile(), f.serials or SerialsFile()
-
-    def stated(block: msgspec.Struct | None) -> dict[str, Any]:
-        """The keys a block states (None: left out, the truth's default)."""
-        return {k: v for k, v in msgspec.structs.asdict(block).items()
-                if v is not None} if block is not None else {}
-
-    truth: dict[str, Any] = {k: v for k in ("rate_bias_rel", "rate_noise_dps",
-                                            "turn_jitter_s")
-                             if (v := getattr(f, k)) is not None}
-    if f.harmonics:
-        truth["harmonics"] = tuple(Harmonic(**stated(h)) for h in f.harmonics)
-    if f.mains:
-        truth["mains"] = Mains(**stated(f.mains))
-    truth["fog"] = FogTruth(**{k: v for k, v in stated(fog).items()
-                               if k in FogTruth.__dataclass_fields__})
-    extra: dict[str, Any] = {}
-    if f.counter_external_reference is not None:
-        extra["counter_external_reference"] = f.counter_external_reference
-    if f.counter_first_value is not None:
-        extra["counter_first_value"] = f.counter_first_value
-    if tie.jitter_s is not None:
-        extra["tie_jitter_s"] = tie.jitter_s
-    if f.counter is not None and f.counter.timebase_offset_rel is not None:
-        extra["counter_timebase_offset_rel"] = f.counter.timebase_offset_rel
-    drive = f.drive or DriveTruth()
-    if serials.drive is not None:
-        drive = msgspec.structs.replace(drive, serial_number=serials.drive)
-    step, ramp = fog.scale_step, fog.scale_ramp
+    """A `sim.axes.<axis>` block, read into its one declaration (sims/truth.py AxisTruth;
+    a key left out takes its default there)."""
+    t = struct_at(AxisTruth, d, at)
+    tie, step, ramp = t.time_tie, t.fog.scale_step, t.fog.scale_ramp
+    drive = (t.drive if t.serials.drive is None
+             else msgspec.structs.replace(t.drive, serial_number=t.serials.drive))
     return SimAxis(
-        AxisTruth(**truth), fog_units=fog.units,
-        scale_step=(step.from_run, step.rel) if step else None,
+        t, scale_step=(step.from_run, step.rel) if step else None,
         scale_ramp=(ramp.from_run, ramp.rel_per_run) if ramp else None,
-        tie_latency_s=tie.latency_s, counter_serial=serials.counter, drive=drive, **extra)
+        tie_latency_s=tie.latency_s, tie_jitter_s=tie.jitter_s, drive=drive)
 
 
 def dcc_refs(stand: Mapping[str, Any] | None) -> DccRefs:

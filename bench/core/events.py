@@ -48,6 +48,10 @@ class Event(msgspec.Struct, kw_only=True, frozen=True, tag_field="event"):
     #: a field whose mapping is spread into the line's own keys (the identity record's
     #: instruments, named by role): on reading, every key not declared goes back into it
     SPREAD: ClassVar[str] = ""
+    #: the station's log of a run shows this event (its live page and the fleet's page of
+    #: a bench): set by each kind on the records its operator follows, so the station
+    #: names no kind's events (`station_log_kinds`)
+    STATION_LOG: ClassVar[bool] = False
 
     utc: str = ""
     t_s: float | None = None
@@ -111,22 +115,35 @@ def _subclasses(cls: type[Event]) -> Iterator[type[Event]]:
 def declared(kind: str) -> type[Event] | None:
     """The record class declared for an event kind (looked up again when a plug-in's
     events module was imported after the last lookup)."""
-    global _PLUGINS_LOADED, _SCANNED
     cls = _KINDS.get(kind)
-    if cls is None and not _PLUGINS_LOADED:
+    if cls is None:
+        _scan()
+        cls = _KINDS.get(kind)
+    return cls
+
+
+def station_log_kinds() -> tuple[str, ...]:
+    """The tags of every declared event the station's log shows (`Event.STATION_LOG`),
+    the installed kinds' and a plug-in's among them: what the fleet asks its database
+    for, read off the declarations."""
+    _scan()
+    return tuple(k for k, c in _KINDS.items() if c.STATION_LOG)
+
+
+def _scan() -> None:
+    """Load the kinds' declarations once, and rebuild the table of kinds when a class was
+    declared since the last scan (a journal with many lines of an unknown kind counts the
+    classes, not rebuilds the table, a line)."""
+    global _PLUGINS_LOADED, _SCANNED
+    if not _PLUGINS_LOADED:
         _PLUGINS_LOADED = True
         _load_kind_declarations()
-    if cls is None:
-        # the table is rebuilt only when a class was declared since: a journal with many
-        # lines of an unknown kind counts the classes, not rebuilds the table, a line
-        found = list(_subclasses(Event))
-        if len(found) != _SCANNED:
-            _SCANNED = len(found)
-            # a class whose tag is its own name is a base, not a declared kind
-            _KINDS.update({kind_of(c): c for c in found
-                           if kind_of(c) and kind_of(c) != c.__name__})
-            cls = _KINDS.get(kind)
-    return cls
+    found = list(_subclasses(Event))
+    if len(found) != _SCANNED:
+        _SCANNED = len(found)
+        # a class whose tag is its own name is a base, not a declared kind
+        _KINDS.update({kind_of(c): c for c in found
+                       if kind_of(c) and kind_of(c) != c.__name__})
 
 
 def _load_kind_declarations() -> None:
@@ -237,6 +254,7 @@ def last(events: Iterable[Event], cls: type[E]) -> E | None:
 class SessionStarted(Event, tag="session_start", frozen=True):
     """A `bench run` or `--resume` began: who, how, with what."""
 
+    STATION_LOG: ClassVar[bool] = True
     resume: bool = False
     sim: bool = False
     done_units: list[str] = []
@@ -306,6 +324,7 @@ class Planned(Event, tag="plan", frozen=True):
 class Prompted(Event, tag="prompt", frozen=True):
     """An operator prompt, its answer, who gave it ("--yes" or "operator") and when."""
 
+    STATION_LOG: ClassVar[bool] = True
     text: str
     answered: str
     answered_by: str = ""      # older logs say only answered: yes | operator
@@ -333,25 +352,30 @@ class UnitDone(Event, tag="unit_done", frozen=True):
 
 
 class Completed(Event, tag="completed", frozen=True):
+    STATION_LOG: ClassVar[bool] = True
     wall_s: float | None = None
 
 
 class Aborted(Event, tag="abort", omit_defaults=True, frozen=True):
+    STATION_LOG: ClassVar[bool] = True
     reason: str = ""
     error: str = ""
     traceback: str | None = None
 
 
 class SafeStopped(Event, tag="safe_stop", omit_defaults=True, frozen=True):
+    STATION_LOG: ClassVar[bool] = True
     ok: bool
     error: str | None = None
 
 
 class Refused(Event, tag="refused", frozen=True):
+    STATION_LOG: ClassVar[bool] = True
     reason: str
 
 
 class Exited(Event, tag="exit", frozen=True):
+    STATION_LOG: ClassVar[bool] = True
     status: int
     cause: str | None = None
     later: list[str] = []

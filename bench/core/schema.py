@@ -5,7 +5,7 @@ first) as a `Problem` naming file, line and key path. Unknown keys are refused: 
 misspelt `turnz: 50` must not silently fall back to a default on a day-long run.
 
 A setting is declared once, as a field of a msgspec Struct (the stand's instruments in
-drivers/, the twins' truth in bench/core/stand_sim.py, the stand file, the lab file and
+drivers/, the twins' truth in sims/truth.py, the stand file, the lab file and
 each procedure kind's keys): the field's type, default, bounds (`Meta(ge=..)`), unit
 (`Meta(extra={"unit": ..})`) and meaning (`Meta(description=..)`). `struct_map` derives
 the file's schema from the Struct (so `bench validate`, `bench schema` and the JSON Schema

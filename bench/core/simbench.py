@@ -27,7 +27,6 @@ import numpy as np
 from bench.core.config import (
     Config,
     CounterSettings,
-    FogSettings,
     SimAxis,
     SimSettings,
     StandAxis,
@@ -37,7 +36,6 @@ from bench.core.stops import StopOutcome, Stops
 from drivers.waits import MIN_REAL_MARGIN_S
 from sims.clock import GIL_SWITCH_S, MAX, SteppedClock, make_clock, parse_speed
 from sims.counter_twin import CounterTwin, SyncLink
-from sims.fog_twin import DEFAULT_SERIAL as DEFAULT_FOG_SERIAL
 from sims.fog_twin import FogTwin
 from sims.stand import SimulatedStand, StandTruth
 
@@ -98,19 +96,6 @@ def sync_link(counter: CounterSettings, sim_axis: SimAxis) -> SyncLink | None:
                     jitter_s=sim_axis.tie_jitter_s)
 
 
-def twin_fog_units(fog: FogSettings, sim_axis: SimAxis) -> str:
-    """What the FOG twin carries before the bench talks to it: the sim truth's
-    `fog.units`, else a declared `fog.units` (a FOG configured earlier), else the KVH
-    power-on default, delta radians (drivers/kvh_config.py)."""
-    from drivers.kvh_config import POWER_ON_UNITS
-
-    if sim_axis.fog_units:
-        return sim_axis.fog_units
-    if fog.configure == "declare":
-        return fog.units
-    return POWER_ON_UNITS
-
-
 class SimBench:
     """Owns the stand, the clock and the twins; a context manager that stops them all."""
 
@@ -155,9 +140,7 @@ class SimBench:
             for a in self.axes:  # FOG twins first: they must see every sample from 0 on
                 fs = axes[a].fog
                 if fs:
-                    ft = FogTwin(self.stand, a, fmt=fs.format, axis_letter=fs.axis,
-                                 units=twin_fog_units(fs, self.sim.axis(a)),
-                                 serial=fs.serial or DEFAULT_FOG_SERIAL)
+                    ft = FogTwin(self.stand, a, fs)
                     axes[a] = dataclasses.replace(
                         axes[a], fog=msgspec.structs.replace(fs, port=ft.start()))
                     self.stops.add(f"{a} FOG twin", ft.stop, "twin")
@@ -191,14 +174,9 @@ class SimBench:
                 axes[a] = dataclasses.replace(axes[a], drive=drive)
                 c = axes[a].counter
                 if c:
-                    ct = CounterTwin(self.stand, a, model=c.model, sync=sync_link(c, truth),
-                                     seed=session_seed(self.sim),
-                                     external_reference=truth.counter_external_reference,
-                                     first_value=truth.counter_first_value,
-                                     timebase_offset_rel=truth.counter_timebase_offset_rel)
-                    if truth.counter_serial:    # the stand's serial in *IDN? field 3
-                        idn = ct.idn.split(",")
-                        ct.idn = ",".join([*idn[:2], truth.counter_serial, *idn[3:]])
+                    # the twin reads its truth whole from the stand's axis
+                    ct = CounterTwin(self.stand, a, c, sync=sync_link(c, truth),
+                                     seed=session_seed(self.sim))
                     resource = ct.start()
                     self.stops.add(f"{a} counter twin", ct.stop, "twin")
                     self.twins[f"{a}.counter"] = ct

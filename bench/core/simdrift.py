@@ -49,8 +49,9 @@ def drifted(sim: SimSettings, run_number: int) -> tuple[SimSettings, list[str]]:
             rel += step[1]
         if ramp and run_number >= ramp[0]:
             rel += ramp[1] * (run_number - ramp[0] + 1)
-        fog = dataclasses.replace(a.truth.fog, scale=a.truth.fog.scale * (1.0 + rel))
-        axes[axis] = dataclasses.replace(a, truth=dataclasses.replace(a.truth, fog=fog),
+        fog = msgspec.structs.replace(a.truth.fog, scale=a.truth.fog.scale * (1.0 + rel),
+                                      scale_step=None, scale_ramp=None)
+        axes[axis] = dataclasses.replace(a, truth=msgspec.structs.replace(a.truth, fog=fog),
                                          scale_step=None, scale_ramp=None)
         notes.append(f"sim: axis {axis} FOG scale x (1 {rel:+.3g}) in run {run_number}")
     return msgspec.structs.replace(sim, axes=axes), notes

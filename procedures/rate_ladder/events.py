@@ -10,7 +10,7 @@ the journal's (bench/core/events.py, issue 61): the journal adds `utc`, `t_s` an
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import TypeVar, cast
+from typing import ClassVar, TypeVar, cast
 
 import msgspec
 
@@ -77,6 +77,7 @@ class Settled(LadderEvent, tag="settled", omit_defaults=True, frozen=True):
     """The table held the pair's rate within the settle tolerance (drivers/settle.py);
     with the turn's steady ripple set aside, the ripple is stated."""
 
+    STATION_LOG: ClassVar[bool] = True
     rate_dps: float
     rule: str | None = None
     ripple_peak_dps: float | None = None
@@ -128,6 +129,7 @@ class PairLooked(LadderEvent, tag="pair", omit_defaults=True, frozen=True):
     written since issue 12 (`k_u`, `rate_error_u_rel-`: CONTRACT's `_u`, the expanded U,
     bench/report/uncertainty_names.py): older runs read back the same."""
 
+    STATION_LOG: ClassVar[bool] = True
     k: float
     k_U: float = msgspec.field(name="k_u")
     w0_dps: float
@@ -162,6 +164,7 @@ class PairLooked(LadderEvent, tag="pair", omit_defaults=True, frozen=True):
 
 
 class PairFailed(LadderEvent, tag="pair_failed", frozen=True):
+    STATION_LOG: ClassVar[bool] = True
     error: str
 
     def log_text(self) -> str:

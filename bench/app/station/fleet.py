@@ -52,12 +52,24 @@ SILENT_S = 10.0
 INSTRUMENT_SILENT_S = 2.0
 #: live pages woken by one notification share one reading of the database this long
 SHARED_S = 0.25
-#: the events a bench's row and page are built from (the rest stay in the database)
-KINDS = ("plan", "step_start", "step_done", "session_start", "exit", "pair", "pair_failed",
-         "abort", "safe_stop", "refused", "completed", "settled", "prompt", "lab_link",
-         SESSION_LOST)
-LOG_KINDS = ("abort", "safe_stop", "prompt", "completed", "exit", "session_start", "pair",
-             "pair_failed", "settled", "refused", "lab_link")
+#: the kind-neutral events a bench's progress is read from, beside those of its log
+PROGRESS_EVENTS: tuple[type[Event], ...] = (ev.Planned, ev.StepStarted, ev.StepDone)
+
+
+def log_kinds() -> tuple[str, ...]:
+    """The events a bench's log on its page shows: those each kind declares for the
+    station's log (`Event.STATION_LOG`), and the bench's link to the lab."""
+    return (*ev.station_log_kinds(), ev.kind_of(ev.LabLink))
+
+
+def kinds_read() -> tuple[str, ...]:
+    """The events a bench's row and page are built from, by tag for the database's query
+    (the rest stay in the database)."""
+    return (*log_kinds(), *(ev.kind_of(c) for c in PROGRESS_EVENTS), SESSION_LOST)
+
+
+def _in_log(e: Event) -> bool:
+    return e.STATION_LOG or isinstance(e, ev.LabLink)
 
 
 class Notifications:
@@ -214,7 +226,7 @@ class FleetView:
             if rows:
                 for x in conn.execute(sa.select(e.run_id, e.body)
                                       .where(e.run_id.in_([x.id for x in rows]),
-                                             e.event.in_(KINDS))
+                                             e.event.in_(kinds_read()))
                                       .order_by(e.run_id, e.seq)):
                     events.setdefault(x.run_id, []).append(ev.decode(x.body))
         return {"now_utc": _iso(now), "error": None,
@@ -332,7 +344,7 @@ class FleetView:
             if x is None:
                 return None
             events = [ev.decode(y.body) for y in conn.execute(
-                sa.select(e.body).where(e.run_id == x.id, e.event.in_(KINDS))
+                sa.select(e.body).where(e.run_id == x.id, e.event.in_(kinds_read()))
                 .order_by(e.seq))]
             count = conn.execute(sa.select(sa.func.count()).select_from(s.bench_events)
                                  .where(e.run_id == x.id)).scalar_one()
@@ -355,7 +367,7 @@ class FleetView:
             "events_delivered": int(count),
             "live": station_of(x.kind).live_table(pair_rows(events)) or {},
             "final": final,
-            "log": [log_line(e) for e in events if e.kind in LOG_KINDS][-40:],
+            "log": [log_line(e) for e in events if _in_log(e)][-40:],
             "received_utc": _utc_text(_iso(x.received_utc)),
         })
         return state

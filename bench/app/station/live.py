@@ -41,8 +41,6 @@ FULL_TURN_DEG = 360.0             # one zero mark per turn (docs/method.md A1)
 TRACE_POINTS = 600                # a plot of a half never needs more points than pixels
 FOG_TAIL_S = 30.0                 # bench seconds of FOG record shown
 DRIVE_TAIL_BYTES = 96 * 1024      # about 600 feedback readings
-EVENT_KINDS_SHOWN = ("abort", "safe_stop", "prompt", "completed", "exit", "session_start",
-                     "pair", "pair_failed", "settled", "refused")
 
 
 def tail_jsonl(path: Path, max_bytes: int) -> list[JsonObject]:
@@ -440,7 +438,8 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
                                  else {})]
     used = [a for a in axes_now if any(getattr(e, "axis", None) == a for e in session)] \
         or axes_now
-    shown_events = [e for e in events if e.kind in EVENT_KINDS_SHOWN][-40:]
+    # the events each kind declares for the station's log (Event.STATION_LOG)
+    shown_events = [e for e in events if e.STATION_LOG][-40:]
     shown = [{k: v for k, v in ev.plain(e).items() if k not in ("traceback",)}
              for e in shown_events]
     ident = (stand.get("stand") or {}) if isinstance(stand, dict) else {}
