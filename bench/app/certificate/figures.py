@@ -146,10 +146,27 @@ class BesideDrawer:
             self._here[key] = _draw(key)
         if key in self._here:
             return self._here[key]
+        drawing = self._drawn[key]
+        while not drawing.done():   # a worker has it: draw the last one nobody has, here
+            other = self._last_unclaimed()
+            if other is None:
+                break
+            self._here[other] = _draw(other)
         try:
-            return self._drawn[key].result()
+            return drawing.result()
         except Exception:  # noqa: BLE001 - a worker lost (BrokenProcessPool): drawn here
             return None
+
+    def _last_unclaimed(self) -> bytes | None:
+        """The last figure handed out that no worker has started, claimed here (None: none
+        left). The workers take figures from the first, this process from the last while
+        it waits (issue 62: a worker started early, with the run, was always ahead of the
+        PDF, which then only waited while the worker drew every figure in turn)."""
+        for key, index in reversed(self._index.items()):
+            if index < len(self._claims) and key not in self._here \
+                    and _claim(self._claims, index):
+                return key
+        return None
 
     # -- for the renderers ---------------------------------------------------------------
     def png(self, fig: Figure) -> bytes:
