@@ -43,6 +43,10 @@ Before/after (issue 62):
   - the records phase no longer imports matplotlib in the run's process (0.2-1.5 s
     against 3.5-6.9 s at load 15-20); the run's process imports it only to draw the
     figures it takes from the worker.
+  - 396cd95 (all of it) against dd8a4c7, 2 interleaved pairs at 20:07-20:09, load 3.3-4.1
+    (a test of this session still running): wall 20.1 / 24.9 s against 23.6 / 23.6 s,
+    CPU 20.1 / 26.2 against 22.8 / 23.1 s; records 0.18 / 0.30 against 1.29 / 1.21 s,
+    certificate 7.1 / 11.5 against 10.7 / 10.7 s, measuring 9.1 / 9.4 against 9.7 / 8.9 s.
   Medians on an idle machine still to be taken.
 """
 
