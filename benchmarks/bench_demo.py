@@ -26,6 +26,28 @@ Then the medians, against the goal of issue 62: the demo and its certificate wit
 of wall time (on an idle machine: the load average is printed first). --figure-workers
 sets BENCH_FIGURE_WORKERS for the runs (0: every figure drawn in turn, in the bench's
 process; bench/app/certificate/figures.py), to compare.
+
+Before/after (issue 62):
+- main dd8a4c7, the lead, 18:01 near idle (load <= 1.4), --repeat 3: wall 17.3 s, CPU 20.6 s;
+  start-up 2.1, measuring 7.9, analysis 0.6, records 1.0, certificate 6.0, DCC 0.24, exit 0.3.
+- helper-24 (per-axis virtual CAN channels in the simulated bench, gc.freeze for the
+  session, the figure worker started with the run and the PDF drawing figures from the
+  last, no matplotlib for a records history without an earlier run), 29 Nov 18:40-20:05,
+  load 8 to 33 throughout (other sessions' test runs), so no wall figure holds:
+  - 3 interleaved pairs against dd8a4c7 (the first three changes, without the
+    figure stealing), whole process tree: CPU median 33.4 vs 35.1 s (ratio 0.96,
+    0.45-1.02), wall ratio 0.85 (0.46-1.11) at load 12-32;
+  - the collector (gc callbacks, CPU of the collecting thread, load 9-11): 1.40-1.81 s
+    a run before, 1.06-1.14 s with the session's objects frozen (full collections
+    1.08-1.42 -> 0.73-0.78 s);
+  - the records phase no longer imports matplotlib in the run's process (0.2-1.5 s
+    against 3.5-6.9 s at load 15-20); the run's process imports it only to draw the
+    figures it takes from the worker.
+  - 396cd95 (all of it) against dd8a4c7, 2 interleaved pairs at 20:07-20:09, load 3.3-4.1
+    (a test of this session still running): wall 20.1 / 24.9 s against 23.6 / 23.6 s,
+    CPU 20.1 / 26.2 against 22.8 / 23.1 s; records 0.18 / 0.30 against 1.29 / 1.21 s,
+    certificate 7.1 / 11.5 against 10.7 / 10.7 s, measuring 9.1 / 9.4 against 9.7 / 8.9 s.
+  Medians on an idle machine still to be taken.
 """
 
 from __future__ import annotations

@@ -148,13 +148,20 @@ class SimBench:
                     self.stops.add(f"{a} FOG twin's pace", self.clock.pace(ft.delivered_s),
                                    "clock")
                     self.twins[f"{a}.fog"] = ft
-            # one virtual bus per CAN bus of the stand file: the same axes share one, so
-            # the node ids (and each axis's controller id) are those of the real bench
+            # served to other processes (socketcand): one virtual bus per CAN bus of the
+            # stand file, the same axes sharing one, as on the real bench. In this process
+            # each axis's drive and controller have a channel of their own: python-can's
+            # virtual bus copies every frame to every other node on a channel and wakes its
+            # thread (issue 62: 2 of 3 copies thrown away, half the stepping thread's CPU),
+            # and no frame of one axis is for the other's nodes (node ids are distinct per
+            # bus, bench/core/canbus.py; the drivers send no broadcast, SYNC or NMT to all)
+            shared = self.sim.can_bus == "socketcand"
             buses: dict[str, str] = {}
             for a in self.axes:
                 d = axes[a].drive
                 truth = self.sim.axis(a)
-                channel = buses.setdefault(d.bus, f"{self.channel}-{len(buses)}")
+                channel = buses.setdefault(d.bus if shared else f"{d.bus} {a}",
+                                           f"{self.channel}-{len(buses)}")
                 twin = DriveTwin(self.stand, a, msgspec.structs.replace(
                     d, interface=self.can_interface, channel=channel, host=None, port=None,
                     bitrate=None), truth.drive)

@@ -12,7 +12,6 @@ from collections.abc import Sequence
 
 from bench.app.records.extract import FigureRecord, RunRecord
 from bench.app.records.store import Records, RunInfo, TrendPoint
-from bench.app.records.trend import trend_png
 from bench.kind import declared_figures
 from bench.report.certificate.model import Block, Fields, Figure, Para, Table
 from bench.report.certificate.rounding import format_value_u
@@ -98,6 +97,10 @@ def history_section(rec: Records, current: RunRecord, where: str
     points = [p for p in rec.trend(current.serial) if p.run_uid in shown] + [
         TrendPoint(current.uid, _aware(current), current.certificate_number,
                    current.calibration_state, f) for f in current.figures]
+    # matplotlib only here, with an earlier run to plot: a table's first run (and the
+    # demo's every run in a fresh folder) never loads it for the records (issue 62)
+    from bench.app.records.trend import trend_png
+
     png = trend_png(points, f"Table {current.serial}: trend across recertifications", figures)
     if png is not None:
         blocks.append(Figure(png, "Trend across recertifications: each recorded run of this "
