@@ -307,10 +307,8 @@ def test_the_tag_scan_sees_a_tag_in_code() -> None:
 
 
 #: where bench/ may write a string equal to a kind's event tag, and why: the drive's raw
-#: log's record kind (drivers/drive.py), a homonym of the ladder's `settled`; the
-#: ladder's step action `acquire`, by which the records time a half's settling
-TAG_NAMED = {("bench/app/records/checks.py", "settled"),
-             ("bench/app/records/checks.py", "acquire")}
+#: log's record kind (drivers/drive.py), a homonym of the ladder's `settled`
+TAG_NAMED = {("bench/app/records/checks.py", "settled")}
 
 
 def test_no_module_under_bench_names_a_kinds_event() -> None:

@@ -129,7 +129,9 @@ def _drive(axis: str, raw: Path, events: Sequence[Event], serial: str,
     windows = []
     starts: dict[tuple[int, str | None], float | None] = {}
     for e in events:
-        if isinstance(e, StepStarted) and e.axis == axis and e.action == "acquire":
+        # the step that timed a half is the last one its unit started on this axis before
+        # the half's event (a kind's step names are its own; bench/ names none of them)
+        if isinstance(e, StepStarted) and e.axis == axis:
             starts[(e.session, e.unit)] = e.t_s
         if isinstance(e, TimedHalf) and e.axis == axis:
             t0 = starts.get((e.session, e.unit))
