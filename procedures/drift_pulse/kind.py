@@ -498,7 +498,7 @@ def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan) -> dict[st
     doc = result_document(run, cfg, events, complete=complete,
                           checks=[encode(c) for c in checks], rule=rule, method=encode(method))
     # the body after the frame, as the model writes it: its uncertainty twins are fields
-    # (result.py), the frame's naming rule (bench/report/uncertainty_names.py) does not see it
+    # of the model (result.py; the rule they follow is bench/report/uncertainty_names.py's)
     doc["drift"] = encode(drift)
     if corr:    # issue 58: the corrections applied, stated (none: the document as before)
         doc["corrections"] = list(corr.stated)
