@@ -34,10 +34,11 @@ import json
 import math
 import sys
 from collections.abc import Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from msgspec.structs import replace  # the twins' truth is a msgspec Struct (sims/truth.py)
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -45,7 +46,7 @@ sys.path.insert(0, str(ROOT))
 from bench.analysis import CounterBudget, HalfRecord  # noqa: E402
 from bench.analysis.pair import analyze_pair_mains  # noqa: E402
 from procedures.rate_ladder.analysis import with_sigma_terms  # noqa: E402
-from procedures.rate_ladder.result import rate_json  # noqa: E402
+from procedures.rate_ladder.result import rate_entry  # noqa: E402
 from sims.stand import AxisModel, AxisTruth, Harmonic, Mains  # noqa: E402
 from tests.test_analysis_sim import paper_axis, simulate_pair  # noqa: E402
 
@@ -131,14 +132,14 @@ def figures(name: str, st: Stratum, seed: int, rate_dps: float, turns: int
     table_turn = truth.rate_noise_dps / math.sqrt(period * FOG_HZ) / w
     harm = {h.order: h for h in truth.harmonics}
     for r in pa.rates:
-        d = rate_json(r)
-        yield "rate error", covers(d["rate_error_rel"], d["rate_error_u_rel"],
+        d = rate_entry(r)      # the rate's entry as result.json states it
+        yield "rate error", covers(d.rate_error_rel, d.rate_error_u_rel,
                                    truth.mean_turn_rate_rel())
         # eq. 2: value +/- U covers what it measures (table and timing), '< L' the table
-        s = d["rate_instability_rel"]
-        e = with_sigma_terms(dict(d))
-        su, upper = e["rate_instability_u_rel"], e["rate_instability_upper_rel"]
-        if e["rate_instability_resolved"]:
+        s = d.rate_instability_rel
+        e = with_sigma_terms(d)
+        su, upper = e.rate_instability_u_rel, e.rate_instability_upper_rel
+        if e.rate_instability_resolved:
             yield "sigma", covers(s, su, math.hypot(table_turn, turn_floor))
         else:
             yield "sigma", table_turn < upper
@@ -168,7 +169,7 @@ def figures(name: str, st: Stratum, seed: int, rate_dps: float, turns: int
                                        truth.mains.amplitude_dps) if m.detected else
                                 truth.mains.amplitude_dps <= m.amplitude_dps + m.amplitude_u_dps)
         rnd = r.random
-        yield "intra-turn raw", covers(rnd.instability_rel, d["intra_turn_instability_u_rel"],
+        yield "intra-turn raw", covers(rnd.instability_rel, d.intra_turn_instability_u_rel,
                                        raw_truth)
         if rnd.resolved:
             yield "intra-turn corrected", (rnd.corrected_lower_rel <= cor_truth

@@ -14,7 +14,7 @@ from bench.analysis.turns import (
     period_rate_error,
     turn_rates_dps,
 )
-from procedures.rate_ladder.result import turns_json
+from procedures.rate_ladder.result import turns_entry
 
 
 def test_a1_check_value():
@@ -68,9 +68,10 @@ def test_rate_error_instability_and_u_by_hand():
     assert r.dof_eff == pytest.approx(nu_eff, rel=1e-9)
     assert r.coverage_factor == k
     assert r.rate_error_u_rel == pytest.approx(k * u, rel=1e-9)
-    d = turns_json(r)   # as result.json lays it out
-    assert d["set_rate_dps"] == -50.0 and d["turns"] == 5
-    assert len(d["counter_rate_dps"]) == 5 and all(x < 0 for x in d["counter_rate_dps"])
+    d = turns_entry(r)   # as result.json states it
+    assert d.set_rate_dps == -50.0 and d.turns == 5
+    assert len(d.counter_rate_dps) == 5 and all(x is not None and x < 0
+                                                 for x in d.counter_rate_dps)
 
 
 def test_one_turn_has_no_instability():

@@ -175,7 +175,7 @@ def json_writers(source: str, filename: str = "<source>") -> list[str]:
 
 def test_the_analysis_spells_no_result_key() -> None:
     """bench/analysis returns typed values; the ladder's result module lays them out as
-    result.json (procedures/rate_ladder/result.py `rate_json`, `pair_json`), so a key is
+    result.json (procedures/rate_ladder/result.py `rate_entry`, `pair_entry`), so a key is
     spelled where it is read back, once."""
     found = [f"{p.relative_to(ROOT)}:{w}" for p in sorted((ROOT / "bench/analysis").rglob("*.py"))
              for w in json_writers(p.read_text(encoding="utf-8"), str(p))]

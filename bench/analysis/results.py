@@ -6,7 +6,7 @@ API
     judge_rate(result, tolerance_rel, capability_max=0.3) -> RateResult with a verdict
 
 They spell no result.json key: the rate ladder's result module
-(procedures/rate_ladder/result.py `rate_json`, `pair_json`) lays them out as CONTRACT §3's
+(procedures/rate_ladder/result.py `rate_entry`, `pair_entry`) lays them out as CONTRACT §3's
 `axes.<axis>.rates[]` and `pairs[]`, and reads them back, in one place.
 """
 
