@@ -262,12 +262,7 @@ class LadderCheck(_Model, frozen=True, kw_only=True):
     @classmethod
     def of(cls, c: Judged) -> LadderCheck:
         """A judgement (bench/report/conformity.py) as the result states it."""
-        return cls(axis=c.axis, set_rate_dps=c.set_rate_dps, quantity=c.quantity,
-                   value_rel=c.value_rel, u_rel=c.u_rel, U_rel=c.u_rel,
-                   tolerance_rel=c.tolerance_rel, rule=c.rule, verdict=c.verdict,
-                   reason=c.reason, capability_ratio=c.capability_ratio,
-                   capability_ok=c.capability_ok, upper_rel=c.upper_rel,
-                   one_sided=c.one_sided)
+        return cls(**c.to_dict(), U_rel=c.u_rel)   # its fields, and the U twin
 
 
 class RateEntry(_Model, frozen=True, kw_only=True):
