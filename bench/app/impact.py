@@ -13,6 +13,9 @@ not found is listed so, never guessed.
 
 Corrections modelled so far: a counter's time-base offset e (docs/method.md A1, "A
 counter's time-base correction"): every period it timed is divided by 1 + e.
+
+The report, its audit entry, the copy's corrections file and what is read of a result.json
+are typed in bench/app/impact_codec.py (issue 60): this module reads attributes, never JSON.
 """
 
 from __future__ import annotations
@@ -32,7 +35,6 @@ from bench.app.impact_codec import (
     AuditRun,
     CheckChange,
     CorrectionEntry,
-    Customer,
     FigureShift,
     Finding,
     ImpactAudit,
@@ -43,7 +45,6 @@ from bench.app.impact_codec import (
     audit_detail,
     encode_corrections,
     encode_report,
-    figures_of,
     result_view,
     run_meta,
 )
@@ -57,8 +58,6 @@ from bench.app.register.store import (
     redact,
 )
 from bench.core import rundir_layout as layout
-
-__all__ = ["CheckChange", "Customer", "FigureShift", "Finding", "RunImpact", "figures_of"]
 
 EXIT_OK, EXIT_REFUSED = 0, 2
 
