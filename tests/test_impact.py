@@ -250,3 +250,94 @@ def test_the_service_records_an_impact_assessment_for_a_logged_in_quality_accoun
         assert code == 200 and isinstance(digest["ok"], str)
         entry = [r for r in reg.audit_rows() if r["action"] == "impact assessed"]
         assert len(entry) == 1 and entry[0]["actor"] == QUALITY
+
+
+def test_a_result_is_read_for_the_assessment_and_each_shift_is_over_its_u() -> None:
+    """What `bench impact` reads of a result.json (bench/app/impact_codec.py): each entry's
+    figures that state a U beside them, by where they are, in their unit; the shift of
+    each, corrected minus issued, over the issued U, marked over U/3; the conformity
+    outcomes that change; a malformed result is refused naming its key path."""
+    from bench.app.impact import check_changes, shifts
+    from bench.app.impact_codec import MalformedDocument, result_view
+
+    def result(error_rel: float, k: float, verdict: str) -> str:
+        return json.dumps({
+            "certificate": {"customer": "ACME", "customer_address": "", "x": 1},
+            "checks": [{"axis": "outer", "set_rate_dps": 50, "quantity": "rate_error",
+                        "verdict": verdict, "reason": "r"}],
+            "axes": {"outer": {
+                "rates": [{"set_rate_dps": 50, "rate_error_rel": error_rel,
+                           "rate_error_u_rel": 2e-7, "rate_error_U_rel": 2e-7,
+                           "turns": 2, "systematic": {"x_U_rel": 1.0}}],
+                "pairs": [{"rate_dps": 50.0, "k": k, "k_U": 1e-5, "w0_dps": 0.1,
+                           "w0_U_dps": 0.0, "drift_dps_per_h": None,
+                           "drift_U_dps_per_h": 1.0}]}},
+            "drift": {"azimuth_deg": 30.0, "azimuth_U_deg": 0.5,
+                      "axes": {"x": {"own_dph": 0.1, "own_U_dph": 0.02}}}})
+
+    issued = result_view(result(1.0e-6, 1.00010, "fail"))
+    again = result_view(result(1.3e-6, 1.00011, "pass"))
+    assert issued.customer is not None and issued.customer.customer == "ACME"
+    assert issued.customer.customer_address is None          # empty: not stated
+    # U 0 (w0) and a null value (drift) state no figure; nested keys are not the entry's
+    assert {w: {n: (f.value, f.U, f.unit) for n, f in fs.items()}
+            for w, fs in issued.figures.items()} == {
+        "axes.outer.rates[+50 deg/s]": {"rate_error_rel": (1.0e-6, 2e-7, "1")},
+        "axes.outer.pairs[50 deg/s]": {"k": (1.00010, 1e-5, "1")},
+        "drift.axes.x": {"own_dph": (0.1, 0.02, "deg/h")},
+        "drift": {"azimuth_deg": (30.0, 0.5, "deg")}}
+    moved = {(s.where, s.name): s for s in shifts(issued, again)}
+    rate = moved[("axes.outer.rates[+50 deg/s]", "rate_error_rel")]
+    assert rate.shift == pytest.approx(3e-7) and rate.shift_over_u == pytest.approx(1.5)
+    assert rate.marked
+    k = moved[("axes.outer.pairs[50 deg/s]", "k")]
+    assert k.shift_over_u == pytest.approx(1.0) and k.marked
+    assert moved[("drift", "azimuth_deg")].shift == 0.0
+    assert not moved[("drift", "azimuth_deg")].marked
+    [change] = check_changes(issued, again)
+    assert (change.axis, change.set_rate_dps, change.quantity, change.issued,
+            change.corrected) == ("outer", 50.0, "rate_error", "fail", "pass")
+    with pytest.raises(MalformedDocument, match=r"result\.json axes\.outer\.rates\[0\]"
+                                                r"\.set_rate_dps: expected a number"):
+        result_view(json.dumps({"axes": {"outer": {"rates": [{"set_rate_dps": None}]}}}))
+    with pytest.raises(MalformedDocument, match=r"result\.json checks\[0\]\.verdict: "
+                                                r"missing"):
+        result_view(json.dumps({"checks": [{"axis": "x", "quantity": "q"}]}))
+
+
+def test_the_report_is_its_models_encoding_and_a_malformed_one_is_named() -> None:
+    """`bench impact --json`'s document encodes the typed report in its keys' order (the
+    largest shift over U derived from the figures, dates as ISO text) and decodes back to
+    it; a malformed document is refused naming the key path."""
+    from bench.app.impact_codec import (
+        FigureShift,
+        Finding,
+        ImpactReport,
+        MalformedDocument,
+        RunImpact,
+        decode_report,
+        encode_report,
+    )
+
+    figures = (FigureShift("axes.outer.rates[+50 deg/s]", "rate_error_rel", "1", 1e-6, 1.3e-6,
+                           3e-7, 2e-7, 1.5, True),
+               FigureShift("axes.outer.rates[-50 deg/s]", "rate_error_rel", "1", 1e-6, 0.7e-6,
+                           -3e-7, 1e-7, -3.0, True))
+    report = ImpactReport("sqlite:///r", Finding(SERIAL, "m", "C-2", "Cal Lab",
+                                                 dt.date(2026, 11, 1), "out", E_REL, None,
+                                                 None, None),
+                          1.0 / 3.0, (RunImpact(uid="u", registered_utc="t", where="w",
+                                                number="RT-1", status="re-analysed",
+                                                figures=figures),))
+    text = encode_report(report)
+    doc = json.loads(text)
+    assert list(doc) == ["register", "finding", "mark_fraction_of_U", "runs"]
+    assert doc["finding"]["calibrated_on"] == "2026-11-01"
+    assert doc["runs"][0]["largest_shift_over_U"] == -3.0
+    assert list(doc["runs"][0])[-2:] == ["customer", "largest_shift_over_U"]
+    assert text == json.dumps(doc, indent=2) + "\n"
+    assert decode_report(text) == report
+    doc["runs"][0]["figures"][1]["shift"] = "-3e-7"
+    with pytest.raises(MalformedDocument, match=r"impact\.json runs\[0\]\.figures\[1\]\.shift: "
+                                                r"expected a number, got text"):
+        decode_report(json.dumps(doc))

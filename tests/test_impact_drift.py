@@ -221,14 +221,15 @@ def test_the_as_found_error_is_the_quantity_of_the_items_place() -> None:
 
     f = Finding("S-1", "model", "C-2", "Cal Lab", dt.date(2026, 11, 1), "out", 3e-3, 2e-4,
                 None, None)
-    got = {w: (c or {}).get("quantity") for w in ("axes.outer.counter",
-                                                    "platform.gyros.y.dmm", "platform.awg",
-                                                    "axes.outer.drive", "platform.dmm")
+    got = {w: None if c is None else c.quantity for w in ("axes.outer.counter",
+                                                            "platform.gyros.y.dmm",
+                                                            "platform.awg",
+                                                            "axes.outer.drive", "platform.dmm")
            for c in [correction_entry(f, w)]}
     assert got == {"axes.outer.counter": "timebase_offset_rel",
                    "platform.gyros.y.dmm": "gain_error_rel",
                    "platform.awg": "amplitude_error_rel",
                    "axes.outer.drive": None, "platform.dmm": None}
     entry = correction_entry(f, "platform.gyros.y.dmm")
-    assert entry is not None and (entry["value"], entry["U"], entry["serial"]) == \
+    assert entry is not None and (entry.value, entry.U, entry.serial) == \
         (3e-3, 2e-4, "S-1")

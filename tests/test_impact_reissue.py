@@ -34,7 +34,8 @@ from lxml import etree
 
 from bench.analysis.coverage import coverage_factor
 from bench.app.certificate import register as issues_of
-from bench.app.impact import DRAFT_STATUS, figures_of
+from bench.app.impact import DRAFT_STATUS
+from bench.app.impact_codec import result_view
 from bench.app.register import Register
 from bench.app.register.runs import run_uid_of
 from bench.core import rundir_layout as layout
@@ -141,11 +142,12 @@ def _rates(result: dict[str, Any]) -> dict[float, dict[str, Any]]:
     return {r["set_rate_dps"]: r for r in result["axes"]["outer"]["rates"]}
 
 
-def _entries(result: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """Each rate and pair entry of the outer axis by where it is."""
-    a = result["axes"]["outer"]
-    return {**{f"rates[{r['set_rate_dps']:+g}]": r for r in a["rates"]},
-            **{f"pairs[{p['rate_dps']:g}]": p for p in a["pairs"]}}
+def _entries(result: dict[str, Any]) -> dict[str, dict[str, tuple[float, float]]]:
+    """Each rate and pair entry of the outer axis by where it is: its figures that state a
+    U, (value, U), as `bench impact` reads them."""
+    return {where: {name: (f.value, f.U) for name, f in figures.items()}
+            for where, figures in result_view(json.dumps(result)).figures.items()
+            if where.startswith("axes.outer.")}
 
 
 def test_the_impact_lists_exactly_the_three_issued_runs(case: Case) -> None:
@@ -239,9 +241,9 @@ def test_the_corrected_reissue_equals_the_same_seed_run_without_the_offset(
             revisions = reg.revisions(first.number)
             assert [r.withdrawn_utc is not None for r in revisions] == [True, False]
         ref = _entries(case.reference)
-        for where, entry in _entries(result).items():
-            for name, (value, _u, _unit) in figures_of(entry).items():
-                same, big_u = figures_of(ref[where])[name][:2]
+        for where, figures in _entries(result).items():
+            for name, (value, _u) in figures.items():
+                same, big_u = ref[where][name]
                 print(f"{where} {name}: corrected {value:.7g}, reference {same:.7g}, "
                       f"|difference|/U {abs(value - same) / big_u:.4f}")
                 if abs(value - same) > 0.01 * big_u:

@@ -13,22 +13,41 @@ not found is listed so, never guessed.
 
 Corrections modelled so far: a counter's time-base offset e (docs/method.md A1, "A
 counter's time-base correction"): every period it timed is divided by 1 + e.
+
+The report, its audit entry, the copy's corrections file and what is read of a result.json
+are typed in bench/app/impact_codec.py (issue 60): this module reads attributes, never JSON.
 """
 
 from __future__ import annotations
 
 import argparse
 import datetime as dt
-import json
-import math
 import shutil
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
+import msgspec
+
+from bench.app.impact_codec import (
+    AuditRun,
+    CheckChange,
+    CorrectionEntry,
+    FigureShift,
+    Finding,
+    ImpactAudit,
+    ImpactReport,
+    MalformedDocument,
+    ResultView,
+    RunImpact,
+    audit_detail,
+    encode_corrections,
+    encode_report,
+    result_view,
+    run_meta,
+)
 from bench.app.register.store import (
     Account,
     Calibration,
@@ -53,75 +72,11 @@ CORRECTIONS_FILE = "corrections.json"
 DRAFT_STATUS = ("draft, never issued: not assessed (bench authorise applies the correction "
                 "when it issues it)")
 
-#: a figure's unit by the suffix its U key carries (`rate_error_U_rel`: rel)
-UNITS = {"rel": "1", "dps": "deg/s", "dps_per_h": "deg/s/h", "": "1", "deg": "deg",
-         "s": "s", "hz": "Hz", "dph": "deg/h"}
-
 #: the as-found error's quantity by the item's place on the stand (the last parts of its
 #: `where`): a counter's time base (docs/method.md A1), a drift DMM's gain, the pulse
 #: generator's amplitude (docs/method.md B, "The drift kind's instrument corrections")
 FOUND_QUANTITY = {"counter": "timebase_offset_rel", "dmm": "gain_error_rel",
                   "awg": "amplitude_error_rel"}
-
-
-@dataclass(frozen=True)
-class Finding:
-    """The item's as-found error and the span of runs it touches."""
-
-    serial: str
-    model: str
-    certificate: str               # the calibration that found it
-    issuer: str
-    calibrated_on: dt.date | None
-    found: str | None
-    error: float
-    error_u: float | None
-    since: dt.date | None          # the last calibration that found it in tolerance
-    since_certificate: str | None
-
-
-@dataclass(frozen=True)
-class FigureShift:
-    where: str                     # e.g. axes.outer.rates[+50 deg/s]
-    name: str
-    unit: str
-    issued: float
-    corrected: float
-    shift: float
-    u_issued: float                # the issued figure's expanded U
-    shift_over_u: float
-    marked: bool                   # |shift| > U/3
-
-
-@dataclass(frozen=True)
-class CheckChange:
-    axis: str
-    set_rate_dps: float | None
-    quantity: str
-    issued: str
-    corrected: str
-
-
-@dataclass
-class RunImpact:
-    uid: str
-    registered_utc: str
-    where: str                     # the item's place on the stand (axes.outer.counter)
-    number: str | None             # the certificate number the register issued, if any
-    revisions: list[str] = field(default_factory=list)
-    folder: str | None = None
-    status: str = ""               # re-analysed | raw data not found | not re-analysed: ...
-    figures: list[FigureShift] = field(default_factory=list)
-    checks_changed: list[CheckChange] = field(default_factory=list)
-    #: the customer the run's result names (customer, customer_address, customer_contact)
-    customer: dict[str, str] | None = None
-
-    @property
-    def reanalysed(self) -> bool:
-        return self.status == "re-analysed"
-
-    def largest(self) -> FigureShift | None:
-        return max(self.figures, key=lambda f: abs(f.shift_over_u), default=None)
 
 
 # -- the finding and the runs it touches --------------------------------------------------
@@ -164,123 +119,71 @@ def run_folders(roots: Sequence[Path]) -> dict[str, Path]:
             if root.is_dir() else []
         for p in candidates:
             try:
-                meta = json.loads((p / layout.META).read_text(encoding="utf-8"))
-            except (OSError, ValueError):
+                uid = run_meta((p / layout.META).read_bytes()).run_uid
+            except (OSError, MalformedDocument):
                 continue
-            uid = meta.get("run_uid") if isinstance(meta, dict) else None
-            if isinstance(uid, str) and uid and uid not in found:
+            if uid and uid not in found:
                 found[uid] = p
     return found
 
 
 # -- the re-analysis with the correction --------------------------------------------------
 
-def correction_entry(f: Finding, where: str) -> dict[str, object] | None:
+def correction_entry(f: Finding, where: str) -> CorrectionEntry | None:
     """The correction the finding makes for the item at `where`, as the corrections file
     states it (None: no correction model for that item yet)."""
     parts = where.split(".")
     if len(parts) == 3 and parts[0] == "axes" and parts[2] == "counter" \
             or len(parts) == 4 and parts[:2] == ["platform", "gyros"] and parts[3] == "dmm" \
             or where == "platform.awg":
-        return {"where": where, "serial": f.serial, "model": f.model,
-                "quantity": FOUND_QUANTITY[parts[-1]], "value": f.error, "U": f.error_u,
-                "source": f"as-found error of calibration {f.certificate} ({f.issuer}"
-                          + (f", {f.calibrated_on.isoformat()}" if f.calibrated_on else "")
-                          + ")"}
+        return CorrectionEntry(where, f.serial, f.model, FOUND_QUANTITY[parts[-1]], f.error,
+                               f.error_u,
+                               f"as-found error of calibration {f.certificate} ({f.issuer}"
+                               + (f", {f.calibrated_on.isoformat()}" if f.calibrated_on
+                                  else "") + ")")
     return None
 
 
-def reanalyse_corrected(folder: Path, corrections: Sequence[Mapping[str, object]]
-                        ) -> tuple[dict[str, object] | None, str]:
+def reanalyse_corrected(folder: Path, corrections: Sequence[CorrectionEntry]
+                        ) -> tuple[ResultView | None, str]:
     """The run's raw captures analysed again in a copy of its folder whose corrections file
     states `corrections`; (result, "") or (None, why not)."""
     with tempfile.TemporaryDirectory(prefix="ratebench-impact-") as tmp:
         copy = Path(tmp) / folder.name
         shutil.copytree(folder, copy, ignore=shutil.ignore_patterns(
             layout.RESULT, "*.pdf", "*.html", "*.dcc.xml", layout.ISSUED))
-        (copy / CORRECTIONS_FILE).write_text(json.dumps(
-            {"corrections": list(corrections)}, indent=2) + "\n", encoding="utf-8")
+        (copy / CORRECTIONS_FILE).write_text(encode_corrections(tuple(corrections)),
+                                             encoding="utf-8")
         done = subprocess.run([sys.executable, "-m", "bench.app.reanalyse", str(copy)],
                               capture_output=True, text=True, timeout=3600)
         again = copy / layout.RESULT
         if done.returncode != 0 or not again.is_file():
             why = (done.stderr.strip().splitlines() or ["no result"])[-1]
             return None, f"not re-analysed: {why}"
-        return json.loads(again.read_text(encoding="utf-8")), ""
+        try:
+            return result_view(again.read_bytes()), ""
+        except MalformedDocument as e:
+            return None, f"not re-analysed: {e}"
 
 
 # -- figures and checks -------------------------------------------------------------------
 
-def _num(x: object) -> float | None:
-    return float(x) if isinstance(x, int | float) and not isinstance(x, bool) \
-        and math.isfinite(float(x)) else None
-
-
-def figures_of(entry: Mapping[str, object]) -> dict[str, tuple[float, float, str]]:
-    """A result entry's figures that state a U beside them: name: (value, U, unit)."""
-    out: dict[str, tuple[float, float, str]] = {}
-    for key, u in entry.items():
-        if "_U_" in key:
-            name, unit = key.replace("_U_", "_", 1), key.split("_U_", 1)[1]
-        elif key.endswith("_U"):
-            name, unit = key[:-2], ""
-        else:
-            continue
-        value, big_u = _num(entry.get(name)), _num(u)
-        if value is not None and big_u is not None and big_u > 0:
-            out[name] = (value, big_u, UNITS.get(unit, unit))
-    return out
-
-
-def _entries(result: Mapping[str, object]) -> dict[str, Mapping[str, object]]:
-    """Each rate and pair entry of a result by where it is."""
-    out: dict[str, Mapping[str, object]] = {}
-    axes = result.get("axes")
-    for axis, a in (axes.items() if isinstance(axes, dict) else ()):
-        if not isinstance(a, dict):
-            continue
-        for r in a.get("rates") or []:
-            if isinstance(r, dict):
-                out[f"axes.{axis}.rates[{r.get('set_rate_dps'):+g} deg/s]"] = r
-        for p in a.get("pairs") or []:
-            if isinstance(p, dict):
-                out[f"axes.{axis}.pairs[{p.get('rate_dps'):g} deg/s]"] = p
-    drift = result.get("drift")     # the drift kind: each gyro's figures, the platform's
-    if isinstance(drift, dict):
-        gyros = drift.get("axes")
-        for gyro, g in (gyros.items() if isinstance(gyros, dict) else ()):
-            if isinstance(g, dict):
-                out[f"drift.axes.{gyro}"] = g
-        out["drift"] = drift
-    return out
-
-
-def shifts(issued: Mapping[str, object], corrected: Mapping[str, object]
-           ) -> list[FigureShift]:
+def shifts(issued: ResultView, corrected: ResultView) -> list[FigureShift]:
     """Each figure's shift, corrected minus issued, in its unit and over its issued U."""
     out = []
-    after = _entries(corrected)
-    for where, e in _entries(issued).items():
-        again = figures_of(after.get(where) or {})
-        for name, (value, big_u, unit) in figures_of(e).items():
+    for where, figures in issued.figures.items():
+        again = corrected.figures.get(where, {})
+        for name, f in figures.items():
             if name not in again:
                 continue
-            shift = again[name][0] - value
-            out.append(FigureShift(where, name, unit, value, again[name][0], shift, big_u,
-                                   shift / big_u, abs(shift) > MARK_FRACTION_OF_U * big_u))
+            shift = again[name].value - f.value
+            out.append(FigureShift(where, name, f.unit, f.value, again[name].value, shift,
+                                   f.U, shift / f.U, abs(shift) > MARK_FRACTION_OF_U * f.U))
     return out
 
 
-def _checks(result: Mapping[str, object]) -> dict[tuple[str, float | None, str], str]:
-    checks = result.get("checks")
-    return {(str(c.get("axis")), _num(c.get("set_rate_dps")), str(c.get("quantity"))):
-            str(c.get("verdict")) for c in (checks if isinstance(checks, list) else [])
-            if isinstance(c, dict)}
-
-
-def check_changes(issued: Mapping[str, object], corrected: Mapping[str, object]
-                  ) -> list[CheckChange]:
-    before, after = _checks(issued), _checks(corrected)
+def check_changes(issued: ResultView, corrected: ResultView) -> list[CheckChange]:
+    before, after = issued.verdicts(), corrected.verdicts()
     return [CheckChange(k[0], k[1], k[2], v, after.get(k, "absent"))
             for k, v in before.items() if after.get(k, "absent") != v]
 
@@ -289,84 +192,64 @@ def check_changes(issued: Mapping[str, object], corrected: Mapping[str, object]
 
 def assess(reg: Register, serial: str, roots: Sequence[Path]
            ) -> tuple[Finding, list[RunImpact]]:
-    import bench
-    from bench.app.register.runs import raw_digests
-
     item = next(iter(reg.equipment(serial)), None)
     if item is None:
         raise RegisterError(f"equipment {serial!r} is not in the inventory")
     finding = finding_of(item)
     folders = run_folders(roots)
-    impacts = []
-    for rec in touched(reg.runs_using(serial), finding):
-        where = next((str(i.get("where")) for i in rec.items if i.get("serial") == serial),
-                     "?")
-        number = reg.number_of_run(rec.uid)
-        imp = RunImpact(rec.uid, rec.registered_utc, where, number,
-                        [r.shown_number + ("" if r.status == "issued" else f" ({r.status})")
-                         for r in reg.revisions(number)] if number else [])
-        impacts.append(imp)
-        imp.customer = _customer(rec.result)
-        folder = folders.get(rec.uid)
-        if folder is None:
-            imp.status = "raw data not found"
-            continue
-        imp.folder = str(folder)
-        if number is None:      # nothing was stated to a customer; its issue corrects it
-            imp.status = DRAFT_STATUS
-            continue
-        if raw_digests(folder) != rec.raw or not rec.raw:
-            imp.status = ("raw data not found (the raw captures in the folder are not the "
-                          "ones the register saw)")
-            continue
-        if rec.result is None:
-            imp.status = "not re-analysed: the register holds no result of the run"
-            continue
-        if rec.version != bench.__version__:
-            imp.status = (f"not re-analysed: measured with ratebench {rec.version}, this is "
-                          f"{bench.__version__}")
-            continue
-        corr = correction_entry(finding, where)
-        if corr is None:
-            imp.status = f"not re-analysed: no correction model for {where} yet"
-            continue
-        again, why = reanalyse_corrected(folder, [corr])
-        if again is None:
-            imp.status = why
-            continue
-        issued = json.loads(rec.result)
-        imp.status = "re-analysed"
-        imp.figures = shifts(issued, again)
-        imp.checks_changed = check_changes(issued, again)
-    return finding, impacts
+    return finding, [_impact_on(reg, rec, serial, finding, folders.get(rec.uid))
+                     for rec in touched(reg.runs_using(serial), finding)]
 
 
-def _customer(result: str | None) -> dict[str, str] | None:
-    """The customer block of the result the register holds (the certificate's)."""
+def _impact_on(reg: Register, rec: RunRecord, serial: str, finding: Finding,
+               folder: Path | None) -> RunImpact:
+    """What the finding did to one run: analysed again with the correction, or why not."""
+    import bench
+    from bench.app.register.runs import raw_digests
+
+    where = next((str(i.get("where")) for i in rec.items if i.get("serial") == serial), "?")
+    number = reg.number_of_run(rec.uid)
+    issued, unreadable = None, ""
     try:
-        cert = json.loads(result).get("certificate") if result else None
-    except ValueError:
-        return None
-    got = {k: str(cert[k]) for k in ("customer", "customer_address", "customer_contact")
-           if isinstance(cert, dict) and cert.get(k)}
-    return got or None
+        issued = result_view(rec.result) if rec.result is not None else None
+    except MalformedDocument as e:
+        unreadable = f"not re-analysed: the register's result: {e}"
+    imp = RunImpact(uid=rec.uid, registered_utc=rec.registered_utc, where=where,
+                    number=number, revisions=tuple(
+                        r.shown_number + ("" if r.status == "issued" else f" ({r.status})")
+                        for r in reg.revisions(number)) if number else (),
+                    folder=None if folder is None else str(folder),
+                    customer=issued.customer if issued else None)
+
+    def status(why: str) -> RunImpact:
+        return msgspec.structs.replace(imp, status=why)
+
+    if folder is None:
+        return status("raw data not found")
+    if number is None:      # nothing was stated to a customer; its issue corrects it
+        return status(DRAFT_STATUS)
+    if raw_digests(folder) != rec.raw or not rec.raw:
+        return status("raw data not found (the raw captures in the folder are not the ones "
+                      "the register saw)")
+    if issued is None:
+        return status(unreadable or "not re-analysed: the register holds no result of the run")
+    if rec.version != bench.__version__:
+        return status(f"not re-analysed: measured with ratebench {rec.version}, this is "
+                      f"{bench.__version__}")
+    corr = correction_entry(finding, where)
+    if corr is None:
+        return status(f"not re-analysed: no correction model for {where} yet")
+    again, why = reanalyse_corrected(folder, [corr])
+    if again is None:
+        return status(why)
+    return msgspec.structs.replace(imp, status="re-analysed",
+                                   figures=tuple(shifts(issued, again)),
+                                   checks_changed=tuple(check_changes(issued, again)))
 
 
-def report_json(reg_url: str, f: Finding, impacts: Sequence[RunImpact]) -> dict[str, object]:
-    def plain(x: object) -> object:
-        if isinstance(x, dt.date):
-            return x.isoformat()
-        if isinstance(x, dict):
-            return {k: plain(v) for k, v in x.items()}
-        if isinstance(x, list):
-            return [plain(v) for v in x]
-        return x
-
-    return {"register": redact(reg_url), "finding": plain(asdict(f)),
-            "mark_fraction_of_U": MARK_FRACTION_OF_U,
-            "runs": [plain({**asdict(i), "largest_shift_over_U":
-                            (lg.shift_over_u if (lg := i.largest()) else None)})
-                     for i in impacts]}
+def report_of(reg_url: str, f: Finding, impacts: Sequence[RunImpact]) -> ImpactReport:
+    """The document `bench impact --json` writes and `--report` lays out."""
+    return ImpactReport(redact(reg_url), f, MARK_FRACTION_OF_U, tuple(impacts))
 
 
 def report_text(f: Finding, impacts: Sequence[RunImpact]) -> list[str]:
@@ -411,7 +294,7 @@ def report_text(f: Finding, impacts: Sequence[RunImpact]) -> list[str]:
     return lines
 
 
-def _write_report(args: argparse.Namespace, reg: Register, doc: dict[str, object]
+def _write_report(args: argparse.Namespace, reg: Register, report: ImpactReport
                   ) -> dict[str, str]:
     """`--report DIR`: the report as JSON, PDF and HTML and the per-customer drafts
     (bench/app/impact_report.py); each file's SHA-256 for the audit entry."""
@@ -419,12 +302,23 @@ def _write_report(args: argparse.Namespace, reg: Register, doc: dict[str, object
         return {}
     from bench.app.impact_report import digests, write_report
 
-    paths = write_report(Path(args.report), doc, json.dumps(doc, indent=2) + "\n",
+    paths = write_report(Path(args.report), report, encode_report(report),
                          reg.setting("issuer.name") or "the laboratory",
                          dt.datetime.now(dt.UTC).date().isoformat())
     for p in paths:
         print(f"wrote {p}", file=sys.stderr)
     return digests(paths)
+
+
+def audit_of(report: ImpactReport, written: dict[str, str]) -> ImpactAudit:
+    """The audit entry of the assessment: the finding, each run's outcome, the
+    certificates touched and the report's files."""
+    return ImpactAudit(
+        nonconforming_work="ISO/IEC 17025 7.10: the item found out of tolerance",
+        report=written or None, finding=report.finding,
+        runs=tuple(AuditRun(i.uid, i.number, i.status, i.largest_shift_over_U,
+                            len(i.checks_changed)) for i in report.runs),
+        certificates=tuple(sorted({i.number for i in report.runs if i.number})))
 
 
 def cmd_impact(args: argparse.Namespace) -> int:
@@ -439,22 +333,13 @@ def cmd_impact(args: argparse.Namespace) -> int:
                 args.as_account, Passwords(args.password_stdin).next(
                     f"password of {args.as_account}: "), "quality")
             finding, impacts = assess(reg, args.serial, [Path(p) for p in args.runs or []])
-            doc = report_json(url, finding, impacts)
-            written = _write_report(args, reg, doc)
-            reg.impact_assessed(acting, args.serial, {
-                "nonconforming_work": "ISO/IEC 17025 7.10: the item found out of tolerance",
-                **({"report": written} if written else {}),
-                "finding": doc["finding"],
-                "runs": [{"uid": i.uid, "number": i.number, "status": i.status,
-                          "largest_shift_over_U": (lg.shift_over_u if (lg := i.largest())
-                                                   else None),
-                          "checks_changed": len(i.checks_changed)} for i in impacts],
-                "certificates": sorted({i.number for i in impacts if i.number})})
+            report = report_of(url, finding, impacts)
+            written = _write_report(args, reg, report)
+            reg.impact_assessed(acting, args.serial, audit_detail(audit_of(report, written)))
     except RegisterError as e:
         print(f"bench impact: {e}", file=sys.stderr)
         return EXIT_REFUSED
     if args.json:
-        Path(args.json).write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+        Path(args.json).write_text(encode_report(report), encoding="utf-8")
     print("\n".join(report_text(finding, impacts)))
     return EXIT_OK
-

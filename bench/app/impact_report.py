@@ -4,8 +4,9 @@ its JSON, and per customer a draft notification (text and HTML).
 Why the certificate's stack: the report is laid out as a `Document`
 (bench/report/certificate/model.py) and rendered by the certificate's own PDF (fpdf2) and
 HTML (Jinja2) renderers, so the two formats cannot disagree about a number, and every
-number comes from the JSON document `bench impact --json` writes (`report_json`): the
-report is that document laid out, nothing recomputed.
+number comes from the document `bench impact --json` writes (`ImpactReport`,
+bench/app/impact_codec.py, typed): the report is that document laid out, nothing
+recomputed.
 
 Layout: a summary table first (per run: certificate number and revisions, customer, the
 figure that moved most against its U, the shift in its unit and over U, marked `*` over
@@ -23,9 +24,10 @@ from __future__ import annotations
 import hashlib
 import html
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
+from bench.app.impact_codec import CheckChange, FigureShift, ImpactReport, RunImpact
 from bench.report.certificate.model import Document, Fields, Para, Section, Table
 
 #: a shift over this fraction of its figure's U is marked (as in bench/app/impact.py)
@@ -33,126 +35,90 @@ MARK = "*"
 NO_CUSTOMER = "customer not stated"
 
 
-def _num(x: object) -> float | None:
-    return float(x) if isinstance(x, int | float) and not isinstance(x, bool) else None
+def _g(x: float | None, digits: int = 4) -> str:
+    return "" if x is None else f"{x:.{digits}g}"
 
 
-def _g(x: object, digits: int = 4) -> str:
-    v = _num(x)
-    return "" if v is None else f"{v:.{digits}g}"
+def _signed(x: float, digits: int = 3) -> str:
+    return f"{x:+.{digits}g}"
 
 
-def _signed(x: object, digits: int = 3) -> str:
-    v = _num(x)
-    return "" if v is None else f"{v:+.{digits}g}"
+def customer_of(run: RunImpact) -> str:
+    return run.customer.customer if run.customer and run.customer.customer else NO_CUSTOMER
 
 
-def customer_of(run: Mapping[str, object]) -> str:
-    c = run.get("customer")
-    name = c.get("customer") if isinstance(c, Mapping) else None
-    return str(name) if name else NO_CUSTOMER
-
-
-def certificate_of(run: Mapping[str, object]) -> str:
+def certificate_of(run: RunImpact) -> str:
     """The certificate number and its revisions as the register holds them."""
-    revs = run.get("revisions")
-    if isinstance(revs, list) and revs:
-        return ", ".join(str(r) for r in revs)
-    return str(run.get("number") or "not issued")
+    return ", ".join(run.revisions) if run.revisions else run.number or "not issued"
 
 
-def _figures(run: Mapping[str, object]) -> list[Mapping[str, object]]:
-    got = run.get("figures")
-    return [f for f in got if isinstance(f, Mapping)] if isinstance(got, list) else []
+def change_text(c: CheckChange) -> str:
+    at = c.set_rate_dps
+    where = c.axis + ("" if at is None else f" {at:g} deg/s")
+    return f"{where} {c.quantity}: {c.issued} -> {c.corrected}"
 
 
-def _changes(run: Mapping[str, object]) -> list[Mapping[str, object]]:
-    got = run.get("checks_changed")
-    return [c for c in got if isinstance(c, Mapping)] if isinstance(got, list) else []
+def figure_name(f: FigureShift) -> str:
+    return f"{f.where} {f.name}"
 
 
-def largest(run: Mapping[str, object]) -> Mapping[str, object] | None:
-    """The figure whose shift is the largest fraction of its U."""
-    return max(_figures(run), key=lambda f: abs(_num(f.get("shift_over_u")) or 0.0),
-               default=None)
+def _shift_over_u(f: FigureShift) -> str:
+    return _signed(f.shift_over_u) + (f" {MARK}" if f.marked else "")
 
 
-def change_text(c: Mapping[str, object]) -> str:
-    at = _num(c.get("set_rate_dps"))
-    where = f"{c.get('axis')}" + ("" if at is None else f" {at:g} deg/s")
-    return f"{where} {c.get('quantity')}: {c.get('issued')} -> {c.get('corrected')}"
-
-
-def figure_name(f: Mapping[str, object]) -> str:
-    return f"{f.get('where')} {f.get('name')}"
-
-
-def _shift_over_u(f: Mapping[str, object]) -> str:
-    return _signed(f.get("shift_over_u")) + (f" {MARK}" if f.get("marked") else "")
-
-
-def summary_rows(doc: Mapping[str, object]) -> list[tuple[str, ...]]:
+def summary_rows(doc: ImpactReport) -> list[tuple[str, ...]]:
     """Per run: run, certificate (number, revisions), customer, figure, shift in its unit,
     shift / U (marked), conformity changes; a run not re-analysed says why instead."""
     rows: list[tuple[str, ...]] = []
-    for run in _runs(doc):
-        big = largest(run)
-        changes = _changes(run)
-        if run.get("status") != "re-analysed" or big is None:
-            figure, shift, over = str(run.get("status")), "", ""
+    for run in doc.runs:
+        big = run.largest()
+        changes = run.checks_changed
+        if not run.reanalysed or big is None:
+            figure, shift, over = run.status, "", ""
         else:
             figure = figure_name(big)
-            shift = f"{_signed(big.get('shift'))} {big.get('unit')}"
+            shift = f"{_signed(big.shift)} {big.unit}"
             over = _shift_over_u(big)
         changed = ("; ".join(change_text(c) for c in changes) if changes else
-                   "none" if run.get("status") == "re-analysed" else "not assessed")
-        rows.append((str(run.get("uid")), certificate_of(run), customer_of(run), figure,
-                     shift, over, changed))
+                   "none" if run.reanalysed else "not assessed")
+        rows.append((run.uid, certificate_of(run), customer_of(run), figure, shift, over,
+                     changed))
     return rows
 
 
-def _runs(doc: Mapping[str, object]) -> list[Mapping[str, object]]:
-    got = doc.get("runs")
-    return [r for r in got if isinstance(r, Mapping)] if isinstance(got, list) else []
-
-
-def _finding_rows(doc: Mapping[str, object]) -> tuple[tuple[str, str], ...]:
-    f = doc.get("finding")
-    f = f if isinstance(f, Mapping) else {}
-    err = _g(f.get("error"), 6) + ("" if f.get("error_u") is None
-                                   else f" (U {_g(f.get('error_u'), 3)})")
-    since = (f"{f.get('since_certificate')} ({f.get('since')})" if f.get("since")
+def _finding_rows(doc: ImpactReport) -> tuple[tuple[str, str], ...]:
+    f = doc.finding
+    err = _g(f.error, 6) + ("" if f.error_u is None else f" (U {_g(f.error_u, 3)})")
+    since = (f"{f.since_certificate} ({f.since})" if f.since
              else "the inventory's first record")
-    return (("Item", f"{f.get('model')}, serial {f.get('serial')}"),
-            ("Calibration with the finding", f"{f.get('certificate')} ({f.get('issuer')}, "
-                                             f"{f.get('calibrated_on')}), found "
-                                             f"{f.get('found') or 'not stated'}"),
+    return (("Item", f"{f.model}, serial {f.serial}"),
+            ("Calibration with the finding", f"{f.certificate} ({f.issuer}, "
+                                             f"{f.calibrated_on}), found "
+                                             f"{f.found or 'not stated'}"),
             ("As-found error", err),
-            ("Runs assessed since", str(since)),
-            ("Register", str(doc.get("register"))))
+            ("Runs assessed since", since),
+            ("Register", doc.register))
 
 
-def title_of(doc: Mapping[str, object]) -> str:
-    f = doc.get("finding")
-    f = f if isinstance(f, Mapping) else {}
-    return f"Impact of {f.get('model')} serial {f.get('serial')} found out of tolerance"
+def title_of(doc: ImpactReport) -> str:
+    return f"Impact of {doc.finding.model} serial {doc.finding.serial} found out of tolerance"
 
 
 SUMMARY_HEADER = ("Run", "Certificate (revisions)", "Customer", "Figure (largest shift/U)",
                   "Shift", "Shift / U", "Conformity changes")
 
 
-def build(doc: Mapping[str, object], laboratory: str, date: str) -> Document:
+def build(doc: ImpactReport, laboratory: str, date: str) -> Document:
     """The report as a Document: summary first, the finding, a page per certificate."""
-    mark = _num(doc.get("mark_fraction_of_U")) or 1.0 / 3.0
-    runs = _runs(doc)
-    done = [r for r in runs if r.get("status") == "re-analysed"]
+    mark = doc.mark_fraction_of_U or 1.0 / 3.0
+    runs = doc.runs
+    done = [r for r in runs if r.reanalysed]
     sections = [
         Section("1", "Summary", (
             Para(f"{len(runs)} run(s) used the item in the period; {len(done)} analysed "
                  "again from their raw captures with the as-found error applied as a "
                  "correction; "
-                 f"{sum(1 for r in runs if str(r.get('status')).startswith('raw data'))} "
+                 f"{sum(1 for r in runs if r.status.startswith('raw data'))} "
                  "whose raw data was not found (listed, not re-analysed)."),
             Table(SUMMARY_HEADER, tuple(summary_rows(doc)),
                   widths=(3.8, 1.5, 1.1, 2.0, 1.0, 0.9, 1.2), align="lllllrl",
@@ -163,26 +129,25 @@ def build(doc: Mapping[str, object], laboratory: str, date: str) -> Document:
         Section("2", "The finding", (Fields(_finding_rows(doc)),)),
     ]
     for i, run in enumerate(done, start=3):
-        figs = _figures(run)
-        changes = _changes(run)
+        figs = run.figures
+        changes = run.checks_changed
         blocks: list[Fields | Table | Para] = [
-            Fields((("Run", str(run.get("uid"))),
+            Fields((("Run", run.uid),
                     ("Certificate (revisions)", certificate_of(run)),
                     ("Customer", customer_of(run)),
-                    ("The item's place on the stand", str(run.get("where"))),
-                    ("Registered", str(run.get("registered_utc"))))),
+                    ("The item's place on the stand", run.where),
+                    ("Registered", run.registered_utc))),
             Table(("Where", "Figure", "Unit", "Issued", "Corrected", "Shift", "U",
                    "Shift / U"),
-                  tuple((str(f.get("where")), str(f.get("name")), str(f.get("unit")),
-                         _g(f.get("issued"), 7), _g(f.get("corrected"), 7),
-                         _signed(f.get("shift")), _g(f.get("u_issued"), 3),
+                  tuple((f.where, f.name, f.unit, _g(f.issued, 7), _g(f.corrected, 7),
+                         _signed(f.shift), _g(f.u_issued, 3),
                          _shift_over_u(f)) for f in figs),
                   widths=(2.0, 2.2, 0.7, 1.3, 1.3, 1.0, 0.9, 0.9), align="llllrrrr",
                   caption="Each figure that states a U, issued and analysed again with the "
                           "correction")]
         blocks.append(Table(("Check", "Issued", "Corrected"),
-                            tuple((change_text(c).split(":")[0], str(c.get("issued")),
-                                   str(c.get("corrected"))) for c in changes),
+                            tuple((change_text(c).split(":")[0], c.issued, c.corrected)
+                                  for c in changes),
                             caption="Conformity statements whose outcome changes")
                       if changes else Para("Conformity: no statement's outcome changes."))
         sections.append(Section(str(i), f"Certificate {certificate_of(run)}", tuple(blocks),
@@ -199,9 +164,8 @@ def build(doc: Mapping[str, object], laboratory: str, date: str) -> Document:
               "run_title": "", "scope": "", "replaces": "", "revision": ""})
 
 
-def _finding_serial(doc: Mapping[str, object]) -> str:
-    f = doc.get("finding")
-    return str(f.get("serial")) if isinstance(f, Mapping) else "?"
+def _finding_serial(doc: ImpactReport) -> str:
+    return doc.finding.serial
 
 
 # -- the notifications ---------------------------------------------------------------------
@@ -210,45 +174,42 @@ def _slug(name: str) -> str:
     return re.sub(r"[^a-z0-9]+", "-", name.casefold()).strip("-") or "customer"
 
 
-def notification_lines(doc: Mapping[str, object], customer: str,
-                       runs: Sequence[Mapping[str, object]], laboratory: str) -> list[str]:
+def notification_lines(doc: ImpactReport, customer: str, runs: Sequence[RunImpact],
+                       laboratory: str) -> list[str]:
     """One customer's draft: the item and finding, then each certificate and what changed."""
-    f = doc.get("finding")
-    f = f if isinstance(f, Mapping) else {}
-    first = runs[0].get("customer") if runs else None
-    contact = first if isinstance(first, Mapping) else {}
+    f = doc.finding
+    contact = runs[0].customer if runs else None
+    address = contact.customer_address if contact else None
+    attention = contact.customer_contact if contact else None
     lines = ["DRAFT - to be reviewed and sent by the laboratory, not sent",
              f"From: {laboratory}",
-             f"To: {customer}" + (f", {contact.get('customer_address')}"
-                                  if contact.get("customer_address") else ""),
-             *([f"Attention: {contact.get('customer_contact')}"]
-               if contact.get("customer_contact") else []),
-             f"Subject: calibration certificates affected by {f.get('model')} serial "
-             f"{f.get('serial')} found out of tolerance",
+             f"To: {customer}" + (f", {address}" if address else ""),
+             *([f"Attention: {attention}"] if attention else []),
+             f"Subject: calibration certificates affected by {f.model} serial "
+             f"{f.serial} found out of tolerance",
              "",
-             f"The {f.get('model')} serial {f.get('serial')} used in your calibrations was "
-             f"found out of tolerance at its calibration {f.get('certificate')} "
-             f"({f.get('calibrated_on')}): as-found error {_g(f.get('error'), 6)}"
-             + ("" if f.get("error_u") is None else f" (U {_g(f.get('error_u'), 3)})")
+             f"The {f.model} serial {f.serial} used in your calibrations was "
+             f"found out of tolerance at its calibration {f.certificate} "
+             f"({f.calibrated_on}): as-found error {_g(f.error, 6)}"
+             + ("" if f.error_u is None else f" (U {_g(f.error_u, 3)})")
              + ". We analysed the raw data of each certificate below again with this error "
                "corrected. Shifts are corrected minus issued; U is the issued expanded "
                "uncertainty (about 95 %); * marks a shift over a third of U.",
              ""]
     for run in runs:
-        lines.append(f"Certificate {certificate_of(run)} (run {run.get('uid')}): "
-                     f"{run.get('status')}")
-        for fig in _figures(run):
-            if fig.get("marked"):
-                lines.append(f"  {figure_name(fig)}: issued {_g(fig.get('issued'), 7)}, "
-                             f"corrected {_g(fig.get('corrected'), 7)} {fig.get('unit')}, "
-                             f"shift {_signed(fig.get('shift'))} ({_shift_over_u(fig)} U)")
-        if run.get("status") == "re-analysed":
-            if not any(fig.get("marked") for fig in _figures(run)):
-                big = largest(run)
+        lines.append(f"Certificate {certificate_of(run)} (run {run.uid}): {run.status}")
+        for fig in run.figures:
+            if fig.marked:
+                lines.append(f"  {figure_name(fig)}: issued {_g(fig.issued, 7)}, "
+                             f"corrected {_g(fig.corrected, 7)} {fig.unit}, "
+                             f"shift {_signed(fig.shift)} ({_shift_over_u(fig)} U)")
+        if run.reanalysed:
+            if not any(fig.marked for fig in run.figures):
+                big = run.largest()
                 lines.append("  no figure moved by more than a third of its U"
                              + (f" (largest: {figure_name(big)}, "
                                 f"{_shift_over_u(big)} U)" if big else ""))
-            changes = _changes(run)
+            changes = run.checks_changed
             lines += [f"  conformity statement changes: {change_text(c)}" for c in changes] \
                 or ["  conformity statements: no outcome changes"]
         lines.append("")
@@ -265,17 +226,17 @@ def _html_page(title: str, lines: Sequence[str]) -> str:
             f"<title>{html.escape(title)}</title></head>\n<body>\n{body}\n</body>\n</html>\n")
 
 
-def notifications(doc: Mapping[str, object], laboratory: str
-                  ) -> dict[str, tuple[list[Mapping[str, object]], list[str]]]:
+def notifications(doc: ImpactReport, laboratory: str
+                  ) -> dict[str, tuple[list[RunImpact], list[str]]]:
     """Per customer of an issued certificate: its runs and its draft's lines."""
-    by: dict[str, list[Mapping[str, object]]] = {}
-    for run in _runs(doc):
-        if run.get("number"):       # drafts were never sent: nobody to notify
+    by: dict[str, list[RunImpact]] = {}
+    for run in doc.runs:
+        if run.number:       # drafts were never sent: nobody to notify
             by.setdefault(customer_of(run), []).append(run)
     return {c: (runs, notification_lines(doc, c, runs, laboratory)) for c, runs in by.items()}
 
 
-def write_report(folder: Path, doc: Mapping[str, object], json_text: str, laboratory: str,
+def write_report(folder: Path, doc: ImpactReport, json_text: str, laboratory: str,
                  date: str) -> list[Path]:
     """The report (JSON, PDF, HTML) and the per-customer drafts in `folder`; the paths."""
     from bench.app.certificate.html import render_html

@@ -19,24 +19,23 @@ import tempfile
 from pathlib import Path
 
 import bench
+from bench.app.impact_codec import MalformedDocument, json_tree, run_meta
 from bench.core import rundir_layout as layout
+from drivers.json_types import JsonValue
 
 EXIT_EQUAL, EXIT_DIFFERS, EXIT_REFUSED = 0, 1, 2
 
 
 def reanalyse(run_path: Path) -> tuple[int, list[str]]:
     """(exit status, lines to print)."""
-    import json
-
     run_path = Path(run_path)
     stored = run_path / layout.RESULT
     try:
-        meta = json.loads((run_path / layout.META).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as e:
+        version = run_meta((run_path / layout.META).read_bytes()).bench_version
+    except (OSError, MalformedDocument) as e:
         return EXIT_REFUSED, [f"{run_path}: not a run directory ({layout.META}: {e})"]
     if not stored.is_file():
         return EXIT_REFUSED, [f"{stored}: not found: nothing to compare with"]
-    version = str(meta.get("bench_version") or "")
     if version != bench.__version__:
         return EXIT_REFUSED, [f"{run_path} was measured with ratebench {version or '?'}; "
                               f"this is ratebench {bench.__version__}: re-analyse it with "
@@ -92,13 +91,11 @@ def _registered(run_path: Path) -> tuple[bytes | None, str] | None:
 
 
 def _compare(stored: Path, old: bytes, new: bytes, version: str) -> tuple[int, list[str]]:
-    import json
-
     if old == new:
         return EXIT_EQUAL, [f"{stored}: equal, byte for byte, to the raw captures analysed "
                             f"again (ratebench {version}; {len(new)} "
                             f"bytes, SHA-256 {hashlib.sha256(new).hexdigest()})"]
-    ulps = _last_digits_only(json.loads(old), json.loads(new))
+    ulps = _last_digits_only(json_tree(old), json_tree(new))
     if ulps is not None:
         count, most = ulps
         return EXIT_EQUAL, [
@@ -117,12 +114,12 @@ def _compare(stored: Path, old: bytes, new: bytes, version: str) -> tuple[int, l
 REL_LIMIT = 1e-11
 
 
-def _last_digits_only(a: object, b: object) -> tuple[int, float] | None:
+def _last_digits_only(a: JsonValue, b: JsonValue) -> tuple[int, float] | None:
     """(numbers that differ, their largest relative difference), when the two documents
     differ only in the last digits of numbers; None when anything else differs."""
     found: list[float] = [0, 0.0]
 
-    def walk(x: object, y: object) -> bool:
+    def walk(x: JsonValue, y: JsonValue) -> bool:
         if isinstance(x, dict) and isinstance(y, dict):
             return x.keys() == y.keys() and all(walk(x[k], y[k]) for k in x)
         if isinstance(x, list) and isinstance(y, list):

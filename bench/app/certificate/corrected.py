@@ -41,6 +41,7 @@ def corrections_due(reg: Register, record: RunRecord) -> tuple[list[dict[str, ob
     registration day. An item found out of tolerance for which no correction is modelled
     refuses: the figures it moved would be issued as if nothing were known."""
     from bench.app.impact import correction_entry, finding_of, touched
+    from bench.app.impact_codec import correction_json
     from bench.app.register.store import RegisterError
 
     due: list[dict[str, object]] = []
@@ -58,7 +59,8 @@ def corrections_due(reg: Register, record: RunRecord) -> tuple[list[dict[str, ob
             continue                      # no as-found error recorded: nothing to correct
         if not touched([record], finding):
             continue
-        corr = correction_entry(finding, where)
+        corr = None if (typed := correction_entry(finding, where)) is None else \
+            correction_json(typed)
         if corr is None:
             if finding.found == "out":
                 refused.append(f"item {serial} ({where}) was found out of tolerance "
