@@ -43,6 +43,8 @@ if TYPE_CHECKING:
     from bench.core.engine import RunContext
     from bench.core.instruments import Bench
     from bench.core.journal import RunDir
+    from bench.core.protocols import Counter as CounterLike
+    from bench.core.protocols import Fog as FogLike
     from bench.core.registry import StepHandler
     from bench.core.simbench import SimBench
     from bench.kind import Kind
@@ -66,7 +68,7 @@ def _turns(n: int) -> str:
 D = TypeVar("D")
 
 
-def _driver(value: object, kind: type[D], what: str) -> D:
+def _driver(value: CounterLike | FogLike | None, kind: type[D], what: str) -> D:
     """An axis's instrument as the ladder reads it: the driver's own class (the FOG's
     decoder stats and sample indices, the counter's acquisition and time tie)."""
     if not isinstance(value, kind):
