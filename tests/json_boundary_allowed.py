@@ -80,7 +80,6 @@ ALLOWED: dict[str, dict[str, int]] = {
     "procedures/rate_ladder/analysis.py": {"json_map_signatures": 2, "json_reads": 4},
     "procedures/rate_ladder/axes_view.py": {"json_map_signatures": 1},
     "procedures/rate_ladder/certificate.py": {"json_map_signatures": 1},
-    "procedures/rate_ladder/conditions.py": {"json_map_signatures": 1},
     "procedures/rate_ladder/events.py": {"json_map_signatures": 1},
     "procedures/rate_ladder/kind.py": {"json_map_signatures": 1},
     "procedures/rate_ladder/records.py": {"json_map_signatures": 3},

@@ -532,10 +532,12 @@ class LadderAnalysis:
 
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, object]:
         from procedures.rate_ladder.analysis import analyze_run
-        from procedures.rate_ladder.conditions import add_conditions
+        from procedures.rate_ladder.codec import with_conditions_measured
+        from procedures.rate_ladder.conditions import fog_temperatures
 
-        result: dict[str, object] = {**analyze_run(run, cfg)}
-        return add_conditions(result, run, cfg)
+        # the body after the frame, then what the bench measured itself (the FOG's
+        # temperature), each written by the ladder's codec
+        return with_conditions_measured({**analyze_run(run, cfg)}, fog_temperatures(run, cfg))
 
 
 class RateLadder:
