@@ -34,6 +34,9 @@ def test_the_certificate_block_gives_the_lab_it_names(tmp_path: Path) -> None:
     assert lab.signatories[0].function == "Calibration engineer (performed the calibration)"
     assert lab.prefix == "RT" and lab.performance_location == "laboratory"
     assert not lab.require_signed_dcc and lab.signing is None
+    # a choice the DCC does not list is read as written: the DCC's schema refuses it
+    moon = run_lab(tmp_path, lab_keys({**CERTIFICATE, "performance_location": "on the moon"}))
+    assert moon.performance_location == "on the moon"
     # no laboratory named: the run's lab file copy is the run's (none here: the defaults)
     assert lab_keys({"customer": "Demo customer"}) is None
     assert run_lab(tmp_path, None).name is None

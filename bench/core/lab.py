@@ -331,7 +331,15 @@ def certificate_settings(procedure_path: Path,
 
 class LabKeys(LabFile, frozen=True, kw_only=True, forbid_unknown_fields=False):
     """The lab file's keys as result.json's `certificate` block carries them, beside the
-    customer's (bench/core/settings_codec.py decodes it)."""
+    customer's (bench/core/settings_codec.py decodes it). Typed as the file's, its
+    choices as text: the run wrote what it resolved, and the DCC's own schema judges a
+    performance location it does not list (`bench dcc` exits 3 and names it)."""
+
+    # a result's text where the file has a choice (Lab keeps text): wider, on purpose
+    performance_location: str | None = None  # type: ignore[assignment]
+    signatories: tuple[SignatoryFile, ...] | None = None
+    responsible_persons: tuple[SignatoryFile, ...] | None = None
+    authoritative: str | None = None  # type: ignore[assignment]
 
 
 def run_lab(run_path: Path, certificate: LabKeys | None) -> Lab:
