@@ -24,9 +24,10 @@ from drivers.axis_errors import AxisError, AxisTimeout, DriveFault, ObjectRefuse
 from drivers.cia402 import HEARTBEAT_LOST, Od
 from drivers.clock import Clock, stepped
 from drivers.heartbeat import HeartbeatProducer
+from drivers.json_types import JsonLike
 from drivers.waits import MIN_REAL_MARGIN_S, Deadline
 
-RawSink = Callable[[str, dict[str, Any]], None]
+RawSink = Callable[[str, dict[str, JsonLike]], None]
 
 #: real seconds added to every wait scaled from the clock (CAN latency, thread wake-ups,
 #: a loaded host): the bench's stated minimum (drivers/waits.py)
@@ -96,7 +97,7 @@ class AxisLink:
         if self._fault is None:  # the first fault is the cause; later ones follow from it
             self._fault = _FaultInfo(code, description, register, self.clock.now())
 
-    def _journal(self, kind: str, **record: Any) -> None:
+    def _journal(self, kind: str, **record: JsonLike) -> None:
         if self.raw is None:
             return
         record.setdefault("t_s", self.clock.now())

@@ -15,7 +15,7 @@ from typing import Literal
 
 from drivers.clock import Clock
 from drivers.counter_profiles import CounterProfile, CounterWords
-from drivers.scpi import IDN, Command, ErrorKinds, ScpiInstrument
+from drivers.scpi import IDN, Command, ErrorKinds, ScpiInstrument, ScpiValue
 from drivers.time_tie import TimeTie
 
 #: the family is bound in drivers.counter's name, where the driver has always raised it
@@ -62,7 +62,7 @@ class CounterSetup(ScpiInstrument):
     def supports_timestamps(self) -> bool:
         return self.profile.supports_timestamps
 
-    def template_values(self) -> dict[str, object]:
+    def template_values(self) -> dict[str, ScpiValue]:
         return {"channel": self.input.channel if self.input else 1}
 
     def identify(self) -> str:
@@ -180,7 +180,7 @@ class CounterSetup(ScpiInstrument):
         self._verify("counter.level_v", w.input_level, c.level_v)
         self._verify("counter.slope", w.input_slope, c.slope)
 
-    def _verify(self, key: str, word: Command | None, expected: object) -> str | None:
+    def _verify(self, key: str, word: Command | None, expected: ScpiValue | None) -> str | None:
         """Ask `word` back and compare with what was set; record it in `readback`."""
         if word is None:
             return None
@@ -194,7 +194,7 @@ class CounterSetup(ScpiInstrument):
         return got
 
 
-def _same_setting(reply: str, expected: object) -> bool:
+def _same_setting(reply: str, expected: ScpiValue | None) -> bool:
     """A read-back reply against the value set: numbers to 1e-9, booleans as 0/1/ON/OFF,
     words by their short form (`POS` for POSitive, `EXT` for EXTernal)."""
     text = reply.strip().strip('"').upper()

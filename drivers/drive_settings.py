@@ -15,7 +15,7 @@ it imports msgspec and the drive's constants, not canopen.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, Protocol
 
 from msgspec import Meta, Struct
 
@@ -44,13 +44,26 @@ GIVEN = "given"
 NodeId = Annotated[int, Meta(ge=1, le=127)]
 
 
-def bus_name(drive: Mapping[str, object]) -> str:
+class BusAddress(Protocol):
+    """Where a drive sits: its bus's interface and channel, and a server's address."""
+
+    @property
+    def interface(self) -> str: ...
+    @property
+    def channel(self) -> str: ...
+    @property
+    def host(self) -> str | None: ...
+    @property
+    def port(self) -> int | None: ...
+
+
+def bus_name(drive: BusAddress) -> str:
     """A bus's identity: interface and channel, and for a bus behind a server
     (socketcand) the server's host and port, so two servers' `can0` are two buses."""
     where = ""
-    if drive.get("host") is not None or drive.get("port") is not None:
-        where = f"@{drive.get('host', '')}:{drive.get('port', '')}"
-    return f"{drive['interface']}:{drive['channel']}{where}"
+    if drive.host is not None or drive.port is not None:
+        where = f"@{'' if drive.host is None else drive.host}:{'' if drive.port is None else drive.port}"
+    return f"{drive.interface}:{drive.channel}{where}"
 
 
 class DriveSettings(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
@@ -142,8 +155,7 @@ class DriveSettings(Struct, frozen=True, kw_only=True, forbid_unknown_fields=Tru
     @property
     def bus(self) -> str:
         """The CAN bus this drive is on (axes with the same one share it)."""
-        return bus_name({"interface": self.interface, "channel": self.channel,
-                         "host": self.host, "port": self.port})
+        return bus_name(self)
 
     @property
     def bus_options(self) -> dict[str, Any]:

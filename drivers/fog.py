@@ -34,7 +34,7 @@ import os
 import select
 import threading
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, TypedDict
@@ -145,20 +145,11 @@ class FogCheckpoint(TypedDict):
     first_index: int | None
 
 
-def _decode_state(mark: Mapping[str, object]) -> DecodeState:
-    """A checkpoint (`Fog.checkpoint`) as the journal gives it back."""
-    def number(value: object, key: str) -> int:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ValueError(f"FOG capture checkpoint: {key} = {value!r} is not a number")
-        return int(value)
-
-    def optional(key: str) -> int | None:
-        value = mark.get(key)
-        return None if value is None else number(value, key)
-
-    return DecodeState(number(mark["offset"], "offset"),
-                       number(mark["last_index"], "last_index"), optional("last_sequence"),
-                       number(mark["last_end"], "last_end"), optional("first_index"))
+def _decode_state(mark: FogCheckpoint) -> DecodeState:
+    """A checkpoint (`Fog.checkpoint`) as the journal gives it back (its event decoded,
+    so each number checked, by bench/core/events.py)."""
+    return DecodeState(mark["offset"], mark["last_index"], mark.get("last_sequence"),
+                       mark["last_end"], mark.get("first_index"))
 
 
 class FogError(RuntimeError):
@@ -336,7 +327,6 @@ class Fog:
     def __init__(self, port: str, *, baudrate: int = 921600, fmt: str = "kvh-a",
                  axis: str = "z", rate_hz: float, units: str | None,
                  raw_path: Path | str | None, clock: Clock, model: str | None = None,
-                 serial_kwargs: Mapping[str, object] | None = None,
                  keep_samples: int | None = None,
                  configure: str = "declare",
                  wait_margin_s: float = MIN_REAL_MARGIN_S) -> None:
@@ -367,7 +357,6 @@ class Fog:
         self.raw_path = Path(raw_path) if raw_path is not None else None
         self.clock = clock
         self.model = model
-        self._serial_kwargs = dict(serial_kwargs or {})
         #: real seconds a wait allows beyond its scaled time, and of silence before it fails
         self.wait_margin_s = float(wait_margin_s)
         self._axis_col = AXES.index(axis)
@@ -401,8 +390,7 @@ class Fog:
         if self._ser is not None:
             raise FogError(f"FOG on {self.port} is already open")
         try:
-            self._ser = serial.Serial(self.port, self.baudrate, timeout=_READ_TIMEOUT_S,
-                                      **self._serial_kwargs)
+            self._ser = serial.Serial(self.port, self.baudrate, timeout=_READ_TIMEOUT_S)
         except (serial.SerialException, OSError) as e:
             raise FogError(f"cannot open FOG port {self.port}: {e}") from e
         if self.configure != "declare":
@@ -846,7 +834,7 @@ class CaptureCursor:
 
     def __init__(self, raw_path: Path | str, *, fmt: str = "kvh-a", axis: str = "z",
                  rate_hz: float, units: str = "deg/s", chunk_bytes: int = _CAPTURE_CHUNK_BYTES,
-                 start: Mapping[str, object] | None = None, first_index: int | None = None
+                 start: FogCheckpoint | None = None, first_index: int | None = None
                  ) -> None:
         f = get_format(fmt)
         if axis not in f.valid_bits:

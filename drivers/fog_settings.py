@@ -70,10 +70,6 @@ class FogSettings(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True)
                              "give figures of the wrong sign)")
 
     @classmethod
-    def of(cls, fog: Mapping[str, object]) -> FogSettings:
-        return msgspec.convert(fog, cls)
-
-    @classmethod
     def of_axis(cls, stand: Mapping[str, Any], axis: str) -> FogSettings | None:
         """The FOG of `axis` in a stand mapping read back from a run directory, or None
         when the axis has none (or the file is damaged: the station view reads run
@@ -82,6 +78,6 @@ class FogSettings(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True)
         if not isinstance(f, dict) or not all(k in f for k in ("port", "rate_hz", "units")):
             return None
         try:
-            return cls.of(f)
+            return msgspec.convert(f, cls)
         except (TypeError, ValueError, msgspec.ValidationError):  # a wrong or unknown key
             return None

@@ -14,6 +14,9 @@ from typing import TypeAlias
 JsonScalar: TypeAlias = str | int | float | bool | None
 #: any JSON value, as `json.loads` returns it
 JsonValue: TypeAlias = JsonScalar | list["JsonValue"] | dict[str, "JsonValue"]
+#: settings as an instrument read them back at connect, by name (journaled, and shown on
+#: the certificate)
+Readback: TypeAlias = Mapping[str, JsonScalar]
 #: a JSON object, as `json.loads` returns it
 JsonObject: TypeAlias = dict[str, JsonValue]
 #: a value `json.dumps` can write (read-only containers: a `dict[str, float]` is one)

@@ -114,7 +114,7 @@ class KvhConfigurator:
     """Enter Configuration Mode, set and/or read back, leave it (module docstring)."""
 
     def __init__(self, link: LineLink, *, port: str = "", timeout_s: float = 1.0,
-                 log: Callable[[str, str], object] | None = None) -> None:
+                 log: Callable[[str, str], None] | None = None) -> None:
         self.link = link
         self.port = port
         self.timeout_s = timeout_s

@@ -42,7 +42,17 @@ import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, fields, is_dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, ClassVar, Generic, NamedTuple, Self, TypeVar, cast, overload
+from typing import (
+    TYPE_CHECKING,
+    ClassVar,
+    Generic,
+    NamedTuple,
+    Self,
+    TypeAlias,
+    TypeVar,
+    cast,
+    overload,
+)
 
 from drivers.transport import (
     TranscriptMismatch,
@@ -53,8 +63,13 @@ from drivers.transport import (
 
 if TYPE_CHECKING:
     import numpy as np
+    from _typeshed import DataclassInstance
 
 RawCallback = Callable[[str, bytes], None]
+#: a value a SCPI parameter is written from (`format_value`)
+ScpiValue: TypeAlias = bool | int | float | str
+#: a model's SCPI words by role: a dataclass of Commands (absent words None), or a mapping
+Words: TypeAlias = "DataclassInstance | Mapping[str, Command | None]"
 
 # -- commands as data -------------------------------------------------------------------
 
@@ -71,7 +86,7 @@ def short_form(mnemonic: str) -> str:
     return m.group(0)
 
 
-def format_value(value: object) -> str:
+def format_value(value: ScpiValue) -> str:
     """A Python value as a SCPI parameter: bool -> ON/OFF, float -> NR3 with 12 digits."""
     if isinstance(value, bool):
         return "ON" if value else "OFF"
@@ -105,18 +120,18 @@ class Command:
         names += _PLACEHOLDER.findall(self.params)
         return tuple(dict.fromkeys(names))
 
-    def _short_header(self, values: Mapping[str, object]) -> str:
+    def _short_header(self, values: Mapping[str, ScpiValue]) -> str:
         def node(m: re.Match[str]) -> str:
             suffix = m.group(3)
             return short_form(m.group(1)) + (format_value(values[suffix]) if suffix else "")
         return _TOKEN.sub(node, _OPTIONAL.sub("", self.header))
 
-    def _check_values(self, values: Mapping[str, object], names: tuple[str, ...]) -> None:
+    def _check_values(self, values: Mapping[str, ScpiValue], names: tuple[str, ...]) -> None:
         missing = [n for n in names if n not in values]
         if missing:
             raise KeyError(f"SCPI command {self.header!r} needs {', '.join(missing)}")
 
-    def text(self, **values: object) -> str:
+    def text(self, **values: ScpiValue) -> str:
         """The short-form program message the driver sends: `INP1:LEV 1.5`."""
         self._check_values(values, self.placeholders)
         head = self._short_header(values)
@@ -125,7 +140,7 @@ class Command:
         formatted = {k: format_value(v) for k, v in values.items()}
         return f"{head} {self.params.format(**formatted)}"
 
-    def query_text(self, **values: object) -> str:
+    def query_text(self, **values: ScpiValue) -> str:
         """The query form: a query-only command as `text`, a setting with `?` appended."""
         if self.is_query:
             return self.text(**values)
@@ -391,7 +406,7 @@ class ScpiInstrument:
     recovery_commands: tuple[Command, ...] = (CLS,)
     #: the model's SCPI words by role (a dataclass or mapping of Commands); a driver
     #: narrows the type
-    words: object = None
+    words: Words | None = None
     #: the last `recover()` had to reopen the link
     reopened: bool = False
 
@@ -555,7 +570,7 @@ class ScpiInstrument:
         self._tx(text)
         return self._rx(text, self.command_timeout_s if timeout_s is None else timeout_s)
 
-    def send(self, command: Command | str, *, check: bool = True, **values: object) -> str:
+    def send(self, command: Command | str, *, check: bool = True, **values: ScpiValue) -> str:
         """Send a word (a Command, or a name in `self.words`); returns the text sent."""
         cmd = self.word(command)
         text = cmd.text(**{**self.template_values(), **values})
@@ -563,7 +578,7 @@ class ScpiInstrument:
         return text
 
     def ask(self, command: Command | str, *, timeout_s: float | None = None,
-            **values: object) -> str:
+            **values: ScpiValue) -> str:
         """Query a word: a query-only command as is, a setting in its `?` form."""
         cmd = self.word(command)
         return self.query(cmd.query_text(**{**self.template_values(), **values}),
@@ -580,7 +595,7 @@ class ScpiInstrument:
                 f"{self.name}: this instrument has no word {command!r}", command=command)
         return found
 
-    def template_values(self) -> dict[str, object]:
+    def template_values(self) -> dict[str, ScpiValue]:
         """Default placeholder values for words (e.g. the channel); drivers override."""
         return {}
 
@@ -720,7 +735,7 @@ def _show(data: bytes, limit: int = 60) -> str:
 
 # -- properties as data -------------------------------------------------------------------
 
-T = TypeVar("T")
+T = TypeVar("T", bound=ScpiValue)
 C = TypeVar("C")
 
 
@@ -822,7 +837,7 @@ def one_of(*choices: C) -> Callable[[C], C]:
     return check
 
 
-def words_of(words: object) -> dict[str, Command]:
+def words_of(words: Words | None) -> dict[str, Command]:
     """The Commands of a words dataclass (or mapping), by name, skipping absent ones."""
     if isinstance(words, Mapping):
         return {k: v for k, v in words.items() if isinstance(v, Command)}

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar, Generic, Self, TypeVar, cast
 
 from drivers.clock import Clock
-from drivers.scpi import IDN, RawCallback, ScpiInstrument
+from drivers.scpi import IDN, RawCallback, ScpiInstrument, Words
 from drivers.transport import Transport
 
 T = TypeVar("T")
@@ -23,7 +23,7 @@ class InstrumentProfile:
     model: str                   # as stand files spell it: "keysight-34465a"
     maker: str
     description: str
-    words: object                # the model's SCPI words by role (a dataclass of Commands)
+    words: Words                 # the model's SCPI words by role (a dataclass of Commands)
     idn_pattern: str | None      # what *IDN? must match (None: not checked)
     notes: str = ""              # where the real syntax is unsure
     #: the manual and sections the words were checked against, or "unverified"

@@ -47,7 +47,7 @@ import socket
 import threading
 import time
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import can
@@ -205,9 +205,8 @@ class SocketcandServer:
                 bus.shutdown()
         self._bus_handles.clear()
 
-    def _spawn(self, target: object, name: str, *args: object) -> threading.Thread:
-        t = threading.Thread(target=target, args=args, name=name,  # type: ignore[arg-type]
-                             daemon=True)
+    def _spawn(self, target: Callable[..., None], name: str, *args: str) -> threading.Thread:
+        t = threading.Thread(target=target, args=args, name=name, daemon=True)
         self._threads.append(t)
         t.start()
         return t
@@ -300,9 +299,10 @@ class SocketcandServer:
             self._enqueue(c, HI)
             c.threads.append(self._client_thread(self._reader, c, "r"))
 
-    def _client_thread(self, target: object, c: _Client, kind: str) -> threading.Thread:
-        t = threading.Thread(target=target, args=(c,),  # type: ignore[arg-type]
-                             name=f"socketcand-{kind}-{c.peer}", daemon=True)
+    def _client_thread(self, target: Callable[[_Client], None], c: _Client, kind: str
+                       ) -> threading.Thread:
+        t = threading.Thread(target=target, args=(c,), name=f"socketcand-{kind}-{c.peer}",
+                             daemon=True)
         t.start()
         return t
 

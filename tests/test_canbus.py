@@ -10,14 +10,25 @@ from __future__ import annotations
 import time
 import uuid
 
+import msgspec
 import pytest
 
-from bench.core.canbus import bus_problems, controller_node_ids
+from bench.core.canbus import AxisBus
+from bench.core.canbus import bus_problems as _bus_problems
+from bench.core.canbus import controller_node_ids as _controller_node_ids
 from drivers.axis import Axis
 from drivers.cia402 import State
 from sims.clock import VirtualClock
 from sims.stand import AxisTruth, SimulatedStand, StandTruth
 from tests.conftest import Twins, drive_settings
+
+
+def bus_problems(axes: dict[str, dict]) -> list[tuple[tuple[str, ...], str]]:
+    return _bus_problems(msgspec.convert(axes, dict[str, AxisBus]))
+
+
+def controller_node_ids(axes: dict[str, dict]) -> dict[str, int]:
+    return _controller_node_ids(msgspec.convert(axes, dict[str, AxisBus]))
 
 
 def _axes(*drives: dict) -> dict[str, dict]:

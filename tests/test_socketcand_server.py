@@ -17,9 +17,11 @@ import uuid
 from collections.abc import Iterator
 
 import can
+import msgspec
 import pytest
 
-from bench.core.canbus import bus_name, bus_problems
+from bench.core.canbus import AxisBus, BusNode, bus_name
+from bench.core.canbus import bus_problems as _bus_problems
 from sims.socketcand_server import HANDSHAKE_HOLD_S, SocketcandServer, frame_line, parse_send
 
 pytestmark = pytest.mark.timeout(60)
@@ -225,8 +227,14 @@ def test_a_stands_socketcand_bus_is_named_by_its_server() -> None:
     `can0` shared by two axes is one bus (they may not); host and port are required."""
     a = {"interface": "socketcand", "channel": "can0", "host": "127.0.0.1", "port": 29536}
     b = dict(a, port=29537)
-    assert bus_name(a) != bus_name(b)
-    assert bus_name(a) == "socketcand:can0@127.0.0.1:29536"
+    def bus_problems(axes: dict[str, dict]) -> list[tuple[tuple[str, ...], str]]:
+        return _bus_problems(msgspec.convert(axes, dict[str, AxisBus]))
+
+    def node(d: dict) -> BusNode:
+        return BusNode(node_id=2, **d)
+
+    assert bus_name(node(a)) != bus_name(node(b))
+    assert bus_name(node(a)) == "socketcand:can0@127.0.0.1:29536"
     assert bus_problems({"x": {"drive": dict(a, node_id=2)},
                          "y": {"drive": dict(b, node_id=2)}}) == []
     clash = bus_problems({"x": {"drive": dict(a, node_id=2)},

@@ -12,34 +12,46 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from msgspec import Struct
+
 from bench.core.yamlfile import KeyPath
 from drivers.cia402 import CONTROLLER_NODE_ID  # further axes on a bus take 0x7E, 0x7D, ...
+from drivers.drive_settings import NodeId
 from drivers.drive_settings import bus_name as bus_name  # a bus's identity, the drive's
 
 
-def _node_id(drive: Mapping[str, object], key: str) -> int:
-    """A validated node id (the schema says an integer)."""
-    v = drive[key]
-    if isinstance(v, bool) or not isinstance(v, int | float):
-        raise ValueError(f"drive.{key} is {v!r}, not a node id")
-    return int(v)
+class BusNode(Struct, frozen=True, kw_only=True):
+    """A drive block's place on its bus, read before the block is built (its controller
+    id is given from the others'); its other keys are the drive's (DriveSettings)."""
+
+    interface: str
+    channel: str
+    host: str | None = None
+    port: int | None = None
+    node_id: NodeId
+    controller_node_id: NodeId | None = None
 
 
-def controller_node_ids(axes: Mapping[str, Mapping[str, Mapping[str, object]]]
-                        ) -> dict[str, int]:
+class AxisBus(Struct, frozen=True, kw_only=True):
+    """An axis of the stand file as the bus check reads it: its drive's bus and ids."""
+
+    drive: BusNode
+
+
+def controller_node_ids(axes: Mapping[str, AxisBus]) -> dict[str, int]:
     """Per axis: its drive's `controller_node_id` if the stand gives one, or else the
     highest node id still free on its bus (0x7F, 0x7E, ... in the stand file's order)."""
     used: dict[str, set[int]] = {}
     for ax in axes.values():
-        d = ax["drive"]
+        d = ax.drive
         used.setdefault(bus_name(d), set()).update(
-            {_node_id(d, "node_id")} | ({_node_id(d, "controller_node_id")}
-                                        if "controller_node_id" in d else set()))
+            {d.node_id} | ({d.controller_node_id} if d.controller_node_id is not None
+                           else set()))
     out = {}
     for name, ax in axes.items():
-        d = ax["drive"]
-        if "controller_node_id" in d:
-            out[name] = _node_id(d, "controller_node_id")
+        d = ax.drive
+        if d.controller_node_id is not None:
+            out[name] = d.controller_node_id
             continue
         taken = used[bus_name(d)]
         node = CONTROLLER_NODE_ID
@@ -54,27 +66,25 @@ def controller_node_ids(axes: Mapping[str, Mapping[str, Mapping[str, object]]]
 SERVER_KEYS = {"socketcand": ("host", "port")}
 
 
-def bus_problems(axes: Mapping[str, object]) -> list[tuple[KeyPath, str]]:
+def bus_problems(axes: Mapping[str, AxisBus]) -> list[tuple[KeyPath, str]]:
     """Node ids used twice on one bus, each named at the key that repeats it; a bus
     behind a server (socketcand) without the server's address."""
     out: list[tuple[KeyPath, str]] = []
     for name, ax in axes.items():
-        d = ax.get("drive") if isinstance(ax, Mapping) else None
-        if not isinstance(d, Mapping):
-            continue
-        for key in SERVER_KEYS.get(str(d.get("interface")), ()):
-            if key not in d:
+        d = ax.drive
+        for key in SERVER_KEYS.get(d.interface, ()):
+            if getattr(d, key) is None:
                 out.append(((name, "drive", "interface"),
-                            f"interface {d.get('interface')} needs drive.{key} (the server's "
+                            f"interface {d.interface} needs drive.{key} (the server's "
                             f"{'address, e.g. 127.0.0.1' if key == 'host' else 'TCP port'})"))
     seen: dict[tuple[str, int], str] = {}      # (bus, node id) -> what holds it
     keys = [("node_id", "drive"), ("controller_node_id", "controller")]
     for key, role in keys:
         for name, ax in axes.items():
-            d = ax.get("drive") if isinstance(ax, Mapping) else None
-            if not isinstance(d, Mapping) or key not in d:
+            node: int | None = getattr(ax.drive, key)
+            if node is None:
                 continue
-            where = (bus_name(d), int(d[key]))
+            where = (bus_name(ax.drive), node)
             if where in seen:
                 out.append(((name, "drive", key),
                             f"node id {where[1]} on CAN bus {where[0]} is already axis "

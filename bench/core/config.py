@@ -12,12 +12,12 @@ import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal, TypeAlias
 
 import msgspec
 from msgspec import Meta, Struct
 
-from bench.core.canbus import bus_problems
+from bench.core.canbus import AxisBus, bus_problems
 from bench.core.schema import (
     Key,
     Map,
@@ -26,7 +26,7 @@ from bench.core.schema import (
     struct_at,
     struct_map,
 )
-from bench.core.yamlfile import KeyPath, Problem, YamlDoc
+from bench.core.yamlfile import KeyPath, Problem, YamlDoc, YamlValue
 from drivers.calibration import Calibration
 from drivers.counter_profiles import get_profile
 from drivers.counter_settings import CounterSettings
@@ -34,6 +34,12 @@ from drivers.drive_settings import DriveSettings
 from drivers.fog_settings import FogSettings
 from sims.drive_truth import DriveTruth
 from sims.truth import AxisTruth, FogTruth
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+#: a procedure as its kind parsed it: its frozen settings (a Struct or a dataclass)
+KindParsed: TypeAlias = "msgspec.Struct | DataclassInstance"
 
 # -- what is physically plausible for a rate table (wider than any real bench) ----------
 #: the rate and acceleration bounds are the drive's (drivers/drive_settings.py)
@@ -92,12 +98,12 @@ class StandAxisFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=Tru
                                                  "axis")] | None = None
 
 
-def _absolute_path(value: object) -> str | None:
+def _absolute_path(value: str) -> str | None:
     """A key or certificate is named by its path, never pasted in (the stand file is
     copied into every run directory); relative paths would depend on the cwd."""
-    if isinstance(value, str) and "-----BEGIN" in value:
+    if "-----BEGIN" in value:
         return "expected the path of a PEM file, not the key or certificate itself"
-    if isinstance(value, str) and not Path(os.path.expanduser(value)).is_absolute():
+    if not Path(os.path.expanduser(value)).is_absolute():
         return f"expected an absolute path (or ~/...), got {value!r}"
     return None
 
@@ -157,6 +163,11 @@ class BenchName(Struct, frozen=True, forbid_unknown_fields=True):
 BENCH = struct_map(BenchName)
 
 
+def _bus_rule(axes: dict[str, Any]) -> list[tuple[KeyPath, str]]:
+    """The buses' check, on the axes the schema accepted (each drive's bus and ids)."""
+    return bus_problems(msgspec.convert(axes, dict[str, AxisBus]))
+
+
 class StandFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     """The stand file's top-level keys (CONTRACT §2), each block its own Struct; a
     procedure kind adds its own instruments (`stand_schema`)."""
@@ -164,7 +175,7 @@ class StandFile(Struct, frozen=True, kw_only=True, forbid_unknown_fields=True):
     stand: Annotated[Identity, Meta(description="the rate table under test")]
     axes: Annotated[dict[str, StandAxisFile], Meta(
         description="the table's axes, by the names procedures use",
-        extra={"check": bus_problems})]
+        extra={"check": _bus_rule})]
     sim: Annotated[SimSettings, Meta(
         description="the twins' truth: present, the stand runs on simulated twins; absent, "
                     "on hardware")] | None = None
@@ -308,23 +319,23 @@ class Traced:
         return self.certificate is not None
 
 
-def _traced_name(path: tuple[str, ...], spec: Mapping[str, object]) -> str:
+def _traced_name(path: tuple[str, ...], spec: Mapping[str, YamlValue]) -> str:
     role = path[-1]
     where = " ".join(p for p in path[1:-1] if p not in ("axes", "gyros"))
     model = spec.get("model")
     return f"{role}{' ' + str(model) if model else ''}{f' ({where})' if where else ''}"
 
 
-def _instruments(node: object, path: tuple[str, ...]
-                 ) -> Iterator[tuple[tuple[str, ...], Mapping[str, Any]]]:
+def _instruments(node: YamlValue, path: tuple[str, ...]
+                 ) -> Iterator[tuple[tuple[str, ...], Mapping[str, YamlValue]]]:
     """Every block of the stand that is an instrument (it has an address or a
     calibration), whichever kind's block holds it (a gyro platform's DMMs too)."""
-    if not isinstance(node, Mapping):
+    if not isinstance(node, dict):
         return
     for key, value in node.items():
         if key == "sim" and not path:
             continue  # the twins' truth, not the bench
-        if isinstance(value, Mapping):
+        if isinstance(value, dict):
             sub = (*path, str(key))
             if "resource" in value or "port" in value or "interface" in value \
                     or "calibration" in value:
@@ -332,25 +343,33 @@ def _instruments(node: object, path: tuple[str, ...]
             yield from _instruments(value, sub)
 
 
-def stated_traceability(stand: Mapping[str, Any]) -> tuple[Traced, ...]:
+def _str(value: YamlValue) -> str | None:
+    """A stated text (a serial or certificate may be written as a number), None when
+    the file leaves it out or empty."""
+    return str(value) if value else None
+
+
+def stated_traceability(stand: Mapping[str, YamlValue]) -> tuple[Traced, ...]:
     """Every instrument of a stand mapping (with or without a stated calibration) and
     every entry of its `traceability:` list."""
     out = []
-    for path, spec in _instruments(stand, ()):
-        cal = spec.get("calibration")
-        cal = cal if isinstance(cal, Mapping) else {}
+    for path, spec in _instruments(dict(stand), ()):
+        cal = got if isinstance(got := spec.get("calibration"), dict) else {}
+        traces = cal.get("traces")
         out.append(Traced(".".join(path), _traced_name(path, spec),
-                          str(cal["certificate"]) if cal.get("certificate") else None,
-                          str(cal["issuer"]) if cal.get("issuer") else None,
-                          parse_date(cal.get("due")), cal.get("traces"),
-                          serial=str(spec["serial"]) if spec.get("serial") else None))
-    for i, t in enumerate(stand.get("traceability") or []):
-        if isinstance(t, Mapping):
+                          _str(cal.get("certificate")), _str(cal.get("issuer")),
+                          parse_date(cal.get("due")),
+                          traces if isinstance(traces, str) else None,
+                          serial=_str(spec.get("serial"))))
+    listed = stand.get("traceability")
+    for i, t in enumerate(listed if isinstance(listed, list) else []):
+        if isinstance(t, dict):
+            traces = t.get("traces")
             out.append(Traced(f"traceability[{i}]", str(t.get("item", "")),
                               str(t.get("certificate")), str(t.get("issuer")),
-                              parse_date(t.get("due")), t.get("traces"),
-                              str(t["serial"]) if t.get("serial") else None,
-                              str(t["serial"]) if t.get("serial") else None))
+                              parse_date(t.get("due")),
+                              traces if isinstance(traces, str) else None,
+                              _str(t.get("serial")), _str(t.get("serial"))))
     return tuple(out)
 
 
@@ -481,7 +500,7 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
     # a kind's stand schema may leave out the axes (a plug-in kind without a table)
     ident = stand.get("stand") or {}
     stand_axes = stand.get("axes") or {}
-    controllers = controller_node_ids(stand_axes)
+    controllers = controller_node_ids(msgspec.convert(stand_axes, dict[str, AxisBus]))
     axes: dict[str, StandAxis] = {}
     for name, a in stand_axes.items():
         c, f = a.get("counter"), a.get("fog")
@@ -508,7 +527,7 @@ def parse_stand(stand: dict[str, Any]) -> StandSettings:
         bench_name=struct_at(BenchName, stand.get("bench") or {}, ("bench",)).name)
 
 
-def parse_common(procedure: Mapping[str, object], path: Path) -> CommonSettings:
+def parse_common(procedure: Mapping[str, YamlValue], path: Path) -> CommonSettings:
     """The shared keys of a validated procedure (a kind's own keys are its parse's; a key
     written null takes its default)."""
     return struct_at(CommonSettings, {k: v for k, v in procedure.items()
@@ -527,7 +546,7 @@ class Config:
     procedure_doc: YamlDoc
     stand_doc: YamlDoc
     #: the procedure as its kind parsed it (`ProcedureKind.parse`; set by the loader)
-    settings: object = None
+    settings: KindParsed | None = None
 
     @functools.cached_property
     def common(self) -> CommonSettings:

@@ -7,7 +7,7 @@ serial port, the CAN channel) before this module opens them.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,9 +22,11 @@ from bench.core.protocols import Drive
 from bench.core.protocols import Fog as FogLike
 from bench.core.stops import Resource, StopOutcome, Stops, attempt
 from drivers.axis import Axis
+from drivers.axis_link import RawSink
 from drivers.clock import Clock
 from drivers.counter import Counter, CounterError
 from drivers.fog import Fog
+from drivers.json_types import JsonLike, Readback
 
 T = TypeVar("T")
 
@@ -77,7 +79,7 @@ class Bench:
         self.stops.add(str(name), lambda: cm.__exit__(None, None, None), resource)
         return obj
 
-    def callback(self, fn: Callable[[], object], name: str,
+    def callback(self, fn: Callable[[], None], name: str,
                  resource: Resource = "instrument") -> None:
         self.stops.add(name, fn, resource)
 
@@ -128,7 +130,7 @@ def _stopping(drive: Drive, log: Callable[[str], None]) -> Callable[[], None]:
     return stop
 
 
-def with_readback(identity: str, readback: Mapping[str, object], manual: str | None = None
+def with_readback(identity: str, readback: Readback, manual: str | None = None
                   ) -> str:
     """An instrument's identity with the settings it read back at connect (and the manual
     its driver follows): one string, so the run's `identity` event, `bench devices` and
@@ -178,10 +180,9 @@ def raw_text_logger(log: JsonLines, clock: Clock) -> Callable[[str, bytes], None
     return raw
 
 
-def _raw_record_logger(log: JsonLines, clock: Clock
-                       ) -> Callable[[str, Mapping[str, object]], None]:
+def _raw_record_logger(log: JsonLines, clock: Clock) -> RawSink:
     """A sink for the drive's readings and commands (called from the CAN thread)."""
-    def raw(kind: str, record: Mapping[str, object]) -> None:
+    def raw(kind: str, record: dict[str, JsonLike]) -> None:
         log.write({"t_s": clock.now(), "kind": kind, **record})
     return raw
 

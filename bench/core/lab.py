@@ -24,12 +24,12 @@ from msgspec import Meta, Struct
 
 from bench.core import rundir_layout as layout
 from bench.core.config import SigningFile
-from bench.core.schema import struct_map, validate
-from bench.core.yamlfile import Problem, YamlDoc, YamlError, load_yaml
+from bench.core.schema import struct_at, struct_map, validate
+from bench.core.yamlfile import Problem, YamlDoc, YamlError, YamlValue, load_yaml
 
 
-def _country_rule(value: object) -> str | None:
-    if isinstance(value, str) and not (len(value) == 2 and value.isascii() and value.isupper()):
+def _country_rule(value: str) -> str | None:
+    if not (len(value) == 2 and value.isascii() and value.isupper()):
         return f"expected an ISO 3166-1 alpha-2 code such as DE or FR, got {value!r}"
     return None
 
@@ -212,66 +212,55 @@ class Lab:
         return self.interval_days.get(serial) or stand_days or self.default_interval_days
 
 
-def _text(value: object) -> str | None:
-    """A validated text key's value (the schema says Str), None when absent."""
-    return value if isinstance(value, str) else None
+def _signatory(p: SignatoryFile) -> Signatory:
+    return Signatory(p.name, p.function or p.role or "", bool(p.authorises or p.main_signer))
 
 
-def _signatory(d: Mapping[str, object]) -> Signatory:
-    function = str(d.get("function") or d.get("role") or "")
-    return Signatory(str(d.get("name") or ""), function,
-                     bool(d.get("authorises") or d.get("main_signer")))
-
-
-def _signing(d: object, origin: str) -> Signing | None:
-    if not isinstance(d, Mapping) or not d.get("key") or not d.get("certificate"):
+def _signing(d: SigningFile | None, origin: str) -> Signing | None:
+    if d is None or not d.key or not d.certificate:
         return None
-    return Signing(Path(os.path.expanduser(str(d["key"]))),
-                   Path(os.path.expanduser(str(d["certificate"]))), _text(d.get("password_env")),
-                   origin)
+    return Signing(Path(os.path.expanduser(d.key)), Path(os.path.expanduser(d.certificate)),
+                   d.password_env, origin)
 
 
-def _location(d: object) -> tuple[tuple[str, str], ...]:
-    if not isinstance(d, Mapping):
+def _location(d: LocationFile | None) -> tuple[tuple[str, str], ...]:
+    if d is None:
         return ()
-    return tuple((_LOCATION_ELEMENTS[k], str(v)) for k, v in d.items()
-                 if k in _LOCATION_ELEMENTS and str(v).strip())
+    return tuple((element, str(v)) for k, element in _LOCATION_ELEMENTS.items()
+                 if (v := getattr(d, k)) is not None and str(v).strip())
 
 
-def parse_lab(data: Mapping[str, object], source: str = "") -> Lab:
+def parse_lab(data: LabFile, source: str = "") -> Lab:
     """One Lab from validated lab keys (a lab file, or result.json's `certificate` block,
     whose other keys, the customer's, are not the lab's and are left alone)."""
-    contact = data.get("laboratory")
-    contact = contact if isinstance(contact, Mapping) else {"name": contact}
-    people = data.get("signatories") or data.get("responsible_persons")
-    rec = data.get("recertification")
-    rec = rec if isinstance(rec, Mapping) else {}
-    signing = _signing(data.get("signing"), f"{source or 'lab settings'}: signing")
-    require = data.get("require_signed_dcc")
+    given = data.laboratory
+    contact = given if isinstance(given, ContactFile) else ContactFile(name=given or "")
+    people = data.signatories or data.responsible_persons or ()
+    rec = data.recertification or RecertificationFile()
+    signing = _signing(data.signing, f"{source or 'lab settings'}: signing")
+    require = data.require_signed_dcc
     return Lab(
-        name=str(contact["name"]) if contact.get("name") else None,
-        address=str(data["address"]) if data.get("address") else None,
-        location=_location(data.get("location") or contact.get("location")),
-        email=_text(data.get("email") or contact.get("email")),
-        phone=_text(data.get("phone") or contact.get("phone")),
-        code=_text(data.get("code") or contact.get("code")),
-        accreditation=_text(data.get("accreditation")), site=_text(data.get("site")),
-        prefix=str(data.get("prefix") or DEFAULT_PREFIX),
-        country_code=_text(data.get("country_code")),
-        performance_location=str(data.get("performance_location") or "laboratory"),
-        signatories=tuple(_signatory(p) for p in (people if isinstance(people, list) else [])
-                          if isinstance(p, Mapping)),
+        name=contact.name or None, address=data.address or None,
+        location=_location(data.location or contact.location),
+        email=data.email or contact.email or None,
+        phone=data.phone or contact.phone or None,
+        code=data.code or contact.code or None,
+        accreditation=data.accreditation, site=data.site,
+        prefix=data.prefix or DEFAULT_PREFIX,
+        country_code=data.country_code,
+        performance_location=data.performance_location or "laboratory",
+        signatories=tuple(_signatory(p) for p in people),
         signing=signing,
         require_signed_dcc=bool(signing is not None if require is None else require),
-        records_url=_text(data.get("records")),
-        register_url=_register_url(data.get("register"), source),
-        default_interval_days=rec.get("default_interval_days"),
-        interval_days=dict(rec.get("tables") or {}), source=source)
+        records_url=data.records,
+        register_url=_register_url(data.register, source),
+        default_interval_days=rec.default_interval_days,
+        interval_days=dict(rec.tables or {}), source=source)
 
 
-def _register_url(url: object, source: str) -> str | None:
+def _register_url(url: str | None, source: str) -> str | None:
     """A relative SQLite path is relative to the lab file, as every path in it is."""
-    if not isinstance(url, str) or not url:
+    if not url:
         return None
     prefix = "sqlite:///"
     if url.startswith(prefix) and not url[len(prefix):].startswith("/") and source \
@@ -291,10 +280,10 @@ def load_lab(path: str | Path) -> Lab:
         doc.problem((), "expected a mapping (laboratory: ..., signatories: ...)")]
     if problems:
         raise LabError("lab settings: " + "; ".join(str(p) for p in problems))
-    return parse_lab(data, str(path))
+    return parse_lab(struct_at(LabFile, data, ()), str(path))
 
 
-def lab_path(procedure_path: Path, certificate: object) -> Path | None:
+def lab_path(procedure_path: Path, certificate: YamlValue) -> Path | None:
     """The lab file a procedure names; in a run directory, the copy made when it started
     (whichever file it came from: `--lab`, the procedure's, $BENCH_LAB_SETTINGS)."""
     here = procedure_path.parent
@@ -308,7 +297,7 @@ def lab_path(procedure_path: Path, certificate: object) -> Path | None:
 
 
 def lab_problems(procedure_path: Path, procedure_doc: YamlDoc,
-                 certificate: object) -> list[Problem]:
+                 certificate: YamlValue) -> list[Problem]:
     """The lab file named by `certificate.lab`: it exists and its keys are known."""
     path = lab_path(procedure_path, certificate)
     if path is None:
@@ -326,9 +315,11 @@ def lab_problems(procedure_path: Path, procedure_doc: YamlDoc,
     return validate(doc, LAB)
 
 
-def certificate_settings(procedure_path: Path, certificate: object) -> dict[str, object]:
-    """The lab file's keys under the procedure's own `certificate:` keys."""
-    own = dict(certificate) if isinstance(certificate, dict) else {}
+def certificate_settings(procedure_path: Path,
+                         certificate: Mapping[str, YamlValue]) -> dict[str, YamlValue]:
+    """The lab file's keys under the procedure's own `certificate:` keys, in the files'
+    order (result.json's `certificate` block)."""
+    own = dict(certificate)
     path = lab_path(procedure_path, own)
     if path is None:
         return own
@@ -338,10 +329,23 @@ def certificate_settings(procedure_path: Path, certificate: object) -> dict[str,
     return merged
 
 
-def run_lab(run_path: Path, certificate: Mapping[str, object] | None) -> Lab:
+class LabKeys(LabFile, frozen=True, kw_only=True, forbid_unknown_fields=False):
+    """The lab file's keys as result.json's `certificate` block carries them, beside the
+    customer's (bench/core/settings_codec.py decodes it). Typed as the file's, its
+    choices as text: the run wrote what it resolved, and the DCC's own schema judges a
+    performance location it does not list (`bench dcc` exits 3 and names it)."""
+
+    # a result's text where the file has a choice (Lab keeps text): wider, on purpose
+    performance_location: str | None = None  # type: ignore[assignment]
+    signatories: tuple[SignatoryFile, ...] | None = None
+    responsible_persons: tuple[SignatoryFile, ...] | None = None
+    authoritative: str | None = None  # type: ignore[assignment]
+
+
+def run_lab(run_path: Path, certificate: LabKeys | None) -> Lab:
     """The lab as the run resolved it: result.json's `certificate` block (the lab file's
     keys under the procedure's own), else the lab file copied into the run directory."""
-    if isinstance(certificate, Mapping) and certificate.get("laboratory"):
+    if certificate is not None and certificate.laboratory:
         return parse_lab(certificate, f"{run_path / layout.RESULT}: certificate")
     copy = Path(run_path) / RUN_COPY
     return load_lab(copy) if copy.is_file() else Lab()

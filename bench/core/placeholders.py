@@ -20,11 +20,12 @@ so), since only twins may run on values left out.
 
 from __future__ import annotations
 
+import enum
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypeGuard
+from typing import Any, Literal, TypeGuard
 
 from bench.core import rundir_layout as layout
 from bench.core.registry import procedure_kind, procedure_names
@@ -34,6 +35,7 @@ from bench.core.yamlfile import (
     Problem,
     YamlDoc,
     YamlError,
+    YamlValue,
     keypath_str,
     load_yaml,
     read_mapping,
@@ -46,11 +48,16 @@ __all__ = ["PREFIX", "ReadDoc", "is_placeholder", "left_to_fill", "placeholder_n
 PREFIX = "TO FILL IN:"
 _PLACEHOLDER = re.compile(r"\s*" + re.escape(PREFIX), re.IGNORECASE)
 
-#: a value left out (None is a value: `key: ~`)
-_ABSENT = object()
+class _Absent(enum.Enum):
+    """A value left out (None is a value: `key: ~`)."""
+
+    ABSENT = enum.auto()
 
 
-def is_placeholder(value: object) -> TypeGuard[str]:
+_ABSENT: Literal[_Absent.ABSENT] = _Absent.ABSENT
+
+
+def is_placeholder(value: YamlValue) -> TypeGuard[str]:
     """Whether a YAML value is a placeholder: the one test, so nothing reads one as data."""
     return isinstance(value, str) and _PLACEHOLDER.match(value) is not None
 
@@ -60,7 +67,7 @@ def what_goes_there(value: str) -> str:
     return value.strip()[len(PREFIX):].strip()
 
 
-def placeholders(data: object, path: KeyPath = ()) -> Iterator[tuple[KeyPath, str]]:
+def placeholders(data: YamlValue, path: KeyPath = ()) -> Iterator[tuple[KeyPath, str]]:
     """Every placeholder in a file's data: its key path and what goes there, in file order."""
     if is_placeholder(data):
         yield path, what_goes_there(data)
@@ -72,8 +79,8 @@ def placeholders(data: object, path: KeyPath = ()) -> Iterator[tuple[KeyPath, st
             yield from placeholders(value, (*path, i))
 
 
-def _strip(value: object, node: Node, optional: bool, old: KeyPath, new: KeyPath,
-           renamed: dict[KeyPath, KeyPath]) -> object:
+def _strip(value: YamlValue, node: Node, optional: bool, old: KeyPath, new: KeyPath,
+           renamed: dict[KeyPath, KeyPath]) -> YamlValue | _Absent:
     """`value` without its placeholders, or _ABSENT. A list entry left out moves those
     after it: `renamed` keeps where each moved one was written (new path -> old path)."""
     if is_placeholder(value):
@@ -81,7 +88,7 @@ def _strip(value: object, node: Node, optional: bool, old: KeyPath, new: KeyPath
     while isinstance(node, Check):
         node = node.inner
     if isinstance(value, dict):
-        out: dict[object, object] = {}
+        out: dict[str, YamlValue] = {}
         for key, v in value.items():
             child, may_go = _child(node, key)
             if child is None:   # an unknown key: kept whole, for the schema to refuse
@@ -97,7 +104,7 @@ def _strip(value: object, node: Node, optional: bool, old: KeyPath, new: KeyPath
         return out
     if isinstance(value, list):
         item = node.item if isinstance(node, ListOf) else Any_()
-        kept: list[object] = []
+        kept: list[YamlValue] = []
         for i, v in enumerate(value):
             at = (*new, len(kept))
             keep = _strip(v, item, True, (*old, i), at, renamed)
@@ -109,11 +116,11 @@ def _strip(value: object, node: Node, optional: bool, old: KeyPath, new: KeyPath
     return value
 
 
-def _child(node: Node, key: object) -> tuple[Node | None, bool]:
+def _child(node: Node, key: str) -> tuple[Node | None, bool]:
     """The schema of a mapping's value at `key` (None: a key the schema does not know)
     and whether that value may be left out."""
     if isinstance(node, Map):
-        spec = node.keys.get(key) if isinstance(key, str) else None
+        spec = node.keys.get(key)
         return (spec.node, not spec.required) if spec is not None else (None, True)
     if isinstance(node, MapOf):
         return node.value, False     # a name the file chose (an axis): never dropped

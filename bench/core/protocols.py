@@ -10,7 +10,7 @@ call: a driver is free to offer more.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from typing import Protocol
 
 import numpy as np
@@ -18,6 +18,7 @@ import numpy as np
 from drivers.cia402 import DriveUnits
 from drivers.counter import Acquisition, InputConfig, What
 from drivers.fog import FogCheckpoint, FogSamples, FogStats
+from drivers.json_types import Readback
 from drivers.time_tie import TimeTie
 
 
@@ -27,7 +28,7 @@ class Drive(Protocol):
     name: str
     max_rate_dps: float
     @property
-    def readback(self) -> Mapping[str, object]:
+    def readback(self) -> Readback:
         """Settings read back at connect (journaled, shown on the certificate)."""
     units: DriveUnits   # the drive's velocity and acceleration units (factor group)
 
@@ -61,7 +62,7 @@ class Counter(Protocol):
     """A timestamping counter watching an axis's once-per-revolution zero mark."""
 
     @property
-    def readback(self) -> Mapping[str, object]:
+    def readback(self) -> Readback:
         """Settings read back at connect (journaled, shown on the certificate)."""
     time_tie: TimeTie
     last_acquisition: Acquisition | None
@@ -90,7 +91,7 @@ class Fog(Protocol):
     first_index: int | None
 
     @property
-    def readback(self) -> Mapping[str, object]:
+    def readback(self) -> Readback:
         """Settings read back at connect (journaled, shown on the certificate)."""
 
     @property

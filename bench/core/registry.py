@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     # The interface's types, for its hints only: `bench validate` and `bench schema` find
     # a kind through this module without loading the engine, the instruments or the
     # twins; and the certificate's package imports this module when it is loaded.
-    from bench.core.config import Config, StandSettings
+    from bench.core.config import Config, KindParsed, StandSettings
     from bench.core.engine import RunContext
     from bench.core.instruments import Bench
     from bench.core.journal import RunDir
@@ -56,7 +56,7 @@ class KindSettings(Protocol):
     def cross_check(self, cfg: Config) -> list[Problem]:
         """Checks that need both files: axes exist, rates within limits and ranges."""
 
-    def parse(self, cfg: Config) -> object:
+    def parse(self, cfg: Config) -> KindParsed:
         """The validated procedure as this kind's frozen settings (the loader keeps them
         in `Config.settings`; nothing below the loader reads the procedure mapping)."""
 

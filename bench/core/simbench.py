@@ -19,7 +19,7 @@ import functools
 import sys
 import uuid
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, TypedDict, Unpack
+from typing import TYPE_CHECKING, Protocol, TypeAlias, TypedDict, Unpack
 
 import msgspec
 import numpy as np
@@ -42,6 +42,7 @@ from sims.stand import SimulatedStand, StandTruth
 # the drive twin and the socketcand server (canopen, python-can) are imported when the
 # twins start: a kind's module imports this one, and `bench validate` loads the kind
 if TYPE_CHECKING:
+    from sims.drive_twin import DriveTwin
     from sims.socketcand_server import SocketcandServer
 
 #: the stand's sample rate for an axis that carries no FOG (the twins' time grid)
@@ -54,6 +55,17 @@ TwinFactory = Callable[["SimBench"], None]
 def for_session(cfg: Config, session: int) -> Config:
     """`cfg` with its twins set up for session `session` of a run (`session_seed`)."""
     return with_sim(cfg, session=int(session))
+
+
+class KindTwin(Protocol):
+    """A twin a procedure kind starts for instruments of its own (a gyro platform's rig):
+    the bench registers its stop and keeps it by name."""
+
+    def stop(self) -> None: ...
+
+
+#: a twin the simulated bench keeps by name ("outer.drive", "gyro-rig")
+Twin: TypeAlias = "FogTwin | DriveTwin | CounterTwin | KindTwin"
 
 
 class SimChanges(TypedDict, total=False):
@@ -119,7 +131,7 @@ class SimBench:
         #: serves each bus to other processes on 127.0.0.1 (sims/socketcand_server.py)
         self.can_interface = "virtual"
         self.can_server: SocketcandServer | None = None
-        self.twins: dict[str, object] = {}
+        self.twins: dict[str, Twin] = {}
         #: a kind's own instruments' addresses, rewritten to their twins' (`address`)
         self.addresses: dict[str, str] = {}
         #: every twin's stop, registered as it starts (bench/core/stops.py); itself
@@ -226,7 +238,7 @@ class SimBench:
                 host=server.host, port=port))
         return out
 
-    def add(self, name: str, twin: object, stop: Callable[[], object]) -> None:
+    def add(self, name: str, twin: KindTwin, stop: Callable[[], None]) -> None:
         """For procedure kinds with instruments of their own (e.g. a gyro platform's):
         the twin, started, and its stop."""
         self.twins[name] = twin

@@ -15,14 +15,21 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from bench.core.config import StandSettings, Traced, stated_traceability
+from bench.core.yamlfile import YamlValue
 
-__all__ = ["Traced", "overdue", "overdue_warning", "traced_items"]
+__all__ = ["Identities", "Traced", "overdue", "overdue_warning", "traced_items"]
+
+#: what each instrument reported, per axis and role (result.json's `instruments` block,
+#: decoded by bench/core/settings_codec.py; the run's `identity` events)
+Identities = Mapping[str, Mapping[str, str]]
+#: a stand file as read back from a run directory's copy (YAML)
+StandCopy = Mapping[str, YamlValue]
 
 #: instruments whose absence of a calibration breaks the chain to the SI (by stand role)
 MEASURING_ROLES = ("counter", "dmm")
 
 
-def traced_items(stand: StandSettings | Mapping[str, object]) -> list[Traced]:
+def traced_items(stand: StandSettings | StandCopy) -> list[Traced]:
     """Every instrument of the stand (with or without a stated calibration) and every
     entry of its `traceability:` list: of the parsed stand, or of a run directory's copy
     of the stand file read back (the certificate's)."""
@@ -31,7 +38,7 @@ def traced_items(stand: StandSettings | Mapping[str, object]) -> list[Traced]:
     return list(stated_traceability(stand))
 
 
-def overdue(stand: StandSettings | Mapping[str, object], on: dt.date) -> list[Traced]:
+def overdue(stand: StandSettings | StandCopy, on: dt.date) -> list[Traced]:
     return [t for t in traced_items(stand) if t.overdue(on)]
 
 
@@ -48,7 +55,7 @@ _SERIAL_WORD = re.compile(r"\bserial(?: number)?[ :=]+([^\s,;]+)", re.IGNORECASE
 _NO_SERIAL = {"", "0", "none", "unknown", "n/a", "na", "-"}
 
 
-def serial_of(identity: object) -> str | None:
+def serial_of(identity: str | None) -> str | None:
     """The serial an instrument reported in its identity: `serial X` in the text (drive
     identity objects, a FOG's configured identity), else the third field of an IEEE 488.2
     `*IDN?` answer (maker,model,serial,firmware). None when it gave none (or 0, which the
@@ -63,7 +70,7 @@ def serial_of(identity: object) -> str | None:
     return None if serial.casefold() in _NO_SERIAL else serial
 
 
-def identity_problems(instruments: Mapping[str, object]) -> list[str]:
+def identity_problems(instruments: Identities) -> list[str]:
     """Items a value rests on whose identity does not single them out (ISO/IEC 17025
     6.4.13 a: every item of equipment uniquely identified): an instrument that reported no
     serial, one serial reported by two instruments of one model (the FOG included, by the
@@ -74,8 +81,6 @@ def identity_problems(instruments: Mapping[str, object]) -> list[str]:
     problems: list[str] = []
     seen: dict[tuple[str, str], list[str]] = {}
     for axis, roles in instruments.items():
-        if not isinstance(roles, Mapping):
-            continue
         for role, ident in roles.items():
             if role.endswith("_reference"):
                 continue    # a reference input, traced in the traceability list
@@ -84,7 +89,7 @@ def identity_problems(instruments: Mapping[str, object]) -> list[str]:
             if serial is None:
                 problems.append(f"the {where} reported no serial number")
                 continue
-            maker = str(ident).split(";")[0].split(",")[0].strip()
+            maker = ident.split(";")[0].split(",")[0].strip()
             seen.setdefault((maker, serial), []).append(where)
     for (_maker, serial), wheres in seen.items():
         if len(wheres) > 1:
@@ -100,16 +105,15 @@ def identity_problems(instruments: Mapping[str, object]) -> list[str]:
 _SEVERAL = re.compile(r"[/,;&+]|\band\b", re.IGNORECASE)
 
 
-def reference_problems(stand: Mapping[str, object],
-                       instruments: Mapping[str, object] | None = None) -> list[str]:
+def reference_problems(stand: StandCopy, instruments: Identities | None = None) -> list[str]:
     """The stand's `traceability:` entries (references and sensors the bench reads no
     identity from) that do not identify one item: no serial, a serial naming several
     items, or a serial another entry or a reporting instrument also carries."""
     problems: list[str] = []
     owners: dict[str, list[tuple[str, bool]]] = {}     # serial: (who, a list entry)
     for axis, roles in (instruments or {}).items():
-        for role, ident in (roles.items() if isinstance(roles, Mapping) else ()):
-            serial = None if str(role).endswith("_reference") else serial_of(ident)
+        for role, ident in roles.items():
+            serial = None if role.endswith("_reference") else serial_of(ident)
             if serial:
                 owners.setdefault(serial.casefold(), []).append((f"the {role} of {axis}",
                                                                  False))
@@ -133,38 +137,40 @@ def reference_problems(stand: Mapping[str, object],
     return problems
 
 
-class DeclaredIdentities(dict[str, dict[str, object]]):
+class DeclaredIdentities(dict[str, dict[str, str]]):
     """The identities as reported, with the stand file they were completed from (so the
     identity check also reads the stand's traceability list)."""
 
-    def __init__(self, identities: Mapping[str, dict[str, object]],
-                 stand: Mapping[str, object]) -> None:
+    def __init__(self, identities: Mapping[str, dict[str, str]], stand: StandCopy) -> None:
         super().__init__(identities)
-        self.stand: Mapping[str, object] = stand
+        self.stand: StandCopy = stand
 
 
 #: roles that answer no identity query: their serial is the stand file's (and said so)
 DECLARED_IDENTITY_ROLES = ("fog",)
 
 
-def with_declared_serials(instruments: Mapping[str, object],
-                          stand: Mapping[str, object]) -> DeclaredIdentities:
+def _stated_serial(stand: StandCopy, axis: str, role: str) -> YamlValue:
+    """The serial the stand copy states for an axis's instrument (None: it states none)."""
+    axes = stand.get("axes")
+    block = axes.get(axis) if isinstance(axes, dict) else None
+    spec = block.get(role) if isinstance(block, dict) else None
+    return spec.get("serial") if isinstance(spec, dict) else None
+
+
+def with_declared_serials(instruments: Identities, stand: StandCopy) -> DeclaredIdentities:
     """The identities as reported, with the stand file's serial added for an instrument
     that answers no identity query (a FOG), marked as stated, not read back."""
-    out: dict[str, dict[str, object]] = {}
-    axes = stand.get("axes") or {}
+    out: dict[str, dict[str, str]] = {}
     for axis, roles in instruments.items():
-        if not isinstance(roles, Mapping):
-            continue
         out[axis] = dict(roles)
         for role in DECLARED_IDENTITY_ROLES:
-            spec = (axes.get(axis) or {}).get(role) if isinstance(axes, Mapping) else None
-            if role in roles and isinstance(spec, Mapping) and spec.get("serial") \
-                    and serial_of(roles[role]) is None:
-                head, sep, tail = str(roles[role]).partition("; read back:")
-                out[axis][role] = (f"{head}; serial {spec['serial']} (as the stand file "
+            serial = _stated_serial(stand, axis, role)
+            if role in roles and serial and serial_of(roles[role]) is None:
+                head, sep, tail = roles[role].partition("; read back:")
+                out[axis][role] = (f"{head}; serial {serial} (as the stand file "
                                    f"states; it answers no identity query){sep}{tail}")
-    return DeclaredIdentities(out, stand if isinstance(stand, Mapping) else {})
+    return DeclaredIdentities(out, stand)
 
 
 # -- the identity the stand states against the one the instrument reports ----------------
@@ -202,8 +208,7 @@ IDENTITY_QUERIES = {"counter": "*IDN?", "drive": "identity object 0x1018:4",
                     "fog": "?IS"}
 
 
-def identity_mismatches(stand: StandSettings,
-                        identities: Mapping[str, Mapping[str, object]]) -> list[IdentityMismatch]:
+def identity_mismatches(stand: StandSettings, identities: Identities) -> list[IdentityMismatch]:
     """Every instrument whose reported serial differs from the serial its stand block
     states. An instrument that reports none is not a mismatch (identity_problems says
     so); a FOG that answers no identity query keeps the stand's serial, stated."""
@@ -215,7 +220,7 @@ def identity_mismatches(stand: StandSettings,
                           "fog": spec.fog.serial if spec.fog else None}
         for role, stated in stated_by_role.items():
             reported = serial_of(got.get(role)) if got.get(role) else None
-            if stated and reported and "as the stand file states" not in str(got.get(role)) \
+            if stated and reported and "as the stand file states" not in got.get(role, "") \
                     and not same_serial(str(stated), reported):
                 out.append(IdentityMismatch(f"axes.{axis}.{role}.serial", str(stated),
                                             reported, IDENTITY_QUERIES[role]))

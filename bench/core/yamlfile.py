@@ -7,11 +7,13 @@ so the loader keeps the line of every mapping key and sequence item it builds.
 from __future__ import annotations
 
 import copy
+import datetime as dt
 import functools
 import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
 import yaml
 
@@ -33,6 +35,9 @@ _Loader.add_implicit_resolver(
                 |\.(?:nan|NaN|NAN))$""", re.X),
     list("-+0123456789."))
 
+#: a value as the safe loader builds it (a mapping's keys are text in every file we read)
+YamlValue: TypeAlias = (str | int | float | bool | dt.date | None | Sequence["YamlValue"]
+                        | Mapping[str, "YamlValue"])
 #: keys and list indexes from the top; a YAML key may also be a float or null (`1.5:`, `~:`)
 KeyPath = tuple[str | int | float | None, ...]
 

@@ -20,6 +20,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 from bench.core.registry import ProcedureKind, kind_location, procedure_names
+from bench.core.yamlfile import YamlValue
 
 if TYPE_CHECKING:
     from lxml import etree
@@ -144,7 +145,7 @@ class SummarisesRun(Protocol):
 
 #: the serial of an instrument on the stand: (axis, role, its stand-file entry) -> serial
 #: (the one it reported if no other reports the same, else the stand file's, else its place)
-SerialOf = Callable[[str, str, Mapping[str, object]], str]
+SerialOf = Callable[[str, str, Mapping[str, YamlValue]], str]
 
 
 @runtime_checkable
@@ -155,7 +156,7 @@ class ChecksInstruments(Protocol):
 
     check_quantities: Mapping[str, tuple[str, str]]
 
-    def instrument_checks(self, result: Mapping[str, object], stand: Mapping[str, object],
+    def instrument_checks(self, result: Mapping[str, object], stand: Mapping[str, YamlValue],
                           serial_of: SerialOf) -> list[InstrumentCheck]:
         """The check values this run gives of the instruments, per serial."""
         ...

@@ -19,7 +19,6 @@ from bench.core import rundir_layout as layout
 from bench.core.config import Config, FogSettings
 from bench.core.journal import RunDir, fog_capture_starts
 from drivers.fog import CaptureCursor, FogSamples
-from procedures.rate_ladder.codec import with_conditions_measured
 from procedures.rate_ladder.events import HalfAcquired
 
 
@@ -110,6 +109,3 @@ def fog_temperatures(run: RunDir, cfg: Config) -> dict[str, AxisTemperature]:
                 / sum(x["samples"] for x in halves))
             for axis, halves in by_axis.items()}
 
-
-def add_conditions(result: dict[str, object], run: RunDir, cfg: Config) -> dict[str, object]:
-    return with_conditions_measured(result, fog_temperatures(run, cfg))

@@ -43,6 +43,8 @@ if TYPE_CHECKING:
     from bench.core.engine import RunContext
     from bench.core.instruments import Bench
     from bench.core.journal import RunDir
+    from bench.core.protocols import Counter as CounterLike
+    from bench.core.protocols import Fog as FogLike
     from bench.core.registry import StepHandler
     from bench.core.simbench import SimBench
     from bench.kind import Kind
@@ -66,7 +68,7 @@ def _turns(n: int) -> str:
 D = TypeVar("D")
 
 
-def _driver(value: object, kind: type[D], what: str) -> D:
+def _driver(value: CounterLike | FogLike | None, kind: type[D], what: str) -> D:
     """An axis's instrument as the ladder reads it: the driver's own class (the FOG's
     decoder stats and sample indices, the counter's acquisition and time tie)."""
     if not isinstance(value, kind):
@@ -530,10 +532,12 @@ class LadderAnalysis:
 
     def analyze(self, run: RunDir, cfg: Config) -> dict[str, object]:
         from procedures.rate_ladder.analysis import analyze_run
-        from procedures.rate_ladder.conditions import add_conditions
+        from procedures.rate_ladder.codec import with_conditions_measured
+        from procedures.rate_ladder.conditions import fog_temperatures
 
-        result: dict[str, object] = {**analyze_run(run, cfg)}
-        return add_conditions(result, run, cfg)
+        # the body after the frame, then what the bench measured itself (the FOG's
+        # temperature), each written by the ladder's codec
+        return with_conditions_measured({**analyze_run(run, cfg)}, fog_temperatures(run, cfg))
 
 
 class RateLadder:

@@ -29,6 +29,13 @@ TITLE = "Dwell on the bench clock"
 SIM = Map({"seed": Key(Num(min=0, integer=True), False, "the simulated bench's seed")})
 
 
+@dataclass(frozen=True)
+class DwellSettings:
+    """The procedure as the dwell reads it: frozen settings (a dataclass or a Struct)."""
+
+    dwell_s: float
+
+
 class DwellFiles:
     """Its files (the `settings` part): a dwell and a tolerance; no axis, no instrument."""
 
@@ -45,9 +52,9 @@ class DwellFiles:
     def cross_check(self, cfg: Config) -> list[Problem]:
         return []
 
-    def parse(self, cfg: Config) -> float:
+    def parse(self, cfg: Config) -> DwellSettings:
         """The dwell's one setting (bench/core/registry.py KindSettings.parse)."""
-        return float(cfg.procedure["dwell_s"])
+        return DwellSettings(float(cfg.procedure["dwell_s"]))
 
     def notes(self, cfg: Config) -> list[str]:
         return []

@@ -54,6 +54,7 @@ from bench.app.register.store import (
 )
 from bench.core import rundir_layout as layout
 from bench.core.lab import Lab, LabError, Signatory, run_lab
+from bench.core.settings_codec import identities, lab_keys
 from bench.core.traceability import identity_problems, with_declared_serials
 from bench.report.result_frame import ResultFrame
 from drivers.json_types import JsonObject
@@ -113,7 +114,7 @@ def _identities(ctx: IssueContext) -> list[str]:
         return ["the run recorded no instrument identities (result.json instruments)"]
     stand = _stand(ctx.run_path)
     return [f"{p} (ISO/IEC 17025 6.4.13 a)"
-            for p in identity_problems(with_declared_serials(found, stand))]
+            for p in identity_problems(with_declared_serials(identities(found), stand))]
 
 
 def _assurance(ctx: IssueContext) -> list[str]:
@@ -346,7 +347,7 @@ def _run_inputs(run_path: Path, lab_file: str | None
         return [f"{result_file}: not JSON: {e}"]
     stand = _stand(run_path)
     try:
-        own = run_lab(run_path, ResultFrame.conform(result)[0].certificate)
+        own = run_lab(run_path, lab_keys(ResultFrame.conform(result)[0].certificate))
         lab = resolve_settings(stand, lab_file, base=own)
         if own.name and not lab.name:   # a lab file that names only the register and
             lab = replace(own, signing=lab.signing,     # key: the run's laboratory, as the

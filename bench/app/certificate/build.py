@@ -30,6 +30,7 @@ from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.journal import sha256_file
 from bench.core.registry import procedure_names
+from bench.core.settings_codec import identities
 from bench.core.traceability import with_declared_serials
 from bench.kind import CertificatePart, installed
 from bench.report.budget import budget_sites
@@ -443,7 +444,7 @@ def _instruments(src: Sources, proc: Procedure) -> tuple[Block, ...]:
         ("Stand file", f"{text_of(stand.get('file') or src.meta.get('stand_file'))}"),
         ("Stand file SHA-256", text_of(stand.get("sha256") or src.meta.get("stand_sha256"))),
     ))]
-    ids = with_declared_serials(src.frame.instruments, src.stand_file)
+    ids = with_declared_serials(identities(src.frame.instruments), src.stand_file)
     if not ids:  # the event log records each axis's identities at the start of a session
         for e in ev.of_kind(src.events, ev.Identity):
             ids.setdefault(e.axis, {}).update(e.instruments)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 from bench.core.config import Traced
 from bench.core.events import SessionStarted
+from bench.core.settings_codec import identities
 from bench.core.traceability import (
     identity_problems,
     serial_of,
@@ -160,7 +161,7 @@ def equipment_list(src: Sources) -> EquipmentList:
     from bench.app.records.assurance_notes import certificate_notes  # 17025 7.7 status
 
     items = traced_items(src.stand_file)
-    ids = with_declared_serials(src.frame.instruments, src.stand_file)
+    ids = with_declared_serials(identities(src.frame.instruments), src.stand_file)
     findings = tuple(identity_problems(ids)) if (ids or items) else ()
     on = work_date(src)
     kept = _inventory(src.meta)

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 from bench.core import rundir_layout as layout
 from bench.core.schema import parse_date
+from bench.core.settings_codec import identities
 from bench.core.traceability import with_declared_serials
 from bench.report.certificate.parts import Sources, stand_of
 from bench.report.result_frame import Check, objects
@@ -141,7 +142,7 @@ def item_record(src: Sources) -> ItemRecord:
 def readback_differences(src: Sources) -> tuple[str, ...]:
     """Every drive setting of the stand file that differs from what the drive read back
     (the 0x1016:1 watchdog, the 0x608F counts per revolution), and why, once, on twins."""
-    ids = with_declared_serials(src.frame.instruments, src.stand_file)
+    ids = with_declared_serials(identities(src.frame.instruments), src.stand_file)
     axes = src.stand_file.get("axes", {}) or {}
     out: list[str] = []
     for axis, roles in ids.items():

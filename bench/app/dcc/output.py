@@ -22,6 +22,7 @@ from bench.app.dcc.validate import Validation, describe, validate_dcc
 from bench.app.dcc.writer import DccInputs, build_dcc
 from bench.core.config import DccRefs
 from bench.core.lab import Lab, run_lab
+from bench.core.settings_codec import lab_keys
 from bench.report.result_frame import ResultFrame
 from drivers.json_types import JsonObject
 
@@ -85,7 +86,7 @@ def write_dcc(run_path: Path, result: JsonObject,
         return DccOutcome(None, None, skipped=f"the run's verdict is {verdict!r}; a DCC is "
                                                 "written only for a completed run")
     settings = lab if lab is not None else resolve_settings(
-        stand, lab_file, base=run_lab(run_path, frame.certificate))
+        stand, lab_file, base=run_lab(run_path, lab_keys(frame.certificate)))
     data = dcc_bytes(build_dcc(DccInputs(result, run_path, settings, issued, issue=issue,
                                          pdf_dir=out)))
     signed = False

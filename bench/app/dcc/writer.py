@@ -33,6 +33,7 @@ from bench.app.dcc.used_methods import methods_and_conditions
 from bench.app.dcc.validate import SCHEMA_LOCATION
 from bench.core import rundir_layout as layout
 from bench.core.lab import Lab, run_lab
+from bench.core.settings_codec import lab_keys
 from bench.kind import installed
 from bench.report.dcc.budgets import budget_results
 from bench.report.dcc.conformity import Checks, checks_of, leftover_checks
@@ -71,7 +72,7 @@ def build_dcc(inputs: DccInputs) -> etree._ElementTree:
     issue = inputs.issue or register.draft(inputs.run_path, certificate_id(src))
     lab = inputs.lab
     if lab is None:
-        lab = run_lab(inputs.run_path, src.frame.certificate) if inputs.run_path else Lab()
+        lab = run_lab(inputs.run_path, lab_keys(src.frame.certificate)) if inputs.run_path else Lab()
     administrative(el(root, "administrativeData"), src, lab, proc.parts, kind, issue, today)
     results = el(root, "measurementResults")
     methods_and_conditions(results, src, kind)
