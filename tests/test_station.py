@@ -26,6 +26,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import numpy as np
 import pytest
 import yaml
@@ -35,12 +36,12 @@ from bench.app.station.live import (
     decimate,
     fog_trace,
     progress_of,
-    tail_jsonl,
     turn_rates,
 )
 from bench.app.station.serve import settings_from_args
 from bench.core.config import FogSettings
 from bench.core.events import decode_all
+from bench.core.journal_codec import tail_records
 from drivers.fog_formats import get_format
 from procedures.rate_ladder.events import HalfAcquired
 from tests.conftest import CONFIGS, ROOT, bench, bench_bg, unavailable
@@ -101,9 +102,13 @@ def test_progress_eta_from_measured_speed() -> None:
 def test_tail_skips_partial_and_torn_lines(tmp_path: Path) -> None:
     f = tmp_path / "x.jsonl"
     f.write_text("".join(json.dumps({"i": i}) + "\n" for i in range(100)) + '{"i": 10')
-    recs = tail_jsonl(f, 50)
-    assert recs and all(set(r) == {"i"} for r in recs) and recs[-1] == {"i": 99}
-    assert tail_jsonl(tmp_path / "missing.jsonl", 50) == []
+    recs = tail_records(f, 50, Counted)
+    assert [r.i for r in recs] == list(range(100 - len(recs), 100)) and 0 < len(recs) < 10
+    assert tail_records(tmp_path / "missing.jsonl", 50, Counted) == []
+
+
+class Counted(msgspec.Struct):
+    i: int
 
 
 @pytest.mark.parametrize("units,scale", [("deg/s", 1.0), ("rad", 200 * 180 / math.pi)])

@@ -13,7 +13,6 @@ an error.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Mapping, Sequence
@@ -31,8 +30,14 @@ from bench.core import rundir_layout as layout
 from bench.core.config import FogSettings
 from bench.core.events import Event, TimedHalf
 from bench.core.journal import fog_capture_starts
+from bench.core.journal_codec import (
+    DriveFeedback,
+    read_json_object,
+    read_verdict,
+    tail_events,
+    tail_records,
+)
 from bench.core.yamlfile import read_mapping
-from bench.report.result_frame import number
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, DecodeState, decode, get_format
 from drivers.json_types import JsonLike, JsonObject, JsonValue
@@ -43,35 +48,10 @@ FOG_TAIL_S = 30.0                 # bench seconds of FOG record shown
 DRIVE_TAIL_BYTES = 96 * 1024      # about 600 feedback readings
 
 
-def tail_jsonl(path: Path, max_bytes: int) -> list[JsonObject]:
-    """The whole records in the last `max_bytes` of a JSON-lines file (first and torn
-    last lines skipped): a growing raw log is read in constant time."""
-    try:
-        size = path.stat().st_size
-        with open(path, "rb") as f:
-            start = max(0, size - max_bytes)
-            f.seek(start)
-            data = f.read(size - start)
-    except FileNotFoundError:
-        return []
-    lines = data.split(b"\n")
-    if start > 0:
-        lines = lines[1:]
-    out: list[JsonObject] = []
-    for line in lines:
-        try:
-            record = json.loads(line)
-        except (json.JSONDecodeError, UnicodeDecodeError):
-            continue
-        if isinstance(record, dict):
-            out.append(record)
-    return out
-
-
 def read_events(run_path: Path) -> list[Event]:
     """Every event of the run (all sessions), each as its kind's record; a torn last line
     is skipped."""
-    return ev.decode_all(tail_jsonl(run_path / layout.EVENTS, 1 << 62))
+    return tail_events(run_path / layout.EVENTS, 1 << 62)
 
 
 def pid_alive(pid: int | None) -> bool:
@@ -129,9 +109,10 @@ def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S,
 
 def drive_trace(raw: Path) -> dict[str, list[float]]:
     """The drive's recent velocity feedback (TPDO), for the settling plot."""
-    feedback = [(number(rec, "t_s"), number(rec, "velocity_dps"))
-                for rec in tail_jsonl(raw, DRIVE_TAIL_BYTES) if rec.get("kind") == "feedback"]
-    readings = [(t, v) for t, v in feedback if t is not None and v is not None]
+    readings = [(rec.t_s, rec.velocity_dps)
+                for rec in tail_records(raw, DRIVE_TAIL_BYTES, DriveFeedback)
+                if rec.kind == "feedback" and rec.t_s is not None
+                and rec.velocity_dps is not None]
     return {"t_s": [float(t) for t, _ in readings],
             "velocity_dps": [float(v) for _, v in readings]}
 
@@ -328,10 +309,9 @@ class RunStatus(TypedDict):
 
 def _read_result(run_path: Path) -> JsonObject | None:
     try:
-        doc = json.loads((run_path / layout.RESULT).read_text())
+        return read_json_object(run_path / layout.RESULT)
     except (OSError, ValueError):
         return None
-    return doc if isinstance(doc, dict) else None
 
 
 def ending(session: list[Event], run_path: Path) -> Ending | None:
@@ -356,7 +336,7 @@ def ending(session: list[Event], run_path: Path) -> Ending | None:
             or "the input was refused (exit status 2)"
     elif status == "aborted" and not cause:
         status = "incomplete"
-        verdict = (_read_result(run_path) or {}).get("verdict")
+        verdict = read_verdict(run_path / layout.RESULT)
         if verdict is None:
             cause = (f"no result.json was written; `bench analyze {run_path}` writes it from "
                      "the raw data")
