@@ -27,6 +27,7 @@ from bench.app.fleet import CHANNEL
 from bench.app.records import schema as s
 from bench.app.records.extract import figures_of
 from bench.app.station.live import ENDINGS, pair_rows, progress_of
+from bench.app.station.state import PageState
 from bench.app.station.view import (
     _age,
     _utc_text,
@@ -39,6 +40,7 @@ from bench.core import rundir_layout as layout
 from bench.core.events import Event
 from bench.core.journal import KILLED, SESSION_LOST
 from bench.kind import declared_figures
+from bench.report.codec import encode
 from bench.report.figures import spec_for
 from bench.report.result_frame import ResultFrame
 from bench.report.station import rate_text, value_u
@@ -257,11 +259,10 @@ class FleetView:
             status = "running"
         silent = status in ("running", "created") and heard_s is not None and heard_s > SILENT_S
         prog = progress_of(session)
-        prog["completed"] = any(isinstance(e, ev.Completed) for e in session)
-        view_state: Mapping[str, object] = {"status": status, "progress": prog, "cause": cause,
-                      "sessions": len(starts), "session": session_no,
-                      "ended_utc": exit_ev.utc if exit_ev else (
-                          lost.last_utc if lost else None), "later": []}
+        view_state = PageState(status=status, progress=prog, cause=cause,
+                               sessions=len(starts), session=session_no,
+                               ended_utc=exit_ev.utc if exit_ev else (
+                                   lost.last_utc if lost else None), later=[])
         health = self._health(x, now, status == "running" and not silent)
         pairs = pair_rows(events)
         last = pairs[-1] if pairs else None
@@ -283,7 +284,7 @@ class FleetView:
             "status": "silent" if silent else status, "run_status": status, "cause": cause,
             "seq": int(x.last_seq), "heard_s": heard_s, "last_event_s": last_event_s,
             "last_event_utc": _iso(x.last_event_utc),
-            "progress": prog, "words": words, "health": health, "last_result": last_text,
+            "progress": encode(prog), "words": words, "health": health, "last_result": last_text,
             "verdict": verdict, "local": self._local(x.run_dir),
         }
 
