@@ -15,6 +15,7 @@ from pathlib import Path
 
 import msgspec
 
+from bench.app.fleet.health import HealthSample
 from bench.core.events import name_of
 from drivers.json_types import JsonObject, JsonValue
 
@@ -81,6 +82,14 @@ def write_cursor(path: Path, cursor: Cursor) -> None:
         f.flush()
         os.fsync(f.fileno())
     os.replace(tmp, path)
+
+
+def stored_health(value: JsonValue) -> HealthSample | None:
+    """A bench's health sample as the lab database holds it (None: none, or not one)."""
+    try:
+        return msgspec.convert(value, HealthSample)
+    except msgspec.ValidationError:
+        return None
 
 
 class RawFile(msgspec.Struct, frozen=True):
