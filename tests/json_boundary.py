@@ -25,8 +25,10 @@ ROOT = Path(__file__).resolve().parent.parent
 SCANNED = ("bench", "drivers", "procedures", "sims")
 #: modules whose work is to turn JSON into typed values and back (may read JSON, pass maps)
 CODECS = frozenset({
+    "bench/app/fleet/codec.py",
     "bench/app/impact_codec.py",
     "bench/core/events.py",
+    "bench/core/journal_codec.py",
     "bench/core/settings_codec.py",
     "bench/report/codec.py",
     "procedures/drift_pulse/codec.py",

@@ -25,7 +25,8 @@ import yaml
 
 from bench.app.commands import EXIT_ABORTED, EXIT_PASS, run_session
 from bench.core.events import SessionStarted
-from bench.core.journal import RunDir, read_jsonl
+from bench.core.journal import RunDir
+from bench.core.journal_codec import read_jsonl
 from bench.core.loader import load_config
 from drivers.cia402 import OVER_TEMPERATURE
 from sims.fog_twin import Corrupt, Drop, Garbage, Stall

@@ -26,6 +26,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import numpy as np
 import pytest
 import yaml
@@ -35,12 +36,13 @@ from bench.app.station.live import (
     decimate,
     fog_trace,
     progress_of,
-    tail_jsonl,
     turn_rates,
 )
 from bench.app.station.serve import settings_from_args
+from bench.app.station.state import FogTrace
 from bench.core.config import FogSettings
 from bench.core.events import decode_all
+from bench.core.journal_codec import tail_records
 from drivers.fog_formats import get_format
 from procedures.rate_ladder.events import HalfAcquired
 from tests.conftest import CONFIGS, ROOT, bench, bench_bg, unavailable
@@ -91,19 +93,24 @@ def test_progress_eta_from_measured_speed() -> None:
          "t_s": 140.0, "utc": "2026-01-01T00:00:14+00:00"},
     ]
     p = progress_of(decode_all(ev))
-    assert p["step"]["number"] == 2 and p["steps_done"] == 1
-    assert p["bench_left_s"] == pytest.approx(200 + 300 - 40)
-    assert p["speed"] == pytest.approx(10.0)
-    assert p["wall_left_s"] == pytest.approx(46.0)
-    assert p["fraction"] == pytest.approx(1 - 460 / 600)
+    assert p.step is not None and p.step.number == 2 and p.steps_done == 1
+    assert p.bench_left_s == pytest.approx(200 + 300 - 40)
+    assert p.speed == pytest.approx(10.0)
+    assert p.wall_left_s == pytest.approx(46.0)
+    assert p.fraction == pytest.approx(1 - 460 / 600)
+    assert not p.completed
 
 
 def test_tail_skips_partial_and_torn_lines(tmp_path: Path) -> None:
     f = tmp_path / "x.jsonl"
     f.write_text("".join(json.dumps({"i": i}) + "\n" for i in range(100)) + '{"i": 10')
-    recs = tail_jsonl(f, 50)
-    assert recs and all(set(r) == {"i"} for r in recs) and recs[-1] == {"i": 99}
-    assert tail_jsonl(tmp_path / "missing.jsonl", 50) == []
+    recs = tail_records(f, 50, Counted)
+    assert [r.i for r in recs] == list(range(100 - len(recs), 100)) and 0 < len(recs) < 10
+    assert tail_records(tmp_path / "missing.jsonl", 50, Counted) == []
+
+
+class Counted(msgspec.Struct):
+    i: int
 
 
 @pytest.mark.parametrize("units,scale", [("deg/s", 1.0), ("rad", 200 * 180 / math.pi)])
@@ -117,11 +124,11 @@ def test_fog_trace_decodes_the_capture_tail(tmp_path: Path, units: str, scale: f
     raw.write_bytes(fmt.encode(np.arange(n) % fmt.sequence_modulus, rates).tobytes())
     tr = fog_trace(raw, FogSettings(port="/dev/null", rate_hz=200.0, units=units),
                    tail_s=5.0)  # last 1000
-    assert len(tr["t_s"]) == len(tr["rate_dps"]) > 0
-    assert tr["t_s"][0] == pytest.approx(1000 / 200 + (math.ceil(1000 / 600) - 1) / 2 / 200)
+    assert len(tr.t_s) == len(tr.rate_dps) > 0
+    assert tr.t_s[0] == pytest.approx(1000 / 200 + (math.ceil(1000 / 600) - 1) / 2 / 200)
     k = math.ceil(1000 / 600)
     want = truth_dps[1000:1000 + 1000 // k * k].reshape(-1, k).mean(axis=1)
-    assert np.allclose(tr["rate_dps"], want, rtol=1e-6, atol=1e-5)   # float32 frames
+    assert np.allclose(tr.rate_dps, want, rtol=1e-6, atol=1e-5)   # float32 frames
 
 
 # -- security: token, Host header, traversal -------------------------------------------
@@ -446,19 +453,18 @@ def test_health_flags_a_silent_fog_only_while_running(tmp_path: Path) -> None:
     os.utime(raw / "outer-drive.jsonl", (now - 0.5, now - 0.5))
     os.utime(raw / "outer-counter.jsonl", (now - 0.5, now - 0.5))
     os.utime(raw / "outer-fog.bin", (now - FOG_SILENT_S - 1, now - FOG_SILENT_S - 1))
-    tail = {"tail_s": 30.0, "tail_crc_errors": 2, "tail_lost_frames": 0}
+    tail = FogTrace(tail_s=30.0, tail_crc_errors=2, tail_lost_frames=0)
     acq = [_half(axis="outer", fog_lost=3), _half(axis="outer", fog_lost=1)]
     h = health(tmp_path, raw, ["outer"], True, tail, "outer", acq, now=now)
-    assert h["axes"][0]["fog_lost_in_halves"] == 4
-    assert h["axes"][0]["fog_age_s"] == pytest.approx(FOG_SILENT_S + 1)
-    assert h["last_update_s"] == pytest.approx(0.5) and not h["stale"]
-    assert any(w.startswith("FOG outer: no data for 3 s") for w in h["warnings"]), h
-    assert any("2 CRC errors" in w for w in h["warnings"]), h
+    assert h.axes[0].fog_lost_in_halves == 4 and h.axes[0].fog_tail_crc_errors == 2
+    assert h.axes[0].fog_age_s == pytest.approx(FOG_SILENT_S + 1)
+    assert h.last_update_s == pytest.approx(0.5) and not h.stale
+    assert any(w.startswith("FOG outer: no data for 3 s") for w in h.warnings), h
+    assert any("2 CRC errors" in w for w in h.warnings), h
     late = now + STALE_S + 1
     h = health(tmp_path, raw, ["outer"], True, tail, "outer", acq, now=late)
-    assert h["stale"] and h["warnings"][0].startswith("no update for")
-    assert health(tmp_path, raw, ["outer"], False, tail, "outer", acq, now=late)[
-        "warnings"] == []
+    assert h.stale and h.warnings[0].startswith("no update for")
+    assert health(tmp_path, raw, ["outer"], False, tail, "outer", acq, now=late).warnings == []
 
 
 @pytest.mark.timeout(400)

@@ -295,22 +295,21 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     console = open_console(quiet=args.quiet, log_json=args.log_json)
     where = target(run.path.parent, args.records, console.warn, lab_file=lab_file)
     try:
-        result, doc = write_outputs(run, cfg, console, where)
+        outputs = write_outputs(run, cfg, console, where)
     except ValueError as e:      # a run file the analysis refuses (a corrections file)
         console.close()
         err(f"bench analyze: not analysed: {e}")
         return EXIT_INVALID
-    register_run(run.path, where, console.warn, result)
+    register_run(run.path, where, console.warn, outputs.result)
     from bench.app.register.runs import deliver
 
     deliver(run.path, "analysis", console.warn,      # a new registered analysis of the uid
             getattr(args, "reason", None) or "bench analyze")
-    console.summary(summary_of(result, doc))
+    console.summary(summary_of(outputs))
     print(run.path / layout.RESULT)
-    if doc is None:
+    if outputs.doc is None:
         return EXIT_ABORTED
-    return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(str(result.get("verdict")),
-                                                      EXIT_ABORTED)
+    return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(str(outputs.verdict), EXIT_ABORTED)
 
 
 def cmd_devices(args: argparse.Namespace) -> int:

@@ -19,6 +19,7 @@ import sys
 import time
 import traceback
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 from bench import __version__
@@ -48,14 +49,14 @@ from bench.core.instruments import (
     check_references,
     identity_record,
 )
-from bench.core.journal import RunDir, read_json_object
+from bench.core.journal import RunDir
+from bench.core.journal_codec import read_json_object, verdict_of
 from bench.core.plan import Plan, format_duration
 from bench.core.registry import procedure_kind
 from bench.core.simbench import SimBench, for_session
 from bench.core.stops import StopOutcome, Stops, attempt
 from bench.core.traceability import identity_mismatches, overdue, overdue_warning
 from bench.report.certificate.model import Document
-from bench.report.result_frame import as_object
 from drivers.clock import Clock, MonotonicClock
 from drivers.json_types import JsonObject
 
@@ -79,12 +80,21 @@ def room_for(cfg: Config, plan: Plan, folder: Path) -> str | None:
                                                     plan.total_s))
 
 
-def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
-                  records: RecordsTarget | None = None
-                  ) -> tuple[JsonObject, Document | None]:
-    """result.json, then the certificate (PDF, HTML, DCC); returns the result and the
+@dataclass(frozen=True)
+class Outputs:
+    """What the analysis of a session wrote: result.json as read back (the document the
+    certificate's, the DCC's and the records' writers take), its verdict, and the
     certificate's document (None when it could not be written: a run that leaves no
-    certificate must not exit as if it had, nor one whose DCC does not validate).
+    certificate must not exit as if it had, nor one whose DCC does not validate)."""
+
+    result: JsonObject
+    verdict: str | None
+    doc: Document | None
+
+
+def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
+                  records: RecordsTarget | None = None) -> Outputs:
+    """result.json, then the certificate (PDF, HTML, DCC).
     What the analysis opens registers its stop here (`bench run` and `bench analyze`
     alike), run once it ends, however it ends."""
     stops = Stops()
@@ -98,11 +108,12 @@ def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
 
 
 def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
-                   records: RecordsTarget | None) -> tuple[JsonObject, Document | None]:
+                   records: RecordsTarget | None) -> Outputs:
     analysed = procedure_kind(cfg.kind).analysis.analyze(run, cfg)
     # read back: the certificate, the DCC and the records read what result.json holds
     # (as `bench dcc` and the station do), not the analysis's objects
     result = read_json_object(run.write_json(layout.RESULT, analysed))
+    verdict = verdict_of(result)
     # the table's history from the records, when they hold any (never fails the run)
     history = history_sections(run.path, result, records, progress.warn) if records else []
     if records:   # each instrument's control status, for the traceability section
@@ -117,17 +128,17 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
         traceback.print_exc(file=sys.stderr)            # a bug to report: keep its trace
         progress.warn(f"the certificate could not be written: {e!r}; result.json is in "
                       f"{run.path}; once fixed, `bench analyze {run.path}` writes it")
-        return result, None
+        return Outputs(result, verdict, None)
     if not write_run_dcc(run.path, result, cfg.stand_settings.dcc, progress.line, warn=progress.warn):
-        return result, None
-    return result, doc
+        return Outputs(result, verdict, None)
+    return Outputs(result, verdict, doc)
 
 
-def summary_of(result: Mapping[str, object], doc: Document | None) -> Summary:
+def summary_of(outputs: Outputs) -> Summary:
     """The certificate's figures; without a certificate, only the verdict."""
-    if doc is not None:
-        return summarize(doc, as_object(result))
-    return Summary((), (), "", str(result.get("verdict", "incomplete")).upper())
+    if outputs.doc is not None:
+        return summarize(outputs.doc, outputs.result)
+    return Summary((), (), "", (outputs.verdict or "incomplete").upper())
 
 
 class RunSession:
@@ -142,7 +153,7 @@ class RunSession:
     def __init__(self, cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = False,
                  resume: bool = False, progress: PlainConsole | None = None,
                  on_sim_started: SimHook | None = None, records: str | None = None,
-                 performer: Mapping[str, object] | None = None) -> None:
+                 performer: Mapping[str, str | None] | None = None) -> None:
         self.cfg, self.run_dir, self.sim, self.yes, self.resume = cfg, run, sim, yes, resume
         #: the account the register authenticated for this session (`--operator`), or None
         self.performer = dict(performer) if performer else None
@@ -203,7 +214,7 @@ class RunSession:
             err(f"Not started: {short}")
             print(f"Free some space, then: {resume_command(self.run_dir.path, self.yes)}")
             return EXIT_INVALID
-        result: JsonObject | None = None
+        outputs: Outputs | None = None
         # the certificate's figure workers start now, with the kind's figures loaded (its
         # package's certificate module, imported there, not here: none, nothing loaded)
         package = type(self.kind).__module__.rpartition(".")[0]
@@ -229,10 +240,10 @@ class RunSession:
                 guard.stopping = True
                 self._stop()
             self._report_cause()
-            result = self._write(guard)
-            self._finish(result)
-        if result is not None:
-            register_run(self.run_dir.path, self.where, self.progress.warn, result)
+            outputs = self._write(guard)
+            self._finish()
+        if outputs is not None:
+            register_run(self.run_dir.path, self.where, self.progress.warn, outputs.result)
         return self.status
 
     def _measure(self, guard: SignalGuard, todo: Plan, done: list[str],
@@ -356,43 +367,42 @@ class RunSession:
         return outcome
 
     # -- after the stop: outputs and exit ------------------------------------------
-    def _write(self, guard: SignalGuard) -> JsonObject | None:
+    def _write(self, guard: SignalGuard) -> Outputs | None:
         """result.json and the certificate (never for a refused stand: nothing was
         measured). Ctrl-C now only ends the writing: the axes are already stopped."""
         run, progress = self.run_dir, self.progress
-        result: JsonObject | None = None
-        doc: Document | None = None
+        outputs: Outputs | None = None
         guard.writing = True
         try:
             if self.status != EXIT_INVALID:
-                result, doc = write_outputs(run, self.cfg, progress, self.where)
+                outputs = write_outputs(run, self.cfg, progress, self.where)
             guard.check()                 # a Ctrl-C lost where it landed (SignalGuard)
         except (KeyboardInterrupt, Interrupted) as e:  # the latter: a second signal
             guard.received()
             progress.warn(f"{e or 'interrupted'}: the axes were already stopped; result.json "
                           f"and the certificate may be missing or from an earlier session: "
                           f"`bench analyze {run.path}` writes them from the raw data")
-            result = None
+            outputs = None
             self.status = EXIT_ABORTED
             self.cause = self.cause or "interrupted while writing the outputs"
         except Exception as e:  # noqa: BLE001 - the raw data is kept whatever happens
             progress.warn(f"analysis failed: {e!r}; the raw data is in {run.path}; "
                           f"fix and run `bench analyze {run.path}`")
-            result = None
+            outputs = None
             self.status = EXIT_ABORTED  # no verdict without an analysis
         guard.writing = False
-        if result is not None:
-            progress.summary(summary_of(result, doc))
-            if self.status == EXIT_PASS and result.get("verdict") == "fail":
+        if outputs is not None:
+            progress.summary(summary_of(outputs))
+            if self.status == EXIT_PASS and outputs.verdict == "fail":
                 self.status = EXIT_FAIL
-            if self.status == EXIT_PASS and result.get("verdict") == "incomplete":
+            if self.status == EXIT_PASS and outputs.verdict == "incomplete":
                 self.status = EXIT_ABORTED
-        if self.status in (EXIT_PASS, EXIT_FAIL) and doc is None:
+        if self.status in (EXIT_PASS, EXIT_FAIL) and (outputs is None or outputs.doc is None):
             self.status = EXIT_ABORTED  # measured, but nothing to sign: not completed
             self.unsigned = True        # (said above; a resume would not help)
-        return result
+        return outputs
 
-    def _finish(self, result: JsonObject | None) -> None:
+    def _finish(self) -> None:
         run = self.run_dir
         if self.status == EXIT_ABORTED and not self.unsigned:
             stopped = ("AN AXIS COULD NOT BE TOLD TO STOP (above): check the table first"
@@ -421,7 +431,7 @@ def _os_user() -> str | None:
 def run_session(cfg: Config, run: RunDir, *, sim: bool = False, yes: bool = False,
                 resume: bool = False, progress: PlainConsole | None = None,
                 on_sim_started: SimHook | None = None, records: str | None = None,
-                performer: Mapping[str, object] | None = None) -> int:
+                performer: Mapping[str, str | None] | None = None) -> int:
     """One session of a run (`bench run`, `bench run --resume`): its exit status."""
     return RunSession(cfg, run, sim=sim, yes=yes, resume=resume, progress=progress,
                       on_sim_started=on_sim_started, records=records,

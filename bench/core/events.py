@@ -265,7 +265,7 @@ class SessionStarted(Event, tag="session_start", frozen=True):
     pid: int | None = None
     #: the authenticated performer (account, name, role), None when nobody logged in;
     #: an older run wrote the account as text
-    performer: dict[str, object] | str | None = None
+    performer: dict[str, str | None] | str | None = None
     os_user: str | None = None
 
     @property

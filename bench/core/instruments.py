@@ -17,6 +17,7 @@ from bench.core import rundir_layout as layout
 from bench.core.config import StandAxis
 from bench.core.events import Identity
 from bench.core.journal import JsonLines, RunDir
+from bench.core.journal_codec import encode_line
 from bench.core.protocols import Counter as CounterLike
 from bench.core.protocols import Drive
 from bench.core.protocols import Fog as FogLike
@@ -176,14 +177,15 @@ def check_references(bench: Bench) -> None:
 def raw_text_logger(log: JsonLines, clock: Clock) -> Callable[[str, bytes], None]:
     """A raw-exchange sink for SCPI drivers: every byte, as text, with the bench time."""
     def raw(direction: str, data: bytes) -> None:
-        log.write({"t_s": clock.now(), "dir": direction, "data": data.decode("latin-1")})
+        log.write(encode_line({"t_s": clock.now(), "dir": direction,
+                               "data": data.decode("latin-1")}))
     return raw
 
 
 def _raw_record_logger(log: JsonLines, clock: Clock) -> RawSink:
     """A sink for the drive's readings and commands (called from the CAN thread)."""
     def raw(kind: str, record: dict[str, JsonLike]) -> None:
-        log.write({"t_s": clock.now(), "kind": kind, **record})
+        log.write(encode_line({"t_s": clock.now(), "kind": kind, **record}))
     return raw
 
 

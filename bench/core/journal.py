@@ -21,15 +21,14 @@ from __future__ import annotations
 import datetime as dt
 import errno
 import hashlib
-import json
 import os
 import shutil
 import threading
 import uuid
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, TypedDict, TypeVar
+from typing import IO
 
 import msgspec
 
@@ -37,9 +36,15 @@ import bench
 from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.events import Event
+from bench.core.journal_codec import (
+    RunMeta,
+    encode_document,
+    encode_event,
+    read_events,
+    read_jsonl,
+    read_meta,
+)
 from drivers.json_types import JsonObject
-
-T = TypeVar("T")
 
 
 def sha256_file(path: Path) -> str:
@@ -68,7 +73,8 @@ def _write_error(path: Path, e: OSError) -> JournalError:
 
 
 class JsonLines:
-    """An append-only JSON-lines file; `fsync=True` syncs every line to disk."""
+    """An append-only JSON-lines file; `fsync=True` syncs every line to disk. It takes each
+    line encoded (bench/core/journal_codec.py `encode_line`, `encode_event`)."""
 
     def __init__(self, path: Path, fsync: bool = False) -> None:
         try:
@@ -81,8 +87,7 @@ class JsonLines:
         self._lock = threading.Lock()
         self.count = 0  # records written by this writer
 
-    def write(self, record: Mapping[str, object]) -> None:
-        line = json.dumps(record, separators=(",", ":"), allow_nan=False) + "\n"
+    def write(self, line: str) -> None:
         with self._lock:
             if self._f.closed:
                 return
@@ -129,80 +134,6 @@ class JsonLines:
                     pass  # the flush above already failed and was reported
 
 
-def scan_jsonl(path: Path) -> tuple[list[JsonObject], list[int]]:
-    """Records of a JSON-lines file, and the numbers of the lines that are not records
-    (a torn last line after a crash or power loss mid-write, or a line a resume once
-    appended onto one). A reader tolerates them and reports them; it never crashes."""
-    records: list[JsonObject] = []
-    bad: list[int] = []
-    with open(path, encoding="utf-8", errors="replace") as f:
-        for n, line in enumerate(f, 1):
-            try:
-                rec = json.loads(line)
-            except json.JSONDecodeError:
-                rec = None
-            if isinstance(rec, dict):
-                records.append(rec)
-            elif line.strip():
-                bad.append(n)
-    return records, bad
-
-
-def read_json_object(path: Path) -> JsonObject:
-    """A JSON object file this run wrote (result.json): a damaged one is an error."""
-    data = json.loads(path.read_text(encoding="utf-8"))
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: expected a JSON object, found {type(data).__name__}")
-    return data
-
-
-def read_jsonl(path: Path) -> Iterator[JsonObject]:
-    """Records of a JSON-lines file; a torn line (a crash mid-write) is skipped."""
-    yield from scan_jsonl(path)[0]
-
-
-def read_events(path: Path) -> list[Event]:
-    """A run's events.jsonl, each line as its kind's record (bench/core/events.py)."""
-    return ev.decode_all(read_jsonl(path))
-
-
-class MalformedRecord(ValueError):
-    """A journal record whose field is not of the type its writer gives it."""
-
-
-def _narrow(rec: Mapping[str, object], key: str, kind: type[T], what: str) -> T:
-    """`rec[key]` as the type its writer gives it (a bool is no number: JSON tells them
-    apart); the record's reader narrows each field once, here."""
-    v = rec[key]
-    if not isinstance(v, kind) or (isinstance(v, bool) and kind is not bool):
-        raise MalformedRecord(f"{key!r} is {v!r}, not {what}")
-    return v
-
-
-def str_field(rec: Mapping[str, object], key: str) -> str:
-    return _narrow(rec, key, str, "a string")
-
-
-def int_field(rec: Mapping[str, object], key: str) -> int:
-    return _narrow(rec, key, int, "an integer")
-
-
-def float_field(rec: Mapping[str, object], key: str) -> float:
-    """A number as written (JSON writes 1.0 as 1: an integer is one too)."""
-    v = rec[key]
-    if isinstance(v, int) and not isinstance(v, bool):
-        return v
-    return _narrow(rec, key, float, "a number")
-
-
-def bool_field(rec: Mapping[str, object], key: str) -> bool:
-    return _narrow(rec, key, bool, "true or false")
-
-
-def object_field(rec: Mapping[str, object], key: str) -> JsonObject:
-    return _narrow(rec, key, dict, "an object")
-
-
 def units_done(events: Iterable[Event]) -> dict[str, int]:
     """Each unit done -> the session that completed it (the `unit_done` events; a unit
     measured again in a later session counts there)."""
@@ -231,7 +162,7 @@ class SessionEnding:
     os_user: str | None
     pid: int | None
 
-    def to_json(self) -> dict[str, object]:
+    def to_json(self) -> dict[str, str | int | None]:
         return {"session": self.session, "started_utc": self.started_utc,
                 "ended_utc": self.ended_utc, "ended": self.ended,
                 "performer": self.performer, "os_user": self.os_user}
@@ -270,23 +201,6 @@ def session_endings(events: Iterable[Event]) -> list[SessionEnding]:
         out.append(SessionEnding(s, st.utc, ended[1], ended[0], st.performer_account,
                                  st.os_user or None, st.pid))
     return out
-
-
-class RunMeta(TypedDict):
-    """meta.json as `RunDir.create` writes it: where the inputs came from, their SHA-256,
-    the version (the run's later facts, as-found/as-left, the performer, are added by the
-    app and read where they are used)."""
-
-    procedure_file: str
-    procedure_name: str
-    procedure_sha256: str
-    stand_file: str
-    stand_sha256: str
-    created_utc: str
-    bench_version: str
-    #: the run's own identity, random: distinct for two benches that start the same
-    #: procedure and stand in the same second (their folders may share a name)
-    run_uid: str
 
 
 def fog_capture_starts(events: Iterable[Event]) -> dict[tuple[int, str], int]:
@@ -366,14 +280,13 @@ class RunDir:
             "bench_version": bench.__version__,
             "run_uid": run_uid or uuid.uuid4().hex,
         }
-        (path / layout.META).write_text(json.dumps(meta, indent=2) + "\n")
+        (path / layout.META).write_text(encode_document(meta))
         (path / layout.EVENTS).touch()
         return cls(path)
 
     @property
     def meta(self) -> RunMeta:
-        meta: RunMeta = json.loads((self.path / layout.META).read_text())
-        return meta
+        return read_meta(self.path / layout.META)
 
     @property
     def procedure_file(self) -> Path:
@@ -420,7 +333,7 @@ class RunDir:
         session) and writes the line, flushed and fsynced."""
         if self._events is None:
             raise RuntimeError("begin_session() first")
-        self._events.write(ev.encode(msgspec.structs.replace(
+        self._events.write(encode_event(msgspec.structs.replace(
             record, utc=utc_now(), t_s=self._clock_now(), session=self.session)))
 
     def events(self) -> list[Event]:
@@ -444,7 +357,7 @@ class RunDir:
         """Write atomically: a reader never sees half a result.json."""
         target = self.path / name
         tmp = target.with_suffix(target.suffix + ".tmp")
-        text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+        text = encode_document(data)
         try:
             tmp.write_text(text)
             os.replace(tmp, target)

@@ -83,7 +83,7 @@ def drift_of(result: Mapping[str, object]) -> DriftFigures:
 def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:
     """The DMM's replies to FETC?, in order, from its raw SCPI journal of a session (JSON
     lines, read here as the kind's other JSON is)."""
-    from bench.core.journal import read_jsonl, str_field
+    from bench.core.journal_codec import read_jsonl, str_field
     from drivers.dmm import PROFILES as DMM_PROFILES
     path = layout.raw_file(run.path, session, layout.dmm_log(gyro))
     out, waiting = [], False

@@ -32,14 +32,8 @@ from bench.analysis.window import HalfRecord
 from bench.core import rundir_layout as layout
 from bench.core.config import Config, CounterSettings
 from bench.core.events import Event
-from bench.core.journal import (
-    RunDir,
-    float_field,
-    fog_capture_starts,
-    read_jsonl,
-    str_field,
-    units_done,
-)
+from bench.core.journal import RunDir, fog_capture_starts, units_done
+from bench.core.journal_codec import float_field, read_jsonl, str_field
 from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor, FogCheckpoint

@@ -11,19 +11,17 @@ wholly delivered says so (`bench records sync` delivers the rest).
 from __future__ import annotations
 
 import difflib
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import sqlalchemy as sa
 
+from bench.app.fleet.codec import JournalLine, StoredResult, read_result, stored_line, stored_result
 from bench.app.fleet.journal import new_lines
 from bench.app.fleet.sync import LabLink, RunFacts
 from bench.app.records import schema as s
 from bench.core import rundir_layout as layout
-from bench.core.events import name_of
 from bench.core.journal import sha256_file
-from drivers.json_types import JsonObject
 
 #: differences named one by one before the rest are counted
 SHOWN = 5
@@ -61,9 +59,9 @@ class RunCheck:
         return out
 
 
-def _file_lines(run_path: Path) -> dict[int, JsonObject | None]:
+def _file_lines(run_path: Path) -> dict[int, JournalLine]:
     lines, _, _ = new_lines(run_path, 0, 0, 10 ** 9)
-    return {x.seq: x.event for x in lines}
+    return {x.seq: x for x in lines}
 
 
 def check_run(link: LabLink, run_path: Path) -> RunCheck:
@@ -79,26 +77,25 @@ def check_run(link: LabLink, run_path: Path) -> RunCheck:
             out.differences.append(f"the lab database holds no run of uid {facts.uid}: "
                                    "never delivered (`bench records sync`)")
             return out
-        held = {int(x.seq): x.body for x in conn.execute(
+        held = {int(x.seq): stored_line(int(x.seq), x.body) for x in conn.execute(
             sa.select(e.seq, e.body).where(e.run_id == row.id).order_by(e.seq))}
     out.bench = str(row.bench)
     _compare_events(out, _file_lines(run_path), held, int(row.last_seq or 0))
-    lab_result = row.result if isinstance(row.result, dict) else None
-    _compare_result(out, run_path, lab_result)
+    _compare_result(out, run_path, stored_result(row.result))
     return out
 
 
-def _compare_events(out: RunCheck, lines: dict[int, JsonObject | None],
-                    held: dict[int, JsonObject], last_seq: int) -> None:
+def _compare_events(out: RunCheck, lines: dict[int, JournalLine],
+                    held: dict[int, JournalLine], last_seq: int) -> None:
     """The lab's lines against the file's, as a diff (a deleted or inserted line is one
     difference, not every line after it), named by the lab's line numbers."""
     out.events = len(held)
-    out.undelivered = sum(1 for seq, ev in lines.items() if seq > last_seq and ev is not None
-                          and seq not in held)
+    out.undelivered = sum(1 for seq, x in lines.items() if seq > last_seq
+                          and x.body is not None and seq not in held)
     theirs = sorted(held)
     mine = [seq for seq in sorted(lines) if seq <= max(last_seq, max(held, default=0))]
-    a = [_text(held[q]) for q in theirs]
-    b = [_text(lines[q]) for q in mine]
+    a = [held[q].text for q in theirs]
+    b = [lines[q].text for q in mine]
     for op, i1, i2, j1, j2 in difflib.SequenceMatcher(None, a, b, autojunk=False).get_opcodes():
         if op == "equal":
             continue
@@ -106,7 +103,7 @@ def _compare_events(out: RunCheck, lines: dict[int, JsonObject | None],
             for k in range(i1, i2):
                 if op == "delete" or k - i1 >= j2 - j1:
                     out.differences.append(
-                        f"event line {theirs[k]} ({_kind(held[theirs[k]])}): the lab database "
+                        f"event line {theirs[k]} ({held[theirs[k]].name}): the lab database "
                         "holds it, the run directory does not (deleted?)")
         if op in ("insert", "replace"):
             for k in range(j1, j2):
@@ -114,57 +111,52 @@ def _compare_events(out: RunCheck, lines: dict[int, JsonObject | None],
                     q = theirs[i1 + k - j1]
                     out.differences.append(
                         f"event line {q}: the run directory's line differs from the one "
-                        f"delivered ({_kind(lines[mine[k]])} here, {_kind(held[q])} in the lab)")
-                elif lines[mine[k]] is not None:
+                        f"delivered ({lines[mine[k]].name} here, {held[q].name} in the lab)")
+                elif lines[mine[k]].body is not None:
                     out.differences.append(
-                        f"event line {mine[k]} ({_kind(lines[mine[k]])}): in the run "
+                        f"event line {mine[k]} ({lines[mine[k]].name}): in the run "
                         "directory, not in the lab database")
 
 
-def _text(event: JsonObject | None) -> str:
-    return json.dumps(event, sort_keys=True) if event is not None else "\0torn"
-
-
-def _kind(event: JsonObject | None) -> str:
-    return name_of(event) if event is not None else "not an event"
-
-
-def _compare_result(out: RunCheck, run_path: Path, lab: JsonObject | None) -> None:
-    path = run_path / layout.RESULT
+def _mine(path: Path) -> StoredResult | str | None:
+    """The run directory's result.json; None when there is none, else the reason it
+    cannot be compared."""
+    if not path.is_file():
+        return None
     try:
-        mine = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else None
+        return read_result(path) or "unreadable"
     except (OSError, ValueError):
-        mine = "unreadable"
+        return "unreadable"
+
+
+def _compare_result(out: RunCheck, run_path: Path, lab: StoredResult | None) -> None:
+    mine = _mine(run_path / layout.RESULT)
     if lab is None and mine is None:
         return
     out.result = True
     if lab is None:
         out.differences.append(f"{layout.RESULT}: in the run directory, not in the lab "
                                "database (`bench records sync`)")
-    elif mine is None or mine == "unreadable":
+    elif not isinstance(mine, StoredResult):
         out.differences.append(f"{layout.RESULT}: the lab database holds one, the run "
-                               f"directory's is {'missing' if mine is None else 'unreadable'}")
-    elif mine != lab:
+                               f"directory's is {'missing' if mine is None else mine}")
+    elif mine.document != lab.document:
         out.differences.append(f"{layout.RESULT}: differs from the one delivered")
     if lab is None:
         return
-    listed = lab.get("raw_files")
-    for entry in listed if isinstance(listed, list) else []:
-        if not isinstance(entry, dict) or not isinstance(entry.get("path"), str):
-            continue
-        rel = str(entry["path"])
+    for entry in lab.raw_files:
+        rel = entry.path
         f = run_path / rel
         out.raw_files += 1
         if not f.is_file():
             out.differences.append(f"raw file {rel}: missing from the run directory")
             continue
         digest = sha256_file(f)
-        if digest != entry.get("sha256"):
+        if digest != entry.sha256:
             out.differences.append(f"raw file {rel}: SHA-256 {digest[:16]}… in the run "
-                                   f"directory, {str(entry.get('sha256'))[:16]}… in the lab's "
+                                   f"directory, {str(entry.sha256)[:16]}… in the lab's "
                                    "result")
-    named = {str(x.get("path")) for x in listed if isinstance(x, dict)} \
-        if isinstance(listed, list) else set()
+    named = lab.named
     raw = layout.raw_root(run_path)
     for f in sorted(p for p in raw.rglob("*") if p.is_file()) if raw.is_dir() else []:
         rel = str(f.relative_to(run_path))

@@ -8,27 +8,17 @@ line that is not a JSON object (a torn one) keeps its number and is not delivere
 
 from __future__ import annotations
 
-import json
-from dataclasses import dataclass
 from pathlib import Path
 
+from bench.app.fleet.codec import JournalLine, journal_line
 from bench.core.rundir_layout import EVENTS
-from drivers.json_types import JsonObject
-
-
-@dataclass(frozen=True)
-class Line:
-    """One line of the event log: its number (1 = first) and the event, if it is one."""
-
-    seq: int
-    event: JsonObject | None
 
 
 def new_lines(run_path: Path, offset_bytes: int, seq: int, max_lines: int
-              ) -> tuple[list[Line], int, int]:
+              ) -> tuple[list[JournalLine], int, int]:
     """Up to `max_lines` whole lines after `offset_bytes` (the line before it numbered
     `seq`); with the offset and number after the last line returned."""
-    out: list[Line] = []
+    out: list[JournalLine] = []
     try:
         with open(run_path / EVENTS, "rb") as f:
             f.seek(offset_bytes)
@@ -38,11 +28,7 @@ def new_lines(run_path: Path, offset_bytes: int, seq: int, max_lines: int
                     break                  # end of file, or a line being written
                 offset_bytes += len(raw)
                 seq += 1
-                try:
-                    rec = json.loads(raw)
-                except (ValueError, UnicodeDecodeError):
-                    rec = None
-                out.append(Line(seq, rec if isinstance(rec, dict) else None))
+                out.append(journal_line(seq, raw))
     except FileNotFoundError:
         pass
     return out, offset_bytes, seq

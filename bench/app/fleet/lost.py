@@ -10,7 +10,6 @@ run's evidence is untouched, and a `--resume` continues the run as before.
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,14 +17,8 @@ from pathlib import Path
 from bench.app.names import resume_command
 from bench.core import events as ev
 from bench.core import rundir_layout as layout
-from bench.core.journal import (
-    KILLED,
-    JsonLines,
-    read_events,
-    session_endings,
-    torn_tail_bytes,
-    utc_now,
-)
+from bench.core.journal import KILLED, JsonLines, session_endings, torn_tail_bytes, utc_now
+from bench.core.journal_codec import decode_event, encode_event, read_events
 
 
 @dataclass(frozen=True)
@@ -102,11 +95,7 @@ def _ended_by_its_last_line(log: Path) -> bool:
         return False
     lines = tail.split(b"\n")
     last = lines[-2] if len(lines) >= 2 else b""   # the last line that ends in a newline
-    try:
-        rec = json.loads(last)
-    except ValueError:
-        return False
-    return isinstance(rec, dict) and isinstance(ev.decode(rec), ev.Exited | ev.SessionLost)
+    return isinstance(decode_event(last), ev.Exited | ev.SessionLost)
 
 
 def journal_lost(found: LostRun, by: str) -> None:
@@ -118,7 +107,7 @@ def journal_lost(found: LostRun, by: str) -> None:
     try:
         if torn:
             lines.end_line()
-        lines.write(ev.encode(ev.SessionLost(
+        lines.write(encode_event(ev.SessionLost(
             utc=utc_now(), t_s=None, session=found.session, ended=KILLED, pid=found.pid,
             last_utc=found.last_utc, last_step=found.last_step, found_by=by)))
     finally:

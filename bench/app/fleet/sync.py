@@ -18,9 +18,10 @@ import hashlib
 import json
 import socket
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
+import msgspec
 import sqlalchemy as sa
 from sqlalchemy.dialects.postgresql import insert as pg_insert
 from sqlalchemy.engine import Connection
@@ -28,14 +29,15 @@ from sqlalchemy.sql.elements import ColumnElement
 
 from bench.app.db import away_text, redact
 from bench.app.fleet import CHANNEL
+from bench.app.fleet.codec import JournalLine, read_result
 from bench.app.fleet.health import HealthSample
-from bench.app.fleet.journal import Line, new_lines
+from bench.app.fleet.journal import new_lines
 from bench.app.fleet.outbox import Outbox
 from bench.app.records import schema as s
 from bench.app.records.extract import NotARun, record_of, run_uid
 from bench.app.records.store import Records, RecordsError
 from bench.core import rundir_layout as layout
-from bench.core.events import name_of
+from bench.core.journal_codec import RunMeta, read_meta
 from bench.core.yamlfile import read_mapping
 
 #: event lines per transaction: a long log after a long outage goes in bounded pieces,
@@ -66,8 +68,8 @@ def bench_name(run_path: Path, stated: str | None = None) -> str:
     return str(name) if name else socket.gethostname()
 
 
-def _naive_utc(stamp: object) -> dt.datetime | None:
-    if not isinstance(stamp, str):
+def _naive_utc(stamp: str | None) -> dt.datetime | None:
+    if not stamp:
         return None
     try:
         t = dt.datetime.fromisoformat(stamp)
@@ -92,14 +94,16 @@ class RunFacts:
 
     @classmethod
     def of(cls, run_path: Path) -> RunFacts:
-        meta = read_mapping(run_path / layout.META)
-        meta = meta if isinstance(meta, dict) else {}
+        try:
+            meta = read_meta(run_path / layout.META)
+        except (OSError, ValueError):
+            meta = RunMeta()
         stand = read_mapping(run_path / layout.STAND)
         stand = stand if isinstance(stand, dict) else {}
         proc = read_mapping(run_path / layout.PROCEDURE)
         proc = proc if isinstance(proc, dict) else {}
         block = stand.get("stand")
-        ident: dict[str, object] = block if isinstance(block, dict) else {}
+        ident: dict[str, str | int | float | None] = block if isinstance(block, dict) else {}
         return cls(uid=run_uid(meta, run_path.name), run_dir=run_path.name,
                    title=str(proc.get("title") or run_path.name),
                    kind=str(proc["procedure"]) if proc.get("procedure") else None,
@@ -194,7 +198,7 @@ class LabLink:
             if lines or (first and (health is not None or cur.offset_bytes == 0)):
                 with rec.engine.begin() as conn:
                     added += self._batch(conn, bench, facts, lines, health)
-                cur = replace(cur, offset_bytes=offset, seq=seq)
+                cur = msgspec.structs.replace(cur, offset_bytes=offset, seq=seq)
                 outbox.save(run_path.name, cur)
                 sent += len(lines)
             first = False
@@ -205,18 +209,17 @@ class LabLink:
         sha = _sha256(result_path)
         if sha is not None and sha != cur.result_sha256:
             try:
-                result = json.loads(result_path.read_text())
+                result = read_result(result_path)
             except ValueError:
                 result = None          # being replaced right now: the next delivery
-            if isinstance(result, dict):
+            if result is not None:
                 with rec.engine.begin() as conn:
                     run_id = self._run_id(conn, self._bench_id(conn, bench), facts)
                     conn.execute(sa.update(s.bench_runs).where(s.bench_runs.c.id == run_id)
-                                 .values(result=result, result_sha256=sha,
-                                         verdict=str(result.get("verdict") or "")[:20]
-                                         or None))
+                                 .values(result=result.document, result_sha256=sha,
+                                         verdict=(result.verdict or "")[:20] or None))
                     self._notify(conn, bench, facts.uid, cur.seq)
-                cur = replace(cur, result_sha256=sha)
+                cur = msgspec.structs.replace(cur, result_sha256=sha)
                 outbox.save(run_path.name, cur)
                 stored = True
         registered = None
@@ -230,7 +233,7 @@ class LabLink:
                 days = (self.interval_for(record.serial, record.interval_days)
                         if self.interval_for else record.interval_days)
                 registered = rec.register(record, days)
-                cur = replace(cur, registered_sha256=sha)
+                cur = msgspec.structs.replace(cur, registered_sha256=sha)
                 outbox.save(run_path.name, cur)
         return Delivery(run_path.name, sent, added, stored, registered)
 
@@ -260,12 +263,12 @@ class LabLink:
                                     set_={**values, "received_utc": self._now()})
         return int(conn.execute(q.returning(r.c.id)).scalar_one())
 
-    def _batch(self, conn: Connection, bench: str, facts: RunFacts, lines: list[Line],
+    def _batch(self, conn: Connection, bench: str, facts: RunFacts, lines: list[JournalLine],
                health: HealthSample | None) -> int:
         run_id = self._run_id(conn, self._bench_id(conn, bench), facts)
-        rows = [{"run_id": run_id, "seq": x.seq, "utc": _naive_utc(x.event.get("utc")),
-                 "event": name_of(x.event)[:60], "body": x.event}
-                for x in lines if x.event is not None]
+        rows = [{"run_id": run_id, "seq": x.seq, "utc": _naive_utc(x.utc),
+                 "event": x.name[:60], "body": x.body}
+                for x in lines if x.body is not None]
         added = 0
         if rows:
             # RETURNING lists the rows inserted, not those the key refused
@@ -276,8 +279,7 @@ class LabLink:
         values: dict[str, object] = {}
         if lines:
             values["last_seq"] = sa.func.greatest(r.last_seq, lines[-1].seq)
-        stamps = [t for t in (_naive_utc(x.event.get("utc")) for x in lines
-                              if x.event is not None) if t is not None]
+        stamps = [t for t in (_naive_utc(x.utc) for x in lines) if t is not None]
         if stamps:
             values["last_event_utc"] = sa.func.greatest(r.last_event_utc, max(stamps))
         if health is not None:

@@ -27,7 +27,7 @@ from pathlib import Path
 from bench.analysis.finite import finite_number as _num
 from bench.core import rundir_layout as layout
 from bench.core.events import Event, StepStarted, TimedHalf
-from bench.core.journal import read_events, read_jsonl
+from bench.core.journal_codec import read_events, read_jsonl
 from bench.core.registry import procedure_names
 from bench.kind import ChecksInstruments, installed_records
 from bench.report.figures import InstrumentCheck

@@ -175,7 +175,7 @@ def _add_index(app: Flask, st: _Station) -> None:
                                instruments=instruments,
                                notes=notes, runs=list_runs(runs), version=bench.__version__)
 
-    def drafts_shown(simulated: bool) -> list[dict[str, object]] | None:
+    def drafts_shown(simulated: bool) -> list[dict[str, str | None]] | None:
         """Every bench's drafts for the lab page: each with its page, and its draft
         certificate when one of the station's runs folders holds the run; a run the
         register has issued meanwhile (the records not told yet) is left out."""
@@ -183,7 +183,7 @@ def _add_index(app: Flask, st: _Station) -> None:
         if found is None:
             return None
         issued = signing.issued_of([d.uid for d in found])
-        out: list[dict[str, object]] = []
+        out: list[dict[str, str | None]] = []
         for d in found:
             if d.uid in issued:
                 continue

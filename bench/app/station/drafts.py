@@ -13,7 +13,6 @@ two benches' runs of one name are never confused.
 from __future__ import annotations
 
 import datetime as dt
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +23,7 @@ from sqlalchemy.engine import Engine
 from bench.app.records import schema as s
 from bench.app.records.extract import run_uid
 from bench.core import rundir_layout as layout
+from bench.core.journal_codec import read_meta
 
 
 @dataclass(frozen=True)
@@ -72,9 +72,9 @@ def find_run(folders: Sequence[Path], run_dir: str, uid: str) -> Path | None:
         if p.parent != root or not (p / layout.EVENTS).is_file():
             continue
         try:
-            meta = json.loads((p / layout.META).read_text(encoding="utf-8"))
+            meta = read_meta(p / layout.META)
         except (OSError, ValueError):
             continue
-        if isinstance(meta, dict) and run_uid(meta, p.name) == uid:
+        if run_uid(meta, p.name) == uid:
             return p
     return None

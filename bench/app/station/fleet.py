@@ -24,9 +24,11 @@ from sqlalchemy.engine import Engine
 
 from bench.app.db import away_text, engine_url, make_engine
 from bench.app.fleet import CHANNEL
+from bench.app.fleet.codec import stored_health
 from bench.app.records import schema as s
 from bench.app.records.extract import figures_of
 from bench.app.station.live import ENDINGS, pair_rows, progress_of
+from bench.app.station.state import PageState
 from bench.app.station.view import (
     _age,
     _utc_text,
@@ -39,6 +41,7 @@ from bench.core import rundir_layout as layout
 from bench.core.events import Event
 from bench.core.journal import KILLED, SESSION_LOST
 from bench.kind import declared_figures
+from bench.report.codec import encode
 from bench.report.figures import spec_for
 from bench.report.result_frame import ResultFrame
 from bench.report.station import rate_text, value_u
@@ -122,9 +125,11 @@ class Notifications:
                 self._stop.wait(1.0)
 
 
-def _naive(stamp: object) -> dt.datetime | None:
+def _naive(stamp: str | None) -> dt.datetime | None:
+    if stamp is None:
+        return None
     try:
-        t = dt.datetime.fromisoformat(str(stamp))
+        t = dt.datetime.fromisoformat(stamp)
     except ValueError:
         return None
     return t.astimezone(dt.UTC).replace(tzinfo=None) if t.tzinfo else t
@@ -257,11 +262,10 @@ class FleetView:
             status = "running"
         silent = status in ("running", "created") and heard_s is not None and heard_s > SILENT_S
         prog = progress_of(session)
-        prog["completed"] = any(isinstance(e, ev.Completed) for e in session)
-        view_state: Mapping[str, object] = {"status": status, "progress": prog, "cause": cause,
-                      "sessions": len(starts), "session": session_no,
-                      "ended_utc": exit_ev.utc if exit_ev else (
-                          lost.last_utc if lost else None), "later": []}
+        view_state = PageState(status=status, progress=prog, cause=cause,
+                               sessions=len(starts), session=session_no,
+                               ended_utc=exit_ev.utc if exit_ev else (
+                                   lost.last_utc if lost else None), later=[])
         health = self._health(x, now, status == "running" and not silent)
         pairs = pair_rows(events)
         last = pairs[-1] if pairs else None
@@ -283,21 +287,20 @@ class FleetView:
             "status": "silent" if silent else status, "run_status": status, "cause": cause,
             "seq": int(x.last_seq), "heard_s": heard_s, "last_event_s": last_event_s,
             "last_event_utc": _iso(x.last_event_utc),
-            "progress": prog, "words": words, "health": health, "last_result": last_text,
+            "progress": encode(prog), "words": words, "health": health, "last_result": last_text,
             "verdict": verdict, "local": self._local(x.run_dir),
         }
 
     def _health(self, x: BenchRunRow, now: dt.datetime | None, live: bool
                 ) -> dict[str, JsonLike]:
         """The bench's last health sample, aged to now on the server's clock."""
-        sample = x.health if isinstance(x.health, dict) else {}
+        sample = stored_health(x.health)
         since = _seconds(now, x.health_utc) if live else 0.0
         rows: list[JsonLike] = []
         warnings: list[JsonLike] = []
-        sampled = _naive(sample.get("sampled_utc"))
-        files = sample.get("files")
-        ages = sorted((name, age) for name, age in files.items()
-                      if isinstance(age, int | float)) if isinstance(files, dict) else []
+        sampled_utc = sample["sampled_utc"] if sample is not None else None
+        sampled = _naive(sampled_utc)
+        ages = sorted(sample["files"].items()) if sample is not None else []
         for name, age in ages:
             age_now = float(age) + (since or 0.0)
             # a finished run's files are quiet by design: when each was last written
@@ -309,8 +312,7 @@ class FleetView:
             if live and instrument.endswith(("-fog", "-drive")) \
                     and age_now > INSTRUMENT_SILENT_S:
                 warnings.append(f"{instrument}: not heard for {age_now:.0f} s")
-        return {"files": rows, "warnings": warnings,
-                "sampled_utc": sample.get("sampled_utc")}
+        return {"files": rows, "warnings": warnings, "sampled_utc": sampled_utc}
 
     def instrument_serials(self) -> list[str]:
         """The instruments of the lab's benches: those with check values in each bench's

@@ -13,65 +13,57 @@ an error.
 
 from __future__ import annotations
 
-import json
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import NotRequired, TypedDict
+from typing import NotRequired, TypedDict, TypeVar
 
+import msgspec
 import numpy as np
 
 from bench.app.names import resume_command
 from bench.app.records.extract import kind_name
+from bench.app.station.state import (
+    FOG_TAIL_S,
+    AxisHealth,
+    FogTrace,
+    Health,
+    PageState,
+    Progress,
+    StepNow,
+)
 from bench.app.station.view import page_view, station_of
 from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.config import FogSettings
 from bench.core.events import Event, TimedHalf
 from bench.core.journal import fog_capture_starts
+from bench.core.journal_codec import (
+    DriveFeedback,
+    read_json_object,
+    read_verdict,
+    tail_events,
+    tail_records,
+)
 from bench.core.yamlfile import read_mapping
-from bench.report.result_frame import number
+from bench.report.codec import encode
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, DecodeState, decode, get_format
 from drivers.json_types import JsonLike, JsonObject, JsonValue
 
+T = TypeVar("T")
+
 FULL_TURN_DEG = 360.0             # one zero mark per turn (docs/method.md A1)
 TRACE_POINTS = 600                # a plot of a half never needs more points than pixels
-FOG_TAIL_S = 30.0                 # bench seconds of FOG record shown
 DRIVE_TAIL_BYTES = 96 * 1024      # about 600 feedback readings
-
-
-def tail_jsonl(path: Path, max_bytes: int) -> list[JsonObject]:
-    """The whole records in the last `max_bytes` of a JSON-lines file (first and torn
-    last lines skipped): a growing raw log is read in constant time."""
-    try:
-        size = path.stat().st_size
-        with open(path, "rb") as f:
-            start = max(0, size - max_bytes)
-            f.seek(start)
-            data = f.read(size - start)
-    except FileNotFoundError:
-        return []
-    lines = data.split(b"\n")
-    if start > 0:
-        lines = lines[1:]
-    out: list[JsonObject] = []
-    for line in lines:
-        try:
-            record = json.loads(line)
-        except (json.JSONDecodeError, UnicodeDecodeError):
-            continue
-        if isinstance(record, dict):
-            out.append(record)
-    return out
 
 
 def read_events(run_path: Path) -> list[Event]:
     """Every event of the run (all sessions), each as its kind's record; a torn last line
     is skipped."""
-    return ev.decode_all(tail_jsonl(run_path / layout.EVENTS, 1 << 62))
+    return tail_events(run_path / layout.EVENTS, 1 << 62)
 
 
 def pid_alive(pid: int | None) -> bool:
@@ -97,7 +89,7 @@ def decimate(t: np.ndarray, y: np.ndarray, points: int = TRACE_POINTS
 
 
 def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S,
-              first_index: int = 0) -> dict[str, JsonLike]:
+              first_index: int = 0) -> FogTrace:
     """The last `tail_s` of a FOG capture, decoded and decimated (bench time, deg/s).
 
     Time is the frame's position in the capture over the output rate, from the
@@ -109,29 +101,30 @@ def fog_trace(raw: Path, fog: FogSettings, tail_s: float = FOG_TAIL_S,
         f = get_format(fog.format)
         size = raw.stat().st_size
     except (FileNotFoundError, ValueError, KeyError):
-        return {"t_s": [], "rate_dps": []}
+        return FogTrace()
     want = int(tail_s * fog.rate_hz) * f.size
     start = max(0, size - want)
     with open(raw, "rb") as fh:
         fh.seek(start)
         buf = fh.read(size - start)
     frames, _, stats = decode(buf, f, DecodeState(offset=start))
-    seen: dict[str, JsonLike] = {"tail_s": tail_s, "tail_crc_errors": int(stats.crc_errors),
-            "tail_lost_frames": int(stats.lost_frames)}
+    seen = FogTrace(tail_s=tail_s, tail_crc_errors=int(stats.crc_errors),
+                    tail_lost_frames=int(stats.lost_frames))
     if not len(frames) or fog.axis not in AXES:
-        return {"t_s": [], "rate_dps": [], **seen}
+        return seen
     scale = dps_per_unit(fog.units, fog.rate_hz)
     t = (first_index + frames.offset.astype(np.float64) / f.size) / fog.rate_hz
     y = frames.rates[:, AXES.index(fog.axis)].astype(np.float64) * scale
     ts, ys = decimate(t, y)
-    return {"t_s": ts, "rate_dps": ys, **seen}
+    return msgspec.structs.replace(seen, t_s=ts, rate_dps=ys)
 
 
 def drive_trace(raw: Path) -> dict[str, list[float]]:
     """The drive's recent velocity feedback (TPDO), for the settling plot."""
-    feedback = [(number(rec, "t_s"), number(rec, "velocity_dps"))
-                for rec in tail_jsonl(raw, DRIVE_TAIL_BYTES) if rec.get("kind") == "feedback"]
-    readings = [(t, v) for t, v in feedback if t is not None and v is not None]
+    readings = [(rec.t_s, rec.velocity_dps)
+                for rec in tail_records(raw, DRIVE_TAIL_BYTES, DriveFeedback)
+                if rec.kind == "feedback" and rec.t_s is not None
+                and rec.velocity_dps is not None]
     return {"t_s": [float(t) for t, _ in readings],
             "velocity_dps": [float(v) for _, v in readings]}
 
@@ -154,7 +147,7 @@ def _utc_s(stamp: str) -> float:
     return datetime.fromisoformat(stamp).timestamp()
 
 
-def progress_of(session: list[Event]) -> dict[str, JsonLike]:
+def progress_of(session: list[Event]) -> Progress:
     """Step, progress and ETA of one session, in bench time and in wall time.
 
     The wall ETA is the bench time left over the speed measured so far in this session
@@ -190,19 +183,14 @@ def progress_of(session: list[Event]) -> dict[str, JsonLike]:
         fraction = len(done) / steps
         if left_s is not None and total_s > 0 and len(done) < steps:
             fraction = min(1.0, max(0.0, 1 - left_s / total_s))
-    return {
-        "steps": steps,
-        "steps_done": len(done),
-        "step": None if cur is None else {
-            "index": cur.index, "number": (index or 0) + 1,
-            "action": cur.action, "axis": cur.axis, "unit": cur.unit,
-            "describe": cur.describe, "done": cur.index in done},
-        "fraction": fraction,
-        "bench_time_s": now_bench,
-        "bench_left_s": left_s,
-        "speed": speed,
-        "wall_left_s": (left_s / speed) if (left_s is not None and speed) else None,
-    }
+    return Progress(
+        steps=steps, steps_done=len(done),
+        step=None if cur is None else StepNow(
+            index=cur.index, number=(index or 0) + 1, action=cur.action, axis=cur.axis,
+            unit=cur.unit, describe=cur.describe, done=cur.index in done),
+        fraction=fraction, bench_time_s=now_bench, bench_left_s=left_s, speed=speed,
+        wall_left_s=(left_s / speed) if (left_s is not None and speed) else None,
+        completed=any(isinstance(e, ev.Completed) for e in session))
 
 
 #: wall seconds without new data after which a running bench is flagged on the page: the
@@ -231,8 +219,8 @@ def _utc_of(age_s: float | None, now: float) -> str | None:
 
 
 def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
-           fog_tail: Mapping[str, JsonLike], axis: str | None,
-           acquires: Sequence[TimedHalf], now: float | None = None) -> dict[str, JsonLike]:
+           fog_tail: FogTrace, axis: str | None,
+           acquires: Sequence[TimedHalf], now: float | None = None) -> Health:
     """The bench's health as its files show it: when each instrument was last heard, the
     FOG's lost and broken frames, and how long since anything was written.
 
@@ -241,26 +229,29 @@ def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
     files are quiet by design.
     """
     now = time.time() if now is None else now
-    per_axis: list[JsonLike] = []
+    per_axis: list[AxisHealth] = []
     warnings: list[str] = []
     ages = [a for a in [_age_s(run_path / layout.EVENTS, now)] if a is not None]
     for name in axes:
         lost = sum(e.fog_lost for e in acquires if e.axis == name)
-        row: dict[str, JsonLike] = {"axis": name, "fog_lost_in_halves": lost}
         heard: dict[str, float | None] = {}
         for inst, suffix in (("fog", "fog.bin"), ("drive", "drive.jsonl"),
                              ("counter", "counter.jsonl")):
             age = _age_s(raw / f"{name}-{suffix}", now) if raw is not None else None
-            row[f"{inst}_age_s"] = heard[inst] = age
-            row[f"{inst}_utc"] = _utc_of(age, now)
+            heard[inst] = age
             if age is not None:
                 ages.append(age)
+        row = AxisHealth(axis=name, fog_lost_in_halves=lost,
+                         fog_age_s=heard["fog"], fog_utc=_utc_of(heard["fog"], now),
+                         drive_age_s=heard["drive"], drive_utc=_utc_of(heard["drive"], now),
+                         counter_age_s=heard["counter"],
+                         counter_utc=_utc_of(heard["counter"], now))
         if name == axis:
-            crc_errors, lost_frames = (fog_tail.get("tail_crc_errors"),
-                                       fog_tail.get("tail_lost_frames"))
-            row["fog_tail_s"] = fog_tail.get("tail_s")
-            row["fog_tail_crc_errors"] = crc_errors
-            row["fog_tail_lost_frames"] = lost_frames
+            crc_errors, lost_frames = (_or_none(fog_tail.tail_crc_errors),
+                                       _or_none(fog_tail.tail_lost_frames))
+            row = msgspec.structs.replace(row, fog_tail_s=_or_none(fog_tail.tail_s),
+                                          fog_tail_crc_errors=crc_errors,
+                                          fog_tail_lost_frames=lost_frames)
             if running:
                 fog_age, drive_age = heard["fog"], heard["drive"]
                 if fog_age is not None and fog_age > FOG_SILENT_S:
@@ -279,8 +270,13 @@ def health(run_path: Path, raw: Path | None, axes: list[str], running: bool,
     stale = running and last is not None and last > STALE_S
     if stale:
         warnings.insert(0, f"no update for {last:.0f} s: the bench may be hung")
-    return {"axes": per_axis, "last_update_s": last, "last_update_utc": _utc_of(last, now),
-            "stale": stale, "stale_after_s": STALE_S, "warnings": warnings}
+    return Health(axes=per_axis, last_update_s=last, last_update_utc=_utc_of(last, now),
+                  stale=stale, stale_after_s=STALE_S, warnings=warnings)
+
+
+def _or_none(value: T | msgspec.UnsetType) -> T | None:
+    """A FOG tail's count, None when the tail was not read (no capture yet)."""
+    return None if isinstance(value, msgspec.UnsetType) else value
 
 
 def pair_rows(events: list[Event]) -> list[JsonObject]:
@@ -309,8 +305,8 @@ class Ending(TypedDict):
     status: str
     cause: str | None
     later: list[str]
-    exit_status: JsonValue
-    utc: JsonValue
+    exit_status: int
+    utc: str
 
 
 class RunStatus(TypedDict):
@@ -322,16 +318,15 @@ class RunStatus(TypedDict):
     session: int | None
     events: list[Event]
     pid: int | None
-    exit_status: NotRequired[JsonValue]
-    utc: NotRequired[JsonValue]
+    exit_status: NotRequired[int]
+    utc: NotRequired[str]
 
 
 def _read_result(run_path: Path) -> JsonObject | None:
     try:
-        doc = json.loads((run_path / layout.RESULT).read_text())
+        return read_json_object(run_path / layout.RESULT)
     except (OSError, ValueError):
         return None
-    return doc if isinstance(doc, dict) else None
 
 
 def ending(session: list[Event], run_path: Path) -> Ending | None:
@@ -356,7 +351,7 @@ def ending(session: list[Event], run_path: Path) -> Ending | None:
             or "the input was refused (exit status 2)"
     elif status == "aborted" and not cause:
         status = "incomplete"
-        verdict = (_read_result(run_path) or {}).get("verdict")
+        verdict = read_verdict(run_path / layout.RESULT)
         if verdict is None:
             cause = (f"no result.json was written; `bench analyze {run_path}` writes it from "
                      "the raw data")
@@ -412,12 +407,9 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
     session_no, session, pid, status = st["session"], st["events"], st["pid"], st["status"]
     stand = read_mapping(run_path / layout.STAND)
     prog = progress_of(session)
-    prog["completed"] = any(isinstance(e, ev.Completed) for e in session)
-    step = prog["step"]
-    axis_named = step.get("axis") if isinstance(step, Mapping) else None
-    axis = axis_named if isinstance(axis_named, str) else None
+    axis = prog.step.axis if prog.step is not None else None
     raw = layout.raw_dir(run_path, session_no) if session_no else None
-    fog: dict[str, JsonLike] = {"t_s": [], "rate_dps": []}
+    fog = FogTrace()
     drive: dict[str, list[float]] = {"t_s": [], "velocity_dps": []}
     if raw is not None and axis:
         settings = FogSettings.of_axis(stand, axis) if isinstance(stand, dict) else None
@@ -443,6 +435,8 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
     shown = [{k: v for k, v in ev.plain(e).items() if k not in ("traceback",)}
              for e in shown_events]
     ident = (stand.get("stand") or {}) if isinstance(stand, dict) else {}
+    healthy = health(run_path, raw, used, status == "running", fog, axis, acquires)
+    results = pair_rows(events)
     state: dict[str, JsonLike] = {
         "run": run_path.name,
         "title": _title(run_path),
@@ -456,11 +450,11 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
         "session": session_no,
         "sessions": len(starts),
         "pid": pid,
-        "progress": prog,
+        "progress": encode(prog),
         "turns": turn_rates(shown_acquires[-1]) if shown_acquires else None,
-        "fog": {"axis": axis, **fog},
-        "health": health(run_path, raw, used, status == "running", fog, axis, acquires),
-        "results": pair_rows(events),
+        "fog": {"axis": axis, **encode(fog)},
+        "health": encode(healthy),
+        "results": results,
         "final": final,
         "drive": {"axis": axis, **drive},
         "faults": [line for e, line in zip(shown_events, shown, strict=True)
@@ -472,7 +466,10 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
         "verdict": result,
         "files": [n for n in DOWNLOADS if (run_path / n).exists()],
     }
-    state["view"] = page_view(state, run_path, shown_events)
+    page = PageState(status=status, progress=prog, cause=st["cause"], later=st["later"],
+                     sessions=len(starts), session=session_no, ended_utc=st.get("utc"),
+                     ended=status in ENDED, results=results)
+    state["view"] = page_view(page, healthy, run_path, shown_events)
     return state
 
 

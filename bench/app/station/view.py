@@ -16,11 +16,14 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from datetime import datetime
 from pathlib import Path
 
+import msgspec
+
 from bench.app.records.extract import figures_of, kind_name
+from bench.app.station.state import FOG_TAIL_S, AxisHealth, Health, PageState
 from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.events import Event
@@ -32,7 +35,7 @@ from bench.report.certificate.rounding import (
     format_value_u,
 )
 from bench.report.figures import spec_for
-from bench.report.station import StationParts, number, page_table, rate_text
+from bench.report.station import StationParts, page_table, rate_text
 from drivers.json_types import JsonLike, JsonObject
 
 #: how each status reads on the page, for a run that has ended or stopped
@@ -68,58 +71,32 @@ def _duration(s: float | None) -> str:
     return "-" if s is None or not math.isfinite(s) else format_duration(max(0.0, s))
 
 
-def _count(v: object) -> int:
-    """A count from the state (0 when absent)."""
-    return int(v) if isinstance(v, int | float | str) and v else 0
-
-
-def _stamp(v: object) -> str | None:
-    return v if isinstance(v, str) else None
-
-
-def _part(v: object) -> Mapping[str, object]:
-    """A part of the state that is a mapping ({} when absent)."""
-    return v if isinstance(v, Mapping) else {}
-
-
-def _items(v: object) -> list[object]:
-    return list(v) if isinstance(v, list | tuple) else []
-
-
-def _step_words(step: Mapping[str, object]) -> str:
-    words = " ".join(str(x) for x in (step.get("axis"), step.get("action")) if x)
-    describe = step.get("describe")
-    return f"{words} - {describe}" if describe else words
-
-
 # -- progress -------------------------------------------------------------------------------
 
-def progress_view(state: Mapping[str, object]) -> dict[str, JsonLike]:
+def progress_view(state: PageState) -> dict[str, JsonLike]:
     """The step line, the line beneath it and the bar (0 to 1); for a finished run how it
     ended, with the first cause, and the bar where the run got to (full once the plan
     completed: the engine journals `completed` only then)."""
-    prog = _part(state.get("progress"))
-    status = str(state.get("status"))
-    steps, done = _count(prog.get("steps")), _count(prog.get("steps_done"))
-    step = _part(prog.get("step"))
-    cause = state.get("cause")
+    prog = state.progress
+    status = state.status
+    steps, done = prog.steps, prog.steps_done
+    step = prog.step
+    cause = state.cause
     if status in ("running", "created"):
-        if step:
-            line = f"Step {step.get('number')} of {steps}: {_step_words(step)}"
+        if step is not None:
+            line = f"Step {step.number} of {steps}: {step.words}"
         else:
             line = "not started" if status == "created" else "starting: no step yet"
-        speed = prog.get("speed")
+        speed = prog.speed
         speed_text = (f" (measured speed {speed:.1f} bench s per wall s)" if speed else "")
         detail = (f"{done} of {steps} steps done; bench time left "
-                  f"{_duration(number(prog.get('bench_left_s')))}, wall time left "
-                  f"{_duration(number(prog.get('wall_left_s')))}{speed_text}")
-        fraction = prog.get("fraction")
-        return {"value": float(fraction) if isinstance(fraction, int | float) and fraction
-                else 0.0, "line": line, "detail": detail,
-                "complete": False, "later": []}
-    completed = bool(prog.get("completed"))
-    where = (f"{'after' if step.get('done') else 'at'} step {step.get('number')} of {steps} "
-             f"({_step_words(step)})" if step else "before the first step")
+                  f"{_duration(prog.bench_left_s)}, wall time left "
+                  f"{_duration(prog.wall_left_s)}{speed_text}")
+        return {"value": float(prog.fraction) if prog.fraction else 0.0, "line": line,
+                "detail": detail, "complete": False, "later": []}
+    completed = prog.completed
+    where = (f"{'after' if step.done else 'at'} step {step.number} of {steps} "
+             f"({step.words})" if step is not None else "before the first step")
     word = ENDED_WORDS.get(status, status.capitalize())
     if status in ("passed", "failed"):
         line = (f"Completed: all {steps} steps done; the run {status}" if steps
@@ -131,53 +108,62 @@ def progress_view(state: Mapping[str, object]) -> dict[str, JsonLike]:
     else:
         line = f"{word} {where}: {cause}" if cause else f"{word} {where}"
     parts = ([f"{done} of {steps} steps done"] if steps else ["no step was run"])
-    if state.get("sessions", 0) and _count(state.get("sessions")) > 1:
-        parts[0] += f" in session {state.get('session')} of {state.get('sessions')}"
-    if state.get("ended_utc"):
-        parts.append(f"ended {_utc_text(_stamp(state.get('ended_utc')))} UTC")
-    if steps and prog.get("bench_time_s"):
-        parts.append(f"bench time {_duration(number(prog.get('bench_time_s')))}")
+    if state.sessions > 1:
+        parts[0] += f" in session {state.session} of {state.sessions}"
+    if state.ended_utc:
+        parts.append(f"ended {_utc_text(state.ended_utc)} UTC")
+    if steps and prog.bench_time_s:
+        parts.append(f"bench time {_duration(prog.bench_time_s)}")
     value = 1.0 if completed else (done / steps if steps else 0.0)
     return {"value": value, "line": line, "detail": "; ".join(parts),
             "complete": completed,
-            "later": [f"also, while stopping: {x}" for x in _items(state.get("later"))]}
+            "later": [f"also, while stopping: {x}" for x in state.later]}
 
 
 # -- health -----------------------------------------------------------------------------------
 
-def health_view(health: Mapping[str, object], status: str) -> dict[str, JsonLike]:
+def _tail_counts(a: AxisHealth) -> str:
+    """'CRC errors / frames lost' of the FOG tail, '-' when none was read for the axis."""
+    crc = a.fog_tail_crc_errors
+    if crc is None or isinstance(crc, msgspec.UnsetType):
+        return "-"
+    lost = a.fog_tail_lost_frames
+    return f"{crc} / {None if isinstance(lost, msgspec.UnsetType) else lost}"
+
+
+def health_view(health: Health, status: str) -> dict[str, JsonLike]:
     """While running: how long since each instrument was heard, with warnings. Otherwise
     the instruments' last state: the counts as they were and the wall time (UTC) each
     was last heard; no warning, since a finished run's files are quiet by design."""
     running = status == "running"
     rows = []
-    for a in map(_part, _items(health.get("axes"))):
-        tail = ("-" if a.get("fog_tail_crc_errors") is None
-                else f"{a.get('fog_tail_crc_errors')} / {a.get('fog_tail_lost_frames')}")
+    instruments = ("fog", "drive", "counter")
+    for a in health.axes:
         if running:
-            heard = [_age(number(a.get(f"{i}_age_s"))) for i in ("fog", "drive", "counter")]
+            heard = [_age(a.age_s(i)) for i in instruments]
         else:
-            heard = [_utc_text(_stamp(a.get(f"{i}_utc"))) for i in ("fog", "drive", "counter")]
-        rows.append([str(a.get("axis")), heard[0], str(a.get("fog_lost_in_halves", "-")),
-                     tail, heard[1], heard[2]])
+            heard = [_utc_text(a.utc(i)) for i in instruments]
+        rows.append([a.axis, heard[0], str(a.fog_lost_in_halves), _tail_counts(a),
+                     heard[1], heard[2]])
     when = "" if running else " (UTC)"
+    # the tail's length is the live read's (live.py FOG_TAIL_S), as the page always said
     header = ["axis", f"FOG last data{when}", "FOG frames lost (timed halves)",
-              f"FOG CRC errors / frames lost, last {health.get('fog_tail_s') or 30:g} s of record",
+              f"FOG CRC errors / frames lost, last {FOG_TAIL_S:g} s of record",
               "drive last heard (heartbeat, feedback)" if running
               else "drive last heard (UTC; heartbeat, feedback)", f"counter last reading{when}"]
     if running:
-        last = number(health.get("last_update_s"))
+        last = health.last_update_s
         note = ("" if last is None else
-                f"- last update {_age(last)}{' (STALE)' if health.get('stale') else ''}")
+                f"- last update {_age(last)}{' (STALE)' if health.stale else ''}")
         title = "Health"
     else:
         title = ("Instruments when last heard" if status in ("stopped", "created")
                  else "Instruments at the end of the run")
-        note = (f"- files last written {_utc_text(_stamp(health.get('last_update_utc')))} UTC"
-                if health.get("last_update_utc") else "")
+        note = (f"- files last written {_utc_text(health.last_update_utc)} UTC"
+                if health.last_update_utc else "")
     return {"title": title, "note": note, "header": header, "rows": rows,
-            "warnings": [str(w) for w in _items(health.get("warnings"))] if running else [],
-            "stale": bool(health.get("stale")) and running}
+            "warnings": list(health.warnings) if running else [],
+            "stale": health.stale and running}
 
 
 # -- results ----------------------------------------------------------------------------------
@@ -253,20 +239,19 @@ def final_view(run_path: Path) -> tuple[str | None, list[dict[str, JsonLike]]] |
     return verdict, list(tables)
 
 
-def results_view(state: Mapping[str, object], run_path: Path) -> dict[str, JsonLike]:
+def results_view(state: PageState, run_path: Path) -> dict[str, JsonLike]:
     """The results section: while running, the first look per pair; once the run has
     ended, result.json's verdict and tables (the certificate prints these figures)."""
-    live = [r for r in _items(state.get("results")) if isinstance(r, Mapping)]
+    live = state.results
     # result.json is this session's only once it has ended (a session stopped or refused
     # under it leaves an earlier session's analysis there)
-    final = final_view(run_path) if state.get("ended") and state.get("status") != "refused" \
-        else None
+    final = final_view(run_path) if state.ended and state.status != "refused" else None
     if final is not None and final[1]:
         verdict, tables = final
         return {"title": "Final results (result.json; the certificate prints these figures)",
                 "verdict": verdict_label(verdict) if verdict else None, "final": True,
                 "tables": tables, "note": U_NOTE}
-    if state.get("status") == "refused":
+    if state.status == "refused":
         none = "nothing was measured: the run was refused before anything moved"
     elif final is not None:
         none = "result.json holds no figures this page can show"
@@ -310,18 +295,17 @@ def log_line(e: Event) -> str:
 
 # -- the page ---------------------------------------------------------------------------------
 
-def page_view(state: Mapping[str, object], run_path: Path, log: Sequence[Event]
+def page_view(state: PageState, health: Health, run_path: Path, log: Sequence[Event]
               ) -> dict[str, JsonLike]:
     """Everything the run's page prints, from the state `live_state` reads and the events
     its log shows."""
-    status = str(state.get("status"))
-    prog = _part(state.get("progress"))
+    status = state.status
     return {
         "progress": progress_view(state),
-        "health": health_view(_part(state.get("health")), status),
+        "health": health_view(health, status),
         "results": results_view(state, run_path),
         "log": [{"event": e.kind, "text": log_line(e)} for e in log],
         # the charts show what a step recorded: none for a run refused before its first
-        "charts": status in ("running", "created") or bool(prog.get("step")),
+        "charts": status in ("running", "created") or state.progress.step is not None,
         "live": status in ("running", "created"),
     }
