@@ -15,11 +15,13 @@ import copy
 import math
 import re
 from collections.abc import Mapping, Sequence
-from typing import cast
+from pathlib import Path
+from typing import Annotated, cast
 
 import msgspec
 
 from bench.core import rundir_layout as layout
+from bench.core.journal import read_jsonl
 from bench.report.certificate.parts import Sources
 from bench.report.codec import encode
 from bench.report.result_frame import (
@@ -237,6 +239,58 @@ def ladder_model(src: Sources) -> LadderResult:
     """The certificate's and the DCC's model of the (conformed) result: `src.model(
     ladder_model)` decodes it once for every section."""
     return ladder_of(src.result)
+
+
+# -- the run folder's inputs: the counter's raw log, the corrections file ---------------------
+
+class CounterReply(msgspec.Struct, frozen=True):
+    """One line of a counter's raw log (bench/core/instruments.py): its direction and
+    text; any other key of the line is not the analysis's."""
+
+    dir: str = ""
+    data: str | None = None
+
+
+def counter_replies(path: Path) -> list[CounterReply]:
+    """A counter's raw log, line by line (a torn line is skipped, a line whose direction
+    or text is not text reads as neither)."""
+    out = []
+    for rec in read_jsonl(path):
+        try:
+            out.append(msgspec.convert(rec, CounterReply))
+        except msgspec.ValidationError:
+            out.append(CounterReply())
+    return out
+
+
+class Correction(msgspec.Struct, frozen=True):
+    """One entry of the run folder's corrections file (issue 58): the item's place, the
+    quantity, its value and expanded uncertainty U (k = 2; null: none stated)."""
+
+    where: str = ""
+    quantity: str = ""
+    value: float = math.nan
+    U: Annotated[float, msgspec.Meta(ge=0.0)] | None = None     # noqa: N815
+
+
+class CorrectionsFile(msgspec.Struct, frozen=True):
+    corrections: tuple[Correction, ...] = ()
+
+
+def read_corrections(path: Path) -> tuple[tuple[Correction, ...], JsonValue]:
+    """The corrections file's entries decoded, and as written (result.json states them
+    so); a torn file or an entry of the wrong type raises ValueError naming the file and
+    the key (`corrections[0].value: expected a number, got str`)."""
+    try:
+        doc = msgspec.json.decode(path.read_bytes())
+    except msgspec.DecodeError as e:
+        raise ValueError(f"{path}: not JSON: {e}") from None
+    try:
+        found = msgspec.convert(doc, CorrectionsFile)
+    except msgspec.ValidationError as err:
+        where, problem = _problem(err)
+        raise ValueError(f"{path}: {where.lstrip('.')}: {problem}") from None
+    return found.corrections, doc.get("corrections")
 
 
 def row_json(row: ResultRow) -> JsonObject:
