@@ -16,7 +16,7 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Annotated, cast
+from typing import TYPE_CHECKING, Annotated, cast
 
 import msgspec
 
@@ -39,6 +39,9 @@ from bench.report.result_frame import (
     conform_plain_list,
 )
 from procedures.rate_ladder.events import ResultRow
+
+if TYPE_CHECKING:
+    from procedures.rate_ladder.conditions import AxisTemperature
 from procedures.rate_ladder.result import LadderAxis, LadderCheck, LadderResult
 
 #: the body's key in result.json, and the root of every path a refusal names
@@ -93,17 +96,24 @@ def conform_ladder(doc: JsonObject, issues: Issues) -> JsonObject:
     return doc
 
 
-def with_conditions_measured(doc: dict[str, object], fog_axes: Mapping[str, object]
+class _FogTemperature(msgspec.Struct, frozen=True, kw_only=True):
+    source: str = ("FOG frames' temperature field (table top, at the FOG), deg C, integer "
+                   "resolution")
+    axes: Mapping[str, AxisTemperature]
+
+
+class _ConditionsMeasured(msgspec.Struct, frozen=True):
+    fog_temperature: _FogTemperature | None
+    room: None = None       # no sensor on this stand: not measured
+
+
+def with_conditions_measured(doc: dict[str, object], fog_axes: Mapping[str, AxisTemperature]
                              ) -> dict[str, object]:
     """The analysis' result with what the bench measured itself (`conditions_measured`):
     the FOG's temperature per axis (procedures/rate_ladder/conditions.py), none when no
-    half recorded it; the room: no sensor on this stand, not measured."""
-    doc["conditions_measured"] = {
-        "fog_temperature": {"source": "FOG frames' temperature field (table top, at the "
-                                      "FOG), deg C, integer resolution", "axes": fog_axes}
-        if fog_axes else None,
-        "room": None,
-    }
+    half recorded it."""
+    doc["conditions_measured"] = encode(_ConditionsMeasured(_FogTemperature(axes=fog_axes)
+                                                            if fog_axes else None))
     return doc
 
 
@@ -151,31 +161,26 @@ def _axis(name: str, node: JsonValue) -> LadderAxis:
 
 
 def _drop(node: JsonValue, path: str) -> bool:
-    """Remove the entry at `path` (msgspec's `.key[0].key` below an axis) from `node`: a
-    key of an object (its default then reads "not stated") or, for a missing key, the
-    object holding it from its list. False when there is nothing to remove."""
+    """Remove the entry at `path` (msgspec's `.key[0].key` below an axis, every step but
+    the last one there) from `node`: a key of an object (its default then reads "not
+    stated") or, for a missing key, the object holding it from its list. False when there
+    is nothing to remove."""
     steps: list[str | int] = [m["key"] if m["key"] else int(m["index"])
                               for m in _STEP.finditer(path)]
-    parents: list[JsonValue] = []
-    at = node
+    chain = [node]
     for step in steps[:-1]:
-        parents.append(at)
-        if isinstance(step, int) and isinstance(at, list) and step < len(at):
-            at = at[step]
-        elif isinstance(step, str) and isinstance(at, dict) and step in at:
-            at = at[step]
-        else:
-            return False
-    last = steps[-1] if steps else None
-    if isinstance(at, dict) and isinstance(last, str) and last in at:
-        del at[last]
+        at = chain[-1]
+        chain.append(at[step] if isinstance(at, list) and isinstance(step, int) else
+                     at.get(step) if isinstance(at, dict) and isinstance(step, str) else None)
+    if steps and isinstance(at := chain[-1], dict) and steps[-1] in at:
+        del at[steps[-1]]
         return True
     # a required key missing: the item holding it goes from its list
-    for parent, step in zip(reversed(parents), reversed(steps[:-1]), strict=False):
-        if isinstance(parent, list) and isinstance(step, int):
-            del parent[step]
-            return True
-    return False
+    lists = [(p, i) for p, i in zip(chain[:-1], steps, strict=False)
+             if isinstance(p, list) and isinstance(i, int)]
+    if lists:
+        del lists[-1][0][lists[-1][1]]
+    return bool(lists)
 
 
 def _lenient_axis(name: str, node: JsonValue, dropped: list[str]) -> JsonValue:

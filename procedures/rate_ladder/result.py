@@ -496,11 +496,9 @@ def rate_entry(r: RateResult) -> RateEntry:
         intra_turn_instability_corrected_rel=r.random.corrected_rel,
         # docs/method.md A5: U of a std from the record's samples (white random part assumed)
         intra_turn_instability_u_rel=r.random.raw_U_rel,
-        intra_turn_instability_U_rel=r.random.raw_U_rel,
         # docs/method.md A5: the corrected figure's U only when it is resolved (JCGM 101);
         # otherwise it is stated as '< intra_turn.corrected_upper_rel'
         intra_turn_instability_corrected_u_rel=r.random.corrected_u_rel,
-        intra_turn_instability_corrected_U_rel=r.random.corrected_u_rel,
         systematic=systematic(r.systematic), intra_turn=intra_turn(r.random),
         windows=tuple(dict(w) for w in r.windows))
     if r.verdict is None:
