@@ -16,7 +16,7 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, cast
+from typing import Annotated, cast
 
 import msgspec
 
@@ -39,9 +39,6 @@ from bench.report.result_frame import (
     conform_plain_list,
 )
 from procedures.rate_ladder.events import ResultRow
-
-if TYPE_CHECKING:
-    from procedures.rate_ladder.conditions import AxisTemperature
 from procedures.rate_ladder.result import LadderAxis, LadderCheck, LadderResult
 
 #: the body's key in result.json, and the root of every path a refusal names
@@ -99,7 +96,7 @@ def conform_ladder(doc: JsonObject, issues: Issues) -> JsonObject:
 class _FogTemperature(msgspec.Struct, frozen=True, kw_only=True):
     source: str = ("FOG frames' temperature field (table top, at the FOG), deg C, integer "
                    "resolution")
-    axes: Mapping[str, AxisTemperature]
+    axes: Mapping[str, object]      # conditions.py's AxisTemperature per axis
 
 
 class _ConditionsMeasured(msgspec.Struct, frozen=True):
@@ -107,7 +104,7 @@ class _ConditionsMeasured(msgspec.Struct, frozen=True):
     room: None = None       # no sensor on this stand: not measured
 
 
-def with_conditions_measured(doc: dict[str, object], fog_axes: Mapping[str, AxisTemperature]
+def with_conditions_measured(doc: dict[str, object], fog_axes: Mapping[str, object]
                              ) -> dict[str, object]:
     """The analysis' result with what the bench measured itself (`conditions_measured`):
     the FOG's temperature per axis (procedures/rate_ladder/conditions.py), none when no
