@@ -27,6 +27,7 @@ SCANNED = ("bench", "drivers", "procedures", "sims")
 CODECS = frozenset({
     "bench/app/fleet/codec.py",
     "bench/app/impact_codec.py",
+    "bench/app/records/codec.py",
     "bench/core/events.py",
     "bench/core/journal_codec.py",
     "bench/core/settings_codec.py",

@@ -592,20 +592,21 @@ def test_which_lab_settings_and_key_are_in_force(tmp_path: Path,
     """--lab, then the stand's dcc.lab, then $BENCH_LAB_SETTINGS; a key named in the stand
     file overrides the lab file's."""
     from bench.app.dcc.settings import resolve_settings
+    from bench.core.config import dcc_refs
 
     key, cert = _throwaway_key(tmp_path / "keys", "lab")
     (tmp_path / "a").mkdir()
     first = _lab_file(tmp_path / "a", key, cert)
     second = tmp_path / "b.yaml"
     second.write_text("laboratory: {name: Second Lab}\n")
-    assert resolve_settings({}).laboratory is None                 # nothing configured
+    assert resolve_settings(dcc_refs({})).laboratory is None       # nothing configured
     monkeypatch.setenv(ENV_LAB, str(second))
-    assert resolve_settings({}).laboratory.name == "Second Lab"
-    assert resolve_settings({"dcc": {"lab": str(first)}}).laboratory.name == "Test Rate Lab"
-    assert resolve_settings({"dcc": {"lab": str(first)}}, lab_file=second).laboratory.name \
-        == "Second Lab"
+    assert resolve_settings(dcc_refs({})).laboratory.name == "Second Lab"
+    stated = dcc_refs({"dcc": {"lab": str(first)}})
+    assert resolve_settings(stated).laboratory.name == "Test Rate Lab"
+    assert resolve_settings(stated, lab_file=second).laboratory.name == "Second Lab"
     own = {"key": str(tmp_path / "stand.key.pem"), "certificate": str(cert)}
-    chosen = resolve_settings({"dcc": {"lab": str(first), "signing": own}})
+    chosen = resolve_settings(dcc_refs({"dcc": {"lab": str(first), "signing": own}}))
     assert chosen.laboratory.name == "Test Rate Lab"
     assert chosen.signing.key_file == tmp_path / "stand.key.pem"
-    assert resolve_settings({"dcc": {"lab": str(first)}}).signing.key_file == key
+    assert resolve_settings(stated).signing.key_file == key

@@ -15,8 +15,7 @@ Beside each decision, the RMG 63-2003 capability rule: the measurement's error l
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-from typing import Any
+import msgspec
 
 RULES = {
     "simple": "simple acceptance: pass when |value| <= tolerance (U stated, not subtracted)",
@@ -26,13 +25,17 @@ CAPABILITY_GOOD = 0.2
 CAPABILITY_LIMIT = 0.3
 
 
-@dataclass(frozen=True)
-class Check:
+class Check(msgspec.Struct, frozen=True, kw_only=True):
+    """One judgement, as result.json's `checks[]` states it (a msgspec Struct: its field
+    order is the key order; a kind's check with more fields derives from it). `U_rel` is
+    `u_rel`'s explicit twin (the expanded U, k = 2: bench/report/uncertainty_names.py)."""
+
     axis: str
     set_rate_dps: float
     quantity: str
     value_rel: float
     u_rel: float
+    U_rel: float | None = None       # noqa: N815 - u_rel's twin; None: the same as u_rel
     tolerance_rel: float
     rule: str
     verdict: str
@@ -41,9 +44,6 @@ class Check:
     capability_ok: bool
     upper_rel: float | None = None   # the one-sided limit L of an unresolved value
     one_sided: bool = False          # the statement is "< L" (judged on L, judge_limit)
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
 
 
 def judge(axis: str, set_rate_dps: float, quantity: str, value_rel: float, u_rel: float,
@@ -64,8 +64,9 @@ def judge(axis: str, set_rate_dps: float, quantity: str, value_rel: float, u_rel
         reason = (f"|value| + U = {mag + u_rel:.3g} <= tolerance {tolerance_rel:.3g}"
                   if rule == "guard-band" else
                   f"|value| {mag:.3g} <= tolerance {tolerance_rel:.3g}")
-    return Check(axis, set_rate_dps, quantity, value_rel, u_rel, tolerance_rel, rule, verdict,
-                 reason, ratio, ratio <= CAPABILITY_LIMIT)
+    return Check(axis=axis, set_rate_dps=set_rate_dps, quantity=quantity, value_rel=value_rel,
+                 u_rel=u_rel, tolerance_rel=tolerance_rel, rule=rule, verdict=verdict,
+                 reason=reason, capability_ratio=ratio, capability_ok=ratio <= CAPABILITY_LIMIT)
 
 
 def judge_limit(axis: str, set_rate_dps: float, quantity: str, value_rel: float,
@@ -85,5 +86,7 @@ def judge_limit(axis: str, set_rate_dps: float, quantity: str, value_rel: float,
         reason = (f"not resolved: its {level} one-sided limit {upper_rel:.3g} exceeds the "
                   f"tolerance {tolerance_rel:.3g}, so the data neither show conformity nor "
                   "refute it")
-    return Check(axis, set_rate_dps, quantity, value_rel, u_rel, tolerance_rel, rule, verdict,
-                 reason, ratio, ratio <= CAPABILITY_LIMIT, upper_rel=upper_rel, one_sided=True)
+    return Check(axis=axis, set_rate_dps=set_rate_dps, quantity=quantity, value_rel=value_rel,
+                 u_rel=u_rel, tolerance_rel=tolerance_rel, rule=rule, verdict=verdict,
+                 reason=reason, capability_ratio=ratio, capability_ok=ratio <= CAPABILITY_LIMIT,
+                 upper_rel=upper_rel, one_sided=True)

@@ -10,15 +10,18 @@ a result.
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Mapping
-from typing import TypeVar
+from pathlib import Path
+from typing import Annotated, TypeVar
 
 import msgspec
 
 from bench.core import rundir_layout as layout
 from bench.core.journal import RunDir
 from bench.report.codec import encode as encode
+from drivers.json_types import JsonValue
 from procedures.drift_pulse.result import AxisFigures, DriftFigures
 
 #: the body's key in result.json, and the root of every path a refusal names
@@ -78,6 +81,47 @@ def drift_of(result: Mapping[str, object]) -> DriftFigures:
     if ROOT not in result:
         raise MalformedResult(ROOT, "missing")
     return decode(result[ROOT], DriftFigures)
+
+
+class Correction(msgspec.Struct, frozen=True):
+    """One entry of the run folder's corrections file (issue 58, procedures/drift_pulse/
+    corrections.py): the item's place, the quantity, its value, its expanded uncertainty U
+    (k = 2; null: none stated) and the item's serial."""
+
+    where: str = ""
+    quantity: str = ""
+    value: float = math.nan
+    U: Annotated[float, msgspec.Meta(ge=0.0)] | None = None     # noqa: N815
+    serial: str | int | None = None
+
+
+#: a correction's number at fault, and what it should be
+_NUMBER = re.compile(r"\.corrections\[(?P<i>\d+)\]\.(?P<key>value|U)")
+_WANT = {"value": "a finite number", "U": "a finite number >= 0 or null"}
+
+
+class _CorrectionsFile(msgspec.Struct, frozen=True):
+    corrections: tuple[Correction, ...]
+
+
+def corrections_file(path: Path) -> list[tuple[Correction, JsonValue]]:
+    """Each entry of the corrections file decoded, beside it as written (result.json states
+    the applied ones so); a torn file or an entry of the wrong type raises ValueError naming
+    the file and the key (`corrections[0].U: expected a number >= 0.0`)."""
+    try:
+        doc = msgspec.json.decode(path.read_bytes())
+    except msgspec.DecodeError as e:
+        raise ValueError(f"{path}: not JSON: {e}") from None
+    try:
+        found = msgspec.convert(doc, _CorrectionsFile, strict=True)
+    except msgspec.ValidationError as err:
+        refused = _refusal(err, doc, "")
+        problem = str(refused).removeprefix(f"result.json {refused.path}: ")
+        if (m := _NUMBER.fullmatch(refused.path)) and isinstance(doc["corrections"][
+                i := int(m["i"])], dict):       # the file's words: what it should hold
+            problem = f"{_WANT[m['key']]}, got {doc['corrections'][i].get(m['key'])!r}"
+        raise ValueError(f"{path}: {refused.path.lstrip('.')}: {problem}") from None
+    return list(zip(found.corrections, doc["corrections"], strict=True))
 
 
 def dmm_replies(run: RunDir, session: int, gyro: str, model: str) -> list[str]:

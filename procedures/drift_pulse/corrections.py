@@ -22,13 +22,15 @@ docs/method.md B, "The drift kind's instrument corrections".
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from drivers.json_types import JsonValue
+from procedures.drift_pulse.codec import corrections_file
 
 #: the run folder's corrections file (as procedures/rate_ladder/analysis.py reads it)
 CORRECTIONS = "corrections.json"
@@ -57,7 +59,7 @@ class DriftCorrections:
 
     dmm: Mapping[str, Mapping[str, Correction]] = field(default_factory=dict)
     awg: Mapping[str, Correction] = field(default_factory=dict)
-    stated: tuple[object, ...] = ()          # the file's entries as written (result.json)
+    stated: tuple[JsonValue, ...] = ()       # the file's entries as written (result.json)
 
     def __bool__(self) -> bool:
         return bool(self.dmm or self.awg)
@@ -85,17 +87,6 @@ class DriftCorrections:
         return (np.asarray(u_v, dtype=float) - o) / (1.0 + g)
 
 
-def _number(path: Path, i: int, key: str, x: object, *, optional: bool = False
-            ) -> float | None:
-    if x is None and optional:
-        return None
-    if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x) \
-            or (optional and x < 0):
-        want = "a finite number >= 0 or null" if optional else "a finite number"
-        raise ValueError(f"{path}: corrections[{i}].{key}: {want}, got {x!r}")
-    return float(x)
-
-
 def read_corrections(run_path: Path) -> DriftCorrections:
     """The drift corrections the run folder's corrections file states; none without one.
     A malformed entry for the drift kind's items raises, naming the file and the key: a
@@ -104,40 +95,27 @@ def read_corrections(run_path: Path) -> DriftCorrections:
     path = Path(run_path) / CORRECTIONS
     if not path.is_file():
         return DriftCorrections()
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except ValueError as e:
-        raise ValueError(f"{path}: not JSON: {e}") from None
-    entries = doc.get("corrections") if isinstance(doc, dict) else None
-    if not isinstance(entries, list):
-        raise ValueError(f"{path}: corrections: a list of corrections, got {entries!r}")
     dmm: dict[str, dict[str, Correction]] = {}
     awg: dict[str, Correction] = {}
-    stated: list[object] = []
-    for i, c in enumerate(entries):
-        if not isinstance(c, dict):
-            raise ValueError(f"{path}: corrections[{i}]: a mapping, got {c!r}")
-        where, quantity = str(c.get("where") or ""), str(c.get("quantity") or "")
-        parts = where.split(".")
+    stated: list[JsonValue] = []
+    for i, (c, written) in enumerate(corrections_file(path)):
+        parts = c.where.split(".")
         is_dmm = len(parts) == 4 and parts[:2] == ["platform", "gyros"] and parts[3] == "dmm"
-        if not (is_dmm or where == "platform.awg"):
+        if not (is_dmm or c.where == "platform.awg"):
             continue
         allowed = DMM_QUANTITIES if is_dmm else AWG_QUANTITIES
-        if quantity not in allowed:
-            raise ValueError(f"{path}: corrections[{i}].quantity: {where} takes "
-                             f"{', '.join(allowed)}, got {quantity!r}")
-        value = _number(path, i, "value", c.get("value"))
-        big_u = _number(path, i, "U", c.get("U"), optional=True)
-        assert value is not None
-        if quantity == "gain_error_rel" and value <= -1.0:
-            raise ValueError(f"{path}: corrections[{i}].value: a gain error above -1, got "
-                             f"{value!r}")
-        corr = Correction(where, quantity, value,
-                          0.0 if big_u is None else big_u / CORRECTION_U_COVERAGE,
-                          str(c["serial"]) if c.get("serial") else None)
+        if c.quantity not in allowed:
+            raise ValueError(f"{path}: corrections[{i}].quantity: {c.where} takes "
+                             f"{', '.join(allowed)}, got {c.quantity!r}")
+        if not math.isfinite(c.value) or (c.quantity == "gain_error_rel" and c.value <= -1.0):
+            want = "a gain error above -1" if math.isfinite(c.value) else "a finite number"
+            raise ValueError(f"{path}: corrections[{i}].value: {want}, got {c.value!r}")
+        corr = Correction(c.where, c.quantity, c.value,
+                          0.0 if c.U is None else c.U / CORRECTION_U_COVERAGE,
+                          str(c.serial) if c.serial else None)
         if is_dmm:
-            dmm.setdefault(parts[2], {})[quantity] = corr
+            dmm.setdefault(parts[2], {})[c.quantity] = corr
         else:
-            awg[quantity] = corr
-        stated.append(c)
+            awg[c.quantity] = corr
+        stated.append(written)
     return DriftCorrections(dmm, awg, tuple(stated))

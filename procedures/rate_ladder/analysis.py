@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import tempfile
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -33,16 +33,22 @@ from bench.core import rundir_layout as layout
 from bench.core.config import Config, CounterSettings
 from bench.core.events import Event
 from bench.core.journal import RunDir, fog_capture_starts, units_done
-from bench.core.journal_codec import float_field, read_jsonl, str_field
+from bench.core.journal_codec import float_field
 from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor, FogCheckpoint
-from drivers.json_types import JsonObject
 from drivers.scpi import parse_numbers
 from procedures.base import RawHashes, result_document
 from procedures.rate_ladder import result as result_model
 from procedures.rate_ladder.budgets import with_budgets
-from procedures.rate_ladder.codec import ROOT, encode_axes, encode_checks
+from procedures.rate_ladder.codec import (
+    ROOT,
+    CounterReply,
+    counter_replies,
+    encode_axes,
+    encode_checks,
+    read_corrections,
+)
 from procedures.rate_ladder.conditions import TemperatureSpan, memo_key
 from procedures.rate_ladder.events import (
     HalfAcquired,
@@ -94,30 +100,19 @@ def counter_timebase_offsets(run_path: Path) -> dict[str, TimebaseCorrection]:
     states (`where` axes.<axis>.counter, `quantity` timebase_offset_rel, `value` e, `U` its
     expanded uncertainty); {} without one. A malformed entry raises, naming the file and
     the key: a correction is never half applied."""
-    import json
-
     path = Path(run_path) / CORRECTIONS
     if not path.is_file():
         return {}
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except ValueError as e:
-        raise ValueError(f"{path}: not JSON: {e}") from None
     out: dict[str, TimebaseCorrection] = {}
-    for i, c in enumerate(doc.get("corrections") or []):
-        where = str(c.get("where") or "").split(".")
-        if c.get("quantity") == "timebase_offset_rel" and len(where) == 3 \
+    for i, c in enumerate(read_corrections(path)[0]):
+        where = c.where.split(".")
+        if c.quantity == "timebase_offset_rel" and len(where) == 3 \
                 and where[0] == "axes" and where[2] == "counter":
-            value, big_u = c.get("value"), c.get("U")
-            if not isinstance(value, int | float) or not math.isfinite(value):
+            if not math.isfinite(c.value):
                 raise ValueError(f"{path}: corrections[{i}].value: a finite number, got "
-                                 f"{value!r}")
-            if big_u is not None and (not isinstance(big_u, int | float)
-                                      or not math.isfinite(big_u) or big_u < 0):
-                raise ValueError(f"{path}: corrections[{i}].U: a finite number >= 0 or "
-                                 f"null, got {big_u!r}")
+                                 f"{c.value!r}")
             out[where[1]] = TimebaseCorrection(
-                float(value), 0.0 if big_u is None else float(big_u) / CORRECTION_U_COVERAGE)
+                c.value, 0.0 if c.U is None else c.U / CORRECTION_U_COVERAGE)
     return out
 
 
@@ -141,7 +136,7 @@ def fog_bracket(edges_s: np.ndarray, rate_hz: float) -> tuple[int, int]:
             math.floor(float(edges_s[-1]) * rate_hz) + 2)
 
 
-def edges_from_replies(records: Iterable[Mapping[str, object]], model: str, n_edges: int,
+def edges_from_replies(records: Iterable[CounterReply], model: str, n_edges: int,
                        t_start_s: float = 0.0) -> np.ndarray:
     """The zero-mark edges in the counter's raw replies of one acquisition, placed on the
     FOG's axis by the start event the time tie gave during the run (journaled)."""
@@ -149,10 +144,10 @@ def edges_from_replies(records: Iterable[Mapping[str, object]], model: str, n_ed
     n_values = fmt.n_values(n_edges)
     found = None
     for r in records:
-        if r.get("dir") != "rx":
+        if r.dir != "rx" or r.data is None:
             continue
         try:
-            values = parse_numbers(str_field(r, "data"))
+            values = parse_numbers(r.data)
         except ValueError:
             continue
         if values.size == n_values:
@@ -243,9 +238,9 @@ class RawData:
         self._read.clear()
 
     @lru_cache(maxsize=8)  # noqa: B019
-    def counter_log(self, session: int, axis: str) -> list[JsonObject]:
-        path = layout.raw_file(self.run.path, session, layout.counter_log(axis))
-        return list(read_jsonl(path))
+    def counter_log(self, session: int, axis: str) -> list[CounterReply]:
+        return counter_replies(layout.raw_file(self.run.path, session,
+                                               layout.counter_log(axis)))
 
     def _cursor(self, session: int, axis: str, i_from: int,
                  mark: FogCheckpoint | None = None) -> CaptureCursor:
@@ -532,10 +527,7 @@ def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
         result = _analyze_run(run, cfg, raw, hashes)
         run.memo.update(raw.temperatures)   # for the conditions: decoded once
         if raw.timebase_offsets:    # issue 58: the corrections applied, stated
-            import json
-
-            result["corrections"] = json.loads(
-                (run.path / CORRECTIONS).read_text(encoding="utf-8")).get("corrections")
+            result["corrections"] = read_corrections(run.path / CORRECTIONS)[1]
         return result
 
 

@@ -15,11 +15,13 @@ import copy
 import math
 import re
 from collections.abc import Mapping, Sequence
-from typing import cast
+from pathlib import Path
+from typing import Annotated, cast
 
 import msgspec
 
 from bench.core import rundir_layout as layout
+from bench.core.journal import read_jsonl
 from bench.report.certificate.parts import Sources
 from bench.report.codec import encode
 from bench.report.result_frame import (
@@ -91,17 +93,24 @@ def conform_ladder(doc: JsonObject, issues: Issues) -> JsonObject:
     return doc
 
 
+class _FogTemperature(msgspec.Struct, frozen=True, kw_only=True):
+    source: str = ("FOG frames' temperature field (table top, at the FOG), deg C, integer "
+                   "resolution")
+    axes: Mapping[str, object]      # conditions.py's AxisTemperature per axis
+
+
+class _ConditionsMeasured(msgspec.Struct, frozen=True):
+    fog_temperature: _FogTemperature | None
+    room: None = None       # no sensor on this stand: not measured
+
+
 def with_conditions_measured(doc: dict[str, object], fog_axes: Mapping[str, object]
                              ) -> dict[str, object]:
     """The analysis' result with what the bench measured itself (`conditions_measured`):
     the FOG's temperature per axis (procedures/rate_ladder/conditions.py), none when no
-    half recorded it; the room: no sensor on this stand, not measured."""
-    doc["conditions_measured"] = {
-        "fog_temperature": {"source": "FOG frames' temperature field (table top, at the "
-                                      "FOG), deg C, integer resolution", "axes": fog_axes}
-        if fog_axes else None,
-        "room": None,
-    }
+    half recorded it."""
+    doc["conditions_measured"] = encode(_ConditionsMeasured(_FogTemperature(axes=fog_axes)
+                                                            if fog_axes else None))
     return doc
 
 
@@ -149,31 +158,26 @@ def _axis(name: str, node: JsonValue) -> LadderAxis:
 
 
 def _drop(node: JsonValue, path: str) -> bool:
-    """Remove the entry at `path` (msgspec's `.key[0].key` below an axis) from `node`: a
-    key of an object (its default then reads "not stated") or, for a missing key, the
-    object holding it from its list. False when there is nothing to remove."""
+    """Remove the entry at `path` (msgspec's `.key[0].key` below an axis, every step but
+    the last one there) from `node`: a key of an object (its default then reads "not
+    stated") or, for a missing key, the object holding it from its list. False when there
+    is nothing to remove."""
     steps: list[str | int] = [m["key"] if m["key"] else int(m["index"])
                               for m in _STEP.finditer(path)]
-    parents: list[JsonValue] = []
-    at = node
+    chain = [node]
     for step in steps[:-1]:
-        parents.append(at)
-        if isinstance(step, int) and isinstance(at, list) and step < len(at):
-            at = at[step]
-        elif isinstance(step, str) and isinstance(at, dict) and step in at:
-            at = at[step]
-        else:
-            return False
-    last = steps[-1] if steps else None
-    if isinstance(at, dict) and isinstance(last, str) and last in at:
-        del at[last]
+        at = chain[-1]
+        chain.append(at[step] if isinstance(at, list) and isinstance(step, int) else
+                     at.get(step) if isinstance(at, dict) and isinstance(step, str) else None)
+    if steps and isinstance(at := chain[-1], dict) and steps[-1] in at:
+        del at[steps[-1]]
         return True
     # a required key missing: the item holding it goes from its list
-    for parent, step in zip(reversed(parents), reversed(steps[:-1]), strict=False):
-        if isinstance(parent, list) and isinstance(step, int):
-            del parent[step]
-            return True
-    return False
+    lists = [(p, i) for p, i in zip(chain[:-1], steps, strict=False)
+             if isinstance(p, list) and isinstance(i, int)]
+    if lists:
+        del lists[-1][0][lists[-1][1]]
+    return bool(lists)
 
 
 def _lenient_axis(name: str, node: JsonValue, dropped: list[str]) -> JsonValue:
@@ -237,6 +241,58 @@ def ladder_model(src: Sources) -> LadderResult:
     """The certificate's and the DCC's model of the (conformed) result: `src.model(
     ladder_model)` decodes it once for every section."""
     return ladder_of(src.result)
+
+
+# -- the run folder's inputs: the counter's raw log, the corrections file ---------------------
+
+class CounterReply(msgspec.Struct, frozen=True):
+    """One line of a counter's raw log (bench/core/instruments.py): its direction and
+    text; any other key of the line is not the analysis's."""
+
+    dir: str = ""
+    data: str | None = None
+
+
+def counter_replies(path: Path) -> list[CounterReply]:
+    """A counter's raw log, line by line (a torn line is skipped, a line whose direction
+    or text is not text reads as neither)."""
+    out = []
+    for rec in read_jsonl(path):
+        try:
+            out.append(msgspec.convert(rec, CounterReply))
+        except msgspec.ValidationError:
+            out.append(CounterReply())
+    return out
+
+
+class Correction(msgspec.Struct, frozen=True):
+    """One entry of the run folder's corrections file (issue 58): the item's place, the
+    quantity, its value and expanded uncertainty U (k = 2; null: none stated)."""
+
+    where: str = ""
+    quantity: str = ""
+    value: float = math.nan
+    U: Annotated[float, msgspec.Meta(ge=0.0)] | None = None     # noqa: N815
+
+
+class CorrectionsFile(msgspec.Struct, frozen=True):
+    corrections: tuple[Correction, ...] = ()
+
+
+def read_corrections(path: Path) -> tuple[tuple[Correction, ...], JsonValue]:
+    """The corrections file's entries decoded, and as written (result.json states them
+    so); a torn file or an entry of the wrong type raises ValueError naming the file and
+    the key (`corrections[0].value: expected a number, got str`)."""
+    try:
+        doc = msgspec.json.decode(path.read_bytes())
+    except msgspec.DecodeError as e:
+        raise ValueError(f"{path}: not JSON: {e}") from None
+    try:
+        found = msgspec.convert(doc, CorrectionsFile)
+    except msgspec.ValidationError as err:
+        where, problem = _problem(err)
+        raise ValueError(f"{path}: {where.lstrip('.')}: {problem}") from None
+    return found.corrections, doc.get("corrections")
 
 
 def row_json(row: ResultRow) -> JsonObject:

@@ -102,8 +102,8 @@ PAIR_COLUMNS = (
 )
 
 
-def _value(axis: str, quantity: str, rate: float | None, value: object, u: object, unit: str,
-           check: str | None = None, upper_limit: bool = False) -> FigureValue | None:
+def _value(axis: str, quantity: str, rate: float | None, value: float | None, u: float | None,
+           unit: str, check: str | None = None, upper_limit: bool = False) -> FigureValue | None:
     v = _num(value)
     return None if v is None else FigureValue(axis, quantity, rate, v, _num(u), unit, check,
                                               upper_limit)
@@ -128,7 +128,7 @@ def _fog_checks(axis: str, axis_rows: AxisRows, serial: str, model: str | None
     as tau grows), docs/method.md C1."""
     out = []
 
-    def add(q: str, rate: float | None, v: object, u: object) -> None:
+    def add(q: str, rate: float | None, v: float | None, u: float | None) -> None:
         x = _num(v)
         if x is not None:
             out.append(InstrumentCheck(serial, "fog", model, axis, q, rate, x, _num(u),

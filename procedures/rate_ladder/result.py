@@ -10,12 +10,13 @@ nowhere else, and msgspec, not code of ours, checks a body against it.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar, cast
+from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import msgspec
 from msgspec import UNSET, UnsetType
 
 from bench.report.budget import Budget, BudgetRecord
+from bench.report.conformity import Check as Judged
 from bench.report.result_frame import (
     MalformedResult,
     ResultFrame,
@@ -26,13 +27,17 @@ if TYPE_CHECKING:
     # the builders' inputs, for their hints only: the readers (certificate, records,
     # station) load this module without the analysis and numpy
     from bench.analysis.allan import AllanCurve
-    from bench.analysis.crosscal import HalfMean
+    from bench.analysis.crosscal import CrossCalibration, HalfMean
     from bench.analysis.random_part import AveragedInstability, RandomPartResult
     from bench.analysis.results import PairResult, RateResult, SystematicResult
     from bench.analysis.systematic import HarmonicResult, MainsResult
     from bench.analysis.systematic import NoiseInflation as NoiseInflation_
-    from bench.analysis.turns import TurnsResult
-    from bench.report.conformity import Check as Judged
+    from bench.analysis.turns import CounterBudget, TurnsResult
+
+    #: the analysis's values the builders take fields from by name (`_named`)
+    Analysed = (TurnsResult | CounterBudget | HarmonicResult | MainsResult | NoiseInflation_
+                | SystematicResult | RandomPartResult | AveragedInstability | HalfMean
+                | CrossCalibration)
 
 __all__ = ["Half", "Harmonic", "IntraTurn", "LadderAxis", "LadderCheck", "LadderResult",
            "Mains", "MalformedResult", "NoiseFloor", "PairEntry", "RateEntry"]
@@ -234,27 +239,13 @@ class IntraTurn(_Model, frozen=True, kw_only=True):
     averaged: tuple[Averaged, ...] = ()         # over 1/10/360 deg
 
 
-class LadderCheck(_Model, frozen=True, kw_only=True):
-    """One conformity check of a rate (bench/report/conformity.py, docs/method.md A6), as
+class LadderCheck(Judged, _Model, frozen=True, kw_only=True):
+    """One conformity check of a rate (bench/report/conformity.py's, docs/method.md A6), as
     `checks[]` and the rate's own `checks[]` hold it; an unresolved value's floor and a
     resolved sigma's lower limit only where they apply."""
 
     TWINS = (("u_rel", "U_rel"),)
 
-    axis: str
-    set_rate_dps: float
-    quantity: str
-    value_rel: float
-    u_rel: float
-    U_rel: float | None = None                  # noqa: N815
-    tolerance_rel: float
-    rule: str
-    verdict: str
-    reason: str
-    capability_ratio: float
-    capability_ok: bool
-    upper_rel: float | None = None
-    one_sided: bool = False
     lower_rel: float | None | UnsetType = UNSET
     floor_rel: float | UnsetType = UNSET
     floor_name: str | UnsetType = UNSET
@@ -262,7 +253,7 @@ class LadderCheck(_Model, frozen=True, kw_only=True):
     @classmethod
     def of(cls, c: Judged) -> LadderCheck:
         """A judgement (bench/report/conformity.py) as the result states it."""
-        return cls(**c.to_dict(), U_rel=c.u_rel)   # its fields, and the U twin
+        return cls(**msgspec.structs.asdict(c))
 
 
 class RateEntry(_Model, frozen=True, kw_only=True):
@@ -434,49 +425,35 @@ class LadderResult:
 # is CONTRACT §3's `axes.<axis>.rates[]`, `pairs[]` and `noise_floor`, in the order result.json
 # has always had them. Non-finite numbers are written as null (codec.py: JSON has no NaN).
 
+def _named(cls: type[_Model], *sources: Analysed, but: tuple[str, ...] = ()) -> dict[str, Any]:
+    """Each field of `cls` that one of `sources` holds under the same name (the analysis
+    names its values as result.json does), the last source's winning, none of `but`; each
+    `_u` field's twin is then filled by `_Model`."""
+    return {f: getattr(s, f) for s in sources for f in cls.__struct_fields__
+            if f not in but and hasattr(s, f)}
+
+
 def rate_error_budget(tr: TurnsResult) -> RateErrorBudget:
-    """Eq. 1's budget (docs/method.md A1-A2, D1): the counter chain's timing terms; an
-    applied time-base correction's e and u(e) only when one was applied (issue 58)."""
+    """Eq. 1's budget (docs/method.md A1-A2, D1): the counter chain's timing terms, the
+    time base as the counter's budget states it; an applied time-base correction's e and
+    u(e) only when one was applied (issue 58)."""
     b = tr.budget
-    corrected = b.timebase_correction_u_rel > 0.0 or b.timebase_correction_rel != 0.0
-    return RateErrorBudget(
-        timing_u_rel=tr.timing_u_rel, timing_ustd_rel=tr.timing_u_rel,
-        # the counter's time base as its budget states it (the turns' own figure is the same)
-        timebase_u_rel=b.timebase_u_rel, timebase_ustd_rel=b.timebase_u_rel,
-        repeatability_u_rel=tr.repeatability_u_rel,
-        repeatability_ustd_rel=tr.repeatability_u_rel,
-        repeatability_basis=tr.repeatability_basis, repeatability_dof=tr.repeatability_dof,
-        dof_eff=tr.dof_eff, coverage_factor=tr.coverage_factor,
-        timestamp_u_s=b.timestamp_u_s, timestamp_ustd_s=b.timestamp_u_s,
-        trigger_jitter_s=b.trigger_jitter_s, timebase_limit_rel=b.timebase_limit_rel,
-        edge_u_s=b.edge_u_s, edge_ustd_s=b.edge_u_s,
-        time_tie_u_s=b.time_tie_u_s, time_tie_ustd_s=b.time_tie_u_s,
-        period_u_s=b.period_u_s, period_ustd_s=b.period_u_s,
-        **({"timebase_correction_rel": b.timebase_correction_rel,
-            "timebase_correction_u_rel": b.timebase_correction_u_rel,
-            "timebase_correction_ustd_rel": b.timebase_correction_u_rel} if corrected else {}))
+    if b.timebase_correction_u_rel > 0.0 or b.timebase_correction_rel != 0.0:
+        return RateErrorBudget(**_named(RateErrorBudget, tr, b))
+    return RateErrorBudget(**_named(RateErrorBudget, tr, b, but=(
+        "timebase_correction_rel", "timebase_correction_u_rel")))
 
 
 def harmonic(h: HarmonicResult) -> Harmonic:
-    return Harmonic(order=h.order, amplitude_rel=h.amplitude_rel,
-                    amplitude_u_rel=h.amplitude_u_rel, amplitude_U_rel=h.amplitude_u_rel,
-                    phase_deg=h.phase_deg, phase_u_deg=h.phase_u_deg,
-                    phase_U_deg=h.phase_u_deg, detected=h.detected,
-                    amplitude_upper_rel=h.amplitude_upper_rel,
-                    interval_factor=h.interval_factor)
+    return Harmonic(**_named(Harmonic, h))
 
 
 def mains(m: MainsResult) -> Mains:
-    return Mains(frequency_hz=m.frequency_hz, amplitude_dps=m.amplitude_dps,
-                 amplitude_u_dps=m.amplitude_u_dps, amplitude_U_dps=m.amplitude_u_dps,
-                 phase_deg=m.phase_deg, phase_u_deg=m.phase_u_deg, phase_U_deg=m.phase_u_deg,
-                 detected=m.detected, significance_chi2=m.significance, source=m.source,
-                 amplitude_upper_dps=m.amplitude_upper_dps, interval_factor=m.interval_factor)
+    return Mains(**_named(Mains, m), significance_chi2=m.significance)
 
 
 def inflation(n: NoiseInflation_) -> NoiseInflation:
-    return NoiseInflation(block_deg=n.block_deg, blocks=n.blocks, ratio=n.ratio,
-                          applied=n.factor)
+    return NoiseInflation(**_named(NoiseInflation, n), applied=n.factor)
 
 
 def systematic(s: SystematicResult) -> Systematic:
@@ -491,48 +468,23 @@ def systematic(s: SystematicResult) -> Systematic:
                       noise_inflation=inflation(s.inflation), detection=dict(s.detection))
 
 
-def averaged(a: AveragedInstability) -> Averaged:
-    """The random part averaged over an angle (docs/method.md A5)."""
-    from bench.analysis.random_part import LEVEL
-
-    return Averaged(angle_deg=a.angle_deg, instability_rel=a.instability_rel, u_rel=a.u_rel,
-                    U_rel=a.u_rel, floor_rel=a.floor_rel, corrected_rel=a.corrected_rel,
-                    corrected_upper_rel=a.corrected_upper_rel,
-                    corrected_lower_rel=a.corrected_lower_rel, resolved=a.resolved,
-                    corrected_ustd_rel=a.corrected_ustd_rel, ustd_rel=a.ustd_rel,
-                    measured_resolved=a.measured_resolved,
-                    measured_upper_rel=a.measured_upper_rel, interval_level=LEVEL, dof=a.dof,
-                    blocks=a.blocks, samples_per_block=a.samples_per_block)
-
-
 def intra_turn(r: RandomPartResult) -> IntraTurn:
-    """The random intra-turn rate and its floor-corrected interval (docs/method.md A5)."""
+    """The random intra-turn rate and its floor-corrected interval, and the random part
+    averaged over angles (docs/method.md A5)."""
     from bench.analysis.random_part import LEVEL, MC_DRAWS
 
     return IntraTurn(
-        instability_rel=r.instability_rel, floor_rel=r.floor_rel, floor_source=r.floor_source,
-        corrected_rel=r.corrected_rel, corrected_upper_rel=r.corrected_upper_rel,
-        corrected_lower_rel=r.corrected_lower_rel, corrected_u_rel=r.corrected_u_rel,
-        corrected_U_rel=r.corrected_u_rel, interval_level=LEVEL,
+        **_named(IntraTurn, r, but=("averaged",)), interval_level=LEVEL,
         interval_method="JCGM 101 Monte Carlo of raw^2 - floor^2 (scaled inverse "
-                        "chi-square per variance)",
-        floor_dof=r.floor_dof, resolved=r.resolved, raw_resolved=r.raw_resolved,
-        raw_upper_rel=r.raw_upper_rel, raw_ustd_rel=r.raw_ustd_rel, raw_dof=r.raw_dof,
-        mc_draws=MC_DRAWS, corrected_ustd_rel=r.corrected_ustd_rel,
-        bandwidth_hz=r.bandwidth_hz, std_dps=r.std_dps, samples=r.samples,
-        averaged=tuple(averaged(a) for a in r.averaged))
+                        "chi-square per variance)", mc_draws=MC_DRAWS,
+        averaged=tuple(Averaged(**_named(Averaged, a), interval_level=LEVEL)
+                       for a in r.averaged))
 
 
 def turns_entry(tr: TurnsResult) -> RateEntry:
     """Eq. 1-2 of one direction: the per-turn rates, the rate error and its budget, the
     rate instability and its timing floor (docs/method.md A1-A2)."""
-    return RateEntry(
-        set_rate_dps=tr.set_rate_dps, turns=tr.turns,
-        counter_rate_dps=tuple(tr.counter_rate_dps), mean_rate_dps=tr.mean_rate_dps,
-        rate_error_rel=tr.rate_error_rel, rate_error_u_rel=tr.rate_error_u_rel,
-        rate_error_U_rel=tr.rate_error_u_rel, rate_instability_rel=tr.rate_instability_rel,
-        rate_instability_floor_rel=tr.rate_instability_floor_rel,
-        rate_error_budget=rate_error_budget(tr))
+    return RateEntry(**_named(RateEntry, tr), rate_error_budget=rate_error_budget(tr))
 
 
 def rate_entry(r: RateResult) -> RateEntry:
@@ -544,11 +496,9 @@ def rate_entry(r: RateResult) -> RateEntry:
         intra_turn_instability_corrected_rel=r.random.corrected_rel,
         # docs/method.md A5: U of a std from the record's samples (white random part assumed)
         intra_turn_instability_u_rel=r.random.raw_U_rel,
-        intra_turn_instability_U_rel=r.random.raw_U_rel,
         # docs/method.md A5: the corrected figure's U only when it is resolved (JCGM 101);
         # otherwise it is stated as '< intra_turn.corrected_upper_rel'
         intra_turn_instability_corrected_u_rel=r.random.corrected_u_rel,
-        intra_turn_instability_corrected_U_rel=r.random.corrected_u_rel,
         systematic=systematic(r.systematic), intra_turn=intra_turn(r.random),
         windows=tuple(dict(w) for w in r.windows))
     if r.verdict is None:
@@ -558,26 +508,14 @@ def rate_entry(r: RateResult) -> RateEntry:
         "dict[str, Judgement]", dict(r.judgement or {})))
 
 
-def half(h: HalfMean) -> Half:
-    return Half(sign=h.sign, turns=h.turns, t_centre_s=h.t_centre_s,
-                fog_mean_dps=h.fog_mean_dps, fog_mean_u_dps=h.fog_mean_u_dps,
-                fog_mean_ustd_dps=h.fog_mean_u_dps, counter_mean_dps=h.counter_mean_dps,
-                counter_mean_u_dps=h.counter_mean_u_dps,
-                counter_mean_ustd_dps=h.counter_mean_u_dps)
-
-
 def pair_entry(p: PairResult) -> PairEntry:
     """One +/- pair's FOG cross-calibration (docs/method.md A3, eq. 5-6): k, w0 (at t_ref)
     and the bias drift with U."""
     c = p.cal
-    drift_u = c.drift_u_dps_per_s * SECONDS_PER_HOUR
-    return PairEntry(rate_dps=p.rate_dps, k=c.k, k_u=c.k_u, k_U=c.k_u, w0_dps=c.w0_dps,
-                     w0_u_dps=c.w0_u_dps, w0_U_dps=c.w0_u_dps, w0_t_ref_s=c.t_ref_s,
-                     drift_dps_per_h=c.drift_dps_per_s * SECONDS_PER_HOUR,
-                     drift_u_dps_per_h=drift_u, drift_U_dps_per_h=drift_u,
-                     method=c.method, drift_source=c.drift_source, k_eq5=c.k_eq5,
-                     chi2=c.chi2, dof=c.dof, birge_ratio=c.birge_ratio,
-                     halves=tuple(half(h) for h in c.halves),
+    return PairEntry(**_named(PairEntry, c, but=("halves",)), rate_dps=p.rate_dps,
+                     w0_t_ref_s=c.t_ref_s, drift_dps_per_h=c.drift_dps_per_s * SECONDS_PER_HOUR,
+                     drift_u_dps_per_h=c.drift_u_dps_per_s * SECONDS_PER_HOUR,
+                     halves=tuple(Half(**_named(Half, h)) for h in c.halves),
                      noise_inflation=inflation(p.noise_inflation),
                      half_sessions=tuple(p.sessions), bias_model=p.bias_model)
 

@@ -53,6 +53,7 @@ from bench.app.register.store import (
     RunRecord,
 )
 from bench.core import rundir_layout as layout
+from bench.core.config import dcc_refs
 from bench.core.lab import Lab, LabError, Signatory, run_lab
 from bench.core.settings_codec import identities, lab_keys
 from bench.core.traceability import identity_problems, with_declared_serials
@@ -348,7 +349,7 @@ def _run_inputs(run_path: Path, lab_file: str | None
     stand = _stand(run_path)
     try:
         own = run_lab(run_path, lab_keys(ResultFrame.conform(result)[0].certificate))
-        lab = resolve_settings(stand, lab_file, base=own)
+        lab = resolve_settings(dcc_refs(stand), lab_file, base=own)
         if own.name and not lab.name:   # a lab file that names only the register and
             lab = replace(own, signing=lab.signing,     # key: the run's laboratory, as the
                           require_signed_dcc=lab.require_signed_dcc)   # PDF prints it
@@ -455,7 +456,7 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
     else:
         signing_lab, signing_note = designated_signing(lab, reg)
     try:
-        outcome = write_dcc(run_path, result, stand, lab=signing_lab, issue=issue,
+        outcome = write_dcc(run_path, result, dcc_refs(stand), lab=signing_lab, issue=issue,
                             out_dir=work, signer=signer)
     except (LabError, RegisterError) as e:
         _discard(work)

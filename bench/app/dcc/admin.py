@@ -29,15 +29,16 @@ from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import ILAC_G8, RULE_REFERENCE
 from bench.report.dcc.xml import NOT_RECORDED, el, name, num, statement, text_el
 from bench.report.result_frame import JsonObject
+from bench.report.result_frame import text as text_at
 
 UNKNOWN_COUNTRY = "ZZ"   # ISO 3166-1 user-assigned code: the laboratory did not configure one
 
 
-def _date(stamp: object) -> str | None:
+def _date(stamp: str | None) -> str | None:
     if not stamp:
         return None
     try:
-        t = dt.datetime.fromisoformat(str(stamp).replace("Z", "+00:00"))
+        t = dt.datetime.fromisoformat(stamp.replace("Z", "+00:00"))
     except ValueError:
         return None
     if t.tzinfo is not None:
@@ -59,7 +60,7 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
     cert = src.frame.certificate or src.procedure_file.get("certificate", {}) or {}
     _software(el(adm, "dccSoftware"), src)
     _ref_types(el(adm, "refTypeDefinitions"))
-    country = lab.country or cert.get("country_code")
+    country = lab.country or text_at(cert, "country_code")
     _core_data(el(adm, "coreData"), src, lab, country, issue, today)
     _item(el(adm, "items"), src, kind)
     _laboratory(el(adm, "calibrationLaboratory"), lab)
@@ -90,8 +91,8 @@ def _ref_types(defs: etree._Element) -> None:
         el(d, "link", ns.link)
 
 
-def _core_data(core: etree._Element, src: Sources, lab: Lab, country: object, issue: Issue,
-               today: str) -> None:
+def _core_data(core: etree._Element, src: Sources, lab: Lab, country: str | None,
+               issue: Issue, today: str) -> None:
     """Country, languages, the certificate's number, the run's identifications, when and
     where the work was done, the date of issue and what a re-issue replaces."""
     el(core, "countryCodeISO3166_1", str(country or UNKNOWN_COUNTRY))
@@ -115,7 +116,7 @@ def _core_data(core: etree._Element, src: Sources, lab: Lab, country: object, is
         core.remove(ids)
     dates = src.frame.dates
     begin = (_date(dates.started_utc) or _date(_event(src, ev.SessionStarted))
-             or _date(dates.created_utc) or _date(src.meta.get("created_utc")) or today)
+             or _date(dates.created_utc) or _date(text_at(src.meta, "created_utc")) or today)
     end = (_date(dates.completed_utc) or _date(_event(src, ev.Completed, last=True))
            or begin)
     el(core, "beginPerformanceDate", begin)
@@ -206,7 +207,7 @@ def _item(items: etree._Element, src: Sources, kind: DccPart) -> None:
 
 
 def _statements(sts: etree._Element, src: Sources, parts: CertificatePart,
-                country: object, issue: Issue, lab: Lab) -> None:
+                country: str | None, issue: Issue, lab: Lab) -> None:
     """The statements, in the PDF's order: the authorisation (or the draft's), the
     corrections applied, the closing statements the kind's results take, the PDF's
     authority, the overall conformity, what the PDF says of the stand and its equipment,
@@ -274,7 +275,8 @@ def _conformity(sts: etree._Element, src: Sources) -> None:
               conformity=overall)
 
 
-def _stand_statements(sts: etree._Element, src: Sources, lab: Lab, country: object) -> None:
+def _stand_statements(sts: etree._Element, src: Sources, lab: Lab, country: str | None
+                      ) -> None:
     """As the PDF: the item's location, a simulated stand, the equipment and its identity,
     the item as received and as left, settings and their read-back, the accreditation,
     and a country not configured."""

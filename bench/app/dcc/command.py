@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 import traceback
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -29,7 +29,7 @@ def _err(text: str) -> None:
 
 
 def write_run_dcc(run_path: Path, result: JsonObject,
-                  stand: DccRefs | Mapping[str, object] | None,
+                  stand: DccRefs | None,
                   line: Callable[[str], None] = print, lab_file: str | Path | None = None,
                   warn: Callable[[str], None] = _err) -> bool:
     """Write RUN_DIR/certificate.dcc.xml after the PDF; False when the run has no valid DCC
@@ -62,14 +62,16 @@ def write_run_dcc(run_path: Path, result: JsonObject,
     return False
 
 
-def _stand_of_run(run_path: Path) -> dict[str, object] | None:
-    """The run's stand file (its copy in the run directory), with its `dcc:` key checked."""
+def _stand_of_run(run_path: Path) -> DccRefs | None:
+    """The DCC references of the run's stand file (its copy in the run directory), its
+    `dcc:` key checked; None when it is malformed (said on stderr)."""
     from bench.app.dcc.settings import STAND_DCC
+    from bench.core.config import dcc_refs
     from bench.core.yamlfile import YamlError, load_yaml
 
     path = run_path / layout.STAND
     if not path.is_file():
-        return {}
+        return dcc_refs(None)
     try:
         doc = load_yaml(path)
     except YamlError as e:
@@ -81,7 +83,7 @@ def _stand_of_run(run_path: Path) -> dict[str, object] | None:
         STAND_DCC.check(data["dcc"], ("dcc",), doc, problems)
     for p in problems:
         _err(str(p))
-    return None if problems else data
+    return None if problems else dcc_refs(data)
 
 
 def cmd_dcc(args: argparse.Namespace) -> int:

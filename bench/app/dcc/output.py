@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import datetime as dt
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,7 +65,7 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 
 def write_dcc(run_path: Path, result: JsonObject,
-              stand: DccRefs | Mapping[str, object] | None = None,
+              stand: DccRefs | None = None,
               lab_file: str | Path | None = None, issued: dt.date | None = None,
               lab: Lab | None = None, issue: Issue | None = None,
               out_dir: Path | None = None,

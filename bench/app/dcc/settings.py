@@ -13,7 +13,6 @@ run directory is refused.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 
@@ -30,14 +29,14 @@ SettingsError = LabError
 load_lab_file = load_lab
 
 
-def resolve_settings(stand: DccRefs | Mapping[str, object] | None,
+def resolve_settings(stand: DccRefs | None,
                      lab_file: str | Path | None = None,
                      stand_origin: str = "stand file", base: Lab | None = None) -> Lab:
     """The lab settings in force: `--lab` first, then the stand's `dcc.lab`, then the
     environment's BENCH_LAB_SETTINGS, else `base` (the run's own); the stand's own
-    `dcc.signing` overrides the key. `stand`: the parsed stand's DCC references, or a
-    run directory's stand file as read back."""
-    refs = stand if isinstance(stand, DccRefs) else dcc_refs(stand)
+    `dcc.signing` overrides the key. `stand`: the stand's DCC references (`dcc_refs` of
+    a run directory's stand file as read back)."""
+    refs = stand if stand is not None else dcc_refs(None)
     chosen = lab_file or refs.lab or os.environ.get(ENV_LAB)
     settings = load_lab(os.path.expanduser(str(chosen))) if chosen else (base or Lab())
     if not (refs.signing_key and refs.signing_certificate):

@@ -102,7 +102,7 @@ def validate_dcc(source: Path | bytes | etree._ElementTree | etree._Element) -> 
     return Validation(tuple(errors), tuple(unit_list_problems(units)))
 
 
-def describe(v: Validation, name: object) -> str:
+def describe(v: Validation, name: str | Path) -> str:
     if v.valid:
         return f"{name}: valid against DCC 3.3.0 / D-SI 2.2.1 (offline), D-SI units checked"
     return f"{name}: NOT valid ({len(v.lines())} problem(s)):\n" + "\n".join(

@@ -22,8 +22,17 @@ import json
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
+import msgspec
+
 from bench.app.db import redact
 from bench.app.records.assurance_notes import ASSURANCE_FILE, CLAUSE
+from bench.app.records.codec import (
+    Assurance,
+    InstrumentLine,
+    ReviewLine,
+    read_assurance_file,
+    write_assurance_file,
+)
 from bench.app.records.control import (
     OUT_OF_CONTROL,
     InstrumentStatus,
@@ -38,7 +47,6 @@ from bench.core.simbench import with_sim
 from bench.core.simdrift import drifted, has_drift, stated_run_number
 from bench.report.certificate.parts import read_json_object
 from bench.report.result_frame import as_object
-from drivers.json_types import JsonObject
 
 Warn = Callable[[str], None]
 
@@ -65,15 +73,15 @@ def run_statuses(run_path: Path, url: str, result: Mapping[str, object] | None =
     return out
 
 
-def _as_json(s: InstrumentStatus) -> JsonObject:
+def _line(s: InstrumentStatus) -> InstrumentLine:
     r = s.last_review
-    return {"serial": s.serial, "role": s.role, "model": s.model, "state": s.state,
-            "runs": s.runs, "rule": s.rule, "line": s.line,
-            "open_signals": [g.line for g in s.open_signals],
-            "reviewed_signals": [g.line for g in s.reviewed_signals],
-            "last_review": None if r is None else {
-                "utc": r.utc.isoformat(), "reviewer": r.reviewer, "text": r.text,
-                "through_utc": r.through_utc.isoformat() if r.through_utc else None}}
+    return InstrumentLine(
+        serial=s.serial, role=s.role, model=s.model, state=s.state, runs=s.runs,
+        rule=s.rule, line=s.line, open_signals=tuple(g.line for g in s.open_signals),
+        reviewed_signals=tuple(g.line for g in s.reviewed_signals),
+        last_review=None if r is None else ReviewLine(
+            utc=r.utc.isoformat(), reviewer=r.reviewer, text=r.text,
+            through_utc=r.through_utc.isoformat() if r.through_utc else None))
 
 
 def write_assurance(run_path: Path, where: RecordsTarget | str, warn: Warn,
@@ -81,21 +89,19 @@ def write_assurance(run_path: Path, where: RecordsTarget | str, warn: Warn,
     """RUN_DIR/assurance.json for the certificate; None (and a note in the file) when the
     records could not be read."""
     url = where.url if isinstance(where, RecordsTarget) else where
-    doc: JsonObject = {"records": redact(url),
-                           "assessed_utc": dt.datetime.now(dt.UTC).isoformat()}
+    doc = Assurance(records=redact(url), assessed_utc=dt.datetime.now(dt.UTC).isoformat())
     statuses: list[InstrumentStatus] | None
     try:
         statuses = run_statuses(run_path, url, result)
-        doc["instruments"] = [_as_json(s) for s in statuses]
+        doc = msgspec.structs.replace(doc, instruments=tuple(_line(s) for s in statuses))
     except NotARun as e:
-        doc["error"] = str(e)
+        doc = msgspec.structs.replace(doc, error=str(e))
         statuses = None
     except Exception as e:  # noqa: BLE001 - never fail a run over its records
         warn(f"records: measurement assurance not assessed ({e})")
-        doc["error"] = str(e)
+        doc = msgspec.structs.replace(doc, error=str(e))
         statuses = None
-    (run_path / ASSURANCE_FILE).write_text(json.dumps(doc, indent=2) + "\n",
-                                           encoding="utf-8")
+    write_assurance_file(run_path / ASSURANCE_FILE, doc)
     return statuses
 
 
@@ -123,9 +129,9 @@ def assurance_refusals(run_dir: str | Path, records_url: str | None = None) -> l
     problems: list[str] = []
     statuses = write_assurance(path, where, problems.append)
     if statuses is None:
-        doc = read_json_object(path / ASSURANCE_FILE)
-        return [f"{CLAUSE} cannot be assessed ({doc.get('error') or problems}); "
-                f"the certificate cannot state it"]
+        doc = read_assurance_file(path / ASSURANCE_FILE)
+        error = doc.error if doc is not None and doc.error else problems
+        return [f"{CLAUSE} cannot be assessed ({error}); the certificate cannot state it"]
     return refusals_of(statuses)
 
 

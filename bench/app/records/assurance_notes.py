@@ -6,10 +6,9 @@ number) so that the certificate can print them without an import cycle.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from pathlib import Path
 
-from bench.report.certificate.parts import read_json_object
+from bench.app.records.codec import read_assurance_file
 
 ASSURANCE_FILE = "assurance.json"
 CLAUSE = "Measurement assurance (ISO/IEC 17025 7.7)"
@@ -19,12 +18,11 @@ def certificate_notes(run_path: Path | None) -> list[str]:
     """The certificate's assurance lines, from RUN_DIR/assurance.json (build.py's hook)."""
     if run_path is None:
         return []
-    doc = read_json_object(run_path / ASSURANCE_FILE)
-    if not doc:
+    doc = read_assurance_file(run_path / ASSURANCE_FILE)
+    if doc is None:
         return [f"{CLAUSE}: not assessed for this run (no records were read)."]
-    if doc.get("error"):
-        return [f"{CLAUSE}: NOT ASSESSED: {doc['error']}."]
-    items = doc.get("instruments") or []
-    if not items:
+    if doc.error:
+        return [f"{CLAUSE}: NOT ASSESSED: {doc.error}."]
+    if not doc.instruments:
         return [f"{CLAUSE}: this run yields no check values of the bench's instruments."]
-    return [f"{CLAUSE}, {i.get('line')}." for i in items if isinstance(i, Mapping)]
+    return [f"{CLAUSE}, {i.line}." for i in doc.instruments]

@@ -60,19 +60,17 @@ def quantities() -> dict[str, tuple[str, str]]:
 CheckRecord = InstrumentCheck
 
 
-def _serial_of(stated: object, reported: str | None, unique: bool, fallback: str) -> str:
+def _serial_of(stated: str | None, reported: str | None, unique: bool, fallback: str) -> str:
     """The serial the instrument reported, if no other instrument of the run reports the
     same: the instrument actually connected (issue 41: a swapped counter must not land on
     the stated one's control chart); else the stand file's `serial:` (a FOG answers no
     identity query); else the instrument's place on the stand (STAND-SERIAL/axis/role)."""
     if reported and unique and not re.fullmatch(r"[A-Za-z]*0*", reported):
         return reported       # (all zeros: a twin's or an unset serial, no identity)
-    if stated not in (None, ""):
-        return str(stated)
-    return fallback
+    return stated or fallback
 
 
-def _idn_serial(text: object) -> str | None:
+def _idn_serial(text: JsonValue) -> str | None:
     """*IDN? -> its third field (IEEE 488.2: maker, model, serial, firmware)."""
     if not isinstance(text, str) or not text:
         return None
@@ -80,13 +78,13 @@ def _idn_serial(text: object) -> str | None:
     return parts[2].strip() or None if len(parts) >= 4 else None
 
 
-def _drive_serial(text: object) -> str | None:
+def _drive_serial(text: JsonValue) -> str | None:
     """The drive identity (0x1018 sub 4) as the bench prints it: '..., serial N'."""
     m = re.search(r"serial (\S+?)(?:[;,]|$)", text if isinstance(text, str) else "")
     return m.group(1) if m else None
 
 
-def _fog_serial(text: object) -> str | None:
+def _fog_serial(text: JsonValue) -> str | None:
     """A FOG's answer to ?IS as its identity carries it ('..., serial N (?IS); ...')."""
     m = re.search(r"serial (\S+) \(\?IS\)", text if isinstance(text, str) else "")
     return m.group(1) if m else None
@@ -141,7 +139,7 @@ def _drive(axis: str, raw: Path, events: Sequence[Event], serial: str,
     ripple_sq, ripple_n = 0.0, 0
     for f in files:
         session = f.parent.name.removeprefix("s")
-        command: Mapping[str, object] | None = None
+        command: JsonObject | None = None
         last_w = 0.0
         for rec in read_jsonl(f):
             kind = rec.get("kind")
@@ -207,7 +205,9 @@ def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[st
                _drive_serial(got.get("drive")) if role == "drive" else
                _fog_serial(got.get("fog")) if role == "fog" else None)
         unique = rep is not None and reported.get(role, []).count(rep) == 1
-        return _serial_of(conf.get("serial"), rep, unique, f"{stand_serial}/{axis}/{role}")
+        stated = conf.get("serial")
+        return _serial_of(None if stated in (None, "") else str(stated), rep, unique,
+                          f"{stand_serial}/{axis}/{role}")
 
     # the instruments the run's procedure kind measures (the FOGs' scale and bias, a gyro
     # platform's gyros): listed with their axis, before the stand's instruments there
@@ -239,5 +239,5 @@ def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[st
     return out + [c for c in measured if c.axis not in placed]
 
 
-def _opt(x: object) -> str | None:
+def _opt(x: JsonValue) -> str | None:
     return None if x in (None, "") else str(x)

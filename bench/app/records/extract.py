@@ -24,6 +24,7 @@ from bench.kind import installed_records
 from bench.report.certificate.parts import read_json_object
 from bench.report.figures import FigureValue
 from bench.report.result_frame import Check, JsonObject, ResultFrame
+from drivers.json_types import JsonValue
 
 #: files of a run directory that make up its certificate (hashed into the records)
 CERTIFICATE_FILES = (layout.CERTIFICATE_PDF, layout.CERTIFICATE_HTML, layout.CERTIFICATE_DCC)
@@ -101,7 +102,7 @@ class RunRecord:
         return self.completed_utc or self.started_utc or self.created_utc
 
 
-def parse_utc(stamp: object) -> dt.datetime | None:
+def parse_utc(stamp: JsonValue | dt.datetime) -> dt.datetime | None:
     """ISO text -> naive UTC datetime (what the database stores); None if unreadable."""
     if not stamp:
         return None
@@ -249,7 +250,7 @@ def record_of(run_path: str | Path, result: JsonObject | None = None) -> RunReco
     )
 
 
-def _opt(x: object) -> str | None:
+def _opt(x: JsonValue) -> str | None:
     return None if x is None or x == "" else str(x)
 
 

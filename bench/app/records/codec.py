@@ -1,0 +1,63 @@
+"""RUN_DIR/assurance.json <-> its model, by msgspec (issue 60): what the records say of
+each instrument a run rests on, written at the end of a run and by `bench authorise`,
+read by the certificate (assurance_notes.py) and by the authorisation's refusal.
+
+Why a module of its own: it is the one place where this file's JSON meets a typed value
+(tests/test_json_boundary.py keeps JSON maps out of every other module). The file is
+written as before (`json.dumps`, indent 2, the keys in the Structs' field order); an
+unreadable or malformed file reads as none (the certificate then says "not assessed").
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import msgspec
+from msgspec import UNSET, UnsetType
+
+
+class ReviewLine(msgspec.Struct, frozen=True, kw_only=True):
+    """The last review recorded of an instrument: when, who, why, through which run."""
+
+    utc: str
+    reviewer: str
+    text: str
+    through_utc: str | None = None
+
+
+class InstrumentLine(msgspec.Struct, frozen=True, kw_only=True):
+    """One instrument's control status as the certificate prints it (`line`)."""
+
+    serial: str = ""
+    role: str = ""
+    model: str | None = None
+    state: str = ""
+    runs: int = 0
+    rule: str | None = None
+    line: str = ""
+    open_signals: tuple[str, ...] = ()
+    reviewed_signals: tuple[str, ...] = ()
+    last_review: ReviewLine | None = None
+
+
+class Assurance(msgspec.Struct, frozen=True, kw_only=True):
+    """The file: the records read (redacted), when, and each instrument's status or the
+    reason none could be assessed."""
+
+    records: str = ""
+    assessed_utc: str = ""
+    instruments: tuple[InstrumentLine, ...] | UnsetType = UNSET
+    error: str | UnsetType = UNSET
+
+
+def write_assurance_file(path: Path, doc: Assurance) -> None:
+    path.write_text(json.dumps(msgspec.to_builtins(doc), indent=2) + "\n", encoding="utf-8")
+
+
+def read_assurance_file(path: Path) -> Assurance | None:
+    """The file as written; None when there is none or it is not one."""
+    try:
+        return msgspec.json.decode(path.read_bytes(), type=Assurance)
+    except (OSError, msgspec.DecodeError):
+        return None
