@@ -76,7 +76,6 @@ ALLOWED: dict[str, dict[str, int]] = {
     "bench/report/dcc/budgets.py": {"json_map_signatures": 1},
     "bench/report/dcc/conformity.py": {"json_map_signatures": 5},
     "bench/report/figures.py": {"json_map_signatures": 3},
-    "bench/report/result_frame.py": {"json_map_signatures": 20},
     "bench/report/station.py": {"json_map_signatures": 4},
     "drivers/counter_setup.py": {"json_map_signatures": 1},
     "drivers/drive_settings.py": {"json_map_signatures": 1},

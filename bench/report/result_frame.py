@@ -223,6 +223,17 @@ class Check:
         docs/method.md D2), as the kind names it."""
         return text(self.doc, "floor_name")
 
+    def figure(self, key: str) -> float | None:
+        """A figure the check states under a unit-suffixed key (`U_rel`, `tolerance_dph`,
+        `upper_rel`...: which ones depends on the quantity's unit), read as the DCC always
+        read them (numeric text too); None when absent or no finite number."""
+        return finite_number(self.doc.get(key))
+
+    def states(self, key: str) -> bool:
+        """Whether the check states `key` at all (the quantity's unit is named by which
+        `value_<unit>` it holds)."""
+        return key in self.doc
+
     def to_json(self) -> JsonObject:
         return dict(self.doc)
 

@@ -26,7 +26,7 @@ from bench.core.journal import read_events
 from bench.core.placeholders import run_copy
 from bench.report.certificate.model import Block, Figure, Para, Section
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u
-from bench.report.result_frame import Check, JsonObject, ResultFrame, as_object
+from bench.report.result_frame import Check, JsonObject, JsonValue, ResultFrame, as_object
 
 NOT_RECORDED = "not recorded"
 
@@ -167,7 +167,7 @@ def _key_value(key: str, value: object) -> str:
     return f"{' '.join(words)}: {text_of(value)}"
 
 
-def rate_text(x: object) -> str:
+def rate_text(x: JsonValue) -> str:
     """A signed rate as written: '+10', '−10'."""
     v = num(x)
     if v is None:
@@ -175,13 +175,15 @@ def rate_text(x: object) -> str:
     return f"{v:+g}".replace("-", MINUS)
 
 
-def vu_text(value: object, u: object, unit: RelUnit | None = None, signed: bool = False) -> str:
+def vu_text(value: JsonValue, u: JsonValue, unit: RelUnit | None = None,
+            signed: bool = False) -> str:
     """'value ± U' under the rounding rules, in `unit` (relative) or as given."""
     scale = unit.scale if unit else 1.0
     return format_value_u(num(value), num(u), scale, signed).joined()
 
 
-def verdict_label(verdict: object, rule: str | None = None, inside_tolerance: bool = False) -> str:
+def verdict_label(verdict: str | None, rule: str | None = None,
+                  inside_tolerance: bool = False) -> str:
     """How a verdict is printed; a guard-band refusal says so."""
     v = str(verdict or "").strip().lower()
     if v == "pass":
