@@ -316,6 +316,52 @@ class Specification:
 
 
 @dataclass(frozen=True, slots=True)
+class HashedFile:
+    """A file and its SHA-256 as the run recorded it (`raw_files[]`): printed as written,
+    its byte count read as the certificate always read it (numeric text too)."""
+
+    path: JsonValue
+    sha256: JsonValue
+    size_bytes: float | None
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> HashedFile:
+        return cls(doc.get("path"), doc.get("sha256"), finite_number(doc.get("bytes")))
+
+
+@dataclass(frozen=True, slots=True)
+class CertificateSettings:
+    """The certificate settings (`certificate`: the lab file's under the run's): who
+    issues it and for whom; each printed as written (an absent one says so)."""
+
+    laboratory: JsonValue = None
+    address: JsonValue = None
+    accreditation: JsonValue = None
+    customer: JsonValue = None
+    customer_address: JsonValue = None
+    customer_contact: JsonValue = None
+    site: JsonValue = None
+    entries: tuple[tuple[str, JsonValue], ...] = ()   # every setting, in the file's order
+
+    @classmethod
+    def of(cls, value: JsonValue, issuer: tuple[tuple[str, str], ...] = ()
+           ) -> CertificateSettings:
+        """The settings `value` holds (none when it is no mapping), with the register's
+        `issuer` identity (laboratory, address, code, accreditation) in place of theirs
+        when it is given (issue 54: nothing of the files' for them then)."""
+        doc = dict(value) if isinstance(value, dict) else {}
+        if issuer:
+            for key in ("laboratory", "address", "code", "accreditation"):
+                doc.pop(key, None)
+            doc.update(dict(issuer))
+        return cls(laboratory=doc.get("laboratory"), address=doc.get("address"),
+                   accreditation=doc.get("accreditation"), customer=doc.get("customer"),
+                   customer_address=doc.get("customer_address"),
+                   customer_contact=doc.get("customer_contact"), site=doc.get("site"),
+                   entries=tuple(doc.items()))
+
+
+@dataclass(frozen=True, slots=True)
 class RunDates:
     """When the run was created, first started and last ended (`dates`), as written."""
 
@@ -427,6 +473,11 @@ class ResultFrame:
             method=obj(doc, "method"),
             checks=tuple(Check.from_json(c) for c in objects(doc, "checks")),
             records=obj(doc, "records"), doc=doc)
+
+    @property
+    def hashed_raw_files(self) -> tuple[HashedFile, ...]:
+        """The raw files the run recorded, each with its digest."""
+        return tuple(HashedFile.from_json(f) for f in self.raw_files)
 
     @property
     def simulated(self) -> bool:
