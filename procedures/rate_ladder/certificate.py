@@ -45,7 +45,6 @@ from bench.report.certificate.rounding import (
     rel_unit,
 )
 from bench.report.result_frame import Check
-from drivers.json_types import JsonObject
 from procedures.rate_ladder import plots
 from procedures.rate_ladder.codec import ladder_model
 from procedures.rate_ladder.result import (
@@ -182,21 +181,21 @@ class LadderCertificate(CertificateParts):
         return [Para("Where this procedure differs from the source paper's method "
                      "(docs/method.md A3-A5):", "strong"), *(Para(f"• {t}") for t in items)]
 
-    def certificate_checks(self, src: Sources) -> list[JsonObject]:
+    def certificate_checks(self, src: Sources) -> list[Check]:
         """The per-rate judgements of the analysis (a result without checks[])."""
-        out: list[JsonObject] = []
+        out: list[Check] = []
         for axis, r in _ladder(src).rates():
             j = r.judgement
             if isinstance(j, UnsetType) or r.verdict is None:
                 continue
             rule = str(j.get("decision_rule", "simple"))
-            out.append({"axis": axis, "set_rate_dps": r.set_rate_dps,
-                        "quantity": "rate_error", "value_rel": r.rate_error_rel,
-                        "u_rel": r.rate_error_u_rel,
-                        "tolerance_rel": j.get("tolerance_rel"), "verdict": r.verdict,
-                        "rule": "simple" if rule.startswith("simple") else rule,
-                        "capability_ratio": j.get("capability_ratio"),
-                        "capability_ok": j.get("capable")})
+            out.append(Check.from_json({
+                "axis": axis, "set_rate_dps": r.set_rate_dps, "quantity": "rate_error",
+                "value_rel": r.rate_error_rel, "u_rel": r.rate_error_u_rel,
+                "tolerance_rel": j.get("tolerance_rel"), "verdict": r.verdict,
+                "rule": "simple" if rule.startswith("simple") else rule,
+                "capability_ratio": j.get("capability_ratio"),
+                "capability_ok": j.get("capable")}))
         return out
 
     def certificate_sections(self, src: Sources, number: str,

@@ -295,7 +295,7 @@ def _checks(src: Sources, proc: Procedure) -> list[Check]:
     """The engine's checks[]; without it, what the kind reads from its own results."""
     if isinstance(src.frame.get("checks"), list):
         return list(src.frame.checks)
-    return [Check.from_json(c) for c in proc.parts.certificate_checks(src)]
+    return proc.parts.certificate_checks(src)
 
 
 def _identification(src: Sources, issue: Issue, proc: Procedure,

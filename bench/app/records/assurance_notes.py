@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-from bench.report.certificate.parts import read_json_object
+from bench.report.certificate.sources import read_json_object
 
 ASSURANCE_FILE = "assurance.json"
 CLAUSE = "Measurement assurance (ISO/IEC 17025 7.7)"
