@@ -249,7 +249,7 @@ def sigma_presented(r: RateEntry, u: float | None, scale: float = 1.0) -> Presen
                        resolved=r.rate_instability_resolved)
 
 
-def _u_of_std(s: float | None, n: object) -> float | None:
+def _u_of_std(s: float | None, n: float | None) -> float | None:
     """U (k = 2) of a standard deviation from n values, when the result does not give it."""
     n = num(n)
     return None if n is None else std_u_rel(s, int(n))
@@ -423,7 +423,7 @@ def _pairs_table(axis: str, pairs: Sequence[PairEntry]) -> Table:
     has_drift = any(num(p.drift_dps_per_h) is not None for p in pairs)
     for p in pairs:
         w0, w0u = num(p.w0_dps), num(p.w0_u_dps)
-        row = [f"±{num(p.rate_dps) or 0:g}", vu_text(p.k, p.k_u),
+        row = [f"±{num(p.rate_dps) or 0:g}", format_value_u(p.k, p.k_u).joined(),
                vu_text(w0, w0u, signed=True),
                format_value_u(w0, w0u, 3600.0, signed=True).joined()]
         if has_drift:

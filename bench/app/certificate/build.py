@@ -145,7 +145,7 @@ class Procedure:
     def title(self) -> str:
         return self.parts.certificate_procedure_name or self.name
 
-    def quantity(self, key: object, default: str | None = None) -> str:
+    def quantity(self, key: str | None, default: str | None = None) -> str:
         """A checked quantity in words."""
         key = str(key)
         return self.parts.certificate_quantities.get(
@@ -422,7 +422,7 @@ def _verdict(src: Sources) -> str:
     return "incomplete" if verdict is None else verdict
 
 
-def _rule_name(rule: object) -> str:
+def _rule_name(rule: str | None) -> str:
     return {"guard-band": "guard-band (guarded acceptance, w = U)",
             "simple": "simple acceptance"}.get(str(rule or "simple"), str(rule))
 

@@ -24,6 +24,7 @@ from bench.core.schema import parse_date
 from bench.core.traceability import with_declared_serials
 from bench.report.certificate.parts import Sources, stand_of
 from bench.report.result_frame import Check, objects
+from drivers.json_types import JsonValue
 
 #: what the certificate and the DCC print for a part nobody stated (the one default)
 NOT_STATED = "not stated"
@@ -60,11 +61,11 @@ class ItemRecord:
     readback: tuple[str, ...]
 
 
-def _text(x: object) -> str:
+def _text(x: JsonValue) -> str:
     return NOT_STATED if x is None or str(x).strip() == "" else str(x).strip()
 
 
-def _date(x: object) -> str:
+def _date(x: JsonValue) -> str:
     d = parse_date(x)
     return d.isoformat() if d is not None else _text(x)
 

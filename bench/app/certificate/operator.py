@@ -12,7 +12,7 @@ from bench.report.certificate.model import Block, Para, Table
 from bench.report.certificate.parts import NOT_RECORDED
 
 
-def utc_text(stamp: object) -> str:
+def utc_text(stamp: str | None) -> str:
     """A journal stamp as the certificate prints it (UTC, to the second)."""
     if not stamp:
         return NOT_RECORDED
