@@ -18,6 +18,7 @@ from typing import TypeVar
 
 from bench.analysis.finite import finite_number
 from bench.core import rundir_layout as layout
+from bench.report.corrections import Correction
 from drivers.json_types import JsonObject, JsonValue
 
 #: a key path inside result.json: `axes.outer.rates[0]`
@@ -362,6 +363,60 @@ class CertificateSettings:
 
 
 @dataclass(frozen=True, slots=True)
+class ToleranceBand:
+    """A relative tolerance for set rates below `below_dps` (None: every rate above the
+    previous band's)."""
+
+    below_dps: float | None
+    rel: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class Tolerance:
+    """One quantity's tolerance as the procedure states it (`method.tolerance`): one
+    number (its unit in the key: `<quantity>_dph: 0.5`) or rate bands, in order."""
+
+    quantity: str
+    value: float | None
+    bands: tuple[ToleranceBand, ...]
+
+    @classmethod
+    def all_of(cls, value: JsonValue) -> tuple[Tolerance, ...]:
+        """Every quantity's tolerance in a `tolerance` mapping (none when it is none); a
+        band that is no mapping is left out. Numbers read as finite_number reads them."""
+        doc = value if isinstance(value, dict) else {}
+        return tuple(cls(str(quantity), finite_number(bands), tuple(
+            ToleranceBand(finite_number(b.get("below_dps")), finite_number(b.get("rel")))
+            for b in (bands if isinstance(bands, list) else []) if isinstance(b, dict)))
+            for quantity, bands in doc.items())
+
+
+def _stated_text(x: object) -> str | None:
+    return str(x) if x is not None and str(x).strip() else None
+
+
+def _stated_number(x: object) -> float | None:
+    return float(x) if isinstance(x, int | float) and not isinstance(x, bool) \
+        and math.isfinite(float(x)) else None
+
+
+def correction_of(d: Mapping[str, object]) -> Correction:
+    """One correction as a corrections file or result.json's `corrections[]` states it
+    (or `bench impact` finds due: the same keys)."""
+    return Correction(str(d.get("where") or "?"), _stated_text(d.get("serial")),
+                      _stated_text(d.get("model")), str(d.get("quantity") or "?"),
+                      _stated_number(d.get("value")), _stated_number(d.get("U")),
+                      _stated_text(d.get("source")), _stated_text(d.get("reason")))
+
+
+def corrections_of(doc: object) -> tuple[Correction, ...]:
+    """The corrections a result states it applied (none for a run analysed as measured)."""
+    stated = doc.get("corrections") if isinstance(doc, Mapping) else None
+    return tuple(correction_of(d) for d in (stated if isinstance(stated, list) else [])
+                 if isinstance(d, Mapping))
+
+
+@dataclass(frozen=True, slots=True)
 class RunDates:
     """When the run was created, first started and last ended (`dates`), as written."""
 
@@ -432,6 +487,7 @@ class ResultFrame:
     method: JsonObject
     checks: tuple[Check, ...]
     records: JsonObject      # what the run says for the records (calibration state)
+    corrections: tuple[Correction, ...]   # the instrument corrections it applied (issue 58)
     doc: JsonObject          # the whole document as read, in result.json's order
 
     @classmethod
@@ -472,7 +528,7 @@ class ResultFrame:
             raw_files=objects(doc, "raw_files"), decision_rule=text(doc, "decision_rule"),
             method=obj(doc, "method"),
             checks=tuple(Check.from_json(c) for c in objects(doc, "checks")),
-            records=obj(doc, "records"), doc=doc)
+            records=obj(doc, "records"), corrections=corrections_of(doc), doc=doc)
 
     @property
     def hashed_raw_files(self) -> tuple[HashedFile, ...]:

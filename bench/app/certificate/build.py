@@ -61,6 +61,7 @@ from bench.report.result_frame import (
     Check,
     HashedFile,
     Specification,
+    Tolerance,
     fog_temperature,
 )
 
@@ -189,7 +190,7 @@ def build_document(result: Mapping[str, object], run_path: Path | None = None,
                             _instruments(src, proc)))
     sections.append(Section(n.next(), "Method", _method(src, proc)))
     sections.append(Section(n.next(), "Deviations", _deviations(src, proc)))
-    fixes = correction_statements(src.result)    # issue 58: a corrected re-issue says so
+    fixes = correction_statements(src.frame.corrections)    # issue 58: a corrected re-issue says so
     if fixes:
         sections.append(Section(n.next(), "Corrections applied",
                                 tuple(Para(t) for t in fixes)))
@@ -346,7 +347,7 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
     rows += [(label_of(k), text_of(v)) for k, v in cert.entries if k not in skip]
     blocks: list[Block] = [Fields(tuple(rows))]
     run_dir = src.frame.run_dir or (src.run_path.name if src.run_path else NOT_RECORDED)
-    blocks.append(software_note(src.meta, src.events, bench.__version__, str(run_dir)))
+    blocks.append(software_note(src.meta.get("bench_version"), src.events, bench.__version__, str(run_dir)))
     blocks.append(Para(AUTHORITATIVE, "note"))
     return tuple(blocks)
 
@@ -772,7 +773,7 @@ def _conformity(src: Sources, checks: list[Check], proc: Procedure
         f"exceed 0.2-0.3 of its tolerance; a ratio U/T ≤ {CAPABILITY_LIMIT:g} is marked met."))
     tol = src.frame.method.get("tolerance") or src.procedure_file.get("tolerance")
     if isinstance(tol, Mapping) and tol:
-        table = _tolerance_table(tol, proc)
+        table = _tolerance_table(Tolerance.all_of(dict(tol)), proc)
         if table.rows:
             blocks.append(table)
     if not checks:
@@ -849,22 +850,21 @@ def _consistency_table(checks: list[Check], proc: Procedure) -> Table:
                         "k_as, levelling); it says nothing about the item's specification.",))
 
 
-def _tolerance_table(tol: Mapping[str, object], proc: Procedure) -> Table:
+def _tolerance_table(tol: Sequence[Tolerance], proc: Procedure) -> Table:
     """The procedure's tolerances: rate bands (a band applies below its `below_dps`, in
     order) or one value per quantity with its unit in the key (`<quantity>_dph: 0.5`)."""
     rows = []
-    for quantity, bands in tol.items():
-        words = str(quantity).split("_")
-        if (value := num(bands)) is not None and words[-1] in ABSOLUTE_UNITS:
+    for t in tol:
+        quantity = t.quantity
+        words = quantity.split("_")
+        if (value := t.value) is not None and words[-1] in ABSOLUTE_UNITS:
             name = " ".join(words[:-1])
             rows.append((proc.quantity("_".join(words[:-1]), name), "every measurement",
                          f"{_trim(value)} {ABSOLUTE_UNITS[words[-1]]}"))
             continue
         lo = 0.0
-        for band in bands if isinstance(bands, list) else []:
-            if not isinstance(band, Mapping):
-                continue
-            below, rel = num(band.get("below_dps")), num(band.get("rel"))
+        for band in t.bands:
+            below, rel = band.below_dps, band.rel
             if below is not None:
                 where = (f"{lo:g} ≤ |ω_set| < {below:g} °/s" if lo else
                          f"|ω_set| < {below:g} °/s")

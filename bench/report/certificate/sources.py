@@ -71,6 +71,19 @@ class Sources:
         return cast(M, self._models[decode])
 
     @cached_property
+    def equipment_in_force(self) -> dict[str, dict[str, str]]:
+        """The calibration in force per stand key (its certificate, issuer and due date),
+        as the register gave it at the run's start (meta.json's equipment_status,
+        bench/app/register/gate.py); an entry lacking one of them is left out."""
+        got = self.meta.get("equipment_status")
+        out: dict[str, dict[str, str]] = {}
+        for st in got if isinstance(got, list) else []:
+            if isinstance(st, dict) and all(isinstance(st.get(k), str) for k in
+                                            ("where", "certificate", "issuer", "due")):
+                out[str(st["where"])] = {k: str(st[k]) for k in ("certificate", "issuer", "due")}
+        return out
+
+    @cached_property
     def frame(self) -> ResultFrame:
         """The run header, checks and verdict, typed (bench.report.result_frame): parsed
         once, on first use, and read by every section of the certificate and the DCC."""
