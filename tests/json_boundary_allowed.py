@@ -21,7 +21,6 @@ ALLOWED: dict[str, dict[str, int]] = {
     "bench/app/certificate/build.py": {"json_map_signatures": 1},
     "bench/app/certificate/corrected.py": {"json_map_signatures": 3},
     "bench/app/certificate/equipment.py": {"json_map_signatures": 2},
-    "bench/app/certificate/item.py": {"json_reads": 1},
     "bench/app/certificate/pdf.py": {"json_map_signatures": 1},
     "bench/app/certificate/people.py": {"json_map_signatures": 4},
     "bench/app/certificate/register.py": {"json_map_signatures": 1, "json_reads": 1},
