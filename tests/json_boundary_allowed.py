@@ -11,6 +11,10 @@ function that passed a JSON map was split in two, each half passing it on
 Lowered on branch h22 (issue 60, the rate ladder's model): the ladder's result, budgets,
 DCC and plots modules and bench/report/uncertainty_names.py left the list, its analysis
 went from 6 signatures to 2 (procedures/rate_ladder/codec.py is a codec).
+
+Lowered on branch h30 (issue 60, the report layer): result_frame.py, the new budget_codec.py
+and certificate/sources.py are codecs; the certificate's and the DCC's readers take the typed
+frame, checks, budgets, tolerances and corrections (their files 66 -> 16).
 """
 
 from __future__ import annotations
