@@ -21,9 +21,10 @@ Nothing here names a procedure kind.
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 
+from bench.analysis.finite import finite_number
 from bench.report.certificate.model import Document, Fields, Table
 
 #: the trend plot's tolerance bands: +-T around zero, 0..T (a spread), or none
@@ -119,14 +120,54 @@ def spec_for(quantity: str, specs: Sequence[FigureSpec]) -> FigureSpec | None:
     return next((s for s in specs if s.matches(quantity)), None)
 
 
+def _walk(node: object, parts: Sequence[str], axis: str, rate: float | None,
+          rate_key: str | None) -> Iterator[tuple[str, float | None, Mapping[str, object]]]:
+    """(axis, rate, the mapping holding the value) for every match of `parts`."""
+    if not isinstance(node, Mapping):
+        return
+    if len(parts) == 1:
+        yield axis, rate, node
+        return
+    head, rest = parts[0], parts[1:]
+    if head == "<axis>":
+        for key, child in node.items():
+            yield from _walk(child, rest, str(key), rate, rate_key)
+        return
+    if head.endswith("[]"):
+        items = node.get(head[:-2])
+        for item in items if isinstance(items, list) else ():
+            here = rate
+            if rate_key and isinstance(item, Mapping) and rate_key in item:
+                here = finite_number(item.get(rate_key))
+            yield from _walk(item, rest, axis, here, rate_key)
+        return
+    yield from _walk(node.get(head), rest, axis, rate, rate_key)
+
+
+def values_at(result: Mapping[str, object], specs: Sequence[FigureSpec]) -> list[FigureValue]:
+    """Every declared figure result.json holds, read at its declared path."""
+    out = []
+    for spec in specs:
+        if "<" in spec.quantity:
+            continue          # a family: the kind reads it itself
+        parts = spec.path.split(".")
+        for axis, rate, holder in _walk(result, parts, spec.axis, None, spec.rate_key):
+            value = finite_number(holder.get(parts[-1]))
+            if value is None:
+                continue
+            u = finite_number(holder.get(spec.u_path)) if spec.u_path else None
+            if spec.rate_is_magnitude and rate is not None:
+                rate = abs(rate)
+            out.append(FigureValue(axis, spec.quantity, rate, value, u, spec.unit, spec.check))
+    return out
+
+
 class DeclaredFigures:
     """A kind's figures from their declarations alone (inherit it, set `figures`)."""
 
     figures: tuple[FigureSpec, ...] = ()
 
     def figure_values(self, result: Mapping[str, object]) -> list[FigureValue]:
-        """Every declared figure `result` holds (read by the frame's codec at its path)."""
-        from bench.report.result_frame import values_at
         return values_at(result, self.figures)
 
 

@@ -12,14 +12,13 @@ its own part, so one module per kind spells its keys and this one spells the fra
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TypeVar
 
 from bench.analysis.finite import finite_number
 from bench.core import rundir_layout as layout
 from bench.report.corrections import Correction
-from bench.report.figures import FigureSpec, FigureValue
 from drivers.json_types import JsonObject, JsonValue
 
 #: a key path inside result.json: `axes.outer.rates[0]`
@@ -556,48 +555,3 @@ class ResultFrame:
 
 def parse_each(items: tuple[JsonObject, ...], parse: Callable[[JsonObject], T]) -> tuple[T, ...]:
     return tuple(parse(i) for i in items)
-
-
-# -- a kind's declared figures, read at their paths -----------------------------------------
-
-def _walk(node: object, parts: Sequence[str], axis: str, rate: float | None,
-          rate_key: str | None) -> Iterator[tuple[str, float | None, Mapping[str, object]]]:
-    """(axis, rate, the mapping holding the value) for every match of `parts`."""
-    if not isinstance(node, Mapping):
-        return
-    if len(parts) == 1:
-        yield axis, rate, node
-        return
-    head, rest = parts[0], parts[1:]
-    if head == "<axis>":
-        for key, child in node.items():
-            yield from _walk(child, rest, str(key), rate, rate_key)
-        return
-    if head.endswith("[]"):
-        items = node.get(head[:-2])
-        for item in items if isinstance(items, list) else ():
-            here = rate
-            if rate_key and isinstance(item, Mapping) and rate_key in item:
-                here = finite_number(item.get(rate_key))
-            yield from _walk(item, rest, axis, here, rate_key)
-        return
-    yield from _walk(node.get(head), rest, axis, rate, rate_key)
-
-
-def values_at(result: Mapping[str, object], specs: Sequence[FigureSpec]) -> list[FigureValue]:
-    """Every declared figure result.json holds, read at its declared path (a kind's
-    `figures`, bench/report/figures.py): what the records store per run."""
-    out = []
-    for spec in specs:
-        if "<" in spec.quantity:
-            continue          # a family: the kind reads it itself
-        parts = spec.path.split(".")
-        for axis, rate, holder in _walk(result, parts, spec.axis, None, spec.rate_key):
-            value = finite_number(holder.get(parts[-1]))
-            if value is None:
-                continue
-            u = finite_number(holder.get(spec.u_path)) if spec.u_path else None
-            if spec.rate_is_magnitude and rate is not None:
-                rate = abs(rate)
-            out.append(FigureValue(axis, spec.quantity, rate, value, u, spec.unit, spec.check))
-    return out
