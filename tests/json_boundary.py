@@ -31,7 +31,10 @@ CODECS = frozenset({
     "bench/core/events.py",
     "bench/core/journal_codec.py",
     "bench/core/settings_codec.py",
+    "bench/report/budget_codec.py",
+    "bench/report/certificate/sources.py",
     "bench/report/codec.py",
+    "bench/report/result_frame.py",
     "procedures/drift_pulse/codec.py",
     "procedures/rate_ladder/codec.py",
 })

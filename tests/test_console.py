@@ -223,7 +223,7 @@ def test_prompts_on_the_certificate_say_who_answered() -> None:
 def test_software_note_names_every_version_involved() -> None:
     events = [{"event": "session_start", "session": 1, "version": "0.1.0"},
               {"event": "session_start", "session": 2, "version": "0.2.0"}]
-    note = software_note({"bench_version": "0.1.0"}, decode_all(events), "0.2.0",
+    note = software_note("0.1.0", decode_all(events), "0.2.0",
                          "run-1").text
     assert note == ("Software: run with ratebench 0.1.0 (session 1), 0.2.0 (session 2); "
                     "certificate issued by ratebench 0.2.0. Run directory: run-1.")

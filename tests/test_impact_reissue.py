@@ -329,6 +329,7 @@ def test_what_a_finding_asks_of_an_issue_without_a_run(tmp_path: Path) -> None:
     analysis; the certificate's words name the item, e with its U and why."""
     from bench.app.certificate.corrected import already_applied, corrections_due
     from bench.report.corrections import statements
+    from bench.report.result_frame import corrections_of
 
     url = sqlite_register(tmp_path / "register")
     today = dt.date.today()
@@ -364,6 +365,6 @@ def test_what_a_finding_asks_of_an_issue_without_a_run(tmp_path: Path) -> None:
     applied = {"corrections": [{**due[0], "reason": REASON}]}
     assert already_applied(applied, due) and not already_applied({}, due)
     assert not already_applied({"corrections": [{**due[0], "value": 2e-7}]}, due)
-    said = statements(applied)
+    said = statements(corrections_of(applied))
     assert len(said) == 1 and f"serial {SERIAL}" in said[0] and "e = 3e-07" in said[0] \
         and "U = 3e-08, k = 2" in said[0] and said[0].endswith(f"Why: {REASON}.")

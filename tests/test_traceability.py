@@ -149,7 +149,9 @@ def test_serials_as_read_back_and_identities_that_do_not_single_an_instrument_ou
 def test_budgets_combine_as_ea_4_02_says() -> None:
     """u_c = sqrt(sum (c_i u_i)^2); nu_eff by Welch-Satterthwaite; k = t_95.45(floor(nu_eff))
     to two decimals (EA-4/02 table E.1; hand-derived)."""
-    from bench.report.budget import NORMAL, STUDENT_T, Budget, Term, budget_from_json
+    from bench.report.budget import NORMAL, STUDENT_T, Budget, Term
+    from bench.report.budget_codec import budget_from_json
+    from bench.report.codec import encode
 
     b = Budget("y", "y", "1", 1.0, (Term("a", 1.0, 3.0, STUDENT_T, 1.0, 4.0),
                                      Term("b", 0.0, 2.0, NORMAL, -2.0, None)), 10.45)
@@ -157,4 +159,4 @@ def test_budgets_combine_as_ea_4_02_says() -> None:
     assert b.dof_eff == 5.0 ** 4 / (3.0 ** 4 / 4.0)   # only the Type A term has finite dof
     assert b.k == 2.09                                # nu_eff 30.9 -> t_95.45(30) = 2.087
     assert b.U == pytest.approx(10.45) and b.reproduces is True
-    assert budget_from_json(b.to_json()) == b
+    assert budget_from_json(encode(b.record())) == b

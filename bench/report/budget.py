@@ -14,15 +14,11 @@ reader sees both, nothing is adjusted to agree.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import msgspec
 
 from bench.analysis.coverage import COVERAGE_P, coverage_factor, welch_satterthwaite
-from bench.report.codec import encode
-from drivers.json_types import JsonObject
 
 NORMAL = "normal"
 RECTANGULAR = "rectangular"
@@ -52,9 +48,6 @@ class Term:
     def signed_contribution(self) -> float:
         """c_i u(x_i): the sign matters where two inputs are correlated (GUM 5.2.2)."""
         return self.sensitivity * self.ustd
-
-    def to_json(self) -> JsonObject:
-        return encode(self.record())
 
     def record(self) -> TermRecord:
         """The term as result.json states it, typed (`TermRecord`)."""
@@ -109,10 +102,6 @@ class Budget:
         if self.reported_U is None or self.reported_U <= 0:
             return None
         return abs(self.U - self.reported_U) <= AGREE_REL * self.reported_U
-
-    def to_json(self) -> JsonObject:
-        """The budget as result.json states it (`BudgetRecord`, its keys spelled once)."""
-        return encode(self.record())
 
     def record(self) -> BudgetRecord:
         """The budget as result.json states it, its derived figures (u_c, nu_eff, k, U)
@@ -186,71 +175,7 @@ class BudgetRecord(msgspec.Struct, frozen=True, kw_only=True, omit_defaults=True
 
 
 def num(x: object) -> float | None:
+    """A finite number (None for text, a bool, None, NaN): a budget's optional figure."""
     if isinstance(x, bool) or not isinstance(x, int | float):
         return None
     return float(x) if math.isfinite(x) else None
-
-
-def budget_from_json(d: Mapping[str, Any]) -> Budget | None:
-    """A budget as result.json carries it (None when it is not one)."""
-    try:
-        terms = tuple(Term(str(t["quantity"]), num(t.get("estimate")), float(t["ustd"]),
-                           str(t["distribution"]), float(t["sensitivity"]),
-                           num(t.get("dof")), str(t.get("unit") or ""))
-                      for t in d["terms"])
-        corr = tuple((int(c["terms"][0]), int(c["terms"][1]), float(c["r"]))
-                     for c in d.get("correlations") or ())
-        if any(not (0 <= i < len(terms) and 0 <= j < len(terms)) for i, j, _ in corr):
-            return None
-        return Budget(str(d["quantity"]), str(d["key"]), str(d.get("unit") or ""),
-                      num(d.get("estimate")), terms, num(d.get("U_reported")),
-                      str(d.get("note") or ""), corr)
-    except (KeyError, TypeError, ValueError, IndexError):
-        return None
-
-
-def budgets_in(node: object) -> Sequence[Mapping[str, object]]:
-    """Every budget dict under `node` (a `budgets` list anywhere), in document order."""
-    out: list[Mapping[str, object]] = []
-    if isinstance(node, Mapping):
-        for k, v in node.items():
-            if k == "budgets" and isinstance(v, list):
-                out += [b for b in v if isinstance(b, Mapping) and "terms" in b]
-            else:
-                out += budgets_in(v)
-    elif isinstance(node, list):
-        for v in node:
-            out += budgets_in(v)
-    return out
-
-
-def _site(path: tuple[object, ...], node: Mapping[str, object]) -> str:
-    """Where a budget belongs, for a reader: 'axis outer, +10 deg/s', 'axis x', ..."""
-    axis = next((str(path[i + 1]) for i in range(len(path) - 1)
-                 if path[i] == "axes"), None)
-    where = [f"axis {axis}"] if axis else []
-    if num(node.get("set_rate_dps")) is not None:
-        where.append(f"{num(node['set_rate_dps']):+g} °/s")
-    elif num(node.get("rate_dps")) is not None:
-        where.append(f"pair ±{num(node['rate_dps']):g} °/s")
-    return ", ".join(where) or "overall"
-
-
-def budget_sites(node: object, path: tuple[object, ...] = ()) -> list[tuple[str, str, Budget]]:
-    """(where, result.json path of the owner, budget) for every budget under `node`."""
-    out: list[tuple[str, str, Budget]] = []
-    if isinstance(node, Mapping):
-        for k, v in node.items():
-            if k == "budgets" and isinstance(v, list):
-                owner = ".".join(str(p) if not isinstance(p, int) else f"[{p}]"
-                                 for p in path).replace(".[", "[")
-                for d in v:
-                    b = budget_from_json(d) if isinstance(d, Mapping) else None
-                    if b is not None:
-                        out.append((_site(path, node), owner, b))
-            else:
-                out += budget_sites(v, (*path, k))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            out += budget_sites(v, (*path, i))
-    return out

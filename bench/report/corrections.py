@@ -5,23 +5,14 @@ A run folder's `corrections.json` (written by `bench impact` in a copy, or by a 
 re-issue in the run folder itself) lists corrections; the kind's analysis applies those it
 models and states the list in result.json's `corrections`. Every reader of that list
 (the certificate, the DCC, the corrected re-issue) reads it here, where its keys are
-spelled once: the PDF, HTML and DCC then say the same words.
+spelled once (decoded by bench/report/result_frame.py, the frame's codec): the PDF, HTML
+and DCC then say the same words.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping
+from collections.abc import Sequence
 from dataclasses import dataclass
-
-
-def _text(x: object) -> str | None:
-    return str(x) if x is not None and str(x).strip() else None
-
-
-def _number(x: object) -> float | None:
-    return float(x) if isinstance(x, int | float) and not isinstance(x, bool) \
-        and math.isfinite(float(x)) else None
 
 
 @dataclass(frozen=True)
@@ -39,34 +30,22 @@ class Correction:
     source: str | None
     reason: str | None
 
-    @classmethod
-    def from_json(cls, d: Mapping[str, object]) -> Correction:
-        return cls(str(d.get("where") or "?"), _text(d.get("serial")), _text(d.get("model")),
-                   str(d.get("quantity") or "?"), _number(d.get("value")),
-                   _number(d.get("U")), _text(d.get("source")), _text(d.get("reason")))
-
     def same_as(self, other: Correction) -> bool:
         """The same correction of the same item (why it was applied aside)."""
         return (self.where, self.serial, self.quantity, self.value, self.value_U) == \
             (other.where, other.serial, other.quantity, other.value, other.value_U)
 
 
-def corrections_of(result: Mapping[str, object]) -> list[Correction]:
-    """The corrections result.json states it applied ([] for a run analysed as measured)."""
-    stated = result.get("corrections")
-    return [Correction.from_json(d) for d in (stated if isinstance(stated, list) else [])
-            if isinstance(d, Mapping)]
-
-
 def _g(x: float | None) -> str:
     return "not stated" if x is None else f"{x:.3g}"
 
 
-def statements(result: Mapping[str, object]) -> list[str]:
-    """The certificate's words for each correction the result applied (PDF, HTML and DCC
-    alike): the item, the value with its U, what was done with it and why."""
+def statements(corrections: Sequence[Correction]) -> list[str]:
+    """The certificate's words for each correction the result applied (`ResultFrame.
+    corrections`; PDF, HTML and DCC alike): the item, the value with its U, what was done
+    with it and why."""
     out = []
-    for c in corrections_of(result):
+    for c in corrections:
         item = f"{c.model or 'model not stated'}, serial {c.serial or 'not stated'}"
         if c.quantity == "timebase_offset_rel":
             what = f"the counter at {c.where} ({item})"

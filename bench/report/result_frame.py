@@ -18,6 +18,7 @@ from typing import TypeVar
 
 from bench.analysis.finite import finite_number
 from bench.core import rundir_layout as layout
+from bench.report.corrections import Correction
 from drivers.json_types import JsonObject, JsonValue
 
 #: a key path inside result.json: `axes.outer.rates[0]`
@@ -223,6 +224,17 @@ class Check:
         docs/method.md D2), as the kind names it."""
         return text(self.doc, "floor_name")
 
+    def figure(self, key: str) -> float | None:
+        """A figure the check states under a unit-suffixed key (`U_rel`, `tolerance_dph`,
+        `upper_rel`...: which ones depends on the quantity's unit), read as the DCC always
+        read them (numeric text too); None when absent or no finite number."""
+        return finite_number(self.doc.get(key))
+
+    def states(self, key: str) -> bool:
+        """Whether the check states `key` at all (the quantity's unit is named by which
+        `value_<unit>` it holds)."""
+        return key in self.doc
+
     def to_json(self) -> JsonObject:
         return dict(self.doc)
 
@@ -305,6 +317,106 @@ class Specification:
 
 
 @dataclass(frozen=True, slots=True)
+class HashedFile:
+    """A file and its SHA-256 as the run recorded it (`raw_files[]`): printed as written,
+    its byte count read as the certificate always read it (numeric text too)."""
+
+    path: JsonValue
+    sha256: JsonValue
+    size_bytes: float | None
+
+    @classmethod
+    def from_json(cls, doc: JsonObject) -> HashedFile:
+        return cls(doc.get("path"), doc.get("sha256"), finite_number(doc.get("bytes")))
+
+
+@dataclass(frozen=True, slots=True)
+class CertificateSettings:
+    """The certificate settings (`certificate`: the lab file's under the run's): who
+    issues it and for whom; each printed as written (an absent one says so)."""
+
+    laboratory: JsonValue = None
+    address: JsonValue = None
+    accreditation: JsonValue = None
+    customer: JsonValue = None
+    customer_address: JsonValue = None
+    customer_contact: JsonValue = None
+    site: JsonValue = None
+    entries: tuple[tuple[str, JsonValue], ...] = ()   # every setting, in the file's order
+
+    @classmethod
+    def of(cls, value: JsonValue, issuer: tuple[tuple[str, str], ...] = ()
+           ) -> CertificateSettings:
+        """The settings `value` holds (none when it is no mapping), with the register's
+        `issuer` identity (laboratory, address, code, accreditation) in place of theirs
+        when it is given (issue 54: nothing of the files' for them then)."""
+        doc = dict(value) if isinstance(value, dict) else {}
+        if issuer:
+            for key in ("laboratory", "address", "code", "accreditation"):
+                doc.pop(key, None)
+            doc.update(dict(issuer))
+        return cls(laboratory=doc.get("laboratory"), address=doc.get("address"),
+                   accreditation=doc.get("accreditation"), customer=doc.get("customer"),
+                   customer_address=doc.get("customer_address"),
+                   customer_contact=doc.get("customer_contact"), site=doc.get("site"),
+                   entries=tuple(doc.items()))
+
+
+@dataclass(frozen=True, slots=True)
+class ToleranceBand:
+    """A relative tolerance for set rates below `below_dps` (None: every rate above the
+    previous band's)."""
+
+    below_dps: float | None
+    rel: float | None
+
+
+@dataclass(frozen=True, slots=True)
+class Tolerance:
+    """One quantity's tolerance as the procedure states it (`method.tolerance`): one
+    number (its unit in the key: `<quantity>_dph: 0.5`) or rate bands, in order."""
+
+    quantity: str
+    value: float | None
+    bands: tuple[ToleranceBand, ...]
+
+    @classmethod
+    def all_of(cls, value: JsonValue) -> tuple[Tolerance, ...]:
+        """Every quantity's tolerance in a `tolerance` mapping (none when it is none); a
+        band that is no mapping is left out. Numbers read as finite_number reads them."""
+        doc = value if isinstance(value, dict) else {}
+        return tuple(cls(str(quantity), finite_number(bands), tuple(
+            ToleranceBand(finite_number(b.get("below_dps")), finite_number(b.get("rel")))
+            for b in (bands if isinstance(bands, list) else []) if isinstance(b, dict)))
+            for quantity, bands in doc.items())
+
+
+def _stated_text(x: object) -> str | None:
+    return str(x) if x is not None and str(x).strip() else None
+
+
+def _stated_number(x: object) -> float | None:
+    return float(x) if isinstance(x, int | float) and not isinstance(x, bool) \
+        and math.isfinite(float(x)) else None
+
+
+def correction_of(d: Mapping[str, object]) -> Correction:
+    """One correction as a corrections file or result.json's `corrections[]` states it
+    (or `bench impact` finds due: the same keys)."""
+    return Correction(str(d.get("where") or "?"), _stated_text(d.get("serial")),
+                      _stated_text(d.get("model")), str(d.get("quantity") or "?"),
+                      _stated_number(d.get("value")), _stated_number(d.get("U")),
+                      _stated_text(d.get("source")), _stated_text(d.get("reason")))
+
+
+def corrections_of(doc: object) -> tuple[Correction, ...]:
+    """The corrections a result states it applied (none for a run analysed as measured)."""
+    stated = doc.get("corrections") if isinstance(doc, Mapping) else None
+    return tuple(correction_of(d) for d in (stated if isinstance(stated, list) else [])
+                 if isinstance(d, Mapping))
+
+
+@dataclass(frozen=True, slots=True)
 class RunDates:
     """When the run was created, first started and last ended (`dates`), as written."""
 
@@ -375,6 +487,7 @@ class ResultFrame:
     method: JsonObject
     checks: tuple[Check, ...]
     records: JsonObject      # what the run says for the records (calibration state)
+    corrections: tuple[Correction, ...]   # the instrument corrections it applied (issue 58)
     doc: JsonObject          # the whole document as read, in result.json's order
 
     @classmethod
@@ -415,7 +528,12 @@ class ResultFrame:
             raw_files=objects(doc, "raw_files"), decision_rule=text(doc, "decision_rule"),
             method=obj(doc, "method"),
             checks=tuple(Check.from_json(c) for c in objects(doc, "checks")),
-            records=obj(doc, "records"), doc=doc)
+            records=obj(doc, "records"), corrections=corrections_of(doc), doc=doc)
+
+    @property
+    def hashed_raw_files(self) -> tuple[HashedFile, ...]:
+        """The raw files the run recorded, each with its digest."""
+        return tuple(HashedFile.from_json(f) for f in self.raw_files)
 
     @property
     def simulated(self) -> bool:

@@ -14,7 +14,7 @@ import math
 from collections.abc import Mapping, Sequence
 
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u, rel_unit
-from drivers.json_types import JsonLike, JsonObject
+from drivers.json_types import JsonLike, JsonObject, JsonValue
 
 #: a table as the run page's script draws it (station.js `table`): id, caption, header,
 #: and rows of {cells, class}
@@ -39,7 +39,7 @@ def number(v: object) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def rate_text(v: object) -> str:
+def rate_text(v: JsonValue) -> str:
     """A set rate, signed, with the typographic minus the certificate prints."""
     if not isinstance(v, int | float | str):
         return "-"
@@ -49,7 +49,8 @@ def rate_text(v: object) -> str:
         return "-"
 
 
-def value_u(value: object, u: object, scale: float = 1.0, signed: bool = False) -> str:
+def value_u(value: JsonValue, u: JsonValue, scale: float = 1.0,
+            signed: bool = False) -> str:
     """'value ± U' by the certificate's rule; a value without a usable U keeps four
     significant digits and says so."""
     r = format_value_u(number(value), number(u), scale, signed=signed)
@@ -58,7 +59,7 @@ def value_u(value: object, u: object, scale: float = 1.0, signed: bool = False) 
     return r.joined()
 
 
-def column_unit(*values: object) -> RelUnit:
+def column_unit(*values: JsonValue) -> RelUnit:
     """One unit per column (ppm below 0.01 %, else %), as the certificate chooses it."""
     return rel_unit(*[number(v) for v in values])
 

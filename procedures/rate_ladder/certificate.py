@@ -45,7 +45,6 @@ from bench.report.certificate.rounding import (
     rel_unit,
 )
 from bench.report.result_frame import Check
-from drivers.json_types import JsonObject
 from procedures.rate_ladder import plots
 from procedures.rate_ladder.codec import ladder_model
 from procedures.rate_ladder.result import (
@@ -182,21 +181,21 @@ class LadderCertificate(CertificateParts):
         return [Para("Where this procedure differs from the source paper's method "
                      "(docs/method.md A3-A5):", "strong"), *(Para(f"• {t}") for t in items)]
 
-    def certificate_checks(self, src: Sources) -> list[JsonObject]:
+    def certificate_checks(self, src: Sources) -> list[Check]:
         """The per-rate judgements of the analysis (a result without checks[])."""
-        out: list[JsonObject] = []
+        out: list[Check] = []
         for axis, r in _ladder(src).rates():
             j = r.judgement
             if isinstance(j, UnsetType) or r.verdict is None:
                 continue
             rule = str(j.get("decision_rule", "simple"))
-            out.append({"axis": axis, "set_rate_dps": r.set_rate_dps,
-                        "quantity": "rate_error", "value_rel": r.rate_error_rel,
-                        "u_rel": r.rate_error_u_rel,
-                        "tolerance_rel": j.get("tolerance_rel"), "verdict": r.verdict,
-                        "rule": "simple" if rule.startswith("simple") else rule,
-                        "capability_ratio": j.get("capability_ratio"),
-                        "capability_ok": j.get("capable")})
+            out.append(Check.from_json({
+                "axis": axis, "set_rate_dps": r.set_rate_dps, "quantity": "rate_error",
+                "value_rel": r.rate_error_rel, "u_rel": r.rate_error_u_rel,
+                "tolerance_rel": j.get("tolerance_rel"), "verdict": r.verdict,
+                "rule": "simple" if rule.startswith("simple") else rule,
+                "capability_ratio": j.get("capability_ratio"),
+                "capability_ok": j.get("capable")}))
         return out
 
     def certificate_sections(self, src: Sources, number: str,
@@ -250,7 +249,7 @@ def sigma_presented(r: RateEntry, u: float | None, scale: float = 1.0) -> Presen
                        resolved=r.rate_instability_resolved)
 
 
-def _u_of_std(s: float | None, n: object) -> float | None:
+def _u_of_std(s: float | None, n: float | None) -> float | None:
     """U (k = 2) of a standard deviation from n values, when the result does not give it."""
     n = num(n)
     return None if n is None else std_u_rel(s, int(n))
@@ -424,7 +423,7 @@ def _pairs_table(axis: str, pairs: Sequence[PairEntry]) -> Table:
     has_drift = any(num(p.drift_dps_per_h) is not None for p in pairs)
     for p in pairs:
         w0, w0u = num(p.w0_dps), num(p.w0_u_dps)
-        row = [f"±{num(p.rate_dps) or 0:g}", vu_text(p.k, p.k_u),
+        row = [f"±{num(p.rate_dps) or 0:g}", format_value_u(p.k, p.k_u).joined(),
                vu_text(w0, w0u, signed=True),
                format_value_u(w0, w0u, 3600.0, signed=True).joined()]
         if has_drift:

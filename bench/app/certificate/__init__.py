@@ -33,7 +33,7 @@ __all__ = ["Document", "build_document", "render_files", "render_html", "render_
            "render_issue", "result_digest", "write_certificate"]
 
 
-def __getattr__(name: str) -> object:
+def __getattr__(name: str) -> Callable[..., bytes]:
     """`render_pdf`, imported when it is first asked for: fpdf's import is a second of a
     run's start-up, spent before the certificate that needs it (issue 62)."""
     if name == "render_pdf":

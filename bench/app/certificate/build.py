@@ -33,7 +33,7 @@ from bench.core.registry import procedure_names
 from bench.core.settings_codec import identities
 from bench.core.traceability import with_declared_serials
 from bench.kind import CertificatePart, installed
-from bench.report.budget import budget_sites
+from bench.report.budget_codec import BudgetSite, budget_sites
 from bench.report.certificate import methods
 from bench.report.certificate.model import Block, Document, Fields, Para, Section, Signatures, Table
 from bench.report.certificate.parts import (
@@ -57,8 +57,14 @@ from bench.report.certificate.rounding import (
     rel_unit,
 )
 from bench.report.corrections import statements as correction_statements
-from bench.report.result_frame import Check, Specification, fog_temperature
-from drivers.json_types import JsonObject
+from bench.report.result_frame import (
+    CertificateSettings,
+    Check,
+    HashedFile,
+    Specification,
+    Tolerance,
+    fog_temperature,
+)
 
 __all__ = ["NOT_RECORDED", "Sources", "build_document", "certificate_id", "decision_rule_text",
            "issued_number", "verdict_label"]
@@ -108,21 +114,11 @@ def issued_number(src: Sources) -> str:
     return done[-1].number if done else certificate_id(src)
 
 
-def _cert(src: Sources, issue: Issue | None = None) -> JsonObject:
+def _cert(src: Sources, issue: Issue | None = None) -> CertificateSettings:
     """The certificate settings: the procedure's `certificate:` block over the lab's file;
-    on an issued certificate the issuer's identity is the lab register's (issue 54): its
-    laboratory, address, code and accreditation, and nothing of the files' for them."""
+    on an issued certificate the issuer's identity is the lab register's (issue 54)."""
     cert = src.frame.certificate or src.procedure_file.get("certificate", {}) or {}
-    out: JsonObject = dict(cert) if isinstance(cert, Mapping) else {}
-    if issue is not None and issue.issuer:
-        for key in ISSUER_FIELDS:
-            out.pop(key, None)
-        out.update(dict(issue.issuer))
-    return out
-
-
-#: the certificate keys the register's issuer identity replaces
-ISSUER_FIELDS = ("laboratory", "address", "code", "accreditation")
+    return CertificateSettings.of(cert, issue.issuer if issue is not None else ())
 
 
 # -- the document --------------------------------------------------------------------------
@@ -151,7 +147,7 @@ class Procedure:
     def title(self) -> str:
         return self.parts.certificate_procedure_name or self.name
 
-    def quantity(self, key: object, default: str | None = None) -> str:
+    def quantity(self, key: str | None, default: str | None = None) -> str:
         """A checked quantity in words."""
         key = str(key)
         return self.parts.certificate_quantities.get(
@@ -185,7 +181,7 @@ def build_document(result: Mapping[str, object], run_path: Path | None = None,
         issue = register.draft(run_path, cid)
     proc = procedure_of(src)
     cert = _cert(src, issue)
-    lab = str(cert.get("laboratory") or "Calibration laboratory (name not given)")
+    lab = str(cert.laboratory or "Calibration laboratory (name not given)")
     checks = _checks(src, proc)
     sections: list[Section] = []
     n = _Counter()
@@ -195,7 +191,7 @@ def build_document(result: Mapping[str, object], run_path: Path | None = None,
                             _instruments(src, proc)))
     sections.append(Section(n.next(), "Method", _method(src, proc)))
     sections.append(Section(n.next(), "Deviations", _deviations(src, proc)))
-    fixes = correction_statements(src.result)    # issue 58: a corrected re-issue says so
+    fixes = correction_statements(src.frame.corrections)    # issue 58: a corrected re-issue says so
     if fixes:
         sections.append(Section(n.next(), "Corrections applied",
                                 tuple(Para(t) for t in fixes)))
@@ -205,7 +201,7 @@ def build_document(result: Mapping[str, object], run_path: Path | None = None,
     sections.append(Section(n.next(), "Records: raw data and inputs", _records(src)))
     for title, blocks in [*proc.parts.certificate_annexes(src), *extra_sections]:
         sections.append(Section(n.next(), title, tuple(blocks)))
-    budgets = budget_tables(src.result)
+    budgets = budget_tables(budget_sites(src.result))
     if budgets:
         sections.append(Section(n.next(), "Uncertainty budgets (EA-4/02)", budgets,
                                 new_page=True))
@@ -243,9 +239,9 @@ def _g(x: float | None, sig: int = 3) -> str:
     return format_sig(x, sig) if x != 0 else "0"
 
 
-def budget_tables(result: Mapping[str, object]) -> tuple[Block, ...]:
-    """One table per budget in result.json (bench.report.budget), in EA-4/02's columns."""
-    sites = budget_sites(result)
+def budget_tables(sites: Sequence[BudgetSite]) -> tuple[Block, ...]:
+    """One table per budget in result.json (bench.report.budget_codec), in EA-4/02's
+    columns."""
     if not sites:
         return ()
     blocks: list[Block] = [Para(
@@ -301,7 +297,7 @@ def _checks(src: Sources, proc: Procedure) -> list[Check]:
     """The engine's checks[]; without it, what the kind reads from its own results."""
     if isinstance(src.frame.get("checks"), list):
         return list(src.frame.checks)
-    return [Check.from_json(c) for c in proc.parts.certificate_checks(src)]
+    return proc.parts.certificate_checks(src)
 
 
 def _identification(src: Sources, issue: Issue, proc: Procedure,
@@ -317,20 +313,20 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
           issue.number) if issue.draft else ("Certificate number", issue.number)),
         ("Revision", _revision_text(issue)),
         ("Title of the work", text_of(src.frame.title or src.procedure_file.get("title"))),
-        ("Issued by", text_of(cert.get("laboratory"))),
-        ("Laboratory address", text_of(cert.get("address"))),
+        ("Issued by", text_of(cert.laboratory)),
+        ("Laboratory address", text_of(cert.address)),
     ]
-    if cert.get("accreditation"):
-        rows.append(("Accreditation", text_of(cert["accreditation"])))
+    if cert.accreditation:
+        rows.append(("Accreditation", text_of(cert.accreditation)))
     rows += [
-        ("Customer", text_of(cert.get("customer"))),
-        ("Customer address", text_of(cert.get("customer_address"))),
-        ("Customer contact", text_of(cert.get("customer_contact"))),
+        ("Customer", text_of(cert.customer)),
+        ("Customer address", text_of(cert.customer_address)),
+        ("Customer contact", text_of(cert.customer_contact)),
         ("Item calibrated", item),
         ("Serial number", serial),
         *proc.parts.certificate_identification(src),
     ]
-    site = cert.get("site") or stand.get("location")
+    site = cert.site or stand.get("location")
     rows.append(("Site of calibration", text_of(site)))
     if stand.get("simulated"):
         rows.append(("Nature of the work", "SIMULATED run (instrument twins on real channels): "
@@ -349,10 +345,10 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
             "site", "lab", "authoritative", "specification", "location", "email", "phone",
             "code", "country_code", "performance_location", "signing", "require_signed_dcc",
             "records", "recertification", "responsible_persons"}
-    rows += [(label_of(k), text_of(v)) for k, v in cert.items() if k not in skip]
+    rows += [(label_of(k), text_of(v)) for k, v in cert.entries if k not in skip]
     blocks: list[Block] = [Fields(tuple(rows))]
     run_dir = src.frame.run_dir or (src.run_path.name if src.run_path else NOT_RECORDED)
-    blocks.append(software_note(src.meta, src.events, bench.__version__, str(run_dir)))
+    blocks.append(software_note(src.meta.get("bench_version"), src.events, bench.__version__, str(run_dir)))
     blocks.append(Para(AUTHORITATIVE, "note"))
     return tuple(blocks)
 
@@ -428,7 +424,7 @@ def _verdict(src: Sources) -> str:
     return "incomplete" if verdict is None else verdict
 
 
-def _rule_name(rule: object) -> str:
+def _rule_name(rule: str | None) -> str:
     return {"guard-band": "guard-band (guarded acceptance, w = U)",
             "simple": "simple acceptance"}.get(str(rule or "simple"), str(rule))
 
@@ -704,11 +700,11 @@ class CheckRow:
     suffix: str            # rel, dph, dps, deg...
 
     @classmethod
-    def of(cls, c: Mapping[str, object]) -> CheckRow:
+    def of(cls, c: Check) -> CheckRow:
         for suffix in ("rel", *ABSOLUTE_UNITS):
-            if f"value_{suffix}" in c:
-                return cls(num(c.get(f"value_{suffix}")), num(c.get(f"u_{suffix}")),
-                           num(c.get(f"tolerance_{suffix}")), num(c.get(f"expected_{suffix}")),
+            if c.states(f"value_{suffix}"):
+                return cls(c.figure(f"value_{suffix}"), c.figure(f"u_{suffix}"),
+                           c.figure(f"tolerance_{suffix}"), c.figure(f"expected_{suffix}"),
                            suffix)
         return cls(None, None, None, None, "rel")
 
@@ -746,7 +742,7 @@ def _check_texts(c: Check, proc: Procedure) -> tuple[str, str]:
     """(value as printed, tolerance) of one check under docs/method.md D2: '< L' for an
     unresolved value, its interval for an asymmetric one, else 'value ± U' (the conformity
     table and the as-found table print checks alike)."""
-    row = CheckRow.of(c.doc)
+    row = CheckRow.of(c)
     vu, tol_text = row.texts(str(c.quantity) not in proc.parts.certificate_unsigned)
     if check_class(c) == "not-assessed" or c.one_sided:
         # an unresolved value is stated as '< L' and judged on L (bench.report.conformity)
@@ -778,7 +774,7 @@ def _conformity(src: Sources, checks: list[Check], proc: Procedure
         f"exceed 0.2-0.3 of its tolerance; a ratio U/T ≤ {CAPABILITY_LIMIT:g} is marked met."))
     tol = src.frame.method.get("tolerance") or src.procedure_file.get("tolerance")
     if isinstance(tol, Mapping) and tol:
-        table = _tolerance_table(tol, proc)
+        table = _tolerance_table(Tolerance.all_of(dict(tol)), proc)
         if table.rows:
             blocks.append(table)
     if not checks:
@@ -792,7 +788,7 @@ def _conformity(src: Sources, checks: list[Check], proc: Procedure
     rows: list[tuple[str, ...]] = []
     notes: list[str] = []
     for i, c in enumerate(checks, start=1):
-        row = CheckRow.of(c.doc)
+        row = CheckRow.of(c)
         ratio = num(c.capability_ratio)
         if ratio is None and row.u is not None and row.tolerance:
             ratio = row.u / row.tolerance
@@ -841,7 +837,7 @@ def _consistency_table(checks: list[Check], proc: Procedure) -> Table:
     the statement of conformity."""
     rows = []
     for c in checks:
-        row = CheckRow.of(c.doc)
+        row = CheckRow.of(c)
         vu, expected = row.texts(signed=False)
         rows.append((text_of(c.axis), proc.quantity(c.quantity),
                      vu, expected, "consistent" if c.verdict == "pass"
@@ -855,22 +851,21 @@ def _consistency_table(checks: list[Check], proc: Procedure) -> Table:
                         "k_as, levelling); it says nothing about the item's specification.",))
 
 
-def _tolerance_table(tol: Mapping[str, object], proc: Procedure) -> Table:
+def _tolerance_table(tol: Sequence[Tolerance], proc: Procedure) -> Table:
     """The procedure's tolerances: rate bands (a band applies below its `below_dps`, in
     order) or one value per quantity with its unit in the key (`<quantity>_dph: 0.5`)."""
     rows = []
-    for quantity, bands in tol.items():
-        words = str(quantity).split("_")
-        if (value := num(bands)) is not None and words[-1] in ABSOLUTE_UNITS:
+    for t in tol:
+        quantity = t.quantity
+        words = quantity.split("_")
+        if (value := t.value) is not None and words[-1] in ABSOLUTE_UNITS:
             name = " ".join(words[:-1])
             rows.append((proc.quantity("_".join(words[:-1]), name), "every measurement",
                          f"{_trim(value)} {ABSOLUTE_UNITS[words[-1]]}"))
             continue
         lo = 0.0
-        for band in bands if isinstance(bands, list) else []:
-            if not isinstance(band, Mapping):
-                continue
-            below, rel = num(band.get("below_dps")), num(band.get("rel"))
+        for band in t.bands:
+            below, rel = band.below_dps, band.rel
             if below is not None:
                 where = (f"{lo:g} ≤ |ω_set| < {below:g} °/s" if lo else
                          f"|ω_set| < {below:g} °/s")
@@ -890,22 +885,21 @@ def _tolerance_table(tol: Mapping[str, object], proc: Procedure) -> Table:
 
 
 def _records(src: Sources) -> tuple[Block, ...]:
-    files = list(src.frame.raw_files)
+    files = list(src.frame.hashed_raw_files)
     hashed_here = False
     if not files and src.run_path is not None and layout.raw_root(src.run_path).is_dir():
         hashed_here = True
         for p in sorted(layout.raw_root(src.run_path).rglob("*")):
             if p.is_file():
-                files.append({"path": p.relative_to(src.run_path).as_posix(),
-                              "sha256": sha256_file(p), "bytes": p.stat().st_size})
+                files.append(HashedFile(p.relative_to(src.run_path).as_posix(),
+                                        sha256_file(p), p.stat().st_size))
     inputs = []
     if src.run_path is not None:
         for name in (layout.PROCEDURE, layout.STAND, layout.META, layout.EVENTS):
             p = src.run_path / name
             if p.is_file():   # read once: digest and byte count of the same bytes
                 data = p.read_bytes()
-                inputs.append({"path": name, "sha256": hashlib.sha256(data).hexdigest(),
-                               "bytes": len(data)})
+                inputs.append(HashedFile(name, hashlib.sha256(data).hexdigest(), len(data)))
     blocks: list[Block] = [Para(
         "SHA-256 digests of the raw data as received from the instruments; anyone holding the "
         "run directory can check that the results above were computed from these bytes "
@@ -916,25 +910,24 @@ def _records(src: Sources) -> tuple[Block, ...]:
     else:
         blocks.append(Para("No raw data files were recorded.", "note"))
     if inputs:
-        log = next((f for f in inputs if f["path"] == layout.EVENTS), None)
+        log = next((f.size_bytes for f in inputs if f.path == layout.EVENTS), None)
         # the event log is append-only and grows after this certificate is written (the
         # run's end, the certificate's own events): its digest is of the bytes counted here
         blocks.append(_hash_table(inputs, "Run records (inputs as used and the event log)",
                                   notes=(f"events.jsonl is append-only: its digest is of its "
-                                         f"first {log['bytes']} bytes, the log as it stood "
+                                         f"first {log:.0f} bytes, the log as it stood "
                                          "when this certificate was written; events "
                                          "appended later follow them (`head -c "
-                                         f"{log['bytes']} events.jsonl | sha256sum`).",)
-                                  if log else ()))
+                                         f"{log:.0f} events.jsonl | sha256sum`).",)
+                                  if log is not None else ()))
     return tuple(blocks)
 
 
-def _hash_table(files: Sequence[Mapping[str, object]], caption: str,
+def _hash_table(files: Sequence[HashedFile], caption: str,
                 notes: tuple[str, ...] = ()) -> Table:
-    def size(f: Mapping[str, object]) -> str:
-        n = num(f.get("bytes"))
-        return "—" if n is None else f"{int(n):,}".replace(",", " ")
-    rows = tuple((text_of(f.get("path")), size(f), text_of(f.get("sha256"))) for f in files)
+    def size(f: HashedFile) -> str:
+        return "—" if f.size_bytes is None else f"{int(f.size_bytes):,}".replace(",", " ")
+    rows = tuple((text_of(f.path), size(f), text_of(f.sha256)) for f in files)
     return Table(("File", "Bytes", "SHA-256"), rows, widths=(2.6, 1.0, 5.0), align="lrl",
                  caption=caption, mono=True, notes=notes)
 

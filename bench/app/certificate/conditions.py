@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 from bench.analysis.finite import finite_number as num
 from bench.report.certificate.parts import Sources, label_of, text_of
+from drivers.json_types import JsonValue
 
 NOT_MEASURED = "not measured"
 NONE = "—"
@@ -29,7 +30,7 @@ class ConditionRow:
     measured: str         # NOT_MEASURED when nothing measured it in this run
 
 
-def _mains_tones(node: object, axis: str) -> Iterator[tuple[str, float, str]]:
+def _mains_tones(node: JsonValue, axis: str) -> Iterator[tuple[str, float, str]]:
     """Every fitted mains tone under an axis's results: (axis, frequency in Hz, where the
     frequency came from)."""
     if isinstance(node, Mapping):

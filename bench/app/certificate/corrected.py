@@ -82,10 +82,10 @@ def corrections_due(reg: Register, record: RunRecord) -> tuple[list[dict[str, ob
 def already_applied(result: Mapping[str, object], due: Sequence[Mapping[str, object]]
                     ) -> bool:
     """Whether the registered result states exactly these corrections."""
-    from bench.report.corrections import Correction, corrections_of
+    from bench.report.result_frame import correction_of, corrections_of
 
     have = corrections_of(result)
-    want = [Correction.from_json(d) for d in due]
+    want = [correction_of(d) for d in due]
     return len(have) == len(want) and all(any(h.same_as(w) for h in have) for w in want) \
         and all(any(w.same_as(h) for w in want) for h in have)
 

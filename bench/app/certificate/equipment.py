@@ -74,18 +74,6 @@ def work_date(src: Sources) -> dt.date | None:
         return None
 
 
-def _inventory(meta: Mapping[str, object]) -> dict[str, dict[str, str]]:
-    """The calibration in force per stand key, as the register gave it at the run's start
-    (meta.json's equipment_status, bench/app/register/gate.py)."""
-    got = meta.get("equipment_status")
-    out: dict[str, dict[str, str]] = {}
-    for st in got if isinstance(got, list) else []:
-        if isinstance(st, Mapping) and all(isinstance(st.get(k), str) for k in
-                                           ("where", "certificate", "issuer", "due")):
-            out[str(st["where"])] = {k: str(st[k]) for k in ("certificate", "issuer", "due")}
-    return out
-
-
 def _reported(ids: Mapping[str, object], t: Traced) -> str | None:
     """The identity the instrument at `t.where` reported in this run. An instrument at
     `axes.<axis>.<role>` reported under ids[axis][role]; one elsewhere (a platform's
@@ -164,7 +152,7 @@ def equipment_list(src: Sources) -> EquipmentList:
     ids = with_declared_serials(identities(src.frame.instruments), src.stand_file)
     findings = tuple(identity_problems(ids)) if (ids or items) else ()
     on = work_date(src)
-    kept = _inventory(src.meta)
+    kept = src.equipment_in_force
     rows: list[EquipmentRow] = []
     differ: list[str] = []
     for t in items:

@@ -7,7 +7,7 @@ from dataclasses import asdict
 
 import jinja2
 
-from bench.report.certificate.model import Document, Fields, Figure, Para, Signatures, Table
+from bench.report.certificate.model import Block, Document, Fields, Figure, Para, Signatures, Table
 
 BAD_PREFIXES = ("FAIL", "NOT MET", "INCOMPLETE", "SIMULATED")
 
@@ -18,7 +18,7 @@ def is_bad(cell: str) -> bool:
     return text.startswith(BAD_PREFIXES) or text.endswith("not met")
 
 
-def _kind(block: object) -> str:
+def _kind(block: Block) -> str:
     for cls, name in ((Para, "para"), (Fields, "fields"), (Table, "table"), (Figure, "figure"),
                       (Signatures, "signatures")):
         if isinstance(block, cls):

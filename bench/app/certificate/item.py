@@ -14,17 +14,17 @@ nobody stated is printed as NOT_STATED.
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from bench.core import rundir_layout as layout
 from bench.core.schema import parse_date
 from bench.core.settings_codec import identities
 from bench.core.traceability import with_declared_serials
 from bench.report.certificate.parts import Sources, stand_of
-from bench.report.result_frame import Check, objects
+from bench.report.certificate.sources import beside
+from bench.report.result_frame import Check
+from drivers.json_types import JsonValue
 
 #: what the certificate and the DCC print for a part nobody stated (the one default)
 NOT_STATED = "not stated"
@@ -61,11 +61,11 @@ class ItemRecord:
     readback: tuple[str, ...]
 
 
-def _text(x: object) -> str:
+def _text(x: JsonValue) -> str:
     return NOT_STATED if x is None or str(x).strip() == "" else str(x).strip()
 
 
-def _date(x: object) -> str:
+def _date(x: JsonValue) -> str:
     d = parse_date(x)
     return d.isoformat() if d is not None else _text(x)
 
@@ -74,15 +74,10 @@ def _as_found(src: Sources, run_id: str) -> AsFound:
     """The as-found run beside this one (the runs folder), by its run directory name."""
     found = None
     if src.run_path is not None and "/" not in run_id and run_id not in ("", ".", ".."):
-        path = src.run_path.parent / run_id / layout.RESULT
-        try:
-            found = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            found = None
-    if not isinstance(found, dict):
+        found = beside(src.run_path, run_id)
+    if found is None:
         return AsFound(run_id, False, "", ())
-    checks = tuple(Check.from_json(c) for c in objects(found, "checks"))
-    return AsFound(run_id, True, str(found.get("verdict") or "incomplete"), checks)
+    return AsFound(run_id, True, str(found.get("verdict") or "incomplete"), found.checks)
 
 
 def decision_rule_text(src: Sources) -> str:

@@ -5,14 +5,15 @@ every session and of the certificate itself."""
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 from bench.core.events import Event, Prompted, SessionStarted, of_kind
 from bench.report.certificate.model import Block, Para, Table
 from bench.report.certificate.parts import NOT_RECORDED
+from drivers.json_types import JsonValue
 
 
-def utc_text(stamp: object) -> str:
+def utc_text(stamp: str | None) -> str:
     """A journal stamp as the certificate prints it (UTC, to the second)."""
     if not stamp:
         return NOT_RECORDED
@@ -56,11 +57,11 @@ def prompt_blocks(events: Sequence[Event]) -> tuple[Block, ...]:
                   notes=notes),)
 
 
-def software_note(meta: Mapping[str, object], events: Sequence[Event],
+def software_note(created: JsonValue, events: Sequence[Event],
                   issuing_version: str, run_dir: str) -> Para:
-    """The version that created the run, ran each session and issued this certificate."""
+    """The version that created the run (`created`: meta.json's bench_version), ran each
+    session and issued this certificate."""
     sessions = {e.session: e.version for e in of_kind(events, SessionStarted) if e.version}
-    created = meta.get("bench_version")
     versions = sorted(set(sessions.values()) | ({str(created)} if created else set()))
     if not versions:
         ran = "version of the run not recorded"

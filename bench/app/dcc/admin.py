@@ -213,7 +213,7 @@ def _statements(sts: etree._Element, src: Sources, parts: CertificatePart,
     authority, the overall conformity, what the PDF says of the stand and its equipment,
     and the raw files' digests."""
     _authorisation(sts, issue)
-    for text in correction_statements(src.result):    # issue 58: as the PDF says it
+    for text in correction_statements(src.frame.corrections):    # issue 58: as the PDF says it
         statement(sts, None, text, title="Corrections applied")
     first = methods.STATEMENTS[0]
     for text in parts.certificate_statements(methods.STATEMENTS):   # those the PDF prints

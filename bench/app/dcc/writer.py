@@ -35,6 +35,7 @@ from bench.core import rundir_layout as layout
 from bench.core.lab import Lab, run_lab
 from bench.core.settings_codec import lab_keys
 from bench.kind import installed
+from bench.report.budget_codec import budget_sites
 from bench.report.dcc.budgets import budget_results
 from bench.report.dcc.conformity import Checks, checks_of, leftover_checks
 from bench.report.dcc.parts import DccParts
@@ -77,7 +78,7 @@ def build_dcc(inputs: DccInputs) -> etree._ElementTree:
     results = el(root, "measurementResults")
     methods_and_conditions(results, src, kind)
     kind.dcc_results(results, src, checks)
-    budget_results(results, inputs.result)
+    budget_results(results, budget_sites(inputs.result))
     if results.find(f"{{{DCC_NS}}}measurementResult") is None:    # the DCC needs one
         mr = el(results, "measurementResult", id="noResults")
         name(mr, "No results")

@@ -45,7 +45,7 @@ from bench.core import rundir_layout as layout
 from bench.core.config import Config, SimSettings, StandSettings
 from bench.core.simbench import with_sim
 from bench.core.simdrift import drifted, has_drift, stated_run_number
-from bench.report.certificate.parts import read_json_object
+from bench.report.certificate.sources import read_json_object
 from bench.report.result_frame import as_object
 
 Warn = Callable[[str], None]

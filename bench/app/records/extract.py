@@ -21,7 +21,7 @@ from bench.core import rundir_layout as layout
 from bench.core.journal import sha256_file
 from bench.core.placeholders import run_copy
 from bench.kind import installed_records
-from bench.report.certificate.parts import read_json_object
+from bench.report.certificate.sources import read_json_object
 from bench.report.figures import FigureValue
 from bench.report.result_frame import Check, JsonObject, ResultFrame
 from drivers.json_types import JsonValue

@@ -24,7 +24,7 @@ from bench.app.station.drafts import Draft, drafts
 from bench.app.station.live import DOWNLOADS
 from bench.core import rundir_layout as layout
 from bench.kind import declared_figures
-from bench.report.certificate.parts import read_json_object
+from bench.report.certificate.sources import read_json_object
 from bench.report.figures import spec_for
 from bench.report.result_frame import ResultFrame
 from drivers.json_types import JsonLike

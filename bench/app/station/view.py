@@ -30,10 +30,11 @@ from bench.core.events import Event
 from bench.core.plan import format_duration
 from bench.core.yamlfile import read_mapping
 from bench.kind import StationPart, declared_figures, installed
-from bench.report.certificate.parts import read_json_object, verdict_label
+from bench.report.certificate.parts import verdict_label
 from bench.report.certificate.rounding import (
     format_value_u,
 )
+from bench.report.certificate.sources import read_json_object
 from bench.report.figures import spec_for
 from bench.report.station import StationParts, page_table, rate_text
 from drivers.json_types import JsonLike, JsonObject

@@ -11,22 +11,14 @@ so that both print a value the same way. Nothing here names a procedure.
 from __future__ import annotations
 
 import contextvars
-import json
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
-from functools import cached_property
-from pathlib import Path
-from typing import Any, Protocol, TypeVar, cast, runtime_checkable
+from typing import Protocol, TypeVar
 
 from bench.analysis.finite import finite_number as num
-from bench.core import events as ev
-from bench.core import rundir_layout as layout
-from bench.core.events import Event
-from bench.core.journal import read_events
-from bench.core.placeholders import run_copy
 from bench.report.certificate.model import Block, Figure, Para, Section
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u
-from bench.report.result_frame import Check, JsonObject, ResultFrame, as_object
+from bench.report.certificate.sources import Sources as Sources
+from bench.report.result_frame import Check, JsonObject, JsonValue
 
 NOT_RECORDED = "not recorded"
 
@@ -34,92 +26,8 @@ M = TypeVar("M")
 
 
 # -- the inputs ----------------------------------------------------------------------------
-
-@dataclass
-class Sources:
-    """result.json and whatever the run directory adds to it."""
-
-    result: JsonObject
-    run_path: Path | None = None
-    meta: JsonObject = field(default_factory=dict)
-    stand_file: dict[str, Any] = field(default_factory=dict)
-    procedure_file: dict[str, Any] = field(default_factory=dict)
-    events: list[Event] = field(default_factory=list)
-    dropped: list[str] = field(default_factory=list)  # malformed parts of result.json
-    #: the kind's result model, decoded once (`model`), by its decoder
-    _models: dict[Callable[[Sources], object], object] = field(default_factory=dict,
-                                                               repr=False)
-
-    @classmethod
-    def load(cls, result: object, run_path: Path | None) -> Sources:
-        conformed, dropped = conform_result(result)
-        src = cls(conformed, run_path, dropped=dropped)
-        if run_path is None:
-            return src
-        src.meta = read_json_object(run_path / layout.META)
-        # as the run read them: a placeholder left to fill in is no value to print
-        src.stand_file = run_copy(run_path, layout.STAND)
-        src.procedure_file = run_copy(run_path, layout.PROCEDURE)
-        events = run_path / layout.EVENTS
-        if events.exists():
-            src.events = read_events(events)
-        return src
-
-    def event_utc(self, kind: type[Event], last: bool = False) -> str | None:
-        """When the event log first (or last) recorded an event of `kind`, as it wrote it."""
-        found = (ev.last if last else ev.first)(self.events, kind)
-        return found.utc or None if found is not None else None
-
-    def model(self, decode: Callable[[Sources], M]) -> M:
-        """The kind's result model (its codec's `decode` of `result`), decoded on first
-        use and read by every section of the certificate and the DCC."""
-        if decode not in self._models:
-            self._models[decode] = decode(self)
-        return cast(M, self._models[decode])
-
-    @cached_property
-    def frame(self) -> ResultFrame:
-        """The run header, checks and verdict, typed (bench.report.result_frame): parsed
-        once, on first use, and read by every section of the certificate and the DCC."""
-        return ResultFrame.of(self.result)
-
-
-def conform_result(result: object) -> tuple[JsonObject, list[str]]:
-    """The result with malformed containers dropped, and the list of what was dropped:
-    the kind's part by the kind's result module (`ConformsResult`), the frame's here. A
-    result that names no kind is read by every installed kind's."""
-    from bench.core.registry import procedure_names, records_part
-
-    doc = as_object(result)
-    if doc is None:
-        return {}, ["result.json (expected a mapping)"]
-    named = doc.get("procedure")
-    dropped: list[str] = []
-    for name in [str(named)] if named else procedure_names():
-        kind = records_part(name)
-        if isinstance(kind, ConformsResult):
-            doc, more = kind.conform_result(doc)
-            dropped += more
-    frame, more = ResultFrame.conform(doc)
-    return frame.to_json(), dropped + more
-
-
-@runtime_checkable
-class ConformsResult(Protocol):
-    """A kind whose result module checks its part of result.json (procedures/<kind>/
-    result.py): the document with its malformed containers dropped, and their names."""
-
-    def conform_result(self, result: JsonObject) -> tuple[JsonObject, list[str]]: ...
-
-
-def read_json_object(path: Path) -> dict[str, Any]:
-    """A JSON object from a run directory's file, or {} if it is missing or damaged."""
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return {}
-    return data if isinstance(data, dict) else {}
-
+# Sources (the run directory decoded: bench/report/certificate/sources.py) is named here too,
+# where every kind's certificate and DCC part has always imported it from.
 
 def stand_of(src: Sources) -> JsonObject:
     """The stand's identity: the stand file's, with what result.json says over it."""
@@ -167,7 +75,7 @@ def _key_value(key: str, value: object) -> str:
     return f"{' '.join(words)}: {text_of(value)}"
 
 
-def rate_text(x: object) -> str:
+def rate_text(x: JsonValue) -> str:
     """A signed rate as written: '+10', '−10'."""
     v = num(x)
     if v is None:
@@ -175,13 +83,15 @@ def rate_text(x: object) -> str:
     return f"{v:+g}".replace("-", MINUS)
 
 
-def vu_text(value: object, u: object, unit: RelUnit | None = None, signed: bool = False) -> str:
+def vu_text(value: JsonValue, u: JsonValue, unit: RelUnit | None = None,
+            signed: bool = False) -> str:
     """'value ± U' under the rounding rules, in `unit` (relative) or as given."""
     scale = unit.scale if unit else 1.0
     return format_value_u(num(value), num(u), scale, signed).joined()
 
 
-def verdict_label(verdict: object, rule: str | None = None, inside_tolerance: bool = False) -> str:
+def verdict_label(verdict: str | None, rule: str | None = None,
+                  inside_tolerance: bool = False) -> str:
     """How a verdict is printed; a guard-band refusal says so."""
     v = str(verdict or "").strip().lower()
     if v == "pass":
@@ -283,7 +193,7 @@ class CertificateParts:
         """The kind's deviations in this run, one sentence each."""
         return ()
 
-    def certificate_checks(self, src: Sources) -> list[JsonObject]:
+    def certificate_checks(self, src: Sources) -> list[Check]:
         """The checks when result.json carries no checks[] (read from the kind's results)."""
         return []
 

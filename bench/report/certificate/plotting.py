@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING, SupportsFloat, SupportsIndex
 
 import numpy as np
 
+from drivers.json_types import JsonValue
+
 if TYPE_CHECKING:   # matplotlib is imported when a plot is drawn (`bench validate` starts at once)
     from matplotlib.backend_bases import RendererBase
     from matplotlib.figure import Figure
@@ -89,7 +91,7 @@ def figure_grid(rows: int, cols: int = 1, height_in: float = 2.6
     return fig, axs
 
 
-def plot_number(x: object) -> float:
+def plot_number(x: JsonValue) -> float:
     """A value as a float for plotting (NaN, drawn as a gap, for what is no number)."""
     if not isinstance(x, SupportsFloat | SupportsIndex | str | bytes):
         return math.nan     # what float() refuses anyway

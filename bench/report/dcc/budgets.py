@@ -6,12 +6,12 @@ in its name), then the combined standard uncertainty, nu_eff and U.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Sequence
 
 from lxml import etree
 
 from bench.analysis.coverage import DOF_INFINITE
-from bench.report.budget import budget_sites
+from bench.report.budget_codec import BudgetSite
 from bench.report.dcc import vocab as V
 from bench.report.dcc.units import DEG, DEG_PER_H, DEG_PER_S, ONE
 from bench.report.dcc.xml import el, ident, name, quantity, text_el
@@ -30,8 +30,8 @@ SENSITIVITY_UNITS = {("1", "1"): ONE, ("deg/s", "deg/s"): ONE, ("deg/h", "deg/h"
                      ("deg/s/h", "deg/s"): r"\hour\tothe{-1}"}
 
 
-def budget_results(results: etree._Element, result: Mapping[str, object]) -> None:
-    sites = budget_sites(result)
+def budget_results(results: etree._Element, sites: Sequence[BudgetSite]) -> None:
+    """One dcc:result per budget `sites` lists (bench.report.budget_codec's of result.json)."""
     if not sites:
         return
     mr = el(results, "measurementResult", id="uncertaintyBudgets")

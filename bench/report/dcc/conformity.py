@@ -14,8 +14,8 @@ from lxml import etree
 from bench.report.certificate.parts import Sources
 from bench.report.dcc import units as U
 from bench.report.dcc import vocab as V
-from bench.report.dcc.xml import DCC_NS, el, ident, name, num, quantity, statement, text_el
-from drivers.json_types import JsonObject
+from bench.report.dcc.xml import DCC_NS, el, ident, name, quantity, statement, text_el
+from bench.report.result_frame import Check
 
 ILAC_G8 = "ILAC-G8:09/2019"
 RULE_REFERENCE = {"simple": "4.2.1 simple acceptance (shared risk)",
@@ -26,34 +26,34 @@ RULE_REFERENCE = {"simple": "4.2.1 simple acceptance (shared risk)",
 class Checks:
     """The run's checks, each handed to the quantity it judges (or left for statements)."""
 
-    items: list[JsonObject]
+    items: list[Check]
     used: set[int] = field(default_factory=set)
 
     def take(self, axis: str | None, rate: float | None, quantity_key: str
-             ) -> list[tuple[int, JsonObject]]:
+             ) -> list[tuple[int, Check]]:
         found = []
         for i, c in enumerate(self.items):
-            if i in self.used or str(c.get("quantity")) != quantity_key:
+            if i in self.used or c.quantity != quantity_key:
                 continue
-            if axis is not None and c.get("axis") not in (axis, None):
+            if axis is not None and c.axis not in (axis, None):
                 continue
-            c_rate = num(c.get("set_rate_dps"))
+            c_rate = c.figure("set_rate_dps")
             if (rate is None) != (c_rate is None) or (rate is not None and c_rate != rate):
                 continue
             self.used.add(i)
             found.append((i, c))
         return found
 
-    def rest(self) -> list[tuple[int, JsonObject]]:
+    def rest(self) -> list[tuple[int, Check]]:
         return [(i, c) for i, c in enumerate(self.items) if i not in self.used]
 
 
-def checks_of(src: Sources) -> list[JsonObject]:
-    """The run's checks[] as written (every key, in order), from the typed frame."""
-    return [c.doc for c in src.frame.checks]
+def checks_of(src: Sources) -> list[Check]:
+    """The run's checks[], from the typed frame."""
+    return list(src.frame.checks)
 
 
-def judge(q: etree._Element, found: list[tuple[int, JsonObject]], unit: str,
+def judge(q: etree._Element, found: list[tuple[int, Check]], unit: str,
           magnitude: bool = False) -> None:
     """Each check as measurementMetaData on the quantity it judges (good-practice layout);
     `magnitude`: the quantity is a standard deviation (one-sided, never below 0), which
@@ -62,19 +62,20 @@ def judge(q: etree._Element, found: list[tuple[int, JsonObject]], unit: str,
         return
     meta = el(q, "measurementMetaData")
     for i, c in found:
-        rule = str(c.get("rule") or "simple")
-        verdict = {"pass": "pass", "fail": "fail"}.get(str(c.get("verdict")).lower())
+        rule = c.rule or "simple"
+        verdict = {"pass": "pass", "fail": "fail"}.get(str(c.verdict).lower())
         md = el(meta, "metaData", id=ident("check", i + 1), ref_type=V.CONFORMITY)
         name(md, f"Check {i + 1}: conformity with the tolerance")
         if rule in RULE_REFERENCE:
             el(md, "norm", ILAC_G8)
             el(md, "reference", RULE_REFERENCE[rule])
-        text_el(md, "declaration", f"{str(c.get('verdict') or '').upper()}: "
-                f"{c.get('reason') or 'no reason recorded'}. Decision rule: {rule}.")
+        text_el(md, "declaration", f"{(c.verdict or '').upper()}: "
+                f"{c.reason or 'no reason recorded'}. Decision rule: {rule}.")
         if verdict:
             el(md, "conformity", verdict)
-        suffix = next((s for s in ("rel", "dph", "dps", "deg", "s") if f"value_{s}" in c), "rel")
-        tol, expected = num(c.get(f"tolerance_{suffix}")), num(c.get(f"expected_{suffix}"))
+        suffix = next((s for s in ("rel", "dph", "dps", "deg", "s")
+                       if c.states(f"value_{s}")), "rel")
+        tol, expected = c.figure(f"tolerance_{suffix}"), c.figure(f"expected_{suffix}")
         cunit = U.BY_SUFFIX.get(suffix, unit)
         data = el(md, "data")
         cid = ident("check", i + 1)
@@ -86,7 +87,7 @@ def judge(q: etree._Element, found: list[tuple[int, JsonObject]], unit: str,
             md.remove(data)
 
 
-def _limits(data: etree._Element, cid: str, c: JsonObject, rule: str, suffix: str,
+def _limits(data: etree._Element, cid: str, c: Check, rule: str, suffix: str,
             tol: float, unit: str, one_sided: bool) -> None:
     """The tolerance T (the maker's specification) and the acceptance limits the decision
     rule derives from it (ILAC-G8:09/2019 4.2): simple acceptance accepts within T;
@@ -98,10 +99,10 @@ def _limits(data: etree._Element, cid: str, c: JsonObject, rule: str, suffix: st
                  -tol, unit)
     quantity(data, f"{cid}_tol_high", "upper tolerance limit (+T)", V.TOLERANCE_HIGH, tol,
              unit)
-    u = num(c.get(f"U_{suffix}")) if num(c.get(f"U_{suffix}")) is not None else \
-        num(c.get(f"u_{suffix}"))
+    u = c.figure(f"U_{suffix}") if c.figure(f"U_{suffix}") is not None else \
+        c.figure(f"u_{suffix}")
     if rule == "guard-band" and one_sided:
-        upper = num(c.get(f"upper_{suffix}"))
+        upper = c.figure(f"upper_{suffix}")
         if upper is not None:
             quantity(data, f"{cid}_upper", "one-sided 97.5 % upper limit of the value "
                      "(chi-square), held against the acceptance limit", V.REFERENCE, upper,
@@ -127,8 +128,8 @@ def leftover_checks(root: etree._Element, src: Sources, checks: Checks) -> None:
     sts = root.find(f"{{{DCC_NS}}}administrativeData/"
                     f"{{{DCC_NS}}}statements")
     for i, c in rest:
-        verdict = {"pass": "pass", "fail": "fail"}.get(str(c.get("verdict")).lower())
-        statement(sts, V.CONFORMITY, f"Check {i + 1} ({c.get('axis')}, "
-                  f"{c.get('quantity')}): {str(c.get('verdict') or '').upper()}: "
-                  f"{c.get('reason') or 'no reason recorded'}",
+        verdict = {"pass": "pass", "fail": "fail"}.get(str(c.verdict).lower())
+        statement(sts, V.CONFORMITY, f"Check {i + 1} ({c.axis}, "
+                  f"{c.quantity}): {(c.verdict or '').upper()}: "
+                  f"{c.reason or 'no reason recorded'}",
                   sid=ident("check", i + 1), conformity=verdict)

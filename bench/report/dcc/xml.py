@@ -8,9 +8,10 @@ certificate's rounding (GUM, 2 significant digits of U) stays a matter of the PD
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
+import msgspec
 from lxml import etree
 
 from bench.analysis.finite import finite_number as num
@@ -185,15 +186,14 @@ def statement(parent: etree._Element, ref_type: str | None, declaration: str, *,
     return st
 
 
-def budget_list(data: etree._Element, lid: str, title: str, budget: object, path: str,
-                terms: Sequence[tuple[str, str]], unit: str) -> None:
+def budget_list(data: etree._Element, lid: str, title: str, budget: msgspec.Struct | None,
+                path: str, terms: Sequence[tuple[str, str]], unit: str) -> None:
     """The standard uncertainties behind a U, one quantity per source (no U of their own):
-    a kind's typed budget's fields (or an older mapping's keys) named by `terms`."""
+    a kind's typed budget's fields named by `terms`."""
     if budget is None:
         return
     found = [(k, label, v) for k, label in terms
-             if (v := num(budget.get(k) if isinstance(budget, Mapping)
-                          else getattr(budget, k, None))) is not None]
+             if (v := num(getattr(budget, k, None))) is not None]
     if not found:
         return
     lst = el(data, "list", id=lid, ref_type=V.BUDGET)

@@ -1,0 +1,138 @@
+"""The run directory as the certificate and the DCC read it, decoded once: result.json
+(conformed: its malformed parts dropped and named), meta.json, the run's copies of the
+stand and procedure files, and the event log (`Sources`).
+
+Why a codec of its own (tests/json_boundary.py's CODECS): this is where the report meets
+the run directory's JSON; every section then reads the typed frame (`Sources.frame`,
+bench/report/result_frame.py) and the kind's model (`Sources.model`), decoded here on first
+use. A damaged meta.json reads as empty (the certificate says "not recorded"), never as a
+crash that leaves the operator without a certificate.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any, Protocol, TypeVar, cast, runtime_checkable
+
+from bench.core import events as ev
+from bench.core import rundir_layout as layout
+from bench.core.events import Event
+from bench.core.journal import read_events
+from bench.core.placeholders import run_copy
+from bench.report.result_frame import JsonObject, ResultFrame, as_object
+
+M = TypeVar("M")
+
+
+@dataclass
+class Sources:
+    """result.json and whatever the run directory adds to it."""
+
+    result: JsonObject
+    run_path: Path | None = None
+    meta: JsonObject = field(default_factory=dict)
+    stand_file: dict[str, Any] = field(default_factory=dict)
+    procedure_file: dict[str, Any] = field(default_factory=dict)
+    events: list[Event] = field(default_factory=list)
+    dropped: list[str] = field(default_factory=list)  # malformed parts of result.json
+    #: the kind's result model, decoded once (`model`), by its decoder
+    _models: dict[Callable[[Sources], object], object] = field(default_factory=dict,
+                                                               repr=False)
+
+    @classmethod
+    def load(cls, result: object, run_path: Path | None) -> Sources:
+        conformed, dropped = conform_result(result)
+        src = cls(conformed, run_path, dropped=dropped)
+        if run_path is None:
+            return src
+        src.meta = read_json_object(run_path / layout.META)
+        # as the run read them: a placeholder left to fill in is no value to print
+        src.stand_file = run_copy(run_path, layout.STAND)
+        src.procedure_file = run_copy(run_path, layout.PROCEDURE)
+        events = run_path / layout.EVENTS
+        if events.exists():
+            src.events = read_events(events)
+        return src
+
+    def event_utc(self, kind: type[Event], last: bool = False) -> str | None:
+        """When the event log first (or last) recorded an event of `kind`, as it wrote it."""
+        found = (ev.last if last else ev.first)(self.events, kind)
+        return found.utc or None if found is not None else None
+
+    def model(self, decode: Callable[[Sources], M]) -> M:
+        """The kind's result model (its codec's `decode` of `result`), decoded on first
+        use and read by every section of the certificate and the DCC."""
+        if decode not in self._models:
+            self._models[decode] = decode(self)
+        return cast(M, self._models[decode])
+
+    @cached_property
+    def equipment_in_force(self) -> dict[str, dict[str, str]]:
+        """The calibration in force per stand key (its certificate, issuer and due date),
+        as the register gave it at the run's start (meta.json's equipment_status,
+        bench/app/register/gate.py); an entry lacking one of them is left out."""
+        got = self.meta.get("equipment_status")
+        out: dict[str, dict[str, str]] = {}
+        for st in got if isinstance(got, list) else []:
+            if isinstance(st, dict) and all(isinstance(st.get(k), str) for k in
+                                            ("where", "certificate", "issuer", "due")):
+                out[str(st["where"])] = {k: str(st[k]) for k in ("certificate", "issuer", "due")}
+        return out
+
+    @cached_property
+    def frame(self) -> ResultFrame:
+        """The run header, checks and verdict, typed (bench.report.result_frame): parsed
+        once, on first use, and read by every section of the certificate and the DCC."""
+        return ResultFrame.of(self.result)
+
+
+def conform_result(result: object) -> tuple[JsonObject, list[str]]:
+    """The result with malformed containers dropped, and the list of what was dropped:
+    the kind's part by the kind's result module (`ConformsResult`), the frame's here. A
+    result that names no kind is read by every installed kind's."""
+    from bench.core.registry import procedure_names, records_part
+
+    doc = as_object(result)
+    if doc is None:
+        return {}, ["result.json (expected a mapping)"]
+    named = doc.get("procedure")
+    dropped: list[str] = []
+    for name in [str(named)] if named else procedure_names():
+        kind = records_part(name)
+        if isinstance(kind, ConformsResult):
+            doc, more = kind.conform_result(doc)
+            dropped += more
+    frame, more = ResultFrame.conform(doc)
+    return frame.to_json(), dropped + more
+
+
+@runtime_checkable
+class ConformsResult(Protocol):
+    """A kind whose result module checks its part of result.json (procedures/<kind>/
+    result.py): the document with its malformed containers dropped, and their names."""
+
+    def conform_result(self, result: JsonObject) -> tuple[JsonObject, list[str]]: ...
+
+
+def read_json_object(path: Path) -> dict[str, Any]:
+    """A JSON object from a run directory's file, or {} if it is missing or damaged."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def beside(run_path: Path, run_id: str) -> ResultFrame | None:
+    """The frame of the result.json of the run `run_id` beside `run_path` (the runs folder:
+    an as-found run), read as written; None when it is missing, damaged or no object."""
+    try:
+        found = json.loads((run_path.parent / run_id / layout.RESULT).read_text(
+            encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return ResultFrame.of(found) if isinstance(found, dict) else None
