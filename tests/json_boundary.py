@@ -24,8 +24,9 @@ ROOT = Path(__file__).resolve().parent.parent
 #: the layers scanned
 SCANNED = ("bench", "drivers", "procedures", "sims")
 #: modules whose work is to turn JSON into typed values and back (may read JSON, pass maps)
-CODECS = frozenset({"bench/core/events.py", "bench/report/codec.py",
-                    "procedures/drift_pulse/codec.py", "procedures/rate_ladder/codec.py"})
+CODECS = frozenset({"bench/app/register/wire.py", "bench/core/events.py",
+                    "bench/report/codec.py", "procedures/drift_pulse/codec.py",
+                    "procedures/rate_ladder/codec.py"})
 #: the JSON map types (and aliases of them, which `aliases` adds)
 JSON_MAPS = frozenset({"Mapping[str, object]", "dict[str, object]", "JsonObject"})
 

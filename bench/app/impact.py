@@ -29,6 +29,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from bench.app.register import wire
 from bench.app.register.store import (
     Account,
     Calibration,
@@ -444,7 +445,7 @@ def cmd_impact(args: argparse.Namespace) -> int:
             reg.impact_assessed(acting, args.serial, {
                 "nonconforming_work": "ISO/IEC 17025 7.10: the item found out of tolerance",
                 **({"report": written} if written else {}),
-                "finding": doc["finding"],
+                "finding": wire.builtins(doc["finding"]),
                 "runs": [{"uid": i.uid, "number": i.number, "status": i.status,
                           "largest_shift_over_U": (lg.shift_over_u if (lg := i.largest())
                                                    else None),

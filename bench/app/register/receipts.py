@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+
+from bench.app.register.model import AuditEntry
 
 #: the sentence an issued document carries (bench/app/certificate/register.Issue.receipt)
 RECEIPT = re.compile(rb"Lab register audit trail entry (\d+), SHA-256 ([0-9a-f]{64})")
@@ -56,9 +58,9 @@ def _found(folders: Sequence[str | Path]) -> Iterable[tuple[Path, int | None, st
                     yield path, int(m.group(1)), m.group(2).decode()
 
 
-def check_receipts(rows: Sequence[Mapping[str, object]],
+def check_receipts(rows: Sequence[AuditEntry],
                    folders: Sequence[str | Path]) -> ReceiptReport:
-    by_seq = {int(str(r["seq"])): str(r["digest"]) for r in rows}
+    by_seq = {r.seq: r.digest for r in rows}
     digests = set(by_seq.values())
     problems: list[str] = []
     files: set[Path] = set()

@@ -54,6 +54,7 @@ from bench.core import rundir_layout as layout
 
 if TYPE_CHECKING:
     from bench.app.register import Account, Register
+    from bench.app.register.model import AuditDetail
 
 SESSION_COOKIE = "bench_session"
 IDLE_S = 15 * 60.0            # a session ends after this long without a request
@@ -322,7 +323,7 @@ class Signing:
     def session(self) -> Session | None:
         return self.sessions.get(request.cookies.get(SESSION_COOKIE))
 
-    def audit(self, actor: str, action: str, obj: str, detail: Mapping[str, object]) -> None:
+    def audit(self, actor: str, action: str, obj: str, detail: AuditDetail) -> None:
         """An audit entry in the register; a register that cannot take it is logged, and
         the request is refused all the same."""
         from bench.app.register import RegisterError
