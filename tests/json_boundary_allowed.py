@@ -13,14 +13,15 @@ DCC and plots modules and bench/report/uncertainty_names.py left the list, its a
 went from 6 signatures to 2 (procedures/rate_ladder/codec.py is a codec).
 
 Lowered on branch h26 (issue 60, the register's wire format): bench/app/register/wire.py is
-a codec; the register's service, client, store, model and trail left the list.
+a codec; the register's service, client, store, model, trail, runs and receipts, the
+station's signing and the run's certificate register left the list.
 """
 
 from __future__ import annotations
 
 ALLOWED: dict[str, dict[str, int]] = {
     "bench/app/certificate/__init__.py": {"json_map_signatures": 3},
-    "bench/app/certificate/authorise.py": {"json_map_signatures": 6, "json_reads": 7},
+    "bench/app/certificate/authorise.py": {"json_map_signatures": 6, "json_reads": 6},
     "bench/app/certificate/build.py": {"json_map_signatures": 7},
     "bench/app/certificate/corrected.py": {"json_map_signatures": 3},
     "bench/app/certificate/equipment.py": {"json_map_signatures": 3},
@@ -28,7 +29,6 @@ ALLOWED: dict[str, dict[str, int]] = {
     "bench/app/certificate/operator.py": {"json_map_signatures": 1},
     "bench/app/certificate/pdf.py": {"json_map_signatures": 1},
     "bench/app/certificate/people.py": {"json_map_signatures": 4},
-    "bench/app/certificate/register.py": {"json_map_signatures": 1, "json_reads": 1},
     "bench/app/commands.py": {"json_map_signatures": 1, "json_reads": 1},
     "bench/app/dcc/admin.py": {"json_map_signatures": 1},
     "bench/app/dcc/command.py": {"json_map_signatures": 2, "json_reads": 1},
@@ -50,12 +50,10 @@ ALLOWED: dict[str, dict[str, int]] = {
     "bench/app/records/hooks.py": {"json_map_signatures": 3, "json_reads": 1},
     "bench/app/reference.py": {"json_map_signatures": 1},
     "bench/app/register/gate.py": {"json_map_signatures": 1},
-    "bench/app/register/receipts.py": {"json_reads": 1},
     "bench/app/session.py": {"json_map_signatures": 7, "json_reads": 4},
     "bench/app/station/app.py": {"json_map_signatures": 1},
     "bench/app/station/drafts.py": {"json_reads": 1},
     "bench/app/station/live.py": {"json_map_signatures": 4, "json_reads": 6},
-    "bench/app/station/signing.py": {"json_map_signatures": 3, "json_reads": 1},
     "bench/app/station/view.py": {"json_map_signatures": 7},
     "bench/core/canbus.py": {"json_map_signatures": 3},
     "bench/core/config.py": {"json_map_signatures": 2},

@@ -172,5 +172,26 @@ def test_the_service_names_the_key_a_body_gets_wrong(main_register: Path) -> Non
         assert got.status_code == 200 and got.get_json()["ok"]["items"] == ITEMS
 
 
+
+#: a line of a run's certificate-register.jsonl as fc7c28f's code wrote it (Issue.to_json)
+ISSUE_LINE = (
+    '{"audit_digest": "dddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddddd",'
+    ' "audit_entry": "eeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeeee", '
+    '"audit_seq": 5, "changes": ["x", "y"], "function": "TM", "issued_utc": "2026-01-01T0'
+    '0:00:00Z", "issuer": [["laboratory", "L"], ["code", "C"]], "meaning": "authorised fo'
+    'r issue", "number": "RT-1-R2", "reason": "why \\u00e9", "register": "http://127.0.0.1'
+    '", "replaces": "RT-1", "result_sha256": "aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa'
+    'aaaaaaaaaaaaaaaaaaaaa", "revision": 2, "run_registered_utc": "2026", "run_uid": "uid'
+    '", "signatory": "P. P"}')
+
+
+def test_a_certificate_register_line_keeps_its_bytes() -> None:
+    from bench.app.certificate.register import issue_line, issue_of
+
+    issue = issue_of(ISSUE_LINE)
+    assert (issue.audit_seq, issue.changes, issue.issuer[1]) == (5, ("x", "y"), ("code", "C"))
+    assert issue_line(issue) == ISSUE_LINE
+
+
 if __name__ == "__main__":
     act(sys.argv[1])

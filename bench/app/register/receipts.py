@@ -10,11 +10,12 @@ A receipt whose entry is gone, or whose sequence number now holds another digest
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+
+import msgspec
 
 from bench.app.register.model import AuditEntry
 
@@ -37,21 +38,20 @@ class ReceiptReport:
 
 def _found(folders: Sequence[str | Path]) -> Iterable[tuple[Path, int | None, str]]:
     """(file, sequence number or None, digest) for every receipt under the folders."""
+    from bench.app.certificate.register import issue_of
+
     for folder in folders:
         root = Path(folder)
         for path in sorted(root.rglob(REGISTER_COPY)):
             for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
                 try:
-                    entry = json.loads(line)
-                except ValueError:
+                    issue = issue_of(line)
+                except msgspec.MsgspecError:
                     continue    # a torn last line: the earlier receipts still count
-                if not isinstance(entry, dict):
-                    continue
-                seq, first = entry.get("audit_seq"), entry.get("audit_entry")
-                if isinstance(seq, int) and isinstance(first, str):
-                    yield path, seq, first
-                if isinstance(entry.get("audit_digest"), str):
-                    yield path, None, str(entry["audit_digest"])
+                if issue.audit_seq is not None and issue.audit_entry is not None:
+                    yield path, issue.audit_seq, issue.audit_entry
+                if issue.audit_digest is not None:
+                    yield path, None, issue.audit_digest
         for pattern in DOCUMENTS:
             for path in sorted(root.rglob(pattern)):
                 for m in RECEIPT.finditer(path.read_bytes()):

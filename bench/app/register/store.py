@@ -186,8 +186,8 @@ class Register(RegisterEquipment):
             raise RegisterError("result.json is not UTF-8 text") from None
         utc = _now_utc()
         with self._tx() as conn:
-            row = self._known_run(conn, uid)
-            seen = wire.digests(row.raw, "raw")
+            bench, held = self._known_run(conn, uid)
+            seen = wire.digests(held, "raw")
             changed = sorted(k for k, v in raw.items() if k in seen and seen[k] != v)
             gone = sorted(k for k in seen if k not in raw)
             if changed or gone:
@@ -201,7 +201,7 @@ class Register(RegisterEquipment):
                                    "reason": reason, "via": ACTING_VIA.get() or "this bench"}
             conn.execute(s.run_events.insert().values(uid=uid, utc=utc, kind=kind,
                                                       detail=wire.dump_event(detail)))
-            self._append(conn, f"bench {row.bench}", f"run {kind} result", uid, detail)
+            self._append(conn, f"bench {bench}", f"run {kind} result", uid, detail)
         return self._run_record(uid)
 
     def run_record(self, uid: str) -> RunRecord | None:
@@ -244,11 +244,13 @@ class Register(RegisterEquipment):
         assert rec is not None, uid     # written in this register a moment ago
         return rec
 
-    def _known_run(self, conn: Connection, uid: str) -> sa.Row[tuple[object, ...]]:
-        row = conn.execute(sa.select(s.runs).where(s.runs.c.uid == uid)).first()
+    def _known_run(self, conn: Connection, uid: str) -> tuple[str, str]:
+        """The registered run's bench and raw captures' digests (its JSON column)."""
+        row = conn.execute(sa.select(s.runs.c.bench, s.runs.c.raw)
+                           .where(s.runs.c.uid == uid)).first()
         if row is None:
             raise RegisterError(f"run {uid} was not registered at its start")
-        return row
+        return row.bench, row.raw
 
     def dcc_signer(self, signatory: Account) -> Callable[[bytes], bytes] | None:
         """Who signs an issued DCC for this register: on one bench the lab file's key,
