@@ -241,6 +241,7 @@ Answer: TypeAlias = (Account | list[Account] | Equipment | list[Equipment] | Cal
                      | list[AuditEntry] | ChainReport | LoginAnswer | Info | dict[str, int]
                      | bytes | str | int | None)
 
+
 class Malformed(RegisterError):
     """A request's body that is not its operation's (the service answers 400)."""
 
