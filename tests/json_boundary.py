@@ -28,6 +28,7 @@ CODECS = frozenset({
     "bench/app/fleet/codec.py",
     "bench/app/impact_codec.py",
     "bench/app/records/codec.py",
+    "bench/app/register/wire.py",
     "bench/core/events.py",
     "bench/core/journal_codec.py",
     "bench/core/settings_codec.py",

@@ -155,10 +155,10 @@ def test_impact_finds_the_run_and_the_correction_moves_the_rate_error_by_e(
     assert not (made / "corrections.json").exists()
     assert (made / layout.RESULT).read_bytes() == rec.result_bytes
     with Register.open(url, migrate=False) as reg:
-        entries = [r for r in reg.audit_rows() if r["action"] == "impact assessed"]
-        assert len(entries) == 1 and entries[0]["object"] == SERIAL
-        assert entries[0]["actor"] == QUALITY
-        assert uid in str(entries[0]["detail"]) and number in str(entries[0]["detail"])
+        entries = [r for r in reg.audit_rows() if r.action == "impact assessed"]
+        assert len(entries) == 1 and entries[0].object == SERIAL
+        assert entries[0].actor == QUALITY
+        assert uid in str(entries[0].detail) and number in str(entries[0].detail)
     # the report (--report): its summary states the conformity outcomes that change and
     # the run whose raw data is not found; the draft to the run's customer (none stated
     # here) names the certificate and the changed statements, and no unissued run
@@ -248,8 +248,8 @@ def test_the_service_records_an_impact_assessment_for_a_logged_in_quality_accoun
         code, digest = call("impact_assessed", token=login["ok"]["token"],
                             serial=SERIAL, detail={"runs": ["uses-it"]})
         assert code == 200 and isinstance(digest["ok"], str)
-        entry = [r for r in reg.audit_rows() if r["action"] == "impact assessed"]
-        assert len(entry) == 1 and entry[0]["actor"] == QUALITY
+        entry = [r for r in reg.audit_rows() if r.action == "impact assessed"]
+        assert len(entry) == 1 and entry[0].actor == QUALITY
 
 
 def test_a_result_is_read_for_the_assessment_and_each_shift_is_over_its_u() -> None:

@@ -147,9 +147,9 @@ def _check_report(folder: Path, doc: dict[str, Any], json_text: str, number: str
     assert "conformity statements: no outcome changes" in draft
     assert (folder / "notification-demo-customer.html").read_text().count(number) == 1
     with Register.open(url, migrate=False) as reg:
-        [entry] = [r for r in reg.audit_rows() if r["action"] == "impact assessed"]
-    detail = entry["detail"] if isinstance(entry["detail"], dict) else json.loads(
-        str(entry["detail"]))
+        [entry] = [r for r in reg.audit_rows() if r.action == "impact assessed"]
+    detail = entry.detail if isinstance(entry.detail, dict) else json.loads(
+        str(entry.detail))
     assert detail["certificates"] == [number] and detail["finding"]["error"] == G_REL
     assert detail["report"][f"{stem}.pdf"] == \
         hashlib.sha256((folder / f"{stem}.pdf").read_bytes()).hexdigest()

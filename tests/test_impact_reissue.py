@@ -232,12 +232,12 @@ def test_the_corrected_reissue_equals_the_same_seed_run_without_the_offset(
             rec = reg.run_record(uid)
             assert rec is not None and rec.result is not None
             assert json.loads(rec.result) == result      # issued from the registered result
-            kinds = [(ev.kind, ev.detail.get("reason")) for ev in rec.events]
+            kinds = [(ev.kind, ev.detail.reason) for ev in rec.events]
             assert ("analysis", f"corrected re-issue, as-found error of {SERIAL}: {REASON}") \
                 in kinds, kinds
-            trail = [r for r in reg.audit_rows() if r["object"] == uid
-                     and r["action"] == "run analysis result"]
-            assert trail and REASON in str(trail[-1]["detail"])
+            trail = [r for r in reg.audit_rows() if r.object == uid
+                     and r.action == "run analysis result"]
+            assert trail and REASON in str(trail[-1].detail)
             revisions = reg.revisions(first.number)
             assert [r.withdrawn_utc is not None for r in revisions] == [True, False]
         ref = _entries(case.reference)

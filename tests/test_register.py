@@ -67,8 +67,8 @@ def test_unknown_wrong_password_and_file_named_signatories_are_refused(
     assert not (run / "issued").exists()
     assert not (run / run_register.REGISTER_NAME).exists()
     with Register.open(_url(lab)) as reg:
-        refused = [r for r in reg.audit_rows() if r["action"] == "authentication refused"]
-        assert [r["actor"] for r in refused] == ["Mallory", "P. Petrov", "A. Ivanova"]
+        refused = [r for r in reg.audit_rows() if r.action == "authentication refused"]
+        assert [r.actor for r in refused] == ["Mallory", "P. Petrov", "A. Ivanova"]
         assert reg.audit_check().ok
 
 
@@ -180,8 +180,8 @@ def test_overdue_counter_on_twins_is_stated_in_the_pdf_and_the_dcc(
     meta = json.loads((run / "meta.json").read_text())
     assert meta["performer"]["account"] == "A. Ivanova"
     with Register.open(url, migrate=False) as reg:   # the entry names the run and the bench
-        started = [json.loads(str(r["detail"])) for r in reg.audit_rows()
-                   if r["action"] == "run started by"]
+        started = [json.loads(str(r.detail)) for r in reg.audit_rows()
+                   if r.action == "run started by"]
     assert [d["run_uid"] for d in started] == [meta["run_uid"]] and started[0]["bench"]
     assert "Calibration performed by: A. Ivanova (account A. Ivanova, authenticated" in html
     # and a wrong password starts nothing
@@ -404,8 +404,8 @@ def test_issued_documents_anchor_the_trail(url: str, run: Path, tmp_path: Path) 
     m = re.search(r"Lab register audit trail entry (\d+), SHA-256 ([0-9a-f]{64})", html)
     assert m, "the issued certificate states no receipt"
     with Register.open(url, migrate=False) as reg:
-        entry = next(r for r in reg.audit_rows() if r["seq"] == int(m.group(1)))
-    assert entry["digest"] == m.group(2) and entry["action"] == "issue begun"
+        entry = next(r for r in reg.audit_rows() if r.seq == int(m.group(1)))
+    assert entry.digest == m.group(2) and entry.action == "issue begun"
     assert m.group(0).encode() in (run / "certificate.dcc.xml").read_bytes()
     whole = cli("register", "audit", "--register", url, "--receipts", str(run))
     assert whole.returncode == 0 and "every one in the trail" in whole.stdout, whole.stdout

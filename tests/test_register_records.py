@@ -74,7 +74,7 @@ def test_a_withdrawn_certificate_reads_withdrawn_everywhere(demo_run: Any,
         assert f"withdrawn: certificate {number}" in got.stdout
         assert f"by {QM}: {why}" in got.stdout and "verify: OK" not in got.stdout
     with Register.open(url, migrate=False) as reg:
-        assert any(r["action"] == "withdrawn" and r["actor"] == QM for r in reg.audit_rows())
+        assert any(r.action == "withdrawn" and r.actor == QM for r in reg.audit_rows())
     # the station's run page
     page = create_app(StationSettings(run.parent, "t0ken", register_url=url)).test_client() \
         .get(f"/run/{run.name}").get_data(as_text=True)
@@ -203,7 +203,7 @@ def test_bad_deviations_are_refused_and_a_revoked_one_covers_nothing(tmp_path: P
     hist = cli("register", "equipment", "history", "LATE-1", "--register", url)
     assert "REVOKED" in hist.stdout and "OVERDUE" in hist.stdout
     with Register.open(url, migrate=False) as reg:
-        acts = [r["action"] for r in reg.audit_rows() if r["object"] == "LATE-1"]
+        acts = [r.action for r in reg.audit_rows() if r.object == "LATE-1"]
     assert acts.count("deviation recorded") == 1 and acts.count("deviation revoked") == 1
 
 

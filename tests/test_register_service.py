@@ -203,21 +203,21 @@ def test_the_service_stores_no_client_time_meaning_or_actor(lab: Lab) -> None:
     assert rev["signatory"] == "P. Petrov" and rev["signatory_name"] == "P. Petrov"
     with Register.open(lab.owner, migrate=False) as reg:
         rows = reg.audit_rows()
-    alloc = next(r for r in rows if r["action"] == "number allocated" and r["object"] == number)
-    assert alloc["actor"] == "P. Petrov" and alloc["db_user"] == lab.roles["svc"]
-    entry = next(r for r in rows if r["action"] == "issue" and str(r["object"])
+    alloc = next(r for r in rows if r.action == "number allocated" and r.object == number)
+    assert alloc.actor == "P. Petrov" and alloc.db_user == lab.roles["svc"]
+    entry = next(r for r in rows if r.action == "issue" and str(r.object)
                  .startswith(number))
-    assert entry["actor"] == "P. Petrov" and entry["db_user"] == lab.roles["svc"]
-    assert json.loads(str(entry["detail"]))["via"] == "bench hall-1 at 127.0.0.1"
+    assert entry.actor == "P. Petrov" and entry.db_user == lab.roles["svc"]
+    assert json.loads(str(entry.detail))["via"] == "bench hall-1 at 127.0.0.1"
     # a successful signatory login is in the trail too
-    assert any(r["action"] == "authenticated" and r["actor"] == "P. Petrov" for r in rows)
+    assert any(r.action == "authenticated" and r.actor == "P. Petrov" for r in rows)
 
 
 # -- 2. guessing is limited where the password is checked -----------------------------------
 
 def _actions(lab: Lab, name: str) -> list[str]:
     with Register.open(lab.owner, migrate=False) as reg:
-        return [str(r["action"]) for r in reg.audit_rows() if r["object"] == name]
+        return [str(r.action) for r in reg.audit_rows() if r.object == name]
 
 
 def test_the_sixth_attempt_meets_a_lock_even_with_the_right_password(lab: Lab) -> None:
@@ -303,8 +303,8 @@ def test_account_lifecycle_through_the_service(lab: Lab) -> None:
               "role granted", "role revoked"):
         assert a in acts, (a, acts)
     with Register.open(lab.owner, migrate=False) as own:
-        rows = [r for r in own.audit_rows() if r["object"] == "kpopov"]
-    granted = json.loads(str(next(r for r in rows if r["action"] == "role granted")["detail"]))
+        rows = [r for r in own.audit_rows() if r.object == "kpopov"]
+    granted = json.loads(str(next(r for r in rows if r.action == "role granted").detail))
     assert granted["old"] == ["signatory"] and granted["new"] == ["reviewer", "signatory"]
 
 
@@ -360,9 +360,9 @@ def test_sqlite_register_locks_out_guessing(tmp_path: Path) -> None:
             reg.authenticate("P. Petrov", password("P. Petrov"))
         time.sleep(2.5)
         assert reg.authenticate("P. Petrov", password("P. Petrov")).name == "P. Petrov"
-        changed = next(r for r in reg.audit_rows() if r["action"] == "setting changed"
-                       and r["object"] == "lockout_s")
-        assert json.loads(str(changed["detail"])) == {"old": "900 (default)", "new": "2"}
+        changed = next(r for r in reg.audit_rows() if r.action == "setting changed"
+                       and r.object == "lockout_s")
+        assert json.loads(str(changed.detail)) == {"old": "900 (default)", "new": "2"}
 
 
 # -- the station: sign through the service in a browser; guessing limited there too ---------
@@ -457,10 +457,10 @@ def test_the_station_signs_through_the_service_and_cannot_issue_itself(
     import hashlib
     assert rev.pdf_sha256 == hashlib.sha256((issued / "certificate.pdf").read_bytes()
                                             ).hexdigest()
-    entry = next(r for r in rows if r["action"] == "issue" and str(r["object"])
+    entry = next(r for r in rows if r.action == "issue" and str(r.object)
                  .startswith(number))
-    assert entry["db_user"] == lab.roles["svc"]
-    detail = json.loads(str(entry["detail"]))      # the run and the bench (issue 57)
+    assert entry.db_user == lab.roles["svc"]
+    detail = json.loads(str(entry.detail))      # the run and the bench (issue 57)
     assert detail["run_uid"] == uid and detail["bench"] and "station" not in detail["bench"]
     # the station's own database role: unable to issue, allocate or append by itself
     eng = _engine(lab.station)
@@ -557,9 +557,9 @@ def test_a_run_is_registered_through_the_service_and_issued_only_from_its_record
         with pytest.raises(RegisterError, match="is registered already"):
             reg.register_run(uid, "hall-2", None, "0", True, {}, [])
     with Register.open(lab.owner, migrate=False) as reg:
-        entries = [r for r in reg.audit_rows() if r["object"] == uid]
-        assert [r["action"] for r in entries] == ["run registered", "run session result"]
-        assert all('"via"' in str(r["detail"]) for r in entries)
+        entries = [r for r in reg.audit_rows() if r.object == uid]
+        assert [r.action for r in entries] == ["run registered", "run session result"]
+        assert all('"via"' in str(r.detail) for r in entries)
     # the session's demo run, made without a register: never issued through the service
     assert demo_run.status == 0, demo_run.stderr[-3000:]
     run = demo_run.copy_to(tmp_path / "runs")
@@ -615,5 +615,5 @@ def test_the_service_alone_signs_the_issued_dcc(lab: Lab, demo_run: Any,
     for f in run.rglob("*"):
         assert not f.is_file() or b"PRIVATE KEY" not in f.read_bytes(), f
     with Register.open(lab.owner, migrate=False) as reg:
-        assert any(r["action"] == "DCC signed" and r["actor"] == "P. Petrov"
+        assert any(r.action == "DCC signed" and r.actor == "P. Petrov"
                    for r in reg.audit_rows())

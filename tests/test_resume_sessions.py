@@ -137,8 +137,8 @@ def test_each_session_authenticates_its_performer_in_the_register(tmp_path: Path
         (1, PERFORMER), (2, PERFORMER)]
     from bench.app.register import Register
     with Register.open(register, migrate=False) as reg:
-        started = [r for r in reg.audit_rows() if r.get("action") == "run started by"]
-    assert [r.get("actor") for r in started] == [PERFORMER, PERFORMER]
+        started = [r for r in reg.audit_rows() if r.action == "run started by"]
+    assert [r.actor for r in started] == [PERFORMER, PERFORMER]
     # a wrong password refuses the resume before anything moves: no third session
     refused = _bench_piped("not-the-password-9\n", "run", "--resume", str(run_dir), *login)
     assert refused.returncode == 2, refused.stdout + refused.stderr

@@ -162,7 +162,7 @@ def test_a_run_under_a_register_is_recorded_from_its_start(tmp_path: Path) -> No
         assert rec.raw == raw_digests(made) and len(rec.raw) >= 3
         assert rec.result_bytes == (made / layout.RESULT).read_bytes()
         assert [e.kind for e in rec.events] == ["start", "session"]
-        actions = [r["action"] for r in reg.audit_rows()]
+        actions = [r.action for r in reg.audit_rows()]
         assert actions.count("run registered") == 1
         assert actions.count("run session result") == 1
     again = cli("analyze", str(made), "--reason", "re-analysed for the test", "--quiet")
@@ -171,7 +171,7 @@ def test_a_run_under_a_register_is_recorded_from_its_start(tmp_path: Path) -> No
         rec = reg.run_record(uid)
         assert rec is not None
         assert [e.kind for e in rec.events] == ["start", "session", "analysis"]
-        assert rec.events[-1].detail["reason"] == "re-analysed for the test"
+        assert rec.events[-1].detail.reason == "re-analysed for the test"
         assert rec.result_bytes == (made / layout.RESULT).read_bytes()
     verified = cli("verify", str(made), "--reanalyse")
     assert verified.returncode == 0, verified.stdout + verified.stderr

@@ -33,6 +33,7 @@ import pytest
 from lxml import etree
 
 from bench.app.register import Register
+from bench.app.register.model import AuditEntry
 from bench.app.station.app import StationSettings, create_app
 from bench.app.station.serve import add_serve_arguments, settings_from_args
 from bench.app.station.signing import SESSION_COOKIE, STRIKES, Sessions
@@ -86,7 +87,7 @@ def enrol_in_register(run: Path, url: str) -> None:
     enrol(run, url)
 
 
-def _audit(url: str) -> list[dict[str, Any]]:
+def _audit(url: str) -> list[AuditEntry]:
     with Register.open(url, migrate=False) as reg:
         return reg.audit_rows()
 
@@ -191,15 +192,15 @@ def test_the_server_refuses_and_audits_whoever_may_not_sign(tmp_path: Path) -> N
     assert audit_page.status_code == 200 and "chain intact" in audit_page.get_data(as_text=True)
 
     rows = _audit(lab.url)
-    refused = [(r["actor"], json.loads(r["detail"])["why"]) for r in rows
-               if r["action"] == "station sign refused"]
+    refused = [(r.actor, json.loads(r.detail)["why"]) for r in rows
+               if r.action == "station sign refused"]
     assert [a for a, _ in refused] == ["(no session)", OPERATOR[0], SIGNATORY[0], SIGNATORY[0]]
     assert "signatory role" in refused[1][1] and "CSRF" in refused[2][1]
     assert "another origin" in refused[3][1]
-    failed = [r["actor"] for r in rows if r["action"] == "authentication refused"]
+    failed = [r.actor for r in rows if r.action == "authentication refused"]
     assert failed == [OPERATOR[0]] + [SIGNATORY[0]] * STRIKES
-    assert [r["actor"] for r in rows if r["action"] == "station session ended"] == [SIGNATORY[0]]
-    assert not any(r["action"] in ("issue", "number allocated") for r in rows)
+    assert [r.actor for r in rows if r.action == "station session ended"] == [SIGNATORY[0]]
+    assert not any(r.action in ("issue", "number allocated") for r in rows)
 
 
 def test_sessions_expire_and_end_at_logout() -> None:
@@ -401,8 +402,8 @@ def test_sign_a_draft_in_a_real_browser(served: tuple[Path, Lab, int]) -> None:
     with Register.open(lab.url, migrate=False) as reg:
         assert len(reg.revisions(number)) == 1                  # nothing more issued
     rows = _audit(lab.url)
-    assert [r["actor"] for r in rows if r["action"] == "station sign refused"] == \
+    assert [r.actor for r in rows if r.action == "station sign refused"] == \
         [OPERATOR[0], "(no session)"]
-    assert [r["actor"] for r in rows if r["action"] == "issue"] == [SIGNATORY[0]]
-    assert [r["actor"] for r in rows if r["action"] == "authentication refused"] == \
+    assert [r.actor for r in rows if r.action == "issue"] == [SIGNATORY[0]]
+    assert [r.actor for r in rows if r.action == "authentication refused"] == \
         [SIGNATORY[0]]

@@ -56,7 +56,7 @@ def make_engine(url: str) -> Engine:
             conn.exec_driver_sql("BEGIN IMMEDIATE")
 
         return eng
-    args: dict[str, object] = {}
+    args: dict[str, float] = {}
     if real.startswith("postgresql"):
         args["connect_timeout"] = CONNECT_TIMEOUT_S
     return sa.create_engine(real, connect_args=args, pool_pre_ping=True)

@@ -43,7 +43,7 @@ from bench.app.certificate import (
 )
 from bench.app.certificate.build import Sources, stand_of
 from bench.app.certificate.revisions import statement_changes
-from bench.app.register.runs import folder_problems
+from bench.app.register.runs import folder_problems, run_uid_of
 from bench.app.register.store import (
     MEANING_ISSUE,
     SIGNING_SETTING,
@@ -79,7 +79,7 @@ class IssueContext:
     previous: tuple[register.Issue, ...]     # the issues recorded so far, oldest first
     simulated: bool                           # twins, not instruments
     records_url: str | None = None            # the records (None: the run's default)
-    lab_register: object = None                  # the lab register (bench.app.register)
+    lab_register: Register | None = None      # the lab register (bench.app.register)
 
     @property
     def frame(self) -> ResultFrame:
@@ -266,7 +266,6 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
               password: Callable[[str], str] | None = None) -> int:
     """Issue the run's draft through the lab register; returns the exit status (0 issued,
     2 refused, 3 failed). `password(prompt)` gives the signatory's password."""
-    from bench.app.records.extract import run_uid
     from bench.app.register import Register, RegisterError, redact
 
     run_path = Path(run_path)
@@ -283,8 +282,7 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
             acct = reg.authenticate(signatory_name, (password or _ask)(
                 f"password of {signatory_name} (e-signature, register {redact(url)}): "),
                 "signatory")
-            uid = run_uid(json.loads((run_path / layout.META).read_text(encoding="utf-8")),
-                          run_path.name)
+            uid = run_uid_of(run_path)
             record = reg.run_record(uid)
             number = reg.number_of_run(uid)
             issued = reg.revisions(number) if number else []

@@ -18,10 +18,10 @@ PERFORMED_BY = "Calibration performed by"
 class Performer:
     """The account meta.json says the lab register authenticated at the run's start."""
 
-    full_name: object
-    account: object
-    register: object
-    authenticated_utc: object
+    full_name: str
+    account: str | None
+    register: str | None
+    authenticated_utc: str | None
 
     @classmethod
     def of(cls, meta: Mapping[str, object]) -> Performer | None:
@@ -29,8 +29,12 @@ class Performer:
         found = meta.get("performer")
         if not isinstance(found, Mapping) or not found.get("full_name"):
             return None
-        return cls(found["full_name"], found.get("account"), found.get("register"),
-                   found.get("authenticated_utc"))
+        def text(key: str) -> str | None:     # as written; a non-text value as its text
+            value = found.get(key)
+            return None if value is None else str(value)
+
+        return cls(str(found["full_name"]), text("account"), text("register"),
+                   text("authenticated_utc"))
 
 
 def performer(meta: Mapping[str, object]) -> tuple[str, str]:

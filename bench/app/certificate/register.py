@@ -18,12 +18,11 @@ from __future__ import annotations
 import datetime as dt
 import json
 import os
-from collections.abc import Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TypedDict, Unpack
 
-from drivers.json_types import JsonObject, JsonValue
+import msgspec
 
 REGISTER_NAME = "certificate-register.jsonl"
 
@@ -90,43 +89,16 @@ class Issue:
         """Not (yet) authorised: no date of issue, no authoriser."""
         return not self.issued_utc
 
-    def to_json(self) -> JsonObject:
-        d = asdict(self)
-        d["changes"] = list(self.changes)
-        d["issuer"] = [list(pair) for pair in self.issuer]
-        return d
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, JsonValue]) -> Issue:
-        """One line of the register (KeyError, TypeError or ValueError: not one)."""
-        revision = d["revision"]
-        if not isinstance(revision, int | float | str):
-            raise TypeError(f"revision {revision!r}")
-        changes = d.get("changes")
-        return cls(str(d["number"]), int(revision), str(d["issued_utc"]),
-                   _text(d, "replaces"), _text(d, "result_sha256"), _text(d, "signatory"),
-                   _text(d, "function"), _text(d, "reason"),
-                   tuple(str(c) for c in changes) if isinstance(changes, list) else (),
-                   _text(d, "meaning"), _text(d, "register"), _text(d, "audit_digest"),
-                   _int(d, "audit_seq"), _text(d, "audit_entry"), _pairs(d.get("issuer")),
-                   _text(d, "run_uid"), _text(d, "run_registered_utc"))
 
 
-def _pairs(value: JsonValue) -> tuple[tuple[str, str], ...]:
-    if not isinstance(value, list):
-        return ()
-    return tuple((str(p[0]), str(p[1])) for p in value if isinstance(p, list) and len(p) == 2)
+def issue_line(issue: Issue) -> str:
+    """An issue as its line of the register (keys sorted, as since the first issue)."""
+    return json.dumps(msgspec.to_builtins(issue), sort_keys=True)
 
 
-def _int(d: Mapping[str, JsonValue], key: str) -> int | None:
-    value = d.get(key)
-    return value if isinstance(value, int) and not isinstance(value, bool) else None
-
-
-def _text(d: Mapping[str, JsonValue], key: str) -> str | None:
-    """A register entry's text (a non-text value as its text: as written, not dropped)."""
-    value = d.get(key)
-    return None if value is None else str(value)
+def issue_of(line: str | bytes) -> Issue:
+    """One line of the register (msgspec.MsgspecError: not one, e.g. a torn last line)."""
+    return msgspec.json.decode(line, type=Issue, strict=False)
 
 
 def numbered(base: str, revision: int) -> str:
@@ -144,8 +116,8 @@ def issues(run_path: Path | None) -> list[Issue]:
     out = []
     for line in path.read_text(encoding="utf-8").splitlines():
         try:
-            out.append(Issue.from_dict(json.loads(line)))
-        except (ValueError, KeyError, TypeError):
+            out.append(issue_of(line))
+        except msgspec.MsgspecError:
             continue  # a torn last line from a crash: the earlier issues still stand
     return out
 
@@ -170,6 +142,6 @@ def record(run_path: Path, issue: Issue) -> None:
     """Append the issue to the register (one line, flushed to disk before returning)."""
     path = Path(run_path) / REGISTER_NAME
     with path.open("a", encoding="utf-8") as f:
-        f.write(json.dumps(issue.to_json(), sort_keys=True) + "\n")
+        f.write(issue_line(issue) + "\n")
         f.flush()
         os.fsync(f.fileno())

@@ -9,9 +9,10 @@ and by the SQLite path in Python: fields joined by a newline, UTF-8, SHA-256, he
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
+
+from bench.app.register.model import AuditEntry
 
 GENESIS = "0" * 64
 
@@ -32,34 +33,33 @@ class ChainReport:
         return not self.problems
 
 
-def check_chain(rows: Iterable[Mapping[str, Any]],
-                head: Mapping[str, Any] | None) -> ChainReport:
+def check_chain(rows: Iterable[AuditEntry], head: tuple[int, str] | None) -> ChainReport:
     """Every entry's digest recomputed and linked to the one before; the last one compared
     with the head. Returns every problem found (none: the chain is whole)."""
     problems: list[str] = []
     prev, expect_seq, n = GENESIS, 1, 0
     for r in rows:
         n += 1
-        seq = int(r["seq"])
+        seq = r.seq
         if seq != expect_seq:
             problems.append(f"entry {expect_seq}" + (f"..{seq - 1}" if seq - 1 > expect_seq
                                                       else "") + " missing")
-        if r["prev_digest"] != prev:
+        if r.prev_digest != prev:
             problems.append(f"entry {seq}: does not follow the entry before it "
-                            f"(prev_digest {str(r['prev_digest'])[:12]}..., expected "
+                            f"(prev_digest {r.prev_digest[:12]}..., expected "
                             f"{prev[:12]}...)")
-        want = entry_digest(r["prev_digest"], seq, r["utc"], r["actor"], r["action"],
-                            r["object"], r["detail"], r["db_user"])
-        if want != r["digest"]:
-            problems.append(f"entry {seq} ({r['action']} {r['object']}, {r['utc']}): altered "
+        want = entry_digest(r.prev_digest, seq, r.utc, r.actor, r.action, r.object, r.detail,
+                            r.db_user)
+        if want != r.digest:
+            problems.append(f"entry {seq} ({r.action} {r.object}, {r.utc}): altered "
                             f"(its content gives {want[:12]}..., it records "
-                            f"{str(r['digest'])[:12]}...)")
-        prev, expect_seq = str(r["digest"]), seq + 1
+                            f"{r.digest[:12]}...)")
+        prev, expect_seq = r.digest, seq + 1
     if head is None:
         if n:
             problems.append("the chain's head is missing")
-    elif int(head["seq"]) != expect_seq - 1 or head["digest"] != prev:
-        problems.append(f"the head records entry {head['seq']} ({str(head['digest'])[:12]}...)"
+    elif head != (expect_seq - 1, prev):
+        problems.append(f"the head records entry {head[0]} ({head[1][:12]}...)"
                         f" but the trail ends at entry {expect_seq - 1} ({prev[:12]}...): "
                         "entries removed from its end, or the head rewritten")
     return ChainReport(n, tuple(problems))

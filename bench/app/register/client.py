@@ -8,127 +8,34 @@ reached refuses (RegisterError: exit 2 at the command line)."""
 
 from __future__ import annotations
 
-import base64
 import datetime as dt
-import json
 import os
 import socket
 import urllib.error
 import urllib.request
 from collections.abc import Callable, Mapping, Sequence
+from typing import TypeVar
 
-from bench.app.register import chain
+from bench.app.register import chain, wire
+from bench.app.register.model import AuditDetail, AuditEntry, ItemRow
 from bench.app.register.store import (
     REMOTE_OPENERS,
     Account,
     AuthError,
     Calibration,
-    Deviation,
     Equipment,
     Receipt,
     Register,
     RegisterError,
     Revision,
-    RunEvent,
     RunRecord,
 )
+
+T = TypeVar("T")
 
 TIMEOUT_S = 30.0
 VIA_ENV = "BENCH_NAME"      # how a bench names itself to the service (else its host name)
 VIA_HEADER = "X-Ratebench-Via"      # who the person acts through (service.py records it)
-
-
-class Reply(dict[str, object]):
-    """One JSON object of the service's answer, read field by field with its type."""
-
-    def text(self, key: str) -> str:
-        return str(self[key])
-
-    def opt(self, key: str) -> str | None:
-        v = self.get(key)
-        return None if v is None else str(v)
-
-    def texts(self, key: str) -> tuple[str, ...]:
-        v = self.get(key)
-        return tuple(str(x) for x in v) if isinstance(v, list) else ()
-
-    def items_of(self, key: str) -> list[Reply]:
-        v = self.get(key)
-        return [Reply(x) for x in v if isinstance(x, dict)] if isinstance(v, list) else []
-
-
-def _reply(v: object) -> Reply:
-    if not isinstance(v, dict):
-        raise RegisterError(f"the register service answered {type(v).__name__}, not an object")
-    return Reply(v)
-
-
-def _replies(v: object) -> list[Reply]:
-    return [_reply(x) for x in v] if isinstance(v, list) else []
-
-
-def _account(d: Reply) -> Account:
-    return Account(d.text("name"), d.text("full_name"), d.texts("roles"), d.opt("function"),
-                   bool(d.get("active")), bool(d.get("must_change")),
-                   d.opt("password_changed_utc"))
-
-
-def _num(d: Reply, key: str) -> float | None:
-    v = d.get(key)
-    return float(v) if isinstance(v, int | float) else None
-
-
-def _date(d: Reply, key: str) -> dt.date | None:
-    v = d.opt(key)
-    return dt.date.fromisoformat(v) if v else None
-
-
-def _calibration(v: Reply) -> Calibration:
-    return Calibration(v.text("certificate"), v.text("issuer"), _date(v, "calibrated_on"),
-                       dt.date.fromisoformat(v.text("due")), v.opt("found"),
-                       _num(v, "found_error"), _num(v, "found_error_u"),
-                       v.text("recorded_utc"), v.text("recorded_by"))
-
-
-def _equipment(d: Reply) -> Equipment:
-    return Equipment(d.text("serial"), d.text("model"), d.opt("certificate"),
-                     d.opt("issuer"), _date(d, "due"),
-                     tuple(Deviation(v.text("reason"), dt.date.fromisoformat(v.text("expires")),
-                                     v.text("recorded_by"), v.text("recorded_utc"),
-                                     v.opt("revoked_utc"), v.opt("revoked_by"))
-                           for v in d.items_of("deviations")),
-                     bool(d.get("identity_only")),
-                     tuple(_calibration(v) for v in d.items_of("calibrations")))
-
-
-def _revision(d: Reply) -> Revision:
-    rev = d.get("revision")
-    return Revision(d.text("number"), int(rev) if isinstance(rev, int) else 0,
-                    d.text("issued_utc"), d.text("signatory"), d.text("signatory_name"),
-                    d.text("meaning"), d.opt("reason"), d.text("result_sha256"),
-                    d.text("pdf_sha256"), d.text("dcc_sha256"), d.text("html_sha256"),
-                    d.opt("withdrawn_utc"), d.opt("audit_digest"), d.opt("withdrawn_reason"),
-                    d.opt("withdrawn_by"))
-
-
-def _object(v: object) -> dict[str, object]:
-    return {str(k): x for k, x in v.items()} if isinstance(v, dict) else {}
-
-
-def _run_record(d: Reply) -> RunRecord:
-    def strings(key: str) -> dict[str, str]:
-        v = d.get(key)
-        return {str(k): str(x) for k, x in v.items()} if isinstance(v, dict) else {}
-
-    def events() -> tuple[RunEvent, ...]:
-        return tuple(RunEvent(e.text("utc"), e.text("kind"), _object(e.get("detail")))
-                     for e in d.items_of("events"))
-
-    return RunRecord(d.text("uid"), d.text("bench"), d.opt("performer"), d.text("version"),
-                     bool(d.get("simulated")), strings("inputs"),
-                     tuple(dict(i) for i in d.items_of("items")), d.text("registered_utc"),
-                     d.text("via"), d.opt("result_sha256"), d.opt("result"),
-                     d.opt("result_utc"), strings("raw"), events())
 
 
 class ServiceRegister(Register):
@@ -148,7 +55,9 @@ class ServiceRegister(Register):
     @classmethod
     def connect(cls, url: str, via: str | None = None) -> ServiceRegister:
         reg = cls(url, via)
-        reg._signs = bool(_reply(reg._get("info")).get("signs_dcc"))
+        info = reg._fetch(urllib.request.Request(f"{reg.url}/v1/info",
+                                                 headers={VIA_HEADER: reg.via}))
+        reg._signs = wire.answered("info", info, wire.Info).signs_dcc
         return reg
 
     def dcc_signer(self, signatory: Account) -> Callable[[bytes], bytes] | None:
@@ -158,37 +67,39 @@ class ServiceRegister(Register):
         token = self._token(signatory.name)
 
         def sign(data: bytes) -> bytes:
-            got = self._call("sign_dcc", token=token,
-                             xml=base64.b64encode(data).decode("ascii"))
-            return base64.b64decode(str(got))
+            return self._call("sign_dcc", wire.SignDcc(token=token, xml=data), bytes)
 
         return sign
 
-    def _send(self, req: urllib.request.Request) -> object:
+    def _fetch(self, req: urllib.request.Request) -> bytes:
+        """The service's answer's bytes (a refusal raised as its AuthError or
+        RegisterError)."""
         try:
             with urllib.request.urlopen(req, timeout=TIMEOUT_S) as r:  # noqa: S310
-                answer: object = json.loads(r.read())
-                return _reply(answer)["ok"]
+                return bytes(r.read())
         except urllib.error.HTTPError as e:
-            try:
-                body = json.loads(e.read())
-            except ValueError:
+            got = wire.refused(e.read())
+            if got is None:
                 raise RegisterError(f"register service {self.url}: HTTP {e.code}") from None
-            err = AuthError if body.get("kind") == "auth" else RegisterError
-            raise err(str(body.get("error"))) from None
-        except (urllib.error.URLError, OSError, ValueError, KeyError) as e:
+            raise (AuthError if got.kind == "auth" else RegisterError)(got.error) from None
+        except (urllib.error.URLError, OSError, ValueError) as e:
             why = getattr(e, "reason", e)
             raise RegisterError(f"register service {self.url} cannot be reached: {why}") \
                 from None
 
-    def _get(self, op: str) -> object:
-        return self._send(urllib.request.Request(f"{self.url}/v1/{op}",
-                                                 headers={VIA_HEADER: self.via}))
-
-    def _call(self, op: str, **body: object) -> object:
-        return self._send(urllib.request.Request(
-            f"{self.url}/v1/{op}", data=json.dumps(body).encode(), method="POST",
+    def _post(self, op: str, body: wire.Body) -> bytes:
+        return self._fetch(urllib.request.Request(
+            f"{self.url}/v1/{op}", data=wire.request(body), method="POST",
             headers={"Content-Type": "application/json", VIA_HEADER: self.via}))
+
+    def _call(self, op: str, body: wire.Body, want: type[T]) -> T:
+        return wire.answered(op, self._post(op, body), want)
+
+    def _maybe(self, op: str, body: wire.Body, want: type[T]) -> T | None:
+        return wire.answered_or_none(op, self._post(op, body), want)
+
+    def _do(self, op: str, body: wire.Body) -> None:
+        self._post(op, body)
 
     def _token(self, name: str) -> str:
         tok = self._tokens.get(name)
@@ -199,7 +110,7 @@ class ServiceRegister(Register):
     def close(self) -> None:
         for tok in self._tokens.values():
             try:
-                self._call("logout", token=tok)
+                self._do("logout", wire.Body(token=tok))
             except RegisterError:
                 pass
         self._tokens.clear()
@@ -218,160 +129,146 @@ class ServiceRegister(Register):
         if changing_password:
             raise RegisterError("through the service a password changes with "
                                 "change_password")
-        got = _reply(self._call("authenticate", name=name, password=password, role=role))
-        self._tokens[name] = got.text("token")
-        return _account(_reply(got.get("account")))
+        got = self._call("authenticate", wire.Login(name=name, password=password, role=role),
+                         wire.LoginAnswer)
+        self._tokens[name] = got.token
+        return got.account
 
     def accounts(self) -> list[Account]:
-        return [_account(a) for a in _replies(self._call("accounts"))]
+        return self._call("accounts", wire.Body(), list[Account])
 
     def account(self, name: str) -> Account | None:
-        got = self._call("account", name=name)
-        return None if got is None else _account(_reply(got))
+        return self._maybe("account", wire.Named(name=name), Account)
 
     def add_account(self, by: Account, name: str, full_name: str, roles: Sequence[str],
                     password: str, function: str | None = None) -> Account:
-        return _account(_reply(self._call(
-            "add_account", token=self._token(by.name), name=name, full_name=full_name,
-            roles=list(roles), password=password, function=function)))
+        return self._call("add_account", wire.AddAccount(
+            token=self._token(by.name), name=name, full_name=full_name, roles=list(roles),
+            password=password, function=function), Account)
 
     def change_password(self, name: str, old: str, new: str) -> None:
-        self._call("change_password", name=name, old=old, new=new)
+        self._do("change_password", wire.ChangePassword(name=name, old=old, new=new))
 
     def reset_password(self, by: Account, name: str, new: str) -> None:
-        self._call("reset_password", token=self._token(by.name), name=name, password=new)
+        self._do("reset_password", wire.ResetPassword(token=self._token(by.name), name=name,
+                                                      password=new))
 
     def set_active(self, by: Account, name: str, active: bool) -> Account:
-        return _account(_reply(self._call("set_active", token=self._token(by.name),
-                                          name=name, active=active)))
+        return self._call("set_active", wire.SetActive(token=self._token(by.name), name=name,
+                                                       active=active), Account)
 
     def set_role(self, by: Account, name: str, role: str, grant: bool) -> Account:
-        return _account(_reply(self._call("set_role", token=self._token(by.name), name=name,
-                                          role=role, grant=grant)))
+        return self._call("set_role", wire.SetRole(token=self._token(by.name), name=name,
+                                                   role=role, grant=grant), Account)
 
     # -- settings and equipment -----------------------------------------------------------
 
     def setting(self, key: str) -> str | None:
-        got = self._call("setting", key=key)
-        return None if got is None else str(got)
+        return self._maybe("setting", wire.Key(key=key), str)
 
     def int_setting(self, key: str) -> int:
-        value = _reply(self._call("settings")).get(key)
-        return int(value) if isinstance(value, int) else 0
+        return self._call("settings", wire.Body(), dict[str, int]).get(key, 0)
 
     def set_setting(self, by: Account, key: str, value: str) -> None:
-        self._call("set_setting", token=self._token(by.name), key=key, value=value)
+        self._do("set_setting", wire.SetSetting(token=self._token(by.name), key=key,
+                                                value=value))
 
     def equipment(self, serial: str | None = None) -> list[Equipment]:
-        return [_equipment(e) for e in _replies(self._call("equipment", serial=serial))]
+        return self._call("equipment", wire.EquipmentQuery(serial=serial), list[Equipment])
 
     def add_equipment(self, by: Account, serial: str, model: str, certificate: str | None,
                       issuer: str | None, due: dt.date | None, identity_only: bool = False,
                       calibrated_on: dt.date | None = None) -> None:
-        self._call("add_equipment", token=self._token(by.name), serial=serial, model=model,
-                   certificate=certificate, issuer=issuer,
-                   due=due.isoformat() if due else None, identity_only=identity_only,
-                   calibrated_on=calibrated_on.isoformat() if calibrated_on else None)
+        self._do("add_equipment", wire.AddEquipment(
+            token=self._token(by.name), serial=serial, model=model, certificate=certificate,
+            issuer=issuer, due=due, identity_only=identity_only, calibrated_on=calibrated_on))
 
     def update_equipment(self, by: Account, serial: str, certificate: str, issuer: str,
                          due: dt.date, calibrated_on: dt.date | None = None,
                          found: str | None = None, found_error: float | None = None,
                          found_error_u: float | None = None) -> Calibration:
-        return _calibration(_reply(self._call(
-            "update_equipment", token=self._token(by.name), serial=serial,
-            certificate=certificate, issuer=issuer, due=due.isoformat(),
-            calibrated_on=calibrated_on.isoformat() if calibrated_on else None, found=found,
-            found_error=found_error, found_error_u=found_error_u)))
+        return self._call("update_equipment", wire.UpdateEquipment(
+            token=self._token(by.name), serial=serial, certificate=certificate, issuer=issuer,
+            due=due, calibrated_on=calibrated_on, found=found, found_error=found_error,
+            found_error_u=found_error_u), Calibration)
 
     def revoke_deviation(self, by: Account, serial: str) -> int:
-        got = self._call("revoke_deviation", token=self._token(by.name), serial=serial)
-        return got if isinstance(got, int) else 0
+        return self._call("revoke_deviation", wire.Serial(token=self._token(by.name),
+                                                          serial=serial), int)
 
     def withdraw(self, by: Account, number: str, reason: str) -> Revision:
-        return _revision(_reply(self._call("withdraw", token=self._token(by.name),
-                                           number=number, reason=reason)))
+        return self._call("withdraw", wire.Withdraw(token=self._token(by.name), number=number,
+                                                    reason=reason), Revision)
 
     def add_deviation(self, by: Account, serial: str, reason: str, expires: dt.date) -> None:
-        self._call("add_deviation", token=self._token(by.name), serial=serial, reason=reason,
-                   expires=expires.isoformat())
+        self._do("add_deviation", wire.AddDeviation(token=self._token(by.name), serial=serial,
+                                                    reason=reason, expires=expires))
 
     # -- numbers, revisions, the trail ----------------------------------------------------
 
     def allocate(self, run_uid: str, prefix: str, actor: str) -> str:
-        return str(self._call("allocate", token=self._token(actor), run_uid=run_uid,
-                              prefix=prefix))
+        return self._call("allocate", wire.Allocate(token=self._token(actor), run_uid=run_uid,
+                                                    prefix=prefix), str)
 
     def number_of_run(self, run_uid: str) -> str | None:
-        got = self._call("number_of_run", run_uid=run_uid)
-        return None if got is None else str(got)
+        return self._maybe("number_of_run", wire.RunUid(run_uid=run_uid), str)
 
     def revisions(self, number: str) -> list[Revision]:
-        return [_revision(r) for r in _replies(self._call("revisions", number=number))]
+        return self._call("revisions", wire.Number(number=number), list[Revision])
 
     def find_revision(self, sha256: str) -> Revision | None:
-        got = self._call("find_revision", sha256=sha256)
-        return None if got is None else _revision(_reply(got))
+        return self._maybe("find_revision", wire.Digest(sha256=sha256), Revision)
 
     def begin_issue(self, signatory: Account, number: str, revision: int = 0,
                     result_sha256: str = "") -> Receipt:
-        got = _reply(self._call("begin_issue", token=self._token(signatory.name),
-                                number=number, revision=revision,
-                                result_sha256=result_sha256))
-        seq = got.get("audit_seq")
-        return Receipt(got.text("issued_utc"), seq if isinstance(seq, int) else 0,
-                       got.text("audit_digest"))
+        return self._call("begin_issue", wire.BeginIssue(
+            token=self._token(signatory.name), number=number, revision=revision,
+            result_sha256=result_sha256), Receipt)
 
     def issue(self, number: str, revision: int, signatory: Account,
               digests: Mapping[str, str], reason: str | None,
-              detail: Mapping[str, object]) -> Revision:
-        return _revision(_reply(self._call(
-            "issue", token=self._token(signatory.name), number=number, revision=revision,
-            digests=dict(digests), reason=reason, detail=dict(detail))))
+              detail: AuditDetail) -> Revision:
+        return self._call("issue", wire.Issue(
+            token=self._token(signatory.name), number=number, revision=revision,
+            digests=dict(digests), reason=reason, detail=dict(detail)), Revision)
 
-    def append(self, actor: str, action: str, obj: str,
-               detail: Mapping[str, object] | str = "") -> str:
-        return str(self._call("append", token=self._token(actor), action=action, object=obj,
-                              detail=detail if isinstance(detail, Mapping) else
-                              {"detail": detail}))
+    def append(self, actor: str, action: str, obj: str, detail: AuditDetail | str = "") -> str:
+        return self._call("append", wire.Append(
+            token=self._token(actor), action=action, obj=obj,
+            detail=dict(detail) if isinstance(detail, Mapping) else {"detail": detail}), str)
 
-    def audit_rows(self) -> list[dict[str, object]]:
-        return [dict(r) for r in _replies(self._call("audit_rows"))]
+    def audit_rows(self) -> list[AuditEntry]:
+        return self._call("audit_rows", wire.Body(), list[AuditEntry])
 
     # -- runs (no person's token: the service records the bench it came through) ----------
 
     def register_run(self, uid: str, bench: str, performer: str | None, version: str,
                      simulated: bool, inputs: Mapping[str, str],
-                     items: Sequence[Mapping[str, object]]) -> RunRecord:
-        return _run_record(_reply(self._call(
-            "register_run", uid=uid, bench=bench, performer=performer, version=version,
-            simulated=simulated, inputs=dict(inputs), items=[dict(i) for i in items])))
+                     items: Sequence[ItemRow]) -> RunRecord:
+        return self._call("register_run", wire.RegisterRun(
+            uid=uid, bench=bench, performer=performer, version=version, simulated=simulated,
+            inputs=dict(inputs), items=[dict(i) for i in items]), RunRecord)
 
     def run_session(self, uid: str, session: int, performer: str | None) -> None:
-        self._call("run_session", uid=uid, session=session, performer=performer)
+        self._do("run_session", wire.RunSession(uid=uid, session=session, performer=performer))
 
     def deliver_result(self, uid: str, kind: str, result: bytes, raw: Mapping[str, str],
                        reason: str | None = None) -> RunRecord:
-        return _run_record(_reply(self._call(
-            "deliver_result", uid=uid, kind=kind, raw=dict(raw), reason=reason,
-            result=base64.b64encode(result).decode("ascii"))))
+        return self._call("deliver_result", wire.DeliverResult(
+            uid=uid, kind=kind, raw=dict(raw), reason=reason, result=result), RunRecord)
 
     def run_record(self, uid: str) -> RunRecord | None:
-        got = self._call("run_record", uid=uid)
-        return None if got is None else _run_record(_reply(got))
+        return self._maybe("run_record", wire.Uid(uid=uid), RunRecord)
 
     def runs_using(self, serial: str) -> list[RunRecord]:
-        return [_run_record(r) for r in _replies(self._call("runs_using", serial=serial))]
+        return self._call("runs_using", wire.Serial(serial=serial), list[RunRecord])
 
-    def impact_assessed(self, by: Account, serial: str,
-                        detail: Mapping[str, object]) -> str:
-        return str(self._call("impact_assessed", token=self._token(by.name), serial=serial,
-                              detail=dict(detail)))
+    def impact_assessed(self, by: Account, serial: str, detail: AuditDetail) -> str:
+        return self._call("impact_assessed", wire.ImpactAssessed(
+            token=self._token(by.name), serial=serial, detail=dict(detail)), str)
 
     def audit_check(self) -> chain.ChainReport:
-        got = _reply(self._call("audit_check"))
-        entries = got.get("entries")
-        return chain.ChainReport(entries if isinstance(entries, int) else 0,
-                                 got.texts("problems"))
+        return self._call("audit_check", wire.Body(), chain.ChainReport)
 
 
 REMOTE_OPENERS["http"] = REMOTE_OPENERS["https"] = ServiceRegister.connect

@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import sys
+from types import FrameType
 
 from bench.app.register.credentials import Passwords
 from bench.app.register.store import Account, Equipment, Register, RegisterError, redact
@@ -189,7 +190,7 @@ def _serve(args: argparse.Namespace) -> int:
     port = server.effective_port
     reg.shown = f"service http://{args.host}:{port}"
 
-    def stop(_sig: int, _frame: object) -> None:
+    def stop(_sig: int, _frame: FrameType | None) -> None:
         server.close()
 
     signal.signal(signal.SIGTERM, stop)

@@ -166,7 +166,7 @@ def start_gate(register_url: str | None, items: Sequence[Traced], simulated: boo
 
 
 def _record_start(reg: Register, uid: str, bench: str,
-                  performer: Mapping[str, object] | None, simulated: bool,
+                  performer: Mapping[str, str | None] | None, simulated: bool,
                   inputs: Mapping[str, str] | None, found: list[dict[str, str | None]],
                   session: int | None) -> None:
     """The register's record of the run from its start: a new run (its inputs' digests),

@@ -14,7 +14,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, TypedDict
+from typing import TYPE_CHECKING, TypeAlias, TypedDict
 
 import sqlalchemy as sa
 from sqlalchemy.engine import Connection, RowMapping
@@ -22,6 +22,7 @@ from sqlalchemy.exc import DBAPIError
 
 from bench.app.register import schema as s
 from bench.core import rundir_layout as layout
+from drivers.json_types import JsonLike
 
 if TYPE_CHECKING:   # argon2 is imported when a password is checked
     from argon2 import PasswordHasher
@@ -264,13 +265,47 @@ class Revision:
                 layout.CERTIFICATE_DCC: self.dcc_sha256, layout.CERTIFICATE_HTML: self.html_sha256}
 
 
+#: an audit entry's detail as the caller states it: free-form JSON by design (the trail
+#: stores it as text, keys sorted, and hashes that text: chain.py)
+AuditDetail: TypeAlias = Mapping[str, JsonLike]
+#: one stand item's status at a run's start (gate.ItemStatus.to_dict), as the register keeps it
+ItemRow: TypeAlias = Mapping[str, str | None]
+
+
+@dataclass(frozen=True)
+class AuditEntry:
+    """One entry of the audit trail as stored (chain.py recomputes its digest)."""
+
+    seq: int
+    utc: str
+    actor: str
+    action: str
+    object: str
+    detail: str                     # JSON text, as hashed
+    db_user: str
+    prev_digest: str
+    digest: str
+
+
+@dataclass(frozen=True)
+class EventDetail:
+    """What the register noted of a run's session or analysis (store.py writes it)."""
+
+    via: str | None = None
+    session: int | None = None      # a resume's session number
+    performer: str | None = None
+    result_sha256: str | None = None
+    raw_captures: int | None = None
+    reason: str | None = None       # an analysis's reason
+
+
 @dataclass(frozen=True)
 class RunEvent:
     """A session (a resume) or an analysis of a registered run, as the register saw it."""
 
     utc: str
     kind: str                       # start | resume | session (its result) | analysis
-    detail: dict[str, object]
+    detail: EventDetail
 
 
 @dataclass(frozen=True)
@@ -284,7 +319,7 @@ class RunRecord:
     version: str                    # ratebench's version at the start
     simulated: bool
     inputs: dict[str, str]          # procedure.yaml, stand.yaml, lab.yaml: SHA-256 as used
-    items: tuple[dict[str, object], ...]    # each stand item's status at the start
+    items: tuple[dict[str, str | None], ...]    # each stand item's status at the start
     registered_utc: str             # the register's clock
     via: str                        # the bench (and address) that registered it
     result_sha256: str | None = None
@@ -325,12 +360,12 @@ def _NONE(conn: Connection) -> str | None:  # noqa: N802 - reads as the value it
     return "" if any(c[1] == "certificate" and c[3] for c in cols) else None
 
 
-def _with_via(detail: Mapping[str, object] | str) -> str:
+def _with_via(detail: AuditDetail | str) -> str:
     """An audit entry's detail as stored, naming the bench or station the person acted
     through when the register service serves the request."""
     via = ACTING_VIA.get()
     if via:
-        base: dict[str, object] = ({"detail": detail} if isinstance(detail, str) and detail
+        base: dict[str, JsonLike] = ({"detail": detail} if isinstance(detail, str) and detail
                                    else {} if isinstance(detail, str) else dict(detail))
         detail = {**base, "via": via}
     return detail if isinstance(detail, str) else json.dumps(detail, sort_keys=True)

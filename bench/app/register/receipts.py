@@ -10,11 +10,14 @@ A receipt whose entry is gone, or whose sequence number now holds another digest
 
 from __future__ import annotations
 
-import json
 import re
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+
+import msgspec
+
+from bench.app.register.model import AuditEntry
 
 #: the sentence an issued document carries (bench/app/certificate/register.Issue.receipt)
 RECEIPT = re.compile(rb"Lab register audit trail entry (\d+), SHA-256 ([0-9a-f]{64})")
@@ -35,30 +38,29 @@ class ReceiptReport:
 
 def _found(folders: Sequence[str | Path]) -> Iterable[tuple[Path, int | None, str]]:
     """(file, sequence number or None, digest) for every receipt under the folders."""
+    from bench.app.certificate.register import issue_of
+
     for folder in folders:
         root = Path(folder)
         for path in sorted(root.rglob(REGISTER_COPY)):
             for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
                 try:
-                    entry = json.loads(line)
-                except ValueError:
+                    issue = issue_of(line)
+                except msgspec.MsgspecError:
                     continue    # a torn last line: the earlier receipts still count
-                if not isinstance(entry, dict):
-                    continue
-                seq, first = entry.get("audit_seq"), entry.get("audit_entry")
-                if isinstance(seq, int) and isinstance(first, str):
-                    yield path, seq, first
-                if isinstance(entry.get("audit_digest"), str):
-                    yield path, None, str(entry["audit_digest"])
+                if issue.audit_seq is not None and issue.audit_entry is not None:
+                    yield path, issue.audit_seq, issue.audit_entry
+                if issue.audit_digest is not None:
+                    yield path, None, issue.audit_digest
         for pattern in DOCUMENTS:
             for path in sorted(root.rglob(pattern)):
                 for m in RECEIPT.finditer(path.read_bytes()):
                     yield path, int(m.group(1)), m.group(2).decode()
 
 
-def check_receipts(rows: Sequence[Mapping[str, object]],
+def check_receipts(rows: Sequence[AuditEntry],
                    folders: Sequence[str | Path]) -> ReceiptReport:
-    by_seq = {int(str(r["seq"])): str(r["digest"]) for r in rows}
+    by_seq = {r.seq: r.digest for r in rows}
     digests = set(by_seq.values())
     problems: list[str] = []
     files: set[Path] = set()

@@ -13,10 +13,10 @@ never issued.
 from __future__ import annotations
 
 import hashlib
-import json
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
+from bench.app.register import wire
 from bench.app.register.store import Register, RegisterError, RunRecord, redact
 from bench.core import rundir_layout as layout
 from bench.core.journal import sha256_file
@@ -43,12 +43,8 @@ def raw_digests(run_path: Path) -> dict[str, str]:
 
 def run_uid_of(run_path: Path) -> str:
     """The uid the run was made with (meta.json), never its folder's name."""
-    try:
-        meta = json.loads((run_path / layout.META).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as e:
-        raise RegisterError(f"{run_path / layout.META}: cannot be read: {e}") from None
-    uid = meta.get("run_uid") if isinstance(meta, dict) else None
-    if not isinstance(uid, str) or not uid:
+    uid = wire.run_start(run_path / layout.META).run_uid
+    if not uid:
         raise RegisterError(f"{run_path / layout.META}: no run_uid: the run was not made by a "
                             "register-aware bench, and no register holds it")
     return uid
@@ -68,20 +64,19 @@ def register_url_of(run_path: Path) -> str | None:
 def _meta_problems(rec: RunRecord, run_path: Path) -> list[str]:
     meta_file = run_path / layout.META
     try:
-        meta = json.loads(meta_file.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as e:
-        return [f"{meta_file}: cannot be read ({e})"]
-    performer = meta.get("performer")
-    account = performer.get("account") if isinstance(performer, dict) else None
+        meta = wire.run_start(meta_file)
+    except RegisterError as e:
+        return [str(e)]
+    account = meta.performer.account if meta.performer else None
     out = []
     if account != rec.performer:
         out.append(f"{meta_file}: performer {account or 'none'!s} differs from the register's "
                    f"record of the run's start ({rec.performer or 'none'})")
-    if [dict(i) for i in meta.get("equipment_status") or []] != [dict(i) for i in rec.items]:
+    if (meta.equipment_status or []) != [dict(i) for i in rec.items]:
         out.append(f"{meta_file}: equipment_status differs from the stand items' status the "
                    "register recorded at the run's start")
-    if meta.get("bench_version") != rec.version:
-        out.append(f"{meta_file}: bench_version {meta.get('bench_version')!r} differs from "
+    if meta.bench_version != rec.version:
+        out.append(f"{meta_file}: bench_version {meta.bench_version!r} differs from "
                    f"the version the register recorded ({rec.version})")
     return out
 
@@ -137,17 +132,14 @@ def _corrections_problems(rec: RunRecord, run_path: Path) -> list[str]:
     applied (issue 58: the analysis reads the file, so a file the result does not state
     would change what the raw captures give)."""
     path = run_path / CORRECTIONS_FILE
-    try:
-        held = json.loads(rec.result or "{}").get("corrections")
-    except (ValueError, AttributeError):
-        held = None
+    held = wire.result_facts(rec.result).corrections
     if not path.is_file():
         return [] if not held else [f"{path}: missing (the registered result applied "
                                     "corrections it stated)"]
     try:
-        have = json.loads(path.read_text(encoding="utf-8")).get("corrections")
-    except (OSError, ValueError, AttributeError) as e:
-        return [f"{path}: cannot be read ({e})"]
+        have = wire.corrections_file(path).corrections
+    except RegisterError as e:
+        return [str(e)]
     if have != held:
         return [f"{path}: its corrections differ from those the registered result applied"]
     return []
@@ -155,11 +147,8 @@ def _corrections_problems(rec: RunRecord, run_path: Path) -> list[str]:
 
 def _simulated(rec: RunRecord) -> bool:
     """What the registered result says of the stand (twins or instruments)."""
-    try:
-        stand = json.loads(rec.result or "{}").get("stand")
-    except ValueError:
-        return False
-    return bool(stand.get("simulated")) if isinstance(stand, dict) else False
+    stand = wire.result_facts(rec.result).stand
+    return stand is not None and stand.simulated
 
 
 def deliver(run_path: Path, kind: str, warn: Callable[[str], None],
@@ -187,7 +176,8 @@ def deliver(run_path: Path, kind: str, warn: Callable[[str], None],
         return None
 
 
-def register_start(reg: Register, uid: str, bench: str, performer: Mapping[str, object] | None,
+def register_start(reg: Register, uid: str, bench: str,
+                   performer: Mapping[str, str | None] | None,
                    simulated: bool, inputs: Mapping[str, str],
                    items: list[dict[str, str | None]]) -> RunRecord:
     """The run's record at its start (the gate calls this before anything moves)."""

@@ -10,7 +10,6 @@ stand or fall together.
 from __future__ import annotations
 
 import datetime as dt
-import json
 from collections.abc import Callable, Mapping, Sequence
 
 import sqlalchemy as sa
@@ -19,6 +18,7 @@ from sqlalchemy.exc import DBAPIError
 
 from bench.app.db import make_engine
 from bench.app.register import schema as s
+from bench.app.register import wire
 from bench.app.register.equipment import RegisterEquipment
 from bench.app.register.model import (
     ACTING_VIA,
@@ -29,11 +29,13 @@ from bench.app.register.model import (
     SETTING_DEFAULTS,
     SIGNING_SETTING,
     Account,
+    AuditDetail,
     AuthError,
     Calibration,
     Deviation,
     Equipment,
     IssueArgs,
+    ItemRow,
     Receipt,
     RegisterError,
     Revision,
@@ -136,7 +138,7 @@ class Register(RegisterEquipment):
 
     def register_run(self, uid: str, bench: str, performer: str | None, version: str,
                      simulated: bool, inputs: Mapping[str, str],
-                     items: Sequence[Mapping[str, object]]) -> RunRecord:
+                     items: Sequence[ItemRow]) -> RunRecord:
         """A run at its start, before anything moves: its uid (never a folder name), the
         bench, the authenticated performer, the version, the inputs' digests and the
         stand's items. A uid is registered once; a resume is `run_session`."""
@@ -148,11 +150,11 @@ class Register(RegisterEquipment):
                                     "session of it)")
             conn.execute(s.runs.insert().values(
                 uid=uid, bench=bench, performer=performer, version=version,
-                simulated=simulated, inputs=json.dumps(dict(inputs), sort_keys=True),
-                items=json.dumps([dict(i) for i in items], sort_keys=True),
+                simulated=simulated, inputs=wire.dump_sorted(dict(inputs)),
+                items=wire.dump_sorted([dict(i) for i in items]),
                 registered_utc=utc, via=via, raw="{}"))
             conn.execute(s.run_events.insert().values(uid=uid, utc=utc, kind="start",
-                                                      detail=json.dumps({"via": via})))
+                                                      detail=wire.dump_event({"via": via})))
             self._append(conn, performer or f"bench {bench}", "run registered", uid,
                          {"bench": bench, "performer": performer, "version": version,
                           "simulated": simulated, "inputs": dict(inputs)})
@@ -165,7 +167,7 @@ class Register(RegisterEquipment):
             detail = {"session": session, "performer": performer,
                       "via": ACTING_VIA.get() or "this bench"}
             conn.execute(s.run_events.insert().values(uid=uid, utc=_now_utc(), kind="resume",
-                                                      detail=json.dumps(detail)))
+                                                      detail=wire.dump_event(detail)))
             self._append(conn, performer or "bench", "run resumed", uid, detail)
 
     def deliver_result(self, uid: str, kind: str, result: bytes, raw: Mapping[str, str],
@@ -184,8 +186,8 @@ class Register(RegisterEquipment):
             raise RegisterError("result.json is not UTF-8 text") from None
         utc = _now_utc()
         with self._tx() as conn:
-            row = self._known_run(conn, uid)
-            seen: dict[str, str] = json.loads(row.raw)
+            bench, held = self._known_run(conn, uid)
+            seen = wire.digests(held, "raw")
             changed = sorted(k for k, v in raw.items() if k in seen and seen[k] != v)
             gone = sorted(k for k in seen if k not in raw)
             if changed or gone:
@@ -194,12 +196,12 @@ class Register(RegisterEquipment):
                     + [f"raw capture {k} is missing (the register saw it)" for k in gone]))
             conn.execute(s.runs.update().where(s.runs.c.uid == uid).values(
                 result_sha256=digest, result=text, result_utc=utc,
-                raw=json.dumps({**seen, **raw}, sort_keys=True)))
-            detail = {"result_sha256": digest, "raw_captures": len(raw),
-                      "reason": reason, "via": ACTING_VIA.get() or "this bench"}
+                raw=wire.dump_sorted({**seen, **raw})))
+            detail: AuditDetail = {"result_sha256": digest, "raw_captures": len(raw),
+                                   "reason": reason, "via": ACTING_VIA.get() or "this bench"}
             conn.execute(s.run_events.insert().values(uid=uid, utc=utc, kind=kind,
-                                                      detail=json.dumps(detail)))
-            self._append(conn, f"bench {row.bench}", f"run {kind} result", uid, detail)
+                                                      detail=wire.dump_event(detail)))
+            self._append(conn, f"bench {bench}", f"run {kind} result", uid, detail)
         return self._run_record(uid)
 
     def run_record(self, uid: str) -> RunRecord | None:
@@ -207,12 +209,12 @@ class Register(RegisterEquipment):
             r = c.execute(sa.select(s.runs).where(s.runs.c.uid == uid)).first()
             if r is None:
                 return None
-            events = tuple(RunEvent(e.utc, e.kind, json.loads(e.detail)) for e in c.execute(
+            events = tuple(wire.event(e.utc, e.kind, e.detail) for e in c.execute(
                 sa.select(s.run_events).where(s.run_events.c.uid == uid)
                 .order_by(s.run_events.c.id)))
         return RunRecord(r.uid, r.bench, r.performer, r.version, bool(r.simulated),
-                         json.loads(r.inputs), tuple(json.loads(r.items)), r.registered_utc,
-                         r.via, r.result_sha256, r.result, r.result_utc, json.loads(r.raw),
+                         wire.digests(r.inputs, "inputs"), wire.items(r.items), r.registered_utc,
+                         r.via, r.result_sha256, r.result, r.result_utc, wire.digests(r.raw, "raw"),
                          events)
 
     def runs_using(self, serial: str) -> list[RunRecord]:
@@ -222,12 +224,10 @@ class Register(RegisterEquipment):
             rows = c.execute(sa.select(s.runs).order_by(s.runs.c.registered_utc,
                                                         s.runs.c.uid)).all()
         uids = [r.uid for r in rows
-                if any(isinstance(i, dict) and i.get("serial") == serial
-                       for i in json.loads(r.items))]
+                if any(i.get("serial") == serial for i in wire.items(r.items))]
         return [self._run_record(u) for u in uids]
 
-    def impact_assessed(self, by: Account, serial: str,
-                        detail: Mapping[str, object]) -> str:
+    def impact_assessed(self, by: Account, serial: str, detail: AuditDetail) -> str:
         """The audit entry of an impact assessment (issue 58; ISO/IEC 17025 7.10,
         nonconforming work): the item, the finding, the runs and certificates it touched.
         A quality account's act; returns the entry's digest."""
@@ -244,11 +244,13 @@ class Register(RegisterEquipment):
         assert rec is not None, uid     # written in this register a moment ago
         return rec
 
-    def _known_run(self, conn: Connection, uid: str) -> sa.Row[tuple[object, ...]]:
-        row = conn.execute(sa.select(s.runs).where(s.runs.c.uid == uid)).first()
+    def _known_run(self, conn: Connection, uid: str) -> tuple[str, str]:
+        """The registered run's bench and raw captures' digests (its JSON column)."""
+        row = conn.execute(sa.select(s.runs.c.bench, s.runs.c.raw)
+                           .where(s.runs.c.uid == uid)).first()
         if row is None:
             raise RegisterError(f"run {uid} was not registered at its start")
-        return row
+        return row.bench, row.raw
 
     def dcc_signer(self, signatory: Account) -> Callable[[bytes], bytes] | None:
         """Who signs an issued DCC for this register: on one bench the lab file's key,
@@ -304,7 +306,7 @@ class Register(RegisterEquipment):
 
     def issue(self, number: str, revision: int, signatory: Account,
               digests: Mapping[str, str], reason: str | None,
-              detail: Mapping[str, object]) -> Revision:
+              detail: AuditDetail) -> Revision:
         """Record an issued revision (and the withdrawal of the one before), checked by the
         register under its lock: the next revision, an active signatory, a reason for a
         re-issue. The time is the one `begin_issue` gave (else now), the meaning the
@@ -343,8 +345,8 @@ class Register(RegisterEquipment):
             raise RegisterError(f"register: a re-issue of {a['n']} needs a reason")
         conn.execute(s.revisions.update().where(s.revisions.c.number == a["n"])
                      .where(s.revisions.c.withdrawn_utc.is_(None)).values(withdrawn_utc=a["t"]))
-        d = self._append(conn, a["s"], "issue" if not last else "re-issue",
-                         f"{a['n']} revision {a['r']}", json.loads(a["d"]))
+        d = self._append_text(conn, a["s"], "issue" if not last else "re-issue",
+                              f"{a['n']} revision {a['r']}", a["d"])
         conn.execute(s.revisions.insert().values(
             number=a["n"], revision=a["r"], issued_utc=a["t"], signatory=a["s"],
             signatory_name=r.full_name, meaning=a["m"], reason=a["why"].strip() or None,

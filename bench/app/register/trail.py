@@ -7,7 +7,7 @@ The lowest class of the register's chain (store.py `Register`).
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator
 from contextlib import contextmanager
 
 import sqlalchemy as sa
@@ -22,6 +22,8 @@ from bench.app.register.model import (
     MIGRATIONS,
     SETTING_DEFAULTS,
     Account,
+    AuditDetail,
+    AuditEntry,
     AuthError,
     RegisterError,
     _db_message,
@@ -30,6 +32,14 @@ from bench.app.register.model import (
     _with_via,
     redact,
 )
+
+
+def _entries(c: Connection) -> list[AuditEntry]:
+    """The audit trail's entries as stored, in their order."""
+    a = s.audit.c
+    return [AuditEntry(r.seq, r.utc, r.actor, r.action, r.object, r.detail, r.db_user,
+                       r.prev_digest, r.digest)
+            for r in c.execute(sa.select(s.audit).order_by(a.seq))]
 
 
 class RegisterTrail:
@@ -65,8 +75,12 @@ class RegisterTrail:
             raise RegisterError(_db_message(e)) from e
 
     def _append(self, conn: Connection, actor: str, action: str, obj: str,
-                detail: Mapping[str, object] | str = "") -> str:
-        text = _with_via(detail)
+                detail: AuditDetail | str = "") -> str:
+        return self._append_text(conn, actor, action, obj, _with_via(detail))
+
+    def _append_text(self, conn: Connection, actor: str, action: str, obj: str,
+                     text: str) -> str:
+        """The entry with its detail as stored (and hashed): `_with_via`'s text."""
         if self.pg:
             return str(conn.execute(sa.text("SELECT reg_audit_append(:a, :b, :c, :d)"),
                                     {"a": actor, "b": action, "c": obj, "d": text}).scalar())
@@ -86,22 +100,20 @@ class RegisterTrail:
         return digest
 
     def append(self, actor: str, action: str, obj: str,
-               detail: Mapping[str, object] | str = "") -> str:
+               detail: AuditDetail | str = "") -> str:
         """One audit entry on its own (a run registered, a review, a refused login)."""
         with self._tx() as conn:
             return self._append(conn, actor, action, obj, detail)
 
-    def audit_rows(self) -> list[dict[str, object]]:
+    def audit_rows(self) -> list[AuditEntry]:
         with self.engine.connect() as c:
-            return [dict(r._mapping) for r in c.execute(
-                sa.select(s.audit).order_by(s.audit.c.seq))]
+            return _entries(c)
 
     def audit_check(self) -> chain.ChainReport:
         with self.engine.connect() as c:
-            rows = [dict(r._mapping) for r in c.execute(sa.select(s.audit)
-                                                         .order_by(s.audit.c.seq))]
+            rows = _entries(c)
             head = c.execute(sa.select(s.audit_head).where(s.audit_head.c.id == 1)).first()
-        return chain.check_chain(rows, None if head is None else dict(head._mapping))
+        return chain.check_chain(rows, None if head is None else (head.seq, head.digest))
 
     def setting(self, key: str) -> str | None:
         with self.engine.connect() as c:

@@ -54,6 +54,8 @@ from bench.core import rundir_layout as layout
 
 if TYPE_CHECKING:
     from bench.app.register import Account, Register
+    from bench.app.register.model import AuditDetail
+    from drivers.json_types import JsonLike
 
 SESSION_COOKIE = "bench_session"
 IDLE_S = 15 * 60.0            # a session ends after this long without a request
@@ -259,6 +261,40 @@ def refusal_reasons(stderr: str) -> tuple[str, ...]:
     return tuple(out)
 
 
+@dataclasses.dataclass(frozen=True)
+class IssuedRevision:
+    """One issued revision of the run, as its certificate section lists it."""
+
+    number: str
+    revision: str
+    status: str
+    by: str
+    meaning: str
+    utc: str
+    reason: str
+
+
+@dataclasses.dataclass(frozen=True)
+class CertificatePanel:
+    """A run's certificate section (certificate.html.j2) for this request's account."""
+
+    enabled: bool
+    account: Account | None
+    csrf: str
+    local: bool                     # passwords accepted from this client
+    remote_refused: str | None      # why not
+    draft: str | None               # the draft's result.json SHA-256 (None: not ended)
+    has_pdf: bool
+    page: str
+    sign_url: str
+    pdf_url: str
+    no_register: str = NO_REGISTER
+    status: str | None = None
+    issued: list[IssuedRevision] = dataclasses.field(default_factory=list)
+    register_error: str | None = None
+    reissue: bool = False
+
+
 class Signing:
     """The station's accounts, sessions and sign requests (installed by `install`)."""
 
@@ -322,7 +358,7 @@ class Signing:
     def session(self) -> Session | None:
         return self.sessions.get(request.cookies.get(SESSION_COOKIE))
 
-    def audit(self, actor: str, action: str, obj: str, detail: Mapping[str, object]) -> None:
+    def audit(self, actor: str, action: str, obj: str, detail: AuditDetail) -> None:
         """An audit entry in the register; a register that cannot take it is logged, and
         the request is refused all the same."""
         from bench.app.register import RegisterError
@@ -340,51 +376,45 @@ class Signing:
 
     # -- the run page's certificate section -----------------------------------------------
 
-    def panel(self, run_path: Path, state: Mapping[str, object], *, page: str,
-              sign_url: str, pdf_url: str) -> dict[str, object]:
+    def panel(self, run_path: Path, state: Mapping[str, JsonLike], *, page: str,
+              sign_url: str, pdf_url: str) -> CertificatePanel:
         """What the run's certificate section shows this request's account: `page` is the
         page's own path (back there after logging in), `sign_url` where the form posts and
         `pdf_url` the draft certificate."""
         sess = self.session()
         result = run_path / layout.RESULT
         ended = bool(state.get("ended")) and state.get("status") != "refused"
-        draft = sha256_of(result) if ended else None
         refusal = self.password_refusal()
-        out: dict[str, object] = {
-            "enabled": self.enabled, "no_register": NO_REGISTER,
-            "account": sess.account if sess else None,
-            "csrf": sess.csrf if sess else "", "local": refusal is None,
-            "remote_refused": refusal, "draft": draft,
-            "status": None, "issued": [], "register_error": None,
-            "has_pdf": (run_path / layout.CERTIFICATE_PDF).is_file(),
-            "page": page, "sign_url": sign_url, "pdf_url": pdf_url,
-        }
+        out = CertificatePanel(
+            enabled=self.enabled, account=sess.account if sess else None,
+            csrf=sess.csrf if sess else "", local=refusal is None, remote_refused=refusal,
+            draft=sha256_of(result) if ended else None,
+            has_pdf=(run_path / layout.CERTIFICATE_PDF).is_file(), page=page,
+            sign_url=sign_url, pdf_url=pdf_url)
         if not self.enabled:
-            out["status"] = ("The station has no register to ask; the run's own record "
-                             f"says: {_local_record(run_path)}")
-            return out
+            return dataclasses.replace(out, status=(
+                "The station has no register to ask; the run's own record says: "
+                f"{_local_record(run_path)}"))
         reg = self.register.get()
         if reg is None:
-            out["register_error"] = self.register.error
-            return out
-        issued: list[dict[str, str]] = []
+            return dataclasses.replace(out, register_error=self.register.error)
+        issued: list[IssuedRevision] = []
         try:
             issued = _register_revisions(reg, run_path)
         except Exception as e:  # noqa: BLE001 - the page shows what failed, not a 500
             from bench.app.db import away_text
 
-            out["register_error"] = away_text(self.register.url or "", e, "lab register")
-        out["issued"] = issued
+            out = dataclasses.replace(out, register_error=away_text(
+                self.register.url or "", e, "lab register"))
         last = issued[-1] if issued else None
-        out["status"] = (f"Withdrawn: certificate {last['number']}, {last['meaning']} by "
-                         f"{last['by']} at {last['utc']}, is {last['status']}"
-                         if last and last["status"].startswith("withdrawn ") else
-                         f"Issued: certificate {last['number']} ({last['status']}), "
-                         f"{last['meaning']} by {last['by']} at {last['utc']}"
-                         if last else "Draft, not authorised: the register holds no issue "
-                         "of this run")
-        out["reissue"] = last is not None
-        return out
+        status = (f"Withdrawn: certificate {last.number}, {last.meaning} by "
+                  f"{last.by} at {last.utc}, is {last.status}"
+                  if last and last.status.startswith("withdrawn ") else
+                  f"Issued: certificate {last.number} ({last.status}), "
+                  f"{last.meaning} by {last.by} at {last.utc}"
+                  if last else "Draft, not authorised: the register holds no issue "
+                  "of this run")
+        return dataclasses.replace(out, issued=issued, status=status, reissue=last is not None)
 
     # -- the sign request -----------------------------------------------------------------
 
@@ -534,24 +564,22 @@ def _local_record(run_path: Path) -> str:
     return f"certificate {last.number}, authorised by {last.signatory or 'nobody'}"
 
 
-def _register_revisions(reg: Register, run_path: Path) -> list[dict[str, str]]:
+def _register_revisions(reg: Register, run_path: Path) -> list[IssuedRevision]:
     """The run's issued revisions as the register holds them."""
-    import json
-
-    from bench.app.records.extract import run_uid
+    from bench.app.register import RegisterError
+    from bench.app.register.runs import run_uid_of
 
     try:
-        meta = json.loads((run_path / layout.META).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        number = reg.number_of_run(run_uid_of(run_path))
+    except RegisterError:       # no readable meta.json, or a run from before its uid
         return []
-    number = reg.number_of_run(run_uid(meta, run_path.name))
     if not number:
         return []
-    return [{"number": r.shown_number, "revision": str(r.revision),
-             "status": (f"withdrawn {r.withdrawn_utc} by {r.withdrawn_by}: "
-                        f"{r.withdrawn_reason}" if r.withdrawn_reason else r.status),
-             "by": r.signatory_name, "meaning": r.meaning, "utc": r.issued_utc,
-             "reason": r.reason or ""} for r in reg.revisions(number)]
+    return [IssuedRevision(r.shown_number, str(r.revision),
+                           (f"withdrawn {r.withdrawn_utc} by {r.withdrawn_by}: "
+                            f"{r.withdrawn_reason}" if r.withdrawn_reason else r.status),
+                           r.signatory_name, r.meaning, r.issued_utc, r.reason or "")
+            for r in reg.revisions(number)]
 
 
 # -- the routes -------------------------------------------------------------------------------
@@ -588,7 +616,7 @@ def _add_session_routes(app: Flask, signing: Signing) -> None:
     out, and what every page shows of the session."""
 
     @app.context_processor
-    def who() -> dict[str, object]:
+    def who() -> dict[str, Account | str | bool | None]:
         sess = signing.session()
         return {"account": sess.account if sess else None,
                 "session_csrf": sess.csrf if sess else "",
