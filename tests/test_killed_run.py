@@ -23,6 +23,7 @@ from bench.app.records import schema as s
 from bench.app.records.store import Records
 from tests.conftest import CONFIGS, ROOT, _env_without_lab, cli
 from tests.pg_server import PgServer
+from tests.registers import cli_in
 from tests.test_fleet import RECORDED, _lab, _recorded_run, _rows
 
 CUT = 33          # the recorded event log to the pair's first look, no exit
@@ -131,11 +132,10 @@ def test_a_killed_bench_tells_the_lab_at_its_next_sync_and_start(pg: PgServer,
         "stand": str(CONFIGS / "stands" / "sim-two-axis.yaml"), "harmonics": 1,
         "axes": {"outer": {"rates_dps": [20]}}, "tolerance": {"rate_error": [{"rel": 1e-3}]},
     }))
-    # standard input is no terminal and no --yes: the new run aborts at its first prompt
-    nxt = subprocess.run([sys.executable, "-m", "bench", "run", str(procedure), "--out",
-                          str(runs), "--records", url], cwd=ROOT, text=True,
-                         stdin=subprocess.DEVNULL, capture_output=True, timeout=300,
-                         env=_env_without_lab())
+    # standard input is no terminal (empty) and no --yes: the new run aborts at its first
+    # prompt (the console script's `main` in this process: the bench's start, not an
+    # interpreter's, is the subject)
+    nxt = cli_in("", "run", str(procedure), "--out", str(runs), "--records", url)
     assert nxt.returncode == 3, nxt.stdout + nxt.stderr
     assert f"found: {other.name}: ended: killed or crashed" in nxt.stderr + nxt.stdout
     body = _rows(url, other.name)[-1][1]

@@ -43,7 +43,7 @@ from bench.core.config import FogSettings
 from bench.core.events import decode_all
 from drivers.fog_formats import get_format
 from procedures.rate_ladder.events import HalfAcquired
-from tests.conftest import CONFIGS, ROOT, bench, bench_bg, unavailable
+from tests.conftest import CONFIGS, ROOT, bench_bg, cli, unavailable
 
 TOKEN = "s3cret-token"
 ARTIFACTS = Path(os.environ.get("BENCH_TEST_ARTIFACTS", ROOT / "test-artifacts")) / "station"
@@ -409,7 +409,9 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
         _wait(lambda: state("window.station?.state?.status") == "aborted", 30,
               "the page to show the abort")
 
-        resumed = bench("run", "--resume", str(run_dir), "--yes", timeout=300)
+        # the resume in this process (the console script's `main`): the stop above needed
+        # a process of its own, the page watching the resumed run does not
+        resumed = cli("run", "--resume", str(run_dir), "--yes")
         assert resumed.returncode == 0, resumed.stderr[-2000:]
         _wait(lambda: state("window.station?.state?.status") == "passed", 30,
               "the page to show the resumed run passed")
