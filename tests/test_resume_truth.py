@@ -2,7 +2,7 @@
 resumed: every figure of every rate against the twin's truth, phases included.
 
 Real CLI in a subprocess, twins on real channels, SIGINT as an operator's Ctrl-C, then
-`bench run --resume`. The figures: those of tests/test_run_e2e.comparisons (k, w0, rate
+`bench run --resume` (its console script's `main`, in the test process). The figures: those of tests/test_run_e2e.comparisons (k, w0, rate
 error, harmonic amplitudes and phases, mains) and the ones it leaves out: eq. 2's sigma,
 the intra-turn instability raw and floor-corrected, the stability over 1, 10 and 360 deg,
 raw and corrected. A two-sided figure (value +/- U) is counted outside when it misses by
@@ -27,7 +27,7 @@ import yaml
 from scipy.stats import chi2, norm
 
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, ROOT, wait_for_cut
+from tests.conftest import CONFIGS, ROOT, cli, wait_for_cut
 from tests.test_run_e2e import allowed_outside, comparisons
 
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
@@ -112,7 +112,9 @@ def _interrupted_then_resumed(proc: Path, out: Path,
                               cut_within_s: float = 240) -> Path:
     """`bench run`, SIGINT once `when(events)` holds (the run must get there within
     `cut_within_s` of real time: on a loaded machine the co-simulation runs slower), then
-    `bench run --resume`: the run directory."""
+    `bench run --resume` (the console script's `main` in this process: the Ctrl-C needed
+    a process of its own, the resume does not, and it spares an interpreter's start-up and
+    imports): the run directory."""
     p = subprocess.Popen([sys.executable, "-m", "bench", "run", str(proc), "--yes",
                           "--out", str(out)], cwd=ROOT, text=True,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -125,8 +127,7 @@ def _interrupted_then_resumed(proc: Path, out: Path,
         o, e = p.communicate()
         raise
     assert p.returncode == 3, o + e
-    r = subprocess.run([sys.executable, "-m", "bench", "run", "--resume", str(run_dir),
-                        "--yes"], cwd=ROOT, text=True, capture_output=True, timeout=600)
+    r = cli("run", "--resume", str(run_dir), "--yes")
     assert r.returncode == 0, r.stdout + r.stderr
     return run_dir
 

@@ -19,7 +19,7 @@ import yaml
 from scipy.stats import binom
 
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, DemoRun, bench, bench_bg, wait_for_cut
+from tests.conftest import CONFIGS, DemoRun, bench_bg, cli, run_dir_of, wait_for_cut
 from tests.conftest import OUTER_SERIALS as OUTER
 
 DEMO = CONFIGS / "procedures" / "demo.yaml"
@@ -147,11 +147,12 @@ def test_demo_attestation_recovers_the_stand_truth(demo_run: DemoRun, tmp_path: 
                              html), (axis, role)
 
     # bench analyze rebuilds result.json from the raw data alone, identically (on a copy:
-    # the session's demo run is read by other tests)
+    # the session's demo run is read by other tests; the console script's `main` in this
+    # process: the command, not its interpreter's start-up, is the subject)
     run_dir = demo_run.copy_to(tmp_path / "copy")
     before = (run_dir / "result.json").read_bytes()
     (run_dir / "result.json").unlink()
-    again = bench("analyze", str(run_dir))
+    again = cli("analyze", str(run_dir))
     assert again.returncode == 0, again.stderr
     assert (run_dir / "result.json").read_bytes() == before
 
@@ -218,7 +219,9 @@ def test_sigint_mid_acquisition_stops_the_axes_and_resume_completes(tmp_path: Pa
     partial = json.loads((run_dir / "result.json").read_text())
     assert partial["verdict"] == "incomplete"
 
-    resumed = bench("run", "--resume", str(run_dir), "--yes")
+    # the resume and the uninterrupted run below in this process (the console script's
+    # `main`): the Ctrl-C above needed a process of its own, these do not
+    resumed = cli("run", "--resume", str(run_dir), "--yes")
     assert resumed.returncode == 0, resumed.stdout + resumed.stderr
     result = json.loads((run_dir / "result.json").read_text())
     assert result["verdict"] == "pass" and result["sessions"] == 2
@@ -235,9 +238,9 @@ def test_sigint_mid_acquisition_stops_the_axes_and_resume_completes(tmp_path: Pa
 
     # the same procedure uninterrupted, same seed: equal within the U of the difference
     # (k = 2 each; counted as for the truth)
-    whole = bench("run", str(proc), "--yes", "--out", str(tmp_path / "whole"))
+    whole = cli("run", str(proc), "--yes", "--out", str(tmp_path / "whole"))
     assert whole.returncode == 0, whole.stderr
-    ref = json.loads((Path(whole.stdout.strip().splitlines()[-1]) / "result.json").read_text())
+    ref = json.loads((run_dir_of(whole) / "result.json").read_text())
     mine, theirs = comparisons(result), comparisons(ref)
     assert [r[0] for r in mine] == [r[0] for r in theirs] and len(mine) == 42
     # errors compared, not values: w0's truth moves with the time it refers to
@@ -267,7 +270,7 @@ def test_each_axis_fog_streams_for_its_own_steps_only(demo_run: DemoRun, tmp_pat
     assert inner_frames <= (end_s - caps["inner"]["t_s"]) * 1000 + 1
     # `bench decode` finds where the capture starts in the run's events
     csv = tmp_path / "inner.csv"
-    out = bench("decode", str(raw / "inner-fog.bin"), "--format", "kvh-a", "--csv", str(csv))
+    out = cli("decode", str(raw / "inner-fog.bin"), "--format", "kvh-a", "--csv", str(csv))
     assert out.returncode == 0, out.stderr
     first = caps["inner"]["first_index"]
     assert f"first index: {first}" in out.stdout
