@@ -11,7 +11,6 @@ its session's process a stand-in whose pid the test controls; a real PostgreSQL 
 from __future__ import annotations
 
 import json
-import re
 import subprocess
 import sys
 from pathlib import Path
@@ -21,7 +20,7 @@ import yaml
 
 from bench.app.records import schema as s
 from bench.app.records.store import Records
-from tests.conftest import CONFIGS, ROOT, _env_without_lab, cli
+from tests.conftest import CONFIGS, cli
 from tests.pg_server import PgServer
 from tests.registers import cli_in
 from tests.test_fleet import RECORDED, _lab, _recorded_run, _rows
@@ -50,7 +49,7 @@ def _last_step(run: Path) -> str:
 
 def test_a_killed_bench_tells_the_lab_at_its_next_sync_and_start(pg: PgServer,
                                                                   tmp_path: Path) -> None:
-    from tests.test_station import _browser, _chromium, _stop, _wait
+    from tests.test_station import _browser, _chromium, _wait, served_here
 
     found = _chromium()
     if found is None:
@@ -90,36 +89,30 @@ def test_a_killed_bench_tells_the_lab_at_its_next_sync_and_start(pg: PgServer,
     again = cli("records", "sync", "--runs", str(runs), "--records", url)
     assert "killed or crashed" not in again.stdout and "0 new event(s)" in again.stdout
 
-    server = subprocess.Popen([sys.executable, "-m", "bench", "serve", "--runs",
-                               str(tmp_path / "station"), "--records", url, "--port", "0"],
-                              cwd=ROOT, text=True, stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, env=_env_without_lab())
-    assert server.stdout is not None
-    started = re.search(r"http://127\.0\.0\.1:(\d+)/", server.stdout.readline())
-    assert started, "bench serve did not say where it listens"
-    driver = _browser(found, height=1000)
-    try:
-        driver.get(f"http://127.0.0.1:{started.group(1)}/")
+    # the station's server in this process (its page is the subject, not its process)
+    with served_here("--runs", str(tmp_path / "station"), "--records", url) as port:
+        driver = _browser(found, height=1000)
+        try:
+            driver.get(f"http://127.0.0.1:{port}/")
 
-        def shown() -> list[dict[str, object]]:
-            return driver.execute_script(
-                "return window.fleet && window.fleet.benches") or []
-        _wait(lambda: bool(shown()), 60, "the lab page's first update")
-        (b,) = shown()
-        assert b["status"] == "stopped", b
-        table = str(driver.execute_script(
-            "return document.getElementById('fleet-table').innerText"))
-        assert "SILENT" not in table, table
-        # ended, with its last step (the tenth of ten, done before the kill)
-        assert _last_step(run) == "ramp to zero, disable"
-        assert "Stopped after step 10 of 10 (outer stop - ramp to zero, disable): ended: " \
-               "killed or crashed" in table, table
-        driver.get(f"http://127.0.0.1:{started.group(1)}/bench/{b['bench']}/{b['uid']}")
-        page = driver.find_element("tag name", "main").text
-        assert "ended: killed or crashed" in page and "SILENT" not in page, page
-    finally:
-        driver.quit()
-        _stop(server)
+            def shown() -> list[dict[str, object]]:
+                return driver.execute_script(
+                    "return window.fleet && window.fleet.benches") or []
+            _wait(lambda: bool(shown()), 60, "the lab page's first update")
+            (b,) = shown()
+            assert b["status"] == "stopped", b
+            table = str(driver.execute_script(
+                "return document.getElementById('fleet-table').innerText"))
+            assert "SILENT" not in table, table
+            # ended, with its last step (the tenth of ten, done before the kill)
+            assert _last_step(run) == "ramp to zero, disable"
+            assert "Stopped after step 10 of 10 (outer stop - ramp to zero, disable): ended: " \
+                   "killed or crashed" in table, table
+            driver.get(f"http://127.0.0.1:{port}/bench/{b['bench']}/{b['uid']}")
+            page = driver.find_element("tag name", "main").text
+            assert "ended: killed or crashed" in page and "SILENT" not in page, page
+        finally:
+            driver.quit()
 
     # a bench's next start does the same for a run killed since: journaled, delivered
     proc = _stand_in()
