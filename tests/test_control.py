@@ -238,7 +238,7 @@ def test_the_drift_keys_change_only_the_runs_they_name() -> None:
 @pytest.mark.timeout(300)
 def test_the_station_shows_the_status_and_the_charts_in_a_real_browser(
         history: dict[str, Any]) -> None:
-    from tests.test_station import _browser, _chromium, _start_server, _stop
+    from tests.test_station import TOKEN, _browser, _chromium, served_here
 
     found = _chromium()
     if found is None:
@@ -247,25 +247,25 @@ def test_the_station_shows_the_status_and_the_charts_in_a_real_browser(
         return
     from selenium.webdriver.common.by import By
 
-    server, port = _start_server(history["runs"])
-    # the station test's browser: headless, offline but for 127.0.0.1 (CHROMIUM_OFFLINE)
-    driver = _browser(found, 1000)
-    try:
-        base = f"http://127.0.0.1:{port}"
-        driver.get(f"{base}/records")
-        rows = driver.find_element(By.ID, "instruments").text
-        assert FOG in rows and OUTER["counter"] in rows
-        driver.find_element(By.LINK_TEXT, FOG).click()
-        status = driver.find_element(By.ID, "status").text
-        assert "WE1" in status or "reviewed by" in status, status   # before/after review
-        ok = driver.execute_script(
-            "const i = document.getElementById('control'); return i.complete && i.naturalWidth")
-        assert ok, "the control chart image did not load"
-        assert f"baseline: the first {BASELINE_RUNS} runs" in driver.find_element(
-            By.TAG_NAME, "main").text
-    finally:
-        driver.quit()
-        _stop(server)
+    # the station's server in this process (the page is the subject, not its process)
+    with served_here("--runs", str(history["runs"]), "--token", TOKEN) as port:
+        # the station test's browser: headless, offline but for 127.0.0.1 (CHROMIUM_OFFLINE)
+        driver = _browser(found, 1000)
+        try:
+            base = f"http://127.0.0.1:{port}"
+            driver.get(f"{base}/records")
+            rows = driver.find_element(By.ID, "instruments").text
+            assert FOG in rows and OUTER["counter"] in rows
+            driver.find_element(By.LINK_TEXT, FOG).click()
+            status = driver.find_element(By.ID, "status").text
+            assert "WE1" in status or "reviewed by" in status, status   # before/after review
+            ok = driver.execute_script(
+                "const i = document.getElementById('control'); return i.complete && i.naturalWidth")
+            assert ok, "the control chart image did not load"
+            assert f"baseline: the first {BASELINE_RUNS} runs" in driver.find_element(
+                By.TAG_NAME, "main").text
+        finally:
+            driver.quit()
 
 
 def test_a_review_may_restart_the_baseline() -> None:

@@ -12,12 +12,11 @@ event rows and the records against the run directories. Nothing is mocked.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
 import shutil
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -198,7 +197,7 @@ def _bench_files(tmp: Path, name: str) -> Path:
 @pytest.mark.timeout(300)
 def test_three_benches_at_once_live_on_the_station_through_a_lost_lab_database(
         pg: PgServer, tmp_path: Path) -> None:
-    from tests.test_station import _browser, _chromium, _stop, _wait
+    from tests.test_station import _browser, _chromium, _wait, served_here
 
     found = _chromium()
     if found is None:
@@ -209,14 +208,10 @@ def test_three_benches_at_once_live_on_the_station_through_a_lost_lab_database(
     folders = {n: _bench_files(tmp_path, n) for n in names}
     station_runs = tmp_path / "station-runs"
     station_runs.mkdir()
-    server = subprocess.Popen([sys.executable, "-m", "bench", "serve", "--runs",
-                               str(station_runs), "--records", url, "--port", "0"],
-                              cwd=ROOT, text=True, stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT)
-    assert server.stdout is not None
-    started = re.search(r"http://127\.0\.0\.1:(\d+)/", server.stdout.readline())
-    assert started, "bench serve did not say where it listens"
-    port = int(started.group(1))
+    # the station's server in this process (its page is the subject, not its process;
+    # the benches are processes of their own)
+    served = contextlib.ExitStack()
+    port = served.enter_context(served_here("--runs", str(station_runs), "--records", url))
     procs = {n: bench_bg("run", str(folders[n] / "procedure.yaml"), "--yes", "--out",
                          str(folders[n] / "runs"), "--records", url) for n in names}
     driver = _browser(found, height=1200)
@@ -307,7 +302,7 @@ def test_three_benches_at_once_live_on_the_station_through_a_lost_lab_database(
             if p.poll() is None:
                 p.kill()
         pg.unblock("fleet_lab")
-        _stop(server)
+        served.close()
 
 
 def test_the_lab_page_with_no_bench_then_a_bench_gone_silent_mid_run(

@@ -11,7 +11,6 @@ its session's process a stand-in whose pid the test controls; a real PostgreSQL 
 from __future__ import annotations
 
 import json
-import re
 import subprocess
 import sys
 from pathlib import Path
@@ -21,8 +20,9 @@ import yaml
 
 from bench.app.records import schema as s
 from bench.app.records.store import Records
-from tests.conftest import CONFIGS, ROOT, _env_without_lab, cli
+from tests.conftest import CONFIGS, cli
 from tests.pg_server import PgServer
+from tests.registers import cli_in
 from tests.test_fleet import RECORDED, _lab, _recorded_run, _rows
 
 CUT = 33          # the recorded event log to the pair's first look, no exit
@@ -49,7 +49,7 @@ def _last_step(run: Path) -> str:
 
 def test_a_killed_bench_tells_the_lab_at_its_next_sync_and_start(pg: PgServer,
                                                                   tmp_path: Path) -> None:
-    from tests.test_station import _browser, _chromium, _stop, _wait
+    from tests.test_station import _browser, _chromium, _wait, served_here
 
     found = _chromium()
     if found is None:
@@ -89,36 +89,30 @@ def test_a_killed_bench_tells_the_lab_at_its_next_sync_and_start(pg: PgServer,
     again = cli("records", "sync", "--runs", str(runs), "--records", url)
     assert "killed or crashed" not in again.stdout and "0 new event(s)" in again.stdout
 
-    server = subprocess.Popen([sys.executable, "-m", "bench", "serve", "--runs",
-                               str(tmp_path / "station"), "--records", url, "--port", "0"],
-                              cwd=ROOT, text=True, stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, env=_env_without_lab())
-    assert server.stdout is not None
-    started = re.search(r"http://127\.0\.0\.1:(\d+)/", server.stdout.readline())
-    assert started, "bench serve did not say where it listens"
-    driver = _browser(found, height=1000)
-    try:
-        driver.get(f"http://127.0.0.1:{started.group(1)}/")
+    # the station's server in this process (its page is the subject, not its process)
+    with served_here("--runs", str(tmp_path / "station"), "--records", url) as port:
+        driver = _browser(found, height=1000)
+        try:
+            driver.get(f"http://127.0.0.1:{port}/")
 
-        def shown() -> list[dict[str, object]]:
-            return driver.execute_script(
-                "return window.fleet && window.fleet.benches") or []
-        _wait(lambda: bool(shown()), 60, "the lab page's first update")
-        (b,) = shown()
-        assert b["status"] == "stopped", b
-        table = str(driver.execute_script(
-            "return document.getElementById('fleet-table').innerText"))
-        assert "SILENT" not in table, table
-        # ended, with its last step (the tenth of ten, done before the kill)
-        assert _last_step(run) == "ramp to zero, disable"
-        assert "Stopped after step 10 of 10 (outer stop - ramp to zero, disable): ended: " \
-               "killed or crashed" in table, table
-        driver.get(f"http://127.0.0.1:{started.group(1)}/bench/{b['bench']}/{b['uid']}")
-        page = driver.find_element("tag name", "main").text
-        assert "ended: killed or crashed" in page and "SILENT" not in page, page
-    finally:
-        driver.quit()
-        _stop(server)
+            def shown() -> list[dict[str, object]]:
+                return driver.execute_script(
+                    "return window.fleet && window.fleet.benches") or []
+            _wait(lambda: bool(shown()), 60, "the lab page's first update")
+            (b,) = shown()
+            assert b["status"] == "stopped", b
+            table = str(driver.execute_script(
+                "return document.getElementById('fleet-table').innerText"))
+            assert "SILENT" not in table, table
+            # ended, with its last step (the tenth of ten, done before the kill)
+            assert _last_step(run) == "ramp to zero, disable"
+            assert "Stopped after step 10 of 10 (outer stop - ramp to zero, disable): ended: " \
+                   "killed or crashed" in table, table
+            driver.get(f"http://127.0.0.1:{port}/bench/{b['bench']}/{b['uid']}")
+            page = driver.find_element("tag name", "main").text
+            assert "ended: killed or crashed" in page and "SILENT" not in page, page
+        finally:
+            driver.quit()
 
     # a bench's next start does the same for a run killed since: journaled, delivered
     proc = _stand_in()
@@ -131,11 +125,10 @@ def test_a_killed_bench_tells_the_lab_at_its_next_sync_and_start(pg: PgServer,
         "stand": str(CONFIGS / "stands" / "sim-two-axis.yaml"), "harmonics": 1,
         "axes": {"outer": {"rates_dps": [20]}}, "tolerance": {"rate_error": [{"rel": 1e-3}]},
     }))
-    # standard input is no terminal and no --yes: the new run aborts at its first prompt
-    nxt = subprocess.run([sys.executable, "-m", "bench", "run", str(procedure), "--out",
-                          str(runs), "--records", url], cwd=ROOT, text=True,
-                         stdin=subprocess.DEVNULL, capture_output=True, timeout=300,
-                         env=_env_without_lab())
+    # standard input is no terminal (empty) and no --yes: the new run aborts at its first
+    # prompt (the console script's `main` in this process: the bench's start, not an
+    # interpreter's, is the subject)
+    nxt = cli_in("", "run", str(procedure), "--out", str(runs), "--records", url)
     assert nxt.returncode == 3, nxt.stdout + nxt.stderr
     assert f"found: {other.name}: ended: killed or crashed" in nxt.stderr + nxt.stdout
     body = _rows(url, other.name)[-1][1]

@@ -12,6 +12,7 @@ its argument parser.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import http.client
 import json
 import math
@@ -21,6 +22,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -45,7 +47,7 @@ from bench.core.events import decode_all
 from bench.core.journal_codec import tail_records
 from drivers.fog_formats import get_format
 from procedures.rate_ladder.events import HalfAcquired
-from tests.conftest import CONFIGS, ROOT, bench, bench_bg, unavailable
+from tests.conftest import CONFIGS, ROOT, bench_bg, cli, unavailable
 
 TOKEN = "s3cret-token"
 ARTIFACTS = Path(os.environ.get("BENCH_TEST_ARTIFACTS", ROOT / "test-artifacts")) / "station"
@@ -198,10 +200,36 @@ def test_serve_refuses_a_public_address_without_a_token(monkeypatch: pytest.Monk
 
 
 @pytest.fixture(scope="module")
-def server(runs_folder: Path) -> Iterator[tuple[subprocess.Popen[str], int]]:
-    proc, port = _start_server(runs_folder)
-    yield proc, port
-    _stop(proc)
+def server(runs_folder: Path) -> Iterator[int]:
+    """The station's server on the runs folder (in this process: `served_here`): its port."""
+    with served_here("--runs", str(runs_folder), "--token", TOKEN) as port:
+        yield port
+
+
+@contextlib.contextmanager
+def served_here(*args: str) -> Iterator[int]:
+    """`bench serve ARGS` (on a free port) in a thread of this process: its settings from
+    its own parser and settings_from_args, its app, and a waitress server made as
+    bench/app/station/serve.py's `cmd_serve` makes it; yields the port. For the tests whose
+    subject is the page, not the server's process: a `bench serve` process costs ~1.9 s
+    of CPU in start-up and imports. The live page's test restarts a server process."""
+    from waitress import create_server
+
+    from bench.app.cli import build_parser
+    from bench.app.station.serve import THREADS, settings_from_args
+
+    settings, _ = settings_from_args(build_parser().parse_args(["serve", *args,
+                                                                 "--port", "0"]))
+    server = create_server(create_app(settings), host=settings.host, port=0,
+                           threads=THREADS, ident="ratebench-station",
+                           clear_untrusted_proxy_headers=False)
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    try:
+        yield int(server.effective_port)
+    finally:
+        server.close()
+        thread.join(timeout=10)
 
 
 def _start_server(runs: Path, port: int = 0) -> tuple[subprocess.Popen[str], int]:
@@ -242,8 +270,8 @@ def _raw_get(port: int, path: str) -> int:
     "/run/..",
     "/static/../../../../etc/passwd",
 ])
-def test_path_traversal_is_refused(server: tuple[subprocess.Popen[str], int], path: str) -> None:
-    _, port = server
+def test_path_traversal_is_refused(server: int, path: str) -> None:
+    port = server
     assert _raw_get(port, path) in (400, 403, 404)
     assert _raw_get(port, "/files/20260101-000000-demo/result.json") == 200
 
@@ -416,7 +444,9 @@ def test_live_page_in_a_real_browser(tmp_path: Path) -> None:
         _wait(lambda: state("window.station?.state?.status") == "aborted", 30,
               "the page to show the abort")
 
-        resumed = bench("run", "--resume", str(run_dir), "--yes", timeout=300)
+        # the resume in this process (the console script's `main`): the stop above needed
+        # a process of its own, the page watching the resumed run does not
+        resumed = cli("run", "--resume", str(run_dir), "--yes")
         assert resumed.returncode == 0, resumed.stderr[-2000:]
         _wait(lambda: state("window.station?.state?.status") == "passed", 30,
               "the page to show the resumed run passed")
@@ -472,7 +502,6 @@ def test_page_warns_of_a_silent_fog_and_shows_the_final_results(tmp_path: Path) 
     """A FOG twin that stops sending (its frames held for 40 bench seconds, while the rest
     of the bench runs on) shows a health warning on the page within 5 s; the finished run
     shows the final results table and no stop form."""
-    import threading
 
     from selenium.webdriver.common.by import By
 
