@@ -100,7 +100,7 @@ def _alive(pid: int) -> bool:
 
 @pytest.mark.timeout(240)
 def test_sigkill_mid_analysis_leaves_no_process_of_the_run_alive(tmp_path: Path) -> None:
-    """The analysis worker watches its parent: a SIGKILLed bench leaves nothing behind,
+    """The analysis worker watches the bench: a SIGKILLed bench leaves nothing behind,
     and a pipe reading the bench's output (`bench run | tee log`) sees its end."""
     proc = tmp_path / "two-pairs.yaml"
     proc.write_text(
