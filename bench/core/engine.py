@@ -11,6 +11,7 @@ from __future__ import annotations
 import functools
 import importlib
 import os
+import select
 import signal
 import sys
 import threading
@@ -36,6 +37,7 @@ if TYPE_CHECKING:
     # multiprocessing is imported when the worker starts: a kind imports this module,
     # and `bench validate` loads the kind
     from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing.context import BaseContext
 
     from bench.core.instruments import Bench
 
@@ -151,14 +153,58 @@ class SignalGuard:
 WORKER_NICE = 10
 
 
-#: how often the analysis worker checks that the bench process that started it still lives (s)
+#: how often the analysis worker looks whether the bench process lives, without a pidfd (s)
 PARENT_WATCH_S = 0.5
 
 
 #: a kind's module may name, in this attribute, the modules its worker jobs need that it
 #: does not import itself (it imports its analysis where it uses it, so that `bench
-#: validate` loads none of it); the worker imports them at its start
+#: validate` loads none of it); the worker imports them at its start. A kind that names
+#: none has no worker started with its run: one starts at its first job, if it has any
 WORKER_PRELOAD = "WORKER_PRELOAD"
+
+#: the fork server's start (`_worker_context`): the modules it imported and the bench's
+#: environment it started with; None until this process first starts a worker
+_server: tuple[tuple[str, ...], dict[str, str]] | None = None
+_server_lock = threading.Lock()
+
+
+def _worker_modules(module: str | None) -> tuple[str, ...]:
+    """What `_preload(module)` imports, in its order (the kind's module is this process's
+    already: its steps run here)."""
+    if not module:
+        return ()
+    names: tuple[str, ...] = tuple(getattr(importlib.import_module(module), WORKER_PRELOAD,
+                                           ()))
+    return (module, *names)
+
+
+def _worker_context(modules: tuple[str, ...]) -> tuple[BaseContext, tuple[str, ...],
+                                                       dict[str, str]]:
+    """How analysis workers start, with the modules and environment they start with.
+
+    "forkserver": a server process, started once per bench process by a spawn (a fresh
+    interpreter, never a fork of a process with CAN threads), imports `modules` once
+    (numpy, scipy, the kind's analysis: 1.5 to 2.5 s of CPU) and forks each session's
+    worker with them imported, in milliseconds (issue 62: the suite makes more than 100
+    runs in its processes, each with a worker). It is started here, without waiting: it
+    imports while the run's first steps are made. It ends when every process that can
+    ask it for a worker has (the bench and its workers). "spawn" (a worker that imports
+    what its jobs need itself) before a kind has named its modules (a bare `submit`: the
+    server would start without them) and where there is no fork server.
+    """
+    global _server
+    import multiprocessing
+    from multiprocessing import forkserver
+
+    with _server_lock:
+        if _server is None:
+            if not modules or "forkserver" not in multiprocessing.get_all_start_methods():
+                return multiprocessing.get_context("spawn"), (), dict(os.environ)
+            forkserver.set_forkserver_preload(["__main__", *modules])
+            _server = (modules, dict(os.environ))
+        forkserver.ensure_running()
+        return multiprocessing.get_context("forkserver"), *_server
 
 
 def _preload(module: str | None) -> None:
@@ -169,30 +215,61 @@ def _preload(module: str | None) -> None:
             importlib.import_module(name)
 
 
-def _worker_init(parent_pid: int) -> None:
-    """In the worker: a lower priority, so on a busy machine the acquisition threads (FOG
-    reader, heartbeat, twins) get the CPU first and the analysis waits; and an end when the
-    bench process ends, however it ends.
+def _worker_init(bench_pid: int, bench_nice: int, environ: dict[str, str],
+                 server_environ: dict[str, str]) -> None:
+    """In the worker: the bench's environment, a lower priority, and an end when the bench
+    process ends, however it ends.
 
-    A SIGKILLed bench runs no cleanup: its worker, blocked on the job queue, would live on
-    reparented to PID 1, holding the raw files and the bench's stdout/stderr open (so a
-    `bench run ... | tee log` never ends). The worker watches its parent instead.
+    The worker is forked from the fork server (`_worker_context`), whose environment is the
+    bench's when the server started: a spawned worker had the bench's as of its session
+    (a test's monkeypatch.setenv, say). It gets that again, with what the server's own
+    imports set on top (bench/analysis/blas.py's OPENBLAS_NUM_THREADS): as a spawned
+    worker had it after the same imports.
     """
-    lowered = os.nice(WORKER_NICE)
-    # os.nice lowers only this thread; the BLAS threads numpy started at its import ran
-    # on at the bench's priority, one of them spinning between the pair analyses' matrix
-    # products (perf on the paper ladder, 27 Nov 2026: 1.4 % of both cores at nice 0).
-    # Their number stays numpy's default: a Gram product's last bits depend on it, and
-    # `bench analyze` (in the bench's own process) must rebuild the run's result.json
-    # byte for byte (tests/test_run_e2e.py)
+    set_by_imports = {k: v for k, v in os.environ.items() if server_environ.get(k) != v}
+    os.environ.clear()
+    os.environ.update(environ)
+    os.environ.update(set_by_imports)
+    # the priority the bench's plus WORKER_NICE, so on a busy machine the acquisition
+    # threads (FOG reader, heartbeat, twins) get the CPU first and the analysis waits;
+    # counted from the bench's now, not from the server's (forked from it at its start)
+    target = min(bench_nice + WORKER_NICE, 19)
+    lowered = os.nice(max(target - os.nice(0), 0))
+    # os.nice lowers only this thread; BLAS threads started before it (in a spawned
+    # worker, at numpy's import) ran on at the bench's priority, one of them spinning
+    # between the pair analyses' matrix products (perf on the paper ladder, 27 Nov 2026:
+    # 1.4 % of both cores at nice 0). Their number is one (bench/analysis/blas.py)
     _lower_every_thread(lowered)
+    threading.Thread(target=_watch_bench, args=(bench_pid,), name="bench-watch",
+                     daemon=True).start()
 
-    def watch() -> None:
-        while os.getppid() == parent_pid:
-            time.sleep(PARENT_WATCH_S)
-        os._exit(1)  # the bench is gone: nobody will read a result; no cleanup to run
 
-    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+def _watch_bench(bench_pid: int) -> None:
+    """In the worker: its end when the bench process ends.
+
+    A SIGKILLed bench runs no cleanup: its worker, blocked on the job queue, would live on,
+    holding the raw files and the bench's stdout/stderr open (so a `bench run ... | tee
+    log` never ends). Its parent is the fork server, which ends only when every process
+    holding its alive pipe has (the bench and each worker), so the worker watches the
+    bench itself: a pidfd is readable once that process has ended (Linux 5.3); elsewhere,
+    a look every PARENT_WATCH_S (a bench not yet reaped by its parent counts as alive).
+    """
+    try:
+        pidfd = os.pidfd_open(bench_pid) if hasattr(os, "pidfd_open") else None
+    except ProcessLookupError:
+        os._exit(1)              # ended before the worker started
+    except OSError:
+        pidfd = None             # a kernel without pidfds
+    if pidfd is not None:
+        select.select([pidfd], [], [])
+    else:
+        try:
+            while True:          # gone, or its pid another user's: the bench has ended
+                os.kill(bench_pid, 0)
+                time.sleep(PARENT_WATCH_S)
+        except OSError:
+            pass
+    os._exit(1)  # the bench is gone: nobody will read a result; no cleanup to run
 
 
 def _lower_every_thread(nice: int) -> None:
@@ -218,8 +295,9 @@ class AnalysisWorker:
     other core, at a lower priority (WORKER_NICE), and the run goes on acquiring the next
     pair meanwhile. `submit` never
     blocks; `on_done(result, error)` runs in a thread of this process when it is done.
-    The worker is started ("spawn": never a fork of a process with CAN threads) at the
-    first submit and kept for the session, so it keeps its state between jobs.
+    The worker is a fork of a fork server (`_worker_context`: never a fork of a process
+    with CAN threads) made at the first job, and kept for the session, so it keeps its
+    state between jobs.
     """
 
     def __init__(self) -> None:
@@ -234,17 +312,23 @@ class AnalysisWorker:
         self._reported = threading.Condition(self._lock)
 
     def start(self, preload: str | None = None) -> None:
-        """Start the worker process now (its interpreter and imports take seconds), so
-        the first pair's look does not pay for them; `preload` names a module to import
-        there (the kind's). Safe to call twice."""
-        if self._pool is None:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-            self._pool = ProcessPoolExecutor(max_workers=1,
-                                             mp_context=multiprocessing.get_context("spawn"),
-                                             initializer=_worker_init,
-                                             initargs=(os.getpid(),))
-            self._pool.submit(_preload, preload)   # spawns it; the initializer runs there
+        """Get the worker ready now (its imports take seconds), so the first pair's look
+        does not pay for them; `preload` names the kind's module, whose WORKER_PRELOAD
+        the worker imports. Safe to call twice.
+
+        The first worker of a process starts the fork server (`_worker_context`), which
+        imports them; the worker is forked at the first job. A later session of another
+        kind forks its worker now, to import its own there."""
+        modules = _worker_modules(preload)
+        if self._pool is not None or (preload and modules == (preload,)):
+            return     # a kind that names no modules for its worker: none started early
+        from concurrent.futures import ProcessPoolExecutor
+        context, imported, server_environ = _worker_context(modules)
+        self._pool = ProcessPoolExecutor(
+            max_workers=1, mp_context=context, initializer=_worker_init,
+            initargs=(os.getpid(), os.nice(0), dict(os.environ), server_environ))
+        if not set(modules) <= set(imported):
+            self._pool.submit(_preload, preload)   # starts it; the initializer runs there
 
     def submit(self, fn: Callable[..., object], *args: object,
                on_done: Callable[[object, BaseException | None], None]) -> None:
