@@ -99,11 +99,11 @@ class StationPart(Protocol):
         """The newest first look in one line, for the lab's list of benches."""
         ...
 
-    def result_tables(self, result: Mapping[str, object]) -> list[PageTable]:
+    def result_tables(self, frame: ResultFrame) -> list[PageTable]:
         """result.json's tables for the run's page ([]: its declared figures instead)."""
         ...
 
-    def result_rows(self, result: Mapping[str, object]) -> list[JsonObject]:
+    def result_rows(self, frame: ResultFrame) -> list[JsonObject]:
         """result.json's figures per row, unrounded, for the page's state (JSON)."""
         ...
 

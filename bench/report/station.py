@@ -14,6 +14,7 @@ import math
 from collections.abc import Mapping, Sequence
 
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u, rel_unit
+from bench.report.result_frame import ResultFrame
 from drivers.json_types import JsonLike, JsonObject, JsonValue
 
 #: a table as the run page's script draws it (station.js `table`): id, caption, header,
@@ -76,10 +77,10 @@ class StationParts:
         """The newest first look in one line (none)."""
         return None
 
-    def result_tables(self, result: Mapping[str, object]) -> list[PageTable]:
+    def result_tables(self, frame: ResultFrame) -> list[PageTable]:
         """result.json's own tables (none: the page lists the declared figures)."""
         return []
 
-    def result_rows(self, result: Mapping[str, object]) -> list[JsonObject]:
+    def result_rows(self, frame: ResultFrame) -> list[JsonObject]:
         """result.json's figures per row (none)."""
         return []
