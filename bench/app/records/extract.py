@@ -181,7 +181,7 @@ def frame_figures(frame: ResultFrame, kind: str) -> list[FigureRecord]:
     return [_record(f, checks) for f in reporter.figure_values(frame)]
 
 
-def certificate_number(result: JsonObject, run_path: Path) -> str | None:
+def certificate_number(run_path: Path) -> str | None:
     """The number of the run's latest issued revision; None while it has only a draft (a
     draft is no certificate: the records and a later run's history never cite one)."""
     from bench.app.certificate import register
@@ -220,7 +220,7 @@ def record_of(run_path: str | Path, result: JsonObject | None = None) -> RunReco
     interval = ident.get("recertification_interval_days")
     dates = frame.dates
     state = meta.get("calibration_state") or frame.records.get("calibration_state")
-    number = certificate_number(result, path)
+    number = certificate_number(path)
     cert_files = _issued_files(path, number)
     blob = json.dumps(result, sort_keys=True, default=str).encode()
     kind = frame.procedure or kind_name(result, path)
