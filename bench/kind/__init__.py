@@ -91,11 +91,11 @@ class StationPart(Protocol):
     rounding rule (`bench.report.station.StationParts` answers with nothing: the pages
     then list the kind's declared figures)."""
 
-    def live_table(self, rows: Sequence[Mapping[str, object]]) -> PageTable | None:
+    def live_table(self, rows: Sequence[JsonObject]) -> PageTable | None:
         """The first looks as they come (the rows the kind's events give, `Event.live_rows`)."""
         ...
 
-    def last_look(self, row: Mapping[str, object]) -> str | None:
+    def last_look(self, row: JsonObject) -> str | None:
         """The newest first look in one line, for the lab's list of benches."""
         ...
 

@@ -5,7 +5,7 @@ per axis, worded and rounded as the certificate prints them (bench/report/statio
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 from bench.report.certificate.parts import verdict_label
 from bench.report.certificate.rounding import format_sig, present_std
@@ -64,7 +64,7 @@ def _pairs_table(axis: str, pairs: Sequence[PairRow]) -> PageTable:
 class LadderStation(StationParts):
     """The ladder's tables for the run pages and the lab's list of benches."""
 
-    def live_table(self, rows: Sequence[Mapping[str, object]]) -> PageTable | None:
+    def live_table(self, rows: Sequence[JsonObject]) -> PageTable | None:
         """The first look per pair, from the `pair` events (`PairLooked.rows`): k and w0
         with their U, each direction's rate error with its U."""
         looked = [row_of(row) for row in rows]
@@ -90,7 +90,7 @@ class LadderStation(StationParts):
                            f"instability σ, {sunit.name} (first look; U in the final results)",
                            "turns", "verdict"), out)
 
-    def last_look(self, row: Mapping[str, object]) -> str | None:
+    def last_look(self, row: JsonObject) -> str | None:
         """'<axis> <rate> deg/s: rate error δ ± U ppm' of the newest direction looked at."""
         r = row_of(row)
         error = value_u(r.rate_error_rel, r.rate_error_U_rel, 1e6, signed=True)
