@@ -29,6 +29,7 @@ if TYPE_CHECKING:
     from bench.report.certificate.parts import Check, Sources, TitledBlocks
     from bench.report.dcc.conformity import Checks
     from bench.report.figures import FigureSpec, FigureValue, InstrumentCheck, SummaryCut
+    from bench.report.result_frame import ResultFrame
     from bench.report.station import PageTable
     from drivers.json_types import JsonObject
 
@@ -79,8 +80,9 @@ class RecordsPart(Protocol):
     @property
     def figures(self) -> tuple[FigureSpec, ...]: ...
 
-    def figure_values(self, result: Mapping[str, object]) -> list[FigureValue]:
-        """Every figure of this result, with U (k = 2) where it has one."""
+    def figure_values(self, frame: ResultFrame) -> list[FigureValue]:
+        """Every figure of this result (decoded once by the reader: `ResultFrame`; the kind
+        decodes its own part from it with its codec), with U (k = 2) where it has one."""
         ...
 
 
@@ -89,19 +91,19 @@ class StationPart(Protocol):
     rounding rule (`bench.report.station.StationParts` answers with nothing: the pages
     then list the kind's declared figures)."""
 
-    def live_table(self, rows: Sequence[Mapping[str, object]]) -> PageTable | None:
+    def live_table(self, rows: Sequence[JsonObject]) -> PageTable | None:
         """The first looks as they come (the rows the kind's events give, `Event.live_rows`)."""
         ...
 
-    def last_look(self, row: Mapping[str, object]) -> str | None:
+    def last_look(self, row: JsonObject) -> str | None:
         """The newest first look in one line, for the lab's list of benches."""
         ...
 
-    def result_tables(self, result: Mapping[str, object]) -> list[PageTable]:
+    def result_tables(self, frame: ResultFrame) -> list[PageTable]:
         """result.json's tables for the run's page ([]: its declared figures instead)."""
         ...
 
-    def result_rows(self, result: Mapping[str, object]) -> list[JsonObject]:
+    def result_rows(self, frame: ResultFrame) -> list[JsonObject]:
         """result.json's figures per row, unrounded, for the page's state (JSON)."""
         ...
 
@@ -156,7 +158,7 @@ class ChecksInstruments(Protocol):
 
     check_quantities: Mapping[str, tuple[str, str]]
 
-    def instrument_checks(self, result: Mapping[str, object], stand: Mapping[str, YamlValue],
+    def instrument_checks(self, frame: ResultFrame, stand: Mapping[str, YamlValue],
                           serial_of: SerialOf) -> list[InstrumentCheck]:
         """The check values this run gives of the instruments, per serial."""
         ...

@@ -21,11 +21,13 @@ Nothing here names a procedure kind.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 from bench.analysis.finite import finite_number
 from bench.report.certificate.model import Document, Fields, Table
+from bench.report.result_frame import ResultFrame
+from drivers.json_types import JsonValue
 
 #: the trend plot's tolerance bands: +-T around zero, 0..T (a spread), or none
 BANDS = ("sym", "upper", "")
@@ -120,42 +122,41 @@ def spec_for(quantity: str, specs: Sequence[FigureSpec]) -> FigureSpec | None:
     return next((s for s in specs if s.matches(quantity)), None)
 
 
-def _walk(node: object, parts: Sequence[str], axis: str, rate: float | None,
-          rate_key: str | None) -> Iterator[tuple[str, float | None, Mapping[str, object]]]:
-    """(axis, rate, the mapping holding the value) for every match of `parts`."""
-    if not isinstance(node, Mapping):
-        return
-    if len(parts) == 1:
-        yield axis, rate, node
+def _walk(node: JsonValue, parts: Sequence[str], axis: str, rate: float | None,
+          spec: FigureSpec) -> Iterator[tuple[str, float | None, float | None, float | None]]:
+    """(axis, rate, value, U) for every match of `parts` (the value's key last)."""
+    if not isinstance(node, dict):
         return
     head, rest = parts[0], parts[1:]
+    if not rest:
+        yield (axis, rate, finite_number(node.get(head)),
+               finite_number(node.get(spec.u_path)) if spec.u_path else None)
+        return
     if head == "<axis>":
         for key, child in node.items():
-            yield from _walk(child, rest, str(key), rate, rate_key)
+            yield from _walk(child, rest, str(key), rate, spec)
         return
     if head.endswith("[]"):
         items = node.get(head[:-2])
         for item in items if isinstance(items, list) else ():
             here = rate
-            if rate_key and isinstance(item, Mapping) and rate_key in item:
-                here = finite_number(item.get(rate_key))
-            yield from _walk(item, rest, axis, here, rate_key)
+            if spec.rate_key and isinstance(item, dict) and spec.rate_key in item:
+                here = finite_number(item.get(spec.rate_key))
+            yield from _walk(item, rest, axis, here, spec)
         return
-    yield from _walk(node.get(head), rest, axis, rate, rate_key)
+    yield from _walk(node.get(head), rest, axis, rate, spec)
 
 
-def values_at(result: Mapping[str, object], specs: Sequence[FigureSpec]) -> list[FigureValue]:
-    """Every declared figure result.json holds, read at its declared path."""
+def values_at(frame: ResultFrame, specs: Sequence[FigureSpec]) -> list[FigureValue]:
+    """Every declared figure the run's result.json holds, read at its declared path."""
     out = []
     for spec in specs:
         if "<" in spec.quantity:
             continue          # a family: the kind reads it itself
-        parts = spec.path.split(".")
-        for axis, rate, holder in _walk(result, parts, spec.axis, None, spec.rate_key):
-            value = finite_number(holder.get(parts[-1]))
+        for axis, rate, value, u in _walk(frame.doc, spec.path.split("."), spec.axis, None,
+                                          spec):
             if value is None:
                 continue
-            u = finite_number(holder.get(spec.u_path)) if spec.u_path else None
             if spec.rate_is_magnitude and rate is not None:
                 rate = abs(rate)
             out.append(FigureValue(axis, spec.quantity, rate, value, u, spec.unit, spec.check))
@@ -167,8 +168,8 @@ class DeclaredFigures:
 
     figures: tuple[FigureSpec, ...] = ()
 
-    def figure_values(self, result: Mapping[str, object]) -> list[FigureValue]:
-        return values_at(result, self.figures)
+    def figure_values(self, frame: ResultFrame) -> list[FigureValue]:
+        return values_at(frame, self.figures)
 
 
 # -- the console summary: cells cut from the kind's own certificate ------------------------

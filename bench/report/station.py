@@ -11,9 +11,10 @@ Nothing here names a procedure kind.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u, rel_unit
+from bench.report.result_frame import ResultFrame
 from drivers.json_types import JsonLike, JsonObject, JsonValue
 
 #: a table as the run page's script draws it (station.js `table`): id, caption, header,
@@ -28,7 +29,7 @@ def page_table(tid: str, caption: str, header: Sequence[str],
             "rows": [{"cells": list(cells), "class": cls} for cells, cls in rows]}
 
 
-def number(v: object) -> float | None:
+def number(v: JsonValue) -> float | None:
     """A finite number from the state or a result (None for anything else)."""
     if not isinstance(v, int | float | str):
         return None
@@ -68,18 +69,18 @@ class StationParts:
     """The station's questions to a procedure kind about its results, with neutral
     answers: no live table, no tables of its own (the pages list its declared figures)."""
 
-    def live_table(self, rows: Sequence[Mapping[str, object]]) -> PageTable | None:
+    def live_table(self, rows: Sequence[JsonObject]) -> PageTable | None:
         """The first looks as they come (none)."""
         return None
 
-    def last_look(self, row: Mapping[str, object]) -> str | None:
+    def last_look(self, row: JsonObject) -> str | None:
         """The newest first look in one line (none)."""
         return None
 
-    def result_tables(self, result: Mapping[str, object]) -> list[PageTable]:
+    def result_tables(self, frame: ResultFrame) -> list[PageTable]:
         """result.json's own tables (none: the page lists the declared figures)."""
         return []
 
-    def result_rows(self, result: Mapping[str, object]) -> list[JsonObject]:
+    def result_rows(self, frame: ResultFrame) -> list[JsonObject]:
         """result.json's figures per row (none)."""
         return []

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from bench.analysis.finite import finite_number as _num
+from bench.core.yamlfile import YamlValue
 from bench.kind import SerialOf
 from bench.report.certificate.model import Document, Table
 from bench.report.figures import (
@@ -48,12 +49,12 @@ DRIFT_HEADERS = ("Axis", "Own drift", "Apparent drift")
 AZIMUTH_FIELD = "Platform azimuth"
 
 
-def _mapping(x: object) -> Mapping[str, object]:
-    """A block of the stand file or result.json, or nothing when it is not one."""
+def _block(x: YamlValue | None) -> Mapping[str, YamlValue]:
+    """A block of the stand file, or nothing when it is not one."""
     return x if isinstance(x, Mapping) else {}
 
 
-def _opt(x: object) -> str | None:
+def _opt(x: YamlValue | None) -> str | None:
     return None if x in (None, "") else str(x)
 
 
@@ -64,25 +65,24 @@ class DriftRecords(DeclaredFigures):
     figures = FIGURES
     check_quantities = {"own_drift_dph": ("deg/h", "drift platform's own drift")}
 
-    def instrument_checks(self, result: Mapping[str, object], stand: Mapping[str, object],
+    def instrument_checks(self, frame: ResultFrame, stand: Mapping[str, YamlValue],
                           serial_of: SerialOf) -> list[InstrumentCheck]:
         """Each gyro's own drift, by the gyro's serial (the stand file's
         `platform.gyros.<gyro>.serial`, else PLATFORM-SERIAL/gyro: a gyro is no axis
         instrument, so `serial_of`, which places by axis and role, is not asked)."""
         try:
-            drift = drift_of(result)
+            drift = drift_of(frame.doc)
         except MalformedResult:
             return []   # no figures to take check values from (its certificate refuses it)
-        platform = _mapping(stand.get("platform"))
-        gyros = _mapping(platform.get("gyros"))
-        ident = dict(_mapping(stand.get("stand")))
-        ident.update({k: v for k, v in ResultFrame.conform(result)[0].stand.items()
-                      if v is not None})
-        plat = _mapping(platform.get("identity")).get("serial") or ident.get("serial") \
-            or "stand"
+        platform = _block(stand.get("platform"))
+        gyros = _block(platform.get("gyros"))
+        # the stand's serial as the run reported it, else as its stand file states it
+        stated = frame.stand.get("serial")
+        ident = stated if stated is not None else _block(stand.get("stand")).get("serial")
+        plat = _block(platform.get("identity")).get("serial") or ident or "stand"
         out = []
         for g, ax in drift.axes.items():
-            conf = gyro if isinstance(gyro := gyros.get(g), Mapping) else {}
+            conf = _block(gyros.get(g))
             v = _num(ax.own_dph)
             if v is not None:
                 out.append(InstrumentCheck(_opt(conf.get("serial")) or f"{plat}/{g}", "gyro",

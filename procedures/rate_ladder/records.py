@@ -15,6 +15,7 @@ from typing import Any
 
 from bench.analysis.finite import finite_number as _num
 from bench.analysis.random_part import std_u_rel
+from bench.core.yamlfile import YamlValue
 from bench.kind import SerialOf
 from bench.report.certificate.model import Document, Table
 from bench.report.figures import (
@@ -26,7 +27,7 @@ from bench.report.figures import (
     joined,
     tables_of,
 )
-from bench.report.result_frame import JsonObject
+from bench.report.result_frame import JsonObject, ResultFrame
 from procedures.rate_ladder import starter
 from procedures.rate_ladder.axes_view import AxisRows, axes_of
 from procedures.rate_ladder.codec import conform, conform_body
@@ -161,11 +162,11 @@ class LadderRecords:
 
     check_quantities = CHECK_QUANTITIES
 
-    def instrument_checks(self, result: Mapping[str, object], stand: Mapping[str, object],
+    def instrument_checks(self, frame: ResultFrame, stand: Mapping[str, YamlValue],
                           serial_of: SerialOf) -> list[InstrumentCheck]:
         """Each axis's FOG, as the run measured it: k and w0 per |rate| (eq. 5-6), its
         noise floor and bias at rest (docs/method.md C1), by the FOG's serial."""
-        axes = axes_of(result)
+        axes = axes_of(frame.doc)
         stand_axes = stand.get("axes")
         out: list[InstrumentCheck] = []
         for axis, conf in (stand_axes.items() if isinstance(stand_axes, Mapping) else ()):
@@ -177,8 +178,8 @@ class LadderRecords:
                                    None if model in (None, "") else str(model))
         return out
 
-    def figure_values(self, result: Mapping[str, object]) -> list[FigureValue]:
-        ladder, _ = conform(result)
+    def figure_values(self, frame: ResultFrame) -> list[FigureValue]:
+        ladder, _ = conform(frame.doc)
         out: list[FigureValue | None] = []
         for axis, ax in ladder.axes.items():
             for r in ax.rates:

@@ -5,10 +5,11 @@ per axis, worded and rounded as the certificate prints them (bench/report/statio
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 from bench.report.certificate.parts import verdict_label
 from bench.report.certificate.rounding import format_sig, present_std
+from bench.report.result_frame import ResultFrame
 from bench.report.station import (
     PageTable,
     StationParts,
@@ -63,7 +64,7 @@ def _pairs_table(axis: str, pairs: Sequence[PairRow]) -> PageTable:
 class LadderStation(StationParts):
     """The ladder's tables for the run pages and the lab's list of benches."""
 
-    def live_table(self, rows: Sequence[Mapping[str, object]]) -> PageTable | None:
+    def live_table(self, rows: Sequence[JsonObject]) -> PageTable | None:
         """The first look per pair, from the `pair` events (`PairLooked.rows`): k and w0
         with their U, each direction's rate error with its U."""
         looked = [row_of(row) for row in rows]
@@ -89,29 +90,29 @@ class LadderStation(StationParts):
                            f"instability σ, {sunit.name} (first look; U in the final results)",
                            "turns", "verdict"), out)
 
-    def last_look(self, row: Mapping[str, object]) -> str | None:
+    def last_look(self, row: JsonObject) -> str | None:
         """'<axis> <rate> deg/s: rate error δ ± U ppm' of the newest direction looked at."""
         r = row_of(row)
         error = value_u(r.rate_error_rel, r.rate_error_U_rel, 1e6, signed=True)
         return f"{r.axis} {rate_text(r.set_rate_dps)} deg/s: rate error {error} ppm"
 
-    def result_tables(self, result: Mapping[str, object]) -> list[PageTable]:
+    def result_tables(self, frame: ResultFrame) -> list[PageTable]:
         """Per axis (CONTRACT §3's `axes.<axis>.rates[]` and `pairs[]`): each rate's error
         and instability with U and verdict, then each ± pair's FOG scale factor k and bias
         ω0 with U."""
         tables: list[PageTable] = []
-        for axis, body in axes_of(result).items():
+        for axis, body in axes_of(frame.doc).items():
             if body.rates:
                 tables.append(_rates_table(axis, body.rates))
             if body.pairs:
                 tables.append(_pairs_table(axis, body.pairs))
         return tables
 
-    def result_rows(self, result: Mapping[str, object]) -> list[JsonObject]:
+    def result_rows(self, frame: ResultFrame) -> list[JsonObject]:
         """Per axis and rate the figures the certificate prints (rate error +/- U,
         instability, verdict) with the pair's k and w0."""
         rows: list[JsonObject] = []
-        for axis, body in axes_of(result).items():
+        for axis, body in axes_of(frame.doc).items():
             by_rate = {entry.rate_dps: entry for entry in body.pairs}
             for r in body.rates:
                 p = by_rate.get(abs(r.set_rate_dps))

@@ -29,6 +29,7 @@ from bench.core import rundir_layout as layout
 from bench.core.events import Event, StepStarted, TimedHalf
 from bench.core.journal_codec import read_events, read_jsonl
 from bench.core.registry import procedure_names
+from bench.core.yamlfile import YamlValue
 from bench.kind import ChecksInstruments, installed_records
 from bench.report.figures import InstrumentCheck
 from bench.report.result_frame import ResultFrame, as_object
@@ -199,7 +200,7 @@ def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[st
         reported["drive"].append(_drive_serial(got.get("drive")))
         reported["fog"].append(_fog_serial(got.get("fog")))
 
-    def serial(axis: str, role: str, conf: Mapping[str, object]) -> str:
+    def serial(axis: str, role: str, conf: Mapping[str, YamlValue]) -> str:
         got = entry if isinstance(entry := ids.get(axis), Mapping) else {}
         rep = (_idn_serial(got.get("counter")) if role == "counter" else
                _drive_serial(got.get("drive")) if role == "drive" else
@@ -212,7 +213,7 @@ def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[st
     # the instruments the run's procedure kind measures (the FOGs' scale and bias, a gyro
     # platform's gyros): listed with their axis, before the stand's instruments there
     kind = installed_records(kind_of_run)
-    measured: list[CheckRecord] = kind.instrument_checks(result, stand, serial) \
+    measured: list[CheckRecord] = kind.instrument_checks(frame, stand, serial) \
         if isinstance(kind, ChecksInstruments) else []
     # the counters that timed turns in this run (an axis the run did not time has no
     # check value of its counter)

@@ -1,6 +1,7 @@
 """RUN_DIR/assurance.json <-> its model, by msgspec (issue 60): what the records say of
 each instrument a run rests on, written at the end of a run and by `bench authorise`,
-read by the certificate (assurance_notes.py) and by the authorisation's refusal.
+read by the certificate (assurance_notes.py) and by the authorisation's refusal; and the
+marks a run's start adds to its meta.json (`RunMarks`, hooks.mark_run).
 
 Why a module of its own: it is the one place where this file's JSON meets a typed value
 (tests/test_json_boundary.py keeps JSON maps out of every other module). The file is
@@ -11,6 +12,7 @@ unreadable or malformed file reads as none (the certificate then says "not asses
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
 
 import msgspec
@@ -49,6 +51,26 @@ class Assurance(msgspec.Struct, frozen=True, kw_only=True):
     assessed_utc: str = ""
     instruments: tuple[InstrumentLine, ...] | UnsetType = UNSET
     error: str | UnsetType = UNSET
+
+
+class RunMarks(msgspec.Struct, frozen=True, kw_only=True):
+    """What the operator and the register said at a run's start, added to meta.json in
+    this order (the procedure file's operator only when it names one)."""
+
+    calibration_state: str | None
+    adjustment_note: str | None
+    os_user: str | None
+    operator: str | None
+    operator_stated: str | UnsetType = UNSET
+
+
+def mark_meta_file(path: Path, marks: RunMarks, register: Mapping[str, object]) -> None:
+    """meta.json with the marks and the register's entries added (a key it has keeps its
+    place), written back as `RunDir.create` writes it (indent 2, a newline)."""
+    meta = json.loads(path.read_text())
+    meta.update(msgspec.to_builtins(marks))
+    meta.update(register)
+    path.write_text(json.dumps(meta, indent=2) + "\n")
 
 
 def write_assurance_file(path: Path, doc: Assurance) -> None:

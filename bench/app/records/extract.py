@@ -168,14 +168,20 @@ def figures_of(result: JsonObject, kind: str | None = None) -> list[FigureRecord
     """Every figure the kind reports of result.json (its `records` part,
     bench.kind.RecordsPart), with U (k = 2) and its check's verdict; none when the kind
     is not installed here."""
-    reporter = installed_records(kind if kind is not None else kind_name(result))
+    return frame_figures(ResultFrame.of(result),
+                         kind if kind is not None else kind_name(result))
+
+
+def frame_figures(frame: ResultFrame, kind: str) -> list[FigureRecord]:
+    """`figures_of` of a result the reader has decoded (its frame)."""
+    reporter = installed_records(kind)
     if reporter is None:
         return []
-    checks = _checks_index(ResultFrame.of(result))
-    return [_record(f, checks) for f in reporter.figure_values(result)]
+    checks = _checks_index(frame)
+    return [_record(f, checks) for f in reporter.figure_values(frame)]
 
 
-def certificate_number(result: JsonObject, run_path: Path) -> str | None:
+def certificate_number(run_path: Path) -> str | None:
     """The number of the run's latest issued revision; None while it has only a draft (a
     draft is no certificate: the records and a later run's history never cite one)."""
     from bench.app.certificate import register
@@ -214,10 +220,10 @@ def record_of(run_path: str | Path, result: JsonObject | None = None) -> RunReco
     interval = ident.get("recertification_interval_days")
     dates = frame.dates
     state = meta.get("calibration_state") or frame.records.get("calibration_state")
-    number = certificate_number(result, path)
+    number = certificate_number(path)
     cert_files = _issued_files(path, number)
     blob = json.dumps(result, sort_keys=True, default=str).encode()
-    kind = kind_name(result, path)
+    kind = frame.procedure or kind_name(result, path)
     return RunRecord(
         uid=run_uid(meta, path.name),
         serial=serial,
@@ -243,7 +249,7 @@ def record_of(run_path: str | Path, result: JsonObject | None = None) -> RunReco
         sessions=frame.sessions or None,
         aborted=frame.aborted,
         bench_version=_opt(meta.get("bench_version")),
-        figures=tuple(figures_of(result, kind)),
+        figures=tuple(frame_figures(frame, kind)),
         cert_files=cert_files,
         checks=tuple(checks_of(path, result, stand_file if isinstance(stand_file, dict)
                                else {}, kind)),

@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import datetime as dt
 import getpass
-import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from msgspec import UNSET
+
 from bench.app.db import redact
+from bench.app.records.codec import RunMarks, mark_meta_file
 from bench.app.records.extract import STATES, NotARun, record_of
 from bench.app.records.settings import LabSettings, SettingsError, load_lab_settings, records_url
 from bench.app.records.store import Records, RecordsError
@@ -64,14 +66,10 @@ def mark_run(run_path: Path, procedure: CommonSettings, state: str | None = None
 
     The CLI flag wins over the procedure key; written before the run starts so that an
     import years later reads what the operator said at the time."""
-    meta_path = run_path / layout.META
-    meta = json.loads(meta_path.read_text())
     state = state or procedure.calibration_state
     note = note or procedure.adjustment_note
     if state is not None and state not in STATES:
         raise ValueError(f"calibration state {state!r}: expected one of {', '.join(STATES)}")
-    meta["calibration_state"] = state
-    meta["adjustment_note"] = note
     try:
         login = getpass.getuser()
     except (KeyError, OSError):
@@ -80,13 +78,13 @@ def mark_run(run_path: Path, procedure: CommonSettings, state: str | None = None
     # never a name from a file (issue 42); `operator` keeps who ran it for the records
     register = dict(register or {})
     performer = register.get("performer")
-    meta["os_user"] = login
-    meta["operator"] = (performer["account"] if isinstance(performer, Mapping) and performer
-                        else login)
-    if procedure.operator:
-        meta["operator_stated"] = procedure.operator      # the procedure file's word only
-    meta.update(register)
-    meta_path.write_text(json.dumps(meta, indent=2) + "\n")
+    account = (performer["account"] if isinstance(performer, Mapping) and performer
+               else login)
+    mark_meta_file(run_path / layout.META, RunMarks(
+        calibration_state=state, adjustment_note=note, os_user=login,
+        operator=None if account is None else str(account),
+        # the procedure file's word only
+        operator_stated=procedure.operator if procedure.operator else UNSET), register)
 
 
 def warn_if_overdue(ident: Identity, where: RecordsTarget, warn: Warn,

@@ -49,6 +49,7 @@ from bench.core.journal_codec import (
 )
 from bench.core.yamlfile import read_mapping
 from bench.report.codec import encode
+from bench.report.result_frame import ResultFrame
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, DecodeState, decode, get_format
 from drivers.json_types import JsonLike, JsonObject, JsonValue
@@ -289,7 +290,8 @@ def final_rows(doc: JsonObject, run_path: Path | None = None) -> list[JsonObject
     """The final rows from result.json, as its kind's station part gives them (the
     ladder's: per axis and rate the figures the certificate prints with the pair's k and
     w0); none for a kind that gives none."""
-    return station_of(kind_name(doc, run_path)).result_rows(doc)
+    frame = ResultFrame.of(doc)
+    return station_of(frame.procedure or kind_name(doc, run_path)).result_rows(frame)
 
 
 #: a session's exit status (bench/app/session.py EXIT_*, CONTRACT section 1) as the page

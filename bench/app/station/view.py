@@ -22,7 +22,7 @@ from pathlib import Path
 
 import msgspec
 
-from bench.app.records.extract import figures_of, kind_name
+from bench.app.records.extract import frame_figures, kind_name
 from bench.app.station.state import FOG_TAIL_S, AxisHealth, Health, PageState
 from bench.core import events as ev
 from bench.core import rundir_layout as layout
@@ -36,8 +36,9 @@ from bench.report.certificate.rounding import (
 )
 from bench.report.certificate.sources import read_json_object
 from bench.report.figures import spec_for
+from bench.report.result_frame import ResultFrame
 from bench.report.station import StationParts, page_table, rate_text
-from drivers.json_types import JsonLike, JsonObject
+from drivers.json_types import JsonLike
 
 #: how each status reads on the page, for a run that has ended or stopped
 ENDED_WORDS = {"passed": "Passed", "failed": "Failed", "refused": "Refused",
@@ -192,13 +193,12 @@ def _procedure_named(run_path: Path) -> str | None:
     return _NAMED[run_path]
 
 
-def _declared_table(doc: JsonObject, run_path: Path) -> list[dict[str, JsonLike]]:
+def _declared_table(frame: ResultFrame, kind: str) -> list[dict[str, JsonLike]]:
     """Any other kind: the figures it declares (bench.report.figures), each with its U and
     its check's verdict, in the words and units the kind gives them."""
-    kind = kind_name(doc, run_path)
     specs = declared_figures([kind]) if kind else ()
     rows = []
-    for f in figures_of(doc, kind) if kind else []:
+    for f in frame_figures(frame, kind) if kind else []:
         spec = spec_for(f.quantity, specs)
         scale, unit = (spec.scale, spec.shown) if spec is not None else (1.0, f.unit)
         words = spec.name if spec is not None else f.quantity
@@ -224,10 +224,10 @@ def _final(path: str, _mtime_ns: int, _size: int
     doc = read_json_object(Path(path) / layout.RESULT)
     if not doc:
         return None, ()
-    tables = station_of(kind_name(doc, Path(path))).result_tables(doc) \
-        or _declared_table(doc, Path(path))
-    verdict = doc.get("verdict")
-    return (None if verdict is None else str(verdict)), tuple(tables)
+    frame = ResultFrame.of(doc)
+    kind = frame.procedure or kind_name(doc, Path(path))
+    tables = station_of(kind).result_tables(frame) or _declared_table(frame, kind)
+    return frame.verdict, tuple(tables)
 
 
 def final_view(run_path: Path) -> tuple[str | None, list[dict[str, JsonLike]]] | None:
