@@ -111,8 +111,9 @@ def cmd_dcc(args: argparse.Namespace) -> int:
         # the DCC written now is a draft and must not embed it: the draft's own PDF and
         # HTML replace the copies, the issued files under issued/ stay as they are
         from bench.app.certificate import render_files
+        from bench.report.certificate.sources import Sources
 
-        render_files(result, run_path, run_path)
+        render_files(Sources.load(result, run_path), run_path)
         _err(f"note: {run_path / layout.CERTIFICATE_PDF} was the copy of issued certificate "
              f"{copied} (kept unchanged under {run_path / layout.ISSUED / copied}); a DCC written "
              "now is a DRAFT, so the draft's PDF and HTML were written beside it")
