@@ -305,7 +305,7 @@ def test_shared_or_missing_identities_are_stated_on_twins(
     on_twins = "A finding of a run on simulated twins: a real stand with it is not issued."
     text = _deviations(build_document(Sources.load(result, demo_run.dir)))
     assert shared_fog in text and sensors in text and on_twins in text
-    dcc = _identity_statements(build_dcc(DccInputs(result, demo_run.dir,
+    dcc = _identity_statements(build_dcc(DccInputs(Sources.load(result, demo_run.dir),
                                                    embed_pdf=False)).getroot())
     assert shared_fog in dcc and sensors in dcc and on_twins in dcc
     # the drift stand's k_as entry names no serial (one certificate for two sensors): the
@@ -362,6 +362,6 @@ def test_conditions_nominal_measured_and_one_mains_frequency(demo_run: DemoRun) 
                                      "60 Hz; axis inner: 50 Hz")
     from bench.app.dcc.writer import DccInputs, build_dcc
 
-    root = build_dcc(DccInputs(result, demo_run.dir, embed_pdf=False)).getroot()
+    root = build_dcc(DccInputs(Sources.load(result, demo_run.dir), embed_pdf=False)).getroot()
     cond = root.find(".//dcc:influenceCondition[@id='cond_mains_frequency']", NS)
     assert "NOT one frequency" in cond.findtext("dcc:description/dcc:content", "", NS)

@@ -132,7 +132,7 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
         progress.warn(f"the certificate could not be written: {e!r}; result.json is in "
                       f"{run.path}; once fixed, `bench analyze {run.path}` writes it")
         return Outputs(result, verdict, None)
-    if not write_run_dcc(run.path, result, cfg.stand_settings.dcc, progress.line, warn=progress.warn):
+    if not write_run_dcc(run.path, src, cfg.stand_settings.dcc, progress.line, warn=progress.warn):
         return Outputs(result, verdict, None)
     return Outputs(result, verdict, doc)
 

@@ -457,7 +457,7 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
     else:
         signing_lab, signing_note = designated_signing(lab, reg)
     try:
-        outcome = write_dcc(run_path, result, dcc_refs(stand), lab=signing_lab, issue=issue,
+        outcome = write_dcc(run_path, src, dcc_refs(stand), lab=signing_lab, issue=issue,
                             out_dir=work, signer=signer)
     except (LabError, RegisterError) as e:
         _discard(work)

@@ -58,6 +58,12 @@ class Sources:
             src.events = read_events(events)
         return src
 
+    @classmethod
+    def read(cls, result_file: Path) -> Sources:
+        """The run of `result_file` (a run directory's result.json, or one given beside
+        it), decoded: ValueError when the file is not JSON, OSError when unreadable."""
+        return cls.load(json.loads(result_file.read_text(encoding="utf-8")), result_file.parent)
+
     def event_utc(self, kind: type[Event], last: bool = False) -> str | None:
         """When the event log first (or last) recorded an event of `kind`, as it wrote it."""
         found = (ev.last if last else ev.first)(self.events, kind)
