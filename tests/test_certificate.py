@@ -23,6 +23,7 @@ from hypothesis import strategies as st
 from bench.app.certificate import write_certificate
 from bench.core.journal import RunDir
 from bench.report.certificate.rounding import format_limit, format_value_u, rel_unit, round_u
+from bench.report.certificate.sources import Sources
 from procedures.drift_pulse.sample import drift_pulse_result
 from procedures.rate_ladder.sample import rate_ladder_result
 
@@ -121,7 +122,7 @@ def _flat(text: str) -> str:
 def ladder(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     run = _run_dir(tmp_path_factory.mktemp("ladder"))
     result = rate_ladder_result()
-    paths = write_certificate(run, result, issued=ISSUED)
+    paths = write_certificate(run, Sources.load(result, run.path), issued=ISSUED)
     texts, images = _pdf_pages(run.path / "certificate.pdf")
     return {"run": run, "paths": paths, "texts": texts, "images": images,
             "html": (run.path / "certificate.html").read_text(encoding="utf-8"),
@@ -265,7 +266,7 @@ def test_plots_embedded_in_pdf_and_html(ladder: dict[str, Any]) -> None:
 @pytest.mark.timeout(60)
 def test_drift_pulse_certificate(tmp_path: Path) -> None:
     run = _run_dir(tmp_path)
-    write_certificate(run, drift_pulse_result(), issued=ISSUED)
+    write_certificate(run, Sources.load(drift_pulse_result(), run.path), issued=ISSUED)
     texts, images = _pdf_pages(tmp_path / "certificate.pdf")
     text = _flat("\n".join(texts))
     assert "alternating-sign controlled precession" in text          # method B
@@ -294,7 +295,7 @@ def test_contract_keys_only_and_raw_files_hashed_from_the_run(tmp_path: Path) ->
                    "verdict": "pass"}],
         "pairs": [{"rate_dps": 10.0, "k": 1.0003, "k_u": 3e-6, "w0_dps": 0.002,
                    "w0_u_dps": 1e-4}]}}}
-    write_certificate(run, result, issued=ISSUED)
+    write_certificate(run, Sources.load(result, run.path), issued=ISSUED)
     texts, images = _pdf_pages(tmp_path / "certificate.pdf")
     text = _flat("\n".join(texts))
     assert "not recorded" in text
@@ -320,7 +321,7 @@ def test_aborted_run_is_incomplete_and_says_why(tmp_path: Path) -> None:
               "sessions": 1, "axes": {}, "checks": [],
               "dates": {"started_utc": "2025-03-04T08:00:00+00:00",
                         "completed_utc": "2025-03-04T08:30:00+00:00"}}
-    html = render_html(build_document(result, None, ISSUED))
+    html = render_html(build_document(Sources.load(result, None), ISSUED))
     assert "Result: INCOMPLETE" in html
     assert "2025-03-04 08:30:00 UTC (aborted)" in html
     assert "the run did not complete every step" in html
@@ -340,7 +341,7 @@ def test_malformed_parts_are_named_not_fatal() -> None:
     result["axes"]["outer"]["pairs"][0]["k"] = "abc"
     result["raw_files"] = [1, 2]
     result["conditions"] = "warm"
-    html = render_html(build_document(result, None, ISSUED))
+    html = render_html(build_document(Sources.load(result, None), ISSUED))
     for where in ("axes.outer.rates[0].systematic (expected a mapping, found str)",
                   "axes.outer.rates[1] (no numeric set_rate_dps)",
                   "axes.inner.pairs (expected a list, found dict)",
@@ -359,5 +360,5 @@ def test_a_check_without_u_claims_no_capability() -> None:
         {"axis": "outer", "set_rate_dps": 10.0, "quantity": "intra_turn_instability",
          "value_rel": 1.0e-3, "u_rel": 0.0, "tolerance_rel": 2.0e-3, "rule": "simple",
          "verdict": "pass", "capability_ratio": 0.0, "capability_ok": True}]}
-    html = render_html(build_document(result, None, ISSUED))
+    html = render_html(build_document(Sources.load(result, None), ISSUED))
     assert "no U stated" in html and "0 met" not in html

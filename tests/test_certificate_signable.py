@@ -25,6 +25,7 @@ from bench.app.certificate.build import build_document
 from bench.app.certificate.html import render_html
 from bench.app.certificate.register import REGISTER_NAME, issues, next_issue, record
 from bench.core.journal import RunDir
+from bench.report.certificate.sources import Sources
 from bench.report.codec import encode
 from procedures.drift_pulse.sample import drift_pulse_result
 from procedures.rate_ladder.result import turns_entry
@@ -87,7 +88,7 @@ def _apply(formula: str, mean: float, set_rate: float) -> float:
 def test_printed_formula_on_printed_inputs_gives_printed_delta() -> None:
     # truth: slower than commanded by 0.12 ppm at -10 deg/s, faster by 0.25 ppm at +10
     result = _ladder_result({10.0: 2.5e-7, -10.0: -1.2e-7})
-    html = render_html(build_document(result, None, ISSUED))
+    html = render_html(build_document(Sources.load(result, None), ISSUED))
     formula = _printed_formula(html)
     rows = _cells(html, "Axis outer: per-turn rate error and instability")
     assert [r[0] for r in rows] == ["+10", f"{MINUS}10"]
@@ -113,7 +114,7 @@ def test_per_edge_timing_and_the_coverage_rule_are_printed() -> None:
     from bench.analysis.turns import REPEATABILITY_FORMULA
 
     html = html_lib.unescape(render_html(build_document(
-        _ladder_result({10.0: 1e-7}), None, ISSUED)))
+        Sources.load(_ladder_result({10.0: 1e-7}), None), ISSUED)))
     assert "Δ_edge = √(Δ_counter² + Δ_trigger²);   ΔT = √2 · Δ_edge" in html
     assert REPEATABILITY_FORMULA in html and COVERAGE_FORMULA in html
     assert "(N − 3)" not in html
@@ -127,7 +128,7 @@ def test_drift_certificate_item_is_the_platform_with_its_gyros(tmp_path: Path) -
     result = drift_pulse_result()
     result["stand"] = {"maker": "Simulated Gyro Lab", "model": "GP-3 platform test stand",
                        "serial": "SIM-0004", "simulated": True}
-    write_certificate(run, result, issued=ISSUED)
+    write_certificate(run, Sources.load(result, run.path), issued=ISSUED)
     html = (run.path / "certificate.html").read_text(encoding="utf-8")
     item: dict[str, str] = {}
     for k, v in _fields(html):   # section 1 (Identification) first
@@ -161,16 +162,16 @@ def test_drafts_are_not_issues_and_name_the_revision_they_would_become(
     result = _ladder_result({10.0: 1e-7})
     result.update(run_dir=run.path.name, dates={"created_utc": "2026-11-22T10:00:00Z",
                                                 "completed_utc": "2026-11-22T11:00:00Z"})
-    write_certificate(run, result, issued=ISSUED)
+    write_certificate(run, Sources.load(result, run.path), issued=ISSUED)
     first = re.search(r"Draft (DRAFT-\S+)", _pdf_text(run.path / "certificate.pdf")[0])[1]
-    write_certificate(run, result, issued=ISSUED + dt.timedelta(days=1))
+    write_certificate(run, Sources.load(result, run.path), issued=ISSUED + dt.timedelta(days=1))
     pages = _pdf_text(run.path / "certificate.pdf")
     assert re.search(r"Draft (DRAFT-\S+)", pages[0])[1] == first
     assert len(pages) > 2 and all("DRAFT, NOT AUTHORISED" in p for p in pages)
     assert issues(run.path) == [] and not (run.path / REGISTER_NAME).exists()
     record(run.path, next_issue(run.path, first, dt.datetime(2026, 11, 23, 9, tzinfo=dt.UTC),
                                 signatory="P. Petrov"))
-    write_certificate(run, result)
+    write_certificate(run, Sources.load(result, run.path))
     text = re.sub(r"\s+", " ", " ".join(_pdf_text(run.path / "certificate.pdf")))
     assert f"Draft {first}-R2" in text
     assert "which is withdrawn" not in text
@@ -181,13 +182,13 @@ def test_simulated_run_is_marked_on_every_page(tmp_path: Path) -> None:
     run = _run_dir(tmp_path)
     result = _ladder_result({10.0: 1e-7, -10.0: 1e-7})
     result["stand"] = {"maker": "Sim", "model": "ST", "serial": "S1", "simulated": True}
-    write_certificate(run, result, issued=ISSUED)
+    write_certificate(run, Sources.load(result, run.path), issued=ISSUED)
     pages = _pdf_text(run.path / "certificate.pdf")
     assert len(pages) > 2
     assert all("SIMULATED RUN: NOT A CALIBRATION" in p for p in pages)
     real = _run_dir(tmp_path / "real") if (tmp_path / "real").mkdir() is None else None
     result["stand"]["simulated"] = False
-    write_certificate(real, result, issued=ISSUED)
+    write_certificate(real, Sources.load(result, real.path), issued=ISSUED)
     assert not any("SIMULATED" in p for p in _pdf_text(real.path / "certificate.pdf"))
 
 
@@ -198,7 +199,7 @@ def test_named_signatories_from_the_lab_settings(tmp_path: Path) -> None:
     lab = yaml.safe_load((ROOT / "configs/lab.yaml").read_text())
     result = _ladder_result({10.0: 1e-7})
     result["certificate"] = lab
-    write_certificate(run, result, issued=ISSUED)
+    write_certificate(run, Sources.load(result, run.path), issued=ISSUED)
     text = re.sub(r"\s+", " ", "".join(_pdf_text(run.path / "certificate.pdf")))
     # names in a lab file sign nothing (issue 42): the performer is an authenticated
     # account or "not recorded"
@@ -208,7 +209,7 @@ def test_named_signatories_from_the_lab_settings(tmp_path: Path) -> None:
     issue = next_issue(run.path, "RT-TEST", dt.datetime(2026, 11, 22, 9, tzinfo=dt.UTC),
                        signatory="P. Petrov", function="Technical manager (authorised "
                        "signatory)")
-    render_files(result, run.path, run.path, issue=issue)
+    render_files(Sources.load(result, run.path), run.path, issue=issue)
     text = re.sub(r"\s+", " ", "".join(_pdf_text(run.path / "certificate.pdf")))
     assert ("Date of issue: 2026-11-22, the date on which this certificate was authorised "
             "for issue by P. Petrov, Technical manager (authorised signatory)") in text
@@ -278,7 +279,7 @@ def test_sigma_below_the_timing_floor_is_flagged_and_left_out_of_conformity() ->
               "decision_rule": "guard-band", "checks": [encode(check)],
               "axes": {"outer": {"rates": [encode(msgspec.structs.replace(d, verdict="pass"))],
                                  "pairs": []}}}
-    html = html_lib.unescape(render_html(build_document(result, None, ISSUED)))
+    html = html_lib.unescape(render_html(build_document(Sources.load(result, None), ISSUED)))
     row = _cells(html, "Axis outer: per-turn rate error and instability")[0]
     assert d.rate_instability_upper_rel is not None
     limit_ppm = d.rate_instability_upper_rel * 1e6

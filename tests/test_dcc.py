@@ -567,6 +567,7 @@ def test_a_damaged_result_still_gives_a_valid_dcc(demo: dict[str, Any]) -> None:
     the damaged value out; `bench verify` would then name it). Dropping `axes` once gave
     a DCC without any measurementResult, which the schema refuses."""
     from bench.app.dcc.writer import DccInputs, build_dcc
+    from bench.report.certificate.sources import Sources
 
     result = copy.deepcopy(demo["result"])
     ax = result["axes"]["outer"]
@@ -581,7 +582,7 @@ def test_a_damaged_result_still_gives_a_valid_dcc(demo: dict[str, Any]) -> None:
         else:
             node[key] = "garbage"
         try:
-            v = validate_dcc(build_dcc(DccInputs(result, embed_pdf=False)))
+            v = validate_dcc(build_dcc(DccInputs(Sources.load(result, None), embed_pdf=False)))
         finally:
             node[key] = saved
         assert v.valid, (key, damage, v.lines()[:3])

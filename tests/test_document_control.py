@@ -294,6 +294,7 @@ def test_shared_or_missing_identities_are_stated_on_twins(
         demo_run: DemoRun, drift_demo_run: DemoRun) -> None:
     from bench.app.certificate import build_document
     from bench.app.dcc.writer import DccInputs, build_dcc
+    from bench.report.certificate.sources import Sources
 
     result = json.loads((demo_run.dir / "result.json").read_text())
     # two FOGs answering one serial (the demo's twins answer their own)
@@ -302,9 +303,9 @@ def test_shared_or_missing_identities_are_stated_on_twins(
     sensors = ("zero-mark slot sensors (outer and inner) (traceability[1]) states one serial "
                "for several items (SIM-BS5-01/02)")
     on_twins = "A finding of a run on simulated twins: a real stand with it is not issued."
-    text = _deviations(build_document(result, demo_run.dir))
+    text = _deviations(build_document(Sources.load(result, demo_run.dir)))
     assert shared_fog in text and sensors in text and on_twins in text
-    dcc = _identity_statements(build_dcc(DccInputs(result, demo_run.dir,
+    dcc = _identity_statements(build_dcc(DccInputs(Sources.load(result, demo_run.dir),
                                                    embed_pdf=False)).getroot())
     assert shared_fog in dcc and sensors in dcc and on_twins in dcc
     # the drift stand's k_as entry names no serial (one certificate for two sensors): the
@@ -361,6 +362,6 @@ def test_conditions_nominal_measured_and_one_mains_frequency(demo_run: DemoRun) 
                                      "60 Hz; axis inner: 50 Hz")
     from bench.app.dcc.writer import DccInputs, build_dcc
 
-    root = build_dcc(DccInputs(result, demo_run.dir, embed_pdf=False)).getroot()
+    root = build_dcc(DccInputs(Sources.load(result, demo_run.dir), embed_pdf=False)).getroot()
     cond = root.find(".//dcc:influenceCondition[@id='cond_mains_frequency']", NS)
     assert "NOT one frequency" in cond.findtext("dcc:description/dcc:content", "", NS)

@@ -15,6 +15,7 @@ import pytest
 
 from bench.app.certificate import write_certificate
 from bench.core.journal import RunDir
+from bench.report.certificate.sources import Sources
 from procedures.drift_pulse import analysis as dp
 from procedures.drift_pulse.codec import MalformedResult, decode, drift_of, encode
 from procedures.drift_pulse.result import DriftFigures
@@ -138,7 +139,8 @@ def test_a_malformed_body_is_refused_with_its_key_path(analysed: dp.DriftResult,
 def _certificate(tmp_path: Path, result: dict[str, object]) -> str:
     tmp_path.mkdir(parents=True, exist_ok=True)
     (tmp_path / "events.jsonl").touch()
-    write_certificate(RunDir(tmp_path), result, issued=dt.date(2025, 3, 6))
+    write_certificate(RunDir(tmp_path), Sources.load(result, tmp_path),
+                      issued=dt.date(2025, 3, 6))
     return (tmp_path / "certificate.html").read_text(encoding="utf-8")
 
 

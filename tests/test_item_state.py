@@ -109,7 +109,7 @@ def test_the_dcc_states_them_and_accreditation_only_when_the_lab_does(
         demo_run: DemoRun, tmp_path: Path) -> None:
     run = demo_run.copy_to(tmp_path / "runs")
     result = json.loads((run / "result.json").read_text())
-    plain = build_dcc(DccInputs(result, run, lab=Lab(name="Lab"))).getroot()
+    plain = build_dcc(DccInputs(Sources.load(result, run), lab=Lab(name="Lab"))).getroot()
     assert _statements(plain, "ratebench_accreditation") == []
     items = _statements(plain, "ratebench_itemState")
     assert "Date of receipt: not stated." in items
@@ -118,8 +118,7 @@ def test_the_dcc_states_them_and_accreditation_only_when_the_lab_does(
     src = Sources.load(result, run)
     assert readback == list(setting_statements(item_record(src)))
     assert readback[-1] == TWIN_WATCHDOG_WHY and "0x1016:1 = 5000 ms" in readback[0]
-    stated = build_dcc(DccInputs(result, run, lab=Lab(name="Lab",
-                                                      accreditation="DAkkS D-K-12345-01"))
+    stated = build_dcc(DccInputs(src, lab=Lab(name="Lab", accreditation="DAkkS D-K-12345-01"))
                        ).getroot()
     assert _statements(stated, "ratebench_accreditation") == [
         "Accreditation: DAkkS D-K-12345-01"]

@@ -57,6 +57,7 @@ from bench.core.simbench import SimBench, for_session
 from bench.core.stops import StopOutcome, Stops, attempt
 from bench.core.traceability import identity_mismatches, overdue, overdue_warning
 from bench.report.certificate.model import Document
+from bench.report.certificate.sources import Sources
 from drivers.clock import Clock, MonotonicClock
 from drivers.json_types import JsonObject
 
@@ -111,8 +112,10 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
                    records: RecordsTarget | None) -> Outputs:
     analysed = procedure_kind(cfg.kind).analysis.analyze(run, cfg)
     # read back: the certificate, the DCC and the records read what result.json holds
-    # (as `bench dcc` and the station do), not the analysis's objects
+    # (as `bench dcc` and the station do), not the analysis's objects; the certificate
+    # takes it decoded once (Sources, the report's codec), the records and DCC as stored
     result = read_json_object(run.write_json(layout.RESULT, analysed))
+    src = Sources.load(result, run.path)
     verdict = verdict_of(result)
     # the table's history from the records, when they hold any (never fails the run)
     history = history_sections(run.path, result, records, progress.warn) if records else []
@@ -120,7 +123,7 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
         write_assurance(run.path, records, progress.warn, result)
     try:
         documents: list[Document] = []
-        for path in certificates.write_certificate(run, result, documents=documents,
+        for path in certificates.write_certificate(run, src, documents=documents,
                                                    extra_sections=history):
             progress.line(f"wrote {path}")
         doc = documents[-1]
@@ -129,7 +132,7 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
         progress.warn(f"the certificate could not be written: {e!r}; result.json is in "
                       f"{run.path}; once fixed, `bench analyze {run.path}` writes it")
         return Outputs(result, verdict, None)
-    if not write_run_dcc(run.path, result, cfg.stand_settings.dcc, progress.line, warn=progress.warn):
+    if not write_run_dcc(run.path, src, cfg.stand_settings.dcc, progress.line, warn=progress.warn):
         return Outputs(result, verdict, None)
     return Outputs(result, verdict, doc)
 

@@ -147,13 +147,3 @@ def procedure_kind(name: str) -> ProcedureKind:
 def kind_location(name: str) -> str:
     """"module:attribute" of the kind registered under `name` (KeyError if none is)."""
     return _registered()[name]
-
-
-def records_part(name: str | None) -> object:
-    """The `records` part of the kind of that name (None if it is not installed here), for
-    the report layer, which sits below the typed interface (bench/kind.py) and asks it
-    by isinstance."""
-    try:
-        return getattr(procedure_kind(str(name)), "records", None) if name else None
-    except (KeyError, ImportError, AttributeError):
-        return None

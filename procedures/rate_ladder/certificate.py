@@ -46,7 +46,7 @@ from bench.report.certificate.rounding import (
 )
 from bench.report.result_frame import Check
 from procedures.rate_ladder import plots
-from procedures.rate_ladder.codec import ladder_model
+from procedures.rate_ladder.codec import conform_body, ladder_model
 from procedures.rate_ladder.result import (
     UNSIGNED,
     LadderAxis,
@@ -160,6 +160,8 @@ class LadderCertificate(CertificateParts):
         "intra_turn_instability_corrected": "intra-turn instability, floor-corrected",
     }
     certificate_unsigned = UNSIGNED
+    #: the ladder's part of result.json checked by its codec (`Sources`' conform_result)
+    result_conform = staticmethod(conform_body)
 
     def certificate_recognises(self, src: Sources) -> bool:
         return "axes" in src.result     # CONTRACT §3's binding keys: results per axis

@@ -1,8 +1,10 @@
 """The calibration certificate: result.json -> certificate.html and certificate.pdf.
 
-    write_certificate(run, result) -> [RUN_DIR/certificate.html, RUN_DIR/certificate.pdf]
+    write_certificate(run, src) -> [RUN_DIR/certificate.html, RUN_DIR/certificate.pdf]
 
-The engine calls this after writing result.json (`bench run`, `bench analyze`). The
+The engine calls this after writing result.json (`bench run`, `bench analyze`), given the
+run decoded once (`Sources.load`, bench/report/certificate/sources.py, the codec): every
+entry point here takes that typed run, never result.json's JSON map. The
 content follows ISO/IEC 17025 clause 7.8; how to read it: docs/certificate.md.
 """
 
@@ -12,7 +14,7 @@ import dataclasses
 import datetime as dt
 import hashlib
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
@@ -22,6 +24,7 @@ from bench.app.certificate.figures import NotAsDrawn, drawn_beside
 from bench.app.certificate.html import render_html
 from bench.core import rundir_layout as layout
 from bench.report.certificate.model import Document
+from bench.report.certificate.sources import Sources
 
 if TYPE_CHECKING:   # fpdf is imported when a PDF is rendered, not when a run starts (issue 62)
     from bench.app.certificate.pdf import render_pdf
@@ -52,12 +55,11 @@ def _write_atomic(path: Path, data: bytes) -> None:
     os.replace(tmp, path)
 
 
-def render_files(result: Mapping[str, object], out_dir: str | Path, run_path: Path | None = None,
-                 issued: dt.date | None = None, *,
+def render_files(src: Sources, out_dir: str | Path, issued: dt.date | None = None, *,
                  documents: list[Document] | None = None,
                  extra_sections: Sequence[ExtraSection] = (),
                  issue: register.Issue | None = None) -> list[Path]:
-    """Render the certificate for `result` into `out_dir`: the DRAFT of the run's next
+    """Render the certificate of `src` into `out_dir`: the DRAFT of the run's next
     revision, or, given an `issue` that `bench authorise` is recording, that issue.
 
     Nothing is recorded here: a draft is not an issue (register.py). `documents`, if
@@ -68,7 +70,7 @@ def render_files(result: Mapping[str, object], out_dir: str | Path, run_path: Pa
     out.mkdir(parents=True, exist_ok=True)
 
     def build() -> Document:
-        return build_document(result, run_path, issued, issue, extra_sections)
+        return build_document(src, issued, issue, extra_sections)
 
     from bench.app.certificate.pdf import render_pdf
     with drawn_beside() as drawer:
@@ -93,15 +95,14 @@ def render_files(result: Mapping[str, object], out_dir: str | Path, run_path: Pa
     return [html_path, pdf_path]
 
 
-def render_issue(result: Mapping[str, object], out_dir: Path, run_path: Path,
-                 issue: register.Issue,
+def render_issue(src: Sources, out_dir: Path, issue: register.Issue,
                  changes: Callable[[str], tuple[str, ...]]) -> register.Issue:
     """Render a re-issue: its document is built once, `changes(html)` compares its
     statements (the HTML as rendered) with the replaced revision's, and the files state
     them (bench/app/certificate/revisions.py). Returns the issue as stated."""
     from bench.app.certificate.pdf import render_pdf
     out_dir.mkdir(parents=True, exist_ok=True)
-    doc = build_document(result, run_path, None, issue)
+    doc = build_document(src, None, issue)
     issue = dataclasses.replace(issue, changes=changes(render_html(doc)))
     doc = restated(doc, issue)
     _write_atomic(out_dir / HTML_NAME, render_html(doc).encode("utf-8"))
@@ -115,7 +116,7 @@ def result_digest(stored: bytes) -> str:
     return hashlib.sha256(stored).hexdigest()
 
 
-def write_certificate(run: _HasPath, result: Mapping[str, object],
+def write_certificate(run: _HasPath, src: Sources,
                       issued: dt.date | None = None, *,
                       documents: list[Document] | None = None,
                       extra_sections: Sequence[ExtraSection] = ()) -> list[Path]:
@@ -124,5 +125,5 @@ def write_certificate(run: _HasPath, result: Mapping[str, object],
 
     `extra_sections` (title, blocks) come from outside the run directory (the table's
     history from the records) and are placed before the statements."""
-    return render_files(result, run.path, run.path, issued, documents=documents,
+    return render_files(src, run.path, issued, documents=documents,
                         extra_sections=extra_sections)

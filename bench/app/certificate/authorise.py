@@ -440,12 +440,13 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
     shutil.rmtree(work, ignore_errors=True)
     work.mkdir(parents=True)
     (work / RESULT_NAME).write_bytes(result_bytes)          # what this issue states
+    src = Sources.load(result, run_path)    # the run decoded once, for the certificate
     if previous:
         # every statement compared with the replaced revision's as issued (its HTML)
-        issue = render_issue(result, work, run_path, issue, lambda html: changes_between(
+        issue = render_issue(src, work, issue, lambda html: changes_between(
             old, result, old_html, html))
     else:
-        render_files(result, work, run_path, issue=issue)
+        render_files(src, work, issue=issue)
     signer = reg.dcc_signer(acct)
     if reg.remote:      # a lab server: its register service alone holds the key (issue 53)
         signing_lab = replace(lab, signing=None, require_signed_dcc=False)
@@ -454,7 +455,7 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
     else:
         signing_lab, signing_note = designated_signing(lab, reg)
     try:
-        outcome = write_dcc(run_path, result, dcc_refs(stand), lab=signing_lab, issue=issue,
+        outcome = write_dcc(run_path, src, dcc_refs(stand), lab=signing_lab, issue=issue,
                             out_dir=work, signer=signer)
     except (LabError, RegisterError) as e:
         _discard(work)

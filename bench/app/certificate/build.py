@@ -169,16 +169,15 @@ def _parts(name: str) -> CertificatePart:
     return kind.certificate if kind is not None else NEUTRAL
 
 
-def build_document(result: Mapping[str, object], run_path: Path | None = None,
-                   issued: dt.date | None = None, issue: Issue | None = None,
+def build_document(src: Sources, issued: dt.date | None = None, issue: Issue | None = None,
                    extra_sections: Sequence[ExtraSection] = ()) -> Document:
-    """The certificate for one issue; without `issue` (or with an unauthorised one) the
-    DRAFT of the run's next revision: marked DRAFT, NOT AUTHORISED on every page, no date
-    of issue, no authorisation claimed. `issued` is kept for callers that dated drafts."""
-    src = Sources.load(result, run_path)
+    """The certificate of the decoded run (`Sources.load`) for one issue; without `issue`
+    (or with an unauthorised one) the DRAFT of the run's next revision: marked DRAFT, NOT
+    AUTHORISED on every page, no date of issue, no authorisation claimed. `issued` is kept
+    for callers that dated drafts."""
     cid = certificate_id(src)
     if issue is None:
-        issue = register.draft(run_path, cid)
+        issue = register.draft(src.run_path, cid)
     proc = procedure_of(src)
     cert = _cert(src, issue)
     lab = str(cert.laboratory or "Calibration laboratory (name not given)")

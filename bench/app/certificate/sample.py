@@ -11,13 +11,14 @@ from pathlib import Path
 from bench.app.certificate import render_files
 from bench.core.registry import procedure_names
 from bench.kind import HasSampleResult, installed_records
+from bench.report.certificate.sources import Sources
 
 
 def main(out: Path) -> None:
     for name in procedure_names():
         kind = installed_records(name)
         if isinstance(kind, HasSampleResult):
-            for path in render_files(kind.sample_result(), out / name):
+            for path in render_files(Sources.load(kind.sample_result(), None), out / name):
                 print(path)
 
 

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from bench.core.config import DccRefs
     from bench.core.lab import Lab
     from bench.core.yamlfile import Problem
-    from drivers.json_types import JsonObject
+    from bench.report.certificate.sources import Sources
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
@@ -28,8 +28,7 @@ def _err(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
-def write_run_dcc(run_path: Path, result: JsonObject,
-                  stand: DccRefs | None,
+def write_run_dcc(run_path: Path, src: Sources, stand: DccRefs | None,
                   line: Callable[[str], None] = print, lab_file: str | Path | None = None,
                   warn: Callable[[str], None] = _err) -> bool:
     """Write RUN_DIR/certificate.dcc.xml after the PDF; False when the run has no valid DCC
@@ -39,7 +38,7 @@ def write_run_dcc(run_path: Path, result: JsonObject,
     from bench.app.dcc.settings import SettingsError
 
     try:
-        outcome = write_dcc(run_path, result, stand, lab_file)
+        outcome = write_dcc(run_path, src, stand, lab_file)
     except SettingsError as e:
         warn(f"the DCC could not be written: {e}; result.json and the PDF are in {run_path}; "
              f"once fixed, `bench dcc {run_path}` writes it")
@@ -88,7 +87,7 @@ def _stand_of_run(run_path: Path) -> DccRefs | None:
 
 def cmd_dcc(args: argparse.Namespace) -> int:
     """`bench dcc RUN_DIR [--lab FILE]`: (re)write and validate certificate.dcc.xml."""
-    import json
+    from bench.report.certificate.sources import Sources  # not for the parser (test_cli_imports)
 
     run_path = Path(args.run_dir)
     result_file = run_path / layout.RESULT
@@ -96,7 +95,7 @@ def cmd_dcc(args: argparse.Namespace) -> int:
         _err(f"{result_file}: not found; `bench analyze {run_path}` writes it from the raw data")
         return EXIT_INVALID
     try:
-        result = json.loads(result_file.read_text(encoding="utf-8"))
+        src = Sources.read(result_file)
     except ValueError as e:
         _err(f"{result_file}: not JSON: {e}")
         return EXIT_INVALID
@@ -112,15 +111,13 @@ def cmd_dcc(args: argparse.Namespace) -> int:
         # HTML replace the copies, the issued files under issued/ stay as they are
         from bench.app.certificate import render_files
 
-        render_files(result, run_path, run_path)
+        render_files(src, run_path)
         _err(f"note: {run_path / layout.CERTIFICATE_PDF} was the copy of issued certificate "
              f"{copied} (kept unchanged under {run_path / layout.ISSUED / copied}); a DCC written "
              "now is a DRAFT, so the draft's PDF and HTML were written beside it")
-    if not write_run_dcc(run_path, result, stand, lab_file=args.lab):
+    if not write_run_dcc(run_path, src, stand, lab_file=args.lab):
         return EXIT_ABORTED
-    from bench.report.result_frame import ResultFrame  # not for the parser (test_cli_imports)
-
-    verdict = (ResultFrame.of(result).verdict or "").lower()
+    verdict = (src.frame.verdict or "").lower()
     return {"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(verdict, EXIT_ABORTED)
 
 

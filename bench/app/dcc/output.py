@@ -23,8 +23,7 @@ from bench.app.dcc.writer import DccInputs, build_dcc
 from bench.core.config import DccRefs
 from bench.core.lab import Lab, run_lab
 from bench.core.settings_codec import lab_keys
-from bench.report.result_frame import ResultFrame
-from drivers.json_types import JsonObject
+from bench.report.certificate.sources import Sources
 
 VERDICTS = ("pass", "fail")
 
@@ -64,7 +63,7 @@ def _write_atomic(path: Path, data: bytes) -> None:
     os.replace(tmp, path)
 
 
-def write_dcc(run_path: Path, result: JsonObject,
+def write_dcc(run_path: Path, src: Sources,
               stand: DccRefs | None = None,
               lab_file: str | Path | None = None, issued: dt.date | None = None,
               lab: Lab | None = None, issue: Issue | None = None,
@@ -79,7 +78,7 @@ def write_dcc(run_path: Path, result: JsonObject,
     """
     run_path = Path(run_path)
     out = Path(out_dir) if out_dir is not None else run_path
-    frame = ResultFrame.of(result)
+    frame = src.frame
     verdict = (frame.verdict or "incomplete").lower()
     if verdict not in VERDICTS:
         (out / DCC_NAME).unlink(missing_ok=True)   # it would stand for other results
@@ -87,8 +86,7 @@ def write_dcc(run_path: Path, result: JsonObject,
                                                 "written only for a completed run")
     settings = lab if lab is not None else resolve_settings(
         stand, lab_file, base=run_lab(run_path, lab_keys(frame.certificate)))
-    data = dcc_bytes(build_dcc(DccInputs(result, run_path, settings, issued, issue=issue,
-                                         pdf_dir=out)))
+    data = dcc_bytes(build_dcc(DccInputs(src, settings, issued, issue=issue, pdf_dir=out)))
     signed = False
     if signer is not None and issue is not None and not issue.draft:
         data = signer(data)         # the lab's register service holds the key (issue 53)

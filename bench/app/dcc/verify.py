@@ -13,7 +13,6 @@ Three checks, each printed with its outcome:
 from __future__ import annotations
 
 import base64
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -22,10 +21,10 @@ from lxml import etree
 
 from bench.app.dcc.validate import NS, validate_dcc
 from bench.core import rundir_layout as layout
-from drivers.json_types import JsonObject
 
 if TYPE_CHECKING:
     from bench.app.certificate.register import Issue
+    from bench.report.certificate.sources import Sources
 
 Values = dict[str, tuple[tuple[float, ...], tuple[float, ...] | None, str]]
 
@@ -92,15 +91,13 @@ def _issue_of(root: etree._Element, run_path: Path | None) -> Issue | None:
     return next((i for i in register.issues(run_path) if i.number == number), None)
 
 
-def compare_values(root: etree._Element, result: JsonObject, report: Report,
-                   run_path: Path | None = None) -> None:
+def compare_values(root: etree._Element, src: Sources, report: Report) -> None:
     """Every quantity and conformity in `root` against the DCC result.json would give (the
     run directory's register supplies the certificate's issue number)."""
     from bench.app.dcc.writer import DccInputs, build_dcc
 
-    issue = _issue_of(root, run_path)
-    expected_root = build_dcc(DccInputs(result, run_path, embed_pdf=False,
-                                        issue=issue)).getroot()
+    issue = _issue_of(root, src.run_path)
+    expected_root = build_dcc(DccInputs(src, embed_pdf=False, issue=issue)).getroot()
     want, got = read_quantities(expected_root), read_quantities(root)
     problems = [f"{k}: missing from the file" for k in want if k not in got]
     problems += [f"{k}: not in result.json" for k in got if k not in want]
@@ -176,8 +173,9 @@ def verify_file(path: Path, result_path: Path | None = None, cert: Path | None =
     if content is None:
         report.note("values: not compared (the signed content cannot be trusted)")
     elif result_path.is_file():
-        result = json.loads(result_path.read_text(encoding="utf-8"))
-        compare_values(content, result, report, result_path.parent)
+        from bench.report.certificate.sources import Sources  # decoded as the writer reads it
+
+        compare_values(content, Sources.read(result_path), report)
         _compare_pdf(content, path.parent, report)
     elif need_result:
         report.bad(f"values: no result.json at {result_path} (give --result, or "

@@ -22,7 +22,6 @@ import base64
 import datetime as dt
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from lxml import etree
 
@@ -48,11 +47,11 @@ NEUTRAL = DccParts()
 
 @dataclass(frozen=True)
 class DccInputs:
-    """What the writer reads: the result, its run directory, the lab's settings (None:
-    the run's own, bench.core.lab.run_lab), and the issue (None: the draft of the next one)."""
+    """What the writer reads: the run decoded (result.json and its run directory,
+    `Sources.load`), the lab's settings (None: the run's own, bench.core.lab.run_lab), and
+    the issue (None: the draft of the next one)."""
 
-    result: dict[str, Any]
-    run_path: Path | None = None
+    src: Sources
     lab: Lab | None = None
     issued: dt.date | None = None
     embed_pdf: bool = True
@@ -62,7 +61,7 @@ class DccInputs:
 
 def build_dcc(inputs: DccInputs) -> etree._ElementTree:
     """The DCC as an lxml tree (unsigned); `bench.app.dcc.validate` checks it."""
-    src = Sources.load(inputs.result, inputs.run_path)
+    src = inputs.src
     proc = procedure_of(src)        # the kind, found as the certificate finds it
     found = installed(proc.name)
     kind = found.dcc if found is not None else NEUTRAL
@@ -70,15 +69,15 @@ def build_dcc(inputs: DccInputs) -> etree._ElementTree:
     root = el(None, "digitalCalibrationCertificate", schemaVersion="3.3.0")
     root.set(f"{{{XSI_NS}}}schemaLocation", SCHEMA_LOCATION)
     today = (inputs.issued or dt.datetime.now(dt.UTC).date()).isoformat()
-    issue = inputs.issue or register.draft(inputs.run_path, certificate_id(src))
+    issue = inputs.issue or register.draft(src.run_path, certificate_id(src))
     lab = inputs.lab
     if lab is None:
-        lab = run_lab(inputs.run_path, lab_keys(src.frame.certificate)) if inputs.run_path else Lab()
+        lab = run_lab(src.run_path, lab_keys(src.frame.certificate)) if src.run_path else Lab()
     administrative(el(root, "administrativeData"), src, lab, proc.parts, kind, issue, today)
     results = el(root, "measurementResults")
     methods_and_conditions(results, src, kind)
     kind.dcc_results(results, src, checks)
-    budget_results(results, budget_sites(inputs.result))
+    budget_results(results, budget_sites(src.result))
     if results.find(f"{{{DCC_NS}}}measurementResult") is None:    # the DCC needs one
         mr = el(results, "measurementResult", id="noResults")
         name(mr, "No results")
@@ -87,7 +86,7 @@ def build_dcc(inputs: DccInputs) -> etree._ElementTree:
         text_el(el(r, "data"), "text", "result.json carries no results: nothing was measured "
                 "to completion, or its results were malformed.")
     leftover_checks(root, src, checks)
-    where = inputs.pdf_dir or inputs.run_path
+    where = inputs.pdf_dir or src.run_path
     pdf = where / PDF_NAME if where is not None else None
     if inputs.embed_pdf and pdf is not None and pdf.is_file():
         doc = el(root, "document", id="certificatePdf")

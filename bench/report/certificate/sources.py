@@ -58,6 +58,12 @@ class Sources:
             src.events = read_events(events)
         return src
 
+    @classmethod
+    def read(cls, result_file: Path) -> Sources:
+        """The run of `result_file` (a run directory's result.json, or one given beside
+        it), decoded: ValueError when the file is not JSON, OSError when unreadable."""
+        return cls.load(json.loads(result_file.read_text(encoding="utf-8")), result_file.parent)
+
     def event_utc(self, kind: type[Event], last: bool = False) -> str | None:
         """When the event log first (or last) recorded an event of `kind`, as it wrote it."""
         found = (ev.last if last else ev.first)(self.events, kind)
@@ -90,11 +96,17 @@ class Sources:
         return ResultFrame.of(self.result)
 
 
+#: a kind's check of its own part of result.json, in its codec (procedures/<kind>/codec.py):
+#: the document with its malformed containers dropped, and their names
+ResultConform = Callable[[JsonObject], tuple[JsonObject, list[str]]]
+
+
 def conform_result(result: object) -> tuple[JsonObject, list[str]]:
     """The result with malformed containers dropped, and the list of what was dropped:
-    the kind's part by the kind's result module (`ConformsResult`), the frame's here. A
-    result that names no kind is read by every installed kind's."""
-    from bench.core.registry import procedure_names, records_part
+    the kind's part by the kind's codec (its certificate part's `result_conform`,
+    `ConformsResult`), the frame's here. A result that names no kind is read by every
+    installed kind's."""
+    from bench.core.registry import procedure_kind, procedure_names
 
     doc = as_object(result)
     if doc is None:
@@ -102,9 +114,12 @@ def conform_result(result: object) -> tuple[JsonObject, list[str]]:
     named = doc.get("procedure")
     dropped: list[str] = []
     for name in [str(named)] if named else procedure_names():
-        kind = records_part(name)
-        if isinstance(kind, ConformsResult):
-            doc, more = kind.conform_result(doc)
+        try:
+            part = getattr(procedure_kind(name), "certificate", None)
+        except (KeyError, ImportError, AttributeError):
+            continue    # a kind this installation lacks: its part is kept as written
+        if isinstance(part, ConformsResult):
+            doc, more = part.result_conform(doc)
             dropped += more
     frame, more = ResultFrame.conform(doc)
     return frame.to_json(), dropped + more
@@ -112,10 +127,10 @@ def conform_result(result: object) -> tuple[JsonObject, list[str]]:
 
 @runtime_checkable
 class ConformsResult(Protocol):
-    """A kind whose result module checks its part of result.json (procedures/<kind>/
-    result.py): the document with its malformed containers dropped, and their names."""
+    """A kind's certificate part that names its codec's check of its part of result.json
+    (a kind without one is read as written)."""
 
-    def conform_result(self, result: JsonObject) -> tuple[JsonObject, list[str]]: ...
+    result_conform: ResultConform
 
 
 def read_json_object(path: Path) -> dict[str, Any]:
