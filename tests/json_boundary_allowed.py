@@ -45,7 +45,6 @@ ALLOWED: dict[str, dict[str, int]] = {
     "procedures/rate_ladder/axes_view.py": {"json_map_signatures": 1},
     "procedures/rate_ladder/events.py": {"json_map_signatures": 1},
     "procedures/rate_ladder/kind.py": {"json_map_signatures": 1},
-    "procedures/rate_ladder/records.py": {"json_map_signatures": 1},
     "procedures/rate_ladder/sample.py": {"json_map_signatures": 4},
     "procedures/rate_ladder/station.py": {"json_map_signatures": 3},
 }

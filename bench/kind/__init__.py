@@ -9,8 +9,9 @@ and a part of the wrong type is an error there, not at a customer's run (issue 6
 
 A kind's `records` part answers the questions every consumer asks (`RecordsPart`); a
 few capabilities only some kinds have stay small Protocols asked for by isinstance
-(`SummarisesRun`, `ChecksInstruments`, `HasSampleResult`, `HasStarterFiles`,
-`ConformsResult`). Nothing here names a kind.
+(`SummarisesRun`, `ChecksInstruments`, `HasSampleResult`, `HasStarterFiles`; the
+certificate part's `result_conform` is bench/report/certificate/sources.py's `ConformsResult`).
+Nothing here names a kind.
 """
 
 from __future__ import annotations

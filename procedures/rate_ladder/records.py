@@ -27,10 +27,10 @@ from bench.report.figures import (
     joined,
     tables_of,
 )
-from bench.report.result_frame import JsonObject, ResultFrame
+from bench.report.result_frame import ResultFrame
 from procedures.rate_ladder import starter
 from procedures.rate_ladder.axes_view import AxisRows, axes_of
-from procedures.rate_ladder.codec import conform, conform_body
+from procedures.rate_ladder.codec import conform
 from procedures.rate_ladder.sample import rate_ladder_result
 
 _RATES = "axes.<axis>.rates[]."
@@ -154,11 +154,6 @@ class LadderRecords:
     `ChecksInstruments`, `HasSampleResult` and `HasStarterFiles` (bench/kind.py)."""
 
     figures = FIGURES
-
-    def conform_result(self, result: JsonObject) -> tuple[JsonObject, list[str]]:
-        """The ladder's part checked by its result module (procedures/rate_ladder/result.py):
-        a malformed container dropped and named, the rest kept."""
-        return conform_body(result)
 
     check_quantities = CHECK_QUANTITIES
 
