@@ -78,8 +78,8 @@ def _bytes(folder: Path) -> dict[str, bytes]:
 
 
 def test_changes_are_stated_as_facts() -> None:
-    old = {"verdict": "pass", "axes": {"outer": {"rates": [{"rate_error_rel": 1e-7}]}}}
-    new = {"verdict": "pass", "axes": {"outer": {"rates": [{"rate_error_rel": 2e-7}]}}}
+    old = b'{"verdict": "pass", "axes": {"outer": {"rates": [{"rate_error_rel": 1e-7}]}}}'
+    new = b'{"verdict": "pass", "axes": {"outer": {"rates": [{"rate_error_rel": 2e-7}]}}}'
     assert auth.changes_between(old, new) == (
         "axes.outer.rates[0].rate_error_rel: 1e-07 -> 2e-07",)
     assert auth.changes_between(old, old)[0].startswith("results unchanged")

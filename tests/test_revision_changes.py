@@ -18,7 +18,7 @@ from bench.app.certificate.html import render_html
 from bench.app.certificate.revisions import statements
 from bench.report.certificate.model import Document, Fields, Para, Section, Table
 
-RESULT = {"verdict": "pass", "axes": {"outer": {"rates": [{"rate_error_rel": 1e-7}]}}}
+RESULT = b'{"verdict": "pass", "axes": {"outer": {"rates": [{"rate_error_rel": 1e-7}]}}}'
 BASELINE = "Measurement assurance (ISO/IEC 17025 7.7), counter MY62000117: {}."
 
 

@@ -24,7 +24,7 @@ from bench.core.yamlfile import YamlError, load_yaml
 # `bench validate` imports the loader only: the session, the console, the records and the
 # certificate are imported by the commands that plan, run or analyze (bench/app/cli.py)
 if TYPE_CHECKING:
-    from bench.app.register.gate import StartGate
+    from bench.app.register.gate import StartFacts, StartGate
     from bench.app.session import run_session
     from bench.core.config import Config
 
@@ -197,7 +197,7 @@ class Admitted:
         self.lab_file, self.gate = lab_file, gate
         self.performer = gate.performer
 
-    def meta(self) -> dict[str, object]:
+    def meta(self) -> StartFacts:
         return self.gate.meta()
 
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from bench.core.lab import LAB
 from bench.core.loader import any_stand_schema
 from bench.core.registry import procedure_kind, procedure_names
-from bench.core.schema import Check, JsonSchema, Key, ListOf, Map, MapOf, Node, Num, OneOf
+from bench.core.schema import Check, Key, ListOf, Map, MapOf, Node, Num, OneOf
 
 JSON_SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
 DOCS_PATH = "docs/configuration.md"
@@ -52,12 +52,13 @@ def schema_node(target: str, kind: str | None = None) -> Map:
     raise KeyError(f"expected stand, procedure KIND or lab, got {target!r}")
 
 
-def json_schema(target: str, kind: str | None = None) -> JsonSchema:
-    """The file's JSON Schema (draft 2020-12): what a YAML editor or CI can check with."""
+def json_schema(target: str, kind: str | None = None) -> str:
+    """The file's JSON Schema (draft 2020-12) as printed: what a YAML editor or CI can
+    check with."""
     title = {"stand": "ratebench stand file", "lab": "ratebench laboratory settings",
              "procedure": f"ratebench {kind} procedure file"}[target]
-    return {"$schema": JSON_SCHEMA_DIALECT, "title": title,
-            **schema_node(target, kind).json_schema()}
+    return json.dumps({"$schema": JSON_SCHEMA_DIALECT, "title": title,
+                       **schema_node(target, kind).json_schema()}, indent=2)
 
 
 @dataclass(frozen=True)
@@ -194,7 +195,7 @@ def schema_command(target: str, kind: str | None, as_json: bool, markdown: bool)
         print(f"bench schema: {e.args[0]}", file=sys.stderr)
         return 2
     if as_json:
-        print(json.dumps(json_schema(target, kind), indent=2))
+        print(json_schema(target, kind))
     else:
         print(text_reference(node))
     return 0

@@ -22,7 +22,7 @@ import msgspec
 
 from bench.core import events as ev
 from bench.core.events import Event
-from drivers.json_types import JsonObject
+from drivers.json_types import JsonObject, JsonScalar, JsonValue
 
 T = TypeVar("T")
 S = TypeVar("S", bound=msgspec.Struct)
@@ -226,3 +226,72 @@ def read_meta(path: Path) -> RunMeta:
         return msgspec.json.decode(path.read_bytes(), type=RunMeta)
     except msgspec.DecodeError as e:
         raise ValueError(f"{path}: {e}") from e
+
+
+class PerformerMeta(msgspec.Struct, frozen=True):
+    """meta.json's `performer`: the account the lab register authenticated at the run's
+    start (bench/app/register/gate.py writes it)."""
+
+    full_name: str | None = None
+    account: str | None = None
+    register: str | None = None
+    authenticated_utc: str | None = None
+
+
+class EquipmentStatusMeta(msgspec.Struct, frozen=True):
+    """One entry of meta.json's `equipment_status`: why the inventory did not clear an
+    item, or the deviation it was used under."""
+
+    problem: str | None = None
+    deviation: str | None = None
+
+
+class StartMeta(msgspec.Struct, frozen=True):
+    """What the app adds to meta.json at the run's start: who performed it (the register's
+    account, else the operating-system user or --operator) and the equipment's status."""
+
+    performer: PerformerMeta | None = None
+    equipment_register: str | None = None
+    equipment_status: tuple[EquipmentStatusMeta, ...] = ()
+    os_user: str | None = None
+    operator: str | None = None
+
+
+def start_meta(meta: JsonObject) -> StartMeta:
+    """meta.json's start facts, typed. A part of the wrong shape is left out (the
+    certificate says "not recorded"), never a crash that withholds the certificate."""
+    try:
+        return msgspec.convert(meta, StartMeta)
+    except msgspec.ValidationError:
+        pass
+
+    def fits(value: JsonValue, model: type[msgspec.Struct]) -> bool:
+        try:
+            msgspec.convert(value, model)
+        except msgspec.ValidationError:
+            return False
+        return True
+
+    found = meta.get("equipment_status")
+    statuses = [e for e in (found if isinstance(found, list) else [])
+                if isinstance(e, dict) and fits(e, EquipmentStatusMeta)]
+    parts = {n: meta.get(n) for n in StartMeta.__struct_fields__
+             if n != "equipment_status" and fits({n: meta.get(n)}, StartMeta)}
+    return msgspec.convert({**parts, "equipment_status": statuses}, StartMeta)
+
+
+def json_leaves(raw: bytes) -> dict[str, JsonScalar]:
+    """A JSON document's values by key path (`a.b[0].c`), in the document's order: what
+    two issued revisions' result.json are compared by. ValueError when it is not JSON."""
+    def walk(node: JsonValue, path: str) -> Iterator[tuple[str, JsonScalar]]:
+        if isinstance(node, dict):
+            for k, v in node.items():
+                yield from walk(v, f"{path}.{k}" if path else str(k))
+        elif isinstance(node, list):
+            for i, v in enumerate(node):
+                yield from walk(v, f"{path}[{i}]")
+        else:
+            yield path, node
+
+    doc: JsonValue = json.loads(raw)
+    return dict(walk(doc, ""))

@@ -25,11 +25,10 @@ import argparse
 import contextlib
 import contextvars
 import hashlib
-import json
 import os
 import shutil
 import sys
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -54,11 +53,11 @@ from bench.app.register.store import (
 )
 from bench.core import rundir_layout as layout
 from bench.core.config import dcc_refs
+from bench.core.journal_codec import json_leaves
 from bench.core.lab import Lab, LabError, Signatory, run_lab
 from bench.core.settings_codec import identities, lab_keys
 from bench.core.traceability import identity_problems, with_declared_serials
 from bench.report.result_frame import ResultFrame
-from drivers.json_types import JsonObject
 
 EXIT_ISSUED, EXIT_REFUSED, EXIT_FAILED = 0, 2, 3
 ISSUED_DIR = layout.ISSUED
@@ -72,7 +71,7 @@ class IssueContext:
     """What a pre-issue check may look at: the run, its result, the lab, who issues."""
 
     run_path: Path
-    result: Mapping[str, object]
+    src: Sources                              # the run decoded (result.json, meta, stand)
     lab: Lab
     signatory: Signatory
     reason: str | None
@@ -84,7 +83,7 @@ class IssueContext:
     @property
     def frame(self) -> ResultFrame:
         """The result's header, checks and verdict, typed (malformed parts dropped)."""
-        return ResultFrame.conform(self.result)[0]
+        return self.src.frame
 
 
 PreIssueCheck = Callable[[IssueContext], list[str]]
@@ -113,7 +112,7 @@ def _identities(ctx: IssueContext) -> list[str]:
     found = ctx.frame.instruments
     if not found:
         return ["the run recorded no instrument identities (result.json instruments)"]
-    stand = _stand(ctx.run_path)
+    stand = ctx.src.stand_file
     return [f"{p} (ISO/IEC 17025 6.4.13 a)"
             for p in identity_problems(with_declared_serials(identities(found), stand))]
 
@@ -154,28 +153,17 @@ def refusals(ctx: IssueContext, checks: list[PreIssueCheck] | None = None) -> li
 
 # -- what changed between two issued revisions -------------------------------------------
 
-def _leaves(node: object, path: str = "") -> Iterator[tuple[str, object]]:
-    if isinstance(node, Mapping):
-        for k, v in node.items():
-            yield from _leaves(v, f"{path}.{k}" if path else str(k))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            yield from _leaves(v, f"{path}[{i}]")
-    else:
-        yield path, node
-
-
-def changes_between(old: Mapping[str, object] | None, new: Mapping[str, object],
-                    old_html: str | None = None, new_html: str | None = None,
+def changes_between(old: bytes | None, new: bytes, old_html: str | None = None, new_html: str | None = None,
                     limit: int = 12) -> tuple[str, ...]:
     """What differs between the revision replaced and this one, as facts: the values of
     result.json, then every statement of the certificate (assurance, traceability,
     conformity text, conditions...: bench/app/certificate/revisions.py) when both
-    revisions' HTML are given (issue 43: a changed assurance statement is a change)."""
+    revisions' HTML are given (issue 43: a changed assurance statement is a change).
+    `old` and `new` are the revisions' result.json as stored."""
     if old is None:
         values = ["the replaced revision's result.json is not kept; differences not stated"]
     else:
-        before, after = dict(_leaves(old)), dict(_leaves(new))
+        before, after = json_leaves(old), json_leaves(new)
         values = [f"{k}: {before.get(k, 'absent')!r} -> {after.get(k, 'absent')!r}"
                   for k in dict.fromkeys([*before, *after]) if before.get(k) != after.get(k)]
     said = None if new_html is None else statement_changes(old_html, new_html)
@@ -229,13 +217,6 @@ def _refuse(reasons: list[str], run_path: Path) -> int:
     return EXIT_REFUSED
 
 
-def _stand(run_path: Path) -> JsonObject:
-    """The run's stand file as the run read it (a serial still to fill in is none)."""
-    from bench.core.placeholders import run_copy
-
-    return run_copy(run_path, "stand.yaml")
-
-
 def issue_dir(run_path: Path, number: str) -> Path:
     return Path(run_path) / ISSUED_DIR / number
 
@@ -272,7 +253,7 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
     inputs = _run_inputs(run_path, lab_file)
     if isinstance(inputs, list):
         return _refuse(inputs, run_path)
-    result_bytes, result, stand, lab, url = inputs
+    result_bytes, src, lab, url = inputs
     try:
         reg = Register.open(url, migrate=False)
     except RegisterError as e:
@@ -304,13 +285,12 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
             return _refuse(again, run_path)
         if again is not record:     # issue 58: issued from the corrected, registered result
             record = again
-            result = json.loads(record.result_bytes or b"{}")
+            src = Sources.decode(record.result_bytes or b"{}", run_path)
         result_bytes = record.result_bytes or result_bytes     # the register's, checked equal
         who = Signatory(acct.full_name, acct.function or "", True)
         previous = tuple(register.Issue(r.shown_number, r.revision, r.issued_utc,
                                         signatory=r.signatory_name) for r in issued)
-        src = Sources.load(result, run_path)
-        ctx = IssueContext(run_path, result, lab, who, reason, previous,
+        ctx = IssueContext(run_path, src, lab, who, reason, previous,
                            bool(stand_of(src).get("simulated")), lab.records_url, reg)
         refused = refusals(ctx)
         held = reg.issuer()
@@ -326,14 +306,15 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
             number = number or reg.allocate(uid, lab.prefix, acct.name)
         except RegisterError as e:
             return _refuse([str(e)], run_path)
-        return _issue(run_path, result, result_bytes, stand, lab, reg, acct, who, number,
-                      previous, reason, line, record)
+        return _issue(run_path, result_bytes, lab, reg, acct, who, number, previous, reason,
+                      line, record)
 
 
 def _run_inputs(run_path: Path, lab_file: str | None
-                ) -> tuple[bytes, JsonObject, JsonObject, Lab, str] | list[str]:
-    """What an issue starts from: the run's result.json (as bytes and read), its stand,
-    the laboratory and the register's URL; a list: the reasons to refuse."""
+                ) -> tuple[bytes, Sources, Lab, str] | list[str]:
+    """What an issue starts from: the run's result.json (as bytes and decoded with the
+    run's meta, stand and events), the laboratory and the register's URL; a list: the
+    reasons to refuse."""
     from bench.app.dcc.settings import resolve_settings
 
     result_file = run_path / RESULT_NAME
@@ -341,13 +322,12 @@ def _run_inputs(run_path: Path, lab_file: str | None
         return [f"{result_file}: not found (`bench analyze {run_path}` writes it)"]
     result_bytes = result_file.read_bytes()
     try:
-        result = json.loads(result_bytes)
+        src = Sources.decode(result_bytes, run_path)
     except ValueError as e:
         return [f"{result_file}: not JSON: {e}"]
-    stand = _stand(run_path)
     try:
-        own = run_lab(run_path, lab_keys(ResultFrame.conform(result)[0].certificate))
-        lab = resolve_settings(dcc_refs(stand), lab_file, base=own)
+        own = run_lab(run_path, lab_keys(src.frame.certificate))
+        lab = resolve_settings(dcc_refs(src.stand_file), lab_file, base=own)
         if own.name and not lab.name:   # a lab file that names only the register and
             lab = replace(own, signing=lab.signing,     # key: the run's laboratory, as the
                           require_signed_dcc=lab.require_signed_dcc)   # PDF prints it
@@ -359,7 +339,7 @@ def _run_inputs(run_path: Path, lab_file: str | None
                 "(register: URL): a certificate is issued only through the lab's "
                 "register, which authenticates the signatory and allocates the number "
                 "(docs/register.md); the draft stays a draft"]
-    return result_bytes, result, stand, lab, url
+    return result_bytes, src, lab, url
 
 
 def _corrected_record(reg: Register, record: RunRecord, run_path: Path, reason: str | None,
@@ -374,7 +354,8 @@ def _corrected_record(reg: Register, record: RunRecord, run_path: Path, reason: 
     due, refused = corrected.corrections_due(reg, record)
     if refused or not due:
         return refused or record
-    if corrected.already_applied(json.loads(record.result or "{}"), due):
+    if corrected.already_applied(Sources.decode(record.result_bytes or b"{}", None).written,
+                                 due):
         return record
     serials = ", ".join(sorted({str(corr.get("serial")) for corr in due}))
     if reissue and not (reason or "").strip():
@@ -413,8 +394,7 @@ def _ask(prompt: str) -> str:
     return Passwords(False).next(prompt)
 
 
-def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonObject,
-           lab: Lab, reg: Register, acct: Account, who: Signatory, number: str,
+def _issue(run_path: Path, result_bytes: bytes, lab: Lab, reg: Register, acct: Account, who: Signatory, number: str,
            previous: tuple[register.Issue, ...], reason: str | None,
            line: Callable[[str], None], record: RunRecord) -> int:
     """Render the issue, record it in the register (which may still refuse: a concurrent
@@ -440,11 +420,13 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
     shutil.rmtree(work, ignore_errors=True)
     work.mkdir(parents=True)
     (work / RESULT_NAME).write_bytes(result_bytes)          # what this issue states
-    src = Sources.load(result, run_path)    # the run decoded once, for the certificate
+    # the run decoded afresh for the certificate (the pre-issue checks refreshed the
+    # run's assurance.json)
+    src = Sources.decode(result_bytes, run_path)
     if previous:
         # every statement compared with the replaced revision's as issued (its HTML)
         issue = render_issue(src, work, issue, lambda html: changes_between(
-            old, result, old_html, html))
+            old, result_bytes, old_html, html))
     else:
         render_files(src, work, issue=issue)
     signer = reg.dcc_signer(acct)
@@ -455,7 +437,7 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
     else:
         signing_lab, signing_note = designated_signing(lab, reg)
     try:
-        outcome = write_dcc(run_path, src, dcc_refs(stand), lab=signing_lab, issue=issue,
+        outcome = write_dcc(run_path, src, dcc_refs(src.stand_file), lab=signing_lab, issue=issue,
                             out_dir=work, signer=signer)
     except (LabError, RegisterError) as e:
         _discard(work)
@@ -483,18 +465,18 @@ def _issue(run_path: Path, result: JsonObject, result_bytes: bytes, stand: JsonO
              f"{issue_dir(run_path, issue.replaces)})")
     for name in (PDF_NAME, HTML_NAME, DCC_NAME):
         line(f"wrote {final / name}")
-    _update_records(run_path, lab, result, line)
+    _update_records(run_path, lab, src, line)
     return EXIT_ISSUED
 
 
 def _replaced_revision(run_path: Path, previous: tuple[register.Issue, ...]
-                       ) -> tuple[JsonObject | None, str | None]:
+                       ) -> tuple[bytes | None, str | None]:
     """The revision a re-issue replaces, as issued (its result.json and HTML, kept under
     issued/): what the new revision's statements are compared with."""
     old = None
     if previous:
         kept = issue_dir(run_path, previous[-1].number) / RESULT_NAME
-        old = json.loads(kept.read_bytes()) if kept.is_file() else None
+        old = kept.read_bytes() if kept.is_file() else None
     old_html = None
     if previous:
         kept_html = issue_dir(run_path, previous[-1].number) / HTML_NAME
@@ -539,14 +521,14 @@ def _publish(run_path: Path, work: Path, final: Path, issue: register.Issue,
         os.replace(tmp, run_path / name)
 
 
-def _update_records(run_path: Path, lab: Lab, result: JsonObject,
+def _update_records(run_path: Path, lab: Lab, src: Sources,
                     line: Callable[[str], None]) -> None:
     """The records cite the issued revision (number and the digests of its files as
     stored) from now on; a records database out of reach is said, not fatal: the issue
     stands in the register, and `bench records import` catches up."""
     from bench.app.records.hooks import register_run, target
 
-    register_run(run_path, target(run_path.parent, lab.records_url), line, result)
+    register_run(run_path, target(run_path.parent, lab.records_url), line, src.written)
 
 
 

@@ -613,7 +613,7 @@ def _deviations(src: Sources, proc: Procedure) -> tuple[Block, ...]:
                    f"{text_of(e.reported)} ({text_of(e.query)}); its check "
                    "values are filed under the reported serial. A finding of a run on "
                    "simulated twins: a real stand with this mismatch is refused.")
-    run += equipment_lines(src.meta, bool(stand_of(src).get("simulated")))
+    run += equipment_lines(src.start, bool(stand_of(src).get("simulated")))
     run += identity_lines(equipment_list(src), bool(stand_of(src).get("simulated")))
     for where in src.dropped:
         run.append(f"result.json: {where} was malformed and is not reported here.")
@@ -966,9 +966,9 @@ def _signatures(src: Sources, issue: Issue) -> tuple[Block, ...]:
     """Who performed the calibration (the account the register authenticated at the run's
     start, else "not recorded") and who authorised the issue (the account it authenticated
     at issue: printed name, date and time, meaning). Names in a file sign nothing."""
-    name, how = performer(src.meta)
+    name, how = performer(src.start)
     pairs: list[tuple[str, str]] = [(PERFORMED_BY, name)]
-    performed = Para(performer_line(src.meta), "note")
+    performed = Para(performer_line(src.start), "note")
     if issue.draft:
         pairs.append(("Reviewed and authorised by", ""))
         how_issued = ("A signatory of the lab register issues it (`bench authorise RUN_DIR "

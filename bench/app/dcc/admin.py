@@ -148,7 +148,7 @@ def _people(persons: etree._Element, src: Sources, issue: Issue) -> None:
     """As the PDF's authorisation section (bench/app/certificate/people.py): the performer
     the register authenticated (or "not recorded"), then, on an issue, its signatory as
     main signer; a draft names no one who would sign it."""
-    performed, how = performer(src.meta)
+    performed, how = performer(src.start)
     people = [(performed, f"{PERFORMED_BY} ({how})", False)]
     if not issue.draft:
         people.append((str(issue.signatory), f"{issue.function or 'Authorised signatory'}; "
@@ -288,7 +288,7 @@ def _stand_statements(sts: etree._Element, src: Sources, lab: Lab, country: str 
     if stand.get("simulated"):
         statement(sts, V.SIMULATED, "SIMULATED stand: every instrument was a simulated "
                   "twin on a real channel; the results describe no physical item.")
-    for i, line in enumerate(equipment_lines(src.meta, bool(stand.get("simulated")))):
+    for i, line in enumerate(equipment_lines(src.start, bool(stand.get("simulated")))):
         statement(sts, V.EQUIPMENT, line, sid=f"equipment{i + 1}", title="Equipment",
                   norms=("ISO/IEC 17025:2017",), references=("6.4.13",))
     # as the PDF's deviations: items without an identity of their own (issue 43)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import datetime as dt
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TypedDict
 
 from bench.app.register.store import (
     Calibration,
@@ -112,6 +113,15 @@ def open_register(url: str) -> Register:
         raise RegisterError(f"the lab register cannot be reached: {e}") from None
 
 
+class StartFacts(TypedDict):
+    """What meta.json keeps of the register's word at the run's start, in this key order
+    (bench/core/journal_codec.py's `StartMeta` reads it back for the certificate)."""
+
+    performer: dict[str, str | None] | None
+    equipment_register: str | None
+    equipment_status: list[dict[str, str | None]]
+
+
 @dataclass(frozen=True)
 class StartGate:
     """What the register says before a run starts: `refusal` (not started) or the facts
@@ -122,7 +132,7 @@ class StartGate:
     equipment: list[dict[str, str | None]]
     register: str | None
 
-    def meta(self) -> dict[str, object]:
+    def meta(self) -> StartFacts:
         return {"performer": self.performer, "equipment_register": self.register,
                 "equipment_status": self.equipment}
 

@@ -22,6 +22,7 @@ from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.events import Event
 from bench.core.journal import read_events
+from bench.core.journal_codec import StartMeta, start_meta
 from bench.core.placeholders import run_copy
 from bench.report.result_frame import JsonObject, ResultFrame, as_object
 
@@ -39,6 +40,9 @@ class Sources:
     procedure_file: dict[str, Any] = field(default_factory=dict)
     events: list[Event] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)  # malformed parts of result.json
+    #: result.json as written, before its malformed parts were dropped: what the records
+    #: database stores and a correction is compared with
+    written: JsonObject = field(default_factory=dict)
     #: the kind's result model, decoded once (`model`), by its decoder
     _models: dict[Callable[[Sources], object], object] = field(default_factory=dict,
                                                                repr=False)
@@ -46,7 +50,7 @@ class Sources:
     @classmethod
     def load(cls, result: object, run_path: Path | None) -> Sources:
         conformed, dropped = conform_result(result)
-        src = cls(conformed, run_path, dropped=dropped)
+        src = cls(conformed, run_path, dropped=dropped, written=as_object(result) or {})
         if run_path is None:
             return src
         src.meta = read_json_object(run_path / layout.META)
@@ -63,6 +67,12 @@ class Sources:
         """The run of `result_file` (a run directory's result.json, or one given beside
         it), decoded: ValueError when the file is not JSON, OSError when unreadable."""
         return cls.load(json.loads(result_file.read_text(encoding="utf-8")), result_file.parent)
+
+    @classmethod
+    def decode(cls, raw: bytes, run_path: Path | None) -> Sources:
+        """The run of a result.json given as bytes (the file's, the register's copy):
+        ValueError when they are not JSON."""
+        return cls.load(json.loads(raw), run_path)
 
     def event_utc(self, kind: type[Event], last: bool = False) -> str | None:
         """When the event log first (or last) recorded an event of `kind`, as it wrote it."""
@@ -88,6 +98,12 @@ class Sources:
                                             ("where", "certificate", "issuer", "due")):
                 out[str(st["where"])] = {k: str(st[k]) for k in ("certificate", "issuer", "due")}
         return out
+
+    @cached_property
+    def start(self) -> StartMeta:
+        """meta.json's account of the run's start (the performer, the equipment's status
+        in the register), typed once for the certificate and the DCC."""
+        return start_meta(self.meta)
 
     @cached_property
     def frame(self) -> ResultFrame:
