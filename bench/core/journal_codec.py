@@ -240,10 +240,15 @@ class PerformerMeta(msgspec.Struct, frozen=True):
 
 class EquipmentStatusMeta(msgspec.Struct, frozen=True):
     """One entry of meta.json's `equipment_status`: why the inventory did not clear an
-    item, or the deviation it was used under."""
+    item, or the deviation it was used under, and the calibration in force (its
+    certificate, issuer and due date) at the stand key `where`."""
 
     problem: str | None = None
     deviation: str | None = None
+    where: str | None = None
+    certificate: str | None = None
+    issuer: str | None = None
+    due: str | None = None
 
 
 class StartMeta(msgspec.Struct, frozen=True):

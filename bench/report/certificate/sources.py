@@ -91,13 +91,10 @@ class Sources:
         """The calibration in force per stand key (its certificate, issuer and due date),
         as the register gave it at the run's start (meta.json's equipment_status,
         bench/app/register/gate.py); an entry lacking one of them is left out."""
-        got = self.meta.get("equipment_status")
-        out: dict[str, dict[str, str]] = {}
-        for st in got if isinstance(got, list) else []:
-            if isinstance(st, dict) and all(isinstance(st.get(k), str) for k in
-                                            ("where", "certificate", "issuer", "due")):
-                out[str(st["where"])] = {k: str(st[k]) for k in ("certificate", "issuer", "due")}
-        return out
+        return {st.where: {"certificate": st.certificate, "issuer": st.issuer, "due": st.due}
+                for st in self.start.equipment_status
+                if st.where is not None and st.certificate is not None
+                and st.issuer is not None and st.due is not None}
 
     @cached_property
     def start(self) -> StartMeta:
