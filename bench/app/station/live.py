@@ -38,7 +38,7 @@ from bench.app.station.view import page_view, station_of
 from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.config import FogSettings
-from bench.core.events import Event, TimedHalf
+from bench.core.events import Event, LiveRow, TimedHalf
 from bench.core.journal import fog_capture_starts
 from bench.core.journal_codec import (
     DriveFeedback,
@@ -280,7 +280,7 @@ def _or_none(value: T | msgspec.UnsetType) -> T | None:
     return None if isinstance(value, msgspec.UnsetType) else value
 
 
-def pair_rows(events: list[Event]) -> list[JsonObject]:
+def pair_rows(events: list[Event]) -> list[LiveRow]:
     """The results as they come: the rows each kind's first looks add (`Event.live_rows`;
     the ladder's: per axis, rate and direction, k and w0, delta +/- U, sigma, verdict)."""
     return [row for e in events for row in e.live_rows()]
@@ -456,7 +456,7 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
         "turns": turn_rates(shown_acquires[-1]) if shown_acquires else None,
         "fog": {"axis": axis, **encode(fog)},
         "health": encode(healthy),
-        "results": results,
+        "results": [encode(r) for r in results],
         "final": final,
         "drive": {"axis": axis, **drive},
         "faults": [line for e, line in zip(shown_events, shown, strict=True)
