@@ -286,12 +286,11 @@ def pair_rows(events: list[Event]) -> list[LiveRow]:
     return [row for e in events for row in e.live_rows()]
 
 
-def final_rows(doc: JsonObject, run_path: Path | None = None) -> list[JsonObject]:
+def final_rows(frame: ResultFrame, run_path: Path | None = None) -> list[JsonObject]:
     """The final rows from result.json, as its kind's station part gives them (the
     ladder's: per axis and rate the figures the certificate prints with the pair's k and
     w0); none for a kind that gives none."""
-    frame = ResultFrame.of(doc)
-    return station_of(frame.procedure or kind_name(doc, run_path)).result_rows(frame)
+    return station_of(frame.procedure or kind_name(frame.doc, run_path)).result_rows(frame)
 
 
 #: a session's exit status (bench/app/session.py EXIT_*, CONTRACT section 1) as the page
@@ -324,9 +323,10 @@ class RunStatus(TypedDict):
     utc: NotRequired[str]
 
 
-def _read_result(run_path: Path) -> JsonObject | None:
+def _read_result(run_path: Path) -> ResultFrame | None:
+    """result.json's frame as the page shows it (None: not written yet, or not JSON)."""
     try:
-        return read_json_object(run_path / layout.RESULT)
+        return ResultFrame.of(read_json_object(run_path / layout.RESULT))
     except (OSError, ValueError):
         return None
 
@@ -424,10 +424,10 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
     shown_acquires = [e for e in acquires if not axis or e.axis == axis]
     result: JsonValue = None
     final: list[JsonObject] = []
-    doc = _read_result(run_path) if status != "running" else None
-    if doc is not None:
-        result = doc.get("verdict")
-        final = final_rows(doc, run_path)
+    frame = _read_result(run_path) if status != "running" else None
+    if frame is not None:
+        result = frame.doc.get("verdict")
+        final = final_rows(frame, run_path)
     axes_now = [str(a) for a in ((stand.get("axes") or {}) if isinstance(stand, dict)
                                  else {})]
     used = [a for a in axes_now if any(getattr(e, "axis", None) == a for e in session)] \
