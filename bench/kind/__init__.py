@@ -170,7 +170,7 @@ class ChecksInstruments(Protocol):
 class HasSampleResult(Protocol):
     """A hand-made result.json of the kind, for previews of its certificate."""
 
-    def sample_result(self) -> dict[str, object]:
+    def sample_result(self) -> JsonObject:
         """A result whose printed figures are worked out by hand."""
         ...
 

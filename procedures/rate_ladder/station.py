@@ -110,7 +110,7 @@ class LadderStation(StationParts):
         and instability with U and verdict, then each ± pair's FOG scale factor k and bias
         ω0 with U."""
         tables: list[PageTable] = []
-        for axis, body in axes_of(frame.doc).items():
+        for axis, body in axes_of(frame).items():
             if body.rates:
                 tables.append(_rates_table(axis, body.rates))
             if body.pairs:
@@ -121,7 +121,7 @@ class LadderStation(StationParts):
         """Per axis and rate the figures the certificate prints (rate error +/- U,
         instability, verdict) with the pair's k and w0."""
         rows: list[JsonObject] = []
-        for axis, body in axes_of(frame.doc).items():
+        for axis, body in axes_of(frame).items():
             by_rate = {entry.rate_dps: entry for entry in body.pairs}
             for r in body.rates:
                 p = by_rate.get(abs(r.set_rate_dps))
