@@ -580,6 +580,7 @@ def test_page_warns_of_a_silent_fog_and_shows_the_final_results(tmp_path: Path) 
 
 def test_results_rows_as_they_come_and_final() -> None:
     from bench.app.station.live import final_rows, pair_rows
+    from bench.report.result_frame import ResultFrame
     events = [{"event": "settled", "axis": "outer", "unit": "outer/10dps", "rate_dps": 10.0},
               {"event": "pair", "axis": "outer", "unit": "outer/10dps", "k": 1.0003,
                "k_u": 4e-6, "w0_dps": 0.002, "w0_u_dps": 4e-5,
@@ -589,14 +590,16 @@ def test_results_rows_as_they_come_and_final() -> None:
                               {"set_rate_dps": -10.0, "turns": 4, "rate_error_rel": 2e-5,
                                "rate_error_U_rel": 1e-7, "rate_instability_rel": 5e-8,
                                "verdict": "fail"}]}]
+    from procedures.rate_ladder.events import ResultRow
     rows = pair_rows(decode_all(events))
-    assert [(r["set_rate_dps"], r["verdict"], r["k"]) for r in rows] == [
+    assert all(isinstance(r, ResultRow) for r in rows)
+    assert [(r.set_rate_dps, r.verdict, r.k) for r in rows if isinstance(r, ResultRow)] == [
         (10.0, "pass", 1.0003), (-10.0, "fail", 1.0003)]
     result = {"axes": {"outer": {
         "rates": [{"set_rate_dps": 10.0, "rate_error_rel": -1e-7, "rate_error_u_rel": 6e-8,
                    "rate_instability_rel": 3e-8, "turns": 4, "verdict": "pass"}],
         "pairs": [{"rate_dps": 10.0, "k": 1.0003, "k_u": 4e-6, "w0_dps": 0.002,
                    "w0_u_dps": 4e-5}]}}}
-    (row,) = final_rows(result)
+    (row,) = final_rows(ResultFrame.of(result))
     assert row["k"] == 1.0003 and row["rate_error_U_rel"] == 6e-8 and row["verdict"] == "pass"
-    assert final_rows({"axes": {"outer": "damaged"}}) == []
+    assert final_rows(ResultFrame.of({"axes": {"outer": "damaged"}})) == []

@@ -40,6 +40,12 @@ from drivers.json_types import JsonObject, JsonValue
 FRAME = ("utc", "t_s", "session", "event")
 
 
+class LiveRow(msgspec.Struct, frozen=True, kw_only=True):
+    """A row of the station's table of results as they come, declared by the kind whose
+    first look gives it (the ladder's `ResultRow`): the station passes it to the kind's
+    `live_table` and encodes it for /api with `msgspec.to_builtins`, fields in order."""
+
+
 class Event(msgspec.Struct, kw_only=True, frozen=True, tag_field="event"):
     """Common to every journal record. The journal sets the frame (`utc`, the stand
     clock's `t_s`, the session's number) as it writes; a record built by a step leaves
@@ -66,7 +72,7 @@ class Event(msgspec.Struct, kw_only=True, frozen=True, tag_field="event"):
         declares it (None: the station's generic wording, the kind's name and reason)."""
         return None
 
-    def live_rows(self) -> list[JsonObject]:
+    def live_rows(self) -> list[LiveRow]:
         """Rows this event adds to the station's table of results as they come (a kind's
         first look at its data; none for most events)."""
         return []

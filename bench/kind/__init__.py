@@ -26,6 +26,7 @@ from bench.core.yamlfile import YamlValue
 if TYPE_CHECKING:
     from lxml import etree
 
+    from bench.core.events import LiveRow
     from bench.report.certificate.model import Block, Document, Section
     from bench.report.certificate.parts import Check, Sources, TitledBlocks
     from bench.report.dcc.conformity import Checks
@@ -92,11 +93,11 @@ class StationPart(Protocol):
     rounding rule (`bench.report.station.StationParts` answers with nothing: the pages
     then list the kind's declared figures)."""
 
-    def live_table(self, rows: Sequence[JsonObject]) -> PageTable | None:
+    def live_table(self, rows: Sequence[LiveRow]) -> PageTable | None:
         """The first looks as they come (the rows the kind's events give, `Event.live_rows`)."""
         ...
 
-    def last_look(self, row: JsonObject) -> str | None:
+    def last_look(self, row: LiveRow) -> str | None:
         """The newest first look in one line, for the lab's list of benches."""
         ...
 
@@ -169,7 +170,7 @@ class ChecksInstruments(Protocol):
 class HasSampleResult(Protocol):
     """A hand-made result.json of the kind, for previews of its certificate."""
 
-    def sample_result(self) -> dict[str, object]:
+    def sample_result(self) -> JsonObject:
         """A result whose printed figures are worked out by hand."""
         ...
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from bench.core.events import LiveRow
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u, rel_unit
 from bench.report.result_frame import ResultFrame
 from drivers.json_types import JsonLike, JsonObject, JsonValue
@@ -69,11 +70,11 @@ class StationParts:
     """The station's questions to a procedure kind about its results, with neutral
     answers: no live table, no tables of its own (the pages list its declared figures)."""
 
-    def live_table(self, rows: Sequence[JsonObject]) -> PageTable | None:
+    def live_table(self, rows: Sequence[LiveRow]) -> PageTable | None:
         """The first looks as they come (none)."""
         return None
 
-    def last_look(self, row: JsonObject) -> str | None:
+    def last_look(self, row: LiveRow) -> str | None:
         """The newest first look in one line (none)."""
         return None
 

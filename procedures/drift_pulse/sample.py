@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from bench.core import rundir_layout as layout
+from drivers.json_types import JsonObject
 from procedures.drift_pulse.codec import encode
 from procedures.drift_pulse.result import (
     AxisFigures,
@@ -81,7 +82,7 @@ def drift_figures() -> DriftFigures:
                         earth_horizontal_U_dph=0.0045, earth_horizontal_consistent=True)
 
 
-def drift_pulse_result() -> dict[str, object]:
+def drift_pulse_result() -> JsonObject:
     """A whole result.json around `drift_figures`, for previews of the certificate."""
     return {
         "schema": "bench.result/1",

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Protocol
 
-from bench.report.result_frame import MalformedResult
+from bench.report.result_frame import MalformedResult, ResultFrame
 from procedures.rate_ladder.codec import conform
 
 
@@ -81,10 +81,10 @@ class AxisRows(Protocol):
     def noise_floor(self) -> FloorRow | None: ...
 
 
-def axes_of(result: Mapping[str, object]) -> Mapping[str, AxisRows]:
-    """The ladder's own typed axes; {} for a result that is not a JSON object or whose
+def axes_of(frame: ResultFrame) -> Mapping[str, AxisRows]:
+    """The ladder's own typed axes of a result read once (`ResultFrame`); {} for one whose
     axes are malformed."""
     try:
-        return conform(result)[0].axes
+        return conform(frame.doc)[0].axes
     except MalformedResult:
         return {}

@@ -299,7 +299,3 @@ def row_json(row: ResultRow) -> JsonObject:
     """A station row as the station's pages carry it (its fields, in order)."""
     return cast(JsonObject, msgspec.to_builtins(row))
 
-
-def row_of(row: Mapping[str, object]) -> ResultRow:
-    """A station row as the station's event protocol carried it (`PairLooked.live_rows`)."""
-    return msgspec.convert(row, ResultRow)

@@ -10,14 +10,13 @@ the journal's (bench/core/events.py, issue 61): the journal adds `utc`, `t_s` an
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import ClassVar, TypeVar, cast
+from typing import ClassVar, TypeVar
 
 import msgspec
 
-from bench.core.events import Event
+from bench.core.events import Event, LiveRow
 from bench.report.certificate.rounding import MINUS, format_value_u
 from drivers.fog import FogCheckpoint
-from drivers.json_types import JsonObject
 
 E = TypeVar("E", bound="LadderEvent")
 
@@ -105,7 +104,7 @@ class PairDirection(msgspec.Struct, frozen=True, kw_only=True):
     verdict: str
 
 
-class ResultRow(msgspec.Struct, frozen=True, kw_only=True):
+class ResultRow(LiveRow, frozen=True, kw_only=True):
     """One direction's row on the station's pages, first look (`PairLooked.rows`) or final
     (station.py `result_rows`): k and w0 of the pair, the rate error with its U, sigma,
     the verdict, as result.json holds them; declared once for both."""
@@ -157,10 +156,10 @@ class PairLooked(LadderEvent, tag="pair", omit_defaults=True, frozen=True):
                           rate_instability_rel=d.rate_instability_rel, turns=d.turns,
                           verdict=d.verdict) for d in self.directions]
 
-    def live_rows(self) -> list[JsonObject]:
-        """The rows as the station's event protocol carries them (bench/core/events.py);
-        station.py decodes them (codec.py `row_of`)."""
-        return [cast(JsonObject, msgspec.to_builtins(r)) for r in self.rows()]
+    def live_rows(self) -> list[LiveRow]:
+        """The rows as the station's event protocol carries them (bench/core/events.py
+        `LiveRow`): the ladder's station.py reads their fields."""
+        return list(self.rows())
 
 
 class PairFailed(LadderEvent, tag="pair_failed", frozen=True):

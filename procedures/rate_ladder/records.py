@@ -161,7 +161,7 @@ class LadderRecords:
                           serial_of: SerialOf) -> list[InstrumentCheck]:
         """Each axis's FOG, as the run measured it: k and w0 per |rate| (eq. 5-6), its
         noise floor and bias at rest (docs/method.md C1), by the FOG's serial."""
-        axes = axes_of(frame.doc)
+        axes = axes_of(frame)
         stand_axes = stand.get("axes")
         out: list[InstrumentCheck] = []
         for axis, conf in (stand_axes.items() if isinstance(stand_axes, Mapping) else ()):

@@ -10,16 +10,17 @@ capability rule, and harmonics that are and are not significant.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
 from bench.core import rundir_layout as layout
+from drivers.json_types import JsonObject, JsonValue
 
 
 def _rate(set_dps: float, turns: int, err: float, err_u: float, inst: float, inst_u: float,
-          raw: float, corr: float, verdict: str, harmonics: list[dict[str, float]],
-          mains_dps: float, over: tuple[float, float, float]) -> dict[str, Any]:
+          raw: float, corr: float, verdict: str, harmonics: list[JsonValue],
+          mains_dps: float, over: tuple[float, float, float],
+          binned: JsonObject | None = None) -> JsonObject:
     mean = set_dps * (1 + err)
     spread = np.array([1.0, -1.0, -0.5, 0.5, 0.2, -0.2][:turns])
     spread = spread / spread.std(ddof=1) if turns > 1 else spread
@@ -55,12 +56,13 @@ def _rate(set_dps: float, turns: int, err: float, err_u: float, inst: float, ins
             "mains": {"frequency_hz": 50.0, "amplitude_dps": mains_dps,
                       "amplitude_u_dps": 3.0e-5, "phase_deg": 12.0, "phase_u_deg": 9.0,
                       "detected": True},
+            **({} if binned is None else {"binned": binned}),
         },
         "verdict": verdict,
     }
 
 
-def _outer_harmonics(sign: float) -> list[dict[str, float]]:
+def _outer_harmonics(sign: float) -> list[JsonValue]:
     return [
         {"order": 1, "amplitude_rel": 8.6e-4, "amplitude_u_rel": 1.23e-5,
          "phase_deg": 40.3 if sign > 0 else -139.6, "phase_u_deg": 0.84, "detected": True},
@@ -71,7 +73,7 @@ def _outer_harmonics(sign: float) -> list[dict[str, float]]:
     ]
 
 
-def _binned(set_dps: float) -> dict[str, Any]:
+def _binned(set_dps: float) -> JsonObject:
     """The paper's binned average by angle: the fitted model plus a deterministic ripple."""
     phi = np.arange(0.0, 360.0, 5.0) + 2.5
     r = np.radians(phi)
@@ -82,23 +84,22 @@ def _binned(set_dps: float) -> dict[str, Any]:
             "peak_to_peak_rel": float(np.ptp(model + ripple))}
 
 
-def _rates() -> tuple[list[dict[str, object]], list[dict[str, object]]]:
+def _rates() -> tuple[list[JsonValue], list[JsonValue]]:
     """(outer, inner): outer at +/-10 and +/-50 deg/s, failing its tolerance at 50 with
     the paper's binned average there; inner at +/-20 deg/s with one harmonic."""
-    h_in = [{"order": 1, "amplitude_rel": 2.0e-4, "amplitude_u_rel": 2.4e-5,
+    h_in: list[JsonValue] = [{"order": 1, "amplitude_rel": 2.0e-4, "amplitude_u_rel": 2.4e-5,
              "phase_deg": 120.0, "phase_u_deg": 7.0, "detected": True}]
-    outer = [
+    outer: list[JsonValue] = [
         _rate(10.0, 4, 3.04e-7, 1.23e-7, 2.6e-8, 2.2e-8, 1.06e-3, 1.2e-5, "pass",
               _outer_harmonics(1), 2.0e-4, (2.1e-4, 3.3e-5, 1.1e-6)),
         _rate(-10.0, 4, -2.1e-7, 1.2e-7, 3.1e-8, 2.6e-8, 1.04e-3, 1.3e-5, "pass",
               _outer_harmonics(-1), 1.9e-4, (2.0e-4, 3.1e-5, 1.0e-6)),
         _rate(50.0, 4, 1.42e-6, 1.1e-7, 4.4e-8, 3.7e-8, 2.15e-4, 1.05e-5, "fail",
-              _outer_harmonics(1), 2.1e-4, (4.4e-5, 6.6e-6, 2.4e-7)),
+              _outer_harmonics(1), 2.1e-4, (4.4e-5, 6.6e-6, 2.4e-7), _binned(50.0)),
         _rate(-50.0, 4, 9.5e-7, 1.0e-7, 2.0e-8, 1.7e-8, 2.11e-4, 1.0e-5, "fail",
               _outer_harmonics(-1), 2.0e-4, (4.3e-5, 6.5e-6, 2.2e-7)),
     ]
-    outer[2]["systematic"]["binned"] = _binned(50.0)
-    inner = [
+    inner: list[JsonValue] = [
         _rate(20.0, 4, 1.8e-7, 1.5e-7, 1.9e-8, 1.6e-8, 5.3e-4, 6.0e-6, "pass",
               h_in, 1.0e-4, (1.0e-4, 1.6e-5, 5.0e-7)),
         _rate(-20.0, 4, -1.0e-7, 3.5e-7, 2.2e-8, 1.9e-8, 5.2e-4, 6.1e-6, "pass",
@@ -107,10 +108,10 @@ def _rates() -> tuple[list[dict[str, object]], list[dict[str, object]]]:
     return outer, inner
 
 
-def _pairs() -> tuple[list[dict[str, object]], list[dict[str, object]]]:
+def _pairs() -> tuple[list[JsonValue], list[JsonValue]]:
     """(outer, inner): each pair's k and w0 with U, the bias drift fitted out."""
-    drift = {"method": "lsq-drift", "drift_source": "the three halves (+, -, +)"}
-    pairs_outer = [
+    drift: JsonObject = {"method": "lsq-drift", "drift_source": "the three halves (+, -, +)"}
+    pairs_outer: list[JsonValue] = [
         {"rate_dps": 10.0, "k": 1.000299, "k_u": 2.34e-6, "w0_dps": 0.002013,
          "w0_u_dps": 1.17e-4, "drift_dps_per_h": 0.00104, "drift_u_dps_per_h": 0.00031,
          **drift},
@@ -118,23 +119,23 @@ def _pairs() -> tuple[list[dict[str, object]], list[dict[str, object]]]:
          "w0_u_dps": 1.2e-4, "drift_dps_per_h": 0.00097, "drift_u_dps_per_h": 0.00029,
          **drift},
     ]
-    pairs_inner = [{"rate_dps": 20.0, "k": 0.9994985, "k_u": 1.2e-6, "w0_dps": -0.002994,
+    pairs_inner: list[JsonValue] = [{"rate_dps": 20.0, "k": 0.9994985, "k_u": 1.2e-6, "w0_dps": -0.002994,
                     "w0_u_dps": 1.2e-4, "drift_dps_per_h": 0.00201,
                     "drift_u_dps_per_h": 0.00030, **drift}]
     return pairs_outer, pairs_inner
 
 
-def _checks() -> list[dict[str, object]]:
+def _checks() -> list[JsonValue]:
     """The rate error per rate under the guard-band rule (each of its three outcomes),
     and one instability check."""
     def check(axis: str, rate: float, value: float, u: float, verdict: str, reason: str,
-              quantity: str = "rate_error", tol: float = 1.0e-6) -> dict[str, Any]:
+              quantity: str = "rate_error", tol: float = 1.0e-6) -> JsonValue:
         return {"axis": axis, "set_rate_dps": rate, "quantity": quantity,
                 "value_rel": value, "u_rel": u, "tolerance_rel": tol, "verdict": verdict,
                 "rule": "guard-band", "reason": reason, "capability_ratio": u / tol,
                 "capability_ok": u / tol <= 0.3}
 
-    checks = [
+    checks: list[JsonValue] = [
         check("outer", 10.0, 3.04e-7, 1.23e-7, "pass", "|δ| + U ≤ T"),
         check("outer", -10.0, -2.1e-7, 1.2e-7, "pass", "|δ| + U ≤ T"),
         check("outer", 50.0, 1.42e-6, 1.1e-7, "fail", "|δ| > T: out of tolerance"),
@@ -147,7 +148,7 @@ def _checks() -> list[dict[str, object]]:
     return checks
 
 
-def _raw_files() -> list[dict[str, object]]:
+def _raw_files() -> list[JsonValue]:
     """The raw files of one session, each hashed."""
     files = [(layout.raw_relpath(1, name), size) for name, size in (
         (layout.fog_capture("outer"), 4_321_000), (layout.counter_log("outer"), 18_211),
@@ -157,7 +158,7 @@ def _raw_files() -> list[dict[str, object]]:
             for i, (p, n) in enumerate(files, start=1)]
 
 
-def rate_ladder_result() -> dict[str, Any]:
+def rate_ladder_result() -> JsonObject:
     """Two axes; outer 10 and 50 deg/s, inner 20 deg/s; guard-band decision rule."""
     outer, inner = _rates()
     pairs_outer, pairs_inner = _pairs()

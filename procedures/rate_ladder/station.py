@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from bench.core.events import LiveRow
 from bench.report.certificate.parts import verdict_label
 from bench.report.certificate.rounding import format_sig, present_std
 from bench.report.result_frame import ResultFrame
@@ -21,7 +22,7 @@ from bench.report.station import (
 )
 from drivers.json_types import JsonObject
 from procedures.rate_ladder.axes_view import PairRow, RateRow, axes_of
-from procedures.rate_ladder.codec import row_json, row_of
+from procedures.rate_ladder.codec import row_json
 from procedures.rate_ladder.events import ResultRow
 
 LIVE_CAPTION = ("Results as they come (first look per pair; the certificate is computed "
@@ -61,13 +62,21 @@ def _pairs_table(axis: str, pairs: Sequence[PairRow]) -> PageTable:
                       ("pair, deg/s", "k ± U", "ω0 ± U, deg/s"), rows)
 
 
+def _ladder_row(row: LiveRow) -> ResultRow:
+    """A live row of a ladder run is the ladder's own (`PairLooked.live_rows`); another
+    kind's row here is the station asking the wrong kind, not data to guess at."""
+    if not isinstance(row, ResultRow):
+        raise TypeError(f"not a rate ladder row: {type(row).__name__}")
+    return row
+
+
 class LadderStation(StationParts):
     """The ladder's tables for the run pages and the lab's list of benches."""
 
-    def live_table(self, rows: Sequence[JsonObject]) -> PageTable | None:
+    def live_table(self, rows: Sequence[LiveRow]) -> PageTable | None:
         """The first look per pair, from the `pair` events (`PairLooked.rows`): k and w0
         with their U, each direction's rate error with its U."""
-        looked = [row_of(row) for row in rows]
+        looked = [_ladder_row(row) for row in rows]
         if not looked:
             return None
         unit = column_unit(*[r.rate_error_rel for r in looked],
@@ -90,9 +99,9 @@ class LadderStation(StationParts):
                            f"instability σ, {sunit.name} (first look; U in the final results)",
                            "turns", "verdict"), out)
 
-    def last_look(self, row: JsonObject) -> str | None:
+    def last_look(self, row: LiveRow) -> str | None:
         """'<axis> <rate> deg/s: rate error δ ± U ppm' of the newest direction looked at."""
-        r = row_of(row)
+        r = _ladder_row(row)
         error = value_u(r.rate_error_rel, r.rate_error_U_rel, 1e6, signed=True)
         return f"{r.axis} {rate_text(r.set_rate_dps)} deg/s: rate error {error} ppm"
 
@@ -101,7 +110,7 @@ class LadderStation(StationParts):
         and instability with U and verdict, then each ± pair's FOG scale factor k and bias
         ω0 with U."""
         tables: list[PageTable] = []
-        for axis, body in axes_of(frame.doc).items():
+        for axis, body in axes_of(frame).items():
             if body.rates:
                 tables.append(_rates_table(axis, body.rates))
             if body.pairs:
@@ -112,7 +121,7 @@ class LadderStation(StationParts):
         """Per axis and rate the figures the certificate prints (rate error +/- U,
         instability, verdict) with the pair's k and w0."""
         rows: list[JsonObject] = []
-        for axis, body in axes_of(frame.doc).items():
+        for axis, body in axes_of(frame).items():
             by_rate = {entry.rate_dps: entry for entry in body.pairs}
             for r in body.rates:
                 p = by_rate.get(abs(r.set_rate_dps))

@@ -38,7 +38,7 @@ from bench.app.station.view import page_view, station_of
 from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.config import FogSettings
-from bench.core.events import Event, TimedHalf
+from bench.core.events import Event, LiveRow, TimedHalf
 from bench.core.journal import fog_capture_starts
 from bench.core.journal_codec import (
     DriveFeedback,
@@ -280,18 +280,17 @@ def _or_none(value: T | msgspec.UnsetType) -> T | None:
     return None if isinstance(value, msgspec.UnsetType) else value
 
 
-def pair_rows(events: list[Event]) -> list[JsonObject]:
+def pair_rows(events: list[Event]) -> list[LiveRow]:
     """The results as they come: the rows each kind's first looks add (`Event.live_rows`;
     the ladder's: per axis, rate and direction, k and w0, delta +/- U, sigma, verdict)."""
     return [row for e in events for row in e.live_rows()]
 
 
-def final_rows(doc: JsonObject, run_path: Path | None = None) -> list[JsonObject]:
+def final_rows(frame: ResultFrame, run_path: Path | None = None) -> list[JsonObject]:
     """The final rows from result.json, as its kind's station part gives them (the
     ladder's: per axis and rate the figures the certificate prints with the pair's k and
     w0); none for a kind that gives none."""
-    frame = ResultFrame.of(doc)
-    return station_of(frame.procedure or kind_name(doc, run_path)).result_rows(frame)
+    return station_of(frame.procedure or kind_name(frame.doc, run_path)).result_rows(frame)
 
 
 #: a session's exit status (bench/app/session.py EXIT_*, CONTRACT section 1) as the page
@@ -324,9 +323,10 @@ class RunStatus(TypedDict):
     utc: NotRequired[str]
 
 
-def _read_result(run_path: Path) -> JsonObject | None:
+def _read_result(run_path: Path) -> ResultFrame | None:
+    """result.json's frame as the page shows it (None: not written yet, or not JSON)."""
     try:
-        return read_json_object(run_path / layout.RESULT)
+        return ResultFrame.of(read_json_object(run_path / layout.RESULT))
     except (OSError, ValueError):
         return None
 
@@ -424,10 +424,10 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
     shown_acquires = [e for e in acquires if not axis or e.axis == axis]
     result: JsonValue = None
     final: list[JsonObject] = []
-    doc = _read_result(run_path) if status != "running" else None
-    if doc is not None:
-        result = doc.get("verdict")
-        final = final_rows(doc, run_path)
+    frame = _read_result(run_path) if status != "running" else None
+    if frame is not None:
+        result = frame.doc.get("verdict")
+        final = final_rows(frame, run_path)
     axes_now = [str(a) for a in ((stand.get("axes") or {}) if isinstance(stand, dict)
                                  else {})]
     used = [a for a in axes_now if any(getattr(e, "axis", None) == a for e in session)] \
@@ -456,7 +456,7 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
         "turns": turn_rates(shown_acquires[-1]) if shown_acquires else None,
         "fog": {"axis": axis, **encode(fog)},
         "health": encode(healthy),
-        "results": results,
+        "results": [encode(r) for r in results],
         "final": final,
         "drive": {"axis": axis, **drive},
         "faults": [line for e, line in zip(shown_events, shown, strict=True)

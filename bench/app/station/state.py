@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import msgspec
 
-from drivers.json_types import JsonObject
+from bench.core.events import LiveRow
 
 FOG_TAIL_S = 30.0                 # bench seconds of FOG record shown
 
@@ -107,4 +107,4 @@ class PageState(msgspec.Struct, kw_only=True):
     ended_utc: str | None
     ended: bool = False
     #: the rows the kinds' first looks add (`Event.live_rows`), as the kind words them
-    results: list[JsonObject] = []
+    results: list[LiveRow] = []
