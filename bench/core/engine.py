@@ -21,7 +21,7 @@ from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass, field
 from types import FrameType, TracebackType
-from typing import TYPE_CHECKING, Protocol, TypeVar, TypeVarTuple, Unpack
+from typing import TYPE_CHECKING, Protocol, TypeVar, TypeVarTuple
 
 from bench.core import events as ev
 from bench.core.config import Config
@@ -334,7 +334,7 @@ class AnalysisWorker:
         if not set(modules) <= set(imported):
             self._pool.submit(_preload, preload)   # starts it; the initializer runs there
 
-    def submit(self, fn: Callable[[Unpack[Ts]], R], *args: Unpack[Ts],
+    def submit(self, fn: Callable[[*Ts], R], *args: *Ts,
                on_done: Callable[[R | None, BaseException | None], None]) -> None:
         """Run `fn(*args)` in the worker; `on_done(result, None)` or `on_done(None, error)`
         in a thread of this process when it is done (typed as concurrent.futures types its
