@@ -18,8 +18,10 @@ from bench.core.config import Config
 from bench.core.lab import certificate_settings
 from bench.core.plan import Plan, Step
 from bench.core.stops import register
+from bench.core.yamlfile import YamlValue
 from bench.report.conformity import RULES
 from bench.report.uncertainty_names import UNCERTAINTY_NAMING
+from drivers.json_types import JsonLike, JsonObject, JsonScalar
 
 # the engine and the journal for the hints only: `bench validate` loads the kinds (and this
 # module) for their files alone
@@ -86,8 +88,45 @@ class RawHashes:
             self._pool.shutdown(wait=False, cancel_futures=True)
 
 
+class ProcedureFileRef(TypedDict):
+    """result.json's `procedure_file`: the procedure the run followed, by name and digest."""
+
+    name: str
+    sha256: str
+
+
+class RunDates(TypedDict):
+    """result.json's `dates`: made, first started, last ended (None: not yet)."""
+
+    created_utc: str
+    started_utc: str | None
+    completed_utc: str | None
+
+
+class RunHeader(TypedDict):
+    """What every kind's result.json says about the run, in the document's key order
+    (bench/report/result_frame.py reads it back as ResultFrame)."""
+
+    title: str
+    run_dir: str
+    procedure_file: ProcedureFileRef
+    #: the stand file's identity keys it states, then the file, its digest, simulated
+    stand: dict[str, JsonScalar]
+    instruments: dict[str, dict[str, str]]
+    dates: RunDates
+    # the procedure's free-form blocks as its file states them (YAML values)
+    conditions: dict[str, YamlValue]
+    specification: dict[str, YamlValue] | None
+    certificate: dict[str, YamlValue]
+    sessions: int
+    aborted: bool
+    ended: str | None
+    run_sessions: list[dict[str, str | int | None]]
+    raw_files: list[RawFile]
+
+
 def run_header(run: RunDir, cfg: Config, events: Sequence[Event],
-               raw_hashes: RawHashes | None = None) -> dict[str, object]:
+               raw_hashes: RawHashes | None = None) -> RunHeader:
     """What every procedure kind's result.json says about the run (certificate header)."""
     from bench.core import events as ev  # the journal's records: not for `bench validate`
     meta = run.meta
@@ -101,7 +140,7 @@ def run_header(run: RunDir, cfg: Config, events: Sequence[Event],
     sessions = session_endings(events)
     last = sessions[-1] if sessions else None
     raw_files = (raw_hashes or RawHashes(run)).result()
-    return {
+    return RunHeader({
         "title": cfg.common.title,
         "run_dir": run.path.name,
         "procedure_file": {"name": meta["procedure_name"], "sha256": meta["procedure_sha256"]},
@@ -123,14 +162,15 @@ def run_header(run: RunDir, cfg: Config, events: Sequence[Event],
         "ended": last.ended if last else None,
         "run_sessions": [x.to_json() for x in sessions],
         "raw_files": raw_files,
-    }
+    })
 
 
 def result_document(run: RunDir, cfg: Config, events: Sequence[Event], *,
-                    complete: bool, checks: Sequence[Mapping[str, object]], rule: str,
-                    method: Mapping[str, object], raw_hashes: RawHashes | None = None,
-                    **body: object) -> dict[str, object]:
-    """result.json: the verdict from the checks, the run header, then the kind's results."""
+                    complete: bool, checks: Sequence[JsonObject], rule: str,
+                    method: Mapping[str, JsonLike], raw_hashes: RawHashes | None = None
+                    ) -> dict[str, object]:
+    """result.json's frame: the verdict from the checks (each as the kind's codec encodes
+    it), the run header, the rule and the method; the kind adds its results after it."""
     if not complete:
         verdict = "incomplete"
     else:
@@ -145,5 +185,4 @@ def result_document(run: RunDir, cfg: Config, events: Sequence[Event], *,
         "decision_rule_text": RULES[rule],
         "method": method,
         "checks": checks,
-        **body,
     }

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import pytest
 import yaml
 from lxml import etree
@@ -352,8 +353,8 @@ def test_what_a_finding_asks_of_an_issue_without_a_run(tmp_path: Path) -> None:
         reg.update_equipment(quality, SERIAL, "C-3", "Cal Lab", today + dt.timedelta(400),
                              today, "out", 3e-7, 3e-8)
         due, refused = corrections_due(reg, uses)
-        assert refused == [] and [(c["where"], c["serial"], c["quantity"], c["value"],
-                                   c["U"]) for c in due] == \
+        assert refused == [] and [(c.where, c.serial, c.quantity, c.value, c.U)
+                                  for c in due] == \
             [("axes.outer.counter", SERIAL, "timebase_offset_rel", 3e-7, 3e-8)]
         assert corrections_due(reg, other) == ([], [])
         reg.update_equipment(quality, "FX-1", "C-2", "Cal Lab", today + dt.timedelta(400),
@@ -362,9 +363,12 @@ def test_what_a_finding_asks_of_an_issue_without_a_run(tmp_path: Path) -> None:
         later = dataclasses.replace(uses, registered_utc=(today + dt.timedelta(1))
                                     .isoformat() + "T00:00:00Z")
         assert corrections_due(reg, later) == ([], [])
-    applied = {"corrections": [{**due[0], "reason": REASON}]}
-    assert already_applied(applied, due) and not already_applied({}, due)
-    assert not already_applied({"corrections": [{**due[0], "value": 2e-7}]}, due)
+    stated = msgspec.structs.asdict(due[0])
+    applied = {"corrections": [{**stated, "reason": REASON}]}
+    assert already_applied(json.dumps(applied), due) and not already_applied("{}", due) \
+        and not already_applied(None, due)
+    assert not already_applied(json.dumps({"corrections": [{**stated, "value": 2e-7}]}),
+                               due)
     said = statements(corrections_of(applied))
     assert len(said) == 1 and f"serial {SERIAL}" in said[0] and "e = 3e-07" in said[0] \
         and "U = 3e-08, k = 2" in said[0] and said[0].endswith(f"Why: {REASON}.")

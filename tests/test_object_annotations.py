@@ -24,7 +24,7 @@ from tests.json_boundary import CODECS, ROOT, SCANNED, python_files
 YAML_LOADER = frozenset({"bench/core/schema.py", "bench/core/yamlfile.py"})
 #: today's total outside CODECS and YAML_LOADER (issue 60's goal: below 60); lower it when
 #: the count falls, never raise it
-BUDGET = 80
+BUDGET = 56
 
 
 def object_aliases(modules: Iterable[tuple[str, ast.Module]]) -> frozenset[str]:

@@ -21,6 +21,7 @@ import datetime as dt
 import json
 import math
 import re
+from collections.abc import Sequence
 from typing import TypeVar
 
 import msgspec
@@ -220,10 +221,24 @@ def encode_corrections(entries: tuple[CorrectionEntry, ...]) -> str:
     return json.dumps(encode(_Corrections(entries)), indent=2) + "\n"
 
 
-def correction_json(entry: CorrectionEntry) -> dict[str, object]:
-    """One correction as the corrected re-issue passes it on (bench/app/certificate/
-    corrected.py's mappings)."""
-    return dict(encode(entry))
+class ReasonedCorrection(CorrectionEntry, frozen=True):
+    """A correction as a corrected re-issue's corrections file states it: with why it is
+    applied (null: no reason given), which the result then states beside it."""
+
+    reason: str | None
+
+
+class _Reasoned(msgspec.Struct, frozen=True):
+    corrections: tuple[ReasonedCorrection, ...]
+
+
+def encode_reasoned_corrections(entries: Sequence[CorrectionEntry], reason: str | None
+                                ) -> str:
+    """The corrections file of a corrected re-issue (bench/app/certificate/corrected.py):
+    each entry with `reason` last, the bytes the re-issue wrote before."""
+    return json.dumps(encode(_Reasoned(tuple(
+        ReasonedCorrection(**msgspec.structs.asdict(e), reason=reason) for e in entries))),
+        indent=2) + "\n"
 
 
 # -- what the assessment reads of a run folder and a result.json -------------------------------

@@ -19,10 +19,9 @@ import time
 import traceback
 from collections.abc import Callable
 from concurrent.futures import Future
-from concurrent.futures import wait as futures_wait
 from dataclasses import dataclass, field
-from types import FrameType
-from typing import TYPE_CHECKING, Protocol
+from types import FrameType, TracebackType
+from typing import TYPE_CHECKING, Protocol, TypeVar, TypeVarTuple
 
 from bench.core import events as ev
 from bench.core.config import Config
@@ -42,8 +41,11 @@ if TYPE_CHECKING:
     from bench.core.instruments import Bench
 
 
+R = TypeVar("R")
+Ts = TypeVarTuple("Ts")
+
 #: what `signal.signal` takes and returns: a handler, SIG_DFL/SIG_IGN, or None
-SignalHandler = Callable[[int, FrameType | None], object] | int | signal.Handlers | None
+SignalHandler = Callable[[int, FrameType | None], None] | int | signal.Handlers | None
 
 
 class Abort(Exception):
@@ -141,7 +143,8 @@ class SignalGuard:
             interrupts.set_delivery(self.check)
         return self
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
         for sig, old in self._old.items():
             # once interrupted, more signals only cut short the last lines of output
             signal.signal(sig, signal.SIG_IGN if self.count else old)
@@ -302,8 +305,9 @@ class AnalysisWorker:
 
     def __init__(self) -> None:
         self._pool: ProcessPoolExecutor | None = None
-        self._pending: list[Future[object]] = []
-        self._submitted: dict[Future[object], float] = {}  # monotonic time of each submit
+        #: monotonic time of each submitted job not yet done, by its number
+        self._submitted: dict[int, float] = {}
+        self._jobs = 0                                  # jobs submitted so far
         self._took_s: list[float] = []                  # wall time of each finished job
         self._lock = threading.Lock()
         self._failed: list[str] = []  # what an on_done raised: reported by close()
@@ -330,16 +334,21 @@ class AnalysisWorker:
         if not set(modules) <= set(imported):
             self._pool.submit(_preload, preload)   # starts it; the initializer runs there
 
-    def submit(self, fn: Callable[..., object], *args: object,
-               on_done: Callable[[object, BaseException | None], None]) -> None:
+    def submit(self, fn: Callable[[*Ts], R], *args: *Ts,
+               on_done: Callable[[R | None, BaseException | None], None]) -> None:
+        """Run `fn(*args)` in the worker; `on_done(result, None)` or `on_done(None, error)`
+        in a thread of this process when it is done (typed as concurrent.futures types its
+        Future[R]: each kind's jobs return their own result type)."""
         self.start()
         assert self._pool is not None
         fut = self._pool.submit(fn, *args)
         with self._lock:
-            self._submitted[fut] = time.monotonic()
+            self._jobs += 1
+            job = self._jobs
+            self._submitted[job] = time.monotonic()
             self._unreported += 1
 
-        def done(f: Future[object]) -> None:
+        def done(f: Future[R]) -> None:
             try:
                 report(f)
             finally:
@@ -347,9 +356,9 @@ class AnalysisWorker:
                     self._unreported -= 1
                     self._reported.notify_all()
 
-        def report(f: Future[object]) -> None:
+        def report(f: Future[R]) -> None:
             with self._lock:
-                t0 = self._submitted.pop(f, None)
+                t0 = self._submitted.pop(job, None)
                 if t0 is not None and not f.cancelled():
                     self._took_s.append(time.monotonic() - t0)
             if f.cancelled():
@@ -363,7 +372,6 @@ class AnalysisWorker:
                 with self._lock:
                     self._failed.append(f"a pair's first look could not be reported: {e}")
         fut.add_done_callback(done)
-        self._pending.append(fut)
 
     def wait_reported(self, at_most: int = 0) -> None:
         """Until no more than `at_most` submitted jobs are still to be reported (done,
@@ -389,14 +397,14 @@ class AnalysisWorker:
         returns what went wrong reporting their results (safe to call twice)."""
         if self._pool is not None:
             if wait:
-                futures_wait(self._pending)
-                self.wait_reported()   # and their results printed: before "completed"
+                # every job's on_done returned (so every job done, or cancelled): their
+                # results printed before "completed"
+                self.wait_reported()
             # every job done and reported: the worker's exit (its interpreter's teardown,
             # 0.1 to 1 s at nice 10 on a busy machine) is not waited for; the executor's
             # own thread reaps it, and Python joins that thread at exit
             self._pool.shutdown(wait=not wait, cancel_futures=not wait)
             self._pool = None
-        self._pending.clear()
         with self._lock:
             problems, self._failed = self._failed, []
         return problems

@@ -25,6 +25,7 @@ from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager
 from contextvars import ContextVar
 from dataclasses import dataclass
+from types import TracebackType
 from typing import Literal, Protocol, TypeVar, runtime_checkable
 
 T = TypeVar("T")
@@ -86,7 +87,7 @@ def failed(what: str, resource: Resource, error: BaseException) -> StopOutcome:
                        str(error) or type(error).__name__, moving)
 
 
-def attempt(what: str, stop: Callable[[], object], resource: Resource) -> StopOutcome:
+def attempt(what: str, stop: Callable[[], T], resource: Resource) -> StopOutcome:
     """Run one stop; its outcome, never its exception (the others must still run)."""
     try:
         stop()
@@ -99,14 +100,14 @@ def attempt(what: str, stop: Callable[[], object], resource: Resource) -> StopOu
 class _Entry:
     what: str
     resource: Resource
-    stop: Callable[[], object] | None
+    stop: Callable[[], None] | None
     child: Stops | None = None
 
 
 _collecting: ContextVar[Stops | None] = ContextVar("bench_stops", default=None)
 
 
-def register(what: str, stop: Callable[[], object], resource: Resource) -> None:
+def register(what: str, stop: Callable[[], T], resource: Resource) -> None:
     """Register `stop` with the registry collecting now (a command's), for a resource
     made deep inside a kind's code (the analysis's hashing threads). With none collecting
     (a test, a library use), the resource's owner's own cleanup is the only one."""
@@ -144,11 +145,13 @@ class Stops:
             _collecting.reset(token)
 
     # -- registering ---------------------------------------------------------------------
-    def add(self, what: str, stop: Callable[[], object], resource: Resource) -> None:
+    def add(self, what: str, stop: Callable[[], T], resource: Resource) -> None:
         """Register `stop` (it must be safe to call twice: a resource may be closed early
         by its owner)."""
+        def run() -> None:
+            stop()      # run for its effect: what it returns (a close's count) is dropped
         with self._lock:
-            self._entries.append(_Entry(what, resource, stop))
+            self._entries.append(_Entry(what, resource, run))
 
     def enter(self, cm: AbstractContextManager[T], what: str, resource: Resource) -> T:
         """Enter `cm` and register its exit."""
@@ -222,5 +225,6 @@ class Stops:
     def __enter__(self) -> Stops:
         return self
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
         self.run()

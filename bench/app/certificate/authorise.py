@@ -354,10 +354,9 @@ def _corrected_record(reg: Register, record: RunRecord, run_path: Path, reason: 
     due, refused = corrected.corrections_due(reg, record)
     if refused or not due:
         return refused or record
-    if corrected.already_applied(Sources.decode(record.result_bytes or b"{}", None).written,
-                                 due):
+    if corrected.already_applied(record.result, due):
         return record
-    serials = ", ".join(sorted({str(corr.get("serial")) for corr in due}))
+    serials = ", ".join(sorted({corr.serial for corr in due}))
     if reissue and not (reason or "").strip():
         return [f"the register holds an as-found error of {serials} that touches this run: a "
                 "corrected re-issue analyses it again with the correction and must say why "

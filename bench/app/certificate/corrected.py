@@ -20,31 +20,30 @@ counter's time-base correction").
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import subprocess
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bench.core import rundir_layout as layout
 
 if TYPE_CHECKING:
+    from bench.app.impact_codec import CorrectionEntry
     from bench.app.register.store import Register, RunRecord
 
 
-def corrections_due(reg: Register, record: RunRecord) -> tuple[list[dict[str, object]],
+def corrections_due(reg: Register, record: RunRecord) -> tuple[list[CorrectionEntry],
                                                                   list[str]]:
     """(the corrections the register's as-found errors call for on this run, the reasons
     not to issue): each of the run's items whose latest finding's span holds the run's
     registration day. An item found out of tolerance for which no correction is modelled
     refuses: the figures it moved would be issued as if nothing were known."""
     from bench.app.impact import correction_entry, finding_of, touched
-    from bench.app.impact_codec import correction_json
     from bench.app.register.store import RegisterError
 
-    due: list[dict[str, object]] = []
+    due: list[CorrectionEntry] = []
     refused: list[str] = []
     for item in record.items:
         serial, where = item.get("serial"), str(item.get("where") or "?")
@@ -59,8 +58,7 @@ def corrections_due(reg: Register, record: RunRecord) -> tuple[list[dict[str, ob
             continue                      # no as-found error recorded: nothing to correct
         if not touched([record], finding):
             continue
-        corr = None if (typed := correction_entry(finding, where)) is None else \
-            correction_json(typed)
+        corr = correction_entry(finding, where)
         if corr is None:
             if finding.found == "out":
                 refused.append(f"item {serial} ({where}) was found out of tolerance "
@@ -69,7 +67,7 @@ def corrections_due(reg: Register, record: RunRecord) -> tuple[list[dict[str, ob
                                "state figures the finding moves (docs/register.md, bench "
                                "impact)")
             continue
-        if corr.get("U") is None:
+        if corr.U is None:
             refused.append(f"item {serial} ({where}): the as-found error {finding.error:g} "
                            "has no U: a correction without its uncertainty cannot enter the "
                            "budget (bench register equipment update SERIAL --found-error "
@@ -79,25 +77,29 @@ def corrections_due(reg: Register, record: RunRecord) -> tuple[list[dict[str, ob
     return due, refused
 
 
-def already_applied(result: Mapping[str, object], due: Sequence[Mapping[str, object]]
-                    ) -> bool:
-    """Whether the registered result states exactly these corrections."""
-    from bench.report.result_frame import correction_of, corrections_of
+def already_applied(result: str | None, due: Sequence[CorrectionEntry]) -> bool:
+    """Whether the registered result (its result.json text, None: none registered) states
+    exactly these corrections."""
+    from bench.app.impact_codec import json_tree
+    from bench.report.corrections import Correction
+    from bench.report.result_frame import corrections_of
 
-    have = corrections_of(result)
-    want = [correction_of(d) for d in due]
+    have = corrections_of(json_tree(result or "{}"))
+    want = [Correction(d.where, d.serial, d.model, d.quantity, d.value, d.U, d.source, None)
+            for d in due]
     return len(have) == len(want) and all(any(h.same_as(w) for h in have) for w in want) \
         and all(any(w.same_as(h) for w in want) for h in have)
 
 
-def write_corrections(run_path: Path, due: Sequence[Mapping[str, object]],
+def write_corrections(run_path: Path, due: Sequence[CorrectionEntry],
                       reason: str | None) -> Path:
     """The run folder's corrections file: each correction with why it is applied."""
     from bench.app.impact import CORRECTIONS_FILE
+    from bench.app.impact_codec import encode_reasoned_corrections
 
     path = Path(run_path) / CORRECTIONS_FILE
-    doc = {"corrections": [{**c, "reason": (reason or "").strip() or None} for c in due]}
-    path.write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    path.write_text(encode_reasoned_corrections(due, (reason or "").strip() or None),
+                    encoding="utf-8")
     return path
 
 
