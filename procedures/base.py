@@ -21,7 +21,7 @@ from bench.core.stops import register
 from bench.core.yamlfile import YamlValue
 from bench.report.conformity import RULES
 from bench.report.uncertainty_names import UNCERTAINTY_NAMING
-from drivers.json_types import JsonLike, JsonObject, JsonScalar
+from drivers.json_types import JsonLike, JsonScalar
 
 # the engine and the journal for the hints only: `bench validate` loads the kinds (and this
 # module) for their files alone
@@ -166,11 +166,12 @@ def run_header(run: RunDir, cfg: Config, events: Sequence[Event],
 
 
 def result_document(run: RunDir, cfg: Config, events: Sequence[Event], *,
-                    complete: bool, checks: Sequence[JsonObject], rule: str,
-                    method: Mapping[str, JsonLike], raw_hashes: RawHashes | None = None
-                    ) -> dict[str, object]:
+                    complete: bool, checks: Sequence[Mapping[str, JsonLike]], rule: str,
+                    method: Mapping[str, JsonLike], raw_hashes: RawHashes | None = None,
+                    **body: JsonLike) -> dict[str, object]:
     """result.json's frame: the verdict from the checks (each as the kind's codec encodes
-    it), the run header, the rule and the method; the kind adds its results after it."""
+    it), the run header, the rule and the method, then `body`: a kind's results given
+    here by keyword (a plug-in kind's) or added after it."""
     if not complete:
         verdict = "incomplete"
     else:
@@ -185,4 +186,5 @@ def result_document(run: RunDir, cfg: Config, events: Sequence[Event], *,
         "decision_rule_text": RULES[rule],
         "method": method,
         "checks": checks,
+        **body,
     }
