@@ -147,15 +147,17 @@ def test_runs_before_and_after_a_recalibration_print_the_record_in_force(
     lines = [ln for ln in hist.stdout.splitlines() if "calibrated" in ln]
     assert len(lines) == 2 and "C-OLD-117" in lines[0] and "C-NEW-117" in lines[1]
     assert "found OUT of tolerance, as-found error 3e-07 +/- 1e-08" in lines[1]
-    # by date: the record in force is the latest calibrated on or before the day
+    # by date: the record in force is the latest calibrated on or before the day (the
+    # update's day, not the module's TODAY: a run across midnight UTC dates it a day later)
+    today = dt.datetime.now(dt.UTC).date()
     with Register.open(url, migrate=False) as reg:
         [item] = reg.equipment("MY62000117")
-    older = item.in_force(TODAY - dt.timedelta(days=1))
+    older = item.in_force(today - dt.timedelta(days=1))
     assert older is not None and older.certificate == "C-OLD-117"
-    now = item.in_force(TODAY)
+    now = item.in_force(today)
     assert now is not None and now.certificate == "C-NEW-117" and now.found == "out"
     gate = start_gate(url, [_traced("MY62000117")], simulated=False, operator=None,
-                      password=str, on=TODAY - dt.timedelta(days=1))
+                      password=str, on=today - dt.timedelta(days=1))
     assert gate.equipment[0]["certificate"] == "C-OLD-117"
 
 
