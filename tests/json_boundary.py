@@ -15,6 +15,7 @@ python -m tests.json_boundary prints today's counts in the form of json_boundary
 from __future__ import annotations
 
 import ast
+import functools
 import json
 from collections import Counter
 from collections.abc import Iterable, Iterator
@@ -50,8 +51,16 @@ def python_files(root: Path, dirs: Iterable[str] = SCANNED) -> Iterator[tuple[st
     """(path relative to root, parsed module) of every .py file under `dirs`."""
     for d in dirs:
         for p in sorted((root / d).rglob("*.py")):
-            yield p.relative_to(root).as_posix(), ast.parse(p.read_text(encoding="utf-8"),
-                                                            str(p))
+            yield p.relative_to(root).as_posix(), _parsed(p.read_text(encoding="utf-8"),
+                                                          p.relative_to(root).as_posix())
+
+
+@functools.cache
+def _parsed(text: str, path: str) -> ast.Module:
+    """One parse per file text and place: the guards scan the tree several times a session
+    (their planted cases scan a copy of it), and parsing is most of their time. The trees
+    are only read."""
+    return ast.parse(text, path)
 
 
 def _is_json_load(node: ast.AST) -> bool:
