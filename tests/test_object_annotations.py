@@ -64,7 +64,7 @@ def names_any(node: ast.expr, names: frozenset[str] | set[str]) -> bool:
     return False
 
 
-def annotations(tree: ast.Module) -> Iterable[ast.expr]:
+def annotations_of(tree: ast.Module) -> Iterable[ast.expr]:
     """Every parameter, return and annotated-assignment annotation of the module."""
     for n in ast.walk(tree):
         if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef):
@@ -87,7 +87,7 @@ def count(root: Path = ROOT) -> Counter[str]:
     for path, tree in modules:
         if path in CODECS or path in YAML_LOADER:
             continue
-        for ann in annotations(tree):
+        for ann in annotations_of(tree):
             if names_any(ann, names):
                 out[path] += 1
     return out
