@@ -18,7 +18,7 @@ import ast
 import functools
 import json
 from collections import Counter
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -86,7 +86,14 @@ def _annotations(f: FunctionNode) -> list[ast.expr]:
 def aliases(modules: list[tuple[str, ast.Module]]) -> frozenset[str]:
     """JSON_MAPS and every module-level alias whose value names one of them (to a fixed
     point: an alias of an alias counts)."""
-    names = set(JSON_MAPS)
+    return alias_closure(modules, JSON_MAPS, _names_map)
+
+
+def alias_closure(modules: Iterable[tuple[str, ast.Module]], seeds: Iterable[str],
+                  names: Callable[[ast.expr, set[str]], bool]) -> frozenset[str]:
+    """`seeds` and every module-level alias (`X = ...`, `X: TypeAlias = ...`) whose value
+    `names` one of them, to a fixed point (tests/test_object_annotations.py uses it too)."""
+    found = set(seeds)
     defs: list[tuple[str, ast.expr]] = []
     for _, tree in modules:
         for n in tree.body:
@@ -100,10 +107,10 @@ def aliases(modules: list[tuple[str, ast.Module]]) -> frozenset[str]:
     while changed:
         changed = False
         for name, value in defs:
-            if name not in names and _names_map(value, names):
-                names.add(name)
+            if name not in found and names(value, found):
+                found.add(name)
                 changed = True
-    return frozenset(names)
+    return frozenset(found)
 
 
 def _names_map(node: ast.expr, maps: frozenset[str] | set[str]) -> bool:

@@ -17,7 +17,7 @@ from collections import Counter
 from collections.abc import Iterable
 from pathlib import Path
 
-from tests.json_boundary import CODECS, ROOT, SCANNED, python_files
+from tests.json_boundary import CODECS, ROOT, SCANNED, alias_closure, python_files
 
 #: the YAML loader: the schema nodes check raw YAML values, the line-keeping loader
 #: builds them (untyped input is what they exist to type)
@@ -29,24 +29,7 @@ BUDGET = 56
 
 def object_aliases(modules: Iterable[tuple[str, ast.Module]]) -> frozenset[str]:
     """`object` and every module-level alias whose value names it (to a fixed point)."""
-    defs: list[tuple[str, ast.expr]] = []
-    for _, tree in modules:
-        for n in tree.body:
-            if isinstance(n, ast.Assign) and len(n.targets) == 1 \
-                    and isinstance(n.targets[0], ast.Name):
-                defs.append((n.targets[0].id, n.value))
-            elif isinstance(n, ast.AnnAssign) and isinstance(n.target, ast.Name) \
-                    and n.value is not None and "TypeAlias" in ast.unparse(n.annotation):
-                defs.append((n.target.id, n.value))
-    names = {"object"}
-    changed = True
-    while changed:
-        changed = False
-        for name, value in defs:
-            if name not in names and names_any(value, names):
-                names.add(name)
-                changed = True
-    return frozenset(names)
+    return alias_closure(modules, ("object",), names_any)
 
 
 def names_any(node: ast.expr, names: frozenset[str] | set[str]) -> bool:
