@@ -40,6 +40,10 @@ CODECS = frozenset({
     "procedures/drift_pulse/codec.py",
     "procedures/rate_ladder/codec.py",
 })
+#: the YAML loader (issue 60 exempts it with the codecs): the schema nodes check raw YAML
+#: values, which arrive as maps, and the line-keeping loader builds them (untyped input is
+#: what they exist to type); nothing below it reads a raw mapping
+YAML_LOADER = frozenset({"bench/core/schema.py", "bench/core/yamlfile.py"})
 #: the JSON map types (and aliases of them, which `aliases` adds)
 JSON_MAPS = frozenset({"Mapping[str, object]", "dict[str, object]", "JsonObject"})
 
@@ -203,7 +207,7 @@ def count(root: Path = ROOT, dirs: Iterable[str] = SCANNED) -> Counts:
     prefixes = tuple(f"{d.rstrip('/')}/" for d in dirs)
     out: Counts = {}
     for path, tree in modules:
-        if path in CODECS or not path.startswith(prefixes):
+        if path in CODECS or path in YAML_LOADER or not path.startswith(prefixes):
             continue
         scope = Scope(path, tree)
         c: Counter[str] = Counter()

@@ -17,11 +17,15 @@ from collections import Counter
 from collections.abc import Iterable
 from pathlib import Path
 
-from tests.json_boundary import CODECS, ROOT, SCANNED, alias_closure, python_files
+from tests.json_boundary import (
+    CODECS,
+    ROOT,
+    SCANNED,
+    YAML_LOADER,
+    alias_closure,
+    python_files,
+)
 
-#: the YAML loader: the schema nodes check raw YAML values, the line-keeping loader
-#: builds them (untyped input is what they exist to type)
-YAML_LOADER = frozenset({"bench/core/schema.py", "bench/core/yamlfile.py"})
 #: today's total outside CODECS and YAML_LOADER (issue 60's goal: below 60); lower it when
 #: the count falls, never raise it
 BUDGET = 56
