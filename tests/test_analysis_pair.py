@@ -14,9 +14,8 @@ import numpy as np
 import pytest
 
 from bench.analysis import CounterBudget, analyze_pair, judge_rate
-from bench.report.codec import encode
-from procedures.rate_ladder.codec import encode_axes
-from procedures.rate_ladder.result import LadderAxis, pair_entry, rate_entry
+from bench.report.codec import encode, written
+from procedures.rate_ladder.result import LadderAxis, LadderBody, pair_entry, rate_entry
 from sims.stand import AxisModel
 from tests.test_analysis_sim import paper_axis, simulate_pair
 
@@ -123,7 +122,7 @@ def test_result_dict_has_the_contract_keys(at50):
     assert set(pd) >= {"rate_dps", "k", "k_u", "w0_dps", "w0_u_dps"}
     axis = LadderAxis(rates=tuple(rate_entry(r) for r in res.rates),
                       pairs=(pair_entry(res.pair),))
-    json.dumps(encode_axes({"x": axis}), allow_nan=False)
+    json.dumps(written(LadderBody(axes={"x": axis})), allow_nan=False)
 
 
 @pytest.mark.timeout(60)

@@ -131,8 +131,9 @@ def test_the_ladder_result_round_trips_and_refuses_by_key_path() -> None:
 
     import pytest
 
-    from procedures.rate_ladder.codec import conform, encode_axes, ladder_of
-    from procedures.rate_ladder.result import MalformedResult, Systematic
+    from bench.report.codec import written as encoded
+    from procedures.rate_ladder.codec import conform, ladder_of
+    from procedures.rate_ladder.result import LadderBody, MalformedResult, Systematic
     from procedures.rate_ladder.sample import rate_ladder_result
 
     doc = rate_ladder_result()
@@ -141,9 +142,9 @@ def test_the_ladder_result_round_trips_and_refuses_by_key_path() -> None:
     assert outer.rates[0].set_rate_dps == doc["axes"]["outer"]["rates"][0]["set_rate_dps"]
     assert outer.pairs[0].k == doc["axes"]["outer"]["pairs"][0]["k"]
     # the model's encoding is what it decodes from, key for key (result.json's bytes)
-    written = json.dumps(encode_axes(typed.axes))
-    again = ladder_of({**doc, "axes": json.loads(written)})
-    assert json.dumps(encode_axes(again.axes)) == written
+    written = json.dumps(encoded(LadderBody(axes=typed.axes)))
+    again = ladder_of({**doc, **json.loads(written)})
+    assert json.dumps(encoded(LadderBody(axes=again.axes))) == written
     bad = json.loads(json.dumps(doc))
     bad["axes"]["outer"]["rates"][0]["systematic"] = "garbage"
     with pytest.raises(MalformedResult, match=r"axes\.outer\.rates\[0\]\.systematic "

@@ -300,7 +300,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
         console.close()
         err(f"bench analyze: not analysed: {e}")
         return EXIT_INVALID
-    register_run(run.path, where, console.warn, outputs.result)
+    register_run(run.path, where, console.warn, outputs.result.frame)
     from bench.app.register.runs import deliver
 
     deliver(run.path, "analysis", console.warn,      # a new registered analysis of the uid

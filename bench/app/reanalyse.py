@@ -158,7 +158,7 @@ def _analyse_in_place(run_path: Path) -> None:
     except ConfigError as e:
         raise SystemExit(f"the run's files do not load: {'; '.join(map(str, e.problems))}") \
             from None
-    run.write_json(layout.RESULT, procedure_kind(cfg.kind).analysis.analyze(run, cfg))
+    run.write_json(layout.RESULT, procedure_kind(cfg.kind).analysis.analyze(run, cfg).document)
 
 
 if __name__ == "__main__":

@@ -50,7 +50,6 @@ from bench.core.instruments import (
     identity_record,
 )
 from bench.core.journal import RunDir
-from bench.core.journal_codec import read_json_object, verdict_of
 from bench.core.plan import Plan, format_duration
 from bench.core.registry import procedure_kind
 from bench.core.simbench import SimBench, for_session
@@ -58,8 +57,8 @@ from bench.core.stops import StopOutcome, Stops, attempt
 from bench.core.traceability import identity_mismatches, overdue, overdue_warning
 from bench.report.certificate.model import Document
 from bench.report.certificate.sources import Sources
+from bench.report.codec import KindResult, ResultPart
 from drivers.clock import Clock, MonotonicClock
-from drivers.json_types import JsonObject
 
 EXIT_PASS, EXIT_FAIL, EXIT_INVALID, EXIT_ABORTED = 0, 1, 2, 3
 
@@ -83,12 +82,13 @@ def room_for(cfg: Config, plan: Plan, folder: Path) -> str | None:
 
 @dataclass(frozen=True)
 class Outputs:
-    """What the analysis of a session wrote: result.json as read back (the document the
-    certificate's, the DCC's and the records' writers take), its verdict, and the
-    certificate's document (None when it could not be written: a run that leaves no
-    certificate must not exit as if it had, nor one whose DCC does not validate)."""
+    """What the analysis of a session wrote: the result as the analysis gave it (result.json
+    is its encoding; the certificate's, the DCC's and the records' writers take it), its
+    verdict, and the certificate's document (None when it could not be written: a run
+    that leaves no certificate must not exit as if it had, nor one whose DCC does not
+    validate)."""
 
-    result: JsonObject
+    result: KindResult[ResultPart]
     verdict: str | None
     doc: Document | None
 
@@ -110,17 +110,17 @@ def write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
 
 def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
                    records: RecordsTarget | None) -> Outputs:
-    analysed = procedure_kind(cfg.kind).analysis.analyze(run, cfg)
-    # read back: the certificate, the DCC and the records read what result.json holds
-    # (as `bench dcc` and the station do), not the analysis's objects; the certificate
-    # takes it decoded once (Sources, the report's codec), the records and DCC as stored
-    result = read_json_object(run.write_json(layout.RESULT, analysed))
-    src = Sources.load(result, run.path)
-    verdict = verdict_of(result)
+    result = procedure_kind(cfg.kind).analysis.analyze(run, cfg)
+    # result.json is the result's encoding (bench/report/codec.py); the certificate, the
+    # DCC, the records and the register take the result itself: nothing reads it back
+    run.write_json(layout.RESULT, result.document)
+    src = Sources.analysed(result, run.path)
+    verdict = result.verdict
     # the table's history from the records, when they hold any (never fails the run)
-    history = history_sections(run.path, result, records, progress.warn) if records else []
+    history = history_sections(run.path, result.frame, records, progress.warn) \
+        if records else []
     if records:   # each instrument's control status, for the traceability section
-        write_assurance(run.path, records, progress.warn, result)
+        write_assurance(run.path, records, progress.warn, result.frame)
     try:
         documents: list[Document] = []
         for path in certificates.write_certificate(run, src, documents=documents,
@@ -140,7 +140,7 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
 def summary_of(outputs: Outputs) -> Summary:
     """The certificate's figures; without a certificate, only the verdict."""
     if outputs.doc is not None:
-        return summarize(outputs.doc, outputs.result)
+        return summarize(outputs.doc, outputs.result.document)
     return Summary((), (), "", (outputs.verdict or "incomplete").upper())
 
 
@@ -246,7 +246,8 @@ class RunSession:
             outputs = self._write(guard)
             self._finish()
         if outputs is not None:
-            register_run(self.run_dir.path, self.where, self.progress.warn, outputs.result)
+            register_run(self.run_dir.path, self.where, self.progress.warn,
+                         outputs.result.frame)
         return self.status
 
     def _measure(self, guard: SignalGuard, todo: Plan, done: list[str],

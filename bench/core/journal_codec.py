@@ -183,14 +183,6 @@ class _Verdict(msgspec.Struct):
     verdict: str | None = None
 
 
-def verdict_of(result: JsonObject) -> str | None:
-    """The verdict of result.json as read (None: none, or not a text)."""
-    try:
-        return msgspec.convert(result, _Verdict).verdict
-    except msgspec.ValidationError:
-        return None
-
-
 def read_verdict(path: Path) -> str | None:
     """result.json's verdict, None when there is no readable result (none yet, one being
     replaced, a damaged file): the rest of the document is not decoded."""

@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from bench.core.schema import Map
     from bench.core.simbench import SimBench
     from bench.core.yamlfile import Problem
+    from bench.report.codec import KindResult, ResultPart
     from drivers.clock import Clock
 
 
@@ -96,8 +97,9 @@ class KindSteps(Protocol):
 class KindAnalysis(Protocol):
     """result.json from the run directory's raw data alone."""
 
-    def analyze(self, run: RunDir, cfg: Config) -> dict[str, object]:
-        """The result document (bench analyze reproduces it byte for byte)."""
+    def analyze(self, run: RunDir, cfg: Config) -> KindResult[ResultPart]:
+        """The run's result, typed: the shared frame and the kind's body (result.json is
+        its encoding, bench/report/codec.py; bench analyze reproduces it byte for byte)."""
 
 
 class ProcedureKind(Protocol):

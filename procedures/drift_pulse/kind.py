@@ -37,7 +37,7 @@ from bench.core.progress import Figure
 from bench.core.schema import Key, Map
 from bench.core.yamlfile import Problem
 from drivers.clock import Clock
-from procedures.base import prompt, result_document, resume_whole
+from procedures.base import prompt, result_head, resume_whole
 from procedures.drift_pulse.settings import (  # noqa: F401 - the kind's names
     CYCLE_OVERHEAD_S,
     NAME,
@@ -62,6 +62,7 @@ if TYPE_CHECKING:
     from bench.core.registry import KindPlan, StepHandler
     from bench.core.simbench import SimBench, TwinFactory
     from bench.kind import Kind
+    from bench.report.codec import KindResult
     from bench.report.station import StationParts
     from drivers.awg import WaveformGenerator
     from drivers.dmm import Digitizer
@@ -70,6 +71,7 @@ if TYPE_CHECKING:
     from procedures.drift_pulse.dcc import DriftDcc
     from procedures.drift_pulse.instruments import DriftBench
     from procedures.drift_pulse.records import DriftRecords
+    from procedures.drift_pulse.result import DriftBody
 
 
 # -- each action's parameters, made once where the plan is built (the settle's:
@@ -346,7 +348,7 @@ class DriftAnalysis:
     def __init__(self, plan: DriftPlan) -> None:
         self._plan = plan
 
-    def analyze(self, run: RunDir, cfg: Config) -> dict[str, object]:
+    def analyze(self, run: RunDir, cfg: Config) -> KindResult[DriftBody]:
         return analyze_run(run, cfg, self._plan)
 
 
@@ -435,15 +437,19 @@ def gyro_rig_factory(d: PlatformSettings) -> TwinFactory:
     return add_platform
 
 
-def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan) -> dict[str, object]:
+def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan
+                ) -> KindResult[DriftBody]:
+    from msgspec import UNSET
+
     from bench.core.journal import units_done
+    from bench.report.codec import KindResult
     from drivers.scpi import parse_numbers
     from procedures.drift_pulse import analysis as dp
     from procedures.drift_pulse.budgets import CorrectionInput
-    from procedures.drift_pulse.codec import dmm_replies, encode
+    from procedures.drift_pulse.codec import dmm_replies
     from procedures.drift_pulse.corrections import read_corrections
     from procedures.drift_pulse.events import Cycle
-    from procedures.drift_pulse.result import DriftCheck, DriftFigures, DriftMethod
+    from procedures.drift_pulse.result import DriftBody, DriftCheck, DriftFigures, DriftMethod
 
     events = run.events()
     plan_units = set(plan.build_plan(cfg).units())
@@ -495,12 +501,11 @@ def analyze_run(run: RunDir, cfg: Config, plan: KindPlan = KIND.plan) -> dict[st
                          cycles_per_position=d.cycles, positions_deg=d.positions_deg,
                          sample_rate_hz=1.0 / t.interval_s, aperture_s=t.aperture_s,
                          site=dict(d.site_doc), tolerance=dict(d.tolerance_doc))
-    doc = result_document(run, cfg, events, complete=complete,
-                          checks=[encode(c) for c in checks], rule=rule, method=encode(method))
-    # the body after the frame, as the model writes it: its uncertainty twins are fields
-    # of the model (result.py; the rule they follow is bench/report/uncertainty_names.py's)
-    doc["drift"] = encode(drift)
-    if corr:    # issue 58: the corrections applied, stated (none: the document as before)
-        doc["corrections"] = list(corr.stated)
-    return doc
+    head = result_head(run, cfg, events, complete=complete, checks=checks, rule=rule,
+                       method=method)
+    # the body after the frame: its uncertainty twins are fields of the model (result.py;
+    # the rule they follow is bench/report/uncertainty_names.py's); the corrections
+    # applied, stated (issue 58; none: the document as before)
+    return KindResult(head, DriftBody(drift=drift,
+                                      corrections=list(corr.stated) if corr else UNSET))
 

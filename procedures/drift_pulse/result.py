@@ -314,3 +314,11 @@ class EarthRateCheck(msgspec.Struct, frozen=True, kw_only=True):
 
 
 DriftCheck = OwnDriftCheck | EarthRateCheck
+
+
+class DriftBody(msgspec.Struct, frozen=True, kw_only=True):
+    """What a drift run's result.json holds after the frame, in its key order: the figures,
+    then the corrections applied (issue 58; absent: none, the document as before)."""
+
+    drift: DriftFigures
+    corrections: list[JsonValue] | UnsetType = UNSET    # as the corrections file states them

@@ -34,21 +34,15 @@ from bench.core.config import Config, CounterSettings
 from bench.core.events import Event
 from bench.core.journal import RunDir, fog_capture_starts, units_done
 from bench.core.journal_codec import float_field
+from bench.report.codec import KindResult
 from bench.report.conformity import CAPABILITY_LIMIT, judge, judge_limit
 from drivers.counter_profiles import get_profile
 from drivers.fog import CaptureCursor, FogCheckpoint
 from drivers.scpi import parse_numbers
-from procedures.base import RawHashes, result_document
+from procedures.base import RawHashes, result_head
 from procedures.rate_ladder import result as result_model
 from procedures.rate_ladder.budgets import with_budgets
-from procedures.rate_ladder.codec import (
-    ROOT,
-    CounterReply,
-    counter_replies,
-    encode_axes,
-    encode_checks,
-    read_corrections,
-)
+from procedures.rate_ladder.codec import CounterReply, counter_replies, read_corrections
 from procedures.rate_ladder.conditions import TemperatureSpan, memo_key
 from procedures.rate_ladder.events import (
     HalfAcquired,
@@ -56,7 +50,13 @@ from procedures.rate_ladder.events import (
     PairLooked,
     StaticRecorded,
 )
-from procedures.rate_ladder.result import LadderAxis, LadderCheck, PairEntry, RateEntry
+from procedures.rate_ladder.result import (
+    LadderAxis,
+    LadderBody,
+    LadderCheck,
+    PairEntry,
+    RateEntry,
+)
 from procedures.rate_ladder.settings import (
     MAINS_CANDIDATES_HZ,
     MAINS_FOUND,
@@ -521,18 +521,19 @@ def sigma_check(axis: str, rate: float, entry: RateEntry, tolerance: float,
         reason=reason)
 
 
-def analyze_run(run: RunDir, cfg: Config) -> dict[str, Any]:
+def analyze_run(run: RunDir, cfg: Config) -> KindResult[LadderBody]:
     hashes = RawHashes(run)  # in threads, while the pairs are decoded and analysed
     with RawData(run, cfg) as raw:
         result = _analyze_run(run, cfg, raw, hashes)
         run.memo.update(raw.temperatures)   # for the conditions: decoded once
         if raw.timebase_offsets:    # issue 58: the corrections applied, stated
-            result["corrections"] = read_corrections(run.path / CORRECTIONS)[1]
+            result = KindResult(result.head, msgspec.structs.replace(
+                result.body, corrections=read_corrections(run.path / CORRECTIONS)[1]))
         return result
 
 
 def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
-                 ) -> dict[str, Any]:
+                 ) -> KindResult[LadderBody]:
     events = run.events()
     rule = _settings(cfg)["decision_rule"]
     done_in = units_done(events)
@@ -576,13 +577,12 @@ def _analyze_run(run: RunDir, cfg: Config, raw: RawData, hashes: RawHashes
                 allan_deviation(w, hz))
         axes[axis] = with_budgets(LadderAxis(rates=tuple(rates), pairs=tuple(pairs),
                                              noise_floor=floor))
-    doc = result_document(run, cfg, events, complete=complete,
-                          checks=encode_checks(checks), rule=rule, raw_hashes=hashes,
-                          method={**_settings(cfg),
-                                  "tolerance": LadderSettings.from_config(cfg).tolerance_doc()})
-    # the body after the frame, as the model writes it: its uncertainty twins are fields
-    doc[ROOT] = encode_axes(axes)
-    return doc
+    head = result_head(run, cfg, events, complete=complete, checks=checks, rule=rule,
+                       raw_hashes=hashes,
+                       method={**_settings(cfg),
+                               "tolerance": LadderSettings.from_config(cfg).tolerance_doc()})
+    # the body after the frame: its uncertainty twins are fields of the model
+    return KindResult(head, LadderBody(axes=axes))
 
 
 def judged(cfg: Config, axis: str, r: RateResult, rule: str

@@ -14,7 +14,6 @@ from __future__ import annotations
 import copy
 import math
 import re
-from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Annotated, cast
 
@@ -23,7 +22,6 @@ import msgspec
 from bench.core import rundir_layout as layout
 from bench.core.journal import read_jsonl
 from bench.report.certificate.parts import Sources
-from bench.report.codec import encode
 from bench.report.result_frame import (
     Issues,
     JsonObject,
@@ -39,7 +37,7 @@ from bench.report.result_frame import (
     conform_plain_list,
 )
 from procedures.rate_ladder.events import ResultRow
-from procedures.rate_ladder.result import LadderAxis, LadderCheck, LadderResult
+from procedures.rate_ladder.result import LadderAxis, LadderResult
 
 #: the body's key in result.json, and the root of every path a refusal names
 ROOT = "axes"
@@ -91,48 +89,6 @@ def conform_ladder(doc: JsonObject, issues: Issues) -> JsonObject:
     """The ladder's part of a result.json checked, in place."""
     conform_object(doc, "axes", (), issues, _conform_axes)
     return doc
-
-
-class _FogTemperature(msgspec.Struct, frozen=True, kw_only=True):
-    source: str = ("FOG frames' temperature field (table top, at the FOG), deg C, integer "
-                   "resolution")
-    axes: Mapping[str, object]      # conditions.py's AxisTemperature per axis
-
-
-class _ConditionsMeasured(msgspec.Struct, frozen=True):
-    fog_temperature: _FogTemperature | None
-    room: None = None       # no sensor on this stand: not measured
-
-
-def with_conditions_measured(doc: dict[str, object], fog_axes: Mapping[str, object]
-                             ) -> dict[str, object]:
-    """The analysis' result with what the bench measured itself (`conditions_measured`):
-    the FOG's temperature per axis (procedures/rate_ladder/conditions.py), none when no
-    half recorded it."""
-    doc["conditions_measured"] = encode(_ConditionsMeasured(_FogTemperature(axes=fog_axes)
-                                                            if fog_axes else None))
-    return doc
-
-
-def _finite(value: JsonValue) -> JsonValue:
-    """Non-finite floats replaced by None, recursively."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, list):
-        return [_finite(v) for v in value]
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    return value
-
-
-def encode_axes(axes: Mapping[str, LadderAxis]) -> JsonValue:
-    """The `axes` body as result.json's writer takes it."""
-    return {name: _finite(encode(axis)) for name, axis in axes.items()}
-
-
-def encode_checks(checks: Sequence[LadderCheck]) -> list[JsonObject]:
-    """The frame's `checks[]`, the ladder's checks as the model writes them."""
-    return [cast(JsonObject, _finite(encode(c))) for c in checks]
 
 
 def _problem(err: msgspec.ValidationError) -> tuple[str, str]:

@@ -48,12 +48,14 @@ if TYPE_CHECKING:
     from bench.core.registry import StepHandler
     from bench.core.simbench import SimBench
     from bench.kind import Kind
+    from bench.report.codec import KindResult
     from bench.report.dcc.parts import DccParts
     from drivers.counter import Acquisition, Counter
     from drivers.fog import Fog
     from procedures.rate_ladder.certificate import LadderCertificate
     from procedures.rate_ladder.events import PairLooked
     from procedures.rate_ladder.records import LadderRecords
+    from procedures.rate_ladder.result import LadderBody
     from procedures.rate_ladder.station import LadderStation
 
 #: what the analysis worker imports when it starts, before the first pair's look (the
@@ -530,14 +532,21 @@ class LadderSteps:
 class LadderAnalysis:
     """result.json of a ladder run (the kind's `analysis` part)."""
 
-    def analyze(self, run: RunDir, cfg: Config) -> dict[str, object]:
+    def analyze(self, run: RunDir, cfg: Config) -> KindResult[LadderBody]:
+        import msgspec
+
+        from bench.report.codec import KindResult
         from procedures.rate_ladder.analysis import analyze_run
-        from procedures.rate_ladder.codec import with_conditions_measured
         from procedures.rate_ladder.conditions import fog_temperatures
+        from procedures.rate_ladder.result import ConditionsMeasured, FogTemperature
 
         # the body after the frame, then what the bench measured itself (the FOG's
-        # temperature), each written by the ladder's codec
-        return with_conditions_measured({**analyze_run(run, cfg)}, fog_temperatures(run, cfg))
+        # temperature; none when no half recorded it)
+        result = analyze_run(run, cfg)
+        fog = fog_temperatures(run, cfg)
+        return KindResult(result.head, msgspec.structs.replace(
+            result.body, conditions_measured=ConditionsMeasured(
+                FogTemperature(axes=fog) if fog else None)))
 
 
 class RateLadder:

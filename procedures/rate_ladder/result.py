@@ -9,6 +9,7 @@ nowhere else, and msgspec, not code of ours, checks a body against it.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, cast
 
@@ -21,6 +22,7 @@ from bench.report.result_frame import (
     MalformedResult,
     ResultFrame,
 )
+from drivers.json_types import JsonValue
 from drivers.units import SECONDS_PER_HOUR
 
 if TYPE_CHECKING:
@@ -33,6 +35,7 @@ if TYPE_CHECKING:
     from bench.analysis.systematic import HarmonicResult, MainsResult
     from bench.analysis.systematic import NoiseInflation as NoiseInflation_
     from bench.analysis.turns import CounterBudget, TurnsResult
+    from procedures.rate_ladder.conditions import AxisTemperature
 
     #: the analysis's values the builders take fields from by name (`_named`)
     Analysed = (TurnsResult | CounterBudget | HarmonicResult | MainsResult | NoiseInflation_
@@ -400,6 +403,30 @@ class LadderAxis(_Model, frozen=True, kw_only=True):
     rates: tuple[RateEntry, ...] = ()
     pairs: tuple[PairEntry, ...] = ()
     noise_floor: NoiseFloor | None = None
+
+
+class FogTemperature(msgspec.Struct, frozen=True, kw_only=True):
+    """The FOG's temperature per axis, from its frames (conditions.py measures it)."""
+
+    source: str = ("FOG frames' temperature field (table top, at the FOG), deg C, integer "
+                   "resolution")
+    axes: Mapping[str, AxisTemperature]
+
+
+class ConditionsMeasured(msgspec.Struct, frozen=True):
+    """What the bench measured of the conditions itself (`conditions_measured`)."""
+
+    fog_temperature: FogTemperature | None
+    room: None = None       # no sensor on this stand: not measured
+
+
+class LadderBody(msgspec.Struct, frozen=True, kw_only=True):
+    """What a ladder's result.json holds after the frame, in its key order: the axes, the
+    corrections applied (issue 58; absent: none), what the bench measured itself."""
+
+    axes: dict[str, LadderAxis]
+    corrections: JsonValue | UnsetType = UNSET     # as the corrections file states them
+    conditions_measured: ConditionsMeasured | UnsetType = UNSET
 
 
 @dataclass(frozen=True, slots=True)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 from bench.core.config import COMMON_PROCEDURE_KEYS, IDENTITY, Config, StandSettings
 from bench.core.engine import RunContext
@@ -17,9 +16,11 @@ from bench.core.schema import Key, Map, Num
 from bench.core.simbench import SimBench
 from bench.core.yamlfile import Problem
 from bench.kind import Kind
+from bench.report.codec import KindResult
 from bench.report.dcc.parts import DccParts
 from bench.report.station import StationParts
 from drivers.clock import Clock
+from drivers.json_types import JsonLike
 from procedures.base import result_document, resume_whole
 from tests.plugin_kind.events import Dwelt
 from tests.plugin_kind.report import DwellCertificate, DwellDcc, DwellRecords
@@ -101,7 +102,7 @@ class DwellPlan:
 class DwellAnalysis:
     """Its result.json (the `analysis` part): the time waited, its error checked."""
 
-    def analyze(self, run: RunDir, cfg: Config) -> dict[str, Any]:
+    def analyze(self, run: RunDir, cfg: Config) -> KindResult[dict[str, JsonLike]]:
         events = run.events()
         waited = [e.waited_s for e in events if isinstance(e, Dwelt)]
         dwell, tol = float(cfg.procedure["dwell_s"]), float(cfg.procedure["tolerance_s"])

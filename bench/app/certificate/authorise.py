@@ -527,7 +527,8 @@ def _update_records(run_path: Path, lab: Lab, src: Sources,
     stands in the register, and `bench records import` catches up."""
     from bench.app.records.hooks import register_run, target
 
-    register_run(run_path, target(run_path.parent, lab.records_url), line, src.written)
+    register_run(run_path, target(run_path.parent, lab.records_url), line,
+                 ResultFrame.of(src.written))
 
 
 

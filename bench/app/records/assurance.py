@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import datetime as dt
 import json
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import msgspec
@@ -46,7 +46,7 @@ from bench.core.config import Config, SimSettings, StandSettings
 from bench.core.simbench import with_sim
 from bench.core.simdrift import drifted, has_drift, stated_run_number
 from bench.report.certificate.sources import read_json_object
-from bench.report.result_frame import as_object
+from bench.report.result_frame import ResultFrame
 
 Warn = Callable[[str], None]
 
@@ -55,11 +55,11 @@ def _aware(t: dt.datetime | None) -> dt.datetime | None:
     return None if t is None else t.replace(tzinfo=dt.UTC)
 
 
-def run_statuses(run_path: Path, url: str, result: Mapping[str, object] | None = None
+def run_statuses(run_path: Path, url: str, frame: ResultFrame | None = None
                  ) -> list[InstrumentStatus]:
     """The status of each instrument this run rests on, from the records and this run's
     own check values (registered or not), with no point later than this run."""
-    record = record_of(run_path, as_object(result))
+    record = record_of(run_path, frame)
     when = _aware(record.date_utc)
     extra = [CheckPoint(record.uid, record.run_dir, record.serial, when, c,
                         simulated=record.simulated) for c in record.checks]
@@ -85,14 +85,14 @@ def _line(s: InstrumentStatus) -> InstrumentLine:
 
 
 def write_assurance(run_path: Path, where: RecordsTarget | str, warn: Warn,
-                    result: Mapping[str, object] | None = None) -> list[InstrumentStatus] | None:
+                    frame: ResultFrame | None = None) -> list[InstrumentStatus] | None:
     """RUN_DIR/assurance.json for the certificate; None (and a note in the file) when the
     records could not be read."""
     url = where.url if isinstance(where, RecordsTarget) else where
     doc = Assurance(records=redact(url), assessed_utc=dt.datetime.now(dt.UTC).isoformat())
     statuses: list[InstrumentStatus] | None
     try:
-        statuses = run_statuses(run_path, url, result)
+        statuses = run_statuses(run_path, url, frame)
         doc = msgspec.structs.replace(doc, instruments=tuple(_line(s) for s in statuses))
     except NotARun as e:
         doc = msgspec.structs.replace(doc, error=str(e))

@@ -200,19 +200,20 @@ def _issued_files(path: Path, number: str | None) -> tuple[tuple[str, str, int],
                  for name in CERTIFICATE_FILES if (folder / name).is_file())
 
 
-def record_of(run_path: str | Path, result: JsonObject | None = None) -> RunRecord:
-    """The record of a finished run directory; NotARun if it has no result.json."""
+def record_of(run_path: str | Path, frame: ResultFrame | None = None) -> RunRecord:
+    """The record of a finished run directory (its result's frame as the analysis gave it,
+    else result.json's); NotARun if it has no result.json."""
     path = Path(run_path).resolve()
-    if result is None:
+    if frame is None:
         if not (path / layout.RESULT).is_file() or not (path / layout.EVENTS).is_file():
             raise NotARun(f"{path}: no result.json and events.jsonl (not a finished run)")
-        result = read_json_object(path / layout.RESULT)
+        frame = ResultFrame.of(read_json_object(path / layout.RESULT))
+    result = frame.doc
     if not result:
         raise NotARun(f"{path}/result.json: not a readable result")
     meta = read_json_object(path / layout.META)
     stand_file = run_copy(path, layout.STAND)   # a serial still to fill in is none
     ident = dict((stand_file.get("stand") or {}) if isinstance(stand_file, dict) else {})
-    frame = ResultFrame.of(result)
     ident.update({k: v for k, v in frame.stand.items() if v is not None})
     serial = str(ident.get("serial") or "").strip()
     if not serial:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import datetime as dt
 import getpass
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -26,8 +26,9 @@ from bench.core import rundir_layout as layout
 from bench.core.config import CommonSettings, Identity
 
 if TYPE_CHECKING:
+    from bench.app.register.gate import StartFacts
     from bench.report.certificate.model import Block
-    from drivers.json_types import JsonObject
+    from bench.report.result_frame import ResultFrame
 
 Warn = Callable[[str], None]
 IMPORT_HINT = "`bench records import {runs}` registers it once the database is back"
@@ -61,7 +62,7 @@ def target(runs_dir: str | Path, url: str | None = None, warn: Warn | None = Non
 
 
 def mark_run(run_path: Path, procedure: CommonSettings, state: str | None = None,
-             note: str | None = None, register: Mapping[str, object] | None = None) -> None:
+             note: str | None = None, register: StartFacts | None = None) -> None:
     """Write as-found/as-left, the adjustment note and the operator into meta.json.
 
     The CLI flag wins over the procedure key; written before the run starts so that an
@@ -76,15 +77,13 @@ def mark_run(run_path: Path, procedure: CommonSettings, state: str | None = None
         login = None
     # the performer is an account the register authenticated (`bench run --operator`),
     # never a name from a file (issue 42); `operator` keeps who ran it for the records
-    register = dict(register or {})
-    performer = register.get("performer")
-    account = (performer["account"] if isinstance(performer, Mapping) and performer
-               else login)
+    performer = register["performer"] if register else None
+    account = performer.get("account") if performer else login
     mark_meta_file(run_path / layout.META, RunMarks(
         calibration_state=state, adjustment_note=note, os_user=login,
         operator=None if account is None else str(account),
         # the procedure file's word only
-        operator_stated=procedure.operator if procedure.operator else UNSET), register)
+        operator_stated=procedure.operator if procedure.operator else UNSET), register or {})
 
 
 def warn_if_overdue(ident: Identity, where: RecordsTarget, warn: Warn,
@@ -114,10 +113,11 @@ def warn_if_overdue(ident: Identity, where: RecordsTarget, warn: Warn,
 
 
 def register_run(run_path: Path, where: RecordsTarget, warn: Warn,
-                 result: JsonObject | None = None) -> str | None:
-    """At a run's end (and after `bench analyze`): register it; None if that failed."""
+                 frame: ResultFrame | None = None) -> str | None:
+    """At a run's end (and after `bench analyze`): register it (its result's frame as the
+    analysis gave it, else result.json's); None if that failed."""
     try:
-        record = record_of(run_path, result)
+        record = record_of(run_path, frame)
     except NotARun as e:
         warn(f"records: not registered: {e}")
         return None
@@ -133,13 +133,13 @@ def register_run(run_path: Path, where: RecordsTarget, warn: Warn,
     return outcome
 
 
-def history_sections(run_path: Path, result: JsonObject, where: RecordsTarget,
+def history_sections(run_path: Path, frame: ResultFrame, where: RecordsTarget,
                      warn: Warn) -> list[tuple[str, tuple[Block, ...]]]:
     """The certificate's history section, or nothing (no earlier run, no database)."""
     from bench.app.records.section import history_section
 
     try:
-        current = record_of(run_path, result)
+        current = record_of(run_path, frame)
     except NotARun:
         return []
     try:

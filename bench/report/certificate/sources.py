@@ -24,6 +24,7 @@ from bench.core.events import Event
 from bench.core.journal import read_events
 from bench.core.journal_codec import StartMeta, start_meta
 from bench.core.placeholders import run_copy
+from bench.report.codec import KindResult, ResultPart
 from bench.report.result_frame import JsonObject, ResultFrame, as_object
 
 M = TypeVar("M")
@@ -43,6 +44,8 @@ class Sources:
     #: result.json as written, before its malformed parts were dropped: what the records
     #: database stores and a correction is compared with
     written: JsonObject = field(default_factory=dict)
+    #: the kind's body as its analysis gave it, when it has just done so (`analysed`)
+    body: ResultPart | None = None
     #: the kind's result model, decoded once (`model`), by its decoder
     _models: dict[Callable[[Sources], object], object] = field(default_factory=dict,
                                                                repr=False)
@@ -60,6 +63,14 @@ class Sources:
         events = run_path / layout.EVENTS
         if events.exists():
             src.events = read_events(events)
+        return src
+
+    @classmethod
+    def analysed(cls, result: KindResult[ResultPart], run_path: Path) -> Sources:
+        """The run as its analysis has just given its result (result.json is its encoding,
+        not read back): the kind's certificate part takes the result's body as its model."""
+        src = cls.load(result.document, run_path)
+        src.body = result.body
         return src
 
     @classmethod
