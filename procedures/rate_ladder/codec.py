@@ -14,6 +14,7 @@ from __future__ import annotations
 import copy
 import math
 import re
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, cast
 
@@ -37,7 +38,7 @@ from bench.report.result_frame import (
     conform_plain_list,
 )
 from procedures.rate_ladder.events import ResultRow
-from procedures.rate_ladder.result import LadderAxis, LadderResult
+from procedures.rate_ladder.result import LadderAxis, LadderBody, LadderResult
 
 #: the body's key in result.json, and the root of every path a refusal names
 ROOT = "axes"
@@ -195,8 +196,27 @@ def conform(doc: object) -> tuple[LadderResult, list[str]]:
 
 def ladder_model(src: Sources) -> LadderResult:
     """The certificate's and the DCC's model of the (conformed) result: `src.model(
-    ladder_model)` decodes it once for every section."""
+    ladder_model)` decodes it once for every section. A result the analysis has just
+    given (`Sources.analysed`) is its model already, when it holds what result.json holds
+    (no NaN, no numpy number: then decoding its encoding gives it back)."""
+    body = src.body
+    if isinstance(body, LadderBody) and not src.dropped and _as_written(body.axes):
+        return LadderResult(frame=src.frame, axes=body.axes)
     return ladder_of(src.result)
+
+
+def _as_written(value: msgspec.Struct | JsonValue | tuple[JsonValue, ...]
+                | Mapping[str, msgspec.Struct]) -> bool:
+    """Whether a model part holds only what its encoding holds (finite Python numbers)."""
+    if isinstance(value, msgspec.Struct):
+        return all(_as_written(getattr(value, f)) for f in value.__struct_fields__)
+    if isinstance(value, tuple | list):
+        return all(_as_written(v) for v in value)
+    if isinstance(value, Mapping):
+        return all(_as_written(v) for v in value.values())
+    if isinstance(value, float):
+        return type(value) is float and math.isfinite(value)
+    return value is None or type(value) in (int, bool, str) or value is msgspec.UNSET
 
 
 # -- the run folder's inputs: the counter's raw log, the corrections file ---------------------
