@@ -187,6 +187,13 @@ def wait_for_cut(p: subprocess.Popen[str], out: Path,
     return run_dir
 
 
+def journal_lines(run: Any) -> list[dict[str, Any]]:
+    """Every event of a run (a RunDir) as the JSON mapping written on its line: what a
+    test that looks at the journal's bytes reads (the run's readers take its events)."""
+    from bench.core.journal_codec import read_jsonl
+    return list(read_jsonl(run.path / "events.jsonl"))
+
+
 def _journal(run_dir: Path) -> list[dict[str, Any]]:
     """The journal's complete lines: the bench may be writing the last one as it is read
     (a line is complete when its newline is written; CI saw a half line, 28 Nov)."""

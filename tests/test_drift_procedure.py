@@ -23,7 +23,7 @@ from bench.core.journal import RunDir
 from bench.core.loader import load_config
 from drivers.cia402 import FOLLOWING_ERROR
 from sims.platform import GyroPlatform, PlatformTruth
-from tests.conftest import CONFIGS, DemoRun, bench
+from tests.conftest import CONFIGS, DemoRun, bench, journal_lines
 
 DEMO = CONFIGS / "procedures" / "drift-demo.yaml"
 STAND = CONFIGS / "stands" / "sim-gyro-platform.yaml"
@@ -162,7 +162,7 @@ def test_a_fault_during_the_turn_stops_the_axis_exits_3_and_resumes(tmp_path: Pa
 
     assert run_session(cfg, run, yes=True, on_sim_started=hook) == EXIT_ABORTED
     assert seen["watch"].at_s is not None
-    events = run.lines()
+    events = journal_lines(run)
     abort = next(e for e in events if e["event"] == "abort")
     assert "0x8611" in abort["reason"] and "following error" in abort["reason"]
     assert next(e for e in events if e["event"] == "safe_stop")["ok"] is True
@@ -190,10 +190,10 @@ def test_pulses_that_never_reach_the_torque_sensor_abort_by_name(tmp_path: Path)
         sim.twins["gyro-rig"].awg.inject("no-output")     # a broken wire, for one burst
 
     assert run_session(cfg, run, yes=True, on_sim_started=hook) == EXIT_ABORTED
-    abort = next(e for e in run.lines() if e["event"] == "abort")
+    abort = next(e for e in journal_lines(run) if e["event"] == "abort")
     assert "gyro x: the angle sensor shows a precession of" in abort["reason"]
     assert "generator channel 1" in abort["reason"]
-    assert next(e for e in run.lines() if e["event"] == "safe_stop")["ok"] is True
+    assert next(e for e in journal_lines(run) if e["event"] == "safe_stop")["ok"] is True
 
 
 def test_sim_gyro_keys_are_the_twins_truth() -> None:

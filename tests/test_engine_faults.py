@@ -19,7 +19,7 @@ from bench.app.commands import EXIT_ABORTED, run_session
 from bench.core.journal import RunDir
 from bench.core.loader import load_config
 from drivers.cia402 import OVER_TEMPERATURE
-from tests.conftest import CONFIGS, when_step_starts
+from tests.conftest import CONFIGS, journal_lines, when_step_starts
 
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
 
@@ -45,7 +45,7 @@ def _drive_log(run: RunDir) -> list[dict[str, Any]]:
 
 
 def _assert_stopped(run: RunDir) -> None:
-    events = run.lines()
+    events = journal_lines(run)
     assert next(e for e in events if e["event"] == "safe_stop")["ok"] is True
     assert events[-1] == {**events[-1], "event": "exit", "status": EXIT_ABORTED}
     drive = _drive_log(run)
@@ -67,7 +67,7 @@ def test_a_drive_fault_mid_acquisition_stops_the_run(tmp_path: Path) -> None:
 
     status = run_session(cfg, run, yes=True, on_sim_started=hook)
     assert status == EXIT_ABORTED
-    abort = next(e for e in run.lines() if e["event"] == "abort")
+    abort = next(e for e in journal_lines(run) if e["event"] == "abort")
     assert "0x4310" in abort["reason"], abort["reason"]
     _assert_stopped(run)
     # the static record completed before the fault and is not lost
@@ -84,6 +84,6 @@ def test_a_silent_counter_aborts_with_a_clear_error(tmp_path: Path) -> None:
 
     status = run_session(cfg, run, yes=True, on_sim_started=hook)
     assert status == EXIT_ABORTED
-    abort = next(e for e in run.lines() if e["event"] == "abort")
+    abort = next(e for e in journal_lines(run) if e["event"] == "abort")
     assert "counter" in abort["reason"].lower(), abort["reason"]
     _assert_stopped(run)

@@ -31,7 +31,7 @@ from bench.core.loader import load_config
 from drivers.cia402 import OVER_TEMPERATURE
 from sims.fog_twin import Corrupt, Drop, Garbage, Stall
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, JournalTail, bench_bg, when_step_starts
+from tests.conftest import CONFIGS, JournalTail, bench_bg, journal_lines, when_step_starts
 
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
 TRUTH_REL = AxisTruth.from_mapping(
@@ -115,7 +115,7 @@ def _session(cfg: Any, run: RunDir, inject: Callable[[Any], None] | None = None,
 
 def _assert_aborted_cleanly(run: RunDir, status: int, seen: dict[str, Any]) -> None:
     assert status == EXIT_ABORTED
-    events = run.lines()
+    events = journal_lines(run)
     mine = [e for e in events if e.get("session") == run.session]
     assert mine[-1]["event"] == "exit" and mine[-1]["status"] == EXIT_ABORTED, mine[-3:]
     assert any(e["event"] == "abort" for e in mine)
@@ -138,7 +138,7 @@ def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str, tmp_path
     run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
     status, seen = _session(cfg, run, FAULTS[fault], phase)
     _assert_aborted_cleanly(run, status, seen)
-    exit_event = [e for e in run.lines() if e["event"] == "exit"][-1]
+    exit_event = [e for e in journal_lines(run) if e["event"] == "exit"][-1]
     if fault == "drive-heartbeat-lost":
         text = " ".join([exit_event["cause"] or "", *exit_event["later"]])
         assert "heartbeat" in text, exit_event
@@ -152,7 +152,7 @@ def test_fault_in_phase_stops_keeps_and_resumes(fault: str, phase: str, tmp_path
     # the resume's subject is not a real-time silence: on the co-simulation clock
     status2, _ = _session(load_config(_procedure(tmp_path / "resume")) if slow else cfg,
                           again, resume=True)
-    assert status2 == EXIT_PASS, [e for e in again.lines() if e["event"] == "abort"]
+    assert status2 == EXIT_PASS, [e for e in journal_lines(again) if e["event"] == "abort"]
     assert _raw_hashes(again, 1) == before          # the first session's bytes untouched
     result = json.loads((run.path / "result.json").read_text())
     # the run ends as its last session did (issue 57): the resume completed it
@@ -217,7 +217,7 @@ def test_a_dead_fog_in_acquire_aborts_cleanly_and_resumes(tmp_path: Path) -> Non
     run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
     status, seen = _session(cfg, run, _fog_fault("dead"), "acquire")
     _assert_aborted_cleanly(run, status, seen)
-    abort = [e for e in run.lines() if e["event"] == "abort"][-1]
+    abort = [e for e in journal_lines(run) if e["event"] == "abort"][-1]
     assert abort["error"] == "FogTimeout" and "did not arrive" in abort["reason"], abort
     before = _raw_hashes(run, 1)
     again = RunDir(run.path)
@@ -312,7 +312,7 @@ def test_a_ctrl_c_landing_inside_a_twins_clock_step_still_stops_the_run(
                                                        else _ctrl_c)
     status = run_session(cfg, run, yes=True, on_sim_started=hook)
     assert fired.is_set(), "no drive tick ran in the main thread after the settle began"
-    exit_event = [e for e in run.lines() if e["event"] == "exit"][-1]
+    exit_event = [e for e in journal_lines(run) if e["event"] == "exit"][-1]
     assert "interrupted by SIGINT" in (exit_event["cause"] or ""), exit_event
     _assert_aborted_cleanly(run, status, seen)   # exit 3, "incomplete", the axis at rest
 
@@ -389,7 +389,7 @@ def test_ctrl_c_while_the_outputs_are_written_is_honoured(
     err = capsys.readouterr().err
     assert f"bench analyze {run.path}" in err, err
     assert "being stopped first" not in err
-    last = run.lines()[-1]
+    last = journal_lines(run)[-1]
     assert last["event"] == "exit" and last["status"] == EXIT_ABORTED
 
 
@@ -418,7 +418,7 @@ def test_a_ctrl_c_lost_in_a_finaliser_while_writing_still_ends_the_run(
     err = capsys.readouterr().err
     assert status == EXIT_ABORTED, err
     assert f"bench analyze {run.path}" in err, err
-    last = run.lines()[-1]
+    last = journal_lines(run)[-1]
     assert last["event"] == "exit" and last["status"] == EXIT_ABORTED, last
     assert last["cause"] == "interrupted while writing the outputs", last
 
@@ -453,5 +453,5 @@ def test_full_disk_mid_acquire_names_the_file_and_resumes(
     status2, _ = _session(cfg, again, resume=True)
     assert status2 == EXIT_PASS, capsys.readouterr().err
     assert _raw_hashes(again, 1) == before
-    starts = [e for e in again.lines() if e["event"] == "session_start"]
+    starts = [e for e in journal_lines(again) if e["event"] == "session_start"]
     assert [e["session"] for e in starts] == [1, 2]     # the journal stayed readable

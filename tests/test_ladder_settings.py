@@ -22,7 +22,7 @@ from bench.core.registry import procedure_kind
 from procedures.rate_ladder.kind import AcquireParams
 from procedures.rate_ladder.settings import LadderSettings
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS
+from tests.conftest import CONFIGS, journal_lines
 
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
 
@@ -98,7 +98,7 @@ def test_a_rate_the_drive_unit_cannot_carry_is_refused_before_anything_moves(
     err = capsys.readouterr().err
     assert "100 deg/s cannot be commanded in the drive's velocity unit (6 deg/s" in err, err
     assert "sent as 102 deg/s" in err and "60 deg/s" not in err.split("Refused")[1], err
-    assert not any(e["event"] == "step_start" for e in run.lines())
+    assert not any(e["event"] == "step_start" for e in journal_lines(run))
 
 
 @pytest.mark.timeout(300)

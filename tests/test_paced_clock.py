@@ -20,7 +20,7 @@ from bench.app.commands import EXIT_PASS, run_session
 from bench.core.journal import RunDir
 from bench.core.loader import load_config
 from sims.clock import SteppedClock, VirtualClock, parse_speed
-from tests.conftest import CONFIGS
+from tests.conftest import CONFIGS, journal_lines
 from tests.test_run_e2e import check_against_truth
 
 STAND = CONFIGS / "stands" / "sim-two-axis.yaml"
@@ -88,7 +88,7 @@ def test_a_slowed_twin_slows_the_clock_and_the_run_completes(tmp_path: Path) -> 
 
     status = run_session(cfg, run, yes=True, on_sim_started=slow)
     real_s = time.monotonic() - started[0]
-    events = run.lines()
+    events = journal_lines(run)
     assert status == EXIT_PASS, [e for e in events if e["event"] == "abort"]
     done = next(e for e in events if e["event"] == "completed")
     lead_s = 20.0

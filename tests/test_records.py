@@ -36,6 +36,7 @@ from bench.app.records.store import TrendPoint
 from bench.app.records.trend import trend_png
 from bench.core.config import parse_stand
 from bench.core.journal import sha256_file
+from bench.report.result_frame import ResultFrame
 from sims.stand import AxisTruth
 from tests.conftest import CONFIGS, bench, bench_bg, cli
 from tests.conftest import OUTER_SERIALS as OUTER
@@ -448,7 +449,7 @@ def test_drift_pulse_figures_are_recorded_with_u_and_verdict() -> None:
                                  "apparent_u_dph": 0.03}},
                   "azimuth_deg": 80.0, "azimuth_u_deg": 0.05},
     }
-    figs = {(f.axis, f.quantity): f for f in figures_of(result)}
+    figs = {(f.axis, f.quantity): f for f in figures_of(ResultFrame.of(result))}
     assert set(figs) == {("x", "own_drift_dph"), ("x", "apparent_drift_dph"),
                          ("y", "own_drift_dph"), ("y", "apparent_drift_dph"),
                          ("platform", "azimuth_deg")}
@@ -473,10 +474,10 @@ def test_an_unresolved_sigma_is_kept_and_drawn_as_its_upper_limit() -> None:
             {"set_rate_dps": 50.0, "rate_error_rel": 1e-7, "rate_error_u_rel": 4e-8,
              "rate_instability_rel": 2e-8, "rate_instability_u_rel": 3e-8,
              "rate_instability_resolved": False, "rate_instability_upper_rel": 7.3e-8}]}}}
-    (sig,) = [f for f in figures_of(result) if f.quantity == "rate_instability_rel"]
+    (sig,) = [f for f in figures_of(ResultFrame.of(result)) if f.quantity == "rate_instability_rel"]
     assert sig.is_limit and sig.value == 7.3e-8 and sig.u is None
     assert sig.verdict == "not-assessed"
-    (err,) = [f for f in figures_of(result) if f.quantity == "rate_error_rel"]
+    (err,) = [f for f in figures_of(ResultFrame.of(result)) if f.quantity == "rate_error_rel"]
     assert not err.is_limit and err.u == 4e-8
     day = dt.datetime(2026, 1, 1)
     png = trend_png([TrendPoint("a", day, "C-1", None, sig), TrendPoint("a", day, "C-1",

@@ -19,7 +19,7 @@ from bench.core.loader import load_config
 from bench.core.stops import StopOutcome, Stops, attempt, register
 from drivers.axis import AxisError, DriveUnreachable
 from drivers.cia402 import OVER_TEMPERATURE
-from tests.conftest import when_step_starts
+from tests.conftest import journal_lines, when_step_starts
 from tests.test_fault_matrix import (  # its short one-axis ladder, its slow clock
     SLOW_CLOCK,
     _hear_silence_sooner,
@@ -292,7 +292,7 @@ def test_a_faulted_drive_ends_at_rest_and_the_outcomes_say_so(tmp_path: Path) ->
     assert order.index("safe stop: outer") < worker < drive < twin, order
     assert all(o.ok for o in outcomes), session.stops.failures
     assert not session.stops.axis_moving and session.later == []
-    exit_event = [e for e in run.lines() if e["event"] == "exit"][-1]
+    exit_event = [e for e in journal_lines(run) if e["event"] == "exit"][-1]
     assert exit_event["later"] == [] and "drive fault" in exit_event["cause"], exit_event
     assert order.count("the analysis worker") == order.count("outer") == 1
     # run again: no stop runs twice (what it returns is only the exit event's journaling,

@@ -121,7 +121,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         from bench.app.records.extract import run_uid
 
         gate = _admitted("Not resumed", lambda: labfile.for_run(run.path, args.lab), cfg,
-                         args, run_uid(dict(run.meta), run.path.name), run.next_session())
+                         args, run_uid(run.meta, run.path.name), run.next_session())
         if gate is None:
             return EXIT_INVALID
     else:

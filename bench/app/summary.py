@@ -19,7 +19,7 @@ from bench.report.certificate.model import Document, Table
 from bench.report.certificate.parts import verdict_label
 from bench.report.certificate.rounding import format_value_u
 from bench.report.figures import SummaryCut, fields_of, spec_for
-from bench.report.result_frame import JsonValue
+from bench.report.result_frame import JsonValue, ResultFrame
 
 
 def _declared(result: Mapping[str, JsonValue], name: str) -> SummaryCut:
@@ -28,7 +28,7 @@ def _declared(result: Mapping[str, JsonValue], name: str) -> SummaryCut:
     if kind is None:
         return SummaryCut()
     rows = []
-    for f in figures_of(dict(result), name):
+    for f in figures_of(ResultFrame.of(dict(result)), name):
         spec = spec_for(f.quantity, kind.figures)
         scale, unit = (spec.scale, spec.shown) if spec is not None else (1.0, f.unit)
         shown = format_value_u(f.value, f.u, scale, signed=True)
@@ -47,7 +47,7 @@ def _declared(result: Mapping[str, JsonValue], name: str) -> SummaryCut:
 
 def summarize(doc: Document, result: Mapping[str, JsonValue] | None = None) -> Summary:
     """The figures the console shows, as the certificate prints them."""
-    name = kind_name(dict(result or {}))
+    name = kind_name(ResultFrame.of(dict(result or {})))
     kind = installed_records(name)
     cut = (kind.summary_cut(doc) if isinstance(kind, SummarisesRun)
            else _declared(result or {}, name))

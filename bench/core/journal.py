@@ -41,10 +41,9 @@ from bench.core.journal_codec import (
     encode_document,
     encode_event,
     read_events,
-    read_jsonl,
     read_meta,
 )
-from drivers.json_types import JsonObject
+from drivers.json_types import JsonLike
 
 
 def sha256_file(path: Path) -> str:
@@ -340,11 +339,6 @@ class RunDir:
         """Every event of every session, each as its kind's record (bench/core/events.py)."""
         return read_events(self.path / layout.EVENTS)
 
-    def lines(self) -> list[JsonObject]:
-        """Every event as the JSON mapping written on its line (for tools and tests that
-        look at the journal's bytes; readers of the run take `events`)."""
-        return list(read_jsonl(self.path / layout.EVENTS))
-
     def completed_units(self) -> list[str]:
         return [e.unit for e in self.events() if isinstance(e, ev.UnitDone)]
 
@@ -353,7 +347,7 @@ class RunDir:
             self._events.close()
 
     # -- derived files ----------------------------------------------------------------
-    def write_json(self, name: str, data: object) -> Path:
+    def write_json(self, name: str, data: JsonLike) -> Path:
         """Write atomically: a reader never sees half a result.json."""
         target = self.path / name
         tmp = target.with_suffix(target.suffix + ".tmp")

@@ -177,6 +177,33 @@ class DriveFeedback(msgspec.Struct, frozen=True):
     velocity_dps: float | None = None
 
 
+class DriveLine(msgspec.Struct, frozen=True):
+    """A line of a drive's raw log as the records' check values read it (docs/method.md
+    C1): a `command` (its time, the rate sent, the acceleration), a `settled` report
+    (target, hold, samples) or a `feedback` reading; a key a kind lacks reads None."""
+
+    kind: str = ""
+    t_s: float | None = None
+    sent_dps: float | None = None
+    accel_dps2: float | None = None
+    target_dps: float | None = None
+    hold_s: float | None = None
+    samples: float | None = None
+    velocity_dps: float | None = None
+
+
+def read_drive_log(path: Path) -> Iterator[DriveLine]:
+    """A drive's raw log, line by line: a torn line, or one whose keys are of the wrong
+    type, is skipped."""
+    decoder = msgspec.json.Decoder(DriveLine)
+    with open(path, "rb") as f:
+        for line in f:
+            try:
+                yield decoder.decode(line)
+            except msgspec.DecodeError:
+                continue
+
+
 # -- result.json ------------------------------------------------------------------------------
 
 class _Verdict(msgspec.Struct):

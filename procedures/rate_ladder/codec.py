@@ -21,7 +21,7 @@ from typing import Annotated, cast
 import msgspec
 
 from bench.core import rundir_layout as layout
-from bench.core.journal import read_jsonl
+from bench.core.journal_codec import read_jsonl
 from bench.report.certificate.parts import Sources
 from bench.report.result_frame import (
     Issues,
@@ -206,7 +206,7 @@ def ladder_model(src: Sources) -> LadderResult:
 
 
 def _as_written(value: msgspec.Struct | JsonValue | tuple[JsonValue, ...]
-                | Mapping[str, msgspec.Struct]) -> bool:
+                | Mapping[str, msgspec.Struct] | msgspec.UnsetType) -> bool:
     """Whether a model part holds only what its encoding holds (finite Python numbers)."""
     if isinstance(value, msgspec.Struct):
         return all(_as_written(getattr(value, f)) for f in value.__struct_fields__)
@@ -216,7 +216,7 @@ def _as_written(value: msgspec.Struct | JsonValue | tuple[JsonValue, ...]
         return all(_as_written(v) for v in value.values())
     if isinstance(value, float):
         return type(value) is float and math.isfinite(value)
-    return value is None or type(value) in (int, bool, str) or value is msgspec.UNSET
+    return value is None or value is msgspec.UNSET or type(value) in (int, bool, str)
 
 
 # -- the run folder's inputs: the counter's raw log, the corrections file ---------------------

@@ -27,7 +27,7 @@ from pathlib import Path
 from bench.analysis.finite import finite_number as _num
 from bench.core import rundir_layout as layout
 from bench.core.events import Event, StepStarted, TimedHalf
-from bench.core.journal_codec import read_events, read_jsonl
+from bench.core.journal_codec import DriveLine, read_drive_log, read_events
 from bench.core.registry import procedure_names
 from bench.core.yamlfile import YamlValue
 from bench.kind import ChecksInstruments, installed_records
@@ -140,28 +140,27 @@ def _drive(axis: str, raw: Path, events: Sequence[Event], serial: str,
     ripple_sq, ripple_n = 0.0, 0
     for f in files:
         session = f.parent.name.removeprefix("s")
-        command: JsonObject | None = None
+        command: DriveLine | None = None
         last_w = 0.0
-        for rec in read_jsonl(f):
-            kind = rec.get("kind")
-            t = _num(rec.get("t_s"))
+        for rec in read_drive_log(f):
+            t = _num(rec.t_s)
             if t is None:
                 continue
-            if kind == "command":
+            if rec.kind == "command":
                 if command is not None:
-                    last_w = _num(command.get("sent_dps")) or last_w
+                    last_w = _num(command.sent_dps) or last_w
                 command = rec
-            elif kind == "settled" and command is not None:
-                accel = _num(command.get("accel_dps2")) or 0.0
-                target = _num(rec.get("target_dps")) or 0.0
+            elif rec.kind == "settled" and command is not None:
+                accel = _num(command.accel_dps2) or 0.0
+                target = _num(rec.target_dps) or 0.0
                 ramp = abs(target - last_w) / accel if accel > 0 else 0.0
-                hold = _num(rec.get("hold_s")) or 0.0
-                samples = int(_num(rec.get("samples")) or 1)
-                value = t - hold - (_num(command.get("t_s")) or 0.0) - ramp
+                hold = _num(rec.hold_s) or 0.0
+                samples = int(_num(rec.samples) or 1)
+                value = t - hold - (_num(command.t_s) or 0.0) - ramp
                 settle.append((max(value, 0.0), hold / max(samples - 1, 1)))
                 last_w = target
-            elif kind == "feedback":
-                v = _num(rec.get("velocity_dps"))
+            elif rec.kind == "feedback":
+                v = _num(rec.velocity_dps)
                 for s, a, b, rate in windows:
                     if s == session and a <= t <= b and v is not None:
                         ripple_sq += ((v - rate) / rate) ** 2

@@ -11,19 +11,19 @@ import datetime as dt
 import hashlib
 import json
 import socket
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from bench.analysis.finite import finite_number as _num
 from bench.app.records.checks import CheckRecord, checks_of
 from bench.core import rundir_layout as layout
 from bench.core.journal import sha256_file
+from bench.core.journal_codec import RunMeta, read_meta
 from bench.core.placeholders import run_copy
 from bench.kind import installed_records
 from bench.report.certificate.sources import read_json_object
 from bench.report.figures import FigureValue
-from bench.report.result_frame import Check, JsonObject, ResultFrame
+from bench.report.result_frame import Check, ResultFrame
 from drivers.json_types import JsonValue
 
 #: files of a run directory that make up its certificate (hashed into the records)
@@ -94,7 +94,6 @@ class RunRecord:
     figures: tuple[FigureRecord, ...] = ()
     cert_files: tuple[tuple[str, str, int], ...] = ()   # (name, sha256, bytes)
     checks: tuple[CheckRecord, ...] = ()    # the bench's own instruments (checks.py)
-    extra: Mapping[str, object] = field(default_factory=dict)
 
     @property
     def date_utc(self) -> dt.datetime | None:
@@ -118,15 +117,15 @@ def parse_utc(stamp: JsonValue | dt.datetime) -> dt.datetime | None:
     return t
 
 
-def run_uid(meta: Mapping[str, object], run_dir: str) -> str:
+def run_uid(meta: RunMeta, run_dir: str) -> str:
     """Stable over re-analysis and re-import, distinct between benches: the random uid
     meta.json was given when the run was created; for a run from before it, creation time
     to the millisecond, directory name and the input files' digests."""
     own = meta.get("run_uid")
-    if isinstance(own, str) and own:
+    if own:
         return own
-    key = "|".join(str(meta.get(k, "")) for k in ("created_utc", "procedure_sha256",
-                                                  "stand_sha256")) + "|" + run_dir
+    key = "|".join((meta.get("created_utc", ""), meta.get("procedure_sha256", ""),
+                    meta.get("stand_sha256", ""))) + "|" + run_dir
     return hashlib.sha256(key.encode()).hexdigest()[:32]
 
 
@@ -149,27 +148,25 @@ def _record(f: FigureValue, checks: dict[tuple[str, str, float | None], Check]
                             c.rule if c is not None and c.rule else None))
 
 
-def kind_name(result: JsonObject, run_path: Path | None = None) -> str:
+def kind_name(frame: ResultFrame, run_path: Path | None = None) -> str:
     """The procedure kind of a result: the one it names, else (an older result) the one
     the certificate takes it for (`bench.app.certificate.build.procedure_of`: the procedure
     file's, or the installed kind that recognises its keys); "" if none does."""
     from bench.app.certificate.build import Sources, procedure_of
 
-    named = ResultFrame.of(result).procedure
-    if named:
-        return named
+    if frame.procedure:
+        return frame.procedure
     try:
-        return procedure_of(Sources.load(result, run_path)).name
+        return procedure_of(Sources.load(frame.doc, run_path)).name
     except Exception:  # noqa: BLE001 - a malformed result is registered under no kind
         return ""
 
 
-def figures_of(result: JsonObject, kind: str | None = None) -> list[FigureRecord]:
-    """Every figure the kind reports of result.json (its `records` part,
+def figures_of(frame: ResultFrame, kind: str | None = None) -> list[FigureRecord]:
+    """Every figure the kind reports of a result (its `records` part,
     bench.kind.RecordsPart), with U (k = 2) and its check's verdict; none when the kind
     is not installed here."""
-    return frame_figures(ResultFrame.of(result),
-                         kind if kind is not None else kind_name(result))
+    return frame_figures(frame, kind if kind is not None else kind_name(frame))
 
 
 def frame_figures(frame: ResultFrame, kind: str) -> list[FigureRecord]:
@@ -224,9 +221,9 @@ def record_of(run_path: str | Path, frame: ResultFrame | None = None) -> RunReco
     number = certificate_number(path)
     cert_files = _issued_files(path, number)
     blob = json.dumps(result, sort_keys=True, default=str).encode()
-    kind = frame.procedure or kind_name(result, path)
+    kind = frame.procedure or kind_name(frame, path)
     return RunRecord(
-        uid=run_uid(meta, path.name),
+        uid=run_uid(_run_meta(path), path.name),
         serial=serial,
         maker=_opt(ident.get("maker")), model=_opt(ident.get("model")),
         location=_opt(ident.get("location")),
@@ -255,6 +252,15 @@ def record_of(run_path: str | Path, frame: ResultFrame | None = None) -> RunReco
         checks=tuple(checks_of(path, result, stand_file if isinstance(stand_file, dict)
                                else {}, kind)),
     )
+
+
+def _run_meta(path: Path) -> RunMeta:
+    """meta.json's own keys (none when it is missing or not meta.json's shape: the run's
+    uid is then made from its folder's name, as for a run from before uids)."""
+    try:
+        return read_meta(path / layout.META)
+    except (OSError, ValueError):
+        return RunMeta()
 
 
 def _opt(x: JsonValue) -> str | None:

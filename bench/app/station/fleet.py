@@ -356,7 +356,7 @@ class FleetView:
         if result is not None and state["run_status"] != "running":
             kind = x.kind or ResultFrame.conform(result)[0].procedure or ""
             specs = declared_figures([kind]) if kind else ()
-            for f in figures_of(result, kind or None):
+            for f in figures_of(ResultFrame.of(result), kind or None):
                 spec = spec_for(f.quantity, specs)
                 scale = spec.scale if spec else 1.0
                 final.append({"axis": f.axis, "name": spec.name if spec else f.quantity,

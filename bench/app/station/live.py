@@ -290,7 +290,7 @@ def final_rows(frame: ResultFrame, run_path: Path | None = None) -> list[JsonObj
     """The final rows from result.json, as its kind's station part gives them (the
     ladder's: per axis and rate the figures the certificate prints with the pair's k and
     w0); none for a kind that gives none."""
-    return station_of(frame.procedure or kind_name(frame.doc, run_path)).result_rows(frame)
+    return station_of(frame.procedure or kind_name(frame, run_path)).result_rows(frame)
 
 
 #: a session's exit status (bench/app/session.py EXIT_*, CONTRACT section 1) as the page

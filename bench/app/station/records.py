@@ -38,10 +38,10 @@ def run_figures(run_path: Path) -> dict[str, JsonLike]:
     """A finished run's figures, read by its procedure kind from result.json (the rows
     the records keep) with the words and units the kind declares; none before the end."""
     result = read_json_object(run_path / layout.RESULT)
-    kind = kind_name(result, run_path) if result else ""
+    kind = kind_name(ResultFrame.of(result), run_path) if result else ""
     specs = declared_figures([kind]) if kind else ()
     rows: list[JsonLike] = []
-    for f in figures_of(result, kind) if result else []:
+    for f in figures_of(ResultFrame.of(result), kind) if result else []:
         spec = spec_for(f.quantity, specs)
         rows.append({"axis": f.axis, "quantity": f.quantity, "set_rate_dps": f.set_rate_dps,
                      "value": f.value, "U": f.u, "unit": f.unit,

@@ -225,7 +225,7 @@ def _final(path: str, _mtime_ns: int, _size: int
     if not doc:
         return None, ()
     frame = ResultFrame.of(doc)
-    kind = frame.procedure or kind_name(doc, Path(path))
+    kind = frame.procedure or kind_name(frame, Path(path))
     tables = station_of(kind).result_tables(frame) or _declared_table(frame, kind)
     return frame.verdict, tuple(tables)
 
