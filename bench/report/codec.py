@@ -145,5 +145,7 @@ def encode(model: msgspec.Struct | Mapping[str, JsonLike]) -> JsonObject:
 
 
 def written(model: msgspec.Struct | Mapping[str, JsonLike]) -> JsonObject:
-    """A model part as result.json holds it: `encode`'s, a non-finite number as null."""
-    return cast(JsonObject, _finite(encode(model)))
+    """A model part as result.json holds it, as `json.load` gives it back: `encode`'s, a
+    non-finite number as null, a number as a key as text (a YAML block's `1: ...`)."""
+    return cast(JsonObject, _finite(_lists(msgspec.to_builtins(model, enc_hook=_builtin,
+                                                               str_keys=True))))

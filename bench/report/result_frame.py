@@ -460,7 +460,7 @@ def conform_frame(doc: JsonObject, issues: Issues) -> JsonObject:
 
 @dataclass(frozen=True, slots=True)
 class ResultFrame:
-    """What every kind's result.json says about the run (procedures.base.result_document):
+    """What every kind's result.json says about the run (bench.report.codec.ResultHead):
     the header, the decision rule, the method, the checks and the verdict. Every part is
     optional: a hand-made or older result may lack it, and the certificate says so."""
 

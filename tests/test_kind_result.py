@@ -1,0 +1,75 @@
+"""The analysis's typed result and result.json (issue 60): the session writes the file from
+the result and hands the result itself to the certificate, the records and the register,
+so what they read in memory must be what a reader of the file gets back."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import msgspec
+
+from bench.core.journal_codec import encode_document
+from bench.report.certificate.sources import Sources
+from bench.report.codec import KindResult, ProcedureFileRef, RawFile, ResultHead, RunDates
+from procedures.rate_ladder.codec import ladder_model, ladder_of
+from procedures.rate_ladder.result import (
+    ConditionsMeasured,
+    LadderBody,
+    LadderCheck,
+    PairEntry,
+)
+from procedures.rate_ladder.sample import rate_ladder_result
+
+
+def _head(checks: tuple[LadderCheck, ...] = (), conditions: dict[str, object] | None = None
+          ) -> ResultHead:
+    return ResultHead(
+        schema="bench.result/1", uncertainty_names="U", procedure="rate-ladder",
+        verdict="pass", title="t", run_dir="r", procedure_file=ProcedureFileRef("p", "0"),
+        stand={"serial": "S-1", "simulated": True}, instruments={"outer": {"fog": "F 1"}},
+        dates=RunDates("2026-11-30T00:00:00Z", None, None),
+        conditions=conditions or {}, specification=None,  # type: ignore[arg-type]
+        certificate={}, sessions=1, aborted=False, ended="completed", run_sessions=[],
+        raw_files=[RawFile("raw/s1/a", "ab", 3)], decision_rule="simple",
+        decision_rule_text="x", method={"tolerance": {"k_rel": 1e-05}}, checks=checks)
+
+
+def _body() -> LadderBody:
+    return LadderBody(axes=ladder_of(rate_ladder_result()).axes,
+                      conditions_measured=ConditionsMeasured(None))
+
+
+def test_the_document_is_what_the_file_reads_back() -> None:
+    checks = (LadderCheck(axis="outer", set_rate_dps=10.0, quantity="rate_error",
+                          value_rel=1e-05, u_rel=math.nan, tolerance_rel=1e-4, rule="simple",
+                          verdict="pass", reason="r", capability_ratio=0.1,
+                          capability_ok=True),)
+    result = KindResult(_head(checks, conditions={1: "room"}), _body())  # type: ignore[dict-item]
+    text = encode_document(result.document)
+    # in memory as on disk: same keys (a YAML number key as text), lists, NaN as null
+    assert json.loads(text) == result.document
+    assert encode_document(json.loads(text)) == text
+    assert result.document["conditions"] == {"1": "room"}
+    assert result.document["checks"][0]["U_rel"] is None          # type: ignore[index]
+    assert '"value_rel": 1e-05' in text     # json.dumps' float form, not msgspec's 0.00001
+    # the frame first in CONTRACT §3's order, then the kind's body in its Struct's order
+    keys = list(result.document)
+    assert keys[:4] == ["schema", "uncertainty_names", "procedure", "verdict"]
+    assert keys[-4:] == ["method", "checks", "axes", "conditions_measured"]
+    assert "corrections" not in keys       # unset: absent, the document as before
+    assert result.frame.verdict == "pass" and result.frame.stand["serial"] == "S-1"
+
+
+def test_the_certificate_takes_the_analysed_model_and_decodes_one_that_is_not_as_written(
+        ) -> None:
+    result = KindResult(_head(), _body())
+    src = Sources.analysed(result, None)        # type: ignore[arg-type]
+    assert ladder_model(src).axes is result.body.axes      # no decode of its encoding
+    assert ladder_model(src).axes == ladder_of(result.document).axes
+    # a NaN the file cannot hold: the model decoded from the document instead (null)
+    axis = result.body.axes["outer"]
+    odd = msgspec.structs.replace(axis, pairs=(PairEntry(rate_dps=10.0, k=math.nan),))
+    nan = KindResult(_head(), LadderBody(axes={"outer": odd}))
+    decoded = ladder_model(Sources.analysed(nan, None))   # type: ignore[arg-type]
+    assert decoded.axes["outer"].pairs[0].k is None
