@@ -64,12 +64,12 @@ def test_the_document_is_what_the_file_reads_back() -> None:
 def test_the_certificate_takes_the_analysed_model_and_decodes_one_that_is_not_as_written(
         ) -> None:
     result = KindResult(_head(), _body())
-    src = Sources.analysed(result, None)        # type: ignore[arg-type]
+    src = Sources.analysed(result, None)
     assert ladder_model(src).axes is result.body.axes      # no decode of its encoding
     assert ladder_model(src).axes == ladder_of(result.document).axes
     # a NaN the file cannot hold: the model decoded from the document instead (null)
     axis = result.body.axes["outer"]
     odd = msgspec.structs.replace(axis, pairs=(PairEntry(rate_dps=10.0, k=math.nan),))
     nan = KindResult(_head(), LadderBody(axes={"outer": odd}))
-    decoded = ladder_model(Sources.analysed(nan, None))   # type: ignore[arg-type]
+    decoded = ladder_model(Sources.analysed(nan, None))
     assert decoded.axes["outer"].pairs[0].k is None

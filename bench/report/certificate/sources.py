@@ -66,7 +66,7 @@ class Sources:
         return src
 
     @classmethod
-    def analysed(cls, result: KindResult[ResultPart], run_path: Path) -> Sources:
+    def analysed(cls, result: KindResult[ResultPart], run_path: Path | None) -> Sources:
         """The run as its analysis has just given its result (result.json is its encoding,
         not read back): the kind's certificate part takes the result's body as its model."""
         src = cls.load(result.document, run_path)
