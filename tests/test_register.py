@@ -350,19 +350,6 @@ def test_a_missing_register_is_an_error_and_nothing_is_created(run: Path, lab: P
     assert not (run / "register.sqlite").exists()
 
 
-def test_a_withdrawn_file_gets_no_ok_line(run: Path, lab: Path) -> None:
-    assert authorise(run, "P. Petrov", lab).returncode == 0
-    first = next((run / "issued").iterdir()) / "certificate.dcc.xml"
-    kept = first.read_bytes()
-    assert authorise(run, "P. Petrov", lab, "--reason", "customer's address corrected"
-                     ).returncode == 0
-    done = cli("verify", str(first), "--register", _url(lab), "--no-result")
-    assert first.read_bytes() == kept
-    assert done.returncode == 1 and "withdrawn" in done.stdout, done.stdout
-    assert "verify: OK" not in done.stdout
-    assert "the register does not hold it as issued" in done.stdout
-
-
 # -- issue 54, item 5: the trail anchored in what customers hold -----------------------------
 
 def _rewrite_without_issues(url: str) -> None:
@@ -396,10 +383,21 @@ def _rewrite_without_issues(url: str) -> None:
 
 
 def test_issued_documents_anchor_the_trail(url: str, run: Path, tmp_path: Path) -> None:
+    """An issue and its re-issue: the withdrawn revision gets no OK line from `bench verify`
+    (each issue renders a certificate, so one walk checks both), and each issued document's
+    receipt is found in the trail until the trail is rewritten or truncated."""
     lab = lab_file(tmp_path / "lab", url)
     assert authorise(run, "P. Petrov", lab).returncode == 0
+    first = next((run / "issued").iterdir()) / "certificate.dcc.xml"
+    kept = first.read_bytes()
     assert authorise(run, "P. Petrov", lab, "--reason", "the customer's address corrected"
                      ).returncode == 0
+    # the withdrawn file gets no OK line
+    done = cli("verify", str(first), "--register", url, "--no-result")
+    assert first.read_bytes() == kept
+    assert done.returncode == 1 and "withdrawn" in done.stdout, done.stdout
+    assert "verify: OK" not in done.stdout
+    assert "the register does not hold it as issued" in done.stdout
     html = (run / "certificate.html").read_text()
     m = re.search(r"Lab register audit trail entry (\d+), SHA-256 ([0-9a-f]{64})", html)
     assert m, "the issued certificate states no receipt"
