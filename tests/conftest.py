@@ -60,6 +60,34 @@ def pg() -> Any:
         server.stop()
 
 
+#: the argon2id parameters of the suite's password hashes (`cheap_password_hashes`): one
+#: pass over 64 KiB, lane 1, the hash and salt lengths of the register's own
+CHEAP_ARGON2 = {"time_cost": 1, "memory_cost": 64, "parallelism": 1}
+
+
+@pytest.fixture(scope="session", autouse=True)
+def cheap_password_hashes() -> Iterator[Callable[[], Any]]:
+    """The register hashes the suite's passwords with CHEAP_ARGON2, not its own RFC 9106
+    parameters (64 MiB, 3 passes, 4 lanes: 0.3-0.45 CPU s a hash or a check on this
+    2-core machine, ~14 of them to fill one test register and one per `bench authorise`),
+    which are a brake on guessing, not something a test asserts but the one that checks
+    them (tests/test_password_hashing.py, with the register's own hasher this yields). A
+    hash records its parameters, so a `bench` the suite starts in its own process checks
+    these passwords as cheaply, and hashes a password it sets with the register's own.
+    Every refusal, lockout and role check runs as before: only the work per hash is less."""
+    from argon2 import PasswordHasher
+
+    from bench.app.register import model
+
+    shipped = model._hasher
+    cheap = PasswordHasher(**CHEAP_ARGON2)
+    model._hasher = lambda: cheap
+    try:
+        yield shipped
+    finally:
+        model._hasher = shipped
+
+
 @pytest.fixture
 def small_disk(tmp_path: Path) -> Any:
     """A small file system of its own (tmpfs), to be filled: needs root and mount(2)."""

@@ -1,7 +1,8 @@
 """Lab registers for tests: a real SQLite register file with the lab's accounts, made once
-per test process (argon2id hashing is deliberately slow) and copied for each test, and the
-lab file that names it. `authorise` issues with the signatory's password on stdin, as a
-script would (`--password-stdin`)."""
+per test process (its passwords hashed with the suite's cheap argon2id parameters,
+tests/conftest.py `cheap_password_hashes`) and copied for each test, and the lab file that
+names it. `authorise` issues with the signatory's password on stdin, as a script would
+(`--password-stdin`)."""
 
 from __future__ import annotations
 
