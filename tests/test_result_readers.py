@@ -131,11 +131,12 @@ def test_the_ladder_result_round_trips_and_refuses_by_key_path() -> None:
 
     import pytest
 
+    from bench.report.codec import encode
     from procedures.rate_ladder.codec import conform, encode_axes, ladder_of
     from procedures.rate_ladder.result import MalformedResult, Systematic
     from procedures.rate_ladder.sample import rate_ladder_result
 
-    doc = rate_ladder_result()
+    doc = encode(rate_ladder_result())
     typed = ladder_of(doc)
     outer = typed.axes["outer"]
     assert outer.rates[0].set_rate_dps == doc["axes"]["outer"]["rates"][0]["set_rate_dps"]

@@ -38,7 +38,6 @@ from bench.report.result_frame import (
     conform_object,
     conform_plain_list,
 )
-from procedures.rate_ladder.events import ResultRow
 from procedures.rate_ladder.result import LadderAxis, LadderCheck, LadderResult
 
 #: the body's key in result.json, and the root of every path a refusal names
@@ -293,9 +292,3 @@ def read_corrections(path: Path) -> tuple[tuple[Correction, ...], JsonValue]:
         where, problem = _problem(err)
         raise ValueError(f"{path}: {where.lstrip('.')}: {problem}") from None
     return found.corrections, doc.get("corrections")
-
-
-def row_json(row: ResultRow) -> JsonObject:
-    """A station row as the station's pages carry it (its fields, in order)."""
-    return cast(JsonObject, msgspec.to_builtins(row))
-

@@ -155,12 +155,17 @@ def read_json_object(path: Path) -> dict[str, Any]:
     return data if isinstance(data, dict) else {}
 
 
-def beside(run_path: Path, run_id: str) -> ResultFrame | None:
-    """The frame of the result.json of the run `run_id` beside `run_path` (the runs folder:
-    an as-found run), read as written; None when it is missing, damaged or no object."""
+def read_frame(result_file: Path) -> ResultFrame | None:
+    """The frame of a result.json, read as written; None when it is missing, damaged or
+    no object (a run not analysed yet, or whose analysis is being written)."""
     try:
-        found = json.loads((run_path.parent / run_id / layout.RESULT).read_text(
-            encoding="utf-8"))
+        found = json.loads(result_file.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
     return ResultFrame.of(found) if isinstance(found, dict) else None
+
+
+def beside(run_path: Path, run_id: str) -> ResultFrame | None:
+    """The frame of the result.json of the run `run_id` beside `run_path` (the runs folder:
+    an as-found run), read as written; None when it is missing, damaged or no object."""
+    return read_frame(run_path.parent / run_id / layout.RESULT)
