@@ -18,6 +18,8 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any, Protocol, TypeVar, cast, runtime_checkable
 
+import msgspec
+
 from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.events import Event
@@ -25,8 +27,22 @@ from bench.core.journal import read_events
 from bench.core.journal_codec import StartMeta, start_meta
 from bench.core.placeholders import run_copy
 from bench.report.result_frame import JsonObject, ResultFrame, as_object
+from drivers.json_types import JsonScalar
 
 M = TypeVar("M")
+
+
+class StandIdentity(msgspec.Struct, frozen=True, kw_only=True):
+    """The stand's identity as the certificate and the DCC print it (`Sources.stand`):
+    each value as written (a serial may be a number), None where nothing states it."""
+
+    maker: JsonScalar = None
+    model: JsonScalar = None
+    serial: JsonScalar = None
+    location: JsonScalar = None
+    file: JsonScalar = None
+    sha256: JsonScalar = None
+    simulated: JsonScalar = None
 
 
 @dataclass
@@ -101,6 +117,16 @@ class Sources:
         """meta.json's account of the run's start (the performer, the equipment's status
         in the register), typed once for the certificate and the DCC."""
         return start_meta(self.meta)
+
+    @cached_property
+    def stand(self) -> StandIdentity:
+        """The stand file's `stand` block, with what result.json says over it; a value
+        that is no scalar (a malformed file's) reads as not stated."""
+        block = self.stand_file.get("stand")
+        said = {**(block if isinstance(block, dict) else {}),
+                **{k: v for k, v in self.frame.stand.items() if v is not None}}
+        return msgspec.convert({k: v for k, v in said.items()
+                                if isinstance(v, str | int | float | bool)}, StandIdentity)
 
     @cached_property
     def frame(self) -> ResultFrame:
