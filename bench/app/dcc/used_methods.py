@@ -16,6 +16,7 @@ import bench
 from bench.app.certificate.build import Sources
 from bench.app.certificate.conditions import NOT_MEASURED, condition_rows
 from bench.app.certificate.equipment import NONE, equipment_list
+from bench.core.yamlfile import YamlValue
 from bench.kind import DccPart
 from bench.report.dcc import units as U
 from bench.report.dcc import vocab as V
@@ -191,7 +192,7 @@ _CONDITION_UNITS = {"c": (U.CELSIUS, V.TEMPERATURE, V.TEMPERATURE_MIN, V.TEMPERA
                     "hpa": (U.HECTOPASCAL, V.CONDITION, None, None)}
 
 
-def _condition(conds: etree._Element, key: str, value: object, measured: str) -> None:
+def _condition(conds: etree._Element, key: str, value: YamlValue, measured: str) -> None:
     """A stated condition: '20 +/- 2' under `temperature_c` becomes 18 ... 22 degC; text
     that is not a number with its unit stays text (it is never guessed). `measured`: what
     this run measured of it (the PDF's column), usually "not measured"."""

@@ -15,6 +15,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Protocol, TypeVar
 
 from bench.analysis.finite import finite_number as num
+from bench.core.yamlfile import YamlValue
 from bench.report.certificate.model import Block, Figure, Para, Section
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u
 from bench.report.certificate.sources import Sources as Sources
@@ -53,7 +54,7 @@ def label_of(key: str) -> str:
     return f"{text}, {unit}" if unit else text
 
 
-def text_of(value: object) -> str:
+def text_of(value: YamlValue) -> str:
     """Any recorded value as text; nothing recorded says so."""
     if value is None or value == "":
         return NOT_RECORDED
@@ -66,7 +67,7 @@ def text_of(value: object) -> str:
     return str(value).replace("+/-", "±")
 
 
-def _key_value(key: str, value: object) -> str:
+def _key_value(key: str, value: YamlValue) -> str:
     """`max_rate_dps: 400` -> 'max rate: 400 °/s'."""
     words = str(key).split("_")
     unit = UNIT_SUFFIXES.get(words[-1].lower()) if len(words) > 1 else None
