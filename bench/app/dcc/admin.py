@@ -194,7 +194,8 @@ def _item(items: etree._Element, src: Sources, kind: DccPart) -> None:
         text += (" SIMULATED stand: instrument twins on real channels; these results "
                  "describe no physical item.")
     if stand.file:
-        text += f" Stand file {stand.file} (SHA-256 {NOT_RECORDED if stand.sha256 is None else stand.sha256})."
+        digest = NOT_RECORDED if stand.sha256 is None else stand.sha256
+        text += f" Stand file {stand.file} (SHA-256 {digest})."
     text_el(item, "description", text)
     if stand.maker:
         name(el(item, "manufacturer"), str(stand.maker))
