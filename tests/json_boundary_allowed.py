@@ -20,16 +20,5 @@ test_object_annotations).
 from __future__ import annotations
 
 ALLOWED: dict[str, dict[str, int]] = {
-    "bench/app/certificate/equipment.py": {"json_map_signatures": 2},
     "bench/app/certificate/pdf.py": {"json_map_signatures": 1},
-    "bench/app/dcc/admin.py": {"json_map_signatures": 1},
-    "bench/app/dcc/used_methods.py": {"json_map_signatures": 1},
-    "bench/app/station/live.py": {"json_map_signatures": 1, "json_reads": 1},
-    "bench/kind/__init__.py": {"json_map_signatures": 2},
-    "bench/report/certificate/parts.py": {"json_map_signatures": 1},
-    "bench/report/station.py": {"json_map_signatures": 1},
-    "procedures/drift_pulse/records.py": {"json_map_signatures": 1},
-    "procedures/drift_pulse/sample.py": {"json_map_signatures": 1},
-    "procedures/rate_ladder/sample.py": {"json_map_signatures": 3},
-    "procedures/rate_ladder/station.py": {"json_map_signatures": 1},
 }

@@ -24,6 +24,7 @@ from bench.app.certificate import write_certificate
 from bench.core.journal import RunDir
 from bench.report.certificate.rounding import format_limit, format_value_u, rel_unit, round_u
 from bench.report.certificate.sources import Sources
+from bench.report.codec import encode
 from procedures.drift_pulse.sample import drift_pulse_result
 from procedures.rate_ladder.sample import rate_ladder_result
 
@@ -121,7 +122,7 @@ def _flat(text: str) -> str:
 @pytest.fixture(scope="module")
 def ladder(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     run = _run_dir(tmp_path_factory.mktemp("ladder"))
-    result = rate_ladder_result()
+    result = encode(rate_ladder_result())
     paths = write_certificate(run, Sources.load(result, run.path), issued=ISSUED)
     texts, images = _pdf_pages(run.path / "certificate.pdf")
     return {"run": run, "paths": paths, "texts": texts, "images": images,
@@ -266,7 +267,7 @@ def test_plots_embedded_in_pdf_and_html(ladder: dict[str, Any]) -> None:
 @pytest.mark.timeout(60)
 def test_drift_pulse_certificate(tmp_path: Path) -> None:
     run = _run_dir(tmp_path)
-    write_certificate(run, Sources.load(drift_pulse_result(), run.path), issued=ISSUED)
+    write_certificate(run, Sources.load(encode(drift_pulse_result()), run.path), issued=ISSUED)
     texts, images = _pdf_pages(tmp_path / "certificate.pdf")
     text = _flat("\n".join(texts))
     assert "alternating-sign controlled precession" in text          # method B
@@ -334,7 +335,7 @@ def test_malformed_parts_are_named_not_fatal() -> None:
     from bench.app.certificate.build import build_document
     from bench.app.certificate.html import render_html
 
-    result = rate_ladder_result()
+    result = encode(rate_ladder_result())
     result["axes"]["outer"]["rates"][0]["systematic"] = "garbage"
     result["axes"]["outer"]["rates"][1]["set_rate_dps"] = None
     result["axes"]["inner"]["pairs"] = {"not": "a list"}

@@ -15,6 +15,7 @@ from fpdf.line_break import MultiLineBreak
 from bench.app.certificate import pdf as certificate_pdf
 from bench.app.certificate.build import build_document
 from bench.report.certificate.sources import Sources
+from bench.report.codec import encode
 from procedures.rate_ladder.sample import rate_ladder_result
 
 FIXED = dt.datetime(2026, 1, 2, 3, 4, 5, tzinfo=dt.UTC)
@@ -41,7 +42,7 @@ class _Counting(MultiLineBreak):
 
 def test_lines_broken_once_give_the_same_pdf(fixed_date: None, tmp_path: Path,
                                              monkeypatch: pytest.MonkeyPatch) -> None:
-    doc = build_document(Sources.load(rate_ladder_result(), None))
+    doc = build_document(Sources.load(encode(rate_ladder_result()), None))
     as_fpdf_breaks = certificate_pdf._rendered(doc, certificate_pdf._png)
     monkeypatch.setattr(certificate_pdf, "MultiLineBreak", _Counting)
     monkeypatch.setattr(fpdf.fpdf, "MultiLineBreak", _Counting)

@@ -125,7 +125,7 @@ def test_per_edge_timing_and_the_coverage_rule_are_printed() -> None:
 def test_drift_certificate_item_is_the_platform_with_its_gyros(tmp_path: Path) -> None:
     run = _run_dir(tmp_path)
     shutil.copyfile(ROOT / "configs/stands/sim-gyro-platform.yaml", run.path / "stand.yaml")
-    result = drift_pulse_result()
+    result = encode(drift_pulse_result())
     result["stand"] = {"maker": "Simulated Gyro Lab", "model": "GP-3 platform test stand",
                        "serial": "SIM-0004", "simulated": True}
     write_certificate(run, Sources.load(result, run.path), issued=ISSUED)

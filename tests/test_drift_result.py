@@ -92,7 +92,7 @@ def test_the_checks_judge_the_own_drift_and_the_earth_rate(analysed: dp.DriftRes
 
 
 def test_the_sample_is_a_result_the_readers_accept() -> None:
-    result = drift_pulse_result()
+    result = encode(drift_pulse_result())
     figures = drift_of(result)
     assert figures == drift_figures()
     assert figures.axes["x"].own_dph == 0.0523 and figures.axes["x"].own_U_dph == 0.0031
@@ -146,7 +146,7 @@ def _certificate(tmp_path: Path, result: dict[str, object]) -> str:
 
 @pytest.mark.timeout(120)
 def test_the_certificate_reads_the_typed_figures(tmp_path: Path) -> None:
-    html = _certificate(tmp_path, drift_pulse_result())
+    html = _certificate(tmp_path, encode(drift_pulse_result()))
     assert "+0.0523 ± 0.0031" in html and "80.020 ± 0.031 °" in html
     # the digitizer's offset, U expanded, as a deviation of the run (docs/method.md B)
     assert "Axis x: the digitizer&#39;s samples were +0.250 ± 0.010 ms off the pulse edges" \
@@ -155,11 +155,11 @@ def test_the_certificate_reads_the_typed_figures(tmp_path: Path) -> None:
 
 @pytest.mark.timeout(120)
 def test_a_result_without_figures_and_a_malformed_one(tmp_path: Path) -> None:
-    failed = drift_pulse_result() | {"verdict": "incomplete", "drift": encode(DriftFigures.failed(
+    failed = encode(drift_pulse_result()) | {"verdict": "incomplete", "drift": encode(DriftFigures.failed(
         "each position needs at least two cycles (for its scatter)"))}
     html = _certificate(tmp_path / "failed", failed)
     assert "Own and apparent drift per axis" not in html and "Site latitude" not in html
-    broken = drift_pulse_result()
+    broken = encode(drift_pulse_result())
     broken["drift"]["axes"]["x"].pop("own_dph")
     with pytest.raises(MalformedResult, match=r"^result.json drift.axes.x.own_dph: missing$"):
         _certificate(tmp_path / "broken", broken)

@@ -88,17 +88,18 @@ def test_a_planted_module_fails(tmp_path: Path, where: str) -> None:
 
 
 def test_a_listed_file_that_grows_fails(tmp_path: Path) -> None:
-    """A file on the list gains one more map signature: it is named with its new count."""
+    """A file on the list gains one more map signature: it is named with its new count.
+    (The station's files are off the real list since issue 60's station slice, so the
+    list here is made up: live.py allowed one, given two.)"""
     where = "bench/app/station"
-    listed = sorted(p for p in ALLOWED if p.startswith(where)
-                    and ALLOWED[p].get("json_map_signatures"))[0]
+    listed = f"{where}/live.py"
+    allowed = {**ALLOWED, listed: {"json_map_signatures": 1}}
     root = _tree_copy(tmp_path)
     with (root / listed).open("a", encoding="utf-8") as f:
-        f.write("\n\ndef planted(doc: dict[str, object]) -> int:\n    return len(doc)\n")
-    n = ALLOWED[listed]["json_map_signatures"]
+        for name in ("planted", "planted_too"):
+            f.write(f"\n\ndef {name}(doc: dict[str, object]) -> int:\n    return len(doc)\n")
     found = count(root, (where,))
-    assert offences(found, ALLOWED) == [
-        f"{listed}: json_map_signatures {n + 1} > {n} allowed"]
+    assert offences(found, allowed) == [f"{listed}: json_map_signatures 2 > 1 allowed"]
 
 
 def test_a_codec_may_read_json(tmp_path: Path) -> None:

@@ -28,7 +28,7 @@ from tests.json_boundary import (
 
 #: today's total outside CODECS and YAML_LOADER (issue 60's goal: below 60); lower it when
 #: the count falls, never raise it
-BUDGET = 45
+BUDGET = 38
 
 
 def object_aliases(modules: Iterable[tuple[str, ast.Module]]) -> frozenset[str]:

@@ -131,12 +131,13 @@ def test_the_ladder_result_round_trips_and_refuses_by_key_path() -> None:
 
     import pytest
 
+    from bench.report.codec import encode
     from bench.report.codec import written as encoded
     from procedures.rate_ladder.codec import conform, ladder_of
     from procedures.rate_ladder.result import LadderBody, MalformedResult, Systematic
     from procedures.rate_ladder.sample import rate_ladder_result
 
-    doc = rate_ladder_result()
+    doc = encode(rate_ladder_result())
     typed = ladder_of(doc)
     outer = typed.axes["outer"]
     assert outer.rates[0].set_rate_dps == doc["axes"]["outer"]["rates"][0]["set_rate_dps"]

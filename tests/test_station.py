@@ -601,5 +601,6 @@ def test_results_rows_as_they_come_and_final() -> None:
         "pairs": [{"rate_dps": 10.0, "k": 1.0003, "k_u": 4e-6, "w0_dps": 0.002,
                    "w0_u_dps": 4e-5}]}}}
     (row,) = final_rows(ResultFrame.of(result))
-    assert row["k"] == 1.0003 and row["rate_error_U_rel"] == 6e-8 and row["verdict"] == "pass"
+    assert isinstance(row, ResultRow)
+    assert row.k == 1.0003 and row.rate_error_U_rel == 6e-8 and row.verdict == "pass"
     assert final_rows(ResultFrame.of({"axes": {"outer": "damaged"}})) == []

@@ -32,8 +32,8 @@ if TYPE_CHECKING:
     from bench.report.dcc.conformity import Checks
     from bench.report.figures import FigureSpec, FigureValue, InstrumentCheck, SummaryCut
     from bench.report.result_frame import ResultFrame
+    from bench.report.sample_result import SampleResult
     from bench.report.station import PageTable
-    from drivers.json_types import JsonObject
 
 
 class CertificatePart(Protocol):
@@ -105,8 +105,9 @@ class StationPart(Protocol):
         """result.json's tables for the run's page ([]: its declared figures instead)."""
         ...
 
-    def result_rows(self, frame: ResultFrame) -> list[JsonObject]:
-        """result.json's figures per row, unrounded, for the page's state (JSON)."""
+    def result_rows(self, frame: ResultFrame) -> list[LiveRow]:
+        """result.json's figures per row, unrounded, for the page's state (the station
+        encodes them for /api as it does the live rows)."""
         ...
 
 
@@ -170,8 +171,9 @@ class ChecksInstruments(Protocol):
 class HasSampleResult(Protocol):
     """A hand-made result.json of the kind, for previews of its certificate."""
 
-    def sample_result(self) -> JsonObject:
-        """A result whose printed figures are worked out by hand."""
+    def sample_result(self) -> SampleResult:
+        """A result whose printed figures are worked out by hand (its frame and the kind's
+        part, typed; bench/report/codec.py `encode` gives the document)."""
         ...
 
 

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from bench.core.events import LiveRow
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u, rel_unit
 from bench.report.result_frame import ResultFrame
-from drivers.json_types import JsonLike, JsonObject, JsonValue
+from drivers.json_types import JsonLike, JsonValue
 
 #: a table as the run page's script draws it (station.js `table`): id, caption, header,
 #: and rows of {cells, class}
@@ -82,6 +82,6 @@ class StationParts:
         """result.json's own tables (none: the page lists the declared figures)."""
         return []
 
-    def result_rows(self, frame: ResultFrame) -> list[JsonObject]:
+    def result_rows(self, frame: ResultFrame) -> list[LiveRow]:
         """result.json's figures per row (none)."""
         return []

@@ -94,9 +94,8 @@ class DriftCertificate(CertificateParts):
 
     def certificate_identification(self, src: Sources) -> Sequence[tuple[str, str]]:
         stand = stand_of(src)
-        return [("Test stand used", f"{text_of(stand.get('maker'))} "
-                                    f"{text_of(stand.get('model'))}, serial "
-                                    f"{text_of(stand.get('serial'))}")]
+        return [("Test stand used", f"{text_of(stand.maker)} {text_of(stand.model)}, "
+                                    f"serial {text_of(stand.serial)}")]
 
     def certificate_method(self, src: Sources) -> Sequence[Block]:
         return B_TEXT

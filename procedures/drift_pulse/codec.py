@@ -21,6 +21,7 @@ import msgspec
 from bench.core import rundir_layout as layout
 from bench.core.journal import RunDir
 from bench.report.codec import encode as encode
+from bench.report.codec import problem_of
 from drivers.json_types import JsonValue
 from procedures.drift_pulse.result import AxisFigures, DriftFigures
 
@@ -29,12 +30,6 @@ ROOT = "drift"
 
 S = TypeVar("S", bound=msgspec.Struct)
 
-_MISSING = re.compile(r"^Object missing required field `(?P<key>[^`]+)`")
-_EXPECTED = re.compile(r"^Expected `(?P<want>[^`]+)`, got `(?P<got>[^`]+)`")
-_AT = re.compile(r" - at `\$(?P<path>[^`]*)`$")
-#: msgspec's type names, as a reader of result.json says them
-_TYPES = {"float": "a number", "int": "an integer", "bool": "true or false",
-          "object": "an object", "array": "a list", "str": "text", "null": "null"}
 
 
 class MalformedResult(ValueError):
@@ -48,10 +43,7 @@ class MalformedResult(ValueError):
 def _refusal(err: msgspec.ValidationError, node: object, root: str) -> MalformedResult:
     """msgspec's `Expected `float`, got `str` - at `$.axes[...].own_dph`` in result.json's
     words, the axis named (msgspec does not name a mapping's keys)."""
-    text = str(err)
-    at = _AT.search(text)
-    path = at["path"] if at else ""
-    text = text[:at.start()] if at else text
+    path, found = problem_of(err)
     if path.startswith(".axes[...]") and isinstance(node, dict) \
             and isinstance(axes := node.get("axes"), dict):
         for name, axis in axes.items():
@@ -60,12 +52,7 @@ def _refusal(err: msgspec.ValidationError, node: object, root: str) -> Malformed
             except msgspec.ValidationError:
                 path = f".axes.{name}" + path[len(".axes[...]"):]
                 break
-    if m := _MISSING.match(text):
-        return MalformedResult(f"{root}{path}.{m['key']}", "missing")
-    if m := _EXPECTED.match(text):
-        want = " or ".join(_TYPES.get(t, t) for t in m["want"].split(" | "))
-        return MalformedResult(f"{root}{path}", f"expected {want}, got {m['got']}")
-    return MalformedResult(f"{root}{path}", text)
+    return MalformedResult(f"{root}{path}", found)
 
 
 def decode(node: object, model: type[S], root: str = ROOT) -> S:

@@ -26,7 +26,7 @@ from bench.report.figures import (
     tables_of,
 )
 from bench.report.result_frame import ResultFrame
-from drivers.json_types import JsonObject
+from bench.report.sample_result import SampleResult
 from procedures.drift_pulse.codec import MalformedResult, drift_of
 from procedures.drift_pulse.sample import drift_pulse_result
 
@@ -91,7 +91,7 @@ class DriftRecords(DeclaredFigures):
                                            v, _num(ax.own_U_dph), "deg/h"))
         return out
 
-    def sample_result(self) -> JsonObject:
+    def sample_result(self) -> SampleResult:
         """A hand-made result for previews of the certificate (sample.py)."""
         return drift_pulse_result()
 

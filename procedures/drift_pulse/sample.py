@@ -10,11 +10,17 @@ import math
 import numpy as np
 
 from bench.core import rundir_layout as layout
-from drivers.json_types import JsonObject
-from procedures.drift_pulse.codec import encode
+from bench.report.sample_result import (
+    DatesStated,
+    FileStated,
+    RawFileStated,
+    SampleResult,
+    StandStated,
+)
 from procedures.drift_pulse.result import (
     AxisFigures,
     CycleFigures,
+    DriftCheck,
     DriftFigures,
     ExampleCycle,
     PositionFigures,
@@ -82,29 +88,29 @@ def drift_figures() -> DriftFigures:
                         earth_horizontal_U_dph=0.0045, earth_horizontal_consistent=True)
 
 
-def drift_pulse_result() -> JsonObject:
+class DriftSample(SampleResult, frozen=True, kw_only=True):
+    """A drift-pulse result by hand: the frame, the kind's figures, its checks (none)."""
+
+    drift: DriftFigures
+    checks: tuple[DriftCheck, ...] = ()
+
+
+def drift_pulse_result() -> DriftSample:
     """A whole result.json around `drift_figures`, for previews of the certificate."""
-    return {
-        "schema": "bench.result/1",
-        "procedure": "drift-pulse",
-        "verdict": "pass",
-        "title": "Platform drift and azimuth, demo (simulated platform)",
-        "procedure_file": {"name": "drift-demo.yaml", "sha256": "ef" * 32},
-        "stand": {"maker": "Simulated Platforms Ltd", "model": "GSP-3 gyro platform",
-                  "serial": "SIM-P-01", "file": "sim-platform.yaml", "sha256": "12" * 32},
-        "instruments": {"x": {"generator": "Keysight Technologies,33522B,MY5200,5.02",
-                              "digitizer": "Keysight Technologies,34465A,MY5900,A.03"}},
-        "dates": {"started_utc": "2025-03-05T09:00:00.000+00:00",
-                  "completed_utc": "2025-03-05T09:03:10.000+00:00"},
-        "conditions": {"latitude_deg": 70.0},
-        "certificate": {"laboratory": "Rate Table Metrology Lab (demo)"},
-        "decision_rule": "simple",
-        "method": {"pulse_shape": "rectangular", "tc_s": 5.0, "amplitude_dps": 0.5,
-                   "cycles": 4, "positions_deg": [0, 180], "sample_rate_hz": 2000},
-        "raw_files": [{"path": layout.raw_relpath(1, "x-digitizer.jsonl"), "sha256": "34" * 32,
-                       "bytes": 800_000}],
-        "sessions": 1,
-        "aborted": False,
-        "drift": encode(drift_figures()),
-        "checks": [],
-    }
+    return DriftSample(
+        procedure="drift-pulse", verdict="pass",
+        title="Platform drift and azimuth, demo (simulated platform)",
+        procedure_file=FileStated("drift-demo.yaml", "ef" * 32),
+        stand=StandStated(maker="Simulated Platforms Ltd", model="GSP-3 gyro platform",
+                          serial="SIM-P-01", file="sim-platform.yaml", sha256="12" * 32),
+        instruments={"x": {"generator": "Keysight Technologies,33522B,MY5200,5.02",
+                           "digitizer": "Keysight Technologies,34465A,MY5900,A.03"}},
+        dates=DatesStated("2025-03-05T09:00:00.000+00:00", "2025-03-05T09:03:10.000+00:00"),
+        conditions={"latitude_deg": 70.0},
+        certificate={"laboratory": "Rate Table Metrology Lab (demo)"},
+        decision_rule="simple",
+        method={"pulse_shape": "rectangular", "tc_s": 5.0, "amplitude_dps": 0.5,
+                "cycles": 4, "positions_deg": [0, 180], "sample_rate_hz": 2000},
+        raw_files=(RawFileStated(layout.raw_relpath(1, "x-digitizer.jsonl"), "34" * 32,
+                                 800_000),),
+        sessions=1, drift=drift_figures())

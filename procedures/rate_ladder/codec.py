@@ -16,13 +16,14 @@ import math
 import re
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, cast
+from typing import Annotated
 
 import msgspec
 
 from bench.core import rundir_layout as layout
 from bench.core.journal_codec import read_jsonl
 from bench.report.certificate.parts import Sources
+from bench.report.codec import problem_of
 from bench.report.result_frame import (
     Issues,
     JsonObject,
@@ -37,18 +38,11 @@ from bench.report.result_frame import (
     conform_object,
     conform_plain_list,
 )
-from procedures.rate_ladder.events import ResultRow
 from procedures.rate_ladder.result import LadderAxis, LadderBody, LadderResult
 
 #: the body's key in result.json, and the root of every path a refusal names
 ROOT = "axes"
 
-_AT = re.compile(r" - at `\$(?P<path>[^`]*)`$")
-_MISSING = re.compile(r"^Object missing required field `(?P<key>[^`]+)`")
-_EXPECTED = re.compile(r"^Expected `(?P<want>[^`]+)`, got `(?P<got>[^`]+)`")
-#: msgspec's type names, as a reader of result.json says them
-_TYPES = {"float": "a number", "int": "an integer", "bool": "true or false",
-          "object": "an object", "array": "a list", "str": "text", "null": "null"}
 _STEP = re.compile(r"\.(?P<key>[A-Za-z_][A-Za-z0-9_]*)|\[(?P<index>\d+)\]")
 
 
@@ -92,25 +86,13 @@ def conform_ladder(doc: JsonObject, issues: Issues) -> JsonObject:
     return doc
 
 
-def _problem(err: msgspec.ValidationError) -> tuple[str, str]:
-    """msgspec's words as (key path below the axis, problem) in result.json's terms."""
-    text = str(err)
-    at = _AT.search(text)
-    path = at["path"] if at else ""
-    text = text[:at.start()] if at else text
-    if m := _MISSING.match(text):
-        return f"{path}.{m['key']}", "missing"
-    if m := _EXPECTED.match(text):
-        want = " or ".join(_TYPES.get(t, t) for t in m["want"].split(" | "))
-        return path, f"expected {want}, got {m['got']}"
-    return path, text
 
 
 def _axis(name: str, node: JsonValue) -> LadderAxis:
     try:
         return msgspec.convert(node, LadderAxis, strict=True)
     except msgspec.ValidationError as err:
-        path, problem = _problem(err)
+        path, problem = problem_of(err)
         raise MalformedResult(f"{ROOT}.{name}{path}", problem) from None
 
 
@@ -146,7 +128,7 @@ def _lenient_axis(name: str, node: JsonValue, dropped: list[str]) -> JsonValue:
             msgspec.convert(node, LadderAxis, strict=True)
             return node
         except msgspec.ValidationError as err:
-            path, problem = _problem(err)
+            path, problem = problem_of(err)
             dropped.append(f"{ROOT}.{name}{path} ({problem})")
             if not _drop(node, path):
                 return None
@@ -266,12 +248,6 @@ def read_corrections(path: Path) -> tuple[tuple[Correction, ...], JsonValue]:
     try:
         found = msgspec.convert(doc, CorrectionsFile)
     except msgspec.ValidationError as err:
-        where, problem = _problem(err)
+        where, problem = problem_of(err)
         raise ValueError(f"{path}: {where.lstrip('.')}: {problem}") from None
     return found.corrections, doc.get("corrections")
-
-
-def row_json(row: ResultRow) -> JsonObject:
-    """A station row as the station's pages carry it (its fields, in order)."""
-    return cast(JsonObject, msgspec.to_builtins(row))
-

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
-from typing import Any
 
 from bench.analysis.finite import finite_number as _num
 from bench.analysis.random_part import std_u_rel
@@ -28,6 +27,7 @@ from bench.report.figures import (
     tables_of,
 )
 from bench.report.result_frame import ResultFrame
+from bench.report.sample_result import SampleResult
 from procedures.rate_ladder import starter
 from procedures.rate_ladder.axes_view import AxisRows, axes_of
 from procedures.rate_ladder.codec import conform
@@ -215,7 +215,7 @@ class LadderRecords:
         """`bench init`'s stand and procedure (starter.py)."""
         return starter.starter_files(real)
 
-    def sample_result(self) -> dict[str, Any]:
+    def sample_result(self) -> SampleResult:
         """A hand-made result for previews of the certificate (sample.py)."""
         return rate_ladder_result()
 

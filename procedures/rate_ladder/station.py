@@ -20,9 +20,7 @@ from bench.report.station import (
     rate_text,
     value_u,
 )
-from drivers.json_types import JsonObject
 from procedures.rate_ladder.axes_view import PairRow, RateRow, axes_of
-from procedures.rate_ladder.codec import row_json
 from procedures.rate_ladder.events import ResultRow
 
 LIVE_CAPTION = ("Results as they come (first look per pair; the certificate is computed "
@@ -117,19 +115,19 @@ class LadderStation(StationParts):
                 tables.append(_pairs_table(axis, body.pairs))
         return tables
 
-    def result_rows(self, frame: ResultFrame) -> list[JsonObject]:
+    def result_rows(self, frame: ResultFrame) -> list[LiveRow]:
         """Per axis and rate the figures the certificate prints (rate error +/- U,
         instability, verdict) with the pair's k and w0."""
-        rows: list[JsonObject] = []
+        rows: list[LiveRow] = []
         for axis, body in axes_of(frame).items():
             by_rate = {entry.rate_dps: entry for entry in body.pairs}
             for r in body.rates:
                 p = by_rate.get(abs(r.set_rate_dps))
-                rows.append(row_json(ResultRow(
+                rows.append(ResultRow(
                     axis=axis, set_rate_dps=r.set_rate_dps, k=p.k if p else None,
                     k_U=p.k_U if p else None, w0_dps=p.w0_dps if p else None,
                     w0_U_dps=p.w0_U_dps if p else None, rate_error_rel=r.rate_error_rel,
                     rate_error_U_rel=r.rate_error_U_rel,
                     rate_instability_rel=r.rate_instability_rel, turns=r.turns,
-                    verdict=r.verdict)))
+                    verdict=r.verdict))
         return rows

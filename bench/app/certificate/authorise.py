@@ -291,7 +291,7 @@ def authorise(run_path: Path, signatory_name: str, reason: str | None = None,
         previous = tuple(register.Issue(r.shown_number, r.revision, r.issued_utc,
                                         signatory=r.signatory_name) for r in issued)
         ctx = IssueContext(run_path, src, lab, who, reason, previous,
-                           bool(stand_of(src).get("simulated")), lab.records_url, reg)
+                           bool(stand_of(src).simulated), lab.records_url, reg)
         refused = refusals(ctx)
         held = reg.issuer()
         if "issuer.name" not in held:

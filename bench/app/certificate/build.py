@@ -210,7 +210,7 @@ def build_document(src: Sources, issued: dt.date | None = None, issue: Issue | N
     sections.append(Section(n.next(), "Authorisation", _signatures(src, issue)))
     item, serial = proc.parts.certificate_item(src)
     subtitle = f"{item}, serial {serial}"
-    simulated = bool(stand_of(src).get("simulated"))
+    simulated = bool(stand_of(src).simulated)
     if simulated:
         subtitle += " (SIMULATED stand)"
     marks = [m for m in (DRAFT_MARK if issue.draft else "",
@@ -325,9 +325,9 @@ def _identification(src: Sources, issue: Issue, proc: Procedure,
         ("Serial number", serial),
         *proc.parts.certificate_identification(src),
     ]
-    site = cert.site or stand.get("location")
+    site = cert.site or stand.location
     rows.append(("Site of calibration", text_of(site)))
-    if stand.get("simulated"):
+    if stand.simulated:
         rows.append(("Nature of the work", "SIMULATED run (instrument twins on real channels): "
                      "these results describe no physical item; every page is marked"))
     rows += [
@@ -434,10 +434,10 @@ def _instruments(src: Sources, proc: Procedure) -> tuple[Block, ...]:
     what = proc.parts.certificate_stand_label
     blocks: list[Block] = [Fields((
         ("Item calibrated", f"{item}, serial {serial}"),
-        (what, f"{text_of(stand.get('maker'))} {text_of(stand.get('model'))}, serial "
-               f"{text_of(stand.get('serial'))}"),
-        ("Stand file", f"{text_of(stand.get('file') or src.meta.get('stand_file'))}"),
-        ("Stand file SHA-256", text_of(stand.get("sha256") or src.meta.get("stand_sha256"))),
+        (what, f"{text_of(stand.maker)} {text_of(stand.model)}, serial "
+               f"{text_of(stand.serial)}"),
+        ("Stand file", f"{text_of(stand.file or src.meta.get('stand_file'))}"),
+        ("Stand file SHA-256", text_of(stand.sha256 or src.meta.get("stand_sha256"))),
     ))]
     ids = with_declared_serials(identities(src.frame.instruments), src.stand_file)
     if not ids:  # the event log records each axis's identities at the start of a session
@@ -613,8 +613,8 @@ def _deviations(src: Sources, proc: Procedure) -> tuple[Block, ...]:
                    f"{text_of(e.reported)} ({text_of(e.query)}); its check "
                    "values are filed under the reported serial. A finding of a run on "
                    "simulated twins: a real stand with this mismatch is refused.")
-    run += equipment_lines(src.start, bool(stand_of(src).get("simulated")))
-    run += identity_lines(equipment_list(src), bool(stand_of(src).get("simulated")))
+    run += equipment_lines(src.start, bool(stand_of(src).simulated))
+    run += identity_lines(equipment_list(src), bool(stand_of(src).simulated))
     for where in src.dropped:
         run.append(f"result.json: {where} was malformed and is not reported here.")
     run += proc.parts.certificate_run_deviations(src)

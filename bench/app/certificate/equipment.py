@@ -19,6 +19,7 @@ from bench.core.config import Traced
 from bench.core.events import SessionStarted
 from bench.core.settings_codec import identities
 from bench.core.traceability import (
+    Identities,
     identity_problems,
     serial_of,
     traced_items,
@@ -74,7 +75,7 @@ def work_date(src: Sources) -> dt.date | None:
         return None
 
 
-def _reported(ids: Mapping[str, object], t: Traced) -> str | None:
+def _reported(ids: Identities, t: Traced) -> str | None:
     """The identity the instrument at `t.where` reported in this run. An instrument at
     `axes.<axis>.<role>` reported under ids[axis][role]; one elsewhere (a platform's
     `gyros.x.dmm`) under its role, or `<gyro>-<role>`, on the table axis."""
@@ -85,15 +86,15 @@ def _reported(ids: Mapping[str, object], t: Traced) -> str | None:
     axes = [parts[1]] if parts[0] == "axes" and len(parts) > 2 else list(ids)
     for axis in axes:
         roles = ids.get(axis)
-        if not isinstance(roles, Mapping):
+        if roles is None:
             continue
         for role in names:
             if role in roles:
-                return str(roles[role])
+                return roles[role]
     return None
 
 
-def _serial(ids: Mapping[str, object], t: Traced) -> str:
+def _serial(ids: Identities, t: Traced) -> str:
     """The serial the instrument reported in this run (its identity), not the stand
     file's; a reference the bench does not read: the stand file's, said to be stated."""
     if t.where.startswith("traceability"):

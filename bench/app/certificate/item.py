@@ -154,7 +154,7 @@ def readback_differences(src: Sources) -> tuple[str, ...]:
                 and int(f[1]) / int(f[2]) != float(conf["counts_per_rev"]):
             out.append(f"axis {axis} drive: counts per rev {conf['counts_per_rev']} in the "
                        f"stand file; the drive read back 0x608F = {f[1]}/{f[2]}")
-    if out and any("0x1016" in line for line in out) and stand_of(src).get("simulated"):
+    if out and any("0x1016" in line for line in out) and stand_of(src).simulated:
         out.append(TWIN_WATCHDOG_WHY)
     return tuple(out)
 

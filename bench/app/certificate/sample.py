@@ -12,13 +12,15 @@ from bench.app.certificate import render_files
 from bench.core.registry import procedure_names
 from bench.kind import HasSampleResult, installed_records
 from bench.report.certificate.sources import Sources
+from bench.report.codec import encode
 
 
 def main(out: Path) -> None:
     for name in procedure_names():
         kind = installed_records(name)
         if isinstance(kind, HasSampleResult):
-            for path in render_files(Sources.load(kind.sample_result(), None), out / name):
+            sample = encode(kind.sample_result())
+            for path in render_files(Sources.load(sample, None), out / name):
                 print(path)
 
 

@@ -6,7 +6,7 @@ digests). What nobody recorded says "not recorded"; nothing is invented.
 from __future__ import annotations
 
 import datetime as dt
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 from lxml import etree
 
@@ -28,7 +28,7 @@ from bench.report.corrections import statements as correction_statements
 from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import ILAC_G8, RULE_REFERENCE
 from bench.report.dcc.xml import NOT_RECORDED, el, name, num, statement, text_el
-from bench.report.result_frame import JsonObject
+from bench.report.result_frame import CertificateSettings, JsonObject
 from bench.report.result_frame import text as text_at
 
 UNKNOWN_COUNTRY = "ZZ"   # ISO 3166-1 user-assigned code: the laboratory did not configure one
@@ -65,7 +65,7 @@ def administrative(adm: etree._Element, src: Sources, lab: Lab,
     _item(el(adm, "items"), src, kind)
     _laboratory(el(adm, "calibrationLaboratory"), lab)
     _people(el(adm, "respPersons"), src, issue)
-    _customer(el(adm, "customer"), cert)
+    _customer(el(adm, "customer"), CertificateSettings.of(cert))
     _statements(el(adm, "statements"), src, parts, country, issue, lab)
 
 
@@ -162,13 +162,14 @@ def _people(persons: etree._Element, src: Sources, issue: Issue) -> None:
             el(rp, "mainSigner", "true")
 
 
-def _customer(customer: etree._Element, cert: Mapping[str, object]) -> None:
-    """The customer, with the address and contact the certificate settings give."""
-    name(customer, str(cert.get("customer") or f"customer {NOT_RECORDED}"))
-    where = cert.get("customer_address") or cert.get("customer_location")
+def _customer(customer: etree._Element, cert: CertificateSettings) -> None:
+    """The customer, with the address (or location) and contact the certificate settings
+    give."""
+    name(customer, str(cert.customer or f"customer {NOT_RECORDED}"))
+    where = cert.customer_address or dict(cert.entries).get("customer_location")
     fields = [("further", str(where))] if where else []
-    if cert.get("customer_contact"):
-        fields.append(("further", f"Contact: {cert['customer_contact']}"))
+    if cert.customer_contact:
+        fields.append(("further", f"Contact: {cert.customer_contact}"))
     _location(customer, fields)
 
 
@@ -185,24 +186,25 @@ def _item(items: etree._Element, src: Sources, kind: DccPart) -> None:
     stand = stand_of(src)
     item = el(items, "item", id="item")
     what, named_axes = kind.dcc_item(src)
-    name(item, " ".join(str(x) for x in (stand.get("maker"), stand.get("model")) if x)
+    name(item, " ".join(str(x) for x in (stand.maker, stand.model) if x)
          or f"{what} ({NOT_RECORDED})")
     axes = ", ".join(named_axes)
     text = f"Item calibrated: {what}" + (f"; axes {axes}" if axes else "") + "."
-    if stand.get("simulated"):
+    if stand.simulated:
         text += (" SIMULATED stand: instrument twins on real channels; these results "
                  "describe no physical item.")
-    if stand.get("file"):
-        text += f" Stand file {stand['file']} (SHA-256 {stand.get('sha256', NOT_RECORDED)})."
+    if stand.file:
+        digest = NOT_RECORDED if stand.sha256 is None else stand.sha256
+        text += f" Stand file {stand.file} (SHA-256 {digest})."
     text_el(item, "description", text)
-    if stand.get("maker"):
-        name(el(item, "manufacturer"), str(stand["maker"]))
-    if stand.get("model"):
-        el(item, "model", str(stand["model"]))
+    if stand.maker:
+        name(el(item, "manufacturer"), str(stand.maker))
+    if stand.model:
+        el(item, "model", str(stand.model))
     ids = el(item, "identifications")
     idn = el(ids, "identification")
     el(idn, "issuer", "manufacturer")
-    el(idn, "value", str(stand.get("serial") or NOT_RECORDED))
+    el(idn, "value", str(stand.serial or NOT_RECORDED))
     name(idn, "Serial number")
 
 
@@ -281,18 +283,18 @@ def _stand_statements(sts: etree._Element, src: Sources, lab: Lab, country: str 
     the item as received and as left, settings and their read-back, the accreditation,
     and a country not configured."""
     stand = stand_of(src)
-    if stand.get("location"):
+    if stand.location:
         st = statement(sts, V.LOCATION, "Location of the item during the calibration.")
         loc = el(st, "location")
-        text_el(loc, "further", str(stand["location"]))
-    if stand.get("simulated"):
+        text_el(loc, "further", str(stand.location))
+    if stand.simulated:
         statement(sts, V.SIMULATED, "SIMULATED stand: every instrument was a simulated "
                   "twin on a real channel; the results describe no physical item.")
-    for i, line in enumerate(equipment_lines(src.start, bool(stand.get("simulated")))):
+    for i, line in enumerate(equipment_lines(src.start, bool(stand.simulated))):
         statement(sts, V.EQUIPMENT, line, sid=f"equipment{i + 1}", title="Equipment",
                   norms=("ISO/IEC 17025:2017",), references=("6.4.13",))
     # as the PDF's deviations: items without an identity of their own (issue 43)
-    for i, line in enumerate(identity_lines(equipment_list(src), bool(stand.get("simulated")))):
+    for i, line in enumerate(identity_lines(equipment_list(src), bool(stand.simulated))):
         statement(sts, V.EQUIPMENT_IDENTITY, line, sid=f"equipmentIdentity{i + 1}",
                   title="Equipment identity", norms=("ISO/IEC 17025:2017",),
                   references=("6.4.13 a",))

@@ -16,6 +16,7 @@ import bench
 from bench.app.certificate.build import Sources
 from bench.app.certificate.conditions import NOT_MEASURED, condition_rows
 from bench.app.certificate.equipment import NONE, equipment_list
+from bench.core.yamlfile import YamlValue
 from bench.kind import DccPart
 from bench.report.dcc import units as U
 from bench.report.dcc import vocab as V
@@ -77,7 +78,7 @@ def methods_and_conditions(results: etree._Element, src: Sources, kind: DccPart)
         name(m, f"Procedure file {proc_name}")
         text_el(m, "description", f"The procedure as run, SHA-256 "
                 f"{pf.get('sha256') or src.meta.get('procedure_sha256') or NOT_RECORDED}; "
-                f"settings: {_flat(src.frame.method)}.")
+                f"settings: {_settings(src)}.")
     m = el(used, "usedMethod", id="uncertaintyMethod", ref_type=V.UNCERTAINTY)
     name(m, "Expanded measurement uncertainty")
     text_el(m, "description", "Every U is the standard uncertainty multiplied by the "
@@ -133,8 +134,11 @@ def _measured_temperature(conds: etree._Element, axis: str,
                      float(value), U.CELSIUS)
 
 
-def _flat(d: Mapping[str, object]) -> str:
-    return "; ".join(f"{k} = {v}" for k, v in d.items() if k != "tolerance") or NOT_RECORDED
+def _settings(src: Sources) -> str:
+    """The procedure's settings as result.json's `method` states them, one line (its
+    tolerances are the conformity statements')."""
+    return "; ".join(f"{k} = {v}" for k, v in src.frame.method.items()
+                     if k != "tolerance") or NOT_RECORDED
 
 
 def _content(parent: etree._Element, text: str, ref_type: str | None = None) -> None:
@@ -188,7 +192,7 @@ _CONDITION_UNITS = {"c": (U.CELSIUS, V.TEMPERATURE, V.TEMPERATURE_MIN, V.TEMPERA
                     "hpa": (U.HECTOPASCAL, V.CONDITION, None, None)}
 
 
-def _condition(conds: etree._Element, key: str, value: object, measured: str) -> None:
+def _condition(conds: etree._Element, key: str, value: YamlValue, measured: str) -> None:
     """A stated condition: '20 +/- 2' under `temperature_c` becomes 18 ... 22 degC; text
     that is not a number with its unit stays text (it is never guessed). `measured`: what
     this run measured of it (the PDF's column), usually "not measured"."""

@@ -42,17 +42,17 @@ from bench.core.events import Event, LiveRow, TimedHalf
 from bench.core.journal import fog_capture_starts
 from bench.core.journal_codec import (
     DriveFeedback,
-    read_json_object,
     read_verdict,
     tail_events,
     tail_records,
 )
 from bench.core.yamlfile import read_mapping
+from bench.report.certificate.sources import read_frame
 from bench.report.codec import encode
 from bench.report.result_frame import ResultFrame
 from drivers.fog import dps_per_unit
 from drivers.fog_formats import AXES, DecodeState, decode, get_format
-from drivers.json_types import JsonLike, JsonObject, JsonValue
+from drivers.json_types import JsonLike, JsonValue
 
 T = TypeVar("T")
 
@@ -286,7 +286,7 @@ def pair_rows(events: list[Event]) -> list[LiveRow]:
     return [row for e in events for row in e.live_rows()]
 
 
-def final_rows(frame: ResultFrame, run_path: Path | None = None) -> list[JsonObject]:
+def final_rows(frame: ResultFrame, run_path: Path | None = None) -> list[LiveRow]:
     """The final rows from result.json, as its kind's station part gives them (the
     ladder's: per axis and rate the figures the certificate prints with the pair's k and
     w0); none for a kind that gives none."""
@@ -321,14 +321,6 @@ class RunStatus(TypedDict):
     pid: int | None
     exit_status: NotRequired[int]
     utc: NotRequired[str]
-
-
-def _read_result(run_path: Path) -> ResultFrame | None:
-    """result.json's frame as the page shows it (None: not written yet, or not JSON)."""
-    try:
-        return ResultFrame.of(read_json_object(run_path / layout.RESULT))
-    except (OSError, ValueError):
-        return None
 
 
 def ending(session: list[Event], run_path: Path) -> Ending | None:
@@ -423,8 +415,9 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
     # the per-turn panel shows the axis now running, never the previous axis's last half
     shown_acquires = [e for e in acquires if not axis or e.axis == axis]
     result: JsonValue = None
-    final: list[JsonObject] = []
-    frame = _read_result(run_path) if status != "running" else None
+    final: list[LiveRow] = []
+    # result.json's frame as the page shows it (None: not written yet, or not JSON)
+    frame = read_frame(run_path / layout.RESULT) if status != "running" else None
     if frame is not None:
         result = frame.doc.get("verdict")
         final = final_rows(frame, run_path)
@@ -457,7 +450,7 @@ def live_state(run_path: Path) -> dict[str, JsonLike]:
         "fog": {"axis": axis, **encode(fog)},
         "health": encode(healthy),
         "results": [encode(r) for r in results],
-        "final": final,
+        "final": [encode(r) for r in final],
         "drive": {"axis": axis, **drive},
         "faults": [line for e, line in zip(shown_events, shown, strict=True)
                    if isinstance(e, ev.Aborted)

@@ -34,7 +34,7 @@ from bench.report.certificate.parts import verdict_label
 from bench.report.certificate.rounding import (
     format_value_u,
 )
-from bench.report.certificate.sources import read_json_object
+from bench.report.certificate.sources import read_frame
 from bench.report.figures import spec_for
 from bench.report.result_frame import ResultFrame
 from bench.report.station import StationParts, page_table, rate_text
@@ -221,10 +221,9 @@ def _final(path: str, _mtime_ns: int, _size: int
            ) -> tuple[str | None, tuple[dict[str, JsonLike], ...]]:
     """result.json's verdict and tables, once per version of the file (the live stream
     asks every second; the file changes only when an analysis writes it again)."""
-    doc = read_json_object(Path(path) / layout.RESULT)
-    if not doc:
+    frame = read_frame(Path(path) / layout.RESULT)
+    if frame is None or not frame.doc:
         return None, ()
-    frame = ResultFrame.of(doc)
     kind = frame.procedure or kind_name(frame, Path(path))
     tables = station_of(kind).result_tables(frame) or _declared_table(frame, kind)
     return frame.verdict, tuple(tables)

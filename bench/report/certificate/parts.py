@@ -15,10 +15,12 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Protocol, TypeVar
 
 from bench.analysis.finite import finite_number as num
+from bench.core.yamlfile import YamlValue
 from bench.report.certificate.model import Block, Figure, Para, Section
 from bench.report.certificate.rounding import MINUS, RelUnit, format_value_u
 from bench.report.certificate.sources import Sources as Sources
-from bench.report.result_frame import Check, JsonObject, JsonValue
+from bench.report.certificate.sources import StandIdentity
+from bench.report.result_frame import Check, JsonValue
 
 NOT_RECORDED = "not recorded"
 
@@ -29,11 +31,10 @@ M = TypeVar("M")
 # Sources (the run directory decoded: bench/report/certificate/sources.py) is named here too,
 # where every kind's certificate and DCC part has always imported it from.
 
-def stand_of(src: Sources) -> JsonObject:
-    """The stand's identity: the stand file's, with what result.json says over it."""
-    stand = dict(src.stand_file.get("stand", {}) or {})
-    stand.update({k: v for k, v in src.frame.stand.items() if v is not None})
-    return stand
+def stand_of(src: Sources) -> StandIdentity:
+    """The stand's identity: the stand file's, with what result.json says over it
+    (decoded once, `Sources.stand`)."""
+    return src.stand
 
 
 # -- values as printed ---------------------------------------------------------------------
@@ -53,7 +54,7 @@ def label_of(key: str) -> str:
     return f"{text}, {unit}" if unit else text
 
 
-def text_of(value: object) -> str:
+def text_of(value: YamlValue) -> str:
     """Any recorded value as text; nothing recorded says so."""
     if value is None or value == "":
         return NOT_RECORDED
@@ -66,7 +67,7 @@ def text_of(value: object) -> str:
     return str(value).replace("+/-", "±")
 
 
-def _key_value(key: str, value: object) -> str:
+def _key_value(key: str, value: YamlValue) -> str:
     """`max_rate_dps: 400` -> 'max rate: 400 °/s'."""
     words = str(key).split("_")
     unit = UNIT_SUFFIXES.get(words[-1].lower()) if len(words) > 1 else None
@@ -174,8 +175,7 @@ class CertificateParts:
     def certificate_item(self, src: Sources) -> tuple[str, str]:
         """(what was calibrated, its serial); by default the stand named in the stand file."""
         stand = stand_of(src)
-        return (f"{text_of(stand.get('maker'))} {text_of(stand.get('model'))}",
-                text_of(stand.get("serial")))
+        return f"{text_of(stand.maker)} {text_of(stand.model)}", text_of(stand.serial)
 
     def certificate_identification(self, src: Sources) -> Sequence[tuple[str, str]]:
         """Rows added to the Identification after the item's serial number."""

@@ -18,6 +18,8 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any, Protocol, TypeVar, cast, runtime_checkable
 
+import msgspec
+
 from bench.core import events as ev
 from bench.core import rundir_layout as layout
 from bench.core.events import Event
@@ -26,8 +28,22 @@ from bench.core.journal_codec import StartMeta, start_meta
 from bench.core.placeholders import run_copy
 from bench.report.codec import KindResult, ResultPart
 from bench.report.result_frame import JsonObject, ResultFrame, as_object
+from drivers.json_types import JsonScalar
 
 M = TypeVar("M")
+
+
+class StandIdentity(msgspec.Struct, frozen=True, kw_only=True):
+    """The stand's identity as the certificate and the DCC print it (`Sources.stand`):
+    each value as written (a serial may be a number), None where nothing states it."""
+
+    maker: JsonScalar = None
+    model: JsonScalar = None
+    serial: JsonScalar = None
+    location: JsonScalar = None
+    file: JsonScalar = None
+    sha256: JsonScalar = None
+    simulated: JsonScalar = None
 
 
 @dataclass
@@ -114,6 +130,16 @@ class Sources:
         return start_meta(self.meta)
 
     @cached_property
+    def stand(self) -> StandIdentity:
+        """The stand file's `stand` block, with what result.json says over it; a value
+        that is no scalar (a malformed file's) reads as not stated."""
+        block = self.stand_file.get("stand")
+        said = {**(block if isinstance(block, dict) else {}),
+                **{k: v for k, v in self.frame.stand.items() if v is not None}}
+        return msgspec.convert({k: v for k, v in said.items()
+                                if isinstance(v, str | int | float | bool)}, StandIdentity)
+
+    @cached_property
     def frame(self) -> ResultFrame:
         """The run header, checks and verdict, typed (bench.report.result_frame): parsed
         once, on first use, and read by every section of the certificate and the DCC."""
@@ -166,12 +192,17 @@ def read_json_object(path: Path) -> dict[str, Any]:
     return data if isinstance(data, dict) else {}
 
 
-def beside(run_path: Path, run_id: str) -> ResultFrame | None:
-    """The frame of the result.json of the run `run_id` beside `run_path` (the runs folder:
-    an as-found run), read as written; None when it is missing, damaged or no object."""
+def read_frame(result_file: Path) -> ResultFrame | None:
+    """The frame of a result.json, read as written; None when it is missing, damaged or
+    no object (a run not analysed yet, or whose analysis is being written)."""
     try:
-        found = json.loads((run_path.parent / run_id / layout.RESULT).read_text(
-            encoding="utf-8"))
+        found = json.loads(result_file.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
     return ResultFrame.of(found) if isinstance(found, dict) else None
+
+
+def beside(run_path: Path, run_id: str) -> ResultFrame | None:
+    """The frame of the result.json of the run `run_id` beside `run_path` (the runs folder:
+    an as-found run), read as written; None when it is missing, damaged or no object."""
+    return read_frame(run_path.parent / run_id / layout.RESULT)
