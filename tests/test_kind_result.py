@@ -11,7 +11,14 @@ import msgspec
 
 from bench.core.journal_codec import encode_document
 from bench.report.certificate.sources import Sources
-from bench.report.codec import KindResult, ProcedureFileRef, RawFile, ResultHead, RunDates
+from bench.report.codec import (
+    KindResult,
+    ProcedureFileRef,
+    RawFile,
+    ResultHead,
+    RunDates,
+    encode,
+)
 from procedures.rate_ladder.codec import ladder_model, ladder_of
 from procedures.rate_ladder.result import (
     ConditionsMeasured,
@@ -36,7 +43,7 @@ def _head(checks: tuple[LadderCheck, ...] = (), conditions: dict[str, object] | 
 
 
 def _body() -> LadderBody:
-    return LadderBody(axes=ladder_of(rate_ladder_result()).axes,
+    return LadderBody(axes=ladder_of(encode(rate_ladder_result())).axes,
                       conditions_measured=ConditionsMeasured(None))
 
 
