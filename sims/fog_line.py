@@ -68,7 +68,9 @@ class FogLine(FogSettings):
                                         daemon=True)
         self._thread.start()
         if self._stepped:
-            self._leave = self._stepped_clock.join(self)
+            # drained when the driver reads (sims/clock.py settle_channel), not at the end
+            # of every wait: the drives' settles and turn timing read no FOG sample
+            self._leave = self._stepped_clock.join(self, drained_on_read=self.path)
         return self.path
 
     @property

@@ -176,6 +176,8 @@ class FogTwin(FogSamples):
         self.path = None
         self.bytes_written = 0
         self.frames_encoded = 0
+        self._pending = []
+        self._pending_n = 0
         with self.axis.lock:
             if self.axis.samples_generated:
                 raise RuntimeError(
@@ -188,11 +190,13 @@ class FogTwin(FogSamples):
     @property
     def next_sample(self) -> int:
         """The first stand sample not yet encoded: a fault must lie at or after it."""
+        self._encode_pending()
         with self.axis.lock:
             return self._next_sample
 
     def inject(self, *faults: Fault) -> None:
         """Schedule faults by stand sample; each must lie ahead of what is already encoded."""
+        self._encode_pending()
         with self.axis.lock:
             for f in faults:
                 if f.sample < self._next_sample:
