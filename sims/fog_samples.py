@@ -347,7 +347,7 @@ class FogSamples(FogLine):
         with self._qlock:
             self._queue.extend(items)
             self._queued_bytes += sum(len(i[0]) for i in items if isinstance(i, tuple))
-        self._wake.set()
+        self._rouse()
         self._next_sample = n0 + n
         self.frames_encoded += int(keep.sum())
         if self.keep_truth:

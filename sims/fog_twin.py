@@ -168,6 +168,7 @@ class FogTwin(FogSamples):
         self._thread = None
         self._stop = threading.Event()
         self._wake = threading.Event()   # frames queued: the writer need not wait a tick
+        self._wake_fds = None
         self._gate_open = False          # a reader settled on the port, the clock runs
         self._queued_bytes = 0
         self._stepped = bool(getattr(self.clock, "stepped", False))
@@ -206,7 +207,7 @@ class FogTwin(FogSamples):
 
     def stop(self) -> None:
         self._stop.set()
-        self._wake.set()
+        self._rouse()
         if self._leave is not None:
             self._leave()
             self._leave = None
@@ -216,6 +217,10 @@ class FogTwin(FogSamples):
         if self._master is not None:
             os.close(self._master)
             self._master = None
+        if self._wake_fds is not None:
+            for fd in self._wake_fds:
+                os.close(fd)
+            self._wake_fds = None
         with self.axis.lock:
             if self._on_chunk in self.axis.listeners:
                 self.axis.listeners.remove(self._on_chunk)
