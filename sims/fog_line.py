@@ -26,6 +26,10 @@ _WRITE_POLL_MS = 50
 #: on a stepped clock, real ms the idle writer waits for frames or a command before it
 #: looks again anyway (a safety net: both wake it at once, `_idle`)
 _IDLE_MS = 50
+#: on a stepped clock, real seconds between looks at a port nobody has open (a reader
+#: opening it is answered at most this late, once; 2 ms ticks of the twin of the axis not
+#: under test were ~500 wake-ups a real second, issue 62)
+_UNREAD_TICK_S = 0.02
 #: on a stepped clock, bytes the channel may hold between the steps of one wait (queued
 #: in the twin, in the pty, not yet decoded): the twin encodes while the driver decodes
 _LEAD_BYTES = 4 << 20
@@ -138,14 +142,14 @@ class FogLine(FogSettings):
         or a tick. On a stepped clock nothing else brings the writer work, so it sleeps on
         the port and the wake pipe instead of looking every 2 ms (two twins: ~1000 wake-ups
         a real second, each taking the interpreter lock, issue 62); a port nobody has open
-        reports a hang-up at once, and there the tick stays."""
+        reports a hang-up at once, and there it looks every `_UNREAD_TICK_S`."""
         if idle is None or self._wake_fds is None:
             self._wake.wait(_TICK_S)
             self._wake.clear()
             return
         events = idle.poll(_IDLE_MS)
         if any(fd == self._master and ev & select.POLLHUP for fd, ev in events):
-            self._wake.wait(_TICK_S)
+            self._wake.wait(_UNREAD_TICK_S)
         self._wake.clear()
         try:
             os.read(self._wake_fds[0], 4096)
@@ -182,6 +186,10 @@ class FogLine(FogSettings):
             elif seen is not None and time.monotonic() - seen >= _OPEN_SETTLE_S \
                     and getattr(self.clock, "running", True):
                 break
+            if self._stepped and seen is None:   # nobody has the port open yet
+                self._wake.wait(_UNREAD_TICK_S)
+                self._wake.clear()
+                continue
             time.sleep(_TICK_S)
         self._gate_open = True
         idle = None
