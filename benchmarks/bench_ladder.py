@@ -163,7 +163,12 @@ idle twin writer asleep on its port) 272 s wall (7.3 / 214.6 / 49.5 s), user 143
 system 42.4 = 185.7 CPU s (0.84x), 425 MB, 0 frames lost; result.json equal value for
 value (raw captures' digests too), but for procedure_file's digest (this script writes
 the stand's temporary path into the procedure). At load 7-14 the pty's byte rate is not
-the floor (3.8 GB at 65 MB/s would be 58 s): every thread's CPU work is.
+the floor (3.8 GB at 65 MB/s would be 58 s): every thread's CPU work is. With the idle
+twin writers asleep on their ports too (7fe9a63), 01:38-01:41 at load 10 falling to 7:
+208 s wall (5.7 / 177.0 / 24.7 s), user 108.5 + system 36.1 = 144.6 CPU s, 430 MB, 0 lost,
+result.json equal again. main again right after (01:42-01:47, load 5-9): 289 s wall
+(7.1 / 232.7 / 47.5 s), 139.6 + 46.5 = 186.1 CPU s, 430 MB: h43 0.78x the CPU, 0.76x the
+measuring phase. Still far from 60 s at this load; an idle machine's figure is to be taken.
 
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
