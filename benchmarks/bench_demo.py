@@ -48,6 +48,15 @@ Before/after (issue 62):
     CPU 20.1 / 26.2 against 22.8 / 23.1 s; records 0.18 / 0.30 against 1.29 / 1.21 s,
     certificate 7.1 / 11.5 against 10.7 / 10.7 s, measuring 9.1 / 9.4 against 9.7 / 8.9 s.
   Medians on an idle machine still to be taken.
+- helper-43 (30 Nov 00:40-01:30, main 60f6aeb; load 5-10 throughout, so CPU is the figure):
+  the co-simulation's 3610 clock steps had 1103 ends of waits, each draining the FOG's pty
+  (writer thread, kernel, reader thread): 4.0 s of the measuring phase's real time at
+  load 7, against 2.1 s for the drives' TPDO hand-offs. The FOG is now drained when its
+  driver reads (sims/clock.py settle_channel) and its twin encodes released chunks together
+  (up to 16384 samples, sims/fog_samples.py), its idle writer sleeping on the port. Three
+  interleaved pairs, plan -> completed, at load 8-10: CPU 5.3 / 6.0 / 5.9 s against
+  8.2 / 9.3 / 15.2 s on main (median 0.64x), wall 6.7 / 6.8 / 6.6 s against 8.8 / 17.7 / 17.0 s;
+  result.json equal to ref-dd8's (demo and drift demo), the same 3610 steps.
 """
 
 from __future__ import annotations

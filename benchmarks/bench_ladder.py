@@ -155,6 +155,21 @@ equal the reference's value for value but for the FOG port's name in
 instruments.*.fog (the raw captures' digests equal): that text carries /dev/pts/N, which
 follows the machine's other ptys, not the seed.
 
+30 Nov 2026, 01:06-01:17 (helper-43, issue 62; main 60f6aeb then h43 one after the other,
+load 7-14, so not an acceptance figure): main 375 s wall (starting 13.7, measuring 296.7,
+writing 62.8 s), user 174.9 + system 47.3 = 222.2 CPU s, 427 MB; h43 (the FOG drained
+when its driver reads instead of at the end of every wait, chunks encoded together, the
+idle twin writer asleep on its port) 272 s wall (7.3 / 214.6 / 49.5 s), user 143.2 +
+system 42.4 = 185.7 CPU s (0.84x), 425 MB, 0 frames lost; result.json equal value for
+value (raw captures' digests too), but for procedure_file's digest (this script writes
+the stand's temporary path into the procedure). At load 7-14 the pty's byte rate is not
+the floor (3.8 GB at 65 MB/s would be 58 s): every thread's CPU work is. With the idle
+twin writers asleep on their ports too (7fe9a63), 01:38-01:41 at load 10 falling to 7:
+208 s wall (5.7 / 177.0 / 24.7 s), user 108.5 + system 36.1 = 144.6 CPU s, 430 MB, 0 lost,
+result.json equal again. main again right after (01:42-01:47, load 5-9): 289 s wall
+(7.1 / 232.7 / 47.5 s), 139.6 + 46.5 = 186.1 CPU s, 430 MB: h43 0.78x the CPU, 0.76x the
+measuring phase. Still far from 60 s at this load; an idle machine's figure is to be taken.
+
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
 the FOG twins' encoding, the drive twins' ticks: split by cProfile), the FOG twins'

@@ -93,6 +93,14 @@ def in_flight(clock: Clock, name: str) -> int:
     return int(hook(name)) if hook is not None else 0
 
 
+def settle_channel(clock: Clock, name: str) -> None:
+    """About to read channel `name`: a stepped clock first has its twin deliver what
+    [0, now] holds (sims/clock.py `settle_channel`); nothing on any other clock."""
+    hook = getattr(clock, "settle_channel", None)
+    if hook is not None:
+        hook(name)
+
+
 def channel_closed(clock: Clock, name: str) -> None:
     hook = getattr(clock, "channel_closed", None)
     if hook is not None:

@@ -49,6 +49,7 @@ from drivers.clock import (
     consumed,
     in_flight,
     real_budget_s,
+    settle_channel,
     stepped,
 )
 from drivers.fog_formats import (
@@ -430,6 +431,7 @@ class Fog:
         return self
 
     def close(self) -> None:
+        self._caught_up()   # the capture holds every frame up to now, as it is closed
         self._stop.set()
         channel_closed(self.clock, self.port)
         if self._ser is not None:
@@ -648,9 +650,17 @@ class Fog:
             self._lag_before = lag
 
     # -- what the engine reads --------------------------------------------------------------
+    def _caught_up(self) -> None:
+        """Before any reading: on a stepped clock the twin's frames up to now are read and
+        decoded first (drivers/clock.py settle_channel), so a reading at stand time t sees
+        exactly what the FOG sent up to t, however the threads were scheduled."""
+        if self._thread is not None:
+            settle_channel(self.clock, self.port)
+
     @property
     def end_index(self) -> int:
         """One past the newest sample known (received, or known lost)."""
+        self._caught_up()
         with self._cond:
             return self._store.end
 
@@ -700,11 +710,13 @@ class Fog:
 
     def _wait_stepped(self, i: int, timeout_s: float) -> None:
         def due_in_s() -> float:  # clock time until sample i is due at the FOG's rate
+            self._caught_up()
             with self._cond:
                 due = (i + 1 - self._store.end) / self.rate_hz
             return due if due > 0 else _LATE_STEP_S  # due, not there: held up (a stall)
 
         def known() -> bool:
+            self._caught_up()
             with self._cond:
                 return self._store.end > i or self._thread is None \
                     or not self._thread.is_alive()
@@ -729,6 +741,7 @@ class Fog:
         the file's beginning, without reading what lies before: an hour into a run, the
         analysis of the next window need not re-decode the hour.
         """
+        self._caught_up()
         with self._cond:
             s = self._decoder.state
         return {"offset": s.offset, "last_index": s.last_index,
@@ -737,15 +750,18 @@ class Fog:
 
     def samples(self, i_from: int, i_to: int) -> FogSamples:
         """Samples i_from .. i_to - 1; they must have arrived and not been discarded."""
+        self._caught_up()
         with self._cond:
             return self._store.samples(i_from, i_to, self.rate_hz)
 
     def discard_before(self, i: int) -> None:
+        self._caught_up()
         with self._cond:
             self._store.discard_before(i)
 
     @property
     def stats(self) -> FogStats:
+        self._caught_up()
         d = self._decoder
         with self._cond:
             r = self.rate_hz
@@ -760,6 +776,7 @@ class Fog:
     @property
     def health(self) -> str:
         """"ok", "degraded" (frames lost or broken, stalls) or "error" (no trustworthy data)."""
+        self._caught_up()
         if self.last_error or (self._thread is not None and not self._thread.is_alive()):
             return "error"
         d = self._decoder

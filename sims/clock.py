@@ -26,7 +26,13 @@ thread's target, every participant's next event and `t + max_step_s`; each parti
 advances to it. Between the steps of one wait a streaming channel (the FOG's bytes) may
 trail by its lead (a bounded backlog, so the twin encodes while the driver decodes);
 when the wait ends every channel is drained: what the bench reads at time t is exactly
-what the stand produced up to t, on any machine, at any load. A participant that does not
+what the stand produced up to t, on any machine, at any load. A streaming twin joined
+with `drained_on_read=channel` is drained when its driver reads (`settle_channel`,
+drivers/clock.py, called by every reading of the driver) instead of at the end of every
+wait: the bench's settles and turn timing wait on the drives' TPDOs many times a second
+of stand time and read no FOG sample, and draining the FOG's pty at each of them (a
+hand-off through two threads and the kernel's pty worker) was half the demo's measuring
+time (issue 62). What a reading sees is the same: everything up to now. A participant that does not
 settle within `GUARD_REAL_S` of real time (a dead twin, a reader gone) is reported once
 and passed over: a broken twin cannot freeze the run.
 
@@ -274,6 +280,8 @@ class SteppedClock:
         self._stepper: threading.Thread | None = None
         self._targets: dict[int, float] = {}
         self._participants: list[Participant] = []
+        #: participants drained when their driver reads (channel name -> participant)
+        self._on_read: dict[str, Participant] = {}
         self._channels: dict[str, _Channel] = {}
         self._passed_over: set[int] = set()
         self._progress = threading.Condition(threading.Lock())
@@ -316,6 +324,20 @@ class SteppedClock:
             with interrupts.shelter():
                 self._settle(self._t_s, final=True)
             interrupts.safe_point()
+
+    def settle_channel(self, name: str) -> None:
+        """A driver is about to read channel `name`: return once its twin has delivered
+        what [0, now] holds (a twin joined with `drained_on_read=name`; any other channel
+        is drained at the end of every wait already). A thread other than the one
+        stepping the clock (a display) reads as the steps leave it, as before."""
+        with self._cond:
+            p = self._on_read.get(name)
+            busy = self._stepper is not None and self._stepper is not threading.current_thread()
+        if p is None or busy or not self._running:
+            return
+        with interrupts.shelter():
+            self._settle(self._t_s, final=True, parts=[p])
+        interrupts.safe_point()
 
     def real_seconds(self, virtual_s: float) -> float:
         return virtual_s / self.min_speed
@@ -367,15 +389,22 @@ class SteppedClock:
             ch = self._channels.get(name)
             return max(ch.sent - ch.consumed, 0) if ch is not None and ch.open else 0
 
-    def join(self, participant: Participant) -> Callable[[], None]:
-        """Add a twin to the co-simulation; returns the undo."""
+    def join(self, participant: Participant, *,
+             drained_on_read: str | None = None) -> Callable[[], None]:
+        """Add a twin to the co-simulation; returns the undo. `drained_on_read`: the
+        channel whose driver drains it when reading (`settle_channel`), not every wait."""
         with self._cond:
             self._participants.append(participant)
+            if drained_on_read is not None:
+                self._on_read[drained_on_read] = participant
 
         def leave() -> None:
             with self._cond:
                 if participant in self._participants:
                     self._participants.remove(participant)
+                if drained_on_read is not None \
+                        and self._on_read.get(drained_on_read) is participant:
+                    del self._on_read[drained_on_read]
         return leave
 
     # -- waiting -----------------------------------------------------------------------
@@ -413,7 +442,9 @@ class SteppedClock:
                     with self._cond:
                         self._stepper = None
                         self._cond.notify_all()
-            self._settle(self._t_s, final=True)
+            with self._cond:   # drained when read (settle_channel): as the last step left them
+                parts = [p for p in self._participants if p not in self._on_read.values()]
+            self._settle(self._t_s, final=True, parts=parts)
         finally:
             with self._cond:
                 self._targets.pop(me, None)
@@ -432,9 +463,10 @@ class SteppedClock:
         for p in parts:
             p.advance(t_next)
 
-    def _settle(self, t: float, final: bool) -> None:
-        with self._cond:
-            parts = list(self._participants)
+    def _settle(self, t: float, final: bool, parts: list[Participant] | None = None) -> None:
+        if parts is None:
+            with self._cond:
+                parts = list(self._participants)
         m0 = time.monotonic()
         for p in parts:
             while True:

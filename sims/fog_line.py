@@ -23,6 +23,13 @@ from sims.fog_settings import FogSettings
 _TICK_S = 0.002            # real seconds between looks at the clock when idle
 _OPEN_SETTLE_S = 0.05      # real seconds for pyserial to configure and flush after open
 _WRITE_POLL_MS = 50
+#: on a stepped clock, real ms the idle writer waits for frames or a command before it
+#: looks again anyway (a safety net: both wake it at once, `_idle`)
+_IDLE_MS = 50
+#: on a stepped clock, real seconds between looks at a port nobody has open (a reader
+#: opening it is answered at most this late, once; 2 ms ticks of the twin of the axis not
+#: under test were ~500 wake-ups a real second, issue 62)
+_UNREAD_TICK_S = 0.02
 #: on a stepped clock, bytes the channel may hold between the steps of one wait (queued
 #: in the twin, in the pty, not yet decoded): the twin encodes while the driver decodes
 _LEAD_BYTES = 4 << 20
@@ -43,6 +50,8 @@ class FogLine(FogSettings):
     _thread: threading.Thread | None
     _stop: threading.Event
     _wake: threading.Event
+    #: a pipe `_rouse` writes to, so the idle writer can wait on it beside the port
+    _wake_fds: tuple[int, int] | None
     _gate_open: bool
     _queued_bytes: int
     _stepped: bool
@@ -61,6 +70,11 @@ class FogLine(FogSettings):
         os.close(slave)  # a reader opening the path is then seen as POLLHUP clearing
         os.set_blocking(master, False)
         self._master = master
+        if self._stepped:
+            r, w = os.pipe()
+            os.set_blocking(r, False)
+            os.set_blocking(w, False)
+            self._wake_fds = (r, w)
         self._presence = select.poll()
         self._presence.register(master, select.POLLOUT)
         self._stop.clear()
@@ -68,7 +82,9 @@ class FogLine(FogSettings):
                                         daemon=True)
         self._thread.start()
         if self._stepped:
-            self._leave = self._stepped_clock.join(self)
+            # drained when the driver reads (sims/clock.py settle_channel), not at the end
+            # of every wait: the drives' settles and turn timing read no FOG sample
+            self._leave = self._stepped_clock.join(self, drained_on_read=self.path)
         return self.path
 
     @property
@@ -112,6 +128,34 @@ class FogLine(FogSettings):
         sent_s = (self._sent_n - 1) / self.rate_hz
         return max(head.until_s, sent_s) if isinstance(head, Hold) else sent_s
 
+    def _rouse(self) -> None:
+        """Frames queued (or the twin stopping): the writer need not wait a tick."""
+        self._wake.set()
+        if self._wake_fds is not None:
+            try:
+                os.write(self._wake_fds[1], b"\0")
+            except OSError:   # the pipe full (the writer is awake) or closed (stopped)
+                pass
+
+    def _idle(self, idle: select.poll | None) -> None:
+        """Nothing to write: wait for frames queued (`_rouse`), a command from the driver,
+        or a tick. On a stepped clock nothing else brings the writer work, so it sleeps on
+        the port and the wake pipe instead of looking every 2 ms (two twins: ~1000 wake-ups
+        a real second, each taking the interpreter lock, issue 62); a port nobody has open
+        reports a hang-up at once, and there it looks every `_UNREAD_TICK_S`."""
+        if idle is None or self._wake_fds is None:
+            self._wake.wait(_TICK_S)
+            self._wake.clear()
+            return
+        events = idle.poll(_IDLE_MS)
+        if any(fd == self._master and ev & select.POLLHUP for fd, ev in events):
+            self._wake.wait(_UNREAD_TICK_S)
+        self._wake.clear()
+        try:
+            os.read(self._wake_fds[0], 4096)
+        except OSError:
+            pass
+
     def _reader_present(self, poller: select.poll) -> bool:
         return not any(ev & select.POLLHUP for _, ev in poller.poll(0))
 
@@ -142,10 +186,19 @@ class FogLine(FogSettings):
             elif seen is not None and time.monotonic() - seen >= _OPEN_SETTLE_S \
                     and getattr(self.clock, "running", True):
                 break
+            if self._stepped and seen is None:   # nobody has the port open yet
+                self._wake.wait(_UNREAD_TICK_S)
+                self._wake.clear()
+                continue
             time.sleep(_TICK_S)
         self._gate_open = True
+        idle = None
         if self._stepped:
             self._stepped_clock.poke()
+            if self._wake_fds is not None:
+                idle = select.poll()
+                idle.register(self._master, select.POLLIN)
+                idle.register(self._wake_fds[0], select.POLLIN)
         while not self._stop.is_set():
             self._serve_commands(None if self._stepped else poller)
             if self.config_mode:  # no binary output in Configuration Mode (ICD 3.3)
@@ -154,8 +207,7 @@ class FogLine(FogSettings):
             if not self._stepped:  # a paced clock: the twin follows it (stepped: advance())
                 self.axis.advance_to(self.clock.now())
             if not self._drain(poller):
-                self._wake.wait(_TICK_S)
-                self._wake.clear()
+                self._idle(idle)
 
     def _serve_commands(self, poller: select.poll | None = None) -> None:
         """Answer the lines received. With `poller` (the stream running on a paced clock)

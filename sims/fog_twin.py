@@ -168,6 +168,7 @@ class FogTwin(FogSamples):
         self._thread = None
         self._stop = threading.Event()
         self._wake = threading.Event()   # frames queued: the writer need not wait a tick
+        self._wake_fds = None
         self._gate_open = False          # a reader settled on the port, the clock runs
         self._queued_bytes = 0
         self._stepped = bool(getattr(self.clock, "stepped", False))
@@ -176,6 +177,8 @@ class FogTwin(FogSamples):
         self.path = None
         self.bytes_written = 0
         self.frames_encoded = 0
+        self._pending = []
+        self._pending_n = 0
         with self.axis.lock:
             if self.axis.samples_generated:
                 raise RuntimeError(
@@ -188,11 +191,13 @@ class FogTwin(FogSamples):
     @property
     def next_sample(self) -> int:
         """The first stand sample not yet encoded: a fault must lie at or after it."""
+        self._encode_pending()
         with self.axis.lock:
             return self._next_sample
 
     def inject(self, *faults: Fault) -> None:
         """Schedule faults by stand sample; each must lie ahead of what is already encoded."""
+        self._encode_pending()
         with self.axis.lock:
             for f in faults:
                 if f.sample < self._next_sample:
@@ -202,7 +207,7 @@ class FogTwin(FogSamples):
 
     def stop(self) -> None:
         self._stop.set()
-        self._wake.set()
+        self._rouse()
         if self._leave is not None:
             self._leave()
             self._leave = None
@@ -212,6 +217,10 @@ class FogTwin(FogSamples):
         if self._master is not None:
             os.close(self._master)
             self._master = None
+        if self._wake_fds is not None:
+            for fd in self._wake_fds:
+                os.close(fd)
+            self._wake_fds = None
         with self.axis.lock:
             if self._on_chunk in self.axis.listeners:
                 self.axis.listeners.remove(self._on_chunk)
