@@ -108,3 +108,32 @@ def test_a_codec_may_read_json(tmp_path: Path) -> None:
     root = _tree_copy(tmp_path)
     (root / where / "codec.py").write_text(PLANTED_MODULE, encoding="utf-8")
     assert f"{where}/codec.py" not in count(root, (where,))
+
+
+ANY_READER = '''\
+"""A reader typed `Any` in one module, its caller in another."""
+import json
+from pathlib import Path
+from typing import Any
+
+
+def read_any(path: Path) -> dict[str, Any]:
+    data = json.loads(path.read_text())
+    return data if isinstance(data, dict) else {}
+'''
+
+
+def test_a_reader_typed_any_is_still_a_reader(tmp_path: Path) -> None:
+    """A JSON reader whose return is `dict[str, Any]` (the form the guard once missed:
+    records/extract.py read result.json and meta.json through one) is a reader: its
+    callers outside the codecs are counted, though its signature is not a JSON map's."""
+    root = _tree_copy(tmp_path)
+    (root / "bench/report/certificate/anyread.py").write_text(ANY_READER, encoding="utf-8")
+    (root / "bench/app/station/uses.py").write_text(
+        "from pathlib import Path\n"
+        "from bench.report.certificate.anyread import read_any\n\n\n"
+        "def verdict(p: Path) -> str:\n"
+        "    return str(read_any(p).get('verdict'))\n", encoding="utf-8")
+    found = count(root, ("bench/app/station", "bench/report/certificate"))
+    assert found["bench/app/station/uses.py"] == {"json_reads": 1}
+    assert found["bench/report/certificate/anyread.py"] == {"json_reads": 1}

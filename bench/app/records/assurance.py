@@ -18,7 +18,6 @@ nobody could read is no status).
 from __future__ import annotations
 
 import datetime as dt
-import json
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -30,7 +29,9 @@ from bench.app.records.codec import (
     Assurance,
     InstrumentLine,
     ReviewLine,
+    add_sim_run_number,
     read_assurance_file,
+    read_records_meta,
     write_assurance_file,
 )
 from bench.app.records.control import (
@@ -45,7 +46,6 @@ from bench.core import rundir_layout as layout
 from bench.core.config import Config, SimSettings, StandSettings
 from bench.core.simbench import with_sim
 from bench.core.simdrift import drifted, has_drift, stated_run_number
-from bench.report.certificate.sources import read_json_object
 from bench.report.result_frame import ResultFrame
 
 Warn = Callable[[str], None]
@@ -176,8 +176,9 @@ def drifting_config(cfg: Config, run_path: Path, where: RecordsTarget, say: Warn
     if not has_drift(stand_settings):
         return cfg
     meta_path = run_path / layout.META
-    meta = read_json_object(meta_path)
-    number = meta.get("sim_run_number") or stated_run_number(stand_settings)
+    meta = read_records_meta(meta_path)
+    number = (meta.sim_run_number if meta is not None else None) or \
+        stated_run_number(stand_settings)
     if number is None:
         serial = stand_settings.identity.serial
         try:
@@ -186,9 +187,8 @@ def drifting_config(cfg: Config, run_path: Path, where: RecordsTarget, say: Warn
         except RecordsError as e:
             say(f"records: cannot count this table's runs ({e}); the twins drift as run 1")
             number = 1
-    if meta and "sim_run_number" not in meta:
-        meta["sim_run_number"] = int(number)
-        meta_path.write_text(json.dumps(meta, indent=2) + "\n")
+    if meta is not None and meta.sim_run_number is None:
+        add_sim_run_number(meta_path, int(number))
     sim, notes = drifted(stand_settings.sim or SimSettings(), int(number))
     for n in notes:
         say(n)

@@ -83,3 +83,37 @@ def read_assurance_file(path: Path) -> Assurance | None:
         return msgspec.json.decode(path.read_bytes(), type=Assurance)
     except (OSError, msgspec.DecodeError):
         return None
+
+
+class RecordsMeta(msgspec.Struct, frozen=True, kw_only=True):
+    """What the records read of a run's meta.json: the keys `RunDir.create` and the run's
+    start (`RunMarks`) write, and the drifting twin's run number. A key an older run
+    lacks reads as None."""
+
+    created_utc: str | None = None
+    procedure_name: str | None = None
+    procedure_sha256: str | None = None
+    stand_sha256: str | None = None
+    bench_version: str | None = None
+    calibration_state: str | None = None
+    adjustment_note: str | None = None
+    operator: str | None = None
+    sim_run_number: int | None = None
+
+
+def read_records_meta(path: Path) -> RecordsMeta | None:
+    """meta.json's keys for the records; None when it is missing, damaged or not of
+    meta.json's shape (a hand-edited file: the record is then made without them, as for a
+    run with no meta.json)."""
+    try:
+        return msgspec.json.decode(path.read_bytes(), type=RecordsMeta)
+    except (OSError, msgspec.DecodeError):
+        return None
+
+
+def add_sim_run_number(path: Path, number: int) -> None:
+    """meta.json with the drifting twin's run number added last (a --resume drifts the
+    same way as the first session), written back as `RunDir.create` writes it."""
+    meta = json.loads(path.read_text())
+    meta["sim_run_number"] = number
+    path.write_text(json.dumps(meta, indent=2) + "\n")

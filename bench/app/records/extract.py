@@ -16,12 +16,13 @@ from pathlib import Path
 
 from bench.analysis.finite import finite_number as _num
 from bench.app.records.checks import CheckRecord, checks_of
+from bench.app.records.codec import RecordsMeta, read_records_meta
 from bench.core import rundir_layout as layout
 from bench.core.journal import sha256_file
 from bench.core.journal_codec import RunMeta, read_meta
 from bench.core.placeholders import run_copy
 from bench.kind import installed_records
-from bench.report.certificate.sources import read_json_object
+from bench.report.certificate.sources import read_frame
 from bench.report.figures import FigureValue
 from bench.report.result_frame import Check, ResultFrame
 from drivers.json_types import JsonValue
@@ -204,11 +205,11 @@ def record_of(run_path: str | Path, frame: ResultFrame | None = None) -> RunReco
     if frame is None:
         if not (path / layout.RESULT).is_file() or not (path / layout.EVENTS).is_file():
             raise NotARun(f"{path}: no result.json and events.jsonl (not a finished run)")
-        frame = ResultFrame.of(read_json_object(path / layout.RESULT))
-    result = frame.doc
-    if not result:
+        frame = read_frame(path / layout.RESULT)
+    if frame is None or not frame.doc:
         raise NotARun(f"{path}/result.json: not a readable result")
-    meta = read_json_object(path / layout.META)
+    result = frame.doc
+    meta = read_records_meta(path / layout.META) or RecordsMeta()
     stand_file = run_copy(path, layout.STAND)   # a serial still to fill in is none
     ident = dict((stand_file.get("stand") or {}) if isinstance(stand_file, dict) else {})
     ident.update({k: v for k, v in frame.stand.items() if v is not None})
@@ -217,7 +218,7 @@ def record_of(run_path: str | Path, frame: ResultFrame | None = None) -> RunReco
         raise NotARun(f"{path}: the stand has no serial number (stand.serial)")
     interval = ident.get("recertification_interval_days")
     dates = frame.dates
-    state = meta.get("calibration_state") or frame.records.get("calibration_state")
+    state = meta.calibration_state or frame.records.get("calibration_state")
     number = certificate_number(path)
     cert_files = _issued_files(path, number)
     blob = json.dumps(result, sort_keys=True, default=str).encode()
@@ -231,22 +232,22 @@ def record_of(run_path: str | Path, frame: ResultFrame | None = None) -> RunReco
         kind=kind,
         title=_opt(frame.title),
         run_dir=path.name, run_path=str(path), host=socket.gethostname(),
-        procedure_name=_opt(meta.get("procedure_name")),
-        procedure_sha256=_opt(meta.get("procedure_sha256")),
-        stand_sha256=_opt(meta.get("stand_sha256")),
+        procedure_name=_opt(meta.procedure_name),
+        procedure_sha256=_opt(meta.procedure_sha256),
+        stand_sha256=_opt(meta.stand_sha256),
         result_sha256=hashlib.sha256(blob).hexdigest(),
-        created_utc=parse_utc(dates.created_utc or meta.get("created_utc")),
+        created_utc=parse_utc(dates.created_utc or meta.created_utc),
         started_utc=parse_utc(dates.started_utc),
         completed_utc=parse_utc(dates.completed_utc),
-        operator=_opt(meta.get("operator")),
+        operator=_opt(meta.operator),
         verdict=frame.verdict or "incomplete",
         calibration_state=state if state in STATES else None,
-        adjustment_note=_opt(meta.get("adjustment_note")),
+        adjustment_note=_opt(meta.adjustment_note),
         certificate_number=number,
         simulated=frame.simulated,
         sessions=frame.sessions or None,
         aborted=frame.aborted,
-        bench_version=_opt(meta.get("bench_version")),
+        bench_version=_opt(meta.bench_version),
         figures=tuple(frame_figures(frame, kind)),
         cert_files=cert_files,
         checks=tuple(checks_of(path, result, stand_file if isinstance(stand_file, dict)
@@ -271,5 +272,9 @@ def find_runs(runs_dir: str | Path) -> list[Path]:
     """Run directories under `runs_dir` (itself, its children, or deeper), oldest first."""
     root = Path(runs_dir)
     found = {p.parent for p in root.rglob(layout.RESULT) if (p.parent / layout.EVENTS).is_file()}
-    return sorted(found, key=lambda p: (read_json_object(p / layout.META).get("created_utc", ""),
-                                        p.name))
+    return sorted(found, key=lambda p: (_created_utc(p), p.name))
+
+
+def _created_utc(run_path: Path) -> str:
+    meta = read_records_meta(run_path / layout.META)
+    return (meta.created_utc if meta is not None else None) or ""

@@ -24,7 +24,7 @@ from bench.app.station.drafts import Draft, drafts
 from bench.app.station.live import DOWNLOADS
 from bench.core import rundir_layout as layout
 from bench.kind import declared_figures
-from bench.report.certificate.sources import read_json_object
+from bench.report.certificate.sources import read_frame
 from bench.report.figures import spec_for
 from bench.report.result_frame import ResultFrame
 from drivers.json_types import JsonLike
@@ -37,11 +37,13 @@ def _iso(t: dt.datetime | dt.date | None) -> str | None:
 def run_figures(run_path: Path) -> dict[str, JsonLike]:
     """A finished run's figures, read by its procedure kind from result.json (the rows
     the records keep) with the words and units the kind declares; none before the end."""
-    result = read_json_object(run_path / layout.RESULT)
-    kind = kind_name(ResultFrame.of(result), run_path) if result else ""
+    frame = read_frame(run_path / layout.RESULT)
+    if frame is not None and not frame.doc:
+        frame = None
+    kind = kind_name(frame, run_path) if frame is not None else ""
     specs = declared_figures([kind]) if kind else ()
     rows: list[JsonLike] = []
-    for f in figures_of(ResultFrame.of(result), kind) if result else []:
+    for f in figures_of(frame, kind) if frame is not None else []:
         spec = spec_for(f.quantity, specs)
         rows.append({"axis": f.axis, "quantity": f.quantity, "set_rate_dps": f.set_rate_dps,
                      "value": f.value, "U": f.u, "unit": f.unit,
@@ -50,7 +52,7 @@ def run_figures(run_path: Path) -> dict[str, JsonLike]:
                      "tolerance": f.tolerance, "verdict": f.verdict,
                      "upper_limit": f.is_limit})
     return {"run": run_path.name, "procedure": kind or None,
-            "verdict": ResultFrame.conform(result)[0].verdict if result else None,
+            "verdict": ResultFrame.conform(frame.doc)[0].verdict if frame is not None else None,
             "figures": rows}
 
 
