@@ -1,15 +1,20 @@
 """The certificate's PDF breaks each table cell's text into lines once (issue 62: fpdf lays
-out every cell twice, for the rows' heights and to draw them): the same PDF to the byte as
-fpdf's own breaking, fewer breakings, and fpdf as it was afterwards."""
+out every cell twice, for the rows' heights and to draw them), a text that fits on one line
+without breaking it character by character, and a row's height without drawing its cells
+unseen: the same PDF to the byte as fpdf's own table and breaking, fewer breakings, and
+fpdf as it was afterwards."""
 
 from __future__ import annotations
 
 import datetime as dt
+import random
 from pathlib import Path
 from typing import Any
 
 import fpdf.fpdf
 import pytest
+from fpdf import FPDF
+from fpdf.enums import Align
 from fpdf.line_break import MultiLineBreak
 
 from bench.app.certificate import pdf as certificate_pdf
@@ -42,7 +47,10 @@ class _Counting(MultiLineBreak):
 def test_lines_broken_once_give_the_same_pdf(fixed_date: None, tmp_path: Path,
                                              monkeypatch: pytest.MonkeyPatch) -> None:
     doc = build_document(Sources.load(rate_ladder_result(), None))
-    as_fpdf_breaks = certificate_pdf._rendered(doc, certificate_pdf._png)
+    with monkeypatch.context() as fpdf_own:     # fpdf's table, every text broken by fpdf
+        fpdf_own.setattr(certificate_pdf._Pdf, "table", FPDF.table)
+        fpdf_own.setattr(certificate_pdf, "_one_line", lambda *args: None)
+        as_fpdf_breaks = certificate_pdf._rendered(doc, certificate_pdf._png)
     monkeypatch.setattr(certificate_pdf, "MultiLineBreak", _Counting)
     monkeypatch.setattr(fpdf.fpdf, "MultiLineBreak", _Counting)
     _Counting.made = 0
@@ -55,3 +63,37 @@ def test_lines_broken_once_give_the_same_pdf(fixed_date: None, tmp_path: Path,
     assert certificate_pdf._BrokenOnce.lines == {}
     # a table's cell is broken for its row's height and again to draw it: now once
     assert 0 < _Counting.made < 0.7 * every_time, (_Counting.made, every_time)
+
+
+_WORDS = ("Mean", "rate", "±", "U", "°/s", "0.000123", "−4.5e-06", "k = 2", "PASS", "FAIL",
+          "(guard band)", "σ", "√", "≤", "ω_set", "A", "", "iiii", "WWWW", "—")
+
+
+def test_one_line_is_the_line_fpdf_breaks() -> None:
+    """Where `_one_line` gives a line, fpdf's breaking gives that line and no other, to the
+    last bit of its width; texts near the width, with several spaces, in each font."""
+    rng = random.Random(62)
+    pdf = certificate_pdf._Pdf(build_document(Sources.load(rate_ladder_result(), None)),
+                               certificate_pdf._png)
+    pdf.add_page()
+    given = 0
+    for _ in range(1500):
+        family, style = rng.choice([(certificate_pdf.SANS, ""), (certificate_pdf.SANS, "B"),
+                                    (certificate_pdf.SANS, "I"), (certificate_pdf.MONO, "")])
+        pdf.set_font(family, style, rng.choice([6.3, 7.5, 8.5, 9.5]))
+        text = (" " * rng.randint(0, 2)).join(rng.choice(_WORDS) for _ in range(rng.randint(1, 6)))
+        fragments = pdf._preload_font_styles(text, False)
+        width = max(pdf.get_string_width(text) + rng.uniform(-1.0, 2.0), 8.0)
+        margins = rng.choice([[], [pdf.c_margin], [pdf.c_margin, pdf.c_margin]])
+        options = {"align": rng.choice([Align.L, Align.R, Align.C, Align.J]),
+                   "print_sh": False, "wrapmode": fpdf.enums.WrapMode.WORD}
+        line = certificate_pdf._one_line(fragments, width, margins, options)
+        expected = list(iter(MultiLineBreak(fragments, width, margins, **options).get_line, None))
+        if line is None:
+            continue
+        given += 1
+        assert len(expected) == 1, text
+        assert line._replace(fragments=[]) == expected[0]._replace(fragments=[]), text
+        assert [(f.characters, f.graphics_state, f.k, f.link, type(f)) for f in line.fragments] \
+            == [(f.characters, f.graphics_state, f.k, f.link, type(f)) for f in expected[0].fragments]
+    assert given > 400

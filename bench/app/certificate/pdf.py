@@ -18,9 +18,21 @@ from pathlib import Path
 
 import fpdf.fpdf
 from fpdf import FPDF, FontFace
-from fpdf.enums import TableCellFillMode, XPos, YPos
+from fpdf.enums import Align, TableCellFillMode, XPos, YPos
 from fpdf.fonts import TTFFont
-from fpdf.line_break import Fragment, MultiLineBreak, TextLine
+from fpdf.line_break import (
+    BREAKING_SPACE_SYMBOLS_STR,
+    FORM_FEED,
+    NBSP,
+    NEWLINE,
+    SOFT_HYPHEN,
+    Fragment,
+    MultiLineBreak,
+    TextLine,
+)
+from fpdf.table import Cell
+from fpdf.table import Table as FpdfTable
+from fpdf.util import Padding
 
 from bench.app.certificate.html import is_bad
 from bench.report.certificate.model import Document, Fields, Figure, Para, Signatures, Table
@@ -113,6 +125,41 @@ def _state_key(fragment: Fragment) -> Hashable:
 _STATE_FIELDS: dict[type, tuple[str, ...]] = {}
 
 
+#: characters fpdf's line breaking treats as more than a glyph of some width
+_NOT_PLAIN = frozenset(BREAKING_SPACE_SYMBOLS_STR) - {" "} | {NEWLINE, FORM_FEED, NBSP, SOFT_HYPHEN}
+#: how far inside its width a line must end to be one line whatever the rounding
+_ROOM = 1e-6
+
+
+def _one_line(fragments: Sequence[Fragment], max_width: float | Callable[[float], float],
+              margins: Sequence[float], options: dict[str, object]) -> TextLine | None:
+    """The one line fpdf's `MultiLineBreak` makes of a text that fits its width with room
+    to spare, without measuring it character by character (most of a table's cells; issue
+    62); None for anything else (more lines, several fragments or a character that breaks
+    or is replaced), which fpdf breaks. The same TextLine: fpdf adds the characters one by
+    one while the line so far and the next fit, to one clone of the fragment, counts the
+    spaces, and ends the line with its width as `CurrentLine.width` sums it."""
+    if (len(fragments) != 1 or callable(max_width) or type(fragments[0]) is not Fragment
+            or set(options) - {"align", "print_sh", "wrapmode"}):
+        return None
+    fragment = fragments[0]
+    chars = fragment.characters
+    gs = fragment.graphics_state
+    if (not chars or gs.text_shaping is not None or gs.char_spacing != 0
+            or gs.font_stretching != 100 or not _NOT_PLAIN.isdisjoint(chars)):
+        return None
+    width = fragment.get_width(initial_cs=False)
+    room = max_width - sum(float(m) for m in margins)
+    if not width + _ROOM < room:
+        return None
+    align = Align.coerce(options.get("align", Align.L))  # type: ignore[arg-type]
+    return TextLine(fragments=[fragment.clone(characters=list(chars), link=fragment.link)],
+                    text_width=0 + width, number_of_spaces=chars.count(" "),
+                    align=Align.L if align == Align.J else align,
+                    height=fragment.font_size * 1.0, max_width=max_width - 0,
+                    trailing_nl=False, trailing_form_feed=False, indent=0)
+
+
 class _BrokenOnce:
     """fpdf's MultiLineBreak, whose lines for a text already broken at the same width, in
     the same fonts and state, are those of its first breaking (a table's cells are broken
@@ -134,8 +181,12 @@ class _BrokenOnce:
                 key = None
         lines = self.lines.get(key) if key is not None else None
         if lines is None:
-            breaker = MultiLineBreak(fragments, max_width, margins, **options)  # type: ignore[arg-type]
-            lines = list(iter(breaker.get_line, None))
+            line = _one_line(fragments, max_width, margins, options)
+            if line is not None:
+                lines = [line]
+            else:
+                breaker = MultiLineBreak(fragments, max_width, margins, **options)  # type: ignore[arg-type]
+                lines = list(iter(breaker.get_line, None))
             if key is not None:
                 self.lines[key] = lines
         self._next = iter(lines)
@@ -157,6 +208,59 @@ def _lines_broken_once() -> Iterator[None]:
     finally:
         fpdf.fpdf.MultiLineBreak = MultiLineBreak  # type: ignore[misc]
         _BrokenOnce.lines.clear()
+
+
+class _Table(FpdfTable):
+    """fpdf's table, whose rows' heights are found without drawing each cell unseen.
+
+    fpdf lays a table out twice: each cell's `multi_cell` run with writing switched off,
+    for its height, then again to draw it (issue 62: half a table's time). Here the first
+    pass breaks the cell's text into lines only, as `multi_cell` would (the same
+    fragments, width, margins and options, so `_BrokenOnce` gives the drawing the same
+    lines), takes its height as `multi_cell` adds it up, and picks the glyphs it would
+    have picked (the fonts' subsets, so the PDF is the same to the byte). A cell this
+    does not know (an image, markdown, text shaping, a span) is measured as fpdf does."""
+
+    def _render_table_cell(self, i: int, j: int, cell: Cell, row_height: float,
+                           cell_height_info: object = None,
+                           cell_x_positions: Sequence[float] | None = None,
+                           **kwargs: object) -> tuple[bool, float, float]:
+        pdf = self._fpdf
+        if (cell_height_info is not None or kwargs or cell.img or not cell.text
+                or self._markdown or pdf.text_shaping or cell.colspan != 1
+                or row_height != self._line_height):
+            return super()._render_table_cell(
+                i, j, cell, row_height, cell_height_info,  # type: ignore[arg-type]
+                cell_x_positions, **kwargs)
+        style = self._initial_style
+        assert style is not None
+        if self._cell_fill_mode.should_fill_cell(i, j) and self._cell_fill_color:
+            style = style.replace(fill_color=self._cell_fill_color)
+        if i < self._num_heading_rows:
+            style = FontFace.combine(style, self._headings_style)
+        style = FontFace.combine(FontFace.combine(style, self.rows[i].style), cell.style)
+        padding = Padding.new(cell.padding) if cell.padding else self._padding
+        align = cell.align or self._text_align
+        if not isinstance(align, Align | str):
+            align = align[j]
+        width = self._get_col_width(i, j) - padding.right - padding.left
+        margins = [pdf.c_margin] * ((not padding.left) + (not padding.right))
+        assert style is not None
+        with pdf.use_font_face(style):
+            fragments = pdf._preload_font_styles(  # noqa: SLF001 - multi_cell's own step
+                pdf.normalize_text(cell.text).replace("\r", ""), False)
+            breaker = fpdf.fpdf.MultiLineBreak(fragments, width, margins, align=Align.coerce(align),
+                                               print_sh=False, wrapmode=self._wrapmode)
+            lines = list(iter(breaker.get_line, None))
+        for line in lines:      # the glyphs, in the order fpdf's unseen drawing picked them
+            for fragment in line.get_ordered_fragments():
+                if isinstance(font := fragment.font, TTFFont):
+                    for char in fragment.string:
+                        font.subset.pick(ord(char))
+        total: float = 0
+        for _ in range(max(len(lines), 1)):     # no text: one empty line
+            total += row_height                 # as multi_cell sums it
+        return False, 0, max(total, row_height) + padding.top + padding.bottom
 
 
 class _Pdf(FPDF):
@@ -228,6 +332,13 @@ class _Pdf(FPDF):
         self.set_text_color(80, 80, 80)
         self.multi_cell(0, 3, self.doc.footer, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
         self.set_text_color(0, 0, 0)
+
+    @contextlib.contextmanager
+    def table(self, *args: object, **kwargs: object) -> Iterator[FpdfTable]:
+        """fpdf's `table`, laid out by `_Table`."""
+        table = _Table(self, *args, **kwargs)  # type: ignore[arg-type]
+        yield table
+        table.render()
 
     # -- blocks ----------------------------------------------------------------------------
     @property
