@@ -18,7 +18,8 @@ from pathlib import Path
 
 import fpdf.fpdf
 from fpdf import FPDF, FontFace
-from fpdf.enums import Align, TableCellFillMode, XPos, YPos
+from fpdf.enums import Align, TableCellFillMode, WrapMode, XPos, YPos
+from fpdf.errors import FPDFException
 from fpdf.fonts import TTFFont
 from fpdf.line_break import (
     BREAKING_SPACE_SYMBOLS_STR,
@@ -32,7 +33,7 @@ from fpdf.line_break import (
 )
 from fpdf.table import Cell
 from fpdf.table import Table as FpdfTable
-from fpdf.util import Padding
+from fpdf.util import FloatTolerance, Padding
 
 from bench.app.certificate.html import is_bad
 from bench.report.certificate.model import Document, Fields, Figure, Para, Signatures, Table
@@ -125,39 +126,87 @@ def _state_key(fragment: Fragment) -> Hashable:
 _STATE_FIELDS: dict[type, tuple[str, ...]] = {}
 
 
-#: characters fpdf's line breaking treats as more than a glyph of some width
-_NOT_PLAIN = frozenset(BREAKING_SPACE_SYMBOLS_STR) - {" "} | {NEWLINE, FORM_FEED, NBSP, SOFT_HYPHEN}
-#: how far inside its width a line must end to be one line whatever the rounding
-_ROOM = 1e-6
+#: characters fpdf's line breaking treats otherwise than as a glyph or a space to break at
+_NOT_PLAIN = frozenset(BREAKING_SPACE_SYMBOLS_STR) - {" "} | {FORM_FEED, NBSP, SOFT_HYPHEN}
 
 
-def _one_line(fragments: Sequence[Fragment], max_width: float | Callable[[float], float],
-              margins: Sequence[float], options: dict[str, object]) -> TextLine | None:
-    """The one line fpdf's `MultiLineBreak` makes of a text that fits its width with room
-    to spare, without measuring it character by character (most of a table's cells; issue
-    62); None for anything else (more lines, several fragments or a character that breaks
-    or is replaced), which fpdf breaks. The same TextLine: fpdf adds the characters one by
-    one while the line so far and the next fit, to one clone of the fragment, counts the
-    spaces, and ends the line with its width as `CurrentLine.width` sums it."""
+def _plain_lines(fragments: Sequence[Fragment], max_width: float | Callable[[float], float],
+                 margins: Sequence[float], options: dict[str, object]) -> list[TextLine] | None:
+    """The lines fpdf's `MultiLineBreak` makes of one fragment of plain text (spaces and
+    newlines its only breaks), found as it finds them but without re-measuring the line
+    so far at each character (most of a certificate's PDF time; issue 62); None for
+    anything else, which fpdf breaks. Its rule: characters are added while the line's
+    width and the next character's fit; a space that does not fit ends the line, else the
+    line ends at its last space, else before the character. The same TextLines to the
+    last bit: the widths summed as fpdf's TTF font sums them (whole glyph units, scaled
+    once), `_lines_broken_once`'s tests compare them with fpdf's."""
     if (len(fragments) != 1 or callable(max_width) or type(fragments[0]) is not Fragment
-            or set(options) - {"align", "print_sh", "wrapmode"}):
+            or set(options) - {"align", "print_sh", "wrapmode"}
+            or options.get("wrapmode", WrapMode.WORD) != WrapMode.WORD):
         return None
     fragment = fragments[0]
-    chars = fragment.characters
-    gs = fragment.graphics_state
-    if (not chars or gs.text_shaping is not None or gs.char_spacing != 0
-            or gs.font_stretching != 100 or not _NOT_PLAIN.isdisjoint(chars)):
+    chars, gs, font = fragment.characters, fragment.graphics_state, fragment.font
+    if (gs.text_shaping is not None or gs.char_spacing != 0 or gs.font_stretching != 100
+            or not isinstance(font, TTFFont) or font.is_symbol
+            or not _NOT_PLAIN.isdisjoint(chars)):
         return None
-    width = fragment.get_width(initial_cs=False)
-    room = max_width - sum(float(m) for m in margins)
-    if not width + _ROOM < room:
-        return None
+    fragment.get_width()    # fpdf's measuring notes the font's largest size
+    cw, size_pt, k = font.cw, fragment.font_size_pt, fragment.k
+    room = max_width
+    for margin in margins:
+        room -= float(margin)
     align = Align.coerce(options.get("align", Align.L))  # type: ignore[arg-type]
-    return TextLine(fragments=[fragment.clone(characters=list(chars), link=fragment.link)],
-                    text_width=0 + width, number_of_spaces=chars.count(" "),
-                    align=Align.L if align == Align.J else align,
-                    height=fragment.font_size * 1.0, max_width=max_width - 0,
-                    trailing_nl=False, trailing_form_feed=False, indent=0)
+    last_align = Align.L if align == Align.J else align
+    height = fragment.font_size * 1.0
+
+    def line(end: int, units: float, spaces: int, how: Align, added: bool, nl: bool = False
+             ) -> TextLine:
+        return TextLine(
+            fragments=[fragment.clone(characters=chars[begin:end], link=fragment.link)]
+            if added else [], text_width=0 + units * size_pt * 0.001 / k if added else 0,
+            number_of_spaces=spaces, align=how, height=height if added or nl else 0,
+            max_width=max_width - 0, trailing_nl=nl, trailing_form_feed=False, indent=0)
+
+    lines: list[TextLine] = []
+    i, n, forced = 0, len(chars), -1
+    units: float     # whole glyph units (fpdf's widths), summed as fpdf sums them
+    hint: tuple[int, int, float] | None     # the line's last space: where, spaces, units
+    while i < n:
+        begin, units, spaces, added, hint = i, 0, 0, False, None
+        was_forced, forced = forced, -1
+        while True:
+            if i == n:
+                if units * size_pt * 0.001 / k:     # fpdf keeps a line of some width
+                    lines.append(line(i, units, spaces, last_align, added))
+                break
+            char = chars[i]
+            unit = cw[ord(char)]
+            if char == NEWLINE:
+                lines.append(line(i, units, spaces, last_align, added, nl=True))
+                i += 1
+                break
+            if FloatTolerance.greater_than(
+                    (0 + units * size_pt * 0.001 / k if added else 0)
+                    + unit * size_pt * 0.001 / k, room):
+                if char == " ":
+                    lines.append(line(i, units, spaces, align, added))
+                    i += 1
+                elif hint is not None:
+                    lines.append(line(hint[0], hint[2], hint[1], align, True))
+                    i = hint[0] + 1
+                elif was_forced == i:
+                    raise FPDFException("Not enough horizontal space to render a single character")
+                else:
+                    forced = i
+                    lines.append(line(i, units, spaces, last_align, added))
+                break
+            if char == " ":
+                hint = (i, spaces, units)
+                spaces += 1
+            units += unit
+            added = True
+            i += 1
+    return lines
 
 
 class _BrokenOnce:
@@ -181,10 +230,8 @@ class _BrokenOnce:
                 key = None
         lines = self.lines.get(key) if key is not None else None
         if lines is None:
-            line = _one_line(fragments, max_width, margins, options)
-            if line is not None:
-                lines = [line]
-            else:
+            lines = _plain_lines(fragments, max_width, margins, options)
+            if lines is None:
                 breaker = MultiLineBreak(fragments, max_width, margins, **options)  # type: ignore[arg-type]
                 lines = list(iter(breaker.get_line, None))
             if key is not None:
