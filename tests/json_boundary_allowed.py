@@ -21,7 +21,6 @@ from __future__ import annotations
 
 ALLOWED: dict[str, dict[str, int]] = {
     "bench/app/certificate/equipment.py": {"json_map_signatures": 2},
-    "bench/app/certificate/pdf.py": {"json_map_signatures": 1},
     "bench/app/dcc/admin.py": {"json_map_signatures": 1},
     "bench/app/dcc/used_methods.py": {"json_map_signatures": 1},
     "bench/app/records/assurance.py": {"json_map_signatures": 2},

@@ -11,7 +11,6 @@ import contextlib
 import dataclasses
 import io
 import struct
-from collections import defaultdict
 from collections.abc import Callable, Hashable, Iterator, Sequence
 from importlib.util import find_spec
 from pathlib import Path
@@ -61,51 +60,6 @@ def _png_size(png: bytes) -> tuple[int, int]:
         raise ValueError("a certificate figure must be a PNG")
     w, h = struct.unpack(">II", png[16:24])
     return w, h
-
-
-class _Widths(defaultdict[int, float]):
-    """A font's character widths (fpdf's `cw`), with the sum of the last text measured."""
-
-    last_text = ""
-    last_sum: float = 0
-
-
-class _Font(TTFFont):
-    """A TTF font that measures a text from the last it measured, when that is the text
-    less its last character: fpdf's line breaking measures the line so far after each
-    character (a cell of n characters costs n^2 additions). The same additions in the
-    same order (fpdf's left-to-right sum), so the same widths to the last bit."""
-
-    __slots__ = ()
-
-    def get_text_width(self, text: str, font_size_pt: float,
-                       text_shaping_params: dict[str, object] | None) -> tuple[int, float]:
-        cw = self.cw
-        if (text_shaping_params or self.is_symbol or not isinstance(cw, _Widths)
-                or len(text) < 2):
-            return super().get_text_width(text, font_size_pt, text_shaping_params)
-        if font_size_pt > self.biggest_size_pt:
-            self.biggest_size_pt = font_size_pt
-        if text.startswith(cw.last_text) and len(text) == len(cw.last_text) + 1:
-            total = cw.last_sum + cw[ord(text[-1])]
-        else:
-            total = sum(cw[ord(c)] for c in text)
-        cw.last_text, cw.last_sum = text, total
-        return len(text), total * font_size_pt * 0.001
-
-
-def _measure_from_the_last(font: object) -> None:
-    """`font` becomes a `_Font` if it is fpdf's TTFFont and measures a text as fpdf does."""
-    widths = getattr(font, "cw", None)
-    if type(font) is not TTFFont or not isinstance(widths, defaultdict):
-        return
-    probe, biggest = "Mean rate ± U, °/s", font.biggest_size_pt
-    expected = [font.get_text_width(probe[:n], 7.5, None) for n in range(len(probe) + 1)]
-    font.__class__ = _Font
-    font.cw = _Widths(widths.default_factory, widths)
-    if [font.get_text_width(probe[:n], 7.5, None) for n in range(len(probe) + 1)] != expected:
-        font.__class__, font.cw = TTFFont, widths   # another fpdf: measured as it does
-    font.biggest_size_pt = biggest
 
 
 def _state_key(fragment: Fragment) -> Hashable:
@@ -320,8 +274,6 @@ class _Pdf(FPDF):
         self.add_font(SANS, "I", FONT_DIR / "DejaVuSans-Oblique.ttf")
         self.add_font(MONO, "", FONT_DIR / "DejaVuSansMono.ttf")
         self.add_font(MONO, "B", FONT_DIR / "DejaVuSansMono-Bold.ttf")
-        for font in self.fonts.values():  # the same objects, measuring as _Font does
-            _measure_from_the_last(font)
         self.set_margins(15, 22, 15)
         self.set_auto_page_break(True, margin=18)
         self.set_title(f"{doc.title} {doc.cert_id}")
