@@ -95,16 +95,16 @@ def test_plain_lines_are_the_lines_fpdf_breaks() -> None:
         fragments = pdf._preload_font_styles(text, False)
         width = pdf.get_string_width(text) * rng.choice([0.2, 0.5, 1.0]) + rng.uniform(-1.0, 2.0)
         margins = rng.choice([[], [pdf.c_margin], [pdf.c_margin, pdf.c_margin]])
-        options = {"align": rng.choice([Align.L, Align.R, Align.C, Align.J]),
-                   "print_sh": False, "wrapmode": fpdf.enums.WrapMode.WORD}
+        align = rng.choice([Align.L, Align.R, Align.C, Align.J])
+        options = {"align": align, "print_sh": False, "wrapmode": fpdf.enums.WrapMode.WORD}
         try:
             expected = list(iter(MultiLineBreak(fragments, width, margins, **options).get_line,
                                  None))
         except fpdf.errors.FPDFException as e:      # a character wider than the line
             with pytest.raises(fpdf.errors.FPDFException, match=str(e)):
-                certificate_pdf._plain_lines(fragments, width, margins, options)
+                certificate_pdf._plain_lines(fragments, width, margins, align)
             continue
-        lines = certificate_pdf._plain_lines(fragments, width, margins, options)
+        lines = certificate_pdf._plain_lines(fragments, width, margins, align)
         if lines is None:
             continue
         given += 1

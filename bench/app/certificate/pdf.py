@@ -85,7 +85,7 @@ _NOT_PLAIN = frozenset(BREAKING_SPACE_SYMBOLS_STR) - {" "} | {FORM_FEED, NBSP, S
 
 
 def _plain_lines(fragments: Sequence[Fragment], max_width: float | Callable[[float], float],
-                 margins: Sequence[float], options: dict[str, object]) -> list[TextLine] | None:
+                 margins: Sequence[float], align: Align) -> list[TextLine] | None:
     """The lines fpdf's `MultiLineBreak` makes of one fragment of plain text (spaces and
     newlines its only breaks), found as it finds them but without re-measuring the line
     so far at each character (most of a certificate's PDF time; issue 62); None for
@@ -94,9 +94,7 @@ def _plain_lines(fragments: Sequence[Fragment], max_width: float | Callable[[flo
     line ends at its last space, else before the character. The same TextLines to the
     last bit: the widths summed as fpdf's TTF font sums them (whole glyph units, scaled
     once), `_lines_broken_once`'s tests compare them with fpdf's."""
-    if (len(fragments) != 1 or callable(max_width) or type(fragments[0]) is not Fragment
-            or set(options) - {"align", "print_sh", "wrapmode"}
-            or options.get("wrapmode", WrapMode.WORD) != WrapMode.WORD):
+    if len(fragments) != 1 or callable(max_width) or type(fragments[0]) is not Fragment:
         return None
     fragment = fragments[0]
     chars, gs, font = fragment.characters, fragment.graphics_state, fragment.font
@@ -109,7 +107,6 @@ def _plain_lines(fragments: Sequence[Fragment], max_width: float | Callable[[flo
     room = max_width
     for margin in margins:
         room -= float(margin)
-    align = Align.coerce(options.get("align", Align.L))  # type: ignore[arg-type]
     last_align = Align.L if align == Align.J else align
     height = fragment.font_size * 1.0
 
@@ -184,7 +181,11 @@ class _BrokenOnce:
                 key = None
         lines = self.lines.get(key) if key is not None else None
         if lines is None:
-            lines = _plain_lines(fragments, max_width, margins, options)
+            align = options.get("align", Align.L)
+            lines = None
+            if (set(options) <= {"align", "print_sh", "wrapmode"} and isinstance(align, Align)
+                    and options.get("wrapmode", WrapMode.WORD) == WrapMode.WORD):
+                lines = _plain_lines(fragments, max_width, margins, align)  # word-wrapped
             if lines is None:
                 breaker = MultiLineBreak(fragments, max_width, margins, **options)  # type: ignore[arg-type]
                 lines = list(iter(breaker.get_line, None))
