@@ -48,6 +48,16 @@ Before/after (issue 62):
     CPU 20.1 / 26.2 against 22.8 / 23.1 s; records 0.18 / 0.30 against 1.29 / 1.21 s,
     certificate 7.1 / 11.5 against 10.7 / 10.7 s, measuring 9.1 / 9.4 against 9.7 / 8.9 s.
   Medians on an idle machine still to be taken.
+- helper-42 (the certificate's PDF and figures), 30 Nov 00:40-02:00, load 5 to 13 all along,
+  so no wall figure holds; the demo's certificate, pickled, rendered in one process:
+  - render_pdf, cProfile's count of calls: 10.48 M -> 6.03 M (tables' rows measured from
+    their cells' lines, not drawn unseen; plain text broken without fpdf's per-character
+    re-measuring); CPU 2.2-2.35 s -> 1.9-2.1 s at load 5-7 (min of 5 interleaved at load
+    10: 3.42 -> 2.62 s); the same bytes but the date;
+  - the 8 figures: calls 3.77 M -> 3.36 M (one mathtext parser for all), CPU min of 4
+    fresh processes at load 10-13: 3.26 -> 3.12 s; the same PNGs;
+  - imports in the bench's process during the certificate (fpdf, matplotlib, the plots:
+    158 of its 713 py-spy samples at load 5) now in a thread while the run measures.
 """
 
 from __future__ import annotations
