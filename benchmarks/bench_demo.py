@@ -57,6 +57,16 @@ Before/after (issue 62):
   interleaved pairs, plan -> completed, at load 8-10: CPU 5.3 / 6.0 / 5.9 s against
   8.2 / 9.3 / 15.2 s on main (median 0.64x), wall 6.7 / 6.8 / 6.6 s against 8.8 / 17.7 / 17.0 s;
   result.json equal to ref-dd8's (demo and drift demo), the same 3610 steps.
+- helper-42 (the certificate's PDF and figures), 30 Nov 00:40-02:00, load 5 to 13 all along,
+  so no wall figure holds; the demo's certificate, pickled, rendered in one process:
+  - render_pdf, cProfile's count of calls: 10.48 M -> 6.03 M (tables' rows measured from
+    their cells' lines, not drawn unseen; plain text broken without fpdf's per-character
+    re-measuring); CPU 2.2-2.35 s -> 1.9-2.1 s at load 5-7 (min of 5 interleaved at load
+    10: 3.42 -> 2.62 s); the same bytes but the date;
+  - the 8 figures: calls 3.77 M -> 3.36 M (one mathtext parser for all), CPU min of 4
+    fresh processes at load 10-13: 3.26 -> 3.12 s; the same PNGs;
+  - imports in the bench's process during the certificate (fpdf, matplotlib, the plots:
+    158 of its 713 py-spy samples at load 5) now in a thread while the run measures.
 """
 
 from __future__ import annotations

@@ -32,6 +32,7 @@ import importlib
 import os
 import pickle
 import signal
+import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from typing import TYPE_CHECKING
@@ -209,9 +210,11 @@ def _workers() -> int:
 
 def _imported(modules: tuple[str, ...]) -> None:
     """In a worker started early: what the figures' drawing functions need (a kind's
-    certificate module and its plots; 1 s and more of a worker's start)."""
+    certificate module and its plots; 1 s and more of a worker's start); in a thread of
+    the bench's process, what its certificate needs. A module that cannot be imported is
+    left to the import where it is needed, which says why."""
     for name in modules:
-        with contextlib.suppress(ImportError):
+        with contextlib.suppress(Exception):
             importlib.import_module(name)
 
 
@@ -251,7 +254,9 @@ def started_early(modules: tuple[str, ...] = ()) -> Iterator[None]:
     kind's plots took 1.5 to 2.5 s of the certificate's wall time, while the PDF's
     tables waited for figures or drew them itself); stopped at the block's end if no
     certificate took them. A run starts them before it measures: the bench's stepping
-    thread keeps one processor busy, the other is free."""
+    thread keeps one processor busy, the other is free. This process's own share (fpdf,
+    matplotlib and the kind's plots) is imported meanwhile too (`_loaded_here`)."""
+    _loaded_here(modules)
     started = _start(modules)
     if started is not None:
         _EARLY.append(started)
@@ -261,6 +266,20 @@ def started_early(modules: tuple[str, ...] = ()) -> Iterator[None]:
         if started is not None and started in _EARLY:
             _EARLY.remove(started)
             started[0].shutdown(wait=True, cancel_futures=True)
+
+
+#: what this process needs for a certificate: its PDF (fpdf) and the figures it draws
+HERE = ("bench.app.certificate.pdf", "matplotlib.figure", "matplotlib.backends.backend_agg",
+        "bench.report.certificate.plotting")
+
+
+def _loaded_here(modules: tuple[str, ...]) -> None:
+    """`HERE` and `modules` imported in a thread of this process, now (issue 62: 1 to 1.5 s
+    of a demo's certificate went on importing them; a run measures meanwhile, waiting on
+    its instruments and its simulated clock most of the time). An import that fails here
+    fails again, and is reported, where the certificate needs it."""
+    threading.Thread(target=_imported, args=(HERE + modules,), name="certificate-imports",
+                     daemon=True).start()
 
 
 def _taken() -> Pool | None:

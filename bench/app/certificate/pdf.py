@@ -11,16 +11,28 @@ import contextlib
 import dataclasses
 import io
 import struct
-from collections import defaultdict
 from collections.abc import Callable, Hashable, Iterator, Sequence
 from importlib.util import find_spec
 from pathlib import Path
 
 import fpdf.fpdf
 from fpdf import FPDF, FontFace
-from fpdf.enums import TableCellFillMode, XPos, YPos
+from fpdf.enums import Align, TableCellFillMode, WrapMode, XPos, YPos
+from fpdf.errors import FPDFException
 from fpdf.fonts import TTFFont
-from fpdf.line_break import Fragment, MultiLineBreak, TextLine
+from fpdf.line_break import (
+    BREAKING_SPACE_SYMBOLS_STR,
+    FORM_FEED,
+    NBSP,
+    NEWLINE,
+    SOFT_HYPHEN,
+    Fragment,
+    MultiLineBreak,
+    TextLine,
+)
+from fpdf.table import Cell, RowLayoutInfo
+from fpdf.table import Table as FpdfTable
+from fpdf.util import FloatTolerance, Padding
 
 from bench.app.certificate.html import is_bad
 from bench.report.certificate.model import Document, Fields, Figure, Para, Signatures, Table
@@ -50,51 +62,6 @@ def _png_size(png: bytes) -> tuple[int, int]:
     return w, h
 
 
-class _Widths(defaultdict[int, float]):
-    """A font's character widths (fpdf's `cw`), with the sum of the last text measured."""
-
-    last_text = ""
-    last_sum: float = 0
-
-
-class _Font(TTFFont):
-    """A TTF font that measures a text from the last it measured, when that is the text
-    less its last character: fpdf's line breaking measures the line so far after each
-    character (a cell of n characters costs n^2 additions). The same additions in the
-    same order (fpdf's left-to-right sum), so the same widths to the last bit."""
-
-    __slots__ = ()
-
-    def get_text_width(self, text: str, font_size_pt: float,
-                       text_shaping_params: dict[str, object] | None) -> tuple[int, float]:
-        cw = self.cw
-        if (text_shaping_params or self.is_symbol or not isinstance(cw, _Widths)
-                or len(text) < 2):
-            return super().get_text_width(text, font_size_pt, text_shaping_params)
-        if font_size_pt > self.biggest_size_pt:
-            self.biggest_size_pt = font_size_pt
-        if text.startswith(cw.last_text) and len(text) == len(cw.last_text) + 1:
-            total = cw.last_sum + cw[ord(text[-1])]
-        else:
-            total = sum(cw[ord(c)] for c in text)
-        cw.last_text, cw.last_sum = text, total
-        return len(text), total * font_size_pt * 0.001
-
-
-def _measure_from_the_last(font: object) -> None:
-    """`font` becomes a `_Font` if it is fpdf's TTFFont and measures a text as fpdf does."""
-    widths = getattr(font, "cw", None)
-    if type(font) is not TTFFont or not isinstance(widths, defaultdict):
-        return
-    probe, biggest = "Mean rate ± U, °/s", font.biggest_size_pt
-    expected = [font.get_text_width(probe[:n], 7.5, None) for n in range(len(probe) + 1)]
-    font.__class__ = _Font
-    font.cw = _Widths(widths.default_factory, widths)
-    if [font.get_text_width(probe[:n], 7.5, None) for n in range(len(probe) + 1)] != expected:
-        font.__class__, font.cw = TTFFont, widths   # another fpdf: measured as it does
-    font.biggest_size_pt = biggest
-
-
 def _state_key(fragment: Fragment) -> Hashable:
     """What fpdf's line breaking reads of a fragment: its characters, its graphics state
     field by field (font, size, spacing, style, colours; a dict as its items), its scale
@@ -113,6 +80,86 @@ def _state_key(fragment: Fragment) -> Hashable:
 _STATE_FIELDS: dict[type, tuple[str, ...]] = {}
 
 
+#: characters fpdf's line breaking treats otherwise than as a glyph or a space to break at
+_NOT_PLAIN = frozenset(BREAKING_SPACE_SYMBOLS_STR) - {" "} | {FORM_FEED, NBSP, SOFT_HYPHEN}
+
+
+def _plain_lines(fragments: Sequence[Fragment], max_width: float | Callable[[float], float],
+                 margins: Sequence[float], align: Align) -> list[TextLine] | None:
+    """The lines fpdf's `MultiLineBreak` makes of one fragment of plain text (spaces and
+    newlines its only breaks), found as it finds them but without re-measuring the line
+    so far at each character (most of a certificate's PDF time; issue 62); None for
+    anything else, which fpdf breaks. Its rule: characters are added while the line's
+    width and the next character's fit; a space that does not fit ends the line, else the
+    line ends at its last space, else before the character. The same TextLines to the
+    last bit: the widths summed as fpdf's TTF font sums them (whole glyph units, scaled
+    once), `_lines_broken_once`'s tests compare them with fpdf's."""
+    if len(fragments) != 1 or callable(max_width) or type(fragments[0]) is not Fragment:
+        return None
+    fragment = fragments[0]
+    chars, gs, font = fragment.characters, fragment.graphics_state, fragment.font
+    if (gs.text_shaping is not None or gs.char_spacing != 0 or gs.font_stretching != 100
+            or not isinstance(font, TTFFont) or font.is_symbol
+            or not _NOT_PLAIN.isdisjoint(chars)):
+        return None
+    fragment.get_width()    # fpdf's measuring notes the font's largest size
+    cw, size_pt, k = font.cw, fragment.font_size_pt, fragment.k
+    room = max_width
+    for margin in margins:
+        room -= float(margin)
+    last_align = Align.L if align == Align.J else align
+    height = fragment.font_size * 1.0
+
+    def line(end: int, units: float, spaces: int, how: Align, added: bool, nl: bool = False
+             ) -> TextLine:
+        return TextLine(
+            fragments=[fragment.clone(characters=chars[begin:end], link=fragment.link)]
+            if added else [], text_width=0 + units * size_pt * 0.001 / k if added else 0,
+            number_of_spaces=spaces, align=how, height=height if added or nl else 0,
+            max_width=max_width - 0, trailing_nl=nl, trailing_form_feed=False, indent=0)
+
+    lines: list[TextLine] = []
+    i, n, forced = 0, len(chars), -1
+    units: float     # whole glyph units (fpdf's widths), summed as fpdf sums them
+    hint: tuple[int, int, float] | None     # the line's last space: where, spaces, units
+    while i < n:
+        begin, units, spaces, added, hint = i, 0, 0, False, None
+        was_forced, forced = forced, -1
+        while True:
+            if i == n:
+                if units * size_pt * 0.001 / k:     # fpdf keeps a line of some width
+                    lines.append(line(i, units, spaces, last_align, added))
+                break
+            char = chars[i]
+            unit = cw[ord(char)]
+            if char == NEWLINE:
+                lines.append(line(i, units, spaces, last_align, added, nl=True))
+                i += 1
+                break
+            if FloatTolerance.greater_than(
+                    (0 + units * size_pt * 0.001 / k if added else 0)
+                    + unit * size_pt * 0.001 / k, room):
+                if char == " ":
+                    lines.append(line(i, units, spaces, align, added))
+                    i += 1
+                elif hint is not None:
+                    lines.append(line(hint[0], hint[2], hint[1], align, True))
+                    i = hint[0] + 1
+                elif was_forced == i:
+                    raise FPDFException("Not enough horizontal space to render a single character")
+                else:
+                    forced = i
+                    lines.append(line(i, units, spaces, last_align, added))
+                break
+            if char == " ":
+                hint = (i, spaces, units)
+                spaces += 1
+            units += unit
+            added = True
+            i += 1
+    return lines
+
+
 class _BrokenOnce:
     """fpdf's MultiLineBreak, whose lines for a text already broken at the same width, in
     the same fonts and state, are those of its first breaking (a table's cells are broken
@@ -123,7 +170,7 @@ class _BrokenOnce:
     lines: dict[Hashable, list[TextLine]] = {}
 
     def __init__(self, fragments: Sequence[Fragment], max_width: float | Callable[[float], float],
-                 margins: Sequence[float], **options: object) -> None:
+                 margins: Sequence[float], **options: Align | WrapMode | bool | float) -> None:
         key: Hashable = None
         if not callable(max_width):
             try:
@@ -134,8 +181,14 @@ class _BrokenOnce:
                 key = None
         lines = self.lines.get(key) if key is not None else None
         if lines is None:
-            breaker = MultiLineBreak(fragments, max_width, margins, **options)  # type: ignore[arg-type]
-            lines = list(iter(breaker.get_line, None))
+            align = options.get("align", Align.L)
+            lines = None
+            if (set(options) <= {"align", "print_sh", "wrapmode"} and isinstance(align, Align)
+                    and options.get("wrapmode", WrapMode.WORD) == WrapMode.WORD):
+                lines = _plain_lines(fragments, max_width, margins, align)  # word-wrapped
+            if lines is None:
+                breaker = MultiLineBreak(fragments, max_width, margins, **options)  # type: ignore[arg-type]
+                lines = list(iter(breaker.get_line, None))
             if key is not None:
                 self.lines[key] = lines
         self._next = iter(lines)
@@ -159,6 +212,58 @@ def _lines_broken_once() -> Iterator[None]:
         _BrokenOnce.lines.clear()
 
 
+class _Table(FpdfTable):
+    """fpdf's table, whose rows' heights are found without drawing each cell unseen.
+
+    fpdf lays a table out twice: each cell's `multi_cell` run with writing switched off,
+    for its height, then again to draw it (issue 62: half a table's time). Here the first
+    pass breaks the cell's text into lines only, as `multi_cell` would (the same
+    fragments, width, margins and options, so `_BrokenOnce` gives the drawing the same
+    lines), takes its height as `multi_cell` adds it up, and picks the glyphs it would
+    have picked (the fonts' subsets, so the PDF is the same to the byte). A cell this
+    does not know (an image, markdown, text shaping, a span) is measured as fpdf does."""
+
+    def _render_table_cell(self, i: int, j: int, cell: Cell, row_height: float,
+                           cell_height_info: RowLayoutInfo | None = None,
+                           cell_x_positions: Sequence[float] | None = None,
+                           **kwargs: bool | float | str | None) -> tuple[bool, float, float]:
+        pdf = self._fpdf
+        if (cell_height_info is not None or kwargs or cell.img or not cell.text
+                or self._markdown or pdf.text_shaping or cell.colspan != 1
+                or row_height != self._line_height):
+            return super()._render_table_cell(
+                i, j, cell, row_height, cell_height_info, cell_x_positions, **kwargs)
+        style = self._initial_style
+        assert style is not None
+        if self._cell_fill_mode.should_fill_cell(i, j) and self._cell_fill_color:
+            style = style.replace(fill_color=self._cell_fill_color)
+        if i < self._num_heading_rows:
+            style = FontFace.combine(style, self._headings_style)
+        style = FontFace.combine(FontFace.combine(style, self.rows[i].style), cell.style)
+        padding = Padding.new(cell.padding) if cell.padding else self._padding
+        align = cell.align or self._text_align
+        if not isinstance(align, Align | str):
+            align = align[j]
+        width = self._get_col_width(i, j) - padding.right - padding.left
+        margins = [pdf.c_margin] * ((not padding.left) + (not padding.right))
+        assert style is not None
+        with pdf.use_font_face(style):
+            fragments = pdf._preload_font_styles(  # noqa: SLF001 - multi_cell's own step
+                pdf.normalize_text(cell.text).replace("\r", ""), False)
+            breaker = fpdf.fpdf.MultiLineBreak(fragments, width, margins, align=Align.coerce(align),
+                                               print_sh=False, wrapmode=self._wrapmode)
+            lines = list(iter(breaker.get_line, None))
+        for line in lines:      # the glyphs, in the order fpdf's unseen drawing picked them
+            for fragment in line.get_ordered_fragments():
+                if isinstance(font := fragment.font, TTFFont):
+                    for char in fragment.string:
+                        font.subset.pick(ord(char))
+        total: float = 0
+        for _ in range(max(len(lines), 1)):     # no text: one empty line
+            total += row_height                 # as multi_cell sums it
+        return False, 0, max(total, row_height) + padding.top + padding.bottom
+
+
 class _Pdf(FPDF):
     def __init__(self, doc: Document, png_of: Callable[[Figure], bytes]) -> None:
         super().__init__(orientation="P", unit="mm", format="A4")
@@ -169,8 +274,6 @@ class _Pdf(FPDF):
         self.add_font(SANS, "I", FONT_DIR / "DejaVuSans-Oblique.ttf")
         self.add_font(MONO, "", FONT_DIR / "DejaVuSansMono.ttf")
         self.add_font(MONO, "B", FONT_DIR / "DejaVuSansMono-Bold.ttf")
-        for font in self.fonts.values():  # the same objects, measuring as _Font does
-            _measure_from_the_last(font)
         self.set_margins(15, 22, 15)
         self.set_auto_page_break(True, margin=18)
         self.set_title(f"{doc.title} {doc.cert_id}")
@@ -229,6 +332,13 @@ class _Pdf(FPDF):
         self.multi_cell(0, 3, self.doc.footer, new_x=XPos.LMARGIN, new_y=YPos.NEXT)
         self.set_text_color(0, 0, 0)
 
+    @contextlib.contextmanager
+    def laid_out(self, table: FpdfTable) -> Iterator[FpdfTable]:
+        """fpdf's `table` context for a table made here (a `_Table`: laid out once; its
+        keywords typed by fpdf's Table)."""
+        yield table
+        table.render()
+
     # -- blocks ----------------------------------------------------------------------------
     @property
     def text_w(self) -> float:
@@ -249,9 +359,13 @@ class _Pdf(FPDF):
     def fields(self, f: Fields) -> None:
         self.set_font(SANS, "", 8.5)
         label = FontFace(emphasis="BOLD", fill_color=(244, 246, 249))
-        with self.table(col_widths=(1.0, 2.4), first_row_as_headings=False, line_height=4.2,
-                        text_align=("LEFT", "LEFT"), padding=(0.8, 1.5),
-                        cell_fill_mode=TableCellFillMode.NONE) as t:
+        with self.laid_out(_Table(self, col_widths=(1.0, 2.4), first_row_as_headings=False,
+                                  # one alignment per column, as fpdf's Table takes
+                                  # them (its hint names one)
+                                  line_height=4.2,
+                                  text_align=("LEFT", "LEFT"),  # type: ignore[arg-type]
+                                  padding=(0.8, 1.5),
+                                  cell_fill_mode=TableCellFillMode.NONE)) as t:
             for k, v in f.rows:
                 row = t.row()
                 row.cell(k, style=label)
@@ -273,9 +387,10 @@ class _Pdf(FPDF):
         align = tuple(ALIGN.get(a, "LEFT") for a in (tb.align or "l" * n).ljust(n, "l"))
         head = FontFace(emphasis="BOLD", fill_color=HEAD_FILL, size_pt=TABLE_PT)
         self.set_font(MONO if tb.mono else SANS, "", 6.3 if tb.mono else TABLE_PT)
-        with self.table(col_widths=widths, text_align=align, line_height=3.6,
-                        headings_style=head, repeat_headings=1, padding=(0.6, 1.0),
-                        cell_fill_mode=TableCellFillMode.NONE) as t:
+        with self.laid_out(_Table(self, col_widths=widths, line_height=3.6,
+                                  text_align=align,  # type: ignore[arg-type] # per column
+                                  headings_style=head, repeat_headings=1, padding=(0.6, 1.0),
+                                  cell_fill_mode=TableCellFillMode.NONE)) as t:
             hrow = t.row()
             for h in tb.header:
                 hrow.cell(h, align="CENTER")

@@ -8,6 +8,7 @@ here names a procedure kind.
 
 from __future__ import annotations
 
+import functools
 import io
 import math
 from typing import TYPE_CHECKING, SupportsFloat, SupportsIndex
@@ -18,6 +19,7 @@ from drivers.json_types import JsonValue
 
 if TYPE_CHECKING:   # matplotlib is imported when a plot is drawn (`bench validate` starts at once)
     from matplotlib.backend_bases import RendererBase
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
 DPI = 150
@@ -28,13 +30,35 @@ PAD_IN = 0.06
 
 def png_of(fig: Figure) -> bytes:
     """The figure as PNG bytes, at the certificate's resolution."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    canvas = FigureCanvasAgg(fig)
+    canvas = _canvas_class()(fig)
     if fig.get_layout_engine() is None and getattr(fig, "_stacked_rows", False):
         _stack_rows(fig, canvas.get_renderer())
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=DPI)
     return buf.getvalue()
+
+
+@functools.cache
+def _canvas_class() -> type[FigureCanvasAgg]:
+    """matplotlib's Agg canvas, whose renderers share one mathtext parser.
+
+    Each Agg renderer parses the math it draws (a log axis's tick labels, 10^n) with a
+    parser of its own, whose cache is its own; a figure has two renderers (placed, then
+    drawn) and a certificate eight figures, and the same labels were parsed again in each
+    (a tenth of a figure's time; issue 62). One parser, with its cache: the same parse of
+    the same text, font, size and resolution, drawn by whichever renderer asks."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
+    from matplotlib.mathtext import MathTextParser
+
+    parser = MathTextParser("path")
+
+    class Canvas(FigureCanvasAgg):
+        def get_renderer(self) -> RendererAgg:
+            renderer: RendererAgg = super().get_renderer()
+            renderer.mathtext_parser = parser
+            return renderer
+
+    return Canvas
 
 
 def _stack_rows(fig: Figure, renderer: RendererBase) -> None:
