@@ -8,6 +8,7 @@ import json
 import math
 
 import msgspec
+import numpy as np
 
 from bench.core.journal_codec import encode_document
 from bench.report.certificate.sources import Sources
@@ -80,3 +81,29 @@ def test_the_certificate_takes_the_analysed_model_and_decodes_one_that_is_not_as
     nan = KindResult(_head(), LadderBody(axes={"outer": odd}))
     decoded = ladder_model(Sources.analysed(nan, None))
     assert decoded.axes["outer"].pairs[0].k is None
+
+
+def test_the_drift_certificate_takes_the_analysed_figures() -> None:
+    """The drift kind as the ladder: its certificate and DCC read the analysis's own
+    figures (no decode of their encoding) when they hold what result.json holds, and
+    result.json's decoded figures otherwise (a NaN: null in the file)."""
+    from procedures.drift_pulse.codec import drift_model, drift_of
+    from procedures.drift_pulse.result import DriftBody
+    from procedures.drift_pulse.sample import drift_figures
+
+    head = msgspec.structs.replace(_head(), procedure="drift-pulse")
+    figures = drift_of({"drift": encode(drift_figures())})
+    result = KindResult(head, DriftBody(drift=figures))
+    src = Sources.analysed(result, None)
+    assert src.model(drift_model) is figures                # no decode of its encoding
+    assert drift_of(result.document) == figures             # and what the file reads back
+    axis = next(iter(figures.axes))
+    first = figures.axes[axis]
+    field = next(f for f in first.__struct_fields__ if type(getattr(first, f)) is float)
+    # a numpy number (what an analysis may leave in): the figures decoded from the file
+    np_axis = msgspec.structs.replace(first, **{field: np.float64(getattr(first, field))})
+    np_figures = msgspec.structs.replace(figures, axes={**figures.axes, axis: np_axis})
+    decoded = Sources.analysed(KindResult(head, DriftBody(drift=np_figures)),
+                               None).model(drift_model)
+    assert decoded is not np_figures and decoded == figures
+    assert type(getattr(decoded.axes[axis], field)) is float

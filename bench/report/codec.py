@@ -173,3 +173,19 @@ def problem_of(err: msgspec.ValidationError) -> tuple[str, str]:
         want = " or ".join(_TYPES.get(t, t) for t in m["want"].split(" | "))
         return path, f"expected {want}, got {m['got']}"
     return path, text
+
+
+def as_written(value: msgspec.Struct | JsonValue | tuple[JsonValue, ...]
+                | Mapping[str, msgspec.Struct] | msgspec.UnsetType) -> bool:
+    """Whether a model part holds only what its encoding holds (finite Python numbers, no
+    numpy scalar): then the analysis's own model is what decoding result.json gives back,
+    and a reader may take it as it is (`Sources.analysed`; the kinds' `*_model`)."""
+    if isinstance(value, msgspec.Struct):
+        return all(as_written(getattr(value, f)) for f in value.__struct_fields__)
+    if isinstance(value, tuple | list):
+        return all(as_written(v) for v in value)
+    if isinstance(value, Mapping):
+        return all(as_written(v) for v in value.values())
+    if isinstance(value, float):
+        return type(value) is float and math.isfinite(value)
+    return value is None or value is msgspec.UNSET or type(value) in (int, bool, str)

@@ -26,7 +26,7 @@ from bench.report.certificate.parts import (
 from bench.report.certificate.rounding import format_sig, format_value_u
 from bench.report.result_frame import Check
 from procedures.drift_pulse import plots
-from procedures.drift_pulse.codec import drift_of
+from procedures.drift_pulse.codec import drift_model
 from procedures.drift_pulse.result import AxisFigures, DriftFigures
 
 # -- the method statement (docs/method.md part B, restated) ---------------------------------
@@ -102,7 +102,7 @@ class DriftCertificate(CertificateParts):
 
     def certificate_run_deviations(self, src: Sources) -> Sequence[str]:
         run = []
-        for axis, ax in drift_of(src.result).axes.items():
+        for axis, ax in src.model(drift_model).axes.items():
             off = ax.start_offset
             if off.detected:
                 shift = format_value_u(off.offset_s, off.offset_U_s, 1e3,
@@ -115,7 +115,7 @@ class DriftCertificate(CertificateParts):
 
     def certificate_sections(self, src: Sources, number: str,
                              checks: Sequence[Check]) -> list[Section]:
-        return _drift_results(drift_of(src.result), number)
+        return _drift_results(src.model(drift_model), number)
 
     def certificate_statements(self, statements: Sequence[str]) -> list[str]:
         """No relative values here: the drift is in °/h."""

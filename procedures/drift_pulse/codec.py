@@ -20,10 +20,11 @@ import msgspec
 
 from bench.core import rundir_layout as layout
 from bench.core.journal import RunDir
+from bench.report.certificate.parts import Sources
+from bench.report.codec import as_written, problem_of
 from bench.report.codec import encode as encode
-from bench.report.codec import problem_of
 from drivers.json_types import JsonValue
-from procedures.drift_pulse.result import AxisFigures, DriftFigures
+from procedures.drift_pulse.result import AxisFigures, DriftBody, DriftFigures
 
 #: the body's key in result.json, and the root of every path a refusal names
 ROOT = "drift"
@@ -68,6 +69,16 @@ def drift_of(result: Mapping[str, object]) -> DriftFigures:
     if ROOT not in result:
         raise MalformedResult(ROOT, "missing")
     return decode(result[ROOT], DriftFigures)
+
+
+def drift_model(src: Sources) -> DriftFigures:
+    """The certificate's and the DCC's drift figures: `src.model(drift_model)` gives them
+    once for every section. A result the analysis has just given (`Sources.analysed`) is
+    its model already, when it holds what result.json holds; else result.json's, decoded."""
+    body = src.body
+    if isinstance(body, DriftBody) and not src.dropped and as_written(body.drift):
+        return body.drift
+    return drift_of(src.result)
 
 
 class Correction(msgspec.Struct, frozen=True):

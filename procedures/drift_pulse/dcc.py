@@ -18,7 +18,7 @@ from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import Checks, judge
 from bench.report.dcc.parts import DccParts
 from bench.report.dcc.xml import el, ident, list_quantity, name, num, quantity, text_el
-from procedures.drift_pulse.codec import drift_of
+from procedures.drift_pulse.codec import drift_model
 from procedures.drift_pulse.result import AxisFigures, DriftFigures, PositionFigures, budget_of
 
 # the drift procedure's refTypes, namespace "ratebench" (docs/dcc.md, section "refTypes")
@@ -40,13 +40,13 @@ class DriftDcc(DccParts):
     """The drift procedure's answers to the DCC (the kind's `dcc` part)."""
 
     def dcc_item(self, src: Sources) -> tuple[str, Sequence[str]]:
-        return "gyro-platform test stand", list(drift_of(src.result).axes)
+        return "gyro-platform test stand", list(src.model(drift_model).axes)
 
     def dcc_used_methods(self, src: Sources) -> tuple[str, Sequence[str]]:
         return methods.B_REFERENCE, METHOD_SECTIONS
 
     def dcc_results(self, results: etree._Element, src: Sources, checks: Checks) -> None:
-        drift_results(results, drift_of(src.result), checks)
+        drift_results(results, src.model(drift_model), checks)
 
 
 def _k(budgets: Sequence[BudgetRecord], key: str) -> float | None:

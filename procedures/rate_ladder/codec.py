@@ -14,7 +14,6 @@ from __future__ import annotations
 import copy
 import math
 import re
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated
 
@@ -23,7 +22,7 @@ import msgspec
 from bench.core import rundir_layout as layout
 from bench.core.journal_codec import read_jsonl
 from bench.report.certificate.parts import Sources
-from bench.report.codec import problem_of
+from bench.report.codec import as_written, problem_of
 from bench.report.result_frame import (
     Issues,
     JsonObject,
@@ -182,23 +181,9 @@ def ladder_model(src: Sources) -> LadderResult:
     given (`Sources.analysed`) is its model already, when it holds what result.json holds
     (no NaN, no numpy number: then decoding its encoding gives it back)."""
     body = src.body
-    if isinstance(body, LadderBody) and not src.dropped and _as_written(body.axes):
+    if isinstance(body, LadderBody) and not src.dropped and as_written(body.axes):
         return LadderResult(frame=src.frame, axes=body.axes)
     return ladder_of(src.result)
-
-
-def _as_written(value: msgspec.Struct | JsonValue | tuple[JsonValue, ...]
-                | Mapping[str, msgspec.Struct] | msgspec.UnsetType) -> bool:
-    """Whether a model part holds only what its encoding holds (finite Python numbers)."""
-    if isinstance(value, msgspec.Struct):
-        return all(_as_written(getattr(value, f)) for f in value.__struct_fields__)
-    if isinstance(value, tuple | list):
-        return all(_as_written(v) for v in value)
-    if isinstance(value, Mapping):
-        return all(_as_written(v) for v in value.values())
-    if isinstance(value, float):
-        return type(value) is float and math.isfinite(value)
-    return value is None or value is msgspec.UNSET or type(value) in (int, bool, str)
 
 
 # -- the run folder's inputs: the counter's raw log, the corrections file ---------------------
