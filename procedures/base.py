@@ -18,24 +18,19 @@ from bench.core.config import Config
 from bench.core.lab import certificate_settings
 from bench.core.plan import Plan, Step
 from bench.core.stops import register
-from bench.report.codec import (
-    KindResult,
-    ProcedureFileRef,
-    RawFile,
-    ResultHead,
-    ResultPart,
-    RunDates,
-)
 from bench.report.conformity import RULES
 from bench.report.uncertainty_names import UNCERTAINTY_NAMING
 from drivers.json_types import JsonLike
 
 # the engine and the journal for the hints only: `bench validate` loads the kinds (and this
 # module) for their files alone
+# and the result's codec likewise (it reads back through the analysis's number checks, so
+# numpy): it is imported where a result is made
 if TYPE_CHECKING:
     from bench.core.engine import RunContext
     from bench.core.events import Event
     from bench.core.journal import RunDir
+    from bench.report.codec import KindResult, RawFile, ResultHead, ResultPart
 
 
 def prompt(step: Step, ctx: RunContext) -> None:
@@ -77,6 +72,7 @@ class RawHashes:
         return self._run.written_digest(path) or sha256_file(path)
 
     def result(self) -> list[RawFile]:
+        from bench.report.codec import RawFile
         try:
             return [RawFile(str(p.relative_to(self._run.path)), h.result(), p.stat().st_size)
                     for p, h in zip(self._files, self._hashes, strict=True)]
@@ -91,6 +87,7 @@ def result_head(run: RunDir, cfg: Config, events: Sequence[Event], *, complete: 
     header (the certificate's), the rule and the method."""
     from bench.core import events as ev  # the journal's records: not for `bench validate`
     from bench.core.journal import COMPLETED, session_endings
+    from bench.report.codec import ProcedureFileRef, ResultHead, RunDates
     if not complete:
         verdict = "incomplete"
     else:
@@ -142,5 +139,6 @@ def result_document(run: RunDir, cfg: Config, events: Sequence[Event], *,
                     **body: JsonLike) -> KindResult[dict[str, JsonLike]]:
     """A result whose body is JSON values given by keyword (a plug-in kind's; the kinds
     here give their body's Struct to `KindResult` beside `result_head`)."""
+    from bench.report.codec import KindResult
     return KindResult(result_head(run, cfg, events, complete=complete, checks=checks,
                                   rule=rule, method=method, raw_hashes=raw_hashes), body)

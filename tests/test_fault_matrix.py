@@ -105,7 +105,9 @@ def _session(cfg: Any, run: RunDir, inject: Callable[[Any], None] | None = None,
 
     def hook(sim: Any) -> None:
         seen["sim"] = sim
-        if inject is not None:
+        if inject is not None and phase == "start":
+            inject(sim)     # in stand time, before the first sample: as the seed, not the load
+        elif inject is not None:
             when_step_starts(run, lambda e: e.get("action") == phase and e.get("session")
                              == run.session, lambda: inject(sim), delay_s=0.02)
 
@@ -174,14 +176,22 @@ def test_counter_fault_in_acquire(fault: str, tmp_path: Path) -> None:
     _assert_aborted_cleanly(run, status, seen)
 
 
-def _fog_fault(kind: str) -> Callable[[Any], None]:
-    """A FOG fault 3 s (3000 frames) ahead of what the twin has encoded: inside the half
-    being timed (4 turns at 20 deg/s last 72 s). A lossy stall is kept under 128 frames:
-    format A's 7-bit counter cannot see a loss of a whole multiple of 128 (closing note of
-    issue 13: a known limit, the kvh-b timestamp would)."""
+#: stand time of a FOG fault placed before the run: inside the +20 deg/s half's timed turns
+#: (the acquire step starts ~7 s in, its lead-in turn lasts 18 s, its 4 timed turns 72 s)
+FOG_FAULT_AT_S = 50.0
+
+
+def _fog_fault(kind: str, at_s: float | None = None) -> Callable[[Any], None]:
+    """A FOG fault 3 s (3000 frames) ahead of what the twin has encoded when the acquire
+    step starts (a watcher thread: wall time), or at stand time `at_s` (placed at the
+    sim's start: where it lands depends on the seed alone, not on how fast the watcher
+    runs beside a simulation at ~300x real time, which a loaded CI once made it miss).
+    Inside the half being timed (4 turns at 20 deg/s last 72 s). A lossy stall is kept
+    under 128 frames: format A's 7-bit counter cannot see a loss of a whole multiple of
+    128 (closing note of issue 13: a known limit, the kvh-b timestamp would)."""
     def inject(sim: Any) -> None:
         twin = sim.twins["outer.fog"]
-        n = twin.next_sample + 3000
+        n = twin.next_sample + 3000 if at_s is None else int(at_s * twin.rate_hz)
         twin.inject({"corrupt": Corrupt(n, 50), "drop": Drop(n, 50), "garbage": Garbage(n, 500),
                      "stall": Stall(n, 30.0), "stall-lose": Stall(n, 0.1, lose=True),
                      "dead": Stall(n, 1e6, lose=True)}[kind])
@@ -197,7 +207,7 @@ def test_a_fog_fault_in_acquire_is_counted_and_the_run_completes(
     said on the console and kept in result.json, and the truth is still recovered."""
     cfg = load_config(_procedure(tmp_path))
     run = RunDir.create(tmp_path / "runs", cfg.procedure_path, cfg.stand_path)
-    status, _ = _session(cfg, run, _fog_fault(fault), "acquire")
+    status, _ = _session(cfg, run, _fog_fault(fault, at_s=FOG_FAULT_AT_S), "start")
     assert status == EXIT_PASS, capsys.readouterr().err
     rates = json.loads((run.path / "result.json").read_text())["axes"]["outer"]["rates"]
     for r in rates:
