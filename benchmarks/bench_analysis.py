@@ -23,6 +23,9 @@ two waits for a core, not the code (a stray benchmark process of mine also held 
 quarter of a core then). Not worked on further: the paper ladder's analysis
 worker was 42.8 of ~250 CPU s in the profiled ladder, and most of that is decoding the
 captures again and writing the windows' scratch files, not this maths.
+30 Nov 2026, 02:41, idle (load < 1.6), main eb82d06: the analysis 2.03 s (17.8 M/s), the
+numpy pass 0.63 s (57.2 M/s): 0.31x. Blocked as above: the ladder's result.json must stay
+equal value for value (issue 62), and the Gram products' last bits are its numbers.
 """
 
 from __future__ import annotations

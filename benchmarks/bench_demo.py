@@ -67,6 +67,13 @@ Before/after (issue 62):
     fresh processes at load 10-13: 3.26 -> 3.12 s; the same PNGs;
   - imports in the bench's process during the certificate (fpdf, matplotlib, the plots:
     158 of its 713 py-spy samples at load 5) now in a thread while the run measures.
+- Idle medians of 3, 30 Nov 2026 (issue 62's acceptance form): main bd4f626 at 00:36
+  (load ~1.1): wall 21.3 s, CPU 24.1 s (start-up 2.75, measuring 10.5, analysis 1.0,
+  records 0.33, certificate 6.4, DCC 0.25, exit 0.39). main eb82d06 (helpers 42 and 43
+  merged) at 02:40 (load 0.16-0.55): wall 8.67 s (9.44 / 8.47 / 8.67), CPU 10.26 s
+  (start-up 1.98, measuring 3.29, analysis 0.53, records 0.18, certificate 2.58, DCC
+  0.16, exit 0.18): the goal (<= 10 s) met. fa2ce26 (issue 60's base) at 02:42, one run,
+  load 1.55: 15.4 s.
 """
 
 from __future__ import annotations

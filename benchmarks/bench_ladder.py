@@ -169,6 +169,11 @@ twin writers asleep on their ports too (7fe9a63), 01:38-01:41 at load 10 falling
 result.json equal again. main again right after (01:42-01:47, load 5-9): 289 s wall
 (7.1 / 232.7 / 47.5 s), 139.6 + 46.5 = 186.1 CPU s, 430 MB: h43 0.78x the CPU, 0.76x the
 measuring phase. Still far from 60 s at this load; an idle machine's figure is to be taken.
+Idle, 30 Nov 2026: main bd4f626 at 00:37 (load ~2 at the end, the demo benchmark before
+it): 127 s wall (starting 2.8, measuring 113.3, stopping 1.8, writing 8.4 s), 425 MB;
+main eb82d06 at 02:40 (load 0.5 -> 1.8): 83 s wall (1.8 / 71.6 / 2.8 / 5.7 s), 433 MB,
+0 frames lost, exit 0. The goal (60 s) not met: the measuring phase is the threads' CPU
+(bench thread's drive ticks and FOG encoding, the readers' decode, the CAN notifiers).
 
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
