@@ -172,7 +172,9 @@ measuring phase. Still far from 60 s at this load; an idle machine's figure is t
 Idle, 30 Nov 2026: main bd4f626 at 00:37 (load ~2 at the end, the demo benchmark before
 it): 127 s wall (starting 2.8, measuring 113.3, stopping 1.8, writing 8.4 s), 425 MB;
 main eb82d06 at 02:40 (load 0.5 -> 1.8): 83 s wall (1.8 / 71.6 / 2.8 / 5.7 s), 433 MB,
-0 frames lost, exit 0. The goal (60 s) not met: the measuring phase is the threads' CPU
+0 frames lost, exit 0; bd4f626 again at 03:11, idle: 85 s (1.8 / 74.4 / 2.5 / 5.4 s),
+432 MB (the 127 s of 00:37 was the machine's state then: helper-43's change is 0.78x of
+the CPU at load, ~2 % of the wall when idle). The goal (60 s) not met: the measuring phase is the threads' CPU
 (bench thread's drive ticks and FOG encoding, the readers' decode, the CAN notifiers).
 
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
