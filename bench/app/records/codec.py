@@ -67,9 +67,14 @@ class RunMarks(msgspec.Struct, frozen=True, kw_only=True):
 def mark_meta_file(path: Path, marks: RunMarks, register: Mapping[str, object]) -> None:
     """meta.json with the marks and the register's entries added (a key it has keeps its
     place), written back as `RunDir.create` writes it (indent 2, a newline)."""
+    _add_to_meta(path, {**msgspec.to_builtins(marks), **register})
+
+
+def _add_to_meta(path: Path, added: Mapping[str, object]) -> None:
+    """meta.json with `added` (a key it has keeps its place, a new one goes last), written
+    back as `RunDir.create` writes it (indent 2, a newline)."""
     meta = json.loads(path.read_text())
-    meta.update(msgspec.to_builtins(marks))
-    meta.update(register)
+    meta.update(added)
     path.write_text(json.dumps(meta, indent=2) + "\n")
 
 
@@ -114,6 +119,4 @@ def read_records_meta(path: Path) -> RecordsMeta | None:
 def add_sim_run_number(path: Path, number: int) -> None:
     """meta.json with the drifting twin's run number added last (a --resume drifts the
     same way as the first session), written back as `RunDir.create` writes it."""
-    meta = json.loads(path.read_text())
-    meta["sim_run_number"] = number
-    path.write_text(json.dumps(meta, indent=2) + "\n")
+    _add_to_meta(path, {"sim_run_number": number})
