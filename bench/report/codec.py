@@ -14,7 +14,6 @@ as before.
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
@@ -24,6 +23,7 @@ import msgspec
 
 from bench.core.yamlfile import YamlValue
 from bench.report.result_frame import ResultFrame
+from bench.report.result_frame import problem_of as problem_of
 from drivers.json_types import JsonLike, JsonObject, JsonScalar, JsonValue
 
 #: a part of result.json a kind gives: its Struct, or (a plug-in kind's) JSON values
@@ -105,7 +105,11 @@ class KindResult(Generic[B]):
 
     @cached_property
     def frame(self) -> ResultFrame:
-        """The frame every reader of a result takes (records, register, station)."""
+        """The frame every reader of a result takes (records, register, station): the
+        head's and body's own values when they hold what result.json holds (no NaN, no
+        numpy number), else its encoding's (`as_written`)."""
+        if as_written(self.head) and as_written(self.body):
+            return ResultFrame.analysed(self.head, self.body, self.document)
         return ResultFrame.of(self.document)
 
 
@@ -150,33 +154,9 @@ def written(model: msgspec.Struct | Mapping[str, JsonLike]) -> JsonObject:
     non-finite number as null, a number as a key as text (a YAML block's `1: ...`)."""
     return cast(JsonObject, _finite(_lists(msgspec.to_builtins(model, enc_hook=_builtin,
                                                                str_keys=True))))
-_AT = re.compile(r" - at `\$(?P<path>[^`]*)`$")
-_MISSING = re.compile(r"^Object missing required field `(?P<key>[^`]+)`")
-_EXPECTED = re.compile(r"^Expected `(?P<want>[^`]+)`, got `(?P<got>[^`]+)`")
-#: msgspec's type names, as a reader of result.json says them
-_TYPES = {"float": "a number", "int": "an integer", "bool": "true or false",
-          "object": "an object", "array": "a list", "str": "text", "null": "null"}
 
 
-def problem_of(err: msgspec.ValidationError) -> tuple[str, str]:
-    """msgspec's refusal in result.json's words: (msgspec's key path below the node it
-    decoded, `.axes[...].turns` or '' at the node itself; the problem), a missing key
-    named at its own path (`.rates[0].set_rate_dps`, 'missing'). The kinds' codecs put
-    their part's root (and a mapping's key, which msgspec does not name) before it."""
-    text = str(err)
-    at = _AT.search(text)
-    path = at["path"] if at else ""
-    text = text[:at.start()] if at else text
-    if m := _MISSING.match(text):
-        return f"{path}.{m['key']}", "missing"
-    if m := _EXPECTED.match(text):
-        want = " or ".join(_TYPES.get(t, t) for t in m["want"].split(" | "))
-        return path, f"expected {want}, got {m['got']}"
-    return path, text
-
-
-def as_written(value: msgspec.Struct | JsonValue | tuple[JsonValue, ...]
-                | Mapping[str, msgspec.Struct] | msgspec.UnsetType) -> bool:
+def as_written(value: object) -> bool:
     """Whether a model part holds only what its encoding holds (finite Python numbers, no
     numpy scalar): then the analysis's own model is what decoding result.json gives back,
     and a reader may take it as it is (`Sources.analysed`; the kinds' `*_model`)."""

@@ -1,30 +1,44 @@
-"""The frame every kind's result.json shares: its run header, checks and verdict, typed.
+"""The frame every kind's result.json shares: its run header, checks and verdict, typed
+(`ResultFrame`, a msgspec Struct: its fields are the keys, msgspec reads them).
 
 result.json is read back by the certificate, the DCC, the records and the station. A
 malformed part must not crash them (the operator would be left with raw data and no
 report), nor be read as if it were sound: the strict reader (`from_json`) refuses it
 naming the key path; the lenient one (`conform`) drops the malformed container, names it
-(the certificate's section Deviations lists it) and keeps the rest. Both walk the same
-typed parsers below, which a kind's result module (procedures/<kind>/result.py) uses for
-its own part, so one module per kind spells its keys and this one spells the frame's.
+(the certificate's section Deviations lists it) and keeps the rest. Both are one loop
+(`decode`): msgspec decodes, and a value it refuses is taken out and decoding tried again,
+so a field's default reads "not stated". A run's analysis gives its frame typed
+(`ResultFrame.analysed`: its ResultHead's attributes, no JSON in between).
+A kind's codec reads its own part with the same loop (procedures/rate_ladder/codec.py).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+import re
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from typing import TypeVar
+from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar, cast
+
+import msgspec
+from msgspec import UNSET
 
 from bench.analysis.finite import finite_number
 from bench.core import rundir_layout as layout
 from bench.report.corrections import Correction
-from drivers.json_types import JsonObject, JsonValue
+from drivers.json_types import JsonLike, JsonObject, JsonValue
+
+if TYPE_CHECKING:
+    Json: TypeAlias = JsonValue
+    #: the kind's body as its analysis gave it (bench/report/codec.py ResultPart)
+    Body: TypeAlias = msgspec.Struct | Mapping[str, JsonLike] | None
+else:  # msgspec takes no recursive alias: a JSON value as written, unchecked
+    Json = Body = Any
 
 #: a key path inside result.json: `axes.outer.rates[0]`
 KeyPath = tuple[str | int, ...]
 
-T = TypeVar("T")
+S = TypeVar("S", bound=msgspec.Struct)
 
 
 class MalformedResult(ValueError):
@@ -44,103 +58,11 @@ def where(path: KeyPath) -> str:
     return out
 
 
-class Issues:
-    """What a reader found malformed: raised at once (strict) or collected (lenient)."""
-
-    def __init__(self, *, strict: bool) -> None:
-        self.strict = strict
-        self.dropped: list[str] = []
-
-    def report(self, path: KeyPath, problem: str) -> None:
-        if self.strict:
-            raise MalformedResult(where(path) or layout.RESULT, problem)
-        self.dropped.append(f"{where(path)} ({problem})")
-
-
-def is_number(x: object) -> bool:
-    """A finite number, or text that reads as one (as a hand-edited result may hold)."""
-    if isinstance(x, bool) or not isinstance(x, int | float | str):
-        return False
-    try:
-        return math.isfinite(float(x))
-    except ValueError:
-        return False
-
-
 def as_object(value: object) -> JsonObject | None:
     """`value` as a JSON object (a copy), or None when it is not one."""
     if not isinstance(value, Mapping):
         return None
     return {str(k): v for k, v in value.items()}
-
-
-def _found(value: object) -> str:
-    return type(value).__name__
-
-
-def _present(doc: JsonObject, key: str, path: KeyPath, issues: Issues,
-             expected: type[dict[str, JsonValue]] | type[list[JsonValue]]) -> JsonValue:
-    """`doc[key]` when it is there and of the `expected` container type; else None (null
-    means absent and goes, kept as read by a strict reader; another type is dropped and
-    named)."""
-    value = doc.get(key)
-    if value is None:
-        if key in doc and not issues.strict:
-            del doc[key]
-        return None
-    if not isinstance(value, Mapping if expected is dict else list):
-        shape = "a mapping" if expected is dict else "a list"
-        issues.report((*path, key), f"expected {shape}, found {_found(value)}")
-        del doc[key]
-        return None
-    return value
-
-
-def conform_object(doc: JsonObject, key: str, path: KeyPath, issues: Issues,
-                   inner: Callable[[JsonObject, KeyPath, Issues], JsonObject] | None = None
-                   ) -> None:
-    """`doc[key]` kept when it is a mapping (then conformed by `inner`)."""
-    found = as_object(_present(doc, key, path, issues, dict))
-    if found is not None:
-        doc[key] = inner(found, (*path, key), issues) if inner is not None else found
-
-
-def conform_list(doc: JsonObject, key: str, path: KeyPath, issues: Issues,
-                 item: Callable[[JsonObject, KeyPath, Issues], JsonObject] | None = None,
-                 numeric: str | None = None) -> None:
-    """`doc[key]` kept when it is a list of mappings (each conformed by `item`); an entry
-    that is no mapping, or lacks the number `numeric` it means nothing without, is
-    dropped and named."""
-    value = _present(doc, key, path, issues, list)
-    if not isinstance(value, list):
-        return
-    kept: list[JsonValue] = []
-    for i, entry in enumerate(value):
-        obj = as_object(entry)
-        if obj is None:
-            issues.report((*path, key, i), f"expected a mapping, found {_found(entry)}")
-            continue
-        if item is not None:
-            obj = item(obj, (*path, key, i), issues)
-        if numeric is not None and not is_number(obj.get(numeric)):
-            issues.report((*path, key, i), f"no numeric {numeric}")
-            continue
-        kept.append(obj)
-    doc[key] = kept
-
-
-def conform_plain_list(doc: JsonObject, key: str, path: KeyPath, issues: Issues) -> None:
-    """`doc[key]` kept when it is a list (its entries unchecked)."""
-    _present(doc, key, path, issues, list)
-
-
-def conform_each(doc: JsonObject, path: KeyPath, issues: Issues,
-                 inner: Callable[[JsonObject, KeyPath, Issues], JsonObject] | None = None
-                 ) -> JsonObject:
-    """Every value of `doc` a mapping (conformed by `inner`); the others dropped."""
-    for key in list(doc):
-        conform_object(doc, key, path, issues, inner)
-    return doc
 
 
 # -- typed leaves ----------------------------------------------------------------------------
@@ -150,79 +72,160 @@ def text(doc: Mapping[str, JsonValue], key: str) -> str | None:
     return value if isinstance(value, str) else None
 
 
-def number(doc: Mapping[str, JsonValue], key: str) -> float | None:
-    """A finite number as result.json holds it (an int stays an int), else None."""
-    value = doc.get(key)
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return None
-    return value if math.isfinite(value) else None
-
-
-def integer(doc: Mapping[str, JsonValue], key: str) -> int | None:
-    value = doc.get(key)
-    return value if isinstance(value, int) and not isinstance(value, bool) else None
-
-
-def flag(doc: Mapping[str, JsonValue], key: str) -> bool | None:
-    value = doc.get(key)
-    return value if isinstance(value, bool) else None
-
-
 def obj(doc: Mapping[str, JsonValue], key: str) -> JsonObject:
     """A mapping entry ({} when absent: conform dropped what was no mapping)."""
     return as_object(doc.get(key)) or {}
 
 
-def objects(doc: Mapping[str, JsonValue], key: str) -> tuple[JsonObject, ...]:
-    value = doc.get(key)
-    if not isinstance(value, list):
-        return ()
-    return tuple(o for o in (as_object(v) for v in value) if o is not None)
+
+# -- msgspec's refusals in result.json's words, and the one reading loop ----------------------
+
+_AT = re.compile(r" - at `\$(?P<path>[^`]*)`$")
+_MISSING = re.compile(r"^Object missing required field `(?P<key>[^`]+)`")
+_EXPECTED = re.compile(r"^Expected `(?P<want>[^`]+)`, got `(?P<got>[^`]+)`")
+_STEP = re.compile(r"\.(?P<key>[^.\[]+)|\[(?P<index>\d+|\.\.\.)\]")
+#: msgspec's type names, as a reader of result.json says them
+_TYPES = {"float": "a number", "int": "an integer", "bool": "true or false",
+          "object": "an object", "array": "a list", "str": "text", "null": "null"}
 
 
-# -- the frame ---------------------------------------------------------------------------------
+def problem_of(err: msgspec.ValidationError) -> tuple[str, str]:
+    """msgspec's refusal in result.json's words: (msgspec's key path below the node it
+    decoded, `.axes[...].turns` or '' at the node itself; the problem), a missing key
+    named at its own path (`.rates[0].set_rate_dps`, 'missing'). The kinds' codecs put
+    their part's root (and a mapping's key, which msgspec does not name) before it."""
+    text = str(err)
+    at = _AT.search(text)
+    path = at["path"] if at else ""
+    text = text[:at.start()] if at else text
+    if m := _MISSING.match(text):
+        return f"{path}.{m['key']}", "missing"
+    if m := _EXPECTED.match(text):
+        want = " or ".join(_TYPES.get(t, t) for t in m["want"].split(" | "))
+        return path, f"expected {want}, got {m['got']}"
+    return path, text
 
-@dataclass(frozen=True, slots=True)
-class Check:
-    """One conformity check (bench.report.conformity): what was judged and the verdict."""
 
-    axis: str | None
-    quantity: str | None
-    verdict: str | None
-    set_rate_dps: float | None
-    rule: str | None
-    tolerance: float | None  # in the unit its key names (tolerance_rel, tolerance_dph...)
-    doc: JsonObject          # every key, in result.json's order
-    one_sided: bool          # an unresolved value, judged on its upper limit
-    upper_rel: float | None  # the 97.5 % limit (or the interval's upper end)
-    lower_rel: float | None  # the interval's lower end of an asymmetric value
-    capability_ratio: float | None  # U/T (RMG 63-2003)
-    capability_ok: bool | None
-    reason: str | None       # why the verdict is not a pass
+def _json_type(value: object) -> str:
+    """A value's type as msgspec names it in a refusal."""
+    return {dict: "object", list: "array", type(None): "null"}.get(type(value),
+                                                                   type(value).__name__)
+
+
+def _at(node: object, steps: list[str | int], got: str) -> Iterator[KeyPath]:
+    """The key paths `steps` names in `node` (msgspec's `[...]`, a mapping's key it does
+    not name, tried key by key) that end at a value of type `got` ('' : any)."""
+    if not steps:
+        if not got or _json_type(node) == got:
+            yield ()
+        return
+    step, rest = steps[0], steps[1:]
+    keys = list(node) if step == "..." and isinstance(node, dict) else [step]
+    for k in keys:
+        if isinstance(node, dict) and isinstance(k, str) and k in node:
+            yield from ((k, *p) for p in _at(node[k], rest, got))
+        elif isinstance(node, list) and isinstance(k, int) and k < len(node):
+            yield from ((k, *p) for p in _at(node[k], rest, got))
+
+
+def _without(node: JsonValue, path: KeyPath) -> JsonValue:
+    """`node` without the entry at `path`, copied along the path only (the caller's
+    document stays as read)."""
+    step, rest = path[0], path[1:]
+    if isinstance(node, list) and isinstance(step, int):
+        items = list(node)
+        items[step:step + 1] = [_without(node[step], rest)] if rest else []
+        return items
+    if isinstance(node, dict) and isinstance(step, str):
+        keys = {k: _without(v, rest) if rest and k == step else v
+                for k, v in node.items() if rest or k != step}
+        return keys
+    return node
+
+
+def _value(node: JsonValue, path: KeyPath) -> JsonValue:
+    for step in path:
+        node = node[step] if isinstance(node, dict) and isinstance(step, str) else \
+            node[step] if isinstance(node, list) and isinstance(step, int) else None
+    return node
+
+
+def decode(node: JsonValue, model: type[S], *, strict: bool, leaves: bool = False,
+           root: KeyPath = ()) -> tuple[S, JsonValue, list[str]]:
+    """`node` (at `root` in result.json) as `model`, the value it was decoded from, and
+    what was dropped, named. msgspec decodes; what it refuses is taken out and decoding
+    tried again, so a field's default reads "not stated": a container (a mapping or a list
+    where one belongs) is named, a leaf of the wrong type too when `leaves`, null (absent)
+    never; an entry lacking a key its model needs goes whole. `strict`: MalformedResult at
+    the first refusal that would be named. The node itself malformed: MalformedResult."""
+    dropped: list[str] = []
+    nulled: KeyPath = ()      # a number just taken out as null: its entry then goes
+    while True:
+        try:
+            return msgspec.convert(node, model, strict=True), node, dropped
+        except msgspec.ValidationError as err:
+            at, problem = problem_of(err)
+            m = _EXPECTED.match(str(err))
+            want, got = (m["want"], m["got"]) if m else ("", "")
+            steps: list[str | int] = [s["key"] or (
+                s["index"] if s["index"] == "..." else int(s["index"]))
+                for s in _STEP.finditer(at)]
+            if problem == "missing":
+                want, got, key = "object", "", steps.pop()
+            path = next(_at(node, steps, got), None)
+            if not path:
+                raise MalformedResult(where((*root, *steps)) or layout.RESULT, problem
+                                      ) from None
+            value = _value(node, path)
+            if problem == "missing":
+                problem = f"no numeric {key}" if nulled == (*path, key) else f"no {key}"
+            elif value is not None and ("object" in want or "array" in want):
+                shape = "a mapping" if "object" in want else "a list"
+                problem = f"expected {shape}, found {type(value).__name__}"
+            elif value is None or not leaves:
+                nulled = path if value is None and ("float" in want or "int" in want) else ()
+                node = _without(node, path)
+                continue
+            if strict:
+                raise MalformedResult(where((*root, *path)), problem) from None
+            dropped.append(f"{where((*root, *path))} ({problem})")
+            node = _without(node, path)
+
+
+# -- the frame -------------------------------------------------------------------------------
+
+class Check(msgspec.Struct, frozen=True, kw_only=True):
+    """One conformity check (bench.report.conformity): what was judged and the verdict;
+    `doc`: every key, in result.json's order (a kind's figures under unit-suffixed keys)."""
+
+    axis: str | None = None
+    quantity: str | None = None
+    verdict: str | None = None
+    set_rate_dps: int | float | None = None
+    rule: str | None = None
+    one_sided: bool = False   # an unresolved value, judged on its upper limit
+    upper_rel: int | float | None = None   # the 97.5 % limit (or the interval's upper end)
+    lower_rel: int | float | None = None   # the interval's lower end of an asymmetric value
+    capability_ratio: int | float | None = None   # U/T (RMG 63-2003)
+    capability_ok: bool | None = None
+    reason: str | None = None    # why the verdict is not a pass
+    #: what an unresolved value was not resolved above ('timing floor', 'FOG floor':
+    #: docs/method.md D2), as the kind names it
+    floor_name: str | None = None
+    tolerance_rel: int | float | None = None  # a relative quantity's (None: °/h, °/s...)
+    doc: dict[str, Json] = msgspec.field(default_factory=dict, name="(doc)")
+
+    @property
+    def tolerance(self) -> float | None:
+        """The tolerance, in the unit its key names (tolerance_rel, tolerance_dph...)."""
+        return next((finite_number(self.doc[k]) for k in (
+            "tolerance_rel", "tolerance_dph", *sorted(self.doc)) if k.startswith(
+                "tolerance") and k in self.doc), None)
 
     @classmethod
-    def from_json(cls, doc: JsonObject) -> Check:
-        tolerance = next((number(doc, k) for k in ("tolerance_rel", "tolerance_dph",
-                                                     *sorted(k for k in doc
-                                                             if k.startswith("tolerance")))
-                          if k in doc), None)
-        return cls(text(doc, "axis"), text(doc, "quantity"), text(doc, "verdict"),
-                   number(doc, "set_rate_dps"), text(doc, "rule"), tolerance, doc,
-                   one_sided=bool(doc.get("one_sided")), upper_rel=number(doc, "upper_rel"),
-                   lower_rel=number(doc, "lower_rel"),
-                   capability_ratio=number(doc, "capability_ratio"),
-                   capability_ok=flag(doc, "capability_ok"), reason=text(doc, "reason"))
-
-    @property
-    def tolerance_rel(self) -> float | None:
-        """The tolerance of a relative quantity (None for one in °/h, °/s...)."""
-        return number(self.doc, "tolerance_rel")
-
-    @property
-    def floor_name(self) -> str | None:
-        """What an unresolved value was not resolved above ('timing floor', 'FOG floor':
-        docs/method.md D2), as the kind names it."""
-        return text(self.doc, "floor_name")
+    def of(cls, doc: JsonObject) -> Check:
+        """A check a kind states by its keys (what of them is malformed left out)."""
+        return msgspec.structs.replace(decode(doc, cls, strict=False)[0], doc=doc)
 
     def figure(self, key: str) -> float | None:
         """A figure the check states under a unit-suffixed key (`U_rel`, `tolerance_dph`,
@@ -235,99 +238,209 @@ class Check:
         `value_<unit>` it holds)."""
         return key in self.doc
 
-    def to_json(self) -> JsonObject:
-        return dict(self.doc)
+
+def _stated(part: Body) -> dict[str, Json]:
+    """A kind's part by its keys: a Struct's fields it states (UNSET: not stated) or a
+    plug-in kind's mapping, the values as they are (no encoding)."""
+    if isinstance(part, msgspec.Struct):
+        return {f: v for f in part.__struct_fields__ if (v := getattr(part, f)) is not UNSET}
+    return cast(dict[str, Json], dict(part or {}))
 
 
-@dataclass(frozen=True, slots=True)
-class MeasuredHalf:
+class MeasuredHalf(msgspec.Struct, frozen=True):
     """The FOG's temperature over one half, from its frames (`conditions_measured.
     fog_temperature.axes.<axis>.halves[]`, procedures that record it)."""
 
-    half: float | None
-    set_rate_dps: float | None
-    min_c: float | None
-    mean_c: float | None
-    max_c: float | None
-
-    @classmethod
-    def from_json(cls, doc: JsonObject) -> MeasuredHalf:
-        return cls(*(number(doc, k) for k in ("half", "set_rate_dps", "min_c", "mean_c",
-                                               "max_c")))
+    half: int | float | None = None
+    set_rate_dps: int | float | None = None
+    min_c: int | float | None = None
+    mean_c: int | float | None = None
+    max_c: int | float | None = None
 
 
-def fog_temperature(doc: Mapping[str, JsonValue]
-                    ) -> dict[str, tuple[MeasuredHalf, ...]] | None:
-    """Per axis, the halves' FOG temperatures the run measured; None when it measured none."""
-    fog = obj(obj(doc, "conditions_measured"), "fog_temperature")
-    axes = as_object(fog.get("axes"))
-    if axes is None:
-        return None
-    return {axis: tuple(MeasuredHalf.from_json(h) for h in objects(found, "halves"))
-            for axis, ax in axes.items() if (found := as_object(ax)) is not None}
-
-
-@dataclass(frozen=True, slots=True)
-class FogAxisTemperature:
+class FogAxisTemperature(msgspec.Struct, frozen=True):
     """The FOG's temperature over all of one axis's halves, from its frames
-    (`conditions_measured.fog_temperature.axes.<axis>`; per half: `fog_temperature`)."""
+    (`conditions_measured.fog_temperature.axes.<axis>`), and per half."""
 
-    min_c: float | None
-    mean_c: float | None
-    max_c: float | None
-
-    @classmethod
-    def from_json(cls, doc: JsonObject) -> FogAxisTemperature:
-        # finite_number's reading (numeric text too), as the certificate always read them
-        return cls(*(finite_number(doc.get(k)) for k in ("min_c", "mean_c", "max_c")))
+    min_c: int | float | None = None
+    mean_c: int | float | None = None
+    max_c: int | float | None = None
+    halves: tuple[MeasuredHalf, ...] = ()
 
 
-@dataclass(frozen=True, slots=True)
-class MeasuredConditions:
+class FogTemperature(msgspec.Struct, frozen=True):
+    axes: dict[str, FogAxisTemperature] | None = None
+
+
+class MeasuredConditions(msgspec.Struct, frozen=True):
     """What the bench measured of the conditions itself (`conditions_measured`): the room
     where a sensor said so, the FOG's temperature per axis; empty when it measured none."""
 
-    room: JsonObject
-    fog_axes: dict[str, FogAxisTemperature]
+    room: dict[str, Json] | None = None
+    fog_temperature: FogTemperature | None = None
 
-    @classmethod
-    def from_json(cls, doc: JsonObject) -> MeasuredConditions:
-        axes = obj(obj(doc, "fog_temperature"), "axes")
-        return cls(room=obj(doc, "room"),
-                   fog_axes={str(axis): FogAxisTemperature.from_json(found)
-                             for axis, ax in axes.items()
-                             if (found := as_object(ax)) is not None})
+    @property
+    def fog_axes(self) -> dict[str, FogAxisTemperature]:
+        return (self.fog_temperature.axes if self.fog_temperature else None) or {}
+
+    @property
+    def fog_halves(self) -> dict[str, tuple[MeasuredHalf, ...]] | None:
+        """Per axis, the halves' FOG temperatures the run measured; None when it measured
+        none."""
+        axes = self.fog_temperature.axes if self.fog_temperature else None
+        return None if axes is None else {a: t.halves for a, t in axes.items()}
 
 
-@dataclass(frozen=True, slots=True)
-class Specification:
+class Specification(msgspec.Struct, frozen=True):
     """Where the procedure's tolerances come from (`specification`: a datasheet, a
     standard) and what its quantities mean there; a certificate without one says so."""
 
-    source: JsonValue        # as written (text_of prints it); falsy: not identified
-    definitions: JsonObject  # quantity key -> its definition in the source
+    source: Json = None        # as written (text_of prints it); falsy: not identified
+    definitions: dict[str, Json] = {}  # quantity key -> its definition in the source
 
     @classmethod
     def of(cls, value: object) -> Specification | None:
-        """A result's (or a procedure file's) specification; None when it states none."""
+        """A procedure file's specification; None when it states none."""
         doc = as_object(value)
-        if not doc:
-            return None
-        return cls(source=doc.get("source"), definitions=obj(doc, "definitions"))
+        return cls(doc.get("source"), obj(doc, "definitions")) if doc else None
 
 
-@dataclass(frozen=True, slots=True)
-class HashedFile:
+class HashedFile(msgspec.Struct, frozen=True):
     """A file and its SHA-256 as the run recorded it (`raw_files[]`): printed as written,
     its byte count read as the certificate always read it (numeric text too)."""
 
-    path: JsonValue
-    sha256: JsonValue
-    size_bytes: float | None
+    path: Json = None
+    sha256: Json = None
+    bytes: Json = None
+
+    @property
+    def size_bytes(self) -> float | None:
+        return finite_number(self.bytes)
+
+
+class ProcedureFile(msgspec.Struct, frozen=True):
+    """result.json's `procedure_file`: the procedure file's name and SHA-256, as written."""
+
+    name: Json = None
+    sha256: Json = None
+
+
+class RunDates(msgspec.Struct, frozen=True):
+    """When the run was created, first started and last ended (`dates`), as written."""
+
+    created_utc: str | None = None
+    started_utc: str | None = None
+    completed_utc: str | None = None
+
+
+class RunSession(msgspec.Struct, frozen=True):
+    """One session of the run and how it ended (`run_sessions[]`, bench.core.journal's
+    SessionEnding): a resume is a session of the same run."""
+
+    session: int | None = None
+    started_utc: str | None = None
+    ended_utc: str | None = None
+    ended: str | None = None     # completed, aborted, refused, killed or crashed; None: running
+    performer: str | None = None
+    os_user: str | None = None
+
+
+class ResultFrame(msgspec.Struct, frozen=True, kw_only=True):
+    """What every kind's result.json says about the run (bench.report.codec.ResultHead):
+    the header, the decision rule, the method, the checks and the verdict. Every part is
+    optional: a hand-made or older result may lack it, and the certificate says so."""
+
+    schema: str | None = None
+    procedure: str | None = None
+    verdict: str | None = None
+    title: str | None = None
+    run_dir: str | None = None
+    procedure_file: ProcedureFile = ProcedureFile()
+    stand: dict[str, Json] = {}
+    instruments: dict[str, dict[str, Json]] = {}
+    dates: RunDates = RunDates()
+    conditions: dict[str, Json] | None = None
+    conditions_measured: MeasuredConditions = MeasuredConditions()
+    specification: Specification | None = None
+    certificate: dict[str, Json] = {}   # the settings (the lab file's under the run's)
+    sessions: int | None = None
+    run_sessions: tuple[RunSession, ...] = ()
+    aborted: bool = False
+    ended: str | None = None        # how the last session ended (None: no word yet)
+    deviations: tuple[Json, ...] = ()   # a result's own deviations (hand-made or older ones)
+    raw_files: tuple[HashedFile, ...] = ()
+    decision_rule: str | None = None
+    method: dict[str, Json] = {}
+    checks: tuple[Check, ...] = ()
+    records: dict[str, Json] = {}    # what the run says for the records (calibration state)
+    #: the whole document as written, in result.json's order (not a key of it)
+    doc: dict[str, Json] = msgspec.field(default_factory=dict, name="(doc)")
+    #: the kind's body as its analysis gave it (None: read from a file)
+    body: Body = msgspec.field(default=None, name="(body)")
 
     @classmethod
-    def from_json(cls, doc: JsonObject) -> HashedFile:
-        return cls(doc.get("path"), doc.get("sha256"), finite_number(doc.get("bytes")))
+    def conform(cls, doc: object) -> tuple[ResultFrame, list[str]]:
+        """The frame with malformed containers dropped, and the list of what was dropped."""
+        top = as_object(doc)
+        if top is None:
+            return cls(), ["result.json (expected a mapping)"]
+        return cls._decoded(top, strict=False)
+
+    @classmethod
+    def from_json(cls, doc: object) -> ResultFrame:
+        """The frame, or MalformedResult naming the first malformed key path."""
+        top = as_object(doc)
+        if top is None:
+            raise MalformedResult(layout.RESULT, "is not a JSON object")
+        return cls._decoded(top, strict=True)[0]
+
+    @classmethod
+    def of(cls, doc: JsonObject) -> ResultFrame:
+        """The frame of a document, what is malformed in it left out unnamed."""
+        return cls.conform(doc)[0]
+
+    @classmethod
+    def _decoded(cls, top: JsonObject, *, strict: bool) -> tuple[ResultFrame, list[str]]:
+        frame, found, dropped = decode(top, cls, strict=strict)
+        doc = cast(JsonObject, found)
+        written = doc.get("checks")
+        checks = tuple(msgspec.structs.replace(c, doc=as_object(d) or {}) for c, d in zip(
+            frame.checks, written if isinstance(written, list) else (), strict=False))
+        return msgspec.structs.replace(frame, checks=checks, doc=doc), dropped
+
+    @classmethod
+    def analysed(cls, head: msgspec.Struct, body: Body, document: JsonObject) -> ResultFrame:
+        """The frame of a result its analysis has just given: its head's and body's own
+        attributes (msgspec reads them), no JSON in between; `document` is its encoding,
+        which the records digest and store."""
+        measured = getattr(body, "conditions_measured", None)
+        frame = msgspec.convert(msgspec.structs.replace(head, checks=(), method={}), cls,
+                                from_attributes=True)
+        return msgspec.structs.replace(
+            frame, method=_stated(getattr(head, "method", None)),
+            checks=tuple(Check.of(_stated(c)) for c in getattr(head, "checks", ())),
+            conditions_measured=MeasuredConditions() if measured in (None, UNSET) else
+            msgspec.convert(measured, MeasuredConditions, from_attributes=True),
+            doc=document, body=body)
+
+    @property
+    def corrections(self) -> tuple[Correction, ...]:
+        """The instrument corrections it applied (issue 58)."""
+        return corrections_of(self.doc)
+
+    @property
+    def simulated(self) -> bool:
+        """Whether the stand ran as its simulated twins."""
+        return bool(self.stand.get("simulated"))
+
+    def get(self, key: str) -> JsonValue:
+        """A top-level entry the frame does not type (a kind's part, a later addition)."""
+        return self.doc.get(key)
+
+    def part(self, key: str) -> JsonObject:
+        """A kind's own top-level part as a mapping, {} when the result has none (or has
+        no mapping there): what a kind without a typed result module reads its keys from."""
+        return obj(self.doc, key)
 
 
 @dataclass(frozen=True, slots=True)
@@ -416,142 +529,3 @@ def corrections_of(doc: object) -> tuple[Correction, ...]:
                  if isinstance(d, Mapping))
 
 
-@dataclass(frozen=True, slots=True)
-class RunDates:
-    """When the run was created, first started and last ended (`dates`), as written."""
-
-    created_utc: str | None
-    started_utc: str | None
-    completed_utc: str | None
-
-    @classmethod
-    def from_json(cls, doc: JsonObject) -> RunDates:
-        return cls(*(text(doc, k) for k in ("created_utc", "started_utc", "completed_utc")))
-
-
-@dataclass(frozen=True, slots=True)
-class RunSession:
-    """One session of the run and how it ended (`run_sessions[]`, bench.core.journal's
-    SessionEnding): a resume is a session of the same run."""
-
-    session: int | None
-    started_utc: str | None
-    ended_utc: str | None
-    ended: str | None       # completed, aborted, refused, killed or crashed; None: running
-    performer: str | None
-    os_user: str | None
-
-    @classmethod
-    def from_json(cls, doc: JsonObject) -> RunSession:
-        return cls(integer(doc, "session"), text(doc, "started_utc"), text(doc, "ended_utc"),
-                   text(doc, "ended"), text(doc, "performer"), text(doc, "os_user"))
-
-
-def conform_frame(doc: JsonObject, issues: Issues) -> JsonObject:
-    """The frame's containers checked, in place (the kind's part is its result module's)."""
-    conform_object(doc, "stand", (), issues)
-    conform_object(doc, "instruments", (), issues, conform_each)
-    for key in ("dates", "conditions", "certificate", "method", "procedure_file"):
-        conform_object(doc, key, (), issues)
-    conform_list(doc, "raw_files", (), issues)
-    conform_list(doc, "checks", (), issues)
-    return doc
-
-
-@dataclass(frozen=True, slots=True)
-class ResultFrame:
-    """What every kind's result.json says about the run (bench.report.codec.ResultHead):
-    the header, the decision rule, the method, the checks and the verdict. Every part is
-    optional: a hand-made or older result may lack it, and the certificate says so."""
-
-    schema: str | None
-    procedure: str | None
-    verdict: str | None
-    title: str | None
-    run_dir: str | None
-    procedure_file: JsonObject   # result.json's: the procedure file's name and SHA-256
-    stand: JsonObject
-    instruments: dict[str, JsonObject]
-    dates: RunDates
-    conditions: JsonObject | None
-    conditions_measured: MeasuredConditions
-    specification: Specification | None
-    certificate: JsonObject      # the certificate settings (the lab file's under the run's)
-    sessions: int | None
-    run_sessions: tuple[RunSession, ...]
-    aborted: bool
-    ended: str | None        # how the last session ended (None: no word yet)
-    deviations: tuple[JsonValue, ...]  # a result's own deviations (hand-made or older ones)
-    raw_files: tuple[JsonObject, ...]
-    decision_rule: str | None
-    method: JsonObject
-    checks: tuple[Check, ...]
-    records: JsonObject      # what the run says for the records (calibration state)
-    corrections: tuple[Correction, ...]   # the instrument corrections it applied (issue 58)
-    doc: JsonObject          # the whole document as read, in result.json's order
-
-    @classmethod
-    def conform(cls, doc: object) -> tuple[ResultFrame, list[str]]:
-        """The frame with malformed containers dropped, and the list of what was dropped."""
-        issues = Issues(strict=False)
-        top = as_object(doc)
-        if top is None:
-            return cls.of({}), ["result.json (expected a mapping)"]
-        return cls.of(conform_frame(top, issues)), issues.dropped
-
-    @classmethod
-    def from_json(cls, doc: object) -> ResultFrame:
-        """The frame, or MalformedResult naming the first malformed key path."""
-        top = as_object(doc)
-        if top is None:
-            raise MalformedResult(layout.RESULT, "is not a JSON object")
-        return cls.of(conform_frame(top, Issues(strict=True)))
-
-    @classmethod
-    def of(cls, doc: JsonObject) -> ResultFrame:
-        """The frame of a conformed document."""
-        return cls(
-            schema=text(doc, "schema"), procedure=text(doc, "procedure"),
-            verdict=text(doc, "verdict"), title=text(doc, "title"),
-            run_dir=text(doc, "run_dir"), procedure_file=obj(doc, "procedure_file"),
-            stand=obj(doc, "stand"),
-            instruments={k: v for k, v in obj(doc, "instruments").items()
-                         if isinstance(v, dict)},
-            dates=RunDates.from_json(obj(doc, "dates")),
-            conditions=as_object(doc.get("conditions")),
-            conditions_measured=MeasuredConditions.from_json(obj(doc, "conditions_measured")),
-            specification=Specification.of(doc.get("specification")), certificate=obj(doc, "certificate"),
-            sessions=integer(doc, "sessions"),
-            run_sessions=tuple(RunSession.from_json(x) for x in objects(doc, "run_sessions")),
-            aborted=bool(doc.get("aborted")), ended=text(doc, "ended"),
-            deviations=tuple(found) if isinstance(found := doc.get("deviations"), list) else (),
-            raw_files=objects(doc, "raw_files"), decision_rule=text(doc, "decision_rule"),
-            method=obj(doc, "method"),
-            checks=tuple(Check.from_json(c) for c in objects(doc, "checks")),
-            records=obj(doc, "records"), corrections=corrections_of(doc), doc=doc)
-
-    @property
-    def hashed_raw_files(self) -> tuple[HashedFile, ...]:
-        """The raw files the run recorded, each with its digest."""
-        return tuple(HashedFile.from_json(f) for f in self.raw_files)
-
-    @property
-    def simulated(self) -> bool:
-        """Whether the stand ran as its simulated twins."""
-        return bool(self.stand.get("simulated"))
-
-    def get(self, key: str) -> JsonValue:
-        """A top-level entry the frame does not type (a kind's part, a later addition)."""
-        return self.doc.get(key)
-
-    def part(self, key: str) -> JsonObject:
-        """A kind's own top-level part as a mapping, {} when the result has none (or has
-        no mapping there): what a kind without a typed result module reads its keys from."""
-        return obj(self.doc, key)
-
-    def to_json(self) -> JsonObject:
-        return dict(self.doc)
-
-
-def parse_each(items: tuple[JsonObject, ...], parse: Callable[[JsonObject], T]) -> tuple[T, ...]:
-    return tuple(parse(i) for i in items)

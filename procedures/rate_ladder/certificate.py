@@ -191,7 +191,7 @@ class LadderCertificate(CertificateParts):
             if isinstance(j, UnsetType) or r.verdict is None:
                 continue
             rule = str(j.get("decision_rule", "simple"))
-            out.append(Check.from_json({
+            out.append(Check.of({
                 "axis": axis, "set_rate_dps": r.set_rate_dps, "quantity": "rate_error",
                 "value_rel": r.rate_error_rel, "u_rel": r.rate_error_u_rel,
                 "tolerance_rel": j.get("tolerance_rel"), "verdict": r.verdict,

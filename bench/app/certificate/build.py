@@ -63,7 +63,6 @@ from bench.report.result_frame import (
     HashedFile,
     Specification,
     Tolerance,
-    fog_temperature,
 )
 
 __all__ = ["NOT_RECORDED", "Sources", "build_document", "certificate_id", "decision_rule_text",
@@ -537,8 +536,8 @@ def _traceability(src: Sources) -> tuple[Block, ...]:
 
 def _method(src: Sources, proc: Procedure) -> tuple[Block, ...]:
     pf = src.frame.procedure_file
-    name = pf.get("name") or src.meta.get("procedure_name")
-    sha = pf.get("sha256") or src.meta.get("procedure_sha256")
+    name = pf.name or src.meta.get("procedure_name")
+    sha = pf.sha256 or src.meta.get("procedure_sha256")
     blocks: list[Block] = list(proc.parts.certificate_method(src))
     method = src.frame.method
     rows = [("Procedure file", text_of(name)), ("Procedure file SHA-256", text_of(sha))]
@@ -627,7 +626,7 @@ def _measured_conditions(src: Sources) -> list[Block]:
     """What the bench measured itself: the FOG's temperature per half (procedures that
     record it, `conditions_measured`); the room: not measured unless a sensor says so."""
     blocks: list[Block] = []
-    fog = fog_temperature(src.frame.doc)
+    fog = src.frame.conditions_measured.fog_halves
     if fog is not None:
         rows = []
         for axis, halves in fog.items():
@@ -884,7 +883,7 @@ def _tolerance_table(tol: Sequence[Tolerance], proc: Procedure) -> Table:
 
 
 def _records(src: Sources) -> tuple[Block, ...]:
-    files = list(src.frame.hashed_raw_files)
+    files = list(src.frame.raw_files)
     hashed_here = False
     if not files and src.run_path is not None and layout.raw_root(src.run_path).is_dir():
         hashed_here = True

@@ -107,7 +107,7 @@ def condition_rows(src: Sources) -> list[ConditionRow]:
     """The procedure's conditions (nominal; measured only where the run measured them),
     then what the bench measured that the procedure does not state, then the mains."""
     cond = src.frame.conditions or src.procedure_file.get("conditions") or {}
-    room = src.frame.conditions_measured.room
+    room = src.frame.conditions_measured.room or {}
     rows = [ConditionRow(str(k), label_of(k), text_of(v),
                          text_of(room[k]) if room.get(k) is not None else
                          NOT_MEASURED if _quantity(str(k)) else NONE)

@@ -28,7 +28,7 @@ from bench.report.corrections import statements as correction_statements
 from bench.report.dcc import vocab as V
 from bench.report.dcc.conformity import ILAC_G8, RULE_REFERENCE
 from bench.report.dcc.xml import NOT_RECORDED, el, name, num, statement, text_el
-from bench.report.result_frame import CertificateSettings, JsonObject
+from bench.report.result_frame import CertificateSettings, HashedFile
 from bench.report.result_frame import text as text_at
 
 UNKNOWN_COUNTRY = "ZZ"   # ISO 3166-1 user-assigned code: the laboratory did not configure one
@@ -318,12 +318,12 @@ def _stand_statements(sts: etree._Element, src: Sources, lab: Lab, country: str 
 
 
 def _digests(sts: etree._Element, src: Sources) -> None:
-    files: list[JsonObject] = list(src.frame.raw_files)
+    files = list(src.frame.raw_files)
     if not files and src.run_path is not None and layout.raw_root(src.run_path).is_dir():
         from bench.core.journal import sha256_file
 
-        files = [{"path": p.relative_to(src.run_path).as_posix(), "sha256": sha256_file(p),
-                  "bytes": p.stat().st_size}
+        files = [HashedFile(p.relative_to(src.run_path).as_posix(), sha256_file(p),
+                            p.stat().st_size)
                  for p in sorted(layout.raw_root(src.run_path).rglob("*")) if p.is_file()]
     if not files:
         statement(sts, V.RAW_DIGESTS, "No raw data files were recorded.")
@@ -335,7 +335,7 @@ def _digests(sts: etree._Element, src: Sources) -> None:
     data = el(st, "data")
     for f in files:
         t = el(data, "text", ref_type=V.SHA256)
-        name(t, str(f.get("path") or NOT_RECORDED))
-        el(t, "content", str(f.get("sha256") or NOT_RECORDED))
-        if num(f.get("bytes")) is not None:
-            el(t, "content", f"{int(num(f.get('bytes')) or 0)} bytes")
+        name(t, str(f.path or NOT_RECORDED))
+        el(t, "content", str(f.sha256 or NOT_RECORDED))
+        if num(f.bytes) is not None:
+            el(t, "content", f"{int(num(f.bytes) or 0)} bytes")

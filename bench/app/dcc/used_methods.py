@@ -72,12 +72,12 @@ def methods_and_conditions(results: etree._Element, src: Sources, kind: DccPart)
         text_el(m, "description", text or f"see {METHOD_DOC}")
         el(m, "reference", f"{METHOD_DOC} section {sec} (embedded above)")
     pf = src.frame.procedure_file
-    proc_name = pf.get("name") or src.meta.get("procedure_name")
+    proc_name = pf.name or src.meta.get("procedure_name")
     if proc_name:
         m = el(used, "usedMethod", id="procedureFile")
         name(m, f"Procedure file {proc_name}")
         text_el(m, "description", f"The procedure as run, SHA-256 "
-                f"{pf.get('sha256') or src.meta.get('procedure_sha256') or NOT_RECORDED}; "
+                f"{pf.sha256 or src.meta.get('procedure_sha256') or NOT_RECORDED}; "
                 f"settings: {_settings(src)}.")
     m = el(used, "usedMethod", id="uncertaintyMethod", ref_type=V.UNCERTAINTY)
     name(m, "Expanded measurement uncertainty")

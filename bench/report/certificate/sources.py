@@ -68,8 +68,9 @@ class Sources:
 
     @classmethod
     def load(cls, result: object, run_path: Path | None) -> Sources:
-        conformed, dropped = conform_result(result)
-        src = cls(conformed, run_path, dropped=dropped, written=as_object(result) or {})
+        frame, dropped = conform_result(result)
+        src = cls(frame.doc, run_path, dropped=dropped, written=as_object(result) or {})
+        src.frame = frame
         if run_path is None:
             return src
         src.meta = read_json_object(run_path / layout.META)
@@ -84,9 +85,12 @@ class Sources:
     @classmethod
     def analysed(cls, result: KindResult[ResultPart], run_path: Path | None) -> Sources:
         """The run as its analysis has just given its result (result.json is its encoding,
-        not read back): the kind's certificate part takes the result's body as its model."""
+        not read back): the kind's certificate part takes the result's body as its model,
+        every section the frame the analysis gave (`KindResult.frame`, typed)."""
         src = cls.load(result.document, run_path)
         src.body = result.body
+        if not src.dropped:    # the document's kind part as conformed (nulls gone)
+            src.frame = msgspec.structs.replace(result.frame, doc=src.result)
         return src
 
     @classmethod
@@ -141,8 +145,9 @@ class Sources:
 
     @cached_property
     def frame(self) -> ResultFrame:
-        """The run header, checks and verdict, typed (bench.report.result_frame): parsed
-        once, on first use, and read by every section of the certificate and the DCC."""
+        """The run header, checks and verdict, typed (bench.report.result_frame): read
+        once (`load` gives it as it conformed the result) and read by every section of
+        the certificate and the DCC."""
         return ResultFrame.of(self.result)
 
 
@@ -151,7 +156,7 @@ class Sources:
 ResultConform = Callable[[JsonObject], tuple[JsonObject, list[str]]]
 
 
-def conform_result(result: object) -> tuple[JsonObject, list[str]]:
+def conform_result(result: object) -> tuple[ResultFrame, list[str]]:
     """The result with malformed containers dropped, and the list of what was dropped:
     the kind's part by the kind's codec (its certificate part's `result_conform`,
     `ConformsResult`), the frame's here. A result that names no kind is read by every
@@ -160,7 +165,7 @@ def conform_result(result: object) -> tuple[JsonObject, list[str]]:
 
     doc = as_object(result)
     if doc is None:
-        return {}, ["result.json (expected a mapping)"]
+        return ResultFrame.conform(result)
     named = doc.get("procedure")
     dropped: list[str] = []
     for name in [str(named)] if named else procedure_names():
@@ -172,7 +177,7 @@ def conform_result(result: object) -> tuple[JsonObject, list[str]]:
             doc, more = part.result_conform(doc)
             dropped += more
     frame, more = ResultFrame.conform(doc)
-    return frame.to_json(), dropped + more
+    return frame, dropped + more
 
 
 @runtime_checkable
