@@ -107,3 +107,42 @@ def test_the_drift_certificate_takes_the_analysed_figures() -> None:
                                None).model(drift_model)
     assert decoded is not np_figures and decoded == figures
     assert type(getattr(decoded.axes[axis], field)) is float
+
+
+def test_the_frame_in_memory_is_the_files() -> None:
+    """An analysis's frame is its head's and body's own attributes (no encoding in
+    between): field for field the frame a reader of result.json gets, with the same
+    records' figures; a head the file cannot hold as it is (a number key) is read from
+    its encoding instead."""
+    from bench.app.records.extract import figures_of
+    from bench.report.result_frame import ResultFrame
+    from procedures.drift_pulse.codec import drift_in, drift_of
+    from procedures.drift_pulse.result import DriftBody
+    from procedures.drift_pulse.sample import drift_figures
+    from procedures.rate_ladder.codec import axes_in
+
+    def bare(frame: ResultFrame) -> ResultFrame:
+        return msgspec.structs.replace(frame, doc={}, body=None, checks=tuple(
+            msgspec.structs.replace(c, doc={}) for c in frame.checks))
+
+    check = LadderCheck(axis="outer", set_rate_dps=10.0, quantity="rate_error",
+                        value_rel=1e-05, u_rel=2e-06, tolerance_rel=1e-4, rule="simple",
+                        verdict="pass", reason="r", capability_ratio=0.1, capability_ok=True)
+    ladder = KindResult(_head((check,), conditions={"room": "lab"}), _body())
+    drift_head = msgspec.structs.replace(_head(), procedure="drift-pulse")
+    drift = KindResult(drift_head, DriftBody(drift=drift_of({"drift": encode(
+        drift_figures())})))
+    for result, kind in ((ladder, "rate-ladder"), (drift, "drift-pulse")):
+        typed = result.frame
+        assert typed.body is result.body                  # not decoded from the document
+        read = ResultFrame.of(json.loads(encode_document(result.document)))
+        assert read.body is None and bare(typed) == bare(read)
+        assert figures_of(typed, kind) == figures_of(read, kind) != []
+        for c, d in zip(typed.checks, read.checks, strict=True):
+            assert [(k, c.figure(k)) for k in c.doc] == [(k, d.figure(k)) for k in d.doc]
+            assert c.tolerance == d.tolerance == 1e-4
+    assert axes_in(ladder.frame) is ladder.body.axes
+    assert drift_in(drift.frame) is drift.body.drift
+    assert bare(ladder.frame).checks[0].set_rate_dps == 10.0
+    odd = KindResult(_head(conditions={1: "room"}), _body())  # type: ignore[dict-item]
+    assert odd.frame.body is None and odd.frame.conditions == {"1": "room"}

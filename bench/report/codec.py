@@ -156,7 +156,8 @@ def written(model: msgspec.Struct | Mapping[str, JsonLike]) -> JsonObject:
                                                                str_keys=True))))
 
 
-def as_written(value: object) -> bool:
+def as_written(value: msgspec.Struct | JsonLike | Mapping[str, msgspec.Struct]
+               | msgspec.UnsetType) -> bool:
     """Whether a model part holds only what its encoding holds (finite Python numbers, no
     numpy scalar): then the analysis's own model is what decoding result.json gives back,
     and a reader may take it as it is (`Sources.analysed`; the kinds' `*_model`)."""
@@ -164,8 +165,8 @@ def as_written(value: object) -> bool:
         return all(as_written(getattr(value, f)) for f in value.__struct_fields__)
     if isinstance(value, tuple | list):
         return all(as_written(v) for v in value)
-    if isinstance(value, Mapping):
-        return all(as_written(v) for v in value.values())
+    if isinstance(value, Mapping):    # a number key is text in the file
+        return all(isinstance(k, str) and as_written(v) for k, v in value.items())
     if isinstance(value, float):
         return type(value) is float and math.isfinite(value)
     return value is None or value is msgspec.UNSET or type(value) in (int, bool, str)

@@ -152,17 +152,19 @@ def _value(node: JsonValue, path: KeyPath) -> JsonValue:
 
 def decode(node: JsonValue, model: type[S], *, strict: bool, leaves: bool = False,
            root: KeyPath = ()) -> tuple[S, JsonValue, list[str]]:
-    """`node` (at `root` in result.json) as `model`, the value it was decoded from, and
-    what was dropped, named. msgspec decodes; what it refuses is taken out and decoding
-    tried again, so a field's default reads "not stated": a container (a mapping or a list
-    where one belongs) is named, a leaf of the wrong type too when `leaves`, null (absent)
-    never; an entry lacking a key its model needs goes whole. `strict`: MalformedResult at
-    the first refusal that would be named. The node itself malformed: MalformedResult."""
+    """`node` (at `root` in result.json) as `model`, the value as read with what was
+    dropped, named, taken out, and those names. msgspec decodes; what it refuses is taken
+    out and decoding tried again, so a field's default reads "not stated": a container (a
+    mapping or a list where one belongs) or a list's entry is named, a leaf of the wrong
+    type too when `leaves`, a key that is null (absent) never; an entry lacking a key its
+    model needs goes whole. `strict`: MalformedResult at the first refusal that would be
+    named. The node itself malformed: MalformedResult."""
     dropped: list[str] = []
+    kept = node
     nulled: KeyPath = ()      # a number just taken out as null: its entry then goes
     while True:
         try:
-            return msgspec.convert(node, model, strict=True), node, dropped
+            return msgspec.convert(node, model, strict=True), kept, dropped
         except msgspec.ValidationError as err:
             at, problem = problem_of(err)
             m = _EXPECTED.match(str(err))
@@ -176,20 +178,20 @@ def decode(node: JsonValue, model: type[S], *, strict: bool, leaves: bool = Fals
             if not path:
                 raise MalformedResult(where((*root, *steps)) or layout.RESULT, problem
                                       ) from None
-            value = _value(node, path)
+            value, keyed = _value(node, path), isinstance(path[-1], str)
             if problem == "missing":
                 problem = f"no numeric {key}" if nulled == (*path, key) else f"no {key}"
-            elif value is not None and ("object" in want or "array" in want):
+            elif (value is not None or not keyed) and ("object" in want or "array" in want):
                 shape = "a mapping" if "object" in want else "a list"
                 problem = f"expected {shape}, found {type(value).__name__}"
-            elif value is None or not leaves:
+            elif keyed and (value is None or not leaves):
                 nulled = path if value is None and ("float" in want or "int" in want) else ()
-                node = _without(node, path)
+                node = _without(node, path)     # unnamed: the value as read keeps it
                 continue
             if strict:
                 raise MalformedResult(where((*root, *path)), problem) from None
             dropped.append(f"{where((*root, *path))} ({problem})")
-            node = _without(node, path)
+            node, kept = _without(node, path), _without(kept, path)
 
 
 # -- the frame -------------------------------------------------------------------------------
@@ -396,8 +398,9 @@ class ResultFrame(msgspec.Struct, frozen=True, kw_only=True):
 
     @classmethod
     def of(cls, doc: JsonObject) -> ResultFrame:
-        """The frame of a document, what is malformed in it left out unnamed."""
-        return cls.conform(doc)[0]
+        """The frame of a document kept as read (the records digest it), what is
+        malformed in it left out of the frame unnamed."""
+        return msgspec.structs.replace(cls.conform(doc)[0], doc=doc)
 
     @classmethod
     def _decoded(cls, top: JsonObject, *, strict: bool) -> tuple[ResultFrame, list[str]]:

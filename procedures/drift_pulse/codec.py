@@ -23,6 +23,7 @@ from bench.core.journal import RunDir
 from bench.report.certificate.parts import Sources
 from bench.report.codec import as_written, problem_of
 from bench.report.codec import encode as encode
+from bench.report.result_frame import ResultFrame
 from drivers.json_types import JsonValue
 from procedures.drift_pulse.result import AxisFigures, DriftBody, DriftFigures
 
@@ -69,6 +70,15 @@ def drift_of(result: Mapping[str, object]) -> DriftFigures:
     if ROOT not in result:
         raise MalformedResult(ROOT, "missing")
     return decode(result[ROOT], DriftFigures)
+
+
+def drift_in(frame: ResultFrame) -> DriftFigures:
+    """The drift figures of a result: the analysis's own when it has just given them
+    (`KindResult.frame`, which holds the body only when it is what result.json holds),
+    else the file's, decoded (MalformedResult naming what is not)."""
+    if isinstance(frame.body, DriftBody):
+        return frame.body.drift
+    return drift_of(frame.doc)
 
 
 def drift_model(src: Sources) -> DriftFigures:

@@ -27,7 +27,7 @@ from bench.report.figures import (
 )
 from bench.report.result_frame import ResultFrame
 from bench.report.sample_result import SampleResult
-from procedures.drift_pulse.codec import MalformedResult, drift_of
+from procedures.drift_pulse.codec import MalformedResult, drift_in
 from procedures.drift_pulse.sample import drift_pulse_result
 
 #: CONTRACT §3's binding keys of a drift-pulse result, per gyro and for the platform
@@ -72,7 +72,7 @@ class DriftRecords(DeclaredFigures):
         `platform.gyros.<gyro>.serial`, else PLATFORM-SERIAL/gyro: a gyro is no axis
         instrument, so `serial_of`, which places by axis and role, is not asked)."""
         try:
-            drift = drift_of(frame.doc)
+            drift = drift_in(frame)
         except MalformedResult:
             return []   # no figures to take check values from (its certificate refuses it)
         platform = _block(stand.get("platform"))

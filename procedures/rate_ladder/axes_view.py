@@ -11,7 +11,7 @@ from collections.abc import Mapping, Sequence
 from typing import Protocol
 
 from bench.report.result_frame import MalformedResult, ResultFrame
-from procedures.rate_ladder.codec import conform
+from procedures.rate_ladder.codec import axes_in
 
 
 class RateRow(Protocol):
@@ -85,6 +85,6 @@ def axes_of(frame: ResultFrame) -> Mapping[str, AxisRows]:
     """The ladder's own typed axes of a result read once (`ResultFrame`); {} for one whose
     axes are malformed."""
     try:
-        return conform(frame.doc)[0].axes
+        return axes_in(frame)
     except MalformedResult:
         return {}

@@ -91,6 +91,15 @@ def conform(doc: object) -> tuple[LadderResult, list[str]]:
     return LadderResult(frame=frame, axes=axes), dropped + more
 
 
+def axes_in(frame: ResultFrame) -> dict[str, LadderAxis]:
+    """The ladder's axes of a result: the analysis's own when it has just given them
+    (`KindResult.frame`, which holds the body only when it is what result.json holds),
+    else the file's, decoded, what is malformed in them left out."""
+    if isinstance(frame.body, LadderBody):
+        return frame.body.axes
+    return _lenient(frame.doc)[1]
+
+
 def ladder_model(src: Sources) -> LadderResult:
     """The certificate's and the DCC's model of the (conformed) result: `src.model(
     ladder_model)` decodes it once for every section. A result the analysis has just

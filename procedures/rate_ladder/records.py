@@ -30,7 +30,7 @@ from bench.report.result_frame import ResultFrame
 from bench.report.sample_result import SampleResult
 from procedures.rate_ladder import starter
 from procedures.rate_ladder.axes_view import AxisRows, axes_of
-from procedures.rate_ladder.codec import conform
+from procedures.rate_ladder.codec import axes_in
 from procedures.rate_ladder.sample import rate_ladder_result
 
 _RATES = "axes.<axis>.rates[]."
@@ -174,9 +174,8 @@ class LadderRecords:
         return out
 
     def figure_values(self, frame: ResultFrame) -> list[FigureValue]:
-        ladder, _ = conform(frame.doc)
         out: list[FigureValue | None] = []
-        for axis, ax in ladder.axes.items():
+        for axis, ax in axes_in(frame).items():
             for r in ax.rates:
                 rate = _num(r.set_rate_dps)
                 out.append(_value(axis, "rate_error_rel", rate, r.rate_error_rel,
