@@ -146,3 +146,44 @@ def test_the_frame_in_memory_is_the_files() -> None:
     assert bare(ladder.frame).checks[0].set_rate_dps == 10.0
     odd = KindResult(_head(conditions={1: "room"}), _body())  # type: ignore[dict-item]
     assert odd.frame.body is None and odd.frame.conditions == {"1": "room"}
+
+
+def test_the_certificate_in_memory_is_the_files() -> None:
+    """The certificate of a result as its analysis gave it (its frame, body and budgets
+    read by attributes, nothing decoded) is the certificate of its result.json, page for
+    page, for both kinds; its budgets the same, read from the model or the file."""
+    import datetime as dt
+
+    from bench.app.certificate.build import build_document
+    from bench.app.certificate.html import render_html
+    from bench.report.budget import Budget, Term
+    from bench.report.budget_codec import budget_sites
+    from procedures.drift_pulse.codec import drift_of
+    from procedures.drift_pulse.result import DriftBody
+    from procedures.drift_pulse.sample import drift_pulse_result
+
+    ladder, drift = rate_ladder_result(), drift_pulse_result()
+    budget = Budget("rate error", "rate_error_rel", "1", 0.0, (
+        Term("timing", None, 1e-6, "normal", 1.0, 8, "1"),
+        Term("timebase", 2e-7, 5e-7, "rectangular", 1.0)), 2.1e-6, "n", ((0, 1, 0.5),))
+    axes = _body().axes
+    outer = axes["outer"]
+    first = msgspec.structs.replace(outer.rates[0], budgets=(budget.record(),))
+    body = LadderBody(axes={**axes, "outer": msgspec.structs.replace(
+        outer, rates=(first, *outer.rates[1:]))})
+    results = (KindResult(msgspec.structs.replace(_head(), method=ladder.method,
+                                                  checks=ladder.checks), body),
+               KindResult(msgspec.structs.replace(_head(), procedure="drift-pulse",
+                                                  method=drift.method),
+                          DriftBody(drift=drift_of({"drift": encode(drift.drift)}))))
+    for result in results:
+        src = Sources.analysed(result, None)
+        assert src.frame is result.frame and src.walked is result.body
+        read = Sources.load(json.loads(encode_document(result.document)), None)
+        assert read.walked is read.result and read.frame.body is None
+        assert budget_sites(result.body) == budget_sites(read.result)
+        issued = dt.date(2025, 3, 6)
+        assert render_html(build_document(src, issued)) == \
+            render_html(build_document(read, issued))
+    (site,) = budget_sites(results[0].body)
+    assert site[:2] == ("axis outer, +10 °/s", "axes.outer.rates[0]") and site[2] == budget

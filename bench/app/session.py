@@ -140,7 +140,7 @@ def _write_outputs(run: RunDir, cfg: Config, progress: PlainConsole,
 def summary_of(outputs: Outputs) -> Summary:
     """The certificate's figures; without a certificate, only the verdict."""
     if outputs.doc is not None:
-        return summarize(outputs.doc, outputs.result.document)
+        return summarize(outputs.doc, outputs.result.frame)
     return Summary((), (), "", (outputs.verdict or "incomplete").upper())
 
 

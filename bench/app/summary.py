@@ -22,13 +22,13 @@ from bench.report.figures import SummaryCut, fields_of, spec_for
 from bench.report.result_frame import JsonValue, ResultFrame
 
 
-def _declared(result: Mapping[str, JsonValue], name: str) -> SummaryCut:
+def _declared(frame: ResultFrame, name: str) -> SummaryCut:
     """The kind's declared figures as one table: where, quantity, value ± U, verdict."""
     kind = installed_records(name)
     if kind is None:
         return SummaryCut()
     rows = []
-    for f in figures_of(ResultFrame.of(dict(result)), name):
+    for f in figures_of(frame, name):
         spec = spec_for(f.quantity, kind.figures)
         scale, unit = (spec.scale, spec.shown) if spec is not None else (1.0, f.unit)
         shown = format_value_u(f.value, f.u, scale, signed=True)
@@ -45,12 +45,15 @@ def _declared(result: Mapping[str, JsonValue], name: str) -> SummaryCut:
                              align="llrc", caption="Results"),))
 
 
-def summarize(doc: Document, result: Mapping[str, JsonValue] | None = None) -> Summary:
-    """The figures the console shows, as the certificate prints them."""
-    name = kind_name(ResultFrame.of(dict(result or {})))
+def summarize(doc: Document, result: ResultFrame | Mapping[str, JsonValue] | None = None
+              ) -> Summary:
+    """The figures the console shows, as the certificate prints them, of the result's
+    frame (as the analysis gave it, or result.json's)."""
+    frame = result if isinstance(result, ResultFrame) else ResultFrame.of(dict(result or {}))
+    name = kind_name(frame)
     kind = installed_records(name)
     cut = (kind.summary_cut(doc) if isinstance(kind, SummarisesRun)
-           else _declared(result or {}, name))
+           else _declared(frame, name))
     tables = tuple(SummaryTable(t.caption, t.header, t.rows, t.align or "r" * len(t.header))
                    for t in cut.tables)
     fields = fields_of(doc)

@@ -5,7 +5,7 @@ Why a codec of its own: a kind's result model carries its budgets (`BudgetRecord
 with the model), but the certificate and the DCC print every budget of any kind's
 result.json, wherever it sits (a `budgets` list under an axis, a rate, a pair...), and name
 where it sits; so the whole document is walked here, the one place its JSON is read for
-budgets. A budget that is not one (a term without its u, a correlation naming a term
+budgets (or, for a result its analysis has just given, its model: `BudgetRecord`s). A budget that is not one (a term without its u, a correlation naming a term
 outside the budget) is left out, not printed half: the others still are.
 """
 
@@ -14,8 +14,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from bench.report.budget import Budget, Term, num
-from drivers.json_types import JsonValue
+from bench.report.budget import Budget, BudgetRecord, Term, num
+from bench.report.result_frame import Node, entries
 
 #: (where, in a reader's words; the result.json path of the budgets' owner; the budget)
 BudgetSite = tuple[str, str, Budget]
@@ -39,34 +39,32 @@ def budget_from_json(d: Mapping[str, Any]) -> Budget | None:
         return None
 
 
-def _site(path: tuple[str | int, ...], node: Mapping[str, JsonValue]) -> str:
+def _site(path: tuple[str | int, ...], node: Node) -> str:
     """Where a budget belongs, for a reader: 'axis outer, +10 deg/s', 'axis x', ..."""
     axis = next((str(path[i + 1]) for i in range(len(path) - 1)
                  if path[i] == "axes"), None)
     where = [f"axis {axis}"] if axis else []
-    if (rate := num(node.get("set_rate_dps"))) is not None:
+    stated = dict(entries(node))
+    if (rate := num(stated.get("set_rate_dps"))) is not None:
         where.append(f"{rate:+g} °/s")
-    elif (pair := num(node.get("rate_dps"))) is not None:
+    elif (pair := num(stated.get("rate_dps"))) is not None:
         where.append(f"pair ±{pair:g} °/s")
     return ", ".join(where) or "overall"
 
 
-def budget_sites(node: JsonValue, path: tuple[str | int, ...] = ()) -> list[BudgetSite]:
+def budget_sites(node: Node, path: tuple[str | int, ...] = ()) -> list[BudgetSite]:
     """(where, result.json path of the owner, budget) for every budget under `node`, in
     document order."""
     out: list[BudgetSite] = []
-    if isinstance(node, dict):
-        for k, v in node.items():
-            if k == "budgets" and isinstance(v, list):
-                owner = ".".join(str(p) if not isinstance(p, int) else f"[{p}]"
-                                 for p in path).replace(".[", "[")
-                for d in v:
-                    b = budget_from_json(d) if isinstance(d, dict) else None
-                    if b is not None:
-                        out.append((_site(path, node), owner, b))
-            else:
-                out += budget_sites(v, (*path, k))
-    elif isinstance(node, list):
-        for i, v in enumerate(node):
-            out += budget_sites(v, (*path, i))
+    for k, v in entries(node):
+        if k == "budgets" and isinstance(v, list | tuple):
+            owner = ".".join(str(p) if not isinstance(p, int) else f"[{p}]"
+                             for p in path).replace(".[", "[")
+            for d in v:
+                b = d.budget() if isinstance(d, BudgetRecord) else \
+                    budget_from_json(d) if isinstance(d, dict) else None
+                if b is not None:
+                    out.append((_site(path, node), owner, b))
+        else:
+            out += budget_sites(v, (*path, k))
     return out

@@ -28,8 +28,7 @@ import msgspec
 
 from bench.analysis.finite import finite_number
 from bench.report.certificate.model import Document, Fields, Table
-from bench.report.result_frame import ResultFrame
-from drivers.json_types import JsonValue
+from bench.report.result_frame import Node, ResultFrame, at, entries
 
 #: the trend plot's tolerance bands: +-T around zero, 0..T (a spread), or none
 BANDS = ("sym", "upper", "")
@@ -124,27 +123,6 @@ def spec_for(quantity: str, specs: Sequence[FigureSpec]) -> FigureSpec | None:
     return next((s for s in specs if s.matches(quantity)), None)
 
 
-#: a node of a result as a reader walks it: result.json's JSON, or (a result its analysis
-#: has just given) the kind's own model, read by its attributes
-Node = JsonValue | msgspec.Struct | tuple["Node", ...] | Mapping[str, "Node"]
-
-
-def _child(node: Node, key: str) -> Node:
-    """`node`'s entry `key` (a mapping's) or field (a model's); None when it has none."""
-    if isinstance(node, Mapping):
-        return node.get(key)
-    found = getattr(node, key, None) if isinstance(node, msgspec.Struct) else None
-    return None if found is msgspec.UNSET else found
-
-
-def _states(node: Node, key: str) -> bool:
-    """Whether `node` states `key` (null too: a model's field that is set)."""
-    if isinstance(node, Mapping):
-        return key in node
-    return isinstance(node, msgspec.Struct) and key in node.__struct_fields__ \
-        and getattr(node, key) is not msgspec.UNSET
-
-
 def _walk(node: Node, parts: Sequence[str], axis: str, rate: float | None,
           spec: FigureSpec) -> Iterator[tuple[str, float | None, float | None, float | None]]:
     """(axis, rate, value, U) for every match of `parts` (the value's key last)."""
@@ -152,22 +130,22 @@ def _walk(node: Node, parts: Sequence[str], axis: str, rate: float | None,
         return
     head, rest = parts[0], parts[1:]
     if not rest:
-        yield (axis, rate, finite_number(_child(node, head)),
-               finite_number(_child(node, spec.u_path)) if spec.u_path else None)
+        yield (axis, rate, finite_number(at(node, head)),
+               finite_number(at(node, spec.u_path)) if spec.u_path else None)
         return
     if head == "<axis>":
         for key, child in node.items() if isinstance(node, Mapping) else ():
             yield from _walk(child, rest, str(key), rate, spec)
         return
     if head.endswith("[]"):
-        items = _child(node, head[:-2])
+        items = at(node, head[:-2])
         for item in items if isinstance(items, list | tuple) else ():
             here = rate
-            if spec.rate_key and _states(item, spec.rate_key):
-                here = finite_number(_child(item, spec.rate_key))
+            if spec.rate_key and spec.rate_key in dict(entries(item)):
+                here = finite_number(at(item, spec.rate_key))
             yield from _walk(item, rest, axis, here, spec)
         return
-    yield from _walk(_child(node, head), rest, axis, rate, spec)
+    yield from _walk(at(node, head), rest, axis, rate, spec)
 
 
 def values_at(frame: ResultFrame, specs: Sequence[FigureSpec]) -> list[FigureValue]:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar, cast
 
@@ -241,12 +241,46 @@ class Check(msgspec.Struct, frozen=True, kw_only=True):
         return key in self.doc
 
 
+#: a node of a result as a reader walks it: result.json's JSON, or (a result its analysis
+#: has just given) the kind's own model, read by its attributes
+Node: TypeAlias = JsonLike | msgspec.Struct | Sequence["Node"] | Mapping[str, "Node"]
+
+
+def entries(node: Node) -> Iterator[tuple[str | int, Node]]:
+    """What `node` states, as result.json holds it: a mapping's entries, a list's items
+    (by index), a model's fields under their keys, those its encoding leaves out (UNSET;
+    a default an `omit_defaults` model omits) left out."""
+    if isinstance(node, msgspec.Struct):
+        names = node.__struct_fields__
+        # the defaults stand for the last fields (msgspec's layout; its `structs.fields`
+        # would evaluate every annotation, some named for the type checker only)
+        defaults = (msgspec.NODEFAULT,) * (len(names) - len(node.__struct_defaults__)) \
+            + node.__struct_defaults__
+        omit = node.__struct_config__.omit_defaults
+        for name, key, default in zip(names, node.__struct_encode_fields__, defaults,
+                                      strict=True):
+            value = getattr(node, name)
+            factory = getattr(default, "factory", None)
+            if value is UNSET or omit and default is not msgspec.NODEFAULT and \
+                    value == (factory() if factory is not None else default):
+                continue
+            yield key, value
+    elif isinstance(node, Mapping):
+        yield from node.items()
+    elif isinstance(node, list | tuple):
+        yield from enumerate(node)
+
+
+def at(node: Node, *keys: str | int) -> Node:
+    """The value at `keys` under `node`, as result.json states it; None when it states none."""
+    for key in keys:
+        node = dict(entries(node)).get(key)
+    return node
+
+
 def _stated(part: Body) -> dict[str, Json]:
-    """A kind's part by its keys: a Struct's fields it states (UNSET: not stated) or a
-    plug-in kind's mapping, the values as they are (no encoding)."""
-    if isinstance(part, msgspec.Struct):
-        return {f: v for f in part.__struct_fields__ if (v := getattr(part, f)) is not UNSET}
-    return cast(dict[str, Json], dict(part or {}))
+    """A kind's part by its keys, the values as they are (no encoding)."""
+    return {str(k): cast(Json, v) for k, v in entries(part)}
 
 
 class MeasuredHalf(msgspec.Struct, frozen=True):
@@ -347,6 +381,12 @@ class RunSession(msgspec.Struct, frozen=True):
     os_user: str | None = None
 
 
+#: the frame's blocks a reader prints as written, key by key (the procedure's and the stand's
+#: free-form YAML, the kind's settings): not typed beyond a mapping
+AS_WRITTEN = ("stand", "instruments", "conditions", "specification", "certificate",
+              "method")
+
+
 class ResultFrame(msgspec.Struct, frozen=True, kw_only=True):
     """What every kind's result.json says about the run (bench.report.codec.ResultHead):
     the header, the decision rule, the method, the checks and the verdict. Every part is
@@ -414,14 +454,16 @@ class ResultFrame(msgspec.Struct, frozen=True, kw_only=True):
     @classmethod
     def analysed(cls, head: msgspec.Struct, body: Body, document: JsonObject) -> ResultFrame:
         """The frame of a result its analysis has just given: its head's and body's own
-        attributes (msgspec reads them), no JSON in between; `document` is its encoding,
-        which the records digest and store."""
+        attributes (msgspec reads them), no JSON in between. `document` is its encoding:
+        the records digest and store it, and the blocks the frame only prints as written
+        (`AS_WRITTEN`: free-form YAML, the kind's settings) are its, as a file's reader
+        prints them (a list, not the model's tuple)."""
         measured = getattr(body, "conditions_measured", None)
-        frame = msgspec.convert(msgspec.structs.replace(head, checks=(), method={}), cls,
+        blocks = {k: document[k] for k in AS_WRITTEN if k in document}
+        frame = msgspec.convert(msgspec.structs.replace(head, checks=(), **blocks), cls,
                                 from_attributes=True)
         return msgspec.structs.replace(
-            frame, method=_stated(getattr(head, "method", None)),
-            checks=tuple(Check.of(_stated(c)) for c in getattr(head, "checks", ())),
+            frame, checks=tuple(Check.of(_stated(c)) for c in getattr(head, "checks", ())),
             conditions_measured=MeasuredConditions() if measured in (None, UNSET) else
             msgspec.convert(measured, MeasuredConditions, from_attributes=True),
             doc=document, body=body)

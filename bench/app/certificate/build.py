@@ -199,7 +199,7 @@ def build_document(src: Sources, issued: dt.date | None = None, issue: Issue | N
     sections.append(Section(n.next(), "Records: raw data and inputs", _records(src)))
     for title, blocks in [*proc.parts.certificate_annexes(src), *extra_sections]:
         sections.append(Section(n.next(), title, tuple(blocks)))
-    budgets = budget_tables(budget_sites(src.result))
+    budgets = budget_tables(budget_sites(src.walked))
     if budgets:
         sections.append(Section(n.next(), "Uncertainty budgets (EA-4/02)", budgets,
                                 new_page=True))

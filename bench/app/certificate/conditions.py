@@ -12,9 +12,11 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 
+import msgspec
+
 from bench.analysis.finite import finite_number as num
 from bench.report.certificate.parts import Sources, label_of, text_of
-from drivers.json_types import JsonValue
+from bench.report.result_frame import Node, at, entries
 
 NOT_MEASURED = "not measured"
 NONE = "—"
@@ -30,26 +32,23 @@ class ConditionRow:
     measured: str         # NOT_MEASURED when nothing measured it in this run
 
 
-def _mains_tones(node: JsonValue, axis: str) -> Iterator[tuple[str, float, str]]:
-    """Every fitted mains tone under an axis's results: (axis, frequency in Hz, where the
-    frequency came from)."""
-    if isinstance(node, Mapping):
-        m = node.get("mains")
-        if isinstance(m, Mapping) and (f := num(m.get("frequency_hz"))) is not None:
-            yield axis, f, str(m.get("source") or "")
-        for k, v in node.items():
-            if k != "mains":
-                yield from _mains_tones(v, axis)
-    elif isinstance(node, list):
-        for v in node:
-            yield from _mains_tones(v, axis)
+def _mains_tones(node: Node, axis: str) -> Iterator[tuple[str, float, str]]:
+    """Every fitted mains tone under an axis's results (result.json's, or the kind's model
+    its analysis has just given): (axis, frequency in Hz, where the frequency came from)."""
+    stated = dict(entries(node))
+    m = stated.pop("mains", None)
+    if isinstance(m, Mapping | msgspec.Struct) and (f := num(at(m, "frequency_hz"))) is not None:
+        yield axis, f, str(at(m, "source") or "")
+    for v in stated.values():
+        yield from _mains_tones(v, axis)
 
 
 def mains_row(src: Sources) -> ConditionRow | None:
     """The stand run's mains frequency: the one stated (procedure or stand file, the lab's
     grid), or the tones the fits found per axis, stated as found; None when no result
     fitted a mains tone."""
-    tones = [t for axis, ax in src.frame.part("axes").items()   # any kind's, walked
+    axes = at(src.walked, "axes")
+    tones = [t for axis, ax in entries(axes if isinstance(axes, Mapping) else {})  # walked
              for t in _mains_tones(ax, str(axis))]
     if not tones:
         return None

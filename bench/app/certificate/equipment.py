@@ -26,7 +26,7 @@ from bench.core.traceability import (
     with_declared_serials,
 )
 from bench.report.certificate.parts import Sources, text_of
-from bench.report.result_frame import obj
+from bench.report.result_frame import at
 
 NONE = "—"
 
@@ -110,7 +110,7 @@ def _unstated_status(src: Sources, t: Traced) -> str:
     role = t.where.rsplit(".", 1)[-1]
     axis = t.where.split(".")[-2] if "." in t.where else ""
     # the kind's part (its pairs: a rate is measured by the counter and the FOG)
-    pairs = obj(src.frame.part("axes"), axis).get("pairs") if axis else None
+    pairs = at(src.walked, "axes", axis, "pairs") if axis else None
     if role in COMMANDING_ROLES and pairs is not None:
         return ("none needed: it commands the rate; every reported rate is measured by "
                 "the counter and the FOG, none read from the drive")

@@ -77,7 +77,7 @@ def build_dcc(inputs: DccInputs) -> etree._ElementTree:
     results = el(root, "measurementResults")
     methods_and_conditions(results, src, kind)
     kind.dcc_results(results, src, checks)
-    budget_results(results, budget_sites(src.result))
+    budget_results(results, budget_sites(src.walked))
     if results.find(f"{{{DCC_NS}}}measurementResult") is None:    # the DCC needs one
         mr = el(results, "measurementResult", id="noResults")
         name(mr, "No results")

@@ -180,12 +180,14 @@ def _drive(axis: str, raw: Path, events: Sequence[Event], serial: str,
     return out
 
 
-def checks_of(run_path: Path, result: Mapping[str, JsonValue], stand: Mapping[str, JsonValue],
-              kind_name: str | None = None) -> list[CheckRecord]:
-    """Every check value of one run, per instrument serial."""
+def checks_of(run_path: Path, result: ResultFrame | Mapping[str, JsonValue],
+              stand: Mapping[str, JsonValue], kind_name: str | None = None
+              ) -> list[CheckRecord]:
+    """Every check value of one run, per instrument serial, from its result's frame (as
+    the analysis gave it, or result.json's)."""
     events = read_events(run_path / layout.EVENTS) \
         if (run_path / layout.EVENTS).is_file() else []
-    frame = ResultFrame.conform(result)[0]
+    frame = result if isinstance(result, ResultFrame) else ResultFrame.conform(result)[0]
     kind_of_run = kind_name or frame.procedure or ""
     ident = as_object(stand.get("stand")) or {}
     ident.update({k: v for k, v in frame.stand.items() if v is not None})

@@ -250,7 +250,7 @@ def record_of(run_path: str | Path, frame: ResultFrame | None = None) -> RunReco
         bench_version=_opt(meta.bench_version),
         figures=tuple(frame_figures(frame, kind)),
         cert_files=cert_files,
-        checks=tuple(checks_of(path, result, stand_file if isinstance(stand_file, dict)
+        checks=tuple(checks_of(path, frame, stand_file if isinstance(stand_file, dict)
                                else {}, kind)),
     )
 

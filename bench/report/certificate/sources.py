@@ -71,27 +71,42 @@ class Sources:
         frame, dropped = conform_result(result)
         src = cls(frame.doc, run_path, dropped=dropped, written=as_object(result) or {})
         src.frame = frame
-        if run_path is None:
-            return src
-        src.meta = read_json_object(run_path / layout.META)
+        return src.beside_run()
+
+    def beside_run(self) -> Sources:
+        """With what the run directory adds (none without one)."""
+        if self.run_path is None:
+            return self
+        self.meta = read_json_object(self.run_path / layout.META)
         # as the run read them: a placeholder left to fill in is no value to print
-        src.stand_file = run_copy(run_path, layout.STAND)
-        src.procedure_file = run_copy(run_path, layout.PROCEDURE)
-        events = run_path / layout.EVENTS
+        self.stand_file = run_copy(self.run_path, layout.STAND)
+        self.procedure_file = run_copy(self.run_path, layout.PROCEDURE)
+        events = self.run_path / layout.EVENTS
         if events.exists():
-            src.events = read_events(events)
-        return src
+            self.events = read_events(events)
+        return self
 
     @classmethod
     def analysed(cls, result: KindResult[ResultPart], run_path: Path | None) -> Sources:
         """The run as its analysis has just given its result (result.json is its encoding,
-        not read back): the kind's certificate part takes the result's body as its model,
-        every section the frame the analysis gave (`KindResult.frame`, typed)."""
-        src = cls.load(result.document, run_path)
+        not read back): every section reads the frame the analysis gave (`KindResult.
+        frame`, typed) and the kind's part its body, nothing decoded, when they hold what
+        result.json holds (then nothing in them is malformed); else result.json's, as a
+        reader of the file would."""
+        if result.frame.body is None:
+            src = cls.load(result.document, run_path)
+        else:
+            src = cls(result.document, run_path, written=result.document).beside_run()
+            src.frame = result.frame
         src.body = result.body
-        if not src.dropped:    # the document's kind part as conformed (nulls gone)
-            src.frame = msgspec.structs.replace(result.frame, doc=src.result)
         return src
+
+    @property
+    def walked(self) -> msgspec.Struct | JsonObject:
+        """The result as a reader walks all of it (budgets wherever they sit, mains tones):
+        the kind's own model when its analysis has just given it (`analysed`), else
+        result.json (conformed)."""
+        return self.frame.body if isinstance(self.frame.body, msgspec.Struct) else self.result
 
     @classmethod
     def read(cls, result_file: Path) -> Sources:
