@@ -283,6 +283,16 @@ def _stated(part: Body) -> dict[str, Json]:
     return {str(k): cast(Json, v) for k, v in entries(part)}
 
 
+def _check(check: Body) -> Check:
+    """A kind's check as its analysis gave it: a model's fields taken as they are (its
+    keys, for the figures under unit-suffixed ones), a plug-in kind's JSON values read."""
+    stated = _stated(check)
+    if not isinstance(check, msgspec.Struct):
+        return Check.of(stated)
+    fields = {k: v for k, v in stated.items() if k in Check.__struct_fields__}
+    return Check(**fields, doc=stated)  # type: ignore[arg-type] # the kind's typed values
+
+
 class MeasuredHalf(msgspec.Struct, frozen=True):
     """The FOG's temperature over one half, from its frames (`conditions_measured.
     fog_temperature.axes.<axis>.halves[]`, procedures that record it)."""
@@ -463,7 +473,7 @@ class ResultFrame(msgspec.Struct, frozen=True, kw_only=True):
         frame = msgspec.convert(msgspec.structs.replace(head, checks=(), **blocks), cls,
                                 from_attributes=True)
         return msgspec.structs.replace(
-            frame, checks=tuple(Check.of(_stated(c)) for c in getattr(head, "checks", ())),
+            frame, checks=tuple(map(_check, getattr(head, "checks", ()))),
             conditions_measured=MeasuredConditions() if measured in (None, UNSET) else
             msgspec.convert(measured, MeasuredConditions, from_attributes=True),
             doc=document, body=body)
