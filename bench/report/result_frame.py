@@ -106,26 +106,25 @@ def problem_of(err: msgspec.ValidationError) -> tuple[str, str]:
     return path, text
 
 
-def _json_type(value: object) -> str:
-    """A value's type as msgspec names it in a refusal."""
-    return {dict: "object", list: "array", type(None): "null"}.get(type(value),
-                                                                   type(value).__name__)
+#: JSON's types as msgspec names them in a refusal (the others by their Python name)
+_JSON_TYPES = {dict: "object", list: "array", type(None): "null"}
 
 
-def _at(node: object, steps: list[str | int], got: str) -> Iterator[KeyPath]:
-    """The key paths `steps` names in `node` (msgspec's `[...]`, a mapping's key it does
-    not name, tried key by key) that end at a value of type `got` ('' : any)."""
+def _at(node: JsonValue, steps: list[str | int], got: str
+        ) -> Iterator[tuple[KeyPath, JsonValue]]:
+    """(key path, value) of each place `steps` names in `node` (msgspec's `[...]`: a
+    mapping's key it does not name, tried key by key) whose value is of type `got` ('':
+    any)."""
     if not steps:
-        if not got or _json_type(node) == got:
-            yield ()
+        if not got or _JSON_TYPES.get(type(node), type(node).__name__) == got:
+            yield (), node
         return
     step, rest = steps[0], steps[1:]
-    keys = list(node) if step == "..." and isinstance(node, dict) else [step]
-    for k in keys:
+    for k in list(node) if step == "..." and isinstance(node, dict) else [step]:
         if isinstance(node, dict) and isinstance(k, str) and k in node:
-            yield from ((k, *p) for p in _at(node[k], rest, got))
+            yield from (((k, *p), v) for p, v in _at(node[k], rest, got))
         elif isinstance(node, list) and isinstance(k, int) and k < len(node):
-            yield from ((k, *p) for p in _at(node[k], rest, got))
+            yield from (((k, *p), v) for p, v in _at(node[k], rest, got))
 
 
 def _without(node: JsonValue, path: KeyPath) -> JsonValue:
@@ -140,13 +139,6 @@ def _without(node: JsonValue, path: KeyPath) -> JsonValue:
         keys = {k: _without(v, rest) if rest and k == step else v
                 for k, v in node.items() if rest or k != step}
         return keys
-    return node
-
-
-def _value(node: JsonValue, path: KeyPath) -> JsonValue:
-    for step in path:
-        node = node[step] if isinstance(node, dict) and isinstance(step, str) else \
-            node[step] if isinstance(node, list) and isinstance(step, int) else None
     return node
 
 
@@ -174,11 +166,11 @@ def decode(node: JsonValue, model: type[S], *, strict: bool, leaves: bool = Fals
                 for s in _STEP.finditer(at)]
             if problem == "missing":
                 want, got, key = "object", "", steps.pop()
-            path = next(_at(node, steps, got), None)
+            path, value = next(_at(node, steps, got), ((), None))
             if not path:
                 raise MalformedResult(where((*root, *steps)) or layout.RESULT, problem
                                       ) from None
-            value, keyed = _value(node, path), isinstance(path[-1], str)
+            keyed = isinstance(path[-1], str)
             if problem == "missing":
                 problem = f"no numeric {key}" if nulled == (*path, key) else f"no {key}"
             elif (value is not None or not keyed) and ("object" in want or "array" in want):
