@@ -65,7 +65,7 @@ def as_object(value: object) -> JsonObject | None:
     return {str(k): v for k, v in value.items()}
 
 
-# -- typed leaves ----------------------------------------------------------------------------
+# -- leaves of a mapping a reader reads as written --------------------------------------------
 
 def text(doc: Mapping[str, JsonValue], key: str) -> str | None:
     value = doc.get(key)
@@ -75,7 +75,6 @@ def text(doc: Mapping[str, JsonValue], key: str) -> str | None:
 def obj(doc: Mapping[str, JsonValue], key: str) -> JsonObject:
     """A mapping entry ({} when absent: conform dropped what was no mapping)."""
     return as_object(doc.get(key)) or {}
-
 
 
 # -- msgspec's refusals in result.json's words, and the one reading loop ----------------------
@@ -211,10 +210,13 @@ class Check(msgspec.Struct, frozen=True, kw_only=True):
 
     @property
     def tolerance(self) -> float | None:
-        """The tolerance, in the unit its key names (tolerance_rel, tolerance_dph...)."""
-        return next((finite_number(self.doc[k]) for k in (
-            "tolerance_rel", "tolerance_dph", *sorted(self.doc)) if k.startswith(
-                "tolerance") and k in self.doc), None)
+        """The tolerance, in the unit its key names (tolerance_rel, tolerance_dph...), as
+        stated (an int stays an int: the records store it so); None when no finite number."""
+        found = next((self.doc[k] for k in ("tolerance_rel", "tolerance_dph", *sorted(
+            self.doc)) if k.startswith("tolerance") and k in self.doc), None)
+        if isinstance(found, bool) or not isinstance(found, int | float):
+            return None
+        return found if math.isfinite(found) else None
 
     @classmethod
     def of(cls, doc: JsonObject) -> Check:
