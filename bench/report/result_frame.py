@@ -492,19 +492,19 @@ class ResultFrame(msgspec.Struct, frozen=True, kw_only=True):
         return obj(self.doc, key)
 
 
-@dataclass(frozen=True, slots=True)
-class CertificateSettings:
+class CertificateSettings(msgspec.Struct, frozen=True):
     """The certificate settings (`certificate`: the lab file's under the run's): who
     issues it and for whom; each printed as written (an absent one says so)."""
 
-    laboratory: JsonValue = None
-    address: JsonValue = None
-    accreditation: JsonValue = None
-    customer: JsonValue = None
-    customer_address: JsonValue = None
-    customer_contact: JsonValue = None
-    site: JsonValue = None
-    entries: tuple[tuple[str, JsonValue], ...] = ()   # every setting, in the file's order
+    laboratory: Json = None
+    address: Json = None
+    accreditation: Json = None
+    customer: Json = None
+    customer_address: Json = None
+    customer_contact: Json = None
+    site: Json = None
+    #: every setting, in the file's order (not a key of it)
+    entries: tuple[tuple[str, Json], ...] = msgspec.field(default=(), name="(entries)")
 
     @classmethod
     def of(cls, value: JsonValue, issuer: tuple[tuple[str, str], ...] = ()
@@ -517,11 +517,8 @@ class CertificateSettings:
             for key in ("laboratory", "address", "code", "accreditation"):
                 doc.pop(key, None)
             doc.update(dict(issuer))
-        return cls(laboratory=doc.get("laboratory"), address=doc.get("address"),
-                   accreditation=doc.get("accreditation"), customer=doc.get("customer"),
-                   customer_address=doc.get("customer_address"),
-                   customer_contact=doc.get("customer_contact"), site=doc.get("site"),
-                   entries=tuple(doc.items()))
+        named = {k: v for k, v in doc.items() if isinstance(k, str)}  # a YAML key may not be
+        return msgspec.structs.replace(msgspec.convert(named, cls), entries=tuple(doc.items()))
 
 
 @dataclass(frozen=True, slots=True)
