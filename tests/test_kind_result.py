@@ -9,6 +9,7 @@ import math
 
 import msgspec
 import numpy as np
+import pytest
 
 from bench.core.journal_codec import encode_document
 from bench.report.certificate.sources import Sources
@@ -148,12 +149,17 @@ def test_the_frame_in_memory_is_the_files() -> None:
     assert odd.frame.body is None and odd.frame.conditions == {"1": "room"}
 
 
-def test_the_certificate_in_memory_is_the_files() -> None:
+def test_the_certificate_in_memory_is_the_files(monkeypatch: pytest.MonkeyPatch) -> None:
     """The certificate of a result as its analysis gave it (its frame, body and budgets
-    read by attributes, nothing decoded) is the certificate of its result.json, page for
-    page, for both kinds; its budgets the same, read from the model or the file."""
+    read by attributes, nothing decoded: every decoder refuses to run) is the certificate
+    of its result.json, page for page, for both kinds; its budgets the same, read from the
+    model or the file."""
     import datetime as dt
 
+    import bench.report.budget_codec
+    import bench.report.result_frame
+    import procedures.drift_pulse.codec
+    import procedures.rate_ladder.codec
     from bench.app.certificate.build import build_document
     from bench.app.certificate.html import render_html
     from bench.report.budget import Budget, Term
@@ -176,14 +182,25 @@ def test_the_certificate_in_memory_is_the_files() -> None:
                KindResult(msgspec.structs.replace(_head(), procedure="drift-pulse",
                                                   method=drift.method),
                           DriftBody(drift=drift_of({"drift": encode(drift.drift)}))))
+    decoders = ((bench.report.result_frame, "decode"), (procedures.rate_ladder.codec, "decode"),
+                (procedures.rate_ladder.codec, "ladder_of"),
+                (procedures.drift_pulse.codec, "drift_of"),
+                (bench.report.budget_codec, "budget_from_json"))
+
+    def refused(*args: object, **kwargs: object) -> None:
+        raise AssertionError("decoded between the analysis and the certificate")
+
+    issued = dt.date(2025, 3, 6)
     for result in results:
-        src = Sources.analysed(result, None)
-        assert src.frame is result.frame and src.walked is result.body
+        with monkeypatch.context() as m:
+            for module, name in decoders:
+                m.setattr(module, name, refused)
+            src = Sources.analysed(result, None)
+            assert src.frame is result.frame and src.walked is result.body
+            in_memory = render_html(build_document(src, issued))
         read = Sources.load(json.loads(encode_document(result.document)), None)
         assert read.walked is read.result and read.frame.body is None
         assert budget_sites(result.body) == budget_sites(read.result)
-        issued = dt.date(2025, 3, 6)
-        assert render_html(build_document(src, issued)) == \
-            render_html(build_document(read, issued))
+        assert in_memory == render_html(build_document(read, issued))
     (site,) = budget_sites(results[0].body)
     assert site[:2] == ("axis outer, +10 °/s", "axes.outer.rates[0]") and site[2] == budget
