@@ -282,7 +282,7 @@ class FogLine(FogSettings):
         view = memoryview(data)
         while view and not self._stop.is_set():
             try:
-                k = os.write(self._master, view)  # type: ignore[arg-type]
+                k = self._write_some(view)
                 self._reading = True
                 view = view[k:]
                 self.bytes_written += k
@@ -296,6 +296,23 @@ class FogLine(FogSettings):
                 if e.errno != errno.EIO:
                     raise
                 time.sleep(_WRITE_POLL_MS / 1000)
+
+    def _write_some(self, view: memoryview) -> int:
+        """Write to the port: on a stepped clock all of `view` in one call, the kernel
+        handing it to the reader a pty's few kB at a time while this thread waits without
+        the interpreter lock (written piece by piece, each piece took the lock back, and a
+        bench thread computing the stand held it: the channel moved only while the bench
+        waited, issue 62). The twin sends only while its driver reads (a channel counted
+        open), and a driver that closes the port ends the call (EIO). Elsewhere as much as
+        the port takes now (the paced clock's writer watches for a reader gone)."""
+        assert self._master is not None
+        if not self._stepped:
+            return os.write(self._master, view)
+        os.set_blocking(self._master, True)
+        try:
+            return os.write(self._master, view)
+        finally:
+            os.set_blocking(self._master, False)
 
     def slow_down(self, frames_per_real_s: float | None) -> None:
         """From now on send at most this many frames a real second (None: no limit).
