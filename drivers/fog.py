@@ -28,6 +28,7 @@ flags the indices after that point as uncertain (health "error").
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import math
 import os
@@ -64,6 +65,7 @@ from drivers.fog_formats import (
     get_format,
 )
 from drivers.kvh_config import MODES, KvhConfigError, KvhConfigurator, KvhTarget
+from drivers.port_pump import PortPump
 from drivers.waits import MAX_LATE_REAL_S, MIN_REAL_MARGIN_S, wait_on_clock
 
 if TYPE_CHECKING:
@@ -133,6 +135,48 @@ def _nonblocking_fd(ser: serial.Serial) -> int | None:
         return None if os.get_blocking(fd) else fd
     except (OSError, ValueError, TypeError, serial.SerialException):
         return None
+
+
+def _gather(fd: int, view: memoryview, size: int, gap_s: float,
+            coming: Callable[[], int] | None) -> int:
+    """Read from non-blocking `fd` into `view` after its first `size` bytes, as
+    `Fog._batch` says; returns the bytes `view` holds."""
+    t_end = time.monotonic() + _BATCH_REAL_S
+    cap = len(view)
+    while size < cap:
+        try:
+            got = os.readv(fd, (view[size:],))
+        except BlockingIOError:
+            got = None
+        if got:
+            size += got
+            continue
+        # nothing to read now (EAGAIN: None; a tty that returns at once: 0 bytes)
+        if coming is not None and coming() > size \
+                and time.monotonic() < t_end + _IN_FLIGHT_REAL_S:
+            select.select([fd], [], [], _IN_FLIGHT_POLL_S)  # the burst is on its way
+            continue
+        if got == 0:  # a port that reports data but gives none: pyserial's read says why
+            break
+        if time.monotonic() >= t_end or not gap_s or \
+                not select.select([fd], [], [], gap_s)[0]:
+            break
+    return size
+
+
+def _pumped(pump: PortPump, buf: bytearray, gap_s: float,
+            coming: Callable[[], int] | None) -> memoryview | None:
+    """A batch from the port's pump (drivers/port_pump.py), as `Fog._batch` gathers one
+    from the port; None when nothing came within _READ_TIMEOUT_S."""
+    fd = pump.fd
+    assert fd is not None   # closed only after the reader's loop
+    if not select.select([fd], [], [], _READ_TIMEOUT_S)[0]:
+        return None
+    view = memoryview(buf)
+    size = _gather(fd, view, 0, gap_s, coming)
+    if size == 0:   # readable and empty: the pipe's end, the pump gone
+        raise OSError(errno.EIO, f"{pump.what} ended")
+    return view[:size]
 
 
 class FogCheckpoint(TypedDict):
@@ -503,11 +547,17 @@ class Fog:
         coming = (lambda: in_flight(self.clock, self.port)) if stepped(self.clock) else None
         started = False
         buf = bytearray(_BATCH_BYTES)  # one buffer, refilled for every batch
+        # a co-simulated FOG streams far faster than a real one's 921.6 kBd: its pty is
+        # read by a pump process, not 4 kB a call here (drivers/port_pump.py)
+        pump = PortPump.start(self.port) if stepped(self.clock) else None
         try:
             while not self._stop.is_set():
-                first = ser.read(max(1, min(ser.in_waiting, _BATCH_BYTES)))
-                if first:
-                    data = self._batch(ser, first, gap_s, buf, coming)
+                if pump is not None:
+                    data = _pumped(pump, buf, gap_s, coming)
+                else:
+                    first = ser.read(max(1, min(ser.in_waiting, _BATCH_BYTES)))
+                    data = self._batch(ser, first, gap_s, buf, coming) if first else None
+                if data:
                     if self._raw is not None:
                         try:
                             self._raw.write(data)
@@ -538,6 +588,8 @@ class Fog:
                 # (it would hold every step for its real-time guard until the abort)
                 channel_closed(self.clock, self.port)
         finally:
+            if pump is not None:
+                pump.close()
             with self._cond:
                 self._cond.notify_all()
 
@@ -572,34 +624,16 @@ class Fog:
         size = len(first)
         view[:size] = first
         fd = _nonblocking_fd(ser)
-        t_end = time.monotonic() + _BATCH_REAL_S
+        if fd is not None:
+            return view[:_gather(fd, view, size, gap_s, coming)]
         cap = len(buf)
-        while size < cap:
-            if fd is None:  # a port without a descriptor (not POSIX): through pyserial
-                w = ser.in_waiting
-                more = ser.read(min(w, cap - size)) if w else b""
-                if more:
-                    view[size:size + len(more)] = more
-                    size += len(more)
-                    continue
+        while size < cap:  # a port without a descriptor (not POSIX): through pyserial
+            w = ser.in_waiting
+            more = ser.read(min(w, cap - size)) if w else b""
+            if not more:
                 break
-            try:
-                got = os.readv(fd, (view[size:],))
-            except BlockingIOError:
-                got = None
-            if got:
-                size += got
-                continue
-            # nothing to read now (EAGAIN: None; a tty that returns at once: 0 bytes)
-            if coming is not None and coming() > size \
-                    and time.monotonic() < t_end + _IN_FLIGHT_REAL_S:
-                select.select([fd], [], [], _IN_FLIGHT_POLL_S)  # the burst is on its way
-                continue
-            if got == 0:  # a port that reports data but gives none: pyserial's read says why
-                break
-            if time.monotonic() >= t_end or not gap_s or \
-                    not select.select([fd], [], [], gap_s)[0]:
-                break
+            view[size:size + len(more)] = more
+            size += len(more)
         return view[:size]
 
     def _ingest(self, data: bytes | memoryview, now: float, resumed: StallEvent | None) -> None:

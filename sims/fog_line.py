@@ -52,6 +52,8 @@ class FogLine(FogSettings):
     _wake: threading.Event
     #: a pipe `_rouse` writes to, so the idle writer can wait on it beside the port
     _wake_fds: tuple[int, int] | None
+    #: the writer sleeps on the wake pipe (set by `_idle`, read by `_rouse`)
+    _asleep: bool
     _gate_open: bool
     _queued_bytes: int
     _stepped: bool
@@ -129,9 +131,14 @@ class FogLine(FogSettings):
         return max(head.until_s, sent_s) if isinstance(head, Hold) else sent_s
 
     def _rouse(self) -> None:
-        """Frames queued (or the twin stopping): the writer need not wait a tick."""
+        """Frames queued (or the twin stopping): the writer need not wait a tick. The
+        wake pipe is written only while the writer sleeps on it (`_asleep`): a write per
+        encoded chunk gave the interpreter lock away each time, and taking it back cost the
+        stepping thread ~0.75 ms a chunk behind the readers' decoding (issue 62). The
+        writer says it sleeps before it looks at the queue a last time, so frames queued
+        after that look find it asleep and wake it."""
         self._wake.set()
-        if self._wake_fds is not None:
+        if self._wake_fds is not None and (self._asleep or self._stop.is_set()):
             try:
                 os.write(self._wake_fds[1], b"\0")
             except OSError:   # the pipe full (the writer is awake) or closed (stopped)
@@ -147,7 +154,13 @@ class FogLine(FogSettings):
             self._wake.wait(_TICK_S)
             self._wake.clear()
             return
-        events = idle.poll(_IDLE_MS)
+        self._asleep = True
+        try:
+            with self._qlock:   # frames queued before it said so (a hold waits for time)
+                due = bool(self._queue) and not isinstance(self._queue[0], Hold)
+            events = [] if due else idle.poll(_IDLE_MS)
+        finally:
+            self._asleep = False
         if any(fd == self._master and ev & select.POLLHUP for fd, ev in events):
             self._wake.wait(_UNREAD_TICK_S)
         self._wake.clear()
@@ -282,7 +295,7 @@ class FogLine(FogSettings):
         view = memoryview(data)
         while view and not self._stop.is_set():
             try:
-                k = os.write(self._master, view)  # type: ignore[arg-type]
+                k = self._write_some(view)
                 self._reading = True
                 view = view[k:]
                 self.bytes_written += k
@@ -296,6 +309,23 @@ class FogLine(FogSettings):
                 if e.errno != errno.EIO:
                     raise
                 time.sleep(_WRITE_POLL_MS / 1000)
+
+    def _write_some(self, view: memoryview) -> int:
+        """Write to the port: on a stepped clock all of `view` in one call, the kernel
+        handing it to the reader a pty's few kB at a time while this thread waits without
+        the interpreter lock (written piece by piece, each piece took the lock back, and a
+        bench thread computing the stand held it: the channel moved only while the bench
+        waited, issue 62). The twin sends only while its driver reads (a channel counted
+        open), and a driver that closes the port ends the call (EIO). Elsewhere as much as
+        the port takes now (the paced clock's writer watches for a reader gone)."""
+        assert self._master is not None
+        if not self._stepped:
+            return os.write(self._master, view)
+        os.set_blocking(self._master, True)
+        try:
+            return os.write(self._master, view)
+        finally:
+            os.set_blocking(self._master, False)
 
     def slow_down(self, frames_per_real_s: float | None) -> None:
         """From now on send at most this many frames a real second (None: no limit).

@@ -267,10 +267,14 @@ class FogSamples(FogLine):
             if not self._pending:
                 return
             parts, self._pending, self._pending_n = self._pending, [], 0
-            chunk = parts[0] if len(parts) == 1 else AxisChunk(
-                parts[0].n0, *(np.concatenate(a) for a in zip(
-                    *((c.t_s, c.rate_cmd_dps, c.w_true_dps, c.phi_deg, c.fog_dps)
-                      for c in parts), strict=True)))
+            if len(parts) == 1:
+                chunk = parts[0]
+            else:
+                t_s, rate_cmd, w_true, phi = (np.concatenate(a) for a in zip(
+                    *((c.t_s, c.rate_cmd_dps, c.w_true_dps, c.phi_deg) for c in parts),
+                    strict=True))
+                chunk = AxisChunk(parts[0].n0, t_s, rate_cmd, w_true, phi,
+                                  lambda: np.concatenate([c.fog_dps for c in parts]))
             self._encode_chunk(chunk)
 
     def _on_chunk(self, chunk: AxisChunk) -> None:

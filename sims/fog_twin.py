@@ -169,6 +169,7 @@ class FogTwin(FogSamples):
         self._stop = threading.Event()
         self._wake = threading.Event()   # frames queued: the writer need not wait a tick
         self._wake_fds = None
+        self._asleep = False
         self._gate_open = False          # a reader settled on the port, the clock runs
         self._queued_bytes = 0
         self._stepped = bool(getattr(self.clock, "stepped", False))

@@ -18,10 +18,12 @@ mark; a zero mark is seen whenever phi crosses a multiple of 360 deg, in either 
 
 from __future__ import annotations
 
+import functools
 import math
 import threading
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -125,7 +127,16 @@ class AxisChunk:
     rate_cmd_dps: np.ndarray
     w_true_dps: np.ndarray
     phi_deg: np.ndarray
-    fog_dps: np.ndarray
+    #: the stand's FOG output over the chunk, made when first asked for (`fog_dps`)
+    fog_source: Callable[[], np.ndarray] = field(repr=False, compare=False)
+
+    @cached_property
+    def fog_dps(self) -> np.ndarray:
+        """The FOG's output, drawn only when a twin encodes it: the FOG of the axis not
+        under test streams to nobody, and its noise was a third of the stand's draws on
+        the paper ladder (issue 62). Its draws are keyed by block (sims/rng_grid.py), so
+        drawing them late, or not at all, changes no other number."""
+        return self.fog_source()
 
 
 @dataclass(frozen=True)
@@ -175,6 +186,11 @@ IMU_LEVELS = 4 * 255 + 1
 IMU_LEVEL_MEAN = 4 * 255 / 2
 IMU_LEVEL_STD = math.sqrt(4 * (256**2 - 1) / 12)
 #: RNG blocks of the "imu" stream an axis keeps drawn (a reader asks in small chunks)
+def _part(whole: Callable[[], np.ndarray], lo: int, hi: int) -> Callable[[], np.ndarray]:
+    """Samples lo .. hi-1 of a block's FOG output, made when asked for."""
+    return lambda: whole()[lo:hi]
+
+
 _IMU_BLOCKS_KEPT = 4
 _SEED_CHUNK = 1024        # blocks whose generator seeds are hashed at once (rng_grid.py)
 
@@ -189,7 +205,7 @@ class _Block:
     w_cmd: np.ndarray
     w: np.ndarray
     phi: np.ndarray
-    fog_dps: np.ndarray
+    fog_dps: Callable[[], np.ndarray]   # made on first call (AxisChunk.fog_dps)
     marks: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # sample, true, edge, sense
 
 
@@ -288,7 +304,8 @@ class AxisModel:
                 lo = self._n_next - k * B
                 hi = min(n_end - k * B, B, lo + max_chunk)
                 chunk = AxisChunk(self._n_next, block.t_s[lo:hi], block.w_cmd[lo:hi],
-                                  block.w[lo:hi], block.phi[lo:hi], block.fog_dps[lo:hi])
+                                  block.w[lo:hi], block.phi[lo:hi],
+                                  _part(block.fog_dps, lo, hi))
                 self._release_marks(block, k * B + lo, k * B + hi)
                 self._n_next = k * B + hi
                 self._phi_last = float(block.phi[hi - 1])
@@ -475,9 +492,13 @@ class AxisModel:
             if n0 == 0:  # the first sample is the origin, not a step from it
                 phi -= 0.5 * (w_last + w[0]) * dt
         fog = self.truth.fog
-        fog_dps = fog.k * w + fog.bias_at(t)
-        if fog.noise_dps:
-            fog_dps += self._normals("fog", k) * fog.noise_dps
+
+        @functools.cache
+        def fog_dps() -> np.ndarray:
+            out = fog.k * w + fog.bias_at(t)
+            if fog.noise_dps:
+                out += self._normals("fog", k) * fog.noise_dps
+            return out
         return _Block(k, self._profile_version, t, w_cmd, w, phi, fog_dps,
                       self._marks(k, t, phi, phi_last))
 
