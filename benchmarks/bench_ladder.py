@@ -177,6 +177,29 @@ main eb82d06 at 02:40 (load 0.5 -> 1.8): 83 s wall (1.8 / 71.6 / 2.8 / 5.7 s), 4
 the CPU at load, ~2 % of the wall when idle). The goal (60 s) not met: the measuring phase is the threads' CPU
 (bench thread's drive ticks and FOG encoding, the readers' decode, the CAN notifiers).
 
+30 Nov 2026, 03:27-04:36 (issue 62). py-spy (--threads --idle) on c3e36b6, idle: the
+stepping thread busy 57 s (the stand's samples 27.5, the FOG encoding 14.4, the drive
+ticks 4.4, the outputs 6.4) and 34 s waiting in the clock's settles for the FOG channel;
+the channel moved only while the stepping thread waited: a pty's reads are 4 kB and its
+writes ~11 kB (13.8 kB fit in it), each taking the interpreter lock back, and a pty pair
+that moves 157-237 MB/s alone moved 7-18 MB/s beside a thread running Python (/tmp
+micro-benchmark: 11.4 MB/s with both ends threads, 34.5 with the reader a process, 237
+with both ends out of the lock). Changed: the twin writes a chunk in one blocking call
+(sims/fog_line.py `_write_some`), the driver reads its pty through a pump process into a
+1 MiB pipe (drivers/port_pump.py), the wake pipe is written only while the twin's writer
+sleeps, and the FOG of the axis not under test draws no noise (AxisChunk.fog_dps made on
+first use). Interleaved at load ~3 (another agent's tests): 110 s (c3e36b6) against 92 s;
+idle at 04:28-04:34: c3e36b6 67 s, the change 68, 70 and 67 s (measuring 55-58 s, the
+last analyses 3.6-4.2 s, writing 5.1-5.9 s), 437-442 MB, 0 lost, result.json equal value
+for value: the gain is under load; idle, this VM ran c3e36b6 at 67 s where it had run the
+same code at 83-85 s two hours before (its speed drifts ~20 %). CPU by thread, idle
+(/proc, the change): stepping thread 38.8 s, analysis worker 21.8, FOG readers 19.2, pumps
+11.6 (10.2 of it the kernel's tty reads, which the readers paid before), CAN notifiers
+3.3, twin writers 5.4; 104 CPU s in 72 s of wall on 2 cores, with ~11 s of it serial
+(starting, the worker's last pairs, the certificate): 60 s needs ~15 % less CPU, not more
+overlap. Where: the worker decodes the whole capture again (~8 s), the stand's normals
+(~6 s) and the FOG encoding (~13 s) in the stepping thread.
+
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
 the FOG twins' encoding, the drive twins' ticks: split by cProfile), the FOG twins'
