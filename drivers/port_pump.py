@@ -68,7 +68,12 @@ class PortPump:
             with contextlib.suppress(OSError):   # a smaller pipe still works, more calls
                 fcntl.fcntl(r, _F_SETPIPE_SZ, PIPE_BYTES)
             self._proc: subprocess.Popen[bytes] | None = subprocess.Popen(
-                [sys.executable, "-I", "-S", "-c", _PUMP], stdin=src, stdout=w, stderr=subprocess.DEVNULL, close_fds=True)
+                [sys.executable, "-I", "-S", "-c", _PUMP], stdin=src, stdout=w,
+                stderr=subprocess.DEVNULL, close_fds=True,
+                # a session of its own: the operator's Ctrl-C (SIGINT to the terminal's
+                # process group) is the bench's to handle; a pump killed by it would end
+                # the FOG's stream first, and "the pump ended" would be the cause read
+                start_new_session=True)
         except BaseException:
             os.close(r)
             raise

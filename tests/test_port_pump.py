@@ -6,13 +6,18 @@ from __future__ import annotations
 
 import os
 import select
+import subprocess
+import sys
 import threading
 import time
 import tty
+from pathlib import Path
 
 import numpy as np
 
 from drivers.port_pump import PortPump
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def _read_all(fd: int, n: int, timeout_s: float = 30.0) -> tuple[bytes, bool]:
@@ -77,3 +82,34 @@ def test_the_pump_ends_when_the_far_end_hangs_up() -> None:
         assert ended, "the pump kept the pipe open after the port hung up"
     finally:
         pump.close()
+
+
+def test_a_ctrl_c_to_the_terminal_leaves_the_pump_running(tmp_path: Path) -> None:
+    """Ctrl-C reaches the whole foreground process group; the bench handles it (stops the
+    axes, says "interrupted"), so the pump must not die of it first."""
+    script = tmp_path / "group.py"
+    script.write_text(
+        "import os, select, signal, time, tty\n"
+        "from drivers.port_pump import PortPump\n"
+        "signal.signal(signal.SIGINT, lambda *a: None)  # a handler, as the bench's (an\n"
+        "# ignored SIGINT would be inherited by the pump through exec, hiding the point)\n"
+        "os.setpgid(0, 0)                                # a group of its own, as a shell gives\n"
+        "m, s = os.openpty(); tty.setraw(s)\n"
+        "pump = PortPump.start(os.ttyname(s))\n"
+        "time.sleep(0.2)\n"
+        "os.killpg(0, signal.SIGINT)                     # the operator's Ctrl-C\n"
+        "time.sleep(0.2)\n"
+        "os.write(m, b'after ctrl-c')\n"
+        "got = b''\n"
+        "t_end = time.monotonic() + 5\n"
+        "while len(got) < 12 and time.monotonic() < t_end:\n"
+        "    if select.select([pump.fd], [], [], 0.2)[0]:\n"
+        "        b = os.read(pump.fd, 100)\n"
+        "        if not b:\n"
+        "            break\n"
+        "        got += b\n"
+        "print(got.decode())\n"
+        "pump.close()\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=30, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert done.stdout.strip() == "after ctrl-c", done.stdout + done.stderr
