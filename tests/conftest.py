@@ -186,11 +186,15 @@ def bench(*args: str, timeout: float = 240, env: dict[str, str] | None = None
                           env=_env_without_lab() if env is None else env)
 
 
-def bench_bg(*args: str) -> subprocess.Popen[str]:
-    """`bench ARGS` started in the background (to be interrupted or raced)."""
+def bench_bg(*args: str, new_session: bool = False,
+             env: dict[str, str] | None = None) -> subprocess.Popen[str]:
+    """`bench ARGS` started in the background (to be interrupted or raced); `new_session`:
+    in a process group of its own, as a shell starts a command (to be sent a terminal's
+    signals with os.killpg); `env`, if given, is the whole environment."""
     return subprocess.Popen([sys.executable, "-m", "bench", *args], cwd=ROOT, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            env=_env_without_lab())
+                            env=_env_without_lab() if env is None else env,
+                            start_new_session=new_session)
 
 
 def wait_for_cut(p: subprocess.Popen[str], out: Path,

@@ -143,6 +143,36 @@ def test_every_worker_thread_runs_below_the_benchs_priority_as_of_its_session() 
     assert all(n >= low for n in report["nice"].values()), (low, report["nice"])
 
 
+def test_a_terminals_ctrl_c_leaves_the_worker_to_the_bench() -> None:
+    """Ctrl-C at the terminal is SIGINT to the whole process group, the worker included.
+    The bench handles it (stops the axes, then ends the worker); the worker, idle between
+    jobs, died of it with a KeyboardInterrupt traceback printed above the bench's "ABORT:
+    interrupted by SIGINT", and the job the bench waited for was lost."""
+    pids: list[int] = []
+    errors: list[BaseException | None] = []
+    answered = threading.Semaphore(0)
+
+    def on_done(pid: int, error: BaseException | None) -> None:
+        pids.append(pid)
+        errors.append(error)
+        answered.release()
+
+    worker = AnalysisWorker()
+    try:
+        worker.start(preload=LADDER)
+        worker.submit(os.getpid, on_done=on_done)
+        assert answered.acquire(timeout=120), "the worker did not answer"
+        time.sleep(0.3)                          # idle, waiting for its next job
+        os.kill(pids[0], signal.SIGINT)
+        time.sleep(0.3)
+        worker.submit(os.getpid, on_done=on_done)
+        assert answered.acquire(timeout=120), "the worker did not answer after the SIGINT"
+    finally:
+        worker.close()
+    assert errors == [None, None], errors
+    assert pids[1] == pids[0]                    # the same worker, alive
+
+
 #: a bench that starts a worker as the engine does, prints its pid and its server's, and
 #: waits to be killed
 KILLED_BENCH = f"""

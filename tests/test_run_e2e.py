@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
 import signal
 import time
@@ -19,7 +20,15 @@ import yaml
 from scipy.stats import binom
 
 from sims.stand import AxisTruth
-from tests.conftest import CONFIGS, DemoRun, bench_bg, cli, run_dir_of, wait_for_cut
+from tests.conftest import (
+    CONFIGS,
+    DemoRun,
+    bench_bg,
+    cli,
+    env_as_shipped,
+    run_dir_of,
+    wait_for_cut,
+)
 from tests.conftest import OUTER_SERIALS as OUTER
 
 DEMO = CONFIGS / "procedures" / "demo.yaml"
@@ -276,3 +285,36 @@ def test_each_axis_fog_streams_for_its_own_steps_only(demo_run: DemoRun, tmp_pat
     assert f"first index: {first}" in out.stdout
     index, seq = (int(v) for v in csv.read_text().splitlines()[1].split(",")[:2])
     assert (index, seq) == (first, first % 128)
+
+
+@pytest.mark.timeout(300)
+def test_a_ctrl_c_at_the_terminal_reads_as_the_benchs_own(tmp_path: Path) -> None:
+    """A terminal's Ctrl-C is SIGINT to the whole foreground process group: the bench, its
+    analysis worker and the FOG ports' pumps alike (the test above signals the bench's
+    pid only). The operator reads the bench's words first, and no child's traceback."""
+    proc = _small_procedure(tmp_path)
+    runs = tmp_path / "runs"
+    # as shipped: the certificate's figure workers too (the suite's runs draw in-process)
+    p = bench_bg("run", str(proc), "--yes", "--out", str(runs), new_session=True,
+                 env=env_as_shipped())
+
+    def acquiring(ev: list[dict[str, Any]]) -> bool:
+        # the first pair analysed: the analysis worker waits for its next job, where a
+        # Ctrl-C printed a KeyboardInterrupt traceback
+        return any(e["event"] == "pair" and e.get("unit") == "outer/1dps" for e in ev)
+
+    try:
+        run_dir = wait_for_cut(p, runs, acquiring, 240)
+        os.killpg(p.pid, signal.SIGINT)          # the terminal's Ctrl-C
+        out, err = p.communicate(timeout=240)
+    except BaseException:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.communicate()
+        raise
+    both = out + err
+    assert p.returncode == 3, both
+    assert "Traceback" not in both and "KeyboardInterrupt" not in both, both
+    said = [line for line in both.splitlines() if "ABORT" in line or "Aborted" in line]
+    assert said and all("interrupted by SIGINT" in line for line in said), both
+    ev = _events(run_dir)
+    assert next(e for e in ev if e["event"] == "safe_stop")["ok"] is True

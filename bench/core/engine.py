@@ -229,6 +229,11 @@ def _worker_init(bench_pid: int, bench_nice: int, environ: dict[str, str],
     imports set on top (bench/analysis/blas.py's OPENBLAS_NUM_THREADS): as a spawned
     worker had it after the same imports.
     """
+    # Ctrl-C at the terminal reaches the whole foreground process group, this worker too:
+    # the bench handles it (stops the axes, then ends this worker); here it printed a
+    # KeyboardInterrupt traceback above the bench's "ABORT: interrupted by SIGINT" and
+    # broke the job the bench was waiting for
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     set_by_imports = {k: v for k, v in os.environ.items() if server_environ.get(k) != v}
     os.environ.clear()
     os.environ.update(environ)
