@@ -205,7 +205,7 @@ class _Block:
     w_cmd: np.ndarray
     w: np.ndarray
     phi: np.ndarray
-    fog_dps: Callable[[], np.ndarray]   # made on first call (AxisChunk.fog_dps)
+    fog_of: Callable[[], np.ndarray]   # the FOG output, made on first call (AxisChunk.fog_dps)
     marks: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # sample, true, edge, sense
 
 
@@ -305,7 +305,7 @@ class AxisModel:
                 hi = min(n_end - k * B, B, lo + max_chunk)
                 chunk = AxisChunk(self._n_next, block.t_s[lo:hi], block.w_cmd[lo:hi],
                                   block.w[lo:hi], block.phi[lo:hi],
-                                  _part(block.fog_dps, lo, hi))
+                                  _part(block.fog_of, lo, hi))
                 self._release_marks(block, k * B + lo, k * B + hi)
                 self._n_next = k * B + hi
                 self._phi_last = float(block.phi[hi - 1])
@@ -494,12 +494,12 @@ class AxisModel:
         fog = self.truth.fog
 
         @functools.cache
-        def fog_dps() -> np.ndarray:
+        def fog_of() -> np.ndarray:
             out = fog.k * w + fog.bias_at(t)
             if fog.noise_dps:
                 out += self._normals("fog", k) * fog.noise_dps
             return out
-        return _Block(k, self._profile_version, t, w_cmd, w, phi, fog_dps,
+        return _Block(k, self._profile_version, t, w_cmd, w, phi, fog_of,
                       self._marks(k, t, phi, phi_last))
 
     def _marks(self, k: int, t: np.ndarray, phi: np.ndarray, phi_last: float
