@@ -26,6 +26,14 @@ captures again and writing the windows' scratch files, not this maths.
 30 Nov 2026, 02:41, idle (load < 1.6), main eb82d06: the analysis 2.03 s (17.8 M/s), the
 numpy pass 0.63 s (57.2 M/s): 0.31x. Blocked as above: the ladder's result.json must stay
 equal value for value (issue 62), and the Gram products' last bits are its numbers.
+30 Nov 2026, 06:47, idle, main 6680c14: the analysis 1.758 s (20.5 M/s), the numpy pass
+0.606 s (59.4 M/s): 0.34x. Still blocked, and not by the bits alone: the Gram products
+(0.70 s) take 1.15x the whole numpy pass, and computed on both cores chunk by chunk (the
+same products summed in the same order, so the same bits) the analysis would be ~1.0 s,
+0.6x. The printed k over seeds 1-15 (`--order +-`, a /tmp script calling `simulate`):
+(k - truth) / U had an rms of 0.66 (0.5 expected for U at k = 2), seeds 7 and 1 outside
+U (-1.37, +1.12); with `+-+` (the paper ladder's order at 0.1 deg/s) over seeds 1-7,
+0.54. Not conclusive over 15 seeds; the coverage campaigns are the test of it.
 """
 
 from __future__ import annotations

@@ -200,6 +200,46 @@ same code at 83-85 s two hours before (its speed drifts ~20 %). CPU by thread, i
 overlap. Where: the worker decodes the whole capture again (~8 s), the stand's normals
 (~6 s) and the FOG encoding (~13 s) in the stepping thread.
 
+30 Nov 2026, 05:41-06:45 (issue 62; main 6680c14). Idle VM, load only this benchmark's
+own: 62-66 s until 06:00 (five runs), then 57-62 s (ten runs) as the VM's speed moved
+(phases e.g. 1.3 / 48.8 / 3.2 / 4.1 s at 58 s), 432-436 MB, 0 lost. vmstat over one run: user 46 %,
+system 28 %, idle 17 % of both cores; idle 25-30 % for stretches (the first half of
+each 0.1 deg/s unit, when the analysis worker has nothing to read), ~5 % elsewhere.
+The outer 0.1 deg/s unit alone (`--axes outer --rates 0.1`), CPU and run-queue wait by
+thread (/proc/<tid>/stat and schedstat): stepping thread 13.0 CPU s and 7.8 s waiting
+for a core, FOG reader 6.6 (7.7), pump 6.2 (3.5), twin writer 1.5 (6.1), the worker 8.8
+(4.2); 38.6 CPU s in 28.9 s. The interpreter lock was held 8.6 s of it (py-spy --gil;
+the stepping thread 5.5 s): the threads wait for a core, not for the lock, and the
+clock's settles waited 2.1 s. Tried on branches, not merged (result.json equal value
+for value, raw captures byte-identical in each):
+- the FOG frames encoded by the twin's writer thread (a job of the stepping thread's
+  draws and settings, sims/fog_frames.py on branch h47-job): the unit measured 22.3 and
+  20.2 s against 19.5 and 19.7 s for main;
+- the interpreter's switch interval 5 ms instead of 0.5 ms: 20.6 and 20.9 s against 19.8
+  and 20.3 s;
+- decoding once (branch h47): the live reader logs its decoded samples (four column files
+  in RUN_DIR/.scratch, written from its sample store's memory) and the worker reads a
+  half's window there instead of decoding the capture again. The worker's tail after the
+  last unit fell from 3.2-3.5 to 2.0-2.5 s, but the bench process paid for the writes
+  (measuring +1 s with 13-byte rows built per batch; the writing phase +0.8 s, deleting
+  1.9 GB of log, with zero-copy columns): 60 and 59 s against 60 and 58 s for main,
+  interleaved. The worker runs at nice 10 on what the bench leaves: its CPU is not the
+  measuring phase's.
+Acceptance run (06:22-06:31, main 6680c14, each run started at a 1-minute load average
+below 0.3, nothing else running): 61, 58 and 57 s, median 58 s (measuring 51.5 / 49.1 /
+47.3 s), 433-434 MB, 0 lost, exit 0. The pump left out (branch h49) and the FOG reader,
+its pump and the twin's writer at nice +3 (branch h48), interleaved with main the same
+quarter hour: 58 and 57 s, 58 and 58 s, against 60 and 59 s: inside the VM's noise, not
+merged. The issue's base fa2ce26 the same hour: 79 s (1.8 / 65.8 / 2.0 / 8.8 s), 319 MB.
+Its result.json and main's: the raw captures byte-identical; outside the budgets and the
+procedure file's digest (this script writes a temporary path), 272 values differ in the
+last digits (at most 8.6e-12 relative, intra-turn and Allan figures), and all of them are
+fa2ce26's own: `bench analyze` of its run with fa2ce26's code and OPENBLAS_NUM_THREADS=1
+gives main's numbers exactly (fa2ce26 let BLAS use both cores, so its last digits
+followed the machine; bench/analysis/blas.py pins one thread since). The budgets, matched
+by their key, differ in 70 dof_eff values in the last digit (issue 56's nu_eff with the
+correlations) and in the rows other issues added or renamed.
+
 `--profile` runs the ladder in this process instead and says where the CPU time goes,
 by component: the bench thread (the engine, the clock's steps, the stand's samples,
 the FOG twins' encoding, the drive twins' ticks: split by cProfile), the FOG twins'
