@@ -23,7 +23,6 @@ import math
 import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -130,7 +129,7 @@ class AxisChunk:
     #: the stand's FOG output over the chunk, made when first asked for (`fog_dps`)
     fog_source: Callable[[], np.ndarray] = field(repr=False, compare=False)
 
-    @cached_property
+    @functools.cached_property
     def fog_dps(self) -> np.ndarray:
         """The FOG's output, drawn only when a twin encodes it: the FOG of the axis not
         under test streams to nobody, and its noise was a third of the stand's draws on
@@ -186,13 +185,13 @@ IMU_LEVELS = 4 * 255 + 1
 IMU_LEVEL_MEAN = 4 * 255 / 2
 IMU_LEVEL_STD = math.sqrt(4 * (256**2 - 1) / 12)
 #: RNG blocks of the "imu" stream an axis keeps drawn (a reader asks in small chunks)
+_IMU_BLOCKS_KEPT = 4
+_SEED_CHUNK = 1024        # blocks whose generator seeds are hashed at once (rng_grid.py)
+
+
 def _part(whole: Callable[[], np.ndarray], lo: int, hi: int) -> Callable[[], np.ndarray]:
     """Samples lo .. hi-1 of a block's FOG output, made when asked for."""
     return lambda: whole()[lo:hi]
-
-
-_IMU_BLOCKS_KEPT = 4
-_SEED_CHUNK = 1024        # blocks whose generator seeds are hashed at once (rng_grid.py)
 
 
 @dataclass
